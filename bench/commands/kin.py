@@ -1,0 +1,54 @@
+"""``bench kin``: inverse and forward kinematics and workspace of each robot, from the command line.
+
+Every robot has an adapter module ``bench/commands/kin_<robot>.py`` exposing ``add_ik``, ``add_fk`` and
+(optionally) ``add_workspace``; each takes the robot-level subparsers of ``bench kin ik|fk|workspace`` and adds
+a parser whose ``handler`` returns an exit code. Units on the command line are mm and degrees.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import json
+import sys
+from typing import Any
+
+#: One adapter module per robot; the order is the order of the help.
+ROBOT_MODULES = ("bench.commands.kin_pkm5",)
+
+_ACTIONS = {
+    "ik": "inverse kinematics: pose -> joint values",
+    "fk": "forward kinematics: joint values -> pose",
+    "workspace": "workspace volume by Monte Carlo (and convex hull)",
+}
+
+
+def register(groups: argparse._SubParsersAction) -> None:
+    kin = groups.add_parser("kin", help="kinematics of the robots (mm, degrees)")
+    actions = kin.add_subparsers(dest="action", metavar="ACTION", required=True)
+    robot_parsers = {}
+    for action, text in _ACTIONS.items():
+        parser = actions.add_parser(action, help=text)
+        robot_parsers[action] = parser.add_subparsers(dest="robot", metavar="ROBOT", required=True)
+    for name in ROBOT_MODULES:
+        module = importlib.import_module(name)
+        for action, robots in robot_parsers.items():
+            adder = getattr(module, f"add_{action}", None)
+            if adder is not None:
+                adder(robots)
+
+
+def emit(result: dict[str, Any], as_json: bool, text_lines: list[str]) -> None:
+    """Print a result: JSON on stdout with ``--json``, otherwise the human-readable lines."""
+    if as_json:
+        json.dump(result, sys.stdout, indent=None, allow_nan=False)
+        sys.stdout.write("\n")
+    else:
+        sys.stdout.write("\n".join(text_lines) + "\n")
+
+
+def new_robot_parser(robots: argparse._SubParsersAction, name: str, help_text: str) -> argparse.ArgumentParser:
+    """A robot parser with the shared ``--json`` flag and defaults shown in the help."""
+    parser = robots.add_parser(name, help=help_text, formatter_class=argparse.ArgumentDefaultsHelpFormatter)
+    parser.add_argument("--json", action="store_true", help="print the result as one JSON object")
+    return parser
