@@ -1,0 +1,190 @@
+"""Forward kinematics of the PKM by batched least squares over all six legs (pkm5.md §4.3).
+
+The robot is redundantly actuated (six lengths, three or four pose unknowns per mode), so the pose is the
+least-squares solution of IK(q) = L. Levenberg-Marquardt with the exact Jacobian of the IK, batched over poses;
+local minima (large positive beta, pkm5.md §4.3) are escaped by restarting from alternative guesses and keeping
+the smallest residual.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from motion import dual
+from motion.errors import MotionInputError
+from motion.pkm5.geometry import DEFAULT_GEOMETRY, Geometry, _as_legs
+from motion.pkm5.ik import leg_lengths
+
+__all__ = ["FKResult", "detect_mode", "forward_kinematics", "MODES"]
+
+#: Mode name -> index of the rotation column that is solved for (None: translation only).
+MODES = {"translation": None, "alpha": 3, "beta": 4}
+_NEUTRAL = np.array([150.0, 0.0, 300.0])          # pkm5.md §4.3 neutral guess
+# Restarts for solutions whose residual stays above tolerance. The beta local minima sit at large positive beta and
+# low x (pkm5.md §4.3); (80, 0, 320, 0.4 rad) solved all 25 such cases among 12,567 random feasible beta poses.
+_RESTARTS = {
+    "translation": [(120.0, 0.0, 320.0)],
+    "alpha": [(111.31, 0.0, 300.0, 0.4), (111.31, 0.0, 300.0, -0.4)],
+    "beta": [(80.0, 0.0, 320.0, 0.4), (120.0, 0.0, 320.0, 0.4), (150.0, 0.0, 300.0, -0.4)],
+}
+
+
+@dataclass(frozen=True)
+class FKResult:
+    """Poses solved from leg lengths.
+
+    Attributes
+    ----------
+    pose : ndarray (N, 5)
+        x, y, z [mm], alpha, beta [rad].
+    converged : ndarray (N,) of bool
+        The solver reached a stationary point (step < tolerance) with residual RMS below ``residual_tol_mm``.
+    iterations : ndarray (N,) of int
+        LM iterations of the accepted solution.
+    residual_mm : ndarray (N,)
+        RMS of IK(pose) - L over the six legs: ~1e-12 for consistent lengths; for measured lengths a health metric.
+    mode : ndarray (N,) of str
+        The motion mode solved for.
+    """
+
+    pose: np.ndarray
+    converged: np.ndarray
+    iterations: np.ndarray
+    residual_mm: np.ndarray
+    mode: np.ndarray
+
+
+def detect_mode(lengths_mm, tol_mm: float = 1e-3) -> np.ndarray:
+    """Motion mode from the length pattern (pkm5.md §4.3): 'alpha' if L5 != L6, else 'beta' if a pair is unequal,
+    else 'translation'. ``tol_mm`` should be a few times the length noise for measured data."""
+    lengths = _as_legs(lengths_mm, "lengths_mm")
+    alpha = np.abs(lengths[:, 4] - lengths[:, 5]) > tol_mm
+    beta = (np.abs(lengths[:, 0] - lengths[:, 1]) > tol_mm) | (np.abs(lengths[:, 2] - lengths[:, 3]) > tol_mm)
+    return np.where(alpha, "alpha", np.where(beta, "beta", "translation")).astype(object)
+
+
+def _residual(q, target, mode, geometry, with_jacobian):
+    """IK(q) - target (n, 6) and, if asked, its Jacobian (n, 6, k)."""
+    n, k = q.shape
+    zeros = np.zeros(n)
+    variables = dual.seed(q) if with_jacobian else list(q.T)
+    x, y, z = variables[:3]
+    alpha = variables[3] if mode == "alpha" else zeros
+    beta = variables[3] if mode == "beta" else zeros
+    lengths, _ = leg_lengths(x, y, z, alpha, beta, geometry)
+    r = np.stack([dual.value(length) for length in lengths], -1) - target
+    if not with_jacobian:
+        return r, None
+    return r, np.stack([length.grad for length in lengths], 1)
+
+
+def _levenberg_marquardt(q, target, mode, geometry, max_iter, step_tol):
+    """Batched LM; each pose has its own damping. Returns q, cost, iterations, stationary flag."""
+    n, k = q.shape
+    q = q.copy()
+    r, _ = _residual(q, target, mode, geometry, False)
+    cost = np.einsum("ij,ij->i", r, r)
+    damping = np.full(n, 1e-3)
+    iterations = np.zeros(n, int)
+    done = cost < 1e-24
+    eye = np.eye(k)
+    for _ in range(max_iter):
+        active = np.flatnonzero(~done)
+        if active.size == 0:
+            break
+        qa = q[active]
+        ra, ja = _residual(qa, target[active], mode, geometry, True)
+        normal = np.einsum("nri,nrj->nij", ja, ja)
+        grad = np.einsum("nri,nr->ni", ja, ra)
+        diag = np.diagonal(normal, axis1=1, axis2=2)
+        damped = normal + damping[active, None, None] * eye * diag[:, None, :]
+        step = np.linalg.solve(damped, grad[..., None])[..., 0]
+        q_new = qa - step
+        r_new, _ = _residual(q_new, target[active], mode, geometry, False)
+        cost_new = np.einsum("ij,ij->i", r_new, r_new)
+        better = cost_new <= cost[active]
+        accepted = active[better]
+        q[accepted] = q_new[better]
+        cost[accepted] = cost_new[better]
+        damping[active] = np.where(better, np.maximum(damping[active] * 0.3, 1e-12), damping[active] * 10.0)
+        iterations[active] += 1
+        small_step = np.abs(step).max(1) < step_tol
+        done[active] = (better & small_step) | (cost[active] < 1e-24) | (damping[active] > 1e12)
+    return q, cost, iterations, done
+
+
+def forward_kinematics(lengths_mm, geometry: Geometry = DEFAULT_GEOMETRY, *, initial_pose=None, mode="auto",
+                       max_iter: int = 50, step_tol: float = 1e-9, residual_tol_mm: float = 1e-3,
+                       retry_above_mm: float = 1e-9, mode_tol_mm: float = 1e-6) -> FKResult:
+    """Poses from six leg lengths, batched least squares.
+
+    Parameters
+    ----------
+    lengths_mm : array_like, shape (N, 6)
+        Leg lengths |BC| [mm].
+    initial_pose : array_like (N, 5) or (5,), optional
+        Starting poses (e.g. the previous pose when tracking); default the neutral pose (150, 0, 300) mm.
+    mode : {'auto', 'translation', 'alpha', 'beta'}
+        Which pose variables to solve for; 'auto' uses :func:`detect_mode` with ``mode_tol_mm`` (default 1e-6 mm,
+        right for computed lengths; for measured lengths give the commanded mode, or a tolerance of a few times the
+        length noise, since a four-parameter mode always fits noise better than translation).
+    max_iter, step_tol : int, float
+        LM iteration cap and the step criterion max|dq| (mm, rad) of pkm5.md §4.3.
+    residual_tol_mm : float
+        Largest residual RMS of a converged solution (measured lengths are never exactly consistent).
+    retry_above_mm : float
+        A solution whose residual RMS exceeds this is retried from the restart guesses of pkm5.md §4.3 and the
+        best is kept. Near the beta singularity a wrong local minimum can have a residual of only 1e-4 mm while
+        the pose is 4 mm off, so the default retries anything that is not an exact fit.
+
+    Returns
+    -------
+    FKResult
+
+    Examples
+    --------
+    The lengths of 001 Table I at full retraction give the pose printed in 001 §IV.A (87.82, 0, 295.83):
+
+    >>> r = forward_kinematics([184, 184, 184, 184, 192, 192])
+    >>> np.round(r.pose[0, :3], 3), bool(r.converged[0])
+    (array([ 87.816,   0.   , 295.833]), True)
+    """
+    target = _as_legs(lengths_mm, "lengths_mm")
+    n = len(target)
+    modes = detect_mode(target, mode_tol_mm) if mode == "auto" else np.full(n, mode, dtype=object)
+    unknown = set(modes) - set(MODES)
+    if unknown:
+        raise MotionInputError(f"mode = {sorted(unknown)[0]!r}, expected 'auto' or one of {sorted(MODES)}")
+    start = None
+    if initial_pose is not None:
+        start = np.broadcast_to(np.asarray(initial_pose, dtype=float), (n, 5))
+    pose = np.zeros((n, 5))
+    converged = np.zeros(n, bool)
+    iterations = np.zeros(n, int)
+    residual = np.zeros(n)
+    for name in MODES:
+        rows = np.flatnonzero(modes == name)
+        if rows.size == 0:
+            continue
+        angle_col = MODES[name]
+        cols = [0, 1, 2] + ([angle_col] if angle_col is not None else [])
+        q0 = start[rows][:, cols] if start is not None else np.tile(np.r_[_NEUTRAL, [0.0] * (len(cols) - 3)],
+                                                                    (rows.size, 1))
+        q, cost, its, done = _levenberg_marquardt(q0, target[rows], name, geometry, max_iter, step_tol)
+        for restart in _RESTARTS[name]:
+            retry = np.flatnonzero(np.sqrt(cost / 6) > retry_above_mm)
+            if retry.size == 0:
+                break
+            q_r, cost_r, its_r, done_r = _levenberg_marquardt(
+                np.tile(restart, (retry.size, 1)), target[rows][retry], name, geometry, max_iter, step_tol)
+            better = cost_r < cost[retry]
+            idx = retry[better]
+            q[idx], cost[idx], its[idx], done[idx] = q_r[better], cost_r[better], its_r[better], done_r[better]
+        pose[np.ix_(rows, cols)] = q
+        rms = np.sqrt(cost / 6)
+        residual[rows] = rms
+        iterations[rows] = its
+        converged[rows] = done & (rms <= residual_tol_mm)
+    return FKResult(pose, converged, iterations, residual, modes)
