@@ -1,0 +1,369 @@
+"""The run store: one SQLite file (WAL) holding campaigns, runs, calibrations and every raw sample.
+
+A run is self-describing: its row carries the protocol name and version, the fully resolved configuration, the
+robot settings, the software version, the git SHA and the ids of the calibrations in force, so the stored run is
+enough to re-run or re-analyse it. Every sample is committed in its own transaction the moment it is taken
+(``synchronous=FULL``), so killing the writer, even with SIGKILL, loses no sample that ``add_sample`` returned
+from. A sample carries the index of the protocol step that produced it; resuming a run skips the stored indices.
+
+The status of a run is ``running`` from before its first sample and is settled by the runner in ``finally``:
+``completed``, ``failed`` or ``aborted``, with the reason. A run killed outright stays ``running`` until it is
+resumed.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import math
+import sqlite3
+import subprocess
+from dataclasses import dataclass
+from datetime import datetime, timezone
+from pathlib import Path
+from typing import Any, Iterable, Mapping
+
+from bench import __version__
+from bench.errors import BenchError, ConfigError
+
+__all__ = [
+    "RUN_STATUSES",
+    "CalibrationRecord",
+    "DuplicateSample",
+    "RunRecord",
+    "SampleRecord",
+    "Store",
+    "software_git_sha",
+]
+
+_log = logging.getLogger(__name__)
+
+#: The closed set of run statuses.
+RUN_STATUSES = ("running", "completed", "failed", "aborted")
+
+_SCHEMA = """
+CREATE TABLE IF NOT EXISTS campaigns (
+    id INTEGER PRIMARY KEY,
+    name TEXT NOT NULL UNIQUE,
+    created_utc TEXT NOT NULL,
+    notes TEXT NOT NULL DEFAULT ''
+);
+CREATE TABLE IF NOT EXISTS runs (
+    id INTEGER PRIMARY KEY,
+    campaign_id INTEGER REFERENCES campaigns(id),
+    protocol_name TEXT NOT NULL,
+    protocol_version TEXT NOT NULL,
+    robot TEXT NOT NULL,
+    config_json TEXT NOT NULL,
+    settings_json TEXT NOT NULL,
+    calibration_ids_json TEXT NOT NULL,
+    software_version TEXT NOT NULL,
+    git_sha TEXT NOT NULL,
+    status TEXT NOT NULL CHECK (status IN ('running', 'completed', 'failed', 'aborted')),
+    reason TEXT,
+    started_utc TEXT NOT NULL,
+    ended_utc TEXT
+);
+CREATE TABLE IF NOT EXISTS samples (
+    id INTEGER PRIMARY KEY,
+    run_id INTEGER NOT NULL REFERENCES runs(id),
+    step_index INTEGER NOT NULL,
+    kind TEXT NOT NULL,
+    pose TEXT,
+    cycle INTEGER,
+    t_s REAL NOT NULL,
+    wall_utc TEXT NOT NULL,
+    values_json TEXT NOT NULL,
+    raw_json TEXT,
+    UNIQUE (run_id, step_index)
+);
+CREATE TABLE IF NOT EXISTS calibrations (
+    id INTEGER PRIMARY KEY,
+    name TEXT NOT NULL,
+    version INTEGER NOT NULL,
+    created_utc TEXT NOT NULL,
+    params_json TEXT NOT NULL,
+    source_run_id INTEGER REFERENCES runs(id),
+    notes TEXT NOT NULL DEFAULT '',
+    UNIQUE (name, version)
+);
+"""
+
+
+class DuplicateSample(BenchError):
+    """A sample for a step that already has one: resuming must skip stored steps, never store them twice."""
+
+
+@dataclass(frozen=True)
+class RunRecord:
+    """One stored run, as read back from the ``runs`` table."""
+
+    id: int
+    campaign: str | None
+    protocol_name: str
+    protocol_version: str
+    robot: str
+    config: dict[str, Any]
+    settings: dict[str, Any]
+    calibration_ids: tuple[int, ...]
+    software_version: str
+    git_sha: str
+    status: str
+    reason: str | None
+    started_utc: str
+    ended_utc: str | None
+    n_samples: int
+
+    def as_dict(self) -> dict[str, Any]:
+        """Plain, JSON-ready form (used by ``bench runs --json``)."""
+        out = dict(self.__dict__)
+        out["calibration_ids"] = list(self.calibration_ids)
+        return out
+
+
+@dataclass(frozen=True)
+class SampleRecord:
+    """One raw sample: the step that produced it, where and when, its values (unit in every key) and raw data."""
+
+    run_id: int
+    step_index: int
+    kind: str
+    pose: str | None
+    cycle: int | None
+    t_s: float
+    wall_utc: str
+    values: dict[str, float]
+    raw: Any
+
+
+@dataclass(frozen=True)
+class CalibrationRecord:
+    """One version of a named calibration (e.g. ``mouse_xy``), with its parameters and the run it came from."""
+
+    id: int
+    name: str
+    version: int
+    created_utc: str
+    params: dict[str, Any]
+    source_run_id: int | None
+    notes: str
+
+
+def _utc_now() -> str:
+    return datetime.now(timezone.utc).isoformat(timespec="microseconds")
+
+
+def _to_json(value: Any, field: str) -> str:
+    try:
+        return json.dumps(value, sort_keys=True, allow_nan=False)
+    except (TypeError, ValueError) as exc:
+        raise ConfigError(f"store: {field} = {value!r:.80}, expected JSON-serialisable finite values ({exc})") from exc
+
+
+def software_git_sha() -> str:
+    """The git commit of the source tree bench runs from, with ``-dirty`` when it has local changes."""
+    root = Path(__file__).resolve().parents[2]
+    try:
+        sha = subprocess.run(["git", "rev-parse", "HEAD"], cwd=root, capture_output=True, text=True, timeout=5)
+        if sha.returncode != 0:
+            return "unknown"
+        dirty = subprocess.run(["git", "status", "--porcelain", "--untracked-files=no"], cwd=root,
+                               capture_output=True, text=True, timeout=5)
+        return sha.stdout.strip() + ("-dirty" if dirty.stdout.strip() else "")
+    except (OSError, subprocess.SubprocessError):
+        return "unknown"
+
+
+class Store:
+    """A SQLite run store (WAL journal, every write committed at once).
+
+    Parameters
+    ----------
+    path : str or Path
+        Database file; created with its tables when missing (``bench.db`` in the working folder by default).
+
+    Examples
+    --------
+    >>> with Store(":memory:") as store:
+    ...     run_id = store.start_run(protocol_name="demo", protocol_version="1", robot="pkm5", config={})
+    ...     store.add_sample(run_id, 0, values={"x_mm": 1.0}, pose="P1", cycle=1, t_s=0.0)
+    ...     store.stored_steps(run_id)
+    {0}
+    """
+
+    def __init__(self, path: str | Path = "bench.db") -> None:
+        self.path = str(path)
+        if self.path != ":memory:":
+            parent = Path(self.path).parent
+            if not parent.is_dir():
+                raise ConfigError(f"--store {self.path}: folder {parent} does not exist")
+        try:
+            self._db = sqlite3.connect(self.path, isolation_level=None, timeout=10.0)
+            self._db.execute("PRAGMA journal_mode=WAL")
+            self._db.execute("PRAGMA synchronous=FULL")
+            self._db.execute("PRAGMA foreign_keys=ON")
+            self._db.executescript(_SCHEMA)
+        except sqlite3.DatabaseError as exc:
+            raise ConfigError(f"--store {self.path}: not a usable bench store ({exc})") from exc
+
+    def __repr__(self) -> str:
+        return f"Store({self.path!r})"
+
+    def __enter__(self) -> Store:
+        return self
+
+    def __exit__(self, *exc_info: object) -> None:
+        self.close()
+
+    def close(self) -> None:
+        self._db.close()
+
+    # ---- campaigns -------------------------------------------------------------------------------------------
+
+    def campaign_id(self, name: str, notes: str = "") -> int:
+        """The id of campaign ``name``, created on first use."""
+        self._db.execute("INSERT OR IGNORE INTO campaigns (name, created_utc, notes) VALUES (?, ?, ?)",
+                         (name, _utc_now(), notes))
+        return int(self._db.execute("SELECT id FROM campaigns WHERE name = ?", (name,)).fetchone()[0])
+
+    # ---- runs ------------------------------------------------------------------------------------------------
+
+    def start_run(self, *, protocol_name: str, protocol_version: str, robot: str, config: Mapping[str, Any],
+                  settings: Mapping[str, Any] | None = None, calibration_ids: Iterable[int] = (),
+                  campaign: str | None = None) -> int:
+        """Create a run with status ``running`` and its full provenance; returns the run id."""
+        campaign_id = self.campaign_id(campaign) if campaign else None
+        cursor = self._db.execute(
+            "INSERT INTO runs (campaign_id, protocol_name, protocol_version, robot, config_json, settings_json,"
+            " calibration_ids_json, software_version, git_sha, status, started_utc)"
+            " VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, 'running', ?)",
+            (campaign_id, protocol_name, str(protocol_version), robot, _to_json(dict(config), "config"),
+             _to_json(dict(settings or {}), "settings"), _to_json(sorted(int(i) for i in calibration_ids),
+                                                                  "calibration_ids"),
+             __version__, software_git_sha(), _utc_now()))
+        return int(cursor.lastrowid)
+
+    def set_status(self, run_id: int, status: str, reason: str | None = None) -> None:
+        """Settle (or reopen, with ``running``) the status of a run; ``reason`` says why it failed or stopped."""
+        if status not in RUN_STATUSES:
+            raise ConfigError(f"store: status = {status!r}, expected one of {', '.join(RUN_STATUSES)}")
+        self.run(run_id)
+        ended = None if status == "running" else _utc_now()
+        self._db.execute("UPDATE runs SET status = ?, reason = ?, ended_utc = ? WHERE id = ?",
+                         (status, reason, ended, run_id))
+
+    def run(self, run_id: int) -> RunRecord:
+        """The stored run ``run_id``; ``ConfigError`` names the id when there is none."""
+        rows = self._select_runs("WHERE r.id = ?", (int(run_id),))
+        if not rows:
+            raise ConfigError(f"run {run_id}: no such run in {self.path}")
+        return rows[0]
+
+    def runs(self) -> list[RunRecord]:
+        """Every run, oldest first."""
+        return self._select_runs("", ())
+
+    def _select_runs(self, where: str, args: tuple) -> list[RunRecord]:
+        query = (
+            "SELECT r.id, c.name, r.protocol_name, r.protocol_version, r.robot, r.config_json, r.settings_json,"
+            " r.calibration_ids_json, r.software_version, r.git_sha, r.status, r.reason, r.started_utc,"
+            " r.ended_utc, (SELECT COUNT(*) FROM samples s WHERE s.run_id = r.id)"
+            f" FROM runs r LEFT JOIN campaigns c ON c.id = r.campaign_id {where} ORDER BY r.id")
+        return [
+            RunRecord(id=row[0], campaign=row[1], protocol_name=row[2], protocol_version=row[3], robot=row[4],
+                      config=json.loads(row[5]), settings=json.loads(row[6]),
+                      calibration_ids=tuple(json.loads(row[7])), software_version=row[8], git_sha=row[9],
+                      status=row[10], reason=row[11], started_utc=row[12], ended_utc=row[13], n_samples=row[14])
+            for row in self._db.execute(query, args)
+        ]
+
+    # ---- samples ---------------------------------------------------------------------------------------------
+
+    def add_sample(self, run_id: int, step_index: int, *, values: Mapping[str, float], kind: str = "pose",
+                   pose: str | None = None, cycle: int | None = None, t_s: float, raw: Any = None) -> None:
+        """Store one sample and commit it before returning.
+
+        Parameters
+        ----------
+        run_id, step_index : int
+            The run and the index of the protocol step that took the sample (unique per run).
+        values : mapping of str to float
+            Measured and commanded values, the unit in every key (``x_mm``, ``cmd_x_mm``, ``load_kg``).
+        kind : str
+            What the sample is: ``pose`` (an attained pose), ``calliper``, ``mouse``...
+        pose, cycle : str, int, optional
+            Pose label and cycle number (1-based) for pose-type tests.
+        t_s : float
+            Seconds since the run started (monotonic clock).
+        raw : JSON-serialisable, optional
+            The raw counts, bytes (as hex) or readings the values were computed from.
+        """
+        for key, value in values.items():
+            if not isinstance(value, (int, float)) or not math.isfinite(value):
+                raise ConfigError(f"run {run_id} step {step_index}: {key} = {value!r}, expected a finite number")
+        try:
+            self._db.execute(
+                "INSERT INTO samples (run_id, step_index, kind, pose, cycle, t_s, wall_utc, values_json, raw_json)"
+                " VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?)",
+                (int(run_id), int(step_index), kind, pose, cycle, float(t_s), _utc_now(),
+                 _to_json({k: float(v) for k, v in values.items()}, "values"),
+                 None if raw is None else _to_json(raw, "raw")))
+        except sqlite3.IntegrityError as exc:
+            if "UNIQUE" in str(exc):
+                raise DuplicateSample(f"run {run_id}: step {step_index} already has a stored sample") from exc
+            raise ConfigError(f"run {run_id}: no such run in {self.path}") from exc
+
+    def stored_steps(self, run_id: int) -> set[int]:
+        """Indices of the steps of ``run_id`` whose sample is stored."""
+        return {row[0] for row in self._db.execute("SELECT step_index FROM samples WHERE run_id = ?", (run_id,))}
+
+    def samples(self, run_id: int, kind: str | None = None) -> list[SampleRecord]:
+        """The samples of a run in step order, optionally of one ``kind`` only."""
+        query = ("SELECT run_id, step_index, kind, pose, cycle, t_s, wall_utc, values_json, raw_json FROM samples"
+                 " WHERE run_id = ?" + (" AND kind = ?" if kind else "") + " ORDER BY step_index")
+        args = (run_id, kind) if kind else (run_id,)
+        return [SampleRecord(run_id=r[0], step_index=r[1], kind=r[2], pose=r[3], cycle=r[4], t_s=r[5],
+                             wall_utc=r[6], values=json.loads(r[7]), raw=None if r[8] is None else json.loads(r[8]))
+                for r in self._db.execute(query, args)]
+
+    # ---- calibrations ----------------------------------------------------------------------------------------
+
+    def add_calibration(self, name: str, params: Mapping[str, Any], *, source_run_id: int | None = None,
+                        notes: str = "") -> CalibrationRecord:
+        """Store a new version of calibration ``name`` (versions count from 1) and return it."""
+        self._db.execute("BEGIN IMMEDIATE")
+        try:
+            (latest,) = self._db.execute("SELECT COALESCE(MAX(version), 0) FROM calibrations WHERE name = ?",
+                                         (name,)).fetchone()
+            cursor = self._db.execute(
+                "INSERT INTO calibrations (name, version, created_utc, params_json, source_run_id, notes)"
+                " VALUES (?, ?, ?, ?, ?, ?)",
+                (name, latest + 1, _utc_now(), _to_json(dict(params), "params"), source_run_id, notes))
+            self._db.execute("COMMIT")
+        except BaseException:
+            self._db.execute("ROLLBACK")
+            raise
+        return self.calibration_by_id(int(cursor.lastrowid))
+
+    def calibration(self, name: str, version: int | None = None) -> CalibrationRecord:
+        """Calibration ``name`` at ``version`` (the latest when None); ``ConfigError`` when missing."""
+        query = "SELECT id FROM calibrations WHERE name = ?" + (" AND version = ?" if version else "")
+        query += " ORDER BY version DESC LIMIT 1"
+        row = self._db.execute(query, (name, version) if version else (name,)).fetchone()
+        if row is None:
+            wanted = f"version {version}" if version else "any version"
+            raise ConfigError(f"calibration {name!r}: {wanted} not found in {self.path}")
+        return self.calibration_by_id(row[0])
+
+    def calibration_by_id(self, calibration_id: int) -> CalibrationRecord:
+        row = self._db.execute("SELECT id, name, version, created_utc, params_json, source_run_id, notes"
+                               " FROM calibrations WHERE id = ?", (calibration_id,)).fetchone()
+        if row is None:
+            raise ConfigError(f"calibration id {calibration_id}: not found in {self.path}")
+        return CalibrationRecord(id=row[0], name=row[1], version=row[2], created_utc=row[3],
+                                 params=json.loads(row[4]), source_run_id=row[5], notes=row[6])
+
+    def calibrations(self) -> list[CalibrationRecord]:
+        """Every calibration version, by name then version."""
+        ids = [r[0] for r in self._db.execute("SELECT id FROM calibrations ORDER BY name, version")]
+        return [self.calibration_by_id(i) for i in ids]
