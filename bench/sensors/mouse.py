@@ -1,0 +1,235 @@
+"""Optical mouse read as raw counts from a Linux event device (``/dev/input/event*``) or any byte stream in the
+same ``input_event`` layout (a pipe or file written by :mod:`bench.sensors.mouse_sim`).
+
+Replaces the dissertation's two-PC cursor method (``sensors.md`` §2-§4): per-device counts below pointer
+acceleration, kernel timestamps on ``CLOCK_MONOTONIC``, several mice told apart by name/phys, optional grab.
+"""
+
+from __future__ import annotations
+
+import errno
+import fcntl
+import logging
+import os
+import selectors
+import stat
+import struct
+import time
+from dataclasses import dataclass
+
+import numpy as np
+
+from bench.errors import LinkError
+from bench.sensors.calibration import CountsCalibration
+from bench.sensors.input_event import FrameAssembler, MotionFrames
+from bench.sensors.reading import Reading, now
+
+__all__ = ["EVIOCGRAB", "EVIOCSCLOCKID", "MouseBinding", "EvdevMouse", "MouseGroup"]
+
+logger = logging.getLogger(__name__)
+
+#: ``_IOW('E', 0x90, int)``: exclusive grab (argument 1) / release (0) (§4.6).
+EVIOCGRAB = 0x40044590
+#: ``_IOW('E', 0xa0, int)``: select the clock of the event timestamps (§4.5).
+EVIOCSCLOCKID = 0x400445A0
+_CLOCK_MONOTONIC = 1
+_READ_SIZE = 1 << 16
+
+
+def _eviocg(nr: int, length: int) -> int:
+    """``_IOC(_IOC_READ, 'E', nr, length)``: the string queries EVIOCGNAME (0x06), EVIOCGPHYS (0x07)."""
+    return (2 << 30) | (length << 16) | (ord("E") << 8) | nr
+
+
+@dataclass(frozen=True)
+class MouseBinding:
+    """Which physical sensor a stream comes from; stored in the run manifest (``sensors.md`` §4.1).
+
+    ``label`` is the bench's own name ("XY", "Z"); ``name``/``phys`` come from the kernel when the path is a real
+    event device and are empty for pipes and files.
+    """
+
+    label: str
+    path: str
+    name: str = ""
+    phys: str = ""
+    is_device: bool = False
+
+    def __str__(self) -> str:
+        return f"mouse {self.label!r} ({self.path}{', ' + self.name if self.name else ''})"
+
+
+def _query_string(fd: int, nr: int) -> str:
+    buf = bytearray(256)
+    try:
+        fcntl.ioctl(fd, _eviocg(nr, len(buf)), buf)
+    except OSError:
+        return ""
+    return bytes(buf).split(b"\0", 1)[0].decode(errors="replace")
+
+
+def _open_stream(label: str, path: str) -> int:
+    """Open non-blocking; a FIFO is opened blocking first, so that it waits for its writer instead of at EOF."""
+    try:
+        if stat.S_ISFIFO(os.stat(path).st_mode):
+            fd = os.open(path, os.O_RDONLY)
+            os.set_blocking(fd, False)
+            return fd
+        return os.open(path, os.O_RDONLY | os.O_NONBLOCK)
+    except FileNotFoundError:
+        raise LinkError(f"mouse {label!r}: {path} does not exist; is the mouse plugged in? "
+                        "List /dev/input/by-path/ and bind the sensor again") from None
+    except PermissionError:
+        raise LinkError(f"mouse {label!r}: permission denied on {path}; add a udev rule giving your group "
+                        "access to the sensor (sensors.md §4.7), then re-plug it") from None
+
+
+class EvdevMouse:
+    """One mouse read as raw counts, with the calibration applied on :meth:`read`.
+
+    Parameters
+    ----------
+    path : str
+        An event device (prefer ``/dev/input/by-path/...-event-mouse``), a FIFO or a regular file.
+    calibration : CountsCalibration
+        Counts -> mm; its id travels with every reading.
+    label : str
+        The bench's name for this sensor.
+    grab : bool
+        Take exclusive access with ``EVIOCGRAB`` so the sensor does not move the desktop pointer. Only applied to
+        real character devices; refused loudly if another client holds the device.
+    """
+
+    def __init__(self, path: str, calibration: CountsCalibration, *, label: str = "mouse",
+                 grab: bool = False) -> None:
+        self.name = label
+        self.calibration = calibration
+        self._fd = _open_stream(label, path)
+        is_device = stat.S_ISCHR(os.fstat(self._fd).st_mode)
+        self.binding = MouseBinding(label, path, _query_string(self._fd, 0x06) if is_device else "",
+                                    _query_string(self._fd, 0x07) if is_device else "", is_device)
+        self._assembler = FrameAssembler()
+        self.counts = np.zeros(2, np.int64)
+        self.segment_valid = True
+        self.exhausted = False
+        self._last_t_s: float | None = None
+        if is_device:
+            self._setup_device(grab)
+        elif grab:
+            logger.info("%s is not an event device; grab skipped", self.binding)
+
+    def _setup_device(self, grab: bool) -> None:
+        try:
+            fcntl.ioctl(self._fd, EVIOCSCLOCKID, struct.pack("i", _CLOCK_MONOTONIC))
+        except OSError as exc:
+            logger.warning("%s: cannot switch timestamps to CLOCK_MONOTONIC (%s)", self.binding, exc)
+        if grab:
+            try:
+                fcntl.ioctl(self._fd, EVIOCGRAB, 1)
+            except OSError as exc:
+                self.close()
+                hint = "another program holds it" if exc.errno == errno.EBUSY else exc.strerror
+                raise LinkError(f"{self.binding}: exclusive grab failed ({hint}); close that program "
+                                "or run without grab") from None
+
+    def fileno(self) -> int:
+        return self._fd
+
+    def read_frames(self) -> MotionFrames:
+        """Read every byte available now (non-blocking) and return the completed frames; counts are integrated."""
+        chunks = []
+        while True:
+            try:
+                data = os.read(self._fd, _READ_SIZE)
+            except BlockingIOError:
+                break
+            except OSError as exc:
+                raise LinkError(f"{self.binding}: read failed ({exc.strerror}); the device was probably "
+                                "unplugged: the run segment is invalid, re-bind and restart the cycle") from None
+            if not data:
+                self.exhausted = True
+                break
+            chunks.append(self._assembler.feed(data))
+        frames = MotionFrames.concatenate(chunks)
+        if len(frames):
+            self.counts += (int(frames.dx.sum()), int(frames.dy.sum()))
+            self.segment_valid &= bool(frames.valid.all())
+            self._last_t_s = float(frames.t_s[-1])
+        return frames
+
+    def rezero(self) -> None:
+        """Start a new measurement segment at the current position (e.g. at home, every cycle)."""
+        self.counts[:] = 0
+        self.segment_valid = True
+
+    def read(self, timeout_s: float = 0.0) -> Reading:
+        """Integrated displacement since the last :meth:`rezero`, in mm, after waiting up to ``timeout_s``."""
+        if timeout_s > 0:
+            selectors_ = selectors.DefaultSelector()
+            selectors_.register(self._fd, selectors.EVENT_READ)
+            selectors_.select(timeout_s)
+            selectors_.close()
+        self.read_frames()
+        t_mono, t_wall = now()
+        if self._last_t_s is not None and self.binding.is_device:
+            t_wall -= t_mono - self._last_t_s
+            t_mono = self._last_t_s
+        x_mm, y_mm = self.calibration.counts_to_mm(self.counts)
+        return Reading((float(x_mm), float(y_mm)), "mm", t_mono, t_wall, raw=tuple(int(c) for c in self.counts),
+                       calibration_id=self.calibration.calibration_id, source=str(self.binding),
+                       valid=self.segment_valid, note="" if self.segment_valid else "SYN_DROPPED: counts lost")
+
+    def close(self) -> None:
+        """Close the descriptor; the kernel releases any grab with it."""
+        if self._fd >= 0:
+            os.close(self._fd)
+            self._fd = -1
+
+    def __enter__(self) -> EvdevMouse:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    def __repr__(self) -> str:
+        return (f"EvdevMouse(path={self.binding.path!r}, label={self.name!r}, "
+                f"calibration={self.calibration.calibration_id!r}, device={self.binding.is_device})")
+
+
+class MouseGroup:
+    """Several mice read in one thread with ``selectors``; frames come back keyed by each mouse's label."""
+
+    def __init__(self, mice: list[EvdevMouse]) -> None:
+        labels = [m.name for m in mice]
+        if len(set(labels)) != len(labels):
+            raise LinkError(f"mouse group: labels {labels} repeat; each sensor needs its own label")
+        self.mice = {m.name: m for m in mice}
+        self._selector = selectors.DefaultSelector()
+        for mouse in mice:
+            self._selector.register(mouse.fileno(), selectors.EVENT_READ, mouse)
+
+    def poll(self, timeout_s: float) -> dict[str, MotionFrames]:
+        """Wait up to ``timeout_s`` for data and return the new frames of every mouse that had some."""
+        out: dict[str, MotionFrames] = {}
+        for key, _ in self._selector.select(timeout_s):
+            mouse: EvdevMouse = key.data
+            frames = mouse.read_frames()
+            if mouse.exhausted:
+                self._selector.unregister(key.fd)
+            if len(frames):
+                out[mouse.name] = frames
+        return out
+
+    def collect(self, duration_s: float) -> dict[str, MotionFrames]:
+        """Read all mice for ``duration_s`` (or until every stream ends) and return all frames per label."""
+        parts: dict[str, list[MotionFrames]] = {label: [] for label in self.mice}
+        deadline = time.monotonic() + duration_s
+        while self._selector.get_map() and (remaining := deadline - time.monotonic()) > 0:
+            for label, frames in self.poll(min(remaining, 0.1)).items():
+                parts[label].append(frames)
+        return {label: MotionFrames.concatenate(p) for label, p in parts.items()}
+
+    def close(self) -> None:
+        self._selector.close()
+        for mouse in self.mice.values():
+            mouse.close()

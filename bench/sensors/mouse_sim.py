@@ -1,0 +1,174 @@
+"""Simulated optical mouse: a true motion in mm -> the ``input_event`` records (or MCU lines) the sensor would send.
+
+Models what makes a mouse imperfect (``sensors.md`` §1.3, §4.9): an integer count quantisation with carry, a scale
+(CPI) error per axis, a mounting rotation, white position noise, a fixed report rate (up to 8 kHz) and the
+per-report field width. Also a program: ``python -m bench.sensors.mouse_sim --out FIFO`` writes a stream into a
+pipe or file that :class:`bench.sensors.mouse.EvdevMouse` opens like a device.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+import time
+from dataclasses import dataclass
+
+import numpy as np
+
+from bench.errors import ConfigError
+from bench.sensors.calibration import MM_PER_INCH
+from bench.sensors.input_event import EVENT, encode_frames
+
+__all__ = ["MouseReports", "MouseSimulator", "circle_motion", "write_stream", "main"]
+
+MAX_REPORT_RATE_HZ = 8000.0
+
+
+@dataclass(frozen=True)
+class MouseReports:
+    """Reports of a simulated mouse: times (s) and per-report counts (int64), all of shape (n,)."""
+
+    t_s: np.ndarray
+    dx: np.ndarray
+    dy: np.ndarray
+
+
+@dataclass(frozen=True)
+class MouseSimulator:
+    """A mouse observing a true planar motion.
+
+    Parameters
+    ----------
+    cpi : float
+        Nominal counts per inch.
+    scale_error : tuple of float
+        Relative error of the true scale per sensor axis, e.g. ``(-0.036, 0.01)`` (the ADNS-2610 read 3.6 % low,
+        ``sensors.md`` §1.3).
+    rotation_deg : float
+        Mounting rotation of the sensor axes relative to the motion axes (deg).
+    noise_counts : float
+        Standard deviation of white noise on the sensed position (counts).
+    report_rate_hz : float
+        Report rate, at most 8000 Hz.
+    max_delta : int or None
+        Largest count per report per axis (127 for 8-bit HID fields); larger motion is clipped and lost.
+    report_idle : bool
+        Send reports with zero motion too (a real HID mouse stays silent when still).
+    seed : int
+        Seed of the noise generator; the same inputs give the same bytes.
+    """
+
+    cpi: float = 800.0
+    scale_error: tuple[float, float] = (0.0, 0.0)
+    rotation_deg: float = 0.0
+    noise_counts: float = 0.0
+    report_rate_hz: float = 1000.0
+    max_delta: int | None = None
+    report_idle: bool = False
+    seed: int = 0
+
+    def __post_init__(self) -> None:
+        if not 0 < self.report_rate_hz <= MAX_REPORT_RATE_HZ:
+            raise ConfigError(f"mouse simulator: report_rate_hz = {self.report_rate_hz!r}, "
+                              f"expected 0 < rate <= {MAX_REPORT_RATE_HZ:g}")
+        if not self.cpi > 0:
+            raise ConfigError(f"mouse simulator: cpi = {self.cpi!r}, expected a positive number")
+
+    def counts_per_mm(self) -> np.ndarray:
+        """True 2x2 map from motion (mm) to sensor counts, including scale error and rotation."""
+        c, s = np.cos(np.radians(self.rotation_deg)), np.sin(np.radians(self.rotation_deg))
+        rotation = np.array([[c, s], [-s, c]])
+        return np.diag(1.0 + np.asarray(self.scale_error)) @ rotation * (self.cpi / MM_PER_INCH)
+
+    def reports(self, t_s: np.ndarray, xy_mm: np.ndarray) -> MouseReports:
+        """Sample the true motion at the report rate and quantise it to integer counts.
+
+        Parameters
+        ----------
+        t_s : array_like, shape (N,)
+            Increasing times of the true motion (s).
+        xy_mm : array_like, shape (N, 2)
+            True positions of the sensor spot (mm), in the motion frame.
+        """
+        t_s, xy_mm = np.asarray(t_s, float), np.asarray(xy_mm, float)
+        if t_s.ndim != 1 or xy_mm.shape != (len(t_s), 2) or len(t_s) < 2 or np.any(np.diff(t_s) <= 0):
+            raise ConfigError(f"mouse simulator: t_s {t_s.shape} and xy_mm {xy_mm.shape}, expected increasing "
+                              "times of shape (N,) and positions of shape (N, 2) with N >= 2")
+        report_t = np.arange(t_s[0], t_s[-1] + 0.5 / self.report_rate_hz, 1.0 / self.report_rate_hz)
+        true_xy = np.column_stack([np.interp(report_t, t_s, xy_mm[:, k]) for k in (0, 1)])
+        sensed = (true_xy - true_xy[0]) @ self.counts_per_mm().T
+        if self.noise_counts > 0:
+            sensed += np.random.default_rng(self.seed).normal(0.0, self.noise_counts, sensed.shape)
+        # The sensor accumulates motion and reports whole counts, carrying the remainder.
+        whole = np.floor(sensed + 0.5).astype(np.int64)
+        deltas = np.diff(whole, axis=0, prepend=whole[:1])
+        if self.max_delta is not None:
+            deltas = np.clip(deltas, -self.max_delta, self.max_delta)
+        keep = np.ones(len(report_t), bool) if self.report_idle else np.any(deltas != 0, axis=1)
+        return MouseReports(report_t[keep], deltas[keep, 0], deltas[keep, 1])
+
+    def input_events(self, t_s: np.ndarray, xy_mm: np.ndarray, *, t0_s: float = 0.0) -> bytes:
+        """The motion as kernel ``input_event`` records, timestamps offset by ``t0_s`` (s)."""
+        rep = self.reports(t_s, xy_mm)
+        return encode_frames(rep.t_s + t0_s, rep.dx, rep.dy)
+
+    def mcu_lines(self, t_s: np.ndarray, xy_mm: np.ndarray, *, squal: int | None = 120) -> bytes:
+        """The motion as a microcontroller stream, one ``t_us,dx,dy[,squal]`` line per report."""
+        rep = self.reports(t_s, xy_mm)
+        t_us = np.round((rep.t_s - rep.t_s[0]) * 1e6).astype(np.int64) if len(rep.t_s) else rep.t_s
+        tail = "" if squal is None else f",{squal}"
+        return "".join(f"{t},{x},{y}{tail}\n" for t, x, y in zip(t_us, rep.dx, rep.dy)).encode()
+
+
+def circle_motion(duration_s: float, radius_mm: float = 20.0, period_s: float = 4.0,
+                  rate_hz: float = 1000.0) -> tuple[np.ndarray, np.ndarray]:
+    """A circle traced at constant speed from (radius, 0): times (N,) in s and positions (N, 2) in mm."""
+    t_s = np.arange(0.0, duration_s + 0.5 / rate_hz, 1.0 / rate_hz)
+    phase = 2 * np.pi * t_s / period_s
+    return t_s, radius_mm * np.column_stack([np.cos(phase), np.sin(phase)])
+
+
+def write_stream(fd: int, data: bytes, *, realtime_rate_bytes_s: float | None = None, chunk: int = 24 * 3 * 64) -> None:
+    """Write ``data`` to ``fd``, optionally paced to a byte rate so that the reader sees a live stream."""
+    start = time.monotonic()
+    for offset in range(0, len(data), chunk):
+        if realtime_rate_bytes_s:
+            delay = start + offset / realtime_rate_bytes_s - time.monotonic()
+            if delay > 0:
+                time.sleep(delay)
+        view = memoryview(data)[offset: offset + chunk]
+        while view:
+            view = view[os.write(fd, view):]
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Program entry: simulate a circle and write its ``input_event`` records to ``--out``."""
+    parser = argparse.ArgumentParser(prog="python -m bench.sensors.mouse_sim", description=__doc__.split("\n")[0],
+                                     formatter_class=argparse.ArgumentDefaultsHelpFormatter)
+    parser.add_argument("--out", required=True, help="FIFO or file to write input_event records into")
+    parser.add_argument("--duration-s", type=float, default=10.0)
+    parser.add_argument("--rate-hz", type=float, default=1000.0, help="report rate (<= 8000)")
+    parser.add_argument("--cpi", type=float, default=800.0)
+    parser.add_argument("--radius-mm", type=float, default=20.0)
+    parser.add_argument("--period-s", type=float, default=4.0)
+    parser.add_argument("--realtime", action="store_true", help="pace the stream to real time")
+    args = parser.parse_args(argv)
+    try:
+        sim = MouseSimulator(cpi=args.cpi, report_rate_hz=args.rate_hz, report_idle=True)
+        data = sim.input_events(*circle_motion(args.duration_s, args.radius_mm, args.period_s, args.rate_hz),
+                                t0_s=time.monotonic())
+    except ConfigError as exc:
+        print(f"mouse_sim: error: {exc}", file=sys.stderr)
+        return 2
+    fd = os.open(args.out, os.O_WRONLY | os.O_CREAT, 0o644)
+    try:
+        write_stream(fd, data, realtime_rate_bytes_s=len(data) / args.duration_s if args.realtime else None)
+    finally:
+        os.close(fd)
+    print(f"{len(data) // EVENT.size} events written to {args.out}", file=sys.stderr)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
