@@ -1,0 +1,234 @@
+"""Driver for the delta4 (4-RSS) controller: the ATmega128 ASCII protocol, or ``bench sim delta4``.
+
+Servo targets go through one explicit :class:`bench.robots.delta4_wire.ServoMapping` (``legacy_vb`` by default,
+``calibrated`` as an option; the documents disagree) after the pre-flight: a point is converted by
+:mod:`motion.delta4` (reachability, knee and servo limits), and every angle is checked against the mapping's
+window, all before a byte is sent. ``z`` ("all servos in place") is awaited with a deadline but not required unless
+asked; sensor reports are assembled into :class:`SensorFrame` objects (horizontal screen first).
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from bench.errors import ConfigError, LinkError, LinkTimeout, UnreachableTarget
+from bench.robots import delta4_wire as wire
+from bench.robots.link import Deadline, WireProtocolError
+
+__all__ = ["DEFAULT_BAUDRATE", "Delta4Controller", "MoveResult", "SensorFrame"]
+
+_log = logging.getLogger(__name__)
+
+#: Not stated by the document (§5.3); 9600 8-N-1 is the recommended first guess.
+DEFAULT_BAUDRATE = 9600
+_SENSOR_EXPECTED = "a sensor report (H<n>X, V<n>X, h or v)"
+
+
+@dataclass(frozen=True)
+class SensorFrame:
+    """One report of both screens: indices hit on the horizontal and vertical screens (empty: no hit)."""
+
+    horizontal: tuple[int, ...]
+    vertical: tuple[int, ...]
+    raw: bytes = b""
+    t_monotonic_s: float = 0.0
+
+
+@dataclass(frozen=True)
+class MoveResult:
+    servo_deg: tuple[float, ...]
+    command_bytes: tuple[int, ...]
+    settled: bool  # True if ``z`` arrived before the deadline
+
+
+@dataclass
+class _FrameBuilder:
+    horizontal: list[int] = field(default_factory=list)
+    vertical: list[int] = field(default_factory=list)
+    raw: bytearray = field(default_factory=bytearray)
+    in_vertical: bool = False
+    closed_vertical: bool = False
+
+
+class Delta4Controller:
+    """One delta4 controller on an open serial port.
+
+    Parameters
+    ----------
+    port : serial.SerialBase
+        Open port from ``serial.serial_for_url`` (9600 8-N-1 by default; the document does not state it).
+    mapping : ServoMapping
+        Servo angle <-> byte mapping; must match the firmware (or ``bench sim delta4 --mapping``).
+    geometry : motion.delta4.Geometry, optional
+        Kinematics for :meth:`move_to` (default ``motion.delta4.NOMINAL``).
+    settle_timeout_s : float
+        How long to wait for ``z`` after a move, s (§5.7 item 7: default 2 s).
+    frame_gap_s : float
+        Silence that closes a sensor report whose last screen had hits, s.
+    """
+
+    def __init__(self, port: Any, *, mapping: wire.ServoMapping | None = None, geometry: Any = None,
+                 settle_timeout_s: float = 2.0, frame_gap_s: float = 0.03) -> None:
+        for name, value in (("settle_timeout_s", settle_timeout_s), ("frame_gap_s", frame_gap_s)):
+            if isinstance(value, bool) or not isinstance(value, (int, float)) or not 0 < value <= 600:
+                raise ConfigError(f"Delta4Controller: {name} = {value!r}, expected a number in (0, 600] s")
+        self.link = wire.Delta4Link(port)
+        self.mapping = mapping or wire.LegacyVbMapping()
+        self.geometry = geometry
+        self.settle_timeout_s = float(settle_timeout_s)
+        self.frame_gap_s = float(frame_gap_s)
+        self.started = False
+        self._settled = False
+        self._frames: list[SensorFrame] = []
+        self._builder = _FrameBuilder()
+
+    def settings(self) -> dict[str, Any]:
+        return {"driver": type(self).__name__, "port": self.link.port_name,
+                "baudrate": getattr(self.link.port, "baudrate", None), "mapping": self.mapping.settings(),
+                "settle_timeout_s": self.settle_timeout_s, "frame_gap_s": self.frame_gap_s}
+
+    def __repr__(self) -> str:
+        shown = ", ".join(f"{k}={v!r}" for k, v in self.settings().items() if k != "driver")
+        return f"{type(self).__name__}({shown})"
+
+    # -- commands ----------------------------------------------------------------------------------------------
+    def start(self, *, verify_timeout_s: float = 1.0) -> SensorFrame:
+        """Send ``E`` and wait for the first sensor report, which proves a delta4 controller is there."""
+        self.link.discard_input()
+        self.link.write(b"E", command="E (start)")
+        self.started = True
+        return self.read_sensor_frame(verify_timeout_s, command="E (start)")
+
+    def stop(self) -> None:
+        """Send ``G``: the controller stops mechanical control and sensor reporting."""
+        self.link.write(b"G", command="G (stop)")
+        self.started = False
+
+    def move_servos(self, servo_deg: Any, *, wait: bool = True, require_settled: bool = False) -> MoveResult:
+        """Send the four servo references ``P..X Q..X R..X S..X`` (theta_R in degrees) after the range check.
+
+        With ``wait``, read until ``z`` or ``settle_timeout_s``; ``require_settled`` turns a missing ``z`` into
+        LinkTimeout. Sensor frames read meanwhile are kept for :meth:`read_sensor_frame`.
+        """
+        angles = self.mapping.check(servo_deg)
+        values = self.mapping.to_bytes(angles)
+        message = b"".join(wire.format_servo_command(i, int(v)) for i, v in enumerate(values))
+        self._drain()  # a 'z' already on the wire belongs to an earlier move ('z' carries no move identity)
+        self._settled = False
+        self.link.write(message, command=message.decode("ascii"))
+        settled = self.wait_settled(command=message.decode("ascii"), required=require_settled) if wait else False
+        return MoveResult(tuple(float(a) for a in angles), tuple(int(v) for v in values), settled)
+
+    def move_to(self, point_mm: Any, **kwargs: Any) -> MoveResult:
+        """Move the end effector to ``point_mm`` = (x, y, z) after the :mod:`motion.delta4` pre-flight."""
+        return self.move_servos(self.servo_angles_for(point_mm), **kwargs)
+
+    def servo_angles_for(self, point_mm: Any) -> np.ndarray:
+        """Servo angles (4,), deg, of ``point_mm``; UnreachableTarget names the point and the reason."""
+        from motion import delta4
+        from motion.errors import MotionInputError
+        geometry = self.geometry or delta4.NOMINAL
+        try:
+            result = delta4.inverse_kinematics(np.asarray(point_mm, dtype=float).reshape(1, 3), geometry)
+        except (MotionInputError, ValueError) as exc:
+            raise UnreachableTarget(f"point_mm = {point_mm!r}: {exc}") from exc
+        if not result.reachable[0]:
+            raise UnreachableTarget(f"point_mm = {tuple(np.ravel(point_mm))}: unreachable ({result.reason[0]})")
+        return self.mapping.check(result.servo_deg[0])
+
+    def wait_settled(self, *, timeout_s: float | None = None, command: str = "servo move",
+                     required: bool = False) -> bool:
+        """Wait for ``z`` (acknowledged with ``z``); False on timeout unless ``required`` (then LinkTimeout)."""
+        deadline = Deadline(self.settle_timeout_s if timeout_s is None else timeout_s)
+        while not self._settled:
+            try:
+                self._consume(deadline, command, "'z' (all servos in place)")
+            except LinkTimeout:
+                if required:
+                    raise
+                _log.warning("%s: no 'z' within %.2f s after %s", self.link.port_name, deadline.timeout_s, command)
+                return False
+        return True
+
+    def read_sensor_frame(self, timeout_s: float = 0.5, *, command: str = "sensor report") -> SensorFrame:
+        """The next complete sensor report (horizontal then vertical screen)."""
+        deadline = Deadline(timeout_s)
+        while not self._frames:
+            self._consume(deadline, command, _SENSOR_EXPECTED)
+        return self._frames.pop(0)
+
+    # -- token handling ----------------------------------------------------------------------------------------
+    def _drain(self) -> None:
+        """Handle every token already received, without waiting."""
+        while True:
+            try:
+                self._consume(Deadline(0.0), "drain", "nothing")
+            except LinkTimeout:
+                return
+
+    def _consume(self, deadline: Deadline, command: str, expected: str) -> None:
+        """Read and handle one token; a report whose last screen had hits is closed after ``frame_gap_s``."""
+        builder = self._builder
+        wait_s = deadline.remaining_s()
+        if builder.in_vertical and not builder.closed_vertical:
+            wait_s = min(wait_s, self.frame_gap_s)
+        try:
+            frame = self.link.read_frame(wait_s, command=command, expected=expected)
+        except LinkTimeout:
+            if builder.in_vertical:
+                self._close_frame()
+                return
+            raise
+        try:
+            token = wire.parse_token(frame)
+        except WireProtocolError as exc:
+            _log.warning("%s: dropped %r while waiting for %s: %s", self.link.port_name, frame, expected, exc)
+            return
+        self._handle(token, frame)
+
+    def _handle(self, token: wire.Token, frame: bytes) -> None:
+        builder = self._builder
+        if token.kind == "z":
+            self._settled = True
+            self.link.write(b"z", command="z (ack)")
+            return
+        horizontal_kind = token.kind in ("H", "h") or (token.kind == "N" and not builder.in_vertical)
+        if horizontal_kind and builder.in_vertical:
+            self._close_frame()
+            builder = self._builder
+        builder.raw += frame
+        if token.kind in ("H", "N") and not builder.in_vertical:
+            builder.horizontal.append(int(token.value))  # type: ignore[arg-type]
+        elif token.kind in ("V", "N"):
+            builder.in_vertical = True
+            builder.vertical.append(int(token.value))  # type: ignore[arg-type]
+        elif token.kind == "v":
+            builder.in_vertical = True
+            builder.closed_vertical = True
+            self._close_frame()
+        # 'h' only marks the horizontal screen as empty
+
+    def _close_frame(self) -> None:
+        b = self._builder
+        self._frames.append(SensorFrame(tuple(b.horizontal), tuple(b.vertical), bytes(b.raw), time.monotonic()))
+        self._builder = _FrameBuilder()
+
+    # -- lifecycle ---------------------------------------------------------------------------------------------
+    def shutdown(self) -> None:
+        """Safe state: send ``G`` (stop mechanical control) if possible, then close the port."""
+        try:
+            self.stop()
+        except LinkError as exc:
+            _log.warning("%s: could not send G: %s", self.link.port_name, exc)
+        self.link.close()
+
+    def __enter__(self) -> "Delta4Controller":
+        return self
+
+    def __exit__(self, *exc_info: object) -> None:
+        self.shutdown()

@@ -1,0 +1,194 @@
+"""The delta4 (ATmega128) wire protocol: servo-byte mappings, command encoding, report tokens and their framing.
+
+Reference: ``shared/reference/delta4-lasergrid.md`` §5 and ``docs/protocol-delta4.md``. PC -> MCU: ``E`` (start),
+``G`` (stop), ``P``/``Q``/``R``/``S`` + three digits + ``X`` (servo 1-4 reference, 0-255), ``z`` (ack). MCU -> PC:
+``z`` (all servos in place), sensor hits ``H<digits>X`` / ``V<digits>X`` (horizontal / vertical screen), ``h`` / ``v``
+(no hit on that screen) and, from older firmware, untagged ``<digits>X``. The documents disagree on the byte <->
+angle mapping, so both are explicit :class:`ServoMapping` objects (§5.8). Parsers raise only
+:class:`bench.robots.link.WireProtocolError`.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from bench.errors import UnreachableTarget
+from bench.robots.link import FramedLink, WireProtocolError
+
+__all__ = ["SERVO_LETTERS", "CalibratedMapping", "Delta4Link", "LegacyVbMapping", "ServoMapping", "Token",
+           "format_servo_command", "parse_token", "round_half_up"]
+
+SERVO_LETTERS = b"PQRS"
+_MAX_DIGITS = 3
+
+
+def round_half_up(value: np.ndarray) -> np.ndarray:
+    """Round halves up (127.5 -> 128), explicitly, as §5.7 item 4 asks; numpy's rint rounds halves to even."""
+    return np.floor(np.asarray(value, dtype=float) + 0.5).astype(np.int64)
+
+
+class ServoMapping:
+    """Servo angle theta_R (deg) <-> command byte (0-255), with the angle window the mapping accepts."""
+
+    name = "abstract"
+
+    def limits_deg(self) -> np.ndarray:
+        """(4, 2) accepted [low, high] servo angle per servo, deg."""
+        raise NotImplementedError
+
+    def to_bytes(self, servo_deg: np.ndarray) -> np.ndarray:
+        raise NotImplementedError
+
+    def to_deg(self, values: np.ndarray) -> np.ndarray:
+        raise NotImplementedError
+
+    def check(self, servo_deg: Any) -> np.ndarray:
+        """``servo_deg`` as a (4,) array, or UnreachableTarget naming the servo, the angle and the window."""
+        angles = np.asarray(servo_deg, dtype=float)
+        if angles.shape != (4,) or not np.all(np.isfinite(angles)):
+            raise UnreachableTarget(f"servo_deg = {servo_deg!r}, expected 4 finite angles in degrees")
+        limits = self.limits_deg()
+        for i, (angle, (low, high)) in enumerate(zip(angles, limits)):
+            if not low <= angle <= high:
+                raise UnreachableTarget(f"servo {i + 1}: theta_R = {angle:.3f} deg, expected within "
+                                        f"[{low:g}, {high:g}] deg (mapping {self.name})")
+        return angles
+
+    def settings(self) -> dict[str, Any]:
+        raise NotImplementedError
+
+
+@dataclass(frozen=True)
+class LegacyVbMapping(ServoMapping):
+    """The bytes the documented VB GUI sent: byte = round_half_up(theta_R * 255/190); 30 <= theta_R <= 160."""
+
+    degrees_per_span: float = 190.0
+    low_deg: float = 30.0
+    high_deg: float = 160.0
+    name = "legacy_vb"
+
+    def limits_deg(self) -> np.ndarray:
+        return np.tile([self.low_deg, self.high_deg], (4, 1))
+
+    def to_bytes(self, servo_deg: np.ndarray) -> np.ndarray:
+        return np.clip(round_half_up(np.asarray(servo_deg) * 255.0 / self.degrees_per_span), 0, 255)
+
+    def to_deg(self, values: np.ndarray) -> np.ndarray:
+        return np.asarray(values, dtype=float) * self.degrees_per_span / 255.0
+
+    def settings(self) -> dict[str, Any]:
+        return {"name": self.name, "degrees_per_span": self.degrees_per_span,
+                "limits_deg": [self.low_deg, self.high_deg]}
+
+
+@dataclass(frozen=True)
+class CalibratedMapping(ServoMapping):
+    """Per-servo linear map of the calibrated stops onto 0-255 (§5.8 b).
+
+    ``direction`` +1: count = round_half_up(255 (theta_R - low) / (high - low)); -1 (the literal reading of §5.4):
+    count = round_half_up(255 (high - theta_R) / (high - low)).
+    """
+
+    stops_deg: tuple[tuple[float, float], ...] = ((30.0, 170.0),) * 4
+    direction: tuple[int, ...] = (1, 1, 1, 1)
+    name = "calibrated"
+    _stops: np.ndarray = field(init=False, repr=False, compare=False)
+
+    def __post_init__(self) -> None:
+        stops = np.asarray(self.stops_deg, dtype=float)
+        if stops.shape != (4, 2) or not np.all(stops[:, 1] > stops[:, 0]):
+            raise ValueError(f"stops_deg = {self.stops_deg!r}, expected 4 (low, high) pairs with high > low")
+        if len(self.direction) != 4 or any(d not in (1, -1) for d in self.direction):
+            raise ValueError(f"direction = {self.direction!r}, expected 4 values of +1 or -1")
+        object.__setattr__(self, "_stops", stops)
+
+    def limits_deg(self) -> np.ndarray:
+        return self._stops.copy()
+
+    def to_bytes(self, servo_deg: np.ndarray) -> np.ndarray:
+        low, high = self._stops[:, 0], self._stops[:, 1]
+        fraction = (np.asarray(servo_deg, dtype=float) - low) / (high - low)
+        fraction = np.where(np.asarray(self.direction) > 0, fraction, 1.0 - fraction)
+        return np.clip(round_half_up(255.0 * fraction), 0, 255)
+
+    def to_deg(self, values: np.ndarray) -> np.ndarray:
+        low, high = self._stops[:, 0], self._stops[:, 1]
+        fraction = np.asarray(values, dtype=float) / 255.0
+        fraction = np.where(np.asarray(self.direction) > 0, fraction, 1.0 - fraction)
+        return low + fraction * (high - low)
+
+    def settings(self) -> dict[str, Any]:
+        return {"name": self.name, "stops_deg": [list(s) for s in self.stops_deg], "direction": list(self.direction)}
+
+
+MAPPINGS = {"legacy_vb": LegacyVbMapping, "calibrated": CalibratedMapping}
+
+
+def format_servo_command(servo: int, value: int) -> bytes:
+    """``P081X`` style message for servo 0-3 with a 0-255 reference (always three digits)."""
+    if not 0 <= servo < 4 or not 0 <= value <= 255:
+        raise ValueError(f"servo {servo}, value {value}: expected servo 0-3 and value 0-255")
+    return bytes([SERVO_LETTERS[servo]]) + f"{value:03d}X".encode("ascii")
+
+
+@dataclass(frozen=True)
+class Token:
+    """One MCU -> PC token: ``kind`` is 'z', 'h', 'v', 'H', 'V' or 'N' (untagged number); ``value`` for numbers."""
+
+    kind: str
+    value: int | None = None
+
+
+def parse_token(frame: bytes) -> Token:
+    """Decode one framed token (see :class:`Delta4Link`)."""
+    if frame in (b"z", b"h", b"v"):
+        return Token(frame.decode("ascii"))
+    if len(frame) < 2 or not frame.endswith(b"X"):
+        raise WireProtocolError(f"token {frame!r}: expected z, h, v, H<digits>X, V<digits>X or <digits>X")
+    kind, digits = ("N", frame[:-1]) if frame[:1].isdigit() else (chr(frame[0]), frame[1:-1])
+    if kind not in "HVN" or not digits.isdigit() or not 1 <= len(digits) <= _MAX_DIGITS:
+        raise WireProtocolError(f"token {frame!r}: expected H, V or nothing, then 1-3 digits and X")
+    value = int(digits)
+    if value > 255:
+        raise WireProtocolError(f"token {frame!r}: sensor index {value}, expected 0-255")
+    return Token(kind, value)
+
+
+class Delta4Link(FramedLink):
+    """Token framing: single letters, or a letter/digit run closed by ``X``. A run broken by any other byte is
+    handed over whole (the parser refuses it) so that noise cannot swallow the next valid token."""
+
+    def _take_frame(self) -> bytes | None:
+        pending = self._pending
+        if not pending:
+            return None
+        first = pending[0]
+        if first not in b"HV0123456789":
+            del pending[:1]
+            return bytes([first])
+        for end in range(1, len(pending)):
+            byte = pending[end]
+            if byte == ord("X"):
+                frame = bytes(pending[:end + 1])
+                del pending[:end + 1]
+                return frame
+            if not 0x30 <= byte <= 0x39 or end > _MAX_DIGITS + 1:
+                frame = bytes(pending[:end])
+                del pending[:end]
+                return frame
+        return None
+
+
+def angles_from_bytes(mapping: ServoMapping, values: np.ndarray) -> np.ndarray:
+    """Servo angles, deg, that the bytes ``values`` command under ``mapping`` (the simulator's reading)."""
+    return mapping.to_deg(np.asarray(values, dtype=float))
+
+
+def degrees_per_count(mapping: ServoMapping) -> float:
+    """Angle of one byte step, deg (legacy_vb: 190/255 = 0.745; calibrated default: 140/255 = 0.549)."""
+    step = mapping.to_deg(np.full(4, 1.0)) - mapping.to_deg(np.zeros(4))
+    return float(np.max(np.abs(step))) if np.all(np.isfinite(step)) else math.nan

@@ -1,0 +1,267 @@
+"""Driver for the 5-DOF PKM controller (firmware ``firmware/pkm5/pkm5.ino`` or ``bench sim pkm5``).
+
+Speaks the line protocol of ``docs/protocol-pkm5.md`` over an open pyserial port. Every target is pre-flighted in
+:mod:`motion.pkm5` (IK reachability and leg limits) before a byte is sent; a refused target raises
+:class:`bench.errors.UnreachableTarget`. Replies carry the command's tag, so late replies to an abandoned command
+are recognised and dropped; corrupted lines (bad checksum, noise) are dropped and reported if nothing valid follows.
+Queries are retried a bounded number of times; a move is never re-sent blindly (on a lost acceptance the driver
+sends ``STOP`` and raises).
+"""
+
+from __future__ import annotations
+
+import itertools
+import logging
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from bench.errors import ConfigError, LinkError, LinkTimeout
+from bench.robots import pkm5_wire as wire
+from bench.robots.link import Deadline, WireProtocolError
+
+__all__ = ["DEFAULT_BAUDRATE", "ControllerError", "Identity", "Pkm5Controller", "Position"]
+
+_log = logging.getLogger(__name__)
+
+DEFAULT_BAUDRATE = 115200
+_IDEMPOTENT = frozenset({"ID", "POS", "STOP", "ENABLE", "DISABLE", "SETPOS", "SIMLOAD", "SIMTRUE"})
+
+
+class ControllerError(LinkError):
+    """The controller answered ``ERR``; ``code`` is a :class:`bench.robots.pkm5_wire.ErrorCode`."""
+
+    def __init__(self, message: str, code: int) -> None:
+        super().__init__(message)
+        self.code = code
+
+
+@dataclass(frozen=True)
+class Identity:
+    device: str
+    protocol_version: int
+    firmware_version: str
+
+
+@dataclass(frozen=True)
+class Position:
+    """Actuator positions in absolute steps from the zero of each leg, and the controller state."""
+
+    steps: tuple[int, ...]
+    state: str  # IDLE, MOVING or DISABLED
+
+
+def _checked_number(name: str, value: Any, low: float, high: float) -> float:
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not low <= value <= high:
+        raise ConfigError(f"Pkm5Controller: {name} = {value!r}, expected a number in [{low}, {high}]")
+    return value
+
+
+class Pkm5Controller:
+    """One PKM5 controller on an open serial port.
+
+    Parameters
+    ----------
+    port : serial.SerialBase
+        Open port from ``serial.serial_for_url`` (pty path, ``loop://``, ``spy://``, hardware).
+    geometry : motion.pkm5.Geometry, optional
+        Kinematic and calibration parameters used for the pre-flight (default ``motion.pkm5.DEFAULT_GEOMETRY``).
+    speed_steps_s : int
+        Speed of the leading axis, steps/s (firmware range 1-1000; the documents' sketch used 200).
+    reply_timeout_s : float
+        Deadline for each reply, s.
+    retries : int
+        Extra attempts for an idempotent command whose reply timed out or was corrupted.
+    move_margin_s : float
+        Slack added to a move's announced duration (x1.5) before ``DONE`` is declared late, s.
+    """
+
+    def __init__(self, port: Any, *, geometry: Any = None, speed_steps_s: int = 200, reply_timeout_s: float = 1.0,
+                 retries: int = 2, move_margin_s: float = 2.0) -> None:
+        self.link = wire.LineLink(port)
+        self.geometry = geometry
+        self.speed_steps_s = int(_checked_number("speed_steps_s", speed_steps_s, 1, 1000))
+        self.reply_timeout_s = float(_checked_number("reply_timeout_s", reply_timeout_s, 0.001, 600))
+        self.retries = int(_checked_number("retries", retries, 0, 10))
+        self.move_margin_s = float(_checked_number("move_margin_s", move_margin_s, 0, 600))
+        self._tags = itertools.count(1)
+        self._identity: Identity | None = None
+
+    # -- description -------------------------------------------------------------------------------------------
+    def settings(self) -> dict[str, Any]:
+        """Plain-dict settings stored with every run."""
+        return {
+            "driver": type(self).__name__,
+            "port": self.link.port_name,
+            "baudrate": getattr(self.link.port, "baudrate", None),
+            "protocol_version": wire.PROTOCOL_VERSION,
+            "speed_steps_s": self.speed_steps_s,
+            "reply_timeout_s": self.reply_timeout_s,
+            "retries": self.retries,
+            "move_margin_s": self.move_margin_s,
+            "firmware": None if self._identity is None else vars(self._identity),
+        }
+
+    def __repr__(self) -> str:
+        shown = ", ".join(f"{k}={v!r}" for k, v in self.settings().items() if k != "driver")
+        return f"{type(self).__name__}({shown})"
+
+    # -- transport ---------------------------------------------------------------------------------------------
+    def _exchange(self, verb: str, args: tuple[int, ...] = (), *, timeout_s: float | None = None) -> wire.Reply:
+        """Send one command and return its ``OK`` reply, retrying idempotent commands."""
+        attempts = 1 + (self.retries if verb in _IDEMPOTENT else 0)
+        for attempt in range(1, attempts + 1):
+            tag = next(self._tags)
+            self.link.write(wire.format_command(verb, args, tag), command=verb)
+            try:
+                return self._await(tag, verb, ("OK",), timeout_s or self.reply_timeout_s)
+            except (LinkTimeout, WireProtocolError) as exc:
+                if attempt == attempts:
+                    raise
+                _log.warning("%s: retry %d of %s after: %s", self.link.port_name, attempt, verb, exc)
+        raise AssertionError("unreachable")
+
+    def _await(self, tag: int, verb: str, kinds: tuple[str, ...], timeout_s: float) -> wire.Reply:
+        """The next reply with ``tag``; stale tags and corrupted lines are dropped until the deadline."""
+        deadline = Deadline(timeout_s)
+        expected = f"'{kinds[0]} #{tag} ...' from a {wire.DEVICE_NAME} controller"
+        dropped: list[bytes] = []
+        while True:
+            try:
+                line = self.link.read_frame(deadline.remaining_s(), command=verb, expected=expected)
+            except LinkTimeout as exc:
+                if dropped:
+                    raise LinkTimeout(f"{exc}; dropped {len(dropped)} invalid or stale lines, first "
+                                      f"{dropped[0]!r} (is this a {wire.DEVICE_NAME}?)") from None
+                raise
+            try:
+                reply = wire.parse_reply(line)
+            except WireProtocolError as exc:
+                _log.warning("%s: dropped line while waiting for %s: %s", self.link.port_name, verb, exc)
+                dropped.append(line)
+                continue
+            if reply.tag != tag:
+                _log.info("%s: dropped stale reply %r while waiting for #%d", self.link.port_name, line, tag)
+                dropped.append(line)
+                continue
+            if reply.kind == "ERR":
+                code = reply.ints(0, 1)[0]
+                name = reply.fields[1] if len(reply.fields) > 1 else "?"
+                raise ControllerError(f"{self.link.port_name}: controller refused {verb!r} with error {code} "
+                                      f"{name} ({' '.join(reply.fields[2:])})".rstrip(" ()"), code)
+            if reply.kind in kinds:
+                return reply
+            dropped.append(line)
+
+    # -- commands ----------------------------------------------------------------------------------------------
+    def identify(self) -> Identity:
+        """Ask ``ID``; a device other than a bench-pkm5 of this protocol version raises LinkError."""
+        reply = self._exchange("ID")
+        fields = reply.fields
+        if len(fields) != 4 or fields[0] != "ID" or fields[1] != wire.DEVICE_NAME \
+                or fields[2] != str(wire.PROTOCOL_VERSION):
+            raise LinkError(f"{self.link.port_name}: 'ID' answered {' '.join(fields)!r}, expected "
+                            f"'ID {wire.DEVICE_NAME} {wire.PROTOCOL_VERSION} <firmware version>' (wrong device?)")
+        self._identity = Identity(fields[1], int(fields[2]), fields[3])
+        return self._identity
+
+    def position(self) -> Position:
+        reply = self._exchange("POS")
+        state = reply.fields[1 + wire.AXES] if len(reply.fields) == 2 + wire.AXES else "?"
+        return Position(reply.ints(1, wire.AXES), state)
+
+    def enable(self) -> None:
+        self._exchange("ENABLE")
+
+    def disable(self) -> None:
+        self._exchange("DISABLE")
+
+    def set_position(self, steps: Any) -> None:
+        """Declare the current actuator positions (absolute steps), e.g. after homing by hand."""
+        self._exchange("SETPOS", _as_steps(steps))
+
+    def stop(self) -> Position:
+        """Stop all axes now; returns where they stopped."""
+        return Position(self._exchange("STOP").ints(1, wire.AXES), "IDLE")
+
+    def move_steps(self, steps: Any, *, speed_steps_s: int | None = None) -> tuple[int, ...]:
+        """Pre-flight ``steps`` (6 absolute targets), move, and wait for ``DONE``; returns the reached steps."""
+        targets = _as_steps(steps)
+        self._preflight_steps(targets)
+        return self._move(targets, speed_steps_s)
+
+    def move_to_pose(self, pose: Any, *, speed_steps_s: int | None = None) -> tuple[int, ...]:
+        """Move to ``pose`` = (x_mm, y_mm, z_mm, alpha_deg, beta_deg) after the IK pre-flight."""
+        return self._move(self.steps_for_pose(pose), speed_steps_s)
+
+    def steps_for_pose(self, pose: Any) -> tuple[int, ...]:
+        """Absolute step targets of ``pose`` (x_mm, y_mm, z_mm, alpha_deg, beta_deg); UnreachableTarget if refused."""
+        from bench.robots import pkm5_preflight
+        return pkm5_preflight.steps_for_pose(pose, self._geometry())
+
+    def _preflight_steps(self, steps: tuple[int, ...]) -> None:
+        from bench.robots import pkm5_preflight
+        pkm5_preflight.check_steps(steps, self._geometry())
+
+    def _geometry(self) -> Any:
+        if self.geometry is None:
+            from motion import pkm5
+            self.geometry = pkm5.DEFAULT_GEOMETRY
+        return self.geometry
+
+    def _move(self, targets: tuple[int, ...], speed_steps_s: int | None) -> tuple[int, ...]:
+        speed = self.speed_steps_s if speed_steps_s is None else speed_steps_s
+        _checked_number("speed_steps_s", speed, 1, 1000)
+        tag = next(self._tags)
+        self.link.write(wire.format_command("MOVE", (*targets, int(speed)), tag), command="MOVE")
+        try:
+            accepted = self._await(tag, "MOVE", ("OK",), self.reply_timeout_s)
+            duration_s = accepted.ints(1, 1)[0] / 1000.0
+            done = self._await(tag, "MOVE", ("DONE",), 1.5 * duration_s + self.move_margin_s)
+        except (LinkTimeout, WireProtocolError, KeyboardInterrupt):
+            self._stop_quietly()
+            raise
+        return done.ints(0, wire.AXES)
+
+    # -- simulator-only ----------------------------------------------------------------------------------------
+    def sim_true_pose(self) -> np.ndarray:
+        """Simulator only: the true attained pose (x_mm, y_mm, z_mm, alpha_deg, beta_deg), shape (5,)."""
+        reply = self._exchange("SIMTRUE")
+        try:
+            return np.array([float(f) for f in reply.fields[1:6]], dtype=float)
+        except ValueError as exc:
+            raise WireProtocolError(f"{self.link.port_name}: SIMTRUE reply {reply} is not 5 numbers") from exc
+
+    def sim_set_load(self, load_kg: float) -> None:
+        """Simulator only: the payload carried by the end effector, kg (0-30)."""
+        _checked_number("load_kg", load_kg, 0.0, 30.0)
+        self._exchange("SIMLOAD", (round(load_kg * 1000),))
+
+    # -- lifecycle ---------------------------------------------------------------------------------------------
+    def _stop_quietly(self) -> None:
+        try:
+            tag = next(self._tags)
+            self.link.write(wire.format_command("STOP", (), tag), command="STOP")
+            self._await(tag, "STOP", ("OK",), self.reply_timeout_s)
+        except (LinkError, OSError) as exc:
+            _log.warning("%s: STOP not confirmed: %s", self.link.port_name, exc)
+
+    def shutdown(self) -> None:
+        """Safe state: stop all motion (best effort, bounded wait) and close the port. Drivers stay enabled so
+        the actuators keep their holding torque."""
+        self._stop_quietly()
+        self.link.close()
+
+    def __enter__(self) -> "Pkm5Controller":
+        return self
+
+    def __exit__(self, *exc_info: object) -> None:
+        self.shutdown()
+
+
+def _as_steps(steps: Any) -> tuple[int, ...]:
+    array = np.asarray(steps)
+    if array.shape != (wire.AXES,) or not np.issubdtype(array.dtype, np.integer):
+        raise ConfigError(f"steps = {steps!r}, expected {wire.AXES} integers (absolute steps per actuator)")
+    return tuple(int(s) for s in array)

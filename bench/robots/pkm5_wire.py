@@ -1,0 +1,168 @@
+"""The PKM5 wire protocol (``docs/protocol-pkm5.md``): line encoding, checksums, command and reply parsing.
+
+Pure functions shared by the driver (:mod:`bench.robots.pkm5`), the simulated controller
+(:mod:`bench.robots.sim_pkm5`) and, by specification, the firmware (``firmware/pkm5/pkm5.ino``).
+
+A line is ``BODY*HH\\n``: printable ASCII, at most :data:`MAX_LINE` bytes before the newline, ``HH`` the XOR of the
+body bytes in two upper-case hex digits. A command body is ``VERB [int ...] #TAG``; a reply body is
+``KIND #TAG FIELD ...`` with ``KIND`` one of ``OK``, ``DONE``, ``ERR``, ``BOOT``. Parsers raise only
+:class:`bench.robots.link.WireProtocolError`.
+"""
+
+from __future__ import annotations
+
+import enum
+from dataclasses import dataclass
+
+from bench.robots.link import FramedLink, WireProtocolError
+
+__all__ = [
+    "AXES", "COMMAND_ARITY", "DEVICE_NAME", "MAX_LINE", "PROTOCOL_VERSION", "Command", "ErrorCode", "LineLink",
+    "Reply", "checksum", "decode_line", "encode_line", "format_command", "format_reply", "parse_command",
+    "parse_reply",
+]
+
+PROTOCOL_VERSION = 1
+DEVICE_NAME = "bench-pkm5"
+AXES = 6
+MAX_LINE = 96
+_REPLY_KINDS = ("OK", "DONE", "ERR", "BOOT")
+
+#: Number of integer arguments of each command; simulator-only commands start with ``SIM``.
+COMMAND_ARITY = {
+    "ID": 0, "POS": 0, "STOP": 0, "ENABLE": 0, "DISABLE": 0,
+    "MOVE": AXES + 1, "SETPOS": AXES,
+    "SIMLOAD": 1, "SIMTRUE": 0,
+}
+
+
+class ErrorCode(enum.IntEnum):
+    """Error codes of ``ERR`` replies; the name follows the code on the wire."""
+
+    SYNTAX = 1      # unknown verb, wrong argument count, not an integer, missing tag
+    CHECKSUM = 2    # checksum missing or wrong
+    TOO_LONG = 3    # line longer than MAX_LINE
+    ARGUMENT = 4    # an argument out of its documented range (e.g. speed)
+    LIMIT = 5       # a target outside the firmware's step limits
+    DISABLED = 6    # motion requested while the drivers are disabled
+    BUSY = 7        # a command that needs the robot idle arrived during a move
+    STOPPED = 8     # the move was ended by STOP before reaching its target
+
+
+def checksum(body: bytes) -> str:
+    """XOR of all bytes of ``body``, as two upper-case hex digits (NMEA 0183 style)."""
+    value = 0
+    for byte in body:
+        value ^= byte
+    return f"{value:02X}"
+
+
+def encode_line(body: str) -> bytes:
+    """``body`` framed as ``BODY*HH\\n``."""
+    raw = body.encode("ascii")
+    return raw + b"*" + checksum(raw).encode("ascii") + b"\n"
+
+
+def decode_line(line: bytes) -> str:
+    """The body of one line (terminator already removed; a trailing ``\\r`` is tolerated)."""
+    line = line.rstrip(b"\r")
+    if len(line) > MAX_LINE:
+        raise WireProtocolError(f"line of {len(line)} bytes, expected at most {MAX_LINE}: {line[:32]!r}...")
+    body, star, check = line.rpartition(b"*")
+    if not star:
+        raise WireProtocolError(f"line {line!r} has no '*HH' checksum")
+    if not all(0x20 <= b < 0x7F for b in body):
+        raise WireProtocolError(f"line {line!r} has bytes outside printable ASCII")
+    if check != checksum(body).encode("ascii"):
+        raise WireProtocolError(f"line {line!r}: checksum {check!r}, expected {checksum(body)!r}")
+    return body.decode("ascii")
+
+
+def _split_tag(tokens: list[str], line: object) -> tuple[list[str], int]:
+    tags = [t for t in tokens if t.startswith("#")]
+    if len(tags) != 1:
+        raise WireProtocolError(f"line {line!r}: expected exactly one '#TAG' field")
+    digits = tags[0][1:]
+    if not (digits.isascii() and digits.isdigit()) or len(digits) > 9:
+        raise WireProtocolError(f"line {line!r}: tag {tags[0]!r}, expected '#' and 1-9 digits")
+    return [t for t in tokens if t is not tags[0]], int(digits)
+
+
+def _parse_int(token: str, line: object) -> int:
+    body = token[1:] if token[:1] == "-" else token
+    if not (body.isascii() and body.isdigit()) or len(body) > 10:
+        raise WireProtocolError(f"line {line!r}: {token!r} is not a decimal integer")
+    return int(token)
+
+
+@dataclass(frozen=True)
+class Command:
+    """One PC -> controller command."""
+
+    verb: str
+    args: tuple[int, ...]
+    tag: int
+
+
+def format_command(verb: str, args: tuple[int, ...] | list[int], tag: int) -> bytes:
+    """Encode a command line; the arity is checked so that a driver cannot emit a malformed command."""
+    if COMMAND_ARITY.get(verb) != len(args):
+        raise ValueError(f"command {verb!r} with {len(args)} arguments, expected {COMMAND_ARITY.get(verb)}")
+    return encode_line(" ".join([verb, *(str(int(a)) for a in args), f"#{int(tag)}"]))
+
+
+def parse_command(line: bytes) -> Command:
+    """Decode a command line (the controller side)."""
+    tokens = decode_line(line).split()
+    tokens, tag = _split_tag(tokens, line)
+    if not tokens or tokens[0] not in COMMAND_ARITY:
+        raise WireProtocolError(f"line {line!r}: unknown command, expected one of {sorted(COMMAND_ARITY)}")
+    verb, args = tokens[0], tokens[1:]
+    if len(args) != COMMAND_ARITY[verb]:
+        raise WireProtocolError(f"line {line!r}: {verb} takes {COMMAND_ARITY[verb]} arguments, got {len(args)}")
+    return Command(verb, tuple(_parse_int(a, line) for a in args), tag)
+
+
+@dataclass(frozen=True)
+class Reply:
+    """One controller -> PC reply: ``kind`` (OK/DONE/ERR/BOOT), ``tag`` and the remaining ``fields``."""
+
+    kind: str
+    tag: int
+    fields: tuple[str, ...]
+
+    def ints(self, start: int, count: int) -> tuple[int, ...]:
+        """``count`` integer fields from ``start``; a short or non-integer reply raises WireProtocolError."""
+        chunk = self.fields[start:start + count]
+        if len(chunk) != count:
+            raise WireProtocolError(f"reply {self}: expected {count} integers from field {start}")
+        return tuple(_parse_int(t, self) for t in chunk)
+
+
+def format_reply(kind: str, tag: int, *fields: object) -> bytes:
+    return encode_line(" ".join([kind, f"#{int(tag)}", *(str(f) for f in fields)]))
+
+
+def parse_reply(line: bytes) -> Reply:
+    """Decode a reply line (the PC side)."""
+    tokens = decode_line(line).split()
+    if not tokens or tokens[0] not in _REPLY_KINDS:
+        raise WireProtocolError(f"line {line!r}: expected a reply starting with one of {_REPLY_KINDS}")
+    fields, tag = _split_tag(tokens[1:], line)
+    return Reply(tokens[0], tag, tuple(fields))
+
+
+class LineLink(FramedLink):
+    """Newline framing: a frame is everything up to ``\\n``; over-long lines are cut and returned for rejection."""
+
+    def _take_frame(self) -> bytes | None:
+        end = self._pending.find(b"\n")
+        if end < 0:
+            if len(self._pending) > 4 * MAX_LINE:  # a line that can never be valid: hand it over to be refused
+                frame = bytes(self._pending)
+                self._pending.clear()
+                return frame
+            return None
+        frame = bytes(self._pending[:end])
+        del self._pending[:end + 1]
+        return frame

@@ -1,0 +1,64 @@
+"""The simulated mechanism behind a simulated controller: commanded joints -> true attained pose.
+
+A :class:`Plant` chains three robot-specific or shared pieces: ``joints_of`` (controller units -> actuated joint
+values, e.g. steps -> leg lengths in mm), the seeded :class:`bench.robots.error_model.ErrorModel`, and ``forward``
+(forward kinematics from :mod:`motion`, returning the pose in mm and degrees). Random terms come from a generator
+seeded from the robot seed, so a simulated campaign is reproducible.
+"""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Callable
+
+import numpy as np
+
+from bench.robots.error_model import ErrorModel, JointMemory
+
+__all__ = ["Plant"]
+
+_log = logging.getLogger(__name__)
+
+
+class Plant:
+    """Callable ``plant(command, load_kg) -> true pose`` (pose in mm and degrees).
+
+    Parameters
+    ----------
+    joints_of : callable
+        ``(J,) controller command -> (J,) joint values`` in the error model's joint units.
+    forward : callable
+        ``(joints (J,), previous_pose (P,) or None) -> pose (P,)``, or ``None`` if the kinematics fail.
+    model : ErrorModel
+        Systematic errors and random-error sizes.
+    reference_pose : array (P,)
+        Pose about which the pose-dependent error is zero (the home pose).
+    seed : int
+        Seed of the per-move random stream.
+    """
+
+    def __init__(self, joints_of: Callable[[np.ndarray], np.ndarray],
+                 forward: Callable[[np.ndarray, np.ndarray | None], np.ndarray | None], model: ErrorModel,
+                 reference_pose: np.ndarray, seed: int) -> None:
+        self.joints_of = joints_of
+        self.forward = forward
+        self.model = model
+        self.reference_pose = np.asarray(reference_pose, dtype=float)
+        self._rng = np.random.default_rng([seed, 1])
+        self._memory: JointMemory | None = None
+        self._previous: np.ndarray | None = None
+
+    def __call__(self, command: np.ndarray, load_kg: float) -> np.ndarray:
+        joints = np.asarray(self.joints_of(np.asarray(command)), dtype=float)
+        if self._memory is None:
+            self._memory = JointMemory(joints)
+        direction = self._memory.update(joints)
+        true_joints = self.model.true_joints(joints, direction, load_kg, self._rng)
+        pose = self.forward(true_joints, self._previous)
+        if pose is None:  # the perturbed joints left the FK's domain: fall back to the nominal joints
+            _log.warning("forward kinematics failed for perturbed joints %s; using the commanded ones", true_joints)
+            pose = self.forward(joints, self._previous)
+        if pose is None:
+            raise ValueError(f"forward kinematics failed for commanded joints {joints}")
+        self._previous = np.asarray(pose, dtype=float)
+        return self.model.true_pose(self._previous, self.reference_pose, load_kg, self._rng)

@@ -1,0 +1,196 @@
+"""Simulated delta4 controller: ``python -m bench.robots.sim_delta4`` (or ``bench sim delta4``).
+
+Behaves like the ATmega128 firmware as ``docs/protocol-delta4.md`` specifies it: ``E`` starts control and sensor
+reporting, ``G`` stops both, ``P``/``Q``/``R``/``S`` + digits + ``X`` set servo references (stored while stopped),
+``T`` is logged and ignored, malformed messages are discarded. Each servo follows the closed-loop target
+b/(s + b), b = 4 1/s (reference §6.2.2), in simulated time scaled by ``--speed-factor``; ``z`` is sent once all four
+are within one ADC count (140/255 deg) for 10 ticks of 2 ms. The attained pose then comes from the seeded error
+model and :mod:`motion.delta4` forward kinematics and goes to the truth log. Sensor reports (one per 80 ms frame,
+horizontal screen first) come from a pluggable ``sensor(pose_mm) -> (horizontal, vertical)``; without one
+(the default until a laser-grid simulator is attached) every frame reports no hit, ``h`` then ``v``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import logging
+import math
+import sys
+from collections.abc import Callable
+from typing import Any
+
+import numpy as np
+
+from bench.robots import delta4_wire as wire
+from bench.robots.error_model import ErrorMagnitudes, ErrorModel
+from bench.robots.plant import Plant
+from bench.robots.sim_pty import TruthLog, main_for
+
+__all__ = ["DELTA4_ERRORS", "Delta4SimDevice", "build_plant", "main"]
+
+_log = logging.getLogger(__name__)
+
+BANDWIDTH_PER_S = 4.0
+ADC_DEG_PER_COUNT = 140.0 / 255.0
+SETTLE_HOLD_S = 10 * 0.002
+FRAME_PERIOD_S = 0.080
+HOME_POINT_MM = (0.0, 0.0, -150.0)
+
+#: Error sizes giving axial errors of 2-3 mm and spatial errors up to about 4 mm (reference §7.2); joint units deg.
+DELTA4_ERRORS = ErrorMagnitudes(
+    scale_sigma=0.004, offset_sigma=0.35, backlash=0.6, noise_sigma=ADC_DEG_PER_COUNT / math.sqrt(3),
+    sag_per_kg=0.15, pose_gain_sigma=0.004, pose_play_sigma=(0.45, 0.45, 0.45), pose_sag_per_kg=(0.0, 0.0, -0.8),
+)
+
+Sensor = Callable[[np.ndarray], tuple[tuple[int, ...], tuple[int, ...]]]
+
+
+def _no_hit(_: np.ndarray) -> tuple[tuple[int, ...], tuple[int, ...]]:
+    return (), ()
+
+
+class Delta4SimDevice:
+    """The firmware state machine over simulated servos; ``plant(servo_deg, load_kg) -> (x, y, z) mm``."""
+
+    def __init__(self, plant: Any, mapping: wire.ServoMapping, *, speed_factor: float = 1.0,
+                 truth: TruthLog | None = None, load_kg: float = 0.0, sensor: Sensor | None = None,
+                 home_servo_deg: np.ndarray | None = None) -> None:
+        self.plant = plant
+        self.mapping = mapping
+        self.speed_factor = speed_factor
+        self.truth = truth or TruthLog(None, ("x_mm", "y_mm", "z_mm"))
+        self.load_kg = load_kg
+        self.sensor = sensor or _no_hit
+        home = np.full(4, 71.66) if home_servo_deg is None else np.asarray(home_servo_deg, dtype=float)
+        self.angle_deg = home.copy()        # where the servos are at t0
+        self.target_deg = home.copy()
+        self.references = mapping.to_bytes(home)
+        self.t0_s = 0.0
+        self.started = False
+        self.settle_at_s: float | None = None
+        self.true_pose = np.asarray(plant(self.target_deg, load_kg), dtype=float)
+        self._next_frame_s = 0.0
+        self._letter: int | None = None
+        self._digits = bytearray()
+        self._stored_while_stopped = False
+
+    # -- bytes in ----------------------------------------------------------------------------------------------
+    def feed(self, data: bytes, now_s: float) -> bytes:
+        out = self.tick(now_s)
+        for byte in data:
+            self._byte(byte, now_s)
+        return out
+
+    def _byte(self, byte: int, now_s: float) -> None:
+        if self._letter is not None:
+            if 0x30 <= byte <= 0x39 and len(self._digits) < 3:
+                self._digits.append(byte)
+                return
+            if byte == ord("X") and self._digits and int(self._digits) <= 255:
+                self._reference(wire.SERVO_LETTERS.index(self._letter), int(self._digits), now_s)
+                self._letter = None
+                return
+            _log.info("discarded malformed message %r", bytes([self._letter]) + bytes(self._digits) + bytes([byte]))
+            self._letter = None
+            if 0x30 <= byte <= 0x39 or byte == ord("X"):
+                return
+        if byte in wire.SERVO_LETTERS:
+            self._letter, self._digits = byte, bytearray()
+        elif byte == ord("E"):
+            self._start(now_s)
+        elif byte == ord("G"):
+            self._hold(now_s)
+            self.started = False
+        elif byte == ord("T"):
+            _log.info("received T (undocumented command): ignored")
+        elif byte != ord("z"):  # z is the PC's acknowledgement
+            _log.info("ignored byte %r", bytes([byte]))
+
+    def _start(self, now_s: float) -> None:
+        if not self.started:
+            self.started = True
+            self._hold(now_s)
+            self._next_frame_s = now_s
+            if self._stored_while_stopped:  # 'z' follows servo commands only (§5.7 items 7 and 10)
+                self._retarget(now_s)
+            self._stored_while_stopped = False
+
+    def _reference(self, servo: int, value: int, now_s: float) -> None:
+        self.references[servo] = value
+        self._stored_while_stopped = not self.started
+        if self.started:
+            self._hold(now_s)
+            self._retarget(now_s)
+
+    def _hold(self, now_s: float) -> None:
+        """Freeze the servo trajectories at ``now_s`` as the new starting angles."""
+        self.angle_deg = self._angles(now_s)
+        self.t0_s = now_s
+
+    def _retarget(self, now_s: float) -> None:
+        self.target_deg = self.mapping.to_deg(self.references.astype(float))
+        worst = float(np.max(np.abs(self.angle_deg - self.target_deg)))
+        rise_s = math.log(worst / ADC_DEG_PER_COUNT) / BANDWIDTH_PER_S if worst > ADC_DEG_PER_COUNT else 0.0
+        self.settle_at_s = now_s + (rise_s + SETTLE_HOLD_S) / self.speed_factor
+
+    def _angles(self, now_s: float) -> np.ndarray:
+        if not self.started:
+            return self.angle_deg
+        decay = math.exp(-BANDWIDTH_PER_S * max(0.0, now_s - self.t0_s) * self.speed_factor)
+        return self.target_deg + (self.angle_deg - self.target_deg) * decay
+
+    # -- bytes out ---------------------------------------------------------------------------------------------
+    def tick(self, now_s: float) -> bytes:
+        out = bytearray()
+        if not self.started:
+            return b""
+        if self.settle_at_s is not None and now_s >= self.settle_at_s:
+            self.settle_at_s = None
+            self.true_pose = np.asarray(self.plant(self.target_deg, self.load_kg), dtype=float)
+            self.truth.record(list(self.target_deg), list(self.true_pose), self.load_kg)
+            out += b"z"
+        if now_s >= self._next_frame_s:
+            self._next_frame_s = max(self._next_frame_s + FRAME_PERIOD_S, now_s)
+            out += self._report()
+        return bytes(out)
+
+    def _report(self) -> bytes:
+        horizontal, vertical = self.sensor(self.true_pose)
+        report = b"".join(b"H%03dX" % i for i in horizontal) if horizontal else b"h"
+        return report + (b"".join(b"V%03dX" % i for i in vertical) if vertical else b"v")
+
+
+def build_plant(seed: int, *, ideal: bool = False, geometry: Any = None) -> tuple[Plant, np.ndarray]:
+    """The seeded delta4 plant and the servo angles of the home point (0, 0, -150) mm."""
+    from motion import delta4
+    geometry = geometry or delta4.NOMINAL
+
+    def forward(servo_deg: np.ndarray, _previous: np.ndarray | None) -> np.ndarray | None:
+        result = delta4.forward_kinematics(servo_deg.reshape(1, 4), geometry)
+        return result.pose_mm[0] if bool(result.ok[0]) else None
+
+    model = ErrorModel.ideal(4, 3) if ideal else ErrorModel.draw(DELTA4_ERRORS, 4, seed)
+    home = delta4.inverse_kinematics(np.array([HOME_POINT_MM]), geometry).servo_deg[0]
+    return Plant(lambda q: q, forward, model, np.array(HOME_POINT_MM), seed), home
+
+
+def _build(args: argparse.Namespace) -> Delta4SimDevice:
+    plant, home = build_plant(args.seed, ideal=args.ideal)
+    truth = TruthLog(args.truth, ("x_mm", "y_mm", "z_mm"))
+    mapping = wire.MAPPINGS[args.mapping]()
+    return Delta4SimDevice(plant, mapping, speed_factor=args.speed_factor, truth=truth, load_kg=args.load_kg,
+                           home_servo_deg=home)
+
+
+def _arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--mapping", choices=sorted(wire.MAPPINGS), default="legacy_vb",
+                        help="servo byte <-> angle mapping the firmware uses (must match the driver)")
+
+
+def main(argv: list[str] | None = None) -> int:
+    return main_for(_build, "Simulated delta4 (ATmega128) controller on a pseudo-terminal (prints the device path).",
+                    argv, _arguments)
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,201 @@
+"""Simulated PKM5 controller: ``python -m bench.robots.sim_pkm5`` (or ``bench sim pkm5``).
+
+Implements the firmware's behaviour (``docs/protocol-pkm5.md``) on a pseudo-terminal, plus the simulator-only
+commands ``SIMTRUE`` and ``SIMLOAD``. Moves run at constant speed with all axes arriving together (MultiStepper),
+in simulated time scaled by ``--speed-factor``. When a move ends, the plant (:class:`Pkm5Plant`) turns the reached
+steps into the true attained pose through the seeded error model and the kinematics of :mod:`motion.pkm5`:
+steps -> leg lengths -> perturbed lengths -> forward kinematics -> pose errors. The pose goes to ``SIMTRUE`` and
+to the truth log (see :mod:`bench.robots.sim_pty`).
+"""
+
+from __future__ import annotations
+
+import argparse
+import logging
+import sys
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from bench.robots import pkm5_wire as wire
+from bench.robots.link import WireProtocolError
+from bench.robots.sim_pty import TruthLog, main_for
+
+__all__ = ["FIRMWARE_VERSION", "HOME_STEPS", "MAX_STEPS", "Pkm5SimDevice", "main"]
+
+_log = logging.getLogger(__name__)
+
+FIRMWARE_VERSION = "1.0.0-sim"
+#: Step limits of the firmware (0 = full retraction; 66 mm stroke at 0.00625 / 0.003125 mm/step).
+MAX_STEPS = (10560, 10560, 10560, 10560, 21120, 21120)
+#: Position assumed at power-up: the documents' home, 5 mm stroke on every actuator.
+HOME_STEPS = (800, 800, 800, 800, 1600, 1600)
+MAX_SPEED_STEPS_S = 1000
+_IDLE_ONLY = frozenset({"MOVE", "SETPOS", "ENABLE", "DISABLE"})
+
+
+@dataclass
+class _Move:
+    tag: int
+    start: np.ndarray
+    target: np.ndarray
+    t_start_s: float
+    duration_s: float
+
+    def at(self, now_s: float) -> np.ndarray:
+        fraction = 1.0 if self.duration_s <= 0 else min(1.0, (now_s - self.t_start_s) / self.duration_s)
+        return np.rint(self.start + fraction * (self.target - self.start)).astype(np.int64)
+
+
+class Pkm5SimDevice:
+    """The firmware state machine; ``plant(steps, load_kg) -> pose`` supplies the true pose after each move."""
+
+    def __init__(self, plant: Any, *, speed_factor: float = 1.0, truth: TruthLog | None = None,
+                 load_kg: float = 0.0) -> None:
+        self.plant = plant
+        self.speed_factor = speed_factor
+        self.truth = truth or TruthLog(None, ("x_mm", "y_mm", "z_mm", "alpha_deg", "beta_deg"))
+        self.load_kg = load_kg
+        self.steps = np.array(HOME_STEPS, dtype=np.int64)
+        self.enabled = False
+        self.move: _Move | None = None
+        self.true_pose = np.asarray(plant(self.steps, load_kg), dtype=float)
+        self._line = bytearray()
+        self._overflow = False
+        self._booted = False
+
+    # -- bytes in, bytes out -----------------------------------------------------------------------------------
+    def feed(self, data: bytes, now_s: float) -> bytes:
+        out = bytearray(self.tick(now_s))
+        for byte in data:
+            if byte == 0x0A:
+                out += self._end_line(now_s)
+            elif len(self._line) >= wire.MAX_LINE:
+                self._overflow = True
+            else:
+                self._line.append(byte)
+        return bytes(out)
+
+    def _end_line(self, now_s: float) -> bytes:
+        line, overflow = bytes(self._line), self._overflow
+        self._line.clear()
+        self._overflow = False
+        if overflow:
+            return _error(0, wire.ErrorCode.TOO_LONG)
+        if not line.strip(b"\r"):
+            return b""
+        try:
+            command = wire.parse_command(line)
+        except WireProtocolError as exc:
+            _log.info("refused %r: %s", line, exc)
+            code = wire.ErrorCode.CHECKSUM if "checksum" in str(exc) else wire.ErrorCode.SYNTAX
+            return _error(_tag_guess(line) if code == wire.ErrorCode.SYNTAX else 0, code)
+        return self._execute(command, now_s)
+
+    def tick(self, now_s: float) -> bytes:
+        out = b""
+        if not self._booted:
+            self._booted = True
+            out += wire.format_reply("BOOT", 0, wire.DEVICE_NAME, wire.PROTOCOL_VERSION, FIRMWARE_VERSION)
+        if self.move is not None and now_s >= self.move.t_start_s + self.move.duration_s:
+            move, self.move = self.move, None
+            self.steps = move.target.copy()
+            self._settle()
+            out += wire.format_reply("DONE", move.tag, *self.steps)
+        return out
+
+    # -- commands ----------------------------------------------------------------------------------------------
+    def _execute(self, command: wire.Command, now_s: float) -> bytes:
+        verb, args, tag = command.verb, command.args, command.tag
+        if verb in _IDLE_ONLY and self.move is not None:
+            return _error(tag, wire.ErrorCode.BUSY)
+        if verb == "ID":
+            return wire.format_reply("OK", tag, "ID", wire.DEVICE_NAME, wire.PROTOCOL_VERSION, FIRMWARE_VERSION)
+        if verb == "POS":
+            state = "MOVING" if self.move else "IDLE" if self.enabled else "DISABLED"
+            return wire.format_reply("OK", tag, "POS", *self._current(now_s), state)
+        if verb == "STOP":
+            return self._stop(tag, now_s)
+        if verb in ("ENABLE", "DISABLE"):
+            self.enabled = verb == "ENABLE"
+            return wire.format_reply("OK", tag, verb)
+        if verb == "SETPOS":
+            return self._setpos(tag, args)
+        if verb == "MOVE":
+            return self._start_move(tag, args, now_s)
+        if verb == "SIMLOAD":
+            if not 0 <= args[0] <= 30000:
+                return _error(tag, wire.ErrorCode.ARGUMENT)
+            self.load_kg = args[0] / 1000.0
+            return wire.format_reply("OK", tag, "SIMLOAD")
+        if verb == "SIMTRUE":
+            return wire.format_reply("OK", tag, "SIMTRUE", *(f"{v:.4f}" for v in self.true_pose))
+        return _error(tag, wire.ErrorCode.SYNTAX)
+
+    def _current(self, now_s: float) -> np.ndarray:
+        return self.move.at(now_s) if self.move is not None else self.steps
+
+    def _setpos(self, tag: int, args: tuple[int, ...]) -> bytes:
+        if not _within_limits(args):
+            return _error(tag, wire.ErrorCode.LIMIT)
+        self.steps = np.array(args, dtype=np.int64)
+        self._settle()
+        return wire.format_reply("OK", tag, "SETPOS")
+
+    def _start_move(self, tag: int, args: tuple[int, ...], now_s: float) -> bytes:
+        targets, speed = args[:wire.AXES], args[wire.AXES]
+        if not 1 <= speed <= MAX_SPEED_STEPS_S:
+            return _error(tag, wire.ErrorCode.ARGUMENT)
+        if not _within_limits(targets):
+            return _error(tag, wire.ErrorCode.LIMIT)
+        if not self.enabled:
+            return _error(tag, wire.ErrorCode.DISABLED)
+        target = np.array(targets, dtype=np.int64)
+        duration_s = float(np.max(np.abs(target - self.steps))) / speed
+        self.move = _Move(tag, self.steps.copy(), target, now_s, duration_s / self.speed_factor)
+        return wire.format_reply("OK", tag, "MOVE", round(1000 * duration_s / self.speed_factor))
+
+    def _stop(self, tag: int, now_s: float) -> bytes:
+        out = b""
+        if self.move is not None:
+            self.steps = self.move.at(now_s)
+            out += _error(self.move.tag, wire.ErrorCode.STOPPED, *self.steps)
+            self.move = None
+            self._settle()
+        return out + wire.format_reply("OK", tag, "STOP", *self.steps)
+
+    def _settle(self) -> None:
+        self.true_pose = np.asarray(self.plant(self.steps, self.load_kg), dtype=float)
+        self.truth.record(list(self.steps), list(self.true_pose), self.load_kg)
+
+
+def _within_limits(steps: tuple[int, ...]) -> bool:
+    return all(0 <= s <= high for s, high in zip(steps, MAX_STEPS))
+
+
+def _error(tag: int, code: wire.ErrorCode, *fields: object) -> bytes:
+    return wire.format_reply("ERR", tag, int(code), code.name, *fields)
+
+
+def _tag_guess(line: bytes) -> int:
+    """The tag of a refused line if it has a readable one (so the driver learns of the refusal at once), else 0."""
+    for token in line.rpartition(b"*")[0].split():
+        if token.startswith(b"#") and token[1:].isdigit() and len(token) <= 10:
+            return int(token[1:])
+    return 0
+
+
+def _build(args: argparse.Namespace) -> Pkm5SimDevice:
+    from bench.robots.pkm5_plant import Pkm5Plant
+    plant = Pkm5Plant.from_seed(args.seed, ideal=args.ideal)
+    truth = TruthLog(args.truth, ("x_mm", "y_mm", "z_mm", "alpha_deg", "beta_deg"))
+    return Pkm5SimDevice(plant, speed_factor=args.speed_factor, truth=truth, load_kg=args.load_kg)
+
+
+def main(argv: list[str] | None = None) -> int:
+    return main_for(_build, "Simulated 5-DOF PKM controller on a pseudo-terminal (prints the device path).", argv)
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,170 @@
+"""Process scaffolding of the simulated controllers: a pseudo-terminal, an event loop, and the truth log.
+
+A simulator is a real program (``python -m bench.robots.sim_pkm5`` / ``sim_delta4``, or ``bench sim ...``). It opens a
+pty with ``os.openpty``, prints the slave device path as the first line of stdout (then the truth-log path, if
+any), and serves bytes on the master side until SIGTERM/SIGINT or until its parent process exits. Clients open the
+printed path with pyserial exactly as they would open hardware.
+
+The truth log is the simulator-only side channel for sensor simulators: one JSON object per line, appended and
+flushed after every completed or stopped move: ``{"seq", "t_monotonic_s", "t_wall_s", "commanded", "pose",
+"pose_fields", "load_kg"}``. :func:`read_last_truth` returns the newest entry. Real controllers have no such log.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import select
+import signal
+import sys
+import time
+import tty
+from pathlib import Path
+from typing import Any, Protocol
+
+__all__ = ["SimDevice", "TruthLog", "add_common_arguments", "read_last_truth", "serve"]
+
+_TICK_S = 0.002
+
+
+class SimDevice(Protocol):
+    """What the event loop needs from a simulated controller."""
+
+    def feed(self, data: bytes, now_s: float) -> bytes:
+        """Consume bytes from the PC; return bytes to send back."""
+
+    def tick(self, now_s: float) -> bytes:
+        """Advance simulated time to ``now_s`` (monotonic); return bytes to send (completions, reports)."""
+
+
+class TruthLog:
+    """Appends the true attained pose after each move to a JSON-lines file (simulator-only side channel)."""
+
+    def __init__(self, path: str | os.PathLike[str] | None, pose_fields: tuple[str, ...]) -> None:
+        self.path = None if path is None else Path(path)
+        self.pose_fields = pose_fields
+        self._seq = 0
+        if self.path is not None:
+            self.path.write_text("")
+
+    def record(self, commanded: list[float], pose: list[float], load_kg: float) -> dict[str, Any]:
+        self._seq += 1
+        entry = {"seq": self._seq, "t_monotonic_s": time.monotonic(), "t_wall_s": time.time(),
+                 "commanded": [float(c) for c in commanded], "pose": [float(p) for p in pose],
+                 "pose_fields": list(self.pose_fields), "load_kg": float(load_kg)}
+        if self.path is not None:
+            with self.path.open("a", encoding="utf-8") as handle:
+                handle.write(json.dumps(entry) + "\n")
+        return entry
+
+
+def read_last_truth(path: str | os.PathLike[str]) -> dict[str, Any] | None:
+    """The newest complete entry of a truth log, or ``None`` if no move has finished yet."""
+    lines = Path(path).read_text(encoding="utf-8").splitlines()
+    for line in reversed(lines):
+        try:
+            return json.loads(line)
+        except json.JSONDecodeError:  # a line being written right now
+            continue
+    return None
+
+
+def add_common_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--seed", type=int, default=0, help="seed of the robot's error model and noise")
+    parser.add_argument("--ideal", action="store_true", help="no error model: attain exactly what is commanded")
+    parser.add_argument("--speed-factor", type=float, default=1.0,
+                        help="simulated time runs this many times faster than real moves")
+    parser.add_argument("--load-kg", type=float, default=0.0, help="payload on the end effector, kg")
+    parser.add_argument("--truth", default=None, help="append the true attained pose after each move to this file")
+    parser.add_argument("--reply-delay-s", type=float, default=0.0, help="fault: delay every reply by this, s")
+    parser.add_argument("--garbage-every-s", type=float, default=0.0,
+                        help="fault: send a burst of random bytes this often, s (0: never)")
+
+
+def _open_pty() -> tuple[int, int, str]:
+    master, slave = os.openpty()
+    tty.setraw(slave)
+    os.set_blocking(master, False)  # with no client reading, a full pty buffer must not freeze the simulator
+    return master, slave, os.ttyname(slave)
+
+
+def _send(master: int, data: bytes) -> None:
+    try:
+        os.write(master, data)
+    except BlockingIOError:  # nobody reads: like a real UART, output is lost
+        pass
+
+
+class _Faults:
+    def __init__(self, args: argparse.Namespace) -> None:
+        self.delay_s = max(0.0, args.reply_delay_s)
+        self.garbage_every_s = max(0.0, args.garbage_every_s)
+        self._rng_state = (args.seed * 2654435761 + 1) & 0xFFFFFFFF
+        self._next_garbage = time.monotonic() + self.garbage_every_s
+        self.outbox: list[tuple[float, bytes]] = []
+
+    def garbage(self, now_s: float) -> bytes:
+        if not self.garbage_every_s or now_s < self._next_garbage:
+            return b""
+        self._next_garbage = now_s + self.garbage_every_s
+        out = bytearray()
+        for _ in range(8):  # xorshift: deterministic noise without touching the error model's streams
+            self._rng_state ^= (self._rng_state << 13) & 0xFFFFFFFF
+            self._rng_state ^= self._rng_state >> 17
+            self._rng_state ^= (self._rng_state << 5) & 0xFFFFFFFF
+            out.append(self._rng_state & 0xFF)
+        return bytes(out).replace(b"\n", b"~")
+
+
+def serve(device: SimDevice, args: argparse.Namespace) -> int:
+    """Run ``device`` on a new pty until SIGTERM/SIGINT or until the parent process exits."""
+    master, slave, path = _open_pty()
+    print(path, flush=True)
+    if args.truth:
+        print(os.path.abspath(args.truth), flush=True)
+    stopping = []
+    for signum in (signal.SIGTERM, signal.SIGINT):
+        signal.signal(signum, lambda *_: stopping.append(True))
+    parent = os.getppid()
+    faults = _Faults(args)
+    try:
+        while not stopping and os.getppid() == parent:
+            readable, _, _ = select.select([master], [], [], _TICK_S)
+            now = time.monotonic()
+            out = b""
+            if readable:
+                try:
+                    out += device.feed(os.read(master, 4096), now)
+                except BlockingIOError:
+                    pass
+            out += device.tick(now)
+            if out:
+                faults.outbox.append((now + faults.delay_s, out))
+            out = faults.garbage(now) + b"".join(data for due, data in faults.outbox if due <= now)
+            faults.outbox = [(due, data) for due, data in faults.outbox if due > now]
+            if out:
+                _send(master, out)
+    finally:
+        os.close(master)
+        os.close(slave)
+    return 0
+
+
+def main_for(build_device: Any, description: str, argv: list[str] | None = None,
+             extra_arguments: Any = None) -> int:
+    """Entry point shared by the simulators: parse arguments, build the device, serve it."""
+    parser = argparse.ArgumentParser(description=description,
+                                     formatter_class=argparse.ArgumentDefaultsHelpFormatter)
+    add_common_arguments(parser)
+    if extra_arguments is not None:
+        extra_arguments(parser)
+    args = parser.parse_args(argv)
+    if not args.speed_factor > 0:
+        parser.error(f"--speed-factor = {args.speed_factor}, expected a number > 0")
+    try:
+        device = build_device(args)
+    except Exception as exc:  # noqa: BLE001 - a simulator that cannot start says why in one line
+        print(f"{parser.prog}: error: {exc}", file=sys.stderr)
+        return 2
+    return serve(device, args)
