@@ -1,0 +1,24 @@
+"""Metrology core of bench: the figures a test report prints, as pure functions over raw samples.
+
+ISO 9283 pose characteristics (`iso9283`), time-series and path characteristics (`iso9283_dynamics`), actuator
+accuracy after Groover and ISO 230-2 (`actuator`), optical-mouse calibration (`mouse_calibration`), the
+project's payload error (`payload`), GUM uncertainty (`uncertainty`) and the tidy-table interface (`tables`).
+Units: mm, degrees, s, kg, N. Results are frozen dataclasses; too few samples raise
+``bench.errors.InsufficientData``, malformed input ``bench.errors.ConfigError``; a result is never a silent NaN.
+bench/reports imports from here.
+"""
+
+from bench.metrology.actuator import *  # noqa: F403
+from bench.metrology.actuator import __all__ as _actuator
+from bench.metrology.iso9283 import *  # noqa: F403
+from bench.metrology.iso9283 import __all__ as _iso9283
+from bench.metrology.iso9283_dynamics import *  # noqa: F403
+from bench.metrology.iso9283_dynamics import __all__ as _dynamics
+from bench.metrology.mouse_calibration import *  # noqa: F403
+from bench.metrology.mouse_calibration import __all__ as _mouse
+from bench.metrology.payload import *  # noqa: F403
+from bench.metrology.payload import __all__ as _payload
+from bench.metrology.uncertainty import *  # noqa: F403
+from bench.metrology.uncertainty import __all__ as _uncertainty
+
+__all__ = [*_iso9283, *_dynamics, *_actuator, *_mouse, *_payload, *_uncertainty]

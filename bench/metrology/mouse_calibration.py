@@ -1,0 +1,240 @@
+"""Optical-mouse resolution calibration: the dissertation's per-distance method and least-squares fits.
+
+Counts are raw sensor counts or, in the dissertation's route, OS cursor pixels; displacements are in mm. Methods
+from ``shared/reference/sensors.md`` §5.1 (dissertation App. A.7) and §5.2 (project recommendation: the forward
+model c = B r fitted by ordinary least squares, inverted to A = B⁻¹ in mm/count).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from bench.errors import ConfigError, InsufficientData
+from bench.metrology._validation import as_points, as_series, require_count, require_same_length
+
+__all__ = [
+    "IncrementResolution",
+    "AxisCalibration",
+    "MatrixCalibration",
+    "increments_from_positions",
+    "increment_resolution",
+    "fit_axis_scale",
+    "fit_matrix",
+]
+
+
+@dataclass(frozen=True)
+class IncrementResolution:
+    """Dissertation-parity resolution of one axis at one increment length (App. A.7)."""
+
+    resolution_mm_per_count: float  #: distance / mean Δ
+    mean_delta_counts: float  #: mean Δ
+    three_sigma_counts: float  #: 3 S(Δ), n - 1
+    tolerance_mm: float  #: 3 S(Δ) x resolution (the dissertation's "tolerance")
+    n: int  #: number of increments
+
+
+@dataclass(frozen=True)
+class AxisCalibration:
+    """Per-axis linear fit counts = slope · reference + offset, inverted to a scale in mm/count."""
+
+    scale_mm_per_count: float  #: 1 / slope
+    u_scale_mm_per_count: float  #: standard uncertainty of the scale (first order)
+    slope_counts_per_mm: float
+    offset_counts: float  #: intercept; significantly non-zero means lost counts or backlash
+    u_offset_counts: float
+    residual_rms_counts: float
+    residuals_counts: tuple[float, ...]
+    n: int
+
+
+@dataclass(frozen=True, eq=False)
+class MatrixCalibration:
+    """2x2 calibration absorbing sensor rotation and cross-talk: d = A · c (sensors.md §5.2)."""
+
+    a_mm_per_count: np.ndarray  #: (2, 2) A = B⁻¹
+    u_a_mm_per_count: np.ndarray  #: (2, 2) standard uncertainty of each element of A
+    b_counts_per_mm: np.ndarray  #: (2, 2) forward matrix B
+    offset_counts: np.ndarray  #: (2,) intercept (zeros when fitted without one)
+    residuals_counts: np.ndarray  #: (K, 2)
+    sigma_counts: np.ndarray  #: (2,) residual standard deviation per sensor axis
+    rotation_deg: float  #: θ of the polar decomposition A = Rot(θ) S
+    scale_mm_per_count: np.ndarray  #: (2,) |A e_x|, |A e_y|: mm per count along each sensor axis
+    n: int
+
+
+def increments_from_positions(positions) -> np.ndarray:
+    """Absolute count increments |Δ| between successive positions; NaN marks a restart (segment break).
+
+    The dissertation's raw tables print "N/A" where the cursor was re-positioned near the screen edge: no
+    increment is formed across such a break (it is never read as zero).
+
+    Examples
+    --------
+    >>> increments_from_positions([951, 926, 902, float("nan"), 10, 35]).tolist()
+    [25.0, 24.0, 25.0]
+
+    The jump from 902 to 10 after the restart marker is not an increment.
+    """
+    values = np.asarray(positions, dtype=float)
+    if values.ndim != 1:
+        raise ConfigError(f"positions: shape {values.shape}, expected a 1-D array")
+    delta = np.abs(np.diff(values))
+    return delta[np.isfinite(delta)]
+
+
+def increment_resolution(distance_mm: float, increments_counts) -> IncrementResolution:
+    """Resolution and "tolerance" of one axis from repeated equal increments (dissertation App. A.7).
+
+    .. math::
+
+        r = d / \\bar\\Delta, \\qquad \\text{tolerance} = 3 S_\\Delta \\cdot r, \\quad
+        S_\\Delta = \\sqrt{\\textstyle\\sum (\\Delta_k - \\bar\\Delta)^2 / (n - 1)}
+
+    The "tolerance" is a 3σ scatter at one distance and one speed, not a bound.
+
+    Parameters
+    ----------
+    distance_mm : float
+        Length of each increment (mm), > 0.
+    increments_counts : array_like, shape (n,)
+        Count (or pixel) increments, n >= 2 (see `increments_from_positions`).
+
+    Examples
+    --------
+    Table A.28 (Y axis, mouse speed 4, 5 mm increments):
+
+    >>> deltas = [25, 24, 25, 24, 24, 24, 25, 24, 25, 25, 24, 25, 24, 25, 24, 24, 23, 24]
+    >>> r = increment_resolution(5.0, deltas)
+    >>> round(r.mean_delta_counts, 2), round(r.resolution_mm_per_count, 4), round(r.three_sigma_counts, 2)
+    (24.33, 0.2055, 1.78)
+
+    The printed average 24.33 px, resolution 0.21 mm/px and Table A.25's 3σ of 1.78 px are reproduced.
+    """
+    if not distance_mm > 0:
+        raise ConfigError(f"distance_mm = {distance_mm}, expected a number > 0")
+    increments = as_series("increments_counts", increments_counts, min_count=2)
+    mean = float(increments.mean())
+    if mean == 0:
+        raise ConfigError("increments_counts: mean increment is 0 counts, expected a moving sensor")
+    resolution = distance_mm / mean
+    three_sigma = 3.0 * float(increments.std(ddof=1))
+    return IncrementResolution(
+        resolution_mm_per_count=resolution,
+        mean_delta_counts=mean,
+        three_sigma_counts=three_sigma,
+        tolerance_mm=three_sigma * resolution,
+        n=len(increments),
+    )
+
+
+def fit_axis_scale(reference_mm, counts) -> AxisCalibration:
+    """Least-squares scale and offset of one sensor axis against reference displacements.
+
+    The sensor is the noisy side, so the forward model is fitted and inverted (sensors.md §5.2):
+
+    .. math::
+
+        c_k = \\beta r_k + c_0 + e_k, \\quad s = 1/\\beta, \\quad u(s) = u(\\beta) / \\beta^2
+
+    with u(β), u(c_0) from the OLS covariance σ̂² (XᵀX)⁻¹, σ̂² = Σ e_k² / (K - 2).
+
+    Parameters
+    ----------
+    reference_mm : array_like, shape (K,)
+        Reference displacements (mm), K >= 3, not all equal.
+    counts : array_like, shape (K,)
+        Count increments measured for each move.
+    """
+    reference = as_series("reference_mm", reference_mm, min_count=3)
+    measured = as_series("counts", counts)
+    require_same_length("reference_mm", reference, "counts", measured)
+    if np.ptp(reference) == 0:
+        raise ConfigError("reference_mm: all moves have the same length, expected at least two lengths")
+    design = np.column_stack([reference, np.ones_like(reference)])
+    coefficients, *_ = np.linalg.lstsq(design, measured, rcond=None)
+    residuals = measured - design @ coefficients
+    sigma2 = float(residuals @ residuals) / (len(reference) - 2)
+    covariance = sigma2 * np.linalg.inv(design.T @ design)
+    slope, offset = (float(v) for v in coefficients)
+    if slope == 0:
+        raise InsufficientData("fit_axis_scale: the counts do not change with the reference (slope 0)")
+    return AxisCalibration(
+        scale_mm_per_count=1.0 / slope,
+        u_scale_mm_per_count=float(np.sqrt(covariance[0, 0])) / slope**2,
+        slope_counts_per_mm=slope,
+        offset_counts=offset,
+        u_offset_counts=float(np.sqrt(covariance[1, 1])),
+        residual_rms_counts=float(np.sqrt(np.mean(residuals**2))),
+        residuals_counts=tuple(float(v) for v in residuals),
+        n=len(reference),
+    )
+
+
+def _rotation_deg(matrix: np.ndarray) -> float:
+    """θ of the polar decomposition matrix = Rot(θ) · S (S symmetric positive-definite)."""
+    u, _, vt = np.linalg.svd(matrix)
+    rotation = u @ vt
+    return float(np.degrees(np.arctan2(rotation[1, 0], rotation[0, 0])))
+
+
+def fit_matrix(reference_mm, counts, *, intercept: bool = False) -> MatrixCalibration:
+    """Least-squares 2x2 calibration c = B r (+ c_0) and its inverse A = B⁻¹ with uncertainties.
+
+    sensors.md §5.2 [P], rows k stacked into R (K x 2) and C (K x 2):
+
+    .. math::
+
+        B^T = (R^T R)^{-1} R^T C, \\quad E = C - R B^T, \\quad
+        \\hat\\sigma_i^2 = \\frac{\\sum_k E_{ki}^2}{K - p}, \\quad
+        \\operatorname{Cov}(B_{i\\cdot}) = \\hat\\sigma_i^2 (R^T R)^{-1}
+
+    and u(A) by first-order propagation of dA = -A dB A (sensor axes independent). p = 2, or 3 with intercept.
+    Fit once with ``intercept=True`` as a diagnostic; report the production matrix without one.
+
+    Parameters
+    ----------
+    reference_mm : array_like, shape (K, 2)
+        Reference displacements in the stage frame (mm); at least two non-parallel directions.
+    counts : array_like, shape (K, 2)
+        Count increments of the two sensor axes for each move.
+
+    Raises
+    ------
+    InsufficientData
+        K <= p (no residual degrees of freedom) or moves along one direction only (cross terms unidentifiable).
+    """
+    reference = as_points("reference_mm", reference_mm, dims=(2,))
+    measured = as_points("counts", counts, dims=(2,))
+    require_same_length("reference_mm", reference, "counts", measured)
+    parameters = 3 if intercept else 2
+    require_count("matrix calibration moves", len(reference), parameters + 1)
+    design = np.column_stack([reference, np.ones(len(reference))]) if intercept else reference
+    normal = design.T @ design
+    if np.linalg.matrix_rank(normal) < parameters:
+        raise InsufficientData("fit_matrix: moves along fewer than two non-parallel directions, cannot fit 2x2")
+    coefficients = np.linalg.solve(normal, design.T @ measured)
+    residuals = measured - design @ coefficients
+    sigma2 = np.sum(residuals**2, axis=0) / (len(reference) - parameters)
+    b = coefficients[:2].T
+    a = np.linalg.inv(b)
+    m = np.linalg.inv(normal)[:2, :2]
+    # Jacobian of vec(A) w.r.t. vec(B): ∂A_kl/∂B_ij = -A_ki A_jl; rows of B are independent with Cov σ_i² M.
+    jacobian = -np.einsum("ki,jl->klij", a, a).reshape(4, 4)
+    cov_b = np.zeros((4, 4))
+    for i in range(2):
+        cov_b[2 * i : 2 * i + 2, 2 * i : 2 * i + 2] = sigma2[i] * m
+    cov_a = jacobian @ cov_b @ jacobian.T
+    return MatrixCalibration(
+        a_mm_per_count=a,
+        u_a_mm_per_count=np.sqrt(np.diag(cov_a)).reshape(2, 2),
+        b_counts_per_mm=b,
+        offset_counts=coefficients[2] if intercept else np.zeros(2),
+        residuals_counts=residuals,
+        sigma_counts=np.sqrt(sigma2),
+        rotation_deg=_rotation_deg(a),
+        scale_mm_per_count=np.linalg.norm(a, axis=0),
+        n=len(reference),
+    )

@@ -1,0 +1,278 @@
+"""Tidy-table interface of the metrology core: read and check sample tables, analyse them per pose.
+
+A pose table has one row per attained sample: ``pose, cycle, cmd_x_mm, cmd_y_mm, cmd_z_mm, x_mm, y_mm, z_mm``,
+optionally the angle pairs ``cmd_a_deg/a_deg``, ``cmd_b_deg/b_deg``, ``cmd_c_deg/c_deg``, the conditions
+``velocity_pct`` and ``load_kg``, and ``t_s``. Poses are labels (P1..P5 or any string); cycle counts may differ
+between poses. Results are grouped by pose and, when they vary, by the conditions. Bad cells raise
+``ConfigError`` naming the source, the CSV line, the column and the value.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from bench.errors import ConfigError, InsufficientData
+from bench.metrology.iso9283 import (
+    DistanceCharacteristics,
+    OrientationAccuracy,
+    OrientationRepeatability,
+    PoseAccuracy,
+    PoseRepeatability,
+    distance_characteristics,
+    orientation_accuracy,
+    orientation_repeatability,
+    pose_accuracy,
+    pose_repeatability,
+)
+from bench.metrology.uncertainty import Measured, accuracy_uncertainty, bootstrap_uncertainty, expanded
+
+__all__ = [
+    "POSE_COLUMNS",
+    "ANGLE_PAIRS",
+    "CONDITION_COLUMNS",
+    "PoseResult",
+    "read_table_csv",
+    "numeric_columns",
+    "pose_table",
+    "analyze_poses",
+    "analyze_distance",
+    "pose_result_json",
+]
+
+POSE_COLUMNS = ("pose", "cycle", "cmd_x_mm", "cmd_y_mm", "cmd_z_mm", "x_mm", "y_mm", "z_mm")
+ANGLE_PAIRS = (("cmd_a_deg", "a_deg"), ("cmd_b_deg", "b_deg"), ("cmd_c_deg", "c_deg"))
+CONDITION_COLUMNS = ("velocity_pct", "load_kg")
+_COMMAND = ("cmd_x_mm", "cmd_y_mm", "cmd_z_mm")
+_ATTAINED = ("x_mm", "y_mm", "z_mm")
+
+
+@dataclass(frozen=True)
+class PoseResult:
+    """AP and RP (position and, when measured, orientation) of one pose under one set of conditions."""
+
+    label: str  #: the pose name, followed by the conditions when they vary within the table
+    pose: str
+    conditions: tuple[tuple[str, float], ...]  #: e.g. (("velocity_pct", 100.0), ("load_kg", 2.0))
+    commanded_mm: tuple[float, float, float]
+    accuracy: PoseAccuracy
+    repeatability: PoseRepeatability
+    ap_u: Measured  #: AP_P with its expanded uncertainty
+    rp_u: Measured  #: RP_l with a bootstrap expanded uncertainty over cycles
+    orientation_accuracy: OrientationAccuracy | None
+    orientation_repeatability: OrientationRepeatability | None
+    angle_names: tuple[str, ...]  #: which of "a", "b", "c" were measured
+
+
+def read_table_csv(path: str | Path) -> pd.DataFrame:
+    """Read a CSV as strings (no type guessing), refusing a missing or empty file with a one-line error."""
+    path = Path(path)
+    try:
+        frame = pd.read_csv(path, dtype=str, keep_default_na=False, skipinitialspace=True, comment="#")
+    except FileNotFoundError:
+        raise ConfigError(f"{path}: no such file") from None
+    except (pd.errors.EmptyDataError, pd.errors.ParserError, UnicodeDecodeError) as exc:
+        raise ConfigError(f"{path}: not a readable CSV table ({str(exc).splitlines()[0]})") from None
+    frame.columns = [str(c).strip() for c in frame.columns]
+    frame.attrs["source"] = str(path)
+    return frame
+
+
+def numeric_columns(frame: pd.DataFrame, columns: Sequence[str], *, required: bool = True) -> pd.DataFrame:
+    """Convert ``columns`` to float, naming the line, column and value of the first cell that is not a number.
+
+    Missing columns raise ``ConfigError`` when ``required``; otherwise they are skipped.
+    """
+    source = frame.attrs.get("source", "table")
+    missing = [c for c in columns if c not in frame.columns]
+    if missing and required:
+        raise ConfigError(f"{source}: missing column(s) {', '.join(missing)}; found {', '.join(frame.columns)}")
+    out = frame.copy()
+    for column in (c for c in columns if c in frame.columns):
+        text = frame[column].astype(str).str.strip()
+        values = pd.to_numeric(text, errors="coerce")
+        bad = values.isna() | ~np.isfinite(values.fillna(0.0))
+        if bad.any():
+            index = bad.idxmax()
+            raise ConfigError(
+                f"{source}: line {int(index) + 2}, column {column}: {frame.at[index, column]!r} is not a finite number"
+            )
+        out[column] = values.astype(float)
+    return out
+
+
+def pose_table(frame: pd.DataFrame) -> pd.DataFrame:
+    """Check a pose table and return it with numeric columns as float and ``pose`` as a stripped string."""
+    source = frame.attrs.get("source", "table")
+    for command, attained in ANGLE_PAIRS:
+        if (command in frame.columns) != (attained in frame.columns):
+            present, absent = (command, attained) if command in frame.columns else (attained, command)
+            raise ConfigError(f"{source}: column {present} given without {absent}")
+    angles = [c for pair in ANGLE_PAIRS for c in pair if c in frame.columns]
+    optional = [c for c in (*CONDITION_COLUMNS, "t_s") if c in frame.columns]
+    table = numeric_columns(frame, POSE_COLUMNS[1:])
+    table = numeric_columns(table, [*angles, *optional], required=False)
+    table["pose"] = frame["pose"].astype(str).str.strip()
+    empty = table["pose"] == ""
+    if empty.any():
+        raise ConfigError(f"{source}: line {int(empty.idxmax()) + 2}, column pose: empty, expected a pose label")
+    table.attrs["source"] = source
+    return table
+
+
+def _group_keys(table: pd.DataFrame) -> list[str]:
+    varying = [c for c in CONDITION_COLUMNS if c in table.columns and table[c].nunique() > 1]
+    return ["pose", *varying]
+
+
+def _check_constant_command(group: pd.DataFrame, columns: Sequence[str], source: str) -> None:
+    for column in columns:
+        values = group[column].to_numpy()
+        differs = np.flatnonzero(values != values[0])
+        if len(differs):
+            index = group.index[differs[0]]
+            raise ConfigError(
+                f"{source}: line {int(index) + 2}, column {column}: {values[differs[0]]:g} differs from "
+                f"{values[0]:g} earlier in pose {group['pose'].iloc[0]!r}, expected one command per pose"
+            )
+
+
+def _check_unique_cycles(group: pd.DataFrame, source: str) -> None:
+    duplicated = group["cycle"].duplicated()
+    if duplicated.any():
+        index = duplicated.idxmax()
+        raise ConfigError(
+            f"{source}: line {int(index) + 2}, column cycle: cycle {group.at[index, 'cycle']:g} repeated "
+            f"for pose {group.at[index, 'pose']!r}, expected one row per pose and cycle"
+        )
+
+
+def analyze_poses(
+    table: pd.DataFrame, *, instrument_u_mm: float = 0.0, k: float = 2.0, resamples: int = 400
+) -> list[PoseResult]:
+    """AP, RP and their expanded uncertainties for every pose (and set of conditions) of a pose table.
+
+    Parameters
+    ----------
+    table : DataFrame
+        Output of `pose_table`.
+    instrument_u_mm : float
+        Standard uncertainty of the instrument per axis (systematic and registration), added to the AP budget.
+    k : float
+        Coverage factor of the reported expanded uncertainties.
+    resamples : int
+        Bootstrap resamples for the uncertainty of RP (seeded: the result is reproducible).
+
+    Raises
+    ------
+    InsufficientData
+        A pose with fewer than 2 cycles (named in the message).
+    """
+    source = table.attrs.get("source", "table")
+    angles = [(cmd, att) for cmd, att in ANGLE_PAIRS if cmd in table.columns]
+    keys = _group_keys(table)
+    results = []
+    for key, group in table.groupby(keys, sort=False):
+        key = key if isinstance(key, tuple) else (key,)
+        pose, conditions = str(key[0]), tuple((name, float(v)) for name, v in zip(keys[1:], key[1:]))
+        _check_constant_command(group, [*_COMMAND, *(cmd for cmd, _ in angles)], source)
+        _check_unique_cycles(group, source)
+        group = group.sort_values("cycle", kind="stable")
+        attained = group[list(_ATTAINED)].to_numpy()
+        command = group[list(_COMMAND)].to_numpy()[0]
+        label = pose if not conditions else f"{pose} ({', '.join(f'{n}={v:g}' for n, v in conditions)})"
+        try:
+            repeatability = pose_repeatability(attained)
+        except InsufficientData as exc:
+            raise type(exc)(f"{source}: pose {label!r}: {exc}") from None
+        ap_u, _ = accuracy_uncertainty(attained, command, instrument_u_mm=instrument_u_mm, k=k)
+        u_rp = (
+            bootstrap_uncertainty(lambda p: pose_repeatability(p).rp_mm, attained, resamples=resamples)
+            if len(attained) >= 3
+            else 0.0
+        )
+        orientation = None
+        if angles:
+            attained_deg = group[[att for _, att in angles]].to_numpy()
+            orientation = (
+                orientation_accuracy(attained_deg, group[[cmd for cmd, _ in angles]].to_numpy()[0]),
+                orientation_repeatability(attained_deg),
+            )
+        results.append(
+            PoseResult(
+                label=label,
+                pose=pose,
+                conditions=conditions,
+                commanded_mm=tuple(float(v) for v in command),
+                accuracy=pose_accuracy(attained, command),
+                repeatability=repeatability,
+                ap_u=ap_u,
+                rp_u=expanded(repeatability.rp_mm, u_rp, unit="mm", k=k),
+                orientation_accuracy=orientation[0] if orientation else None,
+                orientation_repeatability=orientation[1] if orientation else None,
+                angle_names=tuple(att[0] for _, att in angles),
+            )
+        )
+    return results
+
+
+def pose_result_json(result: PoseResult) -> dict:
+    """The JSON object of one pose for ``bench analyze iso9283 --json``."""
+    ax, ay, az = result.accuracy.ap_axes_mm
+    out = {
+        "n": result.accuracy.n,
+        "AP_mm": result.accuracy.ap_mm,
+        "APx_mm": ax,
+        "APy_mm": ay,
+        "APz_mm": az,
+        "RP_mm": result.repeatability.rp_mm,
+        "barycentre_mm": list(result.accuracy.barycentre_mm),
+        "commanded_mm": list(result.commanded_mm),
+        "U_AP_mm": result.ap_u.expanded_uncertainty,
+        "U_RP_mm": result.rp_u.expanded_uncertainty,
+        "k": result.ap_u.coverage_factor,
+    }
+    if result.orientation_accuracy is not None:
+        for name, ap, rp in zip(
+            result.angle_names, result.orientation_accuracy.ap_deg, result.orientation_repeatability.rp_deg
+        ):
+            out[f"AP{name}_deg"] = ap
+            out[f"RP{name}_deg"] = rp
+    if result.conditions:
+        out["pose"] = result.pose
+        out.update(dict(result.conditions))
+    return out
+
+
+def analyze_distance(table: pd.DataFrame, first_pose: str, second_pose: str) -> DistanceCharacteristics:
+    """AD and RD between two poses of a pose table, pairing the samples by cycle (ISO 9283 7.3).
+
+    Cycles present at only one of the two poses are refused with a message naming them.
+    """
+    source = table.attrs.get("source", "table")
+    groups = {}
+    for pose in (first_pose, second_pose):
+        rows = table[table["pose"] == pose]
+        if rows.empty:
+            raise ConfigError(f"{source}: pose {pose!r} not found; poses: {', '.join(table['pose'].unique())}")
+        _check_constant_command(rows, _COMMAND, source)
+        _check_unique_cycles(rows, source)
+        groups[pose] = rows.set_index("cycle")
+    first, second = groups[first_pose], groups[second_pose]
+    unpaired = sorted(set(first.index) ^ set(second.index))
+    if unpaired:
+        raise ConfigError(
+            f"{source}: cycle(s) {', '.join(f'{c:g}' for c in unpaired[:5])} present at only one of "
+            f"{first_pose!r} and {second_pose!r}, expected paired cycles"
+        )
+    cycles = sorted(first.index)
+    return distance_characteristics(
+        first.loc[cycles, list(_ATTAINED)].to_numpy(),
+        second.loc[cycles, list(_ATTAINED)].to_numpy(),
+        first[list(_COMMAND)].to_numpy()[0],
+        second[list(_COMMAND)].to_numpy()[0],
+    )

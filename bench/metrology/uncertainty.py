@@ -1,0 +1,200 @@
+"""GUM uncertainty for the metrology figures: Type A and B components, expanded uncertainty, bootstrap, RP floor.
+
+JCGM 100:2008 (GUM) and JCGM 101:2008 as summarised in ``shared/reference/iso9283.md`` §8. Every figure a report
+prints comes with an expanded uncertainty U = k·u_c (k = 2 unless stated) as a `Measured` value. The robot's
+scatter (S, used by RP) and the uncertainty of a barycentre (S/√n) are different quantities and kept apart.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy import special, stats
+
+from bench.errors import ConfigError
+from bench.metrology._validation import as_points, as_series, require_count
+
+__all__ = [
+    "Measured",
+    "ConfidenceInterval",
+    "type_a_of_mean",
+    "rectangular",
+    "resolution_uncertainty",
+    "combine",
+    "expanded",
+    "welch_satterthwaite",
+    "mean_confidence_interval",
+    "accuracy_uncertainty",
+    "bootstrap_uncertainty",
+    "instrument_rp_floor",
+]
+
+
+@dataclass(frozen=True)
+class Measured:
+    """A value with its expanded uncertainty: report ``value ± expanded_uncertainty`` (unit), k stated."""
+
+    value: float
+    expanded_uncertainty: float  #: U = k · u_c
+    coverage_factor: float  #: k
+    unit: str
+
+    def __str__(self) -> str:
+        return f"{self.value:.4g} ± {self.expanded_uncertainty:.2g} {self.unit} (k = {self.coverage_factor:g})"
+
+
+@dataclass(frozen=True)
+class ConfidenceInterval:
+    """Two-sided confidence interval of a mean, with the t quantile used."""
+
+    mean: float
+    low: float
+    high: float
+    t_quantile: float
+    n: int
+
+
+def type_a_of_mean(samples) -> float:
+    """Type A standard uncertainty of a mean, u(x̄) = s / √n (GUM 4.2.3); n >= 2."""
+    values = as_series("samples", samples, min_count=2)
+    return float(values.std(ddof=1) / np.sqrt(len(values)))
+
+
+def rectangular(half_width: float) -> float:
+    """Type B standard uncertainty of a rectangular distribution of half-width a: a / √3 (GUM 4.3.7)."""
+    if half_width < 0:
+        raise ConfigError(f"half_width = {half_width}, expected a number >= 0")
+    return float(half_width / np.sqrt(3.0))
+
+
+def resolution_uncertainty(resolution: float, *, difference: bool = False) -> float:
+    """Standard uncertainty of digital quantisation δ: δ/√12 for one reading, δ/√6 for a difference of two.
+
+    Examples
+    --------
+    >>> round(resolution_uncertainty(25.4 / 800, difference=True), 4)
+    0.013
+
+    A displacement read from an 800 CPI mouse carries 0.013 mm of quantisation uncertainty (iso9283.md §8.2a).
+    """
+    if resolution < 0:
+        raise ConfigError(f"resolution = {resolution}, expected a number >= 0")
+    return float(resolution / np.sqrt(6.0 if difference else 12.0))
+
+
+def combine(*components: float) -> float:
+    """Combined standard uncertainty of uncorrelated components with unit sensitivity: √Σ u_i² (GUM 5.1.2)."""
+    return float(np.sqrt(np.sum(np.square(components))))
+
+
+def expanded(value: float, standard_uncertainty: float, *, unit: str, k: float = 2.0) -> Measured:
+    """Expanded uncertainty U = k · u_c (GUM 6.2.1); k = 2 gives about 95 % for large ν_eff."""
+    if standard_uncertainty < 0 or not np.isfinite(standard_uncertainty):
+        raise ConfigError(f"standard_uncertainty = {standard_uncertainty}, expected a finite number >= 0")
+    return Measured(float(value), float(k * standard_uncertainty), float(k), unit)
+
+
+def welch_satterthwaite(contributions, degrees_of_freedom) -> float:
+    """Effective degrees of freedom ν_eff = u_c⁴ / Σ (c_i u_i)⁴ / ν_i (GUM G.2b); ν_i = inf for Type B."""
+    u = np.asarray(contributions, dtype=float)
+    nu = np.asarray(degrees_of_freedom, dtype=float)
+    if u.shape != nu.shape:
+        raise ConfigError(f"contributions {u.shape} and degrees_of_freedom {nu.shape}, expected the same shape")
+    denominator = np.sum(u**4 / nu)
+    return float("inf") if denominator == 0 else float(np.sum(u**2) ** 2 / denominator)
+
+
+def mean_confidence_interval(values, *, level: float = 0.95) -> ConfidenceInterval:
+    """Confidence interval of a mean over k runs with Student's t_{(1+level)/2, k-1}, never 1.96.
+
+    Examples
+    --------
+    >>> round(mean_confidence_interval([1.0, 2.0, 3.0]).t_quantile, 3)
+    4.303
+
+    With three runs the 95 % interval is 4.3 standard errors wide on each side, not 1.96.
+    """
+    data = as_series("values", values, min_count=2)
+    if not 0 < level < 1:
+        raise ConfigError(f"level = {level}, expected a number between 0 and 1")
+    t = float(stats.t.ppf((1 + level) / 2, len(data) - 1))
+    half = t * data.std(ddof=1) / np.sqrt(len(data))
+    mean = float(data.mean())
+    return ConfidenceInterval(mean, mean - half, mean + half, t, len(data))
+
+
+def accuracy_uncertainty(attained_mm, commanded_mm, *, instrument_u_mm: float = 0.0, k: float = 2.0):
+    """Expanded uncertainty of AP_P and of each signed AP axis (iso9283.md §8.3).
+
+    .. math::
+
+        u^2(AP_x) = \\frac{s_x^2}{n} + u_{inst}^2, \\qquad
+        u^2(AP_P) = \\sum_x \\Big(\\frac{AP_x}{AP_P}\\Big)^2 u^2(AP_x)
+
+    (first-order propagation; at AP_P = 0 the largest axis uncertainty is used). ``instrument_u_mm`` holds the
+    instrument's systematic and registration terms per axis (standard uncertainty, mm).
+
+    Returns
+    -------
+    tuple of (Measured, tuple of Measured)
+        AP_P and the per-axis AP values with U = k · u.
+    """
+    attained = as_points("attained_mm", attained_mm)
+    require_count("accuracy uncertainty cycles", len(attained), 2)
+    deviation = attained.mean(axis=0) - np.asarray(commanded_mm, dtype=float)
+    u_axes = np.sqrt(attained.var(axis=0, ddof=1) / len(attained) + instrument_u_mm**2)
+    norm = float(np.linalg.norm(deviation))
+    u_norm = float(u_axes.max()) if norm == 0 else float(np.sqrt(np.sum((deviation / norm) ** 2 * u_axes**2)))
+    axes = tuple(expanded(d, u, unit="mm", k=k) for d, u in zip(deviation, u_axes))
+    return expanded(norm, u_norm, unit="mm", k=k), axes
+
+
+def bootstrap_uncertainty(statistic, attained, *, resamples: int = 1000, seed: int = 0) -> float:
+    """Standard uncertainty of a non-linear statistic (e.g. RP) from a bootstrap over cycles (JCGM 101 spirit).
+
+    Parameters
+    ----------
+    statistic : callable
+        Maps an (n, d) array to a float, e.g. ``lambda p: pose_repeatability(p).rp_mm``.
+    attained : array_like, shape (n, d)
+        Samples, one row per cycle; n >= 3.
+    resamples : int
+        Number of bootstrap resamples (with replacement, whole cycles).
+    seed : int
+        Seed of the random generator: the result is reproducible.
+    """
+    points = as_points("attained", attained, dims=None)
+    require_count("bootstrap cycles", len(points), 3)
+    rng = np.random.default_rng(seed)
+    index = rng.integers(0, len(points), size=(resamples, len(points)))
+    values = np.array([statistic(points[rows]) for rows in index])
+    return float(values.std(ddof=1))
+
+
+def instrument_rp_floor(sigma_mm: float, *, dims: int) -> float:
+    """Expected RP of a perfectly repeatable robot seen through Gaussian instrument noise σ per axis (large n).
+
+    iso9283.md §8.4 [R]: l follows a chi distribution with d degrees of freedom scaled by σ, so
+
+    .. math::
+
+        E[l] = \\sigma \\sqrt2\\, \\frac{\\Gamma((d+1)/2)}{\\Gamma(d/2)}, \\quad
+        SD[l] = \\sqrt{d\\sigma^2 - E[l]^2}, \\quad RP_{floor} = E[l] + 3 SD[l]
+
+    giving 3.616 σ (3-D), 3.219 σ (2-D) and 2.606 σ (1-D). With finite n the barycentre estimate shrinks l by
+    about √((n - 1)/n). Report it next to every RP; never subtract it silently.
+
+    Examples
+    --------
+    >>> round(instrument_rp_floor(0.355, dims=2), 2)
+    1.14
+
+    The dissertation's worst mouse scatter alone would produce an RP of about 1.14 mm in 2-D.
+    """
+    if dims not in (1, 2, 3):
+        raise ConfigError(f"dims = {dims}, expected 1, 2 or 3")
+    if sigma_mm < 0:
+        raise ConfigError(f"sigma_mm = {sigma_mm}, expected a number >= 0")
+    mean = np.sqrt(2.0) * np.exp(special.gammaln((dims + 1) / 2) - special.gammaln(dims / 2))
+    return float(sigma_mm * (mean + 3.0 * np.sqrt(dims - mean**2)))
