@@ -18,8 +18,10 @@ from typing import Any
 import numpy as np
 
 from bench.errors import ConfigError, LinkError, LinkTimeout
+from bench.robots import pkm5_kinematics as kinematics
 from bench.robots import pkm5_wire as wire
 from bench.robots.link import Deadline, WireProtocolError
+from motion import pkm5
 
 __all__ = ["DEFAULT_BAUDRATE", "ControllerError", "Identity", "Pkm5Controller", "Position"]
 
@@ -80,7 +82,7 @@ class Pkm5Controller:
     def __init__(self, port: Any, *, geometry: Any = None, speed_steps_s: int = 200, reply_timeout_s: float = 1.0,
                  retries: int = 2, move_margin_s: float = 2.0) -> None:
         self.link = wire.LineLink(port)
-        self.geometry = geometry
+        self.geometry = geometry or pkm5.DEFAULT_GEOMETRY
         self.speed_steps_s = int(_checked_number("speed_steps_s", speed_steps_s, 1, 1000))
         self.reply_timeout_s = float(_checked_number("reply_timeout_s", reply_timeout_s, 0.001, 600))
         self.retries = int(_checked_number("retries", retries, 0, 10))
@@ -197,18 +199,10 @@ class Pkm5Controller:
 
     def steps_for_pose(self, pose: Any) -> tuple[int, ...]:
         """Absolute step targets of ``pose`` (x_mm, y_mm, z_mm, alpha_deg, beta_deg); UnreachableTarget if refused."""
-        from bench.robots import pkm5_preflight
-        return pkm5_preflight.steps_for_pose(pose, self._geometry())
+        return kinematics.steps_for_pose(pose, self.geometry)
 
     def _preflight_steps(self, steps: tuple[int, ...]) -> None:
-        from bench.robots import pkm5_preflight
-        pkm5_preflight.check_steps(steps, self._geometry())
-
-    def _geometry(self) -> Any:
-        if self.geometry is None:
-            from motion import pkm5
-            self.geometry = pkm5.DEFAULT_GEOMETRY
-        return self.geometry
+        kinematics.check_steps(steps, self.geometry)
 
     def _move(self, targets: tuple[int, ...], speed_steps_s: int | None) -> tuple[int, ...]:
         speed = self.speed_steps_s if speed_steps_s is None else speed_steps_s

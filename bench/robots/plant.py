@@ -28,7 +28,8 @@ class Plant:
     joints_of : callable
         ``(J,) controller command -> (J,) joint values`` in the error model's joint units.
     forward : callable
-        ``(joints (J,), previous_pose (P,) or None) -> pose (P,)``, or ``None`` if the kinematics fail.
+        ``(joints (J,), commanded_joints (J,), previous_pose (P,) or None) -> pose (P,)``, or ``None`` if the
+        kinematics fail (the commanded joints tell the solver which motion mode was meant).
     model : ErrorModel
         Systematic errors and random-error sizes.
     reference_pose : array (P,)
@@ -38,7 +39,7 @@ class Plant:
     """
 
     def __init__(self, joints_of: Callable[[np.ndarray], np.ndarray],
-                 forward: Callable[[np.ndarray, np.ndarray | None], np.ndarray | None], model: ErrorModel,
+                 forward: Callable[[np.ndarray, np.ndarray, np.ndarray | None], np.ndarray | None], model: ErrorModel,
                  reference_pose: np.ndarray, seed: int) -> None:
         self.joints_of = joints_of
         self.forward = forward
@@ -54,10 +55,10 @@ class Plant:
             self._memory = JointMemory(joints)
         direction = self._memory.update(joints)
         true_joints = self.model.true_joints(joints, direction, load_kg, self._rng)
-        pose = self.forward(true_joints, self._previous)
+        pose = self.forward(true_joints, joints, self._previous)
         if pose is None:  # the perturbed joints left the FK's domain: fall back to the nominal joints
             _log.warning("forward kinematics failed for perturbed joints %s; using the commanded ones", true_joints)
-            pose = self.forward(joints, self._previous)
+            pose = self.forward(joints, joints, self._previous)
         if pose is None:
             raise ValueError(f"forward kinematics failed for commanded joints {joints}")
         self._previous = np.asarray(pose, dtype=float)

@@ -165,7 +165,7 @@ def build_plant(seed: int, *, ideal: bool = False, geometry: Any = None) -> tupl
     from motion import delta4
     geometry = geometry or delta4.NOMINAL
 
-    def forward(servo_deg: np.ndarray, _previous: np.ndarray | None) -> np.ndarray | None:
+    def forward(servo_deg: np.ndarray, _commanded: np.ndarray, _previous: np.ndarray | None) -> np.ndarray | None:
         result = delta4.forward_kinematics(servo_deg.reshape(1, 4), geometry)
         return result.pose_mm[0] if bool(result.ok[0]) else None
 

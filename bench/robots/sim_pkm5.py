@@ -187,8 +187,8 @@ def _tag_guess(line: bytes) -> int:
 
 
 def _build(args: argparse.Namespace) -> Pkm5SimDevice:
-    from bench.robots.pkm5_plant import Pkm5Plant
-    plant = Pkm5Plant.from_seed(args.seed, ideal=args.ideal)
+    from bench.robots.pkm5_kinematics import build_plant
+    plant = build_plant(args.seed, ideal=args.ideal)
     truth = TruthLog(args.truth, ("x_mm", "y_mm", "z_mm", "alpha_deg", "beta_deg"))
     return Pkm5SimDevice(plant, speed_factor=args.speed_factor, truth=truth, load_kg=args.load_kg)
 
