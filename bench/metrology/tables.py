@@ -99,7 +99,7 @@ def numeric_columns(frame: pd.DataFrame, columns: Sequence[str], *, required: bo
         if bad.any():
             index = bad.idxmax()
             raise ConfigError(
-                f"{source}: line {int(index) + 2}, column {column}: {frame.at[index, column]!r} is not a finite number"
+                f"{source}: row {int(index) + 1}, column {column}: {frame.at[index, column]!r} is not a finite number"
             )
         out[column] = values.astype(float)
     return out
@@ -119,7 +119,7 @@ def pose_table(frame: pd.DataFrame) -> pd.DataFrame:
     table["pose"] = frame["pose"].astype(str).str.strip()
     empty = table["pose"] == ""
     if empty.any():
-        raise ConfigError(f"{source}: line {int(empty.idxmax()) + 2}, column pose: empty, expected a pose label")
+        raise ConfigError(f"{source}: row {int(empty.idxmax()) + 1}, column pose: empty, expected a pose label")
     table.attrs["source"] = source
     return table
 
@@ -136,7 +136,7 @@ def _check_constant_command(group: pd.DataFrame, columns: Sequence[str], source:
         if len(differs):
             index = group.index[differs[0]]
             raise ConfigError(
-                f"{source}: line {int(index) + 2}, column {column}: {values[differs[0]]:g} differs from "
+                f"{source}: row {int(index) + 1}, column {column}: {values[differs[0]]:g} differs from "
                 f"{values[0]:g} earlier in pose {group['pose'].iloc[0]!r}, expected one command per pose"
             )
 
@@ -146,7 +146,7 @@ def _check_unique_cycles(group: pd.DataFrame, source: str) -> None:
     if duplicated.any():
         index = duplicated.idxmax()
         raise ConfigError(
-            f"{source}: line {int(index) + 2}, column cycle: cycle {group.at[index, 'cycle']:g} repeated "
+            f"{source}: row {int(index) + 1}, column cycle: cycle {group.at[index, 'cycle']:g} repeated "
             f"for pose {group.at[index, 'pose']!r}, expected one row per pose and cycle"
         )
 

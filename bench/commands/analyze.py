@@ -1,0 +1,166 @@
+"""``bench analyze``: metrology figures from tidy CSV tables (ISO 9283 poses, distance, drift, actuators, payload).
+
+Every handler reads a CSV through `bench.metrology.tables`, computes with `bench.metrology`, and prints a readable
+table or, with ``--json``, one JSON object on stdout. Bad cells give a one-line ``ConfigError`` naming the row,
+column and value (exit 2); a pose with too few cycles gives ``InsufficientData`` (exit 1).
+"""
+
+from __future__ import annotations
+
+import argparse
+
+import numpy as np
+
+from bench.commands.kin import emit
+from bench.errors import ConfigError
+from bench.metrology import groover_actuator, leg_error_summary, pose_drift
+from bench.metrology.tables import (
+    analyze_distance,
+    analyze_poses,
+    numeric_columns,
+    pose_result_json,
+    pose_table,
+    read_table_csv,
+)
+
+
+def register(groups: argparse._SubParsersAction) -> None:
+    analyze = groups.add_parser("analyze", help="metrology figures from CSV sample tables (mm, degrees)")
+    actions = analyze.add_subparsers(dest="action", metavar="ANALYSIS", required=True)
+
+    iso = _new_parser(actions, "iso9283", "pose accuracy AP and repeatability RP per pose (ISO 9283 7.2)")
+    iso.add_argument("--instrument-u-mm", type=float, default=0.0,
+                     help="instrument standard uncertainty per axis (mm), added to the AP budget")
+    iso.add_argument("--k", type=float, default=2.0, help="coverage factor of the expanded uncertainties")
+    iso.set_defaults(handler=_iso9283)
+
+    distance = _new_parser(actions, "distance", "distance accuracy AD and repeatability RD (ISO 9283 7.3)")
+    distance.add_argument("--from", dest="first", default="P2", help="first command pose")
+    distance.add_argument("--to", dest="second", default="P4", help="second command pose")
+    distance.set_defaults(handler=_distance)
+
+    drift = _new_parser(actions, "drift", "drift dAP/dRP of one pose over time windows (ISO 9283 7.6), needs t_s")
+    drift.add_argument("--pose", default="P1", help="the pose to analyse")
+    drift.add_argument("--window-s", type=float, default=3600.0, help="window length (s)")
+    drift.set_defaults(handler=_drift)
+
+    actuator = _new_parser(actions, "actuator", "actuator repeatability/accuracy (Groover) and mean bias")
+    actuator.add_argument("--cr-mm", type=float, default=None,
+                          help="control resolution (mm/step) when the table has no cr_mm column")
+    actuator.set_defaults(handler=_actuator)
+
+    payload = _new_parser(actions, "payload", "leg actuation error against load (project payload error)")
+    payload.set_defaults(handler=_payload)
+
+
+def _new_parser(actions: argparse._SubParsersAction, name: str, text: str) -> argparse.ArgumentParser:
+    parser = actions.add_parser(name, help=text, description=text,
+                                formatter_class=argparse.ArgumentDefaultsHelpFormatter)
+    parser.add_argument("file", metavar="FILE.csv", help="tidy CSV table, one row per sample")
+    parser.add_argument("--json", action="store_true", help="print the result as one JSON object")
+    return parser
+
+
+def _iso9283(args: argparse.Namespace) -> int:
+    table = pose_table(read_table_csv(args.file))
+    results = analyze_poses(table, instrument_u_mm=args.instrument_u_mm, k=args.k)
+    lines = [f"{'pose':<12} {'n':>3} {'AP_mm':>8} {'APx_mm':>8} {'APy_mm':>8} {'APz_mm':>8} {'RP_mm':>8} "
+             f"{'U_AP':>7} {'U_RP':>7}"]
+    for r in results:
+        ax, ay, az = r.accuracy.ap_axes_mm
+        lines.append(f"{r.label:<12} {r.accuracy.n:>3} {r.accuracy.ap_mm:8.3f} {ax:8.3f} {ay:8.3f} {az:8.3f} "
+                     f"{r.repeatability.rp_mm:8.3f} {r.ap_u.expanded_uncertainty:7.3f} "
+                     f"{r.rp_u.expanded_uncertainty:7.3f}")
+        if r.orientation_accuracy is not None:
+            text = ", ".join(f"AP{n} {ap:+.3f} RP{n} ±{rp:.3f}" for n, ap, rp in zip(
+                r.angle_names, r.orientation_accuracy.ap_deg, r.orientation_repeatability.rp_deg))
+            lines.append(f"{'':<12} orientation (deg): {text}")
+    lines.append(f"AP against the commanded pose; RP = l̄ + 3 S_l; U with k = {args.k:g}.")
+    emit({"poses": {r.label: pose_result_json(r) for r in results}}, args.json, lines)
+    return 0
+
+
+def _distance(args: argparse.Namespace) -> int:
+    table = pose_table(read_table_csv(args.file))
+    r = analyze_distance(table, args.first, args.second)
+    result = {"from": args.first, "to": args.second, "n": r.n, "AD_mm": r.ad_mm, "RD_mm": r.rd_mm,
+              "AD_axes_mm": list(r.ad_axes_mm), "RD_axes_mm": list(r.rd_axes_mm),
+              "mean_distance_mm": r.mean_distance_mm, "commanded_distance_mm": r.commanded_distance_mm}
+    lines = [f"{args.first} -> {args.second}, n = {r.n}: D_c = {r.commanded_distance_mm:.3f} mm, "
+             f"D̄ = {r.mean_distance_mm:.3f} mm",
+             f"AD_p = {r.ad_mm:+.4f} mm, RD = ±{r.rd_mm:.4f} mm",
+             "AD x/y/z = " + " / ".join(f"{v:+.4f}" for v in r.ad_axes_mm) + " mm, RD x/y/z = ±"
+             + " / ±".join(f"{v:.4f}" for v in r.rd_axes_mm) + " mm"]
+    emit(result, args.json, lines)
+    return 0
+
+
+def _drift(args: argparse.Namespace) -> int:
+    table = pose_table(read_table_csv(args.file))
+    if "t_s" not in table.columns:
+        raise ConfigError(f"{args.file}: missing column t_s, needed for drift")
+    rows = table[table["pose"] == args.pose]
+    if rows.empty:
+        raise ConfigError(f"{args.file}: pose {args.pose!r} not found; poses: {', '.join(table['pose'].unique())}")
+    r = pose_drift(rows["t_s"], rows[["x_mm", "y_mm", "z_mm"]],
+                   rows[["cmd_x_mm", "cmd_y_mm", "cmd_z_mm"]].to_numpy()[0], window_s=args.window_s)
+    result = {"pose": args.pose, "dAP_mm": r.dap_mm, "dRP_mm": r.drp_mm,
+              "windows": [{"t_start_s": float(t), "n": int(n), "AP_mm": float(a), "RP_mm": float(p)}
+                          for t, n, a, p in zip(r.window_start_s, r.n_per_window, r.ap_mm, r.rp_mm)]}
+    lines = [f"pose {args.pose}: dAP = {r.dap_mm:.4f} mm, dRP = {r.drp_mm:.4f} mm over {len(r.ap_mm)} windows"]
+    lines += [f"  t >= {t:10.1f} s  n = {n:4d}  AP = {a:.4f} mm  RP = {p:.4f} mm"
+              for t, n, a, p in zip(r.window_start_s, r.n_per_window, r.ap_mm, r.rp_mm)]
+    emit(result, args.json, lines)
+    return 0
+
+
+def _actuator(args: argparse.Namespace) -> int:
+    frame = read_table_csv(args.file)
+    has_cr = "cr_mm" in frame.columns
+    if not has_cr and args.cr_mm is None:
+        raise ConfigError(f"{args.file}: no cr_mm column and no --cr-mm given, expected one of them")
+    table = numeric_columns(frame, ["cmd_mm", "travel_mm", *(["cr_mm"] if has_cr else [])])
+    if "actuator" not in table.columns:
+        raise ConfigError(f"{args.file}: missing column actuator")
+    result, lines = {}, [f"{'actuator':<9} {'n':>3} {'repeat_mm':>9} {'accuracy_mm':>11} {'max|bias|_mm':>12}  "
+                         "mean deviation per target (mm)"]
+    for name, rows in table.groupby(table["actuator"].astype(str).str.strip(), sort=False):
+        targets = np.unique(rows["cmd_mm"].to_numpy())
+        counts = {float(t): int((rows["cmd_mm"] == t).sum()) for t in targets}
+        if len(set(counts.values())) != 1:
+            raise ConfigError(f"{args.file}: actuator {name}: repeats per target {counts}, expected equal counts")
+        readings = np.column_stack([rows.loc[rows["cmd_mm"] == t, "travel_mm"].to_numpy() for t in targets])
+        cr = float(rows["cr_mm"].iloc[0]) if has_cr else args.cr_mm
+        r = groover_actuator(targets, readings, control_resolution_mm=cr)
+        result[name] = {"n": r.n, "targets_mm": targets.tolist(), "repeatability_mm": r.repeatability_mm,
+                        "accuracy_mm": r.accuracy_mm, "control_resolution_mm": cr, "sigma_mm": list(r.sigma_mm),
+                        "mean_deviation_mm": list(r.mean_deviation_mm), "max_abs_bias_mm": r.max_abs_bias_mm}
+        lines.append(f"{name:<9} {r.n:>3} {r.repeatability_mm:9.3f} {r.accuracy_mm:11.3f} {r.max_abs_bias_mm:12.3f}  "
+                     + " ".join(f"{v:+.3f}" for v in r.mean_deviation_mm))
+    lines.append("Repeatability = 3 σ̄, accuracy = CR/2 + 3 σ̄ (dissertation Eqs. 8.2-8.3); bias = x̄ - target.")
+    emit({"actuators": result}, args.json, lines)
+    return 0
+
+
+def _payload(args: argparse.Namespace) -> int:
+    table = numeric_columns(read_table_csv(args.file), ["load_kg", "error_mm"])
+    if "leg" not in table.columns:
+        raise ConfigError(f"{args.file}: missing column leg")
+    legs = table["leg"].astype(str).str.strip()
+    wide = table.assign(leg=legs).pivot_table(index="load_kg", columns="leg", values="error_mm", aggfunc="mean",
+                                              sort=False)
+    if wide.isna().any().any():
+        raise ConfigError(f"{args.file}: some load has no error for some leg, expected every leg at every load")
+    s = leg_error_summary(wide.index.to_numpy(), wide.to_numpy())
+    names = [str(c) for c in wide.columns]
+    result = {"legs": {n: {"max_error_mm": m, "load_at_max_kg": l, "mean_error_mm": a, "correlation_with_load": c}
+                       for n, m, l, a, c in zip(names, s.max_error_mm, s.load_at_max_kg, s.mean_error_mm,
+                                                s.correlation_with_load)},
+              "overall_mean_mm": s.overall_mean_mm, "overall_sd_mm": s.overall_sd_mm, "n_loads": s.n_loads}
+    lines = [f"{'leg':<5} {'max_mm':>7} {'at_kg':>7} {'mean_mm':>8} {'r(load)':>8}"]
+    lines += [f"{n:<5} {m:7.3f} {l:7.2f} {a:8.3f} {('n/a' if c is None else f'{c:+.3f}'):>8}"
+              for n, m, l, a, c in zip(names, s.max_error_mm, s.load_at_max_kg, s.mean_error_mm,
+                                       s.correlation_with_load)]
+    lines.append(f"all legs: mean {s.overall_mean_mm:.3f} mm, SD {s.overall_sd_mm:.3f} mm over {s.n_loads} loads")
+    emit(result, args.json, lines)
+    return 0
