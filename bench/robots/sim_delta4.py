@@ -24,12 +24,13 @@ import numpy as np
 from bench.robots import delta4_wire as wire
 from bench.robots.error_model import ErrorMagnitudes, ErrorModel
 from bench.robots.plant import Plant
-from bench.robots.sim_pty import TruthLog, main_for
+from bench.robots.sim_pty import TruthLog, add_common_arguments, main_for
 
-__all__ = ["DELTA4_ERRORS", "Delta4SimDevice", "build_plant", "main"]
+__all__ = ["DELTA4_ERRORS", "DESCRIPTION", "Delta4SimDevice", "add_arguments", "build_device", "build_plant", "main"]
 
 _log = logging.getLogger(__name__)
 
+DESCRIPTION = "Simulated delta4 (ATmega128) controller on a pseudo-terminal (prints the device path)."
 BANDWIDTH_PER_S = 4.0
 ADC_DEG_PER_COUNT = 140.0 / 255.0
 SETTLE_HOLD_S = 10 * 0.002
@@ -174,7 +175,8 @@ def build_plant(seed: int, *, ideal: bool = False, geometry: Any = None) -> tupl
     return Plant(lambda q: q, forward, model, np.array(HOME_POINT_MM), seed), home
 
 
-def _build(args: argparse.Namespace) -> Delta4SimDevice:
+def build_device(args: argparse.Namespace) -> Delta4SimDevice:
+    """The simulated controller described by the command-line ``args``."""
     plant, home = build_plant(args.seed, ideal=args.ideal)
     truth = TruthLog(args.truth, ("x_mm", "y_mm", "z_mm"))
     mapping = wire.MAPPINGS[args.mapping]()
@@ -182,14 +184,15 @@ def _build(args: argparse.Namespace) -> Delta4SimDevice:
                            home_servo_deg=home)
 
 
-def _arguments(parser: argparse.ArgumentParser) -> None:
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """Options of ``bench sim delta4`` / ``python -m bench.robots.sim_delta4``."""
+    add_common_arguments(parser)
     parser.add_argument("--mapping", choices=sorted(wire.MAPPINGS), default="legacy_vb",
                         help="servo byte <-> angle mapping the firmware uses (must match the driver)")
 
 
 def main(argv: list[str] | None = None) -> int:
-    return main_for(_build, "Simulated delta4 (ATmega128) controller on a pseudo-terminal (prints the device path).",
-                    argv, _arguments)
+    return main_for(build_device, add_arguments, DESCRIPTION, argv)
 
 
 if __name__ == "__main__":

@@ -20,12 +20,14 @@ import numpy as np
 
 from bench.robots import pkm5_wire as wire
 from bench.robots.link import WireProtocolError
-from bench.robots.sim_pty import TruthLog, main_for
+from bench.robots.sim_pty import TruthLog, add_common_arguments, main_for
 
-__all__ = ["FIRMWARE_VERSION", "HOME_STEPS", "MAX_STEPS", "Pkm5SimDevice", "main"]
+__all__ = ["DESCRIPTION", "FIRMWARE_VERSION", "HOME_STEPS", "MAX_STEPS", "Pkm5SimDevice", "add_arguments", "build_device",
+           "main"]
 
 _log = logging.getLogger(__name__)
 
+DESCRIPTION = "Simulated 5-DOF PKM controller on a pseudo-terminal (prints the device path)."
 FIRMWARE_VERSION = "1.0.0-sim"
 #: Step limits of the firmware (0 = full retraction; 66 mm stroke at 0.00625 / 0.003125 mm/step).
 MAX_STEPS = (10560, 10560, 10560, 10560, 21120, 21120)
@@ -186,7 +188,13 @@ def _tag_guess(line: bytes) -> int:
     return 0
 
 
-def _build(args: argparse.Namespace) -> Pkm5SimDevice:
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """Options of ``bench sim pkm5`` / ``python -m bench.robots.sim_pkm5``."""
+    add_common_arguments(parser)
+
+
+def build_device(args: argparse.Namespace) -> Pkm5SimDevice:
+    """The simulated controller described by the command-line ``args``."""
     from bench.robots.pkm5_kinematics import build_plant
     plant = build_plant(args.seed, ideal=args.ideal)
     truth = TruthLog(args.truth, ("x_mm", "y_mm", "z_mm", "alpha_deg", "beta_deg"))
@@ -194,7 +202,7 @@ def _build(args: argparse.Namespace) -> Pkm5SimDevice:
 
 
 def main(argv: list[str] | None = None) -> int:
-    return main_for(_build, "Simulated 5-DOF PKM controller on a pseudo-terminal (prints the device path).", argv)
+    return main_for(build_device, add_arguments, DESCRIPTION, argv)
 
 
 if __name__ == "__main__":

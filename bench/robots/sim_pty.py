@@ -23,7 +23,9 @@ import tty
 from pathlib import Path
 from typing import Any, Protocol
 
-__all__ = ["SimDevice", "TruthLog", "add_common_arguments", "read_last_truth", "serve"]
+from bench.errors import BenchError, ConfigError
+
+__all__ = ["SimDevice", "TruthLog", "add_common_arguments", "main_for", "read_last_truth", "run_simulator", "serve"]
 
 _TICK_S = 0.002
 
@@ -151,20 +153,23 @@ def serve(device: SimDevice, args: argparse.Namespace) -> int:
     return 0
 
 
-def main_for(build_device: Any, description: str, argv: list[str] | None = None,
-             extra_arguments: Any = None) -> int:
-    """Entry point shared by the simulators: parse arguments, build the device, serve it."""
+def run_simulator(build_device: Any, args: argparse.Namespace) -> int:
+    """Check the common arguments, build the device and serve it (shared by ``python -m`` and ``bench sim``)."""
+    if not args.speed_factor > 0:
+        raise ConfigError(f"--speed-factor = {args.speed_factor}, expected a number > 0")
+    if not 0 <= args.load_kg <= 30:
+        raise ConfigError(f"--load-kg = {args.load_kg}, expected a number in [0, 30]")
+    return serve(build_device(args), args)
+
+
+def main_for(build_device: Any, add_arguments: Any, description: str, argv: list[str] | None = None) -> int:
+    """``python -m`` entry point shared by the simulators: parse arguments, build the device, serve it."""
     parser = argparse.ArgumentParser(description=description,
                                      formatter_class=argparse.ArgumentDefaultsHelpFormatter)
-    add_common_arguments(parser)
-    if extra_arguments is not None:
-        extra_arguments(parser)
+    add_arguments(parser)
     args = parser.parse_args(argv)
-    if not args.speed_factor > 0:
-        parser.error(f"--speed-factor = {args.speed_factor}, expected a number > 0")
     try:
-        device = build_device(args)
-    except Exception as exc:  # noqa: BLE001 - a simulator that cannot start says why in one line
+        return run_simulator(build_device, args)
+    except BenchError as exc:
         print(f"{parser.prog}: error: {exc}", file=sys.stderr)
-        return 2
-    return serve(device, args)
+        return exc.exit_code
