@@ -1,0 +1,258 @@
+"""Laser-grid end-effector sensor of the delta robot: geometry and decoder (hits -> end-effector position).
+
+Spec: ``delta4-lasergrid.md`` §4. Twelve lasers per screen (bull's eye BE, a 15 mm grid G5 and a 22.5 mm grid
+G2.5) over 16 x 16 phototransistors at 10 mm pitch give a 2.5 mm resolution. A hit on sensor ``s`` by laser ``l``
+means ``BE = s - o_l``; the index alone does not say which laser, so the candidate nearest the a-priori position
+is chosen (§4.6), and decoding is guaranteed only while both components of the prior error are below 3.75 mm
+(§4.7). This module depends only on the sensor geometry defined here, never on the robot's kinematics.
+"""
+
+from __future__ import annotations
+
+import enum
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from bench.errors import ConfigError
+
+__all__ = ["LASER_NAMES", "LASER_OFFSETS_MM", "MIN_CANDIDATE_SEPARATION_MM", "Screen", "GridGeometry",
+           "ScreenStatus", "ScreenDecode", "GridDecode", "decode_screen", "decode_frame"]
+
+#: Laser names and offsets from BE in the screen's (i right, j up) axes, mm (§4.4, reconstructed table).
+LASER_NAMES = ("BE", "G5-a", "G5-b", "G5-c", "G2.5-W", "G2.5-E", "G2.5-S", "G2.5-N",
+               "G2.5-SW", "G2.5-NW", "G2.5-SE", "G2.5-NE")
+LASER_OFFSETS_MM = np.array([
+    (0.0, 0.0), (15.0, 0.0), (0.0, -15.0), (15.0, -15.0),
+    (-22.5, 0.0), (22.5, 0.0), (0.0, -22.5), (0.0, 22.5),
+    (-22.5, -22.5), (-22.5, 22.5), (22.5, -22.5), (22.5, 22.5),
+])
+LASER_OFFSETS_MM.setflags(write=False)
+#: Smallest Chebyshev distance between two candidates of one sensor (mm): the prior must be within half (§4.7).
+MIN_CANDIDATE_SEPARATION_MM = 7.5
+
+
+@dataclass(frozen=True)
+class Screen:
+    """One detector screen: a square array of sensors in a plane of the robot frame.
+
+    Parameters
+    ----------
+    name : str
+        ``"horizontal"`` or ``"vertical"``.
+    axes : tuple of int
+        Robot-frame axes (0 = x, 1 = y, 2 = z) along the screen's column (i) and row (j) directions.
+    first_centre_mm : tuple of float
+        Robot-frame coordinates (along ``axes``) of the centre of sensor (i, j) = (0, 0), mm.
+    laser_offset_mm : float
+        Offset of this screen's laser set from the end-effector centre along the row axis, mm (the vertical set
+        sits 40 mm below z0, §4.2).
+    pitch_mm, size : float, int
+        Sensor pitch (10 mm) and sensors per side (16).
+    index_base : int
+        0 or 1: the number of the first sensor (§4.8).
+    index_map : ndarray of int, shape (size*size, 2) or None
+        (i, j) of each index from a mapping test; ``None`` means the placeholder ``index = size*j + i``.
+    mirror : bool
+        Mirror the laser pattern along i (the G5 orientation is uncertain, §4.4).
+    """
+
+    name: str
+    axes: tuple[int, int]
+    first_centre_mm: tuple[float, float]
+    laser_offset_mm: float = 0.0
+    pitch_mm: float = 10.0
+    size: int = 16
+    index_base: int = 0
+    index_map: np.ndarray | None = field(default=None, compare=False, repr=False)
+    mirror: bool = False
+
+    def __post_init__(self) -> None:
+        if self.index_base not in (0, 1):
+            raise ConfigError(f"screen {self.name}: index_base = {self.index_base!r}, expected 0 or 1")
+        if self.index_map is not None and np.shape(self.index_map) != (self.size * self.size, 2):
+            raise ConfigError(f"screen {self.name}: index_map has shape {np.shape(self.index_map)}, "
+                              f"expected ({self.size * self.size}, 2) rows of (i, j)")
+
+    @property
+    def offsets_mm(self) -> np.ndarray:
+        """Laser offsets (12, 2) in this screen's (i, j) directions, mirrored if asked."""
+        return LASER_OFFSETS_MM * ((-1.0 if self.mirror else 1.0), 1.0)
+
+    def cell_of_index(self, index: int) -> tuple[int, int]:
+        """(i, j) of a reported sensor number; raises ``ConfigError`` outside the screen."""
+        k = int(index) - self.index_base
+        if not 0 <= k < self.size * self.size:
+            raise ConfigError(f"screen {self.name}: sensor index = {index!r}, expected "
+                              f"{self.index_base}..{self.size * self.size - 1 + self.index_base}")
+        if self.index_map is not None:
+            i, j = self.index_map[k]
+            return int(i), int(j)
+        return k % self.size, k // self.size
+
+    def index_of_cell(self, i: np.ndarray, j: np.ndarray) -> np.ndarray:
+        """Sensor numbers of cells (i, j) (inverse of :meth:`cell_of_index`)."""
+        if self.index_map is None:
+            return self.size * np.asarray(j) + np.asarray(i) + self.index_base
+        lookup = np.full((self.size, self.size), -1)
+        lookup[self.index_map[:, 0], self.index_map[:, 1]] = np.arange(self.size * self.size)
+        return lookup[np.asarray(i), np.asarray(j)] + self.index_base
+
+    def centre_mm(self, i: float, j: float) -> np.ndarray:
+        """Screen-plane coordinates (2,) of the centre of cell (i, j), mm."""
+        return np.asarray(self.first_centre_mm) + self.pitch_mm * np.array([i, j], float)
+
+    def be_from_pose(self, position_mm: np.ndarray) -> np.ndarray:
+        """Where this screen's BE laser points, in screen-plane coordinates: shape (..., 3) -> (..., 2)."""
+        position_mm = np.asarray(position_mm, float)
+        return np.stack([position_mm[..., self.axes[0]], position_mm[..., self.axes[1]] - self.laser_offset_mm],
+                        axis=-1)
+
+
+@dataclass(frozen=True)
+class GridGeometry:
+    """Both screens. Defaults follow the legacy GUI drawing (§4.3): horizontal screen centres at x, y in
+    {+-5, ..., +-75} mm; vertical screen in the plane x = x_V reading (y, z), centres at y in {+-5..+-75} mm and
+    z in {-225, ..., -75} mm, with its laser set 40 mm below z0. Overwrite from the software calibration (§6.5).
+    """
+
+    horizontal: Screen = Screen("horizontal", (0, 1), (-75.0, -75.0))
+    vertical: Screen = Screen("vertical", (1, 2), (-75.0, -225.0), laser_offset_mm=40.0)
+
+
+class ScreenStatus(enum.Enum):
+    """Outcome of decoding one screen (§4.6 step 8)."""
+
+    OK = "ok"
+    AMBIGUOUS = "ambiguous"
+    FAULT = "fault"
+    NO_HIT = "no-hit"
+
+
+@dataclass(frozen=True)
+class ScreenDecode:
+    """Result for one screen: BE in screen-plane coordinates (prior kept unless OK/AMBIGUOUS), the laser(s)."""
+
+    status: ScreenStatus
+    be_mm: tuple[float, float]
+    lasers: tuple[str, ...] = ()
+    margin_mm: float = float("inf")
+    reason: str = ""
+
+
+@dataclass(frozen=True)
+class GridDecode:
+    """Decoded end-effector position for one frame of both screens.
+
+    ``position_mm`` holds measured axes where ``measured`` is True and the prior elsewhere (never NaN);
+    ``error_mm`` = measured - prior on measured axes, 0 elsewhere; ``y_disagreement_mm`` compares the two screens'
+    y (misalignment check, §8.1.2), ``None`` unless both screens are OK.
+    """
+
+    position_mm: tuple[float, float, float]
+    measured: tuple[bool, bool, bool]
+    error_mm: tuple[float, float, float]
+    horizontal: ScreenDecode
+    vertical: ScreenDecode
+    y_disagreement_mm: float | None
+    misaligned: bool
+
+
+def _chebyshev(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    return np.max(np.abs(a - b), axis=-1)
+
+
+def decode_screen(screen: Screen, indices: list[int] | tuple[int, ...], prior_be_mm: np.ndarray, *,
+                  spot_half_width_mm: float = 1.0, gate_mm: float = 3.75,
+                  prior_uncertainty_mm: float = 0.0) -> ScreenDecode:
+    """Decode the sensor numbers one screen reported into the BE position on that screen (§4.6).
+
+    Parameters
+    ----------
+    screen : Screen
+        Geometry of the screen.
+    indices : sequence of int
+        Reported sensor numbers (any order; empty for "no hit").
+    prior_be_mm : array_like, shape (2,)
+        A-priori BE position in screen-plane coordinates (from the command or the FK of the pots), mm.
+    spot_half_width_mm : float
+        Half-width r of a sensor's detection window, mm; candidates of several hits must agree within 2r.
+    gate_mm : float
+        The chosen candidate must lie within this distance of the prior on both axes (3.75 mm, §4.7).
+    prior_uncertainty_mm : float
+        How far the prior may be off; at 3.75 mm or more the laser identity cannot be guaranteed (AMBIGUOUS).
+
+    Returns
+    -------
+    ScreenDecode
+        NO_HIT keeps the prior; FAULT (no consistent explanation) keeps the prior; AMBIGUOUS gives the best guess.
+    """
+    prior = np.asarray(prior_be_mm, float)
+    if len(indices) == 0:
+        return ScreenDecode(ScreenStatus.NO_HIT, tuple(prior), reason="no sensor lit; prior kept")
+    centres = np.array([screen.centre_mm(*screen.cell_of_index(k)) for k in indices])
+    candidates = centres[:, None, :] - screen.offsets_mm[None, :, :]          # (hits, 12, 2)
+    solutions = []
+    for laser0, c0 in enumerate(candidates[0]):
+        near = _chebyshev(candidates[1:], c0) <= 2 * spot_half_width_mm   # (hits-1, 12)
+        if near.any(axis=1).all():
+            chosen = [laser0] + [int(np.argmin(_chebyshev(row, c0))) for row in candidates[1:]]
+            points = candidates[np.arange(len(indices)), chosen]
+            solutions.append((points.mean(axis=0), tuple(LASER_NAMES[c] for c in chosen)))
+    if not solutions:
+        return ScreenDecode(ScreenStatus.FAULT, tuple(prior),
+                            reason=f"sensors {list(indices)} cannot all be lit by one BE position "
+                                   "(spurious light, wrong index map or misalignment); prior kept")
+    distances = np.array([_chebyshev(point, prior) for point, _ in solutions])
+    order = np.argsort(distances)
+    best, lasers = solutions[order[0]]
+    margin = float(distances[order[1]] - distances[order[0]]) if len(order) > 1 else float("inf")
+    if distances[order[0]] >= gate_mm:
+        status, reason = ScreenStatus.AMBIGUOUS, (f"nearest candidate is {distances[order[0]]:.2f} mm from the "
+                                                   f"prior, outside the {gate_mm} mm gate")
+    elif margin < 2 * spot_half_width_mm:
+        status, reason = ScreenStatus.AMBIGUOUS, f"two candidates within {margin:.2f} mm of each other"
+    elif prior_uncertainty_mm >= MIN_CANDIDATE_SEPARATION_MM / 2:
+        status, reason = ScreenStatus.AMBIGUOUS, (f"prior uncertainty {prior_uncertainty_mm} mm >= "
+                                                   f"{MIN_CANDIDATE_SEPARATION_MM / 2} mm: laser identity not assured")
+    else:
+        status, reason = ScreenStatus.OK, ""
+    return ScreenDecode(status, (float(best[0]), float(best[1])), lasers, margin, reason)
+
+
+def decode_frame(geometry: GridGeometry, horizontal_indices: list[int] | tuple[int, ...],
+                 vertical_indices: list[int] | tuple[int, ...], prior_mm: np.ndarray, **options: float) -> GridDecode:
+    """Decode both screens into the end-effector centre (x, y, z) in mm (§4.6 step 7).
+
+    The horizontal screen gives (x, y), the vertical one (y, z) after adding back its laser offset. y is taken from
+    the horizontal screen; when both screens are OK a y disagreement over 2.5 mm flags misalignment. ``options``
+    are passed to :func:`decode_screen`.
+
+    Examples
+    --------
+    BE over sensor (7, 7) of the horizontal screen, i.e. (-5, -5) mm, moved 5 mm in +x: G5-a lands on (9, 7),
+    index 16*7 + 9 = 121 (Fig. 10 a).
+
+    >>> result = decode_frame(GridGeometry(), [121], [], [0.0, -5.0, -150.0])
+    >>> result.position_mm[:2], result.horizontal.lasers
+    ((0.0, -5.0), ('G5-a',))
+    """
+    prior = np.asarray(prior_mm, float)
+    if prior.shape != (3,) or not np.all(np.isfinite(prior)):
+        raise ConfigError(f"laser grid: prior_mm = {prior_mm!r}, expected a finite (x, y, z) in mm")
+    h = decode_screen(geometry.horizontal, horizontal_indices, geometry.horizontal.be_from_pose(prior), **options)
+    v = decode_screen(geometry.vertical, vertical_indices, geometry.vertical.be_from_pose(prior), **options)
+    position = prior.copy()
+    measured = [False, False, False]
+    for screen, result in ((geometry.horizontal, h), (geometry.vertical, v)):
+        if result.status in (ScreenStatus.OK, ScreenStatus.AMBIGUOUS):
+            values = (result.be_mm[0], result.be_mm[1] + screen.laser_offset_mm)
+            for axis, value in zip(screen.axes, values):
+                if not measured[axis]:
+                    position[axis], measured[axis] = value, True
+    disagreement = None
+    if h.status is ScreenStatus.OK and v.status is ScreenStatus.OK:
+        disagreement = float(v.be_mm[0] - h.be_mm[1])
+    error = np.where(measured, position - prior, 0.0)
+    return GridDecode(tuple(float(p) for p in position), tuple(measured), tuple(float(e) for e in error), h, v,
+                      disagreement, disagreement is not None and abs(disagreement) > 2.5)

@@ -1,0 +1,94 @@
+"""Laser-grid simulator: true end-effector positions (mm) -> the sensor numbers each screen would report.
+
+Spec: ``delta4-lasergrid.md`` §4.10. Per laser the spot lands at ``BE + o_l``; every sensor whose square detection
+window of half-width r contains the spot is lit; each hit is lost with probability ``p_miss`` and a stray sensor
+lights with probability ``p_false``. Also formats frames in the default report grammar of §5.7 item 5.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from bench.errors import ConfigError
+from bench.sensors.lasergrid import GridGeometry, Screen
+
+__all__ = ["GridFrame", "LaserGridSimulator", "P_MISS_AT_DISTANCE", "format_report"]
+
+#: Miss probabilities reproducing the hit repeatability of Appendix D2 at 140 / 170 / 200 mm (§4.10 defaults).
+P_MISS_AT_DISTANCE = {140.0: 0.0075, 170.0: 0.0125, 200.0: 0.02}
+
+
+@dataclass(frozen=True)
+class GridFrame:
+    """Sorted sensor numbers lit on each screen in one acquisition (empty tuple: no hit)."""
+
+    horizontal: tuple[int, ...]
+    vertical: tuple[int, ...]
+
+
+@dataclass(frozen=True)
+class LaserGridSimulator:
+    """Both screens observing a true end-effector position.
+
+    Parameters
+    ----------
+    geometry : GridGeometry
+        Screens, laser pattern, index maps.
+    spot_half_width_mm : float
+        Detection window half-width r (default 1.0 mm, §4.10).
+    p_miss, p_false : float
+        Probability of losing each hit, and of one stray lit sensor per screen and frame.
+    seed : int
+        Seed of the random generator (frames are reproducible).
+    """
+
+    geometry: GridGeometry = GridGeometry()
+    spot_half_width_mm: float = 1.0
+    p_miss: float = 0.0
+    p_false: float = 0.0
+    seed: int = 0
+
+    def __post_init__(self) -> None:
+        for name in ("p_miss", "p_false"):
+            if not 0.0 <= getattr(self, name) <= 1.0:
+                raise ConfigError(f"laser-grid simulator: {name} = {getattr(self, name)!r}, expected 0..1")
+        if not 0.0 < self.spot_half_width_mm < 5.0:
+            raise ConfigError(f"laser-grid simulator: spot_half_width_mm = {self.spot_half_width_mm!r}, "
+                              "expected 0 < r < half the 10 mm pitch")
+
+    def _screen_hits(self, screen: Screen, positions_mm: np.ndarray, rng: np.random.Generator) -> list[tuple[int, ...]]:
+        spots = screen.be_from_pose(positions_mm)[:, None, :] + screen.offsets_mm[None, :, :]   # (N, 12, 2)
+        cell = np.rint((spots - np.asarray(screen.first_centre_mm)) / screen.pitch_mm).astype(int)
+        residual = spots - (np.asarray(screen.first_centre_mm) + screen.pitch_mm * cell)
+        lit = (np.all(np.abs(residual) <= self.spot_half_width_mm, axis=-1)
+               & np.all((cell >= 0) & (cell < screen.size), axis=-1))
+        if self.p_miss > 0:
+            lit &= rng.random(lit.shape) >= self.p_miss
+        n_cells = screen.size * screen.size
+        frames = []
+        for row, hit in zip(cell, lit):
+            found = set(screen.index_of_cell(row[hit, 0], row[hit, 1]).tolist())
+            if self.p_false > 0 and rng.random() < self.p_false:
+                found.add(int(rng.integers(0, n_cells)) + screen.index_base)
+            frames.append(tuple(sorted(found)))
+        return frames
+
+    def frames(self, positions_mm: np.ndarray) -> list[GridFrame]:
+        """One :class:`GridFrame` per true end-effector centre, positions of shape (N, 3) in mm."""
+        positions_mm = np.asarray(positions_mm, float)
+        if positions_mm.ndim != 2 or positions_mm.shape[1] != 3 or not np.all(np.isfinite(positions_mm)):
+            raise ConfigError(f"laser-grid simulator: positions_mm shape {positions_mm.shape}, "
+                              "expected finite (N, 3) end-effector centres in mm")
+        rng = np.random.default_rng(self.seed)
+        horizontal = self._screen_hits(self.geometry.horizontal, positions_mm, rng)
+        vertical = self._screen_hits(self.geometry.vertical, positions_mm, rng)
+        return [GridFrame(h, v) for h, v in zip(horizontal, vertical)]
+
+
+def format_report(frame: GridFrame) -> bytes:
+    """A frame in the default wire grammar: ``H<n>X`` / ``V<n>X`` per hit, ``h`` / ``v`` for no hit, H first."""
+    parts = [b"".join(b"%s%dX" % (tag, k) for k in hits) if hits else tag.lower()
+             for tag, hits in ((b"H", frame.horizontal), (b"V", frame.vertical))]
+    return b"".join(parts)
