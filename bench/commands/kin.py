@@ -14,7 +14,7 @@ import sys
 from typing import Any
 
 #: One adapter module per robot; the order is the order of the help.
-ROBOT_MODULES = ("bench.commands.kin_pkm5",)
+ROBOT_MODULES = ("bench.commands.kin_pkm5", "bench.commands.kin_delta4", "bench.commands.kin_prus3")
 
 _ACTIONS = {
     "ik": "inverse kinematics: pose -> joint values",
