@@ -69,19 +69,20 @@ def _pair_plane(x, y, z, trig, pd, oa, half_height):
     return u, az, dw / r, -du / r
 
 
-def _leg_in_plane(u, w, ab, cd, cos_d, sin_d):
-    """Inner loop BC = AD - AB - Rot2(delta) CD (000 Eqs. 5.13-5.22): length and elevation angle."""
+def _leg_in_plane(u, w, ab, cd, cos_d, sin_d, with_tilt):
+    """Inner loop BC = AD - AB - Rot2(delta) CD (000 Eqs. 5.13-5.22): length and elevation angle (or None)."""
     cu = cos_d * cd[0] - sin_d * cd[1]
     cw = sin_d * cd[0] + cos_d * cd[1]
     bu = u - ab[0] - cu
     bw = w - ab[1] - cw
-    return dual.hypot(bu, bw), dual.atan2(bw, bu)
+    return dual.hypot(bu, bw), dual.atan2(bw, bu) if with_tilt else None
 
 
-def leg_lengths(x, y, z, alpha, beta, geometry: Geometry = DEFAULT_GEOMETRY):
+def leg_lengths(x, y, z, alpha, beta, geometry: Geometry = DEFAULT_GEOMETRY, with_tilt: bool = True):
     """Six leg lengths |BC| and elevation angles phi (rad) as lists of six arrays or duals.
 
     Accepts arrays (N,) or :class:`motion.dual.Dual` for every coordinate; constants may be plain arrays.
+    With ``with_tilt=False`` the angles are skipped (None), which the FK's inner loop does not need.
     """
     g = geometry
     ca, sa, cb, sb = dual.cos(alpha), dual.sin(alpha), dual.cos(beta), dual.sin(beta)
@@ -90,7 +91,7 @@ def leg_lengths(x, y, z, alpha, beta, geometry: Geometry = DEFAULT_GEOMETRY):
     for pd, oa in ((g.pd_12_mm, g.oa_12_mm), (g.pd_34_mm, g.oa_34_mm)):
         u, w, cos_d, sin_d = _pair_plane(x, y, z, trig, pd, oa, g.bracket_half_height_mm)
         for ab, cd in ((g.ab_odd_mm, g.cd_odd_mm), (g.ab_even_mm, g.cd_even_mm)):
-            length, tilt = _leg_in_plane(u, w, ab, cd, cos_d, sin_d)
+            length, tilt = _leg_in_plane(u, w, ab, cd, cos_d, sin_d, with_tilt)
             lengths.append(length)
             tilts.append(tilt)
     # legs 5-6: the bracket turns with alpha in alpha mode only (pkm5.md §3.2 step 4b)
@@ -100,7 +101,7 @@ def leg_lengths(x, y, z, alpha, beta, geometry: Geometry = DEFAULT_GEOMETRY):
     for pd, ab, cd in ((g.pd_5_mm, g.ab_5_mm, g.cd_5_mm), (g.pd_6_mm, g.ab_6_mm, g.cd_6_mm)):
         dx, dy, dz = _rotate(pd, ca, sa, cb, sb)
         ax, ay, az = x + dx - g.oa_56_mm[0], y + dy - g.oa_56_mm[1], z + dz - g.oa_56_mm[2]
-        length, tilt = _leg_in_plane(ay, dual.hypot(ax, az), ab, cd, cos_56, sin_56)
+        length, tilt = _leg_in_plane(ay, dual.hypot(ax, az), ab, cd, cos_56, sin_56, with_tilt)
         lengths.append(length)
         tilts.append(tilt)
     return lengths, tilts
