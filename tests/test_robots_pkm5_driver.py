@@ -1,0 +1,203 @@
+"""PKM5 driver, byte-exact against a scripted port: one test per command, then retries, faults and safety.
+
+Pairs are (command, reply) bodies; ``encode_line`` adds the checksum and newline (checked on their own in
+test_robots_pkm5_wire.py).
+"""
+
+import re
+
+import numpy as np
+import pytest
+
+from bench.errors import ConfigError, LinkError, LinkTimeout, UnreachableTarget
+from bench.robots import pkm5_wire as wire
+from bench.robots.pkm5 import ControllerError, Identity, Pkm5Controller, Position
+from bench.robots.testing import ScriptedPort, expected_exchange
+
+
+def exchange(pairs, **kwargs):
+    kwargs.setdefault("reply_timeout_s", 0.2)
+    return expected_exchange(Pkm5Controller, pairs, frame=wire.encode_line, **kwargs)
+
+
+# pkm5.md §6.8, Table A.11 point 3-1: (110.52, -0.19, 305.5) mm with reconstructed lengths 200.60 / 200.68 / 200.50
+# mm; steps = (L - L0) / CR with L0 = 184 / 192 mm and CR = 0.00625 / 0.003125 mm/step (pkm5.md §2.5, §2.6).
+POINT_3_1 = (110.52, -0.19, 305.5, 0.0, 0.0)
+POINT_3_1_STEPS = (2656, 2656, 2669, 2669, 2720, 2720)
+
+
+def test_identify():
+    with exchange([("ID #1", "OK #1 ID bench-pkm5 1 1.2.0")]) as robot:
+        assert robot.identify() == Identity("bench-pkm5", 1, "1.2.0")
+        assert robot.settings()["firmware"] == {"device": "bench-pkm5", "protocol_version": 1,
+                                                "firmware_version": "1.2.0"}
+
+
+def test_position():
+    with exchange([("POS #1", "OK #1 POS 800 800 800 800 1600 1600 DISABLED")]) as robot:
+        assert robot.position() == Position((800, 800, 800, 800, 1600, 1600), "DISABLED")
+
+
+def test_enable():
+    with exchange([("ENABLE #1", "OK #1 ENABLE")]) as robot:
+        robot.enable()
+
+
+def test_disable():
+    with exchange([("DISABLE #1", "OK #1 DISABLE")]) as robot:
+        robot.disable()
+
+
+def test_set_position():
+    with exchange([("SETPOS 800 800 800 800 1600 1600 #1", "OK #1 SETPOS")]) as robot:
+        robot.set_position([800, 800, 800, 800, 1600, 1600])
+
+
+def test_stop():
+    with exchange([("STOP #1", "OK #1 STOP 1 2 3 4 5 6")]) as robot:
+        assert robot.stop() == Position((1, 2, 3, 4, 5, 6), "IDLE")
+
+
+def test_move_steps_waits_for_done():
+    with exchange([("MOVE 2656 2656 2669 2669 2720 2720 200 #1",
+                    ["OK #1 MOVE 9300", "DONE #1 2656 2656 2669 2669 2720 2720"])]) as robot:
+        assert robot.move_steps(POINT_3_1_STEPS) == POINT_3_1_STEPS
+
+
+def test_move_to_pose_sends_the_steps_of_the_reference_lengths():
+    with exchange([("MOVE 2656 2656 2669 2669 2720 2720 150 #1",
+                    ["OK #1 MOVE 100", "DONE #1 2656 2656 2669 2669 2720 2720"])]) as robot:
+        assert robot.move_to_pose(POINT_3_1, speed_steps_s=150) == POINT_3_1_STEPS
+
+
+def test_sim_true_pose():
+    with exchange([("SIMTRUE #1", "OK #1 SIMTRUE 110.5 -0.25 305.125 0.5 -0.25")]) as robot:
+        np.testing.assert_array_equal(robot.sim_true_pose(), [110.5, -0.25, 305.125, 0.5, -0.25])
+
+
+def test_sim_set_load():
+    with exchange([("SIMLOAD 2450 #1", "OK #1 SIMLOAD")]) as robot:
+        robot.sim_set_load(2.45)
+
+
+def test_stale_and_corrupted_lines_are_dropped():
+    with exchange([("POS #1", ["BOOT #0 bench-pkm5 1 1.0.0", "DONE #77 1 2 3 4 5 6",
+                               b"OK #1 POS garbage*00\n", "OK #1 POS 1 2 3 4 5 6 IDLE"])]) as robot:
+        assert robot.position().steps == (1, 2, 3, 4, 5, 6)
+
+
+def test_query_is_retried_after_a_timeout_with_a_new_tag():
+    with exchange([("POS #1", None), ("POS #2", "OK #2 POS 1 2 3 4 5 6 IDLE")], retries=1) as robot:
+        assert robot.position().state == "IDLE"
+
+
+def test_late_reply_to_the_abandoned_attempt_is_ignored():
+    with exchange([("ID #1", None), ("ID #2", ["OK #1 ID bench-pkm5 1 old", "OK #2 ID bench-pkm5 1 new"])],
+                  retries=1) as robot:
+        assert robot.identify().firmware_version == "new"
+
+
+def test_retries_are_bounded_and_the_timeout_names_everything():
+    with exchange([("POS #1", None), ("POS #2", None)], retries=1) as robot, \
+            pytest.raises(LinkTimeout) as caught:
+        robot.position()
+    assert re.search(r"scripted://: no reply to 'POS' after 0\.2\d* s, expected 'OK #2 \.\.\.' from a "
+                     r"bench-pkm5 controller; received 0 bytes", str(caught.value))
+
+
+def test_error_reply_raises_controller_error_with_its_code():
+    with exchange([("ENABLE #1", "ERR #1 7 BUSY")]) as robot, pytest.raises(ControllerError, match="7 BUSY") as c:
+        robot.enable()
+    assert c.value.code == wire.ErrorCode.BUSY
+
+
+def test_wrong_device_identity_is_refused():
+    with exchange([("ID #1", "OK #1 ID other-robot 3 9.9")]) as robot, \
+            pytest.raises(LinkError, match=r"answered 'ID other-robot 3 9.9', expected 'ID bench-pkm5 1 "):
+        robot.identify()
+
+
+def test_a_device_talking_nonsense_gives_a_timeout_that_says_so():
+    with exchange([("ID #1", b"Hello from a GPS\r\n$GPGGA,1*00\r\n")], retries=0) as robot, \
+            pytest.raises(LinkTimeout, match=r"dropped 2 invalid or stale lines, first b'Hello from a GPS\\r' "
+                                             r"\(is this a bench-pkm5\?\)"):
+        robot.identify()
+
+
+@pytest.mark.parametrize("pose, reason", [
+    ((110.52, -0.19, 405.5, 0, 0), r"leg 1 length 293\.837 mm outside \(184, 244\) mm"),
+    ((111.31, 0, 310, 10, 10), "compound rotation"),
+    ((110.52, -0.19, 305.5), r"expected 5 finite numbers"),
+])
+def test_unreachable_pose_is_refused_before_a_byte_is_sent(pose, reason):
+    with exchange([]) as robot, pytest.raises(UnreachableTarget, match=reason):
+        robot.move_to_pose(pose)
+
+
+def test_steps_outside_the_leg_window_are_refused_before_a_byte_is_sent():
+    # 9601 steps = 184 + 60.00625 mm, just past the 244 mm workspace limit of legs 1-4 (pkm5.md §2.4)
+    with exchange([]) as robot, pytest.raises(UnreachableTarget, match=r"leg 1 length 244\.006 mm"):
+        robot.move_steps([9601, 9601, 800, 800, 1600, 1600])
+
+
+def test_steps_must_be_six_integers():
+    with exchange([]) as robot, pytest.raises(ConfigError, match="expected 6 integers"):
+        robot.move_steps([1.5, 2, 3, 4, 5, 6])
+
+
+def test_lost_move_acceptance_sends_stop_and_raises():
+    with exchange([("MOVE 2656 2656 2669 2669 2720 2720 200 #1", None),
+                   ("STOP #2", "OK #2 STOP 900 900 900 900 1700 1700")]) as robot, pytest.raises(LinkTimeout):
+        robot.move_steps(POINT_3_1_STEPS)
+
+
+class CtrlCWhileWaitingPort(ScriptedPort):
+    """Raises KeyboardInterrupt the first time the driver waits on an empty line (as Ctrl-C would)."""
+
+    armed = True
+
+    def read(self, size=1):
+        if not self.in_waiting and self.armed and not self.unused[0][0].startswith(b"MOVE"):
+            self.armed = False
+            raise KeyboardInterrupt
+        return super().read(size)
+
+
+def test_ctrl_c_during_a_move_sends_stop_then_propagates():
+    port = CtrlCWhileWaitingPort([("MOVE 2656 2656 2669 2669 2720 2720 200 #1", "OK #1 MOVE 60000"),
+                                  ("STOP #2", ["ERR #1 8 STOPPED 900 900 900 900 1700 1700",
+                                               "OK #2 STOP 900 900 900 900 1700 1700"])], wire.encode_line)
+    robot = Pkm5Controller(port, reply_timeout_s=0.2)
+    with pytest.raises(KeyboardInterrupt):
+        robot.move_steps(POINT_3_1_STEPS)
+    assert port.unused == []
+
+
+def test_context_exit_on_error_stops_and_closes():
+    port = ScriptedPort([("STOP #1", "OK #1 STOP 1 2 3 4 5 6")], wire.encode_line)
+    with pytest.raises(RuntimeError), Pkm5Controller(port, reply_timeout_s=0.2):
+        raise RuntimeError("operator abort")
+    assert port.unused == [] and not port.is_open
+
+
+def test_shutdown_on_a_dead_link_still_closes_within_the_deadline():
+    port = ScriptedPort([("STOP #1", None)], wire.encode_line)
+    Pkm5Controller(port, reply_timeout_s=0.05).shutdown()
+    assert not port.is_open
+
+
+def test_settings_and_repr_show_every_setting():
+    robot = Pkm5Controller(ScriptedPort([]), speed_steps_s=300, retries=1)
+    settings = robot.settings()
+    assert settings == {"driver": "Pkm5Controller", "port": "scripted://", "baudrate": 115200,
+                        "protocol_version": 1, "speed_steps_s": 300, "reply_timeout_s": 1.0, "retries": 1,
+                        "move_margin_s": 2.0, "firmware": None}
+    assert repr(robot).startswith("Pkm5Controller(port='scripted://', baudrate=115200, protocol_version=1, "
+                                  "speed_steps_s=300")
+
+
+@pytest.mark.parametrize("name, value", [("speed_steps_s", 0), ("speed_steps_s", 5000), ("retries", -1),
+                                         ("reply_timeout_s", "1")])
+def test_settings_are_checked_on_construction(name, value):
+    with pytest.raises(ConfigError, match=f"{name} = {value!r}, expected a number in"):
+        Pkm5Controller(ScriptedPort([]), **{name: value})

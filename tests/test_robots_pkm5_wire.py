@@ -1,0 +1,120 @@
+"""PKM5 wire protocol: line framing, checksums and parsers (docs/protocol-pkm5.md)."""
+
+import pytest
+import serial
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from bench.errors import LinkError, LinkTimeout
+from bench.robots import pkm5_wire as wire
+from bench.robots.link import Deadline, WireProtocolError
+
+
+def test_checksum_is_the_xor_of_the_body_bytes():
+    # 'I' 0x49 ^ 'D' 0x44 ^ ' ' 0x20 ^ '#' 0x23 ^ '1' 0x31 = 0x3F, worked by hand
+    assert wire.checksum(b"ID #1") == "3F"
+    assert wire.encode_line("ID #1") == b"ID #1*3F\n"
+    assert wire.format_command("ID", (), 1) == b"ID #1*3F\n"
+
+
+def test_move_command_is_byte_exact():
+    line = wire.format_command("MOVE", (1, 2, 3, 4, 5, 6, 200), 7)
+    assert line.startswith(b"MOVE 1 2 3 4 5 6 200 #7*") and line.endswith(b"\n")
+    assert wire.parse_command(line[:-1]) == wire.Command("MOVE", (1, 2, 3, 4, 5, 6, 200), 7)
+
+
+def test_reply_round_trip_and_crlf_tolerated():
+    line = wire.format_reply("OK", 12, "POS", 1, -2, 3, 4, 5, 6, "IDLE")
+    reply = wire.parse_reply(line.rstrip(b"\n") + b"\r")
+    assert reply == wire.Reply("OK", 12, ("POS", "1", "-2", "3", "4", "5", "6", "IDLE"))
+    assert reply.ints(1, 6) == (1, -2, 3, 4, 5, 6)
+
+
+@pytest.mark.parametrize("line, message", [
+    (b"ID #1*3E", "checksum"),
+    (b"ID #1", "no '\\*HH' checksum"),
+    (b"X" * 200 + b"*00", "expected at most 96"),
+    (b"ID\x01 #1*" + wire.checksum(b"ID\x01 #1").encode(), "printable ASCII"),
+])
+def test_decode_refuses_corrupted_lines_with_the_reason(line, message):
+    with pytest.raises(WireProtocolError, match=message):
+        wire.decode_line(line)
+
+
+@pytest.mark.parametrize("body, message", [
+    ("JUMP #1", "unknown command"),
+    ("MOVE 1 2 3 #1", "MOVE takes 7 arguments, got 3"),
+    ("POS", "exactly one '#TAG'"),
+    ("MOVE 1 2 3 4 5 x 200 #1", "'x' is not a decimal integer"),
+])
+def test_parse_command_names_what_is_wrong(body, message):
+    with pytest.raises(WireProtocolError, match=message):
+        wire.parse_command(wire.encode_line(body)[:-1])
+
+
+def test_format_command_refuses_a_wrong_arity():
+    with pytest.raises(ValueError, match="expected 7"):
+        wire.format_command("MOVE", (1, 2), 1)
+
+
+@settings(max_examples=300, deadline=None)
+@given(st.binary(max_size=120))
+def test_parsers_raise_only_the_protocol_error_on_arbitrary_bytes(data):
+    for parse in (wire.parse_reply, wire.parse_command):
+        try:
+            parse(data)
+        except WireProtocolError:
+            pass
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.text(alphabet=st.sampled_from(list("OKDNERR #0123456789-ABIDPOS \t")), max_size=60))
+def test_parsers_on_well_checksummed_near_miss_text(body):
+    line = wire.encode_line(body)[:-1]
+    for parse in (wire.parse_reply, wire.parse_command):
+        try:
+            parse(line)
+        except WireProtocolError:
+            pass
+
+
+def test_line_link_joins_partial_lines_and_splits_glued_ones():
+    port = serial.serial_for_url("loop://", timeout=0.01)
+    link = wire.LineLink(port)
+    port.write(b"OK #1 I")
+    with pytest.raises(LinkTimeout):
+        link.read_frame(0.02, command="ID", expected="a line")
+    port.write(b"D\nDONE #2")
+    assert link.read_frame(0.2, command="ID", expected="a line") == b"OK #1 ID"
+    port.write(b" 1\nBOOT #0\n")
+    assert link.read_frame(0.2, command="MOVE", expected="a line") == b"DONE #2 1"
+    assert link.read_frame(0.2, command="MOVE", expected="a line") == b"BOOT #0"
+
+
+def test_timeout_names_port_command_time_and_bytes_received():
+    port = serial.serial_for_url("loop://", timeout=0.01)
+    port.write(b"partial")
+    link = wire.LineLink(port)
+    with pytest.raises(LinkTimeout) as caught:
+        link.read_frame(0.1, command="POS", expected="'OK #3 POS ...'")
+    text = str(caught.value)
+    assert "loop://" in text and "'POS'" in text and "'OK #3 POS ...'" in text
+    assert "received 7 bytes so far: b'partial'" in text
+    waited = float(text.split("after ")[1].split(" s")[0])
+    assert 0.1 <= waited < 0.3
+
+
+def test_closed_port_becomes_a_link_error_naming_the_command():
+    port = serial.serial_for_url("loop://", timeout=0.01)
+    link = wire.LineLink(port)
+    port.close()
+    with pytest.raises(LinkError, match="loop://.*'STOP'"):
+        link.write(b"STOP #1*00\n", command="STOP")
+
+
+def test_deadline_refuses_negative_and_counts_down():
+    with pytest.raises(ValueError, match="expected a number >= 0"):
+        Deadline(-1)
+    deadline = Deadline(10)
+    assert 9.0 < deadline.remaining_s() <= 10.0 and not deadline.expired()
+    assert Deadline(0).expired()
