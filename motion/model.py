@@ -1,0 +1,86 @@
+"""The one structural interface every robot model satisfies, so protocols and the CLI treat robots alike.
+
+A model names its pose fields and joints (with units and limits) and offers ``ik``, ``fk``, ``jacobian`` and
+``workspace_samples`` on (N, ...) arrays in the public units (mm, degrees). Each robot package provides a
+``MODEL`` instance (``motion.delta4.model.MODEL``, ``motion.prus3.model.MODEL``); :func:`robot_models` lists
+those that are available.
+"""
+
+from __future__ import annotations
+
+import importlib
+from dataclasses import dataclass
+from typing import Protocol, runtime_checkable
+
+import numpy as np
+
+__all__ = ["JointSpec", "ModelIK", "ModelFK", "RobotModel", "robot_models", "MODEL_MODULES"]
+
+#: Packages that expose a ``model.MODEL``; the order is the listing order.
+MODEL_MODULES = ("motion.delta4.model", "motion.prus3.model")
+
+
+@dataclass(frozen=True)
+class JointSpec:
+    """One joint: ``name`` with its unit in it (``servo1_deg``), ``unit``, limits ``low``..``high``, and whether
+    it is ``actuated``."""
+
+    name: str
+    unit: str
+    low: float
+    high: float
+    actuated: bool = True
+
+
+@dataclass(frozen=True)
+class ModelIK:
+    """``joints`` (N, J) in the joints' units, ``reachable`` (N,), ``reason`` (N,) None or text."""
+
+    joints: np.ndarray
+    reachable: np.ndarray
+    reason: np.ndarray
+
+
+@dataclass(frozen=True)
+class ModelFK:
+    """``pose`` (N, P) in the pose fields' units, ``residual_mm`` (N,) consistency figure, ``ok`` (N,)."""
+
+    pose: np.ndarray
+    residual_mm: np.ndarray
+    ok: np.ndarray
+
+
+@runtime_checkable
+class RobotModel(Protocol):
+    """What the protocols and the CLI need from a robot's kinematics.
+
+    Attributes
+    ----------
+    name : str
+    pose_fields : tuple of str, e.g. ("x_mm", "y_mm", "z_mm")
+    joints : tuple of JointSpec, the columns of ``ik(...).joints`` and of ``fk``'s input
+    jacobian_joints : tuple of str, the rows of ``jacobian``: the joints that move the platform
+    """
+
+    name: str
+    pose_fields: tuple[str, ...]
+    joints: tuple[JointSpec, ...]
+    jacobian_joints: tuple[str, ...]
+
+    def ik(self, pose: object) -> ModelIK:
+        """Joint values for poses (N, P)."""
+
+    def fk(self, joints: object) -> ModelFK:
+        """Poses for joint values (N, J)."""
+
+    def jacobian(self, pose: object) -> np.ndarray:
+        """d(jacobian_joints)/d(pose fields), (N, len(jacobian_joints), P), in joint units per pose-field unit."""
+
+    def workspace_samples(self, count: int, *, seed: int | None = 0) -> tuple[np.ndarray, np.ndarray]:
+        """Uniform random poses (count, P) over the model's sampling box, and their reachability (count,)."""
+
+
+def robot_models() -> dict[str, RobotModel]:
+    """The available models by name."""
+    models = (importlib.import_module(name).MODEL for name in MODEL_MODULES)
+    return {model.name: model for model in models}
