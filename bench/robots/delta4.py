@@ -138,7 +138,8 @@ class Delta4Controller:
         except (MotionInputError, ValueError) as exc:
             raise UnreachableTarget(f"point_mm = {point_mm!r}: {exc}") from exc
         if not result.reachable[0]:
-            raise UnreachableTarget(f"point_mm = {tuple(np.ravel(point_mm))}: unreachable ({result.reason[0]})")
+            raise UnreachableTarget(f"point_mm = {tuple(float(v) for v in np.ravel(point_mm))}: unreachable "
+                                    f"({result.reason[0]})")
         return self.mapping.check(result.servo_deg[0])
 
     def wait_settled(self, *, timeout_s: float | None = None, command: str = "servo move",
