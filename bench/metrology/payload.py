@@ -94,8 +94,8 @@ def leg_error_summary(load_kg, leg_error_mm) -> LegErrorSummary:
     peak = np.argmax(errors, axis=0)
     correlations = []
     for column in errors.T:
-        spread = np.std(column) * np.std(loads)
-        correlations.append(None if spread == 0 else round(float(np.corrcoef(loads, column)[0, 1]), 12))
+        constant = np.ptp(column) == 0 or np.ptp(loads) == 0
+        correlations.append(None if constant else float(np.corrcoef(loads, column)[0, 1]))
     return LegErrorSummary(
         max_error_mm=tuple(float(v) for v in errors.max(axis=0)),
         load_at_max_kg=tuple(float(loads[i]) for i in peak),

@@ -1,0 +1,96 @@
+"""GUM helpers: Type A/B components, t-based intervals, the instrument RP floor, AP and RP uncertainty."""
+
+import numpy as np
+import pytest
+
+from bench.errors import ConfigError, InsufficientData
+from bench.metrology import (
+    accuracy_uncertainty,
+    bootstrap_uncertainty,
+    combine,
+    expanded,
+    instrument_rp_floor,
+    mean_confidence_interval,
+    pose_repeatability,
+    rectangular,
+    resolution_uncertainty,
+    type_a_of_mean,
+    welch_satterthwaite,
+)
+
+
+def test_type_b_components_of_iso9283_section_8_2():
+    assert resolution_uncertainty(25.4 / 800, difference=True) == pytest.approx(0.0130, abs=5e-5)  # mouse 800 CPI
+    assert resolution_uncertainty(25.4 / 800) == pytest.approx(0.0092, abs=5e-5)
+    assert resolution_uncertainty(0.01) == pytest.approx(0.0029, abs=5e-5)  # calliper resolution
+    assert rectangular(0.02) == pytest.approx(0.0115, abs=5e-5)  # calliper MPE ±0.02 mm
+    assert resolution_uncertainty(0.2, difference=True) == pytest.approx(0.082, abs=5e-4)  # 0.2 mm/pixel
+    assert resolution_uncertainty(0.00625) == pytest.approx(0.0018, abs=5e-5)  # actuator CR
+
+
+def test_combined_and_expanded():
+    assert combine(0.003, 0.004) == pytest.approx(0.005)
+    measured = expanded(1.5, 0.005, unit="mm")
+    assert measured.expanded_uncertainty == pytest.approx(0.01)
+    assert str(measured) == "1.5 ± 0.01 mm (k = 2)"
+    with pytest.raises(ConfigError, match="standard_uncertainty = nan"):
+        expanded(1.0, float("nan"), unit="mm")
+
+
+def test_type_a_of_mean():
+    assert type_a_of_mean([1.0, 2.0, 3.0]) == pytest.approx(1.0 / np.sqrt(3))
+    with pytest.raises(InsufficientData, match=r"samples: 1 sample\(s\), at least 2"):
+        type_a_of_mean([1.0])
+
+
+def test_welch_satterthwaite():
+    # Two equal components with 4 and inf degrees of freedom: ν_eff = (2u²)² / (u⁴/4) = 16.
+    assert welch_satterthwaite([1.0, 1.0], [4, np.inf]) == pytest.approx(16.0)
+    assert welch_satterthwaite([1.0], [np.inf]) == np.inf
+
+
+@pytest.mark.parametrize("k, t", [(3, 4.303), (5, 2.776), (30, 2.045)])
+def test_small_sample_interval_uses_student_t(k, t):
+    # iso9283.md §10.2 #14: never 1.96.
+    result = mean_confidence_interval(np.arange(k, dtype=float))
+    assert result.t_quantile == pytest.approx(t, abs=5e-4)
+    half = t * np.std(np.arange(k), ddof=1) / np.sqrt(k)
+    assert result.high - result.mean == pytest.approx(half, rel=1e-3)
+
+
+@pytest.mark.parametrize("dims, factor", [(3, 3.616), (2, 3.219), (1, 2.606)])
+def test_instrument_rp_floor_constants(dims, factor):
+    assert instrument_rp_floor(1.0, dims=dims) == pytest.approx(factor, abs=5e-4)
+
+
+def test_rp_floor_of_the_dissertation_mouse():
+    # iso9283.md §8.4: σ ≈ 0.355 mm per axis -> about 1.14 mm in 2-D and 1.28 mm in 3-D.
+    assert instrument_rp_floor(0.355, dims=2) == pytest.approx(1.14, abs=0.005)
+    assert instrument_rp_floor(0.355, dims=3) == pytest.approx(1.28, abs=0.005)
+
+
+def test_rp_floor_matches_simulation_of_a_perfect_robot():
+    rng = np.random.default_rng(5)
+    noise = rng.normal(0, 0.1, (20000, 3))
+    simulated = pose_repeatability(noise).rp_mm
+    assert simulated == pytest.approx(instrument_rp_floor(0.1, dims=3), rel=0.02)
+
+
+def test_accuracy_uncertainty_per_axis_and_norm():
+    attained = np.array([[1.0, 0.0, 0.0], [1.2, 0.0, 0.0], [0.8, 0.0, 0.0], [1.0, 0.0, 0.0]])
+    ap, axes = accuracy_uncertainty(attained, [0, 0, 0], instrument_u_mm=0.01)
+    u_x = np.sqrt(np.var(attained[:, 0], ddof=1) / 4 + 0.01**2)
+    assert axes[0].expanded_uncertainty == pytest.approx(2 * u_x)
+    assert axes[1].expanded_uncertainty == pytest.approx(0.02)
+    assert ap.value == pytest.approx(1.0)
+    assert ap.expanded_uncertainty == pytest.approx(2 * u_x)  # AP lies along x: only u(AP_x) propagates
+
+
+def test_bootstrap_is_reproducible_and_scales():
+    rng = np.random.default_rng(11)
+    cloud = rng.normal(0, 0.2, (30, 3))
+    statistic = lambda p: pose_repeatability(p).rp_mm  # noqa: E731
+    a = bootstrap_uncertainty(statistic, cloud, resamples=300, seed=1)
+    assert a == bootstrap_uncertainty(statistic, cloud, resamples=300, seed=1)
+    assert bootstrap_uncertainty(statistic, cloud * 10, resamples=300, seed=1) == pytest.approx(10 * a)
+    assert 0 < a < pose_repeatability(cloud).rp_mm
