@@ -1,0 +1,120 @@
+"""The protocol base class: typed parameters, TOML loading that refuses unknown keys, and the protocol registry.
+
+A protocol is data (a TOML file naming ``protocol = "<name>"`` and its parameter values) plus a Python class
+whose :meth:`Protocol.steps` generator turns the parameters into steps. Generators are deterministic given the
+parameters, so a run can be regenerated from its stored configuration to resume it or to re-analyse it.
+"""
+
+from __future__ import annotations
+
+import tomllib
+from pathlib import Path
+from typing import Any, ClassVar, Mapping
+
+from bench.errors import ConfigError
+from bench.protocols.parameters import ChoiceParameter, Parameter
+from bench.protocols.steps import Plan
+
+__all__ = ["PROTOCOLS", "Protocol", "load_protocol", "protocol_from_config", "register"]
+
+#: Protocol classes by name, filled by :func:`register`.
+PROTOCOLS: dict[str, type["Protocol"]] = {}
+
+
+def register(cls: type["Protocol"]) -> type["Protocol"]:
+    """Class decorator: make a protocol loadable by its ``name``."""
+    PROTOCOLS[cls.name] = cls
+    return cls
+
+
+class Protocol:
+    """Base of all test protocols (a PyMeasure ``Procedure`` whose ``execute`` is a bluesky-style plan).
+
+    Subclasses set ``name``, ``version``, ``robots`` (the robots it is written for) and ``title``, declare
+    parameters as class attributes, and implement :meth:`steps`. :meth:`final_steps` (default: nothing) is the
+    clean-up plan that the runner runs after completion, stop or abort (not after halt).
+    """
+
+    name: ClassVar[str] = "base"
+    version: ClassVar[str] = "0"
+    title: ClassVar[str] = ""
+    robots: ClassVar[tuple[str, ...]] = ("pkm5", "delta4")
+
+    robot = ChoiceParameter("pkm5", choices=("pkm5", "delta4"), description="robot the protocol drives")
+
+    def __init__(self, source: str = "parameters", **values: Any) -> None:
+        self.source = source
+        known = self.parameters()
+        for key, value in values.items():
+            if key not in known:
+                raise ConfigError(f"{source}: unknown key {key!r}, expected one of {', '.join(sorted(known))}")
+            setattr(self, key, value)
+        if self.robot not in self.robots:
+            raise ConfigError(f"{source}: robot = {self.robot!r}, expected one of {', '.join(self.robots)} "
+                              f"for protocol {self.name!r}")
+        self.validate()
+
+    def __repr__(self) -> str:
+        args = ", ".join(f"{k}={v!r}" for k, v in self.resolved().items())
+        return f"{type(self).__name__}({args})"
+
+    @classmethod
+    def parameters(cls) -> dict[str, Parameter]:
+        """The declared parameters by name, base class first."""
+        found: dict[str, Parameter] = {}
+        for klass in reversed(cls.__mro__):
+            found.update({k: v for k, v in vars(klass).items() if isinstance(v, Parameter)})
+        return found
+
+    def resolved(self) -> dict[str, Any]:
+        """Every parameter value (defaults included) as plain JSON-ready data, stored with the run."""
+        out = {}
+        for key in self.parameters():
+            value = getattr(self, key)
+            if isinstance(value, tuple):
+                value = list(value)
+            elif isinstance(value, dict):
+                value = {k: list(v) for k, v in value.items()}
+            out[key] = value
+        return out
+
+    def config(self) -> dict[str, Any]:
+        """The self-describing configuration: protocol name and version plus the resolved parameters."""
+        return {"protocol": self.name, "protocol_version": self.version, **self.resolved()}
+
+    def validate(self) -> None:
+        """Cross-parameter checks; raise ``ConfigError`` naming ``self.source``. Default: none."""
+
+    def steps(self) -> Plan:
+        """The step generator of the protocol."""
+        raise NotImplementedError
+
+    def final_steps(self) -> Plan:
+        """Clean-up steps after the run (e.g. return home); default: none."""
+        return
+        yield
+
+
+def protocol_from_config(config: Mapping[str, Any], source: str = "parameters") -> Protocol:
+    """Build a protocol from a mapping with a ``protocol`` key (a TOML document or a stored run's config)."""
+    values = dict(config)
+    name = values.pop("protocol", None)
+    values.pop("protocol_version", None)
+    if name is None:
+        raise ConfigError(f"{source}: missing key 'protocol', expected one of {', '.join(sorted(PROTOCOLS))}")
+    if name not in PROTOCOLS:
+        raise ConfigError(f"{source}: protocol = {name!r}, expected one of {', '.join(sorted(PROTOCOLS))}")
+    return PROTOCOLS[name](source=source, **values)
+
+
+def load_protocol(path: str | Path, **overrides: Any) -> Protocol:
+    """Read a protocol TOML file; ``overrides`` (e.g. ``robot`` from the command line) win over the file."""
+    path = Path(path)
+    try:
+        document = tomllib.loads(path.read_text(encoding="utf-8"))
+    except FileNotFoundError as exc:
+        raise ConfigError(f"{path}: no such protocol file") from exc
+    except tomllib.TOMLDecodeError as exc:
+        raise ConfigError(f"{path.name}: not valid TOML ({exc})") from exc
+    document.update({k: v for k, v in overrides.items() if v is not None})
+    return protocol_from_config(document, source=path.name)

@@ -1,0 +1,201 @@
+"""ISO 9283 pose protocols: pose accuracy and repeatability (AP/RP), distance (AD/RD), multi-directional (vAP).
+
+Spec: ``shared/reference/iso9283.md`` §4-5. The test cube is centred where the robot works most and sized to the
+workspace: with ``cube_side_mm = 0`` the largest cube around ``cube_centre_mm`` whose 27 lattice points (corners,
+edge and face centres) pass the pre-flight is used. P1 is the centre; P2-P5 lie on the diagonals of the chosen
+diagonal plane at 10 % of the diagonal from the corners, i.e. at (+/-0.4 L, +/-0.4 L, +/-0.4 L) from P1, with P2 and
+P4 on one diagonal (the distance pair) and P3 and P5 on the other [U: clause 6.8 unchecked]. Where a cube does not
+fit, ``poses`` gives a documented plane or grid of labelled poses instead. Cycle order: P1 -> P5 -> P4 -> P3 -> P2,
+unidirectional, 30 cycles, at 100/50/10 % velocity, with an optional second load; a Checkpoint closes every cycle.
+"""
+
+from __future__ import annotations
+
+import itertools
+from typing import Any
+
+import numpy as np
+
+from bench.errors import ConfigError
+from bench.protocols.base import Protocol, register
+from bench.protocols.kinematics import DEFAULT_SINGULARITY_THRESHOLD, robot_model
+from bench.protocols.parameters import (ChoiceParameter, FloatListParameter, FloatParameter, IntegerParameter,
+                                        PoseTableParameter)
+from bench.protocols.steps import Checkpoint, Move, Plan, Prompt, visit
+
+__all__ = ["DistanceAccuracy", "MultiDirectional", "PoseAccuracy", "cube_poses", "fit_cube_side"]
+
+#: Sign patterns of P2..P5 on each diagonal plane (cube coordinates); P2/P4 and P3/P5 are opposite corners.
+_PLANES = {
+    "x=z": [(-1, -1, -1), (-1, 1, -1), (1, 1, 1), (1, -1, 1)],
+    "x=-z": [(-1, -1, 1), (-1, 1, 1), (1, 1, -1), (1, -1, -1)],
+    "y=z": [(-1, -1, -1), (1, -1, -1), (1, 1, 1), (-1, 1, 1)],
+    "y=-z": [(-1, -1, 1), (1, -1, 1), (1, 1, -1), (-1, 1, -1)],
+}
+#: ISO order within a cycle, starting at P1 (iso9283.md §5.4).
+POSE_ORDER = ("P1", "P5", "P4", "P3", "P2")
+
+
+def cube_poses(centre_mm, side_mm: float, plane: str = "x=z", angles_deg=()) -> dict[str, tuple[float, ...]]:
+    """P1-P5 of an ISO cube of edge ``side_mm`` centred at ``centre_mm`` (iso9283.md §5.3: P = P1 + 0.8 (C - P1)).
+
+    Examples
+    --------
+    >>> cube_poses((100, 0, 300), 50)["P4"]
+    (120.0, 20.0, 320.0)
+    """
+    centre = np.asarray(centre_mm, dtype=float)
+    poses = {"P1": tuple(centre.tolist()) + tuple(angles_deg)}
+    for label, signs in zip(("P2", "P3", "P4", "P5"), _PLANES[plane]):
+        point = centre + 0.4 * side_mm * np.asarray(signs, dtype=float)
+        poses[label] = tuple(float(v) for v in point) + tuple(angles_deg)
+    return poses
+
+
+def fit_cube_side(robot: str, centre_mm, *, max_side_mm: float = 200.0, angles_deg=(),
+                  threshold: float = DEFAULT_SINGULARITY_THRESHOLD) -> float:
+    """Edge (mm, 0.1 mm resolution) of the largest cube around ``centre_mm`` whose 27 lattice points all pass the
+    pre-flight of ``robot`` (bisection; the reachable set is assumed star-shaped about the centre)."""
+    model = robot_model(robot)
+    lattice = np.array(list(itertools.product((-0.5, 0.0, 0.5), repeat=3)))
+
+    def fits(side: float) -> bool:
+        points = np.asarray(centre_mm, float) + side * lattice
+        targets = model.as_targets([tuple(p) + tuple(angles_deg) for p in points])
+        return bool(model.check(targets, threshold).reachable.all())
+
+    if not fits(0.0):
+        return 0.0
+    low, high = 0.0, max_side_mm
+    if fits(high):
+        return high
+    while high - low > 0.1:
+        mid = (low + high) / 2
+        low, high = (mid, high) if fits(mid) else (low, mid)
+    return round(low, 1)
+
+
+class _CubeProtocol(Protocol):
+    """Shared parameters: the robot, the cube or explicit poses, velocities, loads, cycles and settling."""
+
+    cycles = IntegerParameter(30, minimum=2, description="cycles per pose (ISO Table 5: 30)")
+    velocities_pct = FloatListParameter((100.0, 50.0, 10.0), unit="%", minimum=0.1, maximum=100.0,
+                                        description="test velocities, % of rated (ISO 6.7: 100, 50, 10)")
+    loads_kg = FloatListParameter((0.0,), unit="kg", minimum=0.0, maximum=30.0,
+                                  description="loads, kg (ISO 6.6: 100 % rated, optionally 10 %)")
+    cube_centre_mm = FloatListParameter((110.0, 0.0, 320.0), length=3, unit="mm",
+                                        description="centre of the test cube (P1), mm; the default holds the "
+                                                    "largest pkm5 cube found by a grid search (40 mm)")
+    cube_side_mm = FloatParameter(0.0, unit="mm", minimum=0.0, maximum=1000.0,
+                                  description="edge of the test cube; 0 = the largest that fits the workspace")
+    plane = ChoiceParameter("x=z", choices=tuple(_PLANES), description="diagonal plane of P2-P5 (cube frame)")
+    poses = PoseTableParameter(None, description="explicit labelled poses instead of the cube (plane or grid)")
+    settle_s = FloatParameter(1.0, unit="s", minimum=0.0, maximum=600.0, description="dwell before each capture")
+
+    def validate(self) -> None:
+        if self.poses is None:
+            self._side_mm = self.cube_side_mm or fit_cube_side(self.robot, self.cube_centre_mm)
+            if self._side_mm <= 0:
+                raise ConfigError(f"{self.source}: cube_centre_mm = {list(self.cube_centre_mm)}, expected a centre "
+                                  f"inside the {self.robot} workspace (no cube fits around it)")
+            self._poses = cube_poses(self.cube_centre_mm, self._side_mm, self.plane)
+        else:
+            width = len(robot_model(self.robot).target_fields)
+            for label, pose in self.poses.items():
+                if len(pose) > width:
+                    raise ConfigError(f"{self.source}: poses.{label} = {list(pose)}, expected at most {width} "
+                                      f"numbers for the {self.robot}")
+            self._poses = dict(self.poses)
+
+    def resolved(self) -> dict[str, Any]:
+        out = super().resolved()
+        out["cube_side_mm"] = self.cube_side_mm or getattr(self, "_side_mm", 0.0)
+        return out
+
+    def test_poses(self) -> dict[str, tuple[float, ...]]:
+        """The labelled command poses (mm, degrees) this protocol visits."""
+        return dict(self._poses)
+
+
+    def _load_prompt(self, load_kg: float, previous: float | None) -> Plan:
+        if previous is None and load_kg == 0:
+            return
+        if load_kg != previous:
+            yield Prompt(f"Mount a payload of {load_kg:g} kg on the end effector, then confirm",
+                         conditions={"load_kg": load_kg})
+
+    def final_steps(self) -> Plan:
+        yield Move(tuple(robot_model(self.robot).home), 100.0, "home")
+
+
+@register
+class PoseAccuracy(_CubeProtocol):
+    """ISO 9283 7.2: pose accuracy AP and repeatability RP at P1-P5."""
+
+    name = "iso9283_pose"
+    version = "1"
+    title = "ISO 9283 pose accuracy and repeatability (7.2.1, 7.2.2)"
+
+    def steps(self) -> Plan:
+        order = [p for p in POSE_ORDER if p in self._poses] if self.poses is None else list(self._poses)
+        previous_load = None
+        for load in self.loads_kg:
+            yield from self._load_prompt(load, previous_load)
+            previous_load = load
+            for velocity in self.velocities_pct:
+                for cycle in range(1, self.cycles + 1):
+                    for label in order:
+                        yield from visit(label, self._poses[label], cycle, velocity_pct=velocity,
+                                         settle_s=self.settle_s, conditions={"load_kg": load})
+                    yield Checkpoint(f"load {load:g} kg, {velocity:g} %, cycle {cycle}")
+
+
+@register
+class DistanceAccuracy(_CubeProtocol):
+    """ISO 9283 7.3: distance accuracy AD and repeatability RD between P4 and P2 (starting at P4)."""
+
+    name = "iso9283_distance"
+    version = "1"
+    title = "ISO 9283 distance accuracy and repeatability (7.3)"
+
+    def steps(self) -> Plan:
+        pair = ("P4", "P2") if self.poses is None else tuple(self._poses)[:2]
+        previous_load = None
+        for load in self.loads_kg:
+            yield from self._load_prompt(load, previous_load)
+            previous_load = load
+            for velocity in self.velocities_pct:
+                for cycle in range(1, self.cycles + 1):
+                    for label in pair:
+                        yield from visit(label, self._poses[label], cycle, velocity_pct=velocity,
+                                         settle_s=self.settle_s, conditions={"load_kg": load})
+                    yield Checkpoint(f"{velocity:g} %, cycle {cycle}")
+
+
+@register
+class MultiDirectional(_CubeProtocol):
+    """ISO 9283 7.2.3: multi-directional pose accuracy variation vAP at P1, P2, P4 from three directions.
+
+    Each pose is approached from a pre-pose offset by ``approach_mm`` along -x, -y and -z in turn [U]; the capture
+    label is ``<pose>/<direction>`` so the barycentre per direction can be computed.
+    """
+
+    name = "iso9283_multidirectional"
+    version = "1"
+    title = "ISO 9283 multi-directional pose accuracy variation (7.2.3)"
+    approach_mm = FloatParameter(10.0, unit="mm", minimum=0.5, maximum=100.0,
+                                 description="pre-pose offset along each approach direction")
+
+    def steps(self) -> Plan:
+        labels = [p for p in ("P1", "P2", "P4") if p in self._poses] or list(self._poses)
+        for velocity in self.velocities_pct:
+            for cycle in range(1, self.cycles + 1):
+                for label in labels:
+                    target = self._poses[label]
+                    for axis, name in enumerate("xyz"):
+                        pre = list(target)
+                        pre[axis] -= self.approach_mm
+                        yield Move(tuple(pre), velocity, f"{label}/pre-{name}")
+                        yield from visit(f"{label}/{name}", target, cycle, velocity_pct=velocity,
+                                         settle_s=self.settle_s, conditions={"load_kg": self.loads_kg[0]})
+                yield Checkpoint(f"{velocity:g} %, cycle {cycle}")

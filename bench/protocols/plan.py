@@ -1,0 +1,141 @@
+"""Dry runs: iterate a protocol without hardware, list its moves, pre-flight every target, estimate the duration.
+
+Like bluesky's ``summarize_plan`` and ``check_limits``: the generator is driven with stand-in results (a capture
+"measures" its commanded values, a prompt answers the middle of its range), every ``Move`` target is checked with
+motion/ (reach, joint limits, singularity proximity) before anything moves, and the time is estimated from the
+robot's actuator speeds plus the settle times.
+"""
+
+from __future__ import annotations
+
+from collections import Counter
+from dataclasses import dataclass
+from typing import Any, Iterator
+
+import numpy as np
+
+from bench.errors import UnreachableTarget
+from bench.protocols.base import Protocol
+from bench.protocols.kinematics import DEFAULT_SINGULARITY_THRESHOLD, robot_model
+from bench.protocols.steps import Capture, Checkpoint, Move, Prompt, Settle, Step
+
+__all__ = ["PlanSummary", "dry_run_result", "iterate", "preflight", "summarize"]
+
+#: Time a capture and a prompt are assumed to take in the estimate, s (a prompt waits for a person).
+CAPTURE_S = 0.05
+PROMPT_S = 10.0
+
+
+def dry_run_result(step: Step) -> Any:
+    """The stand-in result a dry run sends back for ``step``."""
+    if isinstance(step, Capture):
+        return {k.removeprefix("cmd_"): v for k, v in step.commanded.items()}
+    if isinstance(step, Prompt) and step.field is not None:
+        low = step.minimum if step.minimum is not None else 0.0
+        high = step.maximum if step.maximum is not None else low
+        return (low + high) / 2
+    return None
+
+
+def iterate(protocol: Protocol, *, final: bool = True) -> Iterator[Step]:
+    """Every step of ``protocol`` (then of its clean-up plan), driven with :func:`dry_run_result`."""
+    for plan in (protocol.steps(), protocol.final_steps()) if final else (protocol.steps(),):
+        reply = None
+        while True:
+            try:
+                step = plan.send(reply)
+            except StopIteration:
+                break
+            yield step
+            reply = dry_run_result(step)
+
+
+@dataclass(frozen=True)
+class PlanSummary:
+    """What a protocol will do: counts, distinct targets and their pre-flight, and the estimated duration."""
+
+    protocol: str
+    robot: str
+    counts: dict[str, int]
+    labels: tuple[str, ...]
+    targets: np.ndarray
+    reachable: np.ndarray
+    reasons: tuple[str, ...]
+    proximity: np.ndarray
+    move_s: float
+    settle_s: float
+    prompt_s: float
+    capture_s: float
+
+    @property
+    def estimated_s(self) -> float:
+        return self.move_s + self.settle_s + self.prompt_s + self.capture_s
+
+    @property
+    def ok(self) -> bool:
+        return bool(np.all(self.reachable))
+
+    def problems(self) -> list[str]:
+        """One line per refused target, naming its label and coordinates."""
+        return [f"target {self.labels[i]} {_describe(self.targets[i], self.robot)} is not reachable: "
+                f"{self.reasons[i]}" for i in np.flatnonzero(~self.reachable)]
+
+    def lines(self) -> list[str]:
+        """The human-readable summary printed by ``bench run --dry-run``."""
+        out = [f"protocol {self.protocol} on {self.robot}: " + ", ".join(
+            f"{n} {kind}" for kind, n in self.counts.items())]
+        out.append(f"estimated duration {_hms(self.estimated_s)} (moves {_hms(self.move_s)}, settling "
+                   f"{_hms(self.settle_s)}, prompts {_hms(self.prompt_s)}) at real speed")
+        out.append(f"{len(self.labels)} distinct targets:")
+        for i, label in enumerate(self.labels):
+            status = "ok" if self.reachable[i] else f"REFUSED: {self.reasons[i]}"
+            out.append(f"  {label:>8}  {_describe(self.targets[i], self.robot)}  "
+                       f"singularity proximity {self.proximity[i]:.3f}  {status}")
+        return out
+
+
+def _describe(target: np.ndarray, robot: str) -> str:
+    fields = robot_model(robot).target_fields
+    return "(" + ", ".join(f"{f.rsplit('_', 1)[0]} {v:.2f} {f.rsplit('_', 1)[1]}" for f, v in zip(fields, target)) + ")"
+
+
+def _hms(seconds: float) -> str:
+    seconds = int(round(seconds))
+    return f"{seconds // 3600}:{seconds // 60 % 60:02d}:{seconds % 60:02d}"
+
+
+def summarize(protocol: Protocol, *, singularity_threshold: float = DEFAULT_SINGULARITY_THRESHOLD) -> PlanSummary:
+    """Dry-run ``protocol``: count its steps, pre-flight every distinct target, estimate its duration."""
+    model = robot_model(protocol.robot)
+    counts: Counter[str] = Counter()
+    moves: list[tuple[str, tuple[float, ...], float]] = []
+    settle_s = 0.0
+    for step in iterate(protocol):
+        counts[type(step).__name__.lower() + "s"] += 1
+        if isinstance(step, Move):
+            moves.append((step.label or str(len(moves)), tuple(step.target), step.velocity_pct))
+        elif isinstance(step, Settle):
+            settle_s += step.duration_s
+    distinct: dict[tuple[float, ...], str] = {}
+    for label, target, _ in moves:
+        distinct.setdefault(tuple(model.as_targets([target])[0]), label)
+    targets = np.array(list(distinct), dtype=float).reshape(-1, len(model.target_fields))
+    check = model.check(targets, singularity_threshold)
+    move_s = 0.0
+    if moves and check.reachable.all():
+        path = model.as_targets([model.home] + [t for _, t, _ in moves])
+        velocity = np.array([v for _, _, v in moves], dtype=float)
+        move_s = float(model.move_s(path[:-1], path[1:], velocity).sum())
+    return PlanSummary(protocol.name, protocol.robot, dict(counts), tuple(distinct.values()), targets,
+                       check.reachable, tuple(str(r) for r in check.reason), check.proximity, move_s, settle_s,
+                       counts["prompts"] * PROMPT_S, counts["captures"] * CAPTURE_S)
+
+
+def preflight(protocol: Protocol, **kwargs: Any) -> PlanSummary:
+    """:func:`summarize`, raising ``UnreachableTarget`` naming every refused target before anything moves."""
+    summary = summarize(protocol, **kwargs)
+    if not summary.ok:
+        problems = summary.problems()
+        more = f" (and {len(problems) - 1} more)" if len(problems) > 1 else ""
+        raise UnreachableTarget(f"{protocol.source}: {problems[0]}{more}")
+    return summary

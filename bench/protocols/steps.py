@@ -1,0 +1,95 @@
+"""The frozen steps a protocol yields, and the stubs that compose them (bluesky's ``Msg`` and plan stubs).
+
+A protocol never calls a driver: it yields ``Move``, ``Settle``, ``Capture``, ``Prompt`` and ``Checkpoint`` and
+the runner (or a dry run) performs them and sends each step's result back through ``yield``. Targets are in mm
+and degrees: ``(x_mm, y_mm, z_mm[, alpha_deg, beta_deg])`` for the pkm5, ``(x_mm, y_mm, z_mm)`` for the delta4.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field as _field
+from typing import Any, Generator, Mapping, Union
+
+__all__ = ["Capture", "Checkpoint", "Move", "Prompt", "Settle", "Step", "Plan", "commanded_values",
+           "visit"]
+
+
+@dataclass(frozen=True)
+class Move:
+    """Move the robot to ``target`` (mm, degrees) at ``velocity_pct`` of its rated velocity."""
+
+    target: tuple[float, ...]
+    velocity_pct: float = 100.0
+    label: str = ""
+
+
+@dataclass(frozen=True)
+class Settle:
+    """Wait ``duration_s`` seconds (simulated time is divided by the rig's speed factor)."""
+
+    duration_s: float
+
+
+@dataclass(frozen=True)
+class Capture:
+    """Take one sample with the rig's instrument, stored at once as kind ``kind``.
+
+    ``commanded`` holds the commanded values (``cmd_x_mm``...) and ``conditions`` the test conditions
+    (``velocity_pct``, ``load_kg``...); both are stored with the measured values. The runner sends back the stored
+    values (a dict, unit in every key).
+    """
+
+    pose: str
+    cycle: int
+    kind: str = "pose"
+    commanded: Mapping[str, float] = _field(default_factory=dict)
+    conditions: Mapping[str, float] = _field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class Prompt:
+    """Ask the operator for one reading (``field`` in ``unit``, within bounds) or, with ``field=None``, to confirm.
+
+    A reading is stored at once as a sample of kind ``kind``; the runner sends back the value (or None).
+    """
+
+    text: str
+    field: str | None = None
+    unit: str = ""
+    minimum: float | None = None
+    maximum: float | None = None
+    pose: str = ""
+    cycle: int = 0
+    kind: str = "manual"
+    commanded: Mapping[str, float] = _field(default_factory=dict)
+    conditions: Mapping[str, float] = _field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class Checkpoint:
+    """A safe point between visits: the only place a run pauses, stops, or resumes from."""
+
+    label: str = ""
+
+
+Step = Union[Move, Settle, Capture, Prompt, Checkpoint]
+#: A protocol's step generator: yields steps, receives each step's result.
+Plan = Generator[Step, Any, None]
+
+_AXES_PKM5 = ("cmd_x_mm", "cmd_y_mm", "cmd_z_mm", "cmd_a_deg", "cmd_b_deg")
+
+
+def commanded_values(target: tuple[float, ...]) -> dict[str, float]:
+    """The tidy-table commanded columns of a target: alpha -> ``cmd_a_deg``, beta -> ``cmd_b_deg``."""
+    return {name: float(value) for name, value in zip(_AXES_PKM5, target)}
+
+
+def visit(label: str, target: tuple[float, ...], cycle: int, *, velocity_pct: float, settle_s: float,
+          conditions: Mapping[str, float] | None = None) -> Plan:
+    """Stub: move to ``target``, settle, capture; returns the captured values."""
+    yield Move(target, velocity_pct, label)
+    if settle_s > 0:
+        yield Settle(settle_s)
+    values = yield Capture(label, cycle, commanded=commanded_values(target),
+                           conditions={"velocity_pct": velocity_pct, **(conditions or {})})
+    return values

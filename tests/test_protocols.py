@@ -1,0 +1,255 @@
+"""bench.protocols: parameters, TOML loading, step sequences, pre-flight, and the runner's states and resume."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from hypothesis import given, strategies as st
+
+from bench.errors import ConfigError, UnreachableTarget
+from bench.protocols import (Capture, Checkpoint, Measurement, Move, Prompt, Rig, Runner, Settle, TransitionError,
+                             load_protocol, preflight, summarize)
+from bench.protocols.iso9283 import DistanceAccuracy, PoseAccuracy, cube_poses, fit_cube_side
+from bench.protocols.plan import iterate
+from bench.protocols.runner import TRANSITIONS, RunState
+from bench.store import Store, tidy_table
+
+BIAS = np.array([0.5, -0.25, 0.125])
+
+
+class RecordingRobot:
+    def __init__(self, fail_after: int | None = None):
+        self.log: list[tuple] = []
+        self.fail_after = fail_after
+
+    def move_to(self, target, *, velocity_pct):
+        if self.fail_after is not None and len([e for e in self.log if e[0] == "move"]) >= self.fail_after:
+            raise OSError("port vanished")
+        self.log.append(("move", tuple(target), velocity_pct))
+
+    def stop(self):
+        self.log.append(("stop",))
+
+    def shutdown(self):
+        self.log.append(("shutdown",))
+
+    def settings(self):
+        return {"driver": "recording"}
+
+
+class BiasedInstrument:
+    """Measures the last commanded position plus a fixed bias (exact AP, RP = 0)."""
+
+    def measure(self, capture: Capture) -> Measurement:
+        cmd = np.array([capture.commanded[k] for k in ("cmd_x_mm", "cmd_y_mm", "cmd_z_mm")])
+        x, y, z = cmd + BIAS
+        return Measurement({"x_mm": x, "y_mm": y, "z_mm": z}, raw={"truth": list(cmd)})
+
+    def settings(self):
+        return {"instrument": "biased"}
+
+
+class Answers:
+    def __init__(self):
+        self.asked = []
+
+    def ask(self, prompt):
+        self.asked.append(prompt)
+        return None if prompt.field is None else 1.25
+
+
+def _rig(robot=None):
+    return Rig(robot or RecordingRobot(), BiasedInstrument(), Answers(), speed_factor=1e6, sleep=lambda s: None)
+
+
+@pytest.fixture()
+def store(tmp_path):
+    with Store(tmp_path / "bench.db") as s:
+        yield s
+
+
+def _small(**kw):
+    return PoseAccuracy(**{"cycles": 3, "velocities_pct": [100, 10], "settle_s": 0.5, **kw})
+
+
+# ---- parameters and TOML ---------------------------------------------------------------------------------------
+
+def test_toml_error_names_file_field_value_and_expectation(tmp_path):
+    path = tmp_path / "pose_test.toml"
+    path.write_text('protocol = "iso9283_pose"\ncycles = 0\n')
+    with pytest.raises(ConfigError, match=r"^pose_test.toml: cycles = 0, expected an integer >= 2$"):
+        load_protocol(path)
+
+
+def test_unknown_key_is_refused(tmp_path):
+    path = tmp_path / "pose_test.toml"
+    path.write_text('protocol = "iso9283_pose"\ncycels = 3\n')
+    with pytest.raises(ConfigError, match="pose_test.toml: unknown key 'cycels', expected one of"):
+        load_protocol(path)
+
+
+@pytest.mark.parametrize("text, message", [
+    ('settle_s = "2 s"', None),
+    ('settle_s = "2 mm"', r"settle_s = '2 mm', expected a number in \[0, 600\] s"),
+    ("velocities_pct = [100, 150]", r"velocities_pct = \[100, 150\], expected a non-empty list of numbers in "
+                                    r"\[0.1, 100\]%"),
+    ('robot = "scara"', "robot = 'scara', expected one of 'pkm5', 'delta4'"),
+    ("cycles = 2.5", "cycles = 2.5, expected an integer >= 2"),
+])
+def test_parameter_conversion(tmp_path, text, message):
+    path = tmp_path / "p.toml"
+    path.write_text(f'protocol = "iso9283_pose"\n{text}\n')
+    if message is None:
+        assert load_protocol(path).settle_s == 2.0
+    else:
+        with pytest.raises(ConfigError, match=message):
+            load_protocol(path)
+
+
+@given(st.integers(min_value=2, max_value=10**6))
+def test_any_valid_cycle_count_round_trips(cycles):
+    assert PoseAccuracy(cycles=cycles, cube_side_mm=20).resolved()["cycles"] == cycles
+
+
+# ---- cube and steps ----------------------------------------------------------------------------------------------
+
+def test_cube_poses_follow_iso_geometry():
+    poses = cube_poses((100, 0, 300), 50.0)
+    p2, p4 = np.array(poses["P2"]), np.array(poses["P4"])
+    assert np.linalg.norm(p2 - p4) == pytest.approx(0.8 * 50 * np.sqrt(3))  # D_c = 0.8 L sqrt(3), iso9283.md §5.3
+    assert np.mean([poses[p] for p in ("P2", "P3", "P4", "P5")], axis=0) == pytest.approx(poses["P1"])
+
+
+def test_fitted_cube_is_reachable_and_maximal():
+    side = fit_cube_side("pkm5", (110, 0, 320))
+    assert 30 < side < 60
+    assert fit_cube_side("pkm5", (110, 0, 320), max_side_mm=side) == side
+    with pytest.raises(UnreachableTarget):
+        preflight(PoseAccuracy(cube_centre_mm=[110, 0, 320], cube_side_mm=side * 1.6, cycles=2))
+
+
+def test_pose_protocol_step_sequence():
+    steps = list(iterate(_small(velocities_pct=[50]), final=False))
+    first_cycle = steps[:16]
+    assert [type(s) for s in first_cycle] == [Move, Settle, Capture] * 5 + [Checkpoint]
+    assert [s.label for s in first_cycle if isinstance(s, Move)] == ["P1", "P5", "P4", "P3", "P2"]
+    assert all(s.velocity_pct == 50 for s in steps if isinstance(s, Move))
+    captures = [s for s in steps if isinstance(s, Capture)]
+    assert len(captures) == 15 and [c.cycle for c in captures[::5]] == [1, 2, 3]
+
+
+def test_dry_run_counts_and_estimate():
+    summary = summarize(_small())
+    assert summary.counts == {"moves": 31, "settles": 30, "captures": 30, "checkpoints": 6}
+    assert summary.ok and summary.settle_s == 15.0
+    assert summary.move_s > 0 and "estimated duration" in summary.lines()[1]
+
+
+def test_unreachable_target_is_refused_before_any_motion(tmp_path, store):
+    path = tmp_path / "bad.toml"
+    path.write_text('protocol = "iso9283_pose"\ncycles = 2\n[poses]\nP1 = [110, 0, 320]\nFAR = [300, 0, 300]\n')
+    robot = RecordingRobot()
+    with pytest.raises(UnreachableTarget, match=r"bad.toml: target FAR \(x 300.00 mm, y 0.00 mm, z 300.00 mm.*"
+                                                r"not reachable: leg 1 length 316.729 mm outside \(184, 244\) mm"):
+        Runner(_rig(robot), store).run(load_protocol(path))
+    assert robot.log == [] and store.runs() == []
+
+
+# ---- runner ------------------------------------------------------------------------------------------------------
+
+def test_completed_run_stores_every_sample_with_exact_bias(store):
+    robot = RecordingRobot()
+    result = Runner(_rig(robot), store).run(_small())
+    assert (result.exit_status, result.samples) == ("completed", 30)
+    table = tidy_table(store, result.run_id)
+    error = table[["x_mm", "y_mm", "z_mm"]].to_numpy() - table[["cmd_x_mm", "cmd_y_mm", "cmd_z_mm"]].to_numpy()
+    assert error == pytest.approx(np.tile(BIAS, (30, 1)))
+    assert sorted(table["velocity_pct"].unique()) == [10.0, 100.0]
+    assert robot.log[-2][1] == pytest.approx((88.649, 0.0, 300.937, 0.0, 0.0))  # clean-up: home
+    assert robot.log[-1] == ("shutdown",)
+    run = store.run(result.run_id)
+    assert run.status == "completed" and run.config["cycles"] == 3 and run.config["protocol"] == "iso9283_pose"
+
+
+def test_illegal_transitions_raise():
+    runner = Runner(_rig(), Store(":memory:"))
+    with pytest.raises(TransitionError, match="cannot resume while idle"):
+        runner.resume()
+    with pytest.raises(TransitionError, match="cannot go from idle to stopping"):
+        runner.stop()
+    with pytest.raises(TransitionError, match="cannot pause while idle"):
+        runner.request_pause()
+    assert RunState.FINISHED not in TRANSITIONS[RunState.IDLE]
+
+
+def _pausing(action):
+    def on_pause(runner):
+        getattr(runner, action)()
+    return on_pause
+
+
+@pytest.mark.parametrize("action, status, home, stop_sent", [
+    ("resume", "completed", True, False),
+    ("stop", "aborted", True, False),
+    ("abort", "aborted", True, True),
+    ("halt", "aborted", False, True),
+])
+def test_pause_at_checkpoint_then_decide(store, action, status, home, stop_sent):
+    robot = RecordingRobot()
+    runner = Runner(_rig(robot), store, on_pause=_pausing(action))
+    instrument = runner.rig.instrument
+    measure = instrument.measure
+
+    def measure_and_request_pause(capture):
+        if capture.cycle == 1 and capture.pose == "P3" and runner.state is RunState.RUNNING:
+            runner.request_pause()
+        return measure(capture)
+
+    instrument.measure = measure_and_request_pause
+    result = runner.run(_small())
+    assert result.exit_status == status
+    assert result.samples == (30 if action == "resume" else 5)  # paused only after the whole cycle 1
+    assert (robot.log[-2][0] == "move" and robot.log[-2][1][0] == 88.649) == home
+    assert (("stop",) in robot.log) == stop_sent
+    assert robot.log[-1] == ("shutdown",)
+
+
+def test_failure_mid_run_is_stored_with_reason_and_robot_stopped(store):
+    robot = RecordingRobot(fail_after=7)
+    result = Runner(_rig(robot), store).run(_small())
+    assert result.exit_status == "failed" and result.samples == 7
+    assert store.run(result.run_id).reason == "OSError: port vanished"
+    assert robot.log[-2:] == [("stop",), ("shutdown",)]
+
+
+def test_resume_gives_exactly_the_expected_samples(store):
+    failed = Runner(_rig(RecordingRobot(fail_after=8)), store).run(_small())
+    assert failed.samples == 8
+    robot = RecordingRobot()
+    resumed = Runner(_rig(robot), store).resume_run(failed.run_id)
+    assert (resumed.exit_status, resumed.samples) == ("completed", 30)
+    moves = [e[2:] and e[1] for e in robot.log if e[0] == "move"]
+    # restarts at the checkpoint closing cycle 1: cycle 2 again from P1 (P1..P3 of cycle 2 are already stored)
+    assert len(moves) == 30 - 5 + 1
+    table = tidy_table(store, failed.run_id)
+    assert len(table) == 30 and table.groupby(["velocity_pct", "pose"]).size().eq(3).all()
+    with pytest.raises(ConfigError, match="already completed"):
+        Runner(_rig(), store).resume_run(failed.run_id)
+
+
+def test_resume_refuses_changed_calibration(store):
+    failed = Runner(_rig(RecordingRobot(fail_after=3)), store).run(_small())
+    rig = _rig()
+    rig.calibration_ids = (7,)
+    with pytest.raises(ConfigError, match=r"calibrations in force \[7\] differ from the run's \[\]"):
+        Runner(rig, store).resume_run(failed.run_id)
+
+
+def test_prompts_store_readings_and_loads_ask_confirmation(store):
+    protocol = DistanceAccuracy(cycles=2, velocities_pct=[100], loads_kg=[0, 2.5], settle_s=0)
+    steps = list(iterate(protocol, final=False))
+    prompts = [s for s in steps if isinstance(s, Prompt)]
+    assert [p.conditions for p in prompts] == [{"load_kg": 2.5}]
+    assert [s.label for s in steps if isinstance(s, Move)][:2] == ["P4", "P2"]
+    result = Runner(_rig(), store).run(protocol)
+    assert result.samples == 8
