@@ -145,9 +145,25 @@ def test_steps_must_be_six_integers():
         robot.move_steps([1.5, 2, 3, 4, 5, 6])
 
 
-def test_lost_move_acceptance_sends_stop_and_raises():
+def test_lost_move_acceptance_asks_the_position_and_waits_for_done():
+    with exchange([("MOVE 2656 2656 2669 2669 2720 2720 200 #1", b"OK #1 MOVE 9\x00300*00\n"),
+                   ("POS #2", ["OK #2 POS 1000 1000 1000 1000 1800 1800 MOVING",
+                               "DONE #1 2656 2656 2669 2669 2720 2720"])]) as robot:
+        assert robot.move_steps(POINT_3_1_STEPS) == POINT_3_1_STEPS
+
+
+def test_lost_move_acceptance_with_the_robot_elsewhere_raises():
     with exchange([("MOVE 2656 2656 2669 2669 2720 2720 200 #1", None),
-                   ("STOP #2", "OK #2 STOP 900 900 900 900 1700 1700")]) as robot, pytest.raises(LinkTimeout):
+                   ("POS #2", "OK #2 POS 800 800 800 800 1600 1600 IDLE")]) as robot, \
+            pytest.raises(LinkError, match=r"MOVE #1 not confirmed: the controller is IDLE at \(800, 800, 800, 800, "
+                                           r"1600, 1600\), expected a move to \(2656, "):
+        robot.move_steps(POINT_3_1_STEPS)
+
+
+def test_missing_done_sends_stop_and_raises():
+    with exchange([("MOVE 2656 2656 2669 2669 2720 2720 200 #1", "OK #1 MOVE 10"),
+                   ("STOP #2", "OK #2 STOP 900 900 900 900 1700 1700")], move_margin_s=0.05) as robot, \
+            pytest.raises(LinkTimeout, match=r"no reply to 'MOVE' after 0\.0\d+ s, expected 'DONE #1 \.\.\.'"):
         robot.move_steps(POINT_3_1_STEPS)
 
 

@@ -4,8 +4,9 @@ Speaks the line protocol of ``docs/protocol-pkm5.md`` over an open pyserial port
 :mod:`motion.pkm5` (IK reachability and leg limits) before a byte is sent; a refused target raises
 :class:`bench.errors.UnreachableTarget`. Replies carry the command's tag, so late replies to an abandoned command
 are recognised and dropped; corrupted lines (bad checksum, noise) are dropped and reported if nothing valid follows.
-Queries are retried a bounded number of times; a move is never re-sent blindly (on a lost acceptance the driver
-sends ``STOP`` and raises).
+Queries are retried a bounded number of times; a move is never re-sent blindly: if its acceptance is lost the
+driver asks ``POS`` and either waits for ``DONE`` (moving), accepts (already there) or raises; a missing ``DONE``
+sends ``STOP`` and raises.
 """
 
 from __future__ import annotations
@@ -205,18 +206,35 @@ class Pkm5Controller:
         kinematics.check_steps(steps, self.geometry)
 
     def _move(self, targets: tuple[int, ...], speed_steps_s: int | None) -> tuple[int, ...]:
-        speed = self.speed_steps_s if speed_steps_s is None else speed_steps_s
-        _checked_number("speed_steps_s", speed, 1, 1000)
+        speed = int(_checked_number("speed_steps_s", self.speed_steps_s if speed_steps_s is None else speed_steps_s,
+                                    1, 1000))
         tag = next(self._tags)
-        self.link.write(wire.format_command("MOVE", (*targets, int(speed)), tag), command="MOVE")
+        self.link.write(wire.format_command("MOVE", (*targets, speed), tag), command="MOVE")
         try:
-            accepted = self._await(tag, "MOVE", ("OK",), self.reply_timeout_s)
-            duration_s = accepted.ints(1, 1)[0] / 1000.0
-            done = self._await(tag, "MOVE", ("DONE",), 1.5 * duration_s + self.move_margin_s)
+            try:
+                reply = self._await(tag, "MOVE", ("OK", "DONE"), self.reply_timeout_s)
+            except (LinkTimeout, WireProtocolError) as exc:  # acceptance lost (noise): ask before doing anything
+                _log.warning("%s: MOVE #%d acceptance lost (%s); querying the controller", self.link.port_name,
+                             tag, exc)
+                return self._recover_move(tag, targets, speed)
+            if reply.kind == "DONE":
+                return reply.ints(0, wire.AXES)
+            duration_s = reply.ints(1, 1)[0] / 1000.0
+            return self._await(tag, "MOVE", ("DONE",), 1.5 * duration_s + self.move_margin_s).ints(0, wire.AXES)
         except (LinkTimeout, WireProtocolError, KeyboardInterrupt):
             self._stop_quietly()
             raise
-        return done.ints(0, wire.AXES)
+
+    def _recover_move(self, tag: int, targets: tuple[int, ...], speed: int) -> tuple[int, ...]:
+        """After a lost ``OK``: wait for ``DONE`` if the controller is moving, accept if it is already there."""
+        where = self.position()
+        if where.state == "MOVING":
+            remaining_s = max(abs(t - s) for t, s in zip(targets, where.steps)) / speed
+            return self._await(tag, "MOVE", ("DONE",), 1.5 * remaining_s + self.move_margin_s).ints(0, wire.AXES)
+        if where.steps == targets:
+            return where.steps
+        raise LinkError(f"{self.link.port_name}: MOVE #{tag} not confirmed: the controller is {where.state} at "
+                        f"{where.steps}, expected a move to {targets}")
 
     # -- simulator-only ----------------------------------------------------------------------------------------
     def sim_true_pose(self) -> np.ndarray:
