@@ -212,7 +212,8 @@ def _least_squares(
         jac = legs / length[:, :, None]
         normal = np.einsum("nki,nkj->nij", jac, jac)
         gradient = np.einsum("nki,nk->ni", jac, residual)
-        well_posed = np.linalg.cond(normal) < 1e12
+        # det vs (trace/3)^3 flags a near-singular J^T J as cond() would, without an SVD per pose.
+        well_posed = np.linalg.det(normal) > 1e-12 * (np.trace(normal, axis1=1, axis2=2) / 3) ** 3
         normal[~well_posed] = np.eye(3)
         step = -np.linalg.solve(normal, gradient[:, :, None])[:, :, 0]
         step[~well_posed] = 0.0

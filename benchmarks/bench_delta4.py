@@ -1,0 +1,77 @@
+"""Throughput of the delta-4 kinematics, measured in one run (prints rates and ratios, asserts nothing).
+
+* IK: N random points in the operating box (x, y in +-60 mm, z -230..-130 mm), one vectorised call.
+* FK: the closed form and the batched least-squares fit on the IK angles plus 0.275 deg noise.
+* Baseline: the same least-squares FK solved pose by pose with ``scipy.optimize.least_squares`` on a subset.
+
+Usage: ``python benchmarks/bench_delta4.py [--ik N] [--fk N] [--baseline N]``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+
+import numpy as np
+from scipy.optimize import least_squares
+
+from motion import delta4
+from motion.delta4.geometry import LEG_OUTWARD
+
+
+def timed(function, *args, repeat: int = 3, **kwargs):
+    best, result = np.inf, None
+    for _ in range(repeat):
+        start = time.perf_counter()
+        result = function(*args, **kwargs)
+        best = min(best, time.perf_counter() - start)
+    return best, result
+
+
+def scipy_per_pose(servo_deg: np.ndarray, start_mm: np.ndarray) -> np.ndarray:
+    """One scipy least_squares solve per pose over the four sphere residuals (same model as the batched fit)."""
+    geometry = delta4.NOMINAL
+    knees = delta4.knees_mm(servo_deg, geometry)
+    poses = np.empty((len(servo_deg), 3))
+    for i, leg_knees in enumerate(knees):
+        def residual(p, leg_knees=leg_knees):
+            return np.linalg.norm(p + geometry.ankle_offset_mm * LEG_OUTWARD - leg_knees, axis=1) - geometry.lower_arm_mm
+
+        poses[i] = least_squares(residual, start_mm[i], xtol=1e-12, ftol=1e-12, gtol=1e-12).x
+    return poses
+
+
+def main(argv=None) -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--ik", type=int, default=1_000_000, help="points for the IK benchmark")
+    parser.add_argument("--fk", type=int, default=200_000, help="angle sets for the FK benchmarks")
+    parser.add_argument("--baseline", type=int, default=500, help="angle sets for the per-pose scipy baseline")
+    args = parser.parse_args(argv)
+
+    rng = np.random.default_rng(0)
+    points = rng.uniform([-60, -60, -230], [60, 60, -130], size=(args.ik, 3))
+    ik_time, ik = timed(delta4.inverse_kinematics, points)
+    ik_rate = args.ik / ik_time
+
+    truth = points[: args.fk]
+    noisy = ik.servo_deg[: args.fk] + rng.normal(0.0, 0.275, (len(truth), 4))
+    closed_time, closed = timed(delta4.forward_kinematics, noisy, method="closed_form")
+    ls_time, ls = timed(delta4.forward_kinematics, noisy, repeat=1)
+    subset = slice(0, args.baseline)
+    base_time, base = timed(scipy_per_pose, noisy[subset], closed.pose_mm[subset], repeat=1)
+    base_rate = args.baseline / base_time
+    ls_rate = len(truth) / ls_time
+
+    print(f"delta4 IK          {args.ik:>9,} points  {ik_time:7.3f} s  {ik_rate / 1e6:7.2f} M poses/s")
+    print(f"delta4 FK closed   {len(truth):>9,} sets    {closed_time:7.3f} s  {len(truth) / closed_time / 1e6:7.2f} M solves/s")
+    print(f"delta4 FK LS       {len(truth):>9,} sets    {ls_time:7.3f} s  {ls_rate / 1e3:7.1f} k solves/s, "
+          f"converged {ls.ok.mean():.4%}, median residual {np.median(ls.residual_mm):.3f} mm")
+    print(f"  agreement with scipy per pose: max |dp| {np.abs(base - ls.pose_mm[subset]).max():.1e} mm; "
+          f"mean position error vs truth: LS {np.linalg.norm(ls.pose_mm - truth, axis=1).mean():.3f} mm, "
+          f"closed form {np.linalg.norm(closed.pose_mm - truth, axis=1).mean():.3f} mm")
+    print(f"scipy least_squares per pose, {args.baseline} solves: {base_rate:8.1f} solves/s")
+    print(f"speed-up batched LS FK / per-pose scipy: {ls_rate / base_rate:7.0f}x")
+
+
+if __name__ == "__main__":
+    main()
