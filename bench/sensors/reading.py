@@ -42,8 +42,8 @@ class Reading:
         Time of the sample on ``CLOCK_MONOTONIC`` (s), the clock ``time.monotonic()`` reads on Linux.
     t_wall_s : float
         The same instant as a POSIX wall-clock time (s).
-    raw : bytes, str, tuple of int or None
-        What the device gave before calibration: raw bytes, the raw text line, or integer counts.
+    raw : bytes, str, tuple of int or float, or None
+        What the device gave before calibration: raw bytes, the raw text line, integer counts or pixels.
     calibration_id : str or None
         Identifier of the calibration that turned ``raw`` into ``value``; ``None`` when none was applied.
     source : str
@@ -58,7 +58,7 @@ class Reading:
     unit: str
     t_monotonic_s: float
     t_wall_s: float
-    raw: bytes | str | tuple[int, ...] | None = None
+    raw: bytes | str | tuple[int | float, ...] | None = None
     calibration_id: str | None = None
     source: str = ""
     valid: bool = True
