@@ -7,21 +7,7 @@ from motion import pkm5
 from pkm5_tables import LENGTHS, fk_table, ik_table
 
 
-def random_reachable_poses(n, seed):
-    """Uniform samples of the three modes' sampling boxes (000 Tables 6-1 to 6-3), kept where reachable."""
-    rng = np.random.default_rng(seed)
-    m = 12 * n
-    poses = np.zeros((m, 5))
-    poses[:, 0] = rng.uniform(46.5, 239.5, m)
-    poses[:, 1] = rng.uniform(-136.12, 136.12, m)
-    poses[:, 2] = rng.uniform(252.07, 356.68, m)
-    mode = rng.integers(0, 3, m)
-    poses[mode == 1, 0] = 111.31
-    poses[mode == 1, 3] = np.radians(rng.uniform(-35.73, 35.73, m))[mode == 1]
-    poses[mode == 2, 4] = np.radians(rng.uniform(-36.8, 27.17, m))[mode == 2]
-    poses = poses[pkm5.inverse_kinematics(poses).reachable]
-    assert len(poses) >= n
-    return poses[:n]
+ALL_MODES = ("constant-orientation", "alpha", "beta")
 
 
 def test_full_retraction_anchor():
@@ -38,7 +24,8 @@ def test_home_pose():
 
 
 def test_round_trip_10k_random_reachable_poses():
-    poses = random_reachable_poses(10_000, seed=2024)
+    poses = pkm5.sample_reachable(10_000, kinds=ALL_MODES, seed=2024)
+    assert {int(p[3] != 0) + 2 * int(p[4] != 0) for p in poses} == {0, 1, 2}
     result = pkm5.forward_kinematics(pkm5.inverse_kinematics(poses).lengths_mm)
     assert result.converged.all()
     assert np.abs(result.pose[:, :3] - poses[:, :3]).max() < 1e-9

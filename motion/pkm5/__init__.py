@@ -12,7 +12,7 @@ from motion.pkm5.ik import Failure, IKResult, bracket_vectors, inverse_kinematic
 from motion.pkm5.fk import FKResult, detect_mode, forward_kinematics
 from motion.pkm5.jacobian import SingularityProximity, jacobian, singularity_proximity
 from motion.pkm5.nr import NRResult, forward_kinematics_nr
-from motion.pkm5.workspace import WORKSPACE_KINDS, WorkspaceEstimate, estimate_workspace
+from motion.pkm5.workspace import WORKSPACE_KINDS, WorkspaceEstimate, estimate_workspace, sample_reachable
 
 __all__ = [
     "DEFAULT_GEOMETRY", "Geometry", "lengths_to_steps", "steps_to_lengths",
@@ -20,5 +20,5 @@ __all__ = [
     "FKResult", "detect_mode", "forward_kinematics",
     "SingularityProximity", "jacobian", "singularity_proximity",
     "NRResult", "forward_kinematics_nr",
-    "WORKSPACE_KINDS", "WorkspaceEstimate", "estimate_workspace",
+    "WORKSPACE_KINDS", "WorkspaceEstimate", "estimate_workspace", "sample_reachable",
 ]

@@ -18,6 +18,7 @@ from motion import dual
 from motion.errors import MotionInputError
 from motion.pkm5.geometry import DEFAULT_GEOMETRY, Geometry, _as_legs
 from motion.pkm5.ik import inverse_kinematics, leg_lengths
+from motion.pkm5.workspace import sample_reachable
 
 __all__ = ["FKResult", "detect_mode", "forward_kinematics", "MODES"]
 
@@ -33,11 +34,7 @@ _RESTARTS = {
 }
 
 
-_SEED_BOXES = {   # sampling boxes of 000 Tables 6-1 to 6-3 (x, y, z in mm; angle in rad)
-    "translation": ((46.5, 235.14), (-136.12, 136.12), (262.08, 356.68)),
-    "alpha": ((111.31, 111.31), (-136.12, 136.12), (262.08, 356.68), tuple(np.radians((-35.73, 35.73)))),
-    "beta": ((46.5, 239.5), (-136.12, 136.12), (252.07, 356.68), tuple(np.radians((-36.8, 27.17)))),
-}
+_WORKSPACE_OF_MODE = {"translation": "constant-orientation", "alpha": "alpha", "beta": "beta"}
 
 
 @lru_cache(maxsize=16)
@@ -46,18 +43,12 @@ def _seed_table(mode: str, geometry: Geometry, size: int = 4000):
 
     Built once per (mode, geometry) from a fixed-seed sample, so results stay deterministic.
     """
-    rng = np.random.default_rng(20241123)
-    box = _SEED_BOXES[mode]
-    cols = [0, 1, 2] + ([MODES[mode]] if MODES[mode] is not None else [])
-    low, high = np.array([b[0] for b in box]), np.array([b[1] for b in box])
-    q = low + (high - low) * rng.random((20 * size, len(box)))
-    poses = np.zeros((len(q), 5))
-    poses[:, cols] = q
-    ik = inverse_kinematics(poses, geometry)
-    keep = np.flatnonzero(ik.reachable)[:size]
-    if keep.size == 0:  # a geometry with no reachable pose in the box: fall back to the neutral guess
+    try:
+        poses = sample_reachable(size, kinds=(_WORKSPACE_OF_MODE[mode],), seed=20241123, geometry=geometry)
+    except MotionInputError:  # a geometry with no reachable pose in the box: fall back to the neutral guess
         return None, None
-    return q[keep], cKDTree(ik.lengths_mm[keep])
+    cols = [0, 1, 2] + ([MODES[mode]] if MODES[mode] is not None else [])
+    return poses[:, cols], cKDTree(inverse_kinematics(poses, geometry).lengths_mm)
 
 
 def _initial_guess(target, mode, geometry):

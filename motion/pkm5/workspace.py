@@ -23,7 +23,8 @@ from motion.errors import MotionInputError
 from motion.pkm5.geometry import DEFAULT_GEOMETRY, Geometry
 from motion.pkm5.ik import inverse_kinematics
 
-__all__ = ["WORKSPACE_KINDS", "WorkspaceKind", "WorkspaceEstimate", "estimate_workspace", "feasible"]
+__all__ = ["WORKSPACE_KINDS", "WorkspaceKind", "WorkspaceEstimate", "estimate_workspace", "feasible",
+           "sample_reachable"]
 
 
 @dataclass(frozen=True)
@@ -84,6 +85,38 @@ def _poses(kind: WorkspaceKind, positions, angles_rad):
     return poses
 
 
+def _draw(kind: WorkspaceKind, rng, n):
+    """n uniform poses from the kind's box and angle range."""
+    positions = _uniform(rng, (kind.x_mm, kind.y_mm, kind.z_mm), n)
+    angles = np.radians(_uniform(rng, (kind.angle_deg,), n)[:, 0])
+    return _poses(kind, positions, angles)
+
+
+def sample_reachable(n: int, *, kinds=("constant-orientation",), seed: int | None = 0,
+                     geometry: Geometry = DEFAULT_GEOMETRY) -> np.ndarray:
+    """n reachable poses (N, 5), drawn uniformly from the sampling boxes of the given workspace kinds.
+
+    Each draw picks one of ``kinds`` with equal probability; draws the IK refuses are discarded (rejection
+    sampling), so the result is uniform over the reachable part of each box. Deterministic for a given seed.
+    """
+    unknown = set(kinds) - set(WORKSPACE_KINDS)
+    if unknown:
+        raise MotionInputError(f"kinds = {sorted(unknown)}, expected names from {sorted(WORKSPACE_KINDS)}")
+    rng = np.random.default_rng(seed)
+    chunks, count = [], 0
+    for _ in range(10000):
+        batch = max(8 * (n - count), 1000)
+        choice = rng.integers(0, len(kinds), batch)
+        poses = np.concatenate([_draw(WORKSPACE_KINDS[k], rng, int((choice == i).sum())) for i, k in enumerate(kinds)])
+        poses = poses[rng.permutation(len(poses))]
+        poses = poses[feasible(poses, geometry)]
+        chunks.append(poses)
+        count += len(poses)
+        if count >= n:
+            return np.concatenate(chunks)[:n]
+    raise MotionInputError(f"kinds {list(kinds)}: fewer than {n} reachable poses found for this geometry")
+
+
 def _hit_or_miss(kind, geometry, rng, samples, angle_step_deg, chunk=20000):
     """Count box samples reachable with at least one angle of the grid."""
     lo, hi = kind.angle_deg
@@ -103,10 +136,9 @@ def _feasible_cloud(kind, geometry, rng, points, batch=50000):
     cloud = []
     count = 0
     for _ in range(10000):
-        positions = _uniform(rng, (kind.x_mm, kind.y_mm, kind.z_mm), batch)
-        angles = np.radians(_uniform(rng, (kind.angle_deg,), batch)[:, 0])
-        ok = feasible(_poses(kind, positions, angles), geometry)
-        cloud.append(positions[ok])
+        poses = _draw(kind, rng, batch)
+        ok = feasible(poses, geometry)
+        cloud.append(poses[ok, :3])
         count += int(ok.sum())
         if count >= points:
             return np.concatenate(cloud)[:points]
