@@ -207,3 +207,36 @@ def test_rd_ad_invariant_when_both_clouds_move_together(first, second):
     assert base.rd_mm >= 0
     assert moved.rd_mm == pytest.approx(base.rd_mm, abs=1e-6)
     assert moved.ad_mm == pytest.approx(base.ad_mm, abs=1e-6)
+
+
+# Delta thesis (003) Appendix D1, reconstructed column-by-column (delta4-lasergrid.md §7.2): errors dx dy dz (mm),
+# 15 readings at each of 3 poses, 1 mm resolution. Regression vector: barycentre, AP, l̄, S_l, RP per pose.
+D1_COLUMN = """
+ 1  2  1 -1  1 -1 -1 -2 -2  2  1  0  1  1  1
+ 2  2  1  0  1  1 -1 -1  1 -2 -2  1  1  2  0
+-1  3 -2 -2  1  1  1  1  1 -1  1  1  0  0  1
+ 0  1  1 -2  0  1  2  1  1  1 -2 -2  2  2  2
+-2 -2  1  1  2 -1 -1 -1  2  2 -2 -3  2  2  1
+ 1  1  2  1 -2 -2 -1  2  3 -3 -2  1  1  1  0
+ 2 -2  2  2  1  0  0 -1 -1  1  1  1  1 -2  1
+ 1  1  0  0  0  1 -1 -1 -1  1  2  1  2 -3  1
+ 2  2  1  1 -2 -2 -2  2  2  2  1  1 -3  2  1
+"""
+D1_EXPECTED = {  # pose: (barycentre, AP, l̄, S_l, RP)
+    0: ((0.2667, 0.4000, 0.3333), 0.5850, 2.1008, 0.8309, 4.5935),
+    1: ((0.5333, 0.0667, 0.2000), 0.5735, 2.7524, 0.7287, 4.9386),
+    2: ((0.4000, 0.2667, 0.5333), 0.7180, 2.3695, 0.9276, 5.1524),
+}
+
+
+@pytest.mark.parametrize("pose", sorted(D1_EXPECTED))
+def test_delta_thesis_appendix_d1_regression(pose):
+    errors = np.array(D1_COLUMN.split(), dtype=float).reshape(9, 15)[3 * pose : 3 * pose + 3].T
+    barycentre, ap, l_mean, s_l, rp = D1_EXPECTED[pose]
+    accuracy = pose_accuracy(errors, [0.0, 0.0, 0.0])
+    repeatability = pose_repeatability(errors)
+    assert accuracy.barycentre_mm == pytest.approx(barycentre, abs=5e-5)
+    assert accuracy.ap_mm == pytest.approx(ap, abs=5e-5)
+    assert repeatability.l_mean_mm == pytest.approx(l_mean, abs=5e-5)
+    assert repeatability.s_l_mm == pytest.approx(s_l, abs=5e-5)
+    assert repeatability.rp_mm == pytest.approx(rp, abs=5e-5)

@@ -94,3 +94,11 @@ def test_bootstrap_is_reproducible_and_scales():
     assert a == bootstrap_uncertainty(statistic, cloud, resamples=300, seed=1)
     assert bootstrap_uncertainty(statistic, cloud * 10, resamples=300, seed=1) == pytest.approx(10 * a)
     assert 0 < a < pose_repeatability(cloud).rp_mm
+
+
+def test_vectorised_rp_bootstrap_equals_the_generic_one():
+    from bench.metrology import repeatability_uncertainty
+
+    cloud = np.random.default_rng(2).normal(0, 0.3, (12, 3))
+    generic = bootstrap_uncertainty(lambda p: pose_repeatability(p).rp_mm, cloud, resamples=200, seed=4)
+    assert repeatability_uncertainty(cloud, resamples=200, seed=4) == pytest.approx(generic, rel=1e-12)

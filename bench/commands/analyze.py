@@ -13,7 +13,7 @@ import numpy as np
 
 from bench.commands.kin import emit
 from bench.errors import ConfigError
-from bench.metrology import groover_actuator, leg_error_summary, pose_drift
+from bench.metrology import combine, expanded, groover_actuator, leg_error_summary, pose_drift
 from bench.metrology.tables import (
     analyze_distance,
     analyze_poses,
@@ -37,6 +37,8 @@ def register(groups: argparse._SubParsersAction) -> None:
     distance = _new_parser(actions, "distance", "distance accuracy AD and repeatability RD (ISO 9283 7.3)")
     distance.add_argument("--from", dest="first", default="P2", help="first command pose")
     distance.add_argument("--to", dest="second", default="P4", help="second command pose")
+    distance.add_argument("--instrument-u-mm", type=float, default=0.0,
+                          help="instrument standard uncertainty of one position reading (mm)")
     distance.set_defaults(handler=_distance)
 
     drift = _new_parser(actions, "drift", "drift dAP/dRP of one pose over time windows (ISO 9283 7.6), needs t_s")
@@ -47,6 +49,8 @@ def register(groups: argparse._SubParsersAction) -> None:
     actuator = _new_parser(actions, "actuator", "actuator repeatability/accuracy (Groover) and mean bias")
     actuator.add_argument("--cr-mm", type=float, default=None,
                           help="control resolution (mm/step) when the table has no cr_mm column")
+    actuator.add_argument("--instrument-u-mm", type=float, default=0.0,
+                          help="instrument standard uncertainty of one travel reading (mm)")
     actuator.set_defaults(handler=_actuator)
 
     payload = _new_parser(actions, "payload", "leg actuation error against load (project payload error)")
@@ -83,12 +87,15 @@ def _iso9283(args: argparse.Namespace) -> int:
 def _distance(args: argparse.Namespace) -> int:
     table = pose_table(read_table_csv(args.file))
     r = analyze_distance(table, args.first, args.second)
-    result = {"from": args.first, "to": args.second, "n": r.n, "AD_mm": r.ad_mm, "RD_mm": r.rd_mm,
+    # D_j is the difference of two readings: the instrument term enters twice (uncorrelated).
+    u_ad = expanded(r.ad_mm, combine(r.u_ad_mm, np.sqrt(2.0) * args.instrument_u_mm), unit="mm")
+    result = {"from": args.first, "to": args.second, "n": r.n, "AD_mm": r.ad_mm, "U_AD_mm": u_ad.expanded_uncertainty,
+              "k": u_ad.coverage_factor, "RD_mm": r.rd_mm,
               "AD_axes_mm": list(r.ad_axes_mm), "RD_axes_mm": list(r.rd_axes_mm),
               "mean_distance_mm": r.mean_distance_mm, "commanded_distance_mm": r.commanded_distance_mm}
     lines = [f"{args.first} -> {args.second}, n = {r.n}: D_c = {r.commanded_distance_mm:.3f} mm, "
              f"D̄ = {r.mean_distance_mm:.3f} mm",
-             f"AD_p = {r.ad_mm:+.4f} mm, RD = ±{r.rd_mm:.4f} mm",
+             f"AD_p = {u_ad}, RD = ±{r.rd_mm:.4f} mm",
              "AD x/y/z = " + " / ".join(f"{v:+.4f}" for v in r.ad_axes_mm) + " mm, RD x/y/z = ±"
              + " / ±".join(f"{v:.4f}" for v in r.rd_axes_mm) + " mm"]
     emit(result, args.json, lines)
@@ -132,9 +139,12 @@ def _actuator(args: argparse.Namespace) -> int:
         readings = np.column_stack([rows.loc[rows["cmd_mm"] == t, "travel_mm"].to_numpy() for t in targets])
         cr = float(rows["cr_mm"].iloc[0]) if has_cr else args.cr_mm
         r = groover_actuator(targets, readings, control_resolution_mm=cr)
+        u_bias = [expanded(b, combine(s / np.sqrt(r.n), args.instrument_u_mm), unit="mm").expanded_uncertainty
+                  for b, s in zip(r.mean_deviation_mm, r.sigma_mm)]
         result[name] = {"n": r.n, "targets_mm": targets.tolist(), "repeatability_mm": r.repeatability_mm,
                         "accuracy_mm": r.accuracy_mm, "control_resolution_mm": cr, "sigma_mm": list(r.sigma_mm),
-                        "mean_deviation_mm": list(r.mean_deviation_mm), "max_abs_bias_mm": r.max_abs_bias_mm}
+                        "mean_deviation_mm": list(r.mean_deviation_mm), "U_mean_deviation_mm": u_bias,
+                        "k": 2.0, "max_abs_bias_mm": r.max_abs_bias_mm}
         lines.append(f"{name:<9} {r.n:>3} {r.repeatability_mm:9.3f} {r.accuracy_mm:11.3f} {r.max_abs_bias_mm:12.3f}  "
                      + " ".join(f"{v:+.3f}" for v in r.mean_deviation_mm))
     lines.append("Repeatability = 3 σ̄, accuracy = CR/2 + 3 σ̄ (dissertation Eqs. 8.2-8.3); bias = x̄ - target.")

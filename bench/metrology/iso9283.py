@@ -95,6 +95,7 @@ class DistanceCharacteristics:
     rd_axes_mm: tuple[float, ...]  #: RD_x, RD_y[, RD_z]
     mean_distance_mm: float  #: D̄
     commanded_distance_mm: float  #: D_c
+    u_ad_mm: float  #: Type A standard uncertainty of AD from the scatter of D_j: S_D / √n
     n: int
 
 
@@ -339,5 +340,6 @@ def distance_characteristics(first_mm, second_mm, commanded_first_mm, commanded_
         rd_axes_mm=tuple(float(v) for v in 3.0 * per_axis.std(axis=0, ddof=1)),
         mean_distance_mm=float(distance.mean()),
         commanded_distance_mm=commanded,
+        u_ad_mm=float(distance.std(ddof=1) / np.sqrt(len(first))),
         n=len(first),
     )

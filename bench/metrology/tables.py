@@ -29,7 +29,7 @@ from bench.metrology.iso9283 import (
     pose_accuracy,
     pose_repeatability,
 )
-from bench.metrology.uncertainty import Measured, accuracy_uncertainty, bootstrap_uncertainty, expanded
+from bench.metrology.uncertainty import Measured, accuracy_uncertainty, expanded, repeatability_uncertainty
 
 __all__ = [
     "POSE_COLUMNS",
@@ -152,7 +152,7 @@ def _check_unique_cycles(group: pd.DataFrame, source: str) -> None:
 
 
 def analyze_poses(
-    table: pd.DataFrame, *, instrument_u_mm: float = 0.0, k: float = 2.0, resamples: int = 400
+    table: pd.DataFrame, *, instrument_u_mm: float = 0.0, k: float = 2.0, resamples: int = 1000
 ) -> list[PoseResult]:
     """AP, RP and their expanded uncertainties for every pose (and set of conditions) of a pose table.
 
@@ -190,11 +190,7 @@ def analyze_poses(
         except InsufficientData as exc:
             raise type(exc)(f"{source}: pose {label!r}: {exc}") from None
         ap_u, _ = accuracy_uncertainty(attained, command, instrument_u_mm=instrument_u_mm, k=k)
-        u_rp = (
-            bootstrap_uncertainty(lambda p: pose_repeatability(p).rp_mm, attained, resamples=resamples)
-            if len(attained) >= 3
-            else 0.0
-        )
+        u_rp = repeatability_uncertainty(attained, resamples=resamples) if len(attained) >= 3 else 0.0
         orientation = None
         if angles:
             attained_deg = group[[att for _, att in angles]].to_numpy()

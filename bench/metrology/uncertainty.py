@@ -27,6 +27,7 @@ __all__ = [
     "mean_confidence_interval",
     "accuracy_uncertainty",
     "bootstrap_uncertainty",
+    "repeatability_uncertainty",
     "instrument_rp_floor",
 ]
 
@@ -170,6 +171,28 @@ def bootstrap_uncertainty(statistic, attained, *, resamples: int = 1000, seed: i
     index = rng.integers(0, len(points), size=(resamples, len(points)))
     values = np.array([statistic(points[rows]) for rows in index])
     return float(values.std(ddof=1))
+
+
+def repeatability_uncertainty(attained_mm, *, resamples: int = 1000, seed: int = 0) -> float:
+    """Standard uncertainty of RP_l from a bootstrap over cycles, vectorised over the resamples.
+
+    The same estimate as ``bootstrap_uncertainty(lambda p: pose_repeatability(p).rp_mm, ...)`` with the same
+    seed, computed in one batch: resample whole cycles with replacement, recompute
+    RP_l = l̄ + 3 S_l for each resample, and take the sample standard deviation of those values.
+
+    Parameters
+    ----------
+    attained_mm : array_like, shape (n, d)
+        Attained positions of one pose, n >= 3.
+    """
+    points = as_points("attained_mm", attained_mm)
+    require_count("bootstrap cycles", len(points), 3)
+    rng = np.random.default_rng(seed)
+    index = rng.integers(0, len(points), size=(resamples, len(points)))
+    samples = points[index]
+    distances = np.sqrt(np.sum((samples - samples.mean(axis=1, keepdims=True)) ** 2, axis=2))
+    rp = distances.mean(axis=1) + 3.0 * distances.std(axis=1, ddof=1)
+    return float(rp.std(ddof=1))
 
 
 def instrument_rp_floor(sigma_mm: float, *, dims: int) -> float:
