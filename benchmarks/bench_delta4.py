@@ -34,8 +34,11 @@ def scipy_per_pose(servo_deg: np.ndarray, start_mm: np.ndarray) -> np.ndarray:
     knees = delta4.knees_mm(servo_deg, geometry)
     poses = np.empty((len(servo_deg), 3))
     for i, leg_knees in enumerate(knees):
+
         def residual(p, leg_knees=leg_knees):
-            return np.linalg.norm(p + geometry.ankle_offset_mm * LEG_OUTWARD - leg_knees, axis=1) - geometry.lower_arm_mm
+            return (
+                np.linalg.norm(p + geometry.ankle_offset_mm * LEG_OUTWARD - leg_knees, axis=1) - geometry.lower_arm_mm
+            )
 
         poses[i] = least_squares(residual, start_mm[i], xtol=1e-12, ftol=1e-12, gtol=1e-12).x
     return poses
@@ -63,12 +66,19 @@ def main(argv=None) -> None:
     ls_rate = len(truth) / ls_time
 
     print(f"delta4 IK          {args.ik:>9,} points  {ik_time:7.3f} s  {ik_rate / 1e6:7.2f} M poses/s")
-    print(f"delta4 FK closed   {len(truth):>9,} sets    {closed_time:7.3f} s  {len(truth) / closed_time / 1e6:7.2f} M solves/s")
-    print(f"delta4 FK LS       {len(truth):>9,} sets    {ls_time:7.3f} s  {ls_rate / 1e3:7.1f} k solves/s, "
-          f"converged {ls.ok.mean():.4%}, median residual {np.median(ls.residual_mm):.3f} mm")
-    print(f"  agreement with scipy per pose: max |dp| {np.abs(base - ls.pose_mm[subset]).max():.1e} mm; "
-          f"mean position error vs truth: LS {np.linalg.norm(ls.pose_mm - truth, axis=1).mean():.3f} mm, "
-          f"closed form {np.linalg.norm(closed.pose_mm - truth, axis=1).mean():.3f} mm")
+    print(
+        f"delta4 FK closed   {len(truth):>9,} sets    {closed_time:7.3f} s  "
+        f"{len(truth) / closed_time / 1e6:7.2f} M solves/s"
+    )
+    print(
+        f"delta4 FK LS       {len(truth):>9,} sets    {ls_time:7.3f} s  {ls_rate / 1e3:7.1f} k solves/s, "
+        f"converged {ls.ok.mean():.4%}, median residual {np.median(ls.residual_mm):.3f} mm"
+    )
+    print(
+        f"  agreement with scipy per pose: max |dp| {np.abs(base - ls.pose_mm[subset]).max():.1e} mm; "
+        f"mean position error vs truth: LS {np.linalg.norm(ls.pose_mm - truth, axis=1).mean():.3f} mm, "
+        f"closed form {np.linalg.norm(closed.pose_mm - truth, axis=1).mean():.3f} mm"
+    )
     print(f"scipy least_squares per pose, {args.baseline} solves: {base_rate:8.1f} solves/s")
     print(f"speed-up batched LS FK / per-pose scipy: {ls_rate / base_rate:7.0f}x")
 

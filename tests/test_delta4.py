@@ -60,7 +60,7 @@ def thesis_table_ik(point_cm):
     return np.array(angles)
 
 
-# --- golden vectors ---------------------------------------------------------------------------------------------
+# --- golden vectors -----------------------------------------------------------------------------------------------
 
 
 def test_tv1_ik_of_minus7_6_minus20_cm_matches_printed_angles_and_knees():
@@ -103,6 +103,15 @@ def test_tv2_least_squares_fk_matches_reference_regression_vector():
     np.testing.assert_allclose(fk.pose_mm[0], np.array([-6.9881, 6.0158, -19.9776]) * CM, atol=2e-4 * CM)
     np.testing.assert_allclose(fk.leg_residual_mm[0], np.array([-0.0093, 0.0090, -0.0042, 0.0046]) * CM, atol=2e-4 * CM)
     assert fk.residual_mm[0] == pytest.approx(0.0072 * CM, abs=1e-4 * CM)
+
+
+def test_tv2_joint_space_least_squares_matches_reference_regression_vector():
+    measured = np.array([129.25, 126.5, 73.7, 78.375])
+    fk = forward_kinematics(measured, THESIS, method="joint_space")
+    np.testing.assert_allclose(fk.pose_mm[0], np.array([-6.9894, 6.0144, -19.9774]) * CM, atol=2e-4 * CM)
+    angle_residual = inverse_kinematics(fk.pose_mm, THESIS).servo_deg[0] - measured
+    np.testing.assert_allclose(angle_residual, [-0.062, 0.060, -0.033, 0.035], atol=1e-3)
+    assert fk.ok[0]
 
 
 def test_tv3_ik_on_axis_and_fk_of_quantised_angles():
@@ -173,13 +182,15 @@ def test_nominal_and_thesis_constants_differ_by_at_most_1e_minus_4_deg():
     assert 0 < np.abs(difference).max() <= 1e-4
 
 
-# --- conventions ---------------------------------------------------------------------------------------------------
+# --- conventions --------------------------------------------------------------------------------------------------
 
 
 def test_servo_coordinate_transforms_match_document_examples_and_invert():
     # Thesis §4.3.2 d: theta_R1 = 0, 90, 180 -> theta_1 = 45, 315, 225; legs 2, 3: theta = 135 + theta_R.
-    np.testing.assert_allclose(coord_from_servo_deg(np.array([[0.0, 0, 0, 90], [90, 10, 170, 180]])),
-                               [[45, 135, 135, 315], [315, 145, 305, 225]])
+    np.testing.assert_allclose(
+        coord_from_servo_deg(np.array([[0.0, 0, 0, 90], [90, 10, 170, 180]])),
+        [[45, 135, 135, 315], [315, 145, 305, 225]],
+    )
     servo = np.random.default_rng(1).uniform(0, 180, (50, 4))
     np.testing.assert_allclose(servo_from_coord_deg(coord_from_servo_deg(servo)), servo, atol=1e-12)
 
@@ -190,7 +201,7 @@ def test_knee_positions_follow_the_unified_elevation_form():
     np.testing.assert_allclose(knees, [[200, 0, 0], [0, -200, 0], [-100, 0, -100], [0, 100, -100]], atol=1e-12)
 
 
-# --- reachability ------------------------------------------------------------------------------------------------
+# --- reachability -------------------------------------------------------------------------------------------------
 
 
 @pytest.mark.parametrize(
@@ -236,7 +247,10 @@ def test_fk_of_inconsistent_angles_fails_cleanly_without_nan():
     servo = [[degenerate, 90, degenerate, 90], [45, 135, 45, 135]]
     fk = forward_kinematics(servo, NOMINAL, method="closed_form")
     assert np.all(np.isfinite(fk.pose_mm)) and np.all(np.isfinite(fk.residual_mm))
-    assert fk.reason.tolist() == ["degenerate (x1 - x3 or y4 - y2 equals 2n)", "no_solution (end effector above a knee)"]
+    assert fk.reason.tolist() == [
+        "degenerate (x1 - x3 or y4 - y2 equals 2n)",
+        "no_solution (end effector above a knee)",
+    ]
     assert not fk.ok.any()
     ls = forward_kinematics(servo, NOMINAL)
     assert np.all(np.isfinite(ls.pose_mm)) and ls.residual_mm[1] > 10.0  # best fit, flagged by its residual
@@ -276,7 +290,10 @@ def test_jacobian_matches_central_differences():
     step = 1e-4
     numeric = np.stack(
         [
-            (inverse_kinematics(points + step * e, NOMINAL).servo_deg - inverse_kinematics(points - step * e, NOMINAL).servo_deg)
+            (
+                inverse_kinematics(points + step * e, NOMINAL).servo_deg
+                - inverse_kinematics(points - step * e, NOMINAL).servo_deg
+            )
             / (2 * step)
             for e in np.eye(3)
         ],
@@ -285,7 +302,7 @@ def test_jacobian_matches_central_differences():
     assert np.abs(jac - numeric).max() / np.abs(numeric).max() < 1e-6
 
 
-# --- error models ----------------------------------------------------------------------------------------------------
+# --- error models -------------------------------------------------------------------------------------------------
 
 
 def test_adc_and_legacy_byte_mappings():
@@ -298,10 +315,12 @@ def test_adc_and_legacy_byte_mappings():
     angles = np.linspace(30, 170, 1001)
     error = servo_deg_from_counts(adc_counts(angles)) - angles
     assert np.abs(error).max() <= 140 / 255 / 2 + 1e-12  # 0.2745 deg, the thesis' "0.275"
-    np.testing.assert_allclose(servo_deg_from_counts(adc_counts(angles, direction=-1), direction=-1), angles, atol=0.275)
+    np.testing.assert_allclose(
+        servo_deg_from_counts(adc_counts(angles, direction=-1), direction=-1), angles, atol=0.275
+    )
 
 
-# --- workspace -----------------------------------------------------------------------------------------------------
+# --- workspace ----------------------------------------------------------------------------------------------------
 
 
 def test_reachable_square_half_width_matches_reference_table():
@@ -311,8 +330,8 @@ def test_reachable_square_half_width_matches_reference_table():
 
 
 def test_spec_square_of_plus_minus_6cm_is_reachable_for_z_from_minus_24_25_to_minus_13_cm():
-    z_mm = np.arange(-280.0, -50.0, 2.5)
-    good = z_mm[reachable_square_half_width_mm(z_mm, NO_KNEE_MARGIN) >= 60.0]
+    z_mm = np.arange(-255.0, -117.5, 2.5)
+    good = z_mm[reachable_square_half_width_mm(z_mm, NO_KNEE_MARGIN, max_mm=62.5) >= 60.0]
     assert (good.min(), good.max()) == (-242.5, -130.0)
     assert np.all(np.diff(good) == 2.5)
 
@@ -328,7 +347,7 @@ def test_monte_carlo_volume_agrees_with_a_grid_count_and_stays_inside_the_box():
     assert np.all(inside[:, :2] > -240) and np.all(inside[:, :2] < 240) and np.all(inside[:, 2] > -290)
 
 
-# --- docstring examples ------------------------------------------------------------------------------------------------
+# --- docstring examples -------------------------------------------------------------------------------------------
 
 
 @pytest.mark.parametrize(

@@ -35,15 +35,36 @@ def test_delta4_unreachable_pose_exits_2_with_one_line(capsys):
 
 
 def test_delta4_fk_json_keys_and_least_squares_vector(capsys):
-    code, result, _ = run_json(capsys, ["kin", "fk", "delta4", "129.25", "126.5", "73.7", "78.375", "--json", "--geometry", "thesis"])
+    code, result, _ = run_json(
+        capsys, ["kin", "fk", "delta4", "129.25", "126.5", "73.7", "78.375", "--json", "--geometry", "thesis"]
+    )
     assert code == 0 and set(result) == {"pose", "residual_mm"}
     assert set(result["pose"]) == {"x_mm", "y_mm", "z_mm"}
-    np.testing.assert_allclose([result["pose"][k] for k in ("x_mm", "y_mm", "z_mm")], [-69.881, 60.158, -199.776], atol=2e-3)
+    np.testing.assert_allclose(
+        [result["pose"][k] for k in ("x_mm", "y_mm", "z_mm")], [-69.881, 60.158, -199.776], atol=2e-3
+    )
     assert result["residual_mm"] == pytest.approx(0.072, abs=1e-3)
 
 
 def test_delta4_fk_closed_form_and_text_output(capsys):
-    assert main(["kin", "fk", "delta4", "90.75", "90.75", "90.75", "90.75", "--method", "closed_form", "--geometry", "thesis"]) == 0
+    assert (
+        main(
+            [
+                "kin",
+                "fk",
+                "delta4",
+                "90.75",
+                "90.75",
+                "90.75",
+                "90.75",
+                "--method",
+                "closed_form",
+                "--geometry",
+                "thesis",
+            ]
+        )
+        == 0
+    )
     out = capsys.readouterr().out
     assert "z_mm = -199.4821" in out  # TV3: -19.9482 cm
 
@@ -64,17 +85,39 @@ def test_prus3_ik_json_and_unreachable(capsys):
     code, result, _ = run_json(capsys, ["kin", "ik", "prus3", "450", "150", "-600", "3", "-4", "5", "--json"])
     assert code == 0 and {"sliders_mm", "reachable"} <= set(result)
     np.testing.assert_allclose(result["sliders_mm"], [786.485461661, 1050.695470943, 1001.494762965], atol=1e-6)  # TV-3
-    code, result, _ = run_json(capsys, ["kin", "ik", "prus3", "450", "150", "-600", "3", "-4", "5", "--branch", "-1", "-1", "-1", "--json"])
+    code, result, _ = run_json(
+        capsys, ["kin", "ik", "prus3", "450", "150", "-600", "3", "-4", "5", "--branch", "-1", "-1", "-1", "--json"]
+    )
     np.testing.assert_allclose(result["sliders_mm"], [278.873026383, 159.768000119, 322.683277930], atol=1e-6)
     code = main(["kin", "ik", "prus3", "300", "0", "-600", "0", "0", "0", "--json"])
     captured = capsys.readouterr()
     assert code == 2 and json.loads(captured.out)["reachable"] is False
-    assert captured.err == "bench: error: pose (300, 0, -600, 0, 0, 0) mm/deg is not reachable: revolute_range (leg 1)\n"
+    assert (
+        captured.err == "bench: error: pose (300, 0, -600, 0, 0, 0) mm/deg is not reachable: revolute_range (leg 1)\n"
+    )
 
 
 def test_prus3_fk_from_leg_joints(capsys):
-    argv = ["kin", "fk", "prus3", "786.485461661", "1050.695470943", "1001.494762965", "--revolute-deg", "-27.718275", "-45",
-            "-34.628282", "--universal-deg", "0", "24.569670", "19.032488", "14.652766", "0", "5.455263", "--json"]
+    argv = [
+        "kin",
+        "fk",
+        "prus3",
+        "786.485461661",
+        "1050.695470943",
+        "1001.494762965",
+        "--revolute-deg",
+        "-27.718275",
+        "-45",
+        "-34.628282",
+        "--universal-deg",
+        "0",
+        "24.569670",
+        "19.032488",
+        "14.652766",
+        "0",
+        "5.455263",
+        "--json",
+    ]
     code, result, _ = run_json(capsys, argv)
     assert code == 0 and set(result) == {"pose", "residual_mm"}
     pose = [result["pose"][k] for k in ("x_mm", "y_mm", "z_mm", "alpha_deg", "beta_deg", "gamma_deg")]

@@ -42,7 +42,9 @@ TOL_MM, TOL_DEG = 1e-5, 1e-5
 def random_reachable_poses(count: int, seed: int) -> np.ndarray:
     """Poses near T1 that pass the +1-branch IK (rejection sampling)."""
     rng = np.random.default_rng(seed)
-    poses = np.column_stack([rng.uniform([380, 50, -700], [520, 250, -500], (count * 4, 3)), rng.uniform(-8, 8, (count * 4, 3))])
+    poses = np.column_stack(
+        [rng.uniform([380, 50, -700], [520, 250, -500], (count * 4, 3)), rng.uniform(-8, 8, (count * 4, 3))]
+    )
     return poses[inverse_kinematics(poses).reachable][:count]
 
 
@@ -50,7 +52,9 @@ def random_reachable_poses(count: int, seed: int) -> np.ndarray:
 
 
 def test_tv1_platform_corners_and_side():
-    np.testing.assert_allclose(STAND_IN.platform_corners_mm, [[37.5, 0, 64.951905], [-75, 0, 0], [37.5, 0, -64.951905]], atol=1e-6)
+    np.testing.assert_allclose(
+        STAND_IN.platform_corners_mm, [[37.5, 0, 64.951905], [-75, 0, 0], [37.5, 0, -64.951905]], atol=1e-6
+    )
     corners = corners_mm(np.array([T1]))[0][0]
     for i, j in ((0, 1), (1, 2), (0, 2)):
         assert np.linalg.norm(corners[i] - corners[j]) == pytest.approx(129.903811, abs=1e-6)
@@ -58,17 +62,29 @@ def test_tv1_platform_corners_and_side():
 
 def test_erratum_e5_printed_eq12_matrix_is_not_a_rotation_and_rz_ry_rx_is():
     alpha, beta, gamma = 0.3, -0.2, 0.5
-    ca, sa, cb, sb, cg, sg = (math.cos(alpha), math.sin(alpha), math.cos(beta), math.sin(beta), math.cos(gamma), math.sin(gamma))
+    ca, sa, cb, sb, cg, sg = (
+        math.cos(alpha),
+        math.sin(alpha),
+        math.cos(beta),
+        math.sin(beta),
+        math.cos(gamma),
+        math.sin(gamma),
+    )
     printed = np.array(  # Eq. (12) exactly as printed
-        [[cb * ca, cg * sa * sb - ca * sg, sa * sg + ca * cg * sb],
-         [cb * sa, ca * cg + sa * sb * sg, ca * sb * sg - cg * sa],
-         [-sb, cb * sg, cg * cb]]
+        [
+            [cb * ca, cg * sa * sb - ca * sg, sa * sg + ca * cg * sb],
+            [cb * sa, ca * cg + sa * sb * sg, ca * sb * sg - cg * sa],
+            [-sb, cb * sg, cg * cb],
+        ]
     )
     assert np.abs(printed.T @ printed - np.eye(3)).max() == pytest.approx(0.149058, abs=1e-6)
     assert np.linalg.det(printed) == pytest.approx(0.969620, abs=1e-6)
     rotation = rotation_matrix(np.degrees([[alpha, beta, gamma]]))[0]
-    np.testing.assert_allclose(rotation, [[0.860089, -0.509536, -0.024882], [0.469869, 0.810239, -0.350336],
-                                          [0.198669, 0.289629, 0.936293]], atol=1e-6)
+    np.testing.assert_allclose(
+        rotation,
+        [[0.860089, -0.509536, -0.024882], [0.469869, 0.810239, -0.350336], [0.198669, 0.289629, 0.936293]],
+        atol=1e-6,
+    )
     assert np.abs(rotation.T @ rotation - np.eye(3)).max() < 1e-15
 
 
@@ -80,11 +96,17 @@ def test_corners_equal_the_explicit_eq14_formulas():
         ca, sa, cb, sb, cg, sg = (f(math.radians(v)) for v in pose[3:] for f in (math.cos, math.sin))
         sd, cd = math.sin(delta), math.cos(delta)
         expected = [
-            [px + b * sd * cb * cg + b * cd * (sa * sg + ca * cg * sb), py + b * sd * cb * sg + b * cd * (ca * sb * sg - cg * sa),
-             pz - sb * b * sd + b * cd * ca * cb],
+            [
+                px + b * sd * cb * cg + b * cd * (sa * sg + ca * cg * sb),
+                py + b * sd * cb * sg + b * cd * (ca * sb * sg - cg * sa),
+                pz - sb * b * sd + b * cd * ca * cb,
+            ],
             [px - b * cb * cg, py - b * cb * sg, pz + b * sb],
-            [px + b * sd * cb * cg - b * cd * (sa * sg + ca * cg * sb), py + b * sd * cb * sg - b * cd * (ca * sb * sg - cg * sa),
-             pz - sb * b * sd - b * cd * ca * cb],
+            [
+                px + b * sd * cb * cg - b * cd * (sa * sg + ca * cg * sb),
+                py + b * sd * cb * sg - b * cd * (ca * sb * sg - cg * sa),
+                pz - sb * b * sd - b * cd * ca * cb,
+            ],
         ]
         np.testing.assert_allclose(corners_mm(pose[None])[0][0], expected, atol=1e-9)
 
@@ -97,13 +119,18 @@ def test_erratum_e3_corrected_eq11_equals_the_forward_kinematics_and_printed_k1x
     fit = forward_kinematics(s, np.degrees(x2), np.degrees(np.stack([x3, x4], axis=-1)))
     corners = corners_mm(fit.pose)[0]
     y = np.array([-c, 0.0, c])
-    corrected = np.stack([
-        a * np.cos(x2) * np.cos(x4) + a * np.sin(x2) * np.sin(x3) * np.sin(x4),
-        a * np.cos(x3) * np.sin(x4) + y,
-        a * np.cos(x2) * np.sin(x3) * np.sin(x4) - a * np.cos(x4) * np.sin(x2) - s,
-    ], axis=-1)
+    corrected = np.stack(
+        [
+            a * np.cos(x2) * np.cos(x4) + a * np.sin(x2) * np.sin(x3) * np.sin(x4),
+            a * np.cos(x3) * np.sin(x4) + y,
+            a * np.cos(x2) * np.sin(x3) * np.sin(x4) - a * np.cos(x4) * np.sin(x2) - s,
+        ],
+        axis=-1,
+    )
     # Random joints do not close the loop: compare the corners the FK was fed through its own residual.
-    np.testing.assert_allclose(fit.residual_mm, np.sqrt(np.mean(np.sum((corners - corrected) ** 2, axis=2), axis=1)), atol=1e-9)
+    np.testing.assert_allclose(
+        fit.residual_mm, np.sqrt(np.mean(np.sum((corners - corrected) ** 2, axis=2), axis=1)), atol=1e-9
+    )
     printed_k1x = a * np.cos(x2[:, 0]) * np.cos(x2[:, 0]) + a * np.sin(x2[:, 0]) * np.sin(x3[:, 0]) * np.sin(x4[:, 0])
     assert np.abs(printed_k1x - corrected[:, 0, 0]).max() > 1.0
 
@@ -124,7 +151,11 @@ def test_erratum_e11_corrected_lagrange_multiplier_satisfies_the_acceleration_co
     root = rng.normal(size=(size, size))
     mass = root @ root.T + size * np.eye(size)
     coriolis, gravity, torque = rng.normal(size=(size, size)), rng.normal(size=size), rng.normal(size=size)
-    psi, psi_dot, q_dot = rng.normal(size=(constraints, size)), rng.normal(size=(constraints, size)), rng.normal(size=size)
+    psi, psi_dot, q_dot = (
+        rng.normal(size=(constraints, size)),
+        rng.normal(size=(constraints, size)),
+        rng.normal(size=size),
+    )
     inverse = np.linalg.inv(mass)
     rhs = torque - coriolis @ q_dot - gravity
     corrected = np.linalg.solve(psi @ inverse @ psi.T, psi_dot @ q_dot + psi @ inverse @ rhs)
@@ -134,7 +165,7 @@ def test_erratum_e11_corrected_lagrange_multiplier_satisfies_the_acceleration_co
         assert bool(np.abs(psi @ q_ddot + psi_dot @ q_dot).max() < 1e-10) is ok
 
 
-# --- inverse kinematics ------------------------------------------------------------------------------------------------
+# --- inverse kinematics -------------------------------------------------------------------------------------------
 
 
 @pytest.mark.parametrize(
@@ -152,16 +183,34 @@ def test_slider_positions_on_both_branches(pose, plus, minus):
 
 def test_tv3_link_directions_conventions_and_margin():
     ik = inverse_kinematics(T1)
-    np.testing.assert_allclose(ik.corners_mm[0], [[483.055182, 149.479649, -532.679244], [375.467399, 143.479242, -605.231736],
-                                                 [491.477419, 157.041109, -662.089020]], atol=TOL_MM)
-    np.testing.assert_allclose(ik.link_dir[0], [[0.805091970, 0.415799415, 0.423010363], [0.625778998, 0.239132071, 0.742439559],
-                                               [0.819129032, 0.095068515, 0.565676238]], atol=1e-9)
+    np.testing.assert_allclose(
+        ik.corners_mm[0],
+        [
+            [483.055182, 149.479649, -532.679244],
+            [375.467399, 143.479242, -605.231736],
+            [491.477419, 157.041109, -662.089020],
+        ],
+        atol=TOL_MM,
+    )
+    np.testing.assert_allclose(
+        ik.link_dir[0],
+        [
+            [0.805091970, 0.415799415, 0.423010363],
+            [0.625778998, 0.239132071, 0.742439559],
+            [0.819129032, 0.095068515, 0.565676238],
+        ],
+        atol=1e-9,
+    )
     np.testing.assert_allclose(ik.revolute_deg[0], [-27.718275, -45, -34.628282], atol=TOL_DEG)
-    np.testing.assert_allclose(ik.universal_deg[0], [[0, 24.569670], [19.032488, 14.652766], [0, 5.455263]], atol=TOL_DEG)
+    np.testing.assert_allclose(
+        ik.universal_deg[0], [[0, 24.569670], [19.032488, 14.652766], [0, 5.455263]], atol=TOL_DEG
+    )
     assert ik.ik_margin[0] == pytest.approx(0.423010, abs=1e-6)
     balanced = inverse_kinematics(T1, revolute_convention="balanced")
     np.testing.assert_allclose(balanced.revolute_deg[0], [-24.738558, -38.554125, -31.299557], atol=TOL_DEG)
-    np.testing.assert_allclose(balanced.universal_deg[0], [[6.486586, 24.738558], [38.554125, 17.805564], [31.299557, 6.388020]], atol=TOL_DEG)
+    np.testing.assert_allclose(
+        balanced.universal_deg[0], [[6.486586, 24.738558], [38.554125, 17.805564], [31.299557, 6.388020]], atol=TOL_DEG
+    )
     zero = inverse_kinematics(T1, revolute_convention="x3_zero")
     np.testing.assert_allclose(zero.revolute_deg[0], [-27.718275, -49.873512, -34.628282], atol=TOL_DEG)
     np.testing.assert_allclose(zero.universal_deg[0, :, 1], [24.569670, 13.835320, 5.455263], atol=TOL_DEG)
@@ -177,7 +226,9 @@ def test_tv2_home_pose_conventions():
     np.testing.assert_allclose(ik.universal_deg[0], [[0, 9.594068], [0, 0], [0, -9.594068]], atol=TOL_DEG)
     balanced = inverse_kinematics(HOME, revolute_convention="balanced")
     np.testing.assert_allclose(balanced.revolute_deg[0], [-13.997936, -40.682512, -13.997936], atol=TOL_DEG)
-    np.testing.assert_allclose(balanced.universal_deg[0], [[13.997936, 9.890595], [0, 0], [-13.997936, -9.890595]], atol=TOL_DEG)
+    np.testing.assert_allclose(
+        balanced.universal_deg[0], [[13.997936, 9.890595], [0, 0], [-13.997936, -9.890595]], atol=TOL_DEG
+    )
 
 
 def test_tv4_failures_report_reasons_and_stay_finite():
@@ -209,7 +260,7 @@ def test_malformed_input_raises_naming_the_field():
         inverse_kinematics(T1, revolute_convention="fixed")
 
 
-# --- redundancy and mobility ---------------------------------------------------------------------------------------------
+# --- redundancy and mobility --------------------------------------------------------------------------------------
 
 
 def test_tv5_revolute_is_redundant_same_corner_for_any_x2():
@@ -226,11 +277,24 @@ def test_tv6_two_poses_with_identical_actuator_readings():
     a = inverse_kinematics(T1, revolute_convention="fixed", fixed_revolute_deg=locked)
     b = inverse_kinematics(pose_b, revolute_convention="fixed", fixed_revolute_deg=locked)
     np.testing.assert_allclose(b.sliders_mm, a.sliders_mm, atol=1e-8)
-    np.testing.assert_allclose(b.universal_deg[0], np.column_stack([[-2.089857, 14.755022, -9.888117], [24.436257, 15.433153, 5.299168]]), atol=TOL_DEG)
-    np.testing.assert_allclose(b.corners_mm[0], [[487.778129, 148.043290, -540.422415], [380.210991, 154.403075, -612.974906],
-                                                [497.010880, 154.590509, -669.832191]], atol=TOL_MM)
+    np.testing.assert_allclose(
+        b.universal_deg[0],
+        np.column_stack([[-2.089857, 14.755022, -9.888117], [24.436257, 15.433153, 5.299168]]),
+        atol=TOL_DEG,
+    )
+    np.testing.assert_allclose(
+        b.corners_mm[0],
+        [
+            [487.778129, 148.043290, -540.422415],
+            [380.210991, 154.403075, -612.974906],
+            [497.010880, 154.590509, -669.832191],
+        ],
+        atol=TOL_MM,
+    )
     # So the slider readings are only a consistency check of a measured pose, never an FK.
-    np.testing.assert_allclose(actuator_residual_mm([T1, pose_b], np.vstack([a.sliders_mm, a.sliders_mm])), 0.0, atol=1e-8)
+    np.testing.assert_allclose(
+        actuator_residual_mm([T1, pose_b], np.vstack([a.sliders_mm, a.sliders_mm])), 0.0, atol=1e-8
+    )
     assert np.abs(actuator_residual_mm([460.0, 150, -600, 3, -4, 5], a.sliders_mm)).max() > 1.0
 
 
@@ -242,12 +306,20 @@ def test_tv8_locked_closure_has_a_three_dimensional_platform_null_space():
         x3, x4 = unknowns[:3], unknowns[3:6]
         pose = np.concatenate([unknowns[6:9], np.degrees(unknowns[9:])])
         d = np.array([0.0, 0, -1])
-        u = np.stack([np.cos(locked_x2) * np.cos(x4) + np.sin(locked_x2) * np.sin(x3) * np.sin(x4), np.cos(x3) * np.sin(x4),
-                      np.cos(locked_x2) * np.sin(x3) * np.sin(x4) - np.sin(locked_x2) * np.cos(x4)], axis=-1)
+        u = np.stack(
+            [
+                np.cos(locked_x2) * np.cos(x4) + np.sin(locked_x2) * np.sin(x3) * np.sin(x4),
+                np.cos(x3) * np.sin(x4),
+                np.cos(locked_x2) * np.sin(x3) * np.sin(x4) - np.sin(locked_x2) * np.cos(x4),
+            ],
+            axis=-1,
+        )
         from_legs = STAND_IN.rail_offsets_mm + sliders[:, None] * d + 600.0 * u
         return (from_legs - corners_mm(pose[None])[0][0]).ravel()
 
-    start = np.concatenate([np.radians(ik.universal_deg[0, :, 0]), np.radians(ik.universal_deg[0, :, 1]), T1[:3], np.radians(T1[3:])])
+    start = np.concatenate(
+        [np.radians(ik.universal_deg[0, :, 0]), np.radians(ik.universal_deg[0, :, 1]), T1[:3], np.radians(T1[3:])]
+    )
     step = 1e-6
     jac = np.column_stack([(closure(start + step * e) - closure(start - step * e)) / (2 * step) for e in np.eye(12)])
     singular = np.linalg.svd(jac, compute_uv=False)
@@ -256,7 +328,7 @@ def test_tv8_locked_closure_has_a_three_dimensional_platform_null_space():
     assert np.linalg.matrix_rank(null[:, 6:], tol=1e-6) == 3  # all three are platform motions
 
 
-# --- forward kinematics -------------------------------------------------------------------------------------------------
+# --- forward kinematics -------------------------------------------------------------------------------------------
 
 
 @pytest.mark.parametrize("convention", ["clip", "x3_zero", "balanced", "x2_zero"])
@@ -287,27 +359,47 @@ def test_tip_offset_round_trip():
     np.testing.assert_allclose(fit.pose, poses, atol=1e-9)
 
 
-# --- Jacobian and singularity ------------------------------------------------------------------------------------------------
+# --- Jacobian and singularity --------------------------------------------------------------------------------------
 
 
 def test_tv3_jacobian_rows_both_forms_and_branches():
-    np.testing.assert_allclose(slider_jacobian(T1).matrix[0], [
-        [-1.903244, -0.982953, -1, 55.676342, -100.523591, -33.482054],
-        [-0.842869, -0.322090, -1, 0, -70.277553, 18.510035],
-        [-1.448053, -0.168062, -1, -5.718897, 132.408759, 3.225131]], atol=1e-6)
-    np.testing.assert_allclose(slider_jacobian(T1, form="twist").matrix[0], [
-        [-1.903244, -0.982953, -1, 66.693508, -95.072649, -33.482054],
-        [-0.842869, -0.322090, -1, 4.835670, -70.122936, 18.510035],
-        [-1.448053, -0.168062, -1, -17.475896, 131.385596, 3.225131]], atol=1e-6)
-    np.testing.assert_allclose(slider_jacobian(T1, branch=(-1, -1, -1)).matrix[0], [
-        [1.903244, 0.982953, -1, -48.894263, 166.291681, 33.482054],
-        [0.842869, 0.322090, -1, 0, -79.357054, -18.510035],
-        [1.448053, 0.168062, -1, -1.063182, -48.542242, -3.225131]], atol=1e-6)
+    np.testing.assert_allclose(
+        slider_jacobian(T1).matrix[0],
+        [
+            [-1.903244, -0.982953, -1, 55.676342, -100.523591, -33.482054],
+            [-0.842869, -0.322090, -1, 0, -70.277553, 18.510035],
+            [-1.448053, -0.168062, -1, -5.718897, 132.408759, 3.225131],
+        ],
+        atol=1e-6,
+    )
+    np.testing.assert_allclose(
+        slider_jacobian(T1, form="twist").matrix[0],
+        [
+            [-1.903244, -0.982953, -1, 66.693508, -95.072649, -33.482054],
+            [-0.842869, -0.322090, -1, 4.835670, -70.122936, 18.510035],
+            [-1.448053, -0.168062, -1, -17.475896, 131.385596, 3.225131],
+        ],
+        atol=1e-6,
+    )
+    np.testing.assert_allclose(
+        slider_jacobian(T1, branch=(-1, -1, -1)).matrix[0],
+        [
+            [1.903244, 0.982953, -1, -48.894263, 166.291681, 33.482054],
+            [0.842869, 0.322090, -1, 0, -79.357054, -18.510035],
+            [1.448053, 0.168062, -1, -1.063182, -48.542242, -3.225131],
+        ],
+        atol=1e-6,
+    )
     np.testing.assert_allclose(slider_jacobian(T1).line_singular_values[0], [1.695503, 0.298377, 0.259257], atol=1e-6)
-    np.testing.assert_allclose(slider_jacobian(HOME).matrix[0], [
-        [-3.394873, -0.598215, -1, 38.855236, -183.003464, -22.433081],
-        [-1.163325, 0, -1, 0, -75, 0],
-        [-3.394873, 0.598215, -1, 38.855236, 258.003464, 22.433081]], atol=1e-6)
+    np.testing.assert_allclose(
+        slider_jacobian(HOME).matrix[0],
+        [
+            [-3.394873, -0.598215, -1, 38.855236, -183.003464, -22.433081],
+            [-1.163325, 0, -1, 0, -75, 0],
+            [-3.394873, 0.598215, -1, 38.855236, 258.003464, 22.433081],
+        ],
+        atol=1e-6,
+    )
 
 
 @pytest.mark.parametrize("branch", [(1, 1, 1), (-1, -1, -1)])
@@ -315,11 +407,17 @@ def test_euler_jacobian_matches_central_differences(branch):
     poses = random_reachable_poses(20, seed=12)
     jac = slider_jacobian(poses, branch=branch).matrix
     step = np.array([1e-4] * 3 + [np.degrees(1e-6)] * 3)  # mm, and 1e-6 rad in degrees
-    numeric = np.stack([
-        (inverse_kinematics(poses + h * e, branch=branch).sliders_mm - inverse_kinematics(poses - h * e, branch=branch).sliders_mm)
-        / (2 * (h if k < 3 else np.radians(h)))
-        for k, (h, e) in enumerate(zip(step, np.eye(6)))
-    ], axis=2)
+    numeric = np.stack(
+        [
+            (
+                inverse_kinematics(poses + h * e, branch=branch).sliders_mm
+                - inverse_kinematics(poses - h * e, branch=branch).sliders_mm
+            )
+            / (2 * (h if k < 3 else np.radians(h)))
+            for k, (h, e) in enumerate(zip(step, np.eye(6)))
+        ],
+        axis=2,
+    )
     assert np.abs(jac - numeric).max() / np.abs(numeric).max() < 1e-6
     np.testing.assert_allclose(jac[:, :, 2], -1.0, atol=1e-12)
     np.testing.assert_allclose(jac[:, 1, 3], 0.0, atol=1e-9)  # corner 2 on the body x axis
@@ -353,7 +451,7 @@ def test_ik_margin_vanishes_at_the_reach_boundary_where_branches_merge():
     assert np.all(np.diff(gaps) < 0)
 
 
-# --- existence test ------------------------------------------------------------------------------------------------------
+# --- existence test -----------------------------------------------------------------------------------------------
 
 
 def test_existence_test_agrees_with_brute_force_over_x2():
@@ -371,7 +469,7 @@ def test_existence_test_agrees_with_brute_force_over_x2():
     assert brute.sum() > 20 and (~brute).sum() > 20
 
 
-# --- workspace --------------------------------------------------------------------------------------------------------------
+# --- workspace ----------------------------------------------------------------------------------------------------
 
 
 def test_tv10_quadrature_volume_matches_reference():
@@ -388,7 +486,7 @@ def test_monte_carlo_volume_agrees_with_quadrature_within_4_se_and_stays_off_the
     assert np.all(accepted > box[:, 0] + 5) and np.all(accepted < box[:, 1] - 5)
 
 
-# --- trajectory ------------------------------------------------------------------------------------------------------------
+# --- trajectory ---------------------------------------------------------------------------------------------------
 
 
 def test_trajectory_boundary_values_and_stated_angles():
@@ -420,9 +518,15 @@ def test_trajectory_reference_samples_paper_frame():
 
 def test_trajectory_in_o2_slider_table_and_rates():
     times = [0, 1, 2.5, 4, 5, 7.5, 10]
-    expected = [[633.368831, 788.525362, 658.711142], [623.032609, 709.277401, 754.720819], [609.032991, 720.222459, 674.448295],
-                [621.469128, 684.191873, 538.115374], [567.492938, 696.023430, 476.076537], [494.722042, 500.785923, 516.430226],
-                [433.104883, 531.354431, 421.420706]]
+    expected = [
+        [633.368831, 788.525362, 658.711142],
+        [623.032609, 709.277401, 754.720819],
+        [609.032991, 720.222459, 674.448295],
+        [621.469128, 684.191873, 538.115374],
+        [567.492938, 696.023430, 476.076537],
+        [494.722042, 500.785923, 516.430226],
+        [433.104883, 531.354431, 421.420706],
+    ]
     trajectory = paper_trajectory(times, origin_mm=STAND_IN_ORIGIN_MM)
     ik = inverse_kinematics(trajectory.pose)
     np.testing.assert_allclose(ik.sliders_mm, expected, atol=1e-6)
@@ -434,7 +538,9 @@ def test_trajectory_in_o2_slider_table_and_rates():
     np.testing.assert_allclose(jac @ rates, [-43.175556, 5.802975, -102.073872], atol=1e-5)
 
 
-@pytest.mark.parametrize("module", [motion.prus3.kinematics, motion.prus3.jacobian, motion.prus3.trajectory], ids=lambda m: m.__name__)
+@pytest.mark.parametrize(
+    "module", [motion.prus3.kinematics, motion.prus3.jacobian, motion.prus3.trajectory], ids=lambda m: m.__name__
+)
 def test_docstring_examples(module):
     failures, tried = doctest.testmod(module, optionflags=doctest.NORMALIZE_WHITESPACE)
     assert tried > 0 and failures == 0

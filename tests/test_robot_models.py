@@ -36,6 +36,11 @@ def test_ik_fk_round_trip_and_jacobian_by_finite_differences(name):
     jac = model.jacobian(poses)
     assert jac.shape == (30, len(rows), len(model.pose_fields))
     h = 1e-5
-    numeric = np.stack([(model.ik(poses + h * e).joints[:, rows] - model.ik(poses - h * e).joints[:, rows]) / (2 * h)
-                        for e in np.eye(len(model.pose_fields))], axis=2)
+    numeric = np.stack(
+        [
+            (model.ik(poses + h * e).joints[:, rows] - model.ik(poses - h * e).joints[:, rows]) / (2 * h)
+            for e in np.eye(len(model.pose_fields))
+        ],
+        axis=2,
+    )
     assert np.abs(jac - numeric).max() / np.abs(numeric).max() < 1e-6

@@ -89,7 +89,9 @@ def legacy_command_byte(servo_deg: object) -> np.ndarray:
     servo = np.asarray(servo_deg, dtype=float)
     bad = (servo < 30.0) | (servo > 160.0) | ~np.isfinite(servo)
     if bad.any():
-        raise MotionInputError(f"servo_deg = {float(servo[bad].ravel()[0])!r}, expected 30 <= angle <= 160 deg (legacy byte)")
+        raise MotionInputError(
+            f"servo_deg = {float(servo[bad].ravel()[0])!r}, expected 30 <= angle <= 160 deg (legacy byte)"
+        )
     return np.floor(servo * _LEGACY_FACTOR + 0.5).astype(int)
 
 

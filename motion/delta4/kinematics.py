@@ -20,7 +20,6 @@ from motion.delta4.geometry import (
     as_points,
     coord_from_servo_deg,
     knees_mm,
-    servo_from_coord_deg,
 )
 from motion.errors import MotionInputError
 
@@ -200,16 +199,13 @@ def _leg_vectors(pose: np.ndarray, knees: np.ndarray, geometry: Geometry) -> np.
     return pose[:, None, :] + geometry.ankle_offset_mm * LEG_OUTWARD - knees
 
 
-def _least_squares(
-    pose: np.ndarray, knees: np.ndarray, geometry: Geometry, *, iterations: int, tolerance_mm: float
+def _gauss_newton(
+    pose: np.ndarray, residual_and_jacobian, *, iterations: int, tolerance_mm: float
 ) -> tuple[np.ndarray, np.ndarray]:
-    """Gauss-Newton over the four sphere residuals |A_i(p) - K_i| - R0 (reference §2.6)."""
+    """Batched Gauss-Newton: ``residual_and_jacobian(pose) -> (r (N, 4), J (N, 4, 3))``; returns pose, converged."""
     converged = np.zeros(len(pose), dtype=bool)
     for _ in range(iterations):
-        legs = _leg_vectors(pose, knees, geometry)
-        length = np.linalg.norm(legs, axis=2)
-        residual = length - geometry.lower_arm_mm
-        jac = legs / length[:, :, None]
+        residual, jac = residual_and_jacobian(pose)
         normal = np.einsum("nki,nkj->nij", jac, jac)
         gradient = np.einsum("nki,nk->ni", jac, residual)
         # det vs (trace/3)^3 flags a near-singular J^T J as cond() would, without an SVD per pose.
@@ -222,6 +218,26 @@ def _least_squares(
         if converged.all():
             break
     return pose, converged
+
+
+def _sphere_residuals(knees: np.ndarray, geometry: Geometry):
+    """Cartesian residuals |A_i(p) - K_i| - R0 (mm) and their Jacobian (reference §2.6)."""
+
+    def evaluate(pose: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        legs = _leg_vectors(pose, knees, geometry)
+        length = np.linalg.norm(legs, axis=2)
+        return length - geometry.lower_arm_mm, legs / length[:, :, None]
+
+    return evaluate
+
+
+def _joint_residuals(servo_deg: np.ndarray, geometry: Geometry):
+    """Joint-space residuals IK_i(p) - theta_Ri (deg) and their Jacobian (reference §2.6, "variant")."""
+
+    def evaluate(pose: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        return inverse_kinematics(pose, geometry).servo_deg - servo_deg, jacobian_deg_per_mm(pose, geometry)
+
+    return evaluate
 
 
 def forward_kinematics(
@@ -240,10 +256,12 @@ def forward_kinematics(
         Servo angles theta_R1..theta_R4, deg (calibrated travel 30-170 deg; not enforced here, measured
         angles may stray).
     geometry : Geometry
-    method : {"least_squares", "closed_form"}, keyword-only
+    method : {"least_squares", "joint_space", "closed_form"}, keyword-only
         ``"closed_form"`` is the thesis algorithm (reference §2.5): exact on legs 1 and 3, and the residual
         lands on legs 2 and 4. ``"least_squares"`` starts from it and minimises the four sphere residuals,
         which treats the legs alike for measured, quantised or noisy angles (reference §2.6).
+        ``"joint_space"`` instead minimises sum_i (IK_i(p) - theta_Ri)^2, which matches an angle-error model
+        (e.g. ADC quantisation) directly; its ``residual_mm`` is still the sphere figure.
     iterations, tolerance_mm : keyword-only
         Gauss-Newton limits (least squares only).
 
@@ -260,16 +278,19 @@ def forward_kinematics(
     >>> forward_kinematics(angles, THESIS, method="closed_form").pose_mm.round(3).tolist()
     [[-69.946, 60.139, -199.864]]
     """
-    if method not in ("least_squares", "closed_form"):
-        raise MotionInputError(f"method = {method!r}, expected 'least_squares' or 'closed_form'")
+    if method not in ("least_squares", "joint_space", "closed_form"):
+        raise MotionInputError(f"method = {method!r}, expected 'least_squares', 'joint_space' or 'closed_form'")
     servo = as_points(servo_deg, 4, "servo_deg")
     knees = knees_mm(servo, geometry)
     pose, ok, reason = _closed_form(knees, geometry)
-    if method == "least_squares":
+    if method != "closed_form":
         start = pose.copy()
         # Without a closed-form start, begin one lower-arm length below the knees' centre.
         start[~ok] = knees[~ok].mean(axis=1) - np.array([0.0, 0.0, 0.8 * geometry.lower_arm_mm])
-        pose, converged = _least_squares(start, knees, geometry, iterations=iterations, tolerance_mm=tolerance_mm)
+        residuals = (
+            _sphere_residuals(knees, geometry) if method == "least_squares" else _joint_residuals(servo, geometry)
+        )
+        pose, converged = _gauss_newton(start, residuals, iterations=iterations, tolerance_mm=tolerance_mm)
         reason = np.where(converged, None, "not_converged")
         ok = converged
     leg_residual = np.linalg.norm(_leg_vectors(pose, knees, geometry), axis=2) - geometry.lower_arm_mm

@@ -14,7 +14,13 @@ from motion.delta4.geometry import NOMINAL, Geometry
 from motion.delta4.kinematics import inverse_kinematics
 from motion.errors import MotionInputError
 
-__all__ = ["DEFAULT_BOX_MM", "WorkspaceVolume", "workspace_samples", "workspace_volume", "reachable_square_half_width_mm"]
+__all__ = [
+    "DEFAULT_BOX_MM",
+    "WorkspaceVolume",
+    "workspace_samples",
+    "workspace_volume",
+    "reachable_square_half_width_mm",
+]
 
 #: Sampling box (x, y, z) bounds in mm; it encloses the whole IK-reachable set of the Table 3 geometry
 #: (axis reach z = -272.5 ... -57.5 mm, lateral reach below +-230 mm).
@@ -87,7 +93,10 @@ def reachable_square_half_width_mm(
     unit = np.stack(np.meshgrid(lattice, lattice, indexing="ij"), axis=-1).reshape(-1, 2)  # (G, 2)
     xy = widths[:, None, None] * unit[None]  # (W, G, 2)
     points = np.concatenate(
-        [np.broadcast_to(xy, (len(heights),) + xy.shape), np.broadcast_to(heights[:, None, None, None], (len(heights),) + xy.shape[:2] + (1,))],
+        [
+            np.broadcast_to(xy, (len(heights),) + xy.shape),
+            np.broadcast_to(heights[:, None, None, None], (len(heights),) + xy.shape[:2] + (1,)),
+        ],
         axis=-1,
     )
     ok = inverse_kinematics(points.reshape(-1, 3), geometry).reachable.reshape(len(heights), len(widths), -1)

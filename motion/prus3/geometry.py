@@ -91,7 +91,9 @@ class Geometry:
     def platform_corners_mm(self) -> np.ndarray:
         """Corners p_j in the platform frame {P}, shape (3, 3) mm (Eq. 14): an equilateral triangle in x_P-z_P."""
         b, delta = self.platform_radius_mm, math.radians(self.corner_angle_deg)
-        return np.array([[b * math.sin(delta), 0, b * math.cos(delta)], [-b, 0, 0], [b * math.sin(delta), 0, -b * math.cos(delta)]])
+        return np.array(
+            [[b * math.sin(delta), 0, b * math.cos(delta)], [-b, 0, 0], [b * math.sin(delta), 0, -b * math.cos(delta)]]
+        )
 
     @property
     def actuated_limit_deg(self) -> float:
@@ -151,7 +153,11 @@ def corners_mm(pose: np.ndarray, geometry: Geometry = STAND_IN) -> tuple[np.ndar
     """
     rotation = rotation_matrix(pose[:, 3:])
     centroid = pose[:, :3] - geometry.tip_offset_mm * rotation[:, :, 1]
-    return centroid[:, None, :] + np.einsum("nij,kj->nki", rotation, geometry.platform_corners_mm), rotation, pose[:, :3]
+    return (
+        centroid[:, None, :] + np.einsum("nij,kj->nki", rotation, geometry.platform_corners_mm),
+        rotation,
+        pose[:, :3],
+    )
 
 
 @dataclass(frozen=True)
@@ -181,14 +187,20 @@ def pose_from_corners(corners: object, geometry: Geometry = STAND_IN, *, method:
     local = geometry.platform_corners_mm
     if method == "closed_form":
         x_axis = (centroid - points[:, 1]) / geometry.platform_radius_mm
-        z_axis = (points[:, 0] - points[:, 2]) / (2 * geometry.platform_radius_mm * math.cos(math.radians(geometry.corner_angle_deg)))
+        z_axis = (points[:, 0] - points[:, 2]) / (
+            2 * geometry.platform_radius_mm * math.cos(math.radians(geometry.corner_angle_deg))
+        )
         rotation = np.stack([x_axis, np.cross(z_axis, x_axis), z_axis], axis=2)
     else:
         h = np.einsum("kj,nki->nji", local, points - centroid[:, None, :])
         u, _, vt = np.linalg.svd(h)
         v = np.swapaxes(vt, 1, 2)
         sign = np.sign(np.linalg.det(v @ np.swapaxes(u, 1, 2)))
-        rotation = v @ (np.eye(3) * np.stack([np.ones_like(sign), np.ones_like(sign), sign], axis=1)[:, None, :]) @ np.swapaxes(u, 1, 2)
+        rotation = (
+            v
+            @ (np.eye(3) * np.stack([np.ones_like(sign), np.ones_like(sign), sign], axis=1)[:, None, :])
+            @ np.swapaxes(u, 1, 2)
+        )
     fitted = centroid[:, None, :] + np.einsum("nij,kj->nki", rotation, local)
     residual = np.sqrt(np.mean(np.sum((fitted - points) ** 2, axis=2), axis=1))
     tip = centroid + geometry.tip_offset_mm * rotation[:, :, 1]

@@ -38,7 +38,9 @@ class SliderJacobian:
     euler_margin: np.ndarray
 
 
-def slider_jacobian(pose: object, geometry: Geometry = STAND_IN, *, branch: object = (1, 1, 1), form: str = "euler") -> SliderJacobian:
+def slider_jacobian(
+    pose: object, geometry: Geometry = STAND_IN, *, branch: object = (1, 1, 1), form: str = "euler"
+) -> SliderJacobian:
     """ds_i/dx for platform poses (N, 6) (mm, deg).
 
     Notes
@@ -71,7 +73,9 @@ def slider_jacobian(pose: object, geometry: Geometry = STAND_IN, *, branch: obje
     if form == "euler":
         cb, sb, cg, sg = np.cos(beta), np.sin(beta), np.cos(gamma), np.sin(gamma)
         zero, one = np.zeros_like(cb), np.ones_like(cb)
-        euler = np.stack([np.stack([cb * cg, -sg, zero], 1), np.stack([cb * sg, cg, zero], 1), np.stack([-sb, zero, one], 1)], 1)
+        euler = np.stack(
+            [np.stack([cb * cg, -sg, zero], 1), np.stack([cb * sg, cg, zero], 1), np.stack([-sb, zero, one], 1)], 1
+        )
         angular = moment @ euler
     lines = np.concatenate([u, moment / geometry.link_mm], axis=2)
     return SliderJacobian(

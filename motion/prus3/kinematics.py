@@ -18,7 +18,14 @@ from motion.errors import MotionInputError
 from motion.prus3.geometry import STAND_IN, Geometry, PoseFit, as_rows, corners_mm, pose_from_corners
 from motion.prus3.revolute import existence_margin, revolute_angles
 
-__all__ = ["IKResult", "LEG_REASONS", "inverse_kinematics", "forward_kinematics", "actuator_residual_mm", "link_directions"]
+__all__ = [
+    "IKResult",
+    "LEG_REASONS",
+    "inverse_kinematics",
+    "forward_kinematics",
+    "actuator_residual_mm",
+    "link_directions",
+]
 
 #: Per-leg failure codes, most fundamental first.
 LEG_REASONS = ("out_of_reach", "slider_stroke", "revolute_range")

@@ -39,7 +39,9 @@ class Prus3Model:
         sliders = tuple(JointSpec(f"s{i}_mm", "mm", low, high) for i in range(1, 4))
         revolutes = tuple(JointSpec(f"x2_leg{i}_deg", "deg", -limit2, limit2) for i in range(1, 4))
         universal = tuple(
-            JointSpec(f"{name}_leg{i}_deg", "deg", -limit, limit, actuated=False) for i in range(1, 4) for name in ("x3", "x4")
+            JointSpec(f"{name}_leg{i}_deg", "deg", -limit, limit, actuated=False)
+            for i in range(1, 4)
+            for name in ("x3", "x4")
         )
         object.__setattr__(self, "joints", sliders + revolutes + universal)
 

@@ -60,7 +60,10 @@ def _balanced_x2(phi: np.ndarray, rho: np.ndarray, uy: np.ndarray) -> np.ndarray
     low, high = np.zeros_like(phi), np.minimum(magnitude, np.pi / 2)
     for _ in range(60):
         t = 0.5 * (low + high)
-        h = np.maximum(np.arctan2(np.sqrt(np.clip(1 - (rho * np.cos(t)) ** 2, 0, None)), rho * np.cos(t)), np.arctan2(rho * np.sin(t), uy))
+        h = np.maximum(
+            np.arctan2(np.sqrt(np.clip(1 - (rho * np.cos(t)) ** 2, 0, None)), rho * np.cos(t)),
+            np.arctan2(rho * np.sin(t), uy),
+        )
         below = magnitude - t > h
         low, high = np.where(below, t, low), np.where(below, high, t)
     t = np.where(magnitude <= np.arcsin(np.clip(uy, 0, 1)), 0.0, 0.5 * (low + high))

@@ -82,7 +82,9 @@ def paper_trajectory(
         raise MotionInputError(f"t_s = {t_s!r}, duration_s = {duration_s!r}: expected finite times (N,) and T_d > 0")
     tau = (times / duration_s)[:, None]
     delta = np.asarray(end_mm, dtype=float) - np.asarray(start_mm, dtype=float)
-    position = np.asarray(start_mm, dtype=float) + np.asarray(origin_mm, dtype=float) + delta * (3 * tau**2 - 2 * tau**3)
+    position = (
+        np.asarray(start_mm, dtype=float) + np.asarray(origin_mm, dtype=float) + delta * (3 * tau**2 - 2 * tau**3)
+    )
     velocity = delta * (6 * tau - 6 * tau**2) / duration_s
     omega = np.pi * np.asarray(harmonics, dtype=float) / duration_s
     amplitude = np.asarray(amplitudes_rad, dtype=float)

@@ -16,8 +16,15 @@ from motion.prus3.geometry import STAND_IN, Geometry, as_rows, corners_mm, rotat
 from motion.prus3.kinematics import _slider_solutions, link_directions
 from motion.prus3.revolute import existence_margin
 
-__all__ = ["DEFAULT_BOX_MM", "CRITERIA", "WorkspaceVolume", "reachable_any_branch", "workspace_samples",
-           "workspace_volume", "workspace_volume_quadrature"]
+__all__ = [
+    "DEFAULT_BOX_MM",
+    "CRITERIA",
+    "WorkspaceVolume",
+    "reachable_any_branch",
+    "workspace_samples",
+    "workspace_volume",
+    "workspace_volume_quadrature",
+]
 
 #: Box enclosing the stand-in's zero-orientation workspace (x 184-553, |y| <= 324, z extent ~1.97 m), mm.
 DEFAULT_BOX_MM = ((150.0, 650.0), (-350.0, 350.0), (-1900.0, 700.0))
@@ -103,7 +110,9 @@ def workspace_volume(
     accepted = 0
     for start in range(0, count, chunk):
         size = min(chunk, count - start)
-        _, ok = workspace_samples(size, geometry, orientation_deg=orientation_deg, box_mm=box, seed=rng, criterion=criterion)
+        _, ok = workspace_samples(
+            size, geometry, orientation_deg=orientation_deg, box_mm=box, seed=rng, criterion=criterion
+        )
         accepted += int(ok.sum())
     box_volume = float(np.prod(box[:, 1] - box[:, 0]))
     fraction = accepted / count
