@@ -18,7 +18,7 @@ def _run(capsys, *argv):
 
 
 def test_iso9283_json(capsys):
-    code, out, err = _run(capsys, "analyze", "iso9283", str(DATA / "iso9283_example.csv"), "--json")
+    code, out, _ = _run(capsys, "analyze", "iso9283", str(DATA / "iso9283_example.csv"), "--json")
     assert code == 0
     poses = json.loads(out)["poses"]
     assert list(poses) == ["P1", "P5", "P4", "P3", "P2"]

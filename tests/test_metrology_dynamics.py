@@ -4,7 +4,13 @@ import numpy as np
 import pytest
 
 from bench.errors import ConfigError, InsufficientData
-from bench.metrology import path_characteristics, pose_accuracy, pose_drift, pose_repeatability, position_stabilisation
+from bench.metrology import (
+    path_characteristics,
+    pose_accuracy,
+    pose_drift,
+    pose_repeatability,
+    position_stabilisation,
+)
 
 
 def test_drift_matches_per_window_reference():

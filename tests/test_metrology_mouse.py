@@ -6,7 +6,12 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from bench.errors import ConfigError, InsufficientData
-from bench.metrology import fit_axis_scale, fit_matrix, increment_resolution, increments_from_positions
+from bench.metrology import (
+    fit_axis_scale,
+    fit_matrix,
+    increment_resolution,
+    increments_from_positions,
+)
 
 # Table A.28, Y axis, mouse speed 4, 5 mm increments: cursor Y positions (pkm5.md §6.11).
 A28_POSITIONS = [951, 926, 902, 877, 853, 829, 805, 780, 756, 731, 706, 682, 657, 633, 608, 584, 560, 537, 513]

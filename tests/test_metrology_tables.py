@@ -9,7 +9,12 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from bench.errors import ConfigError, InsufficientData
-from bench.metrology.tables import analyze_distance, analyze_poses, pose_table, read_table_csv
+from bench.metrology.tables import (
+    analyze_distance,
+    analyze_poses,
+    pose_table,
+    read_table_csv,
+)
 
 EXAMPLE = Path(__file__).resolve().parents[1] / "examples" / "data" / "iso9283_example.csv"
 HEADER = "pose,cycle,cmd_x_mm,cmd_y_mm,cmd_z_mm,x_mm,y_mm,z_mm"

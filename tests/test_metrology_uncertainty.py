@@ -89,7 +89,7 @@ def test_accuracy_uncertainty_per_axis_and_norm():
 def test_bootstrap_is_reproducible_and_scales():
     rng = np.random.default_rng(11)
     cloud = rng.normal(0, 0.2, (30, 3))
-    statistic = lambda p: pose_repeatability(p).rp_mm  # noqa: E731
+    statistic = lambda p: pose_repeatability(p).rp_mm
     a = bootstrap_uncertainty(statistic, cloud, resamples=300, seed=1)
     assert a == bootstrap_uncertainty(statistic, cloud, resamples=300, seed=1)
     assert bootstrap_uncertainty(statistic, cloud * 10, resamples=300, seed=1) == pytest.approx(10 * a)

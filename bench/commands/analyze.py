@@ -13,7 +13,13 @@ import numpy as np
 
 from bench.commands.kin import emit
 from bench.errors import ConfigError
-from bench.metrology import combine, expanded, groover_actuator, leg_error_summary, pose_drift
+from bench.metrology import (
+    combine,
+    expanded,
+    groover_actuator,
+    leg_error_summary,
+    pose_drift,
+)
 from bench.metrology.tables import (
     analyze_distance,
     analyze_poses,
@@ -68,8 +74,8 @@ def _new_parser(actions: argparse._SubParsersAction, name: str, text: str) -> ar
 def _iso9283(args: argparse.Namespace) -> int:
     table = pose_table(read_table_csv(args.file))
     results = analyze_poses(table, instrument_u_mm=args.instrument_u_mm, k=args.k)
-    lines = [f"{'pose':<12} {'n':>3} {'AP_mm':>8} {'APx_mm':>8} {'APy_mm':>8} {'APz_mm':>8} {'RP_mm':>8} "
-             f"{'U_AP':>7} {'U_RP':>7}"]
+    lines = [(f"{'pose':<12} {'n':>3} {'AP_mm':>8} {'APx_mm':>8} {'APy_mm':>8} {'APz_mm':>8} {'RP_mm':>8} "
+              f"{'U_AP':>7} {'U_RP':>7}")]
     for r in results:
         ax, ay, az = r.accuracy.ap_axes_mm
         lines.append(f"{r.label:<12} {r.accuracy.n:>3} {r.accuracy.ap_mm:8.3f} {ax:8.3f} {ay:8.3f} {az:8.3f} "
@@ -93,8 +99,8 @@ def _distance(args: argparse.Namespace) -> int:
               "k": u_ad.coverage_factor, "RD_mm": r.rd_mm,
               "AD_axes_mm": list(r.ad_axes_mm), "RD_axes_mm": list(r.rd_axes_mm),
               "mean_distance_mm": r.mean_distance_mm, "commanded_distance_mm": r.commanded_distance_mm}
-    lines = [f"{args.first} -> {args.second}, n = {r.n}: D_c = {r.commanded_distance_mm:.3f} mm, "
-             f"D̄ = {r.mean_distance_mm:.3f} mm",
+    lines = [(f"{args.first} -> {args.second}, n = {r.n}: D_c = {r.commanded_distance_mm:.3f} mm, "
+              f"D̄ = {r.mean_distance_mm:.3f} mm"),
              f"AD_p = {u_ad}, RD = ±{r.rd_mm:.4f} mm",
              "AD x/y/z = " + " / ".join(f"{v:+.4f}" for v in r.ad_axes_mm) + " mm, RD x/y/z = ±"
              + " / ±".join(f"{v:.4f}" for v in r.rd_axes_mm) + " mm"]
@@ -129,8 +135,8 @@ def _actuator(args: argparse.Namespace) -> int:
     table = numeric_columns(frame, ["cmd_mm", "travel_mm", *(["cr_mm"] if has_cr else [])])
     if "actuator" not in table.columns:
         raise ConfigError(f"{args.file}: missing column actuator")
-    result, lines = {}, [f"{'actuator':<9} {'n':>3} {'repeat_mm':>9} {'accuracy_mm':>11} {'max|bias|_mm':>12}  "
-                         "mean deviation per target (mm)"]
+    result, lines = {}, [(f"{'actuator':<9} {'n':>3} {'repeat_mm':>9} {'accuracy_mm':>11} {'max|bias|_mm':>12}  "
+                          "mean deviation per target (mm)")]
     for name, rows in table.groupby(table["actuator"].astype(str).str.strip(), sort=False):
         targets = np.unique(rows["cmd_mm"].to_numpy())
         counts = {float(t): int((rows["cmd_mm"] == t).sum()) for t in targets}

@@ -8,17 +8,17 @@ Units: mm, degrees, s, kg, N. Results are frozen dataclasses; too few samples ra
 bench/reports imports from here.
 """
 
-from bench.metrology.actuator import *  # noqa: F403
+from bench.metrology.actuator import *
 from bench.metrology.actuator import __all__ as _actuator
-from bench.metrology.iso9283 import *  # noqa: F403
+from bench.metrology.iso9283 import *
 from bench.metrology.iso9283 import __all__ as _iso9283
-from bench.metrology.iso9283_dynamics import *  # noqa: F403
+from bench.metrology.iso9283_dynamics import *
 from bench.metrology.iso9283_dynamics import __all__ as _dynamics
-from bench.metrology.mouse_calibration import *  # noqa: F403
+from bench.metrology.mouse_calibration import *
 from bench.metrology.mouse_calibration import __all__ as _mouse
-from bench.metrology.payload import *  # noqa: F403
+from bench.metrology.payload import *
 from bench.metrology.payload import __all__ as _payload
-from bench.metrology.uncertainty import *  # noqa: F403
+from bench.metrology.uncertainty import *
 from bench.metrology.uncertainty import __all__ as _uncertainty
 
 __all__ = [*_iso9283, *_dynamics, *_actuator, *_mouse, *_payload, *_uncertainty]

@@ -158,13 +158,13 @@ def positioning_iso230_2(targets_mm, forward_mm, backward_mm=None) -> Positionin
     targets, forward = _targets_and_readings(targets_mm, forward_mm, "forward_mm")
     up = forward - targets
     mean_up, s_up = up.mean(axis=0), up.std(axis=0, ddof=1)
-    common = dict(
-        mean_deviation_forward_mm=tuple(float(v) for v in mean_up),
-        repeatability_forward_mm=float((4.0 * s_up).max()),
-        systematic_forward_mm=_span(mean_up, mean_up),
-        accuracy_forward_mm=_span(mean_up + 2 * s_up, mean_up - 2 * s_up),
-        n=len(forward),
-    )
+    common = {
+        "mean_deviation_forward_mm": tuple(float(v) for v in mean_up),
+        "repeatability_forward_mm": float((4.0 * s_up).max()),
+        "systematic_forward_mm": _span(mean_up, mean_up),
+        "accuracy_forward_mm": _span(mean_up + 2 * s_up, mean_up - 2 * s_up),
+        "n": len(forward),
+    }
     if backward_mm is None:
         empty = dict.fromkeys(
             ("mean_deviation_backward_mm", "reversal_mm", "repeatability_backward_mm", "repeatability_mm",

@@ -17,23 +17,28 @@ from itertools import combinations
 import numpy as np
 
 from bench.errors import ConfigError
-from bench.metrology._validation import as_points, as_vector, require_count, require_same_length
+from bench.metrology._validation import (
+    as_points,
+    as_vector,
+    require_count,
+    require_same_length,
+)
 
 __all__ = [
-    "PoseAccuracy",
-    "PoseRepeatability",
+    "DistanceCharacteristics",
+    "MultidirectionalVariation",
     "OrientationAccuracy",
     "OrientationRepeatability",
-    "MultidirectionalVariation",
-    "DistanceCharacteristics",
-    "pose_accuracy",
-    "pose_repeatability",
+    "PoseAccuracy",
+    "PoseRepeatability",
+    "circular_mean_deg",
+    "distance_characteristics",
+    "exchangeability",
+    "multidirectional_variation",
     "orientation_accuracy",
     "orientation_repeatability",
-    "multidirectional_variation",
-    "exchangeability",
-    "distance_characteristics",
-    "circular_mean_deg",
+    "pose_accuracy",
+    "pose_repeatability",
     "wrap_deg",
 ]
 

@@ -13,15 +13,21 @@ from dataclasses import dataclass
 import numpy as np
 
 from bench.errors import ConfigError, InsufficientData
-from bench.metrology._validation import as_points, as_series, as_vector, require_count, require_same_length
+from bench.metrology._validation import (
+    as_points,
+    as_series,
+    as_vector,
+    require_count,
+    require_same_length,
+)
 
 __all__ = [
+    "PathCharacteristics",
     "PoseDrift",
     "Stabilisation",
-    "PathCharacteristics",
+    "path_characteristics",
     "pose_drift",
     "position_stabilisation",
-    "path_characteristics",
 ]
 
 

@@ -12,16 +12,21 @@ from dataclasses import dataclass
 import numpy as np
 
 from bench.errors import ConfigError, InsufficientData
-from bench.metrology._validation import as_points, as_series, require_count, require_same_length
+from bench.metrology._validation import (
+    as_points,
+    as_series,
+    require_count,
+    require_same_length,
+)
 
 __all__ = [
-    "IncrementResolution",
     "AxisCalibration",
+    "IncrementResolution",
     "MatrixCalibration",
-    "increments_from_positions",
-    "increment_resolution",
     "fit_axis_scale",
     "fit_matrix",
+    "increment_resolution",
+    "increments_from_positions",
 ]
 
 

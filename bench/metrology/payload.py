@@ -14,16 +14,21 @@ from dataclasses import dataclass
 import numpy as np
 
 from bench.errors import ConfigError, InsufficientData
-from bench.metrology._validation import as_points, as_series, require_count, require_same_length
+from bench.metrology._validation import (
+    as_points,
+    as_series,
+    require_count,
+    require_same_length,
+)
 
 __all__ = [
     "STANDARD_GRAVITY_M_S2",
     "LegErrorSummary",
-    "PayloadShift",
     "PayloadCompliance",
+    "PayloadShift",
     "leg_error_summary",
-    "payload_shift",
     "payload_compliance",
+    "payload_shift",
 ]
 
 #: Standard acceleration of gravity (m/s²). The dissertation's 25.23 kg ↔ 247.51 N implies 9.81.

@@ -29,19 +29,24 @@ from bench.metrology.iso9283 import (
     pose_accuracy,
     pose_repeatability,
 )
-from bench.metrology.uncertainty import Measured, accuracy_uncertainty, expanded, repeatability_uncertainty
+from bench.metrology.uncertainty import (
+    Measured,
+    accuracy_uncertainty,
+    expanded,
+    repeatability_uncertainty,
+)
 
 __all__ = [
-    "POSE_COLUMNS",
     "ANGLE_PAIRS",
     "CONDITION_COLUMNS",
+    "POSE_COLUMNS",
     "PoseResult",
-    "read_table_csv",
-    "numeric_columns",
-    "pose_table",
-    "analyze_poses",
     "analyze_distance",
+    "analyze_poses",
+    "numeric_columns",
     "pose_result_json",
+    "pose_table",
+    "read_table_csv",
 ]
 
 POSE_COLUMNS = ("pose", "cycle", "cmd_x_mm", "cmd_y_mm", "cmd_z_mm", "x_mm", "y_mm", "z_mm")

@@ -16,19 +16,19 @@ from bench.errors import ConfigError
 from bench.metrology._validation import as_points, as_series, require_count
 
 __all__ = [
-    "Measured",
     "ConfidenceInterval",
-    "type_a_of_mean",
-    "rectangular",
-    "resolution_uncertainty",
-    "combine",
-    "expanded",
-    "welch_satterthwaite",
-    "mean_confidence_interval",
+    "Measured",
     "accuracy_uncertainty",
     "bootstrap_uncertainty",
-    "repeatability_uncertainty",
+    "combine",
+    "expanded",
     "instrument_rp_floor",
+    "mean_confidence_interval",
+    "rectangular",
+    "repeatability_uncertainty",
+    "resolution_uncertainty",
+    "type_a_of_mean",
+    "welch_satterthwaite",
 ]
 
 
