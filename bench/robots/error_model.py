@@ -7,14 +7,15 @@ forward kinematics returns (mm for positions, the kinematics' own angle unit for
 
 For joint i with commanded value q_i, direction of the last motion d_i (+1/-1/0) and payload m (kg):
 
-.. math:: q_i^{true} = o_i + (1 + s_i)\\,q_i - \\tfrac12 b_i d_i - k_i m + \\varepsilon_i,
+.. math:: q_i^{true} = q_i + o_i + s_i\\,(q_i - z_i) - \\tfrac12 b_i d_i - k_i m + \\varepsilon_i,
           \\quad \\varepsilon_i \\sim N(0, \\sigma_q^2)
 
+with z_i the joint value about which the scale error acts (PKM5: zero stroke; delta4: mid-range servo angle),
 and for the pose p = FK(q^true), with p_0 the reference (home) pose:
 
-.. math:: p^{true} = p + G\\,(p - p_0) + m\\,c + \\eta, \\quad \\eta \\sim N(0, \\operatorname{diag}\\sigma_p^2)
+.. math:: p^{true} = p + e + G\\,(p - p_0) + m\\,c + \\eta, \\quad \\eta \\sim N(0, \\operatorname{diag}\\sigma_p^2)
 
-``G`` is a small random matrix (pose-dependent, anisotropic error, e.g. mis-calibrated geometry), ``c`` the sag per
+``e`` is a constant assembly bias, ``G`` a small random matrix (pose-dependent, anisotropic error, e.g. mis-calibrated geometry), ``c`` the sag per
 kg of payload, and ``eta`` the play of the passive joints (the dominant random term on both documented robots).
 """
 
@@ -49,6 +50,8 @@ class ErrorMagnitudes:
         Passive-joint play per pose coordinate, pose units.
     pose_sag_per_kg : tuple of float
         Pose drift per kg of payload, pose units/kg (e.g. z drops).
+    pose_offset_sigma : tuple of float
+        Constant pose bias of the assembled robot (end-effector mounting, frame alignment), pose units.
     """
 
     scale_sigma: float
@@ -59,6 +62,7 @@ class ErrorMagnitudes:
     pose_gain_sigma: float
     pose_play_sigma: tuple[float, ...]
     pose_sag_per_kg: tuple[float, ...]
+    pose_offset_sigma: tuple[float, ...]
 
 
 @dataclass(frozen=True)
@@ -73,10 +77,13 @@ class ErrorModel:
     pose_gain: np.ndarray      # (P, P)
     pose_play_sigma: np.ndarray  # (P,)
     pose_sag_per_kg: np.ndarray  # (P,)
+    pose_offset: np.ndarray      # (P,)
+    joint_zero: np.ndarray | float = 0.0  # (J,) or scalar: where the scale error vanishes
     seed: int = 0
 
     @classmethod
-    def draw(cls, magnitudes: ErrorMagnitudes, n_joints: int, seed: int) -> "ErrorModel":
+    def draw(cls, magnitudes: ErrorMagnitudes, n_joints: int, seed: int,
+             joint_zero: np.ndarray | float = 0.0) -> "ErrorModel":
         """Draw one robot's systematic errors from ``seed`` (deterministic)."""
         rng = np.random.default_rng([seed, 0])
         n_pose = len(magnitudes.pose_play_sigma)
@@ -89,6 +96,8 @@ class ErrorModel:
             pose_gain=rng.normal(0.0, magnitudes.pose_gain_sigma, (n_pose, n_pose)),
             pose_play_sigma=np.asarray(magnitudes.pose_play_sigma, dtype=float),
             pose_sag_per_kg=np.asarray(magnitudes.pose_sag_per_kg, dtype=float),
+            pose_offset=rng.normal(0.0, 1.0, n_pose) * np.asarray(magnitudes.pose_offset_sigma, dtype=float),
+            joint_zero=joint_zero,
             seed=seed,
         )
 
@@ -96,20 +105,22 @@ class ErrorModel:
     def ideal(cls, n_joints: int, n_pose: int) -> "ErrorModel":
         """No error at all (the attained pose is the commanded one, up to step quantisation)."""
         zeros = np.zeros(n_joints)
-        return cls(zeros, zeros, zeros, 0.0, zeros, np.zeros((n_pose, n_pose)), np.zeros(n_pose), np.zeros(n_pose))
+        return cls(zeros, zeros, zeros, 0.0, zeros, np.zeros((n_pose, n_pose)), np.zeros(n_pose), np.zeros(n_pose),
+                   np.zeros(n_pose))
 
     def true_joints(self, commanded: np.ndarray, direction: np.ndarray, load_kg: float,
                     rng: np.random.Generator) -> np.ndarray:
         """Attained joint values, shape (J,), from commanded (J,) and last-motion directions (J,)."""
         noise = rng.normal(0.0, self.noise_sigma, commanded.shape) if self.noise_sigma else 0.0
-        return (self.offset + (1.0 + self.scale) * commanded - 0.5 * self.backlash * direction
-                - self.sag_per_kg * load_kg + noise)
+        return (commanded + self.offset + self.scale * (commanded - self.joint_zero)
+                - 0.5 * self.backlash * direction - self.sag_per_kg * load_kg + noise)
 
     def true_pose(self, pose: np.ndarray, reference_pose: np.ndarray, load_kg: float,
                   rng: np.random.Generator) -> np.ndarray:
         """Attained pose, shape (P,), from the forward kinematics of the attained joints."""
         play = rng.normal(0.0, 1.0, pose.shape) * self.pose_play_sigma
-        return pose + self.pose_gain @ (pose - reference_pose) + load_kg * self.pose_sag_per_kg + play
+        return (pose + self.pose_offset + self.pose_gain @ (pose - reference_pose) + load_kg * self.pose_sag_per_kg
+                + play)
 
 
 @dataclass

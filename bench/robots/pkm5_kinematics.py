@@ -24,8 +24,8 @@ __all__ = ["PKM5_ERRORS", "build_plant", "check_steps", "home_steps", "pose_deg_
 #: Table A.7 (sigma 0.02-0.11 mm); passive-joint play dominates the random part (joint tolerance <= 1 mm, Table 4-2).
 PKM5_ERRORS = ErrorMagnitudes(
     scale_sigma=0.003, offset_sigma=0.25, backlash=0.10, noise_sigma=0.05, sag_per_kg=0.005,
-    pose_gain_sigma=0.004, pose_play_sigma=(0.5, 0.5, 0.5, 0.35, 0.35),
-    pose_sag_per_kg=(0.0, 0.0, -0.03, 0.0, 0.0),
+    pose_gain_sigma=0.004, pose_play_sigma=(0.6, 0.6, 0.6, 0.35, 0.35),
+    pose_sag_per_kg=(0.0, 0.0, -0.03, 0.0, 0.0), pose_offset_sigma=(0.5, 0.5, 0.5, 1.0, 1.0),
 )
 _MODE_TOL_MM = 1e-3
 
@@ -90,9 +90,10 @@ def build_plant(seed: int, *, ideal: bool = False, geometry: Any = pkm5.DEFAULT_
         mode = pkm5.detect_mode(commanded[None, :], _MODE_TOL_MM)[0]
         start = None if previous is None else np.r_[previous[:3], np.radians(previous[3:])]
         fk = pkm5.forward_kinematics(lengths[None, :], geometry, initial_pose=start, mode=mode,
-                                     residual_tol_mm=0.5)
+                                     residual_tol_mm=2.0)
         return pose_deg_from_rad(fk.pose[0]) if fk.converged[0] else None
 
-    model = ErrorModel.ideal(6, 5) if ideal else ErrorModel.draw(PKM5_ERRORS, 6, seed)
+    model = (ErrorModel.ideal(6, 5) if ideal else
+             ErrorModel.draw(PKM5_ERRORS, 6, seed, np.asarray(geometry.leg_length_offset_mm)))
     home_fk = pkm5.forward_kinematics(geometry.home_lengths_mm[None, :], geometry)
     return Plant(joints_of, forward, model, pose_deg_from_rad(home_fk.pose[0]), seed)

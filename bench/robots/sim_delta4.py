@@ -40,7 +40,8 @@ HOME_POINT_MM = (0.0, 0.0, -150.0)
 #: Error sizes giving axial errors of 2-3 mm and spatial errors up to about 4 mm (reference §7.2); joint units deg.
 DELTA4_ERRORS = ErrorMagnitudes(
     scale_sigma=0.004, offset_sigma=0.35, backlash=0.6, noise_sigma=ADC_DEG_PER_COUNT / math.sqrt(3),
-    sag_per_kg=0.15, pose_gain_sigma=0.004, pose_play_sigma=(0.45, 0.45, 0.45), pose_sag_per_kg=(0.0, 0.0, -0.8),
+    sag_per_kg=0.15, pose_gain_sigma=0.004, pose_play_sigma=(0.6, 0.6, 0.6), pose_sag_per_kg=(0.0, 0.0, -0.8),
+    pose_offset_sigma=(0.3, 0.3, 0.3),
 )
 
 Sensor = Callable[[np.ndarray], tuple[tuple[int, ...], tuple[int, ...]]]
@@ -170,7 +171,7 @@ def build_plant(seed: int, *, ideal: bool = False, geometry: Any = None) -> tupl
         result = delta4.forward_kinematics(servo_deg.reshape(1, 4), geometry)
         return result.pose_mm[0] if bool(result.ok[0]) else None
 
-    model = ErrorModel.ideal(4, 3) if ideal else ErrorModel.draw(DELTA4_ERRORS, 4, seed)
+    model = ErrorModel.ideal(4, 3) if ideal else ErrorModel.draw(DELTA4_ERRORS, 4, seed, joint_zero=100.0)
     home = delta4.inverse_kinematics(np.array([HOME_POINT_MM]), geometry).servo_deg[0]
     return Plant(lambda q: q, forward, model, np.array(HOME_POINT_MM), seed), home
 
