@@ -1,0 +1,172 @@
+"""Simulated rigs: a simulator process on a pseudo-terminal, the real driver over pyserial, simulated sensors.
+
+The robot is the real :class:`bench.robots.pkm5.Pkm5Controller` talking to ``python -m bench.robots.sim_pkm5``
+through the pty it prints, exactly as to hardware. The instrument is the dissertation's pair of optical mice
+(one in the x-y plane, one in the x-z plane) simulated by :class:`bench.sensors.mouse_sim.MouseSimulator`: after
+each move the simulator's true attained pose (``SIMTRUE``) drives the simulated mice, which write kernel
+``input_event`` records into FIFOs that :class:`bench.sensors.mouse.EvdevMouse` reads as it would read
+``/dev/input``. Counts become mm through the stored calibration; the instrument's frame is registered once at the
+robot's home. Prompts are answered by a scripted operator that also tells the simulator the payload.
+"""
+
+from __future__ import annotations
+
+import os
+import select
+import subprocess
+import sys
+import tempfile
+from typing import Any, Callable
+
+import numpy as np
+
+from bench.errors import LinkError
+from bench.protocols.rig import Measurement, Rig
+from bench.protocols.steps import Capture, Prompt
+
+__all__ = ["DriverMover", "SimulatedMice", "SimulatedOperator", "simulated_rig", "start_simulator"]
+
+#: The documents' firmware speed, taken as the rated (100 %) velocity of the pkm5: 200 steps/s (000 App. B.2).
+RATED_SPEED_STEPS_S = 200
+#: Simulated mouse motion between two captures, s (the move itself is not observed, only its end points).
+_MOTION_S = 0.05
+
+
+def start_simulator(robot: str, *, seed: int, speed_factor: float, ideal: bool = False,
+                    timeout_s: float = 20.0) -> tuple[subprocess.Popen, str]:
+    """Start ``python -m bench.robots.sim_<robot>``; returns the process and the pty path it printed."""
+    command = [sys.executable, "-m", f"bench.robots.sim_{robot}", "--seed", str(seed), "--speed-factor",
+               str(speed_factor)] + (["--ideal"] if ideal else [])
+    process = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    ready, _, _ = select.select([process.stdout], [], [], timeout_s)
+    line = process.stdout.readline().strip() if ready else ""
+    if not line.startswith("/dev/"):
+        process.kill()
+        error = process.stderr.read().strip().splitlines()
+        raise LinkError(f"simulator {' '.join(command[1:3])}: no pty path within {timeout_s:g} s "
+                        f"({error[-1] if error else 'no output'})")
+    return process, line
+
+
+class DriverMover:
+    """Adapts a pkm5 controller to the runner's ``Mover``: velocity in % of the rated speed."""
+
+    def __init__(self, controller: Any, rated_speed_steps_s: int = RATED_SPEED_STEPS_S) -> None:
+        self.controller = controller
+        self.rated_speed_steps_s = rated_speed_steps_s
+
+    def move_to(self, target: tuple[float, ...], *, velocity_pct: float) -> None:
+        pose = tuple(target) + (0.0,) * (5 - len(target))
+        speed = max(1, round(self.rated_speed_steps_s * velocity_pct / 100.0))
+        self.controller.move_to_pose(pose, speed_steps_s=speed)
+
+    def stop(self) -> None:
+        self.controller.stop()
+
+    def shutdown(self) -> None:
+        self.controller.shutdown()
+
+    def settings(self) -> dict[str, Any]:
+        return {**self.controller.settings(), "rated_speed_steps_s": self.rated_speed_steps_s}
+
+
+class SimulatedMice:
+    """Two simulated optical mice (x-y and x-z planes) observing the simulator's true pose, read through FIFOs."""
+
+    def __init__(self, controller: Any, folder: str, *, seed: int, cpi: float = 800.0,
+                 noise_counts: float = 0.3, calibration_id: str = "sim-mouse-800cpi") -> None:
+        from bench.sensors.calibration import CountsCalibration
+        from bench.sensors.mouse import EvdevMouse
+        from bench.sensors.mouse_sim import MouseSimulator
+
+        self.controller = controller
+        self.cpi, self.noise_counts = cpi, noise_counts
+        self.calibration = CountsCalibration.from_cpi(cpi, calibration_id=calibration_id, date="2026-01-01")
+        self._writers, self.mice, self.sims = {}, {}, {}
+        for index, plane in enumerate(("xy", "xz")):
+            path = os.path.join(folder, f"mouse_{plane}.fifo")
+            os.mkfifo(path)
+            self._writers[plane] = os.open(path, os.O_RDWR)  # a writer first, so the reader's open returns
+            self.mice[plane] = EvdevMouse(path, self.calibration, label=f"mouse_{plane}")
+            self.sims[plane] = MouseSimulator(cpi=cpi, noise_counts=noise_counts, seed=seed * 10 + index)
+        self.origin = np.asarray(controller.sim_true_pose(), dtype=float)[:3]  # registration at home
+        self._last = self.origin.copy()
+        self._clock_s = 0.0
+
+    def _observe(self, true_xyz: np.ndarray) -> None:
+        t = np.linspace(0.0, _MOTION_S, 6)
+        path = self._last + np.outer(t / _MOTION_S, true_xyz - self._last)
+        for plane, columns in (("xy", [0, 1]), ("xz", [0, 2])):
+            start = (self._last - self.origin)[columns]
+            sim = self.sims[plane]
+            # each segment gets its own noise stream, so repeated segments are not identical
+            sim = type(sim)(cpi=sim.cpi, noise_counts=sim.noise_counts, seed=sim.seed + int(self._clock_s * 1e3))
+            data = sim.input_events(t, path[:, columns] - self.origin[columns] - start, t0_s=self._clock_s)
+            os.write(self._writers[plane], data)
+        self._clock_s += 2 * _MOTION_S
+        self._last = true_xyz
+
+    def measure(self, capture: Capture) -> Measurement:
+        true_pose = np.asarray(self.controller.sim_true_pose(), dtype=float)
+        self._observe(true_pose[:3])
+        xy = self.mice["xy"].read(timeout_s=0.001)
+        xz = self.mice["xz"].read(timeout_s=0.001)
+        x_mm, y_mm = self.origin[:2] + np.asarray(xy.value)
+        z_mm = self.origin[2] + xz.value[1]
+        return Measurement({"x_mm": float(x_mm), "y_mm": float(y_mm), "z_mm": float(z_mm)},
+                           raw={"counts_xy": list(xy.raw), "counts_xz": list(xz.raw),
+                                "true_pose": [round(float(v), 6) for v in true_pose],
+                                "calibration": self.calibration.calibration_id})
+
+    def settings(self) -> dict[str, Any]:
+        return {"instrument": "two simulated optical mice (x-y, x-z) over FIFOs", "cpi": self.cpi,
+                "noise_counts": self.noise_counts, "calibration_id": self.calibration.calibration_id,
+                "registration_mm": [float(v) for v in self.origin]}
+
+    def close(self) -> None:
+        for plane in self.mice:
+            self.mice[plane].close()
+            os.close(self._writers[plane])
+
+
+class SimulatedOperator:
+    """Confirms instructions (telling the simulator the payload) and answers readings with ``answer(prompt)``."""
+
+    def __init__(self, controller: Any, answer: Callable[[Prompt], float] | None = None) -> None:
+        self.controller = controller
+        self.answer = answer
+
+    def ask(self, prompt: Prompt) -> float | None:
+        if "load_kg" in prompt.conditions:
+            self.controller.sim_set_load(float(prompt.conditions["load_kg"]))
+        if prompt.field is None:
+            return None
+        if self.answer is None:
+            raise LinkError(f"simulated operator: no answer for {prompt.field} ({prompt.text})")
+        return self.answer(prompt)
+
+
+def simulated_rig(robot: str = "pkm5", *, seed: int = 0, speed_factor: float = 1000.0, ideal: bool = False,
+                  answer: Callable[[Prompt], float] | None = None) -> Rig:
+    """A rig on a freshly started simulator (close it with ``rig.close()``)."""
+    import serial
+
+    from bench.robots.pkm5 import Pkm5Controller
+
+    if robot != "pkm5":
+        raise LinkError(f"--robot {robot}: no simulated rig yet for this robot, expected pkm5")
+    process, path = start_simulator(robot, seed=seed, speed_factor=speed_factor, ideal=ideal)
+    folder = tempfile.TemporaryDirectory(prefix="bench-sim-")
+    closers: list[Callable[[], None]] = [folder.cleanup, lambda: (process.terminate(), process.wait(5))]
+    try:
+        controller = Pkm5Controller(serial.serial_for_url(path, baudrate=115200, timeout=0.05))
+        controller.identify()
+        controller.enable()
+        mice = SimulatedMice(controller, folder.name, seed=seed)
+    except BaseException:
+        for close in reversed(closers):
+            close()
+        raise
+    closers.append(mice.close)
+    return Rig(DriverMover(controller), mice, SimulatedOperator(controller, answer), speed_factor=speed_factor,
+               closers=closers)
