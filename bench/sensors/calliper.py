@@ -74,15 +74,16 @@ class ReadingRequest:
 
 
 def prompt_reading(request: ReadingRequest, store: Callable[[Reading], None], *,
-                   ask: Callable[[str], str] = input, out: TextIO = sys.stderr, double_entry: bool = False,
+                   ask: Callable[[str], str] = input, out: TextIO | None = None, double_entry: bool = False,
                    operator: str = "") -> Reading:
     """Ask for one manual reading until a valid one is given, store it at once, and return it.
 
     ``ask`` shows a prompt and returns the typed line (``input`` on the CLI, a form field in a GUI). Invalid text
     and out-of-range values are explained and asked again; implausible values need a ``y``; with
     ``double_entry`` the value must be typed twice identically. ``store`` is called before returning, so the
-    entry is on disk even if the program stops right after.
+    entry is on disk even if the program stops right after. Explanations go to ``out`` (default stderr).
     """
+    out = out or sys.stderr
     while True:
         text = ask(f"{request.label} [mm]: ")
         try:

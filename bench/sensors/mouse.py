@@ -165,7 +165,7 @@ class EvdevMouse:
     def read(self, timeout_s: float = 0.0) -> Reading:
         """Integrated displacement since the last :meth:`rezero`, in mm, after waiting up to ``timeout_s``."""
         if timeout_s > 0:
-            selectors_ = selectors.DefaultSelector()
+            selectors_ = selectors.PollSelector()  # epoll refuses regular files
             selectors_.register(self._fd, selectors.EVENT_READ)
             selectors_.select(timeout_s)
             selectors_.close()
@@ -204,7 +204,7 @@ class MouseGroup:
         if len(set(labels)) != len(labels):
             raise LinkError(f"mouse group: labels {labels} repeat; each sensor needs its own label")
         self.mice = {m.name: m for m in mice}
-        self._selector = selectors.DefaultSelector()
+        self._selector = selectors.PollSelector()  # epoll refuses regular files
         for mouse in mice:
             self._selector.register(mouse.fileno(), selectors.EVENT_READ, mouse)
 

@@ -20,7 +20,7 @@ from bench.errors import ConfigError
 from bench.sensors.calibration import MM_PER_INCH
 from bench.sensors.input_event import EVENT, encode_frames
 
-__all__ = ["MouseReports", "MouseSimulator", "circle_motion", "write_stream", "main"]
+__all__ = ["MouseReports", "MouseSimulator", "circle_motion", "write_stream", "write_circle_stream", "main"]
 
 MAX_REPORT_RATE_HZ = 8000.0
 
@@ -142,8 +142,24 @@ def write_stream(fd: int, data: bytes, *, realtime_rate_bytes_s: float | None = 
             view = view[os.write(fd, view):]
 
 
+def write_circle_stream(out: str, *, duration_s: float = 10.0, rate_hz: float = 1000.0, cpi: float = 800.0,
+                        radius_mm: float = 20.0, period_s: float = 4.0, realtime: bool = False) -> int:
+    """Simulate a circle and write its ``input_event`` records to the FIFO or file ``out``; return the event count.
+
+    Timestamps start at ``time.monotonic()`` so that a reader on the same machine sees a live clock.
+    """
+    sim = MouseSimulator(cpi=cpi, report_rate_hz=rate_hz, report_idle=True)
+    data = sim.input_events(*circle_motion(duration_s, radius_mm, period_s, rate_hz), t0_s=time.monotonic())
+    fd = os.open(out, os.O_WRONLY | os.O_CREAT, 0o644)
+    try:
+        write_stream(fd, data, realtime_rate_bytes_s=len(data) / duration_s if realtime else None)
+    finally:
+        os.close(fd)
+    return len(data) // EVENT.size
+
+
 def main(argv: list[str] | None = None) -> int:
-    """Program entry: simulate a circle and write its ``input_event`` records to ``--out``."""
+    """Program entry: ``python -m bench.sensors.mouse_sim --out FIFO [options]``."""
     parser = argparse.ArgumentParser(prog="python -m bench.sensors.mouse_sim", description=__doc__.split("\n")[0],
                                      formatter_class=argparse.ArgumentDefaultsHelpFormatter)
     parser.add_argument("--out", required=True, help="FIFO or file to write input_event records into")
@@ -155,18 +171,12 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--realtime", action="store_true", help="pace the stream to real time")
     args = parser.parse_args(argv)
     try:
-        sim = MouseSimulator(cpi=args.cpi, report_rate_hz=args.rate_hz, report_idle=True)
-        data = sim.input_events(*circle_motion(args.duration_s, args.radius_mm, args.period_s, args.rate_hz),
-                                t0_s=time.monotonic())
+        count = write_circle_stream(args.out, duration_s=args.duration_s, rate_hz=args.rate_hz, cpi=args.cpi,
+                                    radius_mm=args.radius_mm, period_s=args.period_s, realtime=args.realtime)
     except ConfigError as exc:
         print(f"mouse_sim: error: {exc}", file=sys.stderr)
         return 2
-    fd = os.open(args.out, os.O_WRONLY | os.O_CREAT, 0o644)
-    try:
-        write_stream(fd, data, realtime_rate_bytes_s=len(data) / args.duration_s if args.realtime else None)
-    finally:
-        os.close(fd)
-    print(f"{len(data) // EVENT.size} events written to {args.out}", file=sys.stderr)
+    print(f"{count} events written to {args.out}", file=sys.stderr)
     return 0
 
 
