@@ -11,6 +11,8 @@ import doctest
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 import motion.delta4.error_models
 import motion.delta4.geometry
@@ -268,6 +270,26 @@ def test_ik_fk_round_trip_over_the_operating_box_both_fk_methods():
         fk = forward_kinematics(result.servo_deg, NOMINAL, method=method)
         np.testing.assert_allclose(fk.pose_mm, points, atol=1e-8)
         assert fk.ok.all() and fk.residual_mm.max() < 1e-8
+
+
+@settings(max_examples=200, deadline=None)
+@given(
+    x=st.floats(-60, 60),
+    y=st.floats(-60, 60),
+    z=st.floats(-230, -130),
+    noise=st.lists(st.floats(-0.3, 0.3), min_size=4, max_size=4),
+)
+def test_property_round_trip_and_least_squares_optimality(x, y, z, noise):
+    servo = inverse_kinematics([x, y, z]).servo_deg
+    np.testing.assert_allclose(forward_kinematics(servo).pose_mm[0], [x, y, z], atol=1e-8)
+    noisy = servo + np.array(noise)
+    fit = forward_kinematics(noisy)
+    closed = forward_kinematics(noisy, method="closed_form")
+    assert fit.ok[0] and fit.residual_mm[0] <= closed.residual_mm[0] + 1e-12
+    # At the optimum the gradient J^T r of the sphere residuals vanishes.
+    legs = fit.pose_mm[0] + 44.5 * motion.delta4.geometry.LEG_OUTWARD - fit.knees_mm[0]
+    unit = legs / np.linalg.norm(legs, axis=1, keepdims=True)
+    assert np.abs(unit.T @ fit.leg_residual_mm[0]).max() < 1e-8
 
 
 def test_least_squares_fk_with_noisy_angles_reports_residual_and_beats_closed_form_on_average():
