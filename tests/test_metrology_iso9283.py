@@ -240,3 +240,12 @@ def test_delta_thesis_appendix_d1_regression(pose):
     assert repeatability.l_mean_mm == pytest.approx(l_mean, abs=5e-5)
     assert repeatability.s_l_mm == pytest.approx(s_l, abs=5e-5)
     assert repeatability.rp_mm == pytest.approx(rp, abs=5e-5)
+
+
+def test_orientation_distance_per_angle_and_wrap():
+    from bench.metrology import orientation_distance_characteristics
+
+    # Command a: 170° -> -170° is a 20° move across ±180°; attained moves of 19.5° and 20.3°.
+    result = orientation_distance_characteristics([[170.0], [170.1]], [[-170.5], [-169.6]], [170.0], [-170.0])
+    assert result.ad_deg == pytest.approx(((19.5 + 20.3) / 2 - 20.0,))
+    assert result.rd_deg == pytest.approx((3 * np.std([19.5, 20.3], ddof=1),))

@@ -136,3 +136,10 @@ def test_distance_refuses_unpaired_cycles(tmp_path):
     table = pose_table(read_table_csv(_write(tmp_path, "\n".join([HEADER, *rows]))))
     with pytest.raises(ConfigError, match=r"cycle\(s\) 2, 3 present at only one of 'P2' and 'P4'"):
         analyze_distance(table, "P2", "P4")
+
+
+def test_mixed_frames_within_a_pose_are_refused(tmp_path):
+    # iso9283.md §10.2 #10: AP refuses inputs with different frame tags.
+    path = _write(tmp_path, f"{HEADER},frame\nP1,1,0,0,0,0,0,0,base\nP1,2,0,0,0,0,0,1,tracker\n")
+    with pytest.raises(ConfigError, match=r"row 2, column frame: 'tracker' differs from 'base' earlier in pose 'P1'"):
+        analyze_poses(pose_table(read_table_csv(path)))

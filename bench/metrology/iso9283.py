@@ -28,6 +28,7 @@ __all__ = [
     "DistanceCharacteristics",
     "MultidirectionalVariation",
     "OrientationAccuracy",
+    "OrientationDistanceCharacteristics",
     "OrientationRepeatability",
     "PoseAccuracy",
     "PoseRepeatability",
@@ -36,6 +37,7 @@ __all__ = [
     "exchangeability",
     "multidirectional_variation",
     "orientation_accuracy",
+    "orientation_distance_characteristics",
     "orientation_repeatability",
     "pose_accuracy",
     "pose_repeatability",
@@ -101,6 +103,15 @@ class DistanceCharacteristics:
     mean_distance_mm: float  #: D̄
     commanded_distance_mm: float  #: D_c
     u_ad_mm: float  #: Type A standard uncertainty of AD from the scatter of D_j: S_D / √n
+    n: int
+
+
+@dataclass(frozen=True)
+class OrientationDistanceCharacteristics:
+    """Per-angle distance accuracy AD_a/b/c and repeatability RD_a/b/c (ISO 9283 7.3)."""
+
+    ad_deg: tuple[float, ...]  #: signed D̄_a - D_ca (likewise b, c)
+    rd_deg: tuple[float, ...]  #: 3 S(D_a), reported as ±
     n: int
 
 
@@ -346,5 +357,41 @@ def distance_characteristics(first_mm, second_mm, commanded_first_mm, commanded_
         mean_distance_mm=float(distance.mean()),
         commanded_distance_mm=commanded,
         u_ad_mm=float(distance.std(ddof=1) / np.sqrt(len(first))),
+        n=len(first),
+    )
+
+
+def orientation_distance_characteristics(
+    first_deg, second_deg, commanded_first_deg, commanded_second_deg
+) -> OrientationDistanceCharacteristics:
+    """Per-angle distance accuracy and repeatability between two command poses, paired by cycle.
+
+    ISO 9283:1998 clause 7.3 [N]:
+
+    .. math::
+
+        D_{aj} = |a_{1j} - a_{2j}|, \\quad D_{ca} = |a_{c1} - a_{c2}|, \\quad AD_a = \\bar D_a - D_{ca}, \\quad
+        RD_a = \\pm 3 S(D_a)
+
+    (likewise b, c). Angle differences are wrapped to [-180, 180) before the absolute value.
+
+    Parameters
+    ----------
+    first_deg, second_deg : array_like, shape (n, k)
+        Attained angles at the first and second command pose; row j of both is cycle j; n >= 2.
+    commanded_first_deg, commanded_second_deg : array_like, shape (k,)
+        Command angles (deg).
+    """
+    first = as_points("first_deg", first_deg)
+    second = as_points("second_deg", second_deg, dims=(first.shape[1],))
+    require_same_length("first_deg", first, "second_deg", second)
+    require_count("orientation distance cycles", len(first), 2)
+    cmd_first = as_vector("commanded_first_deg", commanded_first_deg, length=first.shape[1])
+    cmd_second = as_vector("commanded_second_deg", commanded_second_deg, length=first.shape[1])
+    distance = np.abs(wrap_deg(first - second))
+    commanded = np.abs(wrap_deg(cmd_first - cmd_second))
+    return OrientationDistanceCharacteristics(
+        ad_deg=tuple(float(v) for v in distance.mean(axis=0) - commanded),
+        rd_deg=tuple(float(v) for v in 3.0 * distance.std(axis=0, ddof=1)),
         n=len(first),
     )

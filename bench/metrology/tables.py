@@ -2,7 +2,7 @@
 
 A pose table has one row per attained sample: ``pose, cycle, cmd_x_mm, cmd_y_mm, cmd_z_mm, x_mm, y_mm, z_mm``,
 optionally the angle pairs ``cmd_a_deg/a_deg``, ``cmd_b_deg/b_deg``, ``cmd_c_deg/c_deg``, the conditions
-``velocity_pct`` and ``load_kg``, and ``t_s``. Poses are labels (P1..P5 or any string); cycle counts may differ
+``velocity_pct`` and ``load_kg``, ``t_s``, and a ``frame`` tag (one frame per pose). Poses are labels (P1..P5 or any string); cycle counts may differ
 between poses. Results are grouped by pose and, when they vary, by the conditions. Bad cells raise
 ``ConfigError`` naming the source, the CSV line, the column and the value.
 """
@@ -146,6 +146,20 @@ def _check_constant_command(group: pd.DataFrame, columns: Sequence[str], source:
             )
 
 
+def _check_single_frame(group: pd.DataFrame, source: str) -> None:
+    """Refuse a pose whose samples carry different frame tags (iso9283.md §6.18: never mix frames)."""
+    if "frame" not in group.columns:
+        return
+    frames = group["frame"].astype(str).str.strip()
+    differs = np.flatnonzero(frames.to_numpy() != frames.iloc[0])
+    if len(differs):
+        index = group.index[differs[0]]
+        raise ConfigError(
+            f"{source}: row {int(index) + 1}, column frame: {frames.iloc[differs[0]]!r} differs from "
+            f"{frames.iloc[0]!r} earlier in pose {group['pose'].iloc[0]!r}, expected one frame per pose"
+        )
+
+
 def _check_unique_cycles(group: pd.DataFrame, source: str) -> None:
     duplicated = group["cycle"].duplicated()
     if duplicated.any():
@@ -185,6 +199,7 @@ def analyze_poses(
         key = key if isinstance(key, tuple) else (key,)
         pose, conditions = str(key[0]), tuple((name, float(v)) for name, v in zip(keys[1:], key[1:]))
         _check_constant_command(group, [*_COMMAND, *(cmd for cmd, _ in angles)], source)
+        _check_single_frame(group, source)
         _check_unique_cycles(group, source)
         group = group.sort_values("cycle", kind="stable")
         attained = group[list(_ATTAINED)].to_numpy()
@@ -261,6 +276,7 @@ def analyze_distance(table: pd.DataFrame, first_pose: str, second_pose: str) -> 
         if rows.empty:
             raise ConfigError(f"{source}: pose {pose!r} not found; poses: {', '.join(table['pose'].unique())}")
         _check_constant_command(rows, _COMMAND, source)
+        _check_single_frame(rows, source)
         _check_unique_cycles(rows, source)
         groups[pose] = rows.set_index("cycle")
     first, second = groups[first_pose], groups[second_pose]
