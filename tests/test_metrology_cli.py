@@ -3,6 +3,7 @@
 import json
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from bench.cli import main
@@ -110,3 +111,26 @@ def test_actuator_without_control_resolution(capsys, tmp_path):
     code, _, err = _run(capsys, "analyze", "actuator", str(path))
     assert code == 2 and "no cr_mm column and no --cr-mm given" in err
     assert _run(capsys, "analyze", "actuator", str(path), "--cr-mm", "0.01")[0] == 0
+
+
+def test_mouse_command_table_a28(capsys):
+    code, out, _ = _run(capsys, "analyze", "mouse", str(DATA / "mouse_table_a28.csv"), "--json")
+    five = json.loads(out)["distances"]["5"]
+    assert code == 0 and five["n"] == 18
+    assert five["mean_delta_counts"] == pytest.approx(24.33, abs=0.005)
+    assert five["three_sigma_counts"] == pytest.approx(1.78, abs=0.005)  # Table A.25, speed 4, Y, 5 mm
+
+
+def test_mouse_command_matrix_fit(capsys):
+    code, out, _ = _run(capsys, "analyze", "mouse", str(DATA / "mouse_matrix_example.csv"), "--json")
+    result = json.loads(out)
+    true_a = [[0.031738, -0.000407], [0.000611, 0.032045]]  # inverse of the generating B = [[31.5, 0.4], [-0.6, 31.2]]
+    assert code == 0 and result["method"] == "matrix" and result["n"] == 60
+    assert np.array(result["A_mm_per_count"]) == pytest.approx(np.array(true_a), abs=5e-5)
+
+
+def test_mouse_command_unknown_layout(capsys, tmp_path):
+    path = tmp_path / "m.csv"
+    path.write_text("x,y\n1,2\n")
+    code, _, err = _run(capsys, "analyze", "mouse", str(path))
+    assert code == 2 and "expected columns distance_mm, position" in err

@@ -16,7 +16,10 @@ from bench.errors import ConfigError
 from bench.metrology import (
     combine,
     expanded,
+    fit_matrix,
     groover_actuator,
+    increment_resolution,
+    increments_from_positions,
     leg_error_summary,
     pose_drift,
 )
@@ -61,6 +64,10 @@ def register(groups: argparse._SubParsersAction) -> None:
 
     payload = _new_parser(actions, "payload", "leg actuation error against load (project payload error)")
     payload.set_defaults(handler=_payload)
+
+    mouse = _new_parser(actions, "mouse", "mouse resolution: per-distance (distance_mm, position; N/A = restart) "
+                                          "or 2x2 fit (ref_x_mm, ref_y_mm, counts_x, counts_y)")
+    mouse.set_defaults(handler=_mouse)
 
 
 def _new_parser(actions: argparse._SubParsersAction, name: str, text: str) -> argparse.ArgumentParser:
@@ -178,5 +185,49 @@ def _payload(args: argparse.Namespace) -> int:
               for n, m, l, a, c in zip(names, s.max_error_mm, s.load_at_max_kg, s.mean_error_mm,
                                        s.correlation_with_load)]
     lines.append(f"all legs: mean {s.overall_mean_mm:.3f} mm, SD {s.overall_sd_mm:.3f} mm over {s.n_loads} loads")
+    emit(result, args.json, lines)
+    return 0
+
+
+def _mouse(args: argparse.Namespace) -> int:
+    frame = read_table_csv(args.file)
+    if {"ref_x_mm", "ref_y_mm", "counts_x", "counts_y"} <= set(frame.columns):
+        return _mouse_matrix(args, numeric_columns(frame, ["ref_x_mm", "ref_y_mm", "counts_x", "counts_y"]))
+    if not {"distance_mm", "position"} <= set(frame.columns):
+        raise ConfigError(f"{args.file}: expected columns distance_mm, position (per-distance method) or "
+                          f"ref_x_mm, ref_y_mm, counts_x, counts_y (2x2 fit); found {', '.join(frame.columns)}")
+    restart = frame["position"].str.strip().str.upper().isin(["N/A", "NA", ""])
+    table = numeric_columns(frame.assign(position=frame["position"].where(~restart, "0")), ["distance_mm", "position"])
+    table.loc[restart, "position"] = np.nan  # a restart marker breaks the segment; it is never a zero
+    result, lines = {}, [f"{'distance_mm':>11} {'n':>4} {'mean_delta':>10} {'mm_per_count':>12} {'3sigma':>7} "
+                         f"{'tolerance_mm':>12}"]
+    for distance, rows in table.groupby("distance_mm", sort=False):
+        r = increment_resolution(distance, increments_from_positions(rows["position"].to_numpy()))
+        result[f"{distance:g}"] = {"n": r.n, "mean_delta_counts": r.mean_delta_counts,
+                                   "resolution_mm_per_count": r.resolution_mm_per_count,
+                                   "three_sigma_counts": r.three_sigma_counts, "tolerance_mm": r.tolerance_mm}
+        lines.append(f"{distance:11g} {r.n:4d} {r.mean_delta_counts:10.3f} {r.resolution_mm_per_count:12.5f} "
+                     f"{r.three_sigma_counts:7.3f} {r.tolerance_mm:12.4f}")
+    lines.append("Resolution = distance / mean Δ; tolerance = 3 S(Δ) x resolution (dissertation App. A.7).")
+    emit({"method": "increments", "distances": result}, args.json, lines)
+    return 0
+
+
+def _mouse_matrix(args: argparse.Namespace, table) -> int:
+    reference = table[["ref_x_mm", "ref_y_mm"]].to_numpy()
+    counts = table[["counts_x", "counts_y"]].to_numpy()
+    fit = fit_matrix(reference, counts)
+    diagnostic = fit_matrix(reference, counts, intercept=True)
+    result = {"method": "matrix", "n": fit.n, "A_mm_per_count": fit.a_mm_per_count.tolist(),
+              "u_A_mm_per_count": fit.u_a_mm_per_count.tolist(), "rotation_deg": fit.rotation_deg,
+              "scale_mm_per_count": fit.scale_mm_per_count.tolist(), "sigma_counts": fit.sigma_counts.tolist(),
+              "intercept_counts": diagnostic.offset_counts.tolist()}
+    a, u = fit.a_mm_per_count, fit.u_a_mm_per_count
+    lines = [f"A (mm/count), n = {fit.n} moves:",
+             *(f"  [{a[i, 0]:+.6f} ± {u[i, 0]:.1e}  {a[i, 1]:+.6f} ± {u[i, 1]:.1e}]" for i in range(2)),
+             f"rotation {fit.rotation_deg:+.3f} deg, scale x/y {fit.scale_mm_per_count[0]:.6f} / "
+             f"{fit.scale_mm_per_count[1]:.6f} mm/count, residual SD {fit.sigma_counts[0]:.3f} / "
+             f"{fit.sigma_counts[1]:.3f} counts",
+             f"diagnostic intercept {diagnostic.offset_counts[0]:+.3f} / {diagnostic.offset_counts[1]:+.3f} counts"]
     emit(result, args.json, lines)
     return 0
