@@ -199,8 +199,8 @@ def _mouse(args: argparse.Namespace) -> int:
     restart = frame["position"].str.strip().str.upper().isin(["N/A", "NA", ""])
     table = numeric_columns(frame.assign(position=frame["position"].where(~restart, "0")), ["distance_mm", "position"])
     table.loc[restart, "position"] = np.nan  # a restart marker breaks the segment; it is never a zero
-    result, lines = {}, [f"{'distance_mm':>11} {'n':>4} {'mean_delta':>10} {'mm_per_count':>12} {'3sigma':>7} "
-                         f"{'tolerance_mm':>12}"]
+    header = f"{'distance_mm':>11} {'n':>4} {'mean_delta':>10} {'mm_per_count':>12} {'3sigma':>7} {'tolerance_mm':>12}"
+    result, lines = {}, [header]
     for distance, rows in table.groupby("distance_mm", sort=False):
         r = increment_resolution(distance, increments_from_positions(rows["position"].to_numpy()))
         result[f"{distance:g}"] = {"n": r.n, "mean_delta_counts": r.mean_delta_counts,
@@ -225,9 +225,9 @@ def _mouse_matrix(args: argparse.Namespace, table) -> int:
     a, u = fit.a_mm_per_count, fit.u_a_mm_per_count
     lines = [f"A (mm/count), n = {fit.n} moves:",
              *(f"  [{a[i, 0]:+.6f} ± {u[i, 0]:.1e}  {a[i, 1]:+.6f} ± {u[i, 1]:.1e}]" for i in range(2)),
-             f"rotation {fit.rotation_deg:+.3f} deg, scale x/y {fit.scale_mm_per_count[0]:.6f} / "
-             f"{fit.scale_mm_per_count[1]:.6f} mm/count, residual SD {fit.sigma_counts[0]:.3f} / "
-             f"{fit.sigma_counts[1]:.3f} counts",
+             (f"rotation {fit.rotation_deg:+.3f} deg, scale x/y {fit.scale_mm_per_count[0]:.6f} / "
+              f"{fit.scale_mm_per_count[1]:.6f} mm/count, residual SD {fit.sigma_counts[0]:.3f} / "
+              f"{fit.sigma_counts[1]:.3f} counts"),
              f"diagnostic intercept {diagnostic.offset_counts[0]:+.3f} / {diagnostic.offset_counts[1]:+.3f} counts"]
     emit(result, args.json, lines)
     return 0
