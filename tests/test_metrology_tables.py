@@ -143,3 +143,9 @@ def test_mixed_frames_within_a_pose_are_refused(tmp_path):
     path = _write(tmp_path, f"{HEADER},frame\nP1,1,0,0,0,0,0,0,base\nP1,2,0,0,0,0,0,1,tracker\n")
     with pytest.raises(ConfigError, match=r"row 2, column frame: 'tracker' differs from 'base' earlier in pose 'P1'"):
         analyze_poses(pose_table(read_table_csv(path)))
+
+
+def test_missing_pose_column_is_named(tmp_path):
+    path = _write(tmp_path, "cycle,cmd_x_mm,cmd_y_mm,cmd_z_mm,x_mm,y_mm,z_mm\n1,0,0,0,0,0,0\n")
+    with pytest.raises(ConfigError, match=r"missing column\(s\) pose"):
+        pose_table(read_table_csv(path))

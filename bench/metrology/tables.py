@@ -117,6 +117,8 @@ def pose_table(frame: pd.DataFrame) -> pd.DataFrame:
         if (command in frame.columns) != (attained in frame.columns):
             present, absent = (command, attained) if command in frame.columns else (attained, command)
             raise ConfigError(f"{source}: column {present} given without {absent}")
+    if "pose" not in frame.columns:
+        raise ConfigError(f"{source}: missing column(s) pose; found {', '.join(frame.columns)}")
     angles = [c for pair in ANGLE_PAIRS for c in pair if c in frame.columns]
     optional = [c for c in (*CONDITION_COLUMNS, "t_s") if c in frame.columns]
     table = numeric_columns(frame, POSE_COLUMNS[1:])
