@@ -6,9 +6,10 @@ import os
 
 import numpy as np
 import pytest
-import serial
 from hypothesis import given
 from hypothesis import strategies as st
+
+from sensor_fixtures import pty_port  # noqa: F401  (fixture)
 
 from bench.errors import ConfigError, InsufficientData, LinkTimeout
 from bench.sensors import MalformedSample, Reading
@@ -16,16 +17,6 @@ from bench.sensors.calliper import (ReadingRequest, SerialCalliper, TiltBias, pa
                                     tilt_deg, tilt_reading, tilt_uncertainty_deg)
 from bench.sensors.calliper_sim import CalliperSimulator, depths_for_tilt
 from bench.sensors.calliper_wedge import WedgeDecoder, WedgeListener, key_symbol
-
-
-@pytest.fixture
-def pty_port():
-    master, slave = os.openpty()
-    port = serial.serial_for_url(os.ttyname(slave), baudrate=9600)
-    yield master, port
-    port.close()
-    os.close(master)
-    os.close(slave)
 
 
 @pytest.mark.parametrize("text, mm", [("12.34", 12.34), ("-0,50 mm", -0.5), ("+7", 7.0), (".25", 0.25),

@@ -7,8 +7,9 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from bench.errors import ConfigError
-from bench.sensors.lasergrid import (LASER_OFFSETS_MM, GridGeometry, Screen, ScreenStatus, decode_frame,
-                                     decode_screen)
+from bench.sensors import Sensor
+from bench.sensors.lasergrid import (LASER_OFFSETS_MM, GridGeometry, LaserGridSensor, Screen, ScreenStatus,
+                                     decode_frame, decode_screen)
 from bench.sensors.lasergrid_sim import P_MISS_AT_DISTANCE, LaserGridSimulator, format_report
 
 GEOMETRY = GridGeometry()
@@ -168,3 +169,17 @@ def test_report_grammar_and_bad_input():
         LaserGridSimulator(p_miss=1.5)
     with pytest.raises(ConfigError, match="prior_mm"):
         decode_frame(GEOMETRY, [], [], [0.0, np.nan, 0.0])
+
+
+def test_sensor_observes_a_true_pose_through_the_simulator():
+    true = {"xyz": np.array([0.0, -5.0, -150.0])}
+    sim = LaserGridSimulator(spot_half_width_mm=1.0)
+    sensor = LaserGridSensor(sim.frame_source(lambda: true["xyz"]), lambda: true["xyz"] + (1.0, -1.0, 2.0))
+    assert isinstance(sensor, Sensor)
+    reading = sensor.read()
+    assert reading.valid and reading.value == pytest.approx((0.0, -5.0, -150.0)) and reading.raw == "H:121 V:39"
+    assert reading.calibration_id == "lasergrid-gui-default"
+    true["xyz"] = np.array([*(START + (2.5, 5)), -155.0])   # blind on the horizontal screen, (5, 0) on the vertical
+    blind = sensor.read()
+    assert not blind.valid and "horizontal: no-hit" in blind.note and "vertical: ok" in blind.note
+    assert blind.value == pytest.approx((-2.5 + 1.0, 0.0, -155.0))      # x keeps the prior; y, z measured

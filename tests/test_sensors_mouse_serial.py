@@ -5,9 +5,10 @@ import os
 
 import numpy as np
 import pytest
-import serial
 from hypothesis import given
 from hypothesis import strategies as st
+
+from sensor_fixtures import pty_port  # noqa: F401  (fixture)
 
 from bench.errors import LinkError
 from bench.sensors import MalformedSample
@@ -15,16 +16,6 @@ from bench.sensors.calibration import CountsCalibration
 from bench.sensors.mouse_mcu import McuMouse, McuSample, parse_mcu_line
 from bench.sensors.mouse_pointer import PointerMethodWarning, PointerSampler
 from bench.sensors.mouse_sim import MouseSimulator
-
-
-@pytest.fixture
-def pty_port():
-    master, slave = os.openpty()
-    port = serial.serial_for_url(os.ttyname(slave), baudrate=115200)
-    yield master, port
-    port.close()
-    os.close(master)
-    os.close(slave)
 
 
 def test_parse_mcu_lines():

@@ -12,6 +12,7 @@ from pathlib import Path
 
 from bench.commands.kin import emit
 from bench.errors import ConfigError
+from bench.sensors.mouse_sim import add_stream_arguments, write_stream_from_args
 
 
 def register(groups: argparse._SubParsersAction) -> None:
@@ -31,20 +32,12 @@ def _parser(actions: argparse._SubParsersAction, name: str, help_text: str) -> a
 def _add_mouse_sim(actions: argparse._SubParsersAction, name: str) -> None:
     parser = _parser(actions, name, "write a simulated mouse's input_event records (a circle) to a FIFO or file")
     parser.add_argument("out", help="FIFO or file to write")
-    parser.add_argument("--duration-s", type=float, default=10.0)
-    parser.add_argument("--rate-hz", type=float, default=1000.0, help="report rate, at most 8000")
-    parser.add_argument("--cpi", type=float, default=800.0)
-    parser.add_argument("--radius-mm", type=float, default=20.0)
-    parser.add_argument("--period-s", type=float, default=4.0)
-    parser.add_argument("--realtime", action="store_true", help="pace the stream to real time")
+    add_stream_arguments(parser)
     parser.set_defaults(handler=_mouse_sim)
 
 
 def _mouse_sim(args: argparse.Namespace) -> int:
-    from bench.sensors.mouse_sim import write_circle_stream
-
-    count = write_circle_stream(args.out, duration_s=args.duration_s, rate_hz=args.rate_hz, cpi=args.cpi,
-                                radius_mm=args.radius_mm, period_s=args.period_s, realtime=args.realtime)
+    count = write_stream_from_args(args)
     emit({"path": args.out, "events": count}, args.json, [f"{count} events written to {args.out}"])
     return 0
 

@@ -10,14 +10,17 @@ is chosen (§4.6), and decoding is guaranteed only while both components of the 
 from __future__ import annotations
 
 import enum
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from bench.errors import ConfigError
+from bench.sensors.reading import Reading, now
 
 __all__ = ["LASER_NAMES", "LASER_OFFSETS_MM", "MIN_CANDIDATE_SEPARATION_MM", "Screen", "GridGeometry",
-           "ScreenStatus", "ScreenDecode", "GridDecode", "decode_screen", "decode_frame"]
+           "GridFrame", "ScreenStatus", "ScreenDecode", "GridDecode", "decode_screen", "decode_frame",
+           "LaserGridSensor"]
 
 #: Laser names and offsets from BE in the screen's (i right, j up) axes, mm (§4.4, reconstructed table).
 LASER_NAMES = ("BE", "G5-a", "G5-b", "G5-c", "G2.5-W", "G2.5-E", "G2.5-S", "G2.5-N",
@@ -118,6 +121,15 @@ class GridGeometry:
 
     horizontal: Screen = Screen("horizontal", (0, 1), (-75.0, -75.0))
     vertical: Screen = Screen("vertical", (1, 2), (-75.0, -225.0), laser_offset_mm=40.0)
+    calibration_id: str = "lasergrid-gui-default"
+
+
+@dataclass(frozen=True)
+class GridFrame:
+    """Sorted sensor numbers lit on each screen in one acquisition (empty tuple: no hit)."""
+
+    horizontal: tuple[int, ...]
+    vertical: tuple[int, ...]
 
 
 class ScreenStatus(enum.Enum):
@@ -256,3 +268,44 @@ def decode_frame(geometry: GridGeometry, horizontal_indices: list[int] | tuple[i
     error = np.where(measured, position - prior, 0.0)
     return GridDecode(tuple(float(p) for p in position), tuple(measured), tuple(float(e) for e in error), h, v,
                       disagreement, disagreement is not None and abs(disagreement) > 2.5)
+
+
+class LaserGridSensor:
+    """The laser grid as a :class:`~bench.sensors.reading.Sensor`: one frame decoded against the current prior.
+
+    Parameters
+    ----------
+    frames : callable
+        Returns the next :class:`GridFrame` (from the controller's sensor reports, or a simulator's
+        ``frame_source``).
+    prior_mm : callable
+        Returns the a-priori end-effector centre (3,) in mm (commanded pose or FK of the pot angles).
+    geometry : GridGeometry
+        Screens and index maps; its ``calibration_id`` travels with every reading.
+    options
+        Passed to :func:`decode_screen` (``spot_half_width_mm``, ``gate_mm``, ``prior_uncertainty_mm``).
+
+    A reading is valid only when both screens decode OK and agree on y; otherwise ``note`` says why and the
+    value holds the prior on unmeasured axes.
+    """
+
+    def __init__(self, frames: Callable[[], GridFrame], prior_mm: Callable[[], np.ndarray], *,
+                 geometry: GridGeometry = GridGeometry(), name: str = "laser-grid", **options: float) -> None:
+        self.name = name
+        self._frames = frames
+        self._prior = prior_mm
+        self.geometry = geometry
+        self.options = options
+
+    def read(self) -> Reading:
+        frame = self._frames()
+        t_mono, t_wall = now()
+        result = decode_frame(self.geometry, frame.horizontal, frame.vertical, self._prior(), **self.options)
+        screens = (("horizontal", result.horizontal), ("vertical", result.vertical))
+        valid = all(s.status is ScreenStatus.OK for _, s in screens) and not result.misaligned
+        note = "; ".join(f"{n}: {s.status.value} {s.reason}".strip() for n, s in screens)
+        if result.misaligned:
+            note += f"; screens disagree on y by {result.y_disagreement_mm:+.2f} mm (misalignment)"
+        raw = f"H:{','.join(map(str, frame.horizontal))} V:{','.join(map(str, frame.vertical))}"
+        return Reading(result.position_mm, "mm", t_mono, t_wall, raw=raw, calibration_id=self.geometry.calibration_id,
+                       source=self.name, valid=valid, note=note)

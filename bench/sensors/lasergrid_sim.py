@@ -7,25 +7,18 @@ lights with probability ``p_false``. Also formats frames in the default report g
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
 
 from bench.errors import ConfigError
-from bench.sensors.lasergrid import GridGeometry, Screen
+from bench.sensors.lasergrid import GridFrame, GridGeometry, Screen
 
 __all__ = ["GridFrame", "LaserGridSimulator", "P_MISS_AT_DISTANCE", "format_report"]
 
 #: Miss probabilities reproducing the hit repeatability of Appendix D2 at 140 / 170 / 200 mm (§4.10 defaults).
 P_MISS_AT_DISTANCE = {140.0: 0.0075, 170.0: 0.0125, 200.0: 0.02}
-
-
-@dataclass(frozen=True)
-class GridFrame:
-    """Sorted sensor numbers lit on each screen in one acquisition (empty tuple: no hit)."""
-
-    horizontal: tuple[int, ...]
-    vertical: tuple[int, ...]
 
 
 @dataclass(frozen=True)
@@ -74,6 +67,18 @@ class LaserGridSimulator:
                 found.add(int(rng.integers(0, n_cells)) + screen.index_base)
             frames.append(tuple(sorted(found)))
         return frames
+
+    def frame_source(self, true_position_mm: Callable[[], np.ndarray]) -> Callable[[], GridFrame]:
+        """A frame source for :class:`~bench.sensors.lasergrid.LaserGridSensor` that observes the true
+        end-effector centre (3,) in mm returned by ``true_position_mm`` (e.g. a robot simulator's state)."""
+        rng_seeds = iter(range(self.seed, self.seed + 2**31))
+
+        def grab() -> GridFrame:
+            frame_sim = LaserGridSimulator(self.geometry, self.spot_half_width_mm, self.p_miss, self.p_false,
+                                           next(rng_seeds))
+            return frame_sim.frames(np.asarray(true_position_mm(), float).reshape(1, 3))[0]
+
+        return grab
 
     def frames(self, positions_mm: np.ndarray) -> list[GridFrame]:
         """One :class:`GridFrame` per true end-effector centre, positions of shape (N, 3) in mm."""

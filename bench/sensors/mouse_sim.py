@@ -20,7 +20,8 @@ from bench.errors import ConfigError
 from bench.sensors.calibration import MM_PER_INCH
 from bench.sensors.input_event import EVENT, encode_frames
 
-__all__ = ["MouseReports", "MouseSimulator", "circle_motion", "write_stream", "write_circle_stream", "main"]
+__all__ = ["MouseReports", "MouseSimulator", "circle_motion", "write_stream", "write_circle_stream",
+           "add_stream_arguments", "write_stream_from_args", "main"]
 
 MAX_REPORT_RATE_HZ = 8000.0
 
@@ -158,21 +159,31 @@ def write_circle_stream(out: str, *, duration_s: float = 10.0, rate_hz: float = 
     return len(data) // EVENT.size
 
 
+def add_stream_arguments(parser: argparse.ArgumentParser) -> None:
+    """The simulated stream's options, shared by this program and ``bench sensors mouse-sim``."""
+    parser.add_argument("--duration-s", type=float, default=10.0)
+    parser.add_argument("--rate-hz", type=float, default=1000.0, help="report rate, at most 8000")
+    parser.add_argument("--cpi", type=float, default=800.0)
+    parser.add_argument("--radius-mm", type=float, default=20.0)
+    parser.add_argument("--period-s", type=float, default=4.0)
+    parser.add_argument("--realtime", action="store_true", help="pace the stream to real time")
+
+
+def write_stream_from_args(args: argparse.Namespace) -> int:
+    """:func:`write_circle_stream` with the options of :func:`add_stream_arguments` (and ``args.out``)."""
+    return write_circle_stream(args.out, duration_s=args.duration_s, rate_hz=args.rate_hz, cpi=args.cpi,
+                               radius_mm=args.radius_mm, period_s=args.period_s, realtime=args.realtime)
+
+
 def main(argv: list[str] | None = None) -> int:
     """Program entry: ``python -m bench.sensors.mouse_sim --out FIFO [options]``."""
     parser = argparse.ArgumentParser(prog="python -m bench.sensors.mouse_sim", description=__doc__.split("\n")[0],
                                      formatter_class=argparse.ArgumentDefaultsHelpFormatter)
     parser.add_argument("--out", required=True, help="FIFO or file to write input_event records into")
-    parser.add_argument("--duration-s", type=float, default=10.0)
-    parser.add_argument("--rate-hz", type=float, default=1000.0, help="report rate (<= 8000)")
-    parser.add_argument("--cpi", type=float, default=800.0)
-    parser.add_argument("--radius-mm", type=float, default=20.0)
-    parser.add_argument("--period-s", type=float, default=4.0)
-    parser.add_argument("--realtime", action="store_true", help="pace the stream to real time")
+    add_stream_arguments(parser)
     args = parser.parse_args(argv)
     try:
-        count = write_circle_stream(args.out, duration_s=args.duration_s, rate_hz=args.rate_hz, cpi=args.cpi,
-                                    radius_mm=args.radius_mm, period_s=args.period_s, realtime=args.realtime)
+        count = write_stream_from_args(args)
     except ConfigError as exc:
         print(f"mouse_sim: error: {exc}", file=sys.stderr)
         return 2
