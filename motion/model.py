@@ -2,8 +2,8 @@
 
 A model names its pose fields and joints (with units and limits) and offers ``ik``, ``fk``, ``jacobian`` and
 ``workspace_samples`` on (N, ...) arrays in the public units (mm, degrees). Each robot package provides a
-``MODEL`` instance (``motion.delta4.model.MODEL``, ``motion.prus3.model.MODEL``); :func:`robot_models` lists
-those that are available.
+``MODEL`` instance (``motion.pkm5.model.MODEL``, ``motion.delta4.model.MODEL``, ``motion.prus3.model.MODEL``);
+:func:`robot_models` lists those that are available.
 """
 
 from __future__ import annotations
@@ -17,7 +17,7 @@ import numpy as np
 __all__ = ["JointSpec", "ModelIK", "ModelFK", "RobotModel", "robot_models", "MODEL_MODULES"]
 
 #: Packages that expose a ``model.MODEL``; the order is the listing order.
-MODEL_MODULES = ("motion.delta4.model", "motion.prus3.model")
+MODEL_MODULES = ("motion.pkm5.model", "motion.delta4.model", "motion.prus3.model")
 
 
 @dataclass(frozen=True)

@@ -70,3 +70,11 @@ def test_workspace_json(capsys):
 def test_workspace_bad_samples(capsys):
     assert main(["kin", "workspace", "pkm5", "--samples", "0"]) == 2
     assert "--samples = 0" in capsys.readouterr().err
+
+
+def test_kin_robots_lists_every_model(capsys):
+    code, data, _ = run_json(capsys, ["kin", "robots", "--json"])
+    assert code == 0
+    assert list(data) == ["pkm5", "delta4", "prus3"]
+    assert data["pkm5"]["pose_fields"] == ["x_mm", "y_mm", "z_mm", "alpha_deg", "beta_deg"]
+    assert data["pkm5"]["joints"][4] == {"name": "L5_mm", "low": 192.0, "high": 252.0}

@@ -26,6 +26,9 @@ _ACTIONS = {
 def register(groups: argparse._SubParsersAction) -> None:
     kin = groups.add_parser("kin", help="kinematics of the robots (mm, degrees)")
     actions = kin.add_subparsers(dest="action", metavar="ACTION", required=True)
+    robots = actions.add_parser("robots", help="list the robots, their pose fields and joints")
+    robots.add_argument("--json", action="store_true", help="print the list as one JSON object")
+    robots.set_defaults(handler=_list_robots)
     robot_parsers = {}
     for action, text in _ACTIONS.items():
         parser = actions.add_parser(action, help=text)
@@ -36,6 +39,18 @@ def register(groups: argparse._SubParsersAction) -> None:
             adder = getattr(module, f"add_{action}", None)
             if adder is not None:
                 adder(robots)
+
+
+def _list_robots(args: argparse.Namespace) -> int:
+    from motion.model import robot_models
+
+    listing = {name: {"pose_fields": list(model.pose_fields),
+                      "joints": [{"name": j.name, "low": j.low, "high": j.high} for j in model.joints]}
+               for name, model in robot_models().items()}
+    emit(listing, args.json, [f"{name}: pose ({', '.join(item['pose_fields'])}); joints "
+                              + ", ".join(f"{j['name']} [{j['low']:g}, {j['high']:g}]" for j in item["joints"])
+                              for name, item in listing.items()])
+    return 0
 
 
 def emit(result: dict[str, Any], as_json: bool, text_lines: list[str]) -> None:
