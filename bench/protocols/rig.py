@@ -61,11 +61,12 @@ class Rig:
     calibration_ids: tuple[int, ...] = ()
     sleep: Callable[[float], None] = time.sleep
     closers: list[Callable[[], None]] = field(default_factory=list)
+    extra: dict[str, Any] = field(default_factory=dict)
 
     def settings(self) -> dict[str, Any]:
-        """Robot and instrument settings, stored with the run."""
+        """Robot and instrument settings (plus ``extra``, e.g. the simulator's seed), stored with the run."""
         return {"robot": self.robot.settings(), "instrument": self.instrument.settings(),
-                "speed_factor": self.speed_factor}
+                "speed_factor": self.speed_factor, **self.extra}
 
     def close(self) -> None:
         """Release what the rig started (simulator processes, ports), newest first."""

@@ -21,6 +21,7 @@ from typing import Any, Callable
 import numpy as np
 
 from bench.errors import LinkError
+from bench.protocols.mice import MiceInstrument
 from bench.protocols.rig import Measurement, Rig
 from bench.protocols.steps import Capture, Prompt
 
@@ -70,63 +71,65 @@ class DriverMover:
         return {**self.controller.settings(), "rated_speed_steps_s": self.rated_speed_steps_s}
 
 
-class SimulatedMice:
+class SimulatedMice(MiceInstrument):
     """Two simulated optical mice (x-y and x-z planes) observing the simulator's true pose, read through FIFOs."""
 
     def __init__(self, controller: Any, folder: str, *, seed: int, cpi: float = 800.0,
                  noise_counts: float = 0.3, calibration_id: str = "sim-mouse-800cpi") -> None:
         from bench.sensors.calibration import CountsCalibration
         from bench.sensors.mouse import EvdevMouse
-        from bench.sensors.mouse_sim import MouseSimulator
 
         self.controller = controller
-        self.cpi, self.noise_counts = cpi, noise_counts
-        self.calibration = CountsCalibration.from_cpi(cpi, calibration_id=calibration_id, date="2026-01-01")
-        self._writers, self.mice, self.sims = {}, {}, {}
-        for index, plane in enumerate(("xy", "xz")):
+        self.cpi, self.noise_counts, self.seed = cpi, noise_counts, seed
+        calibration = CountsCalibration.from_cpi(cpi, calibration_id=calibration_id, date="2026-01-01")
+        self._writers, mice = {}, {}
+        for plane in ("xy", "xz"):
             path = os.path.join(folder, f"mouse_{plane}.fifo")
             os.mkfifo(path)
             self._writers[plane] = os.open(path, os.O_RDWR)  # a writer first, so the reader's open returns
-            self.mice[plane] = EvdevMouse(path, self.calibration, label=f"mouse_{plane}")
-            self.sims[plane] = MouseSimulator(cpi=cpi, noise_counts=noise_counts, seed=seed * 10 + index)
-        self.origin = np.asarray(controller.sim_true_pose(), dtype=float)[:3]  # registration at home
-        self._last = self.origin.copy()
+            mice[plane] = EvdevMouse(path, calibration, label=f"mouse_{plane}")
+        super().__init__(mice, np.asarray(controller.sim_true_pose(), dtype=float)[:3], calibration)
+        self._reported = {"xy": np.zeros(2, np.int64), "xz": np.zeros(2, np.int64)}
+        self._rng = np.random.default_rng(seed)
         self._clock_s = 0.0
 
     def _observe(self, true_xyz: np.ndarray) -> None:
-        t = np.linspace(0.0, _MOTION_S, 6)
-        path = self._last + np.outer(t / _MOTION_S, true_xyz - self._last)
-        for plane, columns in (("xy", [0, 1]), ("xz", [0, 2])):
-            start = (self._last - self.origin)[columns]
-            sim = self.sims[plane]
-            # each segment gets its own noise stream, so repeated segments are not identical
-            sim = type(sim)(cpi=sim.cpi, noise_counts=sim.noise_counts, seed=sim.seed + int(self._clock_s * 1e3))
-            data = sim.input_events(t, path[:, columns] - self.origin[columns] - start, t0_s=self._clock_s)
-            os.write(self._writers[plane], data)
-        self._clock_s += 2 * _MOTION_S
-        self._last = true_xyz
+        """Write the motion to ``true_xyz`` into both mice's FIFOs as kernel ``input_event`` reports.
+
+        The sensor quantises its absolute displacement since registration (plus white noise) and reports the
+        change in whole counts, at most 127 per report, so the sub-count remainder is carried as a real sensor
+        carries it and quantisation does not accumulate over a campaign.
+        """
+        from bench.sensors.input_event import encode_frames
+        from bench.sensors.mouse_sim import MouseSimulator
+
+        for index, (plane, columns) in enumerate((("xy", [0, 1]), ("xz", [0, 2]))):
+            counts_per_mm = MouseSimulator(cpi=self.cpi).counts_per_mm()
+            noise = self._rng.normal(0.0, self.noise_counts, 2) if self.noise_counts > 0 else 0.0
+            sensed = np.floor((true_xyz - self.origin)[columns] @ counts_per_mm.T + noise + 0.5).astype(np.int64)
+            change = sensed - self._reported[plane]
+            reports = max(1, int(np.ceil(np.abs(change).max() / 127)))
+            steps = np.diff(np.round(np.outer(np.arange(reports + 1) / reports, change)).astype(np.int64), axis=0)
+            t_s = self._clock_s + np.arange(1, reports + 1) * 1e-3
+            os.write(self._writers[plane], encode_frames(t_s, steps[:, 0], steps[:, 1]))
+            self._reported[plane] = sensed
+        self._clock_s += _MOTION_S
 
     def measure(self, capture: Capture) -> Measurement:
         true_pose = np.asarray(self.controller.sim_true_pose(), dtype=float)
         self._observe(true_pose[:3])
-        xy = self.mice["xy"].read(timeout_s=0.001)
-        xz = self.mice["xz"].read(timeout_s=0.001)
-        x_mm, y_mm = self.origin[:2] + np.asarray(xy.value)
-        z_mm = self.origin[2] + xz.value[1]
-        return Measurement({"x_mm": float(x_mm), "y_mm": float(y_mm), "z_mm": float(z_mm)},
-                           raw={"counts_xy": list(xy.raw), "counts_xz": list(xz.raw),
-                                "true_pose": [round(float(v), 6) for v in true_pose],
-                                "calibration": self.calibration.calibration_id})
+        measured = super().measure(capture)
+        return Measurement(measured.values, raw={**measured.raw,
+                                                 "true_pose": [round(float(v), 6) for v in true_pose]})
 
     def settings(self) -> dict[str, Any]:
-        return {"instrument": "two simulated optical mice (x-y, x-z) over FIFOs", "cpi": self.cpi,
-                "noise_counts": self.noise_counts, "calibration_id": self.calibration.calibration_id,
-                "registration_mm": [float(v) for v in self.origin]}
+        return {**super().settings(), "instrument": "two simulated optical mice (x-y, x-z) over FIFOs",
+                "cpi": self.cpi, "noise_counts": self.noise_counts}
 
     def close(self) -> None:
-        for plane in self.mice:
-            self.mice[plane].close()
-            os.close(self._writers[plane])
+        super().close()
+        for writer in self._writers.values():
+            os.close(writer)
 
 
 class SimulatedOperator:

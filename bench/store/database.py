@@ -345,6 +345,16 @@ class Store:
             raise
         return self.calibration_by_id(int(cursor.lastrowid))
 
+    def ensure_calibration(self, name: str, params: Mapping[str, Any], *, notes: str = "") -> CalibrationRecord:
+        """The latest version of ``name`` if its parameters equal ``params``, else a new version with them."""
+        try:
+            latest = self.calibration(name)
+        except ConfigError:
+            latest = None
+        if latest is not None and latest.params == json.loads(_to_json(dict(params), "params")):
+            return latest
+        return self.add_calibration(name, params, notes=notes)
+
     def calibration(self, name: str, version: int | None = None) -> CalibrationRecord:
         """Calibration ``name`` at ``version`` (the latest when None); ``ConfigError`` when missing."""
         query = "SELECT id FROM calibrations WHERE name = ?" + (" AND version = ?" if version else "")
