@@ -5,8 +5,8 @@ import cv2
 import numpy as np
 import pytest
 
-from bench.sensors import MalformedSample
-from bench.sensors.camera_sim import apply_homography, render_chessboard, render_spot
+from bench.sensors import MalformedSample, Sensor
+from bench.sensors.camera_sim import SpotCameraSimulator, apply_homography, render_chessboard, render_spot
 from bench.sensors.camera_spot import LaserSpotCamera, calibrate_from_chessboard, detect_spot
 
 SHAPE = (240, 320)
@@ -54,17 +54,19 @@ def test_chessboard_homography_recovers_the_plane():
     np.testing.assert_allclose(recovered, points_mm, atol=0.05)
 
 
-def test_laser_spot_camera_reads_a_true_position_in_mm():
-    homography = true_homography()
-    board = render_chessboard((300, 400), (9, 6), 10.0, homography)
-    calibration = calibrate_from_chessboard(board, (9, 6), 10.0, calibration_id="cam-1", date="2026-11-23")
-    true_mm = np.array([42.5, 17.25])
-    u, v = apply_homography(homography, true_mm)[0]
-    frame = render_spot((300, 400), (u, v), sigma_px=2.5, noise_sigma=3.0)
-    reading = LaserSpotCamera(lambda: frame, calibration, name="cam-xy").read()
-    assert reading.unit == "mm" and reading.calibration_id == "cam-1"
-    assert reading.value == pytest.approx(tuple(true_mm), abs=0.05)    # 0.05 mm = 0.16 px at 3.2 px/mm
-    assert reading.raw == pytest.approx((u, v), abs=0.1)
+def test_laser_spot_camera_observes_a_true_position_in_mm():
+    camera = SpotCameraSimulator(true_homography(), shape=(300, 400), sigma_px=2.5, noise_sigma=3.0)
+    calibration = calibrate_from_chessboard(camera.chessboard((9, 6), 10.0), (9, 6), 10.0, calibration_id="cam-1",
+                                            date="2026-11-23")
+    truth = {"xy": np.array([42.5, 17.25])}
+    sensor = LaserSpotCamera(camera.frame_source(lambda: truth["xy"]), calibration, name="cam-xy")
+    assert isinstance(sensor, Sensor)
+    for xy in ([42.5, 17.25], [0.0, 0.0], [71.3, 44.9]):
+        truth["xy"] = np.array(xy)
+        reading = sensor.read()
+        assert reading.unit == "mm" and reading.calibration_id == "cam-1"
+        assert reading.value == pytest.approx(tuple(xy), abs=0.05)    # 0.05 mm = 0.16 px at 3.2 px/mm
+        assert reading.raw == pytest.approx(tuple(apply_homography(true_homography(), xy)[0]), abs=0.1)
 
 
 def test_bad_images_give_clear_errors():

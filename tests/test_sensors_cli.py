@@ -66,3 +66,8 @@ def test_calliper_entry_appends_and_flushes_each_row(tmp_path, capsys, monkeypat
     monkeypatch.setattr("sys.stdin", io.StringIO("13\n"))
     code, _, err = run(capsys, "sensors", "calliper-entry", "--out", str(out_csv), "--count", "2")
     assert code == 2 and "input ended" in err and len(out_csv.read_text().splitlines()) == 4
+
+
+def test_mouse_list_runs_without_input_devices(capsys):
+    code, out, _ = run(capsys, "sensors", "mouse-list", "--json")
+    assert code == 0 and isinstance(json.loads(out)["mice"], list)

@@ -18,7 +18,7 @@ from bench.sensors import Reading, Sensor
 from bench.sensors.calibration import CountsCalibration
 from bench.sensors.input_event import (EV_KEY, EV_REL, EV_SYN, EVENT, EVENT_DTYPE, REL_X, REL_Y, SYN_DROPPED, SYN_REPORT,
                                        FrameAssembler, encode_frames)
-from bench.sensors.mouse import EvdevMouse, MouseGroup
+from bench.sensors.mouse import EvdevMouse, MouseGroup, _eviocg, list_mice
 from bench.sensors.mouse_sim import MouseSimulator, circle_motion, write_stream
 
 PACK = struct.Struct("llHHi").pack
@@ -208,3 +208,29 @@ def test_simulator_refuses_bad_rate_and_motion():
         MouseSimulator(report_rate_hz=9000)
     with pytest.raises(ConfigError, match="expected increasing times"):
         MouseSimulator().reports(np.array([0.0, 0.0]), np.zeros((2, 2)))
+
+
+def test_eviocgname_request_number():  # include/uapi/linux/input.h: EVIOCGNAME(len) = _IOC(_IOC_READ, 'E', 0x06, len)
+    assert _eviocg(0x06, 256) == 0x81004506 and _eviocg(0x07, 256) == 0x81004507
+
+
+def test_list_mice_reads_sysfs_and_prefers_by_path_links(tmp_path):
+    sysfs, dev = tmp_path / "sys", tmp_path / "dev"
+    devices = {"event3": ("Logitech USB Optical Mouse", "usb-0000:00:14.0-2/input0", "3"),
+               "event4": ("Logitech USB Optical Mouse", "usb-0000:00:14.0-3/input0", "1943"),
+               "event5": ("AT Translated Set 2 keyboard", "isa0060/serio0/input0", "0")}
+    for node, (name, phys, rel) in devices.items():
+        folder = sysfs / node / "device"
+        (folder / "capabilities").mkdir(parents=True)
+        (folder / "name").write_text(name + "\n")
+        (folder / "phys").write_text(phys + "\n")
+        (folder / "capabilities" / "rel").write_text(rel + "\n")
+    (dev / "by-path").mkdir(parents=True)
+    (dev / "by-path" / "pci-0000:00:14.0-usb-0:2:1.0-event-mouse").symlink_to("../event3")
+    (dev / "by-id").mkdir()
+    (dev / "by-id" / "usb-Logitech_USB_Optical_Mouse-event-mouse").symlink_to("../event3")
+    mice = list_mice(dev_root=str(dev), sysfs_root=str(sysfs))
+    assert [m.label for m in mice] == ["event3", "event4"]           # the keyboard has no REL_X/REL_Y
+    assert mice[0].path.endswith("by-path/pci-0000:00:14.0-usb-0:2:1.0-event-mouse")
+    assert mice[1].path == str(dev / "event4")                        # identical mouse told apart by phys
+    assert mice[0].name == mice[1].name and mice[0].phys != mice[1].phys

@@ -1,4 +1,4 @@
-"""``bench sensors``: simulate and read a mouse stream, decode laser-grid hits, tilt from two depths, and
+"""``bench sensors``: list mice, simulate and read a mouse stream, decode laser-grid hits, tilt from two depths, and
 prompted calliper entry stored row by row. Units: mm and degrees."""
 
 from __future__ import annotations
@@ -18,7 +18,7 @@ from bench.sensors.mouse_sim import add_stream_arguments, write_stream_from_args
 def register(groups: argparse._SubParsersAction) -> None:
     sensors = groups.add_parser("sensors", help="sensors: mouse, laser grid, calliper (mm, degrees)")
     actions = sensors.add_subparsers(dest="action", metavar="ACTION", required=True)
-    for name, adder in (("mouse-sim", _add_mouse_sim), ("mouse-read", _add_mouse_read),
+    for name, adder in (("mouse-list", _add_mouse_list), ("mouse-sim", _add_mouse_sim), ("mouse-read", _add_mouse_read),
                         ("grid-decode", _add_grid_decode), ("tilt", _add_tilt), ("calliper-entry", _add_entry)):
         adder(actions, name)
 
@@ -27,6 +27,20 @@ def _parser(actions: argparse._SubParsersAction, name: str, help_text: str) -> a
     parser = actions.add_parser(name, help=help_text, formatter_class=argparse.ArgumentDefaultsHelpFormatter)
     parser.add_argument("--json", action="store_true", help="print the result as one JSON object")
     return parser
+
+
+def _add_mouse_list(actions: argparse._SubParsersAction, name: str) -> None:
+    parser = _parser(actions, name, "list event devices with REL_X/REL_Y (mice) and their stable names")
+    parser.set_defaults(handler=_mouse_list)
+
+
+def _mouse_list(args: argparse.Namespace) -> int:
+    from bench.sensors.mouse import list_mice
+
+    mice = list_mice()
+    emit({"mice": [vars(m) for m in mice]}, args.json,
+         [f"{m.path}\t{m.name}\t{m.phys}" for m in mice] or ["no mice found under /sys/class/input"])
+    return 0
 
 
 def _add_mouse_sim(actions: argparse._SubParsersAction, name: str) -> None:

@@ -6,12 +6,14 @@ arrays of positions in mm. Modules (imported on demand so that OpenCV and pynput
 
 - ``reading``: the ``Reading`` record and the ``Sensor`` protocol;
 - ``calibration``: counts -> mm calibration of a mouse (per-axis scales or a 2x2 matrix, with id and date);
-- ``input_event``, ``mouse``, ``mouse_sim``: evdev mouse reader and simulator (kernel ``input_event`` records);
+- ``input_event``, ``mouse``, ``mouse_sim``: evdev mouse discovery, reader and simulator (kernel ``input_event``
+  records);
 - ``serial_lines``, ``mouse_mcu``: line framing on a serial port, microcontroller mouse stream ``t,dx,dy[,squal]``;
 - ``mouse_pointer``: the dissertation's OS-pointer method (pynput), kept for parity only;
-- ``lasergrid``, ``lasergrid_sim``: the delta robot's laser-grid geometry, decoder and simulator;
-- ``calliper``, ``calliper_sim``: manual, keyboard-wedge and serial calliper readings, tilt from two depths;
-- ``camera_spot``, ``camera_sim``: laser-spot detection with OpenCV and synthetic images.
+- ``lasergrid``, ``lasergrid_sim``: the delta robot's laser-grid geometry, decoder, sensor and simulator;
+- ``calliper``, ``calliper_wedge``, ``calliper_sim``: manual, keyboard-wedge and serial calliper readings, tilt
+  from two depths;
+- ``camera_spot``, ``camera_sim``: laser-spot detection with OpenCV; synthetic spot and chessboard frames.
 """
 
 from bench.sensors.reading import MalformedSample, Reading, Sensor

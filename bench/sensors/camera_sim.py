@@ -6,11 +6,13 @@ position comes from the true end-effector position.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
+from dataclasses import dataclass
 
 import numpy as np
 from scipy.special import erf
 
-__all__ = ["render_spot", "render_chessboard", "apply_homography"]
+__all__ = ["render_spot", "render_chessboard", "apply_homography", "SpotCameraSimulator"]
 
 
 def apply_homography(homography: np.ndarray, points: np.ndarray) -> np.ndarray:
@@ -76,3 +78,43 @@ def render_chessboard(shape: tuple[int, int], pattern_size: tuple[int, int], squ
     black = inside & ((ix + iy) % 2 == 0)
     values = np.where(black, 30.0, 225.0).reshape(rows, supersample, cols, supersample)
     return np.rint(values.mean(axis=(1, 3))).astype(np.uint8)
+
+
+@dataclass(frozen=True, eq=False)
+class SpotCameraSimulator:
+    """A camera watching a laser spot on a plane: true plane position (mm) -> 8-bit frame.
+
+    Parameters
+    ----------
+    homography_mm_to_px : ndarray, shape (3, 3)
+        Plane-to-image map of the simulated camera (the truth a chessboard calibration should recover).
+    shape : (rows, cols)
+        Frame size in pixels.
+    sigma_px, peak, background, noise_sigma : float
+        Spot and sensor model of :func:`render_spot`.
+    seed : int
+        Seed of the read noise; successive frames draw fresh noise.
+    """
+
+    homography_mm_to_px: np.ndarray
+    shape: tuple[int, int] = (480, 640)
+    sigma_px: float = 2.5
+    peak: float = 170.0
+    background: float = 20.0
+    noise_sigma: float = 3.0
+    seed: int = 0
+
+    def frame(self, xy_mm: np.ndarray, rng: np.random.Generator | None = None) -> np.ndarray:
+        """The frame showing the spot at plane position ``xy_mm`` (2,)."""
+        u, v = apply_homography(self.homography_mm_to_px, np.asarray(xy_mm, float))[0]
+        return render_spot(self.shape, (u, v), sigma_px=self.sigma_px, peak=self.peak, background=self.background,
+                           noise_sigma=self.noise_sigma, rng=rng or np.random.default_rng(self.seed))
+
+    def frame_source(self, true_xy_mm: Callable[[], np.ndarray]) -> Callable[[], np.ndarray]:
+        """A ``grab`` callable for :class:`~bench.sensors.camera_spot.LaserSpotCamera` observing a true position."""
+        rng = np.random.default_rng(self.seed)
+        return lambda: self.frame(true_xy_mm(), rng)
+
+    def chessboard(self, pattern_size: tuple[int, int] = (9, 6), square_mm: float = 10.0) -> np.ndarray:
+        """The calibration target as this camera sees it (target frame = plane frame)."""
+        return render_chessboard(self.shape, pattern_size, square_mm, self.homography_mm_to_px)

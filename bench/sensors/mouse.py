@@ -16,6 +16,7 @@ import stat
 import struct
 import time
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 
@@ -24,7 +25,7 @@ from bench.sensors.calibration import CountsCalibration
 from bench.sensors.input_event import FrameAssembler, MotionFrames
 from bench.sensors.reading import Reading, now
 
-__all__ = ["EVIOCGRAB", "EVIOCSCLOCKID", "MouseBinding", "EvdevMouse", "MouseGroup"]
+__all__ = ["EVIOCGRAB", "EVIOCSCLOCKID", "MouseBinding", "list_mice", "EvdevMouse", "MouseGroup"]
 
 logger = logging.getLogger(__name__)
 
@@ -57,6 +58,37 @@ class MouseBinding:
 
     def __str__(self) -> str:
         return f"mouse {self.label!r} ({self.path}{', ' + self.name if self.name else ''})"
+
+
+def _read_text(path: Path) -> str:
+    try:
+        return path.read_text().strip()
+    except OSError:
+        return ""
+
+
+def list_mice(*, dev_root: str = "/dev/input", sysfs_root: str = "/sys/class/input") -> list[MouseBinding]:
+    """Event devices that report REL_X and REL_Y, named by their stable link where one exists.
+
+    Reads ``/sys/class/input/eventN/device/{name,phys,capabilities/rel}`` (no permission needed) and prefers a
+    ``by-path`` link (stable per USB port, works for identical mice) over ``by-id`` (``sensors.md`` §4.1). Use
+    it for the daily wiggle test: move one sensor and see which binding produces counts.
+    """
+    stable: dict[str, str] = {}
+    for folder in ("by-path", "by-id"):
+        links = Path(dev_root) / folder
+        if links.is_dir():
+            for link in sorted(links.iterdir()):
+                stable.setdefault(os.path.basename(os.path.realpath(link)), str(link))
+    found = []
+    nodes = sorted(Path(sysfs_root).glob("event*"), key=lambda p: int(p.name[5:]) if p.name[5:].isdigit() else -1)
+    for node in nodes:
+        words = _read_text(node / "device" / "capabilities" / "rel").split()
+        if not words or int(words[-1], 16) & 0b11 != 0b11:   # REL_X and REL_Y are bits 0 and 1 of the last word
+            continue
+        found.append(MouseBinding(node.name, stable.get(node.name, str(Path(dev_root) / node.name)),
+                                  _read_text(node / "device" / "name"), _read_text(node / "device" / "phys"), True))
+    return found
 
 
 def _query_string(fd: int, nr: int) -> str:
