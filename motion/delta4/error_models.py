@@ -8,9 +8,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from motion.delta4.geometry import NOMINAL, Geometry, as_points, coord_from_servo_deg, servo_from_coord_deg
+from motion.delta4.geometry import NOMINAL, Geometry, coord_from_servo_deg, servo_from_coord_deg
 from motion.delta4.kinematics import forward_kinematics, inverse_kinematics
 from motion.errors import MotionInputError
+from motion.sampling import as_rows
 
 __all__ = [
     "THESIS_QUANTUM_DEG",
@@ -149,7 +150,7 @@ def vibration_envelope(
         raise MotionInputError(f"angle = {angle!r}, expected 'coordinate' or 'servo'")
     if samples < 2 or frequency_hz <= 0:
         raise MotionInputError(f"samples = {samples!r}, frequency_hz = {frequency_hz!r}, expected >= 2 and > 0")
-    points = as_points(points_mm, 3, "points_mm")
+    points = as_rows(points_mm, 3, "points_mm")
     t_s = np.arange(samples) * periods / (frequency_hz * (samples - 1))
     wave = amplitude_deg * np.sin(2 * np.pi * frequency_hz * t_s[:, None] + np.radians(np.asarray(phase_deg)))
     servo = inverse_kinematics(points, geometry).servo_deg  # (N, 4)

@@ -22,7 +22,6 @@ __all__ = [
     "coord_from_servo_deg",
     "servo_from_coord_deg",
     "knees_mm",
-    "as_points",
 ]
 
 #: Outward unit vector u_i of each leg in the base frame: legs 1-4 sit at +x, -y, -x, +y (thesis Fig. 20).
@@ -98,18 +97,6 @@ NOMINAL = Geometry()
 #: The constants of the thesis code: R0^2 - n^2 = 300.607 cm^2 = 30 060.7 mm^2. Reproduces every printed
 #: 4th decimal of the golden vectors; NOMINAL differs from it by <= 1e-4 deg and 2e-4 mm.
 THESIS = Geometry(lower_arm_mm=math.sqrt(30060.7 + 44.5**2))
-
-
-def as_points(values: object, width: int, name: str) -> np.ndarray:
-    """Coerce ``values`` to a finite float array of shape (N, width); a single row becomes N = 1."""
-    array = np.asarray(values, dtype=float)
-    if array.ndim == 1:
-        array = array[None, :]
-    if array.ndim != 2 or array.shape[1] != width:
-        raise MotionInputError(f"{name} has shape {np.shape(values)}, expected (N, {width}) or ({width},)")
-    if not np.all(np.isfinite(array)):
-        raise MotionInputError(f"{name} contains NaN or infinity, expected finite values")
-    return array
 
 
 def servo_from_coord_deg(coord_deg: np.ndarray) -> np.ndarray:

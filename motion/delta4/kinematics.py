@@ -17,11 +17,11 @@ from motion.delta4.geometry import (
     LEG_SIDEWAYS,
     NOMINAL,
     Geometry,
-    as_points,
     coord_from_servo_deg,
     knees_mm,
 )
 from motion.errors import MotionInputError
+from motion.sampling import as_rows
 
 __all__ = ["IKResult", "FKResult", "inverse_kinematics", "forward_kinematics", "jacobian_deg_per_mm"]
 
@@ -124,7 +124,7 @@ def inverse_kinematics(points_mm: object, geometry: Geometry = NOMINAL) -> IKRes
     >>> inverse_kinematics([-70.0, 60.0, -200.0], THESIS).servo_deg.round(4).tolist()
     [[129.3, 126.6058, 73.7283, 78.5895]]
     """
-    points = as_points(points_mm, 3, "points_mm")
+    points = as_rows(points_mm, 3, "points_mm")
     m, n = geometry.thigh_offset_mm, geometry.ankle_offset_mm
     upper, lower = geometry.upper_arm_mm, geometry.lower_arm_mm
     radial = points @ LEG_OUTWARD.T + n - m  # (N, 4): ankle minus thigh, along u_i
@@ -280,7 +280,7 @@ def forward_kinematics(
     """
     if method not in ("least_squares", "joint_space", "closed_form"):
         raise MotionInputError(f"method = {method!r}, expected 'least_squares', 'joint_space' or 'closed_form'")
-    servo = as_points(servo_deg, 4, "servo_deg")
+    servo = as_rows(servo_deg, 4, "servo_deg")
     knees = knees_mm(servo, geometry)
     pose, ok, reason = _closed_form(knees, geometry)
     if method != "closed_form":
@@ -315,7 +315,7 @@ def jacobian_deg_per_mm(points_mm: object, geometry: Geometry = NOMINAL) -> np.n
     singular knee angles 0 and 180 deg.
     """
     result = inverse_kinematics(points_mm, geometry)
-    points = as_points(points_mm, 3, "points_mm")
+    points = as_rows(points_mm, 3, "points_mm")
     legs = _leg_vectors(points, result.knees_mm, geometry)
     elevation = np.radians(45.0 - result.servo_deg)[..., None]
     knee_rate = geometry.upper_arm_mm * (-np.sin(elevation) * LEG_OUTWARD + np.cos(elevation) * _E_Z)

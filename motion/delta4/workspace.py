@@ -6,13 +6,13 @@ angles within the geometry's limits). Reference: ``delta4-lasergrid.md`` §1.7.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 
 import numpy as np
 
 from motion.delta4.geometry import NOMINAL, Geometry
 from motion.delta4.kinematics import inverse_kinematics
 from motion.errors import MotionInputError
+from motion.sampling import WorkspaceVolume, check_box, hit_or_miss_volume
 
 __all__ = [
     "DEFAULT_BOX_MM",
@@ -27,31 +27,13 @@ __all__ = [
 DEFAULT_BOX_MM = ((-250.0, 250.0), (-250.0, 250.0), (-300.0, 0.0))
 
 
-@dataclass(frozen=True)
-class WorkspaceVolume:
-    """Monte Carlo volume estimate: ``volume_mm3`` +- ``standard_error_mm3`` from ``accepted`` of ``count``."""
-
-    volume_mm3: float
-    standard_error_mm3: float
-    accepted: int
-    count: int
-    box_mm: tuple[tuple[float, float], ...]
-
-
-def _box(box_mm: object) -> np.ndarray:
-    box = np.asarray(box_mm, dtype=float)
-    if box.shape != (3, 2) or not np.all(box[:, 0] < box[:, 1]):
-        raise MotionInputError(f"box_mm = {box_mm!r}, expected ((x_lo, x_hi), (y_lo, y_hi), (z_lo, z_hi)), lo < hi")
-    return box
-
-
 def workspace_samples(
     count: int, geometry: Geometry = NOMINAL, *, box_mm: object = DEFAULT_BOX_MM, seed: int | None = 0
 ) -> tuple[np.ndarray, np.ndarray]:
     """Uniform random points in the box, (count, 3) mm, and their reachability, (count,) bool."""
     if count < 1:
         raise MotionInputError(f"count = {count!r}, expected an integer >= 1")
-    box = _box(box_mm)
+    box = check_box(box_mm)
     points = np.random.default_rng(seed).uniform(box[:, 0], box[:, 1], size=(count, 3))
     return points, inverse_kinematics(points, geometry).reachable
 
@@ -60,17 +42,9 @@ def workspace_volume(
     count: int = 200_000, geometry: Geometry = NOMINAL, *, box_mm: object = DEFAULT_BOX_MM, seed: int | None = 0
 ) -> WorkspaceVolume:
     """Monte Carlo volume of the reachable set: V = p V_box, SE = V_box sqrt(p (1 - p) / count)."""
-    box = _box(box_mm)
+    box = check_box(box_mm)
     _, reachable = workspace_samples(count, geometry, box_mm=box, seed=seed)
-    box_volume = float(np.prod(box[:, 1] - box[:, 0]))
-    fraction = reachable.mean()
-    return WorkspaceVolume(
-        volume_mm3=float(fraction * box_volume),
-        standard_error_mm3=box_volume * float(np.sqrt(fraction * (1 - fraction) / count)),
-        accepted=int(reachable.sum()),
-        count=count,
-        box_mm=tuple(map(tuple, box.tolist())),
-    )
+    return hit_or_miss_volume(int(reachable.sum()), count, box)
 
 
 def reachable_square_half_width_mm(

@@ -11,11 +11,11 @@ calibration fields with the defaults argued in pkm5.md §2.6.
 from __future__ import annotations
 
 import dataclasses
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
-from motion.errors import MotionInputError
+from motion.sampling import as_rows
 
 _LEGS = 6
 
@@ -146,9 +146,4 @@ def steps_to_lengths(steps, geometry: Geometry = DEFAULT_GEOMETRY) -> np.ndarray
 
 
 def _as_legs(values, name: str) -> np.ndarray:
-    array = np.asarray(values, dtype=float)
-    if array.ndim == 1:
-        array = array[None, :]
-    if array.ndim != 2 or array.shape[1] != _LEGS:
-        raise MotionInputError(f"{name} has shape {np.shape(values)}, expected (N, {_LEGS})")
-    return array
+    return as_rows(values, _LEGS, name)

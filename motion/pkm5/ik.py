@@ -15,8 +15,8 @@ from functools import cached_property
 import numpy as np
 
 from motion import dual
-from motion.errors import MotionInputError
 from motion.pkm5.geometry import DEFAULT_GEOMETRY, Geometry
+from motion.sampling import as_rows
 
 __all__ = ["Failure", "IKResult", "inverse_kinematics", "leg_lengths", "bracket_vectors", "as_poses"]
 
@@ -34,14 +34,7 @@ class Failure(enum.IntFlag):
 
 def as_poses(poses, name: str = "poses") -> np.ndarray:
     """Validate and return poses as float64 (N, 5): x, y, z [mm], alpha, beta [rad]."""
-    array = np.asarray(poses, dtype=float)
-    if array.ndim == 1:
-        array = array[None, :]
-    if array.ndim != 2 or array.shape[1] != 5:
-        raise MotionInputError(f"{name} has shape {np.shape(poses)}, expected (N, 5): x, y, z [mm], alpha, beta [rad]")
-    if not np.all(np.isfinite(array)):
-        raise MotionInputError(f"{name} contains non-finite values")
-    return array
+    return as_rows(poses, 5, f"{name} (x, y, z [mm], alpha, beta [rad])")
 
 
 def _rotate(vector, ca, sa, cb, sb):

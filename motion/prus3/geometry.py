@@ -17,7 +17,6 @@ from motion.errors import MotionInputError
 __all__ = [
     "Geometry",
     "STAND_IN",
-    "as_rows",
     "rotation_matrix",
     "euler_deg_from_matrix",
     "corners_mm",
@@ -103,18 +102,6 @@ class Geometry:
 
 #: The reference's stand-in dimensions (§3.2, §3.3): a = 600, b = 75, c = 100, stroke 0-1200, n = 0 mm.
 STAND_IN = Geometry()
-
-
-def as_rows(values: object, width: int, name: str) -> np.ndarray:
-    """Coerce to a finite float array (N, width); a single row becomes N = 1."""
-    array = np.asarray(values, dtype=float)
-    if array.ndim == 1:
-        array = array[None, :]
-    if array.ndim != 2 or array.shape[1] != width:
-        raise MotionInputError(f"{name} has shape {np.shape(values)}, expected (N, {width}) or ({width},)")
-    if not np.all(np.isfinite(array)):
-        raise MotionInputError(f"{name} contains NaN or infinity, expected finite values")
-    return array
 
 
 def rotation_matrix(angles_deg: np.ndarray) -> np.ndarray:

@@ -11,8 +11,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from motion.errors import MotionInputError
-from motion.prus3.geometry import STAND_IN, Geometry, as_rows
+from motion.prus3.geometry import STAND_IN, Geometry
 from motion.prus3.kinematics import inverse_kinematics
+from motion.sampling import as_rows
 
 __all__ = ["SliderJacobian", "slider_jacobian"]
 

@@ -15,8 +15,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from motion.errors import MotionInputError
-from motion.prus3.geometry import STAND_IN, Geometry, PoseFit, as_rows, corners_mm, pose_from_corners
+from motion.prus3.geometry import STAND_IN, Geometry, PoseFit, corners_mm, pose_from_corners
 from motion.prus3.revolute import existence_margin, revolute_angles
+from motion.sampling import as_rows
 
 __all__ = [
     "IKResult",

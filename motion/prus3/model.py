@@ -14,10 +14,11 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from motion.model import JointSpec, ModelFK, ModelIK
-from motion.prus3.geometry import STAND_IN, Geometry, as_rows
+from motion.prus3.geometry import STAND_IN, Geometry
 from motion.prus3.jacobian import slider_jacobian
 from motion.prus3.kinematics import forward_kinematics, inverse_kinematics
 from motion.prus3.workspace import workspace_samples
+from motion.sampling import as_rows
 
 __all__ = ["Prus3Model", "MODEL"]
 

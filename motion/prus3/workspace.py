@@ -7,12 +7,12 @@ branch inside the stroke; branches are chosen freely per leg (reference ``prus3.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 
 import numpy as np
 
 from motion.errors import MotionInputError
-from motion.prus3.geometry import STAND_IN, Geometry, as_rows, corners_mm, rotation_matrix
+from motion.sampling import WorkspaceVolume, as_rows, check_box, hit_or_miss_volume
+from motion.prus3.geometry import STAND_IN, Geometry, corners_mm, rotation_matrix
 from motion.prus3.kinematics import _slider_solutions, link_directions
 from motion.prus3.revolute import existence_margin
 
@@ -30,17 +30,6 @@ __all__ = [
 DEFAULT_BOX_MM = ((150.0, 650.0), (-350.0, 350.0), (-1900.0, 700.0))
 #: ``existence``: the +-L test of some x2 (convention-free). ``x3_zero``: x2 = phi, x3 = 0 within +-L.
 CRITERIA = ("existence", "x3_zero")
-
-
-@dataclass(frozen=True)
-class WorkspaceVolume:
-    """``volume_mm3`` +- ``standard_error_mm3`` from ``accepted`` of ``count`` samples in ``box_mm``."""
-
-    volume_mm3: float
-    standard_error_mm3: float
-    accepted: int
-    count: int
-    box_mm: tuple[tuple[float, float], ...]
 
 
 def _direction_ok(u: np.ndarray, geometry: Geometry, criterion: str) -> np.ndarray:
@@ -69,13 +58,6 @@ def reachable_any_branch(pose: object, geometry: Geometry = STAND_IN, *, criteri
     return (ok & branch_ok).all(axis=1)
 
 
-def _box(box_mm: object) -> np.ndarray:
-    box = np.asarray(box_mm, dtype=float)
-    if box.shape != (3, 2) or not np.all(box[:, 0] < box[:, 1]):
-        raise MotionInputError(f"box_mm = {box_mm!r}, expected ((x_lo, x_hi), (y_lo, y_hi), (z_lo, z_hi)), lo < hi")
-    return box
-
-
 def workspace_samples(
     count: int,
     geometry: Geometry = STAND_IN,
@@ -88,7 +70,7 @@ def workspace_samples(
     """Uniform tip positions in the box at a fixed orientation, as poses (count, 6), and reachability (count,)."""
     if count < 1:
         raise MotionInputError(f"count = {count!r}, expected an integer >= 1")
-    box = _box(box_mm)
+    box = check_box(box_mm)
     points = np.random.default_rng(seed).uniform(box[:, 0], box[:, 1], size=(count, 3))
     poses = np.column_stack([points, np.broadcast_to(np.asarray(orientation_deg, dtype=float), (count, 3))])
     return poses, reachable_any_branch(poses, geometry, criterion=criterion)
@@ -105,7 +87,7 @@ def workspace_volume(
     chunk: int = 500_000,
 ) -> WorkspaceVolume:
     """Monte Carlo constant-orientation volume: V = p V_box, SE = V_box sqrt(p (1 - p) / N) (reference §7.2)."""
-    box = _box(box_mm)
+    box = check_box(box_mm)
     rng = np.random.default_rng(seed)
     accepted = 0
     for start in range(0, count, chunk):
@@ -114,15 +96,7 @@ def workspace_volume(
             size, geometry, orientation_deg=orientation_deg, box_mm=box, seed=rng, criterion=criterion
         )
         accepted += int(ok.sum())
-    box_volume = float(np.prod(box[:, 1] - box[:, 0]))
-    fraction = accepted / count
-    return WorkspaceVolume(
-        volume_mm3=fraction * box_volume,
-        standard_error_mm3=box_volume * float(np.sqrt(fraction * (1 - fraction) / count)),
-        accepted=accepted,
-        count=count,
-        box_mm=tuple(map(tuple, box.tolist())),
-    )
+    return hit_or_miss_volume(accepted, count, box)
 
 
 def workspace_volume_quadrature(
