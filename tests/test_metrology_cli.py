@@ -5,6 +5,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
 
 from bench.cli import main
 
@@ -55,6 +57,7 @@ def test_iso9283_readable_table(capsys):
         (f"{HEADER}\nP1,1,0,0,0,0,0,0\nP1,2,0,0,0,zero,0,0\n", "row 2, column x_mm: 'zero' is not a finite number"),
         (f"{HEADER}\nP1,1,0,0,0,0,0,nan\n", "row 1, column z_mm: 'nan' is not a finite number"),
         ("", "not a readable CSV table"),
+        (f"{HEADER}\nP1,1,0,0,0,0,0,0,9\n", "row 1: 9 fields, expected 8 as in the header"),
     ],
 )
 def test_bad_csv_gives_one_line_and_exit_2(capsys, tmp_path, text, message):
@@ -134,3 +137,19 @@ def test_mouse_command_unknown_layout(capsys, tmp_path):
     path.write_text("x,y\n1,2\n")
     code, _, err = _run(capsys, "analyze", "mouse", str(path))
     assert code == 2 and "expected columns distance_mm, position" in err
+
+
+cells = st.sampled_from(["0", "1.5", "-2", "1e3", "", "abc", "nan", "inf", "P1", "P2", " 3 ", "1,5"])
+
+
+@settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(st.lists(st.lists(cells, min_size=8, max_size=8), min_size=0, max_size=6))
+def test_any_table_gives_a_result_or_one_line_error(capsys, tmp_path, rows):
+    path = tmp_path / "fuzz.csv"
+    path.write_text("\n".join([HEADER, *(",".join(r) for r in rows)]) + "\n")
+    code, out, err = _run(capsys, "analyze", "iso9283", str(path), "--json")
+    assert code in (0, 1, 2)
+    if code == 0:
+        assert "poses" in json.loads(out)
+    else:
+        assert err.startswith("bench: error: ") and err.count("\n") == 1

@@ -9,6 +9,7 @@ between poses. Results are grouped by pose and, when they vary, by the condition
 
 from __future__ import annotations
 
+import csv
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -74,15 +75,29 @@ class PoseResult:
 
 
 def read_table_csv(path: str | Path) -> pd.DataFrame:
-    """Read a CSV as strings (no type guessing), refusing a missing or empty file with a one-line error."""
+    """Read a CSV as strings (no type guessing); lines starting with ``#`` and blank lines are skipped.
+
+    Data rows are numbered from 1 after the header, the numbering every error message uses. A missing file, an
+    empty table, a repeated column name or a row with the wrong number of fields is a one-line ``ConfigError``.
+    """
     path = Path(path)
     try:
-        frame = pd.read_csv(path, dtype=str, keep_default_na=False, skipinitialspace=True, comment="#")
+        text = path.read_text(encoding="utf-8-sig")
     except FileNotFoundError:
         raise ConfigError(f"{path}: no such file") from None
-    except (pd.errors.EmptyDataError, pd.errors.ParserError, UnicodeDecodeError) as exc:
-        raise ConfigError(f"{path}: not a readable CSV table ({str(exc).splitlines()[0]})") from None
-    frame.columns = [str(c).strip() for c in frame.columns]
+    except (OSError, UnicodeDecodeError) as exc:
+        raise ConfigError(f"{path}: not a readable CSV table ({exc})") from None
+    lines = [line for line in text.splitlines() if line.strip() and not line.lstrip().startswith("#")]
+    rows = list(csv.reader(lines, skipinitialspace=True))
+    if not rows:
+        raise ConfigError(f"{path}: not a readable CSV table (no header line)")
+    header = [name.strip() for name in rows[0]]
+    if len(set(header)) != len(header) or "" in header:
+        raise ConfigError(f"{path}: header {', '.join(header)}: expected unique, non-empty column names")
+    for number, row in enumerate(rows[1:], start=1):
+        if len(row) != len(header):
+            raise ConfigError(f"{path}: row {number}: {len(row)} fields, expected {len(header)} as in the header")
+    frame = pd.DataFrame(rows[1:], columns=header, dtype=str)
     frame.attrs["source"] = str(path)
     return frame
 
