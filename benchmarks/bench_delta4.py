@@ -10,22 +10,14 @@ Usage: ``python benchmarks/bench_delta4.py [--ik N] [--fk N] [--baseline N]``.
 from __future__ import annotations
 
 import argparse
-import time
 
 import numpy as np
 from scipy.optimize import least_squares
 
+from _timing import timed
+
 from motion import delta4
 from motion.delta4.geometry import LEG_OUTWARD
-
-
-def timed(function, *args, repeat: int = 3, **kwargs):
-    best, result = np.inf, None
-    for _ in range(repeat):
-        start = time.perf_counter()
-        result = function(*args, **kwargs)
-        best = min(best, time.perf_counter() - start)
-    return best, result
 
 
 def scipy_per_pose(servo_deg: np.ndarray, start_mm: np.ndarray) -> np.ndarray:

@@ -12,21 +12,13 @@ baseline. Usage: ``python benchmarks/bench_pkm5.py [--fk N] [--baseline N]``.
 from __future__ import annotations
 
 import argparse
-import time
 
 import numpy as np
 from scipy.optimize import least_squares
 
+from _timing import timed
+
 from motion import pkm5
-
-
-def timed(function, *args, repeat: int = 3):
-    best = np.inf
-    for _ in range(repeat):
-        start = time.perf_counter()
-        result = function(*args)
-        best = min(best, time.perf_counter() - start)
-    return best, result
 
 
 def scipy_per_pose(lengths: np.ndarray) -> np.ndarray:

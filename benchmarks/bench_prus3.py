@@ -11,21 +11,13 @@ Usage: ``python benchmarks/bench_prus3.py [--ik N] [--fk N] [--baseline N]``.
 from __future__ import annotations
 
 import argparse
-import time
 
 import numpy as np
 from scipy.optimize import least_squares
 
+from _timing import timed
+
 from motion import prus3
-
-
-def timed(function, *args, repeat: int = 3, **kwargs):
-    best, result = np.inf, None
-    for _ in range(repeat):
-        start = time.perf_counter()
-        result = function(*args, **kwargs)
-        best = min(best, time.perf_counter() - start)
-    return best, result
 
 
 def scipy_per_pose(corners: np.ndarray) -> np.ndarray:

@@ -62,6 +62,12 @@ def emit(result: dict[str, Any], as_json: bool, text_lines: list[str]) -> None:
         sys.stdout.write("\n".join(text_lines) + "\n")
 
 
+def add_sampling_options(parser: argparse.ArgumentParser, samples: int) -> None:
+    """The Monte Carlo options every ``bench kin workspace ROBOT`` takes."""
+    parser.add_argument("--samples", type=int, default=samples, help="uniform box samples (Monte Carlo)")
+    parser.add_argument("--seed", type=int, default=0, help="random seed")
+
+
 def new_robot_parser(robots: argparse._SubParsersAction, name: str, help_text: str) -> argparse.ArgumentParser:
     """A robot parser with the shared ``--json`` flag and defaults shown in the help."""
     parser = robots.add_parser(name, help=help_text, formatter_class=argparse.ArgumentDefaultsHelpFormatter)

@@ -6,7 +6,7 @@ import argparse
 
 import numpy as np
 
-from bench.commands.kin import emit, new_robot_parser
+from bench.commands.kin import add_sampling_options, emit, new_robot_parser
 from bench.errors import BenchError, ConfigError, UnreachableTarget
 from motion import delta4
 from motion.delta4.workspace import reachable_square_half_width_mm, workspace_volume
@@ -49,8 +49,7 @@ def add_fk(robots: argparse._SubParsersAction) -> None:
 
 def add_workspace(robots: argparse._SubParsersAction) -> None:
     parser = new_robot_parser(robots, _ROBOT, _HELP)
-    parser.add_argument("--samples", type=int, default=200_000, help="uniform box samples (Monte Carlo)")
-    parser.add_argument("--seed", type=int, default=0, help="random seed")
+    add_sampling_options(parser, 200_000)
     parser.add_argument(
         "--z-mm",
         type=float,

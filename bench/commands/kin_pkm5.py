@@ -6,7 +6,7 @@ import argparse
 
 import numpy as np
 
-from bench.commands.kin import emit, new_robot_parser
+from bench.commands.kin import add_sampling_options, emit, new_robot_parser
 from bench.errors import ConfigError, UnreachableTarget
 from motion import pkm5
 
@@ -37,10 +37,9 @@ def add_workspace(robots: argparse._SubParsersAction) -> None:
     parser = new_robot_parser(robots, _ROBOT, _HELP)
     parser.add_argument("--kind", choices=sorted(pkm5.WORKSPACE_KINDS), default="constant-orientation",
                         help="workspace type of the dissertation (000 §6.3)")
-    parser.add_argument("--samples", type=int, default=200_000, help="uniform box samples for hit-or-miss")
+    add_sampling_options(parser, 200_000)
     parser.add_argument("--hull-points", type=int, default=12_000,
                         help="feasible samples for the convex hull (the dissertation used 12,000)")
-    parser.add_argument("--seed", type=int, default=0, help="random seed")
     parser.set_defaults(handler=_workspace)
 
 

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import argparse
 
-from bench.commands.kin import emit, new_robot_parser
+from bench.commands.kin import add_sampling_options, emit, new_robot_parser
 from bench.errors import ConfigError, UnreachableTarget
 from motion import prus3
 
@@ -68,8 +68,7 @@ def add_fk(robots: argparse._SubParsersAction) -> None:
 
 def add_workspace(robots: argparse._SubParsersAction) -> None:
     parser = new_robot_parser(robots, _ROBOT, _HELP)
-    parser.add_argument("--samples", type=int, default=400_000, help="uniform box samples (Monte Carlo)")
-    parser.add_argument("--seed", type=int, default=0, help="random seed")
+    add_sampling_options(parser, 400_000)
     parser.add_argument(
         "--orientation-deg",
         type=float,
