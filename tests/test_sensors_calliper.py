@@ -8,13 +8,20 @@ import numpy as np
 import pytest
 from hypothesis import given
 from hypothesis import strategies as st
-
-from sensor_fixtures import pty_port  # noqa: F401  (fixture)
+from sensor_fixtures import pty_pair
 
 from bench.errors import ConfigError, InsufficientData, LinkTimeout
 from bench.sensors import MalformedSample, Reading
-from bench.sensors.calliper import (ReadingRequest, SerialCalliper, TiltBias, parse_length, prompt_reading,
-                                    tilt_deg, tilt_reading, tilt_uncertainty_deg)
+from bench.sensors.calliper import (
+    ReadingRequest,
+    SerialCalliper,
+    TiltBias,
+    parse_length,
+    prompt_reading,
+    tilt_deg,
+    tilt_reading,
+    tilt_uncertainty_deg,
+)
 from bench.sensors.calliper_sim import CalliperSimulator, depths_for_tilt
 from bench.sensors.calliper_wedge import WedgeDecoder, WedgeListener, key_symbol
 
@@ -86,18 +93,18 @@ def test_wedge_listener_fails_clearly_without_a_display():
         WedgeListener(WedgeDecoder(print)).start()
 
 
-def test_serial_calliper_over_a_pty(pty_port):
-    master, port = pty_port
-    sim = CalliperSimulator()
-    os.write(master, sim.serial_lines([10.004, 24.996]) + b"12,3,4\r\n")
-    calliper = SerialCalliper(port, name="calliper")
-    first, second = calliper.read(timeout_s=2), calliper.read(timeout_s=2)
-    assert isinstance(first, Reading) and (first.value, second.value) == (10.0, 25.0) and first.raw == "10.00"
-    with pytest.raises(MalformedSample, match=r"'12,3,4' is not a length"):
-        calliper.read(timeout_s=2)
-    os.write(master, b"13.0")
-    with pytest.raises(LinkTimeout, match=r"calliper .*no complete line after 0\.\d+ s \(received so far: b'13.0'\)"):
-        calliper.read(timeout_s=0.2)
+def test_serial_calliper_over_a_pty():
+    with pty_pair() as (master, port):
+        sim = CalliperSimulator()
+        os.write(master, sim.serial_lines([10.004, 24.996]) + b"12,3,4\r\n")
+        calliper = SerialCalliper(port, name="calliper")
+        first, second = calliper.read(timeout_s=2), calliper.read(timeout_s=2)
+        assert isinstance(first, Reading) and (first.value, second.value) == (10.0, 25.0) and first.raw == "10.00"
+        with pytest.raises(MalformedSample, match=r"'12,3,4' is not a length"):
+            calliper.read(timeout_s=2)
+        os.write(master, b"13.0")
+        with pytest.raises(LinkTimeout, match=r"calliper .*no complete line after 0\.\d+ s \(received so far: b'13.0'\)"):
+            calliper.read(timeout_s=0.2)
 
 
 def test_tilt_from_two_depths():
@@ -122,7 +129,7 @@ def test_play_bias_is_a_measured_correction():
     bias = TiltBias.from_repeats(list(repeats), calibration_id="beta-bias-2026-11-23")
     assert bias.mean_deg == pytest.approx(-4.0, abs=0.03)
     t1, t2 = depths_for_tilt(6.0, 40.0, 25.0)   # a true -4 + 10 deg -> measured 6, corrected 10
-    stamp = dict(unit="mm", t_monotonic_s=1.0, t_wall_s=1.0, source="calliper")
+    stamp = {"unit": "mm", "t_monotonic_s": 1.0, "t_wall_s": 1.0, "source": "calliper"}
     reading = tilt_reading(Reading(float(t1), **stamp), Reading(float(t2), **stamp), 40.0, bias)
     assert reading.unit == "deg" and reading.value == pytest.approx(10.0, abs=0.03)
     assert reading.calibration_id == "beta-bias-2026-11-23"

@@ -6,8 +6,17 @@ import numpy as np
 import pytest
 
 from bench.sensors import MalformedSample, Sensor
-from bench.sensors.camera_sim import SpotCameraSimulator, apply_homography, render_chessboard, render_spot
-from bench.sensors.camera_spot import LaserSpotCamera, calibrate_from_chessboard, detect_spot
+from bench.sensors.camera_sim import (
+    SpotCameraSimulator,
+    apply_homography,
+    render_chessboard,
+    render_spot,
+)
+from bench.sensors.camera_spot import (
+    LaserSpotCamera,
+    calibrate_from_chessboard,
+    detect_spot,
+)
 
 SHAPE = (240, 320)
 

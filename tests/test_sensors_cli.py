@@ -52,7 +52,7 @@ def test_tilt_with_bias(capsys):
     code, out, _ = run(capsys, "sensors", "tilt", "--h1-mm", "0", "--h2-mm", "0", "--spacing-mm", "40",
                        "--bias-deg", "-4", "--json")
     result = json.loads(out)
-    assert result["tilt_corrected_deg"] == 4.0 and result["u_deg"] == pytest.approx(0.024, abs=0.0005)
+    assert code == 0 and result["tilt_corrected_deg"] == 4.0 and result["u_deg"] == pytest.approx(0.024, abs=0.0005)
 
 
 def test_calliper_entry_appends_and_flushes_each_row(tmp_path, capsys, monkeypatch):

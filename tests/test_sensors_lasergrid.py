@@ -8,9 +8,20 @@ from hypothesis import strategies as st
 
 from bench.errors import ConfigError
 from bench.sensors import Sensor
-from bench.sensors.lasergrid import (LASER_OFFSETS_MM, GridGeometry, LaserGridSensor, Screen, ScreenStatus,
-                                     decode_frame, decode_screen)
-from bench.sensors.lasergrid_sim import P_MISS_AT_DISTANCE, LaserGridSimulator, format_report
+from bench.sensors.lasergrid import (
+    LASER_OFFSETS_MM,
+    GridGeometry,
+    LaserGridSensor,
+    Screen,
+    ScreenStatus,
+    decode_frame,
+    decode_screen,
+)
+from bench.sensors.lasergrid_sim import (
+    P_MISS_AT_DISTANCE,
+    LaserGridSimulator,
+    format_report,
+)
 
 GEOMETRY = GridGeometry()
 H = GEOMETRY.horizontal

@@ -4,6 +4,7 @@ Real values from sensors.md: §1.1 (count sizes per CPI), §1.3 (ADNS-2610 on a 
 counts/revolution = 151.81 counts/cm, about 385.6 CPI against 400 nominal), §4.2 (24-byte record).
 """
 
+import itertools
 import os
 import struct
 import threading
@@ -16,8 +17,19 @@ from hypothesis import strategies as st
 from bench.errors import ConfigError, LinkError
 from bench.sensors import Reading, Sensor
 from bench.sensors.calibration import CountsCalibration
-from bench.sensors.input_event import (EV_KEY, EV_REL, EV_SYN, EVENT, EVENT_DTYPE, REL_X, REL_Y, SYN_DROPPED, SYN_REPORT,
-                                       FrameAssembler, encode_frames)
+from bench.sensors.input_event import (
+    EV_KEY,
+    EV_REL,
+    EV_SYN,
+    EVENT,
+    EVENT_DTYPE,
+    REL_X,
+    REL_Y,
+    SYN_DROPPED,
+    SYN_REPORT,
+    FrameAssembler,
+    encode_frames,
+)
 from bench.sensors.mouse import EvdevMouse, MouseGroup, _eviocg, list_mice
 from bench.sensors.mouse_sim import MouseSimulator, circle_motion, write_stream
 
@@ -52,12 +64,12 @@ def test_matrix_calibration_round_trip_and_hash():
 
 
 @pytest.mark.parametrize("kwargs, match", [
-    (dict(matrix_mm_per_count=[[1, 2], [2, 4]]), "singular"),
-    (dict(matrix_mm_per_count=[1, 2]), "finite 2x2"),
-    (dict(date="23/11/2026"), "ISO date"),
+    ({"matrix_mm_per_count": [[1, 2], [2, 4]]}, "singular"),
+    ({"matrix_mm_per_count": [1, 2]}, "finite 2x2"),
+    ({"date": "23/11/2026"}, "ISO date"),
 ])
 def test_bad_calibration_is_refused_naming_the_field(kwargs, match):
-    args = dict(matrix_mm_per_count=np.eye(2) * 0.03, calibration_id="c1", date="2026-11-23") | kwargs
+    args = {"matrix_mm_per_count": np.eye(2) * 0.03, "calibration_id": "c1", "date": "2026-11-23"} | kwargs
     with pytest.raises(ConfigError, match=match):
         CountsCalibration(**args)
     with pytest.raises(ConfigError, match="unknown keys"):
@@ -95,7 +107,7 @@ def test_assembly_is_independent_of_chunking(events, cuts):
     reference = FrameAssembler()._feed_events_loop(np.frombuffer(stream, EVENT_DTYPE))[0]
     assembler = FrameAssembler()
     bounds = [0, *sorted(min(c, len(stream)) for c in cuts), len(stream)]
-    parts = [assembler.feed(stream[a:b]) for a, b in zip(bounds, bounds[1:])]
+    parts = [assembler.feed(stream[a:b]) for a, b in itertools.pairwise(bounds)]
     got = {f: np.concatenate([getattr(p, f) for p in parts]) for f in ("t_s", "dx", "dy", "valid")}
     for field in ("t_s", "dx", "dy", "valid"):
         np.testing.assert_array_equal(got[field], getattr(reference, field))

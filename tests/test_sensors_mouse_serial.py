@@ -7,8 +7,7 @@ import numpy as np
 import pytest
 from hypothesis import given
 from hypothesis import strategies as st
-
-from sensor_fixtures import pty_port  # noqa: F401  (fixture)
+from sensor_fixtures import pty_pair
 
 from bench.errors import LinkError
 from bench.sensors import MalformedSample
@@ -33,23 +32,23 @@ def test_parse_mcu_line_round_trip(t, dx, dy, squal):
     assert parse_mcu_line(line.encode()) == McuSample(t, dx, dy, squal)
 
 
-def test_mcu_mouse_over_a_pty_integrates_and_flags_low_squal(pty_port):
-    master, port = pty_port
-    sim = MouseSimulator(cpi=1600, report_rate_hz=500)
-    t_s = np.array([0.0, 0.2])
-    lines = sim.mcu_lines(t_s, np.array([[0.0, 0.0], [12.7, -6.35]]), squal=120)
-    n = lines.count(b"\n")
-    os.write(master, lines)
-    mouse = McuMouse(port, CountsCalibration.from_cpi(1600), label="XY")
-    reading = mouse.read(n_samples=n, timeout_s=2)
-    assert reading.raw == (800, -400)                 # 12.7 mm = 0.5 in = 800 counts at 1600 CPI
-    assert reading.value == pytest.approx((12.7, -6.35)) and reading.valid and "squal=120" in reading.note
-    os.write(master, b"999999999,1,0,12\n")
-    assert not mouse.read(timeout_s=2).valid
-    mouse.rezero()
-    os.write(master, b"5,0,0,100\n")                  # MCU clock went backwards: reset or lost data
-    late = mouse.read(timeout_s=2)
-    assert not late.valid and "MCU clock went from 999999999 to 5 us" in late.note
+def test_mcu_mouse_over_a_pty_integrates_and_flags_low_squal():
+    with pty_pair() as (master, port):
+        sim = MouseSimulator(cpi=1600, report_rate_hz=500)
+        t_s = np.array([0.0, 0.2])
+        lines = sim.mcu_lines(t_s, np.array([[0.0, 0.0], [12.7, -6.35]]), squal=120)
+        n = lines.count(b"\n")
+        os.write(master, lines)
+        mouse = McuMouse(port, CountsCalibration.from_cpi(1600), label="XY")
+        reading = mouse.read(n_samples=n, timeout_s=2)
+        assert reading.raw == (800, -400)                 # 12.7 mm = 0.5 in = 800 counts at 1600 CPI
+        assert reading.value == pytest.approx((12.7, -6.35)) and reading.valid and "squal=120" in reading.note
+        os.write(master, b"999999999,1,0,12\n")
+        assert not mouse.read(timeout_s=2).valid
+        mouse.rezero()
+        os.write(master, b"5,0,0,100\n")                  # MCU clock went backwards: reset or lost data
+        late = mouse.read(timeout_s=2)
+        assert not late.valid and "MCU clock went from 999999999 to 5 us" in late.note
 
 
 def test_pointer_method_warns_loudly_and_reproduces_table_a28(caplog):

@@ -93,8 +93,8 @@ def _mouse_read(args: argparse.Namespace) -> int:
               "count_x": reading.raw[0], "count_y": reading.raw[1], "valid": reading.valid,
               "calibration_id": reading.calibration_id}
     emit(result, args.json, [f"{len(frames)} frames from {args.path}",
-                             f"x = {reading.value[0]:.4f} mm, y = {reading.value[1]:.4f} mm "
-                             f"({reading.raw[0]}, {reading.raw[1]} counts; calibration {reading.calibration_id})",
+                             (f"x = {reading.value[0]:.4f} mm, y = {reading.value[1]:.4f} mm "
+                              f"({reading.raw[0]}, {reading.raw[1]} counts; calibration {reading.calibration_id})"),
                              "valid" if reading.valid else f"INVALID: {reading.note}"])
     return 0 if reading.valid else 1
 
@@ -143,8 +143,8 @@ def _tilt(args: argparse.Namespace) -> int:
     u = tilt_uncertainty_deg(args.h1_mm, args.h2_mm, args.spacing_mm, args.u_h_mm, args.u_spacing_mm)
     corrected = measured - args.bias_deg
     emit({"tilt_measured_deg": measured, "tilt_corrected_deg": corrected, "bias_deg": args.bias_deg, "u_deg": u},
-         args.json, [f"tilt = {corrected:.4f} deg (measured {measured:.4f} deg, bias {args.bias_deg:+.4f} deg), "
-                     f"u = {u:.4f} deg without the bias uncertainty"])
+         args.json, [(f"tilt = {corrected:.4f} deg (measured {measured:.4f} deg, bias {args.bias_deg:+.4f} deg), "
+                      f"u = {u:.4f} deg without the bias uncertainty")])
     return 0
 
 
@@ -172,7 +172,7 @@ def _entry(args: argparse.Namespace) -> int:
         writer = None
 
         def store(reading) -> None:
-            nonlocal writer, new_file
+            nonlocal writer
             row = reading.as_row()
             if writer is None:
                 writer = csv.DictWriter(handle, fieldnames=list(row))

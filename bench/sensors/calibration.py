@@ -15,7 +15,7 @@ import numpy as np
 
 from bench.errors import ConfigError
 
-__all__ = ["CountsCalibration", "MM_PER_INCH"]
+__all__ = ["MM_PER_INCH", "CountsCalibration"]
 
 #: Millimetres per inch; one count is ``MM_PER_INCH / CPI`` mm (``sensors.md`` §1.1).
 MM_PER_INCH = 25.4

@@ -18,8 +18,16 @@ from bench.errors import ConfigError, InsufficientData
 from bench.sensors.reading import MalformedSample, Reading, now
 from bench.sensors.serial_lines import LineReader, Port
 
-__all__ = ["parse_length", "ReadingRequest", "prompt_reading", "SerialCalliper", "tilt_deg",
-           "tilt_uncertainty_deg", "TiltBias", "tilt_reading"]
+__all__ = [
+    "ReadingRequest",
+    "SerialCalliper",
+    "TiltBias",
+    "parse_length",
+    "prompt_reading",
+    "tilt_deg",
+    "tilt_reading",
+    "tilt_uncertainty_deg",
+]
 
 _NUMBER = re.compile(r"\s*([+-]?)\s*(\d+(?:[.,]\d*)?|[.,]\d+)\s*(mm|in|\")?\s*", re.IGNORECASE)
 _MM_PER_UNIT = {"mm": 1.0, "in": 25.4, '"': 25.4}

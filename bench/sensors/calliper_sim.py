@@ -40,7 +40,7 @@ class CalliperSimulator:
 
     def texts(self, true_mm: np.ndarray) -> list[str]:
         """Readings as the display shows them, e.g. ``"12.34"``."""
-        decimals = max(0, int(round(-np.log10(self.resolution_mm))))
+        decimals = max(0, round(-np.log10(self.resolution_mm)))
         return [f"{v:.{decimals}f}" for v in np.atleast_1d(self.values(true_mm))]
 
     def serial_lines(self, true_mm: np.ndarray, *, terminator: bytes = b"\r\n") -> bytes:

@@ -10,7 +10,7 @@ from __future__ import annotations
 import logging
 import time
 from collections.abc import Callable
-from typing import Any
+from typing import Any, Self
 
 from bench.errors import LinkError
 from bench.sensors.calliper import parse_length
@@ -105,8 +105,10 @@ class WedgeListener:
 
     def start(self) -> None:
         try:
-            from pynput import keyboard  # imported here: pynput needs a display or uinput at import time
-        except Exception as exc:  # pynput raises ImportError or backend-specific errors without a display
+            from pynput import (
+                keyboard,  # imported here: pynput needs a display or uinput at import time
+            )
+        except ImportError as exc:  # pynput's backends refuse to import without a display
             raise LinkError(f"{self.decoder.name}: cannot start a keyboard listener ({exc}); run on a desktop "
                             "session, or read the wedge's evdev keyboard device instead") from None
         self._listener = keyboard.Listener(on_press=lambda key: self.decoder.feed(key_symbol(key)))
@@ -118,7 +120,7 @@ class WedgeListener:
             self._listener.stop()
             self._listener = None
 
-    def __enter__(self) -> WedgeListener:
+    def __enter__(self) -> Self:
         self.start()
         return self
 

@@ -12,7 +12,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.special import erf
 
-__all__ = ["render_spot", "render_chessboard", "apply_homography", "SpotCameraSimulator"]
+__all__ = ["SpotCameraSimulator", "apply_homography", "render_chessboard", "render_spot"]
 
 
 def apply_homography(homography: np.ndarray, points: np.ndarray) -> np.ndarray:

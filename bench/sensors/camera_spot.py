@@ -17,7 +17,7 @@ import numpy as np
 from bench.errors import ConfigError
 from bench.sensors.reading import MalformedSample, Reading, now
 
-__all__ = ["SpotDetection", "detect_spot", "PlaneCalibration", "calibrate_from_chessboard", "LaserSpotCamera"]
+__all__ = ["LaserSpotCamera", "PlaneCalibration", "SpotDetection", "calibrate_from_chessboard", "detect_spot"]
 
 
 @dataclass(frozen=True)

@@ -12,8 +12,20 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["EV_SYN", "EV_KEY", "EV_REL", "SYN_REPORT", "SYN_DROPPED", "REL_X", "REL_Y", "EVENT",
-           "EVENT_DTYPE", "MotionFrames", "FrameAssembler", "encode_frames"]
+__all__ = [
+    "EVENT",
+    "EVENT_DTYPE",
+    "EV_KEY",
+    "EV_REL",
+    "EV_SYN",
+    "REL_X",
+    "REL_Y",
+    "SYN_DROPPED",
+    "SYN_REPORT",
+    "FrameAssembler",
+    "MotionFrames",
+    "encode_frames",
+]
 
 EV_SYN, EV_KEY, EV_REL = 0x00, 0x01, 0x02
 SYN_REPORT, SYN_DROPPED = 0, 3

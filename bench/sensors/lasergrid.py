@@ -18,9 +18,20 @@ import numpy as np
 from bench.errors import ConfigError
 from bench.sensors.reading import Reading, now
 
-__all__ = ["LASER_NAMES", "LASER_OFFSETS_MM", "MIN_CANDIDATE_SEPARATION_MM", "Screen", "GridGeometry",
-           "GridFrame", "ScreenStatus", "ScreenDecode", "GridDecode", "decode_screen", "decode_frame",
-           "LaserGridSensor"]
+__all__ = [
+    "LASER_NAMES",
+    "LASER_OFFSETS_MM",
+    "MIN_CANDIDATE_SEPARATION_MM",
+    "GridDecode",
+    "GridFrame",
+    "GridGeometry",
+    "LaserGridSensor",
+    "Screen",
+    "ScreenDecode",
+    "ScreenStatus",
+    "decode_frame",
+    "decode_screen",
+]
 
 #: Laser names and offsets from BE in the screen's (i right, j up) axes, mm (§4.4, reconstructed table).
 LASER_NAMES = ("BE", "G5-a", "G5-b", "G5-c", "G2.5-W", "G2.5-E", "G2.5-S", "G2.5-N",

@@ -8,14 +8,14 @@ lights with probability ``p_false``. Also formats frames in the default report g
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
 from bench.errors import ConfigError
 from bench.sensors.lasergrid import GridFrame, GridGeometry, Screen
 
-__all__ = ["GridFrame", "LaserGridSimulator", "P_MISS_AT_DISTANCE", "format_report"]
+__all__ = ["P_MISS_AT_DISTANCE", "GridFrame", "LaserGridSimulator", "format_report"]
 
 #: Miss probabilities reproducing the hit repeatability of Appendix D2 at 140 / 170 / 200 mm (§4.10 defaults).
 P_MISS_AT_DISTANCE = {140.0: 0.0075, 170.0: 0.0125, 200.0: 0.02}
@@ -37,7 +37,7 @@ class LaserGridSimulator:
         Seed of the random generator (frames are reproducible).
     """
 
-    geometry: GridGeometry = GridGeometry()
+    geometry: GridGeometry = field(default_factory=GridGeometry)
     spot_half_width_mm: float = 1.0
     p_miss: float = 0.0
     p_false: float = 0.0

@@ -17,6 +17,7 @@ import struct
 import time
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Self
 
 import numpy as np
 
@@ -25,7 +26,7 @@ from bench.sensors.calibration import CountsCalibration
 from bench.sensors.input_event import FrameAssembler, MotionFrames
 from bench.sensors.reading import Reading, now
 
-__all__ = ["EVIOCGRAB", "EVIOCSCLOCKID", "MouseBinding", "list_mice", "EvdevMouse", "MouseGroup"]
+__all__ = ["EVIOCGRAB", "EVIOCSCLOCKID", "EvdevMouse", "MouseBinding", "MouseGroup", "list_mice"]
 
 logger = logging.getLogger(__name__)
 
@@ -217,7 +218,7 @@ class EvdevMouse:
             os.close(self._fd)
             self._fd = -1
 
-    def __enter__(self) -> EvdevMouse:
+    def __enter__(self) -> Self:
         return self
 
     def __exit__(self, *exc: object) -> None:

@@ -15,7 +15,7 @@ from bench.sensors.calibration import CountsCalibration
 from bench.sensors.reading import MalformedSample, Reading, now
 from bench.sensors.serial_lines import LineReader, Port
 
-__all__ = ["McuSample", "parse_mcu_line", "McuMouse"]
+__all__ = ["McuMouse", "McuSample", "parse_mcu_line"]
 
 _LINE = re.compile(rb"\s*(\d+)\s*,\s*([+-]?\d+)\s*,\s*([+-]?\d+)\s*(?:,\s*(\d+)\s*)?")
 

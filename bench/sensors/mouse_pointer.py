@@ -17,7 +17,7 @@ from collections.abc import Callable, Iterator
 from bench.errors import ConfigError, LinkError
 from bench.sensors.reading import Reading, now
 
-__all__ = ["PointerMethodWarning", "PointerSampler", "UNFIT_FOR_METROLOGY"]
+__all__ = ["UNFIT_FOR_METROLOGY", "PointerMethodWarning", "PointerSampler"]
 
 logger = logging.getLogger(__name__)
 
@@ -32,7 +32,7 @@ class PointerMethodWarning(UserWarning):
 def _pynput_position() -> Callable[[], tuple[float, float]]:
     try:
         from pynput import mouse  # needs a display at import time
-    except Exception as exc:
+    except ImportError as exc:  # pynput's backends refuse to import without a display
         raise LinkError(f"pointer sampler: cannot use pynput ({exc}); the OS-pointer method needs a desktop "
                         "session. Read raw counts from /dev/input instead") from None
     controller = mouse.Controller()

@@ -20,8 +20,16 @@ from bench.errors import ConfigError
 from bench.sensors.calibration import MM_PER_INCH
 from bench.sensors.input_event import EVENT, encode_frames
 
-__all__ = ["MouseReports", "MouseSimulator", "circle_motion", "write_stream", "write_circle_stream",
-           "add_stream_arguments", "write_stream_from_args", "main"]
+__all__ = [
+    "MouseReports",
+    "MouseSimulator",
+    "add_stream_arguments",
+    "circle_motion",
+    "main",
+    "write_circle_stream",
+    "write_stream",
+    "write_stream_from_args",
+]
 
 MAX_REPORT_RATE_HZ = 8000.0
 

@@ -12,7 +12,7 @@ from typing import Protocol
 from bench.errors import LinkError, LinkTimeout
 from bench.sensors.reading import MalformedSample
 
-__all__ = ["Port", "LineReader"]
+__all__ = ["LineReader", "Port"]
 
 
 class Port(Protocol):
