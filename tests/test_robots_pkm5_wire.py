@@ -30,6 +30,13 @@ def test_reply_round_trip_and_crlf_tolerated():
     assert reply.ints(1, 6) == (1, -2, 3, 4, 5, 6)
 
 
+def test_noise_glued_before_a_reply_is_skipped_by_the_checksum():
+    line = b"\xf2)OK #1 x" + wire.format_reply("DONE", 2, 1, 2, 3, 4, 5, 6)[:-1]
+    assert wire.parse_reply(line) == wire.Reply("DONE", 2, ("1", "2", "3", "4", "5", "6"))
+    with pytest.raises(WireProtocolError, match="printable ASCII"):
+        wire.parse_reply(b"\xf2)DONE #2 1*ZZ")
+
+
 @pytest.mark.parametrize("line, message", [
     (b"ID #1*3E", "checksum"),
     (b"ID #1", "no '\\*HH' checksum"),

@@ -5,12 +5,14 @@ Pure functions shared by the driver (:mod:`bench.robots.pkm5`), the simulated co
 
 A line is ``BODY*HH\\n``: printable ASCII, at most :data:`MAX_LINE` bytes before the newline, ``HH`` the XOR of the
 body bytes in two upper-case hex digits. A command body is ``VERB [int ...] #TAG``; a reply body is
-``KIND #TAG FIELD ...`` with ``KIND`` one of ``OK``, ``DONE``, ``ERR``, ``BOOT``. Parsers raise only
+``KIND #TAG FIELD ...`` with ``KIND`` one of ``OK``, ``DONE``, ``ERR``, ``BOOT``; noise glued in front of a reply
+is skipped (the checksum decides). Parsers raise only
 :class:`bench.robots.link.WireProtocolError`.
 """
 
 from __future__ import annotations
 
+import contextlib
 import enum
 from dataclasses import dataclass
 
@@ -144,7 +146,23 @@ def format_reply(kind: str, tag: int, *fields: object) -> bytes:
 
 
 def parse_reply(line: bytes) -> Reply:
-    """Decode a reply line (the PC side)."""
+    """Decode a reply line (the PC side).
+
+    Noise glued in front of a reply (a glitch with no newline) is skipped: if the whole line fails, the last
+    ``KIND #`` start whose checksum verifies is taken; otherwise the first error is raised.
+    """
+    try:
+        return _parse_reply(line)
+    except WireProtocolError:
+        starts = [line.rfind(kind.encode("ascii") + b" #") for kind in _REPLY_KINDS]
+        start = max(starts)
+        if start > 0:
+            with contextlib.suppress(WireProtocolError):
+                return _parse_reply(line[start:])
+        raise
+
+
+def _parse_reply(line: bytes) -> Reply:
     tokens = decode_line(line).split()
     if not tokens or tokens[0] not in _REPLY_KINDS:
         raise WireProtocolError(f"line {line!r}: expected a reply starting with one of {_REPLY_KINDS}")

@@ -1,0 +1,173 @@
+"""End to end: the simulators run as separate programs on a pty and the real drivers talk to them through
+pyserial, exactly as to hardware; faults (garbage, late replies, a vanishing port, a wrong device) included."""
+
+import _thread
+import contextlib
+import os
+import re
+import select
+import signal
+import subprocess
+import sys
+import threading
+import time
+
+import numpy as np
+import pytest
+import serial
+
+from bench.errors import LinkError, LinkTimeout
+from bench.robots.delta4 import Delta4Controller
+from bench.robots.pkm5 import Pkm5Controller
+from bench.robots.sim_pty import read_last_truth
+
+POINT_3_1 = (110.52, -0.19, 305.5, 0.0, 0.0)  # Table A.11 point 3-1 (pkm5.md §6.8)
+
+
+@contextlib.contextmanager
+def simulator(robot, *args):
+    """Start ``python -m bench.robots.sim_<robot>``; yield (process, device path, stdout lines after it)."""
+    process = subprocess.Popen([sys.executable, "-m", f"bench.robots.sim_{robot}", *args],
+                               stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        ready, _, _ = select.select([process.stdout], [], [], 30)
+        assert ready, "simulator printed no device path within 30 s"
+        path = process.stdout.readline().strip()
+        assert re.fullmatch(r"/dev/pts/\d+", path), (path, process.stderr.read())
+        extra = [process.stdout.readline().strip()] if "--truth" in args else []
+        yield process, path, extra
+    finally:
+        if process.poll() is None:
+            process.send_signal(signal.SIGTERM)
+            try:
+                process.wait(5)
+            except subprocess.TimeoutExpired:
+                process.kill()
+                process.wait()
+        process.stdout.close()
+        process.stderr.close()
+
+
+def pkm5_on(path, **kwargs):
+    return Pkm5Controller(serial.serial_for_url(path, baudrate=115200), **kwargs)
+
+
+def test_pkm5_campaign_step_through_the_pty(tmp_path):
+    truth = tmp_path / "truth.jsonl"
+    with simulator("pkm5", "--speed-factor", "50", "--seed", "7", "--truth", str(truth)) as (_, path, extra), \
+            pkm5_on(path) as robot:
+        assert extra == [str(truth)]
+        assert robot.identify().firmware_version == "1.0.0-sim"
+        assert robot.position().state == "DISABLED"
+        robot.enable()
+        assert robot.move_to_pose(POINT_3_1) == (2656, 2656, 2669, 2669, 2720, 2720)
+        where = robot.position()
+        true_pose = robot.sim_true_pose()
+    assert where.steps == (2656, 2656, 2669, 2669, 2720, 2720) and where.state == "IDLE"
+    logged = read_last_truth(truth)
+    np.testing.assert_allclose(true_pose, logged["pose"], atol=1e-4)  # SIMTRUE prints 4 decimals
+    assert logged["commanded"] == [2656, 2656, 2669, 2669, 2720, 2720]
+    error_mm = np.linalg.norm(true_pose[:3] - POINT_3_1[:3])
+    assert 0.05 < error_mm < 5.0  # a real robot misses, by millimetres
+
+
+def test_ideal_pkm5_simulator_attains_the_commanded_pose():
+    with simulator("pkm5", "--speed-factor", "50", "--ideal") as (_, path, _extra), pkm5_on(path) as robot:
+        robot.enable()
+        robot.move_to_pose(POINT_3_1)
+        np.testing.assert_allclose(robot.sim_true_pose(), POINT_3_1, atol=0.01)
+
+
+def test_ctrl_c_during_a_move_stops_the_robot_and_closes_the_port():
+    with simulator("pkm5") as (_, path, _extra):
+        port = serial.serial_for_url(path, baudrate=115200)
+        timer = threading.Timer(0.4, _thread.interrupt_main)
+        with pytest.raises(KeyboardInterrupt), Pkm5Controller(port) as robot:
+            robot.enable()
+            timer.start()
+            robot.move_steps([2656, 2656, 2669, 2669, 2720, 2720])  # 9.3 s at 200 steps/s, speed factor 1
+        timer.join()
+        assert not port.is_open
+        with pkm5_on(path) as again:
+            where = again.position()
+    assert where.state == "IDLE" and 800 < where.steps[0] < 2656
+
+
+def test_garbage_on_the_line_is_survived():
+    with simulator("pkm5", "--speed-factor", "50", "--garbage-every-s", "0.05") as (_, path, _extra), \
+            pkm5_on(path, retries=4) as robot:
+        robot.link.port.write(b"\x00\xff#!garbage\n")  # and garbage towards the controller
+        robot.enable()
+        for pose in (POINT_3_1, (99.12, -18.53, 345.4, 0, 0), POINT_3_1):
+            robot.move_to_pose(pose)
+            time.sleep(0.06)
+        assert robot.position().steps == (2656, 2656, 2669, 2669, 2720, 2720)
+
+
+def test_late_replies_time_out_cleanly_then_are_recognised_as_stale():
+    with simulator("pkm5", "--reply-delay-s", "0.4") as (_, path, _extra), \
+            pkm5_on(path, reply_timeout_s=0.15, retries=0) as robot:
+        started = time.monotonic()
+        with pytest.raises(LinkTimeout, match=rf"{path}: no reply to 'POS' after 0\.\d+ s"):
+            robot.position()
+        assert time.monotonic() - started < 1.0  # bounded: 0.15 s plus scheduling on a loaded machine
+        robot.reply_timeout_s = 1.0
+        assert robot.position().state == "DISABLED"  # the late '#1' reply is dropped, '#2' is taken
+
+
+def test_port_vanishing_mid_move_gives_a_bounded_link_error():
+    with simulator("pkm5") as (process, path, _extra), pkm5_on(path) as robot:
+        robot.enable()
+        threading.Timer(0.3, process.kill).start()
+        started = time.monotonic()
+        with pytest.raises(LinkError, match=rf"{path}: port failed while waiting for the reply to 'MOVE' "
+                                            r"\(expected 'DONE #\d+ \.\.\.'"):
+            robot.move_steps([2656, 2656, 2669, 2669, 2720, 2720])
+        assert time.monotonic() - started < 3.0
+
+
+def test_pkm5_driver_on_a_delta4_controller_says_wrong_device():
+    with simulator("delta4") as (_, path, _extra), pkm5_on(path, reply_timeout_s=0.2, retries=0) as robot, \
+            pytest.raises(LinkTimeout, match=rf"{path}: no reply to 'ID' .* expected 'OK #1 \.\.\.' from a "
+                                             r"bench-pkm5 controller"):
+        robot.identify()
+
+
+def test_delta4_driver_on_a_pkm5_controller_says_wrong_device():
+    with simulator("pkm5") as (_, path, _extra), \
+            Delta4Controller(serial.serial_for_url(path, baudrate=9600)) as robot, \
+            pytest.raises(LinkTimeout, match=rf"{path}: no reply to 'E \(start\)' .* expected a sensor report"):
+        robot.start(verify_timeout_s=0.3)
+
+
+def test_delta4_move_through_the_pty(tmp_path):
+    truth = tmp_path / "truth.jsonl"
+    with simulator("delta4", "--speed-factor", "20", "--seed", "3", "--truth", str(truth)) as (_, path, _extra), \
+            Delta4Controller(serial.serial_for_url(path, baudrate=9600)) as robot:
+        assert robot.start() .horizontal == ()
+        result = robot.move_to((-70.0, 60.0, -200.0), require_settled=True)
+        frame = robot.read_sensor_frame()
+    assert result.settled and result.command_bytes == (174, 170, 99, 105)
+    assert (frame.horizontal, frame.vertical, frame.raw) == ((), (), b"hv")  # no laser-grid model attached
+    attained = np.array(read_last_truth(truth)["pose"])
+    assert 0.05 < np.linalg.norm(attained - (-70.0, 60.0, -200.0)) < 6.0
+
+
+def test_bench_sim_cli_prints_the_device_path():
+    process = subprocess.Popen([sys.executable, "-m", "bench.cli", "sim", "delta4", "--speed-factor", "5"],
+                               stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        ready, _, _ = select.select([process.stdout], [], [], 30)
+        assert ready and os.path.exists(process.stdout.readline().strip())
+    finally:
+        process.send_signal(signal.SIGINT)
+        assert process.wait(5) == 0
+        process.stdout.close()
+        process.stderr.close()
+
+
+def test_bench_sim_cli_refuses_a_bad_speed_factor():
+    done = subprocess.run([sys.executable, "-m", "bench.cli", "sim", "pkm5", "--speed-factor", "-1"],
+                          capture_output=True, text=True, timeout=60)
+    assert done.returncode == 2
+    assert done.stderr.strip() == "bench: error: --speed-factor = -1.0, expected a number > 0"
