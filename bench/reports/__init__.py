@@ -1,0 +1,134 @@
+"""bench.reports: turn stored runs into reports a customer would accept (HTML, PDF, raw data, comparisons).
+
+The report reads the run store (never hardware) and takes every number from :mod:`bench.metrology`
+(:mod:`bench.reports.content`); :mod:`~bench.reports.deviations` lists every departure from ISO 9283 computed from
+the stored configuration; :mod:`~bench.reports.document` lays the report out once and :mod:`~bench.reports.html`
+and :mod:`~bench.reports.pdf` print that one layout. The raw data is written next to the report as CSV and cited
+with its SHA-256.
+
+Examples
+--------
+>>> paths = write_report("bench.db", 3, "reports/")          # doctest: +SKIP
+>>> paths.html, paths.pdf, paths.csv                          # doctest: +SKIP
+"""
+
+from __future__ import annotations
+
+import hashlib
+from collections.abc import Iterable, Mapping
+from dataclasses import dataclass
+from pathlib import Path
+
+from bench.errors import ConfigError
+from bench.reports.content import CRITERIA, RunReport, collect
+from bench.reports.deviations import Deviation, iso_deviations
+from bench.reports.document import Document, RawData, comparison_document, run_document
+from bench.store import Store
+
+__all__ = ["CRITERIA", "FORMATS", "Deviation", "ReportPaths", "RunReport", "collect", "iso_deviations",
+           "write_comparison", "write_report"]
+
+#: Report formats, in the order they are written.
+FORMATS = ("html", "pdf")
+
+
+@dataclass(frozen=True)
+class ReportPaths:
+    """What a report call wrote: the report files (None for formats not asked for) and the raw-data CSVs."""
+
+    html: Path | None
+    pdf: Path | None
+    csv: tuple[Path, ...]
+    report_id: str
+
+
+def _check_formats(formats: Iterable[str]) -> tuple[str, ...]:
+    formats = tuple(formats)
+    unknown = [f for f in formats if f not in FORMATS]
+    if unknown or not formats:
+        raise ConfigError(f"--format {','.join(formats) or '(none)'}: expected one or more of {', '.join(FORMATS)}")
+    return formats
+
+
+def _out_dir(out_dir: str | Path) -> Path:
+    out = Path(out_dir)
+    if out.exists() and not out.is_dir():
+        raise ConfigError(f"--out {out}: exists and is not a folder, expected a folder for the report files")
+    out.mkdir(parents=True, exist_ok=True)
+    return out
+
+
+def _write_raw(report: RunReport, out: Path) -> tuple[Path, RawData]:
+    """The analysed tidy table at full precision, so `bench analyze iso9283` reproduces every number."""
+    path = out / f"run{report.run.id}_samples.csv"
+    report.table.to_csv(path, index=False)
+    digest = hashlib.sha256(path.read_bytes()).hexdigest()
+    return path, RawData(path.name, digest, len(report.table))
+
+
+def _write(document: Document, out: Path, stem: str, formats: tuple[str, ...]) -> dict[str, Path]:
+    from bench.reports.html import write_html
+    from bench.reports.pdf import write_pdf
+
+    writers = {"html": write_html, "pdf": write_pdf}
+    return {fmt: writers[fmt](document, out / f"{stem}.{fmt}") for fmt in formats}
+
+
+def _open(store: str | Path | Store) -> tuple[Store, bool]:
+    if isinstance(store, Store):
+        return store, False
+    if not Path(store).is_file():
+        raise ConfigError(f"--store {store}: no such store file")
+    return Store(store), True
+
+
+def write_report(store: str | Path | Store, run_id: int, out_dir: str | Path, formats: Iterable[str] = FORMATS, *,
+                 criteria: Mapping[str, float] | None = None, operator: str = "not recorded",
+                 laboratory: str = "not recorded", k: float = 2.0) -> ReportPaths:
+    """Write the report of one run: ``report_run<ID>.html`` / ``.pdf`` and ``run<ID>_samples.csv`` in ``out_dir``.
+
+    Parameters
+    ----------
+    store : path or Store
+        The run store (a path is opened read-only in practice and closed again).
+    run_id : int
+    out_dir : path
+        Folder for the files (created when missing).
+    formats : iterable of {"html", "pdf"}
+    criteria : mapping, optional
+        Project acceptance criteria (``AP_mm``, ``RP_mm``); without them no pass/fail is stated.
+    operator, laboratory : str
+        Printed in the identification section.
+    k : float
+        Coverage factor of the expanded uncertainties.
+    """
+    formats = _check_formats(formats)
+    store, opened = _open(store)
+    try:
+        report = collect(store, run_id, criteria=criteria, k=k)
+    finally:
+        if opened:
+            store.close()
+    out = _out_dir(out_dir)
+    csv_path, raw = _write_raw(report, out)
+    document = run_document(report, [raw], operator=operator, laboratory=laboratory)
+    written = _write(document, out, f"report_run{run_id}", formats)
+    return ReportPaths(written.get("html"), written.get("pdf"), (csv_path,), report.report_id)
+
+
+def write_comparison(store: str | Path | Store, first_run: int, second_run: int, out_dir: str | Path,
+                     formats: Iterable[str] = FORMATS, *, k: float = 2.0) -> ReportPaths:
+    """Write two runs side by side (before/after calibration, two loads, two robots): ``compare_run<A>_run<B>``."""
+    formats = _check_formats(formats)
+    store, opened = _open(store)
+    try:
+        first, second = collect(store, first_run, k=k), collect(store, second_run, k=k)
+    finally:
+        if opened:
+            store.close()
+    out = _out_dir(out_dir)
+    raws = [_write_raw(report, out) for report in (first, second)]
+    document = comparison_document(first, second, [raw for _, raw in raws])
+    written = _write(document, out, f"compare_run{first_run}_run{second_run}", formats)
+    return ReportPaths(written.get("html"), written.get("pdf"), tuple(p for p, _ in raws),
+                       document.meta["report_id"])

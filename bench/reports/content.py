@@ -1,0 +1,280 @@
+"""What a report says about one stored run: identification, device, method, deviations, instruments, results.
+
+:func:`collect` reads the store (never hardware) and calls :mod:`bench.metrology` for every number: AP, RP and
+their uncertainties come from :func:`bench.metrology.tables.analyze_poses`, AD/RD from
+:func:`~bench.metrology.tables.analyze_distance`, vAP from :func:`~bench.metrology.multidirectional_variation`,
+the payload error from :func:`~bench.metrology.payload_shift` and the instrument RP floor from
+:func:`~bench.metrology.instrument_rp_floor`. This module computes no statistic of its own, so a report number
+equals the analysis API's number on the same tidy table by construction.
+
+Decisions (documented here because the renderers only print them):
+
+- Commanded angles with no measured counterpart (a pkm5 commands alpha/beta; the mice measure x, y, z only) are
+  dropped before the analysis and the missing orientation is a ``dimensionality`` deviation.
+- The instrument's standard uncertainty per axis is ``settings.instrument.u_mm`` when stated, otherwise it is
+  built from the counts sensor's resolution 25.4/cpi mm (a difference of two readings, δ/√6) and its noise
+  ``noise_counts`` (counts, 1 σ), combined in quadrature. Without either, the sensor row is unknown and the
+  report is refused.
+- The decision uses simple acceptance (ILAC-G8:09/2019 §4.2.1, no guard band) against criteria passed by the
+  caller, labelled "project criterion"; without criteria no pass/fail is stated (ISO 9283 defines no grades).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from datetime import datetime, timezone
+from typing import Any
+
+import pandas as pd
+
+from bench import __version__
+from bench.errors import ConfigError, InsufficientData
+from bench.metrology import (DistanceCharacteristics, MultidirectionalVariation, PayloadShift, combine,
+                             instrument_rp_floor, multidirectional_variation, payload_shift, resolution_uncertainty)
+from bench.metrology.tables import ANGLE_PAIRS, PoseResult, analyze_distance, analyze_poses, pose_table
+from bench.reports.deviations import CLAUSES_APPLIED, Deviation, iso_deviations
+from bench.store import CalibrationRecord, RunRecord, Store, tidy_table
+
+__all__ = ["CRITERIA", "Decision", "DistanceRow", "InstrumentInfo", "PayloadRow", "RunReport", "VapRow",
+           "analysis_table", "collect"]
+
+MM_PER_INCH = 25.4
+#: Acceptance criteria a caller may state, with the result each applies to (all "smaller is better").
+CRITERIA = {"AP_mm": "AP_P of every pose", "RP_mm": "RP_l of every pose"}
+_POSITION = ("x_mm", "y_mm", "z_mm")
+
+
+@dataclass(frozen=True)
+class InstrumentInfo:
+    """The instrument as stored with the run, its uncertainty budget and calibrations."""
+
+    settings: dict[str, Any]
+    sigma_mm: float | None  #: standard uncertainty per axis, mm
+    budget: tuple[tuple[str, float, str], ...]  #: (component, standard uncertainty mm, source)
+    dims: int  #: measured position axes
+    rp_floor_mm: float | None  #: expected RP of a perfect robot seen through this instrument
+    calibrations: tuple[CalibrationRecord, ...]
+
+
+@dataclass(frozen=True)
+class DistanceRow:
+    label: str
+    first: str
+    second: str
+    result: DistanceCharacteristics
+
+
+@dataclass(frozen=True)
+class VapRow:
+    label: str
+    directions: tuple[str, ...]
+    result: MultidirectionalVariation
+
+
+@dataclass(frozen=True)
+class PayloadRow:
+    label: str
+    result: PayloadShift
+
+
+@dataclass(frozen=True)
+class Decision:
+    """Pass/fail against stated project criteria (simple acceptance), or none."""
+
+    rule: str
+    verdicts: tuple[tuple[str, str, float, float, bool], ...]  #: (criterion, pose label, value, limit, passed)
+
+    @property
+    def passed(self) -> bool | None:
+        return None if not self.verdicts else all(v[-1] for v in self.verdicts)
+
+
+@dataclass(frozen=True)
+class RunReport:
+    """Everything one run's report prints; renderers format it and add nothing."""
+
+    run: RunRecord
+    report_id: str
+    generated_utc: str
+    report_software_version: str
+    config_sha256: str
+    calibration_sha256: str
+    title: str
+    clauses: tuple[str, ...]
+    deviations: tuple[Deviation, ...]
+    instrument: InstrumentInfo
+    measured_columns: tuple[str, ...]
+    table: pd.DataFrame  #: the analysed tidy table (the raw-data CSV holds the same rows)
+    poses: tuple[PoseResult, ...]
+    distances: tuple[DistanceRow, ...]
+    multidirectional: tuple[VapRow, ...]
+    payload: tuple[PayloadRow, ...]
+    decision: Decision
+    coverage_factor: float
+    notes: tuple[str, ...] = field(default=())
+
+
+def _sha256_json(value: Any) -> str:
+    return hashlib.sha256(json.dumps(value, sort_keys=True, separators=(",", ":")).encode()).hexdigest()
+
+
+def analysis_table(store: Store, run_id: int) -> pd.DataFrame:
+    """The run's tidy pose table as the metrology reads it (commanded angles without measured ones dropped)."""
+    table = tidy_table(store, run_id, kind="pose")
+    for command, attained in ANGLE_PAIRS:
+        if command in table.columns and attained not in table.columns:
+            table = table.drop(columns=command)
+    table.attrs["source"] = f"run {run_id}"
+    return pose_table(table)
+
+
+def _instrument(run: RunRecord, calibrations: tuple[CalibrationRecord, ...], dims: int) -> InstrumentInfo:
+    settings = dict(run.settings.get("instrument") or {})
+    budget: list[tuple[str, float, str]] = []
+    if "u_mm" in settings:
+        budget.append(("instrument, per axis", float(settings["u_mm"]), "settings.instrument.u_mm"))
+    elif "cpi" in settings:
+        step_mm = MM_PER_INCH / float(settings["cpi"])
+        budget.append(("resolution (difference of two readings)",
+                       resolution_uncertainty(step_mm, difference=True), f"25.4/cpi = {step_mm:.4g} mm, δ/√6"))
+        if "noise_counts" in settings:
+            budget.append(("count noise", float(settings["noise_counts"]) * step_mm,
+                           f"{settings['noise_counts']} counts x {step_mm:.4g} mm"))
+    sigma = combine(*(u for _, u, _ in budget)) if budget else None
+    floor = instrument_rp_floor(sigma, dims=dims) if sigma is not None and dims else None
+    return InstrumentInfo(settings, sigma, tuple(budget), dims, floor, calibrations)
+
+
+def _condition_groups(table: pd.DataFrame):
+    varying = [c for c in ("velocity_pct", "load_kg") if c in table.columns and table[c].nunique() > 1]
+    if not varying:
+        yield "", table
+        return
+    for key, group in table.groupby(varying, sort=False):
+        key = key if isinstance(key, tuple) else (key,)
+        group = group.copy()
+        group.attrs["source"] = table.attrs.get("source", "table")
+        yield ", ".join(f"{n}={v:g}" for n, v in zip(varying, key)), group
+
+
+def _distances(table: pd.DataFrame) -> tuple[DistanceRow, ...]:
+    first, second = list(dict.fromkeys(table["pose"]))[:2]
+    return tuple(DistanceRow(label or f"{first}-{second}", first, second, analyze_distance(group, first, second))
+                 for label, group in _condition_groups(table))
+
+
+def _multidirectional(table: pd.DataFrame) -> tuple[VapRow, ...]:
+    rows = []
+    for label, group in _condition_groups(table):
+        split = group["pose"].str.split("/", n=1, expand=True)
+        for base, at_pose in group.groupby(split[0], sort=False):
+            directions = tuple(dict.fromkeys(at_pose["pose"]))
+            clouds = [at_pose[at_pose["pose"] == d][list(_POSITION)].to_numpy() for d in directions]
+            rows.append(VapRow(f"{base}" + (f" ({label})" if label else ""), directions,
+                               multidirectional_variation(clouds)))
+    return tuple(rows)
+
+
+def _payload(table: pd.DataFrame) -> tuple[PayloadRow, ...]:
+    if "load_kg" not in table.columns or table["load_kg"].nunique() < 2:
+        return ()
+    others = [c for c in ("velocity_pct",) if c in table.columns and table[c].nunique() > 1]
+    rows = []
+    for key, group in table.groupby(["pose", *others], sort=False):
+        key = key if isinstance(key, tuple) else (key,)
+        by_load = {float(m): g[list(_POSITION)].to_numpy() for m, g in group.groupby("load_kg")}
+        if len(by_load) < 2:
+            continue
+        label = str(key[0]) + "".join(f" ({n}={v:g})" for n, v in zip(others, key[1:]))
+        rows.append(PayloadRow(label, payload_shift(by_load, reference_load_kg=min(by_load))))
+    return tuple(rows)
+
+
+def _decision(poses: tuple[PoseResult, ...], criteria: Mapping[str, float]) -> Decision:
+    unknown = sorted(set(criteria) - set(CRITERIA))
+    if unknown:
+        raise ConfigError(f"criteria: {', '.join(unknown)} not known, expected some of {', '.join(CRITERIA)}")
+    verdicts = []
+    for name, limit in criteria.items():
+        for pose in poses:
+            value = pose.accuracy.ap_mm if name == "AP_mm" else pose.repeatability.rp_mm
+            verdicts.append((name, pose.label, value, float(limit), value <= float(limit)))
+    rule = ("simple acceptance (ILAC-G8:09/2019 4.2.1): pass when the measured value <= the project criterion; "
+            "the expanded uncertainty is reported but not used as a guard band") if criteria else \
+        "no acceptance criterion stated: no pass/fail statement (ISO 9283 defines methods, not grades)"
+    return Decision(rule, tuple(verdicts))
+
+
+def collect(store: Store, run_id: int, *, criteria: Mapping[str, float] | None = None, k: float = 2.0,
+            resamples: int = 1000, allow_unknown: bool = False) -> RunReport:
+    """Gather every fact and number of the report of run ``run_id``.
+
+    Parameters
+    ----------
+    store : Store
+    run_id : int
+    criteria : mapping, optional
+        Project acceptance criteria, keys from :data:`CRITERIA` (mm).
+    k : float
+        Coverage factor of every expanded uncertainty.
+    resamples : int
+        Bootstrap resamples for U(RP) (as ``bench analyze iso9283``).
+    allow_unknown : bool
+        Produce the report even when the deviations table has unknown rows (they are printed as unknown).
+
+    Raises
+    ------
+    InsufficientData
+        No pose samples, a pose with fewer than 2 cycles, or an incomplete deviations table.
+    """
+    run = store.run(run_id)
+    table = analysis_table(store, run_id)
+    measured = tuple(c for c in (*_POSITION, *(a for _, a in ANGLE_PAIRS)) if c in table.columns)
+    calibrations = tuple(store.calibration_by_id(i) for i in run.calibration_ids)
+    instrument = _instrument(run, calibrations, sum(c in table.columns for c in _POSITION))
+    poses = tuple(analyze_poses(table, instrument_u_mm=instrument.sigma_mm or 0.0, k=k, resamples=resamples))
+    protocol = run.protocol_name
+    cycles = int(table.groupby(["pose", *[c for c in ("velocity_pct", "load_kg") if c in table.columns]])
+                 .size().min())
+    deviations = iso_deviations(
+        protocol=protocol, config=run.config, settings=run.settings, measured_columns=measured,
+        cycles_measured=cycles, instrument_sigma_mm=instrument.sigma_mm,
+        smallest_rp_mm=min(p.repeatability.rp_mm for p in poses), rp_floor_mm=instrument.rp_floor_mm,
+        allow_unknown=allow_unknown)
+    notes = []
+    if run.status != "completed":
+        notes.append(f"run status {run.status}" + (f" ({run.reason})" if run.reason else "") +
+                     ": results cover the samples stored before it ended")
+    config_hash = _sha256_json({"config": run.config, "settings": run.settings})
+    return RunReport(
+        run=run,
+        report_id=f"BR-{run.id:05d}-{config_hash[:8]}",
+        generated_utc=datetime.now(timezone.utc).isoformat(timespec="seconds"),
+        report_software_version=__version__,
+        config_sha256=config_hash,
+        calibration_sha256=_sha256_json([c.params for c in calibrations]),
+        title=run.config.get("title") or _title(protocol),
+        clauses=CLAUSES_APPLIED.get(protocol, ()),
+        deviations=tuple(deviations),
+        instrument=instrument,
+        measured_columns=measured,
+        table=table,
+        poses=poses,
+        distances=_distances(table) if protocol == "iso9283_distance" else (),
+        multidirectional=_multidirectional(table) if protocol == "iso9283_multidirectional" else (),
+        payload=_payload(table),
+        decision=_decision(poses, criteria or {}),
+        coverage_factor=k,
+        notes=tuple(notes),
+    )
+
+
+def _title(protocol: str) -> str:
+    names = {"iso9283_pose": "pose accuracy and repeatability", "iso9283_distance": "distance accuracy and "
+             "repeatability", "iso9283_multidirectional": "multi-directional pose accuracy variation"}
+    if protocol not in names:
+        raise InsufficientData(f"protocol {protocol!r}: no report layout, expected one of {', '.join(names)}")
+    return f"ISO 9283-style {names[protocol]}"

@@ -1,0 +1,136 @@
+"""Render a report :class:`~bench.reports.document.Document` as a PDF with reportlab (no browser involved).
+
+The same sections, paragraphs, tables and figures as the HTML, on A4 pages numbered "page i of n" with the
+report id in the footer. Text uses the DejaVu Sans fonts shipped with matplotlib (±, −, Δ, °, x̄ need more than
+the PDF core fonts' Latin-1); figures are PNG at 150 dpi (reportlab embeds bitmaps natively; the HTML keeps the
+vector SVG).
+"""
+
+from __future__ import annotations
+
+import io
+from pathlib import Path
+from xml.sax.saxutils import escape
+
+import matplotlib
+from reportlab.lib import colors
+from reportlab.lib.enums import TA_LEFT
+from reportlab.lib.pagesizes import A4
+from reportlab.lib.styles import ParagraphStyle, getSampleStyleSheet
+from reportlab.lib.units import mm
+from reportlab.pdfbase import pdfmetrics
+from reportlab.pdfbase.ttfonts import TTFont
+from reportlab.pdfgen import canvas as pdf_canvas
+from reportlab.platypus import Image, KeepTogether, Paragraph as PdfParagraph, SimpleDocTemplate, Spacer
+from reportlab.platypus import Table as PdfTable, TableStyle
+
+from bench.reports.document import Document, Figure, Paragraph, Table
+from bench.reports.plots import png_bytes
+
+__all__ = ["render_pdf", "write_pdf"]
+
+_FONT, _BOLD = "DejaVuSans", "DejaVuSans-Bold"
+
+
+def _register_fonts() -> None:
+    if _FONT in pdfmetrics.getRegisteredFontNames():
+        return
+    folder = Path(matplotlib.get_data_path()) / "fonts" / "ttf"
+    pdfmetrics.registerFont(TTFont(_FONT, str(folder / "DejaVuSans.ttf")))
+    pdfmetrics.registerFont(TTFont(_BOLD, str(folder / "DejaVuSans-Bold.ttf")))
+    pdfmetrics.registerFontFamily(_FONT, normal=_FONT, bold=_BOLD, italic=_FONT, boldItalic=_BOLD)
+
+
+def _styles() -> dict[str, ParagraphStyle]:
+    base = getSampleStyleSheet()
+    return {
+        "title": ParagraphStyle("title", parent=base["Title"], fontName=_BOLD, fontSize=16, leading=20),
+        "subtitle": ParagraphStyle("subtitle", parent=base["Normal"], fontName=_FONT, fontSize=9,
+                                   textColor=colors.HexColor("#555555")),
+        "h2": ParagraphStyle("h2", parent=base["Heading2"], fontName=_BOLD, fontSize=12,
+                             textColor=colors.HexColor("#2b5797")),
+        "body": ParagraphStyle("body", parent=base["Normal"], fontName=_FONT, fontSize=9, leading=12),
+        "cell": ParagraphStyle("cell", fontName=_FONT, fontSize=6.5, leading=8, alignment=TA_LEFT),
+        "head": ParagraphStyle("head", fontName=_BOLD, fontSize=6.5, leading=8, alignment=TA_LEFT),
+        "caption": ParagraphStyle("caption", parent=base["Normal"], fontName=_FONT, fontSize=8, leading=10,
+                                  textColor=colors.HexColor("#444444")),
+    }
+
+
+class _NumberedCanvas(pdf_canvas.Canvas):
+    """Defers each page so the footer can say "page i of n"."""
+
+    footer = ""
+
+    def __init__(self, *args, **kwargs):
+        super().__init__(*args, **kwargs)
+        self._pages = []
+
+    def showPage(self):  # noqa: N802 - reportlab's name
+        self._pages.append(dict(self.__dict__))
+        self._startPage()
+
+    def save(self):
+        for state in self._pages:
+            self.__dict__.update(state)
+            self.setFont(_FONT, 7)
+            self.drawString(15 * mm, 10 * mm, self.footer)
+            self.drawRightString(A4[0] - 15 * mm, 10 * mm, f"page {self._pageNumber} of {len(self._pages)}")
+            super().showPage()
+        super().save()
+
+
+def _table(block: Table, styles, width: float) -> list:
+    header = [PdfParagraph(escape(c), styles["head"]) for c in block.header]
+    rows = [[PdfParagraph(escape(c), styles["cell"]) for c in row] for row in block.rows]
+    lengths = [max([len(block.header[i])] + [len(r[i]) for r in block.rows]) for i in range(len(block.header))]
+    weights = [min(max(n, 8), 60) for n in lengths]
+    widths = [width * w / sum(weights) for w in weights]
+    table = PdfTable([header, *rows], colWidths=widths, repeatRows=1)
+    table.setStyle(TableStyle([
+        ("GRID", (0, 0), (-1, -1), 0.4, colors.HexColor("#b8c2d6")),
+        ("BACKGROUND", (0, 0), (-1, 0), colors.HexColor("#dfe6f3")),
+        ("VALIGN", (0, 0), (-1, -1), "TOP"),
+        ("LEFTPADDING", (0, 0), (-1, -1), 2), ("RIGHTPADDING", (0, 0), (-1, -1), 2),
+    ]))
+    out = [PdfParagraph(escape(block.caption), styles["caption"])] if block.caption else []
+    return [*out, table, Spacer(1, 4 * mm)]
+
+
+def _figure(block: Figure, styles, width: float) -> list:
+    figure_width, figure_height = block.plot.figure.get_size_inches()
+    height = min(width * figure_height / figure_width, 200 * mm)
+    image = Image(io.BytesIO(png_bytes(block.plot)), width=height * figure_width / figure_height, height=height)
+    return [KeepTogether([image, PdfParagraph(escape(block.plot.caption), styles["caption"]), Spacer(1, 4 * mm)])]
+
+
+def render_pdf(document: Document) -> bytes:
+    """The PDF bytes of ``document``."""
+    _register_fonts()
+    styles = _styles()
+    buffer = io.BytesIO()
+    frame = SimpleDocTemplate(buffer, pagesize=A4, leftMargin=15 * mm, rightMargin=15 * mm, topMargin=15 * mm,
+                              bottomMargin=18 * mm, title=document.title, author="bench",
+                              subject=document.subtitle)
+    width = frame.width
+    story = [PdfParagraph(escape(document.title), styles["title"]),
+             PdfParagraph(escape(document.subtitle), styles["subtitle"]), Spacer(1, 4 * mm)]
+    for section in document.sections:
+        story.append(PdfParagraph(escape(section.title), styles["h2"]))
+        for block in section.blocks:
+            if isinstance(block, Paragraph):
+                story.append(PdfParagraph(escape(block.text), styles["body"]))
+                story.append(Spacer(1, 2 * mm))
+            elif isinstance(block, Table):
+                story.extend(_table(block, styles, width))
+            elif isinstance(block, Figure):
+                story.extend(_figure(block, styles, width))
+    canvas_class = type("ReportCanvas", (_NumberedCanvas,), {"footer": document.subtitle})
+    frame.build(story, canvasmaker=canvas_class)
+    return buffer.getvalue()
+
+
+def write_pdf(document: Document, path: str | Path) -> Path:
+    path = Path(path)
+    path.write_bytes(render_pdf(document))
+    return path

@@ -1,0 +1,214 @@
+"""The report's figures, drawn with matplotlib's object API (no pyplot state, Agg/SVG canvases only).
+
+Every plotted quantity is either a raw stored sample or a number the metrology already computed for the report
+(barycentres, RP, AP vectors, PE(m), calibration fits); nothing is re-derived here. A figure is returned as a
+:class:`Plot` (caption plus a matplotlib ``Figure``); :func:`svg_text` and :func:`png_bytes` render it for the
+HTML (vector, inline) and the PDF (raster at 150 dpi: reportlab embeds bitmaps without another dependency).
+"""
+
+from __future__ import annotations
+
+import io
+import logging
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from matplotlib.figure import Figure
+from matplotlib.patches import Circle
+from scipy.spatial import ConvexHull, QhullError
+
+from bench.metrology import fit_axis_scale, pose_accuracy
+from bench.reports.content import RunReport
+
+__all__ = ["Plot", "comparison_plot", "png_bytes", "report_plots", "svg_text", "workspace_cloud_mm"]
+
+_log = logging.getLogger(__name__)
+_POSITION = ["x_mm", "y_mm", "z_mm"]
+
+
+@dataclass(frozen=True)
+class Plot:
+    caption: str
+    figure: Figure
+
+
+def svg_text(plot: Plot) -> str:
+    """The figure as an inline ``<svg>`` element (XML prolog and DOCTYPE stripped)."""
+    buffer = io.StringIO()
+    plot.figure.savefig(buffer, format="svg", metadata={"Date": None})
+    text = buffer.getvalue()
+    return text[text.index("<svg"):]
+
+
+def png_bytes(plot: Plot, dpi: int = 150) -> bytes:
+    buffer = io.BytesIO()
+    plot.figure.savefig(buffer, format="png", dpi=dpi, metadata={"Software": None})
+    return buffer.getvalue()
+
+
+def _rows_of(report: RunReport, result) -> np.ndarray:
+    table = report.table
+    mask = table["pose"] == result.pose
+    for name, value in result.conditions:
+        mask &= table[name] == value
+    return table[mask].sort_values("cycle")
+
+
+def pose_scatter(report: RunReport) -> Plot:
+    """Per pose: attained points minus the command (x-y plane), barycentre and the RP circle around it."""
+    results = report.poses
+    columns = min(5, len(results))
+    rows = math.ceil(len(results) / columns)
+    figure = Figure(figsize=(2.6 * columns, 2.6 * rows + 0.4), layout="constrained")
+    for index, result in enumerate(results):
+        axes = figure.add_subplot(rows, columns, index + 1)
+        points = _rows_of(report, result)[_POSITION[:2]].to_numpy() - np.asarray(result.commanded_mm[:2])
+        centre = np.asarray(result.accuracy.ap_axes_mm[:2])
+        axes.scatter(points[:, 0], points[:, 1], s=8, color="tab:blue", label="attained")
+        axes.plot(*centre, marker="+", color="tab:red", markersize=12, label="barycentre")
+        axes.plot(0, 0, marker="x", color="black", label="command")
+        axes.add_patch(Circle(centre, result.repeatability.rp_mm, fill=False, color="tab:red", lw=1,
+                              label=f"RP = {result.repeatability.rp_mm:.3f} mm"))
+        axes.set_aspect("equal", adjustable="datalim")
+        axes.set_title(result.label, fontsize=8)
+        axes.tick_params(labelsize=7)
+        axes.set_xlabel("x − x_c (mm)", fontsize=7)
+        axes.set_ylabel("y − y_c (mm)", fontsize=7)
+        if index == 0:
+            axes.legend(fontsize=5, loc="lower left")
+    return Plot("Attained positions per pose relative to the command (x-y projection), with the barycentre "
+                "and a circle of radius RP_l around it.", figure)
+
+
+def workspace_cloud_mm(robot: str, count: int = 2500) -> np.ndarray | None:
+    """Reachable positions (count, 3) of the robot's workspace from motion/ (seeded), or None when unknown."""
+    try:
+        if robot == "pkm5":
+            from motion.pkm5 import estimate_workspace
+
+            return estimate_workspace(samples=20_000, hull_points=count, seed=0).hull_points[:, :3]
+        from motion.model import robot_models
+
+        poses, reachable = robot_models()[robot].workspace_samples(5 * count, seed=0)
+        return np.asarray(poses)[np.asarray(reachable), :3][:count]
+    except Exception as exc:  # noqa: BLE001 - the plot is optional; the report says why it is missing
+        _log.warning("workspace of %s not available for the report: %s", robot, exc)
+        return None
+
+
+def ap_on_workspace(report: RunReport) -> Plot | None:
+    """Workspace cloud and hull (x-y and x-z projections) with each pose's AP vector, magnified."""
+    cloud = workspace_cloud_mm(report.run.robot)
+    commands = np.array([r.commanded_mm for r in report.poses])
+    vectors = np.array([r.accuracy.ap_axes_mm for r in report.poses])
+    if cloud is None or vectors.shape[1] < 3:
+        return None
+    span = float(np.ptp(cloud, axis=0).max())
+    scale = 0.15 * span / max(float(np.abs(vectors).max()), 1e-9)
+    figure = Figure(figsize=(10, 4.4), layout="constrained")
+    for index, (i, j) in enumerate(((0, 1), (0, 2))):
+        axes = figure.add_subplot(1, 2, index + 1)
+        axes.scatter(cloud[:, i], cloud[:, j], s=1, color="0.8", label="reachable (motion/)", rasterized=True)
+        try:
+            hull = ConvexHull(cloud[:, [i, j]])
+            loop = np.append(hull.vertices, hull.vertices[0])
+            axes.plot(cloud[loop, i], cloud[loop, j], color="0.4", lw=1, label="hull")
+        except QhullError:
+            pass
+        axes.quiver(commands[:, i], commands[:, j], vectors[:, i] * scale, vectors[:, j] * scale, color="tab:red",
+                    angles="xy", scale_units="xy", scale=1, width=0.004, label=f"AP vector x{scale:.0f}")
+        axes.scatter(commands[:, i], commands[:, j], s=12, color="black", label="command poses")
+        names = "xyz"
+        axes.set_xlabel(f"{names[i]} (mm)")
+        axes.set_ylabel(f"{names[j]} (mm)")
+        axes.set_aspect("equal", adjustable="datalim")
+        axes.legend(fontsize=7)
+    return Plot(f"Workspace of the {report.run.robot} (reachable points and convex hull, projections) with the "
+                f"signed AP vector of every pose magnified {scale:.0f} times.", figure)
+
+
+def drift_series(report: RunReport) -> Plot:
+    """Per-cycle distance of each attained point from its command, in cycle order (drift and warm-up)."""
+    figure = Figure(figsize=(10, 3.8), layout="constrained")
+    axes = figure.add_subplot(1, 1, 1)
+    for result in report.poses:
+        rows = _rows_of(report, result)
+        command = np.asarray(result.commanded_mm)
+        distance = [pose_accuracy(p[None, :], command).ap_mm for p in rows[_POSITION].to_numpy()]
+        axes.plot(rows["cycle"], distance, marker=".", lw=1, label=result.label)
+    axes.set_xlabel("cycle")
+    axes.set_ylabel("|attained − command| (mm)")
+    axes.legend(fontsize=6, ncols=min(5, len(report.poses)))
+    return Plot("Per-cycle distance of each attained point from its command (a trend shows drift).", figure)
+
+
+def payload_plot(report: RunReport) -> Plot | None:
+    """|PE(m)| and its z component (sag) against load, one line per pose."""
+    if not report.payload:
+        return None
+    figure = Figure(figsize=(10, 3.8), layout="constrained")
+    norm, sag = figure.add_subplot(1, 2, 1), figure.add_subplot(1, 2, 2)
+    for row in report.payload:
+        shift = row.result
+        norm.plot(shift.load_kg, shift.shift_norm_mm, marker="o", label=row.label)
+        if shift.shift_mm.shape[1] > 2:
+            sag.plot(shift.load_kg, shift.shift_mm[:, 2], marker="o", label=row.label)
+    for axes, label in ((norm, "|PE(m)| (mm)"), (sag, "PE_z(m) (mm)")):
+        axes.set_xlabel("load (kg)")
+        axes.set_ylabel(label)
+        axes.legend(fontsize=6)
+    reference = report.payload[0].result.reference_load_kg
+    return Plot(f"Payload error PE(m) = x̄(m) − x̄(m₀) against load, m₀ = {reference:g} kg (project definition, "
+                f"iso9283.md §12).", figure)
+
+
+def mouse_calibration_plots(report: RunReport) -> list[Plot]:
+    """Fit and residuals of every calibration that stores its reference data (``reference_mm``, ``counts``)."""
+    plots = []
+    for record in report.instrument.calibrations:
+        if not {"reference_mm", "counts"} <= set(record.params):
+            continue
+        fit = fit_axis_scale(record.params["reference_mm"], record.params["counts"])
+        reference = np.asarray(record.params["reference_mm"], dtype=float)
+        figure = Figure(figsize=(10, 3.4), layout="constrained")
+        data, residual = figure.add_subplot(1, 2, 1), figure.add_subplot(1, 2, 2)
+        data.scatter(reference, record.params["counts"], s=10, label="calibration data")
+        data.plot(reference, fit.slope_counts_per_mm * reference + fit.offset_counts, color="tab:red",
+                  label=f"fit: {fit.scale_mm_per_count:.5f} mm/count")
+        data.set_xlabel("reference (mm)")
+        data.set_ylabel("counts")
+        data.legend(fontsize=7)
+        residual.axhline(0.0, color="0.5", lw=1)
+        residual.scatter(reference, fit.residuals_counts, s=10)
+        residual.set_xlabel("reference (mm)")
+        residual.set_ylabel("residual (counts)")
+        plots.append(Plot(f"Calibration {record.name} v{record.version} (id {record.id}): linear fit and "
+                          f"residuals, RMS {fit.residual_rms_counts:.3g} counts.", figure))
+    return plots
+
+
+def report_plots(report: RunReport) -> list[Plot]:
+    """Every figure of one run's report, in report order (optional ones left out when their data is absent)."""
+    plots = [pose_scatter(report), ap_on_workspace(report), drift_series(report), payload_plot(report),
+             *mouse_calibration_plots(report)]
+    return [p for p in plots if p is not None]
+
+
+def comparison_plot(first: RunReport, second: RunReport) -> Plot:
+    """AP_P and RP_l per pose label for two runs, with the expanded uncertainties as error bars."""
+    labels = list(dict.fromkeys([r.label for r in first.poses] + [r.label for r in second.poses]))
+    figure = Figure(figsize=(10, 3.8), layout="constrained")
+    positions = np.arange(len(labels))
+    for index, (name, attribute) in enumerate((("AP_P", "ap_u"), ("RP_l", "rp_u"))):
+        axes = figure.add_subplot(1, 2, index + 1)
+        for offset, report in ((-0.2, first), (0.2, second)):
+            by_label = {r.label: getattr(r, attribute) for r in report.poses}
+            values = [by_label[label].value if label in by_label else np.nan for label in labels]
+            errors = [by_label[label].expanded_uncertainty if label in by_label else 0.0 for label in labels]
+            axes.bar(positions + offset, values, width=0.4, yerr=errors, capsize=2, label=f"run {report.run.id}")
+        axes.set_xticks(positions, labels, rotation=45, ha="right", fontsize=6)
+        axes.set_ylabel(f"{name} (mm)")
+        axes.legend(fontsize=7)
+    return Plot(f"AP_P and RP_l per pose, run {first.run.id} against run {second.run.id} "
+                f"(error bars: U, k = {first.coverage_factor:g}).", figure)
