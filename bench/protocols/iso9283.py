@@ -176,8 +176,10 @@ class DistanceAccuracy(_CubeProtocol):
 class MultiDirectional(_CubeProtocol):
     """ISO 9283 7.2.3: multi-directional pose accuracy variation vAP at P1, P2, P4 from three directions.
 
-    Each pose is approached from a pre-pose offset by ``approach_mm`` along -x, -y and -z in turn [U]; the capture
-    label is ``<pose>/<direction>`` so the barycentre per direction can be computed.
+    Each pose is approached along x, y and z in turn from a pre-pose ``approach_mm`` away on the side of the cube
+    centre (so the pre-poses stay inside the pre-flighted cube; P1 is approached from its negative side) [U];
+    the capture label is ``<pose>/<direction>`` (e.g. ``P2/+x``: moving in +x) so the barycentre per direction can
+    be computed.
     """
 
     name = "iso9283_multidirectional"
@@ -188,14 +190,17 @@ class MultiDirectional(_CubeProtocol):
 
     def steps(self) -> Plan:
         labels = [p for p in ("P1", "P2", "P4") if p in self._poses] or list(self._poses)
+        centre = np.asarray(next(iter(self._poses.values()))[:3]) if self.poses else np.asarray(self._poses["P1"][:3])
         for velocity in self.velocities_pct:
             for cycle in range(1, self.cycles + 1):
                 for label in labels:
                     target = self._poses[label]
                     for axis, name in enumerate("xyz"):
+                        side = np.sign(centre[axis] - target[axis]) or -1.0
                         pre = list(target)
-                        pre[axis] -= self.approach_mm
-                        yield Move(tuple(pre), velocity, f"{label}/pre-{name}")
-                        yield from visit(f"{label}/{name}", target, cycle, velocity_pct=velocity,
+                        pre[axis] += side * self.approach_mm
+                        direction = f"{'-' if side > 0 else '+'}{name}"
+                        yield Move(tuple(pre), velocity, f"{label}/pre{direction}")
+                        yield from visit(f"{label}/{direction}", target, cycle, velocity_pct=velocity,
                                          settle_s=self.settle_s, conditions={"load_kg": self.loads_kg[0]})
                 yield Checkpoint(f"{velocity:g} %, cycle {cycle}")

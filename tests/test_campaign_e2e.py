@@ -1,0 +1,161 @@
+"""End to end against the simulated pkm5 over a pty: runs, the CLI, kill -9 and resume, AP/RP against the truth."""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from bench.cli import main
+from bench.commands.campaign import simulated_rig_in
+from bench.commands.demo import analyze_run
+from bench.protocols import PROTOCOLS, Runner
+from bench.protocols.iso9283 import PoseAccuracy
+from bench.protocols.plan import iterate
+from bench.protocols.runner import step_stores_sample
+from bench.protocols.simrig import simulated_rig
+from bench.robots.pkm5_kinematics import PKM5_ERRORS
+from bench.store import Store
+
+ROOT = Path(__file__).resolve().parents[1]
+QUICK = ROOT / "examples" / "iso9283_pose_quick.toml"
+
+
+def _run_id(capsys) -> int:
+    return int(capsys.readouterr().out.strip().splitlines()[-1])
+
+
+def test_dry_run_prints_the_plan_and_moves_nothing(capsys, tmp_path):
+    assert main(["run", str(QUICK), "--dry-run", "--store", str(tmp_path / "b.db")]) == 0
+    out = capsys.readouterr().out
+    assert out.startswith("protocol iso9283_pose on pkm5: 16 moves, 15 settles, 15 captures, 3 checkpoints")
+    assert "estimated duration" in out and out.count(" ok\n") == 6
+    assert not (tmp_path / "b.db").exists()
+
+
+def test_unreachable_target_is_refused_before_any_motion(capsys, tmp_path):
+    bad = tmp_path / "far.toml"
+    bad.write_text('protocol = "iso9283_pose"\ncycles = 2\n[poses]\nP1 = [110, 0, 320]\nFAR = [110, 0, 400]\n')
+    assert main(["run", str(bad), "--store", str(tmp_path / "b.db")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.startswith("bench: error: far.toml: target FAR (x 110.00 mm, y 0.00 mm, z 400.00 mm")
+    assert "is not reachable: leg 1 length" in err and len(err.splitlines()) == 1
+    assert not (tmp_path / "b.db").exists()  # refused before the store, the simulator or the port was opened
+
+
+def test_run_list_export_analyze(capsys, tmp_path):
+    db = str(tmp_path / "b.db")
+    assert main(["run", str(QUICK), "--store", db, "--no-progress", "--seed", "4"]) == 0
+    run_id = _run_id(capsys)
+    assert main(["runs", "--store", db, "--json"]) == 0
+    (record,) = [json.loads(line) for line in capsys.readouterr().out.splitlines()]
+    assert (record["id"], record["status"], record["n_samples"]) == (run_id, "completed", 15)
+    assert record["settings"]["simulator"] == {"seed": 4} and len(record["calibration_ids"]) == 1
+    out = tmp_path / "run.csv"
+    assert main(["export", str(run_id), "--store", db, "--out", str(out)]) == 0
+    table = pd.read_csv(out)
+    assert len(table) == 15 and set(table["pose"]) == {"P1", "P2", "P3", "P4", "P5"}
+    capsys.readouterr()
+    assert main(["analyze", "iso9283", str(out), "--json"]) == 0
+    poses = json.loads(capsys.readouterr().out)["poses"]
+    assert sorted(poses) == ["P1", "P2", "P3", "P4", "P5"] and all(p["n"] == 3 for p in poses.values())
+
+
+@pytest.mark.parametrize("name", sorted(PROTOCOLS))
+def test_each_protocol_completes_on_the_simulator(tmp_path, name):
+    protocol = PROTOCOLS[name](cycles=2, velocities_pct=[100], settle_s=0.1)
+    expected = sum(1 for step in iterate(protocol, final=False) if step_stores_sample(step))
+    with Store(tmp_path / "b.db") as store:
+        rig = simulated_rig_in(store, "pkm5", seed=2, speed_factor=20000)
+        try:
+            result = Runner(rig, store).run(protocol)
+        finally:
+            rig.close()
+        assert (result.exit_status, result.samples) == ("completed", expected)
+
+
+def _campaign(tmp_path, *, ideal: bool, seed: int, cycles: int) -> pd.DataFrame:
+    with Store(tmp_path / f"{ideal}.db") as store:
+        rig = simulated_rig("pkm5", seed=seed, speed_factor=20000, ideal=ideal)
+        try:
+            result = Runner(rig, store).run(PoseAccuracy(cycles=cycles, velocities_pct=[100], settle_s=0.1))
+        finally:
+            rig.close()
+        return analyze_run(store, result.run_id)
+
+
+def test_ideal_robot_shows_only_the_instrument_floor(tmp_path):
+    results = _campaign(tmp_path, ideal=True, seed=0, cycles=5)
+    # ideal robot: every error left is the mice' quantisation (0.032 mm/count) and 0.3-count noise
+    assert results["AP_mm"].max() < 0.05 and results["RP_mm"].max() < 0.1
+    # the ideal robot still attains the step-quantised pose: 0.00625 / 0.003125 mm per step (000 Eq. 8.1)
+    assert results["true_AP_mm"].max() < 0.02 and results["true_RP_mm"].max() < 1e-9
+
+
+def test_ap_rp_match_the_injected_errors(tmp_path):
+    results = _campaign(tmp_path, ideal=False, seed=3, cycles=30)
+    assert np.abs(results["AP_mm"] - results["true_AP_mm"]).max() < 0.05
+    assert np.abs(results["RP_mm"] - results["true_RP_mm"]).max() < 0.1
+    # RP of isotropic Gaussian play sigma per axis, n = 30, by an independent Monte Carlo of RP = l_mean + 3 S_l
+    sigma = PKM5_ERRORS.pose_play_sigma[0]
+    clouds = np.random.default_rng(0).normal(0.0, sigma, (4000, 30, 3))
+    distances = np.linalg.norm(clouds - clouds.mean(axis=1, keepdims=True), axis=2)
+    rp = distances.mean(axis=1) + 3 * distances.std(axis=1, ddof=1)
+    tolerance = 4 * rp.std() / np.sqrt(len(results)) + 0.1  # + the joint-space noise and backlash, not modelled
+    assert abs(results["RP_mm"].mean() - rp.mean()) < tolerance
+
+
+def _wait_for_samples(db: Path, minimum: int, process: subprocess.Popen, timeout_s: float = 30.0) -> None:
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline:
+        if db.exists():
+            with Store(db) as store:
+                if store.runs() and store.runs()[0].n_samples >= minimum:
+                    return
+        assert process.poll() is None, process.stderr.read()
+        time.sleep(0.05)
+    raise AssertionError(f"fewer than {minimum} samples after {timeout_s} s")
+
+
+def test_kill_9_mid_run_then_resume_gives_exactly_the_expected_samples(capsys, tmp_path):
+    protocol_file = tmp_path / "pose.toml"
+    protocol_file.write_text('protocol = "iso9283_pose"\ncycles = 6\nvelocities_pct = [100, 50]\nsettle_s = 0.2\n')
+    db = tmp_path / "b.db"
+    writer = subprocess.Popen([sys.executable, "-m", "bench.cli", "run", str(protocol_file), "--store", str(db),
+                               "--no-progress", "--speed-factor", "3000"], cwd=ROOT, stdout=subprocess.PIPE,
+                              stderr=subprocess.PIPE, text=True)
+    _wait_for_samples(db, 17, writer)
+    os.kill(writer.pid, signal.SIGKILL)
+    writer.wait(timeout=10)
+    with Store(db) as store:
+        before = {s.step_index: s.values for s in store.samples(1)}
+        assert store.run(1).status == "running" and 17 <= len(before) < 60
+    assert main(["resume", "1", "--store", str(db), "--no-progress"]) == 0
+    assert _run_id(capsys) == 1
+    with Store(db) as store:
+        from bench.protocols import protocol_from_config
+        protocol = protocol_from_config(store.run(1).config)
+        expected = {i for i, step in enumerate(iterate(protocol, final=False)) if step_stores_sample(step)}
+        after = {s.step_index: s.values for s in store.samples(1)}
+        assert set(after) == expected and len(store.samples(1)) == 60
+        assert all(after[i] == values for i, values in before.items())  # stored samples untouched
+        assert store.run(1).status == "completed"
+
+
+def test_demo_writes_table_results_and_report(capsys, tmp_path):
+    out = tmp_path / "demo"
+    assert main(["demo", "--out", str(out), "--cycles", "3", "--no-progress"]) == 0
+    printed = capsys.readouterr().out.split()
+    assert [Path(p).name for p in printed[1:]] == ["bench.db", "run-1.csv", "results.csv", "report.md"]
+    results = pd.read_csv(out / "results.csv")
+    assert len(results) == 15 and set(results["velocity_pct"]) == {100, 50, 10}
+    report = (out / "report.md").read_text()
+    assert "## Deviations from ISO 9283" in report and "ISO 9283-style" in report
