@@ -21,7 +21,7 @@ def test_mouse_sim_then_read_a_half_circle(tmp_path, capsys):
     assert code == 0 and json.loads(out)["events"] > 1000
     code, out, _ = run(capsys, "sensors", "mouse-read", str(path), "--json")
     result = json.loads(out)
-    assert code == 0 and result["frames"] == 1001 and result["valid"]
+    assert code == 0 and result["frames"] == 1000 and result["valid"]
     assert result["count_x"] == -630 and result["x_mm"] == pytest.approx(-20.0, abs=0.0318)  # 800 CPI: 1 count
 
 

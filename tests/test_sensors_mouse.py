@@ -31,7 +31,12 @@ from bench.sensors.input_event import (
     encode_frames,
 )
 from bench.sensors.mouse import EvdevMouse, MouseGroup, _eviocg, list_mice
-from bench.sensors.mouse_sim import MouseSimulator, circle_motion, write_stream
+from bench.sensors.mouse_sim import (
+    MouseSimulator,
+    MouseStream,
+    circle_motion,
+    write_stream,
+)
 
 PACK = struct.Struct("llHHi").pack
 CAL_800 = CountsCalibration.from_cpi(800)
@@ -139,7 +144,7 @@ def test_simulator_quantises_with_carry_and_clips_per_report_field():
     rep = sim.reports(t_s, xy)
     # a closed circle returns to its start: the counts sum to zero exactly, no drift from rounding
     assert rep.dx.sum() == 0 and rep.dy.sum() == 0
-    assert len(rep.t_s) == 2001
+    assert len(rep.t_s) == 2000 and rep.t_s[0] == pytest.approx(0.001)
     fast = MouseSimulator(cpi=1600, report_rate_hz=125, max_delta=127)
     t_s = np.array([0.0, 1.0])
     rep = fast.reports(t_s, np.array([[0.0, 0.0], [3000.0, 0.0]]))  # 3 m/s > 2016 mm/s limit (§4.9)
@@ -185,7 +190,7 @@ def test_two_mice_over_fifos_are_told_apart(tmp_path):
     group.close()
     for thread in threads:
         thread.join()
-    assert len(frames["XY"]) == len(frames["Z"]) == 501
+    assert len(frames["XY"]) == len(frames["Z"]) == 500
     assert (frames["XY"].dx.sum(), frames["XY"].dy.sum()) == (315, 0)  # 10 mm * 800/25.4 = 314.96
     assert (frames["Z"].dx.sum(), frames["Z"].dy.sum()) == (0, -157)
 
@@ -246,3 +251,20 @@ def test_list_mice_reads_sysfs_and_prefers_by_path_links(tmp_path):
     assert mice[0].path.endswith("by-path/pci-0000:00:14.0-usb-0:2:1.0-event-mouse")
     assert mice[1].path == str(dev / "event4")                        # identical mouse told apart by phys
     assert mice[0].name == mice[1].name and mice[0].phys != mice[1].phys
+
+
+@settings(max_examples=40, deadline=None)
+@given(cuts=st.lists(st.integers(2, 1999), max_size=6, unique=True), noise=st.sampled_from([0.0, 0.4]))
+def test_stream_in_chunks_equals_the_whole_motion(cuts, noise):
+    sim = MouseSimulator(cpi=1000, scale_error=(0.02, -0.01), rotation_deg=3.0, noise_counts=noise,
+                         report_rate_hz=4000, report_idle=True, seed=9)
+    t_s, xy = circle_motion(2.0, radius_mm=15, period_s=1.5, rate_hz=1000)
+    whole = sim.reports(t_s, xy)
+    stream = MouseStream(sim, origin_mm=xy[0], t0_s=t_s[0])
+    bounds = [1, *sorted(cuts), len(t_s)]
+    parts = [stream.advance(t_s[a:b], xy[a:b]) for a, b in itertools.pairwise(bounds)]
+    np.testing.assert_array_equal(np.concatenate([p.dx for p in parts]), whole.dx)
+    np.testing.assert_array_equal(np.concatenate([p.dy for p in parts]), whole.dy)
+    np.testing.assert_allclose(np.concatenate([p.t_s for p in parts]), whole.t_s, atol=1e-9)
+    with pytest.raises(ConfigError, match="after 2 s"):
+        stream.advance([1.0], [[0.0, 0.0]])

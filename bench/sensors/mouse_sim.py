@@ -100,22 +100,8 @@ class MouseSimulator:
         xy_mm : array_like, shape (N, 2)
             True positions of the sensor spot (mm), in the motion frame.
         """
-        t_s, xy_mm = np.asarray(t_s, float), np.asarray(xy_mm, float)
-        if t_s.ndim != 1 or xy_mm.shape != (len(t_s), 2) or len(t_s) < 2 or np.any(np.diff(t_s) <= 0):
-            raise ConfigError(f"mouse simulator: t_s {t_s.shape} and xy_mm {xy_mm.shape}, expected increasing "
-                              "times of shape (N,) and positions of shape (N, 2) with N >= 2")
-        report_t = np.arange(t_s[0], t_s[-1] + 0.5 / self.report_rate_hz, 1.0 / self.report_rate_hz)
-        true_xy = np.column_stack([np.interp(report_t, t_s, xy_mm[:, k]) for k in (0, 1)])
-        sensed = (true_xy - true_xy[0]) @ self.counts_per_mm().T
-        if self.noise_counts > 0:
-            sensed += np.random.default_rng(self.seed).normal(0.0, self.noise_counts, sensed.shape)
-        # The sensor accumulates motion and reports whole counts, carrying the remainder.
-        whole = np.floor(sensed + 0.5).astype(np.int64)
-        deltas = np.diff(whole, axis=0, prepend=whole[:1])
-        if self.max_delta is not None:
-            deltas = np.clip(deltas, -self.max_delta, self.max_delta)
-        keep = np.ones(len(report_t), bool) if self.report_idle else np.any(deltas != 0, axis=1)
-        return MouseReports(report_t[keep], deltas[keep, 0], deltas[keep, 1])
+        t_s, xy_mm = _checked_motion(t_s, xy_mm, min_points=2)
+        return MouseStream(self, origin_mm=xy_mm[0], t0_s=t_s[0]).advance(t_s[1:], xy_mm[1:])
 
     def input_events(self, t_s: np.ndarray, xy_mm: np.ndarray, *, t0_s: float = 0.0) -> bytes:
         """The motion as kernel ``input_event`` records, timestamps offset by ``t0_s`` (s)."""
@@ -128,6 +114,71 @@ class MouseSimulator:
         t_us = np.round((rep.t_s - rep.t_s[0]) * 1e6).astype(np.int64) if len(rep.t_s) else rep.t_s
         tail = "" if squal is None else f",{squal}"
         return "".join(f"{t},{x},{y}{tail}\n" for t, x, y in zip(t_us, rep.dx, rep.dy)).encode()
+
+
+def _checked_motion(t_s: np.ndarray, xy_mm: np.ndarray, *, min_points: int, after_s: float = -np.inf
+                    ) -> tuple[np.ndarray, np.ndarray]:
+    t_s, xy_mm = np.asarray(t_s, float), np.asarray(xy_mm, float)
+    if (t_s.ndim != 1 or xy_mm.shape != (len(t_s), 2) or len(t_s) < min_points
+            or np.any(np.diff(t_s) <= 0) or (len(t_s) and t_s[0] <= after_s) or not np.all(np.isfinite(xy_mm))):
+        after = f" after {after_s:g} s" if np.isfinite(after_s) else ""
+        raise ConfigError(f"mouse simulator: t_s {t_s.shape} and xy_mm {xy_mm.shape}, expected increasing "
+                          f"times of shape (N,){after} and finite positions of shape (N, 2) with N >= {min_points}")
+    return t_s, xy_mm
+
+
+class MouseStream:
+    """A :class:`MouseSimulator` followed through time: feed the true motion chunk by chunk as a robot moves.
+
+    The sensor's sub-count remainder, its report clock and its noise generator carry over between chunks, so
+    quantisation never accumulates and the bytes are the same as for the whole motion at once.
+
+    Parameters
+    ----------
+    simulator : MouseSimulator
+        The sensor model.
+    origin_mm : array_like, shape (2,)
+        True position (mm) at which the sensor starts (its counts are zero there).
+    t0_s : float
+        Time of ``origin_mm`` (s) on the simulated clock; the first report follows one report period later.
+    """
+
+    def __init__(self, simulator: MouseSimulator, *, origin_mm: np.ndarray, t0_s: float = 0.0) -> None:
+        self.simulator = simulator
+        self.origin_mm = np.asarray(origin_mm, float).reshape(2)
+        self._counts_per_mm = simulator.counts_per_mm()
+        self._rng = np.random.default_rng(simulator.seed)
+        self._anchor_t_s, self._anchor_mm = float(t0_s), self.origin_mm.copy()
+        self._last_report_t_s = float(t0_s)
+        self._whole = np.zeros(2, np.int64)
+
+    def advance(self, t_s: np.ndarray, xy_mm: np.ndarray) -> MouseReports:
+        """Reports for the true motion from the last given point to ``(t_s, xy_mm)`` (shapes (N,), (N, 2))."""
+        t_s, xy_mm = _checked_motion(t_s, xy_mm, min_points=1, after_s=self._anchor_t_s)
+        period = 1.0 / self.simulator.report_rate_hz
+        n_reports = int(np.floor((t_s[-1] - self._last_report_t_s) / period + 1e-9))
+        report_t = self._last_report_t_s + period * np.arange(1, n_reports + 1)
+        knots_t = np.concatenate([[self._anchor_t_s], t_s])
+        knots_mm = np.vstack([self._anchor_mm, xy_mm])
+        true_xy = np.column_stack([np.interp(report_t, knots_t, knots_mm[:, k]) for k in (0, 1)])
+        sensed = (true_xy - self.origin_mm) @ self._counts_per_mm.T
+        if self.simulator.noise_counts > 0:
+            sensed += self._rng.normal(0.0, self.simulator.noise_counts, sensed.shape)
+        # The sensor accumulates motion and reports whole counts, carrying the remainder.
+        whole = np.floor(sensed + 0.5).astype(np.int64)
+        deltas = np.diff(whole, axis=0, prepend=self._whole[None, :])
+        if self.simulator.max_delta is not None:   # counts beyond the report field are lost for good
+            deltas = np.clip(deltas, -self.simulator.max_delta, self.simulator.max_delta)
+        if n_reports:
+            self._whole, self._last_report_t_s = whole[-1], float(report_t[-1])
+        self._anchor_t_s, self._anchor_mm = float(t_s[-1]), xy_mm[-1].copy()
+        keep = np.ones(n_reports, bool) if self.simulator.report_idle else np.any(deltas != 0, axis=1)
+        return MouseReports(report_t[keep], deltas[keep, 0], deltas[keep, 1])
+
+    def input_events(self, t_s: np.ndarray, xy_mm: np.ndarray, *, clock_offset_s: float = 0.0) -> bytes:
+        """:meth:`advance` encoded as kernel ``input_event`` records, timestamps shifted by ``clock_offset_s``."""
+        reports = self.advance(t_s, xy_mm)
+        return encode_frames(reports.t_s + clock_offset_s, reports.dx, reports.dy)
 
 
 def circle_motion(duration_s: float, radius_mm: float = 20.0, period_s: float = 4.0,
