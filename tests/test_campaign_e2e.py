@@ -154,7 +154,8 @@ def test_demo_writes_table_results_and_report(capsys, tmp_path):
     out = tmp_path / "demo"
     assert main(["demo", "--out", str(out), "--cycles", "3", "--no-progress"]) == 0
     printed = capsys.readouterr().out.split()
-    assert [Path(p).name for p in printed[1:]] == ["bench.db", "run-1.csv", "results.csv", "report.md"]
+    assert [Path(p).name for p in printed[1:]] == ["bench.db", "run-1.csv", "results.csv", "report.md",
+                                                  "report_run1.html", "report_run1.pdf"]
     results = pd.read_csv(out / "results.csv")
     assert len(results) == 15 and set(results["velocity_pct"]) == {100, 50, 10}
     report = (out / "report.md").read_text()

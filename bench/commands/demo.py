@@ -3,8 +3,9 @@
 Starts the simulated pkm5 controller (a separate process on a pseudo-terminal) and the simulated optical mice,
 runs a complete ISO 9283 pose campaign (P1-P5 of the largest cube in the workspace, 30 cycles, 100/50/10 %
 velocity) with the simulator's speed factor, stores every sample in ``OUT/bench.db``, exports the tidy table,
-analyses it with :mod:`bench.metrology`, and writes ``OUT/results.csv`` and ``OUT/report.md``. Because the
-simulator knows the true attained poses, the report also compares the measured AP/RP with the true ones.
+analyses it with :mod:`bench.metrology`, and writes ``OUT/results.csv`` and ``OUT/report.md`` (a quick table that
+also compares the measured AP/RP with the simulator's true attained poses) and the full report of
+:mod:`bench.reports` (``OUT/report_run<ID>.html`` and ``.pdf``).
 """
 
 from __future__ import annotations
@@ -143,10 +144,12 @@ def _demo(args: argparse.Namespace) -> int:
         report_path = out / "report.md"
         report_path.write_text(_report(store, result.run_id, protocol, results, time.monotonic() - started),
                                encoding="utf-8")
+        from bench.reports import write_report
+        full = write_report(store, result.run_id, out)
     shown = results[[c for c in ("pose", "velocity_pct", "n", "AP_mm", "RP_mm", "true_AP_mm", "true_RP_mm")
                      if c in results]]
     print(shown.to_string(index=False, float_format=lambda v: f"{v:.3f}"), file=sys.stderr)
-    for path in (out / "bench.db", table_path, results_path, report_path):
+    for path in (out / "bench.db", table_path, results_path, report_path, full.html, full.pdf):
         print(path)
     print(f"bench demo: {time.monotonic() - started:.1f} s (bench {__version__})", file=sys.stderr)
     return 0
