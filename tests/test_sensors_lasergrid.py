@@ -7,15 +7,17 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from bench.errors import ConfigError
-from bench.sensors import Sensor
+from bench.sensors import MalformedSample, Sensor
 from bench.sensors.lasergrid import (
     LASER_OFFSETS_MM,
+    GridFrame,
     GridGeometry,
     LaserGridSensor,
     Screen,
     ScreenStatus,
     decode_frame,
     decode_screen,
+    parse_report,
 )
 from bench.sensors.lasergrid_sim import (
     P_MISS_AT_DISTANCE,
@@ -173,7 +175,7 @@ def test_miss_probability_reproduces_appendix_d2_repeatability():
 def test_report_grammar_and_bad_input():
     truth = pose(START + (5, 0))
     frame = LaserGridSimulator(spot_half_width_mm=0.5).frames(truth[None])[0]
-    assert format_report(frame) == b"H121XV39X"     # vertical BE at (y, z) = (-5, -190): G5-b on (7, 2)
+    assert format_report(frame) == b"H121XV039X"     # vertical BE at (y, z) = (-5, -190): G5-b on (7, 2)
     blind = LaserGridSimulator(spot_half_width_mm=0.5).frames(pose(START + (2.5, 5), -155.0)[None])[0]
     assert blind.horizontal == () and format_report(blind).startswith(b"h")
     with pytest.raises(ConfigError, match="p_miss = 1.5"):
@@ -194,3 +196,37 @@ def test_sensor_observes_a_true_pose_through_the_simulator():
     blind = sensor.read()
     assert not blind.valid and "horizontal: no-hit" in blind.note and "vertical: ok" in blind.note
     assert blind.value == pytest.approx((-2.5 + 1.0, 0.0, -155.0))      # x keeps the prior; y, z measured
+
+
+def test_observer_plugs_into_a_simulated_controller_sensor_hook():
+    observe = LaserGridSimulator(spot_half_width_mm=1.0, p_miss=0.5, seed=3).observer()
+    frames = [observe(np.array([0.0, -5.0, -150.0])) for _ in range(400)]
+    assert all(h in ((), (121,)) and v in ((), (39,)) for h, v in frames)
+    assert np.mean([len(h) for h, _ in frames]) == pytest.approx(0.5, abs=0.08)   # fresh draws every frame
+
+
+@given(h=st.sets(st.integers(0, 255), max_size=4), v=st.sets(st.integers(0, 255), max_size=4))
+def test_report_grammar_round_trip(h, v):
+    frame = GridFrame(tuple(sorted(h)), tuple(sorted(v)))
+    assert parse_report(format_report(frame)) == frame
+
+
+@pytest.mark.parametrize("bad", [b"H12", b"X", b"H1234X", b"hq", b"V-1X"])
+def test_malformed_reports_are_refused(bad):
+    with pytest.raises(MalformedSample, match="expected H<n>X, V<n>X, h or v"):
+        parse_report(bad)
+
+
+def test_simulated_delta4_controller_reports_what_the_decoder_reads():
+    # composition with the simulated ATmega128 controller: its sensor hook is the laser-grid simulator
+    from bench.robots import delta4_wire, sim_delta4
+
+    plant, home = sim_delta4.build_plant(0, ideal=True)
+    device = sim_delta4.Delta4SimDevice(plant, delta4_wire.MAPPINGS["legacy_vb"](), home_servo_deg=home,
+                                        sensor=LaserGridSimulator().observer())
+    device.feed(b"E", 0.0)
+    report = device.tick(0.0)
+    assert report == b"H105XV041X"      # home (0, 0, -150): phase (5, 5) on both screens -> G5-c
+    frame = parse_report(report)
+    result = decode_frame(GEOMETRY, frame.horizontal, frame.vertical, [1.0, -1.0, -148.0])
+    assert result.position_mm == (0.0, 0.0, -150.0) and result.horizontal.lasers == ("G5-c",)

@@ -10,13 +10,14 @@ is chosen (§4.6), and decoding is guaranteed only while both components of the 
 from __future__ import annotations
 
 import enum
+import re
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from bench.errors import ConfigError
-from bench.sensors.reading import Reading, now
+from bench.sensors.reading import MalformedSample, Reading, now
 
 __all__ = [
     "LASER_NAMES",
@@ -179,6 +180,29 @@ class GridDecode:
     vertical: ScreenDecode
     y_disagreement_mm: float | None
     misaligned: bool
+
+
+_REPORT_TOKEN = re.compile(rb"([HV])(\d{1,3})X|([hv])")
+
+
+def parse_report(report: bytes, *, source: str = "laser grid") -> GridFrame:
+    """Parse one frame of sensor reports: ``H<digits>X`` / ``V<digits>X`` per lit sensor (padded or not), ``h`` /
+    ``v`` for no hit on that screen (delta4-lasergrid.md §5.7 item 5). Other bytes raise ``MalformedSample``.
+
+    >>> parse_report(b"H105XV041X"), parse_report(b"hV7X")
+    (GridFrame(horizontal=(105,), vertical=(41,)), GridFrame(horizontal=(), vertical=(7,)))
+    """
+    hits: dict[bytes, set[int]] = {b"H": set(), b"V": set()}
+    position = 0
+    while position < len(report):
+        match = _REPORT_TOKEN.match(report, position)
+        if match is None:
+            raise MalformedSample(f"{source}: unexpected bytes {report[position:position + 8]!r} at offset "
+                                  f"{position} of {report!r}; expected H<n>X, V<n>X, h or v")
+        if match.group(1):
+            hits[match.group(1)].add(int(match.group(2)))
+        position = match.end()
+    return GridFrame(tuple(sorted(hits[b"H"])), tuple(sorted(hits[b"V"])))
 
 
 def _chebyshev(a: np.ndarray, b: np.ndarray) -> np.ndarray:

@@ -68,17 +68,23 @@ class LaserGridSimulator:
             frames.append(tuple(sorted(found)))
         return frames
 
+    def observer(self) -> Callable[[np.ndarray], tuple[tuple[int, ...], tuple[int, ...]]]:
+        """``observe(pose_mm) -> (horizontal, vertical)`` for one true end-effector centre (first 3 entries, mm),
+        with the random state carried from frame to frame: the ``sensor`` hook of a simulated controller."""
+        rng = np.random.default_rng(self.seed)
+
+        def observe(pose_mm: np.ndarray) -> tuple[tuple[int, ...], tuple[int, ...]]:
+            position = np.asarray(pose_mm, float).reshape(-1)[:3].reshape(1, 3)
+            frame = self._frames(position, rng)[0]
+            return frame.horizontal, frame.vertical
+
+        return observe
+
     def frame_source(self, true_position_mm: Callable[[], np.ndarray]) -> Callable[[], GridFrame]:
         """A frame source for :class:`~bench.sensors.lasergrid.LaserGridSensor` that observes the true
         end-effector centre (3,) in mm returned by ``true_position_mm`` (e.g. a robot simulator's state)."""
-        rng_seeds = iter(range(self.seed, self.seed + 2**31))
-
-        def grab() -> GridFrame:
-            frame_sim = LaserGridSimulator(self.geometry, self.spot_half_width_mm, self.p_miss, self.p_false,
-                                           next(rng_seeds))
-            return frame_sim.frames(np.asarray(true_position_mm(), float).reshape(1, 3))[0]
-
-        return grab
+        observe = self.observer()
+        return lambda: GridFrame(*observe(true_position_mm()))
 
     def frames(self, positions_mm: np.ndarray) -> list[GridFrame]:
         """One :class:`GridFrame` per true end-effector centre, positions of shape (N, 3) in mm."""
@@ -86,14 +92,17 @@ class LaserGridSimulator:
         if positions_mm.ndim != 2 or positions_mm.shape[1] != 3 or not np.all(np.isfinite(positions_mm)):
             raise ConfigError(f"laser-grid simulator: positions_mm shape {positions_mm.shape}, "
                               "expected finite (N, 3) end-effector centres in mm")
-        rng = np.random.default_rng(self.seed)
+        return self._frames(positions_mm, np.random.default_rng(self.seed))
+
+    def _frames(self, positions_mm: np.ndarray, rng: np.random.Generator) -> list[GridFrame]:
         horizontal = self._screen_hits(self.geometry.horizontal, positions_mm, rng)
         vertical = self._screen_hits(self.geometry.vertical, positions_mm, rng)
         return [GridFrame(h, v) for h, v in zip(horizontal, vertical)]
 
 
 def format_report(frame: GridFrame) -> bytes:
-    """A frame in the default wire grammar: ``H<n>X`` / ``V<n>X`` per hit, ``h`` / ``v`` for no hit, H first."""
-    parts = [b"".join(b"%s%dX" % (tag, k) for k in hits) if hits else tag.lower()
+    """A frame in the default wire grammar: ``HnnnX`` / ``VnnnX`` per hit (3 digits, as the simulated delta4
+    controller sends them), ``h`` / ``v`` for no hit, horizontal first (delta4-lasergrid.md §5.7 item 5)."""
+    parts = [b"".join(b"%s%03dX" % (tag, k) for k in hits) if hits else tag.lower()
              for tag, hits in ((b"H", frame.horizontal), (b"V", frame.vertical))]
     return b"".join(parts)
