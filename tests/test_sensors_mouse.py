@@ -4,6 +4,8 @@ Real values from sensors.md: §1.1 (count sizes per CPI), §1.3 (ADNS-2610 on a 
 counts/revolution = 151.81 counts/cm, about 385.6 CPI against 400 nominal), §4.2 (24-byte record).
 """
 
+import errno
+import fcntl
 import itertools
 import os
 import struct
@@ -30,7 +32,14 @@ from bench.sensors.input_event import (
     FrameAssembler,
     encode_frames,
 )
-from bench.sensors.mouse import EvdevMouse, MouseGroup, _eviocg, list_mice
+from bench.sensors.mouse import (
+    EVIOCGRAB,
+    EVIOCSCLOCKID,
+    EvdevMouse,
+    MouseGroup,
+    _eviocg,
+    list_mice,
+)
 from bench.sensors.mouse_sim import (
     MouseSimulator,
     MouseStream,
@@ -268,3 +277,43 @@ def test_stream_in_chunks_equals_the_whole_motion(cuts, noise):
     np.testing.assert_allclose(np.concatenate([p.t_s for p in parts]), whole.t_s, atol=1e-9)
     with pytest.raises(ConfigError, match="after 2 s"):
         stream.advance([1.0], [[0.0, 0.0]])
+
+
+def test_grab_is_attempted_only_on_character_devices_and_fails_clearly(tmp_path, monkeypatch):
+    # /dev/null is a character device but not an input device: the grab ioctl fails and says so
+    with pytest.raises(LinkError, match=r"mouse 'XY' \(/dev/null\): exclusive grab failed"):
+        EvdevMouse("/dev/null", CAL_800, label="XY", grab=True)
+    calls = []
+
+    def busy(fd, request, arg):
+        calls.append(request)
+        if request == EVIOCGRAB:
+            raise OSError(errno.EBUSY, "Device or resource busy")
+        return arg
+
+    monkeypatch.setattr(fcntl, "ioctl", busy)
+    with pytest.raises(LinkError, match=r"\(another program holds it\); close that program or run without grab"):
+        EvdevMouse("/dev/null", CAL_800, label="XY", grab=True)
+    assert calls[-2:] == [EVIOCSCLOCKID, EVIOCGRAB]     # monotonic clock first, then the grab
+    assert EVIOCGRAB == 0x40044590 and EVIOCSCLOCKID == 0x400445A0   # sensors.md §4.5, §4.6
+    calls.clear()
+    path = tmp_path / "recorded.bin"
+    path.write_bytes(b"")
+    EvdevMouse(str(path), CAL_800, label="XY", grab=True).close()
+    assert calls == []                                   # a file is never grabbed
+
+
+def test_unplugged_device_fails_the_segment_with_a_clear_error(tmp_path, monkeypatch):
+    path = tmp_path / "event3"
+    path.write_bytes(encode_frames([1.0], [1], [0]))
+    mouse = EvdevMouse(str(path), CAL_800, label="XY")
+
+    def gone(fd, size):
+        raise OSError(errno.ENODEV, "No such device")
+
+    monkeypatch.setattr(os, "read", gone)
+    with pytest.raises(LinkError, match=r"mouse 'XY' .*read failed \(No such device\); the device was probably "
+                                         "unplugged: the run segment is invalid"):
+        mouse.read()
+    monkeypatch.undo()
+    mouse.close()
