@@ -8,7 +8,7 @@ from hypothesis import strategies as st
 
 from bench.errors import ConfigError, LinkTimeout, UnreachableTarget
 from bench.robots import delta4_wire as wire
-from bench.robots.delta4 import Delta4Controller, SensorFrame
+from bench.robots.delta4 import Delta4Controller
 from bench.robots.link import WireProtocolError
 from bench.robots.testing import ScriptedPort, expected_exchange
 

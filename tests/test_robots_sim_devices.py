@@ -10,7 +10,7 @@ from bench.robots import pkm5_wire as wire
 from bench.robots.error_model import ErrorMagnitudes, ErrorModel, JointMemory
 from bench.robots.sim_delta4 import Delta4SimDevice
 from bench.robots.sim_delta4 import build_plant as delta4_plant
-from bench.robots.sim_pkm5 import HOME_STEPS, Pkm5SimDevice
+from bench.robots.sim_pkm5 import Pkm5SimDevice
 from bench.robots.sim_pty import TruthLog, read_last_truth
 from motion import delta4
 

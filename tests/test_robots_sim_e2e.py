@@ -158,12 +158,14 @@ def test_bench_sim_cli_prints_the_device_path():
                                stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:
         ready, _, _ = select.select([process.stdout], [], [], 30)
-        assert ready and os.path.exists(process.stdout.readline().strip())
+        path = process.stdout.readline().strip() if ready else ""
     finally:
         process.send_signal(signal.SIGINT)
-        assert process.wait(5) == 0
+        code = process.wait(5)
+        errors = process.stderr.read()
         process.stdout.close()
         process.stderr.close()
+    assert os.path.exists(path) and code == 0, errors
 
 
 def test_bench_sim_cli_refuses_a_bad_speed_factor():

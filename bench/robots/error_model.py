@@ -15,8 +15,9 @@ and for the pose p = FK(q^true), with p_0 the reference (home) pose:
 
 .. math:: p^{true} = p + e + G\\,(p - p_0) + m\\,c + \\eta, \\quad \\eta \\sim N(0, \\operatorname{diag}\\sigma_p^2)
 
-``e`` is a constant assembly bias, ``G`` a small random matrix (pose-dependent, anisotropic error, e.g. mis-calibrated geometry), ``c`` the sag per
-kg of payload, and ``eta`` the play of the passive joints (the dominant random term on both documented robots).
+``e`` is a constant assembly bias, ``G`` a small random matrix (pose-dependent, anisotropic error, e.g.
+mis-calibrated geometry), ``c`` the sag per kg of payload, and ``eta`` the play of the passive joints (the dominant
+random term on both documented robots).
 """
 
 from __future__ import annotations

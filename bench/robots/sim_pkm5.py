@@ -22,8 +22,8 @@ from bench.robots import pkm5_wire as wire
 from bench.robots.link import WireProtocolError
 from bench.robots.sim_pty import TruthLog, add_common_arguments, main_for
 
-__all__ = ["DESCRIPTION", "FIRMWARE_VERSION", "HOME_STEPS", "MAX_STEPS", "Pkm5SimDevice", "add_arguments", "build_device",
-           "main"]
+__all__ = ["DESCRIPTION", "FIRMWARE_VERSION", "HOME_STEPS", "MAX_STEPS", "Pkm5SimDevice", "add_arguments",
+           "build_device", "main"]
 
 _log = logging.getLogger(__name__)
 
