@@ -23,7 +23,7 @@ from bench.protocols.plan import iterate
 from bench.protocols.runner import step_stores_sample
 from bench.protocols.simrig import simulated_rig
 from bench.robots.pkm5_kinematics import PKM5_ERRORS
-from bench.store import Store
+from bench.store import Store, tidy_table
 
 ROOT = Path(__file__).resolve().parents[1]
 QUICK = ROOT / "examples" / "iso9283_pose_quick.toml"
@@ -69,9 +69,23 @@ def test_run_list_export_analyze(capsys, tmp_path):
     assert sorted(poses) == ["P1", "P2", "P3", "P4", "P5"] and all(p["n"] == 3 for p in poses.values())
 
 
-@pytest.mark.parametrize("name", sorted(PROTOCOLS))
+QUICK_PARAMETERS = {
+    "iso9283_pose": dict(cycles=2, velocities_pct=[100], loads_kg=[0, 2.5]),
+    "iso9283_distance": dict(cycles=2, velocities_pct=[100]),
+    "iso9283_multidirectional": dict(cycles=2, velocities_pct=[100]),
+    "dissertation_pose": dict(variant="beta", cycles=2),
+    "payload_ladder": dict(loads_kg=[0.45, 7.08, 25.23]),
+    "mouse_calibration": dict(repeats=2, distances_mm=[5, 20, 40]),
+}
+
+
+def test_every_protocol_has_a_quick_end_to_end_case():
+    assert set(QUICK_PARAMETERS) == set(PROTOCOLS)
+
+
+@pytest.mark.parametrize("name", sorted(QUICK_PARAMETERS))
 def test_each_protocol_completes_on_the_simulator(tmp_path, name):
-    protocol = PROTOCOLS[name](cycles=2, velocities_pct=[100], settle_s=0.1)
+    protocol = PROTOCOLS[name](settle_s=0.1, **QUICK_PARAMETERS[name])
     expected = sum(1 for step in iterate(protocol, final=False) if step_stores_sample(step))
     with Store(tmp_path / "b.db") as store:
         rig = simulated_rig_in(store, "pkm5", seed=2, speed_factor=20000)
@@ -80,6 +94,16 @@ def test_each_protocol_completes_on_the_simulator(tmp_path, name):
         finally:
             rig.close()
         assert (result.exit_status, result.samples) == ("completed", expected)
+        if name == "mouse_calibration":  # fitted and stored as a new calibration version
+            fitted = store.calibration("mouse")
+            assert fitted.source_run_id == result.run_id
+            assert fitted.params["mm_per_count"] == pytest.approx(25.4 / 800, rel=0.05)
+        if name == "payload_ladder":  # calliper scatter only (the simulator hides the true leg lengths)
+            legs = tidy_table(store, result.run_id, kind="leg_length")
+            assert sorted(set(legs["leg"])) == [1, 2, 3, 4, 5, 6] and legs["error_mm"].abs().max() < 0.1
+        if name == "dissertation_pose":  # beta read by calliper, error of the order of the documents' 0.2-1.8 deg
+            tilts = tidy_table(store, result.run_id, kind="tilt")
+            assert len(tilts) == 30 and (tilts["b_deg"] - tilts["cmd_b_deg"]).abs().max() < 5
 
 
 def _campaign(tmp_path, *, ideal: bool, seed: int, cycles: int) -> pd.DataFrame:

@@ -6,7 +6,7 @@ every target with motion/ before anything moves; :class:`Runner` performs the st
 every sample at once in a :class:`bench.store.Store`.
 """
 
-from bench.protocols import iso9283  # noqa: F401 - registers the ISO 9283 protocols
+from bench.protocols import dissertation, iso9283  # noqa: F401 - registers the protocol library
 from bench.protocols.base import PROTOCOLS, Protocol, load_protocol, protocol_from_config, register
 from bench.protocols.plan import PlanSummary, preflight, summarize
 from bench.protocols.rig import Measurement, Rig

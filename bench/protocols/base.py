@@ -12,7 +12,8 @@ from pathlib import Path
 from typing import Any, ClassVar, Mapping
 
 from bench.errors import ConfigError
-from bench.protocols.parameters import ChoiceParameter, Parameter
+from bench.protocols.kinematics import DEFAULT_SINGULARITY_THRESHOLD
+from bench.protocols.parameters import ChoiceParameter, FloatParameter, Parameter
 from bench.protocols.steps import Plan
 
 __all__ = ["PROTOCOLS", "Protocol", "load_protocol", "protocol_from_config", "register"]
@@ -41,6 +42,9 @@ class Protocol:
     robots: ClassVar[tuple[str, ...]] = ("pkm5", "delta4")
 
     robot = ChoiceParameter("pkm5", choices=("pkm5", "delta4"), description="robot the protocol drives")
+    min_inverse_condition = FloatParameter(DEFAULT_SINGULARITY_THRESHOLD, minimum=0.0, maximum=1.0,
+                                           description="pre-flight refuses targets whose Jacobian inverse condition "
+                                                       "number is below this (singularity proximity)")
 
     def __init__(self, source: str = "parameters", **values: Any) -> None:
         self.source = source
@@ -93,6 +97,9 @@ class Protocol:
         """Clean-up steps after the run (e.g. return home); default: none."""
         return
         yield
+
+    def on_completed(self, store: Any, run_id: int) -> None:
+        """Called once the run has completed (e.g. to store a fitted calibration); default: nothing."""
 
 
 def protocol_from_config(config: Mapping[str, Any], source: str = "parameters") -> Protocol:

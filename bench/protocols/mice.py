@@ -41,6 +41,11 @@ class MiceInstrument:
 
     def measure(self, capture: Capture) -> Measurement:
         xy, xz = self._read()
+        if capture.kind == "mouse":  # calibration runs store the raw counts themselves
+            counts = {"mouse_xy_x_counts": xy.raw[0], "mouse_xy_y_counts": xy.raw[1],
+                      "mouse_xz_x_counts": xz.raw[0], "mouse_xz_z_counts": xz.raw[1]}
+            return Measurement({k: float(v) for k, v in counts.items()},
+                               raw={"calibration": self.calibration.calibration_id})
         x_mm, y_mm = self.origin[:2] + np.asarray(xy.value)
         z_mm = self.origin[2] + xz.value[1]
         return Measurement({"x_mm": float(x_mm), "y_mm": float(y_mm), "z_mm": float(z_mm)},

@@ -104,8 +104,13 @@ def _hms(seconds: float) -> str:
     return f"{seconds // 3600}:{seconds // 60 % 60:02d}:{seconds % 60:02d}"
 
 
-def summarize(protocol: Protocol, *, singularity_threshold: float = DEFAULT_SINGULARITY_THRESHOLD) -> PlanSummary:
-    """Dry-run ``protocol``: count its steps, pre-flight every distinct target, estimate its duration."""
+def summarize(protocol: Protocol, *, singularity_threshold: float | None = None) -> PlanSummary:
+    """Dry-run ``protocol``: count its steps, pre-flight every distinct target, estimate its duration.
+
+    ``singularity_threshold`` defaults to the protocol's ``min_inverse_condition``.
+    """
+    if singularity_threshold is None:
+        singularity_threshold = getattr(protocol, "min_inverse_condition", DEFAULT_SINGULARITY_THRESHOLD)
     model = robot_model(protocol.robot)
     counts: Counter[str] = Counter()
     moves: list[tuple[str, tuple[float, ...], float]] = []

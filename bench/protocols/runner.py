@@ -226,6 +226,8 @@ class Runner:
                     self._loop(protocol.final_steps(), run_id, {}, 0, None, final=True)
             if self.state in (RunState.STOPPING, RunState.ABORTING, RunState.HALTING):
                 status = "aborted"
+            else:
+                protocol.on_completed(self.store, run_id)
         except KeyboardInterrupt as exc:
             status, exception, self._reason = "aborted", exc, "interrupted (Ctrl-C)"
             self._stop_robot()

@@ -6,7 +6,8 @@ through the pty it prints, exactly as to hardware. The instrument is the dissert
 each move the simulator's true attained pose (``SIMTRUE``) drives the simulated mice, which write kernel
 ``input_event`` records into FIFOs that :class:`bench.sensors.mouse.EvdevMouse` reads as it would read
 ``/dev/input``. Counts become mm through the stored calibration; the instrument's frame is registered once at the
-robot's home. Prompts are answered by a scripted operator that also tells the simulator the payload.
+robot's home. Prompts are answered by a scripted operator that also tells the simulator the payload, and calliper
+readings come from the true pose with the calliper's noise and resolution.
 """
 
 from __future__ import annotations
@@ -25,7 +26,8 @@ from bench.protocols.mice import MiceInstrument
 from bench.protocols.rig import Measurement, Rig
 from bench.protocols.steps import Capture, Prompt
 
-__all__ = ["DriverMover", "SimulatedMice", "SimulatedOperator", "simulated_rig", "start_simulator"]
+__all__ = ["DriverMover", "SimulatedCalliper", "SimulatedMice", "SimulatedOperator", "simulated_rig",
+           "start_simulator"]
 
 #: The documents' firmware speed, taken as the rated (100 %) velocity of the pkm5: 200 steps/s (000 App. B.2).
 RATED_SPEED_STEPS_S = 200
@@ -149,6 +151,33 @@ class SimulatedOperator:
         return self.answer(prompt)
 
 
+class SimulatedCalliper:
+    """Answers calliper prompts: tilts (``a_deg``, ``b_deg``) from the simulator's true pose, leg lengths
+    (``length_mm`` of leg ``conditions['leg']``) from the actuator steps the controller reports, each with reading noise and 0.01 resolution.
+
+    The simulator exposes the true pose but not its perturbed (true) leg lengths, so a simulated leg reading shows
+    the calliper's scatter only, not the actuator's own error.
+    """
+
+    def __init__(self, controller: Any, *, seed: int, length_sigma_mm: float = 0.02,
+                 tilt_sigma_deg: float = 0.1) -> None:
+        self.controller = controller
+        self.rng = np.random.default_rng(seed + 7919)
+        self.length_sigma_mm, self.tilt_sigma_deg = length_sigma_mm, tilt_sigma_deg
+
+    def __call__(self, prompt: Prompt) -> float:
+        if prompt.field in ("a_deg", "b_deg"):
+            angle = np.asarray(self.controller.sim_true_pose(), dtype=float)[3 if prompt.field == "a_deg" else 4]
+            return round(float(angle + self.rng.normal(0.0, self.tilt_sigma_deg)), 2)
+        if prompt.field == "length_mm" and "leg" in prompt.conditions:
+            from motion import pkm5
+
+            lengths = pkm5.steps_to_lengths(np.asarray(self.controller.position().steps)[None, :])[0]
+            length = lengths[int(prompt.conditions["leg"]) - 1]
+            return round(float(length + self.rng.normal(0.0, self.length_sigma_mm)), 2)
+        raise LinkError(f"simulated calliper: cannot answer {prompt.field!r} ({prompt.text})")
+
+
 def simulated_rig(robot: str = "pkm5", *, seed: int = 0, speed_factor: float = 1000.0, ideal: bool = False,
                   answer: Callable[[Prompt], float] | None = None) -> Rig:
     """A rig on a freshly started simulator (close it with ``rig.close()``)."""
@@ -171,5 +200,6 @@ def simulated_rig(robot: str = "pkm5", *, seed: int = 0, speed_factor: float = 1
             close()
         raise
     closers.append(mice.close)
-    return Rig(DriverMover(controller), mice, SimulatedOperator(controller, answer), speed_factor=speed_factor,
+    operator = SimulatedOperator(controller, answer or SimulatedCalliper(controller, seed=seed))
+    return Rig(DriverMover(controller), mice, operator, speed_factor=speed_factor,
                closers=closers)

@@ -2,7 +2,9 @@
 
 Columns, in this order when present: ``pose, cycle, cmd_x_mm, cmd_y_mm, cmd_z_mm, x_mm, y_mm, z_mm, cmd_a_deg,
 cmd_b_deg, cmd_c_deg, a_deg, b_deg, c_deg, velocity_pct, load_kg, t_s``, then any other stored value in name order.
-CSV always; Parquet when pyarrow (or fastparquet) is installed.
+Manual length readings (``length_mm`` against ``cmd_length_mm``, e.g. the payload ladder's legs) also get their
+signed error ``error_mm`` (the input of ``bench analyze payload``). CSV always; Parquet when pyarrow (or
+fastparquet) is installed.
 """
 
 from __future__ import annotations
@@ -39,10 +41,13 @@ def tidy_table(store: Store, run_id: int, kind: str = "pose") -> pd.DataFrame:
     rows = [{"pose": s.pose, "cycle": s.cycle, **s.values, "t_s": s.t_s, "step_index": s.step_index}
             for s in samples]
     table = pd.DataFrame(rows)
+    if {"length_mm", "cmd_length_mm"} <= set(table.columns):  # manual leg readings: signed actuation error
+        table["error_mm"] = table["length_mm"] - table["cmd_length_mm"]
     leading = [c for c in TIDY_COLUMNS if c in table.columns]
     table = table[leading + sorted(c for c in table.columns if c not in leading)]
-    if table["cycle"].notna().all():
-        table["cycle"] = table["cycle"].astype(int)
+    for column in ("cycle", "leg"):
+        if column in table and table[column].notna().all() and (table[column] % 1 == 0).all():
+            table[column] = table[column].astype(int)
     return table
 
 

@@ -1,0 +1,201 @@
+"""The dissertation's test protocols on the pkm5 (000_1cca5531533552b2.txt, ch. 8; reference pkm5.md §6.8-6.11).
+
+- ``dissertation_pose``: 15 points (3 per y-region of Table 8-2) x 10 repeats, home -> point -> home; the
+  ``translation`` variant measures position with the mice, the ``alpha`` and ``beta`` variants also ask for the
+  calliper tilt reading at each visit (000 §8.6.3; Tables A.11-A.13).
+- ``payload_ladder``: the load sequence of Table A.14, a pure vertical lift of 50.42 mm per load, six calliper leg
+  readings per load, home between loads (000 §8.7).
+- ``mouse_calibration``: steps of 5/10/15/20/40 mm along x then y, repeated, capturing the raw mouse counts at both
+  ends; on completion a least-squares scale per axis is stored as a new version of calibration ``mouse``
+  (000 App. A.7; sensors.md §5).
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from bench.errors import ConfigError
+from bench.protocols.base import Protocol, register
+from bench.protocols.kinematics import robot_model
+from bench.protocols.parameters import (ChoiceParameter, FloatListParameter, FloatParameter, IntegerParameter)
+from bench.protocols.steps import Capture, Checkpoint, Move, Plan, Prompt, Settle, commanded_values
+
+__all__ = ["DissertationPose", "MouseCalibration", "PayloadLadder", "store_mouse_calibration"]
+
+#: 000 Table A.11 (translation), A.12 (alpha, deg) and A.13 (beta, deg): x, y, z in mm, angle in degrees.
+POINTS = {
+    "translation": [(170.67, -91.43, 268.83), (171.83, -98.75, 264.29), (163.49, -86.82, 275.46),
+                    (167.59, -36.14, 293.74), (174.87, -47.07, 293.64), (151.93, -71.93, 292.72),
+                    (110.52, -0.19, 305.5), (99.12, -18.53, 345.4), (177.3, 19.54, 294.36),
+                    (139.28, 33.52, 312.11), (142.83, 46.43, 302.21), (145.77, 67.62, 304.64),
+                    (160.7, 86.19, 281.34), (130.6, 91.48, 297.3), (130.06, 105.95, 292.9)],
+    "alpha": [(111.31, -80.44, 311.76, -7.39), (111.31, -89.17, 296.29, -5), (111.31, -83.08, 302.83, 5),
+              (111.31, -45.29, 310.77, -15.82), (111.31, -33.65, 309.97, 12.26), (111.31, -68.9, 299.1, -7.09),
+              (111.31, -4.66, 310.83, 15), (111.31, -26.81, 311.43, -20), (111.31, -0.26, 311.09, 5),
+              (111.31, 31.15, 317.07, 16.7), (111.31, 77.88, 304.67, 20.25), (111.31, 46.86, 309.34, -9.78),
+              (111.31, 89.04, 305.48, 10.41), (111.31, 103.97, 299.41, 8.78), (111.31, 84.59, 306.17, -2.3)],
+    "beta": [(124.47, -90.11, 287.16, 10.11), (101.57, -97.88, 314.82, -5.52), (105.16, -93.48, 322.4, -12.64),
+             (105.45, -33.76, 317.56, 8.57), (113.84, -31.64, 308.17, 15.11), (97.84, -54.65, 322.13, -9.43),
+             (164.34, -15, 305.66, -11.02), (164.48, 15.15, 296.16, -17.46), (138.51, 23.44, 304.56, 9.33),
+             (111.03, 43.04, 308.45, 12.93), (135.94, 29.14, 319.64, -12.48), (137.56, 51.8, 315.32, -4),
+             (123.69, 91.82, 287.49, 11.87), (151.61, 95.94, 273.93, 6.89), (142.28, 84.02, 301.35, -7.8)],
+}
+#: 000 Table A.14: the payload ladder, kg.
+LADDER_KG = (0.45, 1, 1.45, 2, 2.45, 3, 3.45, 5.27, 6.18, 7.08, 8.44, 9.35, 10.26, 12.07, 13.43, 15, 18, 20, 23,
+             25.23)
+
+
+def _label(index: int) -> str:
+    return f"{index // 3 + 1}-{index % 3 + 1}"  # region-point, as in Tables A.11-A.13
+
+
+def _target(variant: str, point: tuple[float, ...]) -> tuple[float, ...]:
+    if variant == "translation":
+        return point
+    x, y, z, angle = point
+    return (x, y, z, angle, 0.0) if variant == "alpha" else (x, y, z, 0.0, angle)
+
+
+@register
+class DissertationPose(Protocol):
+    """000 §8.6: 15 points x 10 repeats from home, position by the mice, tilt by calliper (alpha/beta variants)."""
+
+    name = "dissertation_pose"
+    version = "1"
+    title = "Dissertation pose test (000 §8.6.3), 15 points in 5 y-regions"
+    robots = ("pkm5",)
+
+    variant = ChoiceParameter("translation", choices=tuple(POINTS), description="Table A.11, A.12 or A.13")
+    cycles = IntegerParameter(10, minimum=2, description="repeats per point (000: 10)")
+    velocity_pct = FloatParameter(100.0, unit="%", minimum=0.1, maximum=100.0, description="velocity")
+    settle_s = FloatParameter(1.0, unit="s", minimum=0.0, maximum=600.0, description="dwell before a reading")
+
+    def steps(self) -> Plan:
+        home = robot_model(self.robot).home
+        angle = {"alpha": "a", "beta": "b"}.get(self.variant)
+        for index, point in enumerate(POINTS[self.variant]):
+            target = _target(self.variant, point)
+            for cycle in range(1, self.cycles + 1):
+                yield Move(home, self.velocity_pct, "home")
+                yield Move(target, self.velocity_pct, _label(index))
+                yield Settle(self.settle_s)
+                yield Capture(_label(index), cycle, commanded=commanded_values(target[:3]),
+                              conditions={"velocity_pct": self.velocity_pct})
+                if angle is not None:
+                    yield Prompt(f"Point {_label(index)}, repeat {cycle}: calliper tilt {self.variant}",
+                                 field=f"{angle}_deg", unit="deg", minimum=-45.0, maximum=45.0, pose=_label(index),
+                                 cycle=cycle, kind="tilt",
+                                 commanded={f"cmd_{angle}_deg": point[3]})
+                yield Checkpoint(f"point {_label(index)}, repeat {cycle}")
+
+    def final_steps(self) -> Plan:
+        yield Move(robot_model(self.robot).home, 100.0, "home")
+
+
+@register
+class PayloadLadder(Protocol):
+    """000 §8.7: per load, confirm the payload, lift 50.42 mm straight up, read the six legs, return home."""
+
+    name = "payload_ladder"
+    version = "1"
+    title = "Payload ladder (000 §8.7, Table A.14)"
+    robots = ("pkm5",)
+
+    loads_kg = FloatListParameter(LADDER_KG, unit="kg", minimum=0.0, maximum=25.23,
+                                  description="load sequence (000 Table A.14); the structure failed on reload at 25 kg")
+    lift_mm = FloatParameter(50.42, unit="mm", minimum=1.0, maximum=60.0, description="vertical lift (000 §8.7)")
+    start_mm = FloatListParameter((95.0, 0.0, 301.0), length=3, unit="mm",
+                                  description="pose before the lift (with the 60 mm leg windows only x ~ 70-120 mm, "
+                                              "z ~ 297-305 mm allow a 50.42 mm lift)")
+    repeats = IntegerParameter(1, minimum=1, description="lifts per load (000: 1; reference §12.3: at least 3)")
+    velocity_pct = FloatParameter(100.0, unit="%", minimum=0.1, maximum=100.0, description="velocity")
+    settle_s = FloatParameter(1.0, unit="s", minimum=0.0, maximum=600.0, description="dwell before the readings")
+
+    def lifted(self) -> tuple[float, ...]:
+        x, y, z = self.start_mm
+        return (x, y, z + self.lift_mm)
+
+    def expected_legs_mm(self) -> np.ndarray:
+        """Leg lengths |BC| the IK predicts at the lifted pose (the L_cmd of reference §12.1)."""
+        from motion import pkm5
+        return pkm5.inverse_kinematics(list(self.lifted()) + [0.0, 0.0]).lengths_mm[0]
+
+    def steps(self) -> Plan:
+        legs = self.expected_legs_mm()
+        for rung, load in enumerate(self.loads_kg, start=1):
+            yield Prompt(f"Load {load:g} kg centred on the top platform, then confirm", conditions={"load_kg": load})
+            for repeat in range(1, self.repeats + 1):
+                yield Move(tuple(self.start_mm), self.velocity_pct, "start")
+                yield Move(self.lifted(), self.velocity_pct, "lift")
+                yield Settle(self.settle_s)
+                for leg in range(6):
+                    yield Prompt(f"Load {load:g} kg: calliper length of leg {leg + 1}", field="length_mm",
+                                 unit="mm", minimum=150.0, maximum=280.0, pose=f"{load:g}kg", cycle=repeat,
+                                 kind="leg_length", commanded={"cmd_length_mm": float(legs[leg])},
+                                 conditions={"load_kg": load, "leg": leg + 1})
+            yield Move(robot_model(self.robot).home, self.velocity_pct, "home")
+            yield Checkpoint(f"rung {rung}: {load:g} kg")
+
+    def final_steps(self) -> Plan:
+        yield Prompt("Remove the payload, then confirm", conditions={"load_kg": 0.0})
+
+
+@register
+class MouseCalibration(Protocol):
+    """000 App. A.7: known steps along x then y, raw counts at both ends; fitted and stored as calibration."""
+
+    name = "mouse_calibration"
+    version = "1"
+    title = "Optical-mouse resolution calibration (000 App. A.7)"
+    robots = ("pkm5",)
+
+    distances_mm = FloatListParameter((5.0, 10.0, 15.0, 20.0, 40.0), unit="mm", minimum=0.5, maximum=60.0,
+                                      description="step lengths (000: 5, 10, 15, 20, 40 mm)")
+    repeats = IntegerParameter(5, minimum=2, description="repeats per step length")
+    start_mm = FloatListParameter((90.0, -20.0, 310.0), length=3, unit="mm", description="start of every step")
+    velocity_pct = FloatParameter(100.0, unit="%", minimum=0.1, maximum=100.0, description="velocity")
+    settle_s = FloatParameter(0.5, unit="s", minimum=0.0, maximum=600.0, description="dwell before a reading")
+
+    def steps(self) -> Plan:
+        start = tuple(self.start_mm)
+        for axis, name in ((0, "x"), (1, "y")):
+            for distance in self.distances_mm:
+                end = list(start)
+                end[axis] += distance
+                for repeat in range(1, self.repeats + 1):
+                    for where, target in (("start", start), ("end", tuple(end))):
+                        yield Move(target, self.velocity_pct, f"{name}{distance:g}/{where}")
+                        yield Settle(self.settle_s)
+                        yield Capture(f"{name}{distance:g}/{where}", repeat, kind="mouse",
+                                      commanded={**commanded_values(target), "step_mm": distance})
+                    yield Checkpoint(f"{name} {distance:g} mm, repeat {repeat}")
+
+    def on_completed(self, store: Any, run_id: int) -> None:
+        store_mouse_calibration(store, run_id)
+
+
+def store_mouse_calibration(store: Any, run_id: int, name: str = "mouse") -> Any:
+    """Fit counts = slope * displacement + offset per axis of the x-y mouse and store it as a new version of
+    calibration ``name`` (scale in mm/count, with its uncertainty and residual)."""
+    from bench.metrology import fit_axis_scale
+
+    samples = store.samples(run_id, kind="mouse")
+    by_key = {(s.pose, s.cycle): s.values for s in samples}
+    params: dict[str, Any] = {"source": f"run {run_id}"}
+    for axis, column in (("x", "mouse_xy_x_counts"), ("y", "mouse_xy_y_counts")):
+        reference, counts = [], []
+        for (label, cycle), end in by_key.items():
+            if label.startswith(axis) and label.endswith("/end") and (label[:-4] + "/start", cycle) in by_key:
+                start = by_key[(label[:-4] + "/start", cycle)]
+                reference.append(end[f"cmd_{axis}_mm"] - start[f"cmd_{axis}_mm"])
+                counts.append(end[column] - start[column])
+        if len(reference) < 3:
+            raise ConfigError(f"run {run_id}: {len(reference)} {axis} steps with both ends stored, expected >= 3")
+        fit = fit_axis_scale(np.asarray(reference), np.asarray(counts))
+        params[f"{axis}_mm_per_count"] = fit.scale_mm_per_count
+        params[f"u_{axis}_mm_per_count"] = fit.u_scale_mm_per_count
+        params[f"{axis}_residual_rms_counts"] = fit.residual_rms_counts
+    params["mm_per_count"] = (params["x_mm_per_count"] + params["y_mm_per_count"]) / 2
+    return store.add_calibration(name, params, source_run_id=run_id, notes="least-squares fit (sensors.md §5.2)")
