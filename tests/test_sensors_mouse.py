@@ -32,14 +32,8 @@ from bench.sensors.input_event import (
     FrameAssembler,
     encode_frames,
 )
-from bench.sensors.mouse import (
-    EVIOCGRAB,
-    EVIOCSCLOCKID,
-    EvdevMouse,
-    MouseGroup,
-    _eviocg,
-    list_mice,
-)
+from bench.sensors.event_device import EVIOCGRAB, EVIOCSCLOCKID, eviocg
+from bench.sensors.mouse import EvdevMouse, MouseGroup, list_mice
 from bench.sensors.mouse_sim import (
     MouseSimulator,
     MouseStream,
@@ -237,7 +231,7 @@ def test_simulator_refuses_bad_rate_and_motion():
 
 
 def test_eviocgname_request_number():  # include/uapi/linux/input.h: EVIOCGNAME(len) = _IOC(_IOC_READ, 'E', 0x06, len)
-    assert _eviocg(0x06, 256) == 0x81004506 and _eviocg(0x07, 256) == 0x81004507
+    assert eviocg(0x06, 256) == 0x81004506 and eviocg(0x07, 256) == 0x81004507
 
 
 def test_list_mice_reads_sysfs_and_prefers_by_path_links(tmp_path):

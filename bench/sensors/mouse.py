@@ -7,15 +7,10 @@ acceleration, kernel timestamps on ``CLOCK_MONOTONIC``, several mice told apart 
 
 from __future__ import annotations
 
-import errno
-import fcntl
 import logging
 import os
 import selectors
-import stat
-import struct
 import time
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Self
 
@@ -23,6 +18,12 @@ import numpy as np
 
 from bench.errors import LinkError
 from bench.sensors.calibration import CountsCalibration
+from bench.sensors.event_device import (
+    EVIOCGRAB,
+    EVIOCSCLOCKID,
+    DeviceBinding,
+    EventStream,
+)
 from bench.sensors.input_event import FrameAssembler, MotionFrames
 from bench.sensors.reading import Reading, now
 
@@ -30,35 +31,8 @@ __all__ = ["EVIOCGRAB", "EVIOCSCLOCKID", "EvdevMouse", "MouseBinding", "MouseGro
 
 logger = logging.getLogger(__name__)
 
-#: ``_IOW('E', 0x90, int)``: exclusive grab (argument 1) / release (0) (§4.6).
-EVIOCGRAB = 0x40044590
-#: ``_IOW('E', 0xa0, int)``: select the clock of the event timestamps (§4.5).
-EVIOCSCLOCKID = 0x400445A0
-_CLOCK_MONOTONIC = 1
-_READ_SIZE = 1 << 16
-
-
-def _eviocg(nr: int, length: int) -> int:
-    """``_IOC(_IOC_READ, 'E', nr, length)``: the string queries EVIOCGNAME (0x06), EVIOCGPHYS (0x07)."""
-    return (2 << 30) | (length << 16) | (ord("E") << 8) | nr
-
-
-@dataclass(frozen=True)
-class MouseBinding:
-    """Which physical sensor a stream comes from; stored in the run manifest (``sensors.md`` §4.1).
-
-    ``label`` is the bench's own name ("XY", "Z"); ``name``/``phys`` come from the kernel when the path is a real
-    event device and are empty for pipes and files.
-    """
-
-    label: str
-    path: str
-    name: str = ""
-    phys: str = ""
-    is_device: bool = False
-
-    def __str__(self) -> str:
-        return f"mouse {self.label!r} ({self.path}{', ' + self.name if self.name else ''})"
+#: Kept under the historical name: a mouse's binding is a :class:`DeviceBinding`.
+MouseBinding = DeviceBinding
 
 
 def _read_text(path: Path) -> str:
@@ -87,34 +61,9 @@ def list_mice(*, dev_root: str = "/dev/input", sysfs_root: str = "/sys/class/inp
         words = _read_text(node / "device" / "capabilities" / "rel").split()
         if not words or int(words[-1], 16) & 0b11 != 0b11:   # REL_X and REL_Y are bits 0 and 1 of the last word
             continue
-        found.append(MouseBinding(node.name, stable.get(node.name, str(Path(dev_root) / node.name)),
-                                  _read_text(node / "device" / "name"), _read_text(node / "device" / "phys"), True))
+        found.append(DeviceBinding(node.name, stable.get(node.name, str(Path(dev_root) / node.name)),
+                                   _read_text(node / "device" / "name"), _read_text(node / "device" / "phys"), True))
     return found
-
-
-def _query_string(fd: int, nr: int) -> str:
-    buf = bytearray(256)
-    try:
-        fcntl.ioctl(fd, _eviocg(nr, len(buf)), buf)
-    except OSError:
-        return ""
-    return bytes(buf).split(b"\0", 1)[0].decode(errors="replace")
-
-
-def _open_stream(label: str, path: str) -> int:
-    """Open non-blocking; a FIFO is opened blocking first, so that it waits for its writer instead of at EOF."""
-    try:
-        if stat.S_ISFIFO(os.stat(path).st_mode):
-            fd = os.open(path, os.O_RDONLY)
-            os.set_blocking(fd, False)
-            return fd
-        return os.open(path, os.O_RDONLY | os.O_NONBLOCK)
-    except FileNotFoundError:
-        raise LinkError(f"mouse {label!r}: {path} does not exist; is the mouse plugged in? "
-                        "List /dev/input/by-path/ and bind the sensor again") from None
-    except PermissionError:
-        raise LinkError(f"mouse {label!r}: permission denied on {path}; add a udev rule giving your group "
-                        "access to the sensor (sensors.md §4.7), then re-plug it") from None
 
 
 class EvdevMouse:
@@ -137,52 +86,24 @@ class EvdevMouse:
                  grab: bool = False) -> None:
         self.name = label
         self.calibration = calibration
-        self._fd = _open_stream(label, path)
-        is_device = stat.S_ISCHR(os.fstat(self._fd).st_mode)
-        self.binding = MouseBinding(label, path, _query_string(self._fd, 0x06) if is_device else "",
-                                    _query_string(self._fd, 0x07) if is_device else "", is_device)
+        self._stream = EventStream(path, kind="mouse", label=label, grab=grab)
+        self.binding = self._stream.binding
         self._assembler = FrameAssembler()
         self.counts = np.zeros(2, np.int64)
         self.segment_valid = True
-        self.exhausted = False
         self._last_t_s: float | None = None
-        if is_device:
-            self._setup_device(grab)
-        elif grab:
-            logger.info("%s is not an event device; grab skipped", self.binding)
 
-    def _setup_device(self, grab: bool) -> None:
-        try:
-            fcntl.ioctl(self._fd, EVIOCSCLOCKID, struct.pack("i", _CLOCK_MONOTONIC))
-        except OSError as exc:
-            logger.warning("%s: cannot switch timestamps to CLOCK_MONOTONIC (%s)", self.binding, exc)
-        if grab:
-            try:
-                fcntl.ioctl(self._fd, EVIOCGRAB, 1)
-            except OSError as exc:
-                self.close()
-                hint = "another program holds it" if exc.errno == errno.EBUSY else exc.strerror
-                raise LinkError(f"{self.binding}: exclusive grab failed ({hint}); close that program "
-                                "or run without grab") from None
+    @property
+    def exhausted(self) -> bool:
+        """True once a pipe or file has ended (a device never ends; it fails when unplugged)."""
+        return self._stream.exhausted
 
     def fileno(self) -> int:
-        return self._fd
+        return self._stream.fileno()
 
     def read_frames(self) -> MotionFrames:
         """Read every byte available now (non-blocking) and return the completed frames; counts are integrated."""
-        chunks = []
-        while True:
-            try:
-                data = os.read(self._fd, _READ_SIZE)
-            except BlockingIOError:
-                break
-            except OSError as exc:
-                raise LinkError(f"{self.binding}: read failed ({exc.strerror}); the device was probably "
-                                "unplugged: the run segment is invalid, re-bind and restart the cycle") from None
-            if not data:
-                self.exhausted = True
-                break
-            chunks.append(self._assembler.feed(data))
+        chunks = [self._assembler.feed(data) for data in self._stream.read_available()]
         frames = MotionFrames.concatenate(chunks)
         if len(frames):
             self.counts += (int(frames.dx.sum()), int(frames.dy.sum()))
@@ -198,10 +119,7 @@ class EvdevMouse:
     def read(self, timeout_s: float = 0.0) -> Reading:
         """Integrated displacement since the last :meth:`rezero`, in mm, after waiting up to ``timeout_s``."""
         if timeout_s > 0:
-            selectors_ = selectors.PollSelector()  # epoll refuses regular files
-            selectors_.register(self._fd, selectors.EVENT_READ)
-            selectors_.select(timeout_s)
-            selectors_.close()
+            self._stream.wait(timeout_s)
         self.read_frames()
         t_mono, t_wall = now()
         if self._last_t_s is not None and self.binding.is_device:
@@ -213,10 +131,8 @@ class EvdevMouse:
                        valid=self.segment_valid, note="" if self.segment_valid else "SYN_DROPPED: counts lost")
 
     def close(self) -> None:
-        """Close the descriptor; the kernel releases any grab with it."""
-        if self._fd >= 0:
-            os.close(self._fd)
-            self._fd = -1
+        """Close the device; the kernel releases any grab with it."""
+        self._stream.close()
 
     def __enter__(self) -> Self:
         return self
