@@ -23,7 +23,13 @@ from bench.sensors.calliper import (
     tilt_uncertainty_deg,
 )
 from bench.sensors.calliper_sim import CalliperSimulator, depths_for_tilt
-from bench.sensors.calliper_wedge import WedgeDecoder, WedgeListener, key_symbol
+from bench.sensors.calliper_wedge import (
+    EvdevWedge,
+    WedgeDecoder,
+    WedgeListener,
+    encode_keystrokes,
+    key_symbol,
+)
 
 
 @pytest.mark.parametrize("text, mm", [("12.34", 12.34), ("-0,50 mm", -0.5), ("+7", 7.0), (".25", 0.25),
@@ -137,3 +143,34 @@ def test_play_bias_is_a_measured_correction():
     assert not TiltBias(bias.mean_deg + 0.001, 0.02, 5, "next-day").changed_since(bias)
     with pytest.raises(InsufficientData, match="4 repeats, expected at least 5"):
         TiltBias.from_repeats([-4.0] * 4, calibration_id="x")
+
+
+def test_evdev_wedge_decodes_keyboard_events_with_shift(tmp_path):
+    sim = CalliperSimulator(noise_mm=0.01, seed=8)
+    true_mm = [12.345, 0.5, 149.99]
+    path = tmp_path / "usb-Sylvac_wedge-event-kbd"
+    extra = encode_keystrokes(["+", "7", ",", "2", "5", "space", "m", "m", "enter"], t0_s=1.0)
+    path.write_bytes(sim.wedge_input_events(true_mm) + extra)
+    got, rejects = [], []
+    wedge = EvdevWedge(str(path), WedgeDecoder(got.append, on_reject=rejects.append, name="wedge",
+                                               clock=iter(np.arange(0, 100, 0.001)).__next__))
+    readings = wedge.poll(timeout_s=0.5)
+    wedge.close()
+    assert readings == got and not rejects
+    assert [r.value for r in readings] == pytest.approx([*sim.values(true_mm).tolist(), 7.25])
+    assert readings[-1].raw == "+7,25 mm"          # '+' typed with Shift, ',' decimal, unit suffix
+
+
+def test_wedge_events_split_anywhere_give_the_same_readings(tmp_path):
+    data = CalliperSimulator().wedge_input_events([3.14, 2.72])
+    fifo = tmp_path / "wedge.fifo"
+    os.mkfifo(fifo)
+    writer = os.open(fifo, os.O_RDWR)      # keeps the FIFO open, as a device stays open
+    got = []
+    wedge = EvdevWedge(str(fifo), WedgeDecoder(got.append, clock=iter(np.arange(0, 100, 0.001)).__next__))
+    for start in range(0, len(data), 37):  # 37 bytes: records cut in the middle
+        os.write(writer, data[start:start + 37])
+        wedge.poll(timeout_s=0.2)
+    os.close(writer)
+    wedge.close()
+    assert [r.value for r in got] == [3.14, 2.72]

@@ -19,6 +19,7 @@ from hypothesis import strategies as st
 from bench.errors import ConfigError, LinkError
 from bench.sensors import Reading, Sensor
 from bench.sensors.calibration import CountsCalibration
+from bench.sensors.event_device import EVIOCGRAB, EVIOCSCLOCKID, eviocg
 from bench.sensors.input_event import (
     EV_KEY,
     EV_REL,
@@ -32,7 +33,6 @@ from bench.sensors.input_event import (
     FrameAssembler,
     encode_frames,
 )
-from bench.sensors.event_device import EVIOCGRAB, EVIOCSCLOCKID, eviocg
 from bench.sensors.mouse import EvdevMouse, MouseGroup, list_mice
 from bench.sensors.mouse_sim import (
     MouseSimulator,

@@ -51,6 +51,12 @@ class CalliperSimulator:
         """Key symbols a keyboard wedge types: each character of a reading, then ``"enter"``."""
         return [key for text in self.texts(true_mm) for key in (*text, "enter")]
 
+    def wedge_input_events(self, true_mm: np.ndarray, *, t0_s: float = 0.0) -> bytes:
+        """The keystrokes as the wedge's keyboard event device delivers them (``input_event`` records)."""
+        from bench.sensors.calliper_wedge import encode_keystrokes
+
+        return encode_keystrokes(self.keystrokes(true_mm), t0_s=t0_s)
+
 
 def depths_for_tilt(tilt_deg: np.ndarray, spacing_mm: float, centre_depth_mm: float) -> tuple[np.ndarray, np.ndarray]:
     """True depths (h1, h2) in mm through two holes ``spacing_mm`` apart over a mirror tilted by ``tilt_deg``,
