@@ -154,7 +154,7 @@ def encode_keystrokes(symbols: list[str], *, t0_s: float = 0.0, key_interval_s: 
     for k, symbol in enumerate(symbols):
         code, shifted = _KEY_OF_SYMBOL[symbol]
         t = t0_s + k * key_interval_s
-        sec, usec = int(t), int(round((t - int(t)) * 1e6))
+        sec, usec = int(t), round((t - int(t)) * 1e6)
         presses = [(42, 1), (code, 1), (code, 0), (42, 0)] if shifted else [(code, 1), (code, 0)]
         for key, value in presses:
             records.append(EVENT.pack(sec, usec, EV_KEY, key, value))
