@@ -71,3 +71,27 @@ def test_calliper_entry_appends_and_flushes_each_row(tmp_path, capsys, monkeypat
 def test_mouse_list_runs_without_input_devices(capsys):
     code, out, _ = run(capsys, "sensors", "mouse-list", "--json")
     assert code == 0 and isinstance(json.loads(out)["mice"], list)
+
+
+def test_every_sensor_describes_itself_for_the_run_manifest(tmp_path):
+    import numpy as np
+
+    from bench.sensors.calibration import CountsCalibration
+    from bench.sensors.camera_sim import SpotCameraSimulator
+    from bench.sensors.camera_spot import LaserSpotCamera, PlaneCalibration
+    from bench.sensors.lasergrid import LaserGridSensor
+    from bench.sensors.lasergrid_sim import LaserGridSimulator
+    from bench.sensors.mouse import EvdevMouse
+
+    path = tmp_path / "m.bin"
+    path.write_bytes(b"")
+    cal = CountsCalibration.from_cpi(800)
+    sensors = [EvdevMouse(str(path), cal, label="XY"),
+               LaserGridSensor(LaserGridSimulator().frame_source(lambda: np.zeros(3)), lambda: np.zeros(3)),
+               LaserSpotCamera(SpotCameraSimulator(np.eye(3)).frame_source(lambda: np.zeros(2)),
+                               PlaneCalibration(np.eye(3), 0.0, "cam-1", "2026-11-23"))]
+    for sensor in sensors:
+        settings = sensor.settings()
+        assert json.loads(json.dumps(settings)) == settings and settings["sensor"]
+    assert sensors[0].settings()["calibration_hash"] == cal.content_hash()
+    sensors[0].close()

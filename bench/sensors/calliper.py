@@ -139,6 +139,11 @@ class SerialCalliper:
         self.request = request
         self._lines = LineReader(port, f"{name} ({getattr(port, 'port', 'serial')})", terminator=terminator)
 
+    def settings(self) -> dict[str, object]:
+        """What a run manifest stores about this calliper: port, request string and line end."""
+        return {"sensor": "serial calliper", "name": self.name, "port": self._lines.name,
+                "request": self.request.decode(errors="replace"), "terminator": self._lines.terminator.decode()}
+
     def read(self, timeout_s: float = 30.0) -> Reading:
         """Wait for the next line (the operator presses the data button) and return it as a reading in mm."""
         if self.request:

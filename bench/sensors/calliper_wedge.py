@@ -207,6 +207,12 @@ class EvdevWedge:
                     readings.append(reading)
         return readings
 
+    def settings(self) -> dict[str, object]:
+        """What a run manifest stores about the wedge: its device binding."""
+        binding = self._stream.binding
+        return {"sensor": "keyboard-wedge calliper (evdev)", "name": self.name, "path": binding.path,
+                "device_name": binding.name, "is_device": binding.is_device}
+
     @property
     def exhausted(self) -> bool:
         return self._stream.exhausted

@@ -153,6 +153,11 @@ class LaserSpotCamera:
         self.calibration = calibration
         self.detect_options = detect_options
 
+    def settings(self) -> dict[str, object]:
+        """What a run manifest stores about this camera: detection options and the plane calibration."""
+        return {"sensor": "camera laser spot", "name": self.name, "detect_options": dict(self.detect_options),
+                "calibration": self.calibration.to_dict()}
+
     def read(self) -> Reading:
         """Grab a frame, detect the spot, and return its plane position (mm); raw holds the pixels."""
         frame = self._grab()

@@ -332,6 +332,15 @@ class LaserGridSensor:
         self.geometry = geometry
         self.options = options
 
+    def settings(self) -> dict[str, object]:
+        """What a run manifest stores about the laser grid: geometry choices and decoding options."""
+        screens = {s.name: {"axes": list(s.axes), "first_centre_mm": list(s.first_centre_mm),
+                            "laser_offset_mm": s.laser_offset_mm, "pitch_mm": s.pitch_mm, "size": s.size,
+                            "index_base": s.index_base, "mirror": s.mirror, "index_map": s.index_map is not None}
+                   for s in (self.geometry.horizontal, self.geometry.vertical)}
+        return {"sensor": "laser grid", "name": self.name, "calibration_id": self.geometry.calibration_id,
+                "screens": screens, "options": dict(self.options)}
+
     def read(self) -> Reading:
         frame = self._frames()
         t_mono, t_wall = now()

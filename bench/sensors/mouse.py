@@ -116,6 +116,12 @@ class EvdevMouse:
         self.counts[:] = 0
         self.segment_valid = True
 
+    def settings(self) -> dict[str, object]:
+        """What a run manifest stores about this sensor: binding and calibration (id, hash, matrix)."""
+        return {"sensor": "evdev mouse", "label": self.name, "path": self.binding.path, "name": self.binding.name,
+                "phys": self.binding.phys, "is_device": self.binding.is_device,
+                "calibration": self.calibration.to_dict(), "calibration_hash": self.calibration.content_hash()}
+
     def read(self, timeout_s: float = 0.0) -> Reading:
         """Integrated displacement since the last :meth:`rezero`, in mm, after waiting up to ``timeout_s``."""
         if timeout_s > 0:

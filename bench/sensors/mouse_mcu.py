@@ -87,6 +87,12 @@ class McuMouse:
         self.segment_valid = True
         self.notes.clear()
 
+    def settings(self) -> dict[str, object]:
+        """What a run manifest stores about this sensor: port, SQUAL threshold and calibration."""
+        return {"sensor": "MCU mouse stream", "label": self.name, "port": self._lines.name,
+                "min_squal": self.min_squal, "calibration": self.calibration.to_dict(),
+                "calibration_hash": self.calibration.content_hash()}
+
     def read(self, n_samples: int = 1, timeout_s: float = 1.0) -> Reading:
         """Read ``n_samples`` reports, then return the integrated displacement (mm) since :meth:`rezero`."""
         for _ in range(n_samples):

@@ -64,6 +64,11 @@ class PointerSampler:
         self.rate_hz = rate_hz
         self._position = position or _pynput_position()
 
+    def settings(self) -> dict[str, object]:
+        """What a run manifest stores: the method and its deviation from metrology practice."""
+        return {"sensor": "OS pointer (dissertation parity)", "name": self.name, "mm_per_pixel": self.mm_per_pixel,
+                "rate_hz": self.rate_hz, "deviation": UNFIT_FOR_METROLOGY}
+
     def read(self) -> Reading:
         """Pointer position now, in mm (pixels times the factor); raw holds the pixels."""
         x_px, y_px = self._position()
