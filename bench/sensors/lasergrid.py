@@ -168,7 +168,8 @@ class ScreenDecode:
 class GridDecode:
     """Decoded end-effector position for one frame of both screens.
 
-    ``position_mm`` holds measured axes where ``measured`` is True and the prior elsewhere (never NaN);
+    ``position_mm`` holds measured axes where ``measured`` is True and the prior elsewhere (never NaN); an
+    AMBIGUOUS screen contributes its best candidate, so check each screen's status before trusting an axis;
     ``error_mm`` = measured - prior on measured axes, 0 elsewhere; ``y_disagreement_mm`` compares the two screens'
     y (misalignment check, §8.1.2), ``None`` unless both screens are OK.
     """
