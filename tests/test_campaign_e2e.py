@@ -70,12 +70,12 @@ def test_run_list_export_analyze(capsys, tmp_path):
 
 
 QUICK_PARAMETERS = {
-    "iso9283_pose": dict(cycles=2, velocities_pct=[100], loads_kg=[0, 2.5]),
-    "iso9283_distance": dict(cycles=2, velocities_pct=[100]),
-    "iso9283_multidirectional": dict(cycles=2, velocities_pct=[100]),
-    "dissertation_pose": dict(variant="beta", cycles=2),
-    "payload_ladder": dict(loads_kg=[0.45, 7.08, 25.23]),
-    "mouse_calibration": dict(repeats=2, distances_mm=[5, 20, 40]),
+    "iso9283_pose": {"cycles": 2, "velocities_pct": [100], "loads_kg": [0, 2.5]},
+    "iso9283_distance": {"cycles": 2, "velocities_pct": [100]},
+    "iso9283_multidirectional": {"cycles": 2, "velocities_pct": [100]},
+    "dissertation_pose": {"variant": "beta", "cycles": 2},
+    "payload_ladder": {"loads_kg": [0.45, 7.08, 25.23]},
+    "mouse_calibration": {"repeats": 2, "distances_mm": [5, 20, 40]},
 }
 
 

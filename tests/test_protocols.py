@@ -4,12 +4,30 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from hypothesis import given, strategies as st
+from hypothesis import given
+from hypothesis import strategies as st
 
 from bench.errors import ConfigError, UnreachableTarget
-from bench.protocols import (Capture, Checkpoint, Measurement, Move, Prompt, Rig, Runner, Settle, TransitionError,
-                             load_protocol, preflight, summarize)
-from bench.protocols.iso9283 import DistanceAccuracy, PoseAccuracy, cube_poses, fit_cube_side
+from bench.protocols import (
+    Capture,
+    Checkpoint,
+    Measurement,
+    Move,
+    Prompt,
+    Rig,
+    Runner,
+    Settle,
+    TransitionError,
+    load_protocol,
+    preflight,
+    summarize,
+)
+from bench.protocols.iso9283 import (
+    DistanceAccuracy,
+    PoseAccuracy,
+    cube_poses,
+    fit_cube_side,
+)
 from bench.protocols.plan import iterate
 from bench.protocols.runner import TRANSITIONS, RunState
 from bench.store import Store, tidy_table
@@ -91,8 +109,8 @@ def test_unknown_key_is_refused(tmp_path):
 @pytest.mark.parametrize("text, message", [
     ('settle_s = "2 s"', None),
     ('settle_s = "2 mm"', r"settle_s = '2 mm', expected a number in \[0, 600\] s"),
-    ("velocities_pct = [100, 150]", r"velocities_pct = \[100, 150\], expected a non-empty list of numbers in "
-                                    r"\[0.1, 100\]%"),
+    ("velocities_pct = [100, 150]", (r"velocities_pct = \[100, 150\], expected a non-empty list of numbers in "
+                                    r"\[0.1, 100\]%")),
     ('robot = "scara"', "robot = 'scara', expected one of 'pkm5', 'delta4'"),
     ("cycles = 2.5", "cycles = 2.5, expected an integer >= 2"),
 ])

@@ -10,7 +10,8 @@ import textwrap
 
 import pandas as pd
 import pytest
-from hypothesis import given, settings, strategies as st
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from bench.errors import ConfigError, InsufficientData
 from bench.store import DuplicateSample, Store, export_run, tidy_table
@@ -23,8 +24,8 @@ def store(tmp_path):
 
 
 def _start(store, **overrides):
-    args = dict(protocol_name="iso9283_pose", protocol_version="1", robot="pkm5", config={"cycles": 30},
-                settings={"port": "/dev/pts/9"}, calibration_ids=[3, 1], campaign="lab-a")
+    args = {"protocol_name": "iso9283_pose", "protocol_version": "1", "robot": "pkm5", "config": {"cycles": 30},
+                "settings": {"port": "/dev/pts/9"}, "calibration_ids": [3, 1], "campaign": "lab-a"}
     args.update(overrides)
     return store.start_run(**args)
 

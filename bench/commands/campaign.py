@@ -12,8 +12,9 @@ import argparse
 import json
 import signal
 import sys
+from collections.abc import Iterator
 from contextlib import contextmanager
-from typing import Any, Iterator
+from typing import Any
 
 from bench.errors import ConfigError
 from bench.protocols import Runner, load_protocol, preflight, summarize

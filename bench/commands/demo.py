@@ -80,35 +80,35 @@ def _report(store: Store, run_id: int, protocol: PoseAccuracy, results: pd.DataF
     lines = [
         "# ISO 9283-style pose accuracy and repeatability: simulated pkm5",
         "",
-        "Tested following the methods of ISO 9283:1998 with the deviations listed below; results are "
-        "\"ISO 9283-style\", not certified. No pass/fail criterion is configured, so none is given.",
+        ("Tested following the methods of ISO 9283:1998 with the deviations listed below; results are "
+        "\"ISO 9283-style\", not certified. No pass/fail criterion is configured, so none is given."),
         "",
         "## Provenance",
-        f"- run {run_id}, protocol {run.protocol_name} v{run.protocol_version}, status {run.status}, "
-        f"{run.n_samples} samples, {elapsed_s:.1f} s wall time",
+        (f"- run {run_id}, protocol {run.protocol_name} v{run.protocol_version}, status {run.status}, "
+        f"{run.n_samples} samples, {elapsed_s:.1f} s wall time"),
         f"- bench {run.software_version}, git {run.git_sha}; store `{store.path}`",
-        f"- simulator seed {run.settings.get('simulator', {}).get('seed')}, speed factor "
-        f"{run.settings.get('speed_factor'):g}; calibrations: {calibrations or 'none'}",
+        (f"- simulator seed {run.settings.get('simulator', {}).get('seed')}, speed factor "
+        f"{run.settings.get('speed_factor'):g}; calibrations: {calibrations or 'none'}"),
         f"- configuration: `{json.dumps(run.config, sort_keys=True)}`",
         "",
         "## Test conditions",
-        f"- cube centre {list(protocol.cube_centre_mm)} mm, edge {protocol.resolved()['cube_side_mm']:g} mm "
-        f"(largest cube whose 27 lattice points pass the pre-flight), plane {protocol.plane}",
+        (f"- cube centre {list(protocol.cube_centre_mm)} mm, edge {protocol.resolved()['cube_side_mm']:g} mm "
+        f"(largest cube whose 27 lattice points pass the pre-flight), plane {protocol.plane}"),
         f"- poses: {poses}",
-        f"- order P1 -> P5 -> P4 -> P3 -> P2, unidirectional; {protocol.cycles} cycles; velocities "
-        f"{', '.join(f'{v:g}' for v in protocol.velocities_pct)} % of 200 steps/s; dwell {protocol.settle_s:g} s",
+        (f"- order P1 -> P5 -> P4 -> P3 -> P2, unidirectional; {protocol.cycles} cycles; velocities "
+        f"{', '.join(f'{v:g}' for v in protocol.velocities_pct)} % of 200 steps/s; dwell {protocol.settle_s:g} s"),
         "",
         "## Deviations from ISO 9283",
         "| Clause | ISO requirement | What was done | Reason | Expected effect |",
         "|---|---|---|---|---|",
-        "| 6.6 | 100 % rated load | no payload (the pkm5 has no rated load) | no specification | AP/RP optimistic "
-        "for loaded use |",
-        "| 6.7 | rated velocity | 100 % = the documents' firmware speed, 200 steps/s | no rated velocity | "
-        "velocities not comparable with other robots |",
-        f"| 6.8 | largest cube in the working space | {protocol.resolved()['cube_side_mm']:g} mm cube | small "
-        "workspace with 60 mm leg windows | not comparable with other robots |",
-        "| 6.5 | instrument uncertainty << RP | two optical mice, 800 cpi (0.032 mm/count), simulated | low-cost "
-        "bench | RP includes the instrument floor |",
+        ("| 6.6 | 100 % rated load | no payload (the pkm5 has no rated load) | no specification | AP/RP optimistic "
+        "for loaded use |"),
+        ("| 6.7 | rated velocity | 100 % = the documents' firmware speed, 200 steps/s | no rated velocity | "
+        "velocities not comparable with other robots |"),
+        (f"| 6.8 | largest cube in the working space | {protocol.resolved()['cube_side_mm']:g} mm cube | small "
+        "workspace with 60 mm leg windows | not comparable with other robots |"),
+        ("| 6.5 | instrument uncertainty << RP | two optical mice, 800 cpi (0.032 mm/count), simulated | low-cost "
+        "bench | RP includes the instrument floor |"),
         "| 6.2, 6.3 | warm-up, temperature recorded | simulated; none | simulation | none |",
         "",
         "## Results (mm; U at k = 2)",
@@ -118,9 +118,9 @@ def _report(store: Store, run_id: int, protocol: PoseAccuracy, results: pd.DataF
         worst_ap = (results["AP_mm"] - results["true_AP_mm"]).abs().max()
         worst_rp = (results["RP_mm"] - results["true_RP_mm"]).abs().max()
         lines += ["## Simulation check",
-                  f"Measured against the simulator's true attained poses: largest |AP - AP_true| = "
+                  (f"Measured against the simulator's true attained poses: largest |AP - AP_true| = "
                   f"{worst_ap:.3f} mm, largest |RP - RP_true| = {worst_rp:.3f} mm (instrument quantisation "
-                  "and noise).", ""]
+                  "and noise)."), ""]
     return "\n".join(lines)
 
 

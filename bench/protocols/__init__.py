@@ -7,10 +7,16 @@ every sample at once in a :class:`bench.store.Store`.
 """
 
 from bench.protocols import dissertation, iso9283  # noqa: F401 - registers the protocol library
-from bench.protocols.base import PROTOCOLS, Protocol, load_protocol, protocol_from_config, register
+from bench.protocols.base import (
+           PROTOCOLS,
+           Protocol,
+           load_protocol,
+           protocol_from_config,
+           register,
+)
 from bench.protocols.plan import PlanSummary, preflight, summarize
 from bench.protocols.rig import Measurement, Rig
-from bench.protocols.runner import RunResult, Runner, RunState, TransitionError
+from bench.protocols.runner import Runner, RunResult, RunState, TransitionError
 from bench.protocols.steps import Capture, Checkpoint, Move, Prompt, Settle
 
 __all__ = ["PROTOCOLS", "Capture", "Checkpoint", "Measurement", "Move", "PlanSummary", "Prompt", "Protocol", "Rig",

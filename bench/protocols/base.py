@@ -8,8 +8,9 @@ parameters, so a run can be regenerated from its stored configuration to resume 
 from __future__ import annotations
 
 import tomllib
+from collections.abc import Mapping
 from pathlib import Path
-from typing import Any, ClassVar, Mapping
+from typing import Any, ClassVar
 
 from bench.errors import ConfigError
 from bench.protocols.kinematics import DEFAULT_SINGULARITY_THRESHOLD
@@ -19,10 +20,10 @@ from bench.protocols.steps import Plan
 __all__ = ["PROTOCOLS", "Protocol", "load_protocol", "protocol_from_config", "register"]
 
 #: Protocol classes by name, filled by :func:`register`.
-PROTOCOLS: dict[str, type["Protocol"]] = {}
+PROTOCOLS: dict[str, type[Protocol]] = {}
 
 
-def register(cls: type["Protocol"]) -> type["Protocol"]:
+def register(cls: type[Protocol]) -> type[Protocol]:
     """Class decorator: make a protocol loadable by its ``name``."""
     PROTOCOLS[cls.name] = cls
     return cls

@@ -19,8 +19,21 @@ import numpy as np
 from bench.errors import ConfigError
 from bench.protocols.base import Protocol, register
 from bench.protocols.kinematics import robot_model
-from bench.protocols.parameters import (ChoiceParameter, FloatListParameter, FloatParameter, IntegerParameter)
-from bench.protocols.steps import Capture, Checkpoint, Move, Plan, Prompt, Settle, commanded_values
+from bench.protocols.parameters import (
+    ChoiceParameter,
+    FloatListParameter,
+    FloatParameter,
+    IntegerParameter,
+)
+from bench.protocols.steps import (
+    Capture,
+    Checkpoint,
+    Move,
+    Plan,
+    Prompt,
+    Settle,
+    commanded_values,
+)
 
 __all__ = ["DissertationPose", "MouseCalibration", "PayloadLadder", "store_mouse_calibration"]
 

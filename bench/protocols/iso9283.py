@@ -19,8 +19,13 @@ import numpy as np
 from bench.errors import ConfigError
 from bench.protocols.base import Protocol, register
 from bench.protocols.kinematics import DEFAULT_SINGULARITY_THRESHOLD, robot_model
-from bench.protocols.parameters import (ChoiceParameter, FloatListParameter, FloatParameter, IntegerParameter,
-                                        PoseTableParameter)
+from bench.protocols.parameters import (
+    ChoiceParameter,
+    FloatListParameter,
+    FloatParameter,
+    IntegerParameter,
+    PoseTableParameter,
+)
 from bench.protocols.steps import Checkpoint, Move, Plan, Prompt, visit
 
 __all__ = ["DistanceAccuracy", "MultiDirectional", "PoseAccuracy", "cube_poses", "fit_cube_side"]
@@ -124,6 +129,20 @@ class _CubeProtocol(Protocol):
             yield Prompt(f"Mount a payload of {load_kg:g} kg on the end effector, then confirm",
                          conditions={"load_kg": load_kg})
 
+    def _cycles(self, order: list[str]) -> Plan:
+        """Per load (confirmed by the operator), per velocity: ``cycles`` visits of ``order``, a Checkpoint after
+        each cycle."""
+        previous_load = None
+        for load in self.loads_kg:
+            yield from self._load_prompt(load, previous_load)
+            previous_load = load
+            for velocity in self.velocities_pct:
+                for cycle in range(1, self.cycles + 1):
+                    for label in order:
+                        yield from visit(label, self._poses[label], cycle, velocity_pct=velocity,
+                                         settle_s=self.settle_s, conditions={"load_kg": load})
+                    yield Checkpoint(f"load {load:g} kg, {velocity:g} %, cycle {cycle}")
+
     def final_steps(self) -> Plan:
         yield Move(tuple(robot_model(self.robot).home), 100.0, "home")
 
@@ -138,16 +157,7 @@ class PoseAccuracy(_CubeProtocol):
 
     def steps(self) -> Plan:
         order = [p for p in POSE_ORDER if p in self._poses] if self.poses is None else list(self._poses)
-        previous_load = None
-        for load in self.loads_kg:
-            yield from self._load_prompt(load, previous_load)
-            previous_load = load
-            for velocity in self.velocities_pct:
-                for cycle in range(1, self.cycles + 1):
-                    for label in order:
-                        yield from visit(label, self._poses[label], cycle, velocity_pct=velocity,
-                                         settle_s=self.settle_s, conditions={"load_kg": load})
-                    yield Checkpoint(f"load {load:g} kg, {velocity:g} %, cycle {cycle}")
+        yield from self._cycles(order)
 
 
 @register
@@ -159,17 +169,7 @@ class DistanceAccuracy(_CubeProtocol):
     title = "ISO 9283 distance accuracy and repeatability (7.3)"
 
     def steps(self) -> Plan:
-        pair = ("P4", "P2") if self.poses is None else tuple(self._poses)[:2]
-        previous_load = None
-        for load in self.loads_kg:
-            yield from self._load_prompt(load, previous_load)
-            previous_load = load
-            for velocity in self.velocities_pct:
-                for cycle in range(1, self.cycles + 1):
-                    for label in pair:
-                        yield from visit(label, self._poses[label], cycle, velocity_pct=velocity,
-                                         settle_s=self.settle_s, conditions={"load_kg": load})
-                    yield Checkpoint(f"{velocity:g} %, cycle {cycle}")
+        yield from self._cycles(["P4", "P2"] if self.poses is None else list(self._poses)[:2])
 
 
 @register

@@ -6,8 +6,8 @@ means alpha = beta = 0) and ``(x_mm, y_mm, z_mm)`` for the delta4. Nothing here 
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Callable
 
 import numpy as np
 

@@ -8,7 +8,8 @@ controller on a serial port with two mice on ``/dev/input``.
 
 from __future__ import annotations
 
-from typing import Any, Callable
+from collections.abc import Callable
+from typing import Any
 
 import numpy as np
 

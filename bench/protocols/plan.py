@@ -9,15 +9,16 @@ robot's actuator speeds plus the settle times.
 from __future__ import annotations
 
 from collections import Counter
+from collections.abc import Iterator
 from dataclasses import dataclass
-from typing import Any, Iterator
+from typing import Any
 
 import numpy as np
 
 from bench.errors import UnreachableTarget
 from bench.protocols.base import Protocol
 from bench.protocols.kinematics import DEFAULT_SINGULARITY_THRESHOLD, robot_model
-from bench.protocols.steps import Capture, Checkpoint, Move, Prompt, Settle, Step
+from bench.protocols.steps import Capture, Move, Prompt, Settle, Step
 
 __all__ = ["PlanSummary", "dry_run_result", "iterate", "preflight", "summarize"]
 
@@ -100,7 +101,7 @@ def _describe(target: np.ndarray, robot: str) -> str:
 
 
 def _hms(seconds: float) -> str:
-    seconds = int(round(seconds))
+    seconds = round(seconds)
     return f"{seconds // 3600}:{seconds // 60 % 60:02d}:{seconds % 60:02d}"
 
 

@@ -8,8 +8,10 @@ in tests. Concrete rigs are built in :mod:`bench.protocols.simrig` (simulators) 
 from __future__ import annotations
 
 import time
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
-from typing import Any, Callable, Mapping, Protocol as Interface
+from typing import Any
+from typing import Protocol as Interface
 
 from bench.protocols.steps import Capture, Prompt
 

@@ -23,8 +23,9 @@ import enum
 import logging
 import threading
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any, Callable
+from typing import Any, Self
 
 from bench.errors import BenchError, ConfigError
 from bench.protocols.base import Protocol, protocol_from_config
@@ -33,7 +34,7 @@ from bench.protocols.rig import Rig
 from bench.protocols.steps import Capture, Checkpoint, Move, Plan, Prompt, Settle, Step
 from bench.store import Store
 
-__all__ = ["RunResult", "RunState", "Runner", "TRANSITIONS", "TransitionError", "resume_point"]
+__all__ = ["TRANSITIONS", "RunResult", "RunState", "Runner", "TransitionError", "resume_point"]
 
 _log = logging.getLogger(__name__)
 
@@ -127,7 +128,7 @@ class Runner:
     """
 
     def __init__(self, rig: Rig, store: Store, *, progress: bool = False,
-                 on_pause: Callable[["Runner"], None] | None = None) -> None:
+                 on_pause: Callable[[Runner], None] | None = None) -> None:
         self.rig = rig
         self.store = store
         self.progress = progress
@@ -242,7 +243,7 @@ class Runner:
         _log.info("run %d %s%s", run_id, status, f": {reason}" if reason else "")
         return RunResult(run_id, status, reason, len(self.store.stored_steps(run_id)), exception)
 
-    def _loop(self, plan: Plan, run_id: int, stored: dict[int, Any], start_at: int, bar: "_Progress | None",
+    def _loop(self, plan: Plan, run_id: int, stored: dict[int, Any], start_at: int, bar: _Progress | None,
               *, final: bool = False) -> None:
         reply, index = None, 0
         while True:
@@ -331,13 +332,19 @@ class _Progress:
         self.enabled = enabled
         if enabled:
             from rich.console import Console
-            from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeRemainingColumn
+            from rich.progress import (
+                BarColumn,
+                MofNCompleteColumn,
+                Progress,
+                TextColumn,
+                TimeRemainingColumn,
+            )
             self._bar = Progress(TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(),
                                  TextColumn("ETA"), TimeRemainingColumn(), console=Console(stderr=True),
                                  transient=False)
             self._task = self._bar.add_task(label, total=total, completed=done)
 
-    def __enter__(self) -> "_Progress":
+    def __enter__(self) -> Self:
         if self.enabled:
             self._bar.start()
         return self

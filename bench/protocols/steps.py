@@ -7,11 +7,22 @@ and degrees: ``(x_mm, y_mm, z_mm[, alpha_deg, beta_deg])`` for the pkm5, ``(x_mm
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field as _field
-from typing import Any, Generator, Mapping, Union
+from collections.abc import Generator, Mapping
+from dataclasses import dataclass
+from dataclasses import field as _field
+from typing import Any
 
-__all__ = ["Capture", "Checkpoint", "Move", "Prompt", "Settle", "Step", "Plan", "commanded_values",
-           "visit"]
+__all__ = [
+    "Capture",
+    "Checkpoint",
+    "Move",
+    "Plan",
+    "Prompt",
+    "Settle",
+    "Step",
+    "commanded_values",
+    "visit",
+]
 
 
 @dataclass(frozen=True)
@@ -72,7 +83,7 @@ class Checkpoint:
     label: str = ""
 
 
-Step = Union[Move, Settle, Capture, Prompt, Checkpoint]
+Step = Move | Settle | Capture | Prompt | Checkpoint
 #: A protocol's step generator: yields steps, receives each step's result.
 Plan = Generator[Step, Any, None]
 
