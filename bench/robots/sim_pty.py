@@ -121,13 +121,13 @@ class _Faults:
 
 def serve(device: SimDevice, args: argparse.Namespace) -> int:
     """Run ``device`` on a new pty until SIGTERM/SIGINT or until the parent process exits."""
+    stopping = []
+    for signum in (signal.SIGTERM, signal.SIGINT):  # before the path is printed: a client may signal at once
+        signal.signal(signum, lambda *_: stopping.append(True))
     master, slave, path = _open_pty()
     print(path, flush=True)
     if args.truth:
         print(os.path.abspath(args.truth), flush=True)
-    stopping = []
-    for signum in (signal.SIGTERM, signal.SIGINT):
-        signal.signal(signum, lambda *_: stopping.append(True))
     parent = os.getppid()
     faults = _Faults(args)
     try:
