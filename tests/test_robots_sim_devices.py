@@ -3,6 +3,8 @@ simulated errors against the documents' measured figures (pkm5.md §6.8, delta4-
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from bench.robots import delta4_wire as dwire
 from bench.robots import pkm5_kinematics as kin
@@ -196,3 +198,15 @@ def test_simulated_delta4_positioning_errors_are_of_the_documents_order(seed):
     errors = np.array(errors)
     assert np.all((1.5 < np.abs(errors).max(axis=0)) & (np.abs(errors).max(axis=0) < 4.5))
     assert 2.5 < np.linalg.norm(errors, axis=1).max() < 5.5
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.lists(st.binary(max_size=40), max_size=8))
+def test_simulated_controllers_survive_arbitrary_input(chunks):
+    pkm5_device, delta = Pkm5SimDevice(still), delta_device()
+    for i, chunk in enumerate(chunks):
+        for line in pkm5_device.feed(chunk + b"\n", float(i)).splitlines():
+            reply = wire.parse_reply(line)  # whatever came in, what goes out is well-formed
+            assert reply.kind in ("OK", "ERR", "BOOT", "DONE")
+        out = delta.feed(chunk, float(i)) + delta.tick(float(i) + 0.5)
+        assert set(out) <= set(b"zhvHVX0123456789")
