@@ -72,6 +72,7 @@ def test_run_list_export_analyze(capsys, tmp_path):
 QUICK_PARAMETERS = {
     "iso9283_pose": {"cycles": 2, "velocities_pct": [100], "loads_kg": [0, 2.5]},
     "iso9283_distance": {"cycles": 2, "velocities_pct": [100]},
+    "iso9283_drift": {"cycles": 4, "velocities_pct": [100], "pause_s": 0.5},
     "iso9283_multidirectional": {"cycles": 2, "velocities_pct": [100]},
     "dissertation_pose": {"variant": "beta", "cycles": 2},
     "payload_ladder": {"loads_kg": [0.45, 7.08, 25.23]},

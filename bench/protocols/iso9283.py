@@ -1,4 +1,4 @@
-"""ISO 9283 pose protocols: pose accuracy and repeatability (AP/RP), distance (AD/RD), multi-directional (vAP).
+"""ISO 9283 pose protocols: accuracy and repeatability (AP/RP), distance (AD/RD), multi-directional (vAP), drift.
 
 Spec: ``shared/reference/iso9283.md`` §4-5. The test cube is centred where the robot works most and sized to the
 workspace: with ``cube_side_mm = 0`` the largest cube around ``cube_centre_mm`` whose 27 lattice points (corners,
@@ -26,9 +26,9 @@ from bench.protocols.parameters import (
     IntegerParameter,
     PoseTableParameter,
 )
-from bench.protocols.steps import Checkpoint, Move, Plan, Prompt, visit
+from bench.protocols.steps import Checkpoint, Move, Plan, Prompt, Settle, visit
 
-__all__ = ["DistanceAccuracy", "MultiDirectional", "PoseAccuracy", "cube_poses", "fit_cube_side"]
+__all__ = ["DistanceAccuracy", "Drift", "MultiDirectional", "PoseAccuracy", "cube_poses", "fit_cube_side"]
 
 #: Sign patterns of P2..P5 on each diagonal plane (cube coordinates); P2/P4 and P3/P5 are opposite corners.
 _PLANES = {
@@ -204,3 +204,30 @@ class MultiDirectional(_CubeProtocol):
                         yield from visit(f"{label}/{direction}", target, cycle, velocity_pct=velocity,
                                          settle_s=self.settle_s, conditions={"load_kg": self.loads_kg[0]})
                 yield Checkpoint(f"{velocity:g} %, cycle {cycle}")
+
+
+@register
+class Drift(_CubeProtocol):
+    """ISO 9283 7.6: drift of AP and RP, a short run: cycle P1 -> P5 -> P4 -> P3 -> P2 continuously, capture at P1.
+
+    ISO cycles for 8 h from cold [N]; this protocol is count-based (deterministic, so it can be resumed):
+    ``cycles`` measured visits of P1, each after one pass over P5..P2, with ``pause_s`` between cycles. Analyse
+    with ``bench analyze drift RUN.csv --pose P1 --window-s ...`` (the samples carry ``t_s``).
+    """
+
+    name = "iso9283_drift"
+    version = "1"
+    title = "ISO 9283 drift of pose characteristics (7.6), short run"
+    pause_s = FloatParameter(0.0, unit="s", minimum=0.0, maximum=3600.0, description="wait between cycles")
+
+    def steps(self) -> Plan:
+        others = [p for p in POSE_ORDER[1:] if p in self._poses]
+        velocity = self.velocities_pct[0]
+        for cycle in range(1, self.cycles + 1):
+            yield from visit("P1", self._poses["P1"], cycle, velocity_pct=velocity, settle_s=self.settle_s,
+                             conditions={"load_kg": self.loads_kg[0]})
+            for label in others:
+                yield Move(self._poses[label], velocity, label)
+            if self.pause_s > 0:
+                yield Settle(self.pause_s)
+            yield Checkpoint(f"drift cycle {cycle}")
