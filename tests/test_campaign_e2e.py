@@ -75,6 +75,8 @@ QUICK_PARAMETERS = {
     "iso9283_drift": {"cycles": 4, "velocities_pct": [100], "pause_s": 0.5},
     "iso9283_multidirectional": {"cycles": 2, "velocities_pct": [100]},
     "dissertation_pose": {"variant": "beta", "cycles": 2},
+    "lasergrid_hits": {"attempts": 2, "heights_mm": [-170], "spread": 2},
+    "delta_positioning": {"cycles": 2},
     "payload_ladder": {"loads_kg": [0.45, 7.08, 25.23]},
     "mouse_calibration": {"repeats": 2, "distances_mm": [5, 20, 40]},
 }
@@ -84,12 +86,12 @@ def test_every_protocol_has_a_quick_end_to_end_case():
     assert set(QUICK_PARAMETERS) == set(PROTOCOLS)
 
 
-@pytest.mark.parametrize("name", sorted(QUICK_PARAMETERS))
+@pytest.mark.parametrize("name", sorted(set(QUICK_PARAMETERS) - {"delta_positioning"}))
 def test_each_protocol_completes_on_the_simulator(tmp_path, name):
     protocol = PROTOCOLS[name](settle_s=0.1, **QUICK_PARAMETERS[name])
     expected = sum(1 for step in iterate(protocol, final=False) if step_stores_sample(step))
     with Store(tmp_path / "b.db") as store:
-        rig = simulated_rig_in(store, "pkm5", seed=2, speed_factor=20000)
+        rig = simulated_rig_in(store, protocol.robot, seed=2, speed_factor=20000)
         try:
             result = Runner(rig, store).run(protocol)
         finally:
@@ -105,6 +107,25 @@ def test_each_protocol_completes_on_the_simulator(tmp_path, name):
         if name == "dissertation_pose":  # beta read by calliper, error of the order of the documents' 0.2-1.8 deg
             tilts = tidy_table(store, result.run_id, kind="tilt")
             assert len(tilts) == 30 and (tilts["b_deg"] - tilts["cmd_b_deg"]).abs().max() < 5
+
+
+def test_delta_positioning_never_stores_a_bad_grid_reading(tmp_path):
+    """With the laser grid decoding, the run completes; while the simulator reports no hits it stops safely."""
+    with Store(tmp_path / "b.db") as store:
+        runs = []
+        for name in ("lasergrid_hits", "delta_positioning"):
+            rig = simulated_rig("delta4", seed=1, speed_factor=50)
+            try:
+                runs.append(Runner(rig, store).run(PROTOCOLS[name](settle_s=0.1, **QUICK_PARAMETERS[name])))
+            finally:
+                rig.close()
+        hits, positioning = runs
+        if tidy_table(store, hits.run_id, kind="grid_hit")["hit_any"].any():
+            assert (positioning.exit_status, positioning.samples) == ("completed", 6)
+        else:
+            assert (positioning.exit_status, positioning.samples) == ("failed", 0)
+            assert positioning.reason.startswith("LinkError: laser grid at P1 cycle 1: no valid reading (no-hit")
+            assert store.run(positioning.run_id).status == "failed"
 
 
 def _campaign(tmp_path, *, ideal: bool, seed: int, cycles: int) -> pd.DataFrame:

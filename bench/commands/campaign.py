@@ -102,10 +102,13 @@ def simulated_rig_in(store: Store, robot: str, *, seed: int, speed_factor: float
         raise ConfigError(f"--speed-factor = {speed_factor:g}, expected a number > 0")
     rig = simulated_rig(robot, seed=seed, speed_factor=speed_factor)
     rig.extra["simulator"] = {"seed": seed}
-    params = {"cpi": rig.instrument.cpi, "mm_per_count": 25.4 / rig.instrument.cpi}
-    calibration = store.ensure_calibration(rig.instrument.calibration.calibration_id, params,
-                                           notes="nominal calibration of the simulated mice")
-    rig.calibration_ids = (calibration.id,)
+    if robot == "pkm5":
+        params = {"cpi": rig.instrument.cpi, "mm_per_count": 25.4 / rig.instrument.cpi}
+        name, notes = rig.instrument.calibration.calibration_id, "nominal calibration of the simulated mice"
+    else:
+        params = {"screens": repr(rig.instrument.geometry)}
+        name, notes = rig.instrument.geometry.calibration_id, "laser-grid geometry of the legacy GUI drawing"
+    rig.calibration_ids = (store.ensure_calibration(name, params, notes=notes).id,)
     return rig
 
 

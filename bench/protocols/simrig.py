@@ -186,11 +186,13 @@ def simulated_rig(robot: str = "pkm5", *, seed: int = 0, speed_factor: float = 1
 
     from bench.robots.pkm5 import Pkm5Controller
 
+    if robot == "delta4":
+        return _simulated_delta_rig(seed=seed, speed_factor=speed_factor, ideal=ideal)
     if robot != "pkm5":
-        raise LinkError(f"--robot {robot}: no simulated rig yet for this robot, expected pkm5")
+        raise LinkError(f"--robot {robot}: no simulated rig for this robot, expected pkm5 or delta4")
     process, path = start_simulator(robot, seed=seed, speed_factor=speed_factor, ideal=ideal)
     folder = tempfile.TemporaryDirectory(prefix="bench-sim-")
-    closers: list[Callable[[], None]] = [folder.cleanup, lambda: (process.terminate(), process.wait(5))]
+    closers: list[Callable[[], None]] = [folder.cleanup, lambda: _end(process)]
     try:
         controller = Pkm5Controller(serial.serial_for_url(path, baudrate=115200, timeout=0.05))
         controller.identify()
@@ -202,5 +204,27 @@ def simulated_rig(robot: str = "pkm5", *, seed: int = 0, speed_factor: float = 1
         raise
     closers.append(mice.close)
     operator = SimulatedOperator(controller, answer or SimulatedCalliper(controller, seed=seed))
-    return Rig(DriverMover(controller), mice, operator, speed_factor=speed_factor,
-               closers=closers)
+    return Rig(DriverMover(controller), mice, operator, speed_factor=speed_factor, closers=closers)
+
+
+def _end(process: subprocess.Popen) -> None:
+    process.terminate()
+    process.wait(5)
+
+
+def _simulated_delta_rig(*, seed: int, speed_factor: float, ideal: bool) -> Rig:
+    """The delta4 simulator with the real driver; the laser grid is read from the controller's reports."""
+    import serial
+
+    from bench.protocols.grid import DeltaMover, LaserGridInstrument
+    from bench.robots.delta4 import Delta4Controller
+
+    process, path = start_simulator("delta4", seed=seed, speed_factor=speed_factor, ideal=ideal)
+    try:
+        controller = Delta4Controller(serial.serial_for_url(path, baudrate=9600, timeout=0.05))
+        controller.start()
+    except BaseException:
+        _end(process)
+        raise
+    return Rig(DeltaMover(controller), LaserGridInstrument(controller), SimulatedOperator(controller),
+               speed_factor=speed_factor, closers=[lambda: _end(process)])

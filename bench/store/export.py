@@ -10,6 +10,7 @@ fastparquet) is installed.
 from __future__ import annotations
 
 import importlib.util
+import re
 from pathlib import Path
 
 import pandas as pd
@@ -24,6 +25,7 @@ TIDY_COLUMNS = ("pose", "cycle", "cmd_x_mm", "cmd_y_mm", "cmd_z_mm", "x_mm", "y_
                 "cmd_a_deg", "cmd_b_deg", "cmd_c_deg", "a_deg", "b_deg", "c_deg", "velocity_pct", "load_kg", "t_s")
 
 EXPORT_FORMATS = ("csv", "parquet")
+_UNIT = re.compile(r"_(mm|deg|pct|kg|s|counts)$")
 
 
 def tidy_table(store: Store, run_id: int, kind: str = "pose") -> pd.DataFrame:
@@ -45,9 +47,11 @@ def tidy_table(store: Store, run_id: int, kind: str = "pose") -> pd.DataFrame:
         table["error_mm"] = table["length_mm"] - table["cmd_length_mm"]
     leading = [c for c in TIDY_COLUMNS if c in table.columns]
     table = table[leading + sorted(c for c in table.columns if c not in leading)]
-    for column in ("cycle", "leg"):
-        if column in table and table[column].notna().all() and (table[column] % 1 == 0).all():
-            table[column] = table[column].astype(int)
+    for column in table.columns:  # counts and indices (no unit in the name) read back as integers
+        if column == "cycle" or not _UNIT.search(column) and column not in ("pose", "t_s"):
+            values = table[column]
+            if pd.api.types.is_numeric_dtype(values) and values.notna().all() and (values % 1 == 0).all():
+                table[column] = values.astype(int)
     return table
 
 
