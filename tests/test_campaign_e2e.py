@@ -206,3 +206,42 @@ def test_demo_writes_table_results_and_report(capsys, tmp_path):
     assert len(results) == 15 and set(results["velocity_pct"]) == {100, 50, 10}
     report = (out / "report.md").read_text()
     assert "## Deviations from ISO 9283" in report and "ISO 9283-style" in report
+
+
+def test_ctrl_c_pauses_at_a_checkpoint_then_stop_ends_the_run(tmp_path):
+    protocol_file = tmp_path / "pose.toml"
+    protocol_file.write_text('protocol = "iso9283_pose"\ncycles = 20\nvelocities_pct = [100]\nsettle_s = 0.2\n')
+    db = tmp_path / "b.db"
+    run = subprocess.Popen([sys.executable, "-m", "bench.cli", "run", str(protocol_file), "--store", str(db),
+                            "--no-progress", "--speed-factor", "3000"], cwd=ROOT, stdin=subprocess.PIPE,
+                           stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    _wait_for_samples(db, 7, run)
+    run.send_signal(signal.SIGINT)
+    out, err = run.communicate("s\n", timeout=30)
+    assert run.returncode == 1 and out.strip() == "1"
+    assert "pausing at the next checkpoint" in err and "paused: [r]esume, [s]top, [a]bort, [h]alt?" in err
+    with Store(db) as store:
+        record = store.run(1)
+        assert record.status == "aborted" and record.reason.startswith("stopped by the operator at checkpoint")
+        assert record.n_samples % 5 == 0 and 10 <= record.n_samples < 100  # whole cycles only
+
+
+def test_a_slow_operator_does_not_lose_the_run(tmp_path):
+    """Prompts wait for the person; no link deadline runs meanwhile (the controller's reply timeout is 1 s)."""
+    from bench.protocols.dissertation import PayloadLadder
+    from bench.protocols.simrig import SimulatedCalliper
+
+    with Store(tmp_path / "b.db") as store:
+        rig = simulated_rig("pkm5", seed=1, speed_factor=20000)
+        calliper = SimulatedCalliper(rig.robot.controller, seed=1)
+
+        def slow(prompt):
+            time.sleep(1.5 if prompt.conditions.get("leg") == 1 else 0.0)
+            return calliper(prompt)
+
+        rig.operator.answer = slow
+        try:
+            result = Runner(rig, store).run(PayloadLadder(loads_kg=[2.0], settle_s=0.1))
+        finally:
+            rig.close()
+        assert (result.exit_status, result.samples) == ("completed", 6)
