@@ -245,3 +245,39 @@ def test_a_slow_operator_does_not_lose_the_run(tmp_path):
         finally:
             rig.close()
         assert (result.exit_status, result.samples) == ("completed", 6)
+
+
+def test_hardware_path_on_a_pty_and_mouse_fifos(capsys, tmp_path):
+    """``--port`` with the real driver on the simulator's pty and two mice on FIFOs (nothing moves them here)."""
+    from bench.protocols.simrig import start_simulator
+
+    process, pty = start_simulator("pkm5", seed=0, speed_factor=20000)
+    fifos, writers = [], []
+    try:
+        for plane in ("xy", "xz"):
+            fifos.append(str(tmp_path / f"{plane}.fifo"))
+            os.mkfifo(fifos[-1])
+            writers.append(os.open(fifos[-1], os.O_RDWR))
+        db = str(tmp_path / "b.db")
+        quick = tmp_path / "quick.toml"
+        quick.write_text(QUICK.read_text().replace("settle_s = 0.5", "settle_s = 0"))
+        assert main(["run", str(quick), "--store", db, "--port", pty, "--mouse-xy", fifos[0], "--mouse-xz", fifos[1],
+                     "--no-progress"]) == 0
+        with Store(db) as store:
+            run = store.run(_run_id(capsys))
+            assert run.status == "completed" and run.settings["robot"]["port"] == pty
+            assert store.calibration_by_id(run.calibration_ids[0]).params["nominal"] is True
+            table = tidy_table(store, run.id)
+            assert np.allclose(table[["x_mm", "y_mm", "z_mm"]], [88.649, 0.0, 300.937])  # registration at home
+    finally:
+        for writer in writers:
+            os.close(writer)
+        process.terminate()
+        process.wait(5)
+
+
+def test_missing_port_is_one_line(capsys, tmp_path):
+    assert main(["run", str(QUICK), "--store", str(tmp_path / "b.db"), "--port", "/dev/ttyNONE", "--mouse-xy", "a",
+                 "--mouse-xz", "b"]) == 1
+    err = capsys.readouterr().err.strip()
+    assert err.startswith("bench: error: --port /dev/ttyNONE: cannot open it") and len(err.splitlines()) == 1

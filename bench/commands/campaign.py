@@ -84,7 +84,11 @@ def build_rig(args: argparse.Namespace, robot: str, store: Store, stored: dict[s
     from bench.protocols.mice import hardware_rig
     from bench.sensors.calibration import CountsCalibration
 
-    record = store.calibration("mouse")
+    try:
+        record = store.calibration("mouse")
+    except ConfigError:  # before the first mouse_calibration run: the sensor's nominal 800 cpi, recorded as such
+        record = store.ensure_calibration("mouse", {"mm_per_count": 25.4 / 800, "nominal": True},
+                                          notes="nominal 800 cpi; run examples/mouse_calibration.toml")
     scale = record.params["mm_per_count"]
     calibration = CountsCalibration.from_scales(scale, scale, calibration_id=f"mouse-v{record.version}",
                                                 date=record.created_utc[:10])

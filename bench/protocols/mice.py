@@ -13,6 +13,7 @@ from typing import Any
 
 import numpy as np
 
+from bench.errors import LinkError
 from bench.protocols.rig import Measurement, Rig
 from bench.protocols.steps import Capture, Prompt
 
@@ -99,10 +100,22 @@ def hardware_rig(port: str, *, mouse_xy: str, mouse_xz: str, calibration: Any, h
     from bench.robots.pkm5 import Pkm5Controller
     from bench.sensors.mouse import EvdevMouse
 
-    controller = Pkm5Controller(serial.serial_for_url(port, baudrate=115200, timeout=0.05))
-    controller.identify()
-    controller.enable()
-    mice = {"xy": EvdevMouse(mouse_xy, calibration, label="mouse_xy", grab=True),
-            "xz": EvdevMouse(mouse_xz, calibration, label="mouse_xz", grab=True)}
+    try:
+        port_instance = serial.serial_for_url(port, baudrate=115200, timeout=0.05)
+    except serial.SerialException as exc:
+        raise LinkError(f"--port {port}: cannot open it ({exc.strerror or exc}); is the controller plugged in "
+                        "and is the port name right?") from None
+    controller = Pkm5Controller(port_instance)
+    mice: dict[str, Any] = {}
+    try:
+        controller.identify()
+        controller.enable()
+        for plane, path in (("xy", mouse_xy), ("xz", mouse_xz)):
+            mice[plane] = EvdevMouse(path, calibration, label=f"mouse_{plane}", grab=True)
+    except BaseException:
+        for mouse in mice.values():
+            mouse.close()
+        controller.shutdown()
+        raise
     instrument = MiceInstrument(mice, home_mm, calibration)
     return Rig(DriverMover(controller), instrument, ConsoleOperator(), closers=[instrument.close])
