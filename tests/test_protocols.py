@@ -271,3 +271,34 @@ def test_prompts_store_readings_and_loads_ask_confirmation(store):
     assert [s.label for s in steps if isinstance(s, Move)][:2] == ["P4", "P2"]
     result = Runner(_rig(), store).run(protocol)
     assert result.samples == 8
+
+
+def test_resume_sends_stored_prompt_readings_back(store):
+    from bench.protocols.base import Protocol
+
+    class Readings(Protocol):
+        name = "test_readings"
+        version = "1"
+
+        def steps(self):
+            total = 0.0
+            for cycle in (1, 2, 3):
+                total += yield Prompt("reading", field="depth_mm", unit="mm", pose="A", cycle=cycle, kind="depth")
+                yield Move((110.0, 0.0, 320.0 + total / 100), 100.0, "A")
+                yield Checkpoint(f"cycle {cycle}")
+
+    failed = Runner(_rig(RecordingRobot(fail_after=1)), store).run(Readings())
+    assert failed.exit_status == "failed" and failed.samples == 2  # the first two readings, then a move failed
+    from bench.protocols import base
+    base.PROTOCOLS["test_readings"] = Readings
+    try:
+        robot = RecordingRobot()
+        rig = _rig(robot)
+        resumed = Runner(rig, store).resume_run(failed.run_id)
+    finally:
+        del base.PROTOCOLS["test_readings"]
+    assert resumed.exit_status == "completed" and resumed.samples == 3
+    # readings 1 and 2 are stored, so the run restarts at the last checkpoint before reading 3; the stored
+    # readings are sent back (running total 1.25 + 1.25 + 1.25) and only the third is asked
+    assert len(rig.operator.asked) == 1
+    assert [e[1][2] for e in robot.log if e[0] == "move"] == [pytest.approx(320.0375)]

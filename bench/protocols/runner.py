@@ -29,7 +29,7 @@ from typing import Any, Self
 
 from bench.errors import BenchError, ConfigError
 from bench.protocols.base import Protocol, protocol_from_config
-from bench.protocols.plan import PlanSummary, preflight
+from bench.protocols.plan import iterate, preflight
 from bench.protocols.rig import Rig
 from bench.protocols.steps import Capture, Checkpoint, Move, Plan, Prompt, Settle, Step
 from bench.store import Store
@@ -179,11 +179,11 @@ class Runner:
 
     def run(self, protocol: Protocol, *, campaign: str | None = None) -> RunResult:
         """Pre-flight ``protocol``, store a new run, perform it; returns how it ended."""
-        summary = preflight(protocol)
+        preflight(protocol)
         run_id = self.store.start_run(protocol_name=protocol.name, protocol_version=protocol.version,
                                       robot=protocol.robot, config=protocol.config(), settings=self.rig.settings(),
                                       calibration_ids=self.rig.calibration_ids, campaign=campaign)
-        return self._perform(protocol, run_id, summary, stored={}, start_at=0)
+        return self._perform(protocol, run_id, stored={}, start_at=0)
 
     def resume_run(self, run_id: int) -> RunResult:
         """Continue stored run ``run_id`` at its last checkpoint, without storing any sample twice."""
@@ -197,20 +197,20 @@ class Runner:
         if tuple(sorted(self.rig.calibration_ids)) != tuple(record.calibration_ids):
             raise ConfigError(f"run {run_id}: calibrations in force {sorted(self.rig.calibration_ids)} differ from "
                               f"the run's {list(record.calibration_ids)}; cannot resume")
-        summary = preflight(protocol)
+        preflight(protocol)
         stored = {s.step_index: self._reply_of(s) for s in self.store.samples(run_id)}
         start_at = resume_point(protocol, stored)
         self.store.set_status(run_id, "running")
-        return self._perform(protocol, run_id, summary, stored=stored,
+        return self._perform(protocol, run_id, stored=stored,
                              start_at=start_at if start_at is not None else 10**12)
 
     @staticmethod
     def _reply_of(sample: Any) -> Any:
-        if sample.kind == "manual" and sample.raw and "field" in sample.raw:
+        if isinstance(sample.raw, dict) and "field" in sample.raw and "entered" in sample.raw:  # a prompt's reading
             return sample.values[sample.raw["field"]]
         return dict(sample.values)
 
-    def _perform(self, protocol: Protocol, run_id: int, summary: PlanSummary, *, stored: dict[int, Any],
+    def _perform(self, protocol: Protocol, run_id: int, *, stored: dict[int, Any],
                  start_at: int) -> RunResult:
         self.run_id = run_id
         self._transition(RunState.RUNNING)
@@ -321,7 +321,6 @@ class Runner:
 
 
 def _count_samples(protocol: Protocol) -> int:
-    from bench.protocols.plan import iterate
     return sum(1 for step in iterate(protocol, final=False) if step_stores_sample(step))
 
 
