@@ -41,14 +41,18 @@ def start_simulator(robot: str, *, seed: int, speed_factor: float, ideal: bool =
     """Start ``python -m bench.robots.sim_<robot>``; returns the process and the pty path it printed."""
     command = [sys.executable, "-m", f"bench.robots.sim_{robot}", "--seed", str(seed), "--speed-factor",
                str(speed_factor)] + (["--ideal"] if ideal else [])
-    process = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    ready, _, _ = select.select([process.stdout], [], [], timeout_s)
-    line = process.stdout.readline().strip() if ready else ""
-    if not line.startswith("/dev/"):
-        process.kill()
-        error = process.stderr.read().strip().splitlines()
-        raise LinkError(f"simulator {' '.join(command[1:3])}: no pty path within {timeout_s:g} s "
-                        f"({error[-1] if error else 'no output'})")
+    # the simulator's log goes to a file: an undrained pipe would block the simulator once it filled up
+    with tempfile.TemporaryFile(mode="w+") as log:
+        process = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=log, text=True)
+        ready, _, _ = select.select([process.stdout], [], [], timeout_s)
+        line = process.stdout.readline().strip() if ready else ""
+        if not line.startswith("/dev/"):
+            process.kill()
+            process.wait(5)
+            log.seek(0)
+            error = log.read().strip().splitlines()
+            raise LinkError(f"simulator {' '.join(command[1:3])}: no pty path within {timeout_s:g} s "
+                            f"({error[-1] if error else 'no output'})")
     return process, line
 
 
