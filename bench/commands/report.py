@@ -1,0 +1,63 @@
+"""``bench report RUN_ID``: the HTML and PDF report of a stored run (or ``--compare`` two runs side by side).
+
+Reads the run store only (no hardware). Writes ``report_run<ID>.html``/``.pdf`` and the raw data
+``run<ID>_samples.csv`` into ``--out`` and prints their paths on stdout, one per line.
+"""
+
+from __future__ import annotations
+
+import argparse
+
+from bench.errors import ConfigError
+from bench.reports import CRITERIA, FORMATS, write_comparison, write_report
+
+DEFAULT_STORE = "bench.db"
+
+
+def register(groups: argparse._SubParsersAction) -> None:
+    parser = groups.add_parser("report", help="HTML/PDF report of a stored run, or two runs compared",
+                               description=__doc__.splitlines()[0],
+                               formatter_class=argparse.ArgumentDefaultsHelpFormatter)
+    parser.add_argument("run_id", metavar="RUN_ID", type=int, help="the run to report")
+    parser.add_argument("--compare", metavar="RUN_B", type=int, default=None,
+                        help="second run: write a side-by-side comparison of RUN_ID (A) and RUN_B (B)")
+    parser.add_argument("--format", choices=(*FORMATS, "all"), default="all", help="report format(s)")
+    parser.add_argument("--out", default="reports", help="folder for the report and its raw data")
+    parser.add_argument("--store", default=DEFAULT_STORE, help="run store (SQLite file)")
+    parser.add_argument("--criterion", action="append", default=[], metavar="NAME=MM",
+                        help=f"project acceptance criterion, repeatable; NAME in {', '.join(CRITERIA)}")
+    parser.add_argument("--operator", default="not recorded", help="operator named in the report")
+    parser.add_argument("--laboratory", default="not recorded", help="laboratory named in the report")
+    parser.add_argument("--k", type=float, default=2.0, help="coverage factor of the expanded uncertainties")
+    parser.set_defaults(handler=_report)
+
+
+def parse_criteria(items: list[str]) -> dict[str, float]:
+    """``["AP_mm=0.5", "RP_mm=0.2"]`` -> ``{"AP_mm": 0.5, "RP_mm": 0.2}``, refusing unknown names and non-numbers."""
+    criteria = {}
+    for item in items:
+        name, _, value = item.partition("=")
+        if name not in CRITERIA:
+            raise ConfigError(f"--criterion {item}: unknown name {name!r}, expected NAME=MM with NAME in "
+                              f"{', '.join(CRITERIA)}")
+        try:
+            criteria[name] = float(value)
+        except ValueError:
+            raise ConfigError(f"--criterion {item}: {value!r} is not a number of mm") from None
+    return criteria
+
+
+def _report(args: argparse.Namespace) -> int:
+    formats = FORMATS if args.format == "all" else (args.format,)
+    criteria = parse_criteria(args.criterion)
+    if args.compare is not None:
+        if criteria:
+            raise ConfigError("--criterion: not used with --compare; report each run on its own for a decision")
+        paths = write_comparison(args.store, args.run_id, args.compare, args.out, formats, k=args.k)
+    else:
+        paths = write_report(args.store, args.run_id, args.out, formats, criteria=criteria, operator=args.operator,
+                             laboratory=args.laboratory, k=args.k)
+    for path in (paths.html, paths.pdf, *paths.csv):
+        if path is not None:
+            print(path)
+    return 0
