@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from datetime import datetime, timezone
@@ -32,8 +33,9 @@ import pandas as pd
 
 from bench import __version__
 from bench.errors import ConfigError, InsufficientData
-from bench.metrology import (DistanceCharacteristics, MultidirectionalVariation, PayloadShift, combine,
-                             instrument_rp_floor, multidirectional_variation, payload_shift, resolution_uncertainty)
+from bench.metrology import (DistanceCharacteristics, Measured, MultidirectionalVariation, PayloadShift, combine,
+                             expanded, instrument_rp_floor, multidirectional_variation, payload_shift,
+                             resolution_uncertainty)
 from bench.metrology.tables import ANGLE_PAIRS, PoseResult, analyze_distance, analyze_poses, pose_table
 from bench.reports.deviations import CLAUSES_APPLIED, Deviation, iso_deviations
 from bench.store import CalibrationRecord, RunRecord, Store, tidy_table
@@ -65,6 +67,7 @@ class DistanceRow:
     first: str
     second: str
     result: DistanceCharacteristics
+    u_ad: Measured  #: AD_p with U: scatter of D_j and the instrument term twice (a difference of two readings)
 
 
 @dataclass(frozen=True)
@@ -160,10 +163,15 @@ def _condition_groups(table: pd.DataFrame):
         yield ", ".join(f"{n}={v:g}" for n, v in zip(varying, key)), group
 
 
-def _distances(table: pd.DataFrame) -> tuple[DistanceRow, ...]:
+def _distances(table: pd.DataFrame, sigma_mm: float, k: float) -> tuple[DistanceRow, ...]:
+    """AD/RD per set of conditions, with U(AD) combined as ``bench analyze distance`` does."""
     first, second = list(dict.fromkeys(table["pose"]))[:2]
-    return tuple(DistanceRow(label or f"{first}-{second}", first, second, analyze_distance(group, first, second))
-                 for label, group in _condition_groups(table))
+    rows = []
+    for label, group in _condition_groups(table):
+        result = analyze_distance(group, first, second)
+        u_ad = expanded(result.ad_mm, combine(result.u_ad_mm, math.sqrt(2.0) * sigma_mm), unit="mm", k=k)
+        rows.append(DistanceRow(label or f"{first}-{second}", first, second, result, u_ad))
+    return tuple(rows)
 
 
 def _multidirectional(table: pd.DataFrame) -> tuple[VapRow, ...]:
@@ -263,7 +271,7 @@ def collect(store: Store, run_id: int, *, criteria: Mapping[str, float] | None =
         measured_columns=measured,
         table=table,
         poses=poses,
-        distances=_distances(table) if protocol == "iso9283_distance" else (),
+        distances=_distances(table, instrument.sigma_mm or 0.0, k) if protocol == "iso9283_distance" else (),
         multidirectional=_multidirectional(table) if protocol == "iso9283_multidirectional" else (),
         payload=_payload(table),
         decision=_decision(poses, criteria or {}),

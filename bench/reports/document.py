@@ -182,7 +182,7 @@ def _results(report: RunReport) -> Section:
                                          f"U(AD) (mm, k = {k})"),
                             tuple((d.label, _mm(d.result.commanded_distance_mm), _mm(d.result.mean_distance_mm),
                                    _mm(d.result.ad_mm), f"± {_mm(d.result.rd_mm)}",
-                                   _mm(report.coverage_factor * d.result.u_ad_mm)) for d in report.distances),
+                                   _mm(d.u_ad.expanded_uncertainty)) for d in report.distances),
                             f"Distance accuracy and repeatability ({report.distances[0].first} ↔ "
                             f"{report.distances[0].second})"))
     if report.multidirectional:

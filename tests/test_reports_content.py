@@ -1,0 +1,156 @@
+"""Report numbers equal the metrology API's on the same data (bench.reports.content, raw-data CSV, HTML, PDF).
+
+Independent paths: the stored samples read back with ``Store.samples`` and reduced with numpy by hand; the
+analysis API (``bench.metrology.tables.analyze_poses``) on the raw-data CSV the report writes; the CLI
+``bench analyze iso9283`` on that CSV.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import math
+
+import numpy as np
+import pytest
+from reports_runs import CUBE, pose_config, write_pose_run
+
+from bench.cli import main
+from bench.errors import ConfigError, InsufficientData
+from bench.metrology import instrument_rp_floor, payload_shift
+from bench.metrology.tables import analyze_distance, analyze_poses, pose_table, read_table_csv
+from bench.reports import collect, write_report
+from bench.store import Store
+
+
+@pytest.fixture(scope="module")
+def stored(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("reports")
+    store = Store(folder / "bench.db")
+    run_id = write_pose_run(store, seed=4, bias_mm=(0.3, -0.2, 0.1), noise_mm=0.04)
+    paths = write_report(store, run_id, folder / "out")
+    report = collect(store, run_id)
+    yield store, run_id, report, paths
+    store.close()
+
+
+def _points(store, run_id, pose):
+    samples = [s for s in store.samples(run_id) if s.pose == pose]
+    attained = np.array([[s.values[k] for k in ("x_mm", "y_mm", "z_mm")] for s in samples])
+    command = np.array([samples[0].values[k] for k in ("cmd_x_mm", "cmd_y_mm", "cmd_z_mm")])
+    return attained, command
+
+
+def test_ap_rp_equal_a_hand_computation_from_the_stored_samples(stored):
+    store, run_id, report, _ = stored
+    assert [r.pose for r in report.poses] == ["P1", "P5", "P4", "P3", "P2"]
+    for result in report.poses:
+        attained, command = _points(store, run_id, result.pose)
+        barycentre = attained.mean(axis=0)
+        distances = np.linalg.norm(attained - barycentre, axis=1)
+        assert result.accuracy.ap_mm == pytest.approx(np.linalg.norm(barycentre - command), abs=1e-12)
+        assert result.accuracy.ap_axes_mm == pytest.approx(tuple(barycentre - command), abs=1e-12)
+        assert result.repeatability.rp_mm == pytest.approx(distances.mean() + 3 * distances.std(ddof=1), abs=1e-12)
+        assert result.accuracy.n == 10
+        # the injected bias is recovered within the noise (0.04 mm / sqrt(10) per axis)
+        assert result.accuracy.ap_axes_mm == pytest.approx((0.3, -0.2, 0.1), abs=0.05)
+
+
+def test_report_numbers_equal_the_analysis_api_on_the_raw_data_csv(stored):
+    _, _, report, paths = stored
+    table = pose_table(read_table_csv(paths.csv[0]))
+    api = analyze_poses(table, instrument_u_mm=report.instrument.sigma_mm)
+    assert [r.label for r in api] == [r.label for r in report.poses]
+    for ours, theirs in zip(report.poses, api):
+        assert ours.accuracy.ap_mm == pytest.approx(theirs.accuracy.ap_mm, rel=1e-12)
+        assert ours.repeatability.rp_mm == pytest.approx(theirs.repeatability.rp_mm, rel=1e-12)
+        assert ours.ap_u.expanded_uncertainty == pytest.approx(theirs.ap_u.expanded_uncertainty, rel=1e-12)
+        assert ours.rp_u.expanded_uncertainty == pytest.approx(theirs.rp_u.expanded_uncertainty, rel=1e-9)
+
+
+def test_cli_analyze_on_the_raw_data_reproduces_the_report(stored, capsys):
+    _, _, report, paths = stored
+    code = main(["analyze", "iso9283", str(paths.csv[0]), "--instrument-u-mm", f"{report.instrument.sigma_mm!r}",
+                 "--json"])
+    assert code == 0
+    poses = json.loads(capsys.readouterr().out)["poses"]
+    for result in report.poses:
+        assert poses[result.label]["AP_mm"] == pytest.approx(result.accuracy.ap_mm, rel=1e-12)
+        assert poses[result.label]["RP_mm"] == pytest.approx(result.repeatability.rp_mm, rel=1e-12)
+        assert poses[result.label]["U_AP_mm"] == pytest.approx(result.ap_u.expanded_uncertainty, rel=1e-9)
+
+
+def test_instrument_budget_and_rp_floor_from_the_mouse_settings(stored):
+    _, _, report, _ = stored
+    step_mm = 25.4 / 800
+    sigma = math.sqrt((step_mm / math.sqrt(6)) ** 2 + (0.3 * step_mm) ** 2)  # δ/√6 and 0.3 counts of noise
+    assert report.instrument.sigma_mm == pytest.approx(sigma, rel=1e-12)
+    assert report.instrument.rp_floor_mm == pytest.approx(3.616 * sigma, rel=1e-3)  # iso9283.md §8.4, 3-D
+    assert report.instrument.rp_floor_mm == instrument_rp_floor(sigma, dims=3)
+
+
+def test_html_and_pdf_print_the_same_numbers_as_the_api(stored):
+    _, _, report, paths = stored
+    from pypdf import PdfReader
+
+    html = paths.html.read_text(encoding="utf-8")
+    pdf_text = " ".join(page.extract_text() for page in PdfReader(paths.pdf).pages)
+    for result in report.poses:
+        ap = f"{result.ap_u.value:.4f} ± {result.ap_u.expanded_uncertainty:.4f}"
+        rp = f"{result.rp_u.value:.4f} ± {result.rp_u.expanded_uncertainty:.4f}"
+        for text in (ap, rp, f"{result.accuracy.ap_axes_mm[0]:.4f}"):
+            assert text in html
+            assert text in pdf_text
+
+
+def test_raw_data_is_cited_with_its_sha256(stored):
+    _, _, _, paths = stored
+    digest = hashlib.sha256(paths.csv[0].read_bytes()).hexdigest()
+    assert digest in paths.html.read_text(encoding="utf-8")
+    assert paths.csv[0].name in paths.html.read_text(encoding="utf-8")
+
+
+def test_payload_ladder_equals_payload_shift_and_recovers_the_sag(tmp_path):
+    store = Store(tmp_path / "bench.db")
+    run_id = write_pose_run(store, config=pose_config(loads_kg=[0.0, 1.0, 2.0], cycles=5), noise_mm=0.01,
+                            load_sag_mm_per_kg=0.1)
+    report = collect(store, run_id, resamples=50)
+    row = next(r for r in report.payload if r.label == "P1")
+    table = report.table[report.table["pose"] == "P1"]
+    direct = payload_shift({m: g[["x_mm", "y_mm", "z_mm"]].to_numpy() for m, g in table.groupby("load_kg")},
+                           reference_load_kg=0.0)
+    np.testing.assert_allclose(row.result.shift_mm, direct.shift_mm, atol=1e-12)
+    assert row.result.shift_mm[:, 2] == pytest.approx([0.0, -0.1, -0.2], abs=0.02)
+    assert len(report.poses) == 15  # 5 poses x 3 loads, never averaged over loads
+
+
+def test_distance_run_equals_analyze_distance(tmp_path):
+    store = Store(tmp_path / "bench.db")
+    config = pose_config(protocol="iso9283_distance", cycles=6)
+    run_id = write_pose_run(store, config=config, noise_mm=0.02)
+    report = collect(store, run_id, resamples=50)
+    (row,) = report.distances
+    direct = analyze_distance(report.table, "P1", "P5")
+    assert (row.first, row.second) == ("P1", "P5")
+    assert row.result.ad_mm == pytest.approx(direct.ad_mm, abs=1e-12)
+    assert row.result.rd_mm == pytest.approx(direct.rd_mm, abs=1e-12)
+    assert row.result.commanded_distance_mm == pytest.approx(np.linalg.norm(np.subtract(CUBE["P1"], CUBE["P5"])))
+
+
+def test_decision_only_against_project_criteria(stored):
+    store, run_id, report, _ = stored
+    assert report.decision.passed is None and "no pass/fail" in report.decision.rule
+    judged = collect(store, run_id, criteria={"AP_mm": 0.36, "RP_mm": 10.0}, resamples=50)
+    verdicts = {(name, label): ok for name, label, _, _, ok in judged.decision.verdicts}
+    for result in judged.poses:
+        assert verdicts[("AP_mm", result.label)] == (result.accuracy.ap_mm <= 0.36)
+        assert verdicts[("RP_mm", result.label)]
+    with pytest.raises(ConfigError, match="criteria: grade_mm not known"):
+        collect(store, run_id, criteria={"grade_mm": 1.0})
+
+
+def test_a_run_without_pose_samples_is_refused(tmp_path):
+    store = Store(tmp_path / "bench.db")
+    run_id = store.start_run(protocol_name="iso9283_pose", protocol_version="1", robot="pkm5", config=pose_config())
+    with pytest.raises(InsufficientData, match=f"run {run_id}: no 'pose' samples"):
+        collect(store, run_id)
