@@ -80,12 +80,25 @@ class _NumberedCanvas(pdf_canvas.Canvas):
         super().save()
 
 
+def _column_widths(block: Table, width: float) -> list[float]:
+    """Widths proportional to each column's longest text (capped), but never narrower than its longest word."""
+    columns = list(zip(block.header, *block.rows))
+    weights = [min(max(len(c) for c in column), 60) for column in columns]
+    floors = [max(pdfmetrics.stringWidth(word, _BOLD, 6.5) for c in column for word in (c.split() or [""])) + 6
+              for column in columns]
+    widths = [width * w / sum(weights) for w in weights]
+    narrow = {i for i, (w, f) in enumerate(zip(widths, floors)) if w < f}
+    if sum(floors[i] for i in narrow) > 0.8 * width:  # unbreakable text everywhere: keep proportions, let it wrap
+        return widths
+    free = width - sum(floors[i] for i in narrow)
+    rest = sum(weights[i] for i in range(len(columns)) if i not in narrow) or 1
+    return [floors[i] if i in narrow else free * weights[i] / rest for i in range(len(columns))]
+
+
 def _table(block: Table, styles, width: float) -> list:
     header = [PdfParagraph(escape(c), styles["head"]) for c in block.header]
     rows = [[PdfParagraph(escape(c), styles["cell"]) for c in row] for row in block.rows]
-    lengths = [max([len(block.header[i])] + [len(r[i]) for r in block.rows]) for i in range(len(block.header))]
-    weights = [min(max(n, 8), 60) for n in lengths]
-    widths = [width * w / sum(weights) for w in weights]
+    widths = _column_widths(block, width)
     table = PdfTable([header, *rows], colWidths=widths, repeatRows=1)
     table.setStyle(TableStyle([
         ("GRID", (0, 0), (-1, -1), 0.4, colors.HexColor("#b8c2d6")),
