@@ -154,3 +154,52 @@ def test_a_run_without_pose_samples_is_refused(tmp_path):
     run_id = store.start_run(protocol_name="iso9283_pose", protocol_version="1", robot="pkm5", config=pose_config())
     with pytest.raises(InsufficientData, match=f"run {run_id}: no 'pose' samples"):
         collect(store, run_id)
+
+
+def test_multidirectional_vap_equals_the_metrology_function(tmp_path):
+    from bench.metrology import multidirectional_variation
+
+    store = Store(tmp_path / "bench.db")
+    config = pose_config(protocol="iso9283_multidirectional", cycles=4, approach_mm=10.0)
+    run_id = store.start_run(protocol_name=config["protocol"], protocol_version="1", robot="pkm5", config=config,
+                             settings={"robot": {}, "instrument": {"instrument": "tracker", "u_mm": 0.01}})
+    rng, step, clouds = np.random.default_rng(7), 0, {}
+    offsets = {"x": (0.1, 0, 0), "y": (0, 0.1, 0), "z": (0, 0, -0.2)}  # direction-dependent barycentres
+    for cycle in range(1, 5):
+        for direction, offset in offsets.items():
+            point = np.add(CUBE["P1"], offset) + rng.normal(0, 0.01, 3)
+            clouds.setdefault(direction, []).append(point)
+            values = dict(zip(("x_mm", "y_mm", "z_mm"), point)) | dict(zip(("cmd_x_mm", "cmd_y_mm", "cmd_z_mm"),
+                                                                            CUBE["P1"]))
+            store.add_sample(run_id, step, values=values | {"velocity_pct": 100.0, "load_kg": 0.0},
+                             pose=f"P1/{direction}", cycle=cycle, t_s=float(step))
+            step += 1
+    report = collect(store, run_id, resamples=50)
+    (row,) = report.multidirectional
+    assert row.directions == ("P1/x", "P1/y", "P1/z")
+    direct = multidirectional_variation([np.array(clouds[d]) for d in "xyz"])
+    assert row.result.vap_mm == pytest.approx(direct.vap_mm, abs=1e-12)
+    assert row.result.vap_mm == pytest.approx(np.hypot(0.1, 0.2), abs=0.03)  # x vs z approach
+
+
+def test_other_pose_protocols_take_conditions_from_the_samples_and_refuse_unknown_load(tmp_path):
+    store = Store(tmp_path / "bench.db")
+    config = {"protocol": "delta_positioning", "robot": "delta4", "cycles": 3, "settle_s": 0.5,
+              "poses": {"A": [0.0, 0.0, -200.0], "B": [-70.0, -70.0, -180.0]}}
+    run_id = store.start_run(protocol_name="delta_positioning", protocol_version="1", robot="delta4",
+                             config=config, settings={"robot": {}, "instrument": {"instrument": "calliper",
+                                                                                  "u_mm": 0.01}})
+    for step, (label, cycle) in enumerate((p, c) for c in (1, 2, 3) for p in "AB"):
+        command = config["poses"][label]
+        values = {"x_mm": command[0] + 0.1 * cycle, "y_mm": command[1], "z_mm": command[2] - 0.05 * cycle,
+                  "cmd_x_mm": command[0], "cmd_y_mm": command[1], "cmd_z_mm": command[2], "velocity_pct": 100.0}
+        store.add_sample(run_id, step, values=values, pose=label, cycle=cycle, t_s=float(step))
+    with pytest.raises(InsufficientData, match="clause 6.6 load: not stored: config.loads_kg"):
+        collect(store, run_id)
+    report = collect(store, run_id, allow_unknown=True, resamples=50)
+    rows = {d.topic: d for d in report.deviations}
+    assert rows["load"].status == "unknown"
+    assert rows["velocity"].done.startswith("100 % (no rated velocity stated)")
+    assert report.title == "ISO 9283-style pose accuracy and repeatability (delta_positioning)"
+    paths = write_report(store, run_id, tmp_path / "out", ("html",), allow_unknown=True)
+    assert "not stored: config.loads_kg" in paths.html.read_text(encoding="utf-8")

@@ -29,6 +29,8 @@ def register(groups: argparse._SubParsersAction) -> None:
     parser.add_argument("--operator", default="not recorded", help="operator named in the report")
     parser.add_argument("--laboratory", default="not recorded", help="laboratory named in the report")
     parser.add_argument("--k", type=float, default=2.0, help="coverage factor of the expanded uncertainties")
+    parser.add_argument("--allow-unknown", action="store_true",
+                        help="report even when the run lacks what a deviations row needs (row printed as unknown)")
     parser.set_defaults(handler=_report)
 
 
@@ -56,7 +58,7 @@ def _report(args: argparse.Namespace) -> int:
         paths = write_comparison(args.store, args.run_id, args.compare, args.out, formats, k=args.k)
     else:
         paths = write_report(args.store, args.run_id, args.out, formats, criteria=criteria, operator=args.operator,
-                             laboratory=args.laboratory, k=args.k)
+                             laboratory=args.laboratory, k=args.k, allow_unknown=args.allow_unknown)
     for path in (paths.html, paths.pdf, *paths.csv):
         if path is not None:
             print(path)

@@ -84,7 +84,7 @@ def _open(store: str | Path | Store) -> tuple[Store, bool]:
 
 def write_report(store: str | Path | Store, run_id: int, out_dir: str | Path, formats: Iterable[str] = FORMATS, *,
                  criteria: Mapping[str, float] | None = None, operator: str = "not recorded",
-                 laboratory: str = "not recorded", k: float = 2.0) -> ReportPaths:
+                 laboratory: str = "not recorded", k: float = 2.0, allow_unknown: bool = False) -> ReportPaths:
     """Write the report of one run: ``report_run<ID>.html`` / ``.pdf`` and ``run<ID>_samples.csv`` in ``out_dir``.
 
     Parameters
@@ -101,11 +101,14 @@ def write_report(store: str | Path | Store, run_id: int, out_dir: str | Path, fo
         Printed in the identification section.
     k : float
         Coverage factor of the expanded uncertainties.
+    allow_unknown : bool
+        Write the report even when a row of the deviations table is unknown (printed as "unknown"); by default
+        such a run is refused (iso9283.md §11.2).
     """
     formats = _check_formats(formats)
     store, opened = _open(store)
     try:
-        report = collect(store, run_id, criteria=criteria, k=k)
+        report = collect(store, run_id, criteria=criteria, k=k, allow_unknown=allow_unknown)
     finally:
         if opened:
             store.close()

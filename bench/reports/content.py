@@ -32,7 +32,7 @@ from typing import Any
 import pandas as pd
 
 from bench import __version__
-from bench.errors import ConfigError, InsufficientData
+from bench.errors import ConfigError
 from bench.metrology import (DistanceCharacteristics, Measured, MultidirectionalVariation, PayloadShift, combine,
                              expanded, instrument_rp_floor, multidirectional_variation, payload_shift,
                              resolution_uncertainty)
@@ -248,7 +248,8 @@ def collect(store: Store, run_id: int, *, criteria: Mapping[str, float] | None =
     cycles = int(table.groupby(["pose", *[c for c in ("velocity_pct", "load_kg") if c in table.columns]])
                  .size().min())
     deviations = iso_deviations(
-        protocol=protocol, config=run.config, settings=run.settings, measured_columns=measured,
+        protocol=protocol, config=_effective_config(run.config, table), settings=run.settings,
+        measured_columns=measured,
         cycles_measured=cycles, instrument_sigma_mm=instrument.sigma_mm,
         smallest_rp_mm=min(p.repeatability.rp_mm for p in poses), rp_floor_mm=instrument.rp_floor_mm,
         allow_unknown=allow_unknown)
@@ -265,7 +266,7 @@ def collect(store: Store, run_id: int, *, criteria: Mapping[str, float] | None =
         config_sha256=config_hash,
         calibration_sha256=_sha256_json([c.params for c in calibrations]),
         title=run.config.get("title") or _title(protocol),
-        clauses=CLAUSES_APPLIED.get(protocol, ()),
+        clauses=CLAUSES_APPLIED.get(protocol, CLAUSES_APPLIED["iso9283_pose"]),
         deviations=tuple(deviations),
         instrument=instrument,
         measured_columns=measured,
@@ -280,9 +281,20 @@ def collect(store: Store, run_id: int, *, criteria: Mapping[str, float] | None =
     )
 
 
+def _effective_config(config: Mapping[str, Any], table: pd.DataFrame) -> dict[str, Any]:
+    """The stored configuration, completed from the stored samples' condition columns where it has no key.
+
+    Protocols other than the ISO ones (e.g. ``delta_positioning``, ``dissertation_pose``) record velocity and load
+    per sample rather than as ``velocities_pct``/``loads_kg`` lists; the samples are part of the stored run.
+    """
+    completed = dict(config)
+    for column, key in (("velocity_pct", "velocities_pct"), ("load_kg", "loads_kg")):
+        if key not in completed and column in table.columns:
+            completed[key] = [float(v) for v in dict.fromkeys(table[column])]
+    return completed
+
+
 def _title(protocol: str) -> str:
     names = {"iso9283_pose": "pose accuracy and repeatability", "iso9283_distance": "distance accuracy and "
              "repeatability", "iso9283_multidirectional": "multi-directional pose accuracy variation"}
-    if protocol not in names:
-        raise InsufficientData(f"protocol {protocol!r}: no report layout, expected one of {', '.join(names)}")
-    return f"ISO 9283-style {names[protocol]}"
+    return f"ISO 9283-style {names.get(protocol, f'pose accuracy and repeatability ({protocol})')}"
