@@ -27,13 +27,14 @@ SETTINGS = {"robot": {"driver": "Pkm5Controller", "port": "/dev/pts/7", "firmwar
 
 
 def write_pose_run(store: Store, *, seed: int = 1, bias_mm=(0.2, -0.1, 0.05), noise_mm: float = 0.05,
-                   config=None, settings=None, calibration: bool = True, load_sag_mm_per_kg: float = 0.0) -> int:
+                   config=None, settings=None, calibration: bool = True, load_sag_mm_per_kg: float = 0.0,
+                   calibration_ids=None) -> int:
     """A completed pose run: every pose, cycle, velocity and load of ``config``, attained = command + bias + noise
     (+ a sag in -z proportional to the load)."""
     config = config or pose_config()
     rng = np.random.default_rng(seed)
-    ids = ()
-    if calibration:
+    ids = tuple(calibration_ids or ())
+    if calibration and calibration_ids is None:
         ids = (store.add_calibration("mouse_xy", {"cpi": 800.0, "matrix_mm_per_count": [[0.03175, 0], [0, 0.03175]]},
                                      notes="nominal 800 cpi").id,)
     run_id = store.start_run(protocol_name=config["protocol"], protocol_version="1", robot=config["robot"],

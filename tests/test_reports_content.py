@@ -203,3 +203,35 @@ def test_other_pose_protocols_take_conditions_from_the_samples_and_refuse_unknow
     assert report.title == "ISO 9283-style pose accuracy and repeatability (delta_positioning)"
     paths = write_report(store, run_id, tmp_path / "out", ("html",), allow_unknown=True)
     assert "not stored: config.loads_kg" in paths.html.read_text(encoding="utf-8")
+
+
+def test_mouse_calibration_in_force_is_refitted_from_its_source_run_and_plotted(tmp_path):
+    from bench.metrology import fit_axis_scale
+    from bench.reports.plots import mouse_calibration_plots
+
+    store = Store(tmp_path / "bench.db")
+    source = store.start_run(protocol_name="mouse_calibration", protocol_version="1", robot="pkm5", config={})
+    rng, step, expected = np.random.default_rng(5), 0, {"x": ([], []), "y": ([], [])}
+    for axis, counts_per_mm in (("x", 31.5), ("y", 31.0)):
+        for distance in (5.0, 10.0, 20.0, 40.0):
+            for repeat in (1, 2):
+                counts = round(counts_per_mm * distance + rng.normal(0, 1.0))
+                expected[axis][0].append(distance)
+                expected[axis][1].append(counts)
+                for where, cmd, c in (("start", 90.0, 100), ("end", 90.0 + distance, 100 + counts)):
+                    values = {f"cmd_{axis}_mm": cmd, f"mouse_xy_{axis}_counts": float(c)}
+                    store.add_sample(source, step, kind="mouse", values=values, pose=f"{axis}{distance:g}/{where}",
+                                     cycle=repeat, t_s=float(step))
+                    step += 1
+    calibration = store.add_calibration("mouse", {"mm_per_count": 0.032}, source_run_id=source)
+    run_id = write_pose_run(store, calibration_ids=(calibration.id,), config=pose_config(cycles=3))
+    report = collect(store, run_id, resamples=50)
+    assert [f.axis for f in report.instrument.fits] == ["x", "y"]
+    for fit in report.instrument.fits:
+        direct = fit_axis_scale(*expected[fit.axis])
+        assert fit.fit.scale_mm_per_count == pytest.approx(direct.scale_mm_per_count, rel=1e-12)
+    assert fit.fit.scale_mm_per_count == pytest.approx(1 / 31.0, rel=0.01)
+    plots = mouse_calibration_plots(report)
+    assert len(plots) == 2
+    for plot, axis in zip(plots, "xy"):
+        assert f"Calibration mouse v1 (id {calibration.id}, from run {source}), {axis} axis" in plot.caption

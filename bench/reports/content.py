@@ -33,20 +33,31 @@ import pandas as pd
 
 from bench import __version__
 from bench.errors import ConfigError
-from bench.metrology import (DistanceCharacteristics, Measured, MultidirectionalVariation, PayloadShift, combine,
-                             expanded, instrument_rp_floor, multidirectional_variation, payload_shift,
+from bench.metrology import (AxisCalibration, DistanceCharacteristics, Measured, MultidirectionalVariation, PayloadShift, combine,
+                             expanded, fit_axis_scale, instrument_rp_floor, multidirectional_variation, payload_shift,
                              resolution_uncertainty)
 from bench.metrology.tables import ANGLE_PAIRS, PoseResult, analyze_distance, analyze_poses, pose_table
 from bench.reports.deviations import CLAUSES_APPLIED, Deviation, iso_deviations
 from bench.store import CalibrationRecord, RunRecord, Store, tidy_table
 
-__all__ = ["CRITERIA", "Decision", "DistanceRow", "InstrumentInfo", "PayloadRow", "RunReport", "VapRow",
-           "analysis_table", "collect"]
+__all__ = ["CRITERIA", "CalibrationFit", "Decision", "DistanceRow", "InstrumentInfo", "PayloadRow", "RunReport", "VapRow",
+           "analysis_table", "calibration_fits", "collect"]
 
 MM_PER_INCH = 25.4
 #: Acceptance criteria a caller may state, with the result each applies to (all "smaller is better").
 CRITERIA = {"AP_mm": "AP_P of every pose", "RP_mm": "RP_l of every pose"}
 _POSITION = ("x_mm", "y_mm", "z_mm")
+
+
+@dataclass(frozen=True)
+class CalibrationFit:
+    """A calibration in force refitted from the raw samples of the run that produced it (for its plot)."""
+
+    record: CalibrationRecord
+    axis: str
+    reference_mm: tuple[float, ...]  #: commanded step lengths
+    counts: tuple[float, ...]  #: counts between the two ends of each step
+    fit: AxisCalibration
 
 
 @dataclass(frozen=True)
@@ -59,6 +70,7 @@ class InstrumentInfo:
     dims: int  #: measured position axes
     rp_floor_mm: float | None  #: expected RP of a perfect robot seen through this instrument
     calibrations: tuple[CalibrationRecord, ...]
+    fits: tuple[CalibrationFit, ...] = ()
 
 
 @dataclass(frozen=True)
@@ -134,7 +146,29 @@ def analysis_table(store: Store, run_id: int) -> pd.DataFrame:
     return pose_table(table)
 
 
-def _instrument(run: RunRecord, calibrations: tuple[CalibrationRecord, ...], dims: int) -> InstrumentInfo:
+def calibration_fits(store: Store, record: CalibrationRecord) -> tuple[CalibrationFit, ...]:
+    """Per-axis step data of a mouse calibration's source run (``mouse`` samples labelled ``<axis><mm>/start|end``),
+    refitted with :func:`bench.metrology.fit_axis_scale`; empty when the calibration has no such source run."""
+    if record.source_run_id is None:
+        return ()
+    samples = store.samples(record.source_run_id, kind="mouse")
+    ends = {(s.pose, s.cycle): s.values for s in samples if s.pose and "/" in s.pose}
+    fits = []
+    for axis in ("x", "y"):
+        steps = [(values, ends[(pose[:-3] + "start", cycle)]) for (pose, cycle), values in ends.items()
+                 if pose.startswith(axis) and pose.endswith("/end") and (pose[:-3] + "start", cycle) in ends]
+        column = f"mouse_xy_{axis}_counts"
+        steps = [(end, start) for end, start in steps if column in end and column in start]
+        if len(steps) < 3:
+            continue
+        reference = tuple(end[f"cmd_{axis}_mm"] - start[f"cmd_{axis}_mm"] for end, start in steps)
+        counts = tuple(end[column] - start[column] for end, start in steps)
+        fits.append(CalibrationFit(record, axis, reference, counts, fit_axis_scale(reference, counts)))
+    return tuple(fits)
+
+
+def _instrument(run: RunRecord, calibrations: tuple[CalibrationRecord, ...], dims: int,
+                fits: tuple[CalibrationFit, ...] = ()) -> InstrumentInfo:
     settings = dict(run.settings.get("instrument") or {})
     budget: list[tuple[str, float, str]] = []
     if "u_mm" in settings:
@@ -148,7 +182,7 @@ def _instrument(run: RunRecord, calibrations: tuple[CalibrationRecord, ...], dim
                            f"{settings['noise_counts']} counts x {step_mm:.4g} mm"))
     sigma = combine(*(u for _, u, _ in budget)) if budget else None
     floor = instrument_rp_floor(sigma, dims=dims) if sigma is not None and dims else None
-    return InstrumentInfo(settings, sigma, tuple(budget), dims, floor, calibrations)
+    return InstrumentInfo(settings, sigma, tuple(budget), dims, floor, calibrations, fits)
 
 
 def _condition_groups(table: pd.DataFrame):
@@ -242,7 +276,8 @@ def collect(store: Store, run_id: int, *, criteria: Mapping[str, float] | None =
     table = analysis_table(store, run_id)
     measured = tuple(c for c in (*_POSITION, *(a for _, a in ANGLE_PAIRS)) if c in table.columns)
     calibrations = tuple(store.calibration_by_id(i) for i in run.calibration_ids)
-    instrument = _instrument(run, calibrations, sum(c in table.columns for c in _POSITION))
+    fits = tuple(fit for record in calibrations for fit in calibration_fits(store, record))
+    instrument = _instrument(run, calibrations, sum(c in table.columns for c in _POSITION), fits)
     poses = tuple(analyze_poses(table, instrument_u_mm=instrument.sigma_mm or 0.0, k=k, resamples=resamples))
     protocol = run.protocol_name
     cycles = int(table.groupby(["pose", *[c for c in ("velocity_pct", "load_kg") if c in table.columns]])

@@ -18,7 +18,7 @@ from matplotlib.figure import Figure
 from matplotlib.patches import Circle
 from scipy.spatial import ConvexHull, QhullError
 
-from bench.metrology import fit_axis_scale, pose_accuracy
+from bench.metrology import pose_accuracy
 from bench.reports.content import RunReport
 
 __all__ = ["Plot", "comparison_plot", "png_bytes", "report_plots", "svg_text", "workspace_cloud_mm"]
@@ -164,27 +164,26 @@ def payload_plot(report: RunReport) -> Plot | None:
 
 
 def mouse_calibration_plots(report: RunReport) -> list[Plot]:
-    """Fit and residuals of every calibration that stores its reference data (``reference_mm``, ``counts``)."""
+    """Fit and residuals of every calibration in force whose source run holds its step data."""
     plots = []
-    for record in report.instrument.calibrations:
-        if not {"reference_mm", "counts"} <= set(record.params):
-            continue
-        fit = fit_axis_scale(record.params["reference_mm"], record.params["counts"])
-        reference = np.asarray(record.params["reference_mm"], dtype=float)
+    for item in report.instrument.fits:
+        record, fit = item.record, item.fit
+        reference = np.asarray(item.reference_mm, dtype=float)
         figure = Figure(figsize=(10, 3.4), layout="constrained")
         data, residual = figure.add_subplot(1, 2, 1), figure.add_subplot(1, 2, 2)
-        data.scatter(reference, record.params["counts"], s=10, label="calibration data")
+        data.scatter(reference, item.counts, s=10, label="calibration steps")
         data.plot(reference, fit.slope_counts_per_mm * reference + fit.offset_counts, color="tab:red",
                   label=f"fit: {fit.scale_mm_per_count:.5f} mm/count")
-        data.set_xlabel("reference (mm)")
+        data.set_xlabel(f"commanded {item.axis} step (mm)")
         data.set_ylabel("counts")
         data.legend(fontsize=7)
         residual.axhline(0.0, color="0.5", lw=1)
         residual.scatter(reference, fit.residuals_counts, s=10)
-        residual.set_xlabel("reference (mm)")
+        residual.set_xlabel(f"commanded {item.axis} step (mm)")
         residual.set_ylabel("residual (counts)")
-        plots.append(Plot(f"Calibration {record.name} v{record.version} (id {record.id}): linear fit and "
-                          f"residuals, RMS {fit.residual_rms_counts:.3g} counts.", figure))
+        plots.append(Plot(f"Calibration {record.name} v{record.version} (id {record.id}, from run "
+                          f"{record.source_run_id}), {item.axis} axis: linear fit and residuals, RMS "
+                          f"{fit.residual_rms_counts:.3g} counts.", figure))
     return plots
 
 
