@@ -18,7 +18,12 @@ from reports_runs import CUBE, pose_config, write_pose_run
 from bench.cli import main
 from bench.errors import ConfigError, InsufficientData
 from bench.metrology import instrument_rp_floor, payload_shift
-from bench.metrology.tables import analyze_distance, analyze_poses, pose_table, read_table_csv
+from bench.metrology.tables import (
+    analyze_distance,
+    analyze_poses,
+    pose_table,
+    read_table_csv,
+)
 from bench.reports import collect, write_report
 from bench.store import Store
 

@@ -3,13 +3,12 @@
 from __future__ import annotations
 
 import re
-import shutil
 import subprocess
 from pathlib import Path
 
 import numpy as np
 import pytest
-from reports_runs import pose_config, write_pose_run
+from reports_runs import write_pose_run
 
 from bench.cli import main
 from bench.reports import write_comparison, write_report
@@ -88,7 +87,7 @@ def test_html_renders_in_headless_chromium(reports, tmp_path):
     assert pixels.shape == (1600, 1280)
     assert pixels.std() > 10 and (pixels < 128).mean() > 0.005  # text and rules drawn, not a blank page
     assert f"<title>{TITLE}: run {before}</title>" in dom
-    results = re.search(r'<table id="results">(.*?)</table>', dom, re.S).group(1)
+    results = re.search(r'<table id="results">(.*?)</table>', dom, re.DOTALL).group(1)
     assert [re.sub("<.*?>", "", c) for c in re.findall(r"<tr><td>(P\d)</td>", results)] == ["P1", "P5", "P4", "P3",
                                                                                            "P2"]
 
@@ -98,8 +97,8 @@ def test_comparison_pairs_the_poses_of_both_runs(reports):
     html = compared.html.read_text(encoding="utf-8")
     assert f"Comparison of run {before} (A) and run {after} (B)" in html
     assert len(compared.csv) == 2
-    results = re.search(r'<table id="results">(.*?)</table>', html, re.S).group(1)
-    rows = re.findall(r"<tr>(.*?)</tr>", results, re.S)[1:]
+    results = re.search(r'<table id="results">(.*?)</table>', html, re.DOTALL).group(1)
+    rows = re.findall(r"<tr>(.*?)</tr>", results, re.DOTALL)[1:]
     assert len(rows) == 5
     for row in rows:
         cells = re.findall(r"<td[^>]*>(.*?)</td>", row)
@@ -111,7 +110,7 @@ def test_comparison_pairs_the_poses_of_both_runs(reports):
 
 
 def test_cli_report_writes_and_prints_the_paths(reports, capsys, tmp_path):
-    folder, before, after, _, _ = reports
+    folder, before, _, _, _ = reports
     assert main(["report", str(before), "--store", str(folder / "bench.db"), "--out", str(tmp_path),
                  "--format", "html", "--criterion", "RP_mm=0.5"]) == 0
     printed = capsys.readouterr().out.split()

@@ -26,17 +26,34 @@ import json
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
-from datetime import datetime, timezone
+from datetime import UTC, datetime
 from typing import Any
 
 import pandas as pd
 
 from bench import __version__
 from bench.errors import ConfigError
-from bench.metrology import (AxisCalibration, DistanceCharacteristics, Measured, MultidirectionalVariation, PayloadShift, combine,
-                             expanded, fit_axis_scale, instrument_rp_floor, multidirectional_variation, payload_shift,
-                             resolution_uncertainty)
-from bench.metrology.tables import ANGLE_PAIRS, PoseResult, analyze_distance, analyze_poses, pose_table
+from bench.metrology import (
+    AxisCalibration,
+    DistanceCharacteristics,
+    Measured,
+    MultidirectionalVariation,
+    PayloadShift,
+    combine,
+    expanded,
+    fit_axis_scale,
+    instrument_rp_floor,
+    multidirectional_variation,
+    payload_shift,
+    resolution_uncertainty,
+)
+from bench.metrology.tables import (
+    ANGLE_PAIRS,
+    PoseResult,
+    analyze_distance,
+    analyze_poses,
+    pose_table,
+)
 from bench.reports.deviations import CLAUSES_APPLIED, Deviation, iso_deviations
 from bench.store import CalibrationRecord, RunRecord, Store, tidy_table
 
@@ -296,7 +313,7 @@ def collect(store: Store, run_id: int, *, criteria: Mapping[str, float] | None =
     return RunReport(
         run=run,
         report_id=f"BR-{run.id:05d}-{config_hash[:8]}",
-        generated_utc=datetime.now(timezone.utc).isoformat(timespec="seconds"),
+        generated_utc=datetime.now(UTC).isoformat(timespec="seconds"),
         report_software_version=__version__,
         config_sha256=config_hash,
         calibration_sha256=_sha256_json([c.params for c in calibrations]),

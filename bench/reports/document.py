@@ -10,7 +10,7 @@ as ``value ± U`` with k stated in the table heading.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Any, Union
+from typing import Any
 
 from bench.reports.content import RunReport
 from bench.reports.plots import Plot, comparison_plot, report_plots
@@ -42,7 +42,7 @@ class Figure:
     plot: Plot
 
 
-Block = Union[Paragraph, Table, Figure]
+Block = Paragraph | Table | Figure
 
 
 @dataclass(frozen=True)
@@ -147,8 +147,8 @@ def _instruments(report: RunReport) -> Section:
     budget = [(name, _mm(u), source) for name, u, source in info.budget]
     if info.sigma_mm is not None:
         budget.append(("combined, per axis", _mm(info.sigma_mm), "root sum of squares"))
-        budget.append((f"instrument RP floor ({info.dims}-D)", _mm(info.rp_floor_mm), "bench.metrology."
-                       "instrument_rp_floor"))
+        budget.append((f"instrument RP floor ({info.dims}-D)", _mm(info.rp_floor_mm),
+                       "bench.metrology.instrument_rp_floor"))
     blocks.append(Table("budget", ("Component", "Standard uncertainty (mm)", "Source"), tuple(budget),
                         "Instrument uncertainty budget"))
     return Section("5. Instruments", tuple(blocks))
@@ -157,8 +157,8 @@ def _instruments(report: RunReport) -> Section:
 def pose_rows(report: RunReport) -> tuple[tuple[str, ...], tuple[tuple[str, ...], ...]]:
     """Header and rows of the per-pose results table."""
     angles = report.poses[0].angle_names if report.poses else ()
-    header = ("Pose", "n", "Command x, y, z (mm)", f"AP_P ± U (mm)", "AP_x (mm)", "AP_y (mm)", "AP_z (mm)",
-              f"RP_l ± U (mm)", "RP floor (mm)", *(f"AP_{a} / RP_{a} (°)" for a in angles))
+    header = ("Pose", "n", "Command x, y, z (mm)", "AP_P ± U (mm)", "AP_x (mm)", "AP_y (mm)", "AP_z (mm)",
+              "RP_l ± U (mm)", "RP floor (mm)", *(f"AP_{a} / RP_{a} (°)" for a in angles))
     floor = _mm(report.instrument.rp_floor_mm) if report.instrument.rp_floor_mm is not None else "—"
     rows = []
     for r in report.poses:

@@ -21,8 +21,15 @@ from reportlab.lib.units import mm
 from reportlab.pdfbase import pdfmetrics
 from reportlab.pdfbase.ttfonts import TTFont
 from reportlab.pdfgen import canvas as pdf_canvas
-from reportlab.platypus import Image, KeepTogether, Paragraph as PdfParagraph, SimpleDocTemplate, Spacer
-from reportlab.platypus import Table as PdfTable, TableStyle
+from reportlab.platypus import (
+    Image,
+    KeepTogether,
+    SimpleDocTemplate,
+    Spacer,
+    TableStyle,
+)
+from reportlab.platypus import Paragraph as PdfParagraph
+from reportlab.platypus import Table as PdfTable
 
 from bench.reports.document import Document, Figure, Paragraph, Table
 from bench.reports.plots import png_bytes
@@ -66,7 +73,7 @@ class _NumberedCanvas(pdf_canvas.Canvas):
         super().__init__(*args, **kwargs)
         self._pages = []
 
-    def showPage(self):  # noqa: N802 - reportlab's name
+    def showPage(self):
         self._pages.append(dict(self.__dict__))
         self._startPage()
 
