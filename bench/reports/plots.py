@@ -16,6 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 from matplotlib.figure import Figure
 from matplotlib.patches import Circle
+from matplotlib.ticker import MaxNLocator
 from scipy.spatial import ConvexHull, QhullError
 
 from bench.metrology import pose_accuracy
@@ -138,6 +139,7 @@ def drift_series(report: RunReport) -> Plot:
         distance = [pose_accuracy(p[None, :], command).ap_mm for p in rows[_POSITION].to_numpy()]
         axes.plot(rows["cycle"], distance, marker=".", lw=1, label=result.label)
     axes.set_xlabel("cycle")
+    axes.xaxis.set_major_locator(MaxNLocator(integer=True))
     axes.set_ylabel("|attained − command| (mm)")
     axes.legend(fontsize=6, ncols=min(5, len(report.poses)))
     return Plot("Per-cycle distance of each attained point from its command (a trend shows drift).", figure)
