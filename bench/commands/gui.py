@@ -1,0 +1,23 @@
+"""``bench gui``: open the desktop window on a run store (needs PySide6 and a display)."""
+
+from __future__ import annotations
+
+import argparse
+
+from bench.errors import ConfigError
+
+
+def register(groups: argparse._SubParsersAction) -> None:
+    gui = groups.add_parser("gui", help="open the desktop window (campaigns, live view, calliper, results)",
+                            description=__doc__, formatter_class=argparse.ArgumentDefaultsHelpFormatter)
+    gui.add_argument("--store", default="bench.db", help="run store (SQLite file)")
+    gui.add_argument("--reports", default="reports", help="folder for the reports opened from the window")
+    gui.set_defaults(handler=_gui)
+
+
+def _gui(args: argparse.Namespace) -> int:
+    try:
+        from bench.gui import launch
+    except ImportError as exc:
+        raise ConfigError(f"bench gui: PySide6 is not installed ({exc}); pip install 'PySide6-Essentials>=6.6'") from None
+    return launch(args.store, args.reports)

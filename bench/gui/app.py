@@ -1,0 +1,179 @@
+"""The main window of ``bench gui``: robot panel, campaign panel, live view, results browser, log, and an
+emergency stop that is always visible.
+
+The window wires the panels to the campaign worker's signals and adds no logic of its own: runs go through
+bench's runner and store (:mod:`bench.gui.worker`), pre-flight through :mod:`bench.protocols`, statistics through
+:mod:`bench.metrology`, reports through :mod:`bench.reports`. Closing the window during a run stops it at the next
+checkpoint through the runner (status ``aborted``, resumable; every stored sample stays) and waits for it.
+"""
+
+from __future__ import annotations
+
+import logging
+import sys
+from pathlib import Path
+
+from PySide6.QtCore import Qt
+from PySide6.QtGui import QCloseEvent
+from PySide6.QtWidgets import (
+    QApplication,
+    QMainWindow,
+    QPlainTextEdit,
+    QPushButton,
+    QSplitter,
+    QTabWidget,
+    QToolBar,
+    QWidget,
+)
+
+from bench.gui.calliper_dialog import CalliperDialog
+from bench.gui.campaign_panel import CampaignPanel
+from bench.gui.live_view import LiveView
+from bench.gui.results_browser import ResultsBrowser
+from bench.gui.robot_panel import RobotPanel
+from bench.gui.worker import CampaignWorker
+from bench.protocols import Prompt, RunResult
+
+__all__ = ["MainWindow", "launch"]
+
+_log = logging.getLogger(__name__)
+
+#: How long closing the window waits for a run to reach its next checkpoint, s.
+CLOSE_TIMEOUT_S = 60.0
+
+
+class MainWindow(QMainWindow):
+    """The bench desktop window on the run store ``store_path``; reports go to ``report_dir``."""
+
+    def __init__(self, store_path: str | Path = "bench.db", report_dir: str | Path = "reports", *,
+                 open_files: bool = True) -> None:
+        super().__init__()
+        self.store_path = str(store_path)
+        self.setWindowTitle(f"bench - {self.store_path}")
+        self.calliper_dialog: CalliperDialog | None = None
+        self.robot_panel = RobotPanel()
+        self.campaign_panel = CampaignPanel(self.store_path, self.robot_panel.rig_spec)
+        self.live_view = LiveView()
+        self.results = ResultsBrowser(self.store_path, report_dir, open_files=open_files)
+        self.log = QPlainTextEdit()
+        self.log.setObjectName("log")
+        self.log.setReadOnly(True)
+        self.log.setMaximumBlockCount(2000)
+        self._build_layout()
+        self._build_toolbar()
+        self.robot_panel.message.connect(self.say)
+        self.robot_panel.robot.currentTextChanged.connect(self._robot_changed)
+        self.campaign_panel.message.connect(self.say)
+        self.campaign_panel.worker_started.connect(self._connect_worker)
+        self.results.message.connect(self.say)
+        self.results.resume_requested.connect(lambda run_id: self.campaign_panel.start([run_id]))
+        self.resize(1400, 860)
+
+    def _build_layout(self) -> None:
+        tabs = QTabWidget()
+        tabs.addTab(self.live_view, "Live view")
+        tabs.addTab(self.results, "Results")
+        self.tabs = tabs
+        right = QSplitter(Qt.Orientation.Vertical)
+        right.addWidget(tabs)
+        right.addWidget(self.log)
+        right.setSizes([640, 160])
+        main = QSplitter(Qt.Orientation.Horizontal)
+        for widget in (self.robot_panel, self.campaign_panel, right):
+            main.addWidget(widget)
+        main.setSizes([300, 420, 680])
+        self.setCentralWidget(main)
+
+    def _build_toolbar(self) -> None:
+        bar = QToolBar("Safety")
+        bar.setMovable(False)
+        self.estop = QPushButton("EMERGENCY STOP")
+        self.estop.setObjectName("emergencyStop")
+        self.estop.setMinimumHeight(44)
+        self.estop.setStyleSheet("QPushButton {background: #c62828; color: white; font-weight: bold;"
+                                 " font-size: 15px; padding: 6px 24px; border-radius: 4px}")
+        self.estop.clicked.connect(self.emergency_stop)
+        bar.addWidget(self.estop)
+        spacer = QWidget()
+        bar.addWidget(spacer)
+        self.addToolBar(Qt.ToolBarArea.TopToolBarArea, bar)
+
+    # ---- actions -------------------------------------------------------------------------------------------
+
+    def say(self, text: str) -> None:
+        """A line in the log panel (and the log)."""
+        _log.info("%s", text)
+        self.log.appendPlainText(text)
+
+    def emergency_stop(self) -> None:
+        """Halt the campaign (robot stopped, no clean-up moves) and stop the jogging robot."""
+        worker = self.campaign_panel.worker
+        if worker is not None and worker.runner is not None:
+            worker.request("halt")
+        self.robot_panel.emergency_stop()
+        self.say("EMERGENCY STOP")
+
+    def _robot_changed(self, robot: str) -> None:
+        path = self.campaign_panel.files.currentData()
+        if path:
+            self.campaign_panel.choose_file(path)
+
+    def _connect_worker(self, worker: CampaignWorker) -> None:
+        if self.robot_panel.mover is not None:  # one connection to the robot at a time
+            self.say("disconnecting the jog connection for the campaign")
+            self.robot_panel.disconnect_robot()
+        self.robot_panel.setEnabled(False)
+        worker.run_started.connect(self._run_started)
+        worker.sample_stored.connect(lambda run_id, sample: self.live_view.add_sample(sample))
+        worker.prompt_requested.connect(self.ask_reading)
+        worker.run_finished.connect(self._run_finished)
+        worker.finished.connect(lambda: self.robot_panel.setEnabled(True))
+        self.tabs.setCurrentWidget(self.live_view)
+
+    def _run_started(self, run_id: int, total: int) -> None:
+        self.live_view.clear(f"run {run_id}")
+        self.say(f"run {run_id} started ({total} samples to take)")
+        self.results.refresh()
+
+    def _run_finished(self, result: RunResult) -> None:
+        self.live_view.redraw()
+        reason = f": {result.reason}" if result.reason else ""
+        self.say(f"run {result.run_id} {result.exit_status} ({result.samples} samples){reason}")
+        self.results.refresh()
+
+    def ask_reading(self, prompt: Prompt) -> CalliperDialog:
+        """Show the calliper dialog for ``prompt``; its answer goes straight to the waiting run."""
+        worker = self.campaign_panel.worker
+        dialog = CalliperDialog(prompt, self)
+        if worker is not None:
+            dialog.reading_entered.connect(worker.answer)
+            dialog.cancelled.connect(lambda: worker.answer(None))
+        dialog.reading_entered.connect(lambda value: self.say(f"{prompt.field} = {value:g} {prompt.unit}"))
+        dialog.finished.connect(lambda _: setattr(self, "calliper_dialog", None))
+        self.calliper_dialog = dialog
+        dialog.open()
+        return dialog
+
+    def closeEvent(self, event: QCloseEvent) -> None:  # noqa: N802 - Qt's name
+        """Stop a run at its next checkpoint (resumable, nothing stored is lost), then release the robot."""
+        if self.campaign_panel.worker is not None:
+            self.say("window closing: stopping the run at the next checkpoint")
+            if self.calliper_dialog is not None:
+                self.calliper_dialog.blockSignals(True)
+                self.calliper_dialog.close()
+            if not self.campaign_panel.shut_down(CLOSE_TIMEOUT_S):
+                _log.error("the run did not reach a checkpoint within %g s; halting it", CLOSE_TIMEOUT_S)
+                self.campaign_panel.request("halt")
+                self.campaign_panel.worker.wait(int(CLOSE_TIMEOUT_S * 1000))
+        self.robot_panel.wait_idle()
+        self.robot_panel.disconnect_robot()
+        event.accept()
+
+
+def launch(store_path: str | Path = "bench.db", report_dir: str | Path = "reports",
+           argv: list[str] | None = None) -> int:
+    """Open the window and run the Qt event loop until it closes; returns the exit code."""
+    app = QApplication.instance() or QApplication(argv if argv is not None else sys.argv[:1])
+    window = MainWindow(store_path, report_dir)
+    window.show()
+    return int(app.exec())

@@ -1,0 +1,124 @@
+"""The calliper entry dialog: one manual reading for a protocol's ``Prompt``, validated before it is accepted.
+
+Readings are parsed by :func:`bench.sensors.calliper.parse_length` (sign, ``.`` or ``,`` decimals, ``mm``/``in``
+units for lengths) and checked against the prompt's bounds with :class:`bench.sensors.calliper.ReadingRequest`,
+so the window accepts exactly what ``bench``'s terminal prompt accepts. A keyboard-wedge calliper types its reading
+followed by Enter into the focused field, which submits it. A length far from the commanded value (more than
+:data:`TOLERANCE_MM`) needs the same value submitted a second time. The reading is stored by the runner the moment
+the dialog hands it over.
+"""
+
+from __future__ import annotations
+
+import re
+
+from PySide6.QtCore import Qt, Signal
+from PySide6.QtWidgets import QDialog, QDialogButtonBox, QFormLayout, QLabel, QLineEdit, QVBoxLayout, QWidget
+
+from bench.errors import ConfigError
+from bench.protocols import Prompt
+from bench.sensors.calliper import ReadingRequest, parse_length
+from bench.sensors.reading import MalformedSample
+
+__all__ = ["TOLERANCE_MM", "CalliperDialog", "parse_entry"]
+
+#: A length reading further than this from the commanded length must be confirmed, mm.
+TOLERANCE_MM = 2.0
+
+
+def _request(prompt: Prompt) -> ReadingRequest:
+    expected = next((v for k, v in prompt.commanded.items() if k == f"cmd_{prompt.field}"), None)
+    return ReadingRequest(prompt.text, min_mm=-float("inf") if prompt.minimum is None else prompt.minimum,
+                          max_mm=float("inf") if prompt.maximum is None else prompt.maximum,
+                          expected_mm=expected if prompt.unit == "mm" else None, tolerance_mm=TOLERANCE_MM)
+
+
+def parse_entry(prompt: Prompt, text: str) -> tuple[float, str]:
+    """The reading typed for ``prompt`` and a confirmation question ('' when plausible).
+
+    Lengths (``prompt.unit == "mm"``) accept what a calliper or a wedge types (``12,34``, ``0.4865 in``); other
+    units accept a number with an optional trailing unit equal to the prompt's (``-1,5 deg``).
+
+    Raises
+    ------
+    ConfigError
+        Naming the prompt, the text or value, and what was expected.
+    """
+    if prompt.unit != "mm" and prompt.unit:
+        text = re.sub(rf"\s*{re.escape(prompt.unit)}\s*$", "", text.strip())
+        if re.search(r"[A-Za-z\"]", text):
+            raise ConfigError(f"{prompt.text}: {text!r} is not a reading in {prompt.unit}; expected a number")
+    try:
+        value = parse_length(text, source=prompt.text)
+    except MalformedSample as exc:
+        raise ConfigError(str(exc)) from exc
+    try:
+        question = _request(prompt).check(value)
+    except ConfigError as exc:
+        raise ConfigError(str(exc).replace(" mm", f" {prompt.unit}") if prompt.unit != "mm" else str(exc)) from exc
+    return value, question
+
+
+class CalliperDialog(QDialog):
+    """Asks for one reading; emits ``reading_entered(value)`` once the entry is valid (and confirmed).
+
+    Cancelling emits ``cancelled``: the run then cannot go on (the runner refuses a prompt without a value).
+    """
+
+    reading_entered = Signal(float)
+    cancelled = Signal()
+
+    def __init__(self, prompt: Prompt, parent: QWidget | None = None) -> None:
+        super().__init__(parent)
+        self.prompt = prompt
+        self._pending_confirmation: float | None = None
+        self.setWindowTitle("Calliper reading")
+        self.setObjectName("calliperDialog")
+        layout = QVBoxLayout(self)
+        title = QLabel(f"<b>{prompt.text}</b>")
+        title.setWordWrap(True)
+        layout.addWidget(title)
+        form = QFormLayout()
+        bounds = [f"{b:g}" if b is not None else "…" for b in (prompt.minimum, prompt.maximum)]
+        form.addRow("Field", QLabel(f"{prompt.field} [{prompt.unit}]"))
+        form.addRow("Range", QLabel(f"{bounds[0]} to {bounds[1]} {prompt.unit}"))
+        if prompt.commanded:
+            form.addRow("Commanded", QLabel(", ".join(f"{k} = {v:g}" for k, v in prompt.commanded.items())))
+        self.entry = QLineEdit()
+        self.entry.setObjectName("readingEntry")
+        self.entry.setPlaceholderText("type the reading or use the calliper's data button, then Enter")
+        form.addRow("Reading", self.entry)
+        layout.addLayout(form)
+        self.error = QLabel("")
+        self.error.setObjectName("readingError")
+        self.error.setStyleSheet("color: #b00020")
+        self.error.setWordWrap(True)
+        layout.addWidget(self.error)
+        buttons = QDialogButtonBox(QDialogButtonBox.StandardButton.Ok | QDialogButtonBox.StandardButton.Cancel)
+        buttons.accepted.connect(self.submit)
+        buttons.rejected.connect(self.reject)
+        layout.addWidget(buttons)
+        self.entry.returnPressed.connect(self.submit)  # a keyboard wedge ends its reading with Enter
+        self.setWindowModality(Qt.WindowModality.WindowModal)
+        self.entry.setFocus()
+
+    def submit(self) -> None:
+        """Validate the entry; emit the reading and close, or show why it was refused."""
+        try:
+            value, question = parse_entry(self.prompt, self.entry.text())
+        except ConfigError as exc:
+            self._pending_confirmation = None
+            self.error.setText(str(exc))
+            self.entry.selectAll()
+            return
+        if question and self._pending_confirmation != value:
+            self._pending_confirmation = value
+            self.error.setText(question.replace("keep it? [y/N] ", "press Enter again to keep it"))
+            return
+        self.error.setText("")
+        self.reading_entered.emit(value)
+        self.done(QDialog.DialogCode.Accepted)
+
+    def reject(self) -> None:
+        self.cancelled.emit()
+        super().reject()

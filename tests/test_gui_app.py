@@ -1,0 +1,142 @@
+"""The desktop window end to end on the simulated pkm5: a campaign started from the window, live view, calliper
+prompt answered in the dialog, pause then abort, closing mid-run and resuming, results browser, screenshot."""
+
+from __future__ import annotations
+
+import os
+
+os.environ["QT_QPA_PLATFORM"] = "offscreen"
+
+import numpy as np  # noqa: E402
+import pytest  # noqa: E402
+
+pytest.importorskip("PySide6")
+
+from gui_support import application, wait_for  # noqa: E402
+from PySide6.QtCore import Qt  # noqa: E402
+from PySide6.QtGui import QImage  # noqa: E402
+from PySide6.QtTest import QTest  # noqa: E402
+
+from bench.gui.app import MainWindow  # noqa: E402
+from bench.gui.campaign_panel import EXAMPLES  # noqa: E402
+from bench.protocols import RunState  # noqa: E402
+from bench.store import Store, tidy_table  # noqa: E402
+
+RUN_TIMEOUT_S = 45.0
+
+
+@pytest.fixture
+def window(tmp_path):
+    application()
+    window = MainWindow(tmp_path / "bench.db", tmp_path / "reports", open_files=False)
+    window.show()
+    yield window
+    worker = window.campaign_panel.worker
+    window.close()  # stops any run at its next checkpoint and waits for it
+    if worker is not None:
+        assert worker.wait(int(RUN_TIMEOUT_S * 1000)), "campaign worker still running after the window closed"
+
+
+def _start(window: MainWindow, protocol_file: str, **values: str):
+    panel = window.campaign_panel
+    panel.choose_file(EXAMPLES / protocol_file)
+    for name, text in values.items():
+        panel.form.set_value(name, text)
+    assert panel.form.protocol is not None, panel.preflight.text()
+    QTest.mouseClick(panel.buttons["start"], Qt.MouseButton.LeftButton)
+    assert panel.worker is not None, window.log.toPlainText()
+    return panel.worker
+
+
+def _wait_idle(window: MainWindow) -> None:
+    wait_for(lambda: window.campaign_panel.worker is None, RUN_TIMEOUT_S, "the campaign to end")
+
+
+def test_campaign_from_the_window_stores_every_sample_and_shows_it(window, tmp_path):
+    _start(window, "iso9283_pose_quick.toml", cycles="2")
+    _wait_idle(window)
+    with Store(tmp_path / "bench.db") as store:
+        (run,) = store.runs()
+        table = tidy_table(store, run.id)
+    assert run.status == "completed" and run.n_samples == 10  # 5 poses x 2 cycles x 1 velocity
+    assert window.campaign_panel.progress.value() == 10
+    assert "run 1 completed (10 samples)" in window.log.toPlainText()
+    # live view: barycentre and RP per pose equal an independent computation on the stored table
+    shown = window.live_view.pose_statistics()
+    assert sorted(shown) == ["P1", "P2", "P3", "P4", "P5"]
+    for pose, rows in table.groupby("pose"):
+        xy = rows[["x_mm", "y_mm"]].to_numpy()
+        barycentre = xy.mean(axis=0) - rows[["cmd_x_mm", "cmd_y_mm"]].to_numpy()[0]
+        distances = np.linalg.norm(xy - xy.mean(axis=0), axis=1)
+        assert shown[pose]["APx_mm"] == pytest.approx(barycentre[0], abs=1e-9)
+        assert shown[pose]["APy_mm"] == pytest.approx(barycentre[1], abs=1e-9)
+        assert shown[pose]["RP_mm"] == pytest.approx(distances.mean() + 3 * distances.std(ddof=1), abs=1e-9)
+    # results browser lists the run with its status
+    browser = window.results
+    assert [r.id for r in browser.refresh()] == [run.id]
+    assert [browser.table.item(0, c).text() for c in (0, 4, 5)] == [str(run.id), "completed", "10"]
+    # a screenshot of the main window, not blank
+    shot = tmp_path / "main_window.png"
+    window.live_view.redraw()
+    QTest.qWait(50)
+    assert window.grab().save(str(shot))
+    image = QImage(str(shot))
+    assert image.width() >= 1000 and image.height() >= 700
+    colours = {image.pixel(x, y) for x in range(0, image.width(), 7) for y in range(0, image.height(), 7)}
+    assert len(colours) > 50  # widgets, text and plotted points, not a uniform fill
+    if os.environ.get("BENCH_GUI_SCREENSHOT"):
+        window.grab().save(os.environ["BENCH_GUI_SCREENSHOT"])
+
+
+def test_calliper_prompt_answered_in_the_dialog_then_pause_and_abort(window, tmp_path):
+    worker = _start(window, "dissertation_pose.toml", variant="alpha", cycles="2", settle_s="0")
+    wait_for(lambda: window.calliper_dialog is not None, RUN_TIMEOUT_S, "the calliper dialog")
+    dialog = window.calliper_dialog
+    assert "calliper tilt alpha" in dialog.prompt.text and dialog.prompt.field == "a_deg"
+    for bad, message in (("abc", "not a reading in deg"), ("50", "expected -45 to 45 deg")):
+        dialog.entry.setText(bad)
+        QTest.keyClick(dialog.entry, Qt.Key.Key_Return)
+        assert message in dialog.error.text() and dialog.isVisible()
+    QTest.mouseClick(window.campaign_panel.buttons["pause"], Qt.MouseButton.LeftButton)
+    dialog.entry.clear()
+    QTest.keyClicks(dialog.entry, "-1,5 deg")  # a keyboard wedge types the reading, then Enter
+    QTest.keyClick(dialog.entry, Qt.Key.Key_Return)
+    wait_for(lambda: worker.runner is not None and worker.runner.state is RunState.PAUSED, RUN_TIMEOUT_S,
+             "the run to pause at the checkpoint after the reading")
+    QTest.mouseClick(window.campaign_panel.buttons["abort"], Qt.MouseButton.LeftButton)
+    _wait_idle(window)
+    with Store(tmp_path / "bench.db") as store:
+        (run,) = store.runs()
+        samples = store.samples(run.id)
+    assert (run.status, run.reason) == ("aborted", "aborted by the operator")
+    assert [s.kind for s in samples] == ["pose", "tilt"]
+    tilt = samples[1]
+    assert tilt.values == {"a_deg": -1.5, "cmd_a_deg": dialog.prompt.commanded["cmd_a_deg"]}
+    assert tilt.raw == {"field": "a_deg", "entered": -1.5} and (tilt.pose, tilt.cycle) == (dialog.prompt.pose, 1)
+
+
+def test_closing_mid_run_stops_at_a_checkpoint_and_the_run_resumes_from_the_browser(window, tmp_path):
+    window.robot_panel.speed_factor.setValue(60)
+    _start(window, "iso9283_pose_quick.toml", cycles="3")
+    wait_for(lambda: window.campaign_panel.progress.value() >= 2, RUN_TIMEOUT_S, "two stored samples")
+    window.close()
+    assert window.campaign_panel.worker is None or window.campaign_panel.worker.isFinished()
+    with Store(tmp_path / "bench.db") as store:
+        (run,) = store.runs()
+    assert run.status == "aborted" and "window closed" in run.reason and "at checkpoint" in run.reason
+    assert 2 <= run.n_samples < 15 and run.n_samples % 5 == 0  # ended at a cycle boundary: nothing lost
+    QTest.qWait(100)  # deliver the signals queued while the window waited for the worker
+    assert run.n_samples == window.campaign_panel.progress.value()
+    # a new window on the same store resumes the run from the results browser
+    again = MainWindow(tmp_path / "bench.db", tmp_path / "reports", open_files=False)
+    try:
+        again.results.select_runs([run.id])
+        again.results.findChild(type(again.campaign_panel.buttons["start"]), "resultsResume").click()
+        wait_for(lambda: again.campaign_panel.worker is None, RUN_TIMEOUT_S, "the resumed run to end")
+        with Store(tmp_path / "bench.db") as store:
+            resumed = store.run(run.id)
+            steps = sorted(store.stored_steps(run.id))
+        assert (resumed.status, resumed.n_samples) == ("completed", 15)
+        assert len(steps) == len(set(steps)) == 15
+    finally:
+        again.close()
