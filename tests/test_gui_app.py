@@ -7,20 +7,20 @@ import os
 
 os.environ["QT_QPA_PLATFORM"] = "offscreen"
 
-import numpy as np  # noqa: E402
-import pytest  # noqa: E402
+import numpy as np
+import pytest
 
 pytest.importorskip("PySide6")
 
-from gui_support import application, wait_for  # noqa: E402
-from PySide6.QtCore import Qt  # noqa: E402
-from PySide6.QtGui import QImage  # noqa: E402
-from PySide6.QtTest import QTest  # noqa: E402
+from gui_support import application, wait_for
+from PySide6.QtCore import Qt
+from PySide6.QtGui import QImage
+from PySide6.QtTest import QTest
 
-from bench.gui.app import MainWindow  # noqa: E402
-from bench.gui.campaign_panel import EXAMPLES  # noqa: E402
-from bench.protocols import RunState  # noqa: E402
-from bench.store import Store, tidy_table  # noqa: E402
+from bench.gui.app import MainWindow
+from bench.gui.campaign_panel import EXAMPLES
+from bench.protocols import RunState
+from bench.store import Store, tidy_table
 
 RUN_TIMEOUT_S = 45.0
 
@@ -75,6 +75,11 @@ def test_campaign_from_the_window_stores_every_sample_and_shows_it(window, tmp_p
     browser = window.results
     assert [r.id for r in browser.refresh()] == [run.id]
     assert [browser.table.item(0, c).text() for c in (0, 4, 5)] == [str(run.id), "completed", "10"]
+    # the report of bench.reports, written from the browser
+    browser.select_runs([run.id])
+    report = browser.open_report()
+    assert report == tmp_path / "reports" / f"report_run{run.id}.html" and report.is_file()
+    assert (tmp_path / "reports" / f"report_run{run.id}.pdf").is_file()
     # a screenshot of the main window, not blank
     shot = tmp_path / "main_window.png"
     window.live_view.redraw()

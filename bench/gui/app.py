@@ -154,7 +154,7 @@ class MainWindow(QMainWindow):
         dialog.open()
         return dialog
 
-    def closeEvent(self, event: QCloseEvent) -> None:  # noqa: N802 - Qt's name
+    def closeEvent(self, event: QCloseEvent) -> None:
         """Stop a run at its next checkpoint (resumable, nothing stored is lost), then release the robot."""
         if self.campaign_panel.worker is not None:
             self.say("window closing: stopping the run at the next checkpoint")

@@ -13,7 +13,16 @@ from __future__ import annotations
 import re
 
 from PySide6.QtCore import Qt, Signal
-from PySide6.QtWidgets import QDialog, QDialogButtonBox, QFormLayout, QLabel, QLineEdit, QVBoxLayout, QWidget
+from PySide6.QtGui import QKeyEvent
+from PySide6.QtWidgets import (
+    QDialog,
+    QDialogButtonBox,
+    QFormLayout,
+    QLabel,
+    QLineEdit,
+    QVBoxLayout,
+    QWidget,
+)
 
 from bench.errors import ConfigError
 from bench.protocols import Prompt
@@ -118,6 +127,11 @@ class CalliperDialog(QDialog):
         self.error.setText("")
         self.reading_entered.emit(value)
         self.done(QDialog.DialogCode.Accepted)
+
+    def keyPressEvent(self, event: QKeyEvent) -> None:
+        # Enter belongs to the entry field (one submission per Enter), never to the dialog's default button
+        if event.key() not in (Qt.Key.Key_Return, Qt.Key.Key_Enter):
+            super().keyPressEvent(event)
 
     def reject(self) -> None:
         self.cancelled.emit()

@@ -247,7 +247,6 @@ class CampaignPanel(QGroupBox):
 
     def _run_started(self, run_id: int, total: int) -> None:
         self._started_s = time.monotonic()
-        self._done_at_start = None
         self.progress.setRange(0, max(total, 1))
         self.progress.setValue(0)
         self.eta.setText(f"run {run_id} started")

@@ -11,18 +11,14 @@ from __future__ import annotations
 
 from collections import defaultdict
 
-import matplotlib
+import numpy as np
+from matplotlib.backends.backend_qtagg import FigureCanvasQTAgg
+from matplotlib.figure import Figure
+from matplotlib.patches import Circle
+from PySide6.QtCore import QTimer
+from PySide6.QtWidgets import QLabel, QVBoxLayout, QWidget
 
-matplotlib.use("QtAgg")
-
-import numpy as np  # noqa: E402
-from matplotlib.backends.backend_qtagg import FigureCanvasQTAgg  # noqa: E402
-from matplotlib.figure import Figure  # noqa: E402
-from matplotlib.patches import Circle  # noqa: E402
-from PySide6.QtCore import QTimer  # noqa: E402
-from PySide6.QtWidgets import QLabel, QVBoxLayout, QWidget  # noqa: E402
-
-from bench.metrology.iso9283 import pose_accuracy, pose_repeatability  # noqa: E402
+from bench.metrology.iso9283 import pose_accuracy, pose_repeatability
 
 __all__ = ["REDRAW_MS", "LiveView"]
 
@@ -41,6 +37,7 @@ class LiveView(QWidget):
         self.pose_axes, self.stream_axes = self.figure.subplots(1, 2, width_ratios=(1, 1.4))
         self.summary = QLabel("no samples yet")
         self.summary.setObjectName("liveSummary")
+        self.summary.setWordWrap(True)
         layout = QVBoxLayout(self)
         layout.addWidget(self.canvas, 1)
         layout.addWidget(self.summary)

@@ -14,7 +14,14 @@ import tomllib
 from typing import Any
 
 from PySide6.QtCore import Signal
-from PySide6.QtWidgets import QCheckBox, QComboBox, QFormLayout, QLabel, QLineEdit, QWidget
+from PySide6.QtWidgets import (
+    QCheckBox,
+    QComboBox,
+    QFormLayout,
+    QLabel,
+    QLineEdit,
+    QWidget,
+)
 
 from bench.errors import ConfigError
 from bench.protocols import Protocol, protocol_from_config
@@ -122,8 +129,7 @@ class ParameterForm(QWidget):
     def validate(self) -> Protocol | None:
         """Check every field, then the whole protocol; emit ``changed`` and return the protocol or None."""
         values, messages = self.values(), []
-        for name, widget in self.fields.items():
-            error = self.errors[name]
+        for name, error in self.errors.items():
             try:
                 if name in values:
                     self._parameter(name).convert(values[name], self.source)

@@ -13,7 +13,6 @@ import logging
 from collections.abc import Callable
 from typing import Any
 
-import numpy as np
 from PySide6.QtCore import QThread, Signal
 from PySide6.QtWidgets import (
     QComboBox,
@@ -30,8 +29,12 @@ from PySide6.QtWidgets import (
 )
 
 from bench.errors import BenchError
-from bench.protocols.kinematics import DEFAULT_SINGULARITY_THRESHOLD, ROBOT_MODELS, robot_model
 from bench.gui.worker import RigSpec
+from bench.protocols.kinematics import (
+    DEFAULT_SINGULARITY_THRESHOLD,
+    ROBOT_MODELS,
+    robot_model,
+)
 
 __all__ = ["RobotPanel", "check_target", "open_mover"]
 

@@ -27,7 +27,7 @@ from typing import Any
 from PySide6.QtCore import QThread, Signal
 
 from bench.errors import BenchError
-from bench.protocols import Protocol, Prompt, Runner, RunState, TransitionError
+from bench.protocols import Prompt, Protocol, Runner, RunState, TransitionError
 from bench.protocols.plan import iterate
 from bench.protocols.runner import step_stores_sample
 from bench.store import Store
@@ -163,7 +163,7 @@ class CampaignWorker(QThread):
 
     # ---- the thread ------------------------------------------------------------------------------------------
 
-    def run(self) -> None:  # noqa: D102 - QThread entry point
+    def run(self) -> None:
         from bench.commands.campaign import build_rig
 
         with Store(self.store_path) as store:
