@@ -142,6 +142,8 @@ def test_closing_mid_run_stops_at_a_checkpoint_and_the_run_resumes_from_the_brow
             resumed = store.run(run.id)
             steps = sorted(store.stored_steps(run.id))
         assert (resumed.status, resumed.n_samples) == ("completed", 15)
+        assert again.campaign_panel.progress.value() == 15  # started at the stored count
+        assert all(stats["n"] == 3 for stats in again.live_view.pose_statistics().values())
         assert len(steps) == len(set(steps)) == 15
     finally:
         again.close()

@@ -33,6 +33,7 @@ from bench.gui.results_browser import ResultsBrowser
 from bench.gui.robot_panel import RobotPanel
 from bench.gui.worker import CampaignWorker
 from bench.protocols import Prompt, RunResult
+from bench.store import Store
 
 __all__ = ["MainWindow", "launch"]
 
@@ -130,9 +131,14 @@ class MainWindow(QMainWindow):
         worker.finished.connect(lambda: self.robot_panel.setEnabled(True))
         self.tabs.setCurrentWidget(self.live_view)
 
-    def _run_started(self, run_id: int, total: int) -> None:
+    def _run_started(self, run_id: int, total: int, done: int) -> None:
         self.live_view.clear(f"run {run_id}")
-        self.say(f"run {run_id} started ({total} samples to take)")
+        self.say(f"run {run_id} started ({total - done} of {total} samples to take)")
+        if done:  # a resumed run: show what is already stored
+            with Store(self.store_path) as store:
+                for sample in store.samples(run_id):
+                    self.live_view.add_sample({"kind": sample.kind, "pose": sample.pose, "t_s": sample.t_s,
+                                               "values": sample.values})
         self.results.refresh()
 
     def _run_finished(self, result: RunResult) -> None:

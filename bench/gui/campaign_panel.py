@@ -75,6 +75,7 @@ class CampaignPanel(QGroupBox):
         self.summary: PlanSummary | None = None
         self.queue: list[Protocol] = []
         self._started_s = 0.0
+        self._done_at_start = 0
         layout = QVBoxLayout(self)
         layout.addLayout(self._file_row())
         self.form = ParameterForm()
@@ -245,10 +246,11 @@ class CampaignPanel(QGroupBox):
         if self.worker is not None:
             self.worker.request(action)
 
-    def _run_started(self, run_id: int, total: int) -> None:
+    def _run_started(self, run_id: int, total: int, done: int) -> None:
         self._started_s = time.monotonic()
+        self._done_at_start = done
         self.progress.setRange(0, max(total, 1))
-        self.progress.setValue(0)
+        self.progress.setValue(done)
         self.eta.setText(f"run {run_id} started")
 
     def _sample_stored(self, run_id: int, sample: dict) -> None:
@@ -258,9 +260,10 @@ class CampaignPanel(QGroupBox):
     def _eta_text(self) -> str:
         done, total = self.progress.value(), self.progress.maximum()
         elapsed = time.monotonic() - self._started_s
-        if done <= 0:
+        taken = done - self._done_at_start  # this session's rate sets the ETA (a resumed run started part-way)
+        if taken <= 0:
             return f"{done} / {total} samples"
-        remaining = elapsed / done * (total - done)
+        remaining = elapsed / taken * (total - done)
         return f"{done} / {total} samples, elapsed {format_duration(elapsed)}, ETA {format_duration(remaining)}"
 
     def _worker_finished(self) -> None:

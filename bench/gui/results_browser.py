@@ -82,7 +82,7 @@ class ResultsBrowser(QGroupBox):
 
     def selected_run_ids(self) -> list[int]:
         rows = sorted({index.row() for index in self.table.selectionModel().selectedRows()})
-        return [int(self.table.item(row, 0).text()) for row in rows]
+        return sorted(int(self.table.item(row, 0).text()) for row in rows)  # oldest first: "before" vs "after"
 
     def select_runs(self, run_ids: list[int]) -> None:
         self.table.clearSelection()

@@ -99,7 +99,7 @@ class CampaignWorker(QThread):
     Signals carry plain data; the window never calls the runner except through :meth:`request`.
     """
 
-    run_started = Signal(int, int)  #: run id, samples the run will store in all
+    run_started = Signal(int, int, int)  #: run id, samples the run will store in all, samples already stored
     sample_stored = Signal(int, dict)  #: run id, {"step_index", "kind", "pose", "cycle", "t_s", "values"}
     state_changed = Signal(str)  #: the runner's state (running, paused, stopping, ...)
     prompt_requested = Signal(object)  #: a :class:`Prompt` waiting for a reading
@@ -193,8 +193,9 @@ class CampaignWorker(QThread):
             if isinstance(job, int):
                 from bench.protocols import protocol_from_config
 
-                self._total = count_samples(protocol_from_config(store.run(job).config))
-                self.run_started.emit(job, self._total)
+                record = store.run(job)
+                self._total = count_samples(protocol_from_config(record.config, source=f"run {job}"))
+                self.run_started.emit(job, self._total, record.n_samples)
                 result = self.runner.resume_run(job)
             else:
                 self._total = count_samples(job)
@@ -206,7 +207,7 @@ class CampaignWorker(QThread):
         self.run_finished.emit(result)
 
     def _started(self, run_id: int) -> None:
-        self.run_started.emit(run_id, self._total)
+        self.run_started.emit(run_id, self._total, 0)
 
     def _stored(self, run_id: int, step_index: int, fields: dict[str, Any]) -> None:
         sample = {"step_index": step_index, "kind": fields.get("kind", "pose"), "pose": fields.get("pose"),
