@@ -130,3 +130,33 @@ def test_jog_targets_are_checked_before_the_jog_button_allows_a_move():
 def test_bench_gui_is_a_command():
     args = build_parser().parse_args(["gui", "--store", "x.db", "--reports", "out"])
     assert (args.group, args.store, args.reports) == ("gui", "x.db", "out")
+
+
+def test_an_instruction_prompt_is_confirmed_with_enter():
+    application()
+    dialog = CalliperDialog(Prompt("Mount a payload of 2 kg on the end effector, then confirm",
+                                   conditions={"load_kg": 2.0}))
+    confirmed: list[bool] = []
+    dialog.confirmed.connect(lambda: confirmed.append(True))
+    dialog.show()
+    assert dialog.windowTitle() == "Operator confirmation"
+    QTest.keyClick(dialog, Qt.Key.Key_Return)
+    assert confirmed == [True] and not dialog.isVisible()
+
+
+def test_on_hardware_the_window_answers_every_prompt(tmp_path):
+    """A rig without a simulated operator gets the window as its operator: readings and confirmations."""
+    import threading
+
+    from bench.gui.worker import CampaignWorker, RigSpec, WindowOperator
+
+    application()
+    worker = CampaignWorker(str(tmp_path / "bench.db"), [], RigSpec(port="/dev/null"))
+    asked: list[Prompt] = []
+    worker.prompt_requested.connect(lambda prompt: (asked.append(prompt), worker.answer(201.25)))
+    operator = WindowOperator(worker)
+    answers: list[float | None] = []
+    thread = threading.Thread(target=lambda: answers.extend(operator.ask(p) for p in (LEG, Prompt("Confirm"))))
+    thread.start()
+    wait_for(lambda: not thread.is_alive(), 10, "the operator's answers")
+    assert answers == [201.25, None] and [p.text for p in asked] == [LEG.text, "Confirm"]

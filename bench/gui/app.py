@@ -153,8 +153,10 @@ class MainWindow(QMainWindow):
         dialog = CalliperDialog(prompt, self)
         if worker is not None:
             dialog.reading_entered.connect(worker.answer)
+            dialog.confirmed.connect(lambda: worker.answer(0.0))  # any value: a confirmation returns None
             dialog.cancelled.connect(lambda: worker.answer(None))
         dialog.reading_entered.connect(lambda value: self.say(f"{prompt.field} = {value:g} {prompt.unit}"))
+        dialog.confirmed.connect(lambda: self.say(f"confirmed: {prompt.text}"))
         dialog.finished.connect(lambda _: setattr(self, "calliper_dialog", None))
         self.calliper_dialog = dialog
         dialog.open()

@@ -5,7 +5,8 @@ units for lengths) and checked against the prompt's bounds with :class:`bench.se
 so the window accepts exactly what ``bench``'s terminal prompt accepts. A keyboard-wedge calliper types its reading
 followed by Enter into the focused field, which submits it. A length far from the commanded value (more than
 :data:`TOLERANCE_MM`) needs the same value submitted a second time. The reading is stored by the runner the moment
-the dialog hands it over.
+the dialog hands it over. A prompt without a field (an instruction, e.g. "mount 2 kg, then confirm") shows
+the instruction with OK / Cancel only.
 """
 
 from __future__ import annotations
@@ -75,28 +76,24 @@ class CalliperDialog(QDialog):
     """
 
     reading_entered = Signal(float)
+    confirmed = Signal()  #: a prompt without a field (an instruction such as "mount 2 kg") was confirmed
     cancelled = Signal()
 
     def __init__(self, prompt: Prompt, parent: QWidget | None = None) -> None:
         super().__init__(parent)
         self.prompt = prompt
         self._pending_confirmation: float | None = None
-        self.setWindowTitle("Calliper reading")
+        self.setWindowTitle("Calliper reading" if prompt.field else "Operator confirmation")
         self.setObjectName("calliperDialog")
         layout = QVBoxLayout(self)
         title = QLabel(f"<b>{prompt.text}</b>")
         title.setWordWrap(True)
         layout.addWidget(title)
         form = QFormLayout()
-        bounds = [f"{b:g}" if b is not None else "…" for b in (prompt.minimum, prompt.maximum)]
-        form.addRow("Field", QLabel(f"{prompt.field} [{prompt.unit}]"))
-        form.addRow("Range", QLabel(f"{bounds[0]} to {bounds[1]} {prompt.unit}"))
-        if prompt.commanded:
-            form.addRow("Commanded", QLabel(", ".join(f"{k} = {v:g}" for k, v in prompt.commanded.items())))
         self.entry = QLineEdit()
         self.entry.setObjectName("readingEntry")
-        self.entry.setPlaceholderText("type the reading or use the calliper's data button, then Enter")
-        form.addRow("Reading", self.entry)
+        if prompt.field is not None:
+            self._reading_rows(form)
         layout.addLayout(form)
         self.error = QLabel("")
         self.error.setObjectName("readingError")
@@ -111,8 +108,22 @@ class CalliperDialog(QDialog):
         self.setWindowModality(Qt.WindowModality.WindowModal)
         self.entry.setFocus()
 
+    def _reading_rows(self, form: QFormLayout) -> None:
+        prompt = self.prompt
+        bounds = [f"{b:g}" if b is not None else "…" for b in (prompt.minimum, prompt.maximum)]
+        form.addRow("Field", QLabel(f"{prompt.field} [{prompt.unit}]"))
+        form.addRow("Range", QLabel(f"{bounds[0]} to {bounds[1]} {prompt.unit}"))
+        if prompt.commanded:
+            form.addRow("Commanded", QLabel(", ".join(f"{k} = {v:g}" for k, v in prompt.commanded.items())))
+        self.entry.setPlaceholderText("type the reading or use the calliper's data button, then Enter")
+        form.addRow("Reading", self.entry)
+
     def submit(self) -> None:
         """Validate the entry; emit the reading and close, or show why it was refused."""
+        if self.prompt.field is None:
+            self.confirmed.emit()
+            self.done(QDialog.DialogCode.Accepted)
+            return
         try:
             value, question = parse_entry(self.prompt, self.entry.text())
         except ConfigError as exc:
@@ -132,6 +143,8 @@ class CalliperDialog(QDialog):
         # Enter belongs to the entry field (one submission per Enter), never to the dialog's default button
         if event.key() not in (Qt.Key.Key_Return, Qt.Key.Key_Enter):
             super().keyPressEvent(event)
+        elif self.prompt.field is None:
+            self.submit()
 
     def reject(self) -> None:
         self.cancelled.emit()

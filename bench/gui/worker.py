@@ -32,7 +32,7 @@ from bench.protocols.plan import iterate
 from bench.protocols.runner import step_stores_sample
 from bench.store import Store
 
-__all__ = ["CampaignWorker", "ObservedStore", "PromptCancelled", "RigSpec", "count_samples"]
+__all__ = ["CampaignWorker", "ObservedStore", "PromptCancelled", "RigSpec", "WindowOperator", "count_samples"]
 
 _log = logging.getLogger(__name__)
 
@@ -185,8 +185,11 @@ class CampaignWorker(QThread):
                     self.runner = None
 
     def _run_job(self, job: Protocol | int, rig: Any, store: ObservedStore) -> None:
-        if not self.rig_spec.simulated_calliper and hasattr(rig.operator, "answer"):
-            rig.operator.answer = self.answer_prompt
+        if hasattr(rig.operator, "answer"):  # the simulated operator: it also tells the simulator the payload
+            if not self.rig_spec.simulated_calliper:
+                rig.operator.answer = self.answer_prompt
+        else:  # hardware: the person at the window answers instead of the terminal
+            rig.operator = WindowOperator(self)
         self.runner = Runner(rig, store, on_pause=self._on_pause)
         self.state_changed.emit("running")
         try:
@@ -227,8 +230,11 @@ class CampaignWorker(QThread):
                 continue
         self.state_changed.emit(runner.state.value)
 
-    def answer_prompt(self, prompt: Prompt) -> float:
-        """The simulated operator's ``answer``: ask the window for the reading and wait for it (worker thread)."""
+    def answer_prompt(self, prompt: Prompt) -> float | None:
+        """Ask the window for the reading (or, when ``prompt.field`` is None, the confirmation) and wait for it.
+
+        Called in the worker thread, by the simulated operator (as its ``answer``) or by :class:`WindowOperator`.
+        """
         while not self._answers.empty():  # a stale cancellation from an earlier prompt
             self._answers.get_nowait()
         if self._cancelled:
@@ -241,6 +247,17 @@ class CampaignWorker(QThread):
             except queue.Empty:
                 continue
             if value is None:
-                raise PromptCancelled(f"prompt {prompt.text!r}: cancelled after {time.monotonic() - started:.0f} s "
-                                      f"with no reading for {prompt.field}")
-            return float(value)
+                wanted = f"no reading for {prompt.field}" if prompt.field else "not confirmed"
+                raise PromptCancelled(f"prompt {prompt.text!r}: cancelled after {time.monotonic() - started:.0f} s, "
+                                      f"{wanted}")
+            return None if prompt.field is None else float(value)
+
+
+class WindowOperator:
+    """The rig's operator on hardware: every prompt (reading or confirmation) is answered in the window."""
+
+    def __init__(self, worker: CampaignWorker) -> None:
+        self.worker = worker
+
+    def ask(self, prompt: Prompt) -> float | None:
+        return self.worker.answer_prompt(prompt)
