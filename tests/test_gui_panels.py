@@ -105,6 +105,8 @@ def test_jog_targets_are_checked_before_the_jog_button_allows_a_move():
         assert check_target("pkm5", (88.649, 0.0, 300.937, 0.0, 0.0))[0]
         reachable, text = check_target("pkm5", (400.0, 0.0, 300.0, 0.0, 0.0))
         assert not reachable and text.startswith("NOT reachable")
+        assert check_target("delta4", (0.0, 0.0, -200.0))[0]
+        assert check_target("delta4", (0.0, 0.0, 100.0)) == (False, "NOT reachable: above_knee (leg 1)")
         assert not panel.jog_button.isEnabled()  # nothing connected
         QTest.mouseClick(panel.connect_button, Qt.MouseButton.LeftButton)
         wait_for(lambda: panel.mover is not None and not panel.busy(), 30, "the simulator connection")
