@@ -84,3 +84,18 @@ def test_closing_with_a_reading_pending_keeps_every_stored_sample(window, tmp_pa
     # the runner has no way to withdraw a prompt: the cancelled reading ends the run as failed, with the reason
     assert run.status == "failed" and "PromptCancelled" in run.reason and "b_deg" in run.reason
     assert [s.kind for s in samples[run.id]] == ["pose"]
+
+
+def test_a_rig_that_cannot_start_is_reported_and_nothing_is_stored(window, tmp_path):
+    window.robot_panel.connection.setCurrentText("serial port")
+    window.robot_panel.port.setText(str(tmp_path / "no-such-port"))
+    window.campaign_panel.choose_file(EXAMPLES / "iso9283_pose_quick.toml")
+    window.campaign_panel.start()
+    wait_for(lambda: window.campaign_panel.worker is None, RUN_TIMEOUT_S, "the worker to give up")
+    assert "--port: hardware runs support the pkm5 with --mouse-xy and --mouse-xz" in window.log.toPlainText()
+    window.robot_panel.mouse_xy.setText(str(tmp_path / "xy"))
+    window.robot_panel.mouse_xz.setText(str(tmp_path / "xz"))
+    window.campaign_panel.start()
+    wait_for(lambda: window.campaign_panel.worker is None, RUN_TIMEOUT_S, "the worker to give up")
+    assert f"--port {tmp_path / 'no-such-port'}: cannot open it" in window.log.toPlainText()
+    assert _runs(tmp_path)[0] == []

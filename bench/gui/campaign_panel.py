@@ -221,6 +221,7 @@ class CampaignPanel(QGroupBox):
     def start(self, jobs: list[Protocol | int] | None = None) -> CampaignWorker | None:
         """Run the queue (or the protocol in the form when the queue is empty), or resume stored runs (ids)."""
         if self.worker is not None:
+            self.message.emit("a campaign is running: wait for it to end")
             return None
         if jobs is None:
             if not self.queue and not self.add_to_queue():

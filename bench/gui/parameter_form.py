@@ -63,6 +63,8 @@ class ParameterForm(QWidget):
         self.errors: dict[str, QLabel] = {}
         self.protocol: Protocol | None = None
         self._base: dict[str, Any] = {}
+        self.fixed: dict[str, Any] = {}
+        self.source = "parameters"
 
     def load(self, protocol: Protocol, *, fixed: dict[str, Any] | None = None) -> None:
         """Show ``protocol``'s parameters; ``fixed`` values (the robot chosen in the robot panel) are not editable."""

@@ -169,7 +169,7 @@ class CampaignWorker(QThread):
         with Store(self.store_path) as store:
             observed = ObservedStore(store, self._started, self._stored)
             while self.jobs and not self._cancelled:
-                job = self.jobs.pop(0)
+                job, robot = self.jobs.pop(0), "robot"
                 try:
                     robot = store.run(job).robot if isinstance(job, int) else job.robot
                     stored = store.run(job).settings if isinstance(job, int) else None
@@ -177,6 +177,10 @@ class CampaignWorker(QThread):
                     rig = build_rig(self.rig_spec.namespace(), robot, store, stored=stored)
                 except BenchError as exc:
                     self.failed.emit(str(exc))
+                    continue
+                except Exception as exc:  # noqa: BLE001 - reported in the window, never a silent thread death
+                    _log.exception("rig for %s could not start", robot)
+                    self.failed.emit(f"rig for {robot}: {type(exc).__name__}: {exc}")
                     continue
                 try:
                     self._run_job(job, rig, observed)
