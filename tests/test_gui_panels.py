@@ -162,3 +162,24 @@ def test_on_hardware_the_window_answers_every_prompt(tmp_path):
     thread.start()
     wait_for(lambda: not thread.is_alive(), 10, "the operator's answers")
     assert answers == [201.25, None] and [p.text for p in asked] == [LEG.text, "Confirm"]
+
+
+def test_bench_gui_opens_the_window_on_the_store_and_returns_when_it_closes(tmp_path):
+    from PySide6.QtCore import QTimer
+
+    from bench.cli import main
+    from bench.gui.app import MainWindow
+
+    app = application()
+    opened: list[str] = []
+
+    def close_windows() -> None:
+        for widget in app.topLevelWidgets():
+            if isinstance(widget, MainWindow) and widget.isVisible():
+                opened.append(widget.windowTitle())
+                widget.close()
+
+    QTimer.singleShot(300, close_windows)
+    QTimer.singleShot(10_000, app.quit)  # never hang the suite, even if closing failed to end the loop
+    assert main(["gui", "--store", str(tmp_path / "b.db"), "--reports", str(tmp_path / "r")]) == 0
+    assert opened == [f"bench - {tmp_path / 'b.db'}"] and (tmp_path / "b.db").is_file()
