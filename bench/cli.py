@@ -18,7 +18,16 @@ from bench.errors import BenchError
 from motion.errors import MotionInputError
 
 #: Command groups, in the order the help lists them.
-COMMAND_MODULES = ("bench.commands.kin", "bench.commands.analyze", "bench.commands.sim", "bench.commands.sensors", "bench.commands.campaign", "bench.commands.demo", "bench.commands.report", "bench.commands.gui")
+COMMAND_MODULES = (
+    "bench.commands.kin",
+    "bench.commands.analyze",
+    "bench.commands.sim",
+    "bench.commands.sensors",
+    "bench.commands.campaign",
+    "bench.commands.demo",
+    "bench.commands.report",
+    "bench.commands.gui",
+)
 
 
 def build_parser() -> argparse.ArgumentParser:
