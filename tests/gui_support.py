@@ -8,8 +8,12 @@ from collections.abc import Callable
 
 os.environ.setdefault("QT_QPA_PLATFORM", "offscreen")
 
+import pytest
 from PySide6.QtTest import QTest
 from PySide6.QtWidgets import QApplication
+
+#: Longest wait for a simulated campaign (or the worker after a close); a stuck test fails instead of hanging.
+RUN_TIMEOUT_S = 45.0
 
 
 def application() -> QApplication:
@@ -24,3 +28,18 @@ def wait_for(predicate: Callable[[], bool], timeout_s: float, what: str) -> None
         if time.monotonic() > deadline:
             raise AssertionError(f"timed out after {timeout_s:g} s waiting for {what}")
         QTest.qWait(20)
+
+
+@pytest.fixture
+def window(tmp_path):
+    """A shown main window on a fresh store; closing it stops any run at its next checkpoint and waits for it."""
+    from bench.gui.app import MainWindow
+
+    application()
+    main = MainWindow(tmp_path / "bench.db", tmp_path / "reports", open_files=False)
+    main.show()
+    yield main
+    worker = main.campaign_panel.worker
+    main.close()
+    if worker is not None:
+        assert worker.wait(int(RUN_TIMEOUT_S * 1000)), "campaign worker still running after the window closed"

@@ -12,7 +12,7 @@ import pytest
 
 pytest.importorskip("PySide6")
 
-from gui_support import application, wait_for
+from gui_support import RUN_TIMEOUT_S, wait_for
 from PySide6.QtCore import Qt
 from PySide6.QtGui import QImage
 from PySide6.QtTest import QTest
@@ -21,20 +21,6 @@ from bench.gui.app import MainWindow
 from bench.gui.campaign_panel import EXAMPLES
 from bench.protocols import RunState
 from bench.store import Store, tidy_table
-
-RUN_TIMEOUT_S = 45.0
-
-
-@pytest.fixture
-def window(tmp_path):
-    application()
-    window = MainWindow(tmp_path / "bench.db", tmp_path / "reports", open_files=False)
-    window.show()
-    yield window
-    worker = window.campaign_panel.worker
-    window.close()  # stops any run at its next checkpoint and waits for it
-    if worker is not None:
-        assert worker.wait(int(RUN_TIMEOUT_S * 1000)), "campaign worker still running after the window closed"
 
 
 def _start(window: MainWindow, protocol_file: str, **values: str):

@@ -11,27 +11,12 @@ import pytest
 
 pytest.importorskip("PySide6")
 
-from gui_support import application, wait_for
+from gui_support import RUN_TIMEOUT_S, wait_for
 from PySide6.QtCore import Qt
 from PySide6.QtTest import QTest
 
-from bench.gui.app import MainWindow
 from bench.gui.campaign_panel import EXAMPLES
 from bench.store import Store
-
-RUN_TIMEOUT_S = 45.0
-
-
-@pytest.fixture
-def window(tmp_path):
-    application()
-    window = MainWindow(tmp_path / "bench.db", tmp_path / "reports", open_files=False)
-    window.show()
-    yield window
-    worker = window.campaign_panel.worker
-    window.close()
-    if worker is not None:
-        assert worker.wait(int(RUN_TIMEOUT_S * 1000)), "campaign worker still running after the window closed"
 
 
 def _runs(tmp_path):
