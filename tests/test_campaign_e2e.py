@@ -79,6 +79,7 @@ QUICK_PARAMETERS = {
     "delta_positioning": {"cycles": 2},
     "payload_ladder": {"loads_kg": [0.45, 7.08, 25.23]},
     "mouse_calibration": {"repeats": 2, "distances_mm": [5, 20, 40]},
+    "actuator_accuracy": {"repeats": 2, "distances_mm": [10, 50], "actuators": [1, 6]},
 }
 
 
@@ -91,7 +92,8 @@ def test_each_protocol_completes_on_the_simulator(tmp_path, name):
     protocol = PROTOCOLS[name](settle_s=0.1, **QUICK_PARAMETERS[name])
     expected = sum(1 for step in iterate(protocol, final=False) if step_stores_sample(step))
     with Store(tmp_path / "b.db") as store:
-        rig = simulated_rig_in(store, protocol.robot, seed=2, speed_factor=20000)
+        rig = simulated_rig_in(store, protocol.robot, seed=2, speed_factor=20000,
+                               fixture=getattr(protocol, "fixture", "assembled"))
         try:
             result = Runner(rig, store).run(protocol)
         finally:

@@ -16,7 +16,7 @@ from collections.abc import Iterator
 from contextlib import contextmanager
 from typing import Any
 
-from bench.errors import ConfigError
+from bench.errors import ConfigError, LinkError
 from bench.protocols import Runner, load_protocol, preflight, summarize
 from bench.protocols.runner import RunResult
 from bench.store import EXPORT_FORMATS, Store, export_run
@@ -71,13 +71,17 @@ def _rig_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--no-progress", action="store_true", help="no progress bar on stderr")
 
 
-def build_rig(args: argparse.Namespace, robot: str, store: Store, stored: dict[str, Any] | None = None):
-    """The rig the arguments describe: the simulator by default, hardware with ``--port``."""
+def build_rig(args: argparse.Namespace, robot: str, store: Store, stored: dict[str, Any] | None = None,
+              fixture: str = "assembled"):
+    """The rig the arguments describe: the simulator by default, hardware with ``--port``; ``fixture`` is the
+    protocol's (``actuator-bench``: the pkm5's actuators free-standing, moved one at a time)."""
     stored = stored or {}
     if args.port is None:
         seed = args.seed if args.seed is not None else stored.get("simulator", {}).get("seed", 0)
         speed = args.speed_factor or stored.get("speed_factor") or DEFAULT_SPEED_FACTOR
-        return simulated_rig_in(store, robot, seed=seed, speed_factor=speed)
+        return simulated_rig_in(store, robot, seed=seed, speed_factor=speed, fixture=fixture)
+    if fixture == "actuator-bench":
+        return _hardware_actuator_bench(args.port, robot)
     if robot != "pkm5" or not (args.mouse_xy and args.mouse_xz):
         raise ConfigError("--port: hardware runs support the pkm5 with --mouse-xy and --mouse-xz event devices")
     from bench.protocols.kinematics import robot_model
@@ -98,14 +102,41 @@ def build_rig(args: argparse.Namespace, robot: str, store: Store, stored: dict[s
     return rig
 
 
-def simulated_rig_in(store: Store, robot: str, *, seed: int, speed_factor: float):
+def _hardware_actuator_bench(port: str, robot: str):
+    """The pkm5 controller on ``port`` driving free-standing actuators; readings are typed in from the gauge."""
+    import serial
+
+    from bench.protocols.mice import ConsoleOperator
+    from bench.protocols.rig import Rig
+    from bench.protocols.simrig import CalliperOnly, DriverMover
+    from bench.robots.pkm5 import Pkm5Controller
+
+    if robot != "pkm5":
+        raise ConfigError(f"--robot {robot}: the actuator bench exists for the pkm5 only")
+    try:
+        port_instance = serial.serial_for_url(port, baudrate=115200, timeout=0.05)
+    except serial.SerialException as exc:
+        raise LinkError(f"--port {port}: cannot open it ({exc.strerror or exc})") from None
+    controller = Pkm5Controller(port_instance, fixture="actuator-bench")
+    try:
+        controller.identify()
+        controller.enable()
+    except BaseException:
+        controller.shutdown()
+        raise
+    return Rig(DriverMover(controller), CalliperOnly(), ConsoleOperator())
+
+
+def simulated_rig_in(store: Store, robot: str, *, seed: int, speed_factor: float, fixture: str = "assembled"):
     """A simulated rig whose mouse calibration is recorded (get-or-create) in ``store``."""
     from bench.protocols.simrig import simulated_rig
 
     if not speed_factor > 0:
         raise ConfigError(f"--speed-factor = {speed_factor:g}, expected a number > 0")
-    rig = simulated_rig(robot, seed=seed, speed_factor=speed_factor)
+    rig = simulated_rig(robot, seed=seed, speed_factor=speed_factor, fixture=fixture)
     rig.extra["simulator"] = {"seed": seed}
+    if fixture == "actuator-bench":
+        return rig  # no calibration in force: the readings are typed-in gauge values
     if robot == "pkm5":
         params = {"cpi": rig.instrument.cpi, "mm_per_count": 25.4 / rig.instrument.cpi}
         name, notes = rig.instrument.calibration.calibration_id, "nominal calibration of the simulated mice"
@@ -172,7 +203,7 @@ def _run(args: argparse.Namespace) -> int:
         return 0
     preflight(protocol)  # before a simulator or a port is opened; the runner checks again
     with Store(args.store) as store:
-        rig = build_rig(args, protocol.robot, store)
+        rig = build_rig(args, protocol.robot, store, fixture=getattr(protocol, "fixture", "assembled"))
         runner = Runner(rig, store, progress=not args.no_progress, on_pause=_ask_after_pause)
         result = execute(runner, lambda: runner.run(protocol, campaign=args.campaign))
     return 0 if result.exit_status == "completed" else 1
@@ -181,7 +212,8 @@ def _run(args: argparse.Namespace) -> int:
 def _resume(args: argparse.Namespace) -> int:
     with Store(args.store) as store:
         record = store.run(args.run_id)
-        rig = build_rig(args, record.robot, store, stored=record.settings)
+        rig = build_rig(args, record.robot, store, stored=record.settings,
+                        fixture=record.config.get("fixture", "assembled"))
         runner = Runner(rig, store, progress=not args.no_progress, on_pause=_ask_after_pause)
         result = execute(runner, lambda: runner.resume_run(args.run_id))
     return 0 if result.exit_status == "completed" else 1

@@ -18,7 +18,7 @@ import numpy as np
 from bench.errors import UnreachableTarget
 from bench.protocols.base import Protocol
 from bench.protocols.kinematics import DEFAULT_SINGULARITY_THRESHOLD, robot_model
-from bench.protocols.steps import Capture, Move, Prompt, Settle, Step
+from bench.protocols.steps import ActuatorMove, Capture, Move, Prompt, Settle, Step
 
 __all__ = ["PlanSummary", "dry_run_result", "iterate", "preflight", "summarize"]
 
@@ -67,6 +67,8 @@ class PlanSummary:
     settle_s: float
     prompt_s: float
     capture_s: float
+    #: refused actuator-bench moves (stroke outside the actuator's window), one line each
+    actuator_problems: tuple[str, ...] = ()
 
     @property
     def estimated_s(self) -> float:
@@ -74,12 +76,12 @@ class PlanSummary:
 
     @property
     def ok(self) -> bool:
-        return bool(np.all(self.reachable))
+        return bool(np.all(self.reachable)) and not self.actuator_problems
 
     def problems(self) -> list[str]:
         """One line per refused target, naming its label and coordinates."""
         return [f"target {self.labels[i]} {_describe(self.targets[i], self.robot)} is not reachable: "
-                f"{self.reasons[i]}" for i in np.flatnonzero(~self.reachable)]
+                f"{self.reasons[i]}" for i in np.flatnonzero(~self.reachable)] + list(self.actuator_problems)
 
     def lines(self) -> list[str]:
         """The human-readable summary printed by ``bench run --dry-run``."""
@@ -115,13 +117,17 @@ def summarize(protocol: Protocol, *, singularity_threshold: float | None = None)
     model = robot_model(protocol.robot)
     counts: Counter[str] = Counter()
     moves: list[tuple[str, tuple[float, ...], float]] = []
+    actuator_moves: list[ActuatorMove] = []
     settle_s = 0.0
     for step in iterate(protocol):
         counts[type(step).__name__.lower() + "s"] += 1
         if isinstance(step, Move):
             moves.append((step.label or str(len(moves)), tuple(step.target), step.velocity_pct))
+        elif isinstance(step, ActuatorMove):
+            actuator_moves.append(step)
         elif isinstance(step, Settle):
             settle_s += step.duration_s
+    actuator_s, actuator_problems = _actuator_moves(actuator_moves)
     distinct: dict[tuple[float, ...], str] = {}
     for label, target, _ in moves:
         distinct.setdefault(tuple(model.as_targets([target])[0]), label)
@@ -133,8 +139,30 @@ def summarize(protocol: Protocol, *, singularity_threshold: float | None = None)
         velocity = np.array([v for _, _, v in moves], dtype=float)
         move_s = float(model.move_s(path[:-1], path[1:], velocity).sum())
     return PlanSummary(protocol.name, protocol.robot, dict(counts), tuple(distinct.values()), targets,
-                       check.reachable, tuple(str(r) for r in check.reason), check.proximity, move_s, settle_s,
-                       counts["prompts"] * PROMPT_S, counts["captures"] * CAPTURE_S)
+                       check.reachable, tuple(str(r) for r in check.reason), check.proximity, move_s + actuator_s,
+                       settle_s, counts["prompts"] * PROMPT_S, counts["captures"] * CAPTURE_S, actuator_problems)
+
+
+def _actuator_moves(moves: list[ActuatorMove]) -> tuple[float, tuple[str, ...]]:
+    """Duration (s, from the home stroke, at the rated speed) and refusals of a pkm5's actuator-bench moves."""
+    from bench.errors import UnreachableTarget
+    from bench.protocols.simrig import RATED_SPEED_STEPS_S
+    from bench.robots.pkm5_kinematics import steps_for_stroke
+    from motion import pkm5
+
+    geometry = pkm5.DEFAULT_GEOMETRY
+    where = dict(enumerate(np.round(geometry.home_stroke_mm / geometry.mm_per_step).astype(int), start=1))
+    duration_s, problems = 0.0, []
+    for move in moves:
+        try:
+            target = abs(steps_for_stroke(move.axis, move.stroke_mm, geometry))
+        except UnreachableTarget as exc:
+            problems.append(f"target {move.label or 'actuator move'}: {exc}")
+            continue
+        speed = max(1.0, RATED_SPEED_STEPS_S * move.velocity_pct / 100.0)
+        duration_s += abs(target - where[move.axis]) / speed
+        where[move.axis] = target
+    return duration_s, tuple(problems)
 
 
 def preflight(protocol: Protocol, **kwargs: Any) -> PlanSummary:

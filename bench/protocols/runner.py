@@ -31,7 +31,16 @@ from bench.errors import BenchError, ConfigError
 from bench.protocols.base import Protocol, protocol_from_config
 from bench.protocols.plan import iterate, preflight
 from bench.protocols.rig import Rig
-from bench.protocols.steps import Capture, Checkpoint, Move, Plan, Prompt, Settle, Step
+from bench.protocols.steps import (
+    ActuatorMove,
+    Capture,
+    Checkpoint,
+    Move,
+    Plan,
+    Prompt,
+    Settle,
+    Step,
+)
 from bench.store import Store
 
 __all__ = ["TRANSITIONS", "RunResult", "RunState", "Runner", "TransitionError", "resume_point"]
@@ -284,6 +293,11 @@ class Runner:
         if isinstance(step, Move):
             rig.robot.move_to(tuple(step.target), velocity_pct=step.velocity_pct)
             return None
+        if isinstance(step, ActuatorMove):
+            if not hasattr(rig.robot, "move_actuator"):
+                raise ConfigError(f"{step!r}: this rig's robot has no actuator-bench mode")
+            rig.robot.move_actuator(step.axis, step.stroke_mm, velocity_pct=step.velocity_pct)
+            return None
         if isinstance(step, Settle):
             rig.sleep(step.duration_s / rig.speed_factor)
             return None
@@ -305,7 +319,8 @@ class Runner:
             return answer
         if isinstance(step, Checkpoint):
             return None
-        raise ConfigError(f"protocol yielded {step!r}, expected a Move, Settle, Capture, Prompt or Checkpoint")
+        raise ConfigError(f"protocol yielded {step!r}, expected a Move, ActuatorMove, Settle, Capture, Prompt or "
+                          "Checkpoint")
 
     def _stop_robot(self) -> None:
         try:

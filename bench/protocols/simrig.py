@@ -27,8 +27,8 @@ from bench.protocols.mice import MiceInstrument
 from bench.protocols.rig import Measurement, Rig
 from bench.protocols.steps import Capture, Prompt
 
-__all__ = ["DriverMover", "SimulatedCalliper", "SimulatedMice", "SimulatedOperator", "simulated_rig",
-           "start_simulator"]
+__all__ = ["BenchCalliper", "CalliperOnly", "DriverMover", "SimulatedCalliper", "SimulatedMice", "SimulatedOperator",
+           "simulated_rig", "start_simulator"]
 
 #: The documents' firmware speed, taken as the rated (100 %) velocity of the pkm5: 200 steps/s (000 App. B.2).
 RATED_SPEED_STEPS_S = 200
@@ -36,11 +36,11 @@ RATED_SPEED_STEPS_S = 200
 _MOTION_S = 0.05
 
 
-def start_simulator(robot: str, *, seed: int, speed_factor: float, ideal: bool = False,
-                    timeout_s: float = 20.0) -> tuple[subprocess.Popen, str]:
-    """Start ``python -m bench.robots.sim_<robot>``; returns the process and the pty path it printed."""
+def start_simulator(robot: str, *, seed: int, speed_factor: float, ideal: bool = False, timeout_s: float = 20.0,
+                    options: tuple[str, ...] = ()) -> tuple[subprocess.Popen, str]:
+    """Start ``python -m bench.robots.sim_<robot>`` (plus ``options``); returns the process and its pty path."""
     command = [sys.executable, "-m", f"bench.robots.sim_{robot}", "--seed", str(seed), "--speed-factor",
-               str(speed_factor)] + (["--ideal"] if ideal else [])
+               str(speed_factor)] + (["--ideal"] if ideal else []) + list(options)
     # the simulator's log goes to a file: an undrained pipe would block the simulator once it filled up
     with tempfile.TemporaryFile(mode="w+") as log:
         process = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=log, text=True)
@@ -67,6 +67,11 @@ class DriverMover:
         pose = tuple(target) + (0.0,) * (5 - len(target))
         speed = max(1, round(self.rated_speed_steps_s * velocity_pct / 100.0))
         self.controller.move_to_pose(pose, speed_steps_s=speed)
+
+    def move_actuator(self, axis: int, stroke_mm: float, *, velocity_pct: float) -> None:
+        """Actuator bench only (the controller refuses otherwise): one axis to ``stroke_mm``, the others hold."""
+        speed = max(1, round(self.rated_speed_steps_s * velocity_pct / 100.0))
+        self.controller.move_actuator(axis, stroke_mm, speed_steps_s=speed)
 
     def stop(self) -> None:
         self.controller.stop()
@@ -183,13 +188,54 @@ class SimulatedCalliper:
         raise LinkError(f"simulated calliper: cannot answer {prompt.field!r} ({prompt.text})")
 
 
+class CalliperOnly:
+    """The instrument of the actuator bench: every reading is a calliper (depth gauge) entry, so no capture."""
+
+    def measure(self, capture: Capture) -> Measurement:
+        raise LinkError(f"actuator bench: no instrument for capture {capture.kind!r} at {capture.pose!r}; readings "
+                        "are calliper entries")
+
+    def settings(self) -> dict[str, Any]:
+        return {"instrument": "depth gauge / calliper entries (actuator bench, 000 §8.4)"}
+
+
+class BenchCalliper:
+    """The simulated depth gauge of the actuator bench (000 §8.4): zeroed on an actuator when the operator confirms
+    a prompt with ``conditions['zero_actuator']``, it reads ``travel_mm`` = the simulator's true stroke of that
+    actuator minus the stroke at zeroing, plus reading noise, at 0.01 mm resolution."""
+
+    def __init__(self, controller: Any, *, seed: int, sigma_mm: float = 0.01) -> None:
+        self.controller = controller
+        self.rng = np.random.default_rng(seed + 7919)
+        self.sigma_mm = sigma_mm
+        self.zero_mm: dict[int, float] = {}
+
+    def ask(self, prompt: Prompt) -> float | None:
+        if prompt.field is None:
+            if "zero_actuator" in prompt.conditions:
+                axis = int(prompt.conditions["zero_actuator"])
+                self.zero_mm[axis] = float(self.controller.sim_true_strokes()[axis - 1])
+            return None
+        axis = int(prompt.conditions.get("actuator", 0))
+        if prompt.field != "travel_mm" or axis not in self.zero_mm:
+            raise LinkError(f"simulated depth gauge: cannot answer {prompt.field!r} ({prompt.text}): not zeroed on "
+                            f"actuator {axis}")
+        travel = self.controller.sim_true_strokes()[axis - 1] - self.zero_mm[axis]
+        return round(float(travel + self.rng.normal(0.0, self.sigma_mm)), 2)
+
+
 def simulated_rig(robot: str = "pkm5", *, seed: int = 0, speed_factor: float = 1000.0, ideal: bool = False,
-                  answer: Callable[[Prompt], float] | None = None) -> Rig:
-    """A rig on a freshly started simulator (close it with ``rig.close()``)."""
+                  answer: Callable[[Prompt], float] | None = None, fixture: str = "assembled") -> Rig:
+    """A rig on a freshly started simulator (close it with ``rig.close()``); ``fixture="actuator-bench"``: the
+    pkm5's actuators free-standing, moved one at a time and read by a simulated depth gauge."""
     import serial
 
     from bench.robots.pkm5 import Pkm5Controller
 
+    if fixture == "actuator-bench":
+        return _simulated_actuator_bench(robot, seed=seed, speed_factor=speed_factor, ideal=ideal)
+    if fixture != "assembled":
+        raise LinkError(f"fixture = {fixture!r}, expected 'assembled' or 'actuator-bench'")
     if robot == "delta4":
         return _simulated_delta_rig(seed=seed, speed_factor=speed_factor, ideal=ideal)
     if robot != "pkm5":
@@ -209,6 +255,28 @@ def simulated_rig(robot: str = "pkm5", *, seed: int = 0, speed_factor: float = 1
     closers.append(mice.close)
     operator = SimulatedOperator(controller, answer or SimulatedCalliper(controller, seed=seed))
     return Rig(DriverMover(controller), mice, operator, speed_factor=speed_factor, closers=closers)
+
+
+def _simulated_actuator_bench(robot: str, *, seed: int, speed_factor: float, ideal: bool) -> Rig:
+    """The pkm5 simulator with free-standing actuators, the driver opened on the bench, a simulated depth gauge."""
+    import serial
+
+    from bench.robots.pkm5 import Pkm5Controller
+
+    if robot != "pkm5":
+        raise LinkError(f"--robot {robot}: the actuator bench exists for the pkm5 only")
+    process, path = start_simulator(robot, seed=seed, speed_factor=speed_factor, ideal=ideal,
+                                    options=("--fixture", "actuator-bench"))
+    try:
+        controller = Pkm5Controller(serial.serial_for_url(path, baudrate=115200, timeout=0.05),
+                                    fixture="actuator-bench")
+        controller.identify()
+        controller.enable()
+    except BaseException:
+        _end(process)
+        raise
+    return Rig(DriverMover(controller), CalliperOnly(), BenchCalliper(controller, seed=seed),
+               speed_factor=speed_factor, closers=[lambda: _end(process)])
 
 
 def _end(process: subprocess.Popen) -> None:

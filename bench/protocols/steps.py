@@ -13,6 +13,7 @@ from dataclasses import field as _field
 from typing import Any
 
 __all__ = [
+    "ActuatorMove",
     "Capture",
     "Checkpoint",
     "Move",
@@ -30,6 +31,17 @@ class Move:
     """Move the robot to ``target`` (mm, degrees) at ``velocity_pct`` of its rated velocity."""
 
     target: tuple[float, ...]
+    velocity_pct: float = 100.0
+    label: str = ""
+
+
+@dataclass(frozen=True)
+class ActuatorMove:
+    """Actuator bench only (000 §8.4): move actuator ``axis`` (1-6) to ``stroke_mm`` from full retraction while the
+    other actuators hold; the rig's robot must have been opened on the actuator bench, or the move is refused."""
+
+    axis: int
+    stroke_mm: float
     velocity_pct: float = 100.0
     label: str = ""
 
@@ -83,7 +95,7 @@ class Checkpoint:
     label: str = ""
 
 
-Step = Move | Settle | Capture | Prompt | Checkpoint
+Step = Move | ActuatorMove | Settle | Capture | Prompt | Checkpoint
 #: A protocol's step generator: yields steps, receives each step's result.
 Plan = Generator[Step, Any, None]
 

@@ -7,6 +7,10 @@ are recognised and dropped; corrupted lines (bad checksum, noise) are dropped an
 Queries are retried a bounded number of times; a move is never re-sent blindly: if its acceptance is lost the
 driver asks ``POS`` and either waits for ``DONE`` (moving), accepts (already there) or raises; a missing ``DONE``
 sends ``STOP`` and raises.
+
+Opened with ``fixture="actuator-bench"`` (the six actuators free-standing, 000 §8.4),
+:meth:`Pkm5Controller.move_actuator` drives one axis to an absolute stroke while the others hold, checked against that actuator's stroke window only; on
+the assembled robot (the default) it is refused, since one leg cannot move alone (6 legs, 5 DOF).
 """
 
 from __future__ import annotations
@@ -18,7 +22,7 @@ from typing import Any
 
 import numpy as np
 
-from bench.errors import ConfigError, LinkError, LinkTimeout
+from bench.errors import ConfigError, LinkError, LinkTimeout, UnreachableTarget
 from bench.robots import pkm5_kinematics as kinematics
 from bench.robots import pkm5_wire as wire
 from bench.robots.link import Deadline, WireProtocolError
@@ -78,10 +82,17 @@ class Pkm5Controller:
         Extra attempts for an idempotent command whose reply timed out or was corrupted.
     move_margin_s : float
         Slack added to a move's announced duration (x1.5) before ``DONE`` is declared late, s.
+    fixture : {"assembled", "actuator-bench"}
+        What the controller drives: the assembled robot (pose moves only) or free-standing actuators
+        (:meth:`move_actuator` only makes sense, and is only allowed, on the bench).
     """
 
     def __init__(self, port: Any, *, geometry: Any = None, speed_steps_s: int = 200, reply_timeout_s: float = 1.0,
-                 retries: int = 2, move_margin_s: float = 2.0) -> None:
+                 retries: int = 2, move_margin_s: float = 2.0, fixture: str = kinematics.ASSEMBLED) -> None:
+        if fixture not in kinematics.FIXTURES:
+            raise ConfigError(f"Pkm5Controller: fixture = {fixture!r}, expected one of "
+                              f"{', '.join(repr(f) for f in kinematics.FIXTURES)}")
+        self.fixture = fixture
         self.link = wire.LineLink(port)
         self.geometry = geometry or pkm5.DEFAULT_GEOMETRY
         self.speed_steps_s = int(_checked_number("speed_steps_s", speed_steps_s, 1, 1000))
@@ -103,6 +114,7 @@ class Pkm5Controller:
             "reply_timeout_s": self.reply_timeout_s,
             "retries": self.retries,
             "move_margin_s": self.move_margin_s,
+            "fixture": self.fixture,
             "firmware": None if self._identity is None else vars(self._identity),
         }
 
@@ -198,6 +210,25 @@ class Pkm5Controller:
         """Move to ``pose`` = (x_mm, y_mm, z_mm, alpha_deg, beta_deg) after the IK pre-flight."""
         return self._move(self.steps_for_pose(pose), speed_steps_s)
 
+    def move_actuator(self, axis: int, stroke_mm: float, *, speed_steps_s: int | None = None) -> tuple[int, ...]:
+        """Actuator bench only: move actuator ``axis`` (1-6) to ``stroke_mm`` (mm from full retraction, 0-66)
+        while the other axes hold; returns the reached steps.
+
+        Refused (``UnreachableTarget``) unless the controller was opened with ``fixture="actuator-bench"``, and for a
+        stroke outside the actuator's window; nothing is sent then.
+        """
+        if self.fixture != kinematics.ACTUATOR_BENCH:
+            raise UnreachableTarget(f"move_actuator(axis={axis!r}, stroke_mm={stroke_mm!r}): refused on the "
+                                    f"{self.fixture} robot, one leg cannot move alone (6 legs, 5 DOF); expected a "
+                                    f"controller opened with fixture='{kinematics.ACTUATOR_BENCH}'")
+        target = kinematics.steps_for_stroke(axis, stroke_mm, self.geometry)
+        where = self.position()
+        if where.state != "IDLE":
+            raise LinkError(f"{self.link.port_name}: move_actuator: the controller is {where.state}, expected IDLE")
+        targets = list(where.steps)
+        targets[axis - 1] = target
+        return self._move(tuple(targets), speed_steps_s)
+
     def steps_for_pose(self, pose: Any) -> tuple[int, ...]:
         """Absolute step targets of ``pose`` (x_mm, y_mm, z_mm, alpha_deg, beta_deg); UnreachableTarget if refused."""
         return kinematics.steps_for_pose(pose, self.geometry)
@@ -244,6 +275,18 @@ class Pkm5Controller:
             return np.array([float(f) for f in reply.fields[1:6]], dtype=float)
         except ValueError as exc:
             raise WireProtocolError(f"{self.link.port_name}: SIMTRUE reply {reply} is not 5 numbers") from exc
+
+    def sim_true_strokes(self) -> np.ndarray:
+        """Simulator on the actuator bench only: the true stroke of each actuator, mm, shape (6,)."""
+        reply = self._exchange("SIMTRUE")
+        try:
+            strokes = np.array([float(f) for f in reply.fields[1:]], dtype=float)
+        except ValueError as exc:
+            raise WireProtocolError(f"{self.link.port_name}: SIMTRUE reply {reply} is not numbers") from exc
+        if strokes.shape != (wire.AXES,):
+            raise LinkError(f"{self.link.port_name}: SIMTRUE answered {len(strokes)} numbers, expected {wire.AXES} "
+                            "strokes (is the simulator running with --fixture actuator-bench?)")
+        return strokes
 
     def sim_set_load(self, load_kg: float) -> None:
         """Simulator only: the payload carried by the end effector, kg (0-30)."""

@@ -17,7 +17,12 @@ from bench.robots.plant import Plant
 from motion import pkm5
 from motion.errors import MotionInputError
 
-__all__ = ["PKM5_ERRORS", "build_plant", "check_steps", "home_steps", "pose_deg_from_rad", "steps_for_pose"]
+__all__ = ["ACTUATOR_BENCH", "ASSEMBLED", "FIXTURES", "PKM5_ERRORS", "build_actuator_bench", "build_plant",
+           "check_steps", "home_steps", "pose_deg_from_rad", "steps_for_pose", "steps_for_stroke", "stroke_range_mm"]
+
+#: The robot assembled (every move a pre-flighted pose) or its actuators free-standing on the bench (000 §8.4).
+ASSEMBLED, ACTUATOR_BENCH = "assembled", "actuator-bench"
+FIXTURES = (ASSEMBLED, ACTUATOR_BENCH)
 
 #: Error sizes for AP/RP of the order of the documents' physical tests (pkm5.md §6.8: AP 1.2-1.9 mm, RP 1.6-2.7 mm,
 #: angles 0.2-1.9 deg). Joint units mm of leg length; pose units (mm, mm, mm, deg, deg). Actuator noise per
@@ -74,6 +79,51 @@ def check_steps(steps: tuple[int, ...], geometry: Any = pkm5.DEFAULT_GEOMETRY) -
     if not ik.reachable[0]:
         raise UnreachableTarget(f"steps = {tuple(steps)}: pose {np.round(pose_deg_from_rad(fk.pose[0]), 3)} "
                                 f"(mm, deg) is not reachable: {ik.reason(0)}")
+
+
+def stroke_range_mm(axis: int, geometry: Any = pkm5.DEFAULT_GEOMETRY) -> tuple[float, float]:
+    """Stroke window of actuator ``axis`` (1-6), mm from full retraction: 0 to stroke end - leg-length offset (66)."""
+    index = axis - 1
+    return 0.0, float(geometry.stroke_end_mm[index] - geometry.leg_length_offset_mm[index])
+
+
+def steps_for_stroke(axis: Any, stroke_mm: Any, geometry: Any = pkm5.DEFAULT_GEOMETRY) -> int:
+    """Absolute step target of one free-standing actuator; UnreachableTarget outside its stroke (actuator bench only:
+    on the assembled robot a single leg cannot move alone, 6 legs for 5 DOF)."""
+    if isinstance(axis, bool) or not isinstance(axis, (int, np.integer)) or not 1 <= axis <= 6:
+        raise UnreachableTarget(f"axis = {axis!r}, expected an actuator number 1-6")
+    low, high = stroke_range_mm(int(axis), geometry)
+    if isinstance(stroke_mm, bool) or not isinstance(stroke_mm, (int, float, np.number)) \
+            or not low <= float(stroke_mm) <= high:
+        raise UnreachableTarget(f"actuator {axis}: stroke_mm = {stroke_mm!r}, expected a number in "
+                                f"[{low:g}, {high:g}] mm")
+    index = int(axis) - 1
+    counts = round(float(stroke_mm) / geometry.mm_per_step[index])
+    return int(counts * geometry.step_direction[index])
+
+
+def build_actuator_bench(seed: int, *, ideal: bool = False, geometry: Any = pkm5.DEFAULT_GEOMETRY):
+    """The six actuators free-standing (000 §8.4): ``bench(steps, load_kg) -> true strokes`` (6,), mm.
+
+    Each actuator's attained leg length comes from the same seeded joint errors as :func:`build_plant` (scale,
+    offset, backlash, noise; no payload on a free-standing actuator), reported as stroke from full retraction.
+    """
+    from bench.robots.error_model import JointMemory
+
+    offsets = np.asarray(geometry.leg_length_offset_mm, dtype=float)
+    model = ErrorModel.ideal(6, 5) if ideal else ErrorModel.draw(PKM5_ERRORS, 6, seed, offsets)
+    rng = np.random.default_rng([seed, 1])
+    memory: list[JointMemory] = []
+
+    def true_strokes(steps: np.ndarray, load_kg: float) -> np.ndarray:
+        lengths = pkm5.steps_to_lengths(np.asarray(steps)[None, :], geometry)[0]
+        if not memory:
+            memory.append(JointMemory(lengths))
+        direction = memory[0].update(lengths)
+        return model.true_joints(lengths, direction, 0.0, rng) - offsets
+
+    true_strokes.model = model  # type: ignore[attr-defined]  # the drawn errors, for tests against the truth
+    return true_strokes
 
 
 def home_steps(geometry: Any = pkm5.DEFAULT_GEOMETRY) -> np.ndarray:

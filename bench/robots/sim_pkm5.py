@@ -1,7 +1,9 @@
 """Simulated PKM5 controller: ``python -m bench.robots.sim_pkm5`` (or ``bench sim pkm5``).
 
 Implements the firmware's behaviour (``docs/protocol-pkm5.md``) on a pseudo-terminal, plus the simulator-only
-commands ``SIMTRUE`` and ``SIMLOAD``. Moves run at constant speed with all axes arriving together (MultiStepper),
+commands ``SIMTRUE`` and ``SIMLOAD``.
+With ``--fixture actuator-bench`` the six actuators stand free (000 §8.4): any step target inside the firmware
+limits is a valid move, and ``SIMTRUE`` reports the six true strokes (mm) instead of a pose. Moves run at constant speed with all axes arriving together (MultiStepper),
 in simulated time scaled by ``--speed-factor``. When a move ends, the plant (:class:`Pkm5Plant`) turns the reached
 steps into the true attained pose through the seeded error model and the kinematics of :mod:`motion.pkm5`:
 steps -> leg lengths -> perturbed lengths -> forward kinematics -> pose errors. The pose goes to ``SIMTRUE`` and
@@ -191,11 +193,22 @@ def _tag_guess(line: bytes) -> int:
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Options of ``bench sim pkm5`` / ``python -m bench.robots.sim_pkm5``."""
     add_common_arguments(parser)
+    parser.add_argument("--fixture", choices=("assembled", "actuator-bench"), default="assembled",
+                        help="the assembled robot (SIMTRUE: the pose) or the six actuators free-standing on the "
+                             "bench, 000 §8.4 (SIMTRUE: the six true strokes, mm)")
 
 
 def build_device(args: argparse.Namespace) -> Pkm5SimDevice:
     """The simulated controller described by the command-line ``args``."""
-    from bench.robots.pkm5_kinematics import build_plant
+    from bench.robots.pkm5_kinematics import (
+        ACTUATOR_BENCH,
+        build_actuator_bench,
+        build_plant,
+    )
+    if getattr(args, "fixture", "assembled") == ACTUATOR_BENCH:
+        plant = build_actuator_bench(args.seed, ideal=args.ideal)
+        truth = TruthLog(args.truth, tuple(f"stroke{axis}_mm" for axis in range(1, wire.AXES + 1)))
+        return Pkm5SimDevice(plant, speed_factor=args.speed_factor, truth=truth)
     plant = build_plant(args.seed, ideal=args.ideal)
     truth = TruthLog(args.truth, ("x_mm", "y_mm", "z_mm", "alpha_deg", "beta_deg"))
     return Pkm5SimDevice(plant, speed_factor=args.speed_factor, truth=truth, load_kg=args.load_kg)

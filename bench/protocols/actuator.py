@@ -1,0 +1,110 @@
+"""The dissertation's linear-actuator accuracy/repeatability test on the actuator bench (000 §8.4; pkm5.md §6.9).
+
+The six actuators stand free under a beam, before assembly (on the assembled robot one leg cannot move alone):
+per actuator and commanded travel (10/20/30/40/50 mm), the actuator goes to its start stroke, the operator zeroes
+the depth gauge on it, and then, 10 times, the actuator returns to the start stroke and travels to start + travel,
+where the operator enters the gauge reading. Every approach is from below (unidirectional). The run stores
+``fixture = "actuator-bench"``, and the rig's driver must be opened on the bench, or every move is refused.
+:func:`actuator_results` turns a run's readings into the dissertation's figures with
+:func:`bench.metrology.actuator.groover_actuator` (Eqs. 8.1-8.3, Table 8-1).
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from bench.errors import ConfigError, InsufficientData
+from bench.protocols.base import Protocol, register
+from bench.protocols.parameters import (
+    ChoiceParameter,
+    FloatListParameter,
+    FloatParameter,
+    IntegerParameter,
+)
+from bench.protocols.steps import ActuatorMove, Checkpoint, Plan, Prompt, Settle
+
+__all__ = ["ActuatorAccuracy", "actuator_results"]
+
+#: Stroke window of every pkm5 actuator, mm from full retraction (stroke end - leg-length offset, Table 4-2).
+STROKE_MM = 66.0
+
+
+@register
+class ActuatorAccuracy(Protocol):
+    """000 §8.4: each actuator commanded 10-50 mm from its zeroed start, 10 repeats, travel read by depth gauge."""
+
+    name = "actuator_accuracy"
+    version = "1"
+    title = "Linear-actuator accuracy and repeatability (000 §8.4, Tables A.1-A.7, 8-1)"
+    robots = ("pkm5",)
+
+    fixture = ChoiceParameter("actuator-bench", choices=("actuator-bench",),
+                              description="the actuators free-standing; single-axis moves are refused otherwise")
+    actuators = FloatListParameter((1, 2, 3, 4, 5, 6), minimum=1, maximum=6, description="actuators tested, 1-6")
+    distances_mm = FloatListParameter((10.0, 20.0, 30.0, 40.0, 50.0), unit="mm", minimum=0.1, maximum=STROKE_MM,
+                                      description="commanded travels (000: 10, 20, 30, 40, 50 mm)")
+    repeats = IntegerParameter(10, minimum=2, description="repeats per travel (000: 10)")
+    start_mm = FloatParameter(5.0, unit="mm", minimum=0.0, maximum=STROKE_MM,
+                              description="stroke where the gauge is zeroed, mm from full retraction (home: 5 mm)")
+    velocity_pct = FloatParameter(100.0, unit="%", minimum=0.1, maximum=100.0, description="velocity")
+    settle_s = FloatParameter(1.0, unit="s", minimum=0.0, maximum=600.0, description="dwell before a reading")
+
+    def validate(self) -> None:
+        if any(a != int(a) for a in self.actuators) or len(set(self.actuators)) != len(self.actuators):
+            raise ConfigError(f"{self.source}: actuators = {list(self.actuators)}, expected distinct whole numbers "
+                              "1-6")
+        if self.start_mm + max(self.distances_mm) > STROKE_MM:
+            raise ConfigError(f"{self.source}: start_mm + max(distances_mm) = "
+                              f"{self.start_mm + max(self.distances_mm):g} mm, expected <= {STROKE_MM:g} mm "
+                              "(the actuator's stroke)")
+
+    def steps(self) -> Plan:
+        for axis in (int(a) for a in self.actuators):
+            for distance in self.distances_mm:
+                label = f"A{axis}/{distance:g}mm"
+                yield ActuatorMove(axis, self.start_mm, self.velocity_pct, f"A{axis}/start")
+                yield Prompt(f"Actuator {axis} at {self.start_mm:g} mm stroke: zero the depth gauge on it, then "
+                             "confirm", conditions={"zero_actuator": axis})
+                for repeat in range(1, self.repeats + 1):
+                    yield ActuatorMove(axis, self.start_mm, self.velocity_pct, f"A{axis}/start")
+                    yield ActuatorMove(axis, self.start_mm + distance, self.velocity_pct, label)
+                    yield Settle(self.settle_s)
+                    yield Prompt(f"Actuator {axis}, {distance:g} mm, repeat {repeat}: depth gauge travel",
+                                 field="travel_mm", unit="mm", minimum=-1.0, maximum=STROKE_MM + 1.0, pose=label,
+                                 cycle=repeat, kind="actuator_travel", commanded={"cmd_travel_mm": distance},
+                                 conditions={"actuator": axis, "velocity_pct": self.velocity_pct})
+                yield Checkpoint(f"actuator {axis}, {distance:g} mm")
+
+    def final_steps(self) -> Plan:
+        from motion import pkm5
+
+        for axis in (int(a) for a in self.actuators):
+            yield ActuatorMove(axis, pkm5.DEFAULT_GEOMETRY.home_stroke_mm, 100.0, f"A{axis}/home")
+
+
+def actuator_results(store: Any, run_id: int) -> dict[int, Any]:
+    """Groover accuracy/repeatability (with the mean bias) per actuator of an ``actuator_accuracy`` run.
+
+    Returns ``{actuator: bench.metrology.actuator.GrooverActuator}``; CR is the actuator's leg-length change per
+    step (0.00625 mm for actuators 1-4 at full steps, 000 Eq. 8.1). Repeats missing a reading are left out.
+    """
+    from bench.metrology.actuator import groover_actuator
+    from motion import pkm5
+
+    readings: dict[int, dict[float, dict[int, float]]] = {}
+    for sample in store.samples(run_id, kind="actuator_travel"):
+        values = sample.values
+        by_target = readings.setdefault(int(values["actuator"]), {})
+        by_target.setdefault(float(values["cmd_travel_mm"]), {})[sample.cycle] = float(values["travel_mm"])
+    if not readings:
+        raise InsufficientData(f"run {run_id}: no actuator_travel samples, expected an actuator_accuracy run")
+    results = {}
+    for axis, by_target in sorted(readings.items()):
+        targets = sorted(by_target)
+        cycles = sorted(set.intersection(*(set(by_target[t]) for t in targets)))
+        table = np.array([[by_target[t][c] for t in targets] for c in cycles], dtype=float)
+        cr = float(pkm5.DEFAULT_GEOMETRY.mm_per_step[axis - 1])
+        results[axis] = groover_actuator(targets, table, control_resolution_mm=cr)
+    return results
