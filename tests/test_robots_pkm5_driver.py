@@ -207,7 +207,7 @@ def test_settings_and_repr_show_every_setting():
     settings = robot.settings()
     assert settings == {"driver": "Pkm5Controller", "port": "scripted://", "baudrate": 115200,
                         "protocol_version": 1, "speed_steps_s": 300, "reply_timeout_s": 1.0, "retries": 1,
-                        "move_margin_s": 2.0, "firmware": None}
+                        "move_margin_s": 2.0, "fixture": "assembled", "firmware": None}
     assert repr(robot).startswith("Pkm5Controller(port='scripted://', baudrate=115200, protocol_version=1, "
                                   "speed_steps_s=300")
 
