@@ -17,12 +17,12 @@ from bench.metrology import (
     combine,
     expanded,
     fit_matrix,
-    groover_actuator,
     increment_resolution,
     increments_from_positions,
     leg_error_summary,
     pose_drift,
 )
+from bench.metrology.actuator_tables import actuator_table, analyze_actuators
 from bench.metrology.tables import (
     analyze_distance,
     analyze_poses,
@@ -31,6 +31,10 @@ from bench.metrology.tables import (
     pose_table,
     read_table_csv,
 )
+
+
+#: Robots whose actuator numbers ``bench analyze actuator --robot`` maps to a control resolution.
+ACTUATOR_ROBOTS = ("pkm5",)
 
 
 def register(groups: argparse._SubParsersAction) -> None:
@@ -55,11 +59,16 @@ def register(groups: argparse._SubParsersAction) -> None:
     drift.add_argument("--window-s", type=float, default=3600.0, help="window length (s)")
     drift.set_defaults(handler=_drift)
 
-    actuator = _new_parser(actions, "actuator", "actuator repeatability/accuracy (Groover) and mean bias")
+    actuator = _new_parser(actions, "actuator", "actuator repeatability/accuracy (Groover), mean bias and ISO 230-2 "
+                                                "unidirectional figures; reads bench export --kind actuator_travel")
     actuator.add_argument("--cr-mm", type=float, default=None,
                           help="control resolution (mm/step) when the table has no cr_mm column")
+    actuator.add_argument("--robot", choices=ACTUATOR_ROBOTS, default=None,
+                          help="control resolution per actuator number from this robot's model (an "
+                               "actuator_accuracy export: --robot pkm5)")
     actuator.add_argument("--instrument-u-mm", type=float, default=0.0,
                           help="instrument standard uncertainty of one travel reading (mm)")
+    actuator.add_argument("--k", type=float, default=2.0, help="coverage factor of the expanded uncertainties")
     actuator.set_defaults(handler=_actuator)
 
     payload = _new_parser(actions, "payload", "leg actuation error against load (project payload error)")
@@ -134,34 +143,49 @@ def _drift(args: argparse.Namespace) -> int:
     return 0
 
 
+def actuator_resolution(robot: str) -> tuple[float, ...]:
+    """Control resolution CR (mm/step) per actuator number (1-based) of ``robot`` (000 Eq. 8.1 for the pkm5)."""
+    if robot not in ACTUATOR_ROBOTS:
+        raise ConfigError(f"--robot {robot}: expected one of {', '.join(ACTUATOR_ROBOTS)}")
+    from motion import pkm5
+
+    return tuple(float(v) for v in pkm5.DEFAULT_GEOMETRY.mm_per_step)
+
+
+def actuator_result_json(r) -> dict:
+    """One actuator's figures as ``bench analyze actuator --json`` prints them (mm; U with the coverage factor k)."""
+    g, iso = r.groover, r.iso230_2
+    return {"n": g.n, "targets_mm": list(r.targets_mm), "repeatability_mm": g.repeatability_mm,
+            "accuracy_mm": g.accuracy_mm, "control_resolution_mm": r.control_resolution_mm,
+            "sigma_mm": list(g.sigma_mm), "mean_deviation_mm": list(g.mean_deviation_mm),
+            "U_mean_deviation_mm": [m.expanded_uncertainty for m in r.bias_u], "k": r.bias_u[0].coverage_factor,
+            "U_repeatability_mm": None if r.repeatability_u is None else r.repeatability_u.expanded_uncertainty,
+            "U_accuracy_mm": None if r.accuracy_u is None else r.accuracy_u.expanded_uncertainty,
+            "max_abs_bias_mm": g.max_abs_bias_mm, "dropped_readings": r.dropped,
+            "iso230_2_forward": {"R_mm": iso.repeatability_forward_mm, "E_mm": iso.systematic_forward_mm,
+                                 "A_mm": iso.accuracy_forward_mm}}
+
+
 def _actuator(args: argparse.Namespace) -> int:
     frame = read_table_csv(args.file)
-    has_cr = "cr_mm" in frame.columns
-    if not has_cr and args.cr_mm is None:
-        raise ConfigError(f"{args.file}: no cr_mm column and no --cr-mm given, expected one of them")
-    table = numeric_columns(frame, ["cmd_mm", "travel_mm", *(["cr_mm"] if has_cr else [])])
-    if "actuator" not in table.columns:
-        raise ConfigError(f"{args.file}: missing column actuator")
-    result, lines = {}, [(f"{'actuator':<9} {'n':>3} {'repeat_mm':>9} {'accuracy_mm':>11} {'max|bias|_mm':>12}  "
-                          "mean deviation per target (mm)")]
-    for name, rows in table.groupby(table["actuator"].astype(str).str.strip(), sort=False):
-        targets = np.unique(rows["cmd_mm"].to_numpy())
-        counts = {float(t): int((rows["cmd_mm"] == t).sum()) for t in targets}
-        if len(set(counts.values())) != 1:
-            raise ConfigError(f"{args.file}: actuator {name}: repeats per target {counts}, expected equal counts")
-        readings = np.column_stack([rows.loc[rows["cmd_mm"] == t, "travel_mm"].to_numpy() for t in targets])
-        cr = float(rows["cr_mm"].iloc[0]) if has_cr else args.cr_mm
-        r = groover_actuator(targets, readings, control_resolution_mm=cr)
-        u_bias = [expanded(b, combine(s / np.sqrt(r.n), args.instrument_u_mm), unit="mm").expanded_uncertainty
-                  for b, s in zip(r.mean_deviation_mm, r.sigma_mm)]
-        result[name] = {"n": r.n, "targets_mm": targets.tolist(), "repeatability_mm": r.repeatability_mm,
-                        "accuracy_mm": r.accuracy_mm, "control_resolution_mm": cr, "sigma_mm": list(r.sigma_mm),
-                        "mean_deviation_mm": list(r.mean_deviation_mm), "U_mean_deviation_mm": u_bias,
-                        "k": 2.0, "max_abs_bias_mm": r.max_abs_bias_mm}
-        lines.append(f"{name:<9} {r.n:>3} {r.repeatability_mm:9.3f} {r.accuracy_mm:11.3f} {r.max_abs_bias_mm:12.3f}  "
-                     + " ".join(f"{v:+.3f}" for v in r.mean_deviation_mm))
-    lines.append("Repeatability = 3 σ̄, accuracy = CR/2 + 3 σ̄ (dissertation Eqs. 8.2-8.3); bias = x̄ - target.")
-    emit({"actuators": result}, args.json, lines)
+    resolution = args.cr_mm if args.cr_mm is not None else (
+        actuator_resolution(args.robot) if args.robot is not None else None)
+    if "cr_mm" not in frame.columns and resolution is None:
+        raise ConfigError(f"{args.file}: no cr_mm column and no --cr-mm given, expected one of them (an "
+                          "actuator_accuracy export: --robot pkm5)")
+    results = analyze_actuators(actuator_table(frame), control_resolution_mm=resolution,
+                                instrument_u_mm=args.instrument_u_mm, k=args.k)
+    lines = [(f"{'actuator':<9} {'n':>3} {'repeat_mm':>9} {'accuracy_mm':>11} {'max|bias|_mm':>12} {'R230_mm':>8} "
+              f"{'E230_mm':>8} {'A230_mm':>8}  mean deviation per target (mm)")]
+    for r in results:
+        g, iso = r.groover, r.iso230_2
+        lines.append(f"{r.actuator:<9} {g.n:>3} {g.repeatability_mm:9.3f} {g.accuracy_mm:11.3f} "
+                     f"{g.max_abs_bias_mm:12.3f} {iso.repeatability_forward_mm:8.3f} {iso.systematic_forward_mm:8.3f} "
+                     f"{iso.accuracy_forward_mm:8.3f}  " + " ".join(f"{v:+.3f}" for v in g.mean_deviation_mm)
+                     + (f"  ({r.dropped} readings of incomplete repeats left out)" if r.dropped else ""))
+    lines.append("Repeatability = 3 σ̄, accuracy = CR/2 + 3 σ̄ (dissertation Eqs. 8.2-8.3); bias = x̄ - target; "
+                 "R/E/A: ISO 230-2 unidirectional (approach from below).")
+    emit({"actuators": {r.actuator: actuator_result_json(r) for r in results}}, args.json, lines)
     return 0
 
 
