@@ -48,7 +48,11 @@ def register(groups: argparse._SubParsersAction) -> None:
     export.add_argument("run_id", metavar="RUN_ID", type=int)
     export.add_argument("--format", choices=EXPORT_FORMATS, default="csv", help="file format")
     export.add_argument("--out", default=None, help="output file (default run-RUN_ID.FORMAT)")
-    export.add_argument("--kind", default="pose", help="sample kind to export (pose, manual, ...)")
+    export.add_argument("--kind", default=None,
+                        help="sample kind to export (pose, manual, arrival, ...; default pose, or arrival with "
+                             "--series)")
+    export.add_argument("--series", action="store_true",
+                        help="export the streamed series of each sample (one row per point; stabilisation runs)")
     export.set_defaults(handler=_export)
 
 
@@ -236,5 +240,6 @@ def _runs(args: argparse.Namespace) -> int:
 def _export(args: argparse.Namespace) -> int:
     out = args.out or f"run-{args.run_id}.{args.format}"
     with Store(args.store) as store:
-        print(export_run(store, args.run_id, out, fmt=args.format, kind=args.kind))
+        kind = args.kind or ("arrival" if args.series else "pose")
+        print(export_run(store, args.run_id, out, fmt=args.format, kind=kind, series=args.series))
     return 0

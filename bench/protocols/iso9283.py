@@ -1,4 +1,5 @@
-"""ISO 9283 pose protocols: accuracy and repeatability (AP/RP), distance (AD/RD), multi-directional (vAP), drift.
+"""ISO 9283 pose protocols: accuracy and repeatability (AP/RP), distance (AD/RD), multi-directional (vAP), drift,
+stabilisation time and overshoot (from a streamed arrival).
 
 Spec: ``shared/reference/iso9283.md`` §4-5. The test cube is centred where the robot works most and sized to the
 workspace: with ``cube_side_mm = 0`` the largest cube around ``cube_centre_mm`` whose 27 lattice points (corners,
@@ -26,9 +27,10 @@ from bench.protocols.parameters import (
     IntegerParameter,
     PoseTableParameter,
 )
-from bench.protocols.steps import Checkpoint, Move, Plan, Prompt, Settle, visit
+from bench.protocols.steps import Capture, Checkpoint, Move, Plan, Prompt, Settle, commanded_values, visit
 
-__all__ = ["DistanceAccuracy", "Drift", "MultiDirectional", "PoseAccuracy", "cube_poses", "fit_cube_side"]
+__all__ = ["DistanceAccuracy", "Drift", "MultiDirectional", "PoseAccuracy", "StabilisationOvershoot", "cube_poses",
+           "fit_cube_side"]
 
 #: Sign patterns of P2..P5 on each diagonal plane (cube coordinates); P2/P4 and P3/P5 are opposite corners.
 _PLANES = {
@@ -231,3 +233,39 @@ class Drift(_CubeProtocol):
             if self.pause_s > 0:
                 yield Settle(self.pause_s)
             yield Checkpoint(f"drift cycle {cycle}")
+
+
+@register
+class StabilisationOvershoot(_CubeProtocol):
+    """ISO 9283 7.4 and 7.5: position stabilisation time and overshoot at P1-P5, 3 cycles, 100 % velocity.
+
+    Every visit moves to the pose and, as soon as the controller reports the move done, captures the streamed
+    arrival (kind ``arrival``): the instrument's position from ``lead_s`` before that moment to ``hold_s`` after it.
+    No dwell comes before the capture, since the settling is what is measured. The limit band is chosen at analysis
+    time (``bench analyze stabilisation``; ISO comparison bands 0.1, 0.5 and 1.0 mm), so one run serves every band.
+    ``lead_s`` must cover the approach into the band and ``hold_s`` the ringing until it has died out.
+    """
+
+    name = "iso9283_stabilisation"
+    version = "1"
+    title = "ISO 9283 position stabilisation time and overshoot (7.4, 7.5)"
+
+    cycles = IntegerParameter(3, minimum=1, description="cycles per pose (ISO Table 5: 3)")
+    velocities_pct = FloatListParameter((100.0,), unit="%", minimum=0.1, maximum=100.0,
+                                        description="test velocities, % of rated (ISO 4.2: 100)")
+    lead_s = FloatParameter(1.0, unit="s", minimum=0.0, maximum=60.0,
+                            description="streamed time kept before the move is reported done")
+    hold_s = FloatParameter(3.0, unit="s", minimum=0.1, maximum=60.0,
+                            description="streamed time recorded after the move is reported done")
+
+    def steps(self) -> Plan:
+        order = [p for p in POSE_ORDER if p in self._poses] if self.poses is None else list(self._poses)
+        for velocity in self.velocities_pct:
+            for cycle in range(1, self.cycles + 1):
+                for label in order:
+                    target = self._poses[label]
+                    yield Move(target, velocity, label)
+                    yield Capture(label, cycle, kind="arrival", commanded=commanded_values(target),
+                                  conditions={"velocity_pct": velocity, "load_kg": self.loads_kg[0],
+                                              "lead_s": self.lead_s, "hold_s": self.hold_s})
+                yield Checkpoint(f"{velocity:g} %, cycle {cycle}")

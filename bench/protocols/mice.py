@@ -4,11 +4,20 @@ Each mouse integrates raw counts since the instrument was registered; counts bec
 force (its id travels with every sample). The instrument frame is registered once, at a known pose of the robot
 (its home), so a reading is ``registration + displacement``. :func:`hardware_rig` builds the rig for a real pkm5
 controller on a serial port with two mice on ``/dev/input``.
+
+A capture of kind ``arrival`` (ISO 9283 7.4 stabilisation time, 7.5 overshoot) is asked right after the controller
+reported the move done, and stores the streamed position from ``lead_s`` before that moment to ``hold_s`` after
+it: the mice report every motion with a kernel timestamp (``CLOCK_MONOTONIC``), so the end of the move is already
+in their buffers when the capture starts, and the instrument then listens for ``hold_s``. The sample keeps the raw
+reports of both mice in the window and the counts at its start (the raw data), the position series they give
+(times relative to the request), and, as its values, the position at the end of the window.
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable
+import selectors
+import time
+from collections.abc import Callable, Mapping
 from typing import Any
 
 import numpy as np
@@ -17,7 +26,12 @@ from bench.errors import LinkError
 from bench.protocols.rig import Measurement, Rig
 from bench.protocols.steps import Capture, Prompt
 
-__all__ = ["ConsoleOperator", "MiceInstrument", "hardware_rig"]
+__all__ = ["ARRIVAL", "ConsoleOperator", "MiceInstrument", "arrival_series", "hardware_rig"]
+
+#: Capture kind of a streamed arrival at a pose; ``conditions`` give ``lead_s`` and ``hold_s``.
+ARRIVAL = "arrival"
+#: Decimals kept in the stored series (0.1 um, 1 us): far below a count (32 um at 800 cpi).
+_MM_DECIMALS, _S_DECIMALS = 4, 6
 
 
 class MiceInstrument:
@@ -42,6 +56,8 @@ class MiceInstrument:
         return self.mice["xy"].read(timeout_s=0.001), self.mice["xz"].read(timeout_s=0.001)
 
     def measure(self, capture: Capture) -> Measurement:
+        if capture.kind == ARRIVAL:
+            return self._measure_arrival(capture)
         xy, xz = self._read()
         if capture.kind == "mouse":  # calibration runs store the raw counts themselves
             counts = {"mouse_xy_x_counts": xy.raw[0], "mouse_xy_y_counts": xy.raw[1],
@@ -55,6 +71,33 @@ class MiceInstrument:
                                                                                                    and xz.valid),
                                 "calibration": self.calibration.calibration_id})
 
+    def _measure_arrival(self, capture: Capture) -> Measurement:
+        lead_s = float(capture.conditions.get("lead_s", 1.0))
+        hold_s = float(capture.conditions.get("hold_s", 2.0))
+        counts_before = {plane: mouse.counts.copy() for plane, mouse in self.mice.items()}
+        frames, t_request = self._stream(lead_s, hold_s)
+        series, raw = arrival_series(frames, counts_before, self.calibration, self.origin,
+                                     t_request=t_request, lead_s=lead_s, hold_s=hold_s)
+        values = {axis: float(series[axis][-1]) for axis in ("x_mm", "y_mm", "z_mm")}
+        valid = all(mouse.segment_valid for mouse in self.mice.values())
+        return Measurement(values, raw={**raw, "series": series, "valid": valid,
+                                        "calibration": self.calibration.calibration_id})
+
+    def _stream(self, lead_s: float, hold_s: float) -> tuple[dict[str, Any], float]:
+        """Every report of both mice up to ``hold_s`` after now (those of the move included), and now, on the
+        mice's clock (``CLOCK_MONOTONIC``)."""
+        from bench.sensors.input_event import MotionFrames
+
+        t_request = time.monotonic()
+        parts: dict[str, list[Any]] = {plane: [mouse.read_frames()] for plane, mouse in self.mice.items()}
+        with selectors.PollSelector() as selector:
+            for plane, mouse in self.mice.items():
+                selector.register(mouse.fileno(), selectors.EVENT_READ, plane)
+            while (remaining := t_request + hold_s - time.monotonic()) > 0:
+                for key, _ in selector.select(min(remaining, 0.05)):
+                    parts[key.data].append(self.mice[key.data].read_frames())
+        return {plane: MotionFrames.concatenate(p) for plane, p in parts.items()}, t_request
+
     def settings(self) -> dict[str, Any]:
         return {"instrument": "optical mice (x-y, x-z)", "calibration_id": self.calibration.calibration_id,
                 "mice": {plane: str(mouse.binding) for plane, mouse in self.mice.items()},
@@ -63,6 +106,48 @@ class MiceInstrument:
     def close(self) -> None:
         for mouse in self.mice.values():
             mouse.close()
+
+
+def arrival_series(frames: Mapping[str, Any], counts_before: Mapping[str, np.ndarray], calibration: Any,
+                   origin_mm: np.ndarray, *, t_request: float, lead_s: float, hold_s: float
+                   ) -> tuple[dict[str, list[float]], dict[str, Any]]:
+    """Position series of an x-y and an x-z mouse in the window [t_request - lead_s, t_request + hold_s].
+
+    A mouse reports only when it moves, so its position holds between reports (zero-order hold). The series is
+    sampled at every report time in the window plus the window's two ends; x comes from the x-y mouse, z from the
+    x-z mouse. Returns the series (``t_s`` relative to ``t_request``, ``x_mm``, ``y_mm``, ``z_mm``) and the raw data
+    it was computed from (the counts at the window start and every report in the window).
+    """
+    start, end = t_request - lead_s, t_request + hold_s
+    times = [np.array([start, end])]
+    counts_at_start, reports, count_paths = {}, {}, {}
+    for plane, f in frames.items():
+        cumulative = np.asarray(counts_before[plane], np.int64) + np.cumsum(np.column_stack([f.dx, f.dy]), axis=0)
+        before = f.t_s < start
+        inside = ~before & (f.t_s <= end)
+        counts_at_start[plane] = (cumulative[before][-1] if before.any() else
+                                  np.asarray(counts_before[plane], np.int64))
+        reports[plane] = {"t_s": np.round(f.t_s[inside] - t_request, _S_DECIMALS).tolist(),
+                          "dx_counts": f.dx[inside].tolist(), "dy_counts": f.dy[inside].tolist()}
+        count_paths[plane] = (f.t_s[inside], cumulative[inside], counts_at_start[plane])
+        times.append(f.t_s[inside])
+    grid = np.unique(np.concatenate(times))
+    position = {}
+    for plane, (t_reports, cumulative, at_start) in count_paths.items():
+        latest = np.searchsorted(t_reports, grid, side="right") - 1
+        counts = np.where(latest[:, None] >= 0, cumulative[np.maximum(latest, 0)] if len(cumulative) else at_start,
+                          at_start)
+        position[plane] = calibration.counts_to_mm(counts)
+    origin = np.asarray(origin_mm, dtype=float)
+    relative = np.round(grid - t_request, _S_DECIMALS)
+    distinct = np.r_[relative[1:] != relative[:-1], True]  # times equal once rounded: the later position holds
+    series = {"t_s": relative[distinct].tolist(),
+              "x_mm": np.round(origin[0] + position["xy"][distinct, 0], _MM_DECIMALS).tolist(),
+              "y_mm": np.round(origin[1] + position["xy"][distinct, 1], _MM_DECIMALS).tolist(),
+              "z_mm": np.round(origin[2] + position["xz"][distinct, 1], _MM_DECIMALS).tolist()}
+    raw = {"lead_s": lead_s, "hold_s": hold_s, "reports": reports,
+           "counts_at_start": {plane: [int(c) for c in counts] for plane, counts in counts_at_start.items()}}
+    return series, raw
 
 
 class ConsoleOperator:

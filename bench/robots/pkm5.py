@@ -25,6 +25,7 @@ import numpy as np
 from bench.errors import ConfigError, LinkError, LinkTimeout, UnreachableTarget
 from bench.robots import pkm5_kinematics as kinematics
 from bench.robots import pkm5_wire as wire
+from bench.robots.dynamics import trace_times
 from bench.robots.link import Deadline, WireProtocolError
 from motion import pkm5
 
@@ -33,7 +34,8 @@ __all__ = ["DEFAULT_BAUDRATE", "ControllerError", "Identity", "Pkm5Controller", 
 _log = logging.getLogger(__name__)
 
 DEFAULT_BAUDRATE = 115200
-_IDEMPOTENT = frozenset({"ID", "POS", "STOP", "ENABLE", "DISABLE", "SETPOS", "SIMLOAD", "SIMTRUE"})
+_IDEMPOTENT = frozenset({"ID", "POS", "STOP", "ENABLE", "DISABLE", "SETPOS", "SIMLOAD", "SIMTRUE", "SIMLEGS",
+                         "SIMTRACE"})
 
 
 class ControllerError(LinkError):
@@ -278,15 +280,47 @@ class Pkm5Controller:
 
     def sim_true_strokes(self) -> np.ndarray:
         """Simulator on the actuator bench only: the true stroke of each actuator, mm, shape (6,)."""
-        reply = self._exchange("SIMTRUE")
         try:
-            strokes = np.array([float(f) for f in reply.fields[1:]], dtype=float)
+            return self._sim_numbers("SIMTRUE", (), wire.AXES)
+        except LinkError as exc:
+            raise LinkError(f"{exc} strokes (is the simulator running with --fixture actuator-bench?)") from None
+
+    def sim_true_lengths(self) -> np.ndarray:
+        """Simulator only (assembled robot): the true, perturbed leg lengths after the last move, mm, shape (6,)."""
+        return self._sim_numbers("SIMLEGS", (), wire.AXES)
+
+    def sim_trace(self, rate_hz: int, lead_s: float, hold_s: float) -> tuple[np.ndarray, np.ndarray]:
+        """Simulator only: the true arrival of the last move, sampled at ``rate_hz`` from ``lead_s`` before the move
+        ended to ``hold_s`` after; returns times (n,) in simulated s relative to the move's end and poses (n, 5)."""
+        _checked_number("rate_hz", rate_hz, 1, 10_000)
+        _checked_number("lead_s", lead_s, 0.0, 60.0)
+        _checked_number("hold_s", hold_s, 0.0, 60.0)
+        window = (int(rate_hz), round(lead_s * 1000), round(hold_s * 1000))
+        first = self._exchange("SIMTRACE", window + (0,))
+        times = trace_times(window[0], window[1] / 1000.0, window[2] / 1000.0)
+        if int(first.fields[1]) != len(times):
+            raise WireProtocolError(f"{self.link.port_name}: SIMTRACE announced {first.fields[1]} samples, expected "
+                                    f"{len(times)} for {window}")
+        samples = [self._trace_fields(first)]
+        for index in range(1, len(times)):
+            samples.append(self._trace_fields(self._exchange("SIMTRACE", window + (index,))))
+        return times, np.array(samples, dtype=float)
+
+    def _trace_fields(self, reply: wire.Reply) -> list[float]:
+        try:
+            return [float(f) for f in reply.fields[3:]]
         except ValueError as exc:
-            raise WireProtocolError(f"{self.link.port_name}: SIMTRUE reply {reply} is not numbers") from exc
-        if strokes.shape != (wire.AXES,):
-            raise LinkError(f"{self.link.port_name}: SIMTRUE answered {len(strokes)} numbers, expected {wire.AXES} "
-                            "strokes (is the simulator running with --fixture actuator-bench?)")
-        return strokes
+            raise WireProtocolError(f"{self.link.port_name}: SIMTRACE reply {reply} is not numbers") from exc
+
+    def _sim_numbers(self, verb: str, args: tuple[int, ...], count: int) -> np.ndarray:
+        reply = self._exchange(verb, args)
+        try:
+            values = np.array([float(f) for f in reply.fields[1:]], dtype=float)
+        except ValueError as exc:
+            raise WireProtocolError(f"{self.link.port_name}: {verb} reply {reply} is not numbers") from exc
+        if values.shape != (count,):
+            raise LinkError(f"{self.link.port_name}: {verb} answered {len(values)} numbers, expected {count}")
+        return values
 
     def sim_set_load(self, load_kg: float) -> None:
         """Simulator only: the payload carried by the end effector, kg (0-30)."""

@@ -34,7 +34,7 @@ _REPLY_KINDS = ("OK", "DONE", "ERR", "BOOT")
 COMMAND_ARITY = {
     "ID": 0, "POS": 0, "STOP": 0, "ENABLE": 0, "DISABLE": 0,
     "MOVE": AXES + 1, "SETPOS": AXES,
-    "SIMLOAD": 1, "SIMTRUE": 0,
+    "SIMLOAD": 1, "SIMTRUE": 0, "SIMLEGS": 0, "SIMTRACE": 4,
 }
 
 

@@ -48,6 +48,8 @@ class Plant:
         self._rng = np.random.default_rng([seed, 1])
         self._memory: JointMemory | None = None
         self._previous: np.ndarray | None = None
+        #: the attained (perturbed) joint values of the last call, e.g. the true leg lengths in mm
+        self.true_joints: np.ndarray | None = None
 
     def __call__(self, command: np.ndarray, load_kg: float) -> np.ndarray:
         joints = np.asarray(self.joints_of(np.asarray(command)), dtype=float)
@@ -55,6 +57,7 @@ class Plant:
             self._memory = JointMemory(joints)
         direction = self._memory.update(joints)
         true_joints = self.model.true_joints(joints, direction, load_kg, self._rng)
+        self.true_joints = true_joints
         pose = self.forward(true_joints, joints, self._previous)
         if pose is None:  # the perturbed joints left the FK's domain: fall back to the nominal joints
             _log.warning("forward kinematics failed for perturbed joints %s; using the commanded ones", true_joints)

@@ -1,13 +1,15 @@
 """Simulated PKM5 controller: ``python -m bench.robots.sim_pkm5`` (or ``bench sim pkm5``).
 
 Implements the firmware's behaviour (``docs/protocol-pkm5.md``) on a pseudo-terminal, plus the simulator-only
-commands ``SIMTRUE`` and ``SIMLOAD``.
+commands ``SIMTRUE``, ``SIMLOAD``, ``SIMLEGS`` and ``SIMTRACE``.
 With ``--fixture actuator-bench`` the six actuators stand free (000 §8.4): any step target inside the firmware
 limits is a valid move, and ``SIMTRUE`` reports the six true strokes (mm) instead of a pose. Moves run at constant speed with all axes arriving together (MultiStepper),
 in simulated time scaled by ``--speed-factor``. When a move ends, the plant (:class:`Pkm5Plant`) turns the reached
 steps into the true attained pose through the seeded error model and the kinematics of :mod:`motion.pkm5`:
 steps -> leg lengths -> perturbed lengths -> forward kinematics -> pose errors. The pose goes to ``SIMTRUE`` and
-to the truth log (see :mod:`bench.robots.sim_pty`).
+to the truth log (see :mod:`bench.robots.sim_pty`). How the end effector arrived there (lag during the move,
+ringing after it) follows the structural mode of :mod:`bench.robots.dynamics` (``--mode-hz``, ``--damping``);
+``SIMTRACE`` samples that arrival, in simulated seconds, for the simulated sensors that stream.
 """
 
 from __future__ import annotations
@@ -21,6 +23,7 @@ from typing import Any
 import numpy as np
 
 from bench.robots import pkm5_wire as wire
+from bench.robots.dynamics import StructuralMode, trace_times
 from bench.robots.link import WireProtocolError
 from bench.robots.sim_pty import TruthLog, add_common_arguments, main_for
 
@@ -46,6 +49,7 @@ class _Move:
     target: np.ndarray
     t_start_s: float
     duration_s: float
+    simulated_s: float  # the move's duration in simulated time (duration_s is wall time: simulated / speed factor)
 
     def at(self, now_s: float) -> np.ndarray:
         fraction = 1.0 if self.duration_s <= 0 else min(1.0, (now_s - self.t_start_s) / self.duration_s)
@@ -56,8 +60,9 @@ class Pkm5SimDevice:
     """The firmware state machine; ``plant(steps, load_kg) -> pose`` supplies the true pose after each move."""
 
     def __init__(self, plant: Any, *, speed_factor: float = 1.0, truth: TruthLog | None = None,
-                 load_kg: float = 0.0) -> None:
+                 load_kg: float = 0.0, mode: StructuralMode | None = None) -> None:
         self.plant = plant
+        self.mode = mode or StructuralMode()
         self.speed_factor = speed_factor
         self.truth = truth or TruthLog(None, ("x_mm", "y_mm", "z_mm", "alpha_deg", "beta_deg"))
         self.load_kg = load_kg
@@ -65,6 +70,9 @@ class Pkm5SimDevice:
         self.enabled = False
         self.move: _Move | None = None
         self.true_pose = np.asarray(plant(self.steps, load_kg), dtype=float)
+        #: the last arrival: (true pose before, true pose after, duration in simulated s); at rest after power-up
+        self.arrival = (self.true_pose, self.true_pose, 0.0)
+        self._trace: tuple[tuple[int, int, int], np.ndarray] | None = None
         self._line = bytearray()
         self._overflow = False
         self._booted = False
@@ -105,7 +113,7 @@ class Pkm5SimDevice:
         if self.move is not None and now_s >= self.move.t_start_s + self.move.duration_s:
             move, self.move = self.move, None
             self.steps = move.target.copy()
-            self._settle()
+            self._settle(move.simulated_s)
             out += wire.format_reply("DONE", move.tag, *self.steps)
         return out
 
@@ -135,7 +143,30 @@ class Pkm5SimDevice:
             return wire.format_reply("OK", tag, "SIMLOAD")
         if verb == "SIMTRUE":
             return wire.format_reply("OK", tag, "SIMTRUE", *(f"{v:.4f}" for v in self.true_pose))
+        if verb == "SIMLEGS":
+            lengths = getattr(self.plant, "true_joints", None)
+            if lengths is None:  # the actuator bench has no legs: SIMTRUE gives its strokes
+                return _error(tag, wire.ErrorCode.ARGUMENT)
+            return wire.format_reply("OK", tag, "SIMLEGS", *(f"{v:.4f}" for v in lengths))
+        if verb == "SIMTRACE":
+            return self._trace_sample(tag, args)
         return _error(tag, wire.ErrorCode.SYNTAX)
+
+    def _trace_sample(self, tag: int, args: tuple[int, ...]) -> bytes:
+        """``SIMTRACE rate_hz lead_ms hold_ms index``: sample ``index`` of the last arrival sampled at ``rate_hz``
+        from ``lead_ms`` before the move ended to ``hold_ms`` after; one sample per reply keeps lines short."""
+        rate_hz, lead_ms, hold_ms, index = args
+        if not (1 <= rate_hz <= 10_000 and 0 <= lead_ms <= 60_000 and 0 <= hold_ms <= 60_000):
+            return _error(tag, wire.ErrorCode.ARGUMENT)
+        key = (rate_hz, lead_ms, hold_ms)
+        if self._trace is None or self._trace[0] != key:
+            start, end, duration_s = self.arrival
+            times = trace_times(rate_hz, lead_ms / 1000.0, hold_ms / 1000.0)
+            self._trace = key, self.mode.arrival(times, start, end, duration_s)
+        samples = self._trace[1]
+        if not 0 <= index < len(samples):
+            return _error(tag, wire.ErrorCode.ARGUMENT)
+        return wire.format_reply("OK", tag, "SIMTRACE", len(samples), index, *(f"{v:.4f}" for v in samples[index]))
 
     def _current(self, now_s: float) -> np.ndarray:
         return self.move.at(now_s) if self.move is not None else self.steps
@@ -157,20 +188,23 @@ class Pkm5SimDevice:
             return _error(tag, wire.ErrorCode.DISABLED)
         target = np.array(targets, dtype=np.int64)
         duration_s = float(np.max(np.abs(target - self.steps))) / speed
-        self.move = _Move(tag, self.steps.copy(), target, now_s, duration_s / self.speed_factor)
+        self.move = _Move(tag, self.steps.copy(), target, now_s, duration_s / self.speed_factor, duration_s)
         return wire.format_reply("OK", tag, "MOVE", round(1000 * duration_s / self.speed_factor))
 
     def _stop(self, tag: int, now_s: float) -> bytes:
         out = b""
         if self.move is not None:
             self.steps = self.move.at(now_s)
+            ran_s = min(self.move.simulated_s, (now_s - self.move.t_start_s) * self.speed_factor)
             out += _error(self.move.tag, wire.ErrorCode.STOPPED, *self.steps)
             self.move = None
-            self._settle()
+            self._settle(ran_s)
         return out + wire.format_reply("OK", tag, "STOP", *self.steps)
 
-    def _settle(self) -> None:
+    def _settle(self, duration_s: float = 0.0) -> None:
+        before = self.true_pose
         self.true_pose = np.asarray(self.plant(self.steps, self.load_kg), dtype=float)
+        self.arrival, self._trace = (before, self.true_pose, duration_s), None
         self.truth.record(list(self.steps), list(self.true_pose), self.load_kg)
 
 
@@ -196,6 +230,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--fixture", choices=("assembled", "actuator-bench"), default="assembled",
                         help="the assembled robot (SIMTRUE: the pose) or the six actuators free-standing on the "
                              "bench, 000 §8.4 (SIMTRUE: the six true strokes, mm)")
+    parser.add_argument("--mode-hz", type=float, default=StructuralMode.frequency_hz,
+                        help="natural frequency of the structural mode that rings after each move, Hz "
+                             "(default %(default)s; a choice, no document measures it)")
+    parser.add_argument("--damping", type=float, default=StructuralMode.damping_ratio,
+                        help="damping ratio of that mode, 0-1 (default %(default)s)")
 
 
 def build_device(args: argparse.Namespace) -> Pkm5SimDevice:
@@ -205,13 +244,18 @@ def build_device(args: argparse.Namespace) -> Pkm5SimDevice:
         build_actuator_bench,
         build_plant,
     )
+    try:
+        mode = StructuralMode(getattr(args, "mode_hz", StructuralMode.frequency_hz),
+                              getattr(args, "damping", StructuralMode.damping_ratio))
+    except ValueError as exc:
+        raise SystemExit(f"sim_pkm5: {exc}") from None
     if getattr(args, "fixture", "assembled") == ACTUATOR_BENCH:
         plant = build_actuator_bench(args.seed, ideal=args.ideal)
         truth = TruthLog(args.truth, tuple(f"stroke{axis}_mm" for axis in range(1, wire.AXES + 1)))
-        return Pkm5SimDevice(plant, speed_factor=args.speed_factor, truth=truth)
+        return Pkm5SimDevice(plant, speed_factor=args.speed_factor, truth=truth, mode=mode)
     plant = build_plant(args.seed, ideal=args.ideal)
     truth = TruthLog(args.truth, ("x_mm", "y_mm", "z_mm", "alpha_deg", "beta_deg"))
-    return Pkm5SimDevice(plant, speed_factor=args.speed_factor, truth=truth, load_kg=args.load_kg)
+    return Pkm5SimDevice(plant, speed_factor=args.speed_factor, truth=truth, load_kg=args.load_kg, mode=mode)
 
 
 def main(argv: list[str] | None = None) -> int:

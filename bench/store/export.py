@@ -5,6 +5,11 @@ cmd_b_deg, cmd_c_deg, a_deg, b_deg, c_deg, velocity_pct, load_kg, t_s``, then an
 Manual length readings (``length_mm`` against ``cmd_length_mm``, e.g. the payload ladder's legs) also get their
 signed error ``error_mm`` (the input of ``bench analyze payload``). CSV always; Parquet when pyarrow (or
 fastparquet) is installed.
+
+Samples that hold a streamed series (kind ``arrival``: the position from before the move was reported done until
+the pose had settled) export with ``series=True`` as one row per point of each series: ``pose, cycle, cmd_*,
+velocity_pct, load_kg`` of the sample, then ``t_s`` (relative to the move-done signal) and the measured columns
+(the input of ``bench analyze stabilisation``).
 """
 
 from __future__ import annotations
@@ -18,7 +23,7 @@ import pandas as pd
 from bench.errors import ConfigError, InsufficientData
 from bench.store.database import Store
 
-__all__ = ["EXPORT_FORMATS", "TIDY_COLUMNS", "export_run", "tidy_table"]
+__all__ = ["EXPORT_FORMATS", "TIDY_COLUMNS", "export_run", "series_table", "tidy_table"]
 
 #: The leading columns of the tidy table, in order.
 TIDY_COLUMNS = ("pose", "cycle", "cmd_x_mm", "cmd_y_mm", "cmd_z_mm", "x_mm", "y_mm", "z_mm",
@@ -55,17 +60,44 @@ def tidy_table(store: Store, run_id: int, kind: str = "pose") -> pd.DataFrame:
     return table
 
 
+def series_table(store: Store, run_id: int, kind: str = "arrival") -> pd.DataFrame:
+    """The streamed series of the samples of one kind, one row per series point (see the module docstring).
+
+    Raises
+    ------
+    InsufficientData
+        When the run has no sample of that kind with a stored series.
+    """
+    store.run(run_id)
+    frames = []
+    for sample in store.samples(run_id, kind=kind):
+        series = sample.raw.get("series") if isinstance(sample.raw, dict) else None
+        if not series:
+            continue
+        context = {"pose": sample.pose, "cycle": sample.cycle,
+                   **{k: v for k, v in sample.values.items() if k.startswith("cmd_") or k in ("velocity_pct",
+                                                                                              "load_kg")}}
+        frames.append(pd.DataFrame({**context, **series}))
+    if not frames:
+        raise InsufficientData(f"run {run_id}: no {kind!r} samples with a streamed series to export")
+    table = pd.concat(frames, ignore_index=True)
+    leading = [c for c in TIDY_COLUMNS if c in table.columns and c != "t_s"] + ["t_s"]
+    return table[leading + sorted(c for c in table.columns if c not in leading)]
+
+
 def _parquet_available() -> bool:
     return any(importlib.util.find_spec(name) is not None for name in ("pyarrow", "fastparquet"))
 
 
-def export_run(store: Store, run_id: int, path: str | Path, fmt: str = "csv", kind: str = "pose") -> Path:
-    """Write the tidy table of a run to ``path`` as ``csv`` or ``parquet``; returns the path written."""
+def export_run(store: Store, run_id: int, path: str | Path, fmt: str = "csv", kind: str = "pose",
+               series: bool = False) -> Path:
+    """Write the tidy table of a run (``series=True``: its streamed series) to ``path`` as ``csv`` or ``parquet``;
+    returns the path written."""
     if fmt not in EXPORT_FORMATS:
         raise ConfigError(f"--format {fmt}: expected one of {', '.join(EXPORT_FORMATS)}")
     if fmt == "parquet" and not _parquet_available():
         raise ConfigError("--format parquet: needs pyarrow (pip install pyarrow); use --format csv")
-    table = tidy_table(store, run_id, kind=kind)
+    table = series_table(store, run_id, kind=kind) if series else tidy_table(store, run_id, kind=kind)
     path = Path(path)
     if fmt == "csv":
         table.to_csv(path, index=False, float_format="%.6f")
