@@ -23,7 +23,7 @@ from typing import Any
 import numpy as np
 
 from bench.errors import LinkError
-from bench.protocols.mice import MiceInstrument
+from bench.protocols.mice import ARRIVAL, MiceInstrument
 from bench.protocols.rig import Measurement, Rig
 from bench.protocols.steps import Capture, Prompt
 
@@ -34,6 +34,10 @@ __all__ = ["BenchCalliper", "CalliperOnly", "DriverMover", "SimulatedCalliper", 
 RATED_SPEED_STEPS_S = 200
 #: Simulated mouse motion between two captures, s (the move itself is not observed, only its end points).
 _MOTION_S = 0.05
+#: The pose coordinates each simulated mouse sees: x-y mouse (x, y), x-z mouse (x, z).
+_PLANES = {"xy": (0, 1), "xz": (0, 2)}
+#: Bytes written to a mouse FIFO before draining it (a pipe buffer holds 64 KiB).
+_PIPE_CHUNK = 24 * 3 * 512
 
 
 def start_simulator(robot: str, *, seed: int, speed_factor: float, ideal: bool = False, timeout_s: float = 20.0,
@@ -84,15 +88,24 @@ class DriverMover:
 
 
 class SimulatedMice(MiceInstrument):
-    """Two simulated optical mice (x-y and x-z planes) observing the simulator's true pose, read through FIFOs."""
+    """Two simulated optical mice (x-y and x-z planes) observing the simulator's true pose, read through FIFOs.
+
+    Each mouse is a :class:`bench.sensors.mouse_sim.MouseStream` (quantisation with carry, white noise, a fixed
+    report rate) followed through time on a simulated clock. For a static capture the robot's unobserved motion
+    since the last capture is taken as a straight line over ``_MOTION_S``; for an ``arrival`` capture the mice
+    follow the simulator's sampled true arrival (``SIMTRACE``), so the stream shows the lag and the ringing.
+    """
 
     def __init__(self, controller: Any, folder: str, *, seed: int, cpi: float = 800.0,
-                 noise_counts: float = 0.3, calibration_id: str = "sim-mouse-800cpi") -> None:
+                 noise_counts: float = 0.05, report_rate_hz: float = 500.0, trace_rate_hz: int = 250,
+                 calibration_id: str = "sim-mouse-800cpi") -> None:
         from bench.sensors.calibration import CountsCalibration
         from bench.sensors.mouse import EvdevMouse
+        from bench.sensors.mouse_sim import MouseSimulator, MouseStream
 
         self.controller = controller
         self.cpi, self.noise_counts, self.seed = cpi, noise_counts, seed
+        self.report_rate_hz, self.trace_rate_hz = report_rate_hz, trace_rate_hz
         calibration = CountsCalibration.from_cpi(cpi, calibration_id=calibration_id, date="2026-01-01")
         self._writers, mice = {}, {}
         for plane in ("xy", "xz"):
@@ -100,43 +113,46 @@ class SimulatedMice(MiceInstrument):
             os.mkfifo(path)
             self._writers[plane] = os.open(path, os.O_RDWR)  # a writer first, so the reader's open returns
             mice[plane] = EvdevMouse(path, calibration, label=f"mouse_{plane}")
-        super().__init__(mice, np.asarray(controller.sim_true_pose(), dtype=float)[:3], calibration)
-        self._reported = {"xy": np.zeros(2, np.int64), "xz": np.zeros(2, np.int64)}
-        self._rng = np.random.default_rng(seed)
+        registration = np.asarray(controller.sim_true_pose(), dtype=float)[:3]
+        super().__init__(mice, registration, calibration)
         self._clock_s = 0.0
+        self._streams = {plane: MouseStream(MouseSimulator(cpi=cpi, noise_counts=noise_counts,
+                                                           report_rate_hz=report_rate_hz, seed=seed + index),
+                                            origin_mm=registration[list(columns)])
+                         for index, (plane, columns) in enumerate(_PLANES.items())}
 
-    def _observe(self, true_xyz: np.ndarray) -> None:
-        """Write the motion to ``true_xyz`` into both mice's FIFOs as kernel ``input_event`` reports.
+    def _follow(self, t_s: np.ndarray, true_xyz: np.ndarray) -> dict[str, Any]:
+        """Feed the true motion (times on the simulated clock, positions (n, 3) mm) to both mice and read back
+        their reports; the bytes go through the FIFOs in chunks a pipe buffer holds."""
+        from bench.sensors.input_event import MotionFrames
 
-        The sensor quantises its absolute displacement since registration (plus white noise) and reports the
-        change in whole counts, at most 127 per report, so the sub-count remainder is carried as a real sensor
-        carries it and quantisation does not accumulate over a campaign.
-        """
-        from bench.sensors.input_event import encode_frames
-        from bench.sensors.mouse_sim import MouseSimulator
+        frames = {}
+        for plane, columns in _PLANES.items():
+            data = self._streams[plane].input_events(t_s, true_xyz[:, list(columns)])
+            parts = []
+            for offset in range(0, len(data), _PIPE_CHUNK):
+                os.write(self._writers[plane], data[offset:offset + _PIPE_CHUNK])
+                parts.append(self.mice[plane].read_frames())
+            frames[plane] = MotionFrames.concatenate(parts)
+        self._clock_s = float(t_s[-1])
+        return frames
 
-        for index, (plane, columns) in enumerate((("xy", [0, 1]), ("xz", [0, 2]))):
-            counts_per_mm = MouseSimulator(cpi=self.cpi).counts_per_mm()
-            noise = self._rng.normal(0.0, self.noise_counts, 2) if self.noise_counts > 0 else 0.0
-            sensed = np.floor((true_xyz - self.origin)[columns] @ counts_per_mm.T + noise + 0.5).astype(np.int64)
-            change = sensed - self._reported[plane]
-            reports = max(1, int(np.ceil(np.abs(change).max() / 127)))
-            steps = np.diff(np.round(np.outer(np.arange(reports + 1) / reports, change)).astype(np.int64), axis=0)
-            t_s = self._clock_s + np.arange(1, reports + 1) * 1e-3
-            os.write(self._writers[plane], encode_frames(t_s, steps[:, 0], steps[:, 1]))
-            self._reported[plane] = sensed
-        self._clock_s += _MOTION_S
+    def _stream(self, lead_s: float, hold_s: float) -> tuple[dict[str, Any], float]:
+        times, poses = self.controller.sim_trace(self.trace_rate_hz, lead_s, hold_s)
+        base = self._clock_s + _MOTION_S - times[0]  # the unobserved motion up to the window's start takes _MOTION_S
+        return self._follow(base + times, poses[:, :3]), base
 
     def measure(self, capture: Capture) -> Measurement:
         true_pose = np.asarray(self.controller.sim_true_pose(), dtype=float)
-        self._observe(true_pose[:3])
+        if capture.kind != ARRIVAL:
+            self._follow(np.array([self._clock_s + _MOTION_S]), true_pose[None, :3])
         measured = super().measure(capture)
         return Measurement(measured.values, raw={**measured.raw,
                                                  "true_pose": [round(float(v), 6) for v in true_pose]})
 
     def settings(self) -> dict[str, Any]:
         return {**super().settings(), "instrument": "two simulated optical mice (x-y, x-z) over FIFOs",
-                "cpi": self.cpi, "noise_counts": self.noise_counts}
+                "cpi": self.cpi, "noise_counts": self.noise_counts, "report_rate_hz": self.report_rate_hz}
 
     def close(self) -> None:
         super().close()
@@ -162,12 +178,10 @@ class SimulatedOperator:
 
 
 class SimulatedCalliper:
-    """Answers calliper prompts: tilts (``a_deg``, ``b_deg``) from the simulator's true pose, leg lengths
-    (``length_mm`` of leg ``conditions['leg']``) from the actuator steps the controller reports, each with reading noise and 0.01 resolution.
-
-    The simulator exposes the true pose but not its perturbed (true) leg lengths, so a simulated leg reading shows
-    the calliper's scatter only, not the actuator's own error.
-    """
+    """Answers calliper prompts from the simulator's truth, with reading noise and 0.01 resolution: tilts (``a_deg``,
+    ``b_deg``) from the true pose (``SIMTRUE``), leg lengths (``length_mm`` of leg ``conditions['leg']``) from the
+    true, perturbed leg lengths (``SIMLEGS``), so a leg reading shows the actuator's own error (offset, scale,
+    backlash, load compression) as well as the calliper's scatter."""
 
     def __init__(self, controller: Any, *, seed: int, length_sigma_mm: float = 0.02,
                  tilt_sigma_deg: float = 0.1) -> None:
@@ -180,10 +194,7 @@ class SimulatedCalliper:
             angle = np.asarray(self.controller.sim_true_pose(), dtype=float)[3 if prompt.field == "a_deg" else 4]
             return round(float(angle + self.rng.normal(0.0, self.tilt_sigma_deg)), 2)
         if prompt.field == "length_mm" and "leg" in prompt.conditions:
-            from motion import pkm5
-
-            lengths = pkm5.steps_to_lengths(np.asarray(self.controller.position().steps)[None, :])[0]
-            length = lengths[int(prompt.conditions["leg"]) - 1]
+            length = self.controller.sim_true_lengths()[int(prompt.conditions["leg"]) - 1]
             return round(float(length + self.rng.normal(0.0, self.length_sigma_mm)), 2)
         raise LinkError(f"simulated calliper: cannot answer {prompt.field!r} ({prompt.text})")
 
@@ -225,9 +236,11 @@ class BenchCalliper:
 
 
 def simulated_rig(robot: str = "pkm5", *, seed: int = 0, speed_factor: float = 1000.0, ideal: bool = False,
-                  answer: Callable[[Prompt], float] | None = None, fixture: str = "assembled") -> Rig:
+                  answer: Callable[[Prompt], float] | None = None, fixture: str = "assembled",
+                  options: tuple[str, ...] = ()) -> Rig:
     """A rig on a freshly started simulator (close it with ``rig.close()``); ``fixture="actuator-bench"``: the
-    pkm5's actuators free-standing, moved one at a time and read by a simulated depth gauge."""
+    pkm5's actuators free-standing, moved one at a time and read by a simulated depth gauge. ``options`` go to the
+    assembled pkm5 simulator's command line (e.g. ``("--mode-hz", "1.0")``)."""
     import serial
 
     from bench.robots.pkm5 import Pkm5Controller
@@ -240,7 +253,7 @@ def simulated_rig(robot: str = "pkm5", *, seed: int = 0, speed_factor: float = 1
         return _simulated_delta_rig(seed=seed, speed_factor=speed_factor, ideal=ideal)
     if robot != "pkm5":
         raise LinkError(f"--robot {robot}: no simulated rig for this robot, expected pkm5 or delta4")
-    process, path = start_simulator(robot, seed=seed, speed_factor=speed_factor, ideal=ideal)
+    process, path = start_simulator(robot, seed=seed, speed_factor=speed_factor, ideal=ideal, options=options)
     folder = tempfile.TemporaryDirectory(prefix="bench-sim-")
     closers: list[Callable[[], None]] = [folder.cleanup, lambda: _end(process)]
     try:
@@ -285,18 +298,37 @@ def _end(process: subprocess.Popen) -> None:
 
 
 def _simulated_delta_rig(*, seed: int, speed_factor: float, ideal: bool) -> Rig:
-    """The delta4 simulator with the real driver; the laser grid is read from the controller's reports."""
+    """The delta4 simulator (laser-grid simulator attached) with the real driver; the laser grid is read from the
+    controller's reports, and the truth log's attained pose goes into each sample's raw data for comparison."""
     import serial
 
     from bench.protocols.grid import DeltaMover, LaserGridInstrument
     from bench.robots.delta4 import Delta4Controller
+    from bench.robots.sim_pty import read_last_truth
 
-    process, path = start_simulator("delta4", seed=seed, speed_factor=speed_factor, ideal=ideal)
+    folder = tempfile.TemporaryDirectory(prefix="bench-sim-delta4-")
+    truth_path = os.path.join(folder.name, "truth.jsonl")
+    try:
+        process, path = start_simulator("delta4", seed=seed, speed_factor=speed_factor, ideal=ideal,
+                                        options=("--truth", truth_path))
+    except BaseException:
+        folder.cleanup()
+        raise
+    closers: list[Callable[[], None]] = [folder.cleanup, lambda: _end(process)]
     try:
         controller = Delta4Controller(serial.serial_for_url(path, baudrate=9600, timeout=0.05))
         controller.start()
     except BaseException:
-        _end(process)
+        for close in reversed(closers):
+            close()
         raise
-    return Rig(DeltaMover(controller), LaserGridInstrument(controller), SimulatedOperator(controller),
-               speed_factor=speed_factor, closers=[lambda: _end(process)])
+
+    def true_position() -> list[float]:
+        entry = read_last_truth(truth_path)
+        if entry is None:
+            raise LinkError(f"delta4 simulator: no attained pose in its truth log {truth_path} yet")
+        return entry["pose"]
+
+    instrument = LaserGridInstrument(controller, truth=true_position)
+    return Rig(DeltaMover(controller), instrument, SimulatedOperator(controller), speed_factor=speed_factor,
+               closers=closers)

@@ -9,7 +9,7 @@ from bench.store.database import (
     Store,
     software_git_sha,
 )
-from bench.store.export import EXPORT_FORMATS, TIDY_COLUMNS, export_run, tidy_table
+from bench.store.export import EXPORT_FORMATS, TIDY_COLUMNS, export_run, series_table, tidy_table
 
 __all__ = [
     "EXPORT_FORMATS",
@@ -22,5 +22,6 @@ __all__ = [
     "Store",
     "export_run",
     "software_git_sha",
+    "series_table",
     "tidy_table",
 ]
