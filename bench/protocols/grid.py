@@ -1,24 +1,49 @@
 """The delta robot's rig parts: the driver as a Mover and the laser grid (reported by the controller) as Instrument.
 
-The delta4 controller streams the laser-grid sensor reports itself (``H..X``/``V..X`` tokens); a capture waits
-for the first complete report that starts after the capture was asked for, so a report from before the move can
-never be stored for the new pose. Poses are decoded with :func:`bench.sensors.lasergrid.decode_frame` against the
-commanded position as prior; an invalid decode (no hit, ambiguous, screens disagreeing) raises ``LinkError``, so
-the run stops safely (resumable) instead of storing a bad sample. ``grid_hit`` captures store what was hit.
+The delta4 controller streams the laser-grid sensor reports itself (``H..X``/``V..X`` tokens). A capture takes the
+first report whose first token was read after the capture was asked for: the move before it waited for ``z``, and
+tokens are read in wire order, so that report was sent after the servos settled and a report of the previous pose
+is never stored for the new one (the protocol's settle time, at least one 80 ms frame, covers the acquisition).
+
+**Pose captures: partial readings.** Each screen is decoded on its own with
+:func:`bench.sensors.lasergrid.decode_frame` against the commanded position as prior (the controller sends no
+joint angles, so the command is the only prior; the decoding is guaranteed while each error component is below
+3.75 mm, delta4-lasergrid.md §4.7). A screen whose status is ``ok`` measures its two axes (horizontal: x, y;
+vertical: y, z, y taken from the horizontal screen when both measure it). A screen that reports no hit (25 % of
+the 2.5 mm phases are blind, and with a 1 mm detection window 52 % of positions are, §4.5), an ambiguous
+candidate or a fault measures nothing, and its axes are **absent** from the stored values: never the prior, never
+0. When both screens decode but disagree on y by more than one 2.5 mm step, one of them took the wrong laser and
+nothing says which, so neither is stored as a position. Each sample stores ``horizontal_valid`` /
+``vertical_valid`` (1: that screen's axes are stored), ``horizontal_hits`` / ``vertical_hits`` (sensors lit) and,
+when both decoded, ``y_disagreement_mm``; the raw data keep the report bytes, the lit sensor numbers, each screen's
+status, reason and laser, and the decoder options, so every reading can be decoded again.
+
+Why not move the robot to a detectable phase: a dithered reading would be of another commanded pose, and the
+dither itself is realised only within the robot's own 2-3 mm positioning error (the very quantity measured), so
+subtracting the commanded dither would put that error into the reading. Readings therefore measure the pose the
+protocol commanded, or nothing; ``bench analyze grid-positioning`` reports the hit rate beside the statistics.
+
+``grid_hit`` captures (hit repeatability) store what was hit on the horizontal screen.
 """
 
 from __future__ import annotations
 
 import time
+from collections.abc import Callable, Sequence
 from typing import Any
 
 import numpy as np
 
-from bench.errors import LinkError
+from bench.errors import LinkTimeout
 from bench.protocols.rig import Measurement
 from bench.protocols.steps import Capture
 
-__all__ = ["DeltaMover", "LaserGridInstrument"]
+__all__ = ["AXES", "DEFAULT_DECODER", "DeltaMover", "LaserGridInstrument", "grid_pose_values"]
+
+#: Robot-frame axis names, in the order of :attr:`bench.sensors.lasergrid.Screen.axes`.
+AXES = ("x_mm", "y_mm", "z_mm")
+#: Decoder options stored with every run unless the rig sets others (delta4-lasergrid.md §4.6, §4.10 defaults).
+DEFAULT_DECODER = {"spot_half_width_mm": 1.0, "gate_mm": 3.75, "prior_uncertainty_mm": 0.0}
 
 
 class DeltaMover:
@@ -40,30 +65,92 @@ class DeltaMover:
         return {**self.controller.settings(), "velocity": "servo maximum (not settable)"}
 
 
-class LaserGridInstrument:
-    """Laser-grid readings from the controller's sensor reports."""
+def grid_pose_values(geometry: Any, horizontal: Sequence[int], vertical: Sequence[int], prior_mm: Any,
+                     **options: float) -> tuple[dict[str, float], dict[str, Any]]:
+    """Decode one report into the stored values (measured axes only) and the decoding's raw record.
 
-    def __init__(self, controller: Any, geometry: Any = None, *, report_timeout_s: float = 2.0) -> None:
+    Returns ``(values, decoding)``: ``values`` holds ``x_mm``/``y_mm``/``z_mm`` for the axes a valid screen
+    measured, ``horizontal_valid``/``vertical_valid``, ``horizontal_hits``/``vertical_hits`` and, when both screens
+    decoded, ``y_disagreement_mm``; ``decoding`` holds each screen's status, reason and laser(s) and whether the
+    screens disagree. ``options`` go to :func:`bench.sensors.lasergrid.decode_screen`.
+
+    >>> from bench.sensors.lasergrid import GridGeometry
+    >>> values, decoding = grid_pose_values(GridGeometry(), [105], [], [0.0, 0.0, -200.0])
+    >>> values, decoding["status"]
+    ({'x_mm': 0.0, 'y_mm': 0.0, 'horizontal_valid': 1.0, 'vertical_valid': 0.0, 'horizontal_hits': 1.0, \
+'vertical_hits': 0.0}, {'horizontal': 'ok', 'vertical': 'no-hit'})
+    """
+    from bench.sensors.lasergrid import ScreenStatus, decode_frame, screen_axes_mm
+
+    result = decode_frame(geometry, list(horizontal), list(vertical), np.asarray(prior_mm, float), **options)
+    screens = ((geometry.horizontal, result.horizontal), (geometry.vertical, result.vertical))
+    measured: dict[int, float] = {}
+    valid = {}
+    for screen, decoded in screens:
+        valid[screen.name] = decoded.status is ScreenStatus.OK and not result.misaligned
+        if valid[screen.name]:
+            for axis, value in screen_axes_mm(screen, decoded).items():
+                measured.setdefault(axis, value)
+    values = {AXES[axis]: measured[axis] for axis in sorted(measured)}
+    values |= {"horizontal_valid": float(valid["horizontal"]), "vertical_valid": float(valid["vertical"]),
+               "horizontal_hits": float(len(horizontal)), "vertical_hits": float(len(vertical))}
+    if result.y_disagreement_mm is not None:
+        values["y_disagreement_mm"] = result.y_disagreement_mm
+    decoding = {"status": {s.name: d.status.value for s, d in screens},
+                "reason": {s.name: d.reason for s, d in screens if d.reason},
+                "lasers": {s.name: list(d.lasers) for s, d in screens if d.lasers},
+                "screens_disagree": bool(result.misaligned)}
+    return values, decoding
+
+
+class LaserGridInstrument:
+    """Laser-grid readings from the controller's sensor reports.
+
+    Parameters
+    ----------
+    controller : Delta4Controller
+        The driver whose ``read_sensor_frame`` gives the reports.
+    geometry : GridGeometry, optional
+        Screens and index maps (default: the legacy GUI geometry); its ``calibration_id`` is stored with each sample.
+    report_timeout_s : float
+        How long to wait for a fresh report, s.
+    decoder : dict, optional
+        Options of :func:`bench.sensors.lasergrid.decode_screen` (``spot_half_width_mm``, ``gate_mm``,
+        ``prior_uncertainty_mm``): the detection window must be the one measured on the rig (§4.5).
+    truth : callable, optional
+        Simulated rigs only: returns the simulator's true attained position (mm), stored in the raw data as
+        ``true_pose`` for comparison; never used to decode.
+    """
+
+    def __init__(self, controller: Any, geometry: Any = None, *, report_timeout_s: float = 2.0,
+                 decoder: dict[str, float] | None = None,
+                 truth: Callable[[], Sequence[float]] | None = None) -> None:
         from bench.sensors.lasergrid import GridGeometry
 
         self.controller = controller
         self.geometry = geometry or GridGeometry()
         self.report_timeout_s = report_timeout_s
+        self.decoder = {**DEFAULT_DECODER, **(decoder or {})}
+        self.truth = truth
 
     def _fresh_frame(self) -> Any:
         asked = time.monotonic()
         deadline = asked + self.report_timeout_s
         while True:
-            frame = self.controller.read_sensor_frame(max(0.001, deadline - time.monotonic()))
-            if frame.t_monotonic_s >= asked:
+            remaining = deadline - time.monotonic()
+            if remaining <= 0:
+                raise LinkTimeout(f"laser grid: no sensor report begun within {self.report_timeout_s:g} s of the "
+                                  "capture; check that the controller was started (E) and its screens are wired")
+            frame = self.controller.read_sensor_frame(remaining)
+            if frame.t_first_token_s >= asked:
                 return frame
 
     def measure(self, capture: Capture) -> Measurement:
-        from bench.sensors.lasergrid import ScreenStatus, decode_frame
-
         frame = self._fresh_frame()
-        raw = {"horizontal": list(frame.horizontal), "vertical": list(frame.vertical),
-               "calibration": self.geometry.calibration_id}
+        raw: dict[str, Any] = {"report": frame.raw.decode("ascii", "replace"), "horizontal": list(frame.horizontal),
+                               "vertical": list(frame.vertical), "calibration": self.geometry.calibration_id}
+        if self.truth is not None:
+            raw["true_pose"] = [round(float(v), 6) for v in self.truth()]
         if capture.kind == "grid_hit":
             screen = self.geometry.horizontal
             expected = int(screen.index_of_cell(capture.conditions["expected_i"], capture.conditions["expected_j"]))
@@ -71,16 +158,12 @@ class LaserGridInstrument:
                                 "hit_expected": float(expected in frame.horizontal),
                                 "hit_any": float(bool(frame.horizontal)),
                                 "hits": float(len(frame.horizontal))}, raw=raw)
-        prior = np.array([capture.commanded[k] for k in ("cmd_x_mm", "cmd_y_mm", "cmd_z_mm")])
-        result = decode_frame(self.geometry, frame.horizontal, frame.vertical, prior)
-        statuses = (result.horizontal.status, result.vertical.status)
-        if any(s is not ScreenStatus.OK for s in statuses) or result.misaligned:
-            raise LinkError(f"laser grid at {capture.pose} cycle {capture.cycle}: no valid reading "
-                            f"({result.horizontal.status.value}/{result.vertical.status.value}, report {raw}); "
-                            "the sample is not stored, fix the grid and resume the run")
-        x_mm, y_mm, z_mm = result.position_mm
-        return Measurement({"x_mm": x_mm, "y_mm": y_mm, "z_mm": z_mm}, raw=raw)
+        prior = [capture.commanded[k] for k in ("cmd_x_mm", "cmd_y_mm", "cmd_z_mm")]
+        values, decoding = grid_pose_values(self.geometry, frame.horizontal, frame.vertical, prior, **self.decoder)
+        return Measurement(values, raw={**raw, **decoding, "decoder": self.decoder})
 
     def settings(self) -> dict[str, Any]:
         return {"instrument": "laser grid (controller reports)", "calibration_id": self.geometry.calibration_id,
-                "report_timeout_s": self.report_timeout_s}
+                "report_timeout_s": self.report_timeout_s, "decoder": self.decoder,
+                "prior": "commanded position", "readings": "per screen; axes of a screen without a valid decode "
+                                                           "are not stored"}

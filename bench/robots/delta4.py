@@ -31,12 +31,17 @@ _SENSOR_EXPECTED = "a sensor report (H<n>X, V<n>X, h or v)"
 
 @dataclass(frozen=True)
 class SensorFrame:
-    """One report of both screens: indices hit on the horizontal and vertical screens (empty: no hit)."""
+    """One report of both screens: indices hit on the horizontal and vertical screens (empty: no hit).
+
+    ``t_first_token_s`` is when the report's first token was read and ``t_monotonic_s`` when the report was closed
+    (monotonic clock); tokens are read in wire order, so a report first read after a ``z`` was sent after it.
+    """
 
     horizontal: tuple[int, ...]
     vertical: tuple[int, ...]
     raw: bytes = b""
     t_monotonic_s: float = 0.0
+    t_first_token_s: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -53,6 +58,7 @@ class _FrameBuilder:
     raw: bytearray = field(default_factory=bytearray)
     in_vertical: bool = False
     closed_vertical: bool = False
+    t_first_token_s: float = 0.0
 
 
 class Delta4Controller:
@@ -202,6 +208,8 @@ class Delta4Controller:
         if horizontal_kind and builder.in_vertical:
             self._close_frame()
             builder = self._builder
+        if not builder.raw:
+            builder.t_first_token_s = time.monotonic()
         builder.raw += frame
         if token.kind in ("H", "N") and not builder.in_vertical:
             builder.horizontal.append(int(token.value))  # type: ignore[arg-type]
@@ -216,7 +224,8 @@ class Delta4Controller:
 
     def _close_frame(self) -> None:
         b = self._builder
-        self._frames.append(SensorFrame(tuple(b.horizontal), tuple(b.vertical), bytes(b.raw), time.monotonic()))
+        self._frames.append(SensorFrame(tuple(b.horizontal), tuple(b.vertical), bytes(b.raw), time.monotonic(),
+                                        b.t_first_token_s))
         self._builder = _FrameBuilder()
 
     # -- lifecycle ---------------------------------------------------------------------------------------------

@@ -6,8 +6,12 @@ reporting, ``G`` stops both, ``P``/``Q``/``R``/``S`` + digits + ``X`` set servo 
 b/(s + b), b = 4 1/s (reference §6.2.2), in simulated time scaled by ``--speed-factor``; ``z`` is sent once all four
 are within one ADC count (140/255 deg) for 10 ticks of 2 ms. The attained pose then comes from the seeded error
 model and :mod:`motion.delta4` forward kinematics and goes to the truth log. Sensor reports (one per 80 ms frame,
-horizontal screen first) come from a pluggable ``sensor(pose_mm) -> (horizontal, vertical)``; without one
-(the default until a laser-grid simulator is attached) every frame reports no hit, ``h`` then ``v``.
+horizontal screen first) come from a pluggable ``sensor(pose_mm) -> (horizontal, vertical)`` observing that true
+attained pose. The program attaches the laser-grid simulator
+(:class:`bench.sensors.lasergrid_sim.LaserGridSimulator`: default GUI screen geometry, spot half-width
+``--grid-spot-half-width-mm`` 1.0 mm, Appendix D2 miss probability by height unless ``--grid-p-miss`` is given,
+``--grid-p-false`` stray hits, its own random stream derived from ``--seed``); ``--no-grid`` reports no hit in
+every frame (``h`` then ``v``), as a controller with its screens unplugged.
 """
 
 from __future__ import annotations
@@ -21,12 +25,14 @@ from typing import Any
 
 import numpy as np
 
+from bench.errors import ConfigError
 from bench.robots import delta4_wire as wire
 from bench.robots.error_model import ErrorMagnitudes, ErrorModel
 from bench.robots.plant import Plant
 from bench.robots.sim_pty import TruthLog, add_common_arguments, main_for
 
-__all__ = ["DELTA4_ERRORS", "DESCRIPTION", "Delta4SimDevice", "add_arguments", "build_device", "build_plant", "main"]
+__all__ = ["DELTA4_ERRORS", "DESCRIPTION", "Delta4SimDevice", "add_arguments", "build_device", "build_grid_sensor",
+           "build_plant", "grid_seed", "main"]
 
 _log = logging.getLogger(__name__)
 
@@ -36,6 +42,8 @@ ADC_DEG_PER_COUNT = 140.0 / 255.0
 SETTLE_HOLD_S = 10 * 0.002
 FRAME_PERIOD_S = 0.080
 HOME_POINT_MM = (0.0, 0.0, -150.0)
+#: Second entropy word of the laser grid's random stream (the first is ``--seed``).
+GRID_STREAM = 0x4C47
 
 #: Error sizes giving axial errors of 2-3 mm and spatial errors up to about 4 mm (reference §7.2); joint units deg.
 DELTA4_ERRORS = ErrorMagnitudes(
@@ -176,13 +184,37 @@ def build_plant(seed: int, *, ideal: bool = False, geometry: Any = None) -> tupl
     return Plant(lambda q: q, forward, model, np.array(HOME_POINT_MM), seed), home
 
 
+def grid_seed(seed: int) -> int:
+    """The laser grid's own seed: a stream independent of the error model's, reproducible from ``--seed``."""
+    return int(np.random.SeedSequence((seed, GRID_STREAM)).generate_state(1)[0])
+
+
+def build_grid_sensor(args: argparse.Namespace) -> Sensor | None:
+    """The laser-grid simulator the command line asks for (``None`` with ``--no-grid``)."""
+    from bench.sensors.lasergrid_sim import LaserGridSimulator
+
+    if args.no_grid:
+        return None
+    checks = (("--grid-p-miss", args.grid_p_miss, 0.0 <= (args.grid_p_miss or 0.0) <= 1.0, "in [0, 1]"),
+              ("--grid-p-false", args.grid_p_false, 0.0 <= args.grid_p_false <= 1.0, "in [0, 1]"),
+              ("--grid-spot-half-width-mm", args.grid_spot_half_width_mm, 0.0 < args.grid_spot_half_width_mm < 5.0,
+               "in (0, 5) mm, below half the 10 mm pitch"))
+    for option, value, ok, expected in checks:
+        if not ok:
+            raise ConfigError(f"{option} = {value!r}, expected a number {expected}")
+    by_distance = args.grid_p_miss is None
+    return LaserGridSimulator(spot_half_width_mm=args.grid_spot_half_width_mm,
+                              p_miss=0.0 if by_distance else args.grid_p_miss, p_miss_by_distance=by_distance,
+                              p_false=args.grid_p_false, seed=grid_seed(args.seed)).observer()
+
+
 def build_device(args: argparse.Namespace) -> Delta4SimDevice:
     """The simulated controller described by the command-line ``args``."""
     plant, home = build_plant(args.seed, ideal=args.ideal)
     truth = TruthLog(args.truth, ("x_mm", "y_mm", "z_mm"))
     mapping = wire.MAPPINGS[args.mapping]()
     return Delta4SimDevice(plant, mapping, speed_factor=args.speed_factor, truth=truth, load_kg=args.load_kg,
-                           home_servo_deg=home)
+                           home_servo_deg=home, sensor=build_grid_sensor(args))
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -190,6 +222,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     add_common_arguments(parser)
     parser.add_argument("--mapping", choices=sorted(wire.MAPPINGS), default="legacy_vb",
                         help="servo byte <-> angle mapping the firmware uses (must match the driver)")
+    parser.add_argument("--no-grid", action="store_true",
+                        help="no laser-grid simulator: every sensor report is 'h' 'v' (no hit)")
+    parser.add_argument("--grid-spot-half-width-mm", type=float, default=1.0,
+                        help="half-width r of a phototransistor's detection window, mm (reference §4.10)")
+    parser.add_argument("--grid-p-miss", type=float, default=None,
+                        help="probability of losing each hit (default: Appendix D2 values by height)")
+    parser.add_argument("--grid-p-false", type=float, default=0.0,
+                        help="probability of one stray lit sensor per screen and frame")
 
 
 def main(argv: list[str] | None = None) -> int:

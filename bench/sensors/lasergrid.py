@@ -32,6 +32,7 @@ __all__ = [
     "ScreenStatus",
     "decode_frame",
     "decode_screen",
+    "screen_axes_mm",
 ]
 
 #: Laser names and offsets from BE in the screen's (i right, j up) axes, mm (§4.4, reconstructed table).
@@ -268,6 +269,17 @@ def decode_screen(screen: Screen, indices: list[int] | tuple[int, ...], prior_be
     return ScreenDecode(status, (float(best[0]), float(best[1])), lasers, margin, reason)
 
 
+def screen_axes_mm(screen: Screen, result: ScreenDecode) -> dict[int, float]:
+    """The robot-frame coordinates (axis index -> mm) of the end-effector centre that one screen's decoded BE
+    gives: the screen's two axes, with its laser set's offset added back (vertical screen: z = BE_j + 40 mm).
+
+    >>> screen_axes_mm(GridGeometry().vertical, ScreenDecode(ScreenStatus.OK, (-5.0, -240.0)))
+    {1: -5.0, 2: -200.0}
+    """
+    values = (result.be_mm[0], result.be_mm[1] + screen.laser_offset_mm)
+    return {axis: float(value) for axis, value in zip(screen.axes, values)}
+
+
 def decode_frame(geometry: GridGeometry, horizontal_indices: list[int] | tuple[int, ...],
                  vertical_indices: list[int] | tuple[int, ...], prior_mm: np.ndarray, **options: float) -> GridDecode:
     """Decode both screens into the end-effector centre (x, y, z) in mm (§4.6 step 7).
@@ -294,8 +306,7 @@ def decode_frame(geometry: GridGeometry, horizontal_indices: list[int] | tuple[i
     measured = [False, False, False]
     for screen, result in ((geometry.horizontal, h), (geometry.vertical, v)):
         if result.status in (ScreenStatus.OK, ScreenStatus.AMBIGUOUS):
-            values = (result.be_mm[0], result.be_mm[1] + screen.laser_offset_mm)
-            for axis, value in zip(screen.axes, values):
+            for axis, value in screen_axes_mm(screen, result).items():
                 if not measured[axis]:
                     position[axis], measured[axis] = value, True
     disagreement = None
