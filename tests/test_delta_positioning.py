@@ -243,12 +243,23 @@ def test_bad_grid_options_are_refused_naming_the_option():
         _device("--grid-spot-half-width-mm", "5")
 
 
+def test_miss_probability_by_height_reproduces_appendix_d2_at_each_height():
+    from bench.sensors.lasergrid_sim import LaserGridSimulator
+
+    simulator = LaserGridSimulator(p_miss_by_distance=True, seed=5)
+    for height_mm, thesis in ((140.0, 0.9925), (200.0, 0.98)):   # hits / 400 attempts in Appendix D2
+        frames = simulator.frames(np.tile([-5.0, -5.0, -height_mm], (4000, 1)))  # BE on sensor (7, 7)
+        assert np.mean([len(f.horizontal) == 1 for f in frames]) == pytest.approx(thesis, abs=0.006)
+    with pytest.raises(ConfigError, match="p_miss = 0.1 with p_miss_by_distance"):
+        LaserGridSimulator(p_miss=0.1, p_miss_by_distance=True)
+
+
 # -- statistics of partial readings ----------------------------------------------------------------------------------
 
 def test_detection_rate_wilson_interval_against_the_closed_form_at_zero():
     rate = detection_rate([0] * 15)
     assert (rate.k, rate.n, rate.rate, rate.low) == (0, 15, 0.0, 0.0)
-    assert rate.high == pytest.approx(1.96**2 / (15 + 1.96**2))   # k = 0: upper bound z^2 / (n + z^2)
+    assert rate.high == pytest.approx(4 / (15 + 4))   # 0 of n: Wilson upper bound z^2 / (n + z^2), z = 2
 
 
 @settings(max_examples=60, deadline=None)
@@ -268,3 +279,13 @@ def test_each_axis_counts_only_its_own_readings(rows):
             assert (axis.spread_3s_mm is None) == (len(present) < 2)
     complete = ~np.isnan(readings).any(axis=1)
     assert stats.n_complete == complete.sum() and (stats.rp_mm is None) == (complete.sum() < 2)
+
+
+@pytest.mark.parametrize("module", ["bench.metrology.partial_pose", "bench.protocols.grid", "bench.sensors.lasergrid",
+                                    "bench.sensors.lasergrid_sim"])
+def test_docstring_examples(module):
+    import doctest
+    import importlib
+
+    result = doctest.testmod(importlib.import_module(module), optionflags=doctest.NORMALIZE_WHITESPACE)
+    assert result.failed == 0 and result.attempted > 0

@@ -286,7 +286,7 @@ def _grid_positioning(args: argparse.Namespace) -> int:
                      f"{_number(s.ap_mm):>7} {_number(s.rp_mm):>7}")
         lines += [f"{'':<8} {name}: {_axis_text(a)}" for name, a in zip(AXIS_NAMES, s.axes)]
     lines.append("all poses: " + "; ".join(f"{name}: {_axis_text(a)}" for name, a in zip(AXIS_NAMES, pooled)))
-    lines.append("valid = the screen decoded ok (its axes stored); lit = any sensor reported; [95 % Wilson]. Each "
+    lines.append("valid = the screen decoded ok (its axes stored); lit = any sensor reported; [Wilson, k = 2]. Each "
                  "axis counts only the readings that measured it (n); AP = mean error, 3S per axis (not ISO RP); "
                  "spatial AP/RP over complete readings only. Figures are conditional on detection.")
     emit(result, args.json, lines)

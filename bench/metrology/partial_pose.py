@@ -10,7 +10,7 @@ n, and a statistic that needs more readings than there are is ``None``, never 0 
   spread of :func:`bench.metrology.iso9283.pose_repeatability`, not an ISO RP), and the delta thesis's own figures
   (§8.4.2): the maximum and the mean of |x_j - x_c|.
 - Spatial AP and RP_l (ISO 9283 7.2.1-7.2.2) from the complete readings only (all three axes in the same reading).
-- Detection rates k/n with a Wilson score interval.
+- Detection rates k/n with a Wilson score interval (z = k = 2).
 
 A statistic over the readings that measured an axis is conditional on detection: when detection depends on where
 the pose lies (the grid detects only within the window r of its 2.5 mm lattice points), the detected readings are
@@ -58,7 +58,7 @@ class PartialPoseStatistics:
 
 @dataclass(frozen=True)
 class DetectionRate:
-    """k detections in n readings, with the Wilson score interval at the given confidence (z)."""
+    """k detections in n readings, with the Wilson score interval at z = k (coverage factor, 2: about 95 %)."""
 
     k: int
     n: int
@@ -121,14 +121,15 @@ def partial_pose_statistics(measured_mm, commanded_mm) -> PartialPoseStatistics:
     return PartialPoseStatistics(len(readings), axes, len(complete), ap, rp)
 
 
-def detection_rate(detected, *, z: float = 1.96) -> DetectionRate:
-    """Rate of detections (entries 0/1 or bool) with its Wilson score interval (z = 1.96: about 95 %).
+def detection_rate(detected, *, z: float = 2.0) -> DetectionRate:
+    """Rate of detections (entries 0/1 or bool) with its Wilson score interval at z (the coverage factor k = 2 used
+    throughout bench: about 95 %). Unlike p ± z·√(p(1-p)/n) it stays in [0, 1] and is not empty at 0 of n.
 
     Examples
     --------
     >>> r = detection_rate([1, 0, 0, 1, 0, 0])
     >>> r.k, r.n, round(r.rate, 4), round(r.low, 4), round(r.high, 4)
-    (2, 6, 0.3333, 0.0968, 0.7)
+    (2, 6, 0.3333, 0.0945, 0.7055)
     """
     flags = np.asarray(detected, dtype=float).reshape(-1)
     if not np.isin(flags, (0.0, 1.0)).all():
@@ -230,7 +231,7 @@ def pooled_axis_errors(table) -> tuple[AxisErrors, ...]:
 
 
 def _rate_json(rate: DetectionRate) -> dict[str, object]:
-    return {"k": rate.k, "n": rate.n, "rate": rate.rate, "wilson_95": [rate.low, rate.high]}
+    return {"k": rate.k, "n": rate.n, "rate": rate.rate, "wilson_k2": [rate.low, rate.high]}
 
 
 def axis_json(axis: AxisErrors) -> dict[str, object]:
