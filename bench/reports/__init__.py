@@ -20,16 +20,46 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from bench.errors import ConfigError
-from bench.reports.content import CRITERIA, RunReport, collect
+from bench.reports import content
+from bench.reports.actuator import ActuatorReport, actuator_document, collect_actuator
+from bench.reports.content import CRITERIA, ReportBase, RunReport
 from bench.reports.deviations import Deviation, iso_deviations
 from bench.reports.document import Document, RawData, comparison_document, run_document
+from bench.reports.lasergrid import GridHitReport, collect_grid_hits, grid_hit_document
+from bench.reports.ladder import LadderReport, collect_ladder, ladder_document
 from bench.store import Store
 
-__all__ = ["CRITERIA", "FORMATS", "Deviation", "ReportPaths", "RunReport", "collect", "iso_deviations",
-           "write_comparison", "write_report"]
+__all__ = ["CRITERIA", "FORMATS", "LAYOUTS", "ActuatorReport", "Deviation", "GridHitReport", "LadderReport",
+           "ReportBase", "ReportPaths", "RunReport", "collect", "iso_deviations", "write_comparison", "write_report"]
 
 #: Report formats, in the order they are written.
 FORMATS = ("html", "pdf")
+#: Protocols with a layout of their own: (collector, document); every other protocol gets the pose layout.
+LAYOUTS = {
+    "actuator_accuracy": (collect_actuator, actuator_document),
+    "payload_ladder": (collect_ladder, ladder_document),
+    "lasergrid_hits": (collect_grid_hits, grid_hit_document),
+}
+
+
+def collect(store: Store, run_id: int, *, criteria: Mapping[str, float] | None = None, k: float = 2.0,
+            resamples: int = 1000, allow_unknown: bool = False) -> ReportBase:
+    """Every fact and number of the report of run ``run_id``, laid out for its protocol (:data:`LAYOUTS`; pose
+    protocols: :func:`bench.reports.content.collect`). Project criteria apply to pose runs only."""
+    protocol = store.run(run_id).protocol_name
+    if protocol not in LAYOUTS:
+        return content.collect(store, run_id, criteria=criteria, k=k, resamples=resamples,
+                               allow_unknown=allow_unknown)
+    if criteria:
+        raise ConfigError(f"--criterion {', '.join(criteria)}: project criteria ({', '.join(CRITERIA)}) apply to pose "
+                          f"runs; run {run_id} is a {protocol} run")
+    return LAYOUTS[protocol][0](store, run_id, k=k, resamples=resamples, allow_unknown=allow_unknown)
+
+
+def _document(report: ReportBase, raw: list[RawData], operator: str, laboratory: str) -> Document:
+    layout = LAYOUTS.get(report.run.protocol_name)
+    document = layout[1] if layout else run_document
+    return document(report, raw, operator=operator, laboratory=laboratory)
 
 
 @dataclass(frozen=True)
@@ -58,8 +88,8 @@ def _out_dir(out_dir: str | Path) -> Path:
     return out
 
 
-def _write_raw(report: RunReport, out: Path) -> tuple[Path, RawData]:
-    """The analysed tidy table at full precision, so `bench analyze iso9283` reproduces every number."""
+def _write_raw(report: ReportBase, out: Path) -> tuple[Path, RawData]:
+    """The analysed tidy table at full precision, so the report's `bench analyze` command reproduces every number."""
     path = out / f"run{report.run.id}_samples.csv"
     report.table.to_csv(path, index=False)
     digest = hashlib.sha256(path.read_bytes()).hexdigest()
@@ -114,7 +144,7 @@ def write_report(store: str | Path | Store, run_id: int, out_dir: str | Path, fo
             store.close()
     out = _out_dir(out_dir)
     csv_path, raw = _write_raw(report, out)
-    document = run_document(report, [raw], operator=operator, laboratory=laboratory)
+    document = _document(report, [raw], operator, laboratory)
     written = _write(document, out, f"report_run{run_id}", formats)
     return ReportPaths(written.get("html"), written.get("pdf"), (csv_path,), report.report_id)
 
@@ -125,6 +155,11 @@ def write_comparison(store: str | Path | Store, first_run: int, second_run: int,
     formats = _check_formats(formats)
     store, opened = _open(store)
     try:
+        for run_id in (first_run, second_run):
+            protocol = store.run(run_id).protocol_name
+            if protocol in LAYOUTS:
+                raise ConfigError(f"--compare: run {run_id} is a {protocol} run; comparisons cover pose runs, "
+                                  f"report it on its own")
         first, second = collect(store, first_run, k=k), collect(store, second_run, k=k)
     finally:
         if opened:

@@ -29,6 +29,7 @@ from dataclasses import dataclass, field
 from datetime import UTC, datetime
 from typing import Any
 
+import numpy as np
 import pandas as pd
 
 from bench import __version__
@@ -57,8 +58,9 @@ from bench.metrology.tables import (
 from bench.reports.deviations import CLAUSES_APPLIED, Deviation, iso_deviations
 from bench.store import CalibrationRecord, RunRecord, Store, tidy_table
 
-__all__ = ["CRITERIA", "CalibrationFit", "Decision", "DistanceRow", "InstrumentInfo", "PayloadRow", "RunReport", "VapRow",
-           "analysis_table", "calibration_fits", "collect"]
+__all__ = ["CRITERIA", "CalibrationFit", "Decision", "DistanceRow", "InstrumentInfo", "PayloadRow", "ReportBase",
+           "RunReport", "VapRow", "analysis_table", "calibration_fits", "collect", "provenance", "reading_instrument",
+           "reading_step_mm", "uncertainty_stated"]
 
 MM_PER_INCH = 25.4
 #: Acceptance criteria a caller may state, with the result each applies to (all "smaller is better").
@@ -124,9 +126,9 @@ class Decision:
         return None if not self.verdicts else all(v[-1] for v in self.verdicts)
 
 
-@dataclass(frozen=True)
-class RunReport:
-    """Everything one run's report prints; renderers format it and add nothing."""
+@dataclass(frozen=True, kw_only=True)
+class ReportBase:
+    """What every run report prints whatever its protocol: identification, method, instrument, raw data."""
 
     run: RunRecord
     report_id: str
@@ -135,22 +137,89 @@ class RunReport:
     config_sha256: str
     calibration_sha256: str
     title: str
+    reference: str = "ISO 9283"  #: the method the deviations table compares the run with
     clauses: tuple[str, ...]
     deviations: tuple[Deviation, ...]
     instrument: InstrumentInfo
-    measured_columns: tuple[str, ...]
     table: pd.DataFrame  #: the analysed tidy table (the raw-data CSV holds the same rows)
+    coverage_factor: float
+    notes: tuple[str, ...] = field(default=())
+
+
+@dataclass(frozen=True, kw_only=True)
+class RunReport(ReportBase):
+    """Everything one pose run's report prints; renderers format it and add nothing."""
+
+    measured_columns: tuple[str, ...]
     poses: tuple[PoseResult, ...]
     distances: tuple[DistanceRow, ...]
     multidirectional: tuple[VapRow, ...]
     payload: tuple[PayloadRow, ...]
     decision: Decision
-    coverage_factor: float
-    notes: tuple[str, ...] = field(default=())
 
 
 def _sha256_json(value: Any) -> str:
     return hashlib.sha256(json.dumps(value, sort_keys=True, separators=(",", ":")).encode()).hexdigest()
+
+
+def provenance(run: RunRecord, calibrations: tuple[CalibrationRecord, ...]) -> dict[str, Any]:
+    """The identification fields of a report of ``run``: id (run and configuration hash), time, versions, hashes,
+    and a note when the run did not complete."""
+    config_hash = _sha256_json({"config": run.config, "settings": run.settings})
+    notes = []
+    if run.status != "completed":
+        notes.append(f"run status {run.status}" + (f" ({run.reason})" if run.reason else "") +
+                     ": results cover the samples stored before it ended")
+    return {"run": run, "report_id": f"BR-{run.id:05d}-{config_hash[:8]}",
+            "generated_utc": datetime.now(UTC).isoformat(timespec="seconds"),
+            "report_software_version": __version__, "config_sha256": config_hash,
+            "calibration_sha256": _sha256_json([c.params for c in calibrations]), "notes": tuple(notes)}
+
+
+def reading_step_mm(values) -> float | None:
+    """The last decimal recorded in manual readings (0.01 for a calliper read to 0.01 mm): the largest of 1, 0.1,
+    ..., 0.0001 mm that every reading is a whole multiple of; None when the readings carry more decimals."""
+    array = np.asarray(values, dtype=float)
+    for decimals in range(5):
+        scaled = array * 10 ** decimals
+        if np.all(np.abs(scaled - np.round(scaled)) < 1e-6):
+            return 10.0 ** -decimals
+    return None
+
+
+def reading_instrument(run: RunRecord, calibrations: tuple[CalibrationRecord, ...], readings, *, difference: bool,
+                       reader: str | None = None) -> InstrumentInfo:
+    """The instrument of manual length readings (calliper, depth gauge) and its uncertainty per reading.
+
+    When the stored instrument settings describe the reading instrument (``reader`` None): ``settings.instrument
+    .u_mm`` when stated; otherwise the reading resolution (the readings' last decimal, :func:`reading_step_mm`),
+    δ/√6 for a ``difference`` of two readings (a gauge zeroed, then read) or δ/√12 for one, combined with
+    ``settings.instrument.mpe_mm``/√3 (rectangular) when the maximum permissible error is stated. When they
+    describe the rig's own sensors instead (a payload ladder's mice; the calliper is the operator's), ``reader``
+    names the reading instrument, the stored settings are shown under ``rig`` and only the resolution is used.
+    """
+    stored = dict(run.settings.get("instrument") or {})
+    own = stored if reader is None else {}
+    budget: list[tuple[str, float, str]] = []
+    if "u_mm" in own:
+        budget.append(("instrument, per reading", float(own["u_mm"]), "settings.instrument.u_mm"))
+    else:
+        step = reading_step_mm(readings)
+        if step is not None:
+            budget.append((f"resolution ({'difference of the zero and the reading' if difference else 'one reading'})",
+                           resolution_uncertainty(step, difference=difference),
+                           f"last recorded decimal of the readings, {step:g} mm; δ/{'√6' if difference else '√12'}"))
+        if "mpe_mm" in own:
+            budget.append(("maximum permissible error", float(own["mpe_mm"]) / math.sqrt(3.0),
+                           f"settings.instrument.mpe_mm = {own['mpe_mm']} mm, rectangular"))
+    sigma = combine(*(u for _, u, _ in budget)) if budget else None
+    settings = stored if reader is None else {"readings": reader, **({"rig": stored} if stored else {})}
+    return InstrumentInfo(settings, sigma, tuple(budget), 1, None, calibrations)
+
+
+def uncertainty_stated(info: InstrumentInfo) -> bool:
+    """Whether the instrument's uncertainty comes from stored settings (u or MPE), not from the resolution alone."""
+    return any(source.startswith("settings.") for _, _, source in info.budget)
 
 
 def analysis_table(store: Store, run_id: int) -> pd.DataFrame:
@@ -305,18 +374,8 @@ def collect(store: Store, run_id: int, *, criteria: Mapping[str, float] | None =
         cycles_measured=cycles, instrument_sigma_mm=instrument.sigma_mm,
         smallest_rp_mm=min(p.repeatability.rp_mm for p in poses), rp_floor_mm=instrument.rp_floor_mm,
         allow_unknown=allow_unknown)
-    notes = []
-    if run.status != "completed":
-        notes.append(f"run status {run.status}" + (f" ({run.reason})" if run.reason else "") +
-                     ": results cover the samples stored before it ended")
-    config_hash = _sha256_json({"config": run.config, "settings": run.settings})
     return RunReport(
-        run=run,
-        report_id=f"BR-{run.id:05d}-{config_hash[:8]}",
-        generated_utc=datetime.now(UTC).isoformat(timespec="seconds"),
-        report_software_version=__version__,
-        config_sha256=config_hash,
-        calibration_sha256=_sha256_json([c.params for c in calibrations]),
+        **provenance(run, calibrations),
         title=run.config.get("title") or _title(protocol),
         clauses=CLAUSES_APPLIED.get(protocol, CLAUSES_APPLIED["iso9283_pose"]),
         deviations=tuple(deviations),
@@ -329,7 +388,6 @@ def collect(store: Store, run_id: int, *, criteria: Mapping[str, float] | None =
         payload=_payload(table),
         decision=_decision(poses, criteria or {}),
         coverage_factor=k,
-        notes=tuple(notes),
     )
 
 

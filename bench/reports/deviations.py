@@ -13,12 +13,14 @@ clauses and the missing fields: the report refuses to print a deviations table w
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 from bench.errors import InsufficientData
 
-__all__ = ["CLAUSES_APPLIED", "ISO_CYCLES", "ISO_VELOCITIES_PCT", "Deviation", "iso_deviations"]
+__all__ = ["ACTUATOR_REPEATS", "ACTUATOR_TRAVELS_MM", "CLAUSES_APPLIED", "GRID_HEIGHTS_MM", "GRID_HIT_ATTEMPTS",
+           "GRID_OFFSET_MM", "ISO_CYCLES", "ISO_VELOCITIES_PCT", "LADDER_LIFT_MM", "LADDER_MIN_REPEATS", "Deviation",
+           "actuator_deviations", "complete", "grid_hit_deviations", "iso_deviations", "ladder_deviations"]
 
 #: Cycles required per protocol (ISO 9283 Table 5 [N]: 30 for AP/RP, AD/RD and vAP).
 ISO_CYCLES = {"iso9283_pose": 30, "iso9283_distance": 30, "iso9283_multidirectional": 30}
@@ -173,12 +175,12 @@ def _settling(config: Mapping[str, Any]) -> Deviation:
                 "residual vibration or creep can enter RP")
 
 
-def _conditioning(config: Mapping[str, Any]) -> Deviation:
+def _conditioning(config: Mapping[str, Any], clause: str = "6.2/6.3") -> Deviation:
     warm = config.get("warmup_s")
     temperature = config.get("ambient_c")
     done = (f"warm-up {float(warm):g} s" if warm is not None else "no warm-up recorded") + "; " + (
         f"ambient {temperature} °C" if temperature is not None else "ambient temperature not recorded")
-    return _row("6.2/6.3", "conditions", "warm-up as specified; ambient temperature recorded [U]", done,
+    return _row(clause, "conditions", "warm-up as specified; ambient temperature recorded [U]", done,
                 warm is not None and temperature is not None, "thermal drift not separable from robot error")
 
 
@@ -222,8 +224,228 @@ def iso_deviations(*, protocol: str, config: Mapping[str, Any], settings: Mappin
         _dimensionality(measured_columns),
         _conditioning(config),
     ]
+    return complete(rows, allow_unknown)
+
+
+def complete(rows: list[Deviation], allow_unknown: bool) -> list[Deviation]:
+    """``rows``, or ``InsufficientData`` naming every unknown row unless ``allow_unknown`` (iso9283.md §11.2)."""
     unknown = [r for r in rows if r.status == "unknown"]
     if unknown and not allow_unknown:
         listed = "; ".join(f"clause {r.clause} {r.topic}: {r.done}" for r in unknown)
         raise InsufficientData(f"deviations table incomplete, refusing to report ({listed})")
     return rows
+
+
+# ---- the documents' bench tests: the actuator test (000 §8.4), the payload ladder (000 §8.7), grid hits (§8.4.3) ----
+
+#: 000 §8.4 (pkm5.md §6.9): commanded travels and repeats per travel of the actuator test.
+ACTUATOR_TRAVELS_MM = (10.0, 20.0, 30.0, 40.0, 50.0)
+ACTUATOR_REPEATS = 10
+#: 000 §8.7: the pure vertical lift of the payload ladder; iso9283.md §12.3 [P]: lifts per rung.
+LADDER_LIFT_MM = 50.42
+LADDER_MIN_REPEATS = 3
+#: Delta thesis §8.4.3 (delta4-lasergrid.md §7.3): heights below the base, attempts, the reference's re-approach.
+GRID_HEIGHTS_MM = (140.0, 170.0, 200.0)
+GRID_HIT_ATTEMPTS = 25
+GRID_SENSORS = 16
+GRID_OFFSET_MM = (10.0, 20.0)
+
+
+def _floats(values) -> list[float]:
+    return [float(v) for v in values]
+
+
+def _instrument_row(clause: str, reader: str | None, sigma_mm: float | None, stated: bool, note: str = "") -> Deviation:
+    """The uncertainty of manual length readings (calliper, depth gauge): stated, or the resolution only."""
+    requirement = "gauge uncertainty stated: data-sheet MPE or calibration certificate (sensors.md §6.1) [U]"
+    if reader is None:
+        return _unknown(clause, "instrument", requirement, "settings.instrument")
+    if stated:
+        return _row(clause, "instrument", requirement, f"{reader}; u = {sigma_mm:.4g} mm per reading", True, "")
+    if sigma_mm is None:
+        return _row(clause, "instrument", requirement, f"{reader}; no uncertainty stated or derivable{note}", False,
+                    "U covers the scatter of the readings only")
+    return _row(clause, "instrument", requirement, f"{reader}; u = {sigma_mm:.4g} mm from the reading resolution only "
+                                                   f"(no MPE or calibration stored){note}", False,
+                "U covers the scatter and the resolution, not the gauge's own error (about ±0.02 mm for a 150 mm "
+                "calliper [U])")
+
+
+def actuator_deviations(*, config: Mapping[str, Any], settings: Mapping[str, Any], repeats_measured: int,
+                        instrument_sigma_mm: float | None, uncertainty_stated: bool = False,
+                        allow_unknown: bool = False) -> list[Deviation]:
+    """Departures of an ``actuator_accuracy`` run from the dissertation's actuator test (000 §8.4) and from
+    ISO 230-2 (iso9283.md §7.1, from memory [U]), whose unidirectional figures the report adds."""
+    rows = []
+    requirement = "actuators free-standing under a beam, revolute joints removed (000 §8.4)"
+    if "fixture" not in config:
+        rows.append(_unknown("000 §8.4", "fixture", requirement, "config.fixture"))
+    else:
+        rows.append(_row("000 §8.4", "fixture", requirement, f"fixture = {config['fixture']}: one actuator moves, "
+                                                             "the others hold; unloaded", config["fixture"] ==
+                         "actuator-bench", "single-axis figures do not apply"))
+    requirement = f"commanded travels {_fmt(ACTUATOR_TRAVELS_MM)} mm (000 §8.4)"
+    travels = _floats(config.get("distances_mm") or [])
+    if not travels:
+        rows.append(_unknown("000 §8.4", "travels", requirement, "config.distances_mm"))
+        rows.append(_unknown("ISO 230-2", "targets", "at least 5 irregularly spaced targets [U]",
+                             "config.distances_mm"))
+    else:
+        rows.append(_row("000 §8.4", "travels", requirement, f"{_fmt(travels)} mm", sorted(travels) ==
+                         sorted(ACTUATOR_TRAVELS_MM), "not comparable target by target with 000 Tables A.1-A.7"))
+        steps = {round(b - a, 6) for a, b in zip(sorted(travels), sorted(travels)[1:])}
+        regular = len(steps) <= 1
+        rows.append(_row("ISO 230-2", "targets", "at least 5 targets, irregularly spaced so that periodic errors "
+                                                 "are sampled [U]",
+                         f"{len(travels)} targets" + (", evenly spaced" if regular and len(travels) > 1 else ""),
+                         len(travels) >= 5 and not regular,
+                         "periodic (lead-screw) errors sampled at fixed phases only" if regular else
+                         "systematic error E and accuracy A from too few targets"))
+    requirement = f"{ACTUATOR_REPEATS} repeats per travel (000 §8.4; ISO 230-2: 5 per direction [U])"
+    if "repeats" not in config:
+        rows.append(_unknown("000 §8.4", "repeats", requirement, "config.repeats"))
+    else:
+        planned = int(config["repeats"])
+        done = f"{planned} planned" + ("" if repeats_measured == planned else
+                                       f", {repeats_measured} complete (fewest at any actuator)")
+        rows.append(_row("000 §8.4", "repeats", requirement, done, min(planned, repeats_measured) >= ACTUATOR_REPEATS,
+                         "wider uncertainty of σ̄, and so of the repeatability and accuracy"))
+    rows.append(_row("ISO 230-2", "direction", "approaches in both directions with an overrun at each reversal [U]",
+                     "unidirectional: every reading approached from below, from the start stroke", False,
+                     "reversal B (backlash) and the bidirectional R, E, A not measured; ↑ figures only"))
+    requirement = "initial and final depth read at every travel (000 §8.4, sensors.md §6.2)"
+    if "start_mm" not in config:
+        rows.append(_unknown("000 §8.4", "zeroing", requirement, "config.start_mm"))
+    else:
+        rows.append(_row("000 §8.4", "zeroing", requirement,
+                         f"gauge zeroed once per actuator and travel at {float(config['start_mm']):g} mm stroke; each "
+                         "repeat returns to the start and is read at the end only", False,
+                         "the error of returning to the start enters every reading instead of cancelling"))
+    instrument = settings.get("instrument") or {}
+    reader = instrument.get("instrument", instrument.get("name", "instrument")) if instrument else None
+    rows.append(_instrument_row("000 §8.4", reader, instrument_sigma_mm, uncertainty_stated))
+    rows.append(_conditioning(config, "ISO 230-2"))
+    return complete(rows, allow_unknown)
+
+
+def _ladder_shape(loads: list[float]) -> tuple[bool, bool]:
+    """(bracketed by unloaded references, ascending then descending)."""
+    bracketed = len(loads) > 2 and loads[0] == 0 and loads[-1] == 0
+    peak = loads.index(max(loads))
+    hysteresis = 0 < peak < len(loads) - 1 and loads[:peak + 1] == sorted(loads[:peak + 1]) and \
+        loads[peak:] == sorted(loads[peak:], reverse=True)
+    return bracketed, hysteresis
+
+
+def ladder_deviations(*, config: Mapping[str, Any], settings: Mapping[str, Any], repeats_measured: int,
+                      instrument_sigma_mm: float | None, reference_load_kg: float | None, g_m_s2: float,
+                      reader: str, allow_unknown: bool = False) -> list[Deviation]:
+    """Departures of a ``payload_ladder`` run from the dissertation's ladder (000 §8.7, Table A.14), the project
+    protocol (iso9283.md §12.3) and ISO 9283 6.6 (rated load)."""
+    from bench.protocols.dissertation import LADDER_KG
+
+    rows = []
+    requirement = f"the {len(LADDER_KG)} loads of Table A.14, {LADDER_KG[0]:g}-{LADDER_KG[-1]:g} kg (000 §8.7)"
+    loads = _floats(config.get("loads_kg") or [])
+    if not loads:
+        rows += [_unknown("000 §8.7", "ladder", requirement, "config.loads_kg"),
+                 _unknown("project §12.3", "reference runs", "unloaded reference runs before and after [P]",
+                          "config.loads_kg"),
+                 _unknown("project §12.3", "hysteresis", "ascending, then descending [P]", "config.loads_kg")]
+    else:
+        rows.append(_row("000 §8.7", "ladder", requirement, f"{len(loads)} loads: {_fmt(loads)} kg",
+                         loads == _floats(LADDER_KG), "not comparable load by load with 000 Tables A.14 and 8-5"))
+        bracketed, hysteresis = _ladder_shape(loads)
+        rows.append(_row("project §12.3", "reference runs", "unloaded reference runs before and after the ladder [P]",
+                         "ladder starts and ends at 0 kg" if bracketed else "no unloaded run before and after",
+                         bracketed, "permanent set or damage during the ladder not detectable"))
+        rows.append(_row("project §12.3", "hysteresis", "ladder run ascending, then descending [P]",
+                         "ascending then descending" if hysteresis else "one direction only", hysteresis,
+                         "hysteresis of the structure under load not exposed"))
+    requirement = f"pure vertical lift of {LADDER_LIFT_MM:g} mm, the same command pose at every load (000 §8.7)"
+    if "lift_mm" not in config:
+        rows.append(_unknown("000 §8.7", "lift", requirement, "config.lift_mm"))
+    else:
+        start = _floats(config.get("start_mm") or [])
+        rows.append(_row("000 §8.7", "lift", requirement, f"{float(config['lift_mm']):g} mm up from ({_fmt(start)}) mm",
+                         float(config["lift_mm"]) == LADDER_LIFT_MM, "leg lengths not comparable with 000's"))
+    requirement = f"at least {LADDER_MIN_REPEATS} lifts per load (§12.3 [P]; 000: 1)"
+    if "repeats" not in config:
+        rows.append(_unknown("project §12.3", "repeats", requirement, "config.repeats"))
+    else:
+        planned = int(config["repeats"])
+        done = f"{planned} planned" + ("" if repeats_measured == planned else f", {repeats_measured} complete "
+                                                                              "(fewest at any load)")
+        rows.append(_row("project §12.3", "repeats", requirement, done,
+                         min(planned, repeats_measured) >= LADDER_MIN_REPEATS,
+                         "no scatter per load: a change of e_i(m) with load cannot be told from reading scatter"))
+    rows.append(_row("project §12.1", "measurand", "leg lengths by calliper (000 mode) and/or end-effector "
+                                                   "displacement at the same command pose [P]",
+                     "six calliper leg lengths per lift against the IK lengths of the commanded lifted pose; PE(m) "
+                     "derived from them by forward kinematics, no end-effector sensor", True, ""))
+    rows.append(_row("project §12.1", "reference load", "reference load m₀ and g stated [P]",
+                     "no loads" if reference_load_kg is None else
+                     f"m₀ = {reference_load_kg:g} kg (lowest load), g = {g_m_s2:g} m/s²",
+                     reference_load_kg is not None, "PE(m) and k undefined"))
+    rows.append(replace(_load(config, settings.get("robot") or {}), clause="ISO 9283 6.6"))
+    rig = (settings.get("instrument") or {}).get("instrument")
+    rows.append(_instrument_row("000 §8.7", reader, instrument_sigma_mm, False,
+                                f"; the stored instrument settings describe the rig's {rig}, not the calliper"
+                                if rig else "; no calliper described in the stored settings"))
+    rows.append(_conditioning(config, "ISO 9283 6.2/6.3"))
+    return complete(rows, allow_unknown)
+
+
+def grid_hit_deviations(*, config: Mapping[str, Any], settings: Mapping[str, Any], attempts_measured: int,
+                        allow_unknown: bool = False) -> list[Deviation]:
+    """Departures of a ``lasergrid_hits`` run from the delta thesis's hit-repeatability test (§8.4.3, Appendix
+    D2) and from the choices delta4-lasergrid.md §7.3 makes where the thesis is silent."""
+    rows = []
+    requirement = f"{GRID_SENSORS} sensors (thesis; which ones not stated), a 4 x 4 spread [reference choice]"
+    if "spread" not in config:
+        rows.append(_unknown("thesis §8.4.3", "sensors", requirement, "config.spread"))
+    else:
+        spread = int(config["spread"])
+        rows.append(_row("thesis §8.4.3", "sensors", requirement, f"{spread * spread} sensors in a {spread} x {spread} "
+                                                           "spread over the horizontal screen",
+                         spread * spread == GRID_SENSORS, "group rate over other sensors than the thesis's"))
+    requirement = f"{GRID_HIT_ATTEMPTS} attempts per sensor and height (thesis)"
+    if "attempts" not in config:
+        rows.append(_unknown("thesis §8.4.3", "attempts", requirement, "config.attempts"))
+    else:
+        planned = int(config["attempts"])
+        done = f"{planned} planned" + ("" if attempts_measured == planned else
+                                       f", {attempts_measured} stored (fewest at any sensor and height)")
+        rows.append(_row("thesis §8.4.3", "attempts", requirement, done,
+                         min(planned, attempts_measured) >= GRID_HIT_ATTEMPTS,
+                         "wider interval on every rate; one miss moves a sensor's rate by more than 4 %"))
+    requirement = f"{_fmt(GRID_HEIGHTS_MM)} mm below the base (thesis: 14, 17, 20 cm)"
+    if "heights_mm" not in config:
+        rows.append(_unknown("thesis §8.4.3", "heights", requirement, "config.heights_mm"))
+    else:
+        heights = [-v for v in _floats(config["heights_mm"])]
+        rows.append(_row("thesis §8.4.3", "heights", requirement, f"{_fmt(heights)} mm below the base",
+                         sorted(heights) == sorted(GRID_HEIGHTS_MM), "rates not comparable height by height"))
+    requirement = (f"not stated (thesis); a re-approach from a random {_fmt(GRID_OFFSET_MM)} mm offset at every "
+                   "attempt [reference choice]")
+    if "offset_mm" not in config:
+        rows.append(_unknown("reference §7.3", "approach", requirement, "config.offset_mm"))
+    else:
+        offset = _floats(config["offset_mm"])
+        rows.append(_row("reference §7.3", "approach", requirement,
+                         f"random re-approach from {offset[0]:g}-{offset[-1]:g} mm, "
+                         f"seed {config.get('seed', 'not stored')}",
+                         offset == list(GRID_OFFSET_MM), "a different approach changes the positioning scatter tested"))
+    rows.append(_row("reference §7.3", "hit",
+                     "not stated (thesis); log the expected sensor and any sensor [reference choice]",
+                     "rate = expected sensor reported; the any-sensor rate beside it", True, ""))
+    instrument = settings.get("instrument") or {}
+    requirement = "the laser grid's calibration (sensor positions) stated"
+    if not instrument:
+        rows.append(_unknown("reference §7.3", "instrument", requirement, "settings.instrument"))
+    else:
+        calibration = instrument.get("calibration_id")
+        rows.append(_row("reference §7.3", "instrument", requirement, f"{instrument.get('instrument', 'laser grid')}; "
+                                                           f"calibration {calibration or 'not stated'}",
+                         calibration is not None, "which sensor was commanded is not traceable"))
+    return complete(rows, allow_unknown)

@@ -12,11 +12,12 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Any
 
-from bench.reports.content import RunReport
+from bench.reports.content import ReportBase, RunReport
 from bench.reports.plots import Plot, comparison_plot, report_plots
 
-__all__ = ["Document", "Figure", "Paragraph", "RawData", "Section", "Table", "comparison_document",
-           "pose_rows", "recompute_command", "run_document"]
+__all__ = ["Document", "Figure", "Paragraph", "RawData", "Section", "Table", "assemble", "comparison_document",
+           "conditions_section", "decision_blocks", "fmt_mm", "fmt_pm", "key_values", "pose_rows", "recompute_command",
+           "run_document"]
 
 SCOPE = ("Tested following the methods of ISO 9283:1998, with the deviations listed in the deviations table. "
          "Results are ISO 9283-style; this is not an ISO 9283 certification.")
@@ -68,11 +69,11 @@ class Document:
     meta: dict[str, Any] = field(default_factory=dict)
 
 
-def _mm(value: float) -> str:
+def fmt_mm(value: float) -> str:
     return f"{value:.4f}"
 
 
-def _pm(measured) -> str:
+def fmt_pm(measured) -> str:
     return f"{measured.value:.4f} ± {measured.expanded_uncertainty:.4f}"
 
 
@@ -86,11 +87,11 @@ def _pairs(mapping: dict[str, Any], prefix: str = "") -> list[tuple[str, str]]:
     return rows
 
 
-def _key_values(ident: str, rows, caption: str = "") -> Table:
+def key_values(ident: str, rows, caption: str = "") -> Table:
     return Table(ident, ("Item", "Value"), tuple((str(k), str(v)) for k, v in rows), caption)
 
 
-def _identification(report: RunReport, operator: str, laboratory: str) -> Section:
+def _identification(report: ReportBase, operator: str, laboratory: str) -> Section:
     run = report.run
     rows = [("Report ID", report.report_id), ("Generated (UTC)", report.generated_utc),
             ("Operator", operator), ("Laboratory", laboratory), ("Run", f"{run.id}" + (
@@ -102,55 +103,54 @@ def _identification(report: RunReport, operator: str, laboratory: str) -> Sectio
             ("Software (report)", f"bench {report.report_software_version}"),
             ("Configuration SHA-256", report.config_sha256),
             ("Calibrations SHA-256", report.calibration_sha256)]
-    return Section("1. Identification", (_key_values("identification", rows),))
+    return Section("1. Identification", (key_values("identification", rows),))
 
 
-def _device(report: RunReport) -> Section:
+def _device(report: ReportBase) -> Section:
     robot = report.run.settings.get("robot") or {}
     rows = [("Robot", report.run.robot), ("Kinematic type", _KINEMATICS.get(report.run.robot, "not stated")),
             ("Tool centre / measuring point", robot.get("tcp", "not stated (platform centre of the model)")),
             *_pairs(robot, "controller.")]
-    return Section("2. Device under test", (_key_values("device", rows),))
+    return Section("2. Device under test", (key_values("device", rows),))
 
 
-def _deviation_table(report: RunReport) -> Table:
+def _deviation_table(report: ReportBase) -> Table:
     rows = tuple((d.clause, d.topic, d.requirement, d.done, d.status, d.effect or "—") for d in report.deviations)
-    return Table("deviations", ("Clause", "Topic", "ISO 9283 requirement", "What was done", "Status",
-                                "Expected effect"), rows, "Deviations from ISO 9283 (computed from the stored run)")
+    return Table("deviations", ("Clause", "Topic", f"{report.reference} requirement", "What was done", "Status",
+                                "Expected effect"), rows,
+                 f"Deviations from {report.reference} (computed from the stored run)")
 
 
-def _method(report: RunReport) -> Section:
-    clauses = "; ".join(report.clauses) or "none"
-    return Section("3. Method", (
-        Paragraph(f"Standard: ISO 9283:1998. Clauses applied: {clauses}. Formulas as in bench.metrology "
-                  f"(sample standard deviation with n − 1; AP against the commanded pose)."),
-        Paragraph(SCOPE), _deviation_table(report)))
+def _method(report: ReportBase, text: str, scope: str) -> Section:
+    return Section("3. Method", (Paragraph(text), Paragraph(scope), _deviation_table(report)))
 
 
-def _conditions(report: RunReport) -> Section:
+def conditions_section(report: ReportBase, keys: tuple[str, ...], extra: tuple[tuple[str, str], ...] = ()) -> Section:
     config = report.run.config
-    keys = ("loads_kg", "velocities_pct", "cycles", "settle_s", "cube_centre_mm", "cube_side_mm", "plane",
-            "poses", "approach_mm", "warmup_s", "ambient_c")
     rows = [(k, "—" if config.get(k) is None else str(config.get(k))) for k in keys if k in config]
-    rows.append(("velocity (mm/s)", str((report.run.settings.get("robot") or {}).get("rated_velocity_mm_s",
-                                                                                      "not stated"))))
-    return Section("4. Conditions", (_key_values("conditions", rows),))
+    return Section("4. Conditions", (key_values("conditions", [*rows, *extra]),))
 
 
-def _instruments(report: RunReport) -> Section:
+_POSE_CONDITIONS = ("loads_kg", "velocities_pct", "cycles", "settle_s", "cube_centre_mm", "cube_side_mm", "plane",
+                    "poses", "approach_mm", "warmup_s", "ambient_c")
+
+
+def _instruments(report: ReportBase) -> Section:
     info = report.instrument
-    blocks: list[Block] = [_key_values("instrument", _pairs(info.settings))]
+    blocks: list[Block] = [key_values("instrument", _pairs(info.settings))]
     calibrations = tuple((str(c.id), c.name, str(c.version), c.created_utc, c.notes or "—")
                          for c in info.calibrations)
     blocks.append(Table("calibrations", ("ID", "Name", "Version", "Date (UTC)", "Notes"), calibrations or (
         ("—", "no stored calibration in force", "", "", ""),), "Calibrations in force"))
-    budget = [(name, _mm(u), source) for name, u, source in info.budget]
+    budget = [(name, fmt_mm(u), source) for name, u, source in info.budget]
     if info.sigma_mm is not None:
-        budget.append(("combined, per axis", _mm(info.sigma_mm), "root sum of squares"))
-        budget.append((f"instrument RP floor ({info.dims}-D)", _mm(info.rp_floor_mm),
+        budget.append((f"combined, per {'axis' if info.rp_floor_mm is not None else 'reading'}", fmt_mm(info.sigma_mm),
+                       "root sum of squares"))
+    if info.rp_floor_mm is not None:
+        budget.append((f"instrument RP floor ({info.dims}-D)", fmt_mm(info.rp_floor_mm),
                        "bench.metrology.instrument_rp_floor"))
-    blocks.append(Table("budget", ("Component", "Standard uncertainty (mm)", "Source"), tuple(budget),
-                        "Instrument uncertainty budget"))
+    blocks.append(Table("budget", ("Component", "Standard uncertainty (mm)", "Source"), tuple(budget) or (
+        ("—", "—", "no length uncertainty stated or derivable"),), "Instrument uncertainty budget"))
     return Section("5. Instruments", tuple(blocks))
 
 
@@ -159,20 +159,20 @@ def pose_rows(report: RunReport) -> tuple[tuple[str, ...], tuple[tuple[str, ...]
     angles = report.poses[0].angle_names if report.poses else ()
     header = ("Pose", "n", "Command x, y, z (mm)", "AP_P ± U (mm)", "AP_x (mm)", "AP_y (mm)", "AP_z (mm)",
               "RP_l ± U (mm)", "RP floor (mm)", *(f"AP_{a} / RP_{a} (°)" for a in angles))
-    floor = _mm(report.instrument.rp_floor_mm) if report.instrument.rp_floor_mm is not None else "—"
+    floor = fmt_mm(report.instrument.rp_floor_mm) if report.instrument.rp_floor_mm is not None else "—"
     rows = []
     for r in report.poses:
-        axes = [_mm(v) for v in r.accuracy.ap_axes_mm] + ["—"] * (3 - len(r.accuracy.ap_axes_mm))
+        axes = [fmt_mm(v) for v in r.accuracy.ap_axes_mm] + ["—"] * (3 - len(r.accuracy.ap_axes_mm))
         orientation = ()
         if r.orientation_accuracy is not None:
             orientation = tuple(f"{ap:+.3f} / ±{rp:.3f}" for ap, rp in zip(r.orientation_accuracy.ap_deg,
                                                                           r.orientation_repeatability.rp_deg))
-        rows.append((r.label, str(r.accuracy.n), ", ".join(f"{v:g}" for v in r.commanded_mm), _pm(r.ap_u), *axes,
-                     _pm(r.rp_u), floor, *orientation))
+        rows.append((r.label, str(r.accuracy.n), ", ".join(f"{v:g}" for v in r.commanded_mm), fmt_pm(r.ap_u), *axes,
+                     fmt_pm(r.rp_u), floor, *orientation))
     return header, tuple(rows)
 
 
-def _results(report: RunReport) -> Section:
+def _results(report: RunReport) -> tuple[Block, ...]:
     header, rows = pose_rows(report)
     k = f"{report.coverage_factor:g}"
     blocks: list[Block] = [Table("results", header, rows, f"Results per pose (U: expanded uncertainty, k = {k}; "
@@ -180,34 +180,38 @@ def _results(report: RunReport) -> Section:
     if report.distances:
         blocks.append(Table("distance", ("Pair / conditions", "D_c (mm)", "D̄ (mm)", "AD_p (mm)", "RD (mm)",
                                          f"U(AD) (mm, k = {k})"),
-                            tuple((d.label, _mm(d.result.commanded_distance_mm), _mm(d.result.mean_distance_mm),
-                                   _mm(d.result.ad_mm), f"± {_mm(d.result.rd_mm)}",
-                                   _mm(d.u_ad.expanded_uncertainty)) for d in report.distances),
+                            tuple((d.label, fmt_mm(d.result.commanded_distance_mm), fmt_mm(d.result.mean_distance_mm),
+                                   fmt_mm(d.result.ad_mm), f"± {fmt_mm(d.result.rd_mm)}",
+                                   fmt_mm(d.u_ad.expanded_uncertainty)) for d in report.distances),
                             f"Distance accuracy and repeatability ({report.distances[0].first} ↔ "
                             f"{report.distances[0].second})"))
     if report.multidirectional:
         blocks.append(Table("vap", ("Pose", "Directions", "vAP_p (mm)"), tuple(
-            (v.label, ", ".join(v.directions), _mm(v.result.vap_mm)) for v in report.multidirectional),
+            (v.label, ", ".join(v.directions), fmt_mm(v.result.vap_mm)) for v in report.multidirectional),
                             "Multi-directional pose accuracy variation"))
     if report.payload:
         rows = []
         for p in report.payload:
             for load, shift, norm in zip(p.result.load_kg, p.result.shift_mm, p.result.shift_norm_mm):
-                rows.append((p.label, f"{load:g}", ", ".join(_mm(v) for v in shift), _mm(norm)))
+                rows.append((p.label, f"{load:g}", ", ".join(fmt_mm(v) for v in shift), fmt_mm(norm)))
         blocks.append(Table("payload", ("Pose", "Load (kg)", "PE(m) x, y, z (mm)", "|PE(m)| (mm)"), tuple(rows),
                             f"Payload error (project definition, reference load "
                             f"{report.payload[0].result.reference_load_kg:g} kg; not an ISO 9283 term)"))
-    return Section("6. Results", tuple(blocks))
+    return tuple(blocks)
 
 
-def _decision(report: RunReport) -> Section:
-    blocks: list[Block] = [Paragraph(f"Decision rule: {report.decision.rule}.")]
-    if report.decision.verdicts:
-        blocks.append(Table("decision", ("Project criterion", "Pose", "Value (mm)", "Limit (mm)", "Result"),
-                            tuple((f"{name} (project criterion)", label, _mm(value), _mm(limit),
-                                   "pass" if ok else "fail") for name, label, value, limit, ok in
-                                  report.decision.verdicts)))
-    return Section("8. Decision", tuple(blocks))
+def decision_blocks(rule: str, header: tuple[str, ...] = (), verdicts=()) -> tuple[Block, ...]:
+    """The decision section's content: the rule, then one row per verdict when there are any."""
+    blocks: list[Block] = [Paragraph(f"Decision rule: {rule}.")]
+    if verdicts:
+        blocks.append(Table("decision", header, tuple(verdicts)))
+    return tuple(blocks)
+
+
+def _decision(report: RunReport) -> tuple[Block, ...]:
+    return decision_blocks(report.decision.rule, ("Project criterion", "Pose", "Value (mm)", "Limit (mm)", "Result"),
+                           [(f"{name} (project criterion)", label, fmt_mm(value), fmt_mm(limit),
+                             "pass" if ok else "fail") for name, label, value, limit, ok in report.decision.verdicts])
 
 
 def _raw(raw: list[RawData], notes: tuple[str, ...], recompute: str) -> Section:
@@ -225,17 +229,34 @@ def recompute_command(report: RunReport) -> str:
     return f"bench analyze iso9283 FILE.csv --instrument-u-mm {sigma:.6g} --k {report.coverage_factor:g}"
 
 
-def run_document(report: RunReport, raw: list[RawData], *, operator: str = "not recorded",
-                 laboratory: str = "not recorded") -> Document:
-    """The document of one run's report."""
-    figures = tuple(Figure(p) for p in report_plots(report))
+def assemble(report: ReportBase, raw: list[RawData], *, operator: str, laboratory: str, method: str, scope: str,
+             conditions: Section, results: tuple[Block, ...], plots, decision: tuple[Block, ...],
+             recompute: str) -> Document:
+    """One run's report in the order of iso9283.md §9, whatever the protocol: identification, device, method and
+    deviations, conditions, instruments, results, plots, decision, raw data with the recomputing command, scope."""
     return Document(
         title=f"{report.title}: run {report.run.id}", subtitle=f"Report {report.report_id}",
-        sections=(_identification(report, operator, laboratory), _device(report), _method(report),
-                  _conditions(report), _instruments(report), _results(report), Section("7. Plots", figures),
-                  _decision(report), _raw(raw, report.notes, recompute_command(report)), Section("10. Statement of scope",
-                                                                      (Paragraph(SCOPE),))),
+        sections=(_identification(report, operator, laboratory), _device(report), _method(report, method, scope),
+                  conditions, _instruments(report), Section("6. Results", tuple(results)),
+                  Section("7. Plots", tuple(Figure(p) for p in plots)), Section("8. Decision", tuple(decision)),
+                  _raw(raw, report.notes, recompute), Section("10. Statement of scope", (Paragraph(scope),))),
         meta={"report_id": report.report_id})
+
+
+def run_document(report: RunReport, raw: list[RawData], *, operator: str = "not recorded",
+                 laboratory: str = "not recorded") -> Document:
+    """The document of one pose run's report."""
+    clauses = "; ".join(report.clauses) or "none"
+    robot = report.run.settings.get("robot") or {}
+    return assemble(
+        report, raw, operator=operator, laboratory=laboratory,
+        method=f"Standard: ISO 9283:1998. Clauses applied: {clauses}. Formulas as in bench.metrology (sample "
+               f"standard deviation with n − 1; AP against the commanded pose).",
+        scope=SCOPE,
+        conditions=conditions_section(report, _POSE_CONDITIONS,
+                               (("velocity (mm/s)", str(robot.get("rated_velocity_mm_s", "not stated"))),)),
+        results=_results(report), plots=report_plots(report), decision=_decision(report),
+        recompute=recompute_command(report))
 
 
 def comparison_document(first: RunReport, second: RunReport, raw: list[RawData]) -> Document:
@@ -256,8 +277,8 @@ def comparison_document(first: RunReport, second: RunReport, raw: list[RawData])
         s = second_poses.get(r.label)
         if s is None:
             continue
-        paired.append((r.label, _pm(r.ap_u), _pm(s.ap_u), f"{s.accuracy.ap_mm - r.accuracy.ap_mm:+.4f}",
-                       _pm(r.rp_u), _pm(s.rp_u), f"{s.repeatability.rp_mm - r.repeatability.rp_mm:+.4f}"))
+        paired.append((r.label, fmt_pm(r.ap_u), fmt_pm(s.ap_u), f"{s.accuracy.ap_mm - r.accuracy.ap_mm:+.4f}",
+                       fmt_pm(r.rp_u), fmt_pm(s.rp_u), f"{s.repeatability.rp_mm - r.repeatability.rp_mm:+.4f}"))
     runs = f"run {a.id} (A) and run {b.id} (B)"
     return Document(
         title=f"Comparison of {runs}", subtitle=f"Reports {first.report_id} / {second.report_id}",

@@ -22,7 +22,8 @@ from scipy.spatial import ConvexHull, QhullError
 from bench.metrology import pose_accuracy
 from bench.reports.content import RunReport
 
-__all__ = ["Plot", "comparison_plot", "png_bytes", "report_plots", "svg_text", "workspace_cloud_mm"]
+__all__ = ["Plot", "comparison_plot", "panels", "payload_caption", "payload_shift_figure", "png_bytes", "report_plots",
+           "svg_text", "workspace_cloud_mm"]
 
 _log = logging.getLogger(__name__)
 _POSITION = ["x_mm", "y_mm", "z_mm"]
@@ -56,14 +57,18 @@ def _rows_of(report: RunReport, result) -> np.ndarray:
     return table[mask].sort_values("cycle")
 
 
+def panels(count: int, *, max_columns: int, size: tuple[float, float] = (2.6, 2.6)) -> tuple[Figure, list]:
+    """A figure with ``count`` small panels, ``max_columns`` per row at most, each ``size`` inches."""
+    columns = max(1, min(max_columns, count))
+    rows = math.ceil(count / columns)
+    figure = Figure(figsize=(size[0] * columns, size[1] * rows + 0.4), layout="constrained")
+    return figure, [figure.add_subplot(rows, columns, index + 1) for index in range(count)]
+
+
 def pose_scatter(report: RunReport) -> Plot:
     """Per pose: attained points minus the command (x-y plane), barycentre and the RP circle around it."""
-    results = report.poses
-    columns = min(5, len(results))
-    rows = math.ceil(len(results) / columns)
-    figure = Figure(figsize=(2.6 * columns, 2.6 * rows + 0.4), layout="constrained")
-    for index, result in enumerate(results):
-        axes = figure.add_subplot(rows, columns, index + 1)
+    figure, panel = panels(len(report.poses), max_columns=5)
+    for index, (result, axes) in enumerate(zip(report.poses, panel)):
         points = _rows_of(report, result)[_POSITION[:2]].to_numpy() - np.asarray(result.commanded_mm[:2])
         centre = np.asarray(result.accuracy.ap_axes_mm[:2])
         axes.scatter(points[:, 0], points[:, 1], s=8, color="tab:blue", label="attained")
@@ -145,24 +150,34 @@ def drift_series(report: RunReport) -> Plot:
     return Plot("Per-cycle distance of each attained point from its command (a trend shows drift).", figure)
 
 
+def payload_shift_figure(series) -> tuple[Figure, list]:
+    """|PE(m)| and its z component (sag) against load, one line per ``(label, PayloadShift)`` of ``series``;
+    returns the figure and its two axes (norm, sag) for additions."""
+    figure = Figure(figsize=(10, 3.8), layout="constrained")
+    norm, sag = figure.add_subplot(1, 2, 1), figure.add_subplot(1, 2, 2)
+    for label, shift in series:
+        norm.plot(shift.load_kg, shift.shift_norm_mm, marker="o", label=label)
+        if shift.shift_mm.shape[1] > 2:
+            sag.plot(shift.load_kg, shift.shift_mm[:, 2], marker="o", label=label)
+    for axes, label in ((norm, "|PE(m)| (mm)"), (sag, "PE_z(m) (mm)")):
+        axes.set_xlabel("load (kg)")
+        axes.set_ylabel(label)
+    return figure, [norm, sag]
+
+
+def payload_caption(reference_load_kg: float) -> str:
+    return (f"Payload error PE(m) = x̄(m) − x̄(m₀) against load, m₀ = {reference_load_kg:g} kg (project definition, "
+            f"iso9283.md §12).")
+
+
 def payload_plot(report: RunReport) -> Plot | None:
     """|PE(m)| and its z component (sag) against load, one line per pose."""
     if not report.payload:
         return None
-    figure = Figure(figsize=(10, 3.8), layout="constrained")
-    norm, sag = figure.add_subplot(1, 2, 1), figure.add_subplot(1, 2, 2)
-    for row in report.payload:
-        shift = row.result
-        norm.plot(shift.load_kg, shift.shift_norm_mm, marker="o", label=row.label)
-        if shift.shift_mm.shape[1] > 2:
-            sag.plot(shift.load_kg, shift.shift_mm[:, 2], marker="o", label=row.label)
-    for axes, label in ((norm, "|PE(m)| (mm)"), (sag, "PE_z(m) (mm)")):
-        axes.set_xlabel("load (kg)")
-        axes.set_ylabel(label)
-        axes.legend(fontsize=6)
-    reference = report.payload[0].result.reference_load_kg
-    return Plot(f"Payload error PE(m) = x̄(m) − x̄(m₀) against load, m₀ = {reference:g} kg (project definition, "
-                f"iso9283.md §12).", figure)
+    figure, axes = payload_shift_figure([(row.label, row.result) for row in report.payload])
+    for each in axes:
+        each.legend(fontsize=6)
+    return Plot(payload_caption(report.payload[0].result.reference_load_kg), figure)
 
 
 def mouse_calibration_plots(report: RunReport) -> list[Plot]:

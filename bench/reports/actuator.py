@@ -1,0 +1,153 @@
+"""The report of an ``actuator_accuracy`` run: the dissertation's actuator test (000 §8.4) with the bias it hides
+and ISO 230-2 unidirectional figures (iso9283.md §7.1, §7.4).
+
+Every figure comes from :func:`bench.metrology.actuator_tables.analyze_actuators` on the run's tidy
+``actuator_travel`` table, the same call ``bench analyze actuator FILE.csv --robot pkm5`` makes on the raw-data
+CSV the report writes; the control resolution is the pkm5 model's mm per step (000 Eq. 8.1), as in
+:func:`bench.protocols.actuator.actuator_results`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from bench.metrology.actuator_tables import ActuatorResult, actuator_table, analyze_actuators
+from bench.reports.content import ReportBase, provenance, reading_instrument, uncertainty_stated
+from bench.reports.deviations import actuator_deviations
+from bench.reports.document import (
+    Block,
+    Document,
+    Paragraph,
+    RawData,
+    Table,
+    assemble,
+    conditions_section,
+    decision_blocks,
+    fmt_mm,
+    fmt_pm,
+)
+from bench.reports.plots import Plot, panels
+from bench.store import Store, tidy_table
+
+__all__ = ["ActuatorReport", "actuator_document", "actuator_plot", "collect_actuator", "recompute_actuator"]
+
+SCOPE = ("Tested following the actuator test of the dissertation (000 §8.4, after Groover) and reporting ISO 230-2 "
+         "unidirectional figures, with the deviations listed in the deviations table. This is not an ISO 230-2 "
+         "acceptance test.")
+NO_CRITERION = ("no acceptance criterion stated: no pass/fail statement (000 §8.4 and ISO 230-2 define methods, not "
+                "grades)")
+
+
+@dataclass(frozen=True, kw_only=True)
+class ActuatorReport(ReportBase):
+    """Everything the report of an actuator_accuracy run prints."""
+
+    actuators: tuple[ActuatorResult, ...]
+
+
+def collect_actuator(store: Store, run_id: int, *, k: float = 2.0, resamples: int = 1000,
+                     allow_unknown: bool = False) -> ActuatorReport:
+    """Gather the facts and figures of the report of ``actuator_accuracy`` run ``run_id``."""
+    from motion import pkm5
+
+    run = store.run(run_id)
+    table = tidy_table(store, run_id, kind="actuator_travel")
+    table.attrs["source"] = f"run {run_id}"
+    calibrations = tuple(store.calibration_by_id(i) for i in run.calibration_ids)
+    instrument = reading_instrument(run, calibrations, table["travel_mm"], difference=True)
+    results = analyze_actuators(actuator_table(table), control_resolution_mm=tuple(pkm5.DEFAULT_GEOMETRY.mm_per_step),
+                                instrument_u_mm=instrument.sigma_mm or 0.0, k=k, resamples=resamples)
+    deviations = actuator_deviations(config=run.config, settings=run.settings,
+                                     repeats_measured=min(r.groover.n for r in results),
+                                     instrument_sigma_mm=instrument.sigma_mm,
+                                     uncertainty_stated=uncertainty_stated(instrument), allow_unknown=allow_unknown)
+    base = provenance(run, calibrations)
+    dropped = tuple(f"actuator {r.actuator}: {r.dropped} readings of repeats missing a travel left out"
+                    for r in results if r.dropped)
+    return ActuatorReport(
+        **{**base, "notes": base["notes"] + dropped},
+        title=run.config.get("title") or "Linear-actuator accuracy and repeatability (000 §8.4)",
+        reference="000 §8.4 / ISO 230-2",
+        clauses=("000 §8.4, Eqs. 8.1-8.3: repeatability ±3σ̄, accuracy CR/2 + 3σ̄ (after Groover)",
+                 "ISO 230-2 unidirectional R↑, E↑, A↑ (iso9283.md §7.1 [U])"),
+        deviations=tuple(deviations), instrument=instrument, table=table, coverage_factor=k, actuators=results)
+
+
+def _with_u(value: float, measured) -> str:
+    return fmt_mm(value) + " (no U: < 3 repeats)" if measured is None else fmt_pm(measured)
+
+
+def _results(report: ActuatorReport) -> tuple[Block, ...]:
+    k = f"{report.coverage_factor:g}"
+    summary = tuple((r.actuator, str(r.groover.n), ", ".join(f"{t:g}" for t in r.targets_mm),
+                     f"{r.control_resolution_mm:g}", _with_u(r.groover.repeatability_mm, r.repeatability_u),
+                     _with_u(r.groover.accuracy_mm, r.accuracy_u), fmt_mm(r.groover.max_abs_bias_mm),
+                     fmt_mm(r.iso230_2.repeatability_forward_mm), fmt_mm(r.iso230_2.systematic_forward_mm),
+                     fmt_mm(r.iso230_2.accuracy_forward_mm)) for r in report.actuators)
+    targets = tuple((r.actuator, f"{t:g}", str(r.groover.n), fmt_mm(float(r.readings_mm[:, i].mean())), fmt_pm(u),
+                     fmt_mm(s), fmt_mm(4.0 * s))
+                    for r in report.actuators for i, (t, u, s) in enumerate(zip(r.targets_mm, r.bias_u,
+                                                                               r.groover.sigma_mm)))
+    return (
+        Table("actuators", ("Actuator", "n", "Targets (mm)", "CR (mm/step)", "Repeatability ±3σ̄ ± U (mm)",
+                            "Accuracy CR/2 + 3σ̄ ± U (mm)", "max |bias| (mm)", "R↑ (mm)", "E↑ (mm)", "A↑ (mm)"),
+              summary, f"Per actuator: 000 Eqs. 8.1-8.3 (after Groover) and ISO 230-2 unidirectional figures "
+                       f"(U: expanded uncertainty, k = {k}, bootstrap over whole repeats)"),
+        Table("actuator-targets", ("Actuator", "Target P_i (mm)", "n", "Mean travel x̄_i (mm)",
+                                   "Bias x̄_i − P_i ± U (mm)", "s_i (mm)", "R_i↑ = 4 s_i (mm)"), targets,
+              f"Per actuator and target (U of the bias: k = {k}, √(s_i²/n + u_gauge²))"),
+        Paragraph("Groover's accuracy CR/2 + 3σ̄ assumes that the mean travel lands on the target; the bias column "
+                  "and max |bias| show the systematic error it leaves out (iso9283.md §7.4)."),
+    )
+
+
+def actuator_plot(report: ActuatorReport) -> Plot:
+    """Per actuator: every reading minus its target, the mean bias with U and the x̄ ± 2s band (ISO 230-2's A↑)."""
+    figure, axes_list = panels(len(report.actuators), max_columns=3, size=(3.4, 2.8))
+    for axes, r in zip(axes_list, report.actuators):
+        targets = np.asarray(r.targets_mm)
+        deviation = r.readings_mm - targets
+        bias = np.array(r.groover.mean_deviation_mm)
+        sigma = np.array(r.groover.sigma_mm)
+        axes.axhline(0.0, color="0.6", lw=0.8)
+        axes.scatter(np.broadcast_to(targets, deviation.shape), deviation, s=6, color="tab:blue", alpha=0.5,
+                     label="readings")
+        axes.errorbar(targets, bias, yerr=[u.expanded_uncertainty for u in r.bias_u], fmt="o-", color="tab:red",
+                      ms=3, capsize=2, lw=1, label="bias ± U")
+        axes.plot(targets, bias + 2 * sigma, ls="--", color="0.4", lw=0.8, label="x̄ ± 2s")
+        axes.plot(targets, bias - 2 * sigma, ls="--", color="0.4", lw=0.8)
+        axes.set_title(f"actuator {r.actuator}", fontsize=8)
+        axes.set_xlabel("commanded travel (mm)", fontsize=7)
+        axes.set_ylabel("reading − command (mm)", fontsize=7)
+        axes.tick_params(labelsize=7)
+    axes_list[0].legend(fontsize=5)
+    return Plot(f"Actuator bias against commanded travel: every reading minus its target, the mean bias with U "
+                f"(k = {report.coverage_factor:g}) and the x̄ ± 2s band of ISO 230-2's A↑.", figure)
+
+
+def recompute_actuator(report: ActuatorReport) -> str:
+    """The CLI call that recomputes every actuator figure from the raw-data CSV."""
+    sigma = report.instrument.sigma_mm or 0.0
+    return (f"bench analyze actuator FILE.csv --robot pkm5 --instrument-u-mm {sigma:.6g} --k "
+            f"{report.coverage_factor:g} (bench export RUN_ID --kind actuator_travel writes the same table)")
+
+
+def actuator_document(report: ActuatorReport, raw: list[RawData], *, operator: str = "not recorded",
+                      laboratory: str = "not recorded") -> Document:
+    config = report.run.config
+    method = (f"Dissertation 000 §8.4: each actuator, free-standing on the actuator bench, travels "
+              f"{', '.join(f'{float(v):g}' for v in config.get('distances_mm', ()))} mm up from a start stroke of "
+              f"{config.get('start_mm', '—')} mm where the depth gauge was zeroed, {config.get('repeats', '—')} "
+              "repeats, each read by the gauge. CR = the robot model's mm per step (000 Eq. 8.1); σ̄ = mean over "
+              "targets of the sample standard deviation (n − 1) at each target; repeatability ±3σ̄ and accuracy "
+              "CR/2 + 3σ̄ (000 Eqs. 8.2-8.3); bias x̄_i − P_i. ISO 230-2 (iso9283.md §7.1, from memory [U]): "
+              "R↑ = max 4 s_i, E↑ = max x̄_i − min x̄_i of the mean deviations, A↑ = max(x̄_i + 2 s_i) − "
+              "min(x̄_i − 2 s_i).")
+    return assemble(
+        report, raw, operator=operator, laboratory=laboratory, method=method, scope=SCOPE,
+        conditions=conditions_section(report, ("fixture", "actuators", "distances_mm", "repeats", "start_mm",
+                                               "velocity_pct", "settle_s", "warmup_s", "ambient_c")),
+        results=_results(report), plots=[actuator_plot(report)], decision=decision_blocks(NO_CRITERION),
+        recompute=recompute_actuator(report))
