@@ -1,19 +1,27 @@
-"""Robot models for pre-flight and time estimates: reachability, joint limits and singularity proximity from motion/.
+"""Pre-flight models: what the protocols need from a robot's kinematics, on top of :mod:`motion.model`.
 
-Targets are rows of mm and degrees: ``(x_mm, y_mm, z_mm, alpha_deg, beta_deg)`` for the pkm5 (a 3-column row
-means alpha = beta = 0) and ``(x_mm, y_mm, z_mm)`` for the delta4. Nothing here talks to hardware.
+A :class:`PreflightModel` adds to a robot's :class:`motion.model.RobotModel` (IK with joint limits and reasons,
+Jacobian) what a campaign needs before anything moves: the check of every target (reachability, joint limits,
+singularity proximity), a move-time estimate, the robot's home and the target fields. Targets are rows of mm and
+degrees in the model's pose fields: ``(x_mm, y_mm, z_mm, alpha_deg, beta_deg)`` for the pkm5 (a 3-column row means
+alpha = beta = 0) and ``(x_mm, y_mm, z_mm)`` for the delta4. Nothing here talks to hardware.
+
+The kinematics module (``motion.<robot>.model``) is imported on first use, so listing the robots stays cheap.
 """
 
 from __future__ import annotations
 
+import importlib
 from collections.abc import Callable
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 
 from bench.errors import ConfigError
 
-__all__ = ["ROBOT_MODELS", "RobotModel", "TargetCheck", "robot_model"]
+__all__ = ["DEFAULT_SINGULARITY_THRESHOLD", "ROBOT_MODELS", "PreflightModel", "TargetCheck", "inverse_condition",
+           "robot_model"]
 
 #: Inverse condition number below which a target is refused as too close to a singularity. With the units of
 #: motion.pkm5.singularity_proximity the cube poses lie near 0.17-0.20 and the documents' beta test poses (000 Table
@@ -30,92 +38,129 @@ class TargetCheck:
     proximity: np.ndarray
 
 
+def inverse_condition(jacobian: np.ndarray, columns: np.ndarray) -> np.ndarray:
+    """sigma_min / sigma_max of each (J, P) Jacobian restricted to its ``columns`` (N, P) bool, in [0, 1].
+
+    A Jacobian without any non-zero singular value (or made of NaN) gives 0: as close to a singularity as it gets.
+    """
+    jac = np.nan_to_num(np.asarray(jacobian, dtype=float))
+    proximity = np.zeros(len(jac))
+    # one batched SVD per column pattern (the pkm5's translation, alpha and beta modes)
+    patterns, group = np.unique(columns, axis=0, return_inverse=True)
+    for index, pattern in enumerate(patterns):
+        rows = np.flatnonzero(group.ravel() == index)
+        singular = np.linalg.svd(jac[rows][:, :, pattern], compute_uv=False)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            proximity[rows] = np.where(singular[:, 0] > 0, singular[:, -1] / singular[:, 0], 0.0)
+    return proximity
+
+
+def _all_columns(targets: np.ndarray) -> np.ndarray:
+    return np.ones(targets.shape, bool)
+
+
 @dataclass(frozen=True)
-class RobotModel:
-    """What the protocols need from a robot's kinematics."""
+class PreflightModel:
+    """Pre-flight check, move-time estimate, home and target fields of robot ``name``.
+
+    Parameters
+    ----------
+    name : str
+        The robot; its kinematics are ``motion.<name>.model.MODEL`` (a :class:`motion.model.RobotModel`).
+    home : tuple of float
+        Where the robot starts and ends a campaign, in the target fields.
+    travel_s : callable
+        ``travel_s(kinematics, travel, velocity_pct)``: seconds of moves whose actuated joints travel ``travel``
+        (N, J) in joint units, at ``velocity_pct`` (N,) % of the rated speed.
+    mode_columns : callable
+        ``mode_columns(targets)``: the pose columns (N, P) bool each target moves in, i.e. the columns of the
+        Jacobian its singularity proximity is computed over (default: all).
+    """
 
     name: str
-    target_fields: tuple[str, ...]
     home: tuple[float, ...]
-    check: Callable[[np.ndarray, float], TargetCheck]
-    move_s: Callable[[np.ndarray, np.ndarray, np.ndarray], np.ndarray]
+    travel_s: Callable[[object, np.ndarray, np.ndarray], np.ndarray]
+    mode_columns: Callable[[np.ndarray], np.ndarray] = _all_columns
+
+    @cached_property
+    def kinematics(self):
+        """The robot's :class:`motion.model.RobotModel` (imported on first use)."""
+        model = importlib.import_module(f"motion.{self.name}.model").MODEL
+        if model.name != self.name:
+            raise ConfigError(f"motion.{self.name}.model.MODEL is named {model.name!r}, expected {self.name!r}")
+        return model
+
+    @property
+    def target_fields(self) -> tuple[str, ...]:
+        """The pose fields of a target, with their units (``x_mm``, ``alpha_deg``)."""
+        return self.kinematics.pose_fields
+
+    @property
+    def joints(self):
+        """The joints with their units and limits (:class:`motion.model.JointSpec`)."""
+        return self.kinematics.joints
 
     def as_targets(self, targets) -> np.ndarray:
         """Targets as float (N, len(target_fields)), short pkm5 rows padded with zero angles."""
-        rows = [tuple(t) + (0.0,) * (len(self.target_fields) - len(t)) for t in targets]
-        array = np.asarray(rows, dtype=float).reshape(len(rows), len(self.target_fields))
-        return array
+        width = len(self.target_fields)
+        rows = [tuple(t) + (0.0,) * (width - len(t)) for t in targets]
+        return np.asarray(rows, dtype=float).reshape(len(rows), width)
+
+    def check(self, targets: np.ndarray, threshold: float = DEFAULT_SINGULARITY_THRESHOLD) -> TargetCheck:
+        """Reachability (IK with joint limits) and singularity proximity of targets (N, P) in mm and degrees.
+
+        A reachable target whose inverse condition number is below ``threshold`` is refused as too close to a
+        singularity; ``reason`` says why each refused target is refused.
+        """
+        ik = self.kinematics.ik(targets)
+        proximity = inverse_condition(self.kinematics.jacobian(targets), self.mode_columns(targets))
+        reason = np.array([text or "" for text in ik.reason], dtype=object)
+        reachable = np.asarray(ik.reachable, bool)
+        near = reachable & (proximity < threshold)
+        for i in np.flatnonzero(near):
+            reason[i] = f"too close to a singularity (inverse condition {proximity[i]:.3g} < {threshold:g})"
+        return TargetCheck(reachable & ~near, reason, proximity)
+
+    def move_s(self, start: np.ndarray, end: np.ndarray, velocity_pct: np.ndarray) -> np.ndarray:
+        """Estimated seconds of the moves ``start`` -> ``end`` (N, P) at ``velocity_pct`` (N,) %."""
+        actuated = [spec.actuated for spec in self.joints]
+        travel = np.abs(self.kinematics.ik(end).joints - self.kinematics.ik(start).joints)[:, actuated]
+        return self.travel_s(self.kinematics, np.nan_to_num(travel), velocity_pct)
 
 
-def _pkm5_check(targets: np.ndarray, threshold: float) -> TargetCheck:
-    from motion import pkm5
-
-    poses = targets.copy()
-    poses[:, 3:] = np.radians(poses[:, 3:])
-    ik = pkm5.inverse_kinematics(poses)
-    proximity = pkm5.singularity_proximity(poses).inverse_condition
-    reason = ik.reasons.copy()
-    near = ik.reachable & (proximity < threshold)
-    for i in np.flatnonzero(near):
-        reason[i] = f"too close to a singularity (inverse condition {proximity[i]:.3g} < {threshold:g})"
-    return TargetCheck(ik.reachable & ~near, reason, proximity)
-
-
-def _pkm5_move_s(start: np.ndarray, end: np.ndarray, velocity_pct: np.ndarray) -> np.ndarray:
-    """Constant-speed MultiStepper moves: all legs arrive together, the longest leg at 100 % speed sets the time."""
-    from motion import pkm5
-
-    g = pkm5.DEFAULT_GEOMETRY
-
-    def lengths(t: np.ndarray) -> np.ndarray:
-        poses = t.copy()
-        poses[:, 3:] = np.radians(poses[:, 3:])
-        return pkm5.inverse_kinematics(poses, check_limits=False).lengths_mm
-
-    steps = np.abs(lengths(end) - lengths(start)) / g.mm_per_step
+def _stepper_travel_s(kinematics, travel_mm: np.ndarray, velocity_pct: np.ndarray) -> np.ndarray:
+    """Constant-speed MultiStepper moves: all legs arrive together, the leg with the most steps runs at the set
+    speed (100 % = the firmware's maximum, 200 steps/s) and sets the time."""
+    g = kinematics.geometry
+    steps = travel_mm / g.mm_per_step
     return steps.max(axis=1) / (g.max_speed_steps_per_s * velocity_pct / 100.0)
-
-
-def _pkm5_home() -> tuple[float, ...]:
-    # the documents' home (every actuator at 5 mm stroke): LS FK gives (88.649, 0, 300.937), alpha = beta = 0
-    return (88.649, 0.0, 300.937, 0.0, 0.0)
-
-
-def _delta4_check(targets: np.ndarray, threshold: float) -> TargetCheck:
-    from motion import delta4
-
-    ik = delta4.inverse_kinematics(targets)
-    jac = delta4.jacobian_deg_per_mm(targets)
-    singular = np.linalg.svd(np.nan_to_num(jac), compute_uv=False)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        proximity = np.where(singular[:, 0] > 0, singular[:, -1] / singular[:, 0], 0.0)
-    reason = np.array([r or "" for r in ik.reason], dtype=object)
-    near = ik.reachable & (proximity < threshold)
-    for i in np.flatnonzero(near):
-        reason[i] = f"too close to a singularity (inverse condition {proximity[i]:.3g} < {threshold:g})"
-    return TargetCheck(np.asarray(ik.reachable, bool) & ~near, reason, proximity)
 
 
 #: Hobby servos of the delta robot: about 60 deg in 0.2 s at full speed.
 _DELTA4_SERVO_DEG_PER_S = 300.0
 
 
-def _delta4_move_s(start: np.ndarray, end: np.ndarray, velocity_pct: np.ndarray) -> np.ndarray:
-    from motion import delta4
-
-    travel = np.abs(delta4.inverse_kinematics(end).servo_deg - delta4.inverse_kinematics(start).servo_deg)
-    return np.nan_to_num(travel).max(axis=1) / (_DELTA4_SERVO_DEG_PER_S * velocity_pct / 100.0)
+def _servo_travel_s(kinematics, travel_deg: np.ndarray, velocity_pct: np.ndarray) -> np.ndarray:
+    """Hobby servos turn together at their own speed: the longest turn sets the time."""
+    return travel_deg.max(axis=1) / (_DELTA4_SERVO_DEG_PER_S * velocity_pct / 100.0)
 
 
-ROBOT_MODELS: dict[str, RobotModel] = {
-    "pkm5": RobotModel("pkm5", ("x_mm", "y_mm", "z_mm", "alpha_deg", "beta_deg"), _pkm5_home(), _pkm5_check,
-                       _pkm5_move_s),
-    "delta4": RobotModel("delta4", ("x_mm", "y_mm", "z_mm"), (0.0, 0.0, -200.0), _delta4_check, _delta4_move_s),
+def _pkm5_mode_columns(targets: np.ndarray) -> np.ndarray:
+    """The pkm5's motion mode: x, y, z always, alpha or beta when non-zero (pkm5.md §5.2)."""
+    from motion.pkm5.jacobian import mode_columns
+
+    return mode_columns(targets)
+
+
+ROBOT_MODELS: dict[str, PreflightModel] = {
+    # the documents' home (every actuator at 5 mm stroke): LS FK gives (88.649, 0, 300.937), alpha = beta = 0
+    "pkm5": PreflightModel("pkm5", (88.649, 0.0, 300.937, 0.0, 0.0), _stepper_travel_s, _pkm5_mode_columns),
+    "delta4": PreflightModel("delta4", (0.0, 0.0, -200.0), _servo_travel_s),
 }
 
 
-def robot_model(name: str) -> RobotModel:
-    """The model of robot ``name``; ``ConfigError`` lists the known robots."""
+def robot_model(name: str) -> PreflightModel:
+    """The pre-flight model of robot ``name``; ``ConfigError`` lists the known robots."""
     try:
         return ROBOT_MODELS[name]
     except KeyError:
