@@ -15,8 +15,10 @@ the assembled robot (the default) it is refused, since one leg cannot move alone
 
 from __future__ import annotations
 
+import functools
 import itertools
 import logging
+import threading
 from dataclasses import dataclass
 from typing import Any
 
@@ -67,6 +69,17 @@ def _checked_number(name: str, value: Any, low: float, high: float) -> float:
     return value
 
 
+def _holding_line(method: Any) -> Any:
+    """Run a command holding the controller's line, so that one thread at a time reads the replies."""
+
+    @functools.wraps(method)
+    def holding(self: Pkm5Controller, *args: Any, **kwargs: Any) -> Any:
+        with self._line:
+            return method(self, *args, **kwargs)
+
+    return holding
+
+
 class Pkm5Controller:
     """One PKM5 controller on an open serial port.
 
@@ -102,6 +115,7 @@ class Pkm5Controller:
         self.retries = int(_checked_number("retries", retries, 0, 10))
         self.move_margin_s = float(_checked_number("move_margin_s", move_margin_s, 0, 600))
         self._tags = itertools.count(1)
+        self._line = threading.RLock()  # held by the command reading replies; stop() from elsewhere bypasses it
         self._identity: Identity | None = None
 
     # -- description -------------------------------------------------------------------------------------------
@@ -125,6 +139,7 @@ class Pkm5Controller:
         return f"{type(self).__name__}({shown})"
 
     # -- transport ---------------------------------------------------------------------------------------------
+    @_holding_line
     def _exchange(self, verb: str, args: tuple[int, ...] = (), *, timeout_s: float | None = None) -> wire.Reply:
         """Send one command and return its ``OK`` reply, retrying idempotent commands."""
         attempts = 1 + (self.retries if verb in _IDEMPOTENT else 0)
@@ -198,9 +213,20 @@ class Pkm5Controller:
         """Declare the current actuator positions (absolute steps), e.g. after homing by hand."""
         self._exchange("SETPOS", _as_steps(steps))
 
-    def stop(self) -> Position:
-        """Stop all axes now; returns where they stopped."""
-        return Position(self._exchange("STOP").ints(1, wire.AXES), "IDLE")
+    def stop(self) -> Position | None:
+        """Stop all axes now; returns where they stopped.
+
+        Safe from another thread while a command waits for its replies (an emergency stop during a move): only the
+        ``STOP`` line is sent then, at once, and None is returned. Only the waiting command reads the port, so the
+        move ends with the controller's ``ERR #move 8 STOPPED`` and STOP's own ``OK`` is later dropped as stale.
+        """
+        if not self._line.acquire(blocking=False):
+            self.link.write(wire.format_command("STOP", (), next(self._tags)), command="STOP")
+            return None
+        try:
+            return Position(self._exchange("STOP").ints(1, wire.AXES), "IDLE")
+        finally:
+            self._line.release()
 
     def move_steps(self, steps: Any, *, speed_steps_s: int | None = None) -> tuple[int, ...]:
         """Pre-flight ``steps`` (6 absolute targets), move, and wait for ``DONE``; returns the reached steps."""
@@ -238,6 +264,7 @@ class Pkm5Controller:
     def _preflight_steps(self, steps: tuple[int, ...]) -> None:
         kinematics.check_steps(steps, self.geometry)
 
+    @_holding_line
     def _move(self, targets: tuple[int, ...], speed_steps_s: int | None) -> tuple[int, ...]:
         speed = int(_checked_number("speed_steps_s", self.speed_steps_s if speed_steps_s is None else speed_steps_s,
                                     1, 1000))
@@ -328,6 +355,7 @@ class Pkm5Controller:
         self._exchange("SIMLOAD", (round(load_kg * 1000),))
 
     # -- lifecycle ---------------------------------------------------------------------------------------------
+    @_holding_line
     def _stop_quietly(self) -> None:
         try:
             tag = next(self._tags)
