@@ -2,8 +2,9 @@
 
 Like bluesky's ``summarize_plan`` and ``check_limits``: the generator is driven with stand-in results (a capture
 "measures" its commanded values, a prompt answers the middle of its range), every ``Move`` target is checked with
-motion/ (reach, joint limits, singularity proximity) before anything moves, and the time is estimated from the
-robot's actuator speeds plus the settle times.
+motion/ (reach, joint limits, singularity proximity) and every ``ActuatorMove`` stroke against the actuator's window
+(actuator bench) before anything moves, and the time is estimated from the robot's actuator speeds plus the settle
+times.
 """
 
 from __future__ import annotations
@@ -20,7 +21,7 @@ from bench.protocols.base import Protocol
 from bench.protocols.kinematics import DEFAULT_SINGULARITY_THRESHOLD, robot_model
 from bench.protocols.steps import ActuatorMove, Capture, Move, Prompt, Settle, Step
 
-__all__ = ["PlanSummary", "dry_run_result", "iterate", "preflight", "summarize"]
+__all__ = ["AxisStrokes", "PlanSummary", "dry_run_result", "iterate", "preflight", "summarize"]
 
 #: Time a capture and a prompt are assumed to take in the estimate, s (a prompt waits for a person).
 CAPTURE_S = 0.05
@@ -52,6 +53,18 @@ def iterate(protocol: Protocol, *, final: bool = True) -> Iterator[Step]:
 
 
 @dataclass(frozen=True)
+class AxisStrokes:
+    """The strokes one actuator of the actuator bench will be commanded to, pre-flighted against its window."""
+
+    axis: int
+    window_mm: tuple[float, float]  #: the stroke window the driver enforces, mm from full retraction
+    strokes_mm: tuple[float, ...]  #: distinct commanded strokes, ascending
+    moves: int
+    move_s: float  #: estimated time of its moves at the commanded velocity
+    refused: tuple[str, ...] = ()  #: one line per refused move
+
+
+@dataclass(frozen=True)
 class PlanSummary:
     """What a protocol will do: counts, distinct targets and their pre-flight, and the estimated duration."""
 
@@ -67,8 +80,13 @@ class PlanSummary:
     settle_s: float
     prompt_s: float
     capture_s: float
-    #: refused actuator-bench moves (stroke outside the actuator's window), one line each
-    actuator_problems: tuple[str, ...] = ()
+    #: per actuator of the actuator bench, its commanded strokes and their pre-flight
+    strokes: tuple[AxisStrokes, ...] = ()
+
+    @property
+    def actuator_problems(self) -> tuple[str, ...]:
+        """Refused actuator-bench moves (stroke outside the actuator's window), one line each."""
+        return tuple(line for axis in self.strokes for line in axis.refused)
 
     @property
     def estimated_s(self) -> float:
@@ -89,11 +107,21 @@ class PlanSummary:
             f"{n} {kind}" for kind, n in self.counts.items())]
         out.append(f"estimated duration {_hms(self.estimated_s)} (moves {_hms(self.move_s)}, settling "
                    f"{_hms(self.settle_s)}, prompts {_hms(self.prompt_s)}) at real speed")
-        out.append(f"{len(self.labels)} distinct targets:")
+        if self.labels or not self.strokes:
+            out.append(f"{len(self.labels)} distinct targets:")
         for i, label in enumerate(self.labels):
             status = "ok" if self.reachable[i] else f"REFUSED: {self.reasons[i]}"
             out.append(f"  {label:>8}  {_describe(self.targets[i], self.robot)}  "
                        f"singularity proximity {self.proximity[i]:.3f}  {status}")
+        if self.strokes:
+            moves = sum(a.moves for a in self.strokes)
+            out.append(f"actuator bench: {len(self.strokes)} actuator(s), {moves} single-axis moves "
+                       f"({_hms(sum(a.move_s for a in self.strokes))}); strokes in mm from full retraction:")
+        for a in self.strokes:
+            status = "ok" if not a.refused else f"REFUSED: {a.refused[0]}" + (
+                f" (and {len(a.refused) - 1} more)" if len(a.refused) > 1 else "")
+            out.append(f"  actuator {a.axis}  strokes {', '.join(f'{v:g}' for v in a.strokes_mm)} mm  window "
+                       f"{a.window_mm[0]:g}-{a.window_mm[1]:g} mm  {a.moves} moves  {_hms(a.move_s)}  {status}")
         return out
 
 
@@ -127,7 +155,7 @@ def summarize(protocol: Protocol, *, singularity_threshold: float | None = None)
             actuator_moves.append(step)
         elif isinstance(step, Settle):
             settle_s += step.duration_s
-    actuator_s, actuator_problems = _actuator_moves(actuator_moves)
+    strokes = _actuator_moves(actuator_moves)
     distinct: dict[tuple[float, ...], str] = {}
     for label, target, _ in moves:
         distinct.setdefault(tuple(model.as_targets([target])[0]), label)
@@ -139,30 +167,37 @@ def summarize(protocol: Protocol, *, singularity_threshold: float | None = None)
         velocity = np.array([v for _, _, v in moves], dtype=float)
         move_s = float(model.move_s(path[:-1], path[1:], velocity).sum())
     return PlanSummary(protocol.name, protocol.robot, dict(counts), tuple(distinct.values()), targets,
-                       check.reachable, tuple(str(r) for r in check.reason), check.proximity, move_s + actuator_s,
-                       settle_s, counts["prompts"] * PROMPT_S, counts["captures"] * CAPTURE_S, actuator_problems)
+                       check.reachable, tuple(str(r) for r in check.reason), check.proximity,
+                       move_s + sum(a.move_s for a in strokes), settle_s, counts["prompts"] * PROMPT_S,
+                       counts["captures"] * CAPTURE_S, strokes)
 
 
-def _actuator_moves(moves: list[ActuatorMove]) -> tuple[float, tuple[str, ...]]:
-    """Duration (s, from the home stroke, at the rated speed) and refusals of a pkm5's actuator-bench moves."""
-    from bench.errors import UnreachableTarget
+def _actuator_moves(moves: list[ActuatorMove]) -> tuple[AxisStrokes, ...]:
+    """Per actuator, in order of first use: the distinct strokes of a pkm5's actuator-bench moves, each checked
+    exactly as the driver's ``move_actuator`` checks it (``steps_for_stroke``: the 0-66 mm window), and the time of
+    its moves from the home stroke at the rated speed scaled by the commanded velocity."""
     from bench.protocols.simrig import RATED_SPEED_STEPS_S
-    from bench.robots.pkm5_kinematics import steps_for_stroke
+    from bench.robots.pkm5_kinematics import steps_for_stroke, stroke_range_mm
     from motion import pkm5
 
     geometry = pkm5.DEFAULT_GEOMETRY
     where = dict(enumerate(np.round(geometry.home_stroke_mm / geometry.mm_per_step).astype(int), start=1))
-    duration_s, problems = 0.0, []
+    per_axis: dict[Any, dict[str, Any]] = {}
     for move in moves:
+        axis = per_axis.setdefault(move.axis, {"strokes": set(), "moves": 0, "s": 0.0, "refused": []})
+        axis["moves"] += 1
+        axis["strokes"].add(float(move.stroke_mm))
         try:
             target = abs(steps_for_stroke(move.axis, move.stroke_mm, geometry))
         except UnreachableTarget as exc:
-            problems.append(f"target {move.label or 'actuator move'}: {exc}")
+            axis["refused"].append(f"target {move.label or 'actuator move'}: {exc}")
             continue
         speed = max(1.0, RATED_SPEED_STEPS_S * move.velocity_pct / 100.0)
-        duration_s += abs(target - where[move.axis]) / speed
+        axis["s"] += abs(target - where[move.axis]) / speed
         where[move.axis] = target
-    return duration_s, tuple(problems)
+    return tuple(AxisStrokes(number, stroke_range_mm(number, geometry) if number in where else (float("nan"),) * 2,
+                             tuple(sorted(a["strokes"])), a["moves"], a["s"], tuple(a["refused"]))
+                 for number, a in per_axis.items())
 
 
 def preflight(protocol: Protocol, **kwargs: Any) -> PlanSummary:
