@@ -142,13 +142,14 @@ def test_delta4_driver_on_a_pkm5_controller_says_wrong_device():
 
 def test_delta4_move_through_the_pty(tmp_path):
     truth = tmp_path / "truth.jsonl"
-    with simulator("delta4", "--speed-factor", "20", "--seed", "3", "--truth", str(truth)) as (_, path, _extra), \
+    with simulator("delta4", "--speed-factor", "20", "--seed", "3", "--truth", str(truth), "--no-grid") \
+            as (_, path, _extra), \
             Delta4Controller(serial.serial_for_url(path, baudrate=9600)) as robot:
         assert robot.start() .horizontal == ()
         result = robot.move_to((-70.0, 60.0, -200.0), require_settled=True)
         frame = robot.read_sensor_frame()
     assert result.settled and result.command_bytes == (174, 170, 99, 105)
-    assert (frame.horizontal, frame.vertical, frame.raw) == ((), (), b"hv")  # no laser-grid model attached
+    assert (frame.horizontal, frame.vertical, frame.raw) == ((), (), b"hv")  # --no-grid: screens unplugged
     attained = np.array(read_last_truth(truth)["pose"])
     assert 0.05 < np.linalg.norm(attained - (-70.0, 60.0, -200.0)) < 6.0
 
