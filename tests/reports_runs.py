@@ -56,3 +56,97 @@ def write_pose_run(store: Store, *, seed: int = 1, bias_mm=(0.2, -0.1, 0.05), no
                     t_s += 1.5
     store.set_status(run_id, "completed")
     return run_id
+
+
+# ---- runs of the documents' bench tests, stored as their protocols store them (same configuration, kinds, values) --
+
+ACTUATOR_SETTINGS = {"robot": {"driver": "Pkm5Controller", "fixture": "actuator-bench", "rated_speed_steps_s": 200},
+                     "instrument": {"instrument": "depth gauge / calliper entries (actuator bench, 000 §8.4)"}}
+LADDER_SETTINGS = {"robot": {"driver": "Pkm5Controller", "fixture": "assembled", "rated_speed_steps_s": 200},
+                   "instrument": {"instrument": "two simulated optical mice (x-y, x-z)", "cpi": 800.0}}
+GRID_SETTINGS = {"robot": {"driver": "Delta4Controller", "velocity": "servo maximum (not settable)"},
+                 "instrument": {"instrument": "laser grid (controller reports)",
+                                "calibration_id": "lasergrid-gui-default"}}
+#: Delta thesis Appendix D2 (delta4-lasergrid.md §7.3): hits out of 25 of sensors 1-16 at 140, 170 and 200 mm.
+APPENDIX_D2 = {140.0: (25, 24, 25, 25, 25, 25, 25, 25, 25, 24, 25, 24, 25, 25, 25, 25),
+               170.0: (25, 25, 24, 25, 25, 24, 25, 25, 25, 24, 25, 24, 25, 24, 25, 25),
+               200.0: (25, 25, 24, 25, 25, 23, 25, 25, 25, 25, 23, 25, 24, 25, 24, 24)}
+
+
+def _start(store: Store, name: str, parameters, settings) -> tuple[int, dict]:
+    from bench.protocols import PROTOCOLS
+
+    config = PROTOCOLS[name](**parameters).config()
+    run_id = store.start_run(protocol_name=name, protocol_version=config["protocol_version"], robot=config["robot"],
+                             config=config, settings=settings)
+    return run_id, config
+
+
+def write_actuator_run(store: Store, *, seed: int = 1, actuators=(1, 5), distances_mm=(10.0, 30.0, 50.0),
+                       repeats: int = 4, scale=(0.004, -0.003), noise_mm: float = 0.03,
+                       settings=ACTUATOR_SETTINGS) -> int:
+    """A completed actuator_accuracy run: gauge reading = travel x (1 + scale of the actuator) + noise, to 0.01 mm."""
+    run_id, _ = _start(store, "actuator_accuracy", {"actuators": list(actuators), "distances_mm": list(distances_mm),
+                                                    "repeats": repeats, "settle_s": 0.0}, settings)
+    rng, step = np.random.default_rng(seed), 0
+    for axis, error in zip(actuators, scale):
+        for distance in distances_mm:
+            for repeat in range(1, repeats + 1):
+                reading = round(distance * (1 + error) + rng.normal(0.0, noise_mm), 2)
+                store.add_sample(run_id, step, kind="actuator_travel", pose=f"A{axis}/{distance:g}mm", cycle=repeat,
+                                 t_s=float(step), values={"travel_mm": reading, "cmd_travel_mm": float(distance),
+                                                          "actuator": float(axis), "velocity_pct": 100.0})
+                step += 4
+    store.set_status(run_id, "completed")
+    return run_id
+
+
+def write_ladder_run(store: Store, *, seed: int = 1, loads_kg=(0.0, 2.0, 5.0, 10.0), repeats: int = 3,
+                     sag_mm_per_kg: float = 0.02, noise_mm: float = 0.004) -> int:
+    """A completed payload_ladder run whose legs read the IK lengths of the lifted pose sagging by
+    ``sag_mm_per_kg`` x load in -z, plus reading noise, to 0.01 mm."""
+    from motion import pkm5
+
+    run_id, config = _start(store, "payload_ladder", {"loads_kg": list(loads_kg), "repeats": repeats,
+                                                      "settle_s": 0.0}, LADDER_SETTINGS)
+    x, y, z = config["start_mm"]
+    lifted = [x, y, z + config["lift_mm"], 0.0, 0.0]
+    commanded = pkm5.inverse_kinematics(lifted).lengths_mm[0]
+    rng, step = np.random.default_rng(seed), 0
+    for load in loads_kg:
+        sagging = pkm5.inverse_kinematics([x, y, lifted[2] - sag_mm_per_kg * load, 0.0, 0.0]).lengths_mm[0]
+        for repeat in range(1, repeats + 1):
+            step += 3
+            for leg in range(6):
+                length = round(float(sagging[leg] + rng.normal(0.0, noise_mm)), 2)
+                store.add_sample(run_id, step, kind="leg_length", pose=f"{load:g}kg", cycle=repeat, t_s=float(step),
+                                 values={"length_mm": length, "cmd_length_mm": float(commanded[leg]),
+                                         "load_kg": float(load), "leg": float(leg + 1)})
+                step += 1
+    store.set_status(run_id, "completed")
+    return run_id
+
+
+def write_grid_hit_run(store: Store, *, hits=APPENDIX_D2, attempts: int = 25) -> int:
+    """A completed lasergrid_hits run at the heights of ``hits``, sensor n of the 4 x 4 spread hitting ``hits[h][n]``
+    of ``attempts`` (the misses last); a miss still lights some other sensor every second time."""
+    from bench.protocols.delta import grid_targets
+
+    heights = sorted(hits)
+    run_id, _ = _start(store, "lasergrid_hits", {"attempts": attempts, "heights_mm": [-h for h in heights]},
+                       GRID_SETTINGS)
+    step = 0
+    for height in heights:
+        for (i, j, x, y), count in zip(grid_targets(4), hits[height]):
+            for attempt in range(1, attempts + 1):
+                hit = attempt <= count
+                other = not hit and attempt % 2 == 0
+                store.add_sample(run_id, step, kind="grid_hit", pose=f"H{i},{j}@{height:g}", cycle=attempt,
+                                 t_s=float(step), values={
+                                     "cmd_x_mm": float(x), "cmd_y_mm": float(y), "cmd_z_mm": -height,
+                                     "expected_i": float(i), "expected_j": float(j), "expected_index": float(i + 16 * j),
+                                     "hit_expected": float(hit), "hit_any": float(hit or other),
+                                     "hits": float(hit or other)})
+                step += 3
+    store.set_status(run_id, "completed")
+    return run_id
