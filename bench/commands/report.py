@@ -1,6 +1,7 @@
 """``bench report RUN_ID``: the HTML and PDF report of a stored run (or ``--compare`` two runs side by side).
 
-Reads the run store only (no hardware). Writes ``report_run<ID>.html``/``.pdf`` and the raw data
+Reads the run store only (no hardware). Pose runs get the ISO 9283 layout; ``actuator_accuracy``, ``payload_ladder``
+and ``lasergrid_hits`` runs their own (docs/reports.md). Writes ``report_run<ID>.html``/``.pdf`` and the raw data
 ``run<ID>_samples.csv`` into ``--out`` and prints their paths on stdout, one per line.
 """
 

@@ -1,7 +1,8 @@
 """bench.reports: turn stored runs into reports a customer would accept (HTML, PDF, raw data, comparisons).
 
 The report reads the run store (never hardware) and takes every number from :mod:`bench.metrology`
-(:mod:`bench.reports.content`); :mod:`~bench.reports.deviations` lists every departure from ISO 9283 computed from
+(:mod:`bench.reports.content` for pose runs; :mod:`~bench.reports.actuator`, :mod:`~bench.reports.ladder` and
+:mod:`~bench.reports.lasergrid` for the actuator, payload-ladder and laser-grid hit runs, see :data:`LAYOUTS`); :mod:`~bench.reports.deviations` lists every departure from ISO 9283 computed from
 the stored configuration; :mod:`~bench.reports.document` lays the report out once and :mod:`~bench.reports.html`
 and :mod:`~bench.reports.pdf` print that one layout. The raw data is written next to the report as CSV and cited
 with its SHA-256.
