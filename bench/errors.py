@@ -34,3 +34,12 @@ class LinkError(BenchError):
 
 class LinkTimeout(LinkError):
     """A reply did not arrive before its deadline."""
+
+
+class PromptWithdrawn(BenchError):
+    """The operator withdrew a prompt instead of answering it (Cancel in the window, the window closed).
+
+    An :class:`bench.protocols.rig.Operator` raises it from ``ask``; the runner then ends the run at once as
+    ``aborted`` (resumable, no clean-up moves, since the operator may be at the robot) with the reason
+    "prompt withdrawn by the operator: <prompt text> (<this message>)".
+    """

@@ -2,12 +2,15 @@
 
 from __future__ import annotations
 
+import logging
+import threading
+
 import numpy as np
 import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from bench.errors import ConfigError, UnreachableTarget
+from bench.errors import ConfigError, PromptWithdrawn, UnreachableTarget
 from bench.protocols import (
     Capture,
     Checkpoint,
@@ -31,6 +34,7 @@ from bench.protocols.iso9283 import (
 from bench.protocols.plan import iterate
 from bench.protocols.runner import TRANSITIONS, RunState
 from bench.store import Store, tidy_table
+from runner_support import RunInThread, wait_until
 
 BIAS = np.array([0.5, -0.25, 0.125])
 
@@ -39,6 +43,7 @@ class RecordingRobot:
     def __init__(self, fail_after: int | None = None):
         self.log: list[tuple] = []
         self.fail_after = fail_after
+        self.stopped_from: list[str] = []  # the thread each stop() came from
 
     def move_to(self, target, *, velocity_pct):
         if self.fail_after is not None and len([e for e in self.log if e[0] == "move"]) >= self.fail_after:
@@ -47,6 +52,7 @@ class RecordingRobot:
 
     def stop(self):
         self.log.append(("stop",))
+        self.stopped_from.append(threading.current_thread().name)
 
     def shutdown(self):
         self.log.append(("shutdown",))
@@ -302,3 +308,177 @@ def test_resume_sends_stored_prompt_readings_back(store):
     # readings are sent back (running total 1.25 + 1.25 + 1.25) and only the third is asked
     assert len(rig.operator.asked) == 1
     assert [e[1][2] for e in robot.log if e[0] == "move"] == [pytest.approx(320.0375)]
+
+
+# ---- emergency stop, withdrawn prompts, time base, hooks ---------------------------------------------------------
+
+def _live_rig(robot):
+    """A rig whose settles are real waits (rig.sleep None), 600 s at speed factor 1."""
+    rig = _rig(robot)
+    rig.sleep, rig.speed_factor = None, 1.0
+    return rig
+
+
+def test_emergency_stop_from_another_thread_cuts_a_settle_short_and_runs_no_clean_up(tmp_path, store):
+    robot = RecordingRobot()
+    run = RunInThread(tmp_path / "bench.db", _live_rig(robot), _small(settle_s=600))
+    wait_until(lambda: isinstance(run.runner.current_step, Settle), "the first settle")
+    run.runner.emergency_stop()
+    result = run.finished()
+    assert (result.exit_status, result.reason, result.samples, result.exception) == (
+        "aborted", "emergency stop", 0, None)
+    # the stop went out from the calling thread at once, again from the runner's, and no clean-up move (home)
+    assert [entry[0] for entry in robot.log] == ["move", "stop", "stop", "shutdown"]
+    assert robot.stopped_from == [threading.current_thread().name, "runner-thread"]
+    assert (store.run(result.run_id).status, store.run(result.run_id).reason) == ("aborted", "emergency stop")
+
+
+class _MoveUntilStopped(RecordingRobot):
+    """Its second move lasts until stop() is called, then raises as the pkm5 driver does (ERR 8 STOPPED)."""
+
+    def __init__(self):
+        super().__init__()
+        self.moving = threading.Event()
+        self._stopped = threading.Event()
+
+    def move_to(self, target, *, velocity_pct):
+        super().move_to(target, velocity_pct=velocity_pct)
+        if sum(entry[0] == "move" for entry in self.log) == 2:
+            self.moving.set()
+            assert self._stopped.wait(30)
+            raise OSError("controller refused 'MOVE' with error 8 STOPPED")
+
+    def stop(self):
+        super().stop()
+        self._stopped.set()
+
+
+def test_emergency_stop_ends_a_move_in_flight_and_its_error_is_not_a_failure(tmp_path):
+    robot = _MoveUntilStopped()
+    run = RunInThread(tmp_path / "bench.db", _rig(robot), _small())
+    assert robot.moving.wait(10)
+    run.runner.emergency_stop()
+    result = run.finished()
+    assert (result.exit_status, result.reason, result.samples, result.exception) == (
+        "aborted", "emergency stop", 1, None)
+    assert [entry[0] for entry in robot.log] == ["move", "move", "stop", "stop", "shutdown"]  # nothing after it
+
+
+def test_emergency_stop_before_the_run_ends_it_before_its_first_step(store):
+    robot = RecordingRobot()
+    runner = Runner(_rig(robot), store)
+    runner.emergency_stop()
+    result = runner.run(_small())
+    assert (result.exit_status, result.reason, result.samples) == ("aborted", "emergency stop", 0)
+    assert robot.log == [("stop",), ("stop",), ("shutdown",)]
+    runner.emergency_stop()  # after the run: nothing is sent to the shut-down robot
+    assert robot.log[-1] == ("shutdown",)
+
+
+def test_emergency_stop_reason_survives_later_requests(tmp_path):
+    robot = _MoveUntilStopped()
+    run = RunInThread(tmp_path / "bench.db", _rig(robot), _small())
+    assert robot.moving.wait(10)
+    run.runner.emergency_stop()
+    for refused in (run.runner.stop, run.runner.abort):  # e.g. the window closing after the e-stop
+        with pytest.raises(TransitionError, match="cannot go from halting"):
+            refused("stopped: window closed")
+    assert run.finished().reason == "emergency stop"
+
+
+def test_abort_cuts_a_settle_short_and_still_runs_the_clean_up(tmp_path):
+    robot = RecordingRobot()
+    run = RunInThread(tmp_path / "bench.db", _live_rig(robot), _small(settle_s=600))
+    wait_until(lambda: isinstance(run.runner.current_step, Settle), "the first settle")
+    run.runner.abort()
+    result = run.finished()
+    assert (result.exit_status, result.reason, result.samples) == ("aborted", "aborted by the operator", 0)
+    assert [entry[0] for entry in robot.log] == ["move", "stop", "move", "shutdown"]
+    assert robot.log[2][1] == pytest.approx((88.649, 0.0, 300.937, 0.0, 0.0))  # clean-up: home
+
+
+class _Withdrawing(Answers):
+    """Withdraws the first instruction prompt (e.g. Cancel in the window's dialog)."""
+
+    def ask(self, prompt):
+        self.asked.append(prompt)
+        if prompt.field is None:
+            raise PromptWithdrawn("cancelled in the calliper dialog")
+        return 1.25
+
+
+def test_withdrawn_prompt_aborts_without_clean_up_and_the_run_resumes(store):
+    protocol = DistanceAccuracy(cycles=2, velocities_pct=[100], loads_kg=[0, 2.5], settle_s=0)
+    robot = RecordingRobot()
+    rig = _rig(robot)
+    rig.operator = _Withdrawing()
+    result = Runner(rig, store).run(protocol)
+    text = rig.operator.asked[0].text
+    assert (result.exit_status, result.samples, result.exception) == ("aborted", 4, None)  # the 0 kg cycles
+    assert result.reason == f"prompt withdrawn by the operator: {text} (cancelled in the calliper dialog)"
+    assert robot.log[-2:] == [("stop",), ("shutdown",)]  # no clean-up move: the operator may be at the robot
+    resumed = Runner(_rig(), store).resume_run(result.run_id)
+    assert (resumed.exit_status, resumed.samples) == ("completed", 8)
+
+
+def test_no_value_for_a_reading_is_a_failure_not_a_withdrawal(store):
+    from bench.protocols.base import Protocol
+
+    class OneReading(Protocol):
+        name, version = "test_one_reading", "1"
+
+        def steps(self):
+            yield Prompt("depth", field="depth_mm", unit="mm", kind="depth")
+
+    rig = _rig()
+    rig.operator.ask = lambda prompt: None
+    result = Runner(rig, store).run(OneReading())
+    assert result.exit_status == "failed" and isinstance(result.exception, ConfigError)
+    assert result.reason == ("ConfigError: prompt 'depth': no value given for depth_mm; an operator who will not "
+                             "answer raises PromptWithdrawn")
+
+
+class _SteppingClock:
+    """A monotonic clock that advances ``tick_s`` at every reading, from ``start_s``."""
+
+    def __init__(self, start_s, tick_s=0.25):
+        self.now_s, self.tick_s = start_s, tick_s
+
+    def __call__(self):
+        self.now_s += self.tick_s
+        return self.now_s
+
+
+def test_sample_times_are_in_the_rig_time_base_and_stay_monotonic_across_a_resume(store):
+    rig = _rig(RecordingRobot(fail_after=8))
+    rig.speed_factor, rig.clock = 1000.0, _SteppingClock(5000.0)
+    started, seen = [], []
+    runner = Runner(rig, store, on_start=lambda r: started.append((r.run_id, r.samples_total, r.samples_stored)),
+                    on_sample=lambda r, sample: seen.append(sample))
+    failed = runner.run(_small())
+    # one clock reading at the start and one per sample, 0.25 s apart: 250 simulated s per sample
+    assert [s.t_s for s in store.samples(failed.run_id)] == [250.0 * k for k in range(1, 9)]
+    assert store.run(failed.run_id).settings["time_base"] == "simulated s (wall x speed factor 1000)"
+    rig = _rig()
+    rig.speed_factor, rig.clock = 1000.0, _SteppingClock(0.0)  # a new process: its clock reads less than before
+    Runner(rig, store, on_start=lambda r: started.append((r.run_id, r.samples_total, r.samples_stored)),
+           on_sample=lambda r, sample: seen.append(sample)).resume_run(failed.run_id)
+    samples = sorted(store.samples(failed.run_id), key=lambda s: s.step_index)
+    assert [s.t_s for s in samples] == [250.0 * k for k in range(1, 9)] + [2000 + 250.0 * k for k in range(1, 23)]
+    assert started == [(failed.run_id, 30, 0), (failed.run_id, 30, 8)]
+    assert [(s["step_index"], s["t_s"], s["values"], s["pose"], s["cycle"]) for s in seen] == [
+        (s.step_index, s.t_s, s.values, s.pose, s.cycle) for s in samples]
+
+
+def test_hardware_time_base_is_wall_seconds_and_a_failing_hook_never_fails_the_run(store, caplog):
+    rig = _rig()
+    rig.speed_factor = 1.0
+
+    def broken(runner, sample):
+        raise RuntimeError("window gone")
+
+    with caplog.at_level(logging.ERROR, logger="bench.protocols.runner"):
+        result = Runner(rig, store, on_sample=broken).run(_small())
+    assert (result.exit_status, result.samples) == ("completed", 30)
+    assert store.run(result.run_id).settings["time_base"] == "wall s"
+    assert sum("window gone" in record.exc_text for record in caplog.records if record.exc_text) == 30

@@ -8,13 +8,27 @@ thread or a signal handler, are honoured at safe points:
   ``on_pause(runner)``, which must call ``resume()``, ``stop()``, ``abort()`` or ``halt()``;
 - ``stop()``: ends at the next ``Checkpoint``, then runs the protocol's clean-up steps (status ``aborted``,
   reason "stopped ...", resumable);
-- ``abort(reason)``: after the current step, stops the robot, then runs the clean-up steps (status ``aborted``);
-- ``halt()``: after the current step, stops the robot and runs nothing more (status ``aborted``, "halted");
+- ``abort(reason)``: after the current step (a ``Settle`` is cut short), stops the robot, then runs the clean-up
+  steps (status ``aborted``);
+- ``halt()``: after the current step (a ``Settle`` is cut short), stops the robot and runs nothing more (status
+  ``aborted``, "halted");
+- ``emergency_stop()``: sends the robot's stop at once from the calling thread, cuts a ``Settle`` short, ends a
+  move in flight (the driver's stop makes it return or raise), then runs nothing more (status ``aborted``,
+  "emergency stop", resumable); an exception the interrupted step raises is part of the stop, not a failure;
+- a prompt the operator withdraws (the operator raises :class:`bench.errors.PromptWithdrawn`) ends the run at once,
+  without clean-up moves since the operator may be at the robot (status ``aborted``, "prompt withdrawn by the
+  operator: <prompt>", resumable);
 - an exception (or Ctrl-C) stops the robot (status ``failed``, or ``aborted`` for Ctrl-C).
 
 ``robot.shutdown()`` runs in ``finally`` in every case. Resuming regenerates the protocol from the stored
 configuration, replays it without acting up to the last ``Checkpoint`` before the first missing sample, then acts
 from there, skipping every step whose sample is already stored (its stored values are sent back instead).
+
+Sample times ``t_s`` are seconds since the run started in the rig's time base (:meth:`Rig.time_base`, stored in
+the run settings as ``time_base``): wall seconds on hardware, simulated seconds (wall x speed factor) on a
+sped-up simulator, so that drift and stabilisation windows mean the same on both. Everything the host does
+between moves counts too: 2 ms of host time at speed factor 10 000 are 20 simulated seconds. A resumed run
+continues after the last stored ``t_s``, so ``t_s`` never decreases within a run.
 """
 
 from __future__ import annotations
@@ -22,12 +36,11 @@ from __future__ import annotations
 import enum
 import logging
 import threading
-import time
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any, Self
 
-from bench.errors import BenchError, ConfigError
+from bench.errors import BenchError, ConfigError, PromptWithdrawn
 from bench.protocols.base import Protocol, protocol_from_config
 from bench.protocols.plan import iterate, preflight
 from bench.protocols.rig import Rig
@@ -73,10 +86,6 @@ TRANSITIONS: dict[RunState, frozenset[RunState]] = {
 
 class TransitionError(BenchError):
     """A request the runner's current state does not allow (e.g. resume while running)."""
-
-
-class _Halt(Exception):
-    """Internal: leave the step loop now."""
 
 
 @dataclass(frozen=True)
@@ -134,28 +143,58 @@ class Runner:
     on_pause : callable, optional
         Called with the runner when it pauses at a checkpoint; must resume, stop, abort or halt it. Default:
         resume at once.
+    on_start : callable, optional
+        ``on_start(runner)`` once the run is stored (or reopened) and before its first step: ``runner.run_id``,
+        ``runner.samples_total`` and ``runner.samples_stored`` (already stored when resuming) are set.
+    on_sample : callable, optional
+        ``on_sample(runner, sample)`` after each sample is committed to the store; ``sample`` is a dict with
+        ``step_index``, ``kind``, ``pose``, ``cycle``, ``t_s`` and ``values``.
+
+    Attributes
+    ----------
+    current_step : Step or None
+        The step being performed (None between steps), e.g. for a window to show what the rig is doing.
     """
 
     def __init__(self, rig: Rig, store: Store, *, progress: bool = False,
-                 on_pause: Callable[[Runner], None] | None = None) -> None:
+                 on_pause: Callable[[Runner], None] | None = None,
+                 on_start: Callable[[Runner], None] | None = None,
+                 on_sample: Callable[[Runner, dict[str, Any]], None] | None = None) -> None:
         self.rig = rig
         self.store = store
         self.progress = progress
         self.on_pause = on_pause or (lambda runner: runner.resume())
+        self.on_start = on_start
+        self.on_sample = on_sample
         self.state = RunState.IDLE
         self._lock = threading.Lock()
+        self._wake = threading.Event()  # set to cut a Settle short (abort, halt, emergency stop)
         self._pause_requested = False
+        self._emergency = False
         self._reason: str | None = None
         self.run_id: int | None = None
+        self.current_step: Step | None = None
+        self.samples_total = 0
+        self.samples_stored = 0
+        self._bar: _Progress | None = None
 
     # ---- requests --------------------------------------------------------------------------------------------
 
     def _transition(self, new: RunState) -> None:
         with self._lock:
-            if new not in TRANSITIONS[self.state]:
-                raise TransitionError(f"runner: cannot go from {self.state.value} to {new.value}")
-            _log.info("runner: %s -> %s", self.state.value, new.value)
-            self.state = new
+            self._transition_locked(new)
+
+    def _transition_locked(self, new: RunState) -> None:
+        if new not in TRANSITIONS[self.state]:
+            raise TransitionError(f"runner: cannot go from {self.state.value} to {new.value}")
+        _log.info("runner: %s -> %s", self.state.value, new.value)
+        self.state = new
+
+    def _end(self, new: RunState, reason: str) -> None:
+        """Go to an ending state with ``reason``; a refused request leaves the reason of the current end alone."""
+        with self._lock:
+            self._transition_locked(new)
+            self._reason = reason
 
     def request_pause(self) -> None:
         """Pause at the next Checkpoint."""
@@ -171,18 +210,38 @@ class Runner:
 
     def stop(self, reason: str = "stopped by the operator") -> None:
         """End cleanly at the next Checkpoint."""
-        self._reason = reason
-        self._transition(RunState.STOPPING)
+        self._end(RunState.STOPPING, reason)
 
     def abort(self, reason: str = "aborted by the operator") -> None:
-        """Stop the robot after the current step and end (clean-up steps still run)."""
-        self._reason = reason
-        self._transition(RunState.ABORTING)
+        """Stop the robot after the current step (a Settle is cut short) and end; clean-up steps still run."""
+        self._end(RunState.ABORTING, reason)
+        self._wake.set()
 
     def halt(self, reason: str = "halted by the operator") -> None:
-        """Stop the robot after the current step and end without clean-up steps."""
-        self._reason = reason
-        self._transition(RunState.HALTING)
+        """Stop the robot after the current step (a Settle is cut short) and end without clean-up steps."""
+        self._end(RunState.HALTING, reason)
+        self._wake.set()
+
+    def emergency_stop(self, reason: str = "emergency stop") -> None:
+        """Stop the robot now and end the run as soon as the current step returns, with nothing more run.
+
+        Safe to call from any thread (a window's e-stop button) and in any state. The robot's ``stop()`` is sent
+        from the calling thread at once (a move in flight then returns or raises, see
+        :class:`bench.protocols.rig.Mover`), a Settle is cut short, no further step starts and no clean-up step
+        runs; the run ends ``aborted`` with ``reason`` and can be resumed. Before a run starts it stops the robot
+        and the run, once started, ends before its first step; after the run has finished it does nothing (the
+        robot is shut down).
+        """
+        with self._lock:
+            if self.state is RunState.FINISHED:
+                return
+            self._emergency = True
+            self._reason = reason
+            if self.state not in (RunState.IDLE, RunState.HALTING):
+                self._transition_locked(RunState.HALTING)
+        _log.warning("runner: emergency stop")
+        self._stop_robot()
+        self._wake.set()
 
     # ---- running ---------------------------------------------------------------------------------------------
 
@@ -207,6 +266,10 @@ class Runner:
             raise ConfigError(f"run {run_id}: calibrations in force {sorted(self.rig.calibration_ids)} differ from "
                               f"the run's {list(record.calibration_ids)}; cannot resume")
         preflight(protocol)
+        stored_base = record.settings.get("time_base", "wall s (runs stored before time bases were recorded)")
+        if stored_base != self.rig.time_base():
+            _log.warning("run %d: stored t_s in %s, continues in %s (t_s stays monotonic)", run_id, stored_base,
+                         self.rig.time_base())
         stored = {s.step_index: self._reply_of(s) for s in self.store.samples(run_id)}
         start_at = resume_point(protocol, stored)
         self.store.set_status(run_id, "running")
@@ -222,18 +285,25 @@ class Runner:
     def _perform(self, protocol: Protocol, run_id: int, *, stored: dict[int, Any],
                  start_at: int) -> RunResult:
         self.run_id = run_id
-        self._transition(RunState.RUNNING)
+        with self._lock:
+            self._transition_locked(RunState.RUNNING)
+            if self._emergency:  # stopped before the run started: it ends before its first step
+                self._transition_locked(RunState.HALTING)
         status, exception = "completed", None
-        offset_s = max((s.t_s for s in self.store.samples(run_id)), default=0.0)
-        self._t0 = time.monotonic() - offset_s
-        bar = _Progress(self.progress, total=_count_samples(protocol), done=len(stored), label=protocol.name)
+        self._t_offset_s = max((s.t_s for s in self.store.samples(run_id)), default=0.0)
+        self._t_start = self.rig.clock()
+        self.samples_total, self.samples_stored = _count_samples(protocol), len(stored)
+        self._bar = _Progress(self.progress, total=self.samples_total, done=self.samples_stored,
+                              label=protocol.name)
         try:
-            with bar:
-                self._loop(protocol.steps(), run_id, stored, start_at, bar)
+            with self._bar:
+                self._call_hook(self.on_start, self)
+                self._loop(protocol.steps(), run_id, stored, start_at)
                 if self.state in (RunState.ABORTING, RunState.HALTING):
                     self._stop_robot()
                 if self.state is not RunState.HALTING:
-                    self._loop(protocol.final_steps(), run_id, {}, 0, None, final=True)
+                    self._wake.clear()  # an abort cut the main steps short, not the clean-up's settles
+                    self._loop(protocol.final_steps(), run_id, {}, 0, final=True)
             if self.state in (RunState.STOPPING, RunState.ABORTING, RunState.HALTING):
                 status = "aborted"
             else:
@@ -242,9 +312,15 @@ class Runner:
             status, exception, self._reason = "aborted", exc, "interrupted (Ctrl-C)"
             self._stop_robot()
         except Exception as exc:  # noqa: BLE001 - any failure is stored with its reason, then reported
-            status, exception, self._reason = "failed", exc, f"{type(exc).__name__}: {exc}"
+            if self._emergency:  # the stop ended the step it interrupted (e.g. a move: ERR STOPPED)
+                status = "aborted"
+                _log.warning("run %d: %s ended the step %r: %s: %s", run_id, self._reason, self.current_step,
+                             type(exc).__name__, exc)
+            else:
+                status, exception, self._reason = "failed", exc, f"{type(exc).__name__}: {exc}"
             self._stop_robot()
         finally:
+            self.current_step = None
             self._shutdown()
             reason = None if status == "completed" else self._reason
             self.store.set_status(run_id, status, reason)
@@ -252,11 +328,11 @@ class Runner:
         _log.info("run %d %s%s", run_id, status, f": {reason}" if reason else "")
         return RunResult(run_id, status, reason, len(self.store.stored_steps(run_id)), exception)
 
-    def _loop(self, plan: Plan, run_id: int, stored: dict[int, Any], start_at: int, bar: _Progress | None,
-              *, final: bool = False) -> None:
+    def _loop(self, plan: Plan, run_id: int, stored: dict[int, Any], start_at: int, *, final: bool = False) -> None:
         reply, index = None, 0
+        ending = (RunState.HALTING,) if final else (RunState.ABORTING, RunState.HALTING)
         while True:
-            if not final and self.state in (RunState.ABORTING, RunState.HALTING):
+            if self.state in ending:
                 return
             try:
                 step = plan.send(reply)
@@ -267,9 +343,9 @@ class Runner:
             elif index < start_at:
                 reply = None
             else:
+                self.current_step = step
                 reply = self._act(step, run_id, index)
-                if bar is not None and step_stores_sample(step):
-                    bar.advance()
+                self.current_step = None
             if isinstance(step, Checkpoint) and not final and index >= start_at and self._at_checkpoint(step):
                 return
             index += 1
@@ -290,6 +366,8 @@ class Runner:
 
     def _act(self, step: Step, run_id: int, index: int) -> Any:
         rig = self.rig
+        if isinstance(step, (Move, ActuatorMove)) and self.state is RunState.HALTING:
+            return None  # an emergency stop came after the loop's check: never start a move after it
         if isinstance(step, Move):
             rig.robot.move_to(tuple(step.target), velocity_pct=step.velocity_pct)
             return None
@@ -299,28 +377,71 @@ class Runner:
             rig.robot.move_actuator(step.axis, step.stroke_mm, velocity_pct=step.velocity_pct)
             return None
         if isinstance(step, Settle):
-            rig.sleep(step.duration_s / rig.speed_factor)
+            self._settle(step.duration_s / rig.speed_factor)
             return None
         if isinstance(step, Capture):
             measured = rig.instrument.measure(step)
             values = {**step.commanded, **measured.values, **step.conditions}
-            self.store.add_sample(run_id, index, values=values, kind=step.kind, pose=step.pose, cycle=step.cycle,
-                                  t_s=time.monotonic() - self._t0, raw=measured.raw)
+            self._store_sample(run_id, index, values, kind=step.kind, pose=step.pose, cycle=step.cycle,
+                               raw=measured.raw)
             return values
         if isinstance(step, Prompt):
-            answer = rig.operator.ask(step)
+            try:
+                answer = rig.operator.ask(step)
+            except PromptWithdrawn as exc:
+                self._withdrawn(step, exc)
+                return None
             if step.field is not None:
                 if answer is None:
-                    raise ConfigError(f"prompt {step.text!r}: no value given for {step.field}")
+                    raise ConfigError(f"prompt {step.text!r}: no value given for {step.field}; an operator who "
+                                      "will not answer raises PromptWithdrawn")
                 values = {**step.commanded, step.field: float(answer), **step.conditions}
-                self.store.add_sample(run_id, index, values=values, kind=step.kind, pose=step.pose or None,
-                                      cycle=step.cycle or None, t_s=time.monotonic() - self._t0,
-                                      raw={"field": step.field, "entered": answer})
+                self._store_sample(run_id, index, values, kind=step.kind, pose=step.pose or None,
+                                   cycle=step.cycle or None, raw={"field": step.field, "entered": answer})
             return answer
         if isinstance(step, Checkpoint):
             return None
         raise ConfigError(f"protocol yielded {step!r}, expected a Move, ActuatorMove, Settle, Capture, Prompt or "
                           "Checkpoint")
+
+    def _settle(self, wait_s: float) -> None:
+        if self.rig.sleep is not None:  # a test stand-in
+            self.rig.sleep(wait_s)
+        else:
+            self._wake.wait(wait_s)
+
+    def _now_s(self) -> float:
+        """Seconds since the run started, in the rig's time base, after the last stored time of a resumed run."""
+        return self._t_offset_s + (self.rig.clock() - self._t_start) * self.rig.speed_factor
+
+    def _store_sample(self, run_id: int, index: int, values: dict[str, float], *, kind: str, pose: str | None,
+                      cycle: int | None, raw: Any) -> None:
+        t_s = self._now_s()
+        self.store.add_sample(run_id, index, values=values, kind=kind, pose=pose, cycle=cycle, t_s=t_s, raw=raw)
+        self.samples_stored += 1
+        if self._bar is not None:
+            self._bar.advance()
+        sample = {"step_index": index, "kind": kind, "pose": pose, "cycle": cycle, "t_s": t_s, "values": values}
+        self._call_hook(self.on_sample, self, sample)
+
+    @staticmethod
+    def _call_hook(hook: Callable[..., None] | None, *args: Any) -> None:
+        """An observer's failure is logged, never the run's: the sample it was told about is already stored."""
+        if hook is None:
+            return
+        try:
+            hook(*args)
+        except Exception:  # noqa: BLE001
+            _log.exception("runner: hook %r failed", hook)
+
+    def _withdrawn(self, prompt: Prompt, exc: PromptWithdrawn) -> None:
+        """End now (no clean-up moves: the operator may be at the robot), unless already ending at once."""
+        with self._lock:
+            if self.state is RunState.HALTING:
+                return  # e.g. the emergency stop withdrew the prompt: its reason stands
+            detail = f" ({exc})" if str(exc) else ""
+            self._transition_locked(RunState.HALTING)
+            self._reason = f"prompt withdrawn by the operator: {prompt.text}{detail}"
 
     def _stop_robot(self) -> None:
         try:
