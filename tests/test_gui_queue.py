@@ -1,5 +1,5 @@
-"""The window's run queue, comparison of two runs, the emergency stop during a campaign, and closing the window
-while a calliper reading is pending (simulated pkm5)."""
+"""The window's run queue, comparison of two runs, the emergency stop during a campaign, and withdrawn calliper
+prompts: cancelled in the dialog, or the window closed while a reading is pending (simulated pkm5)."""
 
 from __future__ import annotations
 
@@ -16,6 +16,7 @@ from PySide6.QtCore import Qt
 from PySide6.QtTest import QTest
 
 from bench.gui.campaign_panel import EXAMPLES
+from bench.protocols import Settle
 from bench.store import Store
 
 
@@ -43,32 +44,59 @@ def test_queued_runs_run_in_order_and_two_runs_compare(window, tmp_path):
     assert comparison == tmp_path / "reports" / "compare_run1_run2.html" and comparison.is_file()
 
 
-def test_emergency_stop_halts_the_campaign(window, tmp_path):
-    window.robot_panel.speed_factor.setValue(60)
+def test_emergency_stop_cuts_the_running_settle_short_and_ends_the_campaign(window, tmp_path):
+    window.robot_panel.speed_factor.setValue(10)  # a 600 s settle lasts 60 s: only the e-stop ends it in time
     panel = window.campaign_panel
     panel.choose_file(EXAMPLES / "iso9283_pose_quick.toml")
+    panel.form.set_value("settle_s", "600")
     panel.start()
-    wait_for(lambda: panel.progress.value() >= 1, RUN_TIMEOUT_S, "a first stored sample")
+    wait_for(lambda: panel.worker is not None and panel.worker.runner is not None
+             and isinstance(panel.worker.runner.current_step, Settle), RUN_TIMEOUT_S, "the first settle")
     QTest.mouseClick(window.estop, Qt.MouseButton.LeftButton)
-    wait_for(lambda: panel.worker is None, RUN_TIMEOUT_S, "the halted run to end")
+    wait_for(lambda: panel.worker is None, RUN_TIMEOUT_S, "the stopped run to end")
     (run,), samples = _runs(tmp_path)
-    assert (run.status, run.reason) == ("aborted", "halted by the operator")
-    assert 1 <= run.n_samples < 15 and len(samples[run.id]) == run.n_samples
+    assert (run.status, run.reason, run.n_samples) == ("aborted", "emergency stop", 0)
+    assert run.settings["time_base"] == "simulated s (wall x speed factor 10)"
     assert "EMERGENCY STOP" in window.log.toPlainText()
+    assert f"run {run.id} aborted (0 samples): emergency stop" in window.log.toPlainText()
 
 
-def test_closing_with_a_reading_pending_keeps_every_stored_sample(window, tmp_path):
+def _reading_pending(window):
     panel = window.campaign_panel
     panel.choose_file(EXAMPLES / "dissertation_pose.toml")
     panel.form.set_value("variant", "beta")
     panel.form.set_value("cycles", "2")
     panel.start()
     wait_for(lambda: window.calliper_dialog is not None, RUN_TIMEOUT_S, "the calliper dialog")
+    return window.calliper_dialog.prompt
+
+
+def test_closing_with_a_reading_pending_withdraws_it_and_keeps_every_stored_sample(window, tmp_path):
+    prompt = _reading_pending(window)
     window.close()
     (run,), samples = _runs(tmp_path)
-    # the runner has no way to withdraw a prompt: the cancelled reading ends the run as failed, with the reason
-    assert run.status == "failed" and "PromptCancelled" in run.reason and "b_deg" in run.reason
+    assert (run.status, run.reason) == ("aborted", f"prompt withdrawn by the operator: {prompt.text} (window closed)")
     assert [s.kind for s in samples[run.id]] == ["pose"]
+
+
+def test_a_reading_cancelled_in_the_dialog_ends_the_run_resumable(window, tmp_path):
+    prompt = _reading_pending(window)
+    assert prompt.field == "b_deg"
+    window.calliper_dialog.reject()  # Cancel
+    wait_for(lambda: window.campaign_panel.worker is None, RUN_TIMEOUT_S, "the run to end")
+    (run,), samples = _runs(tmp_path)
+    assert (run.status, run.reason) == (
+        "aborted", f"prompt withdrawn by the operator: {prompt.text} (cancelled in the calliper dialog)")
+    assert [s.kind for s in samples[run.id]] == ["pose"]
+    # resumed with the simulated calliper answering: nothing stored twice, every reading taken
+    window.campaign_panel.simulated_calliper.setChecked(True)
+    window.results.select_runs([run.id])
+    window.results.findChild(type(window.campaign_panel.buttons["start"]), "resultsResume").click()
+    wait_for(lambda: window.campaign_panel.worker is None, RUN_TIMEOUT_S, "the resumed run to end")
+    (resumed,), samples = _runs(tmp_path)
+    steps = [s.step_index for s in samples[run.id]]
+    assert resumed.status == "completed" and len(steps) == len(set(steps)) == resumed.n_samples
+    assert {s.kind for s in samples[run.id]} == {"pose", "tilt"} and samples[run.id][0].kind == "pose"
 
 
 def test_a_rig_that_cannot_start_is_reported_and_nothing_is_stored(window, tmp_path):

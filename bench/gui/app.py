@@ -107,12 +107,21 @@ class MainWindow(QMainWindow):
         self.log.appendPlainText(text)
 
     def emergency_stop(self) -> None:
-        """Halt the campaign (robot stopped, no clean-up moves) and stop the jogging robot."""
+        """Stop the campaign's robot now (the run ends aborted, resumable, no clean-up moves) and the jogging
+        robot; a pending calliper dialog closes (its prompt is withdrawn)."""
         worker = self.campaign_panel.worker
-        if worker is not None and worker.runner is not None:
-            worker.request("halt")
+        if worker is not None:
+            worker.emergency_stop()
+            self._close_calliper_dialog()
         self.robot_panel.emergency_stop()
         self.say("EMERGENCY STOP")
+
+    def _close_calliper_dialog(self) -> None:
+        """Close the dialog without its signals: the worker has already withdrawn the prompt."""
+        if self.calliper_dialog is not None:
+            self.calliper_dialog.blockSignals(True)
+            self.calliper_dialog.close()
+            self.calliper_dialog = None
 
     def _robot_changed(self, robot: str) -> None:
         path = self.campaign_panel.files.currentData()
@@ -154,7 +163,7 @@ class MainWindow(QMainWindow):
         if worker is not None:
             dialog.reading_entered.connect(worker.answer)
             dialog.confirmed.connect(lambda: worker.answer(0.0))  # any value: a confirmation returns None
-            dialog.cancelled.connect(lambda: worker.answer(None))
+            dialog.cancelled.connect(lambda: worker.withdraw("cancelled in the calliper dialog"))
         dialog.reading_entered.connect(lambda value: self.say(f"{prompt.field} = {value:g} {prompt.unit}"))
         dialog.confirmed.connect(lambda: self.say(f"confirmed: {prompt.text}"))
         dialog.finished.connect(lambda _: setattr(self, "calliper_dialog", None))
@@ -166,9 +175,7 @@ class MainWindow(QMainWindow):
         """Stop a run at its next checkpoint (resumable, nothing stored is lost), then release the robot."""
         if self.campaign_panel.worker is not None:
             self.say("window closing: stopping the run at the next checkpoint")
-            if self.calliper_dialog is not None:
-                self.calliper_dialog.blockSignals(True)
-                self.calliper_dialog.close()
+            self._close_calliper_dialog()
             if not self.campaign_panel.shut_down(CLOSE_TIMEOUT_S):
                 _log.error("the run did not reach a checkpoint within %g s; halting it", CLOSE_TIMEOUT_S)
                 self.campaign_panel.request("halt")

@@ -72,7 +72,8 @@ def parse_entry(prompt: Prompt, text: str) -> tuple[float, str]:
 class CalliperDialog(QDialog):
     """Asks for one reading; emits ``reading_entered(value)`` once the entry is valid (and confirmed).
 
-    Cancelling emits ``cancelled``: the run then cannot go on (the runner refuses a prompt without a value).
+    Cancelling (Cancel, Esc) emits ``cancelled``: the window withdraws the prompt, and the run ends ``aborted``
+    (resumable) with the reason "prompt withdrawn by the operator: ...".
     """
 
     reading_entered = Signal(float)

@@ -4,14 +4,13 @@ The worker owns everything that touches the rig and the store during a run: it o
 :class:`bench.store.Store` (a SQLite connection belongs to the thread that made it), builds the rig with the same
 function as ``bench run`` (:func:`bench.commands.campaign.build_rig`), and drives :class:`bench.protocols.Runner`.
 It talks to the window only through Qt signals. Requests from the window (pause, resume, stop, abort, halt) go to
-the runner's own thread-safe request methods; the runner honours them at its safe points.
+the runner's own thread-safe request methods; the runner honours them at its safe points. The emergency stop goes
+to :meth:`bench.protocols.Runner.emergency_stop` at once, from the window's thread.
 
-Two small adapters connect the runner to the window without changing it:
-
-- :class:`ObservedStore` forwards every call to the store and, once a sample is committed, reports it, so the
-  live view shows only what is already on disk;
-- :meth:`CampaignWorker.answer_prompt` is the simulated operator's ``answer`` callable: it asks the window for a
-  calliper reading and waits for the operator's entry (or a cancellation).
+The runner's hooks report to the window: ``on_start`` (run id, samples in all, samples already stored) and
+``on_sample`` (after the store committed it, so the live view shows only what is already on disk).
+:meth:`CampaignWorker.answer_prompt` is the operator's ``answer``: it asks the window for a calliper reading and
+waits for the operator's entry, or raises :class:`bench.errors.PromptWithdrawn` when the operator cancels.
 """
 
 from __future__ import annotations
@@ -19,29 +18,21 @@ from __future__ import annotations
 import argparse
 import logging
 import queue
-import time
-from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
 from PySide6.QtCore import QThread, Signal
 
-from bench.errors import BenchError
+from bench.errors import BenchError, PromptWithdrawn
 from bench.protocols import Prompt, Protocol, Runner, RunState, TransitionError
-from bench.protocols.plan import iterate
-from bench.protocols.runner import step_stores_sample
 from bench.store import Store
 
-__all__ = ["CampaignWorker", "ObservedStore", "PromptCancelled", "RigSpec", "WindowOperator", "count_samples"]
+__all__ = ["CampaignWorker", "RigSpec", "WindowOperator"]
 
 _log = logging.getLogger(__name__)
 
 #: How often a waiting worker looks at its cancellation flag, s.
 _POLL_S = 0.05
-
-
-class PromptCancelled(BenchError):
-    """A calliper prompt the operator could not answer because the run was stopped or the window closed."""
 
 
 @dataclass(frozen=True)
@@ -63,34 +54,6 @@ class RigSpec:
     def namespace(self) -> argparse.Namespace:
         return argparse.Namespace(port=self.port, seed=self.seed, speed_factor=self.speed_factor,
                                   mouse_xy=self.mouse_xy, mouse_xz=self.mouse_xz)
-
-
-def count_samples(protocol: Protocol) -> int:
-    """Samples a run of ``protocol`` stores (captures and reading prompts), from a dry run."""
-    return sum(1 for step in iterate(protocol, final=False) if step_stores_sample(step))
-
-
-class ObservedStore:
-    """A :class:`Store` that calls ``on_start(run_id)`` and ``on_sample(run_id, step_index, fields)`` after the
-    store has committed a new run or a sample; every other call goes straight to the store."""
-
-    def __init__(self, store: Store, on_start: Callable[[int], None],
-                 on_sample: Callable[[int, int, dict[str, Any]], None]) -> None:
-        self._store = store
-        self._on_start = on_start
-        self._on_sample = on_sample
-
-    def __getattr__(self, name: str) -> Any:
-        return getattr(self._store, name)
-
-    def start_run(self, **kwargs: Any) -> int:
-        run_id = self._store.start_run(**kwargs)
-        self._on_start(run_id)
-        return run_id
-
-    def add_sample(self, run_id: int, step_index: int, **kwargs: Any) -> None:
-        self._store.add_sample(run_id, step_index, **kwargs)
-        self._on_sample(run_id, step_index, kwargs)
 
 
 class CampaignWorker(QThread):
@@ -115,10 +78,10 @@ class CampaignWorker(QThread):
         self.rig_spec = rig_spec
         self.campaign = campaign
         self.runner: Runner | None = None
-        self._answers: queue.Queue[float | None] = queue.Queue()
+        self._answers: queue.Queue[float | PromptWithdrawn] = queue.Queue()
         self._decided = queue.Queue()
         self._cancelled = False
-        self._total = 0
+        self._emergency = False
 
     # ---- requests from the window (GUI thread) ---------------------------------------------------------------
 
@@ -144,8 +107,23 @@ class CampaignWorker(QThread):
             self._decided.put(action)
         self.state_changed.emit(runner.state.value if action != "pause" else "pause requested")
 
+    def emergency_stop(self) -> None:
+        """Stop the robot now and end the run (aborted, resumable, no clean-up moves); drop the queue.
+
+        Called in the window's thread: the runner sends the robot's stop from here, at once. A pending prompt is
+        withdrawn, and a run whose rig is still starting ends before its first step.
+        """
+        self._emergency = True
+        self.jobs.clear()
+        runner = self.runner
+        if runner is not None:
+            runner.emergency_stop()
+            self.state_changed.emit(runner.state.value)
+        self.withdraw("emergency stop")
+        self._decided.put("halt")
+
     def shut_down(self, reason: str = "window closed") -> None:
-        """End safely: stop at the next checkpoint (resumable), cancel any reading prompt, drop the queue."""
+        """End safely: stop at the next checkpoint (resumable), withdraw any pending prompt, drop the queue."""
         self._cancelled = True
         self.jobs.clear()
         runner = self.runner
@@ -154,12 +132,16 @@ class CampaignWorker(QThread):
                 runner.stop(f"stopped: {reason}")
             except TransitionError:
                 pass  # already stopping, aborting or finished
-        self._answers.put(None)
+        self.withdraw(reason)
         self._decided.put("stop")
 
-    def answer(self, value: float | None) -> None:
-        """The operator's reading for the pending prompt, or None to cancel it."""
+    def answer(self, value: float) -> None:
+        """The operator's reading for the pending prompt (any number confirms an instruction)."""
         self._answers.put(value)
+
+    def withdraw(self, why: str) -> None:
+        """Withdraw the pending prompt: the run ends aborted (resumable) with ``why`` in its reason."""
+        self._answers.put(PromptWithdrawn(why))
 
     # ---- the thread ------------------------------------------------------------------------------------------
 
@@ -167,7 +149,6 @@ class CampaignWorker(QThread):
         from bench.commands.campaign import build_rig
 
         with Store(self.store_path) as store:
-            observed = ObservedStore(store, self._started, self._stored)
             while self.jobs and not self._cancelled:
                 job, robot = self.jobs.pop(0), "robot"
                 try:
@@ -183,43 +164,31 @@ class CampaignWorker(QThread):
                     self.failed.emit(f"rig for {robot}: {type(exc).__name__}: {exc}")
                     continue
                 try:
-                    self._run_job(job, rig, observed)
+                    self._run_job(job, rig, store)
                 finally:
                     rig.close()
                     self.runner = None
 
-    def _run_job(self, job: Protocol | int, rig: Any, store: ObservedStore) -> None:
+    def _run_job(self, job: Protocol | int, rig: Any, store: Store) -> None:
         if hasattr(rig.operator, "answer"):  # the simulated operator: it also tells the simulator the payload
             if not self.rig_spec.simulated_calliper:
                 rig.operator.answer = self.answer_prompt
         else:  # hardware: the person at the window answers instead of the terminal
             rig.operator = WindowOperator(self)
-        self.runner = Runner(rig, store, on_pause=self._on_pause)
+        runner = Runner(rig, store, on_pause=self._on_pause,
+                        on_start=lambda r: self.run_started.emit(r.run_id, r.samples_total, r.samples_stored),
+                        on_sample=lambda r, sample: self.sample_stored.emit(r.run_id, sample))
+        self.runner = runner
+        if self._emergency:  # pressed while the rig was starting (emergency_stop saw no runner yet)
+            runner.emergency_stop()
         self.state_changed.emit("running")
         try:
-            if isinstance(job, int):
-                from bench.protocols import protocol_from_config
-
-                record = store.run(job)
-                self._total = count_samples(protocol_from_config(record.config, source=f"run {job}"))
-                self.run_started.emit(job, self._total, record.n_samples)
-                result = self.runner.resume_run(job)
-            else:
-                self._total = count_samples(job)
-                result = self.runner.run(job, campaign=self.campaign)
+            result = runner.resume_run(job) if isinstance(job, int) else runner.run(job, campaign=self.campaign)
         except BenchError as exc:  # refused before the run started (pre-flight, resume checks)
             self.failed.emit(str(exc))
             return
         self.state_changed.emit("finished")
         self.run_finished.emit(result)
-
-    def _started(self, run_id: int) -> None:
-        self.run_started.emit(run_id, self._total, 0)
-
-    def _stored(self, run_id: int, step_index: int, fields: dict[str, Any]) -> None:
-        sample = {"step_index": step_index, "kind": fields.get("kind", "pose"), "pose": fields.get("pose"),
-                  "cycle": fields.get("cycle"), "t_s": fields.get("t_s"), "values": dict(fields.get("values", {}))}
-        self.sample_stored.emit(run_id, sample)
 
     def _on_pause(self, runner: Runner) -> None:
         """Called by the runner (worker thread) at a checkpoint: wait until the window resumes, stops or aborts."""
@@ -238,23 +207,21 @@ class CampaignWorker(QThread):
         """Ask the window for the reading (or, when ``prompt.field`` is None, the confirmation) and wait for it.
 
         Called in the worker thread, by the simulated operator (as its ``answer``) or by :class:`WindowOperator`.
+
+        Raises
+        ------
+        PromptWithdrawn
+            The operator cancelled the dialog, the window closed or the emergency stop was pressed.
         """
-        while not self._answers.empty():  # a stale cancellation from an earlier prompt
+        while not self._answers.empty():  # a stale withdrawal from an earlier prompt
             self._answers.get_nowait()
-        if self._cancelled:
-            raise PromptCancelled(f"prompt {prompt.text!r}: not asked, the window is closing")
+        if self._cancelled or self._emergency:
+            raise PromptWithdrawn("not asked: " + ("the window is closing" if self._cancelled else "emergency stop"))
         self.prompt_requested.emit(prompt)
-        started = time.monotonic()
-        while True:
-            try:
-                value = self._answers.get(timeout=_POLL_S)
-            except queue.Empty:
-                continue
-            if value is None:
-                wanted = f"no reading for {prompt.field}" if prompt.field else "not confirmed"
-                raise PromptCancelled(f"prompt {prompt.text!r}: cancelled after {time.monotonic() - started:.0f} s, "
-                                      f"{wanted}")
-            return None if prompt.field is None else float(value)
+        value = self._answers.get()
+        if isinstance(value, PromptWithdrawn):
+            raise value
+        return None if prompt.field is None else float(value)
 
 
 class WindowOperator:
