@@ -57,6 +57,10 @@ def test_campaign_from_the_window_stores_every_sample_and_shows_it(window, tmp_p
         assert shown[pose]["APx_mm"] == pytest.approx(barycentre[0], abs=1e-9)
         assert shown[pose]["APy_mm"] == pytest.approx(barycentre[1], abs=1e-9)
         assert shown[pose]["RP_mm"] == pytest.approx(distances.mean() + 3 * distances.std(ddof=1), abs=1e-9)
+    # the stream's time axis is the run's time base: simulated seconds at the panel's speed factor
+    window.live_view.redraw()
+    assert run.settings["time_base"] == "simulated s (wall x speed factor 10000)"
+    assert window.live_view.stream_axes.get_xlabel() == f"run time ({run.settings['time_base']})"
     # results browser lists the run with its status
     browser = window.results
     assert [r.id for r in browser.refresh()] == [run.id]

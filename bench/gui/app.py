@@ -141,13 +141,12 @@ class MainWindow(QMainWindow):
         self.tabs.setCurrentWidget(self.live_view)
 
     def _run_started(self, run_id: int, total: int, done: int) -> None:
-        self.live_view.clear(f"run {run_id}")
         self.say(f"run {run_id} started ({total - done} of {total} samples to take)")
-        if done:  # a resumed run: show what is already stored
-            with Store(self.store_path) as store:
-                for sample in store.samples(run_id):
-                    self.live_view.add_sample({"kind": sample.kind, "pose": sample.pose, "t_s": sample.t_s,
-                                               "values": sample.values})
+        with Store(self.store_path) as store:
+            self.live_view.clear(f"run {run_id}", store.run(run_id).settings.get("time_base", "s"))
+            for sample in store.samples(run_id) if done else ():  # a resumed run: show what is already stored
+                self.live_view.add_sample({"kind": sample.kind, "pose": sample.pose, "t_s": sample.t_s,
+                                           "values": sample.values})
         self.results.refresh()
 
     def _run_finished(self, result: RunResult) -> None:

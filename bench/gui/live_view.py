@@ -46,12 +46,14 @@ class LiveView(QWidget):
         self._timer.timeout.connect(self.redraw)
         self.clear()
 
-    def clear(self, title: str = "") -> None:
-        """Forget every sample (a new run starts)."""
+    def clear(self, title: str = "", time_base: str = "s") -> None:
+        """Forget every sample (a new run starts); ``time_base`` is what the run's ``t_s`` counts (its settings'
+        ``time_base``, e.g. ``simulated s (wall x speed factor 10000)``)."""
         self.points: dict[str, list[np.ndarray]] = defaultdict(list)
         self.commanded: dict[str, np.ndarray] = {}
         self.stream: dict[str, tuple[list[float], list[float]]] = defaultdict(lambda: ([], []))
         self.title = title
+        self.time_base = time_base
         self.redraw()
 
     def add_sample(self, sample: dict) -> None:
@@ -122,7 +124,7 @@ class LiveView(QWidget):
         axes = self.stream_axes
         axes.clear()
         axes.set_title(f"sensor stream {self.title}".strip(), fontsize=9)
-        axes.set_xlabel("run time (s)")
+        axes.set_xlabel(f"run time ({self.time_base})")
         for name, (times, series) in sorted(self.stream.items()):
             axes.plot(times, series, ".-", ms=3, lw=0.6, label=name)
         if self.stream:
