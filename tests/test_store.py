@@ -144,3 +144,19 @@ def test_kill_9_of_writer_loses_no_committed_sample(tmp_path):
         assert stored == set(range(len(stored)))  # no gap: each commit landed in order
         assert reopened.run(1).status == "running"
         assert reopened.samples(1)[150].values == {"x_mm": pytest.approx(15.0)}
+
+
+def test_export_without_kind_takes_pose_or_the_runs_most_frequent_kind(tmp_path, capsys):
+    from bench.cli import main
+
+    db = tmp_path / "kinds.db"
+    with Store(db) as store:
+        run_id = _start(store)
+        for index, kind in enumerate(["leg_length", "leg_length", "manual"]):
+            store.add_sample(run_id, index, values={"length_mm": 200.0 + index}, kind=kind, pose="L", cycle=index)
+        assert store.sample_kinds(run_id) == {"leg_length": 2, "manual": 1}
+    out = tmp_path / "legs.csv"
+    assert main(["export", str(run_id), "--store", str(db), "--out", str(out)]) == 0
+    err = capsys.readouterr().err
+    assert "exporting kind leg_length; the run also holds leg_length (2), manual (1)" in err
+    assert list(pd.read_csv(out)["length_mm"]) == [200.0, 201.0]

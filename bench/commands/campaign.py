@@ -49,8 +49,8 @@ def register(groups: argparse._SubParsersAction) -> None:
     export.add_argument("--format", choices=EXPORT_FORMATS, default="csv", help="file format")
     export.add_argument("--out", default=None, help="output file (default run-RUN_ID.FORMAT)")
     export.add_argument("--kind", default=None,
-                        help="sample kind to export (pose, manual, arrival, ...; default pose, or arrival with "
-                             "--series)")
+                        help="sample kind to export (pose, arrival, actuator_travel, leg_length, grid_hit, ...; "
+                             "default: pose if the run has any, else its most frequent kind; arrival with --series)")
     export.add_argument("--series", action="store_true",
                         help="export the streamed series of each sample (one row per point; stabilisation runs)")
     export.set_defaults(handler=_export)
@@ -237,9 +237,23 @@ def _runs(args: argparse.Namespace) -> int:
     return 0
 
 
+def _default_kind(store: Store, run_id: int) -> str:
+    """``pose`` when the run has pose samples, else its most frequent kind (said on stderr when the run has several)."""
+    store.run(run_id)  # names a run that does not exist
+    kinds = store.sample_kinds(run_id)
+    if "pose" in kinds or not kinds:
+        kind = "pose"
+    else:
+        kind = next(iter(kinds))
+    if len(kinds) > 1:
+        listed = ", ".join(f"{k} ({n})" for k, n in kinds.items())
+        print(f"bench: exporting kind {kind}; the run also holds {listed}: choose with --kind", file=sys.stderr)
+    return kind
+
+
 def _export(args: argparse.Namespace) -> int:
     out = args.out or f"run-{args.run_id}.{args.format}"
     with Store(args.store) as store:
-        kind = args.kind or ("arrival" if args.series else "pose")
+        kind = args.kind or ("arrival" if args.series else _default_kind(store, args.run_id))
         print(export_run(store, args.run_id, out, fmt=args.format, kind=kind, series=args.series))
     return 0

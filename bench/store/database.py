@@ -327,6 +327,12 @@ class Store:
                              wall_utc=r[6], values=json.loads(r[7]), raw=None if r[8] is None else json.loads(r[8]))
                 for r in self._db.execute(query, args)]
 
+    def sample_kinds(self, run_id: int) -> dict[str, int]:
+        """How many samples of each kind run ``run_id`` holds, most frequent first."""
+        rows = self._db.execute("SELECT kind, COUNT(*) FROM samples WHERE run_id = ? GROUP BY kind "
+                                "ORDER BY COUNT(*) DESC, kind", (run_id,))
+        return {kind: count for kind, count in rows}
+
     # ---- calibrations ----------------------------------------------------------------------------------------
 
     def add_calibration(self, name: str, params: Mapping[str, Any], *, source_run_id: int | None = None,
