@@ -153,7 +153,8 @@ def test_export_without_kind_takes_pose_or_the_runs_most_frequent_kind(tmp_path,
     with Store(db) as store:
         run_id = _start(store)
         for index, kind in enumerate(["leg_length", "leg_length", "manual"]):
-            store.add_sample(run_id, index, values={"length_mm": 200.0 + index}, kind=kind, pose="L", cycle=index)
+            store.add_sample(run_id, index, values={"length_mm": 200.0 + index}, kind=kind, pose="L", cycle=index,
+                             t_s=float(index))
         assert store.sample_kinds(run_id) == {"leg_length": 2, "manual": 1}
     out = tmp_path / "legs.csv"
     assert main(["export", str(run_id), "--store", str(db), "--out", str(out)]) == 0
