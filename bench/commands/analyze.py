@@ -12,7 +12,7 @@ import argparse
 import numpy as np
 
 from bench.commands.kin import emit
-from bench.errors import ConfigError
+from bench.errors import ConfigError, InsufficientData
 from bench.metrology import (
     combine,
     expanded,
@@ -21,6 +21,7 @@ from bench.metrology import (
     increments_from_positions,
     leg_error_summary,
     pose_drift,
+    pose_stabilisation,
 )
 from bench.metrology.actuator_tables import actuator_table, analyze_actuators
 from bench.metrology.tables import (
@@ -58,6 +59,15 @@ def register(groups: argparse._SubParsersAction) -> None:
     drift.add_argument("--pose", default="P1", help="the pose to analyse")
     drift.add_argument("--window-s", type=float, default=3600.0, help="window length (s)")
     drift.set_defaults(handler=_drift)
+
+    settling = _new_parser(actions, "stabilisation", "position stabilisation time and overshoot per pose (ISO 9283 "
+                                                     "7.4, 7.5); reads bench export RUN --series")
+    settling.add_argument("--band-mm", type=float, nargs="+", default=[0.1, 0.5, 1.0],
+                          help="limit bands B (mm); ISO comparison bands 0.1, 0.5, 1.0")
+    settling.add_argument("--hysteresis-mm", type=float, default=0.0,
+                          help="excursions up to this far beyond the band are not counted (set it to the "
+                               "instrument's resolution, e.g. one mouse count 25.4/CPI mm; 0 = ISO as written)")
+    settling.set_defaults(handler=_stabilisation)
 
     actuator = _new_parser(actions, "actuator", "actuator repeatability/accuracy (Groover), mean bias and ISO 230-2 "
                                                 "unidirectional figures; reads bench export --kind actuator_travel")
@@ -144,6 +154,38 @@ def _drift(args: argparse.Namespace) -> int:
     lines = [f"pose {args.pose}: dAP = {r.dap_mm:.4f} mm, dRP = {r.drp_mm:.4f} mm over {len(r.ap_mm)} windows"]
     lines += [f"  t >= {t:10.1f} s  n = {n:4d}  AP = {a:.4f} mm  RP = {p:.4f} mm"
               for t, n, a, p in zip(r.window_start_s, r.n_per_window, r.ap_mm, r.rp_mm)]
+    emit(result, args.json, lines)
+    return 0
+
+
+def _stabilisation(args: argparse.Namespace) -> int:
+    table = read_table_csv(args.file)
+    missing = [c for c in ("pose", "cycle", "t_s", "x_mm", "y_mm", "z_mm") if c not in table.columns]
+    if missing:
+        raise ConfigError(f"{args.file}: missing column(s) {', '.join(missing)}; export the run with --series")
+    for band in args.band_mm:
+        if not band > 0:
+            raise ConfigError(f"--band-mm {band:g}: expected limit bands > 0 mm")
+    by_pose = {pose: [(rows["t_s"].to_numpy(float), rows[["x_mm", "y_mm", "z_mm"]].to_numpy(float))
+                      for _, rows in group.groupby("cycle", sort=True)]
+               for pose, group in table.groupby(table["pose"].astype(str), sort=False)}
+    result: dict = {"hysteresis_mm": args.hysteresis_mm, "bands": {}}
+    lines = [f"{'band_mm':>7}  {'pose':<6} {'n':>2} {'mean_t_s':>8} {'max_t_s':>8} {'OV_mm':>7} {'max_OV_mm':>9}"]
+    for band in args.band_mm:
+        per_pose = result["bands"][f"{band:g}"] = {}
+        for pose, series in by_pose.items():
+            try:
+                r = pose_stabilisation(series, band_mm=band, hysteresis_mm=args.hysteresis_mm)
+            except InsufficientData as exc:
+                per_pose[pose] = {"n": len(series), "error": str(exc)}
+                lines.append(f"{band:>7g}  {pose:<6} {len(series):>2} {exc}")
+                continue
+            per_pose[pose] = {"n": len(series), "mean_time_s": r.mean_time_s, "max_time_s": r.max_time_s,
+                              "overshoot_mm": r.mean_overshoot_mm, "max_overshoot_mm": r.max_overshoot_mm,
+                              "time_s_per_cycle": [c.stabilisation_time_s for c in r.cycles],
+                              "overshoot_mm_per_cycle": [c.overshoot_mm for c in r.cycles]}
+            lines.append(f"{band:>7g}  {pose:<6} {len(series):>2} {r.mean_time_s:>8.3f} {r.max_time_s:>8.3f} "
+                         f"{r.mean_overshoot_mm:>7.4f} {r.max_overshoot_mm:>9.4f}")
     emit(result, args.json, lines)
     return 0
 
