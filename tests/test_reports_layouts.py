@@ -8,7 +8,6 @@ a sag per kg); the ``bench analyze`` command on the raw-data CSV the report writ
 
 from __future__ import annotations
 
-import doctest
 import hashlib
 import json
 import math
@@ -355,14 +354,6 @@ def test_cli_reports_the_three_kinds_and_refuses_criteria_and_comparisons(runs, 
         pose = write_pose_run(opened, config=None)
         with pytest.raises(ConfigError, match=f"--compare: run {ids['actuator']} is an? actuator_accuracy run"):
             write_comparison(opened, pose, ids["actuator"], tmp_path)
-
-
-def test_metrology_docstring_examples_of_the_new_modules():
-    import bench.metrology.actuator_tables
-    import bench.metrology.hit_rate
-
-    for module in (bench.metrology.hit_rate, bench.metrology.actuator_tables):
-        assert doctest.testmod(module, optionflags=doctest.NORMALIZE_WHITESPACE).failed == 0
 
 
 @given(st.lists(st.integers(-100_000, 100_000), min_size=1, max_size=20), st.integers(0, 4))

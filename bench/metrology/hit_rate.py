@@ -4,7 +4,8 @@ Each attempt commands the end effector onto one sensor and records whether that 
 (``hit_expected``) and whether any sensor was (``hit_any``). The thesis's "repeatability" is the fraction of
 attempts that hit, per sensor and over the group of sensors at one height (Appendix D2: 397/400 = 0.9925 at
 140 mm). A fraction of n Bernoulli trials is given with its Wilson score interval at z = k (k = 2: about 95 %),
-which, unlike p ± k·√(p(1-p)/n), stays inside [0, 1] and is not empty at 25 of 25.
+which, unlike p ± k·√(p(1-p)/n), stays inside [0, 1] and is not empty at 25 of 25: the one Wilson interval of
+bench, :func:`bench.metrology.partial_pose.detection_rate` (``HitRate`` is its result type).
 
 A tidy table (``bench export RUN --kind grid_hit``) has one row per attempt: ``cmd_x_mm, cmd_y_mm, cmd_z_mm``,
 ``expected_i, expected_j, expected_index``, ``hit_expected``, ``hit_any`` (0 or 1).
@@ -16,12 +17,12 @@ from dataclasses import dataclass
 
 import pandas as pd
 
-from bench.errors import ConfigError, InsufficientData
+from bench.errors import InsufficientData
 from bench.metrology.partial_pose import DetectionRate as HitRate
 from bench.metrology.partial_pose import detection_rate
 from bench.metrology.tables import numeric_columns
 
-__all__ = ["GRID_HIT_COLUMNS", "GridHits", "HeightHits", "HitRate", "SensorHits", "grid_hit_rates", "hit_rate"]
+__all__ = ["GRID_HIT_COLUMNS", "GridHits", "HeightHits", "HitRate", "SensorHits", "grid_hit_rates"]
 
 #: Columns a grid-hit table needs.
 GRID_HIT_COLUMNS = ("cmd_x_mm", "cmd_y_mm", "cmd_z_mm", "expected_i", "expected_j", "expected_index", "hit_expected",
@@ -58,31 +59,22 @@ class GridHits:
     heights: tuple[HeightHits, ...]
 
 
-def hit_rate(outcomes, *, k: float = 2.0) -> HitRate:
-    """Fraction of successful attempts (0/1 each) with its Wilson score interval at z = ``k``
-    (:func:`bench.metrology.partial_pose.detection_rate`).
-
-    Examples
-    --------
-    >>> r = hit_rate([1] * 397 + [0] * 3)
-    >>> r.k, r.n, r.rate, round(r.low, 4), round(r.high, 4)
-    (397, 400, 0.9925, 0.9778, 0.9975)
-
-    Appendix D2 at 140 mm: 397 hits in 400 attempts.
-    """
-    if not k > 0:
-        raise ConfigError(f"k = {k}, expected > 0")
-    rate = detection_rate(outcomes, z=k)
-    if rate.n == 0:
-        raise InsufficientData("hit rate: 0 attempts, at least 1 required")
-    return rate
-
-
 def grid_hit_rates(frame: pd.DataFrame, *, k: float = 2.0) -> GridHits:
     """Hit rates per sensor and height, and per height over every sensor, of a grid-hit table.
 
     ``frame`` may hold strings (:func:`bench.metrology.tables.read_table_csv`) or numbers (the store's tidy
-    table); bad cells raise ``ConfigError`` naming the row and column.
+    table); bad cells raise ``ConfigError`` naming the row and column. Rates and Wilson intervals (z = ``k``) are
+    :func:`bench.metrology.partial_pose.detection_rate`'s.
+
+    Examples
+    --------
+    >>> frame = pd.DataFrame({"cmd_x_mm": [-65.0] * 4, "cmd_y_mm": [-65.0] * 4, "cmd_z_mm": [-140.0] * 4,
+    ...                       "expected_i": [1] * 4, "expected_j": [1] * 4, "expected_index": [17] * 4,
+    ...                       "hit_expected": [1, 1, 0, 1], "hit_any": [1, 1, 1, 1]})
+    >>> hits = grid_hit_rates(frame)
+    >>> s = hits.sensors[0]
+    >>> s.height_mm, (s.i, s.j, s.index), (s.expected.k, s.expected.n), round(s.expected.low, 4), s.any.rate
+    (140.0, (1, 1, 17), (3, 4), 0.2943, 1.0)
     """
     table = numeric_columns(frame, GRID_HIT_COLUMNS)
     if table.empty:
@@ -92,10 +84,11 @@ def grid_hit_rates(frame: pd.DataFrame, *, k: float = 2.0) -> GridHits:
     for (z, i, j), rows in table.groupby(keys, sort=False):
         sensors.append(SensorHits(-float(z), int(i), int(j), int(rows["expected_index"].iloc[0]),
                                   float(rows["cmd_x_mm"].iloc[0]), float(rows["cmd_y_mm"].iloc[0]),
-                                  hit_rate(rows["hit_expected"], k=k), hit_rate(rows["hit_any"], k=k)))
+                                  detection_rate(rows["hit_expected"], k=k),
+                                  detection_rate(rows["hit_any"], k=k)))
     heights = []
     for z, rows in table.groupby("cmd_z_mm", sort=False):
         count = len(rows.groupby(keys[1:]))
-        heights.append(HeightHits(-float(z), count, hit_rate(rows["hit_expected"], k=k),
-                                  hit_rate(rows["hit_any"], k=k)))
+        heights.append(HeightHits(-float(z), count, detection_rate(rows["hit_expected"], k=k),
+                                  detection_rate(rows["hit_any"], k=k)))
     return GridHits(tuple(sensors), tuple(heights))

@@ -121,26 +121,35 @@ def partial_pose_statistics(measured_mm, commanded_mm) -> PartialPoseStatistics:
     return PartialPoseStatistics(len(readings), axes, len(complete), ap, rp)
 
 
-def detection_rate(detected, *, z: float = 2.0) -> DetectionRate:
-    """Rate of detections (entries 0/1 or bool) with its Wilson score interval at z (the coverage factor k = 2 used
-    throughout bench: about 95 %). Unlike p ± z·√(p(1-p)/n) it stays in [0, 1] and is not empty at 0 of n.
+def detection_rate(detected, *, k: float = 2.0) -> DetectionRate:
+    """Rate of detections (entries 0/1 or bool) with its Wilson score interval at z = ``k`` (the coverage factor,
+    2 throughout bench: about 95 %). Unlike p ± k·√(p(1-p)/n) it stays in [0, 1] and is not empty at 0 or n of n.
+    The one Wilson interval of bench: the laser grid's screen detections and hit rates
+    (:func:`bench.metrology.hit_rate.grid_hit_rates`) both use it. No readings give rate and interval ``None``.
 
     Examples
     --------
     >>> r = detection_rate([1, 0, 0, 1, 0, 0])
     >>> r.k, r.n, round(r.rate, 4), round(r.low, 4), round(r.high, 4)
     (2, 6, 0.3333, 0.0945, 0.7055)
+    >>> r = detection_rate([1] * 397 + [0] * 3)   # delta thesis Appendix D2, 140 mm: 397 hits in 400 attempts
+    >>> r.rate, round(r.low, 4), round(r.high, 4)
+    (0.9925, 0.9778, 0.9975)
+    >>> detection_rate([])
+    DetectionRate(k=0, n=0, rate=None, low=None, high=None)
     """
+    if not k > 0:
+        raise ConfigError(f"k = {k}, expected a coverage factor > 0")
     flags = np.asarray(detected, dtype=float).reshape(-1)
     if not np.isin(flags, (0.0, 1.0)).all():
         raise ConfigError(f"detections {flags.tolist()}: expected 0 or 1 per reading")
-    k, n = int(flags.sum()), len(flags)
+    hits, n = int(flags.sum()), len(flags)
     if n == 0:
         return DetectionRate(0, 0, None, None, None)
-    p = k / n
-    centre = (p + z * z / (2 * n)) / (1 + z * z / n)
-    half = z * math.sqrt(p * (1 - p) / n + z * z / (4 * n * n)) / (1 + z * z / n)
-    return DetectionRate(k, n, p, max(0.0, centre - half), min(1.0, centre + half))
+    p = hits / n
+    centre = (p + k * k / (2 * n)) / (1 + k * k / n)
+    half = k * math.sqrt(p * (1 - p) / n + k * k / (4 * n * n)) / (1 + k * k / n)
+    return DetectionRate(hits, n, p, max(0.0, centre - half), min(1.0, centre + half))
 
 
 # -- tidy-table interface of the laser-grid positioning test ---------------------------------------------------------
