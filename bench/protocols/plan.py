@@ -4,7 +4,7 @@ Like bluesky's ``summarize_plan`` and ``check_limits``: the generator is driven 
 "measures" its commanded values, a prompt answers the middle of its range), every ``Move`` target is checked with
 motion/ (reach, joint limits, singularity proximity) and every ``ActuatorMove`` stroke against the actuator's window
 (actuator bench) before anything moves, and the time is estimated from the robot's actuator speeds plus the settle
-times.
+times, the captures (a streamed arrival records for its ``hold_s``) and the prompts.
 """
 
 from __future__ import annotations
@@ -21,11 +21,18 @@ from bench.protocols.base import Protocol
 from bench.protocols.kinematics import DEFAULT_SINGULARITY_THRESHOLD, robot_model
 from bench.protocols.steps import ActuatorMove, Capture, Move, Prompt, Settle, Step
 
-__all__ = ["AxisStrokes", "PlanSummary", "dry_run_result", "iterate", "preflight", "summarize"]
+__all__ = ["AxisStrokes", "PlanSummary", "capture_s", "dry_run_result", "iterate", "preflight", "summarize"]
 
 #: Time a capture and a prompt are assumed to take in the estimate, s (a prompt waits for a person).
 CAPTURE_S = 0.05
 PROMPT_S = 10.0
+
+
+def capture_s(step: Capture) -> float:
+    """Real time one capture takes: a streamed capture (``conditions["hold_s"]``, e.g. an ``arrival``) records for
+    its hold window after the move is reported done (its lead window lies in the move, already counted); any other
+    capture :data:`CAPTURE_S`."""
+    return float(step.conditions.get("hold_s", CAPTURE_S))
 
 
 def dry_run_result(step: Step) -> Any:
@@ -106,7 +113,8 @@ class PlanSummary:
         out = [f"protocol {self.protocol} on {self.robot}: " + ", ".join(
             f"{n} {kind}" for kind, n in self.counts.items())]
         out.append(f"estimated duration {_hms(self.estimated_s)} (moves {_hms(self.move_s)}, settling "
-                   f"{_hms(self.settle_s)}, prompts {_hms(self.prompt_s)}) at real speed")
+                   f"{_hms(self.settle_s)}, captures {_hms(self.capture_s)}, prompts {_hms(self.prompt_s)}) at "
+                   "real speed")
         if self.labels or not self.strokes:
             out.append(f"{len(self.labels)} distinct targets:")
         for i, label in enumerate(self.labels):
@@ -146,7 +154,7 @@ def summarize(protocol: Protocol, *, singularity_threshold: float | None = None)
     counts: Counter[str] = Counter()
     moves: list[tuple[str, tuple[float, ...], float]] = []
     actuator_moves: list[ActuatorMove] = []
-    settle_s = 0.0
+    settle_s = captures_s = 0.0
     for step in iterate(protocol):
         counts[type(step).__name__.lower() + "s"] += 1
         if isinstance(step, Move):
@@ -155,6 +163,8 @@ def summarize(protocol: Protocol, *, singularity_threshold: float | None = None)
             actuator_moves.append(step)
         elif isinstance(step, Settle):
             settle_s += step.duration_s
+        elif isinstance(step, Capture):
+            captures_s += capture_s(step)
     strokes = _actuator_moves(actuator_moves)
     distinct: dict[tuple[float, ...], str] = {}
     for label, target, _ in moves:
@@ -169,7 +179,7 @@ def summarize(protocol: Protocol, *, singularity_threshold: float | None = None)
     return PlanSummary(protocol.name, protocol.robot, dict(counts), tuple(distinct.values()), targets,
                        check.reachable, tuple(str(r) for r in check.reason), check.proximity,
                        move_s + sum(a.move_s for a in strokes), settle_s, counts["prompts"] * PROMPT_S,
-                       counts["captures"] * CAPTURE_S, strokes)
+                       captures_s, strokes)
 
 
 def _actuator_moves(moves: list[ActuatorMove]) -> tuple[AxisStrokes, ...]:
