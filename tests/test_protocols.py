@@ -482,3 +482,22 @@ def test_hardware_time_base_is_wall_seconds_and_a_failing_hook_never_fails_the_r
     assert (result.exit_status, result.samples) == ("completed", 30)
     assert store.run(result.run_id).settings["time_base"] == "wall s"
     assert sum("window gone" in record.exc_text for record in caplog.records if record.exc_text) == 30
+
+
+def test_console_operator_reasks_until_valid_and_ctrl_d_withdraws_the_prompt(capsys):
+    from bench.errors import PromptWithdrawn
+    from bench.protocols.mice import ConsoleOperator
+    from bench.protocols.steps import Prompt
+
+    answers = iter(["abc", "300", "12.5"])
+    prompt = Prompt("Leg 1 length", field="length_mm", unit="mm", minimum=0.0, maximum=100.0)
+    assert ConsoleOperator(lambda _: next(answers)).ask(prompt) == 12.5
+    err = capsys.readouterr().err
+    assert "length_mm = 'abc', expected a number in [0.0, 100.0] [mm]; try again" in err
+    assert "length_mm = '300'" in err
+
+    def end_of_input(_):
+        raise EOFError
+
+    with pytest.raises(PromptWithdrawn, match="Ctrl-D"):
+        ConsoleOperator(end_of_input).ask(prompt)

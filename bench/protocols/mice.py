@@ -22,7 +22,7 @@ from typing import Any
 
 import numpy as np
 
-from bench.errors import LinkError
+from bench.errors import LinkError, PromptWithdrawn
 from bench.protocols.rig import Measurement, Rig
 from bench.protocols.steps import Capture, Prompt
 
@@ -163,7 +163,10 @@ class ConsoleOperator:
             unit = f" [{prompt.unit}]" if prompt.unit else ""
             print(f"{prompt.text}{unit}: " if prompt.field else f"{prompt.text} (Enter): ", end="", file=sys.stderr,
                   flush=True)
-            text = self.read_line("").strip()
+            try:
+                text = self.read_line("").strip()
+            except EOFError:  # Ctrl-D: the operator withdraws the prompt; the run stays resumable
+                raise PromptWithdrawn("end of input (Ctrl-D) at the terminal") from None
             if prompt.field is None:
                 return None
             try:

@@ -295,7 +295,8 @@ class Store:
         pose, cycle : str, int, optional
             Pose label and cycle number (1-based) for pose-type tests.
         t_s : float
-            Seconds since the run started (monotonic clock).
+            Seconds since the run started, in the run's time base (its settings' ``time_base``: wall seconds on
+            hardware, simulated seconds on a sped-up simulator).
         raw : JSON-serialisable, optional
             The raw counts, bytes (as hex) or readings the values were computed from.
         """
