@@ -1,6 +1,9 @@
-"""Small stored runs for the report tests, written with the store API (the configuration a pose protocol stores)."""
+"""Small stored runs for the report tests, written with the store API (the configuration a pose protocol stores) or
+run on the simulators, and readers of the written HTML and PDF."""
 
 from __future__ import annotations
+
+from html.parser import HTMLParser
 
 import numpy as np
 
@@ -150,3 +153,99 @@ def write_grid_hit_run(store: Store, *, hits=APPENDIX_D2, attempts: int = 25) ->
                 step += 3
     store.set_status(run_id, "completed")
     return run_id
+
+
+# ---- runs with partial or streamed readings: delta_positioning (laser grid) and iso9283_stabilisation (arrivals) ----
+
+def simulated_run(store: Store, protocol, robot: str, *, seed: int, speed_factor: float, options=()) -> int:
+    """Run ``protocol`` on a freshly started simulated rig into ``store``; returns the completed run's id."""
+    from bench.protocols import Runner
+    from bench.protocols.simrig import simulated_rig
+
+    rig = simulated_rig(robot, seed=seed, speed_factor=speed_factor, options=tuple(options))
+    try:
+        result = Runner(rig, store).run(protocol)
+    finally:
+        rig.close()
+    assert result.exit_status == "completed", result
+    return result.run_id
+
+
+GRID_POSITIONING_SETTINGS = {
+    "robot": {"driver": "Delta4Controller", "velocity": "servo maximum (not settable)"},
+    "instrument": {"instrument": "laser grid (controller reports)", "calibration_id": "grid-measured-2024-05",
+                   "decoder": {"spot_half_width_mm": 1.0, "gate_mm": 3.75, "prior_uncertainty_mm": 0.0}}}
+#: Readings per pose of :func:`write_grid_positioning_run` as (x, y, z) with None where no screen measured the axis:
+#: P1 three complete readings and one of the horizontal screen only; P2 the vertical screen only (x never measured);
+#: P3 nothing at all.
+GRID_READINGS = {
+    "P1": [(0.0, 2.5, -200.0), (2.5, 0.0, -197.5), (0.0, 0.0, -200.0), (2.5, 2.5, None)],
+    "P2": [(None, -70.0, -180.0), (None, -67.5, -180.0), (None, None, None), (None, -70.0, -182.5)],
+    "P3": [(None, None, None)] * 4,
+}
+
+
+def write_grid_positioning_run(store: Store, readings=GRID_READINGS, settings=GRID_POSITIONING_SETTINGS) -> int:
+    """A completed delta_positioning run whose samples store ``readings`` as the laser-grid instrument stores them:
+    only the measured axes, the horizontal screen valid when x is stored, the vertical one when z is."""
+    cycles = len(next(iter(readings.values())))
+    run_id, config = _start(store, "delta_positioning", {"cycles": cycles, "settle_s": 0.1}, settings)
+    step = 0
+    for cycle in range(cycles):
+        for label, rows in readings.items():
+            command = config["poses"][label]
+            x, y, z = rows[cycle]
+            values = {f"cmd_{a}_mm": float(v) for a, v in zip("xyz", command)}
+            values |= {f"{a}_mm": v for a, v in zip("xyz", (x, y, z)) if v is not None}
+            values |= {"horizontal_valid": float(x is not None), "vertical_valid": float(z is not None),
+                       "horizontal_hits": float(x is not None), "vertical_hits": float(z is not None or y is not None),
+                       "velocity_pct": 100.0}
+            store.add_sample(run_id, step, values=values, pose=label, cycle=cycle + 1, t_s=float(step))
+            step += 3
+    store.set_status(run_id, "completed")
+    return run_id
+
+
+# ---- reading a written report back ----
+
+class _Tables(HTMLParser):
+    """Every ``<table id=...>`` of an HTML page as a list of rows of cell texts (header row first)."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.tables: dict[str, list[list[str]]] = {}
+        self._table = self._row = self._cell = None
+
+    def handle_starttag(self, tag, attrs):
+        if tag == "table":
+            self._table = self.tables.setdefault(dict(attrs).get("id", ""), [])
+        elif tag == "tr" and self._table is not None:
+            self._row = []
+            self._table.append(self._row)
+        elif tag in ("td", "th") and self._row is not None:
+            self._cell = []
+
+    def handle_endtag(self, tag):
+        if tag in ("td", "th") and self._cell is not None:
+            self._row.append("".join(self._cell).strip())
+            self._cell = None
+        elif tag == "table":
+            self._table = None
+
+    def handle_data(self, data):
+        if self._cell is not None:
+            self._cell.append(data)
+
+
+def html_tables(path) -> dict[str, list[list[str]]]:
+    """The tables of an HTML report by id, each a list of rows of cell texts (header first)."""
+    parser = _Tables()
+    parser.feed(path.read_text(encoding="utf-8"))
+    return parser.tables
+
+
+def pdf_text(path) -> str:
+    """The text of a PDF report, whitespace collapsed to single spaces (pypdf)."""
+    from pypdf import PdfReader
+
+    return " ".join(" ".join(page.extract_text().split()) for page in PdfReader(path).pages)

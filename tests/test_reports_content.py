@@ -188,6 +188,8 @@ def test_multidirectional_vap_equals_the_metrology_function(tmp_path):
 
 
 def test_other_pose_protocols_take_conditions_from_the_samples_and_refuse_unknown_load(tmp_path):
+    """A delta_positioning run read by another instrument than the laser grid (complete readings, no screen flags)
+    gets the pose layout."""
     store = Store(tmp_path / "bench.db")
     config = {"protocol": "delta_positioning", "robot": "delta4", "cycles": 3, "settle_s": 0.5,
               "poses": {"A": [0.0, 0.0, -200.0], "B": [-70.0, -70.0, -180.0]}}

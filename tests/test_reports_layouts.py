@@ -11,7 +11,6 @@ from __future__ import annotations
 import hashlib
 import json
 import math
-from html.parser import HTMLParser
 
 import numpy as np
 import pytest
@@ -20,6 +19,8 @@ from hypothesis import strategies as st
 from reports_runs import (
     APPENDIX_D2,
     LADDER_SETTINGS,
+    html_tables,
+    pdf_text,
     write_actuator_run,
     write_grid_hit_run,
     write_ladder_run,
@@ -32,47 +33,6 @@ from bench.metrology import STANDARD_GRAVITY_M_S2, payload_compliance, payload_s
 from bench.reports import ActuatorReport, GridHitReport, LadderReport, collect, write_comparison, write_report
 from bench.reports.content import reading_step_mm
 from bench.store import Store
-
-
-class _Tables(HTMLParser):
-    """Every ``<table id=...>`` of an HTML page as a list of rows of cell texts (header row first)."""
-
-    def __init__(self) -> None:
-        super().__init__()
-        self.tables: dict[str, list[list[str]]] = {}
-        self._table = self._row = self._cell = None
-
-    def handle_starttag(self, tag, attrs):
-        if tag == "table":
-            self._table = self.tables.setdefault(dict(attrs).get("id", ""), [])
-        elif tag == "tr" and self._table is not None:
-            self._row = []
-            self._table.append(self._row)
-        elif tag in ("td", "th") and self._row is not None:
-            self._cell = []
-
-    def handle_endtag(self, tag):
-        if tag in ("td", "th") and self._cell is not None:
-            self._row.append("".join(self._cell).strip())
-            self._cell = None
-        elif tag == "table":
-            self._table = None
-
-    def handle_data(self, data):
-        if self._cell is not None:
-            self._cell.append(data)
-
-
-def _tables(path) -> dict[str, list[list[str]]]:
-    parser = _Tables()
-    parser.feed(path.read_text(encoding="utf-8"))
-    return parser.tables
-
-
-def _pdf_text(path) -> str:
-    from pypdf import PdfReader
-
-    return " ".join(" ".join(page.extract_text().split()) for page in PdfReader(path).pages)
 
 
 @pytest.fixture(scope="module")
@@ -148,9 +108,9 @@ def test_actuator_report_equals_bench_analyze_actuator_on_its_raw_data(runs, cap
 def test_actuator_html_and_pdf_print_the_tables(runs):
     _, _, reports, paths, _ = runs
     report = reports["actuator"]
-    tables = _tables(paths["actuator"].html)
+    tables = html_tables(paths["actuator"].html)
     summary = {row[0]: row for row in tables["actuators"][1:]}
-    pdf = _pdf_text(paths["actuator"].pdf)
+    pdf = pdf_text(paths["actuator"].pdf)
     for result in report.actuators:
         repeatability = (f"{result.groover.repeatability_mm:.4f} ± "
                          f"{result.repeatability_u.expanded_uncertainty:.4f}")
@@ -251,7 +211,7 @@ def test_ladder_payload_error_and_compliance_recover_the_injected_sag(runs):
 def test_ladder_html_and_pdf_print_the_tables_and_the_deviations(runs):
     _, _, reports, paths, _ = runs
     report = reports["ladder"]
-    tables = _tables(paths["ladder"].html)
+    tables = html_tables(paths["ladder"].html)
     assert tables["ladder"][0][:3] == ["Load (kg)", "Lifts", "e_1 (mm)"] and len(tables["ladder"]) == 5
     assert tables["ladder"][4][2] == f"{report.leg_errors.loc[10.0, '1']:+.4f}"
     shift = {row[0]: row for row in tables["payload-shift"][1:]}
@@ -262,7 +222,7 @@ def test_ladder_html_and_pdf_print_the_tables_and_the_deviations(runs):
     assert deviations["ladder"][4] == "deviates" and deviations["reference runs"][4] == "deviates"
     assert "describe the rig's two simulated optical mice" in deviations["instrument"][3]
     assert tables["instrument"][1] == ["readings", "digital calliper, leg lengths entered by the operator (000 §8.7)"]
-    pdf = _pdf_text(paths["ladder"].pdf)
+    pdf = pdf_text(paths["ladder"].pdf)
     for text in ("Leg actuation error e_i(m)", shift["10"][2], f"{report.compliance.compliance_mm_per_n:+.3e}",
                  "Deviations from 000 §8.7 / iso9283.md §12", "bench analyze payload FILE.csv"):
         assert text in pdf, text
@@ -300,7 +260,7 @@ def test_grid_hit_rates_reproduce_appendix_d2(runs):
 
 def test_grid_hit_html_and_pdf_print_the_tables_and_the_decision(runs):
     _, _, reports, paths, _ = runs
-    tables = _tables(paths["grid"].html)
+    tables = html_tables(paths["grid"].html)
     heights = {row[0]: row for row in tables["hit-heights"][1:]}
     assert heights["140"][2] == "397 / 400" and heights["140"][3].startswith("99.25 % [")
     assert heights["200"][5] == "98.00 %"  # the thesis's own figure beside ours
@@ -309,7 +269,7 @@ def test_grid_hit_html_and_pdf_print_the_tables_and_the_decision(runs):
     deviations = {row[1]: row[4] for row in tables["deviations"][1:]}
     assert deviations == {"sensors": "conforms", "attempts": "conforms", "heights": "conforms", "approach": "conforms",
                           "hit": "conforms", "instrument": "conforms"}
-    pdf = _pdf_text(paths["grid"].pdf)
+    pdf = pdf_text(paths["grid"].pdf)
     for text in ("397 / 400", heights["140"][3], "Deviations from thesis §8.4.3", "grid_hit_rates"):
         assert text in pdf, text
 
@@ -321,7 +281,7 @@ def test_grid_hit_failing_the_specification(tmp_path):
         rows = {d.topic: d for d in report.deviations}
         assert rows["attempts"].status == rows["heights"].status == "deviates"
         paths = write_report(store, run_id, tmp_path / "out", ("html",))
-        decision = _tables(paths.html)["decision"]
+        decision = html_tables(paths.html)["decision"]
         assert decision[1][2:] == ["66.67 %", "fail"]
 
 
@@ -335,7 +295,7 @@ def test_raw_data_is_the_tidy_table_cited_with_its_sha256(runs, name):
     assert hashlib.sha256(csv.read_bytes()).hexdigest() in html
     kind = {"actuator": "actuator_travel", "ladder": "leg_length", "grid": "grid_hit"}[name]
     assert len(reports[name].table) == len(store.samples(ids[name], kind=kind)) == \
-        int(_tables(paths[name].html)["rawdata"][1][2])
+        int(html_tables(paths[name].html)["rawdata"][1][2])
     assert "Every number above can be recomputed from these files: bench" in html
 
 

@@ -1,7 +1,7 @@
 """``bench report RUN_ID``: the HTML and PDF report of a stored run (or ``--compare`` two runs side by side).
 
-Reads the run store only (no hardware). Pose runs get the ISO 9283 layout; ``actuator_accuracy``, ``payload_ladder``
-and ``lasergrid_hits`` runs their own (docs/reports.md). Writes ``report_run<ID>.html``/``.pdf`` and the raw data
+Reads the run store only (no hardware). Pose runs get the ISO 9283 layout; ``actuator_accuracy``, ``payload_ladder``,
+``lasergrid_hits``, ``delta_positioning`` and ``iso9283_stabilisation`` runs their own (docs/reports.md). Writes ``report_run<ID>.html``/``.pdf`` and the raw data
 ``run<ID>_samples.csv`` into ``--out`` and prints their paths on stdout, one per line.
 """
 
@@ -30,6 +30,11 @@ def register(groups: argparse._SubParsersAction) -> None:
     parser.add_argument("--operator", default="not recorded", help="operator named in the report")
     parser.add_argument("--laboratory", default="not recorded", help="laboratory named in the report")
     parser.add_argument("--k", type=float, default=2.0, help="coverage factor of the expanded uncertainties")
+    parser.add_argument("--band-mm", type=float, nargs="+", default=None, metavar="MM",
+                        help="stabilisation runs: limit bands (default: the ISO comparison bands 0.1 0.5 1)")
+    parser.add_argument("--hysteresis-mm", type=float, default=None, metavar="MM",
+                        help="stabilisation runs: band-edge hysteresis (default: one count of the run's instrument, "
+                             "25.4/cpi mm, from its calibration or settings; 0 without one)")
     parser.add_argument("--allow-unknown", action="store_true",
                         help="report even when the run lacks what a deviations row needs (row printed as unknown)")
     parser.set_defaults(handler=_report)
@@ -56,10 +61,13 @@ def _report(args: argparse.Namespace) -> int:
     if args.compare is not None:
         if criteria:
             raise ConfigError("--criterion: not used with --compare; report each run on its own for a decision")
+        if args.band_mm is not None or args.hysteresis_mm is not None:
+            raise ConfigError("--band-mm/--hysteresis-mm: not used with --compare; comparisons cover pose runs")
         paths = write_comparison(args.store, args.run_id, args.compare, args.out, formats, k=args.k)
     else:
         paths = write_report(args.store, args.run_id, args.out, formats, criteria=criteria, operator=args.operator,
-                             laboratory=args.laboratory, k=args.k, allow_unknown=args.allow_unknown)
+                             laboratory=args.laboratory, k=args.k, allow_unknown=args.allow_unknown,
+                             bands_mm=args.band_mm, hysteresis_mm=args.hysteresis_mm)
     for path in (paths.html, paths.pdf, *paths.csv):
         if path is not None:
             print(path)

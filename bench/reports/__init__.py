@@ -1,8 +1,10 @@
 """bench.reports: turn stored runs into reports a customer would accept (HTML, PDF, raw data, comparisons).
 
 The report reads the run store (never hardware) and takes every number from :mod:`bench.metrology`
-(:mod:`bench.reports.content` for pose runs; :mod:`~bench.reports.actuator`, :mod:`~bench.reports.ladder` and
-:mod:`~bench.reports.lasergrid` for the actuator, payload-ladder and laser-grid hit runs, see :data:`LAYOUTS`); :mod:`~bench.reports.deviations` lists every departure from ISO 9283 computed from
+(:mod:`bench.reports.content` for pose runs; :mod:`~bench.reports.actuator`, :mod:`~bench.reports.ladder`,
+:mod:`~bench.reports.lasergrid`, :mod:`~bench.reports.positioning` and :mod:`~bench.reports.stabilisation` for the
+actuator, payload-ladder, laser-grid hit, delta positioning and stabilisation runs, see :data:`LAYOUTS`);
+:mod:`~bench.reports.deviations` lists every departure from ISO 9283 (and the documents' methods) computed from
 the stored configuration; :mod:`~bench.reports.document` lays the report out once and :mod:`~bench.reports.html`
 and :mod:`~bench.reports.pdf` print that one layout. The raw data is written next to the report as CSV and cited
 with its SHA-256.
@@ -16,7 +18,7 @@ Examples
 from __future__ import annotations
 
 import hashlib
-from collections.abc import Iterable, Mapping
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -28,38 +30,88 @@ from bench.reports.deviations import Deviation, iso_deviations
 from bench.reports.document import Document, RawData, comparison_document, run_document
 from bench.reports.lasergrid import GridHitReport, collect_grid_hits, grid_hit_document
 from bench.reports.ladder import LadderReport, collect_ladder, ladder_document
+from bench.reports.positioning import (
+    GridPositioningReport,
+    collect_grid_positioning,
+    grid_positioning_document,
+    grid_readings,
+)
+from bench.reports.stabilisation import StabilisationReport, collect_stabilisation, stabilisation_document
 from bench.store import Store
 
-__all__ = ["CRITERIA", "FORMATS", "LAYOUTS", "ActuatorReport", "Deviation", "GridHitReport", "LadderReport",
-           "ReportBase", "ReportPaths", "RunReport", "collect", "iso_deviations", "write_comparison", "write_report"]
+__all__ = ["CRITERIA", "FORMATS", "LAYOUTS", "ActuatorReport", "Deviation", "GridHitReport", "GridPositioningReport",
+           "LadderReport", "Layout", "ReportBase", "ReportPaths", "RunReport", "StabilisationReport", "collect",
+           "iso_deviations", "own_layout", "write_comparison", "write_report"]
 
 #: Report formats, in the order they are written.
 FORMATS = ("html", "pdf")
-#: Protocols with a layout of their own: (collector, document); every other protocol gets the pose layout.
+
+
+@dataclass(frozen=True)
+class Layout:
+    """A protocol's own report: its collector, its document, the collector keywords only it takes, and (optional)
+    whether a run's samples are of the kind it lays out (else the run gets the pose layout)."""
+
+    collect: Callable[..., ReportBase]
+    document: Callable[..., Document]
+    options: tuple[str, ...] = ()
+    applies: Callable[[Store, int], bool] | None = None
+
+
+#: Protocols with a layout of their own; every other protocol gets the pose layout. A delta_positioning run read by
+#: another instrument than the laser grid (complete x, y, z, no screen flags) gets the pose layout too.
 LAYOUTS = {
-    "actuator_accuracy": (collect_actuator, actuator_document),
-    "payload_ladder": (collect_ladder, ladder_document),
-    "lasergrid_hits": (collect_grid_hits, grid_hit_document),
+    "actuator_accuracy": Layout(collect_actuator, actuator_document),
+    "payload_ladder": Layout(collect_ladder, ladder_document),
+    "lasergrid_hits": Layout(collect_grid_hits, grid_hit_document),
+    "delta_positioning": Layout(collect_grid_positioning, grid_positioning_document, applies=grid_readings),
+    "iso9283_stabilisation": Layout(collect_stabilisation, stabilisation_document, ("bands_mm", "hysteresis_mm")),
 }
 
 
+def own_layout(store: Store, run_id: int) -> Layout | None:
+    """The layout of run ``run_id`` when it has one of its own (:data:`LAYOUTS`), None for the pose layout."""
+    layout = LAYOUTS.get(store.run(run_id).protocol_name)
+    if layout is not None and layout.applies is not None and not layout.applies(store, run_id):
+        return None
+    return layout
+
+
+#: The command-line flag of each layout keyword, for error messages.
+_FLAGS = {"bands_mm": "--band-mm", "hysteresis_mm": "--hysteresis-mm"}
+
+
+def _layout_options(run_id: int, protocol: str, layout: Layout | None,
+                    options: Mapping[str, object]) -> dict[str, object]:
+    """The layout keywords given (not None), refusing those the run's layout does not take."""
+    given = {name: value for name, value in options.items() if value is not None}
+    for name in given:
+        if layout is None or name not in layout.options:
+            takes = [p for p, each in LAYOUTS.items() if name in each.options]
+            raise ConfigError(f"{_FLAGS[name]}: applies to {', '.join(takes)} runs; run {run_id} is a {protocol} run")
+    return given
+
+
 def collect(store: Store, run_id: int, *, criteria: Mapping[str, float] | None = None, k: float = 2.0,
-            resamples: int = 1000, allow_unknown: bool = False) -> ReportBase:
+            resamples: int = 1000, allow_unknown: bool = False, bands_mm: Sequence[float] | None = None,
+            hysteresis_mm: float | None = None) -> ReportBase:
     """Every fact and number of the report of run ``run_id``, laid out for its protocol (:data:`LAYOUTS`; pose
-    protocols: :func:`bench.reports.content.collect`). Project criteria apply to pose runs only."""
+    protocols: :func:`bench.reports.content.collect`). Project criteria apply to pose runs only; limit bands and
+    hysteresis to stabilisation runs only."""
     protocol = store.run(run_id).protocol_name
-    if protocol not in LAYOUTS:
+    layout = own_layout(store, run_id)
+    options = _layout_options(run_id, protocol, layout, {"bands_mm": bands_mm, "hysteresis_mm": hysteresis_mm})
+    if layout is None:
         return content.collect(store, run_id, criteria=criteria, k=k, resamples=resamples,
                                allow_unknown=allow_unknown)
     if criteria:
         raise ConfigError(f"--criterion {', '.join(criteria)}: project criteria ({', '.join(CRITERIA)}) apply to pose "
                           f"runs; run {run_id} is a {protocol} run")
-    return LAYOUTS[protocol][0](store, run_id, k=k, resamples=resamples, allow_unknown=allow_unknown)
+    return layout.collect(store, run_id, k=k, resamples=resamples, allow_unknown=allow_unknown, **options)
 
 
 def _document(report: ReportBase, raw: list[RawData], operator: str, laboratory: str) -> Document:
-    layout = LAYOUTS.get(report.run.protocol_name)
-    document = layout[1] if layout else run_document
+    document = run_document if isinstance(report, RunReport) else LAYOUTS[report.run.protocol_name].document
     return document(report, raw, operator=operator, laboratory=laboratory)
 
 
@@ -115,7 +167,8 @@ def _open(store: str | Path | Store) -> tuple[Store, bool]:
 
 def write_report(store: str | Path | Store, run_id: int, out_dir: str | Path, formats: Iterable[str] = FORMATS, *,
                  criteria: Mapping[str, float] | None = None, operator: str = "not recorded",
-                 laboratory: str = "not recorded", k: float = 2.0, allow_unknown: bool = False) -> ReportPaths:
+                 laboratory: str = "not recorded", k: float = 2.0, allow_unknown: bool = False,
+                 bands_mm: Sequence[float] | None = None, hysteresis_mm: float | None = None) -> ReportPaths:
     """Write the report of one run: ``report_run<ID>.html`` / ``.pdf`` and ``run<ID>_samples.csv`` in ``out_dir``.
 
     Parameters
@@ -135,11 +188,15 @@ def write_report(store: str | Path | Store, run_id: int, out_dir: str | Path, fo
     allow_unknown : bool
         Write the report even when a row of the deviations table is unknown (printed as "unknown"); by default
         such a run is refused (iso9283.md §11.2).
+    bands_mm, hysteresis_mm : optional
+        Stabilisation runs only: the limit bands (default 0.1, 0.5, 1.0 mm) and the hysteresis (default one count of
+        the run's instrument, 0 without one).
     """
     formats = _check_formats(formats)
     store, opened = _open(store)
     try:
-        report = collect(store, run_id, criteria=criteria, k=k, allow_unknown=allow_unknown)
+        report = collect(store, run_id, criteria=criteria, k=k, allow_unknown=allow_unknown, bands_mm=bands_mm,
+                         hysteresis_mm=hysteresis_mm)
     finally:
         if opened:
             store.close()
@@ -157,10 +214,9 @@ def write_comparison(store: str | Path | Store, first_run: int, second_run: int,
     store, opened = _open(store)
     try:
         for run_id in (first_run, second_run):
-            protocol = store.run(run_id).protocol_name
-            if protocol in LAYOUTS:
-                raise ConfigError(f"--compare: run {run_id} is a {protocol} run; comparisons cover pose runs, "
-                                  f"report it on its own")
+            if own_layout(store, run_id) is not None:
+                raise ConfigError(f"--compare: run {run_id} is a {store.run(run_id).protocol_name} run; comparisons "
+                                  f"cover pose runs, report it on its own")
         first, second = collect(store, first_run, k=k), collect(store, second_run, k=k)
     finally:
         if opened:

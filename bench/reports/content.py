@@ -58,9 +58,9 @@ from bench.metrology.tables import (
 from bench.reports.deviations import CLAUSES_APPLIED, Deviation, iso_deviations
 from bench.store import CalibrationRecord, RunRecord, Store, tidy_table
 
-__all__ = ["CRITERIA", "CalibrationFit", "Decision", "DistanceRow", "InstrumentInfo", "PayloadRow", "ReportBase",
-           "RunReport", "VapRow", "analysis_table", "calibration_fits", "collect", "provenance", "reading_instrument",
-           "reading_step_mm", "uncertainty_stated"]
+__all__ = ["CRITERIA", "MM_PER_INCH", "CalibrationFit", "Decision", "DistanceRow", "InstrumentInfo", "PayloadRow",
+           "ReportBase", "RunReport", "VapRow", "analysis_table", "calibration_fits", "collect", "counts_instrument",
+           "provenance", "reading_instrument", "reading_step_mm", "uncertainty_stated"]
 
 MM_PER_INCH = 25.4
 #: Acceptance criteria a caller may state, with the result each applies to (all "smaller is better").
@@ -253,8 +253,10 @@ def calibration_fits(store: Store, record: CalibrationRecord) -> tuple[Calibrati
     return tuple(fits)
 
 
-def _instrument(run: RunRecord, calibrations: tuple[CalibrationRecord, ...], dims: int,
-                fits: tuple[CalibrationFit, ...] = ()) -> InstrumentInfo:
+def counts_instrument(run: RunRecord, calibrations: tuple[CalibrationRecord, ...], dims: int,
+                      fits: tuple[CalibrationFit, ...] = ()) -> InstrumentInfo:
+    """A counts instrument (the mice) as stored with the run: u per axis from ``settings.instrument.u_mm``, else
+    from its resolution 25.4/cpi (δ/√6) and ``noise_counts``; the RP floor in ``dims`` dimensions (none for 0)."""
     settings = dict(run.settings.get("instrument") or {})
     budget: list[tuple[str, float, str]] = []
     if "u_mm" in settings:
@@ -363,7 +365,7 @@ def collect(store: Store, run_id: int, *, criteria: Mapping[str, float] | None =
     measured = tuple(c for c in (*_POSITION, *(a for _, a in ANGLE_PAIRS)) if c in table.columns)
     calibrations = tuple(store.calibration_by_id(i) for i in run.calibration_ids)
     fits = tuple(fit for record in calibrations for fit in calibration_fits(store, record))
-    instrument = _instrument(run, calibrations, sum(c in table.columns for c in _POSITION), fits)
+    instrument = counts_instrument(run, calibrations, sum(c in table.columns for c in _POSITION), fits)
     poses = tuple(analyze_poses(table, instrument_u_mm=instrument.sigma_mm or 0.0, k=k, resamples=resamples))
     protocol = run.protocol_name
     cycles = int(table.groupby(["pose", *[c for c in ("velocity_pct", "load_kg") if c in table.columns]])

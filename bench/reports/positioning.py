@@ -1,0 +1,253 @@
+"""The report of a ``delta_positioning`` run: the delta thesis's positioning test (§8.4.2) read by the laser grid,
+whose readings are partial (docs/campaigns.md, "Delta robot positioning read by the laser grid").
+
+Every figure comes from :mod:`bench.metrology.partial_pose` on the run's tidy ``pose`` table (the raw-data CSV),
+the same calls ``bench analyze grid-positioning FILE.csv`` makes: ``grid_positioning_table`` (checks that every
+stored axis comes from a valid screen), ``analyze_grid_positioning`` (per pose: each screen's valid and lit rates
+with their Wilson interval at z = 2, per-axis n, AP, 3 S, max |e|, mean |e| over the readings that measured the
+axis, spatial AP and RP over the complete readings) and ``pooled_axis_errors`` (the thesis's summary over every
+pose). A missing axis is
+never filled: an axis without a reading prints "no reading", a statistic with too few readings "—".
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+import pandas as pd
+
+from bench.errors import ConfigError
+from bench.metrology.partial_pose import (
+    AXIS_NAMES,
+    AxisErrors,
+    DetectionRate,
+    GridPoseResult,
+    analyze_grid_positioning,
+    grid_positioning_table,
+    pooled_axis_errors,
+)
+from bench.reports.content import InstrumentInfo, ReportBase, provenance
+from bench.reports.deviations import grid_positioning_deviations
+from bench.reports.document import (
+    Block,
+    Document,
+    Paragraph,
+    RawData,
+    Table,
+    assemble,
+    conditions_section,
+    decision_blocks,
+    fmt_mm,
+)
+from bench.reports.plots import Plot, panels
+from bench.store import Store, tidy_table
+
+__all__ = ["NO_READING", "WILSON_Z", "GridPositioningReport", "axis_cells", "collect_grid_positioning", "csv_cells",
+           "grid_positioning_document", "grid_positioning_plot", "grid_readings", "recompute_grid_positioning"]
+
+#: What an axis (or a screen rate) with no reading prints: never 0.
+NO_READING = "no reading"
+#: The Wilson interval's z: bench analyze grid-positioning's (k = 2, about 95 %).
+WILSON_Z = 2.0
+SCREENS = ("horizontal", "vertical")
+SCOPE = ("Tested following the positioning test of the delta thesis (§8.4.2) with the laser grid as the instrument, "
+         "and reporting ISO 9283-style AP and RP over the complete readings, with the deviations listed in the "
+         "deviations table. Every figure is conditional on the grid detecting the pose. This is not an ISO 9283 "
+         "certification.")
+NO_CRITERION = "no acceptance criterion stated: no pass/fail statement (the thesis and ISO 9283 set none)"
+CONDITIONAL = ("Reading the figures: they are conditional on detection. The grid measures an axis only when a laser "
+               "spot falls within the detection window r of a sensor (a 2.5 mm lattice; with r = 1 mm about half of "
+               "all positions are blind), so the readings of a pose are not a random sample of its scatter, and "
+               "each carries ±r. Which poses the grid sees at all depends on where the screens are placed: with the "
+               "default placement (the legacy GUI drawing) the thesis's poses sit between four sensors of both "
+               "screens, so the placement must come from the software calibration (delta4-lasergrid.md §6.5) before "
+               "the rates mean anything on the rig (docs/campaigns.md, docs/sensors.md).")
+
+
+@dataclass(frozen=True, kw_only=True)
+class GridPositioningReport(ReportBase):
+    """Everything the report of a delta_positioning run prints."""
+
+    poses: tuple[GridPoseResult, ...]
+    pooled: tuple[AxisErrors, ...]  #: x, y, z over every pose (the thesis's summary)
+    store_path: str  #: for the exact bench export command
+
+
+def _check_k(k: float, protocol: str) -> None:
+    if k != WILSON_Z:
+        raise ConfigError(f"--k {k:g}: a {protocol} report has no expanded uncertainty, and its Wilson intervals use "
+                          f"z = {WILSON_Z:g} as bench analyze grid-positioning does; expected --k {WILSON_Z:g}")
+
+
+def _grid_instrument(run, calibrations) -> InstrumentInfo:
+    """The laser grid: a reading lies within ±r of the true position (rectangular, u = r/√3 per axis)."""
+    settings = dict(run.settings.get("instrument") or {})
+    window = (settings.get("decoder") or {}).get("spot_half_width_mm")
+    budget = () if window is None else ((
+        "detection window ±r (a reading is the lattice point within r of the true position)",
+        float(window) / math.sqrt(3.0), f"settings.instrument.decoder.spot_half_width_mm = {window:g} mm, "
+                                        "rectangular"),)
+    return InstrumentInfo(settings, budget[0][1] if budget else None, budget, 0, None, calibrations)
+
+
+def _notes(poses: tuple[GridPoseResult, ...]) -> tuple[str, ...]:
+    notes = []
+    for p in poses:
+        unread = [name for name, axis in zip(AXIS_NAMES, p.statistics.axes) if axis.n == 0]
+        if unread:
+            notes.append(f"{p.pose}: {', '.join(unread)} {'was' if len(unread) == 1 else 'were'} never measured in "
+                         f"{p.statistics.n_readings} readings (no screen decoded it): reported as {NO_READING}")
+    return tuple(notes)
+
+
+def grid_readings(store: Store, run_id: int) -> bool:
+    """Whether the run's pose samples are laser-grid readings (they carry the screens' valid flags)."""
+    return any("horizontal_valid" in sample.values for sample in store.samples(run_id, kind="pose"))
+
+
+def csv_cells(table: pd.DataFrame) -> pd.DataFrame:
+    """The tidy table as :func:`bench.metrology.tables.read_table_csv` reads its CSV back: every cell a string at
+    full precision, "" where the sample stored no value (an axis not measured). The grid table's checks
+    (:func:`~bench.metrology.partial_pose.grid_positioning_table`) take the CLI's strings, so the report gives them
+    the same."""
+    cells = table.astype(object).where(table.notna(), "").astype(str)
+    cells.attrs = dict(table.attrs)
+    return cells
+
+
+def collect_grid_positioning(store: Store, run_id: int, *, k: float = 2.0, resamples: int = 1000,
+                             allow_unknown: bool = False) -> GridPositioningReport:
+    """Gather the facts and figures of the report of ``delta_positioning`` run ``run_id`` (``resamples`` unused;
+    ``k`` must be 2: the Wilson intervals are bench analyze grid-positioning's)."""
+    run = store.run(run_id)
+    _check_k(k, run.protocol_name)
+    table = tidy_table(store, run_id, kind="pose")
+    table.attrs["source"] = f"run {run_id}"
+    analysed = grid_positioning_table(csv_cells(table))
+    poses = tuple(analyze_grid_positioning(analysed))
+    calibrations = tuple(store.calibration_by_id(i) for i in run.calibration_ids)
+    deviations = grid_positioning_deviations(config=run.config, settings=run.settings, poses=poses,
+                                             allow_unknown=allow_unknown)
+    base = provenance(run, calibrations)
+    return GridPositioningReport(
+        **{**base, "notes": base["notes"] + _notes(poses)},
+        title=run.config.get("title") or "Delta robot positioning read by the laser grid (thesis §8.4.2)",
+        reference="thesis §8.4.2 / ISO 9283",
+        clauses=("delta thesis §8.4.2: per-axis error, max |e| and mean |e| at three poses",
+                 "ISO 9283 7.2.1 AP and 7.2.2 RP, over the complete readings only"),
+        deviations=tuple(deviations), instrument=_grid_instrument(run, calibrations), table=table,
+        coverage_factor=k, poses=poses, pooled=pooled_axis_errors(analysed), store_path=store.path)
+
+
+def _rate(rate: DetectionRate) -> str:
+    if rate.n == 0:
+        return NO_READING
+    return f"{rate.k} / {rate.n}, {100 * rate.rate:.1f} % [{100 * rate.low:.1f}, {100 * rate.high:.1f}]"
+
+
+def _value(value: float | None, *, signed: bool = False, missing: str = "—") -> str:
+    if value is None:
+        return missing
+    return f"{value:+.4f}" if signed else fmt_mm(value)
+
+
+def axis_cells(axis: AxisErrors) -> tuple[str, ...]:
+    """n, AP, 3 S, max |e|, mean |e| of one axis: "no reading" for n = 0, "—" where there are too few readings."""
+    if axis.n == 0:
+        return (NO_READING, "—", "—", "—", "—")
+    return (str(axis.n), _value(axis.ap_mm, signed=True), _value(axis.spread_3s_mm, missing="— (n = 1)"),
+            _value(axis.max_abs_error_mm), _value(axis.mean_abs_error_mm))
+
+
+def _results(report: GridPositioningReport) -> tuple[Block, ...]:
+    z = f"{WILSON_Z:g}"
+    screens = tuple((p.pose, ", ".join(f"{v:g}" for v in p.commanded_mm), str(p.statistics.n_readings),
+                     *(_rate(getattr(p, kind)[screen]) for screen in SCREENS for kind in ("valid", "lit")))
+                    for p in report.poses)
+    axes = tuple((p.pose, name, f"{command:g}", *axis_cells(axis))
+                 for p in report.poses for name, command, axis in zip(AXIS_NAMES, p.commanded_mm, p.statistics.axes))
+    spatial = tuple((p.pose, f"{p.statistics.n_complete} / {p.statistics.n_readings}",
+                     _value(p.statistics.ap_mm, missing="— (no complete reading)"),
+                     _value(p.statistics.rp_mm, missing="— (fewer than 2 complete readings)"))
+                    for p in report.poses)
+    pooled = tuple((name, *axis_cells(axis)) for name, axis in zip(AXIS_NAMES, report.pooled))
+    axis_header = ("n", "AP = x̄ − x_c (mm)", "3 S (mm)", "max |e| (mm)", "mean |e| (mm)")
+    return (
+        Table("grid-screens", ("Pose", "Command x, y, z (mm)", "Readings", "Horizontal valid", "Horizontal lit",
+                               "Vertical valid", "Vertical lit"), screens,
+              f"Per pose and screen: valid = the screen decoded (its axes stored), lit = some sensor reported; k / n, "
+              f"rate [Wilson score interval, z = {z}]"),
+        Table("grid-axes", ("Pose", "Axis", "Command (mm)", *axis_header), axes,
+              f"Per pose and axis, over the readings that measured the axis (n; {NO_READING}: no screen measured "
+              "it); AP signed, 3 S the per-axis spread (not an ISO RP), max |e| and mean |e| the thesis's figures"),
+        Table("grid-spatial", ("Pose", "Complete readings", "AP_P (mm)", "RP_l (mm)"), spatial,
+              "ISO 9283 7.2.1/7.2.2 AP_P and RP_l over the complete readings only (all three axes in one reading)"),
+        Table("grid-pooled", ("Axis", *axis_header), pooled,
+              "Every pose together (the thesis's summary, §8.4.2): the errors x_j − x_c of all stored readings"),
+        Paragraph(CONDITIONAL),
+    )
+
+
+def grid_positioning_plot(report: GridPositioningReport) -> Plot:
+    """Left: each screen's valid rate per pose with its Wilson interval (lit rate beside it). Right: every stored
+    reading minus its command, per pose and axis; an axis without a reading is marked."""
+    figure, (rates, errors) = panels(2, max_columns=2, size=(5.0, 3.4))
+    position = np.arange(len(report.poses))
+    for offset, screen, colour in ((-0.15, "horizontal", "tab:blue"), (0.15, "vertical", "tab:orange")):
+        valid = [p.valid[screen] for p in report.poses]
+        rates.errorbar(position + offset, [r.rate for r in valid], fmt="o", color=colour, capsize=3,
+                       yerr=[[r.rate - r.low for r in valid], [r.high - r.rate for r in valid]],
+                       label=f"{screen} valid")
+        rates.scatter(position + offset, [p.lit[screen].rate for p in report.poses], marker="_", s=120,
+                      color=colour, label=f"{screen} lit")
+    rates.set_xticks(position, [p.pose for p in report.poses])
+    rates.set_ylim(-0.05, 1.05)
+    rates.set_ylabel("rate (of the readings)")
+    rates.legend(fontsize=6)
+    table = report.table
+    slots = [(p, k) for p in report.poses for k in range(3)]
+    for slot, (p, k) in enumerate(slots):
+        column = f"{AXIS_NAMES[k]}_mm"
+        rows = table[table["pose"] == p.pose]
+        values = (rows[column].dropna() - p.commanded_mm[k]).to_numpy() if column in rows else np.array([])
+        colour = ("tab:red", "tab:green", "tab:purple")[k]
+        if len(values):
+            errors.scatter(np.full(len(values), slot), values, s=12, color=colour, alpha=0.7)
+        else:
+            errors.annotate(NO_READING, (slot, 0.0), rotation=90, fontsize=6, ha="center", va="center",
+                            color="0.4")
+    errors.axhline(0.0, color="0.6", lw=0.8)
+    errors.set_xticks(range(len(slots)), [f"{p.pose} {AXIS_NAMES[k]}" for p, k in slots], rotation=90, fontsize=6)
+    errors.set_ylabel("reading − command (mm)")
+    return Plot(f"Per pose: each screen's valid rate with its Wilson interval (z = {WILSON_Z:g}) and its lit rate "
+                f"(bars); every stored reading minus its command per axis ({NO_READING}: no screen measured that "
+                "axis at that pose).", figure)
+
+
+def recompute_grid_positioning(report: GridPositioningReport) -> str:
+    """The commands that give every figure again from the store or the raw-data CSV."""
+    run_id = report.run.id
+    return (f"bench export {run_id} --kind pose --store {report.store_path} --out run{run_id}.csv, then bench analyze "
+            f"grid-positioning run{run_id}.csv --json (or on the raw-data file below, the same rows at full "
+            "precision)")
+
+
+def grid_positioning_document(report: GridPositioningReport, raw: list[RawData], *, operator: str = "not recorded",
+                              laboratory: str = "not recorded") -> Document:
+    config = report.run.config
+    method = (f"Delta thesis §8.4.2: {config.get('cycles', '—')} readings at each pose, unidirectional order, read "
+              "by the laser grid. Each capture decodes both screens against the commanded position (the only prior); "
+              "a screen that decodes measures its two axes (horizontal x, y; vertical y, z), one that does not "
+              "(no hit, ambiguous, fault) measures nothing and its axes are absent, never filled. Per axis, over the "
+              "readings that measured it: n, AP = x̄ − x_c (ISO 9283 7.2.1 on one axis), 3 S with S the sample "
+              "standard deviation (n − 1), and the thesis's max |x_j − x_c| and mean |x_j − x_c|; AP_P and RP_l "
+              "(ISO 9283 7.2.1/7.2.2) over the readings with all three axes. Rates k / n with the Wilson score "
+              f"interval at z = {WILSON_Z:g}.")
+    return assemble(
+        report, raw, operator=operator, laboratory=laboratory, method=method, scope=SCOPE,
+        conditions=conditions_section(report, ("poses", "cycles", "settle_s", "warmup_s", "ambient_c"),
+                                      (("time base", str(report.run.settings.get("time_base", "not stated"))),)),
+        results=_results(report), plots=[grid_positioning_plot(report)], decision=decision_blocks(NO_CRITERION),
+        recompute=recompute_grid_positioning(report))
