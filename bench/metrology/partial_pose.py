@@ -187,7 +187,7 @@ def grid_positioning_table(frame):
         if text is None:
             table[column] = np.nan
             continue
-        missing = text.str.lower().isin(["", "nan"])
+        missing = frame[column].isna() | text.str.lower().isin(["", "nan", "none"])  # pandas 3 keeps NaN
         table[column] = np.nan
         table.loc[~missing, column] = numeric_columns(frame[~missing], [column])[column]
     for column, screens in _AXIS_SCREENS.items():
