@@ -184,3 +184,17 @@ def test_more_hysteresis_never_lengthens_stabilisation_or_raises_overshoot(dista
     assert tolerant.overshoot_mm <= plain.overshoot_mm
     assert tolerant.first_entry_s == plain.first_entry_s
     assert plain.overshoot_mm == 0.0 or plain.overshoot_mm > band
+
+
+def test_analyze_stabilisation_keeps_velocities_apart(tmp_path, capsys):
+    rows = ["pose,cycle,velocity_pct,t_s,x_mm,y_mm,z_mm"]
+    for velocity, peak in ((100, 0.3), (10, 0.05)):  # the fast arrival overshoots the 0.1 mm band, the slow one not
+        for t, d in ((-0.1, 1.0), (0.0, 0.0), (0.1, peak), (0.2, 0.0), (0.3, 0.0)):
+            rows.append(f"P1,1,{velocity},{t},{d},0,0")
+    table = tmp_path / "two_speeds.csv"
+    table.write_text("\n".join(rows) + "\n")
+    assert main(["analyze", "stabilisation", str(table), "--band-mm", "0.1", "--json"]) == 0
+    per_pose = json.loads(capsys.readouterr().out)["bands"]["0.1"]
+    assert per_pose["P1 (velocity_pct=100)"]["overshoot_mm"] == pytest.approx(0.3)
+    assert per_pose["P1 (velocity_pct=100)"]["mean_time_s"] == pytest.approx(0.2)
+    assert per_pose["P1 (velocity_pct=10)"]["overshoot_mm"] == 0.0

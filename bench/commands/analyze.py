@@ -26,6 +26,7 @@ from bench.metrology import (
 from bench.metrology.actuator_tables import actuator_table, analyze_actuators
 from bench.metrology.tables import (
     analyze_distance,
+    condition_groups,
     analyze_poses,
     numeric_columns,
     pose_result_json,
@@ -166,11 +167,12 @@ def _stabilisation(args: argparse.Namespace) -> int:
     for band in args.band_mm:
         if not band > 0:
             raise ConfigError(f"--band-mm {band:g}: expected limit bands > 0 mm")
-    by_pose = {pose: [(rows["t_s"].to_numpy(float), rows[["x_mm", "y_mm", "z_mm"]].to_numpy(float))
-                      for _, rows in group.groupby("cycle", sort=True)]
-               for pose, group in table.groupby(table["pose"].astype(str), sort=False)}
+    by_pose = {label: [(rows["t_s"].to_numpy(float), rows[["x_mm", "y_mm", "z_mm"]].to_numpy(float))
+                       for _, rows in group.groupby("cycle", sort=True)]
+               for label, _, _, group in condition_groups(table)}
     result: dict = {"hysteresis_mm": args.hysteresis_mm, "bands": {}}
-    lines = [f"{'band_mm':>7}  {'pose':<6} {'n':>2} {'mean_t_s':>8} {'max_t_s':>8} {'OV_mm':>7} {'max_OV_mm':>9}"]
+    width = max([6, *(len(label) for label in by_pose)])
+    lines = [f"{'band_mm':>7}  {'pose':<{width}} {'n':>2} {'mean_t_s':>8} {'max_t_s':>8} {'OV_mm':>7} {'max_OV_mm':>9}"]
     for band in args.band_mm:
         per_pose = result["bands"][f"{band:g}"] = {}
         for pose, series in by_pose.items():
@@ -178,13 +180,13 @@ def _stabilisation(args: argparse.Namespace) -> int:
                 r = pose_stabilisation(series, band_mm=band, hysteresis_mm=args.hysteresis_mm)
             except InsufficientData as exc:
                 per_pose[pose] = {"n": len(series), "error": str(exc)}
-                lines.append(f"{band:>7g}  {pose:<6} {len(series):>2} {exc}")
+                lines.append(f"{band:>7g}  {pose:<{width}} {len(series):>2} {exc}")
                 continue
             per_pose[pose] = {"n": len(series), "mean_time_s": r.mean_time_s, "max_time_s": r.max_time_s,
                               "overshoot_mm": r.mean_overshoot_mm, "max_overshoot_mm": r.max_overshoot_mm,
                               "time_s_per_cycle": [c.stabilisation_time_s for c in r.cycles],
                               "overshoot_mm_per_cycle": [c.overshoot_mm for c in r.cycles]}
-            lines.append(f"{band:>7g}  {pose:<6} {len(series):>2} {r.mean_time_s:>8.3f} {r.max_time_s:>8.3f} "
+            lines.append(f"{band:>7g}  {pose:<{width}} {len(series):>2} {r.mean_time_s:>8.3f} {r.max_time_s:>8.3f} "
                          f"{r.mean_overshoot_mm:>7.4f} {r.max_overshoot_mm:>9.4f}")
     emit(result, args.json, lines)
     return 0

@@ -44,6 +44,7 @@ __all__ = [
     "PoseResult",
     "analyze_distance",
     "analyze_poses",
+    "condition_groups",
     "numeric_columns",
     "pose_result_json",
     "pose_table",
@@ -146,9 +147,18 @@ def pose_table(frame: pd.DataFrame) -> pd.DataFrame:
     return table
 
 
-def _group_keys(table: pd.DataFrame) -> list[str]:
-    varying = [c for c in CONDITION_COLUMNS if c in table.columns and table[c].nunique() > 1]
-    return ["pose", *varying]
+def condition_groups(table: pd.DataFrame):
+    """Yield ``(label, pose, conditions, rows)`` per pose and set of test conditions, in order of appearance.
+
+    The table is split by the condition columns (velocity, load) only where they vary within it; ``label`` is the
+    pose, followed by those conditions (``P1 (velocity_pct=50, load_kg=2)``).
+    """
+    keys = ["pose", *(c for c in CONDITION_COLUMNS if c in table.columns and table[c].nunique() > 1)]
+    for key, rows in table.groupby([table["pose"].astype(str), *(table[c] for c in keys[1:])], sort=False):
+        key = key if isinstance(key, tuple) else (key,)
+        pose, conditions = str(key[0]), tuple((name, float(v)) for name, v in zip(keys[1:], key[1:]))
+        label = pose if not conditions else f"{pose} ({', '.join(f'{n}={v:g}' for n, v in conditions)})"
+        yield label, pose, conditions, rows
 
 
 def _check_constant_command(group: pd.DataFrame, columns: Sequence[str], source: str) -> None:
@@ -210,18 +220,14 @@ def analyze_poses(
     """
     source = table.attrs.get("source", "table")
     angles = [(cmd, att) for cmd, att in ANGLE_PAIRS if cmd in table.columns]
-    keys = _group_keys(table)
     results = []
-    for key, group in table.groupby(keys, sort=False):
-        key = key if isinstance(key, tuple) else (key,)
-        pose, conditions = str(key[0]), tuple((name, float(v)) for name, v in zip(keys[1:], key[1:]))
+    for label, pose, conditions, group in condition_groups(table):
         _check_constant_command(group, [*_COMMAND, *(cmd for cmd, _ in angles)], source)
         _check_single_frame(group, source)
         _check_unique_cycles(group, source)
         group = group.sort_values("cycle", kind="stable")
         attained = group[list(_ATTAINED)].to_numpy()
         command = group[list(_COMMAND)].to_numpy()[0]
-        label = pose if not conditions else f"{pose} ({', '.join(f'{n}={v:g}' for n, v in conditions)})"
         try:
             repeatability = pose_repeatability(attained)
         except InsufficientData as exc:
