@@ -14,7 +14,14 @@ from dataclasses import dataclass
 import numpy as np
 
 from bench.metrology.actuator_tables import ActuatorResult, actuator_table, analyze_actuators
-from bench.reports.content import ReportBase, provenance, reading_instrument, uncertainty_stated
+from bench.reports.content import (
+    ReportBase,
+    calibrations_in_force,
+    provenance,
+    reading_instrument,
+    run_table,
+    uncertainty_stated,
+)
 from bench.reports.deviations import actuator_deviations
 from bench.reports.document import (
     Block,
@@ -29,7 +36,7 @@ from bench.reports.document import (
     fmt_pm,
 )
 from bench.reports.plots import Plot, panels
-from bench.store import Store, tidy_table
+from bench.store import Store
 
 __all__ = ["ActuatorReport", "actuator_document", "actuator_plot", "collect_actuator", "recompute_actuator"]
 
@@ -53,9 +60,8 @@ def collect_actuator(store: Store, run_id: int, *, k: float = 2.0, resamples: in
     from motion import pkm5
 
     run = store.run(run_id)
-    table = tidy_table(store, run_id, kind="actuator_travel")
-    table.attrs["source"] = f"run {run_id}"
-    calibrations = tuple(store.calibration_by_id(i) for i in run.calibration_ids)
+    table = run_table(store, run_id, "actuator_travel")
+    calibrations = calibrations_in_force(store, run)
     instrument = reading_instrument(run, calibrations, table["travel_mm"], difference=True)
     results = analyze_actuators(actuator_table(table), control_resolution_mm=tuple(pkm5.DEFAULT_GEOMETRY.mm_per_step),
                                 instrument_u_mm=instrument.sigma_mm or 0.0, k=k, resamples=resamples)

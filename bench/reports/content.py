@@ -56,11 +56,12 @@ from bench.metrology.tables import (
     pose_table,
 )
 from bench.reports.deviations import CLAUSES_APPLIED, Deviation, iso_deviations
-from bench.store import CalibrationRecord, RunRecord, Store, tidy_table
+from bench.store import CalibrationRecord, RunRecord, Store, series_table, tidy_table
 
 __all__ = ["CRITERIA", "MM_PER_INCH", "CalibrationFit", "Decision", "DistanceRow", "InstrumentInfo", "PayloadRow",
-           "ReportBase", "RunReport", "VapRow", "analysis_table", "calibration_fits", "collect", "counts_instrument",
-           "provenance", "reading_instrument", "reading_step_mm", "uncertainty_stated"]
+           "ReportBase", "RunReport", "VapRow", "analysis_table", "calibration_fits", "calibrations_in_force",
+           "collect", "counts_instrument", "provenance", "reading_instrument", "reading_step_mm", "run_table",
+           "uncertainty_stated"]
 
 MM_PER_INCH = 25.4
 #: Acceptance criteria a caller may state, with the result each applies to (all "smaller is better").
@@ -160,6 +161,19 @@ class RunReport(ReportBase):
 
 def _sha256_json(value: Any) -> str:
     return hashlib.sha256(json.dumps(value, sort_keys=True, separators=(",", ":")).encode()).hexdigest()
+
+
+def run_table(store: Store, run_id: int, kind: str, *, series: bool = False) -> pd.DataFrame:
+    """The stored samples of ``kind`` of run ``run_id`` as a report analyses them: the tidy table (``series``: the
+    table of their streamed series), its source named ``run <id>`` so that analysis messages name the run."""
+    table = series_table(store, run_id, kind=kind) if series else tidy_table(store, run_id, kind=kind)
+    table.attrs["source"] = f"run {run_id}"
+    return table
+
+
+def calibrations_in_force(store: Store, run: RunRecord) -> tuple[CalibrationRecord, ...]:
+    """The stored calibration records the run was taken with, in the order the run lists them."""
+    return tuple(store.calibration_by_id(i) for i in run.calibration_ids)
 
 
 def provenance(run: RunRecord, calibrations: tuple[CalibrationRecord, ...]) -> dict[str, Any]:
@@ -363,7 +377,7 @@ def collect(store: Store, run_id: int, *, criteria: Mapping[str, float] | None =
     run = store.run(run_id)
     table = analysis_table(store, run_id)
     measured = tuple(c for c in (*_POSITION, *(a for _, a in ANGLE_PAIRS)) if c in table.columns)
-    calibrations = tuple(store.calibration_by_id(i) for i in run.calibration_ids)
+    calibrations = calibrations_in_force(store, run)
     fits = tuple(fit for record in calibrations for fit in calibration_fits(store, record))
     instrument = counts_instrument(run, calibrations, sum(c in table.columns for c in _POSITION), fits)
     poses = tuple(analyze_poses(table, instrument_u_mm=instrument.sigma_mm or 0.0, k=k, resamples=resamples))

@@ -35,7 +35,7 @@ from bench.metrology import (
     payload_shift,
 )
 from bench.metrology.tables import numeric_columns
-from bench.reports.content import ReportBase, provenance, reading_instrument
+from bench.reports.content import ReportBase, calibrations_in_force, provenance, reading_instrument, run_table
 from bench.reports.deviations import ladder_deviations
 from bench.reports.document import (
     Block,
@@ -49,7 +49,7 @@ from bench.reports.document import (
     fmt_mm,
 )
 from bench.reports.plots import Plot, payload_caption, payload_shift_figure
-from bench.store import Store, tidy_table
+from bench.store import Store
 
 __all__ = ["FK_RESIDUAL_LIMIT_MM", "LadderReport", "LiftPose", "collect_ladder", "leg_error_table", "ladder_document",
            "ladder_plots", "lift_poses"]
@@ -155,9 +155,8 @@ def collect_ladder(store: Store, run_id: int, *, k: float = 2.0, resamples: int 
                    allow_unknown: bool = False) -> LadderReport:
     """Gather the facts and figures of the report of ``payload_ladder`` run ``run_id`` (``resamples`` unused)."""
     run = store.run(run_id)
-    table = tidy_table(store, run_id, kind="leg_length")
-    table.attrs["source"] = f"run {run_id}"
-    calibrations = tuple(store.calibration_by_id(i) for i in run.calibration_ids)
+    table = run_table(store, run_id, "leg_length")
+    calibrations = calibrations_in_force(store, run)
     instrument = reading_instrument(run, calibrations, table["length_mm"], difference=False, reader=READER)
     errors = leg_error_table(table)
     incomplete = tuple(f"load {load:g} kg: {int(row.isna().sum())} leg(s) not read, left out of e_i(m)"

@@ -13,7 +13,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from bench.metrology.hit_rate import GridHits, HitRate, grid_hit_rates
-from bench.reports.content import InstrumentInfo, ReportBase, provenance
+from bench.reports.content import InstrumentInfo, ReportBase, calibrations_in_force, provenance, run_table
 from bench.reports.deviations import grid_hit_deviations
 from bench.reports.document import (
     Block,
@@ -25,7 +25,7 @@ from bench.reports.document import (
     decision_blocks,
 )
 from bench.reports.plots import Plot, panels
-from bench.store import Store, tidy_table
+from bench.store import Store
 
 __all__ = ["SPECIFICATION", "THESIS_RATES", "GridHitReport", "collect_grid_hits", "grid_hit_document", "grid_hit_plot"]
 
@@ -48,9 +48,8 @@ def collect_grid_hits(store: Store, run_id: int, *, k: float = 2.0, resamples: i
                       allow_unknown: bool = False) -> GridHitReport:
     """Gather the facts and rates of the report of ``lasergrid_hits`` run ``run_id`` (``resamples`` unused)."""
     run = store.run(run_id)
-    table = tidy_table(store, run_id, kind="grid_hit")
-    table.attrs["source"] = f"run {run_id}"
-    calibrations = tuple(store.calibration_by_id(i) for i in run.calibration_ids)
+    table = run_table(store, run_id, "grid_hit")
+    calibrations = calibrations_in_force(store, run)
     hits = grid_hit_rates(table, k=k)
     deviations = grid_hit_deviations(config=run.config, settings=run.settings,
                                      attempts_measured=min(s.expected.n for s in hits.sensors),

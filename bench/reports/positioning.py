@@ -28,7 +28,7 @@ from bench.metrology.partial_pose import (
     grid_positioning_table,
     pooled_axis_errors,
 )
-from bench.reports.content import InstrumentInfo, ReportBase, provenance
+from bench.reports.content import InstrumentInfo, ReportBase, calibrations_in_force, provenance, run_table
 from bench.reports.deviations import grid_positioning_deviations
 from bench.reports.document import (
     Block,
@@ -42,7 +42,7 @@ from bench.reports.document import (
     fmt_mm,
 )
 from bench.reports.plots import Plot, panels
-from bench.store import Store, tidy_table
+from bench.store import Store
 
 __all__ = ["NO_READING", "WILSON_Z", "GridPositioningReport", "axis_cells", "collect_grid_positioning", "csv_cells",
            "grid_positioning_document", "grid_positioning_plot", "grid_readings", "recompute_grid_positioning"]
@@ -123,11 +123,10 @@ def collect_grid_positioning(store: Store, run_id: int, *, k: float = 2.0, resam
     ``k`` must be 2: the Wilson intervals are bench analyze grid-positioning's)."""
     run = store.run(run_id)
     _check_k(k, run.protocol_name)
-    table = tidy_table(store, run_id, kind="pose")
-    table.attrs["source"] = f"run {run_id}"
+    table = run_table(store, run_id, "pose")
     analysed = grid_positioning_table(csv_cells(table))
     poses = tuple(analyze_grid_positioning(analysed))
-    calibrations = tuple(store.calibration_by_id(i) for i in run.calibration_ids)
+    calibrations = calibrations_in_force(store, run)
     deviations = grid_positioning_deviations(config=run.config, settings=run.settings, poses=poses,
                                              allow_unknown=allow_unknown)
     base = provenance(run, calibrations)

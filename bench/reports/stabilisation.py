@@ -23,7 +23,14 @@ import pandas as pd
 
 from bench.errors import ConfigError, InsufficientData
 from bench.metrology import PoseStabilisation, pose_stabilisation
-from bench.reports.content import MM_PER_INCH, ReportBase, counts_instrument, provenance
+from bench.reports.content import (
+    MM_PER_INCH,
+    ReportBase,
+    calibrations_in_force,
+    counts_instrument,
+    provenance,
+    run_table,
+)
 from bench.reports.deviations import ISO_BANDS_MM, stabilisation_deviations
 from bench.reports.document import (
     Block,
@@ -36,7 +43,7 @@ from bench.reports.document import (
     decision_blocks,
 )
 from bench.reports.plots import Plot, panels
-from bench.store import CalibrationRecord, RunRecord, Store, series_table
+from bench.store import CalibrationRecord, RunRecord, Store
 
 __all__ = ["POSITION", "Arrival", "BandResult", "StabilisationReport", "collect_stabilisation", "count_size_mm",
            "recompute_stabilisation", "stabilisation_document", "stabilisation_plot"]
@@ -154,9 +161,8 @@ def collect_stabilisation(store: Store, run_id: int, *, k: float = 2.0, resample
     the module docstring). ``k`` and ``resamples`` are unused (these figures carry no expanded uncertainty)."""
     run = store.run(run_id)
     bands = _bands(bands_mm)
-    table = series_table(store, run_id)
-    table.attrs["source"] = f"run {run_id}"
-    calibrations = tuple(store.calibration_by_id(i) for i in run.calibration_ids)
+    table = run_table(store, run_id, "arrival", series=True)
+    calibrations = calibrations_in_force(store, run)
     count = count_size_mm(run, calibrations)
     hysteresis, source = _hysteresis(count, hysteresis_mm)
     results, arrivals = [], []
