@@ -62,16 +62,23 @@ def _unknown(clause: str, topic: str, requirement: str, missing: str) -> Deviati
     return Deviation(clause, topic, requirement, f"not stored: {missing}", "unknown")
 
 
+def _planned_count(clause: str, topic: str, requirement: str, config: Mapping[str, Any], key: str, *,
+                   measured: int, required: int, counted: str, where: str, effect: str) -> Deviation:
+    """The row of a repeated measurement (cycles, repeats, attempts): the count planned in ``config[key]`` and, when
+    it differs, the ``measured`` one (the fewest at any ``where``, ``counted`` e.g. "stored"); it conforms when both
+    reach ``required``, and is unknown when the configuration has no ``key``."""
+    if key not in config:
+        return _unknown(clause, topic, requirement, f"config.{key}")
+    planned = int(config[key])
+    done = f"{planned} planned" + ("" if measured == planned else f", {measured} {counted} (fewest at {where})")
+    return _row(clause, topic, requirement, done, min(planned, measured) >= required, effect)
+
+
 def _cycles(config: Mapping[str, Any], protocol: str, cycles_measured: int) -> Deviation:
     required = ISO_CYCLES.get(protocol, 30)
-    requirement = f"{required} cycles per pose (Table 5)"
-    if "cycles" not in config:
-        return _unknown("6.9", "cycles", requirement, "config.cycles")
-    planned = int(config["cycles"])
-    done = f"{planned} planned" + ("" if cycles_measured == planned else f", {cycles_measured} measured (fewest "
-                                                                           f"at any pose)")
-    return _row("6.9", "cycles", requirement, done, min(planned, cycles_measured) >= required,
-                "wider confidence interval on RP and AP; RP's 3 S_l term less stable")
+    return _planned_count("6.9", "cycles", f"{required} cycles per pose (Table 5)", config, "cycles",
+                          measured=cycles_measured, required=required, counted="measured", where="any pose",
+                          effect="wider confidence interval on RP and AP; RP's 3 S_l term less stable")
 
 
 def _poses(config: Mapping[str, Any]) -> list[Deviation]:
@@ -303,15 +310,11 @@ def actuator_deviations(*, config: Mapping[str, Any], settings: Mapping[str, Any
                          len(travels) >= 5 and not regular,
                          "periodic (lead-screw) errors sampled at fixed phases only" if regular else
                          "systematic error E and accuracy A from too few targets"))
-    requirement = f"{ACTUATOR_REPEATS} repeats per travel (000 §8.4; ISO 230-2: 5 per direction [U])"
-    if "repeats" not in config:
-        rows.append(_unknown("000 §8.4", "repeats", requirement, "config.repeats"))
-    else:
-        planned = int(config["repeats"])
-        done = f"{planned} planned" + ("" if repeats_measured == planned else
-                                       f", {repeats_measured} complete (fewest at any actuator)")
-        rows.append(_row("000 §8.4", "repeats", requirement, done, min(planned, repeats_measured) >= ACTUATOR_REPEATS,
-                         "wider uncertainty of σ̄, and so of the repeatability and accuracy"))
+    rows.append(_planned_count("000 §8.4", "repeats",
+                               f"{ACTUATOR_REPEATS} repeats per travel (000 §8.4; ISO 230-2: 5 per direction [U])",
+                               config, "repeats", measured=repeats_measured, required=ACTUATOR_REPEATS,
+                               counted="complete", where="any actuator",
+                               effect="wider uncertainty of σ̄, and so of the repeatability and accuracy"))
     rows.append(_row("ISO 230-2", "direction", "approaches in both directions with an overrun at each reversal [U]",
                      "unidirectional: every reading approached from below, from the start stroke", False,
                      "reversal B (backlash) and the bidirectional R, E, A not measured; ↑ figures only"))
@@ -371,16 +374,11 @@ def ladder_deviations(*, config: Mapping[str, Any], settings: Mapping[str, Any],
         start = _floats(config.get("start_mm") or [])
         rows.append(_row("000 §8.7", "lift", requirement, f"{float(config['lift_mm']):g} mm up from ({_fmt(start)}) mm",
                          float(config["lift_mm"]) == LADDER_LIFT_MM, "leg lengths not comparable with 000's"))
-    requirement = f"at least {LADDER_MIN_REPEATS} lifts per load (§12.3 [P]; 000: 1)"
-    if "repeats" not in config:
-        rows.append(_unknown("project §12.3", "repeats", requirement, "config.repeats"))
-    else:
-        planned = int(config["repeats"])
-        done = f"{planned} planned" + ("" if repeats_measured == planned else f", {repeats_measured} complete "
-                                                                              "(fewest at any load)")
-        rows.append(_row("project §12.3", "repeats", requirement, done,
-                         min(planned, repeats_measured) >= LADDER_MIN_REPEATS,
-                         "no scatter per load: a change of e_i(m) with load cannot be told from reading scatter"))
+    rows.append(_planned_count("project §12.3", "repeats", f"at least {LADDER_MIN_REPEATS} lifts per load (§12.3 [P]; "
+                               "000: 1)", config, "repeats", measured=repeats_measured, required=LADDER_MIN_REPEATS,
+                               counted="complete", where="any load",
+                               effect="no scatter per load: a change of e_i(m) with load cannot be told from reading "
+                                      "scatter"))
     rows.append(_row("project §12.1", "measurand", "leg lengths by calliper (000 mode) and/or end-effector "
                                                    "displacement at the same command pose [P]",
                      "six calliper leg lengths per lift against the IK lengths of the commanded lifted pose; PE(m) "
@@ -411,16 +409,10 @@ def grid_hit_deviations(*, config: Mapping[str, Any], settings: Mapping[str, Any
         rows.append(_row("thesis §8.4.3", "sensors", requirement, f"{spread * spread} sensors in a {spread} x {spread} "
                                                            "spread over the horizontal screen",
                          spread * spread == GRID_SENSORS, "group rate over other sensors than the thesis's"))
-    requirement = f"{GRID_HIT_ATTEMPTS} attempts per sensor and height (thesis)"
-    if "attempts" not in config:
-        rows.append(_unknown("thesis §8.4.3", "attempts", requirement, "config.attempts"))
-    else:
-        planned = int(config["attempts"])
-        done = f"{planned} planned" + ("" if attempts_measured == planned else
-                                       f", {attempts_measured} stored (fewest at any sensor and height)")
-        rows.append(_row("thesis §8.4.3", "attempts", requirement, done,
-                         min(planned, attempts_measured) >= GRID_HIT_ATTEMPTS,
-                         "wider interval on every rate; one miss moves a sensor's rate by more than 4 %"))
+    rows.append(_planned_count("thesis §8.4.3", "attempts", f"{GRID_HIT_ATTEMPTS} attempts per sensor and height "
+                               "(thesis)", config, "attempts", measured=attempts_measured, required=GRID_HIT_ATTEMPTS,
+                               counted="stored", where="any sensor and height",
+                               effect="wider interval on every rate; one miss moves a sensor's rate by more than 4 %"))
     requirement = f"{_fmt(GRID_HEIGHTS_MM)} mm below the base (thesis: 14, 17, 20 cm)"
     if "heights_mm" not in config:
         rows.append(_unknown("thesis §8.4.3", "heights", requirement, "config.heights_mm"))
@@ -489,14 +481,9 @@ def grid_positioning_deviations(*, config: Mapping[str, Any], settings: Mapping[
         done = "; ".join(f"{label} ({_fmt(target)})" for label, target in stored.items()) + " mm"
         rows.append(_row("thesis §8.4.2", "thesis poses", requirement, done, stored == POSITIONING_POSES,
                          "not comparable pose by pose with the thesis (Appendix D1)"))
-    requirement = f"{POSITIONING_READINGS} readings per pose (thesis)"
-    if "cycles" not in config:
-        rows.append(_unknown("thesis §8.4.2", "readings", requirement, "config.cycles"))
-    else:
-        planned = int(config["cycles"])
-        done = f"{planned} planned" + ("" if n_min == planned else f", {n_min} stored (fewest at any pose)")
-        rows.append(_row("thesis §8.4.2", "readings", requirement, done, min(planned, n_min) >= POSITIONING_READINGS,
-                         "wider scatter of every per-pose figure"))
+    rows.append(_planned_count("thesis §8.4.2", "readings", f"{POSITIONING_READINGS} readings per pose (thesis)",
+                               config, "cycles", measured=n_min, required=POSITIONING_READINGS, counted="stored",
+                               where="any pose", effect="wider scatter of every per-pose figure"))
     instrument = settings.get("instrument") or {}
     requirement = "the screens' paper printout read by eye to the nearest mm (thesis)"
     if not instrument:
@@ -567,15 +554,9 @@ def stabilisation_deviations(*, config: Mapping[str, Any], settings: Mapping[str
     instrument (``count_mm``: one count of it, None when not stored)."""
     robot = settings.get("robot") or {}
     rows = []
-    requirement = f"{STABILISATION_CYCLES} cycles per pose (Table 5)"
-    if "cycles" not in config:
-        rows.append(_unknown("ISO 9283 6.9", "cycles", requirement, "config.cycles"))
-    else:
-        planned = int(config["cycles"])
-        done = f"{planned} planned" + ("" if cycles_measured == planned else f", {cycles_measured} stored (fewest at "
-                                                                             "any pose)")
-        rows.append(_row("ISO 9283 6.9", "cycles", requirement, done, min(planned, cycles_measured) >=
-                         STABILISATION_CYCLES, "mean t_s and OV over fewer arrivals than the standard's"))
+    rows.append(_planned_count("ISO 9283 6.9", "cycles", f"{STABILISATION_CYCLES} cycles per pose (Table 5)", config,
+                               "cycles", measured=cycles_measured, required=STABILISATION_CYCLES, counted="stored",
+                               where="any pose", effect="mean t_s and OV over fewer arrivals than the standard's"))
     rows.append(replace(_poses(config)[0], clause="ISO 9283 6.8"))
     requirement = "100 % of rated velocity (iso9283.md §4.2) [U]"
     if "velocities_pct" not in config:
