@@ -1,12 +1,14 @@
 """Small stored runs for the report tests, written with the store API (the configuration a pose protocol stores) or
-run on the simulators, and readers of the written HTML and PDF."""
+run on the simulators, readers of the written HTML and PDF, and the JSON a ``bench`` command prints."""
 
 from __future__ import annotations
 
+import json
 from html.parser import HTMLParser
 
 import numpy as np
 
+from bench.cli import main
 from bench.store import Store
 
 CUBE = {"P1": (110.0, 0.0, 320.0), "P2": (94.0, -16.0, 304.0), "P3": (94.0, 16.0, 304.0),
@@ -249,3 +251,10 @@ def pdf_text(path) -> str:
     from pypdf import PdfReader
 
     return " ".join(" ".join(page.extract_text().split()) for page in PdfReader(path).pages)
+
+
+def cli_json(capsys, *argv) -> dict:
+    """The JSON that ``bench *argv`` prints (``capsys``: pytest's fixture), after checking that it exits with 0."""
+    capsys.readouterr()
+    assert main(list(argv)) == 0
+    return json.loads(capsys.readouterr().out)

@@ -9,7 +9,6 @@ a sag per kg); the ``bench analyze`` command on the raw-data CSV the report writ
 from __future__ import annotations
 
 import hashlib
-import json
 import math
 
 import numpy as np
@@ -19,6 +18,7 @@ from hypothesis import strategies as st
 from reports_runs import (
     APPENDIX_D2,
     LADDER_SETTINGS,
+    cli_json,
     html_tables,
     pdf_text,
     write_actuator_run,
@@ -55,12 +55,6 @@ def _readings(store, run_id):
     return out
 
 
-def _cli_json(capsys, *argv):
-    capsys.readouterr()
-    assert main(list(argv)) == 0
-    return json.loads(capsys.readouterr().out)
-
-
 # ---- actuator_accuracy ----
 
 def test_actuator_figures_equal_a_hand_computation_from_the_stored_samples(runs):
@@ -91,8 +85,8 @@ def test_actuator_figures_equal_a_hand_computation_from_the_stored_samples(runs)
 def test_actuator_report_equals_bench_analyze_actuator_on_its_raw_data(runs, capsys):
     _, _, reports, paths, _ = runs
     report = reports["actuator"]
-    result = _cli_json(capsys, "analyze", "actuator", str(paths["actuator"].csv[0]), "--robot", "pkm5",
-                       "--instrument-u-mm", repr(report.instrument.sigma_mm), "--k", "2", "--json")["actuators"]
+    result = cli_json(capsys, "analyze", "actuator", str(paths["actuator"].csv[0]), "--robot", "pkm5",
+                      "--instrument-u-mm", repr(report.instrument.sigma_mm), "--k", "2", "--json")["actuators"]
     for ours in report.actuators:
         theirs = result[ours.actuator]
         assert theirs["repeatability_mm"] == pytest.approx(ours.groover.repeatability_mm, rel=1e-12)
@@ -168,7 +162,7 @@ def test_ladder_leg_summary_equals_bench_analyze_payload_on_its_raw_data(runs, c
     store, ids, reports, paths, _ = runs
     report = reports["ladder"]
     assert isinstance(report, LadderReport)
-    legs = _cli_json(capsys, "analyze", "payload", str(paths["ladder"].csv[0]), "--json")["legs"]
+    legs = cli_json(capsys, "analyze", "payload", str(paths["ladder"].csv[0]), "--json")["legs"]
     for i, leg in enumerate(str(n) for n in range(1, 7)):
         assert legs[leg]["max_error_mm"] == pytest.approx(report.summary.max_error_mm[i], abs=1e-12)
         assert legs[leg]["load_at_max_kg"] == report.summary.load_at_max_kg[i]

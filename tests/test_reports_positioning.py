@@ -9,7 +9,6 @@ laser grid, seed 4: P2 blind on both screens) and one written run with complete 
 from __future__ import annotations
 
 import hashlib
-import json
 import math
 
 import numpy as np
@@ -17,6 +16,7 @@ import pytest
 from reports_runs import (
     GRID_POSITIONING_SETTINGS,
     GRID_READINGS,
+    cli_json,
     html_tables,
     pdf_text,
     simulated_run,
@@ -62,12 +62,6 @@ def _stored(store, run_id):
         rows.append([sample.values.get(a, np.nan) for a in AXES])
         samples.append(sample)
     return {pose: (command, np.array(rows), samples) for pose, (command, rows, samples) in out.items()}
-
-
-def _cli_json(capsys, *argv):
-    capsys.readouterr()
-    assert main(list(argv)) == 0
-    return json.loads(capsys.readouterr().out)
 
 
 def _same(ours, theirs):
@@ -125,11 +119,11 @@ def test_simulated_figures_equal_the_metrology_api_on_the_stored_samples(simulat
 
 def test_simulated_report_equals_bench_analyze_on_its_raw_data_and_on_the_export(simulated, capsys, tmp_path):
     store, run_id, report, paths, folder = simulated
-    _check_against_cli(report, _cli_json(capsys, "analyze", "grid-positioning", str(paths.csv[0]), "--json"))
+    _check_against_cli(report, cli_json(capsys, "analyze", "grid-positioning", str(paths.csv[0]), "--json"))
     exported = tmp_path / "run.csv"
     assert main(["export", str(run_id), "--kind", "pose", "--store", str(folder / "bench.db"), "--out",
                  str(exported)]) == 0
-    _check_against_cli(report, _cli_json(capsys, "analyze", "grid-positioning", str(exported), "--json"))
+    _check_against_cli(report, cli_json(capsys, "analyze", "grid-positioning", str(exported), "--json"))
     html = paths.html.read_text(encoding="utf-8")
     assert hashlib.sha256(paths.csv[0].read_bytes()).hexdigest() in html
     assert f"bench export {run_id} --kind pose --store {folder / 'bench.db'} --out run{run_id}.csv, then bench " \

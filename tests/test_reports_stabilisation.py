@@ -10,11 +10,10 @@ and P4 only (docs/campaigns.md, "Streamed arrivals").
 from __future__ import annotations
 
 import hashlib
-import json
 
 import numpy as np
 import pytest
-from reports_runs import html_tables, pdf_text, simulated_run
+from reports_runs import cli_json, html_tables, pdf_text, simulated_run
 
 from bench.cli import main
 from bench.errors import ConfigError
@@ -54,10 +53,8 @@ def _stored_series(store, run_id, **conditions):
 
 
 def _cli_bands(capsys, path, hysteresis):
-    capsys.readouterr()
-    assert main(["analyze", "stabilisation", str(path), "--band-mm", *(f"{b:g}" for b in BANDS), "--hysteresis-mm",
-                 repr(hysteresis), "--json"]) == 0
-    return json.loads(capsys.readouterr().out)
+    return cli_json(capsys, "analyze", "stabilisation", str(path), "--band-mm", *(f"{b:g}" for b in BANDS),
+                    "--hysteresis-mm", repr(hysteresis), "--json")
 
 
 def test_figures_equal_the_metrology_api_on_the_stored_arrivals(arrivals):
