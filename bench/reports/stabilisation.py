@@ -43,6 +43,7 @@ from bench.reports.document import (
     decision_blocks,
 )
 from bench.reports.plots import Plot, panels
+from bench.metrology.tables import condition_groups
 from bench.store import CalibrationRecord, RunRecord, Store
 
 __all__ = ["POSITION", "Arrival", "BandResult", "StabilisationReport", "collect_stabilisation", "count_size_mm",
@@ -50,7 +51,6 @@ __all__ = ["POSITION", "Arrival", "BandResult", "StabilisationReport", "collect_
 
 POSITION = ("x_mm", "y_mm", "z_mm")
 #: Conditions a run may vary; analysed separately when they do.
-_CONDITIONS = ("velocity_pct", "load_kg")
 SCOPE = ("Tested following the methods of ISO 9283:1998 clauses 7.4 (position stabilisation time) and 7.5 (position "
          "overshoot), with the deviations listed in the deviations table. Results are ISO 9283-style; this is not "
          "an ISO 9283 certification.")
@@ -125,14 +125,6 @@ def _bands(requested) -> tuple[float, ...]:
     return bands
 
 
-def _groups(table: pd.DataFrame):
-    """(label, rows) per pose in order of appearance, split by velocity/load when the run varies them."""
-    varying = [c for c in _CONDITIONS if c in table.columns and table[c].nunique() > 1]
-    for key, rows in table.groupby([table["pose"].astype(str), *[table[c] for c in varying]], sort=False):
-        key = key if isinstance(key, tuple) else (key,)
-        yield str(key[0]) + "".join(f" ({name} = {value:g})" for name, value in zip(varying, key[1:])), rows
-
-
 def _series(rows: pd.DataFrame) -> list[tuple[int, np.ndarray, np.ndarray]]:
     """(cycle, t_s, positions) per cycle, in cycle order, as bench analyze stabilisation reads them."""
     return [(int(cycle), group["t_s"].to_numpy(float), group[list(POSITION)].to_numpy(float))
@@ -166,7 +158,7 @@ def collect_stabilisation(store: Store, run_id: int, *, k: float = 2.0, resample
     count = count_size_mm(run, calibrations)
     hysteresis, source = _hysteresis(count, hysteresis_mm)
     results, arrivals = [], []
-    for label, rows in _groups(table):
+    for label, _, _, rows in condition_groups(table):
         series = _series(rows)
         for cycle, t, position in series:
             arrivals.append(Arrival(label, cycle, t, np.sqrt(np.sum((position - position[-1]) ** 2, axis=1))))
@@ -256,11 +248,9 @@ def recompute_stabilisation(report: StabilisationReport) -> str:
     """The exact commands that give every figure again from the store."""
     run_id = report.run.id
     bands = " ".join(f"{b:g}" for b in report.bands_mm)
-    split = ("; the run varies its velocity or load, so first split the file by velocity_pct and load_kg, as the "
-             "report does" if any("=" in r.group for r in report.results) else "")
     return (f"bench export {run_id} --series --store {report.store_path} --out run{run_id}_series.csv, then bench "
             f"analyze stabilisation run{run_id}_series.csv --band-mm {bands} --hysteresis-mm "
-            f"{report.hysteresis_mm!r} --json (or on the raw-data file below, the same rows at full precision){split}")
+            f"{report.hysteresis_mm!r} --json (or on the raw-data file below, the same rows at full precision)")
 
 
 def stabilisation_document(report: StabilisationReport, raw: list[RawData], *, operator: str = "not recorded",
