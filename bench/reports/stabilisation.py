@@ -50,7 +50,6 @@ __all__ = ["POSITION", "Arrival", "BandResult", "StabilisationReport", "collect_
            "recompute_stabilisation", "stabilisation_document", "stabilisation_plot"]
 
 POSITION = ("x_mm", "y_mm", "z_mm")
-#: Conditions a run may vary; analysed separately when they do.
 SCOPE = ("Tested following the methods of ISO 9283:1998 clauses 7.4 (position stabilisation time) and 7.5 (position "
          "overshoot), with the deviations listed in the deviations table. Results are ISO 9283-style; this is not "
          "an ISO 9283 certification.")
