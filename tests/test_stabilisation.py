@@ -14,7 +14,6 @@ from scipy import signal
 from bench.cli import main
 from bench.errors import ConfigError
 from bench.metrology import pose_stabilisation, position_stabilisation
-from bench.protocols import Runner
 from bench.protocols.iso9283 import StabilisationOvershoot
 from bench.protocols.simrig import simulated_rig
 from bench.protocols.steps import Capture
@@ -22,6 +21,7 @@ from bench.robots.dynamics import StructuralMode, trace_times
 from bench.robots.pkm5 import ControllerError
 from bench.store import Store, series_table
 from motion import pkm5
+from reports_runs import simulated_run
 
 #: One count of the simulated 800 cpi mice, mm.
 COUNT_MM = 25.4 / 800
@@ -127,14 +127,10 @@ def test_a_stabilisation_run_exports_series_that_bench_analyze_reads(tmp_path, c
     protocol = StabilisationOvershoot(cycles=2, lead_s=0.5, hold_s=2.0,
                                       poses={"A": [100.0, -10.0, 310.0], "B": [120.0, 10.0, 330.0]})
     with Store(tmp_path / "b.db") as store:
-        rig = simulated_rig("pkm5", seed=2, speed_factor=1000)
-        try:
-            result = Runner(rig, store).run(protocol)
-        finally:
-            rig.close()
-        assert (result.exit_status, result.samples) == ("completed", 4)
-        table = series_table(store, result.run_id)
-        samples = store.samples(result.run_id, kind="arrival")
+        run_id = simulated_run(store, protocol, "pkm5", seed=2, speed_factor=1000)
+        table = series_table(store, run_id)
+        samples = store.samples(run_id, kind="arrival")
+    assert len(samples) == 4
     assert list(table.columns[:2]) == ["pose", "cycle"] and "t_s" in table.columns
     assert len(table) == sum(len(s.raw["series"]["t_s"]) for s in samples)
     direct = pose_stabilisation([(np.array(s.raw["series"]["t_s"]),
@@ -142,7 +138,7 @@ def test_a_stabilisation_run_exports_series_that_bench_analyze_reads(tmp_path, c
                                  for s in samples if s.pose == "B"], band_mm=0.1, hysteresis_mm=COUNT_MM)
     db = str(tmp_path / "b.db")
     out = tmp_path / "series.csv"
-    assert main(["export", str(result.run_id), "--series", "--store", db, "--out", str(out)]) == 0
+    assert main(["export", str(run_id), "--series", "--store", db, "--out", str(out)]) == 0
     capsys.readouterr()
     assert main(["analyze", "stabilisation", str(out), "--band-mm", "0.1", "--hysteresis-mm", str(COUNT_MM),
                  "--json"]) == 0
