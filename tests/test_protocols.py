@@ -501,3 +501,39 @@ def test_console_operator_reasks_until_valid_and_ctrl_d_withdraws_the_prompt(cap
 
     with pytest.raises(PromptWithdrawn, match="Ctrl-D"):
         ConsoleOperator(end_of_input).ask(prompt)
+
+
+class _LatchingRobot(RecordingRobot):
+    """Records an emergency stop apart from a plain stop."""
+
+    def emergency_stop(self):
+        self.log.append(("emergency_stop",))
+
+
+def test_the_runners_emergency_stop_latches_where_the_robot_can_and_abort_does_not(store):
+    robot = _LatchingRobot()
+    runner = Runner(_rig(robot), store)
+    runner.emergency_stop()
+    runner.run(_small())
+    assert robot.log[0] == ("emergency_stop",)  # from the calling thread: the latching stop
+
+
+def test_pkm5_emergency_stop_refuses_every_later_move_until_enable():
+    from bench.errors import LinkError
+    from bench.protocols.simrig import simulated_rig
+
+    rig = simulated_rig("pkm5", seed=1, speed_factor=20000)
+    controller = rig.robot.controller
+    try:
+        rig.robot.move_to((110.0, 0.0, 320.0), velocity_pct=100)
+        rig.robot.emergency_stop()
+        reached = controller.position().steps
+        with pytest.raises(LinkError, match="refused: an emergency stop is latched"):
+            rig.robot.move_to((100.0, 0.0, 310.0), velocity_pct=100)
+        assert controller.position().steps == reached  # nothing was sent
+        rig.robot.stop()  # a plain stop (abort) does not latch a second time, and enable() releases the latch
+        controller.enable()
+        rig.robot.move_to((100.0, 0.0, 310.0), velocity_pct=100)
+        assert controller.position().steps != reached
+    finally:
+        rig.close()

@@ -51,11 +51,20 @@ class DeltaMover:
 
     def __init__(self, controller: Any) -> None:
         self.controller = controller
+        self.stop_latched = False
 
     def move_to(self, target: tuple[float, ...], *, velocity_pct: float) -> None:
+        if self.stop_latched:
+            raise LinkError(f"delta4: move to {tuple(target[:3])} refused: an emergency stop is latched")
         self.controller.move_to(tuple(target[:3]), require_settled=True)
 
     def stop(self) -> None:
+        self.controller.stop()
+
+    def emergency_stop(self) -> None:
+        """Stop (``G``) and refuse every later move. A reference that was already on its way is only stored by the
+        stopped controller, which runs it on the next ``E``, and this rig never sends ``E`` again."""
+        self.stop_latched = True
         self.controller.stop()
 
     def shutdown(self) -> None:

@@ -240,7 +240,7 @@ class Runner:
             if self.state not in (RunState.IDLE, RunState.HALTING):
                 self._transition_locked(RunState.HALTING)
         _log.warning("runner: emergency stop")
-        self._stop_robot()
+        self._stop_robot(emergency=True)
         self._wake.set()
 
     # ---- running ---------------------------------------------------------------------------------------------
@@ -443,9 +443,11 @@ class Runner:
             self._transition_locked(RunState.HALTING)
             self._reason = f"prompt withdrawn by the operator: {prompt.text}{detail}"
 
-    def _stop_robot(self) -> None:
+    def _stop_robot(self, *, emergency: bool = False) -> None:
+        """Stop the robot (best effort); an emergency stop latches where the robot offers it (no move after it)."""
+        robot = self.rig.robot
         try:
-            self.rig.robot.stop()
+            (getattr(robot, "emergency_stop", robot.stop) if emergency else robot.stop)()
         except Exception as exc:  # noqa: BLE001 - stopping is best effort; shutdown follows
             _log.error("robot stop failed: %s", exc)
 

@@ -80,6 +80,10 @@ class DriverMover:
     def stop(self) -> None:
         self.controller.stop()
 
+    def emergency_stop(self) -> None:
+        """Stop now and refuse every later move of this controller (see ``Pkm5Controller.emergency_stop``)."""
+        self.controller.emergency_stop()
+
     def shutdown(self) -> None:
         self.controller.shutdown()
 

@@ -116,6 +116,11 @@ class Pkm5Controller:
         self.move_margin_s = float(_checked_number("move_margin_s", move_margin_s, 0, 600))
         self._tags = itertools.count(1)
         self._line = threading.RLock()  # held by the command reading replies; stop() from elsewhere bypasses it
+        # An emergency stop latches: no MOVE is written after it until enable(). The latch and the MOVE/STOP writes
+        # share one lock, so a MOVE decided just before an e-stop either reaches the wire first (and STOP ends it) or
+        # is refused; it can never follow the STOP.
+        self._write = threading.Lock()
+        self._stop_latched = False
         self._identity: Identity | None = None
 
     # -- description -------------------------------------------------------------------------------------------
@@ -204,7 +209,10 @@ class Pkm5Controller:
         return Position(reply.ints(1, wire.AXES), state)
 
     def enable(self) -> None:
+        """Enable the drivers; also releases a latched emergency stop."""
         self._exchange("ENABLE")
+        with self._write:
+            self._stop_latched = False
 
     def disable(self) -> None:
         self._exchange("DISABLE")
@@ -221,12 +229,20 @@ class Pkm5Controller:
         move ends with the controller's ``ERR #move 8 STOPPED`` and STOP's own ``OK`` is later dropped as stale.
         """
         if not self._line.acquire(blocking=False):
-            self.link.write(wire.format_command("STOP", (), next(self._tags)), command="STOP")
+            with self._write:
+                self.link.write(wire.format_command("STOP", (), next(self._tags)), command="STOP")
             return None
         try:
             return Position(self._exchange("STOP").ints(1, wire.AXES), "IDLE")
         finally:
             self._line.release()
+
+    def emergency_stop(self) -> Position | None:
+        """:meth:`stop` that latches: every later move is refused (``LinkError``) until :meth:`enable`. Safe from
+        any thread."""
+        with self._write:
+            self._stop_latched = True
+        return self.stop()
 
     def move_steps(self, steps: Any, *, speed_steps_s: int | None = None) -> tuple[int, ...]:
         """Pre-flight ``steps`` (6 absolute targets), move, and wait for ``DONE``; returns the reached steps."""
@@ -269,7 +285,11 @@ class Pkm5Controller:
         speed = int(_checked_number("speed_steps_s", self.speed_steps_s if speed_steps_s is None else speed_steps_s,
                                     1, 1000))
         tag = next(self._tags)
-        self.link.write(wire.format_command("MOVE", (*targets, speed), tag), command="MOVE")
+        with self._write:
+            if self._stop_latched:
+                raise LinkError(f"{self.link.port_name}: MOVE to {targets} refused: an emergency stop is latched; "
+                                "enable() the controller to move again")
+            self.link.write(wire.format_command("MOVE", (*targets, speed), tag), command="MOVE")
         try:
             try:
                 reply = self._await(tag, "MOVE", ("OK", "DONE"), self.reply_timeout_s)
