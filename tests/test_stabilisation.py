@@ -194,3 +194,16 @@ def test_analyze_stabilisation_keeps_velocities_apart(tmp_path, capsys):
     assert per_pose["P1 (velocity_pct=100)"]["overshoot_mm"] == pytest.approx(0.3)
     assert per_pose["P1 (velocity_pct=100)"]["mean_time_s"] == pytest.approx(0.2)
     assert per_pose["P1 (velocity_pct=10)"]["overshoot_mm"] == 0.0
+
+
+def test_each_load_is_mounted_on_request_and_stabilisation_runs_under_it():
+    from bench.protocols.plan import iterate
+    from bench.protocols.steps import Prompt
+
+    protocol = StabilisationOvershoot(cycles=1, loads_kg=[0.0, 5.0], poses={"A": [100.0, -10.0, 310.0]})
+    steps = list(iterate(protocol, final=False))
+    prompts = [s for s in steps if isinstance(s, Prompt)]
+    captures = [s for s in steps if isinstance(s, Capture)]
+    assert [p.conditions["load_kg"] for p in prompts] == [5.0]
+    assert [(c.kind, c.conditions["load_kg"]) for c in captures] == [("arrival", 0.0), ("arrival", 5.0)]
+    assert steps.index(prompts[0]) < steps.index(captures[1])

@@ -131,9 +131,13 @@ class _CubeProtocol(Protocol):
             yield Prompt(f"Mount a payload of {load_kg:g} kg on the end effector, then confirm",
                          conditions={"load_kg": load_kg})
 
+    def _iso_order(self) -> list[str]:
+        """The cube's poses in ISO cycle order, or the explicit poses in file order."""
+        return [p for p in POSE_ORDER if p in self._poses] if self.poses is None else list(self._poses)
+
     def _cycles(self, order: list[str]) -> Plan:
-        """Per load (confirmed by the operator), per velocity: ``cycles`` visits of ``order``, a Checkpoint after
-        each cycle."""
+        """Per load (confirmed by the operator), per velocity: ``cycles`` visits of ``order`` (each by
+        :meth:`_visit`), a Checkpoint after each cycle."""
         previous_load = None
         for load in self.loads_kg:
             yield from self._load_prompt(load, previous_load)
@@ -141,9 +145,13 @@ class _CubeProtocol(Protocol):
             for velocity in self.velocities_pct:
                 for cycle in range(1, self.cycles + 1):
                     for label in order:
-                        yield from visit(label, self._poses[label], cycle, velocity_pct=velocity,
-                                         settle_s=self.settle_s, conditions={"load_kg": load})
+                        yield from self._visit(label, self._poses[label], cycle, velocity, load)
                     yield Checkpoint(f"load {load:g} kg, {velocity:g} %, cycle {cycle}")
+
+    def _visit(self, label: str, target: tuple[float, ...], cycle: int, velocity: float, load: float) -> Plan:
+        """One visit of a pose: move, settle, capture."""
+        yield from visit(label, target, cycle, velocity_pct=velocity, settle_s=self.settle_s,
+                         conditions={"load_kg": load})
 
     def final_steps(self) -> Plan:
         yield Move(tuple(robot_model(self.robot).home), 100.0, "home")
@@ -158,8 +166,7 @@ class PoseAccuracy(_CubeProtocol):
     title = "ISO 9283 pose accuracy and repeatability (7.2.1, 7.2.2)"
 
     def steps(self) -> Plan:
-        order = [p for p in POSE_ORDER if p in self._poses] if self.poses is None else list(self._poses)
-        yield from self._cycles(order)
+        yield from self._cycles(self._iso_order())
 
 
 @register
@@ -259,13 +266,11 @@ class StabilisationOvershoot(_CubeProtocol):
                             description="streamed time recorded after the move is reported done")
 
     def steps(self) -> Plan:
-        order = [p for p in POSE_ORDER if p in self._poses] if self.poses is None else list(self._poses)
-        for velocity in self.velocities_pct:
-            for cycle in range(1, self.cycles + 1):
-                for label in order:
-                    target = self._poses[label]
-                    yield Move(target, velocity, label)
-                    yield Capture(label, cycle, kind="arrival", commanded=commanded_values(target),
-                                  conditions={"velocity_pct": velocity, "load_kg": self.loads_kg[0],
-                                              "lead_s": self.lead_s, "hold_s": self.hold_s})
-                yield Checkpoint(f"{velocity:g} %, cycle {cycle}")
+        yield from self._cycles(self._iso_order())
+
+    def _visit(self, label: str, target: tuple[float, ...], cycle: int, velocity: float, load: float) -> Plan:
+        """Move, then at once capture the streamed arrival (no dwell: the settling is what is measured)."""
+        yield Move(target, velocity, label)
+        yield Capture(label, cycle, kind="arrival", commanded=commanded_values(target),
+                      conditions={"velocity_pct": velocity, "load_kg": load, "lead_s": self.lead_s,
+                                  "hold_s": self.hold_s})
