@@ -16,6 +16,7 @@ from typing import Any
 import numpy as np
 
 from bench.errors import ConfigError, InsufficientData
+from bench.metrology.documents import ACTUATOR_REPEATS, ACTUATOR_TRAVELS_MM
 from bench.protocols.base import Protocol, register
 from bench.protocols.parameters import (
     ChoiceParameter,
@@ -43,9 +44,9 @@ class ActuatorAccuracy(Protocol):
     fixture = ChoiceParameter("actuator-bench", choices=("actuator-bench",),
                               description="the actuators free-standing; single-axis moves are refused otherwise")
     actuators = FloatListParameter((1, 2, 3, 4, 5, 6), minimum=1, maximum=6, description="actuators tested, 1-6")
-    distances_mm = FloatListParameter((10.0, 20.0, 30.0, 40.0, 50.0), unit="mm", minimum=0.1, maximum=STROKE_MM,
+    distances_mm = FloatListParameter(ACTUATOR_TRAVELS_MM, unit="mm", minimum=0.1, maximum=STROKE_MM,
                                       description="commanded travels (000: 10, 20, 30, 40, 50 mm)")
-    repeats = IntegerParameter(10, minimum=2, description="repeats per travel (000: 10)")
+    repeats = IntegerParameter(ACTUATOR_REPEATS, minimum=2, description="repeats per travel (000: 10)")
     start_mm = FloatParameter(5.0, unit="mm", minimum=0.0, maximum=STROKE_MM,
                               description="stroke where the gauge is zeroed, mm from full retraction (home: 5 mm)")
     velocity_pct = FloatParameter(100.0, unit="%", minimum=0.1, maximum=100.0, description="velocity")

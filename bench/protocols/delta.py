@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from bench.metrology.documents import GRID_HIT_ATTEMPTS, GRID_OFFSET_MM, POSITIONING_POSES, POSITIONING_READINGS
 from bench.protocols.base import Protocol, register
 from bench.protocols.kinematics import robot_model
 from bench.protocols.parameters import (
@@ -31,9 +32,6 @@ from bench.protocols.steps import (
 )
 
 __all__ = ["DeltaPositioning", "LaserGridHits", "grid_targets"]
-
-#: Thesis §8.4.2: the three test poses, cm -> mm.
-POSITIONING_POSES = {"P1": (0.0, 0.0, -200.0), "P2": (-70.0, -70.0, -180.0), "P3": (50.0, -50.0, -160.0)}
 
 
 class _DeltaProtocol(Protocol):
@@ -56,7 +54,7 @@ class DeltaPositioning(_DeltaProtocol):
     version = "1"
     title = "Delta robot positioning test (thesis §8.4.2), 3 poses x 15"
 
-    cycles = IntegerParameter(15, minimum=2, description="readings per pose (thesis: 15)")
+    cycles = IntegerParameter(POSITIONING_READINGS, minimum=2, description="readings per pose (thesis: 15)")
     poses = PoseTableParameter(POSITIONING_POSES, min_width=3, max_width=3,
                                description="labelled poses, mm (thesis: (0,0,-20), (-7,-7,-18), (5,-5,-16) cm)")
 
@@ -81,11 +79,11 @@ class LaserGridHits(_DeltaProtocol):
     version = "1"
     title = "Laser-grid hit repeatability (thesis §8.4.3), 16 sensors x 25 attempts"
 
-    attempts = IntegerParameter(25, minimum=1, description="attempts per sensor and height (thesis: 25)")
+    attempts = IntegerParameter(GRID_HIT_ATTEMPTS, minimum=1, description="attempts per sensor and height (thesis: 25)")
     heights_mm = FloatListParameter((-140.0, -170.0, -200.0), unit="mm", minimum=-260.0, maximum=-100.0,
                                     description="z of the end effector (thesis: 14, 17, 20 cm below the base)")
     spread = IntegerParameter(4, minimum=1, maximum=16, description="sensors per side of the tested spread")
-    offset_mm = FloatListParameter((10.0, 20.0), length=2, unit="mm", minimum=0.0, maximum=50.0,
+    offset_mm = FloatListParameter(GRID_OFFSET_MM, length=2, unit="mm", minimum=0.0, maximum=50.0,
                                    description="range of the random re-approach offset")
     seed = IntegerParameter(0, minimum=0, description="seed of the re-approach offsets (the plan is reproducible)")
 

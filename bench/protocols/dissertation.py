@@ -17,6 +17,7 @@ from typing import Any
 import numpy as np
 
 from bench.errors import ConfigError
+from bench.metrology.documents import LADDER_KG, LADDER_LIFT_MM
 from bench.protocols.base import Protocol, register
 from bench.protocols.kinematics import robot_model
 from bench.protocols.parameters import (
@@ -55,9 +56,6 @@ POINTS = {
              (111.03, 43.04, 308.45, 12.93), (135.94, 29.14, 319.64, -12.48), (137.56, 51.8, 315.32, -4),
              (123.69, 91.82, 287.49, 11.87), (151.61, 95.94, 273.93, 6.89), (142.28, 84.02, 301.35, -7.8)],
 }
-#: 000 Table A.14: the payload ladder, kg.
-LADDER_KG = (0.45, 1, 1.45, 2, 2.45, 3, 3.45, 5.27, 6.18, 7.08, 8.44, 9.35, 10.26, 12.07, 13.43, 15, 18, 20, 23,
-             25.23)
 
 
 def _label(index: int) -> str:
@@ -118,7 +116,7 @@ class PayloadLadder(Protocol):
 
     loads_kg = FloatListParameter(LADDER_KG, unit="kg", minimum=0.0, maximum=25.23,
                                   description="load sequence (000 Table A.14); the structure failed on reload at 25 kg")
-    lift_mm = FloatParameter(50.42, unit="mm", minimum=1.0, maximum=60.0, description="vertical lift (000 §8.7)")
+    lift_mm = FloatParameter(LADDER_LIFT_MM, unit="mm", minimum=1.0, maximum=60.0, description="vertical lift (000 §8.7)")
     start_mm = FloatListParameter((95.0, 0.0, 301.0), length=3, unit="mm",
                                   description="pose before the lift (with the 60 mm leg windows only x ~ 70-120 mm, "
                                               "z ~ 297-305 mm allow a 50.42 mm lift)")

@@ -17,6 +17,20 @@ from dataclasses import dataclass, replace
 from typing import Any
 
 from bench.errors import InsufficientData
+from bench.metrology.documents import (
+    ACTUATOR_REPEATS,
+    ACTUATOR_TRAVELS_MM,
+    GRID_HEIGHTS_MM,
+    GRID_HIT_ATTEMPTS,
+    GRID_OFFSET_MM,
+    GRID_RESOLUTION_MM,
+    GRID_SENSORS,
+    LADDER_KG,
+    LADDER_LIFT_MM,
+    LASERGRID_GUI_PLACEMENT,
+    POSITIONING_POSES,
+    POSITIONING_READINGS,
+)
 
 __all__ = ["ACTUATOR_REPEATS", "ACTUATOR_TRAVELS_MM", "BAND_MIN_COUNTS", "CLAUSES_APPLIED", "GRID_HEIGHTS_MM",
            "GRID_HIT_ATTEMPTS", "GRID_OFFSET_MM", "ISO_BANDS_MM", "ISO_CYCLES", "ISO_VELOCITIES_PCT", "LADDER_LIFT_MM",
@@ -247,17 +261,9 @@ def complete(rows: list[Deviation], allow_unknown: bool) -> list[Deviation]:
 
 # ---- the documents' bench tests: the actuator test (000 §8.4), the payload ladder (000 §8.7), grid hits (§8.4.3) ----
 
-#: 000 §8.4 (pkm5.md §6.9): commanded travels and repeats per travel of the actuator test.
-ACTUATOR_TRAVELS_MM = (10.0, 20.0, 30.0, 40.0, 50.0)
-ACTUATOR_REPEATS = 10
-#: 000 §8.7: the pure vertical lift of the payload ladder; iso9283.md §12.3 [P]: lifts per rung.
-LADDER_LIFT_MM = 50.42
+# The documents' own figures (travels, loads, lift, heights, attempts, ...) are bench.metrology.documents'.
+#: iso9283.md §12.3 [P]: lifts per rung of the payload ladder.
 LADDER_MIN_REPEATS = 3
-#: Delta thesis §8.4.3 (delta4-lasergrid.md §7.3): heights below the base, attempts, the reference's re-approach.
-GRID_HEIGHTS_MM = (140.0, 170.0, 200.0)
-GRID_HIT_ATTEMPTS = 25
-GRID_SENSORS = 16
-GRID_OFFSET_MM = (10.0, 20.0)
 
 
 def _floats(values) -> list[float]:
@@ -347,8 +353,6 @@ def ladder_deviations(*, config: Mapping[str, Any], settings: Mapping[str, Any],
                       reader: str, allow_unknown: bool = False) -> list[Deviation]:
     """Departures of a ``payload_ladder`` run from the dissertation's ladder (000 §8.7, Table A.14), the project
     protocol (iso9283.md §12.3) and ISO 9283 6.6 (rated load)."""
-    from bench.protocols.dissertation import LADDER_KG
-
     rows = []
     requirement = f"the {len(LADDER_KG)} loads of Table A.14, {LADDER_KG[0]:g}-{LADDER_KG[-1]:g} kg (000 §8.7)"
     loads = _floats(config.get("loads_kg") or [])
@@ -447,8 +451,6 @@ def grid_hit_deviations(*, config: Mapping[str, Any], settings: Mapping[str, Any
 
 # ---- the delta thesis's positioning test read by the laser grid (§8.4.2) and ISO 9283 7.4/7.5 (streamed arrivals) ----
 
-#: Delta thesis §8.4.2: readings per pose (the poses are the protocol's defaults, Appendix D1).
-POSITIONING_READINGS = 15
 #: ISO 9283 Table 5 [N]: cycles for position stabilisation time and overshoot; A.4 [N]: the comparison bands.
 STABILISATION_CYCLES = 3
 ISO_BANDS_MM = (0.1, 0.5, 1.0)
@@ -456,24 +458,15 @@ ISO_BANDS_MM = (0.1, 0.5, 1.0)
 BAND_MIN_COUNTS = 3
 
 
-def _grid_placement() -> str:
-    """The calibration id of the laser grid's default placement (the legacy GUI drawing, not measured on a rig)."""
-    from bench.sensors.lasergrid import GridGeometry
-
-    return GridGeometry.calibration_id
-
-
 def grid_positioning_deviations(*, config: Mapping[str, Any], settings: Mapping[str, Any], poses: Sequence[Any],
                                 allow_unknown: bool = False) -> list[Deviation]:
     """Departures of a ``delta_positioning`` run from the delta thesis's positioning test (§8.4.2) and from ISO 9283
     (7.2 pose characteristics, 6.6-6.10 conditions), computed from the stored configuration and settings and from
     ``poses``, the run's :class:`bench.metrology.partial_pose.GridPoseResult` (readings, axes measured, screens)."""
-    from bench.protocols.delta import POSITIONING_POSES
-
     rows = []
     n_min = min(p.statistics.n_readings for p in poses)
     total = sum(p.statistics.n_readings for p in poses)
-    requirement = "(0, 0, -200), (-70, -70, -180), (50, -50, -160) mm (thesis: cm)"
+    requirement = ", ".join(f"({_fmt(target)})" for target in POSITIONING_POSES.values()) + " mm (thesis: cm)"
     if "poses" not in config:
         rows.append(_unknown("thesis §8.4.2", "thesis poses", requirement, "config.poses"))
     else:
@@ -493,13 +486,13 @@ def grid_positioning_deviations(*, config: Mapping[str, Any], settings: Mapping[
     else:
         window = (instrument.get("decoder") or {}).get("spot_half_width_mm")
         rows.append(_row("thesis §8.4.2", "instrument", requirement,
-                         f"{instrument.get('instrument', 'laser grid')}: a reading is a 2.5 mm lattice point within "
-                         f"±r of the true position (r = {'not stored' if window is None else f'{window:g} mm'}, "
-                         "decoder setting), or no reading", False,
-                         "readings quantised to 2.5 mm with ±r; figures not comparable reading by reading with the "
-                         "thesis's"))
+                         f"{instrument.get('instrument', 'laser grid')}: a reading is a {GRID_RESOLUTION_MM:g} mm "
+                         f"lattice point within ±r of the true position (r = "
+                         f"{'not stored' if window is None else f'{window:g} mm'}, decoder setting), or no reading",
+                         False, f"readings quantised to {GRID_RESOLUTION_MM:g} mm with ±r; figures not comparable "
+                                "reading by reading with the thesis's"))
         placement = instrument.get("calibration_id")
-        measured = placement is not None and placement != _grid_placement()
+        measured = placement is not None and placement != LASERGRID_GUI_PLACEMENT
         rows.append(_row("reference §6.5", "screen placement", "screen placement measured on the rig by the software "
                                                                "calibration (delta4-lasergrid.md §6.5)",
                          f"calibration {placement or 'not stated'}" + ("" if measured else

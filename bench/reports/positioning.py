@@ -19,6 +19,7 @@ import numpy as np
 import pandas as pd
 
 from bench.errors import ConfigError
+from bench.metrology.documents import GRID_RESOLUTION_MM
 from bench.metrology.partial_pose import (
     AXIS_NAMES,
     AxisErrors,
@@ -58,8 +59,8 @@ SCOPE = ("Tested following the positioning test of the delta thesis (§8.4.2) wi
          "certification.")
 NO_CRITERION = "no acceptance criterion stated: no pass/fail statement (the thesis and ISO 9283 set none)"
 CONDITIONAL = ("Reading the figures: they are conditional on detection. The grid measures an axis only when a laser "
-               "spot falls within the detection window r of a sensor (a 2.5 mm lattice; with r = 1 mm about half of "
-               "all positions are blind), so the readings of a pose are not a random sample of its scatter, and "
+               f"spot falls within the detection window r of a sensor (a {GRID_RESOLUTION_MM:g} mm lattice; with "
+               "r = 1 mm about half of all positions are blind), so the readings of a pose are not a random sample of its scatter, and "
                "each carries ±r. Which poses the grid sees at all depends on where the screens are placed: with the "
                "default placement (the legacy GUI drawing) the thesis's poses sit between four sensors of both "
                "screens, so the placement must come from the software calibration (delta4-lasergrid.md §6.5) before "
