@@ -207,3 +207,56 @@ def test_each_load_is_mounted_on_request_and_stabilisation_runs_under_it():
     assert [p.conditions["load_kg"] for p in prompts] == [5.0]
     assert [(c.kind, c.conditions["load_kg"]) for c in captures] == [("arrival", 0.0), ("arrival", 5.0)]
     assert steps.index(prompts[0]) < steps.index(captures[1])
+
+
+def _fifo_mice(tmp_path):
+    import os
+
+    from bench.sensors.calibration import CountsCalibration
+    from bench.sensors.mouse import EvdevMouse
+
+    calibration = CountsCalibration.from_cpi(800, calibration_id="t-800", date="2026-01-01")
+    writers, mice = {}, {}
+    for plane in ("xy", "xz"):
+        path = tmp_path / f"{plane}.fifo"
+        os.mkfifo(path)
+        writers[plane] = os.open(path, os.O_RDWR)
+        mice[plane] = EvdevMouse(str(path), calibration, label=f"mouse_{plane}")
+    return mice, writers, calibration
+
+
+def test_a_following_instrument_drains_the_mice_during_a_long_move(tmp_path):
+    """Reports far beyond a kernel buffer (and a pipe's 64 KiB) are read as they come, none lost."""
+    import os
+    import threading
+    import time
+
+    from bench.protocols.mice import MiceInstrument
+    from bench.sensors.input_event import encode_frames
+
+    mice, writers, calibration = _fifo_mice(tmp_path)
+    instrument = MiceInstrument(mice, (10.0, 20.0, 30.0), calibration, follow=True)
+    try:
+        n = 6000  # 432 kB of input_event records: the writer blocks unless someone reads meanwhile
+        start = time.monotonic() - 1.0
+        data = encode_frames(start + np.arange(n) * 1e-4, np.ones(n, np.int64), np.zeros(n, np.int64))
+        writer = threading.Thread(target=os.write, args=(writers["xy"], data), daemon=True)
+        writer.start()
+        writer.join(10)
+        assert not writer.is_alive()  # drained while nobody asked for a capture
+        static = instrument.measure(Capture("P", 1))
+        assert static.values["x_mm"] == pytest.approx(10.0 + n * COUNT_MM)
+        # an arrival keeps only the window: counts before it are the series' start
+        recent = time.monotonic()
+        os.write(writers["xy"], encode_frames(recent - 0.8 + np.arange(100) * 1e-3 * 7, np.ones(100, np.int64),
+                                              np.zeros(100, np.int64)))
+        arrival = instrument.measure(Capture("P", 2, kind="arrival", conditions={"lead_s": 0.5, "hold_s": 0.1}))
+    finally:
+        instrument.close()
+        for fd in writers.values():
+            os.close(fd)
+    series = arrival.raw["series"]
+    assert arrival.values["x_mm"] == pytest.approx(10.0 + (n + 100) * COUNT_MM)
+    assert len(arrival.raw["reports"]["xy"]["t_s"]) < 100  # reports before the window are not kept
+    assert series["x_mm"][0] == pytest.approx(
+        10.0 + (n + 100 - len(arrival.raw["reports"]["xy"]["t_s"])) * COUNT_MM, abs=1e-4)

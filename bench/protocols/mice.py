@@ -16,6 +16,7 @@ reports of both mice in the window and the counts at its start (the raw data), t
 from __future__ import annotations
 
 import selectors
+import threading
 import time
 from collections.abc import Callable, Mapping
 from typing import Any
@@ -47,13 +48,50 @@ class MiceInstrument:
         Counts -> mm, applied by the mice.
     """
 
-    def __init__(self, mice: dict[str, Any], origin_mm, calibration: Any) -> None:
+    def __init__(self, mice: dict[str, Any], origin_mm, calibration: Any, *, follow: bool = False) -> None:
         self.mice = mice
         self.origin = np.asarray(origin_mm, dtype=float)[:3].copy()
         self.calibration = calibration
+        self._lock = threading.Lock()  # every read of a mouse holds it: the reader thread's and the captures'
+        self._pending: dict[str, list[Any]] = {plane: [] for plane in mice}
+        self._closing = threading.Event()
+        self._reader = None
+        if follow:
+            self._reader = threading.Thread(target=self._follow_mice, name="mice-reader", daemon=True)
+            self._reader.start()
+
+    def _drain_locked(self) -> None:
+        """Read what every mouse has now into the pending reports (the caller holds the lock)."""
+        for plane, mouse in self.mice.items():
+            frames = mouse.read_frames()
+            if len(frames):
+                self._pending[plane].append(frames)
+
+    def _follow_mice(self) -> None:
+        """Reader thread: keep the kernel's buffers empty. An evdev client buffer holds only some tens of reports,
+        far fewer than a move of several seconds sends, and an overflow loses counts (SYN_DROPPED)."""
+        with selectors.PollSelector() as selector:
+            for mouse in self.mice.values():
+                selector.register(mouse.fileno(), selectors.EVENT_READ)
+            while not self._closing.is_set():
+                if selector.select(0.05):
+                    with self._lock:
+                        self._drain_locked()
+
+    def _take_pending(self) -> dict[str, Any]:
+        """Every report read since the last capture (counts already integrated), and forget them."""
+        from bench.sensors.input_event import MotionFrames
+
+        with self._lock:
+            self._drain_locked()
+            taken, self._pending = self._pending, {plane: [] for plane in self.mice}
+        return {plane: MotionFrames.concatenate(parts) for plane, parts in taken.items()}
 
     def _read(self) -> tuple[Any, Any]:
-        return self.mice["xy"].read(timeout_s=0.001), self.mice["xz"].read(timeout_s=0.001)
+        """The integrated readings of both mice now."""
+        self._take_pending()
+        with self._lock:
+            return self.mice["xy"].reading(), self.mice["xz"].reading()
 
     def measure(self, capture: Capture) -> Measurement:
         if capture.kind == ARRIVAL:
@@ -72,10 +110,10 @@ class MiceInstrument:
                                 "calibration": self.calibration.calibration_id})
 
     def _measure_arrival(self, capture: Capture) -> Measurement:
-        lead_s = float(capture.conditions.get("lead_s", 1.0))
-        hold_s = float(capture.conditions.get("hold_s", 2.0))
-        counts_before = {plane: mouse.counts.copy() for plane, mouse in self.mice.items()}
+        lead_s, hold_s = float(capture.conditions["lead_s"]), float(capture.conditions["hold_s"])
         frames, t_request = self._stream(lead_s, hold_s)
+        counts_before = {plane: self.mice[plane].counts - np.array([f.dx.sum(), f.dy.sum()], np.int64)
+                         for plane, f in frames.items()}
         series, raw = arrival_series(frames, counts_before, self.calibration, self.origin,
                                      t_request=t_request, lead_s=lead_s, hold_s=hold_s)
         values = {axis: float(series[axis][-1]) for axis in ("x_mm", "y_mm", "z_mm")}
@@ -84,19 +122,31 @@ class MiceInstrument:
                                         "calibration": self.calibration.calibration_id})
 
     def _stream(self, lead_s: float, hold_s: float) -> tuple[dict[str, Any], float]:
-        """Every report of both mice up to ``hold_s`` after now (those of the move included), and now, on the
-        mice's clock (``CLOCK_MONOTONIC``)."""
+        """The reports of both mice from ``lead_s`` before now to ``hold_s`` after it, and now, on the mice's clock
+        (``CLOCK_MONOTONIC``). The end of the move is among the reports read since the last capture."""
         from bench.sensors.input_event import MotionFrames
 
         t_request = time.monotonic()
-        parts: dict[str, list[Any]] = {plane: [mouse.read_frames()] for plane, mouse in self.mice.items()}
+        if self._reader is not None:
+            self._closing.wait(hold_s)  # the reader thread collects meanwhile
+        else:
+            self._listen(t_request + hold_s)
+        window_start = t_request - lead_s
+        frames = {}
+        for plane, f in self._take_pending().items():
+            keep = f.t_s >= window_start
+            frames[plane] = MotionFrames(f.t_s[keep], f.dx[keep], f.dy[keep], f.valid[keep])
+        return frames, t_request
+
+    def _listen(self, until_s: float) -> None:
+        """Read both mice in this thread until ``until_s`` (monotonic), when no reader thread follows them."""
         with selectors.PollSelector() as selector:
-            for plane, mouse in self.mice.items():
-                selector.register(mouse.fileno(), selectors.EVENT_READ, plane)
-            while (remaining := t_request + hold_s - time.monotonic()) > 0:
-                for key, _ in selector.select(min(remaining, 0.05)):
-                    parts[key.data].append(self.mice[key.data].read_frames())
-        return {plane: MotionFrames.concatenate(p) for plane, p in parts.items()}, t_request
+            for mouse in self.mice.values():
+                selector.register(mouse.fileno(), selectors.EVENT_READ)
+            while (remaining := until_s - time.monotonic()) > 0:
+                if selector.select(min(remaining, 0.05)):
+                    with self._lock:
+                        self._drain_locked()
 
     def settings(self) -> dict[str, Any]:
         return {"instrument": "optical mice (x-y, x-z)", "calibration_id": self.calibration.calibration_id,
@@ -104,6 +154,9 @@ class MiceInstrument:
                 "registration_mm": [float(v) for v in self.origin]}
 
     def close(self) -> None:
+        self._closing.set()
+        if self._reader is not None:
+            self._reader.join(1.0)
         for mouse in self.mice.values():
             mouse.close()
 
@@ -205,5 +258,5 @@ def hardware_rig(port: str, *, mouse_xy: str, mouse_xz: str, calibration: Any, h
             mouse.close()
         controller.shutdown()
         raise
-    instrument = MiceInstrument(mice, home_mm, calibration)
+    instrument = MiceInstrument(mice, home_mm, calibration, follow=True)
     return Rig(DriverMover(controller), instrument, ConsoleOperator(), closers=[instrument.close])

@@ -127,6 +127,10 @@ class EvdevMouse:
         if timeout_s > 0:
             self._stream.wait(timeout_s)
         self.read_frames()
+        return self.reading()
+
+    def reading(self) -> Reading:
+        """The integrated displacement of the frames read so far (no read), in mm."""
         t_mono, t_wall = now()
         if self._last_t_s is not None and self.binding.is_device:
             t_wall -= t_mono - self._last_t_s
