@@ -14,7 +14,7 @@ from typing import Protocol, runtime_checkable
 
 import numpy as np
 
-__all__ = ["JointSpec", "ModelIK", "ModelFK", "RobotModel", "robot_models", "MODEL_MODULES"]
+__all__ = ["JointSpec", "ModelIK", "ModelFK", "RobotModel", "robot_models", "MODEL_MODULES", "column_conditioning"]
 
 #: Packages that expose a ``model.MODEL``; the order is the listing order.
 MODEL_MODULES = ("motion.pkm5.model", "motion.delta4.model", "motion.prus3.model")
@@ -84,3 +84,39 @@ def robot_models() -> dict[str, RobotModel]:
     """The available models by name."""
     models = (importlib.import_module(name).MODEL for name in MODEL_MODULES)
     return {model.name: model for model in models}
+
+
+def column_conditioning(jacobian, columns) -> tuple[np.ndarray, np.ndarray]:
+    """Smallest singular value and inverse condition number of each Jacobian restricted to its own columns.
+
+    Parameters
+    ----------
+    jacobian : array_like, shape (N, J, P)
+        Finite entries (``np.linalg.svd`` refuses NaN: what NaN means is the caller's choice).
+    columns : array_like, shape (N, P) bool
+        The pose columns each Jacobian is restricted to (a robot's motion mode, e.g. the pkm5's alpha or beta).
+
+    Returns
+    -------
+    sigma_min, inverse_condition : ndarray (N,), ndarray (N,)
+        sigma_min and sigma_min / sigma_max, in [0, 1]; a Jacobian without a non-zero singular value gives 0, as
+        close to a singularity as it gets.
+
+    Examples
+    --------
+    >>> jac = np.array([[[2.0, 0.0, 0.0], [0.0, 0.5, 0.0], [0.0, 0.0, 1e-9]], [[0.0, 0.0, 0.0]] * 3])
+    >>> column_conditioning(jac, np.array([[True, True, False], [True, True, True]]))
+    (array([0.5, 0. ]), array([0.25, 0.  ]))
+    """
+    jac = np.asarray(jacobian, dtype=float)
+    sigma_min = np.zeros(len(jac))
+    inverse_condition = np.zeros(len(jac))
+    # one batched SVD per column pattern (the pkm5's translation, alpha and beta modes)
+    patterns, group = np.unique(np.asarray(columns, bool), axis=0, return_inverse=True)
+    for index, pattern in enumerate(patterns):
+        rows = np.flatnonzero(group.ravel() == index)
+        singular = np.linalg.svd(jac[rows][:, :, pattern], compute_uv=False)
+        sigma_min[rows] = singular[:, -1]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            inverse_condition[rows] = np.where(singular[:, 0] > 0, singular[:, -1] / singular[:, 0], 0.0)
+    return sigma_min, inverse_condition

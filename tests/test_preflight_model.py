@@ -8,7 +8,8 @@ import pytest
 from bench.errors import ConfigError
 from bench.protocols.kinematics import ROBOT_MODELS, PreflightModel, inverse_condition, robot_model
 from motion import delta4, pkm5
-from motion.model import robot_models
+from motion.model import column_conditioning, robot_models
+from motion.pkm5.jacobian import mode_columns
 
 
 def _samples(name: str, count: int = 600) -> np.ndarray:
@@ -85,3 +86,27 @@ def test_inverse_condition_restricted_columns_and_degenerate_jacobians():
     # NaN taken as 0: singular values of [[0, 1, 0], [0, 4, 0], [0, 0, 1]] are sqrt(17), 1, 0
     assert proximity[2] == pytest.approx(0.0, abs=1e-12)
     assert inverse_condition(jac[:1], np.ones((1, 3), bool))[0] == pytest.approx(1e-9 / 2)
+
+
+def test_column_conditioning_is_each_targets_own_svd_over_its_mode_columns():
+    import doctest
+
+    import motion.model
+
+    rng = np.random.default_rng(7)
+    jac = rng.normal(size=(40, 6, 5))
+    columns = rng.random((40, 5)) < 0.7
+    columns[:, 0] = True  # every mode moves in x
+    sigma_min, inverse = column_conditioning(jac, columns)
+    for i in range(len(jac)):  # one SVD per target, no grouping
+        singular = np.linalg.svd(jac[i][:, columns[i]], compute_uv=False)
+        assert sigma_min[i] == pytest.approx(singular[-1], rel=1e-12)
+        assert inverse[i] == pytest.approx(singular[-1] / singular[0], rel=1e-12)
+    # the pkm5's index and the pre-flight's are this one computation
+    targets = robot_model("pkm5").as_targets([(110, 0, 320), (111.31, -20, 310, 10, 0),
+                                              (124.47, -90.11, 287.16, 0, 10)])
+    radians = targets.copy()
+    radians[:, 3:] = np.radians(radians[:, 3:])
+    np.testing.assert_array_equal(pkm5.singularity_proximity(radians).sigma_min, column_conditioning(
+        pkm5.jacobian(radians) * np.array([1, 1, 1, np.pi / 180, np.pi / 180]), mode_columns(radians))[0])
+    assert doctest.testmod(motion.model).failed == 0

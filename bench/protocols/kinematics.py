@@ -19,6 +19,7 @@ from functools import cached_property
 import numpy as np
 
 from bench.errors import ConfigError
+from motion.model import column_conditioning
 
 __all__ = ["DEFAULT_SINGULARITY_THRESHOLD", "ROBOT_MODELS", "PreflightModel", "TargetCheck", "inverse_condition",
            "robot_model"]
@@ -43,16 +44,8 @@ def inverse_condition(jacobian: np.ndarray, columns: np.ndarray) -> np.ndarray:
 
     A Jacobian without any non-zero singular value (or made of NaN) gives 0: as close to a singularity as it gets.
     """
-    jac = np.nan_to_num(np.asarray(jacobian, dtype=float))
-    proximity = np.zeros(len(jac))
-    # one batched SVD per column pattern (the pkm5's translation, alpha and beta modes)
-    patterns, group = np.unique(columns, axis=0, return_inverse=True)
-    for index, pattern in enumerate(patterns):
-        rows = np.flatnonzero(group.ravel() == index)
-        singular = np.linalg.svd(jac[rows][:, :, pattern], compute_uv=False)
-        with np.errstate(divide="ignore", invalid="ignore"):
-            proximity[rows] = np.where(singular[:, 0] > 0, singular[:, -1] / singular[:, 0], 0.0)
-    return proximity
+    # NaN (a target the IK cannot reach) taken as 0
+    return column_conditioning(np.nan_to_num(np.asarray(jacobian, dtype=float)), columns)[1]
 
 
 def _all_columns(targets: np.ndarray) -> np.ndarray:

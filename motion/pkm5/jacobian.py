@@ -11,6 +11,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from motion import dual
+from motion.model import column_conditioning
 from motion.pkm5.geometry import DEFAULT_GEOMETRY, Geometry
 from motion.pkm5.ik import as_poses, leg_lengths
 
@@ -71,14 +72,4 @@ def singularity_proximity(poses, geometry: Geometry = DEFAULT_GEOMETRY) -> Singu
     """
     p = as_poses(poses)
     jac = jacobian(p, geometry) * np.array([1, 1, 1, np.pi / 180, np.pi / 180])
-    cols = mode_columns(p)
-    sigma_min = np.empty(len(p))
-    inverse_condition = np.empty(len(p))
-    # group poses by their column pattern so each group is one batched SVD
-    patterns, group = np.unique(cols, axis=0, return_inverse=True)
-    for g_index, pattern in enumerate(patterns):
-        rows = np.flatnonzero(group.ravel() == g_index)
-        singular = np.linalg.svd(jac[rows][:, :, pattern], compute_uv=False)
-        sigma_min[rows] = singular[:, -1]
-        inverse_condition[rows] = singular[:, -1] / singular[:, 0]
-    return SingularityProximity(sigma_min, inverse_condition)
+    return SingularityProximity(*column_conditioning(jac, mode_columns(p)))
