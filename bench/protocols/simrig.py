@@ -40,6 +40,11 @@ _PLANES = {"xy": (0, 1), "xz": (0, 2)}
 _PIPE_CHUNK = 24 * 3 * 512
 
 
+def _plane_seed(seed: int, plane_index: int) -> int:
+    """An independent noise seed per mouse (seed + index would give seed s's x-z mouse seed s+1's x-y noise)."""
+    return int(np.random.SeedSequence([seed, plane_index]).generate_state(1)[0])
+
+
 def start_simulator(robot: str, *, seed: int, speed_factor: float, ideal: bool = False, timeout_s: float = 20.0,
                     options: tuple[str, ...] = ()) -> tuple[subprocess.Popen, str]:
     """Start ``python -m bench.robots.sim_<robot>`` (plus ``options``); returns the process and its pty path."""
@@ -121,7 +126,8 @@ class SimulatedMice(MiceInstrument):
         super().__init__(mice, registration, calibration)
         self._clock_s = 0.0
         self._streams = {plane: MouseStream(MouseSimulator(cpi=cpi, noise_counts=noise_counts,
-                                                           report_rate_hz=report_rate_hz, seed=seed + index),
+                                                           report_rate_hz=report_rate_hz,
+                                                           seed=_plane_seed(seed, index)),
                                             origin_mm=registration[list(columns)])
                          for index, (plane, columns) in enumerate(_PLANES.items())}
 

@@ -54,11 +54,15 @@ class StructuralMode:
         if not 0 < self.damping_ratio < 1:
             raise ValueError(f"damping_ratio = {self.damping_ratio}, expected a number in (0, 1) (underdamped)")
 
+    @property
+    def _omegas(self) -> tuple[float, float, float]:
+        """(omega, zeta, omega_d): natural and damped angular frequencies, rad/s, and the damping ratio."""
+        omega = 2 * np.pi * self.frequency_hz
+        return omega, self.damping_ratio, omega * np.sqrt(1 - self.damping_ratio**2)
+
     def _unit_ramp(self, t: np.ndarray) -> np.ndarray:
         """Response r(t) to a unit-slope ramp starting at t = 0 from rest (zero before)."""
-        omega = 2 * np.pi * self.frequency_hz
-        zeta = self.damping_ratio
-        omega_d = omega * np.sqrt(1 - zeta**2)
+        omega, zeta, omega_d = self._omegas
         tt = np.maximum(t, 0.0)
         ringing = np.exp(-zeta * omega * tt) * (2 * zeta / omega * np.cos(omega_d * tt)
                                                  + (2 * zeta**2 - 1) / omega_d * np.sin(omega_d * tt))
@@ -76,9 +80,8 @@ class StructuralMode:
         return start + (end - start) * fraction
 
     def _unit_step(self, t: np.ndarray) -> np.ndarray:
-        omega = 2 * np.pi * self.frequency_hz
-        zeta = self.damping_ratio
-        omega_d = omega * np.sqrt(1 - zeta**2)
+        """Response to a unit step at t = 0 from rest (zero before)."""
+        omega, zeta, omega_d = self._omegas
         tt = np.maximum(t, 0.0)
         decay = np.exp(-zeta * omega * tt) * (np.cos(omega_d * tt) + zeta * omega / omega_d * np.sin(omega_d * tt))
         return np.where(t >= 0, 1.0 - decay, 0.0)

@@ -22,6 +22,7 @@ from typing import Any
 
 import numpy as np
 
+from bench.errors import ConfigError
 from bench.robots import pkm5_wire as wire
 from bench.robots.dynamics import StructuralMode, trace_times
 from bench.robots.link import WireProtocolError
@@ -48,8 +49,7 @@ class _Move:
     start: np.ndarray
     target: np.ndarray
     t_start_s: float
-    duration_s: float
-    simulated_s: float  # the move's duration in simulated time (duration_s is wall time: simulated / speed factor)
+    duration_s: float  # wall time; the move lasts duration_s x speed factor in simulated time
 
     def at(self, now_s: float) -> np.ndarray:
         fraction = 1.0 if self.duration_s <= 0 else min(1.0, (now_s - self.t_start_s) / self.duration_s)
@@ -113,7 +113,7 @@ class Pkm5SimDevice:
         if self.move is not None and now_s >= self.move.t_start_s + self.move.duration_s:
             move, self.move = self.move, None
             self.steps = move.target.copy()
-            self._settle(move.simulated_s)
+            self._settle(move.duration_s * self.speed_factor)
             out += wire.format_reply("DONE", move.tag, *self.steps)
         return out
 
@@ -188,14 +188,14 @@ class Pkm5SimDevice:
             return _error(tag, wire.ErrorCode.DISABLED)
         target = np.array(targets, dtype=np.int64)
         duration_s = float(np.max(np.abs(target - self.steps))) / speed
-        self.move = _Move(tag, self.steps.copy(), target, now_s, duration_s / self.speed_factor, duration_s)
+        self.move = _Move(tag, self.steps.copy(), target, now_s, duration_s / self.speed_factor)
         return wire.format_reply("OK", tag, "MOVE", round(1000 * duration_s / self.speed_factor))
 
     def _stop(self, tag: int, now_s: float) -> bytes:
         out = b""
         if self.move is not None:
             self.steps = self.move.at(now_s)
-            ran_s = min(self.move.simulated_s, (now_s - self.move.t_start_s) * self.speed_factor)
+            ran_s = min(self.move.duration_s, now_s - self.move.t_start_s) * self.speed_factor
             out += _error(self.move.tag, wire.ErrorCode.STOPPED, *self.steps)
             self.move = None
             self._settle(ran_s)
@@ -248,7 +248,7 @@ def build_device(args: argparse.Namespace) -> Pkm5SimDevice:
         mode = StructuralMode(getattr(args, "mode_hz", StructuralMode.frequency_hz),
                               getattr(args, "damping", StructuralMode.damping_ratio))
     except ValueError as exc:
-        raise SystemExit(f"sim_pkm5: {exc}") from None
+        raise ConfigError(f"--mode-hz/--damping: {exc}") from None
     if getattr(args, "fixture", "assembled") == ACTUATOR_BENCH:
         plant = build_actuator_bench(args.seed, ideal=args.ideal)
         truth = TruthLog(args.truth, tuple(f"stroke{axis}_mm" for axis in range(1, wire.AXES + 1)))
