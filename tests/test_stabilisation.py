@@ -155,6 +155,14 @@ def test_analyze_stabilisation_names_a_missing_column(tmp_path, capsys):
     assert "missing column(s) t_s; export the run with --series" in capsys.readouterr().err
 
 
+def test_analyze_stabilisation_names_a_cell_that_is_not_a_number(tmp_path, capsys):
+    table = tmp_path / "series.csv"
+    table.write_text("pose,cycle,t_s,x_mm,y_mm,z_mm\nP1,1,0.0,0.1,0,0\nP1,1,0.01,abc,0,0\n")
+    assert main(["analyze", "stabilisation", str(table)]) == 2
+    err = capsys.readouterr().err
+    assert err.strip() == f"bench: error: {table}: row 2, column x_mm: 'abc' is not a finite number"  # one line
+
+
 def test_band_edge_flicker_is_an_overshoot_of_about_b_unless_hysteresis_covers_it():
     t = np.arange(8) * 0.01
     d = np.array([0.3, 0.2, 0.1, 0.11, 0.09, 0.05, 0.01, 0.0])  # one count of flicker at the band edge

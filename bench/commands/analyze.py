@@ -12,7 +12,7 @@ import argparse
 import numpy as np
 
 from bench.commands.kin import emit
-from bench.errors import ConfigError, InsufficientData
+from bench.errors import ConfigError
 from bench.metrology import (
     combine,
     expanded,
@@ -21,17 +21,17 @@ from bench.metrology import (
     increments_from_positions,
     leg_error_summary,
     pose_drift,
-    pose_stabilisation,
 )
 from bench.metrology.actuator_tables import actuator_table, analyze_actuators
 from bench.metrology.tables import (
     analyze_distance,
-    condition_groups,
     analyze_poses,
     numeric_columns,
     pose_result_json,
     pose_table,
     read_table_csv,
+    stabilisation_results,
+    stabilisation_table,
 )
 
 
@@ -160,33 +160,27 @@ def _drift(args: argparse.Namespace) -> int:
 
 
 def _stabilisation(args: argparse.Namespace) -> int:
-    table = read_table_csv(args.file)
-    missing = [c for c in ("pose", "cycle", "t_s", "x_mm", "y_mm", "z_mm") if c not in table.columns]
-    if missing:
-        raise ConfigError(f"{args.file}: missing column(s) {', '.join(missing)}; export the run with --series")
+    table = stabilisation_table(read_table_csv(args.file))
     for band in args.band_mm:
         if not band > 0:
             raise ConfigError(f"--band-mm {band:g}: expected limit bands > 0 mm")
-    by_pose = {label: [(rows["t_s"].to_numpy(float), rows[["x_mm", "y_mm", "z_mm"]].to_numpy(float))
-                       for _, rows in group.groupby("cycle", sort=True)]
-               for label, _, _, group in condition_groups(table)}
+    figures = stabilisation_results(table, args.band_mm, args.hysteresis_mm)
     result: dict = {"hysteresis_mm": args.hysteresis_mm, "bands": {}}
-    width = max([6, *(len(label) for label in by_pose)])
+    width = max([6, *(len(label) for label in figures.series)])
     lines = [f"{'band_mm':>7}  {'pose':<{width}} {'n':>2} {'mean_t_s':>8} {'max_t_s':>8} {'OV_mm':>7} {'max_OV_mm':>9}"]
-    for band in args.band_mm:
-        per_pose = result["bands"][f"{band:g}"] = {}
-        for pose, series in by_pose.items():
-            try:
-                r = pose_stabilisation(series, band_mm=band, hysteresis_mm=args.hysteresis_mm)
-            except InsufficientData as exc:
-                per_pose[pose] = {"n": len(series), "error": str(exc)}
-                lines.append(f"{band:>7g}  {pose:<{width}} {len(series):>2} {exc}")
+    for band, per_pose in figures.bands.items():
+        printed = result["bands"][f"{band:g}"] = {}
+        for pose, r in per_pose.items():
+            n = len(figures.series[pose])
+            if isinstance(r, str):
+                printed[pose] = {"n": n, "error": r}
+                lines.append(f"{band:>7g}  {pose:<{width}} {n:>2} {r}")
                 continue
-            per_pose[pose] = {"n": len(series), "mean_time_s": r.mean_time_s, "max_time_s": r.max_time_s,
-                              "overshoot_mm": r.mean_overshoot_mm, "max_overshoot_mm": r.max_overshoot_mm,
-                              "time_s_per_cycle": [c.stabilisation_time_s for c in r.cycles],
-                              "overshoot_mm_per_cycle": [c.overshoot_mm for c in r.cycles]}
-            lines.append(f"{band:>7g}  {pose:<{width}} {len(series):>2} {r.mean_time_s:>8.3f} {r.max_time_s:>8.3f} "
+            printed[pose] = {"n": n, "mean_time_s": r.mean_time_s, "max_time_s": r.max_time_s,
+                             "overshoot_mm": r.mean_overshoot_mm, "max_overshoot_mm": r.max_overshoot_mm,
+                             "time_s_per_cycle": [c.stabilisation_time_s for c in r.cycles],
+                             "overshoot_mm_per_cycle": [c.overshoot_mm for c in r.cycles]}
+            lines.append(f"{band:>7g}  {pose:<{width}} {n:>2} {r.mean_time_s:>8.3f} {r.max_time_s:>8.3f} "
                          f"{r.mean_overshoot_mm:>7.4f} {r.max_overshoot_mm:>9.4f}")
     emit(result, args.json, lines)
     return 0

@@ -30,6 +30,7 @@ from bench.metrology.iso9283 import (
     pose_accuracy,
     pose_repeatability,
 )
+from bench.metrology.iso9283_dynamics import PoseStabilisation, pose_stabilisation
 from bench.metrology.uncertainty import (
     Measured,
     accuracy_uncertainty,
@@ -49,11 +50,17 @@ __all__ = [
     "pose_result_json",
     "pose_table",
     "read_table_csv",
+    "STABILISATION_COLUMNS",
+    "StabilisationResults",
+    "stabilisation_results",
+    "stabilisation_table",
 ]
 
 POSE_COLUMNS = ("pose", "cycle", "cmd_x_mm", "cmd_y_mm", "cmd_z_mm", "x_mm", "y_mm", "z_mm")
 ANGLE_PAIRS = (("cmd_a_deg", "a_deg"), ("cmd_b_deg", "b_deg"), ("cmd_c_deg", "c_deg"))
 CONDITION_COLUMNS = ("velocity_pct", "load_kg")
+#: Columns of a streamed-arrival table (``bench export RUN --series`` of an ``iso9283_stabilisation`` run).
+STABILISATION_COLUMNS = ("pose", "cycle", "t_s", "x_mm", "y_mm", "z_mm")
 _COMMAND = ("cmd_x_mm", "cmd_y_mm", "cmd_z_mm")
 _ATTAINED = ("x_mm", "y_mm", "z_mm")
 
@@ -316,3 +323,56 @@ def analyze_distance(table: pd.DataFrame, first_pose: str, second_pose: str) -> 
         first[list(_COMMAND)].to_numpy()[0],
         second[list(_COMMAND)].to_numpy()[0],
     )
+
+
+# -- streamed arrivals: position stabilisation time and overshoot (ISO 9283 7.4, 7.5) ---------------------------------
+
+
+@dataclass(frozen=True, eq=False)
+class StabilisationResults:
+    """The arrivals of a streamed-arrival table and their stabilisation figures.
+
+    ``series`` holds per group label (the pose, with the conditions when they vary, as :func:`condition_groups`
+    names it) the ``(cycle, t_s, position_mm)`` of every arrival in cycle order; ``bands`` per limit band and group
+    label the :class:`~bench.metrology.iso9283_dynamics.PoseStabilisation`, or the message of the
+    ``InsufficientData`` that left it without one (an arrival never entered, or never settled in, the band).
+    """
+
+    series: dict[str, tuple[tuple[int, np.ndarray, np.ndarray], ...]]
+    bands: dict[float, dict[str, PoseStabilisation | str]]
+
+
+def stabilisation_table(frame: pd.DataFrame) -> pd.DataFrame:
+    """Check a streamed-arrival table; return it with ``cycle``, ``t_s``, ``x_mm``..``z_mm`` (and the condition
+    columns) as float and ``pose`` as a stripped string. A missing column says how to export one; a cell that is
+    not a number is a ``ConfigError`` naming its row, column and value."""
+    source = frame.attrs.get("source", "table")
+    missing = [c for c in STABILISATION_COLUMNS if c not in frame.columns]
+    if missing:
+        raise ConfigError(f"{source}: missing column(s) {', '.join(missing)}; export the run with --series")
+    table = numeric_columns(frame, STABILISATION_COLUMNS[1:])
+    table = numeric_columns(table, CONDITION_COLUMNS, required=False)
+    table["pose"] = frame["pose"].astype(str).str.strip()
+    table.attrs["source"] = source
+    return table
+
+
+def stabilisation_results(table: pd.DataFrame, bands_mm: Sequence[float], hysteresis_mm: float) -> StabilisationResults:
+    """Stabilisation time and overshoot per limit band and per pose (and condition) of a checked streamed-arrival
+    table (:func:`stabilisation_table`): the arrivals of each group, one per cycle, through
+    :func:`~bench.metrology.iso9283_dynamics.pose_stabilisation`. The one grouping that ``bench analyze
+    stabilisation`` and the stabilisation report share.
+    """
+    series = {label: tuple((int(cycle), arrival["t_s"].to_numpy(float), arrival[list(_ATTAINED)].to_numpy(float))
+                           for cycle, arrival in rows.groupby("cycle", sort=True))
+              for label, _, _, rows in condition_groups(table)}
+    bands: dict[float, dict[str, PoseStabilisation | str]] = {}
+    for band in bands_mm:
+        per_group = bands[float(band)] = {}
+        for label, arrivals in series.items():
+            try:
+                per_group[label] = pose_stabilisation([(t, p) for _, t, p in arrivals], band_mm=band,
+                                                      hysteresis_mm=hysteresis_mm)
+            except InsufficientData as exc:
+                per_group[label] = str(exc)
+    return StabilisationResults(series, bands)

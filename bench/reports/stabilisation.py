@@ -1,11 +1,11 @@
 """The report of an ``iso9283_stabilisation`` run: position stabilisation time and overshoot (ISO 9283 7.4, 7.5)
 from the streamed arrivals (docs/campaigns.md, "Streamed arrivals").
 
-Every figure comes from :func:`bench.metrology.pose_stabilisation` on the run's streamed series
-(:func:`bench.store.series_table`, the raw-data CSV, = ``bench export RUN --series``), grouped per pose and cycle
-as ``bench analyze stabilisation FILE.csv --band-mm ... --hysteresis-mm ...`` groups them, for every limit band
-(ISO comparison bands 0.1, 0.5 and 1.0 mm by default). Runs at several velocities or loads are analysed per
-condition.
+Every figure comes from :func:`bench.metrology.tables.stabilisation_results` on the run's streamed series
+(:func:`bench.store.series_table`, the raw-data CSV, = ``bench export RUN --series``), the call ``bench analyze
+stabilisation FILE.csv --band-mm ... --hysteresis-mm ...`` makes: per pose and cycle through
+:func:`bench.metrology.pose_stabilisation`, for every limit band (ISO comparison bands 0.1, 0.5 and 1.0 mm by
+default). Runs at several velocities or loads are analysed per condition.
 
 Hysteresis h (band-edge flicker of a quantised instrument): by default one count of a counts instrument (the
 mice), from the run's stored calibration in force (``mm_per_count``, or ``cpi``) or else its stored instrument
@@ -19,10 +19,10 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-import pandas as pd
 
-from bench.errors import ConfigError, InsufficientData
-from bench.metrology import PoseStabilisation, pose_stabilisation
+from bench.errors import ConfigError
+from bench.metrology import PoseStabilisation
+from bench.metrology.tables import stabilisation_results, stabilisation_table
 from bench.reports.content import (
     MM_PER_INCH,
     ReportBase,
@@ -43,13 +43,11 @@ from bench.reports.document import (
     decision_blocks,
 )
 from bench.reports.plots import Plot, panels
-from bench.metrology.tables import condition_groups
 from bench.store import CalibrationRecord, RunRecord, Store
 
-__all__ = ["POSITION", "Arrival", "BandResult", "StabilisationReport", "collect_stabilisation", "count_size_mm",
+__all__ = ["Arrival", "BandResult", "StabilisationReport", "collect_stabilisation", "count_size_mm",
            "recompute_stabilisation", "stabilisation_document", "stabilisation_plot"]
 
-POSITION = ("x_mm", "y_mm", "z_mm")
 SCOPE = ("Tested following the methods of ISO 9283:1998 clauses 7.4 (position stabilisation time) and 7.5 (position "
          "overshoot), with the deviations listed in the deviations table. Results are ISO 9283-style; this is not "
          "an ISO 9283 certification.")
@@ -124,12 +122,6 @@ def _bands(requested) -> tuple[float, ...]:
     return bands
 
 
-def _series(rows: pd.DataFrame) -> list[tuple[int, np.ndarray, np.ndarray]]:
-    """(cycle, t_s, positions) per cycle, in cycle order, as bench analyze stabilisation reads them."""
-    return [(int(cycle), group["t_s"].to_numpy(float), group[list(POSITION)].to_numpy(float))
-            for cycle, group in rows.groupby("cycle", sort=True)]
-
-
 def _window_problems(arrivals: list[Arrival], results: list[BandResult], bands: tuple[float, ...]) -> tuple[str, ...]:
     """Per band, the arrivals whose window opened already inside it (t_1 not observed: the lead window missed the
     entry), then the bands in which some arrival never entered or never settled."""
@@ -156,18 +148,16 @@ def collect_stabilisation(store: Store, run_id: int, *, k: float = 2.0, resample
     calibrations = calibrations_in_force(store, run)
     count = count_size_mm(run, calibrations)
     hysteresis, source = _hysteresis(count, hysteresis_mm)
+    figures = stabilisation_results(stabilisation_table(table), bands, hysteresis)
     results, arrivals = [], []
-    for label, _, _, rows in condition_groups(table):
-        series = _series(rows)
-        for cycle, t, position in series:
-            arrivals.append(Arrival(label, cycle, t, np.sqrt(np.sum((position - position[-1]) ** 2, axis=1))))
+    for label, series in figures.series.items():
+        arrivals += [Arrival(label, cycle, t, np.sqrt(np.sum((position - position[-1]) ** 2, axis=1)))
+                     for cycle, t, position in series]
         numbers = tuple(cycle for cycle, _, _ in series)
         for band in bands:
-            try:
-                result = pose_stabilisation([(t, p) for _, t, p in series], band_mm=band, hysteresis_mm=hysteresis)
-                results.append(BandResult(label, band, numbers, result))
-            except InsufficientData as exc:
-                results.append(BandResult(label, band, numbers, None, str(exc)))
+            result = figures.bands[band][label]
+            results.append(BandResult(label, band, numbers, None, result) if isinstance(result, str) else
+                           BandResult(label, band, numbers, result))
     cycles = min(len(r.cycles) for r in results)
     problems = _window_problems(arrivals, results, bands)
     deviations = stabilisation_deviations(config=run.config, settings=run.settings, cycles_measured=cycles,
