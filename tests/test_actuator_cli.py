@@ -1,7 +1,8 @@
 """The actuator bench through the command line, on the simulator: ``bench run --dry-run`` lists the strokes, a short
 run, ``bench export --kind actuator_travel`` feeds ``bench analyze actuator`` unchanged, and ``bench report`` prints
-the same numbers. Independent paths: ``bench.protocols.actuator.actuator_results`` (the protocol's own reduction of
-the stored samples) and numpy on the exported CSV."""
+the same numbers. Checked against numpy on the exported CSV and the dissertation's CR per actuator (000 Eq. 8.1);
+``bench.protocols.actuator.actuator_results`` (the protocol's reduction of the stored samples, full precision) must
+agree with the CLI on the 6-decimal export."""
 
 from __future__ import annotations
 
@@ -100,6 +101,12 @@ def test_export_then_analyze_actuator_reproduces_the_protocols_own_figures(simul
         deviation = rows["travel_mm"] - rows["cmd_travel_mm"]
         mean, sd = deviation.groupby(rows["cmd_travel_mm"]).mean(), deviation.groupby(rows["cmd_travel_mm"]).std()
         assert ours["sigma_mm"] == pytest.approx(list(sd), abs=1e-6)  # the export keeps 6 decimals
+        # 000 Eqs. 8.1-8.3 by hand: CR = 1.25 mm / (200 or 400 steps), repeatability 3 σ̄, accuracy CR/2 + 3 σ̄
+        cr = {2: 1.25 / 200, 5: 1.25 / 400}[axis]
+        assert ours["control_resolution_mm"] == pytest.approx(cr, rel=1e-15)
+        assert ours["repeatability_mm"] == pytest.approx(3 * sd.mean(), abs=1e-6)
+        assert ours["accuracy_mm"] == pytest.approx(cr / 2 + 3 * sd.mean(), abs=1e-6)
+        assert ours["mean_deviation_mm"] == pytest.approx(list(mean), abs=1e-6)
         assert ours["iso230_2_forward"]["A_mm"] == pytest.approx(float((mean + 2 * sd).max() - (mean - 2 * sd).min()),
                                                                  abs=1e-6)
         assert ours["U_repeatability_mm"] > 0 and ours["dropped_readings"] == 0

@@ -10,7 +10,7 @@ import bench.metrology
 MODULES = ["iso9283", "iso9283_dynamics", "actuator", "actuator_tables", "mouse_calibration", "payload", "uncertainty",
            "tables", "partial_pose", "hit_rate"]
 #: Modules with no Examples section yet (every other module must run at least one example).
-WITHOUT_EXAMPLES = {"iso9283_dynamics", "actuator_tables", "tables"}
+WITHOUT_EXAMPLES = {"iso9283_dynamics", "tables"}
 
 
 @pytest.mark.parametrize("name", MODULES)

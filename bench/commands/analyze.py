@@ -22,7 +22,12 @@ from bench.metrology import (
     leg_error_summary,
     pose_drift,
 )
-from bench.metrology.actuator_tables import actuator_table, analyze_actuators
+from bench.metrology.actuator_tables import (
+    ACTUATOR_ROBOTS,
+    actuator_table,
+    analyze_actuators,
+    robot_control_resolution,
+)
 from bench.metrology.tables import (
     analyze_distance,
     analyze_poses,
@@ -34,9 +39,6 @@ from bench.metrology.tables import (
     stabilisation_table,
 )
 
-
-#: Robots whose actuator numbers ``bench analyze actuator --robot`` maps to a control resolution.
-ACTUATOR_ROBOTS = ("pkm5",)
 
 
 def register(groups: argparse._SubParsersAction) -> None:
@@ -186,15 +188,6 @@ def _stabilisation(args: argparse.Namespace) -> int:
     return 0
 
 
-def actuator_resolution(robot: str) -> tuple[float, ...]:
-    """Control resolution CR (mm/step) per actuator number (1-based) of ``robot`` (000 Eq. 8.1 for the pkm5)."""
-    if robot not in ACTUATOR_ROBOTS:
-        raise ConfigError(f"--robot {robot}: expected one of {', '.join(ACTUATOR_ROBOTS)}")
-    from motion import pkm5
-
-    return tuple(float(v) for v in pkm5.DEFAULT_GEOMETRY.mm_per_step)
-
-
 def actuator_result_json(r) -> dict:
     """One actuator's figures as ``bench analyze actuator --json`` prints them (mm; U with the coverage factor k)."""
     g, iso = r.groover, r.iso230_2
@@ -212,7 +205,7 @@ def actuator_result_json(r) -> dict:
 def _actuator(args: argparse.Namespace) -> int:
     frame = read_table_csv(args.file)
     resolution = args.cr_mm if args.cr_mm is not None else (
-        actuator_resolution(args.robot) if args.robot is not None else None)
+        robot_control_resolution(args.robot) if args.robot is not None else None)
     if "cr_mm" not in frame.columns and resolution is None:
         raise ConfigError(f"{args.file}: no cr_mm column and no --cr-mm given, expected one of them (an "
                           "actuator_accuracy export: --robot pkm5)")

@@ -35,12 +35,15 @@ from bench.metrology.actuator import (
 from bench.metrology.tables import numeric_columns
 from bench.metrology.uncertainty import Measured, bootstrap_uncertainty, combine, expanded
 
-__all__ = ["COMMAND_COLUMNS", "REPEAT_COLUMNS", "ActuatorResult", "actuator_table", "analyze_actuators"]
+__all__ = ["ACTUATOR_ROBOTS", "COMMAND_COLUMNS", "REPEAT_COLUMNS", "ActuatorResult", "actuator_table",
+           "analyze_actuators", "robot_control_resolution"]
 
 #: Accepted names of the commanded-travel column, in order of preference.
 COMMAND_COLUMNS = ("cmd_mm", "cmd_travel_mm")
 #: Accepted names of the repeat column.
 REPEAT_COLUMNS = ("cycle", "repeat")
+#: Robots whose actuator numbers map to a control resolution (:func:`robot_control_resolution`).
+ACTUATOR_ROBOTS = ("pkm5",)
 
 
 @dataclass(frozen=True, eq=False)
@@ -57,6 +60,23 @@ class ActuatorResult:
     repeatability_u: Measured | None  #: 3σ̄ with a bootstrap U over repeats (None below 3 repeats)
     accuracy_u: Measured | None  #: CR/2 + 3σ̄ with the same U
     dropped: int = 0  #: readings left out because their repeat misses a target
+
+
+def robot_control_resolution(robot: str) -> tuple[float, ...]:
+    """Control resolution CR (mm/step) per actuator number (1-based) of ``robot``'s kinematic model: for the pkm5
+    the leg-length change per step (000 Eq. 8.1), ``motion.pkm5.DEFAULT_GEOMETRY.mm_per_step``. The one lookup of
+    ``bench analyze actuator --robot``, the actuator report and the protocol's own reduction.
+
+    Examples
+    --------
+    >>> robot_control_resolution("pkm5")  # 1.25 mm lead over 200 full steps per rev, 400 for actuators 5-6
+    (0.00625, 0.00625, 0.00625, 0.00625, 0.003125, 0.003125)
+    """
+    if robot not in ACTUATOR_ROBOTS:
+        raise ConfigError(f"robot {robot!r}: no actuator model, expected one of {', '.join(ACTUATOR_ROBOTS)}")
+    from motion import pkm5  # pure kinematics, imported only when asked
+
+    return tuple(float(v) for v in pkm5.DEFAULT_GEOMETRY.mm_per_step)
 
 
 def actuator_table(frame: pd.DataFrame) -> pd.DataFrame:

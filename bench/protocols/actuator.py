@@ -6,16 +6,14 @@ the depth gauge on it, and then, 10 times, the actuator returns to the start str
 where the operator enters the gauge reading. Every approach is from below (unidirectional). The run stores
 ``fixture = "actuator-bench"``, and the rig's driver must be opened on the bench, or every move is refused.
 :func:`actuator_results` turns a run's readings into the dissertation's figures with
-:func:`bench.metrology.actuator.groover_actuator` (Eqs. 8.1-8.3, Table 8-1).
+:func:`bench.metrology.actuator_tables.analyze_actuators` (Eqs. 8.1-8.3, Table 8-1).
 """
 
 from __future__ import annotations
 
 from typing import Any
 
-import numpy as np
-
-from bench.errors import ConfigError, InsufficientData
+from bench.errors import ConfigError
 from bench.metrology.documents import ACTUATOR_REPEATS, ACTUATOR_TRAVELS_MM
 from bench.protocols.base import Protocol, register
 from bench.protocols.parameters import (
@@ -88,24 +86,15 @@ class ActuatorAccuracy(Protocol):
 def actuator_results(store: Any, run_id: int) -> dict[int, Any]:
     """Groover accuracy/repeatability (with the mean bias) per actuator of an ``actuator_accuracy`` run.
 
-    Returns ``{actuator: bench.metrology.actuator.GrooverActuator}``; CR is the actuator's leg-length change per
-    step (0.00625 mm for actuators 1-4 at full steps, 000 Eq. 8.1). Repeats missing a reading are left out.
+    Returns ``{actuator: bench.metrology.actuator.GrooverActuator}`` from
+    :func:`bench.metrology.actuator_tables.analyze_actuators` on the run's ``actuator_travel`` table (the reduction
+    ``bench analyze actuator --robot pkm5`` and the report make); CR is the actuator's leg-length change per step
+    (0.00625 mm for actuators 1-4 at full steps, 000 Eq. 8.1). Repeats missing a reading are left out.
     """
-    from bench.metrology.actuator import groover_actuator
-    from motion import pkm5
+    from bench.metrology.actuator_tables import actuator_table, analyze_actuators, robot_control_resolution
+    from bench.store import tidy_table
 
-    readings: dict[int, dict[float, dict[int, float]]] = {}
-    for sample in store.samples(run_id, kind="actuator_travel"):
-        values = sample.values
-        by_target = readings.setdefault(int(values["actuator"]), {})
-        by_target.setdefault(float(values["cmd_travel_mm"]), {})[sample.cycle] = float(values["travel_mm"])
-    if not readings:
-        raise InsufficientData(f"run {run_id}: no actuator_travel samples, expected an actuator_accuracy run")
-    results = {}
-    for axis, by_target in sorted(readings.items()):
-        targets = sorted(by_target)
-        cycles = sorted(set.intersection(*(set(by_target[t]) for t in targets)))
-        table = np.array([[by_target[t][c] for t in targets] for c in cycles], dtype=float)
-        cr = float(pkm5.DEFAULT_GEOMETRY.mm_per_step[axis - 1])
-        results[axis] = groover_actuator(targets, table, control_resolution_mm=cr)
-    return results
+    robot = store.run(run_id).robot
+    results = analyze_actuators(actuator_table(tidy_table(store, run_id, kind="actuator_travel")),
+                                control_resolution_mm=robot_control_resolution(robot))
+    return {int(r.actuator): r.groover for r in results}

@@ -3,8 +3,8 @@ and ISO 230-2 unidirectional figures (iso9283.md §7.1, §7.4).
 
 Every figure comes from :func:`bench.metrology.actuator_tables.analyze_actuators` on the run's tidy
 ``actuator_travel`` table, the same call ``bench analyze actuator FILE.csv --robot pkm5`` makes on the raw-data
-CSV the report writes; the control resolution is the pkm5 model's mm per step (000 Eq. 8.1), as in
-:func:`bench.protocols.actuator.actuator_results`.
+CSV the report writes; the control resolution is the robot model's mm per step (000 Eq. 8.1,
+:func:`~bench.metrology.actuator_tables.robot_control_resolution`).
 """
 
 from __future__ import annotations
@@ -13,7 +13,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from bench.metrology.actuator_tables import ActuatorResult, actuator_table, analyze_actuators
+from bench.metrology.actuator_tables import (
+    ActuatorResult,
+    actuator_table,
+    analyze_actuators,
+    robot_control_resolution,
+)
 from bench.reports.content import (
     ReportBase,
     calibrations_in_force,
@@ -57,13 +62,11 @@ class ActuatorReport(ReportBase):
 def collect_actuator(store: Store, run_id: int, *, k: float = 2.0, resamples: int = 1000,
                      allow_unknown: bool = False) -> ActuatorReport:
     """Gather the facts and figures of the report of ``actuator_accuracy`` run ``run_id``."""
-    from motion import pkm5
-
     run = store.run(run_id)
     table = run_table(store, run_id, "actuator_travel")
     calibrations = calibrations_in_force(store, run)
     instrument = reading_instrument(run, calibrations, table["travel_mm"], difference=True)
-    results = analyze_actuators(actuator_table(table), control_resolution_mm=tuple(pkm5.DEFAULT_GEOMETRY.mm_per_step),
+    results = analyze_actuators(actuator_table(table), control_resolution_mm=robot_control_resolution(run.robot),
                                 instrument_u_mm=instrument.sigma_mm or 0.0, k=k, resamples=resamples)
     deviations = actuator_deviations(config=run.config, settings=run.settings,
                                      repeats_measured=min(r.groover.n for r in results),
@@ -136,7 +139,7 @@ def actuator_plot(report: ActuatorReport) -> Plot:
 def recompute_actuator(report: ActuatorReport) -> str:
     """The CLI call that recomputes every actuator figure from the raw-data CSV."""
     sigma = report.instrument.sigma_mm or 0.0
-    return (f"bench analyze actuator FILE.csv --robot pkm5 --instrument-u-mm {sigma:.6g} --k "
+    return (f"bench analyze actuator FILE.csv --robot {report.run.robot} --instrument-u-mm {sigma:.6g} --k "
             f"{report.coverage_factor:g} (bench export RUN_ID --kind actuator_travel writes the same table)")
 
 
