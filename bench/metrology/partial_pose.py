@@ -175,9 +175,9 @@ class GridPoseResult:
 
 
 def grid_positioning_table(frame):
-    """Check a grid positioning table (strings, from :func:`bench.metrology.tables.read_table_csv`) and return it
-    with numbers as float; an empty axis cell (or ``nan``) is NaN, "not measured". Every stored axis must come from
-    a screen marked valid, and a valid screen must have stored both its axes."""
+    """Check a grid positioning table, strings (:func:`bench.metrology.tables.read_table_csv`) or numbers (the
+    store's tidy table), and return it with numbers as float; an empty axis cell (or NaN) is NaN, "not measured".
+    Every stored axis must come from a screen marked valid, and a valid screen must have stored both its axes."""
     from bench.metrology.tables import numeric_columns
 
     source = frame.attrs.get("source", "table")

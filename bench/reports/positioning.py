@@ -16,7 +16,6 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-import pandas as pd
 
 from bench.errors import ConfigError
 from bench.metrology.documents import GRID_RESOLUTION_MM
@@ -45,7 +44,7 @@ from bench.reports.document import (
 from bench.reports.plots import Plot, panels
 from bench.store import Store
 
-__all__ = ["NO_READING", "WILSON_Z", "GridPositioningReport", "axis_cells", "collect_grid_positioning", "csv_cells",
+__all__ = ["NO_READING", "WILSON_Z", "GridPositioningReport", "axis_cells", "collect_grid_positioning",
            "grid_positioning_document", "grid_positioning_plot", "grid_readings", "recompute_grid_positioning"]
 
 #: What an axis (or a screen rate) with no reading prints: never 0.
@@ -108,16 +107,6 @@ def grid_readings(store: Store, run_id: int) -> bool:
     return any("horizontal_valid" in sample.values for sample in store.samples(run_id, kind="pose"))
 
 
-def csv_cells(table: pd.DataFrame) -> pd.DataFrame:
-    """The tidy table as :func:`bench.metrology.tables.read_table_csv` reads its CSV back: every cell a string at
-    full precision, "" where the sample stored no value (an axis not measured). The grid table's checks
-    (:func:`~bench.metrology.partial_pose.grid_positioning_table`) take the CLI's strings, so the report gives them
-    the same."""
-    cells = table.astype(object).where(table.notna(), "").astype(str)
-    cells.attrs = dict(table.attrs)
-    return cells
-
-
 def collect_grid_positioning(store: Store, run_id: int, *, k: float = 2.0, resamples: int = 1000,
                              allow_unknown: bool = False) -> GridPositioningReport:
     """Gather the facts and figures of the report of ``delta_positioning`` run ``run_id`` (``resamples`` unused;
@@ -125,7 +114,7 @@ def collect_grid_positioning(store: Store, run_id: int, *, k: float = 2.0, resam
     run = store.run(run_id)
     _check_k(k, run.protocol_name)
     table = run_table(store, run_id, "pose")
-    analysed = grid_positioning_table(csv_cells(table))
+    analysed = grid_positioning_table(table)  # NaN: an axis not measured, as an empty CSV cell
     poses = tuple(analyze_grid_positioning(analysed))
     calibrations = calibrations_in_force(store, run)
     deviations = grid_positioning_deviations(config=run.config, settings=run.settings, poses=poses,
