@@ -73,6 +73,7 @@ def _same(ours, theirs):
 
 
 def _check_against_cli(report, cli):
+    assert cli["k"] == report.coverage_factor
     for p in report.poses:
         figures = cli["poses"][p.pose]
         assert figures["n"] == p.statistics.n_readings and figures["commanded_mm"] == list(p.commanded_mm)
@@ -80,7 +81,7 @@ def _check_against_cli(report, cli):
             for kind in ("valid", "lit"):
                 ours, theirs = getattr(p, kind)[screen], figures["screens"][screen][kind]
                 assert (theirs["k"], theirs["n"]) == (ours.k, ours.n)
-                for value, their in zip((ours.rate, ours.low, ours.high), (theirs["rate"], *theirs["wilson_k2"])):
+                for value, their in zip((ours.rate, ours.low, ours.high), (theirs["rate"], *theirs["wilson"])):
                     _same(value, their)
         for name, axis in zip("xyz", p.statistics.axes):
             theirs = figures["axes"][name]
@@ -127,7 +128,7 @@ def test_simulated_report_equals_bench_analyze_on_its_raw_data_and_on_the_export
     html = paths.html.read_text(encoding="utf-8")
     assert hashlib.sha256(paths.csv[0].read_bytes()).hexdigest() in html
     assert f"bench export {run_id} --kind pose --store {folder / 'bench.db'} --out run{run_id}.csv, then bench " \
-           f"analyze grid-positioning run{run_id}.csv --json" in html
+           f"analyze grid-positioning run{run_id}.csv --k 2 --json" in html
     assert int(html_tables(paths.html)["rawdata"][1][2]) == len(store.samples(run_id)) == len(report.table)
 
 
@@ -174,7 +175,7 @@ def test_written_run_spatial_figures_come_from_the_complete_readings_only(writte
     rate = p1.valid["vertical"]  # 3 of 4: Wilson at z = 2 by its closed form
     centre_w, half_w = (0.75 + 4 / 8) / 2, math.sqrt(0.75 * 0.25 / 4 + 4 / 64) * 2 / 2
     assert (rate.low, rate.high) == pytest.approx((centre_w - half_w, centre_w + half_w), abs=1e-12)
-    assert screens["P1"][5] == f"3 / 4, 75.0 % [{100 * rate.low:.1f}, {100 * rate.high:.1f}]"
+    assert screens["P1"][5] == f"3 / 4, 75.00 % [{100 * rate.low:.1f}, {100 * rate.high:.1f}]"
     pdf = pdf_text(paths.pdf)
     for text in (screens["P1"][5], f"{p1.statistics.rp_mm:.4f}", "Deviations from thesis §8.4.2 / ISO 9283",
                  "Reading the figures: they are conditional on detection"):
@@ -210,8 +211,6 @@ def test_options_of_other_layouts_are_refused(written, capsys, tmp_path):
     assert main(["report", str(run_id), "--store", store.path, "--out", str(tmp_path), "--format", "html"]) == 0
     assert capsys.readouterr().out.split() == [str(tmp_path / f"report_run{run_id}.html"),
                                                str(tmp_path / f"run{run_id}_samples.csv")]
-    with pytest.raises(ConfigError, match=r"--k 3: a delta_positioning report has no expanded uncertainty"):
-        collect(store, run_id, k=3.0)
     with pytest.raises(ConfigError, match=f"--band-mm: applies to iso9283_stabilisation runs; run {run_id} is a "
                                           "delta_positioning run"):
         collect(store, run_id, bands_mm=[0.1])
@@ -220,3 +219,18 @@ def test_options_of_other_layouts_are_refused(written, capsys, tmp_path):
     assert main(["report", str(run_id), "--store", store.path, "--out", str(tmp_path), "--hysteresis-mm",
                  "0.1"]) == 2
     assert "--hysteresis-mm: applies to iso9283_stabilisation runs" in capsys.readouterr().err
+
+
+def test_k_is_the_z_of_every_wilson_interval_in_the_report_and_the_cli(written, capsys, tmp_path):
+    store, run_id, _, _ = written
+    report = collect(store, run_id, k=3.0)
+    samples = [s for s in store.samples(run_id, kind="pose") if s.pose == "P1"]
+    rate = report.poses[0].valid["vertical"]  # 3 of 4: Wilson at z = 3 by its closed form
+    centre, half = (0.75 + 9 / 8) / (1 + 9 / 4), 3 * math.sqrt(0.75 * 0.25 / 4 + 9 / 64) / (1 + 9 / 4)
+    assert (rate.k, rate.n) == (3, 4) and (rate.low, rate.high) == pytest.approx((centre - half, centre + half))
+    assert rate == detection_rate([s.values["vertical_valid"] for s in samples], k=3.0)
+    paths = write_report(store, run_id, tmp_path, ("html",), k=3.0)
+    html = paths.html.read_text(encoding="utf-8")
+    assert "Wilson score interval, z = 3" in html and f"grid-positioning run{run_id}.csv --k 3 --json" in html
+    _check_against_cli(report, cli_json(capsys, "analyze", "grid-positioning", str(paths.csv[0]), "--k", "3",
+                                        "--json"))

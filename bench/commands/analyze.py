@@ -94,6 +94,7 @@ def register(groups: argparse._SubParsersAction) -> None:
     grid = _new_parser(actions, "grid-positioning", "delta robot read by the laser grid: hit rate per screen and "
                                                     "per-axis AP, 3 S, max/mean |error| over the readings that "
                                                     "measured each axis (delta_positioning runs)")
+    grid.add_argument("--k", type=float, default=2.0, help="coverage factor: z of the rates' Wilson intervals")
     grid.set_defaults(handler=_grid_positioning)
 
 
@@ -301,37 +302,32 @@ def _grid_positioning(args: argparse.Namespace) -> int:
         grid_pose_json,
         grid_positioning_table,
         pooled_axis_errors,
+        rate_text,
     )
 
     table = grid_positioning_table(read_table_csv(args.file))
-    results = analyze_grid_positioning(table)
+    results = analyze_grid_positioning(table, k=args.k)
     pooled = pooled_axis_errors(table)
-    result = {"poses": {r.pose: grid_pose_json(r) for r in results},
+    result = {"k": args.k, "poses": {r.pose: grid_pose_json(r) for r in results},
               "all_poses": {"axes": {name: axis_json(a) for name, a in zip(AXIS_NAMES, pooled)}}}
-    lines = [f"{'pose':<8} {'n':>3}  {'horizontal valid (lit)':<28} {'vertical valid (lit)':<28} "
+    lines = [f"{'pose':<8} {'n':>3}  {'horizontal valid (lit)':<36} {'vertical valid (lit)':<36} "
              f"{'complete':>8} {'AP_mm':>7} {'RP_mm':>7}"]
     for r in results:
         s = r.statistics
-        screens = [f"{_rate_text(r.valid[name])} ({r.lit[name].k})" for name in ("horizontal", "vertical")]
-        lines.append(f"{r.pose:<8} {s.n_readings:>3}  {screens[0]:<28} {screens[1]:<28} {s.n_complete:>8} "
+        screens = [f"{rate_text(r.valid[name])} ({r.lit[name].k})" for name in ("horizontal", "vertical")]
+        lines.append(f"{r.pose:<8} {s.n_readings:>3}  {screens[0]:<36} {screens[1]:<36} {s.n_complete:>8} "
                      f"{_number(s.ap_mm):>7} {_number(s.rp_mm):>7}")
         lines += [f"{'':<8} {name}: {_axis_text(a)}" for name, a in zip(AXIS_NAMES, s.axes)]
     lines.append("all poses: " + "; ".join(f"{name}: {_axis_text(a)}" for name, a in zip(AXIS_NAMES, pooled)))
-    lines.append("valid = the screen decoded ok (its axes stored); lit = any sensor reported; [Wilson, k = 2]. Each "
-                 "axis counts only the readings that measured it (n); AP = mean error, 3S per axis (not ISO RP); "
-                 "spatial AP/RP over complete readings only. Figures are conditional on detection.")
+    lines.append(f"valid = the screen decoded ok (its axes stored); lit = any sensor reported; [Wilson, z = "
+                 f"{args.k:g}]. Each axis counts only the readings that measured it (n); AP = mean error, 3S per axis "
+                 "(not ISO RP); spatial AP/RP over complete readings only. Figures are conditional on detection.")
     emit(result, args.json, lines)
     return 0
 
 
 def _number(value: float | None, fmt: str = ".3f") -> str:
     return "-" if value is None else format(value, fmt)
-
-
-def _rate_text(rate) -> str:
-    if rate.n == 0:
-        return "no reading"
-    return f"{rate.k}/{rate.n} {rate.rate:.0%} [{rate.low:.0%}-{rate.high:.0%}]"
 
 
 def _axis_text(axis) -> str:

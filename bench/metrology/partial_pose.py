@@ -10,7 +10,8 @@ n, and a statistic that needs more readings than there are is ``None``, never 0 
   spread of :func:`bench.metrology.iso9283.pose_repeatability`, not an ISO RP), and the delta thesis's own figures
   (§8.4.2): the maximum and the mean of |x_j - x_c|.
 - Spatial AP and RP_l (ISO 9283 7.2.1-7.2.2) from the complete readings only (all three axes in the same reading).
-- Detection rates k/n with a Wilson score interval (z = k = 2).
+- Detection rates k/n with a Wilson score interval at z = the coverage factor k (2 by default), printed by
+  :func:`rate_text`.
 
 A statistic over the readings that measured an axis is conditional on detection: when detection depends on where
 the pose lies (the grid detects only within the window r of its 2.5 mm lattice points), the detected readings are
@@ -27,11 +28,13 @@ import numpy as np
 from bench.errors import ConfigError
 from bench.metrology.iso9283 import pose_accuracy, pose_repeatability
 
-__all__ = ["AXIS_NAMES", "GRID_COLUMNS", "AxisErrors", "DetectionRate", "GridPoseResult", "PartialPoseStatistics",
-           "analyze_grid_positioning", "axis_errors", "axis_json", "detection_rate", "grid_pose_json",
-           "grid_positioning_table", "partial_pose_statistics", "pooled_axis_errors"]
+__all__ = ["AXIS_NAMES", "GRID_COLUMNS", "NO_READING", "AxisErrors", "DetectionRate", "GridPoseResult",
+           "PartialPoseStatistics", "analyze_grid_positioning", "axis_errors", "axis_json", "detection_rate",
+           "grid_pose_json", "grid_positioning_table", "partial_pose_statistics", "pooled_axis_errors", "rate_text"]
 
 AXIS_NAMES = ("x", "y", "z")
+#: What a rate (or an axis) without a single reading prints: never 0.
+NO_READING = "no reading"
 
 
 @dataclass(frozen=True)
@@ -152,6 +155,24 @@ def detection_rate(detected, *, k: float = 2.0) -> DetectionRate:
     return DetectionRate(hits, n, p, max(0.0, centre - half), min(1.0, centre + half))
 
 
+def rate_text(rate: DetectionRate, *, counts: bool = True) -> str:
+    """A rate as bench prints it: ``k / n, rate [low, high]`` in %, the rate to 0.01 % (the thesis's 99.25 %), the
+    Wilson bounds to 0.1 %; without ``k / n`` when ``counts`` is False (a table with its own column for them);
+    :data:`NO_READING` for n = 0. The one formatter of ``bench analyze grid-positioning`` and the laser-grid reports.
+
+    Examples
+    --------
+    >>> rate_text(detection_rate([1, 1, 1, 0]))
+    '3 / 4, 75.00 % [29.4, 95.6]'
+    >>> rate_text(detection_rate([1] * 397 + [0] * 3), counts=False), rate_text(detection_rate([]))
+    ('99.25 % [97.8, 99.7]', 'no reading')
+    """
+    if rate.n == 0:
+        return NO_READING
+    text = f"{100 * rate.rate:.2f} % [{100 * rate.low:.1f}, {100 * rate.high:.1f}]"
+    return f"{rate.k} / {rate.n}, {text}" if counts else text
+
+
 # -- tidy-table interface of the laser-grid positioning test ---------------------------------------------------------
 
 #: Columns of a grid positioning table (``bench export RUN --kind pose`` of ``delta_positioning``); ``x_mm``,
@@ -214,8 +235,9 @@ def _refuse_first(source: str, bad, column: str, frame, expected: str) -> None:
         raise ConfigError(f"{source}: row {int(index) + 1}, column {column}: {str(cell).strip()!r}, {expected}")
 
 
-def analyze_grid_positioning(table) -> list[GridPoseResult]:
-    """Per pose (in order of appearance): detection per screen and per-axis statistics of the stored readings."""
+def analyze_grid_positioning(table, *, k: float = 2.0) -> list[GridPoseResult]:
+    """Per pose (in order of appearance): detection per screen, with its Wilson interval at z = ``k``
+    (:func:`detection_rate`), and per-axis statistics of the stored readings."""
     results = []
     for pose, rows in table.groupby("pose", sort=False):
         commands = rows[["cmd_x_mm", "cmd_y_mm", "cmd_z_mm"]].drop_duplicates()
@@ -227,8 +249,8 @@ def analyze_grid_positioning(table) -> list[GridPoseResult]:
         screens = ("horizontal", "vertical")
         results.append(GridPoseResult(
             str(pose), command, statistics,
-            valid={s: detection_rate(rows[f"{s}_valid"]) for s in screens},
-            lit={s: detection_rate(rows[f"{s}_hits"] > 0) for s in screens}))
+            valid={s: detection_rate(rows[f"{s}_valid"], k=k) for s in screens},
+            lit={s: detection_rate(rows[f"{s}_hits"] > 0, k=k) for s in screens}))
     return results
 
 
@@ -240,7 +262,7 @@ def pooled_axis_errors(table) -> tuple[AxisErrors, ...]:
 
 
 def _rate_json(rate: DetectionRate) -> dict[str, object]:
-    return {"k": rate.k, "n": rate.n, "rate": rate.rate, "wilson_k2": [rate.low, rate.high]}
+    return {"k": rate.k, "n": rate.n, "rate": rate.rate, "wilson": [rate.low, rate.high]}
 
 
 def axis_json(axis: AxisErrors) -> dict[str, object]:
@@ -250,7 +272,8 @@ def axis_json(axis: AxisErrors) -> dict[str, object]:
 
 
 def grid_pose_json(result: GridPoseResult) -> dict[str, object]:
-    """One pose as JSON: screens (valid and lit rates), axes, complete readings, spatial AP and RP."""
+    """One pose as JSON: screens (valid and lit rates: k of n, rate, Wilson interval at the analysis's z), axes,
+    complete readings, spatial AP and RP."""
     s = result.statistics
     return {"commanded_mm": list(result.commanded_mm), "n": s.n_readings,
             "screens": {name: {"valid": _rate_json(result.valid[name]), "lit": _rate_json(result.lit[name])}

@@ -12,7 +12,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from bench.metrology.hit_rate import GridHits, HitRate, grid_hit_rates
+from bench.metrology.hit_rate import GridHits, grid_hit_rates
+from bench.metrology.partial_pose import rate_text
 from bench.reports.content import InstrumentInfo, ReportBase, calibrations_in_force, provenance, run_table
 from bench.reports.deviations import grid_hit_deviations
 from bench.reports.document import (
@@ -62,18 +63,15 @@ def collect_grid_hits(store: Store, run_id: int, *, k: float = 2.0, resamples: i
         deviations=tuple(deviations), instrument=instrument, table=table, coverage_factor=k, hits=hits)
 
 
-def _rate(rate: HitRate) -> str:
-    return f"{100 * rate.rate:.2f} % [{100 * rate.low:.1f}, {100 * rate.high:.1f}]"
-
-
 def _results(report: GridHitReport) -> tuple[Block, ...]:
     k = f"{report.coverage_factor:g}"
     heights = tuple((f"{h.height_mm:g}", str(h.sensors), f"{h.expected.k} / {h.expected.n}",
-                     _rate(h.expected), _rate(h.any),
+                     rate_text(h.expected, counts=False), rate_text(h.any, counts=False),
                      f"{100 * THESIS_RATES[h.height_mm]:.2f} %" if h.height_mm in THESIS_RATES else "—")
                     for h in report.hits.heights)
     sensors = tuple((f"{s.height_mm:g}", f"({s.i}, {s.j})", str(s.index), f"{s.x_mm:g}, {s.y_mm:g}",
-                     f"{s.expected.k} / {s.expected.n}", _rate(s.expected), _rate(s.any))
+                     f"{s.expected.k} / {s.expected.n}", rate_text(s.expected, counts=False),
+                     rate_text(s.any, counts=False))
                     for s in report.hits.sensors)
     return (
         Table("hit-heights", ("Height below base (mm)", "Sensors", "Hits / attempts", "Hit rate [interval]",

@@ -4,10 +4,10 @@ whose readings are partial (docs/campaigns.md, "Delta robot positioning read by 
 Every figure comes from :mod:`bench.metrology.partial_pose` on the run's tidy ``pose`` table (the raw-data CSV),
 the same calls ``bench analyze grid-positioning FILE.csv`` makes: ``grid_positioning_table`` (checks that every
 stored axis comes from a valid screen), ``analyze_grid_positioning`` (per pose: each screen's valid and lit rates
-with their Wilson interval at z = 2, per-axis n, AP, 3 S, max |e|, mean |e| over the readings that measured the
-axis, spatial AP and RP over the complete readings) and ``pooled_axis_errors`` (the thesis's summary over every
-pose). A missing axis is
-never filled: an axis without a reading prints "no reading", a statistic with too few readings "—".
+with their Wilson interval at z = k, ``--k`` of both, 2 by default; per-axis n, AP, 3 S, max |e|, mean |e| over the
+readings that measured the axis; spatial AP and RP over the complete readings) and ``pooled_axis_errors`` (the
+thesis's summary over every pose), the rates printed by ``rate_text``. A missing axis is never filled: an axis
+without a reading prints "no reading", a statistic with too few readings "—".
 """
 
 from __future__ import annotations
@@ -17,16 +17,16 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from bench.errors import ConfigError
 from bench.metrology.documents import GRID_RESOLUTION_MM
 from bench.metrology.partial_pose import (
     AXIS_NAMES,
+    NO_READING,
     AxisErrors,
-    DetectionRate,
     GridPoseResult,
     analyze_grid_positioning,
     grid_positioning_table,
     pooled_axis_errors,
+    rate_text,
 )
 from bench.reports.content import InstrumentInfo, ReportBase, calibrations_in_force, provenance, run_table
 from bench.reports.deviations import grid_positioning_deviations
@@ -44,13 +44,9 @@ from bench.reports.document import (
 from bench.reports.plots import Plot, panels
 from bench.store import Store
 
-__all__ = ["NO_READING", "WILSON_Z", "GridPositioningReport", "axis_cells", "collect_grid_positioning",
+__all__ = ["NO_READING", "GridPositioningReport", "axis_cells", "collect_grid_positioning",
            "grid_positioning_document", "grid_positioning_plot", "grid_readings", "recompute_grid_positioning"]
 
-#: What an axis (or a screen rate) with no reading prints: never 0.
-NO_READING = "no reading"
-#: The Wilson interval's z: bench analyze grid-positioning's (k = 2, about 95 %).
-WILSON_Z = 2.0
 SCREENS = ("horizontal", "vertical")
 SCOPE = ("Tested following the positioning test of the delta thesis (§8.4.2) with the laser grid as the instrument, "
          "and reporting ISO 9283-style AP and RP over the complete readings, with the deviations listed in the "
@@ -59,11 +55,12 @@ SCOPE = ("Tested following the positioning test of the delta thesis (§8.4.2) wi
 NO_CRITERION = "no acceptance criterion stated: no pass/fail statement (the thesis and ISO 9283 set none)"
 CONDITIONAL = ("Reading the figures: they are conditional on detection. The grid measures an axis only when a laser "
                f"spot falls within the detection window r of a sensor (a {GRID_RESOLUTION_MM:g} mm lattice; with "
-               "r = 1 mm about half of all positions are blind), so the readings of a pose are not a random sample of its scatter, and "
-               "each carries ±r. Which poses the grid sees at all depends on where the screens are placed: with the "
-               "default placement (the legacy GUI drawing) the thesis's poses sit between four sensors of both "
-               "screens, so the placement must come from the software calibration (delta4-lasergrid.md §6.5) before "
-               "the rates mean anything on the rig (docs/campaigns.md, docs/sensors.md).")
+               "r = 1 mm about half of all positions are blind), so the readings of a pose are not a random sample "
+               "of its scatter, and each carries ±r. Which poses the grid sees at all depends on where the screens "
+               "are placed: with the default placement (the legacy GUI drawing) the thesis's poses sit between four "
+               "sensors of both screens, so the placement must come from the software calibration "
+               "(delta4-lasergrid.md §6.5) before the rates mean anything on the rig (docs/campaigns.md, "
+               "docs/sensors.md).")
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -73,12 +70,6 @@ class GridPositioningReport(ReportBase):
     poses: tuple[GridPoseResult, ...]
     pooled: tuple[AxisErrors, ...]  #: x, y, z over every pose (the thesis's summary)
     store_path: str  #: for the exact bench export command
-
-
-def _check_k(k: float, protocol: str) -> None:
-    if k != WILSON_Z:
-        raise ConfigError(f"--k {k:g}: a {protocol} report has no expanded uncertainty, and its Wilson intervals use "
-                          f"z = {WILSON_Z:g} as bench analyze grid-positioning does; expected --k {WILSON_Z:g}")
 
 
 def _grid_instrument(run, calibrations) -> InstrumentInfo:
@@ -110,12 +101,11 @@ def grid_readings(store: Store, run_id: int) -> bool:
 def collect_grid_positioning(store: Store, run_id: int, *, k: float = 2.0, resamples: int = 1000,
                              allow_unknown: bool = False) -> GridPositioningReport:
     """Gather the facts and figures of the report of ``delta_positioning`` run ``run_id`` (``resamples`` unused;
-    ``k`` must be 2: the Wilson intervals are bench analyze grid-positioning's)."""
+    ``k`` is the z of the rates' Wilson intervals, as ``bench analyze grid-positioning --k``)."""
     run = store.run(run_id)
-    _check_k(k, run.protocol_name)
     table = run_table(store, run_id, "pose")
     analysed = grid_positioning_table(table)  # NaN: an axis not measured, as an empty CSV cell
-    poses = tuple(analyze_grid_positioning(analysed))
+    poses = tuple(analyze_grid_positioning(analysed, k=k))
     calibrations = calibrations_in_force(store, run)
     deviations = grid_positioning_deviations(config=run.config, settings=run.settings, poses=poses,
                                              allow_unknown=allow_unknown)
@@ -128,12 +118,6 @@ def collect_grid_positioning(store: Store, run_id: int, *, k: float = 2.0, resam
                  "ISO 9283 7.2.1 AP and 7.2.2 RP, over the complete readings only"),
         deviations=tuple(deviations), instrument=_grid_instrument(run, calibrations), table=table,
         coverage_factor=k, poses=poses, pooled=pooled_axis_errors(analysed), store_path=store.path)
-
-
-def _rate(rate: DetectionRate) -> str:
-    if rate.n == 0:
-        return NO_READING
-    return f"{rate.k} / {rate.n}, {100 * rate.rate:.1f} % [{100 * rate.low:.1f}, {100 * rate.high:.1f}]"
 
 
 def _value(value: float | None, *, signed: bool = False, missing: str = "—") -> str:
@@ -151,9 +135,9 @@ def axis_cells(axis: AxisErrors) -> tuple[str, ...]:
 
 
 def _results(report: GridPositioningReport) -> tuple[Block, ...]:
-    z = f"{WILSON_Z:g}"
+    z = f"{report.coverage_factor:g}"
     screens = tuple((p.pose, ", ".join(f"{v:g}" for v in p.commanded_mm), str(p.statistics.n_readings),
-                     *(_rate(getattr(p, kind)[screen]) for screen in SCREENS for kind in ("valid", "lit")))
+                     *(rate_text(getattr(p, kind)[screen]) for screen in SCREENS for kind in ("valid", "lit")))
                     for p in report.poses)
     axes = tuple((p.pose, name, f"{command:g}", *axis_cells(axis))
                  for p in report.poses for name, command, axis in zip(AXIS_NAMES, p.commanded_mm, p.statistics.axes))
@@ -210,7 +194,8 @@ def grid_positioning_plot(report: GridPositioningReport) -> Plot:
     errors.axhline(0.0, color="0.6", lw=0.8)
     errors.set_xticks(range(len(slots)), [f"{p.pose} {AXIS_NAMES[k]}" for p, k in slots], rotation=90, fontsize=6)
     errors.set_ylabel("reading − command (mm)")
-    return Plot(f"Per pose: each screen's valid rate with its Wilson interval (z = {WILSON_Z:g}) and its lit rate "
+    return Plot(f"Per pose: each screen's valid rate with its Wilson interval (z = {report.coverage_factor:g}) and "
+                "its lit rate "
                 f"(bars); every stored reading minus its command per axis ({NO_READING}: no screen measured that "
                 "axis at that pose).", figure)
 
@@ -219,8 +204,8 @@ def recompute_grid_positioning(report: GridPositioningReport) -> str:
     """The commands that give every figure again from the store or the raw-data CSV."""
     run_id = report.run.id
     return (f"bench export {run_id} --kind pose --store {report.store_path} --out run{run_id}.csv, then bench analyze "
-            f"grid-positioning run{run_id}.csv --json (or on the raw-data file below, the same rows at full "
-            "precision)")
+            f"grid-positioning run{run_id}.csv --k {report.coverage_factor:g} --json (or on the raw-data file below, "
+            "the same rows at full precision)")
 
 
 def grid_positioning_document(report: GridPositioningReport, raw: list[RawData], *, operator: str = "not recorded",
@@ -233,7 +218,7 @@ def grid_positioning_document(report: GridPositioningReport, raw: list[RawData],
               "readings that measured it: n, AP = x̄ − x_c (ISO 9283 7.2.1 on one axis), 3 S with S the sample "
               "standard deviation (n − 1), and the thesis's max |x_j − x_c| and mean |x_j − x_c|; AP_P and RP_l "
               "(ISO 9283 7.2.1/7.2.2) over the readings with all three axes. Rates k / n with the Wilson score "
-              f"interval at z = {WILSON_Z:g}.")
+              f"interval at z = {report.coverage_factor:g}.")
     return assemble(
         report, raw, operator=operator, laboratory=laboratory, method=method, scope=SCOPE,
         conditions=conditions_section(report, ("poses", "cycles", "settle_s", "warmup_s", "ambient_c"),
