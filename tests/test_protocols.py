@@ -537,3 +537,26 @@ def test_pkm5_emergency_stop_refuses_every_later_move_until_enable():
         assert controller.position().steps != reached
     finally:
         rig.close()
+
+
+def test_delta_rig_refuses_moves_once_emergency_stopped():
+    from bench.errors import LinkError
+    from bench.protocols.grid import DeltaMover
+
+    class Controller:
+        def __init__(self):
+            self.log = []
+
+        def move_to(self, point, **kwargs):
+            self.log.append(("move", point))
+
+        def stop(self):
+            self.log.append(("stop",))
+
+    controller = Controller()
+    mover = DeltaMover(controller)
+    mover.move_to((0.0, 0.0, -200.0), velocity_pct=100)
+    mover.emergency_stop()
+    with pytest.raises(LinkError, match="refused: an emergency stop is latched"):
+        mover.move_to((0.0, 0.0, -190.0), velocity_pct=100)
+    assert controller.log == [("move", (0.0, 0.0, -200.0)), ("stop",)]

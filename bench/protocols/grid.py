@@ -34,7 +34,7 @@ from typing import Any
 
 import numpy as np
 
-from bench.errors import LinkTimeout
+from bench.errors import LinkError, LinkTimeout
 from bench.protocols.rig import Measurement
 from bench.protocols.steps import Capture
 
