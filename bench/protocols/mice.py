@@ -7,8 +7,8 @@ controller on a serial port with two mice on ``/dev/input``.
 
 A capture of kind ``arrival`` (ISO 9283 7.4 stabilisation time, 7.5 overshoot) is asked right after the controller
 reported the move done, and stores the streamed position from ``lead_s`` before that moment to ``hold_s`` after
-it: the mice report every motion with a kernel timestamp (``CLOCK_MONOTONIC``), so the end of the move is already
-in their buffers when the capture starts, and the instrument then listens for ``hold_s``. The sample keeps the raw
+it: the mice report every motion with a kernel timestamp (``CLOCK_MONOTONIC``), and the reports read since the last
+capture (by the reader thread on hardware) hold the end of the move; the instrument then listens for ``hold_s``. The sample keeps the raw
 reports of both mice in the window and the counts at its start (the raw data), the position series they give
 (times relative to the request), and, as its values, the position at the end of the window.
 """
@@ -57,7 +57,9 @@ class MiceInstrument:
         self._closing = threading.Event()
         self._reader = None
         if follow:
-            self._reader = threading.Thread(target=self._follow_mice, name="mice-reader", daemon=True)
+            # the reader thread keeps the kernel's buffers empty: an evdev client buffer holds only some tens of
+            # reports, far fewer than a move of several seconds sends, and an overflow loses counts (SYN_DROPPED)
+            self._reader = threading.Thread(target=self._listen, name="mice-reader", daemon=True)
             self._reader.start()
 
     def _drain_locked(self) -> None:
@@ -66,17 +68,6 @@ class MiceInstrument:
             frames = mouse.read_frames()
             if len(frames):
                 self._pending[plane].append(frames)
-
-    def _follow_mice(self) -> None:
-        """Reader thread: keep the kernel's buffers empty. An evdev client buffer holds only some tens of reports,
-        far fewer than a move of several seconds sends, and an overflow loses counts (SYN_DROPPED)."""
-        with selectors.PollSelector() as selector:
-            for mouse in self.mice.values():
-                selector.register(mouse.fileno(), selectors.EVENT_READ)
-            while not self._closing.is_set():
-                if selector.select(0.05):
-                    with self._lock:
-                        self._drain_locked()
 
     def _take_pending(self) -> dict[str, Any]:
         """Every report read since the last capture (counts already integrated), and forget them."""
@@ -110,8 +101,14 @@ class MiceInstrument:
                                 "calibration": self.calibration.calibration_id})
 
     def _measure_arrival(self, capture: Capture) -> Measurement:
+        from bench.sensors.input_event import MotionFrames
+
         lead_s, hold_s = float(capture.conditions["lead_s"]), float(capture.conditions["hold_s"])
-        frames, t_request = self._stream(lead_s, hold_s)
+        streamed, t_request = self._stream(lead_s, hold_s)
+        frames = {}  # the window only: older reports (the rest of the move) are in the counts already
+        for plane, f in streamed.items():
+            keep = f.t_s >= t_request - lead_s
+            frames[plane] = MotionFrames(f.t_s[keep], f.dx[keep], f.dy[keep], f.valid[keep])
         counts_before = {plane: self.mice[plane].counts - np.array([f.dx.sum(), f.dy.sum()], np.int64)
                          for plane, f in frames.items()}
         series, raw = arrival_series(frames, counts_before, self.calibration, self.origin,
@@ -122,28 +119,21 @@ class MiceInstrument:
                                         "calibration": self.calibration.calibration_id})
 
     def _stream(self, lead_s: float, hold_s: float) -> tuple[dict[str, Any], float]:
-        """The reports of both mice from ``lead_s`` before now to ``hold_s`` after it, and now, on the mice's clock
-        (``CLOCK_MONOTONIC``). The end of the move is among the reports read since the last capture."""
-        from bench.sensors.input_event import MotionFrames
-
+        """The reports of both mice since the last capture up to ``hold_s`` after now, and now, on the mice's clock
+        (``CLOCK_MONOTONIC``). ``lead_s`` is how far back the caller looks (simulated mice generate only that)."""
         t_request = time.monotonic()
         if self._reader is not None:
             self._closing.wait(hold_s)  # the reader thread collects meanwhile
         else:
             self._listen(t_request + hold_s)
-        window_start = t_request - lead_s
-        frames = {}
-        for plane, f in self._take_pending().items():
-            keep = f.t_s >= window_start
-            frames[plane] = MotionFrames(f.t_s[keep], f.dx[keep], f.dy[keep], f.valid[keep])
-        return frames, t_request
+        return self._take_pending(), t_request
 
-    def _listen(self, until_s: float) -> None:
-        """Read both mice in this thread until ``until_s`` (monotonic), when no reader thread follows them."""
+    def _listen(self, until_s: float = float("inf")) -> None:
+        """Read both mice as their reports come until ``until_s`` (monotonic) or :meth:`close`."""
         with selectors.PollSelector() as selector:
             for mouse in self.mice.values():
                 selector.register(mouse.fileno(), selectors.EVENT_READ)
-            while (remaining := until_s - time.monotonic()) > 0:
+            while not self._closing.is_set() and (remaining := until_s - time.monotonic()) > 0:
                 if selector.select(min(remaining, 0.05)):
                     with self._lock:
                         self._drain_locked()
@@ -166,20 +156,19 @@ def arrival_series(frames: Mapping[str, Any], counts_before: Mapping[str, np.nda
                    ) -> tuple[dict[str, list[float]], dict[str, Any]]:
     """Position series of an x-y and an x-z mouse in the window [t_request - lead_s, t_request + hold_s].
 
-    A mouse reports only when it moves, so its position holds between reports (zero-order hold). The series is
-    sampled at every report time in the window plus the window's two ends; x comes from the x-y mouse, z from the
-    x-z mouse. Returns the series (``t_s`` relative to ``t_request``, ``x_mm``, ``y_mm``, ``z_mm``) and the raw data
-    it was computed from (the counts at the window start and every report in the window).
+    ``frames`` are the mice's reports from the window's start on and ``counts_before`` their counts there. A mouse
+    reports only when it moves, so its position holds between reports (zero-order hold). The series is sampled at
+    every report time in the window plus the window's two ends; x comes from the x-y mouse, z from the x-z mouse.
+    Returns the series (``t_s`` relative to ``t_request``, ``x_mm``, ``y_mm``, ``z_mm``) and the raw data it was
+    computed from (the counts at the window start and every report in the window).
     """
     start, end = t_request - lead_s, t_request + hold_s
     times = [np.array([start, end])]
     counts_at_start, reports, count_paths = {}, {}, {}
     for plane, f in frames.items():
-        cumulative = np.asarray(counts_before[plane], np.int64) + np.cumsum(np.column_stack([f.dx, f.dy]), axis=0)
-        before = f.t_s < start
-        inside = ~before & (f.t_s <= end)
-        counts_at_start[plane] = (cumulative[before][-1] if before.any() else
-                                  np.asarray(counts_before[plane], np.int64))
+        counts_at_start[plane] = np.asarray(counts_before[plane], np.int64)
+        cumulative = counts_at_start[plane] + np.cumsum(np.column_stack([f.dx, f.dy]), axis=0)
+        inside = f.t_s <= end
         reports[plane] = {"t_s": np.round(f.t_s[inside] - t_request, _S_DECIMALS).tolist(),
                           "dx_counts": f.dx[inside].tolist(), "dy_counts": f.dy[inside].tolist()}
         count_paths[plane] = (f.t_s[inside], cumulative[inside], counts_at_start[plane])
