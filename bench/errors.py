@@ -39,7 +39,7 @@ class LinkTimeout(LinkError):
 class PromptWithdrawn(BenchError):
     """The operator withdrew a prompt instead of answering it (Cancel in the window, the window closed).
 
-    An :class:`bench.protocols.rig.Operator` raises it from ``ask``; the runner then ends the run at once as
+    An :class:`bench.rigs.interfaces.Operator` raises it from ``ask``; the runner then ends the run at once as
     ``aborted`` (resumable, no clean-up moves, since the operator may be at the robot) with the reason
     "prompt withdrawn by the operator: <prompt text> (<this message>)".
     """

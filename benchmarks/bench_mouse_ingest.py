@@ -1,6 +1,6 @@
 """Benchmark: ingest an 8 kHz mouse stream for 60 s of simulated time through a FIFO.
 
-The simulator runs as a separate program (``python -m bench.sensors.mouse_sim``) writing kernel ``input_event``
+The simulator runs as a separate program (``python -m bench.simulators.mouse``) writing kernel ``input_event``
 records into a FIFO; this process reads it with ``EvdevMouse`` exactly as it would read ``/dev/input/event*``.
 Printed, all measured in this run:
 - reports received vs expected (lost reports must be 0) and the integrated counts vs the simulator's;
@@ -25,7 +25,7 @@ import numpy as np
 from bench.sensors.calibration import CountsCalibration
 from bench.sensors.input_event import EVENT_DTYPE, FrameAssembler
 from bench.sensors.mouse import EvdevMouse, MouseGroup
-from bench.sensors.mouse_sim import MouseSimulator, circle_motion
+from bench.simulators.mouse import MouseSimulator, circle_motion
 
 
 def _timed(action) -> float:
@@ -45,7 +45,7 @@ def main() -> int:
     with tempfile.TemporaryDirectory() as tmp:
         fifo = os.path.join(tmp, "event-mouse")
         os.mkfifo(fifo)
-        writer = subprocess.Popen([sys.executable, "-m", "bench.sensors.mouse_sim", "--out", fifo,
+        writer = subprocess.Popen([sys.executable, "-m", "bench.simulators.mouse", "--out", fifo,
                                    "--duration-s", str(args.duration_s), "--rate-hz", str(args.rate_hz),
                                    "--cpi", str(args.cpi), *(["--realtime"] if args.realtime else [])])
         mouse = EvdevMouse(fifo, CountsCalibration.from_cpi(args.cpi), label="bench")

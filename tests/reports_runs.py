@@ -162,7 +162,7 @@ def write_grid_hit_run(store: Store, *, hits=APPENDIX_D2, attempts: int = 25) ->
 def simulated_run(store: Store, protocol, robot: str, *, seed: int, speed_factor: float, options=()) -> int:
     """Run ``protocol`` on a freshly started simulated rig into ``store``; returns the completed run's id."""
     from bench.protocols import Runner
-    from bench.protocols.simrig import simulated_rig
+    from bench.simulators.rig import simulated_rig
 
     rig = simulated_rig(robot, seed=seed, speed_factor=speed_factor, options=tuple(options))
     try:

@@ -13,8 +13,8 @@ import serial
 from bench.errors import ConfigError, UnreachableTarget
 from bench.protocols import PROTOCOLS, Runner, load_protocol, summarize
 from bench.protocols.actuator import ActuatorAccuracy, actuator_results
-from bench.protocols.simrig import simulated_rig, start_simulator
-from bench.protocols.steps import ActuatorMove
+from bench.simulators.rig import simulated_rig, start_simulator
+from bench.steps import ActuatorMove
 from bench.robots.pkm5 import Pkm5Controller
 from bench.robots.pkm5_kinematics import build_actuator_bench, steps_for_stroke
 from bench.store import Store, tidy_table

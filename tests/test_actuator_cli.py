@@ -17,7 +17,7 @@ import pytest
 from bench.cli import main
 from bench.protocols import summarize
 from bench.protocols.actuator import ActuatorAccuracy, actuator_results
-from bench.protocols.steps import ActuatorMove
+from bench.steps import ActuatorMove
 from bench.store import Store
 
 PROTOCOL = """protocol = "actuator_accuracy"

@@ -21,8 +21,8 @@ from bench.protocols import PROTOCOLS, Runner
 from bench.protocols.iso9283 import PoseAccuracy
 from bench.protocols.plan import iterate
 from bench.protocols.runner import step_stores_sample
-from bench.protocols.simrig import simulated_rig
-from bench.robots.error_model import ErrorModel
+from bench.simulators.rig import simulated_rig
+from bench.simulators.error_model import ErrorModel
 from bench.robots.pkm5_kinematics import PKM5_ERRORS
 from bench.store import Store, tidy_table
 from motion import pkm5
@@ -225,7 +225,7 @@ def test_ctrl_c_pauses_at_a_checkpoint_then_stop_ends_the_run(tmp_path):
 def test_a_slow_operator_does_not_lose_the_run(tmp_path):
     """Prompts wait for the person; no link deadline runs meanwhile (the controller's reply timeout is 1 s)."""
     from bench.protocols.dissertation import PayloadLadder
-    from bench.protocols.simrig import SimulatedCalliper
+    from bench.simulators.rig import SimulatedCalliper
 
     with Store(tmp_path / "b.db") as store:
         rig = simulated_rig("pkm5", seed=1, speed_factor=20000)
@@ -245,7 +245,7 @@ def test_a_slow_operator_does_not_lose_the_run(tmp_path):
 
 def test_hardware_path_on_a_pty_and_mouse_fifos(capsys, tmp_path):
     """``--port`` with the real driver on the simulator's pty and two mice on FIFOs (nothing moves them here)."""
-    from bench.protocols.simrig import start_simulator
+    from bench.simulators.rig import start_simulator
 
     process, pty = start_simulator("pkm5", seed=0, speed_factor=20000)
     fifos, writers = [], []

@@ -15,10 +15,10 @@ from bench.cli import main
 from bench.errors import ConfigError
 from bench.metrology.partial_pose import axis_errors, detection_rate, partial_pose_statistics
 from bench.protocols import PROTOCOLS, Runner
-from bench.protocols.grid import LaserGridInstrument
-from bench.protocols.simrig import simulated_rig
-from bench.protocols.steps import Capture, commanded_values
-from bench.robots import sim_delta4
+from bench.rigs.lasergrid import LaserGridInstrument
+from bench.simulators.rig import simulated_rig
+from bench.steps import Capture, commanded_values
+from bench.simulators import delta4 as sim_delta4
 from bench.robots.delta4 import Delta4Controller, SensorFrame
 from bench.robots.testing import ScriptedPort
 from bench.store import Store, export_run, tidy_table
@@ -244,7 +244,7 @@ def test_bad_grid_options_are_refused_naming_the_option():
 
 
 def test_miss_probability_by_height_reproduces_appendix_d2_at_each_height():
-    from bench.sensors.lasergrid_sim import LaserGridSimulator
+    from bench.simulators.lasergrid import LaserGridSimulator
 
     simulator = LaserGridSimulator(p_miss_by_distance=True, seed=5)
     for height_mm, thesis in ((140.0, 0.9925), (200.0, 0.98)):   # hits / 400 attempts in Appendix D2
@@ -281,8 +281,8 @@ def test_each_axis_counts_only_its_own_readings(rows):
     assert stats.n_complete == complete.sum() and (stats.rp_mm is None) == (complete.sum() < 2)
 
 
-@pytest.mark.parametrize("module", ["bench.metrology.partial_pose", "bench.protocols.grid", "bench.sensors.lasergrid",
-                                    "bench.sensors.lasergrid_sim"])
+@pytest.mark.parametrize("module", ["bench.metrology.partial_pose", "bench.rigs.lasergrid", "bench.sensors.lasergrid",
+                                    "bench.simulators.lasergrid"])
 def test_docstring_examples(module):
     import doctest
     import importlib

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from bench.robots import pkm5_wire as wire
-from bench.robots.sim_pkm5 import Pkm5SimDevice
+from bench.simulators.pkm5 import Pkm5SimDevice
 
 HERE = Path(__file__).parent
 COMPILER = shutil.which("g++") or shutil.which("c++")

@@ -7,7 +7,7 @@ import pytest
 
 from bench.protocols.iso9283 import StabilisationOvershoot
 from bench.protocols.plan import CAPTURE_S, capture_s, summarize
-from bench.protocols.steps import Capture
+from bench.steps import Capture
 
 POSES = {"A": [100.0, -10.0, 310.0], "B": [120.0, 10.0, 330.0]}
 

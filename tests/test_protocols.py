@@ -486,8 +486,8 @@ def test_hardware_time_base_is_wall_seconds_and_a_failing_hook_never_fails_the_r
 
 def test_console_operator_reasks_until_valid_and_ctrl_d_withdraws_the_prompt(capsys):
     from bench.errors import PromptWithdrawn
-    from bench.protocols.mice import ConsoleOperator
-    from bench.protocols.steps import Prompt
+    from bench.rigs.mice import ConsoleOperator
+    from bench.steps import Prompt
 
     answers = iter(["abc", "300", "12.5"])
     prompt = Prompt("Leg 1 length", field="length_mm", unit="mm", minimum=0.0, maximum=100.0)
@@ -520,7 +520,7 @@ def test_the_runners_emergency_stop_latches_where_the_robot_can_and_abort_does_n
 
 def test_pkm5_emergency_stop_refuses_every_later_move_until_enable():
     from bench.errors import LinkError
-    from bench.protocols.simrig import simulated_rig
+    from bench.simulators.rig import simulated_rig
 
     rig = simulated_rig("pkm5", seed=1, speed_factor=20000)
     controller = rig.robot.controller
@@ -541,7 +541,7 @@ def test_pkm5_emergency_stop_refuses_every_later_move_until_enable():
 
 def test_delta_rig_refuses_moves_once_emergency_stopped():
     from bench.errors import LinkError
-    from bench.protocols.grid import DeltaMover
+    from bench.rigs.lasergrid import DeltaMover
 
     class Controller:
         def __init__(self):

@@ -9,11 +9,11 @@ from hypothesis import strategies as st
 from bench.robots import delta4_wire as dwire
 from bench.robots import pkm5_kinematics as kin
 from bench.robots import pkm5_wire as wire
-from bench.robots.error_model import ErrorMagnitudes, ErrorModel, JointMemory
-from bench.robots.sim_delta4 import Delta4SimDevice
-from bench.robots.sim_delta4 import build_plant as delta4_plant
-from bench.robots.sim_pkm5 import Pkm5SimDevice
-from bench.robots.sim_pty import TruthLog, read_last_truth
+from bench.simulators.error_model import ErrorMagnitudes, ErrorModel, JointMemory
+from bench.simulators.delta4 import Delta4SimDevice
+from bench.simulators.delta4 import build_plant as delta4_plant
+from bench.simulators.pkm5 import Pkm5SimDevice
+from bench.simulators.pty import TruthLog, read_last_truth
 from motion import delta4
 
 

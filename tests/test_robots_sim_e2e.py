@@ -19,15 +19,15 @@ import serial
 from bench.errors import LinkError, LinkTimeout
 from bench.robots.delta4 import Delta4Controller
 from bench.robots.pkm5 import Pkm5Controller
-from bench.robots.sim_pty import read_last_truth
+from bench.simulators.pty import read_last_truth
 
 POINT_3_1 = (110.52, -0.19, 305.5, 0.0, 0.0)  # Table A.11 point 3-1 (pkm5.md §6.8)
 
 
 @contextlib.contextmanager
 def simulator(robot, *args):
-    """Start ``python -m bench.robots.sim_<robot>``; yield (process, device path, stdout lines after it)."""
-    process = subprocess.Popen([sys.executable, "-m", f"bench.robots.sim_{robot}", *args],
+    """Start ``python -m bench.simulators.<robot>``; yield (process, device path, stdout lines after it)."""
+    process = subprocess.Popen([sys.executable, "-m", f"bench.simulators.{robot}", *args],
                                stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:
         ready, _, _ = select.select([process.stdout], [], [], 30)

@@ -9,8 +9,8 @@ import pytest
 
 from bench.protocols import Capture, Move, Settle
 from bench.protocols.base import Protocol
-from bench.protocols.simrig import simulated_rig
-from bench.protocols.steps import commanded_values
+from bench.simulators.rig import simulated_rig
+from bench.steps import commanded_values
 from bench.store import Store
 from runner_support import RunInThread, wait_until
 

@@ -22,7 +22,7 @@ from bench.sensors.calliper import (
     tilt_reading,
     tilt_uncertainty_deg,
 )
-from bench.sensors.calliper_sim import CalliperSimulator, depths_for_tilt
+from bench.simulators.calliper import CalliperSimulator, depths_for_tilt
 from bench.sensors.calliper_wedge import (
     EvdevWedge,
     WedgeDecoder,

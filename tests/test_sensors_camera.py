@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from bench.sensors import MalformedSample, Sensor
-from bench.sensors.camera_sim import (
+from bench.simulators.camera import (
     SpotCameraSimulator,
     apply_homography,
     render_chessboard,

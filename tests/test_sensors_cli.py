@@ -77,10 +77,10 @@ def test_every_sensor_describes_itself_for_the_run_manifest(tmp_path):
     import numpy as np
 
     from bench.sensors.calibration import CountsCalibration
-    from bench.sensors.camera_sim import SpotCameraSimulator
+    from bench.simulators.camera import SpotCameraSimulator
     from bench.sensors.camera_spot import LaserSpotCamera, PlaneCalibration
     from bench.sensors.lasergrid import LaserGridSensor
-    from bench.sensors.lasergrid_sim import LaserGridSimulator
+    from bench.simulators.lasergrid import LaserGridSimulator
     from bench.sensors.mouse import EvdevMouse
 
     path = tmp_path / "m.bin"

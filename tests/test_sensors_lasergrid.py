@@ -19,7 +19,7 @@ from bench.sensors.lasergrid import (
     decode_screen,
     parse_report,
 )
-from bench.sensors.lasergrid_sim import (
+from bench.simulators.lasergrid import (
     P_MISS_AT_DISTANCE,
     LaserGridSimulator,
     format_report,
@@ -219,7 +219,8 @@ def test_malformed_reports_are_refused(bad):
 
 def test_simulated_delta4_controller_reports_what_the_decoder_reads():
     # composition with the simulated ATmega128 controller: its sensor hook is the laser-grid simulator
-    from bench.robots import delta4_wire, sim_delta4
+    from bench.robots import delta4_wire
+    from bench.simulators import delta4 as sim_delta4
 
     plant, home = sim_delta4.build_plant(0, ideal=True)
     device = sim_delta4.Delta4SimDevice(plant, delta4_wire.MAPPINGS["legacy_vb"](), home_servo_deg=home,

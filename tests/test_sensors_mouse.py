@@ -34,7 +34,7 @@ from bench.sensors.input_event import (
     encode_frames,
 )
 from bench.sensors.mouse import EvdevMouse, MouseGroup, list_mice
-from bench.sensors.mouse_sim import (
+from bench.simulators.mouse import (
     MouseSimulator,
     MouseStream,
     circle_motion,

@@ -14,7 +14,7 @@ from bench.sensors import MalformedSample
 from bench.sensors.calibration import CountsCalibration
 from bench.sensors.mouse_mcu import McuMouse, McuSample, parse_mcu_line
 from bench.sensors.mouse_pointer import PointerMethodWarning, PointerSampler
-from bench.sensors.mouse_sim import MouseSimulator
+from bench.simulators.mouse import MouseSimulator
 
 
 def test_parse_mcu_lines():

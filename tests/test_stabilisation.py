@@ -15,9 +15,9 @@ from bench.cli import main
 from bench.errors import ConfigError
 from bench.metrology import pose_stabilisation, position_stabilisation
 from bench.protocols.iso9283 import StabilisationOvershoot
-from bench.protocols.simrig import simulated_rig
-from bench.protocols.steps import Capture
-from bench.robots.dynamics import StructuralMode, trace_times
+from bench.simulators.rig import simulated_rig
+from bench.steps import Capture
+from bench.simulators.dynamics import StructuralMode, trace_times
 from bench.robots.pkm5 import ControllerError
 from bench.store import Store, series_table
 from motion import pkm5
@@ -206,7 +206,7 @@ def test_analyze_stabilisation_keeps_velocities_apart(tmp_path, capsys):
 
 def test_each_load_is_mounted_on_request_and_stabilisation_runs_under_it():
     from bench.protocols.plan import iterate
-    from bench.protocols.steps import Prompt
+    from bench.steps import Prompt
 
     protocol = StabilisationOvershoot(cycles=1, loads_kg=[0.0, 5.0], poses={"A": [100.0, -10.0, 310.0]})
     steps = list(iterate(protocol, final=False))
@@ -239,7 +239,7 @@ def test_a_following_instrument_drains_the_mice_during_a_long_move(tmp_path):
     import threading
     import time
 
-    from bench.protocols.mice import MiceInstrument
+    from bench.rigs.mice import MiceInstrument
     from bench.sensors.input_event import encode_frames
 
     mice, writers, calibration = _fifo_mice(tmp_path)

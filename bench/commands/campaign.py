@@ -89,7 +89,7 @@ def build_rig(args: argparse.Namespace, robot: str, store: Store, stored: dict[s
     if robot != "pkm5" or not (args.mouse_xy and args.mouse_xz):
         raise ConfigError("--port: hardware runs support the pkm5 with --mouse-xy and --mouse-xz event devices")
     from bench.protocols.kinematics import robot_model
-    from bench.protocols.mice import hardware_rig
+    from bench.rigs.mice import hardware_rig
     from bench.sensors.calibration import CountsCalibration
 
     try:
@@ -110,9 +110,9 @@ def _hardware_actuator_bench(port: str, robot: str):
     """The pkm5 controller on ``port`` driving free-standing actuators; readings are typed in from the gauge."""
     import serial
 
-    from bench.protocols.mice import ConsoleOperator
-    from bench.protocols.rig import Rig
-    from bench.protocols.simrig import CalliperOnly, DriverMover
+    from bench.rigs.mice import ConsoleOperator
+    from bench.rigs.interfaces import Rig
+    from bench.simulators.rig import CalliperOnly, DriverMover
     from bench.robots.pkm5 import Pkm5Controller
 
     if robot != "pkm5":
@@ -133,7 +133,7 @@ def _hardware_actuator_bench(port: str, robot: str):
 
 def simulated_rig_in(store: Store, robot: str, *, seed: int, speed_factor: float, fixture: str = "assembled"):
     """A simulated rig whose mouse calibration is recorded (get-or-create) in ``store``."""
-    from bench.protocols.simrig import simulated_rig
+    from bench.simulators.rig import simulated_rig
 
     if not speed_factor > 0:
         raise ConfigError(f"--speed-factor = {speed_factor:g}, expected a number > 0")

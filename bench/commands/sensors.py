@@ -12,7 +12,7 @@ from pathlib import Path
 
 from bench.commands.kin import emit
 from bench.errors import ConfigError
-from bench.sensors.mouse_sim import add_stream_arguments, write_stream_from_args
+from bench.simulators.mouse import add_stream_arguments, write_stream_from_args
 
 
 def register(groups: argparse._SubParsersAction) -> None:

@@ -9,8 +9,8 @@ from __future__ import annotations
 
 import argparse
 
-from bench.robots import sim_delta4, sim_pkm5
-from bench.robots.sim_pty import run_simulator
+from bench.simulators import delta4 as sim_delta4, pkm5 as sim_pkm5
+from bench.simulators.pty import run_simulator
 
 _SIMULATORS = {
     "pkm5": (sim_pkm5, "5-DOF PKM controller (line protocol, docs/protocol-pkm5.md)"),

@@ -3,7 +3,7 @@
 Every jog target goes through the protocols' pre-flight model (:func:`bench.protocols.kinematics.robot_model`:
 inverse kinematics from motion/, joint limits, singularity proximity) as it is typed; the Jog button is enabled
 only for a target proved reachable. The simulator connection is the same simulated rig a campaign uses
-(:func:`bench.protocols.simrig.simulated_rig`); a serial connection opens the robot's real driver on the port.
+(:func:`bench.simulators.rig.simulated_rig`); a serial connection opens the robot's real driver on the port.
 Moves run in a :class:`QThread`, so the window stays responsive.
 """
 
@@ -54,7 +54,7 @@ def check_target(robot: str, target: tuple[float, ...]) -> tuple[bool, str]:
 def open_mover(spec: RigSpec) -> tuple[Any, Callable[[], None]]:
     """A connected robot (``move_to``, ``stop``, ``shutdown``, ``settings``) and the function that releases it."""
     if spec.port is None:
-        from bench.protocols.simrig import simulated_rig
+        from bench.simulators.rig import simulated_rig
 
         rig = simulated_rig(spec.robot, seed=spec.seed, speed_factor=spec.speed_factor)
         return rig.robot, rig.close
@@ -67,7 +67,7 @@ def open_mover(spec: RigSpec) -> tuple[Any, Callable[[], None]]:
     except serial.SerialException as exc:
         raise LinkError(f"port {spec.port}: cannot open it ({exc})") from None
     if spec.robot == "pkm5":
-        from bench.protocols.simrig import DriverMover
+        from bench.simulators.rig import DriverMover
         from bench.robots.pkm5 import Pkm5Controller
 
         controller = Pkm5Controller(port)
@@ -75,7 +75,7 @@ def open_mover(spec: RigSpec) -> tuple[Any, Callable[[], None]]:
         controller.enable()
         mover = DriverMover(controller)
     else:
-        from bench.protocols.grid import DeltaMover
+        from bench.rigs.lasergrid import DeltaMover
         from bench.robots.delta4 import Delta4Controller
 
         controller = Delta4Controller(port)

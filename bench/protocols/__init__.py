@@ -15,9 +15,9 @@ from bench.protocols.base import (
            register,
 )
 from bench.protocols.plan import PlanSummary, preflight, summarize
-from bench.protocols.rig import Measurement, Rig
+from bench.rigs.interfaces import Measurement, Rig
 from bench.protocols.runner import Runner, RunResult, RunState, TransitionError
-from bench.protocols.steps import Capture, Checkpoint, Move, Prompt, Settle
+from bench.steps import Capture, Checkpoint, Move, Prompt, Settle
 
 __all__ = ["PROTOCOLS", "Capture", "Checkpoint", "Measurement", "Move", "PlanSummary", "Prompt", "Protocol", "Rig",
            "RunResult", "RunState", "Runner", "Settle", "TransitionError", "load_protocol", "preflight",

@@ -22,7 +22,7 @@ from bench.protocols.parameters import (
     FloatParameter,
     IntegerParameter,
 )
-from bench.protocols.steps import ActuatorMove, Checkpoint, Plan, Prompt, Settle
+from bench.steps import ActuatorMove, Checkpoint, Plan, Prompt, Settle
 
 __all__ = ["ActuatorAccuracy", "actuator_results"]
 

@@ -15,7 +15,7 @@ from typing import Any, ClassVar
 from bench.errors import ConfigError
 from bench.protocols.kinematics import DEFAULT_SINGULARITY_THRESHOLD
 from bench.protocols.parameters import ChoiceParameter, FloatParameter, Parameter
-from bench.protocols.steps import Plan
+from bench.steps import Plan
 
 __all__ = ["PROTOCOLS", "Protocol", "load_protocol", "protocol_from_config", "register"]
 

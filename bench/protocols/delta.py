@@ -21,7 +21,7 @@ from bench.protocols.parameters import (
     IntegerParameter,
     PoseTableParameter,
 )
-from bench.protocols.steps import (
+from bench.steps import (
     Capture,
     Checkpoint,
     Move,

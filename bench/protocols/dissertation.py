@@ -26,7 +26,7 @@ from bench.protocols.parameters import (
     FloatParameter,
     IntegerParameter,
 )
-from bench.protocols.steps import (
+from bench.steps import (
     Capture,
     Checkpoint,
     Move,

@@ -27,7 +27,7 @@ from bench.protocols.parameters import (
     IntegerParameter,
     PoseTableParameter,
 )
-from bench.protocols.steps import Capture, Checkpoint, Move, Plan, Prompt, Settle, commanded_values, visit
+from bench.steps import Capture, Checkpoint, Move, Plan, Prompt, Settle, commanded_values, visit
 
 __all__ = ["DistanceAccuracy", "Drift", "MultiDirectional", "PoseAccuracy", "StabilisationOvershoot", "cube_poses",
            "fit_cube_side"]

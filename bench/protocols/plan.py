@@ -19,7 +19,7 @@ import numpy as np
 from bench.errors import UnreachableTarget
 from bench.protocols.base import Protocol
 from bench.protocols.kinematics import DEFAULT_SINGULARITY_THRESHOLD, robot_model
-from bench.protocols.steps import ActuatorMove, Capture, Move, Prompt, Settle, Step
+from bench.steps import ActuatorMove, Capture, Move, Prompt, Settle, Step
 
 __all__ = ["AxisStrokes", "PlanSummary", "capture_s", "dry_run_result", "iterate", "preflight", "summarize"]
 
@@ -186,7 +186,7 @@ def _actuator_moves(moves: list[ActuatorMove]) -> tuple[AxisStrokes, ...]:
     """Per actuator, in order of first use: the distinct strokes of a pkm5's actuator-bench moves, each checked
     exactly as the driver's ``move_actuator`` checks it (``steps_for_stroke``: the 0-66 mm window), and the time of
     its moves from the home stroke at the rated speed scaled by the commanded velocity."""
-    from bench.protocols.simrig import RATED_SPEED_STEPS_S
+    from bench.simulators.rig import RATED_SPEED_STEPS_S
     from bench.robots.pkm5_kinematics import steps_for_stroke, stroke_range_mm
     from motion import pkm5
 

@@ -43,8 +43,8 @@ from typing import Any, Self
 from bench.errors import BenchError, ConfigError, PromptWithdrawn
 from bench.protocols.base import Protocol, protocol_from_config
 from bench.protocols.plan import iterate, preflight
-from bench.protocols.rig import Rig
-from bench.protocols.steps import (
+from bench.rigs.interfaces import Rig
+from bench.steps import (
     ActuatorMove,
     Capture,
     Checkpoint,
@@ -227,7 +227,7 @@ class Runner:
 
         Safe to call from any thread (a window's e-stop button) and in any state. The robot's ``stop()`` is sent
         from the calling thread at once (a move in flight then returns or raises, see
-        :class:`bench.protocols.rig.Mover`), a Settle is cut short, no further step starts and no clean-up step
+        :class:`bench.rigs.interfaces.Mover`), a Settle is cut short, no further step starts and no clean-up step
         runs; the run ends ``aborted`` with ``reason`` and can be resumed. Before a run starts it stops the robot
         and the run, once started, ends before its first step; after the run has finished it does nothing (the
         robot is shut down).

@@ -27,7 +27,7 @@ import numpy as np
 from bench.errors import ConfigError, LinkError, LinkTimeout, UnreachableTarget
 from bench.robots import pkm5_kinematics as kinematics
 from bench.robots import pkm5_wire as wire
-from bench.robots.dynamics import trace_times
+from bench.simulators.dynamics import trace_times
 from bench.robots.link import Deadline, WireProtocolError
 from motion import pkm5
 

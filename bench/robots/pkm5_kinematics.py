@@ -12,8 +12,8 @@ from typing import Any
 import numpy as np
 
 from bench.errors import UnreachableTarget
-from bench.robots.error_model import ErrorMagnitudes, ErrorModel
-from bench.robots.plant import Plant
+from bench.simulators.error_model import ErrorMagnitudes, ErrorModel
+from bench.simulators.plant import Plant
 from motion import pkm5
 from motion.errors import MotionInputError
 
@@ -108,7 +108,7 @@ def build_actuator_bench(seed: int, *, ideal: bool = False, geometry: Any = pkm5
     Each actuator's attained leg length comes from the same seeded joint errors as :func:`build_plant` (scale,
     offset, backlash, noise; no payload on a free-standing actuator), reported as stroke from full retraction.
     """
-    from bench.robots.error_model import JointMemory
+    from bench.simulators.error_model import JointMemory
 
     offsets = np.asarray(geometry.leg_length_offset_mm, dtype=float)
     model = ErrorModel.ideal(6, 5) if ideal else ErrorModel.draw(PKM5_ERRORS, 6, seed, offsets)

@@ -1,5 +1,5 @@
 """Optical mouse read as raw counts from a Linux event device (``/dev/input/event*``) or any byte stream in the
-same ``input_event`` layout (a pipe or file written by :mod:`bench.sensors.mouse_sim`).
+same ``input_event`` layout (a pipe or file written by :mod:`bench.simulators.mouse`).
 
 Replaces the dissertation's two-PC cursor method (``sensors.md`` §2-§4): per-device counts below pointer
 acceleration, kernel timestamps on ``CLOCK_MONOTONIC``, several mice told apart by name/phys, optional grab.

@@ -1,4 +1,4 @@
-"""Simulated PKM5 controller: ``python -m bench.robots.sim_pkm5`` (or ``bench sim pkm5``).
+"""Simulated PKM5 controller: ``python -m bench.simulators.pkm5`` (or ``bench sim pkm5``).
 
 Implements the firmware's behaviour (``docs/protocol-pkm5.md``) on a pseudo-terminal, plus the simulator-only
 commands ``SIMTRUE``, ``SIMLOAD``, ``SIMLEGS`` and ``SIMTRACE``.
@@ -7,8 +7,8 @@ limits is a valid move, and ``SIMTRUE`` reports the six true strokes (mm) instea
 in simulated time scaled by ``--speed-factor``. When a move ends, the plant (:class:`Pkm5Plant`) turns the reached
 steps into the true attained pose through the seeded error model and the kinematics of :mod:`motion.pkm5`:
 steps -> leg lengths -> perturbed lengths -> forward kinematics -> pose errors. The pose goes to ``SIMTRUE`` and
-to the truth log (see :mod:`bench.robots.sim_pty`). How the end effector arrived there (lag during the move,
-ringing after it) follows the structural mode of :mod:`bench.robots.dynamics` (``--mode-hz``, ``--damping``);
+to the truth log (see :mod:`bench.simulators.pty`). How the end effector arrived there (lag during the move,
+ringing after it) follows the structural mode of :mod:`bench.simulators.dynamics` (``--mode-hz``, ``--damping``);
 ``SIMTRACE`` samples that arrival, in simulated seconds, for the simulated sensors that stream.
 """
 
@@ -24,9 +24,9 @@ import numpy as np
 
 from bench.errors import ConfigError
 from bench.robots import pkm5_wire as wire
-from bench.robots.dynamics import StructuralMode, trace_times
+from bench.simulators.dynamics import StructuralMode, trace_times
 from bench.robots.link import WireProtocolError
-from bench.robots.sim_pty import TruthLog, add_common_arguments, main_for
+from bench.simulators.pty import TruthLog, add_common_arguments, main_for
 
 __all__ = ["DESCRIPTION", "FIRMWARE_VERSION", "HOME_STEPS", "MAX_STEPS", "Pkm5SimDevice", "add_arguments",
            "build_device", "main"]
@@ -225,7 +225,7 @@ def _tag_guess(line: bytes) -> int:
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    """Options of ``bench sim pkm5`` / ``python -m bench.robots.sim_pkm5``."""
+    """Options of ``bench sim pkm5`` / ``python -m bench.simulators.pkm5``."""
     add_common_arguments(parser)
     parser.add_argument("--fixture", choices=("assembled", "actuator-bench"), default="assembled",
                         help="the assembled robot (SIMTRUE: the pose) or the six actuators free-standing on the "

@@ -35,8 +35,8 @@ from typing import Any
 import numpy as np
 
 from bench.errors import LinkError, LinkTimeout
-from bench.protocols.rig import Measurement
-from bench.protocols.steps import Capture
+from bench.rigs.interfaces import Measurement
+from bench.steps import Capture
 
 __all__ = ["AXES", "DEFAULT_DECODER", "DeltaMover", "LaserGridInstrument", "grid_pose_values"]
 

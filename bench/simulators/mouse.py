@@ -2,7 +2,7 @@
 
 Models what makes a mouse imperfect (``sensors.md`` §1.3, §4.9): an integer count quantisation with carry, a scale
 (CPI) error per axis, a mounting rotation, white position noise, a fixed report rate (up to 8 kHz) and the
-per-report field width. Also a program: ``python -m bench.sensors.mouse_sim --out FIFO`` writes a stream into a
+per-report field width. Also a program: ``python -m bench.simulators.mouse --out FIFO`` writes a stream into a
 pipe or file that :class:`bench.sensors.mouse.EvdevMouse` opens like a device.
 """
 
@@ -235,8 +235,8 @@ def write_stream_from_args(args: argparse.Namespace) -> int:
 
 
 def main(argv: list[str] | None = None) -> int:
-    """Program entry: ``python -m bench.sensors.mouse_sim --out FIFO [options]``."""
-    parser = argparse.ArgumentParser(prog="python -m bench.sensors.mouse_sim", description=__doc__.split("\n")[0],
+    """Program entry: ``python -m bench.simulators.mouse --out FIFO [options]``."""
+    parser = argparse.ArgumentParser(prog="python -m bench.simulators.mouse", description=__doc__.split("\n")[0],
                                      formatter_class=argparse.ArgumentDefaultsHelpFormatter)
     parser.add_argument("--out", required=True, help="FIFO or file to write input_event records into")
     add_stream_arguments(parser)

@@ -1,4 +1,4 @@
-"""Simulated delta4 controller: ``python -m bench.robots.sim_delta4`` (or ``bench sim delta4``).
+"""Simulated delta4 controller: ``python -m bench.simulators.delta4`` (or ``bench sim delta4``).
 
 Behaves like the ATmega128 firmware as ``docs/protocol-delta4.md`` specifies it: ``E`` starts control and sensor
 reporting, ``G`` stops both, ``P``/``Q``/``R``/``S`` + digits + ``X`` set servo references (stored while stopped),
@@ -8,7 +8,7 @@ are within one ADC count (140/255 deg) for 10 ticks of 2 ms. The attained pose t
 model and :mod:`motion.delta4` forward kinematics and goes to the truth log. Sensor reports (one per 80 ms frame,
 horizontal screen first) come from a pluggable ``sensor(pose_mm) -> (horizontal, vertical)`` observing that true
 attained pose. The program attaches the laser-grid simulator
-(:class:`bench.sensors.lasergrid_sim.LaserGridSimulator`: default GUI screen geometry, spot half-width
+(:class:`bench.simulators.lasergrid.LaserGridSimulator`: default GUI screen geometry, spot half-width
 ``--grid-spot-half-width-mm`` 1.0 mm, Appendix D2 miss probability by height unless ``--grid-p-miss`` is given,
 ``--grid-p-false`` stray hits, its own random stream derived from ``--seed``); ``--no-grid`` reports no hit in
 every frame (``h`` then ``v``), as a controller with its screens unplugged.
@@ -27,9 +27,9 @@ import numpy as np
 
 from bench.errors import ConfigError
 from bench.robots import delta4_wire as wire
-from bench.robots.error_model import ErrorMagnitudes, ErrorModel
-from bench.robots.plant import Plant
-from bench.robots.sim_pty import TruthLog, add_common_arguments, main_for
+from bench.simulators.error_model import ErrorMagnitudes, ErrorModel
+from bench.simulators.plant import Plant
+from bench.simulators.pty import TruthLog, add_common_arguments, main_for
 
 __all__ = ["DELTA4_ERRORS", "DESCRIPTION", "Delta4SimDevice", "add_arguments", "build_device", "build_grid_sensor",
            "build_plant", "grid_seed", "main"]
@@ -191,7 +191,7 @@ def grid_seed(seed: int) -> int:
 
 def build_grid_sensor(args: argparse.Namespace) -> Sensor | None:
     """The laser-grid simulator the command line asks for (``None`` with ``--no-grid``)."""
-    from bench.sensors.lasergrid_sim import LaserGridSimulator
+    from bench.simulators.lasergrid import LaserGridSimulator
 
     if args.no_grid:
         return None
@@ -218,7 +218,7 @@ def build_device(args: argparse.Namespace) -> Delta4SimDevice:
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    """Options of ``bench sim delta4`` / ``python -m bench.robots.sim_delta4``."""
+    """Options of ``bench sim delta4`` / ``python -m bench.simulators.delta4``."""
     add_common_arguments(parser)
     parser.add_argument("--mapping", choices=sorted(wire.MAPPINGS), default="legacy_vb",
                         help="servo byte <-> angle mapping the firmware uses (must match the driver)")

@@ -1,7 +1,7 @@
 """The simulated mechanism behind a simulated controller: commanded joints -> true attained pose.
 
 A :class:`Plant` chains three robot-specific or shared pieces: ``joints_of`` (controller units -> actuated joint
-values, e.g. steps -> leg lengths in mm), the seeded :class:`bench.robots.error_model.ErrorModel`, and ``forward``
+values, e.g. steps -> leg lengths in mm), the seeded :class:`bench.simulators.error_model.ErrorModel`, and ``forward``
 (forward kinematics from :mod:`motion`, returning the pose in mm and degrees). Random terms come from a generator
 seeded from the robot seed, so a simulated campaign is reproducible.
 """
@@ -13,7 +13,7 @@ from collections.abc import Callable
 
 import numpy as np
 
-from bench.robots.error_model import ErrorModel, JointMemory
+from bench.simulators.error_model import ErrorModel, JointMemory
 
 __all__ = ["Plant"]
 

@@ -24,8 +24,8 @@ from typing import Any
 import numpy as np
 
 from bench.errors import LinkError, PromptWithdrawn
-from bench.protocols.rig import Measurement, Rig
-from bench.protocols.steps import Capture, Prompt
+from bench.rigs.interfaces import Measurement, Rig
+from bench.steps import Capture, Prompt
 
 __all__ = ["ARRIVAL", "ConsoleOperator", "MiceInstrument", "arrival_series", "hardware_rig"]
 
@@ -226,7 +226,7 @@ def hardware_rig(port: str, *, mouse_xy: str, mouse_xz: str, calibration: Any, h
     """A pkm5 on ``port`` with two mice on event devices; the robot must stand at ``home_mm`` (registration)."""
     import serial
 
-    from bench.protocols.simrig import DriverMover
+    from bench.simulators.rig import DriverMover
     from bench.robots.pkm5 import Pkm5Controller
     from bench.sensors.mouse import EvdevMouse
 

@@ -1,8 +1,8 @@
 """Simulated rigs: a simulator process on a pseudo-terminal, the real driver over pyserial, simulated sensors.
 
-The robot is the real :class:`bench.robots.pkm5.Pkm5Controller` talking to ``python -m bench.robots.sim_pkm5``
+The robot is the real :class:`bench.robots.pkm5.Pkm5Controller` talking to ``python -m bench.simulators.pkm5``
 through the pty it prints, exactly as to hardware. The instrument is the dissertation's pair of optical mice
-(one in the x-y plane, one in the x-z plane) simulated by :class:`bench.sensors.mouse_sim.MouseSimulator`: after
+(one in the x-y plane, one in the x-z plane) simulated by :class:`bench.simulators.mouse.MouseSimulator`: after
 each move the simulator's true attained pose (``SIMTRUE``) drives the simulated mice, which write kernel
 ``input_event`` records into FIFOs that :class:`bench.sensors.mouse.EvdevMouse` reads as it would read
 ``/dev/input``. Counts become mm through the stored calibration; the instrument's frame is registered once at the
@@ -23,9 +23,9 @@ from typing import Any
 import numpy as np
 
 from bench.errors import LinkError
-from bench.protocols.mice import ARRIVAL, MiceInstrument
-from bench.protocols.rig import Measurement, Rig
-from bench.protocols.steps import Capture, Prompt
+from bench.rigs.mice import ARRIVAL, MiceInstrument
+from bench.rigs.interfaces import Measurement, Rig
+from bench.steps import Capture, Prompt
 
 __all__ = ["BenchCalliper", "CalliperOnly", "DriverMover", "SimulatedCalliper", "SimulatedMice", "SimulatedOperator",
            "simulated_rig", "start_simulator"]
@@ -47,8 +47,8 @@ def _plane_seed(seed: int, plane_index: int) -> int:
 
 def start_simulator(robot: str, *, seed: int, speed_factor: float, ideal: bool = False, timeout_s: float = 20.0,
                     options: tuple[str, ...] = ()) -> tuple[subprocess.Popen, str]:
-    """Start ``python -m bench.robots.sim_<robot>`` (plus ``options``); returns the process and its pty path."""
-    command = [sys.executable, "-m", f"bench.robots.sim_{robot}", "--seed", str(seed), "--speed-factor",
+    """Start ``python -m bench.simulators.<robot>`` (plus ``options``); returns the process and its pty path."""
+    command = [sys.executable, "-m", f"bench.simulators.{robot}", "--seed", str(seed), "--speed-factor",
                str(speed_factor)] + (["--ideal"] if ideal else []) + list(options)
     # the simulator's log goes to a file: an undrained pipe would block the simulator once it filled up
     with tempfile.TemporaryFile(mode="w+") as log:
@@ -99,7 +99,7 @@ class DriverMover:
 class SimulatedMice(MiceInstrument):
     """Two simulated optical mice (x-y and x-z planes) observing the simulator's true pose, read through FIFOs.
 
-    Each mouse is a :class:`bench.sensors.mouse_sim.MouseStream` (quantisation with carry, white noise, a fixed
+    Each mouse is a :class:`bench.simulators.mouse.MouseStream` (quantisation with carry, white noise, a fixed
     report rate) followed through time on a simulated clock. For a static capture the robot's unobserved motion
     since the last capture is taken as a straight line over ``_MOTION_S``; for an ``arrival`` capture the mice
     follow the simulator's sampled true arrival (``SIMTRACE``), so the stream shows the lag and the ringing.
@@ -110,7 +110,7 @@ class SimulatedMice(MiceInstrument):
                  calibration_id: str = "sim-mouse-800cpi") -> None:
         from bench.sensors.calibration import CountsCalibration
         from bench.sensors.mouse import EvdevMouse
-        from bench.sensors.mouse_sim import MouseSimulator, MouseStream
+        from bench.simulators.mouse import MouseSimulator, MouseStream
 
         self.controller = controller
         self.cpi, self.noise_counts, self.seed = cpi, noise_counts, seed
@@ -312,9 +312,9 @@ def _simulated_delta_rig(*, seed: int, speed_factor: float, ideal: bool) -> Rig:
     controller's reports, and the truth log's attained pose goes into each sample's raw data for comparison."""
     import serial
 
-    from bench.protocols.grid import DeltaMover, LaserGridInstrument
+    from bench.rigs.lasergrid import DeltaMover, LaserGridInstrument
     from bench.robots.delta4 import Delta4Controller
-    from bench.robots.sim_pty import read_last_truth
+    from bench.simulators.pty import read_last_truth
 
     folder = tempfile.TemporaryDirectory(prefix="bench-sim-delta4-")
     truth_path = os.path.join(folder.name, "truth.jsonl")

@@ -1,6 +1,6 @@
 """Process scaffolding of the simulated controllers: a pseudo-terminal, an event loop, and the truth log.
 
-A simulator is a real program (``python -m bench.robots.sim_pkm5`` / ``sim_delta4``, or ``bench sim ...``). It opens a
+A simulator is a real program (``python -m bench.simulators.pkm5`` / ``bench.simulators.delta4``, or ``bench sim ...``). It opens a
 pty with ``os.openpty``, prints the slave device path as the first line of stdout (then the truth-log path, if
 any), and serves bytes on the master side until SIGTERM/SIGINT or until its parent process exits. Clients open the
 printed path with pyserial exactly as they would open hardware.

@@ -2,7 +2,7 @@
 
 The runner only knows these three small interfaces (bluesky's ``Movable`` and ``Readable``), so the same
 runner drives a real robot over ``/dev/ttyUSB0``, a simulator over a pseudo-terminal, or a recording stand-in
-in tests. Concrete rigs are built in :mod:`bench.protocols.simrig` (simulators) and by the CLI (hardware).
+in tests. Concrete rigs are built in :mod:`bench.simulators.rig` (simulators) and by the CLI (hardware).
 """
 
 from __future__ import annotations
@@ -13,7 +13,7 @@ from dataclasses import dataclass, field
 from typing import Any
 from typing import Protocol as Interface
 
-from bench.protocols.steps import Capture, Prompt
+from bench.steps import Capture, Prompt
 
 __all__ = ["Instrument", "Measurement", "Mover", "Operator", "Rig"]
 
