@@ -16,7 +16,8 @@ from bench.protocols.actuator import ActuatorAccuracy, actuator_results
 from bench.simulators.rig import simulated_rig, start_simulator
 from bench.steps import ActuatorMove
 from bench.robots.pkm5 import Pkm5Controller
-from bench.robots.pkm5_kinematics import build_actuator_bench, steps_for_stroke
+from bench.robots.pkm5_kinematics import steps_for_stroke
+from bench.simulators.pkm5_plant import build_actuator_bench
 from bench.store import Store, tidy_table
 
 EXAMPLE = Path(__file__).resolve().parents[1] / "examples" / "actuator_accuracy.toml"

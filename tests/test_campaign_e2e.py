@@ -15,7 +15,7 @@ import pandas as pd
 import pytest
 
 from bench.cli import main
-from bench.commands.campaign import simulated_rig_in
+from bench.launch import simulated_rig_in
 from bench.commands.demo import analyze_run
 from bench.protocols import PROTOCOLS, Runner
 from bench.protocols.iso9283 import PoseAccuracy
@@ -23,7 +23,7 @@ from bench.protocols.plan import iterate
 from bench.protocols.runner import step_stores_sample
 from bench.simulators.rig import simulated_rig
 from bench.simulators.error_model import ErrorModel
-from bench.robots.pkm5_kinematics import PKM5_ERRORS
+from bench.simulators.pkm5_plant import PKM5_ERRORS
 from bench.store import Store, tidy_table
 from motion import pkm5
 
@@ -276,4 +276,4 @@ def test_missing_port_is_one_line(capsys, tmp_path):
     assert main(["run", str(QUICK), "--store", str(tmp_path / "b.db"), "--port", "/dev/ttyNONE", "--mouse-xy", "a",
                  "--mouse-xz", "b"]) == 1
     err = capsys.readouterr().err.strip()
-    assert err.startswith("bench: error: --port /dev/ttyNONE: cannot open it") and len(err.splitlines()) == 1
+    assert err.startswith("bench: error: --port: controller.port = '/dev/ttyNONE': cannot open it") and len(err.splitlines()) == 1

@@ -22,6 +22,7 @@ from bench.gui.campaign_panel import EXAMPLES, format_duration
 from bench.gui.parameter_form import ParameterForm, parse_field, show_value
 from bench.gui.robot_panel import RobotPanel, check_target
 from bench.protocols import Prompt, load_protocol
+from bench.simulators.client import SimulatorClient
 
 LEG = Prompt("Load 1 kg: calliper length of leg 2", field="length_mm", unit="mm", minimum=150.0, maximum=280.0,
              commanded={"cmd_length_mm": 200.0})
@@ -119,7 +120,7 @@ def test_jog_targets_are_checked_before_the_jog_button_allows_a_move():
         assert panel.jog_button.isEnabled()
         QTest.mouseClick(panel.jog_button, Qt.MouseButton.LeftButton)
         wait_for(lambda: panel.status.text().startswith("at "), 30, "the jog to end")
-        true_pose = panel.mover.controller.sim_true_pose()
+        true_pose = SimulatorClient(panel.mover.controller).true_pose()
         assert true_pose[0] == pytest.approx(88.649 + 5.0, abs=1.5)  # the simulated robot's own error model
         panel.emergency_stop()
         assert panel.status.text() == "EMERGENCY STOP sent"

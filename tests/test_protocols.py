@@ -486,7 +486,7 @@ def test_hardware_time_base_is_wall_seconds_and_a_failing_hook_never_fails_the_r
 
 def test_console_operator_reasks_until_valid_and_ctrl_d_withdraws_the_prompt(capsys):
     from bench.errors import PromptWithdrawn
-    from bench.rigs.mice import ConsoleOperator
+    from bench.rigs.operators import ConsoleOperator
     from bench.steps import Prompt
 
     answers = iter(["abc", "300", "12.5"])
@@ -518,7 +518,7 @@ def test_the_runners_emergency_stop_latches_where_the_robot_can_and_abort_does_n
     assert robot.log[0] == ("emergency_stop",)  # from the calling thread: the latching stop
 
 
-def test_pkm5_emergency_stop_refuses_every_later_move_until_enable():
+def test_pkm5_emergency_stop_refuses_every_later_move_until_released():
     from bench.errors import LinkError
     from bench.simulators.rig import simulated_rig
 
@@ -531,8 +531,8 @@ def test_pkm5_emergency_stop_refuses_every_later_move_until_enable():
         with pytest.raises(LinkError, match="refused: an emergency stop is latched"):
             rig.robot.move_to((100.0, 0.0, 310.0), velocity_pct=100)
         assert controller.position().steps == reached  # nothing was sent
-        rig.robot.stop()  # a plain stop (abort) does not latch a second time, and enable() releases the latch
-        controller.enable()
+        rig.robot.stop()  # a plain stop (abort) does not latch a second time, and release_stop() releases the latch
+        rig.robot.release_stop()
         rig.robot.move_to((100.0, 0.0, 310.0), velocity_pct=100)
         assert controller.position().steps != reached
     finally:
@@ -541,7 +541,7 @@ def test_pkm5_emergency_stop_refuses_every_later_move_until_enable():
 
 def test_delta_rig_refuses_moves_once_emergency_stopped():
     from bench.errors import LinkError
-    from bench.rigs.lasergrid import DeltaMover
+    from bench.rigs.movers import DeltaMover
 
     class Controller:
         def __init__(self):

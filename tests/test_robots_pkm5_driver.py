@@ -13,6 +13,7 @@ from bench.errors import ConfigError, LinkError, LinkTimeout, UnreachableTarget
 from bench.robots import pkm5_wire as wire
 from bench.robots.pkm5 import ControllerError, Identity, Pkm5Controller, Position
 from bench.robots.testing import ScriptedPort, expected_exchange
+from bench.simulators.client import SimulatorClient
 
 
 def exchange(pairs, **kwargs):
@@ -72,12 +73,12 @@ def test_move_to_pose_sends_the_steps_of_the_reference_lengths():
 
 def test_sim_true_pose():
     with exchange([("SIMTRUE #1", "OK #1 SIMTRUE 110.5 -0.25 305.125 0.5 -0.25")]) as robot:
-        np.testing.assert_array_equal(robot.sim_true_pose(), [110.5, -0.25, 305.125, 0.5, -0.25])
+        np.testing.assert_array_equal(SimulatorClient(robot).true_pose(), [110.5, -0.25, 305.125, 0.5, -0.25])
 
 
 def test_sim_set_load():
     with exchange([("SIMLOAD 2450 #1", "OK #1 SIMLOAD")]) as robot:
-        robot.sim_set_load(2.45)
+        SimulatorClient(robot).set_load(2.45)
 
 
 def test_stale_and_corrupted_lines_are_dropped():

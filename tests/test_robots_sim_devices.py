@@ -8,6 +8,7 @@ from hypothesis import strategies as st
 
 from bench.robots import delta4_wire as dwire
 from bench.robots import pkm5_kinematics as kin
+from bench.simulators import pkm5_plant
 from bench.robots import pkm5_wire as wire
 from bench.simulators.error_model import ErrorMagnitudes, ErrorModel, JointMemory
 from bench.simulators.delta4 import Delta4SimDevice
@@ -141,7 +142,7 @@ def test_load_sag_and_assembly_bias_add_to_the_pose():
 
 def test_same_seed_same_robot_other_seed_other_robot():
     steps = np.array(kin.steps_for_pose((110.52, -0.19, 305.5, 0, 0)))
-    first, second, other = kin.build_plant(5), kin.build_plant(5), kin.build_plant(6)
+    first, second, other = pkm5_plant.build_plant(5), pkm5_plant.build_plant(5), pkm5_plant.build_plant(6)
     assert np.array_equal(first(steps, 0.0), second(steps, 0.0))
     assert not np.allclose(first(steps, 0.0), other(steps, 0.0))
 
@@ -149,7 +150,7 @@ def test_same_seed_same_robot_other_seed_other_robot():
 def test_ideal_pkm5_plant_attains_the_commanded_pose_within_step_quantisation():
     # Table A.11 point 3-1; one step is 0.00625 mm (legs 1-4) / 0.003125 mm (legs 5-6)
     steps = np.array(kin.steps_for_pose((110.52, -0.19, 305.5, 0, 0)))
-    pose = kin.build_plant(0, ideal=True)(steps, 0.0)
+    pose = pkm5_plant.build_plant(0, ideal=True)(steps, 0.0)
     np.testing.assert_allclose(pose, [110.52, -0.19, 305.5, 0, 0], atol=0.01)
 
 
@@ -171,7 +172,7 @@ def ap_rp(attained, commanded):
 @pytest.mark.parametrize("seed", [0, 1])
 def test_simulated_pkm5_campaign_errors_are_of_the_documents_order(seed):
     """Document (000 §8.6.5): AP 1.17-1.91 mm, RP 1.56-2.71 mm over these points, 10 cycles from home."""
-    plant, home = kin.build_plant(seed), kin.home_steps()
+    plant, home = pkm5_plant.build_plant(seed), kin.home_steps()
     figures = []
     for point in TABLE_A11:
         steps = np.array(kin.steps_for_pose((*point, 0, 0)))

@@ -20,6 +20,7 @@ from bench.errors import LinkError, LinkTimeout
 from bench.robots.delta4 import Delta4Controller
 from bench.robots.pkm5 import Pkm5Controller
 from bench.simulators.pty import read_last_truth
+from bench.simulators.client import SimulatorClient
 
 POINT_3_1 = (110.52, -0.19, 305.5, 0.0, 0.0)  # Table A.11 point 3-1 (pkm5.md §6.8)
 
@@ -62,7 +63,7 @@ def test_pkm5_campaign_step_through_the_pty(tmp_path):
         robot.enable()
         assert robot.move_to_pose(POINT_3_1) == (2656, 2656, 2669, 2669, 2720, 2720)
         where = robot.position()
-        true_pose = robot.sim_true_pose()
+        true_pose = SimulatorClient(robot).true_pose()
     assert where.steps == (2656, 2656, 2669, 2669, 2720, 2720) and where.state == "IDLE"
     logged = read_last_truth(truth)
     np.testing.assert_allclose(true_pose, logged["pose"], atol=1e-4)  # SIMTRUE prints 4 decimals
@@ -75,7 +76,7 @@ def test_ideal_pkm5_simulator_attains_the_commanded_pose():
     with simulator("pkm5", "--speed-factor", "50", "--ideal") as (_, path, _extra), pkm5_on(path) as robot:
         robot.enable()
         robot.move_to_pose(POINT_3_1)
-        np.testing.assert_allclose(robot.sim_true_pose(), POINT_3_1, atol=0.01)
+        np.testing.assert_allclose(SimulatorClient(robot).true_pose(), POINT_3_1, atol=0.01)
 
 
 def test_ctrl_c_during_a_move_stops_the_robot_and_closes_the_port():

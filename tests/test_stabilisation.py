@@ -20,6 +20,7 @@ from bench.steps import Capture
 from bench.simulators.dynamics import StructuralMode, trace_times
 from bench.robots.pkm5 import ControllerError
 from bench.store import Store, series_table
+from bench.simulators.client import SimulatorClient
 from motion import pkm5
 from reports_runs import simulated_run
 
@@ -64,10 +65,10 @@ def test_trace_over_the_wire_is_the_mode_driven_from_the_last_true_pose_to_the_n
     rig = simulated_rig("pkm5", seed=5, speed_factor=1000, options=("--mode-hz", "1.5", "--damping", "0.04"))
     controller = rig.robot.controller
     try:
-        before, steps_before = controller.sim_true_pose(), np.array(controller.position().steps)
+        before, steps_before = SimulatorClient(controller).true_pose(), np.array(controller.position().steps)
         controller.move_to_pose((110.0, 0.0, 320.0, 0.0, 0.0), speed_steps_s=200)
-        after, steps_after = controller.sim_true_pose(), np.array(controller.position().steps)
-        times, poses = controller.sim_trace(200, 0.5, 1.0)
+        after, steps_after = SimulatorClient(controller).true_pose(), np.array(controller.position().steps)
+        times, poses = SimulatorClient(controller).trace(200, 0.5, 1.0)
         duration_s = np.abs(steps_after - steps_before).max() / 200
         expected = StructuralMode(1.5, 0.04).arrival(trace_times(200, 0.5, 1.0), before, after, duration_s)
         assert times[0] == -0.5 and times[-1] == 1.0 and len(times) == 301
@@ -85,7 +86,7 @@ def test_true_leg_lengths_are_the_commanded_ones_on_an_ideal_robot_and_perturbed
         try:
             rig.robot.controller.move_to_pose((110.0, 0.0, 320.0, 0.0, 0.0))
             commanded = pkm5.steps_to_lengths(np.array(rig.robot.controller.position().steps)[None, :])[0]
-            lengths[ideal] = rig.robot.controller.sim_true_lengths() - commanded
+            lengths[ideal] = SimulatorClient(rig.robot.controller).true_lengths() - commanded
         finally:
             rig.close()
     np.testing.assert_allclose(lengths[True], 0.0, atol=6e-5)
@@ -99,7 +100,7 @@ def test_the_streamed_arrival_matches_the_simulators_truth():
         rig.robot.move_to((100.0, -10.0, 310.0), velocity_pct=100)
         rig.robot.move_to((120.0, 10.0, 330.0), velocity_pct=100)
         measured = rig.instrument.measure(Capture("P", 1, kind="arrival", conditions={"lead_s": 1.0, "hold_s": 6.0}))
-        t_true, true_poses = rig.robot.controller.sim_trace(250, 1.0, 6.0)
+        t_true, true_poses = SimulatorClient(rig.robot.controller).trace(250, 1.0, 6.0)
     finally:
         rig.close()
     series = measured.raw["series"]

@@ -16,14 +16,13 @@ from collections.abc import Iterator
 from contextlib import contextmanager
 from typing import Any
 
-from bench.errors import ConfigError, LinkError
-from bench.protocols import Runner, load_protocol, preflight, summarize
+from bench.launch import DEFAULT_SPEED_FACTOR, RigRequest, open_rig
+from bench.protocols import Runner, load_protocol, preflight, protocol_from_config, summarize
+from bench.protocols.plan import required_capabilities
 from bench.protocols.runner import RunResult
 from bench.store import EXPORT_FORMATS, Store, export_run
 
 DEFAULT_STORE = "bench.db"
-#: Simulated time runs this much faster than real moves in ``--sim`` runs unless told otherwise.
-DEFAULT_SPEED_FACTOR = 10000.0
 
 
 def register(groups: argparse._SubParsersAction) -> None:
@@ -65,8 +64,11 @@ def _parser(groups: argparse._SubParsersAction, name: str, text: str) -> argpars
 
 def _rig_arguments(parser: argparse.ArgumentParser) -> None:
     where = parser.add_mutually_exclusive_group()
-    where.add_argument("--sim", action="store_true", help="use the simulated controller and sensors (default)")
+    where.add_argument("--sim", action="store_true",
+                       help="simulated controller and sensors (the default without --station or --port)")
     where.add_argument("--port", default=None, help="serial port of a real controller, e.g. /dev/ttyUSB0")
+    parser.add_argument("--station", default=None, metavar="STATION.toml",
+                        help="the bench's devices (examples/stations/); with --sim each is replaced by its simulator")
     parser.add_argument("--seed", type=int, default=None, help="simulator seed (resume: the run's own)")
     parser.add_argument("--speed-factor", type=float, default=None,
                         help=f"simulated time speed-up (default {DEFAULT_SPEED_FACTOR:g}; resume: the run's own)")
@@ -75,80 +77,17 @@ def _rig_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--no-progress", action="store_true", help="no progress bar on stderr")
 
 
+def rig_request(args: argparse.Namespace) -> RigRequest:
+    """What the rig options ask for, as the :class:`bench.launch.RigRequest` the GUI fills in too."""
+    return RigRequest(station=args.station, port=args.port, mouse_xy=args.mouse_xy, mouse_xz=args.mouse_xz,
+                      simulate=args.sim, seed=args.seed, speed_factor=args.speed_factor)
+
+
 def build_rig(args: argparse.Namespace, robot: str, store: Store, stored: dict[str, Any] | None = None,
-              fixture: str = "assembled"):
-    """The rig the arguments describe: the simulator by default, hardware with ``--port``; ``fixture`` is the
-    protocol's (``actuator-bench``: the pkm5's actuators free-standing, moved one at a time)."""
-    stored = stored or {}
-    if args.port is None:
-        seed = args.seed if args.seed is not None else stored.get("simulator", {}).get("seed", 0)
-        speed = args.speed_factor or stored.get("speed_factor") or DEFAULT_SPEED_FACTOR
-        return simulated_rig_in(store, robot, seed=seed, speed_factor=speed, fixture=fixture)
-    if fixture == "actuator-bench":
-        return _hardware_actuator_bench(args.port, robot)
-    if robot != "pkm5" or not (args.mouse_xy and args.mouse_xz):
-        raise ConfigError("--port: hardware runs support the pkm5 with --mouse-xy and --mouse-xz event devices")
-    from bench.protocols.kinematics import robot_model
-    from bench.rigs.mice import hardware_rig
-    from bench.sensors.calibration import CountsCalibration
-
-    try:
-        record = store.calibration("mouse")
-    except ConfigError:  # before the first mouse_calibration run: the sensor's nominal 800 cpi, recorded as such
-        record = store.ensure_calibration("mouse", {"mm_per_count": 25.4 / 800, "nominal": True},
-                                          notes="nominal 800 cpi; run examples/mouse_calibration.toml")
-    scale = record.params["mm_per_count"]
-    calibration = CountsCalibration.from_scales(scale, scale, calibration_id=f"mouse-v{record.version}",
-                                                date=record.created_utc[:10])
-    rig = hardware_rig(args.port, mouse_xy=args.mouse_xy, mouse_xz=args.mouse_xz, calibration=calibration,
-                       home_mm=robot_model(robot).home)
-    rig.calibration_ids = (record.id,)
-    return rig
-
-
-def _hardware_actuator_bench(port: str, robot: str):
-    """The pkm5 controller on ``port`` driving free-standing actuators; readings are typed in from the gauge."""
-    import serial
-
-    from bench.rigs.mice import ConsoleOperator
-    from bench.rigs.interfaces import Rig
-    from bench.simulators.rig import CalliperOnly, DriverMover
-    from bench.robots.pkm5 import Pkm5Controller
-
-    if robot != "pkm5":
-        raise ConfigError(f"--robot {robot}: the actuator bench exists for the pkm5 only")
-    try:
-        port_instance = serial.serial_for_url(port, baudrate=115200, timeout=0.05)
-    except serial.SerialException as exc:
-        raise LinkError(f"--port {port}: cannot open it ({exc.strerror or exc})") from None
-    controller = Pkm5Controller(port_instance, fixture="actuator-bench")
-    try:
-        controller.identify()
-        controller.enable()
-    except BaseException:
-        controller.shutdown()
-        raise
-    return Rig(DriverMover(controller), CalliperOnly(), ConsoleOperator())
-
-
-def simulated_rig_in(store: Store, robot: str, *, seed: int, speed_factor: float, fixture: str = "assembled"):
-    """A simulated rig whose mouse calibration is recorded (get-or-create) in ``store``."""
-    from bench.simulators.rig import simulated_rig
-
-    if not speed_factor > 0:
-        raise ConfigError(f"--speed-factor = {speed_factor:g}, expected a number > 0")
-    rig = simulated_rig(robot, seed=seed, speed_factor=speed_factor, fixture=fixture)
-    rig.extra["simulator"] = {"seed": seed}
-    if fixture == "actuator-bench":
-        return rig  # no calibration in force: the readings are typed-in gauge values
-    if robot == "pkm5":
-        params = {"cpi": rig.instrument.cpi, "mm_per_count": 25.4 / rig.instrument.cpi}
-        name, notes = rig.instrument.calibration.calibration_id, "nominal calibration of the simulated mice"
-    else:
-        params = {"screens": repr(rig.instrument.geometry)}
-        name, notes = rig.instrument.geometry.calibration_id, "laser-grid geometry of the legacy GUI drawing"
-    rig.calibration_ids = (store.ensure_calibration(name, params, notes=notes).id,)
-    return rig
+              fixture: str = "assembled", requires: frozenset[str] = frozenset(), protocol: str = "the protocol"):
+    """The rig the command-line options describe (see :func:`bench.launch.open_rig`)."""
+    return open_rig(rig_request(args), store, robot=robot, stored=stored, fixture=fixture, requires=requires,
+                    protocol=protocol)
 
 
 @contextmanager
@@ -207,7 +146,8 @@ def _run(args: argparse.Namespace) -> int:
         return 0
     preflight(protocol)  # before a simulator or a port is opened; the runner checks again
     with Store(args.store) as store:
-        rig = build_rig(args, protocol.robot, store, fixture=getattr(protocol, "fixture", "assembled"))
+        rig = build_rig(args, protocol.robot, store, fixture=getattr(protocol, "fixture", "assembled"),
+                        requires=required_capabilities(protocol), protocol=f"protocol {protocol.name!r}")
         runner = Runner(rig, store, progress=not args.no_progress, on_pause=_ask_after_pause)
         result = execute(runner, lambda: runner.run(protocol, campaign=args.campaign))
     return 0 if result.exit_status == "completed" else 1
@@ -216,8 +156,10 @@ def _run(args: argparse.Namespace) -> int:
 def _resume(args: argparse.Namespace) -> int:
     with Store(args.store) as store:
         record = store.run(args.run_id)
+        protocol = protocol_from_config(record.config, source=f"run {args.run_id}")
         rig = build_rig(args, record.robot, store, stored=record.settings,
-                        fixture=record.config.get("fixture", "assembled"))
+                        fixture=record.config.get("fixture", "assembled"), requires=required_capabilities(protocol),
+                        protocol=f"protocol {protocol.name!r}")
         runner = Runner(rig, store, progress=not args.no_progress, on_pause=_ask_after_pause)
         result = execute(runner, lambda: runner.resume_run(args.run_id))
     return 0 if result.exit_status == "completed" else 1

@@ -19,7 +19,8 @@ from pathlib import Path
 import pandas as pd
 
 from bench import __version__
-from bench.commands.campaign import execute, simulated_rig_in
+from bench.commands.campaign import execute
+from bench.launch import simulated_rig_in
 from bench.errors import ConfigError, InsufficientData
 from bench.protocols import Runner
 from bench.protocols.iso9283 import PoseAccuracy

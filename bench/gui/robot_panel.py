@@ -52,36 +52,11 @@ def check_target(robot: str, target: tuple[float, ...]) -> tuple[bool, str]:
 
 
 def open_mover(spec: RigSpec) -> tuple[Any, Callable[[], None]]:
-    """A connected robot (``move_to``, ``stop``, ``shutdown``, ``settings``) and the function that releases it."""
-    if spec.port is None:
-        from bench.simulators.rig import simulated_rig
+    """A connected robot (``move_to``, ``stop``, ``shutdown``, ``settings``) and the function that releases it,
+    opened by the same code as a run's rig (:func:`bench.launch.open_mover`)."""
+    from bench.launch import open_mover as launch_open_mover
 
-        rig = simulated_rig(spec.robot, seed=spec.seed, speed_factor=spec.speed_factor)
-        return rig.robot, rig.close
-    import serial
-
-    from bench.errors import LinkError
-
-    try:
-        port = serial.serial_for_url(spec.port, baudrate=115200 if spec.robot == "pkm5" else 9600, timeout=0.05)
-    except serial.SerialException as exc:
-        raise LinkError(f"port {spec.port}: cannot open it ({exc})") from None
-    if spec.robot == "pkm5":
-        from bench.simulators.rig import DriverMover
-        from bench.robots.pkm5 import Pkm5Controller
-
-        controller = Pkm5Controller(port)
-        controller.identify()
-        controller.enable()
-        mover = DriverMover(controller)
-    else:
-        from bench.rigs.lasergrid import DeltaMover
-        from bench.robots.delta4 import Delta4Controller
-
-        controller = Delta4Controller(port)
-        controller.start()
-        mover = DeltaMover(controller)
-    return mover, mover.shutdown
+    return launch_open_mover(spec.request(), spec.robot)
 
 
 class _Call(QThread):

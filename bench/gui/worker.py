@@ -2,7 +2,7 @@
 
 The worker owns everything that touches the rig and the store during a run: it opens its own
 :class:`bench.store.Store` (a SQLite connection belongs to the thread that made it), builds the rig with the same
-function as ``bench run`` (:func:`bench.commands.campaign.build_rig`), and drives :class:`bench.protocols.Runner`.
+function as ``bench run`` (:func:`bench.launch.open_rig`), and drives :class:`bench.protocols.Runner`.
 It talks to the window only through Qt signals. Requests from the window (pause, resume, stop, abort, halt) go to
 the runner's own thread-safe request methods; the runner honours them at its safe points. The emergency stop goes
 to :meth:`bench.protocols.Runner.emergency_stop` at once, from the window's thread.
@@ -15,7 +15,6 @@ waits for the operator's entry, or raises :class:`bench.errors.PromptWithdrawn` 
 
 from __future__ import annotations
 
-import argparse
 import logging
 import queue
 from dataclasses import dataclass
@@ -24,7 +23,9 @@ from typing import Any
 from PySide6.QtCore import QThread, Signal
 
 from bench.errors import BenchError, PromptWithdrawn
-from bench.protocols import Prompt, Protocol, Runner, RunState, TransitionError
+from bench.launch import RigRequest, open_rig
+from bench.protocols import Prompt, Protocol, Runner, RunState, TransitionError, protocol_from_config
+from bench.protocols.plan import required_capabilities
 from bench.store import Store
 
 __all__ = ["CampaignWorker", "RigSpec", "WindowOperator"]
@@ -37,11 +38,9 @@ _POLL_S = 0.05
 
 @dataclass(frozen=True)
 class RigSpec:
-    """Where a campaign runs: the robot, and the simulator (``port`` None) or a serial port with two mice.
-
-    The fields are those of ``bench run``'s rig options; :meth:`namespace` hands them to the CLI's own
-    :func:`bench.commands.campaign.build_rig`.
-    """
+    """Where a campaign runs: the robot, and a station file (``simulate``: rehearsed on simulators), a serial port
+    with two mice, or the simulator (neither). :meth:`request` hands it to :func:`bench.launch.open_rig`, the
+    same function ``bench run`` uses."""
 
     robot: str = "pkm5"
     port: str | None = None
@@ -50,10 +49,12 @@ class RigSpec:
     mouse_xy: str | None = None
     mouse_xz: str | None = None
     simulated_calliper: bool = False
+    station: str | None = None
+    simulate: bool = False
 
-    def namespace(self) -> argparse.Namespace:
-        return argparse.Namespace(port=self.port, seed=self.seed, speed_factor=self.speed_factor,
-                                  mouse_xy=self.mouse_xy, mouse_xz=self.mouse_xz)
+    def request(self) -> RigRequest:
+        return RigRequest(station=self.station, port=self.port, mouse_xy=self.mouse_xy, mouse_xz=self.mouse_xz,
+                          simulate=self.simulate, seed=self.seed, speed_factor=self.speed_factor)
 
 
 class CampaignWorker(QThread):
@@ -146,16 +147,20 @@ class CampaignWorker(QThread):
     # ---- the thread ------------------------------------------------------------------------------------------
 
     def run(self) -> None:
-        from bench.commands.campaign import build_rig
-
         with Store(self.store_path) as store:
             while self.jobs and not self._cancelled:
                 job, robot = self.jobs.pop(0), "robot"
                 try:
-                    robot = store.run(job).robot if isinstance(job, int) else job.robot
+                    protocol = (protocol_from_config(store.run(job).config, source=f"run {job}")
+                                if isinstance(job, int) else job)
+                    robot = protocol.robot
                     stored = store.run(job).settings if isinstance(job, int) else None
-                    self.message.emit(f"starting the {robot} rig ({self.rig_spec.port or 'simulator'})")
-                    rig = build_rig(self.rig_spec.namespace(), robot, store, stored=stored)
+                    request = self.rig_spec.request()
+                    self.message.emit(f"starting the {robot} rig ({request.describe()})")
+                    rig = open_rig(request, store, robot=robot, stored=stored,
+                                   fixture=getattr(protocol, "fixture", "assembled"),
+                                   requires=required_capabilities(protocol), protocol=f"protocol {protocol.name!r}",
+                                   operator=None if request.simulator_default else WindowOperator(self))
                 except BenchError as exc:
                     self.failed.emit(str(exc))
                     continue
@@ -170,11 +175,11 @@ class CampaignWorker(QThread):
                     self.runner = None
 
     def _run_job(self, job: Protocol | int, rig: Any, store: Store) -> None:
-        if hasattr(rig.operator, "answer"):  # the simulated operator: it also tells the simulator the payload
-            if not self.rig_spec.simulated_calliper:
-                rig.operator.answer = self.answer_prompt
-        else:  # hardware: the person at the window answers instead of the terminal
-            rig.operator = WindowOperator(self)
+        assembled = rig.robot.settings().get("fixture", "assembled") == "assembled"
+        if self.rig_spec.request().simulator_default and assembled and not self.rig_spec.simulated_calliper:
+            # the simulated operator still tells the simulator the payload; the person types the readings
+            # (on the simulated actuator bench the simulated depth gauge reads the travel itself)
+            rig.operator.answer = self.answer_prompt
         runner = Runner(rig, store, on_pause=self._on_pause,
                         on_start=lambda r: self.run_started.emit(r.run_id, r.samples_total, r.samples_stored),
                         on_sample=lambda r, sample: self.sample_stored.emit(r.run_id, sample))

@@ -19,6 +19,8 @@ from functools import cached_property
 import numpy as np
 
 from bench.errors import ConfigError
+from bench.robots.delta4 import HOME_MM as DELTA4_HOME_MM
+from bench.robots.pkm5_kinematics import home_pose as pkm5_home_pose
 from motion.model import column_conditioning
 
 __all__ = ["DEFAULT_SINGULARITY_THRESHOLD", "ROBOT_MODELS", "PreflightModel", "TargetCheck", "inverse_condition",
@@ -146,9 +148,9 @@ def _pkm5_mode_columns(targets: np.ndarray) -> np.ndarray:
 
 
 ROBOT_MODELS: dict[str, PreflightModel] = {
-    # the documents' home (every actuator at 5 mm stroke): LS FK gives (88.649, 0, 300.937), alpha = beta = 0
-    "pkm5": PreflightModel("pkm5", (88.649, 0.0, 300.937, 0.0, 0.0), _stepper_travel_s, _pkm5_mode_columns),
-    "delta4": PreflightModel("delta4", (0.0, 0.0, -200.0), _servo_travel_s),
+    # the documents' home (every actuator at 5 mm stroke), from the geometry's FK: (88.649, 0, 300.937, 0, 0)
+    "pkm5": PreflightModel("pkm5", pkm5_home_pose(), _stepper_travel_s, _pkm5_mode_columns),
+    "delta4": PreflightModel("delta4", DELTA4_HOME_MM, _servo_travel_s),
 }
 
 

@@ -21,7 +21,8 @@ from bench.protocols.base import Protocol
 from bench.protocols.kinematics import DEFAULT_SINGULARITY_THRESHOLD, robot_model
 from bench.steps import ActuatorMove, Capture, Move, Prompt, Settle, Step
 
-__all__ = ["AxisStrokes", "PlanSummary", "capture_s", "dry_run_result", "iterate", "preflight", "summarize"]
+__all__ = ["AxisStrokes", "PlanSummary", "capture_s", "dry_run_result", "iterate", "preflight",
+           "required_capabilities", "summarize"]
 
 #: Time a capture and a prompt are assumed to take in the estimate, s (a prompt waits for a person).
 CAPTURE_S = 0.05
@@ -57,6 +58,23 @@ def iterate(protocol: Protocol, *, final: bool = True) -> Iterator[Step]:
                 break
             yield step
             reply = dry_run_result(step)
+
+
+#: The capability a capture of each kind needs from the station (the kinds the protocol library captures).
+_CAPTURE_NEEDS = {"pose": "pose", "mouse": "mouse_counts", "arrival": "arrival", "grid_hit": "grid_hit"}
+
+
+def required_capabilities(protocol: Protocol) -> frozenset[str]:
+    """What a station must provide to run ``protocol``, read from its own plan (so it cannot drift from the steps):
+    a capability per capture kind, ``reading`` when an operator reading is prompted, and the fixture the protocol
+    moves (``actuator_bench`` or ``assembled``). Names are the keys of :data:`bench.rigs.station.CAPABILITY_KEYS`."""
+    needs = {str(getattr(protocol, "fixture", "assembled")).replace("-", "_")}
+    for step in iterate(protocol):
+        if isinstance(step, Capture):
+            needs.add(_CAPTURE_NEEDS.get(step.kind, step.kind))
+        elif isinstance(step, Prompt) and step.field is not None:
+            needs.add("reading")
+    return frozenset(needs)
 
 
 @dataclass(frozen=True)
@@ -186,7 +204,7 @@ def _actuator_moves(moves: list[ActuatorMove]) -> tuple[AxisStrokes, ...]:
     """Per actuator, in order of first use: the distinct strokes of a pkm5's actuator-bench moves, each checked
     exactly as the driver's ``move_actuator`` checks it (``steps_for_stroke``: the 0-66 mm window), and the time of
     its moves from the home stroke at the rated speed scaled by the commanded velocity."""
-    from bench.simulators.rig import RATED_SPEED_STEPS_S
+    from bench.robots.pkm5 import RATED_SPEED_STEPS_S
     from bench.robots.pkm5_kinematics import steps_for_stroke, stroke_range_mm
     from motion import pkm5
 

@@ -34,44 +34,16 @@ from typing import Any
 
 import numpy as np
 
-from bench.errors import LinkError, LinkTimeout
+from bench.errors import LinkTimeout
 from bench.rigs.interfaces import Measurement
 from bench.steps import Capture
 
-__all__ = ["AXES", "DEFAULT_DECODER", "DeltaMover", "LaserGridInstrument", "grid_pose_values"]
+__all__ = ["AXES", "DEFAULT_DECODER", "LaserGridInstrument", "grid_pose_values"]
 
 #: Robot-frame axis names, in the order of :attr:`bench.sensors.lasergrid.Screen.axes`.
 AXES = ("x_mm", "y_mm", "z_mm")
 #: Decoder options stored with every run unless the rig sets others (delta4-lasergrid.md §4.6, §4.10 defaults).
 DEFAULT_DECODER = {"spot_half_width_mm": 1.0, "gate_mm": 3.75, "prior_uncertainty_mm": 0.0}
-
-
-class DeltaMover:
-    """Adapts :class:`bench.robots.delta4.Delta4Controller` to ``Mover`` (hobby servos: velocity not settable)."""
-
-    def __init__(self, controller: Any) -> None:
-        self.controller = controller
-        self.stop_latched = False
-
-    def move_to(self, target: tuple[float, ...], *, velocity_pct: float) -> None:
-        if self.stop_latched:
-            raise LinkError(f"delta4: move to {tuple(target[:3])} refused: an emergency stop is latched")
-        self.controller.move_to(tuple(target[:3]), require_settled=True)
-
-    def stop(self) -> None:
-        self.controller.stop()
-
-    def emergency_stop(self) -> None:
-        """Stop (``G``) and refuse every later move. A reference that was already on its way is only stored by the
-        stopped controller, which runs it on the next ``E``, and this rig never sends ``E`` again."""
-        self.stop_latched = True
-        self.controller.stop()
-
-    def shutdown(self) -> None:
-        self.controller.shutdown()
-
-    def settings(self) -> dict[str, Any]:
-        return {**self.controller.settings(), "velocity": "servo maximum (not settable)"}
 
 
 def grid_pose_values(geometry: Any, horizontal: Sequence[int], vertical: Sequence[int], prior_mm: Any,

@@ -2,8 +2,8 @@
 
 Each mouse integrates raw counts since the instrument was registered; counts become mm through the calibration in
 force (its id travels with every sample). The instrument frame is registered once, at a known pose of the robot
-(its home), so a reading is ``registration + displacement``. :func:`hardware_rig` builds the rig for a real pkm5
-controller on a serial port with two mice on ``/dev/input``.
+(its home), so a reading is ``registration + displacement``. The rig builder (:mod:`bench.rigs.builder`) makes it from a
+station's ``[mice]``.
 
 A capture of kind ``arrival`` (ISO 9283 7.4 stabilisation time, 7.5 overshoot) is asked right after the controller
 reported the move done, and stores the streamed position from ``lead_s`` before that moment to ``hold_s`` after
@@ -18,16 +18,16 @@ from __future__ import annotations
 import selectors
 import threading
 import time
-from collections.abc import Callable, Mapping
+from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
 
-from bench.errors import LinkError, PromptWithdrawn
-from bench.rigs.interfaces import Measurement, Rig
-from bench.steps import Capture, Prompt
+from bench.rigs.interfaces import Measurement
+from bench.sensors.calibration import MM_PER_INCH
+from bench.steps import Capture
 
-__all__ = ["ARRIVAL", "ConsoleOperator", "MiceInstrument", "arrival_series", "hardware_rig"]
+__all__ = ["ARRIVAL", "MiceInstrument", "arrival_series"]
 
 #: Capture kind of a streamed arrival at a pose; ``conditions`` give ``lead_s`` and ``hold_s``.
 ARRIVAL = "arrival"
@@ -48,8 +48,10 @@ class MiceInstrument:
         Counts -> mm, applied by the mice.
     """
 
-    def __init__(self, mice: dict[str, Any], origin_mm, calibration: Any, *, follow: bool = False) -> None:
+    def __init__(self, mice: dict[str, Any], origin_mm, calibration: Any, *, follow: bool = False,
+                 noise_counts: float | None = None) -> None:
         self.mice = mice
+        self.noise_counts = noise_counts
         self.origin = np.asarray(origin_mm, dtype=float)[:3].copy()
         self.calibration = calibration
         self._lock = threading.Lock()  # every read of a mouse holds it: the reader thread's and the captures'
@@ -139,9 +141,16 @@ class MiceInstrument:
                         self._drain_locked()
 
     def settings(self) -> dict[str, Any]:
-        return {"instrument": "optical mice (x-y, x-z)", "calibration_id": self.calibration.calibration_id,
-                "mice": {plane: str(mouse.binding) for plane, mouse in self.mice.items()},
-                "registration_mm": [float(v) for v in self.origin]}
+        """What the report needs, on hardware and in simulation alike: the counts' resolution (``cpi``, from the
+        calibration in force), the noise when it was measured, the calibration and the registration."""
+        cpi = np.asarray(self.calibration.effective_cpi)
+        out = {"instrument": "optical mice (x-y, x-z)", "calibration_id": self.calibration.calibration_id,
+               "mice": {plane: str(mouse.binding) for plane, mouse in self.mice.items()},
+               "registration_mm": [float(v) for v in self.origin],
+               "cpi": round(float(cpi.mean()), 3), "resolution_mm": round(float(MM_PER_INCH / cpi.min()), 6)}
+        if self.noise_counts is not None:
+            out["noise_counts"] = self.noise_counts
+        return out
 
     def close(self) -> None:
         self._closing.set()
@@ -192,60 +201,3 @@ def arrival_series(frames: Mapping[str, Any], counts_before: Mapping[str, np.nda
     return series, raw
 
 
-class ConsoleOperator:
-    """Asks the person at the terminal (prompt on stderr, answer on stdin), re-asking until the value is valid."""
-
-    def __init__(self, read_line: Callable[[str], str] = input) -> None:
-        self.read_line = read_line
-
-    def ask(self, prompt: Prompt) -> float | None:
-        import sys
-
-        while True:
-            unit = f" [{prompt.unit}]" if prompt.unit else ""
-            print(f"{prompt.text}{unit}: " if prompt.field else f"{prompt.text} (Enter): ", end="", file=sys.stderr,
-                  flush=True)
-            try:
-                text = self.read_line("").strip()
-            except EOFError:  # Ctrl-D: the operator withdraws the prompt; the run stays resumable
-                raise PromptWithdrawn("end of input (Ctrl-D) at the terminal") from None
-            if prompt.field is None:
-                return None
-            try:
-                value = float(text)
-                low, high = prompt.minimum, prompt.maximum
-                if (low is not None and value < low) or (high is not None and value > high):
-                    raise ValueError
-                return value
-            except ValueError:
-                print(f"  {prompt.field} = {text!r}, expected a number in [{prompt.minimum}, {prompt.maximum}]"
-                      f"{unit}; try again", file=sys.stderr)
-
-
-def hardware_rig(port: str, *, mouse_xy: str, mouse_xz: str, calibration: Any, home_mm) -> Rig:
-    """A pkm5 on ``port`` with two mice on event devices; the robot must stand at ``home_mm`` (registration)."""
-    import serial
-
-    from bench.simulators.rig import DriverMover
-    from bench.robots.pkm5 import Pkm5Controller
-    from bench.sensors.mouse import EvdevMouse
-
-    try:
-        port_instance = serial.serial_for_url(port, baudrate=115200, timeout=0.05)
-    except serial.SerialException as exc:
-        raise LinkError(f"--port {port}: cannot open it ({exc.strerror or exc}); is the controller plugged in "
-                        "and is the port name right?") from None
-    controller = Pkm5Controller(port_instance)
-    mice: dict[str, Any] = {}
-    try:
-        controller.identify()
-        controller.enable()
-        for plane, path in (("xy", mouse_xy), ("xz", mouse_xz)):
-            mice[plane] = EvdevMouse(path, calibration, label=f"mouse_{plane}", grab=True)
-    except BaseException:
-        for mouse in mice.values():
-            mouse.close()
-        controller.shutdown()
-        raise
-    instrument = MiceInstrument(mice, home_mm, calibration, follow=True)
-    return Rig(DriverMover(controller), instrument, ConsoleOperator(), closers=[instrument.close])

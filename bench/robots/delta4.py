@@ -20,12 +20,14 @@ from bench.errors import ConfigError, LinkError, LinkTimeout, UnreachableTarget
 from bench.robots import delta4_wire as wire
 from bench.robots.link import Deadline, WireProtocolError
 
-__all__ = ["DEFAULT_BAUDRATE", "Delta4Controller", "MoveResult", "SensorFrame"]
+__all__ = ["DEFAULT_BAUDRATE", "HOME_MM", "Delta4Controller", "MoveResult", "SensorFrame"]
 
 _log = logging.getLogger(__name__)
 
 #: Not stated by the document (§5.3); 9600 8-N-1 is the recommended first guess.
 DEFAULT_BAUDRATE = 9600
+#: The home pose the legacy GUI sends at start-up, (0, 0, -15) cm (003 App. F; delta4-lasergrid.md).
+HOME_MM = (0.0, 0.0, -150.0)
 _SENSOR_EXPECTED = "a sensor report (H<n>X, V<n>X, h or v)"
 
 

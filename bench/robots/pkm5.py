@@ -27,17 +27,17 @@ import numpy as np
 from bench.errors import ConfigError, LinkError, LinkTimeout, UnreachableTarget
 from bench.robots import pkm5_kinematics as kinematics
 from bench.robots import pkm5_wire as wire
-from bench.simulators.dynamics import trace_times
 from bench.robots.link import Deadline, WireProtocolError
 from motion import pkm5
 
-__all__ = ["DEFAULT_BAUDRATE", "ControllerError", "Identity", "Pkm5Controller", "Position"]
+__all__ = ["DEFAULT_BAUDRATE", "RATED_SPEED_STEPS_S", "ControllerError", "Identity", "Pkm5Controller", "Position"]
 
 _log = logging.getLogger(__name__)
 
 DEFAULT_BAUDRATE = 115200
-_IDEMPOTENT = frozenset({"ID", "POS", "STOP", "ENABLE", "DISABLE", "SETPOS", "SIMLOAD", "SIMTRUE", "SIMLEGS",
-                         "SIMTRACE"})
+_IDEMPOTENT = frozenset({"ID", "POS", "STOP", "ENABLE", "DISABLE", "SETPOS"})
+#: The documents' firmware speed, taken as the rated (100 %) velocity of the pkm5: 200 steps/s (000 App. B.2).
+RATED_SPEED_STEPS_S = 200
 
 
 class ControllerError(LinkError):
@@ -102,7 +102,7 @@ class Pkm5Controller:
         (:meth:`move_actuator` only makes sense, and is only allowed, on the bench).
     """
 
-    def __init__(self, port: Any, *, geometry: Any = None, speed_steps_s: int = 200, reply_timeout_s: float = 1.0,
+    def __init__(self, port: Any, *, geometry: Any = None, speed_steps_s: int = RATED_SPEED_STEPS_S, reply_timeout_s: float = 1.0,
                  retries: int = 2, move_margin_s: float = 2.0, fixture: str = kinematics.ASSEMBLED) -> None:
         if fixture not in kinematics.FIXTURES:
             raise ConfigError(f"Pkm5Controller: fixture = {fixture!r}, expected one of "
@@ -145,9 +145,11 @@ class Pkm5Controller:
 
     # -- transport ---------------------------------------------------------------------------------------------
     @_holding_line
-    def _exchange(self, verb: str, args: tuple[int, ...] = (), *, timeout_s: float | None = None) -> wire.Reply:
+    def _exchange(self, verb: str, args: tuple[int, ...] = (), *, timeout_s: float | None = None,
+                  idempotent: bool | None = None) -> wire.Reply:
         """Send one command and return its ``OK`` reply, retrying idempotent commands."""
-        attempts = 1 + (self.retries if verb in _IDEMPOTENT else 0)
+        idempotent = verb in _IDEMPOTENT if idempotent is None else idempotent
+        attempts = 1 + (self.retries if idempotent else 0)
         for attempt in range(1, attempts + 1):
             tag = next(self._tags)
             self.link.write(wire.format_command(verb, args, tag), command=verb)
@@ -158,6 +160,13 @@ class Pkm5Controller:
                     raise
                 _log.warning("%s: retry %d of %s after: %s", self.link.port_name, attempt, verb, exc)
         raise AssertionError("unreachable")
+
+    def query(self, verb: str, args: tuple[int, ...] = ()) -> wire.Reply:
+        """Send an idempotent command this driver does not know (a protocol extension, e.g. a simulator's own
+        verbs) and return its ``OK`` reply; MOVE and the other known verbs have their own methods."""
+        if verb in ("MOVE", "STOP") or verb in _IDEMPOTENT:
+            raise ConfigError(f"Pkm5Controller.query: verb = {verb!r}, expected a verb without a method of its own")
+        return self._exchange(verb, tuple(args), idempotent=True)
 
     def _await(self, tag: int, verb: str, kinds: tuple[str, ...], timeout_s: float) -> wire.Reply:
         """The next reply with ``tag``; stale tags and corrupted lines are dropped until the deadline."""
@@ -315,64 +324,6 @@ class Pkm5Controller:
             return where.steps
         raise LinkError(f"{self.link.port_name}: MOVE #{tag} not confirmed: the controller is {where.state} at "
                         f"{where.steps}, expected a move to {targets}")
-
-    # -- simulator-only ----------------------------------------------------------------------------------------
-    def sim_true_pose(self) -> np.ndarray:
-        """Simulator only: the true attained pose (x_mm, y_mm, z_mm, alpha_deg, beta_deg), shape (5,)."""
-        reply = self._exchange("SIMTRUE")
-        try:
-            return np.array([float(f) for f in reply.fields[1:6]], dtype=float)
-        except ValueError as exc:
-            raise WireProtocolError(f"{self.link.port_name}: SIMTRUE reply {reply} is not 5 numbers") from exc
-
-    def sim_true_strokes(self) -> np.ndarray:
-        """Simulator on the actuator bench only: the true stroke of each actuator, mm, shape (6,)."""
-        try:
-            return self._sim_numbers("SIMTRUE", (), wire.AXES)
-        except LinkError as exc:
-            raise LinkError(f"{exc} strokes (is the simulator running with --fixture actuator-bench?)") from None
-
-    def sim_true_lengths(self) -> np.ndarray:
-        """Simulator only (assembled robot): the true, perturbed leg lengths after the last move, mm, shape (6,)."""
-        return self._sim_numbers("SIMLEGS", (), wire.AXES)
-
-    def sim_trace(self, rate_hz: int, lead_s: float, hold_s: float) -> tuple[np.ndarray, np.ndarray]:
-        """Simulator only: the true arrival of the last move, sampled at ``rate_hz`` from ``lead_s`` before the move
-        ended to ``hold_s`` after; returns times (n,) in simulated s relative to the move's end and poses (n, 5)."""
-        _checked_number("rate_hz", rate_hz, 1, 10_000)
-        _checked_number("lead_s", lead_s, 0.0, 60.0)
-        _checked_number("hold_s", hold_s, 0.0, 60.0)
-        window = (int(rate_hz), round(lead_s * 1000), round(hold_s * 1000))
-        first = self._exchange("SIMTRACE", window + (0,))
-        times = trace_times(window[0], window[1] / 1000.0, window[2] / 1000.0)
-        if int(first.fields[1]) != len(times):
-            raise WireProtocolError(f"{self.link.port_name}: SIMTRACE announced {first.fields[1]} samples, expected "
-                                    f"{len(times)} for {window}")
-        samples = [self._trace_fields(first)]
-        for index in range(1, len(times)):
-            samples.append(self._trace_fields(self._exchange("SIMTRACE", window + (index,))))
-        return times, np.array(samples, dtype=float)
-
-    def _trace_fields(self, reply: wire.Reply) -> list[float]:
-        try:
-            return [float(f) for f in reply.fields[3:]]
-        except ValueError as exc:
-            raise WireProtocolError(f"{self.link.port_name}: SIMTRACE reply {reply} is not numbers") from exc
-
-    def _sim_numbers(self, verb: str, args: tuple[int, ...], count: int) -> np.ndarray:
-        reply = self._exchange(verb, args)
-        try:
-            values = np.array([float(f) for f in reply.fields[1:]], dtype=float)
-        except ValueError as exc:
-            raise WireProtocolError(f"{self.link.port_name}: {verb} reply {reply} is not numbers") from exc
-        if values.shape != (count,):
-            raise LinkError(f"{self.link.port_name}: {verb} answered {len(values)} numbers, expected {count}")
-        return values
-
-    def sim_set_load(self, load_kg: float) -> None:
-        """Simulator only: the payload carried by the end effector, kg (0-30)."""
-        _checked_number("load_kg", load_kg, 0.0, 30.0)
-        self._exchange("SIMLOAD", (round(load_kg * 1000),))
 
     # -- lifecycle ---------------------------------------------------------------------------------------------
     @_holding_line

@@ -1,4 +1,4 @@
-"""The PKM5 driver's and simulator's bridge to :mod:`motion.pkm5`: pre-flight checks and the simulated plant.
+"""The PKM5 driver's bridge to :mod:`motion.pkm5`: pre-flight checks, steps and strokes, the home pose.
 
 Poses here are (x_mm, y_mm, z_mm, alpha_deg, beta_deg), the bench's units; :mod:`motion.pkm5` works in radians.
 The pre-flight refuses, with :class:`bench.errors.UnreachableTarget`, any target that the kinematics do not prove
@@ -7,32 +7,24 @@ reachable (IK reachability: mode, orientation range, leg-length and tilt windows
 
 from __future__ import annotations
 
+import functools
 from typing import Any
 
 import numpy as np
 
 from bench.errors import UnreachableTarget
-from bench.simulators.error_model import ErrorMagnitudes, ErrorModel
-from bench.simulators.plant import Plant
 from motion import pkm5
 from motion.errors import MotionInputError
 
-__all__ = ["ACTUATOR_BENCH", "ASSEMBLED", "FIXTURES", "PKM5_ERRORS", "build_actuator_bench", "build_plant",
+__all__ = ["ACTUATOR_BENCH", "ASSEMBLED", "FIXTURES", "home_pose",
            "check_steps", "home_steps", "pose_deg_from_rad", "steps_for_pose", "steps_for_stroke", "stroke_range_mm"]
 
 #: The robot assembled (every move a pre-flighted pose) or its actuators free-standing on the bench (000 §8.4).
 ASSEMBLED, ACTUATOR_BENCH = "assembled", "actuator-bench"
 FIXTURES = (ASSEMBLED, ACTUATOR_BENCH)
 
-#: Error sizes for AP/RP of the order of the documents' physical tests (pkm5.md §6.8: AP 1.2-1.9 mm, RP 1.6-2.7 mm,
-#: angles 0.2-1.9 deg). Joint units mm of leg length; pose units (mm, mm, mm, deg, deg). Actuator noise per
-#: Table A.7 (sigma 0.02-0.11 mm); passive-joint play dominates the random part (joint tolerance <= 1 mm, Table 4-2).
-PKM5_ERRORS = ErrorMagnitudes(
-    scale_sigma=0.003, offset_sigma=0.25, backlash=0.10, noise_sigma=0.05, sag_per_kg=0.005,
-    pose_gain_sigma=0.004, pose_play_sigma=(0.6, 0.6, 0.6, 0.35, 0.35),
-    pose_sag_per_kg=(0.0, 0.0, -0.03, 0.0, 0.0), pose_offset_sigma=(0.5, 0.5, 0.5, 1.0, 1.0),
-)
-_MODE_TOL_MM = 1e-3
+#: Mode detection tolerance (mm) shared with the simulated plant.
+MODE_TOL_MM = 1e-3
 
 
 def pose_deg_from_rad(pose: np.ndarray) -> np.ndarray:
@@ -71,7 +63,7 @@ def check_steps(steps: tuple[int, ...], geometry: Any = pkm5.DEFAULT_GEOMETRY) -
         leg = int(outside[0])
         raise UnreachableTarget(f"steps = {tuple(steps)}: leg {leg + 1} length {lengths[0, leg]:.3f} mm, expected "
                                 f"within [{low[leg]:g}, {high[leg]:g}] mm")
-    fk = pkm5.forward_kinematics(lengths, geometry, mode_tol_mm=_MODE_TOL_MM)
+    fk = pkm5.forward_kinematics(lengths, geometry, mode_tol_mm=MODE_TOL_MM)
     if not fk.converged[0]:
         raise UnreachableTarget(f"steps = {tuple(steps)}: no pose fits these leg lengths "
                                 f"(FK residual {fk.residual_mm[0]:.3g} mm)")
@@ -102,48 +94,14 @@ def steps_for_stroke(axis: Any, stroke_mm: Any, geometry: Any = pkm5.DEFAULT_GEO
     return int(counts * geometry.step_direction[index])
 
 
-def build_actuator_bench(seed: int, *, ideal: bool = False, geometry: Any = pkm5.DEFAULT_GEOMETRY):
-    """The six actuators free-standing (000 §8.4): ``bench(steps, load_kg) -> true strokes`` (6,), mm.
-
-    Each actuator's attained leg length comes from the same seeded joint errors as :func:`build_plant` (scale,
-    offset, backlash, noise; no payload on a free-standing actuator), reported as stroke from full retraction.
-    """
-    from bench.simulators.error_model import JointMemory
-
-    offsets = np.asarray(geometry.leg_length_offset_mm, dtype=float)
-    model = ErrorModel.ideal(6, 5) if ideal else ErrorModel.draw(PKM5_ERRORS, 6, seed, offsets)
-    rng = np.random.default_rng([seed, 1])
-    memory: list[JointMemory] = []
-
-    def true_strokes(steps: np.ndarray, load_kg: float) -> np.ndarray:
-        lengths = pkm5.steps_to_lengths(np.asarray(steps)[None, :], geometry)[0]
-        if not memory:
-            memory.append(JointMemory(lengths))
-        direction = memory[0].update(lengths)
-        return model.true_joints(lengths, direction, 0.0, rng) - offsets
-
-    true_strokes.model = model  # type: ignore[attr-defined]  # the drawn errors, for tests against the truth
-    return true_strokes
-
-
 def home_steps(geometry: Any = pkm5.DEFAULT_GEOMETRY) -> np.ndarray:
     return pkm5.lengths_to_steps(geometry.home_lengths_mm[None, :], geometry)[0]
 
 
-def build_plant(seed: int, *, ideal: bool = False, geometry: Any = pkm5.DEFAULT_GEOMETRY) -> Plant:
-    """Steps -> leg lengths -> seeded errors -> least-squares FK -> pose errors; pose in mm and degrees."""
-
-    def joints_of(steps: np.ndarray) -> np.ndarray:
-        return pkm5.steps_to_lengths(steps[None, :], geometry)[0]
-
-    def forward(lengths: np.ndarray, commanded: np.ndarray, previous: np.ndarray | None) -> np.ndarray | None:
-        mode = pkm5.detect_mode(commanded[None, :], _MODE_TOL_MM)[0]
-        start = None if previous is None else np.r_[previous[:3], np.radians(previous[3:])]
-        fk = pkm5.forward_kinematics(lengths[None, :], geometry, initial_pose=start, mode=mode,
-                                     residual_tol_mm=2.0)
-        return pose_deg_from_rad(fk.pose[0]) if fk.converged[0] else None
-
-    model = (ErrorModel.ideal(6, 5) if ideal else
-             ErrorModel.draw(PKM5_ERRORS, 6, seed, np.asarray(geometry.leg_length_offset_mm)))
-    home_fk = pkm5.forward_kinematics(geometry.home_lengths_mm[None, :], geometry)
-    return Plant(joints_of, forward, model, pose_deg_from_rad(home_fk.pose[0]), seed)
+@functools.lru_cache(maxsize=8)
+def home_pose(geometry: Any = pkm5.DEFAULT_GEOMETRY) -> tuple[float, ...]:
+    """The pose at the documents' home (every actuator at its home stroke, 5 mm), from the forward kinematics of
+    ``geometry``: (x_mm, y_mm, z_mm, alpha_deg, beta_deg), rounded to 1 um / 1 mdeg (the default geometry gives
+    (88.649, 0, 300.937, 0, 0))."""
+    fk = pkm5.forward_kinematics(geometry.home_lengths_mm[None, :], geometry)
+    return tuple(round(float(v), 3) + 0.0 for v in pose_deg_from_rad(fk.pose[0]))

@@ -29,6 +29,7 @@ from bench.errors import ConfigError
 from bench.robots import delta4_wire as wire
 from bench.simulators.error_model import ErrorMagnitudes, ErrorModel
 from bench.simulators.plant import Plant
+from bench.robots.delta4 import HOME_MM
 from bench.simulators.pty import TruthLog, add_common_arguments, main_for
 
 __all__ = ["DELTA4_ERRORS", "DESCRIPTION", "Delta4SimDevice", "add_arguments", "build_device", "build_grid_sensor",
@@ -41,7 +42,6 @@ BANDWIDTH_PER_S = 4.0
 ADC_DEG_PER_COUNT = 140.0 / 255.0
 SETTLE_HOLD_S = 10 * 0.002
 FRAME_PERIOD_S = 0.080
-HOME_POINT_MM = (0.0, 0.0, -150.0)
 #: Second entropy word of the laser grid's random stream (the first is ``--seed``).
 GRID_STREAM = 0x4C47
 
@@ -180,8 +180,8 @@ def build_plant(seed: int, *, ideal: bool = False, geometry: Any = None) -> tupl
         return result.pose_mm[0] if bool(result.ok[0]) else None
 
     model = ErrorModel.ideal(4, 3) if ideal else ErrorModel.draw(DELTA4_ERRORS, 4, seed, joint_zero=100.0)
-    home = delta4.inverse_kinematics(np.array([HOME_POINT_MM]), geometry).servo_deg[0]
-    return Plant(lambda q: q, forward, model, np.array(HOME_POINT_MM), seed), home
+    home = delta4.inverse_kinematics(np.array([HOME_MM]), geometry).servo_deg[0]
+    return Plant(lambda q: q, forward, model, np.array(HOME_MM), seed), home
 
 
 def grid_seed(seed: int) -> int:

@@ -60,8 +60,13 @@ class Pkm5SimDevice:
     """The firmware state machine; ``plant(steps, load_kg) -> pose`` supplies the true pose after each move."""
 
     def __init__(self, plant: Any, *, speed_factor: float = 1.0, truth: TruthLog | None = None,
-                 load_kg: float = 0.0, mode: StructuralMode | None = None) -> None:
+                 load_kg: float = 0.0, mode: StructuralMode | None = None, sim_verbs: bool = True,
+                 observers: tuple[Any, ...] = ()) -> None:
         self.plant = plant
+        #: False (``--hardware-only``): the SIM verbs are unknown, as to the real firmware (ERR SYNTAX)
+        self.sim_verbs = sim_verbs
+        #: told ``rest(true_pose)`` each time the robot comes to rest, before DONE is sent (``--mice``)
+        self.observers = observers
         self.mode = mode or StructuralMode()
         self.speed_factor = speed_factor
         self.truth = truth or TruthLog(None, ("x_mm", "y_mm", "z_mm", "alpha_deg", "beta_deg"))
@@ -136,6 +141,9 @@ class Pkm5SimDevice:
             return self._setpos(tag, args)
         if verb == "MOVE":
             return self._start_move(tag, args, now_s)
+        if verb.startswith("SIM") and not self.sim_verbs:
+            _log.error("SIM verb %s refused (--hardware-only)", verb)
+            return _error(tag, wire.ErrorCode.SYNTAX)
         if verb == "SIMLOAD":
             if not 0 <= args[0] <= 30000:
                 return _error(tag, wire.ErrorCode.ARGUMENT)
@@ -206,6 +214,8 @@ class Pkm5SimDevice:
         self.true_pose = np.asarray(self.plant(self.steps, self.load_kg), dtype=float)
         self.arrival, self._trace = (before, self.true_pose, duration_s), None
         self.truth.record(list(self.steps), list(self.true_pose), self.load_kg)
+        for observer in self.observers:
+            observer.rest(self.true_pose)
 
 
 def _within_limits(steps: tuple[int, ...]) -> bool:
@@ -230,6 +240,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--fixture", choices=("assembled", "actuator-bench"), default="assembled",
                         help="the assembled robot (SIMTRUE: the pose) or the six actuators free-standing on the "
                              "bench, 000 §8.4 (SIMTRUE: the six true strokes, mm)")
+    parser.add_argument("--mice", default=None, metavar="DIR",
+                        help="two simulated optical mice watching the robot, read as event devices from "
+                             "DIR/mouse_xy.fifo and DIR/mouse_xz.fifo (assembled robot)")
+    parser.add_argument("--hardware-only", action="store_true",
+                        help="answer the SIM verbs as the real firmware does (unknown verb): proves a rig built "
+                             "for hardware never asks the simulator for its truth")
     parser.add_argument("--mode-hz", type=float, default=StructuralMode.frequency_hz,
                         help="natural frequency of the structural mode that rings after each move, Hz "
                              "(default %(default)s; a choice, no document measures it)")
@@ -239,11 +255,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def build_device(args: argparse.Namespace) -> Pkm5SimDevice:
     """The simulated controller described by the command-line ``args``."""
-    from bench.robots.pkm5_kinematics import (
-        ACTUATOR_BENCH,
-        build_actuator_bench,
-        build_plant,
-    )
+    from bench.robots.pkm5_kinematics import ACTUATOR_BENCH
+    from bench.simulators.pkm5_plant import build_actuator_bench, build_plant
     try:
         mode = StructuralMode(getattr(args, "mode_hz", StructuralMode.frequency_hz),
                               getattr(args, "damping", StructuralMode.damping_ratio))
@@ -252,10 +265,17 @@ def build_device(args: argparse.Namespace) -> Pkm5SimDevice:
     if getattr(args, "fixture", "assembled") == ACTUATOR_BENCH:
         plant = build_actuator_bench(args.seed, ideal=args.ideal)
         truth = TruthLog(args.truth, tuple(f"stroke{axis}_mm" for axis in range(1, wire.AXES + 1)))
-        return Pkm5SimDevice(plant, speed_factor=args.speed_factor, truth=truth, mode=mode)
+        return Pkm5SimDevice(plant, speed_factor=args.speed_factor, truth=truth, mode=mode,
+                             sim_verbs=not getattr(args, "hardware_only", False))
     plant = build_plant(args.seed, ideal=args.ideal)
     truth = TruthLog(args.truth, ("x_mm", "y_mm", "z_mm", "alpha_deg", "beta_deg"))
-    return Pkm5SimDevice(plant, speed_factor=args.speed_factor, truth=truth, load_kg=args.load_kg, mode=mode)
+    observers = ()
+    if getattr(args, "mice", None):
+        from bench.simulators.mice_feed import MiceFeed
+
+        observers = (MiceFeed(args.mice, plant(np.array(HOME_STEPS), args.load_kg), seed=args.seed),)
+    return Pkm5SimDevice(plant, speed_factor=args.speed_factor, truth=truth, load_kg=args.load_kg, mode=mode,
+                         sim_verbs=not getattr(args, "hardware_only", False), observers=observers)
 
 
 def main(argv: list[str] | None = None) -> int:

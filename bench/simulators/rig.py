@@ -23,26 +23,19 @@ from typing import Any
 import numpy as np
 
 from bench.errors import LinkError
+from bench.rigs.gauges import CalliperOnly
 from bench.rigs.mice import ARRIVAL, MiceInstrument
+from bench.rigs.movers import DeltaMover, Pkm5Mover
+from bench.simulators.client import SimulatorClient
+from bench.simulators.mice_feed import MOTION_S, PLANES, plane_seed
 from bench.rigs.interfaces import Measurement, Rig
 from bench.steps import Capture, Prompt
 
-__all__ = ["BenchCalliper", "CalliperOnly", "DriverMover", "SimulatedCalliper", "SimulatedMice", "SimulatedOperator",
+__all__ = ["BenchCalliper", "SimulatedCalliper", "end_process", "SimulatedMice", "SimulatedOperator",
            "simulated_rig", "start_simulator"]
 
-#: The documents' firmware speed, taken as the rated (100 %) velocity of the pkm5: 200 steps/s (000 App. B.2).
-RATED_SPEED_STEPS_S = 200
-#: Simulated mouse motion between two captures, s (the move itself is not observed, only its end points).
-_MOTION_S = 0.05
-#: The pose coordinates each simulated mouse sees: x-y mouse (x, y), x-z mouse (x, z).
-_PLANES = {"xy": (0, 1), "xz": (0, 2)}
 #: Bytes written to a mouse FIFO before draining it (a pipe buffer holds 64 KiB).
 _PIPE_CHUNK = 24 * 3 * 512
-
-
-def _plane_seed(seed: int, plane_index: int) -> int:
-    """An independent noise seed per mouse (seed + index would give seed s's x-z mouse seed s+1's x-y noise)."""
-    return int(np.random.SeedSequence([seed, plane_index]).generate_state(1)[0])
 
 
 def start_simulator(robot: str, *, seed: int, speed_factor: float, ideal: bool = False, timeout_s: float = 20.0,
@@ -65,43 +58,12 @@ def start_simulator(robot: str, *, seed: int, speed_factor: float, ideal: bool =
     return process, line
 
 
-class DriverMover:
-    """Adapts a pkm5 controller to the runner's ``Mover``: velocity in % of the rated speed."""
-
-    def __init__(self, controller: Any, rated_speed_steps_s: int = RATED_SPEED_STEPS_S) -> None:
-        self.controller = controller
-        self.rated_speed_steps_s = rated_speed_steps_s
-
-    def move_to(self, target: tuple[float, ...], *, velocity_pct: float) -> None:
-        pose = tuple(target) + (0.0,) * (5 - len(target))
-        speed = max(1, round(self.rated_speed_steps_s * velocity_pct / 100.0))
-        self.controller.move_to_pose(pose, speed_steps_s=speed)
-
-    def move_actuator(self, axis: int, stroke_mm: float, *, velocity_pct: float) -> None:
-        """Actuator bench only (the controller refuses otherwise): one axis to ``stroke_mm``, the others hold."""
-        speed = max(1, round(self.rated_speed_steps_s * velocity_pct / 100.0))
-        self.controller.move_actuator(axis, stroke_mm, speed_steps_s=speed)
-
-    def stop(self) -> None:
-        self.controller.stop()
-
-    def emergency_stop(self) -> None:
-        """Stop now and refuse every later move of this controller (see ``Pkm5Controller.emergency_stop``)."""
-        self.controller.emergency_stop()
-
-    def shutdown(self) -> None:
-        self.controller.shutdown()
-
-    def settings(self) -> dict[str, Any]:
-        return {**self.controller.settings(), "rated_speed_steps_s": self.rated_speed_steps_s}
-
-
 class SimulatedMice(MiceInstrument):
     """Two simulated optical mice (x-y and x-z planes) observing the simulator's true pose, read through FIFOs.
 
     Each mouse is a :class:`bench.simulators.mouse.MouseStream` (quantisation with carry, white noise, a fixed
     report rate) followed through time on a simulated clock. For a static capture the robot's unobserved motion
-    since the last capture is taken as a straight line over ``_MOTION_S``; for an ``arrival`` capture the mice
+    since the last capture is taken as a straight line over ``MOTION_S``; for an ``arrival`` capture the mice
     follow the simulator's sampled true arrival (``SIMTRACE``), so the stream shows the lag and the ringing.
     """
 
@@ -113,6 +75,7 @@ class SimulatedMice(MiceInstrument):
         from bench.simulators.mouse import MouseSimulator, MouseStream
 
         self.controller = controller
+        self.truth = SimulatorClient(controller)
         self.cpi, self.noise_counts, self.seed = cpi, noise_counts, seed
         self.report_rate_hz, self.trace_rate_hz = report_rate_hz, trace_rate_hz
         calibration = CountsCalibration.from_cpi(cpi, calibration_id=calibration_id, date="2026-01-01")
@@ -122,14 +85,14 @@ class SimulatedMice(MiceInstrument):
             os.mkfifo(path)
             self._writers[plane] = os.open(path, os.O_RDWR)  # a writer first, so the reader's open returns
             mice[plane] = EvdevMouse(path, calibration, label=f"mouse_{plane}")
-        registration = np.asarray(controller.sim_true_pose(), dtype=float)[:3]
-        super().__init__(mice, registration, calibration)
+        registration = np.asarray(self.truth.true_pose(), dtype=float)[:3]
+        super().__init__(mice, registration, calibration, noise_counts=noise_counts)
         self._clock_s = 0.0
         self._streams = {plane: MouseStream(MouseSimulator(cpi=cpi, noise_counts=noise_counts,
                                                            report_rate_hz=report_rate_hz,
-                                                           seed=_plane_seed(seed, index)),
+                                                           seed=plane_seed(seed, index)),
                                             origin_mm=registration[list(columns)])
-                         for index, (plane, columns) in enumerate(_PLANES.items())}
+                         for index, (plane, columns) in enumerate(PLANES.items())}
 
     def _follow(self, t_s: np.ndarray, true_xyz: np.ndarray) -> dict[str, Any]:
         """Feed the true motion (times on the simulated clock, positions (n, 3) mm) to both mice and read back
@@ -137,7 +100,7 @@ class SimulatedMice(MiceInstrument):
         from bench.sensors.input_event import MotionFrames
 
         frames = {}
-        for plane, columns in _PLANES.items():
+        for plane, columns in PLANES.items():
             data = self._streams[plane].input_events(t_s, true_xyz[:, list(columns)])
             parts = []
             for offset in range(0, len(data), _PIPE_CHUNK):
@@ -148,14 +111,14 @@ class SimulatedMice(MiceInstrument):
         return frames
 
     def _stream(self, lead_s: float, hold_s: float) -> tuple[dict[str, Any], float]:
-        times, poses = self.controller.sim_trace(self.trace_rate_hz, lead_s, hold_s)
-        base = self._clock_s + _MOTION_S - times[0]  # the unobserved motion up to the window's start takes _MOTION_S
+        times, poses = self.truth.trace(self.trace_rate_hz, lead_s, hold_s)
+        base = self._clock_s + MOTION_S - times[0]  # the unobserved motion up to the window's start takes MOTION_S
         return self._follow(base + times, poses[:, :3]), base
 
     def measure(self, capture: Capture) -> Measurement:
-        true_pose = np.asarray(self.controller.sim_true_pose(), dtype=float)
+        true_pose = np.asarray(self.truth.true_pose(), dtype=float)
         if capture.kind != ARRIVAL:
-            self._follow(np.array([self._clock_s + _MOTION_S]), true_pose[None, :3])
+            self._follow(np.array([self._clock_s + MOTION_S]), true_pose[None, :3])
         measured = super().measure(capture)
         return Measurement(measured.values, raw={**measured.raw,
                                                  "true_pose": [round(float(v), 6) for v in true_pose]})
@@ -175,11 +138,12 @@ class SimulatedOperator:
 
     def __init__(self, controller: Any, answer: Callable[[Prompt], float] | None = None) -> None:
         self.controller = controller
+        self.truth = SimulatorClient(controller)
         self.answer = answer
 
     def ask(self, prompt: Prompt) -> float | None:
         if "load_kg" in prompt.conditions:
-            self.controller.sim_set_load(float(prompt.conditions["load_kg"]))
+            self.truth.set_load(float(prompt.conditions["load_kg"]))
         if prompt.field is None:
             return None
         if self.answer is None:
@@ -196,28 +160,18 @@ class SimulatedCalliper:
     def __init__(self, controller: Any, *, seed: int, length_sigma_mm: float = 0.02,
                  tilt_sigma_deg: float = 0.1) -> None:
         self.controller = controller
+        self.truth = SimulatorClient(controller)
         self.rng = np.random.default_rng(seed + 7919)
         self.length_sigma_mm, self.tilt_sigma_deg = length_sigma_mm, tilt_sigma_deg
 
     def __call__(self, prompt: Prompt) -> float:
         if prompt.field in ("a_deg", "b_deg"):
-            angle = np.asarray(self.controller.sim_true_pose(), dtype=float)[3 if prompt.field == "a_deg" else 4]
+            angle = np.asarray(self.truth.true_pose(), dtype=float)[3 if prompt.field == "a_deg" else 4]
             return round(float(angle + self.rng.normal(0.0, self.tilt_sigma_deg)), 2)
         if prompt.field == "length_mm" and "leg" in prompt.conditions:
-            length = self.controller.sim_true_lengths()[int(prompt.conditions["leg"]) - 1]
+            length = self.truth.true_lengths()[int(prompt.conditions["leg"]) - 1]
             return round(float(length + self.rng.normal(0.0, self.length_sigma_mm)), 2)
         raise LinkError(f"simulated calliper: cannot answer {prompt.field!r} ({prompt.text})")
-
-
-class CalliperOnly:
-    """The instrument of the actuator bench: every reading is a calliper (depth gauge) entry, so no capture."""
-
-    def measure(self, capture: Capture) -> Measurement:
-        raise LinkError(f"actuator bench: no instrument for capture {capture.kind!r} at {capture.pose!r}; readings "
-                        "are calliper entries")
-
-    def settings(self) -> dict[str, Any]:
-        return {"instrument": "depth gauge / calliper entries (actuator bench, 000 §8.4)"}
 
 
 class BenchCalliper:
@@ -227,6 +181,7 @@ class BenchCalliper:
 
     def __init__(self, controller: Any, *, seed: int, sigma_mm: float = 0.01) -> None:
         self.controller = controller
+        self.truth = SimulatorClient(controller)
         self.rng = np.random.default_rng(seed + 7919)
         self.sigma_mm = sigma_mm
         self.zero_mm: dict[int, float] = {}
@@ -235,13 +190,13 @@ class BenchCalliper:
         if prompt.field is None:
             if "zero_actuator" in prompt.conditions:
                 axis = int(prompt.conditions["zero_actuator"])
-                self.zero_mm[axis] = float(self.controller.sim_true_strokes()[axis - 1])
+                self.zero_mm[axis] = float(self.truth.true_strokes()[axis - 1])
             return None
         axis = int(prompt.conditions.get("actuator", 0))
         if prompt.field != "travel_mm" or axis not in self.zero_mm:
             raise LinkError(f"simulated depth gauge: cannot answer {prompt.field!r} ({prompt.text}): not zeroed on "
                             f"actuator {axis}")
-        travel = self.controller.sim_true_strokes()[axis - 1] - self.zero_mm[axis]
+        travel = self.truth.true_strokes()[axis - 1] - self.zero_mm[axis]
         return round(float(travel + self.rng.normal(0.0, self.sigma_mm)), 2)
 
 
@@ -265,7 +220,7 @@ def simulated_rig(robot: str = "pkm5", *, seed: int = 0, speed_factor: float = 1
         raise LinkError(f"--robot {robot}: no simulated rig for this robot, expected pkm5 or delta4")
     process, path = start_simulator(robot, seed=seed, speed_factor=speed_factor, ideal=ideal, options=options)
     folder = tempfile.TemporaryDirectory(prefix="bench-sim-")
-    closers: list[Callable[[], None]] = [folder.cleanup, lambda: _end(process)]
+    closers: list[Callable[[], None]] = [folder.cleanup, lambda: end_process(process)]
     try:
         controller = Pkm5Controller(serial.serial_for_url(path, baudrate=115200, timeout=0.05))
         controller.identify()
@@ -277,7 +232,7 @@ def simulated_rig(robot: str = "pkm5", *, seed: int = 0, speed_factor: float = 1
         raise
     closers.append(mice.close)
     operator = SimulatedOperator(controller, answer or SimulatedCalliper(controller, seed=seed))
-    return Rig(DriverMover(controller), mice, operator, speed_factor=speed_factor, closers=closers)
+    return Rig(Pkm5Mover(controller), mice, operator, speed_factor=speed_factor, closers=closers)
 
 
 def _simulated_actuator_bench(robot: str, *, seed: int, speed_factor: float, ideal: bool) -> Rig:
@@ -296,13 +251,13 @@ def _simulated_actuator_bench(robot: str, *, seed: int, speed_factor: float, ide
         controller.identify()
         controller.enable()
     except BaseException:
-        _end(process)
+        end_process(process)
         raise
-    return Rig(DriverMover(controller), CalliperOnly(), BenchCalliper(controller, seed=seed),
-               speed_factor=speed_factor, closers=[lambda: _end(process)])
+    return Rig(Pkm5Mover(controller), CalliperOnly(), BenchCalliper(controller, seed=seed),
+               speed_factor=speed_factor, closers=[lambda: end_process(process)])
 
 
-def _end(process: subprocess.Popen) -> None:
+def end_process(process: subprocess.Popen) -> None:
     process.terminate()
     process.wait(5)
 
@@ -312,7 +267,7 @@ def _simulated_delta_rig(*, seed: int, speed_factor: float, ideal: bool) -> Rig:
     controller's reports, and the truth log's attained pose goes into each sample's raw data for comparison."""
     import serial
 
-    from bench.rigs.lasergrid import DeltaMover, LaserGridInstrument
+    from bench.rigs.lasergrid import LaserGridInstrument
     from bench.robots.delta4 import Delta4Controller
     from bench.simulators.pty import read_last_truth
 
@@ -324,7 +279,7 @@ def _simulated_delta_rig(*, seed: int, speed_factor: float, ideal: bool) -> Rig:
     except BaseException:
         folder.cleanup()
         raise
-    closers: list[Callable[[], None]] = [folder.cleanup, lambda: _end(process)]
+    closers: list[Callable[[], None]] = [folder.cleanup, lambda: end_process(process)]
     try:
         controller = Delta4Controller(serial.serial_for_url(path, baudrate=9600, timeout=0.05))
         controller.start()

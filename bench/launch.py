@@ -1,0 +1,154 @@
+"""How a face (the command line, the desktop window) opens the rig a person asked for.
+
+A :class:`RigRequest` says where to run: a station file (hardware), the same station rehearsed on simulators
+(``simulate``), the ``--port`` shorthand (a controller, two mice, typed readings), or nothing (the simulated default
+rig: the simulator with its simulated sensors, as ``bench run --sim`` has always run). :func:`open_rig` turns it
+into a rig; every station rig, rehearsed or real, is built by :func:`bench.rigs.builder.build_rig`. This module may
+import :mod:`bench.simulators` (it starts them); the production packages below it never do.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+from bench.errors import ConfigError
+from bench.rigs.builder import build_rig, check_capabilities
+from bench.rigs.builder import open_mover as builder_open_mover
+from bench.rigs.interfaces import Operator, Rig
+from bench.rigs.station import Station, load_station, parse_station
+
+__all__ = ["DEFAULT_SPEED_FACTOR", "RigRequest", "open_mover", "open_rig", "simulated_rig_in"]
+
+#: Simulated time runs this much faster than real moves in simulated runs unless told otherwise.
+DEFAULT_SPEED_FACTOR = 10000.0
+
+
+@dataclass(frozen=True)
+class RigRequest:
+    """Where a run happens. ``seed`` and ``speed_factor`` apply to simulators (None: the stored run's own, or the
+    defaults 0 and :data:`DEFAULT_SPEED_FACTOR`)."""
+
+    station: str | None = None
+    port: str | None = None
+    mouse_xy: str | None = None
+    mouse_xz: str | None = None
+    simulate: bool = False
+    seed: int | None = None
+    speed_factor: float | None = None
+
+    @property
+    def simulator_default(self) -> bool:
+        """True for the simulated default rig (no station, no port): its operator answers from the truth."""
+        return not self.station and self.port is None
+
+    def describe(self) -> str:
+        if self.station:
+            return f"station {self.station}" + (" (rehearsal on simulators)" if self.simulate else "")
+        return f"controller on {self.port}" if self.port else "simulator"
+
+
+def open_rig(request: RigRequest, store: Any, *, robot: str, stored: dict[str, Any] | None = None,
+             fixture: str = "assembled", requires: frozenset[str] = frozenset(), protocol: str = "the protocol",
+             operator: Operator | None = None) -> Rig:
+    """The rig ``request`` describes for a protocol on ``robot`` with ``fixture`` needing ``requires``.
+
+    ``operator`` answers prompts on a station rig (default: the terminal); the simulated default rig answers them
+    from the simulator's truth unless the caller replaces its ``answer``.
+    """
+    stored = stored or {}
+    station = _station(request, robot, fixture)
+    if station is None:
+        seed, speed = _simulation_settings(request, stored)
+        return simulated_rig_in(store, robot, seed=seed, speed_factor=speed, fixture=fixture)
+    if station.robot != robot:
+        raise ConfigError(f"{station.source}: robot.kind = {station.robot!r}, expected {robot!r} for {protocol}")
+    if station.controller.fixture != fixture:
+        raise ConfigError(f"{station.source}: controller.fixture = {station.controller.fixture!r}, expected "
+                          f"{fixture!r} for {protocol}")
+    if not request.simulate:
+        return build_rig(station, store, requires=requires, protocol=protocol, operator=operator)
+    from bench.simulators.station import rehearse
+
+    check_capabilities(station, requires, protocol)  # before a simulator starts
+    seed, speed = _simulation_settings(request, stored)
+    rehearsal = rehearse(station, seed=seed, speed_factor=speed)
+    try:
+        rig = build_rig(rehearsal.station, store, requires=requires, protocol=protocol, speed_factor=speed,
+                        operator=operator)
+    except BaseException:
+        rehearsal.close()
+        raise
+    rig.closers.insert(0, rehearsal.close)  # closed last: after the drivers let go of the simulators' devices
+    rig.extra["simulator"] = {"seed": seed, "station": station.source, "truth_log": rehearsal.truth_path}
+    return rig
+
+
+def open_mover(request: RigRequest, robot: str) -> tuple[Any, Any]:
+    """Only the robot ``request`` describes (for jogging): its mover and the function that releases everything."""
+    station = _station(request, robot, "assembled")
+    if station is None:
+        from bench.simulators.rig import simulated_rig
+
+        seed, speed = _simulation_settings(request, {})
+        rig = simulated_rig(robot, seed=seed, speed_factor=speed)
+        return rig.robot, rig.close
+    if not request.simulate:
+        return builder_open_mover(station)
+    from bench.simulators.station import rehearse
+
+    seed, speed = _simulation_settings(request, {})
+    rehearsal = rehearse(station, seed=seed, speed_factor=speed)
+    try:
+        mover, close = builder_open_mover(rehearsal.station)
+    except BaseException:
+        rehearsal.close()
+        raise
+
+    def close_all() -> None:
+        close()
+        rehearsal.close()
+
+    return mover, close_all
+
+
+def _simulation_settings(request: RigRequest, stored: dict[str, Any]) -> tuple[int, float]:
+    seed = request.seed if request.seed is not None else stored.get("simulator", {}).get("seed", 0)
+    speed = request.speed_factor or stored.get("speed_factor") or DEFAULT_SPEED_FACTOR
+    return seed, speed
+
+
+def _station(request: RigRequest, robot: str, fixture: str) -> Station | None:
+    """The station named by ``request.station``, or the one the port and the mice describe, or None."""
+    if request.station:
+        return load_station(request.station)
+    if request.port is None:
+        return None
+    table: dict[str, Any] = {"robot": {"kind": robot}, "controller": {"port": request.port, "fixture": fixture},
+                             "calliper": {"kind": "typed"}}
+    if request.mouse_xy or request.mouse_xz:
+        if not (request.mouse_xy and request.mouse_xz):
+            raise ConfigError("--mouse-xy/--mouse-xz: both mice are needed, expected two event devices")
+        table["mice"] = {"xy": request.mouse_xy, "xz": request.mouse_xz}
+    return parse_station(table, source="--port")
+
+
+def simulated_rig_in(store: Any, robot: str, *, seed: int, speed_factor: float, fixture: str = "assembled"):
+    """A simulated rig whose mouse calibration is recorded (get-or-create) in ``store``."""
+    from bench.simulators.rig import simulated_rig
+
+    if not speed_factor > 0:
+        raise ConfigError(f"--speed-factor = {speed_factor:g}, expected a number > 0")
+    rig = simulated_rig(robot, seed=seed, speed_factor=speed_factor, fixture=fixture)
+    rig.extra["simulator"] = {"seed": seed}
+    if fixture == "actuator-bench":
+        return rig  # no calibration in force: the readings are typed-in gauge values
+    if robot == "pkm5":
+        params = {"cpi": rig.instrument.cpi, "mm_per_count": 25.4 / rig.instrument.cpi}
+        name, notes = rig.instrument.calibration.calibration_id, "nominal calibration of the simulated mice"
+    else:
+        params = {"screens": repr(rig.instrument.geometry)}
+        name, notes = rig.instrument.geometry.calibration_id, "laser-grid geometry of the legacy GUI drawing"
+    rig.calibration_ids = (store.ensure_calibration(name, params, notes=notes).id,)
+    return rig
+

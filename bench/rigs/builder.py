@@ -1,0 +1,171 @@
+"""The one rig builder: a station (real devices, or simulators standing in for them) -> a :class:`Rig`.
+
+The command line (``bench run --station``) and the desktop app build rigs here and nowhere else. The builder
+
+1. refuses, before anything is opened, a station that lacks a capability the protocol needs, naming the protocol,
+   the capability and the station key that would provide it;
+2. opens every port through :func:`bench.robots.link.open_port`, exclusively (a second process on the same port is
+   refused by the operating system's lock), identifies and enables the controller;
+3. records the calibrations in force get-or-create in the store (a nominal one, flagged as such, when none was
+   measured yet), so every sample names them;
+4. closes everything it opened, newest first, when a later device fails.
+
+Production code never imports :mod:`bench.simulators`; a simulated station is a station whose devices are
+simulator processes (:func:`bench.simulators.station.rehearse`), built here by the same code as hardware.
+"""
+
+from __future__ import annotations
+
+from contextlib import ExitStack
+from typing import Any
+
+from bench.errors import ConfigError, LinkError
+from bench.rigs.gauges import CalliperOnly, GaugeOperator
+from bench.rigs.interfaces import Operator, Rig
+from bench.rigs.movers import DeltaMover, Pkm5Mover
+from bench.rigs.station import Station
+from bench.robots.link import open_port
+
+__all__ = ["build_rig", "check_capabilities", "mouse_calibration", "open_mover"]
+
+#: Read slice of the controller ports (the drivers poll in slices; deadlines are theirs).
+_POLL_S = 0.05
+
+
+def check_capabilities(station: Station, requires: frozenset[str] | set[str], protocol: str = "the protocol") -> None:
+    """``ConfigError`` naming what ``station`` lacks for ``protocol`` (and the key to add), before anything opens."""
+    missing = station.missing(requires)
+    if missing:
+        raise ConfigError(f"{station.source}: {protocol} needs {', '.join(missing)}")
+    if station.robot not in ("pkm5", "delta4"):  # pragma: no cover - the station parser refuses other robots
+        raise ConfigError(f"{station.source}: robot.kind = {station.robot!r}, expected pkm5 or delta4")
+
+
+def mouse_calibration(store: Any, cpi: float) -> tuple[Any, Any]:
+    """The mouse calibration in force (the latest ``mouse`` record), or a nominal one at ``cpi`` recorded as such
+    until a ``mouse_calibration`` run is stored; returns (store record, :class:`CountsCalibration`)."""
+    from bench.sensors.calibration import MM_PER_INCH, CountsCalibration
+
+    try:
+        record = store.calibration("mouse")
+    except ConfigError:  # before the first mouse_calibration run: the sensor's nominal resolution, flagged nominal
+        record = store.ensure_calibration("mouse", {"mm_per_count": MM_PER_INCH / cpi, "nominal": True},
+                                          notes=f"nominal {cpi:g} cpi; run examples/mouse_calibration.toml")
+    scale = record.params["mm_per_count"]
+    calibration = CountsCalibration.from_scales(scale, scale, calibration_id=f"mouse-v{record.version}",
+                                                date=record.created_utc[:10])
+    return record, calibration
+
+
+def build_rig(station: Station, store: Any, *, operator: Operator | None = None,
+              requires: frozenset[str] | set[str] = frozenset(), protocol: str = "the protocol",
+              speed_factor: float = 1.0) -> Rig:
+    """The rig of ``station`` for a protocol that ``requires`` these capabilities.
+
+    ``operator`` answers the prompts (default: the person at the terminal); a serial calliper answers the reading
+    prompts itself. ``speed_factor`` is 1 for hardware and the simulators' factor for a rehearsal.
+    """
+    check_capabilities(station, requires, protocol)
+    if operator is None:
+        from bench.rigs.operators import ConsoleOperator
+
+        operator = ConsoleOperator()
+    calibration_ids: list[int] = []
+    with ExitStack() as opened:
+        mover, controller = _open_robot(station, opened)
+        instrument = _open_instrument(station, controller, store, requires, opened, calibration_ids)
+        if station.calliper is not None and station.calliper.kind == "serial":
+            operator = GaugeOperator(_open_calliper(station, opened), operator, timeout_s=station.calliper.timeout_s)
+        closers = opened.pop_all()
+    rig = Rig(mover, instrument, operator, speed_factor=speed_factor, calibration_ids=tuple(calibration_ids),
+              closers=[closers.close])
+    rig.extra["station"] = station.settings()
+    return rig
+
+
+def open_mover(station: Station) -> tuple[Any, Any]:
+    """Only the robot of ``station`` (jogging): its mover and the function that releases it."""
+    with ExitStack() as opened:
+        mover, _ = _open_robot(station, opened)
+        closers = opened.pop_all()
+    return mover, closers.close
+
+
+def _open_port(station: Station, key: str, url: str, baud: int, opened: ExitStack) -> Any:
+    """Open a port exclusively; a failure names the station key, the device and what to check."""
+    try:
+        port = open_port(url, baudrate=baud, timeout=_POLL_S, exclusive=True)
+    except LinkError as exc:
+        cause = exc.__cause__
+        why = getattr(cause, "strerror", None) or str(cause or exc)
+        raise LinkError(f"{station.source}: {key} = {url!r}: cannot open it ({why}); is the device plugged in, the "
+                        "name right and the port free? (bench station check)") from None
+    opened.callback(port.close)
+    return port
+
+
+def _open_robot(station: Station, opened: ExitStack) -> tuple[Any, Any]:
+    spec = station.controller
+    port = _open_port(station, "controller.port", spec.port, spec.baud, opened)
+    if station.robot == "pkm5":
+        from bench.robots.pkm5 import Pkm5Controller
+
+        controller = Pkm5Controller(port, fixture=spec.fixture)
+        opened.callback(controller.shutdown)
+        controller.identify()
+        controller.enable()
+        return Pkm5Mover(controller), controller
+    from bench.robots.delta4 import Delta4Controller
+
+    controller = Delta4Controller(port)
+    opened.callback(controller.shutdown)
+    controller.start()
+    return DeltaMover(controller), controller
+
+
+def _open_instrument(station: Station, controller: Any, store: Any, requires: frozenset[str] | set[str],
+                     opened: ExitStack, calibration_ids: list[int]) -> Any:
+    needs_capture = bool(set(requires) & {"pose", "mouse_counts", "arrival", "grid_hit"}) or not requires
+    calliper = {} if station.calliper is None else {"calliper": vars(station.calliper)}
+    if station.robot == "pkm5" and station.mice is not None and station.controller.fixture == "assembled" \
+            and needs_capture:
+        return _open_mice(station, store, opened, calibration_ids)
+    if station.robot == "delta4" and station.laser_grid is not None and needs_capture:
+        from bench.rigs.lasergrid import DEFAULT_DECODER, LaserGridInstrument
+
+        decoder = {**DEFAULT_DECODER, "spot_half_width_mm": station.laser_grid.spot_half_width_mm,
+                   "gate_mm": station.laser_grid.gate_mm}
+        instrument = LaserGridInstrument(controller, decoder=decoder)
+        geometry = instrument.geometry
+        calibration_ids.append(store.ensure_calibration(geometry.calibration_id, {"screens": repr(geometry)},
+                                                        notes="laser-grid geometry of the legacy GUI drawing").id)
+        return instrument
+    return CalliperOnly(calliper)
+
+
+def _open_mice(station: Station, store: Any, opened: ExitStack, calibration_ids: list[int]) -> Any:
+    from bench.rigs.mice import MiceInstrument
+    from bench.robots.pkm5_kinematics import home_pose
+    from bench.sensors.mouse import EvdevMouse
+
+    spec = station.mice
+    assert spec is not None
+    record, calibration = mouse_calibration(store, spec.cpi)
+    calibration_ids.append(record.id)
+    mice = {}
+    for plane, path in (("xy", spec.xy), ("xz", spec.xz)):
+        mice[plane] = EvdevMouse(path, calibration, label=f"mouse_{plane}", grab=spec.grab)
+        opened.callback(mice[plane].close)
+    # registered at the home pose: the robot must stand there when the rig is built (the documents' start-up)
+    instrument = MiceInstrument(mice, home_pose(), calibration, follow=True, noise_counts=spec.noise_counts)
+    opened.callback(instrument.close)
+    return instrument
+
+
+def _open_calliper(station: Station, opened: ExitStack) -> Any:
+    from bench.sensors.calliper import SerialCalliper
+
+    spec = station.calliper
+    assert spec is not None
+    port = _open_port(station, "calliper.port", spec.port, spec.baud, opened)
+    return SerialCalliper(port, request=spec.request.encode(), terminator=spec.terminator.encode())

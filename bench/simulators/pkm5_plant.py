@@ -1,0 +1,64 @@
+"""The simulated pkm5 plant: the seeded error model between commanded steps and the true attained pose (or, on the
+actuator bench, the true strokes), through the kinematics of :mod:`motion.pkm5`."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from bench.robots.pkm5_kinematics import MODE_TOL_MM, pose_deg_from_rad
+from bench.simulators.error_model import ErrorMagnitudes, ErrorModel, JointMemory
+from bench.simulators.plant import Plant
+from motion import pkm5
+
+__all__ = ["PKM5_ERRORS", "build_actuator_bench", "build_plant"]
+
+#: Error sizes for AP/RP of the order of the documents' physical tests (pkm5.md §6.8: AP 1.2-1.9 mm, RP 1.6-2.7 mm,
+#: angles 0.2-1.9 deg). Joint units mm of leg length; pose units (mm, mm, mm, deg, deg). Actuator noise per
+#: Table A.7 (sigma 0.02-0.11 mm); passive-joint play dominates the random part (joint tolerance <= 1 mm, Table 4-2).
+PKM5_ERRORS = ErrorMagnitudes(
+    scale_sigma=0.003, offset_sigma=0.25, backlash=0.10, noise_sigma=0.05, sag_per_kg=0.005,
+    pose_gain_sigma=0.004, pose_play_sigma=(0.6, 0.6, 0.6, 0.35, 0.35),
+    pose_sag_per_kg=(0.0, 0.0, -0.03, 0.0, 0.0), pose_offset_sigma=(0.5, 0.5, 0.5, 1.0, 1.0),
+)
+
+def build_actuator_bench(seed: int, *, ideal: bool = False, geometry: Any = pkm5.DEFAULT_GEOMETRY):
+    """The six actuators free-standing (000 §8.4): ``bench(steps, load_kg) -> true strokes`` (6,), mm.
+
+    Each actuator's attained leg length comes from the same seeded joint errors as :func:`build_plant` (scale,
+    offset, backlash, noise; no payload on a free-standing actuator), reported as stroke from full retraction.
+    """
+    offsets = np.asarray(geometry.leg_length_offset_mm, dtype=float)
+    model = ErrorModel.ideal(6, 5) if ideal else ErrorModel.draw(PKM5_ERRORS, 6, seed, offsets)
+    rng = np.random.default_rng([seed, 1])
+    memory: list[JointMemory] = []
+
+    def true_strokes(steps: np.ndarray, load_kg: float) -> np.ndarray:
+        lengths = pkm5.steps_to_lengths(np.asarray(steps)[None, :], geometry)[0]
+        if not memory:
+            memory.append(JointMemory(lengths))
+        direction = memory[0].update(lengths)
+        return model.true_joints(lengths, direction, 0.0, rng) - offsets
+
+    true_strokes.model = model  # type: ignore[attr-defined]  # the drawn errors, for tests against the truth
+    return true_strokes
+
+
+def build_plant(seed: int, *, ideal: bool = False, geometry: Any = pkm5.DEFAULT_GEOMETRY) -> Plant:
+    """Steps -> leg lengths -> seeded errors -> least-squares FK -> pose errors; pose in mm and degrees."""
+
+    def joints_of(steps: np.ndarray) -> np.ndarray:
+        return pkm5.steps_to_lengths(steps[None, :], geometry)[0]
+
+    def forward(lengths: np.ndarray, commanded: np.ndarray, previous: np.ndarray | None) -> np.ndarray | None:
+        mode = pkm5.detect_mode(commanded[None, :], MODE_TOL_MM)[0]
+        start = None if previous is None else np.r_[previous[:3], np.radians(previous[3:])]
+        fk = pkm5.forward_kinematics(lengths[None, :], geometry, initial_pose=start, mode=mode,
+                                     residual_tol_mm=2.0)
+        return pose_deg_from_rad(fk.pose[0]) if fk.converged[0] else None
+
+    model = (ErrorModel.ideal(6, 5) if ideal else
+             ErrorModel.draw(PKM5_ERRORS, 6, seed, np.asarray(geometry.leg_length_offset_mm)))
+    home_fk = pkm5.forward_kinematics(geometry.home_lengths_mm[None, :], geometry)
+    return Plant(joints_of, forward, model, pose_deg_from_rad(home_fk.pose[0]), seed)

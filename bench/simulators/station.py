@@ -1,0 +1,72 @@
+"""Rehearse a station without hardware: each device the station names is replaced by its simulator, device for
+device, and the rig is then built from the resulting station by the hardware builder (:mod:`bench.rigs.builder`).
+
+- ``[controller]``: ``bench sim pkm5`` / ``bench sim delta4`` on a pseudo-terminal, started ``--hardware-only``
+  (the pkm5 simulator answers its SIM verbs as unknown, as the firmware does), so a rehearsal proves the hardware
+  path never asks a simulator for its truth. Each simulator writes its truth log, for the tests to compare with.
+- ``[mice]``: the pkm5 simulator's ``--mice DIR`` FIFOs, read as event devices.
+- ``[laser_grid]``: the delta4 simulator's own sensor reports (the grid is read by the controller).
+- ``[calliper]`` typed: the operator types, as on hardware; a serial calliper is rehearsed as typed (its simulator
+  needs the gauge's position, which only the person at the bench knows).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import os
+import tempfile
+from collections.abc import Callable
+
+from bench.errors import ConfigError
+from bench.rigs.station import CalliperSpec, Station
+from bench.simulators.mice_feed import fifo_paths
+from bench.simulators.rig import end_process, start_simulator
+
+__all__ = ["Rehearsal", "rehearse"]
+
+
+@dataclasses.dataclass
+class Rehearsal:
+    """A station whose devices are simulators, the simulators' truth log, and how to stop them."""
+
+    station: Station
+    truth_path: str
+    closers: list[Callable[[], None]]
+
+    def close(self) -> None:
+        while self.closers:
+            self.closers.pop()()
+
+
+def rehearse(station: Station, *, seed: int = 0, speed_factor: float = 10000.0, ideal: bool = False) -> Rehearsal:
+    """Start a simulator for every device of ``station``; the returned station names the simulators' devices."""
+    if not speed_factor > 0 or speed_factor == float("inf"):
+        raise ConfigError(f"--speed-factor = {speed_factor:g}, expected a finite number > 0")
+    folder = tempfile.TemporaryDirectory(prefix="bench-rehearsal-")
+    closers: list[Callable[[], None]] = [folder.cleanup]
+    truth_path = os.path.join(folder.name, "truth.jsonl")
+    options = ["--truth", truth_path]
+    mice = station.mice
+    if station.robot == "pkm5":
+        options += ["--hardware-only", "--fixture", station.controller.fixture]
+        if mice is not None and station.controller.fixture == "assembled":
+            options += ["--mice", folder.name]
+            paths = fifo_paths(folder.name)
+            for path in paths.values():
+                os.mkfifo(path)
+            mice = dataclasses.replace(mice, xy=paths["xy"], xz=paths["xz"], grab=False,
+                                       noise_counts=mice.noise_counts if mice.noise_counts is not None else 0.05)
+    try:
+        process, pty_path = start_simulator(station.robot, seed=seed, speed_factor=speed_factor, ideal=ideal,
+                                            options=tuple(options))
+    except BaseException:
+        folder.cleanup()
+        raise
+    closers.append(lambda: end_process(process))
+    calliper = station.calliper
+    if calliper is not None and calliper.kind == "serial":
+        calliper = CalliperSpec(kind="typed", resolution_mm=calliper.resolution_mm)
+    simulated = dataclasses.replace(station, controller=dataclasses.replace(station.controller, port=pty_path),
+                                    mice=mice, calliper=calliper, simulated=True,
+                                    devices={**station.devices, "controller.port": pty_path})
+    return Rehearsal(simulated, truth_path, closers)
