@@ -130,6 +130,8 @@ def _open_instrument(station: Station, controller: Any, store: Any, requires: fr
     if station.robot == "pkm5" and station.mice is not None and station.controller.fixture == "assembled" \
             and needs_capture:
         return _open_mice(station, store, opened, calibration_ids)
+    if station.camera is not None and needs_capture:
+        return _open_camera(station, opened)
     if station.robot == "delta4" and station.laser_grid is not None and needs_capture:
         from bench.rigs.lasergrid import DEFAULT_DECODER, LaserGridInstrument
 
@@ -145,7 +147,6 @@ def _open_instrument(station: Station, controller: Any, store: Any, requires: fr
 
 def _open_mice(station: Station, store: Any, opened: ExitStack, calibration_ids: list[int]) -> Any:
     from bench.rigs.mice import MiceInstrument
-    from bench.robots.pkm5_kinematics import home_pose
     from bench.sensors.mouse import EvdevMouse
 
     spec = station.mice
@@ -157,9 +158,31 @@ def _open_mice(station: Station, store: Any, opened: ExitStack, calibration_ids:
         mice[plane] = EvdevMouse(path, calibration, label=f"mouse_{plane}", grab=spec.grab)
         opened.callback(mice[plane].close)
     # registered at the home pose: the robot must stand there when the rig is built (the documents' start-up)
-    instrument = MiceInstrument(mice, home_pose(), calibration, follow=True, noise_counts=spec.noise_counts)
+    instrument = MiceInstrument(mice, _home("pkm5"), calibration, follow=True, noise_counts=spec.noise_counts)
     opened.callback(instrument.close)
     return instrument
+
+
+def _open_camera(station: Station, opened: ExitStack) -> Any:
+    from bench.rigs.camera import CameraSpotInstrument, load_plane_calibration, video_grab
+    from bench.sensors.camera_spot import LaserSpotCamera
+
+    spec = station.camera
+    assert spec is not None
+    calibration = load_plane_calibration(spec.calibration)
+    grab, release = video_grab(spec.device)
+    opened.callback(release)
+    return CameraSpotInstrument(LaserSpotCamera(grab, calibration), _home(station.robot), plane=spec.plane)
+
+
+def _home(robot: str) -> tuple[float, ...]:
+    if robot == "pkm5":
+        from bench.robots.pkm5_kinematics import home_pose
+
+        return home_pose()
+    from bench.robots.delta4 import HOME_MM
+
+    return HOME_MM
 
 
 def _open_calliper(station: Station, opened: ExitStack) -> Any:

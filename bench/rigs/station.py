@@ -80,7 +80,7 @@ class _Table:
         return f"{self.name}.{key}"
 
     def get(self, key: str, kind: type | tuple[type, ...], default: Any = None, *, required: bool = False,
-            expected: str = "") -> Any:
+            expected: str = "", blank_ok: bool = False) -> Any:
         self.used.add(key)
         if key not in self.data:
             if required:
@@ -90,7 +90,7 @@ class _Table:
         kinds = kind if isinstance(kind, tuple) else (kind,)
         if isinstance(value, bool) and bool not in kinds or not isinstance(value, kinds):
             raise _fail(self.source, self._key(key), value, expected or _kind_text(kind))
-        if isinstance(value, str) and not value.strip():
+        if isinstance(value, str) and not value.strip() and not blank_ok:
             raise _fail(self.source, self._key(key), value, expected or "a non-empty string")
         return value
 
@@ -179,6 +179,7 @@ class CameraSpec:
 
     device: str
     calibration: str
+    plane: str = "xy"  #: the two pose coordinates the camera's plane measures
 
 
 @dataclass(frozen=True)
@@ -283,8 +284,8 @@ def parse_station(data: Mapping[str, Any], *, source: str = "station") -> Statio
         calliper = CalliperSpec(kind=kind,
                                 port=table.get("port", str, "", required=kind == "serial",
                                                expected="the calliper's serial port (kind = \"serial\")"),
-                                baud=int(table.get("baud", int, 9600)), request=table.get("request", str, ""),
-                                terminator=table.get("terminator", str, "\n"),
+                                baud=int(table.get("baud", int, 9600)), request=table.get("request", str, "", blank_ok=True),
+                                terminator=table.get("terminator", str, "\n", blank_ok=True),
                                 resolution_mm=table.number("resolution_mm", 0.01),
                                 timeout_s=table.number("timeout_s", 60.0))
         table.done()
@@ -303,8 +304,11 @@ def parse_station(data: Mapping[str, Any], *, source: str = "station") -> Statio
         camera = CameraSpec(device=str(table.get("device", (str, int), required=True,
                                                  expected="a video device, camera index or stream URL")),
                             calibration=table.get("calibration", str, required=True,
-                                                  expected="the plane calibration JSON file"))
+                                                  expected="the plane calibration JSON file"),
+                            plane=table.choice("plane", ("xy", "xz", "yz"), "xy"))
         table.done()
+        if not Path(camera.calibration).is_absolute() and source != "station":  # relative to the station file
+            camera = CameraSpec(camera.device, str(Path(source).parent / camera.calibration), camera.plane)
         devices["camera.device"] = camera.device
     named: dict[str, str] = {}
     for key, device in devices.items():

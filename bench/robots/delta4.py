@@ -233,6 +233,8 @@ class Delta4Controller:
     # -- lifecycle ---------------------------------------------------------------------------------------------
     def shutdown(self) -> None:
         """Safe state: send ``G`` (stop mechanical control) if possible, then close the port."""
+        if not getattr(self.link.port, "is_open", True):  # shut down already (a rig closes what it opened)
+            return
         try:
             self.stop()
         except LinkError as exc:

@@ -338,6 +338,8 @@ class Pkm5Controller:
     def shutdown(self) -> None:
         """Safe state: stop all motion (best effort, bounded wait) and close the port. Drivers stay enabled so
         the actuators keep their holding torque."""
+        if not getattr(self.link.port, "is_open", True):  # shut down already (a rig closes what it opened)
+            return
         self._stop_quietly()
         self.link.close()
 

@@ -1,0 +1,82 @@
+"""The camera laser-spot sensor as an Instrument: a camera looks at a laser spot on a plane fixed to the robot's
+frame and reports the spot's plane position in mm through the plane calibration (``sensors.md`` §7).
+
+The camera measures the two coordinates of its plane only (``[camera] plane``, default ``xy``): a capture stores
+those two and never the third (absent, not 0: the analysis sees what was measured). The plane's origin is where the
+spot is when the robot stands at its registration pose, so a reading is ``registration + plane position``.
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from bench.errors import ConfigError
+from bench.rigs.interfaces import Measurement
+from bench.steps import Capture
+
+__all__ = ["CameraSpotInstrument", "load_plane_calibration", "video_grab"]
+
+_AXES = {"xy": ("x_mm", "y_mm"), "xz": ("x_mm", "z_mm"), "yz": ("y_mm", "z_mm")}
+_INDEX = {"x_mm": 0, "y_mm": 1, "z_mm": 2}
+
+
+def load_plane_calibration(path: str) -> Any:
+    """A :class:`bench.sensors.camera_spot.PlaneCalibration` from its JSON (``PlaneCalibration.to_dict``)."""
+    from bench.sensors.camera_spot import PlaneCalibration
+
+    try:
+        data = json.loads(Path(path).read_text(encoding="utf-8"))
+        return PlaneCalibration(np.asarray(data["homography_px_to_mm"], dtype=float), float(data["rms_mm"]),
+                                str(data["calibration_id"]), str(data["date"]))
+    except (OSError, ValueError, KeyError, TypeError) as exc:
+        raise ConfigError(f"camera.calibration = {path!r}: cannot read it ({exc}), expected the JSON of a plane "
+                          "calibration (homography_px_to_mm, rms_mm, calibration_id, date)") from None
+
+
+def video_grab(device: str) -> tuple[Callable[[], np.ndarray], Callable[[], None]]:
+    """A frame grabber on a video device, camera index or stream URL (OpenCV), and its release."""
+    import cv2
+
+    from bench.errors import LinkError
+
+    capture = cv2.VideoCapture(int(device) if device.isdigit() else device)
+    if not capture.isOpened():
+        raise LinkError(f"camera.device = {device!r}: cannot open it (is the camera plugged in, the name right?)")
+
+    def grab() -> np.ndarray:
+        ok, frame = capture.read()
+        if not ok:
+            raise LinkError(f"camera.device = {device!r}: no frame")
+        return frame
+
+    return grab, capture.release
+
+
+class CameraSpotInstrument:
+    """Plane position of the laser spot, mm, on the two axes of ``plane`` (``xy``, ``xz`` or ``yz``)."""
+
+    def __init__(self, camera: Any, origin_mm: Any, *, plane: str = "xy") -> None:
+        if plane not in _AXES:
+            raise ConfigError(f"camera.plane = {plane!r}, expected one of {', '.join(_AXES)}")
+        self.camera, self.plane = camera, plane
+        self.origin = np.asarray(origin_mm, dtype=float)[:3].copy()
+
+    def measure(self, capture: Capture) -> Measurement:
+        if capture.kind != "pose":
+            raise ConfigError(f"camera: capture kind {capture.kind!r}, expected 'pose' (the camera measures a plane)")
+        reading = self.camera.read()
+        axes = _AXES[self.plane]
+        values = {axis: float(self.origin[_INDEX[axis]] + v) for axis, v in zip(axes, reading.value)}
+        return Measurement(values, raw={"spot_px": list(reading.raw), "calibration": reading.calibration_id,
+                                        "note": reading.note})
+
+    def settings(self) -> dict[str, Any]:
+        calibration = self.camera.calibration
+        return {"instrument": f"camera laser spot ({self.plane} plane)", **self.camera.settings(),
+                "calibration_id": calibration.calibration_id, "u_mm": float(calibration.rms_mm),
+                "registration_mm": [float(v) for v in self.origin]}

@@ -1,0 +1,264 @@
+"""Station files, the one rig builder, and hardware-shaped runs: every device a simulator process reached through the
+hardware path (ptys and FIFOs, the pkm5 simulator answering its SIM verbs as the firmware does)."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from bench.cli import main
+from bench.errors import ConfigError
+from bench.launch import RigRequest, open_rig
+from bench.protocols import Runner, load_protocol
+from bench.protocols.plan import iterate, required_capabilities
+from bench.rigs.station import load_station, parse_station
+from bench.robots import pkm5_wire as wire
+from bench.simulators.pkm5 import Pkm5SimDevice
+from bench.steps import Capture, Move
+from bench.store import Store
+
+ROOT = Path(__file__).resolve().parents[1]
+STATIONS = ROOT / "examples" / "stations"
+EXAMPLES = ROOT / "examples"
+
+MINIMAL = {"robot": {"kind": "pkm5"}, "controller": {"port": "/dev/ttyACM0"}}
+
+
+def _station(**tables):
+    return {**MINIMAL, **tables}
+
+
+def test_every_example_station_parses_with_the_capabilities_of_its_devices():
+    caps = {path.stem: load_station(path).capabilities() for path in STATIONS.glob("*.toml")}
+    assert caps == {
+        "pkm5_mice": {"assembled", "pose", "mouse_counts", "arrival", "reading"},
+        "pkm5_actuator_bench": {"actuator_bench", "reading"},
+        "delta4_lasergrid": {"assembled", "pose", "grid_hit"},
+        "pkm5_camera": {"assembled", "pose", "reading"},
+    }
+    mice = load_station(STATIONS / "pkm5_mice.toml")
+    assert mice.controller.baud == 115200 and mice.mice.cpi == 800 and mice.identity.robot_serial == "PKM5-0001"
+    assert load_station(STATIONS / "delta4_lasergrid.toml").controller.baud == 9600
+    camera = load_station(STATIONS / "pkm5_camera.toml").camera
+    assert Path(camera.calibration) == STATIONS / "camera-plane.json"  # relative to the station file
+
+
+@pytest.mark.parametrize("tables, message", [
+    (_station(mice={"xy": "/dev/input/a", "xz": "/dev/input/b", "dpi": 800}),
+     "unknown key 'mice.dpi', expected one of cpi, grab, noise_counts, xy, xz"),
+    (_station(mice={"xy": "/dev/input/a"}), "mice.xz missing, expected the x-z mouse's event device"),
+    (_station(mice={"xy": "/dev/input/a", "xz": "/dev/input/a"}),
+     "mice.xz = '/dev/input/a', expected a device of its own (mice.xy names it too)"),
+    (_station(mice={"xy": "/dev/input/a", "xz": "/dev/input/b", "cpi": "800"}),
+     "mice.cpi = '800', expected a finite number > 0"),
+    (_station(mice={"xy": "/dev/input/a", "xz": "/dev/input/b", "cpi": -5}),
+     "mice.cpi = -5, expected a finite number > 0"),
+    ({"robot": {"kind": "scara"}, "controller": {"port": "/dev/ttyACM0"}},
+     "robot.kind = 'scara', expected one of pkm5, delta4"),
+    ({"robot": {"kind": "pkm5"}}, "[controller] missing, expected a table (port = \"/dev/ttyUSB0\")"),
+    (_station(controller={"port": 5}), "controller.port = 5, expected a serial port, e.g. /dev/ttyUSB0"),
+    (_station(controller={"port": "/dev/a", "baud": True}), "controller.baud = True, expected a baud rate"),
+    (_station(calliper={"kind": "serial"}), "calliper.port missing, expected the calliper's serial port"),
+    (_station(laser_grid={}), "[laser_grid] with robot.kind = 'pkm5', expected robot.kind = 'delta4'"),
+    (_station(mouse={}), "unknown table [mouse], expected one of [station], [robot], [controller], [mice]"),
+    (_station(calliper={"kind": "serial", "port": "/dev/ttyACM0"}),
+     "calliper.port = '/dev/ttyACM0', expected a device of its own (controller.port names it too)"),
+])
+def test_bad_station_files_are_one_line_naming_the_key_the_value_and_what_was_expected(tables, message):
+    with pytest.raises(ConfigError) as error:
+        parse_station(tables, source="s.toml")
+    text = str(error.value)
+    assert text.startswith("s.toml: ") and message in text and "\n" not in text
+
+
+def test_a_bad_station_file_on_the_command_line_is_one_line_and_exit_2(tmp_path, capsys):
+    station = tmp_path / "bad.toml"
+    station.write_text('[robot]\nkind = "pkm5"\n[controller]\nport = "/dev/x"\n[mice]\nxy = 3\nxz = "/dev/y"\n')
+    assert main(["station", "check", str(station)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err == f"bench: error: {station}: mice.xy = 3, expected the x-y mouse's event device"
+    station.write_text("[robot\n")
+    assert main(["run", str(EXAMPLES / "iso9283_pose_quick.toml"), "--station", str(station)]) == 2
+    assert "not a valid TOML station file" in capsys.readouterr().err
+
+
+def test_a_protocol_needing_what_the_station_lacks_is_refused_before_anything_opens(tmp_path, capsys):
+    store = tmp_path / "b.db"
+    code = main(["run", str(EXAMPLES / "actuator_accuracy.toml"), "--station", str(STATIONS / "pkm5_mice.toml"),
+                 "--sim", "--store", str(store)])
+    err = capsys.readouterr().err.strip()
+    assert code == 2 and len(err.splitlines()) == 1
+    assert "controller.fixture = 'assembled', expected 'actuator-bench' for protocol 'actuator_accuracy'" in err
+    code = main(["run", str(EXAMPLES / "mouse_calibration.toml"), "--station",
+                 str(STATIONS / "pkm5_camera.toml"), "--store", str(store)])
+    err = capsys.readouterr().err.strip()
+    assert code == 2 and err.endswith("protocol 'mouse_calibration' needs mouse_counts (add [mice])")
+    with Store(store) as opened:
+        assert opened.runs() == []  # nothing was started, nothing stored
+
+
+def test_protocols_ask_for_what_their_own_plans_capture():
+    needs = {path.stem: required_capabilities(load_protocol(path)) for path in EXAMPLES.glob("*.toml")}
+    assert needs["iso9283_pose"] == {"assembled", "pose"}
+    assert needs["iso9283_stabilisation"] == {"assembled", "arrival"}
+    assert needs["mouse_calibration"] == {"assembled", "mouse_counts"}
+    assert needs["actuator_accuracy"] == {"actuator_bench", "reading"}
+    assert needs["payload_ladder"] == {"assembled", "reading"}
+    assert needs["lasergrid_hits"] == {"assembled", "grid_hit"}
+
+
+def test_station_check_names_every_device_and_fails_for_the_missing_one(tmp_path, capsys):
+    assert main(["station", "check", str(STATIONS / "pkm5_mice.toml"), "--sim", "--json"]) == 0
+    checks = [json.loads(line) for line in capsys.readouterr().out.splitlines()]
+    assert [c["key"] for c in checks] == ["controller.port", "mice.xy", "mice.xz", "calliper"]
+    assert all(c["ok"] for c in checks), checks
+    assert checks[0]["detail"].startswith("bench-pkm5 firmware 1.0.0-sim, protocol v1")
+    # the same station on this machine, where its devices do not exist
+    assert main(["station", "check", str(STATIONS / "pkm5_mice.toml")]) == 1
+    lines = capsys.readouterr().out.splitlines()
+    assert lines[0].startswith("controller.port  problem ") and "no such device" in lines[0]
+    assert "fix: plug the controller in" in lines[0]
+    assert "mice.xy          problem" in lines[1] and "ls -l /dev/input/by-id" in lines[1]
+    assert lines[3].startswith("calliper         ok")
+
+
+def test_station_check_explains_a_permission_problem(tmp_path, capsys):
+    import os
+
+    if os.geteuid() == 0:
+        pytest.skip("root opens any file: the permission check needs an unprivileged user")
+    device = tmp_path / "event-mouse"
+    device.write_bytes(b"")
+    device.chmod(0)
+    station = tmp_path / "s.toml"
+    station.write_text(f'[robot]\nkind = "pkm5"\n[controller]\nport = "/dev/none"\n'
+                       f'[mice]\nxy = "{device}"\nxz = "/dev/none2"\n')
+    assert main(["station", "check", str(station)]) == 1
+    assert "permission denied -> fix: add yourself to the 'input' group" in capsys.readouterr().out
+
+
+def test_the_hardware_only_simulator_refuses_its_sim_verbs_as_the_firmware_does():
+    device = Pkm5SimDevice(lambda steps, load: np.zeros(5), sim_verbs=False)
+    device.feed(b"", 0.0)  # BOOT
+    reply = device.feed(wire.format_command("SIMTRUE", (), 7), 0.0)
+    assert reply == wire.format_reply("ERR", 7, int(wire.ErrorCode.SYNTAX), "SYNTAX")
+
+
+def _truth(path: str) -> np.ndarray:
+    return np.array([json.loads(line)["pose"] for line in Path(path).read_text().splitlines()])
+
+
+def _rehearsed_run(store: Store, station: Path, protocol_file: Path, *, operator=None, speed=20000.0):
+    protocol = load_protocol(protocol_file)
+    rig = open_rig(RigRequest(station=str(station), simulate=True, seed=3, speed_factor=speed), store,
+                   robot=protocol.robot, fixture=getattr(protocol, "fixture", "assembled"),
+                   requires=required_capabilities(protocol), protocol=protocol.name, operator=operator)
+    try:
+        if operator is not None and hasattr(operator, "truth_path"):
+            operator.truth_path = rig.extra["simulator"]["truth_log"]
+        result = Runner(rig, store, progress=False).run(protocol)
+        truth = _truth(rig.extra["simulator"]["truth_log"])
+    finally:
+        rig.close()
+    return result, truth
+
+
+def test_pkm5_with_mice_on_the_hardware_path_measures_the_true_displacements(tmp_path):
+    with Store(tmp_path / "b.db") as store:
+        result, truth = _rehearsed_run(store, STATIONS / "pkm5_mice.toml", EXAMPLES / "iso9283_pose_quick.toml")
+        assert result.exit_status == "completed" and result.samples == 15, result.reason
+        run = store.run(result.run_id)
+        settings = run.settings
+        samples = [s for s in store.samples(result.run_id) if s.kind == "pose"]
+    assert settings["station"]["simulated"] is True and settings["station"]["identity"]["robot_serial"] == "PKM5-0001"
+    assert settings["instrument"]["cpi"] == 800 and settings["instrument"]["resolution_mm"] == pytest.approx(0.03175)
+    measured = np.array([[s.values[k] for k in ("x_mm", "y_mm", "z_mm")] for s in samples])
+    # each sample against the true pose it was taken at: the truth log has one rest per move, in plan order
+    moves, at_capture = 0, []
+    for step in iterate(load_protocol(EXAMPLES / "iso9283_pose_quick.toml")):
+        moves += isinstance(step, Move)
+        if isinstance(step, Capture):
+            at_capture.append(moves - 1)
+    assert len(truth) == moves
+    offset = measured - truth[at_capture, :3]
+    # registered at the commanded home, so every reading is off by the robot's own home error, and only by it:
+    # the spread of that offset is the mice's (a count is 0.032 mm, 0.05 counts of noise)
+    assert np.ptp(offset, axis=0).max() < 0.1, offset
+    assert np.linalg.norm(offset.mean(axis=0)) < 3.0
+
+
+def test_a_hardware_path_run_is_exported_analysed_and_reported_with_equal_numbers(tmp_path, capsys):
+    store = tmp_path / "b.db"
+    assert main(["run", str(EXAMPLES / "iso9283_pose_quick.toml"), "--station", str(STATIONS / "pkm5_mice.toml"),
+                 "--sim", "--store", str(store), "--no-progress", "--seed", "4"]) == 0
+    run_id = int(capsys.readouterr().out.split()[-1])
+    table = tmp_path / "run.csv"
+    assert main(["export", str(run_id), "--store", str(store), "--out", str(table)]) == 0
+    assert main(["analyze", "iso9283", str(table), "--json"]) == 0
+    analysed = json.loads(capsys.readouterr().out.splitlines()[-1])["poses"]
+    out = tmp_path / "reports"
+    assert main(["report", str(run_id), "--store", str(store), "--out", str(out)]) == 0
+    capsys.readouterr()
+    assert (out / f"report_run{run_id}.pdf").stat().st_size > 0
+    samples = pd.read_csv(out / f"run{run_id}_samples.csv")
+    exported = pd.read_csv(table)
+    assert len(samples) == len(exported) == 15
+    html = (out / f"report_run{run_id}.html").read_text()
+    for pose, result in analysed.items():
+        assert f"{result['AP_mm']:.3f}"[:-1] in html, (pose, result["AP_mm"])  # the report shows the same AP
+
+
+def test_delta4_with_the_laser_grid_on_the_hardware_path(tmp_path):
+    with Store(tmp_path / "b.db") as store:
+        result, truth = _rehearsed_run(store, STATIONS / "delta4_lasergrid.toml", EXAMPLES / "delta_positioning.toml")
+        assert result.exit_status == "completed", result.reason
+        samples = [s for s in store.samples(result.run_id) if s.kind == "pose"]
+    assert len(samples) == result.samples > 0
+    measured = [s for s in samples if s.values.get("horizontal_valid") == 1]
+    assert measured, "no screen decoded a single reading"
+    for sample in measured:
+        position = np.array([sample.values["x_mm"], sample.values["y_mm"]])
+        nearest = truth[np.argmin(np.linalg.norm(truth[:, :2] - position, axis=1)), :2]
+        assert np.abs(position - nearest).max() < 2.5  # within one grid phase of the true position
+
+
+class _GaugeReader:
+    """The person at the actuator bench: zeroes the depth gauge on an actuator and reads it (the simulator's truth
+    log is what the gauge shows)."""
+
+    def __init__(self) -> None:
+        self.truth_path = ""
+        self.zero_mm: dict[int, float] = {}
+
+    def _strokes(self) -> np.ndarray:
+        return _truth(self.truth_path)[-1]
+
+    def ask(self, prompt):
+        if prompt.field is None:
+            if "zero_actuator" in prompt.conditions:
+                axis = int(prompt.conditions["zero_actuator"])
+                self.zero_mm[axis] = float(self._strokes()[axis - 1])
+            return None
+        axis = int(prompt.conditions["actuator"])
+        return round(float(self._strokes()[axis - 1] - self.zero_mm[axis]), 2)
+
+
+def test_the_actuator_bench_with_typed_readings_on_the_hardware_path(tmp_path):
+    protocol = tmp_path / "actuators.toml"
+    protocol.write_text('protocol = "actuator_accuracy"\nactuators = [2]\ndistances_mm = [10, 20]\nrepeats = 3\n'
+                        'settle_s = 0.1\n')
+    station = tmp_path / "bench.toml"
+    station.write_text((STATIONS / "pkm5_actuator_bench.toml").read_text().replace('kind = "serial"',
+                                                                                    'kind = "typed"'))
+    with Store(tmp_path / "b.db") as store:
+        result, _ = _rehearsed_run(store, station, protocol, operator=_GaugeReader())
+        assert result.exit_status == "completed", result.reason
+        travels = [s.values["travel_mm"] for s in store.samples(result.run_id) if s.kind == "actuator_travel"]
+    assert len(travels) == 6
+    # the commanded travels, within the seeded actuator's errors (scale sigma 0.3 %, backlash 0.1 mm, noise 0.05 mm)
+    np.testing.assert_allclose(travels, [10, 10, 10, 20, 20, 20], atol=0.5)
+    assert np.ptp(travels[:3]) < 0.3 and np.ptp(travels[3:]) < 0.3  # repeatable, as 000 Table A.7
