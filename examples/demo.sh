@@ -3,5 +3,12 @@
 # (simulator on a pseudo-terminal, simulated mice, every sample stored), analysed, ending in an HTML + PDF report.
 set -euo pipefail
 out=${1:-demo-out}
-bench demo --out "$out"
-echo "report and raw data in $out/ (open the .html file in a browser)" >&2
+paths=$(bench demo --out "$out")
+echo "$paths"
+html=$(grep '\.html$' <<<"$paths" | tail -n 1)
+pdf=$(grep '\.pdf$' <<<"$paths" | tail -n 1)
+cat >&2 <<TEXT
+report: $html (and $pdf)
+the run is stored in $out/bench.db: bench runs --store $out/bench.db
+(bench is installed in .venv: run '. .venv/bin/activate' to have it on your PATH)
+TEXT

@@ -12,10 +12,12 @@ import argparse
 import json
 import signal
 import sys
+from pathlib import Path
 from collections.abc import Iterator
 from contextlib import contextmanager
 from typing import Any
 
+from bench.errors import ConfigError
 from bench.launch import DEFAULT_SPEED_FACTOR, RigRequest, open_rig
 from bench.protocols import Runner, load_protocol, preflight, protocol_from_config, summarize
 from bench.protocols.plan import required_capabilities
@@ -165,8 +167,16 @@ def _resume(args: argparse.Namespace) -> int:
     return 0 if result.exit_status == "completed" else 1
 
 
+def _existing_store(path: str) -> str:
+    """A read-only command names a store that exists: it never creates an empty one where a typo pointed."""
+    if not Path(path).exists():
+        hint = " (the demo's runs are in demo-out/bench.db)" if Path("demo-out/bench.db").exists() else ""
+        raise ConfigError(f"--store {path}: no run store there{hint}, expected the bench.db a run wrote (--store)")
+    return path
+
+
 def _runs(args: argparse.Namespace) -> int:
-    with Store(args.store) as store:
+    with Store(_existing_store(args.store)) as store:
         records = store.runs()
     if args.json:
         for record in records:
@@ -195,7 +205,7 @@ def _default_kind(store: Store, run_id: int) -> str:
 
 def _export(args: argparse.Namespace) -> int:
     out = args.out or f"run-{args.run_id}.{args.format}"
-    with Store(args.store) as store:
+    with Store(_existing_store(args.store)) as store:
         kind = args.kind or ("arrival" if args.series else _default_kind(store, args.run_id))
         print(export_run(store, args.run_id, out, fmt=args.format, kind=kind, series=args.series))
     return 0
