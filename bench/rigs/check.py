@@ -39,7 +39,7 @@ class DeviceCheck:
 
 def _missing_fix(path: str, kind: str) -> str:
     if kind == "input":
-        return "plug the mouse in and name it by /dev/input/by-id/... (ls -l /dev/input/by-id; bench sensors list)"
+        return "plug the mouse in and name it by /dev/input/by-id/... (ls -l /dev/input/by-id; bench sensors mouse-list)"
     return "plug the controller in and name it by /dev/serial/by-id/... (ls -l /dev/serial/by-id)"
 
 
