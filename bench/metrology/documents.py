@@ -8,9 +8,18 @@ source: 000 is the pkm5 dissertation (shared/reference/pkm5.md), "thesis" the de
 
 from __future__ import annotations
 
-__all__ = ["ACTUATOR_REPEATS", "ACTUATOR_TRAVELS_MM", "GRID_HEIGHTS_MM", "GRID_HIT_ATTEMPTS", "GRID_OFFSET_MM",
+__all__ = ["ISO9283_CYCLES", "ISO9283_POSE_ORDER", "ISO9283_VELOCITIES_PCT", "ACTUATOR_REPEATS", "ACTUATOR_TRAVELS_MM", "GRID_HEIGHTS_MM", "GRID_HIT_ATTEMPTS", "GRID_OFFSET_MM",
            "GRID_RESOLUTION_MM", "GRID_SENSORS", "LADDER_KG", "LADDER_LIFT_MM", "LASERGRID_GUI_PLACEMENT",
            "POSITIONING_POSES", "POSITIONING_READINGS"]
+
+# ---- ISO 9283:1998, the test conditions the pose protocols and the deviations tables share ----
+
+#: Cycles per pose for AP/RP, AD/RD and vAP (Table 5).
+ISO9283_CYCLES = 30
+#: Test velocities, % of the rated velocity (clause 6.7).
+ISO9283_VELOCITIES_PCT = (100.0, 50.0, 10.0)
+#: Cycle order of the five cube poses, unidirectional (clause 6.10; Figure 5).
+ISO9283_POSE_ORDER = ("P1", "P5", "P4", "P3", "P2")
 
 # ---- the pkm5 dissertation (000) ----
 

@@ -18,6 +18,7 @@ from typing import Any
 import numpy as np
 
 from bench.errors import ConfigError
+from bench.metrology.documents import ISO9283_CYCLES, ISO9283_POSE_ORDER, ISO9283_VELOCITIES_PCT
 from bench.protocols.base import Protocol, register
 from bench.protocols.kinematics import DEFAULT_SINGULARITY_THRESHOLD, robot_model
 from bench.protocols.parameters import (
@@ -40,7 +41,7 @@ _PLANES = {
     "y=-z": [(-1, -1, 1), (1, -1, 1), (1, 1, -1), (-1, 1, -1)],
 }
 #: ISO order within a cycle, starting at P1 (iso9283.md §5.4).
-POSE_ORDER = ("P1", "P5", "P4", "P3", "P2")
+POSE_ORDER = ISO9283_POSE_ORDER
 
 
 def cube_poses(centre_mm, side_mm: float, plane: str = "x=z", angles_deg=()) -> dict[str, tuple[float, ...]]:
@@ -85,8 +86,8 @@ def fit_cube_side(robot: str, centre_mm, *, max_side_mm: float = 200.0, angles_d
 class _CubeProtocol(Protocol):
     """Shared parameters: the robot, the cube or explicit poses, velocities, loads, cycles and settling."""
 
-    cycles = IntegerParameter(30, minimum=2, description="cycles per pose (ISO Table 5: 30)")
-    velocities_pct = FloatListParameter((100.0, 50.0, 10.0), unit="%", minimum=0.1, maximum=100.0,
+    cycles = IntegerParameter(ISO9283_CYCLES, minimum=2, description="cycles per pose (ISO Table 5: 30)")
+    velocities_pct = FloatListParameter(ISO9283_VELOCITIES_PCT, unit="%", minimum=0.1, maximum=100.0,
                                         description="test velocities, % of rated (ISO 6.7: 100, 50, 10)")
     loads_kg = FloatListParameter((0.0,), unit="kg", minimum=0.0, maximum=30.0,
                                   description="loads, kg (ISO 6.6: 100 % rated, optionally 10 %)")

@@ -20,6 +20,9 @@ from bench.errors import InsufficientData
 from bench.metrology.documents import (
     ACTUATOR_REPEATS,
     ACTUATOR_TRAVELS_MM,
+    ISO9283_CYCLES,
+    ISO9283_POSE_ORDER,
+    ISO9283_VELOCITIES_PCT,
     GRID_HEIGHTS_MM,
     GRID_HIT_ATTEMPTS,
     GRID_OFFSET_MM,
@@ -39,16 +42,17 @@ __all__ = ["ACTUATOR_REPEATS", "ACTUATOR_TRAVELS_MM", "BAND_MIN_COUNTS", "CLAUSE
            "ladder_deviations", "stabilisation_deviations"]
 
 #: Cycles required per protocol (ISO 9283 Table 5 [N]: 30 for AP/RP, AD/RD and vAP).
-ISO_CYCLES = {"iso9283_pose": 30, "iso9283_distance": 30, "iso9283_multidirectional": 30}
+ISO_CYCLES = {"iso9283_pose": ISO9283_CYCLES, "iso9283_distance": ISO9283_CYCLES,
+              "iso9283_multidirectional": ISO9283_CYCLES}
 #: Test velocities, % of rated (clause 6.7 [U]).
-ISO_VELOCITIES_PCT = (100.0, 50.0, 10.0)
+ISO_VELOCITIES_PCT = ISO9283_VELOCITIES_PCT
 #: Clauses applied by each protocol (ISO 9283 clause numbers).
 CLAUSES_APPLIED = {
     "iso9283_pose": ("7.2.1 pose accuracy AP", "7.2.2 pose repeatability RP"),
     "iso9283_distance": ("7.3 distance accuracy AD and repeatability RD",),
     "iso9283_multidirectional": ("7.2.3 multi-directional pose accuracy variation vAP",),
 }
-_ISO_ORDER = "P1 -> P5 -> P4 -> P3 -> P2, unidirectional"
+_ISO_ORDER = " -> ".join(ISO9283_POSE_ORDER) + ", unidirectional"
 
 
 @dataclass(frozen=True)
@@ -89,7 +93,7 @@ def _planned_count(clause: str, topic: str, requirement: str, config: Mapping[st
 
 
 def _cycles(config: Mapping[str, Any], protocol: str, cycles_measured: int) -> Deviation:
-    required = ISO_CYCLES.get(protocol, 30)
+    required = ISO_CYCLES.get(protocol, ISO9283_CYCLES)
     return _planned_count("6.9", "cycles", f"{required} cycles per pose (Table 5)", config, "cycles",
                           measured=cycles_measured, required=required, counted="measured", where="any pose",
                           effect="wider confidence interval on RP and AP; RP's 3 S_l term less stable")
