@@ -128,7 +128,7 @@ def _station(request: RigRequest, robot: str, fixture: str) -> Station | None:
                              "calliper": {"kind": "typed"}}
     if request.mouse_xy or request.mouse_xz:
         if not (request.mouse_xy and request.mouse_xz):
-            raise ConfigError("--mouse-xy/--mouse-xz: both mice are needed, expected two event devices")
+            raise ConfigError("mice: only one mouse named, expected two event devices (the x-y and the x-z mouse)")
         table["mice"] = {"xy": request.mouse_xy, "xz": request.mouse_xz}
     return parse_station(table, source="--port")
 

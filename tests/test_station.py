@@ -262,3 +262,45 @@ def test_the_actuator_bench_with_typed_readings_on_the_hardware_path(tmp_path):
     # the commanded travels, within the seeded actuator's errors (scale sigma 0.3 %, backlash 0.1 mm, noise 0.05 mm)
     np.testing.assert_allclose(travels, [10, 10, 10, 20, 20, 20], atol=0.5)
     assert np.ptp(travels[:3]) < 0.3 and np.ptp(travels[3:]) < 0.3  # repeatable, as 000 Table A.7
+
+
+def test_the_builder_closes_what_it_opened_when_a_later_device_fails(tmp_path):
+    import dataclasses
+
+    from bench.errors import LinkError
+    from bench.rigs.builder import build_rig
+    from bench.robots.link import open_port
+    from bench.simulators.station import rehearse
+
+    rehearsal = rehearse(load_station(STATIONS / "pkm5_mice.toml"), speed_factor=20000)
+    try:
+        broken = dataclasses.replace(rehearsal.station, mice=dataclasses.replace(rehearsal.station.mice,
+                                                                               xz=str(tmp_path / "gone")))
+        with Store(tmp_path / "b.db") as store, pytest.raises(LinkError, match="gone"):
+            build_rig(broken, store, requires={"pose"})
+        # the controller's port was released: it opens again, exclusively, and the controller still answers
+        port = open_port(rehearsal.station.controller.port, baudrate=115200, timeout=0.05, exclusive=True)
+        from bench.robots.pkm5 import Pkm5Controller
+
+        assert Pkm5Controller(port).identify().device == "bench-pkm5"
+        port.close()
+    finally:
+        rehearsal.close()
+
+
+def test_a_second_process_cannot_take_a_controller_port_in_use(tmp_path):
+    from bench.errors import LinkError
+    from bench.rigs.builder import build_rig
+    from bench.simulators.station import rehearse
+
+    rehearsal = rehearse(load_station(STATIONS / "pkm5_mice.toml"), speed_factor=20000)
+    try:
+        with Store(tmp_path / "b.db") as store:
+            rig = build_rig(rehearsal.station, store, requires={"pose"})
+            try:
+                with pytest.raises(LinkError, match="controller.port = .*cannot open it"):
+                    build_rig(rehearsal.station, store, requires={"pose"})
+            finally:
+                rig.close()
+    finally:
+        rehearsal.close()
