@@ -36,6 +36,8 @@ class RigRequest:
     simulate: bool = False
     seed: int | None = None
     speed_factor: float | None = None
+    #: how messages name the port shorthand (the CLI: ``--port``; the window: "serial port")
+    port_label: str = "serial port"
 
     @property
     def simulator_default(self) -> bool:
@@ -130,7 +132,7 @@ def _station(request: RigRequest, robot: str, fixture: str) -> Station | None:
         if not (request.mouse_xy and request.mouse_xz):
             raise ConfigError("mice: only one mouse named, expected two event devices (the x-y and the x-z mouse)")
         table["mice"] = {"xy": request.mouse_xy, "xz": request.mouse_xz}
-    return parse_station(table, source="--port")
+    return parse_station(table, source=request.port_label)
 
 
 def simulated_rig_in(store: Any, robot: str, *, seed: int, speed_factor: float, fixture: str = "assembled"):

@@ -105,10 +105,11 @@ def test_a_rig_that_cannot_start_is_reported_and_nothing_is_stored(window, tmp_p
     window.campaign_panel.choose_file(EXAMPLES / "iso9283_pose_quick.toml")
     window.campaign_panel.start()
     wait_for(lambda: window.campaign_panel.worker is None, RUN_TIMEOUT_S, "the worker to give up")
-    assert "--port: hardware runs support the pkm5 with --mouse-xy and --mouse-xz" in window.log.toPlainText()
+    assert "serial port: protocol 'iso9283_pose' needs pose (add [mice] (pkm5)" in window.log.toPlainText()
     window.robot_panel.mouse_xy.setText(str(tmp_path / "xy"))
     window.robot_panel.mouse_xz.setText(str(tmp_path / "xz"))
     window.campaign_panel.start()
     wait_for(lambda: window.campaign_panel.worker is None, RUN_TIMEOUT_S, "the worker to give up")
-    assert f"--port {tmp_path / 'no-such-port'}: cannot open it" in window.log.toPlainText()
+    assert f"serial port: controller.port = '{tmp_path / 'no-such-port'}': cannot open it" in window.log.toPlainText()
+    assert "--" not in window.log.toPlainText()  # no command-line flag names in the window
     assert _runs(tmp_path)[0] == []

@@ -82,7 +82,7 @@ def _rig_arguments(parser: argparse.ArgumentParser) -> None:
 def rig_request(args: argparse.Namespace) -> RigRequest:
     """What the rig options ask for, as the :class:`bench.launch.RigRequest` the GUI fills in too."""
     return RigRequest(station=args.station, port=args.port, mouse_xy=args.mouse_xy, mouse_xz=args.mouse_xz,
-                      simulate=args.sim, seed=args.seed, speed_factor=args.speed_factor)
+                      simulate=args.sim, seed=args.seed, speed_factor=args.speed_factor, port_label="--port")
 
 
 def build_rig(args: argparse.Namespace, robot: str, store: Store, stored: dict[str, Any] | None = None,

@@ -40,6 +40,9 @@ class Rehearsal:
 
 def rehearse(station: Station, *, seed: int = 0, speed_factor: float = 10000.0, ideal: bool = False) -> Rehearsal:
     """Start a simulator for every device of ``station``; the returned station names the simulators' devices."""
+    if station.camera is not None:
+        raise ConfigError(f"{station.source}: [camera] cannot be rehearsed yet (no simulator stands in for a camera "
+                          "device); check it with bench station check, or rehearse the protocol with [mice]")
     if not speed_factor > 0 or speed_factor == float("inf"):
         raise ConfigError(f"--speed-factor = {speed_factor:g}, expected a finite number > 0")
     folder = tempfile.TemporaryDirectory(prefix="bench-rehearsal-")
