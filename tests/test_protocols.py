@@ -3,11 +3,12 @@
 from __future__ import annotations
 
 import logging
+import math
 import threading
 
 import numpy as np
 import pytest
-from hypothesis import given
+from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from bench.errors import ConfigError, PromptWithdrawn, UnreachableTarget
@@ -489,12 +490,19 @@ def test_console_operator_reasks_until_valid_and_ctrl_d_withdraws_the_prompt(cap
     from bench.rigs.operators import ConsoleOperator
     from bench.steps import Prompt
 
-    answers = iter(["abc", "300", "12.5"])
+    answers = iter(["abc", "300", "nan", "1" * 400, "12,5"])
     prompt = Prompt("Leg 1 length", field="length_mm", unit="mm", minimum=0.0, maximum=100.0)
     assert ConsoleOperator(lambda _: next(answers)).ask(prompt) == 12.5
     err = capsys.readouterr().err
-    assert "length_mm = 'abc', expected a number in [0.0, 100.0] [mm]; try again" in err
-    assert "length_mm = '300'" in err
+    assert "Leg 1 length: reading 'abc' is not a length; expected e.g. '12.34'" in err
+    assert "Leg 1 length: 300 mm, expected 0 to 100 mm; try again" in err
+    assert "reading 'nan' is not a length" in err and "has 400 digits, expected at most 15" in err
+    # far from the commanded length: kept only when confirmed
+    far = Prompt("Leg 1 length", field="length_mm", unit="mm", minimum=0.0, maximum=100.0,
+                 commanded={"cmd_length_mm": 50.0})
+    answers = iter(["60", "n", "60", "y"])
+    assert ConsoleOperator(lambda _: next(answers)).ask(far) == 60.0
+    assert capsys.readouterr().err.count("from the expected 50 mm; keep it? [y/N]") == 2
 
     def end_of_input(_):
         raise EOFError
@@ -560,3 +568,19 @@ def test_delta_rig_refuses_moves_once_emergency_stopped():
     with pytest.raises(LinkError, match="refused: an emergency stop is latched"):
         mover.move_to((0.0, 0.0, -190.0), velocity_pct=100)
     assert controller.log == [("move", (0.0, 0.0, -200.0)), ("stop",)]
+
+
+@given(st.text(max_size=40))
+@settings(max_examples=2000, deadline=None)
+def test_typed_entries_are_a_finite_reading_within_bounds_or_one_line(text):
+    from bench.errors import ConfigError
+    from bench.rigs.operators import parse_entry
+    from bench.steps import Prompt
+
+    prompt = Prompt("Tilt alpha", field="a_deg", unit="deg", minimum=-45.0, maximum=45.0)
+    try:
+        value, _ = parse_entry(prompt, text)
+    except ConfigError as exc:
+        assert "\n" not in str(exc) and str(exc).startswith("Tilt alpha")
+    else:
+        assert math.isfinite(value) and -45.0 <= value <= 45.0

@@ -1,8 +1,8 @@
 """The calliper entry dialog: one manual reading for a protocol's ``Prompt``, validated before it is accepted.
 
-Readings are parsed by :func:`bench.sensors.calliper.parse_length` (sign, ``.`` or ``,`` decimals, ``mm``/``in``
-units for lengths) and checked against the prompt's bounds with :class:`bench.sensors.calliper.ReadingRequest`,
-so the window accepts exactly what ``bench``'s terminal prompt accepts. A keyboard-wedge calliper types its reading
+Readings are parsed by :func:`bench.rigs.operators.parse_entry`, the terminal's own parser (sign, ``.`` or ``,``
+decimals, ``mm``/``in`` units for lengths, the prompt's bounds), so the window accepts exactly what ``bench``'s
+terminal prompt accepts. A keyboard-wedge calliper types its reading
 followed by Enter into the focused field, which submits it. A length far from the commanded value (more than
 :data:`TOLERANCE_MM`) needs the same value submitted a second time. The reading is stored by the runner the moment
 the dialog hands it over. A prompt without a field (an instruction, e.g. "mount 2 kg, then confirm") shows
@@ -10,8 +10,6 @@ the instruction with OK / Cancel only.
 """
 
 from __future__ import annotations
-
-import re
 
 from PySide6.QtCore import Qt, Signal
 from PySide6.QtGui import QKeyEvent
@@ -27,47 +25,9 @@ from PySide6.QtWidgets import (
 
 from bench.errors import ConfigError
 from bench.protocols import Prompt
-from bench.sensors.calliper import ReadingRequest, parse_length
-from bench.sensors.reading import MalformedSample
+from bench.rigs.operators import TOLERANCE_MM, parse_entry
 
 __all__ = ["TOLERANCE_MM", "CalliperDialog", "parse_entry"]
-
-#: A length reading further than this from the commanded length must be confirmed, mm.
-TOLERANCE_MM = 2.0
-
-
-def _request(prompt: Prompt) -> ReadingRequest:
-    expected = next((v for k, v in prompt.commanded.items() if k == f"cmd_{prompt.field}"), None)
-    return ReadingRequest(prompt.text, min_mm=-float("inf") if prompt.minimum is None else prompt.minimum,
-                          max_mm=float("inf") if prompt.maximum is None else prompt.maximum,
-                          expected_mm=expected if prompt.unit == "mm" else None, tolerance_mm=TOLERANCE_MM)
-
-
-def parse_entry(prompt: Prompt, text: str) -> tuple[float, str]:
-    """The reading typed for ``prompt`` and a confirmation question ('' when plausible).
-
-    Lengths (``prompt.unit == "mm"``) accept what a calliper or a wedge types (``12,34``, ``0.4865 in``); other
-    units accept a number with an optional trailing unit equal to the prompt's (``-1,5 deg``).
-
-    Raises
-    ------
-    ConfigError
-        Naming the prompt, the text or value, and what was expected.
-    """
-    if prompt.unit != "mm" and prompt.unit:
-        text = re.sub(rf"\s*{re.escape(prompt.unit)}\s*$", "", text.strip())
-        if re.search(r"[A-Za-z\"]", text):
-            raise ConfigError(f"{prompt.text}: {text!r} is not a reading in {prompt.unit}; expected a number")
-    try:
-        value = parse_length(text, source=prompt.text)
-    except MalformedSample as exc:
-        raise ConfigError(str(exc)) from exc
-    try:
-        question = _request(prompt).check(value)
-    except ConfigError as exc:
-        raise ConfigError(str(exc).replace(" mm", f" {prompt.unit}") if prompt.unit != "mm" else str(exc)) from exc
-    return value, question
-
 
 class CalliperDialog(QDialog):
     """Asks for one reading; emits ``reading_entered(value)`` once the entry is valid (and confirmed).

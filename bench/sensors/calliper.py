@@ -31,6 +31,8 @@ __all__ = [
 
 _NUMBER = re.compile(r"\s*([+-]?)\s*(\d+(?:[.,]\d*)?|[.,]\d+)\s*(mm|in|\")?\s*", re.IGNORECASE)
 _MM_PER_UNIT = {"mm": 1.0, "in": 25.4, '"': 25.4}
+#: Digits (with the decimal separator) a typed or sent reading may have.
+_MAX_DIGITS = 15
 
 
 def parse_length(text: str, *, source: str = "calliper") -> float:
@@ -47,6 +49,8 @@ def parse_length(text: str, *, source: str = "calliper") -> float:
         raise MalformedSample(f"{source}: reading {text!r} is not a length; expected e.g. '12.34', '-0,50 mm' "
                               "or '0.4865 in'")
     sign, digits, unit = match.groups()
+    if len(digits) > _MAX_DIGITS:  # no calliper shows that many digits; a float would round or overflow to inf
+        raise MalformedSample(f"{source}: reading {text!r} has {len(digits)} digits, expected at most {_MAX_DIGITS}")
     value = float(digits.replace(",", ".")) * _MM_PER_UNIT[(unit or "mm").lower()]
     return -value if sign == "-" else value
 
