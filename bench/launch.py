@@ -115,8 +115,21 @@ def open_mover(request: RigRequest, robot: str) -> tuple[Any, Any]:
 
 
 def _simulation_settings(request: RigRequest, stored: dict[str, Any]) -> tuple[int, float]:
-    seed = request.seed if request.seed is not None else stored.get("simulator", {}).get("seed", 0)
-    speed = request.speed_factor or stored.get("speed_factor") or DEFAULT_SPEED_FACTOR
+    """Seed and speed factor of the simulators. A resumed run keeps its own (``stored``): a different value would
+    mix two simulated robots, or two time bases, in one run, so it is refused."""
+    stored_seed = stored.get("simulator", {}).get("seed")
+    stored_speed = stored.get("speed_factor")
+    if stored and request.seed is not None and stored_seed is not None and request.seed != stored_seed:
+        raise ConfigError(f"seed = {request.seed}: the run was made with seed {stored_seed}, expected the same "
+                          "(a resume keeps the run's own; leave the seed out)")
+    if stored and request.speed_factor is not None and stored_speed is not None \
+            and request.speed_factor != stored_speed:
+        raise ConfigError(f"speed factor = {request.speed_factor:g}: the run's time base is speed factor "
+                          f"{stored_speed:g}, expected the same (leave the speed factor out)")
+    seed = request.seed if request.seed is not None else (stored_seed if stored_seed is not None else 0)
+    speed = request.speed_factor or stored_speed or DEFAULT_SPEED_FACTOR
+    if not 0 < speed < float("inf"):
+        raise ConfigError(f"speed factor = {speed:g}, expected a finite number > 0")
     return seed, speed
 
 

@@ -92,28 +92,46 @@ def build_rig(args: argparse.Namespace, robot: str, store: Store, stored: dict[s
                     protocol=protocol)
 
 
+#: Signals that end a run like a double Ctrl-C: the robot is stopped, the run ends aborted and resumable (systemd
+#: and docker send SIGTERM; a closed terminal sends SIGHUP).
+STOP_SIGNALS = (signal.SIGTERM, signal.SIGHUP)
+
+
 @contextmanager
 def _ctrl_c_pauses(runner: Runner) -> Iterator[None]:
-    """First Ctrl-C: pause at the next checkpoint; a second one: KeyboardInterrupt (abort, robot stopped)."""
-    previous = signal.getsignal(signal.SIGINT)
+    """First Ctrl-C: pause at the next checkpoint; a second one, SIGTERM or SIGHUP: abort at once (robot stopped)."""
+    previous = {number: signal.getsignal(number) for number in (signal.SIGINT, *STOP_SIGNALS)}
 
     def on_signal(signum: int, frame: Any) -> None:
         signal.signal(signal.SIGINT, signal.default_int_handler)
         print("\nbench: pausing at the next checkpoint (Ctrl-C again aborts now)", file=sys.stderr)
         runner.request_pause()
 
+    def on_stop_signal(signum: int, frame: Any) -> None:
+        name = signal.Signals(signum).name
+        print(f"\nbench: {name}: stopping the robot and aborting the run (resumable)", file=sys.stderr)
+        raise KeyboardInterrupt(name)
+
     signal.signal(signal.SIGINT, on_signal)
+    for number in STOP_SIGNALS:
+        signal.signal(number, on_stop_signal)
     try:
         yield
     finally:
-        signal.signal(signal.SIGINT, previous)
+        for number, handler in previous.items():
+            signal.signal(number, handler)
 
 
 def _ask_after_pause(runner: Runner) -> None:
     actions = {"r": runner.resume, "s": runner.stop, "a": runner.abort, "h": runner.halt}
     while True:
         print("paused: [r]esume, [s]top, [a]bort, [h]alt? ", end="", file=sys.stderr, flush=True)
-        choice = sys.stdin.readline().strip()[:1].lower()
+        line = sys.stdin.readline()
+        if not line:  # end of input: nobody can answer, so abort once (the run stays resumable)
+            print("\nbench: end of input while paused: aborting (resumable)", file=sys.stderr)
+            runner.abort()
+            return
+        choice = line.strip()[:1].lower()
         if choice in actions:
             actions[choice]()
             if choice == "r":

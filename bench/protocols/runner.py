@@ -309,7 +309,9 @@ class Runner:
             else:
                 protocol.on_completed(self.store, run_id)
         except KeyboardInterrupt as exc:
-            status, exception, self._reason = "aborted", exc, "interrupted (Ctrl-C)"
+            # a signal handler names its signal (bench.commands.campaign: SIGTERM, SIGHUP); a bare one is Ctrl-C
+            status, exception = "aborted", exc
+            self._reason = f"interrupted ({exc.args[0] if exc.args else 'Ctrl-C'})"
             self._stop_robot()
         except Exception as exc:  # noqa: BLE001 - any failure is stored with its reason, then reported
             if self._emergency:  # the stop ended the step it interrupted (e.g. a move: ERR STOPPED)

@@ -16,6 +16,7 @@ simulator processes (:func:`bench.simulators.station.rehearse`), built here by t
 
 from __future__ import annotations
 
+import logging
 from contextlib import ExitStack
 from typing import Any
 
@@ -27,6 +28,8 @@ from bench.rigs.station import Station
 from bench.robots.link import open_port
 
 __all__ = ["build_rig", "check_capabilities", "mouse_calibration", "open_mover"]
+
+_log = logging.getLogger(__name__)
 
 #: Read slice of the controller ports (the drivers poll in slices; deadlines are theirs).
 _POLL_S = 0.05
@@ -73,6 +76,8 @@ def build_rig(station: Station, store: Any, *, operator: Operator | None = None,
     calibration_ids: list[int] = []
     with ExitStack() as opened:
         mover, controller = _open_robot(station, opened)
+        if station.robot == "pkm5" and station.controller.fixture == "assembled" and (station.mice or station.camera):
+            home_before_registering(controller)
         instrument = _open_instrument(station, controller, store, requires, opened, calibration_ids)
         if station.calliper is not None and station.calliper.kind == "serial":
             operator = GaugeOperator(_open_calliper(station, opened), operator, timeout_s=station.calliper.timeout_s)
@@ -102,6 +107,21 @@ def _open_port(station: Station, key: str, url: str, baud: int, opened: ExitStac
                         "name right and the port free? (bench station check)") from None
     opened.callback(port.close)
     return port
+
+
+def home_before_registering(controller: Any) -> None:
+    """Know where the robot is before measuring: the instruments are registered at the home pose, so a robot that
+    stands anywhere else (a killed run, a resumed one, a move by hand through the firmware) is first brought home,
+    pre-flighted, at the rated speed. Without this a resume registers the mice at P4 as if it were home and every
+    later reading is off by the distance between them."""
+    from bench.robots.pkm5_kinematics import home_steps
+
+    home = tuple(int(s) for s in home_steps())
+    where = controller.position()
+    if tuple(where.steps) != home:
+        _log.warning("pkm5 at steps %s, not at home %s: moving home before registering the instruments",
+                     where.steps, home)
+        controller.move_steps(home)
 
 
 def _open_robot(station: Station, opened: ExitStack) -> tuple[Any, Any]:

@@ -52,6 +52,9 @@ class MiceInstrument:
                  noise_counts: float | None = None) -> None:
         self.mice = mice
         self.noise_counts = noise_counts
+        for mouse in mice.values():  # registration is now: reports from before it are motion to somewhere else
+            mouse.read_frames()
+            mouse.rezero()
         self.origin = np.asarray(origin_mm, dtype=float)[:3].copy()
         self.calibration = calibration
         self._lock = threading.Lock()  # every read of a mouse holds it: the reader thread's and the captures'
