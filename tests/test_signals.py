@@ -1,0 +1,89 @@
+"""Every signal is a safe stop: SIGTERM and SIGHUP stop the robot and end the run aborted and resumable, like a
+double Ctrl-C; end of input while paused aborts once instead of asking forever."""
+
+from __future__ import annotations
+
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from bench.cli import main
+from bench.store import Store
+
+ROOT = Path(__file__).resolve().parents[1]
+QUICK = ROOT / "examples" / "iso9283_pose_quick.toml"
+STATION = ROOT / "examples" / "stations" / "pkm5_mice.toml"
+BENCH = str(Path(sys.executable).with_name("bench"))
+
+
+def _start(store: Path, speed_factor: str) -> subprocess.Popen:
+    return subprocess.Popen([BENCH, "run", str(QUICK), "--station", str(STATION), "--sim", "--store", str(store),
+                             "--no-progress", "--speed-factor", speed_factor],
+                            stdin=subprocess.DEVNULL, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+
+
+def _wait_for_samples(store: Path, process: subprocess.Popen, at_least: int, timeout_s: float = 60.0) -> None:
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline:
+        assert process.poll() is None, process.communicate()
+        if store.exists():
+            with Store(store) as opened:
+                runs = opened.runs()
+                if runs and runs[0].n_samples >= at_least:
+                    return
+        time.sleep(0.05)
+    process.kill()
+    raise AssertionError(f"no {at_least} samples within {timeout_s:g} s")
+
+
+@pytest.mark.parametrize("stop", [signal.SIGTERM, signal.SIGHUP])
+def test_a_stop_signal_aborts_the_run_resumably_and_resume_completes_it(tmp_path, stop, capsys):
+    store = tmp_path / "b.db"
+    process = _start(store, "300")
+    _wait_for_samples(store, process, 2)
+    process.send_signal(stop)
+    out, err = process.communicate(timeout=60)
+    assert process.returncode == 1, err
+    assert f"bench: {stop.name}: stopping the robot and aborting the run (resumable)" in err
+    with Store(store) as opened:
+        (run,) = opened.runs()
+        before = {s.step_index: s.values for s in opened.samples(run.id)}
+    assert run.status == "aborted" and run.reason == f"interrupted ({stop.name})" and 2 <= len(before) < 15
+    assert main(["resume", str(run.id), "--station", str(STATION), "--sim", "--store", str(store),
+                 "--no-progress"]) == 0
+    capsys.readouterr()
+    with Store(store) as opened:
+        (run,) = opened.runs()
+        after = {s.step_index: s.values for s in opened.samples(run.id)}
+    assert run.status == "completed" and len(after) == 15
+    assert all(after[step] == values for step, values in before.items())  # stored rows unchanged
+
+
+def test_ctrl_c_with_stdin_at_its_end_aborts_once(tmp_path):
+    store = tmp_path / "b.db"
+    process = _start(store, "60")
+    _wait_for_samples(store, process, 1)
+    process.send_signal(signal.SIGINT)  # pause at the next checkpoint, then the pause menu reads end of input
+    out, err = process.communicate(timeout=120)
+    assert process.returncode == 1
+    assert "end of input while paused: aborting (resumable)" in err
+    assert err.count("paused: [r]esume") == 1 and len(err) < 20_000
+    with Store(store) as opened:
+        (run,) = opened.runs()
+    assert run.status == "aborted"
+
+
+def test_a_resume_that_changes_the_seed_is_refused(tmp_path, capsys):
+    store = tmp_path / "b.db"
+    assert main(["run", str(QUICK), "--store", str(store), "--no-progress", "--seed", "3"]) == 0
+    run_id = int(capsys.readouterr().out.split()[-1])
+    assert main(["resume", str(run_id), "--store", str(store), "--seed", "4"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err == ("bench: error: seed = 4: the run was made with seed 3, expected the same (a resume keeps the "
+                   "run's own; leave the seed out)")
+    assert main(["run", str(QUICK), "--store", str(store), "--speed-factor", "inf"]) == 2
+    assert "speed factor = inf, expected a finite number > 0" in capsys.readouterr().err
