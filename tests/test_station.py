@@ -338,3 +338,90 @@ def test_a_rig_built_where_the_robot_is_not_at_home_homes_it_before_registering(
     # differs between two visits by its pose repeatability (RP of a few mm, pkm5.md §6.8), not by the 37-39 mm
     # between P4 and home that a registration at P4 gives
     assert np.linalg.norm((after - truth_after) - (before - truth_before)) < 5.0
+
+
+class _SerialDepthGauge:
+    """A depth gauge with a data cable on a pseudo-terminal: each request byte ``?`` is answered with the travel
+    since the person zeroed it, read from the simulator's truth log (what the gauge's spindle sees)."""
+
+    def __init__(self, truth_path: str) -> None:
+        import os
+        import threading
+        import tty
+
+        self.truth_path, self.axis, self.zero_mm = truth_path, 0, 0.0
+        self.master, slave = os.openpty()
+        tty.setraw(slave)
+        self.path = os.ttyname(slave)
+        self._slave = slave
+        self._running = True
+        self._thread = threading.Thread(target=self._serve, daemon=True)
+        self._thread.start()
+
+    def zero_on(self, axis: int) -> None:
+        self.axis, self.zero_mm = axis, float(_truth(self.truth_path)[-1][axis - 1])
+
+    def _serve(self) -> None:
+        import os
+        import select
+
+        while self._running:
+            if select.select([self.master], [], [], 0.05)[0] and b"?" in os.read(self.master, 64):
+                travel = float(_truth(self.truth_path)[-1][self.axis - 1]) - self.zero_mm
+                os.write(self.master, f"{travel:+09.2f}\r".encode())
+
+    def close(self) -> None:
+        import os
+
+        self._running = False
+        self._thread.join(1.0)
+        os.close(self.master)
+        os.close(self._slave)
+
+
+class _PersonAtTheGauge:
+    """Confirms instructions, and zeroes the gauge when told to (the serial gauge answers the readings)."""
+
+    def __init__(self, gauge: _SerialDepthGauge) -> None:
+        self.gauge = gauge
+
+    def ask(self, prompt):
+        assert prompt.field is None, f"the serial gauge should have answered {prompt.text!r}"
+        if "zero_actuator" in prompt.conditions:
+            self.gauge.zero_on(int(prompt.conditions["zero_actuator"]))
+        return None
+
+
+def test_the_actuator_bench_with_a_serial_depth_gauge_on_the_hardware_path(tmp_path):
+    import dataclasses
+
+    from bench.rigs.builder import build_rig
+    from bench.simulators.station import rehearse
+
+    protocol_file = tmp_path / "actuators.toml"
+    protocol_file.write_text('protocol = "actuator_accuracy"\nactuators = [4]\ndistances_mm = [20]\nrepeats = 3\n'
+                             'settle_s = 0.1\n')
+    protocol = load_protocol(protocol_file)
+    station = load_station(STATIONS / "pkm5_actuator_bench.toml")
+    rehearsal = rehearse(station, speed_factor=20000)  # the controller; the gauge is this test's own pty
+    gauge = _SerialDepthGauge(rehearsal.truth_path)
+    try:
+        bench_station = dataclasses.replace(rehearsal.station, calliper=dataclasses.replace(
+            station.calliper, port=gauge.path, request="?", timeout_s=5.0))
+        with Store(tmp_path / "b.db") as store:
+            rig = build_rig(bench_station, store, operator=_PersonAtTheGauge(gauge),
+                            requires=required_capabilities(protocol), protocol=protocol.name, speed_factor=20000)
+            try:
+                result = Runner(rig, store, progress=False).run(protocol)
+            finally:
+                rig.close()
+            assert result.exit_status == "completed", result.reason
+            run = store.run(result.run_id)
+            travels = [s.values["travel_mm"] for s in store.samples(result.run_id) if s.kind == "actuator_travel"]
+    finally:
+        gauge.close()
+        rehearsal.close()
+    assert run.settings["instrument"]["calliper"]["kind"] == "serial"
+    assert len(travels) == 3
+    np.testing.assert_allclose(travels, 20.0, atol=0.5)
+    assert all(round(t, 2) == t for t in travels)  # the gauge's 0.01 mm display, as sent
