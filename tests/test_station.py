@@ -425,3 +425,14 @@ def test_the_actuator_bench_with_a_serial_depth_gauge_on_the_hardware_path(tmp_p
     assert len(travels) == 3
     np.testing.assert_allclose(travels, 20.0, atol=0.5)
     assert all(round(t, 2) == t for t in travels)  # the gauge's 0.01 mm display, as sent
+
+
+@pytest.mark.parametrize("content, message", [
+    (None, "a folder, expected a protocol file (examples/*.toml)"),
+    (b"\xff\xfe\x00binary", "not a text file, expected a protocol TOML file")])
+def test_a_protocol_path_that_is_a_folder_or_binary_is_one_line(tmp_path, capsys, content, message):
+    path = tmp_path / "p.toml"
+    path.mkdir() if content is None else path.write_bytes(content)
+    assert main(["run", str(path), "--dry-run"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err == f"bench: error: {path}: {message}"

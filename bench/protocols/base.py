@@ -122,6 +122,12 @@ def load_protocol(path: str | Path, **overrides: Any) -> Protocol:
         document = tomllib.loads(path.read_text(encoding="utf-8"))
     except FileNotFoundError as exc:
         raise ConfigError(f"{path}: no such protocol file") from exc
+    except IsADirectoryError:
+        raise ConfigError(f"{path}: a folder, expected a protocol file (examples/*.toml)") from None
+    except UnicodeDecodeError:
+        raise ConfigError(f"{path}: not a text file, expected a protocol TOML file") from None
+    except OSError as exc:
+        raise ConfigError(f"{path}: cannot read it ({exc.strerror or exc})") from None
     except tomllib.TOMLDecodeError as exc:
         raise ConfigError(f"{path.name}: not valid TOML ({exc})") from exc
     document.update({k: v for k, v in overrides.items() if v is not None})
