@@ -436,3 +436,20 @@ def test_a_protocol_path_that_is_a_folder_or_binary_is_one_line(tmp_path, capsys
     assert main(["run", str(path), "--dry-run"]) == 2
     err = capsys.readouterr().err.strip()
     assert err == f"bench: error: {path}: {message}"
+
+
+def test_station_check_with_one_device_removed_names_that_device_only():
+    import os
+
+    from bench.rigs.check import check_station
+    from bench.simulators.station import rehearse
+
+    rehearsal = rehearse(load_station(STATIONS / "pkm5_mice.toml"))
+    try:
+        os.unlink(rehearsal.station.mice.xz)  # the x-z mouse unplugged
+        checks = {check.key: check for check in check_station(rehearsal.station)}
+    finally:
+        rehearsal.close()
+    assert [key for key, check in checks.items() if not check.ok] == ["mice.xz"]
+    assert checks["mice.xz"].detail == "no such device" and "by-id" in checks["mice.xz"].fix
+    assert checks["mice.xy"].detail.startswith("FIFO or file (not an event device)")
