@@ -14,12 +14,15 @@ import signal
 import sys
 from collections.abc import Iterator
 from contextlib import contextmanager
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
+from bench.commands.lazy import defer
 from bench.errors import ConfigError, LinkError
-from bench.protocols import Runner, load_protocol, preflight, summarize
-from bench.protocols.runner import RunResult
-from bench.store import EXPORT_FORMATS, Store, export_run
+
+if TYPE_CHECKING:  # imported inside the handlers: building the parser stays cheap
+    from bench.protocols import Runner
+    from bench.protocols.runner import RunResult
+    from bench.store import Store
 
 DEFAULT_STORE = "bench.db"
 #: Simulated time runs this much faster than real moves in ``--sim`` runs unless told otherwise.
@@ -46,7 +49,7 @@ def register(groups: argparse._SubParsersAction) -> None:
 
     export = _parser(groups, "export", "write a run's tidy sample table (the input of bench analyze)")
     export.add_argument("run_id", metavar="RUN_ID", type=int)
-    export.add_argument("--format", choices=EXPORT_FORMATS, default="csv", help="file format")
+    defer(export, _add_export_format)
     export.add_argument("--out", default=None, help="output file (default run-RUN_ID.FORMAT)")
     export.add_argument("--kind", default=None,
                         help="sample kind to export (pose, arrival, actuator_travel, leg_length, grid_hit, ...; "
@@ -54,6 +57,12 @@ def register(groups: argparse._SubParsersAction) -> None:
     export.add_argument("--series", action="store_true",
                         help="export the streamed series of each sample (one row per point; stabilisation runs)")
     export.set_defaults(handler=_export)
+
+
+def _add_export_format(parser: argparse.ArgumentParser) -> None:
+    from bench.store import EXPORT_FORMATS
+
+    parser.add_argument("--format", choices=EXPORT_FORMATS, default="csv", help="file format")
 
 
 def _parser(groups: argparse._SubParsersAction, name: str, text: str) -> argparse.ArgumentParser:
@@ -197,6 +206,9 @@ def execute(runner: Runner, start) -> RunResult:
 
 
 def _run(args: argparse.Namespace) -> int:
+    from bench.protocols import Runner, load_protocol, preflight, summarize
+    from bench.store import Store
+
     protocol = load_protocol(args.protocol, robot=args.robot)
     if args.dry_run:
         summary = summarize(protocol)
@@ -214,6 +226,9 @@ def _run(args: argparse.Namespace) -> int:
 
 
 def _resume(args: argparse.Namespace) -> int:
+    from bench.protocols import Runner
+    from bench.store import Store
+
     with Store(args.store) as store:
         record = store.run(args.run_id)
         rig = build_rig(args, record.robot, store, stored=record.settings,
@@ -224,6 +239,8 @@ def _resume(args: argparse.Namespace) -> int:
 
 
 def _runs(args: argparse.Namespace) -> int:
+    from bench.store import Store
+
     with Store(args.store) as store:
         records = store.runs()
     if args.json:
@@ -252,6 +269,8 @@ def _default_kind(store: Store, run_id: int) -> str:
 
 
 def _export(args: argparse.Namespace) -> int:
+    from bench.store import Store, export_run
+
     out = args.out or f"run-{args.run_id}.{args.format}"
     with Store(args.store) as store:
         kind = args.kind or ("arrival" if args.series else _default_kind(store, args.run_id))

@@ -17,7 +17,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.spatial import ConvexHull
 
 from motion.errors import MotionInputError
 from motion.pkm5.geometry import DEFAULT_GEOMETRY, Geometry
@@ -178,6 +177,8 @@ def estimate_workspace(kind: str = "constant-orientation", *, samples: int = 200
     hits = _hit_or_miss(spec, geometry, rng, samples, angle_step_deg)
     share = hits / samples
     cloud = _feasible_cloud(spec, geometry, rng, hull_points)
+    from scipy.spatial import ConvexHull  # here, not at the top: importing motion.pkm5 stays cheap
+
     hull = ConvexHull(cloud[:, 1:] if spec.planar else cloud)
     return WorkspaceEstimate(
         kind=kind,
