@@ -39,6 +39,8 @@ class SimDevice(Protocol):
     def tick(self, now_s: float) -> bytes:
         """Advance simulated time to ``now_s`` (monotonic); return bytes to send (completions, reports)."""
 
+    # optional: ``idle(now_s) -> None``, run after each turn's replies are sent (work a reply need not wait for)
+
 
 class TruthLog:
     """Appends the true attained pose after each move to a JSON-lines file (simulator-only side channel)."""
@@ -130,6 +132,7 @@ def serve(device: SimDevice, args: argparse.Namespace) -> int:
         print(os.path.abspath(args.truth), flush=True)
     parent = os.getppid()
     faults = _Faults(args)
+    idle = getattr(device, "idle", None)
     try:
         while not stopping and os.getppid() == parent:
             readable, _, _ = select.select([master], [], [], _TICK_S)
@@ -147,6 +150,8 @@ def serve(device: SimDevice, args: argparse.Namespace) -> int:
             faults.outbox = [(due, data) for due, data in faults.outbox if due > now]
             if out:
                 _send(master, out)
+            if idle is not None:
+                idle(time.monotonic())
     finally:
         os.close(master)
         os.close(slave)
