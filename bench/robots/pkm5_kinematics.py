@@ -35,6 +35,8 @@ PKM5_ERRORS = ErrorMagnitudes(
 _MODE_TOL_MM = 1e-3
 #: Largest FK residual RMS of the plant's perturbed legs that still counts as a pose (the error model leaves 0.1-0.2 mm).
 _PLANT_RESIDUAL_TOL_MM = 2.0
+#: LM step criterion of the plant's warm solve (mm, rad): far below the 0.03 mm count of the simulated mice.
+_PLANT_STEP_TOL = 1e-7
 
 
 def pose_deg_from_rad(pose: np.ndarray) -> np.ndarray:
@@ -142,11 +144,13 @@ def build_plant(seed: int, *, ideal: bool = False, geometry: Any = pkm5.DEFAULT_
         mode = pkm5.detect_mode(commanded[None, :], _MODE_TOL_MM)[0]
         start = None if previous is None else np.r_[previous[:3], np.radians(previous[3:])]
         if start is not None:
-            # One solve warm-started at the last attained pose. The perturbed legs never fit a pose exactly (a
-            # 0.1-0.2 mm residual), so the default ``retry_above_mm`` would run every restart on every move; they
-            # run only when the warm solve did not converge (tests/test_plant_forward.py: same poses).
+            # One solve warm-started near the answer (Plant: the pose last attained at this command, else the last
+            # pose). The perturbed legs never fit a pose exactly (a 0.1-0.2 mm residual), so the default
+            # ``retry_above_mm`` would run every restart on every move; they run only when the warm solve did not
+            # converge (tests/test_plant_forward.py: the same poses within 1e-6 mm).
             fk = pkm5.forward_kinematics(lengths[None, :], geometry, initial_pose=start, mode=mode,
-                                         residual_tol_mm=_PLANT_RESIDUAL_TOL_MM, retry_above_mm=np.inf)
+                                         residual_tol_mm=_PLANT_RESIDUAL_TOL_MM, retry_above_mm=np.inf,
+                                         step_tol=_PLANT_STEP_TOL)
             if fk.converged[0]:
                 return pose_deg_from_rad(fk.pose[0])
         fk = pkm5.forward_kinematics(lengths[None, :], geometry, initial_pose=start, mode=mode,

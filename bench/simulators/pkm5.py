@@ -118,6 +118,10 @@ class Pkm5SimDevice:
             out += wire.format_reply("DONE", move.tag, *self.steps)
         return out
 
+    def next_due_s(self) -> float | None:
+        """When the running move ends (monotonic s), so the event loop wakes for its ``DONE`` on time."""
+        return None if self.move is None else self.move.t_start_s + self.move.duration_s
+
     def idle(self, now_s: float) -> None:
         """Work the event loop runs once this turn's replies are sent: the true pose at the end of an accepted move
         is computed during the move (:meth:`Plant.prepare`), so the ``DONE`` reply never waits for the kinematics."""

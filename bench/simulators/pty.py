@@ -39,7 +39,8 @@ class SimDevice(Protocol):
     def tick(self, now_s: float) -> bytes:
         """Advance simulated time to ``now_s`` (monotonic); return bytes to send (completions, reports)."""
 
-    # optional: ``idle(now_s) -> None``, run after each turn's replies are sent (work a reply need not wait for)
+    # optional: ``idle(now_s) -> None``, run after each turn's replies are sent (work a reply need not wait for),
+    # and ``next_due_s() -> float | None``, when the next completion is due (the loop then wakes on time for it)
 
 
 class TruthLog:
@@ -133,9 +134,12 @@ def serve(device: SimDevice, args: argparse.Namespace) -> int:
     parent = os.getppid()
     faults = _Faults(args)
     idle = getattr(device, "idle", None)
+    next_due_s = getattr(device, "next_due_s", None)
     try:
         while not stopping and os.getppid() == parent:
-            readable, _, _ = select.select([master], [], [], _TICK_S)
+            due = next_due_s() if next_due_s is not None else None
+            wait_s = _TICK_S if due is None else min(_TICK_S, max(0.0, due - time.monotonic()))
+            readable, _, _ = select.select([master], [], [], wait_s)
             now = time.monotonic()
             out = b""
             if readable:
