@@ -88,9 +88,15 @@ def _new_parser(actions: argparse._SubParsersAction, name: str, text: str) -> ar
 
 
 def _iso9283(args: argparse.Namespace) -> int:
-    from bench.metrology.tables import analyze_poses, pose_result_json, pose_table, read_table_csv
+    from bench.metrology.tables import (
+        POSE_NUMERIC_COLUMNS,
+        analyze_poses,
+        pose_result_json,
+        pose_table,
+        read_table_csv,
+    )
 
-    table = pose_table(read_table_csv(args.file))
+    table = pose_table(read_table_csv(args.file, numeric=POSE_NUMERIC_COLUMNS))
     results = analyze_poses(table, instrument_u_mm=args.instrument_u_mm, k=args.k)
     lines = [(f"{'pose':<12} {'n':>3} {'AP_mm':>8} {'APx_mm':>8} {'APy_mm':>8} {'APz_mm':>8} {'RP_mm':>8} "
               f"{'U_AP':>7} {'U_RP':>7}")]
@@ -112,9 +118,9 @@ def _distance(args: argparse.Namespace) -> int:
     import numpy as np
 
     from bench.metrology import combine, expanded
-    from bench.metrology.tables import analyze_distance, pose_table, read_table_csv
+    from bench.metrology.tables import POSE_NUMERIC_COLUMNS, analyze_distance, pose_table, read_table_csv
 
-    table = pose_table(read_table_csv(args.file))
+    table = pose_table(read_table_csv(args.file, numeric=POSE_NUMERIC_COLUMNS))
     r = analyze_distance(table, args.first, args.second)
     # D_j is the difference of two readings: the instrument term enters twice (uncorrelated).
     u_ad = expanded(r.ad_mm, combine(r.u_ad_mm, np.sqrt(2.0) * args.instrument_u_mm), unit="mm")
@@ -133,9 +139,9 @@ def _distance(args: argparse.Namespace) -> int:
 
 def _drift(args: argparse.Namespace) -> int:
     from bench.metrology import pose_drift
-    from bench.metrology.tables import pose_table, read_table_csv
+    from bench.metrology.tables import POSE_NUMERIC_COLUMNS, pose_table, read_table_csv
 
-    table = pose_table(read_table_csv(args.file))
+    table = pose_table(read_table_csv(args.file, numeric=POSE_NUMERIC_COLUMNS))
     if "t_s" not in table.columns:
         raise ConfigError(f"{args.file}: missing column t_s, needed for drift")
     rows = table[table["pose"] == args.pose]
