@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import argparse
 
-from bench.commands.kin import add_sampling_options, emit, new_robot_parser
+from bench.commands.kin import add_sampling_options, emit, new_robot_parser, sampling_progress
 from bench.commands.lazy import defer
 from bench.errors import ConfigError, UnreachableTarget
 
@@ -96,7 +96,9 @@ def _workspace(args: argparse.Namespace) -> int:
     if args.samples < 1 or args.hull_points < 4:
         raise ConfigError(f"--samples = {args.samples}, --hull-points = {args.hull_points}, "
                           "expected integers >= 1 and >= 4")
-    estimate = pkm5.estimate_workspace(args.kind, samples=args.samples, hull_points=args.hull_points, seed=args.seed)
+    with sampling_progress(args, f"pkm5 {args.kind} workspace, samples") as progress:
+        estimate = pkm5.estimate_workspace(args.kind, samples=args.samples, hull_points=args.hull_points,
+                                           seed=args.seed, progress=progress)
     unit = estimate.unit.replace("^", "")
     emit({f"volume_{unit}": estimate.volume, f"stderr_{unit}": estimate.stderr,
           f"hull_volume_{unit}": estimate.hull_volume, "kind": estimate.kind, "samples": estimate.samples,

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import argparse
 
-from bench.commands.kin import add_sampling_options, emit, new_robot_parser
+from bench.commands.kin import add_sampling_options, emit, new_robot_parser, sampling_progress
 from bench.commands.lazy import defer
 from bench.errors import ConfigError, UnreachableTarget
 
@@ -136,7 +136,9 @@ def _workspace(args: argparse.Namespace) -> int:
 
     if args.samples < 1:
         raise ConfigError(f"--samples = {args.samples}, expected an integer >= 1")
-    volume = prus3.workspace_volume(args.samples, orientation_deg=tuple(args.orientation_deg), seed=args.seed)
+    with sampling_progress(args, "prus3 workspace, samples") as progress:
+        volume = prus3.workspace_volume(args.samples, orientation_deg=tuple(args.orientation_deg), seed=args.seed,
+                                        progress=progress)
     emit(
         {
             "volume_mm3": volume.volume_mm3,
