@@ -10,10 +10,9 @@ from __future__ import annotations
 
 import argparse
 import importlib
-import logging
 import sys
 
-from bench import __version__
+from bench.commands.lazy import DeferredParser
 from bench.errors import BenchError
 from motion.errors import MotionInputError
 
@@ -31,13 +30,28 @@ COMMAND_MODULES = (
 )
 
 
+class _VersionAction(argparse.Action):
+    """``--version``: looks the installed version up only when asked (importlib.metadata costs ~40 ms)."""
+
+    def __init__(self, option_strings: list[str], dest: str = argparse.SUPPRESS, **kwargs) -> None:
+        super().__init__(option_strings, dest, nargs=0, default=argparse.SUPPRESS, **kwargs)
+
+    def __call__(self, parser, namespace, values, option_string=None) -> None:  # noqa: ANN001 - argparse's signature
+        from bench import __version__
+
+        sys.stdout.write(f"bench {__version__}\n")  # on stdout, as argparse's own version action
+        parser.exit()
+
+
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
+    """The whole ``bench`` parser; cheap: command modules import their heavy modules in their handlers, and
+    arguments that need one are added when their sub-command is parsed (bench/commands/lazy.py)."""
+    parser = DeferredParser(
         prog="bench",
         description="Test-bench DAQ and metrology for parallel robots (units: mm, degrees).",
         formatter_class=argparse.ArgumentDefaultsHelpFormatter,
     )
-    parser.add_argument("--version", action="version", version=f"bench {__version__}")
+    parser.add_argument("--version", action=_VersionAction, help="show the version and exit")
     parser.add_argument("--debug", action="store_true", help="show tracebacks instead of one-line errors")
     parser.add_argument("-v", "--verbose", action="count", default=0, help="more progress output on stderr")
     groups = parser.add_subparsers(dest="group", metavar="COMMAND", required=True)
@@ -49,6 +63,8 @@ def build_parser() -> argparse.ArgumentParser:
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
+    import logging  # after parsing: --help and --version never need it
+
     logging.basicConfig(
         level=logging.WARNING - 10 * min(args.verbose, 2),
         format="%(levelname)s %(name)s: %(message)s",

@@ -17,11 +17,10 @@ from bench.rigs.builder import build_rig, check_capabilities
 from bench.rigs.builder import open_mover as builder_open_mover
 from bench.rigs.interfaces import Operator, Rig
 from bench.rigs.station import Station, load_station, parse_station
+from bench.simulators import DEFAULT_SPEED_FACTOR
 
 __all__ = ["DEFAULT_SPEED_FACTOR", "RigRequest", "open_mover", "open_rig", "simulated_rig_in"]
 
-#: Simulated time runs this much faster than real moves in simulated runs unless told otherwise.
-DEFAULT_SPEED_FACTOR = 10000.0
 
 
 @dataclass(frozen=True)

@@ -13,3 +13,33 @@ def timed(function, *args, repeat: int = 3, **kwargs):
         result = function(*args, **kwargs)
         best = min(best, time.perf_counter() - start)
     return best, result
+
+
+def spread(function, *args, repeat: int = 5, **kwargs):
+    """Wall times of ``repeat`` calls (a list, in call order) and the last result."""
+    times, result = [], None
+    for _ in range(repeat):
+        start = time.perf_counter()
+        result = function(*args, **kwargs)
+        times.append(time.perf_counter() - start)
+    return times, result
+
+
+def min_median_max(times) -> str:
+    """``min / median / max`` of a list of seconds, for one printed line."""
+    return f"min {min(times):.3f} s, median {float(np.median(times)):.3f} s, max {max(times):.3f} s"
+
+
+def copy_bandwidth_bytes_s(megabytes: int = 256, repeat: int = 5) -> float:
+    """Memory bandwidth of this machine as numpy sees it: bytes read + written per second by ``np.copyto`` of a
+    ``megabytes`` array (best of ``repeat``), the floor any streaming array computation is measured against."""
+    source = np.ones(megabytes * 2**20 // 8)
+    target = np.empty_like(source)
+    best = min(spread(np.copyto, target, source, repeat=repeat)[0])
+    return 2 * source.nbytes / best
+
+
+def nbytes_of(result) -> int:
+    """Bytes of the arrays a result holds (its dataclass fields), i.e. what a solver must at least write."""
+    fields = getattr(result, "__dataclass_fields__", {})
+    return sum(getattr(result, name).nbytes for name in fields if isinstance(getattr(result, name), np.ndarray))

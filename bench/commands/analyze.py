@@ -9,36 +9,11 @@ from __future__ import annotations
 
 import argparse
 
-import numpy as np
-
 from bench.commands.kin import emit
+from bench.commands.lazy import defer
 from bench.errors import ConfigError
-from bench.metrology import (
-    combine,
-    expanded,
-    fit_matrix,
-    increment_resolution,
-    increments_from_positions,
-    leg_error_summary,
-    pose_drift,
-)
-from bench.metrology.actuator_tables import (
-    ACTUATOR_ROBOTS,
-    actuator_table,
-    analyze_actuators,
-    robot_control_resolution,
-)
-from bench.metrology.tables import (
-    analyze_distance,
-    analyze_poses,
-    numeric_columns,
-    pose_result_json,
-    pose_table,
-    read_table_csv,
-    stabilisation_results,
-    stabilisation_table,
-)
 
+# numpy, pandas and bench.metrology are imported inside the handlers: building the parser stays cheap.
 
 
 def register(groups: argparse._SubParsersAction) -> None:
@@ -76,9 +51,7 @@ def register(groups: argparse._SubParsersAction) -> None:
                                                 "unidirectional figures; reads bench export --kind actuator_travel")
     actuator.add_argument("--cr-mm", type=float, default=None,
                           help="control resolution (mm/step) when the table has no cr_mm column")
-    actuator.add_argument("--robot", choices=ACTUATOR_ROBOTS, default=None,
-                          help="control resolution per actuator number from this robot's model (an "
-                               "actuator_accuracy export: --robot pkm5)")
+    defer(actuator, _add_actuator_robot)
     actuator.add_argument("--instrument-u-mm", type=float, default=0.0,
                           help="instrument standard uncertainty of one travel reading (mm)")
     actuator.add_argument("--k", type=float, default=2.0, help="coverage factor of the expanded uncertainties")
@@ -98,6 +71,14 @@ def register(groups: argparse._SubParsersAction) -> None:
     grid.set_defaults(handler=_grid_positioning)
 
 
+def _add_actuator_robot(parser: argparse.ArgumentParser) -> None:
+    from bench.metrology.actuator_tables import ACTUATOR_ROBOTS
+
+    parser.add_argument("--robot", choices=ACTUATOR_ROBOTS, default=None,
+                        help="control resolution per actuator number from this robot's model (an "
+                             "actuator_accuracy export: --robot pkm5)")
+
+
 def _new_parser(actions: argparse._SubParsersAction, name: str, text: str) -> argparse.ArgumentParser:
     parser = actions.add_parser(name, help=text, description=text,
                                 formatter_class=argparse.ArgumentDefaultsHelpFormatter)
@@ -107,7 +88,15 @@ def _new_parser(actions: argparse._SubParsersAction, name: str, text: str) -> ar
 
 
 def _iso9283(args: argparse.Namespace) -> int:
-    table = pose_table(read_table_csv(args.file))
+    from bench.metrology.tables import (
+        POSE_NUMERIC_COLUMNS,
+        analyze_poses,
+        pose_result_json,
+        pose_table,
+        read_table_csv,
+    )
+
+    table = pose_table(read_table_csv(args.file, numeric=POSE_NUMERIC_COLUMNS))
     results = analyze_poses(table, instrument_u_mm=args.instrument_u_mm, k=args.k)
     lines = [(f"{'pose':<12} {'n':>3} {'AP_mm':>8} {'APx_mm':>8} {'APy_mm':>8} {'APz_mm':>8} {'RP_mm':>8} "
               f"{'U_AP':>7} {'U_RP':>7}")]
@@ -126,7 +115,12 @@ def _iso9283(args: argparse.Namespace) -> int:
 
 
 def _distance(args: argparse.Namespace) -> int:
-    table = pose_table(read_table_csv(args.file))
+    import numpy as np
+
+    from bench.metrology import combine, expanded
+    from bench.metrology.tables import POSE_NUMERIC_COLUMNS, analyze_distance, pose_table, read_table_csv
+
+    table = pose_table(read_table_csv(args.file, numeric=POSE_NUMERIC_COLUMNS))
     r = analyze_distance(table, args.first, args.second)
     # D_j is the difference of two readings: the instrument term enters twice (uncorrelated).
     u_ad = expanded(r.ad_mm, combine(r.u_ad_mm, np.sqrt(2.0) * args.instrument_u_mm), unit="mm")
@@ -144,7 +138,10 @@ def _distance(args: argparse.Namespace) -> int:
 
 
 def _drift(args: argparse.Namespace) -> int:
-    table = pose_table(read_table_csv(args.file))
+    from bench.metrology import pose_drift
+    from bench.metrology.tables import POSE_NUMERIC_COLUMNS, pose_table, read_table_csv
+
+    table = pose_table(read_table_csv(args.file, numeric=POSE_NUMERIC_COLUMNS))
     if "t_s" not in table.columns:
         raise ConfigError(f"{args.file}: missing column t_s, needed for drift")
     rows = table[table["pose"] == args.pose]
@@ -163,6 +160,8 @@ def _drift(args: argparse.Namespace) -> int:
 
 
 def _stabilisation(args: argparse.Namespace) -> int:
+    from bench.metrology.tables import read_table_csv, stabilisation_results, stabilisation_table
+
     table = stabilisation_table(read_table_csv(args.file))
     for band in args.band_mm:
         if not band > 0:
@@ -204,6 +203,9 @@ def actuator_result_json(r) -> dict:
 
 
 def _actuator(args: argparse.Namespace) -> int:
+    from bench.metrology.actuator_tables import actuator_table, analyze_actuators, robot_control_resolution
+    from bench.metrology.tables import read_table_csv
+
     frame = read_table_csv(args.file)
     resolution = args.cr_mm if args.cr_mm is not None else (
         robot_control_resolution(args.robot) if args.robot is not None else None)
@@ -227,6 +229,9 @@ def _actuator(args: argparse.Namespace) -> int:
 
 
 def _payload(args: argparse.Namespace) -> int:
+    from bench.metrology import leg_error_summary
+    from bench.metrology.tables import numeric_columns, read_table_csv
+
     table = numeric_columns(read_table_csv(args.file), ["load_kg", "error_mm"])
     if "leg" not in table.columns:
         raise ConfigError(f"{args.file}: missing column leg")
@@ -251,6 +256,11 @@ def _payload(args: argparse.Namespace) -> int:
 
 
 def _mouse(args: argparse.Namespace) -> int:
+    import numpy as np
+
+    from bench.metrology import increment_resolution, increments_from_positions
+    from bench.metrology.tables import numeric_columns, read_table_csv
+
     frame = read_table_csv(args.file)
     if {"ref_x_mm", "ref_y_mm", "counts_x", "counts_y"} <= set(frame.columns):
         return _mouse_matrix(args, numeric_columns(frame, ["ref_x_mm", "ref_y_mm", "counts_x", "counts_y"]))
@@ -275,6 +285,8 @@ def _mouse(args: argparse.Namespace) -> int:
 
 
 def _mouse_matrix(args: argparse.Namespace, table) -> int:
+    from bench.metrology import fit_matrix
+
     reference = table[["ref_x_mm", "ref_y_mm"]].to_numpy()
     counts = table[["counts_x", "counts_y"]].to_numpy()
     fit = fit_matrix(reference, counts)
@@ -304,6 +316,8 @@ def _grid_positioning(args: argparse.Namespace) -> int:
         pooled_axis_errors,
         rate_text,
     )
+
+    from bench.metrology.tables import read_table_csv
 
     table = grid_positioning_table(read_table_csv(args.file))
     results = analyze_grid_positioning(table, k=args.k)

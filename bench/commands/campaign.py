@@ -15,14 +15,17 @@ import sys
 from pathlib import Path
 from collections.abc import Iterator
 from contextlib import contextmanager
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
+from bench.commands.lazy import defer
 from bench.errors import ConfigError
-from bench.launch import DEFAULT_SPEED_FACTOR, RigRequest, open_rig
-from bench.protocols import Runner, load_protocol, preflight, protocol_from_config, summarize
-from bench.protocols.plan import required_capabilities
-from bench.protocols.runner import RunResult
-from bench.store import EXPORT_FORMATS, Store, export_run
+from bench.simulators import DEFAULT_SPEED_FACTOR
+
+if TYPE_CHECKING:  # imported inside the handlers: building the parser stays cheap
+    from bench.launch import RigRequest
+    from bench.protocols import Runner
+    from bench.protocols.runner import RunResult
+    from bench.store import Store
 
 DEFAULT_STORE = "bench.db"
 
@@ -47,7 +50,7 @@ def register(groups: argparse._SubParsersAction) -> None:
 
     export = _parser(groups, "export", "write a run's tidy sample table (the input of bench analyze)")
     export.add_argument("run_id", metavar="RUN_ID", type=int)
-    export.add_argument("--format", choices=EXPORT_FORMATS, default="csv", help="file format")
+    defer(export, _add_export_format)
     export.add_argument("--out", default=None, help="output file (default run-RUN_ID.FORMAT)")
     export.add_argument("--kind", default=None,
                         help="sample kind to export (pose, arrival, actuator_travel, leg_length, grid_hit, ...; "
@@ -55,6 +58,12 @@ def register(groups: argparse._SubParsersAction) -> None:
     export.add_argument("--series", action="store_true",
                         help="export the streamed series of each sample (one row per point; stabilisation runs)")
     export.set_defaults(handler=_export)
+
+
+def _add_export_format(parser: argparse.ArgumentParser) -> None:
+    from bench.store import EXPORT_FORMATS
+
+    parser.add_argument("--format", choices=EXPORT_FORMATS, default="csv", help="file format")
 
 
 def _parser(groups: argparse._SubParsersAction, name: str, text: str) -> argparse.ArgumentParser:
@@ -81,6 +90,8 @@ def _rig_arguments(parser: argparse.ArgumentParser) -> None:
 
 def rig_request(args: argparse.Namespace) -> RigRequest:
     """What the rig options ask for, as the :class:`bench.launch.RigRequest` the GUI fills in too."""
+    from bench.launch import RigRequest
+
     return RigRequest(station=args.station, port=args.port, mouse_xy=args.mouse_xy, mouse_xz=args.mouse_xz,
                       simulate=args.sim, seed=args.seed, speed_factor=args.speed_factor, port_label="--port")
 
@@ -88,6 +99,8 @@ def rig_request(args: argparse.Namespace) -> RigRequest:
 def build_rig(args: argparse.Namespace, robot: str, store: Store, stored: dict[str, Any] | None = None,
               fixture: str = "assembled", requires: frozenset[str] = frozenset(), protocol: str = "the protocol"):
     """The rig the command-line options describe (see :func:`bench.launch.open_rig`)."""
+    from bench.launch import open_rig
+
     return open_rig(rig_request(args), store, robot=robot, stored=stored, fixture=fixture, requires=requires,
                     protocol=protocol)
 
@@ -156,6 +169,10 @@ def execute(runner: Runner, start) -> RunResult:
 
 
 def _run(args: argparse.Namespace) -> int:
+    from bench.protocols import Runner, load_protocol, preflight, summarize
+    from bench.protocols.plan import required_capabilities
+    from bench.store import Store
+
     protocol = load_protocol(args.protocol, robot=args.robot)
     if args.dry_run:
         summary = summarize(protocol)
@@ -174,6 +191,10 @@ def _run(args: argparse.Namespace) -> int:
 
 
 def _resume(args: argparse.Namespace) -> int:
+    from bench.protocols import Runner, protocol_from_config
+    from bench.protocols.plan import required_capabilities
+    from bench.store import Store
+
     with Store(args.store) as store:
         record = store.run(args.run_id)
         protocol = protocol_from_config(record.config, source=f"run {args.run_id}")
@@ -194,6 +215,8 @@ def _existing_store(path: str) -> str:
 
 
 def _runs(args: argparse.Namespace) -> int:
+    from bench.store import Store
+
     with Store(_existing_store(args.store)) as store:
         records = store.runs()
     if args.json:
@@ -222,6 +245,8 @@ def _default_kind(store: Store, run_id: int) -> str:
 
 
 def _export(args: argparse.Namespace) -> int:
+    from bench.store import Store, export_run
+
     out = args.out or f"run-{args.run_id}.{args.format}"
     with Store(_existing_store(args.store)) as store:
         kind = args.kind or ("arrival" if args.series else _default_kind(store, args.run_id))

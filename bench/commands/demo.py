@@ -15,16 +15,15 @@ import json
 import sys
 import time
 from pathlib import Path
+from typing import TYPE_CHECKING
 
-import pandas as pd
-
-from bench import __version__
-from bench.commands.campaign import execute
-from bench.launch import simulated_rig_in
 from bench.errors import ConfigError, InsufficientData
-from bench.protocols import Runner
-from bench.protocols.iso9283 import PoseAccuracy
-from bench.store import Store, export_run, tidy_table
+
+if TYPE_CHECKING:  # imported inside the functions: building the parser stays cheap
+    import pandas as pd
+
+    from bench.protocols.iso9283 import PoseAccuracy
+    from bench.store import Store
 
 __all__ = ["analyze_run", "register"]
 
@@ -43,7 +42,10 @@ def register(groups: argparse._SubParsersAction) -> None:
 
 def analyze_run(store: Store, run_id: int) -> pd.DataFrame:
     """AP/RP per pose and condition of a stored pose run; with the simulator's truth when the samples carry it."""
+    import pandas as pd
+
     from bench.metrology.tables import analyze_poses, pose_result_json, pose_table
+    from bench.store import tidy_table
 
     table = tidy_table(store, run_id)
     table.attrs["source"] = f"run {run_id}"
@@ -126,6 +128,13 @@ def _report(store: Store, run_id: int, protocol: PoseAccuracy, results: pd.DataF
 
 
 def _demo(args: argparse.Namespace) -> int:
+    from bench import __version__
+    from bench.commands.campaign import execute
+    from bench.launch import simulated_rig_in
+    from bench.protocols import Runner
+    from bench.protocols.iso9283 import PoseAccuracy
+    from bench.store import Store, export_run
+
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     if args.cycles < 2:

@@ -11,6 +11,9 @@ import argparse
 import importlib
 import json
 import sys
+import time
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from typing import Any
 
 #: One adapter module per robot; the order is the order of the help.
@@ -66,6 +69,49 @@ def add_sampling_options(parser: argparse.ArgumentParser, samples: int) -> None:
     """The Monte Carlo options every ``bench kin workspace ROBOT`` takes."""
     parser.add_argument("--samples", type=int, default=samples, help="uniform box samples (Monte Carlo)")
     parser.add_argument("--seed", type=int, default=0, help="random seed")
+    parser.add_argument("--no-progress", action="store_true", help="no progress bar on stderr")
+
+
+@contextmanager
+def sampling_progress(args: argparse.Namespace, label: str) -> Iterator[Callable[[int], None] | None]:
+    """A ``progress(done)`` callback drawing a Rich bar of ``args.samples`` on stderr (as ``bench run`` does), or
+    None with ``--no-progress``. The bar appears only once the work has run ``SHOW_AFTER_S``: short runs stay
+    silent."""
+    if getattr(args, "no_progress", False):
+        yield None
+        return
+    bar = _DelayedBar(label, args.samples)
+    try:
+        yield bar.update
+    finally:
+        bar.close()
+
+
+#: Work shorter than this shows no progress bar.
+SHOW_AFTER_S = 1.0
+
+
+class _DelayedBar:
+    def __init__(self, label: str, total: int) -> None:
+        self.label, self.total, self.show_after_s = label, total, SHOW_AFTER_S
+        self._started = time.monotonic()
+        self._bar: Any = None
+
+    def update(self, done: int) -> None:
+        if self._bar is None and time.monotonic() - self._started >= self.show_after_s:
+            from rich.console import Console
+            from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeRemainingColumn
+
+            self._bar = Progress(TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(),
+                                 TextColumn("ETA"), TimeRemainingColumn(), console=Console(stderr=True))
+            self._task = self._bar.add_task(self.label, total=self.total)
+            self._bar.start()
+        if self._bar is not None:
+            self._bar.update(self._task, completed=done)
+
+    def close(self) -> None:
+        if self._bar is not None:
+            self._bar.stop()
 
 
 def new_robot_parser(robots: argparse._SubParsersAction, name: str, help_text: str) -> argparse.ArgumentParser:

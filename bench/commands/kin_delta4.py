@@ -4,16 +4,19 @@ from __future__ import annotations
 
 import argparse
 
-import numpy as np
-
 from bench.commands.kin import add_sampling_options, emit, new_robot_parser
 from bench.errors import BenchError, ConfigError, UnreachableTarget
-from motion import delta4
-from motion.delta4.workspace import reachable_square_half_width_mm, workspace_volume
 
 _ROBOT = "delta4"
 _HELP = "3-DOF 4-RSS delta with laser-grid sensor (four RC servos)"
-_GEOMETRIES = {"nominal": delta4.NOMINAL, "thesis": delta4.THESIS}
+#: ``--geometry`` name -> the geometry's name in motion.delta4 (imported when a command runs).
+_GEOMETRIES = {"nominal": "NOMINAL", "thesis": "THESIS"}
+
+
+def _geometry(name: str):
+    from motion import delta4
+
+    return getattr(delta4, _GEOMETRIES[name])
 
 
 def _add_geometry(parser: argparse.ArgumentParser) -> None:
@@ -63,7 +66,9 @@ def add_workspace(robots: argparse._SubParsersAction) -> None:
 
 
 def _ik(args: argparse.Namespace) -> int:
-    result = delta4.inverse_kinematics([args.x_mm, args.y_mm, args.z_mm], _GEOMETRIES[args.geometry])
+    from motion import delta4
+
+    result = delta4.inverse_kinematics([args.x_mm, args.y_mm, args.z_mm], _geometry(args.geometry))
     reason = result.reason[0]
     servo, coord = result.servo_deg[0].tolist(), result.coord_deg[0].tolist()
     emit(
@@ -87,7 +92,9 @@ def _ik(args: argparse.Namespace) -> int:
 
 
 def _fk(args: argparse.Namespace) -> int:
-    result = delta4.forward_kinematics(args.servo_deg, _GEOMETRIES[args.geometry], method=args.method)
+    from motion import delta4
+
+    result = delta4.forward_kinematics(args.servo_deg, _geometry(args.geometry), method=args.method)
     pose = dict(zip(("x_mm", "y_mm", "z_mm"), map(float, result.pose_mm[0])))
     residual = float(result.residual_mm[0])
     emit(
@@ -102,9 +109,13 @@ def _fk(args: argparse.Namespace) -> int:
 
 
 def _workspace(args: argparse.Namespace) -> int:
+    import numpy as np
+
+    from motion.delta4.workspace import reachable_square_half_width_mm, workspace_volume
+
     if args.samples < 1:
         raise ConfigError(f"--samples = {args.samples}, expected an integer >= 1")
-    geometry = _GEOMETRIES[args.geometry]
+    geometry = _geometry(args.geometry)
     volume = workspace_volume(args.samples, geometry, seed=args.seed)
     widths = reachable_square_half_width_mm(np.asarray(args.z_mm, dtype=float), geometry) if args.z_mm else np.empty(0)
     squares = [{"z_mm": z, "half_width_mm": float(w)} for z, w in zip(args.z_mm, widths)]

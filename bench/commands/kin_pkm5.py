@@ -4,11 +4,9 @@ from __future__ import annotations
 
 import argparse
 
-import numpy as np
-
-from bench.commands.kin import add_sampling_options, emit, new_robot_parser
+from bench.commands.kin import add_sampling_options, emit, new_robot_parser, sampling_progress
+from bench.commands.lazy import defer
 from bench.errors import ConfigError, UnreachableTarget
-from motion import pkm5
 
 _ROBOT = "pkm5"
 _HELP = "5-DOF PKM 2-R(Pa-IQ)RR,R(Pa-IQ)R (six lead-screw legs)"
@@ -28,22 +26,38 @@ def add_ik(robots: argparse._SubParsersAction) -> None:
 def add_fk(robots: argparse._SubParsersAction) -> None:
     parser = new_robot_parser(robots, _ROBOT, _HELP)
     parser.add_argument("lengths_mm", type=float, nargs=6, metavar="L", help="leg lengths L1..L6 |BC| [mm]")
-    parser.add_argument("--mode", choices=["auto", *pkm5.fk.MODES], default="auto",
-                        help="motion mode to solve for (auto: from the length pattern)")
+    defer(parser, _add_mode)
     parser.set_defaults(handler=_fk)
+
+
+def _add_mode(parser: argparse.ArgumentParser) -> None:
+    from motion.pkm5.fk import MODES
+
+    parser.add_argument("--mode", choices=["auto", *MODES], default="auto",
+                        help="motion mode to solve for (auto: from the length pattern)")
 
 
 def add_workspace(robots: argparse._SubParsersAction) -> None:
     parser = new_robot_parser(robots, _ROBOT, _HELP)
-    parser.add_argument("--kind", choices=sorted(pkm5.WORKSPACE_KINDS), default="constant-orientation",
-                        help="workspace type of the dissertation (000 §6.3)")
+    defer(parser, _add_workspace_kind)
     add_sampling_options(parser, 200_000)
     parser.add_argument("--hull-points", type=int, default=12_000,
                         help="feasible samples for the convex hull (the dissertation used 12,000)")
     parser.set_defaults(handler=_workspace)
 
 
+def _add_workspace_kind(parser: argparse.ArgumentParser) -> None:
+    from motion.pkm5.workspace import WORKSPACE_KINDS
+
+    parser.add_argument("--kind", choices=sorted(WORKSPACE_KINDS), default="constant-orientation",
+                        help="workspace type of the dissertation (000 §6.3)")
+
+
 def _ik(args: argparse.Namespace) -> int:
+    import numpy as np
+
+    from motion import pkm5
+
     pose = np.array([[args.x_mm, args.y_mm, args.z_mm, np.radians(args.alpha), np.radians(args.beta)]])
     result = pkm5.inverse_kinematics(pose)
     reason = result.reason(0)
@@ -59,6 +73,10 @@ def _ik(args: argparse.Namespace) -> int:
 
 
 def _fk(args: argparse.Namespace) -> int:
+    import numpy as np
+
+    from motion import pkm5
+
     result = pkm5.forward_kinematics(np.array([args.lengths_mm]), mode=args.mode)
     x, y, z, alpha, beta = result.pose[0]
     pose = {"x_mm": x, "y_mm": y, "z_mm": z, "alpha_deg": np.degrees(alpha), "beta_deg": np.degrees(beta)}
@@ -73,10 +91,14 @@ def _fk(args: argparse.Namespace) -> int:
 
 
 def _workspace(args: argparse.Namespace) -> int:
+    from motion import pkm5
+
     if args.samples < 1 or args.hull_points < 4:
         raise ConfigError(f"--samples = {args.samples}, --hull-points = {args.hull_points}, "
                           "expected integers >= 1 and >= 4")
-    estimate = pkm5.estimate_workspace(args.kind, samples=args.samples, hull_points=args.hull_points, seed=args.seed)
+    with sampling_progress(args, f"pkm5 {args.kind} workspace, samples") as progress:
+        estimate = pkm5.estimate_workspace(args.kind, samples=args.samples, hull_points=args.hull_points,
+                                           seed=args.seed, progress=progress)
     unit = estimate.unit.replace("^", "")
     emit({f"volume_{unit}": estimate.volume, f"stderr_{unit}": estimate.stderr,
           f"hull_volume_{unit}": estimate.hull_volume, "kind": estimate.kind, "samples": estimate.samples,

@@ -8,9 +8,9 @@ from __future__ import annotations
 
 import argparse
 
-from bench.commands.kin import add_sampling_options, emit, new_robot_parser
+from bench.commands.kin import add_sampling_options, emit, new_robot_parser, sampling_progress
+from bench.commands.lazy import defer
 from bench.errors import ConfigError, UnreachableTarget
-from motion import prus3
 
 _ROBOT = "prus3"
 _HELP = "3-PRUS spatial parallel manipulator (stand-in dimensions a=600, b=75, c=100 mm)"
@@ -40,13 +40,19 @@ def add_ik(robots: argparse._SubParsersAction) -> None:
     parser.add_argument(
         "--branch", type=_branch, nargs=3, default=[1, 1, 1], metavar="SIGMA", help="slider branch per leg (+1 or -1)"
     )
+    defer(parser, _add_convention)
+    parser.set_defaults(handler=_ik)
+
+
+def _add_convention(parser: argparse.ArgumentParser) -> None:
+    from motion.prus3.revolute import CONVENTIONS
+
     parser.add_argument(
         "--convention",
-        choices=[c for c in prus3.CONVENTIONS if c != "fixed"],
+        choices=[c for c in CONVENTIONS if c != "fixed"],
         default="clip",
         help="how the redundant revolute x2 is chosen",
     )
-    parser.set_defaults(handler=_ik)
 
 
 def add_fk(robots: argparse._SubParsersAction) -> None:
@@ -81,6 +87,8 @@ def add_workspace(robots: argparse._SubParsersAction) -> None:
 
 
 def _ik(args: argparse.Namespace) -> int:
+    from motion import prus3
+
     pose = [getattr(args, name) for name in _POSE_FIELDS]
     result = prus3.inverse_kinematics(pose, branch=args.branch, revolute_convention=args.convention)
     reason = result.reason[0]
@@ -110,6 +118,8 @@ def _ik(args: argparse.Namespace) -> int:
 
 
 def _fk(args: argparse.Namespace) -> int:
+    from motion import prus3
+
     fit = prus3.forward_kinematics(args.sliders_mm, args.revolute_deg, [args.universal_deg])
     pose = dict(zip(_POSE_FIELDS, map(float, fit.pose[0])))
     residual = float(fit.residual_mm[0])
@@ -122,9 +132,13 @@ def _fk(args: argparse.Namespace) -> int:
 
 
 def _workspace(args: argparse.Namespace) -> int:
+    from motion import prus3
+
     if args.samples < 1:
         raise ConfigError(f"--samples = {args.samples}, expected an integer >= 1")
-    volume = prus3.workspace_volume(args.samples, orientation_deg=tuple(args.orientation_deg), seed=args.seed)
+    with sampling_progress(args, "prus3 workspace, samples") as progress:
+        volume = prus3.workspace_volume(args.samples, orientation_deg=tuple(args.orientation_deg), seed=args.seed,
+                                        progress=progress)
     emit(
         {
             "volume_mm3": volume.volume_mm3,

@@ -9,8 +9,8 @@ from __future__ import annotations
 
 import argparse
 
+from bench.commands.lazy import defer
 from bench.errors import ConfigError
-from bench.reports import CRITERIA, FORMATS, write_comparison, write_report
 
 DEFAULT_STORE = "bench.db"
 
@@ -20,6 +20,14 @@ def register(groups: argparse._SubParsersAction) -> None:
                                description=__doc__.splitlines()[0],
                                formatter_class=argparse.ArgumentDefaultsHelpFormatter)
     parser.add_argument("run_id", metavar="RUN_ID", type=int, help="the run to report")
+    defer(parser, _add_arguments)
+    parser.set_defaults(handler=_report)
+
+
+def _add_arguments(parser: argparse.ArgumentParser) -> None:
+    """Added when ``bench report`` is parsed: the choices come from bench.reports (matplotlib, reportlab)."""
+    from bench.reports import CRITERIA, FORMATS
+
     parser.add_argument("--compare", metavar="RUN_B", type=int, default=None,
                         help="second run: write a side-by-side comparison of RUN_ID (A) and RUN_B (B)")
     parser.add_argument("--format", choices=(*FORMATS, "all"), default="all", help="report format(s)")
@@ -37,11 +45,12 @@ def register(groups: argparse._SubParsersAction) -> None:
                              "25.4/cpi mm, from its calibration or settings; 0 without one)")
     parser.add_argument("--allow-unknown", action="store_true",
                         help="report even when the run lacks what a deviations row needs (row printed as unknown)")
-    parser.set_defaults(handler=_report)
 
 
 def parse_criteria(items: list[str]) -> dict[str, float]:
     """``["AP_mm=0.5", "RP_mm=0.2"]`` -> ``{"AP_mm": 0.5, "RP_mm": 0.2}``, refusing unknown names and non-numbers."""
+    from bench.reports import CRITERIA
+
     criteria = {}
     for item in items:
         name, _, value = item.partition("=")
@@ -56,6 +65,8 @@ def parse_criteria(items: list[str]) -> dict[str, float]:
 
 
 def _report(args: argparse.Namespace) -> int:
+    from bench.reports import FORMATS, write_comparison, write_report
+
     formats = FORMATS if args.format == "all" else (args.format,)
     criteria = parse_criteria(args.criterion)
     if args.compare is not None:

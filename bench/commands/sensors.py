@@ -11,8 +11,8 @@ import sys
 from pathlib import Path
 
 from bench.commands.kin import emit
+from bench.commands.lazy import defer
 from bench.errors import ConfigError
-from bench.simulators.mouse import add_stream_arguments, write_stream_from_args
 
 
 def register(groups: argparse._SubParsersAction) -> None:
@@ -46,11 +46,19 @@ def _mouse_list(args: argparse.Namespace) -> int:
 def _add_mouse_sim(actions: argparse._SubParsersAction, name: str) -> None:
     parser = _parser(actions, name, "write a simulated mouse's input_event records (a circle) to a FIFO or file")
     parser.add_argument("out", help="FIFO or file to write")
-    add_stream_arguments(parser)
+    defer(parser, _add_stream_arguments)
     parser.set_defaults(handler=_mouse_sim)
 
 
+def _add_stream_arguments(parser: argparse.ArgumentParser) -> None:
+    from bench.simulators.mouse import add_stream_arguments
+
+    add_stream_arguments(parser)
+
+
 def _mouse_sim(args: argparse.Namespace) -> int:
+    from bench.simulators.mouse import write_stream_from_args
+
     count = write_stream_from_args(args)
     emit({"path": args.out, "events": count}, args.json, [f"{count} events written to {args.out}"])
     return 0

@@ -8,21 +8,29 @@ until Ctrl-C or SIGTERM. Connect a driver, a protocol run or a terminal program 
 from __future__ import annotations
 
 import argparse
+import importlib
 
-from bench.simulators import delta4 as sim_delta4, pkm5 as sim_pkm5
-from bench.simulators.pty import run_simulator
+from bench.commands.lazy import defer
 
+#: Robot -> (simulator module, help); the module (numpy, the plant) is imported when its command is parsed.
 _SIMULATORS = {
-    "pkm5": (sim_pkm5, "5-DOF PKM controller (line protocol, docs/protocol-pkm5.md)"),
-    "delta4": (sim_delta4, "delta4 ATmega128 controller (ASCII protocol, docs/protocol-delta4.md)"),
+    "pkm5": ("bench.simulators.pkm5", "5-DOF PKM controller (line protocol, docs/protocol-pkm5.md)"),
+    "delta4": ("bench.simulators.delta4", "delta4 ATmega128 controller (ASCII protocol, docs/protocol-delta4.md)"),
 }
 
 
 def register(groups: argparse._SubParsersAction) -> None:
     sim = groups.add_parser("sim", help="run a simulated robot controller on a pseudo-terminal")
     robots = sim.add_subparsers(dest="robot", metavar="ROBOT", required=True)
-    for name, (module, help_text) in _SIMULATORS.items():
-        parser = robots.add_parser(name, help=help_text, description=module.DESCRIPTION,
-                                   formatter_class=argparse.ArgumentDefaultsHelpFormatter)
-        module.add_arguments(parser)
-        parser.set_defaults(handler=lambda args, module=module: run_simulator(module.build_device, args))
+    for name, (module_name, help_text) in _SIMULATORS.items():
+        parser = robots.add_parser(name, help=help_text, formatter_class=argparse.ArgumentDefaultsHelpFormatter)
+        defer(parser, lambda parser, module_name=module_name: _add_simulator_arguments(parser, module_name))
+
+
+def _add_simulator_arguments(parser: argparse.ArgumentParser, module_name: str) -> None:
+    from bench.simulators.pty import run_simulator
+
+    module = importlib.import_module(module_name)
+    parser.description = module.DESCRIPTION
+    module.add_arguments(parser)
+    parser.set_defaults(handler=lambda args: run_simulator(module.build_device, args))

@@ -9,7 +9,10 @@ between poses. Results are grouped by pose and, when they vary, by the condition
 
 from __future__ import annotations
 
+import codecs
 import csv
+import io
+import re
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -42,6 +45,7 @@ __all__ = [
     "ANGLE_PAIRS",
     "CONDITION_COLUMNS",
     "POSE_COLUMNS",
+    "POSE_NUMERIC_COLUMNS",
     "PoseResult",
     "analyze_distance",
     "analyze_poses",
@@ -61,6 +65,8 @@ ANGLE_PAIRS = (("cmd_a_deg", "a_deg"), ("cmd_b_deg", "b_deg"), ("cmd_c_deg", "c_
 CONDITION_COLUMNS = ("velocity_pct", "load_kg")
 #: Columns of a streamed-arrival table (``bench export RUN --series`` of an ``iso9283_stabilisation`` run).
 STABILISATION_COLUMNS = ("pose", "cycle", "t_s", "x_mm", "y_mm", "z_mm")
+#: Every column `pose_table` turns into numbers (for ``read_table_csv(path, numeric=POSE_NUMERIC_COLUMNS)``).
+POSE_NUMERIC_COLUMNS = (*POSE_COLUMNS[1:], *(c for pair in ANGLE_PAIRS for c in pair), *CONDITION_COLUMNS, "t_s")
 _COMMAND = ("cmd_x_mm", "cmd_y_mm", "cmd_z_mm")
 _ATTAINED = ("x_mm", "y_mm", "z_mm")
 
@@ -82,18 +88,74 @@ class PoseResult:
     angle_names: tuple[str, ...]  #: which of "a", "b", "c" were measured
 
 
-def read_table_csv(path: str | Path) -> pd.DataFrame:
+def read_table_csv(path: str | Path, *, numeric: Sequence[str] = ()) -> pd.DataFrame:
     """Read a CSV as strings (no type guessing); lines starting with ``#`` and blank lines are skipped.
 
     Data rows are numbered from 1 after the header, the numbering every error message uses. A missing file, an
     empty table, a repeated column name or a row with the wrong number of fields is a one-line ``ConfigError``.
+
+    ``numeric``: columns to read as float64 at once (those present; the others stay strings), which is what
+    :func:`numeric_columns` makes of them anyway: a table of 10^6 rows then never holds millions of strings. A file
+    without quotes whose every line has the header's number of fields is parsed by pandas' C reader; anything else
+    (quotes, blank lines, a bad row, a cell that is not a number) by the row-by-row reader below, which names the
+    row and column at fault.
     """
     path = Path(path)
     try:
-        text = path.read_text(encoding="utf-8-sig")
+        data = path.read_bytes()
     except FileNotFoundError:
         raise ConfigError(f"{path}: no such file") from None
-    except (OSError, UnicodeDecodeError) as exc:
+    except OSError as exc:
+        raise ConfigError(f"{path}: not a readable CSV table ({exc})") from None
+    frame = _read_regular_csv(data, numeric) if numeric else None
+    if frame is None:
+        return _read_csv_rows(path, data)
+    frame.attrs["source"] = str(path)
+    return frame
+
+
+def _read_regular_csv(data: bytes, numeric: Sequence[str]) -> pd.DataFrame | None:
+    """The fast path of `read_table_csv`, or ``None`` when the file needs the row-by-row reader."""
+    data = data.removeprefix(codecs.BOM_UTF8)
+    if b"#" in data:
+        data = _COMMENT_LINE.sub(b"", data)
+    if not data.strip() or b'"' in data:
+        return None
+    raw = np.frombuffer(data, dtype=np.uint8)
+    ends = np.flatnonzero(raw == 0x0A)
+    if not data.endswith(b"\n"):
+        ends = np.append(ends, len(data))
+    starts = np.r_[0, ends[:-1] + 1]
+    commas = np.flatnonzero(raw == 0x2C)
+    fields = np.searchsorted(commas, ends) - np.searchsorted(commas, starts) + 1
+    if np.any(ends - starts < 1) or np.any(fields != fields[0]):
+        return None  # blank lines or ragged rows: the row-by-row reader skips or names them
+    try:
+        first = data[:ends[0]].decode("utf-8")
+    except UnicodeDecodeError:
+        return None
+    header = [name.strip() for name in next(csv.reader([first], skipinitialspace=True))]
+    if len(set(header)) != len(header) or "" in header:
+        return None
+    types = {column: np.float64 for column in numeric if column in header}
+    types.update({column: str for column in header if column not in types})
+    try:
+        frame = pd.read_csv(io.BytesIO(data), header=0, names=header, dtype=types, keep_default_na=False,
+                            na_values=[], skipinitialspace=True, index_col=False, engine="c", encoding="utf-8")
+    except (ValueError, UnicodeDecodeError, pd.errors.ParserError):  # a cell that is not a number, bad bytes
+        return None
+    return frame
+
+
+#: A comment line of a CSV table: optional blanks, then ``#`` (a ``#`` inside a cell is data).
+_COMMENT_LINE = re.compile(rb"(?m)^[ \t]*#[^\n]*(?:\n|$)")
+
+
+def _read_csv_rows(path: Path, data: bytes) -> pd.DataFrame:
+    """`read_table_csv` row by row with the csv module: every cell a string, every fault named."""
+    try:
+        text = data.decode("utf-8-sig")
+    except UnicodeDecodeError as exc:
         raise ConfigError(f"{path}: not a readable CSV table ({exc})") from None
     lines = [line for line in text.splitlines() if line.strip() and not line.lstrip().startswith("#")]
     rows = list(csv.reader(lines, skipinitialspace=True))
@@ -121,6 +183,13 @@ def numeric_columns(frame: pd.DataFrame, columns: Sequence[str], *, required: bo
         raise ConfigError(f"{source}: missing column(s) {', '.join(missing)}; found {', '.join(frame.columns)}")
     out = frame.copy()
     for column in (c for c in columns if c in frame.columns):
+        if pd.api.types.is_float_dtype(frame[column]):  # read as numbers already (read_table_csv's numeric=)
+            finite = np.isfinite(frame[column].to_numpy())
+            if not finite.all():
+                index = frame.index[int(np.argmin(finite))]
+                raise ConfigError(f"{source}: row {int(index) + 1}, column {column}: "
+                                  f"{str(frame.at[index, column])!r} is not a finite number")
+            continue
         text = frame[column].astype(str).str.strip()
         values = pd.to_numeric(text, errors="coerce")
         bad = values.isna() | ~np.isfinite(values.fillna(0.0))

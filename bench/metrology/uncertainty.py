@@ -26,6 +26,7 @@ __all__ = [
     "mean_confidence_interval",
     "rectangular",
     "repeatability_uncertainty",
+    "repeatability_uncertainty_delta",
     "resolution_uncertainty",
     "type_a_of_mean",
     "welch_satterthwaite",
@@ -173,12 +174,22 @@ def bootstrap_uncertainty(statistic, attained, *, resamples: int = 1000, seed: i
     return float(values.std(ddof=1))
 
 
-def repeatability_uncertainty(attained_mm, *, resamples: int = 1000, seed: int = 0) -> float:
-    """Standard uncertainty of RP_l from a bootstrap over cycles, vectorised over the resamples.
+#: Up to this many cycles per pose U(RP) is the bootstrap's; above, the delta method's (the two agree there within
+#: the bootstrap's own Monte Carlo error, tests/test_metrology_uncertainty.py), which costs O(n), not O(n x resamples).
+BOOTSTRAP_MAX_CYCLES = 1000
+#: Resampled cycles held in memory at once (resamples are drawn and evaluated in chunks of about this many cycles).
+_BOOTSTRAP_CHUNK_CYCLES = 1_000_000
 
-    The same estimate as ``bootstrap_uncertainty(lambda p: pose_repeatability(p).rp_mm, ...)`` with the same
-    seed, computed in one batch: resample whole cycles with replacement, recompute
-    RP_l = l̄ + 3 S_l for each resample, and take the sample standard deviation of those values.
+
+def repeatability_uncertainty(attained_mm, *, resamples: int = 1000, seed: int = 0, method: str = "auto") -> float:
+    """Standard uncertainty of RP_l: a bootstrap over cycles, or the delta method for many cycles.
+
+    ``method = "bootstrap"``: the same estimate as ``bootstrap_uncertainty(lambda p: pose_repeatability(p).rp_mm,
+    ...)`` with the same seed: resample whole cycles with replacement, recompute RP_l = l̄ + 3 S_l for each
+    resample, and take the sample standard deviation of those values. Vectorised over chunks of resamples, so the
+    memory stays bounded (about ``_BOOTSTRAP_CHUNK_CYCLES`` x d floats) whatever n; the draws are those of one
+    ``rng.integers(0, n, (resamples, n))`` call. ``"delta"``: :func:`repeatability_uncertainty_delta`.
+    ``"auto"`` (default): the bootstrap up to ``BOOTSTRAP_MAX_CYCLES`` cycles, the delta method above.
 
     Parameters
     ----------
@@ -187,12 +198,59 @@ def repeatability_uncertainty(attained_mm, *, resamples: int = 1000, seed: int =
     """
     points = as_points("attained_mm", attained_mm)
     require_count("bootstrap cycles", len(points), 3)
+    if method not in ("auto", "bootstrap", "delta"):
+        raise ConfigError(f"method = {method!r}, expected 'auto', 'bootstrap' or 'delta'")
+    if method == "delta" or (method == "auto" and len(points) > BOOTSTRAP_MAX_CYCLES):
+        return repeatability_uncertainty_delta(points)
+    n = len(points)
     rng = np.random.default_rng(seed)
-    index = rng.integers(0, len(points), size=(resamples, len(points)))
-    samples = points[index]
-    distances = np.sqrt(np.sum((samples - samples.mean(axis=1, keepdims=True)) ** 2, axis=2))
-    rp = distances.mean(axis=1) + 3.0 * distances.std(axis=1, ddof=1)
+    chunk = max(1, _BOOTSTRAP_CHUNK_CYCLES // n)
+    rp = np.empty(resamples)
+    for first in range(0, resamples, chunk):
+        count = min(chunk, resamples - first)
+        samples = points[rng.integers(0, n, size=(count, n))]
+        distances = np.sqrt(np.sum((samples - samples.mean(axis=1, keepdims=True)) ** 2, axis=2))
+        rp[first:first + count] = distances.mean(axis=1) + 3.0 * distances.std(axis=1, ddof=1)
     return float(rp.std(ddof=1))
+
+
+def repeatability_uncertainty_delta(attained_mm) -> float:
+    """Standard uncertainty of RP_l = l̄ + 3 S_l by the nonparametric delta method (infinitesimal jackknife).
+
+    With the barycentre p̄, l_j = ‖p_j - p̄‖ and unit vectors u_j = (p_j - p̄)/l_j, the empirical influence of
+    cycle j on RP_l (the barycentre's own influence included) is
+
+    .. math::
+
+        IF_j = (l_j - \\bar l) - \\bar u \\cdot (p_j - \\bar p)
+               + \\frac{3}{2 S_l}\\left[(l_j - \\bar l)^2 - S_l^2 - 2\\,\\bar w \\cdot (p_j - \\bar p)\\right],
+        \\quad \\bar u = \\frac1n\\sum_j u_j, \\quad \\bar w = \\frac1n\\sum_j (l_j - \\bar l)\\,u_j
+
+    and u(RP_l) = √(Σ_j IF_j²) / n (Efron & Tibshirani, *An Introduction to the Bootstrap*, 1993, ch. 21: the
+    infinitesimal jackknife, the large-n limit of the bootstrap standard error). O(n) time and memory.
+
+    Parameters
+    ----------
+    attained_mm : array_like, shape (n, d)
+        Attained positions of one pose, n >= 3.
+    """
+    points = as_points("attained_mm", attained_mm)
+    n = len(points)
+    require_count("cycles", n, 3)
+    offsets = points - points.mean(axis=0)
+    distances = np.sqrt(np.einsum("ij,ij->i", offsets, offsets))
+    mean_l = distances.mean()
+    spread = distances.std(ddof=1)
+    if spread == 0.0:
+        return 0.0
+    with np.errstate(invalid="ignore", divide="ignore"):
+        units = np.where(distances[:, None] > 0, offsets / distances[:, None], 0.0)
+    deviation = distances - mean_l
+    mean_u = units.mean(axis=0)
+    mean_w = (deviation[:, None] * units).mean(axis=0)
+    influence = (deviation - offsets @ mean_u
+                 + 3.0 / (2.0 * spread) * (deviation ** 2 - spread ** 2 - 2.0 * (offsets @ mean_w)))
+    return float(np.sqrt(np.sum(influence ** 2)) / n)
 
 
 def instrument_rp_floor(sigma_mm: float, *, dims: int) -> float:

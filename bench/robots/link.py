@@ -10,11 +10,20 @@ same things. Malformed frames raise :class:`WireProtocolError`, the only error t
 
 from __future__ import annotations
 
+import errno
 import logging
 import time
 from typing import Any
 
 import serial
+
+try:  # pyserial's POSIX flush() is termios.tcdrain, whose errors are termios.error, not OSError
+    from termios import error as _TermiosError
+except ImportError:  # no termios (Windows): nothing extra to catch
+    _TermiosError = OSError
+
+#: Flush attempts when a signal interrupts tcdrain (EINTR: the bytes are still queued, draining simply resumes).
+_FLUSH_ATTEMPTS = 3
 
 from bench.errors import LinkError, LinkTimeout
 
@@ -77,10 +86,20 @@ class FramedLink:
     def write(self, data: bytes, *, command: str) -> None:
         try:
             self.port.write(data)
-            self.port.flush()
-        except (serial.SerialException, OSError) as exc:
+            self._flush()
+        except (serial.SerialException, OSError, _TermiosError) as exc:
             raise LinkError(f"{self.port_name}: cannot send {command!r}: {exc}") from exc
         _log.debug("%s <- %r", self.port_name, data)
+
+    def _flush(self) -> None:
+        """Wait until the bytes are sent; a signal interrupting the wait (EINTR, e.g. a profiler's timer) retries."""
+        for attempt in range(1, _FLUSH_ATTEMPTS + 1):
+            try:
+                self.port.flush()
+                return
+            except _TermiosError as exc:
+                if attempt == _FLUSH_ATTEMPTS or not exc.args or exc.args[0] != errno.EINTR:
+                    raise
 
     def read_frame(self, timeout_s: float, *, command: str, expected: str) -> bytes:
         """The next frame, waiting at most ``timeout_s`` seconds (monotonic).

@@ -78,6 +78,7 @@ class Pkm5SimDevice:
         #: the last arrival: (true pose before, true pose after, duration in simulated s); at rest after power-up
         self.arrival = (self.true_pose, self.true_pose, 0.0)
         self._trace: tuple[tuple[int, int, int], np.ndarray] | None = None
+        self._unprepared: np.ndarray | None = None  # the accepted move's target, until the plant has prepared it
         self._line = bytearray()
         self._overflow = False
         self._booted = False
@@ -121,6 +122,18 @@ class Pkm5SimDevice:
             self._settle(move.duration_s * self.speed_factor)
             out += wire.format_reply("DONE", move.tag, *self.steps)
         return out
+
+    def next_due_s(self) -> float | None:
+        """When the running move ends (monotonic s), so the event loop wakes for its ``DONE`` on time."""
+        return None if self.move is None else self.move.t_start_s + self.move.duration_s
+
+    def idle(self, now_s: float) -> None:
+        """Work the event loop runs once this turn's replies are sent: the true pose at the end of an accepted move
+        is computed during the move (:meth:`Plant.prepare`), so the ``DONE`` reply never waits for the kinematics."""
+        target, self._unprepared = self._unprepared, None
+        prepare = getattr(self.plant, "prepare", None)
+        if target is not None and prepare is not None and self.move is not None:
+            prepare(target, self.load_kg)
 
     # -- commands ----------------------------------------------------------------------------------------------
     def _execute(self, command: wire.Command, now_s: float) -> bytes:
@@ -197,6 +210,7 @@ class Pkm5SimDevice:
         target = np.array(targets, dtype=np.int64)
         duration_s = float(np.max(np.abs(target - self.steps))) / speed
         self.move = _Move(tag, self.steps.copy(), target, now_s, duration_s / self.speed_factor)
+        self._unprepared = target
         return wire.format_reply("OK", tag, "MOVE", round(1000 * duration_s / self.speed_factor))
 
     def _stop(self, tag: int, now_s: float) -> bytes:

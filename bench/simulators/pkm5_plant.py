@@ -14,6 +14,11 @@ from motion import pkm5
 
 __all__ = ["PKM5_ERRORS", "build_actuator_bench", "build_plant"]
 
+#: Largest FK residual RMS of the plant's perturbed legs that still counts as a pose (the error model leaves 0.1-0.2 mm).
+_PLANT_RESIDUAL_TOL_MM = 2.0
+#: LM step criterion of the plant's warm solve (mm, rad): far below the 0.03 mm count of the simulated mice.
+_PLANT_STEP_TOL = 1e-7
+
 #: Error sizes for AP/RP of the order of the documents' physical tests (pkm5.md §6.8: AP 1.2-1.9 mm, RP 1.6-2.7 mm,
 #: angles 0.2-1.9 deg). Joint units mm of leg length; pose units (mm, mm, mm, deg, deg). Actuator noise per
 #: Table A.7 (sigma 0.02-0.11 mm); passive-joint play dominates the random part (joint tolerance <= 1 mm, Table 4-2).
@@ -54,8 +59,18 @@ def build_plant(seed: int, *, ideal: bool = False, geometry: Any = pkm5.DEFAULT_
     def forward(lengths: np.ndarray, commanded: np.ndarray, previous: np.ndarray | None) -> np.ndarray | None:
         mode = pkm5.detect_mode(commanded[None, :], MODE_TOL_MM)[0]
         start = None if previous is None else np.r_[previous[:3], np.radians(previous[3:])]
+        if start is not None:
+            # One solve warm-started near the answer (Plant: the pose last attained at this command, else the last
+            # pose). The perturbed legs never fit a pose exactly (a 0.1-0.2 mm residual), so the default
+            # ``retry_above_mm`` would run every restart on every move; they run only when the warm solve did not
+            # converge (tests/test_plant_forward.py: the same poses within 1e-6 mm).
+            fk = pkm5.forward_kinematics(lengths[None, :], geometry, initial_pose=start, mode=mode,
+                                         residual_tol_mm=_PLANT_RESIDUAL_TOL_MM, retry_above_mm=np.inf,
+                                         step_tol=_PLANT_STEP_TOL)
+            if fk.converged[0]:
+                return pose_deg_from_rad(fk.pose[0])
         fk = pkm5.forward_kinematics(lengths[None, :], geometry, initial_pose=start, mode=mode,
-                                     residual_tol_mm=2.0)
+                                     residual_tol_mm=_PLANT_RESIDUAL_TOL_MM)
         return pose_deg_from_rad(fk.pose[0]) if fk.converged[0] else None
 
     model = (ErrorModel.ideal(6, 5) if ideal else

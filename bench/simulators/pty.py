@@ -39,6 +39,9 @@ class SimDevice(Protocol):
     def tick(self, now_s: float) -> bytes:
         """Advance simulated time to ``now_s`` (monotonic); return bytes to send (completions, reports)."""
 
+    # optional: ``idle(now_s) -> None``, run after each turn's replies are sent (work a reply need not wait for),
+    # and ``next_due_s() -> float | None``, when the next completion is due (the loop then wakes on time for it)
+
 
 class TruthLog:
     """Appends the true attained pose after each move to a JSON-lines file (simulator-only side channel)."""
@@ -130,9 +133,13 @@ def serve(device: SimDevice, args: argparse.Namespace) -> int:
         print(os.path.abspath(args.truth), flush=True)
     parent = os.getppid()
     faults = _Faults(args)
+    idle = getattr(device, "idle", None)
+    next_due_s = getattr(device, "next_due_s", None)
     try:
         while not stopping and os.getppid() == parent:
-            readable, _, _ = select.select([master], [], [], _TICK_S)
+            due = next_due_s() if next_due_s is not None else None
+            wait_s = _TICK_S if due is None else min(_TICK_S, max(0.0, due - time.monotonic()))
+            readable, _, _ = select.select([master], [], [], wait_s)
             now = time.monotonic()
             out = b""
             if readable:
@@ -147,6 +154,8 @@ def serve(device: SimDevice, args: argparse.Namespace) -> int:
             faults.outbox = [(due, data) for due, data in faults.outbox if due > now]
             if out:
                 _send(master, out)
+            if idle is not None:
+                idle(time.monotonic())
     finally:
         os.close(master)
         os.close(slave)

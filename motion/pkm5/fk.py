@@ -12,7 +12,6 @@ from dataclasses import dataclass
 from functools import lru_cache
 
 import numpy as np
-from scipy.spatial import cKDTree
 
 from motion import dual
 from motion.errors import MotionInputError
@@ -41,8 +40,11 @@ _WORKSPACE_OF_MODE = {"translation": "constant-orientation", "alpha": "alpha", "
 def _seed_table(mode: str, geometry: Geometry, size: int = 4000):
     """Reachable poses of a mode and a k-d tree over their leg lengths, to start each solve near its answer.
 
-    Built once per (mode, geometry) from a fixed-seed sample, so results stay deterministic.
+    Built once per (mode, geometry) from a fixed-seed sample, so results stay deterministic. scipy.spatial is
+    imported here, not at the top: an inverse-kinematics caller (``bench kin ik``) never pays for it.
     """
+    from scipy.spatial import cKDTree
+
     try:
         poses = sample_reachable(size, kinds=(_WORKSPACE_OF_MODE[mode],), seed=20241123, geometry=geometry)
     except MotionInputError:  # a geometry with no reachable pose in the box: fall back to the neutral guess

@@ -17,7 +17,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.spatial import ConvexHull
 
 from motion.errors import MotionInputError
 from motion.pkm5.geometry import DEFAULT_GEOMETRY, Geometry
@@ -117,8 +116,8 @@ def sample_reachable(n: int, *, kinds=("constant-orientation",), seed: int | Non
     raise MotionInputError(f"kinds {list(kinds)}: fewer than {n} reachable poses found for this geometry")
 
 
-def _hit_or_miss(kind, geometry, rng, samples, angle_step_deg, chunk=20000):
-    """Count box samples reachable with at least one angle of the grid."""
+def _hit_or_miss(kind, geometry, rng, samples, angle_step_deg, chunk=20000, progress=None):
+    """Count box samples reachable with at least one angle of the grid; ``progress(done)`` after each chunk."""
     lo, hi = kind.angle_deg
     grid = np.radians(np.linspace(lo, hi, max(2, int(round((hi - lo) / angle_step_deg)) + 1))) \
         if kind.angle is not None else np.zeros(1)
@@ -128,6 +127,8 @@ def _hit_or_miss(kind, geometry, rng, samples, angle_step_deg, chunk=20000):
         positions = _uniform(rng, (kind.x_mm, kind.y_mm, kind.z_mm), n)
         poses = _poses(kind, np.repeat(positions, len(grid), 0), np.tile(grid, n))
         hits += int(feasible(poses, geometry).reshape(n, len(grid)).any(1).sum())
+        if progress is not None:
+            progress(start + n)
     return hits
 
 
@@ -147,7 +148,7 @@ def _feasible_cloud(kind, geometry, rng, points, batch=50000):
 
 def estimate_workspace(kind: str = "constant-orientation", *, samples: int = 200_000, hull_points: int = 12_000,
                        seed: int | None = 0, angle_step_deg: float = 1.0,
-                       geometry: Geometry = DEFAULT_GEOMETRY) -> WorkspaceEstimate:
+                       geometry: Geometry = DEFAULT_GEOMETRY, progress=None) -> WorkspaceEstimate:
     """Workspace volume by hit-or-miss Monte Carlo, and the convex hull of a feasible cloud.
 
     Parameters
@@ -162,6 +163,9 @@ def estimate_workspace(kind: str = "constant-orientation", *, samples: int = 200
         Seed of ``numpy.random.default_rng``; a fixed seed gives a reproducible estimate.
     angle_step_deg : float
         Grid step of the orientation search in the hit-or-miss test (alpha/beta kinds).
+    progress : callable, optional
+        ``progress(done)`` with the box samples tested so far, after each chunk (for a caller's progress display;
+        nothing is printed here).
 
     Returns
     -------
@@ -175,9 +179,11 @@ def estimate_workspace(kind: str = "constant-orientation", *, samples: int = 200
     rng = np.random.default_rng(seed)
     spans = [b[1] - b[0] for b in (spec.x_mm, spec.y_mm, spec.z_mm)]
     box = float(np.prod([s for s in spans if s > 0]))
-    hits = _hit_or_miss(spec, geometry, rng, samples, angle_step_deg)
+    hits = _hit_or_miss(spec, geometry, rng, samples, angle_step_deg, progress=progress)
     share = hits / samples
     cloud = _feasible_cloud(spec, geometry, rng, hull_points)
+    from scipy.spatial import ConvexHull  # here, not at the top: importing motion.pkm5 stays cheap
+
     hull = ConvexHull(cloud[:, 1:] if spec.planar else cloud)
     return WorkspaceEstimate(
         kind=kind,

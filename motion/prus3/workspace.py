@@ -85,8 +85,12 @@ def workspace_volume(
     seed: int | None = 0,
     criterion: str = "existence",
     chunk: int = 500_000,
+    progress=None,
 ) -> WorkspaceVolume:
-    """Monte Carlo constant-orientation volume: V = p V_box, SE = V_box sqrt(p (1 - p) / N) (reference §7.2)."""
+    """Monte Carlo constant-orientation volume: V = p V_box, SE = V_box sqrt(p (1 - p) / N) (reference §7.2).
+
+    ``progress(done)``, if given, is called with the samples tested so far after each chunk (nothing is printed).
+    """
     box = check_box(box_mm)
     rng = np.random.default_rng(seed)
     accepted = 0
@@ -96,6 +100,8 @@ def workspace_volume(
             size, geometry, orientation_deg=orientation_deg, box_mm=box, seed=rng, criterion=criterion
         )
         accepted += int(ok.sum())
+        if progress is not None:
+            progress(start + size)
     return hit_or_miss_volume(accepted, count, box)
 
 

@@ -1,0 +1,85 @@
+"""``bench`` starts cheaply: building the whole parser imports no numeric, plotting or table library.
+
+Each check runs in a fresh interpreter (a subprocess), since this test process has long imported everything.
+"""
+
+import json
+import subprocess
+import sys
+
+import pytest
+
+HEAVY = ("scipy", "matplotlib", "pandas", "numpy", "PySide6", "reportlab", "serial")
+
+
+def imported_after(code: str) -> dict:
+    """Run ``code`` in a fresh interpreter; the heavy top-level packages it left in ``sys.modules``, and its output."""
+    probe = (f"import sys\n{code}\n"
+             f"print(json.dumps(sorted({{m.split('.')[0] for m in sys.modules}} & set({list(HEAVY)!r}))))")
+    proc = subprocess.run([sys.executable, "-c", "import json\n" + probe], capture_output=True, text=True,
+                          timeout=120)
+    assert proc.returncode == 0, proc.stderr
+    return {"heavy": json.loads(proc.stdout.splitlines()[-1]), "stdout": proc.stdout}
+
+
+def test_building_the_whole_parser_imports_no_heavy_package():
+    result = imported_after("import bench.cli\nbench.cli.build_parser()")
+    assert result["heavy"] == []
+
+
+def test_top_level_help_and_version_import_no_heavy_package():
+    help_text = imported_after("import contextlib, io\nimport bench.cli\nout = io.StringIO()\n"
+                               "with contextlib.redirect_stdout(out), contextlib.suppress(SystemExit):\n"
+                               "    bench.cli.main(['--help'])\n"
+                               "print(repr('kin' in out.getvalue() and 'analyze' in out.getvalue()))")
+    assert help_text["heavy"] == [] and "True" in help_text["stdout"]
+    version = imported_after("import contextlib, io\nimport bench.cli\nout = io.StringIO()\n"
+                             "with contextlib.redirect_stdout(out), contextlib.suppress(SystemExit):\n"
+                             "    bench.cli.main(['--version'])\n"
+                             "print(repr(out.getvalue()))")
+    assert version["heavy"] == [] and "'bench " in version["stdout"]
+
+
+def test_inverse_kinematics_imports_numpy_only():
+    result = imported_after("import contextlib, io\nimport bench.cli\n"
+                            "with contextlib.redirect_stdout(io.StringIO()):\n"
+                            "    code = bench.cli.main(['kin', 'ik', 'pkm5', '111.31', '-20', '310', '--json'])\n"
+                            "assert code == 0, code")
+    assert result["heavy"] == ["numpy"]
+
+
+@pytest.mark.parametrize(("argv", "option", "choices"), [
+    (["kin", "fk", "pkm5"], "--mode", ["auto", "translation", "alpha", "beta"]),
+    (["analyze", "actuator"], "--robot", ["pkm5"]),
+    (["export"], "--format", ["csv", "parquet"]),
+    (["report"], "--format", ["html", "pdf", "all"]),
+])
+def test_deferred_arguments_appear_when_their_command_is_parsed(argv, option, choices):
+    from bench.cli import build_parser
+
+    parser = build_parser()
+    group = parser._subparsers._group_actions[0].choices[argv[0]]
+    for name in argv[1:]:
+        group = group._subparsers._group_actions[0].choices[name]
+    assert option not in group._option_string_actions  # not added yet: building the parser imported nothing
+    group.fill()
+    assert list(group._option_string_actions[option].choices) == choices
+
+
+def test_a_deferred_choice_is_checked_like_any_other(capsys):
+    from bench.cli import main
+
+    with pytest.raises(SystemExit) as exit_:
+        main(["kin", "fk", "pkm5", "184", "184", "184", "184", "192", "192", "--mode", "gamma"])
+    assert exit_.value.code == 2
+    assert "argument --mode: invalid choice: 'gamma'" in capsys.readouterr().err
+
+
+def test_simulator_help_lists_its_own_options(capsys):
+    from bench.cli import main
+
+    with pytest.raises(SystemExit) as exit_:
+        main(["sim", "pkm5", "--help"])
+    out = capsys.readouterr().out
+    assert exit_.value.code == 0
+    assert "Simulated 5-DOF PKM controller on a pseudo-terminal" in out and "--speed-factor" in out

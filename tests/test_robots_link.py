@@ -1,0 +1,42 @@
+"""FramedLink.write: a flush interrupted by a signal (termios.error EINTR, not an OSError) is retried; any other
+termios failure is a one-line LinkError naming the port and the command."""
+
+import errno
+import termios
+
+import pytest
+import serial
+
+from bench.errors import LinkError
+from bench.robots import pkm5_wire as wire
+
+
+class InterruptedFlushPort(serial.serial_for_url("loop://", timeout=0.01).__class__):
+    """A loop:// port whose tcdrain fails like the kernel's: ``failures`` times with ``code``."""
+
+    def __init__(self, failures: int, code: int) -> None:
+        super().__init__("loop://", timeout=0.01)
+        self.failures, self.code, self.flushes = failures, code, 0
+
+    def flush(self) -> None:
+        self.flushes += 1
+        if self.flushes <= self.failures:
+            raise termios.error(self.code, "Interrupted system call" if self.code == errno.EINTR else "I/O error")
+        super().flush()
+
+
+def test_an_interrupted_flush_is_retried_and_the_line_is_sent():
+    port = InterruptedFlushPort(failures=1, code=errno.EINTR)
+    link = wire.LineLink(port)
+    link.write(b"ID #1*00\n", command="ID")
+    assert port.flushes == 2
+    assert link.read_frame(0.2, command="ID", expected="the echoed line") == b"ID #1*00"
+
+
+@pytest.mark.parametrize(("failures", "code"), [(5, errno.EINTR), (1, errno.EIO)])
+def test_a_flush_that_keeps_failing_is_a_link_error(failures, code):
+    port = InterruptedFlushPort(failures=failures, code=code)
+    link = wire.LineLink(port)
+    with pytest.raises(LinkError, match=r"loop://.*cannot send 'STOP'"):
+        link.write(b"STOP #2*00\n", command="STOP")
+    assert port.flushes == (3 if code == errno.EINTR else 1)
