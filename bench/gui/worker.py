@@ -15,6 +15,7 @@ waits for the operator's entry, or raises :class:`bench.errors.PromptWithdrawn` 
 
 from __future__ import annotations
 
+import dataclasses
 import logging
 import queue
 from dataclasses import dataclass
@@ -156,6 +157,8 @@ class CampaignWorker(QThread):
                     robot = protocol.robot
                     stored = store.run(job).settings if isinstance(job, int) else None
                     request = self.rig_spec.request()
+                    if isinstance(job, int):  # a resume keeps the run's own seed and speed factor (its time base)
+                        request = dataclasses.replace(request, seed=None, speed_factor=None)
                     self.message.emit(f"starting the {robot} rig ({request.describe()})")
                     rig = open_rig(request, store, robot=robot, stored=stored,
                                    fixture=getattr(protocol, "fixture", "assembled"),

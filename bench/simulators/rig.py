@@ -258,8 +258,14 @@ def _simulated_actuator_bench(robot: str, *, seed: int, speed_factor: float, ide
 
 
 def end_process(process: subprocess.Popen) -> None:
+    """Stop a simulator: SIGTERM (it closes its pty), then SIGKILL if it has not ended within 10 s (a loaded
+    machine)."""
     process.terminate()
-    process.wait(5)
+    try:
+        process.wait(10)
+    except subprocess.TimeoutExpired:
+        process.kill()
+        process.wait(10)
 
 
 def _simulated_delta_rig(*, seed: int, speed_factor: float, ideal: bool) -> Rig:
