@@ -19,7 +19,7 @@ import math
 import sqlite3
 import subprocess
 import uuid
-from collections.abc import Iterable, Mapping
+from collections.abc import Iterable, Iterator, Mapping
 from dataclasses import dataclass
 from datetime import UTC, datetime
 from pathlib import Path
@@ -307,6 +307,14 @@ class Store:
         return [SampleRecord(run_id=r[0], step_index=r[1], kind=r[2], pose=r[3], cycle=r[4], t_s=r[5],
                              wall_utc=r[6], values=json.loads(r[7]), raw=None if r[8] is None else json.loads(r[8]))
                 for r in self._db.execute(query, args)]
+
+    def stored_rows(self, run_id: int, after_step: int = -1) -> Iterator[tuple]:
+        """The samples of a run after step ``after_step`` exactly as stored, in step order: ``(step_index, kind,
+        pose, cycle, t_s, wall_utc, values_json, raw_json)`` with the JSON unparsed (what sync sends and what
+        :func:`bench.store.lab.rows_checksum` hashes)."""
+        return self._db.execute("SELECT step_index, kind, pose, cycle, t_s, wall_utc, values_json, raw_json"
+                                " FROM samples WHERE run_id = ? AND step_index > ? ORDER BY step_index",
+                                (int(run_id), int(after_step)))
 
     def sample_kinds(self, run_id: int) -> dict[str, int]:
         """How many samples of each kind run ``run_id`` holds, most frequent first."""
