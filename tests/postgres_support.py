@@ -10,7 +10,9 @@ from __future__ import annotations
 
 import glob
 import os
+import json
 import shutil
+import sqlite3
 import subprocess
 import tempfile
 import uuid
@@ -18,6 +20,8 @@ from pathlib import Path
 from urllib.parse import urlsplit, urlunsplit
 
 import pytest
+
+from bench.store import Store
 
 PASSWORD = "bench-test-pw"
 _ENV = "BENCH_TEST_POSTGRES"
@@ -29,6 +33,30 @@ def _bindir() -> Path | None:
             return Path(found)
     initdb = shutil.which("initdb")
     return Path(initdb).parent if initdb else None
+
+
+def make_store(path: Path, bench: str, samples_per_run: list[int], robot: str = "pkm5") -> Path:
+    """A store of ``len(samples_per_run)`` completed runs with pose samples (bulk-inserted: one transaction), as
+    the simulator would write them (used by the sync tests and ``benchmarks/bench_sync.py``)."""
+    with Store(path, bench=bench) as store:
+        calibration = store.ensure_calibration("mouse", {"mm_per_count": 0.03175, "nominal": True})
+        run_ids = [store.start_run(protocol_name="iso9283_pose", protocol_version="1", robot=robot,
+                                   config={"cycles": n}, calibration_ids=[calibration.id], campaign="c1")
+                   for n in samples_per_run]
+    db = sqlite3.connect(path)
+    with db:
+        for run_id, n in zip(run_ids, samples_per_run):
+            db.executemany(
+                "INSERT INTO samples (run_id, step_index, kind, pose, cycle, t_s, wall_utc, values_json, raw_json)"
+                " VALUES (?, ?, 'pose', ?, ?, ?, ?, ?, ?)",
+                [(run_id, 2 * i + 1, f"P{i % 5 + 1}", i // 5 + 1, i * 0.1 + 1e-9 * run_id,
+                  f"2026-11-02T10:00:{i % 60:02d}.000000+00:00",
+                  json.dumps({"cmd_x_mm": 110.0, "cmd_y_mm": 0.0, "cmd_z_mm": 320.0, "x_mm": 110.0 + (i % 7) * 1e-3,
+                              "y_mm": -1.3 + run_id / 7, "z_mm": 318.3}, sort_keys=True),
+                  json.dumps({"counts": [i, -i]}) if i % 3 else None) for i in range(n)])
+            db.execute("UPDATE runs SET status = 'completed', ended_utc = started_utc WHERE id = ?", (run_id,))
+    db.close()  # the last connection checkpoints the WAL: the file's bytes are final
+    return path
 
 
 class Cluster:

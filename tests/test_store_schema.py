@@ -114,7 +114,10 @@ def test_descriptor_validation_names_the_column():
     validate_sample("no_such_kind", {"anything": 1.0})  # undeclared kinds are not checked
     with pytest.raises(SampleMismatch, match="sample kind 'pose': column 'x_in' is not declared"):
         validate_sample("pose", {**good, "x_in": 0.04})
-    with pytest.raises(SampleMismatch, match="sample kind 'pose': missing column\\(s\\) z_mm"):
-        validate_sample("pose", {k: v for k, v in good.items() if k != "z_mm"})
+    with pytest.raises(SampleMismatch, match="sample kind 'pose': missing column\\(s\\) cmd_z_mm"):
+        validate_sample("pose", {k: v for k, v in good.items() if k != "cmd_z_mm"})
+    validate_sample("pose", {k: v for k, v in good.items() if k != "z_mm"})  # an axis the instrument did not read
+    with pytest.raises(SampleMismatch, match="sample kind 'pose': horizontal_valid = 0.5, expected an integer"):
+        validate_sample("pose", {**good, "horizontal_valid": 0.5})
     assert (unit_of("mouse", "mouse_xy_x_counts"), unit_of("pose", "velocity_pct")) == ("counts", "pct")
     assert (unit_of("grid_hit", "y_disagreement_mm"), unit_of("grid_hit", "leg")) == ("mm", None)

@@ -7,43 +7,21 @@ import hashlib
 import json
 import os
 import signal
-import sqlite3
 import subprocess
 import sys
 import threading
 from pathlib import Path
 
-import psycopg
 import pytest
 
-from bench.cli import main
-from bench.store import Store
-from bench.store.lab import LabStore, rows_checksum, sync_store
-from postgres_support import PASSWORD, Cluster, lab_server, lab_url  # noqa: F401  (fixtures)
+psycopg = pytest.importorskip("psycopg", reason='the lab store needs psycopg 3 (pip install "psycopg[binary]")')
+
+from bench.cli import main  # noqa: E402
+from bench.store import Store  # noqa: E402
+from bench.store.lab import LabStore, rows_checksum, sync_store  # noqa: E402
+from postgres_support import PASSWORD, Cluster, lab_server, lab_url, make_store  # noqa: E402, F401  (fixtures)
 
 ROOT = Path(__file__).resolve().parents[1]
-
-
-def make_store(path: Path, bench: str, samples_per_run: list[int], robot: str = "pkm5") -> Path:
-    """A store of ``len(samples_per_run)`` completed runs with pose samples (bulk-inserted: one transaction)."""
-    with Store(path, bench=bench) as store:
-        calibration = store.ensure_calibration("mouse", {"mm_per_count": 0.03175, "nominal": True})
-        run_ids = [store.start_run(protocol_name="iso9283_pose", protocol_version="1", robot=robot,
-                                   config={"cycles": n}, calibration_ids=[calibration.id], campaign="c1")
-                   for n in samples_per_run]
-    db = sqlite3.connect(path)
-    with db:
-        for run_id, n in zip(run_ids, samples_per_run):
-            db.executemany(
-                "INSERT INTO samples (run_id, step_index, kind, pose, cycle, t_s, wall_utc, values_json, raw_json)"
-                " VALUES (?, ?, 'pose', ?, ?, ?, ?, ?, ?)",
-                [(run_id, 2 * i + 1, f"P{i % 5 + 1}", i // 5 + 1, i * 0.1 + 1e-9 * run_id,
-                  f"2026-11-02T10:00:{i % 60:02d}.000000+00:00",
-                  json.dumps({"x_mm": 110.0 + i * 1e-4, "y_mm": -1.3 + run_id / 7, "z_mm": 318.3}, sort_keys=True),
-                  json.dumps({"counts": [i, -i]}) if i % 3 else None) for i in range(n)])
-            db.execute("UPDATE runs SET status = 'completed', ended_utc = started_utc WHERE id = ?", (run_id,))
-    db.close()  # the last connection checkpoints the WAL: the file's bytes are final
-    return path
 
 
 def local_checksums(path: Path) -> dict[str, str]:

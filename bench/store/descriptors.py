@@ -7,7 +7,8 @@ instrument or the protocol and raises :class:`SampleMismatch`, never stored sile
 from here (:func:`unit_of`, :func:`dtype_of`); a column of an undeclared kind falls back to the project's naming
 rule (the unit is the name's last ``_`` part: ``x_mm``, ``load_kg``).
 
-Units: mm, deg, pct (percent of the robot's top speed), kg, s, counts (raw sensor counts), ``1`` (dimensionless).
+Units: mm, deg, pct (percent of the robot's top speed), kg, s, counts (raw sensor counts), ``1`` (dimensionless:
+flags and counts of things).
 """
 
 from __future__ import annotations
@@ -71,13 +72,23 @@ _CONDITIONS = (
     Column("velocity_pct", "pct", "float", "commanded velocity, percent of the rated speed", False),
     Column("load_kg", "kg", "float", "payload on the platform", False),
     Column("lead_s", "s", "float", "series recorded from this long before the move-done signal", False),
+    Column("hold_s", "s", "float", "series recorded for this long after the move-done signal", False),
+)
+_LASER_GRID = (
+    Column("horizontal_valid", "1", "int", "laser grid: 1 when the horizontal screen decoded", False),
+    Column("vertical_valid", "1", "int", "laser grid: 1 when the vertical screen decoded", False),
+    Column("horizontal_hits", "1", "int", "laser grid: lasers lit on the horizontal screen", False),
+    Column("vertical_hits", "1", "int", "laser grid: lasers lit on the vertical screen", False),
+    Column("y_disagreement_mm", "mm", "float", "laser grid: difference of the two screens' y readings", False),
 )
 _COMMANDED = _xyz("cmd_", "commanded position") + _abc("cmd_", "commanded orientation")
 
 #: The declared sample kinds, by name.
 SAMPLE_KINDS: dict[str, SampleKind] = {kind.name: kind for kind in (
-    SampleKind("pose", "an attained pose measured after settling (ISO 9283 pose tests)",
-               _COMMANDED + _xyz("", "measured position") + _abc("", "measured orientation") + _CONDITIONS),
+    SampleKind("pose", "an attained pose measured after settling (ISO 9283 pose tests); an axis the instrument could "
+                       "not read is absent (e.g. a laser-grid screen that did not decode)",
+               _COMMANDED + _xyz("", "measured position", required=False) + _abc("", "measured orientation")
+               + _CONDITIONS + _LASER_GRID),
     SampleKind("arrival", "the last point of a streamed arrival series (the series itself is in raw)",
                _COMMANDED + _xyz("", "measured position at the end of the series") + _CONDITIONS),
     SampleKind("mouse", "raw counts of the two optical mice at one end of a calibration stroke",

@@ -337,7 +337,8 @@ class LabStore:
 
     def query(self, sql: str, args: Any = ()) -> list[tuple]:
         """Rows of a read-only SQL query over the lab schema (for lab-wide analyses and benchmarks)."""
-        rows = self._conn.execute(sql, args).fetchall()
+        cursor = self._conn.execute(sql, args)
+        rows = cursor.fetchall() if cursor.description else []
         self._conn.rollback()
         return rows
 
