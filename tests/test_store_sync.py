@@ -59,6 +59,20 @@ def test_sync_twice_sends_nothing_twice(tmp_path, lab_url):
             ("mouse", '{"mm_per_count": 0.03175, "nominal": true}')]
 
 
+def test_awkward_text_arrives_byte_for_byte(tmp_path, lab_url):
+    path = tmp_path / "t.db"
+    with Store(path, bench="bench-\\t") as store:
+        run_id = store.start_run(protocol_name="p", protocol_version="1", robot="pkm5", config={"note": "a\tb"})
+        store.add_sample(run_id, 0, kind="grid_hit", values={"x_mm": 0.1 + 0.2}, pose="P\t1\\n\nend\r",
+                         t_s=1e-300, raw={"path": "C:\\bench\\new", "text": "tab\there"})
+        store.add_sample(run_id, 1, kind="grid_hit", values={}, pose=None, cycle=None, t_s=5e-324, raw=None)
+        sync_store(store, lab_url)
+    assert server_state(lab_url) == (2, 2, local_checksums(path))
+    with LabStore(lab_url) as lab:
+        assert lab.query("SELECT pose, raw_json FROM bench.samples ORDER BY step_index") == [
+            ("P\t1\\n\nend\r", '{"path": "C:\\\\bench\\\\new", "text": "tab\\there"}'), (None, None)]
+
+
 def test_sync_killed_midway_then_resumed_has_every_sample_once(tmp_path, lab_url):
     path = make_store(tmp_path / "b.db", "bench-b", [6000, 6000, 3000])
     before = file_digest(path)
