@@ -207,7 +207,11 @@ _COPY_ESCAPES = str.maketrans({"\\": "\\\\", "\t": "\\t", "\n": "\\n", "\r": "\\
 
 
 def _text(value: str | None) -> str:
-    return _NULL if value is None else value.translate(_COPY_ESCAPES)
+    if value is None:
+        return _NULL
+    if "\\" in value or "\t" in value or "\n" in value or "\r" in value:  # rare: JSON escapes its own controls
+        return value.translate(_COPY_ESCAPES)
+    return value
 
 
 def _copy_text(run_uuid: str, rows: list[tuple]) -> bytes:
