@@ -168,3 +168,36 @@ def test_lab_wide_runs_with_filters(tmp_path, lab_url, capsys):
     assert capsys.readouterr().out.splitlines()[1:] == []
     assert main(["runs", "--store", lab_url, "--since", "last tuesday"]) == 2
     assert _one_error_line(capsys) == "bench: error: --since last tuesday: expected an ISO date such as 2026-11-01"
+
+
+def test_benches_sync_at_once_through_a_kill_and_a_server_restart(tmp_path, lab_server, lab_url):
+    """The issue's acceptance, scaled to 4 benches: one is SIGKILLed mid-sync, the server is restarted while the
+    others sync (they reconnect), the killed one syncs again: every sample once, checksums equal per run."""
+    if not isinstance(lab_server, Cluster):
+        pytest.skip("BENCH_TEST_POSTGRES is not ours to restart")
+    paths = [make_store(tmp_path / f"bench{i}.db", f"bench-{i}", [1500, 500]) for i in range(4)]
+    env = {**os.environ, "PYTHONPATH": str(ROOT)}
+
+    def sync(path, **streams):
+        return subprocess.Popen([sys.executable, "-m", "bench.cli", "sync", "--store", str(path), "--to", lab_url,
+                                 "--batch", "100", "--retries", "6"], cwd=ROOT, env=env, text=True, **streams)
+
+    victim = sync(paths[0], stderr=subprocess.PIPE)
+    others = [sync(p, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL) for p in paths[1:]]
+    batches = 0
+    for line in victim.stderr:
+        batches += line.startswith("sync: run ")
+        if batches == 3:
+            os.kill(victim.pid, signal.SIGKILL)
+            break
+    victim.wait(timeout=30)
+    lab_server.stop("fast")
+    restart = threading.Timer(1.0, lab_server.start)
+    restart.start()
+    restart.join()
+    assert [p.wait(timeout=120) for p in others] == [0, 0, 0]
+    assert victim.returncode == -signal.SIGKILL
+    with Store(paths[0]) as store:
+        sync_store(store, lab_url)
+    expected = {uuid: digest for p in paths for uuid, digest in local_checksums(p).items()}
+    assert server_state(lab_url) == (8000, 8000, expected)
