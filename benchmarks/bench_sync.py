@@ -33,11 +33,13 @@ from bench.store.lab import LabStore, sync_store  # noqa: E402
 
 #: AP_p = |mean attained - commanded|, RP_p = mean(l) + 3 s(l), l = distance to the barycentre (ISO 9283 7.2).
 AP_RP_PER_ROBOT_WEEK = """
-WITH s AS MATERIALIZED (
-    SELECT r.robot, date_trunc('week', r.started_utc::timestamptz) AS week, s.run_uuid, s.pose,
-           (v->>'x_mm')::float8 AS x, (v->>'y_mm')::float8 AS y, (v->>'z_mm')::float8 AS z,
-           (v->>'cmd_x_mm')::float8 AS cx, (v->>'cmd_y_mm')::float8 AS cy, (v->>'cmd_z_mm')::float8 AS cz
-    FROM bench.samples s JOIN bench.runs r ON r.uuid = s.run_uuid, LATERAL (SELECT s.values_json::jsonb AS v) j
+WITH r AS (SELECT uuid, robot, date_trunc('week', started_utc::timestamptz)::date AS week FROM bench.runs),
+s AS MATERIALIZED (
+    SELECT r.robot, r.week, s.pose, v.x_mm AS x, v.y_mm AS y, v.z_mm AS z, v.cmd_x_mm AS cx, v.cmd_y_mm AS cy,
+           v.cmd_z_mm AS cz
+    FROM bench.samples s JOIN r ON r.uuid = s.run_uuid,
+         jsonb_to_record(s.values_json::jsonb)  -- one parse per sample
+             AS v(x_mm float8, y_mm float8, z_mm float8, cmd_x_mm float8, cmd_y_mm float8, cmd_z_mm float8)
     WHERE s.kind = 'pose'),
 m AS (SELECT robot, week, pose, avg(x) AS mx, avg(y) AS my, avg(z) AS mz, avg(cx) AS cx, avg(cy) AS cy,
              avg(cz) AS cz FROM s GROUP BY robot, week, pose),
@@ -46,7 +48,7 @@ p AS (SELECT m.robot, m.week, m.pose, sqrt((m.mx - m.cx) ^ 2 + (m.my - m.cy) ^ 2
              + 3 * stddev_samp(sqrt((s.x - m.mx) ^ 2 + (s.y - m.my) ^ 2 + (s.z - m.mz) ^ 2)) AS rp_mm,
              count(*) AS n
       FROM s JOIN m USING (robot, week, pose) GROUP BY m.robot, m.week, m.pose, ap_mm)
-SELECT robot, week::date, max(ap_mm), max(rp_mm), sum(n) FROM p GROUP BY robot, week ORDER BY robot, week
+SELECT robot, week, max(ap_mm), max(rp_mm), sum(n) FROM p GROUP BY robot, week ORDER BY robot, week
 """
 
 
