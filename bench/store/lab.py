@@ -29,8 +29,8 @@ from urllib.parse import urlsplit, urlunsplit
 from bench.errors import BenchError, ConfigError
 from bench.store.database import RunRecord, Store
 
-__all__ = ["LAB_SCHEMA_VERSION", "LabStore", "LabStoreError", "LabURLError", "SyncResult", "is_lab_url", "rows_checksum",
-           "sync_store"]
+__all__ = ["LAB_SCHEMA_VERSION", "LabStore", "LabStoreError", "LabURLError", "SyncResult", "is_lab_url",
+           "open_runs_store", "redacted", "rows_checksum", "sync_store"]
 
 _log = logging.getLogger(__name__)
 
