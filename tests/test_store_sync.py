@@ -48,13 +48,16 @@ def test_sync_twice_sends_nothing_twice(tmp_path, lab_url):
     assert (first.runs, first.calibrations, first.samples_sent) == (2, 1, 290)
     assert (second.runs, second.samples_sent) == (2, 0)
     assert server_state(lab_url) == (290, 290, local_checksums(path))
-    with Store(path) as store:  # a settled status travels on the next sync; the local file wins
+    with Store(path) as store:  # a sample added and a status settled later travel on the next sync
+        store.add_sample(2, 500, values={"x_mm": 1.0}, t_s=99.0)
         store.set_status(2, "aborted", "operator abort")
-        sync_store(store, lab_url)
+        assert sync_store(store, lab_url).samples_sent == 1
+    assert server_state(lab_url) == (291, 291, local_checksums(path))
     with LabStore(lab_url) as lab:
         runs = {r.id: r for r in lab.runs()}
         assert (runs[2].status, runs[2].reason, runs[2].bench, runs[1].n_samples) == (
             "aborted", "operator abort", "bench-a", 250)
+        assert runs[2].n_samples == 41
         assert lab.query("SELECT name, params_json FROM bench.calibrations") == [
             ("mouse", '{"mm_per_count": 0.03175, "nominal": true}')]
 
