@@ -24,6 +24,7 @@ COMMAND_MODULES = (
     "bench.commands.sensors",
     "bench.commands.campaign",
     "bench.commands.station",
+    "bench.commands.sync",
     "bench.commands.demo",
     "bench.commands.report",
     "bench.commands.gui",

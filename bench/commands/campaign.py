@@ -15,6 +15,7 @@ import sys
 from pathlib import Path
 from collections.abc import Iterator
 from contextlib import contextmanager
+from datetime import datetime
 from typing import TYPE_CHECKING, Any
 
 from bench.commands.lazy import defer
@@ -41,6 +42,9 @@ def register(groups: argparse._SubParsersAction) -> None:
 
     runs = _parser(groups, "runs", "list the stored runs and their status")
     runs.add_argument("--json", action="store_true", help="one JSON object per run, one per line")
+    runs.add_argument("--bench", default=None, help="only the runs of this bench")
+    runs.add_argument("--robot", default=None, help="only the runs of this robot (pkm5, delta4, ...)")
+    runs.add_argument("--since", default=None, metavar="DATE", help="only runs started on or after this UTC date")
     runs.set_defaults(handler=_runs)
 
     resume = _parser(groups, "resume", "continue a run at its last checkpoint without duplicating samples")
@@ -215,19 +219,32 @@ def _existing_store(path: str) -> str:
 
 
 def _runs(args: argparse.Namespace) -> int:
-    from bench.store import Store
+    from bench.store.lab import is_lab_url, open_runs_store  # a file or, read-only, a postgresql:// lab store
 
-    with Store(_existing_store(args.store)) as store:
-        records = store.runs()
+    with open_runs_store(args.store if is_lab_url(args.store) else _existing_store(args.store)) as store:
+        records = store.runs(bench=args.bench, robot=args.robot, since=_since(args.since))
     if args.json:
         for record in records:
             print(json.dumps(record.as_dict(), sort_keys=True))
         return 0
-    print(f"{'id':>4}  {'protocol':<26} {'robot':<6} {'status':<9} {'samples':>7}  {'started (UTC)':<19}  reason")
+    print(f"{'id':>4}  {'bench':<12} {'protocol':<26} {'robot':<6} {'status':<9} {'samples':>7}  "
+          f"{'started (UTC)':<19}  reason")
     for r in records:
-        print(f"{r.id:>4}  {r.protocol_name + ' v' + r.protocol_version:<26} {r.robot:<6} {r.status:<9} "
+        protocol = f"{r.protocol_name} v{r.protocol_version}"
+        print(f"{r.id:>4}  {r.bench:<12} {protocol:<26} {r.robot:<6} {r.status:<9} "
               f"{r.n_samples:>7}  {r.started_utc[:19]:<19}  {r.reason or ''}")
     return 0
+
+
+def _since(text: str | None) -> str | None:
+    """``--since`` checked as an ISO date or time (compared with the stored ISO UTC start times)."""
+    if text is None:
+        return None
+    try:
+        datetime.fromisoformat(text)
+    except ValueError:
+        raise ConfigError(f"--since {text}: expected an ISO date such as 2026-11-01") from None
+    return text
 
 
 def _default_kind(store: Store, run_id: int) -> str:

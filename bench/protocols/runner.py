@@ -55,6 +55,7 @@ from bench.steps import (
     Step,
 )
 from bench.store import Store
+from bench.store.descriptors import validate_sample
 
 __all__ = ["TRANSITIONS", "RunResult", "RunState", "Runner", "TransitionError", "resume_point"]
 
@@ -419,6 +420,7 @@ class Runner:
     def _store_sample(self, run_id: int, index: int, values: dict[str, float], *, kind: str, pose: str | None,
                       cycle: int | None, raw: Any) -> None:
         t_s = self._now_s()
+        validate_sample(kind, values)  # a sample off its descriptor is a bug: refused, never stored
         self.store.add_sample(run_id, index, values=values, kind=kind, pose=pose, cycle=cycle, t_s=t_s, raw=raw)
         self.samples_stored += 1
         if self._bar is not None:

@@ -1,4 +1,5 @@
-"""bench.store: the SQLite run store (runs, provenance, calibrations, raw samples) and the tidy-table export."""
+"""bench.store: the SQLite run store (runs, provenance, calibrations, raw samples), its schema versions, the
+sample descriptors, and the tidy-table export; ``bench.store.lab`` is the PostgreSQL lab store (psycopg 3)."""
 
 from bench.store.database import (
     RUN_STATUSES,
@@ -9,19 +10,26 @@ from bench.store.database import (
     Store,
     software_git_sha,
 )
+from bench.store.schema import SCHEMA_VERSION, StoreSchemaError
+from bench.store.descriptors import SAMPLE_KINDS, SampleMismatch, validate_sample
 from bench.store.export import EXPORT_FORMATS, TIDY_COLUMNS, export_run, series_table, tidy_table
 
 __all__ = [
     "EXPORT_FORMATS",
     "RUN_STATUSES",
+    "SAMPLE_KINDS",
+    "SCHEMA_VERSION",
     "TIDY_COLUMNS",
     "CalibrationRecord",
     "DuplicateSample",
     "RunRecord",
+    "SampleMismatch",
     "SampleRecord",
     "Store",
+    "StoreSchemaError",
     "export_run",
     "software_git_sha",
     "series_table",
     "tidy_table",
+    "validate_sample",
 ]

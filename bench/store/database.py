@@ -18,7 +18,8 @@ import logging
 import math
 import sqlite3
 import subprocess
-from collections.abc import Iterable, Mapping
+import uuid
+from collections.abc import Iterable, Iterator, Mapping
 from dataclasses import dataclass
 from datetime import UTC, datetime
 from pathlib import Path
@@ -26,6 +27,7 @@ from typing import Any, Self
 
 from bench import __version__
 from bench.errors import BenchError, ConfigError
+from bench.store.schema import default_bench_name, open_schema
 
 __all__ = [
     "RUN_STATUSES",
@@ -42,53 +44,6 @@ _log = logging.getLogger(__name__)
 #: The closed set of run statuses.
 RUN_STATUSES = ("running", "completed", "failed", "aborted")
 
-_SCHEMA = """
-CREATE TABLE IF NOT EXISTS campaigns (
-    id INTEGER PRIMARY KEY,
-    name TEXT NOT NULL UNIQUE,
-    created_utc TEXT NOT NULL,
-    notes TEXT NOT NULL DEFAULT ''
-);
-CREATE TABLE IF NOT EXISTS runs (
-    id INTEGER PRIMARY KEY,
-    campaign_id INTEGER REFERENCES campaigns(id),
-    protocol_name TEXT NOT NULL,
-    protocol_version TEXT NOT NULL,
-    robot TEXT NOT NULL,
-    config_json TEXT NOT NULL,
-    settings_json TEXT NOT NULL,
-    calibration_ids_json TEXT NOT NULL,
-    software_version TEXT NOT NULL,
-    git_sha TEXT NOT NULL,
-    status TEXT NOT NULL CHECK (status IN ('running', 'completed', 'failed', 'aborted')),
-    reason TEXT,
-    started_utc TEXT NOT NULL,
-    ended_utc TEXT
-);
-CREATE TABLE IF NOT EXISTS samples (
-    id INTEGER PRIMARY KEY,
-    run_id INTEGER NOT NULL REFERENCES runs(id),
-    step_index INTEGER NOT NULL,
-    kind TEXT NOT NULL,
-    pose TEXT,
-    cycle INTEGER,
-    t_s REAL NOT NULL,
-    wall_utc TEXT NOT NULL,
-    values_json TEXT NOT NULL,
-    raw_json TEXT,
-    UNIQUE (run_id, step_index)
-);
-CREATE TABLE IF NOT EXISTS calibrations (
-    id INTEGER PRIMARY KEY,
-    name TEXT NOT NULL,
-    version INTEGER NOT NULL,
-    created_utc TEXT NOT NULL,
-    params_json TEXT NOT NULL,
-    source_run_id INTEGER REFERENCES runs(id),
-    notes TEXT NOT NULL DEFAULT '',
-    UNIQUE (name, version)
-);
-"""
 
 
 class DuplicateSample(BenchError):
@@ -100,6 +55,8 @@ class RunRecord:
     """One stored run, as read back from the ``runs`` table."""
 
     id: int
+    uuid: str
+    bench: str
     campaign: str | None
     protocol_name: str
     protocol_version: str
@@ -142,6 +99,7 @@ class CalibrationRecord:
     """One version of a named calibration (e.g. ``mouse_xy``), with its parameters and the run it came from."""
 
     id: int
+    uuid: str
     name: str
     version: int
     created_utc: str
@@ -181,7 +139,11 @@ class Store:
     Parameters
     ----------
     path : str or Path
-        Database file; created with its tables when missing (``bench.db`` in the working folder by default).
+        Database file; created with its tables when missing (``bench.db`` in the working folder by default). An
+        older file is migrated after a backup copy is written next to it (``backup``); a newer one is refused
+        (see ``bench.store.schema``).
+    bench : str, optional
+        This bench's name, recorded on every run it starts (default: the host name).
 
     Examples
     --------
@@ -192,8 +154,9 @@ class Store:
     {0}
     """
 
-    def __init__(self, path: str | Path = "bench.db") -> None:
+    def __init__(self, path: str | Path = "bench.db", *, bench: str | None = None) -> None:
         self.path = str(path)
+        self.bench = bench or default_bench_name()
         if self.path != ":memory:":
             parent = Path(self.path).parent
             if not parent.is_dir():
@@ -203,9 +166,16 @@ class Store:
             self._db.execute("PRAGMA journal_mode=WAL")
             self._db.execute("PRAGMA synchronous=FULL")
             self._db.execute("PRAGMA foreign_keys=ON")
-            self._db.executescript(_SCHEMA)
+            self.backup = open_schema(self._db, self.path, self.bench)
         except sqlite3.DatabaseError as exc:
+            self._db.close()
             raise ConfigError(f"--store {self.path}: not a usable bench store ({exc})") from exc
+        except BenchError:
+            self._db.close()
+            raise
+        if self.backup is not None:
+            _log.warning("store %s migrated to the current schema; the old file is kept as %s", self.path,
+                         self.backup)
 
     def __repr__(self) -> str:
         return f"Store({self.path!r})"
@@ -232,13 +202,15 @@ class Store:
     def start_run(self, *, protocol_name: str, protocol_version: str, robot: str, config: Mapping[str, Any],
                   settings: Mapping[str, Any] | None = None, calibration_ids: Iterable[int] = (),
                   campaign: str | None = None) -> int:
-        """Create a run with status ``running`` and its full provenance; returns the run id."""
+        """Create a run with status ``running``, its full provenance, a new UUID and this bench's name; returns the
+        run id (an integer local to this file; the UUID is the run's name everywhere else)."""
         campaign_id = self.campaign_id(campaign) if campaign else None
         cursor = self._db.execute(
-            "INSERT INTO runs (campaign_id, protocol_name, protocol_version, robot, config_json, settings_json,"
-            " calibration_ids_json, software_version, git_sha, status, started_utc)"
-            " VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, 'running', ?)",
-            (campaign_id, protocol_name, str(protocol_version), robot, _to_json(dict(config), "config"),
+            "INSERT INTO runs (uuid, bench, campaign_id, protocol_name, protocol_version, robot, config_json,"
+            " settings_json, calibration_ids_json, software_version, git_sha, status, started_utc)"
+            " VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, 'running', ?)",
+            (str(uuid.uuid4()), self.bench, campaign_id, protocol_name, str(protocol_version), robot,
+             _to_json(dict(config), "config"),
              _to_json(dict(settings or {}), "settings"), _to_json(sorted(int(i) for i in calibration_ids),
                                                                   "calibration_ids"),
              __version__, software_git_sha(), _utc_now()))
@@ -260,21 +232,29 @@ class Store:
             raise ConfigError(f"run {run_id}: no such run in {self.path}")
         return rows[0]
 
-    def runs(self) -> list[RunRecord]:
-        """Every run, oldest first."""
-        return self._select_runs("", ())
+    def runs(self, *, bench: str | None = None, robot: str | None = None, since: str | None = None
+             ) -> list[RunRecord]:
+        """Every run, oldest first; optionally only those of one bench, of one robot, started on or after ``since``
+        (an ISO date or UTC time, e.g. ``2026-11-01``)."""
+        clauses, args = [], []
+        for column, value in (("r.bench = ?", bench), ("r.robot = ?", robot), ("r.started_utc >= ?", since)):
+            if value is not None:
+                clauses.append(column)
+                args.append(value)
+        return self._select_runs("WHERE " + " AND ".join(clauses) if clauses else "", tuple(args))
 
     def _select_runs(self, where: str, args: tuple) -> list[RunRecord]:
         query = (
-            "SELECT r.id, c.name, r.protocol_name, r.protocol_version, r.robot, r.config_json, r.settings_json,"
+            "SELECT r.id, r.uuid, r.bench, c.name, r.protocol_name, r.protocol_version, r.robot, r.config_json,"
+            " r.settings_json,"
             " r.calibration_ids_json, r.software_version, r.git_sha, r.status, r.reason, r.started_utc,"
             " r.ended_utc, (SELECT COUNT(*) FROM samples s WHERE s.run_id = r.id)"
             f" FROM runs r LEFT JOIN campaigns c ON c.id = r.campaign_id {where} ORDER BY r.id")
         return [
-            RunRecord(id=row[0], campaign=row[1], protocol_name=row[2], protocol_version=row[3], robot=row[4],
-                      config=json.loads(row[5]), settings=json.loads(row[6]),
-                      calibration_ids=tuple(json.loads(row[7])), software_version=row[8], git_sha=row[9],
-                      status=row[10], reason=row[11], started_utc=row[12], ended_utc=row[13], n_samples=row[14])
+            RunRecord(id=row[0], uuid=row[1], bench=row[2], campaign=row[3], protocol_name=row[4],
+                      protocol_version=row[5], robot=row[6], config=json.loads(row[7]), settings=json.loads(row[8]),
+                      calibration_ids=tuple(json.loads(row[9])), software_version=row[10], git_sha=row[11],
+                      status=row[12], reason=row[13], started_utc=row[14], ended_utc=row[15], n_samples=row[16])
             for row in self._db.execute(query, args)
         ]
 
@@ -328,6 +308,14 @@ class Store:
                              wall_utc=r[6], values=json.loads(r[7]), raw=None if r[8] is None else json.loads(r[8]))
                 for r in self._db.execute(query, args)]
 
+    def stored_rows(self, run_id: int, after_step: int = -1) -> Iterator[tuple]:
+        """The samples of a run after step ``after_step`` exactly as stored, in step order: ``(step_index, kind,
+        pose, cycle, t_s, wall_utc, values_json, raw_json)`` with the JSON unparsed (what sync sends and what
+        :func:`bench.store.lab.rows_checksum` hashes)."""
+        return self._db.execute("SELECT step_index, kind, pose, cycle, t_s, wall_utc, values_json, raw_json"
+                                " FROM samples WHERE run_id = ? AND step_index > ? ORDER BY step_index",
+                                (int(run_id), int(after_step)))
+
     def sample_kinds(self, run_id: int) -> dict[str, int]:
         """How many samples of each kind run ``run_id`` holds, most frequent first."""
         rows = self._db.execute("SELECT kind, COUNT(*) FROM samples WHERE run_id = ? GROUP BY kind "
@@ -344,9 +332,10 @@ class Store:
             (latest,) = self._db.execute("SELECT COALESCE(MAX(version), 0) FROM calibrations WHERE name = ?",
                                          (name,)).fetchone()
             cursor = self._db.execute(
-                "INSERT INTO calibrations (name, version, created_utc, params_json, source_run_id, notes)"
-                " VALUES (?, ?, ?, ?, ?, ?)",
-                (name, latest + 1, _utc_now(), _to_json(dict(params), "params"), source_run_id, notes))
+                "INSERT INTO calibrations (uuid, name, version, created_utc, params_json, source_run_id, notes)"
+                " VALUES (?, ?, ?, ?, ?, ?, ?)",
+                (str(uuid.uuid4()), name, latest + 1, _utc_now(), _to_json(dict(params), "params"), source_run_id,
+                 notes))
             self._db.execute("COMMIT")
         except BaseException:
             self._db.execute("ROLLBACK")
@@ -374,12 +363,12 @@ class Store:
         return self.calibration_by_id(row[0])
 
     def calibration_by_id(self, calibration_id: int) -> CalibrationRecord:
-        row = self._db.execute("SELECT id, name, version, created_utc, params_json, source_run_id, notes"
+        row = self._db.execute("SELECT id, uuid, name, version, created_utc, params_json, source_run_id, notes"
                                " FROM calibrations WHERE id = ?", (calibration_id,)).fetchone()
         if row is None:
             raise ConfigError(f"calibration id {calibration_id}: not found in {self.path}")
-        return CalibrationRecord(id=row[0], name=row[1], version=row[2], created_utc=row[3],
-                                 params=json.loads(row[4]), source_run_id=row[5], notes=row[6])
+        return CalibrationRecord(id=row[0], uuid=row[1], name=row[2], version=row[3], created_utc=row[4],
+                                 params=json.loads(row[5]), source_run_id=row[6], notes=row[7])
 
     def calibrations(self) -> list[CalibrationRecord]:
         """Every calibration version, by name then version."""

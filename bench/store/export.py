@@ -15,13 +15,14 @@ velocity_pct, load_kg`` of the sample, then ``t_s`` (relative to the move-done s
 from __future__ import annotations
 
 import importlib.util
-import re
+import json
 from pathlib import Path
 
 import pandas as pd
 
 from bench.errors import ConfigError, InsufficientData
 from bench.store.database import Store
+from bench.store.descriptors import SAMPLE_KINDS, dtype_of, unit_of
 
 __all__ = ["EXPORT_FORMATS", "TIDY_COLUMNS", "export_run", "series_table", "tidy_table"]
 
@@ -30,7 +31,6 @@ TIDY_COLUMNS = ("pose", "cycle", "cmd_x_mm", "cmd_y_mm", "cmd_z_mm", "x_mm", "y_
                 "cmd_a_deg", "cmd_b_deg", "cmd_c_deg", "a_deg", "b_deg", "c_deg", "velocity_pct", "load_kg", "t_s")
 
 EXPORT_FORMATS = ("csv", "parquet")
-_UNIT = re.compile(r"_(mm|deg|pct|kg|s|counts)$")
 
 
 def tidy_table(store: Store, run_id: int, kind: str = "pose") -> pd.DataFrame:
@@ -52,8 +52,10 @@ def tidy_table(store: Store, run_id: int, kind: str = "pose") -> pd.DataFrame:
         table["error_mm"] = table["length_mm"] - table["cmd_length_mm"]
     leading = [c for c in TIDY_COLUMNS if c in table.columns]
     table = table[leading + sorted(c for c in table.columns if c not in leading)]
-    for column in table.columns:  # counts and indices (no unit in the name) read back as integers
-        if column == "cycle" or not _UNIT.search(column) and column not in ("pose", "t_s"):
+    for column in table.columns:  # declared integers, and indices (no unit) read back as integers
+        if column in ("pose", "t_s"):
+            continue
+        if column == "cycle" or dtype_of(kind, column) == "int" or unit_of(kind, column) is None:
             values = table[column]
             if pd.api.types.is_numeric_dtype(values) and values.notna().all() and (values % 1 == 0).all():
                 table[column] = values.astype(int)
@@ -92,7 +94,10 @@ def _parquet_available() -> bool:
 def export_run(store: Store, run_id: int, path: str | Path, fmt: str = "csv", kind: str = "pose",
                series: bool = False) -> Path:
     """Write the tidy table of a run (``series=True``: its streamed series) to ``path`` as ``csv`` or ``parquet``;
-    returns the path written."""
+    returns the path written.
+
+    Beside it goes ``<path>.meta.json``: the run's identity (UUID, bench, local id), protocol, robot, and the unit,
+    dtype and meaning of every exported column (from the sample descriptor; the unit from the name otherwise)."""
     if fmt not in EXPORT_FORMATS:
         raise ConfigError(f"--format {fmt}: expected one of {', '.join(EXPORT_FORMATS)}")
     if fmt == "parquet" and not _parquet_available():
@@ -103,4 +108,18 @@ def export_run(store: Store, run_id: int, path: str | Path, fmt: str = "csv", ki
         table.to_csv(path, index=False, float_format="%.6f")
     else:
         table.to_parquet(path, index=False)
+    _write_meta(store, run_id, kind, table, Path(f"{path}.meta.json"))
     return path
+
+
+def _write_meta(store: Store, run_id: int, kind: str, table: pd.DataFrame, meta_path: Path) -> None:
+    run = store.run(run_id)
+    descriptor = SAMPLE_KINDS.get(kind)
+    columns = {}
+    for name in table.columns:
+        declared = descriptor.column(name) if descriptor else None
+        columns[name] = declared.as_dict() if declared else {"name": name, "unit": unit_of(kind, name)}
+    meta = {"run_uuid": run.uuid, "bench": run.bench, "run_id": run.id, "protocol": run.protocol_name,
+            "protocol_version": run.protocol_version, "robot": run.robot, "campaign": run.campaign,
+            "kind": kind, "columns": columns}
+    meta_path.write_text(json.dumps(meta, indent=1, sort_keys=True) + "\n", encoding="utf-8")

@@ -1,0 +1,376 @@
+"""The lab store: one PostgreSQL database that many benches sync their local SQLite stores into (psycopg 3).
+
+The local file stays the source of truth; the server holds copies, in the schema ``bench``:
+
+- ``bench.runs``: one row per run, keyed by the run's UUID, with its bench, local id, campaign, protocol,
+  configuration (``config_json``), robot settings (``settings_json``), calibrations, software version, status;
+- ``bench.calibrations``: one row per calibration version, keyed by its UUID;
+- ``bench.samples``: one row per sample, keyed by ``(run_uuid, step_index)``, every stored column as the local file
+  holds it (JSON as text, byte for byte), so :func:`rows_checksum` is equal on both sides.
+
+Sync is idempotent and resumable: runs and calibrations are upserted (the local file wins), and the samples the
+server lacks are sent in batches, each one COPY into a temporary table then ``INSERT ... ON CONFLICT DO NOTHING``
+in its own transaction. A sync killed or cut off mid-batch loses that batch's transaction only; the next sync asks
+the server which steps it holds and sends the rest, so every sample lands exactly once. Sync never writes to the
+local file.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import logging
+import time
+from collections.abc import Callable, Iterable
+from dataclasses import dataclass
+from typing import Any, Self
+from urllib.parse import urlsplit, urlunsplit
+
+from bench.errors import BenchError, ConfigError
+from bench.store.database import RunRecord, Store
+
+__all__ = ["LAB_SCHEMA_VERSION", "LabStore", "LabStoreError", "LabURLError", "SyncResult", "is_lab_url",
+           "open_runs_store", "redacted", "rows_checksum", "sync_store"]
+
+_log = logging.getLogger(__name__)
+
+#: The lab schema version this bench writes (kept in ``bench.schema_version``).
+LAB_SCHEMA_VERSION = 1
+
+_DDL = """
+CREATE SCHEMA IF NOT EXISTS bench;
+CREATE TABLE IF NOT EXISTS bench.schema_version (version integer NOT NULL);
+CREATE TABLE IF NOT EXISTS bench.runs (
+    uuid uuid PRIMARY KEY,
+    bench text NOT NULL,
+    local_id integer NOT NULL,
+    campaign text,
+    protocol_name text NOT NULL,
+    protocol_version text NOT NULL,
+    robot text NOT NULL,
+    config_json text NOT NULL,
+    settings_json text NOT NULL,
+    calibration_ids_json text NOT NULL,
+    calibration_uuids_json text NOT NULL,
+    software_version text NOT NULL,
+    git_sha text NOT NULL,
+    status text NOT NULL,
+    reason text,
+    started_utc text NOT NULL,
+    ended_utc text,
+    synced_utc timestamptz NOT NULL DEFAULT now()
+);
+CREATE INDEX IF NOT EXISTS runs_bench_robot_started ON bench.runs (bench, robot, started_utc);
+CREATE TABLE IF NOT EXISTS bench.calibrations (
+    uuid uuid PRIMARY KEY,
+    bench text NOT NULL,
+    local_id integer NOT NULL,
+    name text NOT NULL,
+    version integer NOT NULL,
+    created_utc text NOT NULL,
+    params_json text NOT NULL,
+    source_run_uuid uuid,
+    notes text NOT NULL
+);
+CREATE TABLE IF NOT EXISTS bench.samples (
+    run_uuid uuid NOT NULL REFERENCES bench.runs (uuid),
+    step_index integer NOT NULL,
+    kind text NOT NULL,
+    pose text,
+    cycle integer,
+    t_s double precision NOT NULL,
+    wall_utc text NOT NULL,
+    values_json text NOT NULL,
+    raw_json text,
+    PRIMARY KEY (run_uuid, step_index)
+);
+"""
+
+_SAMPLE_COLUMNS = "step_index, kind, pose, cycle, t_s, wall_utc, values_json, raw_json"
+_RUN_COLUMNS = ("uuid", "bench", "local_id", "campaign", "protocol_name", "protocol_version", "robot", "config_json",
+                "settings_json", "calibration_ids_json", "calibration_uuids_json", "software_version", "git_sha",
+                "status", "reason", "started_utc", "ended_utc")
+_LOCK_KEY = 9283_21  # advisory lock serialising schema creation by benches that connect at once
+
+
+class LabStoreError(BenchError):
+    """The lab store cannot be reached or used (credentials, server, schema); the local data is untouched."""
+
+    exit_code = 1
+
+
+class LabURLError(ConfigError):
+    """A lab store address that is not a usable PostgreSQL URL (bad input, exit 2)."""
+
+
+def is_lab_url(spec: str) -> bool:
+    """True for a ``postgresql://`` (or ``postgres://``) store address rather than a file."""
+    return str(spec).startswith(("postgresql://", "postgres://"))
+
+
+def redacted(url: str) -> str:
+    """``url`` with its password replaced by ``***`` (for messages)."""
+    parts = urlsplit(url)
+    if parts.password is None:
+        return url
+    netloc = parts.netloc.replace(f":{parts.password}@", ":***@", 1)
+    return urlunsplit(parts._replace(netloc=netloc))
+
+
+def _psycopg():
+    try:
+        import psycopg
+    except ImportError as exc:
+        raise ConfigError('the lab store needs psycopg 3: pip install "psycopg[binary]"') from exc
+    return psycopg
+
+
+def _one_line(exc: BaseException) -> str:
+    lines = [line.strip() for line in str(exc).splitlines() if line.strip()]
+    return lines[0] if lines else type(exc).__name__
+
+
+def connect(url: str, *, connect_timeout_s: int = 5):
+    """An open psycopg connection to ``url``; :class:`LabStoreError` says in one line what is wrong."""
+    psycopg = _psycopg()
+    shown = redacted(url)
+    if not is_lab_url(url):
+        raise LabURLError(f"lab store {shown}: expected a postgresql://USER:PASSWORD@HOST/DBNAME URL")
+    try:
+        psycopg.conninfo.conninfo_to_dict(url)
+    except psycopg.ProgrammingError as exc:
+        raise LabURLError(f"lab store {shown}: not a valid PostgreSQL URL ({_one_line(exc)})") from exc
+    try:
+        return psycopg.connect(url, connect_timeout=connect_timeout_s)
+    except psycopg.OperationalError as exc:
+        detail = _one_line(exc)
+        if "password authentication failed" in detail or "no password supplied" in detail:
+            raise LabStoreError(f"lab store {shown}: bad credentials ({detail})") from exc
+        if "does not exist" in detail:
+            raise LabStoreError(f"lab store {shown}: {detail}") from exc
+        raise LabStoreError(f"lab store {shown}: server unreachable ({detail})") from exc
+
+
+def ensure_schema(conn, url: str) -> None:
+    """Create the lab schema when missing; refuse a server whose schema is newer than this bench's."""
+    with conn.transaction():
+        conn.execute("SELECT pg_advisory_xact_lock(%s)", (_LOCK_KEY,))
+        row = conn.execute("SELECT to_regclass('bench.schema_version')").fetchone()
+        if row[0] is not None:
+            found = conn.execute("SELECT max(version) FROM bench.schema_version").fetchone()[0]
+            if found is not None and found > LAB_SCHEMA_VERSION:
+                raise LabStoreError(f"lab store {redacted(url)}: server schema version {found} is newer than "
+                                    f"this bench's ({LAB_SCHEMA_VERSION}); upgrade bench to sync")
+            if found == LAB_SCHEMA_VERSION:
+                return
+        conn.execute(_DDL)
+        conn.execute("DELETE FROM bench.schema_version")
+        conn.execute("INSERT INTO bench.schema_version VALUES (%s)", (LAB_SCHEMA_VERSION,))
+
+
+def rows_checksum(rows: Iterable[tuple]) -> str:
+    """SHA-256 over a run's sample rows in step order (``Store.stored_rows`` layout), one JSON line per row.
+
+    Equal on the local file and on the server exactly when every stored column of every sample is equal
+    (floats compared through their shortest round-trip repr)."""
+    digest = hashlib.sha256()
+    for row in rows:
+        digest.update(json.dumps(list(row), allow_nan=False).encode())
+        digest.update(b"\n")
+    return digest.hexdigest()
+
+
+@dataclass(frozen=True)
+class SyncResult:
+    """What one sync did: runs and calibrations upserted, samples sent (new on the server) and their seconds."""
+
+    runs: int
+    calibrations: int
+    samples_sent: int
+    seconds: float
+
+    @property
+    def samples_per_s(self) -> float:
+        return self.samples_sent / self.seconds if self.seconds > 0 else float("inf")
+
+
+def _run_row(store: Store, run: RunRecord, calibration_uuids: dict[int, str]) -> tuple:
+    return (run.uuid, run.bench, run.id, run.campaign, run.protocol_name, run.protocol_version, run.robot,
+            json.dumps(run.config, sort_keys=True), json.dumps(run.settings, sort_keys=True),
+            json.dumps(list(run.calibration_ids)),
+            json.dumps([calibration_uuids.get(i) for i in run.calibration_ids]),
+            run.software_version, run.git_sha, run.status, run.reason, run.started_utc, run.ended_utc)
+
+
+_NULL = "\\N"
+_COPY_ESCAPES = str.maketrans({"\\": "\\\\", "\t": "\\t", "\n": "\\n", "\r": "\\r"})
+
+
+def _text(value: str | None) -> str:
+    if value is None:
+        return _NULL
+    if "\\" in value or "\t" in value or "\n" in value or "\r" in value:  # rare: JSON escapes its own controls
+        return value.translate(_COPY_ESCAPES)
+    return value
+
+
+def _copy_text(run_uuid: str, rows: list[tuple]) -> bytes:
+    """Rows in COPY's text format (PostgreSQL manual, COPY, "Text Format"): tab-separated, ``\\N`` for NULL,
+    backslash escapes for backslash, tab, newline and carriage return; floats as their shortest round-trip repr."""
+    lines = [f"{run_uuid}\t{step}\t{_text(kind)}\t{_text(pose)}\t{_NULL if cycle is None else cycle}\t"
+             f"{float(t_s)!r}\t{_text(wall)}\t{_text(values)}\t{_text(raw)}\n"
+             for step, kind, pose, cycle, t_s, wall, values, raw in rows]
+    return "".join(lines).encode()
+
+
+def _push(store: Store, conn, *, batch_size: int, progress: Callable[[str], None], sent: list[int]
+          ) -> tuple[int, int]:
+    """Upsert runs and calibrations, then send the samples the server lacks; ``sent[0]`` counts the samples
+    committed (kept when a later batch fails)."""
+    psycopg = _psycopg()
+    calibrations = store.calibrations()
+    runs = store.runs()
+    run_uuids = {r.id: r.uuid for r in runs}
+    calibration_uuids = {c.id: c.uuid for c in calibrations}
+    placeholders = ", ".join(["%s"] * len(_RUN_COLUMNS))
+    updates = ", ".join(f"{c} = EXCLUDED.{c}" for c in _RUN_COLUMNS[1:])
+    with conn.transaction(), conn.cursor() as cur:
+        cur.executemany(
+            f"INSERT INTO bench.runs ({', '.join(_RUN_COLUMNS)}) VALUES ({placeholders})"
+            f" ON CONFLICT (uuid) DO UPDATE SET {updates}, synced_utc = now()",
+            [_run_row(store, r, calibration_uuids) for r in runs])
+        cur.executemany(
+            "INSERT INTO bench.calibrations (uuid, bench, local_id, name, version, created_utc, params_json,"
+            " source_run_uuid, notes) VALUES (%s, %s, %s, %s, %s, %s, %s, %s, %s) ON CONFLICT (uuid) DO NOTHING",
+            [(c.uuid, store.bench, c.id, c.name, c.version, c.created_utc, json.dumps(c.params, sort_keys=True),
+              run_uuids.get(c.source_run_id), c.notes) for c in calibrations])
+    conn.execute("CREATE TEMP TABLE IF NOT EXISTS sample_stage (LIKE bench.samples) ON COMMIT DELETE ROWS")
+    conn.commit()
+    for run in runs:
+        held = {row[0] for row in conn.execute("SELECT step_index FROM bench.samples WHERE run_uuid = %s",
+                                               (run.uuid,))}
+        conn.commit()
+        if len(held) == run.n_samples:
+            continue
+        pending = (row for row in store.stored_rows(run.id) if row[0] not in held)
+        while True:
+            batch = [row for _, row in zip(range(batch_size), pending)]
+            if not batch:
+                break
+            data = _copy_text(run.uuid, batch)
+            try:  # fast path: straight into bench.samples, the server lacked these steps when asked
+                with conn.transaction(), conn.cursor() as cur:
+                    with cur.copy(f"COPY bench.samples (run_uuid, {_SAMPLE_COLUMNS}) FROM STDIN") as copy:
+                        copy.write(data)
+                inserted = len(batch)
+            except psycopg.errors.UniqueViolation:  # another sync of this file got there first: skip its rows
+                with conn.transaction(), conn.cursor() as cur:
+                    with cur.copy(f"COPY sample_stage (run_uuid, {_SAMPLE_COLUMNS}) FROM STDIN") as copy:
+                        copy.write(data)
+                    cur.execute(f"INSERT INTO bench.samples (run_uuid, {_SAMPLE_COLUMNS})"
+                                f" SELECT run_uuid, {_SAMPLE_COLUMNS} FROM sample_stage ON CONFLICT DO NOTHING")
+                    inserted = cur.rowcount
+            sent[0] += inserted  # counted once its transaction has committed
+            progress(f"sync: run {run.id} ({run.uuid}) +{len(batch)} samples")
+    return len(runs), len(calibrations)
+
+
+def sync_store(store: Store, url: str, *, batch_size: int = 20_000, retries: int = 3, retry_wait_s: float = 1.0,
+               progress: Callable[[str], None] | None = None) -> SyncResult:
+    """Push every run, calibration and sample of ``store`` that the server at ``url`` lacks (see the module
+    docstring); after a lost connection, reconnect and resume up to ``retries`` times (waits ``retry_wait_s``,
+    then twice that, ...).
+
+    Raises
+    ------
+    LabStoreError
+        Bad URL or credentials, a newer server schema (at once); an unreachable server after the retries.
+    """
+    psycopg = _psycopg()
+    report = progress or (lambda line: _log.info("%s", line))
+    started = time.perf_counter()
+    sent, attempt = [0], 0
+    while True:
+        try:
+            conn = connect(url)
+            try:
+                ensure_schema(conn, url)
+                runs, calibrations = _push(store, conn, batch_size=batch_size, progress=report, sent=sent)
+            finally:
+                conn.close()
+            return SyncResult(runs, calibrations, sent[0], time.perf_counter() - started)
+        except (psycopg.OperationalError, LabStoreError) as exc:
+            retryable = isinstance(exc, psycopg.OperationalError) or "server unreachable" in str(exc)
+            if not retryable or attempt >= retries:
+                if isinstance(exc, LabStoreError):
+                    raise
+                raise LabStoreError(f"lab store {redacted(url)}: connection lost ({_one_line(exc)}); "
+                                    "run bench sync again to resume") from exc
+            attempt += 1
+            report(f"sync: {_one_line(exc)}; retry {attempt} of {retries}")
+            time.sleep(retry_wait_s * 2 ** (attempt - 1))
+
+
+class LabStore:
+    """Read-only access to the lab store's runs, the same records as :class:`Store` gives (``id`` is the run's id
+    in its bench's file; ``n_samples`` counts the samples synced)."""
+
+    def __init__(self, url: str) -> None:
+        self.path = redacted(url)
+        self._conn = connect(url)
+        self._conn.read_only = True
+        found = self._conn.execute("SELECT to_regclass('bench.runs')").fetchone()[0]
+        if found is None:
+            self._conn.close()
+            raise LabStoreError(f"lab store {self.path}: no bench data yet (run bench sync first)")
+
+    def __enter__(self) -> Self:
+        return self
+
+    def __exit__(self, *exc_info: object) -> None:
+        self.close()
+
+    def close(self) -> None:
+        self._conn.close()
+
+    def runs(self, *, bench: str | None = None, robot: str | None = None, since: str | None = None
+             ) -> list[RunRecord]:
+        """Every synced run, oldest first, optionally filtered as :meth:`Store.runs` is."""
+        clauses, args = [], []
+        for clause, value in (("r.bench = %s", bench), ("r.robot = %s", robot), ("r.started_utc >= %s", since)):
+            if value is not None:
+                clauses.append(clause)
+                args.append(value)
+        where = "WHERE " + " AND ".join(clauses) if clauses else ""
+        rows = self._conn.execute(
+            "SELECT r.local_id, r.uuid::text, r.bench, r.campaign, r.protocol_name, r.protocol_version, r.robot,"
+            " r.config_json, r.settings_json, r.calibration_ids_json, r.software_version, r.git_sha, r.status,"
+            " r.reason, r.started_utc, r.ended_utc,"
+            " (SELECT count(*) FROM bench.samples s WHERE s.run_uuid = r.uuid)"
+            f" FROM bench.runs r {where} ORDER BY r.started_utc, r.bench, r.local_id", args).fetchall()
+        self._conn.rollback()
+        return [RunRecord(id=r[0], uuid=r[1], bench=r[2], campaign=r[3], protocol_name=r[4], protocol_version=r[5],
+                          robot=r[6], config=json.loads(r[7]), settings=json.loads(r[8]),
+                          calibration_ids=tuple(json.loads(r[9])), software_version=r[10], git_sha=r[11],
+                          status=r[12], reason=r[13], started_utc=r[14], ended_utc=r[15], n_samples=int(r[16]))
+                for r in rows]
+
+    def checksum(self, run_uuid: str) -> str:
+        """:func:`rows_checksum` of the samples the server holds for ``run_uuid``."""
+        rows = self._conn.execute(f"SELECT {_SAMPLE_COLUMNS} FROM bench.samples WHERE run_uuid = %s"
+                                  " ORDER BY step_index", (run_uuid,))
+        result = rows_checksum(rows)
+        self._conn.rollback()
+        return result
+
+    def query(self, sql: str, args: Any = ()) -> list[tuple]:
+        """Rows of a read-only SQL query over the lab schema (for lab-wide analyses and benchmarks)."""
+        cursor = self._conn.execute(sql, args)
+        rows = cursor.fetchall() if cursor.description else []
+        self._conn.rollback()
+        return rows
+
+
+def open_runs_store(spec: str, **store_args: Any) -> Store | LabStore:
+    """A :class:`LabStore` for a ``postgresql://`` address, else the SQLite :class:`Store` file."""
+    return LabStore(spec) if is_lab_url(spec) else Store(spec, **store_args)
