@@ -67,6 +67,8 @@ def open_rig(request: RigRequest, store: Any, *, robot: str, stored: dict[str, A
     if station.controller.fixture != fixture:
         raise ConfigError(f"{station.source}: controller.fixture = {station.controller.fixture!r}, expected "
                           f"{fixture!r} for {protocol}")
+    if request.station and hasattr(store, "bench"):
+        store.bench = station.identity.bench  # runs are stored under the station's name (the lab store's key)
     if not request.simulate:
         return build_rig(station, store, requires=requires, protocol=protocol, operator=operator)
     from bench.simulators.station import rehearse

@@ -175,6 +175,7 @@ def test_pkm5_with_mice_on_the_hardware_path_measures_the_true_displacements(tmp
         settings = run.settings
         samples = [s for s in store.samples(result.run_id) if s.kind == "pose"]
     assert settings["station"]["simulated"] is True and settings["station"]["identity"]["robot_serial"] == "PKM5-0001"
+    assert run.bench == "pkm5-bench-1"  # the station's name, the run's key in the lab store
     assert settings["instrument"]["cpi"] == 800 and settings["instrument"]["resolution_mm"] == pytest.approx(0.03175)
     measured = np.array([[s.values[k] for k in ("x_mm", "y_mm", "z_mm")] for s in samples])
     # each sample against the true pose it was taken at: the truth log has one rest per move, in plan order
