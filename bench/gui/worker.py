@@ -192,7 +192,7 @@ class CampaignWorker(QThread):
         self.runner = runner
         if self._emergency:  # pressed while the rig was starting (emergency_stop saw no runner yet)
             runner.emergency_stop()
-        self.state_changed.emit("running")
+        self.state_changed.emit("starting")  # "running" once the runner is (its on_start)
         try:
             result = runner.resume_run(job) if isinstance(job, int) else runner.run(job, campaign=self.campaign)
         except BenchError as exc:  # refused before the run started (pre-flight, resume checks)
@@ -205,6 +205,7 @@ class CampaignWorker(QThread):
         """The runner's ``on_start`` (worker thread): tell the window, with what a resumed run already holds."""
         run_id = runner.run_id
         self.run_started.emit(run_id, runner.samples_total, runner.samples_stored)
+        self.state_changed.emit(runner.state.value)
         record = store.run(run_id)
         stored = store.samples(run_id) if runner.samples_stored else []
         self.samples_loaded.emit(run_id, _unix_s(record.started_utc), [
