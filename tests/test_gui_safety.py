@@ -13,6 +13,7 @@ import time
 from pathlib import Path
 
 import numpy as np
+import pandas as pd
 import pytest
 
 pytest.importorskip("PySide6")
@@ -237,17 +238,20 @@ def test_a_screenshot_of_each_panel(window, tmp_path):
     _start(window, "iso9283_pose_quick.toml", cycles="3")
     _wait_idle(window)
     window.live_view.redraw()
-    dialog, _ = _reading_pending(window)
-    dialog.entry.setText("50")
-    QTest.keyClick(dialog.entry, Qt.Key.Key_Return)  # a validation message in the picture
     QTest.qWait(100)
-    shots = {"calliper_dialog": dialog}
-    shots.update({"window": window, "robot_panel": window.robot_panel, "campaign_panel": window.campaign_panel,
-                  "live_view": window.live_view})
+    shots = {"window": window, "robot_panel": window.robot_panel, "campaign_panel": window.campaign_panel,
+             "live_view": window.live_view}
     for name, widget in shots.items():
         path = out / f"gui_{name}.png"
         assert widget.grab().save(str(path))
         _non_blank(path, 250, 150)
+    dialog, _ = _reading_pending(window)
+    dialog.entry.setText("50")
+    QTest.keyClick(dialog.entry, Qt.Key.Key_Return)  # a validation message in the picture
+    QTest.qWait(100)
+    path = out / "gui_calliper_dialog.png"
+    assert dialog.grab().save(str(path))
+    _non_blank(path, 250, 150)
     _click(window.estop)
     _wait_idle(window)
     window.tabs.setCurrentWidget(window.results)
@@ -257,3 +261,18 @@ def test_a_screenshot_of_each_panel(window, tmp_path):
     assert window.results.grab().save(str(path))
     _non_blank(path, 250, 150)
     print(f"screenshots in {out} ({'X server' if real_display() else 'offscreen'})")
+
+
+def test_export_writes_the_default_kind_of_bench_export(window, tmp_path):
+    with Store(tmp_path / "bench.db") as store:  # a run of tilt readings only (no pose samples)
+        run_id = store.start_run(protocol_name="tilt", protocol_version="1", robot="pkm5", config={})
+        for index, reading in enumerate((-1.5, 0.25)):
+            store.add_sample(run_id, index, values={"a_deg": reading, "cmd_a_deg": 0.0}, kind="tilt", pose="P1",
+                             cycle=index + 1, t_s=float(index), raw={"field": "a_deg", "entered": reading})
+    select_runs(window.results, [run_id])
+    _click(window.results.buttons["export"])
+    wait_for(lambda: window.results.last_dialog is not None, RUN_TIMEOUT_S, "the export")
+    path = tmp_path / "reports" / f"run-{run_id}-tilt.csv"
+    assert window.results.last_dialog.text() == str(path.resolve())
+    table = pd.read_csv(path)
+    assert table["a_deg"].tolist() == [-1.5, 0.25] and table["pose"].tolist() == ["P1", "P1"]
