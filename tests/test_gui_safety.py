@@ -134,7 +134,7 @@ def test_the_calliper_dialog_speaks_to_the_operator_and_keeps_its_layout():
 
 
 @pytest.mark.parametrize(("state", "legal"), [
-    (None, {"start"}), ("starting", set()), ("running", {"pause", "stop", "abort"}),
+    (None, {"start"}), ("starting", set()), ("idle", set()), ("running", {"pause", "stop", "abort"}),
     ("pause requested", {"stop", "abort"}), ("paused", {"resume", "stop", "abort"}), ("stopping", {"abort"}),
     ("aborting", set()), ("halting", set()), ("finished", set()),
 ])

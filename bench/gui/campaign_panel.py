@@ -56,6 +56,8 @@ def enabled_actions(state: str | None) -> set[str]:
         current = RunState.RUNNING if state == PAUSE_REQUESTED else RunState(state)
     except ValueError:  # starting: the rig is being built, only the emergency stop acts
         return set()
+    if current is RunState.IDLE:  # the runner exists but has not started the run yet
+        return set()
     legal = {action for action, target in ACTION_TARGETS.items() if target in TRANSITIONS[current]}
     return legal - {"pause"} if state == PAUSE_REQUESTED else legal
 
@@ -288,6 +290,10 @@ class CampaignPanel(QGroupBox):
             self.worker.request(action)
 
     def _state_changed(self, state: str) -> None:
+        runner = self.worker.runner if self.worker is not None else None
+        if runner is not None and state != PAUSE_REQUESTED:
+            # the runner's own state: a report queued before a later request is stale; idle = still starting
+            state = "starting" if runner.state is RunState.IDLE else runner.state.value
         self._set_state(state)
         self.eta.setText(f"{state} - {self._eta_text()}")
 
