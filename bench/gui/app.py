@@ -10,14 +10,12 @@ checkpoint through the runner (status ``aborted``, resumable; every stored sampl
 from __future__ import annotations
 
 import logging
-import os
-import sys
 from pathlib import Path
 
 from PySide6.QtCore import Qt
 from PySide6.QtGui import QCloseEvent, QKeySequence, QShortcut
 from PySide6.QtWidgets import (
-    QApplication,
+    QLabel,
     QMainWindow,
     QMessageBox,
     QPlainTextEdit,
@@ -33,11 +31,10 @@ from bench.gui.campaign_panel import CampaignPanel
 from bench.gui.live_view import LiveView
 from bench.gui.results_browser import ResultsBrowser
 from bench.gui.robot_panel import RobotPanel
-from bench.errors import ConfigError
 from bench.gui.worker import CampaignWorker
 from bench.protocols import Prompt, RunResult
 
-__all__ = ["ESTOP_KEY", "MainWindow", "launch", "require_display"]
+__all__ = ["ESTOP_KEY", "MainWindow"]
 
 #: The keyboard shortcut of the emergency stop, active in every window of the application.
 ESTOP_KEY = Qt.Key.Key_F12
@@ -110,6 +107,9 @@ class MainWindow(QMainWindow):
         self.estop_shortcut.setContext(Qt.ShortcutContext.ApplicationShortcut)  # also in the calliper dialog
         self.estop_shortcut.activated.connect(self.emergency_stop)
         bar.addWidget(self.estop)
+        note = QLabel("  software stop (category 1/2): the hard-wired emergency stop of the cell is the safety device")
+        note.setObjectName("estopNote")
+        bar.addWidget(note)
         spacer = QWidget()
         bar.addWidget(spacer)
         self.addToolBar(Qt.ToolBarArea.TopToolBarArea, bar)
@@ -210,45 +210,7 @@ class MainWindow(QMainWindow):
                 _log.error("the run did not reach a checkpoint within %g s; halting it", CLOSE_TIMEOUT_S)
                 self.campaign_panel.request("halt")
                 self.campaign_panel.worker.wait(int(CLOSE_TIMEOUT_S * 1000))
+        self.results.stop_watching()
         self.robot_panel.wait_idle()
         self.robot_panel.disconnect_robot()
         event.accept()
-
-
-def launch(store_path: str | Path = "bench.db", report_dir: str | Path = "reports",
-           argv: list[str] | None = None) -> int:
-    """Open the window and run the Qt event loop until it closes; returns the exit code.
-
-    Raises
-    ------
-    ConfigError
-        There is no display to open the window on (checked before Qt, whose own failure is an abort).
-    """
-    if QApplication.instance() is None:
-        require_display()
-    app = QApplication.instance() or QApplication(argv if argv is not None else sys.argv[:1])
-    window = MainWindow(store_path, report_dir)
-    window.show()
-    return int(app.exec())
-
-
-#: Qt platforms that need no display server.
-_HEADLESS_PLATFORMS = ("offscreen", "minimal", "vnc", "eglfs", "linuxfb", "vkkhrdisplay")
-
-
-def require_display(environ: dict[str, str] | None = None) -> None:
-    """Refuse to start Qt without a display: on Linux, X11 (``DISPLAY``) or Wayland (``WAYLAND_DISPLAY``), unless
-    ``QT_QPA_PLATFORM`` names a platform without one (``offscreen``).
-
-    Raises
-    ------
-    ConfigError
-        Naming what is missing and what to do.
-    """
-    environ = os.environ if environ is None else environ
-    platform = environ.get("QT_QPA_PLATFORM", "").split(":")[0]
-    if not sys.platform.startswith("linux") or platform in _HEADLESS_PLATFORMS:
-        return
-    if not environ.get("DISPLAY") and not environ.get("WAYLAND_DISPLAY"):
-        raise ConfigError("bench gui: no display (DISPLAY and WAYLAND_DISPLAY are not set); run it in a desktop "
-                          "session, over ssh -X, or under xvfb-run")

@@ -127,6 +127,10 @@ class ResultsBrowser(QGroupBox):
         if stamp != self._stamp:
             self.refresh()
 
+    def stop_watching(self) -> None:
+        """No more looks at the store (the window closes)."""
+        self._poll.stop()
+
     def refresh(self) -> Task | None:
         """Read the runs again from the store, in the background (its own connection); the table follows."""
         if self._scan is not None:  # one scan at a time; the latest change is read after it
