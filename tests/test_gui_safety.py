@@ -276,3 +276,15 @@ def test_export_writes_the_default_kind_of_bench_export(window, tmp_path):
     assert window.results.last_dialog.text() == str(path.resolve())
     table = pd.read_csv(path)
     assert table["a_deg"].tolist() == [-1.5, 0.25] and table["pose"].tolist() == ["P1", "P1"]
+
+
+def test_the_stream_draws_measurements_not_the_conditions_of_a_capture():
+    from bench.gui.live_view import LiveView
+
+    application()
+    view = LiveView()
+    view.clear("run 1", started_s=1000.0)
+    arrival = {"kind": "arrival", "pose": "P1", "cycle": 1, "t_s": 5e4, "wall_s": 1004.5,
+               "values": {"x_mm": 110.25, "cmd_x_mm": 110.0, "lead_s": 0.2, "hold_s": 2.0, "velocity_pct": 100.0}}
+    assert view.add_sample(dict(arrival, step_index=7)) and not view.add_sample(dict(arrival, step_index=7))
+    assert view.stream() == {"x_mm - cmd": ([4.5], [pytest.approx(0.25)])}  # wall-clock s since the start

@@ -30,8 +30,9 @@ __all__ = ["REDRAW_MS", "LiveView"]
 #: Shortest interval between two redraws, ms (samples can arrive much faster with a simulator).
 REDRAW_MS = 200
 _ATTAINED = ("x_mm", "y_mm", "z_mm")
-#: Values that describe the test conditions, not a measurement: never drawn as a stream.
-_NOT_MEASURED = ("velocity_pct", "load_kg", "leg")
+#: Values that describe the test conditions (a capture's lead and hold times included), not a measurement: never
+#: drawn as a stream.
+_NOT_MEASURED = ("velocity_pct", "load_kg", "leg", "lead_s", "hold_s")
 
 
 class LiveView(QWidget):
