@@ -142,7 +142,7 @@ def test_closing_mid_run_stops_at_a_checkpoint_and_the_run_resumes_from_the_brow
         with Store(tmp_path / "bench.db") as store:
             resumed = store.run(run.id)
             steps = sorted(store.stored_steps(run.id))
-        assert (resumed.status, resumed.n_samples) == ("completed", 15)
+        assert (resumed.status, resumed.n_samples) == ("completed", 15), resumed.reason
         assert again.campaign_panel.progress.value() == 15  # started at the stored count
         assert all(stats["n"] == 3 for stats in again.live_view.pose_statistics().values())
         assert sorted(again.live_view.samples) == steps  # every stored sample shown once, none twice
