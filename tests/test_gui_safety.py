@@ -288,3 +288,31 @@ def test_the_stream_draws_measurements_not_the_conditions_of_a_capture():
                "values": {"x_mm": 110.25, "cmd_x_mm": 110.0, "lead_s": 0.2, "hold_s": 2.0, "velocity_pct": 100.0}}
     assert view.add_sample(dict(arrival, step_index=7)) and not view.add_sample(dict(arrival, step_index=7))
     assert view.stream() == {"x_mm - cmd": ([4.5], [pytest.approx(0.25)])}  # wall-clock s since the start
+
+
+def test_the_live_figures_are_per_pose_and_velocity_as_in_the_report():
+    from bench.gui.live_view import LiveView
+    from bench.metrology.tables import analyze_poses, pose_table
+
+    application()
+    rng = np.random.default_rng(19)
+    view = LiveView()
+    view.clear("run 1", started_s=0.0)
+    rows = []
+    for index, (velocity, cycle) in enumerate((v, c) for v in (50.0, 100.0) for c in (1, 2, 3)):
+        offset = (0.1 if velocity == 50.0 else 0.9)  # the faster visits land further off: pooled, AP would mix them
+        attained = np.array([110.0, 0.0, 320.0]) + offset + rng.normal(0.0, 0.05, 3)
+        values = {"x_mm": attained[0], "y_mm": attained[1], "z_mm": attained[2], "cmd_x_mm": 110.0,
+                  "cmd_y_mm": 0.0, "cmd_z_mm": 320.0, "velocity_pct": velocity, "load_kg": 0.0}
+        view.add_sample({"step_index": index, "kind": "pose", "pose": "P1", "cycle": cycle, "t_s": float(index),
+                         "wall_s": float(index), "values": values})
+        rows.append({"pose": "P1", "cycle": cycle, **values})
+    view.add_sample({"step_index": 0, "kind": "pose", "pose": "P1", "cycle": 1, "t_s": 0.0, "wall_s": 0.0,
+                     "values": rows[0] | {"x_mm": 999.0}})  # the same step again (a resume): ignored
+    shown = view.pose_statistics()
+    report = {r.label: r for r in analyze_poses(pose_table(pd.DataFrame(rows)), resamples=10)}
+    assert sorted(shown) == sorted(report) == ["P1 (velocity_pct=100)", "P1 (velocity_pct=50)"]
+    for label, result in report.items():
+        assert shown[label]["n"] == 3
+        assert (shown[label]["AP_mm"], shown[label]["RP_mm"]) == (result.accuracy.ap_mm, result.repeatability.rp_mm)
+    assert shown["P1 (velocity_pct=100)"]["AP_mm"] == pytest.approx(0.9 * np.sqrt(3), abs=0.2)
