@@ -61,7 +61,9 @@ def _runs(tmp_path):
 
 def _reading_pending(window):
     worker = _start(window, "dissertation_pose.toml", variant="alpha", cycles="2", settle_s="0")
-    wait_for(lambda: window.calliper_dialog is not None, RUN_TIMEOUT_S, "the calliper dialog")
+    wait_for(lambda: window.calliper_dialog is not None or window.campaign_panel.worker is None, RUN_TIMEOUT_S,
+             "the calliper dialog")
+    assert window.calliper_dialog is not None, f"the run ended first: {window.log.toPlainText()}"
     return window.calliper_dialog, worker
 
 
