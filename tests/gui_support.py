@@ -1,4 +1,5 @@
-"""Helpers for the desktop-window tests: an offscreen QApplication and bounded waits (never an endless loop)."""
+"""Helpers for the desktop-window tests: a QApplication on the X server of ``DISPLAY`` (Xvfb in CI: real windows,
+a window manager's events) or, without one, Qt's offscreen platform; bounded waits (never an endless loop)."""
 
 from __future__ import annotations
 
@@ -6,7 +7,8 @@ import os
 import time
 from collections.abc import Callable
 
-os.environ.setdefault("QT_QPA_PLATFORM", "offscreen")
+if not os.environ.get("DISPLAY") and not os.environ.get("WAYLAND_DISPLAY"):
+    os.environ.setdefault("QT_QPA_PLATFORM", "offscreen")
 
 import pytest
 from PySide6.QtTest import QTest
@@ -17,8 +19,13 @@ RUN_TIMEOUT_S = 45.0
 
 
 def application() -> QApplication:
-    """The process's QApplication (created once, offscreen)."""
+    """The process's QApplication (created once)."""
     return QApplication.instance() or QApplication(["bench-tests"])
+
+
+def real_display() -> bool:
+    """True when the tests run on an X server (xcb), where window activation and input are the desktop's."""
+    return application().platformName() == "xcb"
 
 
 def wait_for(predicate: Callable[[], bool], timeout_s: float, what: str) -> None:
@@ -28,6 +35,15 @@ def wait_for(predicate: Callable[[], bool], timeout_s: float, what: str) -> None
         if time.monotonic() > deadline:
             raise AssertionError(f"timed out after {timeout_s:g} s waiting for {what}")
         QTest.qWait(20)
+
+
+def select_runs(browser, run_ids: list[int]) -> None:
+    """Select ``run_ids`` in a results browser once its background scan lists them."""
+    def listed() -> set[int]:
+        return {int(browser.table.item(row, 0).text()) for row in range(browser.table.rowCount())}
+
+    wait_for(lambda: set(run_ids) <= listed(), RUN_TIMEOUT_S, f"runs {run_ids} in the results table")
+    browser.select_runs(run_ids)
 
 
 @pytest.fixture

@@ -5,20 +5,19 @@ from __future__ import annotations
 
 import os
 
-os.environ["QT_QPA_PLATFORM"] = "offscreen"
-
 import numpy as np
 import pytest
 
 pytest.importorskip("PySide6")
 
-from gui_support import RUN_TIMEOUT_S, wait_for
+from gui_support import RUN_TIMEOUT_S, select_runs, wait_for
 from PySide6.QtCore import Qt
 from PySide6.QtGui import QImage
 from PySide6.QtTest import QTest
 
 from bench.gui.app import MainWindow
 from bench.gui.campaign_panel import EXAMPLES
+from bench.metrology.tables import analyze_poses, pose_table
 from bench.protocols import RunState
 from bench.store import Store, tidy_table
 
@@ -47,28 +46,40 @@ def test_campaign_from_the_window_stores_every_sample_and_shows_it(window, tmp_p
     assert run.status == "completed" and run.n_samples == 10  # 5 poses x 2 cycles x 1 velocity
     assert window.campaign_panel.progress.value() == 10
     assert "run 1 completed (10 samples)" in window.log.toPlainText()
-    # live view: barycentre and RP per pose equal an independent computation on the stored table
+    # live view: AP and RP per pose equal the report's (bench.metrology on the stored table), and an independent
+    # computation of the barycentre and of RP_l = l̄ + 3 S_l in x, y, z
     shown = window.live_view.pose_statistics()
     assert sorted(shown) == ["P1", "P2", "P3", "P4", "P5"]
+    report = {r.label: r for r in analyze_poses(pose_table(table), resamples=10)}
     for pose, rows in table.groupby("pose"):
-        xy = rows[["x_mm", "y_mm"]].to_numpy()
-        barycentre = xy.mean(axis=0) - rows[["cmd_x_mm", "cmd_y_mm"]].to_numpy()[0]
-        distances = np.linalg.norm(xy - xy.mean(axis=0), axis=1)
+        xyz = rows[["x_mm", "y_mm", "z_mm"]].to_numpy()
+        barycentre = xyz.mean(axis=0) - rows[["cmd_x_mm", "cmd_y_mm", "cmd_z_mm"]].to_numpy()[0]
+        distances = np.linalg.norm(xyz - xyz.mean(axis=0), axis=1)
         assert shown[pose]["APx_mm"] == pytest.approx(barycentre[0], abs=1e-9)
         assert shown[pose]["APy_mm"] == pytest.approx(barycentre[1], abs=1e-9)
+        assert shown[pose]["AP_mm"] == pytest.approx(np.linalg.norm(barycentre), abs=1e-9)
         assert shown[pose]["RP_mm"] == pytest.approx(distances.mean() + 3 * distances.std(ddof=1), abs=1e-9)
-    # the stream's time axis is the run's time base: simulated seconds at the panel's speed factor
+        assert (shown[pose]["AP_mm"], shown[pose]["RP_mm"]) == (report[pose].accuracy.ap_mm,
+                                                                report[pose].repeatability.rp_mm)
+    # the stream's time axis is wall-clock time since the run started (a 2-cycle run takes seconds, not hours)
     window.live_view.redraw()
-    assert run.settings["time_base"] == "simulated s (wall x speed factor 10000)"
-    assert window.live_view.stream_axes.get_xlabel() == f"run time ({run.settings['time_base']})"
-    # results browser lists the run with its status
+    assert window.live_view.stream_axes.get_xlabel() == "wall-clock time since the run started (s)"
+    times = [t for series_times, _ in window.live_view.stream().values() for t in series_times]
+    assert len(times) >= 10 and 0 <= min(times) <= max(times) < RUN_TIMEOUT_S
+    # the status line says how the run ended, with its counts
+    assert window.campaign_panel.eta.text() == f"idle - last: run {run.id} completed (10 / 10 samples)"
+    # results browser lists the run with its status (read in the background)
     browser = window.results
-    assert [r.id for r in browser.refresh()] == [run.id]
+    wait_for(lambda: browser.table.rowCount() == 1 and browser.table.item(0, 4).text() == "completed",
+             RUN_TIMEOUT_S, "the results table")
+    assert [r.id for r in browser.records] == [run.id]
     assert [browser.table.item(0, c).text() for c in (0, 4, 5)] == [str(run.id), "completed", "10"]
-    # the report of bench.reports, written from the browser
+    # the report of bench.reports, written from the browser in the background; a dialog names the file
     browser.select_runs([run.id])
-    report = browser.open_report()
-    assert report == tmp_path / "reports" / f"report_run{run.id}.html" and report.is_file()
+    QTest.mouseClick(browser.buttons["report"], Qt.MouseButton.LeftButton)
+    wait_for(lambda: browser.last_dialog is not None, 4 * RUN_TIMEOUT_S, "the report")
+    report_html = tmp_path / "reports" / f"report_run{run.id}.html"
+    assert browser.last_dialog.text() == str(report_html.resolve()) and report_html.is_file()
     assert (tmp_path / "reports" / f"report_run{run.id}.pdf").is_file()
     # a screenshot of the main window, not blank
     shot = tmp_path / "main_window.png"
@@ -125,15 +136,16 @@ def test_closing_mid_run_stops_at_a_checkpoint_and_the_run_resumes_from_the_brow
     # a new window on the same store resumes the run from the results browser
     again = MainWindow(tmp_path / "bench.db", tmp_path / "reports", open_files=False)
     try:
-        again.results.select_runs([run.id])
+        select_runs(again.results, [run.id])
         again.results.findChild(type(again.campaign_panel.buttons["start"]), "resultsResume").click()
         wait_for(lambda: again.campaign_panel.worker is None, RUN_TIMEOUT_S, "the resumed run to end")
         with Store(tmp_path / "bench.db") as store:
             resumed = store.run(run.id)
             steps = sorted(store.stored_steps(run.id))
-        assert (resumed.status, resumed.n_samples) == ("completed", 15)
+        assert (resumed.status, resumed.n_samples) == ("completed", 15), resumed.reason
         assert again.campaign_panel.progress.value() == 15  # started at the stored count
         assert all(stats["n"] == 3 for stats in again.live_view.pose_statistics().values())
+        assert sorted(again.live_view.samples) == steps  # every stored sample shown once, none twice
         assert len(steps) == len(set(steps)) == 15
     finally:
         again.close()

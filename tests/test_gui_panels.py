@@ -3,9 +3,6 @@ pre-flight-checked jog on the simulator, and the ``bench gui`` command."""
 
 from __future__ import annotations
 
-import os
-
-os.environ["QT_QPA_PLATFORM"] = "offscreen"
 
 import pytest
 
@@ -68,8 +65,13 @@ def test_cancelling_the_dialog_reports_it():
     cancelled: list[bool] = []
     dialog.cancelled.connect(lambda: cancelled.append(True))
     dialog.show()
+    QTest.keyClick(dialog.entry, Qt.Key.Key_Escape)  # the first Esc asks: the campaign would end
+    assert cancelled == [] and dialog.isVisible() and "Cancelling ends the campaign" in dialog.error.text()
+    QTest.keyClicks(dialog.entry, "1")  # typing again takes the cancellation back
+    assert dialog.error.text() == "" and dialog.cancel_button.text() == "Cancel"
     QTest.keyClick(dialog.entry, Qt.Key.Key_Escape)
-    assert cancelled == [True]
+    QTest.keyClick(dialog.entry, Qt.Key.Key_Escape)
+    assert cancelled == [True] and not dialog.isVisible()
 
 
 def test_fields_show_and_read_toml_values():

@@ -248,13 +248,11 @@ def _since(text: str | None) -> str | None:
 
 
 def _default_kind(store: Store, run_id: int) -> str:
-    """``pose`` when the run has pose samples, else its most frequent kind (said on stderr when the run has several)."""
-    store.run(run_id)  # names a run that does not exist
+    """:func:`bench.store.default_kind`, said on stderr when the run holds several kinds."""
+    from bench.store import default_kind
+
+    kind = default_kind(store, run_id)
     kinds = store.sample_kinds(run_id)
-    if "pose" in kinds or not kinds:
-        kind = "pose"
-    else:
-        kind = next(iter(kinds))
     if len(kinds) > 1:
         listed = ", ".join(f"{k} ({n})" for k, n in kinds.items())
         print(f"bench: exporting kind {kind}; the run also holds {listed}: choose with --kind", file=sys.stderr)

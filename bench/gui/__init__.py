@@ -8,6 +8,14 @@ resume, export). Campaigns run in a QThread (:class:`~bench.gui.worker.CampaignW
 only through signals. Nothing here computes a result: the window presents what the CLI's code paths produce.
 """
 
-from bench.gui.app import MainWindow, launch
+from bench.gui.launcher import launch, require_display
 
-__all__ = ["MainWindow", "launch"]
+__all__ = ["MainWindow", "launch", "require_display"]
+
+
+def __getattr__(name: str):
+    if name == "MainWindow":  # loaded on first use: ``bench gui`` shows its loading window before these imports
+        from bench.gui.app import MainWindow
+
+        return MainWindow
+    raise AttributeError(f"module 'bench.gui' has no attribute {name!r}")

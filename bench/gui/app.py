@@ -1,5 +1,5 @@
-"""The main window of ``bench gui``: robot panel, campaign panel, live view, results browser, log, and an
-emergency stop that is always visible.
+"""The main window of ``bench gui``: robot panel, campaign panel, live view, results browser, log, and a software
+emergency stop that is always visible and always reachable (button and F12, even while a calliper prompt is open).
 
 The window wires the panels to the campaign worker's signals and adds no logic of its own: runs go through
 bench's runner and store (:mod:`bench.gui.worker`), pre-flight through :mod:`bench.protocols`, statistics through
@@ -10,14 +10,14 @@ checkpoint through the runner (status ``aborted``, resumable; every stored sampl
 from __future__ import annotations
 
 import logging
-import sys
 from pathlib import Path
 
 from PySide6.QtCore import Qt
-from PySide6.QtGui import QCloseEvent
+from PySide6.QtGui import QCloseEvent, QKeySequence, QShortcut
 from PySide6.QtWidgets import (
-    QApplication,
+    QLabel,
     QMainWindow,
+    QMessageBox,
     QPlainTextEdit,
     QPushButton,
     QSplitter,
@@ -33,9 +33,15 @@ from bench.gui.results_browser import ResultsBrowser
 from bench.gui.robot_panel import RobotPanel
 from bench.gui.worker import CampaignWorker
 from bench.protocols import Prompt, RunResult
-from bench.store import Store
 
-__all__ = ["MainWindow", "launch"]
+__all__ = ["ESTOP_KEY", "MainWindow"]
+
+#: The keyboard shortcut of the emergency stop, active in every window of the application.
+ESTOP_KEY = Qt.Key.Key_F12
+#: What the emergency stop button says it is (IEC 60204-1 stop categories; a hard-wired stop is the safety device).
+ESTOP_TOOLTIP = ("Software emergency stop (stop category 1/2, IEC 60204-1), F12 from any window of bench: sends the "
+                 "robot's stop at once, withdraws a pending prompt, ends the run aborted (resumable). It is not a "
+                 "safety device: the hard-wired emergency stop of the cell is.")
 
 _log = logging.getLogger(__name__)
 
@@ -52,6 +58,7 @@ class MainWindow(QMainWindow):
         self.store_path = str(store_path)
         self.setWindowTitle(f"bench - {self.store_path}")
         self.calliper_dialog: CalliperDialog | None = None
+        self.last_dialog: QMessageBox | None = None
         self.robot_panel = RobotPanel()
         self.campaign_panel = CampaignPanel(self.store_path, self.robot_panel.rig_spec)
         self.live_view = LiveView()
@@ -88,13 +95,21 @@ class MainWindow(QMainWindow):
     def _build_toolbar(self) -> None:
         bar = QToolBar("Safety")
         bar.setMovable(False)
-        self.estop = QPushButton("EMERGENCY STOP")
+        self.estop = QPushButton("EMERGENCY STOP (software, F12)")
         self.estop.setObjectName("emergencyStop")
+        self.estop.setToolTip(ESTOP_TOOLTIP)
         self.estop.setMinimumHeight(44)
         self.estop.setStyleSheet("QPushButton {background: #c62828; color: white; font-weight: bold;"
                                  " font-size: 15px; padding: 6px 24px; border-radius: 4px}")
         self.estop.clicked.connect(self.emergency_stop)
+        self.estop.setFocusPolicy(Qt.FocusPolicy.NoFocus)  # never the target of a stray Space or Enter
+        self.estop_shortcut = QShortcut(QKeySequence(ESTOP_KEY), self)
+        self.estop_shortcut.setContext(Qt.ShortcutContext.ApplicationShortcut)  # also in the calliper dialog
+        self.estop_shortcut.activated.connect(self.emergency_stop)
         bar.addWidget(self.estop)
+        note = QLabel("  software stop (category 1/2): the hard-wired emergency stop of the cell is the safety device")
+        note.setObjectName("estopNote")
+        bar.addWidget(note)
         spacer = QWidget()
         bar.addWidget(spacer)
         self.addToolBar(Qt.ToolBarArea.TopToolBarArea, bar)
@@ -112,15 +127,14 @@ class MainWindow(QMainWindow):
         worker = self.campaign_panel.worker
         if worker is not None:
             worker.emergency_stop()
-            self._close_calliper_dialog()
+        self._close_calliper_dialog()
         self.robot_panel.emergency_stop()
-        self.say("EMERGENCY STOP")
+        self.say("EMERGENCY STOP (software)")
 
     def _close_calliper_dialog(self) -> None:
         """Close the dialog without its signals: the worker has already withdrawn the prompt."""
         if self.calliper_dialog is not None:
-            self.calliper_dialog.blockSignals(True)
-            self.calliper_dialog.close()
+            self.calliper_dialog.withdraw()
             self.calliper_dialog = None
 
     def _robot_changed(self, robot: str) -> None:
@@ -134,19 +148,17 @@ class MainWindow(QMainWindow):
             self.robot_panel.disconnect_robot()
         self.robot_panel.setEnabled(False)
         worker.run_started.connect(self._run_started)
+        worker.samples_loaded.connect(
+            lambda run_id, started_s, samples: self.live_view.load(f"run {run_id}", started_s, samples))
         worker.sample_stored.connect(lambda run_id, sample: self.live_view.add_sample(sample))
         worker.prompt_requested.connect(self.ask_reading)
         worker.run_finished.connect(self._run_finished)
+        worker.failed.connect(self._job_failed)
         worker.finished.connect(lambda: self.robot_panel.setEnabled(True))
         self.tabs.setCurrentWidget(self.live_view)
 
     def _run_started(self, run_id: int, total: int, done: int) -> None:
         self.say(f"run {run_id} started ({total - done} of {total} samples to take)")
-        with Store(self.store_path) as store:
-            self.live_view.clear(f"run {run_id}", store.run(run_id).settings.get("time_base", "s"))
-            for sample in store.samples(run_id) if done else ():  # a resumed run: show what is already stored
-                self.live_view.add_sample({"kind": sample.kind, "pose": sample.pose, "t_s": sample.t_s,
-                                           "values": sample.values})
         self.results.refresh()
 
     def _run_finished(self, result: RunResult) -> None:
@@ -154,11 +166,28 @@ class MainWindow(QMainWindow):
         reason = f": {result.reason}" if result.reason else ""
         self.say(f"run {result.run_id} {result.exit_status} ({result.samples} samples){reason}")
         self.results.refresh()
+        if result.exit_status != "completed" and not self.campaign_panel.ended_by_operator:
+            self._show_dialog(QMessageBox.Icon.Warning, f"Run {result.run_id} {result.exit_status}",
+                              f"Run {result.run_id} ended {result.exit_status}{reason}.\n\n{result.samples} samples "
+                              f"are stored. To continue it: Resume in the Results tab, or\n"
+                              f"bench resume {result.run_id} --store {self.store_path}")
+
+    def _job_failed(self, text: str) -> None:
+        self._show_dialog(QMessageBox.Icon.Warning, "The campaign could not start", text)
+
+    def _show_dialog(self, icon: QMessageBox.Icon, title: str, text: str) -> QMessageBox:
+        """A non-modal message: it never blocks the emergency stop."""
+        dialog = QMessageBox(icon, title, text, QMessageBox.StandardButton.Ok, self)
+        dialog.setObjectName("runDialog")
+        dialog.setWindowModality(Qt.WindowModality.NonModal)
+        dialog.show()
+        self.last_dialog = dialog
+        return dialog
 
     def ask_reading(self, prompt: Prompt) -> CalliperDialog:
         """Show the calliper dialog for ``prompt``; its answer goes straight to the waiting run."""
         worker = self.campaign_panel.worker
-        dialog = CalliperDialog(prompt, self)
+        dialog = CalliperDialog(prompt, self, number=worker.reading_number if worker is not None else None)
         if worker is not None:
             dialog.reading_entered.connect(worker.answer)
             dialog.confirmed.connect(lambda: worker.answer(0.0))  # any value: a confirmation returns None
@@ -167,7 +196,9 @@ class MainWindow(QMainWindow):
         dialog.confirmed.connect(lambda: self.say(f"confirmed: {prompt.text}"))
         dialog.finished.connect(lambda _: setattr(self, "calliper_dialog", None))
         self.calliper_dialog = dialog
-        dialog.open()
+        dialog.show()  # non-modal: the emergency stop stays reachable
+        dialog.raise_()
+        dialog.activateWindow()
         return dialog
 
     def closeEvent(self, event: QCloseEvent) -> None:
@@ -179,15 +210,7 @@ class MainWindow(QMainWindow):
                 _log.error("the run did not reach a checkpoint within %g s; halting it", CLOSE_TIMEOUT_S)
                 self.campaign_panel.request("halt")
                 self.campaign_panel.worker.wait(int(CLOSE_TIMEOUT_S * 1000))
+        self.results.stop_watching()
         self.robot_panel.wait_idle()
         self.robot_panel.disconnect_robot()
         event.accept()
-
-
-def launch(store_path: str | Path = "bench.db", report_dir: str | Path = "reports",
-           argv: list[str] | None = None) -> int:
-    """Open the window and run the Qt event loop until it closes; returns the exit code."""
-    app = QApplication.instance() or QApplication(argv if argv is not None else sys.argv[:1])
-    window = MainWindow(store_path, report_dir)
-    window.show()
-    return int(app.exec())

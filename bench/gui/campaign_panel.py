@@ -3,7 +3,9 @@ queue runs, start / pause / resume / stop / abort them, and follow the progress 
 
 The pre-flight is :func:`bench.protocols.summarize` (every target checked in motion/ before anything moves) and
 the runs go to a :class:`bench.gui.worker.CampaignWorker`, which calls the same rig builder and runner as
-``bench run``. The panel only presents.
+``bench run``. The panel only presents: the run buttons follow the runner's state machine
+(:data:`bench.protocols.runner.TRANSITIONS`; a button is enabled only for a legal transition), the protocol form
+is locked while a campaign runs, and the status line says how the last run ended, with its counts.
 """
 
 from __future__ import annotations
@@ -32,10 +34,32 @@ from PySide6.QtWidgets import (
 from bench.errors import BenchError
 from bench.gui.parameter_form import ParameterForm
 from bench.gui.worker import CampaignWorker, RigSpec
-from bench.protocols import Protocol, load_protocol, summarize
+from bench.protocols import Protocol, RunResult, RunState, load_protocol, summarize
 from bench.protocols.plan import PlanSummary
+from bench.protocols.runner import TRANSITIONS
 
-__all__ = ["CampaignPanel", "example_protocols", "format_duration"]
+__all__ = ["ACTION_TARGETS", "CampaignPanel", "enabled_actions", "example_protocols", "format_duration"]
+
+#: The runner state each run button asks for.
+ACTION_TARGETS = {"pause": RunState.PAUSED, "resume": RunState.RUNNING, "stop": RunState.STOPPING,
+                  "abort": RunState.ABORTING}
+#: The worker's "pause requested": still running, a second pause means nothing.
+PAUSE_REQUESTED = "pause requested"
+
+
+def enabled_actions(state: str | None) -> set[str]:
+    """The run buttons that are legal in the worker's ``state`` (a :class:`RunState` value, "pause requested",
+    "starting", or None when no campaign runs): those whose target state ``TRANSITIONS`` allows."""
+    if state is None:
+        return {"start"}
+    try:
+        current = RunState.RUNNING if state == PAUSE_REQUESTED else RunState(state)
+    except ValueError:  # starting: the rig is being built, only the emergency stop acts
+        return set()
+    if current is RunState.IDLE:  # the runner exists but has not started the run yet
+        return set()
+    legal = {action for action, target in ACTION_TARGETS.items() if target in TRANSITIONS[current]}
+    return legal - {"pause"} if state == PAUSE_REQUESTED else legal
 
 #: Where the protocol library of the repository lives (offered in the file list when present).
 EXAMPLES = Path(__file__).resolve().parents[2] / "examples"
@@ -76,6 +100,9 @@ class CampaignPanel(QGroupBox):
         self.queue: list[Protocol] = []
         self._started_s = 0.0
         self._done_at_start = 0
+        self.state: str | None = None  #: the worker's state (None: no campaign)
+        self.last_outcome = ""  #: how the last run ended, e.g. "run 3 aborted (175 / 450 samples): emergency stop"
+        self.ended_by_operator = False  #: Stop, Abort or the window closing ended the current campaign
         layout = QVBoxLayout(self)
         layout.addLayout(self._file_row())
         self.form = ParameterForm()
@@ -121,11 +148,11 @@ class CampaignPanel(QGroupBox):
         if quick >= 0:
             self.files.setCurrentIndex(quick)
         self.files.activated.connect(lambda _: self.choose_file(self.files.currentData()))
-        browse = QPushButton("Open…")
-        browse.clicked.connect(self._browse)
+        self.browse_button = QPushButton("Open…")
+        self.browse_button.clicked.connect(self._browse)
         row.addWidget(QLabel("Protocol"))
         row.addWidget(self.files, 1)
-        row.addWidget(browse)
+        row.addWidget(self.browse_button)
         return row
 
     def _browse(self) -> None:
@@ -175,10 +202,10 @@ class CampaignPanel(QGroupBox):
         buttons = QVBoxLayout()
         self.add_button = QPushButton("Add to queue")
         self.add_button.clicked.connect(self.add_to_queue)
-        remove = QPushButton("Remove")
-        remove.clicked.connect(self._remove_from_queue)
+        self.remove_button = QPushButton("Remove")
+        self.remove_button.clicked.connect(self._remove_from_queue)
         buttons.addWidget(self.add_button)
-        buttons.addWidget(remove)
+        buttons.addWidget(self.remove_button)
         row.addWidget(self.queue_list, 1)
         row.addLayout(buttons)
         return box
@@ -212,11 +239,21 @@ class CampaignPanel(QGroupBox):
         return row
 
     def _set_running(self, running: bool) -> None:
+        self._set_state(self.state if running else None)
+
+    def _set_state(self, state: str | None) -> None:
+        """Enable what ``state`` allows: the legal run buttons; the form, file and queue only without a campaign."""
+        self.state = state
         ready = self.summary is not None and self.summary.ok
-        self.buttons["start"].setEnabled(not running and (ready or bool(self.queue)))
-        self.add_button.setEnabled(ready)
-        for action in ("pause", "resume", "stop", "abort"):
-            self.buttons[action].setEnabled(running)
+        legal = enabled_actions(state)
+        self.buttons["start"].setEnabled("start" in legal and (ready or bool(self.queue)))
+        for action in ACTION_TARGETS:
+            self.buttons[action].setEnabled(action in legal)
+        idle = state is None
+        for widget in (self.form, self.files, self.browse_button, self.campaign, self.simulated_calliper,
+                       self.remove_button):
+            widget.setEnabled(idle)
+        self.add_button.setEnabled(idle and ready)
 
     def start(self, jobs: list[Protocol | int] | None = None) -> CampaignWorker | None:
         """Run the queue (or the protocol in the form when the queue is empty), or resume stored runs (ids)."""
@@ -233,19 +270,42 @@ class CampaignPanel(QGroupBox):
                                 parent=self)
         worker.run_started.connect(self._run_started)
         worker.sample_stored.connect(self._sample_stored)
-        worker.state_changed.connect(lambda state: self.eta.setText(f"{state} - {self._eta_text()}"))
-        worker.failed.connect(self.message.emit)
+        worker.state_changed.connect(self._state_changed)
+        worker.run_finished.connect(self._run_finished)
+        worker.failed.connect(self._failed)
         worker.message.connect(self.message.emit)
         worker.finished.connect(self._worker_finished)
         self.worker = worker
-        self._set_running(True)
+        self.ended_by_operator = False
+        self._set_state("starting")
+        self.eta.setText("starting the rig")
         self.worker_started.emit(worker)
         worker.start()
         return worker
 
     def request(self, action: str) -> None:
         if self.worker is not None:
+            if action in ("stop", "abort", "halt"):
+                self.ended_by_operator = True
             self.worker.request(action)
+
+    def _state_changed(self, state: str) -> None:
+        runner = self.worker.runner if self.worker is not None else None
+        if runner is not None and state != PAUSE_REQUESTED:
+            # the runner's own state: a report queued before a later request is stale; idle = still starting
+            state = "starting" if runner.state is RunState.IDLE else runner.state.value
+        self._set_state(state)
+        self.eta.setText(f"{state} - {self._eta_text()}")
+
+    def _run_finished(self, result: RunResult) -> None:
+        reason = f": {result.reason}" if result.reason else ""
+        self.last_outcome = (f"run {result.run_id} {result.exit_status} "
+                             f"({result.samples} / {self.progress.maximum()} samples){reason}")
+        self.eta.setText(self.last_outcome)
+
+    def _failed(self, text: str) -> None:
+        self.last_outcome = f"not started: {text}"
+        self.message.emit(text)
 
     def _run_started(self, run_id: int, total: int, done: int) -> None:
         self._started_s = time.monotonic()
@@ -269,13 +329,14 @@ class CampaignPanel(QGroupBox):
 
     def _worker_finished(self) -> None:
         self.worker = None
-        self._set_running(False)
-        self.eta.setText(f"idle (last: {self.eta.text()})")
+        self._set_state(None)
+        self.eta.setText(f"idle - last: {self.last_outcome}" if self.last_outcome else "idle")
 
     def shut_down(self, timeout_s: float = 60.0) -> bool:
         """Stop the worker safely (resumable) and wait for it; True when it ended within ``timeout_s``."""
         worker = self.worker
         if worker is None:
             return True
+        self.ended_by_operator = True
         worker.shut_down()
         return worker.wait(int(timeout_s * 1000))

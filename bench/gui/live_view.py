@@ -1,30 +1,38 @@
-"""The live view: attained points per pose with their barycentre and RP circle, and the sensor stream, as samples
-are stored.
+"""The live view: attained points per pose and test condition with their barycentre and RP circle, and the
+sensor stream, as samples are stored.
 
-Statistics come from :mod:`bench.metrology.iso9283` (``pose_accuracy`` for the barycentre, ``pose_repeatability``
-for RP_l = l̄ + 3 S_l); this module only draws. The pose plot shows the x-y plane as deviations from the commanded
-position (mm), one colour per pose label; the stream plot shows every stored value's deviation from its commanded
-value (or the value itself) against the run time. Plots are redrawn at most every :data:`REDRAW_MS`.
+Statistics are the report's: the samples are grouped by :func:`bench.metrology.tables.condition_groups` (pose x
+velocity x load, where they vary) and each group goes to :func:`bench.metrology.iso9283.pose_accuracy` (AP_P, the
+distance of the barycentre from the command, ISO 9283 7.2.1) and :func:`~bench.metrology.iso9283.pose_repeatability`
+(RP_l = l̄ + 3 S_l, 7.2.2) on the position axes the report uses (x, y, z); at the end of a run every figure equals
+the report's. This module only draws: the pose plot shows the x-y plane as deviations from the commanded position
+(mm), one colour per group; the stream plot shows every stored value's deviation from its commanded value (or the
+value itself) against the wall-clock time since the run started, so a pause shows as a gap of its real length.
+Samples are kept by step index: a sample seen twice (a resumed run's stored samples, then its live signals) counts
+once. Plots are redrawn at most every :data:`REDRAW_MS`.
 """
 
 from __future__ import annotations
 
-from collections import defaultdict
-
-import numpy as np
+import pandas as pd
 from matplotlib.backends.backend_qtagg import FigureCanvasQTAgg
 from matplotlib.figure import Figure
 from matplotlib.patches import Circle
+from matplotlib.ticker import MaxNLocator
 from PySide6.QtCore import QTimer
 from PySide6.QtWidgets import QLabel, QVBoxLayout, QWidget
 
 from bench.metrology.iso9283 import pose_accuracy, pose_repeatability
+from bench.metrology.tables import CONDITION_COLUMNS, condition_groups
 
 __all__ = ["REDRAW_MS", "LiveView"]
 
 #: Shortest interval between two redraws, ms (samples can arrive much faster with a simulator).
 REDRAW_MS = 200
-_XY = ("x_mm", "y_mm")
+_ATTAINED = ("x_mm", "y_mm", "z_mm")
+#: Values that describe the test conditions (a capture's lead and hold times included), not a measurement: never
+#: drawn as a stream.
+_NOT_MEASURED = ("velocity_pct", "load_kg", "leg", "lead_s", "hold_s")
 
 
 class LiveView(QWidget):
@@ -46,48 +54,92 @@ class LiveView(QWidget):
         self._timer.timeout.connect(self.redraw)
         self.clear()
 
-    def clear(self, title: str = "", time_base: str = "s") -> None:
-        """Forget every sample (a new run starts); ``time_base`` is what the run's ``t_s`` counts (its settings'
-        ``time_base``, e.g. ``simulated s (wall x speed factor 10000)``)."""
-        self.points: dict[str, list[np.ndarray]] = defaultdict(list)
-        self.commanded: dict[str, np.ndarray] = {}
-        self.stream: dict[str, tuple[list[float], list[float]]] = defaultdict(lambda: ([], []))
+    def clear(self, title: str = "", started_s: float | None = None) -> None:
+        """Forget every sample (a new run starts); ``started_s`` is the run's start (Unix s), the stream's zero."""
+        self.samples: dict[int, dict] = {}  #: by step index
         self.title = title
-        self.time_base = time_base
+        self.started_s = started_s
+        self._statistics: dict[str, dict[str, float]] | None = None
         self.redraw()
 
-    def add_sample(self, sample: dict) -> None:
-        """Record one stored sample; the plots follow within :data:`REDRAW_MS`."""
-        values = sample["values"]
-        t_s = float(sample.get("t_s") or 0.0)
-        for key, value in values.items():
-            if key.startswith("cmd_") or key in ("velocity_pct", "load_kg", "leg"):
-                continue
-            commanded = values.get(f"cmd_{key}")
-            name = f"{key} - cmd" if commanded is not None else key
-            times, series = self.stream[name]
-            times.append(t_s)
-            series.append(value - commanded if commanded is not None else value)
-        if sample.get("kind") == "pose" and sample.get("pose") and all(k in values for k in _XY):
-            label = str(sample["pose"])
-            self.points[label].append(np.array([values[k] for k in _XY], dtype=float))
-            if all(f"cmd_{k}" in values for k in _XY):
-                self.commanded[label] = np.array([values[f"cmd_{k}"] for k in _XY], dtype=float)
+    def load(self, title: str, started_s: float, samples: list[dict]) -> None:
+        """Start afresh on a run that began at ``started_s`` (Unix s) and holds ``samples`` already."""
+        self.clear(title, started_s)
+        for sample in samples:
+            self.add_sample(sample)
+
+    def add_sample(self, sample: dict) -> bool:
+        """Record one stored sample (once per step index); the plots follow within :data:`REDRAW_MS`.
+
+        Returns False for a sample already recorded."""
+        index = sample.get("step_index")
+        key = int(index) if index is not None else -1 - len(self.samples)
+        if key in self.samples:
+            return False
+        self.samples[key] = sample
+        self._statistics = None
         if not self._timer.isActive():
             self._timer.start(REDRAW_MS)
+        return True
+
+    # ---- figures ---------------------------------------------------------------------------------------------
+
+    def pose_table(self) -> pd.DataFrame:
+        """The pose samples as a table with the report's columns (pose, cycle, commanded and attained, conditions)."""
+        rows = []
+        for index, sample in sorted(self.samples.items()):
+            values = sample["values"]
+            if sample.get("kind") != "pose" or not sample.get("pose") or any(k not in values for k in _ATTAINED):
+                continue
+            row = {"step_index": index, "pose": str(sample["pose"]), "cycle": sample.get("cycle")}
+            row.update({k: v for k, v in values.items() if k in _ATTAINED or k[4:] in _ATTAINED
+                        or k in CONDITION_COLUMNS})
+            rows.append(row)
+        return pd.DataFrame(rows)
 
     def pose_statistics(self) -> dict[str, dict[str, float]]:
-        """Per pose label: ``n``, barycentre deviation (mm) and, with two or more points, ``RP_mm`` (x-y plane)."""
-        out = {}
-        for label, points in self.points.items():
-            attained = np.vstack(points)
-            commanded = self.commanded.get(label, attained.mean(axis=0))
-            accuracy = pose_accuracy(attained, commanded)
-            stats = {"n": len(points), "APx_mm": accuracy.ap_axes_mm[0], "APy_mm": accuracy.ap_axes_mm[1],
-                     "AP_mm": accuracy.ap_mm}
-            if len(points) >= 2:
-                stats["RP_mm"] = pose_repeatability(attained).rp_mm
-            out[label] = stats
+        """Per pose and test condition (the report's labels, e.g. ``P1 (velocity_pct=50)``): ``n``, the signed
+        barycentre deviations ``APx_mm``, ``APy_mm``, ``APz_mm``, ``AP_mm`` and, with two or more cycles,
+        ``RP_mm``."""
+        if self._statistics is not None:
+            return self._statistics
+        table = self.pose_table()
+        out: dict[str, dict[str, float]] = {}
+        if not table.empty:
+            for label, _pose, _conditions, rows in condition_groups(table):
+                attained = rows[list(_ATTAINED)].to_numpy(dtype=float)
+                commanded_columns = [f"cmd_{k}" for k in _ATTAINED]
+                commanded = (rows[commanded_columns].to_numpy(dtype=float)[0]
+                             if all(c in rows and rows[c].notna().all() for c in commanded_columns)
+                             else attained.mean(axis=0))
+                accuracy = pose_accuracy(attained, commanded)
+                stats = {"n": len(attained), "APx_mm": accuracy.ap_axes_mm[0], "APy_mm": accuracy.ap_axes_mm[1],
+                         "APz_mm": accuracy.ap_axes_mm[2], "AP_mm": accuracy.ap_mm,
+                         "cmd_x_mm": commanded[0], "cmd_y_mm": commanded[1]}
+                if len(attained) >= 2:
+                    stats["RP_mm"] = pose_repeatability(attained).rp_mm
+                out[label] = stats
+        self._statistics = out
+        return out
+
+    def stream(self) -> dict[str, tuple[list[float], list[float]]]:
+        """Per stored value: (wall-clock s since the run started, value - commanded or the value)."""
+        out: dict[str, tuple[list[float], list[float]]] = {}
+        for _, sample in sorted(self.samples.items()):
+            values = sample["values"]
+            wall_s = sample.get("wall_s")
+            if wall_s is not None and self.started_s is not None:
+                t_s = float(wall_s) - self.started_s
+            else:
+                t_s = float(sample.get("t_s") or 0.0)
+            for key, value in values.items():
+                if key.startswith("cmd_") or key in _NOT_MEASURED:
+                    continue
+                commanded = values.get(f"cmd_{key}")
+                name = f"{key} - cmd" if commanded is not None else key
+                times, series = out.setdefault(name, ([], []))
+                times.append(t_s)
+                series.append(value - commanded if commanded is not None else value)
         return out
 
     def redraw(self) -> None:
@@ -105,17 +157,18 @@ class LiveView(QWidget):
         axes.axhline(0, color="0.8", lw=0.8)
         axes.axvline(0, color="0.8", lw=0.8)
         statistics = self.pose_statistics()
-        for index, (label, points) in enumerate(sorted(self.points.items())):
-            colour = f"C{index % 10}"
-            origin = self.commanded.get(label, np.zeros(2))
-            deviation = np.vstack(points) - origin
-            axes.plot(deviation[:, 0], deviation[:, 1], ".", color=colour, ms=4, label=label)
-            stats = statistics[label]
-            centre = (stats["APx_mm"], stats["APy_mm"])
-            axes.plot(*centre, "+", color=colour, ms=12, mew=2)
-            if "RP_mm" in stats:
-                axes.add_patch(Circle(centre, stats["RP_mm"], fill=False, color=colour, lw=1))
-        if self.points:
+        table = self.pose_table()
+        if not table.empty:
+            for index, (label, _pose, _conditions, rows) in enumerate(condition_groups(table)):
+                colour = f"C{index % 10}"
+                stats = statistics[label]
+                dx = rows["x_mm"].to_numpy(dtype=float) - stats["cmd_x_mm"]
+                dy = rows["y_mm"].to_numpy(dtype=float) - stats["cmd_y_mm"]
+                axes.plot(dx, dy, ".", color=colour, ms=4, label=label)
+                centre = (stats["APx_mm"], stats["APy_mm"])
+                axes.plot(*centre, "+", color=colour, ms=12, mew=2)
+                if "RP_mm" in stats:
+                    axes.add_patch(Circle(centre, stats["RP_mm"], fill=False, color=colour, lw=1))
             axes.legend(fontsize=7, loc="upper right")
             axes.set_aspect("equal", adjustable="datalim")
         self.summary.setText(self._summary_text(statistics))
@@ -124,10 +177,12 @@ class LiveView(QWidget):
         axes = self.stream_axes
         axes.clear()
         axes.set_title(f"sensor stream {self.title}".strip(), fontsize=9)
-        axes.set_xlabel(f"run time ({self.time_base})")
-        for name, (times, series) in sorted(self.stream.items()):
-            axes.plot(times, series, ".-", ms=3, lw=0.6, label=name)
-        if self.stream:
+        axes.set_xlabel("wall-clock time since the run started (s)")
+        axes.xaxis.set_major_locator(MaxNLocator(nbins=6))
+        stream = self.stream()
+        for name, (times, series) in sorted(stream.items()):
+            axes.plot(times, series, ".", ms=3, label=name)
+        if stream:
             axes.legend(fontsize=7, loc="upper left")
 
     @staticmethod
@@ -135,5 +190,5 @@ class LiveView(QWidget):
         if not statistics:
             return "no pose samples yet"
         parts = [f"{label}: n={s['n']} AP={s['AP_mm']:.3f} mm" + (f" RP={s['RP_mm']:.3f} mm" if "RP_mm" in s else "")
-                 for label, s in sorted(statistics.items())]
-        return "x-y plane, + barycentre, circle RP  |  " + "; ".join(parts)
+                 for label, s in statistics.items()]
+        return "ISO 9283 (x, y, z; as the report)  |  + barycentre, circle RP in the x-y plot  |  " + "; ".join(parts)

@@ -8,7 +8,10 @@ the runner's own thread-safe request methods; the runner honours them at its saf
 to :meth:`bench.protocols.Runner.emergency_stop` at once, from the window's thread.
 
 The runner's hooks report to the window: ``on_start`` (run id, samples in all, samples already stored) and
-``on_sample`` (after the store committed it, so the live view shows only what is already on disk).
+``on_sample`` (after the store committed it, so the live view shows only what is already on disk). At the start of
+a resumed run the samples already stored are read in the worker's thread and sent once (``samples_loaded``);
+every sample carries its ``step_index`` and the wall-clock time it was stored (``wall_s``, Unix seconds), so the
+live view can de-duplicate and draw in real time.
 :meth:`CampaignWorker.answer_prompt` is the operator's ``answer``: it asks the window for a calliper reading and
 waits for the operator's entry, or raises :class:`bench.errors.PromptWithdrawn` when the operator cancels.
 """
@@ -18,7 +21,9 @@ from __future__ import annotations
 import dataclasses
 import logging
 import queue
+import time
 from dataclasses import dataclass
+from datetime import datetime
 from typing import Any
 
 from PySide6.QtCore import QThread, Signal
@@ -26,7 +31,7 @@ from PySide6.QtCore import QThread, Signal
 from bench.errors import BenchError, PromptWithdrawn
 from bench.launch import RigRequest, open_rig
 from bench.protocols import Prompt, Protocol, Runner, RunState, TransitionError, protocol_from_config
-from bench.protocols.plan import required_capabilities
+from bench.protocols.plan import iterate, required_capabilities
 from bench.store import Store
 
 __all__ = ["CampaignWorker", "RigSpec", "WindowOperator"]
@@ -65,6 +70,7 @@ class CampaignWorker(QThread):
     """
 
     run_started = Signal(int, int, int)  #: run id, samples the run will store in all, samples already stored
+    samples_loaded = Signal(int, float, list)  #: run id, its start (Unix s), the samples stored before (resume)
     sample_stored = Signal(int, dict)  #: run id, {"step_index", "kind", "pose", "cycle", "t_s", "values"}
     state_changed = Signal(str)  #: the runner's state (running, paused, stopping, ...)
     prompt_requested = Signal(object)  #: a :class:`Prompt` waiting for a reading
@@ -84,6 +90,8 @@ class CampaignWorker(QThread):
         self._decided = queue.Queue()
         self._cancelled = False
         self._emergency = False
+        self.reading_number: tuple[int, int] | None = None  #: (k, n) of the reading being asked
+        self._readings = (0, 0)
 
     # ---- requests from the window (GUI thread) ---------------------------------------------------------------
 
@@ -184,12 +192,13 @@ class CampaignWorker(QThread):
             # (on the simulated actuator bench the simulated depth gauge reads the travel itself)
             rig.operator.answer = self.answer_prompt
         runner = Runner(rig, store, on_pause=self._on_pause,
-                        on_start=lambda r: self.run_started.emit(r.run_id, r.samples_total, r.samples_stored),
-                        on_sample=lambda r, sample: self.sample_stored.emit(r.run_id, sample))
+                        on_start=lambda r: self._started(r, job, store),
+                        on_sample=lambda r, sample: self.sample_stored.emit(r.run_id,
+                                                                            dict(sample, wall_s=time.time())))
         self.runner = runner
         if self._emergency:  # pressed while the rig was starting (emergency_stop saw no runner yet)
             runner.emergency_stop()
-        self.state_changed.emit("running")
+        self.state_changed.emit("starting")  # "running" once the runner is (its on_start)
         try:
             result = runner.resume_run(job) if isinstance(job, int) else runner.run(job, campaign=self.campaign)
         except BenchError as exc:  # refused before the run started (pre-flight, resume checks)
@@ -197,6 +206,21 @@ class CampaignWorker(QThread):
             return
         self.state_changed.emit("finished")
         self.run_finished.emit(result)
+
+    def _started(self, runner: Runner, job: Protocol | int, store: Store) -> None:
+        """The runner's ``on_start`` (worker thread): tell the window, with what a resumed run already holds."""
+        run_id = runner.run_id
+        self.run_started.emit(run_id, runner.samples_total, runner.samples_stored)
+        self.state_changed.emit(runner.state.value)
+        record = store.run(run_id)
+        stored = store.samples(run_id) if runner.samples_stored else []
+        self.samples_loaded.emit(run_id, _unix_s(record.started_utc), [
+            {"step_index": s.step_index, "kind": s.kind, "pose": s.pose, "cycle": s.cycle, "t_s": s.t_s,
+             "wall_s": _unix_s(s.wall_utc), "values": s.values} for s in stored])
+        protocol = job if isinstance(job, Protocol) else protocol_from_config(record.config, source=f"run {run_id}")
+        total = sum(1 for step in iterate(protocol, final=False) if isinstance(step, Prompt) and step.field)
+        taken = sum(1 for s in stored if isinstance(s.raw, dict) and "field" in s.raw and "entered" in s.raw)
+        self._readings = (taken, total)
 
     def _on_pause(self, runner: Runner) -> None:
         """Called by the runner (worker thread) at a checkpoint: wait until the window resumes, stops or aborts."""
@@ -225,11 +249,20 @@ class CampaignWorker(QThread):
             self._answers.get_nowait()
         if self._cancelled or self._emergency:
             raise PromptWithdrawn("not asked: " + ("the window is closing" if self._cancelled else "emergency stop"))
+        if prompt.field is not None:
+            taken, total = self._readings
+            self._readings = (taken + 1, max(total, taken + 1))
+            self.reading_number = self._readings
         self.prompt_requested.emit(prompt)
         value = self._answers.get()
         if isinstance(value, PromptWithdrawn):
             raise value
         return None if prompt.field is None else float(value)
+
+
+def _unix_s(utc: str) -> float:
+    """Unix seconds of a stored ISO 8601 UTC time (``2026-12-01T23:05:01.123456+00:00``)."""
+    return datetime.fromisoformat(utc.replace("Z", "+00:00")).timestamp()
 
 
 class WindowOperator:

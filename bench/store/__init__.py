@@ -12,7 +12,7 @@ from bench.store.database import (
 )
 from bench.store.schema import SCHEMA_VERSION, StoreSchemaError
 from bench.store.descriptors import SAMPLE_KINDS, SampleMismatch, validate_sample
-from bench.store.export import EXPORT_FORMATS, TIDY_COLUMNS, export_run, series_table, tidy_table
+from bench.store.export import EXPORT_FORMATS, TIDY_COLUMNS, default_kind, export_run, series_table, tidy_table
 
 __all__ = [
     "EXPORT_FORMATS",
@@ -27,6 +27,7 @@ __all__ = [
     "SampleRecord",
     "Store",
     "StoreSchemaError",
+    "default_kind",
     "export_run",
     "software_git_sha",
     "series_table",

@@ -24,7 +24,7 @@ from bench.errors import ConfigError, InsufficientData
 from bench.store.database import Store
 from bench.store.descriptors import SAMPLE_KINDS, dtype_of, unit_of
 
-__all__ = ["EXPORT_FORMATS", "TIDY_COLUMNS", "export_run", "series_table", "tidy_table"]
+__all__ = ["EXPORT_FORMATS", "TIDY_COLUMNS", "default_kind", "export_run", "series_table", "tidy_table"]
 
 #: The leading columns of the tidy table, in order.
 TIDY_COLUMNS = ("pose", "cycle", "cmd_x_mm", "cmd_y_mm", "cmd_z_mm", "x_mm", "y_mm", "z_mm",
@@ -89,6 +89,14 @@ def series_table(store: Store, run_id: int, kind: str = "arrival") -> pd.DataFra
 
 def _parquet_available() -> bool:
     return any(importlib.util.find_spec(name) is not None for name in ("pyarrow", "fastparquet"))
+
+
+def default_kind(store: Store, run_id: int) -> str:
+    """The sample kind ``bench export`` (and the window's Export) writes unless told: ``pose`` when the run has pose
+    samples, else its most frequent kind."""
+    store.run(run_id)  # names a run that does not exist
+    kinds = store.sample_kinds(run_id)
+    return "pose" if "pose" in kinds or not kinds else next(iter(kinds))
 
 
 def export_run(store: Store, run_id: int, path: str | Path, fmt: str = "csv", kind: str = "pose",
