@@ -19,6 +19,7 @@ import functools
 import itertools
 import logging
 import threading
+import time
 from dataclasses import dataclass
 from typing import Any
 
@@ -34,6 +35,9 @@ from motion import pkm5
 __all__ = ["DEFAULT_BAUDRATE", "ControllerError", "Identity", "Pkm5Controller", "Position"]
 
 _log = logging.getLogger(__name__)
+#: Interval of the heartbeat (a ``POS`` line) while waiting for ``DONE``: a quarter of the firmware's default link
+#: watchdog (200 ms, docs/protocol-pkm5.md), so that one lost line never trips it.
+HEARTBEAT_S = 0.05
 
 DEFAULT_BAUDRATE = 115200
 _IDEMPOTENT = frozenset({"ID", "POS", "STOP", "ENABLE", "DISABLE", "SETPOS", "SIMLOAD", "SIMTRUE", "SIMLEGS",
@@ -159,15 +163,32 @@ class Pkm5Controller:
                 _log.warning("%s: retry %d of %s after: %s", self.link.port_name, attempt, verb, exc)
         raise AssertionError("unreachable")
 
-    def _await(self, tag: int, verb: str, kinds: tuple[str, ...], timeout_s: float) -> wire.Reply:
-        """The next reply with ``tag``; stale tags and corrupted lines are dropped until the deadline."""
+    def _await(self, tag: int, verb: str, kinds: tuple[str, ...], timeout_s: float, *,
+               heartbeat: bool = False) -> wire.Reply:
+        """The next reply with ``tag``; stale tags and corrupted lines are dropped until the deadline.
+
+        With ``heartbeat`` a ``POS`` line goes out every :data:`HEARTBEAT_S` (the firmware's link watchdog stops a
+        move when the host falls silent); its replies are dropped unseen."""
         deadline = Deadline(timeout_s)
         expected = f"'{kinds[0]} #{tag} ...' from a {wire.DEVICE_NAME} controller"
         dropped: list[bytes] = []
+        beats: set[int] = set()
+        next_beat_s = time.monotonic() + HEARTBEAT_S
         while True:
+            wait_s = deadline.remaining_s()
+            if heartbeat:
+                if time.monotonic() >= next_beat_s:
+                    beat = next(self._tags)
+                    beats.add(beat)
+                    with self._write:
+                        self.link.write(wire.format_command("POS", (), beat), command="POS")
+                    next_beat_s = time.monotonic() + HEARTBEAT_S
+                wait_s = min(wait_s, max(0.0, next_beat_s - time.monotonic()))
             try:
-                line = self.link.read_frame(deadline.remaining_s(), command=verb, expected=expected)
+                line = self.link.read_frame(wait_s, command=verb, expected=expected)
             except LinkTimeout as exc:
+                if heartbeat and not deadline.expired():
+                    continue
                 if dropped:
                     raise LinkTimeout(f"{exc}; dropped {len(dropped)} invalid or stale lines, first "
                                       f"{dropped[0]!r} (is this a {wire.DEVICE_NAME}?)") from None
@@ -177,6 +198,8 @@ class Pkm5Controller:
             except WireProtocolError as exc:
                 _log.warning("%s: dropped line while waiting for %s: %s", self.link.port_name, verb, exc)
                 dropped.append(line)
+                continue
+            if reply.tag in beats:
                 continue
             if reply.tag != tag:
                 _log.info("%s: dropped stale reply %r while waiting for #%d", self.link.port_name, line, tag)
@@ -300,7 +323,8 @@ class Pkm5Controller:
             if reply.kind == "DONE":
                 return reply.ints(0, wire.AXES)
             duration_s = reply.ints(1, 1)[0] / 1000.0
-            return self._await(tag, "MOVE", ("DONE",), 1.5 * duration_s + self.move_margin_s).ints(0, wire.AXES)
+            return self._await(tag, "MOVE", ("DONE",), 1.5 * duration_s + self.move_margin_s,
+                               heartbeat=True).ints(0, wire.AXES)
         except (LinkTimeout, WireProtocolError, KeyboardInterrupt):
             self._stop_quietly()
             raise
@@ -310,7 +334,8 @@ class Pkm5Controller:
         where = self.position()
         if where.state == "MOVING":
             remaining_s = max(abs(t - s) for t, s in zip(targets, where.steps)) / speed
-            return self._await(tag, "MOVE", ("DONE",), 1.5 * remaining_s + self.move_margin_s).ints(0, wire.AXES)
+            return self._await(tag, "MOVE", ("DONE",), 1.5 * remaining_s + self.move_margin_s,
+                               heartbeat=True).ints(0, wire.AXES)
         if where.steps == targets:
             return where.steps
         raise LinkError(f"{self.link.port_name}: MOVE #{tag} not confirmed: the controller is {where.state} at "

@@ -7,7 +7,15 @@ A line is ``BODY*HH\\n``: printable ASCII, at most :data:`MAX_LINE` bytes before
 body bytes in two upper-case hex digits. A command body is ``VERB [int ...] #TAG``; a reply body is
 ``KIND #TAG FIELD ...`` with ``KIND`` one of ``OK``, ``DONE``, ``ERR``, ``BOOT``; noise glued in front of a reply
 is skipped (the checksum decides). Parsers raise only
-:class:`bench.robots.link.WireProtocolError`.
+:class:`bench.robots.link.WireProtocolError`; :func:`parse_command` raises its subclass :class:`CommandRefused`,
+which carries the error code and tag the controller answers with.
+
+The refusal rules, in the firmware's order: over :data:`MAX_LINE` bytes -> ``TOO_LONG #0``; one trailing ``\r``
+dropped; an empty line is ignored; no ``*HH`` or a wrong one -> ``CHECKSUM #0`` (checked before anything else in the
+body, so binary garbage and noise glued in front of a line are checksum errors); fields are split on spaces only;
+the tag is trusted when exactly one field starts with ``#`` and it is ``#`` and 1-9 digits (no sign), otherwise
+``SYNTAX #0``; every other refusal (non-printable byte, unknown verb, wrong arity, an argument that is not ``-`` and
+1-10 digits) is ``SYNTAX`` with that tag.
 """
 
 from __future__ import annotations
@@ -19,7 +27,8 @@ from dataclasses import dataclass
 from bench.robots.link import FramedLink, WireProtocolError
 
 __all__ = [
-    "AXES", "COMMAND_ARITY", "DEVICE_NAME", "MAX_LINE", "PROTOCOL_VERSION", "Command", "ErrorCode", "LineLink",
+    "AXES", "COMMAND_ARITY", "DEVICE_NAME", "MAX_LINE", "PROTOCOL_VERSION", "Command", "CommandRefused",
+    "ErrorCode", "LineLink",
     "Reply", "checksum", "decode_line", "encode_line", "format_command", "format_reply", "parse_command",
     "parse_reply",
 ]
@@ -49,6 +58,16 @@ class ErrorCode(enum.IntEnum):
     DISABLED = 6    # motion requested while the drivers are disabled
     BUSY = 7        # a command that needs the robot idle arrived during a move
     STOPPED = 8     # the move was ended by STOP before reaching its target
+    WATCHDOG = 9    # the link watchdog ended a move and disabled the drivers (latched: also the next command's reply)
+
+
+class CommandRefused(WireProtocolError):
+    """A command line the controller refuses: ``code`` and ``tag`` of its ``ERR`` reply."""
+
+    def __init__(self, message: str, code: ErrorCode, tag: int = 0) -> None:
+        super().__init__(message)
+        self.code = code
+        self.tag = tag
 
 
 def checksum(body: bytes) -> str:
@@ -67,17 +86,33 @@ def encode_line(body: str) -> bytes:
 
 def decode_line(line: bytes) -> str:
     """The body of one line (terminator already removed; a trailing ``\\r`` is tolerated)."""
-    line = line.rstrip(b"\r")
     if len(line) > MAX_LINE:
-        raise WireProtocolError(f"line of {len(line)} bytes, expected at most {MAX_LINE}: {line[:32]!r}...")
-    body, star, check = line.rpartition(b"*")
-    if not star:
-        raise WireProtocolError(f"line {line!r} has no '*HH' checksum")
-    if not all(0x20 <= b < 0x7F for b in body):
-        raise WireProtocolError(f"line {line!r} has bytes outside printable ASCII")
+        raise CommandRefused(f"line of {len(line)} bytes, expected at most {MAX_LINE}: {line[:32]!r}...",
+                             ErrorCode.TOO_LONG)
+    if line.endswith(b"\r"):
+        line = line[:-1]
+    body, star, check = line[:-3], line[-3:-2], line[-2:]
+    if star != b"*":
+        raise CommandRefused(f"line {line!r} has no '*HH' checksum", ErrorCode.CHECKSUM)
     if check != checksum(body).encode("ascii"):
-        raise WireProtocolError(f"line {line!r}: checksum {check!r}, expected {checksum(body)!r}")
+        raise CommandRefused(f"line {line!r}: checksum {check!r}, expected {checksum(body)!r}", ErrorCode.CHECKSUM)
+    if not all(0x20 <= b < 0x7F for b in body):
+        raise CommandRefused(f"line {line!r} has bytes outside printable ASCII", ErrorCode.SYNTAX,
+                             _trusted_tag(body))
     return body.decode("ascii")
+
+
+def _fields(body: bytes | str) -> list:
+    """Fields separated by spaces (only spaces: a tab is part of a field, as in the firmware)."""
+    return [t for t in body.split(b" " if isinstance(body, bytes) else " ") if t]
+
+
+def _trusted_tag(body: bytes) -> int:
+    """The tag of a checksummed body: exactly one field starts with '#' and it is '#' + 1-9 digits; else 0."""
+    tags = [t for t in _fields(body) if t.startswith(b"#")]
+    if len(tags) == 1 and 1 <= len(tags[0]) - 1 <= 9 and all(0x30 <= b <= 0x39 for b in tags[0][1:]):
+        return int(tags[0][1:])
+    return 0
 
 
 def _split_tag(tokens: list[str], line: object) -> tuple[list[str], int]:
@@ -115,14 +150,22 @@ def format_command(verb: str, args: tuple[int, ...] | list[int], tag: int) -> by
 
 def parse_command(line: bytes) -> Command:
     """Decode a command line (the controller side)."""
-    tokens = decode_line(line).split()
-    tokens, tag = _split_tag(tokens, line)
+    tokens = _fields(decode_line(line))
+    try:
+        tokens, tag = _split_tag(tokens, line)
+    except WireProtocolError as exc:
+        raise CommandRefused(str(exc), ErrorCode.SYNTAX) from None
     if not tokens or tokens[0] not in COMMAND_ARITY:
-        raise WireProtocolError(f"line {line!r}: unknown command, expected one of {sorted(COMMAND_ARITY)}")
+        raise CommandRefused(f"line {line!r}: unknown command, expected one of {sorted(COMMAND_ARITY)}",
+                             ErrorCode.SYNTAX, tag)
     verb, args = tokens[0], tokens[1:]
     if len(args) != COMMAND_ARITY[verb]:
-        raise WireProtocolError(f"line {line!r}: {verb} takes {COMMAND_ARITY[verb]} arguments, got {len(args)}")
-    return Command(verb, tuple(_parse_int(a, line) for a in args), tag)
+        raise CommandRefused(f"line {line!r}: {verb} takes {COMMAND_ARITY[verb]} arguments, got {len(args)}",
+                             ErrorCode.SYNTAX, tag)
+    try:
+        return Command(verb, tuple(_parse_int(a, line) for a in args), tag)
+    except WireProtocolError as exc:
+        raise CommandRefused(str(exc), ErrorCode.SYNTAX, tag) from None
 
 
 @dataclass(frozen=True)
@@ -163,7 +206,7 @@ def parse_reply(line: bytes) -> Reply:
 
 
 def _parse_reply(line: bytes) -> Reply:
-    tokens = decode_line(line).split()
+    tokens = _fields(decode_line(line))
     if not tokens or tokens[0] not in _REPLY_KINDS:
         raise WireProtocolError(f"line {line!r}: expected a reply starting with one of {_REPLY_KINDS}")
     fields, tag = _split_tag(tokens[1:], line)

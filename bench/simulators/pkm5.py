@@ -25,7 +25,6 @@ import numpy as np
 from bench.errors import ConfigError
 from bench.robots import pkm5_wire as wire
 from bench.simulators.dynamics import StructuralMode, trace_times
-from bench.robots.link import WireProtocolError
 from bench.simulators.pty import TruthLog, add_common_arguments, main_for
 
 __all__ = ["DESCRIPTION", "FIRMWARE_VERSION", "HOME_STEPS", "MAX_STEPS", "Pkm5SimDevice", "add_arguments",
@@ -54,6 +53,11 @@ class _Move:
     def at(self, now_s: float) -> np.ndarray:
         fraction = 1.0 if self.duration_s <= 0 else min(1.0, (now_s - self.t_start_s) / self.duration_s)
         return np.rint(self.start + fraction * (self.target - self.start)).astype(np.int64)
+
+
+def duration_ms(steps: int, speed_steps_s: int) -> int:
+    """Announced duration of a constant-speed move, ms: 1000 n / v rounded half up, in integers as the firmware."""
+    return (1000 * steps + speed_steps_s // 2) // speed_steps_s
 
 
 class Pkm5SimDevice:
@@ -95,14 +99,13 @@ class Pkm5SimDevice:
         self._overflow = False
         if overflow:
             return _error(0, wire.ErrorCode.TOO_LONG)
-        if not line.strip(b"\r"):
+        if line in (b"", b"\r"):
             return b""
         try:
             command = wire.parse_command(line)
-        except WireProtocolError as exc:
+        except wire.CommandRefused as exc:  # the code and the tag follow the firmware's rules (pkm5_wire)
             _log.info("refused %r: %s", line, exc)
-            code = wire.ErrorCode.CHECKSUM if "checksum" in str(exc) else wire.ErrorCode.SYNTAX
-            return _error(_tag_guess(line) if code == wire.ErrorCode.SYNTAX else 0, code)
+            return _error(exc.tag, exc.code)
         return self._execute(command, now_s)
 
     def tick(self, now_s: float) -> bytes:
@@ -189,7 +192,8 @@ class Pkm5SimDevice:
         target = np.array(targets, dtype=np.int64)
         duration_s = float(np.max(np.abs(target - self.steps))) / speed
         self.move = _Move(tag, self.steps.copy(), target, now_s, duration_s / self.speed_factor)
-        return wire.format_reply("OK", tag, "MOVE", round(1000 * duration_s / self.speed_factor))
+        return wire.format_reply("OK", tag, "MOVE", round(duration_ms(int(np.max(np.abs(target - self.steps))), speed)
+                                                          / self.speed_factor))
 
     def _stop(self, tag: int, now_s: float) -> bytes:
         out = b""
@@ -214,14 +218,6 @@ def _within_limits(steps: tuple[int, ...]) -> bool:
 
 def _error(tag: int, code: wire.ErrorCode, *fields: object) -> bytes:
     return wire.format_reply("ERR", tag, int(code), code.name, *fields)
-
-
-def _tag_guess(line: bytes) -> int:
-    """The tag of a refused line if it has a readable one (so the driver learns of the refusal at once), else 0."""
-    for token in line.rpartition(b"*")[0].split():
-        if token.startswith(b"#") and token[1:].isdigit() and len(token) <= 10:
-            return int(token[1:])
-    return 0
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:

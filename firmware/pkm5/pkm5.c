@@ -18,7 +18,6 @@
  */
 #include <avr/interrupt.h>
 #include <avr/io.h>
-#include <avr/sleep.h>
 #include <math.h>
 #include <stdint.h>
 #include <string.h>
@@ -68,7 +67,7 @@ static const int32_t HOME_STEPS[AXES] = {800, 800, 800, 800, 1600, 1600};
 enum { IDLE = 0, ACCEL, CRUISE, DECEL, HALT };
 static volatile uint8_t motion = IDLE;
 static volatile int32_t position[AXES];
-static volatile uint32_t ticks;            /* 10 kHz clock */
+static volatile uint32_t ticks;            /* 10 kHz clock, running while a move runs (the watchdog's time) */
 static int8_t direction[AXES];
 static uint32_t delta[AXES], error[AXES];
 static uint32_t lead_steps, done_steps, ramp_steps;
@@ -78,7 +77,7 @@ ISR(TIMER1_COMPA_vect) {
   ticks++;
   for (uint8_t i = 0; i < AXES; i++) *STEP_PORT[i] &= (uint8_t)~STEP_BIT[i];  /* pulse width: one tick */
   uint8_t state = motion;
-  if (state == IDLE) return;
+  if (state == IDLE) { TIMSK1 = 0; return; }  /* the pulses are down: sleep until the next move (cheap to emulate) */
   phase += velocity;
   if (phase >= ONE_STEP) {
     phase -= ONE_STEP;
@@ -281,6 +280,9 @@ static void start_move(int32_t tag, const int64_t *targets, uint32_t speed) {
   move_active = 1;
   cli();
   motion = v_floor >= v_max ? CRUISE : ACCEL;
+  TCNT1 = 0;
+  TIFR1 = _BV(OCF1A);
+  TIMSK1 = _BV(OCIE1A);
   sei();
 }
 
@@ -461,17 +463,12 @@ int main(void) {
   OCR1A = F_CPU / TICK_HZ - 1;
   TCCR1A = 0;
   TCCR1B = _BV(WGM12) | _BV(CS10);       /* CTC, no prescaler */
-  TIMSK1 = _BV(OCIE1A);
   sei();
   reply_start("BOOT", 0);
   put_text(" " DEVICE_NAME " " PROTOCOL_VERSION " " FIRMWARE_VERSION);
   reply_send();
-  set_sleep_mode(SLEEP_MODE_IDLE);
-  for (;;) {
+  for (;;) {  /* a polling loop: the ISRs do the timing (idle sleep would save nothing on a USB-powered board) */
     poll_uart();
     poll_motion();
-    cli();
-    if (rx_tail == rx_head) { sleep_enable(); sei(); sleep_cpu(); sleep_disable(); }
-    sei();
   }
 }
