@@ -18,7 +18,6 @@ ROOT = Path(__file__).resolve().parents[1]
 F_CPU_HZ = 16_000_000
 #: Build options of the firmware under test (firmware/Makefile defaults; docs/firmware.md)
 ACCEL_STEPS_S2 = 4000
-WATCHDOG_MS = 200
 DRIVERS_ENABLED_LEVEL = 1
 
 
@@ -77,10 +76,12 @@ class EmulatedController:
 
 def read_events(path: Path) -> list[Edge]:
     edges = []
-    for line in path.read_text().splitlines():
+    text = path.read_text()
+    for line in text[:text.rfind("\n") + 1].splitlines():  # complete lines: the harness may be writing
         fields = line.split()
         if fields[1] == "RX":
-            edges.append(Edge(int(fields[0]) / F_CPU_HZ, "RX", 0, 0, b"" if fields[2] == "-" else bytes.fromhex(fields[2])))
+            line = b"" if fields[2] == "-" else bytes.fromhex(fields[2])
+            edges.append(Edge(int(fields[0]) / F_CPU_HZ, "RX", 0, 0, line))
         else:
             edges.append(Edge(int(fields[0]) / F_CPU_HZ, fields[1], int(fields[2]), int(fields[3])))
     return edges

@@ -35,8 +35,8 @@ from motion import pkm5
 __all__ = ["DEFAULT_BAUDRATE", "ControllerError", "Identity", "Pkm5Controller", "Position"]
 
 _log = logging.getLogger(__name__)
-#: Interval of the heartbeat (a ``POS`` line) while waiting for ``DONE``: a quarter of the firmware's default link
-#: watchdog (200 ms, docs/protocol-pkm5.md), so that one lost line never trips it.
+#: Interval of the heartbeat (a ``POS`` line) while waiting for ``DONE``: a third of the firmware's default link
+#: watchdog (150 ms, docs/protocol-pkm5.md), so that one lost line never trips it.
 HEARTBEAT_S = 0.05
 
 DEFAULT_BAUDRATE = 115200

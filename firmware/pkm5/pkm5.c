@@ -29,7 +29,7 @@
 #define STOP_DECEL_STEPS_S2 25000L  /* watchdog ramp-down: 1000 steps/s to rest in 40 ms */
 #endif
 #ifndef WATCHDOG_MS
-#define WATCHDOG_MS 200L            /* link timeout while moving, ms; 0 switches the watchdog off */
+#define WATCHDOG_MS 150L            /* link timeout while moving, ms (+ <= 40 ms ramp-down: EN off < 250 ms); 0 = off */
 #endif
 #ifndef DRIVERS_ENABLED_LEVEL
 #define DRIVERS_ENABLED_LEVEL 1     /* EN pin level that powers the motors (TB6560: HIGH = opto dark = enabled) */
