@@ -160,9 +160,9 @@ def test_lost_move_acceptance_with_the_robot_elsewhere_raises():
         robot.move_steps(POINT_3_1_STEPS)
 
 
-def test_missing_done_sends_stop_and_raises():
+def test_missing_done_sends_stop_and_raises():  # a DONE deadline shorter than the heartbeat: no POS line
     with exchange([("MOVE 2656 2656 2669 2669 2720 2720 200 #1", "OK #1 MOVE 10"),
-                   ("STOP #2", "OK #2 STOP 900 900 900 900 1700 1700")], move_margin_s=0.05) as robot, \
+                   ("STOP #2", "OK #2 STOP 900 900 900 900 1700 1700")], move_margin_s=0.03) as robot, \
             pytest.raises(LinkTimeout, match=r"no reply to 'MOVE' after 0\.0\d+ s, expected 'DONE #1 \.\.\.'"):
         robot.move_steps(POINT_3_1_STEPS)
 
