@@ -126,6 +126,7 @@ class Pkm5Controller:
         self._write = threading.Lock()
         self._stop_latched = False
         self._identity: Identity | None = None
+        self._version = 1  # link framing; identify() negotiates 2 (CRC-16) with a controller that offers it
 
     # -- description -------------------------------------------------------------------------------------------
     def settings(self) -> dict[str, Any]:
@@ -134,7 +135,7 @@ class Pkm5Controller:
             "driver": type(self).__name__,
             "port": self.link.port_name,
             "baudrate": getattr(self.link.port, "baudrate", None),
-            "protocol_version": wire.PROTOCOL_VERSION,
+            "protocol_version": self._version,
             "speed_steps_s": self.speed_steps_s,
             "reply_timeout_s": self.reply_timeout_s,
             "retries": self.retries,
@@ -154,7 +155,7 @@ class Pkm5Controller:
         attempts = 1 + (self.retries if verb in _IDEMPOTENT else 0)
         for attempt in range(1, attempts + 1):
             tag = next(self._tags)
-            self.link.write(wire.format_command(verb, args, tag), command=verb)
+            self.link.write(wire.format_command(verb, args, tag, self._version), command=verb)
             try:
                 return self._await(tag, verb, ("OK",), timeout_s or self.reply_timeout_s)
             except (LinkTimeout, WireProtocolError) as exc:
@@ -181,7 +182,7 @@ class Pkm5Controller:
                     beat = next(self._tags)
                     beats.add(beat)
                     with self._write:
-                        self.link.write(wire.format_command("POS", (), beat), command="POS")
+                        self.link.write(wire.format_command("POS", (), beat, self._version), command="POS")
                     next_beat_s = time.monotonic() + HEARTBEAT_S
                 wait_s = min(wait_s, max(0.0, next_beat_s - time.monotonic()))
             try:
@@ -194,7 +195,7 @@ class Pkm5Controller:
                                       f"{dropped[0]!r} (is this a {wire.DEVICE_NAME}?)") from None
                 raise
             try:
-                reply = wire.parse_reply(line)
+                reply = wire.parse_reply(line, self._version)
             except WireProtocolError as exc:
                 _log.warning("%s: dropped line while waiting for %s: %s", self.link.port_name, verb, exc)
                 dropped.append(line)
@@ -216,14 +217,22 @@ class Pkm5Controller:
 
     # -- commands ----------------------------------------------------------------------------------------------
     def identify(self) -> Identity:
-        """Ask ``ID``; a device other than a bench-pkm5 of this protocol version raises LinkError."""
+        """Ask ``ID`` (always in version-1 framing, which also returns a controller to version 1) and negotiate the
+        highest protocol both sides speak: ``PROTOCOL 2`` (CRC-16 lines) with a controller that offers 2, version 1
+        with one that offers 1 (firmware 1.x). A device other than a bench-pkm5 raises LinkError."""
+        self._version = 1
         reply = self._exchange("ID")
         fields = reply.fields
+        offered = " or ".join(str(v) for v in wire.PROTOCOL_VERSIONS)
         if len(fields) != 4 or fields[0] != "ID" or fields[1] != wire.DEVICE_NAME \
-                or fields[2] != str(wire.PROTOCOL_VERSION):
+                or fields[2] not in [str(v) for v in wire.PROTOCOL_VERSIONS]:
             raise LinkError(f"{self.link.port_name}: 'ID' answered {' '.join(fields)!r}, expected "
-                            f"'ID {wire.DEVICE_NAME} {wire.PROTOCOL_VERSION} <firmware version>' (wrong device?)")
-        self._identity = Identity(fields[1], int(fields[2]), fields[3])
+                            f"'ID {wire.DEVICE_NAME} {offered} <firmware version>' (wrong device?)")
+        version = int(fields[2])
+        if version > 1:
+            self._exchange("PROTOCOL", (version,))
+            self._version = version
+        self._identity = Identity(fields[1], version, fields[3])
         return self._identity
 
     def position(self) -> Position:
@@ -253,7 +262,7 @@ class Pkm5Controller:
         """
         if not self._line.acquire(blocking=False):
             with self._write:
-                self.link.write(wire.format_command("STOP", (), next(self._tags)), command="STOP")
+                self.link.write(wire.format_command("STOP", (), next(self._tags), self._version), command="STOP")
             return None
         try:
             return Position(self._exchange("STOP").ints(1, wire.AXES), "IDLE")
@@ -312,7 +321,7 @@ class Pkm5Controller:
             if self._stop_latched:
                 raise LinkError(f"{self.link.port_name}: MOVE to {targets} refused: an emergency stop is latched; "
                                 "enable() the controller to move again")
-            self.link.write(wire.format_command("MOVE", (*targets, speed), tag), command="MOVE")
+            self.link.write(wire.format_command("MOVE", (*targets, speed), tag, self._version), command="MOVE")
         try:
             try:
                 reply = self._await(tag, "MOVE", ("OK", "DONE"), self.reply_timeout_s)
@@ -404,7 +413,7 @@ class Pkm5Controller:
     def _stop_quietly(self) -> None:
         try:
             tag = next(self._tags)
-            self.link.write(wire.format_command("STOP", (), tag), command="STOP")
+            self.link.write(wire.format_command("STOP", (), tag, self._version), command="STOP")
             self._await(tag, "STOP", ("OK",), self.reply_timeout_s)
         except (LinkError, OSError) as exc:
             _log.warning("%s: STOP not confirmed: %s", self.link.port_name, exc)

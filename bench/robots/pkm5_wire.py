@@ -22,27 +22,32 @@ from __future__ import annotations
 
 import contextlib
 import enum
+import re
 from dataclasses import dataclass
 
 from bench.robots.link import FramedLink, WireProtocolError
 
 __all__ = [
-    "AXES", "COMMAND_ARITY", "DEVICE_NAME", "MAX_LINE", "PROTOCOL_VERSION", "Command", "CommandRefused",
-    "ErrorCode", "LineLink",
+    "AXES", "COMMAND_ARITY", "DEVICE_NAME", "MAX_LINE", "PROTOCOL_VERSION", "PROTOCOL_VERSIONS", "Command",
+    "CommandRefused", "ErrorCode", "LineLink", "crc16", "is_v1_identify",
     "Reply", "checksum", "decode_line", "encode_line", "format_command", "format_reply", "parse_command",
     "parse_reply",
 ]
 
 PROTOCOL_VERSION = 1
+#: Protocol versions this module speaks: 1 = XOR-8 ``*HH``, 2 = CRC-16-CCITT ``*HHHH`` (negotiated after ``ID``).
+PROTOCOL_VERSIONS = (1, 2)
 DEVICE_NAME = "bench-pkm5"
 AXES = 6
 MAX_LINE = 96
 _REPLY_KINDS = ("OK", "DONE", "ERR", "BOOT")
+_V1_ID = re.compile(rb"ID #[0-9]{1,9}\*[0-9A-F]{2}")
 
 #: Number of integer arguments of each command; simulator-only commands start with ``SIM``.
 COMMAND_ARITY = {
     "ID": 0, "POS": 0, "STOP": 0, "ENABLE": 0, "DISABLE": 0,
     "MOVE": AXES + 1, "SETPOS": AXES,
+    "PROTOCOL": 1,
     "SIMLOAD": 1, "SIMTRUE": 0, "SIMLEGS": 0, "SIMTRACE": 4,
 }
 
@@ -78,24 +83,44 @@ def checksum(body: bytes) -> str:
     return f"{value:02X}"
 
 
-def encode_line(body: str) -> bytes:
-    """``body`` framed as ``BODY*HH\\n``."""
+def crc16(body: bytes) -> str:
+    """CRC-16-CCITT of ``body`` (polynomial 0x1021, initial value 0xFFFF, no reflection, no final XOR: the
+    "CRC-16/CCITT-FALSE" of the CRC catalogue; check value of b"123456789" is 29B1), four upper-case hex digits.
+    It detects every error of up to 3 bits, every odd number of bit errors and every burst up to 16 bits in a line
+    (Koopman & Chakravarty 2004), where XOR-8 lets through about 12 % of 2-bit errors on 40-byte lines."""
+    crc = 0xFFFF
+    for byte in body:
+        crc ^= byte << 8
+        for _ in range(8):
+            crc = ((crc << 1) ^ 0x1021) if crc & 0x8000 else crc << 1
+            crc &= 0xFFFF
+    return f"{crc:04X}"
+
+
+def _check(body: bytes, version: int) -> str:
+    return checksum(body) if version == 1 else crc16(body)
+
+
+def encode_line(body: str, version: int = 1) -> bytes:
+    """``body`` framed as ``BODY*HH\\n`` (version 1) or ``BODY*HHHH\\n`` (version 2, CRC-16)."""
     raw = body.encode("ascii")
-    return raw + b"*" + checksum(raw).encode("ascii") + b"\n"
+    return raw + b"*" + _check(raw, version).encode("ascii") + b"\n"
 
 
-def decode_line(line: bytes) -> str:
+def decode_line(line: bytes, version: int = 1) -> str:
     """The body of one line (terminator already removed; a trailing ``\\r`` is tolerated)."""
     if len(line) > MAX_LINE:
         raise CommandRefused(f"line of {len(line)} bytes, expected at most {MAX_LINE}: {line[:32]!r}...",
                              ErrorCode.TOO_LONG)
     if line.endswith(b"\r"):
         line = line[:-1]
-    body, star, check = line[:-3], line[-3:-2], line[-2:]
+    digits = 2 if version == 1 else 4
+    body, star, check = line[:-digits - 1], line[-digits - 1:-digits], line[-digits:]
     if star != b"*":
-        raise CommandRefused(f"line {line!r} has no '*HH' checksum", ErrorCode.CHECKSUM)
-    if check != checksum(body).encode("ascii"):
-        raise CommandRefused(f"line {line!r}: checksum {check!r}, expected {checksum(body)!r}", ErrorCode.CHECKSUM)
+        raise CommandRefused(f"line {line!r} has no '*{'H' * digits}' checksum", ErrorCode.CHECKSUM)
+    if check != _check(body, version).encode("ascii"):
+        raise CommandRefused(f"line {line!r}: checksum {check!r}, expected {_check(body, version)!r}",
+                             ErrorCode.CHECKSUM)
     if not all(0x20 <= b < 0x7F for b in body):
         raise CommandRefused(f"line {line!r} has bytes outside printable ASCII", ErrorCode.SYNTAX,
                              _trusted_tag(body))
@@ -141,16 +166,16 @@ class Command:
     tag: int
 
 
-def format_command(verb: str, args: tuple[int, ...] | list[int], tag: int) -> bytes:
+def format_command(verb: str, args: tuple[int, ...] | list[int], tag: int, version: int = 1) -> bytes:
     """Encode a command line; the arity is checked so that a driver cannot emit a malformed command."""
     if COMMAND_ARITY.get(verb) != len(args):
         raise ValueError(f"command {verb!r} with {len(args)} arguments, expected {COMMAND_ARITY.get(verb)}")
-    return encode_line(" ".join([verb, *(str(int(a)) for a in args), f"#{int(tag)}"]))
+    return encode_line(" ".join([verb, *(str(int(a)) for a in args), f"#{int(tag)}"]), version)
 
 
-def parse_command(line: bytes) -> Command:
+def parse_command(line: bytes, version: int = 1) -> Command:
     """Decode a command line (the controller side)."""
-    tokens = _fields(decode_line(line))
+    tokens = _fields(decode_line(line, version))
     try:
         tokens, tag = _split_tag(tokens, line)
     except WireProtocolError as exc:
@@ -184,29 +209,36 @@ class Reply:
         return tuple(_parse_int(t, self) for t in chunk)
 
 
-def format_reply(kind: str, tag: int, *fields: object) -> bytes:
-    return encode_line(" ".join([kind, f"#{int(tag)}", *(str(f) for f in fields)]))
+def format_reply(kind: str, tag: int, *fields: object, version: int = 1) -> bytes:
+    return encode_line(" ".join([kind, f"#{int(tag)}", *(str(f) for f in fields)]), version)
 
 
-def parse_reply(line: bytes) -> Reply:
+def is_v1_identify(line: bytes) -> bool:
+    """A version-1 ``ID #t`` line, exactly: accepted in version 2 too, it returns the link to version 1 (a new host
+    that does not know the controller's state starts with it)."""
+    line = line[:-1] if line.endswith(b"\r") else line
+    return bool(_V1_ID.fullmatch(line)) and line[-2:] == checksum(line[:-3]).encode("ascii")
+
+
+def parse_reply(line: bytes, version: int = 1) -> Reply:
     """Decode a reply line (the PC side).
 
     Noise glued in front of a reply (a glitch with no newline) is skipped: if the whole line fails, the last
     ``KIND #`` start whose checksum verifies is taken; otherwise the first error is raised.
     """
     try:
-        return _parse_reply(line)
+        return _parse_reply(line, version)
     except WireProtocolError:
         starts = [line.rfind(kind.encode("ascii") + b" #") for kind in _REPLY_KINDS]
         start = max(starts)
         if start > 0:
             with contextlib.suppress(WireProtocolError):
-                return _parse_reply(line[start:])
+                return _parse_reply(line[start:], version)
         raise
 
 
-def _parse_reply(line: bytes) -> Reply:
-    tokens = _fields(decode_line(line))
+def _parse_reply(line: bytes, version: int) -> Reply:
+    tokens = _fields(decode_line(line, version))
     if not tokens or tokens[0] not in _REPLY_KINDS:
         raise WireProtocolError(f"line {line!r}: expected a reply starting with one of {_REPLY_KINDS}")
     fields, tag = _split_tag(tokens[1:], line)

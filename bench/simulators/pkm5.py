@@ -80,6 +80,7 @@ class Pkm5SimDevice:
         self._line = bytearray()
         self._overflow = False
         self._booted = False
+        self.protocol = 1  # framing of the link: 1 = XOR-8, 2 = CRC-16 after PROTOCOL 2; a v1 "ID" returns to 1
 
     # -- bytes in, bytes out -----------------------------------------------------------------------------------
     def feed(self, data: bytes, now_s: float) -> bytes:
@@ -98,21 +99,28 @@ class Pkm5SimDevice:
         self._line.clear()
         self._overflow = False
         if overflow:
-            return _error(0, wire.ErrorCode.TOO_LONG)
+            return _reframe(_error(0, wire.ErrorCode.TOO_LONG), self.protocol)
         if line in (b"", b"\r"):
             return b""
+        version = self.protocol  # a PROTOCOL command is answered in the framing it arrived in
         try:
-            command = wire.parse_command(line)
+            command = wire.parse_command(line, version)
         except wire.CommandRefused as exc:  # the code and the tag follow the firmware's rules (pkm5_wire)
-            _log.info("refused %r: %s", line, exc)
-            return _error(exc.tag, exc.code)
-        return self._execute(command, now_s)
+            if not (version == 2 and exc.code == wire.ErrorCode.CHECKSUM and wire.is_v1_identify(line)):
+                _log.info("refused %r: %s", line, exc)
+                return _reframe(_error(exc.tag, exc.code), version)
+            command = wire.parse_command(line, 1)
+            self.protocol = version = 1
+        return _reframe(self._execute(command, now_s), version)
 
     def tick(self, now_s: float) -> bytes:
+        return _reframe(self._tick(now_s), self.protocol)
+
+    def _tick(self, now_s: float) -> bytes:
         out = b""
         if not self._booted:
             self._booted = True
-            out += wire.format_reply("BOOT", 0, wire.DEVICE_NAME, wire.PROTOCOL_VERSION, FIRMWARE_VERSION)
+            out += wire.format_reply("BOOT", 0, wire.DEVICE_NAME, max(wire.PROTOCOL_VERSIONS), FIRMWARE_VERSION)
         if self.move is not None and now_s >= self.move.t_start_s + self.move.duration_s:
             move, self.move = self.move, None
             self.steps = move.target.copy()
@@ -126,7 +134,12 @@ class Pkm5SimDevice:
         if verb in _IDLE_ONLY and self.move is not None:
             return _error(tag, wire.ErrorCode.BUSY)
         if verb == "ID":
-            return wire.format_reply("OK", tag, "ID", wire.DEVICE_NAME, wire.PROTOCOL_VERSION, FIRMWARE_VERSION)
+            return wire.format_reply("OK", tag, "ID", wire.DEVICE_NAME, max(wire.PROTOCOL_VERSIONS), FIRMWARE_VERSION)
+        if verb == "PROTOCOL":
+            if args[0] not in wire.PROTOCOL_VERSIONS:
+                return _error(tag, wire.ErrorCode.ARGUMENT)
+            self.protocol = args[0]
+            return wire.format_reply("OK", tag, "PROTOCOL", args[0])
         if verb == "POS":
             state = "MOVING" if self.move else "IDLE" if self.enabled else "DISABLED"
             return wire.format_reply("OK", tag, "POS", *self._current(now_s), state)
@@ -214,6 +227,13 @@ class Pkm5SimDevice:
 
 def _within_limits(steps: tuple[int, ...]) -> bool:
     return all(0 <= s <= high for s, high in zip(steps, MAX_STEPS))
+
+
+def _reframe(data: bytes, version: int) -> bytes:
+    """Version-1 reply lines re-framed for ``version`` (the replies are built once, in version 1)."""
+    if version == 1 or not data:
+        return data
+    return b"".join(wire.encode_line(wire.decode_line(line), version) for line in data.splitlines())
 
 
 def _error(tag: int, code: wire.ErrorCode, *fields: object) -> bytes:

@@ -36,7 +36,7 @@
 #endif
 
 #define DEVICE_NAME "bench-pkm5"
-#define PROTOCOL_VERSION "1"
+#define PROTOCOL_VERSION "2"          /* the highest offered; the link starts in 1 (XOR-8), PROTOCOL 2 -> CRC-16 */
 #define FIRMWARE_VERSION "2.0.0"
 #define AXES 6
 #define MAX_LINE 96
@@ -143,6 +143,17 @@ static void uart_put(char c) {
 
 static char reply[MAX_LINE + 8];
 static uint8_t reply_len;
+static uint8_t protocol = 1;          /* framing: 1 = *HH XOR-8, 2 = *HHHH CRC-16-CCITT */
+
+/* CRC-16-CCITT: polynomial 0x1021, initial 0xFFFF, no reflection, no final XOR (check("123456789") = 0x29B1). */
+static uint16_t crc16(const char *bytes, uint8_t length) {
+  uint16_t crc = 0xFFFF;
+  for (uint8_t i = 0; i < length; i++) {
+    crc ^= (uint16_t)((uint8_t)bytes[i]) << 8;
+    for (uint8_t bit = 0; bit < 8; bit++) crc = (crc & 0x8000) ? (uint16_t)((crc << 1) ^ 0x1021) : (uint16_t)(crc << 1);
+  }
+  return crc;
+}
 
 static void put_text(const char *text) {
   while (*text && reply_len < MAX_LINE) reply[reply_len++] = *text++;
@@ -169,11 +180,18 @@ static void reply_start(const char *kind, int32_t tag) {
 
 static void reply_send(void) {
   static const char HEX[] = "0123456789ABCDEF";
-  uint8_t check = 0;
-  for (uint8_t i = 0; i < reply_len; i++) check ^= (uint8_t)reply[i];
+  uint16_t check;
+  uint8_t digits;
+  if (protocol == 2) {
+    check = crc16(reply, reply_len);
+    digits = 4;
+  } else {
+    check = 0;
+    for (uint8_t i = 0; i < reply_len; i++) check ^= (uint8_t)reply[i];
+    digits = 2;
+  }
   reply[reply_len++] = '*';
-  reply[reply_len++] = HEX[check >> 4];
-  reply[reply_len++] = HEX[check & 0x0F];
+  while (digits) reply[reply_len++] = HEX[(check >> (4 * --digits)) & 0x0F];
   reply[reply_len++] = '\n';
   for (uint8_t i = 0; i < reply_len; i++) uart_put(reply[i]);
 }
@@ -294,7 +312,14 @@ static void halt_now(void) {
 
 static void execute(int32_t tag, const char *verb, uint8_t argc, const int64_t *args) {
   uint8_t busy = move_active;
-  if (strcmp(verb, "ID") == 0 && argc == 0) {
+  if (strcmp(verb, "PROTOCOL") == 0 && argc == 1) {
+    if (args[0] != 1 && args[0] != 2) { send_error(tag, ERR_ARGUMENT, 0); return; }
+    reply_start("OK", tag);
+    put_text(" PROTOCOL");
+    put_long((int32_t)args[0]);
+    reply_send();                       /* in the framing the command came in */
+    protocol = (uint8_t)args[0];
+  } else if (strcmp(verb, "ID") == 0 && argc == 0) {
     reply_start("OK", tag);
     put_text(" ID " DEVICE_NAME " " PROTOCOL_VERSION " " FIRMWARE_VERSION);
     reply_send();
@@ -345,6 +370,29 @@ static void execute(int32_t tag, const char *verb, uint8_t argc, const int64_t *
   }
 }
 
+/* Whether line[0..length) ends in a valid *HH (version 1) or *HHHH (version 2); *body = the body length. */
+static uint8_t frame_ok(const char *line, uint8_t length, uint8_t version, uint8_t *body) {
+  uint8_t digits = version == 2 ? 4 : 2;
+  if (length < digits + 1 || line[length - digits - 1] != '*') return 0;
+  uint16_t claimed = 0;
+  for (uint8_t i = length - digits; i < length; i++) {
+    int v = hex_value(line[i]);
+    if (v < 0) return 0;
+    claimed = (uint16_t)(claimed * 16 + v);
+  }
+  *body = length - digits - 1;
+  uint16_t actual = 0;
+  if (version == 2) actual = crc16(line, *body);
+  else for (uint8_t i = 0; i < *body; i++) actual ^= (uint8_t)line[i];
+  return claimed == actual;
+}
+
+static uint8_t is_plain_id(const char *line, uint8_t body) {  /* exactly "ID #" + 1-9 digits */
+  if (body < 5 || body > 13 || strncmp(line, "ID #", 4) != 0) return 0;
+  for (uint8_t i = 4; i < body; i++) if (line[i] < '0' || line[i] > '9') return 0;
+  return 1;
+}
+
 /* One received line (terminator removed). Order of checks, as bench/robots/pkm5_wire.py: length (done by the
  * reader), one trailing '\r' dropped, empty -> ignored, '*HH' and checksum -> CHECKSUM #0, then the tokens:
  * the tag is trusted when exactly one token starts with '#' and it is '#' + 1-9 digits; every later refusal
@@ -352,17 +400,15 @@ static void execute(int32_t tag, const char *verb, uint8_t argc, const int64_t *
 static void handle_line(char *line, uint8_t length) {
   if (length > 0 && line[length - 1] == '\r') line[--length] = '\0';
   if (length == 0) return;
-  if (length < 3 || line[length - 3] != '*' || hex_value(line[length - 2]) < 0 || hex_value(line[length - 1]) < 0) {
-    send_error(0, ERR_CHECKSUM, 0);
-    return;
-  }
-  uint8_t body = length - 3, check = 0;
-  for (uint8_t i = 0; i < body; i++) check ^= (uint8_t)line[i];
-  if (check != (uint8_t)(hex_value(line[length - 2]) * 16 + hex_value(line[length - 1]))) {
-    send_error(0, ERR_CHECKSUM, 0);
-    return;
-  }
-  line[body] = '\0';
+  uint8_t body;
+  if (!frame_ok(line, length, protocol, &body)) {
+    /* a version-1 "ID #t" returns a version-2 link to version 1 (a new host starts with it) */
+    if (!(protocol == 2 && frame_ok(line, length, 1, &body) && is_plain_id(line, body))) {
+      send_error(0, ERR_CHECKSUM, 0);
+      return;
+    }
+    protocol = 1;
+  }  line[body] = '\0';
   last_line_ms = now_ms();
   char *tokens[MAX_TOKENS];
   uint8_t count = 0, tag_tokens = 0, printable = 1;
