@@ -84,6 +84,22 @@ def test_tags_of_every_size_parse_exactly():
     assert wire.parse_command(wire.encode_line("POS #007")[:-1]).tag == 7
 
 
+def test_crc16_is_ccitt_false_and_frames_version_2():
+    assert wire.crc16(b"123456789") == "29B1"  # the catalogue check value of CRC-16/CCITT-FALSE
+    assert wire.encode_line("ID #1", 2) == b"ID #1*FF74\n"
+    assert wire.parse_command(b"ID #1*FF74", 2) == wire.Command("ID", (), 1)
+    with pytest.raises(wire.CommandRefused, match="checksum"):
+        wire.parse_command(b"ID #1*3F", 2)  # a v1 frame on a v2 link
+    assert wire.is_v1_identify(b"ID #1*3F") and not wire.is_v1_identify(b"ID #1*FF74")
+
+
+def test_no_randomly_corrupted_version_2_frame_is_accepted():
+    """3000 frames here (a few seconds); benchmarks/bench_pkm5_link.py runs 10^6 and the XOR-8 peer."""
+    from bench.robots.line_fuzz import accepted_count
+    assert accepted_count(3000, 2, seed=1) == 0
+    assert accepted_count(3000, 1, seed=1) > 20  # the same corruptions pass XOR-8: the test can see an acceptance
+
+
 def test_format_command_refuses_a_wrong_arity():
     with pytest.raises(ValueError, match="expected 7"):
         wire.format_command("MOVE", (1, 2), 1)

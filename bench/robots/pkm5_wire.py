@@ -90,11 +90,22 @@ def crc16(body: bytes) -> str:
     (Koopman & Chakravarty 2004), where XOR-8 lets through about 12 % of 2-bit errors on 40-byte lines."""
     crc = 0xFFFF
     for byte in body:
-        crc ^= byte << 8
-        for _ in range(8):
-            crc = ((crc << 1) ^ 0x1021) if crc & 0x8000 else crc << 1
-            crc &= 0xFFFF
+        crc = ((crc << 8) & 0xFFFF) ^ _CRC_TABLE[(crc >> 8) ^ byte]
     return f"{crc:04X}"
+
+
+def _crc_table() -> tuple[int, ...]:
+    """CRC of each leading byte, bit by bit (the table-driven form of the same CRC)."""
+    table = []
+    for byte in range(256):
+        crc = byte << 8
+        for _ in range(8):
+            crc = ((crc << 1) ^ 0x1021) & 0xFFFF if crc & 0x8000 else (crc << 1) & 0xFFFF
+        table.append(crc)
+    return tuple(table)
+
+
+_CRC_TABLE = _crc_table()
 
 
 def _check(body: bytes, version: int) -> str:
