@@ -33,6 +33,21 @@ def test_identify():
                                                 "firmware_version": "1.2.0"}
 
 
+def test_identify_negotiates_crc_lines_with_a_version_2_controller():
+    v2 = lambda body: wire.encode_line(body, 2)  # noqa: E731
+    with exchange([("ID #1", "OK #1 ID bench-pkm5 2 2.0.0"), ("PROTOCOL 2 #2", "OK #2 PROTOCOL 2"),
+                   (v2("POS #3"), v2("OK #3 POS 800 800 800 800 1600 1600 DISABLED"))]) as robot:
+        assert robot.identify() == Identity("bench-pkm5", 2, "2.0.0")
+        assert robot.position() == Position((800, 800, 800, 800, 1600, 1600), "DISABLED")
+        assert robot.settings()["protocol_version"] == 2
+
+
+def test_lost_protocol_confirmation_starts_again_from_id():
+    with exchange([("ID #1", "OK #1 ID bench-pkm5 2 2.0.0"), ("PROTOCOL 2 #2", None),
+                   ("ID #3", "OK #3 ID bench-pkm5 2 2.0.0"), ("PROTOCOL 2 #4", "OK #4 PROTOCOL 2")]) as robot:
+        assert robot.identify().protocol_version == 2
+
+
 def test_position():
     with exchange([("POS #1", "OK #1 POS 800 800 800 800 1600 1600 DISABLED")]) as robot:
         assert robot.position() == Position((800, 800, 800, 800, 1600, 1600), "DISABLED")

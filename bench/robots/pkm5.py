@@ -220,18 +220,27 @@ class Pkm5Controller:
         """Ask ``ID`` (always in version-1 framing, which also returns a controller to version 1) and negotiate the
         highest protocol both sides speak: ``PROTOCOL 2`` (CRC-16 lines) with a controller that offers 2, version 1
         with one that offers 1 (firmware 1.x). A device other than a bench-pkm5 raises LinkError."""
-        self._version = 1
-        reply = self._exchange("ID")
-        fields = reply.fields
         offered = " or ".join(str(v) for v in wire.PROTOCOL_VERSIONS)
-        if len(fields) != 4 or fields[0] != "ID" or fields[1] != wire.DEVICE_NAME \
-                or fields[2] not in [str(v) for v in wire.PROTOCOL_VERSIONS]:
-            raise LinkError(f"{self.link.port_name}: 'ID' answered {' '.join(fields)!r}, expected "
-                            f"'ID {wire.DEVICE_NAME} {offered} <firmware version>' (wrong device?)")
-        version = int(fields[2])
-        if version > 1:
-            self._exchange("PROTOCOL", (version,))
+        for attempt in range(1, self.retries + 2):
+            self._version = 1
+            fields = self._exchange("ID").fields
+            if len(fields) != 4 or fields[0] != "ID" or fields[1] != wire.DEVICE_NAME \
+                    or fields[2] not in [str(v) for v in wire.PROTOCOL_VERSIONS]:
+                raise LinkError(f"{self.link.port_name}: 'ID' answered {' '.join(fields)!r}, expected "
+                                f"'ID {wire.DEVICE_NAME} {offered} <firmware version>' (wrong device?)")
+            version = int(fields[2])
+            if version == 1:
+                break
+            try:  # a lost OK leaves the controller's framing unknown: start again from ID, which resets it
+                self._exchange("PROTOCOL", (version,))
+            except (LinkTimeout, WireProtocolError) as exc:
+                if attempt > self.retries:
+                    raise
+                _log.warning("%s: PROTOCOL %d not confirmed (%s); identifying again", self.link.port_name,
+                             version, exc)
+                continue
             self._version = version
+            break
         self._identity = Identity(fields[1], version, fields[3])
         return self._identity
 
