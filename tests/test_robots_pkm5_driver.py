@@ -34,6 +34,21 @@ def test_identify():
                                                 "firmware_version": "1.2.0"}
 
 
+def test_identify_negotiates_crc_lines_with_a_version_2_controller():
+    v2 = lambda body: wire.encode_line(body, 2)  # noqa: E731
+    with exchange([("ID #1", "OK #1 ID bench-pkm5 2 2.0.0"), ("PROTOCOL 2 #2", "OK #2 PROTOCOL 2"),
+                   (v2("POS #3"), v2("OK #3 POS 800 800 800 800 1600 1600 DISABLED"))]) as robot:
+        assert robot.identify() == Identity("bench-pkm5", 2, "2.0.0")
+        assert robot.position() == Position((800, 800, 800, 800, 1600, 1600), "DISABLED")
+        assert robot.settings()["protocol_version"] == 2
+
+
+def test_lost_protocol_confirmation_starts_again_from_id():
+    with exchange([("ID #1", "OK #1 ID bench-pkm5 2 2.0.0"), ("PROTOCOL 2 #2", None),
+                   ("ID #3", "OK #3 ID bench-pkm5 2 2.0.0"), ("PROTOCOL 2 #4", "OK #4 PROTOCOL 2")]) as robot:
+        assert robot.identify().protocol_version == 2
+
+
 def test_position():
     with exchange([("POS #1", "OK #1 POS 800 800 800 800 1600 1600 DISABLED")]) as robot:
         assert robot.position() == Position((800, 800, 800, 800, 1600, 1600), "DISABLED")
@@ -161,9 +176,9 @@ def test_lost_move_acceptance_with_the_robot_elsewhere_raises():
         robot.move_steps(POINT_3_1_STEPS)
 
 
-def test_missing_done_sends_stop_and_raises():
+def test_missing_done_sends_stop_and_raises():  # a DONE deadline shorter than the heartbeat: no POS line
     with exchange([("MOVE 2656 2656 2669 2669 2720 2720 200 #1", "OK #1 MOVE 10"),
-                   ("STOP #2", "OK #2 STOP 900 900 900 900 1700 1700")], move_margin_s=0.05) as robot, \
+                   ("STOP #2", "OK #2 STOP 900 900 900 900 1700 1700")], move_margin_s=0.03) as robot, \
             pytest.raises(LinkTimeout, match=r"no reply to 'MOVE' after 0\.0\d+ s, expected 'DONE #1 \.\.\.'"):
         robot.move_steps(POINT_3_1_STEPS)
 

@@ -19,6 +19,7 @@ import functools
 import itertools
 import logging
 import threading
+import time
 from dataclasses import dataclass
 from typing import Any
 
@@ -33,6 +34,9 @@ from motion import pkm5
 __all__ = ["DEFAULT_BAUDRATE", "RATED_SPEED_STEPS_S", "ControllerError", "Identity", "Pkm5Controller", "Position"]
 
 _log = logging.getLogger(__name__)
+#: Interval of the heartbeat (a ``POS`` line) while waiting for ``DONE``: a third of the firmware's default link
+#: watchdog (150 ms, docs/protocol-pkm5.md), so that one lost line never trips it.
+HEARTBEAT_S = 0.05
 
 DEFAULT_BAUDRATE = 115200
 _IDEMPOTENT = frozenset({"ID", "POS", "STOP", "ENABLE", "DISABLE", "SETPOS"})
@@ -122,6 +126,7 @@ class Pkm5Controller:
         self._write = threading.Lock()
         self._stop_latched = False
         self._identity: Identity | None = None
+        self._version = 1  # link framing; identify() negotiates 2 (CRC-16) with a controller that offers it
 
     # -- description -------------------------------------------------------------------------------------------
     def settings(self) -> dict[str, Any]:
@@ -130,7 +135,7 @@ class Pkm5Controller:
             "driver": type(self).__name__,
             "port": self.link.port_name,
             "baudrate": getattr(self.link.port, "baudrate", None),
-            "protocol_version": wire.PROTOCOL_VERSION,
+            "protocol_version": self._version,
             "speed_steps_s": self.speed_steps_s,
             "reply_timeout_s": self.reply_timeout_s,
             "retries": self.retries,
@@ -152,7 +157,7 @@ class Pkm5Controller:
         attempts = 1 + (self.retries if idempotent else 0)
         for attempt in range(1, attempts + 1):
             tag = next(self._tags)
-            self.link.write(wire.format_command(verb, args, tag), command=verb)
+            self.link.write(wire.format_command(verb, args, tag, self._version), command=verb)
             try:
                 return self._await(tag, verb, ("OK",), timeout_s or self.reply_timeout_s)
             except (LinkTimeout, WireProtocolError) as exc:
@@ -168,24 +173,43 @@ class Pkm5Controller:
             raise ConfigError(f"Pkm5Controller.query: verb = {verb!r}, expected a verb without a method of its own")
         return self._exchange(verb, tuple(args), idempotent=True)
 
-    def _await(self, tag: int, verb: str, kinds: tuple[str, ...], timeout_s: float) -> wire.Reply:
-        """The next reply with ``tag``; stale tags and corrupted lines are dropped until the deadline."""
+    def _await(self, tag: int, verb: str, kinds: tuple[str, ...], timeout_s: float, *,
+               heartbeat: bool = False) -> wire.Reply:
+        """The next reply with ``tag``; stale tags and corrupted lines are dropped until the deadline.
+
+        With ``heartbeat`` a ``POS`` line goes out every :data:`HEARTBEAT_S` (the firmware's link watchdog stops a
+        move when the host falls silent); its replies are dropped unseen."""
         deadline = Deadline(timeout_s)
         expected = f"'{kinds[0]} #{tag} ...' from a {wire.DEVICE_NAME} controller"
         dropped: list[bytes] = []
+        beats: set[int] = set()
+        next_beat_s = time.monotonic() + HEARTBEAT_S
         while True:
+            wait_s = deadline.remaining_s()
+            if heartbeat:
+                if time.monotonic() >= next_beat_s:
+                    beat = next(self._tags)
+                    beats.add(beat)
+                    with self._write:
+                        self.link.write(wire.format_command("POS", (), beat, self._version), command="POS")
+                    next_beat_s = time.monotonic() + HEARTBEAT_S
+                wait_s = min(wait_s, max(0.0, next_beat_s - time.monotonic()))
             try:
-                line = self.link.read_frame(deadline.remaining_s(), command=verb, expected=expected)
+                line = self.link.read_frame(wait_s, command=verb, expected=expected)
             except LinkTimeout as exc:
+                if heartbeat and not deadline.expired():
+                    continue
                 if dropped:
                     raise LinkTimeout(f"{exc}; dropped {len(dropped)} invalid or stale lines, first "
                                       f"{dropped[0]!r} (is this a {wire.DEVICE_NAME}?)") from None
                 raise
             try:
-                reply = wire.parse_reply(line)
+                reply = wire.parse_reply(line, self._version)
             except WireProtocolError as exc:
                 _log.warning("%s: dropped line while waiting for %s: %s", self.link.port_name, verb, exc)
                 dropped.append(line)
+                continue
+            if reply.tag in beats:
                 continue
             if reply.tag != tag:
                 _log.info("%s: dropped stale reply %r while waiting for #%d", self.link.port_name, line, tag)
@@ -202,14 +226,31 @@ class Pkm5Controller:
 
     # -- commands ----------------------------------------------------------------------------------------------
     def identify(self) -> Identity:
-        """Ask ``ID``; a device other than a bench-pkm5 of this protocol version raises LinkError."""
-        reply = self._exchange("ID")
-        fields = reply.fields
-        if len(fields) != 4 or fields[0] != "ID" or fields[1] != wire.DEVICE_NAME \
-                or fields[2] != str(wire.PROTOCOL_VERSION):
-            raise LinkError(f"{self.link.port_name}: 'ID' answered {' '.join(fields)!r}, expected "
-                            f"'ID {wire.DEVICE_NAME} {wire.PROTOCOL_VERSION} <firmware version>' (wrong device?)")
-        self._identity = Identity(fields[1], int(fields[2]), fields[3])
+        """Ask ``ID`` (always in version-1 framing, which also returns a controller to version 1) and negotiate the
+        highest protocol both sides speak: ``PROTOCOL 2`` (CRC-16 lines) with a controller that offers 2, version 1
+        with one that offers 1 (firmware 1.x). A device other than a bench-pkm5 raises LinkError."""
+        offered = " or ".join(str(v) for v in wire.PROTOCOL_VERSIONS)
+        for attempt in range(1, self.retries + 2):
+            self._version = 1
+            fields = self._exchange("ID").fields
+            if len(fields) != 4 or fields[0] != "ID" or fields[1] != wire.DEVICE_NAME \
+                    or fields[2] not in [str(v) for v in wire.PROTOCOL_VERSIONS]:
+                raise LinkError(f"{self.link.port_name}: 'ID' answered {' '.join(fields)!r}, expected "
+                                f"'ID {wire.DEVICE_NAME} {offered} <firmware version>' (wrong device?)")
+            version = int(fields[2])
+            if version == 1:
+                break
+            try:  # a lost OK leaves the controller's framing unknown: start again from ID, which resets it
+                self._exchange("PROTOCOL", (version,))
+            except (LinkTimeout, WireProtocolError) as exc:
+                if attempt > self.retries:
+                    raise
+                _log.warning("%s: PROTOCOL %d not confirmed (%s); identifying again", self.link.port_name,
+                             version, exc)
+                continue
+            self._version = version
+            break
+        self._identity = Identity(fields[1], version, fields[3])
         return self._identity
 
     def position(self) -> Position:
@@ -239,7 +280,7 @@ class Pkm5Controller:
         """
         if not self._line.acquire(blocking=False):
             with self._write:
-                self.link.write(wire.format_command("STOP", (), next(self._tags)), command="STOP")
+                self.link.write(wire.format_command("STOP", (), next(self._tags), self._version), command="STOP")
             return None
         try:
             return Position(self._exchange("STOP").ints(1, wire.AXES), "IDLE")
@@ -298,7 +339,7 @@ class Pkm5Controller:
             if self._stop_latched:
                 raise LinkError(f"{self.link.port_name}: MOVE to {targets} refused: an emergency stop is latched; "
                                 "enable() the controller to move again")
-            self.link.write(wire.format_command("MOVE", (*targets, speed), tag), command="MOVE")
+            self.link.write(wire.format_command("MOVE", (*targets, speed), tag, self._version), command="MOVE")
         try:
             try:
                 reply = self._await(tag, "MOVE", ("OK", "DONE"), self.reply_timeout_s)
@@ -309,7 +350,8 @@ class Pkm5Controller:
             if reply.kind == "DONE":
                 return reply.ints(0, wire.AXES)
             duration_s = reply.ints(1, 1)[0] / 1000.0
-            return self._await(tag, "MOVE", ("DONE",), 1.5 * duration_s + self.move_margin_s).ints(0, wire.AXES)
+            return self._await(tag, "MOVE", ("DONE",), 1.5 * duration_s + self.move_margin_s,
+                               heartbeat=True).ints(0, wire.AXES)
         except (LinkTimeout, WireProtocolError, KeyboardInterrupt):
             self._stop_quietly()
             raise
@@ -319,7 +361,8 @@ class Pkm5Controller:
         where = self.position()
         if where.state == "MOVING":
             remaining_s = max(abs(t - s) for t, s in zip(targets, where.steps)) / speed
-            return self._await(tag, "MOVE", ("DONE",), 1.5 * remaining_s + self.move_margin_s).ints(0, wire.AXES)
+            return self._await(tag, "MOVE", ("DONE",), 1.5 * remaining_s + self.move_margin_s,
+                               heartbeat=True).ints(0, wire.AXES)
         if where.steps == targets:
             return where.steps
         raise LinkError(f"{self.link.port_name}: MOVE #{tag} not confirmed: the controller is {where.state} at "
@@ -330,7 +373,7 @@ class Pkm5Controller:
     def _stop_quietly(self) -> None:
         try:
             tag = next(self._tags)
-            self.link.write(wire.format_command("STOP", (), tag), command="STOP")
+            self.link.write(wire.format_command("STOP", (), tag, self._version), command="STOP")
             self._await(tag, "STOP", ("OK",), self.reply_timeout_s)
         except (LinkError, OSError) as exc:
             _log.warning("%s: STOP not confirmed: %s", self.link.port_name, exc)

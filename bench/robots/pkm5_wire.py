@@ -7,33 +7,47 @@ A line is ``BODY*HH\\n``: printable ASCII, at most :data:`MAX_LINE` bytes before
 body bytes in two upper-case hex digits. A command body is ``VERB [int ...] #TAG``; a reply body is
 ``KIND #TAG FIELD ...`` with ``KIND`` one of ``OK``, ``DONE``, ``ERR``, ``BOOT``; noise glued in front of a reply
 is skipped (the checksum decides). Parsers raise only
-:class:`bench.robots.link.WireProtocolError`.
+:class:`bench.robots.link.WireProtocolError`; :func:`parse_command` raises its subclass :class:`CommandRefused`,
+which carries the error code and tag the controller answers with.
+
+The refusal rules, in the firmware's order: over :data:`MAX_LINE` bytes -> ``TOO_LONG #0``; one trailing ``\r``
+dropped; an empty line is ignored; no ``*HH`` or a wrong one -> ``CHECKSUM #0`` (checked before anything else in the
+body, so binary garbage and noise glued in front of a line are checksum errors); fields are split on spaces only;
+the tag is trusted when exactly one field starts with ``#`` and it is ``#`` and 1-9 digits (no sign), otherwise
+``SYNTAX #0``; every other refusal (non-printable byte, unknown verb, wrong arity, an argument that is not ``-`` and
+1-10 digits) is ``SYNTAX`` with that tag.
 """
 
 from __future__ import annotations
 
 import contextlib
 import enum
+import re
 from dataclasses import dataclass
 
 from bench.robots.link import FramedLink, WireProtocolError
 
 __all__ = [
-    "AXES", "COMMAND_ARITY", "DEVICE_NAME", "MAX_LINE", "PROTOCOL_VERSION", "Command", "ErrorCode", "LineLink",
+    "AXES", "COMMAND_ARITY", "DEVICE_NAME", "MAX_LINE", "PROTOCOL_VERSION", "PROTOCOL_VERSIONS", "Command",
+    "CommandRefused", "ErrorCode", "LineLink", "crc16", "is_v1_identify",
     "Reply", "checksum", "decode_line", "encode_line", "format_command", "format_reply", "parse_command",
     "parse_reply",
 ]
 
 PROTOCOL_VERSION = 1
+#: Protocol versions this module speaks: 1 = XOR-8 ``*HH``, 2 = CRC-16-CCITT ``*HHHH`` (negotiated after ``ID``).
+PROTOCOL_VERSIONS = (1, 2)
 DEVICE_NAME = "bench-pkm5"
 AXES = 6
 MAX_LINE = 96
 _REPLY_KINDS = ("OK", "DONE", "ERR", "BOOT")
+_V1_ID = re.compile(rb"ID #[0-9]{1,9}\*[0-9A-F]{2}")
 
 #: Number of integer arguments of each command; simulator-only commands start with ``SIM``.
 COMMAND_ARITY = {
     "ID": 0, "POS": 0, "STOP": 0, "ENABLE": 0, "DISABLE": 0,
     "MOVE": AXES + 1, "SETPOS": AXES,
+    "PROTOCOL": 1,
     "SIMLOAD": 1, "SIMTRUE": 0, "SIMLEGS": 0, "SIMTRACE": 4,
 }
 
@@ -49,6 +63,16 @@ class ErrorCode(enum.IntEnum):
     DISABLED = 6    # motion requested while the drivers are disabled
     BUSY = 7        # a command that needs the robot idle arrived during a move
     STOPPED = 8     # the move was ended by STOP before reaching its target
+    WATCHDOG = 9    # the link watchdog ended a move and disabled the drivers (latched: also the next command's reply)
+
+
+class CommandRefused(WireProtocolError):
+    """A command line the controller refuses: ``code`` and ``tag`` of its ``ERR`` reply."""
+
+    def __init__(self, message: str, code: ErrorCode, tag: int = 0) -> None:
+        super().__init__(message)
+        self.code = code
+        self.tag = tag
 
 
 def checksum(body: bytes) -> str:
@@ -59,25 +83,72 @@ def checksum(body: bytes) -> str:
     return f"{value:02X}"
 
 
-def encode_line(body: str) -> bytes:
-    """``body`` framed as ``BODY*HH\\n``."""
+def crc16(body: bytes) -> str:
+    """CRC-16-CCITT of ``body`` (polynomial 0x1021, initial value 0xFFFF, no reflection, no final XOR: the
+    "CRC-16/CCITT-FALSE" of the CRC catalogue; check value of b"123456789" is 29B1), four upper-case hex digits.
+    It detects every error of up to 3 bits, every odd number of bit errors and every burst up to 16 bits in a line
+    (Koopman & Chakravarty 2004), where XOR-8 lets through about 12 % of 2-bit errors on 40-byte lines."""
+    crc = 0xFFFF
+    for byte in body:
+        crc = ((crc << 8) & 0xFFFF) ^ _CRC_TABLE[(crc >> 8) ^ byte]
+    return f"{crc:04X}"
+
+
+def _crc_table() -> tuple[int, ...]:
+    """CRC of each leading byte, bit by bit (the table-driven form of the same CRC)."""
+    table = []
+    for byte in range(256):
+        crc = byte << 8
+        for _ in range(8):
+            crc = ((crc << 1) ^ 0x1021) & 0xFFFF if crc & 0x8000 else (crc << 1) & 0xFFFF
+        table.append(crc)
+    return tuple(table)
+
+
+_CRC_TABLE = _crc_table()
+
+
+def _check(body: bytes, version: int) -> str:
+    return checksum(body) if version == 1 else crc16(body)
+
+
+def encode_line(body: str, version: int = 1) -> bytes:
+    """``body`` framed as ``BODY*HH\\n`` (version 1) or ``BODY*HHHH\\n`` (version 2, CRC-16)."""
     raw = body.encode("ascii")
-    return raw + b"*" + checksum(raw).encode("ascii") + b"\n"
+    return raw + b"*" + _check(raw, version).encode("ascii") + b"\n"
 
 
-def decode_line(line: bytes) -> str:
+def decode_line(line: bytes, version: int = 1) -> str:
     """The body of one line (terminator already removed; a trailing ``\\r`` is tolerated)."""
-    line = line.rstrip(b"\r")
     if len(line) > MAX_LINE:
-        raise WireProtocolError(f"line of {len(line)} bytes, expected at most {MAX_LINE}: {line[:32]!r}...")
-    body, star, check = line.rpartition(b"*")
-    if not star:
-        raise WireProtocolError(f"line {line!r} has no '*HH' checksum")
+        raise CommandRefused(f"line of {len(line)} bytes, expected at most {MAX_LINE}: {line[:32]!r}...",
+                             ErrorCode.TOO_LONG)
+    if line.endswith(b"\r"):
+        line = line[:-1]
+    digits = 2 if version == 1 else 4
+    body, star, check = line[:-digits - 1], line[-digits - 1:-digits], line[-digits:]
+    if star != b"*":
+        raise CommandRefused(f"line {line!r} has no '*{'H' * digits}' checksum", ErrorCode.CHECKSUM)
+    if check != _check(body, version).encode("ascii"):
+        raise CommandRefused(f"line {line!r}: checksum {check!r}, expected {_check(body, version)!r}",
+                             ErrorCode.CHECKSUM)
     if not all(0x20 <= b < 0x7F for b in body):
-        raise WireProtocolError(f"line {line!r} has bytes outside printable ASCII")
-    if check != checksum(body).encode("ascii"):
-        raise WireProtocolError(f"line {line!r}: checksum {check!r}, expected {checksum(body)!r}")
+        raise CommandRefused(f"line {line!r} has bytes outside printable ASCII", ErrorCode.SYNTAX,
+                             _trusted_tag(body))
     return body.decode("ascii")
+
+
+def _fields(body: bytes | str) -> list:
+    """Fields separated by spaces (only spaces: a tab is part of a field, as in the firmware)."""
+    return [t for t in body.split(b" " if isinstance(body, bytes) else " ") if t]
+
+
+def _trusted_tag(body: bytes) -> int:
+    """The tag of a checksummed body: exactly one field starts with '#' and it is '#' + 1-9 digits; else 0."""
+    tags = [t for t in _fields(body) if t.startswith(b"#")]
+    if len(tags) == 1 and 1 <= len(tags[0]) - 1 <= 9 and all(0x30 <= b <= 0x39 for b in tags[0][1:]):
+        return int(tags[0][1:])
+    return 0
 
 
 def _split_tag(tokens: list[str], line: object) -> tuple[list[str], int]:
@@ -106,23 +177,31 @@ class Command:
     tag: int
 
 
-def format_command(verb: str, args: tuple[int, ...] | list[int], tag: int) -> bytes:
+def format_command(verb: str, args: tuple[int, ...] | list[int], tag: int, version: int = 1) -> bytes:
     """Encode a command line; the arity is checked so that a driver cannot emit a malformed command."""
     if COMMAND_ARITY.get(verb) != len(args):
         raise ValueError(f"command {verb!r} with {len(args)} arguments, expected {COMMAND_ARITY.get(verb)}")
-    return encode_line(" ".join([verb, *(str(int(a)) for a in args), f"#{int(tag)}"]))
+    return encode_line(" ".join([verb, *(str(int(a)) for a in args), f"#{int(tag)}"]), version)
 
 
-def parse_command(line: bytes) -> Command:
+def parse_command(line: bytes, version: int = 1) -> Command:
     """Decode a command line (the controller side)."""
-    tokens = decode_line(line).split()
-    tokens, tag = _split_tag(tokens, line)
+    tokens = _fields(decode_line(line, version))
+    try:
+        tokens, tag = _split_tag(tokens, line)
+    except WireProtocolError as exc:
+        raise CommandRefused(str(exc), ErrorCode.SYNTAX) from None
     if not tokens or tokens[0] not in COMMAND_ARITY:
-        raise WireProtocolError(f"line {line!r}: unknown command, expected one of {sorted(COMMAND_ARITY)}")
+        raise CommandRefused(f"line {line!r}: unknown command, expected one of {sorted(COMMAND_ARITY)}",
+                             ErrorCode.SYNTAX, tag)
     verb, args = tokens[0], tokens[1:]
     if len(args) != COMMAND_ARITY[verb]:
-        raise WireProtocolError(f"line {line!r}: {verb} takes {COMMAND_ARITY[verb]} arguments, got {len(args)}")
-    return Command(verb, tuple(_parse_int(a, line) for a in args), tag)
+        raise CommandRefused(f"line {line!r}: {verb} takes {COMMAND_ARITY[verb]} arguments, got {len(args)}",
+                             ErrorCode.SYNTAX, tag)
+    try:
+        return Command(verb, tuple(_parse_int(a, line) for a in args), tag)
+    except WireProtocolError as exc:
+        raise CommandRefused(str(exc), ErrorCode.SYNTAX, tag) from None
 
 
 @dataclass(frozen=True)
@@ -141,29 +220,36 @@ class Reply:
         return tuple(_parse_int(t, self) for t in chunk)
 
 
-def format_reply(kind: str, tag: int, *fields: object) -> bytes:
-    return encode_line(" ".join([kind, f"#{int(tag)}", *(str(f) for f in fields)]))
+def format_reply(kind: str, tag: int, *fields: object, version: int = 1) -> bytes:
+    return encode_line(" ".join([kind, f"#{int(tag)}", *(str(f) for f in fields)]), version)
 
 
-def parse_reply(line: bytes) -> Reply:
+def is_v1_identify(line: bytes) -> bool:
+    """A version-1 ``ID #t`` line, exactly: accepted in version 2 too, it returns the link to version 1 (a new host
+    that does not know the controller's state starts with it)."""
+    line = line[:-1] if line.endswith(b"\r") else line
+    return bool(_V1_ID.fullmatch(line)) and line[-2:] == checksum(line[:-3]).encode("ascii")
+
+
+def parse_reply(line: bytes, version: int = 1) -> Reply:
     """Decode a reply line (the PC side).
 
     Noise glued in front of a reply (a glitch with no newline) is skipped: if the whole line fails, the last
     ``KIND #`` start whose checksum verifies is taken; otherwise the first error is raised.
     """
     try:
-        return _parse_reply(line)
+        return _parse_reply(line, version)
     except WireProtocolError:
         starts = [line.rfind(kind.encode("ascii") + b" #") for kind in _REPLY_KINDS]
         start = max(starts)
         if start > 0:
             with contextlib.suppress(WireProtocolError):
-                return _parse_reply(line[start:])
+                return _parse_reply(line[start:], version)
         raise
 
 
-def _parse_reply(line: bytes) -> Reply:
-    tokens = decode_line(line).split()
+def _parse_reply(line: bytes, version: int) -> Reply:
+    tokens = _fields(decode_line(line, version))
     if not tokens or tokens[0] not in _REPLY_KINDS:
         raise WireProtocolError(f"line {line!r}: expected a reply starting with one of {_REPLY_KINDS}")
     fields, tag = _split_tag(tokens[1:], line)

@@ -25,7 +25,6 @@ import numpy as np
 from bench.errors import ConfigError
 from bench.robots import pkm5_wire as wire
 from bench.simulators.dynamics import StructuralMode, trace_times
-from bench.robots.link import WireProtocolError
 from bench.simulators.pty import TruthLog, add_common_arguments, main_for
 
 __all__ = ["DESCRIPTION", "FIRMWARE_VERSION", "HOME_STEPS", "MAX_STEPS", "Pkm5SimDevice", "add_arguments",
@@ -56,6 +55,11 @@ class _Move:
         return np.rint(self.start + fraction * (self.target - self.start)).astype(np.int64)
 
 
+def duration_ms(steps: int, speed_steps_s: int) -> int:
+    """Announced duration of a constant-speed move, ms: 1000 n / v rounded half up, in integers as the firmware."""
+    return (1000 * steps + speed_steps_s // 2) // speed_steps_s
+
+
 class Pkm5SimDevice:
     """The firmware state machine; ``plant(steps, load_kg) -> pose`` supplies the true pose after each move."""
 
@@ -82,6 +86,7 @@ class Pkm5SimDevice:
         self._line = bytearray()
         self._overflow = False
         self._booted = False
+        self.protocol = 1  # framing of the link: 1 = XOR-8, 2 = CRC-16 after PROTOCOL 2; a v1 "ID" returns to 1
 
     # -- bytes in, bytes out -----------------------------------------------------------------------------------
     def feed(self, data: bytes, now_s: float) -> bytes:
@@ -100,22 +105,28 @@ class Pkm5SimDevice:
         self._line.clear()
         self._overflow = False
         if overflow:
-            return _error(0, wire.ErrorCode.TOO_LONG)
-        if not line.strip(b"\r"):
+            return _reframe(_error(0, wire.ErrorCode.TOO_LONG), self.protocol)
+        if line in (b"", b"\r"):
             return b""
+        version = self.protocol  # a PROTOCOL command is answered in the framing it arrived in
         try:
-            command = wire.parse_command(line)
-        except WireProtocolError as exc:
-            _log.info("refused %r: %s", line, exc)
-            code = wire.ErrorCode.CHECKSUM if "checksum" in str(exc) else wire.ErrorCode.SYNTAX
-            return _error(_tag_guess(line) if code == wire.ErrorCode.SYNTAX else 0, code)
-        return self._execute(command, now_s)
+            command = wire.parse_command(line, version)
+        except wire.CommandRefused as exc:  # the code and the tag follow the firmware's rules (pkm5_wire)
+            if not (version == 2 and exc.code == wire.ErrorCode.CHECKSUM and wire.is_v1_identify(line)):
+                _log.info("refused %r: %s", line, exc)
+                return _reframe(_error(exc.tag, exc.code), version)
+            command = wire.parse_command(line, 1)
+            self.protocol = version = 1
+        return _reframe(self._execute(command, now_s), version)
 
     def tick(self, now_s: float) -> bytes:
+        return _reframe(self._tick(now_s), self.protocol)
+
+    def _tick(self, now_s: float) -> bytes:
         out = b""
         if not self._booted:
             self._booted = True
-            out += wire.format_reply("BOOT", 0, wire.DEVICE_NAME, wire.PROTOCOL_VERSION, FIRMWARE_VERSION)
+            out += wire.format_reply("BOOT", 0, wire.DEVICE_NAME, max(wire.PROTOCOL_VERSIONS), FIRMWARE_VERSION)
         if self.move is not None and now_s >= self.move.t_start_s + self.move.duration_s:
             move, self.move = self.move, None
             self.steps = move.target.copy()
@@ -141,7 +152,12 @@ class Pkm5SimDevice:
         if verb in _IDLE_ONLY and self.move is not None:
             return _error(tag, wire.ErrorCode.BUSY)
         if verb == "ID":
-            return wire.format_reply("OK", tag, "ID", wire.DEVICE_NAME, wire.PROTOCOL_VERSION, FIRMWARE_VERSION)
+            return wire.format_reply("OK", tag, "ID", wire.DEVICE_NAME, max(wire.PROTOCOL_VERSIONS), FIRMWARE_VERSION)
+        if verb == "PROTOCOL":
+            if args[0] not in wire.PROTOCOL_VERSIONS:
+                return _error(tag, wire.ErrorCode.ARGUMENT)
+            self.protocol = args[0]
+            return wire.format_reply("OK", tag, "PROTOCOL", args[0])
         if verb == "POS":
             state = "MOVING" if self.move else "IDLE" if self.enabled else "DISABLED"
             return wire.format_reply("OK", tag, "POS", *self._current(now_s), state)
@@ -211,7 +227,8 @@ class Pkm5SimDevice:
         duration_s = float(np.max(np.abs(target - self.steps))) / speed
         self.move = _Move(tag, self.steps.copy(), target, now_s, duration_s / self.speed_factor)
         self._unprepared = target
-        return wire.format_reply("OK", tag, "MOVE", round(1000 * duration_s / self.speed_factor))
+        return wire.format_reply("OK", tag, "MOVE", round(duration_ms(int(np.max(np.abs(target - self.steps))), speed)
+                                                          / self.speed_factor))
 
     def _stop(self, tag: int, now_s: float) -> bytes:
         out = b""
@@ -236,16 +253,15 @@ def _within_limits(steps: tuple[int, ...]) -> bool:
     return all(0 <= s <= high for s, high in zip(steps, MAX_STEPS))
 
 
+def _reframe(data: bytes, version: int) -> bytes:
+    """Version-1 reply lines re-framed for ``version`` (the replies are built once, in version 1)."""
+    if version == 1 or not data:
+        return data
+    return b"".join(wire.encode_line(wire.decode_line(line), version) for line in data.splitlines())
+
+
 def _error(tag: int, code: wire.ErrorCode, *fields: object) -> bytes:
     return wire.format_reply("ERR", tag, int(code), code.name, *fields)
-
-
-def _tag_guess(line: bytes) -> int:
-    """The tag of a refused line if it has a readable one (so the driver learns of the refusal at once), else 0."""
-    for token in line.rpartition(b"*")[0].split():
-        if token.startswith(b"#") and token[1:].isdigit() and len(token) <= 10:
-            return int(token[1:])
-    return 0
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:

@@ -1,0 +1,116 @@
+"""Helpers of the firmware-in-the-loop tests: build the pkm5 firmware and the simavr harness (firmware/Makefile), run
+the firmware on an emulated ATmega2560 with UART0 on a pseudo-terminal, and read the harness's pin-edge log."""
+
+from __future__ import annotations
+
+import shutil
+import subprocess
+import sys
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import pytest
+import serial
+
+ROOT = Path(__file__).resolve().parents[1]
+F_CPU_HZ = 16_000_000
+#: Build options of the firmware under test (firmware/Makefile defaults; docs/firmware.md)
+ACCEL_STEPS_S2 = 4000
+DRIVERS_ENABLED_LEVEL = 1
+
+
+def missing_toolchain() -> str | None:
+    """Why the emulation tests cannot run here, or None."""
+    for tool in ("avr-gcc", "avr-size", "make", "cc"):
+        if shutil.which(tool) is None:
+            return f"{tool} not installed (apt-get install gcc-avr avr-libc simavr libsimavr-dev libsimavrparts1)"
+    if not Path("/usr/include/simavr/sim_avr.h").exists():
+        return "simavr headers not installed (apt-get install libsimavr-dev libsimavrparts1)"
+    return None
+
+
+def build(out_dir: Path, **options: int) -> tuple[Path, Path, str]:
+    """Build firmware and harness into ``out_dir`` with make variables ``options`` (e.g. WATCHDOG_MS=5000); returns
+    (elf, harness, the build's output with avr-size)."""
+    done = subprocess.run(["make", "-C", str(ROOT / "firmware"), f"BUILD={out_dir}", "all",
+                           *(f"{k}={v}" for k, v in options.items())], capture_output=True, text=True, timeout=120)
+    if done.returncode:
+        raise AssertionError(f"firmware build failed:\n{done.stdout}\n{done.stderr}")
+    return out_dir / "pkm5.elf", out_dir / "pkm5_harness", done.stdout
+
+
+@dataclass
+class Edge:
+    t_s: float
+    kind: str
+    axis: int
+    level: int
+    line: bytes = b""
+
+
+class EmulatedController:
+    """The firmware running in the harness: ``.path`` is its pty; :meth:`close` stops it and returns the events."""
+
+    def __init__(self, elf: Path, harness: Path, events: Path) -> None:
+        self.events = events
+        self.process = subprocess.Popen([str(harness), str(elf), str(events)], stdout=subprocess.PIPE,
+                                        stderr=subprocess.DEVNULL, text=True)
+        for line in self.process.stdout:
+            if line.startswith("PTY "):
+                self.path = line.split()[1]
+                break
+        else:
+            raise AssertionError("harness printed no PTY line")
+
+    def open(self, timeout_s: float = 0.05) -> serial.Serial:
+        return serial.serial_for_url(self.path, baudrate=115200, timeout=timeout_s)
+
+    def close(self) -> list[Edge]:
+        if self.process.poll() is None:
+            self.process.terminate()
+            self.process.wait(timeout=10)
+        return read_events(self.events)
+
+
+def read_events(path: Path) -> list[Edge]:
+    edges = []
+    text = path.read_text()
+    for line in text[:text.rfind("\n") + 1].splitlines():  # complete lines: the harness may be writing
+        fields = line.split()
+        if fields[1] == "RX":
+            line = b"" if fields[2] == "-" else bytes.fromhex(fields[2])
+            edges.append(Edge(int(fields[0]) / F_CPU_HZ, "RX", 0, 0, line))
+        else:
+            edges.append(Edge(int(fields[0]) / F_CPU_HZ, fields[1], int(fields[2]), int(fields[3])))
+    return edges
+
+
+def step_times(edges: list[Edge], axis: int) -> np.ndarray:
+    """Emulated times of the rising STEP edges of ``axis`` (1-6), s."""
+    return np.array([e.t_s for e in edges if e.kind == "STEP" and e.axis == axis and e.level == 1])
+
+
+def serve_simulator() -> tuple[subprocess.Popen, str]:
+    """``python -m bench.simulators.pkm5 --ideal`` started as a user would; returns the process and its pty path."""
+    process = subprocess.Popen([sys.executable, "-m", "bench.simulators.pkm5", "--ideal"], cwd=ROOT,
+                               stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True)
+    return process, process.stdout.readline().strip()
+
+
+def exchange(port: serial.Serial, raw: bytes, settle_s: float = 0.15) -> list[bytes]:
+    """Write ``raw`` and collect every reply line until the port has been quiet for ``settle_s``."""
+    port.write(raw)
+    data = b""
+    quiet_since = time.monotonic()
+    while time.monotonic() - quiet_since < settle_s:
+        chunk = port.read(512)
+        if chunk:
+            data += chunk
+            quiet_since = time.monotonic()
+    return data.splitlines()
+
+
+toolchain_reason = missing_toolchain()
+needs_toolchain = pytest.mark.skipif(toolchain_reason is not None, reason=f"firmware emulation: {toolchain_reason}")
