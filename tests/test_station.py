@@ -116,7 +116,7 @@ def test_station_check_names_every_device_and_fails_for_the_missing_one(tmp_path
     checks = [json.loads(line) for line in capsys.readouterr().out.splitlines()]
     assert [c["key"] for c in checks] == ["controller.port", "mice.xy", "mice.xz", "calliper"]
     assert all(c["ok"] for c in checks), checks
-    assert checks[0]["detail"].startswith("bench-pkm5 firmware 1.0.0-sim, protocol v1")
+    assert checks[0]["detail"] == "bench-pkm5 firmware 1.0.0-sim, protocol v2"
     # the same station on this machine, where its devices do not exist
     assert main(["station", "check", str(STATIONS / "pkm5_mice.toml")]) == 1
     lines = capsys.readouterr().out.splitlines()
