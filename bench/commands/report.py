@@ -27,8 +27,14 @@ def register(groups: argparse._SubParsersAction) -> None:
     parser.add_argument("--store", default=DEFAULT_STORE, help="run store (SQLite file)")
     parser.add_argument("--criterion", action="append", default=[], metavar="NAME=MM",
                         help=f"project acceptance criterion, repeatable; NAME in {', '.join(CRITERIA)}")
-    parser.add_argument("--operator", default="not recorded", help="operator named in the report")
-    parser.add_argument("--laboratory", default="not recorded", help="laboratory named in the report")
+    identity = parser.add_argument_group("device under test and people (page 1; default: the run's stored "
+                                         "settings.dut, else \"not recorded\")")
+    identity.add_argument("--dut-serial", default=None, metavar="TEXT", help="robot serial number or asset tag")
+    identity.add_argument("--customer", default=None, metavar="TEXT", help="customer the robot is tested for")
+    identity.add_argument("--order", default=None, metavar="TEXT", help="order or job number")
+    identity.add_argument("--operator", default=None, metavar="TEXT", help="operator named in the report")
+    identity.add_argument("--lab", "--laboratory", dest="laboratory", default=None, metavar="TEXT",
+                          help="laboratory named in the report")
     parser.add_argument("--k", type=float, default=2.0, help="coverage factor of the expanded uncertainties")
     parser.add_argument("--band-mm", type=float, nargs="+", default=None, metavar="MM",
                         help="stabilisation runs: limit bands (default: the ISO comparison bands 0.1 0.5 1)")
@@ -65,9 +71,11 @@ def _report(args: argparse.Namespace) -> int:
             raise ConfigError("--band-mm/--hysteresis-mm: not used with --compare; comparisons cover pose runs")
         paths = write_comparison(args.store, args.run_id, args.compare, args.out, formats, k=args.k)
     else:
-        paths = write_report(args.store, args.run_id, args.out, formats, criteria=criteria, operator=args.operator,
-                             laboratory=args.laboratory, k=args.k, allow_unknown=args.allow_unknown,
-                             bands_mm=args.band_mm, hysteresis_mm=args.hysteresis_mm)
+        identity = {name: getattr(args, name) for name in ("dut_serial", "customer", "order", "operator",
+                                                            "laboratory")}
+        paths = write_report(args.store, args.run_id, args.out, formats, criteria=criteria, k=args.k,
+                             allow_unknown=args.allow_unknown, bands_mm=args.band_mm,
+                             hysteresis_mm=args.hysteresis_mm, identity=identity)
     for path in (paths.html, paths.pdf, *paths.csv):
         if path is not None:
             print(path)

@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import hashlib
 from collections.abc import Callable, Iterable, Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 from bench.errors import ConfigError
@@ -27,7 +27,7 @@ from bench.reports import content
 from bench.reports.actuator import ActuatorReport, actuator_document, collect_actuator
 from bench.reports.content import CRITERIA, ReportBase, RunReport
 from bench.reports.deviations import Deviation, iso_deviations
-from bench.reports.document import Document, RawData, comparison_document, run_document
+from bench.reports.document import Document, RawData, Section, comparison_document, run_document
 from bench.reports.lasergrid import GridHitReport, collect_grid_hits, grid_hit_document
 from bench.reports.ladder import LadderReport, collect_ladder, ladder_document
 from bench.reports.positioning import (
@@ -37,6 +37,7 @@ from bench.reports.positioning import (
     grid_readings,
 )
 from bench.reports.stabilisation import StabilisationReport, collect_stabilisation, stabilisation_document
+from bench.reports.summary import HistoryEvent, Identity, is_simulated, run_history, summary_section
 from bench.store import Store
 
 __all__ = ["CRITERIA", "FORMATS", "LAYOUTS", "ActuatorReport", "Deviation", "GridHitReport", "GridPositioningReport",
@@ -45,6 +46,8 @@ __all__ = ["CRITERIA", "FORMATS", "LAYOUTS", "ActuatorReport", "Deviation", "Gri
 
 #: Report formats, in the order they are written.
 FORMATS = ("html", "pdf")
+#: Printed at the top of every page (HTML and PDF) of a report on data from a simulated device.
+SIMULATED_BANNER = "SIMULATED DATA: not a measurement of a physical robot"
 
 
 @dataclass(frozen=True)
@@ -110,9 +113,21 @@ def collect(store: Store, run_id: int, *, criteria: Mapping[str, float] | None =
     return layout.collect(store, run_id, k=k, resamples=resamples, allow_unknown=allow_unknown, **options)
 
 
-def _document(report: ReportBase, raw: list[RawData], operator: str, laboratory: str) -> Document:
+def _document(report: ReportBase, raw: list[RawData], identity: Identity,
+              history: tuple[HistoryEvent, ...]) -> Document:
+    """The layout's document with the summary (page 1) in front and, for simulated data, the banner of every page."""
     document = run_document if isinstance(report, RunReport) else LAYOUTS[report.run.protocol_name].document
-    return document(report, raw, operator=operator, laboratory=laboratory)
+    body = document(report, raw, operator=identity.operator, laboratory=identity.laboratory)
+    return with_summary(body, summary_section(report, identity, history, is_simulated(report.run)),
+                        simulated=is_simulated(report.run))
+
+
+def with_summary(document: Document, summary: Section, *, simulated: bool) -> Document:
+    """``document`` with ``summary`` as its first section and ``meta["banner"]`` set when the data are simulated."""
+    meta = dict(document.meta)
+    if simulated:
+        meta["banner"] = SIMULATED_BANNER
+    return replace(document, sections=(summary, *document.sections), meta=meta)
 
 
 @dataclass(frozen=True)
@@ -166,9 +181,10 @@ def _open(store: str | Path | Store) -> tuple[Store, bool]:
 
 
 def write_report(store: str | Path | Store, run_id: int, out_dir: str | Path, formats: Iterable[str] = FORMATS, *,
-                 criteria: Mapping[str, float] | None = None, operator: str = "not recorded",
-                 laboratory: str = "not recorded", k: float = 2.0, allow_unknown: bool = False,
-                 bands_mm: Sequence[float] | None = None, hysteresis_mm: float | None = None) -> ReportPaths:
+                 criteria: Mapping[str, float] | None = None, operator: str | None = None,
+                 laboratory: str | None = None, k: float = 2.0, allow_unknown: bool = False,
+                 bands_mm: Sequence[float] | None = None, hysteresis_mm: float | None = None,
+                 identity: Mapping[str, str | None] | None = None) -> ReportPaths:
     """Write the report of one run: ``report_run<ID>.html`` / ``.pdf`` and ``run<ID>_samples.csv`` in ``out_dir``.
 
     Parameters
@@ -181,8 +197,11 @@ def write_report(store: str | Path | Store, run_id: int, out_dir: str | Path, fo
     formats : iterable of {"html", "pdf"}
     criteria : mapping, optional
         Project acceptance criteria (``AP_mm``, ``RP_mm``); without them no pass/fail is stated.
-    operator, laboratory : str
-        Printed in the identification section.
+    operator, laboratory : str, optional
+        Printed on the summary page and in the identification section (override ``identity``).
+    identity : mapping, optional
+        Fields of :class:`bench.reports.summary.Identity` (``dut_serial``, ``customer``, ``order``, ``operator``,
+        ``laboratory``); they override the run's stored ``settings.dut``. Missing fields print "not recorded".
     k : float
         Coverage factor of the expanded uncertainties.
     allow_unknown : bool
@@ -197,12 +216,15 @@ def write_report(store: str | Path | Store, run_id: int, out_dir: str | Path, fo
     try:
         report = collect(store, run_id, criteria=criteria, k=k, allow_unknown=allow_unknown, bands_mm=bands_mm,
                          hysteresis_mm=hysteresis_mm)
+        history = run_history(store, report.run)
     finally:
         if opened:
             store.close()
+    given = {**(identity or {}), **({"operator": operator} if operator else {}),
+             **({"laboratory": laboratory} if laboratory else {})}
     out = _out_dir(out_dir)
     csv_path, raw = _write_raw(report, out)
-    document = _document(report, [raw], operator, laboratory)
+    document = _document(report, [raw], Identity.of_run(report.run, given), history)
     written = _write(document, out, f"report_run{run_id}", formats)
     return ReportPaths(written.get("html"), written.get("pdf"), (csv_path,), report.report_id)
 

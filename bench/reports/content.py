@@ -48,6 +48,7 @@ from bench.metrology import (
     payload_shift,
     resolution_uncertainty,
 )
+from bench.metrology.formatting import natural_key, pose_label
 from bench.metrology.tables import (
     ANGLE_PAIRS,
     PoseResult,
@@ -60,7 +61,7 @@ from bench.store import CalibrationRecord, RunRecord, Store, series_table, tidy_
 
 __all__ = ["CRITERIA", "MM_PER_INCH", "CalibrationFit", "Decision", "DistanceRow", "InstrumentInfo", "PayloadRow",
            "ReportBase", "RunReport", "VapRow", "analysis_table", "calibration_fits", "calibrations_in_force",
-           "collect", "counts_instrument", "provenance", "reading_instrument", "reading_step_mm", "run_table",
+           "collect", "counts_instrument", "report_order", "provenance", "reading_instrument", "reading_step_mm", "run_table",
            "uncertainty_stated"]
 
 MM_PER_INCH = 25.4
@@ -345,11 +346,19 @@ def _decision(poses: tuple[PoseResult, ...], criteria: Mapping[str, float]) -> D
     for name, limit in criteria.items():
         for pose in poses:
             value = pose.accuracy.ap_mm if name == "AP_mm" else pose.repeatability.rp_mm
-            verdicts.append((name, pose.label, value, float(limit), value <= float(limit)))
+            verdicts.append((name, pose_label(pose.pose, pose.conditions), value, float(limit), value <= float(limit)))
     rule = ("simple acceptance (ILAC-G8:09/2019 4.2.1): pass when the measured value <= the project criterion; "
             "the expanded uncertainty is reported but not used as a guard band") if criteria else \
         "no acceptance criterion stated: no pass/fail statement (ISO 9283 defines methods, not grades)"
     return Decision(rule, tuple(verdicts))
+
+
+def report_order(poses) -> tuple[PoseResult, ...]:
+    """Poses as a report lists them: by set of conditions in the order the run tested them (100, 50, 10 %
+    velocity), then by pose name in natural order (P1, P2, ..., P5; not the cycle order P1, P5, P4, ...)."""
+    poses = list(poses)
+    first_seen = {c: i for i, c in reversed(list(enumerate(p.conditions for p in poses)))}
+    return tuple(sorted(poses, key=lambda p: (first_seen[p.conditions], natural_key(p.pose))))
 
 
 def collect(store: Store, run_id: int, *, criteria: Mapping[str, float] | None = None, k: float = 2.0,
@@ -380,7 +389,7 @@ def collect(store: Store, run_id: int, *, criteria: Mapping[str, float] | None =
     calibrations = calibrations_in_force(store, run)
     fits = tuple(fit for record in calibrations for fit in calibration_fits(store, record))
     instrument = counts_instrument(run, calibrations, sum(c in table.columns for c in _POSITION), fits)
-    poses = tuple(analyze_poses(table, instrument_u_mm=instrument.sigma_mm or 0.0, k=k, resamples=resamples))
+    poses = report_order(analyze_poses(table, instrument_u_mm=instrument.sigma_mm or 0.0, k=k, resamples=resamples))
     protocol = run.protocol_name
     cycles = int(table.groupby(["pose", *[c for c in ("velocity_pct", "load_kg") if c in table.columns]])
                  .size().min())

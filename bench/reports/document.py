@@ -3,8 +3,9 @@
 The HTML template and the PDF builder walk the same :class:`Document`, so the two formats carry the same text,
 the same tables and the same figures by construction. Layout follows iso9283.md §9 (identification, device,
 method with the deviations table, conditions, instruments, results, plots, decision, raw data, scope). Numbers
-are formatted here, once: lengths in mm with 4 significant decimals' worth (``0.1234``), expanded uncertainties
-as ``value ± U`` with k stated in the table heading.
+with an uncertainty are printed ``value ± U`` with U to two significant digits and the value to the same decimal
+place (:mod:`bench.metrology.formatting`, the one rule of every output), k stated in the table heading; lengths
+without an uncertainty of their own (budget components) with 4 significant digits.
 """
 
 from __future__ import annotations
@@ -12,6 +13,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Any
 
+from bench.metrology.formatting import format_measured, format_value, pose_label
 from bench.reports.content import ReportBase, RunReport
 from bench.reports.plots import Plot, comparison_plot, report_plots
 
@@ -70,11 +72,13 @@ class Document:
 
 
 def fmt_mm(value: float) -> str:
-    return f"{value:.4f}"
+    """A length without an uncertainty of its own (a budget component, a floor): 4 significant digits."""
+    return f"{value:.4g}"
 
 
 def fmt_pm(measured) -> str:
-    return f"{measured.value:.4f} ± {measured.expanded_uncertainty:.4f}"
+    """``value ± U`` rounded by the uncertainty (:func:`bench.metrology.formatting.format_measured`)."""
+    return format_measured(measured.value, measured.expanded_uncertainty)
 
 
 def _pairs(mapping: dict[str, Any], prefix: str = "") -> list[tuple[str, str]]:
@@ -162,12 +166,14 @@ def pose_rows(report: RunReport) -> tuple[tuple[str, ...], tuple[tuple[str, ...]
     floor = fmt_mm(report.instrument.rp_floor_mm) if report.instrument.rp_floor_mm is not None else "—"
     rows = []
     for r in report.poses:
-        axes = [fmt_mm(v) for v in r.accuracy.ap_axes_mm] + ["—"] * (3 - len(r.accuracy.ap_axes_mm))
+        u_ap = r.ap_u.expanded_uncertainty
+        axes = ([format_value(v, u_ap, signed=True) for v in r.accuracy.ap_axes_mm]
+                + ["—"] * (3 - len(r.accuracy.ap_axes_mm)))
         orientation = ()
         if r.orientation_accuracy is not None:
             orientation = tuple(f"{ap:+.3f} / ±{rp:.3f}" for ap, rp in zip(r.orientation_accuracy.ap_deg,
                                                                           r.orientation_repeatability.rp_deg))
-        rows.append((r.label, str(r.accuracy.n), ", ".join(f"{v:g}" for v in r.commanded_mm), fmt_pm(r.ap_u), *axes,
+        rows.append((pose_label(r.pose, r.conditions), str(r.accuracy.n), ", ".join(f"{v:g}" for v in r.commanded_mm), fmt_pm(r.ap_u), *axes,
                      fmt_pm(r.rp_u), floor, *orientation))
     return header, tuple(rows)
 
@@ -209,9 +215,13 @@ def decision_blocks(rule: str, header: tuple[str, ...] = (), verdicts=()) -> tup
 
 
 def _decision(report: RunReport) -> tuple[Block, ...]:
-    return decision_blocks(report.decision.rule, ("Project criterion", "Pose", "Value (mm)", "Limit (mm)", "Result"),
-                           [(f"{name} (project criterion)", label, fmt_mm(value), fmt_mm(limit),
-                             "pass" if ok else "fail") for name, label, value, limit, ok in report.decision.verdicts])
+    u = {(name, pose_label(p.pose, p.conditions)): (p.ap_u if name == "AP_mm" else p.rp_u).expanded_uncertainty
+         for p in report.poses for name in ("AP_mm", "RP_mm")}
+    return decision_blocks(report.decision.rule, ("Project criterion", "Pose", "Value ± U (mm)", "Limit (mm)",
+                                                  "Result"),
+                           [(f"{name} (project criterion)", label, format_measured(value, u.get((name, label), 0.0)),
+                             f"{limit:g}", "pass" if ok else "fail")
+                            for name, label, value, limit, ok in report.decision.verdicts])
 
 
 def _raw(raw: list[RawData], notes: tuple[str, ...], recompute: str) -> Section:
@@ -277,8 +287,12 @@ def comparison_document(first: RunReport, second: RunReport, raw: list[RawData])
         s = second_poses.get(r.label)
         if s is None:
             continue
-        paired.append((r.label, fmt_pm(r.ap_u), fmt_pm(s.ap_u), f"{s.accuracy.ap_mm - r.accuracy.ap_mm:+.4f}",
-                       fmt_pm(r.rp_u), fmt_pm(s.rp_u), f"{s.repeatability.rp_mm - r.repeatability.rp_mm:+.4f}"))
+        u_ap = max(r.ap_u.expanded_uncertainty, s.ap_u.expanded_uncertainty)
+        u_rp = max(r.rp_u.expanded_uncertainty, s.rp_u.expanded_uncertainty)
+        paired.append((pose_label(r.pose, r.conditions), fmt_pm(r.ap_u), fmt_pm(s.ap_u),
+                       format_value(s.accuracy.ap_mm - r.accuracy.ap_mm, u_ap, signed=True),
+                       fmt_pm(r.rp_u), fmt_pm(s.rp_u),
+                       format_value(s.repeatability.rp_mm - r.repeatability.rp_mm, u_rp, signed=True)))
     runs = f"run {a.id} (A) and run {b.id} (B)"
     return Document(
         title=f"Comparison of {runs}", subtitle=f"Reports {first.report_id} / {second.report_id}",
