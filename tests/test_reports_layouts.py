@@ -21,6 +21,7 @@ from reports_runs import (
     cli_json,
     html_tables,
     pdf_text,
+    rounded_by_u,
     write_actuator_run,
     write_grid_hit_run,
     write_ladder_run,
@@ -106,13 +107,12 @@ def test_actuator_html_and_pdf_print_the_tables(runs):
     summary = {row[0]: row for row in tables["actuators"][1:]}
     pdf = pdf_text(paths["actuator"].pdf)
     for result in report.actuators:
-        repeatability = (f"{result.groover.repeatability_mm:.4f} ± "
-                         f"{result.repeatability_u.expanded_uncertainty:.4f}")
+        repeatability = rounded_by_u(result.groover.repeatability_mm, result.repeatability_u.expanded_uncertainty)
         assert summary[result.actuator][4] == repeatability and repeatability in pdf
         assert summary[result.actuator][9] == f"{result.iso230_2.accuracy_forward_mm:.4f}"
     bias_rows = [row for row in tables["actuator-targets"][1:] if row[:2] == ["5", "50"]]
     (row,) = bias_rows
-    assert row[4] == f"{report.actuators[1].bias_u[2].value:.4f} ± {report.actuators[1].bias_u[2].expanded_uncertainty:.4f}"
+    assert row[4] == rounded_by_u(report.actuators[1].bias_u[2].value, report.actuators[1].bias_u[2].expanded_uncertainty)
     assert row[4] in pdf
     deviations = {row[1]: row for row in tables["deviations"][1:]}
     assert deviations["direction"][4] == "deviates" and deviations["fixture"][4] == "conforms"

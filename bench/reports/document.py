@@ -5,7 +5,7 @@ the same tables and the same figures by construction. Layout follows iso9283.md 
 method with the deviations table, conditions, instruments, results, plots, decision, raw data, scope). Numbers
 with an uncertainty are printed ``value ± U`` with U to two significant digits and the value to the same decimal
 place (:mod:`bench.metrology.formatting`, the one rule of every output), k stated in the table heading; lengths
-without an uncertainty of their own (budget components) with 4 significant digits.
+without an uncertainty of their own (budget components) to 0.1 µm (``0.1234``).
 """
 
 from __future__ import annotations
@@ -72,8 +72,8 @@ class Document:
 
 
 def fmt_mm(value: float) -> str:
-    """A length without an uncertainty of its own (a budget component, a floor): 4 significant digits."""
-    return f"{value:.4g}"
+    """A length without an uncertainty of its own (a budget component, a floor): to 0.1 µm."""
+    return f"{value:.4f}"
 
 
 def fmt_pm(measured) -> str:

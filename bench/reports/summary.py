@@ -74,9 +74,15 @@ def is_simulated(run: RunRecord) -> bool:
     settings = run.settings
     if "simulator" in settings:
         return True
-    firmware = ((settings.get("robot") or {}).get("firmware") or {}).get("firmware_version", "")
-    described = str((settings.get("instrument") or {}).get("instrument", ""))
-    return str(firmware).endswith("-sim") or "simulated" in described.lower()
+
+    def entry(mapping: Any, *keys: str) -> Any:
+        for key in keys:
+            mapping = mapping.get(key) if isinstance(mapping, Mapping) else None
+        return mapping
+
+    firmware = str(entry(settings, "robot", "firmware", "firmware_version") or "")
+    described = str(entry(settings, "instrument", "instrument") or "")
+    return firmware.endswith("-sim") or "simulated" in described.lower()
 
 
 def _by_conditions(poses: Sequence[PoseResult]) -> dict[tuple, list[PoseResult]]:
