@@ -22,7 +22,7 @@ import math
 import re
 
 __all__ = ["condition_text", "format_measured", "format_pair", "format_value", "natural_key", "pose_label",
-           "uncertainty_decimals"]
+           "report_order", "uncertainty_decimals"]
 
 #: Significant digits of a printed uncertainty (GUM 7.2.6).
 U_SIGNIFICANT_DIGITS = 2
@@ -52,8 +52,8 @@ def _fixed(value: float, decimals: int) -> str:
     if decimals >= 0:
         text = f"{value:.{decimals}f}"
     else:
-        scale = 10 ** -decimals
-        text = f"{round(value / scale) * scale:.0f}"
+        scale = 10 ** -decimals  # whole tens, hundreds ...: half away from zero (Python's round() is half-even)
+        text = f"{math.copysign(math.floor(abs(value) / scale + 0.5), value) * scale:.0f}"
     return "0" + text[2:] if text.startswith("-0") and float(text) == 0 else text
 
 
@@ -97,3 +97,12 @@ def pose_label(pose: str, conditions=()) -> str:
     """A pose and its conditions as a reader reads them: ``"P1, 100 % velocity"`` (not ``P1 (velocity_pct=100)``)."""
     text = condition_text(conditions)
     return f"{pose}, {text}" if text else str(pose)
+
+
+def report_order(poses) -> tuple:
+    """Pose results (anything with ``.pose`` and ``.conditions``) as every output lists them: by set of conditions
+    in the order the run tested them (100, 50, 10 % velocity), then by pose name in natural order (P1, P2, ...,
+    P5; not the cycle order P1, P5, P4, ...)."""
+    poses = list(poses)
+    first_seen = {c: i for i, c in reversed(list(enumerate(p.conditions for p in poses)))}
+    return tuple(sorted(poses, key=lambda p: (first_seen[p.conditions], natural_key(p.pose))))

@@ -48,7 +48,7 @@ from bench.metrology import (
     payload_shift,
     resolution_uncertainty,
 )
-from bench.metrology.formatting import natural_key, pose_label
+from bench.metrology.formatting import pose_label, report_order
 from bench.metrology.tables import (
     ANGLE_PAIRS,
     PoseResult,
@@ -61,7 +61,7 @@ from bench.store import CalibrationRecord, RunRecord, Store, series_table, tidy_
 
 __all__ = ["CRITERIA", "MM_PER_INCH", "CalibrationFit", "Decision", "DistanceRow", "InstrumentInfo", "PayloadRow",
            "ReportBase", "RunReport", "VapRow", "analysis_table", "calibration_fits", "calibrations_in_force",
-           "collect", "counts_instrument", "report_order", "provenance", "reading_instrument", "reading_step_mm", "run_table",
+           "collect", "counts_instrument", "provenance", "reading_instrument", "reading_step_mm", "run_table",
            "uncertainty_stated"]
 
 MM_PER_INCH = 25.4
@@ -351,14 +351,6 @@ def _decision(poses: tuple[PoseResult, ...], criteria: Mapping[str, float]) -> D
             "the expanded uncertainty is reported but not used as a guard band") if criteria else \
         "no acceptance criterion stated: no pass/fail statement (ISO 9283 defines methods, not grades)"
     return Decision(rule, tuple(verdicts))
-
-
-def report_order(poses) -> tuple[PoseResult, ...]:
-    """Poses as a report lists them: by set of conditions in the order the run tested them (100, 50, 10 %
-    velocity), then by pose name in natural order (P1, P2, ..., P5; not the cycle order P1, P5, P4, ...)."""
-    poses = list(poses)
-    first_seen = {c: i for i, c in reversed(list(enumerate(p.conditions for p in poses)))}
-    return tuple(sorted(poses, key=lambda p: (first_seen[p.conditions], natural_key(p.pose))))
 
 
 def collect(store: Store, run_id: int, *, criteria: Mapping[str, float] | None = None, k: float = 2.0,

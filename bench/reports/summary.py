@@ -142,23 +142,34 @@ def _parse(text: str) -> datetime:
     return datetime.fromisoformat(text.replace("Z", "+00:00"))
 
 
-def run_history(store: Store, run: RunRecord) -> tuple[HistoryEvent, ...]:
-    """Start, each interruption of the stored samples (gap > :data:`GAP_FACTOR` x the median interval and >=
-    :data:`MIN_GAP_S`: a pause, an abort and a resume, a lost device), and the end with its status and reason."""
-    events = [HistoryEvent(run.started_utc, "started")]
-    times = sorted(_parse(s.wall_utc) for s in store.samples(run.id))
+def interruptions(times: Sequence[datetime]) -> list[HistoryEvent]:
+    """The gaps in sample times ``times`` longer than :data:`GAP_FACTOR` x their median interval and at least
+    :data:`MIN_GAP_S`: one event per gap, at the last sample before it, saying how long and when sampling resumed."""
+    times = sorted(times)
     gaps = [(b - a).total_seconds() for a, b in zip(times, times[1:])]
-    if gaps:
-        limit = max(MIN_GAP_S, GAP_FACTOR * median(gaps))
-        for (before, after), gap in zip(zip(times, times[1:]), gaps):
-            if gap >= limit:
-                events.append(HistoryEvent(before.isoformat(timespec="seconds"),
-                                           f"interrupted: no sample for {gap:.0f} s (paused, or stopped and "
-                                           f"resumed); sampling resumed {after.isoformat(timespec='seconds')}"))
-    end = {"completed": "completed", "aborted": "aborted", "failed": "failed", "running": "still running or "
-           "stopped without a status (no end time stored)"}.get(run.status, run.status)
-    events.append(HistoryEvent(run.ended_utc or "—", end + (f": {run.reason}" if run.reason else "")))
-    return tuple(events)
+    if not gaps:
+        return []
+    limit = max(MIN_GAP_S, GAP_FACTOR * median(gaps))
+    return [HistoryEvent(before.isoformat(timespec="seconds"),
+                         f"interrupted: no sample for {gap:.0f} s (paused, or stopped and resumed); sampling "
+                         f"resumed {after.isoformat(timespec='seconds')}")
+            for before, after, gap in zip(times, times[1:], gaps) if gap >= limit]
+
+
+def run_history(store: Store, run: RunRecord) -> tuple[HistoryEvent, ...]:
+    """Start, each interruption of the stored samples (:func:`interruptions`: a pause, an abort and a resume, a lost
+    device), and the end with its status and reason."""
+    started = HistoryEvent(_seconds(run.started_utc), "started")
+    gaps = interruptions([_parse(s.wall_utc) for s in store.samples(run.id)])
+    end = {"running": "no end stored (still running, or the program stopped without settling the status)"
+           }.get(run.status, run.status)
+    ended = HistoryEvent(_seconds(run.ended_utc) if run.ended_utc else "—",
+                         end + (f": {run.reason}" if run.reason else ""))
+    return (started, *gaps, ended)
+
+
+def _seconds(text: str) -> str:
+    return _parse(text).isoformat(timespec="seconds")
 
 
 def summary_section(report, identity: Identity, history: Sequence[HistoryEvent], simulated: bool):
