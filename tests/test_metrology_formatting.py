@@ -69,3 +69,12 @@ def test_report_order_keeps_the_condition_order_and_sorts_poses_naturally():
     ordered = [(p.conditions[0][1], p.pose) for p in report_order(poses)]
     assert ordered == [(v, p) for v in (100.0, 10.0) for p in ("P1", "P2", "P3", "P4", "P5", "P10")]
     assert sorted(["P1/x+", "P1", "P2"], key=natural_key) == ["P1", "P1/x+", "P2"]
+
+
+def test_docstring_examples():
+    import doctest
+
+    import bench.metrology.formatting as module
+
+    result = doctest.testmod(module)
+    assert result.failed == 0 and result.attempted >= 3

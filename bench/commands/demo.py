@@ -50,15 +50,14 @@ def analyze_run(store: Store, run_id: int) -> pd.DataFrame:
     """
     from bench.metrology.tables import analyze_poses, pose_result_json, pose_table
     from bench.metrology.formatting import report_order
-    from bench.reports.content import calibrations_in_force, counts_instrument
+    from bench.reports.content import analysis_table, calibrations_in_force, counts_instrument
 
-    table = tidy_table(store, run_id)
-    table.attrs["source"] = f"run {run_id}"
+    table = analysis_table(store, run_id)
     run = store.run(run_id)
     instrument = counts_instrument(run, calibrations_in_force(store, run),
                                    dims=sum(c in table.columns for c in ("x_mm", "y_mm", "z_mm")))
     rows = []
-    measured = report_order(analyze_poses(pose_table(table), instrument_u_mm=instrument.sigma_mm or 0.0))
+    measured = report_order(analyze_poses(table, instrument_u_mm=instrument.sigma_mm or 0.0))
     truth = None
     raw = [s.raw or {} for s in store.samples(run_id, kind="pose")]
     if raw and all("true_pose" in r for r in raw):
