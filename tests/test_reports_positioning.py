@@ -127,7 +127,7 @@ def test_simulated_report_equals_bench_analyze_on_its_raw_data_and_on_the_export
     _check_against_cli(report, cli_json(capsys, "analyze", "grid-positioning", str(exported), "--json"))
     html = paths.html.read_text(encoding="utf-8")
     assert hashlib.sha256(paths.csv[0].read_bytes()).hexdigest() in html
-    assert f"bench export {run_id} --kind pose --store {folder / 'bench.db'} --out run{run_id}.csv, then bench " \
+    assert f"bench export {run_id} --kind pose --store bench.db --out run{run_id}.csv, then bench " \
            f"analyze grid-positioning run{run_id}.csv --k 2 --json" in html
     assert int(html_tables(paths.html)["rawdata"][1][2]) == len(store.samples(run_id)) == len(report.table)
 

@@ -3,6 +3,7 @@ every page, run history; and one rounding in results.csv, report.md and the HTML
 
 from __future__ import annotations
 
+import re
 from datetime import UTC, datetime, timedelta
 
 import numpy as np
@@ -129,3 +130,29 @@ def test_results_csv_markdown_and_html_give_the_same_numbers(stored):
         label = f"{row['pose']}, {row['velocity_pct']} % velocity"
         assert html[label][3] == f"{row['AP_mm']} ± {row['U_AP_mm']}"
         assert html[label][7] == f"{row['RP_mm']} ± {row['U_RP_mm']}"
+
+
+def test_customer_language_on_a_simulated_pose_run(tmp_path):
+    from bench.reports.language import INTERNAL_PATTERNS, customer_text
+
+    settings = {**SETTINGS, "simulator": {"seed": 1},
+                "robot": {**SETTINGS["robot"], "port": "/dev/pts/3", "move_margin_s": 2.0, "reply_timeout_s": 1.0},
+                "instrument": {**SETTINGS["instrument"],
+                               "mice": {"xy": "mouse 'mouse_xy' (/tmp/bench-sim-abc/mouse_xy.fifo)"}}}
+    with Store(tmp_path / "bench.db") as store:
+        run_id = write_pose_run(store, settings=settings)
+        paths = write_report(store, run_id, tmp_path / "out", formats=("html",))
+    tables = html_tables(paths.html)
+    device = dict(tables["device"][1:])
+    assert "move_margin_s" not in str(device) and "reply_timeout_s" not in str(device)  # appendix only
+    appendix = dict(tables["settings"][1:])
+    assert appendix["robot.move_margin_s"] == "2.0" and appendix["robot.port"] == "3"
+    assert appendix["instrument.mice.xy"] == "mouse 'mouse_xy' (mouse_xy.fifo)"
+    conditions = dict(tables["conditions"][1:])
+    assert conditions["Test cube edge (mm)"] == "40" and "Poses (mm)" not in conditions  # no "poses —"
+    text = re.sub(r"<svg.*?</svg>|<style>.*?</style>|<p>Every number above can be recomputed.*?</p>", "",
+                  paths.html.read_text(encoding="utf-8"), flags=re.DOTALL)
+    assert not [p.pattern for p in INTERNAL_PATTERNS if p.search(text)]
+    assert customer_text("as in iso9283.md §7.1 (see docs/campaigns.md)") == "as in ISO 230-2"
+    assert customer_text("calliper (000 §8.4, sensors.md §6.2)") == "calliper (pkm5 dissertation §8.4)"
+    assert customer_text("calibration (delta4-lasergrid.md §6.5)") == "calibration (delta-robot dissertation)"

@@ -23,7 +23,7 @@ from bench.commands.campaign import execute, simulated_rig_in
 from bench.errors import ConfigError, InsufficientData
 from bench.protocols import Runner
 from bench.protocols.iso9283 import PoseAccuracy
-from bench.store import Store, export_run, tidy_table
+from bench.store import Store, export_run
 
 __all__ = ["analyze_run", "register", "rounded_results"]
 

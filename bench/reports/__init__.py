@@ -28,6 +28,7 @@ from bench.reports.actuator import ActuatorReport, actuator_document, collect_ac
 from bench.reports.content import CRITERIA, ReportBase, RunReport
 from bench.reports.deviations import Deviation, iso_deviations
 from bench.reports.document import Document, RawData, Section, comparison_document, run_document
+from bench.reports.language import customer_document
 from bench.reports.lasergrid import GridHitReport, collect_grid_hits, grid_hit_document
 from bench.reports.ladder import LadderReport, collect_ladder, ladder_document
 from bench.reports.positioning import (
@@ -118,8 +119,8 @@ def _document(report: ReportBase, raw: list[RawData], identity: Identity,
     """The layout's document with the summary (page 1) in front and, for simulated data, the banner of every page."""
     document = run_document if isinstance(report, RunReport) else LAYOUTS[report.run.protocol_name].document
     body = document(report, raw, operator=identity.operator, laboratory=identity.laboratory)
-    return with_summary(body, summary_section(report, identity, history, is_simulated(report.run)),
-                        simulated=is_simulated(report.run))
+    return customer_document(with_summary(body, summary_section(report, identity, history, is_simulated(report.run)),
+                                          simulated=is_simulated(report.run)))
 
 
 def with_summary(document: Document, summary: Section, *, simulated: bool) -> Document:
@@ -246,6 +247,9 @@ def write_comparison(store: str | Path | Store, first_run: int, second_run: int,
     out = _out_dir(out_dir)
     raws = [_write_raw(report, out) for report in (first, second)]
     document = comparison_document(first, second, [raw for _, raw in raws])
+    if is_simulated(first.run) or is_simulated(second.run):
+        document = replace(document, meta={**document.meta, "banner": SIMULATED_BANNER})
+    document = customer_document(document)
     written = _write(document, out, f"compare_run{first_run}_run{second_run}", formats)
     return ReportPaths(written.get("html"), written.get("pdf"), tuple(p for p, _ in raws),
                        document.meta["report_id"])

@@ -115,7 +115,7 @@ def ap_on_workspace(report: RunReport) -> Plot | None:
     figure = Figure(figsize=(10, 4.4), layout="constrained")
     for index, (i, j) in enumerate(((0, 1), (0, 2))):
         axes = figure.add_subplot(1, 2, index + 1)
-        axes.scatter(cloud[:, i], cloud[:, j], s=1, color="0.8", label="reachable (motion/)", rasterized=True)
+        axes.scatter(cloud[:, i], cloud[:, j], s=1, color="0.8", label="reachable (kinematic model)", rasterized=True)
         try:
             hull = ConvexHull(cloud[:, [i, j]])
             loop = np.append(hull.vertices, hull.vertices[0])
