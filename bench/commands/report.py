@@ -8,6 +8,8 @@ Reads the run store only (no hardware). Pose runs get the ISO 9283 layout; ``act
 from __future__ import annotations
 
 import argparse
+import sys
+import time
 
 from bench.errors import ConfigError
 from bench.reports import CRITERIA, FORMATS, write_comparison, write_report
@@ -41,6 +43,7 @@ def register(groups: argparse._SubParsersAction) -> None:
     parser.add_argument("--hysteresis-mm", type=float, default=None, metavar="MM",
                         help="stabilisation runs: band-edge hysteresis (default: one count of the run's instrument, "
                              "25.4/cpi mm, from its calibration or settings; 0 without one)")
+    parser.add_argument("--quiet", action="store_true", help="no progress lines on stderr")
     parser.add_argument("--allow-unknown", action="store_true",
                         help="report even when the run lacks what a deviations row needs (row printed as unknown)")
     parser.set_defaults(handler=_report)
@@ -61,7 +64,15 @@ def parse_criteria(items: list[str]) -> dict[str, float]:
     return criteria
 
 
+def _progress(started: float):
+    def say(message: str) -> None:
+        print(f"bench report: {time.monotonic() - started:5.1f} s  {message}", file=sys.stderr, flush=True)
+    return say
+
+
 def _report(args: argparse.Namespace) -> int:
+    started = time.monotonic()
+    progress = (lambda message: None) if args.quiet else _progress(started)
     formats = FORMATS if args.format == "all" else (args.format,)
     criteria = parse_criteria(args.criterion)
     if args.compare is not None:
@@ -69,14 +80,16 @@ def _report(args: argparse.Namespace) -> int:
             raise ConfigError("--criterion: not used with --compare; report each run on its own for a decision")
         if args.band_mm is not None or args.hysteresis_mm is not None:
             raise ConfigError("--band-mm/--hysteresis-mm: not used with --compare; comparisons cover pose runs")
-        paths = write_comparison(args.store, args.run_id, args.compare, args.out, formats, k=args.k)
+        paths = write_comparison(args.store, args.run_id, args.compare, args.out, formats, k=args.k,
+                                 progress=progress)
     else:
         identity = {name: getattr(args, name) for name in ("dut_serial", "customer", "order", "operator",
                                                             "laboratory")}
         paths = write_report(args.store, args.run_id, args.out, formats, criteria=criteria, k=args.k,
                              allow_unknown=args.allow_unknown, bands_mm=args.band_mm,
-                             hysteresis_mm=args.hysteresis_mm, identity=identity)
+                             hysteresis_mm=args.hysteresis_mm, identity=identity, progress=progress)
     for path in (paths.html, paths.pdf, *paths.csv):
         if path is not None:
             print(path)
+    progress("done")
     return 0

@@ -165,12 +165,21 @@ def _write_raw(report: ReportBase, out: Path) -> tuple[Path, RawData]:
     return path, RawData(path.name, digest, len(report.table))
 
 
-def _write(document: Document, out: Path, stem: str, formats: tuple[str, ...]) -> dict[str, Path]:
+def _write(document: Document, out: Path, stem: str, formats: tuple[str, ...],
+           progress: Callable[[str], None]) -> dict[str, Path]:
     from bench.reports.html import write_html
     from bench.reports.pdf import write_pdf
 
     writers = {"html": write_html, "pdf": write_pdf}
-    return {fmt: writers[fmt](document, out / f"{stem}.{fmt}") for fmt in formats}
+    written = {}
+    for fmt in formats:
+        progress(f"writing {stem}.{fmt}")
+        written[fmt] = writers[fmt](document, out / f"{stem}.{fmt}")
+    return written
+
+
+def _quiet(message: str) -> None:
+    """The default progress callback: say nothing."""
 
 
 def _open(store: str | Path | Store) -> tuple[Store, bool]:
@@ -185,7 +194,8 @@ def write_report(store: str | Path | Store, run_id: int, out_dir: str | Path, fo
                  criteria: Mapping[str, float] | None = None, operator: str | None = None,
                  laboratory: str | None = None, k: float = 2.0, allow_unknown: bool = False,
                  bands_mm: Sequence[float] | None = None, hysteresis_mm: float | None = None,
-                 identity: Mapping[str, str | None] | None = None) -> ReportPaths:
+                 identity: Mapping[str, str | None] | None = None,
+                 progress: Callable[[str], None] = _quiet) -> ReportPaths:
     """Write the report of one run: ``report_run<ID>.html`` / ``.pdf`` and ``run<ID>_samples.csv`` in ``out_dir``.
 
     Parameters
@@ -208,6 +218,8 @@ def write_report(store: str | Path | Store, run_id: int, out_dir: str | Path, fo
     allow_unknown : bool
         Write the report even when a row of the deviations table is unknown (printed as "unknown"); by default
         such a run is refused (iso9283.md §11.2).
+    progress : callable, optional
+        Called with a short line before each long step (reading and analysing, figures, each format).
     bands_mm, hysteresis_mm : optional
         Stabilisation runs only: the limit bands (default 0.1, 0.5, 1.0 mm) and the hysteresis (default one count of
         the run's instrument, 0 without one).
@@ -215,6 +227,7 @@ def write_report(store: str | Path | Store, run_id: int, out_dir: str | Path, fo
     formats = _check_formats(formats)
     store, opened = _open(store)
     try:
+        progress(f"reading and analysing run {run_id}")
         report = collect(store, run_id, criteria=criteria, k=k, allow_unknown=allow_unknown, bands_mm=bands_mm,
                          hysteresis_mm=hysteresis_mm)
         history = run_history(store, report.run)
@@ -225,13 +238,15 @@ def write_report(store: str | Path | Store, run_id: int, out_dir: str | Path, fo
              **({"laboratory": laboratory} if laboratory else {})}
     out = _out_dir(out_dir)
     csv_path, raw = _write_raw(report, out)
+    progress("drawing the figures")
     document = _document(report, [raw], Identity.of_run(report.run, given), history)
-    written = _write(document, out, f"report_run{run_id}", formats)
+    written = _write(document, out, f"report_run{run_id}", formats, progress)
     return ReportPaths(written.get("html"), written.get("pdf"), (csv_path,), report.report_id)
 
 
 def write_comparison(store: str | Path | Store, first_run: int, second_run: int, out_dir: str | Path,
-                     formats: Iterable[str] = FORMATS, *, k: float = 2.0) -> ReportPaths:
+                     formats: Iterable[str] = FORMATS, *, k: float = 2.0,
+                     progress: Callable[[str], None] = _quiet) -> ReportPaths:
     """Write two runs side by side (before/after calibration, two loads, two robots): ``compare_run<A>_run<B>``."""
     formats = _check_formats(formats)
     store, opened = _open(store)
@@ -250,6 +265,6 @@ def write_comparison(store: str | Path | Store, first_run: int, second_run: int,
     if is_simulated(first.run) or is_simulated(second.run):
         document = replace(document, meta={**document.meta, "banner": SIMULATED_BANNER})
     document = customer_document(document)
-    written = _write(document, out, f"compare_run{first_run}_run{second_run}", formats)
+    written = _write(document, out, f"compare_run{first_run}_run{second_run}", formats, progress)
     return ReportPaths(written.get("html"), written.get("pdf"), tuple(p for p, _ in raws),
                        document.meta["report_id"])
