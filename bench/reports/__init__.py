@@ -219,7 +219,8 @@ def write_report(store: str | Path | Store, run_id: int, out_dir: str | Path, fo
         Write the report even when a row of the deviations table is unknown (printed as "unknown"); by default
         such a run is refused (iso9283.md §11.2).
     progress : callable, optional
-        Called with a short line before each long step (reading and analysing, figures, each format).
+        Called with a short line before each long step (figures, each format), once the input is known to be
+        good (an error stays the only line).
     bands_mm, hysteresis_mm : optional
         Stabilisation runs only: the limit bands (default 0.1, 0.5, 1.0 mm) and the hysteresis (default one count of
         the run's instrument, 0 without one).
@@ -227,7 +228,6 @@ def write_report(store: str | Path | Store, run_id: int, out_dir: str | Path, fo
     formats = _check_formats(formats)
     store, opened = _open(store)
     try:
-        progress(f"reading and analysing run {run_id}")
         report = collect(store, run_id, criteria=criteria, k=k, allow_unknown=allow_unknown, bands_mm=bands_mm,
                          hysteresis_mm=hysteresis_mm)
         history = run_history(store, report.run)
@@ -238,7 +238,7 @@ def write_report(store: str | Path | Store, run_id: int, out_dir: str | Path, fo
              **({"laboratory": laboratory} if laboratory else {})}
     out = _out_dir(out_dir)
     csv_path, raw = _write_raw(report, out)
-    progress("drawing the figures")
+    progress(f"run {run_id} analysed; drawing the figures")
     document = _document(report, [raw], Identity.of_run(report.run, given), history)
     written = _write(document, out, f"report_run{run_id}", formats, progress)
     return ReportPaths(written.get("html"), written.get("pdf"), (csv_path,), report.report_id)
