@@ -156,3 +156,27 @@ def test_customer_language_on_a_simulated_pose_run(tmp_path):
     assert customer_text("as in iso9283.md §7.1 (see docs/campaigns.md)") == "as in ISO 230-2"
     assert customer_text("calliper (000 §8.4, sensors.md §6.2)") == "calliper (pkm5 dissertation §8.4)"
     assert customer_text("calibration (delta4-lasergrid.md §6.5)") == "calibration (delta-robot dissertation)"
+
+
+def test_compare_works_for_an_own_layout_and_shows_the_histories(tmp_path):
+    from reports_runs import write_actuator_run
+
+    from bench.reports import write_comparison
+
+    with Store(tmp_path / "bench.db") as store:
+        first, second = write_actuator_run(store, seed=1), write_actuator_run(store, seed=2)
+        store.set_status(second, "aborted", "stopped by the operator")
+        pose = write_pose_run(store)
+        paths = write_comparison(store, first, second, tmp_path / "out", formats=("html",))
+        with pytest.raises(ConfigError, match=f"run {first} is a actuator_accuracy run and run {pose} a "
+                                              "iso9283_pose run"):
+            write_comparison(store, first, pose, tmp_path / "out", formats=("html",))
+    tables = html_tables(paths.html)
+    assert {"a-actuators", "b-actuators", "history"} <= set(tables)
+    history = tables["history"][1:]
+    assert history[0][1].endswith("started") and history[0][2].endswith("started")
+    assert history[-1][1].endswith("completed")
+    assert history[-1][2].endswith("aborted: stopped by the operator")
+    assert tables["conditions"][1] == ["—", "identical configuration, different history (see Run histories)", ""]
+    text = paths.html.read_text(encoding="utf-8")
+    assert "The runs differ in their history" in text

@@ -2,7 +2,8 @@
 
 Reads the run store only (no hardware). Pose runs get the ISO 9283 layout; ``actuator_accuracy``, ``payload_ladder``,
 ``lasergrid_hits``, ``delta_positioning`` and ``iso9283_stabilisation`` runs their own (docs/reports.md). Writes ``report_run<ID>.html``/``.pdf`` and the raw data
-``run<ID>_samples.csv`` into ``--out`` and prints their paths on stdout, one per line.
+``run<ID>_samples.csv`` into ``--out`` and prints their paths on stdout, one per line. ``--compare`` works for
+every layout (two runs of the same kind).
 """
 
 from __future__ import annotations
@@ -79,7 +80,8 @@ def _report(args: argparse.Namespace) -> int:
         if criteria:
             raise ConfigError("--criterion: not used with --compare; report each run on its own for a decision")
         if args.band_mm is not None or args.hysteresis_mm is not None:
-            raise ConfigError("--band-mm/--hysteresis-mm: not used with --compare; comparisons cover pose runs")
+            raise ConfigError("--band-mm/--hysteresis-mm: not used with --compare; report each run on its own for "
+                              "other bands")
         paths = write_comparison(args.store, args.run_id, args.compare, args.out, formats, k=args.k,
                                  progress=progress)
     else:

@@ -25,6 +25,7 @@ from pathlib import Path
 from bench.errors import ConfigError
 from bench.reports import content
 from bench.reports.actuator import ActuatorReport, actuator_document, collect_actuator
+from bench.reports.compare import layout_comparison, with_histories
 from bench.reports.content import CRITERIA, ReportBase, RunReport
 from bench.reports.deviations import Deviation, iso_deviations
 from bench.reports.document import Document, RawData, Section, comparison_document, run_document
@@ -247,21 +248,32 @@ def write_report(store: str | Path | Store, run_id: int, out_dir: str | Path, fo
 def write_comparison(store: str | Path | Store, first_run: int, second_run: int, out_dir: str | Path,
                      formats: Iterable[str] = FORMATS, *, k: float = 2.0,
                      progress: Callable[[str], None] = _quiet) -> ReportPaths:
-    """Write two runs side by side (before/after calibration, two loads, two robots): ``compare_run<A>_run<B>``."""
+    """Write two runs side by side (before/after calibration, two loads, two robots): ``compare_run<A>_run<B>``.
+
+    Pose runs are paired pose by pose; runs of a protocol with a layout of its own must both be of that protocol
+    and get their results sections side by side (:mod:`bench.reports.compare`). Both get the run histories."""
     formats = _check_formats(formats)
     store, opened = _open(store)
     try:
-        for run_id in (first_run, second_run):
-            if own_layout(store, run_id) is not None:
-                raise ConfigError(f"--compare: run {run_id} is a {store.run(run_id).protocol_name} run; comparisons "
-                                  f"cover pose runs, report it on its own")
+        layouts = [own_layout(store, run_id) for run_id in (first_run, second_run)]
+        protocols = [store.run(run_id).protocol_name for run_id in (first_run, second_run)]
+        if (layouts[0] is None) != (layouts[1] is None) or (layouts[0] is not None and protocols[0] != protocols[1]):
+            raise ConfigError(f"--compare: run {first_run} is a {protocols[0]} run and run {second_run} a "
+                              f"{protocols[1]} run; compare runs of the same kind")
         first, second = collect(store, first_run, k=k), collect(store, second_run, k=k)
+        histories = (run_history(store, first.run), run_history(store, second.run))
     finally:
         if opened:
             store.close()
     out = _out_dir(out_dir)
     raws = [_write_raw(report, out) for report in (first, second)]
-    document = comparison_document(first, second, [raw for _, raw in raws])
+    progress(f"runs {first_run} and {second_run} analysed; drawing the figures")
+    if layouts[0] is None:
+        document = comparison_document(first, second, [raw for _, raw in raws])
+    else:
+        own = [layouts[0].document(report, [raw]) for report, (_, raw) in zip((first, second), raws)]
+        document = layout_comparison(first, second, *own, [raw for _, raw in raws])
+    document = with_histories(document, first, second, histories)
     if is_simulated(first.run) or is_simulated(second.run):
         document = replace(document, meta={**document.meta, "banner": SIMULATED_BANNER})
     document = customer_document(document)
