@@ -307,7 +307,8 @@ def test_cli_reports_the_three_kinds_and_refuses_criteria_and_comparisons(runs, 
         capsys.readouterr().err
     with Store(folder / "bench.db") as opened:
         pose = write_pose_run(opened, config=None)
-        with pytest.raises(ConfigError, match=f"--compare: run {ids['actuator']} is an? actuator_accuracy run"):
+        with pytest.raises(ConfigError, match=f"--compare: run {pose} is a iso9283_pose run and run "
+                                              f"{ids['actuator']} a actuator_accuracy run; compare runs of the same"):
             write_comparison(opened, pose, ids["actuator"], tmp_path)
 
 
