@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import re
 from datetime import UTC, datetime, timedelta
+from pathlib import Path
 
 import numpy as np
 import pandas as pd
@@ -180,3 +181,23 @@ def test_compare_works_for_an_own_layout_and_shows_the_histories(tmp_path):
     assert tables["conditions"][1] == ["—", "identical configuration, different history (see Run histories)", ""]
     text = paths.html.read_text(encoding="utf-8")
     assert "The runs differ in their history" in text
+
+
+def test_trend_over_three_runs_in_start_order(tmp_path, capsys):
+    with Store(tmp_path / "bench.db") as store:
+        ids = [write_pose_run(store, seed=s, bias_mm=(0.1 * s, 0.0, 0.0), noise_mm=0.02) for s in (1, 2, 3)]
+        reports = [collect(store, i, resamples=50) for i in ids]
+    out = tmp_path / "out"
+    assert main(["report", str(ids[2]), "--trend", str(ids[0]), str(ids[1]), "--store", str(tmp_path / "bench.db"),
+                 "--out", str(out), "--format", "html", "--quiet"]) == 0
+    printed = capsys.readouterr().out.split()
+    assert printed[0] == str(out / f"trend_run{ids[0]}_run{ids[1]}_run{ids[2]}.html")
+    rows = html_tables(out / Path(printed[0]).name)["trend"][1:]
+    assert [row[0] for row in rows] == [str(i) for i in ids]  # start order, not the order given
+    for row, report in zip(rows, reports):
+        worst = max(report.poses, key=lambda p: p.accuracy.ap_mm)
+        assert row[4] == f"{rounded_by_u(worst.accuracy.ap_mm, worst.ap_u.expanded_uncertainty)} ({worst.pose})"
+    assert float(rows[2][4].split()[0]) > float(rows[0][4].split()[0])  # the growing bias shows
+    assert main(["report", str(ids[0]), "--trend", str(ids[0]), "--store", str(tmp_path / "bench.db"),
+                 "--out", str(out)]) == 2
+    assert "--trend: 1 distinct run(s), expected two or more" in capsys.readouterr().err

@@ -13,7 +13,7 @@ import sys
 import time
 
 from bench.errors import ConfigError
-from bench.reports import CRITERIA, FORMATS, write_comparison, write_report
+from bench.reports import CRITERIA, FORMATS, write_comparison, write_report, write_trend
 
 DEFAULT_STORE = "bench.db"
 
@@ -25,6 +25,8 @@ def register(groups: argparse._SubParsersAction) -> None:
     parser.add_argument("run_id", metavar="RUN_ID", type=int, help="the run to report")
     parser.add_argument("--compare", metavar="RUN_B", type=int, default=None,
                         help="second run: write a side-by-side comparison of RUN_ID (A) and RUN_B (B)")
+    parser.add_argument("--trend", metavar="RUN", type=int, nargs="+", default=None,
+                        help="more pose runs: write the trend of RUN_ID and these (drift across days)")
     parser.add_argument("--format", choices=(*FORMATS, "all"), default="all", help="report format(s)")
     parser.add_argument("--out", default="reports", help="folder for the report and its raw data")
     parser.add_argument("--store", default=DEFAULT_STORE, help="run store (SQLite file)")
@@ -76,7 +78,11 @@ def _report(args: argparse.Namespace) -> int:
     progress = (lambda message: None) if args.quiet else _progress(started)
     formats = FORMATS if args.format == "all" else (args.format,)
     criteria = parse_criteria(args.criterion)
-    if args.compare is not None:
+    if args.trend is not None:
+        if criteria or args.compare is not None:
+            raise ConfigError("--trend: not used with --criterion or --compare")
+        paths = write_trend(args.store, [args.run_id, *args.trend], args.out, formats, k=args.k, progress=progress)
+    elif args.compare is not None:
         if criteria:
             raise ConfigError("--criterion: not used with --compare; report each run on its own for a decision")
         if args.band_mm is not None or args.hysteresis_mm is not None:

@@ -43,8 +43,9 @@ from bench.reports.summary import HistoryEvent, Identity, is_simulated, run_hist
 from bench.store import Store
 
 __all__ = ["CRITERIA", "FORMATS", "LAYOUTS", "ActuatorReport", "Deviation", "GridHitReport", "GridPositioningReport",
-           "LadderReport", "Layout", "ReportBase", "ReportPaths", "RunReport", "StabilisationReport", "collect",
-           "iso_deviations", "own_layout", "write_comparison", "write_report"]
+           "LadderReport", "Layout", "ReportBase", "ReportPaths", "RunReport", "SIMULATED_BANNER", "StabilisationReport",
+           "collect",
+           "iso_deviations", "own_layout", "write_comparison", "write_report", "write_trend"]
 
 #: Report formats, in the order they are written.
 FORMATS = ("html", "pdf")
@@ -278,5 +279,38 @@ def write_comparison(store: str | Path | Store, first_run: int, second_run: int,
         document = replace(document, meta={**document.meta, "banner": SIMULATED_BANNER})
     document = customer_document(document)
     written = _write(document, out, f"compare_run{first_run}_run{second_run}", formats, progress)
+    return ReportPaths(written.get("html"), written.get("pdf"), tuple(p for p, _ in raws),
+                       document.meta["report_id"])
+
+
+def write_trend(store: str | Path | Store, run_ids: Sequence[int], out_dir: str | Path,
+                formats: Iterable[str] = FORMATS, *, k: float = 2.0,
+                progress: Callable[[str], None] = _quiet) -> ReportPaths:
+    """Write the trend of N >= 2 pose runs (drift across days): ``trend_run<A>_..._run<Z>`` (:mod:`.trend`)."""
+    from bench.reports.trend import trend_document
+
+    formats = _check_formats(formats)
+    ids = list(dict.fromkeys(int(i) for i in run_ids))
+    if len(ids) < 2:
+        raise ConfigError(f"--trend: {len(ids)} distinct run(s), expected two or more")
+    store, opened = _open(store)
+    try:
+        for run_id in ids:
+            if own_layout(store, run_id) is not None:
+                raise ConfigError(f"--trend: run {run_id} is a {store.run(run_id).protocol_name} run; trends cover "
+                                  f"pose runs")
+        reports = sorted((collect(store, run_id, k=k) for run_id in ids), key=lambda r: r.run.started_utc)
+        histories = [run_history(store, r.run) for r in reports]
+    finally:
+        if opened:
+            store.close()
+    out = _out_dir(out_dir)
+    raws = [_write_raw(report, out) for report in reports]
+    progress(f"{len(reports)} runs analysed; drawing the figures")
+    document = trend_document(reports, histories, [raw for _, raw in raws])
+    if any(is_simulated(r.run) for r in reports):
+        document = replace(document, meta={**document.meta, "banner": SIMULATED_BANNER})
+    document = customer_document(document)
+    written = _write(document, out, "trend_" + "_".join(f"run{r.run.id}" for r in reports), formats, progress)
     return ReportPaths(written.get("html"), written.get("pdf"), tuple(p for p, _ in raws),
                        document.meta["report_id"])
