@@ -258,3 +258,12 @@ def cli_json(capsys, *argv) -> dict:
     capsys.readouterr()
     assert main(list(argv)) == 0
     return json.loads(capsys.readouterr().out)
+
+
+def rounded_by_u(value: float, u: float) -> str:
+    """``value ± U`` as a report must print it, computed independently of bench's formatter: U to two significant
+    digits (the exponent of the leading digit, from the decimal string), the value to the same decimal place."""
+    leading = f"{u:.1e}"  # e.g. '2.3e-01': two significant digits, and their exponent
+    mantissa, exponent = leading.split("e")
+    places = max(0, 1 - int(exponent))
+    return f"{value:.{places}f} ± {float(leading):.{places}f}"

@@ -13,6 +13,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 import pytest
+from reports_runs import rounded_by_u
 
 from bench.cli import main
 from bench.protocols import summarize
@@ -138,8 +139,8 @@ def test_report_prints_the_numbers_bench_analyze_gives_on_its_raw_data(simulated
     summary = re.search(r'<table id="actuators">(.*?)</table>', html, re.DOTALL).group(1)
     for axis, groover in expected.items():
         figures = result[str(axis)]
-        assert f"{figures['repeatability_mm']:.4f} ± {figures['U_repeatability_mm']:.4f}" in summary
-        assert f"{groover.accuracy_mm:.4f} ± {figures['U_accuracy_mm']:.4f}" in summary
+        assert rounded_by_u(figures['repeatability_mm'], figures['U_repeatability_mm']) in summary
+        assert rounded_by_u(groover.accuracy_mm, figures['U_accuracy_mm']) in summary
         for bias, u in zip(figures["mean_deviation_mm"], figures["U_mean_deviation_mm"]):
-            assert f"{bias:.4f} ± {u:.4f}" in html
+            assert rounded_by_u(bias, u) in html
     assert np.isclose(float(command.group(1).split()[3]), 0.01 / np.sqrt(6), rtol=1e-5)  # the gauge reads 0.01 mm

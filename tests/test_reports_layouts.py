@@ -21,6 +21,7 @@ from reports_runs import (
     cli_json,
     html_tables,
     pdf_text,
+    rounded_by_u,
     write_actuator_run,
     write_grid_hit_run,
     write_ladder_run,
@@ -106,18 +107,17 @@ def test_actuator_html_and_pdf_print_the_tables(runs):
     summary = {row[0]: row for row in tables["actuators"][1:]}
     pdf = pdf_text(paths["actuator"].pdf)
     for result in report.actuators:
-        repeatability = (f"{result.groover.repeatability_mm:.4f} ± "
-                         f"{result.repeatability_u.expanded_uncertainty:.4f}")
+        repeatability = rounded_by_u(result.groover.repeatability_mm, result.repeatability_u.expanded_uncertainty)
         assert summary[result.actuator][4] == repeatability and repeatability in pdf
         assert summary[result.actuator][9] == f"{result.iso230_2.accuracy_forward_mm:.4f}"
     bias_rows = [row for row in tables["actuator-targets"][1:] if row[:2] == ["5", "50"]]
     (row,) = bias_rows
-    assert row[4] == f"{report.actuators[1].bias_u[2].value:.4f} ± {report.actuators[1].bias_u[2].expanded_uncertainty:.4f}"
+    assert row[4] == rounded_by_u(report.actuators[1].bias_u[2].value, report.actuators[1].bias_u[2].expanded_uncertainty)
     assert row[4] in pdf
     deviations = {row[1]: row for row in tables["deviations"][1:]}
     assert deviations["direction"][4] == "deviates" and deviations["fixture"][4] == "conforms"
     assert deviations["travels"][4] == "deviates"  # 10, 30, 50 mm instead of 000's 10-50 mm in 10 mm steps
-    assert "Deviations from 000 §8.4 / ISO 230-2" in pdf and "6. Results" in pdf and "10. Statement of scope" in pdf
+    assert "Deviations from pkm5 dissertation §8.4 / ISO 230-2" in pdf and "6. Results" in pdf and "10. Statement of scope" in pdf
 
 
 def test_actuator_deviations_follow_the_stored_configuration(tmp_path):
@@ -215,10 +215,11 @@ def test_ladder_html_and_pdf_print_the_tables_and_the_deviations(runs):
     assert deviations["repeats"][4] == "conforms"  # 3 lifts per load (project §12.3)
     assert deviations["ladder"][4] == "deviates" and deviations["reference runs"][4] == "deviates"
     assert "describe the rig's two simulated optical mice" in deviations["instrument"][3]
-    assert tables["instrument"][1] == ["readings", "digital calliper, leg lengths entered by the operator (000 §8.7)"]
+    assert tables["instrument"][1] == ["Readings",
+                                       "digital calliper, leg lengths entered by the operator (pkm5 dissertation §8.7)"]
     pdf = pdf_text(paths["ladder"].pdf)
     for text in ("Leg actuation error e_i(m)", shift["10"][2], f"{report.compliance.compliance_mm_per_n:+.3e}",
-                 "Deviations from 000 §8.7 / iso9283.md §12", "bench analyze payload FILE.csv"):
+                 "Deviations from pkm5 dissertation §8.7 / project definition", "bench analyze payload FILE.csv"):
         assert text in pdf, text
 
 
@@ -306,7 +307,8 @@ def test_cli_reports_the_three_kinds_and_refuses_criteria_and_comparisons(runs, 
         capsys.readouterr().err
     with Store(folder / "bench.db") as opened:
         pose = write_pose_run(opened, config=None)
-        with pytest.raises(ConfigError, match=f"--compare: run {ids['actuator']} is an? actuator_accuracy run"):
+        with pytest.raises(ConfigError, match=f"--compare: run {pose} is a iso9283_pose run and run "
+                                              f"{ids['actuator']} a actuator_accuracy run; compare runs of the same"):
             write_comparison(opened, pose, ids["actuator"], tmp_path)
 
 
@@ -329,3 +331,25 @@ def test_ladder_settings_never_pass_the_mice_for_the_calliper():
     info = reading_instrument(Run(), (), [238.31, 238.32], difference=False, reader="calliper")
     assert info.sigma_mm == pytest.approx(0.01 / math.sqrt(12))  # the mice's u_mm is not the calliper's
     assert info.settings["readings"] == "calliper" and info.settings["rig"]["u_mm"] == 0.5
+
+
+def _printed_text(path) -> str:
+    """The report's visible text without its figures, styles and the verbatim recomputing command."""
+    import re
+
+    text = path.read_text(encoding="utf-8")
+    for pattern in (r"<svg.*?</svg>", r"<style>.*?</style>", r"<p>Every number above can be recomputed.*?</p>"):
+        text = re.sub(pattern, "", text, flags=re.DOTALL)
+    return text
+
+
+def test_reports_speak_customer_language(runs):
+    from bench.reports.language import INTERNAL_PATTERNS
+
+    _, _, _, paths, _ = runs
+    for name, written in paths.items():
+        text = _printed_text(written.html)
+        pdf = pdf_text(written.pdf)
+        for pattern in INTERNAL_PATTERNS:
+            assert not pattern.search(text), f"{name}: {pattern.pattern} in {pattern.search(text).group(0)!r}"
+            assert not pattern.search(pdf.replace("Every number above", "")) or "recomputed" in pdf, name

@@ -127,7 +127,7 @@ def test_simulated_report_equals_bench_analyze_on_its_raw_data_and_on_the_export
     _check_against_cli(report, cli_json(capsys, "analyze", "grid-positioning", str(exported), "--json"))
     html = paths.html.read_text(encoding="utf-8")
     assert hashlib.sha256(paths.csv[0].read_bytes()).hexdigest() in html
-    assert f"bench export {run_id} --kind pose --store {folder / 'bench.db'} --out run{run_id}.csv, then bench " \
+    assert f"bench export {run_id} --kind pose --store bench.db --out run{run_id}.csv, then bench " \
            f"analyze grid-positioning run{run_id}.csv --k 2 --json" in html
     assert int(html_tables(paths.html)["rawdata"][1][2]) == len(store.samples(run_id)) == len(report.table)
 
@@ -214,8 +214,8 @@ def test_options_of_other_layouts_are_refused(written, capsys, tmp_path):
     with pytest.raises(ConfigError, match=f"--band-mm: applies to iso9283_stabilisation runs; run {run_id} is a "
                                           "delta_positioning run"):
         collect(store, run_id, bands_mm=[0.1])
-    with pytest.raises(ConfigError, match=f"--compare: run {run_id} is a delta_positioning run"):
-        write_comparison(store, run_id, run_id, tmp_path)
+    compared = write_comparison(store, run_id, run_id, tmp_path, formats=("html",))  # every layout compares
+    assert "Results of B" in compared.html.read_text(encoding="utf-8")
     assert main(["report", str(run_id), "--store", store.path, "--out", str(tmp_path), "--hysteresis-mm",
                  "0.1"]) == 2
     assert "--hysteresis-mm: applies to iso9283_stabilisation runs" in capsys.readouterr().err

@@ -95,7 +95,7 @@ def test_report_equals_bench_analyze_on_its_raw_data_and_on_the_exported_series(
                 assert theirs[key] == pytest.approx(ours, abs=tolerance), (path, r.group, r.band_mm, key)
     html = paths.html.read_text(encoding="utf-8")
     assert hashlib.sha256(paths.csv[0].read_bytes()).hexdigest() in html
-    assert (f"bench export {run_id} --series --store {folder / 'bench.db'} --out run{run_id}_series.csv, then bench "
+    assert (f"bench export {run_id} --series --store bench.db --out run{run_id}_series.csv, then bench "
             f"analyze stabilisation run{run_id}_series.csv --band-mm 0.1 0.5 1 --hysteresis-mm 0.03175 --json") in html
 
 

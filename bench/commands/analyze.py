@@ -88,6 +88,7 @@ def _new_parser(actions: argparse._SubParsersAction, name: str, text: str) -> ar
 
 
 def _iso9283(args: argparse.Namespace) -> int:
+    from bench.metrology.formatting import format_pair, format_value, pose_label, report_order
     from bench.metrology.tables import (
         POSE_NUMERIC_COLUMNS,
         analyze_poses,
@@ -97,19 +98,23 @@ def _iso9283(args: argparse.Namespace) -> int:
     )
 
     table = pose_table(read_table_csv(args.file, numeric=POSE_NUMERIC_COLUMNS))
-    results = analyze_poses(table, instrument_u_mm=args.instrument_u_mm, k=args.k)
-    lines = [(f"{'pose':<12} {'n':>3} {'AP_mm':>8} {'APx_mm':>8} {'APy_mm':>8} {'APz_mm':>8} {'RP_mm':>8} "
+    results = report_order(analyze_poses(table, instrument_u_mm=args.instrument_u_mm, k=args.k))
+    labels = [pose_label(r.pose, r.conditions) for r in results]
+    width = max([12, *map(len, labels)])
+    lines = [(f"{'pose':<{width}} {'n':>3} {'AP_mm':>8} {'APx_mm':>8} {'APy_mm':>8} {'APz_mm':>8} {'RP_mm':>8} "
               f"{'U_AP':>7} {'U_RP':>7}")]
-    for r in results:
-        ax, ay, az = r.accuracy.ap_axes_mm
-        lines.append(f"{r.label:<12} {r.accuracy.n:>3} {r.accuracy.ap_mm:8.3f} {ax:8.3f} {ay:8.3f} {az:8.3f} "
-                     f"{r.repeatability.rp_mm:8.3f} {r.ap_u.expanded_uncertainty:7.3f} "
-                     f"{r.rp_u.expanded_uncertainty:7.3f}")
+    for r, label in zip(results, labels):
+        u_ap, u_rp = r.ap_u.expanded_uncertainty, r.rp_u.expanded_uncertainty
+        ap, ax, ay, az = (format_value(v, u_ap) for v in (r.accuracy.ap_mm, *r.accuracy.ap_axes_mm))
+        lines.append(f"{label:<{width}} {r.accuracy.n:>3} {ap:>8} {ax:>8} {ay:>8} {az:>8} "
+                     f"{format_value(r.repeatability.rp_mm, u_rp):>8} {format_pair(0, u_ap)[1]:>7} "
+                     f"{format_pair(0, u_rp)[1]:>7}")
         if r.orientation_accuracy is not None:
             text = ", ".join(f"AP{n} {ap:+.3f} RP{n} ±{rp:.3f}" for n, ap, rp in zip(
                 r.angle_names, r.orientation_accuracy.ap_deg, r.orientation_repeatability.rp_deg))
-            lines.append(f"{'':<12} orientation (deg): {text}")
-    lines.append(f"AP against the commanded pose; RP = l̄ + 3 S_l; U with k = {args.k:g}.")
+            lines.append(f"{'':<{width}} orientation (deg): {text}")
+    lines.append(f"AP against the commanded pose; RP = l̄ + 3 S_l; U with k = {args.k:g}; values rounded by their U "
+                 f"(--json: full precision).")
     emit({"poses": {r.label: pose_result_json(r) for r in results}}, args.json, lines)
     return 0
 

@@ -25,7 +25,7 @@ if TYPE_CHECKING:  # imported inside the functions: building the parser stays ch
     from bench.protocols.iso9283 import PoseAccuracy
     from bench.store import Store
 
-__all__ = ["analyze_run", "register"]
+__all__ = ["analyze_run", "register", "rounded_results"]
 
 
 def register(groups: argparse._SubParsersAction) -> None:
@@ -41,16 +41,25 @@ def register(groups: argparse._SubParsersAction) -> None:
 
 
 def analyze_run(store: Store, run_id: int) -> pd.DataFrame:
-    """AP/RP per pose and condition of a stored pose run; with the simulator's truth when the samples carry it."""
+    """AP/RP per pose and condition of a stored pose run, in report order (P1..P5 per velocity); with the
+    simulator's truth when the samples carry it.
+
+    U(AP) carries the instrument's standard uncertainty exactly as the full report does (the run's stored
+    instrument settings, :func:`bench.reports.content.counts_instrument`), so results.csv, report.md and the
+    HTML/PDF give the same U.
+    """
     import pandas as pd
 
+    from bench.metrology.formatting import report_order
     from bench.metrology.tables import analyze_poses, pose_result_json, pose_table
-    from bench.store import tidy_table
+    from bench.reports.content import analysis_table, calibrations_in_force, counts_instrument
 
-    table = tidy_table(store, run_id)
-    table.attrs["source"] = f"run {run_id}"
+    table = analysis_table(store, run_id)
+    run = store.run(run_id)
+    instrument = counts_instrument(run, calibrations_in_force(store, run),
+                                   dims=sum(c in table.columns for c in ("x_mm", "y_mm", "z_mm")))
     rows = []
-    measured = analyze_poses(pose_table(table))
+    measured = report_order(analyze_poses(table, instrument_u_mm=instrument.sigma_mm or 0.0))
     truth = None
     raw = [s.raw or {} for s in store.samples(run_id, kind="pose")]
     if raw and all("true_pose" in r for r in raw):
@@ -68,10 +77,32 @@ def analyze_run(store: Store, run_id: int) -> pd.DataFrame:
     return pd.DataFrame(rows)
 
 
+#: Columns rounded by U(AP) and by U(RP) in the printed results (the rest are conditions and counts).
+_BY_U = {"U_AP_mm": ("AP_mm", "APx_mm", "APy_mm", "APz_mm", "true_AP_mm"), "U_RP_mm": ("RP_mm", "true_RP_mm")}
+
+
+def rounded_results(frame: pd.DataFrame) -> pd.DataFrame:
+    """``frame`` (of :func:`analyze_run`) as text, every value rounded by its row's uncertainty: U to two
+    significant digits and the value to the same decimal place (:mod:`bench.metrology.formatting`, the rule of the
+    HTML/PDF report)."""
+    from bench.metrology.formatting import format_pair, format_value
+
+    out = frame.astype(object)
+    for u_column, columns in _BY_U.items():
+        for index, u in frame[u_column].items():
+            for column in columns:
+                if column in frame:
+                    out.at[index, column] = format_value(frame.at[index, column], u)
+            out.at[index, u_column] = format_pair(0.0, u)[1]
+    for column in ("velocity_pct", "load_kg"):
+        if column in frame:
+            out[column] = [f"{v:g}" for v in frame[column]]
+    return out
+
+
 def _markdown(frame: pd.DataFrame) -> str:
     header = "| " + " | ".join(frame.columns) + " |\n|" + "---|" * len(frame.columns) + "\n"
-    body = "".join("| " + " | ".join(f"{v:.3f}" if isinstance(v, float) else str(v) for v in row) + " |\n"
-                   for row in frame.itertuples(index=False))
+    body = "".join("| " + " | ".join(str(v) for v in row) + " |\n" for row in frame.itertuples(index=False))
     return header + body
 
 
@@ -114,8 +145,8 @@ def _report(store: Store, run_id: int, protocol: PoseAccuracy, results: pd.DataF
         "bench | RP includes the instrument floor |"),
         "| 6.2, 6.3 | warm-up, temperature recorded | simulated; none | simulation | none |",
         "",
-        "## Results (mm; U at k = 2)",
-        _markdown(results),
+        "## Results (mm; U at k = 2; values rounded by their U)",
+        _markdown(rounded_results(results)),
     ]
     if "true_AP_mm" in results:
         worst_ap = (results["AP_mm"] - results["true_AP_mm"]).abs().max()
@@ -150,7 +181,7 @@ def _demo(args: argparse.Namespace) -> int:
         table_path = export_run(store, result.run_id, out / f"run-{result.run_id}.csv")
         results = analyze_run(store, result.run_id)
         results_path = out / "results.csv"
-        results.to_csv(results_path, index=False, float_format="%.4f")
+        rounded_results(results).to_csv(results_path, index=False)
         report_path = out / "report.md"
         report_path.write_text(_report(store, result.run_id, protocol, results, time.monotonic() - started),
                                encoding="utf-8")
@@ -158,7 +189,8 @@ def _demo(args: argparse.Namespace) -> int:
         full = write_report(store, result.run_id, out)
     shown = results[[c for c in ("pose", "velocity_pct", "n", "AP_mm", "RP_mm", "true_AP_mm", "true_RP_mm")
                      if c in results]]
-    print(shown.to_string(index=False, float_format=lambda v: f"{v:.3f}"), file=sys.stderr)
+    print(rounded_results(shown.assign(U_AP_mm=results["U_AP_mm"], U_RP_mm=results["U_RP_mm"]))
+          .drop(columns=["U_AP_mm", "U_RP_mm"]).to_string(index=False), file=sys.stderr)
     for path in (out / "bench.db", table_path, results_path, report_path, full.html, full.pdf):
         print(path)
     print(f"bench demo: {time.monotonic() - started:.1f} s (bench {__version__})", file=sys.stderr)

@@ -2,12 +2,15 @@
 
 Reads the run store only (no hardware). Pose runs get the ISO 9283 layout; ``actuator_accuracy``, ``payload_ladder``,
 ``lasergrid_hits``, ``delta_positioning`` and ``iso9283_stabilisation`` runs their own (docs/reports.md). Writes ``report_run<ID>.html``/``.pdf`` and the raw data
-``run<ID>_samples.csv`` into ``--out`` and prints their paths on stdout, one per line.
+``run<ID>_samples.csv`` into ``--out`` and prints their paths on stdout, one per line. ``--compare`` works for
+every layout (two runs of the same kind).
 """
 
 from __future__ import annotations
 
 import argparse
+import sys
+import time
 
 from bench.commands.lazy import defer
 from bench.errors import ConfigError
@@ -30,19 +33,28 @@ def _add_arguments(parser: argparse.ArgumentParser) -> None:
 
     parser.add_argument("--compare", metavar="RUN_B", type=int, default=None,
                         help="second run: write a side-by-side comparison of RUN_ID (A) and RUN_B (B)")
+    parser.add_argument("--trend", metavar="RUN", type=int, nargs="+", default=None,
+                        help="more pose runs: write the trend of RUN_ID and these (drift across days)")
     parser.add_argument("--format", choices=(*FORMATS, "all"), default="all", help="report format(s)")
     parser.add_argument("--out", default="reports", help="folder for the report and its raw data")
     parser.add_argument("--store", default=DEFAULT_STORE, help="run store (SQLite file)")
     parser.add_argument("--criterion", action="append", default=[], metavar="NAME=MM",
                         help=f"project acceptance criterion, repeatable; NAME in {', '.join(CRITERIA)}")
-    parser.add_argument("--operator", default="not recorded", help="operator named in the report")
-    parser.add_argument("--laboratory", default="not recorded", help="laboratory named in the report")
+    identity = parser.add_argument_group("device under test and people (page 1; default: the run's stored "
+                                         "settings.dut, else \"not recorded\")")
+    identity.add_argument("--dut-serial", default=None, metavar="TEXT", help="robot serial number or asset tag")
+    identity.add_argument("--customer", default=None, metavar="TEXT", help="customer the robot is tested for")
+    identity.add_argument("--order", default=None, metavar="TEXT", help="order or job number")
+    identity.add_argument("--operator", default=None, metavar="TEXT", help="operator named in the report")
+    identity.add_argument("--lab", "--laboratory", dest="laboratory", default=None, metavar="TEXT",
+                          help="laboratory named in the report")
     parser.add_argument("--k", type=float, default=2.0, help="coverage factor of the expanded uncertainties")
     parser.add_argument("--band-mm", type=float, nargs="+", default=None, metavar="MM",
                         help="stabilisation runs: limit bands (default: the ISO comparison bands 0.1 0.5 1)")
     parser.add_argument("--hysteresis-mm", type=float, default=None, metavar="MM",
                         help="stabilisation runs: band-edge hysteresis (default: one count of the run's instrument, "
                              "25.4/cpi mm, from its calibration or settings; 0 without one)")
+    parser.add_argument("--quiet", action="store_true", help="no progress lines on stderr")
     parser.add_argument("--allow-unknown", action="store_true",
                         help="report even when the run lacks what a deviations row needs (row printed as unknown)")
 
@@ -64,22 +76,39 @@ def parse_criteria(items: list[str]) -> dict[str, float]:
     return criteria
 
 
-def _report(args: argparse.Namespace) -> int:
-    from bench.reports import FORMATS, write_comparison, write_report
+def _progress(started: float):
+    def say(message: str) -> None:
+        print(f"bench report: {time.monotonic() - started:5.1f} s  {message}", file=sys.stderr, flush=True)
+    return say
 
+
+def _report(args: argparse.Namespace) -> int:
+    from bench.reports import FORMATS, write_comparison, write_report, write_trend
+
+    started = time.monotonic()
+    progress = (lambda message: None) if args.quiet else _progress(started)
     formats = FORMATS if args.format == "all" else (args.format,)
     criteria = parse_criteria(args.criterion)
-    if args.compare is not None:
+    if args.trend is not None:
+        if criteria or args.compare is not None:
+            raise ConfigError("--trend: not used with --criterion or --compare")
+        paths = write_trend(args.store, [args.run_id, *args.trend], args.out, formats, k=args.k, progress=progress)
+    elif args.compare is not None:
         if criteria:
             raise ConfigError("--criterion: not used with --compare; report each run on its own for a decision")
         if args.band_mm is not None or args.hysteresis_mm is not None:
-            raise ConfigError("--band-mm/--hysteresis-mm: not used with --compare; comparisons cover pose runs")
-        paths = write_comparison(args.store, args.run_id, args.compare, args.out, formats, k=args.k)
+            raise ConfigError("--band-mm/--hysteresis-mm: not used with --compare; report each run on its own for "
+                              "other bands")
+        paths = write_comparison(args.store, args.run_id, args.compare, args.out, formats, k=args.k,
+                                 progress=progress)
     else:
-        paths = write_report(args.store, args.run_id, args.out, formats, criteria=criteria, operator=args.operator,
-                             laboratory=args.laboratory, k=args.k, allow_unknown=args.allow_unknown,
-                             bands_mm=args.band_mm, hysteresis_mm=args.hysteresis_mm)
+        identity = {name: getattr(args, name) for name in ("dut_serial", "customer", "order", "operator",
+                                                            "laboratory")}
+        paths = write_report(args.store, args.run_id, args.out, formats, criteria=criteria, k=args.k,
+                             allow_unknown=args.allow_unknown, bands_mm=args.band_mm,
+                             hysteresis_mm=args.hysteresis_mm, identity=identity, progress=progress)
     for path in (paths.html, paths.pdf, *paths.csv):
         if path is not None:
             print(path)
+    progress("done")
     return 0

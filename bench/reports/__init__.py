@@ -19,15 +19,17 @@ from __future__ import annotations
 
 import hashlib
 from collections.abc import Callable, Iterable, Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 from bench.errors import ConfigError
 from bench.reports import content
 from bench.reports.actuator import ActuatorReport, actuator_document, collect_actuator
+from bench.reports.compare import layout_comparison, with_histories
 from bench.reports.content import CRITERIA, ReportBase, RunReport
 from bench.reports.deviations import Deviation, iso_deviations
-from bench.reports.document import Document, RawData, comparison_document, run_document
+from bench.reports.document import Document, RawData, Section, comparison_document, run_document
+from bench.reports.language import customer_document
 from bench.reports.lasergrid import GridHitReport, collect_grid_hits, grid_hit_document
 from bench.reports.ladder import LadderReport, collect_ladder, ladder_document
 from bench.reports.positioning import (
@@ -37,14 +39,18 @@ from bench.reports.positioning import (
     grid_readings,
 )
 from bench.reports.stabilisation import StabilisationReport, collect_stabilisation, stabilisation_document
+from bench.reports.summary import HistoryEvent, Identity, is_simulated, run_history, summary_section
 from bench.store import Store
 
 __all__ = ["CRITERIA", "FORMATS", "LAYOUTS", "ActuatorReport", "Deviation", "GridHitReport", "GridPositioningReport",
-           "LadderReport", "Layout", "ReportBase", "ReportPaths", "RunReport", "StabilisationReport", "collect",
-           "iso_deviations", "own_layout", "write_comparison", "write_report"]
+           "LadderReport", "Layout", "ReportBase", "ReportPaths", "RunReport", "SIMULATED_BANNER", "StabilisationReport",
+           "collect",
+           "iso_deviations", "own_layout", "write_comparison", "write_report", "write_trend"]
 
 #: Report formats, in the order they are written.
 FORMATS = ("html", "pdf")
+#: Printed at the top of every page (HTML and PDF) of a report on data from a simulated device.
+SIMULATED_BANNER = "SIMULATED DATA: not a measurement of a physical robot"
 
 
 @dataclass(frozen=True)
@@ -110,9 +116,21 @@ def collect(store: Store, run_id: int, *, criteria: Mapping[str, float] | None =
     return layout.collect(store, run_id, k=k, resamples=resamples, allow_unknown=allow_unknown, **options)
 
 
-def _document(report: ReportBase, raw: list[RawData], operator: str, laboratory: str) -> Document:
+def _document(report: ReportBase, raw: list[RawData], identity: Identity,
+              history: tuple[HistoryEvent, ...]) -> Document:
+    """The layout's document with the summary (page 1) in front and, for simulated data, the banner of every page."""
     document = run_document if isinstance(report, RunReport) else LAYOUTS[report.run.protocol_name].document
-    return document(report, raw, operator=operator, laboratory=laboratory)
+    body = document(report, raw, operator=identity.operator, laboratory=identity.laboratory)
+    return customer_document(with_summary(body, summary_section(report, identity, history, is_simulated(report.run)),
+                                          simulated=is_simulated(report.run)))
+
+
+def with_summary(document: Document, summary: Section, *, simulated: bool) -> Document:
+    """``document`` with ``summary`` as its first section and ``meta["banner"]`` set when the data are simulated."""
+    meta = dict(document.meta)
+    if simulated:
+        meta["banner"] = SIMULATED_BANNER
+    return replace(document, sections=(summary, *document.sections), meta=meta)
 
 
 @dataclass(frozen=True)
@@ -149,12 +167,21 @@ def _write_raw(report: ReportBase, out: Path) -> tuple[Path, RawData]:
     return path, RawData(path.name, digest, len(report.table))
 
 
-def _write(document: Document, out: Path, stem: str, formats: tuple[str, ...]) -> dict[str, Path]:
+def _write(document: Document, out: Path, stem: str, formats: tuple[str, ...],
+           progress: Callable[[str], None]) -> dict[str, Path]:
     from bench.reports.html import write_html
     from bench.reports.pdf import write_pdf
 
     writers = {"html": write_html, "pdf": write_pdf}
-    return {fmt: writers[fmt](document, out / f"{stem}.{fmt}") for fmt in formats}
+    written = {}
+    for fmt in formats:
+        progress(f"writing {stem}.{fmt}")
+        written[fmt] = writers[fmt](document, out / f"{stem}.{fmt}")
+    return written
+
+
+def _quiet(message: str) -> None:
+    """The default progress callback: say nothing."""
 
 
 def _open(store: str | Path | Store) -> tuple[Store, bool]:
@@ -166,9 +193,11 @@ def _open(store: str | Path | Store) -> tuple[Store, bool]:
 
 
 def write_report(store: str | Path | Store, run_id: int, out_dir: str | Path, formats: Iterable[str] = FORMATS, *,
-                 criteria: Mapping[str, float] | None = None, operator: str = "not recorded",
-                 laboratory: str = "not recorded", k: float = 2.0, allow_unknown: bool = False,
-                 bands_mm: Sequence[float] | None = None, hysteresis_mm: float | None = None) -> ReportPaths:
+                 criteria: Mapping[str, float] | None = None, operator: str | None = None,
+                 laboratory: str | None = None, k: float = 2.0, allow_unknown: bool = False,
+                 bands_mm: Sequence[float] | None = None, hysteresis_mm: float | None = None,
+                 identity: Mapping[str, str | None] | None = None,
+                 progress: Callable[[str], None] = _quiet) -> ReportPaths:
     """Write the report of one run: ``report_run<ID>.html`` / ``.pdf`` and ``run<ID>_samples.csv`` in ``out_dir``.
 
     Parameters
@@ -181,13 +210,19 @@ def write_report(store: str | Path | Store, run_id: int, out_dir: str | Path, fo
     formats : iterable of {"html", "pdf"}
     criteria : mapping, optional
         Project acceptance criteria (``AP_mm``, ``RP_mm``); without them no pass/fail is stated.
-    operator, laboratory : str
-        Printed in the identification section.
+    operator, laboratory : str, optional
+        Printed on the summary page and in the identification section (override ``identity``).
+    identity : mapping, optional
+        Fields of :class:`bench.reports.summary.Identity` (``dut_serial``, ``customer``, ``order``, ``operator``,
+        ``laboratory``); they override the run's stored ``settings.dut``. Missing fields print "not recorded".
     k : float
         Coverage factor of the expanded uncertainties.
     allow_unknown : bool
         Write the report even when a row of the deviations table is unknown (printed as "unknown"); by default
         such a run is refused (iso9283.md §11.2).
+    progress : callable, optional
+        Called with a short line before each long step (figures, each format), once the input is known to be
+        good (an error stays the only line).
     bands_mm, hysteresis_mm : optional
         Stabilisation runs only: the limit bands (default 0.1, 0.5, 1.0 mm) and the hysteresis (default one count of
         the run's instrument, 0 without one).
@@ -197,33 +232,85 @@ def write_report(store: str | Path | Store, run_id: int, out_dir: str | Path, fo
     try:
         report = collect(store, run_id, criteria=criteria, k=k, allow_unknown=allow_unknown, bands_mm=bands_mm,
                          hysteresis_mm=hysteresis_mm)
+        history = run_history(store, report.run)
     finally:
         if opened:
             store.close()
+    given = {**(identity or {}), **({"operator": operator} if operator else {}),
+             **({"laboratory": laboratory} if laboratory else {})}
     out = _out_dir(out_dir)
     csv_path, raw = _write_raw(report, out)
-    document = _document(report, [raw], operator, laboratory)
-    written = _write(document, out, f"report_run{run_id}", formats)
+    progress(f"run {run_id} analysed; drawing the figures")
+    document = _document(report, [raw], Identity.of_run(report.run, given), history)
+    written = _write(document, out, f"report_run{run_id}", formats, progress)
     return ReportPaths(written.get("html"), written.get("pdf"), (csv_path,), report.report_id)
 
 
 def write_comparison(store: str | Path | Store, first_run: int, second_run: int, out_dir: str | Path,
-                     formats: Iterable[str] = FORMATS, *, k: float = 2.0) -> ReportPaths:
-    """Write two runs side by side (before/after calibration, two loads, two robots): ``compare_run<A>_run<B>``."""
+                     formats: Iterable[str] = FORMATS, *, k: float = 2.0,
+                     progress: Callable[[str], None] = _quiet) -> ReportPaths:
+    """Write two runs side by side (before/after calibration, two loads, two robots): ``compare_run<A>_run<B>``.
+
+    Pose runs are paired pose by pose; runs of a protocol with a layout of its own must both be of that protocol
+    and get their results sections side by side (:mod:`bench.reports.compare`). Both get the run histories."""
     formats = _check_formats(formats)
     store, opened = _open(store)
     try:
-        for run_id in (first_run, second_run):
-            if own_layout(store, run_id) is not None:
-                raise ConfigError(f"--compare: run {run_id} is a {store.run(run_id).protocol_name} run; comparisons "
-                                  f"cover pose runs, report it on its own")
+        layouts = [own_layout(store, run_id) for run_id in (first_run, second_run)]
+        protocols = [store.run(run_id).protocol_name for run_id in (first_run, second_run)]
+        if (layouts[0] is None) != (layouts[1] is None) or (layouts[0] is not None and protocols[0] != protocols[1]):
+            raise ConfigError(f"--compare: run {first_run} is a {protocols[0]} run and run {second_run} a "
+                              f"{protocols[1]} run; compare runs of the same kind")
         first, second = collect(store, first_run, k=k), collect(store, second_run, k=k)
+        histories = (run_history(store, first.run), run_history(store, second.run))
     finally:
         if opened:
             store.close()
     out = _out_dir(out_dir)
     raws = [_write_raw(report, out) for report in (first, second)]
-    document = comparison_document(first, second, [raw for _, raw in raws])
-    written = _write(document, out, f"compare_run{first_run}_run{second_run}", formats)
+    progress(f"runs {first_run} and {second_run} analysed; drawing the figures")
+    if layouts[0] is None:
+        document = comparison_document(first, second, [raw for _, raw in raws])
+    else:
+        own = [layouts[0].document(report, [raw]) for report, (_, raw) in zip((first, second), raws)]
+        document = layout_comparison(first, second, *own, [raw for _, raw in raws])
+    document = with_histories(document, first, second, histories)
+    if is_simulated(first.run) or is_simulated(second.run):
+        document = replace(document, meta={**document.meta, "banner": SIMULATED_BANNER})
+    document = customer_document(document)
+    written = _write(document, out, f"compare_run{first_run}_run{second_run}", formats, progress)
+    return ReportPaths(written.get("html"), written.get("pdf"), tuple(p for p, _ in raws),
+                       document.meta["report_id"])
+
+
+def write_trend(store: str | Path | Store, run_ids: Sequence[int], out_dir: str | Path,
+                formats: Iterable[str] = FORMATS, *, k: float = 2.0,
+                progress: Callable[[str], None] = _quiet) -> ReportPaths:
+    """Write the trend of N >= 2 pose runs (drift across days): ``trend_run<A>_..._run<Z>`` (:mod:`.trend`)."""
+    from bench.reports.trend import trend_document
+
+    formats = _check_formats(formats)
+    ids = list(dict.fromkeys(int(i) for i in run_ids))
+    if len(ids) < 2:
+        raise ConfigError(f"--trend: {len(ids)} distinct run(s), expected two or more")
+    store, opened = _open(store)
+    try:
+        for run_id in ids:
+            if own_layout(store, run_id) is not None:
+                raise ConfigError(f"--trend: run {run_id} is a {store.run(run_id).protocol_name} run; trends cover "
+                                  f"pose runs")
+        reports = sorted((collect(store, run_id, k=k) for run_id in ids), key=lambda r: r.run.started_utc)
+        histories = [run_history(store, r.run) for r in reports]
+    finally:
+        if opened:
+            store.close()
+    out = _out_dir(out_dir)
+    raws = [_write_raw(report, out) for report in reports]
+    progress(f"{len(reports)} runs analysed; drawing the figures")
+    document = trend_document(reports, histories, [raw for _, raw in raws])
+    if any(is_simulated(r.run) for r in reports):
+        document = replace(document, meta={**document.meta, "banner": SIMULATED_BANNER})
+    document = customer_document(document)
+    written = _write(document, out, "trend_" + "_".join(f"run{r.run.id}" for r in reports), formats, progress)
     return ReportPaths(written.get("html"), written.get("pdf"), tuple(p for p, _ in raws),
                        document.meta["report_id"])

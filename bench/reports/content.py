@@ -48,6 +48,7 @@ from bench.metrology import (
     payload_shift,
     resolution_uncertainty,
 )
+from bench.metrology.formatting import pose_label, report_order
 from bench.metrology.tables import (
     ANGLE_PAIRS,
     PoseResult,
@@ -345,7 +346,7 @@ def _decision(poses: tuple[PoseResult, ...], criteria: Mapping[str, float]) -> D
     for name, limit in criteria.items():
         for pose in poses:
             value = pose.accuracy.ap_mm if name == "AP_mm" else pose.repeatability.rp_mm
-            verdicts.append((name, pose.label, value, float(limit), value <= float(limit)))
+            verdicts.append((name, pose_label(pose.pose, pose.conditions), value, float(limit), value <= float(limit)))
     rule = ("simple acceptance (ILAC-G8:09/2019 4.2.1): pass when the measured value <= the project criterion; "
             "the expanded uncertainty is reported but not used as a guard band") if criteria else \
         "no acceptance criterion stated: no pass/fail statement (ISO 9283 defines methods, not grades)"
@@ -380,7 +381,7 @@ def collect(store: Store, run_id: int, *, criteria: Mapping[str, float] | None =
     calibrations = calibrations_in_force(store, run)
     fits = tuple(fit for record in calibrations for fit in calibration_fits(store, record))
     instrument = counts_instrument(run, calibrations, sum(c in table.columns for c in _POSITION), fits)
-    poses = tuple(analyze_poses(table, instrument_u_mm=instrument.sigma_mm or 0.0, k=k, resamples=resamples))
+    poses = report_order(analyze_poses(table, instrument_u_mm=instrument.sigma_mm or 0.0, k=k, resamples=resamples))
     protocol = run.protocol_name
     cycles = int(table.groupby(["pose", *[c for c in ("velocity_pct", "load_kg") if c in table.columns]])
                  .size().min())

@@ -3,8 +3,9 @@
 The HTML template and the PDF builder walk the same :class:`Document`, so the two formats carry the same text,
 the same tables and the same figures by construction. Layout follows iso9283.md §9 (identification, device,
 method with the deviations table, conditions, instruments, results, plots, decision, raw data, scope). Numbers
-are formatted here, once: lengths in mm with 4 significant decimals' worth (``0.1234``), expanded uncertainties
-as ``value ± U`` with k stated in the table heading.
+with an uncertainty are printed ``value ± U`` with U to two significant digits and the value to the same decimal
+place (:mod:`bench.metrology.formatting`, the one rule of every output), k stated in the table heading; lengths
+without an uncertainty of their own (budget components) to 0.1 µm (``0.1234``).
 """
 
 from __future__ import annotations
@@ -12,6 +13,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Any
 
+from bench.metrology.formatting import format_measured, format_value, pose_label
 from bench.reports.content import ReportBase, RunReport
 from bench.reports.plots import Plot, comparison_plot, report_plots
 
@@ -28,6 +30,7 @@ _KINEMATICS = {"pkm5": "parallel kinematic machine, 5 DOF (x, y, z, α, β)", "d
 @dataclass(frozen=True)
 class Paragraph:
     text: str
+    verbatim: bool = False  #: a command to type: printed as written (module names kept; local paths still removed)
 
 
 @dataclass(frozen=True)
@@ -70,11 +73,13 @@ class Document:
 
 
 def fmt_mm(value: float) -> str:
+    """A length without an uncertainty of its own (a budget component, a floor): to 0.1 µm."""
     return f"{value:.4f}"
 
 
 def fmt_pm(measured) -> str:
-    return f"{measured.value:.4f} ± {measured.expanded_uncertainty:.4f}"
+    """``value ± U`` rounded by the uncertainty (:func:`bench.metrology.formatting.format_measured`)."""
+    return format_measured(measured.value, measured.expanded_uncertainty)
 
 
 def _pairs(mapping: dict[str, Any], prefix: str = "") -> list[tuple[str, str]]:
@@ -106,11 +111,40 @@ def _identification(report: ReportBase, operator: str, laboratory: str) -> Secti
     return Section("1. Identification", (key_values("identification", rows),))
 
 
+#: Robot settings that matter for the result (shown in the device section); the rest go to the appendix.
+_ROBOT_SHOWN = {"firmware.firmware_version": "Firmware version", "firmware.device": "Controller",
+                "fixture": "Fixture", "rated_speed_steps_s": "Rated speed (steps/s)",
+                "speed_steps_s": "Speed used (steps/s)", "rated_velocity_mm_s": "Rated velocity (mm/s)",
+                "firmware": "Firmware"}
+#: Instrument settings that matter for the result (shown in the instruments section); the rest go to the appendix.
+_INSTRUMENT_SHOWN = {"instrument": "Instrument", "cpi": "Resolution (counts per inch)",
+                     "noise_counts": "Count noise (counts, 1σ)", "report_rate_hz": "Report rate (Hz)",
+                     "calibration_id": "Calibration", "u_mm": "Standard uncertainty per axis (mm)",
+                     "mpe_mm": "Maximum permissible error (mm)", "readings": "Readings", "model": "Model"}
+
+
+def _shown(mapping: dict[str, Any], names: dict[str, str]) -> list[tuple[str, str]]:
+    """The settings of ``mapping`` named in ``names`` (flattened keys), with their readable names, in that order."""
+    flat = dict(_pairs(mapping))
+    return [(label, flat[key]) for key, label in names.items() if key in flat]
+
+
+def settings_appendix(report: ReportBase) -> Section:
+    """Every stored setting of the robot and the instrument, for traceability (the sections show those that matter)."""
+    settings = report.run.settings
+    rows = [*_pairs(settings.get("robot") or {}, "robot."), *_pairs(settings.get("instrument") or {}, "instrument."),
+            *((key, str(value)) for key, value in settings.items() if key not in ("robot", "instrument")
+              and not isinstance(value, dict))]
+    return Section("Appendix A. All stored settings", (
+        Paragraph("The complete settings stored with the run, as recorded; the sections above show the ones that "
+                  "matter for the result."), key_values("settings", rows)))
+
+
 def _device(report: ReportBase) -> Section:
     robot = report.run.settings.get("robot") or {}
     rows = [("Robot", report.run.robot), ("Kinematic type", _KINEMATICS.get(report.run.robot, "not stated")),
             ("Tool centre / measuring point", robot.get("tcp", "not stated (platform centre of the model)")),
-            *_pairs(robot, "controller.")]
+            *_shown(robot, _ROBOT_SHOWN)]
     return Section("2. Device under test", (key_values("device", rows),))
 
 
@@ -125,9 +159,24 @@ def _method(report: ReportBase, text: str, scope: str) -> Section:
     return Section("3. Method", (Paragraph(text), Paragraph(scope), _deviation_table(report)))
 
 
+#: Readable names of the configuration keys a report shows.
+CONDITION_NAMES = {"loads_kg": "Loads (kg)", "velocities_pct": "Velocities (% of rated)", "cycles": "Cycles per pose",
+                   "settle_s": "Dwell after each move (s)", "cube_centre_mm": "Test cube centre (mm)",
+                   "cube_side_mm": "Test cube edge (mm)", "plane": "Diagonal plane of the poses",
+                   "poses": "Poses (mm)", "approach_mm": "Approach distance (mm)", "warmup_s": "Warm-up (s)",
+                   "ambient_c": "Ambient temperature (°C)"}
+
+
+def _value(value: Any) -> str:
+    if isinstance(value, (list, tuple)):
+        return ", ".join(_value(v) for v in value)
+    return f"{value:g}" if isinstance(value, float) else str(value)
+
+
 def conditions_section(report: ReportBase, keys: tuple[str, ...], extra: tuple[tuple[str, str], ...] = ()) -> Section:
+    """The configuration keys ``keys`` the run stored (with a value), under readable names."""
     config = report.run.config
-    rows = [(k, "—" if config.get(k) is None else str(config.get(k))) for k in keys if k in config]
+    rows = [(CONDITION_NAMES.get(k, k), _value(config[k])) for k in keys if config.get(k) is not None]
     return Section("4. Conditions", (key_values("conditions", [*rows, *extra]),))
 
 
@@ -137,7 +186,8 @@ _POSE_CONDITIONS = ("loads_kg", "velocities_pct", "cycles", "settle_s", "cube_ce
 
 def _instruments(report: ReportBase) -> Section:
     info = report.instrument
-    blocks: list[Block] = [key_values("instrument", _pairs(info.settings))]
+    blocks: list[Block] = [key_values("instrument", _shown(info.settings, _INSTRUMENT_SHOWN)
+                                      or _pairs(info.settings))]
     calibrations = tuple((str(c.id), c.name, str(c.version), c.created_utc, c.notes or "—")
                          for c in info.calibrations)
     blocks.append(Table("calibrations", ("ID", "Name", "Version", "Date (UTC)", "Notes"), calibrations or (
@@ -148,7 +198,7 @@ def _instruments(report: ReportBase) -> Section:
                        "root sum of squares"))
     if info.rp_floor_mm is not None:
         budget.append((f"instrument RP floor ({info.dims}-D)", fmt_mm(info.rp_floor_mm),
-                       "bench.metrology.instrument_rp_floor"))
+                       "RP a perfect robot would show through this instrument (its noise only)"))
     blocks.append(Table("budget", ("Component", "Standard uncertainty (mm)", "Source"), tuple(budget) or (
         ("—", "—", "no length uncertainty stated or derivable"),), "Instrument uncertainty budget"))
     return Section("5. Instruments", tuple(blocks))
@@ -162,12 +212,14 @@ def pose_rows(report: RunReport) -> tuple[tuple[str, ...], tuple[tuple[str, ...]
     floor = fmt_mm(report.instrument.rp_floor_mm) if report.instrument.rp_floor_mm is not None else "—"
     rows = []
     for r in report.poses:
-        axes = [fmt_mm(v) for v in r.accuracy.ap_axes_mm] + ["—"] * (3 - len(r.accuracy.ap_axes_mm))
+        u_ap = r.ap_u.expanded_uncertainty
+        axes = ([format_value(v, u_ap, signed=True) for v in r.accuracy.ap_axes_mm]
+                + ["—"] * (3 - len(r.accuracy.ap_axes_mm)))
         orientation = ()
         if r.orientation_accuracy is not None:
             orientation = tuple(f"{ap:+.3f} / ±{rp:.3f}" for ap, rp in zip(r.orientation_accuracy.ap_deg,
                                                                           r.orientation_repeatability.rp_deg))
-        rows.append((r.label, str(r.accuracy.n), ", ".join(f"{v:g}" for v in r.commanded_mm), fmt_pm(r.ap_u), *axes,
+        rows.append((pose_label(r.pose, r.conditions), str(r.accuracy.n), ", ".join(f"{v:g}" for v in r.commanded_mm), fmt_pm(r.ap_u), *axes,
                      fmt_pm(r.rp_u), floor, *orientation))
     return header, tuple(rows)
 
@@ -209,14 +261,19 @@ def decision_blocks(rule: str, header: tuple[str, ...] = (), verdicts=()) -> tup
 
 
 def _decision(report: RunReport) -> tuple[Block, ...]:
-    return decision_blocks(report.decision.rule, ("Project criterion", "Pose", "Value (mm)", "Limit (mm)", "Result"),
-                           [(f"{name} (project criterion)", label, fmt_mm(value), fmt_mm(limit),
-                             "pass" if ok else "fail") for name, label, value, limit, ok in report.decision.verdicts])
+    u = {(name, pose_label(p.pose, p.conditions)): (p.ap_u if name == "AP_mm" else p.rp_u).expanded_uncertainty
+         for p in report.poses for name in ("AP_mm", "RP_mm")}
+    return decision_blocks(report.decision.rule, ("Project criterion", "Pose", "Value ± U (mm)", "Limit (mm)",
+                                                  "Result"),
+                           [(f"{name} (project criterion)", label, format_measured(value, u.get((name, label), 0.0)),
+                             f"{limit:g}", "pass" if ok else "fail")
+                            for name, label, value, limit, ok in report.decision.verdicts])
 
 
 def _raw(raw: list[RawData], notes: tuple[str, ...], recompute: str) -> Section:
     rows = tuple((r.name, r.sha256, str(r.rows)) for r in raw)
-    blocks: list[Block] = [Paragraph(f"Every number above can be recomputed from these files: {recompute}."),
+    blocks: list[Block] = [Paragraph(f"Every number above can be recomputed from these files: {recompute}.",
+                                     verbatim=True),
                            Table("rawdata", ("File", "SHA-256", "Rows"), rows, "Raw data")]
     excluded = notes or ("no sample excluded",)
     blocks.append(Paragraph("Excluded or incomplete data: " + "; ".join(excluded) + "."))
@@ -239,7 +296,8 @@ def assemble(report: ReportBase, raw: list[RawData], *, operator: str, laborator
         sections=(_identification(report, operator, laboratory), _device(report), _method(report, method, scope),
                   conditions, _instruments(report), Section("6. Results", tuple(results)),
                   Section("7. Plots", tuple(Figure(p) for p in plots)), Section("8. Decision", tuple(decision)),
-                  _raw(raw, report.notes, recompute), Section("10. Statement of scope", (Paragraph(scope),))),
+                  _raw(raw, report.notes, recompute), Section("10. Statement of scope", (Paragraph(scope),)),
+                  settings_appendix(report)),
         meta={"report_id": report.report_id})
 
 
@@ -250,8 +308,9 @@ def run_document(report: RunReport, raw: list[RawData], *, operator: str = "not 
     robot = report.run.settings.get("robot") or {}
     return assemble(
         report, raw, operator=operator, laboratory=laboratory,
-        method=f"Standard: ISO 9283:1998. Clauses applied: {clauses}. Formulas as in bench.metrology (sample "
-               f"standard deviation with n − 1; AP against the commanded pose).",
+        method=f"Standard: ISO 9283:1998. Clauses applied: {clauses}. Formulas of ISO 9283:1998 7.2 (sample "
+               f"standard deviation with n − 1; AP against the commanded pose); uncertainties after the GUM "
+               f"(JCGM 100:2008).",
         scope=SCOPE,
         conditions=conditions_section(report, _POSE_CONDITIONS,
                                (("velocity (mm/s)", str(robot.get("rated_velocity_mm_s", "not stated"))),)),
@@ -277,8 +336,12 @@ def comparison_document(first: RunReport, second: RunReport, raw: list[RawData])
         s = second_poses.get(r.label)
         if s is None:
             continue
-        paired.append((r.label, fmt_pm(r.ap_u), fmt_pm(s.ap_u), f"{s.accuracy.ap_mm - r.accuracy.ap_mm:+.4f}",
-                       fmt_pm(r.rp_u), fmt_pm(s.rp_u), f"{s.repeatability.rp_mm - r.repeatability.rp_mm:+.4f}"))
+        u_ap = max(r.ap_u.expanded_uncertainty, s.ap_u.expanded_uncertainty)
+        u_rp = max(r.rp_u.expanded_uncertainty, s.rp_u.expanded_uncertainty)
+        paired.append((pose_label(r.pose, r.conditions), fmt_pm(r.ap_u), fmt_pm(s.ap_u),
+                       format_value(s.accuracy.ap_mm - r.accuracy.ap_mm, u_ap, signed=True),
+                       fmt_pm(r.rp_u), fmt_pm(s.rp_u),
+                       format_value(s.repeatability.rp_mm - r.repeatability.rp_mm, u_rp, signed=True)))
     runs = f"run {a.id} (A) and run {b.id} (B)"
     return Document(
         title=f"Comparison of {runs}", subtitle=f"Reports {first.report_id} / {second.report_id}",

@@ -33,7 +33,8 @@ def _block(block) -> dict:
 def render_html(document: Document) -> str:
     """The HTML text of ``document``."""
     sections = [{"title": s.title, "blocks": [_block(b) for b in s.blocks]} for s in document.sections]
-    view = {"title": document.title, "subtitle": document.subtitle, "sections": sections}
+    view = {"title": document.title, "subtitle": document.subtitle, "sections": sections,
+            "banner": document.meta.get("banner")}
     return _ENVIRONMENT.get_template("report.html.j2").render(doc=view)
 
 

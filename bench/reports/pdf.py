@@ -68,6 +68,7 @@ class _NumberedCanvas(pdf_canvas.Canvas):
     """Defers each page so the footer can say "page i of n"."""
 
     footer = ""
+    banner = ""  #: drawn across the top of every page when set (simulated data)
 
     def __init__(self, *args, **kwargs):
         super().__init__(*args, **kwargs)
@@ -83,6 +84,13 @@ class _NumberedCanvas(pdf_canvas.Canvas):
             self.setFont(_FONT, 7)
             self.drawString(15 * mm, 10 * mm, self.footer)
             self.drawRightString(A4[0] - 15 * mm, 10 * mm, f"page {self._pageNumber} of {len(self._pages)}")
+            if self.banner:
+                self.setFillColor(colors.HexColor("#b00020"))
+                self.rect(0, A4[1] - 11 * mm, A4[0], 7 * mm, stroke=0, fill=1)
+                self.setFillColor(colors.white)
+                self.setFont(_BOLD, 9)
+                self.drawCentredString(A4[0] / 2, A4[1] - 8.6 * mm, self.banner)
+                self.setFillColor(colors.black)
             super().showPage()
         super().save()
 
@@ -145,7 +153,8 @@ def render_pdf(document: Document) -> bytes:
                 story.extend(_table(block, styles, width))
             elif isinstance(block, Figure):
                 story.extend(_figure(block, styles, width))
-    canvas_class = type("ReportCanvas", (_NumberedCanvas,), {"footer": document.subtitle})
+    canvas_class = type("ReportCanvas", (_NumberedCanvas,), {"footer": document.subtitle,
+                                                             "banner": document.meta.get("banner") or ""})
     frame.build(story, canvasmaker=canvas_class)
     return buffer.getvalue()
 

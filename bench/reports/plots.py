@@ -16,23 +16,56 @@ from dataclasses import dataclass
 import numpy as np
 from matplotlib.figure import Figure
 from matplotlib.patches import Circle
+from matplotlib.text import Text
 from matplotlib.ticker import MaxNLocator
 from scipy.spatial import ConvexHull, QhullError
 
-from bench.metrology import pose_accuracy
 from bench.reports.content import RunReport
 
-__all__ = ["Plot", "comparison_plot", "panels", "payload_caption", "payload_shift_figure", "png_bytes", "report_plots",
+__all__ = ["MIN_FONT_PT", "PRINT_HEIGHT_IN", "PRINT_WIDTH_IN", "Plot", "comparison_plot", "print_ready", "panels", "payload_caption", "payload_shift_figure", "png_bytes", "report_plots",
            "svg_text", "workspace_cloud_mm"]
 
 _log = logging.getLogger(__name__)
 _POSITION = ["x_mm", "y_mm", "z_mm"]
 
 
+#: Width of the text block of an A4 page with 15 mm margins (180 mm), inches: figures are drawn at this size so a
+#: point in the figure is a point on paper; and the tallest figure a page holds (200 mm).
+PRINT_WIDTH_IN = 180 / 25.4
+PRINT_HEIGHT_IN = 200 / 25.4
+#: Smallest font on paper (pt): tick labels, legends, annotations.
+MIN_FONT_PT = 7.0
+
+
+def print_ready(figure: Figure) -> Figure:
+    """Make ``figure`` readable at print size, once: scaled to fit :data:`PRINT_WIDTH_IN` x :data:`PRINT_HEIGHT_IN`
+    (keeping its aspect), every text at least :data:`MIN_FONT_PT`, then its layout computed once and frozen (a
+    fixed layout: saving it as SVG and PNG draws it once each, with no layout pass per save)."""
+    if getattr(figure, "_bench_print_ready", False):
+        return figure
+    width, height = figure.get_size_inches()
+    scale = min(PRINT_WIDTH_IN / width, PRINT_HEIGHT_IN / height)
+    figure.set_size_inches(width * scale, height * scale)
+    for axes in figure.axes:
+        axes.tick_params(labelsize=MIN_FONT_PT)
+    for text in figure.findobj(Text):
+        if text.get_fontsize() < MIN_FONT_PT:
+            text.set_fontsize(MIN_FONT_PT)
+    engine = figure.get_layout_engine()
+    if engine is not None:
+        engine.execute(figure)
+        figure.set_layout_engine("none")
+    figure._bench_print_ready = True
+    return figure
+
+
 @dataclass(frozen=True)
 class Plot:
     caption: str
     figure: Figure
+
+    def __post_init__(self) -> None:
+        print_ready(self.figure)
 
 
 def svg_text(plot: Plot) -> str:
@@ -57,34 +90,61 @@ def _rows_of(report: RunReport, result) -> np.ndarray:
     return table[mask].sort_values("cycle")
 
 
-def panels(count: int, *, max_columns: int, size: tuple[float, float] = (2.6, 2.6)) -> tuple[Figure, list]:
-    """A figure with ``count`` small panels, ``max_columns`` per row at most, each ``size`` inches."""
+def panels(count: int, *, max_columns: int, size: tuple[float, float] = (2.6, 2.6),
+           share: bool = False) -> tuple[Figure, list]:
+    """A figure with ``count`` small panels, ``max_columns`` per row at most, each ``size`` inches before the
+    figure is scaled to the print width (:func:`print_ready`); ``share``: one x and one y scale for all panels
+    (small multiples compared by eye), tick labels on the outer panels only."""
     columns = max(1, min(max_columns, count))
     rows = math.ceil(count / columns)
-    figure = Figure(figsize=(size[0] * columns, size[1] * rows + 0.4), layout="constrained")
-    return figure, [figure.add_subplot(rows, columns, index + 1) for index in range(count)]
+    if not share:
+        figure = Figure(figsize=(size[0] * columns, size[1] * rows + 0.4), layout="constrained")
+        return figure, [figure.add_subplot(rows, columns, index + 1) for index in range(count)]
+    # shared panels: drawn at print width with a fixed layout (margins in inches: y label, x label, legend on top)
+    left, right, bottom, top = 0.62, 0.08, 0.5, 0.5
+    width = PRINT_WIDTH_IN
+    height = (width - left - right) * size[1] * rows / (size[0] * columns) + bottom + top
+    figure = Figure(figsize=(width, height))
+    figure.subplots_adjust(left=left / width, right=1 - right / width, bottom=bottom / height,
+                           top=1 - top / height, wspace=0.12, hspace=0.32)
+    grid = figure.subplots(rows, columns, sharex=True, sharey=True, squeeze=False)
+    for extra in grid.flat[count:]:
+        extra.set_visible(False)
+    return figure, list(grid.flat[:count])
+
+
+def _short_label(result) -> str:
+    """``P1`` or ``P1, 100 %`` (panel titles: the conditions in short words)."""
+    from bench.metrology.formatting import pose_label
+
+    return pose_label(result.pose, result.conditions).replace(" velocity", "").replace(" load", "")
 
 
 def pose_scatter(report: RunReport) -> Plot:
-    """Per pose: attained points minus the command (x-y plane), barycentre and the RP circle around it."""
-    figure, panel = panels(len(report.poses), max_columns=5)
-    for index, (result, axes) in enumerate(zip(report.poses, panel)):
+    """Per pose: attained points minus the command (x-y plane), barycentre and the RP circle around it; one scale
+    for every panel (the largest RP circle fits), one legend for the figure."""
+    figure, panel = panels(len(report.poses), max_columns=5, size=(1.45, 1.45), share=True)
+    reach = max(float(np.abs(np.asarray(r.accuracy.ap_axes_mm[:2])).max()) + r.repeatability.rp_mm
+                for r in report.poses)
+    for result, axes in zip(report.poses, panel):
         points = _rows_of(report, result)[_POSITION[:2]].to_numpy() - np.asarray(result.commanded_mm[:2])
         centre = np.asarray(result.accuracy.ap_axes_mm[:2])
-        axes.scatter(points[:, 0], points[:, 1], s=8, color="tab:blue", label="attained")
-        axes.plot(*centre, marker="+", color="tab:red", markersize=12, label="barycentre")
-        axes.plot(0, 0, marker="x", color="black", label="command")
-        axes.add_patch(Circle(centre, result.repeatability.rp_mm, fill=False, color="tab:red", lw=1,
-                              label=f"RP = {result.repeatability.rp_mm:.3f} mm"))
-        axes.set_aspect("equal", adjustable="datalim")
-        axes.set_title(result.label, fontsize=8)
-        axes.tick_params(labelsize=7)
-        axes.set_xlabel("x − x_c (mm)", fontsize=7)
-        axes.set_ylabel("y − y_c (mm)", fontsize=7)
-        if index == 0:
-            axes.legend(fontsize=5, loc="lower left")
+        axes.scatter(points[:, 0], points[:, 1], s=3, color="tab:blue", label="attained", linewidths=0)
+        axes.plot(*centre, marker="+", color="tab:red", markersize=7, linestyle="", label="barycentre")
+        axes.plot(0, 0, marker="x", color="black", linestyle="", label="command")
+        axes.add_patch(Circle(centre, result.repeatability.rp_mm, fill=False, color="tab:red", lw=0.8,
+                              label="circle of radius RP_l"))
+        axes.set_title(_short_label(result), fontsize=MIN_FONT_PT, pad=2)
+    panel[0].set_xlim(-reach * 1.05, reach * 1.05)
+    panel[0].set_ylim(-reach * 1.05, reach * 1.05)
+    for axes in panel:
+        axes.set_aspect("equal", adjustable="box")
+    figure.supxlabel("x − x_c (mm)", fontsize=MIN_FONT_PT + 1, y=0.005, va="bottom")
+    figure.supylabel("y − y_c (mm)", fontsize=MIN_FONT_PT + 1, x=0.005, ha="left")
+    handles, labels = panel[0].get_legend_handles_labels()
+    figure.legend(handles, labels, loc="upper center", ncols=len(labels), fontsize=MIN_FONT_PT + 1)
     return Plot("Attained positions per pose relative to the command (x-y projection), with the barycentre "
-                "and a circle of radius RP_l around it.", figure)
+                "and a circle of radius RP_l around it; every panel on the same scale.", figure)
 
 
 def workspace_cloud_mm(robot: str, count: int = 2500) -> np.ndarray | None:
@@ -115,7 +175,7 @@ def ap_on_workspace(report: RunReport) -> Plot | None:
     figure = Figure(figsize=(10, 4.4), layout="constrained")
     for index, (i, j) in enumerate(((0, 1), (0, 2))):
         axes = figure.add_subplot(1, 2, index + 1)
-        axes.scatter(cloud[:, i], cloud[:, j], s=1, color="0.8", label="reachable (motion/)", rasterized=True)
+        axes.scatter(cloud[:, i], cloud[:, j], s=1, color="0.8", label="reachable (kinematic model)", rasterized=True)
         try:
             hull = ConvexHull(cloud[:, [i, j]])
             loop = np.append(hull.vertices, hull.vertices[0])
@@ -135,19 +195,28 @@ def ap_on_workspace(report: RunReport) -> Plot | None:
 
 
 def drift_series(report: RunReport) -> Plot:
-    """Per-cycle distance of each attained point from its command, in cycle order (drift and warm-up)."""
-    figure = Figure(figsize=(10, 3.8), layout="constrained")
-    axes = figure.add_subplot(1, 1, 1)
+    """Small multiples, one panel per pose, on one scale: per-cycle distance of each attained point from its
+    command in cycle order (drift and warm-up), one line per set of conditions, one legend for the figure."""
+    names = list(dict.fromkeys(r.pose for r in report.poses))
+    figure, panel = panels(len(names), max_columns=5, size=(1.45, 1.5), share=True)
+    by_pose = dict(zip(names, panel))
     for result in report.poses:
         rows = _rows_of(report, result)
         command = np.asarray(result.commanded_mm)
-        distance = [pose_accuracy(p[None, :], command).ap_mm for p in rows[_POSITION].to_numpy()]
-        axes.plot(rows["cycle"], distance, marker=".", lw=1, label=result.label)
-    axes.set_xlabel("cycle")
-    axes.xaxis.set_major_locator(MaxNLocator(integer=True))
-    axes.set_ylabel("|attained − command| (mm)")
-    axes.legend(fontsize=6, ncols=min(5, len(report.poses)))
-    return Plot("Per-cycle distance of each attained point from its command (a trend shows drift).", figure)
+        distance = np.linalg.norm(rows[_POSITION].to_numpy() - command, axis=1)
+        from bench.metrology.formatting import condition_text
+
+        by_pose[result.pose].plot(rows["cycle"], distance, marker=".", markersize=2, lw=0.8,
+                                  label=condition_text(result.conditions) or "all cycles")
+    for name, axes in by_pose.items():
+        axes.set_title(name, fontsize=MIN_FONT_PT, pad=2)
+        axes.xaxis.set_major_locator(MaxNLocator(integer=True, nbins=4))
+    figure.supxlabel("cycle", fontsize=MIN_FONT_PT + 1, y=0.005, va="bottom")
+    figure.supylabel("|attained − command| (mm)", fontsize=MIN_FONT_PT + 1, x=0.005, ha="left")
+    handles, labels = panel[0].get_legend_handles_labels()
+    figure.legend(handles, labels, loc="upper center", ncols=max(1, len(labels)), fontsize=MIN_FONT_PT + 1)
+    return Plot("Per pose, on one scale: distance of each attained point from its command, cycle by cycle (a trend "
+                "shows drift or warm-up).", figure)
 
 
 def payload_shift_figure(series) -> tuple[Figure, list]:

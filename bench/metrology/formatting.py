@@ -1,0 +1,108 @@
+"""Numbers as a report prints them: rounded by their uncertainty, one rule for every output.
+
+GUM (JCGM 100:2008) 7.2.6: the numerical values of an estimate and its uncertainty should not be given with an
+excessive number of digits; it usually suffices to quote U to at most two significant digits, and the estimate is
+then rounded to the same decimal place. This module is the one home of that rule; the HTML and PDF reports, the
+demo's ``results.csv``/``report.md`` and the CLI's text output all call it, so the same number reads the same
+everywhere.
+
+Examples
+--------
+>>> format_measured(0.44051, 0.23432)
+'0.44 ± 0.23'
+>>> uncertainty_decimals(0.0123)
+3
+>>> format_value(12.3456, 0.5)
+'12.35'
+"""
+
+from __future__ import annotations
+
+import math
+import re
+
+__all__ = ["condition_text", "format_measured", "format_pair", "format_value", "natural_key", "pose_label",
+           "report_order", "uncertainty_decimals"]
+
+#: Significant digits of a printed uncertainty (GUM 7.2.6).
+U_SIGNIFICANT_DIGITS = 2
+#: Decimal places used when a value has no usable uncertainty (U = 0, not finite): a length in mm to 1 µm.
+FALLBACK_DECIMALS = 3
+
+
+def uncertainty_decimals(uncertainty: float, *, digits: int = U_SIGNIFICANT_DIGITS) -> int:
+    """Decimal places that show ``uncertainty`` to ``digits`` significant digits (negative: tens, hundreds ...).
+
+    d = digits − 1 − floor(log10(|U|)), computed after rounding U, so 0.0996 (-> 0.100, not 0.0996) gets 2 places
+    and 9.96 gets 0 (-> 10). U = 0 or not finite gives :data:`FALLBACK_DECIMALS`.
+    """
+    u = abs(float(uncertainty))
+    if not math.isfinite(u) or u == 0.0:
+        return FALLBACK_DECIMALS
+    decimals = digits - 1 - math.floor(math.log10(u))
+    rounded = round(u, decimals)
+    if rounded > 0 and math.floor(math.log10(rounded)) > math.floor(math.log10(u)):
+        decimals -= 1
+    return decimals
+
+
+def _fixed(value: float, decimals: int) -> str:
+    if not math.isfinite(value):
+        return str(value)
+    if decimals >= 0:
+        text = f"{value:.{decimals}f}"
+    else:
+        scale = 10 ** -decimals  # whole tens, hundreds ...: half away from zero (Python's round() is half-even)
+        text = f"{math.copysign(math.floor(abs(value) / scale + 0.5), value) * scale:.0f}"
+    return "0" + text[2:] if text.startswith("-0") and float(text) == 0 else text
+
+
+def format_value(value: float, uncertainty: float, *, signed: bool = False) -> str:
+    """``value`` rounded to the decimal place of ``uncertainty`` shown to two significant digits."""
+    text = _fixed(float(value), uncertainty_decimals(uncertainty))
+    return f"+{text}" if signed and not text.startswith("-") and float(text) != 0 else text
+
+
+def format_pair(value: float, uncertainty: float, *, signed: bool = False) -> tuple[str, str]:
+    """``(value, U)`` as strings, U to two significant digits and the value to the same decimal place."""
+    decimals = uncertainty_decimals(uncertainty)
+    return format_value(value, uncertainty, signed=signed), _fixed(abs(float(uncertainty)), decimals)
+
+
+def format_measured(value: float, uncertainty: float, *, signed: bool = False) -> str:
+    """``"value ± U"`` rounded by :func:`format_pair` (0.44051, 0.23432 -> ``"0.44 ± 0.23"``)."""
+    shown, u = format_pair(value, uncertainty, signed=signed)
+    return f"{shown} ± {u}"
+
+
+def natural_key(label: str) -> tuple:
+    """Sort key that orders ``P2`` before ``P10`` and ``P1`` before ``P1/x+`` (digits compared as numbers)."""
+    return tuple(int(part) if part.isdigit() else part for part in re.split(r"(\d+)", str(label)))
+
+
+#: How a condition column reads in a label: name -> (format of the value, unit and wording).
+_CONDITION_WORDS = {"velocity_pct": "{:g} % velocity", "load_kg": "{:g} kg load"}
+
+
+def condition_text(conditions) -> str:
+    """Conditions ``(("velocity_pct", 100.0), ("load_kg", 0.5))`` as words: ``"100 % velocity, 0.5 kg load"``."""
+    words = []
+    for name, value in conditions:
+        template = _CONDITION_WORDS.get(name)
+        words.append(template.format(value) if template else f"{name} {value:g}")
+    return ", ".join(words)
+
+
+def pose_label(pose: str, conditions=()) -> str:
+    """A pose and its conditions as a reader reads them: ``"P1, 100 % velocity"`` (not ``P1 (velocity_pct=100)``)."""
+    text = condition_text(conditions)
+    return f"{pose}, {text}" if text else str(pose)
+
+
+def report_order(poses) -> tuple:
+    """Pose results (anything with ``.pose`` and ``.conditions``) as every output lists them: by set of conditions
+    in the order the run tested them (100, 50, 10 % velocity), then by pose name in natural order (P1, P2, ...,
+    P5; not the cycle order P1, P5, P4, ...)."""
+    poses = list(poses)
+    first_seen = {c: i for i, c in reversed(list(enumerate(p.conditions for p in poses)))}
+    return tuple(sorted(poses, key=lambda p: (first_seen[p.conditions], natural_key(p.pose))))

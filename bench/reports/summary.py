@@ -1,0 +1,205 @@
+"""Page 1 of a report: who and what was tested, the headline numbers, the verdict, whether the data are simulated,
+and what happened during the run.
+
+- :class:`Identity`: the device under test and the people (serial/asset, customer, order, operator, laboratory),
+  from ``bench report`` options or, with the same keys, from the run's stored ``settings.dut`` (so a station file
+  that records them at run time supplies them; an option given to ``bench report`` wins).
+- :func:`headline_rows`: per velocity and load, the worst and the mean AP_P and RP_l over the poses, with U. The U
+  of the mean is the mean of the poses' U (the poses share the instrument terms; fully correlated, conservative).
+- :func:`verdicts`: per characteristic, the worst pose against the stated criterion, and the overall result
+  (simple acceptance, ILAC-G8:09/2019 4.2.1, as :class:`bench.reports.content.Decision`).
+- :func:`is_simulated`: whether any device of the run was simulated (the run's settings name a simulator).
+- :func:`run_history`: start, interruptions (gaps in the stored sample times: pauses, aborts and resumes), end
+  status with its reason; the store keeps the samples' wall-clock times, so the history is computed from them.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, fields
+from datetime import datetime
+from statistics import median
+from typing import Any
+
+from bench.errors import ConfigError
+from bench.metrology.formatting import condition_text, format_measured, pose_label
+from bench.metrology.tables import PoseResult
+from bench.store import RunRecord, Store
+
+__all__ = ["HistoryEvent", "Identity", "headline_rows", "is_simulated", "run_history", "summary_section", "verdicts"]
+
+NOT_RECORDED = "not recorded"
+#: A gap between two stored samples longer than this many times the run's median interval, and at least
+#: :data:`MIN_GAP_S`, is an interruption (pause, abort then resume, loss of a device).
+GAP_FACTOR = 20.0
+MIN_GAP_S = 30.0
+
+
+@dataclass(frozen=True)
+class Identity:
+    """Who and what the report is about; every field is free text, "not recorded" when nobody stated it."""
+
+    dut_serial: str = NOT_RECORDED  #: robot serial number or asset tag
+    customer: str = NOT_RECORDED
+    order: str = NOT_RECORDED  #: order or job number
+    operator: str = NOT_RECORDED
+    laboratory: str = NOT_RECORDED
+
+    @classmethod
+    def from_mapping(cls, values: Mapping[str, Any], source: str = "settings.dut") -> Identity:
+        """An identity from a mapping with the field names as keys (a station file's ``[dut]`` table)."""
+        names = {f.name for f in fields(cls)}
+        unknown = sorted(set(values) - names)
+        if unknown:
+            raise ConfigError(f"{source}: unknown key {unknown[0]!r}, expected some of {', '.join(sorted(names))}")
+        return cls(**{k: str(v) for k, v in values.items() if v not in (None, "")})
+
+    def merged(self, given: Mapping[str, str | None]) -> Identity:
+        """This identity with the ``given`` values (e.g. command-line options) replacing the stored ones."""
+        return Identity(**{f.name: (given.get(f.name) or getattr(self, f.name)) for f in fields(self)})
+
+    @classmethod
+    def of_run(cls, run: RunRecord, given: Mapping[str, str | None] | None = None) -> Identity:
+        """The run's stored identity (``settings.dut``), completed or overridden by ``given``."""
+        return cls.from_mapping(run.settings.get("dut") or {}).merged(given or {})
+
+    def rows(self) -> list[tuple[str, str]]:
+        return [("Device under test (serial / asset)", self.dut_serial), ("Customer", self.customer),
+                ("Order", self.order), ("Operator", self.operator), ("Laboratory", self.laboratory)]
+
+
+def is_simulated(run: RunRecord) -> bool:
+    """True when any device of the run was simulated: the settings carry a ``simulator`` entry, or the robot's
+    firmware version or the instrument's description says so."""
+    settings = run.settings
+    if "simulator" in settings:
+        return True
+
+    def entry(mapping: Any, *keys: str) -> Any:
+        for key in keys:
+            mapping = mapping.get(key) if isinstance(mapping, Mapping) else None
+        return mapping
+
+    firmware = str(entry(settings, "robot", "firmware", "firmware_version") or "")
+    described = str(entry(settings, "instrument", "instrument") or "")
+    return firmware.endswith("-sim") or "simulated" in described.lower()
+
+
+def _by_conditions(poses: Sequence[PoseResult]) -> dict[tuple, list[PoseResult]]:
+    groups: dict[tuple, list[PoseResult]] = {}
+    for pose in poses:
+        groups.setdefault(pose.conditions, []).append(pose)
+    return groups
+
+
+def headline_rows(poses: Sequence[PoseResult]) -> tuple[tuple[str, ...], ...]:
+    """Per set of conditions: conditions, poses, worst AP_P ± U (pose), mean AP_P ± U, worst RP_l ± U (pose),
+    mean RP_l ± U; every number rounded by its uncertainty."""
+    rows = []
+    for conditions, group in _by_conditions(poses).items():
+        worst_ap = max(group, key=lambda p: p.accuracy.ap_mm)
+        worst_rp = max(group, key=lambda p: p.repeatability.rp_mm)
+        mean = lambda values: sum(values) / len(values)  # noqa: E731
+        rows.append((condition_text(conditions) or "all", str(len(group)),
+                     f"{format_measured(worst_ap.ap_u.value, worst_ap.ap_u.expanded_uncertainty)} ({worst_ap.pose})",
+                     format_measured(mean([p.ap_u.value for p in group]),
+                                     mean([p.ap_u.expanded_uncertainty for p in group])),
+                     f"{format_measured(worst_rp.rp_u.value, worst_rp.rp_u.expanded_uncertainty)} ({worst_rp.pose})",
+                     format_measured(mean([p.rp_u.value for p in group]),
+                                     mean([p.rp_u.expanded_uncertainty for p in group]))))
+    return tuple(rows)
+
+
+def verdicts(decision_verdicts, uncertainties: Mapping[tuple[str, str], float]) -> tuple[tuple[str, ...], ...]:
+    """Per criterion: name, limit, the worst value ± U and where, poses passed, result; then the overall row.
+
+    ``decision_verdicts``: (criterion, pose label, value, limit, passed) rows of a Decision; ``uncertainties``:
+    U per (criterion, pose label), printed next to the worst value.
+    """
+    by_name: dict[str, list] = {}
+    for row in decision_verdicts:
+        by_name.setdefault(row[0], []).append(row)
+    out = []
+    for name, rows in by_name.items():
+        worst = max(rows, key=lambda r: r[2])
+        u = uncertainties.get((name, worst[1]), 0.0)
+        passed = sum(r[4] for r in rows)
+        out.append((name.removesuffix("_mm") + " (mm)", f"≤ {worst[3]:g}",
+                    f"{format_measured(worst[2], u)} ({worst[1]})", f"{passed} of {len(rows)}",
+                    "PASS" if passed == len(rows) else "FAIL"))
+    if out:
+        out.append(("Overall", "", "", "", "PASS" if all(r[-1] == "PASS" for r in out) else "FAIL"))
+    return tuple(out)
+
+
+@dataclass(frozen=True)
+class HistoryEvent:
+    time_utc: str
+    event: str
+
+
+def _parse(text: str) -> datetime:
+    return datetime.fromisoformat(text.replace("Z", "+00:00"))
+
+
+def interruptions(times: Sequence[datetime]) -> list[HistoryEvent]:
+    """The gaps in sample times ``times`` longer than :data:`GAP_FACTOR` x their median interval and at least
+    :data:`MIN_GAP_S`: one event per gap, at the last sample before it, saying how long and when sampling resumed."""
+    times = sorted(times)
+    gaps = [(b - a).total_seconds() for a, b in zip(times, times[1:])]
+    if not gaps:
+        return []
+    limit = max(MIN_GAP_S, GAP_FACTOR * median(gaps))
+    return [HistoryEvent(before.isoformat(timespec="seconds"),
+                         f"interrupted: no sample for {gap:.0f} s (paused, or stopped and resumed); sampling "
+                         f"resumed {after.isoformat(timespec='seconds')}")
+            for before, after, gap in zip(times, times[1:], gaps) if gap >= limit]
+
+
+def run_history(store: Store, run: RunRecord) -> tuple[HistoryEvent, ...]:
+    """Start, each interruption of the stored samples (:func:`interruptions`: a pause, an abort and a resume, a lost
+    device), and the end with its status and reason."""
+    started = HistoryEvent(_seconds(run.started_utc), "started")
+    gaps = interruptions([_parse(s.wall_utc) for s in store.samples(run.id)])
+    end = {"running": "no end stored (still running, or the program stopped without settling the status)"
+           }.get(run.status, run.status)
+    ended = HistoryEvent(_seconds(run.ended_utc) if run.ended_utc else "—",
+                         end + (f": {run.reason}" if run.reason else ""))
+    return (started, *gaps, ended)
+
+
+def _seconds(text: str) -> str:
+    return _parse(text).isoformat(timespec="seconds")
+
+
+def summary_section(report, identity: Identity, history: Sequence[HistoryEvent], simulated: bool):
+    """Page 1: identity, test and date, the headline table and the verdict (pose runs), the data's nature, the
+    run history. ``report`` is any layout's report; the headline and verdict need a pose run's results."""
+    from bench.reports.content import RunReport
+    from bench.reports.document import Paragraph, Section, Table, key_values
+
+    run = report.run
+    rows = [*identity.rows(), ("Test", f"{report.title} ({run.robot})"),
+            ("Test date (UTC)", (run.started_utc or "—")[:10]), ("Report", report.report_id)]
+    blocks: list = []
+    if simulated:
+        blocks.append(Paragraph("SIMULATED DATA: at least one device of this run (robot or instrument) was a "
+                                "simulator. The numbers describe the simulation, not a physical robot."))
+    blocks.append(key_values("summary-identity", rows))
+    if isinstance(report, RunReport) and report.poses:
+        k = f"{report.coverage_factor:g}"
+        blocks.append(Table("headline", ("Conditions", "Poses", "Worst AP_P ± U (mm)", "Mean AP_P ± U (mm)",
+                                         "Worst RP_l ± U (mm)", "Mean RP_l ± U (mm)"), headline_rows(report.poses),
+                            f"Headline results per velocity and load (U: expanded uncertainty, k = {k}; U of a mean "
+                            f"is the mean of the poses' U)"))
+        u = {(name, label): (p.ap_u if name == "AP_mm" else p.rp_u).expanded_uncertainty
+             for p in report.poses for name in ("AP_mm", "RP_mm") for label in (p.label, pose_label(p.pose, p.conditions))}
+        verdict = verdicts(report.decision.verdicts, u)
+        if verdict:
+            blocks.append(Table("verdict", ("Characteristic", "Criterion", "Worst value ± U (where)", "Poses passed",
+                                            "Result"), verdict, "Verdict against the stated criteria"))
+        blocks.append(Paragraph(f"Decision rule: {report.decision.rule}."))
+    blocks.append(Table("history", ("Time (UTC)", "Event"), tuple((e.time_utc, e.event) for e in history),
+                        "Run history"))
+    return Section("Summary", tuple(blocks))
+

@@ -1,0 +1,50 @@
+"""Figures readable at print size: every rendered text >= 7 pt on A4, one legend per small-multiples figure, one
+scale across its panels."""
+
+from __future__ import annotations
+
+import pytest
+from matplotlib.text import Text
+from reports_runs import SETTINGS, pose_config, write_pose_run
+
+from bench.reports import collect
+from bench.reports.plots import MIN_FONT_PT, PRINT_HEIGHT_IN, PRINT_WIDTH_IN, drift_series, pose_scatter, report_plots
+from bench.reports.plots import svg_text
+from bench.store import Store
+
+
+@pytest.fixture(scope="module")
+def report(tmp_path_factory):
+    with Store(tmp_path_factory.mktemp("plots") / "bench.db") as store:
+        run_id = write_pose_run(store, config=pose_config(velocities_pct=[100.0, 50.0, 10.0], cycles=5),
+                                settings=SETTINGS)
+        yield collect(store, run_id, resamples=50)
+
+
+def _printed_font_sizes(plot) -> list[float]:
+    """Point size on A4 of every text drawn in the figure (the PDF fits the figure into 180 x 200 mm)."""
+    svg_text(plot)  # draw: tick labels exist after a draw
+    width, height = plot.figure.get_size_inches()
+    scale = min(PRINT_WIDTH_IN / width, PRINT_HEIGHT_IN / height)
+    return [text.get_fontsize() * scale for text in plot.figure.findobj(Text)
+            if text.get_visible() and text.get_text().strip()]
+
+
+def test_every_text_is_at_least_7_pt_on_a4(report):
+    plots = report_plots(report)
+    assert len(plots) >= 3
+    for plot in plots:
+        sizes = _printed_font_sizes(plot)
+        assert sizes and min(sizes) >= MIN_FONT_PT - 1e-9, plot.caption
+        assert plot.figure.get_size_inches()[0] == pytest.approx(PRINT_WIDTH_IN, abs=0.01)
+
+
+def test_small_multiples_share_one_scale_and_one_legend(report):
+    for plot, count in ((pose_scatter(report), 15), (drift_series(report), 5)):
+        panels = [axes for axes in plot.figure.axes if axes.get_visible()]
+        assert len(panels) == count
+        assert len({axes.get_xlim() for axes in panels}) == 1 and len({axes.get_ylim() for axes in panels}) == 1
+        assert len(plot.figure.legends) == 1 and not any(axes.get_legend() for axes in panels)
+    drift = drift_series(report)
+    labels = [text.get_text() for text in drift.figure.legends[0].get_texts()]
+    assert labels == ["100 % velocity", "50 % velocity", "10 % velocity"]
