@@ -209,8 +209,12 @@ def test_a_hardware_path_run_is_exported_analysed_and_reported_with_equal_number
     exported = pd.read_csv(table)
     assert len(samples) == len(exported) == 15
     html = (out / f"report_run{run_id}.html").read_text()
-    for pose, result in analysed.items():
-        assert f"{result['AP_mm']:.3f}"[:-1] in html, (pose, result["AP_mm"])  # the report shows the same AP
+    assert "PKM5-0001" in html and "Parallel robots lab" in html  # page 1 names the station's device under test
+    from bench.metrology.formatting import format_value
+
+    for pose, result in analysed.items():  # the report shows the same AP, rounded by its U as everywhere
+        shown = format_value(result["AP_mm"], result["U_AP_mm"])
+        assert f">{shown}" in html or f" {shown} " in html, (pose, shown)
 
 
 def test_delta4_with_the_laser_grid_on_the_hardware_path(tmp_path):

@@ -85,7 +85,16 @@ def build_rig(station: Station, store: Any, *, operator: Operator | None = None,
     rig = Rig(mover, instrument, operator, speed_factor=speed_factor, calibration_ids=tuple(calibration_ids),
               closers=[closers.close])
     rig.extra["station"] = station.settings()
+    rig.extra["dut"] = station_identity(station)
     return rig
+
+
+def station_identity(station: Station) -> dict[str, str]:
+    """The device under test and the people, as the report's page 1 reads them (``settings.dut``)."""
+    identity = station.identity
+    fields = {"dut_serial": identity.robot_serial or identity.robot_asset, "customer": identity.customer,
+              "order": identity.order, "operator": identity.operator, "laboratory": identity.lab}
+    return {key: value for key, value in fields.items() if value}
 
 
 def open_mover(station: Station) -> tuple[Any, Any]:
