@@ -1,0 +1,200 @@
+"""Geometric error model of the PKM for kinematic calibration: a named parameter vector and the measurement model.
+
+The parameters are deviations from a nominal :class:`~motion.pkm5.geometry.Geometry` (the documented robot unless
+told otherwise), each with its unit in its name:
+
+* ``leg_offset_<i>_mm`` (i = 1..6): added to ``leg_length_offset_mm[i]``, the length |BC| at zero stroke;
+* ``scale_<i>``: relative error of the lead (``mm_per_full_step[i] * (1 + scale_i)``), dimensionless;
+* ``oa_<pair>_<axis>_mm`` (pair 12, 34, 56): base joint positions A, global frame;
+* ``pd_<leg>_<axis>_mm`` (12, 34, 5, 6): platform joint positions D, end-effector frame;
+* ``reg_<axis>_mm`` (x, y, z): registration of a relative instrument (the mice measure displacements from home),
+  a constant added to every predicted position; not a geometry field.
+
+The measurement model is forward (pkm5.md §4.3, least squares over the six legs): commanded steps ``s`` give leg
+lengths ``L(s; theta) = L0 + s * dir * CR (1 + scale)`` and the attained pose is
+``p(theta) = argmin_p |IK(p; theta) - L(s; theta)|^2`` within the commanded motion mode. Its Jacobian comes from the
+implicit function theorem at the solution, ``dp/dtheta = -J_p^+ (dIK/dtheta - dL/dtheta)`` with ``J_p`` the exact
+pose Jacobian of the IK restricted to the mode's columns (:func:`motion.pkm5.jacobian.jacobian`) and ``dIK/dtheta``
+by central differences of the closed-form IK (smooth, so a 1e-4 mm step gives ~1e-8 relative accuracy).
+Forward residuals suit position-only and relative measurements (mice, laser grid) where the orientation is not
+measured; the calibration literature (methods-turn2.md §1.1) prefers IK residuals only when the full pose is known.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from motion.errors import MotionInputError
+from motion.pkm5.fk import MODES, forward_kinematics
+from motion.pkm5.geometry import DEFAULT_GEOMETRY, Geometry, steps_to_lengths
+from motion.pkm5.ik import leg_lengths
+from motion.pkm5.jacobian import jacobian
+
+__all__ = ["PARAMETERS", "REGISTRATION", "UNITS", "apply_parameters", "parameter_deviations", "modes_of_poses",
+           "ForwardModel"]
+
+_AXES = ("x", "y", "z")
+_JOINT_FIELDS = ("oa_12", "oa_34", "oa_56", "pd_12", "pd_34", "pd_5", "pd_6")
+#: Registration unknowns of a relative instrument (mm).
+REGISTRATION = tuple(f"reg_{axis}_mm" for axis in _AXES)
+#: Every geometric parameter, in the order the default free set is built (joint zeros first, then scales, then
+#: the joint positions, pkm5.md §2.6: the fields the documents never give come first).
+PARAMETERS = (tuple(f"leg_offset_{i}_mm" for i in range(1, 7)) + tuple(f"scale_{i}" for i in range(1, 7))
+              + tuple(f"{field}_{axis}_mm" for field in _JOINT_FIELDS for axis in _AXES))
+#: Unit of each parameter (``1`` for the dimensionless scale).
+UNITS = {name: ("1" if name.startswith("scale_") else "mm") for name in PARAMETERS + REGISTRATION}
+_FD_STEP = {"mm": 1e-4, "1": 1e-6}
+
+
+def _check_names(names) -> tuple[str, ...]:
+    names = tuple(names)
+    unknown = [n for n in names if n not in UNITS]
+    if unknown:
+        raise MotionInputError(f"calibration parameter {unknown[0]!r} is not a pkm5 parameter; expected one of "
+                               f"leg_offset_1_mm..leg_offset_6_mm, scale_1..scale_6, oa_12_x_mm.., pd_6_z_mm, "
+                               f"reg_x_mm..reg_z_mm")
+    if len(set(names)) != len(names):
+        raise MotionInputError(f"calibration parameters {list(names)} name one parameter twice")
+    return names
+
+
+def apply_parameters(names, values, geometry: Geometry = DEFAULT_GEOMETRY) -> Geometry:
+    """The geometry with the deviations ``values`` of parameters ``names`` added (registration names ignored)."""
+    names = _check_names(names)
+    values = np.asarray(values, dtype=float).reshape(len(names))
+    offsets = np.array(geometry.leg_length_offset_mm, dtype=float)
+    lead = np.array(geometry.mm_per_full_step, dtype=float)
+    joints = {field: np.array(getattr(geometry, f"{field}_mm"), dtype=float) for field in _JOINT_FIELDS}
+    for name, value in zip(names, values):
+        if name.startswith("leg_offset_"):
+            offsets[int(name[11]) - 1] += value
+        elif name.startswith("scale_"):
+            index = int(name[6]) - 1
+            lead[index] = geometry.mm_per_full_step[index] * (1.0 + value)
+        elif not name.startswith("reg_"):
+            field, axis = name[:-5], name[-4]
+            joints[field][_AXES.index(axis)] += value
+    return geometry.replace(leg_length_offset_mm=tuple(offsets), mm_per_full_step=tuple(lead),
+                            **{f"{field}_mm": tuple(v) for field, v in joints.items()})
+
+
+def parameter_deviations(geometry: Geometry, nominal: Geometry = DEFAULT_GEOMETRY) -> dict[str, float]:
+    """Every parameter of :data:`PARAMETERS` as the deviation of ``geometry`` from ``nominal``."""
+    out = {}
+    for i in range(6):
+        out[f"leg_offset_{i + 1}_mm"] = geometry.leg_length_offset_mm[i] - nominal.leg_length_offset_mm[i]
+    for i in range(6):
+        out[f"scale_{i + 1}"] = geometry.mm_per_full_step[i] / nominal.mm_per_full_step[i] - 1.0
+    for field in _JOINT_FIELDS:
+        for k, axis in enumerate(_AXES):
+            out[f"{field}_{axis}_mm"] = getattr(geometry, f"{field}_mm")[k] - getattr(nominal, f"{field}_mm")[k]
+    return {name: float(value) for name, value in out.items()}
+
+
+def modes_of_poses(poses) -> np.ndarray:
+    """Motion mode of commanded poses (N, 5; angles in any unit): 'alpha' if alpha != 0, 'beta' if beta != 0."""
+    p = np.asarray(poses, dtype=float).reshape(-1, 5)
+    return np.where(p[:, 3] != 0, "alpha", np.where(p[:, 4] != 0, "beta", "translation")).astype(object)
+
+
+class ForwardModel:
+    """Predicted measured coordinates of the attained poses as a function of the free parameters.
+
+    Parameters
+    ----------
+    steps : array_like (N, 6)
+        Commanded absolute steps of each measured pose.
+    modes : array_like (N,) of str
+        Motion mode of each commanded pose ('translation', 'alpha', 'beta'; :func:`modes_of_poses`).
+    free : sequence of str
+        Names of the free parameters (:data:`PARAMETERS` and :data:`REGISTRATION`).
+    axes : sequence of int
+        Pose coordinates the instrument measures (0, 1, 2 = x, y, z in mm; the mice: all three positions).
+    nominal : Geometry
+        The geometry the deviations are taken from.
+    """
+
+    def __init__(self, steps, modes, free, axes=(0, 1, 2), nominal: Geometry = DEFAULT_GEOMETRY) -> None:
+        self.steps = np.asarray(steps, dtype=float).reshape(-1, 6)
+        self.modes = np.asarray(modes, dtype=object).reshape(-1)
+        if len(self.modes) != len(self.steps):
+            raise MotionInputError(f"modes has {len(self.modes)} entries for {len(self.steps)} poses")
+        bad = set(self.modes) - set(MODES)
+        if bad:
+            raise MotionInputError(f"mode = {sorted(bad)[0]!r}, expected one of {sorted(MODES)}")
+        self.free = _check_names(free)
+        self.axes = tuple(int(a) for a in axes)
+        if not self.axes or any(a not in (0, 1, 2) for a in self.axes):
+            raise MotionInputError(f"axes = {axes!r}, expected a subset of (0, 1, 2) (x, y, z)")
+        self.nominal = nominal
+        self._pose = None  # last solution, the warm start of the next solve
+
+    @property
+    def units(self) -> tuple[str, ...]:
+        return tuple(UNITS[name] for name in self.free)
+
+    def poses(self, theta) -> np.ndarray:
+        """Attained poses (N, 5; mm, rad) under parameters ``theta``; NaN rows where the FK fails."""
+        geometry = apply_parameters(self.free, theta, self.nominal)
+        lengths = steps_to_lengths(self.steps, geometry)
+        out = np.full((len(self.steps), 5), np.nan)
+        for mode in MODES:
+            rows = np.flatnonzero(self.modes == mode)
+            if rows.size == 0:
+                continue
+            if self._pose is None or not np.all(np.isfinite(self._pose[rows])):
+                # start from the documented geometry's solution: its k-d seed tables are cached, while a perturbed
+                # geometry's alpha plane moves and rejection-sampling a new table would take minutes
+                start = forward_kinematics(steps_to_lengths(self.steps[rows], DEFAULT_GEOMETRY), DEFAULT_GEOMETRY,
+                                           mode=mode, residual_tol_mm=2.0, max_iter=200).pose
+            else:
+                start = self._pose[rows]
+            fk = forward_kinematics(lengths[rows], geometry, initial_pose=start, mode=mode, residual_tol_mm=2.0,
+                                    retry_above_mm=0.5, max_iter=200)
+            out[rows] = np.where(fk.converged[:, None], fk.pose, np.nan)
+        self._pose = out
+        return out
+
+    def _registration(self, theta) -> np.ndarray:
+        shift = np.zeros(3)
+        for name, value in zip(self.free, np.asarray(theta, dtype=float)):
+            if name.startswith("reg_"):
+                shift[_AXES.index(name[4])] = value
+        return shift
+
+    def predict(self, theta) -> np.ndarray:
+        """Predicted measured coordinates (N, len(axes)), mm."""
+        positions = self.poses(theta)[:, :3] + self._registration(theta)
+        return positions[:, list(self.axes)]
+
+    def jacobian(self, theta, poses=None) -> np.ndarray:
+        """d predict / d theta, shape (N, len(axes), len(free)), at the attained poses (computed if not given)."""
+        theta = np.asarray(theta, dtype=float)
+        p = self.poses(theta) if poses is None else poses
+        n, k = len(p), len(self.free)
+        geometry_cols = [j for j, name in enumerate(self.free) if not name.startswith("reg_")]
+        # g(p, theta) = IK(p; theta) - L(s; theta); dg/dtheta by central differences of the closed forms
+        dg = np.zeros((n, 6, k))
+        x, y, z, alpha, beta = np.nan_to_num(p).T
+        for j in geometry_cols:
+            h = _FD_STEP[UNITS[self.free[j]]]
+            sides = []
+            for sign in (1.0, -1.0):
+                bumped = theta.copy()
+                bumped[j] += sign * h
+                g = apply_parameters(self.free, bumped, self.nominal)
+                lengths, _ = leg_lengths(x, y, z, alpha, beta, g, with_tilt=False)
+                sides.append(np.stack(lengths, -1) - steps_to_lengths(self.steps, g))
+            dg[:, :, j] = (sides[0] - sides[1]) / (2 * h)
+        jp = jacobian(np.nan_to_num(p), apply_parameters(self.free, theta, self.nominal))  # (N, 6, 5)
+        dpose = np.zeros((n, 5, k))
+        for mode, angle in MODES.items():
+            rows = np.flatnonzero(self.modes == mode)
+            if rows.size == 0:
+                continue
+            cols = [0, 1, 2] + ([angle] if angle is not None else [])
+            dpose[np.ix_(rows, cols, np.arange(k))] = -np.linalg.pinv(jp[np.ix_(rows, np.arange(6), cols)]) @ dg[rows]
+        for j, name in enumerate(self.free):
+            if name.startswith("reg_"):
+                dpose[:, _AXES.index(name[4]), j] = 1.0
+        return dpose[:, list(self.axes), :]
