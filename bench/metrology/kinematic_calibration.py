@@ -10,7 +10,8 @@ uncertainty ``u`` per coordinate, minimised by :func:`scipy.optimize.least_squar
 so it is not rescaled by the residuals; the reduced chi^2 is reported as the check), the standard uncertainties its
 diagonal's square roots and the correlations ``C_ij / (u_i u_j)``.
 
-Observability uses the *scaled* Jacobian ``J_s`` (columns of ``J_w`` divided by their norms, so units drop out) and its
+Observability uses the *scaled* Jacobian ``J_s`` (columns of ``J_w`` divided by their RMS over the m poses, so units
+drop out) and its
 singular values sigma_1 >= ... >= sigma_L: the condition number sigma_1 / sigma_L (Schroer et al.: below 100 for
 reliable results) and the O1 index of Borm & Menq, ``(sigma_1 ... sigma_L)^{1/L} / sqrt(m)`` with L parameters and
 m poses (invariant to repeating the pose set). Right singular vectors of the singular values below sigma_1 / 100
@@ -69,11 +70,11 @@ def observability(jac, uncertainty, names, limit: float = CONDITION_LIMIT) -> Ob
     weighted = _weighted(jac, uncertainty)
     if not np.all(np.isfinite(weighted)):
         raise InsufficientData("identification Jacobian is not finite (forward kinematics failed at some pose)")
-    norms = np.linalg.norm(weighted, axis=0)
+    n_poses = len(np.asarray(jac))
+    norms = np.linalg.norm(weighted, axis=0) / np.sqrt(n_poses)  # RMS per pose, so repeating the set scales J_s
     dead = norms <= 1e-12 * max(norms.max(initial=0.0), 1e-300)
     scaled = weighted / np.where(dead, 1.0, norms)
     _, sv, vt = np.linalg.svd(scaled, full_matrices=False)
-    n_poses = len(np.asarray(jac))
     with np.errstate(divide="ignore"):
         condition = float(sv[0] / sv[-1]) if sv[-1] > 0 else float("inf")
         o1 = float(np.exp(np.mean(np.log(sv))) / np.sqrt(n_poses)) if sv[-1] > 0 else 0.0
@@ -166,12 +167,28 @@ def identify(model, measured, uncertainty, *, theta0=None, limit: float = CONDIT
         return np.nan_to_num(r, nan=1e6).ravel()
 
     def jac(theta):
-        return -_weighted(model.jacobian(theta, model._pose), u)
+        return -_weighted(model.jacobian(theta), u)  # poses solved at theta (the last fun call may be a rejected trial)
 
-    fit = least_squares(residual, theta0, jac=jac, method="trf", x_scale="jac", xtol=1e-10, ftol=1e-10)
-    theta = fit.x
+    bounds = (theta0 - model.bound, theta0 + model.bound) if hasattr(model, "bound") else (-np.inf, np.inf)
+    fit = least_squares(residual, theta0, jac=jac, method="trf", x_scale="jac", xtol=1e-6, ftol=1e-6,
+                        bounds=bounds)
+    # The model's Jacobian may be approximate (the pkm5's drops the FK's residual-curvature term); the minimum of
+    # the true cost needs the exact one, so polish with central differences of the residuals (Gauss-Newton steps).
+    theta, nfev = fit.x, int(fit.nfev)
+    step = getattr(model, "difference_step", None)
+    if step is not None:
+        for _ in range(3):
+            final_jac = _central_jacobian(model, theta, step)
+            nfev += 2 * k
+            weighted = _weighted(final_jac, u)
+            delta = np.linalg.lstsq(weighted, residual(theta), rcond=None)[0]
+            theta = theta + delta
+            if np.all(np.abs(delta) < 1e-6 * step * 1e3):
+                break
+        final_jac = _central_jacobian(model, theta, step)
+    else:
+        final_jac = model.jacobian(theta)
     after = measured - model.predict(theta)
-    final_jac = model.jacobian(theta)
     obs = observability(final_jac, u, model.free, limit)
     _refuse_if_poor(obs, limit)
     cov = parameter_covariance(final_jac, u)
@@ -179,12 +196,22 @@ def identify(model, measured, uncertainty, *, theta0=None, limit: float = CONDIT
     correlation = cov / np.outer(std, std)
     dof = max(measured.size - k, 1)
     return Identification(tuple(model.free), tuple(model.units), theta, std, correlation, after, before,
-                          float(np.sum((after / u) ** 2) / dof), obs, int(fit.nfev))
+                          float(np.sum((after / u) ** 2) / dof), obs, nfev)
 
 
 #: Condition number the default free set is built to: half the acceptance limit, since the Jacobian at the
 #: identified parameters differs from the one at the nominal ones the set is chosen with.
 FREE_SET_LIMIT = CONDITION_LIMIT / 2
+
+
+def _central_jacobian(model, theta, step) -> np.ndarray:
+    """d predict / d theta (N, a, K) by central differences with per-parameter steps ``step`` (K,)."""
+    columns = []
+    for j, h in enumerate(step):
+        bump = np.zeros_like(theta)
+        bump[j] = h
+        columns.append((model.predict(theta + bump) - model.predict(theta - bump)) / (2 * h))
+    return np.stack(columns, -1)
 
 
 def identifiable_subset(jac, uncertainty, names, limit: float = FREE_SET_LIMIT, required=()) -> tuple[str, ...]:

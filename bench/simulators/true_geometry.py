@@ -14,7 +14,7 @@ import numpy as np
 from motion.pkm5 import DEFAULT_GEOMETRY, Geometry
 from motion.pkm5.calibration import PARAMETERS, apply_parameters
 
-__all__ = ["TRUE_GEOMETRY_SIGMA", "true_geometry", "true_deviations"]
+__all__ = ["TRUE_GEOMETRY_SIGMA", "attained_poses", "true_geometry", "true_deviations"]
 
 #: 1-sigma size per parameter family: joint positions 0.3 mm (sub-millimetre), leg zero offsets 0.3 mm, lead 0.5 %.
 TRUE_GEOMETRY_SIGMA = {"leg_offset": 0.3, "scale": 0.005, "joint": 0.3}
@@ -39,3 +39,11 @@ def true_geometry(seed: int, names=PARAMETERS, nominal: Geometry = DEFAULT_GEOME
     """The nominal geometry with the seeded deviations of ``names`` applied."""
     deviations = true_deviations(seed, names)
     return apply_parameters(tuple(deviations), tuple(deviations.values()), nominal)
+
+
+def attained_poses(steps, modes, geometry: Geometry) -> np.ndarray:
+    """Poses (N, 5; mm, rad) the robot of ``geometry`` attains for commanded steps in their motion modes (the
+    least-squares FK over the six legs, as the simulator's plant moves), NaN rows where the FK fails."""
+    from motion.pkm5.calibration import ForwardModel
+
+    return ForwardModel(steps, modes, (), nominal=geometry).poses(np.zeros(0))

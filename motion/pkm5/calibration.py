@@ -127,7 +127,18 @@ class ForwardModel:
         if not self.axes or any(a not in (0, 1, 2) for a in self.axes):
             raise MotionInputError(f"axes = {axes!r}, expected a subset of (0, 1, 2) (x, y, z)")
         self.nominal = nominal
-        self._pose = None  # last solution, the warm start of the next solve
+        self._starts: dict[str, np.ndarray] = {}  # per mode: the documented geometry's poses, the FK's start
+
+    @property
+    def bound(self) -> np.ndarray:
+        """Largest plausible |deviation| of each free parameter, the solver's box: 5 mm, 5 % of the lead, 20 mm
+        of registration (ten times the true-geometry sizes; a solution at the box is a model or data error)."""
+        return np.array([0.05 if UNITS[n] == "1" else 20.0 if n.startswith("reg_") else 5.0 for n in self.free])
+
+    @property
+    def difference_step(self) -> np.ndarray:
+        """Central-difference step per free parameter for the exact Jacobian of :meth:`predict` (1e-3 mm, 1e-5)."""
+        return np.array([10 * _FD_STEP[UNITS[n]] for n in self.free])
 
     @property
     def units(self) -> tuple[str, ...]:
@@ -142,17 +153,17 @@ class ForwardModel:
             rows = np.flatnonzero(self.modes == mode)
             if rows.size == 0:
                 continue
-            if self._pose is None or not np.all(np.isfinite(self._pose[rows])):
-                # start from the documented geometry's solution: its k-d seed tables are cached, while a perturbed
-                # geometry's alpha plane moves and rejection-sampling a new table would take minutes
-                start = forward_kinematics(steps_to_lengths(self.steps[rows], DEFAULT_GEOMETRY), DEFAULT_GEOMETRY,
-                                           mode=mode, residual_tol_mm=2.0, max_iter=200).pose
-            else:
-                start = self._pose[rows]
+            if mode not in self._starts:
+                # every solve starts from the documented geometry's solution: its k-d seed tables are cached (a
+                # perturbed geometry's alpha plane moves and rejection-sampling a new table takes minutes), and a
+                # fixed start keeps each solve on the same branch whatever trial parameters came before
+                self._starts[mode] = forward_kinematics(steps_to_lengths(self.steps[rows], DEFAULT_GEOMETRY),
+                                                        DEFAULT_GEOMETRY, mode=mode, residual_tol_mm=2.0,
+                                                        max_iter=200).pose
+            start = self._starts[mode]
             fk = forward_kinematics(lengths[rows], geometry, initial_pose=start, mode=mode, residual_tol_mm=2.0,
                                     retry_above_mm=0.5, max_iter=200)
             out[rows] = np.where(fk.converged[:, None], fk.pose, np.nan)
-        self._pose = out
         return out
 
     def _registration(self, theta) -> np.ndarray:
