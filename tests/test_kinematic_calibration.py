@@ -54,13 +54,12 @@ def test_jacobian_matches_central_differences(candidates):
     model = ForwardModel(steps[rows], modes[rows], free)
     theta = np.array([0.2, 0.004, -0.3, 0.1, 0.5])
     jac = model.jacobian(theta)
-    for j, h in enumerate((1e-4, 1e-6, 1e-4, 1e-4, 1e-4)):
+    for j, h in enumerate((1e-3, 1e-5, 1e-3, 1e-3, 1e-3)):
         bump = np.zeros(5)
         bump[j] = h
         numeric = (model.predict(theta + bump) - model.predict(theta - bump)) / (2 * h)
-        # the implicit-function Jacobian drops the (residual x curvature) term of the least-squares FK: with
-        # 6 legs for 3-4 pose unknowns the residual is not zero, which costs a few parts per thousand
-        assert jac[:, :, j] == pytest.approx(numeric, rel=2e-2, abs=5e-3 * np.abs(numeric).max())
+        # the numeric side carries the FK convergence error (step criterion 1e-9) divided by the step
+        assert jac[:, :, j] == pytest.approx(numeric, rel=2e-3, abs=2e-3 * np.abs(numeric).max())
 
 
 def test_condition_number_of_two_columns_at_a_known_angle():

@@ -170,24 +170,10 @@ def identify(model, measured, uncertainty, *, theta0=None, limit: float = CONDIT
         return -_weighted(model.jacobian(theta), u)  # poses solved at theta (the last fun call may be a rejected trial)
 
     bounds = (theta0 - model.bound, theta0 + model.bound) if hasattr(model, "bound") else (-np.inf, np.inf)
-    fit = least_squares(residual, theta0, jac=jac, method="trf", x_scale="jac", xtol=1e-6, ftol=1e-6,
+    fit = least_squares(residual, theta0, jac=jac, method="trf", x_scale="jac", xtol=1e-10, ftol=1e-10,
                         bounds=bounds)
-    # The model's Jacobian may be approximate (the pkm5's drops the FK's residual-curvature term); the minimum of
-    # the true cost needs the exact one, so polish with central differences of the residuals (Gauss-Newton steps).
     theta, nfev = fit.x, int(fit.nfev)
-    step = getattr(model, "difference_step", None)
-    if step is not None:
-        for _ in range(3):
-            final_jac = _central_jacobian(model, theta, step)
-            nfev += 2 * k
-            weighted = _weighted(final_jac, u)
-            delta = np.linalg.lstsq(weighted, residual(theta), rcond=None)[0]
-            theta = theta + delta
-            if np.all(np.abs(delta) < 1e-6 * step * 1e3):
-                break
-        final_jac = _central_jacobian(model, theta, step)
-    else:
-        final_jac = model.jacobian(theta)
+    final_jac = model.jacobian(theta)
     after = measured - model.predict(theta)
     obs = observability(final_jac, u, model.free, limit)
     _refuse_if_poor(obs, limit)
@@ -202,16 +188,6 @@ def identify(model, measured, uncertainty, *, theta0=None, limit: float = CONDIT
 #: Condition number the default free set is built to: half the acceptance limit, since the Jacobian at the
 #: identified parameters differs from the one at the nominal ones the set is chosen with.
 FREE_SET_LIMIT = CONDITION_LIMIT / 2
-
-
-def _central_jacobian(model, theta, step) -> np.ndarray:
-    """d predict / d theta (N, a, K) by central differences with per-parameter steps ``step`` (K,)."""
-    columns = []
-    for j, h in enumerate(step):
-        bump = np.zeros_like(theta)
-        bump[j] = h
-        columns.append((model.predict(theta + bump) - model.predict(theta - bump)) / (2 * h))
-    return np.stack(columns, -1)
 
 
 def identifiable_subset(jac, uncertainty, names, limit: float = FREE_SET_LIMIT, required=()) -> tuple[str, ...]:

@@ -13,9 +13,10 @@ told otherwise), each with its unit in its name:
 The measurement model is forward (pkm5.md §4.3, least squares over the six legs): commanded steps ``s`` give leg
 lengths ``L(s; theta) = L0 + s * dir * CR (1 + scale)`` and the attained pose is
 ``p(theta) = argmin_p |IK(p; theta) - L(s; theta)|^2`` within the commanded motion mode. Its Jacobian comes from the
-implicit function theorem at the solution, ``dp/dtheta = -J_p^+ (dIK/dtheta - dL/dtheta)`` with ``J_p`` the exact
-pose Jacobian of the IK restricted to the mode's columns (:func:`motion.pkm5.jacobian.jacobian`) and ``dIK/dtheta``
-by central differences of the closed-form IK (smooth, so a 1e-4 mm step gives ~1e-8 relative accuracy).
+implicit function theorem on the FK's normal equations ``F = J_p^T (IK(p; theta) - L(s; theta)) = 0``:
+``dp/dtheta = -(dF/dp)^{-1} dF/dtheta`` with ``J_p`` the exact pose Jacobian of the IK restricted to the mode's
+columns (:func:`motion.pkm5.jacobian.jacobian`) and both derivatives of F by central differences of closed forms
+(smooth, so a 1e-4 mm step gives ~1e-8 relative accuracy); no FK solve is needed for the Jacobian.
 Forward residuals suit position-only and relative measurements (mice, laser grid) where the orientation is not
 measured; the calibration literature (methods-turn2.md §1.1) prefers IK residuals only when the full pose is known.
 """
@@ -136,11 +137,6 @@ class ForwardModel:
         return np.array([0.05 if UNITS[n] == "1" else 20.0 if n.startswith("reg_") else 5.0 for n in self.free])
 
     @property
-    def difference_step(self) -> np.ndarray:
-        """Central-difference step per free parameter for the exact Jacobian of :meth:`predict` (1e-3 mm, 1e-5)."""
-        return np.array([10 * _FD_STEP[UNITS[n]] for n in self.free])
-
-    @property
     def units(self) -> tuple[str, ...]:
         return tuple(UNITS[name] for name in self.free)
 
@@ -178,33 +174,48 @@ class ForwardModel:
         positions = self.poses(theta)[:, :3] + self._registration(theta)
         return positions[:, list(self.axes)]
 
+    def _stationarity(self, p, theta) -> np.ndarray:
+        """F(p, theta) = J_m^T (IK(p; theta) - L(s; theta)) per pose, (N, 5) (zero columns outside the mode):
+        the normal equations the least-squares FK solves, F = 0 at every attained pose."""
+        g = apply_parameters(self.free, theta, self.nominal)
+        x, y, z, alpha, beta = p.T
+        lengths, _ = leg_lengths(x, y, z, alpha, beta, g, with_tilt=False)
+        residual = np.stack(lengths, -1) - steps_to_lengths(self.steps, g)
+        out = np.einsum("nlc,nl->nc", jacobian(p, g), residual)
+        return out * self._mode_mask
+
     def jacobian(self, theta, poses=None) -> np.ndarray:
-        """d predict / d theta, shape (N, len(axes), len(free)), at the attained poses (computed if not given)."""
+        """d predict / d theta, shape (N, len(axes), len(free)), exact up to central-difference error.
+
+        Implicit function theorem on the FK's normal equations F(p, theta) = 0 (:meth:`_stationarity`):
+        ``dp/dtheta = -(dF/dp)^{-1} dF/dtheta`` over the mode's pose columns, with both derivatives by central
+        differences of closed forms (no FK solve). dF/dp is ``J^T J`` plus the residual-curvature term that a
+        Gauss-Newton Jacobian drops (~1 % when six legs over-determine three or four pose unknowns).
+        """
         theta = np.asarray(theta, dtype=float)
-        p = self.poses(theta) if poses is None else poses
+        p = np.nan_to_num(self.poses(theta) if poses is None else poses)
         n, k = len(p), len(self.free)
-        geometry_cols = [j for j, name in enumerate(self.free) if not name.startswith("reg_")]
-        # g(p, theta) = IK(p; theta) - L(s; theta); dg/dtheta by central differences of the closed forms
-        dg = np.zeros((n, 6, k))
-        x, y, z, alpha, beta = np.nan_to_num(p).T
-        for j in geometry_cols:
-            h = _FD_STEP[UNITS[self.free[j]]]
-            sides = []
-            for sign in (1.0, -1.0):
-                bumped = theta.copy()
-                bumped[j] += sign * h
-                g = apply_parameters(self.free, bumped, self.nominal)
-                lengths, _ = leg_lengths(x, y, z, alpha, beta, g, with_tilt=False)
-                sides.append(np.stack(lengths, -1) - steps_to_lengths(self.steps, g))
-            dg[:, :, j] = (sides[0] - sides[1]) / (2 * h)
-        jp = jacobian(np.nan_to_num(p), apply_parameters(self.free, theta, self.nominal))  # (N, 6, 5)
-        dpose = np.zeros((n, 5, k))
+        self._mode_mask = np.ones((n, 5))
         for mode, angle in MODES.items():
-            rows = np.flatnonzero(self.modes == mode)
-            if rows.size == 0:
+            rows = self.modes == mode
+            self._mode_mask[rows, 3] = angle == 3
+            self._mode_mask[rows, 4] = angle == 4
+        dfdp = np.zeros((n, 5, 5))
+        for c, h in enumerate((1e-4, 1e-4, 1e-4, 1e-6, 1e-6)):
+            bump = np.zeros(5)
+            bump[c] = h
+            dfdp[:, :, c] = (self._stationarity(p + bump, theta) - self._stationarity(p - bump, theta)) / (2 * h)
+        dfdt = np.zeros((n, 5, k))
+        for j, name in enumerate(self.free):
+            if name.startswith("reg_"):
                 continue
-            cols = [0, 1, 2] + ([angle] if angle is not None else [])
-            dpose[np.ix_(rows, cols, np.arange(k))] = -np.linalg.pinv(jp[np.ix_(rows, np.arange(6), cols)]) @ dg[rows]
+            h = _FD_STEP[UNITS[name]]
+            bump = np.zeros(k)
+            bump[j] = h
+            dfdt[:, :, j] = (self._stationarity(p, theta + bump) - self._stationarity(p, theta - bump)) / (2 * h)
+        # outside the mode's columns put an identity block, so the solve leaves those pose derivatives at zero
+        dfdp = dfdp + np.einsum("nc,cd->ncd", 1.0 - self._mode_mask, np.eye(5))
+        dpose = -np.linalg.solve(dfdp, dfdt)
         for j, name in enumerate(self.free):
             if name.startswith("reg_"):
                 dpose[:, _AXES.index(name[4]), j] = 1.0
