@@ -153,3 +153,18 @@ def test_selected_poses_need_at_most_half_as_many_as_random(candidates):
         order = rng.permutation(len(blocks))
         needed.append(next(n for n in range(10, len(blocks) + 1) if worst_uncertainty(order[:n]) <= target))
     assert np.median(needed) >= 2 * 15, needed
+
+
+def test_the_simulated_plant_moves_by_the_true_geometry():
+    from bench.robots.pkm5_kinematics import build_plant
+
+    truth = true_geometry(5)
+    plant = build_plant(5, ideal=True, true_geometry=truth)
+    commanded = np.array([[150.0, 10.0, 300.0, 0.0, 0.0], [111.31, 0.0, 300.0, 0.2, 0.0], [140.0, 0.0, 310.0, 0.0, 0.1]])
+    steps = pkm5.lengths_to_steps(pkm5.inverse_kinematics(commanded).lengths_mm)
+    expected = attained_poses(steps, modes_of_poses(commanded), truth)
+    for row, want in zip(steps, expected):
+        got = plant(row, 0.0)
+        assert got[:3] == pytest.approx(want[:3], abs=1e-6)
+        assert np.radians(got[3:]) == pytest.approx(want[3:], abs=1e-8)
+    assert np.linalg.norm(expected[0, :3] - commanded[0, :3]) > 0.1  # the truth is visibly off the drawing
