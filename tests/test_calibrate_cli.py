@@ -10,7 +10,8 @@ from bench.metrology.kinematic_calibration import identifiable_subset, select_po
 from bench.simulators.true_geometry import attained_poses, true_deviations, true_geometry
 from bench.store import Store
 from motion import pkm5
-from motion.pkm5.calibration import PARAMETERS, REGISTRATION, ForwardModel, modes_of_poses
+from motion.pkm5.calibration import (PARAMETERS, REGISTRATION, ForwardModel, geometry_from_calibration,
+                                     modes_of_poses, parameter_deviations)
 
 ALL = REGISTRATION + PARAMETERS
 UNCERTAINTY_MM = 0.05
@@ -58,6 +59,9 @@ def test_calibrate_identifies_and_stores_a_version(tmp_path, capsys):
     with Store(path) as store:
         record = store.calibration("pkm5_kinematics")
     assert record.version == 1 and record.source_run_id == run_id
+    calibrated = geometry_from_calibration(record.params)
+    for name in geometric:
+        assert parameter_deviations(calibrated)[name] == pytest.approx(params[name]["value"], abs=1e-12)
 
 
 def test_calibrate_a_run_without_measured_poses_is_one_line(tmp_path, capsys):

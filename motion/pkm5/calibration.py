@@ -31,7 +31,7 @@ from motion.pkm5.geometry import DEFAULT_GEOMETRY, Geometry, steps_to_lengths
 from motion.pkm5.ik import leg_lengths
 from motion.pkm5.jacobian import jacobian
 
-__all__ = ["PARAMETERS", "REGISTRATION", "UNITS", "apply_parameters", "parameter_deviations", "modes_of_poses",
+__all__ = ["PARAMETERS", "REGISTRATION", "UNITS", "apply_parameters", "geometry_from_calibration", "parameter_deviations", "modes_of_poses",
            "ForwardModel"]
 
 _AXES = ("x", "y", "z")
@@ -90,6 +90,18 @@ def parameter_deviations(geometry: Geometry, nominal: Geometry = DEFAULT_GEOMETR
         for k, axis in enumerate(_AXES):
             out[f"{field}_{axis}_mm"] = getattr(geometry, f"{field}_mm")[k] - getattr(nominal, f"{field}_mm")[k]
     return {name: float(value) for name, value in out.items()}
+
+
+def geometry_from_calibration(params, nominal: Geometry = DEFAULT_GEOMETRY) -> Geometry:
+    """The calibrated geometry of a stored kinematic calibration's parameters (``{"parameters": {name: {"value":
+    ...}}}``, as ``bench calibrate`` stores them); registration entries are not geometry and are skipped."""
+    try:
+        entries = {name: float(entry["value"]) for name, entry in params["parameters"].items()}
+    except (KeyError, TypeError, ValueError, AttributeError) as exc:
+        raise MotionInputError(f"kinematic calibration parameters: {exc!r}, expected {{'parameters': {{name: "
+                               "{'value': number}}}}") from None
+    geometric = {n: v for n, v in entries.items() if not n.startswith("reg_")}
+    return apply_parameters(tuple(geometric), tuple(geometric.values()), nominal)
 
 
 def modes_of_poses(poses) -> np.ndarray:
