@@ -28,6 +28,7 @@ COMMAND_MODULES = (
     "bench.commands.demo",
     "bench.commands.report",
     "bench.commands.gui",
+    "bench.commands.calibrate",
 )
 
 

@@ -281,6 +281,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "(default %(default)s; a choice, no document measures it)")
     parser.add_argument("--damping", type=float, default=StructuralMode.damping_ratio,
                         help="damping ratio of that mode, 0-1 (default %(default)s)")
+    parser.add_argument("--true-geometry-seed", type=int, default=None, metavar="SEED",
+                        help="move by a seeded perturbed geometry (bench.simulators.true_geometry) instead of the "
+                             "error model's geometric stand-ins")
 
 
 def build_device(args: argparse.Namespace) -> Pkm5SimDevice:
@@ -297,7 +300,13 @@ def build_device(args: argparse.Namespace) -> Pkm5SimDevice:
         truth = TruthLog(args.truth, tuple(f"stroke{axis}_mm" for axis in range(1, wire.AXES + 1)))
         return Pkm5SimDevice(plant, speed_factor=args.speed_factor, truth=truth, mode=mode,
                              sim_verbs=not getattr(args, "hardware_only", False))
-    plant = build_plant(args.seed, ideal=args.ideal)
+    true_seed = getattr(args, "true_geometry_seed", None)
+    if true_seed is None:
+        plant = build_plant(args.seed, ideal=args.ideal)
+    else:
+        from bench.simulators.true_geometry import true_geometry
+
+        plant = build_plant(args.seed, ideal=args.ideal, true_geometry=true_geometry(true_seed))
     truth = TruthLog(args.truth, ("x_mm", "y_mm", "z_mm", "alpha_deg", "beta_deg"))
     observers = ()
     if getattr(args, "mice", None):

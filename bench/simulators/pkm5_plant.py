@@ -3,6 +3,7 @@ actuator bench, the true strokes), through the kinematics of :mod:`motion.pkm5`.
 
 from __future__ import annotations
 
+import dataclasses
 from typing import Any
 
 import numpy as np
@@ -50,13 +51,23 @@ def build_actuator_bench(seed: int, *, ideal: bool = False, geometry: Any = pkm5
     return true_strokes
 
 
-def build_plant(seed: int, *, ideal: bool = False, geometry: Any = pkm5.DEFAULT_GEOMETRY) -> Plant:
-    """Steps -> leg lengths -> seeded errors -> least-squares FK -> pose errors; pose in mm and degrees."""
+def build_plant(seed: int, *, ideal: bool = False, geometry: Any = pkm5.DEFAULT_GEOMETRY,
+                true_geometry: Any = None) -> Plant:
+    """Steps -> leg lengths -> seeded errors -> least-squares FK -> pose errors; pose in mm and degrees.
+
+    With ``true_geometry`` (a perturbed :class:`motion.pkm5.Geometry`, e.g. from
+    :func:`bench.simulators.true_geometry.true_geometry`) the robot moves by that geometry's lengths and FK, and the
+    error model's stand-ins for geometry (joint offset and scale, pose gain and bias) are zeroed; backlash, noise,
+    sag and play stay.
+    """
+    moved_by = geometry if true_geometry is None else true_geometry
 
     def joints_of(steps: np.ndarray) -> np.ndarray:
-        return pkm5.steps_to_lengths(steps[None, :], geometry)[0]
+        return pkm5.steps_to_lengths(steps[None, :], moved_by)[0]
 
     def forward(lengths: np.ndarray, commanded: np.ndarray, previous: np.ndarray | None) -> np.ndarray | None:
+        if true_geometry is not None:
+            return _forward_true(lengths, commanded)
         mode = pkm5.detect_mode(commanded[None, :], MODE_TOL_MM)[0]
         start = None if previous is None else np.r_[previous[:3], np.radians(previous[3:])]
         if start is not None:
@@ -73,7 +84,23 @@ def build_plant(seed: int, *, ideal: bool = False, geometry: Any = pkm5.DEFAULT_
                                      residual_tol_mm=_PLANT_RESIDUAL_TOL_MM)
         return pose_deg_from_rad(fk.pose[0]) if fk.converged[0] else None
 
+    def _forward_true(lengths: np.ndarray, commanded: np.ndarray) -> np.ndarray | None:
+        # the commanded mode shows in the nominal lengths (the true pairs differ)
+        commanded = pkm5.steps_to_lengths(pkm5.lengths_to_steps(commanded[None, :], moved_by), geometry)[0]
+        mode = pkm5.detect_mode(commanded[None, :], MODE_TOL_MM)[0]
+        # start from the nominal solution (no seed table for a perturbed geometry)
+        start = pkm5.forward_kinematics(commanded[None, :], geometry, mode=mode, residual_tol_mm=2.0,
+                                        max_iter=200).pose[0]
+        # true lengths never fit exactly (6 legs, 3-4 unknowns): retrying every inexact fit from the restart guesses
+        # would trade the near solution for a far branch with a smaller residual
+        fk = pkm5.forward_kinematics(lengths[None, :], moved_by, initial_pose=start, mode=mode,
+                                     residual_tol_mm=_PLANT_RESIDUAL_TOL_MM, retry_above_mm=0.5, max_iter=200)
+        return pose_deg_from_rad(fk.pose[0]) if fk.converged[0] else None
+
     model = (ErrorModel.ideal(6, 5) if ideal else
              ErrorModel.draw(PKM5_ERRORS, 6, seed, np.asarray(geometry.leg_length_offset_mm)))
+    if true_geometry is not None:
+        model = dataclasses.replace(model, offset=np.zeros(6), scale=np.zeros(6), pose_gain=np.zeros((5, 5)),
+                                    pose_offset=np.zeros(5))
     home_fk = pkm5.forward_kinematics(geometry.home_lengths_mm[None, :], geometry)
     return Plant(joints_of, forward, model, pose_deg_from_rad(home_fk.pose[0]), seed)

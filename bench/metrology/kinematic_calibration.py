@@ -1,0 +1,255 @@
+"""Kinematic identification: weighted least squares, parameter uncertainties, observability and pose selection.
+
+Robot-agnostic: a *model* has ``free`` (parameter names), ``units``, ``predict(theta) -> (N, a)`` measured
+coordinates and ``jacobian(theta) -> (N, a, K)`` (e.g. :class:`motion.pkm5.calibration.ForwardModel`). Pure
+computation, arrays in and arrays out.
+
+Method (methods-turn2.md §1.1-1.2): residuals ``r = (m - f(theta)) / u`` weighted by the instrument's standard
+uncertainty ``u`` per coordinate, minimised by :func:`scipy.optimize.least_squares`. With the weighted Jacobian
+``J_w`` at the solution the covariance is ``(J_w^T J_w)^{-1}`` (GUM: the instrument's uncertainty is known, type B,
+so it is not rescaled by the residuals; the reduced chi^2 is reported as the check), the standard uncertainties its
+diagonal's square roots and the correlations ``C_ij / (u_i u_j)``.
+
+Observability uses the *scaled* Jacobian ``J_s`` (columns of ``J_w`` divided by their RMS over the m poses, so units
+drop out) and its
+singular values sigma_1 >= ... >= sigma_L: the condition number sigma_1 / sigma_L (Schroer et al.: below 100 for
+reliable results) and the O1 index of Borm & Menq, ``(sigma_1 ... sigma_L)^{1/L} / sqrt(m)`` with L parameters and
+m poses (invariant to repeating the pose set). Right singular vectors of the singular values below sigma_1 / 100
+name the parameter combinations the pose set cannot identify.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.linalg import qr
+from scipy.optimize import least_squares
+
+from bench.errors import ConfigError, InsufficientData
+
+__all__ = ["CONDITION_LIMIT", "FREE_SET_LIMIT", "Identification", "Observability", "UnidentifiableParameters", "identifiable_subset",
+           "identify", "observability", "parameter_covariance", "select_poses"]
+
+#: Largest condition number of the scaled identification Jacobian that is accepted (Schroer et al., in Nahvi &
+#: Hollerbach 1996: "a condition number below 100 is required for reliable results").
+CONDITION_LIMIT = 100.0
+_SHOWN_WEIGHT = 0.2  # components of a null-space vector smaller than this are left out of its description
+
+
+class UnidentifiableParameters(ConfigError):
+    """The pose set and instrument cannot identify some free parameters (condition number above the limit)."""
+
+
+@dataclass(frozen=True)
+class Observability:
+    """Singular-value analysis of a scaled identification Jacobian (module docstring)."""
+
+    names: tuple[str, ...]
+    singular_values: np.ndarray
+    condition_number: float
+    o1: float
+    n_poses: int
+    unidentifiable: tuple[str, ...]  # "name" or "0.71 a + 0.71 b" per weak direction, weakest first
+
+    def as_dict(self) -> dict:
+        return {"names": list(self.names), "singular_values": [float(s) for s in self.singular_values],
+                "condition_number": float(self.condition_number), "o1": float(self.o1), "n_poses": self.n_poses,
+                "unidentifiable": list(self.unidentifiable)}
+
+
+def _weighted(jac, uncertainty) -> np.ndarray:
+    jac = np.asarray(jac, dtype=float)
+    u = np.broadcast_to(np.asarray(uncertainty, dtype=float), jac.shape[1:2])
+    return (jac / u[None, :, None]).reshape(-1, jac.shape[-1])
+
+
+def observability(jac, uncertainty, names, limit: float = CONDITION_LIMIT) -> Observability:
+    """Observability of parameters ``names`` from the Jacobian ``jac`` (N, a, K) and instrument uncertainty (a,)."""
+    names = tuple(names)
+    weighted = _weighted(jac, uncertainty)
+    if not np.all(np.isfinite(weighted)):
+        raise InsufficientData("identification Jacobian is not finite (forward kinematics failed at some pose)")
+    n_poses = len(np.asarray(jac))
+    norms = np.linalg.norm(weighted, axis=0) / np.sqrt(n_poses)  # RMS per pose, so repeating the set scales J_s
+    dead = norms <= 1e-12 * max(norms.max(initial=0.0), 1e-300)
+    scaled = weighted / np.where(dead, 1.0, norms)
+    _, sv, vt = np.linalg.svd(scaled, full_matrices=False)
+    with np.errstate(divide="ignore"):
+        condition = float(sv[0] / sv[-1]) if sv[-1] > 0 else float("inf")
+        o1 = float(np.exp(np.mean(np.log(sv))) / np.sqrt(n_poses)) if sv[-1] > 0 else 0.0
+    weak = [f"{names[j]} (no effect on the measurements)" for j in np.flatnonzero(dead)]
+    for i in range(len(sv) - 1, -1, -1):
+        if sv[i] * limit >= sv[0]:
+            break
+        v = vt[i] / np.abs(vt[i]).max()
+        shown = [j for j in np.argsort(-np.abs(v)) if abs(v[j]) >= _SHOWN_WEIGHT and not dead[j]]
+        if len(shown) == 1:
+            weak.append(names[shown[0]])
+        elif shown:
+            weak.append(" ".join(f"{'+' if v[j] > 0 else '-'}{abs(v[j]):.2f}*{names[j]}" for j in shown).lstrip("+"))
+    return Observability(names, sv, condition, o1, n_poses, tuple(dict.fromkeys(weak)))
+
+
+def _refuse_if_poor(obs: Observability, limit: float) -> None:
+    if obs.condition_number > limit:
+        raise UnidentifiableParameters(
+            f"kinematic calibration refused: condition number {obs.condition_number:.3g} > {limit:g}; the "
+            f"{obs.n_poses} poses cannot identify {'; '.join(obs.unidentifiable) or 'the free set'}; fix these "
+            "parameters (--free) or add poses that spread over the workspace and its orientations")
+
+
+def parameter_covariance(jac, uncertainty) -> np.ndarray:
+    """``(J_w^T J_w)^{-1}`` (pseudo-inverse), the parameters' covariance for known instrument uncertainty."""
+    weighted = _weighted(jac, uncertainty)
+    return np.linalg.pinv(weighted.T @ weighted)
+
+
+@dataclass(frozen=True)
+class Identification:
+    """Identified parameters (deviations from the nominal model) with uncertainties and diagnostics."""
+
+    names: tuple[str, ...]
+    units: tuple[str, ...]
+    values: np.ndarray             # (K,)
+    uncertainty: np.ndarray        # (K,) standard uncertainties
+    correlation: np.ndarray        # (K, K)
+    residuals: np.ndarray          # (N, a) measured - predicted, instrument units
+    residuals_before: np.ndarray   # (N, a) at theta0
+    reduced_chi2: float
+    observability: Observability
+    iterations: int
+
+    def as_dict(self) -> dict:
+        """Plain data (stored as the calibration's parameters)."""
+        return {
+            "parameters": {n: {"value": float(v), "uncertainty": float(u), "unit": unit}
+                           for n, v, u, unit in zip(self.names, self.values, self.uncertainty, self.units)},
+            "correlation": np.round(self.correlation, 6).tolist(),
+            "residual_rms": float(np.sqrt(np.mean(self.residuals ** 2))),
+            "residual_rms_before": float(np.sqrt(np.mean(self.residuals_before ** 2))),
+            "residuals": np.round(self.residuals, 6).tolist(),
+            "reduced_chi2": float(self.reduced_chi2),
+            "observability": self.observability.as_dict(),
+            "iterations": self.iterations,
+        }
+
+
+def identify(model, measured, uncertainty, *, theta0=None, limit: float = CONDITION_LIMIT) -> Identification:
+    """Weighted least-squares identification of ``model.free`` from ``measured`` (N, a) (module docstring).
+
+    Raises :class:`UnidentifiableParameters` (one line naming the weak parameters or combinations) when the scaled
+    Jacobian's condition number exceeds ``limit``, before and after the solve.
+    """
+    measured = np.asarray(measured, dtype=float)
+    u = np.broadcast_to(np.asarray(uncertainty, dtype=float), measured.shape[1:])
+    if measured.ndim != 2 or len(measured) == 0:
+        raise InsufficientData(f"measured has shape {measured.shape}, expected (N, a) with N >= 1 measured poses")
+    if not np.all(np.isfinite(measured)):
+        raise InsufficientData(f"measured poses: {int(np.sum(~np.isfinite(measured).all(1)))} rows are not finite, "
+                               "expected a measured coordinate for every pose")
+    if not np.all(u > 0):
+        raise ConfigError(f"instrument uncertainty = {np.asarray(uncertainty).tolist()}, expected values > 0")
+    k = len(model.free)
+    if measured.size <= k:
+        raise InsufficientData(f"{len(measured)} measured poses give {measured.size} coordinates for {k} free "
+                               "parameters; expected more coordinates than parameters")
+    theta0 = np.zeros(k) if theta0 is None else np.asarray(theta0, dtype=float)
+    before = measured - model.predict(theta0)
+    failed = np.flatnonzero(~np.all(np.isfinite(before), axis=1))
+    if failed.size:
+        raise InsufficientData(f"forward kinematics failed at {failed.size} measured poses (first: pose "
+                               f"{failed[0]}); expected commanded steps the model can solve")
+    _refuse_if_poor(observability(model.jacobian(theta0), u, model.free, limit), limit)
+
+    def residual(theta):
+        r = (measured - model.predict(theta)) / u
+        return np.nan_to_num(r, nan=1e6).ravel()
+
+    def jac(theta):
+        return -_weighted(model.jacobian(theta), u)  # poses solved at theta (the last fun call may be a rejected trial)
+
+    bounds = (theta0 - model.bound, theta0 + model.bound) if hasattr(model, "bound") else (-np.inf, np.inf)
+    fit = least_squares(residual, theta0, jac=jac, method="trf", x_scale="jac", xtol=1e-10, ftol=1e-10,
+                        bounds=bounds)
+    theta, nfev = fit.x, int(fit.nfev)
+    final_jac = model.jacobian(theta)
+    after = measured - model.predict(theta)
+    obs = observability(final_jac, u, model.free, limit)
+    _refuse_if_poor(obs, limit)
+    cov = parameter_covariance(final_jac, u)
+    std = np.sqrt(np.clip(np.diag(cov), 0.0, None))
+    correlation = cov / np.outer(std, std)
+    dof = max(measured.size - k, 1)
+    return Identification(tuple(model.free), tuple(model.units), theta, std, correlation, after, before,
+                          float(np.sum((after / u) ** 2) / dof), obs, nfev)
+
+
+#: Condition number the default free set is built to: half the acceptance limit, since the Jacobian at the
+#: identified parameters differs from the one at the nominal ones the set is chosen with.
+FREE_SET_LIMIT = CONDITION_LIMIT / 2
+
+
+def identifiable_subset(jac, uncertainty, names, limit: float = FREE_SET_LIMIT, required=()) -> tuple[str, ...]:
+    """The default free set: the largest subset of ``names`` the pose set and instrument can identify.
+
+    Subset selection by QR with column pivoting of the scaled Jacobian (Golub & Van Loan §5.5.7; Khalil & Dombre's
+    base parameters): ``required`` names (e.g. the registration of a relative instrument) come first and are
+    projected out; the other columns are ranked by pivoted QR of what remains; the first r are kept, r being the
+    largest count whose combined scaled Jacobian has a condition number <= ``limit``. A parameter left out is
+    (nearly) a combination of the kept ones, so its error is absorbed by them and the fit still explains the data.
+    """
+    names = tuple(names)
+    index = {n: i for i, n in enumerate(names)}
+    forced = [index[n] for n in required]
+    others = [i for i in range(len(names)) if i not in forced]
+    weighted = _weighted(jac, uncertainty)
+    norms = np.linalg.norm(weighted, axis=0)
+    scaled = weighted / np.where(norms > 0, norms, 1.0)
+    rest = scaled[:, others]
+    if forced:
+        basis, _ = np.linalg.qr(scaled[:, forced])
+        rest = rest - basis @ (basis.T @ rest)
+    _, _, pivots = qr(rest, mode="economic", pivoting=True)
+    ranked = [others[p] for p in pivots if norms[others[p]] > 0]
+    for count in range(len(ranked), -1, -1):
+        trial = forced + ranked[:count]
+        if not trial:
+            return ()
+        sv = np.linalg.svd(scaled[:, trial], compute_uv=False)
+        if sv[-1] > 0 and sv[0] / sv[-1] <= limit:
+            return tuple(names[i] for i in sorted(trial))
+    return tuple(names[i] for i in sorted(forced))
+
+
+def select_poses(jac, uncertainty, n: int, *, first=()) -> np.ndarray:
+    """Greedy D-optimal choice of ``n`` poses from candidates with Jacobian blocks ``jac`` (N, a, K).
+
+    Each step adds the candidate that most increases ``log det(M)``, ``M = sum J_s,i^T J_s,i`` over the chosen poses
+    of the column-scaled weighted Jacobian (maximising det M maximises the product of singular values, i.e. the O1
+    index). The increment is ``log det(I_a + B M^{-1} B^T)`` (matrix determinant lemma), computed for all candidates
+    at once; M starts at a small ridge so the first picks are defined. Returns the chosen indices in pick order.
+    """
+    jac = np.asarray(jac, dtype=float)
+    count, a, k = jac.shape
+    if not 1 <= n <= count:
+        raise ConfigError(f"n = {n!r} poses to select, expected 1..{count} (the number of candidates)")
+    u = np.broadcast_to(np.asarray(uncertainty, dtype=float), (a,))
+    blocks = jac / u[None, :, None]
+    norms = np.linalg.norm(blocks.reshape(-1, k), axis=0) / np.sqrt(count)
+    blocks = blocks / np.where(norms > 0, norms, 1.0)
+    info = 1e-6 * np.eye(k)
+    chosen = [int(i) for i in first]
+    for i in chosen:
+        info += blocks[i].T @ blocks[i]
+    available = np.ones(count, bool)
+    available[chosen] = False
+    while len(chosen) < n:
+        inverse = np.linalg.inv(info)
+        gain = np.linalg.slogdet(np.eye(a) + blocks @ inverse @ blocks.transpose(0, 2, 1))[1]
+        gain[~available] = -np.inf
+        best = int(np.argmax(gain))
+        chosen.append(best)
+        available[best] = False
+        info += blocks[best].T @ blocks[best]
+    return np.asarray(chosen)

@@ -1,0 +1,49 @@
+"""A seeded TRUE geometry of a simulated pkm5: the documented geometry perturbed at realistic sizes.
+
+Printed parts and hand-assembled joints put each joint a fraction of a millimetre off its drawing; leg zero offsets
+are set by hand; lead screws differ by fractions of a percent (methods-turn2.md §1.1: geometry explains ~90 % of
+the pose error of a lightly loaded robot). Each parameter of :data:`motion.pkm5.calibration.PARAMETERS` is drawn
+from a normal distribution of the size below, truncated at 2.5 sigma, from ``np.random.default_rng([seed, 20])``
+(a stream of its own, so the error model's draws of the same seed do not change).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from motion.pkm5 import DEFAULT_GEOMETRY, Geometry
+from motion.pkm5.calibration import PARAMETERS, apply_parameters
+
+__all__ = ["TRUE_GEOMETRY_SIGMA", "attained_poses", "true_geometry", "true_deviations"]
+
+#: 1-sigma size per parameter family: joint positions 0.3 mm (sub-millimetre), leg zero offsets 0.3 mm, lead 0.5 %.
+TRUE_GEOMETRY_SIGMA = {"leg_offset": 0.3, "scale": 0.005, "joint": 0.3}
+
+
+def _sigma(name: str) -> float:
+    if name.startswith("leg_offset_"):
+        return TRUE_GEOMETRY_SIGMA["leg_offset"]
+    if name.startswith("scale_"):
+        return TRUE_GEOMETRY_SIGMA["scale"]
+    return TRUE_GEOMETRY_SIGMA["joint"]
+
+
+def true_deviations(seed: int, names=PARAMETERS) -> dict[str, float]:
+    """Seeded deviations of ``names`` from the nominal geometry (the other parameters stay nominal)."""
+    rng = np.random.default_rng([int(seed), 20])
+    draws = np.clip(rng.normal(0.0, 1.0, len(PARAMETERS)), -2.5, 2.5)  # always all, so a subset keeps its values
+    return {name: float(draw * _sigma(name)) for name, draw in zip(PARAMETERS, draws) if name in set(names)}
+
+
+def true_geometry(seed: int, names=PARAMETERS, nominal: Geometry = DEFAULT_GEOMETRY) -> Geometry:
+    """The nominal geometry with the seeded deviations of ``names`` applied."""
+    deviations = true_deviations(seed, names)
+    return apply_parameters(tuple(deviations), tuple(deviations.values()), nominal)
+
+
+def attained_poses(steps, modes, geometry: Geometry) -> np.ndarray:
+    """Poses (N, 5; mm, rad) the robot of ``geometry`` attains for commanded steps in their motion modes (the
+    least-squares FK over the six legs, as the simulator's plant moves), NaN rows where the FK fails."""
+    from motion.pkm5.calibration import ForwardModel
+
+    return ForwardModel(steps, modes, (), nominal=geometry).poses(np.zeros(0))

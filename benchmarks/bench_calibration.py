@@ -1,0 +1,48 @@
+"""Identification time of the pkm5 kinematic calibration for 30, 60 and 100 measured poses (target: < 1 s).
+
+Run as ``python benchmarks/bench_calibration.py``. Synthetic mice-like data (0.05 mm per axis) from the seeded true
+geometry 0; the free set is what the chosen poses identify. Prints min/median/max wall time of 5 runs each, and the
+ratio to one batched forward-kinematics solve of the same poses (the physical floor: every evaluation needs one).
+"""
+
+import time
+
+import numpy as np
+
+from bench.metrology.kinematic_calibration import identifiable_subset, identify, select_poses
+from bench.simulators.true_geometry import attained_poses, true_geometry
+from motion import pkm5
+from motion.pkm5.calibration import PARAMETERS, REGISTRATION, ForwardModel, modes_of_poses
+
+UNCERTAINTY_MM = 0.05
+ALL = REGISTRATION + PARAMETERS
+
+
+def main() -> None:
+    poses = pkm5.sample_reachable(400, kinds=("constant-orientation", "alpha", "beta"), seed=1)
+    steps = pkm5.lengths_to_steps(pkm5.inverse_kinematics(poses).lengths_mm)
+    modes = modes_of_poses(poses)
+    jac = ForwardModel(steps, modes, ALL).jacobian(np.zeros(len(ALL)))
+    truth = true_geometry(0)
+    for n in (30, 60, 100):
+        pick = select_poses(jac, UNCERTAINTY_MM, n)
+        free = identifiable_subset(jac[pick], UNCERTAINTY_MM, ALL, required=REGISTRATION)
+        rng = np.random.default_rng(n)
+        measured = attained_poses(steps[pick], modes[pick], truth)[:, :3] + rng.normal(0, UNCERTAINTY_MM, (n, 3))
+        times = []
+        for _ in range(5):
+            start = time.perf_counter()
+            result = identify(ForwardModel(steps[pick], modes[pick], free), measured, UNCERTAINTY_MM)
+            times.append(time.perf_counter() - start)
+        model = ForwardModel(steps[pick], modes[pick], free)
+        start = time.perf_counter()
+        model.predict(np.zeros(len(free)))
+        fk_s = time.perf_counter() - start
+        t = np.array(times)
+        print(f"{n:4d} poses, {len(free)} parameters: min {t.min():.3f} s, median {np.median(t):.3f} s, "
+              f"max {t.max():.3f} s; {result.iterations} model evaluations; median / one FK solve = "
+              f"{np.median(t) / fk_s:.0f}x")
+
+
+if __name__ == "__main__":
+    main()

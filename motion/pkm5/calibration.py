@@ -1,0 +1,234 @@
+"""Geometric error model of the PKM for kinematic calibration: a named parameter vector and the measurement model.
+
+The parameters are deviations from a nominal :class:`~motion.pkm5.geometry.Geometry` (the documented robot unless
+told otherwise), each with its unit in its name:
+
+* ``leg_offset_<i>_mm`` (i = 1..6): added to ``leg_length_offset_mm[i]``, the length |BC| at zero stroke;
+* ``scale_<i>``: relative error of the lead (``mm_per_full_step[i] * (1 + scale_i)``), dimensionless;
+* ``oa_<pair>_<axis>_mm`` (pair 12, 34, 56): base joint positions A, global frame;
+* ``pd_<leg>_<axis>_mm`` (12, 34, 5, 6): platform joint positions D, end-effector frame;
+* ``reg_<axis>_mm`` (x, y, z): registration of a relative instrument (the mice measure displacements from home),
+  a constant added to every predicted position; not a geometry field.
+
+The measurement model is forward (pkm5.md §4.3, least squares over the six legs): commanded steps ``s`` give leg
+lengths ``L(s; theta) = L0 + s * dir * CR (1 + scale)`` and the attained pose is
+``p(theta) = argmin_p |IK(p; theta) - L(s; theta)|^2`` within the commanded motion mode. Its Jacobian comes from the
+implicit function theorem on the FK's normal equations ``F = J_p^T (IK(p; theta) - L(s; theta)) = 0``:
+``dp/dtheta = -(dF/dp)^{-1} dF/dtheta`` with ``J_p`` the exact pose Jacobian of the IK restricted to the mode's
+columns (:func:`motion.pkm5.jacobian.jacobian`) and both derivatives of F by central differences of closed forms
+(smooth, so a 1e-4 mm step gives ~1e-8 relative accuracy); no FK solve is needed for the Jacobian.
+Forward residuals suit position-only and relative measurements (mice, laser grid) where the orientation is not
+measured; the calibration literature (methods-turn2.md §1.1) prefers IK residuals only when the full pose is known.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from motion.errors import MotionInputError
+from motion.pkm5.fk import MODES, forward_kinematics
+from motion.pkm5.geometry import DEFAULT_GEOMETRY, Geometry, steps_to_lengths
+from motion.pkm5.ik import leg_lengths
+from motion.pkm5.jacobian import jacobian
+
+__all__ = ["PARAMETERS", "REGISTRATION", "UNITS", "apply_parameters", "geometry_from_calibration", "parameter_deviations", "modes_of_poses",
+           "ForwardModel"]
+
+_AXES = ("x", "y", "z")
+_JOINT_FIELDS = ("oa_12", "oa_34", "oa_56", "pd_12", "pd_34", "pd_5", "pd_6")
+#: Registration unknowns of a relative instrument (mm).
+REGISTRATION = tuple(f"reg_{axis}_mm" for axis in _AXES)
+#: Every geometric parameter, in the order the default free set is built (joint zeros first, then scales, then
+#: the joint positions, pkm5.md §2.6: the fields the documents never give come first).
+PARAMETERS = (tuple(f"leg_offset_{i}_mm" for i in range(1, 7)) + tuple(f"scale_{i}" for i in range(1, 7))
+              + tuple(f"{field}_{axis}_mm" for field in _JOINT_FIELDS for axis in _AXES))
+#: Unit of each parameter (``1`` for the dimensionless scale).
+UNITS = {name: ("1" if name.startswith("scale_") else "mm") for name in PARAMETERS + REGISTRATION}
+_FD_STEP = {"mm": 1e-4, "1": 1e-6}
+
+
+def _check_names(names) -> tuple[str, ...]:
+    names = tuple(names)
+    unknown = [n for n in names if n not in UNITS]
+    if unknown:
+        raise MotionInputError(f"calibration parameter {unknown[0]!r} is not a pkm5 parameter; expected one of "
+                               f"leg_offset_1_mm..leg_offset_6_mm, scale_1..scale_6, oa_12_x_mm.., pd_6_z_mm, "
+                               f"reg_x_mm..reg_z_mm")
+    if len(set(names)) != len(names):
+        raise MotionInputError(f"calibration parameters {list(names)} name one parameter twice")
+    return names
+
+
+def apply_parameters(names, values, geometry: Geometry = DEFAULT_GEOMETRY) -> Geometry:
+    """The geometry with the deviations ``values`` of parameters ``names`` added (registration names ignored)."""
+    names = _check_names(names)
+    values = np.asarray(values, dtype=float).reshape(len(names))
+    offsets = np.array(geometry.leg_length_offset_mm, dtype=float)
+    lead = np.array(geometry.mm_per_full_step, dtype=float)
+    joints = {field: np.array(getattr(geometry, f"{field}_mm"), dtype=float) for field in _JOINT_FIELDS}
+    for name, value in zip(names, values):
+        if name.startswith("leg_offset_"):
+            offsets[int(name[11]) - 1] += value
+        elif name.startswith("scale_"):
+            index = int(name[6]) - 1
+            lead[index] = geometry.mm_per_full_step[index] * (1.0 + value)
+        elif not name.startswith("reg_"):
+            field, axis = name[:-5], name[-4]
+            joints[field][_AXES.index(axis)] += value
+    return geometry.replace(leg_length_offset_mm=tuple(offsets), mm_per_full_step=tuple(lead),
+                            **{f"{field}_mm": tuple(v) for field, v in joints.items()})
+
+
+def parameter_deviations(geometry: Geometry, nominal: Geometry = DEFAULT_GEOMETRY) -> dict[str, float]:
+    """Every parameter of :data:`PARAMETERS` as the deviation of ``geometry`` from ``nominal``."""
+    out = {}
+    for i in range(6):
+        out[f"leg_offset_{i + 1}_mm"] = geometry.leg_length_offset_mm[i] - nominal.leg_length_offset_mm[i]
+    for i in range(6):
+        out[f"scale_{i + 1}"] = geometry.mm_per_full_step[i] / nominal.mm_per_full_step[i] - 1.0
+    for field in _JOINT_FIELDS:
+        for k, axis in enumerate(_AXES):
+            out[f"{field}_{axis}_mm"] = getattr(geometry, f"{field}_mm")[k] - getattr(nominal, f"{field}_mm")[k]
+    return {name: float(value) for name, value in out.items()}
+
+
+def geometry_from_calibration(params, nominal: Geometry = DEFAULT_GEOMETRY) -> Geometry:
+    """The calibrated geometry of a stored kinematic calibration's parameters (``{"parameters": {name: {"value":
+    ...}}}``, as ``bench calibrate`` stores them); registration entries are not geometry and are skipped."""
+    try:
+        entries = {name: float(entry["value"]) for name, entry in params["parameters"].items()}
+    except (KeyError, TypeError, ValueError, AttributeError) as exc:
+        raise MotionInputError(f"kinematic calibration parameters: {exc!r}, expected {{'parameters': {{name: "
+                               "{'value': number}}}}") from None
+    geometric = {n: v for n, v in entries.items() if not n.startswith("reg_")}
+    return apply_parameters(tuple(geometric), tuple(geometric.values()), nominal)
+
+
+def modes_of_poses(poses) -> np.ndarray:
+    """Motion mode of commanded poses (N, 5; angles in any unit): 'alpha' if alpha != 0, 'beta' if beta != 0."""
+    p = np.asarray(poses, dtype=float).reshape(-1, 5)
+    return np.where(p[:, 3] != 0, "alpha", np.where(p[:, 4] != 0, "beta", "translation")).astype(object)
+
+
+class ForwardModel:
+    """Predicted measured coordinates of the attained poses as a function of the free parameters.
+
+    Parameters
+    ----------
+    steps : array_like (N, 6)
+        Commanded absolute steps of each measured pose.
+    modes : array_like (N,) of str
+        Motion mode of each commanded pose ('translation', 'alpha', 'beta'; :func:`modes_of_poses`).
+    free : sequence of str
+        Names of the free parameters (:data:`PARAMETERS` and :data:`REGISTRATION`).
+    axes : sequence of int
+        Pose coordinates the instrument measures (0, 1, 2 = x, y, z in mm; the mice: all three positions).
+    nominal : Geometry
+        The geometry the deviations are taken from.
+    """
+
+    def __init__(self, steps, modes, free, axes=(0, 1, 2), nominal: Geometry = DEFAULT_GEOMETRY) -> None:
+        self.steps = np.asarray(steps, dtype=float).reshape(-1, 6)
+        self.modes = np.asarray(modes, dtype=object).reshape(-1)
+        if len(self.modes) != len(self.steps):
+            raise MotionInputError(f"modes has {len(self.modes)} entries for {len(self.steps)} poses")
+        bad = set(self.modes) - set(MODES)
+        if bad:
+            raise MotionInputError(f"mode = {sorted(bad)[0]!r}, expected one of {sorted(MODES)}")
+        self.free = _check_names(free)
+        self.axes = tuple(int(a) for a in axes)
+        if not self.axes or any(a not in (0, 1, 2) for a in self.axes):
+            raise MotionInputError(f"axes = {axes!r}, expected a subset of (0, 1, 2) (x, y, z)")
+        self.nominal = nominal
+        self._starts: dict[str, np.ndarray] = {}  # per mode: the documented geometry's poses, the FK's start
+
+    @property
+    def bound(self) -> np.ndarray:
+        """Largest plausible |deviation| of each free parameter, the solver's box: 5 mm, 5 % of the lead, 20 mm
+        of registration (ten times the true-geometry sizes; a solution at the box is a model or data error)."""
+        return np.array([0.05 if UNITS[n] == "1" else 20.0 if n.startswith("reg_") else 5.0 for n in self.free])
+
+    @property
+    def units(self) -> tuple[str, ...]:
+        return tuple(UNITS[name] for name in self.free)
+
+    def poses(self, theta) -> np.ndarray:
+        """Attained poses (N, 5; mm, rad) under parameters ``theta``; NaN rows where the FK fails."""
+        geometry = apply_parameters(self.free, theta, self.nominal)
+        lengths = steps_to_lengths(self.steps, geometry)
+        out = np.full((len(self.steps), 5), np.nan)
+        for mode in MODES:
+            rows = np.flatnonzero(self.modes == mode)
+            if rows.size == 0:
+                continue
+            if mode not in self._starts:
+                # every solve starts from the documented geometry's solution: its k-d seed tables are cached (a
+                # perturbed geometry's alpha plane moves and rejection-sampling a new table takes minutes), and a
+                # fixed start keeps each solve on the same branch whatever trial parameters came before
+                self._starts[mode] = forward_kinematics(steps_to_lengths(self.steps[rows], DEFAULT_GEOMETRY),
+                                                        DEFAULT_GEOMETRY, mode=mode, residual_tol_mm=2.0,
+                                                        max_iter=200).pose
+            start = self._starts[mode]
+            fk = forward_kinematics(lengths[rows], geometry, initial_pose=start, mode=mode, residual_tol_mm=2.0,
+                                    retry_above_mm=0.5, max_iter=200)
+            out[rows] = np.where(fk.converged[:, None], fk.pose, np.nan)
+        return out
+
+    def _registration(self, theta) -> np.ndarray:
+        shift = np.zeros(3)
+        for name, value in zip(self.free, np.asarray(theta, dtype=float)):
+            if name.startswith("reg_"):
+                shift[_AXES.index(name[4])] = value
+        return shift
+
+    def predict(self, theta) -> np.ndarray:
+        """Predicted measured coordinates (N, len(axes)), mm."""
+        positions = self.poses(theta)[:, :3] + self._registration(theta)
+        return positions[:, list(self.axes)]
+
+    def _stationarity(self, p, theta) -> np.ndarray:
+        """F(p, theta) = J_m^T (IK(p; theta) - L(s; theta)) per pose, (N, 5) (zero columns outside the mode):
+        the normal equations the least-squares FK solves, F = 0 at every attained pose."""
+        g = apply_parameters(self.free, theta, self.nominal)
+        x, y, z, alpha, beta = p.T
+        lengths, _ = leg_lengths(x, y, z, alpha, beta, g, with_tilt=False)
+        residual = np.stack(lengths, -1) - steps_to_lengths(self.steps, g)
+        out = np.einsum("nlc,nl->nc", jacobian(p, g), residual)
+        return out * self._mode_mask
+
+    def jacobian(self, theta, poses=None) -> np.ndarray:
+        """d predict / d theta, shape (N, len(axes), len(free)), exact up to central-difference error.
+
+        Implicit function theorem on the FK's normal equations F(p, theta) = 0 (:meth:`_stationarity`):
+        ``dp/dtheta = -(dF/dp)^{-1} dF/dtheta`` over the mode's pose columns, with both derivatives by central
+        differences of closed forms (no FK solve). dF/dp is ``J^T J`` plus the residual-curvature term that a
+        Gauss-Newton Jacobian drops (~1 % when six legs over-determine three or four pose unknowns).
+        """
+        theta = np.asarray(theta, dtype=float)
+        p = np.nan_to_num(self.poses(theta) if poses is None else poses)
+        n, k = len(p), len(self.free)
+        self._mode_mask = np.ones((n, 5))
+        for mode, angle in MODES.items():
+            rows = self.modes == mode
+            self._mode_mask[rows, 3] = angle == 3
+            self._mode_mask[rows, 4] = angle == 4
+        dfdp = np.zeros((n, 5, 5))
+        for c, h in enumerate((1e-4, 1e-4, 1e-4, 1e-6, 1e-6)):
+            bump = np.zeros(5)
+            bump[c] = h
+            dfdp[:, :, c] = (self._stationarity(p + bump, theta) - self._stationarity(p - bump, theta)) / (2 * h)
+        dfdt = np.zeros((n, 5, k))
+        for j, name in enumerate(self.free):
+            if name.startswith("reg_"):
+                continue
+            h = _FD_STEP[UNITS[name]]
+            bump = np.zeros(k)
+            bump[j] = h
+            dfdt[:, :, j] = (self._stationarity(p, theta + bump) - self._stationarity(p, theta - bump)) / (2 * h)
+        # outside the mode's columns put an identity block, so the solve leaves those pose derivatives at zero
+        dfdp = dfdp + np.einsum("nc,cd->ncd", 1.0 - self._mode_mask, np.eye(5))
+        dpose = -np.linalg.solve(dfdp, dfdt)
+        for j, name in enumerate(self.free):
+            if name.startswith("reg_"):
+                dpose[:, _AXES.index(name[4]), j] = 1.0
+        return dpose[:, list(self.axes), :]

@@ -1,0 +1,86 @@
+"""``bench calibrate RUN_ID`` on a stored run of simulated mice measurements of a seeded true geometry."""
+
+import json
+
+import numpy as np
+import pytest
+
+from bench.cli import main
+from bench.metrology.kinematic_calibration import identifiable_subset, select_poses
+from bench.simulators.true_geometry import attained_poses, true_deviations, true_geometry
+from bench.store import Store
+from motion import pkm5
+from motion.pkm5.calibration import (PARAMETERS, REGISTRATION, ForwardModel, geometry_from_calibration,
+                                     modes_of_poses, parameter_deviations)
+
+ALL = REGISTRATION + PARAMETERS
+UNCERTAINTY_MM = 0.05
+
+
+def _store_run(path, commanded_deg, measured):
+    with Store(path) as store:
+        run_id = store.start_run(protocol_name="kinematic_calibration", protocol_version="1", robot="pkm5",
+                                 config={})
+        for i, (cmd, meas) in enumerate(zip(commanded_deg, measured)):
+            values = {**dict(zip(("cmd_x_mm", "cmd_y_mm", "cmd_z_mm", "cmd_a_deg", "cmd_b_deg"), map(float, cmd))),
+                      **dict(zip(("x_mm", "y_mm", "z_mm"), map(float, meas)))}
+            store.add_sample(run_id, i, values=values, kind="pose", pose=f"P{i}", cycle=1, t_s=float(i))
+    return run_id
+
+
+def test_calibrate_identifies_and_stores_a_version(tmp_path, capsys):
+    poses = pkm5.sample_reachable(200, kinds=("constant-orientation", "alpha", "beta"), seed=3)
+    poses_deg = np.array(poses)
+    poses_deg[:, 3:] = np.round(np.degrees(poses_deg[:, 3:]), 3)  # as a protocol file states them
+    poses_rad = poses_deg.copy()
+    poses_rad[:, 3:] = np.radians(poses_rad[:, 3:])
+    steps = pkm5.lengths_to_steps(pkm5.inverse_kinematics(poses_rad).lengths_mm)
+    modes = modes_of_poses(poses_deg)
+    jac = ForwardModel(steps, modes, ALL).jacobian(np.zeros(len(ALL)))
+    pick = select_poses(jac, UNCERTAINTY_MM, 30)
+    free = identifiable_subset(jac[pick], UNCERTAINTY_MM, ALL, required=REGISTRATION)
+    geometric = [n for n in free if n in PARAMETERS]
+    truth = true_geometry(11, geometric)
+    rng = np.random.default_rng(11)
+    measured = attained_poses(steps[pick], modes[pick], truth)[:, :3] + rng.normal(0, UNCERTAINTY_MM, (30, 3))
+    path = tmp_path / "bench.db"
+    run_id = _store_run(path, poses_deg[pick], measured)
+
+    assert main(["calibrate", str(run_id), "--store", str(path), "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert out["calibration"] == "pkm5_kinematics" and out["version"] == 1
+    expected = true_deviations(11, geometric)
+    params = out["parameters"]
+    assert set(params) == set(free)
+    for name in geometric:
+        assert abs(params[name]["value"] - expected[name]) < 3 * params[name]["uncertainty"], name
+    assert out["observability"]["condition_number"] <= 100
+    assert out["ap_after_mm"] < out["ap_before_mm"] / 5
+    with Store(path) as store:
+        record = store.calibration("pkm5_kinematics")
+    assert record.version == 1 and record.source_run_id == run_id
+    calibrated = geometry_from_calibration(record.params)
+    for name in geometric:
+        assert parameter_deviations(calibrated)[name] == pytest.approx(params[name]["value"], abs=1e-12)
+
+
+def test_calibrate_a_run_without_measured_poses_is_one_line(tmp_path, capsys):
+    path = tmp_path / "bench.db"
+    with Store(path) as store:
+        run_id = store.start_run(protocol_name="pose_test", protocol_version="1", robot="pkm5", config={})
+    assert main(["calibrate", str(run_id), "--store", str(path)]) == 1
+    err = capsys.readouterr().err
+    assert err == (f"bench: error: run {run_id}: no pose samples with measured x_mm, y_mm, z_mm; expected a run of "
+                   "commanded and measured poses\n")
+
+
+def test_calibrate_a_singular_pose_set_names_the_parameters(tmp_path, capsys):
+    x = np.linspace(120.0, 170.0, 12)
+    commanded = np.column_stack([x, np.zeros(12), np.full(12, 300.0), np.zeros(12), np.zeros(12)])
+    path = tmp_path / "bench.db"
+    run_id = _store_run(path, commanded, commanded[:, :3])
+    code = main(["calibrate", str(run_id), "--store", str(path), "--free", "leg_offset_1_mm", "scale_1",
+                 "oa_12_x_mm"])
+    err = capsys.readouterr().err
+    assert code == 2
+    assert err.count("\n") == 1 and "condition number" in err and "oa_12_x_mm" in err
