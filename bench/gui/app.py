@@ -27,6 +27,7 @@ from PySide6.QtWidgets import (
 )
 
 from bench.gui.calliper_dialog import CalliperDialog
+from bench.gui.messages import show_message
 from bench.gui.campaign_panel import CampaignPanel
 from bench.gui.live_view import LiveView
 from bench.gui.results_browser import ResultsBrowser
@@ -177,12 +178,8 @@ class MainWindow(QMainWindow):
 
     def _show_dialog(self, icon: QMessageBox.Icon, title: str, text: str) -> QMessageBox:
         """A non-modal message: it never blocks the emergency stop."""
-        dialog = QMessageBox(icon, title, text, QMessageBox.StandardButton.Ok, self)
-        dialog.setObjectName("runDialog")
-        dialog.setWindowModality(Qt.WindowModality.NonModal)
-        dialog.show()
-        self.last_dialog = dialog
-        return dialog
+        self.last_dialog = show_message(self, icon, title, text, name="runDialog")
+        return self.last_dialog
 
     def ask_reading(self, prompt: Prompt) -> CalliperDialog:
         """Show the calliper dialog for ``prompt``; its answer goes straight to the waiting run."""

@@ -14,7 +14,7 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
-from PySide6.QtCore import Qt, QTimer, QUrl, Signal
+from PySide6.QtCore import QTimer, QUrl, Signal
 from PySide6.QtGui import QDesktopServices
 from PySide6.QtWidgets import (
     QAbstractItemView,
@@ -30,6 +30,7 @@ from PySide6.QtWidgets import (
     QWidget,
 )
 
+from bench.gui.messages import show_message
 from bench.gui.tasks import Task, run_in_background
 from bench.store import RunRecord, Store, export_run
 
@@ -242,11 +243,7 @@ class ResultsBrowser(QGroupBox):
         self._dialog(QMessageBox.Icon.Warning, f"The {what} failed", text)
 
     def _dialog(self, icon: QMessageBox.Icon, title: str, text: str) -> None:
-        dialog = QMessageBox(icon, title, text, QMessageBox.StandardButton.Ok, self)
-        dialog.setObjectName("resultsDialog")
-        dialog.setWindowModality(Qt.WindowModality.NonModal)
-        dialog.show()
-        self.last_dialog = dialog
+        self.last_dialog = show_message(self, icon, title, text, name="resultsDialog")
 
     def _resume(self) -> None:
         ids = self.selected_run_ids()

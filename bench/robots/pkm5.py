@@ -1,4 +1,4 @@
-"""Driver for the 5-DOF PKM controller (firmware ``firmware/pkm5/pkm5.ino`` or ``bench sim pkm5``).
+"""Driver for the 5-DOF PKM controller (firmware ``firmware/pkm5/pkm5.c`` or ``bench sim pkm5``).
 
 Speaks the line protocol of ``docs/protocol-pkm5.md`` over an open pyserial port. Every target is pre-flighted in
 :mod:`motion.pkm5` (IK reachability and leg limits) before a byte is sent; a refused target raises

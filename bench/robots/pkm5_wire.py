@@ -1,7 +1,7 @@
 """The PKM5 wire protocol (``docs/protocol-pkm5.md``): line encoding, checksums, command and reply parsing.
 
 Pure functions shared by the driver (:mod:`bench.robots.pkm5`), the simulated controller
-(:mod:`bench.simulators.pkm5`) and, by specification, the firmware (``firmware/pkm5/pkm5.ino``).
+(:mod:`bench.simulators.pkm5`) and, by specification, the firmware (``firmware/pkm5/pkm5.c``).
 
 A line is ``BODY*HH\\n``: printable ASCII, at most :data:`MAX_LINE` bytes before the newline, ``HH`` the XOR of the
 body bytes in two upper-case hex digits. A command body is ``VERB [int ...] #TAG``; a reply body is
