@@ -52,6 +52,10 @@ def register(groups: argparse._SubParsersAction) -> None:
     _rig_arguments(resume)
     resume.set_defaults(handler=_resume)
 
+    backup = _parser(groups, "backup", "a consistent copy of the run store, safe while a run is writing")
+    backup.add_argument("destination", metavar="DEST", help="the new file (it must not exist)")
+    backup.set_defaults(handler=_backup)
+
     export = _parser(groups, "export", "write a run's tidy sample table (the input of bench analyze)")
     export.add_argument("run_id", metavar="RUN_ID", type=int)
     defer(export, _add_export_format)
@@ -257,6 +261,14 @@ def _default_kind(store: Store, run_id: int) -> str:
         listed = ", ".join(f"{k} ({n})" for k, n in kinds.items())
         print(f"bench: exporting kind {kind}; the run also holds {listed}: choose with --kind", file=sys.stderr)
     return kind
+
+
+def _backup(args: argparse.Namespace) -> int:
+    from bench.store import Store
+
+    with Store(_existing_store(args.store)) as store:
+        print(store.backup_to(args.destination))
+    return 0
 
 
 def _export(args: argparse.Namespace) -> int:

@@ -327,6 +327,7 @@ class Runner:
             self._shutdown()
             reason = None if status == "completed" else self._reason
             self.store.set_status(run_id, status, reason)
+            self.store.checkpoint()  # the end of a run segment: the .db file alone is complete
             self.state = RunState.FINISHED
         _log.info("run %d %s%s", run_id, status, f": {reason}" if reason else "")
         return RunResult(run_id, status, reason, len(self.store.stored_steps(run_id)), exception)
@@ -349,8 +350,10 @@ class Runner:
                 self.current_step = step
                 reply = self._act(step, run_id, index)
                 self.current_step = None
-            if isinstance(step, Checkpoint) and not final and index >= start_at and self._at_checkpoint(step):
-                return
+            if isinstance(step, Checkpoint) and not final and index >= start_at:
+                self.store.checkpoint()  # the .db file alone now holds every sample so far
+                if self._at_checkpoint(step):
+                    return
             index += 1
 
     def _at_checkpoint(self, step: Checkpoint) -> bool:

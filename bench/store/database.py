@@ -189,6 +189,33 @@ class Store:
     def close(self) -> None:
         self._db.close()
 
+    def checkpoint(self) -> None:
+        """Copy the write-ahead log into the database file, so that the ``.db`` file alone (a backup of "the store
+        file", a copy taken after a crash) holds every committed sample. The runner calls it at every checkpoint
+        step and at the end of every run segment; it waits for no reader (SQLite's PASSIVE mode)."""
+        try:
+            self._db.execute("PRAGMA wal_checkpoint(PASSIVE)")
+        except sqlite3.Error as exc:
+            raise BenchError(f"{self.path}: cannot checkpoint the store ({exc})") from None
+
+    def backup_to(self, destination: str | Path) -> Path:
+        """A consistent copy of the whole store at ``destination``, taken with SQLite's online backup API (safe
+        while a run is writing); refuses to overwrite an existing file."""
+        destination = Path(destination)
+        if destination.exists():
+            raise ConfigError(f"backup: {destination} exists, expected a new file name")
+        if not destination.parent.is_dir():
+            raise ConfigError(f"backup: folder {destination.parent} does not exist, expected an existing folder")
+        target = sqlite3.connect(destination)
+        try:
+            self._db.backup(target)
+        except sqlite3.Error as exc:
+            target.close()
+            destination.unlink(missing_ok=True)
+            raise BenchError(f"{self.path}: backup to {destination} failed ({exc})") from None
+        target.close()
+        return destination
+
     # ---- campaigns -------------------------------------------------------------------------------------------
 
     def campaign_id(self, name: str, notes: str = "") -> int:

@@ -1,0 +1,81 @@
+"""The store file is always a complete store: the write-ahead log is checkpointed at every checkpoint step and at
+the end of every run segment, so the ``.db`` file alone (a backup, a copy after a crash) holds every sample
+committed before the last checkpoint; ``bench backup`` makes a consistent copy while a run is writing."""
+
+from __future__ import annotations
+
+import shutil
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+from bench.cli import main
+from bench.store import Store
+
+ROOT = Path(__file__).resolve().parents[1]
+QUICK = ROOT / "examples" / "iso9283_pose_quick.toml"
+BENCH = str(Path(sys.executable).with_name("bench"))
+
+
+def _values(path: Path) -> dict[int, dict]:
+    with Store(path) as store:
+        (run,) = store.runs()
+        return {s.step_index: s.values for s in store.samples(run.id)}
+
+
+def _start_and_wait(store: Path, at_least: int) -> subprocess.Popen:
+    process = subprocess.Popen([BENCH, "run", str(QUICK), "--store", str(store), "--no-progress",
+                                "--speed-factor", "60"], stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL,
+                               stderr=subprocess.PIPE, text=True)
+    deadline = time.monotonic() + 120
+    while time.monotonic() < deadline:
+        assert process.poll() is None, process.communicate()
+        if store.exists():
+            with Store(store) as opened:
+                runs = opened.runs()
+                if runs and runs[0].n_samples >= at_least:
+                    return process
+        time.sleep(0.05)
+    process.kill()
+    raise AssertionError(f"no {at_least} samples within 120 s")
+
+
+def test_the_db_file_alone_holds_every_sample_up_to_the_last_checkpoint_even_after_kill_9(tmp_path):
+    store = tmp_path / "b.db"
+    process = _start_and_wait(store, 6)  # past the first cycle's checkpoint (5 poses a cycle)
+    live_copy = tmp_path / "copy-live.db"
+    shutil.copyfile(store, live_copy)  # the .db file only, taken while the run writes
+    process.send_signal(signal.SIGKILL)
+    process.wait(30)
+    crash_copy = tmp_path / "copy-crash.db"
+    shutil.copyfile(store, crash_copy)  # the .db file only, after the crash
+    stored = _values(store)
+    for copy in (live_copy, crash_copy):
+        values = _values(copy)
+        assert len(values) >= 5, copy  # the first cycle, committed before its checkpoint
+        assert all(stored[step] == row for step, row in values.items())
+
+
+def test_a_clean_run_leaves_a_complete_db_file(tmp_path, capsys):
+    store = tmp_path / "b.db"
+    assert main(["run", str(QUICK), "--store", str(store), "--no-progress"]) == 0
+    capsys.readouterr()
+    alone = tmp_path / "alone.db"
+    shutil.copyfile(store, alone)
+    assert len(_values(alone)) == 15 and _values(alone) == _values(store)
+
+
+def test_bench_backup_copies_a_store_while_a_run_writes(tmp_path, capsys):
+    store = tmp_path / "b.db"
+    process = _start_and_wait(store, 3)
+    try:
+        assert main(["backup", str(tmp_path / "backup.db"), "--store", str(store)]) == 0
+    finally:
+        process.wait(120)
+    assert capsys.readouterr().out.strip() == str(tmp_path / "backup.db")
+    backup, final = _values(tmp_path / "backup.db"), _values(store)
+    assert len(backup) >= 3 and all(final[step] == row for step, row in backup.items())
+    assert main(["backup", str(tmp_path / "backup.db"), "--store", str(store)]) == 2  # never overwrites
+    assert "exists, expected a new file name" in capsys.readouterr().err
