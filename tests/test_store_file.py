@@ -79,3 +79,20 @@ def test_bench_backup_copies_a_store_while_a_run_writes(tmp_path, capsys):
     assert len(backup) >= 3 and all(final[step] == row for step, row in backup.items())
     assert main(["backup", str(tmp_path / "backup.db"), "--store", str(store)]) == 2  # never overwrites
     assert "exists, expected a new file name" in capsys.readouterr().err
+
+
+def test_export_into_a_missing_folder_and_a_header_only_table_are_one_line(tmp_path, capsys):
+    store = tmp_path / "b.db"
+    assert main(["run", str(QUICK), "--store", str(store), "--no-progress"]) == 0
+    capsys.readouterr()
+    missing = tmp_path / "nope" / "run.csv"
+    assert main(["export", "1", "--store", str(store), "--out", str(missing)]) == 2
+    assert capsys.readouterr().err.strip() == (f"bench: error: export: folder {missing.parent} does not exist, "
+                                               "expected an existing folder")
+    table = tmp_path / "run.csv"
+    assert main(["export", "1", "--store", str(store), "--out", str(table)]) == 0
+    header = tmp_path / "header.csv"
+    header.write_text(table.read_text().splitlines()[0] + "\n")
+    capsys.readouterr()
+    assert main(["analyze", "iso9283", str(header)]) == 2
+    assert capsys.readouterr().err.strip() == f"bench: error: {header}: no rows, expected at least one measured pose"

@@ -98,6 +98,8 @@ def _iso9283(args: argparse.Namespace) -> int:
     )
 
     table = pose_table(read_table_csv(args.file, numeric=POSE_NUMERIC_COLUMNS))
+    if table.empty:  # a header and no rows: nothing measured, never an empty result printed as if it were one
+        raise ConfigError(f"{args.file}: no rows, expected at least one measured pose")
     results = report_order(analyze_poses(table, instrument_u_mm=args.instrument_u_mm, k=args.k))
     labels = [pose_label(r.pose, r.conditions) for r in results]
     width = max([12, *map(len, labels)])

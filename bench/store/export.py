@@ -106,6 +106,8 @@ def export_run(store: Store, run_id: int, path: str | Path, fmt: str = "csv", ki
 
     Beside it goes ``<path>.meta.json``: the run's identity (UUID, bench, local id), protocol, robot, and the unit,
     dtype and meaning of every exported column (from the sample descriptor; the unit from the name otherwise)."""
+    if not Path(path).parent.is_dir():
+        raise ConfigError(f"export: folder {Path(path).parent} does not exist, expected an existing folder")
     if fmt not in EXPORT_FORMATS:
         raise ConfigError(f"--format {fmt}: expected one of {', '.join(EXPORT_FORMATS)}")
     if fmt == "parquet" and not _parquet_available():
