@@ -9,6 +9,7 @@ import :mod:`bench.simulators` (it starts them); the production packages below i
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
@@ -67,21 +68,13 @@ def open_rig(request: RigRequest, store: Any, *, robot: str, stored: dict[str, A
     if station.controller.fixture != fixture:
         raise ConfigError(f"{station.source}: controller.fixture = {station.controller.fixture!r}, expected "
                           f"{fixture!r} for {protocol}")
-    if request.station and hasattr(store, "bench"):
+    if request.station:
         store.bench = station.identity.bench  # runs are stored under the station's name (the lab store's key)
     if not request.simulate:
         return build_rig(station, store, requires=requires, protocol=protocol, operator=operator)
-    from bench.simulators.station import rehearse
-
     check_capabilities(station, requires, protocol)  # before a simulator starts
-    seed, speed = _simulation_settings(request, stored)
-    rehearsal = rehearse(station, seed=seed, speed_factor=speed)
-    try:
-        rig = build_rig(rehearsal.station, store, requires=requires, protocol=protocol, speed_factor=speed,
-                        operator=operator)
-    except BaseException:
-        rehearsal.close()
-        raise
+    rig, rehearsal, seed = _on_rehearsal(station, request, stored, lambda devices, speed: build_rig(
+        devices, store, requires=requires, protocol=protocol, speed_factor=speed, operator=operator))
     rig.closers.insert(0, rehearsal.close)  # closed last: after the drivers let go of the simulators' devices
     rig.extra["simulator"] = {"seed": seed, "station": station.source, "truth_log": rehearsal.truth_path}
     return rig
@@ -98,21 +91,30 @@ def open_mover(request: RigRequest, robot: str) -> tuple[Any, Any]:
         return rig.robot, rig.close
     if not request.simulate:
         return builder_open_mover(station)
-    from bench.simulators.station import rehearse
-
-    seed, speed = _simulation_settings(request, {})
-    rehearsal = rehearse(station, seed=seed, speed_factor=speed)
-    try:
-        mover, close = builder_open_mover(rehearsal.station)
-    except BaseException:
-        rehearsal.close()
-        raise
+    (mover, close), rehearsal, _ = _on_rehearsal(station, request, {},
+                                                 lambda devices, speed: builder_open_mover(devices))
 
     def close_all() -> None:
         close()
         rehearsal.close()
 
     return mover, close_all
+
+
+def _on_rehearsal(station: Station, request: RigRequest, stored: dict[str, Any],
+                  build: Callable[[Station, float], Any]) -> tuple[Any, Any, int]:
+    """Start a simulator for every device of ``station`` and ``build(simulated station, speed factor)`` on them;
+    returns what was built, the rehearsal (the caller closes it with what it built) and the seed. The simulators
+    are stopped again when the build fails."""
+    from bench.simulators.station import rehearse
+
+    seed, speed = _simulation_settings(request, stored)
+    rehearsal = rehearse(station, seed=seed, speed_factor=speed)
+    try:
+        return build(rehearsal.station, speed), rehearsal, seed
+    except BaseException:
+        rehearsal.close()
+        raise
 
 
 def _simulation_settings(request: RigRequest, stored: dict[str, Any]) -> tuple[int, float]:
@@ -161,10 +163,9 @@ def simulated_rig_in(store: Any, robot: str, *, seed: int, speed_factor: float, 
         return rig  # no calibration in force: the readings are typed-in gauge values
     if robot == "pkm5":
         params = {"cpi": rig.instrument.cpi, "mm_per_count": 25.4 / rig.instrument.cpi}
-        name, notes = rig.instrument.calibration.calibration_id, "nominal calibration of the simulated mice"
+        rig.calibration_ids = (store.ensure_calibration(rig.instrument.calibration.calibration_id, params,
+                                                        notes="nominal calibration of the simulated mice").id,)
     else:
-        params = {"screens": repr(rig.instrument.geometry)}
-        name, notes = rig.instrument.geometry.calibration_id, "laser-grid geometry of the legacy GUI drawing"
-    rig.calibration_ids = (store.ensure_calibration(name, params, notes=notes).id,)
+        rig.calibration_ids = (rig.instrument.record_geometry(store),)
     return rig
 

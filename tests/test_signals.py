@@ -5,11 +5,11 @@ from __future__ import annotations
 
 import signal
 import subprocess
-import sys
-import time
 from pathlib import Path
 
 import pytest
+
+from cli_runs import BENCH, wait_for_samples
 
 from bench.cli import main
 from bench.store import Store
@@ -17,7 +17,6 @@ from bench.store import Store
 ROOT = Path(__file__).resolve().parents[1]
 QUICK = ROOT / "examples" / "iso9283_pose_quick.toml"
 STATION = ROOT / "examples" / "stations" / "pkm5_mice.toml"
-BENCH = str(Path(sys.executable).with_name("bench"))
 
 
 def _start(store: Path, speed_factor: str) -> subprocess.Popen:
@@ -26,25 +25,11 @@ def _start(store: Path, speed_factor: str) -> subprocess.Popen:
                             stdin=subprocess.DEVNULL, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
 
 
-def _wait_for_samples(store: Path, process: subprocess.Popen, at_least: int, timeout_s: float = 60.0) -> None:
-    deadline = time.monotonic() + timeout_s
-    while time.monotonic() < deadline:
-        assert process.poll() is None, process.communicate()
-        if store.exists():
-            with Store(store) as opened:
-                runs = opened.runs()
-                if runs and runs[0].n_samples >= at_least:
-                    return
-        time.sleep(0.05)
-    process.kill()
-    raise AssertionError(f"no {at_least} samples within {timeout_s:g} s")
-
-
 @pytest.mark.parametrize("stop", [signal.SIGTERM, signal.SIGHUP])
 def test_a_stop_signal_aborts_the_run_resumably_and_resume_completes_it(tmp_path, stop, capsys):
     store = tmp_path / "b.db"
     process = _start(store, "300")
-    _wait_for_samples(store, process, 2)
+    wait_for_samples(store, process, 2)
     process.send_signal(stop)
     out, err = process.communicate(timeout=60)
     assert process.returncode == 1, err
@@ -66,7 +51,7 @@ def test_a_stop_signal_aborts_the_run_resumably_and_resume_completes_it(tmp_path
 def test_ctrl_c_with_stdin_at_its_end_aborts_once(tmp_path):
     store = tmp_path / "b.db"
     process = _start(store, "60")
-    _wait_for_samples(store, process, 1)
+    wait_for_samples(store, process, 1)
     process.send_signal(signal.SIGINT)  # pause at the next checkpoint, then the pause menu reads end of input
     out, err = process.communicate(timeout=120)
     assert process.returncode == 1

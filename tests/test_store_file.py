@@ -7,16 +7,15 @@ from __future__ import annotations
 import shutil
 import signal
 import subprocess
-import sys
-import time
 from pathlib import Path
+
+from cli_runs import BENCH, wait_for_samples
 
 from bench.cli import main
 from bench.store import Store
 
 ROOT = Path(__file__).resolve().parents[1]
 QUICK = ROOT / "examples" / "iso9283_pose_quick.toml"
-BENCH = str(Path(sys.executable).with_name("bench"))
 
 
 def _values(path: Path) -> dict[int, dict]:
@@ -29,17 +28,8 @@ def _start_and_wait(store: Path, at_least: int) -> subprocess.Popen:
     process = subprocess.Popen([BENCH, "run", str(QUICK), "--store", str(store), "--no-progress",
                                 "--speed-factor", "60"], stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL,
                                stderr=subprocess.PIPE, text=True)
-    deadline = time.monotonic() + 120
-    while time.monotonic() < deadline:
-        assert process.poll() is None, process.communicate()
-        if store.exists():
-            with Store(store) as opened:
-                runs = opened.runs()
-                if runs and runs[0].n_samples >= at_least:
-                    return process
-        time.sleep(0.05)
-    process.kill()
-    raise AssertionError(f"no {at_least} samples within 120 s")
+    wait_for_samples(store, process, at_least, timeout_s=120.0)
+    return process
 
 
 def test_the_db_file_alone_holds_every_sample_up_to_the_last_checkpoint_even_after_kill_9(tmp_path):

@@ -24,7 +24,7 @@ from bench.errors import ConfigError, LinkError
 from bench.rigs.gauges import CalliperOnly, GaugeOperator
 from bench.rigs.interfaces import Operator, Rig
 from bench.rigs.movers import DeltaMover, Pkm5Mover
-from bench.rigs.station import Station
+from bench.rigs.station import CAPTURE_CAPABILITIES, Station
 from bench.robots.link import open_port
 
 __all__ = ["build_rig", "check_capabilities", "mouse_calibration", "open_mover"]
@@ -154,7 +154,7 @@ def _open_robot(station: Station, opened: ExitStack) -> tuple[Any, Any]:
 
 def _open_instrument(station: Station, controller: Any, store: Any, requires: frozenset[str] | set[str],
                      opened: ExitStack, calibration_ids: list[int]) -> Any:
-    needs_capture = bool(set(requires) & {"pose", "mouse_counts", "arrival", "grid_hit"}) or not requires
+    needs_capture = bool(set(requires) & CAPTURE_CAPABILITIES) or not requires
     calliper = {} if station.calliper is None else {"calliper": vars(station.calliper)}
     if station.robot == "pkm5" and station.mice is not None and station.controller.fixture == "assembled" \
             and needs_capture:
@@ -167,9 +167,7 @@ def _open_instrument(station: Station, controller: Any, store: Any, requires: fr
         decoder = {**DEFAULT_DECODER, "spot_half_width_mm": station.laser_grid.spot_half_width_mm,
                    "gate_mm": station.laser_grid.gate_mm}
         instrument = LaserGridInstrument(controller, decoder=decoder)
-        geometry = instrument.geometry
-        calibration_ids.append(store.ensure_calibration(geometry.calibration_id, {"screens": repr(geometry)},
-                                                        notes="laser-grid geometry of the legacy GUI drawing").id)
+        calibration_ids.append(instrument.record_geometry(store))
         return instrument
     return CalliperOnly(calliper)
 

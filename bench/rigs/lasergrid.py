@@ -114,6 +114,11 @@ class LaserGridInstrument:
         self.decoder = {**DEFAULT_DECODER, **(decoder or {})}
         self.truth = truth
 
+    def record_geometry(self, store: Any) -> int:
+        """Record the screens' geometry as the calibration in force (get-or-create) in ``store``; returns its id."""
+        return store.ensure_calibration(self.geometry.calibration_id, {"screens": repr(self.geometry)},
+                                        notes="laser-grid geometry of the legacy GUI drawing").id
+
     def _fresh_frame(self) -> Any:
         asked = time.monotonic()
         deadline = asked + self.report_timeout_s

@@ -44,7 +44,7 @@ from typing import Any
 
 from bench.errors import ConfigError
 
-__all__ = ["CAPABILITY_KEYS", "CalliperSpec", "CameraSpec", "ControllerSpec", "Identity", "LaserGridSpec",
+__all__ = ["CAPABILITY_KEYS", "CAPTURE_CAPABILITIES", "CalliperSpec", "CameraSpec", "ControllerSpec", "Identity", "LaserGridSpec",
            "MiceSpec", "Station", "load_station", "parse_station"]
 
 #: The robots a station can name, with their controllers' documented baud rates (docs/protocol-*.md).
@@ -62,6 +62,10 @@ CAPABILITY_KEYS = {
     "actuator_bench": "[controller] fixture = \"actuator-bench\"",
     "assembled": "[controller] fixture = \"assembled\"",
 }
+
+
+#: The capabilities a capture needs (the others are readings and fixtures): a rig without one has no instrument.
+CAPTURE_CAPABILITIES = frozenset({"pose", "mouse_counts", "arrival", "grid_hit"})
 
 
 def _fail(source: str, key: str, value: Any, expected: str) -> ConfigError:

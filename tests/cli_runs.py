@@ -1,0 +1,29 @@
+"""``bench run`` in a child process, for the tests that signal, kill or copy a run while it writes."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+from bench.store import Store
+
+#: The ``bench`` entry point of this environment.
+BENCH = str(Path(sys.executable).with_name("bench"))
+
+
+def wait_for_samples(store: Path, process: subprocess.Popen, at_least: int, timeout_s: float = 60.0) -> None:
+    """Wait until the first run of ``store`` holds ``at_least`` samples; fails naming the count if ``process`` ends
+    first or the time runs out (the process is then killed)."""
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline:
+        assert process.poll() is None, process.communicate()
+        if store.exists():
+            with Store(store) as opened:
+                runs = opened.runs()
+                if runs and runs[0].n_samples >= at_least:
+                    return
+        time.sleep(0.05)
+    process.kill()
+    raise AssertionError(f"no {at_least} samples within {timeout_s:g} s")
