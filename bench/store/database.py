@@ -18,6 +18,7 @@ import logging
 import math
 import sqlite3
 import subprocess
+import time
 import uuid
 from collections.abc import Iterable, Iterator, Mapping
 from dataclasses import dataclass
@@ -133,6 +134,25 @@ def software_git_sha() -> str:
         return "unknown"
 
 
+#: How long opening a store waits for another process that holds it (the same as the connection's busy timeout).
+_BUSY_TIMEOUT_S = 10.0
+
+
+def _use_write_ahead_log(db: sqlite3.Connection) -> None:
+    """Switch ``db`` to WAL, waiting for other connections. SQLite answers a journal-mode change that meets another
+    connection's lock with "database is locked" at once, without its busy handler (seen when the desktop app reads
+    a new store while a run creates it), so the switch is retried here up to the busy timeout."""
+    deadline = time.monotonic() + _BUSY_TIMEOUT_S
+    while True:
+        try:
+            db.execute("PRAGMA journal_mode=WAL")
+            return
+        except sqlite3.OperationalError as exc:
+            if "locked" not in str(exc) or time.monotonic() > deadline:
+                raise
+            time.sleep(0.01)
+
+
 class Store:
     """A SQLite run store (WAL journal, every write committed at once).
 
@@ -162,8 +182,8 @@ class Store:
             if not parent.is_dir():
                 raise ConfigError(f"--store {self.path}: folder {parent} does not exist")
         try:
-            self._db = sqlite3.connect(self.path, isolation_level=None, timeout=10.0)
-            self._db.execute("PRAGMA journal_mode=WAL")
+            self._db = sqlite3.connect(self.path, isolation_level=None, timeout=_BUSY_TIMEOUT_S)
+            _use_write_ahead_log(self._db)
             self._db.execute("PRAGMA synchronous=FULL")
             self._db.execute("PRAGMA foreign_keys=ON")
             self.backup = open_schema(self._db, self.path, self.bench)

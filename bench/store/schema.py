@@ -125,29 +125,40 @@ def open_schema(db: sqlite3.Connection, path: str, bench: str) -> Path | None:
         When the file's version is newer than this bench's, or a migration fails (the file is left as it was).
     """
     (version,) = db.execute("PRAGMA user_version").fetchone()
-    if version > SCHEMA_VERSION:
-        raise StoreSchemaError(f"--store {path}: schema version {version} is newer than this bench's "
-                               f"({SCHEMA_VERSION}); upgrade bench to open it")
     if version == SCHEMA_VERSION:
         return None
-    has_tables = db.execute("SELECT COUNT(*) FROM sqlite_master WHERE name = 'runs'").fetchone()[0] > 0
+    # Decide and change under one write lock: two processes creating the same new file (a run starting while the
+    # desktop app looks at the store) must not both create it, nor take the other's fresh tables for an old store.
+    db.execute("BEGIN IMMEDIATE")
     backup = None
-    if has_tables and path != ":memory:":
-        backup = backup_path(path, version)
-        with sqlite3.connect(backup) as copy:
-            db.backup(copy)
-        copy.close()
-    if not has_tables:
-        db.executescript(_SCHEMA_V0)
-    for step in range(version, SCHEMA_VERSION):
-        db.execute("BEGIN IMMEDIATE")
-        try:
-            if db.execute("PRAGMA user_version").fetchone()[0] == step:  # another process may have just done it
-                MIGRATIONS[step](db, bench)
-                db.execute(f"PRAGMA user_version = {step + 1}")
-            db.execute("COMMIT")
-        except sqlite3.DatabaseError as exc:
-            db.execute("ROLLBACK")
-            raise StoreSchemaError(f"--store {path}: migration v{step} -> v{step + 1} failed ({exc}); "
-                                   f"the file is unchanged{f', a copy is in {backup}' if backup else ''}") from exc
+    try:
+        (version,) = db.execute("PRAGMA user_version").fetchone()
+        if version > SCHEMA_VERSION:
+            raise StoreSchemaError(f"--store {path}: schema version {version} is newer than this bench's "
+                                   f"({SCHEMA_VERSION}); upgrade bench to open it")
+        has_tables = db.execute("SELECT COUNT(*) FROM sqlite_master WHERE name = 'runs'").fetchone()[0] > 0
+        if has_tables and version < SCHEMA_VERSION and path != ":memory:":
+            backup = backup_path(path, version)
+            # read through a second connection: the backup API waits forever on a source in a write transaction
+            source, copy = sqlite3.connect(path), sqlite3.connect(backup)
+            try:
+                source.backup(copy)
+            finally:
+                source.close()
+                copy.close()
+        if not has_tables:
+            for statement in _SCHEMA_V0.split(";"):
+                if statement.strip():
+                    db.execute(statement)
+        for step in range(version, SCHEMA_VERSION):
+            MIGRATIONS[step](db, bench)
+            db.execute(f"PRAGMA user_version = {step + 1}")
+        db.execute("COMMIT")
+    except sqlite3.DatabaseError as exc:
+        db.execute("ROLLBACK")
+        raise StoreSchemaError(f"--store {path}: migration v{version} -> v{SCHEMA_VERSION} failed ({exc}); "
+                               f"the file is unchanged{f', a copy is in {backup}' if backup else ''}") from exc
+    except BaseException:
+        db.execute("ROLLBACK")
+        raise
     return backup
