@@ -19,7 +19,7 @@ from bench.gui.app import MainWindow
 from bench.gui.campaign_panel import EXAMPLES
 from bench.metrology.tables import analyze_poses, pose_table
 from bench.protocols import RunState
-from bench.store import Store, tidy_table
+from bench.store import Store, series_table, tidy_table
 
 
 def _start(window: MainWindow, protocol_file: str, **values: str):
@@ -149,3 +149,26 @@ def test_closing_mid_run_stops_at_a_checkpoint_and_the_run_resumes_from_the_brow
         assert len(steps) == len(set(steps)) == 15
     finally:
         again.close()
+
+
+def test_stabilisation_run_shows_each_arrival_curve_as_stored_with_the_iso_bands(window, tmp_path):
+    _start(window, "iso9283_stabilisation.toml", cycles="1", lead_s="0.2", hold_s="0.6")
+    _wait_idle(window)
+    with Store(tmp_path / "bench.db") as store:
+        (run,) = store.runs()
+        series = series_table(store, run.id)
+    assert run.status == "completed" and run.n_samples == 5
+    curves = window.live_view.arrival_curves()
+    assert [label for label, _, _ in curves] == [f"{pose} cycle 1" for pose in ("P1", "P5", "P4", "P3", "P2")]
+    for (label, t_s, distance), (_, stored) in zip(curves, series.groupby("pose", sort=False), strict=True):
+        # independently: the distance of every stored series point from the series' last point
+        xyz = stored[["x_mm", "y_mm", "z_mm"]].to_numpy()
+        np.testing.assert_allclose(t_s, stored["t_s"].to_numpy(), atol=1e-12)
+        np.testing.assert_allclose(distance, np.sqrt(((xyz - xyz[-1]) ** 2).sum(axis=1)), atol=1e-12)
+        assert distance[-1] == 0.0
+        assert t_s[0] == pytest.approx(-0.2, abs=0.05) and t_s[-1] == pytest.approx(0.6, abs=0.05)
+    window.live_view.redraw()
+    axes = window.live_view.stream_axes
+    assert axes.get_xlabel() == "time from the move's reported end (s)"
+    bands = sorted(line.get_ydata()[0] for line in axes.get_lines() if line.get_linestyle() == "--")
+    assert bands == [0.1, 0.5, 1.0]

@@ -8,12 +8,17 @@ distance of the barycentre from the command, ISO 9283 7.2.1) and :func:`~bench.m
 the report's. This module only draws: the pose plot shows the x-y plane as deviations from the commanded position
 (mm), one colour per group; the stream plot shows every stored value's deviation from its commanded value (or the
 value itself) against the wall-clock time since the run started, so a pause shows as a gap of its real length.
+A stabilisation run's streamed arrivals (``arrival`` samples with their series) replace the stream plot: each
+arrival's distance from its settled position, d(t) = |p(t) - p(t_end)| (ISO 9283 7.4, the settled position is the
+series' last point as in :func:`bench.metrology.iso9283_dynamics.position_stabilisation`), against the time from
+the move's reported end, with the comparison bands of clause 7.4 (A.4) drawn as lines.
 Samples are kept by step index: a sample seen twice (a resumed run's stored samples, then its live signals) counts
 once. Plots are redrawn at most every :data:`REDRAW_MS`.
 """
 
 from __future__ import annotations
 
+import numpy as np
 import pandas as pd
 from matplotlib.backends.backend_qtagg import FigureCanvasQTAgg
 from matplotlib.figure import Figure
@@ -22,6 +27,7 @@ from matplotlib.ticker import MaxNLocator
 from PySide6.QtCore import QTimer
 from PySide6.QtWidgets import QLabel, QVBoxLayout, QWidget
 
+from bench.metrology.documents import ISO9283_STABILISATION_BANDS_MM
 from bench.metrology.iso9283 import pose_accuracy, pose_repeatability
 from bench.metrology.tables import CONDITION_COLUMNS, condition_groups
 
@@ -142,11 +148,48 @@ class LiveView(QWidget):
                 series.append(value - commanded if commanded is not None else value)
         return out
 
+    def arrival_curves(self) -> list[tuple[str, np.ndarray, np.ndarray]]:
+        """Per streamed arrival in step order: (pose and cycle, t_s from the move's reported end, d_mm), where d is
+        the distance from the series' last point (see the module docstring)."""
+        curves = []
+        for _, sample in sorted(self.samples.items()):
+            raw = sample.get("raw")
+            series = raw.get("series") if sample.get("kind") == "arrival" and isinstance(raw, dict) else None
+            if not series or any(len(series.get(k) or ()) < 2 for k in ("t_s", *_ATTAINED)):
+                continue
+            position = np.column_stack([np.asarray(series[k], dtype=float) for k in _ATTAINED])
+            distance = np.linalg.norm(position - position[-1], axis=1)
+            curves.append((f"{sample.get('pose')} cycle {sample.get('cycle')}",
+                           np.asarray(series["t_s"], dtype=float), distance))
+        return curves
+
     def redraw(self) -> None:
         """Draw both plots from the samples recorded so far."""
         self._draw_poses()
-        self._draw_stream()
+        curves = self.arrival_curves()
+        if curves:
+            self._draw_arrivals(curves)
+        else:
+            self._draw_stream()
         self.canvas.draw_idle()
+
+    def _draw_arrivals(self, curves: list[tuple[str, np.ndarray, np.ndarray]]) -> None:
+        axes = self.stream_axes
+        axes.clear()
+        axes.set_title(f"arrivals {self.title}: distance from the settled position".strip(), fontsize=9)
+        axes.set_xlabel("time from the move's reported end (s)")
+        axes.set_ylabel("d (mm)")
+        for index, (label, t_s, distance) in enumerate(curves):
+            # the latest ten arrivals carry their label; older ones stay as thin grey context
+            recent = index >= len(curves) - 10
+            axes.plot(t_s, distance, lw=1.0 if recent else 0.6, color=f"C{index % 10}" if recent else "0.75",
+                      label=label if recent else None)
+        for band_mm in ISO9283_STABILISATION_BANDS_MM:
+            axes.axhline(band_mm, color="k", lw=0.7, ls="--")
+            axes.annotate(f"{band_mm:g} mm band", (1.0, band_mm), xycoords=("axes fraction", "data"), ha="right",
+                          va="bottom", fontsize=7)
+        axes.set_ylim(0, max(2 * max(ISO9283_STABILISATION_BANDS_MM), min(10.0, max(d.max() for *_, d in curves))))
+        axes.legend(fontsize=7, loc="upper right")
 
     def _draw_poses(self) -> None:
         axes = self.pose_axes

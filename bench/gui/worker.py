@@ -71,7 +71,7 @@ class CampaignWorker(QThread):
 
     run_started = Signal(int, int, int)  #: run id, samples the run will store in all, samples already stored
     samples_loaded = Signal(int, float, list)  #: run id, its start (Unix s), the samples stored before (resume)
-    sample_stored = Signal(int, dict)  #: run id, {"step_index", "kind", "pose", "cycle", "t_s", "values"}
+    sample_stored = Signal(int, dict)  #: run id, {"step_index", "kind", "pose", "cycle", "t_s", "values", "raw"}
     state_changed = Signal(str)  #: the runner's state (running, paused, stopping, ...)
     prompt_requested = Signal(object)  #: a :class:`Prompt` waiting for a reading
     run_finished = Signal(object)  #: a :class:`bench.protocols.RunResult`
@@ -216,7 +216,7 @@ class CampaignWorker(QThread):
         stored = store.samples(run_id) if runner.samples_stored else []
         self.samples_loaded.emit(run_id, _unix_s(record.started_utc), [
             {"step_index": s.step_index, "kind": s.kind, "pose": s.pose, "cycle": s.cycle, "t_s": s.t_s,
-             "wall_s": _unix_s(s.wall_utc), "values": s.values} for s in stored])
+             "wall_s": _unix_s(s.wall_utc), "values": s.values, "raw": s.raw} for s in stored])
         protocol = job if isinstance(job, Protocol) else protocol_from_config(record.config, source=f"run {run_id}")
         total = sum(1 for step in iterate(protocol, final=False) if isinstance(step, Prompt) and step.field)
         taken = sum(1 for s in stored if isinstance(s.raw, dict) and "field" in s.raw and "entered" in s.raw)

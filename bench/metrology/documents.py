@@ -8,7 +8,7 @@ source: 000 is the pkm5 dissertation (shared/reference/pkm5.md), "thesis" the de
 
 from __future__ import annotations
 
-__all__ = ["ISO9283_CYCLES", "ISO9283_POSE_ORDER", "ISO9283_VELOCITIES_PCT", "ACTUATOR_REPEATS", "ACTUATOR_TRAVELS_MM", "GRID_HEIGHTS_MM", "GRID_HIT_ATTEMPTS", "GRID_OFFSET_MM",
+__all__ = ["ISO9283_CYCLES", "ISO9283_STABILISATION_BANDS_MM", "ISO9283_POSE_ORDER", "ISO9283_VELOCITIES_PCT", "ACTUATOR_REPEATS", "ACTUATOR_TRAVELS_MM", "GRID_HEIGHTS_MM", "GRID_HIT_ATTEMPTS", "GRID_OFFSET_MM",
            "GRID_RESOLUTION_MM", "GRID_SENSORS", "LADDER_KG", "LADDER_LIFT_MM", "LASERGRID_GUI_PLACEMENT",
            "POSITIONING_POSES", "POSITIONING_READINGS"]
 
@@ -20,6 +20,8 @@ ISO9283_CYCLES = 30
 ISO9283_VELOCITIES_PCT = (100.0, 50.0, 10.0)
 #: Cycle order of the five cube poses, unidirectional (clause 6.10; Figure 5).
 ISO9283_POSE_ORDER = ("P1", "P5", "P4", "P3", "P2")
+#: Limit bands of the position stabilisation time and overshoot for comparison tests, mm (clauses 7.4, 7.5; A.4).
+ISO9283_STABILISATION_BANDS_MM = (0.1, 0.5, 1.0)
 
 # ---- the pkm5 dissertation (000) ----
 

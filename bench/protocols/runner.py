@@ -149,7 +149,7 @@ class Runner:
         ``runner.samples_total`` and ``runner.samples_stored`` (already stored when resuming) are set.
     on_sample : callable, optional
         ``on_sample(runner, sample)`` after each sample is committed to the store; ``sample`` is a dict with
-        ``step_index``, ``kind``, ``pose``, ``cycle``, ``t_s`` and ``values``.
+        ``step_index``, ``kind``, ``pose``, ``cycle``, ``t_s``, ``values`` and ``raw`` (as stored).
 
     Attributes
     ----------
@@ -428,7 +428,8 @@ class Runner:
         self.samples_stored += 1
         if self._bar is not None:
             self._bar.advance()
-        sample = {"step_index": index, "kind": kind, "pose": pose, "cycle": cycle, "t_s": t_s, "values": values}
+        sample = {"step_index": index, "kind": kind, "pose": pose, "cycle": cycle, "t_s": t_s, "values": values,
+                  "raw": raw}
         self._call_hook(self.on_sample, self, sample)
 
     @staticmethod

@@ -21,6 +21,7 @@ from bench.metrology.documents import (
     ACTUATOR_REPEATS,
     ACTUATOR_TRAVELS_MM,
     ISO9283_CYCLES,
+    ISO9283_STABILISATION_BANDS_MM,
     ISO9283_POSE_ORDER,
     ISO9283_VELOCITIES_PCT,
     GRID_HEIGHTS_MM,
@@ -457,7 +458,7 @@ def grid_hit_deviations(*, config: Mapping[str, Any], settings: Mapping[str, Any
 
 #: ISO 9283 Table 5 [N]: cycles for position stabilisation time and overshoot; A.4 [N]: the comparison bands.
 STABILISATION_CYCLES = 3
-ISO_BANDS_MM = (0.1, 0.5, 1.0)
+ISO_BANDS_MM = ISO9283_STABILISATION_BANDS_MM
 #: A band narrower than this many instrument counts measures the sensor, not the robot (docs/campaigns.md).
 BAND_MIN_COUNTS = 3
 
