@@ -7,10 +7,10 @@ scatter (S, used by RP) and the uncertainty of a barycentre (S/√n) are differe
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
-from scipy import special, stats
 
 from bench.errors import ConfigError
 from bench.metrology._validation import as_points, as_series, require_count
@@ -120,6 +120,8 @@ def mean_confidence_interval(values, *, level: float = 0.95) -> ConfidenceInterv
     data = as_series("values", values, min_count=2)
     if not 0 < level < 1:
         raise ConfigError(f"level = {level}, expected a number between 0 and 1")
+    from scipy import stats  # here, not at import: scipy.stats alone costs the desktop app ~1 s of start-up
+
     t = float(stats.t.ppf((1 + level) / 2, len(data) - 1))
     half = t * data.std(ddof=1) / np.sqrt(len(data))
     mean = float(data.mean())
@@ -277,5 +279,5 @@ def instrument_rp_floor(sigma_mm: float, *, dims: int) -> float:
         raise ConfigError(f"dims = {dims}, expected 1, 2 or 3")
     if sigma_mm < 0:
         raise ConfigError(f"sigma_mm = {sigma_mm}, expected a number >= 0")
-    mean = np.sqrt(2.0) * np.exp(special.gammaln((dims + 1) / 2) - special.gammaln(dims / 2))
+    mean = math.sqrt(2.0) * math.exp(math.lgamma((dims + 1) / 2) - math.lgamma(dims / 2))
     return float(sigma_mm * (mean + 3.0 * np.sqrt(dims - mean**2)))
