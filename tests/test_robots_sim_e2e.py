@@ -3,6 +3,7 @@ pyserial, exactly as to hardware; faults (garbage, late replies, a vanishing por
 
 import _thread
 import contextlib
+import logging
 import os
 import re
 import select
@@ -79,15 +80,36 @@ def test_ideal_pkm5_simulator_attains_the_commanded_pose():
         np.testing.assert_allclose(SimulatorClient(robot).true_pose(), POINT_3_1, atol=0.01)
 
 
+class _InterruptAfterFirstReply(logging.Handler):
+    """Ctrl-C ``delay_s`` after the first reply the link logs (the MOVE's acceptance when attached after enable()):
+    the robot is then certainly moving, however loaded the machine (a fixed timer from before the MOVE could fire
+    before it was even sent)."""
+
+    def __init__(self, delay_s: float) -> None:
+        super().__init__(logging.DEBUG)
+        self.timer = threading.Timer(delay_s, _thread.interrupt_main)
+
+    def emit(self, record: logging.LogRecord) -> None:
+        if " -> " in record.msg and not self.timer.is_alive() and not self.timer.finished.is_set():
+            self.timer.start()
+
+
 def test_ctrl_c_during_a_move_stops_the_robot_and_closes_the_port():
+    link_log = logging.getLogger("bench.robots.link")
     with simulator("pkm5") as (_, path, _extra):
         port = serial.serial_for_url(path, baudrate=115200)
-        timer = threading.Timer(0.4, _thread.interrupt_main)
-        with pytest.raises(KeyboardInterrupt), Pkm5Controller(port) as robot:
-            robot.enable()
-            timer.start()
-            robot.move_steps([2656, 2656, 2669, 2669, 2720, 2720])  # 9.3 s at 200 steps/s, speed factor 1
-        timer.join()
+        interrupt = _InterruptAfterFirstReply(0.4)
+        level = link_log.level
+        try:
+            with pytest.raises(KeyboardInterrupt), Pkm5Controller(port) as robot:
+                robot.enable()
+                link_log.setLevel(logging.DEBUG)
+                link_log.addHandler(interrupt)
+                robot.move_steps([2656, 2656, 2669, 2669, 2720, 2720])  # 9.3 s at 200 steps/s, speed factor 1
+        finally:
+            link_log.removeHandler(interrupt)
+            link_log.setLevel(level)
+        interrupt.timer.join()
         assert not port.is_open
         with pkm5_on(path) as again:
             where = again.position()

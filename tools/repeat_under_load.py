@@ -28,8 +28,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--times", type=int, default=20, help="runs in a row (default 20)")
     parser.add_argument("--burners", type=int, default=os.cpu_count() or 2,
                         help="CPU-spinning processes beside the tests (default: one per core)")
-    parser.add_argument("pytest_args", nargs="+", help="test paths and pytest options")
-    args = parser.parse_args(argv)
+    parser.add_argument("pytest_args", nargs="+", help="test paths and pytest options (e.g. -k, -x)")
+    args, extra = parser.parse_known_args(argv)
+    args.pytest_args += extra
     burners = [multiprocessing.Process(target=_spin, daemon=True) for _ in range(args.burners)]
     for burner in burners:
         burner.start()
