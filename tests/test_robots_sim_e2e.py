@@ -80,36 +80,43 @@ def test_ideal_pkm5_simulator_attains_the_commanded_pose():
         np.testing.assert_allclose(SimulatorClient(robot).true_pose(), POINT_3_1, atol=0.01)
 
 
-class _InterruptAfterFirstReply(logging.Handler):
-    """Ctrl-C ``delay_s`` after the first reply the link logs (the MOVE's acceptance when attached after enable()):
-    the robot is then certainly moving, however loaded the machine (a fixed timer from before the MOVE could fire
-    before it was even sent)."""
+class _AfterFirstReply(logging.Handler):
+    """``action()`` ``delay_s`` after the first reply the link logs (the MOVE's acceptance when attached after
+    enable()): the robot is then certainly moving, however loaded the machine (a fixed timer from before the MOVE
+    could fire before it was even sent)."""
 
-    def __init__(self, delay_s: float) -> None:
+    def __init__(self, delay_s: float, action) -> None:
         super().__init__(logging.DEBUG)
-        self.timer = threading.Timer(delay_s, _thread.interrupt_main)
+        self.timer = threading.Timer(delay_s, action)
 
     def emit(self, record: logging.LogRecord) -> None:
         if " -> " in record.msg and not self.timer.is_alive() and not self.timer.finished.is_set():
             self.timer.start()
 
 
-def test_ctrl_c_during_a_move_stops_the_robot_and_closes_the_port():
+@contextlib.contextmanager
+def _after_first_reply(delay_s: float, action):
+    """While inside: :class:`_AfterFirstReply` listens to the link's log; on exit it is removed, its action done."""
     link_log = logging.getLogger("bench.robots.link")
+    handler, level = _AfterFirstReply(delay_s, action), link_log.level
+    link_log.setLevel(logging.DEBUG)
+    link_log.addHandler(handler)
+    try:
+        yield handler
+    finally:
+        link_log.removeHandler(handler)
+        link_log.setLevel(level)
+        if handler.timer.is_alive():
+            handler.timer.join()
+
+
+def test_ctrl_c_during_a_move_stops_the_robot_and_closes_the_port():
     with simulator("pkm5") as (_, path, _extra):
         port = serial.serial_for_url(path, baudrate=115200)
-        interrupt = _InterruptAfterFirstReply(0.4)
-        level = link_log.level
-        try:
-            with pytest.raises(KeyboardInterrupt), Pkm5Controller(port) as robot:
-                robot.enable()
-                link_log.setLevel(logging.DEBUG)
-                link_log.addHandler(interrupt)
+        with pytest.raises(KeyboardInterrupt), Pkm5Controller(port) as robot:
+            robot.enable()
+            with _after_first_reply(0.4, _thread.interrupt_main):
                 robot.move_steps([2656, 2656, 2669, 2669, 2720, 2720])  # 9.3 s at 200 steps/s, speed factor 1
-        finally:
-            link_log.removeHandler(interrupt)
-            link_log.setLevel(level)
-        interrupt.timer.join()
         assert not port.is_open
         with pkm5_on(path) as again:
             where = again.position()
@@ -141,10 +148,10 @@ def test_late_replies_time_out_cleanly_then_are_recognised_as_stale():
 def test_port_vanishing_mid_move_gives_a_bounded_link_error():
     with simulator("pkm5") as (process, path, _extra), pkm5_on(path) as robot:
         robot.enable()
-        threading.Timer(0.3, process.kill).start()
         started = time.monotonic()
-        with pytest.raises(LinkError, match=rf"{path}: port failed while waiting for the reply to 'MOVE' "
-                                            r"\(expected 'DONE #\d+ \.\.\.'"):
+        with _after_first_reply(0.3, process.kill), \
+                pytest.raises(LinkError, match=rf"{path}: port failed while waiting for the reply to 'MOVE' "
+                                               r"\(expected 'DONE #\d+ \.\.\.'"):
             robot.move_steps([2656, 2656, 2669, 2669, 2720, 2720])
         assert time.monotonic() - started < 3.0
 
