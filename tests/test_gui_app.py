@@ -118,7 +118,7 @@ def test_calliper_prompt_answered_in_the_dialog_then_pause_and_abort(window, tmp
     assert [s.kind for s in samples] == ["pose", "tilt"]
     tilt = samples[1]
     assert tilt.values == {"a_deg": -1.5, "cmd_a_deg": dialog.prompt.commanded["cmd_a_deg"]}
-    assert tilt.raw == {"field": "a_deg", "entered": -1.5} and (tilt.pose, tilt.cycle) == (dialog.prompt.pose, 1)
+    assert tilt.raw == {"field": "a_deg", "entered": -1.5, "typed": "-1,5 deg"} and (tilt.pose, tilt.cycle) == (dialog.prompt.pose, 1)
 
 
 def test_closing_mid_run_stops_at_a_checkpoint_and_the_run_resumes_from_the_browser(window, tmp_path):

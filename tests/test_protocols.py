@@ -492,7 +492,8 @@ def test_console_operator_reasks_until_valid_and_ctrl_d_withdraws_the_prompt(cap
 
     answers = iter(["abc", "300", "nan", "1" * 400, "12,5"])
     prompt = Prompt("Leg 1 length", field="length_mm", unit="mm", minimum=0.0, maximum=100.0)
-    assert ConsoleOperator(lambda _: next(answers)).ask(prompt) == 12.5
+    entry = ConsoleOperator(lambda _: next(answers)).ask(prompt)
+    assert (entry, entry.typed) == (12.5, "12,5")  # the text as typed is kept beside the value
     err = capsys.readouterr().err
     assert "Leg 1 length: reading 'abc' is not a length; expected e.g. '12.34'" in err
     assert "Leg 1 length: 300 mm, expected 0 to 100 mm; try again" in err

@@ -423,10 +423,15 @@ def test_the_actuator_bench_with_a_serial_depth_gauge_on_the_hardware_path(tmp_p
             assert result.exit_status == "completed", result.reason
             run = store.run(result.run_id)
             travels = [s.values["travel_mm"] for s in store.samples(result.run_id) if s.kind == "actuator_travel"]
+            entries = [s.raw for s in store.samples(result.run_id) if isinstance(s.raw, dict) and "field" in s.raw]
     finally:
         gauge.close()
         rehearsal.close()
     assert run.settings["instrument"]["calliper"]["kind"] == "serial"
+    # each reading keeps the gauge's line as sent, beside the value read from it
+    from bench.sensors.calliper import parse_length
+
+    assert entries and all(parse_length(raw["typed"]) == raw["entered"] for raw in entries), entries[:2]
     assert len(travels) == 3
     np.testing.assert_allclose(travels, 20.0, atol=0.5)
     assert all(round(t, 2) == t for t in travels)  # the gauge's 0.01 mm display, as sent

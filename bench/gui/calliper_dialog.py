@@ -43,7 +43,7 @@ class CalliperDialog(QDialog):
         This is reading ``k`` of the ``n`` readings the run asks for (shown as "Reading k of n").
     """
 
-    reading_entered = Signal(float)
+    reading_entered = Signal(object)  #: an Entry: the value and the text as typed (kept in the store)
     confirmed = Signal()  #: a prompt without a field (an instruction such as "mount 2 kg") was confirmed
     cancelled = Signal()
 

@@ -32,6 +32,7 @@ from bench.errors import BenchError, PromptWithdrawn
 from bench.launch import RigRequest, open_rig
 from bench.protocols import Prompt, Protocol, Runner, RunState, TransitionError, protocol_from_config
 from bench.protocols.plan import iterate, required_capabilities
+from bench.rigs.interfaces import Entry
 from bench.store import Store
 
 __all__ = ["CampaignWorker", "RigSpec", "WindowOperator"]
@@ -257,7 +258,9 @@ class CampaignWorker(QThread):
         value = self._answers.get()
         if isinstance(value, PromptWithdrawn):
             raise value
-        return None if prompt.field is None else float(value)
+        if prompt.field is None:
+            return None
+        return value if isinstance(value, Entry) else float(value)  # an Entry keeps the text as typed
 
 
 def _unix_s(utc: str) -> float:

@@ -43,7 +43,7 @@ from typing import Any, Self
 from bench.errors import BenchError, ConfigError, PromptWithdrawn
 from bench.protocols.base import Protocol, protocol_from_config
 from bench.protocols.plan import iterate, preflight
-from bench.rigs.interfaces import Rig
+from bench.rigs.interfaces import Entry, Rig
 from bench.steps import (
     ActuatorMove,
     Capture,
@@ -402,8 +402,11 @@ class Runner:
                     raise ConfigError(f"prompt {step.text!r}: no value given for {step.field}; an operator who "
                                       "will not answer raises PromptWithdrawn")
                 values = {**step.commanded, step.field: float(answer), **step.conditions}
+                raw = {"field": step.field, "entered": float(answer)}
+                if isinstance(answer, Entry):  # the text as typed (or the gauge's line), beside the value
+                    raw["typed"] = answer.typed
                 self._store_sample(run_id, index, values, kind=step.kind, pose=step.pose or None,
-                                   cycle=step.cycle or None, raw={"field": step.field, "entered": answer})
+                                   cycle=step.cycle or None, raw=raw)
             return answer
         if isinstance(step, Checkpoint):
             return None

@@ -13,7 +13,7 @@ import sys
 from typing import Any
 
 from bench.errors import LinkError
-from bench.rigs.interfaces import Measurement, Operator
+from bench.rigs.interfaces import Entry, Measurement, Operator
 from bench.steps import Capture, Prompt
 
 __all__ = ["CalliperOnly", "GaugeOperator"]
@@ -45,7 +45,8 @@ class GaugeOperator:
             return self.person.ask(prompt)
         for _ in range(self.attempts):
             print(f"{prompt.text}: press the calliper's data button", file=sys.stderr, flush=True)
-            value = float(self.gauge.read(self.timeout_s).value)
+            reading = self.gauge.read(self.timeout_s)
+            value = Entry(float(reading.value), str(reading.raw).strip())
             low, high = prompt.minimum, prompt.maximum
             if (low is None or value >= low) and (high is None or value <= high):
                 return value

@@ -15,7 +15,7 @@ from typing import Protocol as Interface
 
 from bench.steps import Capture, Prompt
 
-__all__ = ["Instrument", "Measurement", "Mover", "Operator", "Rig"]
+__all__ = ["Entry", "Instrument", "Measurement", "Mover", "Operator", "Rig"]
 
 
 class Mover(Interface):
@@ -52,8 +52,30 @@ class Instrument(Interface):
     def settings(self) -> dict[str, Any]: ...
 
 
+class Entry(float):
+    """A reading as the operator (or the calliper's data line) gave it: the number, and ``typed``, the text it was
+    read from (``"12,34"``, ``"0.4865 in"``, a gauge's ``"+012.34 mm"``). The runner stores the text beside the
+    value, so a misread entry can be traced to what was typed. It is a float for everything else.
+
+    >>> entry = Entry(12.34, "12,34")
+    >>> entry + 1.0, entry.typed
+    (13.34, '12,34')
+    """
+
+    typed: str
+
+    def __new__(cls, value: float, typed: str) -> Entry:
+        entry = super().__new__(cls, value)
+        entry.typed = typed
+        return entry
+
+    def __repr__(self) -> str:
+        return f"Entry({float(self)!r}, {self.typed!r})"
+
+
 class Operator(Interface):
-    """Answers prompts: a reading within the prompt's bounds, or None to confirm an instruction.
+    """Answers prompts: a reading within the prompt's bounds (an :class:`Entry` when it was typed or read from a
+    gauge's line, so that the text is kept), or None to confirm an instruction.
 
     An operator who will not answer (Cancel, the window closing) raises :class:`bench.errors.PromptWithdrawn`: the
     run ends as ``aborted`` and can be resumed. None for a reading prompt is a defect of the operator, not a

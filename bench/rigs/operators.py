@@ -14,6 +14,7 @@ import sys
 from collections.abc import Callable
 
 from bench.errors import ConfigError, PromptWithdrawn
+from bench.rigs.interfaces import Entry
 from bench.sensors.calliper import ReadingRequest, parse_length
 from bench.sensors.reading import MalformedSample
 from bench.steps import Prompt
@@ -31,8 +32,9 @@ def _request(prompt: Prompt) -> ReadingRequest:
                           expected_mm=expected if prompt.unit == "mm" else None, tolerance_mm=TOLERANCE_MM)
 
 
-def parse_entry(prompt: Prompt, text: str) -> tuple[float, str]:
-    """The reading typed for ``prompt`` and a confirmation question ('' when plausible).
+def parse_entry(prompt: Prompt, text: str) -> tuple[Entry, str]:
+    """The reading typed for ``prompt`` (an :class:`Entry` keeping ``text`` as typed, stripped) and a confirmation
+    question ('' when plausible).
 
     Lengths (``prompt.unit == "mm"``) accept what a calliper or a wedge types (``12,34``, ``0.4865 in``); other
     units accept a number with an optional trailing unit equal to the prompt's (``-1,5 deg``).
@@ -42,8 +44,9 @@ def parse_entry(prompt: Prompt, text: str) -> tuple[float, str]:
     ConfigError
         Naming the prompt, the text or value, and what was expected.
     """
+    typed = text.strip()
     if prompt.unit != "mm" and prompt.unit:
-        text = re.sub(rf"\s*{re.escape(prompt.unit)}\s*$", "", text.strip())
+        text = re.sub(rf"\s*{re.escape(prompt.unit)}\s*$", "", typed)
         if re.search(r"[A-Za-z\"]", text):
             raise ConfigError(f"{prompt.text}: {text!r} is not a reading in {prompt.unit}; expected a number")
     try:
@@ -54,7 +57,7 @@ def parse_entry(prompt: Prompt, text: str) -> tuple[float, str]:
         question = _request(prompt).check(value)
     except ConfigError as exc:
         raise ConfigError(str(exc).replace(" mm", f" {prompt.unit}") if prompt.unit != "mm" else str(exc)) from exc
-    return value, question
+    return Entry(value, typed), question
 
 
 class ConsoleOperator:
