@@ -152,7 +152,7 @@ def test_closing_mid_run_stops_at_a_checkpoint_and_the_run_resumes_from_the_brow
 
 
 def test_stabilisation_run_shows_each_arrival_curve_as_stored_with_the_iso_bands(window, tmp_path):
-    _start(window, "iso9283_stabilisation.toml", cycles="1", lead_s="0.2", hold_s="0.6")
+    _start(window, "iso9283_stabilisation.toml", cycles="1", lead_s="0.1", hold_s="0.4")
     _wait_idle(window)
     with Store(tmp_path / "bench.db") as store:
         (run,) = store.runs()
@@ -166,7 +166,7 @@ def test_stabilisation_run_shows_each_arrival_curve_as_stored_with_the_iso_bands
         np.testing.assert_allclose(t_s, stored["t_s"].to_numpy(), atol=1e-12)
         np.testing.assert_allclose(distance, np.sqrt(((xyz - xyz[-1]) ** 2).sum(axis=1)), atol=1e-12)
         assert distance[-1] == 0.0
-        assert t_s[0] == pytest.approx(-0.2, abs=0.05) and t_s[-1] == pytest.approx(0.6, abs=0.05)
+        assert t_s[0] == pytest.approx(-0.1, abs=0.05) and t_s[-1] == pytest.approx(0.4, abs=0.05)
     window.live_view.redraw()
     axes = window.live_view.stream_axes
     assert axes.get_xlabel() == "time from the move's reported end (s)"
