@@ -16,6 +16,8 @@ Geometry is an input (packed by :func:`pack_geometry` into one float vector), ne
 
 from __future__ import annotations
 
+import os
+from concurrent.futures import ThreadPoolExecutor
 from functools import lru_cache
 
 import numpy as np
@@ -41,6 +43,7 @@ _LEG_MIN, _LEG_MAX, _TILT_MIN, _TILT_MAX = 38, 44, 50, 56
 _A_LO, _A_HI, _B_LO, _B_HI, _PLANE_X, _PLANE_TOL = 62, 63, 64, 65, 66, 67
 _PACKED_SIZE = 68
 _IK_BLOCK = 4096  # poses per IK block: its six (4096, 6) float arrays (1.2 MB) stay in the L2 cache
+_FK_CHUNK = 2048  # FK rows per thread task: ~10-20 ms of work, small enough to balance uneven solves
 
 
 @lru_cache(maxsize=1)
@@ -87,6 +90,25 @@ def pack_geometry(geometry: Geometry) -> np.ndarray:
 
 
 @lru_cache(maxsize=1)
+def _pool() -> ThreadPoolExecutor | None:
+    """Threads for the kernels (they release the GIL, ``nogil=True``): one per CPU this process may use."""
+    workers = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
+    return ThreadPoolExecutor(workers, thread_name_prefix="pkm5-kernel") if workers > 1 else None
+
+
+def _run_chunks(work, n: int, chunk: int) -> None:
+    """``work(rows)`` for consecutive slices of ``chunk`` rows of ``n``, on the thread pool when there is more than
+    one slice (exceptions propagate)."""
+    slices = [slice(start, min(start + chunk, n)) for start in range(0, n, chunk)]
+    pool = _pool()
+    if pool is None or len(slices) < 2:
+        for rows in slices:
+            work(rows)
+    else:
+        list(pool.map(work, slices))
+
+
+@lru_cache(maxsize=1)
 def _kernels():
     """Compile (or load from numba's cache) the kernels; numba is imported here, on first use only."""
     from motion.pkm5 import _kernels
@@ -98,7 +120,8 @@ def ik_arrays(poses: np.ndarray, geometry: Geometry, check_limits: bool, block: 
     """Lengths (N, 6), tilts (N, 6), failure flags (N,), length_ok and tilt_ok (N, 6) of validated poses (N, 5).
 
     Per block of ``block`` poses (in cache): the kernel writes the lengths and the tilt components, numpy's
-    ``arctan2`` turns those into angles in place, a second kernel applies the windows.
+    ``arctan2`` turns those into angles in place, a second kernel applies the windows. Blocks run on one thread
+    per CPU (the kernels and arctan2 release the GIL); the results do not depend on the thread count.
     """
     kernels = _kernels()
     poses = np.ascontiguousarray(poses)
@@ -107,14 +130,15 @@ def ik_arrays(poses: np.ndarray, geometry: Geometry, check_limits: bool, block: 
     lengths, tilts = np.empty((n, 6)), np.empty((n, 6))
     failure = np.zeros(n, np.int64)
     length_ok, tilt_ok = np.ones((n, 6), bool), np.ones((n, 6), bool)
-    bu = np.empty((min(n, block), 6))
-    for start in range(0, n, block):
-        rows = slice(start, min(start + block, n))
-        tilt, across = tilts[rows], bu[: rows.stop - start]
+
+    def one_block(rows):
+        tilt, across = tilts[rows], np.empty((rows.stop - rows.start, 6))
         kernels.ik_values(poses[rows], packed, lengths[rows], tilt, across)
         np.arctan2(tilt, across, out=tilt)
         kernels.ik_limits(poses[rows], packed, check_limits, lengths[rows], tilt, failure[rows], length_ok[rows],
                           tilt_ok[rows])
+
+    _run_chunks(one_block, n, block)
     return lengths, tilts, failure, length_ok, tilt_ok
 
 
@@ -130,14 +154,22 @@ def restart_table(mode: str) -> np.ndarray:
 
 def fk_arrays(q0: np.ndarray, target: np.ndarray, mode: str, geometry: Geometry, max_iter: int, step_tol: float,
               retry_above_mm: float):
-    """LM with restarts for one mode's rows, as fk._with_restarts: q (n, k), cost, iterations, stationary flag."""
+    """LM with restarts for one mode's rows, as fk._with_restarts: q (n, k), cost, iterations, stationary flag.
+
+    Each pose is solved on its own, so chunks of rows run on the thread pool with the same results."""
     n, k = q0.shape
     q = np.zeros((n, 4))
     q[:, :k] = q0
     restarts = restart_table(mode)
     cost, iterations, done = np.empty(n), np.empty(n, np.int64), np.empty(n, bool)
-    _kernels().fk_batch(np.ascontiguousarray(target), q, MODE_CODES[mode], restarts, len(restarts),
-                        pack_geometry(geometry), max_iter, step_tol, retry_above_mm, cost, iterations, done)
+    kernel, target, packed, code = _kernels().fk_batch, np.ascontiguousarray(target), pack_geometry(geometry), \
+        MODE_CODES[mode]
+
+    def some_rows(rows):
+        kernel(target[rows], q[rows], code, restarts, len(restarts), packed, max_iter, step_tol, retry_above_mm,
+               cost[rows], iterations[rows], done[rows])
+
+    _run_chunks(some_rows, n, _FK_CHUNK)
     return q[:, :k], cost, iterations, done
 
 

@@ -58,7 +58,7 @@ def _initial_guess(target, mode, geometry):
     starts, tree = _seed_table(mode, geometry)
     if tree is None:
         return np.tile(np.r_[_NEUTRAL, [0.0] * (1 if MODES[mode] is not None else 0)], (len(target), 1))
-    return starts[tree.query(target)[1]]
+    return starts[tree.query(target, workers=-1)[1]]
 
 
 @dataclass(frozen=True)
