@@ -1,15 +1,17 @@
 """Compiled (numba) kernels of the PKM inverse and forward kinematics: the same formulas, one pose per loop step.
 
 The numpy code of :mod:`motion.pkm5.ik` and :mod:`motion.pkm5.fk` is the reference; these kernels repeat its
-arithmetic in the same order (000 §5.3 / App. B.1, pkm5.md §3.2-3.3, §4.3), so lengths and tilts agree to the
-last bit or to 1 ulp of the libm trig functions, and the FK takes the same Levenberg-Marquardt steps. numpy spends
-its time writing and re-reading ~60 temporary arrays of N values; a loop keeps one pose in registers, which is what
-brings batched IK near its memory-bandwidth floor (benchmarks/bench_pkm5.py).
+arithmetic in the same order (000 §5.3 / App. B.1, pkm5.md §3.2-3.3, §4.3): the lengths equal numpy's to the bit
+in translation mode and to 1 ulp of the libm sin/cos otherwise, the tilts come from numpy's own ``arctan2``, and
+the FK takes the same Levenberg-Marquardt steps and restarts, pose by pose (tests/test_pkm5_compiled.py). numpy
+spends its time writing and re-reading ~60 temporary arrays of N values; a loop keeps one pose in registers.
+Blocks of poses run on one thread per CPU (the kernels release the GIL).
 
-numba is an optional dependency (``pip install bench[fast]``). The kernels are compiled with ``cache=True`` (the
-first call in a fresh install compiles for several seconds, later processes load the machine code in ~0.1 s), and
-the public functions dispatch here only for batches of at least :data:`COMPILED_MIN_POSES` poses, so importing
-motion/ or running ``bench kin ik`` never imports numba nor pays a compile.
+numba is an optional dependency (``pip install 'bench[fast]'``; the test extra includes it). The kernels are
+compiled with ``cache=True``: the first call after an install compiles for several seconds (IK ~2 s, FK ~10 s of
+CPU), later processes load the machine code from numba's cache (~0.3-1 s with the numba import). Because of that
+one-off cost, ``engine='auto'`` dispatches here only from :data:`COMPILED_MIN_POSES` poses on, so importing motion/
+or running ``bench kin ik`` never imports numba.
 
 Geometry is an input (packed by :func:`pack_geometry` into one float vector), never baked into the machine code.
 """
@@ -17,7 +19,6 @@ Geometry is an input (packed by :func:`pack_geometry` into one float vector), ne
 from __future__ import annotations
 
 import os
-from concurrent.futures import ThreadPoolExecutor
 from functools import lru_cache
 
 import numpy as np
@@ -90,8 +91,10 @@ def pack_geometry(geometry: Geometry) -> np.ndarray:
 
 
 @lru_cache(maxsize=1)
-def _pool() -> ThreadPoolExecutor | None:
+def _pool():
     """Threads for the kernels (they release the GIL, ``nogil=True``): one per CPU this process may use."""
+    from concurrent.futures import ThreadPoolExecutor
+
     workers = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
     return ThreadPoolExecutor(workers, thread_name_prefix="pkm5-kernel") if workers > 1 else None
 
