@@ -23,7 +23,7 @@ import numpy as np
 
 from _timing import copy_bandwidth_bytes_s, min_median_max, nbytes_of, spread, timed
 
-from motion import pkm5
+from motion import kernels, pkm5
 from motion.pkm5 import compiled
 from motion.pkm5.fk import MODES, _initial_guess
 
@@ -66,7 +66,7 @@ def main(argv=None) -> None:
     parser.add_argument("--peer", type=int, default=5_000, help="poses for the per-pose compiled peer")
     parser.add_argument("--repeat", type=int, default=5, help="timed runs of each (min / median / max)")
     args = parser.parse_args(argv)
-    if not compiled.available():
+    if not kernels.available():
         raise SystemExit("numba is not installed (pip install 'bench[fast]'): only the numpy path exists")
 
     rng = np.random.default_rng(0)

@@ -18,15 +18,15 @@ Geometry is an input (packed by :func:`pack_geometry` into one float vector), ne
 
 from __future__ import annotations
 
-import os
 from functools import lru_cache
 
 import numpy as np
 
-from motion.errors import MotionInputError
+from motion import kernels
+from motion.kernels import run_chunks
 from motion.pkm5.geometry import Geometry
 
-__all__ = ["available", "use_compiled", "ENGINES", "COMPILED_MIN_POSES", "pack_geometry", "ik_arrays", "fk_arrays", "fk_pose", "MODE_CODES"]
+__all__ = ["use_compiled", "COMPILED_MIN_POSES", "pack_geometry", "ik_arrays", "fk_arrays", "fk_pose", "MODE_CODES"]
 
 #: Smallest batch for which inverse_kinematics / forward_kinematics use the compiled kernels by default. Loading
 #: numba and the cached kernels costs ~0.3-0.6 s per process; the numpy IK does ~10^5-10^6 poses in that time and the
@@ -47,32 +47,10 @@ _IK_BLOCK = 4096  # poses per IK block: its six (4096, 6) float arrays (1.2 MB) 
 _FK_CHUNK = 2048  # FK rows per thread task: ~10-20 ms of work, small enough to balance uneven solves
 
 
-@lru_cache(maxsize=1)
-def available() -> bool:
-    """True if numba imports (the optional ``fast`` extra is installed)."""
-    try:
-        import numba  # noqa: F401
-    except ImportError:
-        return False
-    return True
-
-
-#: Values of the ``engine`` argument of inverse_kinematics / forward_kinematics.
-ENGINES = ("auto", "numpy", "compiled")
-
-
 def use_compiled(engine: str, n: int, kind: str) -> bool:
-    """Whether a batch of ``n`` poses runs compiled: 'numpy' never, 'compiled' always (numba required), 'auto'
-    from :data:`COMPILED_MIN_POSES` poses on when numba is installed (the numpy path otherwise)."""
-    if engine == "numpy":
-        return False
-    if engine == "compiled":
-        if not available():
-            raise MotionInputError("engine = 'compiled' needs numba, which is not installed (pip install 'bench[fast]')")
-        return True
-    if engine != "auto":
-        raise MotionInputError(f"engine = {engine!r}, expected one of {list(ENGINES)}")
-    return n >= COMPILED_MIN_POSES[kind] and available()
+    """Whether a batch of ``n`` poses of ``kind`` ('ik' or 'fk') runs compiled (:func:`motion.kernels.use_compiled`
+    with the threshold :data:`COMPILED_MIN_POSES`)."""
+    return kernels.use_compiled(engine, n, COMPILED_MIN_POSES[kind])
 
 
 @lru_cache(maxsize=32)
@@ -88,27 +66,6 @@ def pack_geometry(geometry: Geometry) -> np.ndarray:
     assert packed.size == _PACKED_SIZE
     packed.setflags(write=False)
     return packed
-
-
-@lru_cache(maxsize=1)
-def _pool():
-    """Threads for the kernels (they release the GIL, ``nogil=True``): one per CPU this process may use."""
-    from concurrent.futures import ThreadPoolExecutor
-
-    workers = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
-    return ThreadPoolExecutor(workers, thread_name_prefix="pkm5-kernel") if workers > 1 else None
-
-
-def _run_chunks(work, n: int, chunk: int) -> None:
-    """``work(rows)`` for consecutive slices of ``chunk`` rows of ``n``, on the thread pool when there is more than
-    one slice (exceptions propagate)."""
-    slices = [slice(start, min(start + chunk, n)) for start in range(0, n, chunk)]
-    pool = _pool()
-    if pool is None or len(slices) < 2:
-        for rows in slices:
-            work(rows)
-    else:
-        list(pool.map(work, slices))
 
 
 @lru_cache(maxsize=1)
@@ -141,7 +98,7 @@ def ik_arrays(poses: np.ndarray, geometry: Geometry, check_limits: bool, block: 
         kernels.ik_limits(poses[rows], packed, check_limits, lengths[rows], tilt, failure[rows], length_ok[rows],
                           tilt_ok[rows])
 
-    _run_chunks(one_block, n, block)
+    run_chunks(one_block, n, block)
     return lengths, tilts, failure, length_ok, tilt_ok
 
 
@@ -172,7 +129,7 @@ def fk_arrays(q0: np.ndarray, target: np.ndarray, mode: str, geometry: Geometry,
         kernel(target[rows], q[rows], code, restarts, len(restarts), packed, max_iter, step_tol, retry_above_mm,
                cost[rows], iterations[rows], done[rows])
 
-    _run_chunks(some_rows, n, _FK_CHUNK)
+    run_chunks(some_rows, n, _FK_CHUNK)
     return q[:, :k], cost, iterations, done
 
 
