@@ -1,6 +1,6 @@
 """numba kernels behind :mod:`motion.pkm5.compiled` (imported only from there: importing this module imports numba).
 
-Values: :func:`_ik_pose` repeats motion.pkm5.ik.leg_lengths operation by operation (same order, so the same IEEE
+Values: :func:`ik_values` repeats motion.pkm5.ik.leg_lengths operation by operation (same order, so the same IEEE
 results; only the libm sin/cos may differ from numpy's by 1 ulp). The elevation angles are left to numpy's SIMD
 ``arctan2`` over cache-sized blocks (3 ns a value against 18 ns for a scalar libm atan2, which would be 2/3 of the
 kernel's time), so they are numpy's own values. Jacobian: the same loop on 5-tuples
@@ -19,7 +19,9 @@ from motion.pkm5.compiled import (_A_HI, _A_LO, _AB5, _AB6, _AB_EVEN, _AB_ODD, _
                                   _PLANE_TOL, _PLANE_X, _TILT_MAX, _TILT_MIN)
 
 _jit = njit(cache=True, nogil=True, error_model="numpy")
-_inline = _jit  # small helpers: LLVM inlines them; numba-level inlining made the FK kernel compile for ~50 s
+# dual-number helpers stay plain functions (LLVM inlines them): numba-level inline="always" on them made the FK
+# kernel compile for ~50 s instead of ~10 s
+_dual_op = _jit
 
 # Failure flags (motion.pkm5.ik.Failure; numba cannot read an IntFlag)
 _MODE, _ORIENTATION_RANGE, _ALPHA_PLANE, _LEG_LENGTH, _TILT = 1, 2, 4, 8, 16
@@ -139,39 +141,39 @@ def ik_limits(poses, g, check_limits, lengths, tilts, failure, length_ok, tilt_o
 
 
 # --- dual numbers: (value, d/dx, d/dy, d/dz, d/dangle) ---------------------------------------------------------
-@_inline
+@_dual_op
 def _add(a, b):
     return (a[0] + b[0], a[1] + b[1], a[2] + b[2], a[3] + b[3], a[4] + b[4])
 
 
-@_inline
+@_dual_op
 def _sub(a, b):
     return (a[0] - b[0], a[1] - b[1], a[2] - b[2], a[3] - b[3], a[4] - b[4])
 
 
-@_inline
+@_dual_op
 def _shift(a, c):
     return (a[0] + c, a[1], a[2], a[3], a[4])
 
 
-@_inline
+@_dual_op
 def _scale(a, c):
     return (a[0] * c, a[1] * c, a[2] * c, a[3] * c, a[4] * c)
 
 
-@_inline
+@_dual_op
 def _mul(a, b):
     return (a[0] * b[0], a[1] * b[0] + b[1] * a[0], a[2] * b[0] + b[2] * a[0], a[3] * b[0] + b[3] * a[0],
             a[4] * b[0] + b[4] * a[0])
 
 
-@_inline
+@_dual_op
 def _div(a, b):
     inv = 1.0 / b[0]
     return _mul(a, (inv, -b[1] * inv * inv, -b[2] * inv * inv, -b[3] * inv * inv, -b[4] * inv * inv))
 
 
-@_inline
+@_dual_op
 def _hypot(a, b):
     """sqrt(a^2 + b^2); d = (a da + b db) / r."""
     r = math.sqrt(a[0] * a[0] + b[0] * b[0])
@@ -179,13 +181,13 @@ def _hypot(a, b):
     return (r, a[1] * ua + b[1] * ub, a[2] * ua + b[2] * ub, a[3] * ua + b[3] * ub, a[4] * ua + b[4] * ub)
 
 
-@_inline
+@_dual_op
 def _d_cos_sin(a):
     c, s = math.cos(a[0]), math.sin(a[0])
     return (c, -s * a[1], -s * a[2], -s * a[3], -s * a[4]), (s, c * a[1], c * a[2], c * a[3], c * a[4])
 
 
-@_inline
+@_dual_op
 def _d_rotate(g, i, ca, sa, cb, sb):
     vx, vy, vz = g[i], g[i + 1], g[i + 2]
     if vz != 0.0:
@@ -197,7 +199,7 @@ def _d_rotate(g, i, ca, sa, cb, sb):
     return _add(_scale(cb, vx), _mul(sb, t)), ry, _add(_scale(sb, -vx), _mul(cb, t))
 
 
-@_inline
+@_dual_op
 def _d_leg(u, w, g, ab, cd, cos_d, sin_d):
     cu = _sub(_scale(cos_d, g[cd]), _scale(sin_d, g[cd + 1]))
     cw = _add(_scale(sin_d, g[cd]), _scale(cos_d, g[cd + 1]))
@@ -275,6 +277,13 @@ def _solve(a, b, k, out):
 
 
 @_jit
+def _copy4(target, source):
+    """target[:4] = source[:4] as a loop (slice assignment costs seconds of numba compile time)."""
+    for a in range(4):
+        target[a] = source[a]
+
+
+@_jit
 def _cost(r):
     total = 0.0
     for i in range(6):
@@ -294,15 +303,17 @@ def _levenberg_marquardt(q, k, mode, target, g, max_iter, step_tol, work):
     vectors, matrices = work
     r, r_new, grad, step, q_new = vectors[0], vectors[1], vectors[2], vectors[3], vectors[4]
     jac, jac_new, normal = matrices[0], matrices[1], matrices[2]
-    q_new[:4] = q[:4]
+    _copy4(q_new, q)
     cost, damping, iterations, done = 0.0, 1e-3, 0, False
     for evaluation in range(max_iter + 1):
         _residual(q_new, mode, target, g, r_new, jac_new)
         cost_new = _cost(r_new)
         if evaluation == 0 or cost_new <= cost:
-            q[:4] = q_new[:4]
-            r[:] = r_new
-            jac[:, :] = jac_new
+            _copy4(q, q_new)
+            for i in range(6):
+                r[i] = r_new[i]
+                for a in range(4):
+                    jac[i, a] = jac_new[i, a]
             cost = cost_new
         if evaluation == 0:
             done = cost < 1e-24
@@ -339,16 +350,16 @@ def _fk_with_restarts(target, q, mode, restarts, n_restarts, g, max_iter, step_t
     """LM from q, then from each restart while the residual RMS exceeds retry_above_mm, keeping the best."""
     k = 3 if mode == 0 else 4
     trial = work[0][5]
-    trial[:4] = q[:4]
+    _copy4(trial, q)
     cost, iterations, done = np.inf, 0, False
     for j in range(-1, n_restarts):
         if j >= 0:
             if not math.sqrt(cost / 6) > retry_above_mm:
                 break
-            trial[:4] = restarts[j]
+            _copy4(trial, restarts[j])
         cost_r, iterations_r, done_r = _levenberg_marquardt(trial, k, mode, target, g, max_iter, step_tol, work)
         if j < 0 or cost_r < cost:
-            q[:4] = trial[:4]
+            _copy4(q, trial)
             cost, iterations, done = cost_r, iterations_r, done_r
     return cost, iterations, done
 
