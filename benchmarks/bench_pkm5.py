@@ -1,97 +1,121 @@
-"""Throughput of the PKM kinematics, measured in one run (prints rates and ratios, asserts nothing).
+"""Throughput of the PKM kinematics, numpy reference against the compiled kernels, measured in one run.
 
-* IK: N = 10^6 random poses in the constant-orientation box, one vectorised call.
-* FK: N = 10^5 leg-length sets of reachable poses (translation, alpha and beta mixed), batched least squares.
-* Baseline: the same FK solved pose by pose with ``scipy.optimize.least_squares`` (trust-region reflective with
-  the same exact Jacobian), on a subset; the speed-up ratio compares solves per second.
+Prints rates and ratios, asserts nothing; every figure is min / median / max of ``--repeat`` timed runs.
 
-Targets on a 2-core machine (issue 3): IK >= 1 M poses/s; batched FK >= 100 k solves/s and >= 100x the per-pose
-baseline. Issue 17: IK within 10x of its memory-bandwidth floor (bytes of the poses read and of every result
-array written, at the copy bandwidth measured in the same run); min / median / max of ``--repeat`` runs. Usage: ``python benchmarks/bench_pkm5.py [--fk N] [--baseline N]``.
+* IK: N = 10^6 random poses in the constant-orientation box, one call, ``engine='numpy'`` and ``'compiled'``,
+  against the memory-bandwidth floor: the bytes of the poses read and of every result array written, at the copy
+  bandwidth (np.copyto) measured in the same run.
+* FK: N = 10^5 leg-length sets of reachable poses (translation, alpha and beta mixed), batched LM, numpy and
+  compiled. Both start from the same k-d-tree guesses (part of the timed call).
+* Per-pose peer: the compiled single-pose solver (the same kernel, same Jacobian, same restarts) called once per
+  pose from Python, from the same initial guesses, on a subset: what a loop over poses costs with no numpy overhead.
+
+Targets on a 2-core machine (issues 3 and 17): IK within 10x of its floor; batched FK >= 100 k solves/s.
+Usage: ``python benchmarks/bench_pkm5.py [--ik N] [--fk N] [--peer N] [--repeat R]``.
 """
 
 from __future__ import annotations
 
 import argparse
+import time
 
 import numpy as np
-from scipy.optimize import least_squares
 
 from _timing import copy_bandwidth_bytes_s, min_median_max, nbytes_of, spread, timed
 
-from motion import pkm5
+from motion import kernels, pkm5
+from motion.pkm5 import compiled
+from motion.pkm5.fk import MODES, _initial_guess
 
 
-def scipy_per_pose(lengths: np.ndarray) -> np.ndarray:
-    """One scipy least_squares solve per pose, same unknowns and Jacobian as the batched solver."""
-    modes = pkm5.detect_mode(lengths)
+def per_pose_peer(lengths: np.ndarray, geometry=pkm5.DEFAULT_GEOMETRY):
+    """Seconds of the compiled single-pose solver called once per pose, and the poses it found."""
+    modes = pkm5.detect_mode(lengths, 1e-6)
+    packed = compiled.pack_geometry(geometry)
+    targets, starts, codes, tables, cols = [], [], [], [], []
+    for i, mode in enumerate(modes):
+        angle_col = MODES[mode]
+        columns = [0, 1, 2] + ([angle_col] if angle_col is not None else [])
+        q0 = np.zeros((1, 4))
+        q0[0, :len(columns)] = _initial_guess(lengths[i:i + 1], mode, geometry)[0]
+        targets.append(np.ascontiguousarray(lengths[i:i + 1]))
+        starts.append(q0)
+        codes.append(compiled.MODE_CODES[mode])
+        tables.append(compiled.restart_table(mode))
+        cols.append(columns)
+    compiled.fk_pose(targets[0], starts[0].copy(), codes[0], tables[0], packed)  # load the kernel
+    begin = time.perf_counter()
+    for target, q0, code, table in zip(targets, starts, codes, tables):
+        compiled.fk_pose(target, q0, code, table, packed)
+    seconds = time.perf_counter() - begin
     poses = np.zeros((len(lengths), 5))
-    for i, (target, mode) in enumerate(zip(lengths, modes)):
-        angle_col = pkm5.fk.MODES[mode]
-        cols = [0, 1, 2] + ([angle_col] if angle_col is not None else [])
+    for i, (q0, columns) in enumerate(zip(starts, cols)):
+        poses[i, columns] = q0[0, :len(columns)]
+    return seconds, poses
 
-        def full(q):
-            pose = np.zeros(5)
-            pose[cols] = q
-            return pose[None, :]
 
-        def residual(q):
-            return pkm5.inverse_kinematics(full(q), check_limits=False).lengths_mm[0] - target
-
-        def jac(q):
-            return pkm5.jacobian(full(q))[0][:, cols]
-
-        q0 = np.array([150.0, 0.0, 300.0, 0.0][: len(cols)])
-        poses[i, cols] = least_squares(residual, q0, jac=jac, xtol=1e-12, ftol=1e-12, gtol=1e-12).x
-    return poses
+def _stats(times, count, unit, scale):
+    rates = sorted(count / t / scale for t in times)
+    return f"{rates[len(rates) // 2]:8.2f} {unit} (min {rates[0]:.2f}, max {rates[-1]:.2f})"
 
 
 def main(argv=None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--ik", type=int, default=1_000_000, help="poses for the IK benchmark")
     parser.add_argument("--fk", type=int, default=100_000, help="poses for the batched FK benchmark")
-    parser.add_argument("--baseline", type=int, default=300, help="poses for the per-pose scipy baseline")
-    parser.add_argument("--repeat", type=int, default=5, help="timed runs of IK and FK (min / median / max)")
+    parser.add_argument("--peer", type=int, default=5_000, help="poses for the per-pose compiled peer")
+    parser.add_argument("--repeat", type=int, default=5, help="timed runs of each (min / median / max)")
     args = parser.parse_args(argv)
+    if not kernels.available():
+        raise SystemExit("numba is not installed (pip install 'bench[fast]'): only the numpy path exists")
 
     rng = np.random.default_rng(0)
     ik_poses = np.zeros((args.ik, 5))
     ik_poses[:, 0] = rng.uniform(46.5, 235.14, args.ik)
     ik_poses[:, 1] = rng.uniform(-136.12, 136.12, args.ik)
     ik_poses[:, 2] = rng.uniform(262.08, 356.68, args.ik)
-    ik_times, ik_result = spread(pkm5.inverse_kinematics, ik_poses, repeat=args.repeat)
-    ik_time = float(np.median(ik_times))
-    ik_rate = args.ik / ik_time
+    load_time, _ = timed(pkm5.inverse_kinematics, ik_poses[:10], engine="compiled", repeat=1)
+    np_times, np_result = spread(pkm5.inverse_kinematics, ik_poses, engine="numpy", repeat=args.repeat)
+    c_times, c_result = spread(pkm5.inverse_kinematics, ik_poses, engine="compiled", repeat=args.repeat)
+    ik_same = np.abs(c_result.lengths_mm - np_result.lengths_mm).max()
     # floor: read the poses once and write every result array once, at this machine's copy bandwidth
     bandwidth = copy_bandwidth_bytes_s()
-    ik_floor = (ik_poses.nbytes + nbytes_of(ik_result)) / bandwidth
+    ik_bytes = ik_poses.nbytes + nbytes_of(np_result)
+    ik_floor = ik_bytes / bandwidth
+    np_med, c_med = float(np.median(np_times)), float(np.median(c_times))
 
     poses = pkm5.sample_reachable(args.fk, kinds=("constant-orientation", "alpha", "beta"), seed=1)
     lengths = pkm5.inverse_kinematics(poses).lengths_mm
     # the seed tables (4,000 reachable poses per mode and their k-d trees) are built once per process
-    setup_time, _ = timed(pkm5.forward_kinematics, lengths[:3], repeat=1)
-    fk_times, result = spread(pkm5.forward_kinematics, lengths, repeat=args.repeat)
-    fk_time = float(np.median(fk_times))
-    fk_rate = args.fk / fk_time
-    fk_error = np.abs(result.pose - poses).max()
+    setup_time, _ = timed(pkm5.forward_kinematics, lengths[:3], engine="compiled", repeat=1)
+    fk_np_times, fk_np = spread(pkm5.forward_kinematics, lengths, engine="numpy", repeat=args.repeat)
+    fk_c_times, fk_c = spread(pkm5.forward_kinematics, lengths, engine="compiled", repeat=args.repeat)
+    fk_np_med, fk_c_med = float(np.median(fk_np_times)), float(np.median(fk_c_times))
+    peer_times, peer_poses = [], None
+    for _ in range(args.repeat):
+        seconds, peer_poses = per_pose_peer(lengths[: args.peer])
+        peer_times.append(seconds)
+    peer_med = float(np.median(peer_times))
+    c_rate, peer_rate = args.fk / fk_c_med, args.peer / peer_med
 
-    subset = lengths[: args.baseline]
-    base_time, base_poses = timed(scipy_per_pose, subset, repeat=1)
-    base_rate = args.baseline / base_time
-    base_error = np.abs(base_poses - poses[: args.baseline]).max()
-
-    print(f"IK   {args.ik:>9,} poses   {ik_time:7.3f} s   {ik_rate / 1e6:7.2f} M poses/s   (target >= 1 M/s); "
-          f"{args.repeat} runs: {min_median_max(ik_times)}")
-    print(f"     memory-bandwidth floor {ik_floor:.4f} s ({(ik_poses.nbytes + nbytes_of(ik_result)) / 1e6:.0f} MB "
-          f"at {bandwidth / 1e9:.1f} GB/s copy bandwidth): median / floor = {ik_time / ik_floor:.0f}x "
-          "(target <= 10x)")
-    print(f"FK   {args.fk:>9,} solves  {fk_time:7.3f} s   {fk_rate / 1e3:7.1f} k solves/s  (target >= 100 k/s), "
-          f"max error {fk_error:.1e}, converged {result.converged.mean():.4%}; {args.repeat} runs: "
-          f"{min_median_max(fk_times)}")
-    print(f"     one-off seed-table build (first call in a process): {setup_time:.3f} s")
-    print(f"scipy least_squares per pose, {args.baseline} solves: {base_rate:8.1f} solves/s, max error {base_error:.1e}")
-    print(f"speed-up batched FK / per-pose scipy: {fk_rate / base_rate:7.0f}x   (not a fair peer: the per-pose "
-          "residual and Jacobian are numpy calls on 1-row arrays, call overhead rather than arithmetic)")
+    print(f"IK {args.ik:,} poses ({args.repeat} runs each; rates: median (min, max))")
+    print(f"  numpy     {_stats(np_times, args.ik, 'M poses/s', 1e6)}   {min_median_max(np_times)}")
+    print(f"  compiled  {_stats(c_times, args.ik, 'M poses/s', 1e6)}   {min_median_max(c_times)}")
+    print(f"  memory-bandwidth floor {ik_floor:.4f} s ({ik_bytes / 1e6:.0f} MB at {bandwidth / 1e9:.1f} GB/s copy "
+          f"bandwidth): numpy / floor = {np_med / ik_floor:.1f}x, compiled / floor = {c_med / ik_floor:.1f}x "
+          f"(target <= 10x); numpy / compiled = {np_med / c_med:.2f}x; max |dL| {ik_same:.1e} mm")
+    print(f"  one-off kernel load (numba import + cache, or first compile): {load_time:.2f} s")
+    print(f"FK {args.fk:,} solves (translation, alpha, beta mixed)")
+    print(f"  numpy     {_stats(fk_np_times, args.fk, 'k solves/s', 1e3)}   {min_median_max(fk_np_times)}, "
+          f"max error {np.abs(fk_np.pose - poses).max():.1e} mm, converged {fk_np.converged.mean():.4%}")
+    print(f"  compiled  {_stats(fk_c_times, args.fk, 'k solves/s', 1e3)}   {min_median_max(fk_c_times)}, "
+          f"max error {np.abs(fk_c.pose - poses).max():.1e} mm, converged {fk_c.converged.mean():.4%} "
+          f"(target >= 100 k/s); compiled / numpy = {fk_np_med / fk_c_med:.2f}x")
+    print(f"  one-off seed-table build (first call in a process): {setup_time:.3f} s")
+    print(f"  per-pose peer, the compiled single-pose solver called per pose ({args.peer:,} solves): "
+          f"{_stats(peer_times, args.peer, 'k solves/s', 1e3)}, max error "
+          f"{np.abs(peer_poses - poses[: args.peer]).max():.1e} mm; batched compiled / per-pose = "
+          f"{c_rate / peer_rate:.2f}x")
 
 
 if __name__ == "__main__":

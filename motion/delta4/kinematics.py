@@ -12,6 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from motion.delta4 import compiled
 from motion.delta4.geometry import (
     LEG_OUTWARD,
     LEG_SIDEWAYS,
@@ -247,6 +248,7 @@ def forward_kinematics(
     method: str = "least_squares",
     iterations: int = 50,
     tolerance_mm: float = 1e-10,
+    engine: str = "auto",
 ) -> FKResult:
     """End-effector centre from the four servo angles.
 
@@ -264,6 +266,9 @@ def forward_kinematics(
         (e.g. ADC quantisation) directly; its ``residual_mm`` is still the sphere figure.
     iterations, tolerance_mm : keyword-only
         Gauss-Newton limits (least squares only).
+    engine : {"auto", "numpy", "compiled"}, keyword-only
+        For ``"least_squares"``: the batched numpy fit (the reference), or the same fit pose by pose in the numba
+        kernel of :mod:`motion.delta4.compiled`; "auto" compiles large batches when numba is installed.
 
     Returns
     -------
@@ -287,10 +292,13 @@ def forward_kinematics(
         start = pose.copy()
         # Without a closed-form start, begin one lower-arm length below the knees' centre.
         start[~ok] = knees[~ok].mean(axis=1) - np.array([0.0, 0.0, 0.8 * geometry.lower_arm_mm])
-        residuals = (
-            _sphere_residuals(knees, geometry) if method == "least_squares" else _joint_residuals(servo, geometry)
-        )
-        pose, converged = _gauss_newton(start, residuals, iterations=iterations, tolerance_mm=tolerance_mm)
+        if method == "least_squares" and compiled.use_compiled(engine, len(servo)):
+            pose, converged = compiled.gauss_newton(start, knees, geometry, iterations, tolerance_mm)
+        else:
+            residuals = (
+                _sphere_residuals(knees, geometry) if method == "least_squares" else _joint_residuals(servo, geometry)
+            )
+            pose, converged = _gauss_newton(start, residuals, iterations=iterations, tolerance_mm=tolerance_mm)
         reason = np.where(converged, None, "not_converged")
         ok = converged
     leg_residual = np.linalg.norm(_leg_vectors(pose, knees, geometry), axis=2) - geometry.lower_arm_mm

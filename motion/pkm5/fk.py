@@ -15,6 +15,7 @@ import numpy as np
 
 from motion import dual
 from motion.errors import MotionInputError
+from motion.pkm5 import compiled
 from motion.pkm5.geometry import DEFAULT_GEOMETRY, Geometry, _as_legs
 from motion.pkm5.ik import inverse_kinematics, leg_lengths
 from motion.pkm5.workspace import sample_reachable
@@ -57,7 +58,7 @@ def _initial_guess(target, mode, geometry):
     starts, tree = _seed_table(mode, geometry)
     if tree is None:
         return np.tile(np.r_[_NEUTRAL, [0.0] * (1 if MODES[mode] is not None else 0)], (len(target), 1))
-    return starts[tree.query(target)[1]]
+    return starts[tree.query(target, workers=-1)[1]]
 
 
 @dataclass(frozen=True)
@@ -147,9 +148,24 @@ def _levenberg_marquardt(q, target, mode, geometry, max_iter, step_tol):
     return q, cost, iterations, done
 
 
+def _with_restarts(q0, target, mode, geometry, max_iter, step_tol, retry_above_mm):
+    """LM from q0, then from each restart guess of ``mode`` for the rows still above ``retry_above_mm``."""
+    q, cost, its, done = _levenberg_marquardt(q0, target, mode, geometry, max_iter, step_tol)
+    for restart in _RESTARTS[mode]:
+        retry = np.flatnonzero(np.sqrt(cost / 6) > retry_above_mm)
+        if retry.size == 0:
+            break
+        q_r, cost_r, its_r, done_r = _levenberg_marquardt(
+            np.tile(restart, (retry.size, 1)), target[retry], mode, geometry, max_iter, step_tol)
+        better = cost_r < cost[retry]
+        idx = retry[better]
+        q[idx], cost[idx], its[idx], done[idx] = q_r[better], cost_r[better], its_r[better], done_r[better]
+    return q, cost, its, done
+
+
 def forward_kinematics(lengths_mm, geometry: Geometry = DEFAULT_GEOMETRY, *, initial_pose=None, mode="auto",
                        max_iter: int = 50, step_tol: float = 1e-9, residual_tol_mm: float = 0.01,
-                       retry_above_mm: float = 1e-9, mode_tol_mm: float = 1e-6) -> FKResult:
+                       retry_above_mm: float = 1e-9, mode_tol_mm: float = 1e-6, engine: str = "auto") -> FKResult:
     """Poses from six leg lengths, batched least squares.
 
     Parameters
@@ -174,6 +190,10 @@ def forward_kinematics(lengths_mm, geometry: Geometry = DEFAULT_GEOMETRY, *, ini
         A solution whose residual RMS exceeds this is retried from the restart guesses of pkm5.md §4.3 and the
         best is kept. Near the beta singularity a wrong local minimum can have a residual of only 1e-4 mm while
         the pose is 4 mm off, so the default retries anything that is not an exact fit.
+    engine : {'auto', 'numpy', 'compiled'}
+        'numpy' is the batched reference below; 'compiled' runs the same LM, pose by pose, in the numba kernel of
+        :mod:`motion.pkm5.compiled` (same steps, poses equal to ~1e-12 mm); 'auto' compiles batches of at least
+        ``compiled.COMPILED_MIN_POSES['fk']`` when numba is installed.
 
     Returns
     -------
@@ -189,6 +209,7 @@ def forward_kinematics(lengths_mm, geometry: Geometry = DEFAULT_GEOMETRY, *, ini
     """
     target = _as_legs(lengths_mm, "lengths_mm")
     n = len(target)
+    run_compiled = compiled.use_compiled(engine, n, "fk")
     modes = detect_mode(target, mode_tol_mm) if mode == "auto" else np.full(n, mode, dtype=object)
     unknown = set(modes) - set(MODES)
     if unknown:
@@ -207,16 +228,8 @@ def forward_kinematics(lengths_mm, geometry: Geometry = DEFAULT_GEOMETRY, *, ini
         angle_col = MODES[name]
         cols = [0, 1, 2] + ([angle_col] if angle_col is not None else [])
         q0 = start[rows][:, cols] if start is not None else _initial_guess(target[rows], name, geometry)
-        q, cost, its, done = _levenberg_marquardt(q0, target[rows], name, geometry, max_iter, step_tol)
-        for restart in _RESTARTS[name]:
-            retry = np.flatnonzero(np.sqrt(cost / 6) > retry_above_mm)
-            if retry.size == 0:
-                break
-            q_r, cost_r, its_r, done_r = _levenberg_marquardt(
-                np.tile(restart, (retry.size, 1)), target[rows][retry], name, geometry, max_iter, step_tol)
-            better = cost_r < cost[retry]
-            idx = retry[better]
-            q[idx], cost[idx], its[idx], done[idx] = q_r[better], cost_r[better], its_r[better], done_r[better]
+        solve = compiled.fk_arrays if run_compiled else _with_restarts
+        q, cost, its, done = solve(q0, target[rows], name, geometry, max_iter, step_tol, retry_above_mm)
         pose[np.ix_(rows, cols)] = q
         rms = np.sqrt(cost / 6)
         residual[rows] = rms

@@ -15,6 +15,7 @@ from functools import cached_property
 import numpy as np
 
 from motion import dual
+from motion.pkm5 import compiled
 from motion.pkm5.geometry import DEFAULT_GEOMETRY, Geometry
 from motion.sampling import as_rows
 
@@ -190,7 +191,8 @@ class IKResult:
         return np.array([self.reason(i) or "" for i in range(len(self.failure))], dtype=object)
 
 
-def inverse_kinematics(poses, geometry: Geometry = DEFAULT_GEOMETRY, *, check_limits: bool = True) -> IKResult:
+def inverse_kinematics(poses, geometry: Geometry = DEFAULT_GEOMETRY, *, check_limits: bool = True,
+                       engine: str = "auto") -> IKResult:
     """Leg lengths for poses of the PKM, batched.
 
     Parameters
@@ -202,6 +204,10 @@ def inverse_kinematics(poses, geometry: Geometry = DEFAULT_GEOMETRY, *, check_li
         Parameters and limits (default: the documented robot).
     check_limits : bool, keyword-only
         If False, only the mode is checked (for the documents' CAD rows, which ignore the stroke, pkm5.md §6.0).
+    engine : {'auto', 'numpy', 'compiled'}, keyword-only
+        'numpy' is the reference below; 'compiled' the numba kernel of :mod:`motion.pkm5.compiled` (same lengths
+        to the bit, tilts from the same ``arctan2``); 'auto' compiles batches of at least
+        ``compiled.COMPILED_MIN_POSES['ik']`` poses when numba is installed, so small calls never load numba.
 
     Returns
     -------
@@ -228,6 +234,8 @@ def inverse_kinematics(poses, geometry: Geometry = DEFAULT_GEOMETRY, *, check_li
     """
     p = as_poses(poses)
     g = geometry
+    if compiled.use_compiled(engine, len(p), "ik"):
+        return IKResult(p, *compiled.ik_arrays(p, g, check_limits), g)
     x, y, z, alpha, beta = p.T
     lengths, tilts = leg_lengths(x, y, z, alpha, beta, g)
     lengths_mm = np.stack(lengths, -1)

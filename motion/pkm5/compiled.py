@@ -1,0 +1,147 @@
+"""Compiled (numba) kernels of the PKM inverse and forward kinematics: the same formulas, one pose per loop step.
+
+The numpy code of :mod:`motion.pkm5.ik` and :mod:`motion.pkm5.fk` is the reference; these kernels repeat its
+arithmetic in the same order (000 §5.3 / App. B.1, pkm5.md §3.2-3.3, §4.3): the lengths equal numpy's to the bit
+in translation mode and to 1 ulp of the libm sin/cos otherwise, the tilts come from numpy's own ``arctan2``, and
+the FK takes the same Levenberg-Marquardt steps and restarts, pose by pose (tests/test_pkm5_compiled.py). numpy
+spends its time writing and re-reading ~60 temporary arrays of N values; a loop keeps one pose in registers.
+Blocks of poses run on one thread per CPU (the kernels release the GIL).
+
+numba is an optional dependency (``pip install 'bench[fast]'``; the test extra includes it). The kernels are
+compiled with ``cache=True``: the first call after an install compiles for several seconds (IK ~2 s, FK ~10 s of
+CPU), later processes load the machine code from numba's cache (~0.3-1 s with the numba import). Because of that
+one-off cost, ``engine='auto'`` dispatches here only from :data:`COMPILED_MIN_POSES` poses on, so importing motion/
+or running ``bench kin ik`` never imports numba.
+
+Geometry is an input (packed by :func:`pack_geometry` into one float vector), never baked into the machine code.
+"""
+
+from __future__ import annotations
+
+from functools import lru_cache
+
+import numpy as np
+
+from motion import kernels
+from motion.kernels import run_chunks
+from motion.pkm5.geometry import Geometry
+
+__all__ = ["use_compiled", "COMPILED_MIN_POSES", "pack_geometry", "ik_arrays", "fk_arrays", "fk_pose", "MODE_CODES"]
+
+#: Smallest batch for which inverse_kinematics / forward_kinematics use the compiled kernels by default. Loading
+#: numba and the cached kernels costs ~0.3-0.6 s per process; the numpy IK does ~10^5-10^6 poses in that time and the
+#: numpy FK ~10^4 solves, so below this size the compiled path cannot pay for itself in a one-shot process.
+COMPILED_MIN_POSES = {"ik": 200_000, "fk": 10_000}
+
+#: FK mode -> kernel code (same order as motion.pkm5.fk.MODES).
+MODE_CODES = {"translation": 0, "alpha": 1, "beta": 2}
+
+# --- layout of the packed geometry vector: offsets of each field (one home: pack_geometry writes this order)
+_OA12, _OA34, _OA56, _PD12, _PD34, _PD5, _PD6 = 0, 3, 6, 9, 12, 15, 18
+_H = 21
+_AB_ODD, _AB_EVEN, _AB5, _AB6, _CD_ODD, _CD_EVEN, _CD5, _CD6 = 22, 24, 26, 28, 30, 32, 34, 36
+_LEG_MIN, _LEG_MAX, _TILT_MIN, _TILT_MAX = 38, 44, 50, 56
+_A_LO, _A_HI, _B_LO, _B_HI, _PLANE_X, _PLANE_TOL = 62, 63, 64, 65, 66, 67
+_PACKED_SIZE = 68
+_IK_BLOCK = 4096  # poses per IK block: its six (4096, 6) float arrays (1.2 MB) stay in the L2 cache
+_FK_CHUNK = 2048  # FK rows per thread task: ~10-20 ms of work, small enough to balance uneven solves
+
+
+def use_compiled(engine: str, n: int, kind: str) -> bool:
+    """Whether a batch of ``n`` poses of ``kind`` ('ik' or 'fk') runs compiled (:func:`motion.kernels.use_compiled`
+    with the threshold :data:`COMPILED_MIN_POSES`)."""
+    return kernels.use_compiled(engine, n, COMPILED_MIN_POSES[kind])
+
+
+@lru_cache(maxsize=32)
+def pack_geometry(geometry: Geometry) -> np.ndarray:
+    """The geometry fields the kinematics read, as one float64 vector (limits in radians, as the numpy IK compares)."""
+    g = geometry
+    parts = [g.oa_12_mm, g.oa_34_mm, g.oa_56_mm, g.pd_12_mm, g.pd_34_mm, g.pd_5_mm, g.pd_6_mm,
+             [g.bracket_half_height_mm], g.ab_odd_mm, g.ab_even_mm, g.ab_5_mm, g.ab_6_mm,
+             g.cd_odd_mm, g.cd_even_mm, g.cd_5_mm, g.cd_6_mm, g.leg_min_mm, g.leg_max_mm,
+             np.radians(g.tilt_min_deg), np.radians(g.tilt_max_deg), np.radians(g.alpha_range_deg),
+             np.radians(g.beta_range_deg), [g.alpha_plane_x_mm, g.alpha_plane_tolerance_mm]]
+    packed = np.concatenate([np.asarray(part, dtype=float) for part in parts])
+    assert packed.size == _PACKED_SIZE
+    packed.setflags(write=False)
+    return packed
+
+
+@lru_cache(maxsize=1)
+def _kernels():
+    """Compile (or load from numba's cache) the kernels; numba is imported here, on first use only."""
+    from motion.pkm5 import _kernels
+
+    return _kernels
+
+
+def ik_arrays(poses: np.ndarray, geometry: Geometry, check_limits: bool, block: int = _IK_BLOCK):
+    """Lengths (N, 6), tilts (N, 6), failure flags (N,), length_ok and tilt_ok (N, 6) of validated poses (N, 5).
+
+    Per block of ``block`` poses (in cache): the kernel writes the lengths and the tilt components, numpy's
+    ``arctan2`` turns those into angles in place, a second kernel applies the windows. Blocks run on one thread
+    per CPU (the kernels and arctan2 release the GIL); the results do not depend on the thread count.
+    """
+    kernels = _kernels()
+    poses = np.ascontiguousarray(poses)
+    packed = pack_geometry(geometry)
+    n = len(poses)
+    lengths, tilts = np.empty((n, 6)), np.empty((n, 6))
+    failure = np.zeros(n, np.int64)
+    length_ok, tilt_ok = np.ones((n, 6), bool), np.ones((n, 6), bool)
+
+    def one_block(rows):
+        tilt, across = tilts[rows], np.empty((rows.stop - rows.start, 6))
+        kernels.ik_values(poses[rows], packed, lengths[rows], tilt, across)
+        np.arctan2(tilt, across, out=tilt)
+        kernels.ik_limits(poses[rows], packed, check_limits, lengths[rows], tilt, failure[rows], length_ok[rows],
+                          tilt_ok[rows])
+
+    run_chunks(one_block, n, block)
+    return lengths, tilts, failure, length_ok, tilt_ok
+
+
+def restart_table(mode: str) -> np.ndarray:
+    """The restart guesses of motion.pkm5.fk for ``mode`` as rows of four (x, y, z, angle; angle 0 in translation)."""
+    from motion.pkm5.fk import _RESTARTS
+
+    table = np.zeros((len(_RESTARTS[mode]), 4))
+    for i, start in enumerate(_RESTARTS[mode]):
+        table[i, :len(start)] = start
+    return table
+
+
+def fk_arrays(q0: np.ndarray, target: np.ndarray, mode: str, geometry: Geometry, max_iter: int, step_tol: float,
+              retry_above_mm: float):
+    """LM with restarts for one mode's rows, as fk._with_restarts: q (n, k), cost, iterations, stationary flag.
+
+    Each pose is solved on its own, so chunks of rows run on the thread pool with the same results."""
+    n, k = q0.shape
+    q = np.zeros((n, 4))
+    q[:, :k] = q0
+    restarts = restart_table(mode)
+    cost, iterations, done = np.empty(n), np.empty(n, np.int64), np.empty(n, bool)
+    kernel, target, packed, code = _kernels().fk_batch, np.ascontiguousarray(target), pack_geometry(geometry), \
+        MODE_CODES[mode]
+
+    def some_rows(rows):
+        kernel(target[rows], q[rows], code, restarts, len(restarts), packed, max_iter, step_tol, retry_above_mm,
+               cost[rows], iterations[rows], done[rows])
+
+    run_chunks(some_rows, n, _FK_CHUNK)
+    return q[:, :k], cost, iterations, done
+
+
+def fk_pose(target: np.ndarray, q0: np.ndarray, mode: int, restarts: np.ndarray, packed: np.ndarray,
+            max_iter: int = 50, step_tol: float = 1e-9, retry_above_mm: float = 1e-9):
+    """One pose, one compiled call (the per-pose peer of the batched FK): cost, iterations, stationary (1,) arrays.
+
+    ``target`` (1, 6); ``q0`` (1, 4) holds x, y, z and the mode angle (ignored in translation mode) and receives
+    the solution; ``mode`` a :data:`MODE_CODES` value; ``restarts`` from :func:`restart_table`; ``packed`` from
+    :func:`pack_geometry`. No validation: the caller (a tracking loop, the benchmark's peer) prepares the arrays.
+    """
+    cost, iterations, done = np.empty(1), np.empty(1, np.int64), np.empty(1, bool)
+    _kernels().fk_batch(target, q0, mode, restarts, len(restarts), packed, max_iter, step_tol, retry_above_mm,
+                        cost, iterations, done)
+    return cost, iterations, done
