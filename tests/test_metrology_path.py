@@ -16,6 +16,7 @@ from bench.metrology import (
     orientation_accuracy,
     orientation_multidirectional_variation,
     orientation_repeatability,
+    path_orientation_characteristics,
     path_speed,
     path_velocity_characteristics,
 )
@@ -196,3 +197,27 @@ def test_orientation_vap_nonnegative_and_offset_invariant(clouds, offset):
     assert min(r.vap_deg) >= 0
     assert orientation_multidirectional_variation([c + offset for c in clouds]).vap_deg == pytest.approx(
         r.vap_deg, abs=1e-6)
+
+
+# --- 8.2 / 8.3 / 8.4 orientation along a path ---------------------------------------------------------------------
+
+def test_path_orientation_hand_computed_on_a_reorientation_line():
+    # three passes along x; angle a ramps 0 -> 10° over 100 mm as commanded, offset per cycle by +0.1, +0.3, +0.2°;
+    # b is commanded 0 and wraps across ±180 in the samples of one cycle
+    x = np.linspace(0.0, 100.0, 21)
+    paths = [np.column_stack([x, np.full_like(x, y), np.zeros_like(x)]) for y in (0.05, -0.05, 0.0)]
+    angles = [np.column_stack([0.1 * x + off, np.full_like(x, b)]) for off, b in ((0.1, 179.9), (0.3, -179.9),
+                                                                                 (0.2, 180.0))]
+    stations = np.column_stack([np.linspace(12.5, 87.5, 4), np.zeros(4), np.zeros(4)])
+    commanded = np.column_stack([0.1 * stations[:, 0], np.full(4, 180.0)])
+    r = path_orientation_characteristics(paths, angles, stations, commanded)
+    assert r.at_per_station_deg[:, 0] == pytest.approx(np.full(4, 0.2))
+    assert r.at_deg == pytest.approx((0.2, 0.0), abs=1e-9)
+    assert r.rt_deg == pytest.approx((3 * 0.1, 3 * 0.1))  # S over {0.1, 0.3, 0.2} and {-0.1, 0.1, 0} is 0.1
+    assert r.n_cycles == 3
+
+
+def test_path_orientation_refuses_angles_not_sampled_with_the_positions():
+    line = [[0.0, 0.0], [10.0, 0.0]]
+    with pytest.raises(ConfigError, match="angles_deg\\[1\\] has 3 rows"):
+        path_orientation_characteristics([line, line], [[[0], [1]], [[0], [1], [2]]], [[2, 0], [8, 0]], [[0], [0]])

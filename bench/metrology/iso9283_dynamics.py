@@ -229,19 +229,48 @@ def pose_stabilisation(series: Sequence, *, band_mm: float, hysteresis_mm: float
                              float(overshoots.max()), cycles)
 
 
-def _plane_crossing(path: np.ndarray, station: np.ndarray, normal: np.ndarray) -> np.ndarray | None:
-    """Point where a polyline crosses the plane through ``station`` normal to ``normal``, nearest the station."""
+def _plane_crossing(path: np.ndarray, station: np.ndarray, normal: np.ndarray) -> tuple[int, float] | None:
+    """Where a polyline crosses the plane through ``station`` normal to ``normal``, nearest the station.
+
+    Returns (i, f): the crossing is path[i] + f (path[i + 1] - path[i]), 0 <= f <= 1; None when it never crosses.
+    """
     signed = (path - station) @ normal
     crossing = np.flatnonzero(np.signbit(signed[:-1]) != np.signbit(signed[1:]))
-    exact = np.flatnonzero(signed == 0.0)
-    candidates = [path[i] for i in exact]
-    for i in crossing:
-        fraction = signed[i] / (signed[i] - signed[i + 1])
-        candidates.append(path[i] + fraction * (path[i + 1] - path[i]))
+    candidates = [(int(i), 0.0) for i in np.flatnonzero(signed == 0.0)]
+    candidates += [(int(i), float(signed[i] / (signed[i] - signed[i + 1]))) for i in crossing]
     if not candidates:
         return None
-    candidates = np.array(candidates)
-    return candidates[np.argmin(np.sum((candidates - station) ** 2, axis=1))]
+    points = np.array([path[i] + f * (path[min(i + 1, len(path) - 1)] - path[i]) for i, f in candidates])
+    return candidates[int(np.argmin(np.sum((points - station) ** 2, axis=1)))]
+
+
+def station_crossings(paths_mm: Sequence, commanded_mm) -> tuple[np.ndarray, list[list[tuple[int, float]]]]:
+    """Cut every attained path with the plane normal to the commanded path at each station (ISO 9283 8.2).
+
+    Returns the intersection points, shape (m stations, n cycles, d), and per station and cycle the crossing as
+    (sample index i, fraction f) so that other sampled quantities (angles) can be read at the same place.
+    """
+    stations = as_points("commanded_mm", commanded_mm, dims=(2, 3))
+    require_count("commanded path stations", len(stations), 2)
+    require_count("path cycles", len(paths_mm), 2)
+    paths = [as_points(f"paths_mm[{j}]", p, dims=(stations.shape[1],)) for j, p in enumerate(paths_mm)]
+    tangents = np.gradient(stations, axis=0)
+    norms = np.linalg.norm(tangents, axis=1)
+    if np.any(norms == 0):
+        raise ConfigError("commanded_mm: repeated stations, the path direction is undefined there")
+    tangents /= norms[:, None]
+    points = np.empty((len(stations), len(paths), stations.shape[1]))
+    where: list[list[tuple[int, float]]] = []
+    for i, (station, normal) in enumerate(zip(stations, tangents)):
+        where.append([])
+        for j, path in enumerate(paths):
+            hit = _plane_crossing(path, station, normal)
+            if hit is None:
+                raise InsufficientData(f"path cycle {j} never crosses the plane of station {i}")
+            k, fraction = hit
+            points[i, j] = path[k] + fraction * (path[min(k + 1, len(path) - 1)] - path[k])
+            where[i].append(hit)
+    return points, where
 
 
 def path_characteristics(paths_mm: Sequence, commanded_mm) -> PathCharacteristics:
@@ -270,21 +299,7 @@ def path_characteristics(paths_mm: Sequence, commanded_mm) -> PathCharacteristic
         Fewer than 2 cycles, or a path that never crosses a station's plane.
     """
     stations = as_points("commanded_mm", commanded_mm, dims=(2, 3))
-    require_count("commanded path stations", len(stations), 2)
-    require_count("path cycles", len(paths_mm), 2)
-    paths = [as_points(f"paths_mm[{j}]", p, dims=(stations.shape[1],)) for j, p in enumerate(paths_mm)]
-    tangents = np.gradient(stations, axis=0)
-    norms = np.linalg.norm(tangents, axis=1)
-    if np.any(norms == 0):
-        raise ConfigError("commanded_mm: repeated stations, the path direction is undefined there")
-    tangents /= norms[:, None]
-    points = np.empty((len(stations), len(paths), stations.shape[1]))
-    for i, (station, normal) in enumerate(zip(stations, tangents)):
-        for j, path in enumerate(paths):
-            hit = _plane_crossing(path, station, normal)
-            if hit is None:
-                raise InsufficientData(f"path cycle {j} never crosses the plane of station {i}")
-            points[i, j] = hit
+    points, _ = station_crossings(paths_mm, stations)
     barycentres = points.mean(axis=1)
     at = np.linalg.norm(barycentres - stations, axis=1)
     distances = np.linalg.norm(points - barycentres[:, None, :], axis=2)
@@ -294,5 +309,5 @@ def path_characteristics(paths_mm: Sequence, commanded_mm) -> PathCharacteristic
         rt_mm=float(rt.max()),
         at_per_station_mm=at,
         rt_per_station_mm=rt,
-        n_cycles=len(paths),
+        n_cycles=points.shape[1],
     )

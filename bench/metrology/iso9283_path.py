@@ -5,7 +5,8 @@ Pure functions over sampled paths and time series (positions in mm, times in s, 
 the test conditions [N], the definition of the time [U]); the cycle counts of Table 5 are [N]: 3 for cornering,
 10 for path velocity, 3 for minimum positioning time. Where the standard's wording was not available the method
 choice is stated in the docstring; verify against a licensed copy before a report labels a figure "ISO".
-Path accuracy and repeatability AT/RT (8.2, 8.3) are in `iso9283_dynamics`.
+Position path accuracy and repeatability AT_p/RT_p (8.2, 8.3) are in `iso9283_dynamics`; their orientation
+counterparts AT_a/b/c and RT_a/b/c (8.2, 8.3, and 8.4 on reorientation) are here.
 """
 
 from __future__ import annotations
@@ -17,16 +18,19 @@ import numpy as np
 
 from bench.errors import ConfigError, InsufficientData
 from bench.metrology._validation import as_points, as_series, as_vector, require_count, require_same_length
-from bench.metrology.iso9283_dynamics import position_stabilisation
+from bench.metrology.iso9283 import circular_mean_deg, wrap_deg
+from bench.metrology.iso9283_dynamics import position_stabilisation, station_crossings
 
 __all__ = [
     "MIN_POSITIONING_STEPS_MM",
     "CorneringDeviations",
     "MinimumPositioningTime",
+    "PathOrientation",
     "PathVelocity",
     "cornering_deviations",
     "minimum_positioning_targets",
     "minimum_positioning_time",
+    "path_orientation_characteristics",
     "path_speed",
     "path_velocity_characteristics",
 ]
@@ -46,6 +50,17 @@ class CorneringDeviations:
     cr_per_cycle_mm: tuple[float, ...]  #: CR_j = min_t |P_E - p_j(t)| >= 0
     co_per_cycle_mm: tuple[float, ...]  #: CO_j >= 0, outward deviation from the next segment after the corner
     n: int
+
+
+@dataclass(frozen=True, eq=False)
+class PathOrientation:
+    """Orientation path accuracy AT_a/b/c and repeatability RT_a/b/c (ISO 9283 8.2, 8.3, 8.4)."""
+
+    at_deg: tuple[float, ...]  #: per angle, max_i |ā_i - a_ci|
+    rt_deg: tuple[float, ...]  #: per angle, max_i 3 S_ai, reported as ±
+    at_per_station_deg: np.ndarray  #: (m, q) signed ā_i - a_ci
+    rt_per_station_deg: np.ndarray  #: (m, q) 3 S_ai
+    n_cycles: int
 
 
 @dataclass(frozen=True)
@@ -80,18 +95,20 @@ def _unit(name: str, vector: np.ndarray) -> np.ndarray:
     return vector / norm
 
 
-def _distance_to_polyline(point: np.ndarray, path: np.ndarray) -> tuple[float, int]:
-    """Least distance from ``point`` to the polyline ``path`` and the index of the segment where it occurs."""
+def _nearest_on_polyline(point: np.ndarray, path: np.ndarray) -> tuple[float, int, np.ndarray]:
+    """Least distance from ``point`` to the polyline ``path``, the first segment where it occurs, and the point."""
     if len(path) == 1:
-        return float(np.linalg.norm(path[0] - point)), 0
+        return float(np.linalg.norm(path[0] - point)), 0, path[0]
     start, step = path[:-1], np.diff(path, axis=0)
     length2 = np.sum(step**2, axis=1)
     fraction = np.divide(np.sum((point - start) * step, axis=1), length2, out=np.zeros(len(step)),
                          where=length2 > 0)
     nearest = start + np.clip(fraction, 0.0, 1.0)[:, None] * step
     distance = np.linalg.norm(nearest - point, axis=1)
-    best = int(np.argmin(distance))
-    return float(distance[best]), best
+    # ties (a path that passes the corner twice at the same distance) go to the first pass, also after rounding
+    tolerance = 1e-9 * max(1.0, float(np.abs(path - point).max()))
+    best = int(np.flatnonzero(distance <= distance.min() + tolerance)[0])
+    return float(distance.min()), best, nearest[best]
 
 
 def cornering_deviations(paths_mm: Sequence, corner_mm, incoming_from_mm, outgoing_to_mm) -> CorneringDeviations:
@@ -106,7 +123,7 @@ def cornering_deviations(paths_mm: Sequence, corner_mm, incoming_from_mm, outgoi
         CO_j = \\max\\Big(0,\\ \\max_{t \\ge t^*_j} (p_j(t) - P_E) \\cdot \\hat n\\Big), \\qquad
         \\hat n = \\frac{u_{in} - (u_{in} \\cdot u_{out})\\, u_{out}}{\\lVert \\cdot \\rVert}
 
-    where t*_j is where CR_j is attained. ``n̂`` points across the outgoing segment towards the side the robot
+    where t*_j is where CR_j is first attained. ``n̂`` points across the outgoing segment towards the side the robot
     arrives from, so CO is the overshoot beyond the outgoing segment; the inside cut of a rounded corner counts in
     CR, not in CO (a method choice, [P], for the standard's "largest deviation from the commanded path after the
     corner"). CO is exact for the polyline: the offset is linear along each segment, so its maximum is at a sample.
@@ -150,12 +167,82 @@ def cornering_deviations(paths_mm: Sequence, corner_mm, incoming_from_mm, outgoi
     cr, co = [], []
     for j, raw in enumerate(paths_mm):
         path = as_points(f"paths_mm[{j}]", raw, dims=(d,))
-        distance, segment = _distance_to_polyline(corner, path)
-        after = path[segment:]
+        distance, segment, nearest = _nearest_on_polyline(corner, path)
+        after = np.vstack([nearest, path[segment + 1:]])
         cr.append(distance)
         co.append(max(0.0, float(((after - corner) @ across).max())))
     return CorneringDeviations(max(cr), max(co), float(np.mean(cr)), float(np.mean(co)), tuple(cr), tuple(co),
                                len(cr))
+
+
+def path_orientation_characteristics(paths_mm: Sequence, angles_deg: Sequence, commanded_mm,
+                                     commanded_deg) -> PathOrientation:
+    """Orientation path accuracy AT_a and repeatability RT_a (ISO 9283 8.2, 8.3; 8.4 on reorientation [U]).
+
+    Each attained path is cut with the plane normal to the commanded path at every station, as for AT_p
+    (:func:`~bench.metrology.iso9283_dynamics.path_characteristics`); the angles are read at the same crossing by
+    linear interpolation between the two bracketing samples (along the shorter arc). With a_ij the angle of cycle
+    j in plane i and a_ci the commanded angle there:
+
+    .. math::
+
+        AT_a = \\max_i |\\bar a_i - a_{ci}|, \\qquad RT_a = \\pm \\max_i 3 S_{ai}, \\qquad
+        S_{ai} = \\sqrt{\\frac{\\sum_j (a_{ij} - \\bar a_i)^2}{n - 1}}
+
+    (likewise b, c); ā_i is the circular mean and differences are wrapped to [-180, 180).
+
+    Parameters
+    ----------
+    paths_mm : sequence of array_like, each shape (k_j, d)
+        Attained positions per cycle, in order of travel (n >= 2 cycles; ISO: 10).
+    angles_deg : sequence of array_like, each shape (k_j, q)
+        Attained angles sampled with those positions, q = 1..3 (deg).
+    commanded_mm : array_like, shape (m, d)
+        Stations along the commanded path.
+    commanded_deg : array_like, shape (m, q)
+        Commanded angles at the stations (deg): constant for 8.2, the prescribed changes for 8.4.
+
+    Examples
+    --------
+    Two straight passes along x, 0.2° and 0.4° above a commanded ramp a_c = 0.1°/mm · x (mean 0.3° above):
+
+    >>> line = [[0.0, 0.0], [10.0, 0.0]]
+    >>> r = path_orientation_characteristics([line, line], [[[0.2], [1.2]], [[0.4], [1.4]]],
+    ...                                      [[2.0, 0.0], [8.0, 0.0]], [[0.2], [0.8]])
+    >>> [round(v, 6) for v in r.at_deg], [round(v, 4) for v in r.rt_deg]
+    ([0.3], [0.4243])
+    """
+    points, where = station_crossings(paths_mm, commanded_mm)
+    if len(angles_deg) != len(paths_mm):
+        raise ConfigError(f"angles_deg has {len(angles_deg)} cycles and paths_mm {len(paths_mm)}, expected the same")
+    angles = [as_points(f"angles_deg[{j}]", a) for j, a in enumerate(angles_deg)]
+    if len({a.shape[1] for a in angles}) != 1:
+        raise ConfigError(f"angles_deg: cycles with different angle counts {[a.shape[1] for a in angles]}")
+    for j, (a, p) in enumerate(zip(angles, paths_mm)):
+        if len(a) != len(p):
+            raise ConfigError(f"angles_deg[{j}] has {len(a)} rows and paths_mm[{j}] {len(p)}, expected the same")
+    q = angles[0].shape[1]
+    commanded = as_points("commanded_deg", commanded_deg, dims=(q,))
+    if len(commanded) != points.shape[0]:
+        raise ConfigError(f"commanded_deg has {len(commanded)} rows and commanded_mm {points.shape[0]}, expected "
+                          "one per station")
+    at_station = np.empty((points.shape[0], points.shape[1], q))
+    for i, row in enumerate(where):
+        for j, (k, fraction) in enumerate(row):
+            a = angles[j]
+            after = a[min(k + 1, len(a) - 1)]
+            at_station[i, j] = a[k] + fraction * wrap_deg(after - a[k])
+    means = np.array([circular_mean_deg(cloud) for cloud in at_station])
+    accuracy = wrap_deg(means - commanded)
+    spread = wrap_deg(at_station - means[:, None, :])
+    repeatability = 3.0 * np.sqrt(np.sum(spread**2, axis=1) / (points.shape[1] - 1))
+    return PathOrientation(
+        at_deg=tuple(float(v) for v in np.abs(accuracy).max(axis=0)),
+        rt_deg=tuple(float(v) for v in repeatability.max(axis=0)),
+        at_per_station_deg=accuracy,
+        rt_per_station_deg=repeatability,
+        n_cycles=points.shape[1],
+    )
 
 
 def path_speed(t_s, position_mm) -> np.ndarray:
