@@ -2,7 +2,7 @@
 
 :func:`collect` reads the store (never hardware) and calls :mod:`bench.metrology` for every number: AP, RP and
 their uncertainties come from :func:`bench.metrology.tables.analyze_poses`, AD/RD from
-:func:`~bench.metrology.tables.analyze_distance`, vAP from :func:`~bench.metrology.multidirectional_variation`,
+:func:`~bench.metrology.tables.analyze_distance`, vAP from :func:`~bench.metrology.path_tables.analyze_multidirectional`,
 the payload error from :func:`~bench.metrology.payload_shift` and the instrument RP floor from
 :func:`~bench.metrology.instrument_rp_floor`. This module computes no statistic of its own, so a report number
 equals the analysis API's number on the same tidy table by construction.
@@ -44,11 +44,11 @@ from bench.metrology import (
     expanded,
     fit_axis_scale,
     instrument_rp_floor,
-    multidirectional_variation,
     payload_shift,
     resolution_uncertainty,
 )
 from bench.metrology.formatting import pose_label, report_order
+from bench.metrology.path_tables import analyze_multidirectional
 from bench.metrology.tables import (
     ANGLE_PAIRS,
     PoseResult,
@@ -312,15 +312,7 @@ def _distances(table: pd.DataFrame, sigma_mm: float, k: float) -> tuple[Distance
 
 
 def _multidirectional(table: pd.DataFrame) -> tuple[VapRow, ...]:
-    rows = []
-    for label, group in _condition_groups(table):
-        split = group["pose"].str.split("/", n=1, expand=True)
-        for base, at_pose in group.groupby(split[0], sort=False):
-            directions = tuple(dict.fromkeys(at_pose["pose"]))
-            clouds = [at_pose[at_pose["pose"] == d][list(_POSITION)].to_numpy() for d in directions]
-            rows.append(VapRow(f"{base}" + (f" ({label})" if label else ""), directions,
-                               multidirectional_variation(clouds)))
-    return tuple(rows)
+    return tuple(VapRow(r.label, r.directions, r.position) for r in analyze_multidirectional(table))
 
 
 def _payload(table: pd.DataFrame) -> tuple[PayloadRow, ...]:
