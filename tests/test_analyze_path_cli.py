@@ -2,6 +2,7 @@
 hand computations, units in the JSON keys, row order without meaning, one-line errors."""
 
 import json
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -140,3 +141,39 @@ def test_positioning_time_per_band_and_step(capsys, tmp_path):
         ramp = 0.8 * 0.5 / distance
         assert s["mean_time_s"] == pytest.approx(0.8 - 2 * ramp, abs=0.011)
         assert s["distance_mm"] == pytest.approx(distance)
+
+
+def test_drift_reports_the_orientation_of_the_pose(capsys):
+    import pandas as pd
+
+    from bench.metrology import orientation_drift
+
+    example = Path(__file__).resolve().parents[1] / "examples" / "data" / "iso9283_example.csv"
+    code, out, _ = _run(capsys, "analyze", "drift", str(example), "--window-s", "100", "--json")
+    assert code == 0
+    r = json.loads(out)
+    rows = pd.read_csv(example, comment="#")
+    rows = rows[rows["pose"] == "P1"]
+    names = [a for a in ("a", "b", "c") if f"{a}_deg" in rows.columns]
+    assert names  # the example carries angles
+    direct = orientation_drift(rows["t_s"], rows[[f"{a}_deg" for a in names]],
+                               rows[[f"cmd_{a}_deg" for a in names]].to_numpy()[0], window_s=100)
+    for i, name in enumerate(names):
+        assert r[f"dAP_{name}_deg"] == pytest.approx(direct.dap_deg[i])
+        assert r[f"dRP_{name}_deg"] == pytest.approx(direct.drp_deg[i])
+        assert r[f"dAP_{name}_deg"] == pytest.approx(abs(r["windows"][0][f"AP_{name}_deg"]
+                                                         - r["windows"][1][f"AP_{name}_deg"]))
+
+
+def test_exchangeability_per_pose(capsys, tmp_path):
+    header = "pose,cycle,cmd_x_mm,cmd_y_mm,cmd_z_mm,x_mm,y_mm,z_mm,robot"
+    rows = [("P1", c, 0, 0, 0, x + d, 0, 0, robot) for robot, x in (("SN1", 0.0), ("SN2", 0.3), ("SN3", 0.1))
+            for c, d in ((1, -0.05), (2, 0.05))]
+    path = _write(tmp_path / "e.csv", header, rows, shuffle=True)
+    code, out, _ = _run(capsys, "analyze", "exchangeability", path, "--json")
+    assert code == 0
+    p1 = json.loads(out)["poses"]["P1"]
+    assert p1["E_mm"] == pytest.approx(0.3)
+    assert p1["farthest_pair"] == ["SN1", "SN2"]
+    code, _, err = _run(capsys, "analyze", "exchangeability", path, "--by", "mounting")
+    assert code == 2 and "missing column mounting" in err

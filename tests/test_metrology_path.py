@@ -14,6 +14,7 @@ from bench.metrology import (
     minimum_positioning_targets,
     minimum_positioning_time,
     orientation_accuracy,
+    orientation_drift,
     orientation_multidirectional_variation,
     orientation_repeatability,
     path_orientation_characteristics,
@@ -221,3 +222,17 @@ def test_path_orientation_refuses_angles_not_sampled_with_the_positions():
     line = [[0.0, 0.0], [10.0, 0.0]]
     with pytest.raises(ConfigError, match="angles_deg\\[1\\] has 3 rows"):
         path_orientation_characteristics([line, line], [[[0], [1]], [[0], [1], [2]]], [[2, 0], [8, 0]], [[0], [0]])
+
+
+# --- 7.6 drift of the orientation ---------------------------------------------------------------------------------
+
+def test_orientation_drift_hand_computed_across_180():
+    t = [0, 1, 2, 10, 11, 12]
+    a = [[179.9, 0.0], [-179.9, 0.0], [180.0, 0.0], [179.5, 0.1], [179.7, 0.3], [179.6, 0.2]]
+    r = orientation_drift(t, a, [180.0, 0.0], window_s=5.0)
+    assert r.ap_deg[:, 0] == pytest.approx([0.0, -0.4], abs=1e-9)
+    assert r.ap_deg[:, 1] == pytest.approx([0.0, 0.2], abs=1e-9)
+    assert r.dap_deg == pytest.approx((0.4, 0.2))
+    assert r.rp_deg[:, 0] == pytest.approx([0.3, 0.3])  # deviations -0.1, +0.1, 0 → S = 0.1
+    assert r.drp_deg == pytest.approx((0.0, 0.3), abs=1e-9)
+    assert r.n_per_window.tolist() == [3, 3]

@@ -150,8 +150,8 @@ def _distance(args: argparse.Namespace) -> int:
 
 
 def _drift(args: argparse.Namespace) -> int:
-    from bench.metrology import pose_drift
-    from bench.metrology.tables import POSE_NUMERIC_COLUMNS, pose_table, read_table_csv
+    from bench.metrology import orientation_drift, pose_drift
+    from bench.metrology.tables import ANGLE_PAIRS, POSE_NUMERIC_COLUMNS, pose_table, read_table_csv
 
     table = pose_table(read_table_csv(args.file, numeric=POSE_NUMERIC_COLUMNS))
     if "t_s" not in table.columns:
@@ -167,6 +167,17 @@ def _drift(args: argparse.Namespace) -> int:
     lines = [f"pose {args.pose}: dAP = {r.dap_mm:.4f} mm, dRP = {r.drp_mm:.4f} mm over {len(r.ap_mm)} windows"]
     lines += [f"  t >= {t:10.1f} s  n = {n:4d}  AP = {a:.4f} mm  RP = {p:.4f} mm"
               for t, n, a, p in zip(r.window_start_s, r.n_per_window, r.ap_mm, r.rp_mm)]
+    pairs = [(c, a) for c, a in ANGLE_PAIRS if a in rows.columns]
+    if pairs:
+        o = orientation_drift(rows["t_s"], rows[[a for _, a in pairs]], rows[[c for c, _ in pairs]].to_numpy()[0],
+                              window_s=args.window_s)
+        for i, (_, column) in enumerate(pairs):
+            name = column[0]
+            result[f"dAP_{name}_deg"], result[f"dRP_{name}_deg"] = o.dap_deg[i], o.drp_deg[i]
+            for window, ap, rp in zip(result["windows"], o.ap_deg[:, i], o.rp_deg[:, i]):
+                window[f"AP_{name}_deg"], window[f"RP_{name}_deg"] = float(ap), float(rp)
+            lines.append(f"  orientation {name}: dAP_{name} = {o.dap_deg[i]:.4f} deg, "
+                         f"dRP_{name} = {o.drp_deg[i]:.4f} deg")
     emit(result, args.json, lines)
     return 0
 

@@ -18,6 +18,12 @@ def register(actions: argparse._SubParsersAction, new_parser) -> None:
                                      "pose labels name the approach: P1/+x, P1/-y, P1/+z")
     vap.set_defaults(handler=_vap)
 
+    exchange = new_parser(actions, "exchangeability", "exchangeability E per pose (ISO 9283 7.7): the largest "
+                                                      "distance between the barycentres of the robots (or "
+                                                      "mountings) named in the column given by --by")
+    exchange.add_argument("--by", default="robot", help="column naming the robot or mounting of each sample")
+    exchange.set_defaults(handler=_exchangeability)
+
     path = new_parser(actions, "path", "path accuracy AT and repeatability RT (ISO 9283 8.2, 8.3; with angles also "
                                        "AT_a/RT_a, 8.4): FILE.csv has cycle, t_s, x_mm, y_mm[, z_mm][, a_deg..]")
     path.add_argument("--commanded", metavar="STATIONS.csv", required=True,
@@ -76,6 +82,25 @@ def _vap(args: argparse.Namespace) -> int:
         lines.append(f"{r.label:<12} {', '.join(d.split('/', 1)[-1] for d in r.directions):<24} "
                      f"{'/'.join(map(str, r.n_per_direction)):>9} {r.position.vap_mm:>9.4f}  {angles}")
     lines.append("vAP_p: largest distance between the barycentres of the approach directions.")
+    emit({"poses": poses}, args.json, lines)
+    return 0
+
+
+def _exchangeability(args: argparse.Namespace) -> int:
+    from bench.metrology import exchangeability
+    from bench.metrology.tables import POSE_NUMERIC_COLUMNS, condition_groups, pose_table, read_table_csv
+
+    table = pose_table(read_table_csv(args.file, numeric=POSE_NUMERIC_COLUMNS))
+    if args.by not in table.columns:
+        raise ConfigError(f"{args.file}: missing column {args.by}, expected the robot or mounting of each sample")
+    table[args.by] = table[args.by].astype(str).str.strip()
+    poses, lines = {}, [f"{'pose':<12} {'robots':>6} {'E_mm':>9}  farthest pair"]
+    for label, _, _, rows in condition_groups(table):
+        names = tuple(sorted(rows[args.by].unique()))
+        r = exchangeability([rows[rows[args.by] == n][["x_mm", "y_mm", "z_mm"]].to_numpy() for n in names])
+        pair = [names[i] for i in r.farthest_pair]
+        poses[label] = {args.by: list(names), "E_mm": r.vap_mm, "farthest_pair": pair}
+        lines.append(f"{label:<12} {len(names):>6} {r.vap_mm:>9.4f}  {' / '.join(pair)}")
     emit({"poses": poses}, args.json, lines)
     return 0
 

@@ -20,12 +20,15 @@ from bench.metrology._validation import (
     require_count,
     require_same_length,
 )
+from bench.metrology.iso9283 import orientation_accuracy, orientation_repeatability
 
 __all__ = [
     "PathCharacteristics",
     "PoseDrift",
+    "OrientationDrift",
     "PoseStabilisation",
     "Stabilisation",
+    "orientation_drift",
     "path_characteristics",
     "pose_drift",
     "pose_stabilisation",
@@ -43,6 +46,18 @@ class PoseDrift:
     ap_mm: np.ndarray  #: (k,) AP_P per window
     rp_mm: np.ndarray  #: (k,) RP_l per window
     n_per_window: np.ndarray  #: (k,) samples per window
+
+
+@dataclass(frozen=True, eq=False)
+class OrientationDrift:
+    """Drift of AP_a/b/c and RP_a/b/c between the first and last time window (ISO 9283 7.6)."""
+
+    dap_deg: tuple[float, ...]  #: per angle |AP_a(first window) - AP_a(last window)|
+    drp_deg: tuple[float, ...]  #: per angle |RP_a(first window) - RP_a(last window)|
+    window_start_s: np.ndarray  #: (k,)
+    ap_deg: np.ndarray  #: (k, q) signed AP_a per window
+    rp_deg: np.ndarray  #: (k, q) RP_a = 3 S_a per window
+    n_per_window: np.ndarray  #: (k,)
 
 
 @dataclass(frozen=True)
@@ -78,6 +93,20 @@ class PathCharacteristics:
     n_cycles: int
 
 
+def _drift_windows(times: np.ndarray, window_s: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Window numbers present, the window of each sample and the samples per window (each >= 2, at least 2)."""
+    if not window_s > 0:
+        raise ConfigError(f"window_s = {window_s}, expected a number > 0")
+    raw_index = np.floor((times - times.min()) / window_s).astype(np.int64)
+    occupied, window = np.unique(raw_index, return_inverse=True)
+    require_count("drift windows", len(occupied), 2)
+    counts = np.bincount(window)
+    if counts.min() < 2:
+        first_sparse = int(occupied[np.argmin(counts)])
+        require_count(f"drift window starting at t = {times.min() + first_sparse * window_s:g} s", counts.min(), 2)
+    return occupied, window, counts
+
+
 def pose_drift(t_s, attained_mm, commanded_mm, *, window_s: float) -> PoseDrift:
     """Drift of pose accuracy and repeatability over time windows (ISO 9283 7.6 [U]).
 
@@ -109,15 +138,7 @@ def pose_drift(t_s, attained_mm, commanded_mm, *, window_s: float) -> PoseDrift:
     attained = as_points("attained_mm", attained_mm)
     require_same_length("t_s", times, "attained_mm", attained)
     command = as_vector("commanded_mm", commanded_mm, length=attained.shape[1])
-    if not window_s > 0:
-        raise ConfigError(f"window_s = {window_s}, expected a number > 0")
-    raw_index = np.floor((times - times.min()) / window_s).astype(np.int64)
-    occupied, window = np.unique(raw_index, return_inverse=True)
-    require_count("drift windows", len(occupied), 2)
-    counts = np.bincount(window)
-    if counts.min() < 2:
-        first_sparse = int(occupied[np.argmin(counts)])
-        require_count(f"drift window starting at t = {times.min() + first_sparse * window_s:g} s", counts.min(), 2)
+    occupied, window, counts = _drift_windows(times, window_s)
     barycentre = np.stack([np.bincount(window, weights=col) for col in attained.T], axis=1) / counts[:, None]
     ap = np.sqrt(np.sum((barycentre - command) ** 2, axis=1))
     distance = np.sqrt(np.sum((attained - barycentre[window]) ** 2, axis=1))
@@ -130,6 +151,42 @@ def pose_drift(t_s, attained_mm, commanded_mm, *, window_s: float) -> PoseDrift:
         window_start_s=times.min() + occupied * window_s,
         ap_mm=ap,
         rp_mm=rp,
+        n_per_window=counts,
+    )
+
+
+def orientation_drift(t_s, attained_deg, commanded_deg, *, window_s: float) -> OrientationDrift:
+    """Drift of orientation accuracy and repeatability over time windows (ISO 9283 7.6 [U]).
+
+    Windows as in :func:`pose_drift`; per window AP_a = ā - a_c (circular mean, wrapped) and RP_a = 3 S_a
+    (ISO 9283 7.2.1, 7.2.2), then
+
+    .. math:: dAP_a = |AP_{a,t=1} - AP_{a,t=T}|, \\quad dRP_a = |RP_{a,t=1} - RP_{a,t=T}| \\quad (\\text{likewise } b, c)
+
+    Parameters
+    ----------
+    t_s : array_like, shape (n,)
+        Sample times (s), any order.
+    attained_deg : array_like, shape (n, q)
+        Attained angles a, b, c (deg), q = 1..3.
+    commanded_deg : array_like, shape (q,)
+        Command angles (deg).
+    window_s : float
+        Window length (s), > 0.
+    """
+    times = as_series("t_s", t_s, min_count=1)
+    attained = as_points("attained_deg", attained_deg)
+    require_same_length("t_s", times, "attained_deg", attained)
+    command = as_vector("commanded_deg", commanded_deg, length=attained.shape[1])
+    occupied, window, counts = _drift_windows(times, window_s)
+    ap = np.array([orientation_accuracy(attained[window == w], command).ap_deg for w in range(len(occupied))])
+    rp = np.array([orientation_repeatability(attained[window == w]).rp_deg for w in range(len(occupied))])
+    return OrientationDrift(
+        dap_deg=tuple(float(v) for v in np.abs(ap[0] - ap[-1])),
+        drp_deg=tuple(float(v) for v in np.abs(rp[0] - rp[-1])),
+        window_start_s=times.min() + occupied * window_s,
+        ap_deg=ap,
+        rp_deg=rp,
         n_per_window=counts,
     )
 
