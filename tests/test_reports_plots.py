@@ -4,12 +4,11 @@ scale across its panels."""
 from __future__ import annotations
 
 import pytest
-from matplotlib.text import Text
+from figure_support import printed_font_sizes
 from reports_runs import SETTINGS, pose_config, write_pose_run
 
 from bench.reports import collect
-from bench.reports.plots import MIN_FONT_PT, PRINT_HEIGHT_IN, PRINT_WIDTH_IN, drift_series, pose_scatter, report_plots
-from bench.reports.plots import svg_text
+from bench.reports.plots import MIN_FONT_PT, PRINT_WIDTH_IN, drift_series, pose_scatter, report_plots
 from bench.store import Store
 
 
@@ -21,20 +20,11 @@ def report(tmp_path_factory):
         yield collect(store, run_id, resamples=50)
 
 
-def _printed_font_sizes(plot) -> list[float]:
-    """Point size on A4 of every text drawn in the figure (the PDF fits the figure into 180 x 200 mm)."""
-    svg_text(plot)  # draw: tick labels exist after a draw
-    width, height = plot.figure.get_size_inches()
-    scale = min(PRINT_WIDTH_IN / width, PRINT_HEIGHT_IN / height)
-    return [text.get_fontsize() * scale for text in plot.figure.findobj(Text)
-            if text.get_visible() and text.get_text().strip()]
-
-
 def test_every_text_is_at_least_7_pt_on_a4(report):
     plots = report_plots(report)
     assert len(plots) >= 3
     for plot in plots:
-        sizes = _printed_font_sizes(plot)
+        sizes = printed_font_sizes(plot)
         assert sizes and min(sizes) >= MIN_FONT_PT - 1e-9, plot.caption
         assert plot.figure.get_size_inches()[0] == pytest.approx(PRINT_WIDTH_IN, abs=0.01)
 

@@ -1,5 +1,6 @@
 """``bench analyze``: metrology figures from tidy CSV tables (ISO 9283 poses, distance, drift, actuators, payload;
-vAP, paths, cornering, path velocity and positioning time in `bench.commands.analyze_path`).
+vAP, paths, cornering, path velocity and positioning time in `bench.commands.analyze_path`, ISO 230-2 in
+`bench.commands.analyze_bidirectional`).
 
 Every handler reads a CSV through `bench.metrology.tables`, computes with `bench.metrology`, and prints a readable
 table or, with ``--json``, one JSON object on stdout. Bad cells give a one-line ``ConfigError`` naming the row,
@@ -71,9 +72,11 @@ def register(groups: argparse._SubParsersAction) -> None:
     grid.add_argument("--k", type=float, default=2.0, help="coverage factor: z of the rates' Wilson intervals")
     grid.set_defaults(handler=_grid_positioning)
 
+    from bench.commands.analyze_bidirectional import register as register_bidirectional
     from bench.commands.analyze_path import register as register_paths
 
     register_paths(actions, _new_parser)
+    register_bidirectional(actions, _new_parser)
 
 
 def _add_actuator_robot(parser: argparse.ArgumentParser) -> None:
