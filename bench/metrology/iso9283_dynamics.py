@@ -69,6 +69,7 @@ class Stabilisation:
     settled_s: float  #: t_2, from when on the position stays inside the band
     overshoot_mm: float  #: max distance after t_1 if it exceeds the band, else 0
     band_mm: float
+    peak_s: float  #: time of the largest distance after t_1 (where OV is read; OV = 0 when inside B + h)
 
 
 @dataclass(frozen=True)
@@ -246,13 +247,15 @@ def position_stabilisation(t_s, position_mm, *, band_mm: float, final_mm=None,
     settled = first if len(outside_after) == 0 else first + int(outside_after[-1]) + 1
     if settled >= len(times):
         raise InsufficientData("stabilisation: the series ends outside the limit band")
-    peak = float(distance[first:].max())
+    peak_index = first + int(np.argmax(distance[first:]))
+    peak = float(distance[peak_index])
     return Stabilisation(
         stabilisation_time_s=float(times[settled] - times[first]),
         first_entry_s=float(times[first]),
         settled_s=float(times[settled]),
         overshoot_mm=peak if peak > band_mm + hysteresis_mm else 0.0,
         band_mm=float(band_mm),
+        peak_s=float(times[peak_index]),
     )
 
 
