@@ -39,6 +39,7 @@ from bench.metrology import (
     DistanceCharacteristics,
     Measured,
     MultidirectionalVariation,
+    OrientationVariation,
     PayloadShift,
     combine,
     expanded,
@@ -108,6 +109,8 @@ class VapRow:
     label: str
     directions: tuple[str, ...]
     result: MultidirectionalVariation
+    orientation: OrientationVariation | None = None  #: vAP_a/b/c when the run measured angles
+    angle_names: tuple[str, ...] = ()
 
 
 @dataclass(frozen=True)
@@ -312,7 +315,8 @@ def _distances(table: pd.DataFrame, sigma_mm: float, k: float) -> tuple[Distance
 
 
 def _multidirectional(table: pd.DataFrame) -> tuple[VapRow, ...]:
-    return tuple(VapRow(r.label, r.directions, r.position) for r in analyze_multidirectional(table))
+    return tuple(VapRow(r.label, r.directions, r.position, r.orientation, r.angle_names)
+                 for r in analyze_multidirectional(table))
 
 
 def _payload(table: pd.DataFrame) -> tuple[PayloadRow, ...]:

@@ -238,9 +238,11 @@ def _results(report: RunReport) -> tuple[Block, ...]:
                             f"Distance accuracy and repeatability ({report.distances[0].first} ↔ "
                             f"{report.distances[0].second})"))
     if report.multidirectional:
-        blocks.append(Table("vap", ("Pose", "Directions", "vAP_p (mm)"), tuple(
-            (v.label, ", ".join(v.directions), fmt_mm(v.result.vap_mm)) for v in report.multidirectional),
-                            "Multi-directional pose accuracy variation"))
+        angles = report.multidirectional[0].angle_names
+        blocks.append(Table("vap", ("Pose", "Directions", "vAP_p (mm)", *(f"vAP_{a} (°)" for a in angles)), tuple(
+            (v.label, ", ".join(v.directions), fmt_mm(v.result.vap_mm),
+             *(f"{d:.3f}" for d in (v.orientation.vap_deg if v.orientation else ()))) for v in report.multidirectional),
+                            "Multi-directional pose accuracy variation (ISO 9283 7.2.3)"))
     if report.payload:
         rows = []
         for p in report.payload:
