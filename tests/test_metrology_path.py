@@ -236,3 +236,32 @@ def test_orientation_drift_hand_computed_across_180():
     assert r.rp_deg[:, 0] == pytest.approx([0.3, 0.3])  # deviations -0.1, +0.1, 0 → S = 0.1
     assert r.drp_deg == pytest.approx((0.0, 0.3), abs=1e-9)
     assert r.n_per_window.tolist() == [3, 3]
+
+
+@settings(max_examples=40, deadline=None)
+@given(st.floats(0.05, 1.0), st.floats(0.3, 2.0), st.floats(0, 1e4), arrays(float, 3, elements=finite),
+       st.floats(-20, 20).filter(lambda d: abs(d) > 1))
+def test_positioning_time_is_invariant_to_the_clock_origin_and_the_place(t_leave, duration, t0, place, distance):
+    t = np.round(np.arange(0.0, t_leave + duration + 0.5, 0.01), 6)
+    x = np.interp(t, [0.0, t_leave, t_leave + duration, 1e9], [0.0, 0.0, distance, distance])
+    step = np.column_stack([x, np.zeros_like(x), np.zeros_like(x)])
+    r = minimum_positioning_time([[(t, step)]], band_mm=0.1)
+    moved = minimum_positioning_time([[(t + t0, step + place)]], band_mm=0.1)
+    assert r.mean_time_s[0] >= 0
+    assert moved.mean_time_s[0] == pytest.approx(r.mean_time_s[0], abs=1e-6)
+    assert r.mean_time_s[0] == pytest.approx(duration * (1 - 0.2 / abs(distance)), abs=0.021)  # ramp minus 2 x B
+
+
+@settings(max_examples=40, deadline=None)
+@given(st.lists(st.floats(-1, 1), min_size=2, max_size=6), st.floats(-170, 170))
+def test_path_orientation_rt_nonnegative_and_at_invariant_to_a_common_offset(offsets, common):
+    x = np.linspace(0.0, 10.0, 6)
+    paths = [np.column_stack([x, np.zeros_like(x)]) for _ in offsets]
+    angles = [np.column_stack([0.1 * x + o]) for o in offsets]
+    stations, commanded = [[2.0, 0.0], [8.0, 0.0]], np.array([[0.2], [0.8]])
+    r = path_orientation_characteristics(paths, angles, stations, commanded)
+    shifted = path_orientation_characteristics(paths, [a + common for a in angles], stations, commanded + common)
+    assert min(r.rt_deg) >= 0
+    assert shifted.at_deg == pytest.approx(r.at_deg, abs=1e-6)
+    assert shifted.rt_deg == pytest.approx(r.rt_deg, abs=1e-6)
+    assert r.at_deg[0] == pytest.approx(abs(np.mean(offsets)), abs=1e-4)  # circular mean: ~ arithmetic for 1°
