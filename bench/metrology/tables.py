@@ -412,8 +412,8 @@ class StabilisationResults:
 
 
 def stabilisation_table(frame: pd.DataFrame) -> pd.DataFrame:
-    """Check a streamed-arrival table; return it with ``cycle``, ``t_s``, ``x_mm``..``z_mm`` (and the condition
-    columns) as float and ``pose`` as a stripped string. A missing column says how to export one; a cell that is
+    """Check a streamed-arrival table; return it sorted by cycle and time, with ``cycle``, ``t_s``,
+    ``x_mm``..``z_mm`` (and the condition columns) as float and ``pose`` as a stripped string. A missing column says how to export one; a cell that is
     not a number is a ``ConfigError`` naming its row, column and value."""
     source = frame.attrs.get("source", "table")
     missing = [c for c in STABILISATION_COLUMNS if c not in frame.columns]
@@ -423,7 +423,8 @@ def stabilisation_table(frame: pd.DataFrame) -> pd.DataFrame:
     table = numeric_columns(table, CONDITION_COLUMNS, required=False)
     table["pose"] = frame["pose"].astype(str).str.strip()
     table.attrs["source"] = source
-    return table
+    # row order carries no meaning: each arrival is read in time order (a repeated time is refused downstream)
+    return table.sort_values(["cycle", "t_s"], kind="stable")
 
 
 def stabilisation_results(table: pd.DataFrame, bands_mm: Sequence[float], hysteresis_mm: float) -> StabilisationResults:
