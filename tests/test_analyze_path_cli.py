@@ -177,3 +177,19 @@ def test_exchangeability_per_pose(capsys, tmp_path):
     assert p1["farthest_pair"] == ["SN1", "SN2"]
     code, _, err = _run(capsys, "analyze", "exchangeability", path, "--by", "mounting")
     assert code == 2 and "missing column mounting" in err
+
+
+def test_distance_reports_orientation_ad_rd_paired_by_cycle(capsys, tmp_path):
+    header = "pose,cycle,cmd_x_mm,cmd_y_mm,cmd_z_mm,x_mm,y_mm,z_mm,cmd_a_deg,a_deg"
+    # P2 at a_c = 10°, P4 at a_c = -10°: attained differences 19.8, 20.0, 20.4° (cycle order shuffled in the file)
+    rows = [("P2", 1, 0, 0, 0, 0, 0, 0, 10, 9.9), ("P4", 1, 10, 0, 0, 10, 0, 0, -10, -9.9),
+            ("P2", 2, 0, 0, 0, 0, 0, 0, 10, 10.0), ("P4", 2, 10, 0, 0, 10, 0, 0, -10, -10.0),
+            ("P2", 3, 0, 0, 0, 0, 0, 0, 10, 10.1), ("P4", 3, 10, 0, 0, 10, 0, 0, -10, -10.3)]
+    path = _write(tmp_path / "d.csv", header, rows, shuffle=True)
+    code, out, _ = _run(capsys, "analyze", "distance", path, "--json")
+    assert code == 0
+    r = json.loads(out)
+    distances = np.array([19.8, 20.0, 20.4])
+    assert r["AD_a_deg"] == pytest.approx(distances.mean() - 20.0)
+    assert r["RD_a_deg"] == pytest.approx(3 * distances.std(ddof=1))
+    assert r["AD_mm"] == pytest.approx(0.0, abs=1e-12)

@@ -133,7 +133,13 @@ def _distance(args: argparse.Namespace) -> int:
     import numpy as np
 
     from bench.metrology import combine, expanded
-    from bench.metrology.tables import POSE_NUMERIC_COLUMNS, analyze_distance, pose_table, read_table_csv
+    from bench.metrology.tables import (
+        POSE_NUMERIC_COLUMNS,
+        analyze_distance,
+        analyze_orientation_distance,
+        pose_table,
+        read_table_csv,
+    )
 
     table = pose_table(read_table_csv(args.file, numeric=POSE_NUMERIC_COLUMNS))
     r = analyze_distance(table, args.first, args.second)
@@ -148,6 +154,13 @@ def _distance(args: argparse.Namespace) -> int:
              f"AD_p = {u_ad}, RD = ±{r.rd_mm:.4f} mm",
              "AD x/y/z = " + " / ".join(f"{v:+.4f}" for v in r.ad_axes_mm) + " mm, RD x/y/z = ±"
              + " / ±".join(f"{v:.4f}" for v in r.rd_axes_mm) + " mm"]
+    angles = analyze_orientation_distance(table, args.first, args.second)
+    if angles is not None:
+        names, o = angles
+        for name, ad, rd in zip(names, o.ad_deg, o.rd_deg):
+            result[f"AD_{name}_deg"], result[f"RD_{name}_deg"] = ad, rd
+        lines.append("orientation: " + ", ".join(f"AD_{n} {ad:+.4f} deg, RD_{n} ±{rd:.4f} deg"
+                                                 for n, ad, rd in zip(names, o.ad_deg, o.rd_deg)))
     emit(result, args.json, lines)
     return 0
 
