@@ -39,6 +39,7 @@ from bench.metrology import (
     DistanceCharacteristics,
     Measured,
     MultidirectionalVariation,
+    OrientationDistanceCharacteristics,
     OrientationVariation,
     PayloadShift,
     combine,
@@ -54,6 +55,7 @@ from bench.metrology.tables import (
     ANGLE_PAIRS,
     PoseResult,
     analyze_distance,
+    analyze_orientation_distance,
     analyze_poses,
     pose_table,
 )
@@ -102,6 +104,8 @@ class DistanceRow:
     second: str
     result: DistanceCharacteristics
     u_ad: Measured  #: AD_p with U: scatter of D_j and the instrument term twice (a difference of two readings)
+    orientation: OrientationDistanceCharacteristics | None = None  #: AD_a/RD_a when the run measured angles
+    angle_names: tuple[str, ...] = ()
 
 
 @dataclass(frozen=True)
@@ -310,7 +314,9 @@ def _distances(table: pd.DataFrame, sigma_mm: float, k: float) -> tuple[Distance
     for label, group in _condition_groups(table):
         result = analyze_distance(group, first, second)
         u_ad = expanded(result.ad_mm, combine(result.u_ad_mm, math.sqrt(2.0) * sigma_mm), unit="mm", k=k)
-        rows.append(DistanceRow(label or f"{first}-{second}", first, second, result, u_ad))
+        angles = analyze_orientation_distance(group, first, second)
+        names, orientation = angles if angles is not None else ((), None)
+        rows.append(DistanceRow(label or f"{first}-{second}", first, second, result, u_ad, orientation, names))
     return tuple(rows)
 
 

@@ -230,11 +230,15 @@ def _results(report: RunReport) -> tuple[Block, ...]:
     blocks: list[Block] = [Table("results", header, rows, f"Results per pose (U: expanded uncertainty, k = {k}; "
                                                           f"AP axes signed, barycentre − command)")]
     if report.distances:
+        angles = report.distances[0].angle_names
         blocks.append(Table("distance", ("Pair / conditions", "D_c (mm)", "D̄ (mm)", "AD_p (mm)", "RD (mm)",
-                                         f"U(AD) (mm, k = {k})"),
+                                         f"U(AD) (mm, k = {k})", *(f"AD_{a} / RD_{a} (°)" for a in angles)),
                             tuple((d.label, fmt_mm(d.result.commanded_distance_mm), fmt_mm(d.result.mean_distance_mm),
                                    fmt_mm(d.result.ad_mm), f"± {fmt_mm(d.result.rd_mm)}",
-                                   fmt_mm(d.u_ad.expanded_uncertainty)) for d in report.distances),
+                                   fmt_mm(d.u_ad.expanded_uncertainty),
+                                   *(f"{ad:+.3f} / ±{rd:.3f}" for ad, rd in (
+                                       zip(d.orientation.ad_deg, d.orientation.rd_deg) if d.orientation else ())))
+                                  for d in report.distances),
                             f"Distance accuracy and repeatability ({report.distances[0].first} ↔ "
                             f"{report.distances[0].second})"))
     if report.multidirectional:
