@@ -7,7 +7,7 @@ import pytest
 
 import bench.metrology
 
-MODULES = ["iso9283", "iso9283_dynamics", "actuator", "actuator_tables", "mouse_calibration", "payload", "uncertainty",
+MODULES = ["iso9283", "iso9283_dynamics", "iso9283_path", "actuator", "actuator_tables", "mouse_calibration", "payload", "uncertainty",
            "tables", "partial_pose", "hit_rate"]
 #: Modules with no Examples section yet (every other module must run at least one example).
 WITHOUT_EXAMPLES = {"iso9283_dynamics", "tables"}

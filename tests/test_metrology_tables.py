@@ -170,3 +170,17 @@ def test_stabilisation_results_per_band_and_pose_in_numeric_cycle_order(tmp_path
         assert results.bands[band]["P1"] == pose_stabilisation(arrivals, band_mm=band)
     assert results.bands[0.1]["P1"].mean_time_s == 0.0 and results.bands[0.1]["P1"].cycles[0].first_entry_s == 0.02
     assert results.bands[0.1]["P2"] == results.bands[0.5]["P2"] == "t_s: 1 sample(s), at least 2 required"
+
+
+def test_stabilisation_table_rows_in_any_order_give_the_same_figures(tmp_path):
+    distances = [0.9, 0.3, 0.12, 0.05, 0.2, 0.04, 0.0]  # enters 0.1 mm at the 4th sample, leaves, settles at the 6th
+    rows = [f"P1,{cycle},{0.01 * i:g},{d * cycle:g},0,0" for cycle in (1, 2) for i, d in enumerate(distances)]
+    shuffled = [rows[i] for i in np.random.default_rng(5).permutation(len(rows))]
+    results = []
+    for name, lines in (("ordered", rows), ("shuffled", shuffled)):
+        path = tmp_path / f"{name}.csv"
+        path.write_text("pose,cycle,t_s,x_mm,y_mm,z_mm\n" + "\n".join(lines) + "\n")
+        results.append(stabilisation_results(stabilisation_table(read_table_csv(path)), [0.1], 0.0).bands[0.1]["P1"])
+    assert results[0] == results[1]
+    assert results[0].cycles[0].first_entry_s == 0.03 and results[0].cycles[0].settled_s == 0.05
+    assert results[0].cycles[0].overshoot_mm == pytest.approx(0.2)

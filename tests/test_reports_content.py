@@ -164,21 +164,26 @@ def test_a_run_without_pose_samples_is_refused(tmp_path):
 
 
 def test_multidirectional_vap_equals_the_metrology_function(tmp_path):
-    from bench.metrology import multidirectional_variation
+    from bench.metrology import multidirectional_variation, orientation_multidirectional_variation
+    from bench.reports.document import _results
 
     store = Store(tmp_path / "bench.db")
     config = pose_config(protocol="iso9283_multidirectional", cycles=4, approach_mm=10.0)
     run_id = store.start_run(protocol_name=config["protocol"], protocol_version="1", robot="pkm5", config=config,
                              settings={"robot": {}, "instrument": {"instrument": "tracker", "u_mm": 0.01}})
-    rng, step, clouds = np.random.default_rng(7), 0, {}
+    rng, step, clouds, angles = np.random.default_rng(7), 0, {}, {}
     offsets = {"x": (0.1, 0, 0), "y": (0, 0.1, 0), "z": (0, 0, -0.2)}  # direction-dependent barycentres
+    tilts = {"x": 0.0, "y": 0.3, "z": 0.1}  # and angles a (deg)
     for cycle in range(1, 5):
         for direction, offset in offsets.items():
             point = np.add(CUBE["P1"], offset) + rng.normal(0, 0.01, 3)
             clouds.setdefault(direction, []).append(point)
+            a = tilts[direction] + rng.normal(0, 0.005)
+            angles.setdefault(direction, []).append([a])
             values = dict(zip(("x_mm", "y_mm", "z_mm"), point)) | dict(zip(("cmd_x_mm", "cmd_y_mm", "cmd_z_mm"),
                                                                             CUBE["P1"]))
-            store.add_sample(run_id, step, values=values | {"velocity_pct": 100.0, "load_kg": 0.0},
+            store.add_sample(run_id, step, values=values | {"velocity_pct": 100.0, "load_kg": 0.0, "cmd_a_deg": 0.0,
+                                                            "a_deg": a},
                              pose=f"P1/{direction}", cycle=cycle, t_s=float(step))
             step += 1
     report = collect(store, run_id, resamples=50)
@@ -187,6 +192,12 @@ def test_multidirectional_vap_equals_the_metrology_function(tmp_path):
     direct = multidirectional_variation([np.array(clouds[d]) for d in "xyz"])
     assert row.result.vap_mm == pytest.approx(direct.vap_mm, abs=1e-12)
     assert row.result.vap_mm == pytest.approx(np.hypot(0.1, 0.2), abs=0.03)  # x vs z approach
+    assert row.angle_names == ("a",)
+    direct_a = orientation_multidirectional_variation([np.array(angles[d]) for d in "xyz"])
+    assert row.orientation.vap_deg == pytest.approx(direct_a.vap_deg, abs=1e-12)
+    assert row.orientation.vap_deg[0] == pytest.approx(0.3, abs=0.03)  # x vs y approach
+    (table,) = [block for block in _results(report) if getattr(block, "ident", None) == "vap"]
+    assert table.header[-1] == "vAP_a (°)" and table.rows[0][-1] == f"{row.orientation.vap_deg[0]:.3f}"
 
 
 def test_other_pose_protocols_take_conditions_from_the_samples_and_refuse_unknown_load(tmp_path):
@@ -244,3 +255,34 @@ def test_mouse_calibration_in_force_is_refitted_from_its_source_run_and_plotted(
     assert len(plots) == 2
     for plot, axis in zip(plots, "xy"):
         assert f"Calibration mouse v1 (id {calibration.id}, from run {source}), {axis} axis" in plot.caption
+
+
+def test_distance_run_with_angles_reports_ad_rd_of_each_angle(tmp_path):
+    from bench.metrology import orientation_distance_characteristics
+    from bench.reports.document import _results
+
+    store = Store(tmp_path / "bench.db")
+    config = pose_config(protocol="iso9283_distance", cycles=4)
+    run_id = store.start_run(protocol_name=config["protocol"], protocol_version="1", robot="pkm5", config=config,
+                             settings={"robot": {}, "instrument": {"instrument": "tracker", "u_mm": 0.01}})
+    rng, step, angles = np.random.default_rng(3), 0, {"P1": [], "P5": []}
+    commanded = {"P1": 5.0, "P5": -5.0}  # a_c (deg): D_ca = 10°
+    for cycle in range(1, 5):
+        for pose in ("P1", "P5"):
+            a = commanded[pose] * 1.02 + rng.normal(0, 0.01)  # the robot over-rotates by 2 %
+            angles[pose].append([a])
+            values = dict(zip(("x_mm", "y_mm", "z_mm"), CUBE[pose])) | dict(zip(("cmd_x_mm", "cmd_y_mm", "cmd_z_mm"),
+                                                                              CUBE[pose]))
+            store.add_sample(run_id, step, values=values | {"velocity_pct": 100.0, "load_kg": 0.0,
+                                                            "cmd_a_deg": commanded[pose], "a_deg": a},
+                             pose=pose, cycle=cycle, t_s=float(step))
+            step += 1
+    report = collect(store, run_id, resamples=50)
+    (row,) = report.distances
+    direct = orientation_distance_characteristics(angles["P1"], angles["P5"], [5.0], [-5.0])
+    assert row.angle_names == ("a",)
+    assert row.orientation.ad_deg == pytest.approx(direct.ad_deg, abs=1e-12)
+    assert row.orientation.ad_deg[0] == pytest.approx(0.2, abs=0.03)  # 2 % of 10°
+    (table,) = [block for block in _results(report) if getattr(block, "ident", None) == "distance"]
+    assert table.header[-1] == "AD_a / RD_a (°)"
+    assert table.rows[0][-1] == f"{row.orientation.ad_deg[0]:+.3f} / ±{row.orientation.rd_deg[0]:.3f}"

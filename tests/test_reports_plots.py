@@ -3,13 +3,21 @@ scale across its panels."""
 
 from __future__ import annotations
 
+import numpy as np
 import pytest
-from matplotlib.text import Text
+from figure_support import printed_font_sizes
 from reports_runs import SETTINGS, pose_config, write_pose_run
 
 from bench.reports import collect
-from bench.reports.plots import MIN_FONT_PT, PRINT_HEIGHT_IN, PRINT_WIDTH_IN, drift_series, pose_scatter, report_plots
-from bench.reports.plots import svg_text
+from bench.reports.plots import (
+    MIN_FONT_PT,
+    PRINT_WIDTH_IN,
+    deviation_histograms,
+    drift_series,
+    error_map_3d,
+    pose_scatter,
+    report_plots,
+)
 from bench.store import Store
 
 
@@ -21,20 +29,11 @@ def report(tmp_path_factory):
         yield collect(store, run_id, resamples=50)
 
 
-def _printed_font_sizes(plot) -> list[float]:
-    """Point size on A4 of every text drawn in the figure (the PDF fits the figure into 180 x 200 mm)."""
-    svg_text(plot)  # draw: tick labels exist after a draw
-    width, height = plot.figure.get_size_inches()
-    scale = min(PRINT_WIDTH_IN / width, PRINT_HEIGHT_IN / height)
-    return [text.get_fontsize() * scale for text in plot.figure.findobj(Text)
-            if text.get_visible() and text.get_text().strip()]
-
-
 def test_every_text_is_at_least_7_pt_on_a4(report):
     plots = report_plots(report)
     assert len(plots) >= 3
     for plot in plots:
-        sizes = _printed_font_sizes(plot)
+        sizes = printed_font_sizes(plot)
         assert sizes and min(sizes) >= MIN_FONT_PT - 1e-9, plot.caption
         assert plot.figure.get_size_inches()[0] == pytest.approx(PRINT_WIDTH_IN, abs=0.01)
 
@@ -48,3 +47,27 @@ def test_small_multiples_share_one_scale_and_one_legend(report):
     drift = drift_series(report)
     labels = [text.get_text() for text in drift.figure.legends[0].get_texts()]
     assert labels == ["100 % velocity", "50 % velocity", "10 % velocity"]
+
+
+def test_deviation_histograms_count_every_cycle_on_shared_bins(report):
+    plot = deviation_histograms(report)
+    panels = [axes for axes in plot.figure.axes if axes.get_visible()]
+    assert len(panels) == len(report.poses) == 15
+    assert len({axes.get_xlim() for axes in panels}) == 1 and len({axes.get_ylim() for axes in panels}) == 1
+    assert len(plot.figure.legends) == 1
+    for axes, result in zip(panels, report.poses):
+        outlines = axes.patches  # one step outline per axis x, y, z
+        assert len(outlines) == 3
+        edges = [np.unique(patch.get_xy()[:, 0]) for patch in outlines]
+        assert all(np.array_equal(edges[0], e) for e in edges)  # the same bins
+        # the step outline's heights over the bins add up to the cycles of the pose
+        heights = outlines[0].get_xy()[1:-1:2, 1]
+        assert heights.sum() == pytest.approx(result.accuracy.n)
+
+
+def test_error_map_colours_each_pose_by_its_ap(report):
+    plot = error_map_3d(report)
+    (axes,) = [axes for axes in plot.figure.axes if axes.name == "3d"]
+    tips = axes.collections[2]  # quiver, command poses, barycentre tips
+    np.testing.assert_allclose(tips.get_array(), [r.accuracy.ap_mm for r in report.poses])
+    assert len(report.poses) == 15 and "one vector per set of conditions (3)" in plot.caption

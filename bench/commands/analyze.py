@@ -1,4 +1,6 @@
-"""``bench analyze``: metrology figures from tidy CSV tables (ISO 9283 poses, distance, drift, actuators, payload).
+"""``bench analyze``: metrology figures from tidy CSV tables (ISO 9283 poses, distance, drift, actuators, payload;
+vAP, paths, cornering, path velocity and positioning time in `bench.commands.analyze_path`, ISO 230-2 in
+`bench.commands.analyze_bidirectional`).
 
 Every handler reads a CSV through `bench.metrology.tables`, computes with `bench.metrology`, and prints a readable
 table or, with ``--json``, one JSON object on stdout. Bad cells give a one-line ``ConfigError`` naming the row,
@@ -70,6 +72,12 @@ def register(groups: argparse._SubParsersAction) -> None:
     grid.add_argument("--k", type=float, default=2.0, help="coverage factor: z of the rates' Wilson intervals")
     grid.set_defaults(handler=_grid_positioning)
 
+    from bench.commands.analyze_bidirectional import register as register_bidirectional
+    from bench.commands.analyze_path import register as register_paths
+
+    register_paths(actions, _new_parser)
+    register_bidirectional(actions, _new_parser)
+
 
 def _add_actuator_robot(parser: argparse.ArgumentParser) -> None:
     from bench.metrology.actuator_tables import ACTUATOR_ROBOTS
@@ -125,7 +133,13 @@ def _distance(args: argparse.Namespace) -> int:
     import numpy as np
 
     from bench.metrology import combine, expanded
-    from bench.metrology.tables import POSE_NUMERIC_COLUMNS, analyze_distance, pose_table, read_table_csv
+    from bench.metrology.tables import (
+        POSE_NUMERIC_COLUMNS,
+        analyze_distance,
+        analyze_orientation_distance,
+        pose_table,
+        read_table_csv,
+    )
 
     table = pose_table(read_table_csv(args.file, numeric=POSE_NUMERIC_COLUMNS))
     r = analyze_distance(table, args.first, args.second)
@@ -140,13 +154,20 @@ def _distance(args: argparse.Namespace) -> int:
              f"AD_p = {u_ad}, RD = ±{r.rd_mm:.4f} mm",
              "AD x/y/z = " + " / ".join(f"{v:+.4f}" for v in r.ad_axes_mm) + " mm, RD x/y/z = ±"
              + " / ±".join(f"{v:.4f}" for v in r.rd_axes_mm) + " mm"]
+    angles = analyze_orientation_distance(table, args.first, args.second)
+    if angles is not None:
+        names, o = angles
+        for name, ad, rd in zip(names, o.ad_deg, o.rd_deg):
+            result[f"AD_{name}_deg"], result[f"RD_{name}_deg"] = ad, rd
+        lines.append("orientation: " + ", ".join(f"AD_{n} {ad:+.4f} deg, RD_{n} ±{rd:.4f} deg"
+                                                 for n, ad, rd in zip(names, o.ad_deg, o.rd_deg)))
     emit(result, args.json, lines)
     return 0
 
 
 def _drift(args: argparse.Namespace) -> int:
-    from bench.metrology import pose_drift
-    from bench.metrology.tables import POSE_NUMERIC_COLUMNS, pose_table, read_table_csv
+    from bench.metrology import orientation_drift, pose_drift
+    from bench.metrology.tables import ANGLE_PAIRS, POSE_NUMERIC_COLUMNS, pose_table, read_table_csv
 
     table = pose_table(read_table_csv(args.file, numeric=POSE_NUMERIC_COLUMNS))
     if "t_s" not in table.columns:
@@ -162,6 +183,17 @@ def _drift(args: argparse.Namespace) -> int:
     lines = [f"pose {args.pose}: dAP = {r.dap_mm:.4f} mm, dRP = {r.drp_mm:.4f} mm over {len(r.ap_mm)} windows"]
     lines += [f"  t >= {t:10.1f} s  n = {n:4d}  AP = {a:.4f} mm  RP = {p:.4f} mm"
               for t, n, a, p in zip(r.window_start_s, r.n_per_window, r.ap_mm, r.rp_mm)]
+    pairs = [(c, a) for c, a in ANGLE_PAIRS if a in rows.columns]
+    if pairs:
+        o = orientation_drift(rows["t_s"], rows[[a for _, a in pairs]], rows[[c for c, _ in pairs]].to_numpy()[0],
+                              window_s=args.window_s)
+        for i, (_, column) in enumerate(pairs):
+            name = column[0]
+            result[f"dAP_{name}_deg"], result[f"dRP_{name}_deg"] = o.dap_deg[i], o.drp_deg[i]
+            for window, ap, rp in zip(result["windows"], o.ap_deg[:, i], o.rp_deg[:, i]):
+                window[f"AP_{name}_deg"], window[f"RP_{name}_deg"] = float(ap), float(rp)
+            lines.append(f"  orientation {name}: dAP_{name} = {o.dap_deg[i]:.4f} deg, "
+                         f"dRP_{name} = {o.drp_deg[i]:.4f} deg")
     emit(result, args.json, lines)
     return 0
 

@@ -30,6 +30,7 @@ __all__ = [
     "OrientationAccuracy",
     "OrientationDistanceCharacteristics",
     "OrientationRepeatability",
+    "OrientationVariation",
     "PoseAccuracy",
     "PoseRepeatability",
     "circular_mean_deg",
@@ -38,6 +39,7 @@ __all__ = [
     "multidirectional_variation",
     "orientation_accuracy",
     "orientation_distance_characteristics",
+    "orientation_multidirectional_variation",
     "orientation_repeatability",
     "pose_accuracy",
     "pose_repeatability",
@@ -90,6 +92,14 @@ class MultidirectionalVariation:
     vap_mm: float  #: vAP_p >= 0
     barycentres_mm: tuple[tuple[float, ...], ...]  #: one barycentre per approach direction (or per robot)
     farthest_pair: tuple[int, int]  #: indices (h, k) of the two barycentres that are farthest apart
+
+
+@dataclass(frozen=True)
+class OrientationVariation:
+    """Multi-directional orientation accuracy variation vAP_a, vAP_b, vAP_c at one command pose (7.2.3)."""
+
+    vap_deg: tuple[float, ...]  #: per angle, max_{h,k} |ā_h - ā_k| >= 0
+    mean_deg: tuple[tuple[float, ...], ...]  #: circular means per approach direction
 
 
 @dataclass(frozen=True)
@@ -301,6 +311,38 @@ def multidirectional_variation(approaches_mm: Sequence) -> MultidirectionalVaria
         directions, 30 cycles each). Cycle counts may differ between directions.
     """
     return _barycentre_spread("approaches_mm", approaches_mm)
+
+
+def orientation_multidirectional_variation(approaches_deg: Sequence) -> OrientationVariation:
+    """Multi-directional orientation accuracy variation vAP_a, vAP_b, vAP_c (ISO 9283 7.2.3 [U]).
+
+    .. math:: vAP_a = \\max_{h,k} |\\bar a_h - \\bar a_k| \\quad (\\text{likewise } b, c), \\quad h, k = 1..3
+
+    ``ā_h`` is the circular mean of the angles attained from direction h (see `circular_mean_deg`); the
+    difference is wrapped to [-180, 180) before the absolute value, so clouds at 179° and -179° are 2° apart.
+
+    Parameters
+    ----------
+    approaches_deg : sequence of array_like, each shape (n_h, k)
+        Attained angles at ONE command pose, one array per approach direction, k = 1..3 angles.
+
+    Examples
+    --------
+    >>> r = orientation_multidirectional_variation([[[179.0], [179.0]], [[-179.0]], [[178.5]]])
+    >>> [round(v, 6) for v in r.vap_deg]
+    [2.5]
+    """
+    if len(approaches_deg) < 2:
+        raise ConfigError(f"approaches_deg: {len(approaches_deg)} cloud(s) given, expected at least 2 to compare")
+    clouds = [as_points(f"approaches_deg[{i}]", cloud) for i, cloud in enumerate(approaches_deg)]
+    if len({c.shape[1] for c in clouds}) != 1:
+        raise ConfigError(f"approaches_deg: clouds of different dimensions {[c.shape[1] for c in clouds]}")
+    for i, cloud in enumerate(clouds):
+        require_count(f"approaches_deg[{i}] cycles", len(cloud), 1)
+    means = np.array([circular_mean_deg(c) for c in clouds])
+    spread = np.max([np.abs(wrap_deg(means[h] - means[k])) for h, k in combinations(range(len(means)), 2)], axis=0)
+    return OrientationVariation(vap_deg=tuple(float(v) for v in spread),
+                                mean_deg=tuple(tuple(float(v) for v in m) for m in means))
 
 
 def exchangeability(clouds_mm: Sequence) -> MultidirectionalVariation:

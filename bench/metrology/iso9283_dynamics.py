@@ -20,12 +20,15 @@ from bench.metrology._validation import (
     require_count,
     require_same_length,
 )
+from bench.metrology.iso9283 import orientation_accuracy, orientation_repeatability
 
 __all__ = [
     "PathCharacteristics",
     "PoseDrift",
+    "OrientationDrift",
     "PoseStabilisation",
     "Stabilisation",
+    "orientation_drift",
     "path_characteristics",
     "pose_drift",
     "pose_stabilisation",
@@ -45,6 +48,18 @@ class PoseDrift:
     n_per_window: np.ndarray  #: (k,) samples per window
 
 
+@dataclass(frozen=True, eq=False)
+class OrientationDrift:
+    """Drift of AP_a/b/c and RP_a/b/c between the first and last time window (ISO 9283 7.6)."""
+
+    dap_deg: tuple[float, ...]  #: per angle |AP_a(first window) - AP_a(last window)|
+    drp_deg: tuple[float, ...]  #: per angle |RP_a(first window) - RP_a(last window)|
+    window_start_s: np.ndarray  #: (k,)
+    ap_deg: np.ndarray  #: (k, q) signed AP_a per window
+    rp_deg: np.ndarray  #: (k, q) RP_a = 3 S_a per window
+    n_per_window: np.ndarray  #: (k,)
+
+
 @dataclass(frozen=True)
 class Stabilisation:
     """Position stabilisation time and overshoot of one move (ISO 9283 7.4 and 7.5)."""
@@ -54,6 +69,7 @@ class Stabilisation:
     settled_s: float  #: t_2, from when on the position stays inside the band
     overshoot_mm: float  #: max distance after t_1 if it exceeds the band, else 0
     band_mm: float
+    peak_s: float  #: time of the largest distance after t_1 (where OV is read; OV = 0 when inside B + h)
 
 
 @dataclass(frozen=True)
@@ -76,6 +92,20 @@ class PathCharacteristics:
     at_per_station_mm: np.ndarray  #: (m,)
     rt_per_station_mm: np.ndarray  #: (m,)
     n_cycles: int
+
+
+def _drift_windows(times: np.ndarray, window_s: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Window numbers present, the window of each sample and the samples per window (each >= 2, at least 2)."""
+    if not window_s > 0:
+        raise ConfigError(f"window_s = {window_s}, expected a number > 0")
+    raw_index = np.floor((times - times.min()) / window_s).astype(np.int64)
+    occupied, window = np.unique(raw_index, return_inverse=True)
+    require_count("drift windows", len(occupied), 2)
+    counts = np.bincount(window)
+    if counts.min() < 2:
+        first_sparse = int(occupied[np.argmin(counts)])
+        require_count(f"drift window starting at t = {times.min() + first_sparse * window_s:g} s", counts.min(), 2)
+    return occupied, window, counts
 
 
 def pose_drift(t_s, attained_mm, commanded_mm, *, window_s: float) -> PoseDrift:
@@ -109,15 +139,7 @@ def pose_drift(t_s, attained_mm, commanded_mm, *, window_s: float) -> PoseDrift:
     attained = as_points("attained_mm", attained_mm)
     require_same_length("t_s", times, "attained_mm", attained)
     command = as_vector("commanded_mm", commanded_mm, length=attained.shape[1])
-    if not window_s > 0:
-        raise ConfigError(f"window_s = {window_s}, expected a number > 0")
-    raw_index = np.floor((times - times.min()) / window_s).astype(np.int64)
-    occupied, window = np.unique(raw_index, return_inverse=True)
-    require_count("drift windows", len(occupied), 2)
-    counts = np.bincount(window)
-    if counts.min() < 2:
-        first_sparse = int(occupied[np.argmin(counts)])
-        require_count(f"drift window starting at t = {times.min() + first_sparse * window_s:g} s", counts.min(), 2)
+    occupied, window, counts = _drift_windows(times, window_s)
     barycentre = np.stack([np.bincount(window, weights=col) for col in attained.T], axis=1) / counts[:, None]
     ap = np.sqrt(np.sum((barycentre - command) ** 2, axis=1))
     distance = np.sqrt(np.sum((attained - barycentre[window]) ** 2, axis=1))
@@ -130,6 +152,42 @@ def pose_drift(t_s, attained_mm, commanded_mm, *, window_s: float) -> PoseDrift:
         window_start_s=times.min() + occupied * window_s,
         ap_mm=ap,
         rp_mm=rp,
+        n_per_window=counts,
+    )
+
+
+def orientation_drift(t_s, attained_deg, commanded_deg, *, window_s: float) -> OrientationDrift:
+    """Drift of orientation accuracy and repeatability over time windows (ISO 9283 7.6 [U]).
+
+    Windows as in :func:`pose_drift`; per window AP_a = ā - a_c (circular mean, wrapped) and RP_a = 3 S_a
+    (ISO 9283 7.2.1, 7.2.2), then
+
+    .. math:: dAP_a = |AP_{a,t=1} - AP_{a,t=T}|, \\quad dRP_a = |RP_{a,t=1} - RP_{a,t=T}| \\quad (\\text{likewise } b, c)
+
+    Parameters
+    ----------
+    t_s : array_like, shape (n,)
+        Sample times (s), any order.
+    attained_deg : array_like, shape (n, q)
+        Attained angles a, b, c (deg), q = 1..3.
+    commanded_deg : array_like, shape (q,)
+        Command angles (deg).
+    window_s : float
+        Window length (s), > 0.
+    """
+    times = as_series("t_s", t_s, min_count=1)
+    attained = as_points("attained_deg", attained_deg)
+    require_same_length("t_s", times, "attained_deg", attained)
+    command = as_vector("commanded_deg", commanded_deg, length=attained.shape[1])
+    occupied, window, counts = _drift_windows(times, window_s)
+    ap = np.array([orientation_accuracy(attained[window == w], command).ap_deg for w in range(len(occupied))])
+    rp = np.array([orientation_repeatability(attained[window == w]).rp_deg for w in range(len(occupied))])
+    return OrientationDrift(
+        dap_deg=tuple(float(v) for v in np.abs(ap[0] - ap[-1])),
+        drp_deg=tuple(float(v) for v in np.abs(rp[0] - rp[-1])),
+        window_start_s=times.min() + occupied * window_s,
+        ap_deg=ap,
+        rp_deg=rp,
         n_per_window=counts,
     )
 
@@ -189,13 +247,15 @@ def position_stabilisation(t_s, position_mm, *, band_mm: float, final_mm=None,
     settled = first if len(outside_after) == 0 else first + int(outside_after[-1]) + 1
     if settled >= len(times):
         raise InsufficientData("stabilisation: the series ends outside the limit band")
-    peak = float(distance[first:].max())
+    peak_index = first + int(np.argmax(distance[first:]))
+    peak = float(distance[peak_index])
     return Stabilisation(
         stabilisation_time_s=float(times[settled] - times[first]),
         first_entry_s=float(times[first]),
         settled_s=float(times[settled]),
         overshoot_mm=peak if peak > band_mm + hysteresis_mm else 0.0,
         band_mm=float(band_mm),
+        peak_s=float(times[peak_index]),
     )
 
 
@@ -229,19 +289,48 @@ def pose_stabilisation(series: Sequence, *, band_mm: float, hysteresis_mm: float
                              float(overshoots.max()), cycles)
 
 
-def _plane_crossing(path: np.ndarray, station: np.ndarray, normal: np.ndarray) -> np.ndarray | None:
-    """Point where a polyline crosses the plane through ``station`` normal to ``normal``, nearest the station."""
+def _plane_crossing(path: np.ndarray, station: np.ndarray, normal: np.ndarray) -> tuple[int, float] | None:
+    """Where a polyline crosses the plane through ``station`` normal to ``normal``, nearest the station.
+
+    Returns (i, f): the crossing is path[i] + f (path[i + 1] - path[i]), 0 <= f <= 1; None when it never crosses.
+    """
     signed = (path - station) @ normal
     crossing = np.flatnonzero(np.signbit(signed[:-1]) != np.signbit(signed[1:]))
-    exact = np.flatnonzero(signed == 0.0)
-    candidates = [path[i] for i in exact]
-    for i in crossing:
-        fraction = signed[i] / (signed[i] - signed[i + 1])
-        candidates.append(path[i] + fraction * (path[i + 1] - path[i]))
+    candidates = [(int(i), 0.0) for i in np.flatnonzero(signed == 0.0)]
+    candidates += [(int(i), float(signed[i] / (signed[i] - signed[i + 1]))) for i in crossing]
     if not candidates:
         return None
-    candidates = np.array(candidates)
-    return candidates[np.argmin(np.sum((candidates - station) ** 2, axis=1))]
+    points = np.array([path[i] + f * (path[min(i + 1, len(path) - 1)] - path[i]) for i, f in candidates])
+    return candidates[int(np.argmin(np.sum((points - station) ** 2, axis=1)))]
+
+
+def station_crossings(paths_mm: Sequence, commanded_mm) -> tuple[np.ndarray, list[list[tuple[int, float]]]]:
+    """Cut every attained path with the plane normal to the commanded path at each station (ISO 9283 8.2).
+
+    Returns the intersection points, shape (m stations, n cycles, d), and per station and cycle the crossing as
+    (sample index i, fraction f) so that other sampled quantities (angles) can be read at the same place.
+    """
+    stations = as_points("commanded_mm", commanded_mm, dims=(2, 3))
+    require_count("commanded path stations", len(stations), 2)
+    require_count("path cycles", len(paths_mm), 2)
+    paths = [as_points(f"paths_mm[{j}]", p, dims=(stations.shape[1],)) for j, p in enumerate(paths_mm)]
+    tangents = np.gradient(stations, axis=0)
+    norms = np.linalg.norm(tangents, axis=1)
+    if np.any(norms == 0):
+        raise ConfigError("commanded_mm: repeated stations, the path direction is undefined there")
+    tangents /= norms[:, None]
+    points = np.empty((len(stations), len(paths), stations.shape[1]))
+    where: list[list[tuple[int, float]]] = []
+    for i, (station, normal) in enumerate(zip(stations, tangents)):
+        where.append([])
+        for j, path in enumerate(paths):
+            hit = _plane_crossing(path, station, normal)
+            if hit is None:
+                raise InsufficientData(f"path cycle {j} never crosses the plane of station {i}")
+            k, fraction = hit
+            points[i, j] = path[k] + fraction * (path[min(k + 1, len(path) - 1)] - path[k])
+            where[i].append(hit)
+    return points, where
 
 
 def path_characteristics(paths_mm: Sequence, commanded_mm) -> PathCharacteristics:
@@ -270,21 +359,7 @@ def path_characteristics(paths_mm: Sequence, commanded_mm) -> PathCharacteristic
         Fewer than 2 cycles, or a path that never crosses a station's plane.
     """
     stations = as_points("commanded_mm", commanded_mm, dims=(2, 3))
-    require_count("commanded path stations", len(stations), 2)
-    require_count("path cycles", len(paths_mm), 2)
-    paths = [as_points(f"paths_mm[{j}]", p, dims=(stations.shape[1],)) for j, p in enumerate(paths_mm)]
-    tangents = np.gradient(stations, axis=0)
-    norms = np.linalg.norm(tangents, axis=1)
-    if np.any(norms == 0):
-        raise ConfigError("commanded_mm: repeated stations, the path direction is undefined there")
-    tangents /= norms[:, None]
-    points = np.empty((len(stations), len(paths), stations.shape[1]))
-    for i, (station, normal) in enumerate(zip(stations, tangents)):
-        for j, path in enumerate(paths):
-            hit = _plane_crossing(path, station, normal)
-            if hit is None:
-                raise InsufficientData(f"path cycle {j} never crosses the plane of station {i}")
-            points[i, j] = hit
+    points, _ = station_crossings(paths_mm, stations)
     barycentres = points.mean(axis=1)
     at = np.linalg.norm(barycentres - stations, axis=1)
     distances = np.linalg.norm(points - barycentres[:, None, :], axis=2)
@@ -294,5 +369,5 @@ def path_characteristics(paths_mm: Sequence, commanded_mm) -> PathCharacteristic
         rt_mm=float(rt.max()),
         at_per_station_mm=at,
         rt_per_station_mm=rt,
-        n_cycles=len(paths),
+        n_cycles=points.shape[1],
     )

@@ -24,11 +24,13 @@ from bench.errors import ConfigError, InsufficientData
 from bench.metrology.iso9283 import (
     DistanceCharacteristics,
     OrientationAccuracy,
+    OrientationDistanceCharacteristics,
     OrientationRepeatability,
     PoseAccuracy,
     PoseRepeatability,
     distance_characteristics,
     orientation_accuracy,
+    orientation_distance_characteristics,
     orientation_repeatability,
     pose_accuracy,
     pose_repeatability,
@@ -48,6 +50,7 @@ __all__ = [
     "POSE_NUMERIC_COLUMNS",
     "PoseResult",
     "analyze_distance",
+    "analyze_orientation_distance",
     "analyze_poses",
     "condition_groups",
     "numeric_columns",
@@ -363,11 +366,8 @@ def pose_result_json(result: PoseResult) -> dict:
     return out
 
 
-def analyze_distance(table: pd.DataFrame, first_pose: str, second_pose: str) -> DistanceCharacteristics:
-    """AD and RD between two poses of a pose table, pairing the samples by cycle (ISO 9283 7.3).
-
-    Cycles present at only one of the two poses are refused with a message naming them.
-    """
+def _paired_by_cycle(table: pd.DataFrame, first_pose: str, second_pose: str):
+    """The rows of two poses indexed by cycle, and the cycles they share (all of them, or a ConfigError)."""
     source = table.attrs.get("source", "table")
     groups = {}
     for pose in (first_pose, second_pose):
@@ -385,13 +385,38 @@ def analyze_distance(table: pd.DataFrame, first_pose: str, second_pose: str) -> 
             f"{source}: cycle(s) {', '.join(f'{c:g}' for c in unpaired[:5])} present at only one of "
             f"{first_pose!r} and {second_pose!r}, expected paired cycles"
         )
-    cycles = sorted(first.index)
+    return first, second, sorted(first.index)
+
+
+def analyze_distance(table: pd.DataFrame, first_pose: str, second_pose: str) -> DistanceCharacteristics:
+    """AD and RD between two poses of a pose table, pairing the samples by cycle (ISO 9283 7.3).
+
+    Cycles present at only one of the two poses are refused with a message naming them.
+    """
+    first, second, cycles = _paired_by_cycle(table, first_pose, second_pose)
     return distance_characteristics(
         first.loc[cycles, list(_ATTAINED)].to_numpy(),
         second.loc[cycles, list(_ATTAINED)].to_numpy(),
         first[list(_COMMAND)].to_numpy()[0],
         second[list(_COMMAND)].to_numpy()[0],
     )
+
+
+def analyze_orientation_distance(table: pd.DataFrame, first_pose: str,
+                                 second_pose: str) -> tuple[tuple[str, ...], OrientationDistanceCharacteristics] | None:
+    """AD_a/b/c and RD_a/b/c between two poses, paired by cycle (ISO 9283 7.3), for the angles the table has:
+    ``(("a", "b"), result)``, or None without angle columns."""
+    pairs = [(c, a) for c, a in ANGLE_PAIRS if a in table.columns]
+    if not pairs:
+        return None
+    first, second, cycles = _paired_by_cycle(table, first_pose, second_pose)
+    commanded, attained = [c for c, _ in pairs], [a for _, a in pairs]
+    source = table.attrs.get("source", "table")
+    for rows in (first, second):
+        _check_constant_command(rows.reset_index(), commanded, source)
+    return tuple(a[0] for a in attained), orientation_distance_characteristics(
+        first.loc[cycles, attained].to_numpy(), second.loc[cycles, attained].to_numpy(),
+        first[commanded].to_numpy()[0], second[commanded].to_numpy()[0])
 
 
 # -- streamed arrivals: position stabilisation time and overshoot (ISO 9283 7.4, 7.5) ---------------------------------
@@ -412,8 +437,8 @@ class StabilisationResults:
 
 
 def stabilisation_table(frame: pd.DataFrame) -> pd.DataFrame:
-    """Check a streamed-arrival table; return it with ``cycle``, ``t_s``, ``x_mm``..``z_mm`` (and the condition
-    columns) as float and ``pose`` as a stripped string. A missing column says how to export one; a cell that is
+    """Check a streamed-arrival table; return it sorted by cycle and time, with ``cycle``, ``t_s``,
+    ``x_mm``..``z_mm`` (and the condition columns) as float and ``pose`` as a stripped string. A missing column says how to export one; a cell that is
     not a number is a ``ConfigError`` naming its row, column and value."""
     source = frame.attrs.get("source", "table")
     missing = [c for c in STABILISATION_COLUMNS if c not in frame.columns]
@@ -423,7 +448,8 @@ def stabilisation_table(frame: pd.DataFrame) -> pd.DataFrame:
     table = numeric_columns(table, CONDITION_COLUMNS, required=False)
     table["pose"] = frame["pose"].astype(str).str.strip()
     table.attrs["source"] = source
-    return table
+    # row order carries no meaning: each arrival is read in time order (a repeated time is refused downstream)
+    return table.sort_values(["cycle", "t_s"], kind="stable")
 
 
 def stabilisation_results(table: pd.DataFrame, bands_mm: Sequence[float], hysteresis_mm: float) -> StabilisationResults:

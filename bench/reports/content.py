@@ -2,7 +2,7 @@
 
 :func:`collect` reads the store (never hardware) and calls :mod:`bench.metrology` for every number: AP, RP and
 their uncertainties come from :func:`bench.metrology.tables.analyze_poses`, AD/RD from
-:func:`~bench.metrology.tables.analyze_distance`, vAP from :func:`~bench.metrology.multidirectional_variation`,
+:func:`~bench.metrology.tables.analyze_distance`, vAP from :func:`~bench.metrology.path_tables.analyze_multidirectional`,
 the payload error from :func:`~bench.metrology.payload_shift` and the instrument RP floor from
 :func:`~bench.metrology.instrument_rp_floor`. This module computes no statistic of its own, so a report number
 equals the analysis API's number on the same tidy table by construction.
@@ -39,20 +39,23 @@ from bench.metrology import (
     DistanceCharacteristics,
     Measured,
     MultidirectionalVariation,
+    OrientationDistanceCharacteristics,
+    OrientationVariation,
     PayloadShift,
     combine,
     expanded,
     fit_axis_scale,
     instrument_rp_floor,
-    multidirectional_variation,
     payload_shift,
     resolution_uncertainty,
 )
 from bench.metrology.formatting import pose_label, report_order
+from bench.metrology.path_tables import analyze_multidirectional
 from bench.metrology.tables import (
     ANGLE_PAIRS,
     PoseResult,
     analyze_distance,
+    analyze_orientation_distance,
     analyze_poses,
     pose_table,
 )
@@ -101,6 +104,8 @@ class DistanceRow:
     second: str
     result: DistanceCharacteristics
     u_ad: Measured  #: AD_p with U: scatter of D_j and the instrument term twice (a difference of two readings)
+    orientation: OrientationDistanceCharacteristics | None = None  #: AD_a/RD_a when the run measured angles
+    angle_names: tuple[str, ...] = ()
 
 
 @dataclass(frozen=True)
@@ -108,6 +113,8 @@ class VapRow:
     label: str
     directions: tuple[str, ...]
     result: MultidirectionalVariation
+    orientation: OrientationVariation | None = None  #: vAP_a/b/c when the run measured angles
+    angle_names: tuple[str, ...] = ()
 
 
 @dataclass(frozen=True)
@@ -307,20 +314,15 @@ def _distances(table: pd.DataFrame, sigma_mm: float, k: float) -> tuple[Distance
     for label, group in _condition_groups(table):
         result = analyze_distance(group, first, second)
         u_ad = expanded(result.ad_mm, combine(result.u_ad_mm, math.sqrt(2.0) * sigma_mm), unit="mm", k=k)
-        rows.append(DistanceRow(label or f"{first}-{second}", first, second, result, u_ad))
+        angles = analyze_orientation_distance(group, first, second)
+        names, orientation = angles if angles is not None else ((), None)
+        rows.append(DistanceRow(label or f"{first}-{second}", first, second, result, u_ad, orientation, names))
     return tuple(rows)
 
 
 def _multidirectional(table: pd.DataFrame) -> tuple[VapRow, ...]:
-    rows = []
-    for label, group in _condition_groups(table):
-        split = group["pose"].str.split("/", n=1, expand=True)
-        for base, at_pose in group.groupby(split[0], sort=False):
-            directions = tuple(dict.fromkeys(at_pose["pose"]))
-            clouds = [at_pose[at_pose["pose"] == d][list(_POSITION)].to_numpy() for d in directions]
-            rows.append(VapRow(f"{base}" + (f" ({label})" if label else ""), directions,
-                               multidirectional_variation(clouds)))
-    return tuple(rows)
+    return tuple(VapRow(r.label, r.directions, r.position, r.orientation, r.angle_names)
+                 for r in analyze_multidirectional(table))
 
 
 def _payload(table: pd.DataFrame) -> tuple[PayloadRow, ...]:

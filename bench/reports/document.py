@@ -230,17 +230,23 @@ def _results(report: RunReport) -> tuple[Block, ...]:
     blocks: list[Block] = [Table("results", header, rows, f"Results per pose (U: expanded uncertainty, k = {k}; "
                                                           f"AP axes signed, barycentre − command)")]
     if report.distances:
+        angles = report.distances[0].angle_names
         blocks.append(Table("distance", ("Pair / conditions", "D_c (mm)", "D̄ (mm)", "AD_p (mm)", "RD (mm)",
-                                         f"U(AD) (mm, k = {k})"),
+                                         f"U(AD) (mm, k = {k})", *(f"AD_{a} / RD_{a} (°)" for a in angles)),
                             tuple((d.label, fmt_mm(d.result.commanded_distance_mm), fmt_mm(d.result.mean_distance_mm),
                                    fmt_mm(d.result.ad_mm), f"± {fmt_mm(d.result.rd_mm)}",
-                                   fmt_mm(d.u_ad.expanded_uncertainty)) for d in report.distances),
+                                   fmt_mm(d.u_ad.expanded_uncertainty),
+                                   *(f"{ad:+.3f} / ±{rd:.3f}" for ad, rd in (
+                                       zip(d.orientation.ad_deg, d.orientation.rd_deg) if d.orientation else ())))
+                                  for d in report.distances),
                             f"Distance accuracy and repeatability ({report.distances[0].first} ↔ "
                             f"{report.distances[0].second})"))
     if report.multidirectional:
-        blocks.append(Table("vap", ("Pose", "Directions", "vAP_p (mm)"), tuple(
-            (v.label, ", ".join(v.directions), fmt_mm(v.result.vap_mm)) for v in report.multidirectional),
-                            "Multi-directional pose accuracy variation"))
+        angles = report.multidirectional[0].angle_names
+        blocks.append(Table("vap", ("Pose", "Directions", "vAP_p (mm)", *(f"vAP_{a} (°)" for a in angles)), tuple(
+            (v.label, ", ".join(v.directions), fmt_mm(v.result.vap_mm),
+             *(f"{d:.3f}" for d in (v.orientation.vap_deg if v.orientation else ()))) for v in report.multidirectional),
+                            "Multi-directional pose accuracy variation (ISO 9283 7.2.3)"))
     if report.payload:
         rows = []
         for p in report.payload:

@@ -22,8 +22,9 @@ from scipy.spatial import ConvexHull, QhullError
 
 from bench.reports.content import RunReport
 
-__all__ = ["MIN_FONT_PT", "PRINT_HEIGHT_IN", "PRINT_WIDTH_IN", "Plot", "comparison_plot", "print_ready", "panels", "payload_caption", "payload_shift_figure", "png_bytes", "report_plots",
-           "svg_text", "workspace_cloud_mm"]
+__all__ = ["MIN_FONT_PT", "PRINT_HEIGHT_IN", "PRINT_WIDTH_IN", "Plot", "comparison_plot", "deviation_histograms",
+           "error_map_3d", "print_ready", "panels", "payload_caption", "payload_shift_figure", "png_bytes",
+           "report_plots", "svg_text", "workspace_cloud_mm"]
 
 _log = logging.getLogger(__name__)
 _POSITION = ["x_mm", "y_mm", "z_mm"]
@@ -219,6 +220,59 @@ def drift_series(report: RunReport) -> Plot:
                 "shows drift or warm-up).", figure)
 
 
+def deviation_histograms(report: RunReport) -> Plot:
+    """Small multiples, one panel per pose (and condition), on one scale and one set of bins: histograms of the
+    attained − command deviation in x, y and z, one legend for the figure."""
+    deviations = [_rows_of(report, r)[_POSITION].to_numpy() - np.asarray(r.commanded_mm) for r in report.poses]
+    edges = np.histogram_bin_edges(np.concatenate(deviations).ravel(), bins=24)
+    figure, panel = panels(len(report.poses), max_columns=5, size=(1.45, 1.2), share=True)
+    for result, axes, deviation in zip(report.poses, panel, deviations):
+        for column, (name, colour) in enumerate(zip("xyz", ("tab:blue", "tab:orange", "tab:green"))):
+            axes.hist(deviation[:, column], bins=edges, histtype="step", color=colour, lw=1.0,
+                      label=f"{name} − {name}_c")
+        axes.axvline(0.0, color="0.4", lw=0.6)
+        axes.set_title(_short_label(result), fontsize=MIN_FONT_PT, pad=2)
+        axes.yaxis.set_major_locator(MaxNLocator(integer=True, nbins=4))
+    figure.supxlabel("attained − command (mm)", fontsize=MIN_FONT_PT + 1, y=0.005, va="bottom")
+    figure.supylabel("cycles", fontsize=MIN_FONT_PT + 1, x=0.005, ha="left")
+    handles, labels = panel[0].get_legend_handles_labels()
+    figure.legend(handles, labels, loc="upper center", ncols=len(labels), fontsize=MIN_FONT_PT + 1)
+    return Plot("Per pose, on one scale and with the same bins: histograms of the deviation of every attained "
+                "position from its command, per axis (the offset of a histogram from 0 is the signed AP of that "
+                "axis, its width the scatter behind RP).", figure)
+
+
+def error_map_3d(report: RunReport) -> Plot | None:
+    """The test volume in 3-D: one signed AP vector per pose and set of conditions from its command pose, magnified
+    by one common factor, its tip coloured by AP_P on one colour scale; None for planar instruments."""
+    if not report.poses or len(report.poses[0].accuracy.ap_axes_mm) < 3:
+        return None
+    commands = np.array([r.commanded_mm for r in report.poses])
+    vectors = np.array([r.accuracy.ap_axes_mm for r in report.poses])
+    ap = np.array([r.accuracy.ap_mm for r in report.poses])
+    span = max(float(np.ptp(commands, axis=0).max()), 1e-9)
+    scale = 0.25 * span / max(float(np.abs(vectors).max()), 1e-9)
+    figure = Figure(figsize=(6.0, 4.6))
+    figure.subplots_adjust(left=0.0, right=0.86, bottom=0.04, top=0.98)
+    axes = figure.add_subplot(1, 1, 1, projection="3d")
+    tips = commands + vectors * scale
+    axes.quiver(*commands.T, *(vectors * scale).T, color="0.35", lw=0.8, arrow_length_ratio=0.15)
+    axes.scatter(*commands.T, color="black", marker="x", s=14, depthshade=False, label="command pose")
+    points = axes.scatter(*tips.T, c=ap, cmap="viridis", vmin=0.0, s=16, depthshade=False,
+                          label=f"barycentre (AP vector x{scale:.0f})")
+    for pose, command in dict((r.pose, r.commanded_mm) for r in report.poses).items():
+        axes.text(*command, f"  {pose}", fontsize=MIN_FONT_PT)
+    for name, setter in zip("xyz", (axes.set_xlabel, axes.set_ylabel, axes.set_zlabel)):
+        setter(f"{name} (mm)", fontsize=MIN_FONT_PT, labelpad=0)
+    axes.tick_params(labelsize=MIN_FONT_PT, pad=0)
+    axes.legend(loc="upper left", fontsize=MIN_FONT_PT, frameon=False)
+    figure.colorbar(points, ax=axes, shrink=0.6, pad=0.08, label="AP_P (mm)")
+    groups = len({r.conditions for r in report.poses})
+    return Plot(f"Error map over the test volume: at every command pose (x) the signed AP vector to the barycentre, "
+                f"magnified {scale:.0f} times, its tip coloured by AP_P (one colour scale)"
+                + (f"; one vector per set of conditions ({groups})." if groups > 1 else "."), figure)
+
+
 def payload_shift_figure(series) -> tuple[Figure, list]:
     """|PE(m)| and its z component (sag) against load, one line per ``(label, PayloadShift)`` of ``series``;
     returns the figure and its two axes (norm, sag) for additions."""
@@ -275,8 +329,8 @@ def mouse_calibration_plots(report: RunReport) -> list[Plot]:
 
 def report_plots(report: RunReport) -> list[Plot]:
     """Every figure of one run's report, in report order (optional ones left out when their data is absent)."""
-    plots = [pose_scatter(report), ap_on_workspace(report), drift_series(report), payload_plot(report),
-             *mouse_calibration_plots(report)]
+    plots = [pose_scatter(report), deviation_histograms(report), error_map_3d(report), ap_on_workspace(report),
+             drift_series(report), payload_plot(report), *mouse_calibration_plots(report)]
     return [p for p in plots if p is not None]
 
 

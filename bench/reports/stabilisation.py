@@ -42,7 +42,7 @@ from bench.reports.document import (
     conditions_section,
     decision_blocks,
 )
-from bench.reports.plots import Plot, panels
+from bench.reports.plots import MIN_FONT_PT, Plot, panels
 from bench.store import CalibrationRecord, RunRecord, Store
 
 __all__ = ["Arrival", "BandResult", "StabilisationReport", "collect_stabilisation", "count_size_mm",
@@ -208,29 +208,54 @@ def _results(report: StabilisationReport) -> tuple[Block, ...]:
 
 
 def stabilisation_plot(report: StabilisationReport) -> Plot:
-    """Per pose (and condition): d(t) of every cycle with the limit bands (and B + h), t = 0 the move-done signal."""
+    """Per pose (and condition), on one scale: d(t) of every cycle with the limit bands (and B + h), t = 0 the
+    move-done signal; in the smallest band, every cycle's first entry t_1, settled time t_2 (t_s = t_2 − t_1)
+    and, where it exceeds B + h, the overshoot OV at the peak it is read from. One legend for the figure."""
     groups = list(dict.fromkeys(a.group for a in report.arrivals))
-    figure, axes_list = panels(len(groups), max_columns=3, size=(3.4, 2.8))
+    figure, axes_list = panels(len(groups), max_columns=3, size=(3.0, 2.2), share=True)
     top = 2.0 * max(report.bands_mm)
+    marked = min(report.bands_mm)
+    by_key = {(r.group, r.band_mm): r for r in report.results}
+    colours = [f"C{i}" for i in range(10)]
     for axes, group in zip(axes_list, groups):
-        for arrival in (a for a in report.arrivals if a.group == group):
-            axes.plot(arrival.t_s, arrival.distance_mm, lw=0.8, label=f"cycle {arrival.cycle}")
+        mark = by_key.get((group, marked))
+        figures = dict(zip(mark.cycles, mark.result.cycles)) if mark is not None and mark.result else {}
+        for index, arrival in enumerate(a for a in report.arrivals if a.group == group):
+            colour = colours[index % len(colours)]
+            axes.plot(arrival.t_s, arrival.distance_mm, lw=0.8, color=colour, label=f"cycle {arrival.cycle}")
+            cycle = figures.get(arrival.cycle)
+            if cycle is None:
+                continue
+            axes.plot(cycle.first_entry_s, marked, marker="o", ms=4, mfc="none", color="black", ls="",
+                      label=f"t_1: first entry into B = {marked:g} mm")
+            axes.plot(cycle.settled_s, marked, marker="s", ms=4, mfc="none", color="tab:green", ls="",
+                      label="t_2: inside from here on (t_s = t_2 − t_1)")
+            axes.hlines(marked, cycle.first_entry_s, cycle.settled_s, color="tab:green", lw=2.0, alpha=0.6)
+            if cycle.overshoot_mm > 0:
+                axes.plot(cycle.peak_s, min(cycle.overshoot_mm, top), marker="v", ms=5, color="tab:red", ls="",
+                          label="OV: largest d(t) after t_1")
         for band in report.bands_mm:
             axes.axhline(band, ls="--", color="tab:red", lw=0.7)
             if report.hysteresis_mm:
                 axes.axhline(band + report.hysteresis_mm, ls=":", color="tab:red", lw=0.6)
         axes.axvline(0.0, color="0.5", lw=0.7)
-        axes.set_ylim(0.0, top)
-        axes.set_title(group, fontsize=8)
-        axes.set_xlabel("t from the move-done signal (s)", fontsize=7)
-        axes.set_ylabel("d(t) = |p(t) − p_att| (mm)", fontsize=7)
-        axes.tick_params(labelsize=6)
-        axes.legend(fontsize=5)
+        axes.set_title(group, fontsize=MIN_FONT_PT, pad=2)
+    axes_list[0].set_ylim(0.0, top)
+    figure.supxlabel("t from the move-done signal (s)", fontsize=MIN_FONT_PT + 1, y=0.005, va="bottom")
+    figure.supylabel("d(t) = |p(t) − p_att| (mm)", fontsize=MIN_FONT_PT + 1, x=0.005, ha="left")
+    legend: dict = {}
+    for axes in axes_list:
+        for handle, label in zip(*axes.get_legend_handles_labels()):
+            legend.setdefault(label, handle)
+    order = sorted(legend, key=lambda label: not label.startswith("cycle"))  # the curves, then the marks
+    figure.legend([legend[label] for label in order], order, loc="upper center", ncols=min(4, len(legend)),
+                  fontsize=MIN_FONT_PT)
     bands = ", ".join(f"{b:g}" for b in report.bands_mm)
-    return Plot(f"Arrival at each pose: distance d(t) from the settled position (the last sample) per cycle, with "
-                f"the limit bands {bands} mm (dashed)" + (f" and B + h, h = {report.hysteresis_mm:g} mm (dotted)"
-                                                          if report.hysteresis_mm else "") +
-                f"; clipped at {top:g} mm (the approach lies above).", figure)
+    return Plot(f"Arrival at each pose, every panel on one scale: distance d(t) from the settled position (the last "
+                f"sample) per cycle, with the limit bands {bands} mm (dashed)" + (
+                    f" and B + h, h = {report.hysteresis_mm:g} mm (dotted)" if report.hysteresis_mm else "") +
+                f"; in the {marked:g} mm band the first entry t_1, the settled time t_2 (green bar: t_s) and the "
+                f"overshoot OV where it is read; clipped at {top:g} mm (the approach lies above).", figure)
 
 
 def recompute_stabilisation(report: StabilisationReport) -> str:
