@@ -18,7 +18,7 @@ psycopg = pytest.importorskip("psycopg", reason='the lab store needs psycopg 3 (
 
 from bench.cli import main  # noqa: E402
 from bench.store import Store  # noqa: E402
-from bench.store.lab import LabStore, rows_checksum, sync_store  # noqa: E402
+from bench.store.lab import LAB_SCHEMA_VERSION, LabStore, rows_checksum, sync_store  # noqa: E402
 from postgres_support import PASSWORD, Cluster, lab_server, lab_url, make_store  # noqa: E402, F401  (fixtures)
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -152,8 +152,8 @@ def test_newer_server_schema_is_refused(tmp_path, lab_url, capsys):
         conn.execute("UPDATE bench.schema_version SET version = 7")
     capsys.readouterr()
     assert main(["sync", "--store", str(path), "--to", lab_url]) == 1
-    assert _one_error_line(capsys).endswith("server schema version 7 is newer than this bench's (1); "
-                                            "upgrade bench to sync")
+    assert _one_error_line(capsys).endswith(f"server schema version 7 is newer than this bench's "
+                                            f"({LAB_SCHEMA_VERSION}); upgrade bench to sync")
 
 
 def test_lab_wide_runs_with_filters(tmp_path, lab_url, capsys):
