@@ -24,6 +24,7 @@ from __future__ import annotations
 import hashlib
 import json
 import logging
+import sys
 import time
 from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass
@@ -36,7 +37,7 @@ from bench.store.lab_copy import (COPY_COLUMNS, SAMPLE_COLUMNS, TYPED_COLUMNS, c
                                   typed_columns_ddl)
 
 __all__ = ["LAB_SCHEMA_VERSION", "LabStore", "LabStoreError", "LabURLError", "SyncResult", "is_lab_url",
-           "open_runs_store", "redacted", "rows_checksum", "sync_store"]
+           "open_runs_store", "redacted", "rows_checksum", "sync_after_run", "sync_store"]
 
 _log = logging.getLogger(__name__)
 
@@ -315,6 +316,25 @@ def sync_store(store: Store, url: str, *, batch_size: int = 20_000, retries: int
             attempt += 1
             report(f"sync: {_one_line(exc)}; retry {attempt} of {retries}")
             time.sleep(retry_wait_s * 2 ** (attempt - 1))
+
+
+def sync_after_run(store: Store, url: str, *, say: Callable[[str], None] | None = None) -> SyncResult | None:
+    """Sync ``store`` to ``url`` once a run has ended (``[lab_store] auto_sync``), never failing the run: any
+    failure (server down, credentials, a bug) is one line on stderr (``say``) and the next sync catches up, since
+    the local file stays the source of truth. Returns the result, or None when the sync failed."""
+    tell = say or (lambda line: print(line, file=sys.stderr, flush=True))
+    try:
+        result = sync_store(store, url, retries=1, retry_wait_s=0.5, progress=lambda line: None)
+    except BenchError as exc:
+        tell(f"bench: lab store sync failed, the run is kept locally (bench sync catches up): {_one_line(exc)}")
+        return None
+    except Exception as exc:  # noqa: BLE001 - the local run must survive whatever the sync meets
+        _log.exception("lab store sync after the run failed")
+        tell(f"bench: lab store sync failed, the run is kept locally (bench sync catches up): "
+             f"{type(exc).__name__}: {_one_line(exc)}")
+        return None
+    tell(f"bench: synced to the lab store {redacted(url)}: {result.samples_sent} new samples")
+    return result
 
 
 class LabStore:
