@@ -7,7 +7,8 @@
   unindexed, unlogged table of the same server (no key, no SQLite read, no formatting), three times: the ratio
   sync/floor says what reading, formatting and the keyed, logged table cost.
 * Query: ``bench lab summary`` (``bench.store.lab_summary.pose_summary``: AP and RP, ISO 9283 7.2.1 and 7.2.2, per
-  bench, robot, ISO week, pose, velocity and commanded position) over every synced sample, three times.
+  bench, robot, ISO week, pose, velocity and commanded position) over every synced sample, three times, after
+  ANALYZE (what autovacuum does soon after a large sync).
 
 Server: ``BENCH_TEST_POSTGRES`` when set, else a throwaway cluster (``tests/postgres_support.py``; needs Debian's
 postgresql). Usage: ``python benchmarks/bench_sync.py [--benches 10] [--samples 100000] [--runs 4]``.
@@ -122,6 +123,10 @@ def main(argv=None) -> None:
               f"{statistics.median(floors):9,.0f}  max {max(floors):9,.0f} samples/s; sync median / floor median "
               f"= {statistics.median(rates) / statistics.median(floors):.2f}")
 
+        import psycopg
+        with psycopg.connect(url, autocommit=True) as conn:  # the statistics autovacuum would have gathered by now
+            conn.execute("ANALYZE bench.runs")
+            conn.execute("ANALYZE bench.samples")
         with LabStore(url) as lab:
             held = lab.query("SELECT count(*) FROM bench.samples")[0][0]
             times, groups = [], []

@@ -12,58 +12,51 @@ of the run's start), pose name, commanded velocity (``velocity_pct``, or none) a
 
 Only samples of kind ``pose`` with all three measured axes count (a laser-grid screen that did not decode leaves an
 axis absent: such samples are not partial poses here). RP needs n >= 2 and is None below that, with the reason.
-The server does two passes over the samples (barycentres, then distances to them) in one statement.
+
+Two passes over the samples, each a parallel scan in the server: sums per run and pose key (a few hundred rows
+back), pooled here into each group's barycentre; then, with the barycentres sent back as arrays, the distances
+l_j summarised per group (``avg``, ``stddev_samp``: PostgreSQL's Youngs-Cramer accumulation).
 """
 
 from __future__ import annotations
 
 import datetime as dt
+import math
 from dataclasses import asdict, dataclass
 
 __all__ = ["PoseGroup", "pose_summary"]
 
-_SAMPLE_KEY = "run_uuid, pose, velocity_pct, cmd_x_mm, cmd_y_mm, cmd_z_mm"
-_GROUP_KEY = "bench, robot, week, pose, velocity_pct, cmd_x_mm, cmd_y_mm, cmd_z_mm"
+_POSE_SAMPLES = """kind = 'pose' AND x_mm IS NOT NULL AND y_mm IS NOT NULL AND z_mm IS NOT NULL
+    AND cmd_x_mm IS NOT NULL AND cmd_y_mm IS NOT NULL AND cmd_z_mm IS NOT NULL"""
 
-#: Pass 1 sums per run and pose (small), pooled per group into barycentres; pass 2 joins each sample to its
-#: group's barycentre (a hash of a few hundred rows) for the distances l_j. The samples are read once, into the
-#: narrow ``s``; a missing velocity becomes NaN, which equals NaN in PostgreSQL (joinable, unlike NULL).
-_SUMMARY_SQL = """
-WITH rk AS (
-    SELECT uuid AS run_uuid, bench, robot,
-           date_trunc('week', started_utc::timestamptz AT TIME ZONE 'UTC')::date AS week
-    FROM bench.runs r WHERE true {where}),
-s AS MATERIALIZED (
-    SELECT run_uuid, coalesce(pose, '') AS pose, coalesce(velocity_pct, 'NaN') AS velocity_pct,
-           cmd_x_mm, cmd_y_mm, cmd_z_mm, x_mm, y_mm, z_mm
-    FROM bench.samples
-    WHERE kind = 'pose' AND x_mm IS NOT NULL AND y_mm IS NOT NULL AND z_mm IS NOT NULL AND cmd_x_mm IS NOT NULL
-      AND cmd_y_mm IS NOT NULL AND cmd_z_mm IS NOT NULL AND run_uuid IN (SELECT run_uuid FROM rk)),
-p AS (
-    SELECT {sample_key}, sum(x_mm) AS sx, sum(y_mm) AS sy, sum(z_mm) AS sz, count(*) AS n
-    FROM s GROUP BY {sample_key}),
-m AS (
-    SELECT {group_key}, sum(sx) / sum(n) AS bx, sum(sy) / sum(n) AS by, sum(sz) / sum(n) AS bz, sum(n) AS n,
-           row_number() OVER () AS g
-    FROM p JOIN rk USING (run_uuid) GROUP BY {group_key}),
-link AS (
-    SELECT {p_sample_key}, m.g, m.bx, m.by, m.bz FROM p JOIN rk USING (run_uuid) JOIN m USING ({group_key})),
-d AS (
-    SELECT link.g, avg(l) AS l_mean, stddev_samp(l) AS s_l
-    FROM s JOIN link USING ({sample_key}),
-         LATERAL (SELECT sqrt((s.x_mm - link.bx) ^ 2 + (s.y_mm - link.by) ^ 2 + (s.z_mm - link.bz) ^ 2) AS l) AS dist
-    GROUP BY link.g)
-SELECT m.bench, m.robot, m.week, nullif(m.pose, ''), nullif(m.velocity_pct, 'NaN'), m.cmd_x_mm, m.cmd_y_mm,
-       m.cmd_z_mm, m.n, m.bx, m.by, m.bz,
-       sqrt((m.bx - m.cmd_x_mm) ^ 2 + (m.by - m.cmd_y_mm) ^ 2 + (m.bz - m.cmd_z_mm) ^ 2), d.l_mean,
-       d.l_mean + 3 * d.s_l
-FROM m JOIN d USING (g)
-ORDER BY m.bench, m.robot, m.week, m.pose, m.velocity_pct, m.cmd_x_mm, m.cmd_y_mm, m.cmd_z_mm
-"""
-#: For this query only: the narrow copy of the samples in memory; a hash join against the few hundred groups
-#: (the planner, misjudging the groups' number, would sort a million rows for a merge join); no JIT (its
-#: compilation costs more than it saves here).
-_SETTINGS = {"work_mem": "256MB", "enable_mergejoin": "off", "enable_nestloop": "off", "jit": "off"}
+_RUNS_SQL = """SELECT uuid, bench, robot, date_trunc('week', started_utc::timestamptz AT TIME ZONE 'UTC')::date
+FROM bench.runs r WHERE true {where}"""
+
+#: Pass 1: sums per run and pose key; a missing pose or velocity becomes '' or NaN (NaN equals NaN in PostgreSQL).
+_SUMS_SQL = """
+SELECT run_uuid, coalesce(pose, ''), coalesce(velocity_pct, 'NaN'), cmd_x_mm, cmd_y_mm, cmd_z_mm,
+       sum(x_mm), sum(y_mm), sum(z_mm), count(*)
+FROM bench.samples
+WHERE {pose_samples} AND run_uuid = ANY(%s::uuid[])
+GROUP BY 1, 2, 3, 4, 5, 6"""
+
+#: Pass 2: l_j against its group's barycentre, summarised per group ``g``.
+_DISTANCES_SQL = """
+SELECT k.g, avg(l), stddev_samp(l)
+FROM bench.samples s
+     JOIN unnest(%s::uuid[], %s::text[], %s::float8[], %s::float8[], %s::float8[], %s::float8[], %s::float8[],
+                 %s::float8[], %s::float8[], %s::int[]) AS k(run_uuid, pose, velocity_pct, cx, cy, cz, bx, by, bz, g)
+       ON s.run_uuid = k.run_uuid AND coalesce(s.pose, '') = k.pose
+          AND coalesce(s.velocity_pct, 'NaN') = k.velocity_pct AND s.cmd_x_mm = k.cx AND s.cmd_y_mm = k.cy
+          AND s.cmd_z_mm = k.cz,
+     LATERAL (SELECT sqrt((s.x_mm - k.bx) ^ 2 + (s.y_mm - k.by) ^ 2 + (s.z_mm - k.bz) ^ 2) AS l) AS distance
+WHERE {pose_samples}
+GROUP BY k.g"""
+
+#: For these queries only: a hash join against the few hundred keys and hash aggregation (the planner cannot
+#: estimate the join of a parameter array and would sort a million rows); no JIT (compiling costs more than it saves).
+_SETTINGS = {"enable_mergejoin": "off", "enable_nestloop": "off", "enable_sort": "off", "jit": "off",
+             "work_mem": "64MB"}
 
 
 @dataclass(frozen=True)
@@ -94,6 +87,12 @@ class PoseGroup:
         return out
 
 
+def _group_key(run: tuple, pose: str, velocity: float, cx: float, cy: float, cz: float) -> tuple:
+    """The group of a run and pose key: the run's (bench, robot, week), the pose, the velocity (None for the
+    server's NaN, which as a dict key would never equal itself) and the command."""
+    return (*run, pose, None if math.isnan(velocity) else velocity, cx, cy, cz)
+
+
 def pose_summary(lab, *, since: str | None = None, until: str | None = None, bench: str | None = None,
                  robot: str | None = None) -> list[PoseGroup]:
     """The :class:`PoseGroup` rows of the lab store ``lab`` (a :class:`bench.store.lab.LabStore`), for runs started
@@ -104,10 +103,35 @@ def pose_summary(lab, *, since: str | None = None, until: str | None = None, ben
         if value is not None:
             clauses.append(f"AND {clause}")
             args.append(value)
-    p_sample_key = ", ".join(f"p.{name.strip()}" for name in _SAMPLE_KEY.split(","))
-    sql = _SUMMARY_SQL.format(where=" ".join(clauses), sample_key=_SAMPLE_KEY, group_key=_GROUP_KEY,
-                              p_sample_key=p_sample_key)
-    rows = lab.query(sql, args, settings=_SETTINGS)
-    return [PoseGroup(bench=r[0], robot=r[1], week=r[2], pose=r[3], velocity_pct=r[4], commanded_mm=(r[5], r[6], r[7]),
-                      n=int(r[8]), barycentre_mm=(r[9], r[10], r[11]), ap_mm=r[12], l_mean_mm=r[13], rp_mm=r[14])
-            for r in rows]
+    runs = {uuid: (run_bench, run_robot, week)
+            for uuid, run_bench, run_robot, week in lab.query(_RUNS_SQL.format(where=" ".join(clauses)), args)}
+    if not runs:
+        return []
+    sums = lab.query(_SUMS_SQL.format(pose_samples=_POSE_SAMPLES), (list(runs),), settings=_SETTINGS)
+    pooled: dict[tuple, list[float]] = {}
+    for run_uuid, pose, velocity, cx, cy, cz, sx, sy, sz, n in sums:
+        totals = pooled.setdefault(_group_key(runs[run_uuid], pose, velocity, cx, cy, cz), [0.0, 0.0, 0.0, 0])
+        totals[0] += sx
+        totals[1] += sy
+        totals[2] += sz
+        totals[3] += n
+    keys = sorted(pooled, key=lambda key: (key[:4], key[4] is None, key[4] or 0.0, key[5:]))
+    index = {key: g for g, key in enumerate(keys)}
+    barycentres = {key: (sx / n, sy / n, sz / n) for key, (sx, sy, sz, n) in pooled.items()}
+    rows = [(run_uuid, pose, velocity, cx, cy, cz, *barycentres[key], index[key])
+            for run_uuid, pose, velocity, cx, cy, cz, *_ in sums
+            for key in [_group_key(runs[run_uuid], pose, velocity, cx, cy, cz)]]
+    distances = {g: (l_mean, s_l) for g, l_mean, s_l in lab.query(
+        _DISTANCES_SQL.format(pose_samples=_POSE_SAMPLES.replace("kind", "s.kind")), [list(c) for c in zip(*rows)],
+        settings=_SETTINGS)} if rows else {}
+    groups = []
+    for key in keys:
+        run_bench, run_robot, week, pose, velocity, cx, cy, cz = key
+        b = barycentres[key]
+        l_mean, s_l = distances[index[key]]
+        groups.append(PoseGroup(bench=run_bench, robot=run_robot, week=week, pose=pose or None,
+                                velocity_pct=velocity, commanded_mm=(cx, cy, cz),
+                                n=pooled[key][3], barycentre_mm=b,
+                                ap_mm=math.sqrt((b[0] - cx) ** 2 + (b[1] - cy) ** 2 + (b[2] - cz) ** 2),
+                                l_mean_mm=l_mean, rp_mm=None if s_l is None else l_mean + 3.0 * s_l))
+    return groups
