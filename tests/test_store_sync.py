@@ -204,3 +204,21 @@ def test_benches_sync_at_once_through_a_kill_and_a_server_restart(tmp_path, lab_
         sync_store(store, lab_url)
     expected = {uuid: digest for p in paths for uuid, digest in local_checksums(p).items()}
     assert server_state(lab_url) == (8000, 8000, expected)
+
+
+def test_two_syncs_of_one_file_at_once_store_every_sample_once(tmp_path, lab_url):
+    """The second sync meets steps the first one committed after it asked (COPY's key violation): it skips them."""
+    path = make_store(tmp_path / "f.db", "bench-f", [4000, 4000])
+    with Store(path) as store:
+        sync_store(store, lab_url, batch_size=10_000)  # schema and runs in place; then the samples are removed
+    with psycopg.connect(lab_url, autocommit=True) as conn:
+        conn.execute("DELETE FROM bench.samples")
+    env = {**os.environ, "PYTHONPATH": str(ROOT)}
+    syncs = [subprocess.Popen([sys.executable, "-m", "bench.cli", "sync", "--store", str(path), "--to", lab_url,
+                               "--batch", "250"], cwd=ROOT, env=env, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL,
+                              text=True) for _ in range(2)]
+    outs = [p.communicate(timeout=120)[0] for p in syncs]
+    assert [p.returncode for p in syncs] == [0, 0]
+    sent = [int(out.split(" new samples")[0].rsplit(" ", 1)[1]) for out in outs]
+    assert sum(sent) == 8000
+    assert server_state(lab_url) == (8000, 8000, local_checksums(path))
