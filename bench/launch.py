@@ -71,12 +71,24 @@ def open_rig(request: RigRequest, store: Any, *, robot: str, stored: dict[str, A
     if request.station:
         store.bench = station.identity.bench  # runs are stored under the station's name (the lab store's key)
     if not request.simulate:
-        return build_rig(station, store, requires=requires, protocol=protocol, operator=operator)
+        return _synced_after(build_rig(station, store, requires=requires, protocol=protocol, operator=operator),
+                             station, store)
     check_capabilities(station, requires, protocol)  # before a simulator starts
     rig, rehearsal, seed = _on_rehearsal(station, request, stored, lambda devices, speed: build_rig(
         devices, store, requires=requires, protocol=protocol, speed_factor=speed, operator=operator))
     rig.closers.insert(0, rehearsal.close)  # closed last: after the drivers let go of the simulators' devices
     rig.extra["simulator"] = {"seed": seed, "station": station.source, "truth_log": rehearsal.truth_path}
+    return _synced_after(rig, station, store)
+
+
+def _synced_after(rig: Rig, station: Station, store: Any) -> Rig:
+    """With ``[lab_store] auto_sync``, the store is synced when the rig closes (the run has ended, however it
+    ended), after everything else the rig started has been released."""
+    if station.lab_store is not None and station.lab_store.auto_sync:
+        from bench.store.lab import sync_after_run
+
+        url = station.lab_store.url
+        rig.closers.insert(0, lambda: sync_after_run(store, url))
     return rig
 
 

@@ -3,10 +3,12 @@
 * Sync: ``--benches`` local stores of ``--samples`` pose samples each (in ``--runs`` runs) are pushed with
   ``sync_store`` into one PostgreSQL server: the first ones one after the other (samples/s of each: min/median/max),
   the rest at once, one process each (aggregate samples/s from the first start to the last end, imports excluded).
-* Floor: a bare COPY of the same sample rows into an unindexed, unlogged table of the same server (no staging, no
-  conflict check, no SQLite read): the ratio sync/floor says what the idempotent path costs.
-* Query: AP and RP (ISO 9283 7.2.1 and 7.2.2, per pose, the worst pose reported) per robot per ISO week over every
-  synced sample, timed three times (min/median/max).
+* Floor: a bare COPY of the same rows (the same COPY text, typed columns included, formatted beforehand) into an
+  unindexed, unlogged table of the same server (no key, no SQLite read, no formatting), three times: the ratio
+  sync/floor says what reading, formatting and the keyed, logged table cost.
+* Query: ``bench lab summary`` (``bench.store.lab_summary.pose_summary``: AP and RP, ISO 9283 7.2.1 and 7.2.2, per
+  bench, robot, ISO week, pose, velocity and commanded position) over every synced sample, three times, after
+  ANALYZE (what autovacuum does soon after a large sync).
 
 Server: ``BENCH_TEST_POSTGRES`` when set, else a throwaway cluster (``tests/postgres_support.py``; needs Debian's
 postgresql). Usage: ``python benchmarks/bench_sync.py [--benches 10] [--samples 100000] [--runs 4]``.
@@ -30,27 +32,8 @@ from postgres_support import Cluster, _bindir, make_store, with_database  # noqa
 
 from bench.store import Store  # noqa: E402
 from bench.store.lab import LabStore, sync_store  # noqa: E402
-
-#: AP_p = |mean attained - commanded|, RP_p = mean(l) + 3 s(l), l = distance to the barycentre (ISO 9283 7.2).
-AP_RP_PER_ROBOT_WEEK = """
-WITH r AS (SELECT uuid, robot, date_trunc('week', started_utc::timestamptz)::date AS week FROM bench.runs),
-s AS MATERIALIZED (
-    SELECT r.robot, r.week, s.pose, v.x_mm AS x, v.y_mm AS y, v.z_mm AS z, v.cmd_x_mm AS cx, v.cmd_y_mm AS cy,
-           v.cmd_z_mm AS cz
-    FROM bench.samples s JOIN r ON r.uuid = s.run_uuid,
-         jsonb_to_record(s.values_json::jsonb)  -- one parse per sample
-             AS v(x_mm float8, y_mm float8, z_mm float8, cmd_x_mm float8, cmd_y_mm float8, cmd_z_mm float8)
-    WHERE s.kind = 'pose'),
-m AS (SELECT robot, week, pose, avg(x) AS mx, avg(y) AS my, avg(z) AS mz, avg(cx) AS cx, avg(cy) AS cy,
-             avg(cz) AS cz FROM s GROUP BY robot, week, pose),
-p AS (SELECT m.robot, m.week, m.pose, sqrt((m.mx - m.cx) ^ 2 + (m.my - m.cy) ^ 2 + (m.mz - m.cz) ^ 2) AS ap_mm,
-             avg(sqrt((s.x - m.mx) ^ 2 + (s.y - m.my) ^ 2 + (s.z - m.mz) ^ 2))
-             + 3 * stddev_samp(sqrt((s.x - m.mx) ^ 2 + (s.y - m.my) ^ 2 + (s.z - m.mz) ^ 2)) AS rp_mm,
-             count(*) AS n
-      FROM s JOIN m USING (robot, week, pose) GROUP BY m.robot, m.week, m.pose, ap_mm)
-SELECT robot, week, max(ap_mm), max(rp_mm), sum(n) FROM p GROUP BY robot, week ORDER BY robot, week
-"""
-
+from bench.store.lab_copy import COPY_COLUMNS, TYPED_COLUMNS, copy_text  # noqa: E402
+from bench.store.lab_summary import pose_summary  # noqa: E402
 
 #: A bench syncing in its own process: prints the wall-clock start and end of its sync (imports excluded).
 _CHILD = """
@@ -73,17 +56,17 @@ def _database(url: str, name: str) -> str:
 
 
 def copy_floor(url: str, path: Path) -> float:
-    """Seconds of a bare COPY of the samples of ``path`` into an unlogged table without keys."""
+    """Seconds of a bare COPY of the samples of ``path`` (as sync formats them) into an unlogged table without keys."""
     import psycopg
     with Store(path) as store, psycopg.connect(url) as conn:
-        rows = [(r.uuid, *row) for r in store.runs() for row in store.stored_rows(r.id)]
-        conn.execute("CREATE UNLOGGED TABLE floor (run_uuid uuid, step_index int, kind text, pose text, cycle int,"
-                     " t_s float8, wall_utc text, values_json text, raw_json text)")
+        data = [copy_text(r.uuid, store.stored_rows(r.id, extract=TYPED_COLUMNS)) for r in store.runs()]
+        conn.execute("CREATE UNLOGGED TABLE floor (LIKE bench.samples)")
         conn.commit()
+        columns = ", ".join(f'"{c}"' for c in COPY_COLUMNS)
         start = time.perf_counter()
-        with conn.cursor() as cur, cur.copy("COPY floor FROM STDIN") as copy:
-            for row in rows:
-                copy.write_row(row)
+        with conn.cursor() as cur, cur.copy(f"COPY floor ({columns}) FROM STDIN") as copy:
+            for chunk in data:
+                copy.write(chunk)
         conn.commit()
         elapsed = time.perf_counter() - start
         conn.execute("DROP TABLE floor")
@@ -135,22 +118,26 @@ def main(argv=None) -> None:
             print(f"sync, {len(rest)} at once    {n:>9,} samples  {window:7.2f} s  {n / window:9,.0f} samples/s "
                   "aggregate")
 
-        floor_s = copy_floor(url, stores[0])
-        floor_rate = sum(per_run) / floor_s
-        print(f"floor: bare COPY   {sum(per_run):>9,} samples  {floor_rate:9,.0f} samples/s; sync median / floor "
-              f"= {statistics.median(rates) / floor_rate:.2f}")
+        floors = [sum(per_run) / copy_floor(url, stores[0]) for _ in range(3)]
+        print(f"floor: bare COPY   {sum(per_run):>9,} samples  min {min(floors):9,.0f}  median "
+              f"{statistics.median(floors):9,.0f}  max {max(floors):9,.0f} samples/s; sync median / floor median "
+              f"= {statistics.median(rates) / statistics.median(floors):.2f}")
 
+        import psycopg
+        with psycopg.connect(url, autocommit=True) as conn:  # the statistics autovacuum would have gathered by now
+            conn.execute("ANALYZE bench.runs")
+            conn.execute("ANALYZE bench.samples")
         with LabStore(url) as lab:
             held = lab.query("SELECT count(*) FROM bench.samples")[0][0]
-            times, rows = [], []
+            times, groups = [], []
             for _ in range(3):
                 start = time.perf_counter()
-                rows = lab.query(AP_RP_PER_ROBOT_WEEK)
+                groups = pose_summary(lab, since="2026-01-01")
                 times.append(time.perf_counter() - start)
-        print(f"query AP/RP per robot per week over {held:,} samples (expected {total:,}): min {min(times):.3f}  "
-              f"median {statistics.median(times):.3f}  max {max(times):.3f} s")
-        for robot, week, ap, rp, n in rows:
-            print(f"  {robot:<7} week of {week}  AP {ap:.4f} mm  RP {rp:.4f} mm  ({n:,} samples)")
+        print(f"lab summary (AP/RP per bench, robot, week, pose, velocity) over {held:,} samples (expected "
+              f"{total:,}), {len(groups)} groups: min {min(times):.3f}  median {statistics.median(times):.3f}  "
+              f"max {max(times):.3f} s")
+        print(f"load average during the run: {os.getloadavg()[0]:.1f} on {os.cpu_count()} CPUs")
     finally:
         if cluster is not None:
             cluster.close()

@@ -18,7 +18,7 @@ psycopg = pytest.importorskip("psycopg", reason='the lab store needs psycopg 3 (
 
 from bench.cli import main  # noqa: E402
 from bench.store import Store  # noqa: E402
-from bench.store.lab import LabStore, rows_checksum, sync_store  # noqa: E402
+from bench.store.lab import LAB_SCHEMA_VERSION, LabStore, rows_checksum, sync_store  # noqa: E402
 from postgres_support import PASSWORD, Cluster, lab_server, lab_url, make_store  # noqa: E402, F401  (fixtures)
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -152,8 +152,8 @@ def test_newer_server_schema_is_refused(tmp_path, lab_url, capsys):
         conn.execute("UPDATE bench.schema_version SET version = 7")
     capsys.readouterr()
     assert main(["sync", "--store", str(path), "--to", lab_url]) == 1
-    assert _one_error_line(capsys).endswith("server schema version 7 is newer than this bench's (1); "
-                                            "upgrade bench to sync")
+    assert _one_error_line(capsys).endswith(f"server schema version 7 is newer than this bench's "
+                                            f"({LAB_SCHEMA_VERSION}); upgrade bench to sync")
 
 
 def test_lab_wide_runs_with_filters(tmp_path, lab_url, capsys):
@@ -204,3 +204,21 @@ def test_benches_sync_at_once_through_a_kill_and_a_server_restart(tmp_path, lab_
         sync_store(store, lab_url)
     expected = {uuid: digest for p in paths for uuid, digest in local_checksums(p).items()}
     assert server_state(lab_url) == (8000, 8000, expected)
+
+
+def test_two_syncs_of_one_file_at_once_store_every_sample_once(tmp_path, lab_url):
+    """The second sync meets steps the first one committed after it asked (COPY's key violation): it skips them."""
+    path = make_store(tmp_path / "f.db", "bench-f", [4000, 4000])
+    with Store(path) as store:
+        sync_store(store, lab_url, batch_size=10_000)  # schema and runs in place; then the samples are removed
+    with psycopg.connect(lab_url, autocommit=True) as conn:
+        conn.execute("DELETE FROM bench.samples")
+    env = {**os.environ, "PYTHONPATH": str(ROOT)}
+    syncs = [subprocess.Popen([sys.executable, "-m", "bench.cli", "sync", "--store", str(path), "--to", lab_url,
+                               "--batch", "250"], cwd=ROOT, env=env, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL,
+                              text=True) for _ in range(2)]
+    outs = [p.communicate(timeout=120)[0] for p in syncs]
+    assert [p.returncode for p in syncs] == [0, 0]
+    sent = [int(out.split(" new samples")[0].rsplit(" ", 1)[1]) for out in outs]
+    assert sum(sent) == 8000
+    assert server_state(lab_url) == (8000, 8000, local_checksums(path))

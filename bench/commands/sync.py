@@ -27,6 +27,20 @@ def register(groups: argparse._SubParsersAction) -> None:
     sync.add_argument("--retries", type=int, default=3, help="reconnections after a lost connection")
     sync.set_defaults(handler=_sync)
 
+    text = "lab-wide figures from the lab's PostgreSQL store"
+    lab = groups.add_parser("lab", help=text, description=text)
+    lab_commands = lab.add_subparsers(dest="lab_command", required=True, metavar="COMMAND")
+    text = ("AP and RP (ISO 9283 7.2.1, 7.2.2) per bench, robot, week, pose, velocity and commanded position, "
+            "computed by the server")
+    summary = lab_commands.add_parser("summary", help=text, description=text)
+    summary.add_argument("--store", required=True, metavar="postgresql://USER:PASSWORD@HOST/DB", help="the lab store")
+    summary.add_argument("--since", default=None, metavar="DATE", help="only runs started on or after this UTC date")
+    summary.add_argument("--until", default=None, metavar="DATE", help="only runs started before this UTC date")
+    summary.add_argument("--bench", default=None, help="only this bench's runs")
+    summary.add_argument("--robot", default=None, help="only this robot's runs")
+    summary.add_argument("--json", action="store_true", help="one JSON object per group")
+    summary.set_defaults(handler=_lab_summary)
+
 
 def _sync(args: argparse.Namespace) -> int:
     from bench.store import Store
@@ -43,4 +57,40 @@ def _sync(args: argparse.Namespace) -> int:
                             progress=lambda line: print(line, file=sys.stderr, flush=True))
     print(f"synced {result.runs} runs, {result.calibrations} calibrations, {result.samples_sent} new samples "
           f"in {result.seconds:.2f} s ({result.samples_per_s:,.0f} samples/s) to {redacted(args.to)}")
+    return 0
+
+
+def _iso_date(option: str, text: str | None) -> str | None:
+    from datetime import datetime
+
+    if text is not None:
+        try:
+            datetime.fromisoformat(text)
+        except ValueError:
+            raise ConfigError(f"{option} {text}: expected an ISO date such as 2026-11-01") from None
+    return text
+
+
+def _lab_summary(args: argparse.Namespace) -> int:
+    import json
+
+    from bench.store.lab import LabStore, is_lab_url
+    from bench.store.lab_summary import pose_summary
+
+    if not is_lab_url(args.store):
+        raise ConfigError(f"--store {args.store}: lab summary needs the lab store, a postgresql:// URL")
+    since, until = _iso_date("--since", args.since), _iso_date("--until", args.until)
+    with LabStore(args.store) as lab:
+        groups = pose_summary(lab, since=since, until=until, bench=args.bench, robot=args.robot)
+    if args.json:
+        for group in groups:
+            print(json.dumps(group.as_dict(), default=str))
+        return 0
+    print(f"{'bench':<12} {'robot':<7} {'week':<10} {'pose':<6} {'velocity_pct':>12} {'n':>7} {'AP_mm':>9} "
+          f"{'RP_mm':>9}")
+    for g in groups:
+        velocity = "-" if g.velocity_pct is None else f"{g.velocity_pct:g}"
+        rp = "n<2" if g.rp_mm is None else f"{g.rp_mm:.4f}"
+        print(f"{g.bench:<12} {g.robot:<7} {g.week.isoformat():<10} {g.pose or '-':<6} {velocity:>12} {g.n:>7} "
+              f"{g.ap_mm:9.4f} {rp:>9}")
     return 0

@@ -32,6 +32,10 @@ Example (``examples/stations/`` holds one per seed setup)::
     [calliper]                     # readings the operator takes
     kind = "typed"                 # typed | serial
     resolution_mm = 0.01
+
+    [lab_store]                    # the lab's PostgreSQL store (docs/lab-store.md)
+    url = "postgresql://bench@lab-server/lab"   # password from ~/.pgpass or PGPASSWORD, or in the URL
+    auto_sync = true               # sync after every run ends (default); false: only `bench sync`
 """
 
 from __future__ import annotations
@@ -44,8 +48,8 @@ from typing import Any
 
 from bench.errors import ConfigError
 
-__all__ = ["CAPABILITY_KEYS", "CAPTURE_CAPABILITIES", "CalliperSpec", "CameraSpec", "ControllerSpec", "Identity", "LaserGridSpec",
-           "MiceSpec", "Station", "load_station", "parse_station"]
+__all__ = ["CAPABILITY_KEYS", "CAPTURE_CAPABILITIES", "CalliperSpec", "CameraSpec", "ControllerSpec", "Identity", "LabStoreSpec",
+           "LaserGridSpec", "MiceSpec", "Station", "load_station", "parse_station"]
 
 #: The robots a station can name, with their controllers' documented baud rates (docs/protocol-*.md).
 ROBOT_BAUD = {"pkm5": 115200, "delta4": 9600}
@@ -187,6 +191,14 @@ class CameraSpec:
 
 
 @dataclass(frozen=True)
+class LabStoreSpec:
+    """The lab store this bench syncs into: a PostgreSQL URL, and whether every run is synced when it ends."""
+
+    url: str
+    auto_sync: bool = True
+
+
+@dataclass(frozen=True)
 class Station:
     """One bench. ``source`` is the file it was read from (for messages)."""
 
@@ -197,6 +209,7 @@ class Station:
     calliper: CalliperSpec | None = None
     laser_grid: LaserGridSpec | None = None
     camera: CameraSpec | None = None
+    lab_store: LabStoreSpec | None = None  #: never stored with the runs (its URL may hold a password)
     source: str = "station"
     simulated: bool = False  #: every device is a simulator standing in for the one named (``bench run --sim``)
     devices: dict[str, str] = field(default_factory=dict, compare=False)  #: station key -> device as written
@@ -246,7 +259,7 @@ def load_station(path: str | Path) -> Station:
 
 def parse_station(data: Mapping[str, Any], *, source: str = "station") -> Station:
     """Validate a parsed station file; see the module docstring for the keys."""
-    known = ("station", "robot", "controller", "mice", "calliper", "laser_grid", "camera")
+    known = ("station", "robot", "controller", "mice", "calliper", "laser_grid", "camera", "lab_store")
     unknown = sorted(set(data) - set(known))
     if unknown:
         raise ConfigError(f"{source}: unknown table [{unknown[0]}], expected one of "
@@ -314,6 +327,15 @@ def parse_station(data: Mapping[str, Any], *, source: str = "station") -> Statio
         if not Path(camera.calibration).is_absolute() and source != "station":  # relative to the station file
             camera = CameraSpec(camera.device, str(Path(source).parent / camera.calibration), camera.plane)
         devices["camera.device"] = camera.device
+    lab_store = None
+    if "lab_store" in data:
+        table = _Table(source, "lab_store", data["lab_store"])
+        expected = "a postgresql://USER@HOST/DBNAME URL"
+        url = table.get("url", str, required=True, expected=expected)
+        if not url.startswith(("postgresql://", "postgres://")):
+            raise _fail(source, "lab_store.url", url, expected)
+        lab_store = LabStoreSpec(url=url, auto_sync=table.get("auto_sync", bool, True))
+        table.done()
     named: dict[str, str] = {}
     for key, device in devices.items():
         if device in named:
@@ -321,4 +343,4 @@ def parse_station(data: Mapping[str, Any], *, source: str = "station") -> Statio
                               "too)")
         named[device] = key
     return Station(robot=robot, controller=controller, identity=identity, mice=mice, calliper=calliper,
-                   laser_grid=grid, camera=camera, source=source, devices=devices)
+                   laser_grid=grid, camera=camera, lab_store=lab_store, source=source, devices=devices)

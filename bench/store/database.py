@@ -20,7 +20,7 @@ import sqlite3
 import subprocess
 import time
 import uuid
-from collections.abc import Iterable, Iterator, Mapping
+from collections.abc import Iterable, Iterator, Mapping, Sequence
 from dataclasses import dataclass
 from datetime import UTC, datetime
 from pathlib import Path
@@ -355,13 +355,16 @@ class Store:
                              wall_utc=r[6], values=json.loads(r[7]), raw=None if r[8] is None else json.loads(r[8]))
                 for r in self._db.execute(query, args)]
 
-    def stored_rows(self, run_id: int, after_step: int = -1) -> Iterator[tuple]:
+    def stored_rows(self, run_id: int, after_step: int = -1, *, extract: Sequence[str] = ()) -> Iterator[tuple]:
         """The samples of a run after step ``after_step`` exactly as stored, in step order: ``(step_index, kind,
         pose, cycle, t_s, wall_utc, values_json, raw_json)`` with the JSON unparsed (what sync sends and what
-        :func:`bench.store.lab.rows_checksum` hashes)."""
+        :func:`bench.store.lab.rows_checksum` hashes); with ``extract`` (two or more value names) a ninth item, the
+        JSON array of those values as stored (``null`` where absent; SQLite's ``json_extract``, number text kept)."""
+        paths = "".join(", ?" for _ in extract)
         return self._db.execute("SELECT step_index, kind, pose, cycle, t_s, wall_utc, values_json, raw_json"
-                                " FROM samples WHERE run_id = ? AND step_index > ? ORDER BY step_index",
-                                (int(run_id), int(after_step)))
+                                + (f", json_extract(values_json{paths})" if extract else "")
+                                + " FROM samples WHERE run_id = ? AND step_index > ? ORDER BY step_index",
+                                (*(f"$.{name}" for name in extract), int(run_id), int(after_step)))
 
     def sample_kinds(self, run_id: int) -> dict[str, int]:
         """How many samples of each kind run ``run_id`` holds, most frequent first."""

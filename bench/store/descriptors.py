@@ -19,7 +19,7 @@ from dataclasses import dataclass
 
 from bench.errors import BenchError
 
-__all__ = ["SAMPLE_KINDS", "Column", "SampleKind", "SampleMismatch", "dtype_of", "unit_of", "validate_sample"]
+__all__ = ["SAMPLE_KINDS", "VALUE_COLUMNS", "Column", "SampleKind", "SampleMismatch", "dtype_of", "unit_of", "validate_sample"]
 
 _KNOWN_UNITS = ("mm", "deg", "pct", "kg", "s", "counts")
 
@@ -99,6 +99,19 @@ SAMPLE_KINDS: dict[str, SampleKind] = {kind.name: kind for kind in (
                        for plane, axis in (("xy", "x"), ("xy", "y"), ("xz", "x"), ("xz", "z")))
                + _CONDITIONS),
 )}
+
+
+def _value_columns() -> tuple[Column, ...]:
+    seen: dict[str, Column] = {}
+    for kind in SAMPLE_KINDS.values():
+        for column in kind.columns:
+            seen.setdefault(column.name, column)
+    return tuple(seen.values())
+
+
+#: Every declared value column once (first declaration wins; a name means one quantity in one unit whichever kind
+#: carries it), in declaration order: the typed columns of the lab store (``bench.store.lab_copy``).
+VALUE_COLUMNS: tuple[Column, ...] = _value_columns()
 
 
 def validate_sample(kind: str, values: Mapping[str, float]) -> None:

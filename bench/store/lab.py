@@ -6,11 +6,15 @@ The local file stays the source of truth; the server holds copies, in the schema
   configuration (``config_json``), robot settings (``settings_json``), calibrations, software version, status;
 - ``bench.calibrations``: one row per calibration version, keyed by its UUID;
 - ``bench.samples``: one row per sample, keyed by ``(run_uuid, step_index)``, every stored column as the local file
-  holds it (JSON as text, byte for byte), so :func:`rows_checksum` is equal on both sides.
+  holds it (JSON as text, byte for byte), so :func:`rows_checksum` is equal on both sides, and one typed column per
+  declared value column (``x_mm``, ``velocity_pct``, ...: :mod:`bench.store.lab_copy`) for lab-wide queries.
+
+Schema versions: 1 had no typed columns; a bench of version 2 adds and fills them when it first connects.
 
 Sync is idempotent and resumable: runs and calibrations are upserted (the local file wins), and the samples the
 server lacks are sent in batches, each one COPY into a temporary table then ``INSERT ... ON CONFLICT DO NOTHING``
-in its own transaction. A sync killed or cut off mid-batch loses that batch's transaction only; the next sync asks
+in its own transaction; a batch goes out in chunks, so the server stores one chunk while the next is formatted.
+A sync killed or cut off mid-batch loses that batch's transaction only; the next sync asks
 the server which steps it holds and sends the rest, so every sample lands exactly once. Sync never writes to the
 local file.
 """
@@ -20,22 +24,25 @@ from __future__ import annotations
 import hashlib
 import json
 import logging
+import sys
 import time
-from collections.abc import Callable, Iterable
+from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass
 from typing import Any, Self
 from urllib.parse import urlsplit, urlunsplit
 
 from bench.errors import BenchError, ConfigError
 from bench.store.database import RunRecord, Store
+from bench.store.lab_copy import (COPY_COLUMNS, SAMPLE_COLUMNS, TYPED_COLUMNS, copy_text,
+                                  typed_columns_ddl)
 
 __all__ = ["LAB_SCHEMA_VERSION", "LabStore", "LabStoreError", "LabURLError", "SyncResult", "is_lab_url",
-           "open_runs_store", "redacted", "rows_checksum", "sync_store"]
+           "open_runs_store", "redacted", "rows_checksum", "sync_after_run", "sync_store"]
 
 _log = logging.getLogger(__name__)
 
 #: The lab schema version this bench writes (kept in ``bench.schema_version``).
-LAB_SCHEMA_VERSION = 1
+LAB_SCHEMA_VERSION = 2
 
 _DDL = """
 CREATE SCHEMA IF NOT EXISTS bench;
@@ -86,10 +93,16 @@ CREATE TABLE IF NOT EXISTS bench.samples (
 );
 """
 
-_SAMPLE_COLUMNS = "step_index, kind, pose, cycle, t_s, wall_utc, values_json, raw_json"
+_SAMPLE_COLUMNS = ", ".join(SAMPLE_COLUMNS)
+_COPY_COLUMNS = ", ".join(f'"{c}"' for c in COPY_COLUMNS)
+_CHUNK_ROWS = 2_000  # rows per COPY write: small enough to overlap formatting with the server's work
 _RUN_COLUMNS = ("uuid", "bench", "local_id", "campaign", "protocol_name", "protocol_version", "robot", "config_json",
                 "settings_json", "calibration_ids_json", "calibration_uuids_json", "software_version", "git_sha",
                 "status", "reason", "started_utc", "ended_utc")
+#: Version 1 -> 2: each typed column from the stored JSON, where it holds a number there.
+_BACKFILL_TYPED = ("UPDATE bench.samples SET " + ", ".join(
+    f"\"{name}\" = CASE WHEN jsonb_typeof(values_json::jsonb -> '{name}') = 'number'"
+    f" THEN (values_json::jsonb ->> '{name}')::double precision END" for name in TYPED_COLUMNS))
 _LOCK_KEY = 9283_21  # advisory lock serialising schema creation by benches that connect at once
 
 
@@ -163,7 +176,14 @@ def ensure_schema(conn, url: str) -> None:
                                     f"this bench's ({LAB_SCHEMA_VERSION}); upgrade bench to sync")
             if found == LAB_SCHEMA_VERSION:
                 return
+        else:
+            found = None
         conn.execute(_DDL)
+        conn.execute(typed_columns_ddl("bench.samples"))
+        if found == 1:  # version 1 had no typed columns: fill them from the JSON the server holds
+            _log.warning("lab store %s: schema version 1 migrated to %s (typed value columns filled)",
+                         redacted(url), LAB_SCHEMA_VERSION)
+            conn.execute(_BACKFILL_TYPED)
         conn.execute("DELETE FROM bench.schema_version")
         conn.execute("INSERT INTO bench.schema_version VALUES (%s)", (LAB_SCHEMA_VERSION,))
 
@@ -202,25 +222,14 @@ def _run_row(store: Store, run: RunRecord, calibration_uuids: dict[int, str]) ->
             run.software_version, run.git_sha, run.status, run.reason, run.started_utc, run.ended_utc)
 
 
-_NULL = "\\N"
-_COPY_ESCAPES = str.maketrans({"\\": "\\\\", "\t": "\\t", "\n": "\\n", "\r": "\\r"})
+def _copy_rows(cur, table: str, run_uuid: str, rows: list[tuple]) -> None:
+    """COPY ``rows`` into ``table``, one write per chunk: the server parses and indexes a chunk while the next is
+    formatted (the client's and the server's work overlap rather than add up)."""
+    from psycopg.copy import QueuedLibpqWriter  # writes from a thread while this one formats
 
-
-def _text(value: str | None) -> str:
-    if value is None:
-        return _NULL
-    if "\\" in value or "\t" in value or "\n" in value or "\r" in value:  # rare: JSON escapes its own controls
-        return value.translate(_COPY_ESCAPES)
-    return value
-
-
-def _copy_text(run_uuid: str, rows: list[tuple]) -> bytes:
-    """Rows in COPY's text format (PostgreSQL manual, COPY, "Text Format"): tab-separated, ``\\N`` for NULL,
-    backslash escapes for backslash, tab, newline and carriage return; floats as their shortest round-trip repr."""
-    lines = [f"{run_uuid}\t{step}\t{_text(kind)}\t{_text(pose)}\t{_NULL if cycle is None else cycle}\t"
-             f"{float(t_s)!r}\t{_text(wall)}\t{_text(values)}\t{_text(raw)}\n"
-             for step, kind, pose, cycle, t_s, wall, values, raw in rows]
-    return "".join(lines).encode()
+    with cur.copy(f"COPY {table} ({_COPY_COLUMNS}) FROM STDIN", writer=QueuedLibpqWriter(cur)) as copy:
+        for start in range(0, len(rows), _CHUNK_ROWS):
+            copy.write(copy_text(run_uuid, rows[start:start + _CHUNK_ROWS]))
 
 
 def _push(store: Store, conn, *, batch_size: int, progress: Callable[[str], None], sent: list[int]
@@ -252,23 +261,21 @@ def _push(store: Store, conn, *, batch_size: int, progress: Callable[[str], None
         conn.commit()
         if len(held) == run.n_samples:
             continue
-        pending = (row for row in store.stored_rows(run.id) if row[0] not in held)
+        rows = store.stored_rows(run.id, extract=TYPED_COLUMNS)
+        pending = (row for row in rows if row[0] not in held) if held else rows
         while True:
             batch = [row for _, row in zip(range(batch_size), pending)]
             if not batch:
                 break
-            data = _copy_text(run.uuid, batch)
             try:  # fast path: straight into bench.samples, the server lacked these steps when asked
                 with conn.transaction(), conn.cursor() as cur:
-                    with cur.copy(f"COPY bench.samples (run_uuid, {_SAMPLE_COLUMNS}) FROM STDIN") as copy:
-                        copy.write(data)
+                    _copy_rows(cur, "bench.samples", run.uuid, batch)
                 inserted = len(batch)
             except psycopg.errors.UniqueViolation:  # another sync of this file got there first: skip its rows
                 with conn.transaction(), conn.cursor() as cur:
-                    with cur.copy(f"COPY sample_stage (run_uuid, {_SAMPLE_COLUMNS}) FROM STDIN") as copy:
-                        copy.write(data)
-                    cur.execute(f"INSERT INTO bench.samples (run_uuid, {_SAMPLE_COLUMNS})"
-                                f" SELECT run_uuid, {_SAMPLE_COLUMNS} FROM sample_stage ON CONFLICT DO NOTHING")
+                    _copy_rows(cur, "sample_stage", run.uuid, batch)
+                    cur.execute(f"INSERT INTO bench.samples ({_COPY_COLUMNS}) SELECT {_COPY_COLUMNS}"
+                                " FROM sample_stage ON CONFLICT DO NOTHING")
                     inserted = cur.rowcount
             sent[0] += inserted  # counted once its transaction has committed
             progress(f"sync: run {run.id} ({run.uuid}) +{len(batch)} samples")
@@ -309,6 +316,25 @@ def sync_store(store: Store, url: str, *, batch_size: int = 20_000, retries: int
             attempt += 1
             report(f"sync: {_one_line(exc)}; retry {attempt} of {retries}")
             time.sleep(retry_wait_s * 2 ** (attempt - 1))
+
+
+def sync_after_run(store: Store, url: str, *, say: Callable[[str], None] | None = None) -> SyncResult | None:
+    """Sync ``store`` to ``url`` once a run has ended (``[lab_store] auto_sync``), never failing the run: any
+    failure (server down, credentials, a bug) is one line on stderr (``say``) and the next sync catches up, since
+    the local file stays the source of truth. Returns the result, or None when the sync failed."""
+    tell = say or (lambda line: print(line, file=sys.stderr, flush=True))
+    try:
+        result = sync_store(store, url, retries=1, retry_wait_s=0.5, progress=lambda line: None)
+    except BenchError as exc:
+        tell(f"bench: lab store sync failed, the run is kept locally (bench sync catches up): {_one_line(exc)}")
+        return None
+    except Exception as exc:  # noqa: BLE001 - the local run must survive whatever the sync meets
+        _log.exception("lab store sync after the run failed")
+        tell(f"bench: lab store sync failed, the run is kept locally (bench sync catches up): "
+             f"{type(exc).__name__}: {_one_line(exc)}")
+        return None
+    tell(f"bench: synced to the lab store {redacted(url)}: {result.samples_sent} new samples")
+    return result
 
 
 class LabStore:
@@ -363,8 +389,11 @@ class LabStore:
         self._conn.rollback()
         return result
 
-    def query(self, sql: str, args: Any = ()) -> list[tuple]:
-        """Rows of a read-only SQL query over the lab schema (for lab-wide analyses and benchmarks)."""
+    def query(self, sql: str, args: Any = (), *, settings: Mapping[str, str] | None = None) -> list[tuple]:
+        """Rows of a read-only SQL query over the lab schema (for lab-wide analyses and benchmarks); ``settings``
+        (e.g. ``{"work_mem": "256MB"}``) are server settings for this query's transaction only."""
+        for name, value in (settings or {}).items():
+            self._conn.execute("SELECT set_config(%s, %s, true)", (name, value))
         cursor = self._conn.execute(sql, args)
         rows = cursor.fetchall() if cursor.description else []
         self._conn.rollback()

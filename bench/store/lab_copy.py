@@ -1,0 +1,105 @@
+"""Sample rows in PostgreSQL's COPY text format, with the typed value columns of the lab store.
+
+``bench.samples`` on the server keeps every stored column byte for byte (``values_json`` as text, so checksums are
+equal on both sides) and, beside it, one ``double precision`` column per declared value column
+(:data:`bench.store.descriptors.VALUE_COLUMNS`: ``x_mm``, ``cmd_x_mm``, ``velocity_pct``, ...), NULL where the
+sample lacks it, so lab-wide queries read numbers instead of parsing JSON. Integers (dtype ``int``) are exact in a
+double up to 2**53.
+
+The typed fields are cut from SQLite's ``json_extract`` of all value columns at once (one JSON array per sample,
+number text as stored): its commas become tabs and its ``null`` becomes COPY's ``\\N``. That holds only while the
+array holds nothing but numbers and nulls (always, for declared kinds); any other value (a string, a boolean, a
+nested object, in an undeclared kind) sends the row through :func:`_typed_fields_slow`, which keeps the numbers and
+sends NULL for the rest.
+
+Format: PostgreSQL manual, COPY, "Text Format": tab-separated, ``\\N`` for NULL, backslash escapes for backslash,
+tab, newline and carriage return.
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Iterable
+
+from bench.store.descriptors import VALUE_COLUMNS
+
+__all__ = ["COPY_COLUMNS", "SAMPLE_COLUMNS", "TYPED_COLUMNS", "copy_text", "typed_columns_ddl"]
+
+#: The sample columns as the local store holds them (``Store.stored_rows`` order).
+SAMPLE_COLUMNS = ("step_index", "kind", "pose", "cycle", "t_s", "wall_utc", "values_json", "raw_json")
+#: The typed value columns, from the descriptors.
+TYPED_COLUMNS: tuple[str, ...] = tuple(c.name for c in VALUE_COLUMNS)
+#: The columns a COPY of :func:`copy_text` fills, in order.
+COPY_COLUMNS = ("run_uuid", *SAMPLE_COLUMNS, *TYPED_COLUMNS)
+
+_NULL = "\\N"
+_COPY_ESCAPES = str.maketrans({"\\": "\\\\", "\t": "\\t", "\n": "\\n", "\r": "\\r"})
+_EMPTY_TYPED = "\t".join([_NULL] * len(TYPED_COLUMNS))
+
+
+def typed_columns_ddl(table: str) -> str:
+    """``ALTER TABLE`` statements adding the typed columns to ``table`` where missing (idempotent)."""
+    return "".join(f'ALTER TABLE {table} ADD COLUMN IF NOT EXISTS "{name}" double precision;\n'
+                   for name in TYPED_COLUMNS)
+
+
+def _text(value: str | None) -> str:
+    if value is None:
+        return _NULL
+    if "\\" in value or "\t" in value or "\n" in value or "\r" in value:  # rare: JSON escapes its own controls
+        return value.translate(_COPY_ESCAPES)
+    return value
+
+
+def _number(value: object) -> str:
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        return _NULL
+    return repr(value) if isinstance(value, float) else str(value)
+
+
+def _typed_fields_slow(values_json: str) -> str:
+    """The typed fields of a sample whose values are not all numbers: numbers kept, anything else NULL."""
+    values = json.loads(values_json)
+    if not isinstance(values, dict):
+        return _EMPTY_TYPED
+    return "\t".join(_number(values.get(name)) for name in TYPED_COLUMNS)
+
+
+def _typed_fields(values_json: str, extracted: str | None) -> str:
+    """The typed fields (tab-separated) from ``extracted``, the JSON array of :data:`TYPED_COLUMNS` as stored."""
+    if extracted is None:  # values_json is not an object
+        return _EMPTY_TYPED
+    # Numbers and null only: no string ("), boolean (t, f), object ({) or inner array ([).
+    if '"' in extracted or "t" in extracted or "f" in extracted or "{" in extracted or "[" in extracted[1:]:
+        return _typed_fields_slow(values_json)
+    return extracted[1:-1].replace(",", "\t").replace("null", _NULL)
+
+
+def _line(run_uuid: str, row: tuple) -> str:
+    """One COPY line, escaping every text field (the general path of :func:`copy_text`)."""
+    step, kind, pose, cycle, t_s, wall, values, raw, extracted = row
+    return (f"{run_uuid}\t{step}\t{_text(kind)}\t{_text(pose)}\t{_NULL if cycle is None else cycle}\t"
+            f"{float(t_s)!r}\t{_text(wall)}\t{_text(values)}\t{_text(raw)}\t{_typed_fields(values, extracted)}\n")
+
+
+def copy_text(run_uuid: str, rows: Iterable[tuple]) -> bytes:
+    """Rows of ``Store.stored_rows(run_id, extract=TYPED_COLUMNS)`` as COPY text for :data:`COPY_COLUMNS`;
+    ``t_s`` as its shortest round-trip repr.
+
+    The common row (no text needing an escape, a pose and a raw record or none, typed values all numbers) is
+    formatted inline; any other goes through :func:`_line`."""
+    lines = []
+    for row in rows:
+        step, kind, pose, cycle, t_s, wall, values, raw, extracted = row
+        if extracted is None or pose is None or cycle is None:
+            lines.append(_line(run_uuid, row))
+            continue
+        texts = f"{kind}{pose}{wall}{values}{raw}{extracted}"
+        if ("\\" in texts or "\t" in texts or "\n" in texts or "\r" in texts or '"' in extracted
+                or "t" in extracted or "f" in extracted or "{" in extracted or "[" in extracted[1:]):
+            lines.append(_line(run_uuid, row))
+            continue
+        typed = extracted[1:-1].replace(",", "\t").replace("null", _NULL)
+        lines.append(f"{run_uuid}\t{step}\t{kind}\t{pose}\t{cycle}\t{float(t_s)!r}\t{wall}\t{values}\t"
+                     f"{_NULL if raw is None else raw}\t{typed}\n")
+    return "".join(lines).encode()
