@@ -132,6 +132,13 @@ static inline void latch_compares(void) {
 }
 
 ISR(TIMER1_OVF_vect) {  /* once per PWM period, at TOP */
+  static uint16_t next_compare[SERVOS];
+  static uint8_t compares_changed;
+  if (compares_changed) {  /* first thing after TOP: last period's slew step, for the period just begun */
+    for (uint8_t i = 0; i < SERVOS; i++) set_compare(i, next_compare[i]);
+    latch_compares();
+    compares_changed = 0;
+  }
   ticks++;
   if (!started) return;
   uint8_t moving = 0;
@@ -141,11 +148,11 @@ ISR(TIMER1_OVF_vect) {  /* once per PWM period, at TOP */
       if (goal > now) now = goal - now > SLEW_Q8_PER_PERIOD ? now + SLEW_Q8_PER_PERIOD : goal;
       else now = now - goal > SLEW_Q8_PER_PERIOD ? now - SLEW_Q8_PER_PERIOD : goal;
       setpoint_q8[i] = now;
-      set_compare(i, (uint16_t)((now >> 8) - 1));  /* fast PWM: high for OCR + 1 ticks */
       moving = 1;
     }
+    next_compare[i] = (uint16_t)((now >> 8) - 1);  /* fast PWM: high for OCR + 1 ticks */
   }
-  if (moving) latch_compares();
+  compares_changed = moving;
   if (moving) {
     settled_periods = 0;
     if (WATCHDOG_MS && ticks - last_rx_tick > PERIODS(WATCHDOG_MS)) {  /* the host is gone: hold here */
