@@ -17,7 +17,7 @@ from bench.robots import delta4_wire as wire
 from bench.robots.delta4 import DEFAULT_BAUDRATE, HOME_MM, Delta4Controller
 from bench.sensors.lasergrid import GridGeometry, decode_frame
 from bench.simulators.lasergrid import LaserGridSimulator
-from tests.firmware_sim import F_CPU_HZ, ROOT, build, needs_toolchain
+from tests.firmware_sim import F_CPU_HZ, ROOT, needs_toolchain
 
 pytestmark = needs_toolchain
 
@@ -89,17 +89,26 @@ def received_at(events, byte: bytes):
     return [c for c, kind, channel, _ in events if kind == "RX" and bytes.fromhex(channel) == byte]
 
 
+def build_delta4(out_dir, **options):
+    """firmware/delta4 and its harness built into ``out_dir`` with make variables ``options``; returns
+    ((elf, harness), the build's output with avr-size)."""
+    targets = [str(out_dir / name) for name in ("delta4.elf", "delta4_harness")]
+    done = subprocess.run(["make", "-C", str(ROOT / "firmware"), f"BUILD={out_dir}", *targets,
+                           *(f"{k}={v}" for k, v in options.items())], capture_output=True, text=True, timeout=120)
+    if done.returncode:
+        raise AssertionError(f"firmware build failed:\n{done.stdout}\n{done.stderr}")
+    return (out_dir / "delta4.elf", out_dir / "delta4_harness"), done.stdout
+
+
 @pytest.fixture(scope="module")
 def built(tmp_path_factory):
-    elf, _, output = build(tmp_path_factory.mktemp("firmware"))
-    return (elf.parent / "delta4.elf", elf.parent / "delta4_harness"), output
+    return build_delta4(tmp_path_factory.mktemp("firmware"))
 
 
 @pytest.fixture(scope="module")
 def built_watchdog(tmp_path_factory):
     """Slow servos (30 deg/s) and a 200 ms link watchdog, so that a move outlasts the watchdog."""
-    elf, _, _ = build(tmp_path_factory.mktemp("firmware_wd"), DELTA4_SLEW_DEG_S=30, DELTA4_WATCHDOG_MS=200)
-    return elf.parent / "delta4.elf", elf.parent / "delta4_harness"
+    return build_delta4(tmp_path_factory.mktemp("firmware_wd"), DELTA4_SLEW_DEG_S=30, DELTA4_WATCHDOG_MS=200)[0]
 
 
 @pytest.fixture
@@ -160,6 +169,29 @@ def test_moves_are_slew_limited_and_z_follows_the_end(mcu):
     assert abs(moving[-1] - moving[0] - (end - start) / step_ticks) <= 2  # it took travel / slew limit
     steps = np.diff(widths[moving[0] + 1:moving[-1]])
     assert np.all(np.abs(steps - step_ticks) <= 2), steps  # and never stepped faster
+
+
+def test_calibrated_mapping_and_a_50_hz_refresh_as_build_options(tmp_path):
+    (elf, harness), _ = build_delta4(tmp_path, DELTA4_MAPPING="calibrated", DELTA4_PERIOD_US=20000)
+    mcu = EmulatedDelta4((elf, harness), tmp_path / "events.txt")
+    mapping = wire.CalibratedMapping()
+    angles = np.array([30.0, 71.657, 120.0, 170.0])
+    try:
+        with Delta4Controller(mcu.open(), mapping=mapping, **SLOW) as robot:
+            robot.start(verify_timeout_s=10.0)
+            values = robot.move_servos(angles, require_settled=True).command_bytes
+            settled_s, fresh = time.monotonic(), 0
+            while fresh < 3:  # 3 reports begun after the z: >= 160 ms of emulated time at rest
+                fresh += robot.read_sensor_frame(10.0).t_first_token_s > settled_s
+    finally:
+        events = mcu.close()
+    assert values == (0, 76, 164, 255)
+    tick_cycles = 8  # prescaler 8: 0.5 us per tick
+    for servo in range(4):
+        rest = pulses(events, servo + 1)[-6:-1]
+        expected_cycles = expected_pulse_ticks(mapping, [values[servo]])[0] / 16 * F_CPU_HZ / 1e6
+        assert abs(np.median([w for _, w in rest]) - expected_cycles) <= tick_cycles, servo
+        assert np.median(np.diff([r for r, _ in rest])) == pytest.approx(0.020 * F_CPU_HZ, abs=tick_cycles)
 
 
 def test_laser_grid_hits_on_the_screen_inputs_are_reported_and_decode_as_the_document(mcu):
@@ -227,49 +259,60 @@ def read_for(port, seconds):
     return data
 
 
-def replies(port, script, waits):
-    """Non-report replies (the `z`s) to each step; a report is `h`/`H..X` then `v`/`V..X`, no grid here."""
+def replies(port, steps, quiet_s=0.3, timeout_s=10.0):
+    """Replies to each step, sensor reports taken out (no grid here: `h` and `v`): wait for the step's expected
+    `z` (up to ``timeout_s``), then for ``quiet_s`` more, so that a missing or an extra `z` shows in its step."""
     out = []
-    for raw, wait_s in zip(script, waits):
+    for raw, expected, _ in steps:
         port.write(raw)
-        data = read_for(port, wait_s)
+        data, deadline = b"", time.monotonic() + timeout_s
+        while data.replace(b"h", b"").replace(b"v", b"") != expected and time.monotonic() < deadline:
+            data += port.read(256)
+        data += read_for(port, quiet_s)
         out.append(data.replace(b"h", b"").replace(b"v", b""))
     return out
 
 
+#: (bytes sent, the reply expected once sensor reports are taken out, why)
 REPLAY = [
-    (b"P100X", "stored while stopped: nothing until E"),
-    (b"E", "start: the stored reference is applied, one z"),
-    (b"E", "start again: nothing"),
-    (b"P080XQ075XR110XS090X", "four references: one z"),
-    (b"P1234X", "four digits: discarded"),
-    (b"P256X", "value over 255: discarded"),
-    (b"PX", "no digit: discarded"),
-    (b"Q12E", "broken by E: discarded, then E (already started)"),
-    (b"T", "undocumented T: ignored"),
-    (b"\x00\xff*#zzX17", "garbage and acks: ignored"),
-    (b"R5X", "one digit: accepted, z"),
-    (b"G", "stop: no reports, no z"),
-    (b"S070X", "stored while stopped"),
-    (b"E", "start: z"),
-    (b"G", "stop"),
+    (b'P100X', b'', "stored while stopped: nothing until E"),
+    (b'E', b'z', "start: the stored reference is applied, one z"),
+    (b'E', b'', "start again: nothing"),
+    (b'P080XQ075XR110XS090X', b'z', "four references: one z"),
+    (b'P1234X', b'', "four digits: discarded"),
+    (b'P256X', b'', "value over 255: discarded"),
+    (b'PX', b'', "no digit: discarded"),
+    (b'Q12E', b'', "broken by E: discarded, then E (already started)"),
+    (b'T', b'', "undocumented T: ignored"),
+    (b'\x00\xff*#zzX17', b'', "garbage and acks: ignored"),
+    (b'R5X', b'z', "one digit: accepted, z"),
+    (b'PP100X', b'z', "a letter restarts the message: P100X accepted, z"),
+    (b'P0100X', b'', "four digits with a leading zero: discarded"),
+    (b'p100x', b'', "lower case: ignored"),
+    (b'P200XG', b'', "stopped mid-move: no z while stopped"),
+    (b'E', b'z', "restarted: the move goes on, z"),
+    (b'G', b'', "stop: no reports, no z"),
+    (b'E', b'', "start with nothing stored: no z"),
+    (b'G', b'', "stop"),
+    (b'S070X', b'', "stored while stopped"),
+    (b'E', b'z', "start: z"),
+    (b'G', b'', "stop"),
 ]
 
 
 def test_one_script_gets_the_same_replies_from_firmware_and_simulator(mcu):
-    script = [raw for raw, _ in REPLAY]
     simulator = subprocess.Popen([sys.executable, "-m", "bench.simulators.delta4", "--ideal", "--no-grid",
-                                  "--speed-factor", "4"], cwd=ROOT, stdout=subprocess.PIPE,
+                                  "--speed-factor", "8"], cwd=ROOT, stdout=subprocess.PIPE,
                                  stderr=subprocess.DEVNULL, text=True)
     try:
         import serial
         path = simulator.stdout.readline().strip()
         with serial.serial_for_url(path, timeout=0.05) as port:
-            from_simulator = replies(port, script, [1.0] * len(script))
+            from_simulator = replies(port, REPLAY)
     finally:
         simulator.terminate()
         simulator.wait(timeout=10)
     with mcu.open() as port:
-        from_firmware = replies(port, script, [1.5] * len(script))
-    assert from_simulator == [b"", b"z", b"", b"z", b"", b"", b"", b"", b"", b"", b"z", b"", b"", b"z", b""]
+        from_firmware = replies(port, REPLAY)
+    assert from_simulator == [expected for _, expected, _ in REPLAY]
     assert from_firmware == from_simulator
