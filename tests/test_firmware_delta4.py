@@ -107,8 +107,8 @@ def built(tmp_path_factory):
 
 @pytest.fixture(scope="module")
 def built_watchdog(tmp_path_factory):
-    """Slow servos (30 deg/s) and a 200 ms link watchdog, so that a move outlasts the watchdog."""
-    return build_delta4(tmp_path_factory.mktemp("firmware_wd"), DELTA4_SLEW_DEG_S=30, DELTA4_WATCHDOG_MS=200)[0]
+    """Slow servos (20 deg/s) and a 400 ms link watchdog, so that a move outlasts the watchdog."""
+    return build_delta4(tmp_path_factory.mktemp("firmware_wd"), DELTA4_SLEW_DEG_S=20, DELTA4_WATCHDOG_MS=400)[0]
 
 
 @pytest.fixture
@@ -168,7 +168,7 @@ def test_moves_are_slew_limited_and_z_follows_the_end(mcu):
     assert widths[0] == pytest.approx(start, abs=2) and widths[-1] == pytest.approx(end, abs=2)
     assert abs(moving[-1] - moving[0] - (end - start) / step_ticks) <= 2  # it took travel / slew limit
     steps = np.diff(widths[moving[0] + 1:moving[-1]])
-    assert np.all(np.abs(steps - step_ticks) <= 2), steps  # and never stepped faster
+    assert np.all(np.abs(steps - step_ticks) <= 5), steps  # and never stepped faster (edge jitter: a few cycles)
 
 
 def test_calibrated_mapping_and_a_50_hz_refresh_as_build_options(tmp_path):
@@ -194,6 +194,15 @@ def test_calibrated_mapping_and_a_50_hz_refresh_as_build_options(tmp_path):
         assert np.median(np.diff([r for r, _ in rest])) == pytest.approx(0.020 * F_CPU_HZ, abs=tick_cycles)
 
 
+def first_frames_showing(robot, horizontal, vertical, limit=40):
+    """Reports up to the first that shows this pattern, and the one after it (the pattern holds)."""
+    frames = []
+    while len(frames) < limit and (not frames or (frames[-1].horizontal, frames[-1].vertical) != (horizontal,
+                                                                                                 vertical)):
+        frames.append(robot.read_sensor_frame(10.0))
+    return frames + [robot.read_sensor_frame(10.0)]
+
+
 def test_laser_grid_hits_on_the_screen_inputs_are_reported_and_decode_as_the_document(mcu):
     geometry = GridGeometry()
     pose_mm = np.array([5.0, 5.0, -150.0])
@@ -203,23 +212,21 @@ def test_laser_grid_hits_on_the_screen_inputs_are_reported_and_decode_as_the_doc
         robot.start(verify_timeout_s=10.0)
         mcu.light("H", [121])  # Fig. 10 a: BE over sensor (7, 7), moved 5 mm in +x: G5-a on (9, 7)
         mcu.light("V", [])
-        time.sleep(0.3)
-        frames = [robot.read_sensor_frame(10.0) for _ in range(6)]
+        frames = first_frames_showing(robot, (121,), ())
         mcu.light("H", horizontal + (200, 17))
         mcu.light("V", vertical)
-        time.sleep(0.3)
-        later = [robot.read_sensor_frame(10.0) for _ in range(6)]
-    assert (frames[-1].horizontal, frames[-1].vertical) == ((121,), ())
+        later = first_frames_showing(robot, tuple(sorted(horizontal + (200, 17))), vertical)
+    assert [(f.horizontal, f.vertical) for f in frames[-2:]] == [((121,), ())] * 2
     decoded = decode_frame(geometry, frames[-1].horizontal, [], np.array([0.0, -5.0, -150.0]))
     assert decoded.position_mm[:2] == (0.0, -5.0) and decoded.horizontal.lasers == ("G5-a",)
-    assert later[-1].horizontal == tuple(sorted(horizontal + (200, 17))) and later[-1].vertical == vertical
+    assert [(f.horizontal, f.vertical) for f in later[-2:]] == [(tuple(sorted(horizontal + (200, 17))), vertical)] * 2
     decoded = decode_frame(geometry, [i for i in later[-1].horizontal if i in horizontal], later[-1].vertical,
                            pose_mm + [1.0, -1.0, 1.0])
     assert decoded.position_mm == tuple(pose_mm)
     events = mcu.close()
     on = [c for c, kind, channel, value in events if kind == "LASER" and channel == "1" and value == "1"]
     off = [c for c, kind, channel, value in events if kind == "LASER" and channel == "1" and value == "0"]
-    assert len(on) >= 10
+    assert len(on) >= 4
     assert np.all(np.array(off[:len(on)]) - np.array(on[:len(off)]) >= 1e-3 * F_CPU_HZ)  # 1 ms on before the load
     assert abs(np.median(np.diff(on)) / F_CPU_HZ - 0.080) < 0.003  # one frame per 80 ms (§5.5)
 
@@ -228,9 +235,9 @@ def test_watchdog_holds_the_servos_when_the_host_falls_silent(built_watchdog, tm
     mcu = EmulatedDelta4(built_watchdog, tmp_path / "events.txt")
     try:
         port = mcu.open()
-        port.write(b"E" + wire.format_servo_command(0, 200))  # 96 -> 200: 77 deg at 30 deg/s, 2.6 s
-        silent = read_for(port, 1.5)
-        port.write(wire.format_servo_command(1, 60))  # servo 2: 96 -> 60, 27 deg in 0.9 s, with heartbeats
+        port.write(b"E" + wire.format_servo_command(0, 200))  # 96 -> 200: 77 deg at 20 deg/s, 3.9 s
+        silent = read_for(port, 2.0)
+        port.write(wire.format_servo_command(1, 60))  # servo 2: 96 -> 60, 27 deg in 1.3 s, with heartbeats
         beaten, deadline = b"", time.monotonic() + 20.0
         while b"z" not in beaten and time.monotonic() < deadline:
             beaten += read_for(port, 0.05)
@@ -246,10 +253,10 @@ def test_watchdog_holds_the_servos_when_the_host_falls_silent(built_watchdog, tm
     widths = pulses(events, 1)
     changes = [r for (_, w0), (r, w) in zip(widths, widths[1:]) if abs(w - w0) > 4 and last_byte < r < second_move]
     held_s = (changes[-1] - last_byte) / F_CPU_HZ
-    assert 0.2 <= held_s <= 0.2 + 4 * 0.002, held_s  # stopped by the 200 ms watchdog (+ 4 PWM periods)
+    assert 0.4 - 0.002 <= held_s <= 0.4 + 4 * 0.002, held_s  # stopped by the 400 ms watchdog (+ 4 PWM periods)
     home = expected_pulse_ticks(wire.LegacyVbMapping(), [96])[0]
     moved_deg = (widths[-1][1] - home) / (16000 / 180)
-    assert 3.0 < moved_deg < 6.5, moved_deg  # 0.2 s at 30 deg/s, then it stayed where it stopped
+    assert 6.0 < moved_deg < 8.6, moved_deg  # 0.4 s at 20 deg/s, then it stayed where it stopped
 
 
 def read_for(port, seconds):
