@@ -107,7 +107,7 @@ static volatile uint8_t settled_periods, frame_periods;
 static volatile uint32_t setpoint_q8[SERVOS], target_q8[SERVOS];
 static volatile uint16_t watchdog_stops;
 
-static volatile uint8_t rx_buf[32], rx_head, rx_tail;
+static volatile uint8_t rx_buf[64], rx_head, rx_tail;
 static volatile uint8_t tx_buf[64], tx_head, tx_tail;
 
 /* Pulse of `servo` = `value` + 1 ticks from the next period on (OCRnx is double-buffered to BOTTOM). */
@@ -188,9 +188,11 @@ ISR(USART0_UDRE_vect) {
   tx_tail = (uint8_t)((tx_tail + 1) % sizeof tx_buf);
 }
 
+static void service_rx(void);
+
 static void put(uint8_t byte) {
   uint8_t next = (uint8_t)((tx_head + 1) % sizeof tx_buf);
-  while (next == tx_tail) {}  /* full: wait for the UART */
+  while (next == tx_tail) service_rx();  /* full: wait for the UART, handling commands meanwhile (a long report) */
   tx_buf[tx_head] = byte;
   tx_head = next;
   UCSR0B |= _BV(UDRIE0);
@@ -353,14 +355,18 @@ static void setup(void) {
   sei();
 }
 
+static void service_rx(void) {  /* on_byte never calls put(): safe inside its wait */
+  while (rx_tail != rx_head) {
+    uint8_t byte = rx_buf[rx_tail];
+    rx_tail = (uint8_t)((rx_tail + 1) % sizeof rx_buf);
+    on_byte(byte);
+  }
+}
+
 int main(void) {
   setup();
   for (;;) {
-    while (rx_tail != rx_head) {
-      uint8_t byte = rx_buf[rx_tail];
-      rx_tail = (uint8_t)((rx_tail + 1) % sizeof rx_buf);
-      on_byte(byte);
-    }
+    service_rx();
     if (z_due) {
       z_due = 0;
       put('z');
