@@ -1,0 +1,120 @@
+/* See bridge.h. */
+#define _GNU_SOURCE
+#include "bridge.h"
+
+#include <errno.h>
+#include <fcntl.h>
+#include <signal.h>
+#include <stdlib.h>
+#include <string.h>
+#include <termios.h>
+#include <time.h>
+#include <unistd.h>
+
+#include "avr_uart.h"
+#include "sim_elf.h"
+
+static int pty_master, pty_slave;
+static int uart_xon;
+static avr_irq_t *uart_input;
+static uint8_t pending[256];
+static size_t pending_len, pending_done;
+static volatile sig_atomic_t stopping;
+
+static void on_tx(struct avr_irq_t *irq, uint32_t value, void *param) {
+  (void)irq;
+  (void)param;
+  uint8_t byte = (uint8_t)value;
+  if (write(pty_master, &byte, 1) < 0 && errno != EAGAIN) perror("harness: pty write");  /* no reader: dropped */
+}
+
+static void on_xon(struct avr_irq_t *irq, uint32_t value, void *param) { (void)irq; (void)value; uart_xon = *(int *)param; }
+
+static void pump_input(void) {
+  if (!uart_input) return;
+  if (pending_done == pending_len) {
+    ssize_t n = read(pty_master, pending, sizeof pending);
+    pending_len = n > 0 ? (size_t)n : 0;
+    pending_done = 0;
+  }
+  while (uart_xon && pending_done < pending_len) avr_raise_irq(uart_input, pending[pending_done++]);
+}
+
+static void no_sleep(avr_t *a, avr_cycle_count_t how_long) { (void)a; (void)how_long; }  /* paced below */
+
+static void on_signal(int sig) { (void)sig; stopping = 1; }
+
+static double wall_s(void) {
+  struct timespec t;
+  clock_gettime(CLOCK_MONOTONIC, &t);
+  return t.tv_sec + t.tv_nsec * 1e-9;
+}
+
+avr_t *bridge_load(const char *elf, const char *mcu) {
+  static elf_firmware_t firmware;
+  memset(&firmware, 0, sizeof firmware);
+  if (elf_read_firmware(elf, &firmware) != 0) {
+    fprintf(stderr, "harness: cannot read firmware %s\n", elf);
+    exit(1);
+  }
+  avr_t *avr = avr_make_mcu_by_name(mcu);
+  if (!avr) {
+    fprintf(stderr, "harness: simavr has no MCU %s\n", mcu);
+    exit(1);
+  }
+  avr_init(avr);
+  avr_load_firmware(avr, &firmware);
+  avr->frequency = 16000000;
+  avr->sleep = no_sleep;
+  return avr;
+}
+
+void bridge_attach_uart(avr_t *avr, char uart) {
+  static int on = 1, off = 0;
+  uart_input = avr_io_getirq(avr, AVR_IOCTL_UART_GETIRQ(uart), UART_IRQ_INPUT);
+  avr_irq_register_notify(avr_io_getirq(avr, AVR_IOCTL_UART_GETIRQ(uart), UART_IRQ_OUTPUT), on_tx, NULL);
+  avr_irq_register_notify(avr_io_getirq(avr, AVR_IOCTL_UART_GETIRQ(uart), UART_IRQ_OUT_XON), on_xon, &on);
+  avr_irq_register_notify(avr_io_getirq(avr, AVR_IOCTL_UART_GETIRQ(uart), UART_IRQ_OUT_XOFF), on_xon, &off);
+  pty_master = posix_openpt(O_RDWR | O_NOCTTY);
+  if (pty_master < 0 || grantpt(pty_master) || unlockpt(pty_master)) {
+    perror("harness: pty");
+    exit(1);
+  }
+  pty_slave = open(ptsname(pty_master), O_RDWR | O_NOCTTY);  /* held open: the pty outlives each host */
+  struct termios raw;
+  tcgetattr(pty_slave, &raw);
+  cfmakeraw(&raw);
+  tcsetattr(pty_slave, TCSANOW, &raw);
+  fcntl(pty_master, F_SETFL, O_NONBLOCK);
+  printf("PTY %s\n", ptsname(pty_master));
+  fflush(stdout);
+}
+
+void bridge_run(avr_t *avr, FILE *events, void (*every_poll)(void)) {
+  signal(SIGTERM, on_signal);
+  signal(SIGINT, on_signal);
+  const avr_cycle_count_t pace = avr->frequency / 1000;  /* check the pace every emulated millisecond */
+  const avr_cycle_count_t poll = avr->frequency / 10000;
+  avr_cycle_count_t next_check = pace, next_poll = poll;
+  double start = wall_s(), start0 = start;
+  int state = cpu_Running;
+  while (!stopping && state != cpu_Done && state != cpu_Crashed) {
+    state = avr_run(avr);
+    if (avr->cycle >= next_poll) {
+      next_poll = avr->cycle + poll;
+      pump_input();
+      if (every_poll) every_poll();
+    }
+    if (avr->cycle >= next_check) {
+      next_check = avr->cycle + pace;
+      double ahead = start + (double)avr->cycle / avr->frequency - wall_s();
+      if (ahead > 0 && !getenv("HARNESS_FREE_RUN")) usleep((useconds_t)(ahead * 1e6));
+      else if (ahead < -0.05) start -= ahead + 0.05;  /* a stall: emulated time slips instead of racing */
+      if (avr->cycle % (100 * pace) < pace) fflush(events);
+    }
+  }
+  fflush(events);
+  fclose(events);
+  fprintf(stderr, "harness: %.3f s emulated in %.3f s\n", (double)avr->cycle / avr->frequency, wall_s() - start0);
+  _exit(state == cpu_Crashed ? 1 : 0);  /* the pty thread is not joined: it may sit in select() */
+}

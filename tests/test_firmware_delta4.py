@@ -1,0 +1,336 @@
+"""The delta4 firmware (firmware/delta4/delta4.c) built for the ATmega128 and run on an emulated MCU (simavr, through
+firmware/sim/delta4_harness.c), driven by the project's own driver bench.robots.delta4.Delta4Controller. The harness
+logs every servo PWM edge with its emulated time and plays the two laser-grid screens (74LS166 chains) lit from the
+test; the assertions are on those pins and on the bytes the driver reads. One raw script is also replayed against
+the firmware and against ``python -m bench.simulators.delta4``: the same replies, timing aside.
+
+Skipped, with the reason, where gcc-avr / avr-libc / simavr are not installed (.ci/run installs them)."""
+
+import subprocess
+import sys
+import time
+
+import numpy as np
+import pytest
+
+from bench.robots import delta4_wire as wire
+from bench.robots.delta4 import DEFAULT_BAUDRATE, HOME_MM, Delta4Controller
+from bench.sensors.lasergrid import GridGeometry, decode_frame
+from bench.simulators.lasergrid import LaserGridSimulator
+from tests.firmware_sim import F_CPU_HZ, ROOT, needs_toolchain
+
+pytestmark = needs_toolchain
+
+#: the documented PWM (reference §5.2): no prescaler, 2 ms refresh; pulse mapping of firmware/delta4/delta4.c
+PERIOD_TICKS = 32000
+PULSE_AT_0_DEG_US, PULSE_AT_180_DEG_US = 1000.0, 2000.0
+STOPS_DEG = (30.0, 170.0)
+SLEW_DEG_S = 286.0
+SLOW = {"settle_timeout_s": 20.0}
+
+
+def expected_pulse_ticks(mapping: wire.ServoMapping, values) -> np.ndarray:
+    """Pulse width, timer ticks (1/16 us), of the reference bytes ``values``: the angle the driver's mapping gives
+    them, clamped to the calibrated stops, 1.0 ms at 0 deg to 2.0 ms at 180 deg, rounded half up."""
+    angle = np.clip(mapping.to_deg(np.asarray(values, float)), *STOPS_DEG)
+    pulse_us = PULSE_AT_0_DEG_US + angle * (PULSE_AT_180_DEG_US - PULSE_AT_0_DEG_US) / 180.0
+    return np.floor(pulse_us * 16 + 0.5).astype(int)
+
+
+class EmulatedDelta4:
+    """The firmware in the harness: ``.path`` is its pty, :meth:`light` sets lit sensors, :meth:`close` returns
+    the events as (cycle, kind, channel, value) tuples."""
+
+    def __init__(self, built, events):
+        elf, harness = built
+        self.events = events
+        self.process = subprocess.Popen([str(harness), str(elf), str(events)], stdin=subprocess.PIPE,
+                                        stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True)
+        for line in self.process.stdout:
+            if line.startswith("PTY "):
+                self.path = line.split()[1]
+                break
+        else:
+            raise AssertionError("harness printed no PTY line")
+
+    def open(self, timeout_s=0.05):
+        import serial
+        return serial.serial_for_url(self.path, baudrate=DEFAULT_BAUDRATE, timeout=timeout_s)
+
+    def light(self, screen: str, indices) -> None:
+        self.process.stdin.write(f"{screen} {' '.join(str(i) for i in indices)}\n")
+        self.process.stdin.flush()
+
+    def close(self):
+        if self.process.poll() is None:
+            self.process.terminate()
+            self.process.wait(timeout=10)
+        text = self.events.read_text()
+        rows = []
+        for line in text[:text.rfind("\n") + 1].splitlines():
+            cycle, kind, channel, *value = line.split()
+            rows.append((int(cycle), kind, channel, value[0] if value else ""))
+        return rows
+
+
+def pulses(events, servo):
+    """(rising-edge cycle, high time in cycles) of each pulse of ``servo`` (1-4)."""
+    out, rise = [], None
+    for cycle, kind, channel, value in events:
+        if kind == "PWM" and channel == str(servo):
+            if value == "1":
+                rise = cycle
+            elif rise is not None:
+                out.append((rise, cycle - rise))
+    return out
+
+
+def received_at(events, byte: bytes):
+    return [c for c, kind, channel, _ in events if kind == "RX" and bytes.fromhex(channel) == byte]
+
+
+def build_delta4(out_dir, **options):
+    """firmware/delta4 and its harness built into ``out_dir`` with make variables ``options``; returns
+    ((elf, harness), the build's output with avr-size)."""
+    targets = [str(out_dir / name) for name in ("delta4.elf", "delta4_harness")]
+    done = subprocess.run(["make", "-C", str(ROOT / "firmware"), f"BUILD={out_dir}", *targets,
+                           *(f"{k}={v}" for k, v in options.items())], capture_output=True, text=True, timeout=120)
+    if done.returncode:
+        raise AssertionError(f"firmware build failed:\n{done.stdout}\n{done.stderr}")
+    return (out_dir / "delta4.elf", out_dir / "delta4_harness"), done.stdout
+
+
+@pytest.fixture(scope="module")
+def built(tmp_path_factory):
+    return build_delta4(tmp_path_factory.mktemp("firmware"))
+
+
+@pytest.fixture(scope="module")
+def built_watchdog(tmp_path_factory):
+    """Slow servos (20 deg/s) and a 400 ms link watchdog, so that a move outlasts the watchdog."""
+    return build_delta4(tmp_path_factory.mktemp("firmware_wd"), DELTA4_SLEW_DEG_S=20, DELTA4_WATCHDOG_MS=400)[0]
+
+
+@pytest.fixture
+def mcu(built, tmp_path):
+    controller = EmulatedDelta4(built[0], tmp_path / "events.txt")
+    yield controller
+    controller.close()
+
+
+def test_build_prints_flash_and_ram_use(built):
+    section = built[1].split("Device: atmega128")[1]
+    program = int(section.split("Program:")[1].split()[0])
+    data = int(section.split("Data:")[1].split()[0])
+    assert 1000 < program < 128 * 1024 and 50 < data < 4 * 1024  # ATmega128: 128 KiB flash, 4 KiB SRAM
+
+
+# TV4 as the GUI sent it (whole-degree angles, reference §5.6: P081X Q072X R122X S128X) and TV1's exact angles
+TEST_ANGLES_DEG = [(60.0, 54.0, 91.0, 95.0), (129.3, 126.6058, 73.7283, 78.5895)]
+
+
+def test_pulse_widths_and_period_follow_the_documented_mapping_through_the_driver(mcu):
+    mapping = wire.LegacyVbMapping()
+    with Delta4Controller(mcu.open(), mapping=mapping, **SLOW) as robot:
+        first = robot.start(verify_timeout_s=10.0)
+        bytes_sent = [robot.move_servos(angles, require_settled=True).command_bytes for angles in TEST_ANGLES_DEG]
+        frame = robot.read_sensor_frame(10.0)
+    assert bytes_sent[0] == (81, 72, 122, 128)
+    assert (first.horizontal, first.vertical, first.raw) == ((), (), b"hv")  # no laser lit: h then v
+    assert (frame.horizontal, frame.vertical) == ((), ())
+    events = mcu.close()
+    ends = received_at(events, b"P")[1:] + [max(r for r, _ in pulses(events, 1)) + PERIOD_TICKS]
+    assert len(ends) == 2
+    for values, end in zip(bytes_sent, ends):
+        expected = expected_pulse_ticks(mapping, values)
+        for servo in range(4):
+            at_rest = [p for p in pulses(events, servo + 1) if end - 8 * PERIOD_TICKS <= p[0] < end - PERIOD_TICKS]
+            assert len(at_rest) >= 6  # z came after 10 periods at rest
+            widths = np.array([w for _, w in at_rest])
+            assert abs(np.median(widths) - expected[servo]) <= 1, (values, servo, widths)
+            periods = np.diff([r for r, _ in at_rest])
+            assert abs(np.median(periods) - PERIOD_TICKS) <= 1 and np.all(np.abs(periods - PERIOD_TICKS) <= 4)
+
+
+def test_moves_are_slew_limited_and_z_follows_the_end(mcu):
+    mapping = wire.LegacyVbMapping()
+    with Delta4Controller(mcu.open(), mapping=mapping, **SLOW) as robot:
+        robot.start(verify_timeout_s=10.0)
+        low, high = np.array([40.0, 60.0, 60.0, 60.0]), np.array([150.0, 60.0, 60.0, 60.0])
+        robot.move_servos(low, require_settled=True)
+        robot.move_servos(high, require_settled=True)  # servo 1 only: 110 deg
+    events = mcu.close()
+    second = received_at(events, b"P")[1]
+    start, end = (expected_pulse_ticks(mapping, mapping.to_bytes(a))[0] for a in (low, high))
+    step_ticks = SLEW_DEG_S * 2e-3 * 16000 / 180  # 50.8 ticks per 2 ms period
+    widths = np.array([w for r, w in pulses(events, 1) if r > second])
+    moving = np.flatnonzero(np.abs(np.diff(widths)) > 4)
+    assert widths[0] == pytest.approx(start, abs=2) and widths[-1] == pytest.approx(end, abs=2)
+    assert abs(moving[-1] - moving[0] - (end - start) / step_ticks) <= 2  # it took travel / slew limit
+    steps = np.diff(widths[moving[0] + 1:moving[-1]])
+    assert np.all(np.abs(steps - step_ticks) <= 5), steps  # and never stepped faster (edge jitter: a few cycles)
+
+
+def test_calibrated_mapping_and_a_50_hz_refresh_as_build_options(tmp_path):
+    (elf, harness), _ = build_delta4(tmp_path, DELTA4_MAPPING="calibrated", DELTA4_PERIOD_US=20000)
+    mcu = EmulatedDelta4((elf, harness), tmp_path / "events.txt")
+    mapping = wire.CalibratedMapping()
+    angles = np.array([30.0, 71.657, 120.0, 170.0])
+    try:
+        with Delta4Controller(mcu.open(), mapping=mapping, **SLOW) as robot:
+            robot.start(verify_timeout_s=10.0)
+            values = robot.move_servos(angles, require_settled=True).command_bytes
+            settled_s, fresh = time.monotonic(), 0
+            while fresh < 3:  # 3 reports begun after the z: >= 160 ms of emulated time at rest
+                fresh += robot.read_sensor_frame(10.0).t_first_token_s > settled_s
+    finally:
+        events = mcu.close()
+    assert values == (0, 76, 164, 255)
+    tick_cycles = 8  # prescaler 8: 0.5 us per tick
+    for servo in range(4):
+        rest = pulses(events, servo + 1)[-6:-1]
+        expected_cycles = expected_pulse_ticks(mapping, [values[servo]])[0] / 16 * F_CPU_HZ / 1e6
+        assert abs(np.median([w for _, w in rest]) - expected_cycles) <= tick_cycles, servo
+        assert np.median(np.diff([r for r, _ in rest])) == pytest.approx(0.020 * F_CPU_HZ, abs=tick_cycles)
+
+
+def first_frames_showing(robot, horizontal, vertical, limit=40):
+    """Reports up to the first that shows this pattern, and the one after it (the pattern holds)."""
+    frames = []
+    while len(frames) < limit and (not frames or (frames[-1].horizontal, frames[-1].vertical) != (horizontal,
+                                                                                                 vertical)):
+        frames.append(robot.read_sensor_frame(10.0))
+    return frames + [robot.read_sensor_frame(10.0)]
+
+
+def test_laser_grid_hits_on_the_screen_inputs_are_reported_and_decode_as_the_document(mcu):
+    geometry = GridGeometry()
+    pose_mm = np.array([5.0, 5.0, -150.0])
+    horizontal, vertical = LaserGridSimulator(geometry).observer()(pose_mm)
+    assert horizontal and vertical
+    with Delta4Controller(mcu.open(), **SLOW) as robot:
+        robot.start(verify_timeout_s=10.0)
+        mcu.light("H", [121])  # Fig. 10 a: BE over sensor (7, 7), moved 5 mm in +x: G5-a on (9, 7)
+        mcu.light("V", [])
+        frames = first_frames_showing(robot, (121,), ())
+        mcu.light("H", horizontal + (200, 17))
+        mcu.light("V", vertical)
+        later = first_frames_showing(robot, tuple(sorted(horizontal + (200, 17))), vertical)
+        mcu.light("H", range(0, 256, 2))  # 128 hits: a 0.67 s report at 9600 baud, longer than the receive buffer
+        crowded = first_frames_showing(robot, tuple(range(0, 256, 2)), vertical)
+        robot.move_servos(TEST_ANGLES_DEG[0], wait=False)  # 40 bytes back to back while a long report goes out
+        last = robot.move_servos(TEST_ANGLES_DEG[1], require_settled=True)
+        fresh_s, fresh = time.monotonic(), 0
+        while fresh < 2:
+            fresh += robot.read_sensor_frame(10.0).t_first_token_s > fresh_s
+    assert [(f.horizontal, f.vertical) for f in frames[-2:]] == [((121,), ())] * 2
+    decoded = decode_frame(geometry, frames[-1].horizontal, [], np.array([0.0, -5.0, -150.0]))
+    assert decoded.position_mm[:2] == (0.0, -5.0) and decoded.horizontal.lasers == ("G5-a",)
+    assert [(f.horizontal, f.vertical) for f in later[-2:]] == [(tuple(sorted(horizontal + (200, 17))), vertical)] * 2
+    assert crowded[-1].horizontal == tuple(range(0, 256, 2))
+    decoded = decode_frame(geometry, [i for i in later[-1].horizontal if i in horizontal], later[-1].vertical,
+                           pose_mm + [1.0, -1.0, 1.0])
+    assert decoded.position_mm == tuple(pose_mm)
+    events = mcu.close()
+    final = [pulses(events, servo + 1)[-2][1] for servo in range(4)]
+    expected = expected_pulse_ticks(wire.LegacyVbMapping(), last.command_bytes)
+    assert np.all(np.abs(np.array(final) - expected) <= 3), (final, expected)  # no command byte was lost
+    on = [c for c, kind, channel, value in events if kind == "LASER" and channel == "1" and value == "1"]
+    off = [c for c, kind, channel, value in events if kind == "LASER" and channel == "1" and value == "0"]
+    assert len(on) >= 4
+    assert np.all(np.array(off[:len(on)]) - np.array(on[:len(off)]) >= 1e-3 * F_CPU_HZ)  # 1 ms on before the load
+    assert abs(np.median(np.diff(on[:5])) / F_CPU_HZ - 0.080) < 0.003  # one frame per 80 ms (§5.5), few hits
+
+
+def test_watchdog_holds_the_servos_when_the_host_falls_silent(built_watchdog, tmp_path):
+    mcu = EmulatedDelta4(built_watchdog, tmp_path / "events.txt")
+    try:
+        port = mcu.open()
+        port.write(b"E" + wire.format_servo_command(0, 200))  # 96 -> 200: 77 deg at 20 deg/s, 3.9 s
+        silent = read_for(port, 2.0)
+        port.write(wire.format_servo_command(1, 60))  # servo 2: 96 -> 60, 27 deg in 1.3 s, with heartbeats
+        beaten, deadline = b"", time.monotonic() + 20.0
+        while b"z" not in beaten and time.monotonic() < deadline:
+            beaten += read_for(port, 0.05)
+            port.write(b"z")
+        port.close()
+    finally:
+        events = mcu.close()
+    assert b"z" not in silent  # the move was not confirmed
+    assert b"z" in beaten  # heartbeats ('z', the ack byte) keep a move going to its end
+    logged, second_move = received_at(events, b"X")[:2]
+    # the harness logs a burst as it hands it to the UART, which delivers one byte per 10 bit times: X is 6th
+    last_byte = logged + 6 * 10 / DEFAULT_BAUDRATE * F_CPU_HZ
+    widths = pulses(events, 1)
+    changes = [r for (_, w0), (r, w) in zip(widths, widths[1:]) if abs(w - w0) > 4 and last_byte < r < second_move]
+    held_s = (changes[-1] - last_byte) / F_CPU_HZ
+    assert 0.4 - 0.002 <= held_s <= 0.4 + 4 * 0.002, held_s  # stopped by the 400 ms watchdog (+ 4 PWM periods)
+    home = expected_pulse_ticks(wire.LegacyVbMapping(), [96])[0]
+    moved_deg = (widths[-1][1] - home) / (16000 / 180)
+    assert 6.0 < moved_deg < 8.6, moved_deg  # 0.4 s at 20 deg/s, then it stayed where it stopped
+
+
+def read_for(port, seconds):
+    data, deadline = b"", time.monotonic() + seconds
+    while time.monotonic() < deadline:
+        data += port.read(256)
+    return data
+
+
+def replies(port, steps, quiet_s=0.3, timeout_s=10.0):
+    """Replies to each step, sensor reports taken out (no grid here: `h` and `v`): wait for the step's expected
+    `z` (up to ``timeout_s``), then for ``quiet_s`` more, so that a missing or an extra `z` shows in its step."""
+    out = []
+    for raw, expected, _ in steps:
+        port.write(raw)
+        data, deadline = b"", time.monotonic() + timeout_s
+        while data.replace(b"h", b"").replace(b"v", b"") != expected and time.monotonic() < deadline:
+            data += port.read(256)
+        data += read_for(port, quiet_s)
+        out.append(data.replace(b"h", b"").replace(b"v", b""))
+    return out
+
+
+#: (bytes sent, the reply expected once sensor reports are taken out, why)
+REPLAY = [
+    (b'P100X', b'', "stored while stopped: nothing until E"),
+    (b'E', b'z', "start: the stored reference is applied, one z"),
+    (b'E', b'', "start again: nothing"),
+    (b'P080XQ075XR110XS090X', b'z', "four references: one z"),
+    (b'P1234X', b'', "four digits: discarded"),
+    (b'P256X', b'', "value over 255: discarded"),
+    (b'PX', b'', "no digit: discarded"),
+    (b'Q12E', b'', "broken by E: discarded, then E (already started)"),
+    (b'T', b'', "undocumented T: ignored"),
+    (b'\x00\xff*#zzX17', b'', "garbage and acks: ignored"),
+    (b'R5X', b'z', "one digit: accepted, z"),
+    (b'PP100X', b'z', "a letter restarts the message: P100X accepted, z"),
+    (b'P0100X', b'', "four digits with a leading zero: discarded"),
+    (b'p100x', b'', "lower case: ignored"),
+    (b'P200XG', b'', "stopped mid-move: no z while stopped"),
+    (b'E', b'z', "restarted: the move goes on, z"),
+    (b'G', b'', "stop: no reports, no z"),
+    (b'E', b'', "start with nothing stored: no z"),
+    (b'G', b'', "stop"),
+    (b'S070X', b'', "stored while stopped"),
+    (b'E', b'z', "start: z"),
+    (b'G', b'', "stop"),
+]
+
+
+def test_one_script_gets_the_same_replies_from_firmware_and_simulator(mcu):
+    simulator = subprocess.Popen([sys.executable, "-m", "bench.simulators.delta4", "--ideal", "--no-grid",
+                                  "--speed-factor", "8"], cwd=ROOT, stdout=subprocess.PIPE,
+                                 stderr=subprocess.DEVNULL, text=True)
+    try:
+        import serial
+        path = simulator.stdout.readline().strip()
+        with serial.serial_for_url(path, timeout=0.05) as port:
+            from_simulator = replies(port, REPLAY)
+    finally:
+        simulator.terminate()
+        simulator.wait(timeout=10)
+    with mcu.open() as port:
+        from_firmware = replies(port, REPLAY)
+    assert from_simulator == [expected for _, expected, _ in REPLAY]
+    assert from_firmware == from_simulator
