@@ -172,8 +172,8 @@ def test_the_buttons_follow_the_run_and_the_form_locks(window, tmp_path):
 def test_the_results_table_follows_runs_made_from_outside_the_window(window, tmp_path):
     with Store(tmp_path / "bench.db") as store:  # as bench run does, in another process
         run_id = store.start_run(protocol_name="iso9283_pose", protocol_version="1", robot="pkm5", config={})
-    wait_for(lambda: window.results.table.rowCount() == 1, 5, "the table to list the new run")
-    assert [window.results.table.item(0, c).text() for c in (0, 4)] == [str(run_id), "running"]
+        wait_for(lambda: window.results.table.rowCount() == 1, 5, "the table to list the new run")
+        assert [window.results.table.item(0, c).text() for c in (0, 4)] == [str(run_id), "running"]
     with Store(tmp_path / "bench.db") as store:
         store.set_status(run_id, "failed", reason="rig fault")
     wait_for(lambda: window.results.table.item(0, 4).text() == "failed", 5, "the new status")

@@ -205,6 +205,7 @@ def _resume(args: argparse.Namespace) -> int:
 
     with Store(args.store) as store:
         record = store.run(args.run_id)
+        store.claim(args.run_id)  # before the rig opens: a run another live process drives is never touched
         protocol = protocol_from_config(record.config, source=f"run {args.run_id}")
         rig = build_rig(args, record.robot, store, stored=record.settings,
                         fixture=record.config.get("fixture", "assembled"), requires=required_capabilities(protocol),
@@ -231,11 +232,11 @@ def _runs(args: argparse.Namespace) -> int:
         for record in records:
             print(json.dumps(record.as_dict(), sort_keys=True))
         return 0
-    print(f"{'id':>4}  {'bench':<12} {'protocol':<26} {'robot':<6} {'status':<9} {'samples':>7}  "
+    print(f"{'id':>4}  {'bench':<12} {'protocol':<26} {'robot':<6} {'status':<11} {'samples':>7}  "
           f"{'started (UTC)':<19}  reason")
     for r in records:
         protocol = f"{r.protocol_name} v{r.protocol_version}"
-        print(f"{r.id:>4}  {r.bench:<12} {protocol:<26} {r.robot:<6} {r.status:<9} "
+        print(f"{r.id:>4}  {r.bench:<12} {protocol:<26} {r.robot:<6} {r.status:<11} "
               f"{r.n_samples:>7}  {r.started_utc[:19]:<19}  {r.reason or ''}")
     return 0
 

@@ -7,8 +7,9 @@ enough to re-run or re-analyse it. Every sample is committed in its own transact
 from. A sample carries the index of the protocol step that produced it; resuming a run skips the stored indices.
 
 The status of a run is ``running`` from before its first sample and is settled by the runner in ``finally``:
-``completed``, ``failed`` or ``aborted``, with the reason. A run killed outright stays ``running`` until it is
-resumed.
+``completed``, ``failed`` or ``aborted``, with the reason. A run is owned by the one live process that drives it
+(:mod:`bench.store.ownership`); a stored ``running`` run whose owner is gone (killed outright, power lost) reads
+as ``interrupted``, with ``bench resume ID`` as the next step, until it is resumed.
 """
 
 from __future__ import annotations
@@ -28,9 +29,11 @@ from typing import Any, Self
 
 from bench import __version__
 from bench.errors import BenchError, ConfigError
+from bench.store.ownership import RunLease, owner_of
 from bench.store.schema import default_bench_name, open_schema
 
 __all__ = [
+    "INTERRUPTED",
     "RUN_STATUSES",
     "CalibrationRecord",
     "DuplicateSample",
@@ -42,8 +45,10 @@ __all__ = [
 
 _log = logging.getLogger(__name__)
 
-#: The closed set of run statuses.
+#: The closed set of stored run statuses.
 RUN_STATUSES = ("running", "completed", "failed", "aborted")
+#: The status a stored ``running`` run reads as when no live process owns it (derived when read, never stored).
+INTERRUPTED = "interrupted"
 
 
 
@@ -176,6 +181,7 @@ class Store:
 
     def __init__(self, path: str | Path = "bench.db", *, bench: str | None = None) -> None:
         self.path = str(path)
+        self._leases: dict[int, RunLease] = {}
         self.bench = bench or default_bench_name()
         if self.path != ":memory:":
             parent = Path(self.path).parent
@@ -207,7 +213,38 @@ class Store:
         self.close()
 
     def close(self) -> None:
+        for run_id in list(self._leases):
+            self.release(run_id)
         self._db.close()
+
+    # ---- ownership -------------------------------------------------------------------------------------------
+
+    def claim(self, run_id: int) -> RunLease | None:
+        """Own run ``run_id`` from now until :meth:`release` (or :meth:`close`); raises
+        :class:`bench.store.ownership.RunOwned`, naming the owner, when another live process owns it. Claiming a run
+        this store already owns returns its lease. A store in memory is owned by its process alone (None)."""
+        run_id = int(run_id)
+        if self.path == ":memory:":
+            return None
+        if run_id not in self._leases:
+            self._leases[run_id] = RunLease(self.path, run_id)
+        return self._leases[run_id]
+
+    def release(self, run_id: int) -> None:
+        """Give up the ownership of run ``run_id`` (nothing when this store does not own it)."""
+        lease = self._leases.pop(int(run_id), None)
+        if lease is not None:
+            lease.release()
+
+    def _reads_as(self, run_id: int, status: str, reason: str | None) -> tuple[str, str | None]:
+        """A stored ``running`` run without a live owner reads as interrupted, naming the owner and the next step."""
+        if status != "running" or self.path == ":memory:" or run_id in self._leases:
+            return status, reason
+        owner = owner_of(self.path, run_id)
+        if owner is not None and owner.alive:
+            return status, reason or f"owned by {owner.describe()}"
+        gone = f"its owner ({owner.describe()}) is gone" if owner else "no process owns it"
+        return INTERRUPTED, f"{gone}; next: bench resume {run_id}"
 
     def checkpoint(self) -> None:
         """Copy the write-ahead log into the database file, so that the ``.db`` file alone (a backup of "the store
@@ -252,16 +289,28 @@ class Store:
         """Create a run with status ``running``, its full provenance, a new UUID and this bench's name; returns the
         run id (an integer local to this file; the UUID is the run's name everywhere else)."""
         campaign_id = self.campaign_id(campaign) if campaign else None
-        cursor = self._db.execute(
-            "INSERT INTO runs (uuid, bench, campaign_id, protocol_name, protocol_version, robot, config_json,"
-            " settings_json, calibration_ids_json, software_version, git_sha, status, started_utc)"
-            " VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, 'running', ?)",
-            (str(uuid.uuid4()), self.bench, campaign_id, protocol_name, str(protocol_version), robot,
-             _to_json(dict(config), "config"),
-             _to_json(dict(settings or {}), "settings"), _to_json(sorted(int(i) for i in calibration_ids),
-                                                                  "calibration_ids"),
-             __version__, software_git_sha(), _utc_now()))
-        return int(cursor.lastrowid)
+        row = (str(uuid.uuid4()), self.bench, campaign_id, protocol_name, str(protocol_version), robot,
+               _to_json(dict(config), "config"),
+               _to_json(dict(settings or {}), "settings"), _to_json(sorted(int(i) for i in calibration_ids),
+                                                                    "calibration_ids"),
+               __version__, software_git_sha(), _utc_now())
+        # owned before anyone can read it: the run and its lock appear together (the commit comes after the lock)
+        run_id = None
+        self._db.execute("BEGIN IMMEDIATE")
+        try:
+            cursor = self._db.execute(
+                "INSERT INTO runs (uuid, bench, campaign_id, protocol_name, protocol_version, robot, config_json,"
+                " settings_json, calibration_ids_json, software_version, git_sha, status, started_utc)"
+                " VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, 'running', ?)", row)
+            run_id = int(cursor.lastrowid)
+            self.claim(run_id)
+            self._db.execute("COMMIT")
+        except BaseException:
+            self._db.execute("ROLLBACK")
+            if run_id is not None:
+                self.release(run_id)
+            raise
+        return run_id
 
     def set_status(self, run_id: int, status: str, reason: str | None = None) -> None:
         """Settle (or reopen, with ``running``) the status of a run; ``reason`` says why it failed or stopped."""
@@ -301,8 +350,9 @@ class Store:
             RunRecord(id=row[0], uuid=row[1], bench=row[2], campaign=row[3], protocol_name=row[4],
                       protocol_version=row[5], robot=row[6], config=json.loads(row[7]), settings=json.loads(row[8]),
                       calibration_ids=tuple(json.loads(row[9])), software_version=row[10], git_sha=row[11],
-                      status=row[12], reason=row[13], started_utc=row[14], ended_utc=row[15], n_samples=row[16])
-            for row in self._db.execute(query, args)
+                      status=status, reason=reason, started_utc=row[14], ended_utc=row[15], n_samples=row[16])
+            for row in self._db.execute(query, args).fetchall()
+            for status, reason in (self._reads_as(row[0], row[12], row[13]),)
         ]
 
     # ---- samples ---------------------------------------------------------------------------------------------
