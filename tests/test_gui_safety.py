@@ -170,6 +170,9 @@ def test_the_buttons_follow_the_run_and_the_form_locks(window, tmp_path):
 
 
 def test_the_results_table_follows_runs_made_from_outside_the_window(window, tmp_path):
+    scan = window.results.refresh()  # no store yet: an empty list, and no file made where none was asked for
+    wait_for(lambda: window.results._scan is None, 5, "the scan of a missing store")
+    assert scan is not None and window.results.table.rowCount() == 0 and list(tmp_path.glob("bench.db*")) == []
     with Store(tmp_path / "bench.db") as store:  # as bench run does, in another process
         run_id = store.start_run(protocol_name="iso9283_pose", protocol_version="1", robot="pkm5", config={})
         wait_for(lambda: window.results.table.rowCount() == 1, 5, "the table to list the new run")

@@ -226,7 +226,11 @@ def _existing_store(path: str) -> str:
 def _runs(args: argparse.Namespace) -> int:
     from bench.store.lab import is_lab_url, open_runs_store  # a file or, read-only, a postgresql:// lab store
 
-    with open_runs_store(args.store if is_lab_url(args.store) else _existing_store(args.store)) as store:
+    if is_lab_url(args.store):
+        opened = open_runs_store(args.store)
+    else:
+        opened = open_runs_store(_existing_store(args.store), read_only=True)
+    with opened as store:
         records = store.runs(bench=args.bench, robot=args.robot, since=_since(args.since))
     if args.json:
         for record in records:
@@ -267,7 +271,7 @@ def _default_kind(store: Store, run_id: int) -> str:
 def _backup(args: argparse.Namespace) -> int:
     from bench.store import Store
 
-    with Store(_existing_store(args.store)) as store:
+    with Store(_existing_store(args.store), read_only=True) as store:
         print(store.backup_to(args.destination))
     return 0
 
@@ -276,7 +280,7 @@ def _export(args: argparse.Namespace) -> int:
     from bench.store import Store, export_run
 
     out = args.out or f"run-{args.run_id}.{args.format}"
-    with Store(_existing_store(args.store)) as store:
+    with Store(_existing_store(args.store), read_only=True) as store:
         kind = args.kind or ("arrival" if args.series else _default_kind(store, args.run_id))
         print(export_run(store, args.run_id, out, fmt=args.format, kind=kind, series=args.series))
     return 0

@@ -52,7 +52,7 @@ def _export(store_path: str, run_id: int, report_dir: Path) -> Path:
     from bench.store import default_kind  # one home for bench export's default kind
 
     report_dir.mkdir(parents=True, exist_ok=True)
-    with Store(store_path) as store:
+    with Store(store_path, read_only=True) as store:
         kind = default_kind(store, run_id)
         name = f"run-{run_id}.csv" if kind == "pose" else f"run-{run_id}-{kind}.csv"
         return export_run(store, run_id, report_dir / name, kind=kind)
@@ -141,7 +141,9 @@ class ResultsBrowser(QGroupBox):
         path = self.store_path
 
         def scan() -> list[RunRecord]:
-            with Store(path) as store:
+            if not Path(path).is_file():  # no run yet: an empty list, and no file made where none was asked for
+                return []
+            with Store(path, read_only=True) as store:
                 return store.runs()
 
         self._scan = run_in_background("reading the store", scan, self, on_done=self._show_records,

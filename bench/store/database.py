@@ -19,7 +19,6 @@ import logging
 import math
 import sqlite3
 import subprocess
-import time
 import uuid
 from collections.abc import Iterable, Iterator, Mapping
 from dataclasses import dataclass
@@ -29,8 +28,9 @@ from typing import Any, Self
 
 from bench import __version__
 from bench.errors import BenchError, ConfigError
+from bench.store.connection import GuardedConnection, open_connection, store_error
 from bench.store.ownership import RunLease, owner_of
-from bench.store.schema import default_bench_name, open_schema
+from bench.store.schema import SCHEMA_VERSION, StoreSchemaError, default_bench_name, open_schema
 
 __all__ = [
     "INTERRUPTED",
@@ -139,25 +139,6 @@ def software_git_sha() -> str:
         return "unknown"
 
 
-#: How long opening a store waits for another process that holds it (the same as the connection's busy timeout).
-_BUSY_TIMEOUT_S = 10.0
-
-
-def _use_write_ahead_log(db: sqlite3.Connection) -> None:
-    """Switch ``db`` to WAL, waiting for other connections. SQLite answers a journal-mode change that meets another
-    connection's lock with "database is locked" at once, without its busy handler (seen when the desktop app reads
-    a new store while a run creates it), so the switch is retried here up to the busy timeout."""
-    deadline = time.monotonic() + _BUSY_TIMEOUT_S
-    while True:
-        try:
-            db.execute("PRAGMA journal_mode=WAL")
-            return
-        except sqlite3.OperationalError as exc:
-            if "locked" not in str(exc) or time.monotonic() > deadline:
-                raise
-            time.sleep(0.01)
-
-
 class Store:
     """A SQLite run store (WAL journal, every write committed at once).
 
@@ -169,6 +150,11 @@ class Store:
         (see ``bench.store.schema``).
     bench : str, optional
         This bench's name, recorded on every run it starts (default: the host name).
+    read_only : bool
+        Open for reading only (``bench runs``, ``report``, ``export``, the results browser): the file must exist and
+        nothing is created or written (an older schema is still migrated first, with its backup). Another
+        application's SQLite file is refused in either mode, untouched; every database error of a query is one
+        :class:`bench.store.connection.StoreError` line naming the file and what to do.
 
     Examples
     --------
@@ -179,29 +165,46 @@ class Store:
     {0}
     """
 
-    def __init__(self, path: str | Path = "bench.db", *, bench: str | None = None) -> None:
+    def __init__(self, path: str | Path = "bench.db", *, bench: str | None = None, read_only: bool = False) -> None:
         self.path = str(path)
+        self.read_only = read_only
         self._leases: dict[int, RunLease] = {}
         self.bench = bench or default_bench_name()
-        if self.path != ":memory:":
-            parent = Path(self.path).parent
-            if not parent.is_dir():
-                raise ConfigError(f"--store {self.path}: folder {parent} does not exist")
+        self.backup = None
         try:
-            self._db = sqlite3.connect(self.path, isolation_level=None, timeout=_BUSY_TIMEOUT_S)
-            _use_write_ahead_log(self._db)
-            self._db.execute("PRAGMA synchronous=FULL")
-            self._db.execute("PRAGMA foreign_keys=ON")
-            self.backup = open_schema(self._db, self.path, self.bench)
+            raw = open_connection(self.path, read_only=read_only)
         except sqlite3.DatabaseError as exc:
-            self._db.close()
-            raise ConfigError(f"--store {self.path}: not a usable bench store ({exc})") from exc
-        except BenchError:
-            self._db.close()
+            raise ConfigError(f"--store {self.path}: not a usable bench store ({exc})") from None
+        try:
+            if read_only:
+                (version,) = raw.execute("PRAGMA user_version").fetchone()
+                if version > SCHEMA_VERSION:
+                    raise StoreSchemaError(f"--store {self.path}: schema version {version} is newer than this "
+                                           f"bench's ({SCHEMA_VERSION}); upgrade bench to open it")
+                if version < SCHEMA_VERSION:  # an old store is migrated (with its backup) before it is read
+                    raw.close()
+                    raw = self._migrated()
+            else:
+                self.backup = open_schema(raw, self.path, self.bench)
+        except sqlite3.DatabaseError as exc:
+            raw.close()
+            raise ConfigError(f"--store {self.path}: not a usable bench store ({exc})") from None
+        except BaseException:
+            raw.close()
             raise
+        self._db = GuardedConnection(raw, self.path)
         if self.backup is not None:
             _log.warning("store %s migrated to the current schema; the old file is kept as %s", self.path,
                          self.backup)
+
+    def _migrated(self) -> sqlite3.Connection:
+        """Migrate the old store at ``self.path`` for a reader; then reopen it read-only."""
+        try:
+            with Store(self.path, bench=self.bench) as writer:
+                self.backup = writer.backup
+        except sqlite3.Error as exc:
+            raise store_error(self.path, exc) from None
+        return open_connection(self.path, read_only=True)
 
     def __repr__(self) -> str:
         return f"Store({self.path!r})"
