@@ -33,6 +33,7 @@ from PySide6.QtWidgets import (
 from bench.gui.messages import show_message
 from bench.gui.tasks import Task, run_in_background
 from bench.store import RunRecord, Store, export_run
+from bench.store.ownership import owner_of
 
 __all__ = ["COLUMNS", "POLL_MS", "ResultsBrowser", "file_url"]
 
@@ -121,6 +122,9 @@ class ResultsBrowser(QGroupBox):
                 stamp.append(None)
             else:
                 stamp.append((info.st_mtime_ns, info.st_size))
+        # a run whose owner dies changes no file: its owner's liveness is part of the stamp (a lock probe, us)
+        stamp += [(r.id, getattr(owner_of(self.store_path, r.id), "alive", False))
+                  for r in getattr(self, "records", []) if r.status == "running"]
         return tuple(stamp)
 
     def _poll_store(self) -> None:
