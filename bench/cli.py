@@ -29,6 +29,7 @@ COMMAND_MODULES = (
     "bench.commands.report",
     "bench.commands.gui",
     "bench.commands.calibrate",
+    "bench.commands.store",
 )
 
 
@@ -82,6 +83,12 @@ def main(argv: list[str] | None = None) -> int:
     except KeyboardInterrupt:
         print("bench: interrupted", file=sys.stderr)
         return 130
+    except Exception as exc:
+        sqlite3 = sys.modules.get("sqlite3")  # the last net for a database error no store call named: one line
+        if args.debug or sqlite3 is None or not isinstance(exc, sqlite3.Error):
+            raise
+        print(f"bench: error: database: {exc}; check the store with `bench store check STORE`", file=sys.stderr)
+        return 1
 
 
 if __name__ == "__main__":

@@ -179,7 +179,7 @@ def test_kill_9_mid_run_then_resume_gives_exactly_the_expected_samples(capsys, t
     writer.wait(timeout=10)
     with Store(db) as store:
         before = {s.step_index: s.values for s in store.samples(1)}
-        assert store.run(1).status == "running" and 17 <= len(before) < 60
+        assert store.run(1).status == "interrupted" and 17 <= len(before) < 60
     assert main(["resume", "1", "--store", str(db), "--no-progress"]) == 0
     assert _run_id(capsys) == 1
     with Store(db) as store:

@@ -170,14 +170,41 @@ def test_the_buttons_follow_the_run_and_the_form_locks(window, tmp_path):
 
 
 def test_the_results_table_follows_runs_made_from_outside_the_window(window, tmp_path):
+    scan = window.results.refresh()  # no store yet: an empty list, and no file made where none was asked for
+    wait_for(lambda: window.results._scan is None, 5, "the scan of a missing store")
+    assert scan is not None and window.results.table.rowCount() == 0 and list(tmp_path.glob("bench.db*")) == []
     with Store(tmp_path / "bench.db") as store:  # as bench run does, in another process
         run_id = store.start_run(protocol_name="iso9283_pose", protocol_version="1", robot="pkm5", config={})
-    wait_for(lambda: window.results.table.rowCount() == 1, 5, "the table to list the new run")
-    assert [window.results.table.item(0, c).text() for c in (0, 4)] == [str(run_id), "running"]
+        wait_for(lambda: window.results.table.rowCount() == 1, 5, "the table to list the new run")
+        assert [window.results.table.item(0, c).text() for c in (0, 4)] == [str(run_id), "running"]
     with Store(tmp_path / "bench.db") as store:
         store.set_status(run_id, "failed", reason="rig fault")
     wait_for(lambda: window.results.table.item(0, 4).text() == "failed", 5, "the new status")
     assert window.results.table.item(0, 7).text() == "rig fault"
+
+
+_OWNER = """
+import sys, time
+from bench.store import Store
+store = Store(sys.argv[1])
+store.start_run(protocol_name="iso9283_pose", protocol_version="1", robot="pkm5", config={})
+print("owned", flush=True)
+sys.stdin.read()  # owns the run until killed
+"""
+
+
+def test_the_results_table_shows_a_run_whose_owner_was_killed_as_interrupted(window, tmp_path):
+    owner = subprocess.Popen([sys.executable, "-c", _OWNER, str(tmp_path / "bench.db")], stdin=subprocess.PIPE,
+                             stdout=subprocess.PIPE, text=True)
+    try:
+        assert owner.stdout.readline() == "owned\n"
+        wait_for(lambda: window.results.table.rowCount() == 1, 5, "the table to list the new run")
+        wait_for(lambda: window.results.table.item(0, 4).text() == "running", 5, "the running run")
+    finally:
+        owner.kill()
+        owner.communicate(timeout=10)
+    wait_for(lambda: window.results.table.item(0, 4).text() == "interrupted", 5, "the killed owner to show")
+    assert window.results.table.item(0, 7).text().endswith("is gone; next: bench resume 1")
 
 
 def test_report_during_a_run_leaves_the_window_responsive(window, tmp_path):

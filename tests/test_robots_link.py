@@ -7,7 +7,7 @@ import termios
 import pytest
 import serial
 
-from bench.errors import LinkError
+from bench.errors import LinkError, LinkTimeout
 from bench.robots import pkm5_wire as wire
 
 
@@ -40,3 +40,18 @@ def test_a_flush_that_keeps_failing_is_a_link_error(failures, code):
     with pytest.raises(LinkError, match=r"loop://.*cannot send 'STOP'"):
         link.write(b"STOP #2*00\n", command="STOP")
     assert port.flushes == (3 if code == errno.EINTR else 1)
+
+
+def test_a_reply_split_across_reads_behind_long_noise_is_kept_whole():
+    port = serial.serial_for_url("loop://", timeout=0.01)
+    link = wire.LineLink(port)
+    reply = wire.format_reply("OK", 7, "POS", 1, 2, 3, 4, 5, 6, "IDLE")
+    noise = bytes((i * 37 + 11) % 256 for i in range(500)).replace(b"\n", b"~")
+    port.write(noise + reply[:20])
+    frame = link.read_frame(0.2, command="POS", expected="the noise, cut")
+    assert frame == noise[:len(noise) + 20 - wire.MAX_LINE]  # all but the last MAX_LINE bytes refused
+    with pytest.raises(LinkTimeout):
+        link.read_frame(0.05, command="POS", expected="nothing yet")
+    port.write(reply[20:])
+    line = link.read_frame(0.2, command="POS", expected="the reply")
+    assert wire.parse_reply(line) == wire.Reply("OK", 7, ("POS", "1", "2", "3", "4", "5", "6", "IDLE"))

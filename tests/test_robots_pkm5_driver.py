@@ -5,6 +5,7 @@ test_robots_pkm5_wire.py).
 """
 
 import re
+import time
 
 import numpy as np
 import pytest
@@ -163,8 +164,9 @@ def test_steps_must_be_six_integers():
 
 def test_lost_move_acceptance_asks_the_position_and_waits_for_done():
     with exchange([("MOVE 2656 2656 2669 2669 2720 2720 200 #1", b"OK #1 MOVE 9\x00300*00\n"),
-                   ("POS #2", ["OK #2 POS 1000 1000 1000 1000 1800 1800 MOVING",
-                               "DONE #1 2656 2656 2669 2669 2720 2720"])]) as robot:
+                   (b"\n" + wire.encode_line("POS #2"),  # after noise: a resynchronising newline first
+                    ["OK #2 POS 1000 1000 1000 1000 1800 1800 MOVING", "DONE #1 2656 2656 2669 2669 2720 2720"])]
+                  ) as robot:
         assert robot.move_steps(POINT_3_1_STEPS) == POINT_3_1_STEPS
 
 
@@ -176,10 +178,44 @@ def test_lost_move_acceptance_with_the_robot_elsewhere_raises():
         robot.move_steps(POINT_3_1_STEPS)
 
 
-def test_missing_done_sends_stop_and_raises():  # a DONE deadline shorter than the heartbeat: no POS line
+def test_missing_done_sends_stop_and_raises():  # a DONE deadline shorter than the heartbeat: one POS at the end
     with exchange([("MOVE 2656 2656 2669 2669 2720 2720 200 #1", "OK #1 MOVE 10"),
-                   ("STOP #2", "OK #2 STOP 900 900 900 900 1700 1700")], move_margin_s=0.03) as robot, \
+                   ("POS #2", "OK #2 POS 900 900 900 900 1700 1700 MOVING"),
+                   ("STOP #3", "OK #3 STOP 900 900 900 900 1700 1700")], move_margin_s=0.03) as robot, \
             pytest.raises(LinkTimeout, match=r"no reply to 'MOVE' after 0\.0\d+ s, expected 'DONE #1 \.\.\.'"):
+        robot.move_steps(POINT_3_1_STEPS)
+
+
+def test_a_lost_done_is_recovered_at_the_deadline_when_pos_shows_the_target():
+    with exchange([("MOVE 2656 2656 2669 2669 2720 2720 200 #1", "OK #1 MOVE 10"),
+                   ("POS #2", "OK #2 POS 2656 2656 2669 2669 2720 2720 IDLE")], move_margin_s=0.03) as robot:
+        assert robot.move_steps(POINT_3_1_STEPS) == POINT_3_1_STEPS  # and no STOP
+
+
+def test_a_done_destroyed_by_noise_is_recovered_by_the_heartbeats_pos():
+    with exchange([("MOVE 2656 2656 2669 2669 2720 2720 200 #1", ["OK #1 MOVE 10", b"DONE #1 26\x0056 2*00\n"]),
+                   (b"\n" + wire.encode_line("POS #2"), "OK #2 POS 2656 2656 2669 2669 2720 2720 IDLE")]) as robot:
+        started = time.monotonic()
+        assert robot.move_steps(POINT_3_1_STEPS) == POINT_3_1_STEPS
+    assert time.monotonic() - started < 1.5  # the first heartbeat answered, not the 2 s DONE deadline
+
+
+def test_a_heartbeat_showing_the_robot_elsewhere_is_no_done():
+    with exchange([("MOVE 2656 2656 2669 2669 2720 2720 200 #1", "OK #1 MOVE 10"),
+                   ("POS #2", ["OK #2 POS 2000 2000 2000 2000 2000 2000 IDLE", "DONE #1 2656 2656 2669 2669 2720 2720"])
+                   ], move_margin_s=1.0) as robot:
+        assert robot.move_steps(POINT_3_1_STEPS) == POINT_3_1_STEPS
+
+
+def test_a_query_refused_as_noise_is_sent_again_after_a_newline():
+    with exchange([("POS #1", "ERR #1 1 SYNTAX"),
+                   (b"\n" + wire.encode_line("POS #2"), "OK #2 POS 1 2 3 4 5 6 IDLE")], retries=1) as robot:
+        assert robot.position().steps == (1, 2, 3, 4, 5, 6)
+
+
+def test_a_move_refused_as_noise_is_never_sent_again():
+    with exchange([("MOVE 2656 2656 2669 2669 2720 2720 200 #1", "ERR #1 1 SYNTAX")], retries=3) as robot, \
+            pytest.raises(ControllerError, match="controller refused 'MOVE' with error 1 SYNTAX"):
         robot.move_steps(POINT_3_1_STEPS)
 
 

@@ -205,6 +205,7 @@ def _resume(args: argparse.Namespace) -> int:
 
     with Store(args.store) as store:
         record = store.run(args.run_id)
+        store.claim(args.run_id)  # before the rig opens: a run another live process drives is never touched
         protocol = protocol_from_config(record.config, source=f"run {args.run_id}")
         rig = build_rig(args, record.robot, store, stored=record.settings,
                         fixture=record.config.get("fixture", "assembled"), requires=required_capabilities(protocol),
@@ -225,17 +226,21 @@ def _existing_store(path: str) -> str:
 def _runs(args: argparse.Namespace) -> int:
     from bench.store.lab import is_lab_url, open_runs_store  # a file or, read-only, a postgresql:// lab store
 
-    with open_runs_store(args.store if is_lab_url(args.store) else _existing_store(args.store)) as store:
+    if is_lab_url(args.store):
+        opened = open_runs_store(args.store)
+    else:
+        opened = open_runs_store(_existing_store(args.store), read_only=True)
+    with opened as store:
         records = store.runs(bench=args.bench, robot=args.robot, since=_since(args.since))
     if args.json:
         for record in records:
             print(json.dumps(record.as_dict(), sort_keys=True))
         return 0
-    print(f"{'id':>4}  {'bench':<12} {'protocol':<26} {'robot':<6} {'status':<9} {'samples':>7}  "
+    print(f"{'id':>4}  {'bench':<12} {'protocol':<26} {'robot':<6} {'status':<11} {'samples':>7}  "
           f"{'started (UTC)':<19}  reason")
     for r in records:
         protocol = f"{r.protocol_name} v{r.protocol_version}"
-        print(f"{r.id:>4}  {r.bench:<12} {protocol:<26} {r.robot:<6} {r.status:<9} "
+        print(f"{r.id:>4}  {r.bench:<12} {protocol:<26} {r.robot:<6} {r.status:<11} "
               f"{r.n_samples:>7}  {r.started_utc[:19]:<19}  {r.reason or ''}")
     return 0
 
@@ -266,7 +271,7 @@ def _default_kind(store: Store, run_id: int) -> str:
 def _backup(args: argparse.Namespace) -> int:
     from bench.store import Store
 
-    with Store(_existing_store(args.store)) as store:
+    with Store(_existing_store(args.store), read_only=True) as store:
         print(store.backup_to(args.destination))
     return 0
 
@@ -275,7 +280,7 @@ def _export(args: argparse.Namespace) -> int:
     from bench.store import Store, export_run
 
     out = args.out or f"run-{args.run_id}.{args.format}"
-    with Store(_existing_store(args.store)) as store:
+    with Store(_existing_store(args.store), read_only=True) as store:
         kind = args.kind or ("arrival" if args.series else _default_kind(store, args.run_id))
         print(export_run(store, args.run_id, out, fmt=args.format, kind=kind, series=args.series))
     return 0

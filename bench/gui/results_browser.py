@@ -33,6 +33,7 @@ from PySide6.QtWidgets import (
 from bench.gui.messages import show_message
 from bench.gui.tasks import Task, run_in_background
 from bench.store import RunRecord, Store, export_run
+from bench.store.ownership import owner_of
 
 __all__ = ["COLUMNS", "POLL_MS", "ResultsBrowser", "file_url"]
 
@@ -52,7 +53,7 @@ def _export(store_path: str, run_id: int, report_dir: Path) -> Path:
     from bench.store import default_kind  # one home for bench export's default kind
 
     report_dir.mkdir(parents=True, exist_ok=True)
-    with Store(store_path) as store:
+    with Store(store_path, read_only=True) as store:
         kind = default_kind(store, run_id)
         name = f"run-{run_id}.csv" if kind == "pose" else f"run-{run_id}-{kind}.csv"
         return export_run(store, run_id, report_dir / name, kind=kind)
@@ -121,6 +122,9 @@ class ResultsBrowser(QGroupBox):
                 stamp.append(None)
             else:
                 stamp.append((info.st_mtime_ns, info.st_size))
+        # a run whose owner dies changes no file: its owner's liveness is part of the stamp (a lock probe, us)
+        stamp += [(r.id, getattr(owner_of(self.store_path, r.id), "alive", False))
+                  for r in getattr(self, "records", []) if r.status == "running"]
         return tuple(stamp)
 
     def _poll_store(self) -> None:
@@ -141,7 +145,9 @@ class ResultsBrowser(QGroupBox):
         path = self.store_path
 
         def scan() -> list[RunRecord]:
-            with Store(path) as store:
+            if not Path(path).is_file():  # no run yet: an empty list, and no file made where none was asked for
+                return []
+            with Store(path, read_only=True) as store:
                 return store.runs()
 
         self._scan = run_in_background("reading the store", scan, self, on_done=self._show_records,

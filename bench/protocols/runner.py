@@ -20,7 +20,9 @@ thread or a signal handler, are honoured at safe points:
   operator: <prompt>", resumable);
 - an exception (or Ctrl-C) stops the robot (status ``failed``, or ``aborted`` for Ctrl-C).
 
-``robot.shutdown()`` runs in ``finally`` in every case. Resuming regenerates the protocol from the stored
+``robot.shutdown()`` runs in ``finally`` in every case. The runner owns its run (``Store.claim``) from the moment it
+is stored or resumed until its status is settled; resuming a run another live process owns is refused with
+:class:`bench.store.RunOwned` before anything is moved or written. Resuming regenerates the protocol from the stored
 configuration, replays it without acting up to the last ``Checkpoint`` before the first missing sample, then acts
 from there, skipping every step whose sample is already stored (its stored values are sent back instead).
 
@@ -256,6 +258,15 @@ class Runner:
 
     def resume_run(self, run_id: int) -> RunResult:
         """Continue stored run ``run_id`` at its last checkpoint, without storing any sample twice."""
+        self.store.claim(run_id)  # first: a run another live process drives is refused before anything is read
+        try:
+            return self._resume_owned(run_id)
+        except BaseException:
+            if self.state is RunState.IDLE:  # refused before it started: the ownership goes back at once
+                self.store.release(run_id)
+            raise
+
+    def _resume_owned(self, run_id: int) -> RunResult:
         record = self.store.run(run_id)
         if record.status == "completed":
             raise ConfigError(f"run {run_id}: already completed, nothing to resume")
@@ -328,6 +339,7 @@ class Runner:
             reason = None if status == "completed" else self._reason
             self.store.set_status(run_id, status, reason)
             self.store.checkpoint()  # the end of a run segment: the .db file alone is complete
+            self.store.release(run_id)  # settled: any process may resume it now
             self.state = RunState.FINISHED
         _log.info("run %d %s%s", run_id, status, f": {reason}" if reason else "")
         return RunResult(run_id, status, reason, len(self.store.stored_steps(run_id)), exception)

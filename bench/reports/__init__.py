@@ -189,7 +189,7 @@ def _open(store: str | Path | Store) -> tuple[Store, bool]:
         return store, False
     if not Path(store).is_file():
         raise ConfigError(f"--store {store}: no such store file")
-    return Store(store), True
+    return Store(store, read_only=True), True
 
 
 def write_report(store: str | Path | Store, run_id: int, out_dir: str | Path, formats: Iterable[str] = FORMATS, *,

@@ -4,8 +4,12 @@ Speaks the line protocol of ``docs/protocol-pkm5.md`` over an open pyserial port
 :mod:`motion.pkm5` (IK reachability and leg limits) before a byte is sent; a refused target raises
 :class:`bench.errors.UnreachableTarget`. Replies carry the command's tag, so late replies to an abandoned command
 are recognised and dropped; corrupted lines (bad checksum, noise) are dropped and reported if nothing valid follows.
-Queries are retried a bounded number of times; a move is never re-sent blindly: if its acceptance is lost the
-driver asks ``POS`` and either waits for ``DONE`` (moving), accepts (already there) or raises; a missing ``DONE``
+Queries are retried a bounded number of times, also when the controller refuses one as ``SYNTAX`` or ``CHECKSUM``
+(line noise corrupted the command; a refused command was not acted on); after noise on the line the next command is
+preceded by a newline, which ends whatever noise the controller holds as an empty or refused line. A move is never
+re-sent: if its acceptance is lost the driver asks ``POS`` and either waits for ``DONE`` (moving), accepts (already
+there) or raises; a lost ``DONE`` is recovered through ``POS`` too (the heartbeat's replies while waiting, and one
+last ``POS`` at the deadline): the controller idle at the target is the move done; otherwise a missing ``DONE``
 sends ``STOP`` and raises.
 
 Opened with ``fixture="actuator-bench"`` (the six actuators free-standing, 000 §8.4),
@@ -40,6 +44,8 @@ HEARTBEAT_S = 0.05
 
 DEFAULT_BAUDRATE = 115200
 _IDEMPOTENT = frozenset({"ID", "POS", "STOP", "ENABLE", "DISABLE", "SETPOS"})
+#: Refusals line noise causes (a corrupted command is refused, not acted on): an idempotent command is sent again.
+_NOISE_REFUSALS = frozenset({wire.ErrorCode.SYNTAX, wire.ErrorCode.CHECKSUM})
 #: The documents' firmware speed, taken as the rated (100 %) velocity of the pkm5: 200 steps/s (000 App. B.2).
 RATED_SPEED_STEPS_S = 200
 
@@ -124,6 +130,7 @@ class Pkm5Controller:
         # share one lock, so a MOVE decided just before an e-stop either reaches the wire first (and STOP ends it) or
         # is refused; it can never follow the STOP.
         self._write = threading.Lock()
+        self._noisy = False  # noise seen on the line since the last command: the next one starts with a newline
         self._stop_latched = False
         self._identity: Identity | None = None
         self._version = 1  # link framing; identify() negotiates 2 (CRC-16) with a controller that offers it
@@ -157,14 +164,26 @@ class Pkm5Controller:
         attempts = 1 + (self.retries if idempotent else 0)
         for attempt in range(1, attempts + 1):
             tag = next(self._tags)
-            self.link.write(wire.format_command(verb, args, tag, self._version), command=verb)
+            self._send(wire.format_command(verb, args, tag, self._version), command=verb)
             try:
                 return self._await(tag, verb, ("OK",), timeout_s or self.reply_timeout_s)
+            except ControllerError as exc:
+                if exc.code not in _NOISE_REFUSALS or attempt == attempts:
+                    raise
+                self._noisy = True  # the command arrived corrupted: end the noise with a newline, then again
+                _log.warning("%s: retry %d of %s after: %s", self.link.port_name, attempt, verb, exc)
             except (LinkTimeout, WireProtocolError) as exc:
                 if attempt == attempts:
                     raise
                 _log.warning("%s: retry %d of %s after: %s", self.link.port_name, attempt, verb, exc)
         raise AssertionError("unreachable")
+
+    def _send(self, line: bytes, *, command: str) -> None:
+        """Write one command line; after noise on the line a newline goes first (resynchronises the controller's
+        line reader: noise it holds ends as an empty or refused line, whose ``#0`` reply is dropped as stale)."""
+        if self._noisy:
+            line, self._noisy = b"\n" + line, False
+        self.link.write(line, command=command)
 
     def query(self, verb: str, args: tuple[int, ...] = ()) -> wire.Reply:
         """Send an idempotent command this driver does not know (a protocol extension, e.g. a simulator's own
@@ -174,11 +193,12 @@ class Pkm5Controller:
         return self._exchange(verb, tuple(args), idempotent=True)
 
     def _await(self, tag: int, verb: str, kinds: tuple[str, ...], timeout_s: float, *,
-               heartbeat: bool = False) -> wire.Reply:
+               heartbeat: bool = False, done_at: tuple[int, ...] | None = None) -> wire.Reply:
         """The next reply with ``tag``; stale tags and corrupted lines are dropped until the deadline.
 
         With ``heartbeat`` a ``POS`` line goes out every :data:`HEARTBEAT_S` (the firmware's link watchdog stops a
-        move when the host falls silent); its replies are dropped unseen."""
+        move when the host falls silent); its replies are dropped unseen, except that with ``done_at`` (a move's
+        targets) a reply showing the controller idle there stands for the ``DONE`` that noise destroyed."""
         deadline = Deadline(timeout_s)
         expected = f"'{kinds[0]} #{tag} ...' from a {wire.DEVICE_NAME} controller"
         dropped: list[bytes] = []
@@ -191,7 +211,7 @@ class Pkm5Controller:
                     beat = next(self._tags)
                     beats.add(beat)
                     with self._write:
-                        self.link.write(wire.format_command("POS", (), beat, self._version), command="POS")
+                        self._send(wire.format_command("POS", (), beat, self._version), command="POS")
                     next_beat_s = time.monotonic() + HEARTBEAT_S
                 wait_s = min(wait_s, max(0.0, next_beat_s - time.monotonic()))
             try:
@@ -208,8 +228,13 @@ class Pkm5Controller:
             except WireProtocolError as exc:
                 _log.warning("%s: dropped line while waiting for %s: %s", self.link.port_name, verb, exc)
                 dropped.append(line)
+                self._noisy = True
                 continue
             if reply.tag in beats:
+                if done_at is not None and reply.kind == "OK" and _idle_at(reply, done_at):
+                    _log.warning("%s: %s #%d: DONE lost; POS shows the controller idle at the target",
+                                 self.link.port_name, verb, tag)
+                    return wire.Reply("DONE", tag, tuple(str(s) for s in done_at))
                 continue
             if reply.tag != tag:
                 _log.info("%s: dropped stale reply %r while waiting for #%d", self.link.port_name, line, tag)
@@ -339,7 +364,7 @@ class Pkm5Controller:
             if self._stop_latched:
                 raise LinkError(f"{self.link.port_name}: MOVE to {targets} refused: an emergency stop is latched; "
                                 "enable() the controller to move again")
-            self.link.write(wire.format_command("MOVE", (*targets, speed), tag, self._version), command="MOVE")
+            self._send(wire.format_command("MOVE", (*targets, speed), tag, self._version), command="MOVE")
         try:
             try:
                 reply = self._await(tag, "MOVE", ("OK", "DONE"), self.reply_timeout_s)
@@ -350,10 +375,21 @@ class Pkm5Controller:
             if reply.kind == "DONE":
                 return reply.ints(0, wire.AXES)
             duration_s = reply.ints(1, 1)[0] / 1000.0
-            return self._await(tag, "MOVE", ("DONE",), 1.5 * duration_s + self.move_margin_s,
-                               heartbeat=True).ints(0, wire.AXES)
+            return self._await_done(tag, targets, 1.5 * duration_s + self.move_margin_s)
         except (LinkTimeout, WireProtocolError, KeyboardInterrupt):
             self._stop_quietly()
+            raise
+
+    def _await_done(self, tag: int, targets: tuple[int, ...], timeout_s: float) -> tuple[int, ...]:
+        """Wait for the ``DONE`` of move ``tag``; a lost one is recovered through ``POS`` (see the module)."""
+        try:
+            return self._await(tag, "MOVE", ("DONE",), timeout_s, heartbeat=True, done_at=targets).ints(0, wire.AXES)
+        except LinkTimeout:
+            where = self.position()  # one last look: idle at the target is the move done, its DONE lost
+            if where.state == "IDLE" and where.steps == targets:
+                _log.warning("%s: MOVE #%d: DONE lost; POS shows the controller idle at the target",
+                             self.link.port_name, tag)
+                return where.steps
             raise
 
     def _recover_move(self, tag: int, targets: tuple[int, ...], speed: int) -> tuple[int, ...]:
@@ -361,8 +397,7 @@ class Pkm5Controller:
         where = self.position()
         if where.state == "MOVING":
             remaining_s = max(abs(t - s) for t, s in zip(targets, where.steps)) / speed
-            return self._await(tag, "MOVE", ("DONE",), 1.5 * remaining_s + self.move_margin_s,
-                               heartbeat=True).ints(0, wire.AXES)
+            return self._await_done(tag, targets, 1.5 * remaining_s + self.move_margin_s)
         if where.steps == targets:
             return where.steps
         raise LinkError(f"{self.link.port_name}: MOVE #{tag} not confirmed: the controller is {where.state} at "
@@ -373,7 +408,7 @@ class Pkm5Controller:
     def _stop_quietly(self) -> None:
         try:
             tag = next(self._tags)
-            self.link.write(wire.format_command("STOP", (), tag, self._version), command="STOP")
+            self._send(wire.format_command("STOP", (), tag, self._version), command="STOP")
             self._await(tag, "STOP", ("OK",), self.reply_timeout_s)
         except (LinkError, OSError) as exc:
             _log.warning("%s: STOP not confirmed: %s", self.link.port_name, exc)
@@ -391,6 +426,17 @@ class Pkm5Controller:
 
     def __exit__(self, *exc_info: object) -> None:
         self.shutdown()
+
+
+def _idle_at(reply: wire.Reply, targets: tuple[int, ...]) -> bool:
+    """Whether a ``POS`` reply (``POS s1 .. s6 STATE``) shows the controller idle at ``targets``."""
+    fields = reply.fields
+    if len(fields) != 2 + wire.AXES or fields[0] != "POS" or fields[-1] != "IDLE":
+        return False
+    try:
+        return reply.ints(1, wire.AXES) == targets
+    except WireProtocolError:
+        return False
 
 
 def _as_steps(steps: Any) -> tuple[int, ...]:

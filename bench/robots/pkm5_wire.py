@@ -257,14 +257,19 @@ def _parse_reply(line: bytes, version: int) -> Reply:
 
 
 class LineLink(FramedLink):
-    """Newline framing: a frame is everything up to ``\\n``; over-long lines are cut and returned for rejection."""
+    """Newline framing: a frame is everything up to ``\\n``.
+
+    A run of bytes without a newline longer than ``4 * MAX_LINE`` (line noise) is cut and handed over to be
+    refused, all but its last ``MAX_LINE`` bytes: those may be the start of a valid line split across reads (a
+    reply arriving behind the noise), and are kept so that the line is whole once its newline comes."""
 
     def _take_frame(self) -> bytes | None:
         end = self._pending.find(b"\n")
         if end < 0:
-            if len(self._pending) > 4 * MAX_LINE:  # a line that can never be valid: hand it over to be refused
-                frame = bytes(self._pending)
-                self._pending.clear()
+            if len(self._pending) > 4 * MAX_LINE:  # noise: refuse what can never be part of a valid line
+                cut = len(self._pending) - MAX_LINE
+                frame = bytes(self._pending[:cut])
+                del self._pending[:cut]
                 return frame
             return None
         frame = bytes(self._pending[:end])

@@ -2,6 +2,7 @@
 sample descriptors, and the tidy-table export; ``bench.store.lab`` is the PostgreSQL lab store (psycopg 3)."""
 
 from bench.store.database import (
+    INTERRUPTED,
     RUN_STATUSES,
     CalibrationRecord,
     DuplicateSample,
@@ -10,18 +11,21 @@ from bench.store.database import (
     Store,
     software_git_sha,
 )
+from bench.store.ownership import RunOwned
 from bench.store.schema import SCHEMA_VERSION, StoreSchemaError
 from bench.store.descriptors import SAMPLE_KINDS, SampleMismatch, validate_sample
 from bench.store.export import EXPORT_FORMATS, TIDY_COLUMNS, default_kind, export_run, series_table, tidy_table
 
 __all__ = [
     "EXPORT_FORMATS",
+    "INTERRUPTED",
     "RUN_STATUSES",
     "SAMPLE_KINDS",
     "SCHEMA_VERSION",
     "TIDY_COLUMNS",
     "CalibrationRecord",
     "DuplicateSample",
+    "RunOwned",
     "RunRecord",
     "SampleMismatch",
     "SampleRecord",

@@ -7,8 +7,9 @@ enough to re-run or re-analyse it. Every sample is committed in its own transact
 from. A sample carries the index of the protocol step that produced it; resuming a run skips the stored indices.
 
 The status of a run is ``running`` from before its first sample and is settled by the runner in ``finally``:
-``completed``, ``failed`` or ``aborted``, with the reason. A run killed outright stays ``running`` until it is
-resumed.
+``completed``, ``failed`` or ``aborted``, with the reason. A run is owned by the one live process that drives it
+(:mod:`bench.store.ownership`); a stored ``running`` run whose owner is gone (killed outright, power lost) reads
+as ``interrupted``, with ``bench resume ID`` as the next step, until it is resumed.
 """
 
 from __future__ import annotations
@@ -18,7 +19,6 @@ import logging
 import math
 import sqlite3
 import subprocess
-import time
 import uuid
 from collections.abc import Iterable, Iterator, Mapping, Sequence
 from dataclasses import dataclass
@@ -28,9 +28,12 @@ from typing import Any, Self
 
 from bench import __version__
 from bench.errors import BenchError, ConfigError
-from bench.store.schema import default_bench_name, open_schema
+from bench.store.connection import GuardedConnection, open_connection, store_error
+from bench.store.ownership import RunLease, owner_of
+from bench.store.schema import SCHEMA_VERSION, StoreSchemaError, default_bench_name, open_schema
 
 __all__ = [
+    "INTERRUPTED",
     "RUN_STATUSES",
     "CalibrationRecord",
     "DuplicateSample",
@@ -42,8 +45,10 @@ __all__ = [
 
 _log = logging.getLogger(__name__)
 
-#: The closed set of run statuses.
+#: The closed set of stored run statuses.
 RUN_STATUSES = ("running", "completed", "failed", "aborted")
+#: The status a stored ``running`` run reads as when no live process owns it (derived when read, never stored).
+INTERRUPTED = "interrupted"
 
 
 
@@ -134,25 +139,6 @@ def software_git_sha() -> str:
         return "unknown"
 
 
-#: How long opening a store waits for another process that holds it (the same as the connection's busy timeout).
-_BUSY_TIMEOUT_S = 10.0
-
-
-def _use_write_ahead_log(db: sqlite3.Connection) -> None:
-    """Switch ``db`` to WAL, waiting for other connections. SQLite answers a journal-mode change that meets another
-    connection's lock with "database is locked" at once, without its busy handler (seen when the desktop app reads
-    a new store while a run creates it), so the switch is retried here up to the busy timeout."""
-    deadline = time.monotonic() + _BUSY_TIMEOUT_S
-    while True:
-        try:
-            db.execute("PRAGMA journal_mode=WAL")
-            return
-        except sqlite3.OperationalError as exc:
-            if "locked" not in str(exc) or time.monotonic() > deadline:
-                raise
-            time.sleep(0.01)
-
-
 class Store:
     """A SQLite run store (WAL journal, every write committed at once).
 
@@ -164,6 +150,11 @@ class Store:
         (see ``bench.store.schema``).
     bench : str, optional
         This bench's name, recorded on every run it starts (default: the host name).
+    read_only : bool
+        Open for reading only (``bench runs``, ``report``, ``export``, the results browser): the file must exist and
+        nothing is created or written (an older schema is still migrated first, with its backup). Another
+        application's SQLite file is refused in either mode, untouched; every database error of a query is one
+        :class:`bench.store.connection.StoreError` line naming the file and what to do.
 
     Examples
     --------
@@ -174,28 +165,46 @@ class Store:
     {0}
     """
 
-    def __init__(self, path: str | Path = "bench.db", *, bench: str | None = None) -> None:
+    def __init__(self, path: str | Path = "bench.db", *, bench: str | None = None, read_only: bool = False) -> None:
         self.path = str(path)
+        self.read_only = read_only
+        self._leases: dict[int, RunLease] = {}
         self.bench = bench or default_bench_name()
-        if self.path != ":memory:":
-            parent = Path(self.path).parent
-            if not parent.is_dir():
-                raise ConfigError(f"--store {self.path}: folder {parent} does not exist")
+        self.backup = None
         try:
-            self._db = sqlite3.connect(self.path, isolation_level=None, timeout=_BUSY_TIMEOUT_S)
-            _use_write_ahead_log(self._db)
-            self._db.execute("PRAGMA synchronous=FULL")
-            self._db.execute("PRAGMA foreign_keys=ON")
-            self.backup = open_schema(self._db, self.path, self.bench)
+            raw = open_connection(self.path, read_only=read_only)
         except sqlite3.DatabaseError as exc:
-            self._db.close()
-            raise ConfigError(f"--store {self.path}: not a usable bench store ({exc})") from exc
-        except BenchError:
-            self._db.close()
+            raise ConfigError(f"--store {self.path}: not a usable bench store ({exc})") from None
+        try:
+            if read_only:
+                (version,) = raw.execute("PRAGMA user_version").fetchone()
+                if version > SCHEMA_VERSION:
+                    raise StoreSchemaError(f"--store {self.path}: schema version {version} is newer than this "
+                                           f"bench's ({SCHEMA_VERSION}); upgrade bench to open it")
+                if version < SCHEMA_VERSION:  # an old store is migrated (with its backup) before it is read
+                    raw.close()
+                    raw = self._migrated()
+            else:
+                self.backup = open_schema(raw, self.path, self.bench)
+        except sqlite3.DatabaseError as exc:
+            raw.close()
+            raise ConfigError(f"--store {self.path}: not a usable bench store ({exc})") from None
+        except BaseException:
+            raw.close()
             raise
+        self._db = GuardedConnection(raw, self.path)
         if self.backup is not None:
             _log.warning("store %s migrated to the current schema; the old file is kept as %s", self.path,
                          self.backup)
+
+    def _migrated(self) -> sqlite3.Connection:
+        """Migrate the old store at ``self.path`` for a reader; then reopen it read-only."""
+        try:
+            with Store(self.path, bench=self.bench) as writer:
+                self.backup = writer.backup
+        except sqlite3.Error as exc:
+            raise store_error(self.path, exc) from None
+        return open_connection(self.path, read_only=True)
 
     def __repr__(self) -> str:
         return f"Store({self.path!r})"
@@ -207,7 +216,38 @@ class Store:
         self.close()
 
     def close(self) -> None:
+        for run_id in list(self._leases):
+            self.release(run_id)
         self._db.close()
+
+    # ---- ownership -------------------------------------------------------------------------------------------
+
+    def claim(self, run_id: int) -> RunLease | None:
+        """Own run ``run_id`` from now until :meth:`release` (or :meth:`close`); raises
+        :class:`bench.store.ownership.RunOwned`, naming the owner, when another live process owns it. Claiming a run
+        this store already owns returns its lease. A store in memory is owned by its process alone (None)."""
+        run_id = int(run_id)
+        if self.path == ":memory:":
+            return None
+        if run_id not in self._leases:
+            self._leases[run_id] = RunLease(self.path, run_id)
+        return self._leases[run_id]
+
+    def release(self, run_id: int) -> None:
+        """Give up the ownership of run ``run_id`` (nothing when this store does not own it)."""
+        lease = self._leases.pop(int(run_id), None)
+        if lease is not None:
+            lease.release()
+
+    def _reads_as(self, run_id: int, status: str, reason: str | None) -> tuple[str, str | None]:
+        """A stored ``running`` run without a live owner reads as interrupted, naming the owner and the next step."""
+        if status != "running" or self.path == ":memory:" or run_id in self._leases:
+            return status, reason
+        owner = owner_of(self.path, run_id)
+        if owner is not None and owner.alive:
+            return status, reason or f"owned by {owner.describe()}"
+        gone = f"its owner ({owner.describe()}) is gone" if owner else "no process owns it"
+        return INTERRUPTED, f"{gone}; next: bench resume {run_id}"
 
     def checkpoint(self) -> None:
         """Copy the write-ahead log into the database file, so that the ``.db`` file alone (a backup of "the store
@@ -252,16 +292,28 @@ class Store:
         """Create a run with status ``running``, its full provenance, a new UUID and this bench's name; returns the
         run id (an integer local to this file; the UUID is the run's name everywhere else)."""
         campaign_id = self.campaign_id(campaign) if campaign else None
-        cursor = self._db.execute(
-            "INSERT INTO runs (uuid, bench, campaign_id, protocol_name, protocol_version, robot, config_json,"
-            " settings_json, calibration_ids_json, software_version, git_sha, status, started_utc)"
-            " VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, 'running', ?)",
-            (str(uuid.uuid4()), self.bench, campaign_id, protocol_name, str(protocol_version), robot,
-             _to_json(dict(config), "config"),
-             _to_json(dict(settings or {}), "settings"), _to_json(sorted(int(i) for i in calibration_ids),
-                                                                  "calibration_ids"),
-             __version__, software_git_sha(), _utc_now()))
-        return int(cursor.lastrowid)
+        row = (str(uuid.uuid4()), self.bench, campaign_id, protocol_name, str(protocol_version), robot,
+               _to_json(dict(config), "config"),
+               _to_json(dict(settings or {}), "settings"), _to_json(sorted(int(i) for i in calibration_ids),
+                                                                    "calibration_ids"),
+               __version__, software_git_sha(), _utc_now())
+        # owned before anyone can read it: the run and its lock appear together (the commit comes after the lock)
+        run_id = None
+        self._db.execute("BEGIN IMMEDIATE")
+        try:
+            cursor = self._db.execute(
+                "INSERT INTO runs (uuid, bench, campaign_id, protocol_name, protocol_version, robot, config_json,"
+                " settings_json, calibration_ids_json, software_version, git_sha, status, started_utc)"
+                " VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, 'running', ?)", row)
+            run_id = int(cursor.lastrowid)
+            self.claim(run_id)
+            self._db.execute("COMMIT")
+        except BaseException:
+            self._db.execute("ROLLBACK")
+            if run_id is not None:
+                self.release(run_id)
+            raise
+        return run_id
 
     def set_status(self, run_id: int, status: str, reason: str | None = None) -> None:
         """Settle (or reopen, with ``running``) the status of a run; ``reason`` says why it failed or stopped."""
@@ -301,8 +353,9 @@ class Store:
             RunRecord(id=row[0], uuid=row[1], bench=row[2], campaign=row[3], protocol_name=row[4],
                       protocol_version=row[5], robot=row[6], config=json.loads(row[7]), settings=json.loads(row[8]),
                       calibration_ids=tuple(json.loads(row[9])), software_version=row[10], git_sha=row[11],
-                      status=row[12], reason=row[13], started_utc=row[14], ended_utc=row[15], n_samples=row[16])
-            for row in self._db.execute(query, args)
+                      status=status, reason=reason, started_utc=row[14], ended_utc=row[15], n_samples=row[16])
+            for row in self._db.execute(query, args).fetchall()
+            for status, reason in (self._reads_as(row[0], row[12], row[13]),)
         ]
 
     # ---- samples ---------------------------------------------------------------------------------------------

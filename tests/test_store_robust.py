@@ -1,0 +1,105 @@
+"""Store robustness: every database error one line naming the file and what to do; another application's SQLite
+file refused untouched; readers never create a store; ``bench store check`` one line per problem."""
+
+from __future__ import annotations
+
+import sqlite3
+from pathlib import Path
+
+import pytest
+
+from bench.cli import main
+from bench.store import Store
+from bench.store.connection import StoreError, check_store
+
+ROOT = Path(__file__).resolve().parents[1]
+QUICK = ROOT / "examples" / "iso9283_pose_quick.toml"
+
+
+def _one_error_line(capsys) -> str:
+    captured = capsys.readouterr()
+    lines = captured.err.strip().splitlines()
+    assert len(lines) == 1 and "Traceback" not in captured.err, captured.err
+    return lines[0]
+
+
+@pytest.fixture()
+def sound_store(tmp_path) -> Path:
+    path = tmp_path / "bench.db"
+    with Store(path) as store:
+        run_id = store.start_run(protocol_name="p", protocol_version="1", robot="pkm5", config={})
+        for step in range(300):
+            store.add_sample(run_id, step, values={"x_mm": step * 0.5}, t_s=float(step))
+        store.set_status(run_id, "completed")
+    return path
+
+
+def _damaged(sound: Path) -> Path:
+    """The sound store with pages 3 to 5 overwritten (the sample table's b-tree pages)."""
+    data = bytearray(sound.read_bytes())
+    page = 4096
+    assert len(data) >= 6 * page
+    data[3 * page:6 * page] = b"\x5a" * (3 * page)
+    damaged = sound.with_name("damaged.db")
+    damaged.write_bytes(bytes(data))
+    return damaged
+
+
+def test_another_applications_sqlite_file_is_refused_and_untouched(tmp_path, capsys):
+    other = tmp_path / "notes.db"
+    with sqlite3.connect(other) as db:
+        db.execute("CREATE TABLE notes (id INTEGER PRIMARY KEY, text TEXT)")
+        db.execute("INSERT INTO notes (text) VALUES ('keep me')")
+    db.close()
+    before = other.read_bytes()
+    expected = (f"bench: error: --store {other}: not a bench store (its tables are notes; no runs table); left "
+                "untouched, expected a bench.db that bench wrote or a new file name")
+    for command in (["runs"], ["run", str(QUICK), "--no-progress"], ["export", "1"], ["report", "1"]):
+        assert main([*command, "--store", str(other)]) == 2
+        assert _one_error_line(capsys) == expected
+    assert other.read_bytes() == before
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["notes.db"]  # no journal, no lock, no table added
+
+
+def test_readers_never_create_a_store(tmp_path, capsys):
+    missing = tmp_path / "typo.db"
+    for command in (["runs"], ["export", "1"], ["report", "1"], ["backup", str(tmp_path / "copy.db")]):
+        assert main([*command, "--store", str(missing)]) == 2
+        assert str(missing) in _one_error_line(capsys)
+    with pytest.raises(Exception, match=f"--store {missing}: no run store there"):
+        Store(missing, read_only=True)
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_a_damaged_store_is_one_line_naming_the_file_and_what_to_do(sound_store, capsys):
+    damaged = _damaged(sound_store)
+    advice = f"the file is damaged: check it with `bench store check {damaged}` and work on a backup copy"
+    assert main(["export", "1", "--store", str(damaged), "--out", str(damaged.with_suffix(".csv"))]) == 1
+    assert _one_error_line(capsys) == f"bench: error: store {damaged}: database disk image is malformed; {advice}"
+    with Store(damaged, read_only=True) as store, pytest.raises(StoreError, match="disk image is malformed"):
+        store.samples(1)
+    assert main(["store", "check", str(damaged)]) == 1
+    captured = capsys.readouterr()
+    assert captured.out.splitlines() == [f"{damaged}: database disk image is malformed"]
+    assert captured.err == f"bench: 1 problem(s) in {damaged}; work on a backup copy\n"
+
+
+def test_store_check_says_ok_and_names_each_orphan_row(sound_store, capsys):
+    assert main(["store", "check", str(sound_store)]) == 0
+    assert capsys.readouterr().out == f"{sound_store}: ok\n"
+    with sqlite3.connect(sound_store) as db:  # foreign keys are off in a plain connection: orphans get in
+        db.execute("INSERT INTO samples (run_id, step_index, kind, t_s, wall_utc, values_json)"
+                   " VALUES (7, 0, 'pose', 0, '2026-12-01', '{}')")
+        (rowid,) = db.execute("SELECT id FROM samples WHERE run_id = 7").fetchone()
+    db.close()
+    assert check_store(str(sound_store)) == [
+        f"{sound_store}: table samples row {rowid}: runs id missing (foreign key 0)"]
+
+
+def test_a_read_only_store_reads_and_a_write_is_one_line(sound_store):
+    with Store(sound_store, read_only=True) as store:
+        assert [(r.status, r.n_samples) for r in store.runs()] == [("completed", 300)]
+        assert store.samples(1)[299].values == {"x_mm": 149.5}
+        with pytest.raises(StoreError, match=f"store {sound_store}: attempt to write a readonly database; the "
+                                             "file or its folder is read-only"):
+            store.set_status(1, "failed", "x")
