@@ -1,0 +1,108 @@
+"""Kinematic compensation: which stored ``pkm5_kinematics`` calibration a run commands by, and putting it in force.
+
+A calibration in force replaces the documented geometry of the pkm5 everywhere the run uses kinematics: the
+driver's IK of every commanded target (targets -> leg strokes), its pre-flight of step targets (leg windows, FK and
+IK reachability) and the plan's pre-flight (reach, joint limits, singularity proximity). The geometry is
+:func:`motion.pkm5.calibration.compensation_geometry`: the identified deviations with the instrument's registration
+folded into the base joints, so a target in the instrument's frame (the frame the mice register at home) gives the
+steps whose predicted measurement is that target. Home stays the documents' home steps (every actuator at 5 mm
+stroke), where the instruments are registered as during the calibration run.
+
+Which calibration (:data:`NEWEST` by default): the newest ``pkm5_kinematics`` version made for this robot, i.e.
+whose ``dut_serial`` equals the station's device-under-test serial (a rig without a serial: a calibration without
+one); a calibration id chosen by the person; or :data:`OFF`. The record in force goes into the run's calibration
+ids and its settings (``kinematic_calibration``), and none in force is recorded as such with the reason.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+from bench.errors import ConfigError
+
+__all__ = ["CALIBRATION_NAME", "NEWEST", "OFF", "apply_kinematic_calibration", "calibrated_geometry",
+           "describe_in_force", "select_calibration"]
+
+#: The store name of the pkm5 kinematic calibration (``bench calibrate`` writes versions of it).
+CALIBRATION_NAME = "pkm5_kinematics"
+#: Choices besides a calibration id: the newest calibration of this robot, or none at all.
+NEWEST, OFF = "newest", "off"
+
+
+def select_calibration(store: Any, robot: str, choice: int | str = NEWEST, dut_serial: str | None = None):
+    """The calibration record ``choice`` puts in force for ``robot`` (serial ``dut_serial``), or None with why.
+
+    Returns ``(record or None, reason)``. An explicit id that is not a ``pkm5_kinematics`` calibration, names another
+    robot's serial, or is asked for on a robot other than the pkm5 raises ``ConfigError`` (one line).
+    """
+    if choice == OFF:
+        return None, "--no-kinematic-calibration"
+    if choice == NEWEST:
+        if robot != "pkm5":
+            return None, f"no kinematic calibration exists for the {robot}"
+        mine = [c for c in store.calibrations() if c.name == CALIBRATION_NAME
+                and c.params.get("dut_serial") == dut_serial]
+        if not mine:
+            whose = f"robot {dut_serial}" if dut_serial else "a robot without a serial"
+            return None, f"no {CALIBRATION_NAME} calibration for {whose} in {store.path}"
+        return max(mine, key=lambda c: c.version), "the newest for this robot"
+    if isinstance(choice, bool) or not isinstance(choice, int):
+        raise ConfigError(f"--kinematic-calibration {choice!r}: expected a calibration id (bench calibrate prints "
+                          "it)")
+    record = store.calibration_by_id(choice)
+    if record.name != CALIBRATION_NAME:
+        raise ConfigError(f"--kinematic-calibration {choice}: calibration {record.name} v{record.version}, expected "
+                          f"a {CALIBRATION_NAME} calibration")
+    if robot != "pkm5":
+        raise ConfigError(f"--kinematic-calibration {choice}: a pkm5 calibration, expected none for the {robot}")
+    serial = record.params.get("dut_serial")
+    if serial != dut_serial:
+        raise ConfigError(f"--kinematic-calibration {choice}: made for robot {serial or '(no serial)'}, expected "
+                          f"one for robot {dut_serial or '(no serial)'}")
+    return record, "chosen"
+
+
+def calibrated_geometry(record: Any):
+    """The :class:`motion.pkm5.Geometry` a run commands by under calibration ``record``; ``ConfigError`` when its
+    parameters are not a kinematic calibration's."""
+    from motion.errors import MotionInputError
+    from motion.pkm5.calibration import compensation_geometry
+
+    try:
+        return compensation_geometry(record.params)
+    except (MotionInputError, ValueError, KeyError, TypeError) as exc:
+        raise ConfigError(f"calibration id {record.id} ({record.name} v{record.version}): {exc}") from None
+
+
+def apply_kinematic_calibration(rig: Any, store: Any, robot: str, choice: int | str = NEWEST) -> Any:
+    """Put the calibration ``choice`` selects in force on ``rig``: its mover commands by the calibrated geometry,
+    its id joins ``rig.calibration_ids`` and ``rig.extra["kinematic_calibration"]`` records it (or none, and why).
+    Returns the record or None. A rig that does not move a pkm5 pose by pose (the actuator bench) keeps none."""
+    serial = (rig.extra.get("dut") or {}).get("dut_serial")
+    if robot == "pkm5" and getattr(rig.robot.controller, "fixture", "assembled") != "assembled":
+        if choice not in (NEWEST, OFF):
+            raise ConfigError(f"--kinematic-calibration {choice}: the actuator bench commands no poses, expected "
+                              "none")
+        rig.extra["kinematic_calibration"] = {"id": None, "reason": "the actuator bench commands no poses"}
+        return None
+    record, reason = select_calibration(store, robot, choice, serial)
+    if record is None:
+        rig.extra["kinematic_calibration"] = {"id": None, "reason": reason}
+        return None
+    rig.robot.use_geometry(calibrated_geometry(record))
+    rig.calibration_ids = tuple(rig.calibration_ids) + (record.id,)
+    rig.extra["kinematic_calibration"] = {"id": record.id, "name": record.name, "version": record.version,
+                                          "source_run_id": record.source_run_id, "reason": reason}
+    return record
+
+
+def describe_in_force(rig: Any) -> str:
+    """One line naming the kinematic calibration in force on ``rig`` (for stderr and the window's log)."""
+    entry = rig.extra.get("kinematic_calibration")
+    if entry is None:
+        return "kinematic calibration: none (not selected)"
+    if entry["id"] is None:
+        return f"kinematic calibration: none ({entry['reason']}); commanding by the documented geometry"
+    source = f" from run {entry['source_run_id']}" if entry.get("source_run_id") is not None else ""
+    return (f"kinematic calibration in force: {entry['name']} v{entry['version']} (id {entry['id']}{source}; "
+            f"{entry['reason']})")
