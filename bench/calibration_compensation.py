@@ -20,8 +20,8 @@ from typing import Any
 
 from bench.errors import ConfigError
 
-__all__ = ["CALIBRATION_NAME", "NEWEST", "OFF", "apply_kinematic_calibration", "calibrated_geometry",
-           "describe_in_force", "select_calibration"]
+__all__ = ["CALIBRATION_NAME", "NEWEST", "OFF", "calibrated_geometry", "choose_calibration", "describe_in_force",
+           "preflight_by_rig", "put_in_force", "select_calibration"]
 
 #: The store name of the pkm5 kinematic calibration (``bench calibrate`` writes versions of it).
 CALIBRATION_NAME = "pkm5_kinematics"
@@ -74,26 +74,33 @@ def calibrated_geometry(record: Any):
         raise ConfigError(f"calibration id {record.id} ({record.name} v{record.version}): {exc}") from None
 
 
-def apply_kinematic_calibration(rig: Any, store: Any, robot: str, choice: int | str = NEWEST) -> Any:
-    """Put the calibration ``choice`` selects in force on ``rig``: its mover commands by the calibrated geometry,
-    its id joins ``rig.calibration_ids`` and ``rig.extra["kinematic_calibration"]`` records it (or none, and why).
-    Returns the record or None. A rig that does not move a pkm5 pose by pose (the actuator bench) keeps none."""
-    serial = (rig.extra.get("dut") or {}).get("dut_serial")
-    if robot == "pkm5" and getattr(rig.robot.controller, "fixture", "assembled") != "assembled":
+def choose_calibration(store: Any, robot: str, choice: int | str = NEWEST, dut_serial: str | None = None,
+                       fixture: str = "assembled"):
+    """:func:`select_calibration` for a rig with ``fixture``, decided before the rig opens (a refused choice starts
+    no simulator and opens no port): the actuator bench commands no poses, so none is in force there."""
+    if robot == "pkm5" and fixture != "assembled":
         if choice not in (NEWEST, OFF):
-            raise ConfigError(f"--kinematic-calibration {choice}: the actuator bench commands no poses, expected "
-                              "none")
-        rig.extra["kinematic_calibration"] = {"id": None, "reason": "the actuator bench commands no poses"}
-        return None
-    record, reason = select_calibration(store, robot, choice, serial)
+            raise ConfigError(f"--kinematic-calibration {choice}: the {fixture} commands no poses, expected none")
+        return None, f"the {fixture} commands no poses"
+    return select_calibration(store, robot, choice, dut_serial)
+
+
+def put_in_force(rig: Any, record: Any, reason: str) -> Any:
+    """Calibration ``record`` (None: none, for ``reason``) in force on ``rig``: its mover commands by the calibrated
+    geometry, its id joins ``rig.calibration_ids`` and ``rig.extra["kinematic_calibration"]`` records it (or none,
+    and why). Returns ``rig``."""
     if record is None:
         rig.extra["kinematic_calibration"] = {"id": None, "reason": reason}
-        return None
-    rig.robot.use_geometry(calibrated_geometry(record))
+        return rig
+    try:
+        rig.robot.use_geometry(calibrated_geometry(record))
+    except BaseException:
+        rig.close()
+        raise
     rig.calibration_ids = tuple(rig.calibration_ids) + (record.id,)
     rig.extra["kinematic_calibration"] = {"id": record.id, "name": record.name, "version": record.version,
                                           "source_run_id": record.source_run_id, "reason": reason}
-    return record
+    return rig
 
 
 def describe_in_force(rig: Any) -> str:
@@ -106,3 +113,17 @@ def describe_in_force(rig: Any) -> str:
     source = f" from run {entry['source_run_id']}" if entry.get("source_run_id") is not None else ""
     return (f"kinematic calibration in force: {entry['name']} v{entry['version']} (id {entry['id']}{source}; "
             f"{entry['reason']})")
+
+
+def preflight_by_rig(rig: Any, protocol: Any) -> None:
+    """The plan's pre-flight again by the geometry ``rig`` commands by, when a kinematic calibration is in force
+    (the runner's own pre-flight uses the documented geometry); ``rig`` is closed when a target is refused."""
+    from bench.protocols.plan import preflight
+
+    if (rig.extra.get("kinematic_calibration") or {}).get("id") is None:
+        return
+    try:
+        preflight(protocol, geometry=rig.robot.geometry)
+    except BaseException:
+        rig.close()
+        raise

@@ -13,9 +13,9 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
-from bench.calibration_compensation import NEWEST, OFF, apply_kinematic_calibration
+from bench.calibration_compensation import NEWEST, OFF, choose_calibration, put_in_force
 from bench.errors import ConfigError
-from bench.rigs.builder import build_rig, check_capabilities
+from bench.rigs.builder import build_rig, check_capabilities, station_identity
 from bench.rigs.builder import open_mover as builder_open_mover
 from bench.rigs.interfaces import Operator, Rig
 from bench.rigs.station import Station, load_station, parse_station
@@ -67,12 +67,14 @@ def open_rig(request: RigRequest, store: Any, *, robot: str, stored: dict[str, A
     """
     stored = stored or {}
     station = _station(request, robot, fixture)
+    serial = None if station is None else station_identity(station).get("dut_serial")
+    kinematic = _kinematic_calibration(request, store, robot, stored, serial, fixture)
     if station is None:
         seed, speed = _simulation_settings(request, stored)
         rig = simulated_rig_in(store, robot, seed=seed, speed_factor=speed, fixture=fixture,
                                true_geometry_seed=_true_geometry_seed(request, stored, robot),
                                ideal=request.ideal or bool(stored.get("simulator", {}).get("ideal")))
-        return _with_kinematic_calibration(rig, request, store, robot, stored)
+        return put_in_force(rig, *kinematic)
     if request.true_geometry_seed is not None or request.ideal:
         what = "--ideal" if request.ideal else f"--true-geometry-seed {request.true_geometry_seed}"
         raise ConfigError(f"{what}: only for the simulated default rig (no --station, no --port)")
@@ -85,28 +87,25 @@ def open_rig(request: RigRequest, store: Any, *, robot: str, stored: dict[str, A
         store.bench = station.identity.bench  # runs are stored under the station's name (the lab store's key)
     if not request.simulate:
         rig = build_rig(station, store, requires=requires, protocol=protocol, operator=operator)
-        return _with_kinematic_calibration(rig, request, store, robot, stored)
+        return put_in_force(rig, *kinematic)
     check_capabilities(station, requires, protocol)  # before a simulator starts
     rig, rehearsal, seed = _on_rehearsal(station, request, stored, lambda devices, speed: build_rig(
         devices, store, requires=requires, protocol=protocol, speed_factor=speed, operator=operator))
     rig.closers.insert(0, rehearsal.close)  # closed last: after the drivers let go of the simulators' devices
     rig.extra["simulator"] = {"seed": seed, "station": station.source, "truth_log": rehearsal.truth_path}
-    return _with_kinematic_calibration(rig, request, store, robot, stored)
+    return put_in_force(rig, *kinematic)
 
 
-def _with_kinematic_calibration(rig: Rig, request: RigRequest, store: Any, robot: str,
-                                stored: dict[str, Any]) -> Rig:
-    """``rig`` commanding by the kinematic calibration the request selects (:mod:`bench.calibration_compensation`);
-    a resumed run keeps its own unless another is named. The rig is closed again when the choice is refused."""
+def _kinematic_calibration(request: RigRequest, store: Any, robot: str, stored: dict[str, Any],
+                           serial: str | None, fixture: str) -> tuple[Any, str]:
+    """The kinematic calibration the request selects (:mod:`bench.calibration_compensation`) and why, decided before
+    anything opens; a resumed run keeps its own unless another is named."""
     choice = request.kinematic_calibration
     if stored and choice == NEWEST:
-        choice = (stored.get("kinematic_calibration") or {}).get("id") or OFF
-    try:
-        apply_kinematic_calibration(rig, store, robot, choice)
-    except BaseException:
-        rig.close()
-        raise
-    return rig
+        choice = (stored.get("kinematic_calibration") or {}).get("id")
+        if choice is None:
+            return None, "the run was made without one"
+    return choose_calibration(store, robot, choice, serial, fixture)
 
 
 def _true_geometry_seed(request: RigRequest, stored: dict[str, Any], robot: str) -> int | None:

@@ -106,3 +106,34 @@ def test_an_unknown_calibration_id_is_one_line(tmp_path):
                   "--no-progress", store=tmp_path / "bench.db")
     assert done.returncode == 2
     assert done.stderr == f"bench: error: calibration id 99: not found in {tmp_path / 'bench.db'}\n"
+
+
+def test_a_resume_keeps_the_calibration_of_its_run(tmp_path):
+    """A resumed run commands by the calibration that was in force when it started, not a newer one; a run stored
+    without one stays without one."""
+    from types import SimpleNamespace
+
+    from bench.calibration_compensation import put_in_force
+    from bench.launch import RigRequest, _kinematic_calibration
+    from bench.rigs.interfaces import Rig
+    from bench.rigs.movers import Pkm5Mover
+
+    def rig(stored):
+        chosen = _kinematic_calibration(RigRequest(), store, "pkm5", stored, None, "assembled")
+        mover = Pkm5Mover(SimpleNamespace(geometry=pkm5.DEFAULT_GEOMETRY, fixture="assembled"))
+        return put_in_force(Rig(mover, None, None), *chosen)
+
+    params = {"parameters": {"leg_offset_1_mm": {"value": 0.25}, "reg_z_mm": {"value": 1.0}}}
+    with Store(tmp_path / "bench.db") as store:
+        first = store.add_calibration("pkm5_kinematics", params)
+        store.add_calibration("pkm5_kinematics", params)
+        resumed = rig({"kinematic_calibration": {"id": first.id}})
+        assert resumed.calibration_ids == (first.id,) and resumed.extra["kinematic_calibration"]["version"] == 1
+        assert resumed.robot.geometry.leg_length_offset_mm[0] == pytest.approx(184.25)
+        assert resumed.robot.geometry.oa_12_mm == pytest.approx((-75.0, -129.9, 1.0))
+        older = rig({"simulator": {"seed": 0}})
+        assert older.calibration_ids == () and older.robot.geometry == pkm5.DEFAULT_GEOMETRY
+        assert older.extra["kinematic_calibration"] == {"id": None, "reason": "the run was made without one"}
+        assert rig({}).extra["kinematic_calibration"]["version"] == 2
+        with pytest.raises(ConfigError, match="^--kinematic-calibration 1: the actuator-bench commands no poses"):
+            _kinematic_calibration(RigRequest(kinematic_calibration=1), store, "pkm5", {}, None, "actuator-bench")

@@ -132,21 +132,6 @@ def build_rig(args: argparse.Namespace, robot: str, store: Store, stored: dict[s
     return rig
 
 
-def preflight_on(rig, protocol) -> None:
-    """The plan's pre-flight again by the geometry the rig commands by, when a kinematic calibration is in force
-    (the runner's own pre-flight uses the documented one); the rig is closed when a target is refused."""
-    from bench.protocols import preflight
-
-    geometry = getattr(rig.robot, "geometry", None)
-    if (rig.extra.get("kinematic_calibration") or {}).get("id") is None or geometry is None:
-        return
-    try:
-        preflight(protocol, geometry=geometry)
-    except BaseException:
-        rig.close()
-        raise
-
-
 #: Signals that end a run like a double Ctrl-C: the robot is stopped, the run ends aborted and resumable (systemd
 #: and docker send SIGTERM; a closed terminal sends SIGHUP).
 STOP_SIGNALS = (signal.SIGTERM, signal.SIGHUP)
@@ -211,6 +196,7 @@ def execute(runner: Runner, start) -> RunResult:
 
 
 def _run(args: argparse.Namespace) -> int:
+    from bench.calibration_compensation import preflight_by_rig
     from bench.protocols import Runner, load_protocol, preflight, summarize
     from bench.protocols.plan import required_capabilities
     from bench.store import Store
@@ -227,13 +213,14 @@ def _run(args: argparse.Namespace) -> int:
     with Store(args.store) as store:
         rig = build_rig(args, protocol.robot, store, fixture=getattr(protocol, "fixture", "assembled"),
                         requires=required_capabilities(protocol), protocol=f"protocol {protocol.name!r}")
-        preflight_on(rig, protocol)
+        preflight_by_rig(rig, protocol)
         runner = Runner(rig, store, progress=not args.no_progress, on_pause=_ask_after_pause)
         result = execute(runner, lambda: runner.run(protocol, campaign=args.campaign))
     return 0 if result.exit_status == "completed" else 1
 
 
 def _resume(args: argparse.Namespace) -> int:
+    from bench.calibration_compensation import preflight_by_rig
     from bench.protocols import Runner, protocol_from_config
     from bench.protocols.plan import required_capabilities
     from bench.store import Store
@@ -244,7 +231,7 @@ def _resume(args: argparse.Namespace) -> int:
         rig = build_rig(args, record.robot, store, stored=record.settings,
                         fixture=record.config.get("fixture", "assembled"), requires=required_capabilities(protocol),
                         protocol=f"protocol {protocol.name!r}")
-        preflight_on(rig, protocol)
+        preflight_by_rig(rig, protocol)
         runner = Runner(rig, store, progress=not args.no_progress, on_pause=_ask_after_pause)
         result = execute(runner, lambda: runner.resume_run(args.run_id))
     return 0 if result.exit_status == "completed" else 1

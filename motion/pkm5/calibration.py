@@ -236,8 +236,17 @@ class ForwardModel:
             bump[c] = h
             dfdp[:, :, c] = (self._stationarity(p + bump, theta) - self._stationarity(p - bump, theta)) / (2 * h)
         dfdt = np.zeros((n, 5, k))
+        # the leg zeros and leads only move the commanded lengths L(s; theta), not IK(p; theta) nor its Jacobian:
+        # dF/dtheta = -J_m^T dL/dtheta in closed form, dL_i/d offset_i = 1, dL_i/d scale_i = s_i dir_i CR_i
+        pose_jac = jacobian(p, apply_parameters(self.free, theta, self.nominal)) * self._mode_mask[:, None, :]
+        nominal_step = np.asarray(self.nominal.mm_per_step) * np.asarray(self.nominal.step_direction)
         for j, name in enumerate(self.free):
             if name.startswith("reg_"):
+                continue
+            if name.startswith(("leg_offset_", "scale_")):
+                leg = int(name[-4 if name.endswith("_mm") else -1]) - 1
+                dlength = 1.0 if name.startswith("leg_offset_") else self.steps[:, leg] * nominal_step[leg]
+                dfdt[:, :, j] = -pose_jac[:, leg, :] * np.reshape(dlength, (-1, 1))
                 continue
             h = _FD_STEP[UNITS[name]]
             bump = np.zeros(k)
