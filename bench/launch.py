@@ -13,7 +13,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
-from bench.calibration_compensation import NEWEST, OFF, choose_calibration, put_in_force
+from bench.calibration_compensation import NEWEST, choose_calibration, put_in_force
 from bench.errors import ConfigError
 from bench.rigs.builder import build_rig, check_capabilities, station_identity
 from bench.rigs.builder import open_mover as builder_open_mover
