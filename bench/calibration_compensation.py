@@ -10,7 +10,8 @@ stroke), where the instruments are registered as during the calibration run.
 
 Which calibration (:data:`NEWEST` by default): the newest ``pkm5_kinematics`` version made for this robot, i.e.
 whose ``dut_serial`` equals the station's device-under-test serial (a rig without a serial: a calibration without
-one); a calibration id chosen by the person; or :data:`OFF`. The record in force goes into the run's calibration
+one) and made on a simulator exactly when the rig is one (``simulated``: a simulated robot's geometry never reaches
+hardware); a calibration id chosen by the person; or :data:`OFF`. The record in force goes into the run's calibration
 ids and its settings (``kinematic_calibration``), and none in force is recorded as such with the reason.
 """
 
@@ -29,11 +30,14 @@ CALIBRATION_NAME = "pkm5_kinematics"
 NEWEST, OFF = "newest", "off"
 
 
-def select_calibration(store: Any, robot: str, choice: int | str = NEWEST, dut_serial: str | None = None):
-    """The calibration record ``choice`` puts in force for ``robot`` (serial ``dut_serial``), or None with why.
+def select_calibration(store: Any, robot: str, choice: int | str = NEWEST, dut_serial: str | None = None,
+                       simulated: bool = False):
+    """The calibration record ``choice`` puts in force for ``robot`` (serial ``dut_serial``, a simulator or not), or
+    None with why.
 
     Returns ``(record or None, reason)``. An explicit id that is not a ``pkm5_kinematics`` calibration, names another
-    robot's serial, or is asked for on a robot other than the pkm5 raises ``ConfigError`` (one line).
+    robot's serial, was made on a simulator for hardware (or the reverse), or is asked for on a robot other than the
+    pkm5 raises ``ConfigError`` (one line).
     """
     if choice == OFF:
         return None, "--no-kinematic-calibration"
@@ -41,9 +45,10 @@ def select_calibration(store: Any, robot: str, choice: int | str = NEWEST, dut_s
         if robot != "pkm5":
             return None, f"no kinematic calibration exists for the {robot}"
         mine = [c for c in store.calibrations() if c.name == CALIBRATION_NAME
-                and c.params.get("dut_serial") == dut_serial]
+                and c.params.get("dut_serial") == dut_serial and bool(c.params.get("simulated")) == simulated]
         if not mine:
-            whose = f"robot {dut_serial}" if dut_serial else "a robot without a serial"
+            whose = (f"robot {dut_serial}" if dut_serial else "a robot without a serial") + (
+                " (simulated)" if simulated else "")
             return None, f"no {CALIBRATION_NAME} calibration for {whose} in {store.path}"
         return max(mine, key=lambda c: c.version), "the newest for this robot"
     if isinstance(choice, bool) or not isinstance(choice, int):
@@ -59,6 +64,10 @@ def select_calibration(store: Any, robot: str, choice: int | str = NEWEST, dut_s
     if serial != dut_serial:
         raise ConfigError(f"--kinematic-calibration {choice}: made for robot {serial or '(no serial)'}, expected "
                           f"one for robot {dut_serial or '(no serial)'}")
+    if bool(record.params.get("simulated")) != simulated:
+        made, wanted = ("a simulated", "hardware") if not simulated else ("hardware", "a simulated")
+        raise ConfigError(f"--kinematic-calibration {choice}: made on {made} robot, expected one for {wanted} "
+                          "robot")
     return record, "chosen"
 
 
@@ -75,14 +84,14 @@ def calibrated_geometry(record: Any):
 
 
 def choose_calibration(store: Any, robot: str, choice: int | str = NEWEST, dut_serial: str | None = None,
-                       fixture: str = "assembled"):
+                       fixture: str = "assembled", simulated: bool = False):
     """:func:`select_calibration` for a rig with ``fixture``, decided before the rig opens (a refused choice starts
     no simulator and opens no port): the actuator bench commands no poses, so none is in force there."""
     if robot == "pkm5" and fixture != "assembled":
         if choice not in (NEWEST, OFF):
             raise ConfigError(f"--kinematic-calibration {choice}: the {fixture} commands no poses, expected none")
         return None, f"the {fixture} commands no poses"
-    return select_calibration(store, robot, choice, dut_serial)
+    return select_calibration(store, robot, choice, dut_serial, simulated)
 
 
 def put_in_force(rig: Any, record: Any, reason: str) -> Any:

@@ -68,7 +68,8 @@ def open_rig(request: RigRequest, store: Any, *, robot: str, stored: dict[str, A
     stored = stored or {}
     station = _station(request, robot, fixture)
     serial = None if station is None else station_identity(station).get("dut_serial")
-    kinematic = _kinematic_calibration(request, store, robot, stored, serial, fixture)
+    kinematic = _kinematic_calibration(request, store, robot, stored, serial, fixture,
+                                       simulated=station is None or request.simulate)
     if station is None:
         seed, speed = _simulation_settings(request, stored)
         rig = simulated_rig_in(store, robot, seed=seed, speed_factor=speed, fixture=fixture,
@@ -97,7 +98,7 @@ def open_rig(request: RigRequest, store: Any, *, robot: str, stored: dict[str, A
 
 
 def _kinematic_calibration(request: RigRequest, store: Any, robot: str, stored: dict[str, Any],
-                           serial: str | None, fixture: str) -> tuple[Any, str]:
+                           serial: str | None, fixture: str, simulated: bool) -> tuple[Any, str]:
     """The kinematic calibration the request selects (:mod:`bench.calibration_compensation`) and why, decided before
     anything opens; a resumed run keeps its own unless another is named."""
     choice = request.kinematic_calibration
@@ -105,7 +106,7 @@ def _kinematic_calibration(request: RigRequest, store: Any, robot: str, stored: 
         choice = (stored.get("kinematic_calibration") or {}).get("id")
         if choice is None:
             return None, "the run was made without one"
-    return choose_calibration(store, robot, choice, serial, fixture)
+    return choose_calibration(store, robot, choice, serial, fixture, simulated)
 
 
 def _true_geometry_seed(request: RigRequest, stored: dict[str, Any], robot: str) -> int | None:

@@ -46,7 +46,8 @@ def _ap_mm(store, run_id):
 def test_compensation_cuts_the_pose_error_on_held_out_poses(tmp_path):
     store = tmp_path / "bench.db"
     calibration_run, said = _run("kinematic_calibration.toml", store)
-    assert "kinematic calibration: none (no pkm5_kinematics calibration for a robot without a serial" in said
+    assert "kinematic calibration: none (no pkm5_kinematics calibration for a robot without a serial " \
+           "(simulated) in" in said
     done = _bench("calibrate", str(calibration_run), "--json", store=store)
     assert done.returncode == 0, done.stderr
     calibration = json.loads(done.stdout)
@@ -87,6 +88,7 @@ def test_the_calibration_in_force_is_chosen_per_robot(tmp_path):
         first = store.add_calibration("pkm5_kinematics", params)
         other = store.add_calibration("pkm5_kinematics", {**params, "dut_serial": "PKM-7"})
         mouse = store.add_calibration("mouse", {"mm_per_count": 0.03})
+        simulated = store.add_calibration("pkm5_kinematics", {**params, "simulated": True})
         assert select_calibration(store, "pkm5", NEWEST)[0].id == first.id
         assert select_calibration(store, "pkm5", NEWEST, "PKM-7")[0].id == other.id
         assert select_calibration(store, "pkm5", NEWEST, "PKM-9") == (
@@ -99,6 +101,12 @@ def test_the_calibration_in_force_is_chosen_per_robot(tmp_path):
         with pytest.raises(ConfigError, match=f"^--kinematic-calibration {other.id}: made for robot PKM-7, "
                                               r"expected one for robot \(no serial\)$"):
             select_calibration(store, "pkm5", other.id)
+        # a simulated robot's geometry never reaches hardware, nor the reverse
+        assert select_calibration(store, "pkm5", NEWEST, simulated=True)[0].id == simulated.id
+        assert select_calibration(store, "pkm5", NEWEST)[0].id == first.id
+        with pytest.raises(ConfigError, match=f"^--kinematic-calibration {simulated.id}: made on a simulated robot, "
+                                              "expected one for hardware robot$"):
+            select_calibration(store, "pkm5", simulated.id)
 
 
 def test_an_unknown_calibration_id_is_one_line(tmp_path):
@@ -119,7 +127,7 @@ def test_a_resume_keeps_the_calibration_of_its_run(tmp_path):
     from bench.rigs.movers import Pkm5Mover
 
     def rig(stored):
-        chosen = _kinematic_calibration(RigRequest(), store, "pkm5", stored, None, "assembled")
+        chosen = _kinematic_calibration(RigRequest(), store, "pkm5", stored, None, "assembled", False)
         mover = Pkm5Mover(SimpleNamespace(geometry=pkm5.DEFAULT_GEOMETRY, fixture="assembled"))
         return put_in_force(Rig(mover, None, None), *chosen)
 
@@ -136,7 +144,8 @@ def test_a_resume_keeps_the_calibration_of_its_run(tmp_path):
         assert older.extra["kinematic_calibration"] == {"id": None, "reason": "the run was made without one"}
         assert rig({}).extra["kinematic_calibration"]["version"] == 2
         with pytest.raises(ConfigError, match="^--kinematic-calibration 1: the actuator-bench commands no poses"):
-            _kinematic_calibration(RigRequest(kinematic_calibration=1), store, "pkm5", {}, None, "actuator-bench")
+            _kinematic_calibration(RigRequest(kinematic_calibration=1), store, "pkm5", {}, None, "actuator-bench",
+                                   False)
 
 
 def test_iterative_correction_brings_the_error_within_the_instrument_uncertainty(tmp_path):

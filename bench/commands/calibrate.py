@@ -85,9 +85,12 @@ def run(args: argparse.Namespace) -> int:
         ap_after = float(np.mean(np.linalg.norm(result.residuals, axis=1)))
         params = {**result.as_dict(), "robot": "pkm5", "uncertainty_mm": args.uncertainty_mm,
                   "ap_before_mm": ap_before, "ap_after_mm": ap_after}
-        serial = (store.run(args.run_id).settings.get("dut") or {}).get("dut_serial")
+        settings = store.run(args.run_id).settings
+        serial = (settings.get("dut") or {}).get("dut_serial")
         if serial:  # the calibration belongs to this robot: runs of other robots never use it by default
             params["dut_serial"] = serial
+        if "simulator" in settings:  # a simulated robot's geometry: never in force on hardware
+            params["simulated"] = True
         record = store.add_calibration(CALIBRATION_NAME, params, source_run_id=args.run_id,
                                        notes=f"bench calibrate {args.run_id}")
     obs = result.observability
