@@ -4,8 +4,9 @@ For each target: move to the command (first the target itself), settle, measure,
 measured error, ``c_{k+1} = c_k - (m_k - T)`` on every position axis the instrument measured, until the error is
 within ``tolerance_mm`` on each measured axis or ``iterations`` moves were made. Every iteration is a ``pose``
 sample of its own: pose = the target's label, cycle = the iteration, ``cmd_*`` = the command of that iteration (in
-iteration 1 the target itself), so the stored run holds each iteration's error, measured - the cycle-1 command. The plan adapts to the readings: the pre-flight checks the first command of every target, and
-the driver pre-flights every corrected one before it moves.
+iteration 1 the target itself), so the stored run holds each iteration's error, measured - the cycle-1 command.
+The plan adapts to the readings: the pre-flight checks the first command of every target, and the driver
+pre-flights every corrected one before it moves.
 """
 
 from __future__ import annotations
