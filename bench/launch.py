@@ -13,8 +13,9 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
+from bench.calibration_compensation import NEWEST, choose_calibration, put_in_force
 from bench.errors import ConfigError
-from bench.rigs.builder import build_rig, check_capabilities
+from bench.rigs.builder import build_rig, check_capabilities, station_identity
 from bench.rigs.builder import open_mover as builder_open_mover
 from bench.rigs.interfaces import Operator, Rig
 from bench.rigs.station import Station, load_station, parse_station
@@ -38,6 +39,12 @@ class RigRequest:
     speed_factor: float | None = None
     #: how messages name the port shorthand (the CLI: ``--port``; the window: "serial port")
     port_label: str = "serial port"
+    #: the kinematic calibration to command by: NEWEST (this robot's newest), OFF, or a calibration id
+    kinematic_calibration: int | str = NEWEST
+    #: the simulated pkm5 moves by this seed's true geometry (bench.simulators.true_geometry); None: it does not
+    true_geometry_seed: int | None = None
+    #: the simulated robot without its error model (backlash, noise, play): it errs by its geometry only
+    ideal: bool = False
 
     @property
     def simulator_default(self) -> bool:
@@ -60,9 +67,18 @@ def open_rig(request: RigRequest, store: Any, *, robot: str, stored: dict[str, A
     """
     stored = stored or {}
     station = _station(request, robot, fixture)
+    serial = None if station is None else station_identity(station).get("dut_serial")
+    kinematic = _kinematic_calibration(request, store, robot, stored, serial, fixture,
+                                       simulated=station is None or request.simulate)
     if station is None:
         seed, speed = _simulation_settings(request, stored)
-        return simulated_rig_in(store, robot, seed=seed, speed_factor=speed, fixture=fixture)
+        rig = simulated_rig_in(store, robot, seed=seed, speed_factor=speed, fixture=fixture,
+                               true_geometry_seed=_true_geometry_seed(request, stored, robot),
+                               ideal=request.ideal or bool(stored.get("simulator", {}).get("ideal")))
+        return put_in_force(rig, *kinematic)
+    if request.true_geometry_seed is not None or request.ideal:
+        what = "--ideal" if request.ideal else f"--true-geometry-seed {request.true_geometry_seed}"
+        raise ConfigError(f"{what}: only for the simulated default rig (no --station, no --port)")
     if station.robot != robot:
         raise ConfigError(f"{station.source}: robot.kind = {station.robot!r}, expected {robot!r} for {protocol}")
     if station.controller.fixture != fixture:
@@ -71,14 +87,14 @@ def open_rig(request: RigRequest, store: Any, *, robot: str, stored: dict[str, A
     if request.station:
         store.bench = station.identity.bench  # runs are stored under the station's name (the lab store's key)
     if not request.simulate:
-        return _synced_after(build_rig(station, store, requires=requires, protocol=protocol, operator=operator),
-                             station, store)
+        rig = build_rig(station, store, requires=requires, protocol=protocol, operator=operator)
+        return _synced_after(put_in_force(rig, *kinematic), station, store)
     check_capabilities(station, requires, protocol)  # before a simulator starts
     rig, rehearsal, seed = _on_rehearsal(station, request, stored, lambda devices, speed: build_rig(
         devices, store, requires=requires, protocol=protocol, speed_factor=speed, operator=operator))
     rig.closers.insert(0, rehearsal.close)  # closed last: after the drivers let go of the simulators' devices
     rig.extra["simulator"] = {"seed": seed, "station": station.source, "truth_log": rehearsal.truth_path}
-    return _synced_after(rig, station, store)
+    return _synced_after(put_in_force(rig, *kinematic), station, store)
 
 
 def _synced_after(rig: Rig, station: Station, store: Any) -> Rig:
@@ -90,6 +106,32 @@ def _synced_after(rig: Rig, station: Station, store: Any) -> Rig:
         url = station.lab_store.url
         rig.closers.insert(0, lambda: sync_after_run(store, url))
     return rig
+
+
+def _kinematic_calibration(request: RigRequest, store: Any, robot: str, stored: dict[str, Any],
+                           serial: str | None, fixture: str, simulated: bool) -> tuple[Any, str]:
+    """The kinematic calibration the request selects (:mod:`bench.calibration_compensation`) and why, decided before
+    anything opens; a resumed run keeps its own unless another is named."""
+    choice = request.kinematic_calibration
+    if stored and choice == NEWEST:
+        choice = (stored.get("kinematic_calibration") or {}).get("id")
+        if choice is None:
+            return None, "the run was made without one"
+    return choose_calibration(store, robot, choice, serial, fixture, simulated)
+
+
+def _true_geometry_seed(request: RigRequest, stored: dict[str, Any], robot: str) -> int | None:
+    """The true-geometry seed of the simulated pkm5; a resumed run keeps its own (another is refused)."""
+    own = stored.get("simulator", {}).get("true_geometry_seed")
+    if request.true_geometry_seed is None:
+        return own
+    if stored and request.true_geometry_seed != own:
+        raise ConfigError(f"--true-geometry-seed {request.true_geometry_seed}: the run was made with "
+                          f"{own}, expected the same (leave it out)")
+    if robot != "pkm5":
+        raise ConfigError(f"--true-geometry-seed {request.true_geometry_seed}: only the simulated pkm5 moves by a "
+                          f"true geometry, expected no seed for the {robot}")
+    return request.true_geometry_seed
 
 
 def open_mover(request: RigRequest, robot: str) -> tuple[Any, Any]:
@@ -163,14 +205,23 @@ def _station(request: RigRequest, robot: str, fixture: str) -> Station | None:
     return parse_station(table, source=request.port_label)
 
 
-def simulated_rig_in(store: Any, robot: str, *, seed: int, speed_factor: float, fixture: str = "assembled"):
-    """A simulated rig whose mouse calibration is recorded (get-or-create) in ``store``."""
+def simulated_rig_in(store: Any, robot: str, *, seed: int, speed_factor: float, fixture: str = "assembled",
+                     true_geometry_seed: int | None = None, ideal: bool = False):
+    """A simulated rig whose mouse calibration is recorded (get-or-create) in ``store``; with
+    ``true_geometry_seed`` the pkm5 moves by that seed's true geometry, ``ideal`` without the error model (both
+    recorded in the simulator settings)."""
     from bench.simulators.rig import simulated_rig
 
     if not speed_factor > 0:
         raise ConfigError(f"--speed-factor = {speed_factor:g}, expected a number > 0")
-    rig = simulated_rig(robot, seed=seed, speed_factor=speed_factor, fixture=fixture)
-    rig.extra["simulator"] = {"seed": seed}
+    if true_geometry_seed is not None and fixture != "assembled":
+        raise ConfigError(f"--true-geometry-seed {true_geometry_seed}: the {fixture} has no geometry, expected the "
+                          "assembled robot")
+    options = () if true_geometry_seed is None else ("--true-geometry-seed", str(true_geometry_seed))
+    rig = simulated_rig(robot, seed=seed, speed_factor=speed_factor, fixture=fixture, options=options, ideal=ideal)
+    rig.extra["simulator"] = {"seed": seed, **({"ideal": True} if ideal else {})}
+    if true_geometry_seed is not None:
+        rig.extra["simulator"]["true_geometry_seed"] = true_geometry_seed
     if fixture == "actuator-bench":
         return rig  # no calibration in force: the readings are typed-in gauge values
     if robot == "pkm5":

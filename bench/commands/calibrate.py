@@ -11,10 +11,10 @@ from __future__ import annotations
 import argparse
 import json
 
+from bench.calibration_compensation import CALIBRATION_NAME
 from bench.errors import ConfigError, InsufficientData
 
 DEFAULT_STORE = "bench.db"
-CALIBRATION_NAME = "pkm5_kinematics"
 _COMMANDED = ("cmd_x_mm", "cmd_y_mm", "cmd_z_mm", "cmd_a_deg", "cmd_b_deg")
 _MEASURED = ("x_mm", "y_mm", "z_mm")
 
@@ -47,6 +47,16 @@ def _poses_of_run(store, run_id: int):
     return commanded, measured
 
 
+def _commanded_geometry(store, run_id: int):
+    """The geometry the run's targets were commanded by: the documented one, or the calibrated one of the
+    kinematic calibration that was in force (its steps are what the robot really received)."""
+    from bench.calibration_compensation import calibrated_geometry
+    from motion.pkm5 import DEFAULT_GEOMETRY
+
+    entry = store.run(run_id).settings.get("kinematic_calibration") or {}
+    return DEFAULT_GEOMETRY if entry.get("id") is None else calibrated_geometry(store.calibration_by_id(entry["id"]))
+
+
 def run(args: argparse.Namespace) -> int:
     import numpy as np
 
@@ -60,7 +70,8 @@ def run(args: argparse.Namespace) -> int:
     with Store(args.store) as store:
         store.run(args.run_id)
         commanded, measured = _poses_of_run(store, args.run_id)
-        steps = np.array([steps_for_pose(p) for p in commanded])
+        geometry = _commanded_geometry(store, args.run_id)
+        steps = np.array([steps_for_pose(p, geometry) for p in commanded])
         modes = modes_of_poses(commanded)
         candidates = REGISTRATION + PARAMETERS
         if args.free:
@@ -74,13 +85,19 @@ def run(args: argparse.Namespace) -> int:
         ap_after = float(np.mean(np.linalg.norm(result.residuals, axis=1)))
         params = {**result.as_dict(), "robot": "pkm5", "uncertainty_mm": args.uncertainty_mm,
                   "ap_before_mm": ap_before, "ap_after_mm": ap_after}
+        settings = store.run(args.run_id).settings
+        serial = (settings.get("dut") or {}).get("dut_serial")
+        if serial:  # the calibration belongs to this robot: runs of other robots never use it by default
+            params["dut_serial"] = serial
+        if "simulator" in settings:  # a simulated robot's geometry: never in force on hardware
+            params["simulated"] = True
         record = store.add_calibration(CALIBRATION_NAME, params, source_run_id=args.run_id,
                                        notes=f"bench calibrate {args.run_id}")
     obs = result.observability
     if args.json:
-        print(json.dumps({"calibration": CALIBRATION_NAME, "version": record.version, **params}))
+        print(json.dumps({"calibration": CALIBRATION_NAME, "version": record.version, "id": record.id, **params}))
         return 0
-    print(f"{CALIBRATION_NAME} v{record.version} from run {args.run_id}: {len(measured)} poses, "
+    print(f"{CALIBRATION_NAME} v{record.version} (id {record.id}) from run {args.run_id}: {len(measured)} poses, "
           f"{len(free)} free parameters")
     print(f"{'parameter':<18} {'value':>12} {'std. unc.':>12}  unit")
     for name, value, std, unit in zip(result.names, result.values, result.uncertainty, result.units):

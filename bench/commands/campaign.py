@@ -94,23 +94,42 @@ def _rig_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--mouse-xy", default=None, help="hardware: event device of the x-y mouse")
     parser.add_argument("--mouse-xz", default=None, help="hardware: event device of the x-z mouse")
     parser.add_argument("--no-progress", action="store_true", help="no progress bar on stderr")
+    kinematic = parser.add_mutually_exclusive_group()
+    kinematic.add_argument("--kinematic-calibration", type=int, default=None, metavar="ID",
+                           help="command by this pkm5_kinematics calibration (default: the robot's newest; "
+                                "resume: the run's own)")
+    kinematic.add_argument("--no-kinematic-calibration", action="store_true",
+                           help="command by the documented geometry, whatever calibration is stored")
+    parser.add_argument("--true-geometry-seed", type=int, default=None, metavar="SEED",
+                        help="simulated pkm5: move by this seed's perturbed true geometry (docs/calibration.md)")
+    parser.add_argument("--ideal", action="store_true",
+                        help="simulated robot without its error model (backlash, noise, play; resume: the run's own)")
 
 
 def rig_request(args: argparse.Namespace) -> RigRequest:
     """What the rig options ask for, as the :class:`bench.launch.RigRequest` the GUI fills in too."""
+    from bench.calibration_compensation import NEWEST, OFF
     from bench.launch import RigRequest
 
+    kinematic = OFF if args.no_kinematic_calibration else (
+        NEWEST if args.kinematic_calibration is None else args.kinematic_calibration)
     return RigRequest(station=args.station, port=args.port, mouse_xy=args.mouse_xy, mouse_xz=args.mouse_xz,
-                      simulate=args.sim, seed=args.seed, speed_factor=args.speed_factor, port_label="--port")
+                      simulate=args.sim, seed=args.seed, speed_factor=args.speed_factor, port_label="--port",
+                      kinematic_calibration=kinematic, true_geometry_seed=args.true_geometry_seed,
+                      ideal=args.ideal)
 
 
 def build_rig(args: argparse.Namespace, robot: str, store: Store, stored: dict[str, Any] | None = None,
               fixture: str = "assembled", requires: frozenset[str] = frozenset(), protocol: str = "the protocol"):
-    """The rig the command-line options describe (see :func:`bench.launch.open_rig`)."""
+    """The rig the command-line options describe (see :func:`bench.launch.open_rig`); says on stderr which
+    kinematic calibration is in force."""
+    from bench.calibration_compensation import describe_in_force
     from bench.launch import open_rig
 
-    return open_rig(rig_request(args), store, robot=robot, stored=stored, fixture=fixture, requires=requires,
-                    protocol=protocol)
+    rig = open_rig(rig_request(args), store, robot=robot, stored=stored, fixture=fixture, requires=requires,
+                   protocol=protocol)
+    print(f"bench: {describe_in_force(rig)}", file=sys.stderr)
+    return rig
 
 
 #: Signals that end a run like a double Ctrl-C: the robot is stopped, the run ends aborted and resumable (systemd
@@ -177,6 +196,7 @@ def execute(runner: Runner, start) -> RunResult:
 
 
 def _run(args: argparse.Namespace) -> int:
+    from bench.calibration_compensation import preflight_by_rig
     from bench.protocols import Runner, load_protocol, preflight, summarize
     from bench.protocols.plan import required_capabilities
     from bench.store import Store
@@ -193,12 +213,14 @@ def _run(args: argparse.Namespace) -> int:
     with Store(args.store) as store:
         rig = build_rig(args, protocol.robot, store, fixture=getattr(protocol, "fixture", "assembled"),
                         requires=required_capabilities(protocol), protocol=f"protocol {protocol.name!r}")
+        preflight_by_rig(rig, protocol)
         runner = Runner(rig, store, progress=not args.no_progress, on_pause=_ask_after_pause)
         result = execute(runner, lambda: runner.run(protocol, campaign=args.campaign))
     return 0 if result.exit_status == "completed" else 1
 
 
 def _resume(args: argparse.Namespace) -> int:
+    from bench.calibration_compensation import preflight_by_rig
     from bench.protocols import Runner, protocol_from_config
     from bench.protocols.plan import required_capabilities
     from bench.store import Store
@@ -210,6 +232,7 @@ def _resume(args: argparse.Namespace) -> int:
         rig = build_rig(args, record.robot, store, stored=record.settings,
                         fixture=record.config.get("fixture", "assembled"), requires=required_capabilities(protocol),
                         protocol=f"protocol {protocol.name!r}")
+        preflight_by_rig(rig, protocol)
         runner = Runner(rig, store, progress=not args.no_progress, on_pause=_ask_after_pause)
         result = execute(runner, lambda: runner.resume_run(args.run_id))
     return 0 if result.exit_status == "completed" else 1

@@ -28,6 +28,7 @@ from typing import Any
 
 from PySide6.QtCore import QThread, Signal
 
+from bench.calibration_compensation import describe_in_force, preflight_by_rig
 from bench.errors import BenchError, PromptWithdrawn
 from bench.launch import RigRequest, open_rig
 from bench.protocols import Prompt, Protocol, Runner, RunState, TransitionError, protocol_from_config
@@ -173,6 +174,8 @@ class CampaignWorker(QThread):
                                    fixture=getattr(protocol, "fixture", "assembled"),
                                    requires=required_capabilities(protocol), protocol=f"protocol {protocol.name!r}",
                                    operator=None if request.simulator_default else WindowOperator(self))
+                    self.message.emit(describe_in_force(rig))
+                    preflight_by_rig(rig, protocol)
                 except BenchError as exc:
                     self.failed.emit(str(exc))
                     continue

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import importlib
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from functools import cached_property
 
 import numpy as np
@@ -76,14 +76,16 @@ class PreflightModel:
     home: tuple[float, ...]
     travel_s: Callable[[object, np.ndarray, np.ndarray], np.ndarray]
     mode_columns: Callable[[np.ndarray], np.ndarray] = _all_columns
+    #: the geometry to check by instead of the documented one (a kinematic calibration in force)
+    geometry: object = None
 
     @cached_property
     def kinematics(self):
-        """The robot's :class:`motion.model.RobotModel` (imported on first use)."""
+        """The robot's :class:`motion.model.RobotModel` (imported on first use), of :attr:`geometry` if given."""
         model = importlib.import_module(f"motion.{self.name}.model").MODEL
         if model.name != self.name:
             raise ConfigError(f"motion.{self.name}.model.MODEL is named {model.name!r}, expected {self.name!r}")
-        return model
+        return model if self.geometry is None else replace(model, geometry=self.geometry)
 
     @property
     def target_fields(self) -> tuple[str, ...]:

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 from collections import Counter
 from collections.abc import Iterator
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
@@ -161,14 +161,18 @@ def _hms(seconds: float) -> str:
     return f"{seconds // 3600}:{seconds // 60 % 60:02d}:{seconds % 60:02d}"
 
 
-def summarize(protocol: Protocol, *, singularity_threshold: float | None = None) -> PlanSummary:
+def summarize(protocol: Protocol, *, singularity_threshold: float | None = None,
+              geometry: Any = None) -> PlanSummary:
     """Dry-run ``protocol``: count its steps, pre-flight every distinct target, estimate its duration.
 
-    ``singularity_threshold`` defaults to the protocol's ``min_inverse_condition``.
+    ``singularity_threshold`` defaults to the protocol's ``min_inverse_condition``; ``geometry`` (default: the
+    documented one) is the robot's geometry under a kinematic calibration in force.
     """
     if singularity_threshold is None:
         singularity_threshold = getattr(protocol, "min_inverse_condition", DEFAULT_SINGULARITY_THRESHOLD)
     model = robot_model(protocol.robot)
+    if geometry is not None:
+        model = replace(model, geometry=geometry)
     counts: Counter[str] = Counter()
     moves: list[tuple[str, tuple[float, ...], float]] = []
     actuator_moves: list[ActuatorMove] = []

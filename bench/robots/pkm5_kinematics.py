@@ -17,7 +17,7 @@ from motion import pkm5
 from motion.errors import MotionInputError
 
 __all__ = ["ACTUATOR_BENCH", "ASSEMBLED", "FIXTURES", "home_pose",
-           "check_steps", "home_steps", "pose_deg_from_rad", "steps_for_pose", "steps_for_stroke", "stroke_range_mm"]
+           "check_steps", "forward_kinematics", "home_steps", "pose_deg_from_rad", "steps_for_pose", "steps_for_stroke", "stroke_range_mm"]
 
 #: The robot assembled (every move a pre-flighted pose) or its actuators free-standing on the bench (000 §8.4).
 ASSEMBLED, ACTUATOR_BENCH = "assembled", "actuator-bench"
@@ -63,7 +63,7 @@ def check_steps(steps: tuple[int, ...], geometry: Any = pkm5.DEFAULT_GEOMETRY) -
         leg = int(outside[0])
         raise UnreachableTarget(f"steps = {tuple(steps)}: leg {leg + 1} length {lengths[0, leg]:.3f} mm, expected "
                                 f"within [{low[leg]:g}, {high[leg]:g}] mm")
-    fk = pkm5.forward_kinematics(lengths, geometry, mode_tol_mm=MODE_TOL_MM)
+    fk = forward_kinematics(lengths, geometry, steps)
     if not fk.converged[0]:
         raise UnreachableTarget(f"steps = {tuple(steps)}: no pose fits these leg lengths "
                                 f"(FK residual {fk.residual_mm[0]:.3g} mm)")
@@ -71,6 +71,17 @@ def check_steps(steps: tuple[int, ...], geometry: Any = pkm5.DEFAULT_GEOMETRY) -
     if not ik.reachable[0]:
         raise UnreachableTarget(f"steps = {tuple(steps)}: pose {np.round(pose_deg_from_rad(fk.pose[0]), 3)} "
                                 f"(mm, deg) is not reachable: {ik.reason(0)}")
+
+
+def forward_kinematics(lengths_mm: np.ndarray, geometry: Any, steps: Any):
+    """FK of leg lengths reached by ``steps`` under ``geometry``. A calibrated geometry is solved in the mode and
+    from the pose that the documented geometry gives for the same steps: its asymmetric legs make the length pattern
+    of :func:`motion.pkm5.detect_mode` meaningless, and its start table would be sampled anew (minutes)."""
+    if geometry == pkm5.DEFAULT_GEOMETRY:
+        return pkm5.forward_kinematics(lengths_mm, geometry, mode_tol_mm=MODE_TOL_MM)
+    nominal = pkm5.forward_kinematics(pkm5.steps_to_lengths(np.asarray(steps)[None, :]), mode_tol_mm=MODE_TOL_MM)
+    return pkm5.forward_kinematics(lengths_mm, geometry, initial_pose=nominal.pose, mode=nominal.mode[0],
+                                   retry_above_mm=0.5)
 
 
 def stroke_range_mm(axis: int, geometry: Any = pkm5.DEFAULT_GEOMETRY) -> tuple[float, float]:

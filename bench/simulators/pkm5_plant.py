@@ -17,6 +17,11 @@ __all__ = ["PKM5_ERRORS", "build_actuator_bench", "build_plant"]
 
 #: Largest FK residual RMS of the plant's perturbed legs that still counts as a pose (the error model leaves 0.1-0.2 mm).
 _PLANT_RESIDUAL_TOL_MM = 2.0
+#: Largest residual RMS of commanded lengths in the documented geometry that are a pose of it (steps round to 3 um).
+NOMINAL_FIT_MM = 0.01
+#: Largest residual RMS of the true legs' translation fit for which a command with unequal pairs is taken as a
+#: translation (a compensated command): the steps' rounding (3 um) and a good calibration's error leave less.
+TRANSLATION_FIT_MM = 0.05
 #: LM step criterion of the plant's warm solve (mm, rad): far below the 0.03 mm count of the simulated mice.
 _PLANT_STEP_TOL = 1e-7
 
@@ -84,17 +89,31 @@ def build_plant(seed: int, *, ideal: bool = False, geometry: Any = pkm5.DEFAULT_
                                      residual_tol_mm=_PLANT_RESIDUAL_TOL_MM)
         return pose_deg_from_rad(fk.pose[0]) if fk.converged[0] else None
 
+    def _nominal_start(commanded: np.ndarray, mode: str):
+        # the documented geometry's solution: the true fit's start (no seed table for a perturbed geometry)
+        return pkm5.forward_kinematics(commanded[None, :], geometry, mode=mode, residual_tol_mm=2.0, max_iter=200)
+
+    def _fit_true(lengths: np.ndarray, start: Any, mode: str):
+        # true lengths never fit exactly (6 legs, 3-4 unknowns): retrying every inexact fit from the restart guesses
+        # would trade the near solution for a far branch with a smaller residual
+        return pkm5.forward_kinematics(lengths[None, :], moved_by, initial_pose=start.pose, mode=mode,
+                                       residual_tol_mm=_PLANT_RESIDUAL_TOL_MM, retry_above_mm=0.5, max_iter=200)
+
     def _forward_true(lengths: np.ndarray, commanded: np.ndarray) -> np.ndarray | None:
         # the commanded mode shows in the nominal lengths (the true pairs differ)
         commanded = pkm5.steps_to_lengths(pkm5.lengths_to_steps(commanded[None, :], moved_by), geometry)[0]
         mode = pkm5.detect_mode(commanded[None, :], MODE_TOL_MM)[0]
-        # start from the nominal solution (no seed table for a perturbed geometry)
-        start = pkm5.forward_kinematics(commanded[None, :], geometry, mode=mode, residual_tol_mm=2.0,
-                                        max_iter=200).pose[0]
-        # true lengths never fit exactly (6 legs, 3-4 unknowns): retrying every inexact fit from the restart guesses
-        # would trade the near solution for a far branch with a smaller residual
-        fk = pkm5.forward_kinematics(lengths[None, :], moved_by, initial_pose=start, mode=mode,
-                                     residual_tol_mm=_PLANT_RESIDUAL_TOL_MM, retry_above_mm=0.5, max_iter=200)
+        start = _nominal_start(commanded, mode)
+        if start.residual_mm[0] <= NOMINAL_FIT_MM:
+            fk = _fit_true(lengths, start, mode)
+        else:
+            # lengths no pose of the documented geometry has: a compensated command (a calibrated geometry gives
+            # each leg of a pair its own length). The robot stays in translation when its legs fit a translation
+            # pose, else it turns in the rotation mode that fits them best.
+            fk = _fit_true(lengths, _nominal_start(commanded, "translation"), "translation")
+            if not (fk.converged[0] and fk.residual_mm[0] <= TRANSLATION_FIT_MM):
+                fits = [_fit_true(lengths, _nominal_start(commanded, m), m) for m in ("alpha", "beta")]
+                fk = min(fits, key=lambda f: (not f.converged[0], f.residual_mm[0]))
         return pose_deg_from_rad(fk.pose[0]) if fk.converged[0] else None
 
     model = (ErrorModel.ideal(6, 5) if ideal else

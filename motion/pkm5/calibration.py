@@ -31,8 +31,8 @@ from motion.pkm5.geometry import DEFAULT_GEOMETRY, Geometry, steps_to_lengths
 from motion.pkm5.ik import leg_lengths
 from motion.pkm5.jacobian import jacobian
 
-__all__ = ["PARAMETERS", "REGISTRATION", "UNITS", "apply_parameters", "geometry_from_calibration", "parameter_deviations", "modes_of_poses",
-           "ForwardModel"]
+__all__ = ["PARAMETERS", "REGISTRATION", "UNITS", "apply_parameters", "compensation_geometry",
+           "geometry_from_calibration", "parameter_deviations", "modes_of_poses", "ForwardModel"]
 
 _AXES = ("x", "y", "z")
 _JOINT_FIELDS = ("oa_12", "oa_34", "oa_56", "pd_12", "pd_34", "pd_5", "pd_6")
@@ -102,6 +102,24 @@ def geometry_from_calibration(params, nominal: Geometry = DEFAULT_GEOMETRY) -> G
                                "{'value': number}}}}") from None
     geometric = {n: v for n, v in entries.items() if not n.startswith("reg_")}
     return apply_parameters(tuple(geometric), tuple(geometric.values()), nominal)
+
+
+def compensation_geometry(params, nominal: Geometry = DEFAULT_GEOMETRY) -> Geometry:
+    """The geometry a compensated run commands by: :func:`geometry_from_calibration` in the instrument's frame.
+
+    The calibration predicts a measurement as ``m = FK(s; theta) + r`` (``r`` the registration ``reg_*_mm``).
+    Moving every base joint A by ``r`` moves every attained pose by ``r`` (the leg lengths depend only on the joints'
+    relative positions: ``IK(p + r; A + r) = IK(p; A)``), so ``FK(s; theta, A + r) = FK(s; theta) + r``: with the
+    registration added to ``oa_12``, ``oa_34`` and ``oa_56`` the geometry's own frame is the instrument's, and its
+    IK of a target ``T`` gives the steps whose predicted measurement is ``T``.
+    """
+    geometry = geometry_from_calibration(params, nominal)
+    shift = np.zeros(3)
+    for name, entry in params["parameters"].items():
+        if name in REGISTRATION:
+            shift[_AXES.index(name[4])] = float(entry["value"])
+    return geometry.replace(**{f"{field}_mm": tuple(np.asarray(getattr(geometry, f"{field}_mm")) + shift)
+                               for field in ("oa_12", "oa_34", "oa_56")})
 
 
 def modes_of_poses(poses) -> np.ndarray:
@@ -218,8 +236,17 @@ class ForwardModel:
             bump[c] = h
             dfdp[:, :, c] = (self._stationarity(p + bump, theta) - self._stationarity(p - bump, theta)) / (2 * h)
         dfdt = np.zeros((n, 5, k))
+        # the leg zeros and leads only move the commanded lengths L(s; theta), not IK(p; theta) nor its Jacobian:
+        # dF/dtheta = -J_m^T dL/dtheta in closed form, dL_i/d offset_i = 1, dL_i/d scale_i = s_i dir_i CR_i
+        pose_jac = jacobian(p, apply_parameters(self.free, theta, self.nominal)) * self._mode_mask[:, None, :]
+        nominal_step = np.asarray(self.nominal.mm_per_step) * np.asarray(self.nominal.step_direction)
         for j, name in enumerate(self.free):
             if name.startswith("reg_"):
+                continue
+            if name.startswith(("leg_offset_", "scale_")):
+                leg = int(name[-4 if name.endswith("_mm") else -1]) - 1
+                dlength = 1.0 if name.startswith("leg_offset_") else self.steps[:, leg] * nominal_step[leg]
+                dfdt[:, :, j] = -pose_jac[:, leg, :] * np.reshape(dlength, (-1, 1))
                 continue
             h = _FD_STEP[UNITS[name]]
             bump = np.zeros(k)

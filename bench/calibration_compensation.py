@@ -1,0 +1,138 @@
+"""Kinematic compensation: which stored ``pkm5_kinematics`` calibration a run commands by, and putting it in force.
+
+A calibration in force replaces the documented geometry of the pkm5 everywhere the run uses kinematics: the
+driver's IK of every commanded target (targets -> leg strokes), its pre-flight of step targets (leg windows, FK and
+IK reachability) and the plan's pre-flight (reach, joint limits, singularity proximity). The geometry is
+:func:`motion.pkm5.calibration.compensation_geometry`: the identified deviations with the instrument's registration
+folded into the base joints, so a target in the instrument's frame (the frame the mice register at home) gives the
+steps whose predicted measurement is that target. Home stays the documents' home steps (every actuator at 5 mm
+stroke), where the instruments are registered as during the calibration run.
+
+Which calibration (:data:`NEWEST` by default): the newest ``pkm5_kinematics`` version made for this robot, i.e.
+whose ``dut_serial`` equals the station's device-under-test serial (a rig without a serial: a calibration without
+one) and made on a simulator exactly when the rig is one (``simulated``: a simulated robot's geometry never reaches
+hardware); a calibration id chosen by the person; or :data:`OFF`. The record in force goes into the run's calibration
+ids and its settings (``kinematic_calibration``), and none in force is recorded as such with the reason.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+from bench.errors import ConfigError
+
+__all__ = ["CALIBRATION_NAME", "NEWEST", "OFF", "calibrated_geometry", "choose_calibration", "describe_in_force",
+           "preflight_by_rig", "put_in_force", "select_calibration"]
+
+#: The store name of the pkm5 kinematic calibration (``bench calibrate`` writes versions of it).
+CALIBRATION_NAME = "pkm5_kinematics"
+#: Choices besides a calibration id: the newest calibration of this robot, or none at all.
+NEWEST, OFF = "newest", "off"
+
+
+def select_calibration(store: Any, robot: str, choice: int | str = NEWEST, dut_serial: str | None = None,
+                       simulated: bool = False):
+    """The calibration record ``choice`` puts in force for ``robot`` (serial ``dut_serial``, a simulator or not), or
+    None with why.
+
+    Returns ``(record or None, reason)``. An explicit id that is not a ``pkm5_kinematics`` calibration, names another
+    robot's serial, was made on a simulator for hardware (or the reverse), or is asked for on a robot other than the
+    pkm5 raises ``ConfigError`` (one line).
+    """
+    if choice == OFF:
+        return None, "--no-kinematic-calibration"
+    if choice == NEWEST:
+        if robot != "pkm5":
+            return None, f"no kinematic calibration exists for the {robot}"
+        mine = [c for c in store.calibrations() if c.name == CALIBRATION_NAME
+                and c.params.get("dut_serial") == dut_serial and bool(c.params.get("simulated")) == simulated]
+        if not mine:
+            whose = (f"robot {dut_serial}" if dut_serial else "a robot without a serial") + (
+                " (simulated)" if simulated else "")
+            return None, f"no {CALIBRATION_NAME} calibration for {whose} in {store.path}"
+        return max(mine, key=lambda c: c.version), "the newest for this robot"
+    if isinstance(choice, bool) or not isinstance(choice, int):
+        raise ConfigError(f"--kinematic-calibration {choice!r}: expected a calibration id (bench calibrate prints "
+                          "it)")
+    record = store.calibration_by_id(choice)
+    if record.name != CALIBRATION_NAME:
+        raise ConfigError(f"--kinematic-calibration {choice}: calibration {record.name} v{record.version}, expected "
+                          f"a {CALIBRATION_NAME} calibration")
+    if robot != "pkm5":
+        raise ConfigError(f"--kinematic-calibration {choice}: a pkm5 calibration, expected none for the {robot}")
+    serial = record.params.get("dut_serial")
+    if serial != dut_serial:
+        raise ConfigError(f"--kinematic-calibration {choice}: made for robot {serial or '(no serial)'}, expected "
+                          f"one for robot {dut_serial or '(no serial)'}")
+    if bool(record.params.get("simulated")) != simulated:
+        made, wanted = ("a simulated", "hardware") if not simulated else ("hardware", "a simulated")
+        raise ConfigError(f"--kinematic-calibration {choice}: made on {made} robot, expected one for {wanted} "
+                          "robot")
+    return record, "chosen"
+
+
+def calibrated_geometry(record: Any):
+    """The :class:`motion.pkm5.Geometry` a run commands by under calibration ``record``; ``ConfigError`` when its
+    parameters are not a kinematic calibration's."""
+    from motion.errors import MotionInputError
+    from motion.pkm5.calibration import compensation_geometry
+
+    try:
+        return compensation_geometry(record.params)
+    except (MotionInputError, ValueError, KeyError, TypeError) as exc:
+        raise ConfigError(f"calibration id {record.id} ({record.name} v{record.version}): {exc}") from None
+
+
+def choose_calibration(store: Any, robot: str, choice: int | str = NEWEST, dut_serial: str | None = None,
+                       fixture: str = "assembled", simulated: bool = False):
+    """:func:`select_calibration` for a rig with ``fixture``, decided before the rig opens (a refused choice starts
+    no simulator and opens no port): the actuator bench commands no poses, so none is in force there."""
+    if robot == "pkm5" and fixture != "assembled":
+        if choice not in (NEWEST, OFF):
+            raise ConfigError(f"--kinematic-calibration {choice}: the {fixture} commands no poses, expected none")
+        return None, f"the {fixture} commands no poses"
+    return select_calibration(store, robot, choice, dut_serial, simulated)
+
+
+def put_in_force(rig: Any, record: Any, reason: str) -> Any:
+    """Calibration ``record`` (None: none, for ``reason``) in force on ``rig``: its mover commands by the calibrated
+    geometry, its id joins ``rig.calibration_ids`` and ``rig.extra["kinematic_calibration"]`` records it (or none,
+    and why). Returns ``rig``."""
+    if record is None:
+        rig.extra["kinematic_calibration"] = {"id": None, "reason": reason}
+        return rig
+    try:
+        rig.robot.use_geometry(calibrated_geometry(record))
+    except BaseException:
+        rig.close()
+        raise
+    rig.calibration_ids = tuple(rig.calibration_ids) + (record.id,)
+    rig.extra["kinematic_calibration"] = {"id": record.id, "name": record.name, "version": record.version,
+                                          "source_run_id": record.source_run_id, "reason": reason}
+    return rig
+
+
+def describe_in_force(rig: Any) -> str:
+    """One line naming the kinematic calibration in force on ``rig`` (for stderr and the window's log)."""
+    entry = rig.extra.get("kinematic_calibration")
+    if entry is None:
+        return "kinematic calibration: none (not selected)"
+    if entry["id"] is None:
+        return f"kinematic calibration: none ({entry['reason']}); commanding by the documented geometry"
+    source = f" from run {entry['source_run_id']}" if entry.get("source_run_id") is not None else ""
+    return (f"kinematic calibration in force: {entry['name']} v{entry['version']} (id {entry['id']}{source}; "
+            f"{entry['reason']})")
+
+
+def preflight_by_rig(rig: Any, protocol: Any) -> None:
+    """The plan's pre-flight again by the geometry ``rig`` commands by, when a kinematic calibration is in force
+    (the runner's own pre-flight uses the documented geometry); ``rig`` is closed when a target is refused."""
+    from bench.protocols.plan import preflight
+
+    if (rig.extra.get("kinematic_calibration") or {}).get("id") is None:
+        return
+    try:
+        preflight(protocol, geometry=rig.robot.geometry)
+    except BaseException:
+        rig.close()
+        raise

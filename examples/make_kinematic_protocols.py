@@ -1,0 +1,66 @@
+"""Write examples/kinematic_calibration.toml and examples/kinematic_validation.toml (docs/calibration.md).
+
+Calibration poses: 30 chosen by greedy D-optimal selection (:func:`bench.metrology.kinematic_calibration.select_poses`,
+every parameter and the registration free, the mice's 0.05 mm per axis) from 300 reachable candidates of the three
+motion modes (``motion.pkm5.sample_reachable(seed=1)``), rounded as a protocol file states them (0.01 mm, 0.01 deg)
+and pre-flighted. Validation poses: 12 held-out translation poses (a different seed) in the central workspace
+(95 < x < 170 mm, |y| < 60 mm), so that a calibrated geometry's pre-flight passes them too; translation only,
+since a calibrated geometry moves the alpha plane (docs/calibration.md, limits).
+
+    python examples/make_kinematic_protocols.py
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from bench.metrology.kinematic_calibration import select_poses
+from bench.protocols.kinematics import robot_model
+from motion import pkm5
+from motion.pkm5.calibration import PARAMETERS, REGISTRATION, ForwardModel, modes_of_poses
+
+HERE = Path(__file__).resolve().parent
+MICE_UNCERTAINTY_MM = 0.05
+
+
+def candidates(count: int, kinds: tuple[str, ...], seed: int) -> np.ndarray:
+    """Reachable poses (mm, deg) rounded as a protocol file states them, that pass the pre-flight."""
+    poses = pkm5.sample_reachable(count, kinds=kinds, seed=seed)
+    deg = np.array(poses)
+    deg[:, :3] = np.round(deg[:, :3], 2)
+    deg[:, 3:] = np.round(np.degrees(deg[:, 3:]), 2)
+    return deg[robot_model("pkm5").check(deg).reachable]
+
+
+def protocol_text(title: str, prefix: str, poses: np.ndarray) -> str:
+    lines = [f"# {line}" for line in title.splitlines()]
+    lines += ['protocol = "iso9283_pose"', 'robot = "pkm5"', "cycles = 2", "velocities_pct = [100]",
+              "settle_s = 0.2", "", "[poses]"]
+    lines += [f"{prefix}{i:02d} = [{', '.join(f'{v:g}' for v in pose)}]" for i, pose in enumerate(poses, 1)]
+    return "\n".join(lines) + "\n"
+
+
+def main() -> None:
+    pool = candidates(300, ("constant-orientation", "alpha", "beta"), seed=1)
+    rad = pool.copy()
+    rad[:, 3:] = np.radians(rad[:, 3:])
+    steps = pkm5.lengths_to_steps(pkm5.inverse_kinematics(rad).lengths_mm)
+    names = REGISTRATION + PARAMETERS
+    jac = ForwardModel(steps, modes_of_poses(pool), names).jacobian(np.zeros(len(names)))
+    chosen = pool[select_poses(jac, MICE_UNCERTAINTY_MM, 30)]
+    (HERE / "kinematic_calibration.toml").write_text(protocol_text(
+        "Kinematic calibration of the pkm5: 30 poses chosen for observability (greedy D-optimal from 300\n"
+        "candidates; written by examples/make_kinematic_protocols.py). Run it without a calibration in force,\n"
+        "then: bench calibrate RUN_ID (docs/calibration.md).", "C", chosen))
+    held = candidates(60, ("constant-orientation",), seed=7)
+    held = held[(held[:, 0] > 95) & (held[:, 0] < 170) & (np.abs(held[:, 1]) < 60)][:12]
+    (HERE / "kinematic_validation.toml").write_text(protocol_text(
+        "Validation of a kinematic calibration: the ISO 9283 pose test on 12 held-out translation poses. Run it\n"
+        "twice, with the calibration in force (the default) and with --no-kinematic-calibration, and compare AP\n"
+        "(written by examples/make_kinematic_protocols.py; docs/calibration.md).", "V", held))
+
+
+if __name__ == "__main__":
+    main()
