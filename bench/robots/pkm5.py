@@ -204,18 +204,25 @@ class Pkm5Controller:
         dropped: list[bytes] = []
         beats: set[int] = set()
         next_beat_s = time.monotonic() + HEARTBEAT_S
+        heard_since_beat = True
         while True:
             wait_s = deadline.remaining_s()
             if heartbeat:
-                if time.monotonic() >= next_beat_s:
+                now_s = time.monotonic()
+                # A beat goes out when the controller has said something since the last one, or that one is
+                # long overdue (its reply lost): never a queue of beats that a controller answering slower than
+                # they come (a 55-byte reply to a 14-byte POS) would take in until its receive buffer overflows.
+                if now_s >= next_beat_s and (heard_since_beat or now_s >= next_beat_s + HEARTBEAT_S):
                     beat = next(self._tags)
                     beats.add(beat)
                     with self._write:
                         self._send(wire.format_command("POS", (), beat, self._version), command="POS")
-                    next_beat_s = time.monotonic() + HEARTBEAT_S
-                wait_s = min(wait_s, max(0.0, next_beat_s - time.monotonic()))
+                    next_beat_s, heard_since_beat = time.monotonic() + HEARTBEAT_S, False
+                due_s = next_beat_s if heard_since_beat else next_beat_s + HEARTBEAT_S
+                wait_s = min(wait_s, max(0.0, due_s - time.monotonic()))
             try:
                 line = self.link.read_frame(wait_s, command=verb, expected=expected)
+                heard_since_beat = True
             except LinkTimeout as exc:
                 if heartbeat and not deadline.expired():
                     continue
