@@ -50,19 +50,22 @@ class Edge:
     line: bytes = b""
 
 
+def start_harness(harness: Path, elf: Path, events: Path, **popen: object) -> tuple[subprocess.Popen, str]:
+    """Start a simavr harness on ``elf``; returns the process and the pty it printed (``PTY /dev/pts/N``)."""
+    process = subprocess.Popen([str(harness), str(elf), str(events)], stdout=subprocess.PIPE,
+                               stderr=subprocess.DEVNULL, text=True, **popen)
+    for line in process.stdout:
+        if line.startswith("PTY "):
+            return process, line.split()[1]
+    raise AssertionError("harness printed no PTY line")
+
+
 class EmulatedController:
     """The firmware running in the harness: ``.path`` is its pty; :meth:`close` stops it and returns the events."""
 
-    def __init__(self, elf: Path, harness: Path, events: Path) -> None:
+    def __init__(self, elf: Path, harness: Path, events: Path, **popen: object) -> None:
         self.events = events
-        self.process = subprocess.Popen([str(harness), str(elf), str(events)], stdout=subprocess.PIPE,
-                                        stderr=subprocess.DEVNULL, text=True)
-        for line in self.process.stdout:
-            if line.startswith("PTY "):
-                self.path = line.split()[1]
-                break
-        else:
-            raise AssertionError("harness printed no PTY line")
+        self.process, self.path = start_harness(harness, elf, events, **popen)
 
     def open(self, timeout_s: float = 0.05) -> serial.Serial:
         return serial.serial_for_url(self.path, baudrate=115200, timeout=timeout_s)

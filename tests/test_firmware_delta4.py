@@ -17,7 +17,7 @@ from bench.robots import delta4_wire as wire
 from bench.robots.delta4 import DEFAULT_BAUDRATE, HOME_MM, Delta4Controller
 from bench.sensors.lasergrid import GridGeometry, decode_frame
 from bench.simulators.lasergrid import LaserGridSimulator
-from tests.firmware_sim import F_CPU_HZ, ROOT, needs_toolchain
+from tests.firmware_sim import F_CPU_HZ, ROOT, needs_toolchain, start_harness
 
 pytestmark = needs_toolchain
 
@@ -44,14 +44,7 @@ class EmulatedDelta4:
     def __init__(self, built, events):
         elf, harness = built
         self.events = events
-        self.process = subprocess.Popen([str(harness), str(elf), str(events)], stdin=subprocess.PIPE,
-                                        stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True)
-        for line in self.process.stdout:
-            if line.startswith("PTY "):
-                self.path = line.split()[1]
-                break
-        else:
-            raise AssertionError("harness printed no PTY line")
+        self.process, self.path = start_harness(harness, elf, events, stdin=subprocess.PIPE)
 
     def open(self, timeout_s=0.05):
         import serial

@@ -280,7 +280,8 @@ def orientation_repeatability(attained_deg) -> OrientationRepeatability:
     return OrientationRepeatability(rp_deg=tuple(float(v) for v in 3.0 * s), n=len(attained))
 
 
-def _barycentre_spread(name: str, clouds: Sequence) -> MultidirectionalVariation:
+def _approach_clouds(name: str, clouds: Sequence) -> list[np.ndarray]:
+    """Two or more point clouds of one dimension, each of at least one cycle (ConfigError naming ``name``)."""
     if len(clouds) < 2:
         raise ConfigError(f"{name}: {len(clouds)} cloud(s) given, expected at least 2 to compare")
     points = [as_points(f"{name}[{i}]", cloud) for i, cloud in enumerate(clouds)]
@@ -288,6 +289,11 @@ def _barycentre_spread(name: str, clouds: Sequence) -> MultidirectionalVariation
         raise ConfigError(f"{name}: clouds of different dimensions {[p.shape[1] for p in points]}")
     for i, cloud in enumerate(points):
         require_count(f"{name}[{i}] cycles", len(cloud), 1)
+    return points
+
+
+def _barycentre_spread(name: str, clouds: Sequence) -> MultidirectionalVariation:
+    points = _approach_clouds(name, clouds)
     barycentres = np.array([p.mean(axis=0) for p in points])
     pairs = list(combinations(range(len(points)), 2))
     distances = [float(np.linalg.norm(barycentres[h] - barycentres[k])) for h, k in pairs]
@@ -332,13 +338,7 @@ def orientation_multidirectional_variation(approaches_deg: Sequence) -> Orientat
     >>> [round(v, 6) for v in r.vap_deg]
     [2.5]
     """
-    if len(approaches_deg) < 2:
-        raise ConfigError(f"approaches_deg: {len(approaches_deg)} cloud(s) given, expected at least 2 to compare")
-    clouds = [as_points(f"approaches_deg[{i}]", cloud) for i, cloud in enumerate(approaches_deg)]
-    if len({c.shape[1] for c in clouds}) != 1:
-        raise ConfigError(f"approaches_deg: clouds of different dimensions {[c.shape[1] for c in clouds]}")
-    for i, cloud in enumerate(clouds):
-        require_count(f"approaches_deg[{i}] cycles", len(cloud), 1)
+    clouds = _approach_clouds("approaches_deg", approaches_deg)
     means = np.array([circular_mean_deg(c) for c in clouds])
     spread = np.max([np.abs(wrap_deg(means[h] - means[k])) for h, k in combinations(range(len(means)), 2)], axis=0)
     return OrientationVariation(vap_deg=tuple(float(v) for v in spread),
