@@ -62,8 +62,9 @@ class PreflightModel:
     ----------
     name : str
         The robot; its kinematics are ``motion.<name>.model.MODEL`` (a :class:`motion.model.RobotModel`).
-    home : tuple of float
-        Where the robot starts and ends a campaign, in the target fields.
+    home_of : callable
+        ``home_of()``: where the robot starts and ends a campaign, in the target fields (read once, as
+        :attr:`home`: the pkm5's comes from its forward kinematics, which listing the robots should not pay for).
     travel_s : callable
         ``travel_s(kinematics, travel, velocity_pct)``: seconds of moves whose actuated joints travel ``travel``
         (N, J) in joint units, at ``velocity_pct`` (N,) % of the rated speed.
@@ -73,11 +74,16 @@ class PreflightModel:
     """
 
     name: str
-    home: tuple[float, ...]
+    home_of: Callable[[], tuple[float, ...]]
     travel_s: Callable[[object, np.ndarray, np.ndarray], np.ndarray]
     mode_columns: Callable[[np.ndarray], np.ndarray] = _all_columns
     #: the geometry to check by instead of the documented one (a kinematic calibration in force)
     geometry: object = None
+
+    @cached_property
+    def home(self) -> tuple[float, ...]:
+        """Where the robot starts and ends a campaign, in the target fields."""
+        return tuple(self.home_of())
 
     @cached_property
     def kinematics(self):
@@ -151,8 +157,8 @@ def _pkm5_mode_columns(targets: np.ndarray) -> np.ndarray:
 
 ROBOT_MODELS: dict[str, PreflightModel] = {
     # the documents' home (every actuator at 5 mm stroke), from the geometry's FK: (88.649, 0, 300.937, 0, 0)
-    "pkm5": PreflightModel("pkm5", pkm5_home_pose(), _stepper_travel_s, _pkm5_mode_columns),
-    "delta4": PreflightModel("delta4", DELTA4_HOME_MM, _servo_travel_s),
+    "pkm5": PreflightModel("pkm5", pkm5_home_pose, _stepper_travel_s, _pkm5_mode_columns),
+    "delta4": PreflightModel("delta4", lambda: DELTA4_HOME_MM, _servo_travel_s),
 }
 
 
