@@ -463,3 +463,37 @@ def test_station_check_with_one_device_removed_names_that_device_only():
     assert [key for key, check in checks.items() if not check.ok] == ["mice.xz"]
     assert checks["mice.xz"].detail == "no such device" and "by-id" in checks["mice.xz"].fix
     assert checks["mice.xy"].detail.startswith("FIFO or file (not an event device)")
+
+
+def test_a_rig_opened_on_a_controller_still_moving_stops_that_move_first(tmp_path):
+    # a host killed mid-move leaves the simulated controller (no link watchdog) moving: the next rig must neither
+    # fail on ENABLE (BUSY) nor inherit the motion
+    import time
+
+    from bench.rigs.builder import build_rig
+    from bench.robots import pkm5_wire as wire
+    from bench.robots.link import open_port
+    from bench.robots.pkm5 import Pkm5Controller
+    from bench.simulators.station import rehearse
+
+    rehearsal = rehearse(load_station(STATIONS / "pkm5_mice.toml"), speed_factor=1)
+    try:
+        port = open_port(rehearsal.station.controller.port, baudrate=115200, timeout=0.05, exclusive=True)
+        robot = Pkm5Controller(port)
+        version = robot.identify().protocol_version
+        robot.enable()
+        port.write(wire.format_command("MOVE", (2656, 2656, 2669, 2669, 2720, 2720, 200), 99, version))
+        port.flush()
+        deadline = time.monotonic() + 10
+        while robot.position().state != "MOVING":  # the move is under way (9 s at speed factor 1)
+            assert time.monotonic() < deadline
+        port.close()  # the host goes away without a STOP
+        with Store(tmp_path / "b.db") as store:
+            rig = build_rig(rehearsal.station, store, requires={"pose"})
+            try:
+                where = rig.robot.controller.position()
+            finally:
+                rig.close()
+        assert where.state == "IDLE"
+    finally:
+        rehearsal.close()

@@ -142,6 +142,11 @@ def _open_robot(station: Station, opened: ExitStack) -> tuple[Any, Any]:
         controller = Pkm5Controller(port, fixture=spec.fixture)
         opened.callback(controller.shutdown)
         controller.identify()
+        if controller.position().state == "MOVING":
+            # a move no host is waiting for (a host killed mid-move, a controller without the link watchdog):
+            # never inherit motion; it is stopped, and the robot is homed before anything is measured
+            _log.warning("pkm5 still moving an earlier host's command: stopping it before enabling")
+            controller.stop()
         controller.enable()
         return Pkm5Mover(controller), controller
     from bench.robots.delta4 import Delta4Controller
