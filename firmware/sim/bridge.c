@@ -20,12 +20,35 @@ static avr_irq_t *uart_input;
 static uint8_t pending[256];
 static size_t pending_len, pending_done;
 static volatile sig_atomic_t stopping;
+/* Bytes the MCU sent that the pty could not take yet (the host was not scheduled: a loaded machine). A real
+ * USB-serial adapter and the kernel buffer far more than a pty's 4 KiB, so nothing the firmware sends is dropped
+ * here; only a host that stops reading for OUTBOX bytes loses the oldest, with a message. */
+#define OUTBOX (1u << 20)
+static uint8_t outbox[OUTBOX];
+static size_t outbox_head, outbox_len;
 
 static void on_tx(struct avr_irq_t *irq, uint32_t value, void *param) {
   (void)irq;
   (void)param;
-  uint8_t byte = (uint8_t)value;
-  if (write(pty_master, &byte, 1) < 0 && errno != EAGAIN) perror("harness: pty write");  /* no reader: dropped */
+  if (outbox_len == OUTBOX) {
+    fprintf(stderr, "harness: host not reading, %u bytes queued: oldest byte dropped\n", OUTBOX);
+    outbox_head = (outbox_head + 1) % OUTBOX;
+    outbox_len--;
+  }
+  outbox[(outbox_head + outbox_len++) % OUTBOX] = (uint8_t)value;
+}
+
+static void pump_output(void) {
+  while (outbox_len > 0) {
+    size_t run = outbox_head + outbox_len <= OUTBOX ? outbox_len : OUTBOX - outbox_head;
+    ssize_t n = write(pty_master, outbox + outbox_head, run);
+    if (n <= 0) {
+      if (n < 0 && errno != EAGAIN && errno != EIO) perror("harness: pty write");
+      return;  /* full (or no host yet): kept for the next poll */
+    }
+    outbox_head = (outbox_head + (size_t)n) % OUTBOX;
+    outbox_len -= (size_t)n;
+  }
 }
 
 static void on_xon(struct avr_irq_t *irq, uint32_t value, void *param) { (void)irq; (void)value; uart_xon = *(int *)param; }
@@ -103,6 +126,7 @@ void bridge_run(avr_t *avr, FILE *events, void (*every_poll)(void)) {
     if (avr->cycle >= next_poll) {
       next_poll = avr->cycle + poll;
       pump_input();
+      pump_output();
       if (every_poll) every_poll();
     }
     if (avr->cycle >= next_check) {

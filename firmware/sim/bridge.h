@@ -1,6 +1,4 @@
-/* The pty bridge of the delta4 simavr harness (delta4_harness.c): the pkm5 harness's (harness.c) made reusable.
- * harness.c still has its own copy (on this file the pkm5 driver tests failed on a loaded machine; cause not found,
- * docs/firmware.md). Loads an ELF on an emulated MCU, bridges one UART to a pseudo-terminal (polled every 100 us of
+/* The pty bridge of the simavr harnesses (harness.c for the pkm5, delta4_harness.c). Loads an ELF on an emulated MCU, bridges one UART to a pseudo-terminal (polled every 100 us of
  * emulated time: simavr's uart_pty part spins a thread) and runs the core paced to wall time. */
 #ifndef BENCH_SIM_BRIDGE_H
 #define BENCH_SIM_BRIDGE_H
