@@ -40,6 +40,17 @@ def file_digest(path: Path) -> str:
     return hashlib.sha256(path.read_bytes()).hexdigest()
 
 
+def _kill_after_batches(sync: subprocess.Popen, batches: int) -> None:
+    """SIGKILL a running ``bench sync`` once it has reported ``batches`` committed batches on stderr."""
+    seen = 0
+    for line in sync.stderr:
+        seen += line.startswith("sync: run ")
+        if seen == batches:
+            os.kill(sync.pid, signal.SIGKILL)
+            break
+    sync.wait(timeout=30)
+
+
 def test_sync_twice_sends_nothing_twice(tmp_path, lab_url):
     path = make_store(tmp_path / "a.db", "bench-a", [250, 40])
     with Store(path) as store:
@@ -82,13 +93,7 @@ def test_sync_killed_midway_then_resumed_has_every_sample_once(tmp_path, lab_url
     writer = subprocess.Popen([sys.executable, "-m", "bench.cli", "sync", "--store", str(path), "--to", lab_url,
                                "--batch", "500"], cwd=ROOT, stderr=subprocess.PIPE, text=True,
                               env={**os.environ, "PYTHONPATH": str(ROOT)})
-    batches = 0
-    for line in writer.stderr:
-        batches += line.startswith("sync: run ")
-        if batches == 7:
-            os.kill(writer.pid, signal.SIGKILL)
-            break
-    writer.wait(timeout=30)
+    _kill_after_batches(writer, 7)
     assert writer.returncode == -signal.SIGKILL
     partial, distinct, _ = server_state(lab_url)
     assert 3500 <= partial < 15000 and distinct == partial
@@ -187,13 +192,7 @@ def test_benches_sync_at_once_through_a_kill_and_a_server_restart(tmp_path, lab_
 
     victim = sync(paths[0], stderr=subprocess.PIPE)
     others = [sync(p, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL) for p in paths[1:]]
-    batches = 0
-    for line in victim.stderr:
-        batches += line.startswith("sync: run ")
-        if batches == 3:
-            os.kill(victim.pid, signal.SIGKILL)
-            break
-    victim.wait(timeout=30)
+    _kill_after_batches(victim, 3)
     lab_server.stop("fast")
     restart = threading.Timer(1.0, lab_server.start)
     restart.start()
