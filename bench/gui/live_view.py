@@ -14,22 +14,32 @@ series' last point as in :func:`bench.metrology.iso9283_dynamics.position_stabil
 the move's reported end, with the comparison bands of clause 7.4 (A.4) drawn as lines.
 Samples are kept by step index: a sample seen twice (a resumed run's stored samples, then its live signals) counts
 once. Plots are redrawn at most every :data:`REDRAW_MS`.
+
+Start-up: matplotlib and pandas (0.5-0.6 s of imports on the 2-core bench PC) are imported by a background thread
+started with the first view, and the figure is built when it is first needed (the view is shown, or a run's samples
+arrive), so the main window appears without waiting for them and the GUI thread never imports them itself unless a
+run starts within the first second.
 """
 
 from __future__ import annotations
 
+import importlib
+import threading
+from typing import TYPE_CHECKING
+
 import numpy as np
-import pandas as pd
-from matplotlib.backends.backend_qtagg import FigureCanvasQTAgg
-from matplotlib.figure import Figure
-from matplotlib.patches import Circle
-from matplotlib.ticker import MaxNLocator
 from PySide6.QtCore import QTimer
+from PySide6.QtGui import QShowEvent
 from PySide6.QtWidgets import QLabel, QVBoxLayout, QWidget
 
 from bench.metrology.documents import ISO9283_STABILISATION_BANDS_MM
 from bench.metrology.iso9283 import pose_accuracy, pose_repeatability
-from bench.metrology.tables import CONDITION_COLUMNS, condition_groups
+
+if TYPE_CHECKING:
+    import pandas as pd
+    from matplotlib.axes import Axes
+    from matplotlib.backends.backend_qtagg import FigureCanvasQTAgg
+    from matplotlib.figure import Figure
 
 __all__ = ["REDRAW_MS", "LiveView"]
 
@@ -39,6 +49,31 @@ _ATTAINED = ("x_mm", "y_mm", "z_mm")
 #: Values that describe the test conditions (a capture's lead and hold times included), not a measurement: never
 #: drawn as a stream.
 _NOT_MEASURED = ("velocity_pct", "load_kg", "leg", "lead_s", "hold_s")
+#: What the figures need, imported off the GUI thread by :func:`preload_plotting`.
+_PLOTTING_MODULES = ("pandas", "matplotlib.figure", "matplotlib.patches", "matplotlib.ticker",
+                     "matplotlib.backends.backend_qtagg", "bench.metrology.tables")
+_preloading: threading.Thread | None = None
+
+
+def preload_plotting() -> None:
+    """Start importing the plotting modules in a daemon thread (once per process); returns at once."""
+    global _preloading
+    if _preloading is None:
+        _preloading = threading.Thread(target=lambda: [importlib.import_module(m) for m in _PLOTTING_MODULES],
+                                       name="bench-live-view-imports", daemon=True)
+        _preloading.start()
+
+
+def _condition_columns() -> tuple[str, ...]:
+    from bench.metrology.tables import CONDITION_COLUMNS
+
+    return CONDITION_COLUMNS
+
+
+def _condition_groups(table: "pd.DataFrame"):
+    from bench.metrology.tables import condition_groups
+
+    return condition_groups(table)
 
 
 class LiveView(QWidget):
@@ -46,19 +81,68 @@ class LiveView(QWidget):
 
     def __init__(self, parent: QWidget | None = None) -> None:
         super().__init__(parent)
-        self.figure = Figure(figsize=(7, 4), layout="constrained")
-        self.canvas = FigureCanvasQTAgg(self.figure)
-        self.pose_axes, self.stream_axes = self.figure.subplots(1, 2, width_ratios=(1, 1.4))
+        preload_plotting()
+        self._figure: Figure | None = None
+        self._canvas: FigureCanvasQTAgg | None = None
+        self._axes: tuple[Axes, Axes] | None = None
+        self._placeholder = QLabel("the plots appear when a run starts")
         self.summary = QLabel("no samples yet")
         self.summary.setObjectName("liveSummary")
         self.summary.setWordWrap(True)
-        layout = QVBoxLayout(self)
-        layout.addWidget(self.canvas, 1)
-        layout.addWidget(self.summary)
+        self._layout = QVBoxLayout(self)
+        self._layout.addWidget(self._placeholder, 1)
+        self._layout.addWidget(self.summary)
         self._timer = QTimer(self)
         self._timer.setSingleShot(True)
         self._timer.timeout.connect(self.redraw)
         self.clear()
+
+    # ---- the figure, built on first use ------------------------------------------------------------------------
+
+    def _build_figure(self) -> None:
+        if self._canvas is not None:
+            return
+        from matplotlib.backends.backend_qtagg import FigureCanvasQTAgg
+        from matplotlib.figure import Figure
+
+        self._figure = Figure(figsize=(7, 4), layout="constrained")
+        self._canvas = FigureCanvasQTAgg(self._figure)
+        self._axes = tuple(self._figure.subplots(1, 2, width_ratios=(1, 1.4)))
+        self._layout.replaceWidget(self._placeholder, self._canvas)
+        self._placeholder.deleteLater()
+
+    @property
+    def figure(self) -> "Figure":
+        self._build_figure()
+        return self._figure
+
+    @property
+    def canvas(self) -> "FigureCanvasQTAgg":
+        self._build_figure()
+        return self._canvas
+
+    @property
+    def pose_axes(self) -> "Axes":
+        self._build_figure()
+        return self._axes[0]
+
+    @property
+    def stream_axes(self) -> "Axes":
+        self._build_figure()
+        return self._axes[1]
+
+    def showEvent(self, event: QShowEvent) -> None:
+        super().showEvent(event)
+        self._build_when_imported()
+
+    def _build_when_imported(self) -> None:
+        """Draw once the background imports are done (polled, so the GUI thread never waits on them)."""
+        if self._canvas is not None:
+            return
+        if _preloading is not None and _preloading.is_alive():
+            QTimer.singleShot(50, self._build_when_imported)
+        else:
+            self.redraw()
 
     def clear(self, title: str = "", started_s: float | None = None) -> None:
         """Forget every sample (a new run starts); ``started_s`` is the run's start (Unix s), the stream's zero."""
@@ -66,7 +150,10 @@ class LiveView(QWidget):
         self.title = title
         self.started_s = started_s
         self._statistics: dict[str, dict[str, float]] | None = None
-        self.redraw()
+        if self._canvas is not None or self.isVisible():
+            self.redraw()
+        else:
+            self.summary.setText(self._summary_text({}))
 
     def load(self, title: str, started_s: float, samples: list[dict]) -> None:
         """Start afresh on a run that began at ``started_s`` (Unix s) and holds ``samples`` already."""
@@ -90,7 +177,7 @@ class LiveView(QWidget):
 
     # ---- figures ---------------------------------------------------------------------------------------------
 
-    def pose_table(self) -> pd.DataFrame:
+    def pose_table(self) -> "pd.DataFrame":
         """The pose samples as a table with the report's columns (pose, cycle, commanded and attained, conditions)."""
         rows = []
         for index, sample in sorted(self.samples.items()):
@@ -99,8 +186,10 @@ class LiveView(QWidget):
                 continue
             row = {"step_index": index, "pose": str(sample["pose"]), "cycle": sample.get("cycle")}
             row.update({k: v for k, v in values.items() if k in _ATTAINED or k[4:] in _ATTAINED
-                        or k in CONDITION_COLUMNS})
+                        or k in _condition_columns()})
             rows.append(row)
+        import pandas as pd
+
         return pd.DataFrame(rows)
 
     def pose_statistics(self) -> dict[str, dict[str, float]]:
@@ -112,7 +201,7 @@ class LiveView(QWidget):
         table = self.pose_table()
         out: dict[str, dict[str, float]] = {}
         if not table.empty:
-            for label, _pose, _conditions, rows in condition_groups(table):
+            for label, _pose, _conditions, rows in _condition_groups(table):
                 attained = rows[list(_ATTAINED)].to_numpy(dtype=float)
                 commanded_columns = [f"cmd_{k}" for k in _ATTAINED]
                 commanded = (rows[commanded_columns].to_numpy(dtype=float)[0]
@@ -202,7 +291,7 @@ class LiveView(QWidget):
         statistics = self.pose_statistics()
         table = self.pose_table()
         if not table.empty:
-            for index, (label, _pose, _conditions, rows) in enumerate(condition_groups(table)):
+            for index, (label, _pose, _conditions, rows) in enumerate(_condition_groups(table)):
                 colour = f"C{index % 10}"
                 stats = statistics[label]
                 dx = rows["x_mm"].to_numpy(dtype=float) - stats["cmd_x_mm"]
@@ -211,6 +300,8 @@ class LiveView(QWidget):
                 centre = (stats["APx_mm"], stats["APy_mm"])
                 axes.plot(*centre, "+", color=colour, ms=12, mew=2)
                 if "RP_mm" in stats:
+                    from matplotlib.patches import Circle
+
                     axes.add_patch(Circle(centre, stats["RP_mm"], fill=False, color=colour, lw=1))
             axes.legend(fontsize=7, loc="upper right")
             axes.set_aspect("equal", adjustable="datalim")
@@ -221,6 +312,8 @@ class LiveView(QWidget):
         axes.clear()
         axes.set_title(f"sensor stream {self.title}".strip(), fontsize=9)
         axes.set_xlabel("wall-clock time since the run started (s)")
+        from matplotlib.ticker import MaxNLocator
+
         axes.xaxis.set_major_locator(MaxNLocator(nbins=6))
         stream = self.stream()
         for name, (times, series) in sorted(stream.items()):

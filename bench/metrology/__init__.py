@@ -9,28 +9,37 @@ optical-mouse calibration (`mouse_calibration`), the project's payload error (`p
 Units: mm, degrees, s, kg, N. Results are frozen dataclasses; too few samples raise
 ``bench.errors.InsufficientData``, malformed input ``bench.errors.ConfigError``; a result is never a silent NaN.
 bench/reports imports from here.
+
+The package's names are resolved on first use (PEP 562): importing one submodule, e.g. ``bench.metrology.documents``
+for a constant, no longer imports pandas and scipy with every other one (the desktop app's start-up, the CLI's).
+``from bench.metrology import pose_accuracy`` and ``bench.metrology.__all__`` work as before.
 """
 
-from bench.metrology.actuator import *
-from bench.metrology.actuator import __all__ as _actuator
-from bench.metrology.actuator_tables import *
-from bench.metrology.actuator_tables import __all__ as _actuator_tables
-from bench.metrology.hit_rate import *
-from bench.metrology.hit_rate import __all__ as _hit_rate
-from bench.metrology.iso9283 import *
-from bench.metrology.iso9283 import __all__ as _iso9283
-from bench.metrology.iso9283_dynamics import *
-from bench.metrology.iso9283_dynamics import __all__ as _dynamics
-from bench.metrology.iso9283_path import *
-from bench.metrology.iso9283_path import __all__ as _path
-from bench.metrology.mouse_calibration import *
-from bench.metrology.mouse_calibration import __all__ as _mouse
-from bench.metrology.partial_pose import *
-from bench.metrology.partial_pose import __all__ as _partial_pose
-from bench.metrology.payload import *
-from bench.metrology.payload import __all__ as _payload
-from bench.metrology.uncertainty import *
-from bench.metrology.uncertainty import __all__ as _uncertainty
+from __future__ import annotations
 
-__all__ = [*_iso9283, *_dynamics, *_path, *_actuator, *_actuator_tables, *_mouse, *_payload, *_uncertainty, *_partial_pose,
-           *_hit_rate]
+import importlib
+
+#: The submodules whose public names the package re-exports; the pandas-based table paths come last, so that
+#: resolving a plain function never imports pandas.
+_SUBMODULES = ("iso9283", "iso9283_dynamics", "iso9283_path", "actuator", "mouse_calibration", "payload",
+               "uncertainty", "partial_pose", "actuator_tables", "hit_rate")
+
+
+def __getattr__(name: str):
+    if name == "__all__":
+        names = [n for sub in _SUBMODULES for n in importlib.import_module(f"{__name__}.{sub}").__all__]
+        globals()["__all__"] = names
+        return names
+    if name.startswith("__"):
+        raise AttributeError(name)
+    for sub in _SUBMODULES:
+        module = importlib.import_module(f"{__name__}.{sub}")
+        if name in module.__all__:
+            value = getattr(module, name)
+            globals()[name] = value
+            return value
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(__getattr__("__all__")))

@@ -113,6 +113,7 @@ def home_steps(geometry: Any = pkm5.DEFAULT_GEOMETRY) -> np.ndarray:
 def home_pose(geometry: Any = pkm5.DEFAULT_GEOMETRY) -> tuple[float, ...]:
     """The pose at the documents' home (every actuator at its home stroke, 5 mm), from the forward kinematics of
     ``geometry``: (x_mm, y_mm, z_mm, alpha_deg, beta_deg), rounded to 1 um / 1 mdeg (the default geometry gives
-    (88.649, 0, 300.937, 0, 0))."""
-    fk = pkm5.forward_kinematics(geometry.home_lengths_mm[None, :], geometry)
+    (88.649, 0, 300.937, 0, 0)). The solve starts at the neutral pose, not from the FK's seed table, whose k-d tree
+    (scipy.spatial) costs 0.6 s of the desktop app's start-up; the restarts still run if that start fails."""
+    fk = pkm5.forward_kinematics(geometry.home_lengths_mm[None, :], geometry, initial_pose=pkm5.NEUTRAL_POSE)
     return tuple(round(float(v), 3) + 0.0 for v in pose_deg_from_rad(fk.pose[0]))

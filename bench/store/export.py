@@ -17,12 +17,14 @@ from __future__ import annotations
 import importlib.util
 import json
 from pathlib import Path
-
-import pandas as pd
+from typing import TYPE_CHECKING
 
 from bench.errors import ConfigError, InsufficientData
 from bench.store.database import Store
 from bench.store.descriptors import SAMPLE_KINDS, dtype_of, unit_of
+
+if TYPE_CHECKING:
+    import pandas as pd
 
 __all__ = ["EXPORT_FORMATS", "TIDY_COLUMNS", "default_kind", "export_run", "series_table", "tidy_table"]
 
@@ -41,6 +43,8 @@ def tidy_table(store: Store, run_id: int, kind: str = "pose") -> pd.DataFrame:
     InsufficientData
         When the run has no sample of that kind.
     """
+    import pandas as pd  # here, not at import: the store is opened by the desktop app and the CLI at start-up
+
     store.run(run_id)  # names the run when it does not exist
     samples = store.samples(run_id, kind=kind)
     if not samples:
@@ -70,6 +74,8 @@ def series_table(store: Store, run_id: int, kind: str = "arrival") -> pd.DataFra
     InsufficientData
         When the run has no sample of that kind with a stored series.
     """
+    import pandas as pd
+
     store.run(run_id)
     frames = []
     for sample in store.samples(run_id, kind=kind):

@@ -9,7 +9,7 @@ x = 111.31 mm), translation + beta; alpha and beta together are refused (parasit
 
 from motion.pkm5.geometry import DEFAULT_GEOMETRY, Geometry, lengths_to_steps, steps_to_lengths
 from motion.pkm5.ik import Failure, IKResult, bracket_vectors, inverse_kinematics
-from motion.pkm5.fk import FKResult, detect_mode, forward_kinematics
+from motion.pkm5.fk import NEUTRAL_POSE, FKResult, detect_mode, forward_kinematics
 from motion.pkm5.jacobian import SingularityProximity, jacobian, singularity_proximity
 from motion.pkm5.nr import NRResult, forward_kinematics_nr
 from motion.pkm5.workspace import WORKSPACE_KINDS, WorkspaceEstimate, estimate_workspace, sample_reachable
@@ -17,7 +17,7 @@ from motion.pkm5.workspace import WORKSPACE_KINDS, WorkspaceEstimate, estimate_w
 __all__ = [
     "DEFAULT_GEOMETRY", "Geometry", "lengths_to_steps", "steps_to_lengths",
     "Failure", "IKResult", "bracket_vectors", "inverse_kinematics",
-    "FKResult", "detect_mode", "forward_kinematics",
+    "FKResult", "NEUTRAL_POSE", "detect_mode", "forward_kinematics",
     "SingularityProximity", "jacobian", "singularity_proximity",
     "NRResult", "forward_kinematics_nr",
     "WORKSPACE_KINDS", "WorkspaceEstimate", "estimate_workspace", "sample_reachable",

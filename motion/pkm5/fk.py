@@ -20,11 +20,14 @@ from motion.pkm5.geometry import DEFAULT_GEOMETRY, Geometry, _as_legs
 from motion.pkm5.ik import inverse_kinematics, leg_lengths
 from motion.pkm5.workspace import sample_reachable
 
-__all__ = ["FKResult", "detect_mode", "forward_kinematics", "MODES"]
+__all__ = ["FKResult", "NEUTRAL_POSE", "detect_mode", "forward_kinematics", "MODES"]
 
 #: Mode name -> index of the rotation column that is solved for (None: translation only).
 MODES = {"translation": None, "alpha": 3, "beta": 4}
 _NEUTRAL = np.array([150.0, 0.0, 300.0])          # pkm5.md §4.3 neutral guess
+#: The neutral pose (x, y, z mm, alpha, beta rad) of pkm5.md §4.3: a start for one well-conditioned solve (the home
+#: pose) that needs no seed table.
+NEUTRAL_POSE = (*_NEUTRAL, 0.0, 0.0)
 # Restarts for solutions whose residual stays above tolerance. The beta local minima sit at large positive beta and
 # low x (pkm5.md §4.3); (80, 0, 320, 0.4 rad) solved all 25 such cases among 12,567 random feasible beta poses.
 _RESTARTS = {
