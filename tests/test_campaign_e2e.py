@@ -123,6 +123,12 @@ def test_each_protocol_completes_on_the_simulator(tmp_path, name):
         if name == "dissertation_pose":  # beta read by calliper, error of the order of the documents' 0.2-1.8 deg
             tilts = tidy_table(store, result.run_id, kind="tilt")
             assert len(tilts) == 30 and (tilts["b_deg"] - tilts["cmd_b_deg"]).abs().max() < 5
+            # reportable: the deviations table knows the explicit poses and the (absent) load, no unknown row
+            from bench.reports import collect
+
+            deviations = {(d.clause, d.topic): d.status for d in collect(store, result.run_id).deviations}
+            assert "unknown" not in deviations.values(), deviations
+            assert deviations[("6.8", "poses")] == deviations[("6.6", "load")] == "deviates"
 
 
 def _campaign(tmp_path, *, ideal: bool, seed: int, cycles: int) -> pd.DataFrame:

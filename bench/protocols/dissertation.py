@@ -83,6 +83,12 @@ class DissertationPose(Protocol):
     velocity_pct = FloatParameter(100.0, unit="%", minimum=0.1, maximum=100.0, description="velocity")
     settle_s = FloatParameter(1.0, unit="s", minimum=0.0, maximum=600.0, description="dwell before a reading")
 
+    def config(self) -> dict:
+        """The parameters plus what the report's deviations table reads: the labelled target poses (mm, degrees,
+        the variant's table) and the load, none: 000 §8.6.2-8.6.3 mount no payload for this test."""
+        poses = {_label(i): list(_target(self.variant, p)) for i, p in enumerate(POINTS[self.variant])}
+        return {**super().config(), "poses": poses, "loads_kg": [0.0]}
+
     def steps(self) -> Plan:
         home = robot_model(self.robot).home
         angle = {"alpha": "a", "beta": "b"}.get(self.variant)
