@@ -50,12 +50,13 @@ def test_pdf_has_every_section_on_numbered_pages(reports):
     assert "AP_mm (project criterion)" in text and "ISO 9283 certified" not in text
 
 
-def test_html_is_self_contained_with_inline_vector_plots(reports):
+def test_html_is_self_contained_with_inline_plots(reports):
     _, _, _, single, _ = reports
     html = single.html.read_text(encoding="utf-8")
-    assert not re.search(r"<(script|link|img|iframe)\b", html)
+    assert not re.search(r"<(script|link|iframe)\b", html)
     assert not re.search(r"(src|href)=\"(https?:|file:|//)", html)
-    assert html.count("<svg") >= 3  # pose scatter, workspace with AP vectors, drift series
+    assert all(src.startswith("data:image/png;base64,") for src in re.findall(r'<img src="([^"]*)"', html))
+    assert html.count("<img src=\"data:image/png;base64,") >= 3  # pose scatter, workspace with AP vectors, drift series
     for ident in ("identification", "deviations", "instrument", "budget", "results", "decision", "rawdata"):
         assert f'<table id="{ident}">' in html
 

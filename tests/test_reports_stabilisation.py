@@ -119,7 +119,7 @@ def test_html_and_pdf_print_the_tables_the_hysteresis_and_the_plot(arrivals):
     assert deviations["cycles"][4] == "deviates" and deviations["poses"][4] == "conforms"  # 2 of 3; the cube
     assert "the narrowest band 3.1 counts" in deviations["instrument"][3]
     html = paths.html.read_text(encoding="utf-8")
-    assert html.count("<svg") == 1 and "d(t) from the settled position (the last sample) per cycle" in html
+    assert html.count("<img src=\"data:image/png;base64,") == 1 and "d(t) from the settled position (the last sample) per cycle" in html
     pdf = pdf_text(paths.pdf)
     for text in (f"{p2.max_overshoot_mm:.4f}", "Hysteresis used: h = 0.03175 mm", "Deviations from ISO 9283",
                  "bench analyze stabilisation", "d(t) from the settled position"):

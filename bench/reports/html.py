@@ -1,17 +1,19 @@
 """Render a report :class:`~bench.reports.document.Document` as one self-contained HTML file.
 
-Jinja2 template ``templates/report.html.j2`` with autoescaping; figures are inlined as SVG (vector, no external
-file, no script), styles are inline, so the file can be mailed or archived alone.
+Jinja2 template ``templates/report.html.j2`` with autoescaping; figures are inlined as PNG data URIs (the same
+image as the PDF's, drawn once; see :mod:`bench.reports.plots`), at their print width, with the caption as the
+alternative text; styles are inline and there is no script, so the file can be mailed or archived alone.
 """
 
 from __future__ import annotations
 
+import base64
 from pathlib import Path
 
 from jinja2 import Environment, PackageLoader, select_autoescape
 
 from bench.reports.document import Document, Figure, Paragraph, Table
-from bench.reports.plots import svg_text
+from bench.reports.plots import png_bytes
 
 __all__ = ["render_html", "write_html"]
 
@@ -26,7 +28,9 @@ def _block(block) -> dict:
         return {"kind": "table", "ident": block.ident, "header": block.header, "rows": block.rows,
                 "caption": block.caption}
     if isinstance(block, Figure):
-        return {"kind": "figure", "svg": svg_text(block.plot), "caption": block.plot.caption}
+        width_in, _ = block.plot.figure.get_size_inches()
+        return {"kind": "figure", "png": base64.b64encode(png_bytes(block.plot)).decode("ascii"),
+                "width_mm": round(width_in * 25.4, 1), "caption": block.plot.caption}
     raise TypeError(f"unknown report block {block!r}")
 
 

@@ -2,8 +2,10 @@
 
 Every plotted quantity is either a raw stored sample or a number the metrology already computed for the report
 (barycentres, RP, AP vectors, PE(m), calibration fits); nothing is re-derived here. A figure is returned as a
-:class:`Plot` (caption plus a matplotlib ``Figure``); :func:`svg_text` and :func:`png_bytes` render it for the
-HTML (vector, inline) and the PDF (raster at 150 dpi: reportlab embeds bitmaps without another dependency).
+:class:`Plot` (caption plus a matplotlib ``Figure``); :func:`png_bytes` renders it once, at :data:`REPORT_DPI`, and
+that one image serves the HTML (inline, as a data URI) and the PDF (reportlab embeds bitmaps without another
+dependency): drawing a figure is most of a report's time, and a second, vector rendering for the HTML doubled it.
+:func:`svg_text` stays for a vector copy of one figure (tests measure fonts in it).
 """
 
 from __future__ import annotations
@@ -22,7 +24,7 @@ from scipy.spatial import ConvexHull, QhullError
 
 from bench.reports.content import RunReport
 
-__all__ = ["MIN_FONT_PT", "PRINT_HEIGHT_IN", "PRINT_WIDTH_IN", "Plot", "comparison_plot", "deviation_histograms",
+__all__ = ["MIN_FONT_PT", "PRINT_HEIGHT_IN", "PRINT_WIDTH_IN", "Plot", "REPORT_DPI", "comparison_plot", "deviation_histograms",
            "error_map_3d", "print_ready", "panels", "payload_caption", "payload_shift_figure", "png_bytes",
            "report_plots", "svg_text", "workspace_cloud_mm"]
 
@@ -77,10 +79,18 @@ def svg_text(plot: Plot) -> str:
     return text[text.index("<svg"):]
 
 
-def png_bytes(plot: Plot, dpi: int = 150) -> bytes:
-    buffer = io.BytesIO()
-    plot.figure.savefig(buffer, format="png", dpi=dpi, metadata={"Software": None})
-    return buffer.getvalue()
+#: Resolution of the report's figures (dots per inch at print size: 180 mm wide is 1063 px).
+REPORT_DPI = 150
+
+
+def png_bytes(plot: Plot, dpi: int = REPORT_DPI) -> bytes:
+    """The figure as PNG, drawn once per resolution (kept on the figure: the HTML and the PDF share it)."""
+    rendered = plot.figure.__dict__.setdefault("_bench_png", {})
+    if dpi not in rendered:
+        buffer = io.BytesIO()
+        plot.figure.savefig(buffer, format="png", dpi=dpi, metadata={"Software": None})
+        rendered[dpi] = buffer.getvalue()
+    return rendered[dpi]
 
 
 def _rows_of(report: RunReport, result) -> np.ndarray:
