@@ -146,7 +146,9 @@ def test_settings_and_repr():
     assert robot.settings() == {
         "driver": "Delta4Controller", "port": "scripted://", "baudrate": 115200,
         "mapping": {"name": "legacy_vb", "degrees_per_span": 190.0, "limits_deg": [30.0, 160.0]},
-        "settle_timeout_s": 1.5, "frame_gap_s": 0.03}
+        "settle_timeout_s": 1.5, "frame_gap_s": 0.03,
+        "pot_scale": {"name": "calibrated", "stops_deg": [[30.0, 170.0]] * 4, "direction": [1, 1, 1, 1]},
+        "heartbeat_s": None}
     assert "mapping={'name': 'legacy_vb'" in repr(robot)
     with pytest.raises(ConfigError, match=r"settle_timeout_s = 0, expected a number in \(0, 600\] s"):
         Delta4Controller(ScriptedPort([]), settle_timeout_s=0)
