@@ -282,7 +282,10 @@ def test_pot_angles_fed_to_the_tlc548_inputs_come_back_through_the_driver_within
         for angles in POT_TEST_ANGLES_DEG:
             mcu.feed_pots(documented_pot_count(angles))
             readings.append(robot.read_pots(5.0))
+        mcu.feed_pots(documented_pot_count(TEST_ANGLES_DEG[0]))  # the servos reach TV4 (as the test says)
+        moved = robot.move_servos(TEST_ANGLES_DEG[0], require_settled=True, read_back=True)
     assert readings[0].counts == (76, 76, 76, 76)
+    assert moved.measured.counts == (55, 44, 111, 118) and moved.command_bytes == (81, 72, 122, 128)
     for angles, reading in zip(POT_TEST_ANGLES_DEG, readings[1:]):
         assert reading.counts == tuple(documented_pot_count(angles))
         assert np.all(np.abs(np.array(reading.servo_deg) - angles) <= one_count_deg / 2 + 1e-9), (angles, reading)

@@ -65,6 +65,7 @@ class MoveResult:
     servo_deg: tuple[float, ...]
     command_bytes: tuple[int, ...]
     settled: bool  # True if ``z`` arrived before the deadline
+    measured: PotReading | None = None  # the pots read after the move (``read_back=True``)
 
 
 @dataclass
@@ -146,11 +147,14 @@ class Delta4Controller:
         self.link.write(b"G", command="G (stop)")
         self.started = False
 
-    def move_servos(self, servo_deg: Any, *, wait: bool = True, require_settled: bool = False) -> MoveResult:
+    def move_servos(self, servo_deg: Any, *, wait: bool = True, require_settled: bool = False,
+                    read_back: bool = False) -> MoveResult:
         """Send the four servo references ``P..X Q..X R..X S..X`` (theta_R in degrees) after the range check.
 
         With ``wait``, read until ``z`` or ``settle_timeout_s``; ``require_settled`` turns a missing ``z`` into
-        LinkTimeout. Sensor frames read meanwhile are kept for :meth:`read_sensor_frame`.
+        LinkTimeout. ``read_back`` then reads the pots (:meth:`read_pots`, firmware with readback only) into
+        ``MoveResult.measured``: where the servos are, not where they were sent. Sensor frames read meanwhile are
+        kept for :meth:`read_sensor_frame`.
         """
         angles = self.mapping.check(servo_deg)
         values = self.mapping.to_bytes(angles)
@@ -159,7 +163,8 @@ class Delta4Controller:
         self._settled = False
         self.link.write(message, command=message.decode("ascii"))
         settled = self.wait_settled(command=message.decode("ascii"), required=require_settled) if wait else False
-        return MoveResult(tuple(float(a) for a in angles), tuple(int(v) for v in values), settled)
+        measured = self.read_pots() if read_back else None
+        return MoveResult(tuple(float(a) for a in angles), tuple(int(v) for v in values), settled, measured)
 
     def move_to(self, point_mm: Any, **kwargs: Any) -> MoveResult:
         """Move the end effector to ``point_mm`` = (x, y, z) after the :mod:`motion.delta4` pre-flight."""
