@@ -54,6 +54,24 @@ class EmulatedDelta4:
         self.process.stdin.write(f"{screen} {' '.join(str(i) for i in indices)}\n")
         self.process.stdin.flush()
 
+    def feed_pots(self, counts, timeout_s=20.0) -> None:
+        """Set the four TLC548 inputs to ``counts`` and wait until a read has shifted them out to the firmware."""
+        wanted = [str(int(c)) for c in counts]
+        offset = self.events.stat().st_size  # reads logged from here on began after the new inputs were set
+        self.process.stdin.write(f"A {' '.join(wanted)}\n")
+        self.process.stdin.flush()
+        deadline = time.monotonic() + timeout_s
+        while time.monotonic() < deadline:
+            with open(self.events) as log:
+                log.seek(offset)
+                tail = log.read()
+            for line in tail[:tail.rfind("\n") + 1].splitlines()[1:]:  # complete lines; the first may be a rest
+                fields = line.split()  # <cycle> ADC <clocks> <cs low> <setup> <high> <low> <c1> <c2> <c3> <c4>
+                if len(fields) == 11 and fields[1] == "ADC" and fields[7:] == wanted:
+                    return
+            time.sleep(0.05)
+        raise AssertionError(f"the harness shifted out no pot counts {counts} within {timeout_s} s")
+
     def close(self):
         if self.process.poll() is None:
             self.process.terminate()
@@ -62,14 +80,14 @@ class EmulatedDelta4:
         rows = []
         for line in text[:text.rfind("\n") + 1].splitlines():
             cycle, kind, channel, *value = line.split()
-            rows.append((int(cycle), kind, channel, value[0] if value else ""))
+            rows.append((int(cycle), kind, channel, value[0] if value else "", tuple(value)))
         return rows
 
 
 def pulses(events, servo):
     """(rising-edge cycle, high time in cycles) of each pulse of ``servo`` (1-4)."""
     out, rise = [], None
-    for cycle, kind, channel, value in events:
+    for cycle, kind, channel, value, _ in events:
         if kind == "PWM" and channel == str(servo):
             if value == "1":
                 rise = cycle
@@ -79,7 +97,7 @@ def pulses(events, servo):
 
 
 def received_at(events, byte: bytes):
-    return [c for c, kind, channel, _ in events if kind == "RX" and bytes.fromhex(channel) == byte]
+    return [c for c, kind, channel, *_ in events if kind == "RX" and bytes.fromhex(channel) == byte]
 
 
 def build_delta4(out_dir, **options):
@@ -228,11 +246,79 @@ def test_laser_grid_hits_on_the_screen_inputs_are_reported_and_decode_as_the_doc
     final = [pulses(events, servo + 1)[-2][1] for servo in range(4)]
     expected = expected_pulse_ticks(wire.LegacyVbMapping(), last.command_bytes)
     assert np.all(np.abs(np.array(final) - expected) <= 3), (final, expected)  # no command byte was lost
-    on = [c for c, kind, channel, value in events if kind == "LASER" and channel == "1" and value == "1"]
-    off = [c for c, kind, channel, value in events if kind == "LASER" and channel == "1" and value == "0"]
+    on = [c for c, kind, channel, value, _ in events if kind == "LASER" and channel == "1" and value == "1"]
+    off = [c for c, kind, channel, value, _ in events if kind == "LASER" and channel == "1" and value == "0"]
     assert len(on) >= 4
     assert np.all(np.array(off[:len(on)]) - np.array(on[:len(off)]) >= 1e-3 * F_CPU_HZ)  # 1 ms on before the load
     assert abs(np.median(np.diff(on[:5])) / F_CPU_HZ - 0.080) < 0.003  # one frame per 80 ms (§5.5), few hits
+
+
+def pot_reads(events):
+    """The harness's TLC548 reads: (cycle CS rose, clocks, CS low, setup, min high, min low cycles, counts)."""
+    return [(c, int(clocks), *map(int, v[:4]), tuple(map(int, v[4:]))) for c, kind, clocks, _, v in events
+            if kind == "ADC"]
+
+
+def documented_pot_count(servo_deg):
+    """The TLC548 count of theta_R (reference §5.8 b, direction +1): references trimmed to the calibrated stops,
+    0-255 over exactly their 140 deg, round half up, clamped to 0-255."""
+    low, high = STOPS_DEG
+    count = np.floor(255.0 * (np.asarray(servo_deg, float) - low) / (high - low) + 0.5).astype(int)
+    return np.clip(count, 0, 255)  # the pots cannot leave the stops
+
+
+#: TV4's and TV1's angles, the two stops, and one count's width above the low stop
+POT_TEST_ANGLES_DEG = TEST_ANGLES_DEG + [(30.0, 170.0, 100.0, 30.0 + 140.0 / 255.0)]
+
+
+def test_pot_angles_fed_to_the_tlc548_inputs_come_back_through_the_driver_within_one_count(mcu):
+    one_count_deg = (STOPS_DEG[1] - STOPS_DEG[0]) / 255.0
+    readings = []
+    with Delta4Controller(mcu.open(), **SLOW) as robot:
+        home = documented_pot_count(np.full(4, 71.657))
+        mcu.feed_pots(home)
+        readings.append(robot.read_pots(5.0))  # stopped: the pots are read before E too
+        robot.start(verify_timeout_s=10.0)
+        for angles in POT_TEST_ANGLES_DEG:
+            mcu.feed_pots(documented_pot_count(angles))
+            readings.append(robot.read_pots(5.0))
+        mcu.feed_pots(documented_pot_count(TEST_ANGLES_DEG[0]))  # the servos reach TV4 (as the test says)
+        moved = robot.move_servos(TEST_ANGLES_DEG[0], require_settled=True, read_back=True)
+    assert readings[0].counts == (76, 76, 76, 76)
+    assert moved.measured.counts == (55, 44, 111, 118) and moved.command_bytes == (81, 72, 122, 128)
+    for angles, reading in zip(POT_TEST_ANGLES_DEG, readings[1:]):
+        assert reading.counts == tuple(documented_pot_count(angles))
+        assert np.all(np.abs(np.array(reading.servo_deg) - angles) <= one_count_deg / 2 + 1e-9), (angles, reading)
+    assert readings[1].counts == (55, 44, 111, 118) and readings[3].counts == (0, 255, 128, 1)
+    events = mcu.close()
+    reads = pot_reads(events)
+    cycles = np.array([r[0] for r in reads])
+    gaps = np.diff(cycles)  # every 2 ms (§7.3.5); a read waits at most for a UART interrupt or a setpoint latch
+    assert len(reads) > 100 and abs(np.median(gaps) - PERIOD_TICKS) <= 1, gaps
+    assert np.all(np.abs(gaps - PERIOD_TICKS) <= 200), gaps[np.abs(gaps - PERIOD_TICKS) > 200]
+    clocks, low, setup, high, low_time = (np.array([r[k] for r in reads]) for k in range(1, 6))
+    assert np.all(clocks == 8)
+    # TLC548 (SLAS066): CS low >= 1.425 us before the first clock, I/O CLOCK high and low >= 404 ns (<= 2.048 MHz)
+    assert setup.min() >= 1.425e-6 * F_CPU_HZ and min(high.min(), low_time.min()) >= 404e-9 * F_CPU_HZ
+    assert low.max() < 50e-6 * F_CPU_HZ  # the read holds the PWM tick's interrupt for under 50 us of every 2 ms
+
+
+def test_a_driver_heartbeat_keeps_a_move_longer_than_the_watchdog_going(built_watchdog, tmp_path):
+    mcu = EmulatedDelta4(built_watchdog, tmp_path / "events.txt")
+    try:
+        # 71.5 -> 120 deg at 20 deg/s: 2.4 s, six times the 400 ms watchdog of this build
+        with Delta4Controller(mcu.open(), heartbeat_s=0.1, settle_timeout_s=30.0) as robot:
+            robot.start(verify_timeout_s=10.0)
+            move = robot.move_servos((120.0, 71.5, 71.5, 71.5))
+            beats = robot.last_pots
+    finally:
+        events = mcu.close()
+    assert move.settled and beats is not None
+    queries = received_at(events, b"A")
+    assert len(queries) >= 15
+    assert np.max(np.diff(queries)) < 0.4 * F_CPU_HZ  # no gap the watchdog would take for a silent host
+    final = pulses(events, 1)[-2][1]
+    assert abs(final - expected_pulse_ticks(wire.LegacyVbMapping(), [move.command_bytes[0]])[0]) <= 3
 
 
 def test_watchdog_holds_the_servos_when_the_host_falls_silent(built_watchdog, tmp_path):
@@ -270,11 +356,14 @@ def read_for(port, seconds):
     return data
 
 
-def replies(port, steps, quiet_s=0.3, timeout_s=10.0):
+def replies(port, steps, quiet_s=0.3, timeout_s=10.0, feed_pots=None):
     """Replies to each step, sensor reports taken out (no grid here: `h` and `v`): wait for the step's expected
-    `z` (up to ``timeout_s``), then for ``quiet_s`` more, so that a missing or an extra `z` shows in its step."""
+    reply (up to ``timeout_s``), then for ``quiet_s`` more, so that a missing or an extra reply shows in its step.
+    Before a step with pot counts, ``feed_pots(counts)`` (the firmware's harness) sets the TLC548 inputs."""
     out = []
-    for raw, expected, _ in steps:
+    for raw, expected, _, counts in steps:
+        if counts is not None and feed_pots is not None:
+            feed_pots(counts)
         port.write(raw)
         data, deadline = b"", time.monotonic() + timeout_s
         while data.replace(b"h", b"").replace(b"v", b"") != expected and time.monotonic() < deadline:
@@ -284,12 +373,25 @@ def replies(port, steps, quiet_s=0.3, timeout_s=10.0):
     return out
 
 
-#: (bytes sent, the reply expected once sensor reports are taken out, why)
+def pot_query(raw, servo_bytes, why, answers=1):
+    """A replay step sending the pot query ``raw`` with the servos at rest on the references ``servo_bytes``
+    (legacy_vb): the counts the test feeds the firmware's TLC548 inputs, and ``answers`` times the answer expected
+    (the simulator's pots see the same angles)."""
+    counts = tuple(int(c) for c in documented_pot_count(wire.LegacyVbMapping().to_deg(np.asarray(servo_bytes, float))))
+    answer = b"".join(b"%c%03dX" % (letter, c) for letter, c in zip(b"pqrs", counts))
+    return raw, answer * answers, why, counts
+
+
+#: (bytes sent, the reply expected once sensor reports are taken out, why[, pot counts fed before the step])
 REPLAY = [
+    (b'A', b'p076Xq076Xr076Xs076X', "pot query before E: the home pose, 71.657 deg", (76, 76, 76, 76)),
     (b'P100X', b'', "stored while stopped: nothing until E"),
     (b'E', b'z', "start: the stored reference is applied, one z"),
+    pot_query(b'A', (100, 96, 96, 96), "pot query: servo 1 on 100"),
     (b'E', b'', "start again: nothing"),
-    (b'P080XQ075XR110XS090X', b'z', "four references: one z"),
+    (b'P080XQ075XR110XS092X', b'z', "four references: one z"),
+    pot_query(b'AA', (80, 75, 110, 92), "two queries, two answers", answers=2),
+    pot_query(b'Q12A', (80, 75, 110, 92), "a query breaks a message: discarded, then answered"),
     (b'P1234X', b'', "four digits: discarded"),
     (b'P256X', b'', "value over 255: discarded"),
     (b'PX', b'', "no digit: discarded"),
@@ -306,9 +408,11 @@ REPLAY = [
     (b'E', b'', "start with nothing stored: no z"),
     (b'G', b'', "stop"),
     (b'S070X', b'', "stored while stopped"),
+    pot_query(b'A', (200, 75, 5, 92), "stopped: the pots still answer (S070X not applied yet)"),
     (b'E', b'z', "start: z"),
     (b'G', b'', "stop"),
 ]
+REPLAY = [step if len(step) == 4 else (*step, None) for step in REPLAY]
 
 
 def test_one_script_gets_the_same_replies_from_firmware_and_simulator(mcu):
@@ -324,6 +428,6 @@ def test_one_script_gets_the_same_replies_from_firmware_and_simulator(mcu):
         simulator.terminate()
         simulator.wait(timeout=10)
     with mcu.open() as port:
-        from_firmware = replies(port, REPLAY)
-    assert from_simulator == [expected for _, expected, _ in REPLAY]
+        from_firmware = replies(port, REPLAY, feed_pots=mcu.feed_pots)
+    assert from_simulator == [expected for _, expected, _, _ in REPLAY]
     assert from_firmware == from_simulator

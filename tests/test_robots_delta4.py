@@ -107,6 +107,24 @@ def test_noise_between_tokens_is_dropped():
     assert (frame.horizontal, frame.vertical) == ((17,), (1,))
 
 
+def test_read_pots_sends_a_and_converts_the_counts_on_the_adc_scale():
+    # TV4's whole-degree angles on the pot scale (delta4-lasergrid.md §5.8 b): round_half_up(255 (theta - 30) / 140)
+    with exchange([("A", b"hp055Xq044XvH017Xr111Xp000Xq044Xr111Xs118X")]) as robot:
+        reading = robot.read_pots()  # a sensor report around it is kept; a broken answer (p q r p) is dropped
+        frame = robot.read_sensor_frame(0.5)
+    assert reading.counts == (0, 44, 111, 118) and robot.last_pots == reading
+    np.testing.assert_allclose(reading.servo_deg, [30.0, 30 + 44 * 140 / 255, 30 + 111 * 140 / 255,
+                                                   30 + 118 * 140 / 255])
+    assert np.all(np.abs(np.array(reading.servo_deg[1:]) - TV4_WHOLE_DEG[1:]) <= 140 / 255 / 2)
+    assert (frame.horizontal, frame.vertical) == ((), ())
+
+
+def test_read_pots_from_firmware_without_readback_names_the_query():
+    with exchange([("A", None)]) as robot, pytest.raises(LinkTimeout, match=r"no reply to 'A \(read pots\)'.*"
+                                                                             r"firmware with pot readback"):
+        robot.read_pots(timeout_s=0.05)
+
+
 def test_silence_after_start_means_no_delta4_controller():
     with exchange([("E", None)]) as robot, pytest.raises(LinkTimeout, match=r"'E \(start\)'.*expected a sensor "
                                                                              r"report \(H<n>X, V<n>X, h or v\)"):
@@ -146,7 +164,9 @@ def test_settings_and_repr():
     assert robot.settings() == {
         "driver": "Delta4Controller", "port": "scripted://", "baudrate": 115200,
         "mapping": {"name": "legacy_vb", "degrees_per_span": 190.0, "limits_deg": [30.0, 160.0]},
-        "settle_timeout_s": 1.5, "frame_gap_s": 0.03}
+        "settle_timeout_s": 1.5, "frame_gap_s": 0.03,
+        "pot_scale": {"name": "calibrated", "stops_deg": [[30.0, 170.0]] * 4, "direction": [1, 1, 1, 1]},
+        "heartbeat_s": None}
     assert "mapping={'name': 'legacy_vb'" in repr(robot)
     with pytest.raises(ConfigError, match=r"settle_timeout_s = 0, expected a number in \(0, 600\] s"):
         Delta4Controller(ScriptedPort([]), settle_timeout_s=0)
@@ -173,7 +193,7 @@ def test_framing_and_token_parser_raise_only_the_protocol_error(data):
 
 
 tokens = st.one_of(st.sampled_from([b"z", b"h", b"v"]),
-                   st.builds(lambda k, v: k + b"%03dX" % v, st.sampled_from([b"H", b"V", b""]),
+                   st.builds(lambda k, v: k + b"%03dX" % v, st.sampled_from([b"H", b"V", b"", b"p", b"q", b"r", b"s"]),
                              st.integers(0, 255)))
 
 

@@ -4,7 +4,9 @@ Servo targets go through one explicit :class:`bench.robots.delta4_wire.ServoMapp
 ``calibrated`` as an option; the documents disagree) after the pre-flight: a point is converted by
 :mod:`motion.delta4` (reachability, knee and servo limits), and every angle is checked against the mapping's
 window, all before a byte is sent. ``z`` ("all servos in place") is awaited with a deadline but not required unless
-asked; sensor reports are assembled into :class:`SensorFrame` objects (horizontal screen first).
+asked; sensor reports are assembled into :class:`SensorFrame` objects (horizontal screen first). With firmware that
+has this project's pot readback (``firmware/delta4``, ``bench sim delta4``), :meth:`Delta4Controller.read_pots` gives
+the servo angles the pot ADCs measure; the documented original firmware sends them nowhere (§7.3.4).
 """
 
 from __future__ import annotations
@@ -20,7 +22,7 @@ from bench.errors import ConfigError, LinkError, LinkTimeout, UnreachableTarget
 from bench.robots import delta4_wire as wire
 from bench.robots.link import Deadline, WireProtocolError
 
-__all__ = ["DEFAULT_BAUDRATE", "HOME_MM", "Delta4Controller", "MoveResult", "SensorFrame"]
+__all__ = ["DEFAULT_BAUDRATE", "HOME_MM", "Delta4Controller", "MoveResult", "PotReading", "SensorFrame"]
 
 _log = logging.getLogger(__name__)
 
@@ -29,6 +31,7 @@ DEFAULT_BAUDRATE = 9600
 #: The home pose the legacy GUI sends at start-up, (0, 0, -15) cm (003 App. F; delta4-lasergrid.md).
 HOME_MM = (0.0, 0.0, -150.0)
 _SENSOR_EXPECTED = "a sensor report (H<n>X, V<n>X, h or v)"
+_POTS_EXPECTED = "the pot counts p<n>X q<n>X r<n>X s<n>X (firmware with pot readback, docs/protocol-delta4.md)"
 
 
 @dataclass(frozen=True)
@@ -47,10 +50,22 @@ class SensorFrame:
 
 
 @dataclass(frozen=True)
+class PotReading:
+    """The four pot ADC counts (servos 1-4) and the servo angles theta_R, deg, they mean on the driver's pot scale
+    (``servo_deg = pot_scale.to_deg(counts)``, 140/255 = 0.549 deg per count); ``t_monotonic_s`` when the last
+    count was read."""
+
+    counts: tuple[int, ...]
+    servo_deg: tuple[float, ...]
+    t_monotonic_s: float = 0.0
+
+
+@dataclass(frozen=True)
 class MoveResult:
     servo_deg: tuple[float, ...]
     command_bytes: tuple[int, ...]
     settled: bool  # True if ``z`` arrived before the deadline
+    measured: PotReading | None = None  # the pots read after the move (``read_back=True``)
 
 
 @dataclass
@@ -78,13 +93,27 @@ class Delta4Controller:
         How long to wait for ``z`` after a move, s (§5.7 item 7: default 2 s).
     frame_gap_s : float
         Silence that closes a sensor report whose last screen had hits, s.
+    pot_scale : CalibratedMapping
+        Pot ADC count <-> angle (default :data:`bench.robots.delta4_wire.POT_SCALE`, §5.8 b).
+    heartbeat_s : float, optional
+        While waiting for ``z``, send a pot query ``A`` every ``heartbeat_s`` (one outstanding at a time), for a
+        firmware built with a link watchdog shorter than its moves (``DELTA4_WATCHDOG_MS``). Default None: the
+        shipped watchdog (1 s) outlasts the longest move (0.66 s), and the original firmware does not know ``A``.
     """
 
     def __init__(self, port: Any, *, mapping: wire.ServoMapping | None = None, geometry: Any = None,
-                 settle_timeout_s: float = 2.0, frame_gap_s: float = 0.03) -> None:
-        for name, value in (("settle_timeout_s", settle_timeout_s), ("frame_gap_s", frame_gap_s)):
+                 settle_timeout_s: float = 2.0, frame_gap_s: float = 0.03,
+                 pot_scale: wire.CalibratedMapping | None = None, heartbeat_s: float | None = None) -> None:
+        for name, value in (("settle_timeout_s", settle_timeout_s), ("frame_gap_s", frame_gap_s),
+                            ("heartbeat_s", 1.0 if heartbeat_s is None else heartbeat_s)):
             if isinstance(value, bool) or not isinstance(value, (int, float)) or not 0 < value <= 600:
                 raise ConfigError(f"Delta4Controller: {name} = {value!r}, expected a number in (0, 600] s")
+        self.pot_scale = pot_scale or wire.POT_SCALE
+        self.heartbeat_s = None if heartbeat_s is None else float(heartbeat_s)
+        self._pot_counts: dict[str, int] = {}
+        self._pots: list[PotReading] = []
+        #: the latest pot reading received (a :meth:`read_pots` answer or a heartbeat's), or None
+        self.last_pots: PotReading | None = None
         self.link = wire.Delta4Link(port)
         self.mapping = mapping or wire.LegacyVbMapping()
         self.geometry = geometry
@@ -98,7 +127,8 @@ class Delta4Controller:
     def settings(self) -> dict[str, Any]:
         return {"driver": type(self).__name__, "port": self.link.port_name,
                 "baudrate": getattr(self.link.port, "baudrate", None), "mapping": self.mapping.settings(),
-                "settle_timeout_s": self.settle_timeout_s, "frame_gap_s": self.frame_gap_s}
+                "settle_timeout_s": self.settle_timeout_s, "frame_gap_s": self.frame_gap_s,
+                "pot_scale": self.pot_scale.settings(), "heartbeat_s": self.heartbeat_s}
 
     def __repr__(self) -> str:
         shown = ", ".join(f"{k}={v!r}" for k, v in self.settings().items() if k != "driver")
@@ -117,11 +147,14 @@ class Delta4Controller:
         self.link.write(b"G", command="G (stop)")
         self.started = False
 
-    def move_servos(self, servo_deg: Any, *, wait: bool = True, require_settled: bool = False) -> MoveResult:
+    def move_servos(self, servo_deg: Any, *, wait: bool = True, require_settled: bool = False,
+                    read_back: bool = False) -> MoveResult:
         """Send the four servo references ``P..X Q..X R..X S..X`` (theta_R in degrees) after the range check.
 
         With ``wait``, read until ``z`` or ``settle_timeout_s``; ``require_settled`` turns a missing ``z`` into
-        LinkTimeout. Sensor frames read meanwhile are kept for :meth:`read_sensor_frame`.
+        LinkTimeout. ``read_back`` then reads the pots (:meth:`read_pots`, firmware with readback only) into
+        ``MoveResult.measured``: where the servos are, not where they were sent. Sensor frames read meanwhile are
+        kept for :meth:`read_sensor_frame`.
         """
         angles = self.mapping.check(servo_deg)
         values = self.mapping.to_bytes(angles)
@@ -130,7 +163,8 @@ class Delta4Controller:
         self._settled = False
         self.link.write(message, command=message.decode("ascii"))
         settled = self.wait_settled(command=message.decode("ascii"), required=require_settled) if wait else False
-        return MoveResult(tuple(float(a) for a in angles), tuple(int(v) for v in values), settled)
+        measured = self.read_pots() if read_back else None
+        return MoveResult(tuple(float(a) for a in angles), tuple(int(v) for v in values), settled, measured)
 
     def move_to(self, point_mm: Any, **kwargs: Any) -> MoveResult:
         """Move the end effector to ``point_mm`` = (x, y, z) after the :mod:`motion.delta4` pre-flight."""
@@ -154,10 +188,24 @@ class Delta4Controller:
                      required: bool = False) -> bool:
         """Wait for ``z`` (acknowledged with ``z``); False on timeout unless ``required`` (then LinkTimeout)."""
         deadline = Deadline(self.settle_timeout_s if timeout_s is None else timeout_s)
+        beat_due_s, answered = time.monotonic(), True
         while not self._settled:
+            wait = deadline
+            if self.heartbeat_s is not None:
+                now_s = time.monotonic()
+                answered = answered or bool(self._pots)
+                self._pots.clear()
+                # A beat goes out once the last one was answered, or one interval late (its answer lost): never a
+                # queue of queries that the controller answers slower than they come.
+                if now_s >= beat_due_s and (answered or now_s >= beat_due_s + self.heartbeat_s):
+                    self.link.write(wire.POT_QUERY, command="A (heartbeat)")
+                    beat_due_s, answered = now_s + self.heartbeat_s, False
+                wait = Deadline(max(0.0, min(deadline.remaining_s(), beat_due_s - time.monotonic())))
             try:
-                self._consume(deadline, command, "'z' (all servos in place)")
+                self._consume(wait, command, "'z' (all servos in place)")
             except LinkTimeout:
+                if wait is not deadline and not deadline.expired():
+                    continue
                 if required:
                     raise
                 _log.warning("%s: no 'z' within %.2f s after %s", self.link.port_name, deadline.timeout_s, command)
@@ -170,6 +218,21 @@ class Delta4Controller:
         while not self._frames:
             self._consume(deadline, command, _SENSOR_EXPECTED)
         return self._frames.pop(0)
+
+    def read_pots(self, timeout_s: float = 0.5) -> PotReading:
+        """Send the pot query ``A`` and return the answer: where the servos are, as their pot ADCs measure it.
+
+        Works started or stopped. Only firmware with this project's readback answers (``firmware/delta4``,
+        ``bench sim delta4``); the documented original sends its ADC readings nowhere (§7.3.4), so a silent
+        controller gives LinkTimeout naming the query. Sensor reports read meanwhile are kept.
+        """
+        self._drain()  # an answer already on the wire (a heartbeat's) is not this one
+        self._pots.clear()
+        self.link.write(wire.POT_QUERY, command="A (read pots)")
+        deadline = Deadline(timeout_s)
+        while not self._pots:
+            self._consume(deadline, "A (read pots)", _POTS_EXPECTED)
+        return self._pots.pop(0)
 
     # -- token handling ----------------------------------------------------------------------------------------
     def _drain(self) -> None:
@@ -206,6 +269,9 @@ class Delta4Controller:
             self._settled = True
             self.link.write(b"z", command="z (ack)")
             return
+        if token.kind in "pqrs":
+            self._pot_token(token)
+            return
         horizontal_kind = token.kind in ("H", "h") or (token.kind == "N" and not builder.in_vertical)
         if horizontal_kind and builder.in_vertical:
             self._close_frame()
@@ -223,6 +289,25 @@ class Delta4Controller:
             builder.closed_vertical = True
             self._close_frame()
         # 'h' only marks the horizontal screen as empty
+
+    def _pot_token(self, token: wire.Token) -> None:
+        """Collect the pot answer ``p q r s`` (in that order; a broken answer is dropped with a warning)."""
+        if token.kind == "p":
+            self._pot_counts = {}
+        expected = chr(wire.POT_LETTERS[len(self._pot_counts)]) if len(self._pot_counts) < 4 else "p"
+        if token.kind != expected:
+            _log.warning("%s: dropped pot count %s%03d: expected %s", self.link.port_name, token.kind,
+                         int(token.value), expected)  # type: ignore[arg-type]
+            self._pot_counts = {}
+            return
+        self._pot_counts[token.kind] = int(token.value)  # type: ignore[arg-type]
+        if len(self._pot_counts) == 4:
+            counts = tuple(self._pot_counts[chr(letter)] for letter in wire.POT_LETTERS)
+            angles = self.pot_scale.to_deg(np.array(counts, dtype=float))
+            reading = PotReading(counts, tuple(float(a) for a in angles), time.monotonic())
+            self._pots.append(reading)
+            self.last_pots = reading
+            self._pot_counts = {}
 
     def _close_frame(self) -> None:
         b = self._builder

@@ -6,6 +6,10 @@ Reference: ``shared/reference/delta4-lasergrid.md`` §5 and ``docs/protocol-delt
 (no hit on that screen) and, from older firmware, untagged ``<digits>X``. The documents disagree on the byte <->
 angle mapping, so both are explicit :class:`ServoMapping` objects (§5.8). Parsers raise only
 :class:`bench.robots.link.WireProtocolError`.
+
+This project's extension (``docs/protocol-delta4.md``, "Pot readback"): the query ``A``, which no documented host
+sends, is answered ``p<ddd>X q<ddd>X r<ddd>X s<ddd>X``, the four TLC548 pot ADC counts of servos 1-4; counts map to
+angles on :data:`POT_SCALE` (§5.4, §5.8 b: 0-255 over the calibrated stops).
 """
 
 from __future__ import annotations
@@ -19,10 +23,14 @@ import numpy as np
 from bench.errors import UnreachableTarget
 from bench.robots.link import FramedLink, WireProtocolError
 
-__all__ = ["SERVO_LETTERS", "CalibratedMapping", "Delta4Link", "LegacyVbMapping", "ServoMapping", "Token",
-           "format_servo_command", "parse_token", "round_half_up"]
+__all__ = ["POT_LETTERS", "POT_QUERY", "POT_SCALE", "SERVO_LETTERS", "CalibratedMapping", "Delta4Link",
+           "LegacyVbMapping", "ServoMapping", "Token", "format_pot_reply", "format_servo_command", "parse_token",
+           "round_half_up"]
 
 SERVO_LETTERS = b"PQRS"
+#: The pot query (this project's extension) and the letters of its four reply tokens, servos 1-4.
+POT_QUERY = b"A"
+POT_LETTERS = b"pqrs"
 _MAX_DIGITS = 3
 
 
@@ -127,6 +135,12 @@ class CalibratedMapping(ServoMapping):
 
 MAPPINGS = {"legacy_vb": LegacyVbMapping, "calibrated": CalibratedMapping}
 
+#: The pot ADCs' count <-> angle scale (§5.4, §5.8 b): each TLC548's references are trimmed to its pot's voltages at
+#: the two calibrated stops, so count = round_half_up(255 (theta_R - 30) / 140), 140/255 = 0.549 deg per count. The
+#: document's literal reading puts 255 at 30 deg (pot wiring decides): pass ``CalibratedMapping(direction=(-1,) * 4)``
+#: to the driver then.
+POT_SCALE = CalibratedMapping()
+
 
 def format_servo_command(servo: int, value: int) -> bytes:
     """``P081X`` style message for servo 0-3 with a 0-255 reference (always three digits)."""
@@ -135,9 +149,18 @@ def format_servo_command(servo: int, value: int) -> bytes:
     return bytes([SERVO_LETTERS[servo]]) + f"{value:03d}X".encode("ascii")
 
 
+def format_pot_reply(counts: Any) -> bytes:
+    """The answer to :data:`POT_QUERY`: ``p076Xq081Xr000Xs255X`` for the counts (76, 81, 0, 255) of servos 1-4."""
+    values = [int(c) for c in counts]
+    if len(values) != 4 or not all(0 <= c <= 255 for c in values):
+        raise ValueError(f"counts = {counts!r}, expected 4 values 0-255")
+    return b"".join(bytes([letter]) + b"%03dX" % c for letter, c in zip(POT_LETTERS, values))
+
+
 @dataclass(frozen=True)
 class Token:
-    """One MCU -> PC token: ``kind`` is 'z', 'h', 'v', 'H', 'V' or 'N' (untagged number); ``value`` for numbers."""
+    """One MCU -> PC token: ``kind`` is 'z', 'h', 'v', 'H', 'V', 'N' (untagged number) or a pot count 'p', 'q',
+    'r', 's' (servo 1-4); ``value`` for numbers and counts."""
 
     kind: str
     value: int | None = None
@@ -148,13 +171,15 @@ def parse_token(frame: bytes) -> Token:
     if frame in (b"z", b"h", b"v"):
         return Token(frame.decode("ascii"))
     if len(frame) < 2 or not frame.endswith(b"X"):
-        raise WireProtocolError(f"token {frame!r}: expected z, h, v, H<digits>X, V<digits>X or <digits>X")
+        raise WireProtocolError(f"token {frame!r}: expected z, h, v, H<digits>X, V<digits>X, <digits>X or a pot "
+                                f"count p/q/r/s<digits>X")
     kind, digits = ("N", frame[:-1]) if frame[:1].isdigit() else (chr(frame[0]), frame[1:-1])
-    if kind not in "HVN" or not digits.isdigit() or not 1 <= len(digits) <= _MAX_DIGITS:
-        raise WireProtocolError(f"token {frame!r}: expected H, V or nothing, then 1-3 digits and X")
+    if kind not in "HVNpqrs" or not digits.isdigit() or not 1 <= len(digits) <= _MAX_DIGITS:
+        raise WireProtocolError(f"token {frame!r}: expected H, V, p, q, r, s or nothing, then 1-3 digits and X")
     value = int(digits)
     if value > 255:
-        raise WireProtocolError(f"token {frame!r}: sensor index {value}, expected 0-255")
+        what = "pot count" if kind in "pqrs" else "sensor index"
+        raise WireProtocolError(f"token {frame!r}: {what} {value}, expected 0-255")
     return Token(kind, value)
 
 
@@ -167,7 +192,7 @@ class Delta4Link(FramedLink):
         if not pending:
             return None
         first = pending[0]
-        if first not in b"HV0123456789":
+        if first not in b"HVpqrs0123456789":
             del pending[:1]
             return bytes([first])
         for end in range(1, len(pending)):

@@ -2,7 +2,9 @@
 
 Behaves like the ATmega128 firmware as ``docs/protocol-delta4.md`` specifies it: ``E`` starts control and sensor
 reporting, ``G`` stops both, ``P``/``Q``/``R``/``S`` + digits + ``X`` set servo references (stored while stopped),
-``T`` is logged and ignored, malformed messages are discarded. Each servo follows the closed-loop target
+``T`` is logged and ignored, malformed messages are discarded; ``A`` (this project's pot query) is answered with
+the four pot ADC counts of the servos' current angles on :data:`bench.robots.delta4_wire.POT_SCALE` (the pots sit on
+the servo shafts inside the servos' own loop, so they see the trajectory, not the error model's terms). Each servo follows the closed-loop target
 b/(s + b), b = 4 1/s (reference §6.2.2), in simulated time scaled by ``--speed-factor``; ``z`` is sent once all four
 are within one ADC count (140/255 deg) for 10 ticks of 2 ms. The attained pose then comes from the seeded error
 model and :mod:`motion.delta4` forward kinematics and goes to the truth log. Sensor reports (one per 80 ms frame,
@@ -83,12 +85,16 @@ class Delta4SimDevice:
         self._letter: int | None = None
         self._digits = bytearray()
         self._stored_while_stopped = False
+        self._pots_asked = 0
 
     # -- bytes in ----------------------------------------------------------------------------------------------
     def feed(self, data: bytes, now_s: float) -> bytes:
         out = self.tick(now_s)
         for byte in data:
             self._byte(byte, now_s)
+        for _ in range(self._pots_asked):  # after any report, as the firmware answers from its main loop
+            out += self._pot_reply(now_s)
+        self._pots_asked = 0
         return out
 
     def _byte(self, byte: int, now_s: float) -> None:
@@ -111,6 +117,8 @@ class Delta4SimDevice:
         elif byte == ord("G"):
             self._hold(now_s)
             self.started = False
+        elif byte == wire.POT_QUERY[0]:
+            self._pots_asked += 1
         elif byte == ord("T"):
             _log.info("received T (undocumented command): ignored")
         elif byte != ord("z"):  # z is the PC's acknowledgement
@@ -150,6 +158,9 @@ class Delta4SimDevice:
         return self.target_deg + (self.angle_deg - self.target_deg) * decay
 
     # -- bytes out ---------------------------------------------------------------------------------------------
+    def _pot_reply(self, now_s: float) -> bytes:
+        return wire.format_pot_reply(wire.POT_SCALE.to_bytes(self._angles(now_s)))
+
     def tick(self, now_s: float) -> bytes:
         out = bytearray()
         if not self.started:

@@ -3,11 +3,13 @@
  *
  * Protocol (docs/protocol-delta4.md, reference §5.4-5.7), byte-oriented, no checksum (the document has none):
  *   PC -> MCU  `E` start control and sensor reporting, `G` stop, `P`/`Q`/`R`/`S` + 1-3 digits + `X` reference
- *              0-255 of servo 1-4 (stored while stopped, applied at `E`), `z` acknowledgement; anything else is
- *              ignored and a malformed message is discarded, exactly as `bench sim delta4` does.
- *   MCU -> PC  `z` once all servos have reached their references after the last command, and one sensor report
+ *              0-255 of servo 1-4 (stored while stopped, applied at `E`), `z` acknowledgement, `A` pot query (this
+ *              project's extension); anything else is ignored and a malformed message is discarded, exactly as
+ *              `bench sim delta4` does.
+ *   MCU -> PC  `z` once all servos have reached their references after the last command, one sensor report
  *              per 80 ms frame while started: `H%03dX` per lit sensor of the horizontal screen (or `h`), then
- *              `V%03dX` per lit sensor of the vertical screen (or `v`).
+ *              `V%03dX` per lit sensor of the vertical screen (or `v`), and after each `A` (started or not) the four
+ *              pot ADC counts `p%03dXq%03dXr%03dXs%03dX`, never inside a report.
  *
  * Servo PWM (reference §5.2, document §7.3.6): Timer1 and Timer3 in fast PWM mode 14 (TOP = ICR), no prescaler
  * (0.0625 us per tick) for the documented 2 ms (500 Hz) refresh; OC1A PB5, OC1B PB6, OC3A PE3, OC3B PE4 drive
@@ -34,7 +36,12 @@
  * vertical), after 1 ms the two 256-bit chains of 74LS166 are cleared (CLEAR PC3 low) and parallel-loaded
  * (SHIFT/LOAD PC1 low, CLOCK PC0 rising, CLOCK INHIBIT PC2 low), the lasers go off, and 256 clocks shift the bits
  * out of QH (horizontal PA0, vertical PA1): the index of a set bit is the number of clocks before it (0-based).
- * Pot ADCs (four TLC548) are not read: `z` reports the commanded pulses, not the measured angles.
+ * Pot ADCs (reference §5.1, §5.2; document §5.4, §7.3.5): four TLC548 on the servo pot wipers, read together every
+ * PWM period (2 ms, as documented): CS (PA2) low, 8 I/O CLOCK (PA3) pulses, each bit read MSB first from the four
+ * DATA OUT lines (PA4-PA7, servos 1-4) before its rising edge, CS high again (the chips convert while it is high).
+ * The document sends the readings nowhere (§7.3.4); this firmware answers the query `A`, which no documented host
+ * sends, with `p%03dX q%03dX r%03dX s%03dX`, the latest counts of servos 1-4 (docs/protocol-delta4.md). `z` still
+ * reports the commanded pulses, not the measured angles (the command and ADC scales disagree, reference §5.8).
  *
  * Build options (-D, see firmware/Makefile): SERVO_PERIOD_US, SERVO_SLEW_DEG_S, WATCHDOG_MS, MAPPING_CALIBRATED,
  * CALIBRATED_DIRECTION, BAUD.
@@ -98,6 +105,12 @@
 #define GRID_CLEAR _BV(3)
 #define LASER_H _BV(4)
 #define LASER_V _BV(5)
+/* pot ADCs (TLC548) on PORTA: chip select and I/O clock shared by the four, DATA OUT of servo i on PA(4 + i) */
+#define ADC_CS _BV(2)
+#define ADC_CLOCK _BV(3)
+#define ADC_DATA_FIRST_BIT 4
+#define ADC_SETUP_US 2.0               /* CS low to the first clock: TLC548 tsu(CS) >= 1.425 us */
+#define ADC_HALF_CLOCK_US 1.0          /* I/O CLOCK high and low times: >= 404 ns, data valid 400 ns after the fall */
 
 /* ---- state shared with the ISRs -------------------------------------------------------------------------- */
 static volatile uint32_t ticks;                /* PWM periods since boot */
@@ -106,6 +119,8 @@ static volatile uint8_t started, pulses_on, z_pending, z_due, frame_due;
 static volatile uint8_t settled_periods, frame_periods;
 static volatile uint32_t setpoint_q8[SERVOS], target_q8[SERVOS];
 static volatile uint16_t watchdog_stops;
+static volatile uint8_t pot_counts[SERVOS];    /* the latest TLC548 readings, servos 1-4 */
+static volatile uint8_t pots_asked;
 
 static volatile uint8_t rx_buf[64], rx_head, rx_tail;
 static volatile uint8_t tx_buf[64], tx_head, tx_tail;
@@ -131,6 +146,28 @@ static inline void latch_compares(void) {
   TCCR3B = b3;
 }
 
+/* One simultaneous read of the four TLC548 (document §7.3.5): 8 bits MSB first, each read before its clock's
+ * rising edge (a falling edge puts the next bit on DATA OUT); CS high again starts the chips' next conversion
+ * (17 us), long done by the next read 2 ms later. About 22 us. */
+static inline void read_pots(void) {
+  uint8_t sample[8];  /* PINA before each rising edge; unpacked after the read so that the clock runs fast */
+  PORTA &= (uint8_t)~ADC_CS;
+  _delay_us(ADC_SETUP_US);
+  for (uint8_t bit = 0; bit < 8; bit++) {
+    sample[bit] = PINA;
+    PORTA |= ADC_CLOCK;
+    _delay_us(ADC_HALF_CLOCK_US);
+    PORTA &= (uint8_t)~ADC_CLOCK;
+    _delay_us(ADC_HALF_CLOCK_US);
+  }
+  PORTA |= ADC_CS;
+  for (uint8_t i = 0; i < SERVOS; i++) {
+    uint8_t value = 0, mask = (uint8_t)_BV(ADC_DATA_FIRST_BIT + i);
+    for (uint8_t bit = 0; bit < 8; bit++) value = (uint8_t)(value << 1 | ((sample[bit] & mask) != 0));
+    pot_counts[i] = value;
+  }
+}
+
 ISR(TIMER1_OVF_vect) {  /* once per PWM period, at TOP */
   static uint16_t next_compare[SERVOS];
   static uint8_t compares_changed;
@@ -140,6 +177,7 @@ ISR(TIMER1_OVF_vect) {  /* once per PWM period, at TOP */
     compares_changed = 0;
   }
   ticks++;
+  read_pots();  /* every period, started or not: the pots show where the arms are even before `E` */
   if (!started) return;
   uint8_t moving = 0;
   for (uint8_t i = 0; i < SERVOS; i++) {
@@ -284,6 +322,8 @@ static void on_byte(uint8_t byte) {
     start();
   } else if (byte == 'G') {
     stop();
+  } else if (byte == 'A') {
+    pots_asked = 1;  /* answered from the main loop, after any report under way */
   }  /* 'z' (acknowledgement), 'T' (undocumented) and anything else: ignored */
 }
 
@@ -324,6 +364,20 @@ static void report_screen(uint8_t screen) {
   if (!any) put(screen ? 'v' : 'h');
 }
 
+static void report_pots(void) {
+  uint8_t counts[SERVOS];
+  cli();
+  for (uint8_t i = 0; i < SERVOS; i++) counts[i] = pot_counts[i];
+  sei();
+  for (uint8_t i = 0; i < SERVOS; i++) {
+    put((uint8_t)('p' + i));
+    put((uint8_t)('0' + counts[i] / 100));
+    put((uint8_t)('0' + counts[i] / 10 % 10));
+    put((uint8_t)('0' + counts[i] % 10));
+    put('X');
+  }
+}
+
 /* ---- main -------------------------------------------------------------------------------------------------- */
 static void setup(void) {
   uint32_t home = pulse_q8(HOME_BYTE);
@@ -332,7 +386,8 @@ static void setup(void) {
   DDRE |= _BV(3) | _BV(4);
   PORTC = GRID_CLEAR | GRID_INHIBIT | GRID_SHIFT_LOAD;
   DDRC = GRID_CLOCK | GRID_SHIFT_LOAD | GRID_INHIBIT | GRID_CLEAR | LASER_H | LASER_V;
-  DDRA &= (uint8_t)~(_BV(0) | _BV(1));
+  PORTA = ADC_CS;  /* chips converting; clock idle low */
+  DDRA = ADC_CS | ADC_CLOCK;  /* grid data PA0-PA1 and ADC data PA4-PA7 in */
 
   for (uint8_t i = 0; i < SERVOS; i++) set_compare(i, (uint16_t)((home >> 8) - 1));
   const uint8_t clock_select = TIMER_PRESCALE == 1 ? _BV(CS10) : _BV(CS11);
@@ -377,8 +432,12 @@ int main(void) {
       report_screen(0);
       report_screen(1);
     }
+    if (pots_asked) {
+      pots_asked = 0;
+      report_pots();
+    }
     cli();  /* idle until the next interrupt (the PWM tick at the latest); also makes the emulation cheap */
-    if (rx_tail == rx_head && !z_due && !(frame_due && started)) {
+    if (rx_tail == rx_head && !z_due && !(frame_due && started) && !pots_asked) {
       sleep_enable();
       sei();
       sleep_cpu();
