@@ -465,6 +465,22 @@ def test_station_check_with_one_device_removed_names_that_device_only():
     assert checks["mice.xy"].detail.startswith("FIFO or file (not an event device)")
 
 
+def test_station_check_of_a_delta4_reads_where_the_servos_are_from_their_pots():
+    from bench.rigs.check import check_station
+    from bench.simulators.station import rehearse
+
+    rehearsal = rehearse(load_station(STATIONS / "delta4_lasergrid.toml"))
+    try:
+        checks = {check.key: check for check in check_station(rehearsal.station)}
+    finally:
+        rehearsal.close()
+    controller = checks["controller.port"]
+    assert controller.ok, controller.line()
+    # the simulated controller starts at its home; four pot angles on the 30-170 deg pot scale, 0.549 deg a count
+    angles = [float(v) for v in controller.detail.split("pots at ")[1].split(" deg")[0].split(", ")]
+    assert len(angles) == 4 and all(30.0 <= a <= 170.0 for a in angles), controller.detail
+
+
 def test_a_rig_opened_on_a_controller_still_moving_stops_that_move_first(tmp_path):
     # a host killed mid-move leaves the simulated controller (no link watchdog) moving: the next rig must neither
     # fail on ENABLE (BUSY) nor inherit the motion

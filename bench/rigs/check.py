@@ -9,7 +9,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
-from bench.errors import BenchError
+from bench.errors import BenchError, LinkTimeout
 from bench.rigs.station import Station
 from bench.robots.link import open_port
 
@@ -96,6 +96,11 @@ def _controller(station: Station) -> str:
         detail = f"delta4 controller answering at {station.controller.baud} baud"
         if station.laser_grid is not None:
             detail += f"; laser grid reporting ({len(frame.horizontal)} + {len(frame.vertical)} sensors lit)"
+        try:  # this project's firmware reads the pots back; the documented original sends them nowhere (§7.3.4)
+            pots = controller.read_pots()
+            detail += "; pots at " + ", ".join(f"{deg:.1f}" for deg in pots.servo_deg) + " deg"
+        except LinkTimeout:
+            detail += "; no pot readback (firmware without the A query: positions are not read back)"
         controller.shutdown()
         return detail
     finally:
