@@ -138,3 +138,20 @@ def test_a_run_without_measured_poses_is_refused_in_one_line(window, tmp_path):
     assert panel.identify_button.isEnabled() and panel.last_identified is None
     with Store(tmp_path / "bench.db", read_only=True) as store:
         assert [c for c in store.calibrations() if c.name == "pkm5_kinematics"] == []
+
+
+def test_closing_the_window_during_an_identification_waits_for_it(tmp_path):
+    from bench.gui.app import MainWindow
+    from gui_support import application
+
+    run_id = _calibration_run(tmp_path / "bench.db")
+    application()
+    main = MainWindow(tmp_path / "bench.db", tmp_path / "reports", open_files=False)
+    main.show()
+    select_runs(main.results, [run_id])
+    QTest.mouseClick(main.calibration_panel.identify_button, Qt.MouseButton.LeftButton)
+    assert main.calibration_panel.busy()
+    main.close()  # returns once the identification has been stored
+    assert main.calibration_panel.wait_idle(0.0)
+    with Store(tmp_path / "bench.db", read_only=True) as store:
+        assert [c.source_run_id for c in store.calibrations() if c.name == "pkm5_kinematics"] == [run_id]

@@ -226,6 +226,7 @@ class MainWindow(QMainWindow):
                 self.campaign_panel.request("halt")
                 self.campaign_panel.worker.wait(int(CLOSE_TIMEOUT_S * 1000))
         self.results.stop_watching()
+        self.calibration_panel.wait_idle()  # an identification being stored ends before the window goes
         self.robot_panel.wait_idle()
         self.robot_panel.disconnect_robot()
         event.accept()

@@ -14,6 +14,7 @@ a refusal (no measured poses, an ill-conditioned pose set) shows its one line.
 
 from __future__ import annotations
 
+import time
 from collections.abc import Callable
 from pathlib import Path
 
@@ -191,3 +192,11 @@ class CalibrationPanel(QGroupBox):
 
     def busy(self) -> bool:
         return self._task is not None
+
+    def wait_idle(self, timeout_s: float = 60.0) -> bool:
+        """Wait (without the event loop: the window is closing) until a running identification has ended; True
+        when none is left running."""
+        deadline = time.monotonic() + timeout_s
+        while self._task is not None and not self._task.finished and time.monotonic() < deadline:
+            time.sleep(0.05)
+        return self._task is None or self._task.finished
