@@ -2,13 +2,15 @@
 emergency stop that is always visible and always reachable (button and F12, even while a calliper prompt is open).
 
 The window wires the panels to the campaign worker's signals and adds no logic of its own: runs go through
-bench's runner and store (:mod:`bench.gui.worker`), pre-flight through :mod:`bench.protocols`, statistics through
+bench's runner and store (:mod:`bench.gui.worker`), with the kinematic calibration chosen in the calibration panel
+(:mod:`bench.gui.calibration_panel`), pre-flight through :mod:`bench.protocols`, statistics through
 :mod:`bench.metrology`, reports through :mod:`bench.reports`. Closing the window during a run stops it at the next
 checkpoint through the runner (status ``aborted``, resumable; every stored sample stays) and waits for it.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import logging
 from pathlib import Path
 
@@ -23,16 +25,18 @@ from PySide6.QtWidgets import (
     QSplitter,
     QTabWidget,
     QToolBar,
+    QVBoxLayout,
     QWidget,
 )
 
+from bench.gui.calibration_panel import CalibrationPanel
 from bench.gui.calliper_dialog import CalliperDialog
 from bench.gui.messages import show_message
 from bench.gui.campaign_panel import CampaignPanel
 from bench.gui.live_view import LiveView
 from bench.gui.results_browser import ResultsBrowser
 from bench.gui.robot_panel import RobotPanel
-from bench.gui.worker import CampaignWorker
+from bench.gui.worker import CampaignWorker, RigSpec
 from bench.protocols import Prompt, RunResult
 
 __all__ = ["ESTOP_KEY", "MainWindow"]
@@ -61,9 +65,10 @@ class MainWindow(QMainWindow):
         self.calliper_dialog: CalliperDialog | None = None
         self.last_dialog: QMessageBox | None = None
         self.robot_panel = RobotPanel()
-        self.campaign_panel = CampaignPanel(self.store_path, self.robot_panel.rig_spec)
         self.live_view = LiveView()
         self.results = ResultsBrowser(self.store_path, report_dir, open_files=open_files)
+        self.calibration_panel = CalibrationPanel(self.store_path, self.results.selected_run_ids)
+        self.campaign_panel = CampaignPanel(self.store_path, self.rig_spec)
         self.log = QPlainTextEdit()
         self.log.setObjectName("log")
         self.log.setReadOnly(True)
@@ -75,6 +80,8 @@ class MainWindow(QMainWindow):
         self.campaign_panel.message.connect(self.say)
         self.campaign_panel.worker_started.connect(self._connect_worker)
         self.results.message.connect(self.say)
+        self.results.refreshed.connect(lambda _: self.calibration_panel.refresh())
+        self.calibration_panel.message.connect(self.say)
         self.results.resume_requested.connect(lambda run_id: self.campaign_panel.start([run_id]))
         self.resize(1400, 860)
 
@@ -87,8 +94,13 @@ class MainWindow(QMainWindow):
         right.addWidget(tabs)
         right.addWidget(self.log)
         right.setSizes([640, 160])
+        left = QWidget()
+        column = QVBoxLayout(left)
+        column.setContentsMargins(0, 0, 0, 0)
+        column.addWidget(self.robot_panel, 1)
+        column.addWidget(self.calibration_panel)
         main = QSplitter(Qt.Orientation.Horizontal)
-        for widget in (self.robot_panel, self.campaign_panel, right):
+        for widget in (left, self.campaign_panel, right):
             main.addWidget(widget)
         main.setSizes([300, 420, 680])
         self.setCentralWidget(main)
@@ -116,6 +128,12 @@ class MainWindow(QMainWindow):
         self.addToolBar(Qt.ToolBarArea.TopToolBarArea, bar)
 
     # ---- actions -------------------------------------------------------------------------------------------
+
+    def rig_spec(self, **options) -> RigSpec:
+        """Where the window's runs happen: the robot panel's robot and connection, with the kinematic calibration
+        chosen in the calibration panel."""
+        return dataclasses.replace(self.robot_panel.rig_spec(**options),
+                                   kinematic_calibration=self.calibration_panel.choice())
 
     def say(self, text: str) -> None:
         """A line in the log panel (and the log)."""
@@ -208,6 +226,7 @@ class MainWindow(QMainWindow):
                 self.campaign_panel.request("halt")
                 self.campaign_panel.worker.wait(int(CLOSE_TIMEOUT_S * 1000))
         self.results.stop_watching()
+        self.calibration_panel.wait_idle()  # an identification being stored ends before the window goes
         self.robot_panel.wait_idle()
         self.robot_panel.disconnect_robot()
         event.accept()

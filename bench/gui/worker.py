@@ -28,7 +28,7 @@ from typing import Any
 
 from PySide6.QtCore import QThread, Signal
 
-from bench.calibration_compensation import describe_in_force, preflight_by_rig
+from bench.calibration_compensation import NEWEST, describe_in_force, preflight_by_rig
 from bench.errors import BenchError, PromptWithdrawn
 from bench.launch import RigRequest, open_rig
 from bench.protocols import Prompt, Protocol, Runner, RunState, TransitionError, protocol_from_config
@@ -59,10 +59,13 @@ class RigSpec:
     simulated_calliper: bool = False
     station: str | None = None
     simulate: bool = False
+    #: the kinematic calibration the runs command by: NEWEST (a resume: its run's own), OFF, or a calibration id
+    kinematic_calibration: int | str = NEWEST
 
     def request(self) -> RigRequest:
         return RigRequest(station=self.station, port=self.port, mouse_xy=self.mouse_xy, mouse_xz=self.mouse_xz,
-                          simulate=self.simulate, seed=self.seed, speed_factor=self.speed_factor)
+                          simulate=self.simulate, seed=self.seed, speed_factor=self.speed_factor,
+                          kinematic_calibration=self.kinematic_calibration)
 
 
 class CampaignWorker(QThread):

@@ -25,6 +25,7 @@ from pathlib import Path
 from bench.errors import ConfigError
 from bench.reports import content
 from bench.reports.actuator import ActuatorReport, actuator_document, collect_actuator
+from bench.reports.calibration import calibration_comparison, with_calibration_page
 from bench.reports.compare import layout_comparison, with_histories
 from bench.reports.content import CRITERIA, ReportBase, RunReport
 from bench.reports.deviations import Deviation, iso_deviations
@@ -263,6 +264,7 @@ def write_comparison(store: str | Path | Store, first_run: int, second_run: int,
                               f"{protocols[1]} run; compare runs of the same kind")
         first, second = collect(store, first_run, k=k), collect(store, second_run, k=k)
         histories = (run_history(store, first.run), run_history(store, second.run))
+        calibrated = calibration_comparison(store, first, second) if layouts[0] is None else None
     finally:
         if opened:
             store.close()
@@ -270,7 +272,7 @@ def write_comparison(store: str | Path | Store, first_run: int, second_run: int,
     raws = [_write_raw(report, out) for report in (first, second)]
     progress(f"runs {first_run} and {second_run} analysed; drawing the figures")
     if layouts[0] is None:
-        document = comparison_document(first, second, [raw for _, raw in raws])
+        document = with_calibration_page(comparison_document(first, second, [raw for _, raw in raws]), calibrated)
     else:
         own = [layouts[0].document(report, [raw]) for report, (_, raw) in zip((first, second), raws)]
         document = layout_comparison(first, second, *own, [raw for _, raw in raws])

@@ -1,0 +1,202 @@
+"""The kinematic-calibration panel: which calibration the window's runs command by, and identifying a new one.
+
+"In force for runs" chooses, for every run and resume started from the window, what ``bench run`` chooses with its
+flags (:mod:`bench.calibration_compensation`, through :func:`bench.launch.open_rig`): the newest ``pkm5_kinematics``
+calibration of this robot (default; a resume keeps its run's own), none (``--no-kinematic-calibration``), or one
+stored calibration by id (``--kinematic-calibration ID``). The list is the store's ``pkm5_kinematics`` versions,
+read again in the background whenever the results browser sees the store change.
+
+"Identify from the selected run" runs ``bench calibrate``'s function
+(:func:`bench.calibration_identify.identify_run`) on the run selected in the results browser, in a background task
+(never on the GUI thread; its own store connection), then shows the text ``bench calibrate`` prints, and a dialog;
+a refusal (no measured poses, an ill-conditioned pose set) shows its one line.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from pathlib import Path
+
+from PySide6.QtCore import Signal
+from PySide6.QtWidgets import (
+    QComboBox,
+    QFormLayout,
+    QGroupBox,
+    QLabel,
+    QMessageBox,
+    QPlainTextEdit,
+    QPushButton,
+    QVBoxLayout,
+    QWidget,
+)
+
+from bench.calibration_compensation import CALIBRATION_NAME, NEWEST, OFF
+from bench.calibration_identify import identify_run, summary_lines
+from bench.gui.messages import show_message
+from bench.gui.tasks import Task, run_in_background
+from bench.store import Store
+
+__all__ = ["CalibrationPanel", "stored_calibrations"]
+
+
+def stored_calibrations(store_path: str) -> list:
+    """The store's ``pkm5_kinematics`` calibration records, newest first ([] without a store file)."""
+    if not Path(store_path).is_file():
+        return []
+    with Store(store_path, read_only=True) as store:
+        mine = [c for c in store.calibrations() if c.name == CALIBRATION_NAME]
+    return sorted(mine, key=lambda c: c.id, reverse=True)
+
+
+def _describe(record) -> str:
+    serial = record.params.get("dut_serial")
+    whose = f", robot {serial}" if serial else ""
+    simulated = ", simulated" if record.params.get("simulated") else ""
+    return (f"{record.name} v{record.version} (id {record.id}, from run {record.source_run_id}{whose}"
+            f"{simulated})")
+
+
+def _identify(store_path: str, run_id: int):
+    with Store(store_path) as store:
+        return identify_run(store, run_id)
+
+
+class CalibrationPanel(QGroupBox):
+    """The calibration in force for the window's runs, and identification from a run of ``selected_runs()``.
+
+    Attributes
+    ----------
+    last_dialog : QMessageBox or None
+        The latest result or error dialog (non-modal).
+    last_identified : bench.calibration_identify.IdentifiedRun or None
+        The latest identification made from the window.
+    """
+
+    message = Signal(str)
+    identified = Signal(object)  #: an :class:`bench.calibration_identify.IdentifiedRun`
+
+    def __init__(self, store_path: str, selected_runs: Callable[[], list[int]],
+                 parent: QWidget | None = None) -> None:
+        super().__init__("Kinematic calibration", parent)
+        self.store_path = store_path
+        self.selected_runs = selected_runs
+        self.last_dialog: QMessageBox | None = None
+        self.last_identified = None
+        self._task: Task | None = None
+        self._scan: Task | None = None
+        self.choice_box = QComboBox()
+        self.choice_box.setObjectName("kinematicCalibration")
+        self.choice_box.setToolTip("The kinematic calibration the runs started from this window command by "
+                                   "(bench run --kinematic-calibration ID / --no-kinematic-calibration)")
+        self._fill([])
+        self.identify_button = QPushButton("Identify from the selected run")
+        self.identify_button.setObjectName("identifyButton")
+        self.identify_button.setToolTip("bench calibrate RUN_ID on the run selected in the Results tab: identify "
+                                        "the pkm5 geometry and store it as a new pkm5_kinematics version")
+        self.identify_button.clicked.connect(lambda _=False: self.identify())
+        self.status = QLabel("")
+        self.status.setObjectName("calibrationStatus")
+        self.status.setWordWrap(True)
+        self.result_text = QPlainTextEdit()
+        self.result_text.setObjectName("calibrationResult")
+        self.result_text.setReadOnly(True)
+        self.result_text.setMaximumHeight(160)
+        self.result_text.setPlaceholderText("identified parameters, uncertainties and observability")
+        form = QFormLayout()
+        form.addRow("In force for runs", self.choice_box)
+        layout = QVBoxLayout(self)
+        layout.addLayout(form)
+        layout.addWidget(self.identify_button)
+        layout.addWidget(self.status)
+        layout.addWidget(self.result_text)
+        self.refresh()
+
+    # ---- the calibration in force ----------------------------------------------------------------------------
+
+    def choice(self) -> int | str:
+        """:data:`NEWEST`, :data:`OFF` or a calibration id: what the window's runs command by."""
+        return self.choice_box.currentData()
+
+    def choose(self, choice: int | str) -> None:
+        """Select ``choice`` (NEWEST, OFF or a listed calibration id); an id not listed raises ``ValueError``."""
+        index = self.choice_box.findData(choice)
+        if index < 0:
+            raise ValueError(f"calibration {choice!r} is not listed")
+        self.choice_box.setCurrentIndex(index)
+
+    def _fill(self, records: list) -> None:
+        current = self.choice_box.currentData() if self.choice_box.count() else NEWEST
+        self.choice_box.blockSignals(True)
+        self.choice_box.clear()
+        self.choice_box.addItem("newest for this robot", NEWEST)
+        self.choice_box.addItem("none (documented geometry)", OFF)
+        for record in records:
+            self.choice_box.addItem(_describe(record), record.id)
+        index = self.choice_box.findData(current)
+        self.choice_box.setCurrentIndex(index if index >= 0 else 0)
+        self.choice_box.blockSignals(False)
+        if index < 0:
+            self.message.emit(f"kinematic calibration id {current} is no longer in the store: newest chosen")
+
+    def refresh(self) -> Task:
+        """Read the stored calibrations again in the background; the list follows."""
+        if self._scan is not None:
+            return self._scan
+        path = self.store_path
+        self._scan = run_in_background("reading the calibrations", lambda: stored_calibrations(path), self,
+                                       on_done=self._fill, on_failed=self.message.emit,
+                                       on_ended=lambda: setattr(self, "_scan", None))
+        return self._scan
+
+    # ---- identification --------------------------------------------------------------------------------------
+
+    def identify(self) -> Task | None:
+        """``bench calibrate`` on the selected run, in the background; the result is shown when it is stored."""
+        ids = self.selected_runs()
+        if len(ids) != 1:
+            self.message.emit("Identify: select one run (a kinematic calibration run) in the Results tab")
+            return None
+        if self._task is not None:
+            self.message.emit("Identify: an identification is running")
+            return None
+        run_id = ids[0]
+        self.status.setText(f"identifying the geometry from run {run_id}...")
+        self.identify_button.setEnabled(False)
+        path = self.store_path
+        self._task = run_in_background(f"identification from run {run_id}", lambda: _identify(path, run_id), self,
+                                       on_done=self._identified, on_failed=lambda text: self._failed(run_id, text),
+                                       on_ended=self._ended)
+        return self._task
+
+    def _identified(self, identified) -> None:
+        self.last_identified = identified
+        lines = summary_lines(identified)
+        self.result_text.setPlainText("\n".join(lines))
+        self.status.setText(lines[0])
+        self.message.emit(lines[0])
+        self.last_dialog = show_message(self, QMessageBox.Icon.Information, "Calibration stored",
+                                        "\n".join([lines[0], *lines[-2:]]), name="calibrationDialog")
+        self.refresh()
+        self.identified.emit(identified)
+
+    def _failed(self, run_id: int, text: str) -> None:
+        self.status.setText(f"not identified: {text}")
+        self.message.emit(text)
+        self.last_dialog = show_message(self, QMessageBox.Icon.Warning, f"Run {run_id} not identified", text,
+                                        name="calibrationDialog")
+
+    def _ended(self) -> None:
+        self._task = None
+        self.identify_button.setEnabled(True)
+
+    def busy(self) -> bool:
+        return self._task is not None
+
+    def wait_idle(self, timeout_s: float = 60.0) -> bool:
+        """Wait (without the event loop: the window is closing) until a running identification has ended; True
+        when none is left running."""
+        deadline = time.monotonic() + timeout_s
+        while self._task is not None and not self._task.finished and time.monotonic() < deadline:
+            time.sleep(0.05)
+        return self._task is None or self._task.finished

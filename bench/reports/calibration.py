@@ -1,0 +1,251 @@
+"""The kinematic-calibration page of a comparison: two validation runs that differ by the calibration in force.
+
+``bench report AFTER --compare BEFORE`` (either order) adds this page when the two pose runs commanded by different
+kinematic calibrations (``settings.kinematic_calibration.id``, recorded by :mod:`bench.calibration_compensation`):
+the run without one (or with the older one) is *before*, the other *after*. The page shows
+
+* the gain: over the poses present in both runs, mean and largest AP_P, mean |AP| per axis and mean RP_l, before
+  and after, with the factor before / after (ISO 9283 7.2.1 and 7.2.2 figures, as ``bench analyze iso9283``
+  computes them per pose from each run's raw data);
+* every pose side by side (AP_P, the signed AP vector per axis, RP_l, each with its expanded uncertainty);
+* the error vectors over the workspace, before and after, on one magnification;
+* the calibration in force after: its identified parameters with standard uncertainties, the parameters held at
+  their documented values, the strongest correlations, the fit (reduced chi^2, residual RMS) and the observability
+  (condition number against the limit 100, O1, the weak combinations), all as ``bench calibrate`` stored them.
+
+Formulas: mean AP_P = (1/n) sum_j AP_P,j; mean |AP_x| = (1/n) sum_j |x̄_j - x_cj| (likewise y, z); mean RP_l =
+(1/n) sum_j RP_l,j; factor = before / after (above 1: the calibration reduced the error).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+from typing import Any
+
+import numpy as np
+from matplotlib.figure import Figure as MplFigure
+
+from bench.metrology.formatting import format_pair, format_value, pose_label
+from bench.reports.content import RunReport
+from bench.reports.document import Document, Figure, Paragraph, Section, Table, fmt_mm, fmt_pm
+from bench.reports.plots import MIN_FONT_PT, Plot, workspace_cloud_mm
+
+__all__ = ["CalibrationComparison", "calibration_comparison", "calibration_section", "gain_rows",
+           "kinematic_calibration_id", "with_calibration_page"]
+
+_CONDITION_LIMIT = 100.0  # bench.metrology.kinematic_calibration.CONDITION_LIMIT (not imported: scipy at import)
+_SHOWN_CORRELATIONS = 5
+
+
+def kinematic_calibration_id(report: RunReport) -> int | None:
+    """The id of the kinematic calibration run ``report`` commanded by, None when none was in force (or recorded)."""
+    return (report.run.settings.get("kinematic_calibration") or {}).get("id")
+
+
+@dataclass(frozen=True)
+class CalibrationComparison:
+    """A before / after pair of pose runs and the calibration records each commanded by (None: none)."""
+
+    before: RunReport
+    after: RunReport
+    before_calibration: Any | None  # bench.store CalibrationRecord
+    after_calibration: Any
+
+
+def calibration_comparison(store: Any, first: RunReport, second: RunReport) -> CalibrationComparison | None:
+    """The pair ordered before -> after when the runs commanded by different kinematic calibrations (the run
+    without one, else the one with the older calibration, is *before*); None when the calibrations are the same."""
+    ids = kinematic_calibration_id(first), kinematic_calibration_id(second)
+    if ids[0] == ids[1]:
+        return None
+    after_first = ids[1] is None or (ids[0] is not None and ids[0] > ids[1])
+    (before, before_id), (after, after_id) = (((second, ids[1]), (first, ids[0])) if after_first else
+                                              ((first, ids[0]), (second, ids[1])))
+    return CalibrationComparison(before, after, None if before_id is None else store.calibration_by_id(before_id),
+                                 store.calibration_by_id(after_id))
+
+
+def _name(record: Any | None) -> str:
+    return "no kinematic calibration" if record is None else f"{record.name} v{record.version} (id {record.id})"
+
+
+def _paired(pair: CalibrationComparison):
+    after = {r.label: r for r in pair.after.poses}
+    return [(r, after[r.label]) for r in pair.before.poses if r.label in after]
+
+
+def _factor(before: float, after: float) -> str:
+    return f"{before / after:.1f}" if after > 0 else "—"
+
+
+def gain_rows(pair: CalibrationComparison) -> tuple[tuple[str, str, str, str], ...]:
+    """The gain table's rows: quantity, before (mm), after (mm), factor before / after (module docstring)."""
+    paired = _paired(pair)
+    ap = np.array([[b.accuracy.ap_mm, a.accuracy.ap_mm] for b, a in paired])
+    axes = np.array([[b.accuracy.ap_axes_mm, a.accuracy.ap_axes_mm] for b, a in paired])  # (n, 2, 3)
+    rp = np.array([[b.repeatability.rp_mm, a.repeatability.rp_mm] for b, a in paired])
+    rows = [("mean AP_P", *ap.mean(axis=0)), ("largest AP_P", *ap.max(axis=0))]
+    rows += [(f"mean |AP_{name}|", *np.abs(axes[:, :, i]).mean(axis=0)) for i, name in enumerate("xyz")]
+    rows.append(("mean RP_l", *rp.mean(axis=0)))
+    return tuple((name, fmt_mm(b), fmt_mm(a), _factor(b, a)) for name, b, a in rows)
+
+
+def _pose_rows(pair: CalibrationComparison) -> tuple[tuple[str, ...], ...]:
+    rows = []
+    for b, a in _paired(pair):
+        cells = [pose_label(b.pose, b.conditions), fmt_pm(b.ap_u), fmt_pm(a.ap_u)]
+        for i in range(3):
+            cells += [format_value(r.accuracy.ap_axes_mm[i], r.ap_u.expanded_uncertainty, signed=True)
+                      for r in (b, a)]
+        rows.append((*cells, fmt_pm(b.rp_u), fmt_pm(a.rp_u)))
+    return tuple(rows)
+
+
+def error_vectors(pair: CalibrationComparison) -> Plot | None:
+    """The signed AP vector of every pose over the workspace (x-y and x-z), before (top) and after (bottom), on one
+    magnification (set by the larger before); None for planar instruments."""
+    paired = _paired(pair)
+    if not paired or len(paired[0][0].accuracy.ap_axes_mm) < 3:
+        return None
+    commands = np.array([b.commanded_mm for b, _ in paired])
+    vectors = [np.array([r.accuracy.ap_axes_mm for r in rows]) for rows in zip(*paired)]
+    cloud = workspace_cloud_mm(pair.after.run.robot)
+    points = commands if cloud is None else cloud
+    scale = 0.15 * float(np.ptp(points, axis=0).max()) / max(float(np.abs(vectors[0]).max()), 1e-9)
+    figure = MplFigure(figsize=(10, 8.4), layout="constrained")
+    grid = figure.subplots(2, 2)
+    for row, (label, run, vector, colour) in enumerate((("before", pair.before, vectors[0], "tab:red"),
+                                                        ("after", pair.after, vectors[1], "tab:blue"))):
+        for column, (i, j) in enumerate(((0, 1), (0, 2))):
+            axes = grid[row][column]
+            if cloud is not None:
+                axes.scatter(cloud[:, i], cloud[:, j], s=1, color="0.85", rasterized=True,
+                             label="reachable (kinematic model)")
+            axes.scatter(commands[:, i], commands[:, j], s=8, color="black", label="command poses")
+            axes.quiver(commands[:, i], commands[:, j], vector[:, i] * scale, vector[:, j] * scale, color=colour,
+                        angles="xy", scale_units="xy", scale=1, width=0.005, zorder=3,
+                        label=f"AP vector x{scale:.0f}")
+            axes.set_xlabel(f"{'xyz'[i]} (mm)")
+            axes.set_ylabel(f"{'xyz'[j]} (mm)")
+            axes.set_title(f"{label}: run {run.run.id}", fontsize=MIN_FONT_PT + 1)
+            axes.set_aspect("equal", adjustable="datalim")
+            axes.legend(fontsize=MIN_FONT_PT, loc="lower left")
+    return Plot(f"Error vectors over the workspace of the {pair.after.run.robot} (x-y and x-z projections): the "
+                f"signed AP vector of every pose, before (run {pair.before.run.id}, {_name(pair.before_calibration)}) "
+                f"and after (run {pair.after.run.id}, {_name(pair.after_calibration)}), both magnified {scale:.0f} "
+                f"times.", figure)
+
+
+def _model_order(params: dict) -> list[str]:
+    """The identified parameter names in the model's order (registration first), as stored for other robots."""
+    names = list(params.get("parameters", {}))
+    if params.get("robot") != "pkm5":
+        return names
+    from motion.pkm5.calibration import PARAMETERS, REGISTRATION
+
+    order = {name: i for i, name in enumerate(REGISTRATION + PARAMETERS)}
+    return sorted(names, key=lambda name: order.get(name, len(order)))
+
+
+def _parameter_rows(params: dict) -> tuple[tuple[str, str, str, str], ...]:
+    rows = []
+    for name in _model_order(params):
+        entry = params["parameters"][name]
+        value, u = format_pair(entry["value"], entry["uncertainty"], signed=True)
+        rows.append((name, value, u, entry.get("unit", "")))
+    return tuple(rows)
+
+
+def _held(params: dict) -> tuple[str, ...]:
+    """The model's parameters the calibration did not free (held at their documented values)."""
+    if params.get("robot") != "pkm5":
+        return ()
+    from motion.pkm5.calibration import PARAMETERS
+
+    return tuple(name for name in PARAMETERS if name not in params.get("parameters", {}))
+
+
+def _correlations(params: dict) -> tuple[tuple[str, str, str], ...]:
+    """The strongest correlations; the matrix is in the order of the fit's free parameters (the observability's
+    names: the store keeps the parameter mapping sorted by name)."""
+    names = list((params.get("observability") or {}).get("names") or ())
+    matrix = np.asarray(params.get("correlation") or np.eye(len(names)), dtype=float)
+    if matrix.shape != (len(names), len(names)) or len(names) < 2:
+        return ()
+    i, j = np.triu_indices(len(names), 1)
+    order = np.argsort(-np.abs(matrix[i, j]))[:_SHOWN_CORRELATIONS]
+    return tuple((names[i[k]], names[j[k]], f"{matrix[i[k], j[k]]:+.3f}") for k in order)
+
+
+def _fit_rows(record: Any) -> tuple[tuple[str, str], ...]:
+    params = record.params
+    obs = params.get("observability", {})
+    singular = obs.get("singular_values") or [float("nan")]
+    condition = float(obs.get("condition_number", float("nan")))
+    verdict = "accepted" if condition <= _CONDITION_LIMIT else "above the limit"
+    rows = [("Source run", str(record.source_run_id)), ("Stored (UTC)", record.created_utc),
+            ("Robot serial", str(params.get("dut_serial", "not recorded"))),
+            ("Pose measurements (poses x cycles)", str(obs.get("n_poses", "—"))),
+            ("Instrument standard uncertainty (mm per axis)", f"{params.get('uncertainty_mm', float('nan')):g}"),
+            ("Free parameters", str(len(params.get("parameters", {})))),
+            ("Condition number (limit 100)", f"{condition:.1f} ({verdict})"),
+            ("O1 index (Borm & Menq)", f"{float(obs.get('o1', float('nan'))):.4g}"),
+            ("Singular values, largest / smallest", f"{max(singular):.4g} / {min(singular):.4g}"),
+            ("Unidentifiable combinations", "; ".join(obs.get("unidentifiable", ())) or "none"),
+            ("Reduced chi^2 of the fit", f"{float(params.get('reduced_chi2', float('nan'))):.2f}"),
+            ("Residual RMS per coordinate before / after (mm)",
+             f"{fmt_mm(params.get('residual_rms_before', float('nan')))} / "
+             f"{fmt_mm(params.get('residual_rms', float('nan')))}")]
+    if "ap_before_mm" in params:
+        rows.append(("Mean position error on the calibration poses, before / after (mm, in-sample)",
+                     f"{fmt_mm(params['ap_before_mm'])} / {fmt_mm(params['ap_after_mm'])}"))
+    return tuple(rows)
+
+
+def calibration_section(pair: CalibrationComparison, number: int) -> Section:
+    """The calibration page (module docstring) as section ``number`` of a comparison."""
+    before, after, record = pair.before, pair.after, pair.after_calibration
+    rows = gain_rows(pair)
+    k = f"{before.coverage_factor:g}"
+    blocks: list = [Paragraph(
+        f"Before: run {before.run.id}, {_name(pair.before_calibration)} in force. After: run {after.run.id}, "
+        f"{_name(record)} in force (identified from run {record.source_run_id}). Over the {len(_paired(pair))} "
+        f"poses present in both runs the mean AP_P goes from {rows[0][1]} mm to {rows[0][2]} mm: "
+        f"{rows[0][3]} times smaller."),
+        Table("calibration-gain", ("Quantity (over the poses of both runs)", "Before (mm)", "After (mm)",
+                                   "Factor before / after"), rows,
+              f"Gain of the calibration: run {before.run.id} (before) against run {after.run.id} (after)"),
+        Table("calibration-poses", ("Pose", "AP_P ± U before (mm)", "AP_P ± U after (mm)", "AP_x before",
+                                    "AP_x after", "AP_y before", "AP_y after", "AP_z before", "AP_z after",
+                                    "RP_l ± U before (mm)", "RP_l ± U after (mm)"), _pose_rows(pair),
+              f"Per pose and axis, before and after (AP axes signed, barycentre − command, mm; U with k = {k})")]
+    plot = error_vectors(pair)
+    if plot is not None:
+        blocks.append(Figure(plot))
+    params = record.params
+    blocks.append(Table("calibration-parameters", ("Parameter", "Deviation from documented", "Standard uncertainty",
+                                                   "Unit"), _parameter_rows(params),
+                        f"Identified parameters of {_name(record)} (deviations from the documented geometry; "
+                        f"standard uncertainties, k = 1)"))
+    held = _held(params)
+    blocks.append(Paragraph("Held at their documented values (not identifiable from this pose set and "
+                            "instrument, or not freed): " + (", ".join(held) if held else "none") + "."))
+    correlations = _correlations(params)
+    if correlations:
+        blocks.append(Table("calibration-correlations", ("Parameter", "Parameter", "Correlation"), correlations,
+                            f"The {len(correlations)} strongest correlations between identified parameters"))
+    blocks.append(Table("calibration-observability", ("Item", "Value"), _fit_rows(record),
+                        "Fit and observability of the identification (SVD of the column-scaled, uncertainty-"
+                        "weighted Jacobian)"))
+    return Section(f"{number}. Kinematic calibration: before and after", tuple(blocks))
+
+
+def with_calibration_page(document: Document, pair: CalibrationComparison | None) -> Document:
+    """``document`` (a pose comparison) with the calibration page of ``pair`` (:func:`calibration_comparison`)
+    before its raw-data section; ``document`` unchanged when ``pair`` is None (the same calibration in force)."""
+    if pair is None:
+        return document
+    sections = list(document.sections)
+    raw_at = next((i for i, s in enumerate(sections) if s.title.endswith("Raw data")), len(sections))
+    sections.insert(raw_at, calibration_section(pair, 5))
+    return replace(document, sections=tuple(sections))

@@ -1,0 +1,157 @@
+"""Kinematic calibration from the desktop window, end to end on the simulated pkm5: a calibration run of a seeded
+true geometry (``bench run examples/kinematic_calibration.toml``), "Identify from the selected run" clicked in the
+window (``bench calibrate``'s function in a background task), then runs started from the window with the
+calibration chosen in the panel, and with none.
+
+Independent path: ``bench calibrate --json`` on a copy of the store taken before the click (the same run, the same
+deterministic fit) for the parameters the window stored and shows."""
+
+from __future__ import annotations
+
+import json
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+pytest.importorskip("PySide6")
+
+from gui_support import RUN_TIMEOUT_S, select_runs, wait_for
+from PySide6.QtCore import Qt, QTimer
+from PySide6.QtTest import QTest
+
+from bench.calibration_compensation import NEWEST, OFF
+from bench.gui.campaign_panel import EXAMPLES
+from bench.store import Store
+
+SEED = 3  # true geometry (tests/test_kinematic_compensation.py)
+
+
+def _bench(*args, store: Path) -> str:
+    command = [sys.executable, "-m", "bench.cli", *args, "--store", str(store)]
+    done = subprocess.run(command, capture_output=True, text=True, timeout=300)
+    assert done.returncode == 0, done.stderr
+    return done.stdout
+
+
+def _calibration_run(store: Path) -> int:
+    said = _bench("run", str(EXAMPLES / "kinematic_calibration.toml"), "--true-geometry-seed", str(SEED), "--ideal",
+                  "--no-kinematic-calibration", "--no-progress", store=store)
+    return int(said.split()[-1])
+
+
+def _click_identify(window, run_id: int) -> int:
+    """Select ``run_id`` in the results, click Identify, wait for the outcome; the timer ticks the event loop
+    served meanwhile (the fit ran off the GUI thread)."""
+    panel = window.calibration_panel
+    select_runs(window.results, [run_id])
+    ticks = []
+    timer = QTimer()
+    timer.timeout.connect(lambda: ticks.append(1))
+    timer.start(10)
+    panel.last_dialog = None
+    QTest.mouseClick(panel.identify_button, Qt.MouseButton.LeftButton)
+    assert panel.busy() and not panel.identify_button.isEnabled()
+    wait_for(lambda: panel.last_dialog is not None and not panel.busy(), 4 * RUN_TIMEOUT_S, "the identification")
+    timer.stop()
+    return len(ticks)
+
+
+def _run_validation(window, choice) -> int:
+    panel = window.campaign_panel
+    window.calibration_panel.choose(choice)
+    panel.choose_file(EXAMPLES / "kinematic_validation.toml")
+    assert panel.form.protocol is not None, panel.preflight.text()
+    QTest.mouseClick(panel.buttons["start"], Qt.MouseButton.LeftButton)
+    assert panel.worker is not None, window.log.toPlainText()
+    wait_for(lambda: panel.worker is None, 2 * RUN_TIMEOUT_S, "the validation run")
+    with Store(window.store_path, read_only=True) as store:
+        return store.runs()[-1].id
+
+
+def test_identify_in_the_window_then_run_with_the_chosen_calibration_and_with_none(window, tmp_path):
+    store_path = tmp_path / "bench.db"
+    run_id = _calibration_run(store_path)
+    shutil.copy(store_path, tmp_path / "copy.db")
+    expected = json.loads(_bench("calibrate", str(run_id), "--json", store=tmp_path / "copy.db"))
+
+    ticks = _click_identify(window, run_id)
+    panel = window.calibration_panel
+    assert ticks >= 3  # the window kept serving events while the fit ran in its background task
+    assert panel.last_dialog.windowTitle() == "Calibration stored"
+    with Store(store_path, read_only=True) as store:
+        (record,) = [c for c in store.calibrations() if c.name == "pkm5_kinematics"]
+    assert record.source_run_id == run_id and record.params["simulated"] is True
+    assert record.id == expected["id"] and record.version == expected["version"] == 1
+    assert sorted(record.params["parameters"]) == sorted(expected["parameters"])
+    for name, entry in expected["parameters"].items():
+        assert record.params["parameters"][name]["value"] == pytest.approx(entry["value"], abs=1e-9)
+        assert record.params["parameters"][name]["uncertainty"] == pytest.approx(entry["uncertainty"], rel=1e-6)
+    condition = expected["observability"]["condition_number"]
+    shown = panel.result_text.toPlainText().splitlines()
+    assert shown[0] == (f"pkm5_kinematics v1 (id {record.id}) from run {run_id}: 60 poses, "
+                        f"{len(expected['parameters'])} free parameters")
+    assert shown[-2].startswith(f"condition number {condition:.1f} (limit 100), O1 ")
+    assert shown[-1] == (f"mean position error on the calibration poses (in-sample): before "
+                         f"{expected['ap_before_mm']:.3f} mm, after {expected['ap_after_mm']:.3f} mm")
+    assert f"{shown[0]}" in window.log.toPlainText()
+
+    # the new calibration is listed (read again in the background) and can be chosen for the window's runs
+    box = panel.choice_box
+    wait_for(lambda: box.findData(record.id) >= 0, RUN_TIMEOUT_S, "the calibration in the list")
+    assert box.itemText(box.findData(record.id)) == f"pkm5_kinematics v1 (id {record.id}, from run {run_id}, " \
+                                                    f"simulated)"
+    assert panel.choice() == NEWEST and [box.itemData(i) for i in range(box.count())] == [NEWEST, OFF, record.id]
+
+    chosen = _run_validation(window, record.id)
+    assert (f"kinematic calibration in force: pkm5_kinematics v1 (id {record.id} from run {run_id}; chosen)"
+            in window.log.toPlainText())
+    none = _run_validation(window, OFF)
+    assert "kinematic calibration: none (--no-kinematic-calibration); commanding by the documented geometry" \
+           in window.log.toPlainText()
+    window.calibration_panel.choose(NEWEST)  # the default: what bench run does without a flag (its own test)
+    assert window.rig_spec().request().kinematic_calibration == NEWEST
+    with Store(store_path, read_only=True) as store:
+        runs = {r.id: r for r in store.runs()}
+    assert runs[chosen].status == runs[none].status == "completed"
+    assert runs[chosen].settings["kinematic_calibration"] == {
+        "id": record.id, "name": "pkm5_kinematics", "version": 1, "source_run_id": run_id, "reason": "chosen"}
+    assert record.id in runs[chosen].calibration_ids and record.id not in runs[none].calibration_ids
+    assert runs[none].settings["kinematic_calibration"] == {"id": None, "reason": "--no-kinematic-calibration"}
+
+
+def test_a_run_without_measured_poses_is_refused_in_one_line(window, tmp_path):
+    with Store(tmp_path / "bench.db") as store:
+        run_id = store.start_run(protocol_name="kinematic_calibration", protocol_version="1", robot="pkm5",
+                                 config={})
+        store.add_sample(run_id, 0, values={"cmd_x_mm": 120.0}, kind="pose", pose="P1", cycle=1, t_s=0.0)
+    panel = window.calibration_panel
+    assert panel.identify() is None  # nothing selected yet
+    assert "Identify: select one run (a kinematic calibration run) in the Results tab" in window.log.toPlainText()
+    _click_identify(window, run_id)
+    text = (f"run {run_id}: no pose samples with measured x_mm, y_mm, z_mm; expected a run of commanded and "
+            f"measured poses")
+    assert panel.last_dialog.windowTitle() == f"Run {run_id} not identified"
+    assert panel.last_dialog.text() == text and panel.status.text() == f"not identified: {text}"
+    assert panel.identify_button.isEnabled() and panel.last_identified is None
+    with Store(tmp_path / "bench.db", read_only=True) as store:
+        assert [c for c in store.calibrations() if c.name == "pkm5_kinematics"] == []
+
+
+def test_closing_the_window_during_an_identification_waits_for_it(tmp_path):
+    from bench.gui.app import MainWindow
+    from gui_support import application
+
+    run_id = _calibration_run(tmp_path / "bench.db")
+    application()
+    main = MainWindow(tmp_path / "bench.db", tmp_path / "reports", open_files=False)
+    main.show()
+    select_runs(main.results, [run_id])
+    QTest.mouseClick(main.calibration_panel.identify_button, Qt.MouseButton.LeftButton)
+    assert main.calibration_panel.busy()
+    main.close()  # returns once the identification has been stored
+    assert main.calibration_panel.wait_idle(0.0)
+    with Store(tmp_path / "bench.db", read_only=True) as store:
+        assert [c.source_run_id for c in store.calibrations() if c.name == "pkm5_kinematics"] == [run_id]

@@ -1,0 +1,155 @@
+"""The kinematic-calibration page of ``bench report AFTER --compare BEFORE``, end to end on the simulated pkm5 with a
+seeded true geometry: a calibration run (examples/kinematic_calibration.toml), ``bench calibrate``, the held-out
+validation poses (examples/kinematic_validation.toml) with and without the calibration in force, then the report.
+
+Independent paths: ``bench analyze iso9283 --json`` on the raw data the report writes (the gain and per-pose
+tables), the JSON ``bench calibrate --json`` printed (the parameter and
+observability tables), the HTML (parsed) and the PDF (pypdf)."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+from figure_support import printed_font_sizes
+from reports_runs import cli_json, html_tables, pdf_text, rounded_by_u
+
+from bench.cli import main
+from bench.reports import collect
+from bench.reports.calibration import calibration_comparison, error_vectors
+from bench.reports.plots import MIN_FONT_PT
+from bench.store import Store
+from motion.pkm5.calibration import PARAMETERS
+
+EXAMPLES = Path(__file__).resolve().parent.parent / "examples"
+SEED = 3  # the true geometry of tests/test_kinematic_compensation.py (15.6x measured)
+
+
+def _bench(*args, store):
+    command = [sys.executable, "-m", "bench.cli", *args, "--store", str(store)]
+    done = subprocess.run(command, capture_output=True, text=True, timeout=300)
+    assert done.returncode == 0, done.stderr
+    return done.stdout
+
+
+def _run(protocol, store, *extra) -> int:
+    said = _bench("run", str(EXAMPLES / protocol), "--true-geometry-seed", str(SEED), "--ideal", "--no-progress",
+                  *extra, store=store)
+    return int(said.split()[-1])
+
+
+@pytest.fixture(scope="module")
+def validated(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("calibration_report")
+    store = folder / "bench.db"
+    calibration_run = _run("kinematic_calibration.toml", store, "--no-kinematic-calibration")
+    calibration = json.loads(_bench("calibrate", str(calibration_run), "--json", store=store))
+    after = _run("kinematic_validation.toml", store)
+    before = _run("kinematic_validation.toml", store, "--no-kinematic-calibration")
+    # A (the first run named) is the calibrated run: the page orders the pair by the calibrations, not by A and B
+    assert main(["report", str(after), "--compare", str(before), "--store", str(store), "--out",
+                 str(folder / "out"), "--quiet"]) == 0
+    html = folder / "out" / f"compare_run{after}_run{before}.html"
+    return {"store": store, "folder": folder, "calibration": calibration, "before": before, "after": after,
+            "html": html, "tables": html_tables(html)}
+
+
+def _instrument_u(store, run_id) -> float:
+    with Store(store, read_only=True) as s:
+        return collect(s, run_id).instrument.sigma_mm
+
+
+def test_the_gain_equals_bench_analyze_on_the_raw_data(validated, capsys):
+    before, after, folder = validated["before"], validated["after"], validated["folder"]
+    analyzed = {}
+    for name, run_id in (("before", before), ("after", after)):
+        u = _instrument_u(validated["store"], run_id)
+        raw = cli_json(capsys, "analyze", "iso9283", str(folder / "out" / f"run{run_id}_samples.csv"),
+                       "--instrument-u-mm", repr(u), "--json")["poses"]
+        analyzed[name] = raw
+    poses = sorted(analyzed["before"])
+    assert poses == sorted(analyzed["after"]) and len(poses) == 12
+
+    def column(name, key):
+        return np.array([analyzed[name][p][key] for p in poses])
+
+    expected = {"mean AP_P": [column(n, "AP_mm").mean() for n in ("before", "after")],
+                "largest AP_P": [column(n, "AP_mm").max() for n in ("before", "after")],
+                **{f"mean |AP_{a}|": [np.abs(column(n, f"AP{a}_mm")).mean() for n in ("before", "after")]
+                   for a in "xyz"},
+                "mean RP_l": [column(n, "RP_mm").mean() for n in ("before", "after")]}
+    gain = validated["tables"]["calibration-gain"]
+    assert gain[0] == ["Quantity (over the poses of both runs)", "Before (mm)", "After (mm)", "Factor before / after"]
+    assert [row[0] for row in gain[1:]] == list(expected)
+    for row in gain[1:]:
+        b, a = expected[row[0]]
+        assert row[1:3] == [f"{b:.4f}", f"{a:.4f}"]
+        if row[0] != "mean RP_l":  # the ideal robot's RP is a count or two: its ratio says nothing
+            assert row[3] == f"{b / a:.1f}"
+    mean_before, mean_after = expected["mean AP_P"]
+    assert mean_before > 0.5 and mean_before / mean_after > 5  # 0.982 -> 0.063 mm, 15.6x measured with seed 3
+
+    rows = {row[0]: row for row in validated["tables"]["calibration-poses"][1:]}
+    assert sorted(rows) == poses
+    for pose in poses:
+        b, a = analyzed["before"][pose], analyzed["after"][pose]
+        assert rows[pose][1:3] == [rounded_by_u(b["AP_mm"], b["U_AP_mm"]), rounded_by_u(a["AP_mm"], a["U_AP_mm"])]
+        for cell, result in zip(rows[pose][9:11], (b, a)):  # RP: a count or two, its U can be 0 (3 decimals then)
+            value, u = (float(part) for part in cell.split(" ± "))
+            assert (value, u) == pytest.approx((result["RP_mm"], result["U_RP_mm"]), abs=0.0005)
+        for i, axis in enumerate("xyz"):
+            signed = [float(rows[pose][3 + 2 * i]), float(rows[pose][4 + 2 * i])]
+            assert signed == pytest.approx([b[f"AP{axis}_mm"], a[f"AP{axis}_mm"]], abs=0.0051)
+
+
+def test_the_parameter_and_observability_tables_are_the_stored_calibration(validated):
+    calibration = validated["calibration"]
+    identified = calibration["parameters"]
+    rows = validated["tables"]["calibration-parameters"]
+    assert rows[0] == ["Parameter", "Deviation from documented", "Standard uncertainty", "Unit"]
+    assert [r[0] for r in rows[1:3 + 1]] == ["reg_x_mm", "reg_y_mm", "reg_z_mm"]  # the model's order
+    assert sorted(r[0] for r in rows[1:]) == sorted(identified)
+    for name, value, u, unit in rows[1:]:
+        assert float(value) == pytest.approx(identified[name]["value"], abs=float(u) / 10 + 1e-12)
+        assert float(u) == pytest.approx(identified[name]["uncertainty"], rel=0.05)
+        assert unit == identified[name]["unit"]
+    observed = dict(validated["tables"]["calibration-observability"][1:])
+    condition = calibration["observability"]["condition_number"]
+    assert observed["Condition number (limit 100)"] == f"{condition:.1f} (accepted)" and condition <= 100
+    assert observed["Source run"] == "1" and observed["Unidentifiable combinations"] == "none"
+    assert observed["Pose measurements (poses x cycles)"] == "60"  # 30 poses, 2 cycles
+    assert observed["Reduced chi^2 of the fit"] == f"{calibration['reduced_chi2']:.2f}"
+    html = validated["html"].read_text(encoding="utf-8")
+    held = [name for name in PARAMETERS if name not in identified]
+    assert len(PARAMETERS) + 3 == 36 and len(held) == 36 - len(identified)  # 12 held, 24 free (3 registration)
+    assert "Held at their documented values (not identifiable from this pose set and instrument, or not freed): " \
+           + ", ".join(held) + "." in html
+
+
+def test_the_page_is_in_the_pdf_and_its_order_does_not_depend_on_which_run_is_named_first(validated):
+    before, after, store, folder = validated["before"], validated["after"], validated["store"], validated["folder"]
+    pdf = pdf_text(validated["html"].with_suffix(".pdf"))
+    gain = validated["tables"]["calibration-gain"][1]
+    assert "5. Kinematic calibration: before and after" in pdf
+    assert f"mean AP_P goes from {gain[1]} mm to {gain[2]} mm: {gain[3]} times smaller" in pdf
+    assert main(["report", str(before), "--compare", str(after), "--store", str(store), "--out",
+                 str(folder / "swapped"), "--quiet", "--format", "html"]) == 0
+    swapped = html_tables(folder / "swapped" / f"compare_run{before}_run{after}.html")
+    assert swapped["calibration-gain"] == validated["tables"]["calibration-gain"]
+
+
+def test_runs_with_the_same_calibration_get_no_page_and_the_figure_is_readable(validated):
+    with Store(validated["store"], read_only=True) as store:
+        before, after = collect(store, validated["before"]), collect(store, validated["after"])
+        assert calibration_comparison(store, after, after) is None
+        assert calibration_comparison(store, before, before) is None
+        pair = calibration_comparison(store, after, before)
+    assert (pair.before.run.id, pair.after.run.id) == (validated["before"], validated["after"])
+    assert pair.before_calibration is None and pair.after_calibration.id == validated["calibration"]["id"]
+    plot = error_vectors(pair)
+    assert min(printed_font_sizes(plot)) >= MIN_FONT_PT
+    assert f"before (run {validated['before']}, no kinematic calibration)" in plot.caption
