@@ -184,3 +184,15 @@ def test_stabilisation_table_rows_in_any_order_give_the_same_figures(tmp_path):
     assert results[0] == results[1]
     assert results[0].cycles[0].first_entry_s == 0.03 and results[0].cycles[0].settled_s == 0.05
     assert results[0].cycles[0].overshoot_mm == pytest.approx(0.2)
+
+
+def test_a_commanded_angle_the_instrument_does_not_measure_leaves_the_position_analysis(tmp_path):
+    # a tilted pose measured by the mice (position only), as `bench export` writes it: the same AP/RP as without it
+    rows = "P1,1,0,0,0,0.1,0,0\nP1,2,0,0,0,0.3,0.2,0\nP2,1,5,0,0,5,0,0.4\nP2,2,5,0,0,5.2,0,0\n"
+    plain = analyze_poses(pose_table(read_table_csv(_write(tmp_path, f"{HEADER}\n{rows}"))))
+    tilted_rows = "".join(f"{line},3.5\n" for line in rows.splitlines())
+    path = tmp_path / "tilted.csv"
+    path.write_text(f"{HEADER},cmd_a_deg\n{tilted_rows}")
+    tilted = analyze_poses(pose_table(read_table_csv(path)))
+    assert [r.accuracy.ap_mm for r in tilted] == [r.accuracy.ap_mm for r in plain]
+    assert plain[1].accuracy.ap_mm > 0 and tilted[0].angle_names == ()

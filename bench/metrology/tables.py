@@ -206,12 +206,15 @@ def numeric_columns(frame: pd.DataFrame, columns: Sequence[str], *, required: bo
 
 
 def pose_table(frame: pd.DataFrame) -> pd.DataFrame:
-    """Check a pose table and return it with numeric columns as float and ``pose`` as a stripped string."""
+    """Check a pose table and return it with numeric columns as float and ``pose`` as a stripped string.
+
+    A commanded angle with no measured one (a tilted pose measured by the mice, which see position only) leaves the
+    position characteristics: that angle is not analysed. A measured angle needs its command (no AP without one)."""
     source = frame.attrs.get("source", "table")
     for command, attained in ANGLE_PAIRS:
-        if (command in frame.columns) != (attained in frame.columns):
-            present, absent = (command, attained) if command in frame.columns else (attained, command)
-            raise ConfigError(f"{source}: column {present} given without {absent}")
+        if attained in frame.columns and command not in frame.columns:
+            raise ConfigError(f"{source}: column {attained} given without {command}")
+    frame = frame.drop(columns=[c for c, a in ANGLE_PAIRS if c in frame.columns and a not in frame.columns])
     if "pose" not in frame.columns:
         raise ConfigError(f"{source}: missing column(s) pose; found {', '.join(frame.columns)}")
     angles = [c for pair in ANGLE_PAIRS for c in pair if c in frame.columns]
