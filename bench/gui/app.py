@@ -34,6 +34,7 @@ from bench.gui.calliper_dialog import CalliperDialog
 from bench.gui.messages import show_message
 from bench.gui.campaign_panel import CampaignPanel
 from bench.gui.live_view import LiveView
+from bench.gui.offload import shutdown_worker_process
 from bench.gui.results_browser import ResultsBrowser
 from bench.gui.robot_panel import RobotPanel
 from bench.gui.worker import CampaignWorker, RigSpec
@@ -226,6 +227,7 @@ class MainWindow(QMainWindow):
                 self.campaign_panel.request("halt")
                 self.campaign_panel.worker.wait(int(CLOSE_TIMEOUT_S * 1000))
         self.results.stop_watching()
+        shutdown_worker_process()  # a report being written there still ends; the process then exits
         self.calibration_panel.wait_idle()  # an identification being stored ends before the window goes
         self.robot_panel.wait_idle()
         self.robot_panel.disconnect_robot()

@@ -31,6 +31,7 @@ from PySide6.QtWidgets import (
 )
 
 from bench.gui.messages import show_message
+from bench.gui.offload import in_worker_process, write_comparison_html, write_report_html
 from bench.gui.tasks import Task, run_in_background
 from bench.store import RunRecord, Store, export_run
 from bench.store.ownership import owner_of
@@ -195,14 +196,10 @@ class ResultsBrowser(QGroupBox):
         if len(ids) != 1:
             self.message.emit("Report: select one run")
             return None
-        store_path, report_dir = self.store_path, self.report_dir
-
-        def write() -> Path:
-            from bench.reports import write_report
-
-            return write_report(store_path, ids[0], report_dir).html
-
-        return self._background(f"report of run {ids[0]}", write, show=True)
+        store_path, report_dir = str(self.store_path), self.report_dir
+        return self._background(f"report of run {ids[0]}",
+                                lambda: in_worker_process(write_report_html, store_path, ids[0], report_dir),
+                                show=True)
 
     def compare(self) -> Task | None:
         """Write the comparison of the two selected runs in the background, then open it."""
@@ -210,12 +207,10 @@ class ResultsBrowser(QGroupBox):
         if len(ids) != 2:
             self.message.emit("Compare: select exactly two runs")
             return None
-        store_path, report_dir = self.store_path, self.report_dir
+        store_path, report_dir = str(self.store_path), self.report_dir
 
         def write() -> Path:
-            from bench.reports import write_comparison
-
-            return write_comparison(store_path, ids[0], ids[1], report_dir).html
+            return in_worker_process(write_comparison_html, store_path, ids[0], ids[1], report_dir)
 
         return self._background(f"comparison of runs {ids[0]} and {ids[1]}", write, show=True)
 
