@@ -30,6 +30,7 @@ from bench import __version__
 from bench.errors import BenchError, ConfigError
 from bench.store.connection import GuardedConnection, open_connection, store_error
 from bench.store.ownership import RunLease, owner_of
+from bench.store.recovery import refuse_if_damaged
 from bench.store.schema import SCHEMA_VERSION, StoreSchemaError, default_bench_name, open_schema
 
 __all__ = [
@@ -152,7 +153,9 @@ class Store:
         This bench's name, recorded on every run it starts (default: the host name).
     read_only : bool
         Open for reading only (``bench runs``, ``report``, ``export``, the results browser): the file must exist and
-        nothing is created or written (an older schema is still migrated first, with its backup). Another
+        nothing is created or written (an older schema is still migrated first, with its backup). Opened for
+        writing, a store that was not closed cleanly (a run left ``running`` by a process that is gone) is checked
+        first and refused when damaged (:mod:`bench.store.recovery`). Another
         application's SQLite file is refused in either mode, untouched; every database error of a query is one
         :class:`bench.store.connection.StoreError` line naming the file and what to do.
 
@@ -185,6 +188,8 @@ class Store:
                     raw.close()
                     raw = self._migrated()
             else:
+                if self.path != ":memory:":  # before anything is written: a damaged store is refused untouched
+                    refuse_if_damaged(raw, self.path)
                 self.backup = open_schema(raw, self.path, self.bench)
         except sqlite3.DatabaseError as exc:
             raw.close()
