@@ -110,3 +110,19 @@ def test_an_interrupted_healthy_store_passes_the_check_and_is_appended_to(tmp_pa
     assert main(["run", str(QUICK), "--store", str(store), "--no-progress"]) == 0  # closed cleanly: no check
     capsys.readouterr()
     assert not [r for r in caplog.records if r.name == "bench.store.recovery"]
+
+
+def test_the_window_reports_a_damaged_store_and_runs_nothing(window, tmp_path):
+    from gui_support import RUN_TIMEOUT_S, wait_for
+
+    from bench.gui.campaign_panel import EXAMPLES
+
+    store = _interrupted_store(tmp_path / "bench.db")  # the window's store
+    _damage_a_sample_page(store)
+    before = store.read_bytes()
+    window.campaign_panel.choose_file(EXAMPLES / "iso9283_pose_quick.toml")
+    window.campaign_panel.start()
+    wait_for(lambda: window.campaign_panel.worker is None, RUN_TIMEOUT_S, "the worker to give up")
+    assert f"store {store}: not closed cleanly (run 1 interrupted) and damaged: integrity: " in \
+        window.log.toPlainText()
+    assert store.read_bytes() == before
