@@ -19,7 +19,7 @@ from hypothesis import strategies as st
 from bench.errors import BenchError, ConfigError, PromptWithdrawn
 from bench.protocols import Runner
 from bench.protocols.base import Protocol
-from bench.rigs.interfaces import Entry, Measurement, Rig
+from bench.rigs.interfaces import Entry, Rig
 from bench.rigs.operators import ConsoleOperator, parse_entry
 from bench.steps import Prompt
 from bench.store import Store
