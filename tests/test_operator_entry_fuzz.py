@@ -209,7 +209,7 @@ def test_fuzzed_prompts_of_a_run_store_no_nan_or_inf_and_keep_the_text_as_typed(
 
 
 @given(st.lists(st.sampled_from(_PIECES) | st.text(max_size=3), max_size=8).map("".join) | st.text(max_size=60))
-@settings(max_examples=800, deadline=None)
+@settings(max_examples=400, deadline=None)
 def test_any_text_for_any_prompt_is_a_finite_reading_or_one_line(text):
     for prompt in PROMPTS:
         try:
