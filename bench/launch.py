@@ -184,9 +184,10 @@ def _simulation_settings(request: RigRequest, stored: dict[str, Any]) -> tuple[i
         raise ConfigError(f"speed factor = {request.speed_factor:g}: the run's time base is speed factor "
                           f"{stored_speed:g}, expected the same (leave the speed factor out)")
     seed = request.seed if request.seed is not None else (stored_seed if stored_seed is not None else 0)
-    speed = request.speed_factor or stored_speed or DEFAULT_SPEED_FACTOR
+    speed = request.speed_factor if request.speed_factor is not None else (stored_speed or DEFAULT_SPEED_FACTOR)
     if not 0 < speed < float("inf"):
-        raise ConfigError(f"speed factor = {speed:g}, expected a finite number > 0")
+        raise ConfigError(f"speed factor = {speed:g}, expected a finite number > 0 (--speed-factor, how much faster "
+                          "than real time the simulators run)")
     return seed, speed
 
 

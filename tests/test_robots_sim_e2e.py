@@ -204,4 +204,4 @@ def test_bench_sim_cli_refuses_a_bad_speed_factor():
     done = subprocess.run([sys.executable, "-m", "bench.cli", "sim", "pkm5", "--speed-factor", "-1"],
                           capture_output=True, text=True, timeout=60)
     assert done.returncode == 2
-    assert done.stderr.strip() == "bench: error: --speed-factor = -1.0, expected a number > 0"
+    assert done.stderr.strip() == "bench: error: --speed-factor = -1.0, expected a finite number > 0"

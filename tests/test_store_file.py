@@ -4,15 +4,18 @@ committed before the last checkpoint; ``bench backup`` makes a consistent copy w
 
 from __future__ import annotations
 
+import random
 import shutil
 import signal
 import subprocess
+import time
 from pathlib import Path
 
 from cli_runs import BENCH, wait_for_samples
 
 from bench.cli import main
 from bench.store import Store
+from bench.store.connection import check_store
 
 ROOT = Path(__file__).resolve().parents[1]
 QUICK = ROOT / "examples" / "iso9283_pose_quick.toml"
@@ -86,3 +89,67 @@ def test_export_into_a_missing_folder_and_a_header_only_table_are_one_line(tmp_p
     capsys.readouterr()
     assert main(["analyze", "iso9283", str(header)]) == 2
     assert capsys.readouterr().err.strip() == f"bench: error: {header}: no rows, expected at least one measured pose"
+
+
+def _live(store: Path) -> dict[int, tuple[int, dict]]:
+    """The samples of the live run, read read-only the way any reader would: step -> (cycle, values)."""
+    with Store(store, read_only=True) as reader:
+        runs = reader.runs()
+        return {s.step_index: (s.cycle, s.values) for s in reader.samples(runs[0].id)} if runs else {}
+
+
+def _wait_reading(store: Path, process: subprocess.Popen, at_least: int, timeout_s: float = 120.0) -> None:
+    """Wait, reading read-only, until the live run holds ``at_least`` samples (or the run has ended)."""
+    deadline = time.monotonic() + timeout_s
+    while process.poll() is None and time.monotonic() < deadline:
+        if store.exists() and len(_live(store)) >= at_least:
+            return
+        time.sleep(0.02)
+    assert time.monotonic() < deadline, f"no {at_least} samples within {timeout_s:g} s"
+
+
+def test_copies_of_the_db_file_at_random_moments_of_a_run_hold_every_sample_before_the_last_checkpoint(tmp_path):
+    """The drill: the ``.db`` file alone (no ``-wal``, no ``-shm``) copied at seeded random moments while a run
+    writes, and ``bench backup`` at the moments between. A copy must open as a sound store holding every sample
+    committed before the last checkpoint step the run had passed: the protocol closes each cycle with a
+    Checkpoint, so once a sample of cycle c is stored, the checkpoint after cycle c - 1 is done. A backup must hold
+    every sample committed when it began. Every row of either equals the finished run's."""
+    protocol = tmp_path / "four_cycles.toml"
+    protocol.write_text(QUICK.read_text().replace("cycles = 3", "cycles = 4"))
+    store, rng = tmp_path / "b.db", random.Random(15)
+    process = subprocess.Popen([BENCH, "run", str(protocol), "--store", str(store), "--no-progress",
+                                "--speed-factor", "60"], stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL,
+                               stderr=subprocess.PIPE, text=True)
+    moments = sorted(rng.sample(range(1, 18), 8))  # after how many stored samples, then a random delay
+    taken: list[tuple[Path, dict[int, dict]]] = []
+    try:
+        for n, at_least in enumerate(moments):
+            _wait_reading(store, process, at_least)
+            time.sleep(rng.uniform(0.0, 0.1))
+            live = _live(store)
+            copy = tmp_path / f"copy-{n}.db"
+            if n % 2 == 0:
+                last_cycle = max(cycle for cycle, _ in live.values())
+                shutil.copyfile(store, copy)
+                must_hold = {step: values for step, (cycle, values) in live.items() if cycle < last_cycle}
+            else:
+                with Store(store, read_only=True) as reader:
+                    reader.backup_to(copy)
+                must_hold = {step: values for step, (_, values) in live.items()}
+            taken.append((copy, must_hold))
+        assert process.wait(120) == 0, process.stderr.read()
+    finally:
+        if process.poll() is None:
+            process.kill()
+            process.wait(30)
+    final = _values(store)
+    assert len(final) == 20
+    for copy, must_hold in taken:
+        assert check_store(str(copy)) == [], copy
+        with Store(copy, read_only=True) as opened:  # the run is in the file from its start
+            assert [(r.id, r.protocol_name) for r in opened.runs()] == [(1, "iso9283_pose")]
+        held = {step: values for step, (_, values) in _live(copy).items()}
+        assert must_hold.items() <= held.items(), (copy, sorted(must_hold), sorted(held))
+        assert all(final[step] == values for step, values in held.items()), copy
+    plain = [len(must) for copy, must in taken[::2]]
+    assert max(plain) >= 10, plain  # the drill reached copies that owe two or more checkpointed cycles

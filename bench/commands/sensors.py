@@ -175,6 +175,11 @@ def _entry(args: argparse.Namespace) -> int:
 
     if args.count < 1:
         raise ConfigError(f"calliper-entry: --count = {args.count}, expected an integer >= 1")
+    if not args.out.parent.is_dir():
+        raise ConfigError(f"calliper-entry: --out {args.out}: folder {args.out.parent} does not exist, expected an "
+                          "existing folder")
+    if args.out.is_dir():
+        raise ConfigError(f"calliper-entry: --out {args.out}: a folder, expected a CSV file name")
     new_file = not args.out.exists() or args.out.stat().st_size == 0
     with args.out.open("a", newline="") as handle:
         writer = None

@@ -161,7 +161,13 @@ class CampaignWorker(QThread):
     # ---- the thread ------------------------------------------------------------------------------------------
 
     def run(self) -> None:
-        with Store(self.store_path) as store:
+        try:  # a store that cannot be written (damaged after an unclean end, another application's) ends the queue
+            opened = Store(self.store_path)
+        except BenchError as exc:
+            self.jobs.clear()
+            self.failed.emit(str(exc))
+            return
+        with opened as store:
             while self.jobs and not self._cancelled:
                 job, robot = self.jobs.pop(0), "robot"
                 try:

@@ -37,7 +37,8 @@ def parse_entry(prompt: Prompt, text: str) -> tuple[Entry, str]:
     question ('' when plausible).
 
     Lengths (``prompt.unit == "mm"``) accept what a calliper or a wedge types (``12,34``, ``0.4865 in``); other
-    units accept a number with an optional trailing unit equal to the prompt's (``-1,5 deg``).
+    units accept a number with an optional trailing unit equal to the prompt's (``-1,5 deg``), and a prompt without
+    unit a bare number.
 
     Raises
     ------
@@ -45,10 +46,12 @@ def parse_entry(prompt: Prompt, text: str) -> tuple[Entry, str]:
         Naming the prompt, the text or value, and what was expected.
     """
     typed = text.strip()
-    if prompt.unit != "mm" and prompt.unit:
-        text = re.sub(rf"\s*{re.escape(prompt.unit)}\s*$", "", typed)
+    if prompt.unit != "mm":  # only lengths convert units; a count's "3 in" is no count of 76.2
+        text = re.sub(rf"\s*{re.escape(prompt.unit)}\s*$", "", typed) if prompt.unit else typed
         if re.search(r"[A-Za-z\"]", text):
-            raise ConfigError(f"{prompt.text}: {text!r} is not a reading in {prompt.unit}; expected a number")
+            wanted = f"a number, optionally followed by {prompt.unit}" if prompt.unit else "a number without unit"
+            raise ConfigError(f"{prompt.text}: {text!r} is not a reading{f' in {prompt.unit}' if prompt.unit else ''}"
+                              f"; expected {wanted}")
     try:
         value = parse_length(text, source=prompt.text)
     except MalformedSample as exc:

@@ -29,7 +29,9 @@ __all__ = [
     "tilt_uncertainty_deg",
 ]
 
-_NUMBER = re.compile(r"\s*([+-]?)\s*(\d+(?:[.,]\d*)?|[.,]\d+)\s*(mm|in|\")?\s*", re.IGNORECASE)
+#: ASCII digits only: ``\d`` would take any script's (``45\u0661\u0662`` read as 45 12, i.e. 4512), which a gauge never
+#: sends and a typist mixes only by mistake.
+_NUMBER = re.compile(r"\s*([+-]?)\s*([0-9]+(?:[.,][0-9]*)?|[.,][0-9]+)\s*(mm|in|\")?\s*", re.IGNORECASE)
 _MM_PER_UNIT = {"mm": 1.0, "in": 25.4, '"': 25.4}
 #: Digits (with the decimal separator) a typed or sent reading may have.
 _MAX_DIGITS = 15

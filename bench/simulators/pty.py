@@ -164,8 +164,8 @@ def serve(device: SimDevice, args: argparse.Namespace) -> int:
 
 def run_simulator(build_device: Any, args: argparse.Namespace) -> int:
     """Check the common arguments, build the device and serve it (shared by ``python -m`` and ``bench sim``)."""
-    if not args.speed_factor > 0:
-        raise ConfigError(f"--speed-factor = {args.speed_factor}, expected a number > 0")
+    if not 0 < args.speed_factor < float("inf"):
+        raise ConfigError(f"--speed-factor = {args.speed_factor}, expected a finite number > 0")
     if not 0 <= args.load_kg <= 30:
         raise ConfigError(f"--load-kg = {args.load_kg}, expected a number in [0, 30]")
     return serve(build_device(args), args)

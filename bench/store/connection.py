@@ -156,13 +156,16 @@ def check_store(path: str) -> list[str]:
     """The problems of the store at ``path``, one line each (empty when sound): SQLite's ``integrity_check`` and
     every row whose foreign key names a missing parent (``foreign_key_check``). Opens read-only."""
     db = open_connection(path, read_only=True)
+    problems: list[str] = []
     try:
-        problems = [f"{path}: integrity: {row[0]}" for row in db.execute("PRAGMA integrity_check")
-                    if row[0] != "ok"]
+        # one row may hold many messages, one a line, the first under a "*** in database main ***" title
+        problems += [f"{path}: integrity: {message}" for row in db.execute("PRAGMA integrity_check")
+                     for message in str(row[0]).splitlines()
+                     if message not in ("ok", "") and not message.startswith("*** in database")]
         problems += [f"{path}: table {table} row {rowid}: {parent} id missing (foreign key {fk})"
                      for table, rowid, parent, fk in db.execute("PRAGMA foreign_key_check")]
-    except sqlite3.Error as exc:
-        problems = [f"{path}: {exc}"]
+    except sqlite3.Error as exc:  # a page too damaged to walk: what was found so far, then SQLite's words
+        problems.append(f"{path}: {exc}")
     finally:
         db.close()
     return problems

@@ -19,6 +19,7 @@ import logging
 import math
 import sqlite3
 import subprocess
+import time
 import uuid
 from collections.abc import Iterable, Iterator, Mapping, Sequence
 from dataclasses import dataclass
@@ -30,6 +31,7 @@ from bench import __version__
 from bench.errors import BenchError, ConfigError
 from bench.store.connection import GuardedConnection, open_connection, store_error
 from bench.store.ownership import RunLease, owner_of
+from bench.store.recovery import refuse_if_damaged
 from bench.store.schema import SCHEMA_VERSION, StoreSchemaError, default_bench_name, open_schema
 
 __all__ = [
@@ -49,6 +51,8 @@ _log = logging.getLogger(__name__)
 RUN_STATUSES = ("running", "completed", "failed", "aborted")
 #: The status a stored ``running`` run reads as when no live process owns it (derived when read, never stored).
 INTERRUPTED = "interrupted"
+#: How long a checkpoint retries while a reader's older snapshot keeps part of the log out of the file, s.
+CHECKPOINT_RETRY_S = 0.5
 
 
 
@@ -152,7 +156,9 @@ class Store:
         This bench's name, recorded on every run it starts (default: the host name).
     read_only : bool
         Open for reading only (``bench runs``, ``report``, ``export``, the results browser): the file must exist and
-        nothing is created or written (an older schema is still migrated first, with its backup). Another
+        nothing is created or written (an older schema is still migrated first, with its backup). Opened for
+        writing, a store that was not closed cleanly (a run left ``running`` by a process that is gone) is checked
+        first and refused when damaged (:mod:`bench.store.recovery`). Another
         application's SQLite file is refused in either mode, untouched; every database error of a query is one
         :class:`bench.store.connection.StoreError` line naming the file and what to do.
 
@@ -185,6 +191,8 @@ class Store:
                     raw.close()
                     raw = self._migrated()
             else:
+                if self.path != ":memory:":  # before anything is written: a damaged store is refused untouched
+                    refuse_if_damaged(raw, self.path)
                 self.backup = open_schema(raw, self.path, self.bench)
         except sqlite3.DatabaseError as exc:
             raw.close()
@@ -252,9 +260,23 @@ class Store:
     def checkpoint(self) -> None:
         """Copy the write-ahead log into the database file, so that the ``.db`` file alone (a backup of "the store
         file", a copy taken after a crash) holds every committed sample. The runner calls it at every checkpoint
-        step and at the end of every run segment; it waits for no reader (SQLite's PASSIVE mode)."""
+        step and at the end of every run segment.
+
+        SQLite's PASSIVE mode blocks nothing, but it cannot copy the log past the snapshot of a reader that began
+        before the last commit (``bench runs``, the results browser, a test's poll): it then copies part of the
+        log. Such readers last milliseconds, so the checkpoint is retried until the whole log is in the file or
+        :data:`CHECKPOINT_RETRY_S` has passed (then a warning: the next checkpoint copies the rest)."""
+        deadline = time.monotonic() + CHECKPOINT_RETRY_S
         try:
-            self._db.execute("PRAGMA wal_checkpoint(PASSIVE)")
+            while True:
+                _busy, log_frames, copied = self._db.execute("PRAGMA wal_checkpoint(PASSIVE)").fetchone()
+                if copied >= log_frames:  # all of it (-1, -1: not in WAL mode, a store in memory)
+                    return
+                if time.monotonic() > deadline:
+                    _log.warning("store %s: checkpoint copied %d of %d log frames (a reader held an older "
+                                 "snapshot for %g s)", self.path, copied, log_frames, CHECKPOINT_RETRY_S)
+                    return
+                time.sleep(0.005)
         except sqlite3.Error as exc:
             raise BenchError(f"{self.path}: cannot checkpoint the store ({exc})") from None
 
@@ -313,6 +335,7 @@ class Store:
             if run_id is not None:
                 self.release(run_id)
             raise
+        self.checkpoint()  # from its first moment, a copy of the .db file alone is a store holding the run
         return run_id
 
     def set_status(self, run_id: int, status: str, reason: str | None = None) -> None:
