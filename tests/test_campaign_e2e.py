@@ -131,6 +131,18 @@ def test_each_protocol_completes_on_the_simulator(tmp_path, name):
             assert deviations[("6.8", "poses")] == deviations[("6.6", "load")] == "deviates"
 
 
+def test_a_stored_design_key_is_left_out_on_resume_but_refused_in_a_protocol_file():
+    from bench.errors import ConfigError
+    from bench.protocols import protocol_from_config
+
+    config = PROTOCOLS["dissertation_pose"](variant="alpha", cycles=3).config()
+    assert config["loads_kg"] == [0.0] and len(config["poses"]) == 15
+    rebuilt = protocol_from_config(config, source="run 1", stored=True)
+    assert rebuilt.config() == config
+    with pytest.raises(ConfigError, match="p.toml: unknown key 'loads_kg'"):
+        protocol_from_config({"protocol": "dissertation_pose", "loads_kg": [1.0]}, source="p.toml")
+
+
 def _campaign(tmp_path, *, ideal: bool, seed: int, cycles: int) -> pd.DataFrame:
     with Store(tmp_path / f"{ideal}.db") as store:
         rig = simulated_rig("pkm5", seed=seed, speed_factor=20000, ideal=ideal)

@@ -96,7 +96,7 @@ def test_a_reading_cancelled_in_the_dialog_ends_the_run_resumable(window, tmp_pa
     wait_for(lambda: window.campaign_panel.worker is None, RUN_TIMEOUT_S, "the resumed run to end")
     (resumed,), samples = _runs(tmp_path)
     steps = [s.step_index for s in samples[run.id]]
-    assert resumed.status == "completed", resumed.reason
+    assert resumed.status == "completed", (resumed.reason, window.log.toPlainText()[-1500:])
     assert len(steps) == len(set(steps)) == resumed.n_samples
     assert {s.kind for s in samples[run.id]} == {"pose", "tilt"} and samples[run.id][0].kind == "pose"
 

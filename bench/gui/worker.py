@@ -171,7 +171,7 @@ class CampaignWorker(QThread):
             while self.jobs and not self._cancelled:
                 job, robot = self.jobs.pop(0), "robot"
                 try:
-                    protocol = (protocol_from_config(store.run(job).config, source=f"run {job}")
+                    protocol = (protocol_from_config(store.run(job).config, source=f"run {job}", stored=True)
                                 if isinstance(job, int) else job)
                     robot = protocol.robot
                     stored = store.run(job).settings if isinstance(job, int) else None
@@ -230,7 +230,8 @@ class CampaignWorker(QThread):
         self.samples_loaded.emit(run_id, _unix_s(record.started_utc), [
             {"step_index": s.step_index, "kind": s.kind, "pose": s.pose, "cycle": s.cycle, "t_s": s.t_s,
              "wall_s": _unix_s(s.wall_utc), "values": s.values, "raw": s.raw} for s in stored])
-        protocol = job if isinstance(job, Protocol) else protocol_from_config(record.config, source=f"run {run_id}")
+        protocol = job if isinstance(job, Protocol) else protocol_from_config(record.config, source=f"run {run_id}",
+                                                                               stored=True)
         total = sum(1 for step in iterate(protocol, final=False) if isinstance(step, Prompt) and step.field)
         taken = sum(1 for s in stored if isinstance(s.raw, dict) and "field" in s.raw and "entered" in s.raw)
         self._readings = (taken, total)

@@ -41,6 +41,9 @@ class Protocol:
     version: ClassVar[str] = "0"
     title: ClassVar[str] = ""
     robots: ClassVar[tuple[str, ...]] = ("pkm5", "delta4")
+    #: Keys :meth:`config` adds that state the protocol's fixed design for the report (not parameters): a stored
+    #: run's configuration carries them, and rebuilding the protocol from it (a resume) leaves them out.
+    design_keys: ClassVar[tuple[str, ...]] = ()
 
     robot = ChoiceParameter("pkm5", choices=("pkm5", "delta4"), description="robot the protocol drives")
     min_inverse_condition = FloatParameter(DEFAULT_SINGULARITY_THRESHOLD, minimum=0.0, maximum=1.0,
@@ -103,8 +106,9 @@ class Protocol:
         """Called once the run has completed (e.g. to store a fitted calibration); default: nothing."""
 
 
-def protocol_from_config(config: Mapping[str, Any], source: str = "parameters") -> Protocol:
-    """Build a protocol from a mapping with a ``protocol`` key (a TOML document or a stored run's config)."""
+def protocol_from_config(config: Mapping[str, Any], source: str = "parameters", *, stored: bool = False) -> Protocol:
+    """Build a protocol from a mapping with a ``protocol`` key (a TOML document or, ``stored``, a stored run's
+    config, whose design keys are left out; in a TOML file they are unknown keys like any other)."""
     values = dict(config)
     name = values.pop("protocol", None)
     values.pop("protocol_version", None)
@@ -112,6 +116,9 @@ def protocol_from_config(config: Mapping[str, Any], source: str = "parameters") 
         raise ConfigError(f"{source}: missing key 'protocol', expected one of {', '.join(sorted(PROTOCOLS))}")
     if name not in PROTOCOLS:
         raise ConfigError(f"{source}: protocol = {name!r}, expected one of {', '.join(sorted(PROTOCOLS))}")
+    if stored:
+        for key in PROTOCOLS[name].design_keys:
+            values.pop(key, None)
     return PROTOCOLS[name](source=source, **values)
 
 

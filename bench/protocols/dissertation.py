@@ -82,6 +82,7 @@ class DissertationPose(Protocol):
     cycles = IntegerParameter(10, minimum=2, description="repeats per point (000: 10)")
     velocity_pct = FloatParameter(100.0, unit="%", minimum=0.1, maximum=100.0, description="velocity")
     settle_s = FloatParameter(1.0, unit="s", minimum=0.0, maximum=600.0, description="dwell before a reading")
+    design_keys = ("poses", "loads_kg")
 
     def config(self) -> dict:
         """The parameters plus what the report's deviations table reads: the labelled target poses (mm, degrees,

@@ -270,7 +270,7 @@ class Runner:
         record = self.store.run(run_id)
         if record.status == "completed":
             raise ConfigError(f"run {run_id}: already completed, nothing to resume")
-        protocol = protocol_from_config(record.config, source=f"run {run_id}")
+        protocol = protocol_from_config(record.config, source=f"run {run_id}", stored=True)
         if protocol.version != record.protocol_version:
             raise ConfigError(f"run {run_id}: protocol {protocol.name} is now version {protocol.version}, the run "
                               f"used version {record.protocol_version}; cannot resume across versions")
