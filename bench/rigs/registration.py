@@ -71,7 +71,7 @@ CHECK_COVERAGE = 4.6
 #: RP / sigma for distances spread along one axis (half-normal): sqrt(2/pi) + 3 sqrt(1 - 2/pi).
 _RP_PER_SIGMA_ONE_AXIS = math.sqrt(2 / math.pi) + 3 * math.sqrt(1 - 2 / math.pi)
 #: Real seconds the robot is given to come to rest after the controller's DONE before the mice are read.
-SETTLE_S = 0.5
+SETTLE_S = 0.25
 
 
 class RegistrationError(BenchError):
