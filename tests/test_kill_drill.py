@@ -23,6 +23,7 @@ import subprocess
 import time
 from dataclasses import dataclass
 from datetime import datetime
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -71,6 +72,8 @@ class Drill:
     truth: list[dict]
     registrations: list[dict]  # as stored with the run, one per segment
     stops: list[tuple[str, int, str | None, str | None]]  # per signal: name, exit code, status, reason
+    store: Path
+    run_id: int
 
     def offsets_mm(self, samples=None) -> np.ndarray:
         """Measured minus true (x, y, z) of each sample, mm."""
@@ -164,7 +167,8 @@ def drill(tmp_path_factory) -> Drill:
     with Store(store, read_only=True) as opened:
         samples = opened.samples(run_id)
         registrations = opened.run(run_id).settings["registrations"]
-    return Drill(samples, _rows(store, run_id), snapshots, kills_at, status, truth, registrations, stops)
+    return Drill(samples, _rows(store, run_id), snapshots, kills_at, status, truth, registrations, stops, store,
+                 run_id)
 
 
 @pytest.mark.slow
@@ -203,3 +207,25 @@ def test_one_registration_per_segment_and_every_segment_within_its_registration_
         assert _spread_mm(drill.offsets_mm(group)) < TRUTH_TOLERANCE_MM, (segment, drill.offsets_mm(group))
         bound = COVERAGE * np.hypot(u[first], u[segment])
         assert np.all(np.abs(offsets[segment] - offsets[first]) <= bound), (segment, offsets, bound)
+
+
+@pytest.mark.slow
+def test_the_export_and_the_report_say_which_registration_each_row_is_from(drill):
+    from bench.reports.content import collect
+    from bench.reports.summary import registration_blocks
+    from bench.store import tidy_table
+
+    segment_of = {s.step_index: segment for segment, group in drill.by_registration().items() for s in group}
+    with Store(drill.store, read_only=True) as opened:
+        table = tidy_table(opened, drill.run_id)
+        report = collect(opened, drill.run_id, resamples=20)
+        run = opened.run(drill.run_id)
+    assert dict(zip(table["step_index"], table["registration"])) == segment_of
+    largest_u = max(r["u_mm"] for r in drill.registrations)
+    for pose in report.poses:  # the registration term is in U(AP): k u at least
+        assert pose.ap_u.expanded_uncertainty >= 2.0 * largest_u, pose
+    paragraph, registrations = registration_blocks(run)
+    assert paragraph.text.startswith(f"RESUMED RUN OF A RELATIVE INSTRUMENT: the mice were registered at home "
+                                     f"{len(drill.registrations)} times")
+    assert [row[0] for row in registrations.rows] == [str(r["segment"]) for r in drill.registrations]
+    assert f"{largest_u:.3f} mm" in registrations.caption
