@@ -29,8 +29,8 @@ with :math:`r` the mice's resolution (one count), and :math:`k_T = 4.6` (the 99.
 quantile of the chi distribution with 3 degrees of freedom: a robot within its rated repeatability is refused
 once in 10^4 checks). :math:`\\sigma_R` is the largest per-axis standard deviation consistent with the rated pose
 repeatability RP = l̄ + 3 S_l (ISO 9283 7.2.2): the spread all along one axis (half-normal distances,
-l̄ + 3 S_l = (√(2/π) + 3 √(1 - 2/π)) σ = 2.606 σ); an isotropic spread gives 3.616 σ, so this is the conservative
-reading of a datasheet value.
+l̄ + 3 S_l = (√(2/π) + 3 √(1 - 2/π)) σ = 2.606 σ); an isotropic spread gives 3.616 σ, so this is the
+conservative reading of a datasheet value.
 
 Registration standard uncertainty per axis (the frame's offset from the robot's mean home, recorded with the run):
 :math:`u_{reg} = \\max(\\sigma_R, s_A) / \\sqrt{n}`, where :math:`s_A` is the type A standard deviation of the n
