@@ -102,3 +102,21 @@ def test_swapped_mice_are_refused_and_a_correct_registration_is_recorded(simulat
     assert entry["controller_steps"] == [800, 800, 800, 800, 1600, 1600]  # read back at home
     assert run.settings["instrument"]["registration_mm"] == pytest.approx(
         np.array(home_pose()[:3]) - entry["frame_shift_mm"], abs=1e-4)
+
+
+def test_registrations_are_appended_to_the_run_settings_and_rows_find_theirs(tmp_path):
+    from bench.errors import ConfigError
+    from bench.store.registrations import registration_of, registration_u_mm, registrations
+
+    with Store(tmp_path / "b.db") as store:
+        run_id = store.start_run(protocol_name="demo", protocol_version="1", robot="pkm5", config={},
+                                 settings={"registrations": [{"utc": "2026-12-02T05:00:00+00:00", "u_mm": 0.73,
+                                                              "segment": 1}]})
+        assert store.add_registration(run_id, {"utc": "2026-12-02T05:10:00+00:00", "u_mm": 0.74}) == 2
+        entries = registrations(store.run(run_id).settings)
+        with pytest.raises(ConfigError, match="run 99: no such run"):
+            store.add_registration(99, {"utc": "2026-12-02T05:20:00+00:00", "u_mm": 0.7})
+    assert [e["segment"] for e in entries] == [1, 2] and registration_u_mm(entries) == 0.74
+    assert [registration_of(t, entries) for t in ("2026-12-02T04:59:59+00:00", "2026-12-02T05:09:59.9+00:00",
+                                                  "2026-12-02T05:10:00+00:00")] == [None, 1, 2]
+    assert registration_u_mm([]) == 0.0 and registrations({}) == []
