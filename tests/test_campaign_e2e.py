@@ -262,8 +262,10 @@ def test_a_slow_operator_does_not_lose_the_run(tmp_path):
         assert (result.exit_status, result.samples) == ("completed", 6)
 
 
-def test_hardware_path_on_a_pty_and_mouse_fifos(capsys, tmp_path):
-    """``--port`` with the real driver on the simulator's pty and two mice on FIFOs (nothing moves them here)."""
+def test_hardware_path_on_a_pty_with_mice_that_see_nothing_is_refused_at_the_check_pose(capsys, tmp_path):
+    """``--port`` with the real driver on the simulator's pty and two mice on FIFOs that nothing moves (lifted mice,
+    a dead feed): the registration's check pose (bench.rigs.registration) reads home where home + (10, 6, 14) mm
+    was commanded, so the run is refused in one line before anything is stored."""
     from bench.simulators.rig import start_simulator
 
     process, pty = start_simulator("pkm5", seed=0, speed_factor=20000)
@@ -277,13 +279,13 @@ def test_hardware_path_on_a_pty_and_mouse_fifos(capsys, tmp_path):
         quick = tmp_path / "quick.toml"
         quick.write_text(QUICK.read_text().replace("settle_s = 0.5", "settle_s = 0"))
         assert main(["run", str(quick), "--store", db, "--port", pty, "--mouse-xy", fifos[0], "--mouse-xz", fifos[1],
-                     "--no-progress"]) == 0
+                     "--no-progress"]) == 1
+        err = capsys.readouterr().err.strip().splitlines()[-1]
+        assert err.startswith("bench: error: registration check: at the check pose home + (10.0, 6.0, 14.0) mm the "
+                              "instruments read (-10.00, -6.00, -14.00) mm = 18.22 mm from the commanded pose, "
+                              "tolerance 6.74 mm"), err
         with Store(db) as store:
-            run = store.run(_run_id(capsys))
-            assert run.status == "completed" and run.settings["robot"]["port"] == pty
-            assert store.calibration_by_id(run.calibration_ids[0]).params["nominal"] is True
-            table = tidy_table(store, run.id)
-            assert np.allclose(table[["x_mm", "y_mm", "z_mm"]], [88.649, 0.0, 300.937])  # registration at home
+            assert store.runs() == []
     finally:
         for writer in writers:
             os.close(writer)

@@ -13,8 +13,10 @@ import pytest
 from bench.cli import main
 from bench.errors import ConfigError
 from bench.launch import RigRequest, open_rig
+from bench.metrology.uncertainty import resolution_uncertainty
 from bench.protocols import Runner, load_protocol
 from bench.protocols.plan import iterate, required_capabilities
+from bench.rigs.registration import CHECK_RETURNS
 from bench.rigs.station import load_station, parse_station
 from bench.robots import pkm5_wire as wire
 from bench.simulators.pkm5 import Pkm5SimDevice
@@ -184,9 +186,10 @@ def test_pkm5_with_mice_on_the_hardware_path_measures_the_true_displacements(tmp
         moves += isinstance(step, Move)
         if isinstance(step, Capture):
             at_capture.append(moves - 1)
-    assert len(truth) == moves
-    offset = measured - truth[at_capture, :3]
-    # registered at the commanded home, so every reading is off by the robot's own home error, and only by it:
+    checks = 2 * CHECK_RETURNS  # the registration's check moves come first (bench.rigs.registration)
+    assert len(truth) == checks + moves
+    offset = measured - truth[checks:][at_capture, :3]
+    # registered at the mean return home, so every reading is off by the robot's own home error, and only by it:
     # the spread of that offset is the mice's (a count is 0.032 mm, 0.05 counts of noise)
     assert np.ptp(offset, axis=0).max() < 0.1, offset
     assert np.linalg.norm(offset.mean(axis=0)) < 3.0
@@ -199,7 +202,12 @@ def test_a_hardware_path_run_is_exported_analysed_and_reported_with_equal_number
     run_id = int(capsys.readouterr().out.split()[-1])
     table = tmp_path / "run.csv"
     assert main(["export", str(run_id), "--store", str(store), "--out", str(table)]) == 0
-    assert main(["analyze", "iso9283", str(table), "--json"]) == 0
+    with Store(store, read_only=True) as opened:  # the run's instrument term (resolution) and its registration's
+        run = opened.run(run_id)
+    (registration,) = run.settings["registrations"]
+    instrument_u_mm = float(np.hypot(resolution_uncertainty(run.settings["instrument"]["resolution_mm"],
+                                                            difference=True), registration["u_mm"]))
+    assert main(["analyze", "iso9283", str(table), "--json", "--instrument-u-mm", str(instrument_u_mm)]) == 0
     analysed = json.loads(capsys.readouterr().out.splitlines()[-1])["poses"]
     out = tmp_path / "reports"
     assert main(["report", str(run_id), "--store", str(store), "--out", str(out)]) == 0

@@ -126,8 +126,9 @@ def build_rig(args: argparse.Namespace, robot: str, store: Store, stored: dict[s
     from bench.calibration_compensation import describe_in_force
     from bench.launch import open_rig
 
-    rig = open_rig(rig_request(args), store, robot=robot, stored=stored, fixture=fixture, requires=requires,
-                   protocol=protocol)
+    with _stop_signals_interrupt():  # homing and the registration's check moves are a safe stop too
+        rig = open_rig(rig_request(args), store, robot=robot, stored=stored, fixture=fixture, requires=requires,
+                       protocol=protocol)
     print(f"bench: {describe_in_force(rig)}", file=sys.stderr)
     return rig
 
@@ -135,6 +136,26 @@ def build_rig(args: argparse.Namespace, robot: str, store: Store, stored: dict[s
 #: Signals that end a run like a double Ctrl-C: the robot is stopped, the run ends aborted and resumable (systemd
 #: and docker send SIGTERM; a closed terminal sends SIGHUP).
 STOP_SIGNALS = (signal.SIGTERM, signal.SIGHUP)
+
+
+def _raise_interrupt(signum: int, frame: Any) -> None:
+    name = signal.Signals(signum).name
+    print(f"\nbench: {name}: stopping the robot and aborting the run (resumable)", file=sys.stderr)
+    raise KeyboardInterrupt(name)
+
+
+@contextmanager
+def _stop_signals_interrupt() -> Iterator[None]:
+    """While the rig opens (homing, the registration's check moves): SIGTERM and SIGHUP interrupt like Ctrl-C, so
+    the rig builder closes what it opened (the controller stops) and the run is left as it was, resumable."""
+    previous = {number: signal.getsignal(number) for number in STOP_SIGNALS}
+    for number in STOP_SIGNALS:
+        signal.signal(number, _raise_interrupt)
+    try:
+        yield
+    finally:
+        for number, handler in previous.items():
+            signal.signal(number, handler)
 
 
 @contextmanager
@@ -147,14 +168,9 @@ def _ctrl_c_pauses(runner: Runner) -> Iterator[None]:
         print("\nbench: pausing at the next checkpoint (Ctrl-C again aborts now)", file=sys.stderr)
         runner.request_pause()
 
-    def on_stop_signal(signum: int, frame: Any) -> None:
-        name = signal.Signals(signum).name
-        print(f"\nbench: {name}: stopping the robot and aborting the run (resumable)", file=sys.stderr)
-        raise KeyboardInterrupt(name)
-
     signal.signal(signal.SIGINT, on_signal)
     for number in STOP_SIGNALS:
-        signal.signal(number, on_stop_signal)
+        signal.signal(number, _raise_interrupt)
     try:
         yield
     finally:

@@ -26,6 +26,11 @@ is stored or resumed until its status is settled; resuming a run another live pr
 configuration, replays it without acting up to the last ``Checkpoint`` before the first missing sample, then acts
 from there, skipping every step whose sample is already stored (its stored values are sent back instead).
 
+A rig whose instruments are relative (the mice) brings a registration record (``rig.extra["registration"]``, made by
+:mod:`bench.rigs.registration`); the runner files it in the run's settings, ``registrations``, one per segment (the
+start and every resume), with the step it acts from. A sample belongs to the last registration stored before it
+(by ``utc`` against the sample's ``wall_utc``).
+
 Sample times ``t_s`` are seconds since the run started in the rig's time base (:meth:`Rig.time_base`, stored in
 the run settings as ``time_base``): wall seconds on hardware, simulated seconds (wall x speed factor) on a
 sped-up simulator, so that drift and stabilisation windows mean the same on both. Everything the host does
@@ -251,8 +256,12 @@ class Runner:
     def run(self, protocol: Protocol, *, campaign: str | None = None) -> RunResult:
         """Pre-flight ``protocol``, store a new run, perform it; returns how it ended."""
         preflight(protocol)
+        settings = self.rig.settings()
+        registration = settings.pop("registration", None)
+        if registration is not None:  # segment 1 (bench.rigs.registration); a resume appends its own
+            settings["registrations"] = [{**registration, "segment": 1, "from_step": 0}]
         run_id = self.store.start_run(protocol_name=protocol.name, protocol_version=protocol.version,
-                                      robot=protocol.robot, config=protocol.config(), settings=self.rig.settings(),
+                                      robot=protocol.robot, config=protocol.config(), settings=settings,
                                       calibration_ids=self.rig.calibration_ids, campaign=campaign)
         return self._perform(protocol, run_id, stored={}, start_at=0)
 
@@ -284,6 +293,12 @@ class Runner:
                          self.rig.time_base())
         stored = {s.step_index: self._reply_of(s) for s in self.store.samples(run_id)}
         start_at = resume_point(protocol, stored)
+        registration = self.rig.extra.get("registration")
+        if registration is not None:  # a new segment: the instruments were registered again (bench.rigs.registration)
+            self.store.add_registration(run_id, {**registration, "from_step": start_at})
+        elif record.settings.get("registrations"):
+            raise ConfigError(f"run {run_id}: its instruments were registered at a check pose, this rig's were not; "
+                              "resume it on the rig that made it")
         self.store.set_status(run_id, "running")
         return self._perform(protocol, run_id, stored=stored,
                              start_at=start_at if start_at is not None else 10**12)

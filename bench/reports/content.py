@@ -61,6 +61,7 @@ from bench.metrology.tables import (
 )
 from bench.reports.deviations import CLAUSES_APPLIED, Deviation, iso_deviations
 from bench.store import CalibrationRecord, RunRecord, Store, series_table, tidy_table
+from bench.store.registrations import registration_u_mm, registrations
 
 __all__ = ["CRITERIA", "MM_PER_INCH", "CalibrationFit", "Decision", "DistanceRow", "InstrumentInfo", "PayloadRow",
            "ReportBase", "RunReport", "VapRow", "analysis_table", "calibration_fits", "calibrations_in_force",
@@ -383,7 +384,9 @@ def collect(store: Store, run_id: int, *, criteria: Mapping[str, float] | None =
     calibrations = calibrations_in_force(store, run)
     fits = tuple(fit for record in calibrations for fit in calibration_fits(store, record))
     instrument = counts_instrument(run, calibrations, sum(c in table.columns for c in _POSITION), fits)
-    poses = report_order(analyze_poses(table, instrument_u_mm=instrument.sigma_mm or 0.0, k=k, resamples=resamples))
+    # a relative instrument's frame is known to its registrations' u: AP carries it (bench.store.registrations)
+    ap_u_mm = combine(instrument.sigma_mm or 0.0, registration_u_mm(registrations(run.settings)))
+    poses = report_order(analyze_poses(table, instrument_u_mm=ap_u_mm, k=k, resamples=resamples))
     protocol = run.protocol_name
     cycles = int(table.groupby(["pose", *[c for c in ("velocity_pct", "load_kg") if c in table.columns]])
                  .size().min())

@@ -201,5 +201,31 @@ def summary_section(report, identity: Identity, history: Sequence[HistoryEvent],
         blocks.append(Paragraph(f"Decision rule: {report.decision.rule}."))
     blocks.append(Table("history", ("Time (UTC)", "Event"), tuple((e.time_utc, e.event) for e in history),
                         "Run history"))
+    blocks.extend(registration_blocks(run))
     return Section("Summary", tuple(blocks))
+
+
+def registration_blocks(run: RunRecord) -> list:
+    """The registrations of a relative instrument (:mod:`bench.store.registrations`), one per segment, and, for a
+    resumed run, what they mean for its numbers; nothing for a run without them."""
+    from bench.reports.document import Paragraph, Table
+    from bench.store.registrations import registration_u_mm, registrations
+
+    entries = registrations(run.settings)
+    if not entries:
+        return []
+    rows = tuple((str(e["segment"]), _seconds(e["utc"]), str(e.get("from_step", "—")),
+                  f"{e['check_discrepancy_max_mm']:.3f}", f"{e['tolerance_mm']:.2f}", f"{e['u_mm']:.3f}")
+                 for e in entries)
+    blocks: list = []
+    if len(entries) > 1:
+        blocks.append(Paragraph(
+            f"RESUMED RUN OF A RELATIVE INSTRUMENT: the mice were registered at home {len(entries)} times (export "
+            "column registration). Rows of two registrations share a frame only within √(u_i² + u_j²) per axis; "
+            "a pose measured in several of them has that spread in its RP."))
+    blocks.append(Table("registrations", ("Segment", "Registered (UTC)", "From step", "Check discrepancy (mm)",
+                                          "Tolerance (mm)", "u per axis (mm)"), rows,
+                        f"Registrations at home, each verified at the check pose (bench.rigs.registration); the U "
+                        f"of AP includes the largest u, {registration_u_mm(entries):.3f} mm"))
+    return blocks
 

@@ -8,7 +8,9 @@ The command line (``bench run --station``) and the desktop app build rigs here a
    refused by the operating system's lock), identifies and enables the controller;
 3. records the calibrations in force get-or-create in the store (a nominal one, flagged as such, when none was
    measured yet), so every sample names them;
-4. closes everything it opened, newest first, when a later device fails.
+4. registers relative instruments (the mice) at home and verifies them at a check pose before anything is measured
+   (:mod:`bench.rigs.registration`; the record goes into ``rig.extra["registration"]``);
+5. closes everything it opened, newest first, when a later device fails.
 
 Production code never imports :mod:`bench.simulators`; a simulated station is a station whose devices are
 simulator processes (:func:`bench.simulators.station.rehearse`), built here by the same code as hardware.
@@ -24,6 +26,7 @@ from bench.errors import ConfigError, LinkError
 from bench.rigs.gauges import CalliperOnly, GaugeOperator
 from bench.rigs.interfaces import Operator, Rig
 from bench.rigs.movers import DeltaMover, Pkm5Mover
+from bench.rigs.registration import home_before_registering, register_at_home
 from bench.rigs.station import CAPTURE_CAPABILITIES, Station
 from bench.robots.link import open_port
 
@@ -79,6 +82,11 @@ def build_rig(station: Station, store: Any, *, operator: Operator | None = None,
         if station.robot == "pkm5" and station.controller.fixture == "assembled" and (station.mice or station.camera):
             home_before_registering(controller)
         instrument = _open_instrument(station, controller, store, requires, opened, calibration_ids)
+        from bench.rigs.mice import MiceInstrument
+
+        registration = None
+        if isinstance(instrument, MiceInstrument):  # relative: verified at the check pose before anything is stored
+            registration = register_at_home(controller, instrument, speed_factor=speed_factor)
         if station.calliper is not None and station.calliper.kind == "serial":
             operator = GaugeOperator(_open_calliper(station, opened), operator, timeout_s=station.calliper.timeout_s)
         closers = opened.pop_all()
@@ -86,6 +94,8 @@ def build_rig(station: Station, store: Any, *, operator: Operator | None = None,
               closers=[closers.close])
     rig.extra["station"] = station.settings()
     rig.extra["dut"] = station_identity(station)
+    if registration is not None:
+        rig.extra["registration"] = registration  # the runner files it as the run's (or the segment's)
     return rig
 
 
@@ -116,21 +126,6 @@ def _open_port(station: Station, key: str, url: str, baud: int, opened: ExitStac
                         "name right and the port free? (bench station check)") from None
     opened.callback(port.close)
     return port
-
-
-def home_before_registering(controller: Any) -> None:
-    """Know where the robot is before measuring: the instruments are registered at the home pose, so a robot that
-    stands anywhere else (a killed run, a resumed one, a move by hand through the firmware) is first brought home,
-    pre-flighted, at the rated speed. Without this a resume registers the mice at P4 as if it were home and every
-    later reading is off by the distance between them."""
-    from bench.robots.pkm5_kinematics import home_steps
-
-    home = tuple(int(s) for s in home_steps())
-    where = controller.position()
-    if tuple(where.steps) != home:
-        _log.warning("pkm5 at steps %s, not at home %s: moving home before registering the instruments",
-                     where.steps, home)
-        controller.move_steps(home)
 
 
 def _open_robot(station: Station, opened: ExitStack) -> tuple[Any, Any]:
@@ -189,7 +184,7 @@ def _open_mice(station: Station, store: Any, opened: ExitStack, calibration_ids:
     for plane, path in (("xy", spec.xy), ("xz", spec.xz)):
         mice[plane] = EvdevMouse(path, calibration, label=f"mouse_{plane}", grab=spec.grab)
         opened.callback(mice[plane].close)
-    # registered at the home pose: the robot must stand there when the rig is built (the documents' start-up)
+    # zeroed at the home pose (the robot was homed), then verified at the check pose (bench.rigs.registration)
     instrument = MiceInstrument(mice, _home("pkm5"), calibration, follow=True, noise_counts=spec.noise_counts)
     opened.callback(instrument.close)
     return instrument

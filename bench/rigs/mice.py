@@ -89,6 +89,16 @@ class MiceInstrument:
         with self._lock:
             return self.mice["xy"].reading(), self.mice["xz"].reading()
 
+    def position_mm(self) -> np.ndarray:
+        """The position (x, y, z) the mice read now, mm (the registration's check, :mod:`bench.rigs.registration`)."""
+        xy, xz = self._read()
+        return np.array([*(self.origin[:2] + np.asarray(xy.value)), self.origin[2] + xz.value[1]], dtype=float)
+
+    def shift_origin(self, shift_mm) -> None:
+        """Move the frame by ``shift_mm`` (x, y, z): every later reading is ``shift_mm`` smaller (the registration
+        re-referenced to the mean return home)."""
+        self.origin = self.origin - np.asarray(shift_mm, dtype=float)[:3]
+
     def measure(self, capture: Capture) -> Measurement:
         if capture.kind == ARRIVAL:
             return self._measure_arrival(capture)
@@ -99,7 +109,7 @@ class MiceInstrument:
             return Measurement({k: float(v) for k, v in counts.items()},
                                raw={"calibration": self.calibration.calibration_id})
         x_mm, y_mm = self.origin[:2] + np.asarray(xy.value)
-        z_mm = self.origin[2] + xz.value[1]
+        z_mm = self.origin[2] + xz.value[1]  # as position_mm, with the raw counts kept
         return Measurement({"x_mm": float(x_mm), "y_mm": float(y_mm), "z_mm": float(z_mm)},
                            raw={"counts_xy": list(xy.raw), "counts_xz": list(xz.raw), "valid": bool(xy.valid
                                                                                                    and xz.valid),

@@ -347,6 +347,25 @@ class Store:
         self._db.execute("UPDATE runs SET status = ?, reason = ?, ended_utc = ? WHERE id = ?",
                          (status, reason, ended, run_id))
 
+    def add_registration(self, run_id: int, registration: Mapping[str, Any]) -> int:
+        """Append one registration of the run's instruments (a run segment, :mod:`bench.rigs.registration`) to its
+        settings' ``registrations`` list, in one transaction; returns its number (1 for the first)."""
+        self._db.execute("BEGIN IMMEDIATE")
+        try:
+            row = self._db.execute("SELECT settings_json FROM runs WHERE id = ?", (int(run_id),)).fetchone()
+            if row is None:
+                raise ConfigError(f"run {run_id}: no such run in {self.path}")
+            settings = json.loads(row[0])
+            entries = settings.setdefault("registrations", [])
+            entries.append({**registration, "segment": len(entries) + 1})
+            self._db.execute("UPDATE runs SET settings_json = ? WHERE id = ?",
+                             (_to_json(settings, "settings"), int(run_id)))
+            self._db.execute("COMMIT")
+        except BaseException:
+            self._db.execute("ROLLBACK")
+            raise
+        return len(entries)
+
     def run(self, run_id: int) -> RunRecord:
         """The stored run ``run_id``; ``ConfigError`` names the id when there is none."""
         rows = self._select_runs("WHERE r.id = ?", (int(run_id),))

@@ -10,6 +10,10 @@ Samples that hold a streamed series (kind ``arrival``: the position from before 
 the pose had settled) export with ``series=True`` as one row per point of each series: ``pose, cycle, cmd_*,
 velocity_pct, load_kg`` of the sample, then ``t_s`` (relative to the move-done signal) and the measured columns
 (the input of ``bench analyze stabilisation``).
+
+A run measured by a relative instrument (the mice) adds ``registration``: the segment number of the registration
+each row was measured in (:mod:`bench.store.registrations`); rows of different registrations share a frame only
+within the registrations' uncertainty.
 """
 
 from __future__ import annotations
@@ -22,6 +26,7 @@ from typing import TYPE_CHECKING
 from bench.errors import ConfigError, InsufficientData
 from bench.store.database import Store
 from bench.store.descriptors import SAMPLE_KINDS, dtype_of, unit_of
+from bench.store.registrations import registration_of, registrations
 
 if TYPE_CHECKING:
     import pandas as pd
@@ -51,6 +56,10 @@ def tidy_table(store: Store, run_id: int, kind: str = "pose") -> pd.DataFrame:
         raise InsufficientData(f"run {run_id}: no {kind!r} samples to export")
     rows = [{"pose": s.pose, "cycle": s.cycle, **s.values, "t_s": s.t_s, "step_index": s.step_index}
             for s in samples]
+    entries = registrations(store.run(run_id).settings)
+    if entries:  # a relative instrument: which registration (segment) each row was measured in
+        for row, sample in zip(rows, samples):
+            row["registration"] = registration_of(sample.wall_utc, entries)
     table = pd.DataFrame(rows)
     if {"length_mm", "cmd_length_mm"} <= set(table.columns):  # manual leg readings: signed actuation error
         table["error_mm"] = table["length_mm"] - table["cmd_length_mm"]
