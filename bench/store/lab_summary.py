@@ -13,9 +13,17 @@ of the run's start), pose name, commanded velocity (``velocity_pct``, or none) a
 Only samples of kind ``pose`` with all three measured axes count (a laser-grid screen that did not decode leaves an
 axis absent: such samples are not partial poses here). RP needs n >= 2 and is None below that, with the reason.
 
-Two passes over the samples, each a parallel scan in the server: sums per run and pose key (a few hundred rows
-back), pooled here into each group's barycentre; then, with the barycentres sent back as arrays, the distances
-l_j summarised per group (``avg``, ``stddev_samp``: PostgreSQL's Youngs-Cramer accumulation).
+Kept at sync time (lab schema 3), by a statement trigger on ``bench.samples`` that sees each COPY's or INSERT's new
+rows (so every path that stores a sample, and only samples stored, counts once):
+
+- ``bench.pose_keys``: one row per run and pose key (pose, velocity, commanded position) with the sums of the
+  attained x, y, z and their count; pooled here into each group's barycentre (a few hundred rows read, no scan);
+- ``bench.pose_points``: the attained point of every pose sample and its key, a narrow table (about 60 bytes a row
+  where ``bench.samples`` holds about 290), scanned once with the barycentres sent as arrays indexed by key to
+  summarise the distances l_j per group (``avg``, ``stddev_samp``: PostgreSQL's Youngs-Cramer accumulation).
+
+l_j needs the group's barycentre, which runs synced later can move, so it cannot be kept at sync time; and sums of
+squares would cancel (positions near 300 mm, spreads near 1e-3 mm), so the distance pass stays exact per sample.
 """
 
 from __future__ import annotations
@@ -24,7 +32,7 @@ import datetime as dt
 import math
 from dataclasses import asdict, dataclass
 
-__all__ = ["PoseGroup", "pose_summary"]
+__all__ = ["POSE_TABLES_BACKFILL", "POSE_TABLES_DDL", "PoseGroup", "pose_summary"]
 
 _POSE_SAMPLES = """kind = 'pose' AND x_mm IS NOT NULL AND y_mm IS NOT NULL AND z_mm IS NOT NULL
     AND cmd_x_mm IS NOT NULL AND cmd_y_mm IS NOT NULL AND cmd_z_mm IS NOT NULL"""
@@ -32,31 +40,77 @@ _POSE_SAMPLES = """kind = 'pose' AND x_mm IS NOT NULL AND y_mm IS NOT NULL AND z
 _RUNS_SQL = """SELECT uuid, bench, robot, date_trunc('week', started_utc::timestamptz AT TIME ZONE 'UTC')::date
 FROM bench.runs r WHERE true {where}"""
 
-#: Pass 1: sums per run and pose key; a missing pose or velocity becomes '' or NaN (NaN equals NaN in PostgreSQL).
-_SUMS_SQL = """
-SELECT run_uuid, coalesce(pose, ''), coalesce(velocity_pct, 'NaN'), cmd_x_mm, cmd_y_mm, cmd_z_mm,
-       sum(x_mm), sum(y_mm), sum(z_mm), count(*)
-FROM bench.samples
-WHERE {pose_samples} AND run_uuid = ANY(%s::uuid[])
-GROUP BY 1, 2, 3, 4, 5, 6"""
+#: The pose key of a sample: a missing pose or velocity becomes '' or NaN (NaN equals NaN in PostgreSQL).
+_KEY = "run_uuid, coalesce(pose, ''), coalesce(velocity_pct, 'NaN'), cmd_x_mm, cmd_y_mm, cmd_z_mm"
 
-#: Pass 2: l_j against its group's barycentre, summarised per group ``g``.
+#: Fold the pose samples of ``{source}`` (new rows, or all of bench.samples for a migration) into the pose tables.
+_FOLD_SQL = f"""
+INSERT INTO bench.pose_keys AS k (run_uuid, pose, velocity_pct, cmd_x_mm, cmd_y_mm, cmd_z_mm, sum_x_mm, sum_y_mm,
+                                   sum_z_mm, n)
+SELECT {_KEY}, sum(x_mm), sum(y_mm), sum(z_mm), count(*) FROM {{source}} WHERE {_POSE_SAMPLES} GROUP BY 1, 2, 3, 4, 5, 6
+ON CONFLICT (run_uuid, pose, velocity_pct, cmd_x_mm, cmd_y_mm, cmd_z_mm) DO UPDATE SET
+    sum_x_mm = k.sum_x_mm + EXCLUDED.sum_x_mm, sum_y_mm = k.sum_y_mm + EXCLUDED.sum_y_mm,
+    sum_z_mm = k.sum_z_mm + EXCLUDED.sum_z_mm, n = k.n + EXCLUDED.n;
+INSERT INTO bench.pose_points (key, x_mm, y_mm, z_mm)
+SELECT k.id, s.x_mm, s.y_mm, s.z_mm FROM {{source}} s JOIN bench.pose_keys k
+    ON k.run_uuid = s.run_uuid AND k.pose = coalesce(s.pose, '') AND k.velocity_pct = coalesce(s.velocity_pct, 'NaN')
+       AND k.cmd_x_mm = s.cmd_x_mm AND k.cmd_y_mm = s.cmd_y_mm AND k.cmd_z_mm = s.cmd_z_mm
+WHERE s.kind = 'pose' AND s.x_mm IS NOT NULL AND s.y_mm IS NOT NULL AND s.z_mm IS NOT NULL;
+"""
+
+#: Lab schema 3: the pose tables and the trigger that keeps them (see the module docstring).
+POSE_TABLES_DDL = """
+CREATE TABLE IF NOT EXISTS bench.pose_keys (
+    id serial PRIMARY KEY,
+    run_uuid uuid NOT NULL REFERENCES bench.runs (uuid),
+    pose text NOT NULL,
+    velocity_pct double precision NOT NULL,
+    cmd_x_mm double precision NOT NULL,
+    cmd_y_mm double precision NOT NULL,
+    cmd_z_mm double precision NOT NULL,
+    sum_x_mm double precision NOT NULL,
+    sum_y_mm double precision NOT NULL,
+    sum_z_mm double precision NOT NULL,
+    n bigint NOT NULL,
+    UNIQUE (run_uuid, pose, velocity_pct, cmd_x_mm, cmd_y_mm, cmd_z_mm)
+);
+CREATE TABLE IF NOT EXISTS bench.pose_points (
+    key integer NOT NULL REFERENCES bench.pose_keys (id),
+    x_mm double precision NOT NULL,
+    y_mm double precision NOT NULL,
+    z_mm double precision NOT NULL
+);
+CREATE OR REPLACE FUNCTION bench.fold_new_pose_samples() RETURNS trigger LANGUAGE plpgsql AS $fold$
+BEGIN
+""" + _FOLD_SQL.format(source="new_samples") + """
+    RETURN NULL;
+END
+$fold$;
+DROP TRIGGER IF EXISTS samples_fold_pose ON bench.samples;
+CREATE TRIGGER samples_fold_pose AFTER INSERT ON bench.samples REFERENCING NEW TABLE AS new_samples
+    FOR EACH STATEMENT EXECUTE FUNCTION bench.fold_new_pose_samples();
+"""
+
+#: Lab schema 2 -> 3: the pose tables filled from the samples the server holds.
+POSE_TABLES_BACKFILL = ("TRUNCATE bench.pose_points, bench.pose_keys RESTART IDENTITY;"
+                        + _FOLD_SQL.format(source="bench.samples"))
+
+_KEYS_SQL = """
+SELECT id, run_uuid, pose, velocity_pct, cmd_x_mm, cmd_y_mm, cmd_z_mm, sum_x_mm, sum_y_mm, sum_z_mm, n
+FROM bench.pose_keys WHERE run_uuid = ANY(%s::uuid[])"""
+
+#: l_j against its group's barycentre, summarised per group; arrays indexed by key id (group NULL: not asked for).
 _DISTANCES_SQL = """
-SELECT k.g, avg(l), stddev_samp(l)
-FROM bench.samples s
-     JOIN unnest(%s::uuid[], %s::text[], %s::float8[], %s::float8[], %s::float8[], %s::float8[], %s::float8[],
-                 %s::float8[], %s::float8[], %s::int[]) AS k(run_uuid, pose, velocity_pct, cx, cy, cz, bx, by, bz, g)
-       ON s.run_uuid = k.run_uuid AND coalesce(s.pose, '') = k.pose
-          AND coalesce(s.velocity_pct, 'NaN') = k.velocity_pct AND s.cmd_x_mm = k.cx AND s.cmd_y_mm = k.cy
-          AND s.cmd_z_mm = k.cz,
-     LATERAL (SELECT sqrt((s.x_mm - k.bx) ^ 2 + (s.y_mm - k.by) ^ 2 + (s.z_mm - k.bz) ^ 2) AS l) AS distance
-WHERE {pose_samples}
-GROUP BY k.g"""
+SELECT g, avg(l), stddev_samp(l)
+FROM (SELECT (%(group)s::int[])[key] AS g,
+             sqrt((x_mm - (%(bx)s::float8[])[key]) ^ 2 + (y_mm - (%(by)s::float8[])[key]) ^ 2
+                  + (z_mm - (%(bz)s::float8[])[key]) ^ 2) AS l
+      FROM bench.pose_points WHERE key <= %(last)s) AS distance
+WHERE g IS NOT NULL
+GROUP BY g"""
 
-#: For these queries only: a hash join against the few hundred keys and hash aggregation (the planner cannot
-#: estimate the join of a parameter array and would sort a million rows); no JIT (compiling costs more than it saves).
-_SETTINGS = {"enable_mergejoin": "off", "enable_nestloop": "off", "enable_sort": "off", "jit": "off",
-             "work_mem": "64MB"}
+#: For the distance pass only: no JIT (compiling costs more than it saves), hash aggregation in memory.
+_SETTINGS = {"jit": "off", "work_mem": "64MB"}
 
 
 @dataclass(frozen=True)
@@ -107,10 +161,13 @@ def pose_summary(lab, *, since: str | None = None, until: str | None = None, ben
             for uuid, run_bench, run_robot, week in lab.query(_RUNS_SQL.format(where=" ".join(clauses)), args)}
     if not runs:
         return []
-    sums = lab.query(_SUMS_SQL.format(pose_samples=_POSE_SAMPLES), (list(runs),), settings=_SETTINGS)
+    sums = lab.query(_KEYS_SQL, (list(runs),))
     pooled: dict[tuple, list[float]] = {}
-    for run_uuid, pose, velocity, cx, cy, cz, sx, sy, sz, n in sums:
-        totals = pooled.setdefault(_group_key(runs[run_uuid], pose, velocity, cx, cy, cz), [0.0, 0.0, 0.0, 0])
+    group_of_key: dict[int, tuple] = {}
+    for key_id, run_uuid, pose, velocity, cx, cy, cz, sx, sy, sz, n in sums:
+        group = _group_key(runs[run_uuid], pose, velocity, cx, cy, cz)
+        group_of_key[key_id] = group
+        totals = pooled.setdefault(group, [0.0, 0.0, 0.0, 0])
         totals[0] += sx
         totals[1] += sy
         totals[2] += sz
@@ -118,12 +175,15 @@ def pose_summary(lab, *, since: str | None = None, until: str | None = None, ben
     keys = sorted(pooled, key=lambda key: (key[:4], key[4] is None, key[4] or 0.0, key[5:]))
     index = {key: g for g, key in enumerate(keys)}
     barycentres = {key: (sx / n, sy / n, sz / n) for key, (sx, sy, sz, n) in pooled.items()}
-    rows = [(run_uuid, pose, velocity, cx, cy, cz, *barycentres[key], index[key])
-            for run_uuid, pose, velocity, cx, cy, cz, *_ in sums
-            for key in [_group_key(runs[run_uuid], pose, velocity, cx, cy, cz)]]
-    distances = {g: (l_mean, s_l) for g, l_mean, s_l in lab.query(
-        _DISTANCES_SQL.format(pose_samples=_POSE_SAMPLES.replace("kind", "s.kind")), [list(c) for c in zip(*rows)],
-        settings=_SETTINGS)} if rows else {}
+    distances = {}
+    if group_of_key:
+        last = max(group_of_key)
+        arrays = {"group": [None] * last, "bx": [None] * last, "by": [None] * last, "bz": [None] * last}
+        for key_id, group in group_of_key.items():
+            arrays["group"][key_id - 1] = index[group]
+            arrays["bx"][key_id - 1], arrays["by"][key_id - 1], arrays["bz"][key_id - 1] = barycentres[group]
+        distances = {g: (l_mean, s_l) for g, l_mean, s_l in lab.query(
+            _DISTANCES_SQL, {**arrays, "last": last}, settings=_SETTINGS)}
     groups = []
     for key in keys:
         run_bench, run_robot, week, pose, velocity, cx, cy, cz = key
