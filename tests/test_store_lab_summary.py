@@ -198,3 +198,21 @@ def test_version_2_lab_store_gets_its_pose_tables_from_the_samples_it_holds(tmp_
         assert lab.query("SELECT version FROM bench.schema_version") == [(LAB_SCHEMA_VERSION,)]
         assert lab.query("SELECT count(*) FROM bench.pose_points") == [(len(samples),)]
         _assert_figures(pose_summary(lab), samples)
+
+
+def test_samples_changed_or_deleted_by_hand_are_refolded(tmp_path, lab_url):
+    paths, samples = make_campaigns(tmp_path)
+    for path in paths.values():
+        with Store(path) as store:
+            sync_store(store, lab_url)
+    with psycopg.connect(lab_url, autocommit=True) as conn:
+        conn.execute("UPDATE bench.samples SET x_mm = x_mm + 0.0 WHERE kind = 'pose'")
+        with LabStore(lab_url) as lab:
+            _assert_figures(pose_summary(lab), samples)
+        conn.execute("DELETE FROM bench.samples s USING bench.runs r WHERE r.uuid = s.run_uuid AND r.bench = 'bench-b'")
+        with LabStore(lab_url) as lab:
+            _assert_figures(pose_summary(lab), [s for s in samples if s[0] != "bench-b"])
+        conn.execute("TRUNCATE bench.samples")
+        with LabStore(lab_url) as lab:
+            assert pose_summary(lab) == []
+            assert lab.query("SELECT count(*) FROM bench.pose_points") == [(0,)]

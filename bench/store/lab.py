@@ -185,9 +185,9 @@ def ensure_schema(conn, url: str) -> None:
             found = None
         conn.execute(_DDL)
         conn.execute(typed_columns_ddl("bench.samples"))
-        conn.execute(POSE_TABLES_DDL)
         if found == 1:  # version 1 had no typed columns: fill them from the JSON the server holds
-            conn.execute(_BACKFILL_TYPED)
+            conn.execute(_BACKFILL_TYPED)  # (before the pose triggers, which would refold every run it updates)
+        conn.execute(POSE_TABLES_DDL)
         if found in (1, 2):  # versions 1 and 2 had no pose tables: fold the samples the server holds
             conn.execute(POSE_TABLES_BACKFILL)
             _log.warning("lab store %s: schema version %s migrated to %s", redacted(url), found, LAB_SCHEMA_VERSION)

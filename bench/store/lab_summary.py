@@ -14,7 +14,8 @@ Only samples of kind ``pose`` with all three measured axes count (a laser-grid s
 axis absent: such samples are not partial poses here). RP needs n >= 2 and is None below that, with the reason.
 
 Kept at sync time (lab schema 3), by a statement trigger on ``bench.samples`` that sees each COPY's or INSERT's new
-rows (so every path that stores a sample, and only samples stored, counts once):
+rows (so every path that stores a sample, and only samples stored, counts once); bench never changes or deletes a
+synced sample, but a hand-made ``UPDATE`` or ``DELETE`` refolds the runs it touched (``TRUNCATE`` empties them):
 
 - ``bench.pose_keys``: one row per run and pose key (pose, velocity, commanded position) with the sums of the
   attained x, y, z and their count; pooled here into each group's barycentre (a few hundred rows read, no scan);
@@ -47,12 +48,13 @@ _KEY = "run_uuid, coalesce(pose, ''), coalesce(velocity_pct, 'NaN'), cmd_x_mm, c
 _FOLD_SQL = f"""
 INSERT INTO bench.pose_keys AS k (run_uuid, pose, velocity_pct, cmd_x_mm, cmd_y_mm, cmd_z_mm, sum_x_mm, sum_y_mm,
                                    sum_z_mm, n)
-SELECT {_KEY}, sum(x_mm), sum(y_mm), sum(z_mm), count(*) FROM {{source}} WHERE {_POSE_SAMPLES} GROUP BY 1, 2, 3, 4, 5, 6
+SELECT {_KEY}, sum(x_mm), sum(y_mm), sum(z_mm), count(*) FROM {{source}} AS s WHERE {_POSE_SAMPLES}
+GROUP BY 1, 2, 3, 4, 5, 6
 ON CONFLICT (run_uuid, pose, velocity_pct, cmd_x_mm, cmd_y_mm, cmd_z_mm) DO UPDATE SET
     sum_x_mm = k.sum_x_mm + EXCLUDED.sum_x_mm, sum_y_mm = k.sum_y_mm + EXCLUDED.sum_y_mm,
     sum_z_mm = k.sum_z_mm + EXCLUDED.sum_z_mm, n = k.n + EXCLUDED.n;
 INSERT INTO bench.pose_points (key, x_mm, y_mm, z_mm)
-SELECT k.id, s.x_mm, s.y_mm, s.z_mm FROM {{source}} s JOIN bench.pose_keys k
+SELECT k.id, s.x_mm, s.y_mm, s.z_mm FROM {{source}} AS s JOIN bench.pose_keys k
     ON k.run_uuid = s.run_uuid AND k.pose = coalesce(s.pose, '') AND k.velocity_pct = coalesce(s.velocity_pct, 'NaN')
        AND k.cmd_x_mm = s.cmd_x_mm AND k.cmd_y_mm = s.cmd_y_mm AND k.cmd_z_mm = s.cmd_z_mm
 WHERE s.kind = 'pose' AND s.x_mm IS NOT NULL AND s.y_mm IS NOT NULL AND s.z_mm IS NOT NULL;
@@ -75,7 +77,7 @@ CREATE TABLE IF NOT EXISTS bench.pose_keys (
     UNIQUE (run_uuid, pose, velocity_pct, cmd_x_mm, cmd_y_mm, cmd_z_mm)
 );
 CREATE TABLE IF NOT EXISTS bench.pose_points (
-    key integer NOT NULL REFERENCES bench.pose_keys (id),
+    key integer NOT NULL,  -- a bench.pose_keys id; no foreign key: its check per row would slow every sync
     x_mm double precision NOT NULL,
     y_mm double precision NOT NULL,
     z_mm double precision NOT NULL
@@ -86,9 +88,33 @@ BEGIN
     RETURN NULL;
 END
 $fold$;
+CREATE OR REPLACE FUNCTION bench.refold_changed_pose_samples() RETURNS trigger LANGUAGE plpgsql AS $refold$
+BEGIN
+    DELETE FROM bench.pose_points p USING bench.pose_keys k
+        WHERE p.key = k.id AND k.run_uuid IN (SELECT run_uuid FROM old_samples);
+    DELETE FROM bench.pose_keys WHERE run_uuid IN (SELECT run_uuid FROM old_samples);
+""" + _FOLD_SQL.format(source="(SELECT * FROM bench.samples WHERE run_uuid IN (SELECT run_uuid FROM old_samples))") + """
+    RETURN NULL;
+END
+$refold$;
+CREATE OR REPLACE FUNCTION bench.empty_pose_tables() RETURNS trigger LANGUAGE plpgsql AS $empty$
+BEGIN
+    TRUNCATE bench.pose_points, bench.pose_keys;
+    RETURN NULL;
+END
+$empty$;
 DROP TRIGGER IF EXISTS samples_fold_pose ON bench.samples;
 CREATE TRIGGER samples_fold_pose AFTER INSERT ON bench.samples REFERENCING NEW TABLE AS new_samples
     FOR EACH STATEMENT EXECUTE FUNCTION bench.fold_new_pose_samples();
+DROP TRIGGER IF EXISTS samples_refold_pose_after_delete ON bench.samples;
+CREATE TRIGGER samples_refold_pose_after_delete AFTER DELETE ON bench.samples REFERENCING OLD TABLE AS old_samples
+    FOR EACH STATEMENT EXECUTE FUNCTION bench.refold_changed_pose_samples();
+DROP TRIGGER IF EXISTS samples_refold_pose_after_update ON bench.samples;
+CREATE TRIGGER samples_refold_pose_after_update AFTER UPDATE ON bench.samples REFERENCING OLD TABLE AS old_samples
+    FOR EACH STATEMENT EXECUTE FUNCTION bench.refold_changed_pose_samples();
+DROP TRIGGER IF EXISTS samples_empty_pose_tables ON bench.samples;
+CREATE TRIGGER samples_empty_pose_tables AFTER TRUNCATE ON bench.samples
+    FOR EACH STATEMENT EXECUTE FUNCTION bench.empty_pose_tables();
 """
 
 #: Lab schema 2 -> 3: the pose tables filled from the samples the server holds.
