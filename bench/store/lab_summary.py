@@ -42,21 +42,29 @@ _RUNS_SQL = """SELECT uuid, bench, robot, date_trunc('week', started_utc::timest
 FROM bench.runs r WHERE true {where}"""
 
 #: The pose key of a sample: a missing pose or velocity becomes '' or NaN (NaN equals NaN in PostgreSQL).
-_KEY = "run_uuid, coalesce(pose, ''), coalesce(velocity_pct, 'NaN'), cmd_x_mm, cmd_y_mm, cmd_z_mm"
+_KEY = ("run_uuid, coalesce(pose, '') AS pose, coalesce(velocity_pct, 'NaN') AS velocity_pct, cmd_x_mm, cmd_y_mm,"
+        " cmd_z_mm")
+_SAME_KEY = """k.run_uuid = {s}.run_uuid AND k.pose = coalesce({s}.pose, '')
+    AND k.velocity_pct = coalesce({s}.velocity_pct, 'NaN') AND k.cmd_x_mm = {s}.cmd_x_mm AND k.cmd_y_mm = {s}.cmd_y_mm
+    AND k.cmd_z_mm = {s}.cmd_z_mm"""
 
-#: Fold the pose samples of ``{source}`` (new rows, or all of bench.samples for a migration) into the pose tables.
+#: Fold the pose samples of ``{source}`` (new rows, or all of bench.samples for a migration) into the pose tables:
+#: new keys first (only those missing, so that key ids stay dense: a conflicting insert would use up an id), then
+#: the sums, then the points.
 _FOLD_SQL = f"""
-INSERT INTO bench.pose_keys AS k (run_uuid, pose, velocity_pct, cmd_x_mm, cmd_y_mm, cmd_z_mm, sum_x_mm, sum_y_mm,
-                                   sum_z_mm, n)
-SELECT {_KEY}, sum(x_mm), sum(y_mm), sum(z_mm), count(*) FROM {{source}} AS s WHERE {_POSE_SAMPLES}
-GROUP BY 1, 2, 3, 4, 5, 6
-ON CONFLICT (run_uuid, pose, velocity_pct, cmd_x_mm, cmd_y_mm, cmd_z_mm) DO UPDATE SET
-    sum_x_mm = k.sum_x_mm + EXCLUDED.sum_x_mm, sum_y_mm = k.sum_y_mm + EXCLUDED.sum_y_mm,
-    sum_z_mm = k.sum_z_mm + EXCLUDED.sum_z_mm, n = k.n + EXCLUDED.n;
+INSERT INTO bench.pose_keys (run_uuid, pose, velocity_pct, cmd_x_mm, cmd_y_mm, cmd_z_mm, sum_x_mm, sum_y_mm,
+                             sum_z_mm, n)
+SELECT DISTINCT {_KEY}, 0.0, 0.0, 0.0, 0 FROM {{source}} AS s WHERE {_POSE_SAMPLES}
+    AND NOT EXISTS (SELECT FROM bench.pose_keys k WHERE {_SAME_KEY.format(s="s")})
+ON CONFLICT DO NOTHING;
+UPDATE bench.pose_keys k SET sum_x_mm = k.sum_x_mm + a.sum_x_mm, sum_y_mm = k.sum_y_mm + a.sum_y_mm,
+                             sum_z_mm = k.sum_z_mm + a.sum_z_mm, n = k.n + a.n
+FROM (SELECT {_KEY}, sum(x_mm) AS sum_x_mm, sum(y_mm) AS sum_y_mm, sum(z_mm) AS sum_z_mm, count(*) AS n
+      FROM {{source}} AS s WHERE {_POSE_SAMPLES} GROUP BY 1, 2, 3, 4, 5, 6) AS a
+WHERE k.run_uuid = a.run_uuid AND k.pose = a.pose AND k.velocity_pct = a.velocity_pct AND k.cmd_x_mm = a.cmd_x_mm
+    AND k.cmd_y_mm = a.cmd_y_mm AND k.cmd_z_mm = a.cmd_z_mm;
 INSERT INTO bench.pose_points (key, x_mm, y_mm, z_mm)
-SELECT k.id, s.x_mm, s.y_mm, s.z_mm FROM {{source}} AS s JOIN bench.pose_keys k
-    ON k.run_uuid = s.run_uuid AND k.pose = coalesce(s.pose, '') AND k.velocity_pct = coalesce(s.velocity_pct, 'NaN')
-       AND k.cmd_x_mm = s.cmd_x_mm AND k.cmd_y_mm = s.cmd_y_mm AND k.cmd_z_mm = s.cmd_z_mm
+SELECT k.id, s.x_mm, s.y_mm, s.z_mm FROM {{source}} AS s JOIN bench.pose_keys k ON {_SAME_KEY.format(s="s")}
 WHERE s.kind = 'pose' AND s.x_mm IS NOT NULL AND s.y_mm IS NOT NULL AND s.z_mm IS NOT NULL;
 """
 
@@ -125,14 +133,17 @@ _KEYS_SQL = """
 SELECT id, run_uuid, pose, velocity_pct, cmd_x_mm, cmd_y_mm, cmd_z_mm, sum_x_mm, sum_y_mm, sum_z_mm, n
 FROM bench.pose_keys WHERE run_uuid = ANY(%s::uuid[])"""
 
-#: l_j against its group's barycentre, summarised per group; arrays indexed by key id (group NULL: not asked for).
+#: l_j against its group's barycentre, summarised per group; arrays indexed by key id - first + 1 over the keys'
+#: range (group -1: a key of a run not asked for). No NULL in the arrays: a subscript into an array with NULLs
+#: walks its null bitmap, one subscript into one without is one offset.
 _DISTANCES_SQL = """
 SELECT g, avg(l), stddev_samp(l)
-FROM (SELECT (%(group)s::int[])[key] AS g,
-             sqrt((x_mm - (%(bx)s::float8[])[key]) ^ 2 + (y_mm - (%(by)s::float8[])[key]) ^ 2
-                  + (z_mm - (%(bz)s::float8[])[key]) ^ 2) AS l
-      FROM bench.pose_points WHERE key <= %(last)s) AS distance
-WHERE g IS NOT NULL
+FROM (SELECT (%(group)s::int[])[key - %(first)s + 1] AS g,
+             sqrt((x_mm - (%(bx)s::float8[])[key - %(first)s + 1]) ^ 2
+                  + (y_mm - (%(by)s::float8[])[key - %(first)s + 1]) ^ 2
+                  + (z_mm - (%(bz)s::float8[])[key - %(first)s + 1]) ^ 2) AS l
+      FROM bench.pose_points WHERE key BETWEEN %(first)s AND %(last)s) AS distance
+WHERE g >= 0
 GROUP BY g"""
 
 #: For the distance pass only: no JIT (compiling costs more than it saves), hash aggregation in memory.
@@ -203,13 +214,15 @@ def pose_summary(lab, *, since: str | None = None, until: str | None = None, ben
     barycentres = {key: (sx / n, sy / n, sz / n) for key, (sx, sy, sz, n) in pooled.items()}
     distances = {}
     if group_of_key:
-        last = max(group_of_key)
-        arrays = {"group": [None] * last, "bx": [None] * last, "by": [None] * last, "bz": [None] * last}
+        first, last = min(group_of_key), max(group_of_key)
+        size = last - first + 1
+        arrays = {"group": [-1] * size, "bx": [0.0] * size, "by": [0.0] * size, "bz": [0.0] * size}
         for key_id, group in group_of_key.items():
-            arrays["group"][key_id - 1] = index[group]
-            arrays["bx"][key_id - 1], arrays["by"][key_id - 1], arrays["bz"][key_id - 1] = barycentres[group]
+            at = key_id - first
+            arrays["group"][at] = index[group]
+            arrays["bx"][at], arrays["by"][at], arrays["bz"][at] = barycentres[group]
         distances = {g: (l_mean, s_l) for g, l_mean, s_l in lab.query(
-            _DISTANCES_SQL, {**arrays, "last": last}, settings=_SETTINGS)}
+            _DISTANCES_SQL, {**arrays, "first": first, "last": last}, settings=_SETTINGS)}
     groups = []
     for key in keys:
         run_bench, run_robot, week, pose, velocity, cx, cy, cz = key
