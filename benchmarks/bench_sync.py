@@ -8,7 +8,8 @@
   sync/floor says what reading, formatting and the keyed, logged table cost.
 * Query: ``bench lab summary`` (``bench.store.lab_summary.pose_summary``: AP and RP, ISO 9283 7.2.1 and 7.2.2, per
   bench, robot, ISO week, pose, velocity and commanded position) over every synced sample, five times, after
-  ANALYZE (what autovacuum does soon after a large sync).
+  ANALYZE of bench.samples (what autovacuum does soon after a large sync); the pose tables the summary reads are
+  left unanalysed, the worst case right after a sync.
 
 Server: ``BENCH_TEST_POSTGRES`` when set, else a throwaway cluster (``tests/postgres_support.py``; needs Debian's
 postgresql). Usage: ``python benchmarks/bench_sync.py [--benches 10] [--samples 100000] [--runs 4]``.
