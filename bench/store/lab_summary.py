@@ -1,4 +1,4 @@
-"""Lab-wide pose accuracy and repeatability, computed by the PostgreSQL server from the typed value columns.
+"""Lab-wide pose accuracy and repeatability, computed by the PostgreSQL server from pose tables that sync keeps.
 
 One row per group of pose samples that ISO 9283 would pool: the same bench, robot, week (ISO week, Monday 00:00 UTC,
 of the run's start), pose name, commanded velocity (``velocity_pct``, or none) and commanded position. Per group, as
