@@ -17,7 +17,7 @@ psycopg = pytest.importorskip("psycopg", reason='the lab store needs psycopg 3 (
 from bench.cli import main  # noqa: E402
 from bench.metrology.iso9283 import pose_accuracy, pose_repeatability  # noqa: E402
 from bench.store import Store  # noqa: E402
-from bench.store.lab import LabStore, sync_store  # noqa: E402
+from bench.store.lab import LAB_SCHEMA_VERSION, LabStore, sync_store  # noqa: E402
 from bench.store.lab_copy import TYPED_COLUMNS  # noqa: E402
 from bench.store.lab_summary import pose_summary  # noqa: E402
 from postgres_support import lab_server, lab_url  # noqa: E402, F401  (fixtures)
@@ -157,8 +157,62 @@ def test_version_1_lab_store_is_migrated_with_its_typed_columns_filled(tmp_path,
     with Store(paths["bench-a"]) as store:
         sync_store(store, lab_url)
     with LabStore(lab_url) as lab:
-        assert lab.query("SELECT version FROM bench.schema_version") == [(2,)]
+        assert lab.query("SELECT version FROM bench.schema_version") == [(LAB_SCHEMA_VERSION,)]
         bench_b = lab.query(f"SELECT step_index, {columns} FROM bench.samples s JOIN bench.runs r"
                             " ON r.uuid = s.run_uuid WHERE r.bench = 'bench-b' ORDER BY step_index")
         assert bench_b == before
-        assert len(pose_summary(lab)) == len(expected_groups(samples))
+        _assert_figures(pose_summary(lab), samples)
+
+
+def _assert_figures(groups, samples):
+    got, expected = _figures(groups), _figures_expected(samples)
+    assert [key for key, _ in got] == [key for key, _ in expected]
+    assert [n for _, (n, _, _) in got] == [n for _, (n, _, _) in expected]
+    assert [v for _, f in got for v in f[1:]] == pytest.approx([v for _, f in expected for v in f[1:]], rel=1e-12,
+                                                                abs=1e-12)
+
+
+def _figures(groups):
+    return sorted(((g.bench, g.robot, str(g.week), g.pose, -1.0 if g.velocity_pct is None else g.velocity_pct),
+                   (g.n, g.ap_mm, -1.0 if g.rp_mm is None else g.rp_mm)) for g in groups)
+
+
+def _figures_expected(samples):
+    return sorted(((bench, robot, str(week), pose, -1.0 if velocity is None else velocity),
+                   (n, ap, -1.0 if rp is None else rp))
+                  for (bench, robot, week, pose, velocity), (n, ap, rp) in expected_groups(samples).items())
+
+
+def test_version_2_lab_store_gets_its_pose_tables_from_the_samples_it_holds(tmp_path, lab_url):
+    paths, samples = make_campaigns(tmp_path)
+    with Store(paths["bench-b"]) as store:
+        sync_store(store, lab_url)
+    with psycopg.connect(lab_url, autocommit=True) as conn:  # back to version 2: no pose tables, no trigger
+        conn.execute("DROP TRIGGER samples_fold_pose ON bench.samples")
+        conn.execute("DROP TABLE bench.pose_points, bench.pose_keys")
+        conn.execute("UPDATE bench.schema_version SET version = 2")
+    with Store(paths["bench-a"]) as store:
+        sync_store(store, lab_url)
+        sync_store(store, lab_url)  # nothing new: nothing folded twice
+    with LabStore(lab_url) as lab:
+        assert lab.query("SELECT version FROM bench.schema_version") == [(LAB_SCHEMA_VERSION,)]
+        assert lab.query("SELECT count(*) FROM bench.pose_points") == [(len(samples),)]
+        _assert_figures(pose_summary(lab), samples)
+
+
+def test_samples_changed_or_deleted_by_hand_are_refolded(tmp_path, lab_url):
+    paths, samples = make_campaigns(tmp_path)
+    for path in paths.values():
+        with Store(path) as store:
+            sync_store(store, lab_url)
+    with psycopg.connect(lab_url, autocommit=True) as conn:
+        conn.execute("UPDATE bench.samples SET x_mm = x_mm + 0.0 WHERE kind = 'pose'")
+        with LabStore(lab_url) as lab:
+            _assert_figures(pose_summary(lab), samples)
+        conn.execute("DELETE FROM bench.samples s USING bench.runs r WHERE r.uuid = s.run_uuid AND r.bench = 'bench-b'")
+        with LabStore(lab_url) as lab:
+            _assert_figures(pose_summary(lab), [s for s in samples if s[0] != "bench-b"])
+        conn.execute("TRUNCATE bench.samples")
+        with LabStore(lab_url) as lab:
+            assert pose_summary(lab) == []
+            assert lab.query("SELECT count(*) FROM bench.pose_points") == [(0,)]

@@ -57,9 +57,10 @@ def register(groups: argparse._SubParsersAction) -> None:
     backup.set_defaults(handler=_backup)
 
     export = _parser(groups, "export", "write a run's tidy sample table (the input of bench analyze)")
-    export.add_argument("run_id", metavar="RUN_ID", type=int)
+    export.add_argument("run_id", metavar="RUN", help="the run: its id, BENCH/ID or its UUID (prefix); with "
+                                                       "--store postgresql://... from the lab store")
     defer(export, _add_export_format)
-    export.add_argument("--out", default=None, help="output file (default run-RUN_ID.FORMAT)")
+    export.add_argument("--out", default=None, help="output file (default run-ID.FORMAT)")
     export.add_argument("--kind", default=None,
                         help="sample kind to export (pose, arrival, actuator_travel, leg_length, grid_hit, ...; "
                              "default: pose if the run has any, else its most frequent kind; arrival with --series)")
@@ -316,10 +317,14 @@ def _backup(args: argparse.Namespace) -> int:
 
 
 def _export(args: argparse.Namespace) -> int:
-    from bench.store import Store, export_run
+    from bench.store import export_run
+    from bench.store.lab import is_lab_url
+    from bench.store.lab_reader import open_named_runs
 
-    out = args.out or f"run-{args.run_id}.{args.format}"
-    with Store(_existing_store(args.store), read_only=True) as store:
-        kind = args.kind or ("arrival" if args.series else _default_kind(store, args.run_id))
-        print(export_run(store, args.run_id, out, fmt=args.format, kind=kind, series=args.series))
+    opened, (run_id,) = open_named_runs(args.store if is_lab_url(args.store) else _existing_store(args.store),
+                                        [args.run_id])
+    with opened as store:
+        out = args.out or f"run-{run_id}.{args.format}"
+        kind = args.kind or ("arrival" if args.series else _default_kind(store, run_id))
+        print(export_run(store, run_id, out, fmt=args.format, kind=kind, series=args.series))
     return 0

@@ -22,7 +22,7 @@ def register(groups: argparse._SubParsersAction) -> None:
     parser = groups.add_parser("report", help="HTML/PDF report of a stored run, or two runs compared",
                                description=__doc__.splitlines()[0],
                                formatter_class=argparse.ArgumentDefaultsHelpFormatter)
-    parser.add_argument("run_id", metavar="RUN_ID", type=int, help="the run to report")
+    parser.add_argument("run_id", metavar="RUN", help="the run to report: its id, BENCH/ID or its UUID (prefix)")
     defer(parser, _add_arguments)
     parser.set_defaults(handler=_report)
 
@@ -31,13 +31,14 @@ def _add_arguments(parser: argparse.ArgumentParser) -> None:
     """Added when ``bench report`` is parsed: the choices come from bench.reports (matplotlib, reportlab)."""
     from bench.reports import CRITERIA, FORMATS
 
-    parser.add_argument("--compare", metavar="RUN_B", type=int, default=None,
+    parser.add_argument("--compare", metavar="RUN_B", default=None,
                         help="second run: write a side-by-side comparison of RUN_ID (A) and RUN_B (B)")
-    parser.add_argument("--trend", metavar="RUN", type=int, nargs="+", default=None,
+    parser.add_argument("--trend", metavar="RUN", nargs="+", default=None,
                         help="more pose runs: write the trend of RUN_ID and these (drift across days)")
     parser.add_argument("--format", choices=(*FORMATS, "all"), default="all", help="report format(s)")
     parser.add_argument("--out", default="reports", help="folder for the report and its raw data")
-    parser.add_argument("--store", default=DEFAULT_STORE, help="run store (SQLite file)")
+    parser.add_argument("--store", default=DEFAULT_STORE,
+                        help="run store: SQLite file, or the lab store (postgresql://USER:PASSWORD@HOST/DB)")
     parser.add_argument("--criterion", action="append", default=[], metavar="NAME=MM",
                         help=f"project acceptance criterion, repeatable; NAME in {', '.join(CRITERIA)}")
     identity = parser.add_argument_group("device under test and people (page 1; default: the run's stored "
@@ -83,28 +84,43 @@ def _progress(started: float):
 
 
 def _report(args: argparse.Namespace) -> int:
-    from bench.reports import FORMATS, write_comparison, write_report, write_trend
+    from bench.reports import FORMATS
+    from bench.store.lab import is_lab_url
+    from bench.store.lab_reader import open_named_runs
 
     started = time.monotonic()
     progress = (lambda message: None) if args.quiet else _progress(started)
     formats = FORMATS if args.format == "all" else (args.format,)
     criteria = parse_criteria(args.criterion)
+    names = [args.run_id, *([args.compare] if args.compare is not None else []), *(args.trend or [])]
+    if is_lab_url(args.store) or not all(str(name).isdigit() for name in names):
+        store, ids = open_named_runs(args.store, names)
+        with store:
+            return _write(args, store, ids, formats, criteria, progress)
+    return _write(args, args.store, [int(name) for name in names], formats, criteria, progress)
+
+
+def _write(args: argparse.Namespace, store, ids: list[int], formats, criteria, progress) -> int:
+    """Write what ``args`` ask for, of the runs ``ids`` of ``store`` (a path, a Store or a lab-store view)."""
+    from bench.reports import write_comparison, write_report, write_trend
+
+    run_id, others = ids[0], ids[1:]
     if args.trend is not None:
         if criteria or args.compare is not None:
             raise ConfigError("--trend: not used with --criterion or --compare")
-        paths = write_trend(args.store, [args.run_id, *args.trend], args.out, formats, k=args.k, progress=progress)
+        paths = write_trend(store, ids, args.out, formats, k=args.k, progress=progress)
     elif args.compare is not None:
         if criteria:
             raise ConfigError("--criterion: not used with --compare; report each run on its own for a decision")
         if args.band_mm is not None or args.hysteresis_mm is not None:
             raise ConfigError("--band-mm/--hysteresis-mm: not used with --compare; report each run on its own for "
                               "other bands")
-        paths = write_comparison(args.store, args.run_id, args.compare, args.out, formats, k=args.k,
+        paths = write_comparison(store, run_id, others[0], args.out, formats, k=args.k,
                                  progress=progress)
     else:
         identity = {name: getattr(args, name) for name in ("dut_serial", "customer", "order", "operator",
                                                             "laboratory")}
-        paths = write_report(args.store, args.run_id, args.out, formats, criteria=criteria, k=args.k,
+        paths = write_report(store, run_id, args.out, formats, criteria=criteria, k=args.k,
                              allow_unknown=args.allow_unknown, bands_mm=args.band_mm,
                              hysteresis_mm=args.hysteresis_mm, identity=identity, progress=progress)
     for path in (paths.html, paths.pdf, *paths.csv):

@@ -186,7 +186,7 @@ def _quiet(message: str) -> None:
 
 
 def _open(store: str | Path | Store) -> tuple[Store, bool]:
-    if isinstance(store, Store):
+    if not isinstance(store, (str, Path)):  # a Store, or a reader with its interface (bench.store.lab_reader)
         return store, False
     if not Path(store).is_file():
         raise ConfigError(f"--store {store}: no such store file")

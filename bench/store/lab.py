@@ -9,7 +9,11 @@ The local file stays the source of truth; the server holds copies, in the schema
   holds it (JSON as text, byte for byte), so :func:`rows_checksum` is equal on both sides, and one typed column per
   declared value column (``x_mm``, ``velocity_pct``, ...: :mod:`bench.store.lab_copy`) for lab-wide queries.
 
-Schema versions: 1 had no typed columns; a bench of version 2 adds and fills them when it first connects.
+- ``bench.pose_keys``, ``bench.pose_points``: the pose samples folded for the lab-wide summary, kept by a trigger
+  as samples arrive (:mod:`bench.store.lab_summary`).
+
+Schema versions: 1 had no typed columns, 2 no pose tables; a bench of version 3 adds and fills what is missing when
+it first connects.
 
 Sync is idempotent and resumable: runs and calibrations are upserted (the local file wins), and the samples the
 server lacks are sent in batches, each one COPY into a temporary table then ``INSERT ... ON CONFLICT DO NOTHING``
@@ -35,6 +39,7 @@ from bench.errors import BenchError, ConfigError
 from bench.store.database import RunRecord, Store
 from bench.store.lab_copy import (COPY_COLUMNS, SAMPLE_COLUMNS, TYPED_COLUMNS, copy_text,
                                   typed_columns_ddl)
+from bench.store.lab_summary import POSE_TABLES_BACKFILL, POSE_TABLES_DDL
 
 __all__ = ["LAB_SCHEMA_VERSION", "LabStore", "LabStoreError", "LabURLError", "SyncResult", "is_lab_url",
            "open_runs_store", "redacted", "rows_checksum", "sync_after_run", "sync_store"]
@@ -42,7 +47,7 @@ __all__ = ["LAB_SCHEMA_VERSION", "LabStore", "LabStoreError", "LabURLError", "Sy
 _log = logging.getLogger(__name__)
 
 #: The lab schema version this bench writes (kept in ``bench.schema_version``).
-LAB_SCHEMA_VERSION = 2
+LAB_SCHEMA_VERSION = 3
 
 _DDL = """
 CREATE SCHEMA IF NOT EXISTS bench;
@@ -181,9 +186,11 @@ def ensure_schema(conn, url: str) -> None:
         conn.execute(_DDL)
         conn.execute(typed_columns_ddl("bench.samples"))
         if found == 1:  # version 1 had no typed columns: fill them from the JSON the server holds
-            _log.warning("lab store %s: schema version 1 migrated to %s (typed value columns filled)",
-                         redacted(url), LAB_SCHEMA_VERSION)
-            conn.execute(_BACKFILL_TYPED)
+            conn.execute(_BACKFILL_TYPED)  # (before the pose triggers, which would refold every run it updates)
+        conn.execute(POSE_TABLES_DDL)
+        if found in (1, 2):  # versions 1 and 2 had no pose tables: fold the samples the server holds
+            conn.execute(POSE_TABLES_BACKFILL)
+            _log.warning("lab store %s: schema version %s migrated to %s", redacted(url), found, LAB_SCHEMA_VERSION)
         conn.execute("DELETE FROM bench.schema_version")
         conn.execute("INSERT INTO bench.schema_version VALUES (%s)", (LAB_SCHEMA_VERSION,))
 

@@ -1,4 +1,4 @@
-"""Lab-wide pose accuracy and repeatability, computed by the PostgreSQL server from the typed value columns.
+"""Lab-wide pose accuracy and repeatability, computed by the PostgreSQL server from pose tables that sync keeps.
 
 One row per group of pose samples that ISO 9283 would pool: the same bench, robot, week (ISO week, Monday 00:00 UTC,
 of the run's start), pose name, commanded velocity (``velocity_pct``, or none) and commanded position. Per group, as
@@ -13,9 +13,18 @@ of the run's start), pose name, commanded velocity (``velocity_pct``, or none) a
 Only samples of kind ``pose`` with all three measured axes count (a laser-grid screen that did not decode leaves an
 axis absent: such samples are not partial poses here). RP needs n >= 2 and is None below that, with the reason.
 
-Two passes over the samples, each a parallel scan in the server: sums per run and pose key (a few hundred rows
-back), pooled here into each group's barycentre; then, with the barycentres sent back as arrays, the distances
-l_j summarised per group (``avg``, ``stddev_samp``: PostgreSQL's Youngs-Cramer accumulation).
+Kept at sync time (lab schema 3), by a statement trigger on ``bench.samples`` that sees each COPY's or INSERT's new
+rows (so every path that stores a sample, and only samples stored, counts once); bench never changes or deletes a
+synced sample, but a hand-made ``UPDATE`` or ``DELETE`` refolds the runs it touched (``TRUNCATE`` empties them):
+
+- ``bench.pose_keys``: one row per run and pose key (pose, velocity, commanded position) with the sums of the
+  attained x, y, z and their count; pooled here into each group's barycentre (a few hundred rows read, no scan);
+- ``bench.pose_points``: the attained point of every pose sample and its key, a narrow table (about 60 bytes a row
+  where ``bench.samples`` holds about 290), scanned once with the barycentres sent as arrays indexed by key to
+  summarise the distances l_j per group (``avg``, ``stddev_samp``: PostgreSQL's Youngs-Cramer accumulation).
+
+l_j needs the group's barycentre, which runs synced later can move, so it cannot be kept at sync time; and sums of
+squares would cancel (positions near 300 mm, spreads near 1e-3 mm), so the distance pass stays exact per sample.
 """
 
 from __future__ import annotations
@@ -24,7 +33,7 @@ import datetime as dt
 import math
 from dataclasses import asdict, dataclass
 
-__all__ = ["PoseGroup", "pose_summary"]
+__all__ = ["POSE_TABLES_BACKFILL", "POSE_TABLES_DDL", "PoseGroup", "pose_summary"]
 
 _POSE_SAMPLES = """kind = 'pose' AND x_mm IS NOT NULL AND y_mm IS NOT NULL AND z_mm IS NOT NULL
     AND cmd_x_mm IS NOT NULL AND cmd_y_mm IS NOT NULL AND cmd_z_mm IS NOT NULL"""
@@ -32,31 +41,114 @@ _POSE_SAMPLES = """kind = 'pose' AND x_mm IS NOT NULL AND y_mm IS NOT NULL AND z
 _RUNS_SQL = """SELECT uuid, bench, robot, date_trunc('week', started_utc::timestamptz AT TIME ZONE 'UTC')::date
 FROM bench.runs r WHERE true {where}"""
 
-#: Pass 1: sums per run and pose key; a missing pose or velocity becomes '' or NaN (NaN equals NaN in PostgreSQL).
-_SUMS_SQL = """
-SELECT run_uuid, coalesce(pose, ''), coalesce(velocity_pct, 'NaN'), cmd_x_mm, cmd_y_mm, cmd_z_mm,
-       sum(x_mm), sum(y_mm), sum(z_mm), count(*)
-FROM bench.samples
-WHERE {pose_samples} AND run_uuid = ANY(%s::uuid[])
-GROUP BY 1, 2, 3, 4, 5, 6"""
+#: The pose key of a sample: a missing pose or velocity becomes '' or NaN (NaN equals NaN in PostgreSQL).
+_KEY = ("run_uuid, coalesce(pose, '') AS pose, coalesce(velocity_pct, 'NaN') AS velocity_pct, cmd_x_mm, cmd_y_mm,"
+        " cmd_z_mm")
+_SAME_KEY = """k.run_uuid = {s}.run_uuid AND k.pose = coalesce({s}.pose, '')
+    AND k.velocity_pct = coalesce({s}.velocity_pct, 'NaN') AND k.cmd_x_mm = {s}.cmd_x_mm AND k.cmd_y_mm = {s}.cmd_y_mm
+    AND k.cmd_z_mm = {s}.cmd_z_mm"""
 
-#: Pass 2: l_j against its group's barycentre, summarised per group ``g``.
+#: Fold the pose samples of ``{source}`` (new rows, or all of bench.samples for a migration) into the pose tables:
+#: new keys first (only those missing, so that key ids stay dense: a conflicting insert would use up an id), then
+#: the sums, then the points.
+_FOLD_SQL = f"""
+INSERT INTO bench.pose_keys (run_uuid, pose, velocity_pct, cmd_x_mm, cmd_y_mm, cmd_z_mm, sum_x_mm, sum_y_mm,
+                             sum_z_mm, n)
+SELECT DISTINCT {_KEY}, 0.0, 0.0, 0.0, 0 FROM {{source}} AS s WHERE {_POSE_SAMPLES}
+    AND NOT EXISTS (SELECT FROM bench.pose_keys k WHERE {_SAME_KEY.format(s="s")})
+ON CONFLICT DO NOTHING;
+UPDATE bench.pose_keys k SET sum_x_mm = k.sum_x_mm + a.sum_x_mm, sum_y_mm = k.sum_y_mm + a.sum_y_mm,
+                             sum_z_mm = k.sum_z_mm + a.sum_z_mm, n = k.n + a.n
+FROM (SELECT {_KEY}, sum(x_mm) AS sum_x_mm, sum(y_mm) AS sum_y_mm, sum(z_mm) AS sum_z_mm, count(*) AS n
+      FROM {{source}} AS s WHERE {_POSE_SAMPLES} GROUP BY 1, 2, 3, 4, 5, 6) AS a
+WHERE k.run_uuid = a.run_uuid AND k.pose = a.pose AND k.velocity_pct = a.velocity_pct AND k.cmd_x_mm = a.cmd_x_mm
+    AND k.cmd_y_mm = a.cmd_y_mm AND k.cmd_z_mm = a.cmd_z_mm;
+INSERT INTO bench.pose_points (key, x_mm, y_mm, z_mm)
+SELECT k.id, s.x_mm, s.y_mm, s.z_mm FROM {{source}} AS s JOIN bench.pose_keys k ON {_SAME_KEY.format(s="s")}
+WHERE s.kind = 'pose' AND s.x_mm IS NOT NULL AND s.y_mm IS NOT NULL AND s.z_mm IS NOT NULL;
+"""
+
+#: Lab schema 3: the pose tables and the trigger that keeps them (see the module docstring).
+POSE_TABLES_DDL = """
+CREATE TABLE IF NOT EXISTS bench.pose_keys (
+    id serial PRIMARY KEY,
+    run_uuid uuid NOT NULL REFERENCES bench.runs (uuid),
+    pose text NOT NULL,
+    velocity_pct double precision NOT NULL,
+    cmd_x_mm double precision NOT NULL,
+    cmd_y_mm double precision NOT NULL,
+    cmd_z_mm double precision NOT NULL,
+    sum_x_mm double precision NOT NULL,
+    sum_y_mm double precision NOT NULL,
+    sum_z_mm double precision NOT NULL,
+    n bigint NOT NULL,
+    UNIQUE (run_uuid, pose, velocity_pct, cmd_x_mm, cmd_y_mm, cmd_z_mm)
+);
+CREATE TABLE IF NOT EXISTS bench.pose_points (
+    key integer NOT NULL,  -- a bench.pose_keys id; no foreign key: its check per row would slow every sync
+    x_mm double precision NOT NULL,
+    y_mm double precision NOT NULL,
+    z_mm double precision NOT NULL
+);
+CREATE OR REPLACE FUNCTION bench.fold_new_pose_samples() RETURNS trigger LANGUAGE plpgsql AS $fold$
+BEGIN
+""" + _FOLD_SQL.format(source="new_samples") + """
+    RETURN NULL;
+END
+$fold$;
+CREATE OR REPLACE FUNCTION bench.refold_changed_pose_samples() RETURNS trigger LANGUAGE plpgsql AS $refold$
+BEGIN
+    DELETE FROM bench.pose_points p USING bench.pose_keys k
+        WHERE p.key = k.id AND k.run_uuid IN (SELECT run_uuid FROM old_samples);
+    DELETE FROM bench.pose_keys WHERE run_uuid IN (SELECT run_uuid FROM old_samples);
+""" + _FOLD_SQL.format(source="(SELECT * FROM bench.samples WHERE run_uuid IN (SELECT run_uuid FROM old_samples))") + """
+    RETURN NULL;
+END
+$refold$;
+CREATE OR REPLACE FUNCTION bench.empty_pose_tables() RETURNS trigger LANGUAGE plpgsql AS $empty$
+BEGIN
+    TRUNCATE bench.pose_points, bench.pose_keys;
+    RETURN NULL;
+END
+$empty$;
+DROP TRIGGER IF EXISTS samples_fold_pose ON bench.samples;
+CREATE TRIGGER samples_fold_pose AFTER INSERT ON bench.samples REFERENCING NEW TABLE AS new_samples
+    FOR EACH STATEMENT EXECUTE FUNCTION bench.fold_new_pose_samples();
+DROP TRIGGER IF EXISTS samples_refold_pose_after_delete ON bench.samples;
+CREATE TRIGGER samples_refold_pose_after_delete AFTER DELETE ON bench.samples REFERENCING OLD TABLE AS old_samples
+    FOR EACH STATEMENT EXECUTE FUNCTION bench.refold_changed_pose_samples();
+DROP TRIGGER IF EXISTS samples_refold_pose_after_update ON bench.samples;
+CREATE TRIGGER samples_refold_pose_after_update AFTER UPDATE ON bench.samples REFERENCING OLD TABLE AS old_samples
+    FOR EACH STATEMENT EXECUTE FUNCTION bench.refold_changed_pose_samples();
+DROP TRIGGER IF EXISTS samples_empty_pose_tables ON bench.samples;
+CREATE TRIGGER samples_empty_pose_tables AFTER TRUNCATE ON bench.samples
+    FOR EACH STATEMENT EXECUTE FUNCTION bench.empty_pose_tables();
+"""
+
+#: Lab schema 2 -> 3: the pose tables filled from the samples the server holds.
+POSE_TABLES_BACKFILL = ("TRUNCATE bench.pose_points, bench.pose_keys RESTART IDENTITY;"
+                        + _FOLD_SQL.format(source="bench.samples"))
+
+_KEYS_SQL = """
+SELECT id, run_uuid, pose, velocity_pct, cmd_x_mm, cmd_y_mm, cmd_z_mm, sum_x_mm, sum_y_mm, sum_z_mm, n
+FROM bench.pose_keys WHERE run_uuid = ANY(%s::uuid[])"""
+
+#: l_j against its group's barycentre, summarised per group; arrays indexed by key id - first + 1 over the keys'
+#: range (group -1: a key of a run not asked for). No NULL in the arrays: a subscript into an array with NULLs
+#: walks its null bitmap, one subscript into one without is one offset.
 _DISTANCES_SQL = """
-SELECT k.g, avg(l), stddev_samp(l)
-FROM bench.samples s
-     JOIN unnest(%s::uuid[], %s::text[], %s::float8[], %s::float8[], %s::float8[], %s::float8[], %s::float8[],
-                 %s::float8[], %s::float8[], %s::int[]) AS k(run_uuid, pose, velocity_pct, cx, cy, cz, bx, by, bz, g)
-       ON s.run_uuid = k.run_uuid AND coalesce(s.pose, '') = k.pose
-          AND coalesce(s.velocity_pct, 'NaN') = k.velocity_pct AND s.cmd_x_mm = k.cx AND s.cmd_y_mm = k.cy
-          AND s.cmd_z_mm = k.cz,
-     LATERAL (SELECT sqrt((s.x_mm - k.bx) ^ 2 + (s.y_mm - k.by) ^ 2 + (s.z_mm - k.bz) ^ 2) AS l) AS distance
-WHERE {pose_samples}
-GROUP BY k.g"""
+SELECT g, avg(l), stddev_samp(l)
+FROM (SELECT (%(group)s::int[])[key - %(first)s + 1] AS g,
+             sqrt((x_mm - (%(bx)s::float8[])[key - %(first)s + 1]) ^ 2
+                  + (y_mm - (%(by)s::float8[])[key - %(first)s + 1]) ^ 2
+                  + (z_mm - (%(bz)s::float8[])[key - %(first)s + 1]) ^ 2) AS l
+      FROM bench.pose_points WHERE key BETWEEN %(first)s AND %(last)s) AS distance
+WHERE g >= 0
+GROUP BY g"""
 
-#: For these queries only: a hash join against the few hundred keys and hash aggregation (the planner cannot
-#: estimate the join of a parameter array and would sort a million rows); no JIT (compiling costs more than it saves).
-_SETTINGS = {"enable_mergejoin": "off", "enable_nestloop": "off", "enable_sort": "off", "jit": "off",
-             "work_mem": "64MB"}
+#: For the distance pass only: no JIT (compiling costs more than it saves); hash aggregation in memory, never a
+#: sort of every point (chosen, 2.3x slower, while autovacuum has not yet analysed a freshly synced table).
+_SETTINGS = {"enable_sort": "off", "jit": "off", "work_mem": "64MB"}
 
 
 @dataclass(frozen=True)
@@ -107,10 +199,13 @@ def pose_summary(lab, *, since: str | None = None, until: str | None = None, ben
             for uuid, run_bench, run_robot, week in lab.query(_RUNS_SQL.format(where=" ".join(clauses)), args)}
     if not runs:
         return []
-    sums = lab.query(_SUMS_SQL.format(pose_samples=_POSE_SAMPLES), (list(runs),), settings=_SETTINGS)
+    sums = lab.query(_KEYS_SQL, (list(runs),))
     pooled: dict[tuple, list[float]] = {}
-    for run_uuid, pose, velocity, cx, cy, cz, sx, sy, sz, n in sums:
-        totals = pooled.setdefault(_group_key(runs[run_uuid], pose, velocity, cx, cy, cz), [0.0, 0.0, 0.0, 0])
+    group_of_key: dict[int, tuple] = {}
+    for key_id, run_uuid, pose, velocity, cx, cy, cz, sx, sy, sz, n in sums:
+        group = _group_key(runs[run_uuid], pose, velocity, cx, cy, cz)
+        group_of_key[key_id] = group
+        totals = pooled.setdefault(group, [0.0, 0.0, 0.0, 0])
         totals[0] += sx
         totals[1] += sy
         totals[2] += sz
@@ -118,12 +213,17 @@ def pose_summary(lab, *, since: str | None = None, until: str | None = None, ben
     keys = sorted(pooled, key=lambda key: (key[:4], key[4] is None, key[4] or 0.0, key[5:]))
     index = {key: g for g, key in enumerate(keys)}
     barycentres = {key: (sx / n, sy / n, sz / n) for key, (sx, sy, sz, n) in pooled.items()}
-    rows = [(run_uuid, pose, velocity, cx, cy, cz, *barycentres[key], index[key])
-            for run_uuid, pose, velocity, cx, cy, cz, *_ in sums
-            for key in [_group_key(runs[run_uuid], pose, velocity, cx, cy, cz)]]
-    distances = {g: (l_mean, s_l) for g, l_mean, s_l in lab.query(
-        _DISTANCES_SQL.format(pose_samples=_POSE_SAMPLES.replace("kind", "s.kind")), [list(c) for c in zip(*rows)],
-        settings=_SETTINGS)} if rows else {}
+    distances = {}
+    if group_of_key:
+        first, last = min(group_of_key), max(group_of_key)
+        size = last - first + 1
+        arrays = {"group": [-1] * size, "bx": [0.0] * size, "by": [0.0] * size, "bz": [0.0] * size}
+        for key_id, group in group_of_key.items():
+            at = key_id - first
+            arrays["group"][at] = index[group]
+            arrays["bx"][at], arrays["by"][at], arrays["bz"][at] = barycentres[group]
+        distances = {g: (l_mean, s_l) for g, l_mean, s_l in lab.query(
+            _DISTANCES_SQL, {**arrays, "first": first, "last": last}, settings=_SETTINGS)}
     groups = []
     for key in keys:
         run_bench, run_robot, week, pose, velocity, cx, cy, cz = key
