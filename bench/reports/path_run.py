@@ -173,7 +173,7 @@ def analyze_path_run(store: Store, run_id: int, *, station_mm: float = 1.0, marg
     protocol = protocol_from_config(run.config, source=f"run {run_id}")
     grouped = attained_cycles(store.samples(run_id, kind="path"))
     figures = []
-    for (shape, velocity), cycles in grouped.items():
+    for (shape, velocity), cycles in sorted(grouped.items(), key=lambda item: (item[0][0], -item[0][1])):
         n_segments = len(protocol.segmentation(shape).targets_mm) - 1
         complete = [c for c in cycles if len(c[3]) == n_segments]
         if len(complete) < 2:
