@@ -72,6 +72,12 @@ def test_every_segment_target_passes_the_pre_flight_and_the_speeds_are_the_firmw
         np.testing.assert_allclose(speeds, p.rated_mm_s * pct / 100, rtol=0.03)
 
 
+def test_a_path_run_needs_a_streaming_instrument():
+    from bench.protocols.plan import required_capabilities
+
+    assert required_capabilities(Cornering(cycles=2, velocities_pct=[100.0])) == {"assembled", "arrival"}
+
+
 def test_the_protocol_refuses_a_speed_the_legs_cannot_give_and_other_robots():
     with pytest.raises(ConfigError, match=r"path_speed_mm_s = 5, expected at most 0.89 mm/s"):
         PathAccuracy(path_speed_mm_s=5.0)

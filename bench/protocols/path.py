@@ -30,7 +30,7 @@ from bench.protocols.iso9283 import _PLANES, cube_poses, fit_cube_side
 from bench.protocols.kinematics import robot_model
 from bench.protocols.parameters import ChoiceParameter, FloatListParameter, FloatParameter, IntegerParameter
 from bench.protocols.path_geometry import CommandedPath, Segmentation, commanded_path, segment_path
-from bench.steps import Capture, Checkpoint, Move, Plan, commanded_values
+from bench.steps import Capture, Checkpoint, Move, Plan, Settle, commanded_values
 
 __all__ = ["Cornering", "PathAccuracy", "PathProtocol"]
 
@@ -58,6 +58,8 @@ class PathProtocol(Protocol):
                                     description="bound on the joint-space chord error of every segment")
     max_segment_mm = FloatParameter(4.0, unit="mm", minimum=0.1, maximum=100.0,
                                     description="longest segment before the chord error is checked")
+    settle_s = FloatParameter(1.0, unit="s", minimum=0.0, maximum=600.0,
+                              description="dwell at the path's start before each cycle (the robot starts at rest)")
     final_hold_s = FloatParameter(1.0, unit="s", minimum=0.0, maximum=60.0,
                                   description="streamed time after the last segment of a cycle (the arrival)")
 
@@ -139,6 +141,8 @@ class PathProtocol(Protocol):
                 plan = self.segment_plan(shape, velocity)
                 yield Move(start, 100.0, f"{shape} start")
                 for cycle in range(1, self.cycles + 1):
+                    if self.settle_s > 0:
+                        yield Settle(self.settle_s)
                     for number, (end, move_pct, duration_s) in enumerate(plan, start=1):
                         yield Move(end, move_pct, f"{shape} {number}")
                         hold = self.final_hold_s if number == len(plan) else 0.0

@@ -91,6 +91,7 @@ class SimulatedMice(MiceInstrument):
         super().__init__(mice, registration, calibration, noise_counts=noise_counts)
         self._clock_s = 0.0
         self._kind = ""
+        self._last_xyz = registration.copy()
         self._streams = {plane: MouseStream(MouseSimulator(cpi=cpi, noise_counts=noise_counts,
                                                            report_rate_hz=report_rate_hz,
                                                            seed=plane_seed(seed, index)),
@@ -111,6 +112,7 @@ class SimulatedMice(MiceInstrument):
                 parts.append(self.mice[plane].read_frames())
             frames[plane] = MotionFrames.concatenate(parts)
         self._clock_s = float(t_s[-1])
+        self._last_xyz = np.asarray(true_xyz[-1], dtype=float)
         return frames
 
     def _stream(self, lead_s: float, hold_s: float) -> tuple[dict[str, Any], float]:
@@ -122,9 +124,10 @@ class SimulatedMice(MiceInstrument):
             rate_hz = int(min(self.trace_rate_hz, max(1, np.ceil(_PATH_TRACE_SAMPLES / max(lead_s + hold_s, 1e-3)))))
             gap_s = _PATH_TURNAROUND_S
         times, poses = self.truth.trace(rate_hz, lead_s, hold_s)
-        if self._kind == PATH:  # moves between streamed segments (to the start, back along a line) reach the mice
-            gap_s /= 2
-            self._follow(np.array([self._clock_s + gap_s]), poses[:1, :3])
+        if self._kind == PATH and np.linalg.norm(poses[0, :3] - self._last_xyz) > 1e-3:
+            # moves between streamed segments (to the start, back along a line) reach the mice before the window,
+            # over MOTION_S like any unobserved move (a long one takes the mice many reports)
+            self._follow(np.array([self._clock_s + MOTION_S]), poses[:1, :3])
         base = self._clock_s + gap_s - times[0]  # the unobserved motion up to the window's start takes gap_s
         return self._follow(base + times, poses[:, :3]), base
 
