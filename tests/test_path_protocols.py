@@ -7,6 +7,8 @@ import json
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from bench.cli import main
 from bench.errors import ConfigError
@@ -138,3 +140,19 @@ def test_analyze_path_run_refuses_a_pose_run(tmp_path, capsys):
         run_id = write_pose_run(store)
     assert main(["analyze", "path-run", str(run_id), "--store", str(tmp_path / "q.db")]) == 2
     assert "a iso9283_pose run, expected one of iso9283_path, iso9283_cornering" in capsys.readouterr().err
+
+
+@settings(max_examples=60, deadline=None)
+@given(shape=st.sampled_from(["line", "rectangle", "circle"]), side=st.floats(5.0, 200.0),
+       fraction=st.lists(st.floats(0.0, 1.0), min_size=1, max_size=20), spacing=st.floats(0.2, 10.0))
+def test_commanded_points_lie_on_their_path_and_stations_are_at_most_the_spacing_apart(shape, side, fraction,
+                                                                                      spacing):
+    from bench.protocols.iso9283 import cube_poses
+    from bench.protocols.path_geometry import commanded_path
+
+    path = commanded_path(shape, cube_poses((110.0, 0.0, 320.0), side))
+    points = path.point(np.array(fraction) * path.length_mm)
+    assert path.distance_mm(points).max() < 1e-9 * side
+    stations = path.stations(spacing)
+    gaps = np.linalg.norm(np.diff(np.vstack([stations, stations[:1]]) if path.closed else stations, axis=0), axis=1)
+    assert gaps.max() <= spacing + 1e-9 and path.distance_mm(stations).max() < 1e-9 * side

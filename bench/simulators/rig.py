@@ -36,6 +36,8 @@ __all__ = ["BenchCalliper", "SimulatedCalliper", "end_process", "SimulatedMice",
 
 #: True samples taken of each streamed path segment, and the host's turnaround between two segments (s): [choice].
 _PATH_TRACE_SAMPLES, _PATH_TURNAROUND_S = 40, 0.005
+#: A segment starting farther than this from where the mice last were follows an unobserved move (mm).
+_PATH_JUMP_MM = 0.5
 #: Bytes written to a mouse FIFO before draining it (a pipe buffer holds 64 KiB).
 _PIPE_CHUNK = 24 * 3 * 512
 
@@ -124,9 +126,10 @@ class SimulatedMice(MiceInstrument):
             rate_hz = int(min(self.trace_rate_hz, max(1, np.ceil(_PATH_TRACE_SAMPLES / max(lead_s + hold_s, 1e-3)))))
             gap_s = _PATH_TURNAROUND_S
         times, poses = self.truth.trace(rate_hz, lead_s, hold_s)
-        if self._kind == PATH and np.linalg.norm(poses[0, :3] - self._last_xyz) > 1e-3:
+        if self._kind == PATH and np.linalg.norm(poses[0, :3] - self._last_xyz) > _PATH_JUMP_MM:
             # moves between streamed segments (to the start, back along a line) reach the mice before the window,
-            # over MOTION_S like any unobserved move (a long one takes the mice many reports)
+            # over MOTION_S like any unobserved move (a long one takes the mice many reports); the lag and ringing
+            # left at a segment's end (hundredths of a mm) are no such move
             self._follow(np.array([self._clock_s + MOTION_S]), poses[:1, :3])
         base = self._clock_s + gap_s - times[0]  # the unobserved motion up to the window's start takes gap_s
         return self._follow(base + times, poses[:, :3]), base
