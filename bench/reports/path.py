@@ -154,7 +154,7 @@ def path_plot(report: PathReport) -> Plot:
     for axes in axes_list:
         for handle, label in zip(*axes.get_legend_handles_labels()):
             legend.setdefault(label, handle)
-    figure.legend(list(legend.values()), list(legend), loc="outside lower center", ncols=min(4, len(legend)),
+    figure.legend(list(legend.values()), list(legend), loc="outside upper center", ncols=min(4, len(legend)),
                   fontsize=MIN_FONT_PT)
     return Plot("Commanded (dashed) and attained paths in the test plane at the highest velocity, every cycle, all "
                 "panels on one scale (the deviations are those of the robot: they are not magnified).", figure)
