@@ -65,7 +65,7 @@ def path_deviations(run, analysis: PathRun) -> list[Deviation]:
                      "stops at the segment ends lower the mean path speed and raise FV; corners are approached "
                      "from rest, so CO shows the structure's ringing rather than a controller's smoothing"))
     rows.append(_row("ISO 9283 8.2", "stations", "planes normal to the commanded path [U]",
-                     "every 1 mm, none within 2 mm of the line's ends or the rectangle's corners", True, ""))
+                     "every 1 mm, none within 5 mm of the path's start and end or 2 mm of the rectangle's corners", True, ""))
     if "AV_pct" in {k for f in analysis.figures for k in f.as_json()}:
         rows.append(_row("ISO 9283 8.6", "speed samples", "velocity over the constant-velocity part [U]",
                          "position differences 2 mm of commanded travel apart, middle 80 % of the line's time",

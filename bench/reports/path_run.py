@@ -6,8 +6,9 @@ to ``raw["t_request_s"]``) joined in step order on the instrument's clock. Every
 `bench.metrology`:
 
 - AT_p, RT_p (8.2, 8.3): `path_characteristics` at stations every ``station_mm`` along the path, leaving out
-  ``margin_mm`` at the line's ends and about the rectangle's corners (there the plane normal to the path is not
-  defined, and cornering is its own test) [P];
+  :data:`END_MARGIN_MM` at the path's start and end (the robot starts and stops there at rest) and ``margin_mm``
+  about the rectangle's corners (there the plane normal to the path is not defined, and cornering is its own
+  test) [P];
 - CR, CO (8.5): `cornering_deviations` at the rectangle's corners P3, P4, P5 (P2, where every cycle starts and ends
   at rest, is not a corner passed through) over the samples of the segments next to the corner;
 - AV, RV, FV (8.6): on the line, `path_velocity_characteristics` of speed samples v_i = |p(t_i + dt) - p(t_i)| / dt,
@@ -29,6 +30,8 @@ from bench.store import Store
 __all__ = ["PATH_PROTOCOLS", "PathFigures", "PathRun", "analyze_path_run", "attained_cycles"]
 
 PATH_PROTOCOLS = ("iso9283_path", "iso9283_cornering")
+#: No AT station this close to a path's start or end (mm) [P].
+END_MARGIN_MM = 5.0
 
 
 @dataclass(frozen=True)
@@ -104,12 +107,13 @@ def attained_cycles(samples) -> dict[tuple[str, float], list[tuple[int, np.ndarr
     return out
 
 
-def _stations(path, spacing_mm: float, margin_mm: float) -> np.ndarray:
-    """Stations every ``spacing_mm``, at least ``margin_mm`` from the line's ends and from the corners."""
+def _stations(path, spacing_mm: float, margin_mm: float, end_margin_mm: float = END_MARGIN_MM) -> np.ndarray:
+    """Stations every ``spacing_mm``, at least ``end_margin_mm`` from the path's start and end (where every cycle
+    starts and stops at rest, and an attained start past the first plane never crosses it) and ``margin_mm`` from
+    the rectangle's corners."""
     s = np.arange(spacing_mm / 2, path.length_mm, spacing_mm)
-    if path.shape == "line":
-        s = s[(s >= margin_mm) & (s <= path.length_mm - margin_mm)]
-    elif path.shape == "rectangle":
+    s = s[(s >= end_margin_mm) & (s <= path.length_mm - end_margin_mm)]
+    if path.shape == "rectangle":
         edges = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(path.vertices_mm, axis=0), axis=1))])
         s = s[np.min(np.abs(s[:, None] - edges[None, :]), axis=1) >= margin_mm]
     return path.point(s)
