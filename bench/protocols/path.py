@@ -30,12 +30,11 @@ from bench.protocols.iso9283 import _PLANES, cube_poses, fit_cube_side
 from bench.protocols.kinematics import robot_model
 from bench.protocols.parameters import ChoiceParameter, FloatListParameter, FloatParameter, IntegerParameter
 from bench.protocols.path_geometry import CommandedPath, Segmentation, commanded_path, segment_path
+from bench.rigs.mice import PATH as PATH_KIND
 from bench.steps import Capture, Checkpoint, Move, Plan, Settle, commanded_values
 
 __all__ = ["Cornering", "PathAccuracy", "PathProtocol"]
 
-#: The capture kind of a streamed path segment (`bench.rigs.mice.PATH`, named here to keep the rigs unimported).
-PATH_KIND = "path"
 
 
 class PathProtocol(Protocol):
