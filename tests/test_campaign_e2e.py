@@ -83,7 +83,9 @@ QUICK_PARAMETERS = {
     "mouse_calibration": {"repeats": 2, "distances_mm": [5, 20, 40]},
     "actuator_accuracy": {"repeats": 2, "distances_mm": [10, 50], "actuators": [1, 6]},
     "iso9283_stabilisation": {"cycles": 1, "lead_s": 0.2, "hold_s": 0.4},
-    "iterative_correction": {"iterations": 1},  # more adapt to the readings (tests/test_kinematic_compensation.py)
+    "iterative_correction": {"iterations": 1},
+    "iso9283_path": {"shape": "line", "cycles": 2, "velocities_pct": [100], "final_hold_s": 0.1},
+    "iso9283_cornering": {"cycles": 2, "velocities_pct": [100], "final_hold_s": 0.1},  # more adapt to the readings (tests/test_kinematic_compensation.py)
 }
 
 

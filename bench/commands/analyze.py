@@ -74,8 +74,10 @@ def register(groups: argparse._SubParsersAction) -> None:
 
     from bench.commands.analyze_bidirectional import register as register_bidirectional
     from bench.commands.analyze_path import register as register_paths
+    from bench.commands.analyze_path import register_run as register_path_run
 
     register_paths(actions, _new_parser)
+    register_path_run(actions)
     register_bidirectional(actions, _new_parser)
 
 

@@ -52,6 +52,45 @@ def register(actions: argparse._SubParsersAction, new_parser) -> None:
     positioning.set_defaults(handler=_positioning)
 
 
+def register_run(actions: argparse._SubParsersAction) -> None:
+    """``bench analyze path-run RUN_ID``: the figures of a stored path run, from its raw streamed samples."""
+    run = actions.add_parser("path-run", help="AT/RT, CR/CO, AV/RV/FV of a stored iso9283_path or iso9283_cornering "
+                                              "run (ISO 9283 8.2, 8.3, 8.5, 8.6), from its raw streamed samples",
+                             description="AT/RT (and CR/CO on the rectangle, AV/RV/FV on the line) per path and "
+                                         "velocity of a stored path run",
+                             formatter_class=argparse.ArgumentDefaultsHelpFormatter)
+    run.add_argument("run_id", metavar="RUN_ID", type=int, help="the stored path run")
+    run.add_argument("--store", default="bench.db", help="run store (SQLite file)")
+    run.add_argument("--json", action="store_true", help="print the result as one JSON object")
+    run.set_defaults(handler=_path_run)
+
+
+def _path_run(args: argparse.Namespace) -> int:
+    from pathlib import Path
+
+    from bench.reports.path_run import analyze_path_run
+    from bench.store import Store
+
+    if not Path(args.store).is_file():
+        raise ConfigError(f"--store {args.store}: no such store file")
+    store = Store(args.store, read_only=True)
+    try:
+        result = analyze_path_run(store, args.run_id)
+    finally:
+        store.close()
+    lines = [f"{'path':<10} {'v_pct':>5} {'v_c_mm_s':>8} {'n':>3} {'AT_mm':>7} {'RT_mm':>7} {'CR_mm':>7} {'CO_mm':>7} "
+             f"{'AV_pct':>7} {'RV_pct':>7} {'FV_mm_s':>8}"]
+    for f in result.figures:
+        j = f.as_json()
+        cell = (lambda key, fmt: format(j[key], fmt) if key in j else "-")
+        lines.append(f"{f.shape:<10} {f.velocity_pct:>5g} {f.commanded_mm_s:>8.3f} {f.n_cycles:>3} {f.at_mm:>7.3f} "
+                     f"{f.rt_mm:>7.3f} {cell('CR_mm', '7.3f'):>7} {cell('CO_mm', '7.3f'):>7} "
+                     f"{cell('AV_pct', '+7.2f'):>7} {cell('RV_pct', '7.2f'):>7} {cell('FV_mm_s', '8.3f'):>8}")
+    emit({"run_id": args.run_id, "protocol": result.protocol.name, "rated_path_velocity_mm_s": result.protocol.rated_mm_s,
+          "paths": [f.as_json() for f in result.figures]}, args.json, lines)
+    return 0
+
+
 def _point(text: str) -> tuple[float, ...]:
     try:
         values = tuple(float(v) for v in text.split(","))

@@ -61,7 +61,8 @@ def iterate(protocol: Protocol, *, final: bool = True) -> Iterator[Step]:
 
 
 #: The capability a capture of each kind needs from the station (the kinds the protocol library captures).
-_CAPTURE_NEEDS = {"pose": "pose", "mouse": "mouse_counts", "arrival": "arrival", "grid_hit": "grid_hit"}
+_CAPTURE_NEEDS = {"pose": "pose", "mouse": "mouse_counts", "arrival": "arrival", "path": "arrival",
+                 "grid_hit": "grid_hit"}
 
 
 def required_capabilities(protocol: Protocol) -> frozenset[str]:

@@ -33,6 +33,7 @@ from bench.reports.document import Document, RawData, Section, comparison_docume
 from bench.reports.language import customer_document
 from bench.reports.lasergrid import GridHitReport, collect_grid_hits, grid_hit_document
 from bench.reports.ladder import LadderReport, collect_ladder, ladder_document
+from bench.reports.path import collect_path, path_document
 from bench.reports.positioning import (
     GridPositioningReport,
     collect_grid_positioning,
@@ -73,6 +74,8 @@ LAYOUTS = {
     "lasergrid_hits": Layout(collect_grid_hits, grid_hit_document),
     "delta_positioning": Layout(collect_grid_positioning, grid_positioning_document, applies=grid_readings),
     "iso9283_stabilisation": Layout(collect_stabilisation, stabilisation_document, ("bands_mm", "hysteresis_mm")),
+    "iso9283_path": Layout(collect_path, path_document),
+    "iso9283_cornering": Layout(collect_path, path_document),
 }
 
 

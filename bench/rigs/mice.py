@@ -27,10 +27,14 @@ from bench.rigs.interfaces import Measurement
 from bench.sensors.calibration import MM_PER_INCH
 from bench.steps import Capture
 
-__all__ = ["ARRIVAL", "MiceInstrument", "arrival_series"]
+__all__ = ["ARRIVAL", "PATH", "STREAMED_KINDS", "MiceInstrument", "arrival_series"]
 
 #: Capture kind of a streamed arrival at a pose; ``conditions`` give ``lead_s`` and ``hold_s``.
 ARRIVAL = "arrival"
+#: Capture kind of one streamed segment of a continuous path (ISO 9283 clause 8), captured like an arrival.
+PATH = "path"
+#: The capture kinds whose sample keeps the streamed series (in ``raw["series"]``, with ``raw["t_request_s"]``).
+STREAMED_KINDS = frozenset({ARRIVAL, PATH})
 #: Decimals kept in the stored series (0.1 um, 1 us): far below a count (32 um at 800 cpi).
 _MM_DECIMALS, _S_DECIMALS = 4, 6
 
@@ -100,7 +104,7 @@ class MiceInstrument:
         self.origin = self.origin - np.asarray(shift_mm, dtype=float)[:3]
 
     def measure(self, capture: Capture) -> Measurement:
-        if capture.kind == ARRIVAL:
+        if capture.kind in STREAMED_KINDS:
             return self._measure_arrival(capture)
         xy, xz = self._read()
         if capture.kind == "mouse":  # calibration runs store the raw counts themselves
@@ -131,6 +135,7 @@ class MiceInstrument:
         values = {axis: float(series[axis][-1]) for axis in ("x_mm", "y_mm", "z_mm")}
         valid = all(mouse.segment_valid for mouse in self.mice.values())
         return Measurement(values, raw={**raw, "series": series, "valid": valid,
+                                        "t_request_s": round(t_request, _S_DECIMALS),
                                         "calibration": self.calibration.calibration_id})
 
     def _stream(self, lead_s: float, hold_s: float) -> tuple[dict[str, Any], float]:

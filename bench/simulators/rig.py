@@ -24,7 +24,7 @@ import numpy as np
 
 from bench.errors import LinkError
 from bench.rigs.gauges import CalliperOnly
-from bench.rigs.mice import ARRIVAL, MiceInstrument
+from bench.rigs.mice import PATH, STREAMED_KINDS, MiceInstrument
 from bench.rigs.movers import DeltaMover, Pkm5Mover
 from bench.simulators.client import SimulatorClient
 from bench.simulators.mice_feed import MOTION_S, PLANES, plane_seed
@@ -34,6 +34,10 @@ from bench.steps import Capture, Prompt
 __all__ = ["BenchCalliper", "SimulatedCalliper", "end_process", "SimulatedMice", "SimulatedOperator",
            "simulated_rig", "start_simulator"]
 
+#: True samples taken of each streamed path segment, and the host's turnaround between two segments (s): [choice].
+_PATH_TRACE_SAMPLES, _PATH_TURNAROUND_S = 40, 0.005
+#: A segment starting farther than this from where the mice last were follows an unobserved move (mm).
+_PATH_JUMP_MM = 0.5
 #: Bytes written to a mouse FIFO before draining it (a pipe buffer holds 64 KiB).
 _PIPE_CHUNK = 24 * 3 * 512
 
@@ -88,6 +92,8 @@ class SimulatedMice(MiceInstrument):
         registration = np.asarray(self.truth.true_pose(), dtype=float)[:3]
         super().__init__(mice, registration, calibration, noise_counts=noise_counts)
         self._clock_s = 0.0
+        self._kind = ""
+        self._last_xyz = registration.copy()
         self._streams = {plane: MouseStream(MouseSimulator(cpi=cpi, noise_counts=noise_counts,
                                                            report_rate_hz=report_rate_hz,
                                                            seed=plane_seed(seed, index)),
@@ -108,16 +114,30 @@ class SimulatedMice(MiceInstrument):
                 parts.append(self.mice[plane].read_frames())
             frames[plane] = MotionFrames.concatenate(parts)
         self._clock_s = float(t_s[-1])
+        self._last_xyz = np.asarray(true_xyz[-1], dtype=float)
         return frames
 
     def _stream(self, lead_s: float, hold_s: float) -> tuple[dict[str, Any], float]:
-        times, poses = self.truth.trace(self.trace_rate_hz, lead_s, hold_s)
-        base = self._clock_s + MOTION_S - times[0]  # the unobserved motion up to the window's start takes MOTION_S
+        rate_hz, gap_s = self.trace_rate_hz, MOTION_S
+        if self._kind == PATH:
+            # a path segment's move is straight in pose space in the simulator's dynamics, so some tens of true
+            # samples per segment suffice (the mice still report at their own rate); the next segment follows the
+            # last one after the host's turnaround (DONE -> capture -> MOVE), not after MOTION_S
+            rate_hz = int(min(self.trace_rate_hz, max(1, np.ceil(_PATH_TRACE_SAMPLES / max(lead_s + hold_s, 1e-3)))))
+            gap_s = _PATH_TURNAROUND_S
+        times, poses = self.truth.trace(rate_hz, lead_s, hold_s)
+        if self._kind == PATH and np.linalg.norm(poses[0, :3] - self._last_xyz) > _PATH_JUMP_MM:
+            # moves between streamed segments (to the start, back along a line) reach the mice before the window,
+            # over MOTION_S like any unobserved move (a long one takes the mice many reports); the lag and ringing
+            # left at a segment's end (hundredths of a mm) are no such move
+            self._follow(np.array([self._clock_s + MOTION_S]), poses[:1, :3])
+        base = self._clock_s + gap_s - times[0]  # the unobserved motion up to the window's start takes gap_s
         return self._follow(base + times, poses[:, :3]), base
 
     def measure(self, capture: Capture) -> Measurement:
+        self._kind = capture.kind
         true_pose = np.asarray(self.truth.true_pose(), dtype=float)
-        if capture.kind != ARRIVAL:
+        if capture.kind not in STREAMED_KINDS:
             self._follow(np.array([self._clock_s + MOTION_S]), true_pose[None, :3])
         measured = super().measure(capture)
         return Measurement(measured.values, raw={**measured.raw,

@@ -91,6 +91,10 @@ SAMPLE_KINDS: dict[str, SampleKind] = {kind.name: kind for kind in (
                + _CONDITIONS + _LASER_GRID),
     SampleKind("arrival", "the last point of a streamed arrival series (the series itself is in raw)",
                _COMMANDED + _xyz("", "measured position at the end of the series") + _CONDITIONS),
+    SampleKind("path", "the last point of one streamed segment of a continuous path (ISO 9283 clause 8): cmd_* is "
+                       "the segment's commanded end, velocity_pct the path velocity in percent of the rated path "
+                       "velocity; the series (t_s, x_mm, y_mm, z_mm) and its start time t_request_s are in raw",
+               _COMMANDED + _xyz("", "measured position at the end of the segment") + _CONDITIONS),
     SampleKind("mouse", "raw counts of the two optical mice at one end of a calibration stroke",
                _xyz("cmd_", "commanded position")
                + (Column("step_mm", "mm", "float", "length of the calibration stroke"),)

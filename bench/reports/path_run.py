@@ -1,0 +1,202 @@
+"""The figures of a stored ISO 9283 path run (``iso9283_path``, ``iso9283_cornering``), from its raw streamed samples.
+
+The commanded paths come from the run's stored configuration (the protocol regenerated, `bench.protocols.path`), the
+attained paths from the ``path`` samples: per cycle, the series of its segments (``raw["series"]``, times relative
+to ``raw["t_request_s"]``) joined in step order on the instrument's clock. Every figure is computed by
+`bench.metrology`:
+
+- AT_p, RT_p (8.2, 8.3): `path_characteristics` at stations every ``station_mm`` along the path, leaving out
+  :data:`END_MARGIN_MM` at the path's start and end (the robot starts and stops there at rest) and ``margin_mm``
+  about the rectangle's corners (there the plane normal to the path is not defined, and cornering is its own
+  test) [P];
+- CR, CO (8.5): `cornering_deviations` at the rectangle's corners P3, P4, P5 (P2, where every cycle starts and ends
+  at rest, is not a corner passed through) over the samples of the segments next to the corner;
+- AV, RV, FV (8.6): on the line, `path_velocity_characteristics` of speed samples v_i = |p(t_i + dt) - p(t_i)| / dt,
+  dt = ``speed_station_mm`` / v_c, over the middle 80 % of the time of the motion (the constant-velocity part) [P];
+  the attained path is read between its samples linearly. With an instrument of resolution r each speed sample
+  carries a quantisation of about r / speed_station_mm (1.6 % for 800 cpi mice and 2 mm), which enters FV.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from bench.errors import ConfigError, InsufficientData
+from bench.metrology import cornering_deviations, path_characteristics, path_velocity_characteristics
+from bench.store import Store
+
+__all__ = ["PATH_PROTOCOLS", "PathFigures", "PathRun", "analyze_path_run", "attained_cycles"]
+
+PATH_PROTOCOLS = ("iso9283_path", "iso9283_cornering")
+#: No AT station this close to a path's start or end (mm) [P].
+END_MARGIN_MM = 5.0
+
+
+@dataclass(frozen=True)
+class PathFigures:
+    """The figures of one path at one velocity."""
+
+    shape: str
+    velocity_pct: float
+    commanded_mm_s: float
+    n_cycles: int
+    n_segments: int
+    at_mm: float
+    rt_mm: float
+    n_stations: int
+    #: per corner label (P3, P4, P5): (CR_mm, CO_mm); empty unless a rectangle
+    corners: tuple[tuple[str, float, float], ...] = ()
+    av_pct: float | None = None
+    rv_pct: float | None = None
+    fv_mm_s: float | None = None
+    mean_speed_mm_s: float | None = None
+    duration_s: float = 0.0  #: mean attained time of one cycle, s
+
+    def as_json(self) -> dict:
+        out = {"shape": self.shape, "velocity_pct": self.velocity_pct, "commanded_mm_s": self.commanded_mm_s,
+               "n_cycles": self.n_cycles, "n_segments": self.n_segments, "n_stations": self.n_stations,
+               "AT_mm": self.at_mm, "RT_mm": self.rt_mm, "cycle_duration_s": self.duration_s}
+        if self.corners:
+            out["corners"] = [{"corner": c, "CR_mm": cr, "CO_mm": co} for c, cr, co in self.corners]
+            out["CR_mm"] = max(cr for _, cr, _ in self.corners)
+            out["CO_mm"] = max(co for _, _, co in self.corners)
+        if self.av_pct is not None:
+            out.update({"AV_pct": self.av_pct, "RV_pct": self.rv_pct, "FV_mm_s": self.fv_mm_s,
+                        "mean_speed_mm_s": self.mean_speed_mm_s})
+        return out
+
+
+@dataclass(frozen=True, eq=False)
+class PathRun:
+    """Every path and velocity of one run, with the commanded paths and the attained cycles (for the figure)."""
+
+    run_id: int
+    protocol: object  #: the regenerated `bench.protocols.path.PathProtocol`
+    figures: tuple[PathFigures, ...]
+    #: (shape, velocity_pct) -> list of (t_s (k,), position_mm (k, 3)) per cycle in cycle order
+    cycles: dict
+
+
+def attained_cycles(samples) -> dict[tuple[str, float], list[tuple[int, np.ndarray, np.ndarray, list[int]]]]:
+    """Per (shape, velocity_pct): per cycle (cycle, t_s, position_mm, segment start indices), from ``path`` samples.
+
+    Samples of a cycle are joined in step order; a point not later than the one before (a window reaching back
+    into the previous segment) is dropped, so times strictly increase."""
+    grouped: dict[tuple[str, float, int], list] = {}
+    for s in samples:
+        series = s.raw.get("series") if isinstance(s.raw, dict) else None
+        if not series or "t_request_s" not in s.raw:
+            raise InsufficientData(f"sample at step {s.step_index}: no streamed series with its start time, "
+                                   "expected a path segment captured by a streaming instrument")
+        grouped.setdefault((s.pose, float(s.values["velocity_pct"]), int(s.cycle)), []).append(s)
+    out: dict = {}
+    for (shape, velocity, cycle), parts in sorted(grouped.items()):
+        times, points, starts, last = [], [], [], -np.inf
+        for s in sorted(parts, key=lambda x: x.step_index):
+            t = float(s.raw["t_request_s"]) + np.asarray(s.raw["series"]["t_s"], float)
+            p = np.column_stack([np.asarray(s.raw["series"][a], float) for a in ("x_mm", "y_mm", "z_mm")])
+            keep = t > last
+            starts.append(sum(len(x) for x in times))
+            times.append(t[keep])
+            points.append(p[keep])
+            if keep.any():
+                last = float(t[keep][-1])
+        out.setdefault((shape, velocity), []).append((cycle, np.concatenate(times), np.concatenate(points), starts))
+    return out
+
+
+def _stations(path, spacing_mm: float, margin_mm: float, end_margin_mm: float = END_MARGIN_MM) -> np.ndarray:
+    """Stations every ``spacing_mm``, at least ``end_margin_mm`` from the path's start and end (where every cycle
+    starts and stops at rest, and an attained start past the first plane never crosses it) and ``margin_mm`` from
+    the rectangle's corners."""
+    s = np.arange(spacing_mm / 2, path.length_mm, spacing_mm)
+    s = s[(s >= end_margin_mm) & (s <= path.length_mm - end_margin_mm)]
+    if path.shape == "rectangle":
+        edges = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(path.vertices_mm, axis=0), axis=1))])
+        s = s[np.min(np.abs(s[:, None] - edges[None, :]), axis=1) >= margin_mm]
+    return path.point(s)
+
+
+def _speeds(cycles, spacing_mm: float, commanded_mm_s: float, hold_s: float) -> list[np.ndarray]:
+    """Speed samples per cycle over the middle 80 % of the motion's time (module docstring): the attained path read
+    at times ``spacing_mm / v_c`` apart (linear between samples), v_i = |p(t_i + dt) - p(t_i)| / dt."""
+    step_s = spacing_mm / commanded_mm_s
+    speeds = []
+    for _, t, p, _ in cycles:
+        start, end = t[0], t[-1] - hold_s
+        grid = np.arange(start + 0.1 * (end - start), start + 0.9 * (end - start) + 1e-9, step_s)
+        if len(grid) < 3:
+            raise InsufficientData(f"path velocity: {len(grid)} speed samples per cycle, expected a longer line "
+                                   f"than {spacing_mm:g} mm steps allow")
+        read = np.column_stack([np.interp(grid, t, p[:, axis]) for axis in range(p.shape[1])])
+        speeds.append(np.linalg.norm(np.diff(read, axis=0), axis=1) / step_s)
+    return speeds
+
+
+def _corners(cycles, path) -> tuple[tuple[str, float, float], ...]:
+    """CR, CO at P3, P4, P5 over the segments next to each corner (module docstring)."""
+    out = []
+    vertices = path.vertices_mm
+    for number, label in ((1, "P3"), (2, "P4"), (3, "P5")):
+        corner, before, after = vertices[number], vertices[number - 1], vertices[number + 1]
+        near = []
+        for _, _, p, _ in cycles:
+            distance = np.linalg.norm(p - corner, axis=1)
+            # the attained samples within 5 mm of the corner, in the pass that comes closest (one pass per cycle)
+            closest = int(np.argmin(distance))
+            inside = distance < 5.0
+            lo, hi = closest, closest
+            while lo > 0 and inside[lo - 1]:
+                lo -= 1
+            while hi < len(p) - 1 and inside[hi + 1]:
+                hi += 1
+            near.append(p[lo:hi + 1])
+        r = cornering_deviations(near, corner, before, after)
+        out.append((label, r.cr_mm, r.co_mm))
+    return tuple(out)
+
+
+def analyze_path_run(store: Store, run_id: int, *, station_mm: float = 1.0, margin_mm: float = 2.0,
+                     speed_station_mm: float = 2.0) -> PathRun:
+    """The figures of every path and velocity of path run ``run_id`` (module docstring).
+
+    Raises
+    ------
+    ConfigError
+        When the run is not a path run.
+    InsufficientData
+        When it has fewer than two complete cycles of a path and velocity (an aborted run: the cycles it finished).
+    """
+    from bench.protocols import protocol_from_config
+
+    run = store.run(run_id)
+    if run.protocol_name not in PATH_PROTOCOLS:
+        raise ConfigError(f"run {run_id}: a {run.protocol_name} run, expected one of {', '.join(PATH_PROTOCOLS)}")
+    protocol = protocol_from_config(run.config, source=f"run {run_id}")
+    grouped = attained_cycles(store.samples(run_id, kind="path"))
+    figures = []
+    for (shape, velocity), cycles in sorted(grouped.items(), key=lambda item: (item[0][0], -item[0][1])):
+        n_segments = len(protocol.segmentation(shape).targets_mm) - 1
+        complete = [c for c in cycles if len(c[3]) == n_segments]
+        if len(complete) < 2:
+            raise InsufficientData(f"run {run_id}: {shape} at {velocity:g} %: {len(complete)} complete cycle(s), "
+                                   "expected at least 2")
+        path = protocol.path(shape)
+        stations = _stations(path, station_mm, margin_mm)
+        r = path_characteristics([p for _, _, p, _ in complete], stations)
+        v_c = protocol.rated_mm_s * velocity / 100.0
+        extra: dict = {}
+        if shape == "rectangle":
+            extra["corners"] = _corners(complete, path)
+        if shape == "line":
+            v = path_velocity_characteristics(_speeds(complete, speed_station_mm, v_c, protocol.final_hold_s), v_c)
+            extra.update(av_pct=v.av_pct, rv_pct=v.rv_pct, fv_mm_s=v.fv_mm_s, mean_speed_mm_s=v.mean_speed_mm_s)
+        duration = float(np.mean([t[-1] - t[0] for _, t, _, _ in complete]))
+        figures.append(PathFigures(shape, velocity, v_c, len(complete), n_segments, r.at_mm, r.rt_mm,
+                                   len(stations), duration_s=duration, **extra))
+    if not figures:
+        raise InsufficientData(f"run {run_id}: no path samples")
+    return PathRun(run_id, protocol, tuple(figures),
+                   {key: [(t, p) for _, t, p, _ in cycles] for key, cycles in grouped.items()})

@@ -1,0 +1,61 @@
+"""The report of a path run: its results table from the stored streamed samples, the deviations rows of clause 8,
+and the figure of the commanded and attained paths at print size."""
+
+from __future__ import annotations
+
+import pytest
+
+from bench.protocols.path import PathAccuracy
+from bench.reports import collect, write_report
+from bench.reports.path import path_plot
+from bench.reports.path_run import analyze_path_run
+from bench.reports.plots import MIN_FONT_PT
+from bench.store import Store
+from figure_support import printed_font_sizes
+from reports_runs import html_tables, pdf_text, simulated_run
+
+
+@pytest.fixture(scope="module")
+def path_run(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("path")
+    protocol = PathAccuracy(shape="both", cycles=2, velocities_pct=[100.0], final_hold_s=0.2)
+    with Store(folder / "p.db") as store:
+        run_id = simulated_run(store, protocol, "pkm5", seed=6, speed_factor=10000)
+        figures = analyze_path_run(store, run_id).figures
+    return folder, run_id, figures
+
+
+def test_the_report_prints_the_figures_the_analysis_computes(path_run):
+    folder, run_id, figures = path_run
+    paths = write_report(folder / "p.db", run_id, folder / "out")
+    tables = html_tables(paths.html)
+    header, *rows = tables["path"]
+    assert header[:6] == ["Path", "v (%)", "v_c (mm/s)", "Cycles", "AT (mm)", "RT (mm)"]
+    by_shape = {f.shape: f for f in figures}
+    assert [r[0] for r in rows] == ["circle", "line"]
+    for row in rows:
+        f = by_shape[row[0]]
+        assert row[4] == f"{f.at_mm:.3f}" and row[5] == f"{f.rt_mm:.3f}" and row[3] == "2"
+    line = next(r for r in rows if r[0] == "line")
+    assert line[8] == f"{by_shape['line'].av_pct:+.1f}" and line[10] == f"{by_shape['line'].fv_mm_s:.3f}"
+    assert next(r for r in rows if r[0] == "circle")[8] == "—"  # no path velocity on the circle
+    deviations = {r[1]: r for r in tables["deviations"][1:]}
+    assert tables["deviations"][0][:5] == ["Clause", "Topic", "ISO 9283 requirement", "What was done", "Status"]
+    assert deviations["cycles"][4] == "deviates" and deviations["stations"][4] == "conforms"  # 2 of 10 cycles
+    assert "chord error <= 0.01 mm" in deviations["interpolation"][3]
+    text = pdf_text(paths.pdf)
+    assert "SIMULATED DATA" in text and f"bench analyze path-run {run_id}" in text
+
+
+def test_the_path_figure_is_readable_at_print_size_with_one_legend_and_one_scale(path_run):
+    folder, run_id, _ = path_run
+    with Store(folder / "p.db", read_only=True) as store:
+        report = collect(store, run_id)
+    plot = path_plot(report)
+    assert min(printed_font_sizes(plot)) >= MIN_FONT_PT - 1e-9
+    panels = [axes for axes in plot.figure.axes if axes.get_visible()]
+    assert [a.get_title() for a in panels] == ["line at 100 %", "circle at 100 %"]
+    assert len({a.get_xlim() for a in panels}) == 1 and len({a.get_ylim() for a in panels}) == 1
+    assert len(plot.figure.legends) == 1 and not any(a.get_legend() for a in panels)
+    labels = [t.get_text() for t in plot.figure.legends[0].get_texts()]
+    assert labels == ["attained, cycle 1", "attained, cycle 2", "commanded"]
