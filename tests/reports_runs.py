@@ -159,12 +159,13 @@ def write_grid_hit_run(store: Store, *, hits=APPENDIX_D2, attempts: int = 25) ->
 
 # ---- runs with partial or streamed readings: delta_positioning (laser grid) and iso9283_stabilisation (arrivals) ----
 
-def simulated_run(store: Store, protocol, robot: str, *, seed: int, speed_factor: float, options=()) -> int:
+def simulated_run(store: Store, protocol, robot: str, *, seed: int, speed_factor: float, options=(),
+                  ideal: bool = False) -> int:
     """Run ``protocol`` on a freshly started simulated rig into ``store``; returns the completed run's id."""
     from bench.protocols import Runner
     from bench.simulators.rig import simulated_rig
 
-    rig = simulated_rig(robot, seed=seed, speed_factor=speed_factor, options=tuple(options))
+    rig = simulated_rig(robot, seed=seed, speed_factor=speed_factor, options=tuple(options), ideal=ideal)
     try:
         result = Runner(rig, store).run(protocol)
     finally:

@@ -13,24 +13,18 @@ from hypothesis import strategies as st
 from bench.cli import main
 from bench.errors import ConfigError
 from bench.metrology import path_characteristics
-from bench.protocols import Runner, summarize
+from bench.protocols import summarize
 from bench.protocols.kinematics import robot_model
 from bench.protocols.path import Cornering, PathAccuracy
 from bench.reports.path_run import analyze_path_run, attained_cycles
-from bench.simulators.rig import simulated_rig
 from bench.store import Store
+from reports_runs import simulated_run
 
 COUNT_MM = 25.4 / 800  # one count of the simulated 800 cpi mice
 
 
 def _run(store, protocol, *, seed=4, ideal=False):
-    rig = simulated_rig("pkm5", seed=seed, speed_factor=10000, ideal=ideal)
-    try:
-        result = Runner(rig, store).run(protocol)
-    finally:
-        rig.close()
-    assert result.exit_status == "completed", result
-    return result.run_id
+    return simulated_run(store, protocol, "pkm5", seed=seed, speed_factor=10000, ideal=ideal)
 
 
 def test_the_paths_lie_in_the_cube_plane_through_the_iso_poses():

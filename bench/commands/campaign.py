@@ -146,12 +146,11 @@ def _raise_interrupt(signum: int, frame: Any) -> None:
 
 
 @contextmanager
-def _stop_signals_interrupt() -> Iterator[None]:
-    """While the rig opens (homing, the registration's check moves): SIGTERM and SIGHUP interrupt like Ctrl-C, so
-    the rig builder closes what it opened (the controller stops) and the run is left as it was, resumable."""
-    previous = {number: signal.getsignal(number) for number in STOP_SIGNALS}
-    for number in STOP_SIGNALS:
-        signal.signal(number, _raise_interrupt)
+def _signal_handlers(handlers: dict[int, Any]) -> Iterator[None]:
+    """Install ``{signal number: handler}`` for the block; the previous handlers come back after it."""
+    previous = {number: signal.getsignal(number) for number in handlers}
+    for number, handler in handlers.items():
+        signal.signal(number, handler)
     try:
         yield
     finally:
@@ -159,24 +158,21 @@ def _stop_signals_interrupt() -> Iterator[None]:
             signal.signal(number, handler)
 
 
-@contextmanager
-def _ctrl_c_pauses(runner: Runner) -> Iterator[None]:
+def _stop_signals_interrupt():
+    """While the rig opens (homing, the registration's check moves): SIGTERM and SIGHUP interrupt like Ctrl-C, so
+    the rig builder closes what it opened (the controller stops) and the run is left as it was, resumable."""
+    return _signal_handlers({number: _raise_interrupt for number in STOP_SIGNALS})
+
+
+def _ctrl_c_pauses(runner: Runner):
     """First Ctrl-C: pause at the next checkpoint; a second one, SIGTERM or SIGHUP: abort at once (robot stopped)."""
-    previous = {number: signal.getsignal(number) for number in (signal.SIGINT, *STOP_SIGNALS)}
 
     def on_signal(signum: int, frame: Any) -> None:
         signal.signal(signal.SIGINT, signal.default_int_handler)
         print("\nbench: pausing at the next checkpoint (Ctrl-C again aborts now)", file=sys.stderr)
         runner.request_pause()
 
-    signal.signal(signal.SIGINT, on_signal)
-    for number in STOP_SIGNALS:
-        signal.signal(number, _raise_interrupt)
-    try:
-        yield
-    finally:
-        for number, handler in previous.items():
-            signal.signal(number, handler)
+    return _signal_handlers({signal.SIGINT: on_signal, **{number: _raise_interrupt for number in STOP_SIGNALS}})
 
 
 def _ask_after_pause(runner: Runner) -> None:

@@ -13,9 +13,9 @@ from pathlib import Path
 from typing import Any, ClassVar
 
 from bench.errors import ConfigError
-from bench.protocols.kinematics import DEFAULT_SINGULARITY_THRESHOLD
+from bench.protocols.kinematics import DEFAULT_SINGULARITY_THRESHOLD, robot_model
 from bench.protocols.parameters import ChoiceParameter, FloatParameter, Parameter
-from bench.steps import Plan
+from bench.steps import Move, Plan
 
 __all__ = ["PROTOCOLS", "Protocol", "load_protocol", "protocol_from_config", "register"]
 
@@ -98,9 +98,13 @@ class Protocol:
         raise NotImplementedError
 
     def final_steps(self) -> Plan:
-        """Clean-up steps after the run (e.g. return home); default: none."""
+        """Clean-up steps after the run (e.g. :meth:`return_home`); default: none."""
         return
         yield
+
+    def return_home(self) -> Plan:
+        """The usual clean-up: back to the robot's home at full speed."""
+        yield Move(tuple(robot_model(self.robot).home), 100.0, "home")
 
     def on_completed(self, store: Any, run_id: int) -> None:
         """Called once the run has completed (e.g. to store a fitted calibration); default: nothing."""

@@ -14,7 +14,6 @@ import numpy as np
 
 from bench.metrology.documents import GRID_HIT_ATTEMPTS, GRID_OFFSET_MM, POSITIONING_POSES, POSITIONING_READINGS
 from bench.protocols.base import Protocol, register
-from bench.protocols.kinematics import robot_model
 from bench.protocols.parameters import (
     FloatListParameter,
     FloatParameter,
@@ -43,7 +42,7 @@ class _DeltaProtocol(Protocol):
         super().__init__(source, **values)
 
     def final_steps(self) -> Plan:
-        yield Move(robot_model(self.robot).home, 100.0, "home")
+        yield from self.return_home()
 
 
 @register

@@ -109,7 +109,7 @@ class DissertationPose(Protocol):
                 yield Checkpoint(f"point {_label(index)}, repeat {cycle}")
 
     def final_steps(self) -> Plan:
-        yield Move(robot_model(self.robot).home, 100.0, "home")
+        yield from self.return_home()
 
 
 @register

@@ -155,7 +155,7 @@ class _CubeProtocol(Protocol):
                          conditions={"load_kg": load})
 
     def final_steps(self) -> Plan:
-        yield Move(tuple(robot_model(self.robot).home), 100.0, "home")
+        yield from self.return_home()
 
 
 @register

@@ -14,7 +14,6 @@ from __future__ import annotations
 import numpy as np
 
 from bench.protocols.base import Protocol, register
-from bench.protocols.kinematics import robot_model
 from bench.protocols.parameters import FloatParameter, IntegerParameter, PoseTableParameter
 from bench.steps import Capture, Move, Plan, Settle, commanded_values
 
@@ -62,4 +61,4 @@ class IterativeCorrection(Protocol):
                     break
 
     def final_steps(self) -> Plan:
-        yield Move(tuple(robot_model(self.robot).home), 100.0, "home")
+        yield from self.return_home()

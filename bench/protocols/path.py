@@ -154,7 +154,7 @@ class PathProtocol(Protocol):
                     yield Checkpoint(f"{shape}, {velocity:g} %, cycle {cycle}")
 
     def final_steps(self) -> Plan:
-        yield Move(tuple(robot_model(self.robot).home), 100.0, "home")
+        yield from self.return_home()
 
 
 @register
