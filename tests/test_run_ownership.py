@@ -131,3 +131,13 @@ def test_a_store_in_memory_is_owned_by_its_process(tmp_path):
     with Store(":memory:") as store:
         run_id = _started(store)
         assert store.claim(run_id) is None and store.run(run_id).status == "running"
+
+
+def test_bench_runs_keeps_its_columns_aligned_for_a_long_bench_name(tmp_path, capsys):
+    store_path = tmp_path / "b.db"
+    with Store(store_path, bench="delta4-laser-grid-bench-2") as store:
+        store.set_status(_started(store), "completed")
+    assert main(["runs", "--store", str(store_path)]) == 0
+    header, row = capsys.readouterr().out.splitlines()
+    assert row.index("delta4-laser-grid-bench-2") == header.index("bench")
+    assert row.index("iso9283_pose v1") == header.index("protocol") and row.index("completed") == header.index("status")

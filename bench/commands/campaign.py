@@ -272,11 +272,14 @@ def _runs(args: argparse.Namespace) -> int:
         for record in records:
             print(json.dumps(record.as_dict(), sort_keys=True))
         return 0
-    print(f"{'id':>4}  {'bench':<12} {'protocol':<26} {'robot':<6} {'status':<11} {'samples':>7}  "
+    protocols = [f"{r.protocol_name} v{r.protocol_version}" for r in records]
+    # columns as wide as their longest entry (a station's bench name can be long), at least the old widths
+    bench_w = max([12, *(len(r.bench) for r in records)])
+    protocol_w = max([26, *(len(p) for p in protocols)])
+    print(f"{'id':>4}  {'bench':<{bench_w}} {'protocol':<{protocol_w}} {'robot':<6} {'status':<11} {'samples':>7}  "
           f"{'started (UTC)':<19}  reason")
-    for r in records:
-        protocol = f"{r.protocol_name} v{r.protocol_version}"
-        print(f"{r.id:>4}  {r.bench:<12} {protocol:<26} {r.robot:<6} {r.status:<11} "
+    for r, protocol in zip(records, protocols):
+        print(f"{r.id:>4}  {r.bench:<{bench_w}} {protocol:<{protocol_w}} {r.robot:<6} {r.status:<11} "
               f"{r.n_samples:>7}  {r.started_utc[:19]:<19}  {r.reason or ''}")
     return 0
 
