@@ -86,10 +86,10 @@ def main() -> None:
         print(_line("collect", walls, cpus))
         stages = {"document": ([], []), "html": ([], []), "pdf": ([], [])}
         for _ in range(args.repeat):  # a fresh document each time: its figures are drawn once, by the first format
-            for name, function in (("document", lambda: run_document(report, [])),
-                                   ("html", lambda: render_html(document)), ("pdf", lambda: render_pdf(document))):
-                walls, cpus, result = _timed(function, 1)
-                document = result if name == "document" else document
+            walls, cpus, document = _timed(lambda: run_document(report, []), 1)
+            timed = {"document": (walls, cpus), "html": _timed(lambda: render_html(document), 1)[:2],
+                     "pdf": _timed(lambda: render_pdf(document), 1)[:2]}
+            for name, (walls, cpus) in timed.items():
                 stages[name][0].extend(walls)
                 stages[name][1].extend(cpus)
         for name, (walls, cpus) in stages.items():

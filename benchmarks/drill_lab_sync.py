@@ -101,7 +101,7 @@ def main(argv=None) -> int:
                    f" of {len(expected)} runs", checksums == expected),
                   (f"pose tables: {points:,} points, sums over {int(folded or 0):,} samples, expected {pose_samples:,}",
                    points == folded == pose_samples),
-                  (f"every sync exited 0 (bench-00's second by the API)", codes == [0] * len(others))]
+                  ("every sync exited 0 (bench-00's second by the API)", codes == [0] * len(others))]
         for text, ok in checks:
             print(f"{'ok  ' if ok else 'FAIL'} {text}")
         print(f"load average: {os.getloadavg()[0]:.1f} on {os.cpu_count()} CPUs")

@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 from bench.robots import delta4_wire as wire
-from bench.robots.delta4 import DEFAULT_BAUDRATE, HOME_MM, Delta4Controller
+from bench.robots.delta4 import DEFAULT_BAUDRATE, Delta4Controller
 from bench.sensors.lasergrid import GridGeometry, decode_frame
 from bench.simulators.lasergrid import LaserGridSimulator
 from tests.firmware_sim import F_CPU_HZ, ROOT, needs_toolchain, start_harness
