@@ -141,6 +141,9 @@ def test_a_stored_design_key_is_left_out_on_resume_but_refused_in_a_protocol_fil
     assert config["loads_kg"] == [0.0] and len(config["poses"]) == 15
     rebuilt = protocol_from_config(config, source="run 1", stored=True)
     assert rebuilt.config() == config
+    path = PROTOCOLS["iso9283_cornering"](cube_side_mm=40.0).config()  # the path protocols store their paths
+    assert [p["shape"] for p in path["paths"]] == ["rectangle"] and path["rated_path_speed_mm_s"] > 0
+    assert protocol_from_config(path, source="run 2", stored=True).config() == path
     with pytest.raises(ConfigError, match="p.toml: unknown key 'loads_kg'"):
         protocol_from_config({"protocol": "dissertation_pose", "loads_kg": [1.0]}, source="p.toml")
 

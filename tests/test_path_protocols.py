@@ -142,7 +142,7 @@ def test_analyze_path_run_refuses_a_pose_run(tmp_path, capsys):
 def test_commanded_points_lie_on_their_path_and_stations_are_at_most_the_spacing_apart(shape, side, fraction,
                                                                                       spacing):
     from bench.protocols.iso9283 import cube_poses
-    from bench.protocols.path_geometry import commanded_path
+    from bench.metrology.path_geometry import commanded_path
 
     path = commanded_path(shape, cube_poses((110.0, 0.0, 320.0), side))
     points = path.point(np.array(fraction) * path.length_mm)

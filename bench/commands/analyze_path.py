@@ -86,7 +86,7 @@ def _path_run(args: argparse.Namespace) -> int:
         lines.append(f"{f.shape:<10} {f.velocity_pct:>5g} {f.commanded_mm_s:>8.3f} {f.n_cycles:>3} {f.at_mm:>7.3f} "
                      f"{f.rt_mm:>7.3f} {cell('CR_mm', '7.3f'):>7} {cell('CO_mm', '7.3f'):>7} "
                      f"{cell('AV_pct', '+7.2f'):>7} {cell('RV_pct', '7.2f'):>7} {cell('FV_mm_s', '8.3f'):>8}")
-    emit({"run_id": args.run_id, "protocol": result.protocol.name, "rated_path_velocity_mm_s": result.protocol.rated_mm_s,
+    emit({"run_id": args.run_id, "protocol": result.protocol_name, "rated_path_velocity_mm_s": result.design.rated_mm_s,
           "paths": [f.as_json() for f in result.figures]}, args.json, lines)
     return 0
 

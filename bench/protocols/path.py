@@ -29,7 +29,7 @@ from bench.protocols.base import Protocol, register
 from bench.protocols.iso9283 import _PLANES, cube_poses, fit_cube_side
 from bench.protocols.kinematics import robot_model
 from bench.protocols.parameters import ChoiceParameter, FloatListParameter, FloatParameter, IntegerParameter
-from bench.protocols.path_geometry import CommandedPath, Segmentation, commanded_path, segment_path
+from bench.metrology.path_geometry import CommandedPath, Segmentation, commanded_path, segment_path
 from bench.rigs.mice import PATH as PATH_KIND
 from bench.steps import Capture, Checkpoint, Move, Plan, Settle, commanded_values
 
@@ -121,6 +121,20 @@ class PathProtocol(Protocol):
         out = super().resolved()
         out["cube_side_mm"] = self.cube_side_mm or getattr(self, "_side_mm", 0.0)
         return out
+
+    #: What the report reads of the design, stored with the run (the analysis needs no protocol code): per shape
+    #: the commanded path and its segment targets, and the rated path velocity the percentages refer to.
+    design_keys = ("paths", "rated_path_speed_mm_s")
+
+    def config(self) -> dict[str, Any]:
+        paths = []  # a list: the order driven (a stored mapping's keys come back sorted)
+        for shape in self.shapes:
+            path, segmentation = self.path(shape), self.segmentation(shape)
+            paths.append({"shape": shape, "vertices_mm": path.vertices_mm.tolist(),
+                          "centre_mm": path.centre_mm.tolist(), "radius_mm": path.radius_mm, "u": path.u.tolist(), "v": path.v.tolist(),
+                          "segment_targets_mm": segmentation.targets_mm.tolist(),
+                          "max_chord_error_mm": segmentation.chord_error_mm})
+        return {**super().config(), "paths": paths, "rated_path_speed_mm_s": self.rated_mm_s}
 
     def segment_plan(self, shape: str, velocity_pct: float) -> list[tuple[tuple[float, ...], float, float]]:
         """Per segment: its end target, the Move's velocity (% of the rated leg speed), its duration (s)."""

@@ -39,7 +39,7 @@ class PathReport(ReportBase):
 def path_deviations(run, analysis: PathRun) -> list[Deviation]:
     """Departures of a path run from ISO 9283 clause 8 (iso9283.md §6.10-6.14): cycles, velocities, the paths, the
     joint-space segmentation, the velocity reference and the instrument."""
-    config, protocol = run.config, analysis.protocol
+    config, protocol = run.config, analysis.design
     cornering = run.protocol_name == "iso9283_cornering"
     required = CORNERING_CYCLES if cornering else PATH_CYCLES
     measured = min(f.n_cycles for f in analysis.figures)
@@ -58,7 +58,7 @@ def path_deviations(run, analysis: PathRun) -> list[Deviation]:
                      f"{shapes} in the cube's {config.get('plane', 'x=z')} plane, cube edge "
                      f"{config.get('cube_side_mm', 0):g} mm", False,
                      "one circle (radius 0.4 L); the other paths in a run of the other path protocol"))
-    chord = max(protocol.segmentation(s).chord_error_mm for s in protocol.shapes)
+    chord = max(protocol.max_chord_error_mm[s] for s in protocol.shapes)
     rows.append(_row("ISO 9283 8.1", "interpolation", "continuous path control by the robot",
                      f"host-side segments, joint-linear moves, chord error <= {protocol.chord_error_mm:g} mm "
                      f"(largest {chord:.4f} mm); the robot stops briefly at every segment end", False,
@@ -84,7 +84,7 @@ def collect_path(store: Store, run_id: int, *, k: float = 2.0, resamples: int = 
     return PathReport(**provenance(run, calibrations), title=run.config.get("title") or
                       "ISO 9283-style path characteristics",
                       clauses=("8.2 path accuracy", "8.3 path repeatability", *clauses) + (
-                          ("8.6 path velocity",) if "line" in analysis.protocol.shapes else ()),
+                          ("8.6 path velocity",) if "line" in analysis.design.shapes else ()),
                       deviations=tuple(path_deviations(run, analysis)),
                       instrument=counts_instrument(run, calibrations, 0),
                       table=run_table(store, run_id, "path", series=True), coverage_factor=k,
@@ -120,7 +120,7 @@ def _results(report: PathReport) -> tuple:
 def path_plot(report: PathReport) -> Plot:
     """Per path: the commanded path and the attained cycles of the highest velocity, in the test plane (u along
     P2 -> P5, v along P2 -> P3, mm from P1), every panel on one scale; one legend for the figure."""
-    protocol = report.analysis.protocol
+    protocol = report.analysis.design
     shapes = list(protocol.shapes)
     figure, axes_list = panels(len(shapes), max_columns=2, size=(3.4, 3.0), share=True)
     for axes, shape in zip(axes_list, shapes):
@@ -162,7 +162,7 @@ def path_plot(report: PathReport) -> Plot:
 
 def path_document(report: PathReport, raw: list[RawData], *, operator: str = "not recorded",
                   laboratory: str = "not recorded"):
-    protocol = report.analysis.protocol
+    protocol = report.analysis.design
     method = ("ISO 9283:1998 clause 8. The path is cut into straight segments whose joint-space chord error is at "
               f"most {protocol.chord_error_mm:g} mm; every segment end passes the pre-flight (reachable, within the "
               "joint limits, away from singularities). Each segment is one move at the leg speed giving the "
@@ -171,7 +171,7 @@ def path_document(report: PathReport, raw: list[RawData], *, operator: str = "no
               "min_t |P_E − p(t)|, CO = the largest excursion beyond the outgoing side after the corner; AV = (v̄ − "
               "v_c)/v_c, RV = 3 S_v/v_c, FV = max_j (max_i v_ij − min_i v_ij) over the middle 80 % of the line.")
     extra = (("rated path velocity (mm/s)", f"{protocol.rated_mm_s:g}"),
-             ("segments", ", ".join(f"{s} {len(protocol.segmentation(s).targets_mm) - 1}" for s in protocol.shapes)))
+             ("segments", ", ".join(f"{s} {protocol.n_segments(s)}" for s in protocol.shapes)))
     recompute = (f"bench analyze path-run {report.run.id} --store {report.store_path} --json")
     return assemble(report, raw, operator=operator, laboratory=laboratory, method=method, scope=SCOPE,
                     conditions=conditions_section(report, ("velocities_pct", "path_speed_mm_s", "cycles", "shape",

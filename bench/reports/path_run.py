@@ -1,6 +1,7 @@
 """The figures of a stored ISO 9283 path run (``iso9283_path``, ``iso9283_cornering``), from its raw streamed samples.
 
-The commanded paths come from the run's stored configuration (the protocol regenerated, `bench.protocols.path`), the
+The commanded paths come from the run's stored configuration (the design the protocol stored with it: each path, its
+segment targets and the rated path velocity; :class:`PathDesign`), the
 attained paths from the ``path`` samples: per cycle, the series of its segments (``raw["series"]``, times relative
 to ``raw["t_request_s"]``) joined in step order on the instrument's clock. Every figure is computed by
 `bench.metrology`:
@@ -25,9 +26,10 @@ import numpy as np
 
 from bench.errors import ConfigError, InsufficientData
 from bench.metrology import cornering_deviations, path_characteristics, path_velocity_characteristics
+from bench.metrology.path_geometry import CommandedPath
 from bench.store import Store
 
-__all__ = ["PATH_PROTOCOLS", "PathFigures", "PathRun", "analyze_path_run", "attained_cycles"]
+__all__ = ["PATH_PROTOCOLS", "PathDesign", "PathFigures", "PathRun", "analyze_path_run", "attained_cycles"]
 
 PATH_PROTOCOLS = ("iso9283_path", "iso9283_cornering")
 #: No AT station this close to a path's start or end (mm) [P].
@@ -73,7 +75,8 @@ class PathRun:
     """Every path and velocity of one run, with the commanded paths and the attained cycles (for the figure)."""
 
     run_id: int
-    protocol: object  #: the regenerated `bench.protocols.path.PathProtocol`
+    protocol_name: str
+    design: "PathDesign"  #: the commanded paths, as stored with the run
     figures: tuple[PathFigures, ...]
     #: (shape, velocity_pct) -> list of (t_s (k,), position_mm (k, 3)) per cycle in cycle order
     cycles: dict
@@ -158,6 +161,46 @@ def _corners(cycles, path) -> tuple[tuple[str, float, float], ...]:
     return tuple(out)
 
 
+@dataclass(frozen=True, eq=False)
+class PathDesign:
+    """What a path run commanded, read back from its stored configuration (``paths``, ``rated_path_speed_mm_s``,
+    ``chord_error_mm``, ``final_hold_s``): the paths as :class:`bench.metrology.path_geometry.CommandedPath`."""
+
+    paths: dict  #: shape -> CommandedPath, in the order driven
+    segment_targets_mm: dict  #: shape -> (n + 1, 3) the start and every segment's end
+    max_chord_error_mm: dict  #: shape -> the largest joint-space chord error of its segments
+    rated_mm_s: float
+    chord_error_mm: float
+    final_hold_s: float
+
+    @property
+    def shapes(self) -> tuple[str, ...]:
+        return tuple(self.paths)
+
+    def path(self, shape: str) -> CommandedPath:
+        return self.paths[shape]
+
+    def n_segments(self, shape: str) -> int:
+        return len(self.segment_targets_mm[shape]) - 1
+
+    @classmethod
+    def from_config(cls, config: dict, source: str) -> "PathDesign":
+        missing = [k for k in ("paths", "rated_path_speed_mm_s", "chord_error_mm", "final_hold_s") if k not in config]
+        if missing:
+            raise ConfigError(f"{source}: not stored: config.{', config.'.join(missing)} (a path run stores its "
+                              "commanded paths), expected a run made by this version's path protocols")
+        paths, targets, chords = {}, {}, {}
+        for stored in config["paths"]:
+            shape = stored["shape"]
+            paths[shape] = CommandedPath(shape, np.asarray(stored["vertices_mm"], float).reshape(-1, 3),
+                                         np.asarray(stored["centre_mm"], float), float(stored["radius_mm"]),
+                                         np.asarray(stored["u"], float), np.asarray(stored["v"], float))
+            targets[shape] = np.asarray(stored["segment_targets_mm"], float)
+            chords[shape] = float(stored["max_chord_error_mm"])
+        return cls(paths, targets, chords, float(config["rated_path_speed_mm_s"]), float(config["chord_error_mm"]),
+                   float(config["final_hold_s"]))
+
+
 def analyze_path_run(store: Store, run_id: int, *, station_mm: float = 1.0, margin_mm: float = 2.0,
                      speed_station_mm: float = 2.0) -> PathRun:
     """The figures of every path and velocity of path run ``run_id`` (module docstring).
@@ -169,16 +212,14 @@ def analyze_path_run(store: Store, run_id: int, *, station_mm: float = 1.0, marg
     InsufficientData
         When it has fewer than two complete cycles of a path and velocity (an aborted run: the cycles it finished).
     """
-    from bench.protocols import protocol_from_config
-
     run = store.run(run_id)
     if run.protocol_name not in PATH_PROTOCOLS:
         raise ConfigError(f"run {run_id}: a {run.protocol_name} run, expected one of {', '.join(PATH_PROTOCOLS)}")
-    protocol = protocol_from_config(run.config, source=f"run {run_id}")
+    protocol = PathDesign.from_config(run.config, source=f"run {run_id}")
     grouped = attained_cycles(store.samples(run_id, kind="path"))
     figures = []
     for (shape, velocity), cycles in sorted(grouped.items(), key=lambda item: (item[0][0], -item[0][1])):
-        n_segments = len(protocol.segmentation(shape).targets_mm) - 1
+        n_segments = protocol.n_segments(shape)
         complete = [c for c in cycles if len(c[3]) == n_segments]
         if len(complete) < 2:
             raise InsufficientData(f"run {run_id}: {shape} at {velocity:g} %: {len(complete)} complete cycle(s), "
@@ -198,5 +239,5 @@ def analyze_path_run(store: Store, run_id: int, *, station_mm: float = 1.0, marg
                                    len(stations), duration_s=duration, **extra))
     if not figures:
         raise InsufficientData(f"run {run_id}: no path samples")
-    return PathRun(run_id, protocol, tuple(figures),
+    return PathRun(run_id, run.protocol_name, protocol, tuple(figures),
                    {key: [(t, p) for _, t, p, _ in cycles] for key, cycles in grouped.items()})
