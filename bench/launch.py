@@ -185,10 +185,20 @@ def _simulation_settings(request: RigRequest, stored: dict[str, Any]) -> tuple[i
                           f"{stored_speed:g}, expected the same (leave the speed factor out)")
     seed = request.seed if request.seed is not None else (stored_seed if stored_seed is not None else 0)
     speed = request.speed_factor if request.speed_factor is not None else (stored_speed or DEFAULT_SPEED_FACTOR)
+    check_speed_factor(speed)
+    return seed, speed
+
+
+def check_speed_factor(speed: float) -> None:
+    """Refuse a speed factor that is not a finite number > 0, naming the option (before any file or port opens).
+
+    Raises
+    ------
+    ConfigError
+    """
     if not 0 < speed < float("inf"):
         raise ConfigError(f"speed factor = {speed:g}, expected a finite number > 0 (--speed-factor, how much faster "
                           "than real time the simulators run)")
-    return seed, speed
 
 
 def _station(request: RigRequest, robot: str, fixture: str) -> Station | None:

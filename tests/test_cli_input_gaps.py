@@ -28,6 +28,7 @@ def test_a_speed_factor_that_is_not_finite_and_positive_is_refused_naming_the_op
     shown = f"{float(factor):g}"
     assert _one_line(capsys) == (f"bench: error: speed factor = {shown}, expected a finite number > 0 "
                                  "(--speed-factor, how much faster than real time the simulators run)")
+    assert not store.exists()  # refused before the store opens: no empty file left behind
 
 
 @pytest.mark.parametrize("factor", ["inf", "nan", "-1"])

@@ -210,6 +210,7 @@ def execute(runner: Runner, start) -> RunResult:
 
 def _run(args: argparse.Namespace) -> int:
     from bench.calibration_compensation import preflight_by_rig
+    from bench.launch import check_speed_factor
     from bench.protocols import Runner, load_protocol, preflight, summarize
     from bench.protocols.plan import required_capabilities
     from bench.store import Store
@@ -223,6 +224,8 @@ def _run(args: argparse.Namespace) -> int:
             raise UnreachableTarget(f"{protocol.source}: {summary.problems()[0]}")
         return 0
     preflight(protocol)  # before a simulator or a port is opened; the runner checks again
+    if args.speed_factor is not None:  # before the store opens: a refused run leaves no new file behind
+        check_speed_factor(args.speed_factor)
     with Store(args.store) as store:
         rig = build_rig(args, protocol.robot, store, fixture=getattr(protocol, "fixture", "assembled"),
                         requires=required_capabilities(protocol), protocol=f"protocol {protocol.name!r}")
