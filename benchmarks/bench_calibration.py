@@ -7,9 +7,9 @@ the numpy FK and the compiled one (``ForwardModel``'s default when numba is inst
 process loads numba: the set-up's Jacobian over the 400 candidate poses does it, before any timed run).
 """
 
-import time
-
 import numpy as np
+
+from _timing import min_median_max, spread
 
 from bench.metrology.kinematic_calibration import identifiable_subset, identify, select_poses
 from bench.simulators.true_geometry import attained_poses, true_geometry
@@ -32,21 +32,12 @@ def main() -> None:
         rng = np.random.default_rng(n)
         measured = attained_poses(steps[pick], modes[pick], truth)[:, :3] + rng.normal(0, UNCERTAINTY_MM, (n, 3))
         for engine in ("numpy", "compiled"):
-            times = []
-            for _ in range(5):
-                start = time.perf_counter()
-                result = identify(ForwardModel(steps[pick], modes[pick], free, engine=engine), measured,
-                                  UNCERTAINTY_MM)
-                times.append(time.perf_counter() - start)
+            times, result = spread(lambda: identify(ForwardModel(steps[pick], modes[pick], free, engine=engine),
+                                                    measured, UNCERTAINTY_MM))
             model = ForwardModel(steps[pick], modes[pick], free, engine=engine)
-            start = time.perf_counter()
-            model.predict(np.zeros(len(free)))
-            fk_s = time.perf_counter() - start
-            t = np.array(times)
-            print(f"{n:4d} poses, {len(free)} parameters, FK {engine:8s}: min {t.min():.3f} s, median "
-                  f"{np.median(t):.3f} s, max {t.max():.3f} s; {result.iterations} model evaluations; "
-                  f"median / one FK solve = {np.median(t) / fk_s:.0f}x")
-
+            (fk_s,), _ = spread(model.predict, np.zeros(len(free)), repeat=1)
+            print(f"{n:4d} poses, {len(free)} parameters, FK {engine:8s}: {min_median_max(times)}; "
+                  f"{result.iterations} model evaluations; median / one FK solve = {np.median(times) / fk_s:.0f}x")
 
 if __name__ == "__main__":
     main()

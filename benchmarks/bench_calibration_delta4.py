@@ -6,9 +6,9 @@ the chosen poses identify. Prints min/median/max wall time of 5 runs each, and t
 kinematics solve of the same poses (the physical floor: every model evaluation needs one).
 """
 
-import time
-
 import numpy as np
+
+from _timing import min_median_max, spread
 
 from bench.metrology.kinematic_calibration import identifiable_subset, identify, select_poses
 from motion import delta4
@@ -32,19 +32,10 @@ def main() -> None:
         free = identifiable_subset(jac[pick], UNCERTAINTY_MM, CANDIDATES, required=PLANE)
         rng = np.random.default_rng(n)
         measured = attained_positions(servo[pick], PARAMETERS, truth)[:, :2] + rng.normal(0, UNCERTAINTY_MM, (n, 2))
-        times = []
-        for _ in range(5):
-            start = time.perf_counter()
-            result = identify(ForwardModel(servo[pick], free), measured, UNCERTAINTY_MM)
-            times.append(time.perf_counter() - start)
-        model = ForwardModel(servo[pick], free)
-        start = time.perf_counter()
-        model.predict(np.zeros(len(free)))
-        fk_s = time.perf_counter() - start
-        t = np.array(times)
-        print(f"{n:4d} poses, {len(free)} parameters: min {t.min():.3f} s, median {np.median(t):.3f} s, "
-              f"max {t.max():.3f} s; {result.iterations} model evaluations; median / one FK solve = "
-              f"{np.median(t) / fk_s:.0f}x")
+        times, result = spread(lambda: identify(ForwardModel(servo[pick], free), measured, UNCERTAINTY_MM))
+        (fk_s,), _ = spread(ForwardModel(servo[pick], free).predict, np.zeros(len(free)), repeat=1)
+        print(f"{n:4d} poses, {len(free)} parameters: {min_median_max(times)}; {result.iterations} model "
+              f"evaluations; median / one FK solve = {np.median(times) / fk_s:.0f}x")
 
 
 if __name__ == "__main__":
