@@ -154,9 +154,8 @@ class ForwardModel:
         # 'auto': the compiled FK whenever numba is installed, whatever the batch size (the FK's own 'auto' waits
         # for 10,000 poses): an identification solves the same 30-100 poses some 30 times, and numpy's per-call
         # overhead, not arithmetic, is its time (100 poses: 4.9 s numpy, 0.76 s compiled, equal to 1e-5)
-        self.engine = "compiled" if engine == "auto" and kernels.available() else \
-            "numpy" if engine == "auto" else engine
         self.steps = np.asarray(steps, dtype=float).reshape(-1, 6)
+        self.engine = "compiled" if kernels.use_compiled(engine, len(self.steps), threshold=0) else "numpy"
         self.modes = np.asarray(modes, dtype=object).reshape(-1)
         if len(self.modes) != len(self.steps):
             raise MotionInputError(f"modes has {len(self.modes)} entries for {len(self.steps)} poses")
