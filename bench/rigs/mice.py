@@ -95,7 +95,10 @@ class MiceInstrument:
 
     def position_mm(self) -> np.ndarray:
         """The position (x, y, z) the mice read now, mm (the registration's check, :mod:`bench.rigs.registration`)."""
-        xy, xz = self._read()
+        return self._position_mm(*self._read())
+
+    def _position_mm(self, xy, xz) -> np.ndarray:
+        """x and y from the x-y mouse, z from the x-z mouse, in the registered frame, mm."""
         return np.array([*(self.origin[:2] + np.asarray(xy.value)), self.origin[2] + xz.value[1]], dtype=float)
 
     def shift_origin(self, shift_mm) -> None:
@@ -112,8 +115,7 @@ class MiceInstrument:
                       "mouse_xz_x_counts": xz.raw[0], "mouse_xz_z_counts": xz.raw[1]}
             return Measurement({k: float(v) for k, v in counts.items()},
                                raw={"calibration": self.calibration.calibration_id})
-        x_mm, y_mm = self.origin[:2] + np.asarray(xy.value)
-        z_mm = self.origin[2] + xz.value[1]  # as position_mm, with the raw counts kept
+        x_mm, y_mm, z_mm = self._position_mm(xy, xz)
         return Measurement({"x_mm": float(x_mm), "y_mm": float(y_mm), "z_mm": float(z_mm)},
                            raw={"counts_xy": list(xy.raw), "counts_xz": list(xz.raw), "valid": bool(xy.valid
                                                                                                    and xz.valid),
