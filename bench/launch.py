@@ -223,8 +223,7 @@ def simulated_rig_in(store: Any, robot: str, *, seed: int, speed_factor: float, 
     recorded in the simulator settings)."""
     from bench.simulators.rig import simulated_rig
 
-    if not speed_factor > 0:
-        raise ConfigError(f"--speed-factor = {speed_factor:g}, expected a number > 0")
+    check_speed_factor(speed_factor)
     if true_geometry_seed is not None and fixture != "assembled":
         raise ConfigError(f"--true-geometry-seed {true_geometry_seed}: the {fixture} has no geometry, expected the "
                           "assembled robot")
