@@ -500,16 +500,18 @@ def test_a_rig_opened_on_a_controller_still_moving_stops_that_move_first(tmp_pat
     from bench.robots.pkm5 import Pkm5Controller
     from bench.simulators.station import rehearse
 
-    rehearsal = rehearse(load_station(STATIONS / "pkm5_mice.toml"), speed_factor=1)
+    # speed factor 20 with a 10 steps/s move: the move lasts 9.6 s of wall time as at factor 1 with 200 steps/s,
+    # while the rig's homing after the stop takes seconds rather than the 80 s it takes at factor 1
+    rehearsal = rehearse(load_station(STATIONS / "pkm5_mice.toml"), speed_factor=20)
     try:
         port = open_port(rehearsal.station.controller.port, baudrate=115200, timeout=0.05, exclusive=True)
         robot = Pkm5Controller(port)
         version = robot.identify().protocol_version
         robot.enable()
-        port.write(wire.format_command("MOVE", (2656, 2656, 2669, 2669, 2720, 2720, 200), 99, version))
+        port.write(wire.format_command("MOVE", (2656, 2656, 2669, 2669, 2720, 2720, 10), 99, version))
         port.flush()
         deadline = time.monotonic() + 10
-        while robot.position().state != "MOVING":  # the move is under way (9 s at speed factor 1)
+        while robot.position().state != "MOVING":  # the move is under way (9.6 s of wall time)
             assert time.monotonic() < deadline
         port.close()  # the host goes away without a STOP
         with Store(tmp_path / "b.db") as store:
