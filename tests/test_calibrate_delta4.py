@@ -180,3 +180,27 @@ def test_a_servo_mapping_is_rebuilt_from_its_settings():
         assert mapping_from_settings(mapping.settings()) == mapping
     with pytest.raises(ConfigError, match="^servo mapping 'pwm', expected one of legacy_vb, calibrated$"):
         mapping_from_settings({"name": "pwm"})
+
+
+def test_the_example_protocols_pass_the_preflight_and_are_well_conditioned():
+    """examples/kinematic_calibration_delta4.toml: 30 positions in the camera's field whose identification
+    Jacobian keeps the default free set within the condition limit; the validation positions are others."""
+    from pathlib import Path
+
+    from bench.metrology.kinematic_calibration import observability
+    from bench.protocols.base import load_protocol
+    from bench.protocols.plan import preflight
+
+    examples = Path(__file__).resolve().parent.parent / "examples"
+    calibration = load_protocol(examples / "kinematic_calibration_delta4.toml")
+    validation = load_protocol(examples / "kinematic_validation_delta4.toml")
+    for protocol in (calibration, validation):
+        assert protocol.robot == "delta4" and preflight(protocol).ok
+    poses = np.array(list(calibration.test_poses().values()))
+    assert len(poses) == 30 and np.all(np.abs(poses[:, :2]) < 75.0)
+    assert not set(map(tuple, poses)) & set(validation.test_poses().values())
+    servo = _sent(delta4.inverse_kinematics(poses).servo_deg)
+    jac = ForwardModel(servo, CANDIDATES).jacobian(np.zeros(len(CANDIDATES)))
+    free = identifiable_subset(jac, U_MM, CANDIDATES, required=PLANE)
+    assert len(free) >= 18
+    assert observability(ForwardModel(servo, free).jacobian(np.zeros(len(free))), U_MM, free).condition_number < 100
