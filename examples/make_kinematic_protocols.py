@@ -55,7 +55,7 @@ def protocol_text(title: str, prefix: str, poses: np.ndarray, robot: str = "pkm5
 def delta4_field(count: int, seed: int, half_width_mm: float) -> np.ndarray:
     """Reachable delta4 positions (mm, rounded to 0.01) within |x|, |y| < ``half_width_mm``, that pass the
     pre-flight."""
-    points, reachable = workspace_samples(20 * count, seed=seed)
+    points, reachable = workspace_samples(20000, seed=seed)
     points = np.round(points[reachable], 2)
     points = points[np.all(np.abs(points[:, :2]) < half_width_mm, axis=1)]
     return points[robot_model("delta4").check(points).reachable][:count]

@@ -197,7 +197,7 @@ def test_the_example_protocols_pass_the_preflight_and_are_well_conditioned():
     for protocol in (calibration, validation):
         assert protocol.robot == "delta4" and preflight(protocol).ok
     poses = np.array(list(calibration.test_poses().values()))
-    assert len(poses) == 30 and np.all(np.abs(poses[:, :2]) < 75.0)
+    assert len(poses) == 30 and len(validation.test_poses()) == 12 and np.all(np.abs(poses[:, :2]) < 75.0)
     assert not set(map(tuple, poses)) & set(validation.test_poses().values())
     servo = _sent(delta4.inverse_kinematics(poses).servo_deg)
     jac = ForwardModel(servo, CANDIDATES).jacobian(np.zeros(len(CANDIDATES)))
