@@ -204,3 +204,27 @@ def test_the_example_protocols_pass_the_preflight_and_are_well_conditioned():
     free = identifiable_subset(jac, U_MM, CANDIDATES, required=PLANE)
     assert len(free) >= 18
     assert observability(ForwardModel(servo, free).jacobian(np.zeros(len(free))), U_MM, free).condition_number < 100
+
+
+def test_a_run_commanded_by_a_calibration_is_identified_from_the_angles_it_sent(tmp_path, capsys):
+    """The joints of a run made with a calibration in force are its calibrated IK's (through the bytes): a robot
+    that really has that geometry is identified as it, noise-free, to 1e-6."""
+    in_force = {"parameters": {"servo_zero_1_deg": {"value": 0.6}, "upper_arm_3_mm": {"value": -0.4},
+                               "reg_x_mm": {"value": 0.3}, "reg_y_mm": {"value": -0.2}}}
+    path = tmp_path / "bench.db"
+    targets = _field(6, 40)
+    with Store(path) as store:
+        record = store.add_calibration("delta4_kinematics", in_force)
+    geometry = calibrated_geometry(record)
+    targets = targets[delta4.inverse_kinematics(targets, geometry).reachable]  # what the driver let through
+    sent = _sent(delta4.inverse_kinematics(targets, geometry).servo_deg)
+    readings = attained_positions(sent, ["servo_zero_1_deg", "upper_arm_3_mm"], [0.6, -0.4])[:, :2] + [0.3, -0.2]
+    settings = {**CAMERA_SETTINGS, "kinematic_calibration": {"id": record.id, "name": record.name, "version": 1,
+                                                             "source_run_id": None, "reason": "chosen"}}
+    run_id = _store_run(path, targets, readings, settings)
+    assert main(["calibrate", str(run_id), "--store", str(path), "--json", "--free", "servo_zero_1_deg",
+                 "upper_arm_3_mm"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert out["version"] == 2
+    for name, entry in in_force["parameters"].items():
+        assert out["parameters"][name]["value"] == pytest.approx(entry["value"], abs=1e-6), name
