@@ -107,3 +107,20 @@ def test_a_target_the_calibrated_geometry_cannot_reach_is_refused_before_anythin
     assert "target P2 (x -70.00 mm, y -70.00 mm, z -180.00 mm) is not reachable: servo_limit (leg 1)" in done.stderr
     assert _bench("run", str(protocol), "--no-progress", "--no-kinematic-calibration", store=store,
                   cwd=tmp_path).returncode == 0
+
+
+def test_a_calibration_of_another_robot_is_refused_in_one_line(tmp_path):
+    from bench.calibration_compensation import NEWEST, select_calibration
+    from bench.errors import ConfigError
+
+    with Store(tmp_path / "bench.db") as store:
+        pkm5_record = store.add_calibration("pkm5_kinematics", {"parameters": {}})
+        delta4_record = store.add_calibration("delta4_kinematics", PARAMS)
+        assert select_calibration(store, "delta4", NEWEST)[0].id == delta4_record.id
+        assert select_calibration(store, "pkm5", NEWEST)[0].id == pkm5_record.id
+        with pytest.raises(ConfigError, match=f"^--kinematic-calibration {pkm5_record.id}: calibration "
+                                              "pkm5_kinematics v1, expected a delta4_kinematics calibration$"):
+            select_calibration(store, "delta4", pkm5_record.id)
+        with pytest.raises(ConfigError, match=f"^--kinematic-calibration {delta4_record.id}: no kinematic "
+                                              "calibration exists for the prus3, expected none$"):
+            select_calibration(store, "prus3", delta4_record.id)
