@@ -19,8 +19,8 @@ DEFAULT_STORE = "bench.db"
 
 
 def register(groups: argparse._SubParsersAction) -> None:
-    parser = groups.add_parser("calibrate", help="identify the robot geometry (pkm5, delta4) from a stored run of measured poses",
-                               formatter_class=argparse.ArgumentDefaultsHelpFormatter)
+    parser = groups.add_parser("calibrate", help="identify the robot geometry (pkm5, delta4) from a stored run of "
+                                                 "measured poses", formatter_class=argparse.ArgumentDefaultsHelpFormatter)
     parser.add_argument("run_id", metavar="RUN_ID", type=int, help="the run with commanded and measured poses")
     parser.add_argument("--free", nargs="+", metavar="PARAM", default=None,
                         help="free parameters (default: the identifiable set); see docs/calibration.md")
