@@ -17,13 +17,15 @@ measured axes, after ``mean_j |m_j - f(theta_hat)_j|``.
   ``legacy_vb``, are what the servos were sent). The camera spot sensor reads the two axes of its plane (its
   uncertainty: the plane calibration's ``u_mm``); the laser grid reads per screen, so a sample holds x, y, z or only
   some (its uncertainty: the detection window's uniform half width / sqrt 3, 0.58 mm for +-1 mm). The candidates
-  are the registration of the axes read and :data:`motion.delta4.calibration.BASE_PARAMETERS`.
+  are the registration of the axes read and :data:`motion.delta4.calibration.BASE_PARAMETERS`. Stored besides the
+  fit: ``command_resolution_mm``, the mean over the samples of |p(sent angles) - p(IK angles)| on the axes read (the
+  documented robot): what the byte steps alone cost, the floor of any compensation (docs/calibration.md).
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 from bench.calibration_compensation import calibration_name
@@ -64,6 +66,8 @@ class _Problem:
     uncertainty_mm: float
     sample_of: Any
     n_samples: int
+    #: stored with the calibration besides the fit (the delta4: ``command_resolution_mm``)
+    extra: dict = field(default_factory=dict)
 
 
 class _ReadAxes:
@@ -153,7 +157,7 @@ def _delta4_problem(store, run_id: int, uncertainty_mm: float | None) -> _Proble
 
     from bench.robots.delta4_wire import mapping_from_settings
     from motion import delta4
-    from motion.delta4.calibration import BASE_PARAMETERS, REGISTRATION, ForwardModel
+    from motion.delta4.calibration import BASE_PARAMETERS, REGISTRATION, ForwardModel, attained_positions
 
     settings = store.run(run_id).settings
     mapping_settings = (settings.get("robot") or {}).get("mapping")
@@ -171,12 +175,17 @@ def _delta4_problem(store, run_id: int, uncertainty_mm: float | None) -> _Proble
     read = tuple(int(a) for a in np.flatnonzero(mask.any(axis=0)))
     registration = tuple(REGISTRATION[a] for a in read)
     u = _instrument_uncertainty_mm(settings, run_id) if uncertainty_mm is None else uncertainty_mm
+    # the byte steps alone: where the servos' sent angles put the documented robot, against the angles asked for
+    rounding = attained_positions(servo) - attained_positions(ik.servo_deg)
+    extra = {"command_resolution_mm": float(np.mean(np.linalg.norm(rounding[:, read], axis=1))),
+             "servo_mapping": mapping_settings}
     if mask[:, read].all():  # every sample read the same axes (the camera's plane)
         return _Problem(lambda free: ForwardModel(servo, free, axes=read), registration + BASE_PARAMETERS,
-                        registration, measured[:, read], u, np.arange(len(measured)), len(measured))
+                        registration, measured[:, read], u, np.arange(len(measured)), len(measured), extra)
     rows = np.nonzero(mask)[0]
     return _Problem(lambda free: _ReadAxes(ForwardModel(servo, free, axes=(0, 1, 2)), mask),
-                    registration + BASE_PARAMETERS, registration, measured[mask][:, None], u, rows, len(measured))
+                    registration + BASE_PARAMETERS, registration, measured[mask][:, None], u, rows, len(measured),
+                    extra)
 
 
 _PROBLEMS = {"pkm5": _pkm5_problem, "delta4": _delta4_problem}
@@ -217,7 +226,7 @@ def identify_run(store: Any, run_id: int, *, free: list[str] | tuple[str, ...] |
     result = identify(problem.model(chosen), problem.measured, u)
     params = {**result.as_dict(), "robot": run.robot, "uncertainty_mm": u,
               "ap_before_mm": _mean_error_mm(problem, frame_only.residuals),
-              "ap_after_mm": _mean_error_mm(problem, result.residuals)}
+              "ap_after_mm": _mean_error_mm(problem, result.residuals), **problem.extra}
     settings = run.settings
     serial = (settings.get("dut") or {}).get("dut_serial")
     if serial:  # the calibration belongs to this robot: runs of other robots never use it by default
@@ -241,4 +250,8 @@ def summary_lines(identified: IdentifiedRun) -> list[str]:
                  f"{result.reduced_chi2:.2f}")
     lines.append(f"mean position error on the calibration poses (in-sample): before {params['ap_before_mm']:.3f} "
                  f"mm, after {params['ap_after_mm']:.3f} mm")
+    if "command_resolution_mm" in params:
+        lines.append(f"command resolution: the servos' byte steps ({params['servo_mapping']['name']} mapping) move "
+                     f"these poses by {params['command_resolution_mm']:.3f} mm on average, which no compensation "
+                     "goes below")
     return lines

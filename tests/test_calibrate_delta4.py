@@ -76,11 +76,11 @@ def calibrated(tmp_path_factory):
     measured = _read(delta4.inverse_kinematics(pool[pick]).servo_deg, truth) + rng.normal(0.0, U_MM, (30, 2))
     path = tmp_path_factory.mktemp("delta4") / "bench.db"
     run_id = _store_run(path, pool[pick], measured, CAMERA_SETTINGS)
-    return path, run_id, free, truth
+    return path, run_id, free, truth, pool[pick]
 
 
 def test_calibrate_identifies_the_true_geometry_and_stores_a_version(calibrated, capsys):
-    path, run_id, free, (names, values) = calibrated
+    path, run_id, free, (names, values), commanded = calibrated
     assert main(["calibrate", str(run_id), "--store", str(path), "--json"]) == 0
     out = json.loads(capsys.readouterr().out)
     assert out["calibration"] == "delta4_kinematics" and out["robot"] == "delta4"
@@ -92,6 +92,11 @@ def test_calibrate_identifies_the_true_geometry_and_stores_a_version(calibrated,
         assert abs(params[name]["value"] - truth[name]) < 3 * params[name]["uncertainty"], name
     assert out["observability"]["condition_number"] <= 100
     assert out["ap_after_mm"] < out["ap_before_mm"] / 5
+    # the floor the bytes set: the documented robot at the sent angles against the commanded positions (x-y)
+    sent_at = attained_positions(_sent(delta4.inverse_kinematics(commanded).servo_deg))
+    assert out["command_resolution_mm"] == pytest.approx(
+        np.mean(np.linalg.norm(sent_at[:, :2] - commanded[:, :2], axis=1)), rel=1e-6)
+    assert 0.3 < out["command_resolution_mm"] < 0.6 and out["servo_mapping"]["name"] == "legacy_vb"
     with Store(path) as store:
         record, reason = select_calibration(store, "delta4")
     assert (record.id, record.version, record.source_run_id, reason) == (out["id"], 1, run_id,
@@ -100,7 +105,7 @@ def test_calibrate_identifies_the_true_geometry_and_stores_a_version(calibrated,
 
 def test_the_stored_calibration_commands_held_out_positions_onto_their_targets(calibrated):
     """AP on 50 held-out positions: mean |reading - target|, commanded by the documented and the calibrated IK."""
-    path, run_id, _, truth = calibrated
+    path, run_id, _, truth, _ = calibrated
     with Store(path) as store:
         record = store.calibration("delta4_kinematics")
     if record is None:  # the CLI test did not run first
