@@ -1,14 +1,16 @@
-"""Kinematic compensation: which stored ``pkm5_kinematics`` calibration a run commands by, and putting it in force.
+"""Kinematic compensation: which stored kinematic calibration (``pkm5_kinematics``, ``delta4_kinematics``) a run
+commands by, and putting it in force.
 
-A calibration in force replaces the documented geometry of the pkm5 everywhere the run uses kinematics: the
-driver's IK of every commanded target (targets -> leg strokes), its pre-flight of step targets (leg windows, FK and
-IK reachability) and the plan's pre-flight (reach, joint limits, singularity proximity). The geometry is
-:func:`motion.pkm5.calibration.compensation_geometry`: the identified deviations with the instrument's registration
-folded into the base joints, so a target in the instrument's frame (the frame the mice register at home) gives the
-steps whose predicted measurement is that target. Home stays the documents' home steps (every actuator at 5 mm
-stroke), where the instruments are registered as during the calibration run.
+A calibration in force replaces the documented geometry of the robot everywhere the run uses kinematics: the
+driver's IK of every commanded target (pkm5: targets -> leg strokes, with its pre-flight of step targets: leg
+windows, FK and IK reachability; delta4: targets -> servo angles, the closed-form IK of each calibrated leg, then
+the servo mapping's window) and the plan's pre-flight (reach, joint limits, singularity proximity). The geometry is
+the robot's ``compensation_geometry`` (:mod:`motion.pkm5.calibration`, :mod:`motion.delta4.calibration`): the
+identified deviations with the instrument's registration folded into the base joints (servo axes), so a target in
+the instrument's frame gives the joints whose predicted measurement is that target. Home stays the documented home
+joints, where the instruments are registered as during the calibration run.
 
-Which calibration (:data:`NEWEST` by default): the newest ``pkm5_kinematics`` version made for this robot, i.e.
+Which calibration (:data:`NEWEST` by default): the newest version of the robot's calibration made for this robot, i.e.
 whose ``dut_serial`` equals the station's device-under-test serial (a rig without a serial: a calibration without
 one) and made on a simulator exactly when the rig is one (``simulated``: a simulated robot's geometry never reaches
 hardware); a calibration id chosen by the person; or :data:`OFF`. The record in force goes into the run's calibration
@@ -21,11 +23,24 @@ from typing import Any
 
 from bench.errors import ConfigError
 
-__all__ = ["CALIBRATION_NAME", "NEWEST", "OFF", "calibrated_geometry", "choose_calibration", "describe_in_force",
-           "preflight_by_rig", "put_in_force", "select_calibration"]
+__all__ = ["CALIBRATION_NAME", "CALIBRATION_NAMES", "NEWEST", "OFF", "calibrated_geometry", "calibration_name",
+           "choose_calibration", "describe_in_force", "preflight_by_rig", "put_in_force", "select_calibration"]
 
-#: The store name of the pkm5 kinematic calibration (``bench calibrate`` writes versions of it).
-CALIBRATION_NAME = "pkm5_kinematics"
+#: The store name of each robot's kinematic calibration (``bench calibrate`` writes versions of it) and the module
+#: whose ``compensation_geometry`` turns its parameters into the geometry a run commands by.
+CALIBRATION_NAMES = {"pkm5": "pkm5_kinematics", "delta4": "delta4_kinematics"}
+_GEOMETRY_MODULES = {"pkm5_kinematics": "motion.pkm5.calibration", "delta4_kinematics": "motion.delta4.calibration"}
+#: The pkm5's (the window's calibration box lists these).
+CALIBRATION_NAME = CALIBRATION_NAMES["pkm5"]
+
+
+def calibration_name(robot: str) -> str:
+    """The store name of ``robot``'s kinematic calibration; ``ConfigError`` for a robot without one."""
+    try:
+        return CALIBRATION_NAMES[robot]
+    except KeyError:
+        raise ConfigError(f"robot {robot!r}: no kinematic calibration exists for it, expected one of "
+                          f"{', '.join(CALIBRATION_NAMES)}") from None
 #: Choices besides a calibration id: the newest calibration of this robot, or none at all.
 NEWEST, OFF = "newest", "off"
 
@@ -35,31 +50,33 @@ def select_calibration(store: Any, robot: str, choice: int | str = NEWEST, dut_s
     """The calibration record ``choice`` puts in force for ``robot`` (serial ``dut_serial``, a simulator or not), or
     None with why.
 
-    Returns ``(record or None, reason)``. An explicit id that is not a ``pkm5_kinematics`` calibration, names another
-    robot's serial, was made on a simulator for hardware (or the reverse), or is asked for on a robot other than the
-    pkm5 raises ``ConfigError`` (one line).
+    Returns ``(record or None, reason)``. An explicit id that is not this robot's kinematic calibration
+    (:data:`CALIBRATION_NAMES`), names another robot's serial, or was made on a simulator for hardware (or the
+    reverse) raises ``ConfigError`` (one line).
     """
     if choice == OFF:
         return None, "--no-kinematic-calibration"
+    name = CALIBRATION_NAMES.get(robot)
     if choice == NEWEST:
-        if robot != "pkm5":
+        if name is None:
             return None, f"no kinematic calibration exists for the {robot}"
-        mine = [c for c in store.calibrations() if c.name == CALIBRATION_NAME
+        mine = [c for c in store.calibrations() if c.name == name
                 and c.params.get("dut_serial") == dut_serial and bool(c.params.get("simulated")) == simulated]
         if not mine:
             whose = (f"robot {dut_serial}" if dut_serial else "a robot without a serial") + (
                 " (simulated)" if simulated else "")
-            return None, f"no {CALIBRATION_NAME} calibration for {whose} in {store.path}"
+            return None, f"no {name} calibration for {whose} in {store.path}"
         return max(mine, key=lambda c: c.version), "the newest for this robot"
     if isinstance(choice, bool) or not isinstance(choice, int):
         raise ConfigError(f"--kinematic-calibration {choice!r}: expected a calibration id (bench calibrate prints "
                           "it)")
     record = store.calibration_by_id(choice)
-    if record.name != CALIBRATION_NAME:
+    if name is None:
+        raise ConfigError(f"--kinematic-calibration {choice}: no kinematic calibration exists for the {robot}, "
+                          "expected none")
+    if record.name != name:
         raise ConfigError(f"--kinematic-calibration {choice}: calibration {record.name} v{record.version}, expected "
-                          f"a {CALIBRATION_NAME} calibration")
-    if robot != "pkm5":
-        raise ConfigError(f"--kinematic-calibration {choice}: a pkm5 calibration, expected none for the {robot}")
+                          f"a {name} calibration")
     serial = record.params.get("dut_serial")
     if serial != dut_serial:
         raise ConfigError(f"--kinematic-calibration {choice}: made for robot {serial or '(no serial)'}, expected "
@@ -72,13 +89,19 @@ def select_calibration(store: Any, robot: str, choice: int | str = NEWEST, dut_s
 
 
 def calibrated_geometry(record: Any):
-    """The :class:`motion.pkm5.Geometry` a run commands by under calibration ``record``; ``ConfigError`` when its
-    parameters are not a kinematic calibration's."""
-    from motion.errors import MotionInputError
-    from motion.pkm5.calibration import compensation_geometry
+    """The geometry a run commands by under calibration ``record`` (a :class:`motion.pkm5.Geometry`, or a
+    :class:`motion.delta4.calibration.CalibratedGeometry`); ``ConfigError`` when it is not a kinematic calibration
+    or its parameters are not one's."""
+    import importlib
 
+    from motion.errors import MotionInputError
+
+    module = _GEOMETRY_MODULES.get(record.name)
+    if module is None:
+        raise ConfigError(f"calibration id {record.id} ({record.name} v{record.version}): expected a kinematic "
+                          f"calibration ({', '.join(_GEOMETRY_MODULES)})")
     try:
-        return compensation_geometry(record.params)
+        return importlib.import_module(module).compensation_geometry(record.params)
     except (MotionInputError, ValueError, KeyError, TypeError) as exc:
         raise ConfigError(f"calibration id {record.id} ({record.name} v{record.version}): {exc}") from None
 

@@ -1,29 +1,44 @@
-"""Identify the pkm5's geometry from a stored run: the function behind ``bench calibrate RUN_ID`` and the window's
-"Identify" button.
+"""Identify a robot's geometry from a stored run: the function behind ``bench calibrate RUN_ID`` and the window's
+"Identify" button, for the pkm5 and the delta4.
 
-Reads the run's pose samples (``cmd_x_mm .. cmd_b_deg`` commanded, ``x_mm, y_mm, z_mm`` measured), rebuilds the
-commanded steps with the geometry the run commanded by (the documented one, or the calibrated one of the kinematic
-calibration that was in force), identifies the free parameters (default: what the pose set and instrument can
-identify, :func:`bench.metrology.kinematic_calibration.identifiable_subset`) and stores the result as a new version
-of ``pkm5_kinematics`` with the source run, the residuals and the observability (docs/calibration.md). The in-sample
-mean position error before is that of the documented geometry with only the registration fitted:
-``mean_j |m_j - f(theta_reg)_j|``, after ``mean_j |m_j - f(theta_hat)_j|``.
+Reads the run's pose samples (commanded ``cmd_x_mm ..``, measured ``x_mm, y_mm, z_mm``: the axes the instrument
+read), rebuilds the joints the robot received with the geometry the run commanded by (the documented one, or the
+calibrated one of the kinematic calibration that was in force), identifies the free parameters (default: what the
+pose set and instrument can identify, :func:`bench.metrology.kinematic_calibration.identifiable_subset`) and stores
+the result as a new version of the robot's calibration (``pkm5_kinematics``, ``delta4_kinematics``) with the source
+run, the residuals and the observability (docs/calibration.md). The in-sample mean position error before is that of
+the documented geometry with only the registration fitted: ``mean_j |m_j - f(theta_reg)_j|`` over each sample's
+measured axes, after ``mean_j |m_j - f(theta_hat)_j|``.
+
+* pkm5: commanded poses ``cmd_x_mm .. cmd_b_deg`` -> steps (:func:`bench.robots.pkm5_kinematics.steps_for_pose`);
+  the mice read x, y, z (0.05 mm per axis unless told).
+* delta4: commanded positions ``cmd_x_mm .. cmd_z_mm`` -> the servo angles the controller received: the IK of the
+  geometry in force, through the run's servo mapping (``settings.robot.mapping``: its bytes, 0.75 deg a byte for
+  ``legacy_vb``, are what the servos were sent). The camera spot sensor reads the two axes of its plane (its
+  uncertainty: the plane calibration's ``u_mm``); the laser grid reads per screen, so a sample holds x, y, z or only
+  some (its uncertainty: the detection window's uniform half width / sqrt 3, 0.58 mm for +-1 mm). The candidates
+  are the registration of the axes read and :data:`motion.delta4.calibration.BASE_PARAMETERS`. Stored besides the
+  fit: ``command_resolution_mm``, the mean over the samples of |p(sent angles) - p(IK angles)| on the axes read (the
+  documented robot): what the byte steps alone cost, the floor of any compensation (docs/calibration.md).
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+import math
+from dataclasses import dataclass, field
 from typing import Any
 
-from bench.calibration_compensation import CALIBRATION_NAME
+from bench.calibration_compensation import calibration_name
 from bench.errors import ConfigError, InsufficientData
 
 __all__ = ["COMMANDED", "DEFAULT_UNCERTAINTY_MM", "IdentifiedRun", "MEASURED", "check_uncertainty", "identify_run",
            "summary_lines"]
 
-COMMANDED = ("cmd_x_mm", "cmd_y_mm", "cmd_z_mm", "cmd_a_deg", "cmd_b_deg")
+#: Commanded fields of a pose sample per robot.
+COMMANDED = {"pkm5": ("cmd_x_mm", "cmd_y_mm", "cmd_z_mm", "cmd_a_deg", "cmd_b_deg"),
+             "delta4": ("cmd_x_mm", "cmd_y_mm", "cmd_z_mm")}
 MEASURED = ("x_mm", "y_mm", "z_mm")
-#: The mice's standard uncertainty per axis, mm (the calibration protocol's pose selection assumes it).
+#: The mice's standard uncertainty per axis, mm (the pkm5 calibration protocol's pose selection assumes it).
 DEFAULT_UNCERTAINTY_MM = 0.05
 
 
@@ -38,81 +53,195 @@ class IdentifiedRun:
     n_measurements: int
 
 
-def _poses_of_run(store, run_id: int):
+@dataclass(frozen=True)
+class _Problem:
+    """One run's identification problem: ``model(free)`` builds the forward model of free parameters, of which
+    ``candidates`` may be free and ``required`` always are (the registration); ``measured`` (N, a) readings with
+    ``uncertainty_mm``; ``sample_of`` maps each reading row to its sample (rows of one sample make its error)."""
+
+    model: Any
+    candidates: tuple[str, ...]
+    required: tuple[str, ...]
+    measured: Any
+    uncertainty_mm: float
+    sample_of: Any
+    n_samples: int
+    #: stored with the calibration besides the fit (the delta4: ``command_resolution_mm``)
+    extra: dict = field(default_factory=dict)
+
+
+class _ReadAxes:
+    """A forward model of x, y, z restricted to the axes each sample read (``mask`` (N, 3) bool): one row per read
+    coordinate, so samples that read different axes (the laser grid's screens) are fitted together."""
+
+    def __init__(self, model: Any, mask: Any) -> None:
+        self._model, self._mask = model, mask
+        self.free, self.units = model.free, model.units
+        self.bound = model.bound
+
+    def predict(self, theta):
+        return self._model.predict(theta)[self._mask][:, None]
+
+    def jacobian(self, theta):
+        return self._model.jacobian(theta)[self._mask][:, None, :]
+
+
+def _pose_samples(store, run_id: int, robot: str):
+    """Pose samples with at least one measured axis; their commanded values (N, c) and measured mask (N, 3)."""
     import numpy as np
 
-    samples = [s for s in store.samples(run_id, "pose") if all(k in s.values for k in MEASURED)]
+    samples = [s for s in store.samples(run_id, "pose") if any(k in s.values for k in MEASURED)]
     if not samples:
         raise InsufficientData(f"run {run_id}: no pose samples with measured {', '.join(MEASURED)}; expected a run "
                                "of commanded and measured poses")
-    missing = [k for k in COMMANDED if k not in samples[0].values]
+    commanded_fields = COMMANDED[robot]
+    missing = [k for k in commanded_fields if k not in samples[0].values]
     if missing:
-        raise InsufficientData(f"run {run_id}: pose samples lack {missing[0]}; expected commanded pkm5 poses")
-    commanded = np.array([[s.values[k] for k in COMMANDED] for s in samples], dtype=float)
-    measured = np.array([[s.values[k] for k in MEASURED] for s in samples], dtype=float)
-    return commanded, measured
+        raise InsufficientData(f"run {run_id}: pose samples lack {missing[0]}; expected commanded {robot} poses")
+    commanded = np.array([[s.values[k] for k in commanded_fields] for s in samples], dtype=float)
+    mask = np.array([[k in s.values for k in MEASURED] for s in samples])
+    measured = np.array([[s.values.get(k, np.nan) for k in MEASURED] for s in samples], dtype=float)
+    return commanded, measured, mask
 
 
-def _commanded_geometry(store, run_id: int):
-    """The geometry the run's targets were commanded by: the documented one, or the calibrated one of the
-    kinematic calibration that was in force (its steps are what the robot really received)."""
+def _commanded_geometry(store, run_id: int, documented):
+    """The geometry the run's targets were commanded by: ``documented``, or the calibrated one of the kinematic
+    calibration that was in force (its joints are what the robot really received)."""
     from bench.calibration_compensation import calibrated_geometry
-    from motion.pkm5 import DEFAULT_GEOMETRY
 
     entry = store.run(run_id).settings.get("kinematic_calibration") or {}
-    return DEFAULT_GEOMETRY if entry.get("id") is None else calibrated_geometry(store.calibration_by_id(entry["id"]))
+    return documented if entry.get("id") is None else calibrated_geometry(store.calibration_by_id(entry["id"]))
 
 
-def check_uncertainty(uncertainty_mm: float) -> None:
-    """Refuse an instrument uncertainty that is not a positive number (one line)."""
-    if not uncertainty_mm > 0:
+def check_uncertainty(uncertainty_mm: float | None) -> None:
+    """Refuse an instrument uncertainty that is not a positive number (one line); None: the instrument's own."""
+    if uncertainty_mm is not None and not uncertainty_mm > 0:
         raise ConfigError(f"--uncertainty-mm = {uncertainty_mm!r}, expected a positive number")
 
 
+def _pkm5_problem(store, run_id: int, uncertainty_mm: float | None) -> _Problem:
+    import numpy as np
+
+    from bench.robots.pkm5_kinematics import steps_for_pose
+    from motion.pkm5 import DEFAULT_GEOMETRY
+    from motion.pkm5.calibration import PARAMETERS, REGISTRATION, ForwardModel, modes_of_poses
+
+    commanded, measured, mask = _pose_samples(store, run_id, "pkm5")
+    complete = mask.all(axis=1)  # the mice read x, y, z together
+    if not complete.any():
+        raise InsufficientData(f"run {run_id}: no pose samples with measured {', '.join(MEASURED)}; expected a run "
+                               "of commanded and measured poses")
+    commanded, measured = commanded[complete], measured[complete]
+    geometry = _commanded_geometry(store, run_id, DEFAULT_GEOMETRY)
+    steps = np.array([steps_for_pose(p, geometry) for p in commanded])
+    modes = modes_of_poses(commanded)
+    return _Problem(lambda free: ForwardModel(steps, modes, free), REGISTRATION + PARAMETERS, REGISTRATION,
+                    measured, DEFAULT_UNCERTAINTY_MM if uncertainty_mm is None else uncertainty_mm,
+                    np.arange(len(measured)), len(measured))
+
+
+def _instrument_uncertainty_mm(settings: dict, run_id: int) -> float:
+    """The standard uncertainty per axis of the delta4 run's instrument, from its stored settings (module doc)."""
+    instrument = settings.get("instrument") or {}
+    if instrument.get("u_mm"):
+        return float(instrument["u_mm"])  # the camera spot sensor: its plane calibration's RMS
+    half_width = (instrument.get("decoder") or {}).get("spot_half_width_mm")
+    if half_width:
+        return float(half_width) / math.sqrt(3.0)  # the laser grid: a uniform error over the detection window
+    raise ConfigError(f"run {run_id}: its instrument settings state no uncertainty (settings.instrument.u_mm or "
+                      "decoder.spot_half_width_mm), expected --uncertainty-mm")
+
+
+def _delta4_problem(store, run_id: int, uncertainty_mm: float | None) -> _Problem:
+    import numpy as np
+
+    from bench.robots.delta4_wire import mapping_from_settings
+    from motion import delta4
+    from motion.delta4.calibration import BASE_PARAMETERS, REGISTRATION, ForwardModel, attained_positions
+
+    settings = store.run(run_id).settings
+    mapping_settings = (settings.get("robot") or {}).get("mapping")
+    if mapping_settings is None:
+        raise ConfigError(f"run {run_id}: settings.robot.mapping is missing, expected the servo mapping the run "
+                          "commanded by (its bytes are the angles the servos were sent)")
+    mapping = mapping_from_settings(mapping_settings)
+    commanded, measured, mask = _pose_samples(store, run_id, "delta4")
+    ik = delta4.inverse_kinematics(commanded, _commanded_geometry(store, run_id, delta4.NOMINAL))
+    if not ik.reachable.all():
+        first = int(np.flatnonzero(~ik.reachable)[0])
+        raise InsufficientData(f"run {run_id}: commanded position {commanded[first].tolist()} is not reachable "
+                               f"({ik.reason[first]}), expected the positions the run commanded")
+    servo = mapping.to_deg(mapping.to_bytes(ik.servo_deg))
+    read = tuple(int(a) for a in np.flatnonzero(mask.any(axis=0)))
+    registration = tuple(REGISTRATION[a] for a in read)
+    u = _instrument_uncertainty_mm(settings, run_id) if uncertainty_mm is None else uncertainty_mm
+    # the byte steps alone: where the servos' sent angles put the documented robot, against the angles asked for
+    rounding = attained_positions(servo) - attained_positions(ik.servo_deg)
+    extra = {"command_resolution_mm": float(np.mean(np.linalg.norm(rounding[:, read], axis=1))),
+             "servo_mapping": mapping_settings}
+    if mask[:, read].all():  # every sample read the same axes (the camera's plane)
+        return _Problem(lambda free: ForwardModel(servo, free, axes=read), registration + BASE_PARAMETERS,
+                        registration, measured[:, read], u, np.arange(len(measured)), len(measured), extra)
+    rows = np.nonzero(mask)[0]
+    return _Problem(lambda free: _ReadAxes(ForwardModel(servo, free, axes=(0, 1, 2)), mask),
+                    registration + BASE_PARAMETERS, registration, measured[mask][:, None], u, rows, len(measured),
+                    extra)
+
+
+_PROBLEMS = {"pkm5": _pkm5_problem, "delta4": _delta4_problem}
+
+
+def _mean_error_mm(problem: _Problem, residuals) -> float:
+    """Mean over the samples of |measured - predicted| over each sample's read axes."""
+    import numpy as np
+
+    squares = np.zeros(problem.n_samples)
+    np.add.at(squares, problem.sample_of, np.sum(np.asarray(residuals) ** 2, axis=1))
+    return float(np.mean(np.sqrt(squares)))
+
+
 def identify_run(store: Any, run_id: int, *, free: list[str] | tuple[str, ...] | None = None,
-                 uncertainty_mm: float = DEFAULT_UNCERTAINTY_MM) -> IdentifiedRun:
-    """Identify from run ``run_id`` of the open ``store`` and store a new ``pkm5_kinematics`` version (module doc).
+                 uncertainty_mm: float | None = None) -> IdentifiedRun:
+    """Identify from run ``run_id`` of the open ``store`` and store a new version of its robot's kinematic
+    calibration (module doc). ``uncertainty_mm`` None: the instrument's (module doc).
 
     A run without measured poses raises ``InsufficientData``, an ill-conditioned pose set
-    ``UnidentifiableParameters`` (both one line)."""
+    ``UnidentifiableParameters``, a robot without a calibration model ``ConfigError`` (all one line)."""
     import numpy as np
 
     from bench.metrology.kinematic_calibration import identifiable_subset, identify
-    from bench.robots.pkm5_kinematics import steps_for_pose
-    from motion.pkm5.calibration import PARAMETERS, REGISTRATION, ForwardModel, modes_of_poses
 
     check_uncertainty(uncertainty_mm)
-    store.run(run_id)
-    commanded, measured = _poses_of_run(store, run_id)
-    geometry = _commanded_geometry(store, run_id)
-    steps = np.array([steps_for_pose(p, geometry) for p in commanded])
-    modes = modes_of_poses(commanded)
-    candidates = REGISTRATION + PARAMETERS
+    run = store.run(run_id)
+    name = calibration_name(run.robot)
+    problem = _PROBLEMS[run.robot](store, run_id, uncertainty_mm)
     if free:
-        chosen = REGISTRATION + tuple(n for n in free if n not in REGISTRATION)
+        chosen = problem.required + tuple(n for n in free if n not in problem.required)
     else:
-        jac = ForwardModel(steps, modes, candidates).jacobian(np.zeros(len(candidates)))
-        chosen = identifiable_subset(jac, uncertainty_mm, candidates, required=REGISTRATION)
-    frame_only = identify(ForwardModel(steps, modes, REGISTRATION), measured, uncertainty_mm)
-    result = identify(ForwardModel(steps, modes, chosen), measured, uncertainty_mm)
-    params = {**result.as_dict(), "robot": "pkm5", "uncertainty_mm": uncertainty_mm,
-              "ap_before_mm": float(np.mean(np.linalg.norm(frame_only.residuals, axis=1))),
-              "ap_after_mm": float(np.mean(np.linalg.norm(result.residuals, axis=1)))}
-    settings = store.run(run_id).settings
+        candidates = problem.candidates
+        jac = problem.model(candidates).jacobian(np.zeros(len(candidates)))
+        chosen = identifiable_subset(jac, problem.uncertainty_mm, candidates, required=problem.required)
+    u = problem.uncertainty_mm
+    frame_only = identify(problem.model(problem.required), problem.measured, u)
+    result = identify(problem.model(chosen), problem.measured, u)
+    params = {**result.as_dict(), "robot": run.robot, "uncertainty_mm": u,
+              "ap_before_mm": _mean_error_mm(problem, frame_only.residuals),
+              "ap_after_mm": _mean_error_mm(problem, result.residuals), **problem.extra}
+    settings = run.settings
     serial = (settings.get("dut") or {}).get("dut_serial")
     if serial:  # the calibration belongs to this robot: runs of other robots never use it by default
         params["dut_serial"] = serial
     if "simulator" in settings:  # a simulated robot's geometry: never in force on hardware
         params["simulated"] = True
-    record = store.add_calibration(CALIBRATION_NAME, params, source_run_id=run_id, notes=f"bench calibrate {run_id}")
-    return IdentifiedRun(run_id, record, result, params, len(measured))
+    record = store.add_calibration(name, params, source_run_id=run_id, notes=f"bench calibrate {run_id}")
+    return IdentifiedRun(run_id, record, result, params, problem.n_samples)
 
 
 def summary_lines(identified: IdentifiedRun) -> list[str]:
     """The text ``bench calibrate`` prints (and the window shows): parameters, uncertainties, observability."""
     result, record, params = identified.result, identified.record, identified.params
     obs = result.observability
-    lines = [f"{CALIBRATION_NAME} v{record.version} (id {record.id}) from run {identified.run_id}: "
+    lines = [f"{record.name} v{record.version} (id {record.id}) from run {identified.run_id}: "
              f"{identified.n_measurements} poses, {len(result.names)} free parameters",
              f"{'parameter':<18} {'value':>12} {'std. unc.':>12}  unit"]
     lines += [f"{name:<18} {value:12.5f} {std:12.5f}  {unit}"
@@ -121,4 +250,8 @@ def summary_lines(identified: IdentifiedRun) -> list[str]:
                  f"{result.reduced_chi2:.2f}")
     lines.append(f"mean position error on the calibration poses (in-sample): before {params['ap_before_mm']:.3f} "
                  f"mm, after {params['ap_after_mm']:.3f} mm")
+    if "command_resolution_mm" in params:
+        lines.append(f"command resolution: the servos' byte steps ({params['servo_mapping']['name']} mapping) move "
+                     f"these poses by {params['command_resolution_mm']:.3f} mm on average, which no compensation "
+                     "goes below")
     return lines

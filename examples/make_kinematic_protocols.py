@@ -1,4 +1,5 @@
-"""Write examples/kinematic_calibration.toml and examples/kinematic_validation.toml (docs/calibration.md).
+"""Write examples/kinematic_calibration.toml and examples/kinematic_validation.toml (the pkm5), and
+examples/kinematic_calibration_delta4.toml and examples/kinematic_validation_delta4.toml (docs/calibration.md).
 
 Calibration poses: 30 chosen by greedy D-optimal selection (:func:`bench.metrology.kinematic_calibration.select_poses`,
 every parameter and the registration free, the mice's 0.05 mm per axis) from 300 reachable candidates of the three
@@ -6,6 +7,11 @@ motion modes (``motion.pkm5.sample_reachable(seed=1)``), rounded as a protocol f
 and pre-flighted. Validation poses: 12 held-out translation poses (a different seed) in the central workspace
 (95 < x < 170 mm, |y| < 60 mm), so that a calibrated geometry's pre-flight passes them too; translation only,
 since a calibrated geometry moves the alpha plane (docs/calibration.md, limits).
+
+delta4 (the camera spot sensor, x-y plane, 0.02 mm per axis): 30 positions chosen the same way from 300 reachable
+ones within the camera's field (|x|, |y| < 75 mm; ``motion.delta4.workspace.workspace_samples(seed=1)``), the
+candidates being the x-y registration and ``motion.delta4.calibration.BASE_PARAMETERS`` at the servo angles the
+driver's default mapping sends (its bytes); 12 held-out positions (seed 7) within |x|, |y| < 60 mm.
 
     python examples/make_kinematic_protocols.py
 """
@@ -18,11 +24,15 @@ import numpy as np
 
 from bench.metrology.kinematic_calibration import select_poses
 from bench.protocols.kinematics import robot_model
-from motion import pkm5
+from bench.robots.delta4_wire import LegacyVbMapping
+from motion import delta4, pkm5
+from motion.delta4 import calibration as delta4_calibration
+from motion.delta4.workspace import workspace_samples
 from motion.pkm5.calibration import PARAMETERS, REGISTRATION, ForwardModel, modes_of_poses
 
 HERE = Path(__file__).resolve().parent
 MICE_UNCERTAINTY_MM = 0.05
+CAMERA_UNCERTAINTY_MM = 0.02
 
 
 def candidates(count: int, kinds: tuple[str, ...], seed: int) -> np.ndarray:
@@ -34,12 +44,40 @@ def candidates(count: int, kinds: tuple[str, ...], seed: int) -> np.ndarray:
     return deg[robot_model("pkm5").check(deg).reachable]
 
 
-def protocol_text(title: str, prefix: str, poses: np.ndarray) -> str:
+def protocol_text(title: str, prefix: str, poses: np.ndarray, robot: str = "pkm5") -> str:
     lines = [f"# {line}" for line in title.splitlines()]
-    lines += ['protocol = "iso9283_pose"', 'robot = "pkm5"', "cycles = 2", "velocities_pct = [100]",
+    lines += ['protocol = "iso9283_pose"', f'robot = "{robot}"', "cycles = 2", "velocities_pct = [100]",
               "settle_s = 0.2", "", "[poses]"]
     lines += [f"{prefix}{i:02d} = [{', '.join(f'{v:g}' for v in pose)}]" for i, pose in enumerate(poses, 1)]
     return "\n".join(lines) + "\n"
+
+
+def delta4_field(count: int, seed: int, half_width_mm: float) -> np.ndarray:
+    """Reachable delta4 positions (mm, rounded to 0.01) within |x|, |y| < ``half_width_mm``, that pass the
+    pre-flight."""
+    points, reachable = workspace_samples(20000, seed=seed)
+    points = np.round(points[reachable], 2)
+    points = points[np.all(np.abs(points[:, :2]) < half_width_mm, axis=1)]
+    return points[robot_model("delta4").check(points).reachable][:count]
+
+
+def write_delta4() -> None:
+    pool = delta4_field(300, 1, 75.0)
+    mapping = LegacyVbMapping()  # the driver's default: the servos are sent bytes
+    servo = mapping.to_deg(mapping.to_bytes(delta4.inverse_kinematics(pool).servo_deg))
+    names = delta4_calibration.REGISTRATION[:2] + delta4_calibration.BASE_PARAMETERS
+    jac = delta4_calibration.ForwardModel(servo, names).jacobian(np.zeros(len(names)))
+    chosen = pool[select_poses(jac, CAMERA_UNCERTAINTY_MM, 30)]
+    (HERE / "kinematic_calibration_delta4.toml").write_text(protocol_text(
+        "Kinematic calibration of the delta4 with the camera spot sensor (x-y plane): 30 positions chosen for\n"
+        "observability (greedy D-optimal from 300 candidates in the camera's field; written by\n"
+        "examples/make_kinematic_protocols.py). Run it without a calibration in force, then: bench calibrate RUN_ID\n"
+        "(docs/calibration.md).", "C", chosen, "delta4"))
+    (HERE / "kinematic_validation_delta4.toml").write_text(protocol_text(
+        "Validation of a delta4 kinematic calibration: the ISO 9283 pose test on 12 held-out positions. Run it\n"
+        "twice, with the calibration in force (the default) and with --no-kinematic-calibration, and compare AP\n"
+        "(written by examples/make_kinematic_protocols.py; docs/calibration.md).", "V",
+        delta4_field(12, 7, 60.0), "delta4"))
 
 
 def main() -> None:
@@ -64,3 +102,4 @@ def main() -> None:
 
 if __name__ == "__main__":
     main()
+    write_delta4()

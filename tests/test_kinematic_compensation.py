@@ -94,7 +94,9 @@ def test_the_calibration_in_force_is_chosen_per_robot(tmp_path):
         assert select_calibration(store, "pkm5", NEWEST, "PKM-9") == (
             None, f"no pkm5_kinematics calibration for robot PKM-9 in {store.path}")
         assert select_calibration(store, "pkm5", OFF) == (None, "--no-kinematic-calibration")
-        assert select_calibration(store, "delta4", NEWEST) == (None, "no kinematic calibration exists for the delta4")
+        assert select_calibration(store, "delta4", NEWEST) == (
+            None, f"no delta4_kinematics calibration for a robot without a serial in {store.path}")
+        assert select_calibration(store, "prus3", NEWEST) == (None, "no kinematic calibration exists for the prus3")
         with pytest.raises(ConfigError, match=f"^--kinematic-calibration {mouse.id}: calibration mouse v1, expected "
                                               "a pkm5_kinematics calibration$"):
             select_calibration(store, "pkm5", mouse.id)

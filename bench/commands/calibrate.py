@@ -1,7 +1,9 @@
-"""``bench calibrate RUN_ID``: identify the pkm5's geometry from a stored run of commanded and measured poses.
+"""``bench calibrate RUN_ID``: identify the robot's geometry (pkm5, delta4) from a stored run of commanded and
+measured poses.
 
 Identifies the free parameters (default: what the pose set and instrument can identify, docs/calibration.md) and
-stores the result as a new version of the calibration ``pkm5_kinematics`` with the source run, the residuals and
+stores the result as a new version of the calibration ``pkm5_kinematics`` / ``delta4_kinematics`` with the source
+run, the residuals and
 the observability (:func:`bench.calibration_identify.identify_run`, the window's "Identify" button runs the same).
 Heavy modules load inside the handler.
 """
@@ -11,20 +13,21 @@ from __future__ import annotations
 import argparse
 import json
 
-from bench.calibration_compensation import CALIBRATION_NAME
 from bench.calibration_identify import DEFAULT_UNCERTAINTY_MM
 
 DEFAULT_STORE = "bench.db"
 
 
 def register(groups: argparse._SubParsersAction) -> None:
-    parser = groups.add_parser("calibrate", help="identify the pkm5 geometry from a stored run of measured poses",
-                               formatter_class=argparse.ArgumentDefaultsHelpFormatter)
+    parser = groups.add_parser("calibrate", help="identify the robot geometry (pkm5, delta4) from a stored run of "
+                                                 "measured poses", formatter_class=argparse.ArgumentDefaultsHelpFormatter)
     parser.add_argument("run_id", metavar="RUN_ID", type=int, help="the run with commanded and measured poses")
     parser.add_argument("--free", nargs="+", metavar="PARAM", default=None,
                         help="free parameters (default: the identifiable set); see docs/calibration.md")
-    parser.add_argument("--uncertainty-mm", type=float, default=DEFAULT_UNCERTAINTY_MM,
-                        help="the instrument's standard uncertainty per axis, mm")
+    parser.add_argument("--uncertainty-mm", type=float, default=None,
+                        help="the instrument's standard uncertainty per axis, mm (default: pkm5 mice "
+                             f"{DEFAULT_UNCERTAINTY_MM:g}; delta4: the run's instrument, camera plane calibration "
+                             "RMS or laser-grid window / sqrt 3)")
     parser.add_argument("--store", default=DEFAULT_STORE, help="run store (SQLite file)")
     parser.add_argument("--json", action="store_true", help="print the result as JSON")
     parser.set_defaults(handler=run)
@@ -39,7 +42,7 @@ def run(args: argparse.Namespace) -> int:
         identified = identify_run(store, args.run_id, free=args.free, uncertainty_mm=args.uncertainty_mm)
     if args.json:
         record = identified.record
-        print(json.dumps({"calibration": CALIBRATION_NAME, "version": record.version, "id": record.id,
+        print(json.dumps({"calibration": record.name, "version": record.version, "id": record.id,
                           **identified.params}))
         return 0
     print("\n".join(summary_lines(identified)))

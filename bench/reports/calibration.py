@@ -136,14 +136,23 @@ def error_vectors(pair: CalibrationComparison) -> Plot | None:
                 f"times.", figure)
 
 
+def _model_parameters(params: dict) -> tuple[tuple[str, ...], tuple[str, ...]] | None:
+    """(REGISTRATION, PARAMETERS) of the calibration model of the stored calibration's robot, None for another."""
+    import importlib
+
+    if params.get("robot") not in ("pkm5", "delta4"):
+        return None
+    model = importlib.import_module(f"motion.{params['robot']}.calibration")
+    return model.REGISTRATION, model.PARAMETERS
+
+
 def _model_order(params: dict) -> list[str]:
     """The identified parameter names in the model's order (registration first), as stored for other robots."""
     names = list(params.get("parameters", {}))
-    if params.get("robot") != "pkm5":
+    model = _model_parameters(params)
+    if model is None:
         return names
-    from motion.pkm5.calibration import PARAMETERS, REGISTRATION
-
-    order = {name: i for i, name in enumerate(REGISTRATION + PARAMETERS)}
+    order = {name: i for i, name in enumerate(model[0] + model[1])}
     return sorted(names, key=lambda name: order.get(name, len(order)))
 
 
@@ -158,11 +167,10 @@ def _parameter_rows(params: dict) -> tuple[tuple[str, str, str, str], ...]:
 
 def _held(params: dict) -> tuple[str, ...]:
     """The model's parameters the calibration did not free (held at their documented values)."""
-    if params.get("robot") != "pkm5":
+    model = _model_parameters(params)
+    if model is None:
         return ()
-    from motion.pkm5.calibration import PARAMETERS
-
-    return tuple(name for name in PARAMETERS if name not in params.get("parameters", {}))
+    return tuple(name for name in model[1] if name not in params.get("parameters", {}))
 
 
 def _correlations(params: dict) -> tuple[tuple[str, str, str], ...]:

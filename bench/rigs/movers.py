@@ -56,6 +56,15 @@ class LatchingMover:
     def shutdown(self) -> None:
         self.controller.shutdown()
 
+    @property
+    def geometry(self) -> Any:
+        """The geometry every move is commanded and pre-flighted by (the driver's; None: the documented one)."""
+        return self.controller.geometry
+
+    def use_geometry(self, geometry: Any) -> None:
+        """Command and pre-flight every later move by ``geometry`` (a kinematic calibration in force)."""
+        self.controller.geometry = geometry
+
     def _release(self) -> None:
         """What the controller needs after an emergency stop before it moves again (nothing by default)."""
 
@@ -86,15 +95,6 @@ class Pkm5Mover(LatchingMover):
         """Actuator bench only (the controller refuses otherwise): one axis to ``stroke_mm``, the others hold."""
         self._refuse_if_latched(f"actuator {axis} to {stroke_mm:g} mm")
         self.controller.move_actuator(axis, stroke_mm, speed_steps_s=self._speed(velocity_pct))
-
-    @property
-    def geometry(self) -> Any:
-        """The geometry every move is commanded and pre-flighted by (the driver's)."""
-        return self.controller.geometry
-
-    def use_geometry(self, geometry: Any) -> None:
-        """Command and pre-flight every later move by ``geometry`` (a kinematic calibration in force)."""
-        self.controller.geometry = geometry
 
     def _stop_now(self) -> None:
         self.controller.emergency_stop()  # the driver's own latch, ordered with its MOVE writes

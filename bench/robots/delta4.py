@@ -87,8 +87,9 @@ class Delta4Controller:
         Open port from ``serial.serial_for_url`` (9600 8-N-1 by default; the document does not state it).
     mapping : ServoMapping
         Servo angle <-> byte mapping; must match the firmware (or ``bench sim delta4 --mapping``).
-    geometry : motion.delta4.Geometry, optional
-        Kinematics for :meth:`move_to` (default ``motion.delta4.NOMINAL``).
+    geometry : motion.delta4.Geometry or motion.delta4.calibration.CalibratedGeometry, optional
+        Kinematics for :meth:`move_to` (default ``motion.delta4.NOMINAL``); a kinematic calibration in force puts
+        its calibrated geometry here (``DeltaMover.use_geometry``), whose legs the IK then solves.
     settle_timeout_s : float
         How long to wait for ``z`` after a move, s (§5.7 item 7: default 2 s).
     frame_gap_s : float

@@ -25,7 +25,7 @@ from bench.robots.link import FramedLink, WireProtocolError
 
 __all__ = ["POT_LETTERS", "POT_QUERY", "POT_SCALE", "SERVO_LETTERS", "CalibratedMapping", "Delta4Link",
            "LegacyVbMapping", "ServoMapping", "Token", "format_pot_reply", "format_servo_command", "parse_token",
-           "round_half_up"]
+           "mapping_from_settings", "round_half_up"]
 
 SERVO_LETTERS = b"PQRS"
 #: The pot query (this project's extension) and the letters of its four reply tokens, servos 1-4.
@@ -206,6 +206,25 @@ class Delta4Link(FramedLink):
                 del pending[:end]
                 return frame
         return None
+
+
+def mapping_from_settings(settings: Any) -> ServoMapping:
+    """The mapping whose :meth:`ServoMapping.settings` are ``settings`` (as a run stores its driver's), so the
+    angles a stored run sent can be computed again; ``ConfigError`` names what is wrong."""
+    from bench.errors import ConfigError
+
+    try:
+        name = settings["name"]
+        if name == "legacy_vb":
+            low, high = settings["limits_deg"]
+            return LegacyVbMapping(float(settings["degrees_per_span"]), float(low), float(high))
+        if name == "calibrated":
+            return CalibratedMapping(tuple(tuple(float(v) for v in pair) for pair in settings["stops_deg"]),
+                                     tuple(int(d) for d in settings["direction"]))
+    except (KeyError, TypeError, ValueError) as exc:
+        raise ConfigError(f"servo mapping settings {settings!r}: {exc!r}, expected those of a "
+                          f"{' or '.join(MAPPINGS)} mapping") from None
+    raise ConfigError(f"servo mapping {name!r}, expected one of {', '.join(MAPPINGS)}")
 
 
 def angles_from_bytes(mapping: ServoMapping, values: np.ndarray) -> np.ndarray:

@@ -28,14 +28,17 @@ are held at 0 and :data:`BASE_PARAMETERS` are the rest (:func:`base_equivalent` 
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
-from motion.delta4.geometry import LEG_OUTWARD, LEG_SIDEWAYS, NOMINAL, Geometry
-from motion.delta4.kinematics import forward_kinematics
+from motion.delta4.geometry import LEG_OUTWARD, LEG_SIDEWAYS, NOMINAL, Geometry, Legs
+from motion.delta4.kinematics import forward_kinematics, inverse_kinematics
 from motion.errors import MotionInputError
 
-__all__ = ["BASE_PARAMETERS", "FRAME_PARAMETERS", "PARAMETERS", "REGISTRATION", "UNITS", "ForwardModel",
-           "attained_positions", "base_equivalent", "commanded_servo_deg", "leg_parameters"]
+__all__ = ["BASE_PARAMETERS", "FRAME_PARAMETERS", "PARAMETERS", "REGISTRATION", "UNITS", "CalibratedGeometry",
+           "ForwardModel", "attained_positions", "base_equivalent", "commanded_servo_deg", "compensation_geometry",
+           "leg_parameters"]
 
 _E_Z = np.array([0.0, 0.0, 1.0])
 _KINDS = ("servo_zero", "upper_arm", "lower_arm", "radial", "sideways", "height")
@@ -61,9 +64,9 @@ def _check_names(names) -> tuple[str, ...]:
     return names
 
 
-def leg_parameters(free, theta, nominal: Geometry = NOMINAL) -> dict[str, np.ndarray]:
-    """Per-leg arrays (4,) of the geometry under deviations ``theta`` of parameters ``free``: ``zero_deg``,
-    ``upper_mm``, ``lower_mm``, ``origin_mm`` (4, 3, the servo axis centres O_i) and ``ankle_mm`` (n)."""
+def leg_parameters(free, theta, nominal: Geometry = NOMINAL) -> Legs:
+    """The :class:`~motion.delta4.geometry.Legs` of the geometry under deviations ``theta`` of parameters ``free``
+    (registration entries are not geometry and are skipped)."""
     deviation = {kind: np.zeros(4) for kind in _KINDS}
     for name, value in zip(_check_names(free), np.asarray(theta, dtype=float)):
         if name.startswith("reg_"):
@@ -72,9 +75,79 @@ def leg_parameters(free, theta, nominal: Geometry = NOMINAL) -> dict[str, np.nda
         deviation[kind][leg - 1] = value
     origin = ((nominal.thigh_offset_mm + deviation["radial"])[:, None] * LEG_OUTWARD
               + deviation["sideways"][:, None] * LEG_SIDEWAYS + deviation["height"][:, None] * _E_Z)
-    return {"zero_deg": deviation["servo_zero"], "upper_mm": nominal.upper_arm_mm + deviation["upper_arm"],
-            "lower_mm": nominal.lower_arm_mm + deviation["lower_arm"], "origin_mm": origin,
-            "ankle_mm": np.full(4, nominal.ankle_offset_mm)}
+    return Legs(origin, nominal.upper_arm_mm + deviation["upper_arm"], nominal.lower_arm_mm + deviation["lower_arm"],
+                np.full(4, nominal.ankle_offset_mm), deviation["servo_zero"])
+
+
+def _moved_axes(full: dict[str, float], t: np.ndarray) -> dict[str, float]:
+    """``full`` (every leg parameter) with every servo axis centre moved by the vector ``t`` (mm)."""
+    out = dict(full)
+    for leg in range(4):
+        out[f"radial_{leg + 1}_mm"] = out.get(f"radial_{leg + 1}_mm", 0.0) + float(t @ LEG_OUTWARD[leg])
+        out[f"sideways_{leg + 1}_mm"] = out.get(f"sideways_{leg + 1}_mm", 0.0) + float(t @ LEG_SIDEWAYS[leg])
+        out[f"height_{leg + 1}_mm"] = out.get(f"height_{leg + 1}_mm", 0.0) + float(t[2])
+    return out
+
+
+@dataclass(frozen=True)
+class CalibratedGeometry:
+    """A calibrated delta4: the documented ``nominal`` with the leg deviations ``deviations`` ((name, value) pairs
+    of :data:`PARAMETERS`), in the instrument's frame when made by :func:`compensation_geometry`.
+
+    :func:`motion.delta4.inverse_kinematics` and :func:`motion.delta4.jacobian_deg_per_mm` solve it leg by leg
+    (:meth:`legs`), with the nominal servo and knee limits, so the driver's IK and the pre-flight (reach, limits,
+    singularity) take it wherever they take a :class:`~motion.delta4.geometry.Geometry`; :meth:`attained_mm` is its
+    forward kinematics (the least-squares closure of the four legs).
+    """
+
+    deviations: tuple[tuple[str, float], ...]
+    nominal: Geometry = NOMINAL
+
+    def __post_init__(self) -> None:
+        names = _check_names(name for name, _ in self.deviations)
+        registration = [name for name in names if name in REGISTRATION]
+        if registration:
+            raise MotionInputError(f"CalibratedGeometry: {registration[0]} is not a leg parameter, expected the "
+                                   "registration folded into the servo axes (compensation_geometry)")
+
+    @property
+    def servo_limits_deg(self) -> tuple[float, float]:
+        return self.nominal.servo_limits_deg
+
+    @property
+    def knee_limits_deg(self) -> tuple[float, float]:
+        return self.nominal.knee_limits_deg
+
+    def legs(self) -> Legs:
+        names, values = zip(*self.deviations) if self.deviations else ((), ())
+        return leg_parameters(names, values, self.nominal)
+
+    def attained_mm(self, servo_deg) -> np.ndarray:
+        """Where this robot stands at servo angles (N, 4): :func:`attained_positions`."""
+        names, values = zip(*self.deviations) if self.deviations else ((), ())
+        return attained_positions(servo_deg, names, values, self.nominal)
+
+    def settings(self) -> dict:
+        return {**self.nominal.settings(), "deviations": {name: value for name, value in self.deviations}}
+
+
+def compensation_geometry(params, nominal: Geometry = NOMINAL) -> CalibratedGeometry:
+    """The geometry a compensated run commands by, from a stored calibration's parameters (``{"parameters": {name:
+    {"value": ...}}}``, as ``bench calibrate`` stores them).
+
+    The calibration predicts a reading ``m = p(theta) + r``; moving every servo axis centre by ``r`` moves every
+    attained position by ``r`` (module docstring), so with the registration folded into the axes the geometry's
+    own frame is the instrument's and its IK of a target gives the servo angles whose predicted reading is it.
+    """
+    try:
+        entries = {name: float(entry["value"]) for name, entry in params["parameters"].items()}
+    except (KeyError, TypeError, ValueError, AttributeError) as exc:
+        raise MotionInputError(f"kinematic calibration parameters: {exc!r}, expected {{'parameters': {{name: "
+                               "{'value': number}}}}") from None
+    _check_names(entries)
+    shift = np.array([entries.get(name, 0.0) for name in REGISTRATION])
+    legs = _moved_axes({n: v for n, v in entries.items() if n not in REGISTRATION}, shift)
+    return CalibratedGeometry(tuple((name, legs[name]) for name in PARAMETERS if name in legs), nominal)
 
 
 def base_equivalent(deviations: dict[str, float]) -> dict[str, float]:
@@ -84,10 +157,7 @@ def base_equivalent(deviations: dict[str, float]) -> dict[str, float]:
     _check_names(deviations)
     full = {name: float(deviations.get(name, 0.0)) for name in PARAMETERS + REGISTRATION}
     t = np.array([full["radial_1_mm"], full["radial_4_mm"], full["height_4_mm"]])
-    for leg in range(4):
-        full[f"radial_{leg + 1}_mm"] -= float(t @ LEG_OUTWARD[leg])
-        full[f"sideways_{leg + 1}_mm"] -= float(t @ LEG_SIDEWAYS[leg])
-        full[f"height_{leg + 1}_mm"] -= float(t[2])
+    full = _moved_axes(full, -t)
     for axis, shift in zip(_AXES, t):
         full[f"reg_{axis}_mm"] += float(shift)
     return full
@@ -101,27 +171,16 @@ def _registration(free, theta) -> np.ndarray:
     return shift
 
 
-def _knees(servo_deg: np.ndarray, legs: dict) -> np.ndarray:
-    elevation = np.radians(45.0 - (servo_deg + legs["zero_deg"]))[..., None]  # (N, 4, 1)
-    upper = legs["upper_mm"][:, None]
-    return legs["origin_mm"] + upper * (np.cos(elevation) * LEG_OUTWARD + np.sin(elevation) * _E_Z)
-
-
 def commanded_servo_deg(points_mm, free=(), theta=(), nominal: Geometry = NOMINAL) -> np.ndarray:
     """Servo angles (N, 4) that close every leg of the geometry under ``theta`` at positions ``points_mm`` (N, 3)
-    (module docstring; NaN where a leg cannot close). A registration in ``free`` is taken off first: the points
-    are instrument readings, so the command makes the predicted reading equal the target."""
+    (the IK of :func:`compensation_geometry`, module docstring; NaN rows where a leg cannot close). A registration
+    in ``free`` is folded in: the points are instrument readings, so the command makes the predicted reading equal
+    the target."""
     free = _check_names(free)
-    points = np.atleast_2d(np.asarray(points_mm, dtype=float)) - _registration(free, theta)
-    legs = leg_parameters(free, theta, nominal)
-    q = points[:, None, :] + legs["ankle_mm"][:, None] * LEG_OUTWARD - legs["origin_mm"]  # (N, 4, 3)
-    a, b = np.einsum("nij,ij->ni", q, LEG_OUTWARD), q[..., 2]
-    upper, lower = legs["upper_mm"], legs["lower_mm"]
-    c = (np.sum(q**2, axis=-1) + upper**2 - lower**2) / (2.0 * upper)
-    with np.errstate(invalid="ignore"):
-        elevation = np.arctan2(b, a) + np.arccos(c / np.hypot(a, b))
-    servo = 45.0 - np.degrees(elevation) - legs["zero_deg"]
-    return np.mod(servo + 135.0, 360.0) - 135.0
+    params = {"parameters": {name: {"value": value} for name, value in zip(free, np.asarray(theta, dtype=float))}}
+    result = inverse_kinematics(points_mm, compensation_geometry(params, nominal))
+    closes = np.array([not str(reason).startswith("out_of_reach") for reason in result.reason])
+    return np.where(closes[:, None], result.servo_deg, np.nan)
 
 
 def attained_positions(servo_deg, free=(), theta=(), nominal: Geometry = NOMINAL, start_mm=None) -> np.ndarray:
@@ -131,13 +190,13 @@ def attained_positions(servo_deg, free=(), theta=(), nominal: Geometry = NOMINAL
     free = _check_names(free)
     servo = np.atleast_2d(np.asarray(servo_deg, dtype=float))
     legs = leg_parameters(free, theta, nominal)
-    knees = _knees(servo, legs)
+    knees = legs.knees_mm(servo)
     p = (forward_kinematics(servo, nominal, method="least_squares").pose_mm if start_mm is None
          else np.array(start_mm, dtype=float))
     for _ in range(_GAUSS_NEWTON_ITERATIONS):
-        span = p[:, None, :] + legs["ankle_mm"][:, None] * LEG_OUTWARD - knees  # A_i - K_i
+        span = legs.ankles_mm(p) - knees  # A_i - K_i
         length = np.linalg.norm(span, axis=-1)
-        residual = length - legs["lower_mm"]
+        residual = length - legs.lower_mm
         jac = span / length[..., None]  # d|A_i - K_i| / dp
         normal = np.einsum("nij,nik->njk", jac, jac)
         p = p - np.linalg.solve(normal, np.einsum("nij,ni->nj", jac, residual)[..., None])[..., 0]

@@ -15,6 +15,7 @@ from motion.errors import MotionInputError
 
 __all__ = [
     "Geometry",
+    "Legs",
     "NOMINAL",
     "THESIS",
     "LEG_OUTWARD",
@@ -30,6 +31,38 @@ LEG_OUTWARD = np.array([[1.0, 0.0, 0.0], [0.0, -1.0, 0.0], [-1.0, 0.0, 0.0], [0.
 LEG_SIDEWAYS = np.cross(np.array([0.0, 0.0, 1.0]), LEG_OUTWARD)
 #: Legs whose coordinate angle equals the elevation phi (1 and 4); legs 2 and 3 have theta = 180 deg - phi.
 _DIRECT_LEGS = np.array([True, False, False, True])
+_E_Z = np.array([0.0, 0.0, 1.0])
+
+
+@dataclass(frozen=True, eq=False)
+class Legs:
+    """The four legs as the kinematics use them, leg by leg (mm, deg): servo axis centres ``origin_mm`` O_i (4, 3),
+    ``upper_mm`` R1_i, ``lower_mm`` R0_i, ``ankle_mm`` n_i and the servo zero errors ``zero_deg`` (4,).
+
+    The documented robot (:meth:`Geometry.legs`) has ``O_i = m u_i``, equal lengths and zero errors 0; a calibrated
+    one (:class:`motion.delta4.calibration.CalibratedGeometry`) its identified values. The arm elevation of servo
+    angle theta_R is ``phi_i = 45 deg - (theta_Ri + zero_i)`` and the knee ``K_i = O_i + R1_i (cos phi_i u_i +
+    sin phi_i e_z)`` (reference §1.5 c, §2.1).
+    """
+
+    origin_mm: np.ndarray
+    upper_mm: np.ndarray
+    lower_mm: np.ndarray
+    ankle_mm: np.ndarray
+    zero_deg: np.ndarray
+
+    def elevation_rad(self, servo_deg: np.ndarray) -> np.ndarray:
+        """phi_i (N, 4), rad, of servo angles (N, 4), deg."""
+        return np.radians(45.0 - (np.asarray(servo_deg, dtype=float) + self.zero_deg))
+
+    def knees_mm(self, servo_deg: np.ndarray) -> np.ndarray:
+        """Knee positions K_i (N, 4, 3), mm, of servo angles (N, 4), deg."""
+        elevation = self.elevation_rad(servo_deg)[..., None]
+        return self.origin_mm + self.upper_mm[:, None] * (np.cos(elevation) * LEG_OUTWARD + np.sin(elevation) * _E_Z)
+
+    def ankles_mm(self, points_mm: np.ndarray) -> np.ndarray:
+        """Ankle positions A_i = p + n_i u_i (N, 4, 3) of end-effector centres (N, 3)."""
+        return np.asarray(points_mm, dtype=float)[:, None, :] + self.ankle_mm[:, None] * LEG_OUTWARD
 
 
 @dataclass(frozen=True)
@@ -79,6 +112,11 @@ class Geometry:
     def sphere_constant_mm2(self) -> float:
         """K0 = R0^2 - n^2 (mm^2): the constant of the thesis sphere equations (300.607 cm^2 as printed)."""
         return self.lower_arm_mm**2 - self.ankle_offset_mm**2
+
+    def legs(self) -> Legs:
+        """The documented legs: every servo axis at ``m u_i``, the lengths of this geometry, no zero error."""
+        return Legs(self.thigh_offset_mm * LEG_OUTWARD, np.full(4, self.upper_arm_mm), np.full(4, self.lower_arm_mm),
+                    np.full(4, self.ankle_offset_mm), np.zeros(4))
 
     def settings(self) -> dict[str, float | tuple[float, float]]:
         """The geometry as a plain dict, to store with a run."""

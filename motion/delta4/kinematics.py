@@ -93,8 +93,11 @@ def inverse_kinematics(points_mm: object, geometry: Geometry = NOMINAL) -> IKRes
     points_mm : array_like, (N, 3) or (3,)
         End-effector centre (x0, y0, z0) in the base frame, mm. z points from the EE to the base, so the
         working poses have z0 < 0.
-    geometry : Geometry
-        Dimensions and limits; :data:`~motion.delta4.geometry.THESIS` reproduces the document's digits.
+    geometry : Geometry or CalibratedGeometry
+        Dimensions and limits; :data:`~motion.delta4.geometry.THESIS` reproduces the document's digits. Anything
+        with ``legs()`` (:class:`~motion.delta4.geometry.Legs`) and the two limits: a calibrated geometry
+        (:class:`motion.delta4.calibration.CalibratedGeometry`) is solved leg by leg with its own servo axis
+        centre, lengths and servo zero (``q = A_i - O_i`` in place of ``P + (n - m) u_i``).
 
     Returns
     -------
@@ -126,11 +129,12 @@ def inverse_kinematics(points_mm: object, geometry: Geometry = NOMINAL) -> IKRes
     [[129.3, 126.6058, 73.7283, 78.5895]]
     """
     points = as_rows(points_mm, 3, "points_mm")
-    m, n = geometry.thigh_offset_mm, geometry.ankle_offset_mm
-    upper, lower = geometry.upper_arm_mm, geometry.lower_arm_mm
-    radial = points @ LEG_OUTWARD.T + n - m  # (N, 4): ankle minus thigh, along u_i
-    sideways = points @ LEG_SIDEWAYS.T
-    height = np.broadcast_to(points[:, 2:3], radial.shape)
+    legs = geometry.legs()
+    upper, lower = legs.upper_mm, legs.lower_mm
+    span = legs.ankles_mm(points) - legs.origin_mm  # (N, 4, 3): ankle minus servo axis centre
+    radial = np.einsum("nij,ij->ni", span, LEG_OUTWARD)
+    sideways = np.einsum("nij,ij->ni", span, LEG_SIDEWAYS)
+    height = span[..., 2]
     projected_sq = lower**2 - sideways**2
     projected = np.sqrt(np.clip(projected_sq, 0.0, None))
     distance = np.hypot(radial, height)
@@ -139,7 +143,7 @@ def inverse_kinematics(points_mm: object, geometry: Geometry = NOMINAL) -> IKRes
     out_of_reach = (projected_sq <= 0.0) | (np.abs(cos_spread) > 1.0) | (distance == 0.0)
     elevation = np.arctan2(height, radial) + np.arccos(np.clip(cos_spread, -1.0, 1.0))
 
-    servo = np.mod(45.0 - np.degrees(elevation) + 135.0, 360.0) - 135.0
+    servo = np.mod(45.0 - np.degrees(elevation) - legs.zero_deg + 135.0, 360.0) - 135.0
     coord = coord_from_servo_deg(servo)
     safe_projected = np.where(projected > 0.0, projected, 1.0)
     cos_knee = (upper**2 + projected**2 - distance**2) / (2.0 * upper * safe_projected)
@@ -149,9 +153,9 @@ def inverse_kinematics(points_mm: object, geometry: Geometry = NOMINAL) -> IKRes
     servo_low, servo_high = geometry.servo_limits_deg
     servo_limit = (servo < servo_low) | (servo > servo_high)
 
-    knees = knees_mm(servo, geometry)
+    knees = legs.knees_mm(servo)
     # The FK keeps the root below the knees (thesis §4.3.2 c), so a pose at or above a knee cannot be returned.
-    above_knee = height >= knees[:, :, 2]
+    above_knee = points[:, 2:3] >= knees[:, :, 2]
     reason = _reasons([out_of_reach, above_knee, singular, servo_limit])
     return IKResult(
         servo_deg=servo,
@@ -324,9 +328,10 @@ def jacobian_deg_per_mm(points_mm: object, geometry: Geometry = NOMINAL) -> np.n
     """
     result = inverse_kinematics(points_mm, geometry)
     points = as_rows(points_mm, 3, "points_mm")
-    legs = _leg_vectors(points, result.knees_mm, geometry)
-    elevation = np.radians(45.0 - result.servo_deg)[..., None]
-    knee_rate = geometry.upper_arm_mm * (-np.sin(elevation) * LEG_OUTWARD + np.cos(elevation) * _E_Z)
-    denominator = np.einsum("nki,nki->nk", legs, knee_rate)
+    legs = geometry.legs()
+    spans = legs.ankles_mm(points) - result.knees_mm
+    elevation = legs.elevation_rad(result.servo_deg)[..., None]
+    knee_rate = legs.upper_mm[:, None] * (-np.sin(elevation) * LEG_OUTWARD + np.cos(elevation) * _E_Z)
+    denominator = np.einsum("nki,nki->nk", spans, knee_rate)
     denominator = np.where(np.abs(denominator) > 1e-12, denominator, np.copysign(1e-12, denominator))
-    return -np.degrees(legs / denominator[:, :, None])
+    return -np.degrees(spans / denominator[:, :, None])

@@ -10,13 +10,19 @@ from motion.delta4.geometry import NOMINAL, Geometry
 from motion.delta4.kinematics import forward_kinematics, inverse_kinematics, jacobian_deg_per_mm
 from motion.delta4.workspace import workspace_samples
 from motion.model import JointSpec, ModelFK, ModelIK
+from motion.sampling import as_rows
 
 __all__ = ["Delta4Model", "MODEL"]
 
 
 @dataclass(frozen=True)
 class Delta4Model:
-    """Delta-4 kinematics behind the common interface; FK is the least-squares fit over all four legs."""
+    """Delta-4 kinematics behind the common interface; FK is the least-squares fit over all four legs.
+
+    ``geometry`` is the documented :class:`~motion.delta4.geometry.Geometry` or a calibrated one
+    (:class:`motion.delta4.calibration.CalibratedGeometry`, a kinematic calibration in force): IK, Jacobian and
+    workspace solve its legs, FK closes them (``residual_mm`` then NaN: the calibrated fit reports no residual).
+    """
 
     geometry: Geometry = NOMINAL
     name: str = "delta4"
@@ -35,6 +41,9 @@ class Delta4Model:
         return ModelIK(joints=result.servo_deg, reachable=result.reachable, reason=result.reason)
 
     def fk(self, joints: object) -> ModelFK:
+        if not isinstance(self.geometry, Geometry):
+            pose = self.geometry.attained_mm(as_rows(joints, 4, "joints"))
+            return ModelFK(pose=pose, residual_mm=np.full(len(pose), np.nan), ok=np.all(np.isfinite(pose), axis=1))
         result = forward_kinematics(joints, self.geometry)
         return ModelFK(pose=result.pose_mm, residual_mm=result.residual_mm, ok=result.ok)
 
