@@ -142,3 +142,46 @@ def test_iterative_correction_on_the_delta4_with_the_camera(rehearsed):
         assert len(series) == 3 or series[-1] <= u_mm, (pose, series)
         assert max(series) < 1.5, (pose, series)  # the quantisation floor: ~1 mm per count at most
     assert max(series[0] for series in errors.values()) > 0.3  # the true geometry's first-move error
+
+
+def test_the_camera_stream_serves_a_host_that_reopens_it(tmp_path):
+    """A host that closes the video FIFO (``bench station check``) and a later one that opens it again (once the
+    feed has noticed the first one left) each get a stream of their own from its header; each reading shows the spot where the robot stands when it is read."""
+    import threading
+
+    from bench.rigs.camera import video_grab
+    from bench.sensors.camera_spot import detect_spot
+    from bench.simulators.camera_feed import CameraFeed
+    from bench.simulators.camera import apply_homography
+
+    feed = CameraFeed(tmp_path / "camera.y4m", seed=1)
+    pose = {"xy": np.array([10.0, -5.0, -160.0])}
+    stop = threading.Event()
+
+    def serve():
+        while not stop.is_set():
+            feed.stream(pose["xy"])
+            stop.wait(0.002)
+
+    server = threading.Thread(target=serve, daemon=True)
+    server.start()
+    try:
+        for place in ([10.0, -5.0], [-30.0, 20.0]):
+            grab, release = video_grab(str(tmp_path / "camera.y4m"))
+            try:
+                for x, y in (place, [place[0] + 7.0, place[1] - 3.0]):
+                    pose["xy"] = np.array([x, y, -160.0])
+                    spot = detect_spot(grab())
+                    expected = apply_homography(feed.camera.homography_mm_to_px, np.array([x, y]))[0]
+                    assert np.hypot(spot.u_px - expected[0], spot.v_px - expected[1]) < 0.3, (x, y)
+            finally:
+                release()
+            for _ in range(5000):  # the feed notices the host has gone before a later host opens (2 ms turns)
+                if not feed.connected:
+                    break
+                stop.wait(0.002)
+            assert not feed.connected
+    finally:
+        stop.set()
+        server.join(5)
+        feed.close()

@@ -8,8 +8,9 @@ simulator verb on the controller link. Each frame is rendered by :class:`bench.s
 true attained x, y at the moment it is rendered. Like a camera that exposes on demand, a new frame is rendered only
 once the host has read everything written before (the FIFO is empty), so the host holds at most the one frame taken
 when it read the previous one: :func:`bench.rigs.camera.video_grab` drops that frame before each reading, as it drops
-a real camera's queued frames. A host that closes the stream is noticed, and the next one that opens it gets a fresh
-stream header.
+a real camera's queued frames. A host that closes the stream is noticed at the next turn, and the next one that opens it then gets a
+fresh stream header (a host that reopened within that turn would read the end of the earlier stream: the
+simulator's turn is 2 ms, a rehearsal opens the camera once).
 """
 
 from __future__ import annotations
@@ -110,6 +111,11 @@ class CameraFeed:
         if self._fd is not None:
             os.close(self._fd)
         self._fd, self._pending = None, b""
+
+    @property
+    def connected(self) -> bool:
+        """Whether a host has the stream open (as far as the last turn saw)."""
+        return self._fd is not None
 
     def _unread_bytes(self) -> int:
         count = array.array("i", [0])
