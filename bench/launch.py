@@ -73,7 +73,7 @@ def open_rig(request: RigRequest, store: Any, *, robot: str, stored: dict[str, A
     if station is None:
         seed, speed = _simulation_settings(request, stored)
         rig = simulated_rig_in(store, robot, seed=seed, speed_factor=speed, fixture=fixture,
-                               true_geometry_seed=_true_geometry_seed(request, stored, robot),
+                               true_geometry_seed=_true_geometry_seed(request, stored),
                                ideal=request.ideal or bool(stored.get("simulator", {}).get("ideal")))
         return put_in_force(rig, *kinematic)
     if not request.simulate and (request.true_geometry_seed is not None or request.ideal):
@@ -121,7 +121,7 @@ def _kinematic_calibration(request: RigRequest, store: Any, robot: str, stored: 
     return choose_calibration(store, robot, choice, serial, fixture, simulated)
 
 
-def _true_geometry_seed(request: RigRequest, stored: dict[str, Any], robot: str) -> int | None:
+def _true_geometry_seed(request: RigRequest, stored: dict[str, Any]) -> int | None:
     """The true-geometry seed of the simulated robot; a resumed run keeps its own (another is refused)."""
     own = stored.get("simulator", {}).get("true_geometry_seed")
     if request.true_geometry_seed is None:
@@ -163,7 +163,7 @@ def _on_rehearsal(station: Station, request: RigRequest, stored: dict[str, Any],
     seed, speed = _simulation_settings(request, stored)
     rehearsal = rehearse(station, seed=seed, speed_factor=speed,
                          ideal=request.ideal or bool(stored.get("simulator", {}).get("ideal")),
-                         true_geometry_seed=_true_geometry_seed(request, stored, station.robot))
+                         true_geometry_seed=_true_geometry_seed(request, stored))
     try:
         return build(rehearsal.station, speed), rehearsal, seed
     except BaseException:

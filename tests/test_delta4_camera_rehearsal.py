@@ -185,3 +185,16 @@ def test_the_camera_stream_serves_a_host_that_reopens_it(tmp_path):
         stop.set()
         server.join(5)
         feed.close()
+
+
+@pytest.mark.parametrize("station, options, message", [
+    ("pkm5_camera", {}, "[camera] on the pkm5 cannot be rehearsed yet (only the delta4 simulator streams a camera)"),
+    ("pkm5_actuator_bench", {"true_geometry_seed": 3},
+     "--true-geometry-seed 3: the actuator-bench has no geometry, expected an assembled robot's station"),
+])
+def test_a_rehearsal_the_simulators_cannot_give_is_refused_before_anything_starts(station, options, message):
+    from bench.errors import ConfigError
+
+    with pytest.raises(ConfigError) as refused:
+        rehearse(load_station(f"examples/stations/{station}.toml"), **options)
+    assert message in str(refused.value)

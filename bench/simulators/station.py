@@ -54,6 +54,9 @@ def rehearse(station: Station, *, seed: int = 0, speed_factor: float = 10000.0, 
     if station.camera is not None and station.camera.plane != "xy":
         raise ConfigError(f"{station.source}: camera.plane = {station.camera.plane!r}: the simulated camera watches "
                           "the x-y plane, expected 'xy' for a rehearsal")
+    if true_geometry_seed is not None and station.controller.fixture != "assembled":
+        raise ConfigError(f"--true-geometry-seed {true_geometry_seed}: the {station.controller.fixture} has no "
+                          "geometry, expected an assembled robot's station")
     if not speed_factor > 0 or speed_factor == float("inf"):
         raise ConfigError(f"--speed-factor = {speed_factor:g}, expected a finite number > 0")
     folder = tempfile.TemporaryDirectory(prefix="bench-rehearsal-")
