@@ -5,7 +5,8 @@ This is the device-for-device stand-in of a station's ``[camera]``: the host ope
 ``VideoCapture`` exactly as it opens ``/dev/video0`` or a stream URL (:func:`bench.rigs.camera.video_grab`), with no
 simulator verb on the controller link. Each frame is rendered by :class:`bench.simulators.camera.SpotCameraSimulator`
 (:func:`delta4_camera`: 4 px/mm, a slight tilt and perspective, 2.5 px spot, 3 grey levels of read noise) from the
-true attained x, y at the moment it is rendered. Like a camera that exposes on demand, a new frame is rendered only
+simulator's true x, y at the moment it is rendered (the pose last attained: the motion between two rests is not
+rendered, as the laser grid reports it). Like a camera that exposes on demand, a new frame is rendered only
 once the host has read everything written before (the FIFO is empty), so the host holds at most the one frame taken
 when it read the previous one: :func:`bench.rigs.camera.video_grab` drops that frame before each reading, as it drops
 a real camera's queued frames. A host that closes the stream is noticed at the next turn, and the next one that opens it then gets a

@@ -65,6 +65,8 @@ def rehearse(station: Station, *, seed: int = 0, speed_factor: float = 10000.0, 
     options = ["--truth", truth_path]
     if true_geometry_seed is not None:
         options += ["--true-geometry-seed", str(int(true_geometry_seed))]
+    if station.robot == "delta4" and station.laser_grid is None:
+        options.append("--no-grid")  # a controller whose screens are not plugged in reports no hit
     mice, camera = station.mice, station.camera
     if camera is not None:
         from bench.simulators.camera_feed import write_plane_calibration
