@@ -73,12 +73,12 @@ def open_rig(request: RigRequest, store: Any, *, robot: str, stored: dict[str, A
     if station is None:
         seed, speed = _simulation_settings(request, stored)
         rig = simulated_rig_in(store, robot, seed=seed, speed_factor=speed, fixture=fixture,
-                               true_geometry_seed=_true_geometry_seed(request, stored, robot),
+                               true_geometry_seed=_true_geometry_seed(request, stored),
                                ideal=request.ideal or bool(stored.get("simulator", {}).get("ideal")))
         return put_in_force(rig, *kinematic)
-    if request.true_geometry_seed is not None or request.ideal:
+    if not request.simulate and (request.true_geometry_seed is not None or request.ideal):
         what = "--ideal" if request.ideal else f"--true-geometry-seed {request.true_geometry_seed}"
-        raise ConfigError(f"{what}: only for the simulated default rig (no --station, no --port)")
+        raise ConfigError(f"{what}: only for a simulated rig (no --port; --station with --sim)")
     if station.robot != robot:
         raise ConfigError(f"{station.source}: robot.kind = {station.robot!r}, expected {robot!r} for {protocol}")
     if station.controller.fixture != fixture:
@@ -93,7 +93,8 @@ def open_rig(request: RigRequest, store: Any, *, robot: str, stored: dict[str, A
     rig, rehearsal, seed = _on_rehearsal(station, request, stored, lambda devices, speed: build_rig(
         devices, store, requires=requires, protocol=protocol, speed_factor=speed, operator=operator))
     rig.closers.insert(0, rehearsal.close)  # closed last: after the drivers let go of the simulators' devices
-    rig.extra["simulator"] = {"seed": seed, "station": station.source, "truth_log": rehearsal.truth_path}
+    rig.extra["simulator"] = {"seed": seed, "station": station.source, "truth_log": rehearsal.truth_path,
+                              **rehearsal.settings}
     return _synced_after(put_in_force(rig, *kinematic), station, store)
 
 
@@ -120,17 +121,14 @@ def _kinematic_calibration(request: RigRequest, store: Any, robot: str, stored: 
     return choose_calibration(store, robot, choice, serial, fixture, simulated)
 
 
-def _true_geometry_seed(request: RigRequest, stored: dict[str, Any], robot: str) -> int | None:
-    """The true-geometry seed of the simulated pkm5; a resumed run keeps its own (another is refused)."""
+def _true_geometry_seed(request: RigRequest, stored: dict[str, Any]) -> int | None:
+    """The true-geometry seed of the simulated robot; a resumed run keeps its own (another is refused)."""
     own = stored.get("simulator", {}).get("true_geometry_seed")
     if request.true_geometry_seed is None:
         return own
     if stored and request.true_geometry_seed != own:
         raise ConfigError(f"--true-geometry-seed {request.true_geometry_seed}: the run was made with "
                           f"{own}, expected the same (leave it out)")
-    if robot != "pkm5":
-        raise ConfigError(f"--true-geometry-seed {request.true_geometry_seed}: only the simulated pkm5 moves by a "
-                          f"true geometry, expected no seed for the {robot}")
     return request.true_geometry_seed
 
 
@@ -163,7 +161,9 @@ def _on_rehearsal(station: Station, request: RigRequest, stored: dict[str, Any],
     from bench.simulators.station import rehearse
 
     seed, speed = _simulation_settings(request, stored)
-    rehearsal = rehearse(station, seed=seed, speed_factor=speed)
+    rehearsal = rehearse(station, seed=seed, speed_factor=speed,
+                         ideal=request.ideal or bool(stored.get("simulator", {}).get("ideal")),
+                         true_geometry_seed=_true_geometry_seed(request, stored))
     try:
         return build(rehearsal.station, speed), rehearsal, seed
     except BaseException:

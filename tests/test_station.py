@@ -41,6 +41,7 @@ def test_every_example_station_parses_with_the_capabilities_of_its_devices():
         "pkm5_actuator_bench": {"actuator_bench", "reading"},
         "delta4_lasergrid": {"assembled", "pose", "grid_hit"},
         "pkm5_camera": {"assembled", "pose", "reading"},
+        "delta4_camera": {"assembled", "pose"},
     }
     mice = load_station(STATIONS / "pkm5_mice.toml")
     assert mice.controller.baud == 115200 and mice.mice.cpi == 800 and mice.identity.robot_serial == "PKM5-0001"

@@ -102,7 +102,8 @@ def _rig_arguments(parser: argparse.ArgumentParser) -> None:
     kinematic.add_argument("--no-kinematic-calibration", action="store_true",
                            help="command by the documented geometry, whatever calibration is stored")
     parser.add_argument("--true-geometry-seed", type=int, default=None, metavar="SEED",
-                        help="simulated pkm5: move by this seed's perturbed true geometry (docs/calibration.md)")
+                        help="simulated pkm5 or delta4 (also a --station rehearsed with --sim): move by this seed's "
+                             "perturbed true geometry (docs/calibration.md)")
     parser.add_argument("--ideal", action="store_true",
                         help="simulated robot without its error model (backlash, noise, play; resume: the run's own)")
 

@@ -39,7 +39,12 @@ def load_plane_calibration(path: str) -> Any:
 
 
 def video_grab(device: str) -> tuple[Callable[[], np.ndarray], Callable[[], None]]:
-    """A frame grabber on a video device, camera index or stream URL (OpenCV), and its release."""
+    """A frame grabber on a video device, camera index or stream URL (OpenCV), and its release.
+
+    A camera keeps delivering (or queueing) frames while nobody reads: the frame at the head of its queue after a move
+    was taken before the move. The driver's queue is asked for one buffer (``CAP_PROP_BUFFERSIZE``, where the backend
+    honours it), one frame is read at open (a device that gives none is refused at once), and every reading drops the
+    frame queued since the previous reading before it reads the one it returns."""
     import cv2
 
     from bench.errors import LinkError
@@ -47,12 +52,23 @@ def video_grab(device: str) -> tuple[Callable[[], np.ndarray], Callable[[], None
     capture = cv2.VideoCapture(int(device) if device.isdigit() else device)
     if not capture.isOpened():
         raise LinkError(f"camera.device = {device!r}: cannot open it (is the camera plugged in, the name right?)")
+    capture.set(cv2.CAP_PROP_BUFFERSIZE, 1)
 
-    def grab() -> np.ndarray:
+    def read() -> np.ndarray:
         ok, frame = capture.read()
         if not ok:
             raise LinkError(f"camera.device = {device!r}: no frame")
         return frame
+
+    try:
+        read()
+    except LinkError:
+        capture.release()
+        raise
+
+    def grab() -> np.ndarray:
+        capture.grab()  # the frame queued since the last reading: taken before the robot moved
+        return read()
 
     return grab, capture.release
 

@@ -68,16 +68,27 @@ def render_chessboard(shape: tuple[int, int], pattern_size: tuple[int, int], squ
     white. Pixels are anti-aliased by averaging ``supersample``^2 sub-samples.
     """
     rows, cols = shape
+    image = np.full((rows, cols), 225, dtype=np.uint8)
+    # only the pixels of the board's bounding box are sampled: the surround is white (a projective image of the
+    # board's outline is the quadrilateral of its mapped corners, inside their bounding box)
+    outline = np.array([[-1, -1], [pattern_size[0], -1], [pattern_size[0], pattern_size[1]], [-1, pattern_size[1]]],
+                       dtype=float) * square_mm
+    corners_px = apply_homography(homography_mm_to_px, outline)
+    u0, v0 = np.maximum(np.floor(corners_px.min(axis=0)).astype(int) - 2, 0)
+    u1, v1 = np.minimum(np.ceil(corners_px.max(axis=0)).astype(int) + 3, (cols, rows))
+    if u0 >= u1 or v0 >= v1:
+        return image
     offsets = (np.arange(supersample) + 0.5) / supersample - 0.5
-    sub_u = (np.arange(cols)[:, None] + offsets).ravel()
-    sub_v = (np.arange(rows)[:, None] + offsets).ravel()
+    sub_u = (np.arange(u0, u1)[:, None] + offsets).ravel()
+    sub_v = (np.arange(v0, v1)[:, None] + offsets).ravel()
     grid_v, grid_u = np.meshgrid(sub_v, sub_u, indexing="ij")
     mm = apply_homography(np.linalg.inv(homography_mm_to_px), np.column_stack([grid_u.ravel(), grid_v.ravel()]))
     ix, iy = np.floor(mm[:, 0] / square_mm), np.floor(mm[:, 1] / square_mm)
     inside = (ix >= -1) & (ix < pattern_size[0]) & (iy >= -1) & (iy < pattern_size[1])
     black = inside & ((ix + iy) % 2 == 0)
-    values = np.where(black, 30.0, 225.0).reshape(rows, supersample, cols, supersample)
-    return np.rint(values.mean(axis=(1, 3))).astype(np.uint8)
+    values = np.where(black, 30.0, 225.0).reshape(v1 - v0, supersample, u1 - u0, supersample)
+    image[v0:v1, u0:u1] = np.rint(values.mean(axis=(1, 3))).astype(np.uint8)
+    return image
 
 
 @dataclass(frozen=True, eq=False)

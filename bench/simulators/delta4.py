@@ -14,11 +14,19 @@ attained pose. The program attaches the laser-grid simulator
 ``--grid-spot-half-width-mm`` 1.0 mm, Appendix D2 miss probability by height unless ``--grid-p-miss`` is given,
 ``--grid-p-false`` stray hits, its own random stream derived from ``--seed``); ``--no-grid`` reports no hit in
 every frame (``h`` then ``v``), as a controller with its screens unplugged.
+
+``--true-geometry-seed SEED`` moves the robot by a seeded TRUE geometry
+(:func:`bench.simulators.true_geometry.delta4_true_deviations`: servo zeros, arm lengths, servo axis positions)
+through :func:`motion.delta4.calibration.attained_positions` (the four closures best met), instead of the error
+model's geometric stand-ins (joint offset and scale, pose gain and bias, then zeroed); the truth log's poses are that
+geometry's. ``--camera FIFO`` attaches a simulated camera watching the laser spot of the true pose
+(:class:`bench.simulators.camera_feed.CameraFeed`), read by the host as a video stream.
 """
 
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import logging
 import math
 import sys
@@ -86,6 +94,7 @@ class Delta4SimDevice:
         self._digits = bytearray()
         self._stored_while_stopped = False
         self._pots_asked = 0
+        self.camera: Any = None  #: a :class:`bench.simulators.camera_feed.CameraFeed`, or None
 
     # -- bytes in ----------------------------------------------------------------------------------------------
     def feed(self, data: bytes, now_s: float) -> bytes:
@@ -157,6 +166,11 @@ class Delta4SimDevice:
         decay = math.exp(-BANDWIDTH_PER_S * max(0.0, now_s - self.t0_s) * self.speed_factor)
         return self.target_deg + (self.angle_deg - self.target_deg) * decay
 
+    def idle(self, now_s: float) -> None:
+        """Between turns of the event loop: the attached camera (if any) streams frames of the true pose."""
+        if self.camera is not None:
+            self.camera.stream(self.true_pose)
+
     # -- bytes out ---------------------------------------------------------------------------------------------
     def _pot_reply(self, now_s: float) -> bytes:
         return wire.format_pot_reply(wire.POT_SCALE.to_bytes(self._angles(now_s)))
@@ -181,16 +195,30 @@ class Delta4SimDevice:
         return report + (b"".join(b"V%03dX" % i for i in vertical) if vertical else b"v")
 
 
-def build_plant(seed: int, *, ideal: bool = False, geometry: Any = None) -> tuple[Plant, np.ndarray]:
-    """The seeded delta4 plant and the servo angles of the home point (0, 0, -150) mm."""
+def build_plant(seed: int, *, ideal: bool = False, geometry: Any = None,
+                true_deviations: dict[str, float] | None = None) -> tuple[Plant, np.ndarray]:
+    """The seeded delta4 plant and the servo angles of the home point (0, 0, -150) mm (by the documented IK).
+
+    With ``true_deviations`` (names of :data:`motion.delta4.calibration.PARAMETERS` -> deg or mm, e.g.
+    :func:`bench.simulators.true_geometry.delta4_true_deviations`) the robot stands where the four legs of that
+    geometry close best (:func:`motion.delta4.calibration.attained_positions`), and the error model's stand-ins for
+    geometry (joint offset and scale, pose gain and bias) are zeroed; backlash, noise, sag and play stay."""
     from motion import delta4
+    from motion.delta4.calibration import attained_positions
     geometry = geometry or delta4.NOMINAL
 
     def forward(servo_deg: np.ndarray, _commanded: np.ndarray, _previous: np.ndarray | None) -> np.ndarray | None:
+        if true_deviations is not None:
+            pose = attained_positions(servo_deg.reshape(1, 4), tuple(true_deviations),
+                                      tuple(true_deviations.values()), geometry)[0]
+            return pose if bool(np.all(np.isfinite(pose))) else None
         result = delta4.forward_kinematics(servo_deg.reshape(1, 4), geometry)
         return result.pose_mm[0] if bool(result.ok[0]) else None
 
     model = ErrorModel.ideal(4, 3) if ideal else ErrorModel.draw(DELTA4_ERRORS, 4, seed, joint_zero=100.0)
+    if true_deviations is not None:
+        model = dataclasses.replace(model, offset=np.zeros(4), scale=np.zeros(4), pose_gain=np.zeros((3, 3)),
+                                    pose_offset=np.zeros(3))
     home = delta4.inverse_kinematics(np.array([HOME_MM]), geometry).servo_deg[0]
     return Plant(lambda q: q, forward, model, np.array(HOME_MM), seed), home
 
@@ -221,11 +249,23 @@ def build_grid_sensor(args: argparse.Namespace) -> Sensor | None:
 
 def build_device(args: argparse.Namespace) -> Delta4SimDevice:
     """The simulated controller described by the command-line ``args``."""
-    plant, home = build_plant(args.seed, ideal=args.ideal)
+    true_seed = getattr(args, "true_geometry_seed", None)
+    deviations = None
+    if true_seed is not None:
+        from bench.simulators.true_geometry import delta4_true_deviations
+
+        deviations = delta4_true_deviations(true_seed)
+        _log.info("true geometry (seed %d): %s", true_seed, deviations)
+    plant, home = build_plant(args.seed, ideal=args.ideal, true_deviations=deviations)
     truth = TruthLog(args.truth, ("x_mm", "y_mm", "z_mm"))
     mapping = wire.MAPPINGS[args.mapping]()
-    return Delta4SimDevice(plant, mapping, speed_factor=args.speed_factor, truth=truth, load_kg=args.load_kg,
-                           home_servo_deg=home, sensor=build_grid_sensor(args))
+    device = Delta4SimDevice(plant, mapping, speed_factor=args.speed_factor, truth=truth, load_kg=args.load_kg,
+                             home_servo_deg=home, sensor=build_grid_sensor(args))
+    if getattr(args, "camera", None):
+        from bench.simulators.camera_feed import CameraFeed
+
+        device.camera = CameraFeed(args.camera, seed=args.seed)
+    return device
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -241,6 +281,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="probability of losing each hit (default: Appendix D2 values by height)")
     parser.add_argument("--grid-p-false", type=float, default=0.0,
                         help="probability of one stray lit sensor per screen and frame")
+    parser.add_argument("--true-geometry-seed", type=int, default=None, metavar="SEED",
+                        help="move by a seeded perturbed geometry (bench.simulators.true_geometry) instead of the "
+                             "error model's geometric stand-ins")
+    parser.add_argument("--camera", default=None, metavar="FIFO",
+                        help="a simulated camera watching the laser spot of the true pose, streamed as YUV4MPEG2 "
+                             "video into this FIFO (bench.simulators.camera_feed)")
 
 
 def main(argv: list[str] | None = None) -> int:

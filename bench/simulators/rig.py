@@ -225,7 +225,7 @@ def simulated_rig(robot: str = "pkm5", *, seed: int = 0, speed_factor: float = 1
                   options: tuple[str, ...] = ()) -> Rig:
     """A rig on a freshly started simulator (close it with ``rig.close()``); ``fixture="actuator-bench"``: the
     pkm5's actuators free-standing, moved one at a time and read by a simulated depth gauge. ``options`` go to the
-    assembled pkm5 simulator's command line (e.g. ``("--mode-hz", "1.0")``)."""
+    assembled robot's simulator command line (e.g. ``("--mode-hz", "1.0")``, ``("--true-geometry-seed", "3")``)."""
     import serial
 
     from bench.robots.pkm5 import Pkm5Controller
@@ -235,7 +235,7 @@ def simulated_rig(robot: str = "pkm5", *, seed: int = 0, speed_factor: float = 1
     if fixture != "assembled":
         raise LinkError(f"fixture = {fixture!r}, expected 'assembled' or 'actuator-bench'")
     if robot == "delta4":
-        return _simulated_delta_rig(seed=seed, speed_factor=speed_factor, ideal=ideal)
+        return _simulated_delta_rig(seed=seed, speed_factor=speed_factor, ideal=ideal, options=options)
     if robot != "pkm5":
         raise LinkError(f"--robot {robot}: no simulated rig for this robot, expected pkm5 or delta4")
     process, path = start_simulator(robot, seed=seed, speed_factor=speed_factor, ideal=ideal, options=options)
@@ -288,7 +288,7 @@ def end_process(process: subprocess.Popen) -> None:
         process.wait(10)
 
 
-def _simulated_delta_rig(*, seed: int, speed_factor: float, ideal: bool) -> Rig:
+def _simulated_delta_rig(*, seed: int, speed_factor: float, ideal: bool, options: tuple[str, ...] = ()) -> Rig:
     """The delta4 simulator (laser-grid simulator attached) with the real driver; the laser grid is read from the
     controller's reports, and the truth log's attained pose goes into each sample's raw data for comparison."""
     import serial
@@ -301,7 +301,7 @@ def _simulated_delta_rig(*, seed: int, speed_factor: float, ideal: bool) -> Rig:
     truth_path = os.path.join(folder.name, "truth.jsonl")
     try:
         process, path = start_simulator("delta4", seed=seed, speed_factor=speed_factor, ideal=ideal,
-                                        options=("--truth", truth_path))
+                                        options=("--truth", truth_path) + tuple(options))
     except BaseException:
         folder.cleanup()
         raise

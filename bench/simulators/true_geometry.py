@@ -1,10 +1,14 @@
-"""A seeded TRUE geometry of a simulated pkm5: the documented geometry perturbed at realistic sizes.
+"""A seeded TRUE geometry of a simulated pkm5 or delta4: the documented geometry perturbed at realistic sizes.
 
 Printed parts and hand-assembled joints put each joint a fraction of a millimetre off its drawing; leg zero offsets
 are set by hand; lead screws differ by fractions of a percent (methods-turn2.md §1.1: geometry explains ~90 % of
 the pose error of a lightly loaded robot). Each parameter of :data:`motion.pkm5.calibration.PARAMETERS` is drawn
 from a normal distribution of the size below, truncated at 2.5 sigma, from ``np.random.default_rng([seed, 20])``
 (a stream of its own, so the error model's draws of the same seed do not change).
+
+The delta4 (``bench sim delta4 --true-geometry-seed SEED``): every parameter of
+:data:`motion.delta4.calibration.PARAMETERS` (servo zeros 0.3 deg; arm lengths and servo axis positions 0.3 mm, the
+sizes of docs/calibration.md's delta4 section), the same truncation, from ``np.random.default_rng([seed, 40])``.
 """
 
 from __future__ import annotations
@@ -14,10 +18,14 @@ import numpy as np
 from motion.pkm5 import DEFAULT_GEOMETRY, Geometry
 from motion.pkm5.calibration import PARAMETERS, apply_parameters
 
-__all__ = ["TRUE_GEOMETRY_SIGMA", "attained_poses", "true_geometry", "true_deviations"]
+__all__ = ["DELTA4_TRUE_GEOMETRY_SIGMA", "TRUE_GEOMETRY_SIGMA", "attained_poses", "delta4_true_deviations",
+           "true_geometry", "true_deviations"]
 
 #: 1-sigma size per parameter family: joint positions 0.3 mm (sub-millimetre), leg zero offsets 0.3 mm, lead 0.5 %.
 TRUE_GEOMETRY_SIGMA = {"leg_offset": 0.3, "scale": 0.005, "joint": 0.3}
+#: 1-sigma size per delta4 parameter unit: servo zeros 0.3 deg, lengths and axis positions 0.3 mm.
+DELTA4_TRUE_GEOMETRY_SIGMA = {"deg": 0.3, "mm": 0.3}
+_TRUNCATE_SIGMA = 2.5
 
 
 def _sigma(name: str) -> float:
@@ -31,7 +39,7 @@ def _sigma(name: str) -> float:
 def true_deviations(seed: int, names=PARAMETERS) -> dict[str, float]:
     """Seeded deviations of ``names`` from the nominal geometry (the other parameters stay nominal)."""
     rng = np.random.default_rng([int(seed), 20])
-    draws = np.clip(rng.normal(0.0, 1.0, len(PARAMETERS)), -2.5, 2.5)  # always all, so a subset keeps its values
+    draws = np.clip(rng.normal(0.0, 1.0, len(PARAMETERS)), -_TRUNCATE_SIGMA, _TRUNCATE_SIGMA)  # always all, so a subset keeps its values
     return {name: float(draw * _sigma(name)) for name, draw in zip(PARAMETERS, draws) if name in set(names)}
 
 
@@ -47,3 +55,13 @@ def attained_poses(steps, modes, geometry: Geometry) -> np.ndarray:
     from motion.pkm5.calibration import ForwardModel
 
     return ForwardModel(steps, modes, (), nominal=geometry).poses(np.zeros(0))
+
+
+def delta4_true_deviations(seed: int) -> dict[str, float]:
+    """Seeded deviations of every :data:`motion.delta4.calibration.PARAMETERS` entry (deg or mm, by its unit) from
+    the documented delta4 geometry: the truth a delta4 simulator moves by (:func:`bench.simulators.delta4.build_plant`)."""
+    from motion.delta4.calibration import PARAMETERS as DELTA4_PARAMETERS, UNITS
+
+    rng = np.random.default_rng([int(seed), 40])
+    draws = np.clip(rng.normal(0.0, 1.0, len(DELTA4_PARAMETERS)), -_TRUNCATE_SIGMA, _TRUNCATE_SIGMA)
+    return {name: float(draw * DELTA4_TRUE_GEOMETRY_SIGMA[UNITS[name]]) for name, draw in zip(DELTA4_PARAMETERS, draws)}
