@@ -23,7 +23,7 @@ import tempfile
 import time
 from pathlib import Path
 
-from bench.commands.campaign import simulated_rig_in
+from bench.launch import simulated_rig_in
 from bench.protocols import Runner, summarize
 from bench.protocols.iso9283 import PoseAccuracy
 from bench.store import Store
@@ -50,9 +50,9 @@ def run_once(cycles: int, speed_factor: float, seed: int, folder: Path) -> dict[
             counted = {"exchanges": 0, "motion_s": 0.0, "at": controller.position().steps}
             await_reply, move = controller._await, controller._move
 
-            def counting_await(tag, verb, kinds, timeout_s):
+            def counting_await(tag, verb, kinds, timeout_s, **options):
                 counted["exchanges"] += "OK" in kinds  # a command's first reply; a DONE is the motion's end
-                return await_reply(tag, verb, kinds, timeout_s)
+                return await_reply(tag, verb, kinds, timeout_s, **options)
 
             def timed_move(targets, speed_steps_s):
                 # the simulator's own rule: all axes arrive together, the longest travel at speed_steps_s
