@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import dataclasses
 import importlib.util
+import itertools
 import logging
 import threading
 from typing import Any
@@ -30,6 +31,9 @@ NOMINAL_FIT_MM = 0.01
 TRANSLATION_FIT_MM = 0.05
 #: LM step criterion of the plant's warm solve (mm, rad): far below the 0.03 mm count of the simulated mice.
 _PLANT_STEP_TOL = 1e-7
+#: Warm solves after power-up that a compiled plant leaves to numpy (7 ms each) while numba loads on its thread
+#: (0.5-2 s): the demo's first 32 moves take about as long, so its 33rd move rarely waits for the kernel.
+NUMPY_SOLVES_AT_START = 32
 
 #: Error sizes for AP/RP of the order of the documents' physical tests (pkm5.md §6.8: AP 1.2-1.9 mm, RP 1.6-2.7 mm,
 #: angles 0.2-1.9 deg). Joint units mm of leg length; pose units (mm, mm, mm, deg, deg). Actuator noise per
@@ -126,10 +130,15 @@ def build_plant(seed: int, *, ideal: bool = False, geometry: Any = pkm5.DEFAULT_
     def joints_of(steps: np.ndarray) -> np.ndarray:
         return pkm5.steps_to_lengths(steps[None, :], moved_by)[0]
 
+    solves = itertools.count()
+
     def engine_for(previous: np.ndarray | None) -> str:
-        # the plant's first pose (at power-up, before the pty is served: no previous pose) is solved by numpy, so
-        # the start-up never waits for the kernel; every later solve by the plant's engine
-        return "numpy" if previous is None or loader is None else loader.engine()
+        # The first pose (at power-up, before the pty is served: no previous pose) and the first
+        # NUMPY_SOLVES_AT_START solves are numpy's, while the kernel loads: a count, not a clock, so that a seed's
+        # truth never depends on timing. Every later solve uses the plant's engine.
+        if previous is None or loader is None or next(solves) < NUMPY_SOLVES_AT_START:
+            return "numpy"
+        return loader.engine()
 
     def forward(lengths: np.ndarray, commanded: np.ndarray, previous: np.ndarray | None) -> np.ndarray | None:
         use = engine_for(previous)
