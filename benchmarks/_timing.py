@@ -1,5 +1,6 @@
 """Timing helper shared by the benchmark scripts (run them as ``python benchmarks/bench_<robot>.py``)."""
 
+import os
 import time
 
 import numpy as np
@@ -43,3 +44,10 @@ def nbytes_of(result) -> int:
     """Bytes of the arrays a result holds (its dataclass fields), i.e. what a solver must at least write."""
     fields = getattr(result, "__dataclass_fields__", {})
     return sum(getattr(result, name).nbytes for name in fields if isinstance(getattr(result, name), np.ndarray))
+
+
+def load_line(started: tuple[float, float, float]) -> str:
+    """The machine's load during a run: the 1-minute load average at its start (``os.getloadavg()`` taken then)
+    and now, on this many CPUs (the figures of a shared machine mean little without it)."""
+    return (f"load average {started[0]:.1f} at the start, {os.getloadavg()[0]:.1f} at the end, on "
+            f"{os.cpu_count()} CPUs")

@@ -17,11 +17,12 @@ Usage: ``python benchmarks/bench_pkm5.py [--ik N] [--fk N] [--peer N] [--repeat 
 from __future__ import annotations
 
 import argparse
+import os
 import time
 
 import numpy as np
 
-from _timing import copy_bandwidth_bytes_s, min_median_max, nbytes_of, spread, timed
+from _timing import copy_bandwidth_bytes_s, load_line, min_median_max, nbytes_of, spread, timed
 
 from motion import kernels, pkm5
 from motion.pkm5 import compiled
@@ -66,6 +67,7 @@ def main(argv=None) -> None:
     parser.add_argument("--peer", type=int, default=5_000, help="poses for the per-pose compiled peer")
     parser.add_argument("--repeat", type=int, default=5, help="timed runs of each (min / median / max)")
     args = parser.parse_args(argv)
+    started = os.getloadavg()
     if not kernels.available():
         raise SystemExit("numba is not installed (pip install 'bench[fast]'): only the numpy path exists")
 
@@ -116,6 +118,7 @@ def main(argv=None) -> None:
           f"{_stats(peer_times, args.peer, 'k solves/s', 1e3)}, max error "
           f"{np.abs(peer_poses - poses[: args.peer]).max():.1e} mm; batched compiled / per-pose = "
           f"{c_rate / peer_rate:.2f}x")
+    print(load_line(started))
 
 
 if __name__ == "__main__":

@@ -83,6 +83,7 @@ class Pkm5SimDevice:
         self.arrival = (self.true_pose, self.true_pose, 0.0)
         self._trace: tuple[tuple[int, int, int], np.ndarray] | None = None
         self._unprepared: np.ndarray | None = None  # the accepted move's target, until the plant has prepared it
+        self._warmed = False
         self._line = bytearray()
         self._overflow = False
         self._booted = False
@@ -141,6 +142,11 @@ class Pkm5SimDevice:
     def idle(self, now_s: float) -> None:
         """Work the event loop runs once this turn's replies are sent: the true pose at the end of an accepted move
         is computed during the move (:meth:`Plant.prepare`), so the ``DONE`` reply never waits for the kinematics."""
+        if not self._warmed:  # the first turn: the pty is served, deferred start-up work may begin
+            self._warmed = True
+            warm_up = getattr(self.plant, "warm_up", None)
+            if warm_up is not None:
+                warm_up()
         target, self._unprepared = self._unprepared, None
         prepare = getattr(self.plant, "prepare", None)
         if target is not None and prepare is not None and self.move is not None:

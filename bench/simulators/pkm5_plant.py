@@ -4,16 +4,23 @@ actuator bench, the true strokes), through the kinematics of :mod:`motion.pkm5`.
 from __future__ import annotations
 
 import dataclasses
+import importlib.util
+import itertools
+import logging
+import threading
 from typing import Any
 
 import numpy as np
 
+from bench.errors import ConfigError
 from bench.robots.pkm5_kinematics import MODE_TOL_MM, pose_deg_from_rad
 from bench.simulators.error_model import ErrorMagnitudes, ErrorModel, JointMemory
 from bench.simulators.plant import Plant
-from motion import pkm5
+from motion import kernels, pkm5
 
-__all__ = ["PKM5_ERRORS", "build_actuator_bench", "build_plant"]
+__all__ = ["PKM5_ERRORS", "build_actuator_bench", "build_plant", "plant_engine"]
+
+_log = logging.getLogger(__name__)
 
 #: Largest FK residual RMS of the plant's perturbed legs that still counts as a pose (the error model leaves 0.1-0.2 mm).
 _PLANT_RESIDUAL_TOL_MM = 2.0
@@ -24,6 +31,9 @@ NOMINAL_FIT_MM = 0.01
 TRANSLATION_FIT_MM = 0.05
 #: LM step criterion of the plant's warm solve (mm, rad): far below the 0.03 mm count of the simulated mice.
 _PLANT_STEP_TOL = 1e-7
+#: Warm solves after power-up that a compiled plant leaves to numpy (7 ms each) while numba loads on its thread
+#: (0.5-2 s): the demo's first 32 moves take about as long, so its 33rd move rarely waits for the kernel.
+NUMPY_SOLVES_AT_START = 32
 
 #: Error sizes for AP/RP of the order of the documents' physical tests (pkm5.md §6.8: AP 1.2-1.9 mm, RP 1.6-2.7 mm,
 #: angles 0.2-1.9 deg). Joint units mm of leg length; pose units (mm, mm, mm, deg, deg). Actuator noise per
@@ -33,6 +43,46 @@ PKM5_ERRORS = ErrorMagnitudes(
     pose_gain_sigma=0.004, pose_play_sigma=(0.6, 0.6, 0.6, 0.35, 0.35),
     pose_sag_per_kg=(0.0, 0.0, -0.03, 0.0, 0.0), pose_offset_sigma=(0.5, 0.5, 0.5, 1.0, 1.0),
 )
+
+
+def plant_engine() -> str:
+    """FK engine of the plant's per-move solve: the compiled single-pose kernel when numba is installed (~0.1 ms a
+    solve, against ~7 ms for the numpy reference on one row, longer than most moves of the demo at speed factor
+    10,000), else numpy. Chosen once per process, so a simulator's truth never depends on timing; asked without
+    importing numba (its import alone takes 0.3-1 s, done on the loader thread)."""
+    return "compiled" if importlib.util.find_spec("numba") is not None else "numpy"
+
+
+class _KernelLoader(threading.Thread):
+    """Loads numba and the FK kernel (0.5-2 s: the import, machine code from numba's cache) on a thread started
+    once the simulator serves its pty (:meth:`Plant.warm_up`); the plant's first warm solve waits for it
+    (:meth:`engine`). Started while the device is being built, the import fought the seed-table build for the GIL
+    and doubled the start-up; once serving, the event loop sits in select, so a reply meanwhile is late by one
+    thread switch at most."""
+
+    def __init__(self, geometry: Any) -> None:
+        super().__init__(name="pkm5-fk-kernel", daemon=True)
+        self.geometry, self.failure = geometry, None
+        self._starting = threading.Lock()
+
+    def start_once(self) -> None:
+        with self._starting:
+            if self.ident is None:
+                self.start()
+
+    def run(self) -> None:
+        try:
+            pkm5.forward_kinematics(self.geometry.home_lengths_mm[None, :], self.geometry, mode="translation",
+                                    initial_pose=(150.0, 0.0, 300.0, 0.0, 0.0), engine="compiled")
+        except Exception as exc:  # a broken numba install: the plant keeps the numpy reference, and says so
+            self.failure = exc
+            _log.warning("compiled FK kernel not loaded (%s): the plant solves with numpy", exc)
+
+    def engine(self) -> str:
+        self.start_once()  # a plant used without a simulator (no warm_up) loads at its first warm solve
+        self.join()
+        return "numpy" if self.failure is not None else "compiled"
+
 
 def build_actuator_bench(seed: int, *, ideal: bool = False, geometry: Any = pkm5.DEFAULT_GEOMETRY):
     """The six actuators free-standing (000 §8.4): ``bench(steps, load_kg) -> true strokes`` (6,), mm.
@@ -57,22 +107,43 @@ def build_actuator_bench(seed: int, *, ideal: bool = False, geometry: Any = pkm5
 
 
 def build_plant(seed: int, *, ideal: bool = False, geometry: Any = pkm5.DEFAULT_GEOMETRY,
-                true_geometry: Any = None) -> Plant:
+                true_geometry: Any = None, engine: str = "auto") -> Plant:
     """Steps -> leg lengths -> seeded errors -> least-squares FK -> pose errors; pose in mm and degrees.
 
     With ``true_geometry`` (a perturbed :class:`motion.pkm5.Geometry`, e.g. from
     :func:`bench.simulators.true_geometry.true_geometry`) the robot moves by that geometry's lengths and FK, and the
     error model's stand-ins for geometry (joint offset and scale, pose gain and bias) are zeroed; backlash, noise,
     sag and play stay.
+
+    ``engine`` of the per-move solves: 'numpy' (the reference), 'compiled' (numba required) or 'auto'
+    (:func:`plant_engine`). The first pose, solved while the simulator is built, is always numpy's.
     """
+    if engine not in kernels.ENGINES:
+        raise ConfigError(f"engine = {engine!r}, expected one of {list(kernels.ENGINES)}")
+    if engine == "auto":
+        engine = plant_engine()
+    elif engine == "compiled" and plant_engine() != "compiled":
+        raise ConfigError("engine = 'compiled' needs numba, which is not installed (pip install 'bench[fast]')")
     moved_by = geometry if true_geometry is None else true_geometry
+    loader = _KernelLoader(geometry) if engine == "compiled" else None
 
     def joints_of(steps: np.ndarray) -> np.ndarray:
         return pkm5.steps_to_lengths(steps[None, :], moved_by)[0]
 
+    solves = itertools.count()
+
+    def engine_for(previous: np.ndarray | None) -> str:
+        # The first pose (at power-up, before the pty is served: no previous pose) and the first
+        # NUMPY_SOLVES_AT_START solves are numpy's, while the kernel loads: a count, not a clock, so that a seed's
+        # truth never depends on timing. Every later solve uses the plant's engine.
+        if previous is None or loader is None or next(solves) < NUMPY_SOLVES_AT_START:
+            return "numpy"
+        return loader.engine()
+
     def forward(lengths: np.ndarray, commanded: np.ndarray, previous: np.ndarray | None) -> np.ndarray | None:
+        use = engine_for(previous)
         if true_geometry is not None:
-            return _forward_true(lengths, commanded)
+            return _forward_true(lengths, commanded, use)
         mode = pkm5.detect_mode(commanded[None, :], MODE_TOL_MM)[0]
         start = None if previous is None else np.r_[previous[:3], np.radians(previous[3:])]
         if start is not None:
@@ -82,37 +153,39 @@ def build_plant(seed: int, *, ideal: bool = False, geometry: Any = pkm5.DEFAULT_
             # converge (tests/test_plant_forward.py: the same poses within 1e-6 mm).
             fk = pkm5.forward_kinematics(lengths[None, :], geometry, initial_pose=start, mode=mode,
                                          residual_tol_mm=_PLANT_RESIDUAL_TOL_MM, retry_above_mm=np.inf,
-                                         step_tol=_PLANT_STEP_TOL)
+                                         step_tol=_PLANT_STEP_TOL, engine=use)
             if fk.converged[0]:
                 return pose_deg_from_rad(fk.pose[0])
         fk = pkm5.forward_kinematics(lengths[None, :], geometry, initial_pose=start, mode=mode,
-                                     residual_tol_mm=_PLANT_RESIDUAL_TOL_MM)
+                                     residual_tol_mm=_PLANT_RESIDUAL_TOL_MM, engine=use)
         return pose_deg_from_rad(fk.pose[0]) if fk.converged[0] else None
 
-    def _nominal_start(commanded: np.ndarray, mode: str):
+    def _nominal_start(commanded: np.ndarray, mode: str, use: str):
         # the documented geometry's solution: the true fit's start (no seed table for a perturbed geometry)
-        return pkm5.forward_kinematics(commanded[None, :], geometry, mode=mode, residual_tol_mm=2.0, max_iter=200)
+        return pkm5.forward_kinematics(commanded[None, :], geometry, mode=mode, residual_tol_mm=2.0, max_iter=200,
+                                       engine=use)
 
-    def _fit_true(lengths: np.ndarray, start: Any, mode: str):
+    def _fit_true(lengths: np.ndarray, start: Any, mode: str, use: str):
         # true lengths never fit exactly (6 legs, 3-4 unknowns): retrying every inexact fit from the restart guesses
         # would trade the near solution for a far branch with a smaller residual
         return pkm5.forward_kinematics(lengths[None, :], moved_by, initial_pose=start.pose, mode=mode,
-                                       residual_tol_mm=_PLANT_RESIDUAL_TOL_MM, retry_above_mm=0.5, max_iter=200)
+                                       residual_tol_mm=_PLANT_RESIDUAL_TOL_MM, retry_above_mm=0.5, max_iter=200,
+                                       engine=use)
 
-    def _forward_true(lengths: np.ndarray, commanded: np.ndarray) -> np.ndarray | None:
+    def _forward_true(lengths: np.ndarray, commanded: np.ndarray, use: str) -> np.ndarray | None:
         # the commanded mode shows in the nominal lengths (the true pairs differ)
         commanded = pkm5.steps_to_lengths(pkm5.lengths_to_steps(commanded[None, :], moved_by), geometry)[0]
         mode = pkm5.detect_mode(commanded[None, :], MODE_TOL_MM)[0]
-        start = _nominal_start(commanded, mode)
+        start = _nominal_start(commanded, mode, use)
         if start.residual_mm[0] <= NOMINAL_FIT_MM:
-            fk = _fit_true(lengths, start, mode)
+            fk = _fit_true(lengths, start, mode, use)
         else:
             # lengths no pose of the documented geometry has: a compensated command (a calibrated geometry gives
             # each leg of a pair its own length). The robot stays in translation when its legs fit a translation
             # pose, else it turns in the rotation mode that fits them best.
-            fk = _fit_true(lengths, _nominal_start(commanded, "translation"), "translation")
+            fk = _fit_true(lengths, _nominal_start(commanded, "translation", use), "translation", use)
             if not (fk.converged[0] and fk.residual_mm[0] <= TRANSLATION_FIT_MM):
-                fits = [_fit_true(lengths, _nominal_start(commanded, m), m) for m in ("alpha", "beta")]
+                fits = [_fit_true(lengths, _nominal_start(commanded, m, use), m, use) for m in ("alpha", "beta")]
                 fk = min(fits, key=lambda f: (not f.converged[0], f.residual_mm[0]))
         return pose_deg_from_rad(fk.pose[0]) if fk.converged[0] else None
 
@@ -122,4 +195,5 @@ def build_plant(seed: int, *, ideal: bool = False, geometry: Any = pkm5.DEFAULT_
         model = dataclasses.replace(model, offset=np.zeros(6), scale=np.zeros(6), pose_gain=np.zeros((5, 5)),
                                     pose_offset=np.zeros(5))
     home_fk = pkm5.forward_kinematics(geometry.home_lengths_mm[None, :], geometry)
-    return Plant(joints_of, forward, model, pose_deg_from_rad(home_fk.pose[0]), seed)
+    return Plant(joints_of, forward, model, pose_deg_from_rad(home_fk.pose[0]), seed,
+                 warm_up=None if loader is None else loader.start_once)

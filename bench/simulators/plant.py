@@ -42,11 +42,14 @@ class Plant:
         Pose about which the pose-dependent error is zero (the home pose).
     seed : int
         Seed of the per-move random stream.
+    warm_up : callable, optional
+        Work a simulator starts (:meth:`warm_up`) once it serves its port, not while it is being built: e.g.
+        loading a compiled kernel on a thread.
     """
 
     def __init__(self, joints_of: Callable[[np.ndarray], np.ndarray],
                  forward: Callable[[np.ndarray, np.ndarray, np.ndarray | None], np.ndarray | None], model: ErrorModel,
-                 reference_pose: np.ndarray, seed: int) -> None:
+                 reference_pose: np.ndarray, seed: int, warm_up: Callable[[], None] | None = None) -> None:
         self.joints_of = joints_of
         self.forward = forward
         self.model = model
@@ -58,6 +61,12 @@ class Plant:
         self.true_joints: np.ndarray | None = None
         self._prepared: tuple[np.ndarray, float, Plant, np.ndarray] | None = None
         self._attained: dict[bytes, np.ndarray] = {}  # commanded joints -> the pose last attained there
+        self._warm_up = warm_up
+
+    def warm_up(self) -> None:
+        """Start the plant's deferred start-up work (idempotent; a no-op for most plants)."""
+        if self._warm_up is not None:
+            self._warm_up()
 
     def prepare(self, command: np.ndarray, load_kg: float) -> None:
         """Compute now what the next call ``plant(command, load_kg)`` will return, leaving the plant's state as is.
