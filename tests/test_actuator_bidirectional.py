@@ -8,6 +8,8 @@ import json
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from test_station import STATIONS, _GaugeReader, _rehearsed_run
 
 from bench.cli import main
@@ -147,3 +149,21 @@ def test_the_report_of_a_bidirectional_run_shows_b_r_a(bench_run, tmp_path):
     html = (tmp_path / f"report_run{run_id}.html").read_text()
     assert "ISO 230-2 bidirectional figures per actuator" in html
     assert f"{np.abs(b).max():.4f}" in html and f"{r:.4f}" in html and f"{a:.4f}" in html
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.lists(st.floats(-0.2, 0.2), min_size=12, max_size=12))
+def test_swapping_the_directions_negates_b_and_keeps_r_and_a(deviations):
+    """Invariant of B_i = x̄_i↑ − x̄_i↓, R and A (ISO 230-2): read the ↑ approaches as ↓ and back, and every B_i changes
+    sign while R, E, M and A stay (they are symmetric in the two directions); row order carries no meaning."""
+    import pandas as pd
+
+    targets = [10.0, 20.0, 30.0] * 4
+    directions = [1.0] * 6 + [-1.0] * 6
+    frame = pd.DataFrame({"target_mm": targets, "direction": directions,
+                          "reading_mm": np.add(targets, deviations)})
+    (forward,) = analyze_bidirectional(frame)
+    (swapped,) = analyze_bidirectional(frame.assign(direction=-frame["direction"]).iloc[::-1])
+    np.testing.assert_allclose(swapped.result.reversal_mm, -np.asarray(forward.result.reversal_mm), atol=1e-12)
+    for name in ("repeatability_mm", "systematic_mm", "mean_bidirectional_mm", "accuracy_mm", "reversal_max_mm"):
+        assert getattr(swapped.result, name) == pytest.approx(getattr(forward.result, name), abs=1e-12), name

@@ -8,6 +8,8 @@ import json
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from bench.cli import main
 from bench.errors import ConfigError
@@ -152,3 +154,21 @@ def test_bench_analyze_and_the_report_give_the_same_times(quick_run, tmp_path, c
     html = (tmp_path / "r" / f"report_run{run_id}.html").read_text()
     assert "Minimum positioning time (ISO 9283 9)" in html
     assert f"{steps[1]['mean_time_s']:.3f}" in html
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.lists(st.floats(-0.3, 0.3), min_size=8, max_size=30), st.floats(0.5, 20.0), st.floats(-50, 50),
+       st.floats(0.05, 0.4), st.floats(0.0, 0.5))
+def test_a_wider_band_never_lengthens_the_positioning_time_and_the_frame_does_not_matter(ripple, step_mm, shift,
+                                                                                         band, wider):
+    """Invariants of t_pos = t_2 - t_leave: non-increasing in B (t_leave comes later, t_1 and t_2 earlier), and
+    independent of where the time origin and the position frame lie."""
+    from bench.metrology import minimum_positioning_time
+
+    t = np.arange(len(ripple) + 4) * 0.1
+    x = np.concatenate([[0.0, 0.0], step_mm + np.asarray(ripple) * np.linspace(1, 0, len(ripple)), [step_mm] * 2])
+    series = [[(t, x[:, None])]]
+    narrow = minimum_positioning_time(series, band_mm=band).mean_time_s[0]
+    assert minimum_positioning_time(series, band_mm=band + wider).mean_time_s[0] <= narrow + 1e-12
+    moved = [[(t + shift, x[:, None] + shift)]]
+    assert minimum_positioning_time(moved, band_mm=band).mean_time_s[0] == pytest.approx(narrow, abs=1e-9)
