@@ -273,15 +273,16 @@ def positioning_time_document(report: PositioningTimeReport, raw: list[RawData],
               f"{config.get('hold_s', '—')} s after the move is reported done. t_leave = the first time |p(t) − "
               "p(t_0)| > B; t_2 = the first time from which p stays within B + h of its settled (last) position; "
               "t_pos = t_2 − t_leave; per step the mean and the largest over the cycles.")
-    stated = (("start pose P1 (mm)", "p1_mm"), ("dwell at P1 before each cycle (s)", "settle_s"), ("step distances, Dx = Dy = Dz (mm)", "steps_mm"),
-              ("rest streamed before each move (s)", "rest_s"), ("streamed after each move (s)", "hold_s"))
+    stated = (("Cycles of the step sequence", "cycles"), ("Start pose P1 (mm)", "p1_mm"),
+              ("Dwell at P1 before each cycle (s)", "settle_s"), ("Step distances, Dx = Dy = Dz (mm)", "steps_mm"),
+              ("Rest streamed before each move (s)", "rest_s"), ("Streamed after each move (s)", "hold_s"))
     extra = tuple((name, _fmt(config[key]) if isinstance(config[key], list) else f"{config[key]:g}")
                   for name, key in stated if key in config) + (
-             ("limit bands (mm, chosen at analysis)", _fmt(report.analysis.bands_mm)),
-             ("hysteresis h (mm)", f"{report.analysis.hysteresis_mm:g} ({report.analysis.hysteresis_source})"),
-             ("time base", str(report.run.settings.get("time_base", "not stated"))))
+             ("Limit bands (mm, chosen at analysis)", _fmt(report.analysis.bands_mm)),
+             ("Hysteresis h (mm)", f"{report.analysis.hysteresis_mm:g} ({report.analysis.hysteresis_source})"),
+             ("Time base", str(report.run.settings.get("time_base", "not stated"))))
     return assemble(report, raw, operator=operator, laboratory=laboratory, method=method, scope=SCOPE,
-                    conditions=conditions_section(report, ("velocities_pct", "loads_kg", "cycles"), extra),
+                    conditions=conditions_section(report, ("velocities_pct", "loads_kg"), extra),
                     results=(*_results(report), Paragraph(
                         "The times carry no expanded uncertainty here; the instrument's report interval and one "
                         "count set the smallest difference they can show.")),
