@@ -183,7 +183,8 @@ def actuator_plot(report: ActuatorReport) -> Plot:
 def recompute_actuator(report: ActuatorReport) -> str:
     """The CLI call that recomputes every actuator figure from the raw-data CSV."""
     sigma = report.instrument.sigma_mm or 0.0
-    both = "; bench analyze iso230-2 FILE.csv --json for the bidirectional figures" if report.bidirectional else ""
+    both = (f"; bench analyze iso230-2-run {report.run.id} --json (or bench analyze iso230-2 FILE.csv --json) for the "
+            "bidirectional figures") if report.bidirectional else ""
     return (f"bench analyze actuator FILE.csv --robot {report.run.robot} --instrument-u-mm {sigma:.6g} --k "
             f"{report.coverage_factor:g}{both} (bench export RUN_ID --kind actuator_travel writes the same table)")
 
