@@ -9,13 +9,15 @@ import json
 import numpy as np
 import pytest
 from hypothesis import assume, given, settings
+from figure_support import printed_font_sizes
 from hypothesis import strategies as st
 
 from bench.cli import main
 from bench.errors import ConfigError
 from bench.protocols import summarize
 from bench.protocols.positioning_time import MinimumPositioningTime
-from bench.reports.positioning_time import analyze_positioning_run, collect_positioning_time
+from bench.reports.plots import MIN_FONT_PT
+from bench.reports.positioning_time import analyze_positioning_run, collect_positioning_time, positioning_time_plot
 from bench.robots.pkm5_kinematics import steps_for_pose
 from bench.simulators.dynamics import StructuralMode
 from bench.store import Store
@@ -147,6 +149,9 @@ def test_bench_analyze_and_the_report_give_the_same_times(quick_run, tmp_path, c
         report = collect_positioning_time(store, run_id, bands_mm=[0.5])
 
     assert report.clauses == ("9 minimum positioning time",)
+    plot = positioning_time_plot(report)
+    sizes = printed_font_sizes(plot)
+    assert sizes and min(sizes) >= MIN_FONT_PT - 1e-9 and len(plot.figure.legends) == 1  # readable at print size
     deviations = {d.topic: d for d in report.deviations}
     assert deviations["cycles"].status == "deviates" and deviations["steps"].status == "deviates"
     assert main(["report", str(run_id), "--store", db, "--out", str(tmp_path / "r"), "--format", "html",
