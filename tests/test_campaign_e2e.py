@@ -85,6 +85,7 @@ QUICK_PARAMETERS = {
     "iso9283_stabilisation": {"cycles": 1, "lead_s": 0.2, "hold_s": 0.4},
     "iterative_correction": {"iterations": 1},
     "iso9283_path": {"shape": "line", "cycles": 2, "velocities_pct": [100], "final_hold_s": 0.1},
+    "iso9283_positioning_time": {"steps_mm": [-2, 4], "cycles": 1, "rest_s": 0.1, "hold_s": 0.4},
     "iso9283_cornering": {"cycles": 2, "velocities_pct": [100], "final_hold_s": 0.1},  # more adapt to the readings (tests/test_kinematic_compensation.py)
 }
 

@@ -211,14 +211,15 @@ def test_options_of_other_layouts_are_refused(written, capsys, tmp_path):
     assert main(["report", str(run_id), "--store", store.path, "--out", str(tmp_path), "--format", "html"]) == 0
     assert capsys.readouterr().out.split() == [str(tmp_path / f"report_run{run_id}.html"),
                                                str(tmp_path / f"run{run_id}_samples.csv")]
-    with pytest.raises(ConfigError, match=f"--band-mm: applies to iso9283_stabilisation runs; run {run_id} is a "
-                                          "delta_positioning run"):
+    with pytest.raises(ConfigError, match=f"--band-mm: applies to iso9283_stabilisation, iso9283_positioning_time "
+                                          f"runs; run {run_id} is a delta_positioning run"):
         collect(store, run_id, bands_mm=[0.1])
     compared = write_comparison(store, run_id, run_id, tmp_path, formats=("html",))  # every layout compares
     assert "Results of B" in compared.html.read_text(encoding="utf-8")
     assert main(["report", str(run_id), "--store", store.path, "--out", str(tmp_path), "--hysteresis-mm",
                  "0.1"]) == 2
-    assert "--hysteresis-mm: applies to iso9283_stabilisation runs" in capsys.readouterr().err
+    err = capsys.readouterr().err
+    assert "--hysteresis-mm: applies to iso9283_stabilisation, iso9283_positioning_time runs" in err
 
 
 def test_k_is_the_z_of_every_wilson_interval_in_the_report_and_the_cli(written, capsys, tmp_path):

@@ -25,6 +25,18 @@ def register(actions: argparse._SubParsersAction, new_parser) -> None:
                         help="also write the figure (.svg, .png or .pdf)")
     parser.set_defaults(handler=_iso230_2)
 
+    run = actions.add_parser("iso230-2-run", help="ISO 230-2 B, R, E, M, A per actuator of a stored bidirectional "
+                                                  "actuator_accuracy run, from its stored readings",
+                             description="ISO 230-2 figures per actuator of a stored actuator_accuracy run made with "
+                                         "approach = \"bidirectional\" (the same as bench export RUN --kind "
+                                         "actuator_travel, then bench analyze iso230-2)",
+                             formatter_class=argparse.ArgumentDefaultsHelpFormatter)
+    run.add_argument("run_id", metavar="RUN_ID", type=int, help="the stored actuator_accuracy run")
+    run.add_argument("--store", default="bench.db", help="run store (SQLite file)")
+    run.add_argument("--json", action="store_true", help="print the result as one JSON object")
+    run.add_argument("--plot", metavar="FIGURE.svg", default=None, help="also write the figure (.svg, .png or .pdf)")
+    run.set_defaults(handler=_iso230_2_run)
+
 
 def result_json(r) -> dict:
     """One axis as ``bench analyze iso230-2 --json`` prints it (mm)."""
@@ -44,9 +56,37 @@ def _iso230_2(args: argparse.Namespace) -> int:
     from bench.metrology.bidirectional_tables import analyze_bidirectional
     from bench.metrology.tables import read_table_csv
 
-    if args.plot is not None and Path(args.plot).suffix.lower() not in _PLOT_FORMATS:
-        raise ConfigError(f"--plot {args.plot}: expected a file name ending in {', '.join(_PLOT_FORMATS)}")
-    results = analyze_bidirectional(read_table_csv(args.file))
+    _check_plot(args.plot)
+    return _print(analyze_bidirectional(read_table_csv(args.file)), args)
+
+
+def _iso230_2_run(args: argparse.Namespace) -> int:
+    from bench.metrology.bidirectional_tables import analyze_bidirectional
+    from bench.store import Store, tidy_table
+
+    _check_plot(args.plot)
+    if not Path(args.store).is_file():
+        raise ConfigError(f"--store {args.store}: no such store file")
+    store = Store(args.store, read_only=True)
+    try:
+        run = store.run(args.run_id)
+        if run.protocol_name != "actuator_accuracy" or run.config.get("approach") != "bidirectional":
+            raise ConfigError(f"run {args.run_id}: a {run.protocol_name} run"
+                              + (" with unidirectional approaches" if run.protocol_name == "actuator_accuracy" else "")
+                              + ", expected an actuator_accuracy run with approach = \"bidirectional\"")
+        table = tidy_table(store, args.run_id, kind="actuator_travel")
+    finally:
+        store.close()
+    table.attrs["source"] = f"run {args.run_id}"
+    return _print(analyze_bidirectional(table), args)
+
+
+def _check_plot(plot: str | None) -> None:
+    if plot is not None and Path(plot).suffix.lower() not in _PLOT_FORMATS:
+        raise ConfigError(f"--plot {plot}: expected a file name ending in {', '.join(_PLOT_FORMATS)}")
+
+
+def _print(results, args: argparse.Namespace) -> int:
     axes = {r.axis: result_json(r) for r in results}
     lines = [f"{'axis':<6} {'B_mm':>8} {'R_mm':>8} {'R↑_mm':>8} {'R↓_mm':>8} {'E_mm':>8} {'M_mm':>8} {'A_mm':>8}"]
     for r in results:

@@ -64,6 +64,22 @@ def register_run(actions: argparse._SubParsersAction) -> None:
     run.add_argument("--json", action="store_true", help="print the result as one JSON object")
     run.set_defaults(handler=_path_run)
 
+    positioning = actions.add_parser("positioning-run", help="minimum positioning time per step of a stored "
+                                                             "iso9283_positioning_time run (ISO 9283 9), from its raw "
+                                                             "streamed samples",
+                                     description="mean and largest positioning time per step, velocity, load and "
+                                                 "limit band of a stored iso9283_positioning_time run",
+                                     formatter_class=argparse.ArgumentDefaultsHelpFormatter)
+    positioning.add_argument("run_id", metavar="RUN_ID", type=int, help="the stored positioning-time run")
+    positioning.add_argument("--store", default="bench.db", help="run store (SQLite file)")
+    positioning.add_argument("--band-mm", type=float, nargs="+", default=None,
+                             help="limit bands B (mm); default the ISO comparison bands 0.1, 0.5, 1.0")
+    positioning.add_argument("--hysteresis-mm", type=float, default=None,
+                             help="excursions up to this far beyond the band are not counted; default one count of "
+                                  "the run's instrument")
+    positioning.add_argument("--json", action="store_true", help="print the result as one JSON object")
+    positioning.set_defaults(handler=_positioning_run)
+
 
 def _path_run(args: argparse.Namespace) -> int:
     from pathlib import Path
@@ -88,6 +104,35 @@ def _path_run(args: argparse.Namespace) -> int:
                      f"{cell('AV_pct', '+7.2f'):>7} {cell('RV_pct', '7.2f'):>7} {cell('FV_mm_s', '8.3f'):>8}")
     emit({"run_id": args.run_id, "protocol": result.protocol_name, "rated_path_velocity_mm_s": result.design.rated_mm_s,
           "paths": [f.as_json() for f in result.figures]}, args.json, lines)
+    return 0
+
+
+def _positioning_run(args: argparse.Namespace) -> int:
+    from pathlib import Path
+
+    from bench.reports.positioning_time import analyze_positioning_run
+    from bench.store import Store
+
+    if not Path(args.store).is_file():
+        raise ConfigError(f"--store {args.store}: no such store file")
+    store = Store(args.store, read_only=True)
+    try:
+        result = analyze_positioning_run(store, args.run_id, bands_mm=args.band_mm, hysteresis_mm=args.hysteresis_mm)
+    finally:
+        store.close()
+    lines = [f"{'v_pct':>5} {'load_kg':>7} {'band_mm':>7} {'step':>4} {'distance_mm':>11} {'mean_t_s':>8} "
+             f"{'max_t_s':>8}"]
+    for f in result.figures:
+        if f.result is None:
+            lines.append(f"{f.velocity_pct:>5g} {f.load_kg:>7g} {f.band_mm:>7g}  no figure: {f.reason}")
+            continue
+        r = f.result
+        lines += [f"{f.velocity_pct:>5g} {f.load_kg:>7g} {f.band_mm:>7g} {s:>4} {d:>11.3f} {mean:>8.3f} {worst:>8.3f}"
+                  for s, d, mean, worst in zip(f.steps, r.step_distance_mm, r.mean_time_s, r.max_time_s)]
+    lines += [f"step {s['step']} skipped: target ({', '.join(f'{v:g}' for v in s['target_mm'])}) mm outside the "
+              "workspace" for s in result.skipped]
+    lines.append(f"hysteresis h = {result.hysteresis_mm:g} mm ({result.hysteresis_source})")
+    emit(result.as_json(), args.json, lines)
     return 0
 
 

@@ -51,10 +51,11 @@ def _add_arguments(parser: argparse.ArgumentParser) -> None:
                           help="laboratory named in the report")
     parser.add_argument("--k", type=float, default=2.0, help="coverage factor of the expanded uncertainties")
     parser.add_argument("--band-mm", type=float, nargs="+", default=None, metavar="MM",
-                        help="stabilisation runs: limit bands (default: the ISO comparison bands 0.1 0.5 1)")
+                        help="stabilisation and positioning-time runs: limit bands (default: the ISO comparison "
+                             "bands 0.1 0.5 1)")
     parser.add_argument("--hysteresis-mm", type=float, default=None, metavar="MM",
-                        help="stabilisation runs: band-edge hysteresis (default: one count of the run's instrument, "
-                             "25.4/cpi mm, from its calibration or settings; 0 without one)")
+                        help="stabilisation and positioning-time runs: band-edge hysteresis (default: one count of "
+                             "the run's instrument, 25.4/cpi mm, from its calibration or settings; 0 without one)")
     parser.add_argument("--quiet", action="store_true", help="no progress lines on stderr")
     parser.add_argument("--allow-unknown", action="store_true",
                         help="report even when the run lacks what a deviations row needs (row printed as unknown)")

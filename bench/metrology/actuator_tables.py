@@ -13,7 +13,10 @@ uncertainties:
 - Groover repeatability 3σ̄ (and accuracy CR/2 + 3σ̄, CR exact): a bootstrap over whole repeats, as U(RP) in
   :func:`bench.metrology.tables.analyze_poses` (seeded, reproducible); none with fewer than 3 repeats.
 
-With a repeat column, readings are paired by repeat and repeats missing a target are left out (counted in
+A ``direction`` column (a bidirectional run, ISO 230-2: +1 approached from below, -1 from above) keeps the
+readings approached from below for these figures, the dissertation's approach; the bidirectional figures are
+:func:`bench.metrology.bidirectional_tables.analyze_bidirectional`'s. With a repeat column, readings are paired by
+repeat and repeats missing a target are left out (counted in
 ``dropped``); without one, every target must have the same number of readings (paired in row order).
 """
 
@@ -93,6 +96,15 @@ def actuator_table(frame: pd.DataFrame) -> pd.DataFrame:
     if command != "cmd_mm":
         table = table.drop(columns=["cmd_mm"], errors="ignore").rename(columns={command: "cmd_mm"})
     table["actuator"] = frame["actuator"].astype(str).str.strip()
+    if "direction" in table.columns:  # bidirectional: the approaches from below (module docstring)
+        from bench.metrology.bidirectional_tables import approach_directions
+
+        direction = approach_directions(frame["direction"])
+        if direction.isna().any():
+            index = direction.isna().idxmax()
+            raise ConfigError(f"{source}: row {int(index) + 1}, column direction: {frame.at[index, 'direction']!r}, "
+                              "expected up or down (+/-, +1/-1)")
+        table = table[direction == "up"].drop(columns=["direction"])
     table.attrs["source"] = source
     return table
 

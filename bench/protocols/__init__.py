@@ -6,7 +6,7 @@ every target with motion/ before anything moves; :class:`Runner` performs the st
 every sample at once in a :class:`bench.store.Store`.
 """
 
-from bench.protocols import actuator, delta, dissertation, iso9283, iterative, path  # noqa: F401 - registers the protocol library
+from bench.protocols import actuator, delta, dissertation, iso9283, iterative, path, positioning_time  # noqa: F401 - registers the protocol library
 from bench.protocols.base import (
            PROTOCOLS,
            Protocol,

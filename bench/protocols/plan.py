@@ -61,7 +61,7 @@ def iterate(protocol: Protocol, *, final: bool = True) -> Iterator[Step]:
 
 
 #: The capability a capture of each kind needs from the station (the kinds the protocol library captures).
-_CAPTURE_NEEDS = {"pose": "pose", "mouse": "mouse_counts", "arrival": "arrival", "path": "arrival",
+_CAPTURE_NEEDS = {"pose": "pose", "mouse": "mouse_counts", "arrival": "arrival", "path": "arrival", "positioning": "arrival",
                  "grid_hit": "grid_hit"}
 
 

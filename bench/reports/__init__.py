@@ -40,6 +40,7 @@ from bench.reports.positioning import (
     grid_positioning_document,
     grid_readings,
 )
+from bench.reports.positioning_time import collect_positioning_time, positioning_time_document
 from bench.reports.stabilisation import StabilisationReport, collect_stabilisation, stabilisation_document
 from bench.reports.summary import HistoryEvent, Identity, is_simulated, run_history, summary_section
 from bench.store import Store
@@ -76,6 +77,8 @@ LAYOUTS = {
     "iso9283_stabilisation": Layout(collect_stabilisation, stabilisation_document, ("bands_mm", "hysteresis_mm")),
     "iso9283_path": Layout(collect_path, path_document),
     "iso9283_cornering": Layout(collect_path, path_document),
+    "iso9283_positioning_time": Layout(collect_positioning_time, positioning_time_document,
+                                       ("bands_mm", "hysteresis_mm")),
 }
 
 

@@ -1,10 +1,15 @@
 """The report of an ``actuator_accuracy`` run: the dissertation's actuator test (000 §8.4) with the bias it hides
-and ISO 230-2 unidirectional figures (iso9283.md §7.1, §7.4).
+and ISO 230-2 unidirectional figures (iso9283.md §7.1, §7.4); for a bidirectional run (``approach =
+"bidirectional"``) also the ISO 230-2 bidirectional figures: reversal B, repeatability R, systematic error E, M and
+accuracy A per actuator, and B_i per target.
 
 Every figure comes from :func:`bench.metrology.actuator_tables.analyze_actuators` on the run's tidy
 ``actuator_travel`` table, the same call ``bench analyze actuator FILE.csv --robot pkm5`` makes on the raw-data
 CSV the report writes; the control resolution is the robot model's mm per step (000 Eq. 8.1,
-:func:`~bench.metrology.actuator_tables.robot_control_resolution`).
+:func:`~bench.metrology.actuator_tables.robot_control_resolution`). In a bidirectional run those figures use the
+approaches from below (the dissertation's), and the bidirectional ones come from
+:func:`bench.metrology.bidirectional_tables.analyze_bidirectional` on the same table (``bench analyze iso230-2
+FILE.csv``).
 """
 
 from __future__ import annotations
@@ -40,6 +45,8 @@ from bench.reports.document import (
     fmt_mm,
     fmt_pm,
 )
+from bench.metrology.bidirectional_tables import BidirectionalResult, analyze_bidirectional
+from bench.reports.bidirectional import bidirectional_plot
 from bench.reports.plots import Plot, panels
 from bench.store import Store
 
@@ -48,6 +55,9 @@ __all__ = ["ActuatorReport", "actuator_document", "actuator_plot", "collect_actu
 SCOPE = ("Tested following the actuator test of the dissertation (000 §8.4, after Groover) and reporting ISO 230-2 "
          "unidirectional figures, with the deviations listed in the deviations table. This is not an ISO 230-2 "
          "acceptance test.")
+BIDIRECTIONAL_SCOPE = ("Tested following ISO 230-2's bidirectional positioning test on single actuators, and reporting "
+                       "the dissertation's actuator figures (000 §8.4, after Groover) on the approaches from below, with "
+                       "the deviations listed in the deviations table. This is not an ISO 230-2 acceptance test.")
 NO_CRITERION = ("no acceptance criterion stated: no pass/fail statement (000 §8.4 and ISO 230-2 define methods, not "
                 "grades)")
 
@@ -57,6 +67,8 @@ class ActuatorReport(ReportBase):
     """Everything the report of an actuator_accuracy run prints."""
 
     actuators: tuple[ActuatorResult, ...]
+    #: ISO 230-2 bidirectional figures per actuator; empty unless the run approached the targets both ways
+    bidirectional: tuple[BidirectionalResult, ...] = ()
 
 
 def collect_actuator(store: Store, run_id: int, *, k: float = 2.0, resamples: int = 1000,
@@ -68,6 +80,8 @@ def collect_actuator(store: Store, run_id: int, *, k: float = 2.0, resamples: in
     instrument = reading_instrument(run, calibrations, table["travel_mm"], difference=True)
     results = analyze_actuators(actuator_table(table), control_resolution_mm=robot_control_resolution(run.robot),
                                 instrument_u_mm=instrument.sigma_mm or 0.0, k=k, resamples=resamples)
+    both_ways = "direction" in table.columns and bool((table["direction"] < 0).any())
+    bidirectional = tuple(analyze_bidirectional(table)) if both_ways else ()
     deviations = actuator_deviations(config=run.config, settings=run.settings,
                                      repeats_measured=min(r.groover.n for r in results),
                                      instrument_sigma_mm=instrument.sigma_mm,
@@ -80,8 +94,11 @@ def collect_actuator(store: Store, run_id: int, *, k: float = 2.0, resamples: in
         title=run.config.get("title") or "Linear-actuator accuracy and repeatability (000 §8.4)",
         reference="000 §8.4 / ISO 230-2",
         clauses=("000 §8.4, Eqs. 8.1-8.3: repeatability ±3σ̄, accuracy CR/2 + 3σ̄ (after Groover)",
-                 "ISO 230-2 unidirectional R↑, E↑, A↑ (iso9283.md §7.1 [U])"),
-        deviations=tuple(deviations), instrument=instrument, table=table, coverage_factor=k, actuators=results)
+                 "ISO 230-2 unidirectional R↑, E↑, A↑ (iso9283.md §7.1 [U])") + (
+                     ("ISO 230-2 bidirectional reversal B, repeatability R, E, M, accuracy A",) if bidirectional
+                     else ()),
+        deviations=tuple(deviations), instrument=instrument, table=table, coverage_factor=k, actuators=results,
+        bidirectional=bidirectional)
 
 
 def _with_u(value: float, measured) -> str:
@@ -109,6 +126,33 @@ def _results(report: ActuatorReport) -> tuple[Block, ...]:
               f"Per actuator and target (U of the bias: k = {k}, √(s_i²/n + u_gauge²))"),
         Paragraph("Groover's accuracy CR/2 + 3σ̄ assumes that the mean travel lands on the target; the bias column "
                   "and max |bias| show the systematic error it leaves out (iso9283.md §7.4)."),
+        *_bidirectional_results(report),
+    )
+
+
+def _bidirectional_results(report: ActuatorReport) -> tuple[Block, ...]:
+    """The ISO 230-2 bidirectional tables of a bidirectional run (none otherwise)."""
+    if not report.bidirectional:
+        return ()
+    axes = tuple((r.axis, f"{r.forward_mm.shape[0]} / {r.backward_mm.shape[0]}", fmt_mm(r.result.reversal_max_mm),
+                  fmt_mm(r.result.repeatability_forward_mm), fmt_mm(r.result.repeatability_backward_mm),
+                  fmt_mm(r.result.repeatability_mm), fmt_mm(r.result.systematic_mm),
+                  fmt_mm(r.result.mean_bidirectional_mm), fmt_mm(r.result.accuracy_mm)) for r in report.bidirectional)
+    targets = tuple((r.axis, f"{t:g}", f"{up:+.4f}", f"{down:+.4f}", f"{b:+.4f}",
+                     fmt_mm(float(s_up)), fmt_mm(float(s_down)))
+                    for r in report.bidirectional
+                    for t, up, down, b, s_up, s_down in zip(
+                        r.targets_mm, r.result.mean_deviation_forward_mm, r.result.mean_deviation_backward_mm,
+                        r.result.reversal_mm, (r.forward_mm - r.targets_mm).std(axis=0, ddof=1),
+                        (r.backward_mm - r.targets_mm).std(axis=0, ddof=1)))
+    return (
+        Table("actuator-bidirectional", ("Actuator", "n ↑ / ↓", "B (mm)", "R↑ (mm)", "R↓ (mm)", "R (mm)", "E (mm)",
+                                         "M (mm)", "A (mm)"), axes,
+              "ISO 230-2 bidirectional figures per actuator: reversal B = max |B_i|, repeatability R = max_i "
+              "max(2s_i↑ + 2s_i↓ + |B_i|, R_i↑, R_i↓), systematic error E, mean bidirectional error M, accuracy A"),
+        Table("actuator-reversal", ("Actuator", "Target P_i (mm)", "x̄_i↑ − P_i (mm)", "x̄_i↓ − P_i (mm)",
+                                    "B_i = x̄_i↑ − x̄_i↓ (mm)", "s_i↑ (mm)", "s_i↓ (mm)"), targets,
+              "Per actuator and target: mean deviation of each approach direction, the reversal and the spreads"),
     )
 
 
@@ -139,13 +183,17 @@ def actuator_plot(report: ActuatorReport) -> Plot:
 def recompute_actuator(report: ActuatorReport) -> str:
     """The CLI call that recomputes every actuator figure from the raw-data CSV."""
     sigma = report.instrument.sigma_mm or 0.0
+    both = (f"; bench analyze iso230-2-run {report.run.id} --json (or bench analyze iso230-2 FILE.csv --json) for the "
+            "bidirectional figures") if report.bidirectional else ""
     return (f"bench analyze actuator FILE.csv --robot {report.run.robot} --instrument-u-mm {sigma:.6g} --k "
-            f"{report.coverage_factor:g} (bench export RUN_ID --kind actuator_travel writes the same table)")
+            f"{report.coverage_factor:g}{both} (bench export RUN_ID --kind actuator_travel writes the same table)")
 
 
 def actuator_document(report: ActuatorReport, raw: list[RawData], *, operator: str = "not recorded",
                       laboratory: str = "not recorded") -> Document:
     config = report.run.config
+    if report.bidirectional:
+        return _bidirectional_document(report, raw, operator=operator, laboratory=laboratory)
     method = (f"Dissertation 000 §8.4: each actuator, free-standing on the actuator bench, travels "
               f"{', '.join(f'{float(v):g}' for v in config.get('distances_mm', ()))} mm up from a start stroke of "
               f"{config.get('start_mm', '—')} mm where the depth gauge was zeroed, {config.get('repeats', '—')} "
@@ -158,5 +206,29 @@ def actuator_document(report: ActuatorReport, raw: list[RawData], *, operator: s
         report, raw, operator=operator, laboratory=laboratory, method=method, scope=SCOPE,
         conditions=conditions_section(report, ("fixture", "actuators", "distances_mm", "repeats", "start_mm",
                                                "velocity_pct", "settle_s", "warmup_s", "ambient_c")),
-        results=_results(report), plots=[actuator_plot(report)], decision=decision_blocks(NO_CRITERION),
-        recompute=recompute_actuator(report))
+        results=_results(report),
+        plots=[actuator_plot(report)], decision=decision_blocks(NO_CRITERION), recompute=recompute_actuator(report))
+
+
+def _bidirectional_document(report: ActuatorReport, raw: list[RawData], *, operator: str,
+                            laboratory: str) -> Document:
+    config = report.run.config
+    method = (f"ISO 230-2 linear cycles (iso9283.md §7.1, from memory [U]) on the actuator bench: each actuator, "
+              f"free-standing, is zeroed by the depth gauge at {config.get('start_mm', '—')} mm stroke; then "
+              f"{config.get('cycles', '—')} times the targets "
+              f"{', '.join(f'{float(v):g}' for v in sorted(config.get('distances_mm', ())))} mm above it are "
+              "approached in increasing order (↑, from below) and, after an overrun of "
+              f"{config.get('overrun_mm', '—')} mm past the highest, in decreasing order (↓, from above), each read "
+              "by the gauge. With x_ij = reading − target: x̄_i↑, x̄_i↓ and s_i↑, s_i↓ (n − 1) per target; "
+              "B_i = x̄_i↑ − x̄_i↓, B = max |B_i|; R_i = max(2s_i↑ + 2s_i↓ + |B_i|, 4s_i↑, 4s_i↓), R = max R_i; "
+              "E = max(x̄_i↑, x̄_i↓) − min(x̄_i↑, x̄_i↓); M = max x̄_i − min x̄_i of the bidirectional means; "
+              "A = max(x̄_i↑ + 2s_i↑, x̄_i↓ + 2s_i↓) − min(x̄_i↑ − 2s_i↑, x̄_i↓ − 2s_i↓). The 000 §8.4 figures "
+              "(Groover's ±3σ̄ and CR/2 + 3σ̄, the bias) are computed on the approaches from below.")
+    return assemble(
+        report, raw, operator=operator, laboratory=laboratory, method=method, scope=BIDIRECTIONAL_SCOPE,
+        conditions=conditions_section(report, ("fixture", "actuators", "distances_mm", "cycles", "start_mm",
+                                               "velocity_pct", "settle_s", "warmup_s", "ambient_c"),
+                                      (("approach", "bidirectional (ISO 230-2 linear cycle)"),
+                                       ("overrun at each reversal (mm)", f"{config.get('overrun_mm', '—')}"))),
+        results=_results(report), plots=[actuator_plot(report), bidirectional_plot(report.bidirectional)],
+        decision=decision_blocks(NO_CRITERION), recompute=recompute_actuator(report))

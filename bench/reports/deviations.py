@@ -321,21 +321,35 @@ def actuator_deviations(*, config: Mapping[str, Any], settings: Mapping[str, Any
                          len(travels) >= 5 and not regular,
                          "periodic (lead-screw) errors sampled at fixed phases only" if regular else
                          "systematic error E and accuracy A from too few targets"))
-    rows.append(_planned_count("000 §8.4", "repeats",
-                               f"{ACTUATOR_REPEATS} repeats per travel (000 §8.4; ISO 230-2: 5 per direction [U])",
-                               config, "repeats", measured=repeats_measured, required=ACTUATOR_REPEATS,
-                               counted="complete", where="any actuator",
-                               effect="wider uncertainty of σ̄, and so of the repeatability and accuracy"))
+    both_ways = config.get("approach") == "bidirectional"
+    if both_ways:
+        rows.append(_planned_count("ISO 230-2", "cycles", "5 approaches per target and direction [U]", config,
+                                   "cycles", measured=repeats_measured, required=5, counted="complete",
+                                   where="any actuator", effect="wider uncertainty of s↑, s↓ and so of R and A"))
+        rows.append(_row("000 §8.4", "repeats", f"{ACTUATOR_REPEATS} repeats per travel (000 §8.4)",
+                         f"{repeats_measured} approaches from below per travel (the ISO 230-2 cycles)",
+                         repeats_measured >= ACTUATOR_REPEATS,
+                         "wider uncertainty of σ̄, and so of Groover's repeatability and accuracy"))
+    else:
+        rows.append(_planned_count("000 §8.4", "repeats",
+                                   f"{ACTUATOR_REPEATS} repeats per travel (000 §8.4; ISO 230-2: 5 per direction "
+                                   "[U])", config, "repeats", measured=repeats_measured, required=ACTUATOR_REPEATS,
+                                   counted="complete", where="any actuator",
+                                   effect="wider uncertainty of σ̄, and so of the repeatability and accuracy"))
     rows.append(_row("ISO 230-2", "direction", "approaches in both directions with an overrun at each reversal [U]",
-                     "unidirectional: every reading approached from below, from the start stroke", False,
+                     f"bidirectional linear cycles, overrun {float(config.get('overrun_mm', 0)):g} mm at each "
+                     "reversal" if both_ways else
+                     "unidirectional: every reading approached from below, from the start stroke", both_ways,
                      "reversal B (backlash) and the bidirectional R, E, A not measured; ↑ figures only"))
     requirement = "initial and final depth read at every travel (000 §8.4, sensors.md §6.2)"
     if "start_mm" not in config:
         rows.append(_unknown("000 §8.4", "zeroing", requirement, "config.start_mm"))
     else:
         rows.append(_row("000 §8.4", "zeroing", requirement,
-                         f"gauge zeroed once per actuator and travel at {float(config['start_mm']):g} mm stroke; each "
-                         "repeat returns to the start and is read at the end only", False,
+                         (f"gauge zeroed once per actuator at {float(config['start_mm']):g} mm stroke; the targets "
+                          "are read in passes up and down, never back at the start" if both_ways else
+                          f"gauge zeroed once per actuator and travel at {float(config['start_mm']):g} mm stroke; "
+                          "each repeat returns to the start and is read at the end only"), False,
                          "the error of returning to the start enters every reading instead of cancelling"))
     instrument = settings.get("instrument") or {}
     reader = instrument.get("instrument", instrument.get("name", "instrument")) if instrument else None

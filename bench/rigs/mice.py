@@ -27,14 +27,16 @@ from bench.rigs.interfaces import Measurement
 from bench.sensors.calibration import MM_PER_INCH
 from bench.steps import Capture
 
-__all__ = ["ARRIVAL", "PATH", "STREAMED_KINDS", "MiceInstrument", "arrival_series"]
+__all__ = ["ARRIVAL", "PATH", "POSITIONING", "STREAMED_KINDS", "MiceInstrument", "arrival_series"]
 
 #: Capture kind of a streamed arrival at a pose; ``conditions`` give ``lead_s`` and ``hold_s``.
 ARRIVAL = "arrival"
 #: Capture kind of one streamed segment of a continuous path (ISO 9283 clause 8), captured like an arrival.
 PATH = "path"
+#: Capture kind of one streamed step of the minimum positioning time sequence (ISO 9283 clause 9), rest to rest.
+POSITIONING = "positioning"
 #: The capture kinds whose sample keeps the streamed series (in ``raw["series"]``, with ``raw["t_request_s"]``).
-STREAMED_KINDS = frozenset({ARRIVAL, PATH})
+STREAMED_KINDS = frozenset({ARRIVAL, PATH, POSITIONING})
 #: Decimals kept in the stored series (0.1 um, 1 us): far below a count (32 um at 800 cpi).
 _MM_DECIMALS, _S_DECIMALS = 4, 6
 

@@ -95,6 +95,14 @@ SAMPLE_KINDS: dict[str, SampleKind] = {kind.name: kind for kind in (
                        "the segment's commanded end, velocity_pct the path velocity in percent of the rated path "
                        "velocity; the series (t_s, x_mm, y_mm, z_mm) and its start time t_request_s are in raw",
                _COMMANDED + _xyz("", "measured position at the end of the segment") + _CONDITIONS),
+    SampleKind("positioning", "the last point of one streamed step of the minimum positioning time sequence (ISO "
+                              "9283 clause 9): cmd_* is the step's target, step its number in Table 19; the series "
+                              "(t_s, x_mm, y_mm, z_mm) from rest before the move to hold_s after it, and its start "
+                              "time t_request_s, are in raw",
+               _COMMANDED + _xyz("", "measured position at the end of the series") + _CONDITIONS
+               + (Column("step", "1", "int", "number of the step in ISO 9283 Table 19"),
+                  Column("step_distance_mm", "mm", "float", "commanded per-axis distance from the previous pose "
+                                                            "(Dx = Dy = Dz)"))),
     SampleKind("mouse", "raw counts of the two optical mice at one end of a calibration stroke",
                _xyz("cmd_", "commanded position")
                + (Column("step_mm", "mm", "float", "length of the calibration stroke"),)

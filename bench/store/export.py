@@ -75,6 +75,10 @@ def tidy_table(store: Store, run_id: int, kind: str = "pose") -> pd.DataFrame:
     return table
 
 
+#: Sample values repeated on every row of a streamed series besides the commanded ones: its conditions.
+_SERIES_CONTEXT = ("velocity_pct", "load_kg", "step", "step_distance_mm")
+
+
 def series_table(store: Store, run_id: int, kind: str = "arrival") -> pd.DataFrame:
     """The streamed series of the samples of one kind, one row per series point (see the module docstring).
 
@@ -92,8 +96,7 @@ def series_table(store: Store, run_id: int, kind: str = "arrival") -> pd.DataFra
         if not series:
             continue
         context = {"pose": sample.pose, "cycle": sample.cycle,
-                   **{k: v for k, v in sample.values.items() if k.startswith("cmd_") or k in ("velocity_pct",
-                                                                                              "load_kg")}}
+                   **{k: v for k, v in sample.values.items() if k.startswith("cmd_") or k in _SERIES_CONTEXT}}
         frames.append(pd.DataFrame({**context, **series}))
     if not frames:
         raise InsufficientData(f"run {run_id}: no {kind!r} samples with a streamed series to export")
