@@ -15,11 +15,11 @@ measured axes, after ``mean_j |m_j - f(theta_hat)_j|``.
 * delta4: commanded positions ``cmd_x_mm .. cmd_z_mm`` -> the servo angles the controller received: the IK of the
   geometry in force, through the run's servo mapping (``settings.robot.mapping``: its bytes, 0.75 deg a byte for
   ``legacy_vb``, are what the servos were sent; or, where the run's ``settings.robot.fine_reference`` says fine
-  references were in use, their 0.01 deg values on the controller's step, 0.01125 deg). The camera spot sensor reads the two axes of its plane (its
-  uncertainty: the plane calibration's ``u_mm``); the laser grid reads per screen, so a sample holds x, y, z or only
-  some (its uncertainty: the detection window's uniform half width / sqrt 3, 0.58 mm for +-1 mm). The candidates
-  are the registration of the axes read and :data:`motion.delta4.calibration.BASE_PARAMETERS`. Stored besides the
-  fit: ``command_resolution_mm``, the mean over the samples of |p(sent angles) - p(IK angles)| on the axes read (the
+  references were in use, their 0.01 deg values on the controller's step, 0.01125 deg). The camera spot sensor
+  reads the two axes of its plane (its uncertainty: the plane calibration's ``u_mm``); the laser grid reads per
+  screen, so a sample holds x, y, z or only some (its uncertainty: the detection window's uniform half width /
+  sqrt 3, 0.58 mm for +-1 mm). The candidates are the registration of the axes read and
+  :data:`motion.delta4.calibration.BASE_PARAMETERS`. Stored besides the fit: ``command_resolution_mm``, the mean over the samples of |p(sent angles) - p(IK angles)| on the axes read (the
   documented robot): what the byte (or fine) steps alone cost, the floor of any compensation (docs/calibration.md).
 """
 
