@@ -19,8 +19,9 @@ measured axes, after ``mean_j |m_j - f(theta_hat)_j|``.
   reads the two axes of its plane (its uncertainty: the plane calibration's ``u_mm``); the laser grid reads per
   screen, so a sample holds x, y, z or only some (its uncertainty: the detection window's uniform half width /
   sqrt 3, 0.58 mm for +-1 mm). The candidates are the registration of the axes read and
-  :data:`motion.delta4.calibration.BASE_PARAMETERS`. Stored besides the fit: ``command_resolution_mm``, the mean over the samples of |p(sent angles) - p(IK angles)| on the axes read (the
-  documented robot): what the byte (or fine) steps alone cost, the floor of any compensation (docs/calibration.md).
+  :data:`motion.delta4.calibration.BASE_PARAMETERS`. Stored besides the fit: ``command_resolution_mm``, the mean
+  over the samples of |p(sent angles) - p(IK angles)| on the axes read (the documented robot): what the byte (or
+  fine) steps alone cost, the floor of any compensation (docs/calibration.md).
 """
 
 from __future__ import annotations
