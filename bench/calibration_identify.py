@@ -14,12 +14,14 @@ measured axes, after ``mean_j |m_j - f(theta_hat)_j|``.
   the mice read x, y, z (0.05 mm per axis unless told).
 * delta4: commanded positions ``cmd_x_mm .. cmd_z_mm`` -> the servo angles the controller received: the IK of the
   geometry in force, through the run's servo mapping (``settings.robot.mapping``: its bytes, 0.75 deg a byte for
-  ``legacy_vb``, are what the servos were sent). The camera spot sensor reads the two axes of its plane (its
-  uncertainty: the plane calibration's ``u_mm``); the laser grid reads per screen, so a sample holds x, y, z or only
-  some (its uncertainty: the detection window's uniform half width / sqrt 3, 0.58 mm for +-1 mm). The candidates
-  are the registration of the axes read and :data:`motion.delta4.calibration.BASE_PARAMETERS`. Stored besides the
-  fit: ``command_resolution_mm``, the mean over the samples of |p(sent angles) - p(IK angles)| on the axes read (the
-  documented robot): what the byte steps alone cost, the floor of any compensation (docs/calibration.md).
+  ``legacy_vb``, are what the servos were sent; or, where the run's ``settings.robot.fine_reference`` says fine
+  references were in use, their 0.01 deg values on the controller's step, 0.01125 deg). The camera spot sensor
+  reads the two axes of its plane (its uncertainty: the plane calibration's ``u_mm``); the laser grid reads per
+  screen, so a sample holds x, y, z or only some (its uncertainty: the detection window's uniform half width /
+  sqrt 3, 0.58 mm for +-1 mm). The candidates are the registration of the axes read and
+  :data:`motion.delta4.calibration.BASE_PARAMETERS`. Stored besides the fit: ``command_resolution_mm``, the mean
+  over the samples of |p(sent angles) - p(IK angles)| on the axes read (the documented robot): what the byte (or
+  fine) steps alone cost, the floor of any compensation (docs/calibration.md).
 """
 
 from __future__ import annotations
@@ -155,7 +157,7 @@ def _instrument_uncertainty_mm(settings: dict, run_id: int) -> float:
 def _delta4_problem(store, run_id: int, uncertainty_mm: float | None) -> _Problem:
     import numpy as np
 
-    from bench.robots.delta4_wire import mapping_from_settings
+    from bench.robots.delta4_wire import fine_from_settings, mapping_from_settings
     from motion import delta4
     from motion.delta4.calibration import BASE_PARAMETERS, REGISTRATION, ForwardModel, attained_positions
 
@@ -165,20 +167,24 @@ def _delta4_problem(store, run_id: int, uncertainty_mm: float | None) -> _Proble
         raise ConfigError(f"run {run_id}: settings.robot.mapping is missing, expected the servo mapping the run "
                           "commanded by (its bytes are the angles the servos were sent)")
     mapping = mapping_from_settings(mapping_settings)
+    fine_settings = (settings.get("robot") or {}).get("fine_reference") or {}
+    if fine_settings.get("in_use"):  # the run sent fine references (the controller answered the probe)
+        mapping = fine_from_settings(fine_settings)
     commanded, measured, mask = _pose_samples(store, run_id, "delta4")
     ik = delta4.inverse_kinematics(commanded, _commanded_geometry(store, run_id, delta4.NOMINAL))
     if not ik.reachable.all():
         first = int(np.flatnonzero(~ik.reachable)[0])
         raise InsufficientData(f"run {run_id}: commanded position {commanded[first].tolist()} is not reachable "
                                f"({ik.reason[first]}), expected the positions the run commanded")
-    servo = mapping.to_deg(mapping.to_bytes(ik.servo_deg))
+    servo = mapping.sent_deg(ik.servo_deg) if fine_settings.get("in_use") else mapping.to_deg(
+        mapping.to_bytes(ik.servo_deg))
     read = tuple(int(a) for a in np.flatnonzero(mask.any(axis=0)))
     registration = tuple(REGISTRATION[a] for a in read)
     u = _instrument_uncertainty_mm(settings, run_id) if uncertainty_mm is None else uncertainty_mm
     # the byte steps alone: where the servos' sent angles put the documented robot, against the angles asked for
     rounding = attained_positions(servo) - attained_positions(ik.servo_deg)
     extra = {"command_resolution_mm": float(np.mean(np.linalg.norm(rounding[:, read], axis=1))),
-             "servo_mapping": mapping_settings}
+             "servo_mapping": mapping_settings, "servo_references": mapping.name}
     if mask[:, read].all():  # every sample read the same axes (the camera's plane)
         return _Problem(lambda free: ForwardModel(servo, free, axes=read), registration + BASE_PARAMETERS,
                         registration, measured[:, read], u, np.arange(len(measured)), len(measured), extra)
@@ -251,7 +257,8 @@ def summary_lines(identified: IdentifiedRun) -> list[str]:
     lines.append(f"mean position error on the calibration poses (in-sample): before {params['ap_before_mm']:.3f} "
                  f"mm, after {params['ap_after_mm']:.3f} mm")
     if "command_resolution_mm" in params:
-        lines.append(f"command resolution: the servos' byte steps ({params['servo_mapping']['name']} mapping) move "
-                     f"these poses by {params['command_resolution_mm']:.3f} mm on average, which no compensation "
-                     "goes below")
+        steps = "fine steps (0.01 deg references)" if params.get("servo_references") == "fine_centidegree" else \
+            f"byte steps ({params['servo_mapping']['name']} mapping)"
+        lines.append(f"command resolution: the servos' {steps} move these poses by "
+                     f"{params['command_resolution_mm']:.3f} mm on average, which no compensation goes below")
     return lines

@@ -18,6 +18,7 @@ from bench.calibration_compensation import calibrated_geometry, select_calibrati
 from bench.cli import main
 from bench.errors import ConfigError
 from bench.metrology.kinematic_calibration import identifiable_subset, select_poses
+from bench.robots import delta4_wire as wire
 from bench.robots.delta4_wire import LegacyVbMapping, mapping_from_settings
 from bench.store import Store
 from motion import delta4
@@ -233,3 +234,67 @@ def test_a_run_commanded_by_a_calibration_is_identified_from_the_angles_it_sent(
     assert out["version"] == 2
     for name, entry in in_force["parameters"].items():
         assert out["parameters"][name]["value"] == pytest.approx(entry["value"], abs=1e-6), name
+
+
+FINE = wire.FineReference()  # the firmware's answer to C: 0.01 deg references on its 0.01125 deg PWM tick
+FINE_SETTINGS = {**CAMERA_SETTINGS, "robot": {**CAMERA_SETTINGS["robot"],
+                                              "fine_reference": {"in_use": True, "probed": True, **FINE.settings()}}}
+
+
+def _gain_by_references(tmp_path, seed: int, fine: bool) -> tuple[float, float, dict]:
+    """A run of 30 D-optimal poses of a seeded true geometry, commanded with fine references (or bytes), calibrated;
+    the held-out AP (50 positions, x-y, what the servos are sent) by the documented and by the calibrated IK."""
+    from bench.calibration_identify import identify_run
+
+    sent = FINE.sent_deg if fine else _sent
+    tmp_path.mkdir()
+    pool = _field(10 + seed, 300)
+    jac = ForwardModel(sent(delta4.inverse_kinematics(pool).servo_deg), CANDIDATES).jacobian(
+        np.zeros(len(CANDIDATES)))
+    pick = select_poses(jac, U_MM, 30)
+    geometric = [n for n in identifiable_subset(jac[pick], U_MM, CANDIDATES, required=PLANE) if n not in REGISTRATION]
+    rng = np.random.default_rng(seed)
+    names, values = geometric, rng.normal(0.0, 0.3, len(geometric))
+    readings = attained_positions(sent(delta4.inverse_kinematics(pool[pick]).servo_deg), names, values)[:, :2] \
+        + TRUE_REGISTRATION + rng.normal(0.0, U_MM, (30, 2))
+    run_id = _store_run(tmp_path / "bench.db", pool[pick], readings, FINE_SETTINGS if fine else CAMERA_SETTINGS)
+    with Store(tmp_path / "bench.db") as store:
+        identified = identify_run(store, run_id)
+    targets = _field(50 + seed, 50)
+
+    def ap(geometry) -> float:
+        angles = delta4.inverse_kinematics(targets, geometry)
+        assert angles.reachable.all()
+        reading = attained_positions(sent(angles.servo_deg), names, values)[:, :2] + TRUE_REGISTRATION
+        return float(np.mean(np.linalg.norm(reading - targets[:, :2], axis=1)))
+
+    return ap(delta4.NOMINAL), ap(calibrated_geometry(identified.record)), identified.params
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_fine_references_let_the_calibration_cut_the_held_out_ap_ten_times(tmp_path, seed):
+    """Issue 20: by the bytes sent the gain stops at the byte's 0.745 deg (~0.43 mm); a run commanded with fine
+    references (docs/protocol-delta4.md) keeps >= 10x on held-out positions, and its floor is the fine step's."""
+    before, after, params = _gain_by_references(tmp_path / "fine", seed, fine=True)
+    assert before > 0.2 and after < before / 10, (before, after)
+    assert params["servo_references"] == "fine_centidegree" and params["command_resolution_mm"] < 0.01
+    byte_before, byte_after, byte_params = _gain_by_references(tmp_path / "bytes", seed, fine=False)
+    assert byte_after > 0.3 and byte_before / byte_after < before / after  # the bytes' floor, same truth
+    assert 0.3 < byte_params["command_resolution_mm"] < 0.6
+    print(f"seed {seed}: fine {before:.3f} -> {after:.4f} mm ({before / after:.1f}x, floor "
+          f"{params['command_resolution_mm']:.4f} mm); bytes {byte_before:.3f} -> {byte_after:.3f} mm "
+          f"({byte_before / byte_after:.1f}x)")
+
+
+def test_the_command_resolution_of_a_fine_run_is_its_fine_steps(tmp_path, capsys):
+    """The floor stated for a run that sent fine references: the documented robot at the angles on the 0.01125 deg
+    tick against those asked for (independently: the tick grid itself)."""
+    commanded = _field(7, 20)
+    angles = delta4.inverse_kinematics(commanded).servo_deg
+    on_tick = np.floor(np.floor(angles * 100 + 0.5) / 100 / (180 / 16000) + 0.5) * (180 / 16000)
+    run_id = _store_run(tmp_path / "bench.db", commanded, attained_positions(on_tick)[:, :2], FINE_SETTINGS)
+    assert main(["calibrate", str(run_id), "--store", str(tmp_path / "bench.db"), "--free", "servo_zero_1_deg"]) == 0
+    out = capsys.readouterr().out
+    floor = float(np.mean(np.linalg.norm(attained_positions(on_tick)[:, :2] - commanded[:, :2], axis=1)))
+    assert f"command resolution: the servos' fine steps (0.01 deg references) move these poses by {floor:.3f} mm" \
+        in out and floor < 0.01

@@ -59,6 +59,19 @@ def test_the_mover_commands_by_the_geometry_in_force():
     assert mover.geometry is geometry
 
 
+def test_the_mover_sends_fine_references_by_the_geometry_in_force_once_the_controller_offers_them():
+    record = type("Record", (), {"id": 7, "name": "delta4_kinematics", "version": 1, "params": PARAMS})()
+    geometry = calibrated_geometry(record)
+    angles = delta4.inverse_kinematics([TARGET], geometry).servo_deg[0]
+    fine = "".join(wire.format_fine_command(i, int(round(a * 100))).decode() for i, a in enumerate(angles))
+    mover = DeltaMover(Delta4Controller(ScriptedPort([("C", "c01125X"), (fine, "z"), ("z", "")]),
+                                        settle_timeout_s=0.5))
+    mover.controller.probe_fine_references()
+    mover.use_geometry(geometry)
+    mover.move_to(TARGET, velocity_pct=100.0)  # the port refuses any other bytes
+    assert mover.settings()["fine_reference"]["in_use"] is True
+
+
 def test_the_preflight_checks_reach_and_limits_by_the_calibrated_geometry():
     geometry = compensation_geometry({"parameters": {"servo_zero_1_deg": {"value": -50.0}}})
     targets = np.array([TARGET, (0.0, 0.0, -200.0)])
@@ -92,6 +105,8 @@ def test_a_run_records_the_calibration_in_force_and_can_turn_it_off(tmp_path):
         run_on, run_off = s.run(on), s.run(off)
     assert record.id in run_on.calibration_ids and record.id not in run_off.calibration_ids
     assert run_on.settings["kinematic_calibration"]["id"] == record.id
+    # the simulated controller answered the probe: the run sent fine references, and says so
+    assert run_on.settings["robot"]["fine_reference"]["in_use"] is True
     assert run_off.settings["kinematic_calibration"] == {"id": None, "reason": "--no-kinematic-calibration"}
 
 

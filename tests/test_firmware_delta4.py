@@ -149,11 +149,17 @@ def test_pulse_widths_and_period_follow_the_documented_mapping_through_the_drive
     assert bytes_sent[0] == (81, 72, 122, 128)
     assert (first.horizontal, first.vertical, first.raw) == ((), (), b"hv")  # no laser lit: h then v
     assert (frame.horizontal, frame.vertical) == ((), ())
-    events = mcu.close()
-    ends = received_at(events, b"P")[1:] + [max(r for r, _ in pulses(events, 1)) + PERIOD_TICKS]
-    assert len(ends) == 2
-    for values, end in zip(bytes_sent, ends):
-        expected = expected_pulse_ticks(mapping, values)
+    assert_pulses_at_rest(mcu.close(), b"P", [expected_pulse_ticks(mapping, values) for values in bytes_sent])
+
+
+def assert_pulses_at_rest(events, first_byte, expected_ticks):
+    """Each move (begun by a message starting with ``first_byte``) ends with its servos pulsing
+    ``expected_ticks`` (one row per move) at a steady 2 ms period."""
+    starts = received_at(events, first_byte)[::4 if first_byte == b"F" else 1]  # a fine move: four F messages
+    ends = starts[1:] + [max(r for r, _ in pulses(events, 1)) + PERIOD_TICKS]
+    assert len(ends) == len(expected_ticks)
+    for values, end in zip(expected_ticks, ends):
+        expected = values
         for servo in range(4):
             at_rest = [p for p in pulses(events, servo + 1) if end - 8 * PERIOD_TICKS <= p[0] < end - PERIOD_TICKS]
             assert len(at_rest) >= 6  # z came after 10 periods at rest
@@ -352,6 +358,31 @@ def test_watchdog_holds_the_servos_when_the_host_falls_silent(built_watchdog, tm
     assert 6.0 < moved_deg < 8.6, moved_deg  # 0.4 s at 20 deg/s, then it stayed where it stopped
 
 
+def expected_fine_pulse_ticks(values) -> np.ndarray:
+    """Pulse width, ticks, of fine references ``values`` (0.01 deg), docs/protocol-delta4.md: the angle clamped
+    to the stops, 1.0 ms at 0 deg to 2.0 ms at 180 deg, rounded half up to a tick (no byte mapping)."""
+    angle = np.clip(np.asarray(values, float) / 100.0, *STOPS_DEG)
+    return np.floor(16000 + angle * 16000 / 180.0 + 0.5).astype(int)
+
+
+def test_fine_references_position_the_pulses_on_the_tick_and_bytes_stay_as_before(mcu):
+    """The driver probes (C -> c01125X: one tick, 0.01125 deg), then sends F1..X F2..X F3..X F4..X; each pulse is the
+    tick nearest the angle, not the byte's 0.745 deg step. The byte test above is the unchanged byte path."""
+    mapping = wire.LegacyVbMapping()
+    with Delta4Controller(mcu.open(), mapping=mapping, **SLOW) as robot:
+        robot.start(verify_timeout_s=10.0)
+        fine = robot.probe_fine_references(timeout_s=10.0)
+        moves = [robot.move_servos(angles, require_settled=True) for angles in TEST_ANGLES_DEG]
+    assert fine is not None and fine.controller_step_deg == pytest.approx(180 / 16000)
+    assert moves[0].fine_values == (6000, 5400, 9100, 9500) and moves[0].command_bytes == ()
+    assert moves[1].fine_values == (12930, 12661, 7373, 7859)
+    expected = [expected_fine_pulse_ticks(move.fine_values) for move in moves]
+    # the byte of 60 deg (81: 60.35 deg) would pulse 32 ticks wider than the fine reference: the test can tell
+    assert expected_pulse_ticks(mapping, [81])[0] - expected[0][0] == 32
+    np.testing.assert_allclose(expected[1] * 180 / 16000 - 180, TEST_ANGLES_DEG[1], atol=180 / 16000 / 2 + 0.005)
+    assert_pulses_at_rest(mcu.close(), b"F", expected)
+
+
 def read_for(port, seconds):
     data, deadline = b"", time.monotonic() + seconds
     while time.monotonic() < deadline:
@@ -413,6 +444,22 @@ REPLAY = [
     (b'S070X', b'', "stored while stopped"),
     pot_query(b'A', (200, 75, 5, 92), "stopped: the pots still answer (S070X not applied yet)"),
     (b'E', b'z', "start: z"),
+    (b'G', b'', "stop"),
+    (b'C', b'c01125X', "capability query, stopped: the fine step, one tick (1e-5 deg)"),
+    (b'E', b'', "start with nothing stored: no z"),
+    (b'F107166X', b'z', "fine reference, servo 1 to 71.66 deg: z"),
+    (b'F112000XF212000XF312000XF412000X', b'z', "four fine references: one z"),
+    pot_query(b'A', (161, 161, 161, 161), "pot query after fine references of 120 deg (byte 161: 119.96 deg)"),
+    (b'F512000X', b'', "servo 5: discarded"),
+    (b'F0X', b'', "servo 0: discarded"),
+    (b'F1X', b'', "no value digit: discarded"),
+    (b'F118001X', b'', "value over 18000: discarded"),
+    (b'F1120000X', b'', "six value digits: discarded"),
+    (b'F1120E', b'', "broken by E: discarded, then E (already started)"),
+    (b'F1 12000X', b'', "a space breaks it: discarded"),
+    (b'F1CX', b'c01125X', "C breaks a fine message: discarded, then answered"),
+    (b'FP100X', b'z', "a byte letter restarts the message: P100X accepted, z"),
+    (b'F309000X', b'z', "servo 3 to 90 deg: z"),
     (b'G', b'', "stop"),
 ]
 REPLAY = [step if len(step) == 4 else (*step, None) for step in REPLAY]

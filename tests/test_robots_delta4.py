@@ -166,10 +166,68 @@ def test_settings_and_repr():
         "mapping": {"name": "legacy_vb", "degrees_per_span": 190.0, "limits_deg": [30.0, 160.0]},
         "settle_timeout_s": 1.5, "frame_gap_s": 0.03,
         "pot_scale": {"name": "calibrated", "stops_deg": [[30.0, 170.0]] * 4, "direction": [1, 1, 1, 1]},
-        "heartbeat_s": None}
+        "heartbeat_s": None, "fine_reference": {"in_use": False, "reason": "not probed: byte references"}}
     assert "mapping={'name': 'legacy_vb'" in repr(robot)
     with pytest.raises(ConfigError, match=r"settle_timeout_s = 0, expected a number in \(0, 600\] s"):
         Delta4Controller(ScriptedPort([]), settle_timeout_s=0)
+
+
+# Fine servo references (docs/protocol-delta4.md "Fine servo references"): TV4's exact angles in 0.01 deg
+TV4_FINE = (5951, 5404, 9068, 9462)
+
+
+def test_a_controller_answering_c_gets_fine_references_on_its_pwm_tick():
+    with exchange([("C", "hvc01125X"), ("F105951XF205404XF309068XF409462X", "z"), ("z", None)]) as robot:
+        fine = robot.probe_fine_references()
+        assert robot.probe_fine_references() is fine  # cached for the connection: one C on the wire
+        result = robot.move_servos(TV4_EXACT_DEG)
+        frame = robot.read_sensor_frame(0.5)  # a report read around the answer is kept
+    assert (result.fine_values, result.command_bytes, result.settled) == (TV4_FINE, (), True)
+    assert (frame.horizontal, frame.vertical) == ((), ())
+    assert fine.controller_step_deg == pytest.approx(0.01125)
+    # the firmware's pulse: round_half_up(16000 + value * 16000 / 18000) ticks; 5951 -> 5289.8 -> 5290 ticks above
+    # 1 ms, i.e. 5290 * 180 / 16000 = 59.5125 deg, within half a tick of the angle asked for
+    assert fine.to_deg(np.array([5951]))[0] == pytest.approx(59.5125)
+    assert np.all(np.abs(fine.sent_deg(np.array(TV4_EXACT_DEG)) - TV4_EXACT_DEG) <= 0.005 + 0.01125 / 2)
+    settings = robot.settings()["fine_reference"]
+    assert settings == {"in_use": True, "probed": True, "name": "fine_centidegree", "degrees_per_unit": 0.01,
+                        "controller_step_deg": pytest.approx(0.01125), "limits_deg": [30.0, 170.0]}
+    assert wire.fine_from_settings(settings) == fine
+
+
+def test_a_controller_silent_to_c_keeps_the_byte_references_and_says_why(caplog):
+    with exchange([("C", None), ("P080XQ073XR122XS127X", "z"), ("z", None)]) as robot:
+        assert robot.probe_fine_references(timeout_s=0.05) is None
+        result = robot.move_servos(TV4_EXACT_DEG)
+    assert (result.command_bytes, result.fine_values) == ((80, 73, 122, 127), ())
+    reason = "no answer to C within 0.05 s: byte references (legacy_vb, 0.745 deg a step)"
+    assert robot.settings()["fine_reference"] == {"in_use": False, "probed": True, "reason": reason}
+    assert reason in caplog.text
+
+
+def test_fine_references_keep_the_byte_window_and_the_firmware_stops_before_sending():
+    wide = wire.CalibratedMapping(((25.0, 175.0),) * 4)
+    with exchange([("C", "c01125X")], mapping=wide) as robot:
+        robot.probe_fine_references()
+        with pytest.raises(UnreachableTarget, match=r"servo 2: theta_R = 172\.000 deg, expected within \[30, 170\] "
+                                                    r"deg \(fine references\)"):
+            robot.move_servos((90, 172.0, 90, 90))
+    with exchange([("C", "c01125X")]) as robot:  # legacy_vb's 160 deg still holds
+        robot.probe_fine_references()
+        with pytest.raises(UnreachableTarget, match=r"servo 1: theta_R = 165\.000 deg.*mapping legacy_vb"):
+            robot.move_servos((165.0, 90, 90, 90))
+
+
+def test_fine_command_and_capability_tokens():
+    assert wire.format_fine_command(0, 7166) == b"F107166X" and wire.format_fine_command(3, 18000) == b"F418000X"
+    with pytest.raises(ValueError, match="value 0-18000"):
+        wire.format_fine_command(0, 18001)
+    assert wire.parse_token(b"c01125X") == wire.Token("c", 1125)
+    assert wire.format_capability_reply(0.09) == b"c09000X"
+    for bad in (b"c0112X", b"c00000X", b"c123456X"):
+        with pytest.raises(WireProtocolError):
+            wire.parse_token(bad)
+    assert list(_BytesLink(b"c01125Xz").frames()) == [b"c01125X", b"z"]
 
 
 class _BytesLink(wire.Delta4Link):

@@ -112,6 +112,23 @@ def test_delta4_malformed_messages_are_discarded_and_t_is_ignored():
     assert list(device.references) == [96, 100, 96, 9]  # home bytes round_half_up(71.66 * 255/190) = 96
 
 
+@settings(max_examples=200, deadline=None)
+@given(st.integers(0, 3), st.integers(0, 18000), st.binary(max_size=12))
+def test_delta4_fine_references_set_the_angle_on_the_tick_whatever_came_before(servo, value, noise):
+    """F<n><ddddd>X after any bytes (ended by X, which ends any message) sets servo n to value x 0.01 deg on the
+    firmware's 0.01125 deg tick: the nearest tick within half a tick; the byte references of the others stay."""
+    device = delta_device()
+    device.feed(b"E" + noise.replace(b"G", b"") + b"X", 0.0)
+    before = device.reference_deg.copy()
+    device.feed(dwire.format_fine_command(servo, value), 0.0)
+    tick = 180 / 16000
+    assert abs(device.reference_deg[servo] - value / 100) <= tick / 2 + 1e-9
+    assert device.reference_deg[servo] / tick == pytest.approx(round(device.reference_deg[servo] / tick), abs=1e-6)
+    others = [i for i in range(4) if i != servo]
+    assert list(device.reference_deg[others]) == list(before[others])
+    assert device.feed(b"C", 0.0).endswith(b"c01125X")
+
+
 def test_delta4_stop_ends_reports_and_sensor_hook_formats_hits():
     device = Delta4SimDevice(lambda q, load: np.zeros(3), dwire.LegacyVbMapping(),
                              sensor=lambda pose: ((17, 18), ()), home_servo_deg=np.full(4, 71.66))

@@ -149,6 +149,7 @@ def _open_robot(station: Station, opened: ExitStack) -> tuple[Any, Any]:
     controller = Delta4Controller(port)
     opened.callback(controller.shutdown)
     controller.start()
+    controller.probe_fine_references()  # fine references only if the firmware answers (the run settings say)
     return DeltaMover(controller), controller
 
 

@@ -101,6 +101,9 @@ def _controller(station: Station) -> str:
             detail += "; pots at " + ", ".join(f"{deg:.1f}" for deg in pots.servo_deg) + " deg"
         except LinkTimeout:
             detail += "; no pot readback (firmware without the A query: positions are not read back)"
+        fine = controller.probe_fine_references()
+        detail += (f"; fine servo references ({fine.step_deg():.5f} deg a step)" if fine is not None else
+                   "; byte servo references only (no answer to C)")
         controller.shutdown()
         return detail
     finally:

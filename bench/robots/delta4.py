@@ -7,6 +7,8 @@ window, all before a byte is sent. ``z`` ("all servos in place") is awaited with
 asked; sensor reports are assembled into :class:`SensorFrame` objects (horizontal screen first). With firmware that
 has this project's pot readback (``firmware/delta4``, ``bench sim delta4``), :meth:`Delta4Controller.read_pots` gives
 the servo angles the pot ADCs measure; the documented original firmware sends them nowhere (§7.3.4).
+:meth:`Delta4Controller.probe_fine_references` asks such firmware for fine references (0.01 deg instead of a byte's
+0.745 deg): only a controller that answers the capability query ``C`` is ever sent one, else the bytes stay.
 """
 
 from __future__ import annotations
@@ -32,6 +34,7 @@ DEFAULT_BAUDRATE = 9600
 HOME_MM = (0.0, 0.0, -150.0)
 _SENSOR_EXPECTED = "a sensor report (H<n>X, V<n>X, h or v)"
 _POTS_EXPECTED = "the pot counts p<n>X q<n>X r<n>X s<n>X (firmware with pot readback, docs/protocol-delta4.md)"
+_CAPABILITY_EXPECTED = "c<ddddd>X (firmware with fine references, docs/protocol-delta4.md)"
 
 
 @dataclass(frozen=True)
@@ -63,9 +66,10 @@ class PotReading:
 @dataclass(frozen=True)
 class MoveResult:
     servo_deg: tuple[float, ...]
-    command_bytes: tuple[int, ...]
+    command_bytes: tuple[int, ...]  # the byte references sent (empty when fine references were)
     settled: bool  # True if ``z`` arrived before the deadline
     measured: PotReading | None = None  # the pots read after the move (``read_back=True``)
+    fine_values: tuple[int, ...] = ()  # the fine references sent, 0.01 deg (empty when bytes were)
 
 
 @dataclass
@@ -124,12 +128,17 @@ class Delta4Controller:
         self._settled = False
         self._frames: list[SensorFrame] = []
         self._builder = _FrameBuilder()
+        #: the fine references in use on this connection (:meth:`probe_fine_references`), else None: bytes
+        self.fine: wire.FineReference | None = None
+        self._fine_state: dict[str, Any] = {"in_use": False, "reason": "not probed: byte references"}
+        self._capability: list[int] = []
 
     def settings(self) -> dict[str, Any]:
         return {"driver": type(self).__name__, "port": self.link.port_name,
                 "baudrate": getattr(self.link.port, "baudrate", None), "mapping": self.mapping.settings(),
                 "settle_timeout_s": self.settle_timeout_s, "frame_gap_s": self.frame_gap_s,
-                "pot_scale": self.pot_scale.settings(), "heartbeat_s": self.heartbeat_s}
+                "pot_scale": self.pot_scale.settings(), "heartbeat_s": self.heartbeat_s,
+                "fine_reference": dict(self._fine_state)}
 
     def __repr__(self) -> str:
         shown = ", ".join(f"{k}={v!r}" for k, v in self.settings().items() if k != "driver")
@@ -148,9 +157,36 @@ class Delta4Controller:
         self.link.write(b"G", command="G (stop)")
         self.started = False
 
+    def probe_fine_references(self, timeout_s: float = 0.3) -> wire.FineReference | None:
+        """Ask the controller (once per connection: cached) whether it takes fine references: send ``C`` and wait
+        ``timeout_s`` for ``c<ddddd>X``, its positioning step. Answered: every later move sends ``F<n><ddddd>X``
+        (0.01 deg). Silent (the original firmware): bytes stay, a warning says so, and the run settings
+        (``fine_reference``) record why."""
+        if self._fine_state.get("probed"):
+            return self.fine
+        self._drain()
+        self._capability.clear()
+        self.link.write(wire.CAPABILITY_QUERY, command="C (capabilities)")
+        deadline = Deadline(timeout_s)
+        try:
+            while not self._capability:
+                self._consume(deadline, "C (capabilities)", _CAPABILITY_EXPECTED)
+        except LinkTimeout:
+            step = wire.degrees_per_count(self.mapping)
+            reason = (f"no answer to C within {timeout_s:g} s: byte references ({self.mapping.name}, {step:.3f} deg "
+                      "a step)")
+            _log.warning("%s: %s", self.link.port_name, reason)
+            self._fine_state = {"in_use": False, "probed": True, "reason": reason}
+            return None
+        self.fine = wire.FineReference(controller_step_deg=self._capability.pop(0) * 1e-5)
+        self._fine_state = {"in_use": True, "probed": True, **self.fine.settings()}
+        return self.fine
+
     def move_servos(self, servo_deg: Any, *, wait: bool = True, require_settled: bool = False,
                     read_back: bool = False) -> MoveResult:
-        """Send the four servo references ``P..X Q..X R..X S..X`` (theta_R in degrees) after the range check.
+        """Send the four servo references ``P..X Q..X R..X S..X`` (theta_R in degrees) after the range check, or
+        ``F1..X F2..X F3..X F4..X`` where the controller proved it takes fine references (checked against both
+        windows: the same angles pass either way).
 
         With ``wait``, read until ``z`` or ``settle_timeout_s``; ``require_settled`` turns a missing ``z`` into
         LinkTimeout. ``read_back`` then reads the pots (:meth:`read_pots`, firmware with readback only) into
@@ -158,14 +194,21 @@ class Delta4Controller:
         kept for :meth:`read_sensor_frame`.
         """
         angles = self.mapping.check(servo_deg)
-        values = self.mapping.to_bytes(angles)
-        message = b"".join(wire.format_servo_command(i, int(v)) for i, v in enumerate(values))
+        if self.fine is not None:
+            fine = self.fine.to_values(self.fine.check(angles))
+            values = np.zeros(0, dtype=int)
+            message = b"".join(wire.format_fine_command(i, int(v)) for i, v in enumerate(fine))
+        else:
+            fine = np.zeros(0, dtype=int)
+            values = self.mapping.to_bytes(angles)
+            message = b"".join(wire.format_servo_command(i, int(v)) for i, v in enumerate(values))
         self._drain()  # a 'z' already on the wire belongs to an earlier move ('z' carries no move identity)
         self._settled = False
         self.link.write(message, command=message.decode("ascii"))
         settled = self.wait_settled(command=message.decode("ascii"), required=require_settled) if wait else False
         measured = self.read_pots() if read_back else None
-        return MoveResult(tuple(float(a) for a in angles), tuple(int(v) for v in values), settled, measured)
+        return MoveResult(tuple(float(a) for a in angles), tuple(int(v) for v in values), settled, measured,
+                          tuple(int(v) for v in fine))
 
     def move_to(self, point_mm: Any, **kwargs: Any) -> MoveResult:
         """Move the end effector to ``point_mm`` = (x, y, z) after the :mod:`motion.delta4` pre-flight."""
@@ -183,7 +226,8 @@ class Delta4Controller:
         if not result.reachable[0]:
             raise UnreachableTarget(f"point_mm = {tuple(float(v) for v in np.ravel(point_mm))}: unreachable "
                                     f"({result.reason[0]})")
-        return self.mapping.check(result.servo_deg[0])
+        angles = self.mapping.check(result.servo_deg[0])
+        return angles if self.fine is None else self.fine.check(angles)
 
     def wait_settled(self, *, timeout_s: float | None = None, command: str = "servo move",
                      required: bool = False) -> bool:
@@ -272,6 +316,9 @@ class Delta4Controller:
             return
         if token.kind in "pqrs":
             self._pot_token(token)
+            return
+        if token.kind == "c":
+            self._capability.append(int(token.value))  # type: ignore[arg-type]
             return
         horizontal_kind = token.kind in ("H", "h") or (token.kind == "N" and not builder.in_vertical)
         if horizontal_kind and builder.in_vertical:

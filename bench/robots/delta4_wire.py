@@ -10,6 +10,11 @@ angle mapping, so both are explicit :class:`ServoMapping` objects (§5.8). Parse
 This project's extension (``docs/protocol-delta4.md``, "Pot readback"): the query ``A``, which no documented host
 sends, is answered ``p<ddd>X q<ddd>X r<ddd>X s<ddd>X``, the four TLC548 pot ADC counts of servos 1-4; counts map to
 angles on :data:`POT_SCALE` (§5.4, §5.8 b: 0-255 over the calibrated stops).
+
+Its second extension ("Fine servo references"): the capability query ``C`` is answered ``c<ddddd>X``, the angle
+step the controller positions a servo on (1e-5 deg; the shipped firmware: one 62.5 ns PWM tick, 0.01125 deg), and
+then ``F<n><ddddd>X`` sets servo n (1-4) to theta_R in hundredths of a degree (:class:`FineReference`), instead of a
+byte (0.745 deg a step under ``legacy_vb``). The original firmware answers no ``C``, so it never receives an ``F``.
 """
 
 from __future__ import annotations
@@ -23,15 +28,21 @@ import numpy as np
 from bench.errors import UnreachableTarget
 from bench.robots.link import FramedLink, WireProtocolError
 
-__all__ = ["POT_LETTERS", "POT_QUERY", "POT_SCALE", "SERVO_LETTERS", "CalibratedMapping", "Delta4Link",
-           "LegacyVbMapping", "ServoMapping", "Token", "format_pot_reply", "format_servo_command", "parse_token",
-           "mapping_from_settings", "round_half_up"]
+__all__ = ["CAPABILITY_QUERY", "FINE_LETTER", "FineReference", "POT_LETTERS", "POT_QUERY", "POT_SCALE",
+           "SERVO_LETTERS", "CalibratedMapping", "Delta4Link",
+           "LegacyVbMapping", "ServoMapping", "Token", "fine_from_settings", "format_capability_reply",
+           "format_fine_command", "format_pot_reply", "format_servo_command", "parse_token", "mapping_from_settings",
+           "round_half_up"]
 
 SERVO_LETTERS = b"PQRS"
 #: The pot query (this project's extension) and the letters of its four reply tokens, servos 1-4.
 POT_QUERY = b"A"
 POT_LETTERS = b"pqrs"
+#: The capability query (fine references; its answer ``c<ddddd>X``) and the fine reference's letter.
+CAPABILITY_QUERY = b"C"
+FINE_LETTER = b"F"
 _MAX_DIGITS = 3
+_CAPABILITY_DIGITS = 5
 
 
 def round_half_up(value: np.ndarray) -> np.ndarray:
@@ -142,6 +153,86 @@ MAPPINGS = {"legacy_vb": LegacyVbMapping, "calibrated": CalibratedMapping}
 POT_SCALE = CalibratedMapping()
 
 
+@dataclass(frozen=True)
+class FineReference:
+    """The fine servo reference (this project's extension, docs/protocol-delta4.md "Fine servo references").
+
+    Sent: value = round_half_up(theta_R / 0.01 deg), 0-18000. The controller positions the servo on its own step
+    s (``controller_step_deg``, its answer to ``C``; the shipped firmware's PWM tick, 180 deg / 16000 ticks =
+    0.01125 deg: pulse_ticks = round_half_up(16000 + value x 16000 / 18000)), so the angle the servo is sent is
+    round_half_up(value x 0.01 / s) x s (:meth:`sent_deg`). Accepted angles: the firmware's calibrated stops
+    [30, 170] deg (it clamps there).
+    """
+
+    controller_step_deg: float = 180.0 / 16000.0
+    degrees_per_unit: float = 0.01
+    low_deg: float = 30.0
+    high_deg: float = 170.0
+    name = "fine_centidegree"
+
+    def __post_init__(self) -> None:
+        if not 0.0 < self.controller_step_deg < 1.0:
+            raise ValueError(f"controller_step_deg = {self.controller_step_deg!r}, expected in (0, 1) deg")
+
+    def check(self, servo_deg: np.ndarray) -> np.ndarray:
+        """UnreachableTarget naming the servo outside [30, 170] deg, before anything is sent."""
+        angles = np.asarray(servo_deg, dtype=float)
+        for i, angle in enumerate(angles):
+            if not self.low_deg <= angle <= self.high_deg:
+                raise UnreachableTarget(f"servo {i + 1}: theta_R = {angle:.3f} deg, expected within "
+                                        f"[{self.low_deg:g}, {self.high_deg:g}] deg (fine references)")
+        return angles
+
+    def to_values(self, servo_deg: np.ndarray) -> np.ndarray:
+        return np.clip(round_half_up(np.asarray(servo_deg, dtype=float) / self.degrees_per_unit), 0, 18000)
+
+    def to_deg(self, values: np.ndarray) -> np.ndarray:
+        """The angle the controller positions the servo on for the sent ``values`` (its step grid)."""
+        step = self.controller_step_deg
+        return round_half_up(np.asarray(values, dtype=float) * self.degrees_per_unit / step + 1e-9) * step
+
+    def sent_deg(self, servo_deg: np.ndarray) -> np.ndarray:
+        """Where the servos are sent for the angles ``servo_deg``: the value's angle on the controller's step."""
+        return self.to_deg(self.to_values(servo_deg))
+
+    def step_deg(self) -> float:
+        return max(self.degrees_per_unit, self.controller_step_deg)
+
+    def settings(self) -> dict[str, Any]:
+        return {"name": self.name, "degrees_per_unit": self.degrees_per_unit,
+                "controller_step_deg": self.controller_step_deg, "limits_deg": [self.low_deg, self.high_deg]}
+
+
+def fine_from_settings(settings: Any) -> FineReference:
+    """The fine reference whose :meth:`FineReference.settings` are ``settings``; ``ConfigError`` names the fault."""
+    from bench.errors import ConfigError
+
+    try:
+        if settings["name"] == FineReference.name:
+            low, high = settings["limits_deg"]
+            return FineReference(float(settings["controller_step_deg"]), float(settings["degrees_per_unit"]),
+                                 float(low), float(high))
+    except (KeyError, TypeError, ValueError) as exc:
+        raise ConfigError(f"fine reference settings {settings!r}: {exc!r}, expected those of "
+                          f"{FineReference.name}") from None
+    raise ConfigError(f"fine reference settings {settings!r}, expected name {FineReference.name!r}")
+
+
+def format_fine_command(servo: int, value: int) -> bytes:
+    """``F107166X`` style fine reference for servo 0-3 (sent as 1-4) with theta_R in 0.01 deg (five digits)."""
+    if not 0 <= servo < 4 or not 0 <= value <= 18000:
+        raise ValueError(f"servo {servo}, value {value}: expected servo 0-3 and value 0-18000 (0.01 deg)")
+    return FINE_LETTER + f"{servo + 1}{value:05d}X".encode("ascii")
+
+
+def format_capability_reply(step_deg: float) -> bytes:
+    """The answer to :data:`CAPABILITY_QUERY`: ``c01125X`` for a 0.01125 deg positioning step (1e-5 deg units)."""
+    units = int(round_half_up(step_deg * 1e5))
+    if not 1 <= units <= 99999:
+        raise ValueError(f"step_deg = {step_deg!r}, expected in (0, 1) deg")
+    return b"c%05dX" % units
+
+
 def format_servo_command(servo: int, value: int) -> bytes:
     """``P081X`` style message for servo 0-3 with a 0-255 reference (always three digits)."""
     if not 0 <= servo < 4 or not 0 <= value <= 255:
@@ -159,8 +250,8 @@ def format_pot_reply(counts: Any) -> bytes:
 
 @dataclass(frozen=True)
 class Token:
-    """One MCU -> PC token: ``kind`` is 'z', 'h', 'v', 'H', 'V', 'N' (untagged number) or a pot count 'p', 'q',
-    'r', 's' (servo 1-4); ``value`` for numbers and counts."""
+    """One MCU -> PC token: ``kind`` is 'z', 'h', 'v', 'H', 'V', 'N' (untagged number), a pot count 'p', 'q',
+    'r', 's' (servo 1-4) or 'c' (the capability answer, 1e-5 deg); ``value`` for numbers and counts."""
 
     kind: str
     value: int | None = None
@@ -174,6 +265,10 @@ def parse_token(frame: bytes) -> Token:
         raise WireProtocolError(f"token {frame!r}: expected z, h, v, H<digits>X, V<digits>X, <digits>X or a pot "
                                 f"count p/q/r/s<digits>X")
     kind, digits = ("N", frame[:-1]) if frame[:1].isdigit() else (chr(frame[0]), frame[1:-1])
+    if kind == "c":
+        if not digits.isdigit() or len(digits) != _CAPABILITY_DIGITS or int(digits) == 0:
+            raise WireProtocolError(f"token {frame!r}: expected c, five digits (the step, 1e-5 deg, not 0) and X")
+        return Token(kind, int(digits))
     if kind not in "HVNpqrs" or not digits.isdigit() or not 1 <= len(digits) <= _MAX_DIGITS:
         raise WireProtocolError(f"token {frame!r}: expected H, V, p, q, r, s or nothing, then 1-3 digits and X")
     value = int(digits)
@@ -192,16 +287,17 @@ class Delta4Link(FramedLink):
         if not pending:
             return None
         first = pending[0]
-        if first not in b"HVpqrs0123456789":
+        if first not in b"HVpqrsc0123456789":
             del pending[:1]
             return bytes([first])
+        most = _CAPABILITY_DIGITS if first == ord("c") else _MAX_DIGITS
         for end in range(1, len(pending)):
             byte = pending[end]
             if byte == ord("X"):
                 frame = bytes(pending[:end + 1])
                 del pending[:end + 1]
                 return frame
-            if not 0x30 <= byte <= 0x39 or end > _MAX_DIGITS + 1:
+            if not 0x30 <= byte <= 0x39 or end > most + 1:
                 frame = bytes(pending[:end])
                 del pending[:end]
                 return frame

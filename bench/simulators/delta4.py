@@ -70,7 +70,8 @@ def _no_hit(_: np.ndarray) -> tuple[tuple[int, ...], tuple[int, ...]]:
 
 
 class Delta4SimDevice:
-    """The firmware state machine over simulated servos; ``plant(servo_deg, load_kg) -> (x, y, z) mm``."""
+    """The firmware state machine over simulated servos; ``plant(servo_deg, load_kg) -> (x, y, z) mm``. Fine
+    references as the firmware: ``C`` answered with its step, ``F<n><ddddd>X`` on its PWM tick (0.01125 deg)."""
 
     def __init__(self, plant: Any, mapping: wire.ServoMapping, *, speed_factor: float = 1.0,
                  truth: TruthLog | None = None, load_kg: float = 0.0, sensor: Sensor | None = None,
@@ -85,6 +86,8 @@ class Delta4SimDevice:
         self.angle_deg = home.copy()        # where the servos are at t0
         self.target_deg = home.copy()
         self.references = mapping.to_bytes(home)
+        # the angle each servo is sent to: its byte's, or its fine reference's
+        self.reference_deg = mapping.to_deg(self.references.astype(float))
         self.t0_s = 0.0
         self.started = False
         self.settle_at_s: float | None = None
@@ -95,6 +98,7 @@ class Delta4SimDevice:
         self._stored_while_stopped = False
         self._pots_asked = 0
         self.camera: Any = None  #: a :class:`bench.simulators.camera_feed.CameraFeed`, or None
+        self._capability_asked = 0
 
     # -- bytes in ----------------------------------------------------------------------------------------------
     def feed(self, data: bytes, now_s: float) -> bytes:
@@ -103,15 +107,23 @@ class Delta4SimDevice:
             self._byte(byte, now_s)
         for _ in range(self._pots_asked):  # after any report, as the firmware answers from its main loop
             out += self._pot_reply(now_s)
-        self._pots_asked = 0
+        out += wire.format_capability_reply(wire.FineReference().controller_step_deg) * self._capability_asked
+        self._pots_asked = self._capability_asked = 0
         return out
 
     def _byte(self, byte: int, now_s: float) -> None:
         if self._letter is not None:
-            if 0x30 <= byte <= 0x39 and len(self._digits) < 3:
+            fine = self._letter == wire.FINE_LETTER[0]  # F<servo 1-4><1-5 digits, 0.01 deg>X
+            if 0x30 <= byte <= 0x39 and len(self._digits) < (6 if fine else 3):
                 self._digits.append(byte)
                 return
-            if byte == ord("X") and self._digits and int(self._digits) <= 255:
+            if byte == ord("X") and fine and len(self._digits) >= 2 and 0x31 <= self._digits[0] <= 0x34 \
+                    and int(self._digits[1:]) <= 18000:
+                self._reference(self._digits[0] - 0x31, None, now_s, wire.FineReference().to_deg(
+                    int(self._digits[1:])))
+                self._letter = None
+                return
+            if byte == ord("X") and not fine and self._digits and int(self._digits) <= 255:
                 self._reference(wire.SERVO_LETTERS.index(self._letter), int(self._digits), now_s)
                 self._letter = None
                 return
@@ -119,8 +131,10 @@ class Delta4SimDevice:
             self._letter = None
             if 0x30 <= byte <= 0x39 or byte == ord("X"):
                 return
-        if byte in wire.SERVO_LETTERS:
+        if byte in wire.SERVO_LETTERS or byte == wire.FINE_LETTER[0]:
             self._letter, self._digits = byte, bytearray()
+        elif byte == wire.CAPABILITY_QUERY[0]:
+            self._capability_asked += 1
         elif byte == ord("E"):
             self._start(now_s)
         elif byte == ord("G"):
@@ -142,8 +156,11 @@ class Delta4SimDevice:
                 self._retarget(now_s)
             self._stored_while_stopped = False
 
-    def _reference(self, servo: int, value: int, now_s: float) -> None:
-        self.references[servo] = value
+    def _reference(self, servo: int, value: int | None, now_s: float, fine_deg: float | None = None) -> None:
+        if value is not None:
+            self.references[servo] = value
+        self.reference_deg[servo] = self.mapping.to_deg(self.references.astype(float))[servo] \
+            if fine_deg is None else fine_deg
         self._stored_while_stopped = not self.started
         if self.started:
             self._hold(now_s)
@@ -155,7 +172,7 @@ class Delta4SimDevice:
         self.t0_s = now_s
 
     def _retarget(self, now_s: float) -> None:
-        self.target_deg = self.mapping.to_deg(self.references.astype(float))
+        self.target_deg = self.reference_deg.copy()
         worst = float(np.max(np.abs(self.angle_deg - self.target_deg)))
         rise_s = math.log(worst / ADC_DEG_PER_COUNT) / BANDWIDTH_PER_S if worst > ADC_DEG_PER_COUNT else 0.0
         self.settle_at_s = now_s + (rise_s + SETTLE_HOLD_S) / self.speed_factor

@@ -309,6 +309,7 @@ def _simulated_delta_rig(*, seed: int, speed_factor: float, ideal: bool, options
     try:
         controller = Delta4Controller(serial.serial_for_url(path, baudrate=9600, timeout=0.05))
         controller.start()
+        controller.probe_fine_references()
     except BaseException:
         for close in reversed(closers):
             close()

@@ -4,12 +4,15 @@
  * Protocol (docs/protocol-delta4.md, reference §5.4-5.7), byte-oriented, no checksum (the document has none):
  *   PC -> MCU  `E` start control and sensor reporting, `G` stop, `P`/`Q`/`R`/`S` + 1-3 digits + `X` reference
  *              0-255 of servo 1-4 (stored while stopped, applied at `E`), `z` acknowledgement, `A` pot query (this
- *              project's extension); anything else is ignored and a malformed message is discarded, exactly as
- *              `bench sim delta4` does.
+ *              project's extension), `C` capability query and `F` + servo digit 1-4 + 1-5 digits + `X` fine
+ *              reference in 0.01 deg of theta_R (this project's second extension, "Fine servo references");
+ *              anything else is ignored and a malformed message is discarded, exactly as `bench sim delta4` does.
  *   MCU -> PC  `z` once all servos have reached their references after the last command, one sensor report
  *              per 80 ms frame while started: `H%03dX` per lit sensor of the horizontal screen (or `h`), then
  *              `V%03dX` per lit sensor of the vertical screen (or `v`), and after each `A` (started or not) the four
- *              pot ADC counts `p%03dXq%03dXr%03dXs%03dX`, never inside a report.
+ *              pot ADC counts `p%03dXq%03dXr%03dXs%03dX`, after each `C` `c%05dX`, the angle step a fine reference
+ *              positions on in 1e-5 deg (one PWM tick: 180 deg / PULSE_SPAN_TICKS, 01125 at the 2 ms refresh),
+ *              never inside a report.
  *
  * Servo PWM (reference §5.2, document §7.3.6): Timer1 and Timer3 in fast PWM mode 14 (TOP = ICR), no prescaler
  * (0.0625 us per tick) for the documented 2 ms (500 Hz) refresh; OC1A PB5, OC1B PB6, OC3A PE3, OC3B PE4 drive
@@ -20,6 +23,8 @@
  *     legacy_vb   theta_R = byte * 190 / 255                       (MAPPING_CALIBRATED=0, the default)
  *     calibrated  theta_R = 30 + byte * 140 / 255  (direction +1)  (MAPPING_CALIBRATED=1; -1: 170 - byte*140/255)
  * clamped to the calibrated mechanical stops [30, 170] deg (the Perspex tool, §6.5), rounded half up to a tick.
+ * A fine reference `F<n><value>X` gives theta_R = value / 100 deg directly (no byte mapping; same clamp and rounding:
+ *     pulse_ticks = round_half_up(PULSE_0_TICKS + value * PULSE_SPAN_TICKS / 18000)), 66x finer than a legacy byte.
  * The pulses start at the first `E` (before it the lines stay low: no mechanical control) from the home pose
  * (0, 0, -150) mm, theta_R = 71.657 deg on every servo (motion.delta4 IK).
  *
@@ -91,6 +96,9 @@
 /* setpoints are in 1/256 timer tick; the slew step per PWM period in the same unit */
 #define SLEW_Q8_PER_PERIOD ((uint32_t)((long long)SERVO_SLEW_DEG_S * PULSE_SPAN_TICKS * 256LL * SERVO_PERIOD_US \
                                        / (180LL * 1000000LL)))
+/* the fine reference's positioning step, 1e-5 deg: one timer tick of the pulse span */
+#define FINE_STEP_UNITS ((18000000L + PULSE_SPAN_TICKS / 2) / PULSE_SPAN_TICKS)
+#define FINE_MAX_CDEG 18000L
 #define PERIODS(ms) (((ms) * 1000L + SERVO_PERIOD_US - 1) / SERVO_PERIOD_US)
 
 #if PERIOD_TICKS > 65536L || SERVO_PERIOD_US * 180L <= SERVO_PULSE_AT_0_DEG_US * 180L \
@@ -120,7 +128,7 @@ static volatile uint8_t settled_periods, frame_periods;
 static volatile uint32_t setpoint_q8[SERVOS], target_q8[SERVOS];
 static volatile uint16_t watchdog_stops;
 static volatile uint8_t pot_counts[SERVOS];    /* the latest TLC548 readings, servos 1-4 */
-static volatile uint8_t pots_asked;
+static volatile uint8_t pots_asked, capability_asked;
 
 static volatile uint8_t rx_buf[64], rx_head, rx_tail;
 static volatile uint8_t tx_buf[64], tx_head, tx_tail;
@@ -254,10 +262,19 @@ static uint32_t pulse_q8(uint8_t value) {
   return (uint32_t)ticks_pulse << 8;
 }
 
+/* The pulse of fine reference `cdeg` (theta_R in 0.01 deg), in 1/256 timer tick: clamped to the stops, rounded
+ * half up to a tick (formula in the header). */
+static uint32_t fine_pulse_q8(uint16_t cdeg) {
+  uint32_t clamped = cdeg < SERVO_STOP_LOW_MDEG / 10 ? SERVO_STOP_LOW_MDEG / 10
+                     : cdeg > SERVO_STOP_HIGH_MDEG / 10 ? SERVO_STOP_HIGH_MDEG / 10 : cdeg;
+  uint64_t ticks_pulse = ((uint64_t)PULSE_0_TICKS * FINE_MAX_CDEG + (uint64_t)clamped * PULSE_SPAN_TICKS
+                          + FINE_MAX_CDEG / 2) / FINE_MAX_CDEG;
+  return (uint32_t)ticks_pulse << 8;
+}
+
 static uint8_t stored_while_stopped;
 
-static void set_reference(uint8_t servo, uint8_t value) {
-  uint32_t goal = pulse_q8(value);
+static void set_reference(uint8_t servo, uint32_t goal) {
   cli();
   target_q8[servo] = goal;
   if (started) {
@@ -296,25 +313,32 @@ static void stop(void) {
 }
 
 /* ---- protocol: the byte state machine of bench.simulators.delta4.Delta4SimDevice._byte --------------------- */
-static uint8_t letter, digits_count;
-static uint16_t value_so_far;
+static uint8_t letter, digits_count, fine_servo;
+static uint32_t value_so_far;
 
 static void on_byte(uint8_t byte) {
   if (letter) {
-    if (byte >= '0' && byte <= '9' && digits_count < 3) {
-      value_so_far = (uint16_t)(value_so_far * 10 + (byte - '0'));
+    uint8_t fine = letter == 'F';  /* F, the servo digit, then up to five digits of 0.01 deg */
+    if (byte >= '0' && byte <= '9' && digits_count < (fine ? 6 : 3)) {
+      if (fine && digits_count == 0) fine_servo = (uint8_t)(byte - '0');
+      else value_so_far = value_so_far * 10 + (uint32_t)(byte - '0');
       digits_count++;
       return;
     }
     uint8_t servo = (uint8_t)(letter - 'P');
     letter = 0;
-    if (byte == 'X' && digits_count && value_so_far <= 255) {
-      set_reference(servo, (uint8_t)value_so_far);
+    if (byte == 'X' && fine && digits_count >= 2 && fine_servo >= 1 && fine_servo <= 4
+        && value_so_far <= FINE_MAX_CDEG) {
+      set_reference((uint8_t)(fine_servo - 1), fine_pulse_q8((uint16_t)value_so_far));
+      return;
+    }
+    if (byte == 'X' && !fine && digits_count && value_so_far <= 255) {
+      set_reference(servo, pulse_q8((uint8_t)value_so_far));
       return;
     }
     if ((byte >= '0' && byte <= '9') || byte == 'X') return;  /* malformed message discarded with this byte */
   }
-  if (byte >= 'P' && byte <= 'S') {
+  if ((byte >= 'P' && byte <= 'S') || byte == 'F') {
     letter = byte;
     digits_count = 0;
     value_so_far = 0;
@@ -324,6 +348,8 @@ static void on_byte(uint8_t byte) {
     stop();
   } else if (byte == 'A') {
     pots_asked = 1;  /* answered from the main loop, after any report under way */
+  } else if (byte == 'C') {
+    capability_asked = 1;  /* likewise */
   }  /* 'z' (acknowledgement), 'T' (undocumented) and anything else: ignored */
 }
 
@@ -376,6 +402,13 @@ static void report_pots(void) {
     put((uint8_t)('0' + counts[i] % 10));
     put('X');
   }
+}
+
+static void report_capability(void) {  /* `c%05dX`: the fine reference's step, 1e-5 deg */
+  uint32_t units = FINE_STEP_UNITS;
+  put('c');
+  for (uint32_t div = 10000; div; div /= 10) put((uint8_t)('0' + units / div % 10));
+  put('X');
 }
 
 /* ---- main -------------------------------------------------------------------------------------------------- */
@@ -436,8 +469,13 @@ int main(void) {
       pots_asked = 0;
       report_pots();
     }
+    if (capability_asked) {
+      capability_asked = 0;
+      report_capability();
+    }
     cli();  /* idle until the next interrupt (the PWM tick at the latest); also makes the emulation cheap */
-    if (rx_tail == rx_head && !z_due && !(frame_due && started) && !pots_asked) {
+    if (rx_tail == rx_head && !z_due && !(frame_due && started) && !pots_asked
+        && !capability_asked) {
       sleep_enable();
       sei();
       sleep_cpu();
