@@ -227,4 +227,4 @@ def test_simulated_controllers_survive_arbitrary_input(chunks):
             reply = wire.parse_reply(line)  # whatever came in, what goes out is well-formed
             assert reply.kind in ("OK", "ERR", "BOOT", "DONE")
         out = delta.feed(chunk, float(i)) + delta.tick(float(i) + 0.5)
-        assert set(out) <= set(b"zhvHVpqrsX0123456789")  # pqrs: the answer to the pot query A
+        assert set(out) <= set(b"zhvHVpqrscX0123456789")  # pqrs: the answer to the pot query A; c: to C
