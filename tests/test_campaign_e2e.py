@@ -131,6 +131,20 @@ def test_each_protocol_completes_on_the_simulator(tmp_path, name):
             deviations = {(d.clause, d.topic): d.status for d in collect(store, result.run_id).deviations}
             assert "unknown" not in deviations.values(), deviations
             assert deviations[("6.8", "poses")] == deviations[("6.6", "load")] == "deviates"
+            # orientation AP_b/RP_b against the simulator's truth: the true beta at each stop (stored with the
+            # position sample of the same visit); the simulated calliper adds 0.1 deg of scatter and 0.01 rounding
+            report = collect(store, result.run_id)
+            assert deviations[("7.2.1, 7.2.2", "orientation")] == "deviates"
+            truth = {(s.pose, s.cycle): s.raw["true_pose"][4] for s in store.samples(result.run_id, kind="pose")}
+            assert len(report.orientation) == 15 and len(report.tilt_table) == 30
+            for pose in report.orientation:
+                (beta,) = pose.figures
+                true = np.array([truth[(pose.pose, c)] for c in (1, 2)])
+                assert beta.ap_deg == pytest.approx(true.mean() - beta.commanded_deg, abs=0.35)
+                assert beta.rp_deg == pytest.approx(3 * true.std(ddof=1), abs=3 * 0.35)
+            true_ap = [np.mean([truth[(p.pose, c)] for c in (1, 2)]) - p.figures[0].commanded_deg
+                       for p in report.orientation]
+            assert max(map(abs, true_ap)) > 0.5  # a real robot error the readings show, not calliper noise alone
 
 
 def test_a_stored_design_key_is_left_out_on_resume_but_refused_in_a_protocol_file():
