@@ -94,7 +94,7 @@ def test_every_protocol_has_a_quick_end_to_end_case():
 
 
 @pytest.mark.parametrize("name", sorted(QUICK_PARAMETERS))
-def test_each_protocol_completes_on_the_simulator(tmp_path, name):
+def test_each_protocol_completes_on_the_simulator(tmp_path, name, capsys):
     protocol = PROTOCOLS[name](settle_s=0.1, **QUICK_PARAMETERS[name])
     expected = sum(1 for step in iterate(protocol, final=False) if step_stores_sample(step))
     with Store(tmp_path / "b.db") as store:
@@ -145,6 +145,19 @@ def test_each_protocol_completes_on_the_simulator(tmp_path, name):
             true_ap = [np.mean([truth[(p.pose, c)] for c in (1, 2)]) - p.figures[0].commanded_deg
                        for p in report.orientation]
             assert max(map(abs, true_ap)) > 0.5  # a real robot error the readings show, not calliper noise alone
+            # the report's tables and its recomputing command give the same numbers as the CLI on the tilts CSV
+            from bench.reports.orientation import orientation_blocks, orientation_headline
+
+            table, _, budget = orientation_blocks(report)
+            assert len(table.rows) == 15 and table.rows[0][0] == "1-1" and len(budget.rows) == 6
+            (headline,) = orientation_headline(report)
+            assert headline.rows[0][0] == "beta (about y)"
+            report.tilt_table.to_csv(tmp_path / "tilts.csv", index=False)
+            assert main(["analyze", "orientation", str(tmp_path / "tilts.csv"), "--json"]) == 0
+            printed = json.loads(capsys.readouterr().out)["poses"]
+            for pose in report.orientation:
+                assert printed[pose.label]["AP_b_deg"] == pytest.approx(pose.figures[0].ap_deg)
+                assert printed[pose.label]["U_AP_b_deg"] == pytest.approx(pose.figures[0].u_ap_deg)
 
 
 def test_a_stored_design_key_is_left_out_on_resume_but_refused_in_a_protocol_file():

@@ -10,7 +10,7 @@ from __future__ import annotations
 from bench.metrology.formatting import format_measured, pose_label
 from bench.metrology.orientation import tilt_standard_uncertainty_deg
 
-__all__ = ["orientation_blocks"]
+__all__ = ["orientation_blocks", "orientation_headline"]
 
 _ANGLE_WORDS = {"a": "alpha (about x)", "b": "beta (about y)", "c": "gamma (about z)"}
 
@@ -51,3 +51,22 @@ def orientation_blocks(report) -> tuple:
         Table("orientation_budget", ("Component", "Standard uncertainty", "Source"), budget,
               "Orientation uncertainty budget (one tilt reading)"),
     )
+
+
+def orientation_headline(report) -> tuple:
+    """Page 1's orientation headline of a run with tilt readings: per angle, the worst and mean |AP| and RP over
+    the poses (:func:`bench.metrology.orientation_tables.orientation_summary`); empty without tilt readings."""
+    from bench.metrology.orientation_tables import orientation_summary
+    from bench.reports.document import Table
+
+    if not report.orientation:
+        return ()
+    rows = tuple((_ANGLE_WORDS.get(angle, angle), str(len(report.orientation)),
+                  f"{format_measured(s['worst_abs_AP_deg'], s['U_AP_deg'])} ({s['worst_AP_pose']})",
+                  f"{s['mean_abs_AP_deg']:.2f}",
+                  f"{format_measured(s['worst_RP_deg'], s['U_RP_deg'])} ({s['worst_RP_pose']})",
+                  f"{s['mean_RP_deg']:.2f}")
+                 for angle, s in orientation_summary(report.orientation).items())
+    return (Table("orientation_headline", ("Angle", "Poses", "Worst |AP| ± U (°)", "Mean |AP| (°)",
+                                           "Worst RP ± U (°)", "Mean RP (°)"), rows,
+                  f"Orientation headline from the calliper tilt readings (U: k = {report.coverage_factor:g})"),)
