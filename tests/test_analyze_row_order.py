@@ -56,6 +56,13 @@ def _tilts():
                    for c in (1, 2, 3) for v in (50, 100)])
 
 
+def _depths():
+    rows = [f"{p},{c},{cmd},{20 + 0.01 * c:.2f},,50" for p, cmd in (("1-1", 5.0), ("1-2", -3.0)) for c in (1, 2, 3)]
+    rows += [f"{p},{c},{cmd},,{20 + 50 * math.tan(math.radians(cmd)) + 0.02 * c:.3f},50"
+             for p, cmd in (("1-1", 5.0), ("1-2", -3.0)) for c in (1, 2, 3)]
+    return "pose,cycle,cmd_a_deg,depth1_mm,depth2_mm,hole_spacing_mm", rows
+
+
 def _grid():
     rows = []
     for pose, command in (("P1", (0.0, 0.0, 0.0)), ("P2", (10.0, 0.0, 5.0))):
@@ -110,6 +117,7 @@ def _bidirectional():
 CASES = {
     "iso9283": (["iso9283", "--instrument-u-mm", "0.01"], lambda: _rows_of(EXAMPLES / "iso9283_example.csv")),
     "orientation": (["orientation"], _tilts),
+    "orientation (depths)": (["orientation"], _depths),
     "distance": (["distance"], lambda: _rows_of(EXAMPLES / "iso9283_example.csv")),
     "drift": (["drift", "--window-s", "100"], lambda: _rows_of(EXAMPLES / "iso9283_example.csv")),
     "stabilisation": (["stabilisation", "--band-mm", "0.1", "0.5"], _stabilisation),

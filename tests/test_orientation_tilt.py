@@ -169,3 +169,69 @@ def test_the_documents_tables_as_far_as_they_go():
     gauge = TiltGauge()
     for table in (A12, A13):
         assert all(rp > 3 * tilt_standard_uncertainty_deg(angle, gauge) for angle, _, rp in table.values())
+
+
+def _depth_frame(rows) -> pd.DataFrame:
+    frame = pd.DataFrame(rows, columns=["pose", "cycle", "cmd_a_deg", "depth1_mm", "depth2_mm", "hole_spacing_mm"])
+    frame = frame.astype(str).replace("nan", "")
+    frame.attrs["source"] = "d.csv"
+    return frame
+
+
+def test_tilts_from_two_depths_hand_computed():
+    # s = 40 mm: h2 - h1 = 40 tan 5° gives 5°; one row per reading, as bench export --kind tilt_depth writes them
+    dh = 40 * math.tan(math.radians(5.0))
+    rows = [("P1", 1, 5, 30.0, None, 40), ("P1", 1, 5, None, 30.0 + dh, 40),
+            ("P1", 2, 5, 31.0, None, 40), ("P1", 2, 5, None, 31.0 - dh, 40)]
+    frame = _depth_frame(rows)
+    table = tilt_table(frame, 40.0)
+    assert sorted(table["a_deg"]) == pytest.approx([-5.0, 5.0])
+    (result,) = analyze_tilts(table)
+    assert result.figures[0].ap_deg == pytest.approx(-5.0) and result.figures[0].rp_deg == pytest.approx(30 / math.sqrt(2))
+    with pytest.raises(ConfigError, match="cycle 2: 1 depth1_mm and 0 depth2_mm readings, expected one of each"):
+        tilt_table(_depth_frame(rows[:3]), 40.0)
+    with pytest.raises(ConfigError, match="without a hole spacing"):
+        tilt_table(frame)
+
+
+def test_cli_reads_the_depths_with_their_stored_spacing(tmp_path, capsys):
+    dh = 50 * math.tan(math.radians(-3.0))
+    rows = [("1-1", c, -2.5, 20.0 + 0.01 * c, None, 50) for c in (1, 2, 3)]
+    rows += [("1-1", c, -2.5, None, 20.0 + 0.01 * c + dh + 0.02 * (c - 2), 50) for c in (1, 2, 3)]
+    path = tmp_path / "d.csv"
+    _depth_frame(rows).to_csv(path, index=False)
+    assert main(["analyze", "orientation", str(path), "--json"]) == 0
+    data = json.loads(capsys.readouterr().out)
+    angles = [math.degrees(math.atan2(dh + 0.02 * (c - 2), 50)) for c in (1, 2, 3)]
+    assert data["gauge"]["spacing_mm"] == 50.0
+    assert data["poses"]["1-1"]["AP_a_deg"] == pytest.approx(np.mean(angles) + 2.5)
+    assert main(["analyze", "orientation", str(path), "--spacing-mm", "40"]) == 2
+    assert "taken with hole_spacing_mm = 50" in capsys.readouterr().err
+
+
+def test_the_depths_variant_end_to_end_against_the_simulators_truth(tmp_path):
+    from bench.launch import simulated_rig_in
+    from bench.protocols import PROTOCOLS, Runner
+    from bench.reports import collect
+    from bench.store import Store
+
+    protocol = PROTOCOLS["dissertation_pose"](variant="alpha", cycles=2, settle_s=0.1, tilt_entry="depths",
+                                              hole_spacing_mm=50.0)
+    prompts = [s for s in protocol.steps() if getattr(s, "kind", "") == "tilt_depth"]
+    assert len(prompts) == 2 * 15 * 2 and {p.field for p in prompts} == {"depth1_mm", "depth2_mm"}
+    assert all(p.conditions == {"hole_spacing_mm": 50.0} for p in prompts)
+    with Store(tmp_path / "d.db") as store:
+        rig = simulated_rig_in(store, "pkm5", seed=3, speed_factor=20000)
+        try:
+            run_id = Runner(rig, store).run(protocol).run_id
+        finally:
+            rig.close()
+        report = collect(store, run_id)
+        truth = {(s.pose, s.cycle): s.raw["true_pose"][3] for s in store.samples(run_id, kind="pose")}
+    assert report.tilt_gauge.spacing_mm == 50.0 and "depth1_mm" in report.tilt_table.columns
+    for pose in report.orientation:
+        (alpha,) = pose.figures
+        true = np.array([truth[(pose.pose, c)] for c in (1, 2)])
+        # two depths with 0.02 mm scatter each: about 0.03° per tilt, far inside U
+        assert alpha.ap_deg == pytest.approx(true.mean() - alpha.commanded_deg, abs=0.1)
+        assert abs(alpha.ap_deg - (true.mean() - alpha.commanded_deg)) < alpha.u_ap_deg

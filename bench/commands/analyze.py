@@ -31,8 +31,9 @@ def register(groups: argparse._SubParsersAction) -> None:
     orientation = _new_parser(actions, "orientation", "orientation accuracy AP_a/AP_b and repeatability RP_a/RP_b "
                                                       "per pose (ISO 9283 7.2.1, 7.2.2) from calliper tilt readings, "
                                                       "with their GUM budget; reads bench export RUN --kind tilt")
-    orientation.add_argument("--spacing-mm", type=float, default=40.0,
-                             help="hole spacing s of the measuring bracket (mm): tilt = atan2(h2 - h1, s)")
+    orientation.add_argument("--spacing-mm", type=float, default=None,
+                             help="hole spacing s of the measuring bracket (mm): tilt = atan2(h2 - h1, s); default "
+                                  "the table's hole_spacing_mm column, else 40")
     orientation.add_argument("--u-spacing-mm", type=float, default=0.1 / 3 ** 0.5,
                              help="standard uncertainty of the hole spacing (mm; default ±0.1 mm rectangular)")
     orientation.add_argument("--resolution-mm", type=float, default=0.01, help="calliper resolution (mm)")
@@ -154,14 +155,21 @@ def _orientation(args: argparse.Namespace) -> int:
         TILT_NUMERIC_COLUMNS,
         analyze_tilts,
         orientation_summary,
+        table_spacing_mm,
         tilt_result_json,
         tilt_table,
     )
     from bench.metrology.tables import read_table_csv
 
-    gauge = TiltGauge(spacing_mm=args.spacing_mm, u_spacing_mm=args.u_spacing_mm, resolution_mm=args.resolution_mm,
+    frame = read_table_csv(args.file, numeric=TILT_NUMERIC_COLUMNS)
+    stored = table_spacing_mm(frame)
+    if stored is not None and args.spacing_mm is not None and stored != args.spacing_mm:
+        raise ConfigError(f"--spacing-mm {args.spacing_mm:g}: the readings of {args.file} were taken with "
+                          f"hole_spacing_mm = {stored:g}, expected that spacing or none")
+    spacing = args.spacing_mm if args.spacing_mm is not None else stored if stored is not None else 40.0
+    gauge = TiltGauge(spacing_mm=spacing, u_spacing_mm=args.u_spacing_mm, resolution_mm=args.resolution_mm,
                       mpe_mm=args.mpe_mm, u_bias_deg=args.u_bias_deg)
-    table = tilt_table(read_table_csv(args.file, numeric=TILT_NUMERIC_COLUMNS))
+    table = tilt_table(frame, gauge.spacing_mm)
     if table.empty:
         raise ConfigError(f"{args.file}: no rows, expected at least one tilt reading")
     results = report_order(analyze_tilts(table, gauge, k=args.k))

@@ -2,14 +2,18 @@
 
 The table is what ``bench export RUN --kind tilt`` writes for a ``dissertation_pose`` alpha/beta run: ``pose``,
 ``cycle``, ``cmd_a_deg``/``a_deg`` (alpha) or ``cmd_b_deg``/``b_deg`` (beta), and the condition columns. A pose
-table that also has positions (``x_mm`` ...) is read the same way; its positions are ignored here. Row order
-carries no meaning: each pose's readings are taken in cycle order.
+table that also has positions (``x_mm`` ...) is read the same way; its positions are ignored here. A run that stored
+the two calliper depths instead (``tilt_entry = "depths"``, ``bench export RUN --kind tilt_depth``: ``depth1_mm``,
+``depth2_mm``, ``hole_spacing_mm``) is turned into tilts first (:func:`tilts_from_depths`). Row order carries no
+meaning: each pose's readings are taken in cycle order.
 """
 
 from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
+
+import math
 
 import pandas as pd
 
@@ -25,8 +29,8 @@ from bench.metrology.tables import (
     numeric_columns,
 )
 
-__all__ = ["TILT_NUMERIC_COLUMNS", "TiltPoseResult", "analyze_tilts", "orientation_summary", "tilt_result_json",
-           "tilt_table"]
+__all__ = ["DEPTH_COLUMNS", "TILT_NUMERIC_COLUMNS", "TiltPoseResult", "analyze_tilts", "orientation_summary",
+           "table_spacing_mm", "tilt_result_json", "tilt_table", "tilts_from_depths"]
 
 #: Columns a tilt table's reader turns into numbers.
 TILT_NUMERIC_COLUMNS = ("cycle", *(c for pair in ANGLE_PAIRS for c in pair), *CONDITION_COLUMNS)
@@ -42,8 +46,70 @@ class TiltPoseResult:
     figures: tuple[OrientationFigures, ...]
 
 
-def tilt_table(frame: pd.DataFrame) -> pd.DataFrame:
+DEPTH_COLUMNS = ("depth1_mm", "depth2_mm")
+
+
+def table_spacing_mm(frame: pd.DataFrame) -> float | None:
+    """The hole spacing the readings were taken with (column ``hole_spacing_mm``, one value), or None."""
+    if "hole_spacing_mm" not in frame.columns:
+        return None
+    source = frame.attrs.get("source", "table")
+    text = frame["hole_spacing_mm"].astype(str).str.strip()
+    given = frame["hole_spacing_mm"].notna() & text.notna() & text.ne("") & text.str.lower().ne("nan")
+    values = numeric_columns(frame[["hole_spacing_mm"]][given], ["hole_spacing_mm"])
+    spacings = sorted(set(values["hole_spacing_mm"]))
+    if len(spacings) != 1:
+        raise ConfigError(f"{source}: column hole_spacing_mm holds {', '.join(f'{v:g}' for v in spacings) or 'nothing'}"
+                          f", expected the one spacing of the bracket")
+    return float(spacings[0])
+
+
+def tilts_from_depths(frame: pd.DataFrame, spacing_mm: float) -> pd.DataFrame:
+    """The tilt of every visit from its two depth readings (000 §8.2.2, §8.6.3; ``sensors.md`` §6.3):
+
+    .. math:: \\theta = \\operatorname{atan2}(h_2 - h_1, s)
+
+    ``frame`` holds one row per reading (``bench export RUN --kind tilt_depth``: ``depth1_mm`` or ``depth2_mm`` set,
+    the other empty) or one row per visit with both; rows are joined on pose, cycle and the conditions. Returns one
+    row per visit with the commanded angle, the derived angle (``a_deg`` for ``cmd_a_deg`` ...) and both depths.
+    A visit without exactly one reading of each depth is a ``ConfigError`` naming it.
+    """
+    source = frame.attrs.get("source", "table")
+    commands = [c for c, _ in ANGLE_PAIRS if c in frame.columns]
+    if len(commands) != 1:
+        raise ConfigError(f"{source}: depth readings with {len(commands)} commanded angle column(s), expected one of "
+                          f"cmd_a_deg, cmd_b_deg, cmd_c_deg naming the angle the depths measure")
+    keys = ["pose", "cycle", *(c for c in CONDITION_COLUMNS if c in frame.columns)]
+    table = frame[[*keys, *commands, *DEPTH_COLUMNS]].copy()
+    for column in DEPTH_COLUMNS:
+        text = table[column].astype(str).str.strip()
+        empty = table[column].isna() | text.isna() | text.eq("") | text.str.lower().eq("nan")  # pandas 3 keeps NaN
+        table[column] = float("nan")
+        if (~empty).any():
+            table.loc[~empty, column] = numeric_columns(frame[~empty], [column])[column]
+    table = numeric_columns(table, [k for k in keys if k != "pose"] + commands)
+    table["pose"] = frame["pose"].astype(str).str.strip()
+    rows = []
+    for key, visit in table.groupby(keys, sort=True):
+        counts = [int(visit[c].notna().sum()) for c in DEPTH_COLUMNS]
+        if counts != [1, 1]:
+            raise ConfigError(f"{source}: pose {key[0]!r}, cycle {key[1]:g}: {counts[0]} depth1_mm and {counts[1]} "
+                              f"depth2_mm readings, expected one of each")
+        h1, h2 = (float(visit[c].dropna().iloc[0]) for c in DEPTH_COLUMNS)
+        row = dict(zip(keys, key))
+        row.update({commands[0]: float(visit[commands[0]].iloc[0]), "depth1_mm": h1, "depth2_mm": h2,
+                    commands[0][4:]: math.degrees(math.atan2(h2 - h1, spacing_mm))})
+        rows.append(row)
+    out = pd.DataFrame(rows)
+    out.attrs["source"] = source
+    return out
+
+
+def tilt_table(frame: pd.DataFrame, spacing_mm: float | None = None) -> pd.DataFrame:
     """Check a table of tilt readings; return it with numbers as float and ``pose`` as a stripped string.
+
+    A table of depth readings (``depth1_mm``, ``depth2_mm``, no angle column) is first turned into tilts by
+    :func:`tilts_from_depths` with ``spacing_mm`` (the bracket's hole spacing).
 
     Needs ``pose``, ``cycle`` and at least one measured angle with its command (``a_deg`` with ``cmd_a_deg`` ...);
     a measured angle without its command, or a table without any angle, is a one-line ``ConfigError``.
@@ -52,6 +118,11 @@ def tilt_table(frame: pd.DataFrame) -> pd.DataFrame:
     missing = [c for c in ("pose", "cycle") if c not in frame.columns]
     if missing:
         raise ConfigError(f"{source}: missing column(s) {', '.join(missing)}; found {', '.join(frame.columns)}")
+    if set(DEPTH_COLUMNS) <= set(frame.columns) and not any(a in frame.columns for _, a in ANGLE_PAIRS):
+        if spacing_mm is None:
+            raise ConfigError(f"{source}: depth readings without a hole spacing, expected a hole_spacing_mm column "
+                              f"or --spacing-mm")
+        frame = tilts_from_depths(frame, spacing_mm).astype({"pose": str})
     for command, attained in ANGLE_PAIRS:
         if attained in frame.columns and command not in frame.columns:
             raise ConfigError(f"{source}: column {attained} given without {command}")

@@ -60,7 +60,7 @@ from bench.metrology.tables import (
     pose_table,
 )
 from bench.metrology.orientation import TiltGauge
-from bench.metrology.orientation_tables import TiltPoseResult, analyze_tilts, tilt_table
+from bench.metrology.orientation_tables import TiltPoseResult, analyze_tilts, table_spacing_mm, tilt_table
 from bench.reports.deviations import CLAUSES_APPLIED, Deviation, iso_deviations, orientation_deviation
 from bench.store import CalibrationRecord, RunRecord, Store, series_table, tidy_table
 from bench.store.registrations import registration_u_mm, registrations
@@ -170,7 +170,7 @@ class RunReport(ReportBase):
     decision: Decision
     #: orientation AP/RP per pose from the calliper tilt readings (``dissertation_pose`` alpha/beta runs)
     orientation: tuple[TiltPoseResult, ...] = ()
-    tilt_table: pd.DataFrame | None = None  #: the analysed tilt readings (their raw-data CSV)
+    tilt_table: pd.DataFrame | None = None  #: the stored tilt (or depth) readings, as their raw-data CSV
     tilt_gauge: TiltGauge | None = None  #: how the tilts were derived, for the budget
 
 
@@ -427,14 +427,20 @@ def collect(store: Store, run_id: int, *, criteria: Mapping[str, float] | None =
 
 
 def _orientation(store: Store, run_id: int, k: float):
-    """The run's tilt readings (kind ``tilt``) and their orientation AP/RP per pose, in report order, with the
-    default calliper gauge (:class:`~bench.metrology.orientation.TiltGauge`); ``(None, (), None)`` without any."""
-    if "tilt" not in store.sample_kinds(run_id):
+    """The run's tilt readings (kind ``tilt``, or the two depths of kind ``tilt_depth`` turned into tilts with their
+    stored hole spacing) and their orientation AP/RP per pose, in report order, with the calliper gauge
+    (:class:`~bench.metrology.orientation.TiltGauge`); ``(None, (), None)`` without any."""
+    kinds = store.sample_kinds(run_id)
+    kind = "tilt_depth" if "tilt_depth" in kinds else "tilt" if "tilt" in kinds else None
+    if kind is None:
         return None, (), None
-    table = tilt_table(tidy_table(store, run_id, kind="tilt"))
+    readings = tidy_table(store, run_id, kind=kind)
+    readings.attrs["source"] = f"run {run_id}"
+    spacing = table_spacing_mm(readings)
+    gauge = TiltGauge() if spacing is None else TiltGauge(spacing_mm=spacing)
+    table = tilt_table(readings, gauge.spacing_mm)
     table.attrs["source"] = f"run {run_id}"
-    gauge = TiltGauge()
-    return table, report_order(analyze_tilts(table, gauge, k=k)), gauge
+    return readings, report_order(analyze_tilts(table, gauge, k=k)), gauge  # the raw readings go to the raw data
 
 
 def _effective_config(config: Mapping[str, Any], table: pd.DataFrame) -> dict[str, Any]:
