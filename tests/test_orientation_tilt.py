@@ -61,6 +61,11 @@ def test_hand_computed_figures_of_three_readings():
     with_bias = orientation_figures([1.0, 2.0, 3.0], 1.5, TiltGauge(u_bias_deg=0.5), k=3.0)
     assert with_bias.u_ap_deg == pytest.approx(3 * math.sqrt(1 / 3 + u_tilt**2 + 0.25))
     assert with_bias.as_json()["AP_a_deg"] == pytest.approx(0.5)
+    # the dissertation's -4° play bias about y, subtracted from every reading: AP moves by +4°, RP and U do not
+    corrected = orientation_figures([1.0, 2.0, 3.0], 1.5, TiltGauge(bias_deg=-4.0, u_bias_deg=0.5))
+    assert corrected.ap_deg == pytest.approx(4.5) and corrected.rp_deg == pytest.approx(3.0)
+    assert corrected.u_ap_deg == pytest.approx(2 * math.sqrt(1 / 3 + tilt_standard_uncertainty_deg(2.0, gauge) ** 2
+                                                                + 0.25))
 
 
 def test_bad_input_is_named():

@@ -39,6 +39,8 @@ def register(groups: argparse._SubParsersAction) -> None:
     orientation.add_argument("--resolution-mm", type=float, default=0.01, help="calliper resolution (mm)")
     orientation.add_argument("--mpe-mm", type=float, default=0.02,
                              help="calliper maximum permissible error (mm, rectangular)")
+    orientation.add_argument("--bias-deg", type=float, default=0.0,
+                             help="measured play bias subtracted from every reading (deg; 000: -4 about y)")
     orientation.add_argument("--u-bias-deg", type=float, default=0.0,
                              help="standard uncertainty of the play-bias correction applied to the readings (deg)")
     orientation.add_argument("--k", type=float, default=2.0, help="coverage factor of the expanded uncertainties")
@@ -168,7 +170,7 @@ def _orientation(args: argparse.Namespace) -> int:
                           f"hole_spacing_mm = {stored:g}, expected that spacing or none")
     spacing = args.spacing_mm if args.spacing_mm is not None else stored if stored is not None else 40.0
     gauge = TiltGauge(spacing_mm=spacing, u_spacing_mm=args.u_spacing_mm, resolution_mm=args.resolution_mm,
-                      mpe_mm=args.mpe_mm, u_bias_deg=args.u_bias_deg)
+                      mpe_mm=args.mpe_mm, u_bias_deg=args.u_bias_deg, bias_deg=args.bias_deg)
     table = tilt_table(frame, gauge.spacing_mm)
     if table.empty:
         raise ConfigError(f"{args.file}: no rows, expected at least one tilt reading")

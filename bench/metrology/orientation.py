@@ -15,7 +15,8 @@ Budget (GUM, JCGM 100:2008; templates ``iso9283.md`` §8.2(c), (d)):
 - one depth reading: u(h)² = (δ/√12)² + (MPE/√3)² (resolution δ, maximum permissible error, rectangular);
 - the tilt: u(θ)² = [s/(s² + Δh²)]²·2u(h)² + [Δh/(s² + Δh²)]²·u(s)², with Δh = s·tan θ, i.e.
   u(θ)² = [cos²θ/s]²·2u(h)² + [sinθ·cosθ/s]²·u(s)² (radians);
-- the play-bias correction (the dissertation's −4° about y) with its own standard uncertainty u_bias;
+- the play-bias correction (the dissertation's −4° about y): a_j = reading_j − bias, with its own standard
+  uncertainty u_bias (``sensors.md`` §6.3: measured at home with the actuators locked, not assumed);
 - U(AP_a) = k·√(S_a²/n + u(θ̄)² + u_bias²): the calliper terms are kept whole, not divided by n, since its
   MPE and the hole spacing are systematic over a run (the conservative choice);
 - U(RP_a) = k·3·S_a/√(2(n − 1)), the standard uncertainty of a sample standard deviation of n normal readings
@@ -51,10 +52,13 @@ class TiltGauge:
     resolution_mm: float = 0.01
     mpe_mm: float = 0.02
     u_bias_deg: float = 0.0
+    bias_deg: float = 0.0  #: the measured play bias, subtracted from every reading (000 §8.6.3: -4° about y)
 
     def __post_init__(self) -> None:
         if not (math.isfinite(self.spacing_mm) and self.spacing_mm > 0):
             raise ConfigError(f"hole spacing = {self.spacing_mm!r} mm, expected a positive number")
+        if not math.isfinite(self.bias_deg):
+            raise ConfigError(f"bias_deg = {self.bias_deg!r}, expected a finite angle in degrees")
         for name in ("u_spacing_mm", "resolution_mm", "mpe_mm", "u_bias_deg"):
             value = getattr(self, name)
             if not (math.isfinite(value) and value >= 0):
@@ -67,7 +71,8 @@ class TiltGauge:
 
     def as_dict(self) -> dict[str, float]:
         return {"spacing_mm": self.spacing_mm, "u_spacing_mm": self.u_spacing_mm,
-                "resolution_mm": self.resolution_mm, "mpe_mm": self.mpe_mm, "u_bias_deg": self.u_bias_deg,
+                "resolution_mm": self.resolution_mm, "mpe_mm": self.mpe_mm, "bias_deg": self.bias_deg,
+                "u_bias_deg": self.u_bias_deg,
                 "u_depth_mm": self.u_depth_mm}
 
 
@@ -124,7 +129,7 @@ def orientation_figures(attained_deg, commanded_deg: float, gauge: TiltGauge, *,
     InsufficientData
         With fewer than 2 readings.
     """
-    readings = as_series(f"{angle}_deg readings", attained_deg, min_count=2)
+    readings = as_series(f"{angle}_deg readings", attained_deg, min_count=2) - gauge.bias_deg
     if not (math.isfinite(commanded_deg)):
         raise ConfigError(f"cmd_{angle}_deg = {commanded_deg!r}, expected a finite angle in degrees")
     column = readings.reshape(-1, 1)
@@ -134,7 +139,8 @@ def orientation_figures(attained_deg, commanded_deg: float, gauge: TiltGauge, *,
     s = rp / 3.0
     mean = accuracy.mean_deg[0]
     budget = (("scatter of the mean S/√n", s / math.sqrt(n)),
-              ("calliper tilt (resolution, MPE, hole spacing)", tilt_standard_uncertainty_deg(mean, gauge)),
+              ("calliper tilt (resolution, MPE, hole spacing)",
+               tilt_standard_uncertainty_deg(mean + gauge.bias_deg, gauge)),  # at the angle the calliper read
               ("play-bias correction", gauge.u_bias_deg))
     u_ap = combine(*(u for _, u in budget))
     u_rp = 3.0 * s / math.sqrt(2.0 * (n - 1))

@@ -296,7 +296,8 @@ def recompute_command(report: RunReport) -> str:
         g = report.tilt_gauge
         command += (f"; orientation: bench analyze orientation run{report.run.id}_tilts.csv --spacing-mm "
                     f"{g.spacing_mm:g} --u-spacing-mm {g.u_spacing_mm:.6g} --resolution-mm {g.resolution_mm:g} "
-                    f"--mpe-mm {g.mpe_mm:g} --u-bias-deg {g.u_bias_deg:g} --k {report.coverage_factor:g}")
+                    f"--mpe-mm {g.mpe_mm:g} --bias-deg {g.bias_deg:g} --u-bias-deg {g.u_bias_deg:g} "
+                    f"--k {report.coverage_factor:g}")
     return command
 
 

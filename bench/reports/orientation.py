@@ -38,8 +38,8 @@ def orientation_blocks(report) -> tuple:
         ("tilt from two depths u(θ) at 0°", f"{tilt_standard_uncertainty_deg(0.0, gauge):.3f}°",
          "u²(θ) = [cos²θ / s]²·2u²(h) + [sinθ cosθ / s]²·u²(s)"),
         ("tilt from two depths u(θ) at 20°", f"{tilt_standard_uncertainty_deg(20.0, gauge):.3f}°", "as above"),
-        ("play-bias correction", f"{gauge.u_bias_deg:.3f}°", "none applied" if gauge.u_bias_deg == 0 else
-         "measured at home with the actuators locked"),
+        ("play-bias correction", f"{gauge.u_bias_deg:.3f}°", "none applied" if gauge.bias_deg == 0 else
+         f"{gauge.bias_deg:+g}° subtracted, measured at home with the actuators locked"),
         ("scatter of the mean", "S/√n per pose", "Type A, from the readings"),
     )
     return (
