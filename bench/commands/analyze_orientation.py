@@ -13,7 +13,8 @@ def register(actions: argparse._SubParsersAction, new_parser) -> None:
     """Add ``orientation`` to ``bench analyze`` (``new_parser`` adds FILE.csv and --json)."""
     orientation = new_parser(actions, "orientation", "orientation accuracy AP_a/AP_b and repeatability RP_a/RP_b "
                                                       "per pose (ISO 9283 7.2.1, 7.2.2) from calliper tilt readings, "
-                                                      "with their GUM budget; reads bench export RUN --kind tilt")
+                                                      "with their GUM budget; reads bench export RUN --kind tilt "
+                                                      "(or --kind tilt_depth)")
     orientation.add_argument("--spacing-mm", type=float, default=None,
                              help="hole spacing s of the measuring bracket (mm): tilt = atan2(h2 - h1, s); default "
                                   "the table's hole_spacing_mm column, else 40")
