@@ -95,7 +95,7 @@ def test_every_protocol_has_a_quick_end_to_end_case():
 
 
 @pytest.mark.parametrize("name", sorted(QUICK_PARAMETERS))
-def test_each_protocol_completes_on_the_simulator(tmp_path, name):
+def test_each_protocol_completes_on_the_simulator(tmp_path, name, capsys):
     protocol = PROTOCOLS[name](settle_s=0.1, **QUICK_PARAMETERS[name])
     expected = sum(1 for step in iterate(protocol, final=False) if step_stores_sample(step))
     with Store(tmp_path / "b.db") as store:
@@ -132,6 +132,33 @@ def test_each_protocol_completes_on_the_simulator(tmp_path, name):
             deviations = {(d.clause, d.topic): d.status for d in collect(store, result.run_id).deviations}
             assert "unknown" not in deviations.values(), deviations
             assert deviations[("6.8", "poses")] == deviations[("6.6", "load")] == "deviates"
+            # orientation AP_b/RP_b against the simulator's truth: the true beta at each stop (stored with the
+            # position sample of the same visit); the simulated calliper adds 0.1 deg of scatter and 0.01 rounding
+            report = collect(store, result.run_id)
+            assert deviations[("7.2.1, 7.2.2", "orientation")] == "deviates"
+            truth = {(s.pose, s.cycle): s.raw["true_pose"][4] for s in store.samples(result.run_id, kind="pose")}
+            assert len(report.orientation) == 15 and len(report.tilt_table) == 30
+            for pose in report.orientation:
+                (beta,) = pose.figures
+                true = np.array([truth[(pose.pose, c)] for c in (1, 2)])
+                assert beta.ap_deg == pytest.approx(true.mean() - beta.commanded_deg, abs=0.35)
+                assert beta.rp_deg == pytest.approx(3 * true.std(ddof=1), abs=3 * 0.35)
+            true_ap = [np.mean([truth[(p.pose, c)] for c in (1, 2)]) - p.figures[0].commanded_deg
+                       for p in report.orientation]
+            assert max(map(abs, true_ap)) > 0.5  # a real robot error the readings show, not calliper noise alone
+            # the report's tables and its recomputing command give the same numbers as the CLI on the tilts CSV
+            from bench.reports.orientation import orientation_blocks, orientation_headline
+
+            table, _, budget = orientation_blocks(report)
+            assert len(table.rows) == 15 and table.rows[0][0] == "1-1" and len(budget.rows) == 6
+            (headline,) = orientation_headline(report)
+            assert headline.rows[0][0] == "beta (about y)"
+            report.tilt_table.to_csv(tmp_path / "tilts.csv", index=False)
+            assert main(["analyze", "orientation", str(tmp_path / "tilts.csv"), "--json"]) == 0
+            printed = json.loads(capsys.readouterr().out)["poses"]
+            for pose in report.orientation:
+                assert printed[pose.label]["AP_b_deg"] == pytest.approx(pose.figures[0].ap_deg)
+                assert printed[pose.label]["U_AP_b_deg"] == pytest.approx(pose.figures[0].u_ap_deg)
 
 
 def test_a_stored_design_key_is_left_out_on_resume_but_refused_in_a_protocol_file():

@@ -113,7 +113,9 @@ def test_a_streamed_line_run_gives_at_rt_av_near_the_truth_and_an_ideal_robot_ne
     assert t[-1] - t[0] == pytest.approx(protocol.path("line").length_mm / protocol.rated_mm_s + 0.5, rel=0.03)
     # the CLI gives the same figures from the store
     assert main(["analyze", "path-run", str(demo), "--store", str(tmp_path / "p.db"), "--json"]) == 0
-    (printed,) = json.loads(capsys.readouterr().out)["paths"]
+    printed_run = json.loads(capsys.readouterr().out)
+    (printed,) = printed_run["paths"]
+    assert "calliper at stops" in printed_run["not_measured"]["8.4"]
     assert printed["AT_mm"] == pytest.approx(line.at_mm) and printed["AV_pct"] == pytest.approx(line.av_pct)
 
 

@@ -43,6 +43,8 @@ def test_the_report_prints_the_figures_the_analysis_computes(path_run):
     assert tables["deviations"][0][:5] == ["Clause", "Topic", "ISO 9283 requirement", "What was done", "Status"]
     assert deviations["cycles"][4] == "deviates" and deviations["stations"][4] == "conforms"  # 2 of 10 cycles
     assert "chord error <= 0.01 mm" in deviations["interpolation"][3]
+    # 8.4 is refused with its reason: the orientation is not streamed along a path (calliper at stops only)
+    assert deviations["reorientation"][4] == "deviates" and "not measured" in deviations["reorientation"][5]
     text = pdf_text(paths.pdf)
     assert "SIMULATED DATA" in text and f"bench analyze path-run {run_id}" in text
 

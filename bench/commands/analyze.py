@@ -1,6 +1,6 @@
 """``bench analyze``: metrology figures from tidy CSV tables (ISO 9283 poses, distance, drift, actuators, payload;
 vAP, paths, cornering, path velocity and positioning time in `bench.commands.analyze_path`, ISO 230-2 in
-`bench.commands.analyze_bidirectional`).
+`bench.commands.analyze_bidirectional`, orientation from calliper tilts in `bench.commands.analyze_orientation`).
 
 Every handler reads a CSV through `bench.metrology.tables`, computes with `bench.metrology`, and prints a readable
 table or, with ``--json``, one JSON object on stdout. Bad cells give a one-line ``ConfigError`` naming the row,
@@ -62,7 +62,8 @@ def register(groups: argparse._SubParsersAction) -> None:
     payload = _new_parser(actions, "payload", "leg actuation error against load (project payload error)")
     payload.set_defaults(handler=_payload)
 
-    mouse = _new_parser(actions, "mouse", "mouse resolution: per-distance (distance_mm, position; N/A = restart) "
+    mouse = _new_parser(actions, "mouse", "mouse resolution: per-distance (reading, distance_mm, position; reading "
+                                          "numbers the readings in the order taken; N/A = restart) "
                                           "or 2x2 fit (ref_x_mm, ref_y_mm, counts_x, counts_y)")
     mouse.set_defaults(handler=_mouse)
 
@@ -73,12 +74,14 @@ def register(groups: argparse._SubParsersAction) -> None:
     grid.set_defaults(handler=_grid_positioning)
 
     from bench.commands.analyze_bidirectional import register as register_bidirectional
+    from bench.commands.analyze_orientation import register as register_orientation
     from bench.commands.analyze_path import register as register_paths
     from bench.commands.analyze_path import register_run as register_path_run
 
     register_paths(actions, _new_parser)
     register_path_run(actions)
     register_bidirectional(actions, _new_parser)
+    register_orientation(actions, _new_parser)
 
 
 def _add_actuator_robot(parser: argparse.ArgumentParser) -> None:
@@ -277,8 +280,9 @@ def _payload(args: argparse.Namespace) -> int:
     if "leg" not in table.columns:
         raise ConfigError(f"{args.file}: missing column leg")
     legs = table["leg"].astype(str).str.strip()
+    # sorted by load and leg: the table's row order carries no meaning (a tie in the maximum names the lowest load)
     wide = table.assign(leg=legs).pivot_table(index="load_kg", columns="leg", values="error_mm", aggfunc="mean",
-                                              sort=False)
+                                              sort=True)
     if wide.isna().any().any():
         raise ConfigError(f"{args.file}: some load has no error for some leg, expected every leg at every load")
     s = leg_error_summary(wide.index.to_numpy(), wide.to_numpy())
@@ -308,12 +312,22 @@ def _mouse(args: argparse.Namespace) -> int:
     if not {"distance_mm", "position"} <= set(frame.columns):
         raise ConfigError(f"{args.file}: expected columns distance_mm, position (per-distance method) or "
                           f"ref_x_mm, ref_y_mm, counts_x, counts_y (2x2 fit); found {', '.join(frame.columns)}")
+    if "reading" not in frame.columns:  # the increments are differences of consecutive readings
+        raise ConfigError(f"{args.file}: missing column reading, expected the number of each position reading in the "
+                          f"order taken (row order carries no meaning)")
     restart = frame["position"].str.strip().str.upper().isin(["N/A", "NA", ""])
-    table = numeric_columns(frame.assign(position=frame["position"].where(~restart, "0")), ["distance_mm", "position"])
+    table = numeric_columns(frame.assign(position=frame["position"].where(~restart, "0")),
+                            ["reading", "distance_mm", "position"])
     table.loc[restart, "position"] = np.nan  # a restart marker breaks the segment; it is never a zero
+    repeated = table["reading"].duplicated()
+    if repeated.any():
+        index = repeated.idxmax()
+        raise ConfigError(f"{args.file}: row {int(index) + 1}, column reading: {table.at[index, 'reading']:g} repeated, "
+                          f"expected one row per reading")
+    table = table.sort_values("reading", kind="stable")
     header = f"{'distance_mm':>11} {'n':>4} {'mean_delta':>10} {'mm_per_count':>12} {'3sigma':>7} {'tolerance_mm':>12}"
     result, lines = {}, [header]
-    for distance, rows in table.groupby("distance_mm", sort=False):
+    for distance, rows in table.groupby("distance_mm", sort=True):
         r = increment_resolution(distance, increments_from_positions(rows["position"].to_numpy()))
         result[f"{distance:g}"] = {"n": r.n, "mean_delta_counts": r.mean_delta_counts,
                                    "resolution_mm_per_count": r.resolution_mm_per_count,

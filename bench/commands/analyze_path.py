@@ -84,6 +84,7 @@ def register_run(actions: argparse._SubParsersAction) -> None:
 def _path_run(args: argparse.Namespace) -> int:
     from pathlib import Path
 
+    from bench.reports.path import REORIENTATION_NOT_MEASURED
     from bench.reports.path_run import analyze_path_run
     from bench.store import Store
 
@@ -102,8 +103,10 @@ def _path_run(args: argparse.Namespace) -> int:
         lines.append(f"{f.shape:<10} {f.velocity_pct:>5g} {f.commanded_mm_s:>8.3f} {f.n_cycles:>3} {f.at_mm:>7.3f} "
                      f"{f.rt_mm:>7.3f} {cell('CR_mm', '7.3f'):>7} {cell('CO_mm', '7.3f'):>7} "
                      f"{cell('AV_pct', '+7.2f'):>7} {cell('RV_pct', '7.2f'):>7} {cell('FV_mm_s', '8.3f'):>8}")
+    lines.append(f"8.4: {REORIENTATION_NOT_MEASURED}.")
     emit({"run_id": args.run_id, "protocol": result.protocol_name, "rated_path_velocity_mm_s": result.design.rated_mm_s,
-          "paths": [f.as_json() for f in result.figures]}, args.json, lines)
+          "paths": [f.as_json() for f in result.figures], "not_measured": {"8.4": REORIENTATION_NOT_MEASURED}},
+         args.json, lines)
     return 0
 
 

@@ -2,7 +2,9 @@
 
 - ``dissertation_pose``: 15 points (3 per y-region of Table 8-2) x 10 repeats, home -> point -> home; the
   ``translation`` variant measures position with the mice, the ``alpha`` and ``beta`` variants also ask for the
-  calliper tilt reading at each visit (000 §8.6.3; Tables A.11-A.13).
+  calliper tilt reading at each visit (000 §8.6.3; Tables A.11-A.13): the tilt in degrees (``tilt_entry = "angle"``)
+  or the two depths through the bracket holes ``hole_spacing_mm`` apart (``"depths"``, kind ``tilt_depth``), from
+  which the analysis derives it (``bench.metrology.orientation_tables``).
 - ``payload_ladder``: the load sequence of Table A.14, a pure vertical lift of 50.42 mm per load, six calliper leg
   readings per load, home between loads (000 §8.7).
 - ``mouse_calibration``: steps of 5/10/15/20/40 mm along x then y, repeated, capturing the raw mouse counts at both
@@ -82,6 +84,12 @@ class DissertationPose(Protocol):
     cycles = IntegerParameter(10, minimum=2, description="repeats per point (000: 10)")
     velocity_pct = FloatParameter(100.0, unit="%", minimum=0.1, maximum=100.0, description="velocity")
     settle_s = FloatParameter(1.0, unit="s", minimum=0.0, maximum=600.0, description="dwell before a reading")
+    tilt_entry = ChoiceParameter("angle", choices=("angle", "depths"),
+                                 description="alpha/beta: the operator enters the tilt (deg), or the two calliper "
+                                             "depths through the bracket holes (mm; the tilt is derived in the "
+                                             "analysis, raw data first)")
+    hole_spacing_mm = FloatParameter(40.0, unit="mm", minimum=1.0, maximum=500.0,
+                                     description="bracket hole spacing s: tilt = atan2(h2 - h1, s) (not stated in 000)")
     design_keys = ("poses", "loads_kg")
 
     def config(self) -> dict:
@@ -101,7 +109,14 @@ class DissertationPose(Protocol):
                 yield Settle(self.settle_s)
                 yield Capture(_label(index), cycle, commanded=commanded_values(target[:3]),
                               conditions={"velocity_pct": self.velocity_pct})
-                if angle is not None:
+                if angle is not None and self.tilt_entry == "depths":
+                    for hole in (1, 2):  # 000 §8.6.3 step 5: "the depth at two different points"
+                        yield Prompt(f"Point {_label(index)}, repeat {cycle}: calliper depth at hole {hole} "
+                                     f"({self.variant})", field=f"depth{hole}_mm", unit="mm", minimum=0.0,
+                                     maximum=300.0, pose=_label(index), cycle=cycle, kind="tilt_depth",
+                                     commanded={f"cmd_{angle}_deg": point[3]},
+                                     conditions={"hole_spacing_mm": self.hole_spacing_mm})
+                elif angle is not None:
                     yield Prompt(f"Point {_label(index)}, repeat {cycle}: calliper tilt {self.variant}",
                                  field=f"{angle}_deg", unit="deg", minimum=-45.0, maximum=45.0, pose=_label(index),
                                  cycle=cycle, kind="tilt",

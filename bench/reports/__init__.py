@@ -174,6 +174,16 @@ def _write_raw(report: ReportBase, out: Path) -> tuple[Path, RawData]:
     return path, RawData(path.name, digest, len(report.table))
 
 
+def _write_tilts(report: ReportBase, out: Path) -> list[tuple[Path, RawData]]:
+    """The analysed tilt readings of a pose run read by the calliper (``bench analyze orientation`` input)."""
+    tilts = getattr(report, "tilt_table", None)
+    if tilts is None:
+        return []
+    path = out / f"run{report.run.id}_tilts.csv"
+    tilts.to_csv(path, index=False)
+    return [(path, RawData(path.name, hashlib.sha256(path.read_bytes()).hexdigest(), len(tilts)))]
+
+
 def _write(document: Document, out: Path, stem: str, formats: tuple[str, ...],
            progress: Callable[[str], None]) -> dict[str, Path]:
     from bench.reports.html import write_html
@@ -247,10 +257,12 @@ def write_report(store: str | Path | Store, run_id: int, out_dir: str | Path, fo
              **({"laboratory": laboratory} if laboratory else {})}
     out = _out_dir(out_dir)
     csv_path, raw = _write_raw(report, out)
+    tilts = _write_tilts(report, out)
     progress(f"run {run_id} analysed; drawing the figures")
-    document = _document(report, [raw], Identity.of_run(report.run, given), history)
+    document = _document(report, [raw, *(r for _, r in tilts)], Identity.of_run(report.run, given), history)
     written = _write(document, out, f"report_run{run_id}", formats, progress)
-    return ReportPaths(written.get("html"), written.get("pdf"), (csv_path,), report.report_id)
+    return ReportPaths(written.get("html"), written.get("pdf"), (csv_path, *(p for p, _ in tilts)),
+                       report.report_id)
 
 
 def write_comparison(store: str | Path | Store, first_run: int, second_run: int, out_dir: str | Path,

@@ -59,7 +59,9 @@ from bench.metrology.tables import (
     analyze_poses,
     pose_table,
 )
-from bench.reports.deviations import CLAUSES_APPLIED, Deviation, iso_deviations
+from bench.metrology.orientation import TiltGauge
+from bench.metrology.orientation_tables import TiltPoseResult, analyze_tilts, table_spacing_mm, tilt_table
+from bench.reports.deviations import CLAUSES_APPLIED, Deviation, iso_deviations, orientation_deviation
 from bench.store import CalibrationRecord, RunRecord, Store, series_table, tidy_table
 from bench.store.registrations import registration_u_mm, registrations
 
@@ -166,6 +168,10 @@ class RunReport(ReportBase):
     multidirectional: tuple[VapRow, ...]
     payload: tuple[PayloadRow, ...]
     decision: Decision
+    #: orientation AP/RP per pose from the calliper tilt readings (``dissertation_pose`` alpha/beta runs)
+    orientation: tuple[TiltPoseResult, ...] = ()
+    tilt_table: pd.DataFrame | None = None  #: the stored tilt (or depth) readings, as their raw-data CSV
+    tilt_gauge: TiltGauge | None = None  #: how the tilts were derived, for the budget
 
 
 def _sha256_json(value: Any) -> str:
@@ -388,14 +394,18 @@ def collect(store: Store, run_id: int, *, criteria: Mapping[str, float] | None =
     ap_u_mm = combine(instrument.sigma_mm or 0.0, registration_u_mm(registrations(run.settings)))
     poses = report_order(analyze_poses(table, instrument_u_mm=ap_u_mm, k=k, resamples=resamples))
     protocol = run.protocol_name
+    tilts, orientation, gauge = _orientation(store, run_id, k)
+    tilt_angles = tuple(f"{f.angle}_deg" for f in orientation[0].figures) if orientation else ()
     cycles = int(table.groupby(["pose", *[c for c in ("velocity_pct", "load_kg") if c in table.columns]])
                  .size().min())
     deviations = iso_deviations(
         protocol=protocol, config=_effective_config(run.config, table), settings=run.settings,
-        measured_columns=measured,
+        measured_columns=(*measured, *(a for a in tilt_angles if a not in measured)),
         cycles_measured=cycles, instrument_sigma_mm=instrument.sigma_mm,
         smallest_rp_mm=min(p.repeatability.rp_mm for p in poses), rp_floor_mm=instrument.rp_floor_mm,
         allow_unknown=allow_unknown)
+    if orientation:
+        deviations = [*deviations, orientation_deviation(tilt_angles, gauge.as_dict())]
     return RunReport(
         **provenance(run, calibrations),
         title=run.config.get("title") or _title(protocol),
@@ -410,7 +420,27 @@ def collect(store: Store, run_id: int, *, criteria: Mapping[str, float] | None =
         payload=_payload(table),
         decision=_decision(poses, criteria or {}),
         coverage_factor=k,
+        orientation=orientation,
+        tilt_table=tilts,
+        tilt_gauge=gauge,
     )
+
+
+def _orientation(store: Store, run_id: int, k: float):
+    """The run's tilt readings (kind ``tilt``, or the two depths of kind ``tilt_depth`` turned into tilts with their
+    stored hole spacing) and their orientation AP/RP per pose, in report order, with the calliper gauge
+    (:class:`~bench.metrology.orientation.TiltGauge`); ``(None, (), None)`` without any."""
+    kinds = store.sample_kinds(run_id)
+    kind = "tilt_depth" if "tilt_depth" in kinds else "tilt" if "tilt" in kinds else None
+    if kind is None:
+        return None, (), None
+    readings = tidy_table(store, run_id, kind=kind)
+    readings.attrs["source"] = f"run {run_id}"
+    spacing = table_spacing_mm(readings)
+    gauge = TiltGauge() if spacing is None else TiltGauge(spacing_mm=spacing)
+    table = tilt_table(readings, gauge.spacing_mm)
+    table.attrs["source"] = f"run {run_id}"
+    return readings, report_order(analyze_tilts(table, gauge, k=k)), gauge  # the raw readings go to the raw data
 
 
 def _effective_config(config: Mapping[str, Any], table: pd.DataFrame) -> dict[str, Any]:

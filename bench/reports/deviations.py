@@ -40,7 +40,7 @@ __all__ = ["ACTUATOR_REPEATS", "ACTUATOR_TRAVELS_MM", "BAND_MIN_COUNTS", "CLAUSE
            "GRID_HIT_ATTEMPTS", "GRID_OFFSET_MM", "ISO_BANDS_MM", "ISO_CYCLES", "ISO_VELOCITIES_PCT", "LADDER_LIFT_MM",
            "LADDER_MIN_REPEATS", "POSITIONING_READINGS", "STABILISATION_CYCLES", "Deviation",
            "actuator_deviations", "complete", "grid_hit_deviations", "grid_positioning_deviations", "iso_deviations",
-           "ladder_deviations", "stabilisation_deviations"]
+           "ladder_deviations", "orientation_deviation", "stabilisation_deviations"]
 
 #: Cycles required per protocol (ISO 9283 Table 5 [N]: 30 for AP/RP, AD/RD and vAP).
 ISO_CYCLES = {"iso9283_pose": ISO9283_CYCLES, "iso9283_distance": ISO9283_CYCLES,
@@ -179,6 +179,19 @@ def _dimensionality(measured: Sequence[str]) -> Deviation:
     if not {"x_mm", "y_mm", "z_mm"} <= set(measured):
         effect = "position characteristics in fewer than 3 dimensions; RP not comparable with 3-D RP"
     return _row("7.2", "dimensionality", requirement, done, len(measured) == 6, effect)
+
+
+def orientation_deviation(angles: Sequence[str], gauge: Mapping[str, float]) -> Deviation:
+    """The row of a run whose orientation is read by the calliper tilt gauge (000 §8.2.2, §8.6.3): how the angles
+    were measured, and that their budget rests on the bracket's hole spacing."""
+    requirement = "orientation a, b, c measured at the attained pose by the pose instrument (7.2.1, 7.2.2) [U]"
+    names = ", ".join(angles) or "none"
+    done = (f"{names} read by a digital calliper at each stop after the position: tilt = atan(Δh / s) from two "
+            f"depths through holes s = {gauge['spacing_mm']:g} mm apart (u(s) = {gauge['u_spacing_mm']:.3g} mm), "
+            f"calliper resolution {gauge['resolution_mm']:g} mm, MPE ± {gauge['mpe_mm']:g} mm; the source "
+            f"dissertation does not state s")
+    return _row("7.2.1, 7.2.2", "orientation", requirement, done, False,
+                "orientation U rests on the stated bracket geometry; only the tested angle is measured")
 
 
 def _order(config: Mapping[str, Any], protocol: str) -> Deviation:

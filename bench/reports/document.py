@@ -15,6 +15,7 @@ from typing import Any
 
 from bench.metrology.formatting import format_measured, format_value, pose_label
 from bench.reports.content import ReportBase, RunReport
+from bench.reports.orientation import orientation_blocks
 from bench.reports.plots import Plot, comparison_plot, report_plots
 
 __all__ = ["Document", "Figure", "Paragraph", "RawData", "Section", "Table", "assemble", "comparison_document",
@@ -229,6 +230,7 @@ def _results(report: RunReport) -> tuple[Block, ...]:
     k = f"{report.coverage_factor:g}"
     blocks: list[Block] = [Table("results", header, rows, f"Results per pose (U: expanded uncertainty, k = {k}; "
                                                           f"AP axes signed, barycentre − command)")]
+    blocks.extend(orientation_blocks(report))
     if report.distances:
         angles = report.distances[0].angle_names
         blocks.append(Table("distance", ("Pair / conditions", "D_c (mm)", "D̄ (mm)", "AD_p (mm)", "RD (mm)",
@@ -289,7 +291,14 @@ def _raw(raw: list[RawData], notes: tuple[str, ...], recompute: str) -> Section:
 def recompute_command(report: RunReport) -> str:
     """The CLI call that recomputes the per-pose results from the raw-data CSV."""
     sigma = report.instrument.sigma_mm or 0.0
-    return f"bench analyze iso9283 FILE.csv --instrument-u-mm {sigma:.6g} --k {report.coverage_factor:g}"
+    command = f"bench analyze iso9283 FILE.csv --instrument-u-mm {sigma:.6g} --k {report.coverage_factor:g}"
+    if report.orientation:  # the tilt readings' own file and gauge
+        g = report.tilt_gauge
+        command += (f"; orientation: bench analyze orientation run{report.run.id}_tilts.csv --spacing-mm "
+                    f"{g.spacing_mm:g} --u-spacing-mm {g.u_spacing_mm:.6g} --resolution-mm {g.resolution_mm:g} "
+                    f"--mpe-mm {g.mpe_mm:g} --bias-deg {g.bias_deg:g} --u-bias-deg {g.u_bias_deg:g} "
+                    f"--k {report.coverage_factor:g}")
+    return command
 
 
 def assemble(report: ReportBase, raw: list[RawData], *, operator: str, laboratory: str, method: str, scope: str,

@@ -177,6 +177,7 @@ def summary_section(report, identity: Identity, history: Sequence[HistoryEvent],
     run history. ``report`` is any layout's report; the headline and verdict need a pose run's results."""
     from bench.reports.content import RunReport
     from bench.reports.document import Paragraph, Section, Table, key_values
+    from bench.reports.orientation import orientation_headline
 
     run = report.run
     rows = [*identity.rows(), ("Test", f"{report.title} ({run.robot})"),
@@ -192,6 +193,7 @@ def summary_section(report, identity: Identity, history: Sequence[HistoryEvent],
                                          "Worst RP_l ± U (mm)", "Mean RP_l ± U (mm)"), headline_rows(report.poses),
                             f"Headline results per velocity and load (U: expanded uncertainty, k = {k}; U of a mean "
                             f"is the mean of the poses' U)"))
+        blocks.extend(orientation_headline(report))
         u = {(name, label): (p.ap_u if name == "AP_mm" else p.rp_u).expanded_uncertainty
              for p in report.poses for name in ("AP_mm", "RP_mm") for label in (p.label, pose_label(p.pose, p.conditions))}
         verdict = verdicts(report.decision.verdicts, u)

@@ -175,17 +175,11 @@ def tilt_deg(h1_mm: np.ndarray | float, h2_mm: np.ndarray | float, spacing_mm: f
 
 
 def tilt_uncertainty_deg(h1_mm: float, h2_mm: float, spacing_mm: float, u_h_mm: float, u_spacing_mm: float) -> float:
-    """Standard uncertainty of :func:`tilt_deg` (``iso9283.md`` §8.2(d)).
+    """Standard uncertainty of :func:`tilt_deg` (``iso9283.md`` §8.2(d)): the one formula,
+    :func:`bench.metrology.orientation.tilt_gradient_uncertainty_deg`, at Δh = h2 − h1."""
+    from bench.metrology.orientation import tilt_gradient_uncertainty_deg
 
-    .. math:: u^2(\\theta) = \\left[\\frac{s}{s^2+\\Delta h^2}\\right]^2 2u^2(h)
-              + \\left[\\frac{\\Delta h}{s^2+\\Delta h^2}\\right]^2 u^2(s)
-
-    Worked example there: s = 40 mm, u(h) = 0.0119 mm, u(s) = 0.058 mm give 0.024 deg at 0 deg, 0.034 deg at 20 deg.
-    """
-    dh, s = h2_mm - h1_mm, spacing_mm
-    denominator = s * s + dh * dh
-    u_rad = math.hypot(s / denominator * math.sqrt(2.0) * u_h_mm, dh / denominator * u_spacing_mm)
-    return math.degrees(u_rad)
+    return tilt_gradient_uncertainty_deg(h2_mm - h1_mm, spacing_mm, u_h_mm, u_spacing_mm)
 
 
 @dataclass(frozen=True)

@@ -26,6 +26,7 @@ from bench.errors import LinkError
 from bench.rigs.gauges import CalliperOnly
 from bench.rigs.mice import PATH, STREAMED_KINDS, MiceInstrument
 from bench.rigs.movers import DeltaMover, Pkm5Mover
+from bench.simulators.calliper import depths_for_tilt
 from bench.simulators.client import SimulatorClient
 from bench.simulators.mice_feed import MOTION_S, PLANES, plane_seed
 from bench.rigs.interfaces import Measurement, Rig
@@ -183,11 +184,19 @@ class SimulatedCalliper:
         self.truth = SimulatorClient(controller)
         self.rng = np.random.default_rng(seed + 7919)
         self.length_sigma_mm, self.tilt_sigma_deg = length_sigma_mm, tilt_sigma_deg
+        self.depth_centre_mm = 30.0  #: depth from the bracket to the mirror's centre (mm)
 
     def __call__(self, prompt: Prompt) -> float:
         if prompt.field in ("a_deg", "b_deg"):
             angle = np.asarray(self.truth.true_pose(), dtype=float)[3 if prompt.field == "a_deg" else 4]
             return round(float(angle + self.rng.normal(0.0, self.tilt_sigma_deg)), 2)
+        if prompt.field in ("depth1_mm", "depth2_mm") and "hole_spacing_mm" in prompt.conditions:
+            # the two depths over the mirror tilted by the true angle the prompt asks about (cmd_a_deg/cmd_b_deg)
+            axis = 3 if any(k.startswith("cmd_a") for k in prompt.commanded) else 4
+            angle = float(np.asarray(self.truth.true_pose(), dtype=float)[axis])
+            depths = depths_for_tilt(angle, float(prompt.conditions["hole_spacing_mm"]), self.depth_centre_mm)
+            depth = float(depths[0 if prompt.field == "depth1_mm" else 1])
+            return round(depth + float(self.rng.normal(0.0, self.length_sigma_mm)), 2)
         if prompt.field == "length_mm" and "leg" in prompt.conditions:
             length = self.truth.true_lengths()[int(prompt.conditions["leg"]) - 1]
             return round(float(length + self.rng.normal(0.0, self.length_sigma_mm)), 2)
