@@ -119,13 +119,15 @@ def test_camera_readings_are_the_true_spot_of_the_move_just_made(rehearsed):
 
 
 def test_iterative_correction_on_the_delta4_with_the_camera(rehearsed):
-    """The protocol reads, corrects and stops as specified; every reading is the true position within the camera's
-    uncertainty; what is left after 3 moves is the servo commands' quantisation (bytes, 0.745 deg a count), which
-    bounds the error at about a millimetre and keeps it far above the camera's 0.02 mm (docs/calibration.md)."""
+    """Issue 20's acceptance: iterative correction brings the delta4's positioning error below the camera's stated
+    uncertainty (its plane calibration's RMS, ~0.02 mm) within 3 moves. It needs the fine servo references (0.01
+    deg, docs/protocol-delta4.md): with byte references (0.745 deg a count) each correction lands on another byte
+    combination about a millimetre off, so the error never fell below ~0.05-1.3 mm (docs/calibration.md)."""
     rig, rehearsal, store = rehearsed
     u_mm = rig.instrument.settings()["u_mm"]
-    protocol = PROTOCOLS["iterative_correction"](robot="delta4", poses={k: list(v) for k, v in TARGETS.items()}, tolerance_mm=u_mm,
-                                                 iterations=3, settle_s=0.0)
+    assert rig.robot.controller.settings()["fine_reference"]["in_use"], "the simulated controller answers C"
+    protocol = PROTOCOLS["iterative_correction"](robot="delta4", poses={k: list(v) for k, v in TARGETS.items()},
+                                                 tolerance_mm=u_mm, iterations=3, settle_s=0.0)
     result = Runner(rig, store).run(protocol)
     assert result.exit_status == "completed", result.reason
     samples = store.samples(result.run_id, "pose")
@@ -138,10 +140,9 @@ def test_iterative_correction_on_the_delta4_with_the_camera(rehearsed):
         errors.setdefault(sample.pose, []).append(
             float(np.max(np.abs([sample.values["x_mm"], sample.values["y_mm"]] - target))))
     assert set(errors) == set(TARGETS)
-    for pose, series in errors.items():
-        assert len(series) == 3 or series[-1] <= u_mm, (pose, series)
-        assert max(series) < 1.5, (pose, series)  # the quantisation floor: ~1 mm per count at most
     assert max(series[0] for series in errors.values()) > 0.3  # the true geometry's first-move error
+    for pose, series in errors.items():
+        assert len(series) <= 3 and series[-1] <= u_mm, (pose, series)  # within the camera's uncertainty
 
 
 def test_the_camera_stream_serves_a_host_that_reopens_it(tmp_path):

@@ -200,7 +200,8 @@ def _open_camera(station: Station, opened: ExitStack) -> Any:
     calibration = load_plane_calibration(spec.calibration)
     grab, release = video_grab(spec.device)
     opened.callback(release)
-    return CameraSpotInstrument(LaserSpotCamera(grab, calibration), _home(station.robot), plane=spec.plane)
+    return CameraSpotInstrument(LaserSpotCamera(grab, calibration), _home(station.robot), plane=spec.plane,
+                                frames=spec.frames)
 
 
 def _home(robot: str) -> tuple[float, ...]:

@@ -74,25 +74,32 @@ def video_grab(device: str) -> tuple[Callable[[], np.ndarray], Callable[[], None
 
 
 class CameraSpotInstrument:
-    """Plane position of the laser spot, mm, on the two axes of ``plane`` (``xy``, ``xz`` or ``yz``)."""
+    """Plane position of the laser spot, mm, on the two axes of ``plane`` (``xy``, ``xz`` or ``yz``): the mean of
+    ``frames`` consecutive frames' spot positions (each frame's pixels kept in the raw data)."""
 
-    def __init__(self, camera: Any, origin_mm: Any, *, plane: str = "xy") -> None:
+    def __init__(self, camera: Any, origin_mm: Any, *, plane: str = "xy", frames: int = 1) -> None:
         if plane not in _AXES:
             raise ConfigError(f"camera.plane = {plane!r}, expected one of {', '.join(_AXES)}")
-        self.camera, self.plane = camera, plane
+        if not (isinstance(frames, int) and 1 <= frames <= 100):
+            raise ConfigError(f"camera.frames = {frames!r}, expected an integer 1-100 (frames averaged per reading)")
+        self.camera, self.plane, self.frames = camera, plane, frames
         self.origin = np.asarray(origin_mm, dtype=float)[:3].copy()
 
     def measure(self, capture: Capture) -> Measurement:
         if capture.kind != "pose":
             raise ConfigError(f"camera: capture kind {capture.kind!r}, expected 'pose' (the camera measures a plane)")
-        reading = self.camera.read()
+        readings = [self.camera.read() for _ in range(self.frames)]
+        mean = np.mean([reading.value for reading in readings], axis=0)
         axes = _AXES[self.plane]
-        values = {axis: float(self.origin[_INDEX[axis]] + v) for axis, v in zip(axes, reading.value)}
-        return Measurement(values, raw={"spot_px": list(reading.raw), "calibration": reading.calibration_id,
-                                        "note": reading.note})
+        values = {axis: float(self.origin[_INDEX[axis]] + v) for axis, v in zip(axes, mean)}
+        raw = {"spot_px": list(readings[0].raw), "calibration": readings[0].calibration_id, "note": readings[0].note}
+        if self.frames > 1:  # every frame's spot, so the mean can be recomputed and its spread judged
+            raw["frames_spot_px"] = [list(reading.raw) for reading in readings]
+        return Measurement(values, raw=raw)
 
     def settings(self) -> dict[str, Any]:
         calibration = self.camera.calibration
         return {"instrument": f"camera laser spot ({self.plane} plane)", **self.camera.settings(),
                 "calibration_id": calibration.calibration_id, "u_mm": float(calibration.rms_mm),
+                "frames_per_reading": self.frames,
                 "registration_mm": [float(v) for v in self.origin]}

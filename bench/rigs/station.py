@@ -42,7 +42,7 @@ from __future__ import annotations
 
 import tomllib
 from collections.abc import Mapping
-from dataclasses import dataclass, field, fields
+from dataclasses import dataclass, field, fields, replace
 from pathlib import Path
 from typing import Any
 
@@ -188,6 +188,9 @@ class CameraSpec:
     device: str
     calibration: str
     plane: str = "xy"  #: the two pose coordinates the camera's plane measures
+    #: frames averaged into one reading: the spot centroid's noise falls as 1/sqrt(frames) (a reading that corrects
+    #: a command copies its noise into it, so iterative correction to the camera's uncertainty needs a few)
+    frames: int = 1
 
 
 @dataclass(frozen=True)
@@ -322,10 +325,13 @@ def parse_station(data: Mapping[str, Any], *, source: str = "station") -> Statio
                                                  expected="a video device, camera index or stream URL")),
                             calibration=table.get("calibration", str, required=True,
                                                   expected="the plane calibration JSON file"),
-                            plane=table.choice("plane", ("xy", "xz", "yz"), "xy"))
+                            plane=table.choice("plane", ("xy", "xz", "yz"), "xy"),
+                            frames=table.get("frames", int, 1, expected="an integer 1-100 (frames averaged per reading)"))
+        if not 1 <= camera.frames <= 100:
+            raise _fail(source, "camera.frames", camera.frames, "an integer 1-100 (frames averaged per reading)")
         table.done()
         if not Path(camera.calibration).is_absolute() and source != "station":  # relative to the station file
-            camera = CameraSpec(camera.device, str(Path(source).parent / camera.calibration), camera.plane)
+            camera = replace(camera, calibration=str(Path(source).parent / camera.calibration))
         devices["camera.device"] = camera.device
     lab_store = None
     if "lab_store" in data:
