@@ -26,6 +26,7 @@ local file.
 from __future__ import annotations
 
 import hashlib
+import itertools
 import json
 import logging
 import sys
@@ -102,6 +103,8 @@ CREATE TABLE IF NOT EXISTS bench.samples (
 _SAMPLE_COLUMNS = ", ".join(SAMPLE_COLUMNS)
 _COPY_COLUMNS = ", ".join(f'"{c}"' for c in COPY_COLUMNS)
 _CHUNK_ROWS = 2_000  # rows per COPY write: small enough to overlap formatting with the server's work
+#: Connections sending batches at once (each its own runs): the server stores and folds two batches in parallel.
+_LANES = 2
 #: Memory for the pose trigger's transition table of one batch (about 400 bytes a row): with the server's default
 #: (4 MB) a 20 000-sample batch spills to a temporary file, 15 % of the server's time per sample.
 _WORK_MEM = "64MB"
@@ -241,9 +244,9 @@ def _copy(cur, table: str, chunks: list[bytes]) -> None:
 
 
 def _read_batches(store: Store, run: RunRecord, held: set[int], batch_size: int
-                  ) -> Iterator[tuple[list[bytes], int]]:
+                  ) -> Iterator[tuple[list[bytes], int, RunRecord]]:
     """The samples of ``run`` that the server lacks (steps not in ``held``), batch by batch: each batch as its COPY
-    text in chunks of :data:`_CHUNK_ROWS` rows at most, and its number of samples (``batch_size`` at most)."""
+    text in chunks of :data:`_CHUNK_ROWS` rows at most, its number of samples (``batch_size`` at most), the run."""
     rows = store.stored_rows(run.id, extract=TYPED_COLUMNS)
     exhausted = False
     while not exhausted:
@@ -259,7 +262,7 @@ def _read_batches(store: Store, run: RunRecord, held: set[int], batch_size: int
                 chunks.append(copy_text(run.uuid, chunk))
                 n += len(chunk)
         if n:
-            yield chunks, n
+            yield chunks, n, run
 
 
 def _send_batch(conn, chunks: list[bytes], n: int) -> int:
@@ -296,13 +299,54 @@ def _held_steps(conn, runs: list[RunRecord]) -> dict[str, set[int] | None]:
     return held
 
 
+def _prepare_sender(conn) -> None:
+    """A connection ready to send batches: its staging table, and memory for the pose trigger's transition table."""
+    conn.execute("CREATE TEMP TABLE IF NOT EXISTS sample_stage (LIKE bench.samples) ON COMMIT DELETE ROWS")
+    conn.execute(f"SET work_mem = '{_WORK_MEM}'")
+    conn.commit()
+
+
+def _deal(runs: list[RunRecord], held: dict[str, set[int] | None], lanes: int) -> list[list[RunRecord]]:
+    """The runs to send dealt to ``lanes`` lanes (at most one per run), each run to the lane with the fewest
+    samples to send so far, in the file's order."""
+    dealt: list[list[RunRecord]] = [[] for _ in range(min(lanes, len(runs)))] or [[]]
+    load = [0] * len(dealt)
+    for run in runs:
+        lane = load.index(min(load))
+        dealt[lane].append(run)
+        load[lane] += run.n_samples - len(held[run.uuid] or ())
+    return dealt
+
+
+def _send_lanes(store: Store, lanes: list[list[RunRecord]], connections: list, held: dict[str, set[int] | None],
+                *, batch_size: int, progress: Callable[[str], None], sent: list[int]) -> None:
+    """Send the lanes' batches, each lane through its own connection and sender thread, one batch in flight per
+    lane; this thread reads and formats the next batches meanwhile, taking the lanes in turn."""
+    batches = [itertools.chain.from_iterable(_read_batches(store, run, held[run.uuid], batch_size)
+                                             for run in lane) for lane in lanes]
+    in_flight: list[tuple | None] = [None] * len(lanes)
+    with ThreadPoolExecutor(max_workers=len(lanes), thread_name_prefix="lab-sync") as senders:
+        live = list(range(len(lanes)))
+        while live:
+            for lane in list(live):
+                batch = next(batches[lane], None)
+                if in_flight[lane] is not None:
+                    _settle(*in_flight[lane], progress=progress, sent=sent)
+                    in_flight[lane] = None
+                if batch is None:
+                    live.remove(lane)
+                    continue
+                chunks, n, run = batch
+                in_flight[lane] = (senders.submit(_send_batch, connections[lane], chunks, n), run, n)
+
+
 def _settle(batch: Future, run: RunRecord, n: int, *, progress: Callable[[str], None], sent: list[int]) -> None:
     """Wait for a batch sent (its exception raised here), count its new samples once committed, report it."""
     sent[0] += batch.result()
     progress(f"sync: run {run.id} ({run.uuid}) +{n} samples")
 
 
-def _push(store: Store, conn, *, batch_size: int, progress: Callable[[str], None], sent: list[int]
+def _push(store: Store, conn, url: str, *, batch_size: int, progress: Callable[[str], None], sent: list[int]
           ) -> tuple[int, int]:
     """Upsert runs and calibrations, then send the samples the server lacks; ``sent[0]`` counts the samples
     committed (kept when a later batch fails)."""
@@ -322,23 +366,17 @@ def _push(store: Store, conn, *, batch_size: int, progress: Callable[[str], None
             " source_run_uuid, notes) VALUES (%s, %s, %s, %s, %s, %s, %s, %s, %s) ON CONFLICT (uuid) DO NOTHING",
             [(c.uuid, store.bench, c.id, c.name, c.version, c.created_utc, json.dumps(c.params, sort_keys=True),
               run_uuids.get(c.source_run_id), c.notes) for c in calibrations])
-    conn.execute("CREATE TEMP TABLE IF NOT EXISTS sample_stage (LIKE bench.samples) ON COMMIT DELETE ROWS")
-    conn.execute(f"SET work_mem = '{_WORK_MEM}'")  # this session's: the pose trigger's transition table in memory
     conn.commit()
     held = _held_steps(conn, runs)
-    # Double-buffered: this thread reads and formats the next batch while a sender thread stores this one (and
-    # the server folds it and commits), so the local and the server's work overlap; one batch in flight at most.
-    in_flight = None
-    with ThreadPoolExecutor(max_workers=1, thread_name_prefix="lab-sync") as sender:
-        for run in runs:
-            if held[run.uuid] is None:
-                continue
-            for chunks, n in _read_batches(store, run, held[run.uuid], batch_size):
-                if in_flight is not None:
-                    _settle(*in_flight, progress=progress, sent=sent)
-                in_flight = (sender.submit(_send_batch, conn, chunks, n), run, n)
-        if in_flight is not None:
-            _settle(*in_flight, progress=progress, sent=sent)
+    lanes = _deal([run for run in runs if held[run.uuid] is not None], held, _LANES)
+    connections = [conn] + [connect(url) for _ in lanes[1:]]
+    try:
+        for lane_conn in connections:
+            _prepare_sender(lane_conn)
+        _send_lanes(store, lanes, connections, held, batch_size=batch_size, progress=progress, sent=sent)
+    finally:
+        for lane_conn in connections[1:]:
+            lane_conn.close()
     return len(runs), len(calibrations)
 
 
@@ -362,7 +400,7 @@ def sync_store(store: Store, url: str, *, batch_size: int = 20_000, retries: int
             conn = connect(url)
             try:
                 ensure_schema(conn, url)
-                runs, calibrations = _push(store, conn, batch_size=batch_size, progress=report, sent=sent)
+                runs, calibrations = _push(store, conn, url, batch_size=batch_size, progress=report, sent=sent)
             finally:
                 conn.close()
             return SyncResult(runs, calibrations, sent[0], time.perf_counter() - started)
