@@ -15,12 +15,15 @@ The local file stays the source of truth; the server holds copies, in the schema
 Schema versions: 1 had no typed columns, 2 no pose tables; a bench of version 3 adds and fills what is missing when
 it first connects.
 
-Sync is idempotent and resumable: runs and calibrations are upserted (the local file wins), and the samples the
-server lacks are sent in batches, each one COPY into a temporary table then ``INSERT ... ON CONFLICT DO NOTHING``
-in its own transaction; a batch goes out in chunks, so the server stores one chunk while the next is formatted.
-A sync killed or cut off mid-batch loses that batch's transaction only; the next sync asks
-the server which steps it holds and sends the rest, so every sample lands exactly once. Sync never writes to the
-local file.
+Sync is idempotent and resumable: runs and calibrations are upserted (the local file wins: a status, a reason, a
+registration added by a resume travel on the next sync), and the samples the server lacks are sent in batches, each
+one COPY straight into ``bench.samples`` in its own transaction (when another sync of the same file stored some of
+its steps first: COPY into a temporary table, then ``INSERT ... ON CONFLICT DO NOTHING``). The runs to send are dealt
+to two connections ("lanes", each its own runs, so their pose folds never touch the same keys); each lane has a
+sender thread with one batch in flight while this thread reads and formats the next batches, so reading the local
+file, the server's storing and its pose trigger overlap. A sync killed or cut off loses its open batches'
+transactions only; the next sync asks the server which steps it holds and sends the rest, so every sample lands
+exactly once. Sync never writes to the local file.
 """
 
 from __future__ import annotations
