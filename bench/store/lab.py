@@ -109,7 +109,7 @@ _CHUNK_ROWS = 2_000  # rows per COPY write: small enough to overlap formatting w
 #: Connections sending batches at once (each its own runs): the server stores and folds two batches in parallel.
 _LANES = 2
 #: Memory for the pose trigger's transition table of one batch (about 400 bytes a row): with the server's default
-#: (4 MB) a 20 000-sample batch spills to a temporary file, 15 % of the server's time per sample.
+#: (4 MB) a 20 000-sample batch spills to a temporary file (10-15 % more of the server's time per sample).
 _WORK_MEM = "64MB"
 _RUN_COLUMNS = ("uuid", "bench", "local_id", "campaign", "protocol_name", "protocol_version", "robot", "config_json",
                 "settings_json", "calibration_ids_json", "calibration_uuids_json", "software_version", "git_sha",
@@ -310,8 +310,8 @@ def _prepare_sender(conn) -> None:
 
 
 def _deal(runs: list[RunRecord], held: dict[str, set[int] | None], lanes: int) -> list[list[RunRecord]]:
-    """The runs to send dealt to ``lanes`` lanes (at most one per run), each run to the lane with the fewest
-    samples to send so far, in the file's order."""
+    """The runs to send dealt to ``lanes`` lanes (fewer when there are fewer runs; one, empty, for none), each run
+    to the lane with the fewest samples to send so far, in the file's order."""
     dealt: list[list[RunRecord]] = [[] for _ in range(min(lanes, len(runs)))] or [[]]
     load = [0] * len(dealt)
     for run in runs:
@@ -330,17 +330,22 @@ def _send_lanes(store: Store, lanes: list[list[RunRecord]], connections: list, h
     in_flight: list[tuple | None] = [None] * len(lanes)
     with ThreadPoolExecutor(max_workers=len(lanes), thread_name_prefix="lab-sync") as senders:
         live = list(range(len(lanes)))
-        while live:
-            for lane in list(live):
-                batch = next(batches[lane], None)
-                if in_flight[lane] is not None:
-                    _settle(*in_flight[lane], progress=progress, sent=sent)
-                    in_flight[lane] = None
-                if batch is None:
-                    live.remove(lane)
-                    continue
-                chunks, n, run = batch
-                in_flight[lane] = (senders.submit(_send_batch, connections[lane], chunks, n), run, n)
+        try:
+            while live:
+                for lane in list(live):
+                    batch = next(batches[lane], None)
+                    if in_flight[lane] is not None:
+                        _settle(*in_flight[lane], progress=progress, sent=sent)
+                        in_flight[lane] = None
+                    if batch is None:
+                        live.remove(lane)
+                        continue
+                    chunks, n, run = batch
+                    in_flight[lane] = (senders.submit(_send_batch, connections[lane], chunks, n), run, n)
+        finally:  # one lane failed (or this thread): the batches the other lanes committed still count
+            for pending in in_flight:
+                if pending is not None and pending[0].exception() is None:
+                    _settle(*pending, progress=progress, sent=sent)
 
 
 def _settle(batch: Future, run: RunRecord, n: int, *, progress: Callable[[str], None], sent: list[int]) -> None:
