@@ -1,11 +1,15 @@
 """Lab-store sync throughput and a cross-bench query, measured in one run (prints figures and ratios, asserts nothing).
 
 * Sync: ``--benches`` local stores of ``--samples`` pose samples each (in ``--runs`` runs) are pushed with
-  ``sync_store`` into one PostgreSQL server: the first ones one after the other (samples/s of each: min/median/max),
-  the rest at once, one process each (aggregate samples/s from the first start to the last end, imports excluded).
+  ``sync_store`` into one PostgreSQL server: the first ``--sequential`` (5) one after the other (samples/s of each:
+  min/median/max), the rest at once, one process each (aggregate samples/s from the first start to the last end,
+  imports excluded). With the throwaway cluster, also the CPU seconds per sample of this process (SQLite read,
+  formatting) and of the server (every postgres process of the cluster, the exited backends included), which depend
+  far less on the machine's load than the wall clock does.
 * Floor: a bare COPY of the same rows (the same COPY text, typed columns included, formatted beforehand) into an
-  unindexed, unlogged table of the same server (no key, no SQLite read, no formatting), three times: the ratio
-  sync/floor says what reading, formatting and the keyed, logged table cost.
+  unindexed, unlogged table of the same server (no key, no trigger, no SQLite read, no formatting, one connection),
+  five times: the ratio sync/floor says what reading, formatting, the keyed, logged table and the pose trigger cost
+  once the sync's overlap (two connections, formatting ahead) has paid for what it can.
 * Query: ``bench lab summary`` (``bench.store.lab_summary.pose_summary``: AP and RP, ISO 9283 7.2.1 and 7.2.2, per
   bench, robot, ISO week, pose, velocity and commanded position) over every synced sample, five times, after
   ANALYZE of bench.samples (what autovacuum does soon after a large sync); the pose tables the summary reads are
@@ -75,12 +79,36 @@ def copy_floor(url: str, path: Path) -> float:
     return elapsed
 
 
+def server_cpu_s(cluster: Cluster | None) -> float:
+    """CPU seconds used so far by the throwaway cluster: its postmaster, the children it has reaped (exited
+    backends) and the live ones (proc(5): utime, stime, cutime, cstime); NaN for a server that is not ours."""
+    if cluster is None:
+        return float("nan")
+    tick = os.sysconf("SC_CLK_TCK")
+    postmaster = int((cluster.root / "data" / "postmaster.pid").read_text().split()[0])
+
+    def fields(pid: int) -> list[str]:
+        return Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
+
+    main_fields = fields(postmaster)
+    total = sum(int(main_fields[i]) for i in (11, 12, 13, 14))
+    for entry in Path("/proc").iterdir():
+        if entry.name.isdigit():
+            try:
+                child = fields(int(entry.name))
+            except OSError:  # exited meanwhile: its time is in the postmaster's cutime, cstime
+                continue
+            if int(child[1]) == postmaster:
+                total += int(child[11]) + int(child[12])
+    return total / tick
+
+
 def main(argv=None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--benches", type=int, default=10, help="simulated benches (local stores)")
     parser.add_argument("--samples", type=int, default=100_000, help="samples per bench")
     parser.add_argument("--runs", type=int, default=4, help="runs per bench")
-    parser.add_argument("--sequential", type=int, default=3, help="benches synced one after the other")
+    parser.add_argument("--sequential", type=int, default=5, help="benches synced one after the other")
     args = parser.parse_args(argv)
 
     cluster = None
@@ -101,13 +129,19 @@ def main(argv=None) -> None:
         print(f"local stores       {args.benches} benches x {sum(per_run):,} samples written in "
               f"{time.perf_counter() - start:.1f} s")
 
-        rates = []
+        print(f"load average before the syncs: {os.getloadavg()[0]:.1f} on {os.cpu_count()} CPUs")
+        rates, client_cpu, server_cpu = [], [], []
         for path in stores[: args.sequential]:
             with Store(path) as store:
+                cpu, server = time.process_time(), server_cpu_s(cluster)
                 result = sync_store(store, url)
+                client_cpu.append((time.process_time() - cpu) / result.samples_sent * 1e6)
+                server_cpu.append((server_cpu_s(cluster) - server) / result.samples_sent * 1e6)
             rates.append(result.samples_per_s)
         print(f"sync, one bench    {sum(per_run):>9,} samples  min {min(rates):9,.0f}  median "
-              f"{statistics.median(rates):9,.0f}  max {max(rates):9,.0f} samples/s")
+              f"{statistics.median(rates):9,.0f}  max {max(rates):9,.0f} samples/s ({len(rates)} benches)")
+        print(f"CPU per sample     this process (read, format) median {statistics.median(client_cpu):.1f} us; "
+              f"server median {statistics.median(server_cpu):.1f} us")
 
         rest = stores[args.sequential:]
         if rest:  # one process per bench; the window runs from the first sync's start to the last one's end
@@ -119,7 +153,7 @@ def main(argv=None) -> None:
             print(f"sync, {len(rest)} at once    {n:>9,} samples  {window:7.2f} s  {n / window:9,.0f} samples/s "
                   "aggregate")
 
-        floors = [sum(per_run) / copy_floor(url, stores[0]) for _ in range(3)]
+        floors = [sum(per_run) / copy_floor(url, stores[0]) for _ in range(5)]
         print(f"floor: bare COPY   {sum(per_run):>9,} samples  min {min(floors):9,.0f}  median "
               f"{statistics.median(floors):9,.0f}  max {max(floors):9,.0f} samples/s; sync median / floor median "
               f"= {statistics.median(rates) / statistics.median(floors):.2f}")

@@ -107,7 +107,7 @@ def test_sync_killed_midway_then_resumed_has_every_sample_once(tmp_path, lab_url
 def test_server_restart_mid_sync_is_retried(tmp_path, lab_server, lab_url):
     if not isinstance(lab_server, Cluster):
         pytest.skip("BENCH_TEST_POSTGRES is not ours to restart")
-    path = make_store(tmp_path / "c.db", "bench-c", [4000])
+    path = make_store(tmp_path / "c.db", "bench-c", [2500, 1500])  # two runs: both lanes cut off, counted once
     restarted = []
 
     def progress(line: str) -> None:

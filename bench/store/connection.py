@@ -70,6 +70,9 @@ class _GuardedCursor:
     def fetchall(self) -> list:
         return self._guard("fetchall")
 
+    def fetchmany(self, size: int) -> list:
+        return self._guard("fetchmany", size)
+
     def __iter__(self) -> _GuardedCursor:
         return self
 
