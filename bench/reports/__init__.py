@@ -17,7 +17,6 @@ Examples
 
 from __future__ import annotations
 
-import hashlib
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, replace
 from pathlib import Path
@@ -40,6 +39,7 @@ from bench.reports.positioning import (
     grid_positioning_document,
     grid_readings,
 )
+from bench.reports.rawdata import write_table_csv
 from bench.reports.stabilisation import StabilisationReport, collect_stabilisation, stabilisation_document
 from bench.reports.summary import HistoryEvent, Identity, is_simulated, run_history, summary_section
 from bench.store import Store
@@ -166,8 +166,7 @@ def _out_dir(out_dir: str | Path) -> Path:
 def _write_raw(report: ReportBase, out: Path) -> tuple[Path, RawData]:
     """The analysed tidy table at full precision, so the report's `bench analyze` command reproduces every number."""
     path = out / f"run{report.run.id}_samples.csv"
-    report.table.to_csv(path, index=False)
-    digest = hashlib.sha256(path.read_bytes()).hexdigest()
+    digest = write_table_csv(report.table, path)
     return path, RawData(path.name, digest, len(report.table))
 
 
