@@ -28,7 +28,7 @@ from bench.reports.calibration import calibration_comparison, with_calibration_p
 from bench.reports.compare import layout_comparison, with_histories
 from bench.reports.content import CRITERIA, ReportBase, RunReport
 from bench.reports.deviations import Deviation, iso_deviations
-from bench.reports.document import Document, RawData, Section, comparison_document, run_document
+from bench.reports.document import Document, Figure, RawData, Section, comparison_document, run_document
 from bench.reports.language import customer_document
 from bench.reports.lasergrid import GridHitReport, collect_grid_hits, grid_hit_document
 from bench.reports.ladder import LadderReport, collect_ladder, ladder_document
@@ -175,6 +175,9 @@ def _write(document: Document, out: Path, stem: str, formats: tuple[str, ...],
     from bench.reports.html import write_html
     from bench.reports.pdf import write_pdf
 
+    from bench.reports.plots import draw_all
+
+    draw_all([block.plot for section in document.sections for block in section.blocks if isinstance(block, Figure)])
     writers = {"html": write_html, "pdf": write_pdf}
     written = {}
     for fmt in formats:

@@ -13,6 +13,9 @@ from __future__ import annotations
 import io
 import logging
 import math
+import os
+import pickle
+import threading
 from dataclasses import dataclass
 
 import numpy as np
@@ -24,9 +27,9 @@ from scipy.spatial import ConvexHull, QhullError
 
 from bench.reports.content import RunReport
 
-__all__ = ["MIN_FONT_PT", "PRINT_HEIGHT_IN", "PRINT_WIDTH_IN", "Plot", "REPORT_DPI", "comparison_plot", "deviation_histograms",
-           "error_map_3d", "print_ready", "panels", "payload_caption", "payload_shift_figure", "png_bytes",
-           "report_plots", "svg_text", "workspace_cloud_mm"]
+__all__ = ["MIN_FONT_PT", "PRINT_HEIGHT_IN", "PRINT_WIDTH_IN", "Plot", "REPORT_DPI", "comparison_plot",
+           "deviation_histograms", "draw_all", "error_map_3d", "print_ready", "panels", "payload_caption",
+           "payload_shift_figure", "png_bytes", "report_plots", "svg_text", "workspace_cloud_mm"]
 
 _log = logging.getLogger(__name__)
 _POSITION = ["x_mm", "y_mm", "z_mm"]
@@ -111,6 +114,57 @@ def png_bytes(plot: Plot, dpi: int = REPORT_DPI) -> bytes:
         plot.figure.savefig(buffer, format="png", dpi=dpi, metadata={"Software": None})
         rendered[dpi] = buffer.getvalue()
     return rendered[dpi]
+
+
+def _spare_core() -> bool:
+    """Whether another process would get a core of its own now (the 1-minute load, this process included, leaves
+    one free): on the shared 2-core bench PC under load a second drawing process only competes with the first."""
+    return os.getloadavg()[0] <= (os.cpu_count() or 1) - 1
+
+
+def draw_all(plots, dpi: int = REPORT_DPI, *, parallel: bool | None = None) -> None:
+    """Draw the PNG of every plot (:func:`png_bytes`), about half of them in one forked process while this one
+    draws the rest: drawing is most of a report's time, and figures share nothing. ``parallel`` None: when a core
+    is spare (:func:`_spare_core`). Only from a process with a single thread (a fork copies one thread; another's
+    lock could never be released in the child) on a system with ``fork``; a figure the child did not return (it
+    failed or was killed) is drawn here, so the result is the same PNG either way, only later."""
+    pending = [plot for plot in plots if dpi not in plot.figure.__dict__.get("_bench_png", {})]
+    if parallel is None:
+        parallel = hasattr(os, "getloadavg") and _spare_core()
+    if not parallel or len(pending) < 2 or not hasattr(os, "fork") or threading.active_count() > 1:
+        for plot in pending:
+            png_bytes(plot, dpi)
+        return
+    # balance by the number of axes (panels cost about the same each)
+    mine, theirs, load = [], [], [0, 0]
+    for plot in sorted(pending, key=lambda p: -len(p.figure.axes)):
+        side = 0 if load[0] <= load[1] else 1
+        (mine, theirs)[side].append(plot)
+        load[side] += max(1, len(plot.figure.axes))
+    readable, writable = os.pipe()
+    child = os.fork()
+    if child == 0:  # the child: draw its share, send the PNGs, leave without running any exit handler
+        status = 1
+        try:
+            os.close(readable)
+            with os.fdopen(writable, "wb") as pipe:
+                pickle.dump([png_bytes(plot, dpi) for plot in theirs], pipe)
+            status = 0
+        finally:
+            os._exit(status)
+    os.close(writable)
+    for plot in mine:
+        png_bytes(plot, dpi)
+    with os.fdopen(readable, "rb") as pipe:
+        try:
+            images = pickle.load(pipe)
+        except (EOFError, pickle.UnpicklingError):
+            images = []
+    os.waitpid(child, 0)
+    for plot, image in zip(theirs, images):
+        plot.figure.__dict__.setdefault("_bench_png", {})[dpi] = image
+    for plot in theirs[len(images):]:
+        png_bytes(plot, dpi)
 
 
 def _rows_of(report: RunReport, result) -> np.ndarray:
