@@ -109,12 +109,13 @@ def _spread(walls: list[float]) -> str:
 def whole_process(store_path: Path, run_id: int, out: Path, repeat: int) -> None:
     """``bench report RUN`` as a user runs it, against a process that imports only matplotlib and pandas."""
     floor = _process_times(["-c", "import matplotlib, pandas"], repeat)
-    report = _process_times(["-c", "import sys; from bench.cli import main; sys.exit(main())", "report", str(run_id), "--store", str(store_path), "--out", str(out),
-                             "--quiet"], repeat)
+    report = _process_times(["-c", "import sys; from bench.cli import main; sys.exit(main())", "report", str(run_id),
+                             "--store", str(store_path), "--out", str(out), "--quiet"], repeat)
     print(f"{'floor (import matplotlib, pandas)':<36} wall {_spread(floor)}   {_load()}")
     print(f"{'bench report RUN (whole process)':<36} wall {_spread(report)}   {_load()}")
-    print(f"bench report RUN: median {statistics.median(report):.2f} s = {statistics.median(report) / statistics.median(floor):.1f} x "
-          f"the import floor, {statistics.median(report) / PROCESS_TARGET_S:.2f} x the {PROCESS_TARGET_S:g} s target")
+    median = statistics.median(report)
+    print(f"bench report RUN: median {median:.2f} s = {median / statistics.median(floor):.1f} x the import floor, "
+          f"{median / PROCESS_TARGET_S:.2f} x the {PROCESS_TARGET_S:g} s target")
 
 
 def long_path_run(folder: Path, points: int) -> tuple[Path, int]:
@@ -181,7 +182,8 @@ def main() -> None:
             walls, cpus, paths = _timed(lambda: write_report(path, path_run, Path(folder) / "path-out"),
                                         max(1, args.repeat // 2))
             rows = sum(1 for _ in paths.csv[0].open("rb")) - 1
-            print(_line("path report", walls, cpus) + f"   {rows:,} rows in its CSV ({paths.csv[0].stat().st_size / 2**20:.0f} MiB)   {_load()}")
+            size = paths.csv[0].stat().st_size / 2**20
+            print(_line("path report", walls, cpus) + f"   {rows:,} rows in its CSV ({size:.0f} MiB)   {_load()}")
             floor = _timed(lambda: shutil.copyfile(paths.csv[0], Path(folder) / "copy.csv"), 3)[0]
             print(f"long path run report: median {statistics.median(walls):.1f} s wall; copying its CSV alone "
                   f"{min(floor):.2f} s")

@@ -24,7 +24,7 @@ def _pandas_bytes(table: pd.DataFrame, path) -> bytes:
 def test_edge_values_are_written_as_pandas_writes_them(tmp_path):
     table = pd.DataFrame({"pose": ["P1", "a,b", None, 'q"x', ""], "cycle": [1, 2, 3, 4, 5],
                           "x_mm": [0.1, np.nan, -0.0, 1e-5, 1e17], "ok": [True, False, True, True, False],
-                          "v": [np.inf, -np.inf, 3.0, 2.5, 100.0]})
+                          "v": [np.inf, -np.inf, 3.0, 2.5, 100.0], "z_mm": [0.0, -0.0, 0.0, -0.0, 1.0]})
     expected = _pandas_bytes(table, tmp_path / "pandas.csv")
     digest = write_table_csv(table, tmp_path / "fast.csv")
     assert (tmp_path / "fast.csv").read_bytes() == expected
@@ -32,7 +32,8 @@ def test_edge_values_are_written_as_pandas_writes_them(tmp_path):
 
 
 def test_a_line_break_in_a_text_and_a_single_column_go_through_pandas(tmp_path):
-    for table in (pd.DataFrame({"note": ["two\nlines", "x"], "x_mm": [1.0, 2.0]}), pd.DataFrame({"x_mm": [np.nan, 1.0]})):
+    for table in (pd.DataFrame({"note": ["two\nlines", "x"], "x_mm": [1.0, 2.0]}),
+                  pd.DataFrame({"x_mm": [np.nan, 1.0]})):
         expected = _pandas_bytes(table, tmp_path / "pandas.csv")
         write_table_csv(table, tmp_path / "fast.csv")
         assert (tmp_path / "fast.csv").read_bytes() == expected

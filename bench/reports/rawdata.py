@@ -15,6 +15,7 @@ import hashlib
 import io
 from pathlib import Path
 
+import numpy as np
 import pandas as pd
 
 __all__ = ["write_table_csv"]
@@ -25,7 +26,12 @@ _CHUNK_ROWS = 200_000
 
 def _column_text(column: pd.Series) -> list[str]:
     """Each cell of ``column`` as ``to_csv`` writes it (its distinct values formatted once by pandas)."""
-    codes, uniques = pd.factorize(column, use_na_sentinel=True)
+    if isinstance(column.dtype, np.dtype) and column.dtype.kind == "f":  # by bit pattern: 0.0 and -0.0 differ
+        values = column.to_numpy()
+        codes, bits = pd.factorize(values.view(f"i{values.dtype.itemsize}"))
+        uniques = bits.view(values.dtype)
+    else:
+        codes, uniques = pd.factorize(column, use_na_sentinel=True)
     frame = pd.DataFrame({"value": pd.Series(uniques, dtype=column.dtype), "end": 0})
     lines = frame.to_csv(index=False, header=False, lineterminator="\n").split("\n")[:-1]
     texts = [line[:-2] for line in lines]  # drop ",0": a second column keeps an empty value from being quoted
