@@ -71,3 +71,11 @@ def test_error_map_colours_each_pose_by_its_ap(report):
     tips = axes.collections[2]  # quiver, command poses, barycentre tips
     np.testing.assert_allclose(tips.get_array(), [r.accuracy.ap_mm for r in report.poses])
     assert len(report.poses) == 15 and "one vector per set of conditions (3)" in plot.caption
+
+
+def test_figures_drawn_in_a_forked_process_are_the_same_pngs(report):
+    from bench.reports.plots import draw_all, png_bytes
+
+    here, forked = report_plots(report), report_plots(report)
+    draw_all(forked, parallel=True)
+    assert [png_bytes(plot) for plot in here] == [png_bytes(plot) for plot in forked]

@@ -17,7 +17,6 @@ Examples
 
 from __future__ import annotations
 
-import hashlib
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, replace
 from pathlib import Path
@@ -29,7 +28,7 @@ from bench.reports.calibration import calibration_comparison, with_calibration_p
 from bench.reports.compare import layout_comparison, with_histories
 from bench.reports.content import CRITERIA, ReportBase, RunReport
 from bench.reports.deviations import Deviation, iso_deviations
-from bench.reports.document import Document, RawData, Section, comparison_document, run_document
+from bench.reports.document import Document, Figure, RawData, Section, comparison_document, run_document
 from bench.reports.language import customer_document
 from bench.reports.lasergrid import GridHitReport, collect_grid_hits, grid_hit_document
 from bench.reports.ladder import LadderReport, collect_ladder, ladder_document
@@ -41,6 +40,7 @@ from bench.reports.positioning import (
     grid_readings,
 )
 from bench.reports.positioning_time import collect_positioning_time, positioning_time_document
+from bench.reports.rawdata import write_table_csv
 from bench.reports.stabilisation import StabilisationReport, collect_stabilisation, stabilisation_document
 from bench.reports.summary import HistoryEvent, Identity, is_simulated, run_history, summary_section
 from bench.store import Store
@@ -169,8 +169,7 @@ def _out_dir(out_dir: str | Path) -> Path:
 def _write_raw(report: ReportBase, out: Path) -> tuple[Path, RawData]:
     """The analysed tidy table at full precision, so the report's `bench analyze` command reproduces every number."""
     path = out / f"run{report.run.id}_samples.csv"
-    report.table.to_csv(path, index=False)
-    digest = hashlib.sha256(path.read_bytes()).hexdigest()
+    digest = write_table_csv(report.table, path)
     return path, RawData(path.name, digest, len(report.table))
 
 
@@ -189,6 +188,9 @@ def _write(document: Document, out: Path, stem: str, formats: tuple[str, ...],
     from bench.reports.html import write_html
     from bench.reports.pdf import write_pdf
 
+    from bench.reports.plots import draw_all
+
+    draw_all([block.plot for section in document.sections for block in section.blocks if isinstance(block, Figure)])
     writers = {"html": write_html, "pdf": write_pdf}
     written = {}
     for fmt in formats:

@@ -178,10 +178,12 @@ def _sha256_json(value: Any) -> str:
     return hashlib.sha256(json.dumps(value, sort_keys=True, separators=(",", ":")).encode()).hexdigest()
 
 
-def run_table(store: Store, run_id: int, kind: str, *, series: bool = False) -> pd.DataFrame:
+def run_table(store: Store, run_id: int, kind: str, *, series: bool = False, samples=None) -> pd.DataFrame:
     """The stored samples of ``kind`` of run ``run_id`` as a report analyses them: the tidy table (``series``: the
-    table of their streamed series), its source named ``run <id>`` so that analysis messages name the run."""
-    table = series_table(store, run_id, kind=kind) if series else tidy_table(store, run_id, kind=kind)
+    table of their streamed series, from ``samples`` when already read), its source named ``run <id>`` so that
+    analysis messages name the run."""
+    table = (series_table(store, run_id, kind=kind, samples=samples) if series
+             else tidy_table(store, run_id, kind=kind))
     table.attrs["source"] = f"run {run_id}"
     return table
 

@@ -87,7 +87,8 @@ def collect_path(store: Store, run_id: int, *, k: float = 2.0, resamples: int = 
     """Gather the facts and figures of the report of path run ``run_id`` (``k``, ``resamples`` unused: the path
     figures carry no expanded uncertainty; ``allow_unknown`` unused: no row here can be unknown)."""
     run = store.run(run_id)
-    analysis = analyze_path_run(store, run_id)
+    samples = store.samples(run_id, kind="path")  # read once: the analysis and the raw-data table
+    analysis = analyze_path_run(store, run_id, samples=samples)
     calibrations = calibrations_in_force(store, run)
     clauses = ("8.5 cornering deviations",) if run.protocol_name == "iso9283_cornering" else ()
     return PathReport(**provenance(run, calibrations), title=run.config.get("title") or
@@ -96,7 +97,7 @@ def collect_path(store: Store, run_id: int, *, k: float = 2.0, resamples: int = 
                           ("8.6 path velocity",) if "line" in analysis.design.shapes else ()),
                       deviations=tuple(path_deviations(run, analysis)),
                       instrument=counts_instrument(run, calibrations, 0),
-                      table=run_table(store, run_id, "path", series=True), coverage_factor=k,
+                      table=run_table(store, run_id, "path", series=True, samples=samples), coverage_factor=k,
                       analysis=analysis, store_path=store.path)
 
 

@@ -202,8 +202,9 @@ class PathDesign:
 
 
 def analyze_path_run(store: Store, run_id: int, *, station_mm: float = 1.0, margin_mm: float = 2.0,
-                     speed_station_mm: float = 2.0) -> PathRun:
-    """The figures of every path and velocity of path run ``run_id`` (module docstring).
+                     speed_station_mm: float = 2.0, samples=None) -> PathRun:
+    """The figures of every path and velocity of path run ``run_id`` (module docstring); ``samples``: its ``path``
+    samples when the caller has read them already (a report reads them once).
 
     Raises
     ------
@@ -216,7 +217,7 @@ def analyze_path_run(store: Store, run_id: int, *, station_mm: float = 1.0, marg
     if run.protocol_name not in PATH_PROTOCOLS:
         raise ConfigError(f"run {run_id}: a {run.protocol_name} run, expected one of {', '.join(PATH_PROTOCOLS)}")
     protocol = PathDesign.from_config(run.config, source=f"run {run_id}")
-    grouped = attained_cycles(store.samples(run_id, kind="path"))
+    grouped = attained_cycles(store.samples(run_id, kind="path") if samples is None else samples)
     figures = []
     for (shape, velocity), cycles in sorted(grouped.items(), key=lambda item: (item[0][0], -item[0][1])):
         n_segments = protocol.n_segments(shape)

@@ -13,6 +13,9 @@ from __future__ import annotations
 import io
 import logging
 import math
+import os
+import pickle
+import threading
 from dataclasses import dataclass
 
 import numpy as np
@@ -24,9 +27,9 @@ from scipy.spatial import ConvexHull, QhullError
 
 from bench.reports.content import RunReport
 
-__all__ = ["MIN_FONT_PT", "PRINT_HEIGHT_IN", "PRINT_WIDTH_IN", "Plot", "REPORT_DPI", "comparison_plot", "deviation_histograms",
-           "error_map_3d", "print_ready", "panels", "payload_caption", "payload_shift_figure", "png_bytes",
-           "report_plots", "svg_text", "workspace_cloud_mm"]
+__all__ = ["MIN_FONT_PT", "PRINT_HEIGHT_IN", "PRINT_WIDTH_IN", "Plot", "REPORT_DPI", "comparison_plot",
+           "deviation_histograms", "draw_all", "error_map_3d", "print_ready", "panels", "payload_caption",
+           "payload_shift_figure", "png_bytes", "report_plots", "svg_text", "workspace_cloud_mm"]
 
 _log = logging.getLogger(__name__)
 _POSITION = ["x_mm", "y_mm", "z_mm"]
@@ -46,12 +49,13 @@ def print_ready(figure: Figure) -> Figure:
     fixed layout: saving it as SVG and PNG draws it once each, with no layout pass per save)."""
     if getattr(figure, "_bench_print_ready", False):
         return figure
+    _share_scales(figure)
     width, height = figure.get_size_inches()
     scale = min(PRINT_WIDTH_IN / width, PRINT_HEIGHT_IN / height)
     figure.set_size_inches(width * scale, height * scale)
     for axes in figure.axes:
         axes.tick_params(labelsize=MIN_FONT_PT)
-    for text in figure.findobj(Text):
+    for text in _texts(figure):
         if text.get_fontsize() < MIN_FONT_PT:
             text.set_fontsize(MIN_FONT_PT)
     engine = figure.get_layout_engine()
@@ -60,6 +64,25 @@ def print_ready(figure: Figure) -> Figure:
         figure.set_layout_engine("none")
     figure._bench_print_ready = True
     return figure
+
+
+def _texts(figure: Figure):
+    """Every text of ``figure`` but the tick labels (sized by ``tick_params``): a walk of what holds texts instead of
+    ``findobj``, which builds every tick of every axis to visit it (a quarter of a small-multiples figure's time)."""
+    legends = list(figure.legends)
+    yield from figure.texts
+    for axes in figure.axes:
+        yield from (axes.title, axes._left_title, axes._right_title)
+        yield from (a for a in axes.texts if isinstance(a, Text))
+        for axis in axes._axis_map.values():
+            yield from (axis.label, axis.offsetText)
+        if axes.get_legend() is not None:
+            legends.append(axes.get_legend())
+        for child in axes.get_children():  # annotations, anchored texts and the like that are not in axes.texts
+            if isinstance(child, Text) and child not in axes.texts:
+                yield child
+    for legend in legends:
+        yield from (*legend.get_texts(), legend.get_title())
 
 
 @dataclass(frozen=True)
@@ -93,6 +116,57 @@ def png_bytes(plot: Plot, dpi: int = REPORT_DPI) -> bytes:
     return rendered[dpi]
 
 
+def _spare_core() -> bool:
+    """Whether another process would get a core of its own now (the 1-minute load, this process included, leaves
+    one free): on the shared 2-core bench PC under load a second drawing process only competes with the first."""
+    return os.getloadavg()[0] <= (os.cpu_count() or 1) - 1
+
+
+def draw_all(plots, dpi: int = REPORT_DPI, *, parallel: bool | None = None) -> None:
+    """Draw the PNG of every plot (:func:`png_bytes`), about half of them in one forked process while this one
+    draws the rest: drawing is most of a report's time, and figures share nothing. ``parallel`` None: when a core
+    is spare (:func:`_spare_core`). Only from a process with a single thread (a fork copies one thread; another's
+    lock could never be released in the child) on a system with ``fork``; a figure the child did not return (it
+    failed or was killed) is drawn here, so the result is the same PNG either way, only later."""
+    pending = [plot for plot in plots if dpi not in plot.figure.__dict__.get("_bench_png", {})]
+    if parallel is None:
+        parallel = hasattr(os, "getloadavg") and _spare_core()
+    if not parallel or len(pending) < 2 or not hasattr(os, "fork") or threading.active_count() > 1:
+        for plot in pending:
+            png_bytes(plot, dpi)
+        return
+    # balance by the number of axes (panels cost about the same each)
+    mine, theirs, load = [], [], [0, 0]
+    for plot in sorted(pending, key=lambda p: -len(p.figure.axes)):
+        side = 0 if load[0] <= load[1] else 1
+        (mine, theirs)[side].append(plot)
+        load[side] += max(1, len(plot.figure.axes))
+    readable, writable = os.pipe()
+    child = os.fork()
+    if child == 0:  # the child: draw its share, send the PNGs, leave without running any exit handler
+        status = 1
+        try:
+            os.close(readable)
+            with os.fdopen(writable, "wb") as pipe:
+                pickle.dump([png_bytes(plot, dpi) for plot in theirs], pipe)
+            status = 0
+        finally:
+            os._exit(status)
+    os.close(writable)
+    for plot in mine:
+        png_bytes(plot, dpi)
+    with os.fdopen(readable, "rb") as pipe:
+        try:
+            images = pickle.load(pipe)
+        except (EOFError, pickle.UnpicklingError):
+            images = []
+    os.waitpid(child, 0)
+    for plot, image in zip(theirs, images):
+        plot.figure.__dict__.setdefault("_bench_png", {})[dpi] = image
+    for plot in theirs[len(images):]:
+        png_bytes(plot, dpi)
+
+
 def _rows_of(report: RunReport, result) -> np.ndarray:
     table = report.table
     mask = table["pose"] == result.pose
@@ -118,10 +192,40 @@ def panels(count: int, *, max_columns: int, size: tuple[float, float] = (2.6, 2.
     figure = Figure(figsize=(width, height))
     figure.subplots_adjust(left=left / width, right=1 - right / width, bottom=bottom / height,
                            top=1 - top / height, wspace=0.12, hspace=0.32)
-    grid = figure.subplots(rows, columns, sharex=True, sharey=True, squeeze=False)
+    # not matplotlib's sharex/sharey: every operation on a shared axes walks all its siblings (weak references), a
+    # third of a 15-panel figure's time; the panels get one scale once, when the figure is made print ready
+    grid = figure.subplots(rows, columns, squeeze=False)
     for extra in grid.flat[count:]:
         extra.set_visible(False)
+    for axes in grid.flat:
+        axes.label_outer()  # tick labels on the outer panels only, as sharex/sharey do
+    figure._bench_shared_panels = list(grid.flat[:count])
     return figure, list(grid.flat[:count])
+
+
+def _share_scales(figure: Figure) -> None:
+    """One x and one y scale for the panels of ``panels(..., share=True)``: limits set on a panel (autoscale off)
+    hold for all, else every panel is autoscaled over the data of all (as matplotlib's shared axes are)."""
+    shared = getattr(figure, "_bench_shared_panels", None)
+    if not shared:
+        return
+    for axis in "xy":
+        fixed = [axes for axes in shared if not getattr(axes, f"get_autoscale{axis}_on")()]
+        if fixed:
+            limits = getattr(fixed[-1], f"get_{axis}lim")()
+        else:
+            spans = [getattr(axes.dataLim, f"interval{axis}") for axes in shared
+                     if np.all(np.isfinite(getattr(axes.dataLim, f"interval{axis}")))]
+            for axes in shared:
+                if spans:
+                    corners = np.array([[min(s[0] for s in spans)] * 2, [max(s[1] for s in spans)] * 2])
+                    axes.dataLim.update_from_data_xy(corners, ignore=False, updatex=axis == "x",
+                                                     updatey=axis == "y")
+                axes.autoscale_view(scalex=axis == "x", scaley=axis == "y")
+            each = [getattr(axes, f"get_{axis}lim")() for axes in shared]
+            limits = (min(low for low, _ in each), max(high for _, high in each))
+        for axes in shared:
+            getattr(axes, f"set_{axis}lim")(limits)
 
 
 def _short_label(result) -> str:
