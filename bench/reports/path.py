@@ -16,7 +16,7 @@ from bench.reports.content import ReportBase, calibrations_in_force, counts_inst
 from bench.reports.deviations import Deviation, _fmt, _planned_count, _row
 from bench.reports.document import Paragraph, RawData, Table, assemble, conditions_section, decision_blocks
 from bench.reports.path_run import PathRun, analyze_path_run
-from bench.reports.plots import MIN_FONT_PT, Plot, panels
+from bench.reports.plots import MIN_FONT_PT, Plot, legend_entries, panels
 from bench.store import Store
 
 __all__ = ["PathReport", "collect_path", "path_deviations", "path_document", "path_plot"]
@@ -160,10 +160,7 @@ def path_plot(report: PathReport) -> Plot:
     axes_list[0].set_ylim(-half, half)
     figure.supxlabel("u: along P2 → P5, from P1 (mm)", fontsize=MIN_FONT_PT + 1)
     figure.supylabel("v: along P2 → P3, from P1 (mm)", fontsize=MIN_FONT_PT + 1)
-    legend: dict = {}
-    for axes in axes_list:
-        for handle, label in zip(*axes.get_legend_handles_labels()):
-            legend.setdefault(label, handle)
+    legend = legend_entries(axes_list)
     figure.legend(list(legend.values()), list(legend), loc="outside upper center", ncols=min(4, len(legend)),
                   fontsize=MIN_FONT_PT)
     return Plot("Commanded (dashed) and attained paths in the test plane at the highest velocity, every cycle, all "

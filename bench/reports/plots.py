@@ -28,7 +28,7 @@ from scipy.spatial import ConvexHull, QhullError
 from bench.reports.content import RunReport
 
 __all__ = ["MIN_FONT_PT", "PRINT_HEIGHT_IN", "PRINT_WIDTH_IN", "Plot", "REPORT_DPI", "comparison_plot",
-           "deviation_histograms", "draw_all", "error_map_3d", "print_ready", "panels", "payload_caption",
+           "deviation_histograms", "draw_all", "error_map_3d", "legend_entries", "print_ready", "panels", "payload_caption",
            "payload_shift_figure", "png_bytes", "report_plots", "svg_text", "workspace_cloud_mm"]
 
 _log = logging.getLogger(__name__)
@@ -114,6 +114,16 @@ def png_bytes(plot: Plot, dpi: int = REPORT_DPI) -> bytes:
         plot.figure.savefig(buffer, format="png", dpi=dpi, metadata={"Software": None})
         rendered[dpi] = buffer.getvalue()
     return rendered[dpi]
+
+
+def legend_entries(axes_list) -> dict:
+    """Each label of the panels ``axes_list`` once (its first handle), in the order first met: the entries of the
+    one legend a figure of small multiples gets."""
+    entries: dict = {}
+    for axes in axes_list:
+        for handle, label in zip(*axes.get_legend_handles_labels()):
+            entries.setdefault(label, handle)
+    return entries
 
 
 def _spare_core() -> bool:

@@ -27,7 +27,7 @@ from bench.metrology.path_tables import positioning_steps
 from bench.reports.content import ReportBase, calibrations_in_force, counts_instrument, provenance, run_table
 from bench.reports.deviations import ISO_BANDS_MM, Deviation, _fmt, _load, _planned_count, _row
 from bench.reports.document import Paragraph, RawData, Table, assemble, conditions_section, decision_blocks
-from bench.reports.plots import MIN_FONT_PT, Plot, panels
+from bench.reports.plots import MIN_FONT_PT, Plot, legend_entries, panels
 from bench.reports.stabilisation import _bands, _hysteresis, count_size_mm
 from bench.store import Store
 
@@ -244,10 +244,7 @@ def positioning_time_plot(report: PositioningTimeReport) -> Plot:
         axes.tick_params(labelsize=MIN_FONT_PT)
     figure.supxlabel(f"t from leaving the {smallest:g} mm band of the start pose (s)", fontsize=MIN_FONT_PT + 1)
     figure.supylabel("|p(t) − p_end| (mm)", fontsize=MIN_FONT_PT + 1)
-    legend: dict = {}
-    for axes in axes_list:
-        for handle, label in zip(*axes.get_legend_handles_labels()):
-            legend.setdefault(label, handle)
+    legend = legend_entries(axes_list)
     figure.legend(list(legend.values()), list(legend), loc="outside upper center", ncols=min(4, len(legend)),
                   fontsize=MIN_FONT_PT)
     return Plot(f"Each step at {key[0]:g} % ({key[1]:g} kg): distance from the settled position per cycle against the "

@@ -42,7 +42,7 @@ from bench.reports.document import (
     conditions_section,
     decision_blocks,
 )
-from bench.reports.plots import MIN_FONT_PT, Plot, panels
+from bench.reports.plots import MIN_FONT_PT, Plot, legend_entries, panels
 from bench.store import CalibrationRecord, RunRecord, Store
 
 __all__ = ["Arrival", "BandResult", "StabilisationReport", "collect_stabilisation", "count_size_mm",
@@ -243,10 +243,7 @@ def stabilisation_plot(report: StabilisationReport) -> Plot:
     axes_list[0].set_ylim(0.0, top)
     figure.supxlabel("t from the move-done signal (s)", fontsize=MIN_FONT_PT + 1, y=0.005, va="bottom")
     figure.supylabel("d(t) = |p(t) − p_att| (mm)", fontsize=MIN_FONT_PT + 1, x=0.005, ha="left")
-    legend: dict = {}
-    for axes in axes_list:
-        for handle, label in zip(*axes.get_legend_handles_labels()):
-            legend.setdefault(label, handle)
+    legend = legend_entries(axes_list)
     order = sorted(legend, key=lambda label: not label.startswith("cycle"))  # the curves, then the marks
     figure.legend([legend[label] for label in order], order, loc="upper center", ncols=min(4, len(legend)),
                   fontsize=MIN_FONT_PT)
