@@ -26,7 +26,7 @@ import numpy as np
 from matplotlib.figure import Figure as MplFigure
 
 from bench.metrology.formatting import format_pair, format_value, pose_label
-from bench.reports.content import RunReport
+from bench.reports.content import RunReport, axes_statement
 from bench.reports.document import Document, Figure, Paragraph, Section, Table, fmt_mm, fmt_pm
 from bench.reports.plots import MIN_FONT_PT, Plot, workspace_cloud_mm
 
@@ -82,21 +82,35 @@ def gain_rows(pair: CalibrationComparison) -> tuple[tuple[str, str, str, str], .
     """The gain table's rows: quantity, before (mm), after (mm), factor before / after (module docstring)."""
     paired = _paired(pair)
     ap = np.array([[b.accuracy.ap_mm, a.accuracy.ap_mm] for b, a in paired])
-    axes = np.array([[b.accuracy.ap_axes_mm, a.accuracy.ap_axes_mm] for b, a in paired])  # (n, 2, 3)
+    axes = np.array([[b.accuracy.ap_axes_mm, a.accuracy.ap_axes_mm] for b, a in paired])  # (n, 2, measured)
     rp = np.array([[b.repeatability.rp_mm, a.repeatability.rp_mm] for b, a in paired])
     rows = [("mean AP_P", *ap.mean(axis=0)), ("largest AP_P", *ap.max(axis=0))]
-    rows += [(f"mean |AP_{name}|", *np.abs(axes[:, :, i]).mean(axis=0)) for i, name in enumerate("xyz")]
+    rows += [(f"mean |AP_{name}|", *np.abs(axes[:, :, i]).mean(axis=0)) for i, name in enumerate(_axes(pair))]
     rows.append(("mean RP_l", *rp.mean(axis=0)))
-    return tuple((name, fmt_mm(b), fmt_mm(a), _factor(b, a)) for name, b, a in rows)
+    rows = [(name, fmt_mm(b), fmt_mm(a), _factor(b, a)) for name, b, a in rows]
+    rows[-1:-1] = [(f"mean |AP_{name}|", "not measured", "not measured", "—") for name in "xyz"
+                   if name not in _axes(pair)]
+    return tuple(rows)
+
+
+def _axes(pair: CalibrationComparison) -> tuple[str, ...]:
+    """The position axes both runs measured (their instrument may read a subset: the camera's x, y)."""
+    before, after = pair.before.poses, pair.after.poses
+    if before and after and before[0].axis_names != after[0].axis_names:
+        from bench.errors import ConfigError
+
+        raise ConfigError(f"--compare: run {pair.before.run.id} measured {', '.join(before[0].axis_names)} and run "
+                          f"{pair.after.run.id} {', '.join(after[0].axis_names)}; compare runs of the same axes")
+    return before[0].axis_names if before else ("x", "y", "z")
 
 
 def _pose_rows(pair: CalibrationComparison) -> tuple[tuple[str, ...], ...]:
     rows = []
     for b, a in _paired(pair):
         cells = [pose_label(b.pose, b.conditions), fmt_pm(b.ap_u), fmt_pm(a.ap_u)]
-        for i in range(3):
-            cells += [format_value(r.accuracy.ap_axes_mm[i], r.ap_u.expanded_uncertainty, signed=True)
-                      for r in (b, a)]
+        for name in "xyz":
+            cells += [format_value(dict(zip(r.axis_names, r.accuracy.ap_axes_mm))[name], r.ap_u.expanded_uncertainty,
+                                   signed=True) if name in r.axis_names else "not measured" for r in (b, a)]
         rows.append((*cells, fmt_pm(b.rp_u), fmt_pm(a.rp_u)))
     return tuple(rows)
 
@@ -215,18 +229,21 @@ def calibration_section(pair: CalibrationComparison, number: int) -> Section:
     before, after, record = pair.before, pair.after, pair.after_calibration
     rows = gain_rows(pair)
     k = f"{before.coverage_factor:g}"
+    axes = axes_statement(after)
     blocks: list = [Paragraph(
         f"Before: run {before.run.id}, {_name(pair.before_calibration)} in force. After: run {after.run.id}, "
         f"{_name(record)} in force (identified from run {record.source_run_id}). Over the {len(_paired(pair))} "
         f"poses present in both runs the mean AP_P goes from {rows[0][1]} mm to {rows[0][2]} mm: "
-        f"{rows[0][3]} times smaller."),
+        f"{rows[0][3]} times smaller." + (f" {axes}." if axes else "")),
         Table("calibration-gain", ("Quantity (over the poses of both runs)", "Before (mm)", "After (mm)",
                                    "Factor before / after"), rows,
-              f"Gain of the calibration: run {before.run.id} (before) against run {after.run.id} (after)"),
+              f"Gain of the calibration: run {before.run.id} (before) against run {after.run.id} (after)"
+              + (f"; {axes}" if axes else "")),
         Table("calibration-poses", ("Pose", "AP_P ± U before (mm)", "AP_P ± U after (mm)", "AP_x before",
                                     "AP_x after", "AP_y before", "AP_y after", "AP_z before", "AP_z after",
                                     "RP_l ± U before (mm)", "RP_l ± U after (mm)"), _pose_rows(pair),
-              f"Per pose and axis, before and after (AP axes signed, barycentre − command, mm; U with k = {k})")]
+              f"Per pose and axis, before and after (AP axes signed, barycentre − command, mm; U with k = {k}"
+              + (f"; {axes}" if axes else "") + ")")]
     plot = error_vectors(pair)
     if plot is not None:
         blocks.append(Figure(plot))
