@@ -4,7 +4,8 @@
 kinematic calibrations (``settings.kinematic_calibration.id``, recorded by :mod:`bench.calibration_compensation`):
 the run without one (or with the older one) is *before*, the other *after*. The page shows
 
-* the gain: over the poses present in both runs, mean and largest AP_P, mean |AP| per axis and mean RP_l, before
+* the gain (laser-grid runs with partial readings: :mod:`bench.reports.calibration_partial`): over the poses
+  present in both runs, mean and largest AP_P, mean |AP| per axis and mean RP_l, before
   and after, with the factor before / after (ISO 9283 7.2.1 and 7.2.2 figures, as ``bench analyze iso9283``
   computes them per pose from each run's raw data);
 * every pose side by side (AP_P, the signed AP vector per axis, RP_l, each with its expanded uncertainty);
@@ -46,13 +47,13 @@ def kinematic_calibration_id(report: RunReport) -> int | None:
 class CalibrationComparison:
     """A before / after pair of pose runs and the calibration records each commanded by (None: none)."""
 
-    before: RunReport
-    after: RunReport
+    before: Any  #: RunReport, or GridPositioningReport (laser-grid readings, bench.reports.calibration_partial)
+    after: Any
     before_calibration: Any | None  # bench.store CalibrationRecord
     after_calibration: Any
 
 
-def calibration_comparison(store: Any, first: RunReport, second: RunReport) -> CalibrationComparison | None:
+def calibration_comparison(store: Any, first: Any, second: Any) -> CalibrationComparison | None:
     """The pair ordered before -> after when the runs commanded by different kinematic calibrations (the run
     without one, else the one with the older calibration, is *before*); None when the calibrations are the same."""
     ids = kinematic_calibration_id(first), kinematic_calibration_id(second)
@@ -224,8 +225,8 @@ def _fit_rows(record: Any) -> tuple[tuple[str, str], ...]:
     return tuple(rows)
 
 
-def calibration_section(pair: CalibrationComparison, number: int) -> Section:
-    """The calibration page (module docstring) as section ``number`` of a comparison."""
+def _pose_run_blocks(pair: CalibrationComparison) -> list:
+    """The gain, the per-pose table and the error vectors of two pose runs (complete readings)."""
     before, after, record = pair.before, pair.after, pair.after_calibration
     rows = gain_rows(pair)
     k = f"{before.coverage_factor:g}"
@@ -247,6 +248,17 @@ def calibration_section(pair: CalibrationComparison, number: int) -> Section:
     plot = error_vectors(pair)
     if plot is not None:
         blocks.append(Figure(plot))
+    return blocks
+
+
+def calibration_section(pair: CalibrationComparison, number: int) -> Section:
+    """The calibration page (module docstring) as section ``number`` of a comparison: the gain (pose runs, or
+    laser-grid runs with partial readings: :func:`bench.reports.calibration_partial.partial_blocks`), then the
+    calibration in force after."""
+    from bench.reports.calibration_partial import partial_blocks
+
+    record = pair.after_calibration
+    blocks = _pose_run_blocks(pair) if isinstance(pair.after, RunReport) else partial_blocks(pair, _name)
     params = record.params
     blocks.append(Table("calibration-parameters", ("Parameter", "Deviation from documented", "Standard uncertainty",
                                                    "Unit"), _parameter_rows(params),
@@ -272,5 +284,6 @@ def with_calibration_page(document: Document, pair: CalibrationComparison | None
         return document
     sections = list(document.sections)
     raw_at = next((i for i, s in enumerate(sections) if s.title.endswith("Raw data")), len(sections))
-    sections.insert(raw_at, calibration_section(pair, 5))
+    numbers = [int(s.title.split(".")[0]) for s in sections[:raw_at] if s.title.split(".")[0].isdigit()]
+    sections.insert(raw_at, calibration_section(pair, max(numbers, default=4) + 1))
     return replace(document, sections=tuple(sections))
