@@ -135,8 +135,9 @@ def _iso9283(args: argparse.Namespace) -> int:
             lines.append(f"{'':<{width}} orientation (deg): {text}")
     axes = results[0].axis_names if results else ("x", "y", "z")
     if len(axes) < 3:
-        lines.append(f"AP and RP over the measured axes {', '.join(axes)} only ({', '.join(c for c in 'xyz' if c not in axes)} "
-                     f"not in {args.file}: n/m, not measured); not the 3-D figures.")
+        missing = ", ".join(c for c in "xyz" if c not in axes)
+        lines.append(f"AP and RP over the measured axes {', '.join(axes)} only ({missing} not in {args.file}: n/m, "
+                     "not measured); not the 3-D figures.")
     lines.append(f"AP against the commanded pose; RP = l̄ + 3 S_l; U with k = {args.k:g}; values rounded by their U "
                  f"(--json: full precision).")
     emit({"poses": {r.label: pose_result_json(r) for r in results}}, args.json, lines)

@@ -118,20 +118,25 @@ def _pose_rows(pair: CalibrationComparison) -> tuple[tuple[str, ...], ...]:
 
 def error_vectors(pair: CalibrationComparison) -> Plot | None:
     """The signed AP vector of every pose over the workspace (x-y and x-z), before (top) and after (bottom), on one
-    magnification (set by the larger before); None for planar instruments."""
+    magnification (set by the larger before); the x-y projection only for an instrument on the x-y plane (the
+    camera), None for other subsets."""
     paired = _paired(pair)
-    if not paired or len(paired[0][0].accuracy.ap_axes_mm) < 3:
+    axes_measured = _axes(pair) if paired else ()
+    projections = {("x", "y", "z"): ((0, 1), (0, 2)), ("x", "y"): ((0, 1),)}.get(axes_measured)
+    if projections is None:
         return None
     commands = np.array([b.commanded_mm for b, _ in paired])
-    vectors = [np.array([r.accuracy.ap_axes_mm for r in rows]) for rows in zip(*paired)]
+    vectors = [np.zeros((len(paired), 3)) for _ in range(2)]
+    for vector, rows in zip(vectors, zip(*paired)):
+        vector[:, :len(axes_measured)] = [r.accuracy.ap_axes_mm for r in rows]  # z stays 0: only x-y is drawn
     cloud = workspace_cloud_mm(pair.after.run.robot)
     points = commands if cloud is None else cloud
     scale = 0.15 * float(np.ptp(points, axis=0).max()) / max(float(np.abs(vectors[0]).max()), 1e-9)
-    figure = MplFigure(figsize=(10, 8.4), layout="constrained")
-    grid = figure.subplots(2, 2)
+    figure = MplFigure(figsize=(10 if len(projections) == 2 else 5.5, 8.4), layout="constrained")
+    grid = figure.subplots(2, len(projections), squeeze=False)
     for row, (label, run, vector, colour) in enumerate((("before", pair.before, vectors[0], "tab:red"),
                                                         ("after", pair.after, vectors[1], "tab:blue"))):
-        for column, (i, j) in enumerate(((0, 1), (0, 2))):
+        for column, (i, j) in enumerate(projections):
             axes = grid[row][column]
             if cloud is not None:
                 axes.scatter(cloud[:, i], cloud[:, j], s=1, color="0.85", rasterized=True,
@@ -145,7 +150,8 @@ def error_vectors(pair: CalibrationComparison) -> Plot | None:
             axes.set_title(f"{label}: run {run.run.id}", fontsize=MIN_FONT_PT + 1)
             axes.set_aspect("equal", adjustable="datalim")
             axes.legend(fontsize=MIN_FONT_PT, loc="lower left")
-    return Plot(f"Error vectors over the workspace of the {pair.after.run.robot} (x-y and x-z projections): the "
+    views = "x-y and x-z projections" if len(projections) == 2 else "x-y projection; z not measured"
+    return Plot(f"Error vectors over the workspace of the {pair.after.run.robot} ({views}): the "
                 f"signed AP vector of every pose, before (run {pair.before.run.id}, {_name(pair.before_calibration)}) "
                 f"and after (run {pair.after.run.id}, {_name(pair.after_calibration)}), both magnified {scale:.0f} "
                 f"times.", figure)

@@ -46,8 +46,9 @@ def _row(name: str, values: list[tuple[float, float]]) -> tuple[str, str, str, s
 def partial_gain_rows(pair) -> tuple[tuple[str, str, str, str], ...]:
     """The gain table's rows: quantity (with its n of poses), before (mm), after (mm), factor (module docstring)."""
     paired = _paired(pair)
-    rows = [_row("mean AP_P, complete readings", [(b.statistics.ap_mm, a.statistics.ap_mm) for b, a in paired
-                                                  if b.statistics.ap_mm is not None and a.statistics.ap_mm is not None])]
+    rows = [_row("mean AP_P, complete readings",
+                 [(b.statistics.ap_mm, a.statistics.ap_mm) for b, a in paired
+                  if b.statistics.ap_mm is not None and a.statistics.ap_mm is not None])]
     for k, name in enumerate(AXIS_NAMES):
         rows.append(_row(f"mean |AP_{name}|, readings that measured {name}",
                          [(abs(b.statistics.axes[k].ap_mm), abs(a.statistics.axes[k].ap_mm)) for b, a in paired

@@ -71,7 +71,8 @@ from bench.store import CalibrationRecord, RunRecord, Store, series_table, tidy_
 from bench.store.registrations import registration_u_mm, registrations
 
 __all__ = ["CRITERIA", "MM_PER_INCH", "CalibrationFit", "Decision", "DistanceRow", "InstrumentInfo", "PayloadRow",
-           "ReportBase", "RunReport", "VapRow", "analysis_table", "axes_statement", "calibration_fits", "calibrations_in_force",
+           "ReportBase", "RunReport", "VapRow", "analysis_table", "axes_statement", "calibration_fits",
+           "calibrations_in_force",
            "collect", "counts_instrument", "provenance", "reading_instrument", "reading_step_mm", "run_table",
            "uncertainty_stated"]
 

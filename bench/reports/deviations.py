@@ -541,8 +541,8 @@ def _grid_rows(config: Mapping[str, Any], settings: Mapping[str, Any], poses: Se
     velocity = (settings.get("robot") or {}).get("velocity", "not stated")
     rows.append(_row("ISO 9283 6.7", "velocity", f"{_fmt(ISO_VELOCITIES_PCT)} % of rated velocity [U]",
                      f"{velocity}", False, "one, undeclared velocity; velocity-dependent errors not covered"))
-    rows.append(_row("ISO 9283 6.6", "load", "100 % rated load (6.6)", "no load recorded (the protocol has none)" if thesis else
-                     f"loads {config.get('loads_kg', 'not stated')} kg",
+    rows.append(_row("ISO 9283 6.6", "load", "100 % rated load (6.6)", "no load recorded (the protocol has none)"
+                     if thesis else f"loads {config.get('loads_kg', 'not stated')} kg",
                      False, "results describe the unloaded end effector only"))
     rows.append(_row("ISO 9283 6.10", "settling", "measure once the controller signals the attained pose and it has "
                                                   "settled [U]",
