@@ -23,7 +23,9 @@ from bench.reports import write_comparison, write_report
 from bench.store import Store
 
 EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
-VALIDATION = EXAMPLES / "kinematic_validation_delta4.toml"
+#: Held-out poses of examples/kinematic_validation_delta4.toml kept for speed: among them the laser grid reads some
+#: completely (V04, V10), some partly and some not at all.
+KEPT = ("V03", "V04", "V05", "V08", "V10", "V11")
 CAMERA = EXAMPLES / "stations" / "delta4_camera.toml"
 GRID = EXAMPLES / "stations" / "delta4_lasergrid.toml"
 PLANAR = "AP and RP in the x-y plane: the camera laser spot (xy plane) measures x, y; z not measured"
@@ -40,13 +42,17 @@ def _run(store: Path, protocol: Path, station: Path, *flags: str) -> int:
 def runs(tmp_path_factory):
     """Uncalibrated camera and grid validation runs, a camera calibration run identified by ``bench calibrate``,
     then the same validation runs with that calibration in force."""
-    store = tmp_path_factory.mktemp("delta4") / "d4.db"
-    ids = {"camera_before": _run(store, VALIDATION, CAMERA, "--no-kinematic-calibration"),
-           "grid_before": _run(store, VALIDATION, GRID, "--no-kinematic-calibration")}
+    folder = tmp_path_factory.mktemp("delta4")
+    store = folder / "d4.db"
+    lines = (EXAMPLES / "kinematic_validation_delta4.toml").read_text().splitlines()
+    validation = folder / "validation.toml"
+    validation.write_text("\n".join(line for line in lines if not line.startswith("V") or line[:3] in KEPT) + "\n")
+    ids = {"camera_before": _run(store, validation, CAMERA, "--no-kinematic-calibration"),
+           "grid_before": _run(store, validation, GRID, "--no-kinematic-calibration")}
     source = _run(store, EXAMPLES / "kinematic_calibration_delta4.toml", CAMERA, "--no-kinematic-calibration")
     assert main(["calibrate", str(source), "--store", str(store)]) == 0
-    ids["camera_after"] = _run(store, VALIDATION, CAMERA)
-    ids["grid_after"] = _run(store, VALIDATION, GRID)
+    ids["camera_after"] = _run(store, validation, CAMERA)
+    ids["grid_after"] = _run(store, validation, GRID)
     return store, ids
 
 
@@ -87,7 +93,7 @@ def test_a_camera_run_reports_planar_ap_rp_labelled_everywhere(runs, tmp_path, c
     header, *rows = tables["results"]
     assert header[4:7] == ["AP_x (mm)", "AP_y (mm)", "AP_z (mm)"]
     readings = _readings(store, run_id)
-    assert len(rows) == len(readings) == 12
+    assert len(rows) == len(readings) == len(KEPT)
     for row in rows:
         points, command = readings[row[0]]
         assert np.isnan(points[:, 2]).all()  # the camera never stored z
@@ -202,5 +208,5 @@ def test_comparing_laser_grid_runs_shows_the_gain_over_like_for_like_readings(ru
         _close(row[1], np.mean([p[0] for p in pairs]))
         _close(row[2], np.mean([p[1] for p in pairs]))
     complete = [[int((~np.isnan(run[pose][0]).any(axis=1)).sum()) for pose in run] for run in (before, after)]
-    assert gain["readings with x, y and z (complete)"][1:3] == [f"{sum(c)} / 24" for c in complete]
+    assert gain["readings with x, y and z (complete)"][1:3] == [f"{sum(c)} / {2 * len(KEPT)}" for c in complete]
     assert "Kinematic calibration: before and after" in paths.html.read_text(encoding="utf-8")
