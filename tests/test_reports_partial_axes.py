@@ -210,3 +210,22 @@ def test_comparing_laser_grid_runs_shows_the_gain_over_like_for_like_readings(ru
     complete = [[int((~np.isnan(run[pose][0]).any(axis=1)).sum()) for pose in run] for run in (before, after)]
     assert gain["readings with x, y and z (complete)"][1:3] == [f"{sum(c)} / {2 * len(KEPT)}" for c in complete]
     assert "Kinematic calibration: before and after" in paths.html.read_text(encoding="utf-8")
+
+
+def test_runs_measured_on_different_axes_are_not_set_side_by_side(runs, tmp_path):
+    from reports_runs import write_pose_run
+
+    from bench.errors import ConfigError
+    from bench.reports import write_trend
+
+    store, ids = runs
+    copy = tmp_path / "copy.db"
+    copy.write_bytes(store.read_bytes())
+    with Store(copy) as opened:
+        three_d = write_pose_run(opened, config=None)  # a pose run of the mice: x, y and z
+    camera = ids["camera_before"]
+    expected = f"run {camera} measured x, y; run {three_d} measured x, y, z; expected runs measured on the same axes"
+    with pytest.raises(ConfigError, match=f"^--compare: {expected}$"):
+        write_comparison(copy, camera, three_d, tmp_path / "out", formats=("html",))
+    with pytest.raises(ConfigError, match=r"^--trend: run \d+ measured .*; expected runs measured on the same axes$"):
+        write_trend(copy, [camera, three_d], tmp_path / "out", formats=("html",))

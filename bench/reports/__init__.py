@@ -275,6 +275,7 @@ def write_comparison(store: str | Path | Store, first_run: int, second_run: int,
             raise ConfigError(f"--compare: run {first_run} is a {protocols[0]} run and run {second_run} a "
                               f"{protocols[1]} run; compare runs of the same kind")
         first, second = collect(store, first_run, k=k), collect(store, second_run, k=k)
+        content.check_same_axes((first, second), "--compare")
         histories = (run_history(store, first.run), run_history(store, second.run))
         calibrated = (calibration_comparison(store, first, second)
                       if layouts[0] is None or layouts[0] is PARTIAL_READINGS else None)

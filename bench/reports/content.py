@@ -71,7 +71,7 @@ from bench.store import CalibrationRecord, RunRecord, Store, series_table, tidy_
 from bench.store.registrations import registration_u_mm, registrations
 
 __all__ = ["CRITERIA", "MM_PER_INCH", "CalibrationFit", "Decision", "DistanceRow", "InstrumentInfo", "PayloadRow",
-           "ReportBase", "RunReport", "VapRow", "analysis_table", "axes_statement", "calibration_fits",
+           "ReportBase", "RunReport", "VapRow", "analysis_table", "axes_statement", "calibration_fits", "check_same_axes",
            "calibrations_in_force",
            "collect", "counts_instrument", "provenance", "reading_instrument", "reading_step_mm", "run_table",
            "uncertainty_stated"]
@@ -261,6 +261,15 @@ def analysis_table(store: Store, run_id: int) -> pd.DataFrame:
             table = table.drop(columns=command)
     table.attrs["source"] = f"run {run_id}"
     return pose_table(table, partial_axes=True)
+
+
+def check_same_axes(reports, flag: str) -> None:
+    """Refuse to set pose runs side by side (``flag``: --compare, --trend) whose instruments measured different
+    axes: a planar AP next to a 3-D AP would read as a change of the robot."""
+    measured = {r.run.id: r.poses[0].axis_names for r in reports if isinstance(r, RunReport) and r.poses}
+    if len(set(measured.values())) > 1:
+        raise ConfigError(f"{flag}: " + "; ".join(f"run {i} measured {', '.join(a)}" for i, a in measured.items())
+                          + "; expected runs measured on the same axes")
 
 
 def axes_statement(report: RunReport) -> str | None:
