@@ -110,7 +110,13 @@ def _iso9283(args: argparse.Namespace) -> int:
         read_table_csv,
     )
 
-    table = pose_table(read_table_csv(args.file, numeric=POSE_NUMERIC_COLUMNS))
+    frame = read_table_csv(args.file, numeric=POSE_NUMERIC_COLUMNS)
+    if "horizontal_valid" in frame.columns:  # the laser grid: partial readings, as bench report lays them out
+        raise ConfigError(f"{args.file}: laser-grid readings (column horizontal_valid; axes empty where a screen did "
+                          f"not decode), expected complete readings; analyse them with bench analyze "
+                          f"grid-positioning {args.file}")
+    # an instrument that measures a subset of the axes (the camera: x, y): AP/RP over those, as bench report does
+    table = pose_table(frame, partial_axes=True)
     if table.empty:  # a header and no rows: nothing measured, never an empty result printed as if it were one
         raise ConfigError(f"{args.file}: no rows, expected at least one measured pose")
     results = report_order(analyze_poses(table, instrument_u_mm=args.instrument_u_mm, k=args.k))
@@ -120,7 +126,9 @@ def _iso9283(args: argparse.Namespace) -> int:
               f"{'U_AP':>7} {'U_RP':>7}")]
     for r, label in zip(results, labels):
         u_ap, u_rp = r.ap_u.expanded_uncertainty, r.rp_u.expanded_uncertainty
-        ap, ax, ay, az = (format_value(v, u_ap) for v in (r.accuracy.ap_mm, *r.accuracy.ap_axes_mm))
+        measured = dict(zip(r.axis_names, r.accuracy.ap_axes_mm))
+        ap, ax, ay, az = (format_value(v, u_ap) if v is not None else "n/m"
+                          for v in (r.accuracy.ap_mm, *(measured.get(a) for a in "xyz")))
         lines.append(f"{label:<{width}} {r.accuracy.n:>3} {ap:>8} {ax:>8} {ay:>8} {az:>8} "
                      f"{format_value(r.repeatability.rp_mm, u_rp):>8} {format_pair(0, u_ap)[1]:>7} "
                      f"{format_pair(0, u_rp)[1]:>7}")
@@ -128,6 +136,11 @@ def _iso9283(args: argparse.Namespace) -> int:
             text = ", ".join(f"AP{n} {ap:+.3f} RP{n} ±{rp:.3f}" for n, ap, rp in zip(
                 r.angle_names, r.orientation_accuracy.ap_deg, r.orientation_repeatability.rp_deg))
             lines.append(f"{'':<{width}} orientation (deg): {text}")
+    axes = results[0].axis_names if results else ("x", "y", "z")
+    if len(axes) < 3:
+        missing = ", ".join(c for c in "xyz" if c not in axes)
+        lines.append(f"AP and RP over the measured axes {', '.join(axes)} only ({missing} not in {args.file}: n/m, "
+                     "not measured); not the 3-D figures.")
     lines.append(f"AP against the commanded pose; RP = l̄ + 3 S_l; U with k = {args.k:g}; values rounded by their U "
                  f"(--json: full precision).")
     emit({"poses": {r.label: pose_result_json(r) for r in results}}, args.json, lines)

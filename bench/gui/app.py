@@ -68,7 +68,8 @@ class MainWindow(QMainWindow):
         self.robot_panel = RobotPanel()
         self.live_view = LiveView()
         self.results = ResultsBrowser(self.store_path, report_dir, open_files=open_files)
-        self.calibration_panel = CalibrationPanel(self.store_path, self.results.selected_run_ids)
+        self.calibration_panel = CalibrationPanel(self.store_path, self.results.selected_run_ids,
+                                                  robot=self.robot_panel.robot.currentText)
         self.campaign_panel = CampaignPanel(self.store_path, self.rig_spec)
         self.log = QPlainTextEdit()
         self.log.setObjectName("log")
@@ -158,6 +159,7 @@ class MainWindow(QMainWindow):
             self.calliper_dialog = None
 
     def _robot_changed(self, robot: str) -> None:
+        self.calibration_panel.refresh()  # the chooser lists this robot's calibrations
         path = self.campaign_panel.files.currentData()
         if path:
             self.campaign_panel.choose_file(path)

@@ -1,10 +1,12 @@
 """The kinematic-calibration panel: which calibration the window's runs command by, and identifying a new one.
 
 "In force for runs" chooses, for every run and resume started from the window, what ``bench run`` chooses with its
-flags (:mod:`bench.calibration_compensation`, through :func:`bench.launch.open_rig`): the newest ``pkm5_kinematics``
-calibration of this robot (default; a resume keeps its run's own), none (``--no-kinematic-calibration``), or one
-stored calibration by id (``--kinematic-calibration ID``). The list is the store's ``pkm5_kinematics`` versions,
-read again in the background whenever the results browser sees the store change.
+flags (:mod:`bench.calibration_compensation`, through :func:`bench.launch.open_rig`): the newest calibration of this
+robot (default; a resume keeps its run's own), none (``--no-kinematic-calibration``), or one stored calibration by
+id (``--kinematic-calibration ID``). The list is the store's calibrations of the robot chosen in the robot panel
+(``pkm5_kinematics`` for the pkm5, ``delta4_kinematics`` for the delta4:
+:data:`bench.calibration_compensation.CALIBRATION_NAMES`; none for a robot without a calibration model), read again
+in the background whenever the robot changes or the results browser sees the store change.
 
 "Identify from the selected run" runs ``bench calibrate``'s function
 (:func:`bench.calibration_identify.identify_run`) on the run selected in the results browser, in a background task
@@ -31,7 +33,7 @@ from PySide6.QtWidgets import (
     QWidget,
 )
 
-from bench.calibration_compensation import CALIBRATION_NAME, NEWEST, OFF
+from bench.calibration_compensation import CALIBRATION_NAMES, NEWEST, OFF
 from bench.calibration_identify import identify_run, summary_lines
 from bench.gui.messages import show_message
 from bench.gui.tasks import Task, run_in_background
@@ -40,12 +42,14 @@ from bench.store import Store
 __all__ = ["CalibrationPanel", "stored_calibrations"]
 
 
-def stored_calibrations(store_path: str) -> list:
-    """The store's ``pkm5_kinematics`` calibration records, newest first ([] without a store file)."""
-    if not Path(store_path).is_file():
+def stored_calibrations(store_path: str, robot: str = "pkm5") -> list:
+    """The store's kinematic calibration records of ``robot`` (``<robot>_kinematics``), newest first ([] without a
+    store file, or for a robot without a calibration model)."""
+    name = CALIBRATION_NAMES.get(robot)
+    if name is None or not Path(store_path).is_file():
         return []
     with Store(store_path, read_only=True) as store:
-        mine = [c for c in store.calibrations() if c.name == CALIBRATION_NAME]
+        mine = [c for c in store.calibrations() if c.name == name]
     return sorted(mine, key=lambda c: c.id, reverse=True)
 
 
@@ -77,10 +81,12 @@ class CalibrationPanel(QGroupBox):
     identified = Signal(object)  #: an :class:`bench.calibration_identify.IdentifiedRun`
 
     def __init__(self, store_path: str, selected_runs: Callable[[], list[int]],
-                 parent: QWidget | None = None) -> None:
+                 parent: QWidget | None = None, *, robot: Callable[[], str] = lambda: "pkm5") -> None:
         super().__init__("Kinematic calibration", parent)
         self.store_path = store_path
         self.selected_runs = selected_runs
+        self.robot = robot  #: the robot whose calibrations are listed (the robot panel's)
+        self._stale = False
         self.last_dialog: QMessageBox | None = None
         self.last_identified = None
         self._task: Task | None = None
@@ -89,11 +95,11 @@ class CalibrationPanel(QGroupBox):
         self.choice_box.setObjectName("kinematicCalibration")
         self.choice_box.setToolTip("The kinematic calibration the runs started from this window command by "
                                    "(bench run --kinematic-calibration ID / --no-kinematic-calibration)")
-        self._fill([])
+        self._fill(self.robot(), [])
         self.identify_button = QPushButton("Identify from the selected run")
         self.identify_button.setObjectName("identifyButton")
         self.identify_button.setToolTip("bench calibrate RUN_ID on the run selected in the Results tab: identify "
-                                        "the pkm5 geometry and store it as a new pkm5_kinematics version")
+                                        "the robot's geometry and store it as a new <robot>_kinematics version")
         self.identify_button.clicked.connect(lambda _=False: self.identify())
         self.status = QLabel("")
         self.status.setObjectName("calibrationStatus")
@@ -125,7 +131,7 @@ class CalibrationPanel(QGroupBox):
             raise ValueError(f"calibration {choice!r} is not listed")
         self.choice_box.setCurrentIndex(index)
 
-    def _fill(self, records: list) -> None:
+    def _fill(self, robot: str, records: list) -> None:
         current = self.choice_box.currentData() if self.choice_box.count() else NEWEST
         self.choice_box.blockSignals(True)
         self.choice_box.clear()
@@ -137,17 +143,26 @@ class CalibrationPanel(QGroupBox):
         self.choice_box.setCurrentIndex(index if index >= 0 else 0)
         self.choice_box.blockSignals(False)
         if index < 0:
-            self.message.emit(f"kinematic calibration id {current} is no longer in the store: newest chosen")
+            self.message.emit(f"kinematic calibration id {current} is not a stored calibration of the {robot}: "
+                              "newest chosen")
 
     def refresh(self) -> Task:
-        """Read the stored calibrations again in the background; the list follows."""
+        """Read the robot's stored calibrations again in the background; the list follows (a call during a scan
+        scans again when that one ends: the robot or the store may have changed meanwhile)."""
         if self._scan is not None:
+            self._stale = True
             return self._scan
-        path = self.store_path
-        self._scan = run_in_background("reading the calibrations", lambda: stored_calibrations(path), self,
-                                       on_done=self._fill, on_failed=self.message.emit,
-                                       on_ended=lambda: setattr(self, "_scan", None))
+        path, robot = self.store_path, self.robot()
+        self._scan = run_in_background("reading the calibrations", lambda: stored_calibrations(path, robot), self,
+                                       on_done=lambda records: self._fill(robot, records),
+                                       on_failed=self.message.emit, on_ended=self._scanned)
         return self._scan
+
+    def _scanned(self) -> None:
+        self._scan = None
+        if self._stale:
+            self._stale = False
+            self.refresh()
 
     # ---- identification --------------------------------------------------------------------------------------
 

@@ -53,6 +53,7 @@ __all__ = [
     "analyze_orientation_distance",
     "analyze_poses",
     "condition_groups",
+    "measured_axes",
     "numeric_columns",
     "pose_result_json",
     "pose_table",
@@ -89,6 +90,9 @@ class PoseResult:
     orientation_accuracy: OrientationAccuracy | None
     orientation_repeatability: OrientationRepeatability | None
     angle_names: tuple[str, ...]  #: which of "a", "b", "c" were measured
+    #: the position axes the instrument measured, in x, y, z order; ``accuracy.ap_axes_mm`` and the RP are over
+    #: these only (:func:`analyze_poses`; a camera on the x-y plane: ("x", "y"))
+    axis_names: tuple[str, ...] = ("x", "y", "z")
 
 
 def read_table_csv(path: str | Path, *, numeric: Sequence[str] = ()) -> pd.DataFrame:
@@ -205,12 +209,25 @@ def numeric_columns(frame: pd.DataFrame, columns: Sequence[str], *, required: bo
     return out
 
 
-def pose_table(frame: pd.DataFrame) -> pd.DataFrame:
+def measured_axes(table: pd.DataFrame) -> tuple[str, ...]:
+    """The attained position columns of ``table`` (``x_mm``, ``y_mm``, ``z_mm``, in that order) that it has."""
+    return tuple(c for c in _ATTAINED if c in table.columns)
+
+
+def pose_table(frame: pd.DataFrame, *, partial_axes: bool = False) -> pd.DataFrame:
     """Check a pose table and return it with numeric columns as float and ``pose`` as a stripped string.
 
     A commanded angle with no measured one (a tilted pose measured by the mice, which see position only) leaves the
-    position characteristics: that angle is not analysed. A measured angle needs its command (no AP without one)."""
+    position characteristics: that angle is not analysed. A measured angle needs its command (no AP without one).
+
+    ``partial_axes``: the table may lack attained position columns (an instrument that measures a subset of the
+    axes: the camera spot sensor reads x, y on its plane and never z); at least one must be there, and
+    :func:`analyze_poses` then reports AP/RP over the present ones (:func:`measured_axes`). A missing axis is never
+    filled. By default all three are required (the distance, drift and path analyses need them)."""
     source = frame.attrs.get("source", "table")
+    if partial_axes and not measured_axes(frame):
+        raise ConfigError(f"{source}: missing column(s) {', '.join(_ATTAINED)}; found {', '.join(frame.columns)}, "
+                          "expected at least one measured position axis")
     for command, attained in ANGLE_PAIRS:
         if attained in frame.columns and command not in frame.columns:
             raise ConfigError(f"{source}: column {attained} given without {command}")
@@ -219,7 +236,8 @@ def pose_table(frame: pd.DataFrame) -> pd.DataFrame:
         raise ConfigError(f"{source}: missing column(s) pose; found {', '.join(frame.columns)}")
     angles = [c for pair in ANGLE_PAIRS for c in pair if c in frame.columns]
     optional = [c for c in (*CONDITION_COLUMNS, "t_s") if c in frame.columns]
-    table = numeric_columns(frame, POSE_COLUMNS[1:])
+    required = [c for c in POSE_COLUMNS[1:] if not (partial_axes and c in _ATTAINED and c not in frame.columns)]
+    table = numeric_columns(frame, required)
     table = numeric_columns(table, [*angles, *optional], required=False)
     table["pose"] = frame["pose"].astype(str).str.strip()
     empty = table["pose"] == ""
@@ -284,6 +302,13 @@ def analyze_poses(
 ) -> list[PoseResult]:
     """AP, RP and their expanded uncertainties for every pose (and set of conditions) of a pose table.
 
+    Over the measured position axes (:func:`measured_axes`; all three for a table from :func:`pose_table` without
+    ``partial_axes``). For an instrument that reads a subset (the camera: x, y), the ISO 9283 formulas restricted
+    to those axes: 7.2.1 AP components x̄ - x_c, ȳ - y_c on the measured axes and AP_P = sqrt of the sum of their
+    squares (the distance in the measured plane); 7.2.2 RP_l = l̄ + 3 S_l with l_j the distance of reading j from
+    the barycentre over the measured axes. These are not the 3-D figures (an unmeasured axis adds to both) and
+    carry ``axis_names`` so that every table says so.
+
     Parameters
     ----------
     table : DataFrame
@@ -308,8 +333,10 @@ def analyze_poses(
         _check_single_frame(group, source)
         _check_unique_cycles(group, source)
         group = group.sort_values("cycle", kind="stable")
-        attained = group[list(_ATTAINED)].to_numpy()
-        command = group[list(_COMMAND)].to_numpy()[0]
+        axes = measured_axes(group)
+        attained = group[list(axes)].to_numpy()
+        full_command = group[list(_COMMAND)].to_numpy()[0]
+        command = full_command[[_ATTAINED.index(c) for c in axes]]
         try:
             repeatability = pose_repeatability(attained)
         except InsufficientData as exc:
@@ -328,7 +355,7 @@ def analyze_poses(
                 label=label,
                 pose=pose,
                 conditions=conditions,
-                commanded_mm=tuple(float(v) for v in command),
+                commanded_mm=tuple(float(v) for v in full_command),
                 accuracy=pose_accuracy(attained, command),
                 repeatability=repeatability,
                 ap_u=ap_u,
@@ -336,6 +363,7 @@ def analyze_poses(
                 orientation_accuracy=orientation[0] if orientation else None,
                 orientation_repeatability=orientation[1] if orientation else None,
                 angle_names=tuple(att[0] for _, att in angles),
+                axis_names=tuple(c[0] for c in axes),
             )
         )
     return results
@@ -343,7 +371,7 @@ def analyze_poses(
 
 def pose_result_json(result: PoseResult) -> dict:
     """The JSON object of one pose for ``bench analyze iso9283 --json``."""
-    ax, ay, az = result.accuracy.ap_axes_mm
+    ax, ay, az = (dict(zip(result.axis_names, result.accuracy.ap_axes_mm)).get(a) for a in "xyz")  # None: not measured
     out = {
         "n": result.accuracy.n,
         "AP_mm": result.accuracy.ap_mm,
@@ -357,6 +385,8 @@ def pose_result_json(result: PoseResult) -> dict:
         "U_RP_mm": result.rp_u.expanded_uncertainty,
         "k": result.ap_u.coverage_factor,
     }
+    if result.axis_names != ("x", "y", "z"):
+        out["measured_axes"] = list(result.axis_names)
     if result.orientation_accuracy is not None:
         for name, ap, rp in zip(
             result.angle_names, result.orientation_accuracy.ap_deg, result.orientation_repeatability.rp_deg

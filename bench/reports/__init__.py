@@ -82,9 +82,17 @@ LAYOUTS = {
 }
 
 
+#: The layout of a pose protocol's run whose samples are laser-grid readings (partial, NaN where a screen did not
+#: decode): the partial-pose statistics of the delta_positioning layout, never a filled axis (bench.reports.content).
+PARTIAL_READINGS = LAYOUTS["delta_positioning"]
+
+
 def own_layout(store: Store, run_id: int) -> Layout | None:
-    """The layout of run ``run_id`` when it has one of its own (:data:`LAYOUTS`), None for the pose layout."""
+    """The layout of run ``run_id`` when it has one of its own (:data:`LAYOUTS`, or :data:`PARTIAL_READINGS` for a
+    pose protocol read by the laser grid), None for the pose layout."""
     layout = LAYOUTS.get(store.run(run_id).protocol_name)
+    if layout is None and grid_readings(store, run_id):
+        return PARTIAL_READINGS
     if layout is not None and layout.applies is not None and not layout.applies(store, run_id):
         return None
     return layout
@@ -126,7 +134,8 @@ def collect(store: Store, run_id: int, *, criteria: Mapping[str, float] | None =
 def _document(report: ReportBase, raw: list[RawData], identity: Identity,
               history: tuple[HistoryEvent, ...]) -> Document:
     """The layout's document with the summary (page 1) in front and, for simulated data, the banner of every page."""
-    document = run_document if isinstance(report, RunReport) else LAYOUTS[report.run.protocol_name].document
+    document = (run_document if isinstance(report, RunReport) else grid_positioning_document
+                if isinstance(report, GridPositioningReport) else LAYOUTS[report.run.protocol_name].document)
     body = document(report, raw, operator=identity.operator, laboratory=identity.laboratory)
     return customer_document(with_summary(body, summary_section(report, identity, history, is_simulated(report.run)),
                                           simulated=is_simulated(report.run)))
@@ -283,8 +292,10 @@ def write_comparison(store: str | Path | Store, first_run: int, second_run: int,
             raise ConfigError(f"--compare: run {first_run} is a {protocols[0]} run and run {second_run} a "
                               f"{protocols[1]} run; compare runs of the same kind")
         first, second = collect(store, first_run, k=k), collect(store, second_run, k=k)
+        content.check_same_axes((first, second), "--compare")
         histories = (run_history(store, first.run), run_history(store, second.run))
-        calibrated = calibration_comparison(store, first, second) if layouts[0] is None else None
+        calibrated = (calibration_comparison(store, first, second)
+                      if layouts[0] is None or layouts[0] is PARTIAL_READINGS else None)
     finally:
         if opened:
             store.close()
@@ -295,7 +306,8 @@ def write_comparison(store: str | Path | Store, first_run: int, second_run: int,
         document = with_calibration_page(comparison_document(first, second, [raw for _, raw in raws]), calibrated)
     else:
         own = [layouts[0].document(report, [raw]) for report, (_, raw) in zip((first, second), raws)]
-        document = layout_comparison(first, second, *own, [raw for _, raw in raws])
+        document = with_calibration_page(layout_comparison(first, second, *own, [raw for _, raw in raws]),
+                                         calibrated)
     document = with_histories(document, first, second, histories)
     if is_simulated(first.run) or is_simulated(second.run):
         document = replace(document, meta={**document.meta, "banner": SIMULATED_BANNER})

@@ -4,7 +4,8 @@
 kinematic calibrations (``settings.kinematic_calibration.id``, recorded by :mod:`bench.calibration_compensation`):
 the run without one (or with the older one) is *before*, the other *after*. The page shows
 
-* the gain: over the poses present in both runs, mean and largest AP_P, mean |AP| per axis and mean RP_l, before
+* the gain (laser-grid runs with partial readings: :mod:`bench.reports.calibration_partial`): over the poses
+  present in both runs, mean and largest AP_P, mean |AP| per axis and mean RP_l, before
   and after, with the factor before / after (ISO 9283 7.2.1 and 7.2.2 figures, as ``bench analyze iso9283``
   computes them per pose from each run's raw data);
 * every pose side by side (AP_P, the signed AP vector per axis, RP_l, each with its expanded uncertainty);
@@ -26,7 +27,7 @@ import numpy as np
 from matplotlib.figure import Figure as MplFigure
 
 from bench.metrology.formatting import format_pair, format_value, pose_label
-from bench.reports.content import RunReport
+from bench.reports.content import RunReport, axes_statement
 from bench.reports.document import Document, Figure, Paragraph, Section, Table, fmt_mm, fmt_pm
 from bench.reports.plots import MIN_FONT_PT, Plot, workspace_cloud_mm
 
@@ -46,13 +47,13 @@ def kinematic_calibration_id(report: RunReport) -> int | None:
 class CalibrationComparison:
     """A before / after pair of pose runs and the calibration records each commanded by (None: none)."""
 
-    before: RunReport
-    after: RunReport
+    before: Any  #: RunReport, or GridPositioningReport (laser-grid readings, bench.reports.calibration_partial)
+    after: Any
     before_calibration: Any | None  # bench.store CalibrationRecord
     after_calibration: Any
 
 
-def calibration_comparison(store: Any, first: RunReport, second: RunReport) -> CalibrationComparison | None:
+def calibration_comparison(store: Any, first: Any, second: Any) -> CalibrationComparison | None:
     """The pair ordered before -> after when the runs commanded by different kinematic calibrations (the run
     without one, else the one with the older calibration, is *before*); None when the calibrations are the same."""
     ids = kinematic_calibration_id(first), kinematic_calibration_id(second)
@@ -82,41 +83,60 @@ def gain_rows(pair: CalibrationComparison) -> tuple[tuple[str, str, str, str], .
     """The gain table's rows: quantity, before (mm), after (mm), factor before / after (module docstring)."""
     paired = _paired(pair)
     ap = np.array([[b.accuracy.ap_mm, a.accuracy.ap_mm] for b, a in paired])
-    axes = np.array([[b.accuracy.ap_axes_mm, a.accuracy.ap_axes_mm] for b, a in paired])  # (n, 2, 3)
+    axes = np.array([[b.accuracy.ap_axes_mm, a.accuracy.ap_axes_mm] for b, a in paired])  # (n, 2, measured)
     rp = np.array([[b.repeatability.rp_mm, a.repeatability.rp_mm] for b, a in paired])
     rows = [("mean AP_P", *ap.mean(axis=0)), ("largest AP_P", *ap.max(axis=0))]
-    rows += [(f"mean |AP_{name}|", *np.abs(axes[:, :, i]).mean(axis=0)) for i, name in enumerate("xyz")]
+    rows += [(f"mean |AP_{name}|", *np.abs(axes[:, :, i]).mean(axis=0)) for i, name in enumerate(_axes(pair))]
     rows.append(("mean RP_l", *rp.mean(axis=0)))
-    return tuple((name, fmt_mm(b), fmt_mm(a), _factor(b, a)) for name, b, a in rows)
+    rows = [(name, fmt_mm(b), fmt_mm(a), _factor(b, a)) for name, b, a in rows]
+    rows[-1:-1] = [(f"mean |AP_{name}|", "not measured", "not measured", "—") for name in "xyz"
+                   if name not in _axes(pair)]
+    return tuple(rows)
+
+
+def _axes(pair: CalibrationComparison) -> tuple[str, ...]:
+    """The position axes both runs measured (their instrument may read a subset: the camera's x, y)."""
+    before, after = pair.before.poses, pair.after.poses
+    if before and after and before[0].axis_names != after[0].axis_names:
+        from bench.errors import ConfigError
+
+        raise ConfigError(f"--compare: run {pair.before.run.id} measured {', '.join(before[0].axis_names)} and run "
+                          f"{pair.after.run.id} {', '.join(after[0].axis_names)}; compare runs of the same axes")
+    return before[0].axis_names if before else ("x", "y", "z")
 
 
 def _pose_rows(pair: CalibrationComparison) -> tuple[tuple[str, ...], ...]:
     rows = []
     for b, a in _paired(pair):
         cells = [pose_label(b.pose, b.conditions), fmt_pm(b.ap_u), fmt_pm(a.ap_u)]
-        for i in range(3):
-            cells += [format_value(r.accuracy.ap_axes_mm[i], r.ap_u.expanded_uncertainty, signed=True)
-                      for r in (b, a)]
+        for name in "xyz":
+            cells += [format_value(dict(zip(r.axis_names, r.accuracy.ap_axes_mm))[name], r.ap_u.expanded_uncertainty,
+                                   signed=True) if name in r.axis_names else "not measured" for r in (b, a)]
         rows.append((*cells, fmt_pm(b.rp_u), fmt_pm(a.rp_u)))
     return tuple(rows)
 
 
 def error_vectors(pair: CalibrationComparison) -> Plot | None:
     """The signed AP vector of every pose over the workspace (x-y and x-z), before (top) and after (bottom), on one
-    magnification (set by the larger before); None for planar instruments."""
+    magnification (set by the larger before); the x-y projection only for an instrument on the x-y plane (the
+    camera), None for other subsets."""
     paired = _paired(pair)
-    if not paired or len(paired[0][0].accuracy.ap_axes_mm) < 3:
+    axes_measured = _axes(pair) if paired else ()
+    projections = {("x", "y", "z"): ((0, 1), (0, 2)), ("x", "y"): ((0, 1),)}.get(axes_measured)
+    if projections is None:
         return None
     commands = np.array([b.commanded_mm for b, _ in paired])
-    vectors = [np.array([r.accuracy.ap_axes_mm for r in rows]) for rows in zip(*paired)]
+    vectors = [np.zeros((len(paired), 3)) for _ in range(2)]
+    for vector, rows in zip(vectors, zip(*paired)):
+        vector[:, :len(axes_measured)] = [r.accuracy.ap_axes_mm for r in rows]  # z stays 0: only x-y is drawn
     cloud = workspace_cloud_mm(pair.after.run.robot)
     points = commands if cloud is None else cloud
     scale = 0.15 * float(np.ptp(points, axis=0).max()) / max(float(np.abs(vectors[0]).max()), 1e-9)
-    figure = MplFigure(figsize=(10, 8.4), layout="constrained")
-    grid = figure.subplots(2, 2)
+    figure = MplFigure(figsize=(10 if len(projections) == 2 else 5.5, 8.4), layout="constrained")
+    grid = figure.subplots(2, len(projections), squeeze=False)
     for row, (label, run, vector, colour) in enumerate((("before", pair.before, vectors[0], "tab:red"),
                                                         ("after", pair.after, vectors[1], "tab:blue"))):
-        for column, (i, j) in enumerate(((0, 1), (0, 2))):
+        for column, (i, j) in enumerate(projections):
             axes = grid[row][column]
             if cloud is not None:
                 axes.scatter(cloud[:, i], cloud[:, j], s=1, color="0.85", rasterized=True,
@@ -130,7 +150,8 @@ def error_vectors(pair: CalibrationComparison) -> Plot | None:
             axes.set_title(f"{label}: run {run.run.id}", fontsize=MIN_FONT_PT + 1)
             axes.set_aspect("equal", adjustable="datalim")
             axes.legend(fontsize=MIN_FONT_PT, loc="lower left")
-    return Plot(f"Error vectors over the workspace of the {pair.after.run.robot} (x-y and x-z projections): the "
+    views = "x-y and x-z projections" if len(projections) == 2 else "x-y projection; z not measured"
+    return Plot(f"Error vectors over the workspace of the {pair.after.run.robot} ({views}): the "
                 f"signed AP vector of every pose, before (run {pair.before.run.id}, {_name(pair.before_calibration)}) "
                 f"and after (run {pair.after.run.id}, {_name(pair.after_calibration)}), both magnified {scale:.0f} "
                 f"times.", figure)
@@ -210,26 +231,40 @@ def _fit_rows(record: Any) -> tuple[tuple[str, str], ...]:
     return tuple(rows)
 
 
-def calibration_section(pair: CalibrationComparison, number: int) -> Section:
-    """The calibration page (module docstring) as section ``number`` of a comparison."""
+def _pose_run_blocks(pair: CalibrationComparison) -> list:
+    """The gain, the per-pose table and the error vectors of two pose runs (complete readings)."""
     before, after, record = pair.before, pair.after, pair.after_calibration
     rows = gain_rows(pair)
     k = f"{before.coverage_factor:g}"
+    axes = axes_statement(after)
     blocks: list = [Paragraph(
         f"Before: run {before.run.id}, {_name(pair.before_calibration)} in force. After: run {after.run.id}, "
         f"{_name(record)} in force (identified from run {record.source_run_id}). Over the {len(_paired(pair))} "
         f"poses present in both runs the mean AP_P goes from {rows[0][1]} mm to {rows[0][2]} mm: "
-        f"{rows[0][3]} times smaller."),
+        f"{rows[0][3]} times smaller." + (f" {axes}." if axes else "")),
         Table("calibration-gain", ("Quantity (over the poses of both runs)", "Before (mm)", "After (mm)",
                                    "Factor before / after"), rows,
-              f"Gain of the calibration: run {before.run.id} (before) against run {after.run.id} (after)"),
+              f"Gain of the calibration: run {before.run.id} (before) against run {after.run.id} (after)"
+              + (f"; {axes}" if axes else "")),
         Table("calibration-poses", ("Pose", "AP_P ± U before (mm)", "AP_P ± U after (mm)", "AP_x before",
                                     "AP_x after", "AP_y before", "AP_y after", "AP_z before", "AP_z after",
                                     "RP_l ± U before (mm)", "RP_l ± U after (mm)"), _pose_rows(pair),
-              f"Per pose and axis, before and after (AP axes signed, barycentre − command, mm; U with k = {k})")]
+              f"Per pose and axis, before and after (AP axes signed, barycentre − command, mm; U with k = {k}"
+              + (f"; {axes}" if axes else "") + ")")]
     plot = error_vectors(pair)
     if plot is not None:
         blocks.append(Figure(plot))
+    return blocks
+
+
+def calibration_section(pair: CalibrationComparison, number: int) -> Section:
+    """The calibration page (module docstring) as section ``number`` of a comparison: the gain (pose runs, or
+    laser-grid runs with partial readings: :func:`bench.reports.calibration_partial.partial_blocks`), then the
+    calibration in force after."""
+    from bench.reports.calibration_partial import partial_blocks
+
+    record = pair.after_calibration
+    blocks = _pose_run_blocks(pair) if isinstance(pair.after, RunReport) else partial_blocks(pair, _name)
     params = record.params
     blocks.append(Table("calibration-parameters", ("Parameter", "Deviation from documented", "Standard uncertainty",
                                                    "Unit"), _parameter_rows(params),
@@ -255,5 +290,6 @@ def with_calibration_page(document: Document, pair: CalibrationComparison | None
         return document
     sections = list(document.sections)
     raw_at = next((i for i, s in enumerate(sections) if s.title.endswith("Raw data")), len(sections))
-    sections.insert(raw_at, calibration_section(pair, 5))
+    numbers = [int(s.title.split(".")[0]) for s in sections[:raw_at] if s.title.split(".")[0].isdigit()]
+    sections.insert(raw_at, calibration_section(pair, max(numbers, default=4) + 1))
     return replace(document, sections=tuple(sections))

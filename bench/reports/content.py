@@ -15,6 +15,12 @@ Decisions (documented here because the renderers only print them):
   built from the counts sensor's resolution 25.4/cpi mm (a difference of two readings, δ/√6) and its noise
   ``noise_counts`` (counts, 1 σ), combined in quadrature. Without either, the sensor row is unknown and the
   report is refused.
+- An instrument that measures a subset of the position axes (the camera spot sensor: x, y on its plane, never z)
+  gets AP and RP over the measured axes (:func:`bench.metrology.tables.analyze_poses`: ISO 9283 7.2.1 AP components
+  on the measured axes, 7.2.2 RP from l_j over them), labelled so in every table and on the summary page
+  (:func:`axes_statement`: "AP and RP in the x-y plane: ... z not measured"); a missing axis is never filled.
+  Readings that are partial reading by reading (the laser grid: NaN where a screen did not decode) get the
+  partial-pose layout instead (:mod:`bench.reports.positioning`, whatever the protocol).
 - The decision uses simple acceptance (ILAC-G8:09/2019 §4.2.1, no guard band) against criteria passed by the
   caller, labelled "project criterion"; without criteria no pass/fail is stated (ISO 9283 defines no grades).
 """
@@ -57,6 +63,7 @@ from bench.metrology.tables import (
     analyze_distance,
     analyze_orientation_distance,
     analyze_poses,
+    measured_axes,
     pose_table,
 )
 from bench.metrology.orientation import TiltGauge
@@ -66,7 +73,8 @@ from bench.store import CalibrationRecord, RunRecord, Store, series_table, tidy_
 from bench.store.registrations import registration_u_mm, registrations
 
 __all__ = ["CRITERIA", "MM_PER_INCH", "CalibrationFit", "Decision", "DistanceRow", "InstrumentInfo", "PayloadRow",
-           "ReportBase", "RunReport", "VapRow", "analysis_table", "calibration_fits", "calibrations_in_force",
+           "ReportBase", "RunReport", "VapRow", "analysis_table", "axes_statement", "calibration_fits", "check_same_axes",
+           "calibrations_in_force",
            "collect", "counts_instrument", "provenance", "reading_instrument", "reading_step_mm", "run_table",
            "uncertainty_stated"]
 
@@ -260,7 +268,30 @@ def analysis_table(store: Store, run_id: int) -> pd.DataFrame:
         if command in table.columns and attained not in table.columns:
             table = table.drop(columns=command)
     table.attrs["source"] = f"run {run_id}"
-    return pose_table(table)
+    return pose_table(table, partial_axes=True)
+
+
+def check_same_axes(reports, flag: str) -> None:
+    """Refuse to set pose runs side by side (``flag``: --compare, --trend) whose instruments measured different
+    axes: a planar AP next to a 3-D AP would read as a change of the robot."""
+    measured = {r.run.id: r.poses[0].axis_names for r in reports if isinstance(r, RunReport) and r.poses}
+    if len(set(measured.values())) > 1:
+        raise ConfigError(f"{flag}: " + "; ".join(f"run {i} measured {', '.join(a)}" for i, a in measured.items())
+                          + "; expected runs measured on the same axes")
+
+
+def axes_statement(report: RunReport) -> str | None:
+    """What the position figures of a pose run cover when its instrument measured fewer than three axes, e.g.
+    "AP and RP in the x-y plane: the camera laser spot (xy plane) measures x, y; z not measured"; None for x, y, z.
+    Printed with every table of AP/RP and on the summary page."""
+    axes = report.poses[0].axis_names if report.poses else ("x", "y", "z")
+    missing = [a for a in "xyz" if a not in axes]
+    if not missing:
+        return None
+    where = {1: f"along {axes[0]}", 2: f"in the {'-'.join(axes)} plane"}[len(axes)]
+    name = report.instrument.settings.get("instrument") or report.instrument.settings.get("name") or "instrument"
+    return (f"AP and RP {where}: the {name} measures {', '.join(axes)}; {', '.join(missing)} not measured (never "
+            f"filled), so these are not the 3-D figures of ISO 9283 7.2.1/7.2.2")
 
 
 def calibration_fits(store: Store, record: CalibrationRecord) -> tuple[CalibrationFit, ...]:
@@ -341,7 +372,7 @@ def _payload(table: pd.DataFrame) -> tuple[PayloadRow, ...]:
     rows = []
     for key, group in table.groupby(["pose", *others], sort=False):
         key = key if isinstance(key, tuple) else (key,)
-        by_load = {float(m): g[list(_POSITION)].to_numpy() for m, g in group.groupby("load_kg")}
+        by_load = {float(m): g[list(measured_axes(g))].to_numpy() for m, g in group.groupby("load_kg")}
         if len(by_load) < 2:
             continue
         label = str(key[0]) + "".join(f" ({n}={v:g})" for n, v in zip(others, key[1:]))
@@ -396,6 +427,9 @@ def collect(store: Store, run_id: int, *, criteria: Mapping[str, float] | None =
     ap_u_mm = combine(instrument.sigma_mm or 0.0, registration_u_mm(registrations(run.settings)))
     poses = report_order(analyze_poses(table, instrument_u_mm=ap_u_mm, k=k, resamples=resamples))
     protocol = run.protocol_name
+    if len(measured_axes(table)) < 3 and protocol in ("iso9283_distance", "iso9283_multidirectional"):
+        raise ConfigError(f"run {run_id}: the instrument measured {', '.join(measured_axes(table))} only; the "
+                          f"{protocol} figures need x_mm, y_mm and z_mm")
     tilts, orientation, gauge = _orientation(store, run_id, k)
     tilt_angles = tuple(f"{f.angle}_deg" for f in orientation[0].figures) if orientation else ()
     cycles = int(table.groupby(["pose", *[c for c in ("velocity_pct", "load_kg") if c in table.columns]])

@@ -491,10 +491,20 @@ BAND_MIN_COUNTS = 3
 
 
 def grid_positioning_deviations(*, config: Mapping[str, Any], settings: Mapping[str, Any], poses: Sequence[Any],
-                                allow_unknown: bool = False) -> list[Deviation]:
+                                allow_unknown: bool = False, thesis: bool = True) -> list[Deviation]:
     """Departures of a ``delta_positioning`` run from the delta thesis's positioning test (§8.4.2) and from ISO 9283
     (7.2 pose characteristics, 6.6-6.10 conditions), computed from the stored configuration and settings and from
-    ``poses``, the run's :class:`bench.metrology.partial_pose.GridPoseResult` (readings, axes measured, screens)."""
+    ``poses``, the run's :class:`bench.metrology.partial_pose.GridPoseResult` (readings, axes measured, screens).
+    ``thesis`` False: an ISO pose protocol read by the laser grid (no thesis rows; the protocol's own poses)."""
+    rows = _grid_rows(config, settings, poses, thesis)
+    if not thesis:
+        rows = [row for row in rows if not row.clause.startswith("thesis")]
+    return complete(rows, allow_unknown)
+
+
+def _grid_rows(config: Mapping[str, Any], settings: Mapping[str, Any], poses: Sequence[Any],
+               thesis: bool) -> list[Deviation]:
+    """The rows of :func:`grid_positioning_deviations`."""
     rows = []
     n_min = min(p.statistics.n_readings for p in poses)
     total = sum(p.statistics.n_readings for p in poses)
@@ -553,11 +563,13 @@ def grid_positioning_deviations(*, config: Mapping[str, Any], settings: Mapping[
     rows.append(_row("ISO 9283 6.9", "cycles", "30 cycles per pose (Table 5)", f"{n_min} (fewest at any pose)",
                      n_min >= 30, "wider confidence interval on AP and RP"))
     rows.append(_row("ISO 9283 6.8", "poses", "P1-P5 in the largest cube of the most-used workspace (6.8) [U]",
-                     "the thesis's three poses", False, "not comparable with ISO cube results of other robots"))
+                     "the thesis's three poses" if thesis else f"the protocol's {len(poses)} poses", False,
+                     "not comparable with ISO cube results of other robots"))
     velocity = (settings.get("robot") or {}).get("velocity", "not stated")
     rows.append(_row("ISO 9283 6.7", "velocity", f"{_fmt(ISO_VELOCITIES_PCT)} % of rated velocity [U]",
                      f"{velocity}", False, "one, undeclared velocity; velocity-dependent errors not covered"))
-    rows.append(_row("ISO 9283 6.6", "load", "100 % rated load (6.6)", "no load recorded (the protocol has none)",
+    rows.append(_row("ISO 9283 6.6", "load", "100 % rated load (6.6)", "no load recorded (the protocol has none)"
+                     if thesis else f"loads {config.get('loads_kg', 'not stated')} kg",
                      False, "results describe the unloaded end effector only"))
     rows.append(_row("ISO 9283 6.10", "settling", "measure once the controller signals the attained pose and it has "
                                                   "settled [U]",
@@ -566,7 +578,7 @@ def grid_positioning_deviations(*, config: Mapping[str, Any], settings: Mapping[
     rows.append(_row("ISO 9283 7.2", "dimensionality", "6-D poses: position x, y, z and orientation a, b, c [U]",
                      "position only, each axis where a screen measured it", False, "no orientation AP/RP"))
     rows.append(_conditioning(config, "ISO 9283 6.2/6.3"))
-    return complete(rows, allow_unknown)
+    return rows
 
 
 def stabilisation_deviations(*, config: Mapping[str, Any], settings: Mapping[str, Any], cycles_measured: int,

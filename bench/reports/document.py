@@ -14,7 +14,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from bench.metrology.formatting import format_measured, format_value, pose_label
-from bench.reports.content import ReportBase, RunReport
+from bench.reports.content import ReportBase, RunReport, axes_statement
 from bench.reports.orientation import orientation_blocks
 from bench.reports.plots import Plot, comparison_plot, report_plots
 
@@ -214,8 +214,8 @@ def pose_rows(report: RunReport) -> tuple[tuple[str, ...], tuple[tuple[str, ...]
     rows = []
     for r in report.poses:
         u_ap = r.ap_u.expanded_uncertainty
-        axes = ([format_value(v, u_ap, signed=True) for v in r.accuracy.ap_axes_mm]
-                + ["—"] * (3 - len(r.accuracy.ap_axes_mm)))
+        measured = dict(zip(r.axis_names, r.accuracy.ap_axes_mm))
+        axes = [format_value(measured[a], u_ap, signed=True) if a in measured else "not measured" for a in "xyz"]
         orientation = ()
         if r.orientation_accuracy is not None:
             orientation = tuple(f"{ap:+.3f} / ±{rp:.3f}" for ap, rp in zip(r.orientation_accuracy.ap_deg,
@@ -228,8 +228,10 @@ def pose_rows(report: RunReport) -> tuple[tuple[str, ...], tuple[tuple[str, ...]
 def _results(report: RunReport) -> tuple[Block, ...]:
     header, rows = pose_rows(report)
     k = f"{report.coverage_factor:g}"
+    axes = axes_statement(report)
     blocks: list[Block] = [Table("results", header, rows, f"Results per pose (U: expanded uncertainty, k = {k}; "
-                                                          f"AP axes signed, barycentre − command)")]
+                                                          f"AP axes signed, barycentre − command"
+                                                          + (f". {axes}" if axes else "") + ")")]
     blocks.extend(orientation_blocks(report))
     if report.distances:
         angles = report.distances[0].angle_names

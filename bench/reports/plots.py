@@ -245,6 +245,12 @@ def _short_label(result) -> str:
     return pose_label(result.pose, result.conditions).replace(" velocity", "").replace(" load", "")
 
 
+def _measured(result) -> tuple[np.ndarray, list[str]]:
+    """The command on the measured axes and their columns (an instrument may read a subset, e.g. x, y)."""
+    columns = [f"{a}_mm" for a in result.axis_names]
+    return np.asarray(result.commanded_mm)[["xyz".index(a) for a in result.axis_names]], columns
+
+
 def pose_scatter(report: RunReport) -> Plot:
     """Per pose: attained points minus the command (x-y plane), barycentre and the RP circle around it; one scale
     for every panel (the largest RP circle fits), one legend for the figure."""
@@ -327,8 +333,8 @@ def drift_series(report: RunReport) -> Plot:
     by_pose = dict(zip(names, panel))
     for result in report.poses:
         rows = _rows_of(report, result)
-        command = np.asarray(result.commanded_mm)
-        distance = np.linalg.norm(rows[_POSITION].to_numpy() - command, axis=1)
+        command, measured = _measured(result)
+        distance = np.linalg.norm(rows[measured].to_numpy() - command, axis=1)
         from bench.metrology.formatting import condition_text
 
         by_pose[result.pose].plot(rows["cycle"], distance, marker=".", markersize=2, lw=0.8,
@@ -347,11 +353,11 @@ def drift_series(report: RunReport) -> Plot:
 def deviation_histograms(report: RunReport) -> Plot:
     """Small multiples, one panel per pose (and condition), on one scale and one set of bins: histograms of the
     attained − command deviation in x, y and z, one legend for the figure."""
-    deviations = [_rows_of(report, r)[_POSITION].to_numpy() - np.asarray(r.commanded_mm) for r in report.poses]
+    deviations = [_rows_of(report, r)[_measured(r)[1]].to_numpy() - _measured(r)[0] for r in report.poses]
     edges = np.histogram_bin_edges(np.concatenate(deviations).ravel(), bins=24)
     figure, panel = panels(len(report.poses), max_columns=5, size=(1.45, 1.2), share=True)
     for result, axes, deviation in zip(report.poses, panel, deviations):
-        for column, (name, colour) in enumerate(zip("xyz", ("tab:blue", "tab:orange", "tab:green"))):
+        for column, (name, colour) in enumerate(zip(result.axis_names, ("tab:blue", "tab:orange", "tab:green"))):
             axes.hist(deviation[:, column], bins=edges, histtype="step", color=colour, lw=1.0,
                       label=f"{name} − {name}_c")
         axes.axvline(0.0, color="0.4", lw=0.6)

@@ -1,5 +1,7 @@
 """The report of a ``delta_positioning`` run: the delta thesis's positioning test (§8.4.2) read by the laser grid,
-whose readings are partial (docs/campaigns.md, "Delta robot positioning read by the laser grid").
+whose readings are partial (docs/campaigns.md, "Delta robot positioning read by the laser grid"); and of any pose
+protocol (``iso9283_pose``, a kinematic validation) whose samples are laser-grid readings (:func:`grid_readings`),
+with the thesis's rows left out: the same partial-pose statistics, never a filled axis.
 
 Every figure comes from :mod:`bench.metrology.partial_pose` on the run's tidy ``pose`` table (the raw-data CSV),
 the same calls ``bench analyze grid-positioning FILE.csv`` makes: ``grid_positioning_table`` (checks that every
@@ -52,6 +54,10 @@ SCOPE = ("Tested following the positioning test of the delta thesis (§8.4.2) wi
          "and reporting ISO 9283-style AP and RP over the complete readings, with the deviations listed in the "
          "deviations table. Every figure is conditional on the grid detecting the pose. This is not an ISO 9283 "
          "certification.")
+ISO_SCOPE = ("Tested following ISO 9283 (7.2.1 AP, 7.2.2 RP) with the laser grid as the instrument, whose readings "
+             "are partial: per-axis figures over the readings that measured each axis, AP_P and RP_l over the "
+             "complete readings only, with the deviations listed in the deviations table. Every figure is "
+             "conditional on the grid detecting the pose. This is not an ISO 9283 certification.")
 NO_CRITERION = "no acceptance criterion stated: no pass/fail statement (the thesis and ISO 9283 set none)"
 CONDITIONAL = ("Reading the figures: they are conditional on detection. The grid measures an axis only when a laser "
                f"spot falls within the detection window r of a sensor (a {GRID_RESOLUTION_MM:g} mm lattice; with "
@@ -93,6 +99,11 @@ def _notes(poses: tuple[GridPoseResult, ...]) -> tuple[str, ...]:
     return tuple(notes)
 
 
+def _thesis(run) -> bool:
+    """Whether the run is the thesis's positioning test (else an ISO pose protocol read by the laser grid)."""
+    return run.protocol_name == "delta_positioning"
+
+
 def grid_readings(store: Store, run_id: int) -> bool:
     """Whether the run's pose samples are laser-grid readings (they carry the screens' valid flags)."""
     return any("horizontal_valid" in sample.values for sample in store.samples(run_id, kind="pose"))
@@ -108,14 +119,18 @@ def collect_grid_positioning(store: Store, run_id: int, *, k: float = 2.0, resam
     poses = tuple(analyze_grid_positioning(analysed, k=k))
     calibrations = calibrations_in_force(store, run)
     deviations = grid_positioning_deviations(config=run.config, settings=run.settings, poses=poses,
-                                             allow_unknown=allow_unknown)
+                                             allow_unknown=allow_unknown, thesis=_thesis(run))
     base = provenance(run, calibrations)
+    thesis = _thesis(run)
     return GridPositioningReport(
         **{**base, "notes": base["notes"] + _notes(poses)},
-        title=run.config.get("title") or "Delta robot positioning read by the laser grid (thesis §8.4.2)",
-        reference="thesis §8.4.2 / ISO 9283",
-        clauses=("delta thesis §8.4.2: per-axis error, max |e| and mean |e| at three poses",
-                 "ISO 9283 7.2.1 AP and 7.2.2 RP, over the complete readings only"),
+        title=run.config.get("title") or ("Delta robot positioning read by the laser grid (thesis §8.4.2)" if thesis
+                                           else f"ISO 9283-style pose accuracy and repeatability ({run.protocol_name})"
+                                                " read by the laser grid (partial readings)"),
+        reference="thesis §8.4.2 / ISO 9283" if thesis else "ISO 9283",
+        clauses=(("delta thesis §8.4.2: per-axis error, max |e| and mean |e| at three poses",) if thesis else
+                 ("ISO 9283 7.2.1 AP per axis, over the readings that measured the axis",))
+        + ("ISO 9283 7.2.1 AP and 7.2.2 RP, over the complete readings only",),
         deviations=tuple(deviations), instrument=_grid_instrument(run, calibrations), table=table,
         coverage_factor=k, poses=poses, pooled=pooled_axis_errors(analysed), store_path=store.path)
 
@@ -211,7 +226,9 @@ def recompute_grid_positioning(report: GridPositioningReport) -> str:
 def grid_positioning_document(report: GridPositioningReport, raw: list[RawData], *, operator: str = "not recorded",
                               laboratory: str = "not recorded") -> Document:
     config = report.run.config
-    method = (f"Delta thesis §8.4.2: {config.get('cycles', '—')} readings at each pose, unidirectional order, read "
+    test = ("Delta thesis §8.4.2" if _thesis(report.run) else
+            f"{report.run.protocol_name} (ISO 9283 pose test) with partial readings")
+    method = (f"{test}: {config.get('cycles', '—')} readings at each pose, unidirectional order, read "
               "by the laser grid. Each capture decodes both screens against the commanded position (the only prior); "
               "a screen that decodes measures its two axes (horizontal x, y; vertical y, z), one that does not "
               "(no hit, ambiguous, fault) measures nothing and its axes are absent, never filled. Per axis, over the "
@@ -220,8 +237,9 @@ def grid_positioning_document(report: GridPositioningReport, raw: list[RawData],
               "(ISO 9283 7.2.1/7.2.2) over the readings with all three axes. Rates k / n with the Wilson score "
               f"interval at z = {report.coverage_factor:g}.")
     return assemble(
-        report, raw, operator=operator, laboratory=laboratory, method=method, scope=SCOPE,
+        report, raw, operator=operator, laboratory=laboratory, method=method,
         conditions=conditions_section(report, ("poses", "cycles", "settle_s", "warmup_s", "ambient_c"),
                                       (("time base", str(report.run.settings.get("time_base", "not stated"))),)),
         results=_results(report), plots=[grid_positioning_plot(report)], decision=decision_blocks(NO_CRITERION),
+        scope=SCOPE if _thesis(report.run) else ISO_SCOPE,
         recompute=recompute_grid_positioning(report))

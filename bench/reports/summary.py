@@ -197,11 +197,16 @@ def summary_section(report, identity: Identity, history: Sequence[HistoryEvent],
                                 "simulator. The numbers describe the simulation, not a physical robot."))
     blocks.append(key_values("summary-identity", rows))
     if isinstance(report, RunReport) and report.poses:
+        from bench.reports.content import axes_statement
+
         k = f"{report.coverage_factor:g}"
+        axes = axes_statement(report)
+        if axes:
+            blocks.append(Paragraph(axes + "."))
         blocks.append(Table("headline", ("Conditions", "Poses", "Worst AP_P ± U (mm)", "Mean AP_P ± U (mm)",
                                          "Worst RP_l ± U (mm)", "Mean RP_l ± U (mm)"), headline_rows(report.poses),
                             f"Headline results per velocity and load (U: expanded uncertainty, k = {k}; U of a mean "
-                            f"is the mean of the poses' U)"))
+                            f"is the mean of the poses' U" + (f"; {axes}" if axes else "") + ")"))
         blocks.extend(orientation_headline(report))
         u = {(name, label): (p.ap_u if name == "AP_mm" else p.rp_u).expanded_uncertainty
              for p in report.poses for name in ("AP_mm", "RP_mm") for label in (p.label, pose_label(p.pose, p.conditions))}

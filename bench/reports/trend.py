@@ -13,7 +13,7 @@ from collections.abc import Sequence
 import numpy as np
 from matplotlib.figure import Figure as MplFigure
 
-from bench.reports.content import RunReport
+from bench.reports.content import RunReport, axes_statement, check_same_axes
 from bench.reports.document import Document, Figure, Paragraph, RawData, Section, Table, _raw
 from bench.reports.plots import Plot
 from bench.reports.summary import HistoryEvent, headline_rows
@@ -44,7 +44,10 @@ def trend_plot(reports: Sequence[RunReport]) -> Plot:
 
 def trend_document(reports: Sequence[RunReport], histories: Sequence[tuple[HistoryEvent, ...]],
                    raw: list[RawData]) -> Document:
-    """The trend report of ``reports`` (already in start order) with their histories and raw data."""
+    """The trend report of ``reports`` (already in start order) with their histories and raw data; runs measured
+    on different axes are refused (:func:`bench.reports.content.check_same_axes`)."""
+    check_same_axes(reports, "--trend")
+    axes = axes_statement(reports[0])
     rows = []
     for report in reports:
         for row in headline_rows(report.poses):
@@ -58,7 +61,8 @@ def trend_document(reports: Sequence[RunReport], histories: Sequence[tuple[Histo
         title=f"Trend over runs {ids}", subtitle=f"Reports {', '.join(r.report_id for r in reports)}",
         sections=(
             Section("1. Results per run", (
-                Paragraph("Each run's headline as its own report gives it; runs in the order they started."),
+                Paragraph("Each run's headline as its own report gives it; runs in the order they started."
+                          + (f" {axes}." if axes else "")),
                 Table("trend", header, tuple(rows), f"Per run, velocity and load (U: k = "
                                                     f"{reports[0].coverage_factor:g})"))),
             Section("2. Trend", (Figure(trend_plot(reports)),)),
