@@ -66,15 +66,20 @@ class MiceInstrument:
         self._closing = threading.Event()
         self._reader = None
         if follow:
-            # the reader thread keeps the kernel's buffers empty: an evdev client buffer holds only some tens of
-            # reports, far fewer than a move of several seconds sends, and an overflow loses counts (SYN_DROPPED)
+            # a reader process per mouse keeps the kernel's buffers empty: an evdev client buffer holds only some
+            # tens of reports (~7 ms at 8 kHz), and an overflow loses counts (SYN_DROPPED); a thread of this
+            # process could not, the runner's Python work holds the GIL for longer (bench_mouse_ingest --realtime).
+            # The reader thread takes their decoded frames, which wait in the reader processes meanwhile.
+            for mouse in mice.values():
+                mouse.start_reader_process()
             self._reader = threading.Thread(target=self._listen, name="mice-reader", daemon=True)
             self._reader.start()
 
-    def _drain_locked(self) -> None:
-        """Read what every mouse has now into the pending reports (the caller holds the lock)."""
+    def _drain_locked(self, *, up_to_now: bool = False) -> None:
+        """Read what every mouse has now into the pending reports (the caller holds the lock); ``up_to_now``
+        includes what a reader process is still sending (a capture's read)."""
         for plane, mouse in self.mice.items():
-            frames = mouse.read_frames()
+            frames = mouse.read_frames(up_to_now=up_to_now)
             if len(frames):
                 self._pending[plane].append(frames)
 
@@ -83,7 +88,7 @@ class MiceInstrument:
         from bench.sensors.input_event import MotionFrames
 
         with self._lock:
-            self._drain_locked()
+            self._drain_locked(up_to_now=True)
             taken, self._pending = self._pending, {plane: [] for plane in self.mice}
         return {plane: MotionFrames.concatenate(parts) for plane, parts in taken.items()}
 
