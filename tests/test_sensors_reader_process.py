@@ -88,6 +88,15 @@ def test_a_failing_read_is_raised_with_its_reason(tmp_path):
     assert reader._process.returncode == 3
 
 
+def test_a_reader_process_asked_not_to_be_real_time_is_not(tmp_path):
+    path = tmp_path / "events.bin"
+    path.write_bytes(encode_frames([1.0], [2], [3]))
+    with EvdevMouse(str(path), CAL, label="normal") as mouse:
+        mouse.start_reader_process(realtime=False)
+        assert mouse.settings()["reader"] == "reader process, normal priority"
+        assert sum(len(f) for f in _read_all(mouse)) == 1
+
+
 def test_closing_reaps_the_child_even_while_the_device_streams(tmp_path):
     path, keep, writer = _fifo(tmp_path)
     mouse = EvdevMouse(path, CAL, label="fifo", reader_process=True)
@@ -112,6 +121,10 @@ def test_a_paced_8_khz_stream_into_a_4_kib_buffer_loses_nothing_beside_busy_pyth
     suite fast; the issue's 60 s run, and the in-process reader's losses under the same load, are in
     ``benchmarks/bench_mouse_ingest.py --realtime``. Counted from the writer's sequence numbers, so it can fail."""
     result = ingest_beside_busy_work(reader="process", rate_hz=8000.0, duration_s=5.0, buffer_bytes=4096)
+    if result.reader_kind != "reader process, real-time priority":
+        pytest.skip("the reader process got no real-time priority here (needs root, CAP_SYS_NICE or RLIMIT_RTPRIO): "
+                    "at normal priority its latency is the scheduler's, under load not always within 7 ms; "
+                    f"measured anyway: lost {result.lost} of {result.expected}")
     assert result.expected == 40_000
     assert (result.lost, result.dropped, result.invalid_frames) == (0, 0, 0)
     assert result.received == 40_000

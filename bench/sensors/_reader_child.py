@@ -1,5 +1,5 @@
 """The reader process of :mod:`bench.sensors.reader_process`: a tiny program (standard library only, run as
-``python -I _reader_child.py FD``) that drains an ``input_event`` stream and sends decoded frames to its parent.
+``python -I _reader_child.py FD [normal]``) that drains an ``input_event`` stream and sends decoded frames to its parent.
 
 It is its own process so that no Python work of the runner (which holds the GIL for milliseconds at a time) can
 keep it from emptying the kernel's buffer, which holds only some tens of reports (~7 ms at 8 kHz). Frames go to
@@ -85,10 +85,10 @@ def drain(source: int, decoder: Decoder, backlog: bytearray, *, once: bool = Fal
             return True
 
 
-def main(source: int) -> int:
+def main(source: int, realtime: bool = True) -> int:
     os.set_blocking(1, False)
     # ready (R: real-time, N: normal priority): the parent waits for this byte, so no report comes before a reader
-    os.write(2, b"R" if ask_realtime() else b"N")
+    os.write(2, b"R" if realtime and ask_realtime() else b"N")
     poller = select.poll()
     poller.register(source, select.POLLIN)
     poller.register(0, select.POLLIN)
@@ -130,4 +130,4 @@ def main(source: int) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main(int(sys.argv[1])))
+    sys.exit(main(int(sys.argv[1]), realtime=sys.argv[2:] != ["normal"]))

@@ -101,12 +101,13 @@ class EvdevMouse:
         if reader_process:
             self.start_reader_process()
 
-    def start_reader_process(self) -> None:
+    def start_reader_process(self, *, realtime: bool = True) -> None:
         """From now on a child process drains the device (:mod:`bench.sensors.reader_process`), so that no Python
         work of this process can starve it; :meth:`read_frames`, :meth:`fileno` and :attr:`exhausted` read its
-        frames. Bytes read before stay with the in-process assembler (an unfinished frame is completed by neither)."""
+        frames. Bytes read before stay with the in-process assembler (an unfinished frame is completed by neither).
+        ``realtime`` asks for real-time priority for it (see :class:`ReaderProcess`)."""
         if self._reader is None:
-            self._reader = ReaderProcess(self._stream.fileno(), name=str(self.binding))
+            self._reader = ReaderProcess(self._stream.fileno(), name=str(self.binding), realtime=realtime)
 
     @property
     def exhausted(self) -> bool:

@@ -57,13 +57,16 @@ class ReaderProcess:
         An open event device, FIFO or file (the caller keeps it open, with any grab; only the child reads it).
     name : str
         The device as messages name it (``str(binding)``).
+    realtime : bool
+        Ask for real-time priority (``SCHED_FIFO``; granted to root, ``CAP_SYS_NICE`` or an ``RLIMIT_RTPRIO``);
+        :attr:`realtime` says whether it was.
     """
 
-    def __init__(self, fd: int, *, name: str) -> None:
+    def __init__(self, fd: int, *, name: str, realtime: bool = True) -> None:
         self.name = name
         self.exhausted = False
         self._pending = b""
-        self._process = subprocess.Popen([sys.executable, "-I", _CHILD, str(fd)], pass_fds=(fd,),
+        self._process = subprocess.Popen([sys.executable, "-I", _CHILD, str(fd), *([] if realtime else ["normal"])], pass_fds=(fd,),
                                          stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
         self._finalizer = weakref.finalize(self, _reap, self._process)
         ready = self._process.stderr.read(1)

@@ -71,17 +71,23 @@ def run(out: str, *, rate_hz: float, duration_s: float, buffer_bytes: int, start
             if lag > 0:
                 time.sleep(lag)
             data = report_bytes(sequence)
+            held_until = None
+            checked_late = False
             while True:
                 try:
                     os.write(fd, data)
                     written_at.append(time.perf_counter())
                     break
                 except BlockingIOError:
-                    held_until = written_at[0] + capacity / rate_hz if written_at else 0.0
+                    if held_until is None:
+                        held_until = written_at[0] + capacity / rate_hz if written_at else 0.0
                     wait_s = held_until - time.perf_counter()
-                    if wait_s <= 0 or not poller.poll(wait_s * 1e3):
+                    # full past the deadline, checked once more now (this writer may itself have been
+                    # descheduled after the failed write, while the reader emptied the buffer): a drop
+                    if checked_late or not poller.poll(max(wait_s, 0.0) * 1e3):
                         dropped += 1
                         break
+                    checked_late = wait_s <= 0
         return {"written": total - dropped, "dropped": dropped, "capacity": capacity}
     finally:
         os.close(fd)
@@ -100,6 +106,7 @@ class PacedIngest:
     largest_gap_ms: float
     busy_loops: int
     invalid_frames: int
+    reader_kind: str
 
 
 def _busy_python(stop: threading.Event) -> int:
@@ -112,11 +119,11 @@ def _busy_python(stop: threading.Event) -> int:
 
 
 def ingest_beside_busy_work(*, reader: str, rate_hz: float = 8000.0, duration_s: float = 10.0,
-                            buffer_bytes: int = 4096) -> PacedIngest:
+                            buffer_bytes: int = 4096, realtime: bool = True) -> PacedIngest:
     """Read a paced mouse (:func:`run` in a writer process) with ``reader`` = ``"process"`` (a reader process,
     :mod:`bench.sensors.reader_process`) or ``"thread"`` (the in-process reader, as a reader thread uses it),
     while this process's main thread runs GIL-busy Python work; a thread takes the frames as the mice
-    instrument's reader does."""
+    instrument's reader does. ``realtime``: the reader process asks for real-time priority."""
     with tempfile.TemporaryDirectory() as tmp:
         fifo = os.path.join(tmp, "event-mouse")
         os.mkfifo(fifo)
@@ -124,8 +131,10 @@ def ingest_beside_busy_work(*, reader: str, rate_hz: float = 8000.0, duration_s:
                                    "--rate-hz", str(rate_hz), "--duration-s", str(duration_s),
                                    "--buffer-bytes", str(buffer_bytes), "--start-on-stdin"],
                                   stdin=subprocess.PIPE, stdout=subprocess.PIPE)
-        mouse = EvdevMouse(fifo, CountsCalibration.from_cpi(1600), label="paced",
-                           reader_process=reader == "process")
+        mouse = EvdevMouse(fifo, CountsCalibration.from_cpi(1600), label="paced")
+        if reader == "process":
+            mouse.start_reader_process(realtime=realtime)
+        reader_kind = mouse.settings()["reader"]
         parts: list[MotionFrames] = []
         stop = threading.Event()
 
@@ -155,7 +164,7 @@ def ingest_beside_busy_work(*, reader: str, rate_hz: float = 8000.0, duration_s:
     expected = counts["written"] + counts["dropped"]
     gaps = np.diff(np.r_[-1, sequence, expected])
     return PacedIngest(expected, len(sequence), expected - len(sequence), counts["dropped"],
-                       float(gaps.max() * 1e3 / rate_hz), loops, int((~frames.valid).sum()))
+                       float(gaps.max() * 1e3 / rate_hz), loops, int((~frames.valid).sum()), reader_kind)
 
 
 def main(argv: list[str] | None = None) -> int:
