@@ -52,7 +52,8 @@ def _timed(action) -> float:
 def paced(reader: str, duration_s: float, rate_hz: float, *, realtime: bool = True) -> bool:
     r = ingest_beside_busy_work(reader=reader, rate_hz=rate_hz, duration_s=duration_s, buffer_bytes=4096,
                                 realtime=realtime)
-    print(f"paced {rate_hz:g} Hz x {duration_s:g} s into 4 KiB, beside busy Python, {r.reader_kind:34s}: "
+    label = "thread reader (in process)" if reader == "thread" else r.reader_kind
+    print(f"paced {rate_hz:g} Hz x {duration_s:g} s into 4 KiB, beside busy Python, {label:34s}: "
           f"lost {r.lost} of {r.expected} ({100 * r.lost / r.expected:.2f} %), largest gap {r.largest_gap_ms:.3f} ms,"
           f" busy loops done {r.busy_loops}")
     return r.lost == 0

@@ -8,9 +8,10 @@ station's ``[mice]``.
 A capture of kind ``arrival`` (ISO 9283 7.4 stabilisation time, 7.5 overshoot) is asked right after the controller
 reported the move done, and stores the streamed position from ``lead_s`` before that moment to ``hold_s`` after
 it: the mice report every motion with a kernel timestamp (``CLOCK_MONOTONIC``), and the reports read since the last
-capture (by the reader thread on hardware) hold the end of the move; the instrument then listens for ``hold_s``. The sample keeps the raw
-reports of both mice in the window and the counts at its start (the raw data), the position series they give
-(times relative to the request), and, as its values, the position at the end of the window.
+capture (by the reader processes on hardware) hold the end of the move; the instrument then listens for ``hold_s``.
+The sample keeps the raw reports of both mice in the window and the counts at its start (the raw data), the
+position series they give (times relative to the request), and, as its values, the position at the end of the
+window.
 """
 
 from __future__ import annotations

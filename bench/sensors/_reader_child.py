@@ -1,13 +1,15 @@
 """The reader process of :mod:`bench.sensors.reader_process`: a tiny program (standard library only, run as
-``python -I _reader_child.py FD [normal]``) that drains an ``input_event`` stream and sends decoded frames to its parent.
+``python -I _reader_child.py FD [normal]``) that drains an ``input_event`` stream and sends decoded frames to its
+parent.
 
 It is its own process so that no Python work of the runner (which holds the GIL for milliseconds at a time) can
 keep it from emptying the kernel's buffer, which holds only some tens of reports (~7 ms at 8 kHz). Frames go to
 stdout as ``<dqqq`` records (t_s, dx, dy, valid); when the parent is slow they wait in this process's memory, never
 in the kernel's buffer. A ``SYN_DROPPED`` gap becomes an invalid frame (counts lost, never repaired), as in
 :class:`bench.sensors.input_event.FrameAssembler`. stdin is the parent's leash: its end (the parent closed it or
-died) ends this process. It says it is ready with one byte on stderr (``R``: at real-time priority, ``N``: not); a read error ends it with the reason
-on stderr and exit status 3.
+died) ends this process, and a byte ``F`` on it asks for everything readable now followed by a marker record
+(valid = -1). It says it is ready with one byte on stderr (``R``: at real-time priority, ``N``: not); a read
+error ends it with the reason on stderr and exit status 3.
 """
 
 import os

@@ -7,7 +7,8 @@ open descriptor to a child (:mod:`bench.sensors._reader_child`, standard library
 sends decoded frames back through a pipe; frames the parent has not taken yet wait in the child's memory.
 
 Drops are never silent: a kernel ``SYN_DROPPED`` gap arrives as an invalid frame (counted by
-:attr:`bench.sensors.mouse.EvdevMouse.dropped_gaps`), and a read failure of the child (an unplugged device) is raised as :class:`bench.errors.LinkError` with its reason.
+:attr:`bench.sensors.mouse.EvdevMouse.dropped_gaps`), and a read failure of the child (an unplugged device) is
+raised as :class:`bench.errors.LinkError` with its reason.
 The child ends when the parent closes it or dies (its stdin ends); :meth:`close` reaps it, so none is left over.
 """
 
@@ -66,8 +67,9 @@ class ReaderProcess:
         self.name = name
         self.exhausted = False
         self._pending = b""
-        self._process = subprocess.Popen([sys.executable, "-I", _CHILD, str(fd), *([] if realtime else ["normal"])], pass_fds=(fd,),
-                                         stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+        command = [sys.executable, "-I", _CHILD, str(fd), *([] if realtime else ["normal"])]
+        self._process = subprocess.Popen(command, pass_fds=(fd,), stdin=subprocess.PIPE, stdout=subprocess.PIPE,
+                                         stderr=subprocess.PIPE)
         self._finalizer = weakref.finalize(self, _reap, self._process)
         ready = self._process.stderr.read(1)
         if ready not in (b"R", b"N"):  # started, or why not

@@ -494,7 +494,8 @@ class Store:
                               f"{[t.shape, *(c.shape for c in columns)]}, expected one length")
         if not np.isfinite(t).all():
             bad = int(np.flatnonzero(~np.isfinite(t))[0])
-            raise ConfigError(f"run {run_id} stream {stream}: t_s[{bad}] = {float(t[bad])!r}, expected a finite number")
+            raise ConfigError(f"run {run_id} stream {stream}: t_s[{bad}] = {float(t[bad])!r}, expected a finite "
+                              "number")
         rows = zip(itertools.repeat(int(run_id)), itertools.repeat(stream), t.tolist(), columns[0].tolist(),
                    columns[1].tolist(), columns[2].astype(int).tolist())
         raw = self._db.raw
