@@ -160,11 +160,15 @@ class MiceInstrument:
         """Read both mice as their reports come until ``until_s`` (monotonic) or :meth:`close`."""
         with selectors.PollSelector() as selector:
             for mouse in self.mice.values():
-                selector.register(mouse.fileno(), selectors.EVENT_READ)
-            while not self._closing.is_set() and (remaining := until_s - time.monotonic()) > 0:
+                selector.register(mouse.fileno(), selectors.EVENT_READ, mouse)
+            while (selector.get_map() and not self._closing.is_set()
+                   and (remaining := until_s - time.monotonic()) > 0):
                 if selector.select(min(remaining, 0.05)):
                     with self._lock:
                         self._drain_locked()
+                    for key in list(selector.get_map().values()):
+                        if key.data.exhausted:  # an ended pipe stays readable: watching it would spin
+                            selector.unregister(key.fd)
 
     def settings(self) -> dict[str, Any]:
         """What the report needs, on hardware and in simulation alike: the counts' resolution (``cpi``, from the
