@@ -8,9 +8,10 @@ station's ``[mice]``.
 A capture of kind ``arrival`` (ISO 9283 7.4 stabilisation time, 7.5 overshoot) is asked right after the controller
 reported the move done, and stores the streamed position from ``lead_s`` before that moment to ``hold_s`` after
 it: the mice report every motion with a kernel timestamp (``CLOCK_MONOTONIC``), and the reports read since the last
-capture (by the reader thread on hardware) hold the end of the move; the instrument then listens for ``hold_s``. The sample keeps the raw
-reports of both mice in the window and the counts at its start (the raw data), the position series they give
-(times relative to the request), and, as its values, the position at the end of the window.
+capture (by the reader processes on hardware) hold the end of the move; the instrument then listens for ``hold_s``.
+The sample keeps the raw reports of both mice in the window and the counts at its start (the raw data), the
+position series they give (times relative to the request), and, as its values, the position at the end of the
+window.
 """
 
 from __future__ import annotations
@@ -68,15 +69,20 @@ class MiceInstrument:
         self._closing = threading.Event()
         self._reader = None
         if follow:
-            # the reader thread keeps the kernel's buffers empty: an evdev client buffer holds only some tens of
-            # reports, far fewer than a move of several seconds sends, and an overflow loses counts (SYN_DROPPED)
+            # a reader process per mouse keeps the kernel's buffers empty: an evdev client buffer holds only some
+            # tens of reports (~7 ms at 8 kHz), and an overflow loses counts (SYN_DROPPED); a thread of this
+            # process could not, the runner's Python work holds the GIL for longer (bench_mouse_ingest --realtime).
+            # The reader thread takes their decoded frames, which wait in the reader processes meanwhile.
+            for mouse in mice.values():
+                mouse.start_reader_process()
             self._reader = threading.Thread(target=self._listen, name="mice-reader", daemon=True)
             self._reader.start()
 
-    def _drain_locked(self) -> None:
-        """Read what every mouse has now into the pending reports (the caller holds the lock)."""
+    def _drain_locked(self, *, up_to_now: bool = False) -> None:
+        """Read what every mouse has now into the pending reports (the caller holds the lock); ``up_to_now``
+        includes what a reader process is still sending (a capture's read)."""
         for plane, mouse in self.mice.items():
-            frames = mouse.read_frames()
+            frames = mouse.read_frames(up_to_now=up_to_now)
             if len(frames):
                 self._pending[plane].append(frames)
 
@@ -85,7 +91,7 @@ class MiceInstrument:
         from bench.sensors.input_event import MotionFrames
 
         with self._lock:
-            self._drain_locked()
+            self._drain_locked(up_to_now=True)
             taken, self._pending = self._pending, {plane: [] for plane in self.mice}
         return {plane: MotionFrames.concatenate(parts) for plane, parts in taken.items()}
 
@@ -156,11 +162,15 @@ class MiceInstrument:
         """Read both mice as their reports come until ``until_s`` (monotonic) or :meth:`close`."""
         with selectors.PollSelector() as selector:
             for mouse in self.mice.values():
-                selector.register(mouse.fileno(), selectors.EVENT_READ)
-            while not self._closing.is_set() and (remaining := until_s - time.monotonic()) > 0:
+                selector.register(mouse.fileno(), selectors.EVENT_READ, mouse)
+            while (selector.get_map() and not self._closing.is_set()
+                   and (remaining := until_s - time.monotonic()) > 0):
                 if selector.select(min(remaining, 0.05)):
                     with self._lock:
                         self._drain_locked()
+                    for key in list(selector.get_map().values()):
+                        if key.data.exhausted:  # an ended pipe stays readable: watching it would spin
+                            selector.unregister(key.fd)
 
     def settings(self) -> dict[str, Any]:
         """What the report needs, on hardware and in simulation alike: the counts' resolution (``cpi``, from the

@@ -25,6 +25,7 @@ from bench.sensors.event_device import (
     EventStream,
 )
 from bench.sensors.input_event import FrameAssembler, MotionFrames
+from bench.sensors.reader_process import ReaderProcess
 from bench.sensors.reading import Reading, now
 
 __all__ = ["EVIOCGRAB", "EVIOCSCLOCKID", "EvdevMouse", "MouseBinding", "MouseGroup", "list_mice"]
@@ -80,10 +81,12 @@ class EvdevMouse:
     grab : bool
         Take exclusive access with ``EVIOCGRAB`` so the sensor does not move the desktop pointer. Only applied to
         real character devices; refused loudly if another client holds the device.
+    reader_process : bool
+        Read through a child process (:meth:`start_reader_process`) from the start.
     """
 
     def __init__(self, path: str, calibration: CountsCalibration, *, label: str = "mouse",
-                 grab: bool = False) -> None:
+                 grab: bool = False, reader_process: bool = False) -> None:
         self.name = label
         self.calibration = calibration
         self._stream = EventStream(path, kind="mouse", label=label, grab=grab)
@@ -92,20 +95,38 @@ class EvdevMouse:
         self.counts = np.zeros(2, np.int64)
         self.segment_valid = True
         self._last_t_s: float | None = None
+        #: ``SYN_DROPPED`` gaps seen since the mouse was opened (each one lost counts; its segment is invalid).
+        self.dropped_gaps = 0
+        self._reader: ReaderProcess | None = None
+        if reader_process:
+            self.start_reader_process()
+
+    def start_reader_process(self, *, realtime: bool = True) -> None:
+        """From now on a child process drains the device (:mod:`bench.sensors.reader_process`), so that no Python
+        work of this process can starve it; :meth:`read_frames`, :meth:`fileno` and :attr:`exhausted` read its
+        frames. Bytes read before stay with the in-process assembler (an unfinished frame is completed by neither).
+        ``realtime`` asks for real-time priority for it (see :class:`ReaderProcess`)."""
+        if self._reader is None:
+            self._reader = ReaderProcess(self._stream.fileno(), name=str(self.binding), realtime=realtime)
 
     @property
     def exhausted(self) -> bool:
         """True once a pipe or file has ended (a device never ends; it fails when unplugged)."""
-        return self._stream.exhausted
+        return self._reader.exhausted if self._reader is not None else self._stream.exhausted
 
     def fileno(self) -> int:
-        return self._stream.fileno()
+        return self._reader.fileno() if self._reader is not None else self._stream.fileno()
 
-    def read_frames(self) -> MotionFrames:
-        """Read every byte available now (non-blocking) and return the completed frames; counts are integrated."""
-        chunks = [self._assembler.feed(data) for data in self._stream.read_available()]
-        frames = MotionFrames.concatenate(chunks)
+    def read_frames(self, *, up_to_now: bool = False) -> MotionFrames:
+        """Read every frame available now (non-blocking) and return the completed frames; counts are integrated.
+        With a reader process, ``up_to_now`` waits for the frames still on their way from it (a capture's read).
+        """
+        if self._reader is not None:
+            frames = self._reader.read_frames(up_to_now=up_to_now)
+        else:
+            frames = MotionFrames.concatenate([self._assembler.feed(data) for data in self._stream.read_available()])
         if len(frames):
+            self.dropped_gaps += int(len(frames) - frames.valid.sum())
             self.counts += (int(frames.dx.sum()), int(frames.dy.sum()))
             self.segment_valid &= bool(frames.valid.all())
             self._last_t_s = float(frames.t_s[-1])
@@ -120,7 +141,14 @@ class EvdevMouse:
         """What a run manifest stores about this sensor: binding and calibration (id, hash, matrix)."""
         return {"sensor": "evdev mouse", "label": self.name, "path": self.binding.path, "name": self.binding.name,
                 "phys": self.binding.phys, "is_device": self.binding.is_device,
-                "calibration": self.calibration.to_dict(), "calibration_hash": self.calibration.content_hash()}
+                "calibration": self.calibration.to_dict(), "calibration_hash": self.calibration.content_hash(),
+                "reader": self._reader_kind()}
+
+    def _reader_kind(self) -> str:
+        """How the device is read: by this process, or by a reader process (at real-time priority or not)."""
+        if self._reader is None:
+            return "in process"
+        return "reader process, real-time priority" if self._reader.realtime else "reader process, normal priority"
 
     def read(self, timeout_s: float = 0.0) -> Reading:
         """Integrated displacement since the last :meth:`rezero`, in mm, after waiting up to ``timeout_s``."""
@@ -141,7 +169,9 @@ class EvdevMouse:
                        valid=self.segment_valid, note="" if self.segment_valid else "SYN_DROPPED: counts lost")
 
     def close(self) -> None:
-        """Close the device; the kernel releases any grab with it."""
+        """Stop the reader process if any, close the device; the kernel releases any grab with it."""
+        if self._reader is not None:
+            self._reader.close()
         self._stream.close()
 
     def __enter__(self) -> Self:

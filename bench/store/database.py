@@ -461,6 +461,67 @@ class Store:
                                 + " FROM samples WHERE run_id = ? AND step_index > ? ORDER BY step_index",
                                 (*(f"$.{name}" for name in extract), int(run_id), int(after_step)))
 
+    # ---- streamed rows ---------------------------------------------------------------------------------------
+
+    def add_stream_rows(self, run_id: int, stream: str, t_s, dx_counts, dy_counts, valid) -> int:
+        """Store one batch of a streaming sensor's frames (narrow rows) in one transaction, committed before
+        returning: one fsync for the batch, so a stream of thousands of frames a second keeps the guarantee of
+        :meth:`add_sample` for every batch this returned from (:class:`bench.store.streams.StreamWriter` batches).
+
+        Parameters
+        ----------
+        run_id : int
+            The run the stream belongs to.
+        stream : str
+            Which sensor (``mouse_xy``).
+        t_s : array_like of float, shape (n,)
+            Each frame's time (s, the sensor's clock); finite.
+        dx_counts, dy_counts : array_like of int, shape (n,)
+            Each frame's counts.
+        valid : array_like of bool, shape (n,)
+            False for a frame that closes a gap of lost counts.
+
+        Returns the number of rows stored.
+        """
+        import itertools
+
+        import numpy as np
+
+        t = np.asarray(t_s, dtype=float)
+        columns = (np.asarray(dx_counts, np.int64), np.asarray(dy_counts, np.int64), np.asarray(valid, bool))
+        if any(c.shape != t.shape for c in columns) or t.ndim != 1:
+            raise ConfigError(f"run {run_id} stream {stream}: t_s, dx_counts, dy_counts and valid have shapes "
+                              f"{[t.shape, *(c.shape for c in columns)]}, expected one length")
+        if not np.isfinite(t).all():
+            bad = int(np.flatnonzero(~np.isfinite(t))[0])
+            raise ConfigError(f"run {run_id} stream {stream}: t_s[{bad}] = {float(t[bad])!r}, expected a finite "
+                              "number")
+        rows = zip(itertools.repeat(int(run_id)), itertools.repeat(stream), t.tolist(), columns[0].tolist(),
+                   columns[1].tolist(), columns[2].astype(int).tolist())
+        raw = self._db.raw
+        try:
+            raw.execute("BEGIN")
+            raw.executemany("INSERT INTO stream_rows (run_id, stream, t_s, dx_counts, dy_counts, valid) "
+                            "VALUES (?, ?, ?, ?, ?, ?)", rows)
+            raw.execute("COMMIT")
+        except sqlite3.Error as exc:
+            if raw.in_transaction:
+                raw.execute("ROLLBACK")
+            if isinstance(exc, sqlite3.IntegrityError):
+                raise ConfigError(f"run {run_id}: no such run in {self.path}") from exc
+            raise store_error(self.path, exc) from None
+        return len(t)
+
+    def stream_rows(self, run_id: int, stream: str) -> tuple:
+        """The stored frames of one stream of a run in the order stored: arrays ``(t_s, dx_counts, dy_counts,
+        valid)``."""
+        import numpy as np
+
+        rows = self._db.execute("SELECT t_s, dx_counts, dy_counts, valid FROM stream_rows WHERE run_id = ? AND "
+                                "stream = ? ORDER BY rowid", (int(run_id), stream)).fetchall()
+        table = np.array(rows, dtype=float).reshape(-1, 4)
+        return table[:, 0], table[:, 1].astype(np.int64), table[:, 2].astype(np.int64), table[:, 3] != 0
+
     def sample_kinds(self, run_id: int) -> dict[str, int]:
         """How many samples of each kind run ``run_id`` holds, most frequent first."""
         rows = self._db.execute("SELECT kind, COUNT(*) FROM samples WHERE run_id = ? GROUP BY kind "

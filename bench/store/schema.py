@@ -25,7 +25,7 @@ from bench.errors import ConfigError
 __all__ = ["SCHEMA_VERSION", "StoreSchemaError", "backup_path", "default_bench_name", "open_schema"]
 
 #: The schema version this bench writes.
-SCHEMA_VERSION = 1
+SCHEMA_VERSION = 2
 
 #: Version 0: the tables of the first release, exactly as it created them.
 _SCHEMA_V0 = """
@@ -102,8 +102,18 @@ def _v0_to_v1(db: sqlite3.Connection, bench: str) -> None:
     db.execute("UPDATE runs SET bench = ? WHERE bench = ''", (bench,))
 
 
+def _v1_to_v2(db: sqlite3.Connection, bench: str) -> None:
+    """Streamed rows: the frames of a streaming sensor (mice during a move), one narrow row each, stored in
+    batches (:meth:`bench.store.database.Store.add_stream_rows`). ``valid`` is 0 for the frame that closes a
+    ``SYN_DROPPED`` gap (its counts were lost)."""
+    db.execute("CREATE TABLE stream_rows (run_id INTEGER NOT NULL REFERENCES runs(id), stream TEXT NOT NULL, "
+               "t_s REAL NOT NULL, dx_counts INTEGER NOT NULL, dy_counts INTEGER NOT NULL, "
+               "valid INTEGER NOT NULL CHECK (valid IN (0, 1)))")
+    db.execute("CREATE INDEX stream_rows_run ON stream_rows(run_id, stream)")
+
+
 #: ``MIGRATIONS[v]`` takes a store from version ``v`` to ``v + 1``.
-MIGRATIONS: tuple[Callable[[sqlite3.Connection, str], None], ...] = (_v0_to_v1,)
+MIGRATIONS: tuple[Callable[[sqlite3.Connection, str], None], ...] = (_v0_to_v1, _v1_to_v2)
 assert len(MIGRATIONS) == SCHEMA_VERSION
 
 
