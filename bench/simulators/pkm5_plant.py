@@ -32,7 +32,7 @@ TRANSLATION_FIT_MM = 0.05
 #: LM step criterion of the plant's warm solve (mm, rad): far below the 0.03 mm count of the simulated mice.
 _PLANT_STEP_TOL = 1e-7
 #: Warm solves after power-up that a compiled plant leaves to numpy (7 ms each) while numba loads on its thread
-#: (0.5-2 s): the demo's first 32 moves take about as long, so its 33rd move rarely waits for the kernel.
+#: (0.5-2 s from numba's cache): the demo's first 32 moves take about as long.
 NUMPY_SOLVES_AT_START = 32
 
 #: Error sizes for AP/RP of the order of the documents' physical tests (pkm5.md §6.8: AP 1.2-1.9 mm, RP 1.6-2.7 mm,
@@ -55,8 +55,7 @@ def plant_engine() -> str:
 
 class _KernelLoader(threading.Thread):
     """Loads numba and the FK kernel (0.5-2 s: the import, machine code from numba's cache) on a thread started
-    once the simulator serves its pty (:meth:`Plant.warm_up`); the plant's first warm solve waits for it
-    (:meth:`engine`). Started while the device is being built, the import fought the seed-table build for the GIL
+    once the simulator serves its pty (:meth:`Plant.warm_up`); solves use it once it is loaded (:meth:`engine`). Started while the device is being built, the import fought the seed-table build for the GIL
     and doubled the start-up; once serving, the event loop sits in select, so a reply meanwhile is late by one
     thread switch at most."""
 
@@ -79,8 +78,16 @@ class _KernelLoader(threading.Thread):
             _log.warning("compiled FK kernel not loaded (%s): the plant solves with numpy", exc)
 
     def engine(self) -> str:
-        self.start_once()  # a plant used without a simulator (no warm_up) loads at its first warm solve
-        self.join()
+        """The engine of the next solve. A simulator (which started the load in :meth:`Plant.warm_up`) never waits
+        for it: on a fresh install numba compiles the kernel first (10-20 s of CPU), and a controller that holds a
+        reply that long is a dead link to the host (a CI run failed so, at its 33rd move). Until the load is done
+        its solves stay numpy's, which the compiled kernel equals within 1e-9 mm, far below a mouse count. A plant
+        used without a simulator (no warm-up) loads at its first warm solve and waits for it."""
+        if self.ident is None:
+            self.start_once()
+            self.join()
+        elif self.is_alive():
+            return "numpy"
         return "numpy" if self.failure is not None else "compiled"
 
 
@@ -134,8 +141,8 @@ def build_plant(seed: int, *, ideal: bool = False, geometry: Any = pkm5.DEFAULT_
 
     def engine_for(previous: np.ndarray | None) -> str:
         # The first pose (at power-up, before the pty is served: no previous pose) and the first
-        # NUMPY_SOLVES_AT_START solves are numpy's, while the kernel loads: a count, not a clock, so that a seed's
-        # truth never depends on timing. Every later solve uses the plant's engine.
+        # NUMPY_SOLVES_AT_START solves are numpy's, while the kernel loads; later solves use the kernel once it is
+        # loaded (never waiting for it: see _KernelLoader.engine).
         if previous is None or loader is None or next(solves) < NUMPY_SOLVES_AT_START:
             return "numpy"
         return loader.engine()
