@@ -43,6 +43,8 @@ def pick_run(records: Sequence[RunRecord], name: str, where: str) -> RunRecord:
         matches = [r for r in records if r.bench == found["bench"] and r.id == int(found["id"])]
     elif text.isdigit():
         matches = [r for r in records if r.id == int(text)]
+        if len(text) >= 8:  # a UUID prefix may be all decimal digits ((10/16)^8: 1 in 43 of them)
+            matches += [r for r in records if r.uuid.lower().startswith(text) and r not in matches]
     elif _UUID_PREFIX.fullmatch(text) and len(text.replace("-", "")) >= 8:
         prefix = text.lower()
         matches = [r for r in records if r.uuid.lower().startswith(prefix)]
@@ -220,7 +222,7 @@ def open_named_runs(spec: str, names: Sequence[str]) -> tuple[Store | LabRunView
         records = None
         ids = []
         for name in names:
-            if str(name).strip().isdigit():
+            if str(name).strip().isdigit() and len(str(name).strip()) < 8:  # 8+ digits may be a UUID prefix
                 ids.append(int(name))
                 continue
             records = store.runs() if records is None else records
