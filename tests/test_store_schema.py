@@ -17,6 +17,8 @@ from bench.store.descriptors import unit_of
 
 DATA = Path(__file__).parent / "data"
 V0 = DATA / "store_schema0.db"  # two simulated runs written by the schema-0 release (see docs/store.md)
+#: a simulated 15-sample iso9283_pose run written by the schema-1 release (main at 9959c06, session 3), and its export
+V1 = DATA / "store_schema1.db"
 
 
 @pytest.fixture()
@@ -60,6 +62,23 @@ def test_old_file_migrates_with_a_backup_and_exports_identically(old_store, tmp_
     # the samples themselves are untouched by the migration
     assert _table_rows(old_store, "samples") == _table_rows(V0, "samples")
     assert V0.read_bytes() == original
+
+
+def test_a_store_of_the_previous_release_migrates_with_a_backup_and_exports_identically(tmp_path):
+    path = tmp_path / "bench.db"
+    shutil.copyfile(V1, path)
+    with sqlite3.connect(V1) as db:
+        assert db.execute("PRAGMA user_version").fetchone() == (1,)
+    with Store(path) as store:
+        assert store.backup == Path(f"{path}.schema-v1.bak")
+        assert store._db.execute("PRAGMA user_version").fetchone() == (SCHEMA_VERSION,)
+        [run] = store.runs()
+        assert (run.protocol_name, run.n_samples, run.status) == ("iso9283_pose", 15, "completed")
+        out = export_run(store, 1, tmp_path / "run1.csv", kind="pose")
+        assert out.read_text() == (DATA / "store_schema1_run1.csv").read_text()
+    assert _table_rows(path, "samples") == _table_rows(V1, "samples")
+    with sqlite3.connect(Path(f"{path}.schema-v1.bak")) as db:
+        assert db.execute("PRAGMA user_version").fetchone() == (1,)
 
 
 def test_second_open_neither_migrates_nor_renames(old_store):
