@@ -112,7 +112,7 @@ def test_html_and_pdf_print_the_tables_the_hysteresis_and_the_plot(arrivals):
     cycle = next(row for row in tables["stabilisation-cycles"][1:] if row[:3] == ["P2", "0.1", "2"])
     assert cycle[5:] == [f"{p2.cycles[1].stabilisation_time_s:.3f}", f"{p2.cycles[1].overshoot_mm:.4f}"]
     conditions = dict(tables["conditions"][1:])
-    assert conditions["hysteresis h (mm)"] == "0.03175 (one instrument count, settings.instrument.cpi = 800: 25.4/cpi)"
+    assert conditions["hysteresis h (mm)"] == "0.03175 (one instrument count, the instrument's stated 800 counts per inch)"
     assert conditions["time base"] == "simulated s (wall x speed factor 1000)"
     deviations = {row[1]: row for row in tables["deviations"][1:]}
     assert deviations["hysteresis"][4] == "deviates" and deviations["limit band"][4] == "conforms"
@@ -164,9 +164,9 @@ def test_the_hysteresis_comes_from_a_calibration_in_force_or_is_zero_without_a_c
     assert calibrated.hysteresis_mm == 0.0320123  # 6 significant digits, as printed in the command
     assert calibrated.hysteresis_source == f"one instrument count, calibration mouse_xy v{calibration.version} " \
                                            f"(id {calibration.id}): mm_per_count"
-    assert count_size_mm(store.run(run_id), ()) == (25.4 / 800, "settings.instrument.cpi = 800: 25.4/cpi")
+    assert count_size_mm(store.run(run_id), ()) == (25.4 / 800, "the instrument's stated 800 counts per inch")
     bare = copies["bare"]
-    assert bare.hysteresis_mm == 0.0 and bare.count_mm is None and "stores no instrument count" in \
+    assert bare.hysteresis_mm == 0.0 and bare.count_mm is None and "states no instrument count" in \
         bare.hysteresis_source
     rows = {d.topic: d for d in bare.deviations}
     assert rows["hysteresis"].status == "conforms" and rows["instrument"].status == "deviates"

@@ -241,7 +241,7 @@ def reading_instrument(run: RunRecord, calibrations: tuple[CalibrationRecord, ..
     own = stored if reader is None else {}
     budget: list[tuple[str, float, str]] = []
     if "u_mm" in own:
-        budget.append(("instrument, per reading", float(own["u_mm"]), "settings.instrument.u_mm"))
+        budget.append(("instrument, per reading", float(own["u_mm"]), f"{STATED} standard uncertainty"))
     else:
         step = reading_step_mm(readings)
         if step is not None:
@@ -250,15 +250,19 @@ def reading_instrument(run: RunRecord, calibrations: tuple[CalibrationRecord, ..
                            f"last recorded decimal of the readings, {step:g} mm; δ/{'√6' if difference else '√12'}"))
         if "mpe_mm" in own:
             budget.append(("maximum permissible error", float(own["mpe_mm"]) / math.sqrt(3.0),
-                           f"settings.instrument.mpe_mm = {own['mpe_mm']} mm, rectangular"))
+                           f"{STATED} maximum permissible error, {own['mpe_mm']} mm, rectangular"))
     sigma = combine(*(u for _, u, _ in budget)) if budget else None
     settings = stored if reader is None else {"readings": reader, **({"rig": stored} if stored else {})}
     return InstrumentInfo(settings, sigma, tuple(budget), 1, None, calibrations)
 
 
+#: How a budget line whose figure the stored instrument settings state (u or MPE) names its source.
+STATED = "the instrument's stated"
+
+
 def uncertainty_stated(info: InstrumentInfo) -> bool:
     """Whether the instrument's uncertainty comes from stored settings (u or MPE), not from the resolution alone."""
-    return any(source.startswith("settings.") for _, _, source in info.budget)
+    return any(source.startswith(STATED) for _, _, source in info.budget)
 
 
 def analysis_table(store: Store, run_id: int) -> pd.DataFrame:
@@ -322,11 +326,12 @@ def counts_instrument(run: RunRecord, calibrations: tuple[CalibrationRecord, ...
     settings = dict(run.settings.get("instrument") or {})
     budget: list[tuple[str, float, str]] = []
     if "u_mm" in settings:
-        budget.append(("instrument, per axis", float(settings["u_mm"]), "settings.instrument.u_mm"))
+        budget.append(("instrument, per axis", float(settings["u_mm"]), f"{STATED} standard uncertainty"))
     elif "cpi" in settings:
         step_mm = MM_PER_INCH / float(settings["cpi"])
         budget.append(("resolution (difference of two readings)",
-                       resolution_uncertainty(step_mm, difference=True), f"25.4/cpi = {step_mm:.4g} mm, δ/√6"))
+                       resolution_uncertainty(step_mm, difference=True),
+                       f"one count at {float(settings['cpi']):g} counts per inch, {step_mm:.4g} mm, δ/√6"))
         if "noise_counts" in settings:
             budget.append(("count noise", float(settings["noise_counts"]) * step_mm,
                            f"{settings['noise_counts']} counts x {step_mm:.4g} mm"))

@@ -98,11 +98,11 @@ def count_size_mm(run: RunRecord, calibrations: tuple[CalibrationRecord, ...]) -
             return float(record.params["mm_per_count"]), f"{where}: mm_per_count"
         if "cpi" in record.params:
             cpi = float(record.params["cpi"])
-            return MM_PER_INCH / cpi, f"{where}: 25.4/cpi, cpi = {cpi:g}"
+            return MM_PER_INCH / cpi, f"{where}: {cpi:g} counts per inch"
     cpi = (run.settings.get("instrument") or {}).get("cpi")
     if cpi is None:
         return None
-    return MM_PER_INCH / float(cpi), f"settings.instrument.cpi = {float(cpi):g}: 25.4/cpi"
+    return MM_PER_INCH / float(cpi), f"the instrument's stated {float(cpi):g} counts per inch"
 
 
 def _hysteresis(count: tuple[float, str] | None, requested: float | None) -> tuple[float, str]:
@@ -111,7 +111,7 @@ def _hysteresis(count: tuple[float, str] | None, requested: float | None) -> tup
             raise ConfigError(f"--hysteresis-mm {requested:g}: expected a number >= 0 (mm)")
         return float(requested), "set for this report (--hysteresis-mm)"
     if count is None:
-        return 0.0, "the run stores no instrument count (settings.instrument.cpi or a calibration's mm_per_count)"
+        return 0.0, "the run states no instrument count (counts per inch, or a calibration's mm per count)"
     return float(f"{count[0]:.6g}"), f"one instrument count, {count[1]}"
 
 
