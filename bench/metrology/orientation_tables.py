@@ -27,6 +27,7 @@ from bench.metrology.tables import (
     _check_unique_cycles,
     condition_groups,
     numeric_columns,
+    with_pose_labels,
 )
 
 __all__ = ["DEPTH_COLUMNS", "TILT_NUMERIC_COLUMNS", "TiltPoseResult", "analyze_tilts", "orientation_summary",
@@ -132,13 +133,7 @@ def tilt_table(frame: pd.DataFrame, spacing_mm: float | None = None) -> pd.DataF
                           f"tilt readings of an alpha or beta run (bench export RUN --kind tilt)")
     columns = ["pose", "cycle", *(c for pair in pairs for c in pair),
                *(c for c in CONDITION_COLUMNS if c in frame.columns)]
-    table = numeric_columns(frame[columns], columns[1:])
-    table["pose"] = frame["pose"].astype(str).str.strip()
-    empty = table["pose"] == ""
-    if empty.any():
-        raise ConfigError(f"{source}: row {int(empty.idxmax()) + 1}, column pose: empty, expected a pose label")
-    table.attrs["source"] = source
-    return table
+    return with_pose_labels(numeric_columns(frame[columns], columns[1:]), frame, source)
 
 
 def analyze_tilts(table: pd.DataFrame, gauge: TiltGauge | None = None, *, k: float = 2.0) -> list[TiltPoseResult]:

@@ -62,6 +62,7 @@ __all__ = [
     "StabilisationResults",
     "stabilisation_results",
     "stabilisation_table",
+    "with_pose_labels",
 ]
 
 POSE_COLUMNS = ("pose", "cycle", "cmd_x_mm", "cmd_y_mm", "cmd_z_mm", "x_mm", "y_mm", "z_mm")
@@ -239,6 +240,12 @@ def pose_table(frame: pd.DataFrame, *, partial_axes: bool = False) -> pd.DataFra
     required = [c for c in POSE_COLUMNS[1:] if not (partial_axes and c in _ATTAINED and c not in frame.columns)]
     table = numeric_columns(frame, required)
     table = numeric_columns(table, [*angles, *optional], required=False)
+    return with_pose_labels(table, frame, source)
+
+
+def with_pose_labels(table: pd.DataFrame, frame: pd.DataFrame, source: str) -> pd.DataFrame:
+    """``table`` with ``frame``'s pose labels as stripped strings (an empty one refused, naming its row) and its
+    ``source`` attribute set."""
     table["pose"] = frame["pose"].astype(str).str.strip()
     empty = table["pose"] == ""
     if empty.any():
