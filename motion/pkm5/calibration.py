@@ -46,6 +46,8 @@ PARAMETERS = (tuple(f"leg_offset_{i}_mm" for i in range(1, 7)) + tuple(f"scale_{
 #: Unit of each parameter (``1`` for the dimensionless scale).
 UNITS = {name: ("1" if name.startswith("scale_") else "mm") for name in PARAMETERS + REGISTRATION}
 _FD_STEP = {"mm": 1e-4, "1": 1e-6}
+#: Distance from the documented geometry's pose beyond which a warm-started FK solution is taken for a branch jump.
+_BRANCH_JUMP_MM = 20.0
 
 
 def _check_names(names) -> tuple[str, ...]:
@@ -206,7 +208,17 @@ class ForwardModel:
             start = self._starts[mode] if last is None else np.where(np.isfinite(last), last, self._starts[mode])
             fk = forward_kinematics(lengths[rows], geometry, initial_pose=start, mode=mode, residual_tol_mm=2.0,
                                     retry_above_mm=0.5, max_iter=200, engine=self.engine)
-            out[rows] = np.where(fk.converged[:, None], fk.pose, np.nan)
+            solved = np.where(fk.converged[:, None], fk.pose, np.nan)
+            # a warm start can walk a pose onto another FK branch (seen at a beta pose: 57 mm away, and the
+            # solver then stays in that basin); sub-millimetre deviations move a pose by a few mm at most, so a
+            # row far from the documented geometry's pose is solved again from that fixed start
+            far = ~(np.linalg.norm(solved[:, :3] - self._starts[mode][:, :3], axis=1) <= _BRANCH_JUMP_MM)
+            if last is not None and far.any():
+                again = forward_kinematics(lengths[rows][far], geometry, initial_pose=self._starts[mode][far],
+                                           mode=mode, residual_tol_mm=2.0, retry_above_mm=0.5, max_iter=200,
+                                           engine=self.engine)
+                solved[far] = np.where(again.converged[:, None], again.pose, np.nan)
+            out[rows] = solved
             self._last[mode] = out[rows]
         self._evaluated = (theta.copy(), out.copy())
         return out
