@@ -1,10 +1,11 @@
 """Held-out AP factor of the pkm5 mice calibration: the default free set against a maximum a posteriori fit.
 
-Run as ``python benchmarks/bench_calibration_prior.py [PRIOR_SCALE]``. Every one of the 36 parameters perturbed
+Run as ``python benchmarks/bench_calibration_prior.py [PRIOR_SCALE] [--avoid-folds]``. Every one of the 36 parameters perturbed
 (``true_geometry(seed)``: 0.3 mm joints and offsets, 0.5 % lead), 30 D-optimal poses of 300 candidates, mice-like
 data (0.05 mm per axis), 50 held-out poses (AP in the instrument frame; before = documented geometry with the
 registration fitted). A held-out pose the true robot misses by > 1 mm when commanded by its own geometry is left out
-(the simulated plant's FK takes another branch there, an artefact of the simulator).
+(the simulated plant's FK takes another branch there, an artefact of the simulator). ``--avoid-folds`` leaves out
+of the candidates those with ``ForwardModel.fold_ratio`` below 1/100 of the median (near an FK fold).
 
 * subset: ``identify`` over ``identifiable_subset`` (condition <= 50), the others fixed at 0 (the default);
 * MAP: all 36 parameters plus the registration, the a-priori tolerances (``TRUE_GEOMETRY_SIGMA`` times
@@ -68,17 +69,24 @@ def map_fit(steps, modes, measured, weight):
 
 
 def main() -> None:
-    scale = float(sys.argv[1]) if len(sys.argv) > 1 else 1.0
+    numbers = [a for a in sys.argv[1:] if not a.startswith("--")]
+    scale = float(numbers[0]) if numbers else 1.0
     weight = np.array([0.0 if np.isinf(s) else 1.0 / (s * scale) for s in map(prior_sigma, ALL)])
     candidates = pkm5.sample_reachable(300, kinds=KINDS, seed=1)
     all_steps = pkm5.lengths_to_steps(pkm5.inverse_kinematics(candidates).lengths_mm)
     all_modes = modes_of_poses(candidates)
-    jac = ForwardModel(all_steps, all_modes, ALL).jacobian(np.zeros(len(ALL)))
-    pick = select_poses(jac, U_MM, 30)
+    model = ForwardModel(all_steps, all_modes, ALL)
+    jac = model.jacobian(np.zeros(len(ALL)))
+    keep = np.arange(len(candidates))
+    if "--avoid-folds" in sys.argv:
+        ratio = model.fold_ratio(np.zeros(len(ALL)))
+        keep = np.flatnonzero(ratio >= np.median(ratio) / 100)
+    pick = keep[select_poses(jac[keep], U_MM, 30)]
     free = identifiable_subset(jac[pick], U_MM, ALL, required=REGISTRATION)
     steps, modes = all_steps[pick], all_modes[pick]
     held = pkm5.sample_reachable(50, kinds=KINDS, seed=99)
-    print(f"prior sigma x {scale:g}; default free set {len(free)} of {len(ALL)}")
+    print(f"prior sigma x {scale:g}; {len(candidates) - len(keep)} candidates left out near an FK fold; default free "
+          f"set {len(free)} of {len(ALL)}")
     for seed in range(6):
         truth, deviations = true_geometry(seed), true_deviations(seed)
         noise = np.random.default_rng([seed, 8]).normal(0.0, U_MM, (len(steps), 3))

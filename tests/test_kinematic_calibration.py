@@ -180,3 +180,13 @@ def test_a_warm_started_fk_branch_jump_does_not_trap_the_fit(design):
     result = identify(ForwardModel(steps, modes, free), measured, MICE_UNCERTAINTY_MM)
     assert np.abs(result.residuals).max() < 1.0
     assert result.reduced_chi2 < 40.0
+
+
+def test_fold_ratio_flags_the_beta_candidate_whose_fk_changes_branch(candidates):
+    # candidate 129 (beta, z 336 mm) is the pose whose FK changes branch between the seed-3 fit and its truth
+    _, steps, modes, _ = candidates
+    ratio = ForwardModel(steps, modes, ALL).fold_ratio(np.zeros(len(ALL)))
+    assert modes[129] == "beta"
+    assert int(np.argmin(ratio)) == 129
+    assert ratio[129] < np.median(ratio) / 100
+    assert np.all(ratio > -1.0) and np.all(ratio <= 1.0)

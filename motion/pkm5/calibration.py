@@ -245,6 +245,33 @@ class ForwardModel:
         out = np.einsum("nlc,nl->nc", jacobian(p, g), residual)
         return out * self._mode_mask
 
+    def _dfdp(self, p, theta) -> np.ndarray:
+        """dF/dp per pose (N, 5, 5) by central differences; sets the mode mask :meth:`_stationarity` uses."""
+        self._mode_mask = np.ones((len(p), 5))
+        for mode, angle in MODES.items():
+            rows = self.modes == mode
+            self._mode_mask[rows, 3] = angle == 3
+            self._mode_mask[rows, 4] = angle == 4
+        dfdp = np.zeros((len(p), 5, 5))
+        for c, h in enumerate((1e-4, 1e-4, 1e-4, 1e-6, 1e-6)):
+            bump = np.zeros(5)
+            bump[c] = h
+            dfdp[:, :, c] = (self._stationarity(p + bump, theta) - self._stationarity(p - bump, theta)) / (2 * h)
+        return dfdp
+
+    def fold_ratio(self, theta) -> np.ndarray:
+        """Per pose, smallest / largest eigenvalue of the symmetric part of dF/dp over the mode's columns (raw mm and
+        rad units): near 0 the pose is near a fold of the FK, where nearby geometries' solves may change branch (so a
+        fit through it meets a barrier; docs/calibration.md, the MAP candidate)."""
+        theta = np.asarray(theta, dtype=float)
+        dfdp = self._dfdp(np.nan_to_num(self.poses(theta)), theta)
+        out = np.empty(len(dfdp))
+        for i, block in enumerate(dfdp):
+            cols = np.flatnonzero(self._mode_mask[i])
+            eig = np.linalg.eigvalsh(0.5 * (block[np.ix_(cols, cols)] + block[np.ix_(cols, cols)].T))
+            out[i] = eig[0] / eig[-1]
+        return out
+
     def jacobian(self, theta, poses=None) -> np.ndarray:
         """d predict / d theta, shape (N, len(axes), len(free)), exact up to central-difference error.
 
@@ -256,16 +283,7 @@ class ForwardModel:
         theta = np.asarray(theta, dtype=float)
         p = np.nan_to_num(self.poses(theta) if poses is None else poses)
         n, k = len(p), len(self.free)
-        self._mode_mask = np.ones((n, 5))
-        for mode, angle in MODES.items():
-            rows = self.modes == mode
-            self._mode_mask[rows, 3] = angle == 3
-            self._mode_mask[rows, 4] = angle == 4
-        dfdp = np.zeros((n, 5, 5))
-        for c, h in enumerate((1e-4, 1e-4, 1e-4, 1e-6, 1e-6)):
-            bump = np.zeros(5)
-            bump[c] = h
-            dfdp[:, :, c] = (self._stationarity(p + bump, theta) - self._stationarity(p - bump, theta)) / (2 * h)
+        dfdp = self._dfdp(p, theta)
         dfdt = np.zeros((n, 5, k))
         # the leg zeros and leads only move the commanded lengths L(s; theta), not IK(p; theta) nor its Jacobian:
         # dF/dtheta = -J_m^T dL/dtheta in closed form, dL_i/d offset_i = 1, dL_i/d scale_i = s_i dir_i CR_i
