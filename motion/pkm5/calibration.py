@@ -46,6 +46,8 @@ PARAMETERS = (tuple(f"leg_offset_{i}_mm" for i in range(1, 7)) + tuple(f"scale_{
 #: Unit of each parameter (``1`` for the dimensionless scale).
 UNITS = {name: ("1" if name.startswith("scale_") else "mm") for name in PARAMETERS + REGISTRATION}
 _FD_STEP = {"mm": 1e-4, "1": 1e-6}
+#: Distance from the documented geometry's pose beyond which a warm-started FK solution is taken for a branch jump.
+_BRANCH_JUMP_MM = 20.0
 
 
 def _check_names(names) -> tuple[str, ...]:
@@ -206,7 +208,17 @@ class ForwardModel:
             start = self._starts[mode] if last is None else np.where(np.isfinite(last), last, self._starts[mode])
             fk = forward_kinematics(lengths[rows], geometry, initial_pose=start, mode=mode, residual_tol_mm=2.0,
                                     retry_above_mm=0.5, max_iter=200, engine=self.engine)
-            out[rows] = np.where(fk.converged[:, None], fk.pose, np.nan)
+            solved = np.where(fk.converged[:, None], fk.pose, np.nan)
+            # a warm start can walk a pose onto another FK branch (seen at a beta pose: 57 mm away, and the
+            # solver then stays in that basin); sub-millimetre deviations move a pose by a few mm at most, so a
+            # row far from the documented geometry's pose is solved again from that fixed start
+            far = ~(np.linalg.norm(solved[:, :3] - self._starts[mode][:, :3], axis=1) <= _BRANCH_JUMP_MM)
+            if last is not None and far.any():
+                again = forward_kinematics(lengths[rows][far], geometry, initial_pose=self._starts[mode][far],
+                                           mode=mode, residual_tol_mm=2.0, retry_above_mm=0.5, max_iter=200,
+                                           engine=self.engine)
+                solved[far] = np.where(again.converged[:, None], again.pose, np.nan)
+            out[rows] = solved
             self._last[mode] = out[rows]
         self._evaluated = (theta.copy(), out.copy())
         return out
@@ -233,6 +245,33 @@ class ForwardModel:
         out = np.einsum("nlc,nl->nc", jacobian(p, g), residual)
         return out * self._mode_mask
 
+    def _dfdp(self, p, theta) -> np.ndarray:
+        """dF/dp per pose (N, 5, 5) by central differences; sets the mode mask :meth:`_stationarity` uses."""
+        self._mode_mask = np.ones((len(p), 5))
+        for mode, angle in MODES.items():
+            rows = self.modes == mode
+            self._mode_mask[rows, 3] = angle == 3
+            self._mode_mask[rows, 4] = angle == 4
+        dfdp = np.zeros((len(p), 5, 5))
+        for c, h in enumerate((1e-4, 1e-4, 1e-4, 1e-6, 1e-6)):
+            bump = np.zeros(5)
+            bump[c] = h
+            dfdp[:, :, c] = (self._stationarity(p + bump, theta) - self._stationarity(p - bump, theta)) / (2 * h)
+        return dfdp
+
+    def fold_ratio(self, theta) -> np.ndarray:
+        """Per pose, smallest / largest eigenvalue of the symmetric part of dF/dp over the mode's columns (raw mm and
+        rad units): near 0 the pose is near a fold of the FK, where nearby geometries' solves may change branch (so a
+        fit through it meets a barrier; docs/calibration.md, the MAP candidate)."""
+        theta = np.asarray(theta, dtype=float)
+        dfdp = self._dfdp(np.nan_to_num(self.poses(theta)), theta)
+        out = np.empty(len(dfdp))
+        for i, block in enumerate(dfdp):
+            cols = np.flatnonzero(self._mode_mask[i])
+            eig = np.linalg.eigvalsh(0.5 * (block[np.ix_(cols, cols)] + block[np.ix_(cols, cols)].T))
+            out[i] = eig[0] / eig[-1]
+        return out
+
     def jacobian(self, theta, poses=None) -> np.ndarray:
         """d predict / d theta, shape (N, len(axes), len(free)), exact up to central-difference error.
 
@@ -244,16 +283,7 @@ class ForwardModel:
         theta = np.asarray(theta, dtype=float)
         p = np.nan_to_num(self.poses(theta) if poses is None else poses)
         n, k = len(p), len(self.free)
-        self._mode_mask = np.ones((n, 5))
-        for mode, angle in MODES.items():
-            rows = self.modes == mode
-            self._mode_mask[rows, 3] = angle == 3
-            self._mode_mask[rows, 4] = angle == 4
-        dfdp = np.zeros((n, 5, 5))
-        for c, h in enumerate((1e-4, 1e-4, 1e-4, 1e-6, 1e-6)):
-            bump = np.zeros(5)
-            bump[c] = h
-            dfdp[:, :, c] = (self._stationarity(p + bump, theta) - self._stationarity(p - bump, theta)) / (2 * h)
+        dfdp = self._dfdp(p, theta)
         dfdt = np.zeros((n, 5, k))
         # the leg zeros and leads only move the commanded lengths L(s; theta), not IK(p; theta) nor its Jacobian:
         # dF/dtheta = -J_m^T dL/dtheta in closed form, dL_i/d offset_i = 1, dL_i/d scale_i = s_i dir_i CR_i
