@@ -82,6 +82,9 @@ def test_a_failing_read_is_raised_with_its_reason(tmp_path):
         with pytest.raises(LinkError, match=r"mouse 'gone': read failed \(Is a directory\)"):
             while True:
                 reader.read_frames(up_to_now=True)
+        for up_to_now in (False, True):  # and at every later read: the failure is never read as "no motion"
+            with pytest.raises(LinkError, match=r"mouse 'gone': read failed"):
+                reader.read_frames(up_to_now=up_to_now)
     finally:
         reader.close()
         os.close(directory)

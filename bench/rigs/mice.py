@@ -24,6 +24,7 @@ from typing import Any
 
 import numpy as np
 
+from bench.errors import LinkError
 from bench.rigs.interfaces import Measurement
 from bench.sensors.calibration import MM_PER_INCH
 from bench.steps import Capture
@@ -166,8 +167,13 @@ class MiceInstrument:
             while (selector.get_map() and not self._closing.is_set()
                    and (remaining := until_s - time.monotonic()) > 0):
                 if selector.select(min(remaining, 0.05)):
-                    with self._lock:
-                        self._drain_locked()
+                    try:
+                        with self._lock:
+                            self._drain_locked()
+                    except LinkError:  # a failed reader raises again at the next capture, which ends the segment
+                        if self._reader is None:
+                            raise
+                        return
                     for key in list(selector.get_map().values()):
                         if key.data.exhausted:  # an ended pipe stays readable: watching it would spin
                             selector.unregister(key.fd)

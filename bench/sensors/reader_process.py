@@ -33,6 +33,8 @@ RECORD_DTYPE = np.dtype([("t_s", "<f8"), ("dx", "<i8"), ("dy", "<i8"), ("valid",
 _CHILD = str(Path(__file__).with_name("_reader_child.py"))
 #: How long an ``up_to_now`` read waits for the child's marker (it answers in well under a millisecond).
 _ANSWER_S = 5.0
+#: The longest a reader child may take to start (a stdlib-only interpreter: well under 1 s on an idle PC).
+_START_S = 30.0
 _READ_SIZE = 1 << 20
 _PIPE_SIZE = 1 << 20
 
@@ -66,15 +68,19 @@ class ReaderProcess:
     def __init__(self, fd: int, *, name: str, realtime: bool = True) -> None:
         self.name = name
         self.exhausted = False
+        self._failure: str | None = None  # why the child failed: raised by every later read, never forgotten
         self._pending = b""
         command = [sys.executable, "-I", _CHILD, str(fd), *([] if realtime else ["normal"])]
         self._process = subprocess.Popen(command, pass_fds=(fd,), stdin=subprocess.PIPE, stdout=subprocess.PIPE,
                                          stderr=subprocess.PIPE)
         self._finalizer = weakref.finalize(self, _reap, self._process)
-        ready = self._process.stderr.read(1)
+        started = select.select([self._process.stderr], [], [], _START_S)[0]
+        ready = self._process.stderr.read(1) if started else b""
         if ready not in (b"R", b"N"):  # started, or why not
+            why = "" if not started else (ready + self._process.stderr.read(2000)).decode(errors="replace").strip()
             self._finalizer()
-            raise LinkError(f"{name}: the reader process did not start (exit status {self._process.returncode})")
+            raise LinkError(f"{name}: the reader process did not start within {_START_S:g} s"
+                            + (f": {why.splitlines()[-1]}" if why else f" (exit status {self._process.returncode})"))
         #: Whether the child runs at real-time priority (``SCHED_FIFO``); stored in the sensor's settings.
         self.realtime = ready == b"R"
         self._fd = self._process.stdout.fileno()
@@ -93,7 +99,9 @@ class ReaderProcess:
     def read_frames(self, *, up_to_now: bool = False) -> MotionFrames:
         """Every frame the child has sent so far (non-blocking), or with ``up_to_now`` every frame the device
         held when called (the child drains it and answers; a capture's reading then misses nothing in transit).
-        Raises ``LinkError`` if the child failed."""
+        Raises ``LinkError`` if the child failed, at this read and at every later one."""
+        if self._failure is not None:
+            raise LinkError(self._failure)
         chunks = [self._pending]
         asked = up_to_now and not self.exhausted
         if asked:
@@ -131,8 +139,9 @@ class ReaderProcess:
         status = self._process.wait()
         if status != 0:
             reason = self._process.stderr.read().decode(errors="replace").strip() or f"exit status {status}"
-            raise LinkError(f"{self.name}: {reason}; the device was probably unplugged: the run segment is "
-                            "invalid, re-bind and restart the cycle")
+            self._failure = (f"{self.name}: {reason}; the device was probably unplugged: the run segment is "
+                             "invalid, re-bind and restart the cycle")
+            raise LinkError(self._failure)
 
     def close(self) -> None:
         """Stop the child and reap it."""
