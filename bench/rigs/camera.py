@@ -95,6 +95,7 @@ class CameraSpotInstrument:
         raw = {"spot_px": list(readings[0].raw), "calibration": readings[0].calibration_id, "note": readings[0].note}
         if self.frames > 1:  # every frame's spot, so the mean can be recomputed and its spread judged
             raw["frames_spot_px"] = [list(reading.raw) for reading in readings]
+            raw["frames_note"] = [reading.note for reading in readings]
         return Measurement(values, raw=raw)
 
     def settings(self) -> dict[str, Any]:

@@ -500,7 +500,7 @@ class Store:
                    columns[1].tolist(), columns[2].astype(int).tolist())
         raw = self._db.raw
         try:
-            raw.execute("BEGIN")
+            raw.execute("BEGIN IMMEDIATE")  # the write lock now, under the busy timeout, as every writer here
             raw.executemany("INSERT INTO stream_rows (run_id, stream, t_s, dx_counts, dy_counts, valid) "
                             "VALUES (?, ?, ?, ?, ?, ?)", rows)
             raw.execute("COMMIT")
