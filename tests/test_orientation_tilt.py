@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import hashlib
 import json
 import math
 
@@ -217,7 +218,7 @@ def test_cli_reads_the_depths_with_their_stored_spacing(tmp_path, capsys):
 def test_the_depths_variant_end_to_end_against_the_simulators_truth(tmp_path):
     from bench.launch import simulated_rig_in
     from bench.protocols import PROTOCOLS, Runner
-    from bench.reports import collect
+    from bench.reports import collect, write_report
     from bench.store import Store
 
     protocol = PROTOCOLS["dissertation_pose"](variant="alpha", cycles=2, settle_s=0.1, tilt_entry="depths",
@@ -233,7 +234,12 @@ def test_the_depths_variant_end_to_end_against_the_simulators_truth(tmp_path):
             rig.close()
         report = collect(store, run_id)
         truth = {(s.pose, s.cycle): s.raw["true_pose"][3] for s in store.samples(run_id, kind="pose")}
+        paths = write_report(store, run_id, tmp_path / "report", formats=("html",))
     assert report.tilt_gauge.spacing_mm == 50.0 and "depth1_mm" in report.tilt_table.columns
+    # the report carries the tilt readings as raw data of their own, cited with their hash
+    tilts = tmp_path / "report" / f"run{run_id}_tilts.csv"
+    assert tilts in paths.csv and pd.read_csv(tilts).shape[0] == len(report.tilt_table)
+    assert hashlib.sha256(tilts.read_bytes()).hexdigest() in paths.html.read_text()
     for pose in report.orientation:
         (alpha,) = pose.figures
         true = np.array([truth[(pose.pose, c)] for c in (1, 2)])

@@ -175,21 +175,20 @@ def _out_dir(out_dir: str | Path) -> Path:
     return out
 
 
+def _write_table(table, path: Path) -> tuple[Path, RawData]:
+    """``table`` as a raw-data CSV at full precision, with its hash for the report."""
+    return path, RawData(path.name, write_table_csv(table, path), len(table))
+
+
 def _write_raw(report: ReportBase, out: Path) -> tuple[Path, RawData]:
     """The analysed tidy table at full precision, so the report's `bench analyze` command reproduces every number."""
-    path = out / f"run{report.run.id}_samples.csv"
-    digest = write_table_csv(report.table, path)
-    return path, RawData(path.name, digest, len(report.table))
+    return _write_table(report.table, out / f"run{report.run.id}_samples.csv")
 
 
 def _write_tilts(report: ReportBase, out: Path) -> list[tuple[Path, RawData]]:
     """The analysed tilt readings of a pose run read by the calliper (``bench analyze orientation`` input)."""
     tilts = getattr(report, "tilt_table", None)
-    if tilts is None:
-        return []
-    path = out / f"run{report.run.id}_tilts.csv"
-    tilts.to_csv(path, index=False)
-    return [(path, RawData(path.name, hashlib.sha256(path.read_bytes()).hexdigest(), len(tilts)))]
+    return [] if tilts is None else [_write_table(tilts, out / f"run{report.run.id}_tilts.csv")]
 
 
 def _write(document: Document, out: Path, stem: str, formats: tuple[str, ...],
