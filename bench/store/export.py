@@ -110,7 +110,8 @@ def series_table(store: Store, run_id: int, kind: str = "arrival", samples=None)
 def _uniform_series(streamed) -> pd.DataFrame | None:
     """The rows of ``streamed`` (context, series) in one pass, column by column (a DataFrame per sample took 10 s
     for a long path run's 7,000 samples), when every sample has the same context and series columns, no missing
-    context and numbers for series; None otherwise (the caller concatenates per sample)."""
+    context and floating-point series; None otherwise (the caller concatenates per sample, which gives the same
+    table column for column)."""
     import numpy as np
     import pandas as pd
 
@@ -129,10 +130,10 @@ def _uniform_series(streamed) -> pd.DataFrame | None:
         parts = [series[key] for _, series in streamed]
         if any(len(part) != n for part, n in zip(parts, lengths)):
             return None
-        try:
-            columns[key] = np.concatenate([np.asarray(part, dtype=float) for part in parts])
-        except (TypeError, ValueError):
+        arrays = [np.asarray(part) for part in parts]
+        if any(array.dtype.kind != "f" for array in arrays):  # ints, bools, text: per-sample frames keep their types
             return None
+        columns[key] = np.concatenate(arrays)
     table = pd.DataFrame({key: columns[key] for key in (*context_keys, *series_keys)})
     for key in context_keys:  # text columns as pandas infers them from per-sample frames
         if isinstance(streamed[0][0][key], str):
