@@ -173,6 +173,4 @@ def knees_mm(servo_deg: np.ndarray, geometry: Geometry = NOMINAL) -> np.ndarray:
     -----
     K_i = (m + R1 cos phi_i) u_i + R1 sin phi_i e_z with phi_i = 45 deg - theta_Ri (reference §1.5 c, §2.1).
     """
-    elevation = np.radians(45.0 - np.asarray(servo_deg, dtype=float))[..., None]
-    radial = geometry.thigh_offset_mm + geometry.upper_arm_mm * np.cos(elevation)
-    return radial * LEG_OUTWARD + geometry.upper_arm_mm * np.sin(elevation) * np.array([0.0, 0.0, 1.0])
+    return geometry.legs().knees_mm(servo_deg)

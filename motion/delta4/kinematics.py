@@ -201,7 +201,7 @@ def _closed_form(knees: np.ndarray, geometry: Geometry) -> tuple[np.ndarray, np.
 
 def _leg_vectors(pose: np.ndarray, knees: np.ndarray, geometry: Geometry) -> np.ndarray:
     """Ankle minus knee per leg, (N, 4, 3) mm."""
-    return pose[:, None, :] + geometry.ankle_offset_mm * LEG_OUTWARD - knees
+    return geometry.legs().ankles_mm(pose) - knees
 
 
 def _gauss_newton(
