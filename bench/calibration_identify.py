@@ -176,8 +176,7 @@ def _delta4_problem(store, run_id: int, uncertainty_mm: float | None) -> _Proble
         first = int(np.flatnonzero(~ik.reachable)[0])
         raise InsufficientData(f"run {run_id}: commanded position {commanded[first].tolist()} is not reachable "
                                f"({ik.reason[first]}), expected the positions the run commanded")
-    servo = mapping.sent_deg(ik.servo_deg) if fine_settings.get("in_use") else mapping.to_deg(
-        mapping.to_bytes(ik.servo_deg))
+    servo = mapping.sent_deg(ik.servo_deg)
     read = tuple(int(a) for a in np.flatnonzero(mask.any(axis=0)))
     registration = tuple(REGISTRATION[a] for a in read)
     u = _instrument_uncertainty_mm(settings, run_id) if uncertainty_mm is None else uncertainty_mm

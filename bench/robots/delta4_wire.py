@@ -65,6 +65,11 @@ class ServoMapping:
     def to_deg(self, values: np.ndarray) -> np.ndarray:
         raise NotImplementedError
 
+    def sent_deg(self, servo_deg: np.ndarray) -> np.ndarray:
+        """Where the servos are sent for the angles ``servo_deg``: the angles of their bytes (as
+        :meth:`FineReference.sent_deg` for fine references)."""
+        return self.to_deg(self.to_bytes(servo_deg))
+
     def check(self, servo_deg: Any) -> np.ndarray:
         """``servo_deg`` as a (4,) array, or UnreachableTarget naming the servo, the angle and the window."""
         angles = np.asarray(servo_deg, dtype=float)
