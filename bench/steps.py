@@ -22,6 +22,7 @@ __all__ = [
     "Settle",
     "Step",
     "commanded_values",
+    "load_prompt",
     "visit",
 ]
 
@@ -105,6 +106,16 @@ _AXES_PKM5 = ("cmd_x_mm", "cmd_y_mm", "cmd_z_mm", "cmd_a_deg", "cmd_b_deg")
 def commanded_values(target: tuple[float, ...]) -> dict[str, float]:
     """The tidy-table commanded columns of a target: alpha -> ``cmd_a_deg``, beta -> ``cmd_b_deg``."""
     return {name: float(value) for name, value in zip(_AXES_PKM5, target)}
+
+
+def load_prompt(load_kg: float, previous_kg: float | None) -> Plan:
+    """Ask the operator to mount the payload ``load_kg`` when it differs from the one before (``previous_kg``;
+    None at the start, where no load needs no prompt)."""
+    if previous_kg is None and load_kg == 0:
+        return
+    if load_kg != previous_kg:
+        yield Prompt(f"Mount a payload of {load_kg:g} kg on the end effector, then confirm",
+                     conditions={"load_kg": load_kg})
 
 
 def visit(label: str, target: tuple[float, ...], cycle: int, *, velocity_pct: float, settle_s: float,

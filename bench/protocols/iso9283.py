@@ -28,7 +28,7 @@ from bench.protocols.parameters import (
     IntegerParameter,
     PoseTableParameter,
 )
-from bench.steps import Capture, Checkpoint, Move, Plan, Prompt, Settle, commanded_values, visit
+from bench.steps import Capture, Checkpoint, Move, Plan, Settle, commanded_values, load_prompt, visit
 
 __all__ = ["DistanceAccuracy", "Drift", "MultiDirectional", "PoseAccuracy", "StabilisationOvershoot", "cube_poses",
            "fit_cube_side"]
@@ -125,13 +125,6 @@ class _CubeProtocol(Protocol):
         return dict(self._poses)
 
 
-    def _load_prompt(self, load_kg: float, previous: float | None) -> Plan:
-        if previous is None and load_kg == 0:
-            return
-        if load_kg != previous:
-            yield Prompt(f"Mount a payload of {load_kg:g} kg on the end effector, then confirm",
-                         conditions={"load_kg": load_kg})
-
     def _iso_order(self) -> list[str]:
         """The cube's poses in ISO cycle order, or the explicit poses in file order."""
         return [p for p in POSE_ORDER if p in self._poses] if self.poses is None else list(self._poses)
@@ -141,7 +134,7 @@ class _CubeProtocol(Protocol):
         :meth:`_visit`), a Checkpoint after each cycle."""
         previous_load = None
         for load in self.loads_kg:
-            yield from self._load_prompt(load, previous_load)
+            yield from load_prompt(load, previous_load)
             previous_load = load
             for velocity in self.velocities_pct:
                 for cycle in range(1, self.cycles + 1):

@@ -30,7 +30,7 @@ from bench.protocols.base import Protocol, register
 from bench.protocols.kinematics import robot_model
 from bench.protocols.parameters import FloatListParameter, FloatParameter, IntegerParameter
 from bench.rigs.mice import POSITIONING
-from bench.steps import Capture, Checkpoint, Move, Plan, Prompt, Settle, commanded_values
+from bench.steps import Capture, Checkpoint, Move, Plan, Settle, commanded_values, load_prompt
 
 __all__ = ["MinimumPositioningTime", "PositioningStep"]
 
@@ -131,9 +131,7 @@ class MinimumPositioningTime(Protocol):
     def steps(self) -> Plan:
         previous_load = None
         for load in self.loads_kg:
-            if load != previous_load and not (previous_load is None and load == 0):
-                yield Prompt(f"Mount a payload of {load:g} kg on the end effector, then confirm",
-                             conditions={"load_kg": load})
+            yield from load_prompt(load, previous_load)
             previous_load = load
             for velocity in self.velocities_pct:
                 durations = self._move_s(velocity)
