@@ -45,9 +45,9 @@ def orientation_blocks(report) -> tuple:
     return (
         Table("orientation", header, rows, f"Orientation accuracy and repeatability per pose, {words}, from the "
                                            f"calliper tilt readings (ISO 9283 7.2.1, 7.2.2; U: k = {k})"),
-        Paragraph(f"AP = mean − command (signed); RP = 3 S. U(AP) = k·√(S²/n + u²(θ) + u²(bias)), the calliper terms "
-                  f"kept whole as they are systematic over the run; U(RP) = k·3S/√(2(n − 1)). The tilt is the "
-                  f"gradient of two depths through holes s apart, θ = atan(Δh / s)."),
+        Paragraph("AP = mean − command (signed); RP = 3 S. U(AP) = k·√(S²/n + u²(θ) + u²(bias)), the calliper terms "
+                  "kept whole as they are systematic over the run; U(RP) = k·3S/√(2(n − 1)). The tilt is the "
+                  "gradient of two depths through holes s apart, θ = atan(Δh / s)."),
         Table("orientation_budget", ("Component", "Standard uncertainty", "Source"), budget,
               "Orientation uncertainty budget (one tilt reading)"),
     )

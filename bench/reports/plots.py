@@ -353,7 +353,10 @@ def drift_series(report: RunReport) -> Plot:
 def deviation_histograms(report: RunReport) -> Plot:
     """Small multiples, one panel per pose (and condition), on one scale and one set of bins: histograms of the
     attained − command deviation in x, y and z, one legend for the figure."""
-    deviations = [_rows_of(report, r)[_measured(r)[1]].to_numpy() - _measured(r)[0] for r in report.poses]
+    deviations = []
+    for result in report.poses:
+        command, columns = _measured(result)
+        deviations.append(_rows_of(report, result)[columns].to_numpy() - command)
     edges = np.histogram_bin_edges(np.concatenate(deviations).ravel(), bins=24)
     figure, panel = panels(len(report.poses), max_columns=5, size=(1.45, 1.2), share=True)
     for result, axes, deviation in zip(report.poses, panel, deviations):
