@@ -3,6 +3,8 @@
 Each check runs in a fresh interpreter (a subprocess), since this test process has long imported everything.
 """
 
+import contextlib
+import io
 import json
 import subprocess
 import sys
@@ -98,3 +100,18 @@ def test_the_metrology_package_still_offers_every_name():
                             "analyze_actuators\nprint(len(m.__all__), all(hasattr(m, n) for n in m.__all__))")
     count, every = result["stdout"].splitlines()[-2].split()
     assert int(count) > 90 and every == "True"
+
+
+def test_python_dash_m_bench_is_the_same_entry_point():
+    proc = subprocess.run([sys.executable, "-m", "bench", "kin", "ik", "pkm5", "111.31", "-20", "310", "--json"],
+                          capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 0, proc.stderr
+    from bench.cli import main
+
+    out = io.StringIO()
+    with contextlib.redirect_stdout(out):
+        assert main(["kin", "ik", "pkm5", "111.31", "-20", "310", "--json"]) == 0
+    assert json.loads(proc.stdout) == json.loads(out.getvalue())
+    bad = subprocess.run([sys.executable, "-m", "bench", "kin", "ik", "pkm5", "x"], capture_output=True, text=True,
+                         timeout=120)
+    assert bad.returncode == 2 and "Traceback" not in bad.stderr
