@@ -273,7 +273,7 @@ def _attainable(poses, truth):
     return poses[np.linalg.norm(attained - poses[:, :3], axis=1) < 1.0]
 
 
-@pytest.mark.parametrize("seed", [2, 4])  # the largest |z| (2.6) and the smallest factor (14x) of seeds 0-5
+@pytest.mark.parametrize("seed", range(6))  # measured 14-49x, largest |z| 1.6-2.6 (docs/calibration.md)
 def test_map_with_every_parameter_perturbed_meets_the_acceptance(map_design, seed):
     steps, modes = map_design
     truth, expected = true_geometry(seed), true_deviations(seed)  # all 33 geometric parameters perturbed
