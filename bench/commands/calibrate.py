@@ -3,9 +3,9 @@ measured poses.
 
 Identifies the geometry (``--fit map``, the pkm5's default: every parameter, the manufacturing tolerances as the
 prior; ``--fit free-set``, the delta4's: the free parameters, default what the pose set and instrument can
-identify; docs/calibration.md) and stores the result as a new version of the calibration ``pkm5_kinematics`` / ``delta4_kinematics`` with the source
-run, the residuals and
-the observability (:func:`bench.calibration_identify.identify_run`, the window's "Identify" button runs the same).
+identify; docs/calibration.md) and stores the result as a new version of the calibration ``pkm5_kinematics`` /
+``delta4_kinematics`` with the source run, the residuals, the observability, the fit and its prior
+(:func:`bench.calibration_identify.identify_run`, the window's "Identify" button runs the same).
 Heavy modules load inside the handler.
 """
 
