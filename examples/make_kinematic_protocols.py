@@ -6,8 +6,9 @@ every parameter and the registration free, the mice's 0.05 mm per axis) from 300
 motion modes (``motion.pkm5.sample_reachable(seed=1)``), rounded as a protocol file states them (0.01 mm, 0.01 deg)
 and pre-flighted, leaving out the candidates near a fold of the forward kinematics (``fold_ratio`` below 1/100 of
 the median, :func:`bench.metrology.kinematic_calibration.away_from_folds`). Validation poses: 12 held-out
-translation poses (a different seed) in the central workspace (95 < x < 170 mm, |y| < 60 mm), so that a calibrated geometry's pre-flight passes them too; translation only,
-since a calibrated geometry moves the alpha plane (docs/calibration.md, limits).
+translation poses (a different seed) in the central workspace (95 < x < 170 mm, |y| < 60 mm), so that a
+calibrated geometry's pre-flight passes them too; translation only, since a calibrated geometry moves the alpha
+plane (docs/calibration.md, limits).
 
 delta4 (the camera spot sensor, x-y plane, 0.02 mm per axis): 30 positions chosen the same way from 300 reachable
 ones within the camera's field (|x|, |y| < 75 mm; ``motion.delta4.workspace.workspace_samples(seed=1)``), the
