@@ -270,8 +270,8 @@ class ForwardModel:
     def _stationarity(self, p, geometry, lengths) -> np.ndarray:
         """F(p) = J_m^T (IK(p; geometry) - lengths) per row, (M, 5) (zero columns outside the mode): the normal
         equations the least-squares FK solves, F = 0 at every attained pose. ``p`` (M, 5) is a whole number of
-        copies of the pose set, ``geometry`` a Geometry or :func:`_stacked` geometries (one per copy), ``lengths``
-        (M, 6) the commanded leg lengths; one batched dual-number pass gives IK and J_m together."""
+        copies of the pose set, ``geometry`` a Geometry or :func:`_bumped_joints` (one geometry per copy),
+        ``lengths`` (M, 6) the commanded leg lengths; one batched dual-number pass gives IK and J_m together."""
         legs, _ = leg_lengths(*dual.seed(p), geometry=geometry, with_tilt=False)
         residual = np.stack([leg.value for leg in legs], -1) - lengths
         pose_jac = np.stack([leg.grad for leg in legs], 1)
