@@ -77,6 +77,24 @@ def test_jacobian_matches_central_differences(candidates):
         assert jac[:, :, j] == pytest.approx(numeric, rel=2e-3, abs=2e-3 * np.abs(numeric).max())
 
 
+def test_every_joint_column_of_the_batched_jacobian_matches_central_differences(candidates):
+    # the 21 joint-position columns come from one batched IK pass over all 42 bumped geometries: a row or column
+    # mixed up between geometries would show here, against FK solves of each bumped geometry on its own
+    _, steps, modes, _ = candidates
+    rows = [0, 1, 2, 10]  # beta, alpha, translation, beta poses (away from the fold at candidate 129)
+    model = ForwardModel(steps[rows], modes[rows], ALL)
+    theta = np.random.default_rng(2).normal(0.0, 0.2, len(ALL)) * np.array([0.02 if n.startswith("scale_") else 1.0
+                                                                             for n in ALL])
+    jac = model.jacobian(theta)
+    for j, name in enumerate(ALL):
+        if name[:3] not in ("oa_", "pd_"):
+            continue
+        bump = np.zeros(len(ALL))
+        bump[j] = 1e-3
+        numeric = (model.predict(theta + bump) - model.predict(theta - bump)) / 2e-3
+        assert jac[:, :, j] == pytest.approx(numeric, rel=2e-3, abs=2e-3 * max(np.abs(numeric).max(), 1.0)), name
+
+
 def test_condition_number_of_two_columns_at_a_known_angle():
     angle = np.radians(1.0)
     jac = np.array([[[1.0, np.cos(angle)], [0.0, np.sin(angle)]]]) * 7.0  # one pose, two coordinates
