@@ -231,14 +231,16 @@ def identify(model, measured, uncertainty, *, theta0=None, limit: float = CONDIT
     precision = np.zeros(k) if sigma is None else np.where(np.isfinite(sigma), 1.0 / np.square(sigma), 0.0)
     weight = np.sqrt(precision)
 
-    def check(jac) -> tuple[Observability, np.ndarray, tuple[str, ...]]:
-        obs = observability(jac, u, model.free, limit)
+    def check(jac) -> tuple[Observability | None, np.ndarray, tuple[str, ...]]:
+        """The refusal rule at ``jac``: the observability (a prior's: None, reported at the solution only), the
+        covariance and the prior-only parameters."""
         if sigma is None:
+            obs = observability(jac, u, model.free, limit)
             _refuse_if_poor(obs, limit)
             return obs, parameter_covariance(jac, u), ()
         cov = _posterior(jac, u, precision)
         std = np.sqrt(np.clip(np.diag(cov), 0.0, None))
-        return obs, cov, _refuse_if_uninformed(jac, u, model.free, sigma, std, len(measured), limit)
+        return None, cov, _refuse_if_uninformed(jac, u, model.free, sigma, std, len(measured), limit)
 
     latest: list = [None, None]  # (theta, model Jacobian) of the latest Jacobian: the solver asks at theta0 and
     # at its solution, where the checks need it too
@@ -272,6 +274,7 @@ def identify(model, measured, uncertainty, *, theta0=None, limit: float = CONDIT
     final_jac = model_jacobian(theta)
     after = measured - model.predict(theta)
     obs, cov, prior_only = check(final_jac)
+    obs = obs or observability(final_jac, u, model.free, limit)  # a prior's: the data part, reported
     std = np.sqrt(np.clip(np.diag(cov), 0.0, None))
     correlation = cov / np.outer(std, std)
     dof = max(measured.size - k, 1) if sigma is None else measured.size
