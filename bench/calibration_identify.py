@@ -3,10 +3,18 @@
 
 Reads the run's pose samples (commanded ``cmd_x_mm ..``, measured ``x_mm, y_mm, z_mm``: the axes the instrument
 read), rebuilds the joints the robot received with the geometry the run commanded by (the documented one, or the
-calibrated one of the kinematic calibration that was in force), identifies the free parameters (default: what the
-pose set and instrument can identify, :func:`bench.metrology.kinematic_calibration.identifiable_subset`) and stores
+calibrated one of the kinematic calibration that was in force), identifies the parameters and stores
 the result as a new version of the robot's calibration (``pkm5_kinematics``, ``delta4_kinematics``) with the source
-run, the residuals and the observability (docs/calibration.md). The in-sample mean position error before is that of
+run, the residuals, the observability, the fit and its prior (docs/calibration.md). Fits (``fit``):
+
+* ``map`` (the pkm5's default): maximum a posteriori of every parameter and the registration, the manufacturing
+  tolerances (:data:`motion.pkm5.calibration.TOLERANCES`) as the prior
+  (:func:`bench.metrology.kinematic_calibration.identify`); ``free`` given, of those and the registration only;
+* ``free-set`` (the delta4's default and only fit; the pkm5's with ``--free``): least squares of the free
+  parameters, default what the pose set and instrument can identify
+  (:func:`bench.metrology.kinematic_calibration.identifiable_subset`), the others held at their documented values.
+
+The in-sample mean position error before is that of
 the documented geometry with only the registration fitted: ``mean_j |m_j - f(theta_reg)_j|`` over each sample's
 measured axes, after ``mean_j |m_j - f(theta_hat)_j|``.
 
@@ -33,8 +41,8 @@ from typing import Any
 from bench.calibration_compensation import calibration_name
 from bench.errors import ConfigError, InsufficientData
 
-__all__ = ["COMMANDED", "DEFAULT_UNCERTAINTY_MM", "IdentifiedRun", "MEASURED", "check_uncertainty", "identify_run",
-           "summary_lines"]
+__all__ = ["COMMANDED", "DEFAULT_UNCERTAINTY_MM", "FITS", "IdentifiedRun", "MEASURED", "check_fit",
+           "check_uncertainty", "identify_run", "summary_lines"]
 
 #: Commanded fields of a pose sample per robot.
 COMMANDED = {"pkm5": ("cmd_x_mm", "cmd_y_mm", "cmd_z_mm", "cmd_a_deg", "cmd_b_deg"),
@@ -42,6 +50,8 @@ COMMANDED = {"pkm5": ("cmd_x_mm", "cmd_y_mm", "cmd_z_mm", "cmd_a_deg", "cmd_b_de
 MEASURED = ("x_mm", "y_mm", "z_mm")
 #: The mice's standard uncertainty per axis, mm (the pkm5 calibration protocol's pose selection assumes it).
 DEFAULT_UNCERTAINTY_MM = 0.05
+#: The identification fits (module doc); the first is the default where the robot has a prior.
+FITS = ("map", "free-set")
 
 
 @dataclass(frozen=True)
@@ -70,6 +80,10 @@ class _Problem:
     n_samples: int
     #: stored with the calibration besides the fit (the delta4: ``command_resolution_mm``)
     extra: dict = field(default_factory=dict)
+    #: ``prior(names)`` -> each parameter's 1-sigma prior (inf: none) and ``prior_source`` what it is; None: the
+    #: robot has no prior, only the free-set fit
+    prior: Any = None
+    prior_source: dict | None = None
 
 
 class _ReadAxes:
@@ -126,7 +140,7 @@ def _pkm5_problem(store, run_id: int, uncertainty_mm: float | None) -> _Problem:
 
     from bench.robots.pkm5_kinematics import steps_for_pose
     from motion.pkm5 import DEFAULT_GEOMETRY
-    from motion.pkm5.calibration import PARAMETERS, REGISTRATION, ForwardModel, modes_of_poses
+    from motion.pkm5.calibration import PARAMETERS, REGISTRATION, TOLERANCES, ForwardModel, modes_of_poses, tolerance
 
     commanded, measured, mask = _pose_samples(store, run_id, "pkm5")
     complete = mask.all(axis=1)  # the mice read x, y, z together
@@ -139,7 +153,10 @@ def _pkm5_problem(store, run_id: int, uncertainty_mm: float | None) -> _Problem:
     modes = modes_of_poses(commanded)
     return _Problem(lambda free: ForwardModel(steps, modes, free), REGISTRATION + PARAMETERS, REGISTRATION,
                     measured, DEFAULT_UNCERTAINTY_MM if uncertainty_mm is None else uncertainty_mm,
-                    np.arange(len(measured)), len(measured))
+                    np.arange(len(measured)), len(measured),
+                    prior=lambda names: np.array([tolerance(n) for n in names]),
+                    prior_source={"name": "manufacturing tolerances (motion.pkm5.calibration.TOLERANCES)",
+                                  "sigma": dict(TOLERANCES)})
 
 
 def _instrument_uncertainty_mm(settings: dict, run_id: int) -> float:
@@ -205,31 +222,48 @@ def _mean_error_mm(problem: _Problem, residuals) -> float:
     return float(np.mean(np.sqrt(squares)))
 
 
+def check_fit(fit: str | None) -> None:
+    """Refuse an unknown fit name (one line); None: the robot's default."""
+    if fit is not None and fit not in FITS:
+        raise ConfigError(f"--fit = {fit!r}, expected one of {', '.join(FITS)}")
+
+
 def identify_run(store: Any, run_id: int, *, free: list[str] | tuple[str, ...] | None = None,
-                 uncertainty_mm: float | None = None) -> IdentifiedRun:
+                 uncertainty_mm: float | None = None, fit: str | None = None) -> IdentifiedRun:
     """Identify from run ``run_id`` of the open ``store`` and store a new version of its robot's kinematic
-    calibration (module doc). ``uncertainty_mm`` None: the instrument's (module doc).
+    calibration (module doc). ``uncertainty_mm`` None: the instrument's; ``fit`` None: ``map`` where the robot has
+    a prior and no ``free`` names are given, else ``free-set`` (module doc).
 
     A run without measured poses raises ``InsufficientData``, an ill-conditioned pose set
-    ``UnidentifiableParameters``, a robot without a calibration model ``ConfigError`` (all one line)."""
+    ``UnidentifiableParameters``, a robot without a calibration model or a fit it lacks ``ConfigError`` (all one
+    line)."""
     import numpy as np
 
     from bench.metrology.kinematic_calibration import identifiable_subset, identify
 
     check_uncertainty(uncertainty_mm)
+    check_fit(fit)
     run = store.run(run_id)
     name = calibration_name(run.robot)
     problem = _PROBLEMS[run.robot](store, run_id, uncertainty_mm)
+    if fit is None:
+        fit = "map" if problem.prior is not None and not free else "free-set"
+    if fit == "map" and problem.prior is None:
+        raise ConfigError(f"--fit map: the {run.robot} has no tolerance prior, expected --fit free-set")
     if free:
         chosen = problem.required + tuple(n for n in free if n not in problem.required)
+    elif fit == "map":
+        chosen = problem.candidates
     else:
         candidates = problem.candidates
         jac = problem.model(candidates).jacobian(np.zeros(len(candidates)))
         chosen = identifiable_subset(jac, problem.uncertainty_mm, candidates, required=problem.required)
     u = problem.uncertainty_mm
     frame_only = identify(problem.model(problem.required), problem.measured, u)
-    result = identify(problem.model(chosen), problem.measured, u)
-    params = {**result.as_dict(), "robot": run.robot, "uncertainty_mm": u,
+    prior_sigma = problem.prior(chosen) if fit == "map" else None
+    result = identify(problem.model(chosen), problem.measured, u, prior_sigma=prior_sigma)
+    params = {**result.as_dict(), "prior": problem.prior_source if fit == "map" else None,
+              "robot": run.robot, "uncertainty_mm": u,
               "ap_before_mm": _mean_error_mm(problem, frame_only.residuals),
               "ap_after_mm": _mean_error_mm(problem, result.residuals), **problem.extra}
     settings = run.settings
@@ -251,8 +285,16 @@ def summary_lines(identified: IdentifiedRun) -> list[str]:
              f"{'parameter':<18} {'value':>12} {'std. unc.':>12}  unit"]
     lines += [f"{name:<18} {value:12.5f} {std:12.5f}  {unit}"
               for name, value, std, unit in zip(result.names, result.values, result.uncertainty, result.units)]
-    lines.append(f"condition number {obs.condition_number:.1f} (limit 100), O1 {obs.o1:.4g}, reduced chi2 "
-                 f"{result.reduced_chi2:.2f}")
+    if result.fit == "map":
+        source = params.get("prior") or {}
+        lines.append(f"fit: maximum a posteriori, prior: {source.get('name', 'the tolerances')}; fixed by the prior "
+                     f"(the data did not inform them): {', '.join(result.prior_only) or 'none'}")
+        lines.append(f"data part: condition number {obs.condition_number:.3g} (the prior holds its weak directions; "
+                     f"refused when the data inform under half the parameters), O1 {obs.o1:.4g}, chi2 per "
+                     f"coordinate {result.reduced_chi2:.2f}")
+    else:
+        lines.append(f"condition number {obs.condition_number:.1f} (limit 100), O1 {obs.o1:.4g}, reduced chi2 "
+                     f"{result.reduced_chi2:.2f}")
     lines.append(f"mean position error on the calibration poses (in-sample): before {params['ap_before_mm']:.3f} "
                  f"mm, after {params['ap_after_mm']:.3f} mm")
     if "command_resolution_mm" in params:

@@ -8,9 +8,9 @@ registration fitted). A held-out pose the true robot misses by > 1 mm when comma
 of the candidates those with ``ForwardModel.fold_ratio`` below 1/100 of the median (near an FK fold).
 
 * subset: ``identify`` over ``identifiable_subset`` (condition <= 50), the others fixed at 0 (the default);
-* MAP: all 36 parameters plus the registration, the a-priori tolerances (``TRUE_GEOMETRY_SIGMA`` times
-  PRIOR_SCALE) as a Gaussian prior: residual rows ``theta_j / sigma_j`` appended (Tikhonov weighted by the prior,
-  Tarantola 2005 §3.2), posterior covariance ``(J_w^T J_w + diag(sigma^-2))^-1``.
+* MAP: ``identify(..., prior_sigma=...)`` of all 36 parameters plus the registration, the manufacturing
+  tolerances (``motion.pkm5.calibration.TOLERANCES`` times PRIOR_SCALE) as a Gaussian prior (the default fit of
+  ``bench calibrate`` for the pkm5).
 
 Prints per seed the AP before and after, the factor, the reduced chi^2 and the largest |z| of the identified
 parameters against the truth (posterior uncertainty for MAP), and the MAP solve's wall time (one run; `uptime`).
@@ -20,23 +20,15 @@ import sys
 import time
 
 import numpy as np
-from scipy.optimize import least_squares
 
 from bench.metrology.kinematic_calibration import identifiable_subset, identify, select_poses
-from bench.simulators.true_geometry import TRUE_GEOMETRY_SIGMA, attained_poses, true_deviations, true_geometry
+from bench.simulators.true_geometry import attained_poses, true_deviations, true_geometry
 from motion import pkm5
-from motion.pkm5.calibration import PARAMETERS, REGISTRATION, ForwardModel, apply_parameters, modes_of_poses
+from motion.pkm5.calibration import PARAMETERS, REGISTRATION, ForwardModel, apply_parameters, modes_of_poses, tolerance
 
 U_MM = 0.05
 ALL = REGISTRATION + PARAMETERS
 KINDS = ("constant-orientation", "alpha", "beta")
-
-
-def prior_sigma(name: str) -> float:
-    if name.startswith("reg_"):
-        return np.inf
-    family = "scale" if name.startswith("scale_") else "leg_offset" if name.startswith("leg_offset") else "joint"
-    return TRUE_GEOMETRY_SIGMA[family]
 
 
 def held_out_ap(held, command_geometry, registration, truth) -> float:
@@ -50,42 +42,22 @@ def held_out_ap(held, command_geometry, registration, truth) -> float:
     return float(np.mean(np.linalg.norm(attained - held[:, :3], axis=1)[attainable]))
 
 
-def map_fit(steps, modes, measured, weight):
-    model = ForwardModel(steps, modes, ALL)
-
-    def residual(theta):
-        data = np.nan_to_num(((measured - model.predict(theta)) / U_MM).ravel(), nan=1e6)
-        return np.concatenate([data, weight * theta])
-
-    def jacobian(theta):
-        return np.vstack([-model.jacobian(theta).reshape(-1, len(ALL)) / U_MM, np.diag(weight)])
-
-    fit = least_squares(residual, np.zeros(len(ALL)), jac=jacobian, method="trf", x_scale="jac", xtol=1e-10,
-                        ftol=1e-10)
-    data_jac = model.jacobian(fit.x).reshape(-1, len(ALL)) / U_MM
-    covariance = np.linalg.inv(data_jac.T @ data_jac + np.diag(weight ** 2))
-    chi2 = float(np.sum(((measured - model.predict(fit.x)) / U_MM) ** 2) / measured.size)
-    return fit.x, np.sqrt(np.diag(covariance)), chi2
-
-
 def main() -> None:
     numbers = [a for a in sys.argv[1:] if not a.startswith("--")]
     scale = float(numbers[0]) if numbers else 1.0
-    weight = np.array([0.0 if np.isinf(s) else 1.0 / (s * scale) for s in map(prior_sigma, ALL)])
+    sigma = np.array([tolerance(n) for n in ALL]) * scale
     candidates = pkm5.sample_reachable(300, kinds=KINDS, seed=1)
     all_steps = pkm5.lengths_to_steps(pkm5.inverse_kinematics(candidates).lengths_mm)
     all_modes = modes_of_poses(candidates)
     model = ForwardModel(all_steps, all_modes, ALL)
     jac = model.jacobian(np.zeros(len(ALL)))
-    keep = np.arange(len(candidates))
-    if "--avoid-folds" in sys.argv:
-        ratio = model.fold_ratio(np.zeros(len(ALL)))
-        keep = np.flatnonzero(ratio >= np.median(ratio) / 100)
-    pick = keep[select_poses(jac[keep], U_MM, 30)]
+    ratio = model.fold_ratio(np.zeros(len(ALL))) if "--avoid-folds" in sys.argv else None
+    pick = select_poses(jac, U_MM, 30, fold_ratio=ratio)
     free = identifiable_subset(jac[pick], U_MM, ALL, required=REGISTRATION)
     steps, modes = all_steps[pick], all_modes[pick]
     held = pkm5.sample_reachable(50, kinds=KINDS, seed=99)
-    print(f"prior sigma x {scale:g}; {len(candidates) - len(keep)} candidates left out near an FK fold; default free "
+    left_out = 0 if ratio is None else int(np.sum(ratio < np.median(ratio) / 100))
+    print(f"prior sigma x {scale:g}; {left_out} candidates left out near an FK fold; default free "
           f"set {len(free)} of {len(ALL)}")
     for seed in range(6):
         truth, deviations = true_geometry(seed), true_deviations(seed)
@@ -98,13 +70,15 @@ def main() -> None:
         z_subset = max(abs(v - deviations[n]) / s for n, v, s in zip(free, subset.values, subset.uncertainty)
                        if n in deviations)
         start = time.perf_counter()
-        theta, std, chi2 = map_fit(steps, modes, measured, weight)
+        fit = identify(ForwardModel(steps, modes, ALL), measured, U_MM, prior_sigma=sigma)
         seconds = time.perf_counter() - start
-        after_map = held_out_ap(held, apply_parameters(ALL, theta), theta[:3], truth)
-        z_map = max(abs(theta[i] - deviations[n]) / std[i] for i, n in enumerate(ALL) if n in deviations)
+        after_map = held_out_ap(held, apply_parameters(ALL, fit.values), fit.values[:3], truth)
+        z_map = max(abs(fit.values[i] - deviations[n]) / fit.uncertainty[i] for i, n in enumerate(ALL)
+                    if n in deviations)
         print(f"seed {seed}: AP before {before:.3f} mm | subset {after_subset:.3f} mm x{before / after_subset:.1f} "
               f"chi2 {subset.reduced_chi2:.1f} max|z| {z_subset:.1f} | MAP {after_map:.3f} mm "
-              f"x{before / after_map:.1f} chi2/n {chi2:.2f} max|z| {z_map:.2f} ({seconds:.2f} s)", flush=True)
+              f"x{before / after_map:.1f} chi2/n {fit.reduced_chi2:.2f} max|z| {z_map:.2f} ({seconds:.2f} s, "
+              f"{fit.iterations} evaluations; prior only: {', '.join(fit.prior_only) or 'none'})", flush=True)
 
 
 if __name__ == "__main__":

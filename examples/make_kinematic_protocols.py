@@ -4,9 +4,11 @@ examples/kinematic_calibration_delta4.toml and examples/kinematic_validation_del
 Calibration poses: 30 chosen by greedy D-optimal selection (:func:`bench.metrology.kinematic_calibration.select_poses`,
 every parameter and the registration free, the mice's 0.05 mm per axis) from 300 reachable candidates of the three
 motion modes (``motion.pkm5.sample_reachable(seed=1)``), rounded as a protocol file states them (0.01 mm, 0.01 deg)
-and pre-flighted. Validation poses: 12 held-out translation poses (a different seed) in the central workspace
-(95 < x < 170 mm, |y| < 60 mm), so that a calibrated geometry's pre-flight passes them too; translation only,
-since a calibrated geometry moves the alpha plane (docs/calibration.md, limits).
+and pre-flighted, leaving out the candidates near a fold of the forward kinematics (``fold_ratio`` below 1/100 of
+the median, :func:`bench.metrology.kinematic_calibration.away_from_folds`). Validation poses: 12 held-out
+translation poses (a different seed) in the central workspace (95 < x < 170 mm, |y| < 60 mm), so that a
+calibrated geometry's pre-flight passes them too; translation only, since a calibrated geometry moves the alpha
+plane (docs/calibration.md, limits).
 
 delta4 (the camera spot sensor, x-y plane, 0.02 mm per axis): 30 positions chosen the same way from 300 reachable
 ones within the camera's field (|x|, |y| < 75 mm; ``motion.delta4.workspace.workspace_samples(seed=1)``), the
@@ -86,8 +88,9 @@ def main() -> None:
     rad[:, 3:] = np.radians(rad[:, 3:])
     steps = pkm5.lengths_to_steps(pkm5.inverse_kinematics(rad).lengths_mm)
     names = REGISTRATION + PARAMETERS
-    jac = ForwardModel(steps, modes_of_poses(pool), names).jacobian(np.zeros(len(names)))
-    chosen = pool[select_poses(jac, MICE_UNCERTAINTY_MM, 30)]
+    model = ForwardModel(steps, modes_of_poses(pool), names)
+    fold_ratio = model.fold_ratio(np.zeros(len(names)))  # candidates near an FK fold are never chosen
+    chosen = pool[select_poses(model.jacobian(np.zeros(len(names))), MICE_UNCERTAINTY_MM, 30, fold_ratio=fold_ratio)]
     (HERE / "kinematic_calibration.toml").write_text(protocol_text(
         "Kinematic calibration of the pkm5: 30 poses chosen for observability (greedy D-optimal from 300\n"
         "candidates; written by examples/make_kinematic_protocols.py). Run it without a calibration in force,\n"

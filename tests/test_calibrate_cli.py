@@ -28,7 +28,8 @@ def _store_run(path, commanded_deg, measured):
     return run_id
 
 
-def test_calibrate_identifies_and_stores_a_version(tmp_path, capsys):
+def _design():
+    """30 D-optimal poses away from FK folds of 200 candidates, as a protocol file states them (deg)."""
     poses = pkm5.sample_reachable(200, kinds=("constant-orientation", "alpha", "beta"), seed=3)
     poses_deg = np.array(poses)
     poses_deg[:, 3:] = np.round(np.degrees(poses_deg[:, 3:]), 3)  # as a protocol file states them
@@ -36,32 +37,60 @@ def test_calibrate_identifies_and_stores_a_version(tmp_path, capsys):
     poses_rad[:, 3:] = np.radians(poses_rad[:, 3:])
     steps = pkm5.lengths_to_steps(pkm5.inverse_kinematics(poses_rad).lengths_mm)
     modes = modes_of_poses(poses_deg)
-    jac = ForwardModel(steps, modes, ALL).jacobian(np.zeros(len(ALL)))
-    pick = select_poses(jac, UNCERTAINTY_MM, 30)
-    free = identifiable_subset(jac[pick], UNCERTAINTY_MM, ALL, required=REGISTRATION)
-    geometric = [n for n in free if n in PARAMETERS]
-    truth = true_geometry(11, geometric)
-    rng = np.random.default_rng(11)
-    measured = attained_poses(steps[pick], modes[pick], truth)[:, :3] + rng.normal(0, UNCERTAINTY_MM, (30, 3))
-    path = tmp_path / "bench.db"
-    run_id = _store_run(path, poses_deg[pick], measured)
+    model = ForwardModel(steps, modes, ALL)
+    jac = model.jacobian(np.zeros(len(ALL)))
+    pick = select_poses(jac, UNCERTAINTY_MM, 30, fold_ratio=model.fold_ratio(np.zeros(len(ALL))))
+    return poses_deg[pick], steps[pick], modes[pick], jac[pick]
 
-    assert main(["calibrate", str(run_id), "--store", str(path), "--json"]) == 0
+
+def test_calibrate_identifies_and_stores_a_version(tmp_path, capsys):
+    commanded, steps, modes, jac = _design()
+    truth = true_geometry(11)  # every parameter perturbed
+    rng = np.random.default_rng(11)
+    measured = attained_poses(steps, modes, truth)[:, :3] + rng.normal(0, UNCERTAINTY_MM, (30, 3))
+    path = tmp_path / "bench.db"
+    run_id = _store_run(path, commanded, measured)
+
+    assert main(["calibrate", str(run_id), "--store", str(path), "--json"]) == 0  # the default fit: MAP
     out = json.loads(capsys.readouterr().out)
     assert out["calibration"] == "pkm5_kinematics" and out["version"] == 1
-    expected = true_deviations(11, geometric)
+    assert out["fit"] == "map" and out["prior"]["sigma"] == {"leg_offset": 0.3, "scale": 0.005, "joint": 0.3}
+    assert out["prior_sigma"]["reg_x_mm"] is None and out["prior_sigma"]["scale_2"] == 0.005
+    expected = true_deviations(11)
     params = out["parameters"]
-    assert set(params) == set(free)
-    for name in geometric:
+    assert set(params) == set(ALL)
+    for name in PARAMETERS:
         assert abs(params[name]["value"] - expected[name]) < 3 * params[name]["uncertainty"], name
-    assert out["observability"]["condition_number"] <= 100
-    assert out["ap_after_mm"] < out["ap_before_mm"] / 5
+    assert set(out["prior_only"]) <= set(PARAMETERS)
+    assert out["ap_after_mm"] < out["ap_before_mm"] / 10
     with Store(path) as store:
         record = store.calibration("pkm5_kinematics")
-    assert record.version == 1 and record.source_run_id == run_id
+    assert record.version == 1 and record.source_run_id == run_id and record.params["fit"] == "map"
     calibrated = geometry_from_calibration(record.params)
-    for name in geometric:
+    for name in PARAMETERS:
         assert parameter_deviations(calibrated)[name] == pytest.approx(params[name]["value"], abs=1e-12)
+
+    assert main(["calibrate", str(run_id), "--store", str(path), "--json", "--fit", "free-set"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    free = identifiable_subset(jac, UNCERTAINTY_MM, ALL, required=REGISTRATION)
+    assert out["version"] == 2 and out["fit"] == "free-set" and out["prior"] is None
+    assert set(out["parameters"]) == set(free) and out["observability"]["condition_number"] <= 100
+
+
+def test_calibrate_prints_which_parameters_only_the_prior_fixes(tmp_path, capsys):
+    commanded, steps, modes, _ = _design()
+    measured = attained_poses(steps, modes, true_geometry(11))[:, :3]
+    path = tmp_path / "bench.db"
+    run_id = _store_run(path, commanded, measured)
+    assert main(["calibrate", str(run_id), "--store", str(path), "--json"]) == 0
+    stored = json.loads(capsys.readouterr().out)
+    assert main(["calibrate", str(run_id), "--store", str(path)]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    assert len(lines) == 2 + 36 + 3
+    assert lines[-3] == ("fit: maximum a posteriori, prior: manufacturing tolerances (motion.pkm5.calibration."
+                         "TOLERANCES); fixed by the prior (the data did not inform them): "
+                         + (", ".join(stored["prior_only"]) or "none"))
+    assert lines[-2].startswith(f"data part: condition number {stored['observability']['condition_number']:.3g} ")
 
 
 def test_calibrate_a_run_without_measured_poses_is_one_line(tmp_path, capsys):
@@ -84,3 +113,8 @@ def test_calibrate_a_singular_pose_set_names_the_parameters(tmp_path, capsys):
     err = capsys.readouterr().err
     assert code == 2
     assert err.count("\n") == 1 and "condition number" in err and "oa_12_x_mm" in err
+    # the default fit (MAP of every parameter): the line informs none of them, refused naming them
+    assert main(["calibrate", str(run_id), "--store", str(path)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "the 12 poses inform only 0 of the 33 parameters with a prior" in err
+    assert "leg_offset_1_mm" in err and "pd_6_z_mm" in err

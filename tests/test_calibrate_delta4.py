@@ -154,6 +154,14 @@ def test_poses_on_one_line_are_refused_naming_the_parameters(tmp_path, capsys):
     assert code == 2 and err.count("\n") == 1 and "condition number" in err and "servo_zero" in err
 
 
+def test_the_delta4_has_no_prior_so_map_is_refused_in_one_line(tmp_path, capsys):
+    line = np.column_stack([np.linspace(-60.0, 60.0, 12), np.zeros(12), np.full(12, -200.0)])
+    run_id = _store_run(tmp_path / "bench.db", line, line[:, :2], CAMERA_SETTINGS)
+    assert main(["calibrate", str(run_id), "--store", str(tmp_path / "bench.db"), "--fit", "map"]) == 2
+    assert capsys.readouterr().err == "bench: error: --fit map: the delta4 has no tolerance prior, expected --fit " \
+                                      "free-set\n"
+
+
 def test_the_laser_grid_reads_per_screen_and_is_weighted_by_its_window(tmp_path, capsys):
     """Samples that read x, y (horizontal screen), y, z (vertical) or all three are fitted together; the
     uncertainty is the +-1 mm window's 1 mm / sqrt 3."""

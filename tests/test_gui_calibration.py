@@ -93,7 +93,8 @@ def test_identify_in_the_window_then_run_with_the_chosen_calibration_and_with_no
     shown = panel.result_text.toPlainText().splitlines()
     assert shown[0] == (f"pkm5_kinematics v1 (id {record.id}) from run {run_id}: 60 poses, "
                         f"{len(expected['parameters'])} free parameters")
-    assert shown[-2].startswith(f"condition number {condition:.1f} (limit 100), O1 ")
+    assert shown[-3].startswith("fit: maximum a posteriori, prior: manufacturing tolerances")  # the default fit
+    assert shown[-2].startswith(f"data part: condition number {condition:.3g} (the prior holds")
     assert shown[-1] == (f"mean position error on the calibration poses (in-sample): before "
                          f"{expected['ap_before_mm']:.3f} mm, after {expected['ap_after_mm']:.3f} mm")
     assert f"{shown[0]}" in window.log.toPlainText()

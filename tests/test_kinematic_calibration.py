@@ -4,12 +4,13 @@ bench.metrology.kinematic_calibration, bench.simulators.true_geometry)."""
 import numpy as np
 import pytest
 
-from bench.metrology.kinematic_calibration import (CONDITION_LIMIT, UnidentifiableParameters, identifiable_subset,
-                                                    identify, observability, parameter_covariance, select_poses)
+from bench.metrology.kinematic_calibration import (CONDITION_LIMIT, UnidentifiableParameters, away_from_folds,
+                                                    identifiable_subset, identify, observability,
+                                                    parameter_covariance, select_poses)
 from bench.simulators.true_geometry import attained_poses, true_deviations, true_geometry
 from motion import pkm5
 from motion.pkm5.calibration import (PARAMETERS, REGISTRATION, ForwardModel, apply_parameters, modes_of_poses,
-                                     parameter_deviations)
+                                     parameter_deviations, tolerance)
 
 MICE_UNCERTAINTY_MM = 0.05  # standard uncertainty per axis: ~1.5 counts at 800 CPI (0.032 mm/count)
 ALL = REGISTRATION + PARAMETERS
@@ -22,6 +23,20 @@ def candidates():
     modes = modes_of_poses(poses)
     jac = ForwardModel(steps, modes, ALL).jacobian(np.zeros(len(ALL)))
     return poses, steps, modes, jac
+
+
+@pytest.fixture(scope="module")
+def fold_ratio(candidates):
+    _, steps, modes, _ = candidates
+    return ForwardModel(steps, modes, ALL).fold_ratio(np.zeros(len(ALL)))
+
+
+@pytest.fixture(scope="module")
+def map_design(candidates, fold_ratio):
+    """30 poses chosen for observability away from FK folds: the pkm5's default (MAP) design."""
+    _, steps, modes, jac = candidates
+    pick = select_poses(jac, MICE_UNCERTAINTY_MM, 30, fold_ratio=fold_ratio)
+    return steps[pick], modes[pick]
 
 
 @pytest.fixture(scope="module")
@@ -60,6 +75,24 @@ def test_jacobian_matches_central_differences(candidates):
         numeric = (model.predict(theta + bump) - model.predict(theta - bump)) / (2 * h)
         # the numeric side carries the FK convergence error (step criterion 1e-9) divided by the step
         assert jac[:, :, j] == pytest.approx(numeric, rel=2e-3, abs=2e-3 * np.abs(numeric).max())
+
+
+def test_every_joint_column_of_the_batched_jacobian_matches_central_differences(candidates):
+    # the 21 joint-position columns come from one batched IK pass over all 42 bumped geometries: a row or column
+    # mixed up between geometries would show here, against FK solves of each bumped geometry on its own
+    _, steps, modes, _ = candidates
+    rows = [0, 1, 2, 10]  # beta, alpha, translation, beta poses (away from the fold at candidate 129)
+    model = ForwardModel(steps[rows], modes[rows], ALL)
+    theta = np.random.default_rng(2).normal(0.0, 0.2, len(ALL)) * np.array([0.02 if n.startswith("scale_") else 1.0
+                                                                             for n in ALL])
+    jac = model.jacobian(theta)
+    for j, name in enumerate(ALL):
+        if name[:3] not in ("oa_", "pd_"):
+            continue
+        bump = np.zeros(len(ALL))
+        bump[j] = 1e-3
+        numeric = (model.predict(theta + bump) - model.predict(theta - bump)) / 2e-3
+        assert jac[:, :, j] == pytest.approx(numeric, rel=2e-3, abs=2e-3 * max(np.abs(numeric).max(), 1.0)), name
 
 
 def test_condition_number_of_two_columns_at_a_known_angle():
@@ -190,3 +223,88 @@ def test_fold_ratio_flags_the_beta_candidate_whose_fk_changes_branch(candidates)
     assert int(np.argmin(ratio)) == 129
     assert ratio[129] < np.median(ratio) / 100
     assert np.all(ratio > -1.0) and np.all(ratio <= 1.0)
+
+
+def test_pose_selection_leaves_out_the_candidates_near_an_fk_fold(candidates, fold_ratio):
+    jac = candidates[3]
+    near = np.flatnonzero(fold_ratio < np.median(fold_ratio) / 100)
+    assert list(near) == list(np.flatnonzero(~away_from_folds(fold_ratio))) and 129 in near
+    assert 129 in select_poses(jac, MICE_UNCERTAINTY_MM, 30)  # D-optimal alone favours the sensitive fold pose
+    chosen = select_poses(jac, MICE_UNCERTAINTY_MM, 30, fold_ratio=fold_ratio)
+    assert len(set(chosen)) == 30 and not set(chosen) & set(near)
+
+
+class _LinearModel:
+    """predict(theta) = J theta, a model whose MAP estimate and posterior have a closed form."""
+
+    def __init__(self, jac, free):
+        self.jac, self.free, self.units = jac, tuple(free), ("mm",) * len(free)
+
+    def predict(self, theta):
+        return np.einsum("nak,k->na", self.jac, theta)
+
+    def jacobian(self, theta):
+        return self.jac
+
+
+def test_map_of_a_linear_model_is_the_closed_form_posterior():
+    rng = np.random.default_rng(4)
+    jac = rng.normal(0.0, 1.0, (20, 3, 4))
+    jac[:, :, 3] = 0.0  # parameter d moves no measurement: only its prior fixes it
+    sigma = np.array([np.inf, 0.3, 0.3, 0.3])  # a: no prior (a registration)
+    truth = np.array([2.0, 0.2, -0.3, 0.1])
+    u = 0.05
+    measured = np.einsum("nak,k->na", jac, truth) + rng.normal(0.0, u, (20, 3))
+    weighted = jac.reshape(-1, 4) / u
+    precision = np.array([0.0, 1 / 0.09, 1 / 0.09, 1 / 0.09])
+    covariance = np.linalg.inv(weighted.T @ weighted + np.diag(precision))
+    expected = covariance @ weighted.T @ (measured.ravel() / u)  # prior mean 0: the documented geometry
+    result = identify(_LinearModel(jac, "abcd"), measured, u, prior_sigma=sigma)
+    assert result.values == pytest.approx(expected, abs=1e-8)
+    assert result.uncertainty == pytest.approx(np.sqrt(np.diag(covariance)), rel=1e-6)
+    assert result.uncertainty[3] == pytest.approx(0.3, rel=1e-9) and result.values[3] == pytest.approx(0.0, abs=1e-9)
+    assert result.prior_only == ("d",) and result.fit == "map"
+    stored = result.as_dict()
+    assert stored["fit"] == "map" and stored["prior_only"] == ["d"]
+    assert stored["prior_sigma"] == {"a": None, "b": 0.3, "c": 0.3, "d": 0.3}
+
+
+def test_map_refuses_poses_on_one_line_naming_the_parameters_the_prior_alone_fixes():
+    x = np.linspace(120.0, 170.0, 20)
+    poses = np.column_stack([x, np.zeros(20), np.full(20, 300.0), np.zeros(20), np.zeros(20)])
+    steps = pkm5.lengths_to_steps(pkm5.inverse_kinematics(poses).lengths_mm)
+    model = ForwardModel(steps, modes_of_poses(poses), ALL)
+    measured = model.predict(np.zeros(len(ALL)))
+    sigma = [tolerance(n) for n in ALL]
+    with pytest.raises(UnidentifiableParameters, match=r"the 20 poses inform only 0 of the 33 parameters with a "
+                                                       r"prior .*leg_offset_1_mm, .*pd_6_z_mm\), expected at least "
+                                                       r"50%") as info:
+        identify(model, measured, MICE_UNCERTAINTY_MM, prior_sigma=sigma)
+    assert "\n" not in str(info.value)
+
+
+def _attainable(poses, truth):
+    """Poses the true robot reaches when commanded by its own geometry (the simulated plant's FK takes another
+    branch at a few beta poses near z 336 mm, an artefact of the simulator: docs/calibration.md)."""
+    steps = pkm5.lengths_to_steps(pkm5.inverse_kinematics(poses, truth).lengths_mm, truth)
+    attained = attained_poses(steps, modes_of_poses(poses), truth)[:, :3]
+    return poses[np.linalg.norm(attained - poses[:, :3], axis=1) < 1.0]
+
+
+@pytest.mark.parametrize("seed", range(6))  # measured 14-49x, largest |z| 1.6-2.6 (docs/calibration.md)
+def test_map_with_every_parameter_perturbed_meets_the_acceptance(map_design, seed):
+    steps, modes = map_design
+    truth, expected = true_geometry(seed), true_deviations(seed)  # all 33 geometric parameters perturbed
+    rng = np.random.default_rng([seed, 8])
+    measured = attained_poses(steps, modes, truth)[:, :3] + rng.normal(0.0, MICE_UNCERTAINTY_MM, (len(steps), 3))
+    frame_only = identify(ForwardModel(steps, modes, REGISTRATION), measured, MICE_UNCERTAINTY_MM)
+    result = identify(ForwardModel(steps, modes, ALL), measured, MICE_UNCERTAINTY_MM,
+                      prior_sigma=[tolerance(n) for n in ALL])
+    z = {n: (v - expected[n]) / s for n, v, s in zip(result.names, result.values, result.uncertainty) if n in expected}
+    assert len(z) == 33 and max(map(abs, z.values())) < 3.0, {n: round(v, 2) for n, v in z.items()}
+    held_out = _attainable(pkm5.sample_reachable(50, kinds=("constant-orientation", "alpha", "beta"), seed=99), truth)
+    before = _mean_position_error(held_out, pkm5.DEFAULT_GEOMETRY, frame_only.values, truth)
+    after = _mean_position_error(held_out, apply_parameters(ALL, result.values), result.values[:3], truth)
+    assert len(held_out) >= 45 and before > 0.3
+    assert before / after >= 10.0, (before, after)
+    assert 0.3 < result.reduced_chi2 < 1.5  # chi^2 per coordinate: the instrument's noise, no model error left

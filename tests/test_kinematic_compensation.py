@@ -51,7 +51,8 @@ def test_compensation_cuts_the_pose_error_on_held_out_poses(tmp_path):
     done = _bench("calibrate", str(calibration_run), "--json", store=store)
     assert done.returncode == 0, done.stderr
     calibration = json.loads(done.stdout)
-    assert calibration["observability"]["condition_number"] <= 100
+    assert calibration["fit"] == "map" and len(calibration["parameters"]) == 36  # every parameter, the prior
+    assert calibration["prior"]["sigma"] == {"leg_offset": 0.3, "scale": 0.005, "joint": 0.3}
 
     compensated, said = _run("kinematic_validation.toml", store)
     assert (f"kinematic calibration in force: pkm5_kinematics v1 (id {calibration['id']} from run "

@@ -119,15 +119,20 @@ def test_the_parameter_and_observability_tables_are_the_stored_calibration(valid
         assert unit == identified[name]["unit"]
     observed = dict(validated["tables"]["calibration-observability"][1:])
     condition = calibration["observability"]["condition_number"]
-    assert observed["Condition number (limit 100)"] == f"{condition:.1f} (accepted)" and condition <= 100
-    assert observed["Source run"] == "1" and observed["Unidentifiable combinations"] == "none"
+    # the default fit is MAP: every parameter free, the tolerances as the prior, the data part's condition reported
+    assert calibration["fit"] == "map" and observed["Fit"].startswith("maximum a posteriori, prior: manufacturing")
+    assert observed["Condition number of the data part"] == f"{condition:.3g} (the prior holds the weak directions)"
+    assert observed["Fixed by the prior (the data did not inform them)"] == (
+        ", ".join(calibration["prior_only"]) or "none")
+    assert observed["Combinations the data alone cannot identify"] == "; ".join(
+        calibration["observability"]["unidentifiable"])
+    assert observed["Source run"] == "1"
     assert observed["Pose measurements (poses x cycles)"] == "60"  # 30 poses, 2 cycles
-    assert observed["Reduced chi^2 of the fit"] == f"{calibration['reduced_chi2']:.2f}"
+    assert observed["Chi^2 per coordinate of the fit"] == f"{calibration['reduced_chi2']:.2f}"
     html = validated["html"].read_text(encoding="utf-8")
-    held = [name for name in PARAMETERS if name not in identified]
-    assert len(PARAMETERS) + 3 == 36 and len(held) == 36 - len(identified)  # 12 held, 24 free (3 registration)
+    assert sorted(identified) == sorted(PARAMETERS + ("reg_x_mm", "reg_y_mm", "reg_z_mm"))
     assert "Held at their documented values (not identifiable from this pose set and instrument, or not freed): " \
-           + ", ".join(held) + "." in html
+           "none." in html
 
 
 def test_the_page_is_in_the_pdf_and_its_order_does_not_depend_on_which_run_is_named_first(validated):

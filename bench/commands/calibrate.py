@@ -1,10 +1,11 @@
 """``bench calibrate RUN_ID``: identify the robot's geometry (pkm5, delta4) from a stored run of commanded and
 measured poses.
 
-Identifies the free parameters (default: what the pose set and instrument can identify, docs/calibration.md) and
-stores the result as a new version of the calibration ``pkm5_kinematics`` / ``delta4_kinematics`` with the source
-run, the residuals and
-the observability (:func:`bench.calibration_identify.identify_run`, the window's "Identify" button runs the same).
+Identifies the geometry (``--fit map``, the pkm5's default: every parameter, the manufacturing tolerances as the
+prior; ``--fit free-set``, the delta4's: the free parameters, default what the pose set and instrument can
+identify; docs/calibration.md) and stores the result as a new version of the calibration ``pkm5_kinematics`` /
+``delta4_kinematics`` with the source run, the residuals, the observability, the fit and its prior
+(:func:`bench.calibration_identify.identify_run`, the window's "Identify" button runs the same).
 Heavy modules load inside the handler.
 """
 
@@ -13,7 +14,7 @@ from __future__ import annotations
 import argparse
 import json
 
-from bench.calibration_identify import DEFAULT_UNCERTAINTY_MM
+from bench.calibration_identify import DEFAULT_UNCERTAINTY_MM, FITS
 
 DEFAULT_STORE = "bench.db"
 
@@ -22,8 +23,13 @@ def register(groups: argparse._SubParsersAction) -> None:
     parser = groups.add_parser("calibrate", help="identify the robot geometry (pkm5, delta4) from a stored run of "
                                                  "measured poses", formatter_class=argparse.ArgumentDefaultsHelpFormatter)
     parser.add_argument("run_id", metavar="RUN_ID", type=int, help="the run with commanded and measured poses")
+    parser.add_argument("--fit", choices=FITS, default=None,
+                        help="map: maximum a posteriori of every parameter with the manufacturing tolerances as "
+                             "the prior (pkm5 default); free-set: least squares of the free parameters, the others "
+                             "held at their documented values (delta4 default, or the pkm5 with --free)")
     parser.add_argument("--free", nargs="+", metavar="PARAM", default=None,
-                        help="free parameters (default: the identifiable set); see docs/calibration.md")
+                        help="free parameters (default: every one for --fit map, the identifiable set for "
+                             "--fit free-set); see docs/calibration.md")
     parser.add_argument("--uncertainty-mm", type=float, default=None,
                         help="the instrument's standard uncertainty per axis, mm (default: pkm5 mice "
                              f"{DEFAULT_UNCERTAINTY_MM:g}; delta4: the run's instrument, camera plane calibration "
@@ -39,7 +45,8 @@ def run(args: argparse.Namespace) -> int:
 
     check_uncertainty(args.uncertainty_mm)
     with Store(args.store) as store:
-        identified = identify_run(store, args.run_id, free=args.free, uncertainty_mm=args.uncertainty_mm)
+        identified = identify_run(store, args.run_id, free=args.free, uncertainty_mm=args.uncertainty_mm,
+                                  fit=args.fit)
     if args.json:
         record = identified.record
         print(json.dumps({"calibration": record.name, "version": record.version, "id": record.id,

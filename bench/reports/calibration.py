@@ -216,13 +216,22 @@ def _fit_rows(record: Any) -> tuple[tuple[str, str], ...]:
             ("Robot serial", str(params.get("dut_serial", "not recorded"))),
             ("Pose measurements (poses x cycles)", str(obs.get("n_poses", "—"))),
             ("Instrument standard uncertainty (mm per axis)", f"{params.get('uncertainty_mm', float('nan')):g}"),
-            ("Free parameters", str(len(params.get("parameters", {})))),
-            ("Condition number (limit 100)", f"{condition:.1f} ({verdict})"),
-            ("O1 index (Borm & Menq)", f"{float(obs.get('o1', float('nan'))):.4g}"),
-            ("Singular values, largest / smallest", f"{max(singular):.4g} / {min(singular):.4g}"),
-            ("Unidentifiable combinations", "; ".join(obs.get("unidentifiable", ())) or "none"),
-            ("Reduced chi^2 of the fit", f"{float(params.get('reduced_chi2', float('nan'))):.2f}"),
-            ("Residual RMS per coordinate before / after (mm)",
+            ("Free parameters", str(len(params.get("parameters", {}))))]
+    if params.get("fit") == "map":  # a prior holds what the data cannot (docs/calibration.md, the refusal rule)
+        rows += [("Fit", f"maximum a posteriori, prior: {(params.get('prior') or {}).get('name', 'tolerances')}"),
+                 ("Fixed by the prior (the data did not inform them)", ", ".join(params.get("prior_only", ()))
+                  or "none"),
+                 ("Condition number of the data part", f"{condition:.3g} (the prior holds the weak directions)")]
+    else:
+        rows.append(("Condition number (limit 100)", f"{condition:.1f} ({verdict})"))
+    weak = "Combinations the data alone cannot identify" if params.get("fit") == "map" else \
+        "Unidentifiable combinations"
+    chi2 = "Chi^2 per coordinate of the fit" if params.get("fit") == "map" else "Reduced chi^2 of the fit"
+    rows += [("O1 index (Borm & Menq)", f"{float(obs.get('o1', float('nan'))):.4g}"),
+             ("Singular values, largest / smallest", f"{max(singular):.4g} / {min(singular):.4g}"),
+             (weak, "; ".join(obs.get("unidentifiable", ())) or "none"),
+             (chi2, f"{float(params.get('reduced_chi2', float('nan'))):.2f}"),
+             ("Residual RMS per coordinate before / after (mm)",
              f"{fmt_mm(params.get('residual_rms_before', float('nan')))} / "
              f"{fmt_mm(params.get('residual_rms', float('nan')))}")]
     if "ap_before_mm" in params:

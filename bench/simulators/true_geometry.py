@@ -16,31 +16,24 @@ from __future__ import annotations
 import numpy as np
 
 from motion.pkm5 import DEFAULT_GEOMETRY, Geometry
-from motion.pkm5.calibration import PARAMETERS, apply_parameters
+from motion.pkm5.calibration import PARAMETERS, TOLERANCES, apply_parameters, tolerance
 
 __all__ = ["DELTA4_TRUE_GEOMETRY_SIGMA", "TRUE_GEOMETRY_SIGMA", "attained_poses", "delta4_true_deviations",
            "true_geometry", "true_deviations"]
 
-#: 1-sigma size per parameter family: joint positions 0.3 mm (sub-millimetre), leg zero offsets 0.3 mm, lead 0.5 %.
-TRUE_GEOMETRY_SIGMA = {"leg_offset": 0.3, "scale": 0.005, "joint": 0.3}
+#: 1-sigma size per parameter family: the manufacturing tolerances the calibration's prior states (joint positions
+#: 0.3 mm, leg zero offsets 0.3 mm, lead 0.5 %; :data:`motion.pkm5.calibration.TOLERANCES`).
+TRUE_GEOMETRY_SIGMA = TOLERANCES
 #: 1-sigma size per delta4 parameter unit: servo zeros 0.3 deg, lengths and axis positions 0.3 mm.
 DELTA4_TRUE_GEOMETRY_SIGMA = {"deg": 0.3, "mm": 0.3}
 _TRUNCATE_SIGMA = 2.5
-
-
-def _sigma(name: str) -> float:
-    if name.startswith("leg_offset_"):
-        return TRUE_GEOMETRY_SIGMA["leg_offset"]
-    if name.startswith("scale_"):
-        return TRUE_GEOMETRY_SIGMA["scale"]
-    return TRUE_GEOMETRY_SIGMA["joint"]
 
 
 def true_deviations(seed: int, names=PARAMETERS) -> dict[str, float]:
     """Seeded deviations of ``names`` from the nominal geometry (the other parameters stay nominal)."""
     rng = np.random.default_rng([int(seed), 20])
     draws = np.clip(rng.normal(0.0, 1.0, len(PARAMETERS)), -_TRUNCATE_SIGMA, _TRUNCATE_SIGMA)  # always all, so a subset keeps its values
-    return {name: float(draw * _sigma(name)) for name, draw in zip(PARAMETERS, draws) if name in set(names)}
+    return {name: float(draw * tolerance(name)) for name, draw in zip(PARAMETERS, draws) if name in set(names)}
 
 
 def true_geometry(seed: int, names=PARAMETERS, nominal: Geometry = DEFAULT_GEOMETRY) -> Geometry:

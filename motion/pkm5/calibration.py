@@ -23,17 +23,20 @@ measured; the calibration literature (methods-turn2.md §1.1) prefers IK residua
 
 from __future__ import annotations
 
+import dataclasses
+import types
+
 import numpy as np
 
-from motion import kernels
+from motion import dual, kernels
 from motion.errors import MotionInputError
 from motion.pkm5.fk import MODES, forward_kinematics
 from motion.pkm5.geometry import DEFAULT_GEOMETRY, Geometry, steps_to_lengths
 from motion.pkm5.ik import leg_lengths
 from motion.pkm5.jacobian import jacobian
 
-__all__ = ["PARAMETERS", "REGISTRATION", "UNITS", "apply_parameters", "compensation_geometry",
-           "geometry_from_calibration", "parameter_deviations", "modes_of_poses", "ForwardModel"]
+__all__ = ["PARAMETERS", "REGISTRATION", "TOLERANCES", "UNITS", "apply_parameters", "compensation_geometry",
+           "geometry_from_calibration", "parameter_deviations", "modes_of_poses", "tolerance", "ForwardModel"]
 
 _AXES = ("x", "y", "z")
 _JOINT_FIELDS = ("oa_12", "oa_34", "oa_56", "pd_12", "pd_34", "pd_5", "pd_6")
@@ -46,8 +49,37 @@ PARAMETERS = (tuple(f"leg_offset_{i}_mm" for i in range(1, 7)) + tuple(f"scale_{
 #: Unit of each parameter (``1`` for the dimensionless scale).
 UNITS = {name: ("1" if name.startswith("scale_") else "mm") for name in PARAMETERS + REGISTRATION}
 _FD_STEP = {"mm": 1e-4, "1": 1e-6}
+#: Manufacturing tolerances, 1 sigma per parameter family: joint positions 0.3 mm (printed parts, hand-assembled
+#: joints: sub-millimetre), leg zero offsets 0.3 mm (set by hand), lead 0.5 % (lead screws). The prior of the
+#: maximum a posteriori identification (docs/calibration.md) and the size of the simulator's seeded true geometry.
+TOLERANCES = {"leg_offset": 0.3, "scale": 0.005, "joint": 0.3}
+
+
+def tolerance(name: str) -> float:
+    """The 1-sigma tolerance of parameter ``name`` (:data:`TOLERANCES`; ``inf`` for the registration, which the
+    instrument's placement sets and no drawing bounds)."""
+    _check_names((name,))
+    if name.startswith("reg_"):
+        return float("inf")
+    if name.startswith("leg_offset_"):
+        return TOLERANCES["leg_offset"]
+    return TOLERANCES["scale"] if name.startswith("scale_") else TOLERANCES["joint"]
 #: Distance from the documented geometry's pose beyond which a warm-started FK solution is taken for a branch jump.
 _BRANCH_JUMP_MM = 20.0
+
+
+def _bumped_joints(geometry: Geometry, names, step: float, rows: int):
+    """One geometry for a batched IK of ``2 * len(names) * rows`` poses: ``geometry`` with joint parameter
+    ``names[i]`` moved by +``step`` (rows ``2i * rows ..``) and by -``step`` (rows ``(2i + 1) * rows ..``); its joint
+    vectors hold per-row arrays (the IK broadcasts them), the other fields are ``geometry``'s."""
+    fields = {f.name: getattr(geometry, f.name) for f in dataclasses.fields(geometry)}
+    for field in _JOINT_FIELDS:
+        values = np.tile(np.asarray(fields[f"{field}_mm"], dtype=float), (2 * len(names), 1))  # (2K, 3)
+        for i, name in enumerate(names):
+            if name[:-5] == field:
+                values[2 * i:2 * i + 2, _AXES.index(name[-4])] += (step, -step)
+        fields[f"{field}_mm"] = tuple(np.repeat(values[:, axis], rows) for axis in range(3))
+    return types.SimpleNamespace(**fields)
 
 
 def _check_names(names) -> tuple[str, ...]:
@@ -201,7 +233,7 @@ class ForwardModel:
                 # fixed start keeps each solve on the same branch whatever trial parameters came before
                 self._starts[mode] = forward_kinematics(steps_to_lengths(self.steps[rows], DEFAULT_GEOMETRY),
                                                         DEFAULT_GEOMETRY, mode=mode, residual_tol_mm=2.0,
-                                                        max_iter=200).pose
+                                                        max_iter=200, engine=self.engine).pose
             # warm start: the poses of the last evaluation (a nearby trial: the solver's steps are small), which
             # cuts the LM iterations several-fold; a row that did not converge there starts from the fixed start
             last = self._last.get(mode)
@@ -235,39 +267,47 @@ class ForwardModel:
         positions = self.poses(theta)[:, :3] + self._registration(theta)
         return positions[:, list(self.axes)]
 
-    def _stationarity(self, p, theta) -> np.ndarray:
-        """F(p, theta) = J_m^T (IK(p; theta) - L(s; theta)) per pose, (N, 5) (zero columns outside the mode):
-        the normal equations the least-squares FK solves, F = 0 at every attained pose."""
-        g = apply_parameters(self.free, theta, self.nominal)
-        x, y, z, alpha, beta = p.T
-        lengths, _ = leg_lengths(x, y, z, alpha, beta, g, with_tilt=False)
-        residual = np.stack(lengths, -1) - steps_to_lengths(self.steps, g)
-        out = np.einsum("nlc,nl->nc", jacobian(p, g), residual)
-        return out * self._mode_mask
+    def _stationarity(self, p, geometry, lengths) -> np.ndarray:
+        """F(p) = J_m^T (IK(p; geometry) - lengths) per row, (M, 5) (zero columns outside the mode): the normal
+        equations the least-squares FK solves, F = 0 at every attained pose. ``p`` (M, 5) is a whole number of
+        copies of the pose set, ``geometry`` a Geometry or :func:`_bumped_joints` (one geometry per copy),
+        ``lengths`` (M, 6) the commanded leg lengths; one batched dual-number pass gives IK and J_m together."""
+        legs, _ = leg_lengths(*dual.seed(p), geometry=geometry, with_tilt=False)
+        residual = np.stack([leg.value for leg in legs], -1) - lengths
+        pose_jac = np.stack([leg.grad for leg in legs], 1)
+        out = np.einsum("nlc,nl->nc", pose_jac, residual)
+        return out * np.tile(self._mode_mask, (len(p) // len(self._mode_mask), 1))
 
-    def _dfdp(self, p, theta) -> np.ndarray:
-        """dF/dp per pose (N, 5, 5) by central differences; sets the mode mask :meth:`_stationarity` uses."""
-        self._mode_mask = np.ones((len(p), 5))
+    @property
+    def _mode_mask(self) -> np.ndarray:
+        """(N, 5): 1 for the pose columns that move in each pose's mode (x, y, z and the mode's angle)."""
+        mask = np.ones((len(self.modes), 5))
         for mode, angle in MODES.items():
             rows = self.modes == mode
-            self._mode_mask[rows, 3] = angle == 3
-            self._mode_mask[rows, 4] = angle == 4
-        dfdp = np.zeros((len(p), 5, 5))
-        for c, h in enumerate((1e-4, 1e-4, 1e-4, 1e-6, 1e-6)):
-            bump = np.zeros(5)
-            bump[c] = h
-            dfdp[:, :, c] = (self._stationarity(p + bump, theta) - self._stationarity(p - bump, theta)) / (2 * h)
-        return dfdp
+            mask[rows, 3] = angle == 3
+            mask[rows, 4] = angle == 4
+        return mask
+
+    def _dfdp(self, p, geometry, lengths) -> np.ndarray:
+        """dF/dp per pose (N, 5, 5) by central differences, the ten bumped pose sets in one batch."""
+        n = len(p)
+        steps = (1e-4, 1e-4, 1e-4, 1e-6, 1e-6)
+        bumps = np.concatenate([np.diag(steps), -np.diag(steps)])  # (10, 5): +h_c, then -h_c
+        bumped = (p[None, :, :] + bumps[:, None, :]).reshape(-1, 5)
+        f = self._stationarity(bumped, geometry, np.tile(lengths, (10, 1))).reshape(2, 5, n, 5)
+        return ((f[0] - f[1]) / np.reshape(2.0 * np.asarray(steps), (5, 1, 1))).transpose(1, 2, 0)
 
     def fold_ratio(self, theta) -> np.ndarray:
         """Per pose, smallest / largest eigenvalue of the symmetric part of dF/dp over the mode's columns (raw mm and
         rad units): near 0 the pose is near a fold of the FK, where nearby geometries' solves may change branch (so a
         fit through it meets a barrier; docs/calibration.md, the MAP candidate)."""
         theta = np.asarray(theta, dtype=float)
-        dfdp = self._dfdp(np.nan_to_num(self.poses(theta)), theta)
+        geometry = apply_parameters(self.free, theta, self.nominal)
+        dfdp = self._dfdp(np.nan_to_num(self.poses(theta)), geometry, steps_to_lengths(self.steps, geometry))
+        mask = self._mode_mask
         out = np.empty(len(dfdp))
         for i, block in enumerate(dfdp):
-            cols = np.flatnonzero(self._mode_mask[i])
+            cols = np.flatnonzero(mask[i])
             eig = np.linalg.eigvalsh(0.5 * (block[np.ix_(cols, cols)] + block[np.ix_(cols, cols)].T))
             out[i] = eig[0] / eig[-1]
         return out
@@ -283,12 +323,16 @@ class ForwardModel:
         theta = np.asarray(theta, dtype=float)
         p = np.nan_to_num(self.poses(theta) if poses is None else poses)
         n, k = len(p), len(self.free)
-        dfdp = self._dfdp(p, theta)
+        geometry = apply_parameters(self.free, theta, self.nominal)
+        lengths = steps_to_lengths(self.steps, geometry)
+        dfdp = self._dfdp(p, geometry, lengths)
+        mask = self._mode_mask
         dfdt = np.zeros((n, 5, k))
         # the leg zeros and leads only move the commanded lengths L(s; theta), not IK(p; theta) nor its Jacobian:
         # dF/dtheta = -J_m^T dL/dtheta in closed form, dL_i/d offset_i = 1, dL_i/d scale_i = s_i dir_i CR_i
-        pose_jac = jacobian(p, apply_parameters(self.free, theta, self.nominal)) * self._mode_mask[:, None, :]
+        pose_jac = jacobian(p, geometry) * mask[:, None, :]
         nominal_step = np.asarray(self.nominal.mm_per_step) * np.asarray(self.nominal.step_direction)
+        joints = []
         for j, name in enumerate(self.free):
             if name.startswith("reg_"):
                 continue
@@ -296,13 +340,18 @@ class ForwardModel:
                 leg = int(name[-4 if name.endswith("_mm") else -1]) - 1
                 dlength = 1.0 if name.startswith("leg_offset_") else self.steps[:, leg] * nominal_step[leg]
                 dfdt[:, :, j] = -pose_jac[:, leg, :] * np.reshape(dlength, (-1, 1))
-                continue
-            h = _FD_STEP[UNITS[name]]
-            bump = np.zeros(k)
-            bump[j] = h
-            dfdt[:, :, j] = (self._stationarity(p, theta + bump) - self._stationarity(p, theta - bump)) / (2 * h)
+            else:
+                joints.append(j)
+        if joints:
+            # the joint positions move IK(p; theta) and J_m: central differences, every bumped geometry (+h, -h per
+            # joint parameter) in one batched evaluation, since numpy's per-call overhead dominates 30-100 poses
+            h = _FD_STEP["mm"]
+            bumped = _bumped_joints(geometry, [self.free[j] for j in joints], h, n)
+            f = self._stationarity(np.tile(p, (2 * len(joints), 1)), bumped,
+                                   np.tile(lengths, (2 * len(joints), 1))).reshape(len(joints), 2, n, 5)
+            dfdt[:, :, joints] = ((f[:, 0] - f[:, 1]) / (2 * h)).transpose(1, 2, 0)
         # outside the mode's columns put an identity block, so the solve leaves those pose derivatives at zero
-        dfdp = dfdp + np.einsum("nc,cd->ncd", 1.0 - self._mode_mask, np.eye(5))
+        dfdp = dfdp + np.einsum("nc,cd->ncd", 1.0 - mask, np.eye(5))
         dpose = -np.linalg.solve(dfdp, dfdt)
         for j, name in enumerate(self.free):
             if name.startswith("reg_"):

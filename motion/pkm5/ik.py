@@ -39,10 +39,12 @@ def as_poses(poses, name: str = "poses") -> np.ndarray:
 
 
 def _rotate(vector, ca, sa, cb, sb):
-    """R(beta, alpha) @ vector with R = Ry(beta) Rx(alpha) (000 Eq. 5.4); vector is a constant 3-tuple."""
+    """R(beta, alpha) @ vector with R = Ry(beta) Rx(alpha) (000 Eq. 5.4); vector is a constant 3-tuple (of floats,
+    or of per-row arrays when many geometries are evaluated in one batch, as the calibration's Jacobian does)."""
     vx, vy, vz = vector
-    t = sa * vy + ca * vz if vz else sa * vy
-    return cb * vx + sb * t, ca * vy - sa * vz if vz else ca * vy, -sb * vx + cb * t
+    has_z = bool(np.any(vz))
+    t = sa * vy + ca * vz if has_z else sa * vy
+    return cb * vx + sb * t, ca * vy - sa * vz if has_z else ca * vy, -sb * vx + cb * t
 
 
 def _pair_plane(x, y, z, trig, pd, oa, half_height):
