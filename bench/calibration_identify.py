@@ -290,8 +290,8 @@ def summary_lines(identified: IdentifiedRun) -> list[str]:
         lines.append(f"fit: maximum a posteriori, prior: {source.get('name', 'the tolerances')}; fixed by the prior "
                      f"(the data did not inform them): {', '.join(result.prior_only) or 'none'}")
         lines.append(f"data part: condition number {obs.condition_number:.3g} (the prior holds its weak directions; "
-                     f"refused when the data inform under half the parameters), O1 {obs.o1:.4g}, chi2 per "
-                     f"coordinate {result.reduced_chi2:.2f}")
+                     f"refused when the data inform under half the parameters), O1 {obs.o1:.4g}, reduced chi2 "
+                     f"{result.reduced_chi2:.2f} over {result.degrees_of_freedom:.1f} degrees of freedom")
     else:
         lines.append(f"condition number {obs.condition_number:.1f} (limit 100), O1 {obs.o1:.4g}, reduced chi2 "
                      f"{result.reduced_chi2:.2f}")

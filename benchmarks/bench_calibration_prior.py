@@ -77,7 +77,8 @@ def main() -> None:
                     if n in deviations)
         print(f"seed {seed}: AP before {before:.3f} mm | subset {after_subset:.3f} mm x{before / after_subset:.1f} "
               f"chi2 {subset.reduced_chi2:.1f} max|z| {z_subset:.1f} | MAP {after_map:.3f} mm "
-              f"x{before / after_map:.1f} chi2/n {fit.reduced_chi2:.2f} max|z| {z_map:.2f} ({seconds:.2f} s, "
+              f"x{before / after_map:.1f} chi2/dof {fit.reduced_chi2:.2f} (dof {fit.degrees_of_freedom:.1f}) "
+              f"max|z| {z_map:.2f} ({seconds:.2f} s, "
               f"{fit.iterations} evaluations; prior only: {', '.join(fit.prior_only) or 'none'})", flush=True)
 
 

@@ -91,6 +91,9 @@ def test_calibrate_prints_which_parameters_only_the_prior_fixes(tmp_path, capsys
                          "TOLERANCES); fixed by the prior (the data did not inform them): "
                          + (", ".join(stored["prior_only"]) or "none"))
     assert lines[-2].startswith(f"data part: condition number {stored['observability']['condition_number']:.3g} ")
+    assert lines[-2].endswith(f"reduced chi2 {stored['reduced_chi2']:.2f} over {stored['degrees_of_freedom']:.1f} "
+                              "degrees of freedom")
+    assert 90 - 36 < stored["degrees_of_freedom"] < 90 - 3  # the prior holds part of the 33, none of the registration
 
 
 def test_calibrate_a_run_without_measured_poses_is_one_line(tmp_path, capsys):

@@ -307,4 +307,40 @@ def test_map_with_every_parameter_perturbed_meets_the_acceptance(map_design, see
     after = _mean_position_error(held_out, apply_parameters(ALL, result.values), result.values[:3], truth)
     assert len(held_out) >= 45 and before > 0.3
     assert before / after >= 10.0, (before, after)
-    assert 0.3 < result.reduced_chi2 < 1.5  # chi^2 per coordinate: the instrument's noise, no model error left
+    assert 0.3 < result.reduced_chi2 < 1.5  # the instrument's noise, no model error left
+
+
+def test_map_reduced_chi2_counts_the_parameters_the_prior_leaves_to_the_data():
+    # the data residuals of a MAP fit keep m - tr(H) degrees of freedom, H = J_w C J_w^T its hat matrix (a
+    # parameter the prior alone fixes costs none, one without a prior a whole one); chi^2 over that has expectation
+    # 1 when the instrument and the prior are right; chi^2 per coordinate (/ m): (m - tr H) / m = 0.76 here
+    rng = np.random.default_rng(5)
+    jac = rng.normal(0.0, 0.1, (10, 3, 8))
+    sigma = np.array([np.inf] + [0.3] * 7)
+    u = 0.05
+    weighted = jac.reshape(-1, 8) / u
+    covariance = np.linalg.inv(weighted.T @ weighted + np.diag(np.where(np.isfinite(sigma), sigma ** -2.0, 0.0)))
+    hat = weighted @ covariance @ weighted.T
+    model = _LinearModel(jac, "abcdefgh")
+    values = []
+    for _ in range(300):
+        truth = rng.normal(0.0, 1.0, 8) * np.where(np.isfinite(sigma), sigma, 1.0)  # drawn from the prior
+        measured = model.predict(truth) + rng.normal(0.0, u, (10, 3))
+        result = identify(model, measured, u, prior_sigma=sigma)
+        chi2 = np.sum((result.residuals / u) ** 2)
+        assert result.reduced_chi2 == pytest.approx(chi2 / (30 - np.trace(hat)), rel=1e-9)
+        values.append(result.reduced_chi2)
+    assert result.degrees_of_freedom == pytest.approx(30 - np.trace(hat), rel=1e-9)
+    assert result.as_dict()["degrees_of_freedom"] == pytest.approx(30 - np.trace(hat), rel=1e-9)
+    assert 7.0 < np.trace(hat) < 7.5  # between the 1 parameter without a prior and all 8
+    assert np.mean(values) == pytest.approx(1.0, abs=0.05)
+
+
+def test_without_a_prior_the_reduced_chi2_keeps_m_minus_k_degrees_of_freedom():
+    rng = np.random.default_rng(6)
+    jac = rng.normal(0.0, 1.0, (10, 3, 4))
+    model = _LinearModel(jac, "abcd")
+    measured = model.predict(np.array([1.0, -2.0, 0.5, 0.0])) + rng.normal(0.0, 0.05, (10, 3))
+    result = identify(model, measured, 0.05)
+    assert result.degrees_of_freedom == 26
+    assert result.reduced_chi2 == pytest.approx(np.sum((result.residuals / 0.05) ** 2) / 26, rel=1e-9)

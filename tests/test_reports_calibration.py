@@ -128,7 +128,8 @@ def test_the_parameter_and_observability_tables_are_the_stored_calibration(valid
         calibration["observability"]["unidentifiable"])
     assert observed["Source run"] == "1"
     assert observed["Pose measurements (poses x cycles)"] == "60"  # 30 poses, 2 cycles
-    assert observed["Chi^2 per coordinate of the fit"] == f"{calibration['reduced_chi2']:.2f}"
+    assert observed["Reduced chi^2 of the fit"] == (f"{calibration['reduced_chi2']:.2f} over "
+                                                    f"{calibration['degrees_of_freedom']:.1f} degrees of freedom")
     html = validated["html"].read_text(encoding="utf-8")
     assert sorted(identified) == sorted(PARAMETERS + ("reg_x_mm", "reg_y_mm", "reg_z_mm"))
     assert "Held at their documented values (not identifiable from this pose set and instrument, or not freed): " \
@@ -158,3 +159,23 @@ def test_runs_with_the_same_calibration_get_no_page_and_the_figure_is_readable(v
     plot = error_vectors(pair)
     assert min(printed_font_sizes(plot)) >= MIN_FONT_PT
     assert f"before (run {validated['before']}, no kinematic calibration)" in plot.caption
+
+
+def test_a_map_fit_stored_before_its_degrees_of_freedom_keeps_its_chi2_per_coordinate_label():
+    # the first MAP calibrations (2026-12-03) stored chi^2 per coordinate under reduced_chi2, without
+    # degrees_of_freedom: their report must not call that a reduced chi^2
+    from types import SimpleNamespace
+
+    from bench.reports.calibration import _fit_rows
+
+    params = {"fit": "map", "prior": {"name": "tolerances"}, "prior_only": [], "reduced_chi2": 0.55,
+              "observability": {"condition_number": 5e12, "singular_values": [1.0, 2e-13], "n_poses": 90}}
+    old = dict(_fit_rows(SimpleNamespace(params=params, source_run_id=1, created_utc="2026-12-03T08:00:00")))
+    assert old["Chi^2 per coordinate of the fit"] == "0.55" and "Reduced chi^2 of the fit" not in old
+    new = dict(_fit_rows(SimpleNamespace(params={**params, "reduced_chi2": 0.74, "degrees_of_freedom": 66.75},
+                                         source_run_id=1, created_utc="2026-12-03T09:00:00")))
+    assert new["Reduced chi^2 of the fit"] == "0.74 over 66.8 degrees of freedom"
+    free_set = dict(_fit_rows(SimpleNamespace(params={**params, "fit": "free-set", "reduced_chi2": 1.2,
+                                                      "degrees_of_freedom": 67.0},
+                                              source_run_id=1, created_utc="2026-12-03T09:00:00")))
+    assert free_set["Reduced chi^2 of the fit"] == "1.20"

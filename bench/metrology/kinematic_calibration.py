@@ -29,6 +29,11 @@ standard uncertainty exceeds ``sigma_j / sqrt(2)`` (named in the result, ``prior
 (:class:`UnidentifiableParameters`, naming them) when the data inform fewer than half of the parameters with a
 prior (the result would be the drawing, not a measurement: poses on one line inform none of the pkm5's 36), or
 when the parameters without a prior have a data-part condition number above the limit (only the data fix them).
+The reduced chi^2 divides the data residuals' chi^2 by their degrees of freedom ``m - tr(H)``, ``H = J_w C J_w^T``
+the hat matrix, ``tr(H) = K - sum_j C_jj / sigma_j^2`` the parameters the data fit (``K`` without a prior, as for
+least squares; less for a MAP fit, since a parameter the prior holds costs the data nothing): its expectation is 1
+when the instrument's uncertainty and the prior are right (chi^2 per coordinate, ``/ m``, would be below 1 by the
+share of the parameters the data fit).
 """
 
 from __future__ import annotations
@@ -142,6 +147,7 @@ class Identification:
     iterations: int
     prior_sigma: np.ndarray | None = None  # (K,) the prior's 1-sigma per parameter (inf: none); None: no prior
     prior_only: tuple[str, ...] = ()       # parameters the prior alone fixes (posterior ~ prior)
+    degrees_of_freedom: float = float("nan")  # of the data residuals, the reduced chi^2's divisor (module doc)
 
     @property
     def fit(self) -> str:
@@ -163,6 +169,7 @@ class Identification:
             "residual_rms_before": float(np.sqrt(np.mean(self.residuals_before ** 2))),
             "residuals": np.round(self.residuals, 6).tolist(),
             "reduced_chi2": float(self.reduced_chi2),
+            "degrees_of_freedom": float(self.degrees_of_freedom),
             "observability": self.observability.as_dict(),
             "iterations": self.iterations,
         }
@@ -277,10 +284,12 @@ def identify(model, measured, uncertainty, *, theta0=None, limit: float = CONDIT
     obs = obs or observability(final_jac, u, model.free, limit)  # a prior's: the data part, reported
     std = np.sqrt(np.clip(np.diag(cov), 0.0, None))
     correlation = cov / np.outer(std, std)
-    dof = max(measured.size - k, 1) if sigma is None else measured.size
+    # the parameters the data fit, tr(J_w C J_w^T) = K - sum_j C_jj / sigma_j^2: K without a prior (m - K degrees of
+    # freedom), less what a prior holds; chi^2 over m - that has expectation 1 when the instrument and prior are right
+    dof = max(measured.size - (k - float(np.sum(np.diag(cov) * precision))), 1.0)
     return Identification(tuple(model.free), tuple(model.units), theta, std, correlation, after, before,
                           float(np.sum((after / u) ** 2) / dof), obs, nfev,
-                          None if sigma is None else np.array(sigma), prior_only)
+                          None if sigma is None else np.array(sigma), prior_only, dof)
 
 
 #: Condition number the default free set is built to: half the acceptance limit, since the Jacobian at the

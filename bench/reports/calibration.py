@@ -226,11 +226,14 @@ def _fit_rows(record: Any) -> tuple[tuple[str, str], ...]:
         rows.append(("Condition number (limit 100)", f"{condition:.1f} ({verdict})"))
     weak = "Combinations the data alone cannot identify" if params.get("fit") == "map" else \
         "Unidentifiable combinations"
-    chi2 = "Chi^2 per coordinate of the fit" if params.get("fit") == "map" else "Reduced chi^2 of the fit"
+    dof = params.get("degrees_of_freedom")  # absent from a MAP fit stored before 2026-12-03: chi^2 per coordinate
+    chi2 = "Chi^2 per coordinate of the fit" if params.get("fit") == "map" and dof is None else \
+        "Reduced chi^2 of the fit"
+    over = "" if dof is None or params.get("fit") != "map" else f" over {float(dof):.1f} degrees of freedom"
     rows += [("O1 index (Borm & Menq)", f"{float(obs.get('o1', float('nan'))):.4g}"),
              ("Singular values, largest / smallest", f"{max(singular):.4g} / {min(singular):.4g}"),
              (weak, "; ".join(obs.get("unidentifiable", ())) or "none"),
-             (chi2, f"{float(params.get('reduced_chi2', float('nan'))):.2f}"),
+             (chi2, f"{float(params.get('reduced_chi2', float('nan'))):.2f}{over}"),
              ("Residual RMS per coordinate before / after (mm)",
              f"{fmt_mm(params.get('residual_rms_before', float('nan')))} / "
              f"{fmt_mm(params.get('residual_rms', float('nan')))}")]
