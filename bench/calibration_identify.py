@@ -278,13 +278,16 @@ def identify_run(store: Any, run_id: int, *, free: list[str] | tuple[str, ...] |
 
 def summary_lines(identified: IdentifiedRun) -> list[str]:
     """The text ``bench calibrate`` prints (and the window shows): parameters, uncertainties, observability."""
+    from bench.metrology.formatting import format_pair
+
     result, record, params = identified.result, identified.record, identified.params
     obs = result.observability
     lines = [f"{record.name} v{record.version} (id {record.id}) from run {identified.run_id}: "
              f"{identified.n_measurements} poses, {len(result.names)} free parameters",
              f"{'parameter':<18} {'value':>12} {'std. unc.':>12}  unit"]
-    lines += [f"{name:<18} {value:12.5f} {std:12.5f}  {unit}"
-              for name, value, std, unit in zip(result.names, result.values, result.uncertainty, result.units)]
+    for name, value, std, unit in zip(result.names, result.values, result.uncertainty, result.units):
+        shown, u = format_pair(value, std, signed=True)  # to the uncertainty's 2 significant digits, as the report
+        lines.append(f"{name:<18} {shown:>12} {u:>12}  {unit}")
     if result.fit == "map":
         source = params.get("prior") or {}
         lines.append(f"fit: maximum a posteriori, prior: {source.get('name', 'the tolerances')}; fixed by the prior "
