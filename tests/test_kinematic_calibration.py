@@ -344,3 +344,19 @@ def test_without_a_prior_the_reduced_chi2_keeps_m_minus_k_degrees_of_freedom():
     result = identify(model, measured, 0.05)
     assert result.degrees_of_freedom == 26
     assert result.reduced_chi2 == pytest.approx(np.sum((result.residuals / 0.05) ** 2) / 26, rel=1e-9)
+
+
+def test_the_identifiable_subset_never_has_more_parameters_than_coordinates_less_one():
+    # an SVD of 6 rows gives 6 singular values however many columns: 10 columns of 2 poses looked well conditioned,
+    # and identify then refused the "identifiable" set (6 coordinates for 10 parameters)
+    jac = np.random.default_rng(7).normal(0.0, 1.0, (2, 3, 10))
+    names = tuple("abcdefghij")
+    chosen = identifiable_subset(jac, 0.05, names, required=("a",))
+    assert "a" in chosen and len(chosen) == 5  # 6 coordinates: at most 5 parameters leave a degree of freedom
+    columns = [names.index(n) for n in chosen]
+    sv = np.linalg.svd(jac.reshape(6, 10)[:, columns] / np.linalg.norm(jac.reshape(6, 10)[:, columns], axis=0),
+                       compute_uv=False)
+    assert sv[0] / sv[-1] <= 50.0
+    model = _LinearModel(jac[:, :, columns], chosen)
+    result = identify(model, model.predict(np.arange(5.0)), 0.05)
+    assert result.values == pytest.approx(np.arange(5.0), abs=1e-6)

@@ -303,8 +303,9 @@ def identifiable_subset(jac, uncertainty, names, limit: float = FREE_SET_LIMIT, 
     Subset selection by QR with column pivoting of the scaled Jacobian (Golub & Van Loan §5.5.7; Khalil & Dombre's
     base parameters): ``required`` names (e.g. the registration of a relative instrument) come first and are
     projected out; the other columns are ranked by pivoted QR of what remains; the first r are kept, r being the
-    largest count whose combined scaled Jacobian has a condition number <= ``limit``. A parameter left out is
-    (nearly) a combination of the kept ones, so its error is absorbed by them and the fit still explains the data.
+    largest count, below the number of coordinates, whose combined scaled Jacobian has a condition number <=
+    ``limit``. A parameter left out is (nearly) a combination of the kept ones, so its error is absorbed by them and
+    the fit still explains the data.
     """
     names = tuple(names)
     index = {n: i for i, n in enumerate(names)}
@@ -323,6 +324,8 @@ def identifiable_subset(jac, uncertainty, names, limit: float = FREE_SET_LIMIT, 
         trial = forced + ranked[:count]
         if not trial:
             return ()
+        if len(trial) >= len(scaled):  # identify needs more coordinates than parameters (and an SVD of m rows has
+            continue                   # only m singular values: a wider matrix would look well conditioned)
         sv = np.linalg.svd(scaled[:, trial], compute_uv=False)
         if sv[-1] > 0 and sv[0] / sv[-1] <= limit:
             return tuple(names[i] for i in sorted(trial))
