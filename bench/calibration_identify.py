@@ -130,9 +130,10 @@ def _commanded_geometry(store, run_id: int, documented):
 
 
 def check_uncertainty(uncertainty_mm: float | None) -> None:
-    """Refuse an instrument uncertainty that is not a positive number (one line); None: the instrument's own."""
-    if uncertainty_mm is not None and not uncertainty_mm > 0:
-        raise ConfigError(f"--uncertainty-mm = {uncertainty_mm!r}, expected a positive number")
+    """Refuse an instrument uncertainty that is not a positive finite number (one line); None: the instrument's own."""
+    if uncertainty_mm is not None and not 0 < uncertainty_mm < math.inf:
+        raise ConfigError(f"--uncertainty-mm = {uncertainty_mm!r}, expected a positive finite number (the "
+                          "instrument's standard uncertainty per axis, mm)")
 
 
 def _pkm5_problem(store, run_id: int, uncertainty_mm: float | None) -> _Problem:

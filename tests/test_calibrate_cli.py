@@ -129,3 +129,13 @@ def test_calibrate_a_singular_pose_set_names_the_parameters(tmp_path, capsys):
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "the 12 poses inform only 0 of the 33 parameters with a prior" in err
     assert "leg_offset_1_mm" in err and "pd_6_z_mm" in err
+
+
+@pytest.mark.parametrize("value", ["inf", "0", "-0.05", "nan"])
+def test_calibrate_refuses_an_uncertainty_that_is_not_a_positive_finite_number_in_one_line(tmp_path, capsys, value):
+    # inf used to pass the check and be refused later as "reg_x_mm (no effect on the measurements)"
+    path = tmp_path / "bench.db"
+    run_id = _store_run(path, np.zeros((2, 5)), np.zeros((2, 3)))
+    assert main(["calibrate", str(run_id), "--store", str(path), "--uncertainty-mm", value]) == 2
+    assert capsys.readouterr().err == (f"bench: error: --uncertainty-mm = {float(value)!r}, expected a positive finite "
+                                       "number (the instrument's standard uncertainty per axis, mm)\n")

@@ -4,6 +4,7 @@ bench.metrology.kinematic_calibration, bench.simulators.true_geometry)."""
 import numpy as np
 import pytest
 
+from bench.errors import ConfigError
 from bench.metrology.kinematic_calibration import (CONDITION_LIMIT, UnidentifiableParameters, away_from_folds,
                                                     identifiable_subset, identify, observability,
                                                     parameter_covariance, select_poses)
@@ -360,3 +361,11 @@ def test_the_identifiable_subset_never_has_more_parameters_than_coordinates_less
     model = _LinearModel(jac[:, :, columns], chosen)
     result = identify(model, model.predict(np.arange(5.0)), 0.05)
     assert result.values == pytest.approx(np.arange(5.0), abs=1e-6)
+
+
+@pytest.mark.parametrize("uncertainty", [np.inf, 0.0, [0.05, np.nan, 0.05]])
+def test_identify_refuses_an_instrument_uncertainty_that_is_not_finite_and_positive(uncertainty):
+    jac = np.random.default_rng(8).normal(0.0, 1.0, (5, 3, 2))
+    model = _LinearModel(jac, "ab")
+    with pytest.raises(ConfigError, match=r"^instrument uncertainty = .*, expected finite values > 0$"):
+        identify(model, model.predict(np.ones(2)), uncertainty)

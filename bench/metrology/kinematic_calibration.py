@@ -219,8 +219,8 @@ def identify(model, measured, uncertainty, *, theta0=None, limit: float = CONDIT
     if not np.all(np.isfinite(measured)):
         raise InsufficientData(f"measured poses: {int(np.sum(~np.isfinite(measured).all(1)))} rows are not finite, "
                                "expected a measured coordinate for every pose")
-    if not np.all(u > 0):
-        raise ConfigError(f"instrument uncertainty = {np.asarray(uncertainty).tolist()}, expected values > 0")
+    if not np.all((u > 0) & np.isfinite(u)):
+        raise ConfigError(f"instrument uncertainty = {np.asarray(uncertainty).tolist()}, expected finite values > 0")
     k = len(model.free)
     sigma = None if prior_sigma is None else np.broadcast_to(np.asarray(prior_sigma, dtype=float), (k,))
     if sigma is not None and not np.all(sigma > 0):
