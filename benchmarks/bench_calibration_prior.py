@@ -21,7 +21,7 @@ import time
 
 import numpy as np
 
-from bench.metrology.kinematic_calibration import identifiable_subset, identify, select_poses
+from bench.metrology.kinematic_calibration import away_from_folds, identifiable_subset, identify, select_poses
 from bench.simulators.true_geometry import attained_poses, true_deviations, true_geometry
 from motion import pkm5
 from motion.pkm5.calibration import PARAMETERS, REGISTRATION, ForwardModel, apply_parameters, modes_of_poses, tolerance
@@ -56,7 +56,7 @@ def main() -> None:
     free = identifiable_subset(jac[pick], U_MM, ALL, required=REGISTRATION)
     steps, modes = all_steps[pick], all_modes[pick]
     held = pkm5.sample_reachable(50, kinds=KINDS, seed=99)
-    left_out = 0 if ratio is None else int(np.sum(ratio < np.median(ratio) / 100))
+    left_out = 0 if ratio is None else int(np.sum(~away_from_folds(ratio)))
     print(f"prior sigma x {scale:g}; {left_out} candidates left out near an FK fold; default free "
           f"set {len(free)} of {len(ALL)}")
     for seed in range(6):

@@ -64,6 +64,8 @@ def tolerance(name: str) -> float:
     if name.startswith("leg_offset_"):
         return TOLERANCES["leg_offset"]
     return TOLERANCES["scale"] if name.startswith("scale_") else TOLERANCES["joint"]
+
+
 #: Distance from the documented geometry's pose beyond which a warm-started FK solution is taken for a branch jump.
 _BRANCH_JUMP_MM = 20.0
 
