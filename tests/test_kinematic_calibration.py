@@ -4,7 +4,7 @@ bench.metrology.kinematic_calibration, bench.simulators.true_geometry)."""
 import numpy as np
 import pytest
 
-from bench.errors import ConfigError
+from bench.errors import ConfigError, InsufficientData
 from bench.metrology.kinematic_calibration import (CONDITION_LIMIT, UnidentifiableParameters, away_from_folds,
                                                     identifiable_subset, identify, observability,
                                                     parameter_covariance, select_poses)
@@ -369,3 +369,20 @@ def test_identify_refuses_an_instrument_uncertainty_that_is_not_finite_and_posit
     model = _LinearModel(jac, "ab")
     with pytest.raises(ConfigError, match=r"^instrument uncertainty = .*, expected finite values > 0$"):
         identify(model, model.predict(np.ones(2)), uncertainty)
+
+
+class _JacobianFailsModel(_LinearModel):
+    """A model that predicts every pose but cannot differentiate at one (a failed solve inside its Jacobian)."""
+
+    def jacobian(self, theta):
+        jac = self.jac.copy()
+        jac[0, 0, 1] = np.nan
+        return jac
+
+
+@pytest.mark.parametrize("prior_sigma", [None, [np.inf, 0.3, 0.3]])
+def test_a_jacobian_that_is_not_finite_is_one_line_with_or_without_a_prior(prior_sigma):
+    model = _JacobianFailsModel(np.random.default_rng(1).normal(0.0, 1.0, (10, 3, 3)), "abc")
+    with pytest.raises(InsufficientData, match=r"^identification Jacobian is not finite \(forward kinematics failed "
+                                               r"at some pose\)$"):  # MAP: was numpy's "SVD did not converge"
+        identify(model, model.predict(np.ones(3)), 0.05, prior_sigma=prior_sigma)

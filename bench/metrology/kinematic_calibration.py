@@ -90,12 +90,18 @@ def _weighted(jac, uncertainty) -> np.ndarray:
     return (jac / u[None, :, None]).reshape(-1, jac.shape[-1])
 
 
-def observability(jac, uncertainty, names, limit: float = CONDITION_LIMIT) -> Observability:
-    """Observability of parameters ``names`` from the Jacobian ``jac`` (N, a, K) and instrument uncertainty (a,)."""
-    names = tuple(names)
+def _finite_weighted(jac, uncertainty) -> np.ndarray:
+    """:func:`_weighted`, refused (``InsufficientData``, one line) where the model could not give a Jacobian."""
     weighted = _weighted(jac, uncertainty)
     if not np.all(np.isfinite(weighted)):
         raise InsufficientData("identification Jacobian is not finite (forward kinematics failed at some pose)")
+    return weighted
+
+
+def observability(jac, uncertainty, names, limit: float = CONDITION_LIMIT) -> Observability:
+    """Observability of parameters ``names`` from the Jacobian ``jac`` (N, a, K) and instrument uncertainty (a,)."""
+    names = tuple(names)
+    weighted = _finite_weighted(jac, uncertainty)
     n_poses = len(np.asarray(jac))
     norms = np.linalg.norm(weighted, axis=0) / np.sqrt(n_poses)  # RMS per pose, so repeating the set scales J_s
     dead = norms <= 1e-12 * max(norms.max(initial=0.0), 1e-300)
@@ -177,7 +183,7 @@ class Identification:
 
 def _posterior(jac, uncertainty, precision) -> np.ndarray:
     """Posterior covariance ``(J_w^T J_w + diag(precision))^{-1}`` (pseudo-inverse; precision 0: no prior)."""
-    weighted = _weighted(jac, uncertainty)
+    weighted = _finite_weighted(jac, uncertainty)
     return np.linalg.pinv(weighted.T @ weighted + np.diag(precision))
 
 
