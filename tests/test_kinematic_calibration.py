@@ -386,3 +386,24 @@ def test_a_jacobian_that_is_not_finite_is_one_line_with_or_without_a_prior(prior
     with pytest.raises(InsufficientData, match=r"^identification Jacobian is not finite \(forward kinematics failed "
                                                r"at some pose\)$"):  # MAP: was numpy's "SVD did not converge"
         identify(model, model.predict(np.ones(3)), 0.05, prior_sigma=prior_sigma)
+
+
+@pytest.mark.parametrize("prior_sigma", [None, [np.inf, 0.3, 0.3]])
+def test_a_fit_that_stops_before_converging_is_refused_not_stored(monkeypatch, prior_sigma):
+    import bench.metrology.kinematic_calibration as module
+
+    solve = module.least_squares
+    monkeypatch.setattr(module, "least_squares", lambda *args, **kwargs: solve(*args, **{**kwargs, "max_nfev": 1}))
+    jac = np.random.default_rng(3).normal(0.0, 1.0, (10, 3, 3))
+
+    class Curved(_LinearModel):  # one Gauss-Newton step cannot reach the minimum
+        def predict(self, theta):
+            return super().predict(theta) + 0.5 * np.sin(theta).sum()
+
+        def jacobian(self, theta):
+            return self.jac + 0.5 * np.cos(theta)[None, None, :]
+
+    model = Curved(jac, "abc")
+    with pytest.raises(InsufficientData, match=r"^kinematic calibration refused: the solver stopped after \d model "
+                                               r"evaluations without converging \("):
+        identify(model, model.predict(np.array([0.4, -0.3, 0.2])), 0.05, prior_sigma=prior_sigma)

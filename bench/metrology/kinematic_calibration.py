@@ -284,6 +284,10 @@ def identify(model, measured, uncertainty, *, theta0=None, limit: float = CONDIT
         # 2-core machine, to the same solution within 0.003 standard uncertainties
         fit = least_squares(residual, theta0, jac=jac, method="lm", x_scale="jac", xtol=1e-10, ftol=1e-10)
     theta, nfev = fit.x, int(fit.nfev)
+    if not fit.success:  # status 0: the evaluation budget ran out; a solution short of the minimum is no calibration
+        raise InsufficientData(f"kinematic calibration refused: the solver stopped after {nfev} model evaluations "
+                               f"without converging ({fit.message}); expected a fit that converges: check the "
+                               "measurements against the commanded poses")
     final_jac = model_jacobian(theta)
     after = measured - model.predict(theta)
     obs, cov, prior_only = check(final_jac)
