@@ -41,7 +41,7 @@ from typing import Any
 from bench.calibration_compensation import calibration_name
 from bench.errors import ConfigError, InsufficientData
 
-__all__ = ["COMMANDED", "DEFAULT_UNCERTAINTY_MM", "FITS", "IdentifiedRun", "MEASURED", "check_fit",
+__all__ = ["COMMANDED", "DEFAULT_UNCERTAINTY_MM", "FITS", "IdentifiedRun", "InconsistentFit", "MEASURED", "check_fit",
            "check_uncertainty", "identify_run", "summary_lines"]
 
 #: Commanded fields of a pose sample per robot.
@@ -223,6 +223,33 @@ def _mean_error_mm(problem: _Problem, residuals) -> float:
     return float(np.mean(np.sqrt(squares)))
 
 
+class InconsistentFit(InsufficientData):
+    """The fit leaves residuals the stated instrument uncertainty cannot explain: its uncertainties would be
+    understated, so it is not stored."""
+
+
+def _refuse_if_inconsistent(result, uncertainty_mm: float, run_id: int) -> None:
+    """Refuse a fit whose reduced chi^2 an honest one would exceed once in a million
+    (:func:`bench.metrology.kinematic_calibration.reduced_chi2_limit`). Decision: such a calibration is not stored
+    with a warning. Its parameter uncertainties come from the stated instrument uncertainty, which the residuals
+    show is wrong (or the model misses an error source), so every uncertainty it would print and put in force is
+    too small. The line says what to do: state the real uncertainty (the residuals suggest ``u sqrt(chi^2)``; the fit
+    is then stored with honest uncertainties) or free what the model holds."""
+    from bench.metrology.kinematic_calibration import reduced_chi2_limit
+
+    limit = reduced_chi2_limit(result.degrees_of_freedom)
+    if not result.reduced_chi2 > limit:
+        return
+    ratio = float(result.reduced_chi2 ** 0.5)
+    free_more = "" if result.fit == "map" else ", free what the fit held (--fit map frees every parameter)"
+    raise InconsistentFit(
+        f"run {run_id}: the fit leaves residuals {ratio:.3g} times the stated uncertainty {uncertainty_mm:.3g} mm "
+        f"(reduced chi^2 {result.reduced_chi2:.3g} over {result.degrees_of_freedom:.3g} degrees of freedom, above "
+        f"the {limit:.3g} an honest fit exceeds once in a million), so its uncertainties would be understated; "
+        f"nothing stored. State the instrument's real uncertainty (--uncertainty-mm {uncertainty_mm * ratio:.2g})"
+        f"{free_more} or check the run for an error source the model lacks")
+
+
 def check_fit(fit: str | None) -> None:
     """Refuse an unknown fit name (one line); None: the robot's default."""
     if fit is not None and fit not in FITS:
@@ -263,6 +290,7 @@ def identify_run(store: Any, run_id: int, *, free: list[str] | tuple[str, ...] |
     frame_only = identify(problem.model(problem.required), problem.measured, u)
     prior_sigma = problem.prior(chosen) if fit == "map" else None
     result = identify(problem.model(chosen), problem.measured, u, prior_sigma=prior_sigma)
+    _refuse_if_inconsistent(result, u, run_id)
     params = {**result.as_dict(), "prior": problem.prior_source if fit == "map" else None,
               "robot": run.robot, "uncertainty_mm": u,
               "ap_before_mm": _mean_error_mm(problem, frame_only.residuals),

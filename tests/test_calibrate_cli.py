@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 from bench.cli import main
+from bench.errors import ConfigError
 from bench.metrology.kinematic_calibration import identifiable_subset, select_poses
 from bench.simulators.true_geometry import attained_poses, true_deviations, true_geometry
 from bench.store import Store
@@ -70,9 +71,17 @@ def test_calibrate_identifies_and_stores_a_version(tmp_path, capsys):
     for name in PARAMETERS:
         assert parameter_deviations(calibrated)[name] == pytest.approx(params[name]["value"], abs=1e-12)
 
-    assert main(["calibrate", str(run_id), "--store", str(path), "--json", "--fit", "free-set"]) == 0
+    # The free set holds the other parameters at the drawing, whose error stays in the residuals: reduced chi^2
+    # ~7, so its uncertainties would be understated; refused (nothing stored) and stored once the residuals' own
+    # scale is stated as the uncertainty.
+    assert main(["calibrate", str(run_id), "--store", str(path), "--json", "--fit", "free-set"]) == 1
+    err = capsys.readouterr().err
+    assert "--fit map frees every parameter" in err and "nothing stored" in err
+    suggested = err.split("--uncertainty-mm ")[1].split(")")[0]
+    assert main(["calibrate", str(run_id), "--store", str(path), "--json", "--fit", "free-set",
+                 "--uncertainty-mm", suggested]) == 0
     out = json.loads(capsys.readouterr().out)
-    free = identifiable_subset(jac, UNCERTAINTY_MM, ALL, required=REGISTRATION)
+    free = identifiable_subset(jac, float(suggested), ALL, required=REGISTRATION)
     assert out["version"] == 2 and out["fit"] == "free-set" and out["prior"] is None
     assert set(out["parameters"]) == set(free) and out["observability"]["condition_number"] <= 100
 
@@ -139,3 +148,25 @@ def test_calibrate_refuses_an_uncertainty_that_is_not_a_positive_finite_number_i
     assert main(["calibrate", str(run_id), "--store", str(path), "--uncertainty-mm", value]) == 2
     assert capsys.readouterr().err == (f"bench: error: --uncertainty-mm = {float(value)!r}, expected a positive finite "
                                        "number (the instrument's standard uncertainty per axis, mm)\n")
+
+
+def test_a_fit_the_stated_uncertainty_cannot_explain_is_refused_and_stored_once_stated_right(tmp_path, capsys):
+    """Readings with 0.05 mm noise stated as 0.01 mm: reduced chi^2 ~25, far above the 2.1 an honest fit of ~60
+    degrees of freedom exceeds once in a million; nothing is stored, and the line names the uncertainty the
+    residuals suggest, with which the same run is then stored with a reduced chi^2 near 1."""
+    commanded, steps, modes, _ = _design()
+    rng = np.random.default_rng(5)
+    measured = attained_poses(steps, modes, true_geometry(5))[:, :3] + rng.normal(0, UNCERTAINTY_MM, (30, 3))
+    path = tmp_path / "bench.db"
+    run_id = _store_run(path, commanded, measured)
+    assert main(["calibrate", str(run_id), "--store", str(path), "--uncertainty-mm", "0.01"]) == 1
+    err = capsys.readouterr().err
+    assert err.startswith(f"bench: error: run {run_id}: the fit leaves residuals ") and err.count("\n") == 1
+    assert "times the stated uncertainty 0.01 mm" in err and "nothing stored" in err
+    suggested = float(err.split("--uncertainty-mm ")[1].split(")")[0])
+    assert 0.035 < suggested < 0.07  # the residuals' own scale: the noise drawn, 0.05 mm
+    with Store(path) as store, pytest.raises(ConfigError, match="not found"):
+        store.calibration("pkm5_kinematics")
+    assert main(["calibrate", str(run_id), "--store", str(path), "--json", "--uncertainty-mm", str(suggested)]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert out["version"] == 1 and 0.5 < out["reduced_chi2"] < 1.5

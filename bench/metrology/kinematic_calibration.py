@@ -46,9 +46,9 @@ from scipy.optimize import least_squares
 
 from bench.errors import ConfigError, InsufficientData
 
-__all__ = ["CONDITION_LIMIT", "FOLD_MARGIN", "FREE_SET_LIMIT", "Identification", "MIN_INFORMED_SHARE", "Observability",
+__all__ = ["CHI2_FALSE_ALARM", "CONDITION_LIMIT", "FOLD_MARGIN", "FREE_SET_LIMIT", "Identification", "MIN_INFORMED_SHARE", "Observability",
            "PRIOR_ONLY_RATIO", "UnidentifiableParameters", "away_from_folds", "identifiable_subset", "identify",
-           "observability", "parameter_covariance", "select_poses"]
+           "observability", "parameter_covariance", "reduced_chi2_limit", "select_poses"]
 
 #: Largest condition number of the scaled identification Jacobian that is accepted (Schroer et al., in Nahvi &
 #: Hollerbach 1996: "a condition number below 100 is required for reliable results").
@@ -61,6 +61,10 @@ PRIOR_ONLY_RATIO = 1.0 / np.sqrt(2.0)
 MIN_INFORMED_SHARE = 0.5
 #: Pose selection leaves out candidates whose FK fold ratio is below this fraction of the candidates' median.
 FOLD_MARGIN = 0.01
+#: A fit whose reduced chi^2 an honest fit (the instrument's stated uncertainty right, the model complete) exceeds
+#: with at most this probability is inconsistent: its parameter uncertainties, computed from the stated uncertainty,
+#: would be understated (:func:`reduced_chi2_limit`).
+CHI2_FALSE_ALARM = 1e-6
 
 
 class UnidentifiableParameters(ConfigError):
@@ -121,6 +125,23 @@ def observability(jac, uncertainty, names, limit: float = CONDITION_LIMIT) -> Ob
         elif shown:
             weak.append(" ".join(f"{'+' if v[j] > 0 else '-'}{abs(v[j]):.2f}*{names[j]}" for j in shown).lstrip("+"))
     return Observability(names, sv, condition, o1, n_poses, tuple(dict.fromkeys(weak)))
+
+
+def reduced_chi2_limit(degrees_of_freedom: float, false_alarm: float = CHI2_FALSE_ALARM) -> float:
+    """The reduced chi^2 that an honest fit with ``nu`` degrees of freedom exceeds with probability ``false_alarm``:
+    ``chi2.isf(p, nu) / nu = 2 Q^-1(nu / 2, p) / nu``, with ``Q^-1`` the inverse of the regularised upper incomplete
+    gamma function (the chi^2 distribution's upper quantile, Press et al., Numerical Recipes 3rd ed. §6.2; ``nu`` may
+    be fractional, as a MAP fit's ``m - tr(H)`` is). ``inf`` below one degree of freedom (nothing to test).
+
+    >>> round(reduced_chi2_limit(60.0), 3)
+    2.118
+    """
+    from scipy.special import gammainccinv
+
+    nu = float(degrees_of_freedom)
+    if not np.isfinite(nu) or nu < 1.0:
+        return float("inf")
+    return float(2.0 * gammainccinv(nu / 2.0, false_alarm) / nu)
 
 
 def _refuse_if_poor(obs: Observability, limit: float) -> None:
