@@ -5,6 +5,8 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from figure_support import printed_font_sizes
 from reports_runs import SETTINGS, pose_config, write_pose_run
 
@@ -15,6 +17,7 @@ from bench.reports.plots import (
     deviation_histograms,
     drift_series,
     error_map_3d,
+    hull_loop,
     pose_scatter,
     report_plots,
 )
@@ -79,3 +82,28 @@ def test_figures_drawn_in_a_forked_process_are_the_same_pngs(report):
     here, forked = report_plots(report), report_plots(report)
     draw_all(forked, parallel=True)
     assert [png_bytes(plot) for plot in here] == [png_bytes(plot) for plot in forked]
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.lists(st.tuples(st.integers(-50, 50), st.integers(-50, 50)), min_size=1, max_size=40))
+def test_hull_loop_encloses_every_point_with_left_turns_only(coordinates):
+    points = np.array(coordinates, dtype=float)
+    loop = hull_loop(points)
+    if loop is None:  # no area: every point on one line
+        assert np.linalg.matrix_rank(points - points[0]) < 2
+        return
+    assert loop[0] == loop[-1] and len(set(loop[:-1].tolist())) == len(loop) - 1
+    corners = points[loop]
+    edges = np.diff(corners, axis=0)
+    turns = edges[:, 0] * np.roll(edges, -1, axis=0)[:, 1] - edges[:, 1] * np.roll(edges, -1, axis=0)[:, 0]
+    assert np.all(turns > 0)  # strictly convex, counter-clockwise: no collinear vertex kept
+    for start, edge in zip(corners[:-1], edges):  # every point on the inner side of every edge, or on it
+        relative = points - start
+        assert np.all(edge[0] * relative[:, 1] - edge[1] * relative[:, 0] >= 0)
+
+
+def test_hull_loop_has_scipys_vertices():
+    from scipy.spatial import ConvexHull
+
+    points = np.random.default_rng(1).normal(size=(2500, 2))
+    assert sorted(hull_loop(points)[:-1].tolist()) == sorted(ConvexHull(points).vertices.tolist())
