@@ -41,31 +41,65 @@ def test_every_text_is_at_least_7_pt_on_a4(report):
         assert plot.figure.get_size_inches()[0] == pytest.approx(PRINT_WIDTH_IN, abs=0.01)
 
 
+def _panels(plot):
+    """The grid of a small-multiples figure and its panels."""
+    grid = plot.figure._bench_small_multiples
+    return grid, grid.panels
+
+
+def _same_scale(grid) -> bool:
+    """Whether the same data point lies at the same place in every panel's frame (pixels from its lower left)."""
+    corners = np.array([[grid.xlim[0], grid.ylim[0]], [grid.xlim[1], grid.ylim[1]]])
+    places = [panel.transform.transform(corners) - panel.transform.transform(corners[:1]) for panel in grid.panels]
+    frames = [grid.axes.transData.transform(np.array(panel.box_in[:2])) for panel in grid.panels]
+    starts = [panel.transform.transform(corners[:1])[0] - frame for panel, frame in zip(grid.panels, frames)]
+    return all(np.allclose(p, places[0]) for p in places) and np.allclose(starts, 0.0, atol=1e-6)
+
+
 def test_small_multiples_share_one_scale_and_one_legend(report):
     for plot, count in ((pose_scatter(report), 15), (drift_series(report), 5)):
-        panels = [axes for axes in plot.figure.axes if axes.get_visible()]
-        assert len(panels) == count
-        assert len({axes.get_xlim() for axes in panels}) == 1 and len({axes.get_ylim() for axes in panels}) == 1
-        assert len(plot.figure.legends) == 1 and not any(axes.get_legend() for axes in panels)
+        grid, panels = _panels(plot)
+        assert len(panels) == count and len({panel.title for panel in panels}) == count
+        assert _same_scale(grid)
+        assert len(plot.figure.legends) == 1 and not any(axes.get_legend() for axes in plot.figure.axes)
     drift = drift_series(report)
     labels = [text.get_text() for text in drift.figure.legends[0].get_texts()]
     assert labels == ["100 % velocity", "50 % velocity", "10 % velocity"]
+    grid, panels = _panels(drift)
+    colours = {}  # what the one legend says holds in every panel: one colour per velocity
+    for panel in panels:
+        for line in panel.artists:
+            colours.setdefault(line.get_label(), set()).add(line.get_color())
+    assert sorted(colours) == sorted(labels) and all(len(c) == 1 for c in colours.values())
+
+
+def test_pose_scatter_shows_every_cycle_inside_its_panel(report):
+    grid, panels = _panels(pose_scatter(report))
+    assert grid.xlim == grid.ylim  # one scale for x and y: the RP circle is round
+    for panel, result in zip(panels, report.poses):
+        points = panel.artists[0].get_offsets()
+        assert len(points) == result.accuracy.n
+        assert np.all((points >= grid.xlim[0]) & (points <= grid.xlim[1]))
+        circle = panel.artists[3]
+        assert circle.get_radius() == pytest.approx(result.repeatability.rp_mm)
+        assert np.all(np.abs(np.asarray(circle.center)) + circle.get_radius() <= grid.xlim[1])
 
 
 def test_deviation_histograms_count_every_cycle_on_shared_bins(report):
     plot = deviation_histograms(report)
-    panels = [axes for axes in plot.figure.axes if axes.get_visible()]
+    grid, panels = _panels(plot)
     assert len(panels) == len(report.poses) == 15
-    assert len({axes.get_xlim() for axes in panels}) == 1 and len({axes.get_ylim() for axes in panels}) == 1
+    assert _same_scale(grid) and grid.ylim[0] == 0.0
     assert len(plot.figure.legends) == 1
-    for axes, result in zip(panels, report.poses):
-        outlines = axes.patches  # one step outline per axis x, y, z
+    for panel, result in zip(panels, report.poses):
+        outlines = [a for a in panel.artists if not a.get_label().startswith("_")]  # one step outline per axis
         assert len(outlines) == 3
-        edges = [np.unique(patch.get_xy()[:, 0]) for patch in outlines]
+        edges = [np.unique(line.get_xdata()) for line in outlines]
         assert all(np.array_equal(edges[0], e) for e in edges)  # the same bins
         # the step outline's heights over the bins add up to the cycles of the pose
-        heights = outlines[0].get_xy()[1:-1:2, 1]
+        heights = outlines[0].get_ydata()[1:-1:2]
         assert heights.sum() == pytest.approx(result.accuracy.n)
+        assert heights.max() <= grid.ylim[1]
 
 
 def test_error_map_colours_each_pose_by_its_ap(report):

@@ -26,6 +26,7 @@ from matplotlib.text import Text
 from matplotlib.ticker import MaxNLocator
 
 from bench.reports.content import RunReport
+from bench.reports.small_multiples import SmallMultiples
 
 __all__ = ["MIN_FONT_PT", "PRINT_HEIGHT_IN", "PRINT_WIDTH_IN", "Plot", "REPORT_DPI", "comparison_plot",
            "deviation_histograms", "draw_all", "error_map_3d", "hull_loop", "legend_entries", "print_ready", "panels",
@@ -271,29 +272,39 @@ def _measured(result) -> tuple[np.ndarray, list[str]]:
     return np.asarray(result.commanded_mm)[["xyz".index(a) for a in result.axis_names]], columns
 
 
+def _grid(count: int, panel_size: tuple[float, float]) -> SmallMultiples:
+    """The pose figures' small multiples: five panels a row at print width."""
+    return SmallMultiples(count, max_columns=5, panel_size=panel_size, width_in=PRINT_WIDTH_IN, font_pt=MIN_FONT_PT)
+
+
+def _finish(grid: SmallMultiples, xlabel: str, ylabel: str) -> Figure:
+    """Shared scales fixed, the quantities named once for the figure, one legend on top."""
+    figure = grid.finish()
+    figure.supxlabel(xlabel, fontsize=MIN_FONT_PT + 1, y=0.005, va="bottom")
+    figure.supylabel(ylabel, fontsize=MIN_FONT_PT + 1, x=0.005, ha="left")
+    legend = legend_entries([grid.axes])
+    figure.legend(list(legend.values()), list(legend), loc="upper center", ncols=len(legend),
+                  fontsize=MIN_FONT_PT + 1)
+    return figure
+
+
 def pose_scatter(report: RunReport) -> Plot:
     """Per pose: attained points minus the command (x-y plane), barycentre and the RP circle around it; one scale
     for every panel (the largest RP circle fits), one legend for the figure."""
-    figure, panel = panels(len(report.poses), max_columns=5, size=(1.45, 1.45), share=True)
+    grid = _grid(len(report.poses), (1.45, 1.45))
     reach = max(float(np.abs(np.asarray(r.accuracy.ap_axes_mm[:2])).max()) + r.repeatability.rp_mm
                 for r in report.poses)
-    for result, axes in zip(report.poses, panel):
+    for result, panel in zip(report.poses, grid.panels):
         points = _rows_of(report, result)[_POSITION[:2]].to_numpy() - np.asarray(result.commanded_mm[:2])
         centre = np.asarray(result.accuracy.ap_axes_mm[:2])
-        axes.scatter(points[:, 0], points[:, 1], s=3, color="tab:blue", label="attained", linewidths=0)
-        axes.plot(*centre, marker="+", color="tab:red", markersize=7, linestyle="", label="barycentre")
-        axes.plot(0, 0, marker="x", color="black", linestyle="", label="command")
-        axes.add_patch(Circle(centre, result.repeatability.rp_mm, fill=False, color="tab:red", lw=0.8,
-                              label="circle of radius RP_l"))
-        axes.set_title(_short_label(result), fontsize=MIN_FONT_PT, pad=2)
-    panel[0].set_xlim(-reach * 1.05, reach * 1.05)
-    panel[0].set_ylim(-reach * 1.05, reach * 1.05)
-    for axes in panel:
-        axes.set_aspect("equal", adjustable="box")
-    figure.supxlabel("x − x_c (mm)", fontsize=MIN_FONT_PT + 1, y=0.005, va="bottom")
-    figure.supylabel("y − y_c (mm)", fontsize=MIN_FONT_PT + 1, x=0.005, ha="left")
-    handles, labels = panel[0].get_legend_handles_labels()
-    figure.legend(handles, labels, loc="upper center", ncols=len(labels), fontsize=MIN_FONT_PT + 1)
+        panel.scatter(points[:, 0], points[:, 1], s=3, color="tab:blue", label="attained", linewidths=0)
+        panel.plot(*centre, marker="+", color="tab:red", markersize=7, linestyle="", label="barycentre")
+        panel.plot(0, 0, marker="x", color="black", linestyle="", label="command")
+        panel.circle(centre, result.repeatability.rp_mm, fill=False, color="tab:red", lw=0.8,
+                     label="circle of radius RP_l")
+        panel.set_title(_short_label(result))
+    grid.xlim = grid.ylim = (-reach * 1.05, reach * 1.05)  # square panels, one scale: circles are round
+    figure = _finish(grid, "x − x_c (mm)", "y − y_c (mm)")
     return Plot("Attained positions per pose relative to the command (x-y projection), with the barycentre "
                 "and a circle of radius RP_l around it; every panel on the same scale.", figure)
 
@@ -378,24 +389,21 @@ def ap_on_workspace(report: RunReport) -> Plot | None:
 def drift_series(report: RunReport) -> Plot:
     """Small multiples, one panel per pose, on one scale: per-cycle distance of each attained point from its
     command in cycle order (drift and warm-up), one line per set of conditions, one legend for the figure."""
+    from bench.metrology.formatting import condition_text
+
     names = list(dict.fromkeys(r.pose for r in report.poses))
-    figure, panel = panels(len(names), max_columns=5, size=(1.45, 1.5), share=True)
-    by_pose = dict(zip(names, panel))
+    grid = _grid(len(names), (1.45, 1.5))
+    by_pose = dict(zip(names, grid.panels))
     for result in report.poses:
         rows = _rows_of(report, result)
         command, measured = _measured(result)
         distance = np.linalg.norm(rows[measured].to_numpy() - command, axis=1)
-        from bench.metrology.formatting import condition_text
-
-        by_pose[result.pose].plot(rows["cycle"], distance, marker=".", markersize=2, lw=0.8,
+        by_pose[result.pose].plot(rows["cycle"].to_numpy(), distance, marker=".", markersize=2, lw=0.8,
                                   label=condition_text(result.conditions) or "all cycles")
-    for name, axes in by_pose.items():
-        axes.set_title(name, fontsize=MIN_FONT_PT, pad=2)
-        axes.xaxis.set_major_locator(MaxNLocator(integer=True, nbins=4))
-    figure.supxlabel("cycle", fontsize=MIN_FONT_PT + 1, y=0.005, va="bottom")
-    figure.supylabel("|attained − command| (mm)", fontsize=MIN_FONT_PT + 1, x=0.005, ha="left")
-    handles, labels = panel[0].get_legend_handles_labels()
-    figure.legend(handles, labels, loc="upper center", ncols=max(1, len(labels)), fontsize=MIN_FONT_PT + 1)
+    for name, panel in by_pose.items():
+        panel.set_title(name)
+    grid.x_locator = MaxNLocator(integer=True, nbins=4)
+    figure = _finish(grid, "cycle", "|attained − command| (mm)")
     return Plot("Per pose, on one scale: distance of each attained point from its command, cycle by cycle (a trend "
                 "shows drift or warm-up).", figure)
 
@@ -408,18 +416,14 @@ def deviation_histograms(report: RunReport) -> Plot:
         command, columns = _measured(result)
         deviations.append(_rows_of(report, result)[columns].to_numpy() - command)
     edges = np.histogram_bin_edges(np.concatenate(deviations).ravel(), bins=24)
-    figure, panel = panels(len(report.poses), max_columns=5, size=(1.45, 1.2), share=True)
-    for result, axes, deviation in zip(report.poses, panel, deviations):
+    grid = _grid(len(report.poses), (1.45, 1.2))
+    for result, panel, deviation in zip(report.poses, grid.panels, deviations):
         for column, (name, colour) in enumerate(zip(result.axis_names, ("tab:blue", "tab:orange", "tab:green"))):
-            axes.hist(deviation[:, column], bins=edges, histtype="step", color=colour, lw=1.0,
-                      label=f"{name} − {name}_c")
-        axes.axvline(0.0, color="0.4", lw=0.6)
-        axes.set_title(_short_label(result), fontsize=MIN_FONT_PT, pad=2)
-        axes.yaxis.set_major_locator(MaxNLocator(integer=True, nbins=4))
-    figure.supxlabel("attained − command (mm)", fontsize=MIN_FONT_PT + 1, y=0.005, va="bottom")
-    figure.supylabel("cycles", fontsize=MIN_FONT_PT + 1, x=0.005, ha="left")
-    handles, labels = panel[0].get_legend_handles_labels()
-    figure.legend(handles, labels, loc="upper center", ncols=len(labels), fontsize=MIN_FONT_PT + 1)
+            panel.step_histogram(deviation[:, column], edges, color=colour, lw=1.0, label=f"{name} − {name}_c")
+        panel.vline(0.0, color="0.4", lw=0.6)
+        panel.set_title(_short_label(result))
+    grid.y_locator = MaxNLocator(integer=True, nbins=4)
+    figure = _finish(grid, "attained − command (mm)", "cycles")
     return Plot("Per pose, on one scale and with the same bins: histograms of the deviation of every attained "
                 "position from its command, per axis (the offset of a histogram from 0 is the signed AP of that "
                 "axis, its width the scatter behind RP).", figure)

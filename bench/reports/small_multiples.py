@@ -1,0 +1,214 @@
+"""Small multiples on one scale, drawn as one matplotlib Axes: panels are boxes of that Axes, each mapping the
+shared limits onto its box, with one set of tick positions and labels computed once for all of them.
+
+Why not one Axes per panel: matplotlib's fixed cost per Axes (construction, two axes with their tick objects, each
+tick label laid out per draw) is most of a 15-panel figure's time, and every panel of a small multiple has the same
+scale, so the same ticks. What the reader sees is the same: a frame per panel with tick marks on its bottom and left
+edges, tick labels on the outer panels (the left column, and the lowest panel of each column), a title per panel,
+every panel on one x and one y scale.
+
+The figure is drawn at print width (:data:`bench.reports.plots.PRINT_WIDTH_IN`), so a point is a point on paper.
+The Axes' own coordinates are inches of the panel area (origin at its lower left); a panel's transform maps its
+data (in the shared limits) into its box.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+
+import numpy as np
+from matplotlib.collections import LineCollection
+from matplotlib.figure import Figure
+from matplotlib.patches import Circle
+from matplotlib.ticker import MaxNLocator
+from matplotlib.transforms import Affine2D, Bbox, TransformedBbox
+
+__all__ = ["Panel", "SmallMultiples"]
+
+#: matplotlib's defaults for what is drawn here by hand (rcParams xtick.major.size/pad, axes.linewidth,
+#: axes.xmargin, axes.titlepad is replaced by 2 pt as the report's panels had), points and fractions.
+_TICK_PT, _TICK_PAD_PT, _FRAME_PT, _MARGIN, _TITLE_PAD_PT = 3.5, 3.5, 0.8, 0.05, 2.0
+
+
+class Panel:
+    """One panel: draws into the grid's Axes in its own data coordinates (the shared limits), clipped to its box."""
+
+    def __init__(self, grid: SmallMultiples, row: int, column: int):
+        self.grid, self.row, self.column = grid, row, column
+        self._to_box = Affine2D()  # data -> inches of the panel area, set once the limits are known (finish)
+        self.transform = self._to_box + grid.axes.transData
+        self.x_extent: list[float] = []
+        self.y_extent: list[float] = []
+        self.title = ""
+        self._unstyled_lines = 0
+        self.artists: list = []  # what the panel drew, in order
+
+    @property
+    def box_in(self) -> tuple[float, float, float, float]:
+        """(x0, y0, width, height) of the panel's frame, inches from the lower left of the panel area."""
+        g = self.grid
+        x0 = self.column * (g.panel_width_in + g.gap_width_in)
+        y0 = (g.rows - 1 - self.row) * (g.panel_height_in + g.gap_height_in)
+        return x0, y0, g.panel_width_in, g.panel_height_in
+
+    def _placed(self, artist, x=(), y=()):
+        self.x_extent.extend(np.ravel(np.asarray(x, dtype=float)).tolist())
+        self.y_extent.extend(np.ravel(np.asarray(y, dtype=float)).tolist())
+        x0, y0, width, height = self.box_in
+        artist.set_clip_box(TransformedBbox(Bbox.from_bounds(x0, y0, width, height), self.grid.axes.transData))
+        self.artists.append(artist)
+        return artist
+
+    def plot(self, x, y, **kwargs):
+        """A line (``Axes.plot`` keywords); its points count for the shared limits. Without a colour, the next of
+        the panel's own colour cycle (C0, C1, ...), so the n-th series has one colour in every panel."""
+        if "color" not in kwargs and "c" not in kwargs:
+            kwargs["color"] = f"C{self._unstyled_lines % 10}"
+            self._unstyled_lines += 1
+        (line,) = self.grid.axes.plot(x, y, transform=self.transform, **kwargs)
+        return self._placed(line, x, y)
+
+    def scatter(self, x, y, **kwargs):
+        return self._placed(self.grid.axes.scatter(x, y, transform=self.transform, **kwargs), x, y)
+
+    def circle(self, centre, radius: float, **kwargs):
+        """A circle in data units (round on paper when the grid's x and y scales are equal)."""
+        patch = self.grid.axes.add_patch(Circle(centre, radius, transform=self.transform, **kwargs))
+        return self._placed(patch, [centre[0] - radius, centre[0] + radius], [centre[1] - radius, centre[1] + radius])
+
+    def step_histogram(self, values, edges, **kwargs) -> np.ndarray:
+        """The histogram of ``values`` over ``edges`` as a step outline from 0 (``histtype="step"``); the counts."""
+        counts, _ = np.histogram(values, bins=edges)
+        x = np.repeat(edges, 2)
+        y = np.concatenate([[0.0], np.repeat(counts, 2), [0.0]])
+        self.plot(x, y, **kwargs)
+        self.grid.y_floor = 0.0  # counts start at 0, with no margin below (as matplotlib's hist)
+        return counts
+
+    def vline(self, x: float, **kwargs):
+        """A vertical line across the panel at data ``x`` (which counts for the x limits only)."""
+        line = self.grid.axes.plot([x, x], [0.0, 1.0], transform=self._vertical(), **kwargs)[0]
+        return self._placed(line, [x], [])
+
+    def _vertical(self):
+        from matplotlib.transforms import blended_transform_factory
+
+        x0, y0, _, height = self.box_in
+        box_y = Affine2D().scale(1.0, height).translate(0.0, y0) + self.grid.axes.transData
+        return blended_transform_factory(self.transform, box_y)
+
+    def set_title(self, text: str) -> None:
+        self.title = text
+
+
+class SmallMultiples:
+    """``count`` panels, ``max_columns`` per row, each ``panel_size`` (width, height) in proportion, filling the
+    print width; one x and one y scale for all (``xlim``/``ylim`` fixed, or data limits with 5 % margins);
+    ``x_locator``/``y_locator``: tick positions (default: matplotlib's automatic choice for the panel's size)."""
+
+    def __init__(self, count: int, *, max_columns: int, panel_size: tuple[float, float], width_in: float,
+                 margins_in: tuple[float, float, float, float] = (0.62, 0.08, 0.5, 0.5),
+                 gaps: tuple[float, float] = (0.12, 0.32), font_pt: float = 7.0):
+        if count < 1:
+            raise ValueError(f"count = {count}, expected at least one panel")
+        self.count, self.font_pt = count, font_pt
+        self.columns = max(1, min(max_columns, count))
+        self.rows = math.ceil(count / self.columns)
+        left, right, bottom, top = margins_in
+        area_width = width_in - left - right
+        self.panel_width_in = area_width / (self.columns + (self.columns - 1) * gaps[0])
+        self.panel_height_in = self.panel_width_in * panel_size[1] / panel_size[0]
+        self.gap_width_in = gaps[0] * self.panel_width_in
+        self.gap_height_in = gaps[1] * self.panel_height_in
+        area_height = self.rows * self.panel_height_in + (self.rows - 1) * self.gap_height_in
+        height_in = area_height + bottom + top
+        self.figure = Figure(figsize=(width_in, height_in))
+        self.axes = self.figure.add_axes((left / width_in, bottom / height_in, area_width / width_in,
+                                          area_height / height_in))
+        self.axes.set_xlim(0.0, area_width)
+        self.axes.set_ylim(0.0, area_height)
+        self.axes.set_axis_off()  # frames, ticks and labels are drawn per panel (finish)
+        self.panels = [Panel(self, index // self.columns, index % self.columns) for index in range(count)]
+        self.xlim: tuple[float, float] | None = None
+        self.ylim: tuple[float, float] | None = None
+        self.x_locator = self.y_locator = None
+        self.y_floor: float | None = None
+        self.figure._bench_small_multiples = self
+
+    def finish(self) -> Figure:
+        """Fix the shared limits, map every panel's data into its box, draw frames, ticks, tick labels and titles."""
+        xlim = self.xlim or self._data_limits([p.x_extent for p in self.panels], None)
+        ylim = self.ylim or self._data_limits([p.y_extent for p in self.panels], self.y_floor)
+        for panel in self.panels:
+            x0, y0, width, height = panel.box_in
+            panel._to_box.clear().translate(-xlim[0], -ylim[0]).scale(
+                width / (xlim[1] - xlim[0]), height / (ylim[1] - ylim[0])).translate(x0, y0)
+        self.xlim, self.ylim = xlim, ylim
+        x_ticks = self._ticks(xlim, self.x_locator, self.panel_width_in * 72 / (3 * self.font_pt))
+        y_ticks = self._ticks(ylim, self.y_locator, self.panel_height_in * 72 / (2 * self.font_pt))
+        self._draw_frames_and_ticks(x_ticks, y_ticks)
+        return self.figure
+
+    @staticmethod
+    def _data_limits(extents: Sequence[list[float]], floor: float | None) -> tuple[float, float]:
+        values = np.array([v for extent in extents for v in extent], dtype=float)
+        values = values[np.isfinite(values)]
+        low, high = (float(values.min()), float(values.max())) if len(values) else (0.0, 1.0)
+        if high == low:
+            low, high = low - 0.5, high + 0.5
+        pad = _MARGIN * (high - low)
+        return (low - pad if floor is None else floor), high + pad
+
+    @staticmethod
+    def _ticks(limits, locator, tick_space: float) -> np.ndarray:
+        """Tick positions within ``limits``: ``locator``'s, else matplotlib's automatic choice (MaxNLocator with
+        as many bins as fit the panel: 3 label heights per x tick, 2 per y tick, at most 9)."""
+        locator = locator or MaxNLocator(nbins=int(np.clip(math.floor(tick_space), 1, 9)),
+                                         steps=[1, 2, 2.5, 5, 10])
+        ticks = np.asarray(locator.tick_values(*limits), dtype=float)
+        span = limits[1] - limits[0]
+        return ticks[(ticks >= limits[0] - 1e-9 * span) & (ticks <= limits[1] + 1e-9 * span)]
+
+    @staticmethod
+    def _labels(ticks: np.ndarray) -> list[str]:
+        """The labels matplotlib's ScalarFormatter gives evenly spaced ticks: the fewest decimals that show every
+        tick exactly, the same for all, "−" for negatives, and 0 unsigned."""
+        span = float(np.ptp(ticks)) if len(ticks) > 1 else max(abs(float(ticks[0])), 1.0) if len(ticks) else 1.0
+        decimals = next((d for d in range(12) if np.allclose(np.round(ticks, d), ticks, rtol=0, atol=1e-6 * span)),
+                        12)
+        labels = []
+        for value in ticks:
+            text = f"{value:.{decimals}f}"
+            labels.append(text.lstrip("-") if float(text) == 0 else text.replace("-", "\N{MINUS SIGN}"))
+        return labels
+
+    def _draw_frames_and_ticks(self, x_ticks: np.ndarray, y_ticks: np.ndarray) -> None:
+        axes, tick = self.axes, _TICK_PT / 72
+        lowest = {}  # the lowest panel of each column gets the x tick labels
+        for panel in self.panels:
+            lowest[panel.column] = panel
+        frames, marks = [], []
+        x_labels, y_labels = self._labels(x_ticks), self._labels(y_ticks)
+        for panel in self.panels:
+            x0, y0, width, height = panel.box_in
+            frames.append([(x0, y0), (x0 + width, y0), (x0 + width, y0 + height), (x0, y0 + height), (x0, y0)])
+            xs = x0 + (x_ticks - self.xlim[0]) * width / (self.xlim[1] - self.xlim[0])
+            ys = y0 + (y_ticks - self.ylim[0]) * height / (self.ylim[1] - self.ylim[0])
+            marks.extend([[(x, y0), (x, y0 - tick)] for x in xs])
+            marks.extend([[(x0, y), (x0 - tick, y)] for y in ys])
+            if lowest[panel.column] is panel:
+                for x, label in zip(xs, x_labels):
+                    axes.text(x, y0 - (_TICK_PT + _TICK_PAD_PT) / 72, label, ha="center", va="top",
+                              fontsize=self.font_pt)
+            if panel.column == 0:
+                for y, label in zip(ys, y_labels):
+                    axes.text(x0 - (_TICK_PT + _TICK_PAD_PT) / 72, y, label, ha="right", va="center",
+                              fontsize=self.font_pt)
+            if panel.title:
+                axes.text(x0 + width / 2, y0 + height + _TITLE_PAD_PT / 72, panel.title, ha="center",
+                          va="baseline", fontsize=self.font_pt)
+        axes.add_collection(LineCollection(frames, colors="black", linewidths=_FRAME_PT, capstyle="projecting",
+                                           joinstyle="miter", zorder=2.5))
+        axes.add_collection(LineCollection(marks, colors="black", linewidths=_FRAME_PT, clip_on=False,
+                                           zorder=2.5))
