@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
-from figure_support import printed_font_sizes
+from figure_support import printed_font_sizes, same_scale, small_multiples
 from reports_runs import SETTINGS, pose_config, write_pose_run
 
 from bench.reports import collect
@@ -41,31 +41,16 @@ def test_every_text_is_at_least_7_pt_on_a4(report):
         assert plot.figure.get_size_inches()[0] == pytest.approx(PRINT_WIDTH_IN, abs=0.01)
 
 
-def _panels(plot):
-    """The grid of a small-multiples figure and its panels."""
-    grid = plot.figure._bench_small_multiples
-    return grid, grid.panels
-
-
-def _same_scale(grid) -> bool:
-    """Whether the same data point lies at the same place in every panel's frame (pixels from its lower left)."""
-    corners = np.array([[grid.xlim[0], grid.ylim[0]], [grid.xlim[1], grid.ylim[1]]])
-    places = [panel.transform.transform(corners) - panel.transform.transform(corners[:1]) for panel in grid.panels]
-    frames = [grid.axes.transData.transform(np.array(panel.box_in[:2])) for panel in grid.panels]
-    starts = [panel.transform.transform(corners[:1])[0] - frame for panel, frame in zip(grid.panels, frames)]
-    return all(np.allclose(p, places[0]) for p in places) and np.allclose(starts, 0.0, atol=1e-6)
-
-
 def test_small_multiples_share_one_scale_and_one_legend(report):
     for plot, count in ((pose_scatter(report), 15), (drift_series(report), 5)):
-        grid, panels = _panels(plot)
+        grid, panels = small_multiples(plot)
         assert len(panels) == count and len({panel.title for panel in panels}) == count
-        assert _same_scale(grid)
+        assert same_scale(grid)
         assert len(plot.figure.legends) == 1 and not any(axes.get_legend() for axes in plot.figure.axes)
     drift = drift_series(report)
     labels = [text.get_text() for text in drift.figure.legends[0].get_texts()]
     assert labels == ["100 % velocity", "50 % velocity", "10 % velocity"]
-    grid, panels = _panels(drift)
+    grid, panels = small_multiples(drift)
     colours = {}  # what the one legend says holds in every panel: one colour per velocity
     for panel in panels:
         for line in panel.artists:
@@ -74,7 +59,7 @@ def test_small_multiples_share_one_scale_and_one_legend(report):
 
 
 def test_pose_scatter_shows_every_cycle_inside_its_panel(report):
-    grid, panels = _panels(pose_scatter(report))
+    grid, panels = small_multiples(pose_scatter(report))
     assert grid.xlim == grid.ylim  # one scale for x and y: the RP circle is round
     for panel, result in zip(panels, report.poses):
         points = panel.artists[0].get_offsets()
@@ -87,9 +72,9 @@ def test_pose_scatter_shows_every_cycle_inside_its_panel(report):
 
 def test_deviation_histograms_count_every_cycle_on_shared_bins(report):
     plot = deviation_histograms(report)
-    grid, panels = _panels(plot)
+    grid, panels = small_multiples(plot)
     assert len(panels) == len(report.poses) == 15
-    assert _same_scale(grid) and grid.ylim[0] == 0.0
+    assert same_scale(grid) and grid.ylim[0] == 0.0
     assert len(plot.figure.legends) == 1
     for panel, result in zip(panels, report.poses):
         outlines = [a for a in panel.artists if not a.get_label().startswith("_")]  # one step outline per axis

@@ -19,9 +19,7 @@ import threading
 from dataclasses import dataclass
 
 import numpy as np
-from matplotlib import rc_context
 from matplotlib.figure import Figure
-from matplotlib.patches import Circle
 from matplotlib.text import Text
 from matplotlib.ticker import MaxNLocator
 
@@ -50,7 +48,6 @@ def print_ready(figure: Figure) -> Figure:
     fixed layout: saving it as SVG and PNG draws it once each, with no layout pass per save)."""
     if getattr(figure, "_bench_print_ready", False):
         return figure
-    _share_scales(figure)
     width, height = figure.get_size_inches()
     scale = min(PRINT_WIDTH_IN / width, PRINT_HEIGHT_IN / height)
     figure.set_size_inches(width * scale, height * scale)
@@ -199,64 +196,14 @@ def _rows_of(report: RunReport, result) -> np.ndarray:
     return table[mask].sort_values("cycle")
 
 
-def panels(count: int, *, max_columns: int, size: tuple[float, float] = (2.6, 2.6),
-           share: bool = False) -> tuple[Figure, list]:
+def panels(count: int, *, max_columns: int, size: tuple[float, float] = (2.6, 2.6)) -> tuple[Figure, list]:
     """A figure with ``count`` small panels, ``max_columns`` per row at most, each ``size`` inches before the
-    figure is scaled to the print width (:func:`print_ready`); ``share``: one x and one y scale for all panels
-    (small multiples compared by eye), tick labels on the outer panels only."""
+    figure is scaled to the print width (:func:`print_ready`), each panel on its own scale. Small multiples on one
+    scale are :class:`bench.reports.small_multiples.SmallMultiples`."""
     columns = max(1, min(max_columns, count))
     rows = math.ceil(count / columns)
-    if not share:
-        figure = Figure(figsize=(size[0] * columns, size[1] * rows + 0.4), layout="constrained")
-        return figure, [figure.add_subplot(rows, columns, index + 1) for index in range(count)]
-    # shared panels: drawn at print width with a fixed layout (margins in inches: y label, x label, legend on top)
-    left, right, bottom, top = 0.62, 0.08, 0.5, 0.5
-    width = PRINT_WIDTH_IN
-    height = (width - left - right) * size[1] * rows / (size[0] * columns) + bottom + top
-    figure = Figure(figsize=(width, height))
-    figure.subplots_adjust(left=left / width, right=1 - right / width, bottom=bottom / height,
-                           top=1 - top / height, wspace=0.12, hspace=0.32)
-    # not matplotlib's sharex/sharey: every operation on a shared axes walks all its siblings (weak references), a
-    # third of a 15-panel figure's time; the panels get one scale once, when the figure is made print ready
-    # titles at a fixed height (axes.titley set): by default matplotlib measures every tick label of the panel
-    # again at each draw to move a title clear of ticks on top, which panels never have (40 % of their drawing)
-    with rc_context({"axes.titley": 1.0}):
-        grid = figure.subplots(rows, columns, squeeze=False)
-    for extra in grid.flat[count:]:
-        extra.set_visible(False)
-    for axes in grid.flat:
-        axes.label_outer()  # tick labels on the outer panels only, as sharex/sharey do
-        # no axis labels of their own (the figure's supxlabel/supylabel name the quantities): a fixed position
-        # spares matplotlib measuring the tick labels a second time to place an empty label
-        axes.xaxis.set_label_coords(0.5, 0.0)
-        axes.yaxis.set_label_coords(0.0, 0.5)
-    figure._bench_shared_panels = list(grid.flat[:count])
-    return figure, list(grid.flat[:count])
-
-
-def _share_scales(figure: Figure) -> None:
-    """One x and one y scale for the panels of ``panels(..., share=True)``: limits set on a panel (autoscale off)
-    hold for all, else every panel is autoscaled over the data of all (as matplotlib's shared axes are)."""
-    shared = getattr(figure, "_bench_shared_panels", None)
-    if not shared:
-        return
-    for axis in "xy":
-        fixed = [axes for axes in shared if not getattr(axes, f"get_autoscale{axis}_on")()]
-        if fixed:
-            limits = getattr(fixed[-1], f"get_{axis}lim")()
-        else:
-            spans = [getattr(axes.dataLim, f"interval{axis}") for axes in shared
-                     if np.all(np.isfinite(getattr(axes.dataLim, f"interval{axis}")))]
-            for axes in shared:
-                if spans:
-                    corners = np.array([[min(s[0] for s in spans)] * 2, [max(s[1] for s in spans)] * 2])
-                    axes.dataLim.update_from_data_xy(corners, ignore=False, updatex=axis == "x",
-                                                     updatey=axis == "y")
-                axes.autoscale_view(scalex=axis == "x", scaley=axis == "y")
-            each = [getattr(axes, f"get_{axis}lim")() for axes in shared]
-            limits = (min(low for low, _ in each), max(high for _, high in each))
-        for axes in shared:
-            getattr(axes, f"set_{axis}lim")(limits)
+    figure = Figure(figsize=(size[0] * columns, size[1] * rows + 0.4), layout="constrained")
+    return figure, [figure.add_subplot(rows, columns, index + 1) for index in range(count)]
 
 
 def _short_label(result) -> str:
@@ -277,17 +224,6 @@ def _grid(count: int, panel_size: tuple[float, float]) -> SmallMultiples:
     return SmallMultiples(count, max_columns=5, panel_size=panel_size, width_in=PRINT_WIDTH_IN, font_pt=MIN_FONT_PT)
 
 
-def _finish(grid: SmallMultiples, xlabel: str, ylabel: str) -> Figure:
-    """Shared scales fixed, the quantities named once for the figure, one legend on top."""
-    figure = grid.finish()
-    figure.supxlabel(xlabel, fontsize=MIN_FONT_PT + 1, y=0.005, va="bottom")
-    figure.supylabel(ylabel, fontsize=MIN_FONT_PT + 1, x=0.005, ha="left")
-    legend = legend_entries([grid.axes])
-    figure.legend(list(legend.values()), list(legend), loc="upper center", ncols=len(legend),
-                  fontsize=MIN_FONT_PT + 1)
-    return figure
-
-
 def pose_scatter(report: RunReport) -> Plot:
     """Per pose: attained points minus the command (x-y plane), barycentre and the RP circle around it; one scale
     for every panel (the largest RP circle fits), one legend for the figure."""
@@ -304,7 +240,7 @@ def pose_scatter(report: RunReport) -> Plot:
                      label="circle of radius RP_l")
         panel.set_title(_short_label(result))
     grid.xlim = grid.ylim = (-reach * 1.05, reach * 1.05)  # square panels, one scale: circles are round
-    figure = _finish(grid, "x − x_c (mm)", "y − y_c (mm)")
+    figure = grid.finish("x − x_c (mm)", "y − y_c (mm)")
     return Plot("Attained positions per pose relative to the command (x-y projection), with the barycentre "
                 "and a circle of radius RP_l around it; every panel on the same scale.", figure)
 
@@ -403,7 +339,7 @@ def drift_series(report: RunReport) -> Plot:
     for name, panel in by_pose.items():
         panel.set_title(name)
     grid.x_locator = MaxNLocator(integer=True, nbins=4)
-    figure = _finish(grid, "cycle", "|attained − command| (mm)")
+    figure = grid.finish("cycle", "|attained − command| (mm)")
     return Plot("Per pose, on one scale: distance of each attained point from its command, cycle by cycle (a trend "
                 "shows drift or warm-up).", figure)
 
@@ -423,7 +359,7 @@ def deviation_histograms(report: RunReport) -> Plot:
         panel.vline(0.0, color="0.4", lw=0.6)
         panel.set_title(_short_label(result))
     grid.y_locator = MaxNLocator(integer=True, nbins=4)
-    figure = _finish(grid, "attained − command (mm)", "cycles")
+    figure = grid.finish("attained − command (mm)", "cycles")
     return Plot("Per pose, on one scale and with the same bins: histograms of the deviation of every attained "
                 "position from its command, per axis (the offset of a histogram from 0 is the signed AP of that "
                 "axis, its width the scatter behind RP).", figure)

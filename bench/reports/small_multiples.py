@@ -21,14 +21,16 @@ import numpy as np
 from matplotlib.collections import LineCollection
 from matplotlib.figure import Figure
 from matplotlib.patches import Circle
-from matplotlib.ticker import MaxNLocator
-from matplotlib.transforms import Affine2D, Bbox, TransformedBbox
+from matplotlib.scale import LogTransform
+from matplotlib.ticker import LogLocator, MaxNLocator
+from matplotlib.transforms import Affine2D, Bbox, IdentityTransform, TransformedBbox, blended_transform_factory
 
 __all__ = ["Panel", "SmallMultiples"]
 
 #: matplotlib's defaults for what is drawn here by hand (rcParams xtick.major.size/pad, axes.linewidth,
 #: axes.xmargin, axes.titlepad is replaced by 2 pt as the report's panels had), points and fractions.
 _TICK_PT, _TICK_PAD_PT, _FRAME_PT, _MARGIN, _TITLE_PAD_PT = 3.5, 3.5, 0.8, 0.05, 2.0
+_MINOR_TICK_PT = 2.0  #: rcParams ytick.minor.size
 
 
 class Panel:
@@ -37,7 +39,11 @@ class Panel:
     def __init__(self, grid: SmallMultiples, row: int, column: int):
         self.grid, self.row, self.column = grid, row, column
         self._to_box = Affine2D()  # data -> inches of the panel area, set once the limits are known (finish)
-        self.transform = self._to_box + grid.axes.transData
+        # a log y scale maps y to log10(y) first (values <= 0 fall far below the panel and are clipped, as on a
+        # matplotlib log axis)
+        to_box = (blended_transform_factory(IdentityTransform(), LogTransform(10)) + self._to_box if grid.y_log
+                  else self._to_box)
+        self.transform = to_box + grid.axes.transData
         self.x_extent: list[float] = []
         self.y_extent: list[float] = []
         self.title = ""
@@ -88,15 +94,26 @@ class Panel:
 
     def vline(self, x: float, **kwargs):
         """A vertical line across the panel at data ``x`` (which counts for the x limits only)."""
-        line = self.grid.axes.plot([x, x], [0.0, 1.0], transform=self._vertical(), **kwargs)[0]
+        x0, y0, width, height = self.box_in
+        across = Affine2D().scale(1.0, height).translate(0.0, y0) + self.grid.axes.transData
+        line = self.grid.axes.plot([x, x], [0.0, 1.0], transform=blended_transform_factory(self.transform, across),
+                                   **kwargs)[0]
         return self._placed(line, [x], [])
 
-    def _vertical(self):
-        from matplotlib.transforms import blended_transform_factory
+    def hline(self, y: float, **kwargs):
+        """A horizontal line across the panel at data ``y`` (which counts for the y limits only)."""
+        x0, y0, width, height = self.box_in
+        across = Affine2D().scale(width, 1.0).translate(x0, 0.0) + self.grid.axes.transData
+        line = self.grid.axes.plot([0.0, 1.0], [y, y], transform=blended_transform_factory(across, self.transform),
+                                   **kwargs)[0]
+        return self._placed(line, [], [y])
 
-        x0, y0, _, height = self.box_in
-        box_y = Affine2D().scale(1.0, height).translate(0.0, y0) + self.grid.axes.transData
-        return blended_transform_factory(self.transform, box_y)
+    def annotate(self, text: str, xy, *, offset_pt=(3, 3), **kwargs):
+        """``text`` beside the data point ``xy``, ``offset_pt`` points away (not counted for the limits)."""
+        label = self.grid.axes.annotate(text, xy, xycoords=self.transform, xytext=offset_pt,
+                                        textcoords="offset points", annotation_clip=False, **kwargs)
+        self.artists.append(label)
+        return label
 
     def set_title(self, text: str) -> None:
         self.title = text
@@ -109,10 +126,10 @@ class SmallMultiples:
 
     def __init__(self, count: int, *, max_columns: int, panel_size: tuple[float, float], width_in: float,
                  margins_in: tuple[float, float, float, float] = (0.62, 0.08, 0.5, 0.5),
-                 gaps: tuple[float, float] = (0.12, 0.32), font_pt: float = 7.0):
+                 gaps: tuple[float, float] = (0.12, 0.32), font_pt: float = 7.0, y_log: bool = False):
         if count < 1:
             raise ValueError(f"count = {count}, expected at least one panel")
-        self.count, self.font_pt = count, font_pt
+        self.count, self.font_pt, self.y_log = count, font_pt, y_log
         self.columns = max(1, min(max_columns, count))
         self.rows = math.ceil(count / self.columns)
         left, right, bottom, top = margins_in
@@ -136,29 +153,78 @@ class SmallMultiples:
         self.y_floor: float | None = None
         self.figure._bench_small_multiples = self
 
-    def finish(self) -> Figure:
-        """Fix the shared limits, map every panel's data into its box, draw frames, ticks, tick labels and titles."""
-        xlim = self.xlim or self._data_limits([p.x_extent for p in self.panels], None)
-        ylim = self.ylim or self._data_limits([p.y_extent for p in self.panels], self.y_floor)
-        for panel in self.panels:
-            x0, y0, width, height = panel.box_in
-            panel._to_box.clear().translate(-xlim[0], -ylim[0]).scale(
-                width / (xlim[1] - xlim[0]), height / (ylim[1] - ylim[0])).translate(x0, y0)
-        self.xlim, self.ylim = xlim, ylim
-        x_ticks = self._ticks(xlim, self.x_locator, self.panel_width_in * 72 / (3 * self.font_pt))
-        y_ticks = self._ticks(ylim, self.y_locator, self.panel_height_in * 72 / (2 * self.font_pt))
-        self._draw_frames_and_ticks(x_ticks, y_ticks)
+    def finish(self, xlabel: str, ylabel: str, *, legend_columns: int | None = None, legend_pt: float | None = None,
+               legend_order=None) -> Figure:
+        """Fix the shared limits, map every panel's data into its box, draw frames, ticks, tick labels and titles;
+        name the quantities once for the figure and give it one legend on top (each label once, in the order first
+        drawn, or sorted by ``legend_order``, a key on the label; ``legend_columns`` a row, default all)."""
+        self._place()
+        size = self.font_pt + 1 if legend_pt is None else legend_pt
+        self.figure.supxlabel(xlabel, fontsize=self.font_pt + 1, y=0.005, va="bottom")
+        self.figure.supylabel(ylabel, fontsize=self.font_pt + 1, x=0.005, ha="left")
+        entries: dict = {}
+        for handle, label in zip(*self.axes.get_legend_handles_labels()):
+            entries.setdefault(label, handle)
+        labels = sorted(entries, key=legend_order) if legend_order else list(entries)
+        if labels:
+            self.figure.legend([entries[label] for label in labels], labels, loc="upper center",
+                               ncols=min(legend_columns or len(labels), len(labels)), fontsize=size)
         return self.figure
 
+    def _place(self) -> None:
+        xlim = self.xlim or self._data_limits([p.x_extent for p in self.panels], None)
+        y_values = [p.y_extent for p in self.panels]
+        if self.y_log:  # limits, margins and ticks in log10(y), as on a matplotlib log axis
+            y_values = [np.log10([v for v in values if v > 0]) for values in y_values]
+        ylim = self.ylim or self._data_limits(y_values, self.y_floor, back=(lambda v: 10.0 ** v) if self.y_log
+                                                                          else None)
+        low, high = self._y_scaled(ylim)
+        for panel in self.panels:
+            x0, y0, width, height = panel.box_in
+            panel._to_box.clear().translate(-xlim[0], -low).scale(
+                width / (xlim[1] - xlim[0]), height / (high - low)).translate(x0, y0)
+        self.xlim, self.ylim = xlim, ylim
+        x_ticks = self._ticks(xlim, self.x_locator, self.panel_width_in * 72 / (3 * self.font_pt))
+        if self.y_log:
+            y_ticks, y_labels, y_minor = self._log_ticks(ylim)
+        else:
+            y_ticks = self._ticks(ylim, self.y_locator, self.panel_height_in * 72 / (2 * self.font_pt))
+            y_labels, y_minor = self._labels(y_ticks), np.array([])
+        self._draw_frames_and_ticks(x_ticks, self._labels(x_ticks), y_ticks, y_labels, y_minor)
+
+    def _y_scaled(self, values) -> np.ndarray:
+        """y values in the panels' vertical measure: log10(y) on a log scale, else y."""
+        values = np.asarray(values, dtype=float)
+        return np.log10(values) if self.y_log else values
+
     @staticmethod
-    def _data_limits(extents: Sequence[list[float]], floor: float | None) -> tuple[float, float]:
+    def _log_ticks(limits) -> tuple[np.ndarray, list[str], np.ndarray]:
+        """Decades labelled 10^k and the unlabelled 2..9 between them (matplotlib's LogLocator and its
+        LogFormatterSciNotation); under two decades in range, every one of them labelled with its value."""
+        def within(ticks):
+            ticks = np.asarray(ticks, dtype=float)
+            return ticks[(ticks >= limits[0] * (1 - 1e-9)) & (ticks <= limits[1] * (1 + 1e-9))]
+
+        major = within(LogLocator(base=10.0).tick_values(*limits))
+        minor = within(LogLocator(base=10.0, subs=np.arange(2, 10)).tick_values(*limits))
+        if len(major) < 2:
+            ticks = np.union1d(major, minor)
+            return ticks, [f"{t:g}" for t in ticks], np.array([])
+        exponents = np.round(np.log10(major)).astype(int)
+        return major, [f"$\\mathdefault{{10^{{{e}}}}}$" for e in exponents], minor
+
+    @staticmethod
+    def _data_limits(extents: Sequence, floor: float | None, back=None) -> tuple[float, float]:
+        """Limits over every panel's values with 5 % margins (``floor``: the low limit, no margin below);
+        ``back`` maps the limits back to data units when the values were scaled (log10)."""
         values = np.array([v for extent in extents for v in extent], dtype=float)
         values = values[np.isfinite(values)]
         low, high = (float(values.min()), float(values.max())) if len(values) else (0.0, 1.0)
         if high == low:
             low, high = low - 0.5, high + 0.5
         pad = _MARGIN * (high - low)
-        return (low - pad if floor is None else floor), high + pad
+        low, high = (low - pad if floor is None else floor), high + pad
+        return (float(back(low)), float(back(high))) if back else (low, high)
 
     @staticmethod
     def _ticks(limits, locator, tick_space: float) -> np.ndarray:
@@ -183,20 +249,23 @@ class SmallMultiples:
             labels.append(text.lstrip("-") if float(text) == 0 else text.replace("-", "\N{MINUS SIGN}"))
         return labels
 
-    def _draw_frames_and_ticks(self, x_ticks: np.ndarray, y_ticks: np.ndarray) -> None:
-        axes, tick = self.axes, _TICK_PT / 72
+    def _draw_frames_and_ticks(self, x_ticks, x_labels, y_ticks, y_labels, y_minor) -> None:
+        axes, tick, minor_tick = self.axes, _TICK_PT / 72, _MINOR_TICK_PT / 72
+        low, high = self._y_scaled(self.ylim)
         lowest = {}  # the lowest panel of each column gets the x tick labels
         for panel in self.panels:
             lowest[panel.column] = panel
         frames, marks = [], []
-        x_labels, y_labels = self._labels(x_ticks), self._labels(y_ticks)
         for panel in self.panels:
             x0, y0, width, height = panel.box_in
             frames.append([(x0, y0), (x0 + width, y0), (x0 + width, y0 + height), (x0, y0 + height), (x0, y0)])
             xs = x0 + (x_ticks - self.xlim[0]) * width / (self.xlim[1] - self.xlim[0])
-            ys = y0 + (y_ticks - self.ylim[0]) * height / (self.ylim[1] - self.ylim[0])
+            ys = y0 + (self._y_scaled(y_ticks) - low) * height / (high - low)
             marks.extend([[(x, y0), (x, y0 - tick)] for x in xs])
             marks.extend([[(x0, y), (x0 - tick, y)] for y in ys])
+            if len(y_minor):
+                marks.extend([[(x0, y), (x0 - minor_tick, y)]
+                              for y in y0 + (self._y_scaled(y_minor) - low) * height / (high - low)])
             if lowest[panel.column] is panel:
                 for x, label in zip(xs, x_labels):
                     axes.text(x, y0 - (_TICK_PT + _TICK_PAD_PT) / 72, label, ha="center", va="top",
@@ -209,6 +278,6 @@ class SmallMultiples:
                 axes.text(x0 + width / 2, y0 + height + _TITLE_PAD_PT / 72, panel.title, ha="center",
                           va="baseline", fontsize=self.font_pt)
         axes.add_collection(LineCollection(frames, colors="black", linewidths=_FRAME_PT, capstyle="projecting",
-                                           joinstyle="miter", zorder=2.5))
+                                           joinstyle="miter", zorder=2.5, clip_on=False))  # edges on the rim
         axes.add_collection(LineCollection(marks, colors="black", linewidths=_FRAME_PT, clip_on=False,
                                            zorder=2.5))
