@@ -133,8 +133,8 @@ def path_plot(report: PathReport) -> Plot:
     P2 -> P5, v along P2 -> P3, mm from P1), every panel on one scale; one legend for the figure."""
     protocol = report.analysis.design
     shapes = list(protocol.shapes)
-    grid = SmallMultiples(len(shapes), max_columns=2, panel_size=(1.0, 1.0), width_in=PRINT_WIDTH_IN,
-                          font_pt=MIN_FONT_PT)  # square panels on one scale for u and v: the paths' true shape
+    grid = SmallMultiples(len(shapes), max_columns=2, panel_size=(3.4, 3.0), width_in=PRINT_WIDTH_IN,
+                          font_pt=MIN_FONT_PT, equal_aspect=True)  # one scale for u and v: the paths' true shape
     for panel, shape in zip(grid.panels, shapes):
         path = protocol.path(shape)
         origin = path.centre_mm

@@ -219,15 +219,16 @@ def _measured(result) -> tuple[np.ndarray, list[str]]:
     return np.asarray(result.commanded_mm)[["xyz".index(a) for a in result.axis_names]], columns
 
 
-def _grid(count: int, panel_size: tuple[float, float]) -> SmallMultiples:
+def _grid(count: int, panel_size: tuple[float, float], *, equal_aspect: bool = False) -> SmallMultiples:
     """The pose figures' small multiples: five panels a row at print width."""
-    return SmallMultiples(count, max_columns=5, panel_size=panel_size, width_in=PRINT_WIDTH_IN, font_pt=MIN_FONT_PT)
+    return SmallMultiples(count, max_columns=5, panel_size=panel_size, width_in=PRINT_WIDTH_IN, font_pt=MIN_FONT_PT,
+                          equal_aspect=equal_aspect)
 
 
 def pose_scatter(report: RunReport) -> Plot:
     """Per pose: attained points minus the command (x-y plane), barycentre and the RP circle around it; one scale
     for every panel (the largest RP circle fits), one legend for the figure."""
-    grid = _grid(len(report.poses), (1.45, 1.45))
+    grid = _grid(len(report.poses), (1.45, 1.45), equal_aspect=True)
     reach = max(float(np.abs(np.asarray(r.accuracy.ap_axes_mm[:2])).max()) + r.repeatability.rp_mm
                 for r in report.poses)
     for result, panel in zip(report.poses, grid.panels):
@@ -299,7 +300,7 @@ def ap_on_workspace(report: RunReport) -> Plot | None:
     scale = 0.15 * span / max(float(np.abs(vectors).max()), 1e-9)
     # a fixed layout (margins for the axis labels, the one legend on top) and the legend placed, not searched for:
     # constrained layout and loc="best" over 2,500 points each measured the figure once more (half of its time)
-    width, height = PRINT_WIDTH_IN, 3.4
+    width, height = PRINT_WIDTH_IN, 3.2
     figure = Figure(figsize=(width, height))
     figure.subplots_adjust(left=0.62 / width, right=1 - 0.06 / width, bottom=0.48 / height, top=1 - 0.32 / height,
                            wspace=0.22)

@@ -54,7 +54,7 @@ class Panel:
     def box_in(self) -> tuple[float, float, float, float]:
         """(x0, y0, width, height) of the panel's frame, inches from the lower left of the panel area."""
         g = self.grid
-        x0 = self.column * (g.panel_width_in + g.gap_width_in)
+        x0 = g.x_offset_in + self.column * (g.panel_width_in + g.gap_width_in)
         y0 = (g.rows - 1 - self.row) * (g.panel_height_in + g.gap_height_in)
         return x0, y0, g.panel_width_in, g.panel_height_in
 
@@ -120,13 +120,17 @@ class Panel:
 
 
 class SmallMultiples:
-    """``count`` panels, ``max_columns`` per row, each ``panel_size`` (width, height) in proportion, filling the
-    print width; one x and one y scale for all (``xlim``/``ylim`` fixed, or data limits with 5 % margins);
-    ``x_locator``/``y_locator``: tick positions (default: matplotlib's automatic choice for the panel's size)."""
+    """``count`` panels, ``max_columns`` per row, on ``width_in`` (the print width); ``panel_size`` (width, height)
+    the proportions of a panel's cell (the panel and its share of the gaps, fractions ``gaps`` of a panel, as
+    matplotlib's subplots_adjust wspace/hspace); ``equal_aspect``: square panels, so one x and y scale reads true;
+    ``y_log``: a log y scale. One x and one y scale for all panels (``xlim``/``ylim`` set before :meth:`finish`, or
+    the data limits with 5 % margins); ``x_locator``/``y_locator``: tick positions (default: matplotlib's automatic
+    choice for the panel's size)."""
 
     def __init__(self, count: int, *, max_columns: int, panel_size: tuple[float, float], width_in: float,
                  margins_in: tuple[float, float, float, float] = (0.62, 0.08, 0.5, 0.5),
-                 gaps: tuple[float, float] = (0.12, 0.32), font_pt: float = 7.0, y_log: bool = False):
+                 gaps: tuple[float, float] = (0.12, 0.32), font_pt: float = 7.0, y_log: bool = False,
+                 equal_aspect: bool = False):
         if count < 1:
             raise ValueError(f"count = {count}, expected at least one panel")
         self.count, self.font_pt, self.y_log = count, font_pt, y_log
@@ -134,11 +138,16 @@ class SmallMultiples:
         self.rows = math.ceil(count / self.columns)
         left, right, bottom, top = margins_in
         area_width = width_in - left - right
+        area_height = area_width * self.rows * panel_size[1] / (self.columns * panel_size[0])  # cells + gaps
         self.panel_width_in = area_width / (self.columns + (self.columns - 1) * gaps[0])
-        self.panel_height_in = self.panel_width_in * panel_size[1] / panel_size[0]
+        self.panel_height_in = area_height / (self.rows + (self.rows - 1) * gaps[1])
         self.gap_width_in = gaps[0] * self.panel_width_in
         self.gap_height_in = gaps[1] * self.panel_height_in
-        area_height = self.rows * self.panel_height_in + (self.rows - 1) * self.gap_height_in
+        self.x_offset_in = 0.0
+        if equal_aspect:  # square panels (one scale for x and y reads true), the grid centred in the width
+            self.panel_width_in = self.panel_height_in = min(self.panel_width_in, self.panel_height_in)
+            used = self.columns * self.panel_width_in + (self.columns - 1) * self.gap_width_in
+            self.x_offset_in = (area_width - used) / 2
         height_in = area_height + bottom + top
         self.figure = Figure(figsize=(width_in, height_in))
         self.axes = self.figure.add_axes((left / width_in, bottom / height_in, area_width / width_in,
