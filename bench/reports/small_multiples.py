@@ -44,8 +44,9 @@ class Panel:
         to_box = (blended_transform_factory(IdentityTransform(), LogTransform(10)) + self._to_box if grid.y_log
                   else self._to_box)
         self.transform = to_box + grid.axes.transData
-        self.x_extent: list[float] = []
-        self.y_extent: list[float] = []
+        # (min, max, smallest positive) of the finite values of each artist drawn, per axis: the shared limits
+        self.x_extent: list[tuple[float, float, float]] = []
+        self.y_extent: list[tuple[float, float, float]] = []
         self.title = ""
         self._unstyled_lines = 0
         self.artists: list = []  # what the panel drew, in order
@@ -59,8 +60,13 @@ class Panel:
         return x0, y0, g.panel_width_in, g.panel_height_in
 
     def _placed(self, artist, x=(), y=()):
-        self.x_extent.extend(np.ravel(np.asarray(x, dtype=float)).tolist())
-        self.y_extent.extend(np.ravel(np.asarray(y, dtype=float)).tolist())
+        for values, extent in ((x, self.x_extent), (y, self.y_extent)):
+            values = np.ravel(np.asarray(values, dtype=float))
+            values = values[np.isfinite(values)]
+            if len(values):
+                positive = values[values > 0]
+                extent.append((float(values.min()), float(values.max()),
+                               float(positive.min()) if len(positive) else math.nan))
         x0, y0, width, height = self.box_in
         artist.set_clip_box(TransformedBbox(Bbox.from_bounds(x0, y0, width, height), self.grid.axes.transData))
         self.artists.append(artist)
@@ -181,10 +187,12 @@ class SmallMultiples:
         return self.figure
 
     def _place(self) -> None:
-        xlim = self.xlim or self._data_limits([p.x_extent for p in self.panels], None)
-        y_values = [p.y_extent for p in self.panels]
+        xlim = self.xlim or self._data_limits([(low, high) for p in self.panels for low, high, _ in p.x_extent],
+                                              None)
+        y_values = [(low, high) for p in self.panels for low, high, _ in p.y_extent]
         if self.y_log:  # limits, margins and ticks in log10(y), as on a matplotlib log axis
-            y_values = [np.log10([v for v in values if v > 0]) for values in y_values]
+            y_values = [(math.log10(positive), math.log10(high)) for p in self.panels
+                        for _, high, positive in p.y_extent if positive > 0]
         ylim = self.ylim or self._data_limits(y_values, self.y_floor, back=(lambda v: 10.0 ** v) if self.y_log
                                                                           else None)
         low, high = self._y_scaled(ylim)
@@ -223,11 +231,10 @@ class SmallMultiples:
         return major, [f"$\\mathdefault{{10^{{{e}}}}}$" for e in exponents], minor
 
     @staticmethod
-    def _data_limits(extents: Sequence, floor: float | None, back=None) -> tuple[float, float]:
-        """Limits over every panel's values with 5 % margins (``floor``: the low limit, no margin below);
-        ``back`` maps the limits back to data units when the values were scaled (log10)."""
+    def _data_limits(extents: Sequence[tuple[float, float]], floor: float | None, back=None) -> tuple[float, float]:
+        """Limits over every panel's (low, high) extents with 5 % margins (``floor``: the low limit, no margin
+        below); ``back`` maps the limits back to data units when the extents were scaled (log10)."""
         values = np.array([v for extent in extents for v in extent], dtype=float)
-        values = values[np.isfinite(values)]
         low, high = (float(values.min()), float(values.max())) if len(values) else (0.0, 1.0)
         if high == low:
             low, high = low - 0.5, high + 0.5
