@@ -11,12 +11,15 @@ Every line prints the machine's load.
     python benchmarks/bench_report.py                         # a synthetic run like the demo's
     python benchmarks/bench_report.py --path                  # and a long path run's report
     python benchmarks/bench_report.py --store demo-out/bench.db --run 1   # a stored run (e.g. ``bench demo``'s)
+    git worktree add ../before HEAD~3 && python benchmarks/bench_report.py --baseline ../before   # before/after
 """
 
 from __future__ import annotations
 
 import argparse
+import json
 import os
+import resource
 import shutil
 import sqlite3
 import statistics
@@ -89,17 +92,28 @@ def _load() -> str:
     return "load average %.2f, %.2f, %.2f" % os.getloadavg()
 
 
+HERE = Path(__file__).resolve().parents[1]
+
+
+def _environment(checkout: Path) -> dict[str, str]:
+    """This process's environment with ``checkout``'s bench first on the path."""
+    return {**os.environ, "PYTHONPATH": os.pathsep.join([str(checkout), os.environ.get("PYTHONPATH", "")])}
+
+
+def _process(arguments: list[str], checkout: Path = HERE) -> tuple[float, float, str]:
+    """Wall and CPU seconds (user + system, the child's) of one ``python ARGUMENTS``, and its stdout."""
+    before = resource.getrusage(resource.RUSAGE_CHILDREN)
+    start = time.perf_counter()
+    done = subprocess.run([sys.executable, *arguments], check=True, env=_environment(checkout), cwd=checkout,
+                          stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True)
+    wall = time.perf_counter() - start
+    after = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return wall, after.ru_utime - before.ru_utime + after.ru_stime - before.ru_stime, done.stdout
+
+
 def _process_times(arguments: list[str], repeat: int) -> list[float]:
     """Wall seconds of ``repeat`` runs of ``python ARGUMENTS`` (this worktree's bench first on the path)."""
-    environment = {**os.environ, "PYTHONPATH": os.pathsep.join([str(Path(__file__).resolve().parents[1]),
-                                                                 os.environ.get("PYTHONPATH", "")])}
-    walls = []
-    for _ in range(repeat):
-        start = time.perf_counter()
-        subprocess.run([sys.executable, *arguments], check=True, env=environment, stdout=subprocess.DEVNULL,
-                       stderr=subprocess.DEVNULL)
-        walls.append(time.perf_counter() - start)
-    return walls
+    return [_process(arguments)[0] for _ in range(repeat)]
 
 
 def _spread(walls: list[float]) -> str:
@@ -116,6 +130,51 @@ def whole_process(store_path: Path, run_id: int, out: Path, repeat: int) -> None
     median = statistics.median(report)
     print(f"bench report RUN: median {median:.2f} s = {median / statistics.median(floor):.1f} x the import floor, "
           f"{median / PROCESS_TARGET_S:.2f} x the {PROCESS_TARGET_S:g} s target")
+
+
+#: Run in a child process of either checkout: ``write_report`` of the run ``repeat`` times (after the imports), as
+#: JSON lists of wall and CPU seconds.
+_IN_PROCESS = """
+import json, sys, time
+from pathlib import Path
+from bench.reports import write_report
+store, run_id, out, repeat = sys.argv[1], int(sys.argv[2]), Path(sys.argv[3]), int(sys.argv[4])
+walls, cpus = [], []
+for index in range(repeat):
+    wall, cpu = time.perf_counter(), time.process_time()
+    write_report(store, run_id, out / str(index))
+    walls.append(time.perf_counter() - wall)
+    cpus.append(time.process_time() - cpu)
+print(json.dumps([walls, cpus]))
+"""
+
+
+def against_baseline(baseline: Path, store_path: Path, run_id: int, out: Path, repeat: int) -> None:
+    """Before/after in one run: ``write_report`` (in a child process of each checkout, after its imports) and
+    ``bench report RUN`` as a whole process, the two checkouts taking turns so both see the same load."""
+    checkouts = {"before": baseline.resolve(), "after": HERE}
+    inside = {name: ([], []) for name in checkouts}
+    whole = {name: ([], []) for name in checkouts}
+    for index in range(repeat):
+        for name, checkout in checkouts.items():
+            _, _, said = _process(["-c", _IN_PROCESS, str(store_path), str(run_id), str(out / name / f"in{index}"),
+                                   "1"], checkout)
+            walls, cpus = json.loads(said)
+            inside[name][0].extend(walls)
+            inside[name][1].extend(cpus)
+            wall, cpu, _ = _process(["-c", "import sys; from bench.cli import main; sys.exit(main())", "report",
+                                     str(run_id), "--store", str(store_path), "--out", str(out / name / f"p{index}"),
+                                     "--quiet"], checkout)
+            whole[name][0].append(wall)
+            whole[name][1].append(cpu)
+    print(f"before = {checkouts['before']}, after = {checkouts['after']}, taking turns, {repeat} each   {_load()}")
+    for label, measured in (("write_report (1st call)", inside), ("bench report RUN", whole)):
+        for name in checkouts:
+            walls, cpus = measured[name]
+            print(f"{label + ' ' + name:<28} wall {_spread(walls)}   CPU {_spread(cpus)}")
+        ratio = statistics.median(measured["before"][0]) / statistics.median(measured["after"][0])
+        cpu_ratio = statistics.median(measured["before"][1]) / statistics.median(measured["after"][1])
+        print(f"{label}: before / after = {ratio:.2f} x wall (medians), {cpu_ratio:.2f} x CPU")
 
 
 def long_path_run(folder: Path, points: int) -> tuple[Path, int]:
@@ -153,8 +212,14 @@ def main() -> None:
     parser.add_argument("--repeat", type=int, default=5)
     parser.add_argument("--path", action="store_true", help="also a long path run's report (simulates one, ~1 min)")
     parser.add_argument("--path-points", type=int, default=2_300_000)
+    parser.add_argument("--baseline", type=Path, default=None, metavar="CHECKOUT",
+                        help="another checkout of bench (e.g. a git worktree of the previous commit): before/after "
+                             "ratios of write_report and bench report RUN, the two taking turns")
     args = parser.parse_args()
     print(_load())
+    if sys.flags.dont_write_bytecode:  # PYTHONDONTWRITEBYTECODE: no .pyc is written, each child compiles bench
+        print("note: bytecode is not written here; without `python -m compileall bench motion` (in each checkout) "
+              "every child process compiles bench from source (about 0.5 s)")
     with tempfile.TemporaryDirectory() as folder:
         store = Store(args.store) if args.store else Store(Path(folder) / "bench.db")
         run_id = args.run if args.store else demo_like_run(store)
@@ -177,6 +242,9 @@ def main() -> None:
         print(f"demo-sized write_report: median {median:.2f} s wall, {statistics.median(cpus):.2f} s CPU = "
               f"{median / TARGET_S:.2f} x the {TARGET_S:g} s target")
         whole_process(args.store or Path(folder) / "bench.db", run_id, Path(folder) / "process", args.repeat)
+        if args.baseline is not None:
+            against_baseline(args.baseline, args.store or Path(folder) / "bench.db", run_id, Path(folder) / "ab",
+                             args.repeat)
         if args.path:
             path, path_run = long_path_run(Path(folder), args.path_points)
             walls, cpus, paths = _timed(lambda: write_report(path, path_run, Path(folder) / "path-out"),

@@ -63,6 +63,12 @@ def _instrument_u(store, run_id) -> float:
         return collect(s, run_id).instrument.sigma_mm
 
 
+def _shown(value: float, u: float) -> str:
+    """A value as the report prints it beside no U of its own: to the decimal place of ``u`` (U = 0, as the ideal
+    robot's RP can be: to 1 µm, the report's stated fallback)."""
+    return f"{value:.3f}" if u == 0 else rounded_by_u(value, u).split(" ± ")[0]
+
+
 def test_the_gain_equals_bench_analyze_on_the_raw_data(validated, capsys):
     before, after, folder = validated["before"], validated["after"], validated["folder"]
     analyzed = {}
@@ -77,19 +83,23 @@ def test_the_gain_equals_bench_analyze_on_the_raw_data(validated, capsys):
     def column(name, key):
         return np.array([analyzed[name][p][key] for p in poses])
 
-    expected = {"mean AP_P": [column(n, "AP_mm").mean() for n in ("before", "after")],
-                "largest AP_P": [column(n, "AP_mm").max() for n in ("before", "after")],
-                **{f"mean |AP_{a}|": [np.abs(column(n, f"AP{a}_mm")).mean() for n in ("before", "after")]
+    runs = ("before", "after")
+    smallest_u_ap = [column(n, "U_AP_mm").min() for n in runs]  # a mean: to the place of the smallest U it averages
+    expected = {"mean AP_P": ([column(n, "AP_mm").mean() for n in runs], smallest_u_ap),
+                "largest AP_P": ([column(n, "AP_mm").max() for n in runs],
+                                 [column(n, "U_AP_mm")[column(n, "AP_mm").argmax()] for n in runs]),
+                **{f"mean |AP_{a}|": ([np.abs(column(n, f"AP{a}_mm")).mean() for n in runs], smallest_u_ap)
                    for a in "xyz"},
-                "mean RP_l": [column(n, "RP_mm").mean() for n in ("before", "after")]}
+                "mean RP_l": ([column(n, "RP_mm").mean() for n in runs], [column(n, "U_RP_mm").min() for n in runs])}
     gain = validated["tables"]["calibration-gain"]
     assert gain[0] == ["Quantity (over the poses of both runs)", "Before (mm)", "After (mm)", "Factor before / after"]
     assert [row[0] for row in gain[1:]] == list(expected)
     for row in gain[1:]:
-        b, a = expected[row[0]]
-        assert row[1:3] == [f"{b:.4f}", f"{a:.4f}"]
+        (b, a), (u_b, u_a) = expected[row[0]]
+        assert row[1:3] == [_shown(b, u_b), _shown(a, u_a)]
         if row[0] != "mean RP_l":  # the ideal robot's RP is a count or two: its ratio says nothing
             assert row[3] == f"{b / a:.1f}"
+    expected = {name: values for name, (values, _) in expected.items()}
     mean_before, mean_after = expected["mean AP_P"]
     assert mean_before > 0.5 and mean_before / mean_after > 5  # 0.982 -> 0.063 mm, 15.6x measured with seed 3
 

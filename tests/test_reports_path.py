@@ -11,7 +11,7 @@ from bench.reports.path import path_plot
 from bench.reports.path_run import analyze_path_run
 from bench.reports.plots import MIN_FONT_PT
 from bench.store import Store
-from figure_support import printed_font_sizes
+from figure_support import printed_font_sizes, same_scale, small_multiples
 from reports_runs import html_tables, pdf_text, simulated_run
 
 
@@ -55,9 +55,9 @@ def test_the_path_figure_is_readable_at_print_size_with_one_legend_and_one_scale
         report = collect(store, run_id)
     plot = path_plot(report)
     assert min(printed_font_sizes(plot)) >= MIN_FONT_PT - 1e-9
-    panels = [axes for axes in plot.figure.axes if axes.get_visible()]
-    assert [a.get_title() for a in panels] == ["line at 100 %", "circle at 100 %"]
-    assert len({a.get_xlim() for a in panels}) == 1 and len({a.get_ylim() for a in panels}) == 1
-    assert len(plot.figure.legends) == 1 and not any(a.get_legend() for a in panels)
+    grid, panels = small_multiples(plot)
+    assert [panel.title for panel in panels] == ["line at 100 %", "circle at 100 %"]
+    assert same_scale(grid) and grid.xlim == grid.ylim  # one scale, u and v alike: the paths keep their shape
+    assert len(plot.figure.legends) == 1 and not any(a.get_legend() for a in plot.figure.axes)
     labels = [t.get_text() for t in plot.figure.legends[0].get_texts()]
     assert labels == ["attained, cycle 1", "attained, cycle 2", "commanded"]

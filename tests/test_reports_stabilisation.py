@@ -191,7 +191,7 @@ def test_a_run_at_two_velocities_is_analysed_per_velocity(tmp_path):
 
 
 def test_the_figure_marks_t1_t2_and_the_overshoot_it_reports(arrivals, tmp_path):
-    from figure_support import printed_font_sizes
+    from figure_support import panel_lines, printed_font_sizes, same_scale, small_multiples
 
     from bench.reports.plots import MIN_FONT_PT, svg_text
     from bench.reports.stabilisation import stabilisation_plot
@@ -200,17 +200,19 @@ def test_the_figure_marks_t1_t2_and_the_overshoot_it_reports(arrivals, tmp_path)
     plot = stabilisation_plot(report)
     (tmp_path / "stabilisation.svg").write_text(svg_text(plot))
     assert min(printed_font_sizes(plot)) >= MIN_FONT_PT - 1e-9
-    panels = [axes for axes in plot.figure.axes if axes.get_visible()]
-    assert len({axes.get_xlim() for axes in panels}) == 1 and len({axes.get_ylim() for axes in panels}) == 1
-    assert len(plot.figure.legends) == 1 and not any(axes.get_legend() for axes in panels)
+    grid, panels = small_multiples(plot)
+    assert same_scale(grid) and grid.ylim == (0.0, 2.0 * max(report.bands_mm))
+    assert len(plot.figure.legends) == 1 and not any(axes.get_legend() for axes in plot.figure.axes)
     by_key = {(r.group, r.band_mm): r.result for r in report.results}
-    for axes, group in zip(panels, ["P1", "P5", "P4", "P3", "P2"]):
-        assert axes.get_title() == group
-        marks = {line.get_label(): line for line in axes.get_lines()}
-        first = [line for line in axes.get_lines() if line.get_label().startswith("t_1")]
+    assert len(panels) == 5
+    for panel, group in zip(panels, ["P1", "P5", "P4", "P3", "P2"]):
+        assert panel.title == group
+        lines = panel_lines(panel)
+        marks = {line.get_label(): line for line in lines}
+        first = [line for line in lines if line.get_label().startswith("t_1")]
         cycles = by_key[(group, 0.1)].cycles
         assert sorted(float(line.get_xdata()[0]) for line in first) == sorted(c.first_entry_s for c in cycles)
-        overshoots = [line for line in axes.get_lines() if line.get_label().startswith("OV")]
+        overshoots = [line for line in lines if line.get_label().startswith("OV")]
         assert len(overshoots) == sum(c.overshoot_mm > 0 for c in cycles)  # P2, P4 ring past 0.1 mm
         for line in overshoots:
             assert float(line.get_xdata()[0]) in {c.peak_s for c in cycles}

@@ -80,15 +80,26 @@ def _factor(before: float, after: float) -> str:
 
 
 def gain_rows(pair: CalibrationComparison) -> tuple[tuple[str, str, str, str], ...]:
-    """The gain table's rows: quantity, before (mm), after (mm), factor before / after (module docstring)."""
+    """The gain table's rows: quantity, before (mm), after (mm), factor before / after (module docstring).
+
+    Each value is printed to the decimal place of the expanded uncertainties of the pose results it comes from
+    (:func:`bench.metrology.formatting.format_value`, U to two significant digits): a mean to that of the smallest U
+    among the poses it averages, the largest AP_P to its own pose's. A mean gets no U of its own: the poses share
+    the instrument's systematic errors, so their uncertainties do not average down by a factor this table could
+    state. The factor is computed from the unrounded values."""
     paired = _paired(pair)
     ap = np.array([[b.accuracy.ap_mm, a.accuracy.ap_mm] for b, a in paired])
+    ap_u = np.array([[b.ap_u.expanded_uncertainty, a.ap_u.expanded_uncertainty] for b, a in paired])
     axes = np.array([[b.accuracy.ap_axes_mm, a.accuracy.ap_axes_mm] for b, a in paired])  # (n, 2, measured)
     rp = np.array([[b.repeatability.rp_mm, a.repeatability.rp_mm] for b, a in paired])
-    rows = [("mean AP_P", *ap.mean(axis=0)), ("largest AP_P", *ap.max(axis=0))]
-    rows += [(f"mean |AP_{name}|", *np.abs(axes[:, :, i]).mean(axis=0)) for i, name in enumerate(_axes(pair))]
-    rows.append(("mean RP_l", *rp.mean(axis=0)))
-    rows = [(name, fmt_mm(b), fmt_mm(a), _factor(b, a)) for name, b, a in rows]
+    rp_u = np.array([[b.rp_u.expanded_uncertainty, a.rp_u.expanded_uncertainty] for b, a in paired])
+    largest = ap.argmax(axis=0)
+    rows = [("mean AP_P", ap.mean(axis=0), ap_u.min(axis=0)),
+            ("largest AP_P", ap.max(axis=0), ap_u[largest, [0, 1]])]
+    rows += [(f"mean |AP_{name}|", np.abs(axes[:, :, i]).mean(axis=0), ap_u.min(axis=0))
+             for i, name in enumerate(_axes(pair))]
+    rows.append(("mean RP_l", rp.mean(axis=0), rp_u.min(axis=0)))
+    rows = [(name, format_value(v[0], u[0]), format_value(v[1], u[1]), _factor(*v)) for name, v, u in rows]
     rows[-1:-1] = [(f"mean |AP_{name}|", "not measured", "not measured", "—") for name in "xyz"
                    if name not in _axes(pair)]
     return tuple(rows)
@@ -256,7 +267,9 @@ def _pose_run_blocks(pair: CalibrationComparison) -> list:
         f"{rows[0][3]} times smaller." + (f" {axes}." if axes else "")),
         Table("calibration-gain", ("Quantity (over the poses of both runs)", "Before (mm)", "After (mm)",
                                    "Factor before / after"), rows,
-              f"Gain of the calibration: run {before.run.id} (before) against run {after.run.id} (after)"
+              f"Gain of the calibration: run {before.run.id} (before) against run {after.run.id} (after); each "
+              "value to the decimal place of the U of the pose results it comes from (a mean: the smallest U among "
+              "them; a mean has no U of its own, as the poses share the instrument's systematic errors)"
               + (f"; {axes}" if axes else "")),
         Table("calibration-poses", ("Pose", "AP_P ± U before (mm)", "AP_P ± U after (mm)", "AP_x before",
                                     "AP_x after", "AP_y before", "AP_y after", "AP_z before", "AP_z after",

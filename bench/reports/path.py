@@ -16,7 +16,8 @@ from bench.reports.content import ReportBase, calibrations_in_force, counts_inst
 from bench.reports.deviations import Deviation, _fmt, _planned_count, _row
 from bench.reports.document import Paragraph, RawData, Table, assemble, conditions_section, decision_blocks
 from bench.reports.path_run import PathRun, analyze_path_run
-from bench.reports.plots import MIN_FONT_PT, Plot, legend_entries, panels
+from bench.reports.plots import MIN_FONT_PT, PRINT_WIDTH_IN, Plot
+from bench.reports.small_multiples import SmallMultiples
 from bench.store import Store
 
 __all__ = ["PathReport", "collect_path", "path_deviations", "path_document", "path_plot"]
@@ -132,8 +133,9 @@ def path_plot(report: PathReport) -> Plot:
     P2 -> P5, v along P2 -> P3, mm from P1), every panel on one scale; one legend for the figure."""
     protocol = report.analysis.design
     shapes = list(protocol.shapes)
-    figure, axes_list = panels(len(shapes), max_columns=2, size=(3.4, 3.0), share=True)
-    for axes, shape in zip(axes_list, shapes):
+    grid = SmallMultiples(len(shapes), max_columns=2, panel_size=(3.4, 3.0), width_in=PRINT_WIDTH_IN,
+                          font_pt=MIN_FONT_PT, equal_aspect=True)  # one scale for u and v: the paths' true shape
+    for panel, shape in zip(grid.panels, shapes):
         path = protocol.path(shape)
         origin = path.centre_mm
 
@@ -144,25 +146,18 @@ def path_plot(report: PathReport) -> Plot:
         keys = sorted((k for k in report.analysis.cycles if k[0] == shape), key=lambda k: -k[1])
         for index, (_, points) in enumerate(report.analysis.cycles[keys[0]] if keys else []):
             u, v = plane(points)
-            axes.plot(u, v, lw=0.7, color=f"C{index % 10}", label=f"attained, cycle {index + 1}")
+            panel.plot(u, v, lw=0.7, color=f"C{index % 10}", label=f"attained, cycle {index + 1}")
         u, v = plane(path.point(np.linspace(0.0, path.length_mm, 400)))
-        axes.plot(u, v, lw=1.2, color="black", ls="--", label="commanded")
+        panel.plot(u, v, lw=1.2, color="black", ls="--", label="commanded")
         for label, corner in zip(("P3", "P4", "P5"), path.corners_mm[:3]):
             cu, cv = plane(corner[None, :])
-            axes.annotate(label, (cu[0], cv[0]), fontsize=MIN_FONT_PT, xytext=(3, 3), textcoords="offset points")
-        title = shape + (f" at {keys[0][1]:g} %" if keys else "")
-        axes.set_title(title, fontsize=MIN_FONT_PT + 1, pad=2)
-        axes.set_aspect("equal", adjustable="box")
-        axes.tick_params(labelsize=MIN_FONT_PT)
+            panel.annotate(label, (cu[0], cv[0]), fontsize=MIN_FONT_PT)
+        panel.set_title(shape + (f" at {keys[0][1]:g} %" if keys else ""))
     half = 1.05 * max(max(np.linalg.norm(protocol.path(s).vertices_mm - protocol.path(s).centre_mm, axis=1),
                              default=protocol.path(s).radius_mm) for s in shapes)
-    axes_list[0].set_xlim(-half, half)
-    axes_list[0].set_ylim(-half, half)
-    figure.supxlabel("u: along P2 → P5, from P1 (mm)", fontsize=MIN_FONT_PT + 1)
-    figure.supylabel("v: along P2 → P3, from P1 (mm)", fontsize=MIN_FONT_PT + 1)
-    legend = legend_entries(axes_list)
-    figure.legend(list(legend.values()), list(legend), loc="outside upper center", ncols=min(4, len(legend)),
-                  fontsize=MIN_FONT_PT)
+    grid.xlim = grid.ylim = (-half, half)
+    figure = grid.finish("u: along P2 → P5, from P1 (mm)", "v: along P2 → P3, from P1 (mm)", legend_pt=MIN_FONT_PT,
+                         legend_columns=4)
     return Plot("Commanded (dashed) and attained paths in the test plane at the highest velocity, every cycle, all "
                 "panels on one scale (the deviations are those of the robot: they are not magnified).", figure)
 

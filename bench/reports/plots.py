@@ -20,16 +20,15 @@ from dataclasses import dataclass
 
 import numpy as np
 from matplotlib.figure import Figure
-from matplotlib.patches import Circle
 from matplotlib.text import Text
 from matplotlib.ticker import MaxNLocator
-from scipy.spatial import ConvexHull, QhullError
 
 from bench.reports.content import RunReport
+from bench.reports.small_multiples import SmallMultiples
 
 __all__ = ["MIN_FONT_PT", "PRINT_HEIGHT_IN", "PRINT_WIDTH_IN", "Plot", "REPORT_DPI", "comparison_plot",
-           "deviation_histograms", "draw_all", "error_map_3d", "legend_entries", "print_ready", "panels", "payload_caption",
-           "payload_shift_figure", "png_bytes", "report_plots", "svg_text", "workspace_cloud_mm"]
+           "deviation_histograms", "draw_all", "error_map_3d", "hull_loop", "legend_entries", "print_ready", "panels",
+           "payload_caption", "payload_shift_figure", "png_bytes", "report_plots", "svg_text", "workspace_cloud_mm"]
 
 _log = logging.getLogger(__name__)
 _POSITION = ["x_mm", "y_mm", "z_mm"]
@@ -49,7 +48,6 @@ def print_ready(figure: Figure) -> Figure:
     fixed layout: saving it as SVG and PNG draws it once each, with no layout pass per save)."""
     if getattr(figure, "_bench_print_ready", False):
         return figure
-    _share_scales(figure)
     width, height = figure.get_size_inches()
     scale = min(PRINT_WIDTH_IN / width, PRINT_HEIGHT_IN / height)
     figure.set_size_inches(width * scale, height * scale)
@@ -107,12 +105,25 @@ REPORT_DPI = 150
 
 
 def png_bytes(plot: Plot, dpi: int = REPORT_DPI) -> bytes:
-    """The figure as PNG, drawn once per resolution (kept on the figure: the HTML and the PDF share it)."""
+    """The figure as PNG, drawn once per resolution (kept on the figure: the HTML and the PDF share it).
+
+    An RGB image (the figures are opaque): matplotlib's own PNG keeps an alpha channel that the PDF then splits off
+    and compresses as a second image (a third of the PDF's time); zlib level 3 encodes in two thirds of the time of
+    the default 6 for 2 % more bytes."""
     rendered = plot.figure.__dict__.setdefault("_bench_png", {})
     if dpi not in rendered:
+        from PIL import Image
+
         buffer = io.BytesIO()
-        plot.figure.savefig(buffer, format="png", dpi=dpi, metadata={"Software": None})
-        rendered[dpi] = buffer.getvalue()
+        plot.figure.savefig(buffer, format="rgba", dpi=dpi)
+        raw = buffer.getvalue()
+        width, height = (int(side) for side in plot.figure.get_size_inches() * dpi)  # the Agg canvas's size
+        if len(raw) != 4 * width * height:
+            raise RuntimeError(f"figure drawn as {len(raw)} bytes, expected {width} x {height} RGBA pixels")
+        png = io.BytesIO()
+        Image.frombuffer("RGBA", (width, height), raw).convert("RGB").save(png, format="png", compress_level=3,
+                                                                          dpi=(dpi, dpi))
+        rendered[dpi] = png.getvalue()
     return rendered[dpi]
 
 
@@ -185,57 +196,14 @@ def _rows_of(report: RunReport, result) -> np.ndarray:
     return table[mask].sort_values("cycle")
 
 
-def panels(count: int, *, max_columns: int, size: tuple[float, float] = (2.6, 2.6),
-           share: bool = False) -> tuple[Figure, list]:
+def panels(count: int, *, max_columns: int, size: tuple[float, float] = (2.6, 2.6)) -> tuple[Figure, list]:
     """A figure with ``count`` small panels, ``max_columns`` per row at most, each ``size`` inches before the
-    figure is scaled to the print width (:func:`print_ready`); ``share``: one x and one y scale for all panels
-    (small multiples compared by eye), tick labels on the outer panels only."""
+    figure is scaled to the print width (:func:`print_ready`), each panel on its own scale. Small multiples on one
+    scale are :class:`bench.reports.small_multiples.SmallMultiples`."""
     columns = max(1, min(max_columns, count))
     rows = math.ceil(count / columns)
-    if not share:
-        figure = Figure(figsize=(size[0] * columns, size[1] * rows + 0.4), layout="constrained")
-        return figure, [figure.add_subplot(rows, columns, index + 1) for index in range(count)]
-    # shared panels: drawn at print width with a fixed layout (margins in inches: y label, x label, legend on top)
-    left, right, bottom, top = 0.62, 0.08, 0.5, 0.5
-    width = PRINT_WIDTH_IN
-    height = (width - left - right) * size[1] * rows / (size[0] * columns) + bottom + top
-    figure = Figure(figsize=(width, height))
-    figure.subplots_adjust(left=left / width, right=1 - right / width, bottom=bottom / height,
-                           top=1 - top / height, wspace=0.12, hspace=0.32)
-    # not matplotlib's sharex/sharey: every operation on a shared axes walks all its siblings (weak references), a
-    # third of a 15-panel figure's time; the panels get one scale once, when the figure is made print ready
-    grid = figure.subplots(rows, columns, squeeze=False)
-    for extra in grid.flat[count:]:
-        extra.set_visible(False)
-    for axes in grid.flat:
-        axes.label_outer()  # tick labels on the outer panels only, as sharex/sharey do
-    figure._bench_shared_panels = list(grid.flat[:count])
-    return figure, list(grid.flat[:count])
-
-
-def _share_scales(figure: Figure) -> None:
-    """One x and one y scale for the panels of ``panels(..., share=True)``: limits set on a panel (autoscale off)
-    hold for all, else every panel is autoscaled over the data of all (as matplotlib's shared axes are)."""
-    shared = getattr(figure, "_bench_shared_panels", None)
-    if not shared:
-        return
-    for axis in "xy":
-        fixed = [axes for axes in shared if not getattr(axes, f"get_autoscale{axis}_on")()]
-        if fixed:
-            limits = getattr(fixed[-1], f"get_{axis}lim")()
-        else:
-            spans = [getattr(axes.dataLim, f"interval{axis}") for axes in shared
-                     if np.all(np.isfinite(getattr(axes.dataLim, f"interval{axis}")))]
-            for axes in shared:
-                if spans:
-                    corners = np.array([[min(s[0] for s in spans)] * 2, [max(s[1] for s in spans)] * 2])
-                    axes.dataLim.update_from_data_xy(corners, ignore=False, updatex=axis == "x",
-                                                     updatey=axis == "y")
-                axes.autoscale_view(scalex=axis == "x", scaley=axis == "y")
-            each = [getattr(axes, f"get_{axis}lim")() for axes in shared]
-            limits = (min(low for low, _ in each), max(high for _, high in each))
-        for axes in shared:
-            getattr(axes, f"set_{axis}lim")(limits)
+    figure = Figure(figsize=(size[0] * columns, size[1] * rows + 0.4), layout="constrained")
+    return figure, [figure.add_subplot(rows, columns, index + 1) for index in range(count)]
 
 
 def _short_label(result) -> str:
@@ -251,29 +219,29 @@ def _measured(result) -> tuple[np.ndarray, list[str]]:
     return np.asarray(result.commanded_mm)[["xyz".index(a) for a in result.axis_names]], columns
 
 
+def _grid(count: int, panel_size: tuple[float, float], *, equal_aspect: bool = False) -> SmallMultiples:
+    """The pose figures' small multiples: five panels a row at print width."""
+    return SmallMultiples(count, max_columns=5, panel_size=panel_size, width_in=PRINT_WIDTH_IN, font_pt=MIN_FONT_PT,
+                          equal_aspect=equal_aspect)
+
+
 def pose_scatter(report: RunReport) -> Plot:
     """Per pose: attained points minus the command (x-y plane), barycentre and the RP circle around it; one scale
     for every panel (the largest RP circle fits), one legend for the figure."""
-    figure, panel = panels(len(report.poses), max_columns=5, size=(1.45, 1.45), share=True)
+    grid = _grid(len(report.poses), (1.45, 1.45), equal_aspect=True)
     reach = max(float(np.abs(np.asarray(r.accuracy.ap_axes_mm[:2])).max()) + r.repeatability.rp_mm
                 for r in report.poses)
-    for result, axes in zip(report.poses, panel):
+    for result, panel in zip(report.poses, grid.panels):
         points = _rows_of(report, result)[_POSITION[:2]].to_numpy() - np.asarray(result.commanded_mm[:2])
         centre = np.asarray(result.accuracy.ap_axes_mm[:2])
-        axes.scatter(points[:, 0], points[:, 1], s=3, color="tab:blue", label="attained", linewidths=0)
-        axes.plot(*centre, marker="+", color="tab:red", markersize=7, linestyle="", label="barycentre")
-        axes.plot(0, 0, marker="x", color="black", linestyle="", label="command")
-        axes.add_patch(Circle(centre, result.repeatability.rp_mm, fill=False, color="tab:red", lw=0.8,
-                              label="circle of radius RP_l"))
-        axes.set_title(_short_label(result), fontsize=MIN_FONT_PT, pad=2)
-    panel[0].set_xlim(-reach * 1.05, reach * 1.05)
-    panel[0].set_ylim(-reach * 1.05, reach * 1.05)
-    for axes in panel:
-        axes.set_aspect("equal", adjustable="box")
-    figure.supxlabel("x − x_c (mm)", fontsize=MIN_FONT_PT + 1, y=0.005, va="bottom")
-    figure.supylabel("y − y_c (mm)", fontsize=MIN_FONT_PT + 1, x=0.005, ha="left")
-    handles, labels = panel[0].get_legend_handles_labels()
-    figure.legend(handles, labels, loc="upper center", ncols=len(labels), fontsize=MIN_FONT_PT + 1)
+        panel.scatter(points[:, 0], points[:, 1], s=3, color="tab:blue", label="attained", linewidths=0)
+        panel.plot(*centre, marker="+", color="tab:red", markersize=7, linestyle="", label="barycentre")
+        panel.plot(0, 0, marker="x", color="black", linestyle="", label="command")
+        panel.circle(centre, result.repeatability.rp_mm, fill=False, color="tab:red", lw=0.8,
+                     label="circle of radius RP_l")
+        panel.set_title(_short_label(result))
+    grid.xlim = grid.ylim = (-reach * 1.05, reach * 1.05)  # square panels, one scale: circles are round
+    figure = grid.finish("x − x_c (mm)", "y − y_c (mm)")
     return Plot("Attained positions per pose relative to the command (x-y projection), with the barycentre "
                 "and a circle of radius RP_l around it; every panel on the same scale.", figure)
 
@@ -282,9 +250,9 @@ def workspace_cloud_mm(robot: str, count: int = 2500) -> np.ndarray | None:
     """Reachable positions (count, 3) of the robot's workspace from motion/ (seeded), or None when unknown."""
     try:
         if robot == "pkm5":
-            from motion.pkm5 import estimate_workspace
+            from motion.pkm5 import sample_reachable
 
-            return estimate_workspace(samples=20_000, hull_points=count, seed=0).hull_points[:, :3]
+            return sample_reachable(count, seed=0)[:, :3]
         from motion.model import robot_models
 
         poses, reachable = robot_models()[robot].workspace_samples(5 * count, seed=0)
@@ -292,6 +260,33 @@ def workspace_cloud_mm(robot: str, count: int = 2500) -> np.ndarray | None:
     except Exception as exc:  # noqa: BLE001 - the plot is optional; the report says why it is missing
         _log.warning("workspace of %s not available for the report: %s", robot, exc)
         return None
+
+
+def hull_loop(points: np.ndarray) -> np.ndarray | None:
+    """Indices of the convex hull's vertices of the 2-D ``points`` (N, 2), counter-clockwise and closed (the first
+    repeated last), or None when the points span no area. Andrew's monotone chain (Andrew 1979), here rather than
+    scipy.spatial.ConvexHull: importing scipy.spatial costs a report process 0.3 s for one outline per figure."""
+    points = np.asarray(points, dtype=float)
+    order = np.lexsort((points[:, 1], points[:, 0])).tolist()
+    xy = points.tolist()  # Python floats: the loop below indexes one point at a time
+
+    def chain(indices) -> list[int]:
+        kept: list[int] = []
+        for index in indices:
+            while len(kept) >= 2:
+                (ax, ay), (bx, by) = xy[kept[-2]], xy[kept[-1]]
+                cx, cy = xy[index]
+                if (bx - ax) * (cy - ay) - (by - ay) * (cx - ax) > 0:  # a left turn: b stays on the hull
+                    break
+                kept.pop()
+            kept.append(index)
+        return kept
+
+    lower, upper = chain(order), chain(order[::-1])
+    loop = lower[:-1] + upper[:-1]
+    if len(loop) < 3:
+        return None
+    return np.array([*loop, loop[0]])
 
 
 def ap_on_workspace(report: RunReport) -> Plot | None:
@@ -303,16 +298,18 @@ def ap_on_workspace(report: RunReport) -> Plot | None:
         return None
     span = float(np.ptp(cloud, axis=0).max())
     scale = 0.15 * span / max(float(np.abs(vectors).max()), 1e-9)
-    figure = Figure(figsize=(10, 4.4), layout="constrained")
+    # a fixed layout (margins for the axis labels, the one legend on top) and the legend placed, not searched for:
+    # constrained layout and loc="best" over 2,500 points each measured the figure once more (half of its time)
+    width, height = PRINT_WIDTH_IN, 3.2
+    figure = Figure(figsize=(width, height))
+    figure.subplots_adjust(left=0.62 / width, right=1 - 0.06 / width, bottom=0.48 / height, top=1 - 0.32 / height,
+                           wspace=0.22)
     for index, (i, j) in enumerate(((0, 1), (0, 2))):
         axes = figure.add_subplot(1, 2, index + 1)
         axes.scatter(cloud[:, i], cloud[:, j], s=1, color="0.8", label="reachable (kinematic model)", rasterized=True)
-        try:
-            hull = ConvexHull(cloud[:, [i, j]])
-            loop = np.append(hull.vertices, hull.vertices[0])
+        loop = hull_loop(cloud[:, [i, j]])
+        if loop is not None:
             axes.plot(cloud[loop, i], cloud[loop, j], color="0.4", lw=1, label="hull")
-        except QhullError:
-            pass
         axes.quiver(commands[:, i], commands[:, j], vectors[:, i] * scale, vectors[:, j] * scale, color="tab:red",
                     angles="xy", scale_units="xy", scale=1, width=0.004, label=f"AP vector x{scale:.0f}")
         axes.scatter(commands[:, i], commands[:, j], s=12, color="black", label="command poses")
@@ -320,7 +317,8 @@ def ap_on_workspace(report: RunReport) -> Plot | None:
         axes.set_xlabel(f"{names[i]} (mm)")
         axes.set_ylabel(f"{names[j]} (mm)")
         axes.set_aspect("equal", adjustable="datalim")
-        axes.legend(fontsize=7)
+    legend = legend_entries(figure.axes)
+    figure.legend(list(legend.values()), list(legend), loc="upper center", ncols=len(legend), fontsize=MIN_FONT_PT)
     return Plot(f"Workspace of the {report.run.robot} (reachable points and convex hull, projections) with the "
                 f"signed AP vector of every pose magnified {scale:.0f} times.", figure)
 
@@ -328,24 +326,21 @@ def ap_on_workspace(report: RunReport) -> Plot | None:
 def drift_series(report: RunReport) -> Plot:
     """Small multiples, one panel per pose, on one scale: per-cycle distance of each attained point from its
     command in cycle order (drift and warm-up), one line per set of conditions, one legend for the figure."""
+    from bench.metrology.formatting import condition_text
+
     names = list(dict.fromkeys(r.pose for r in report.poses))
-    figure, panel = panels(len(names), max_columns=5, size=(1.45, 1.5), share=True)
-    by_pose = dict(zip(names, panel))
+    grid = _grid(len(names), (1.45, 1.5))
+    by_pose = dict(zip(names, grid.panels))
     for result in report.poses:
         rows = _rows_of(report, result)
         command, measured = _measured(result)
         distance = np.linalg.norm(rows[measured].to_numpy() - command, axis=1)
-        from bench.metrology.formatting import condition_text
-
-        by_pose[result.pose].plot(rows["cycle"], distance, marker=".", markersize=2, lw=0.8,
+        by_pose[result.pose].plot(rows["cycle"].to_numpy(), distance, marker=".", markersize=2, lw=0.8,
                                   label=condition_text(result.conditions) or "all cycles")
-    for name, axes in by_pose.items():
-        axes.set_title(name, fontsize=MIN_FONT_PT, pad=2)
-        axes.xaxis.set_major_locator(MaxNLocator(integer=True, nbins=4))
-    figure.supxlabel("cycle", fontsize=MIN_FONT_PT + 1, y=0.005, va="bottom")
-    figure.supylabel("|attained − command| (mm)", fontsize=MIN_FONT_PT + 1, x=0.005, ha="left")
-    handles, labels = panel[0].get_legend_handles_labels()
-    figure.legend(handles, labels, loc="upper center", ncols=max(1, len(labels)), fontsize=MIN_FONT_PT + 1)
+    for name, panel in by_pose.items():
+        panel.set_title(name)
+    grid.x_locator = MaxNLocator(integer=True, nbins=4)
+    figure = grid.finish("cycle", "|attained − command| (mm)")
     return Plot("Per pose, on one scale: distance of each attained point from its command, cycle by cycle (a trend "
                 "shows drift or warm-up).", figure)
 
@@ -358,18 +353,14 @@ def deviation_histograms(report: RunReport) -> Plot:
         command, columns = _measured(result)
         deviations.append(_rows_of(report, result)[columns].to_numpy() - command)
     edges = np.histogram_bin_edges(np.concatenate(deviations).ravel(), bins=24)
-    figure, panel = panels(len(report.poses), max_columns=5, size=(1.45, 1.2), share=True)
-    for result, axes, deviation in zip(report.poses, panel, deviations):
+    grid = _grid(len(report.poses), (1.45, 1.2))
+    for result, panel, deviation in zip(report.poses, grid.panels, deviations):
         for column, (name, colour) in enumerate(zip(result.axis_names, ("tab:blue", "tab:orange", "tab:green"))):
-            axes.hist(deviation[:, column], bins=edges, histtype="step", color=colour, lw=1.0,
-                      label=f"{name} − {name}_c")
-        axes.axvline(0.0, color="0.4", lw=0.6)
-        axes.set_title(_short_label(result), fontsize=MIN_FONT_PT, pad=2)
-        axes.yaxis.set_major_locator(MaxNLocator(integer=True, nbins=4))
-    figure.supxlabel("attained − command (mm)", fontsize=MIN_FONT_PT + 1, y=0.005, va="bottom")
-    figure.supylabel("cycles", fontsize=MIN_FONT_PT + 1, x=0.005, ha="left")
-    handles, labels = panel[0].get_legend_handles_labels()
-    figure.legend(handles, labels, loc="upper center", ncols=len(labels), fontsize=MIN_FONT_PT + 1)
+            panel.step_histogram(deviation[:, column], edges, color=colour, lw=1.0, label=f"{name} − {name}_c")
+        panel.vline(0.0, color="0.4", lw=0.6)
+        panel.set_title(_short_label(result))
+    grid.y_locator = MaxNLocator(integer=True, nbins=4)
+    figure = grid.finish("attained − command (mm)", "cycles")
     return Plot("Per pose, on one scale and with the same bins: histograms of the deviation of every attained "
                 "position from its command, per axis (the offset of a histogram from 0 is the signed AP of that "
                 "axis, its width the scatter behind RP).", figure)

@@ -27,7 +27,8 @@ from bench.metrology.path_tables import positioning_steps
 from bench.reports.content import ReportBase, calibrations_in_force, counts_instrument, provenance, run_table
 from bench.reports.deviations import ISO_BANDS_MM, Deviation, _fmt, _load, _planned_count, _row
 from bench.reports.document import Paragraph, RawData, Table, assemble, conditions_section, decision_blocks
-from bench.reports.plots import MIN_FONT_PT, Plot, legend_entries, panels
+from bench.reports.plots import MIN_FONT_PT, PRINT_WIDTH_IN, Plot
+from bench.reports.small_multiples import SmallMultiples
 from bench.reports.stabilisation import _bands, _hysteresis, count_size_mm
 from bench.store import Store
 
@@ -228,25 +229,21 @@ def positioning_time_plot(report: PositioningTimeReport) -> Plot:
     a = report.analysis
     key = next(iter(a.series))
     steps = a.series[key]
-    figure, axes_list = panels(len(steps), max_columns=3, size=(3.0, 2.2), share=True)
+    grid = SmallMultiples(len(steps), max_columns=3, panel_size=(3.0, 2.2), width_in=PRINT_WIDTH_IN,
+                          font_pt=MIN_FONT_PT, y_log=True)
     smallest = min(a.bands_mm)
-    for axes, (step, cycles) in zip(axes_list, steps.items()):
+    for panel, (step, cycles) in zip(grid.panels, steps.items()):
         for index, (cycle, t, p) in enumerate(cycles):
             moved = np.flatnonzero(np.linalg.norm(p - p[0], axis=1) > smallest)
             t0 = t[moved[0]] if len(moved) else t[0]
-            axes.plot(t - t0, np.linalg.norm(p - p[-1], axis=1), lw=0.8, color=f"C{index % 10}",
-                      label=f"cycle {cycle}")
+            panel.plot(t - t0, np.linalg.norm(p - p[-1], axis=1), lw=0.8, color=f"C{index % 10}",
+                       label=f"cycle {cycle}")
         for band in a.bands_mm:
-            axes.axhline(band, ls="--", color="tab:red", lw=0.7, label="limit bands B")
-        axes.axvline(0.0, color="0.5", lw=0.7)
-        axes.set_yscale("log")
-        axes.set_title(f"step {step}", fontsize=MIN_FONT_PT, pad=2)
-        axes.tick_params(labelsize=MIN_FONT_PT)
-    figure.supxlabel(f"t from leaving the {smallest:g} mm band of the start pose (s)", fontsize=MIN_FONT_PT + 1)
-    figure.supylabel("|p(t) − p_end| (mm)", fontsize=MIN_FONT_PT + 1)
-    legend = legend_entries(axes_list)
-    figure.legend(list(legend.values()), list(legend), loc="outside upper center", ncols=min(4, len(legend)),
-                  fontsize=MIN_FONT_PT)
+            panel.hline(band, ls="--", color="tab:red", lw=0.7, label="limit bands B")
+        panel.vline(0.0, color="0.5", lw=0.7)
+        panel.set_title(f"step {step}")
+    figure = grid.finish(f"t from leaving the {smallest:g} mm band of the start pose (s)", "|p(t) − p_end| (mm)",
+                         legend_pt=MIN_FONT_PT, legend_columns=4)
     return Plot(f"Each step at {key[0]:g} % ({key[1]:g} kg): distance from the settled position per cycle against the "
                 f"time from leaving the start pose, with the limit bands {_fmt(a.bands_mm)} mm (dashed); the "
                 "positioning time ends where a curve enters its band for good.", figure)

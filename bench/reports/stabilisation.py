@@ -42,7 +42,8 @@ from bench.reports.document import (
     conditions_section,
     decision_blocks,
 )
-from bench.reports.plots import MIN_FONT_PT, Plot, legend_entries, panels
+from bench.reports.plots import MIN_FONT_PT, PRINT_WIDTH_IN, Plot
+from bench.reports.small_multiples import SmallMultiples
 from bench.store import CalibrationRecord, RunRecord, Store
 
 __all__ = ["Arrival", "BandResult", "StabilisationReport", "collect_stabilisation", "count_size_mm",
@@ -212,41 +213,39 @@ def stabilisation_plot(report: StabilisationReport) -> Plot:
     move-done signal; in the smallest band, every cycle's first entry t_1, settled time t_2 (t_s = t_2 − t_1)
     and, where it exceeds B + h, the overshoot OV at the peak it is read from. One legend for the figure."""
     groups = list(dict.fromkeys(a.group for a in report.arrivals))
-    figure, axes_list = panels(len(groups), max_columns=3, size=(3.0, 2.2), share=True)
+    grid = SmallMultiples(len(groups), max_columns=3, panel_size=(3.0, 2.2), width_in=PRINT_WIDTH_IN,
+                          font_pt=MIN_FONT_PT)
     top = 2.0 * max(report.bands_mm)
     marked = min(report.bands_mm)
     by_key = {(r.group, r.band_mm): r for r in report.results}
     colours = [f"C{i}" for i in range(10)]
-    for axes, group in zip(axes_list, groups):
+    for panel, group in zip(grid.panels, groups):
         mark = by_key.get((group, marked))
         figures = dict(zip(mark.cycles, mark.result.cycles)) if mark is not None and mark.result else {}
         for index, arrival in enumerate(a for a in report.arrivals if a.group == group):
             colour = colours[index % len(colours)]
-            axes.plot(arrival.t_s, arrival.distance_mm, lw=0.8, color=colour, label=f"cycle {arrival.cycle}")
+            panel.plot(arrival.t_s, arrival.distance_mm, lw=0.8, color=colour, label=f"cycle {arrival.cycle}")
             cycle = figures.get(arrival.cycle)
             if cycle is None:
                 continue
-            axes.plot(cycle.first_entry_s, marked, marker="o", ms=4, mfc="none", color="black", ls="",
-                      label=f"t_1: first entry into B = {marked:g} mm")
-            axes.plot(cycle.settled_s, marked, marker="s", ms=4, mfc="none", color="tab:green", ls="",
-                      label="t_2: inside from here on (t_s = t_2 − t_1)")
-            axes.hlines(marked, cycle.first_entry_s, cycle.settled_s, color="tab:green", lw=2.0, alpha=0.6)
+            panel.plot(cycle.first_entry_s, marked, marker="o", ms=4, mfc="none", color="black", ls="",
+                       label=f"t_1: first entry into B = {marked:g} mm")
+            panel.plot(cycle.settled_s, marked, marker="s", ms=4, mfc="none", color="tab:green", ls="",
+                       label="t_2: inside from here on (t_s = t_2 − t_1)")
+            panel.plot([cycle.first_entry_s, cycle.settled_s], [marked, marked], color="tab:green", lw=2.0,
+                       alpha=0.6)
             if cycle.overshoot_mm > 0:
-                axes.plot(cycle.peak_s, min(cycle.overshoot_mm, top), marker="v", ms=5, color="tab:red", ls="",
-                          label="OV: largest d(t) after t_1")
+                panel.plot(cycle.peak_s, min(cycle.overshoot_mm, top), marker="v", ms=5, color="tab:red", ls="",
+                           label="OV: largest d(t) after t_1")
         for band in report.bands_mm:
-            axes.axhline(band, ls="--", color="tab:red", lw=0.7)
+            panel.hline(band, ls="--", color="tab:red", lw=0.7)
             if report.hysteresis_mm:
-                axes.axhline(band + report.hysteresis_mm, ls=":", color="tab:red", lw=0.6)
-        axes.axvline(0.0, color="0.5", lw=0.7)
-        axes.set_title(group, fontsize=MIN_FONT_PT, pad=2)
-    axes_list[0].set_ylim(0.0, top)
-    figure.supxlabel("t from the move-done signal (s)", fontsize=MIN_FONT_PT + 1, y=0.005, va="bottom")
-    figure.supylabel("d(t) = |p(t) − p_att| (mm)", fontsize=MIN_FONT_PT + 1, x=0.005, ha="left")
-    legend = legend_entries(axes_list)
-    order = sorted(legend, key=lambda label: not label.startswith("cycle"))  # the curves, then the marks
-    figure.legend([legend[label] for label in order], order, loc="upper center", ncols=min(4, len(legend)),
-                  fontsize=MIN_FONT_PT)
+                panel.hline(band + report.hysteresis_mm, ls=":", color="tab:red", lw=0.6)
+        panel.vline(0.0, color="0.5", lw=0.7)
+        panel.set_title(group)
+    grid.ylim = (0.0, top)
+    figure = grid.finish("t from the move-done signal (s)", "d(t) = |p(t) − p_att| (mm)", legend_pt=MIN_FONT_PT,
+                         legend_columns=4, legend_order=lambda label: not label.startswith("cycle"))  # curves first
     bands = ", ".join(f"{b:g}" for b in report.bands_mm)
     return Plot(f"Arrival at each pose, every panel on one scale: distance d(t) from the settled position (the last "
                 f"sample) per cycle, with the limit bands {bands} mm (dashed)" + (
