@@ -42,6 +42,8 @@ __all__ = [
     "RunRecord",
     "SampleRecord",
     "Store",
+    "encode_sample",
+    "insert_sample_row",
     "software_git_sha",
 ]
 
@@ -141,6 +143,29 @@ def software_git_sha() -> str:
         return sha.stdout.strip() + ("-dirty" if dirty.stdout.strip() else "")
     except (OSError, subprocess.SubprocessError):
         return "unknown"
+
+
+def encode_sample(run_id: int, step_index: int, *, values: Mapping[str, float], kind: str, pose: str | None,
+                  cycle: int | None, t_s: float, raw: Any) -> tuple:
+    """The ``samples`` row of one sample, its ``wall_utc`` now (when it was taken); a value that is not a finite
+    number, or raw data that is not JSON, raises ``ConfigError`` here, before anything is written."""
+    for key, value in values.items():
+        if not isinstance(value, (int, float)) or not math.isfinite(value):
+            raise ConfigError(f"run {run_id} step {step_index}: {key} = {value!r}, expected a finite number")
+    return (int(run_id), int(step_index), kind, pose, cycle, float(t_s), _utc_now(),
+            _to_json({k: float(v) for k, v in values.items()}, "values"), None if raw is None else _to_json(raw, "raw"))
+
+
+def insert_sample_row(db: GuardedConnection, row: tuple) -> None:
+    """Insert and commit one row of :func:`encode_sample` on ``db`` (in its own transaction: ``synchronous=FULL``
+    makes it durable before this returns)."""
+    try:
+        db.execute("INSERT INTO samples (run_id, step_index, kind, pose, cycle, t_s, wall_utc, values_json, raw_json)"
+                   " VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?)", row)
+    except sqlite3.IntegrityError as exc:
+        if "UNIQUE" in str(exc):
+            raise DuplicateSample(f"run {row[0]}: step {row[1]} already has a stored sample") from exc
+        raise ConfigError(f"run {row[0]}: no such run in {db.path}") from exc
 
 
 class Store:
@@ -422,20 +447,14 @@ class Store:
         raw : JSON-serialisable, optional
             The raw counts, bytes (as hex) or readings the values were computed from.
         """
-        for key, value in values.items():
-            if not isinstance(value, (int, float)) or not math.isfinite(value):
-                raise ConfigError(f"run {run_id} step {step_index}: {key} = {value!r}, expected a finite number")
-        try:
-            self._db.execute(
-                "INSERT INTO samples (run_id, step_index, kind, pose, cycle, t_s, wall_utc, values_json, raw_json)"
-                " VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?)",
-                (int(run_id), int(step_index), kind, pose, cycle, float(t_s), _utc_now(),
-                 _to_json({k: float(v) for k, v in values.items()}, "values"),
-                 None if raw is None else _to_json(raw, "raw")))
-        except sqlite3.IntegrityError as exc:
-            if "UNIQUE" in str(exc):
-                raise DuplicateSample(f"run {run_id}: step {step_index} already has a stored sample") from exc
-            raise ConfigError(f"run {run_id}: no such run in {self.path}") from exc
+        self.insert_sample(encode_sample(run_id, step_index, values=values, kind=kind, pose=pose, cycle=cycle,
+                                         t_s=t_s, raw=raw))
+
+    def insert_sample(self, row: tuple) -> None:
+        """Insert and commit one row of :func:`encode_sample` before returning (:meth:`add_sample` in two parts:
+        :class:`bench.store.sample_writer.SampleWriter` encodes a sample when it is taken and commits it on its
+        writer thread)."""
+        insert_sample_row(self._db, row)
 
     def stored_steps(self, run_id: int) -> set[int]:
         """Indices of the steps of ``run_id`` whose sample is stored."""
