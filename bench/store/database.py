@@ -4,7 +4,9 @@ A run is self-describing: its row carries the protocol name and version, the ful
 robot settings, the software version, the git SHA and the ids of the calibrations in force, so the stored run is
 enough to re-run or re-analyse it. Every sample is committed in its own transaction the moment it is taken
 (``synchronous=FULL``), so killing the writer, even with SIGKILL, loses no sample that ``add_sample`` returned
-from. A sample carries the index of the protocol step that produced it; resuming a run skips the stored indices.
+from. The runner starts each commit the moment its sample is taken on a writer thread and moves the robot on
+meanwhile (:mod:`bench.store.sample_writer`: the same commit, reported only once durable). A sample carries the
+index of the protocol step that produced it; resuming a run skips the stored indices.
 
 The status of a run is ``running`` from before its first sample and is settled by the runner in ``finally``:
 ``completed``, ``failed`` or ``aborted``, with the reason. A run is owned by the one live process that drives it
