@@ -64,14 +64,25 @@ class TruthLog:
         return entry
 
 
+#: Bytes read from the end of a truth log for its newest entry (an entry is ~300 bytes); the whole file if they
+#: hold no complete one. A run reads the log after every move, and the whole file grows with the run.
+_TRUTH_TAIL_BYTES = 4096
+
+
 def read_last_truth(path: str | os.PathLike[str]) -> dict[str, Any] | None:
     """The newest complete entry of a truth log, or ``None`` if no move has finished yet."""
-    lines = Path(path).read_text(encoding="utf-8").splitlines()
-    for line in reversed(lines):
-        try:
-            return json.loads(line)
-        except json.JSONDecodeError:  # a line being written right now
-            continue
+    with open(path, "rb") as handle:
+        size = handle.seek(0, os.SEEK_END)
+        for start in dict.fromkeys((max(0, size - _TRUTH_TAIL_BYTES), 0)):
+            handle.seek(start)
+            lines = handle.read().splitlines()
+            if start > 0:
+                lines = lines[1:]  # the first line of a tail may be cut
+            for line in reversed(lines):
+                try:
+                    return json.loads(line)
+                except json.JSONDecodeError:  # a line being written right now
+                    continue
     return None
 
 
