@@ -26,7 +26,7 @@ from pathlib import Path
 
 from _timing import load_line
 
-from bench.launch import simulated_rig_in
+from bench.launch import CAMPAIGN_KERNEL_WAIT_S, simulated_rig_in
 from bench.protocols import Runner, summarize
 from bench.protocols.iso9283 import PoseAccuracy
 from bench.store import Store
@@ -46,7 +46,8 @@ def run_once(cycles: int, speed_factor: float, seed: int, folder: Path) -> dict[
     """One campaign in a fresh store and simulator: its wall time and the parts of its floor."""
     protocol = PoseAccuracy(source="bench demo", cycles=cycles)
     with Store(folder / "bench.db") as store:
-        rig = simulated_rig_in(store, "pkm5", seed=seed, speed_factor=speed_factor)
+        rig = simulated_rig_in(store, "pkm5", seed=seed, speed_factor=speed_factor,
+                               kernel_wait_s=CAMPAIGN_KERNEL_WAIT_S)  # as bench demo starts it
         controller = rig.robot.controller
         try:
             rtt_s = round_trip_s(controller)

@@ -43,8 +43,8 @@ class Plant:
     seed : int
         Seed of the per-move random stream.
     warm_up : callable, optional
-        Work a simulator starts (:meth:`warm_up`) once it serves its port, not while it is being built: e.g.
-        loading a compiled kernel on a thread.
+        ``warm_up(wait_s)``: work a simulator starts (:meth:`warm_up`) once it is built, not while it is being
+        built, e.g. loading a compiled kernel on a thread; ``wait_s`` > 0 waits for it up to that long.
     """
 
     def __init__(self, joints_of: Callable[[np.ndarray], np.ndarray],
@@ -63,10 +63,11 @@ class Plant:
         self._attained: dict[bytes, np.ndarray] = {}  # commanded joints -> the pose last attained there
         self._warm_up = warm_up
 
-    def warm_up(self) -> None:
-        """Start the plant's deferred start-up work (idempotent; a no-op for most plants)."""
+    def warm_up(self, wait_s: float = 0.0) -> None:
+        """Start the plant's deferred start-up work (idempotent; a no-op for most plants); with ``wait_s`` > 0
+        return once it is done or ``wait_s`` has passed."""
         if self._warm_up is not None:
-            self._warm_up()
+            self._warm_up(wait_s)
 
     def prepare(self, command: np.ndarray, load_kg: float) -> None:
         """Compute now what the next call ``plant(command, load_kg)`` will return, leaving the plant's state as is.

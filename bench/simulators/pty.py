@@ -40,7 +40,8 @@ class SimDevice(Protocol):
         """Advance simulated time to ``now_s`` (monotonic); return bytes to send (completions, reports)."""
 
     # optional: ``idle(now_s) -> None``, run after each turn's replies are sent (work a reply need not wait for),
-    # and ``next_due_s() -> float | None``, when the next completion is due (the loop then wakes on time for it)
+    # ``next_due_s() -> float | None``, when the next completion is due (the loop then wakes on time for it), and
+    # ``ready() -> None``, run once before the port is served (deferred start-up work)
 
 
 class TruthLog:
@@ -139,6 +140,9 @@ def serve(device: SimDevice, args: argparse.Namespace) -> int:
     for signum in (signal.SIGTERM, signal.SIGINT):  # before the path is printed: a client may signal at once
         signal.signal(signum, lambda *_: stopping.append(True))
     master, slave, path = _open_pty()
+    ready = getattr(device, "ready", None)
+    if ready is not None:
+        ready()
     print(path, flush=True)
     if args.truth:
         print(os.path.abspath(args.truth), flush=True)
