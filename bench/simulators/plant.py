@@ -78,7 +78,9 @@ class Plant:
         would have computed. Any other call discards the prepared result and computes as usual.
         """
         trial = copy.copy(self)
-        trial._rng, trial._memory = copy.deepcopy(self._rng), copy.deepcopy(self._memory)
+        # JointMemory.update rebinds its arrays, never writes into them: a shallow copy is a copy; the random
+        # stream is copied through its state (a third of a deepcopy's time, which goes through pickle)
+        trial._rng, trial._memory = _copied_rng(self._rng), copy.copy(self._memory)
         trial._attained = dict(self._attained)
         trial._prepared = None
         command = np.array(command, copy=True)
@@ -116,3 +118,10 @@ class Plant:
         if len(self._attained) > _ATTAINED_KEPT:
             del self._attained[next(iter(self._attained))]  # the command visited longest ago
         return self.model.true_pose(self._previous, self.reference_pose, load_kg, self._rng)
+
+
+def _copied_rng(rng: np.random.Generator) -> np.random.Generator:
+    """An independent generator at the same point of the same stream as ``rng``."""
+    copied = np.random.Generator(type(rng.bit_generator)())
+    copied.bit_generator.state = rng.bit_generator.state
+    return copied
