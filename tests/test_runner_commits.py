@@ -61,6 +61,7 @@ def held_commits(monkeypatch):
     """Every commit waits until the runner moves the robot or waits for it; the log records the order."""
     log, release = [], threading.Event()
     real_insert, real_add, real_wait = sample_writer.insert_sample_row, SampleWriter.add, SampleWriter.wait
+    real_checkpoint = sample_writer.checkpoint_wal
 
     def add(self, *args, **kwargs):
         release.clear()
@@ -80,7 +81,12 @@ def held_commits(monkeypatch):
 
     monkeypatch.setattr(SampleWriter, "add", add)
     monkeypatch.setattr(SampleWriter, "wait", wait)
+    def checkpoint(db):
+        real_checkpoint(db)
+        log.append(("checkpoint", len([e for e in log if e[0] == "durable"])))
+
     monkeypatch.setattr(sample_writer, "insert_sample_row", insert)
+    monkeypatch.setattr(sample_writer, "checkpoint_wal", checkpoint)
     return log, release
 
 
@@ -109,9 +115,13 @@ def test_each_commit_overlaps_the_next_move_and_a_sample_is_reported_only_once_d
         between = [entry[0] for entry in log[taken + 1:durable]]
         assert between[:1] in (["move"], ["runner waits"])  # what released the commit
         overlapped += between[:1] == ["move"]
-    # a cycle's 5 visits: after the first 4 samples the next move runs during the commit; after the 5th the
-    # cycle's checkpoint waits for it (and the next cycle starts after it)
-    assert overlapped == SAMPLES * 4 // 5
+    # every commit overlaps the next move (the last one: the clean-up move): a cycle's checkpoint step queues the
+    # store's checkpoint behind its 5th commit, and the next cycle's first sample is taken after both
+    assert overlapped == SAMPLES
+    checkpoints = [i for i, entry in enumerate(log) if entry[0] == "checkpoint"]
+    assert [log[i] for i in checkpoints] == [("checkpoint", k) for k in range(5, SAMPLES + 1, 5)]
+    for i, k in zip(checkpoints, range(5, SAMPLES, 5)):
+        assert where[("durable", k)] < i < where[("measure", k + 1)]  # in order; done before the next sample
 
 
 def test_a_failed_commit_fails_the_run_before_anything_else_is_measured(tmp_path, monkeypatch):

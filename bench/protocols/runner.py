@@ -392,8 +392,11 @@ class Runner:
                 reply = self._act(step, run_id, index)
                 self.current_step = None
             if isinstance(step, Checkpoint) and not final and index >= start_at:
-                self._await_commit()
-                self.store.checkpoint()  # the .db file alone now holds every sample so far
+                # the .db file alone holds every sample so far once this checkpoint has run on the writer thread,
+                # during the next move (the next sample is stored after it); a pause or an end waits for it here
+                self._writer.checkpoint()
+                if self._pause_requested or self.state is not RunState.RUNNING:
+                    self._await_commit()
                 if self._at_checkpoint(step):
                     return
             index += 1
@@ -427,7 +430,7 @@ class Runner:
         if isinstance(step, Settle):
             self._settle(step.duration_s / rig.speed_factor)
             return None
-        if not isinstance(step, (Move, ActuatorMove, Settle)):
+        if not isinstance(step, (Move, ActuatorMove, Settle, Checkpoint)):
             self._await_commit()  # only motion overlaps a commit: a failed one stops the run before this step
         if isinstance(step, Capture):
             measured = rig.instrument.measure(step)

@@ -44,6 +44,7 @@ __all__ = [
     "RunRecord",
     "SampleRecord",
     "Store",
+    "checkpoint_wal",
     "encode_sample",
     "insert_sample_row",
     "software_git_sha",
@@ -156,6 +157,23 @@ def encode_sample(run_id: int, step_index: int, *, values: Mapping[str, float], 
             raise ConfigError(f"run {run_id} step {step_index}: {key} = {value!r}, expected a finite number")
     return (int(run_id), int(step_index), kind, pose, cycle, float(t_s), _utc_now(),
             _to_json({k: float(v) for k, v in values.items()}, "values"), None if raw is None else _to_json(raw, "raw"))
+
+
+def checkpoint_wal(db: GuardedConnection) -> None:
+    """:meth:`Store.checkpoint` on the connection ``db`` (any connection to the store copies the shared log)."""
+    deadline = time.monotonic() + CHECKPOINT_RETRY_S
+    try:
+        while True:
+            _busy, log_frames, copied = db.execute("PRAGMA wal_checkpoint(PASSIVE)").fetchone()
+            if copied >= log_frames:  # all of it (-1, -1: not in WAL mode, a store in memory)
+                return
+            if time.monotonic() > deadline:
+                _log.warning("store %s: checkpoint copied %d of %d log frames (a reader held an older "
+                             "snapshot for %g s)", db.path, copied, log_frames, CHECKPOINT_RETRY_S)
+                return
+            time.sleep(0.005)
+    except sqlite3.Error as exc:
+        raise BenchError(f"{db.path}: cannot checkpoint the store ({exc})") from None
 
 
 def insert_sample_row(db: GuardedConnection, row: tuple) -> None:
@@ -293,19 +311,7 @@ class Store:
         before the last commit (``bench runs``, the results browser, a test's poll): it then copies part of the
         log. Such readers last milliseconds, so the checkpoint is retried until the whole log is in the file or
         :data:`CHECKPOINT_RETRY_S` has passed (then a warning: the next checkpoint copies the rest)."""
-        deadline = time.monotonic() + CHECKPOINT_RETRY_S
-        try:
-            while True:
-                _busy, log_frames, copied = self._db.execute("PRAGMA wal_checkpoint(PASSIVE)").fetchone()
-                if copied >= log_frames:  # all of it (-1, -1: not in WAL mode, a store in memory)
-                    return
-                if time.monotonic() > deadline:
-                    _log.warning("store %s: checkpoint copied %d of %d log frames (a reader held an older "
-                                 "snapshot for %g s)", self.path, copied, log_frames, CHECKPOINT_RETRY_S)
-                    return
-                time.sleep(0.005)
-        except sqlite3.Error as exc:
-            raise BenchError(f"{self.path}: cannot checkpoint the store ({exc})") from None
+        checkpoint_wal(self._db)
 
     def backup_to(self, destination: str | Path) -> Path:
         """A consistent copy of the whole store at ``destination``, taken with SQLite's online backup API (safe

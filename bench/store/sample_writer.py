@@ -31,7 +31,7 @@ from concurrent.futures import wait as wait_for
 from typing import Any
 
 from bench.store.connection import GuardedConnection, open_connection
-from bench.store.database import Store, encode_sample, insert_sample_row
+from bench.store.database import Store, checkpoint_wal, encode_sample, insert_sample_row
 
 __all__ = ["SampleWriter"]
 
@@ -47,7 +47,8 @@ class SampleWriter:
 
     def __init__(self, store: Store) -> None:
         self.store = store
-        self._pending: tuple[Future | None, Any] | None = None  # the commit in flight and what wait() returns
+        #: the work in flight on the writer thread (a commit, then perhaps a checkpoint) and what wait() returns
+        self._pending: tuple[list[Future], Any] | None = None
         self._executor: ThreadPoolExecutor | None = None
         self._db: GuardedConnection | None = None
         if store.path != ":memory:":
@@ -66,9 +67,19 @@ class SampleWriter:
         row = encode_sample(run_id, step_index, values=values, kind=kind, pose=pose, cycle=cycle, t_s=t_s, raw=raw)
         if self._executor is None:
             self.store.insert_sample(row)
-            self._pending = (None, report)
+            self._pending = ([], report)
             return
-        self._pending = (self._executor.submit(insert_sample_row, self._db, row), report)
+        self._pending = ([self._executor.submit(insert_sample_row, self._db, row)], report)
+
+    def checkpoint(self) -> None:
+        """Copy the write-ahead log into the ``.db`` file (:meth:`Store.checkpoint`) on the writer thread, after the
+        commit in flight; :meth:`wait` waits for it too, so once the next sample is stored the ``.db`` file alone
+        holds every sample before this checkpoint, as with the store's own checkpoint."""
+        if self._executor is None:  # its commits are done already
+            self.store.checkpoint()
+            return
+        futures, report = self._pending if self._pending is not None else ([], None)
+        self._pending = (futures + [self._executor.submit(checkpoint_wal, self._db)], report)
 
     def wait(self) -> Any:
         """Return once the commit in flight is durable: its ``report`` (None when nothing was in flight, or nothing
@@ -76,14 +87,13 @@ class SampleWriter:
         (Ctrl-C) while the commit runs, the commit stays in flight and a later wait waits again."""
         if self._pending is None:
             return None
-        commit, report = self._pending
-        if commit is not None:
-            wait_for([commit])  # an interruption here leaves it in flight
-            self._pending = None
-            failure = commit.exception()  # done: at once
+        futures, report = self._pending
+        wait_for(futures)  # an interruption here leaves them in flight
+        self._pending = None
+        for future in futures:  # in the order they ran: a failed commit is named before its checkpoint
+            failure = future.exception()  # done: at once
             if failure is not None:
                 raise failure
-        self._pending = None
         return report
 
     def close(self) -> None:
