@@ -9,8 +9,10 @@ substance while the robot moves on:
   writer thread, in its own transaction on its own connection (``synchronous=FULL``, as every commit of the store);
 - one commit at a time: :meth:`SampleWriter.wait` returns once the commit in flight is durable, and
   :meth:`SampleWriter.add` refuses to start another before it was waited for. The runner waits before anything
-  else touches the store or the instruments (the next capture or prompt, a checkpoint, the end of the run), so
-  only motion and settling (``Move``, ``ActuatorMove``, ``Settle``) overlap a commit;
+  else touches the instruments or the operator (the next capture or prompt, a pause, the end of the run), so only
+  motion and settling (``Move``, ``ActuatorMove``, ``Settle``) overlap a commit. A checkpoint step queues the
+  store's WAL checkpoint (:meth:`SampleWriter.checkpoint`) behind the commit on the same thread, and the wait
+  covers it: once the next sample is stored, the ``.db`` file alone holds every sample before the checkpoint;
 - a failed commit raises from that wait: the run fails before anything else is measured;
 - nothing is reported as stored before it is durable: the runner counts a sample, advances its progress bar and
   tells its ``on_sample`` observers only once :meth:`~SampleWriter.wait` returned for it.
