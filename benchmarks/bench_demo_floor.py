@@ -9,7 +9,8 @@ where the motion is each ``MOVE``'s longest axis travel / its speed (the simulat
 together), the dwells are the protocol's settle times, the round trips are every command the driver exchanges
 with the simulator (counted during the run), and one round-trip time is the median of 200 ``ID`` exchanges on the
 same pty before the run. Printed: the floor's parts, then min / median / max of the campaign's wall time over
-``--repeat`` runs (default 5, a fresh simulator each) and the ratio of the median to the floor.
+``--repeat`` runs (default 5, a fresh simulator each, started as ``bench demo`` starts it: serving once its
+compiled kernel is loaded) and the ratio of the median to the floor.
 Target (issue 17): within 1.5x of the floor.
 
     python benchmarks/bench_demo_floor.py [--repeat 5] [--cycles 30] [--speed-factor 10000]
