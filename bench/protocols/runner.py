@@ -21,10 +21,11 @@ thread or a signal handler, are honoured at safe points:
 - an exception (or Ctrl-C) stops the robot (status ``failed``, or ``aborted`` for Ctrl-C).
 
 Each sample's commit starts the moment it is taken and runs on the store's writer thread
-(:class:`bench.store.sample_writer.SampleWriter`) while the next ``Move`` and ``Settle`` steps go on; the runner
-waits for it before anything else (the next capture or prompt, a checkpoint, the end of the run), a failed commit
-fails the run there, before anything else is measured, and a sample is counted and shown to ``on_sample`` only once
-it is durable (what a power cut can lose: the module :mod:`bench.store.sample_writer`).
+(:class:`bench.store.sample_writer.SampleWriter`) while the next ``Move`` and ``Settle`` steps go on (a
+``Checkpoint`` queues the store's checkpoint behind it); the runner waits for both before anything else (the next
+capture or prompt, a pause, the end of the run), a failed commit fails the run there, before anything else is
+measured, and a sample is counted and shown to ``on_sample`` only once it is durable (what a power cut can lose:
+the module :mod:`bench.store.sample_writer`).
 
 ``robot.shutdown()`` runs in ``finally`` in every case. The runner owns its run (``Store.claim``) from the moment it
 is stored or resumed until its status is settled; resuming a run another live process owns is refused with

@@ -55,9 +55,12 @@ class SampleWriter:
         self._db: GuardedConnection | None = None
         if store.path != ":memory:":
             self._executor = ThreadPoolExecutor(max_workers=1, thread_name_prefix="store-writer")
-            # the connection is made, used and closed on the writer thread only (sqlite3's one-thread rule)
-            self._db = self._executor.submit(lambda: GuardedConnection(open_connection(store.path),
-                                                                       store.path)).result()
+            try:  # the connection is made, used and closed on the writer thread only (sqlite3's one-thread rule)
+                self._db = self._executor.submit(lambda: GuardedConnection(open_connection(store.path),
+                                                                           store.path)).result()
+            except BaseException:
+                self._executor.shutdown(wait=True)
+                raise
 
     def add(self, run_id: int, step_index: int, *, values: Mapping[str, float], kind: str, pose: str | None,
             cycle: int | None, t_s: float, raw: Any, report: Any = None) -> None:
