@@ -19,9 +19,10 @@ from bench.rigs.builder import build_rig, check_capabilities, station_identity
 from bench.rigs.builder import open_mover as builder_open_mover
 from bench.rigs.interfaces import Operator, Rig
 from bench.rigs.station import Station, load_station, parse_station
-from bench.simulators import DEFAULT_SPEED_FACTOR
+from bench.simulators import CAMPAIGN_KERNEL_WAIT_S, DEFAULT_SPEED_FACTOR
 
-__all__ = ["DEFAULT_SPEED_FACTOR", "RigRequest", "open_mover", "open_rig", "simulated_rig_in"]
+__all__ = ["CAMPAIGN_KERNEL_WAIT_S", "DEFAULT_SPEED_FACTOR", "RigRequest", "open_mover", "open_rig",
+           "simulated_rig_in"]
 
 
 
@@ -217,10 +218,11 @@ def _station(request: RigRequest, robot: str, fixture: str) -> Station | None:
 
 
 def simulated_rig_in(store: Any, robot: str, *, seed: int, speed_factor: float, fixture: str = "assembled",
-                     true_geometry_seed: int | None = None, ideal: bool = False):
+                     true_geometry_seed: int | None = None, ideal: bool = False, kernel_wait_s: float = 0.0):
     """A simulated rig whose mouse calibration is recorded (get-or-create) in ``store``; with
     ``true_geometry_seed`` the pkm5 moves by that seed's true geometry, ``ideal`` without the error model (both
-    recorded in the simulator settings)."""
+    recorded in the simulator settings); ``kernel_wait_s``: the assembled pkm5's simulator serves its port once its
+    compiled kernel is loaded, or after that long (:data:`CAMPAIGN_KERNEL_WAIT_S` for a timed campaign)."""
     from bench.simulators.rig import simulated_rig
 
     check_speed_factor(speed_factor)
@@ -228,6 +230,8 @@ def simulated_rig_in(store: Any, robot: str, *, seed: int, speed_factor: float, 
         raise ConfigError(f"--true-geometry-seed {true_geometry_seed}: the {fixture} has no geometry, expected the "
                           "assembled robot")
     options = () if true_geometry_seed is None else ("--true-geometry-seed", str(true_geometry_seed))
+    if kernel_wait_s > 0 and robot == "pkm5" and fixture == "assembled":
+        options += ("--kernel-wait-s", f"{kernel_wait_s:g}")
     rig = simulated_rig(robot, seed=seed, speed_factor=speed_factor, fixture=fixture, options=options, ideal=ideal)
     rig.extra["simulator"] = {"seed": seed, **({"ideal": True} if ideal else {})}
     if true_geometry_seed is not None:

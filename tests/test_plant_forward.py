@@ -133,12 +133,30 @@ def test_a_plant_engine_that_does_not_exist_is_refused_by_name():
         pkm5_plant.build_plant(4, engine="fortran")
 
 
-def test_the_simulator_starts_the_plants_deferred_work_once_it_serves():
+def test_the_simulator_starts_the_plants_deferred_work_once_built_waiting_as_long_as_told():
     started = []
     plant = Plant(lambda steps: steps.astype(float), lambda joints, commanded, start: np.zeros(5),
-                  ErrorModel.ideal(6, 5), np.zeros(5), 0, warm_up=lambda: started.append(True))
-    device = Pkm5SimDevice(plant, speed_factor=1000.0)
-    assert started == []  # building the device (before the pty is served) does not start it
+                  ErrorModel.ideal(6, 5), np.zeros(5), 0, warm_up=started.append)
+    device = Pkm5SimDevice(plant, speed_factor=1000.0, kernel_wait_s=6.0)
+    assert started == []  # building the device does not start it
+    device.ready()  # the event loop, once built and before it serves the port
     device.idle(0.0)
     device.idle(0.1)
-    assert started == [True]
+    assert started == [6.0]
+
+
+@pytest.mark.skipif(pkm5_plant.plant_engine() != "compiled", reason="numba is not installed")
+def test_a_compiled_plant_waited_for_solves_its_first_warm_move_with_the_kernel(monkeypatch):
+    engines = []
+    forward = pkm5_plant.pkm5.forward_kinematics
+
+    def recording(*args, **kwargs):
+        engines.append(kwargs.get("engine"))
+        return forward(*args, **kwargs)
+
+    plant = pkm5_plant.build_plant(4, engine="compiled")
+    plant.warm_up(60.0)  # what --kernel-wait-s does before the pty is served (here: until loaded)
+    monkeypatch.setattr(pkm5_plant.pkm5, "forward_kinematics", recording)
+    for steps in campaign_steps(1)[:2]:
+        plant(steps, 0.0)
+    assert engines == ["numpy", "compiled"]  # the first pose has no warm start; then the kernel, at once

@@ -151,6 +151,34 @@ def test_unreachable_pose_is_refused_before_a_byte_is_sent(pose, reason):
         robot.move_to_pose(pose)
 
 
+def test_a_proved_target_is_remembered_per_geometry_and_a_refused_one_is_checked_every_time(monkeypatch):
+    import dataclasses
+
+    from bench.robots import pkm5_kinematics
+    from motion import pkm5
+
+    solves = []
+    solve = pkm5.inverse_kinematics
+
+    def counting(poses, geometry, *args, **kwargs):
+        solves.append(geometry)
+        return solve(poses, geometry, *args, **kwargs)
+
+    monkeypatch.setattr(pkm5, "inverse_kinematics", counting)
+    pkm5_kinematics._proved_steps.cache_clear()
+    longer = dataclasses.replace(pkm5.DEFAULT_GEOMETRY, leg_length_offset_mm=tuple(
+        v + 0.5 for v in pkm5.DEFAULT_GEOMETRY.leg_length_offset_mm))
+    assert pkm5_kinematics.steps_for_pose(POINT_3_1) == POINT_3_1_STEPS
+    assert pkm5_kinematics.steps_for_pose(list(POINT_3_1)) == POINT_3_1_STEPS  # the same pose: no second solve
+    assert len(solves) == 1
+    other = pkm5_kinematics.steps_for_pose(POINT_3_1, longer)  # another geometry proves it again, with its steps
+    assert len(solves) == 2 and other != POINT_3_1_STEPS
+    for _ in range(2):
+        with pytest.raises(UnreachableTarget, match="leg 1 length"):
+            pkm5_kinematics.steps_for_pose((110.52, -0.19, 405.5, 0, 0))
+    assert len(solves) == 4
+
+
 def test_steps_outside_the_leg_window_are_refused_before_a_byte_is_sent():
     # 9601 steps = 184 + 60.00625 mm, just past the 244 mm workspace limit of legs 1-4 (pkm5.md §2.4)
     with exchange([]) as robot, pytest.raises(UnreachableTarget, match=r"leg 1 length 244\.006 mm"):

@@ -89,6 +89,22 @@ def test_pkm5_truth_log_gets_each_settled_pose(tmp_path):
     assert entry["commanded"] == [900, 800, 800, 800, 1600, 1600]
 
 
+def test_the_newest_truth_entry_is_read_from_the_log_s_tail_past_a_line_being_written(tmp_path):
+    path = tmp_path / "truth.jsonl"
+    log = TruthLog(path, ("x_mm", "y_mm", "z_mm", "alpha_deg", "beta_deg"))
+    assert read_last_truth(path) is None
+    for k in range(200):  # ~60 kB: far more than the tail that is read
+        log.record([k] * 6, [k + 0.123456789, 0.0, 300.0, 0.0, 0.0], 0.0)
+    assert path.stat().st_size > 40_000
+    entry = read_last_truth(path)
+    assert entry["seq"] == 200 and entry["pose"][0] == 199.123456789
+    with path.open("a") as handle:
+        handle.write('{"seq": 201, "pose": [1.0, ')  # the simulator is writing the next one
+    assert read_last_truth(path)["seq"] == 200
+    path.write_text('{"seq": 1, "pose": [2.0]}\n' + "x" * 9000)  # nothing complete in the tail: the whole file
+    assert read_last_truth(path) == {"seq": 1, "pose": [2.0]}
+
+
 def delta_device(**kwargs):
     return Delta4SimDevice(lambda q, load: np.zeros(3), dwire.LegacyVbMapping(),
                            home_servo_deg=np.full(4, 71.66), **kwargs)

@@ -73,6 +73,26 @@ def test_pkm5_campaign_step_through_the_pty(tmp_path):
     assert 0.05 < error_mm < 5.0  # a real robot misses, by millimetres
 
 
+def test_the_truth_log_gives_the_pose_simtrue_answers_after_every_move_stop_and_setpos(tmp_path):
+    truth = tmp_path / "truth.jsonl"
+    with simulator("pkm5", "--speed-factor", "50", "--seed", "7", "--truth", str(truth)) as (_, path, _extra), \
+            pkm5_on(path) as robot:
+        asked, logged = SimulatorClient(robot), SimulatorClient(robot, str(truth))
+        at_power_up = logged.true_pose()  # an empty log: SIMTRUE answers
+        assert truth.read_text() == "" and np.array_equal(at_power_up, asked.true_pose())
+        robot.enable()
+        seen = []
+        for pose in (POINT_3_1, (110.52, -0.19, 310.0, 0.0, 0.0), POINT_3_1):
+            robot.move_to_pose(pose)
+            seen.append((asked.true_pose(), logged.true_pose()))
+        robot.set_position(robot.position().steps)  # SETPOS: the plant moves again (noise), the log with it
+        seen.append((asked.true_pose(), logged.true_pose()))
+    assert len(truth.read_text().splitlines()) == 4
+    for by_simtrue, by_log in seen:
+        assert np.array_equal(by_simtrue, by_log)  # bit for bit: the same pose to SIMTRUE's 4 decimals
+    assert not np.array_equal(seen[0][0], seen[2][0])  # the same command, another attained pose: the log moved on
+
+
 def test_ideal_pkm5_simulator_attains_the_commanded_pose():
     with simulator("pkm5", "--speed-factor", "50", "--ideal") as (_, path, _extra), pkm5_on(path) as robot:
         robot.enable()

@@ -161,7 +161,7 @@ def _report(store: Store, run_id: int, protocol: PoseAccuracy, results: pd.DataF
 def _demo(args: argparse.Namespace) -> int:
     from bench import __version__
     from bench.commands.campaign import execute
-    from bench.launch import simulated_rig_in
+    from bench.launch import CAMPAIGN_KERNEL_WAIT_S, simulated_rig_in
     from bench.protocols import Runner
     from bench.protocols.iso9283 import PoseAccuracy
     from bench.store import Store, export_run
@@ -173,7 +173,8 @@ def _demo(args: argparse.Namespace) -> int:
     protocol = PoseAccuracy(source="bench demo", cycles=args.cycles)
     started = time.monotonic()
     with Store(out / "bench.db") as store:
-        rig = simulated_rig_in(store, "pkm5", seed=args.seed, speed_factor=args.speed_factor)
+        rig = simulated_rig_in(store, "pkm5", seed=args.seed, speed_factor=args.speed_factor,
+                               kernel_wait_s=CAMPAIGN_KERNEL_WAIT_S)
         runner = Runner(rig, store, progress=not args.no_progress)
         result = execute(runner, lambda: runner.run(protocol, campaign="demo"))
         if result.exit_status != "completed":

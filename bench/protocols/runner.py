@@ -20,6 +20,13 @@ thread or a signal handler, are honoured at safe points:
   operator: <prompt>", resumable);
 - an exception (or Ctrl-C) stops the robot (status ``failed``, or ``aborted`` for Ctrl-C).
 
+Each sample's commit starts the moment it is taken and runs on the store's writer thread
+(:class:`bench.store.sample_writer.SampleWriter`) while the next ``Move`` and ``Settle`` steps go on (a
+``Checkpoint`` queues the store's checkpoint behind it); the runner waits for both before anything else (the next
+capture or prompt, a pause, the end of the run), a failed commit fails the run there, before anything else is
+measured, and a sample is counted and shown to ``on_sample`` only once it is durable (what a power cut can lose:
+the module :mod:`bench.store.sample_writer`).
+
 ``robot.shutdown()`` runs in ``finally`` in every case. The runner owns its run (``Store.claim``) from the moment it
 is stored or resumed until its status is settled; resuming a run another live process owns is refused with
 :class:`bench.store.RunOwned` before anything is moved or written. Resuming regenerates the protocol from the stored
@@ -63,6 +70,7 @@ from bench.steps import (
 )
 from bench.store import Store
 from bench.store.descriptors import validate_sample
+from bench.store.sample_writer import SampleWriter
 
 __all__ = ["TRANSITIONS", "RunResult", "RunState", "Runner", "TransitionError", "resume_point"]
 
@@ -155,7 +163,7 @@ class Runner:
         ``on_start(runner)`` once the run is stored (or reopened) and before its first step: ``runner.run_id``,
         ``runner.samples_total`` and ``runner.samples_stored`` (already stored when resuming) are set.
     on_sample : callable, optional
-        ``on_sample(runner, sample)`` after each sample is committed to the store; ``sample`` is a dict with
+        ``on_sample(runner, sample)`` once each sample is durable in the store; ``sample`` is a dict with
         ``step_index``, ``kind``, ``pose``, ``cycle``, ``t_s``, ``values`` and ``raw`` (as stored).
 
     Attributes
@@ -185,6 +193,7 @@ class Runner:
         self.samples_total = 0
         self.samples_stored = 0
         self._bar: _Progress | None = None
+        self._writer: SampleWriter | None = None
 
     # ---- requests --------------------------------------------------------------------------------------------
 
@@ -322,7 +331,9 @@ class Runner:
         self.samples_total, self.samples_stored = _count_samples(protocol), len(stored)
         self._bar = _Progress(self.progress, total=self.samples_total, done=self.samples_stored,
                               label=protocol.name)
+        self._writer = None
         try:
+            self._writer = SampleWriter(self.store)
             with self._bar:
                 self._call_hook(self.on_start, self)
                 self._loop(protocol.steps(), run_id, stored, start_at)
@@ -331,6 +342,7 @@ class Runner:
                 if self.state is not RunState.HALTING:
                     self._wake.clear()  # an abort cut the main steps short, not the clean-up's settles
                     self._loop(protocol.final_steps(), run_id, {}, 0, final=True)
+                self._await_commit()
             if self.state in (RunState.STOPPING, RunState.ABORTING, RunState.HALTING):
                 status = "aborted"
             else:
@@ -351,6 +363,9 @@ class Runner:
         finally:
             self.current_step = None
             self._shutdown()
+            failure = self._close_writer()
+            if failure is not None and status != "failed":  # the last sample's commit failed: it is not stored
+                status, exception, self._reason = "failed", failure, f"{type(failure).__name__}: {failure}"
             reason = None if status == "completed" else self._reason
             self.store.set_status(run_id, status, reason)
             self.store.checkpoint()  # the end of a run segment: the .db file alone is complete
@@ -378,7 +393,11 @@ class Runner:
                 reply = self._act(step, run_id, index)
                 self.current_step = None
             if isinstance(step, Checkpoint) and not final and index >= start_at:
-                self.store.checkpoint()  # the .db file alone now holds every sample so far
+                # the .db file alone holds every sample so far once this checkpoint has run on the writer thread,
+                # during the next move (the next sample is stored after it); a pause or an end waits for it here
+                self._writer.checkpoint()
+                if self._pause_requested or self.state is not RunState.RUNNING:
+                    self._await_commit()
                 if self._at_checkpoint(step):
                     return
             index += 1
@@ -412,6 +431,8 @@ class Runner:
         if isinstance(step, Settle):
             self._settle(step.duration_s / rig.speed_factor)
             return None
+        if not isinstance(step, (Move, ActuatorMove, Settle, Checkpoint)):
+            self._await_commit()  # only motion overlaps a commit: a failed one stops the run before this step
         if isinstance(step, Capture):
             measured = rig.instrument.measure(step)
             values = {**step.commanded, **measured.values, **step.conditions}
@@ -454,13 +475,39 @@ class Runner:
                       cycle: int | None, raw: Any) -> None:
         t_s = self._now_s()
         validate_sample(kind, values)  # a sample off its descriptor is a bug: refused, never stored
-        self.store.add_sample(run_id, index, values=values, kind=kind, pose=pose, cycle=cycle, t_s=t_s, raw=raw)
+        self._await_commit()  # (done already before the step) one sample in flight at a time, each reported once
+        sample = {"step_index": index, "kind": kind, "pose": pose, "cycle": cycle, "t_s": t_s, "values": values,
+                  "raw": raw}
+        self._writer.add(run_id, index, values=values, kind=kind, pose=pose, cycle=cycle, t_s=t_s, raw=raw,
+                         report=sample)
+
+    def _await_commit(self) -> None:
+        """Wait until the last sample taken is durable (raising the failure of its commit), then report it."""
+        sample = self._writer.wait()
+        if sample is None:
+            return
         self.samples_stored += 1
         if self._bar is not None:
             self._bar.advance()
-        sample = {"step_index": index, "kind": kind, "pose": pose, "cycle": cycle, "t_s": t_s, "values": values,
-                  "raw": raw}
         self._call_hook(self.on_sample, self, sample)
+
+    def _close_writer(self) -> Exception | None:
+        """Settle the last commit (reported if it succeeded) and close the writer; returns its failure, if any."""
+        if self._writer is None:  # it never opened: the run's failure says why
+            return None
+        failure = None
+        while True:
+            try:
+                self._await_commit()
+                break
+            except KeyboardInterrupt:  # the run is ending already: the commit in flight (ms) settles first
+                continue
+            except Exception as exc:  # noqa: BLE001 - stored in the run's status and reason
+                failure = exc
+                _log.error("run %d: the last sample's commit failed: %s: %s", self.run_id, type(exc).__name__, exc)
+                break
+        self._writer.close()  # nothing in flight any more
+        return failure
 
     @staticmethod
     def _call_hook(hook: Callable[..., None] | None, *args: Any) -> None:

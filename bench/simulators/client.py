@@ -27,10 +27,18 @@ def _checked(name: str, value: float, low: float, high: float) -> float:
 
 
 class SimulatorClient:
-    """Truth queries to a ``bench sim pkm5`` controller through an open :class:`~bench.robots.pkm5.Pkm5Controller`."""
+    """Truth queries to a ``bench sim pkm5`` controller through an open :class:`~bench.robots.pkm5.Pkm5Controller`.
 
-    def __init__(self, controller: Any) -> None:
+    With ``truth_log`` (the file the simulator was started with ``--truth``), :meth:`true_pose` reads the pose from
+    the log's newest entry instead of asking ``SIMTRUE``: the simulator writes that entry before it sends the
+    ``DONE`` (or the ``STOP``/``SETPOS`` reply) it belongs to, so it is the pose ``SIMTRUE`` answers, given to the
+    same 4 decimals; a file read instead of a pty round trip that wakes the simulator between two moves. Before the
+    first move the log is empty and ``SIMTRUE`` answers.
+    """
+
+    def __init__(self, controller: Any, truth_log: str | None = None) -> None:
         self.controller = controller
+        self.truth_log = truth_log
 
     @property
     def _port(self) -> str:
@@ -38,6 +46,12 @@ class SimulatorClient:
 
     def true_pose(self) -> np.ndarray:
         """The true attained pose (x_mm, y_mm, z_mm, alpha_deg, beta_deg), shape (5,)."""
+        if self.truth_log is not None:
+            from bench.simulators.pty import read_last_truth
+
+            entry = read_last_truth(self.truth_log)
+            if entry is not None:  # SIMTRUE's own rounding (f"{v:.4f}"), so both give the same numbers
+                return np.array([float(f"{v:.4f}") for v in entry["pose"]], dtype=float)
         reply = self.controller.query("SIMTRUE")
         try:
             return np.array([float(f) for f in reply.fields[1:6]], dtype=float)

@@ -65,8 +65,10 @@ class Pkm5SimDevice:
 
     def __init__(self, plant: Any, *, speed_factor: float = 1.0, truth: TruthLog | None = None,
                  load_kg: float = 0.0, mode: StructuralMode | None = None, sim_verbs: bool = True,
-                 observers: tuple[Any, ...] = ()) -> None:
+                 observers: tuple[Any, ...] = (), kernel_wait_s: float = 0.0) -> None:
         self.plant = plant
+        #: how long :meth:`ready` waits for the plant's deferred start-up work (its compiled kernel), s
+        self.kernel_wait_s = kernel_wait_s
         #: False (``--hardware-only``): the SIM verbs are unknown, as to the real firmware (ERR SYNTAX)
         self.sim_verbs = sim_verbs
         #: told ``rest(true_pose)`` each time the robot comes to rest, before DONE is sent (``--mice``)
@@ -83,7 +85,6 @@ class Pkm5SimDevice:
         self.arrival = (self.true_pose, self.true_pose, 0.0)
         self._trace: tuple[tuple[int, int, int], np.ndarray] | None = None
         self._unprepared: np.ndarray | None = None  # the accepted move's target, until the plant has prepared it
-        self._warmed = False
         self._line = bytearray()
         self._overflow = False
         self._booted = False
@@ -139,14 +140,16 @@ class Pkm5SimDevice:
         """When the running move ends (monotonic s), so the event loop wakes for its ``DONE`` on time."""
         return None if self.move is None else self.move.t_start_s + self.move.duration_s
 
+    def ready(self) -> None:
+        """Called once built, before the port is served: the plant's deferred start-up work begins (its compiled
+        kernel loads on a thread), waited for up to :attr:`kernel_wait_s`."""
+        warm_up = getattr(self.plant, "warm_up", None)
+        if warm_up is not None:
+            warm_up(self.kernel_wait_s)
+
     def idle(self, now_s: float) -> None:
         """Work the event loop runs once this turn's replies are sent: the true pose at the end of an accepted move
         is computed during the move (:meth:`Plant.prepare`), so the ``DONE`` reply never waits for the kinematics."""
-        if not self._warmed:  # the first turn: the pty is served, deferred start-up work may begin
-            self._warmed = True
-            warm_up = getattr(self.plant, "warm_up", None)
-            if warm_up is not None:
-                warm_up()
         target, self._unprepared = self._unprepared, None
         prepare = getattr(self.plant, "prepare", None)
         if target is not None and prepare is not None and self.move is not None:
@@ -287,6 +290,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "(default %(default)s; a choice, no document measures it)")
     parser.add_argument("--damping", type=float, default=StructuralMode.damping_ratio,
                         help="damping ratio of that mode, 0-1 (default %(default)s)")
+    parser.add_argument("--kernel-wait-s", type=float, default=0.0, metavar="SECONDS",
+                        help="wait up to this long for the compiled FK kernel (numba) before serving the pty, so "
+                             "the first moves run at speed (bench demo); 0: serve at once, the kernel loads behind")
     parser.add_argument("--true-geometry-seed", type=int, default=None, metavar="SEED",
                         help="move by a seeded perturbed geometry (bench.simulators.true_geometry) instead of the "
                              "error model's geometric stand-ins")
@@ -320,7 +326,8 @@ def build_device(args: argparse.Namespace) -> Pkm5SimDevice:
 
         observers = (MiceFeed(args.mice, plant(np.array(HOME_STEPS), args.load_kg), seed=args.seed),)
     return Pkm5SimDevice(plant, speed_factor=args.speed_factor, truth=truth, load_kg=args.load_kg, mode=mode,
-                         sim_verbs=not getattr(args, "hardware_only", False), observers=observers)
+                         sim_verbs=not getattr(args, "hardware_only", False), observers=observers,
+                         kernel_wait_s=max(0.0, getattr(args, "kernel_wait_s", 0.0)))
 
 
 def main(argv: list[str] | None = None) -> int:

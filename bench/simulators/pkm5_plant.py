@@ -31,8 +31,8 @@ NOMINAL_FIT_MM = 0.01
 TRANSLATION_FIT_MM = 0.05
 #: LM step criterion of the plant's warm solve (mm, rad): far below the 0.03 mm count of the simulated mice.
 _PLANT_STEP_TOL = 1e-7
-#: Warm solves after power-up that a compiled plant leaves to numpy (7 ms each) while numba loads on its thread
-#: (0.5-2 s from numba's cache): the demo's first 32 moves take about as long.
+#: Warm solves that a compiled plant no simulator warmed up (:meth:`Plant.warm_up`) leaves to numpy (7 ms each)
+#: before it loads numba and waits for it (0.5-2 s from numba's cache): a short use never loads it.
 NUMPY_SOLVES_AT_START = 32
 
 #: Error sizes for AP/RP of the order of the documents' physical tests (pkm5.md §6.8: AP 1.2-1.9 mm, RP 1.6-2.7 mm,
@@ -56,9 +56,11 @@ def plant_engine() -> str:
 
 class _KernelLoader(threading.Thread):
     """Loads numba and the FK kernel (0.5-2 s: the import, machine code from numba's cache) on a thread started
-    once the simulator serves its pty (:meth:`Plant.warm_up`); solves use it once it is loaded (:meth:`engine`). Started while the device is being built, the import fought the seed-table build for the GIL
-    and doubled the start-up; once serving, the event loop sits in select, so a reply meanwhile is late by one
-    thread switch at most."""
+    once the simulator is built, just before it serves its pty (:meth:`Plant.warm_up`); solves use it once it is
+    loaded (:meth:`engine`). Started while the device is being built, the import fought the seed-table build for
+    the GIL and doubled the start-up. While it loads, the event loop's replies wait for the GIL and each move's
+    solve is numpy's (7-10 ms), so a campaign's first moves ran 30 ms past their end (the demo's first 45 moves at
+    load 4: 1.4 s); a simulator started with ``--kernel-wait-s`` waits for it before serving."""
 
     def __init__(self, geometry: Any) -> None:
         super().__init__(name="pkm5-fk-kernel", daemon=True)
@@ -69,6 +71,13 @@ class _KernelLoader(threading.Thread):
         with self._starting:
             if self.ident is None:
                 self.start()
+
+    def warm(self, wait_s: float = 0.0) -> None:
+        """Start loading; with ``wait_s`` > 0 return once loaded or after ``wait_s`` (a fresh install compiles
+        for 10-20 s: the load then goes on behind the served port, as without a wait)."""
+        self.start_once()
+        if wait_s > 0:
+            self.join(wait_s)
 
     def run(self) -> None:
         try:
@@ -141,10 +150,13 @@ def build_plant(seed: int, *, ideal: bool = False, geometry: Any = pkm5.DEFAULT_
     solves = itertools.count()
 
     def engine_for(previous: np.ndarray | None) -> str:
-        # The first pose (at power-up, before the pty is served: no previous pose) and the first
-        # NUMPY_SOLVES_AT_START solves are numpy's, while the kernel loads; later solves use the kernel once it is
-        # loaded (never waiting for it: see _KernelLoader.engine).
-        if previous is None or loader is None or next(solves) < NUMPY_SOLVES_AT_START:
+        # The first pose (at power-up, before the pty is served: no previous pose) is numpy's. Once the kernel is
+        # loaded every solve uses it; while it loads (a simulator started it), numpy's, never waiting for it. A
+        # plant no simulator warmed up leaves its first NUMPY_SOLVES_AT_START solves to numpy, then loads the
+        # kernel and waits for it (see _KernelLoader.engine).
+        if previous is None or loader is None:
+            return "numpy"
+        if loader.ident is None and next(solves) < NUMPY_SOLVES_AT_START:
             return "numpy"
         return loader.engine()
 
@@ -204,4 +216,4 @@ def build_plant(seed: int, *, ideal: bool = False, geometry: Any = pkm5.DEFAULT_
                                     pose_offset=np.zeros(5))
     home_fk = pkm5.forward_kinematics(geometry.home_lengths_mm[None, :], geometry)
     return Plant(joints_of, forward, model, pose_deg_from_rad(home_fk.pose[0]), seed,
-                 warm_up=None if loader is None else loader.start_once)
+                 warm_up=None if loader is None else loader.warm)

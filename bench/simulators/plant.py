@@ -43,8 +43,8 @@ class Plant:
     seed : int
         Seed of the per-move random stream.
     warm_up : callable, optional
-        Work a simulator starts (:meth:`warm_up`) once it serves its port, not while it is being built: e.g.
-        loading a compiled kernel on a thread.
+        ``warm_up(wait_s)``: work a simulator starts (:meth:`warm_up`) once it is built, not while it is being
+        built, e.g. loading a compiled kernel on a thread; ``wait_s`` > 0 waits for it up to that long.
     """
 
     def __init__(self, joints_of: Callable[[np.ndarray], np.ndarray],
@@ -63,10 +63,11 @@ class Plant:
         self._attained: dict[bytes, np.ndarray] = {}  # commanded joints -> the pose last attained there
         self._warm_up = warm_up
 
-    def warm_up(self) -> None:
-        """Start the plant's deferred start-up work (idempotent; a no-op for most plants)."""
+    def warm_up(self, wait_s: float = 0.0) -> None:
+        """Start the plant's deferred start-up work (idempotent; a no-op for most plants); with ``wait_s`` > 0
+        return once it is done or ``wait_s`` has passed."""
         if self._warm_up is not None:
-            self._warm_up()
+            self._warm_up(wait_s)
 
     def prepare(self, command: np.ndarray, load_kg: float) -> None:
         """Compute now what the next call ``plant(command, load_kg)`` will return, leaving the plant's state as is.
@@ -77,7 +78,9 @@ class Plant:
         would have computed. Any other call discards the prepared result and computes as usual.
         """
         trial = copy.copy(self)
-        trial._rng, trial._memory = copy.deepcopy(self._rng), copy.deepcopy(self._memory)
+        # JointMemory.update rebinds its arrays, never writes into them: a shallow copy is a copy; the random
+        # stream is copied through its state (a third of a deepcopy's time, which goes through pickle)
+        trial._rng, trial._memory = _copied_rng(self._rng), copy.copy(self._memory)
         trial._attained = dict(self._attained)
         trial._prepared = None
         command = np.array(command, copy=True)
@@ -115,3 +118,10 @@ class Plant:
         if len(self._attained) > _ATTAINED_KEPT:
             del self._attained[next(iter(self._attained))]  # the command visited longest ago
         return self.model.true_pose(self._previous, self.reference_pose, load_kg, self._rng)
+
+
+def _copied_rng(rng: np.random.Generator) -> np.random.Generator:
+    """An independent generator at the same point of the same stream as ``rng``."""
+    copied = np.random.Generator(type(rng.bit_generator)())
+    copied.bit_generator.state = rng.bit_generator.state
+    return copied

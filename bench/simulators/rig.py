@@ -74,13 +74,13 @@ class SimulatedMice(MiceInstrument):
 
     def __init__(self, controller: Any, folder: str, *, seed: int, cpi: float = 800.0,
                  noise_counts: float = 0.05, report_rate_hz: float = 500.0, trace_rate_hz: int = 250,
-                 calibration_id: str = "sim-mouse-800cpi") -> None:
+                 calibration_id: str = "sim-mouse-800cpi", truth_log: str | None = None) -> None:
         from bench.sensors.calibration import CountsCalibration
         from bench.sensors.mouse import EvdevMouse
         from bench.simulators.mouse import MouseSimulator, MouseStream
 
         self.controller = controller
-        self.truth = SimulatorClient(controller)
+        self.truth = SimulatorClient(controller, truth_log)
         self.cpi, self.noise_counts, self.seed = cpi, noise_counts, seed
         self.report_rate_hz, self.trace_rate_hz = report_rate_hz, trace_rate_hz
         calibration = CountsCalibration.from_cpi(cpi, calibration_id=calibration_id, date="2026-01-01")
@@ -247,14 +247,21 @@ def simulated_rig(robot: str = "pkm5", *, seed: int = 0, speed_factor: float = 1
         return _simulated_delta_rig(seed=seed, speed_factor=speed_factor, ideal=ideal, options=options)
     if robot != "pkm5":
         raise LinkError(f"--robot {robot}: no simulated rig for this robot, expected pkm5 or delta4")
-    process, path = start_simulator(robot, seed=seed, speed_factor=speed_factor, ideal=ideal, options=options)
     folder = tempfile.TemporaryDirectory(prefix="bench-sim-")
+    # the mice read the true pose after each move from the truth log, not by a SIMTRUE round trip (SimulatorClient)
+    truth_log = os.path.join(folder.name, "truth.jsonl")
+    try:
+        process, path = start_simulator(robot, seed=seed, speed_factor=speed_factor, ideal=ideal,
+                                        options=("--truth", truth_log) + tuple(options))
+    except BaseException:
+        folder.cleanup()
+        raise
     closers: list[Callable[[], None]] = [folder.cleanup, lambda: end_process(process)]
     try:
         controller = Pkm5Controller(serial.serial_for_url(path, baudrate=115200, timeout=0.05))
         controller.identify()
         controller.enable()
-        mice = SimulatedMice(controller, folder.name, seed=seed)
+        mice = SimulatedMice(controller, folder.name, seed=seed, truth_log=truth_log)
     except BaseException:
         for close in reversed(closers):
             close()

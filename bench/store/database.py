@@ -4,7 +4,9 @@ A run is self-describing: its row carries the protocol name and version, the ful
 robot settings, the software version, the git SHA and the ids of the calibrations in force, so the stored run is
 enough to re-run or re-analyse it. Every sample is committed in its own transaction the moment it is taken
 (``synchronous=FULL``), so killing the writer, even with SIGKILL, loses no sample that ``add_sample`` returned
-from. A sample carries the index of the protocol step that produced it; resuming a run skips the stored indices.
+from. The runner starts each commit the moment its sample is taken on a writer thread and moves the robot on
+meanwhile (:mod:`bench.store.sample_writer`: the same commit, reported only once durable). A sample carries the
+index of the protocol step that produced it; resuming a run skips the stored indices.
 
 The status of a run is ``running`` from before its first sample and is settled by the runner in ``finally``:
 ``completed``, ``failed`` or ``aborted``, with the reason. A run is owned by the one live process that drives it
@@ -42,6 +44,9 @@ __all__ = [
     "RunRecord",
     "SampleRecord",
     "Store",
+    "checkpoint_wal",
+    "encode_sample",
+    "insert_sample_row",
     "software_git_sha",
 ]
 
@@ -141,6 +146,46 @@ def software_git_sha() -> str:
         return sha.stdout.strip() + ("-dirty" if dirty.stdout.strip() else "")
     except (OSError, subprocess.SubprocessError):
         return "unknown"
+
+
+def encode_sample(run_id: int, step_index: int, *, values: Mapping[str, float], kind: str, pose: str | None,
+                  cycle: int | None, t_s: float, raw: Any) -> tuple:
+    """The ``samples`` row of one sample, its ``wall_utc`` now (when it was taken); a value that is not a finite
+    number, or raw data that is not JSON, raises ``ConfigError`` here, before anything is written."""
+    for key, value in values.items():
+        if not isinstance(value, (int, float)) or not math.isfinite(value):
+            raise ConfigError(f"run {run_id} step {step_index}: {key} = {value!r}, expected a finite number")
+    return (int(run_id), int(step_index), kind, pose, cycle, float(t_s), _utc_now(),
+            _to_json({k: float(v) for k, v in values.items()}, "values"), None if raw is None else _to_json(raw, "raw"))
+
+
+def checkpoint_wal(db: GuardedConnection) -> None:
+    """:meth:`Store.checkpoint` on the connection ``db`` (any connection to the store copies the shared log)."""
+    deadline = time.monotonic() + CHECKPOINT_RETRY_S
+    try:
+        while True:
+            _busy, log_frames, copied = db.execute("PRAGMA wal_checkpoint(PASSIVE)").fetchone()
+            if copied >= log_frames:  # all of it (-1, -1: not in WAL mode, a store in memory)
+                return
+            if time.monotonic() > deadline:
+                _log.warning("store %s: checkpoint copied %d of %d log frames (a reader held an older "
+                             "snapshot for %g s)", db.path, copied, log_frames, CHECKPOINT_RETRY_S)
+                return
+            time.sleep(0.005)
+    except sqlite3.Error as exc:
+        raise BenchError(f"{db.path}: cannot checkpoint the store ({exc})") from None
+
+
+def insert_sample_row(db: GuardedConnection, row: tuple) -> None:
+    """Insert and commit one row of :func:`encode_sample` on ``db`` (in its own transaction: ``synchronous=FULL``
+    makes it durable before this returns)."""
+    try:
+        db.execute("INSERT INTO samples (run_id, step_index, kind, pose, cycle, t_s, wall_utc, values_json, raw_json)"
+                   " VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?)", row)
+    except sqlite3.IntegrityError as exc:
+        if "UNIQUE" in str(exc):
+            raise DuplicateSample(f"run {row[0]}: step {row[1]} already has a stored sample") from exc
+        raise ConfigError(f"run {row[0]}: no such run in {db.path}") from exc
 
 
 class Store:
@@ -266,19 +311,7 @@ class Store:
         before the last commit (``bench runs``, the results browser, a test's poll): it then copies part of the
         log. Such readers last milliseconds, so the checkpoint is retried until the whole log is in the file or
         :data:`CHECKPOINT_RETRY_S` has passed (then a warning: the next checkpoint copies the rest)."""
-        deadline = time.monotonic() + CHECKPOINT_RETRY_S
-        try:
-            while True:
-                _busy, log_frames, copied = self._db.execute("PRAGMA wal_checkpoint(PASSIVE)").fetchone()
-                if copied >= log_frames:  # all of it (-1, -1: not in WAL mode, a store in memory)
-                    return
-                if time.monotonic() > deadline:
-                    _log.warning("store %s: checkpoint copied %d of %d log frames (a reader held an older "
-                                 "snapshot for %g s)", self.path, copied, log_frames, CHECKPOINT_RETRY_S)
-                    return
-                time.sleep(0.005)
-        except sqlite3.Error as exc:
-            raise BenchError(f"{self.path}: cannot checkpoint the store ({exc})") from None
+        checkpoint_wal(self._db)
 
     def backup_to(self, destination: str | Path) -> Path:
         """A consistent copy of the whole store at ``destination``, taken with SQLite's online backup API (safe
@@ -422,20 +455,14 @@ class Store:
         raw : JSON-serialisable, optional
             The raw counts, bytes (as hex) or readings the values were computed from.
         """
-        for key, value in values.items():
-            if not isinstance(value, (int, float)) or not math.isfinite(value):
-                raise ConfigError(f"run {run_id} step {step_index}: {key} = {value!r}, expected a finite number")
-        try:
-            self._db.execute(
-                "INSERT INTO samples (run_id, step_index, kind, pose, cycle, t_s, wall_utc, values_json, raw_json)"
-                " VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?)",
-                (int(run_id), int(step_index), kind, pose, cycle, float(t_s), _utc_now(),
-                 _to_json({k: float(v) for k, v in values.items()}, "values"),
-                 None if raw is None else _to_json(raw, "raw")))
-        except sqlite3.IntegrityError as exc:
-            if "UNIQUE" in str(exc):
-                raise DuplicateSample(f"run {run_id}: step {step_index} already has a stored sample") from exc
-            raise ConfigError(f"run {run_id}: no such run in {self.path}") from exc
+        self.insert_sample(encode_sample(run_id, step_index, values=values, kind=kind, pose=pose, cycle=cycle,
+                                         t_s=t_s, raw=raw))
+
+    def insert_sample(self, row: tuple) -> None:
+        """Insert and commit one row of :func:`encode_sample` before returning (:meth:`add_sample` in two parts:
+        :class:`bench.store.sample_writer.SampleWriter` encodes a sample when it is taken and commits it on its
+        writer thread)."""
+        insert_sample_row(self._db, row)
 
     def stored_steps(self, run_id: int) -> set[int]:
         """Indices of the steps of ``run_id`` whose sample is stored."""
