@@ -169,3 +169,31 @@ def test_a_store_in_memory_commits_at_once_and_one_commit_is_in_flight_at_a_time
             writer.wait()
         writer.close()
         assert [s.values for s in store.samples(run_id)] == [{"x_mm": 1.0}]
+
+
+def test_a_pause_requested_as_the_checkpoint_is_reached_waits_for_the_cycles_commits_first(tmp_path, held_commits,
+                                                                                           monkeypatch):
+    # the request comes from another thread (a window's Pause button) between the runner's look at the requests
+    # and its pause: the operator must still see every sample of the cycle durable and the .db file complete
+    log, release = held_commits
+    real_at_checkpoint, asked = Runner._at_checkpoint, []
+
+    def request_arrives_now(self, step):
+        if not asked:
+            asked.append(True)
+            self.request_pause()
+        return real_at_checkpoint(self, step)
+
+    monkeypatch.setattr(Runner, "_at_checkpoint", request_arrives_now)
+
+    def on_pause(runner):
+        log.append(("paused", runner.samples_stored))
+        runner.resume()
+
+    with Store(tmp_path / "bench.db") as store:
+        runner = Runner(_rig(log, release), store, on_pause=on_pause)
+        result = runner.run(_protocol())
+        assert (result.exit_status, result.samples) == ("completed", SAMPLES)
+    paused = log.index(("paused", 5))  # the first checkpoint comes after the cycle's 5 samples, all reported
+    assert log.index(("durable", 5)) < log.index(("checkpoint", 5)) < paused
+    assert [e for e in log[log.index(("taken", 5)):paused] if e[0] == "move"] == []  # the robot waited too

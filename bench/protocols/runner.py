@@ -405,6 +405,9 @@ class Runner:
     def _at_checkpoint(self, step: Checkpoint) -> bool:
         """Handle pause and stop requests; True when the run must end here."""
         if self._pause_requested and self.state is RunState.RUNNING:
+            # (a request from another thread may have come after the loop's look): the operator is told only once
+            # every sample so far is durable and the .db file holds them (at once if the loop waited already)
+            self._await_commit()
             self._pause_requested = False
             self._transition(RunState.PAUSED)
             _log.warning("paused at checkpoint %s", step.label)
