@@ -160,3 +160,17 @@ def test_a_compiled_plant_waited_for_solves_its_first_warm_move_with_the_kernel(
     for steps in campaign_steps(1)[:2]:
         plant(steps, 0.0)
     assert engines == ["numpy", "compiled"]  # the first pose has no warm start; then the kernel, at once
+
+
+@pytest.mark.parametrize("value", ["-1", "inf", "nan"])
+def test_a_kernel_wait_that_is_not_a_finite_number_of_seconds_is_one_line(value, capsys, monkeypatch):
+    from bench.simulators import pkm5 as pkm5_simulator
+    from bench.simulators import pty
+
+    def serve(device, args):
+        raise AssertionError(f"served with --kernel-wait-s {value}")
+
+    monkeypatch.setattr(pty, "serve", serve)
+    assert pkm5_simulator.main(["--kernel-wait-s", value]) == 2
+    assert capsys.readouterr().err.strip().endswith(
+        f"error: --kernel-wait-s = {float(value)}, expected a finite number of seconds >= 0")

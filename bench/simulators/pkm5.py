@@ -302,6 +302,9 @@ def build_device(args: argparse.Namespace) -> Pkm5SimDevice:
     """The simulated controller described by the command-line ``args``."""
     from bench.robots.pkm5_kinematics import ACTUATOR_BENCH
     from bench.simulators.pkm5_plant import build_actuator_bench, build_plant
+    kernel_wait_s = getattr(args, "kernel_wait_s", 0.0)
+    if not 0 <= kernel_wait_s < float("inf"):  # (NaN fails too) a thread's join refuses inf with a traceback
+        raise ConfigError(f"--kernel-wait-s = {kernel_wait_s}, expected a finite number of seconds >= 0")
     try:
         mode = StructuralMode(getattr(args, "mode_hz", StructuralMode.frequency_hz),
                               getattr(args, "damping", StructuralMode.damping_ratio))
@@ -327,7 +330,7 @@ def build_device(args: argparse.Namespace) -> Pkm5SimDevice:
         observers = (MiceFeed(args.mice, plant(np.array(HOME_STEPS), args.load_kg), seed=args.seed),)
     return Pkm5SimDevice(plant, speed_factor=args.speed_factor, truth=truth, load_kg=args.load_kg, mode=mode,
                          sim_verbs=not getattr(args, "hardware_only", False), observers=observers,
-                         kernel_wait_s=max(0.0, getattr(args, "kernel_wait_s", 0.0)))
+                         kernel_wait_s=kernel_wait_s)
 
 
 def main(argv: list[str] | None = None) -> int:
