@@ -297,3 +297,27 @@ def test_settings_and_repr_show_every_setting():
 def test_settings_are_checked_on_construction(name, value):
     with pytest.raises(ConfigError, match=f"{name} = {value!r}, expected a number in"):
         Pkm5Controller(ScriptedPort([]), **{name: value})
+
+
+def test_a_geometry_that_is_not_the_frozen_geometry_is_proved_again_each_time():
+    # an object hashed by identity (any plain class) may change between two calls: remembering its proof would
+    # send the steps of the geometry it had before
+    import dataclasses
+
+    from bench.robots import pkm5_kinematics
+    from motion import pkm5
+
+    class Editable:  # e.g. a calibration being edited: attributes of a geometry it holds
+        def __init__(self, geometry):
+            self.geometry = geometry
+
+        def __getattr__(self, name):
+            return getattr(self.__dict__["geometry"], name)
+
+    longer = dataclasses.replace(pkm5.DEFAULT_GEOMETRY, leg_length_offset_mm=tuple(
+        v + 0.5 for v in pkm5.DEFAULT_GEOMETRY.leg_length_offset_mm))
+    editable = Editable(pkm5.DEFAULT_GEOMETRY)
+    assert pkm5_kinematics.steps_for_pose(POINT_3_1, editable) == POINT_3_1_STEPS
+    editable.geometry = longer
+    assert pkm5_kinematics.steps_for_pose(POINT_3_1, editable) == pkm5_kinematics.steps_for_pose(POINT_3_1, longer)
+    assert pkm5_kinematics.steps_for_pose(POINT_3_1, longer) != POINT_3_1_STEPS

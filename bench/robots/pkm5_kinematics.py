@@ -50,14 +50,18 @@ _PROVED_KEPT = 4096
 def steps_for_pose(pose_deg: Any, geometry: Any = pkm5.DEFAULT_GEOMETRY) -> tuple[int, ...]:
     """Absolute steps of ``pose_deg``; UnreachableTarget names the pose and every failed check.
 
-    The IK is a pure function of the pose and the geometry (a frozen dataclass), so a target proved reachable once
-    under a geometry is remembered with its steps: the same pose under the same geometry is the same proof. A refused
-    target raises and is never remembered, so it is checked again every time it is asked for."""
+    The IK is a pure function of the pose and the geometry (a :class:`motion.pkm5.Geometry`: a frozen dataclass,
+    equal and hashed by its values), so a target proved reachable once under a geometry is remembered with its
+    steps: the same pose under the same geometry is the same proof. Any other geometry object is solved every time.
+    A refused target raises and is never remembered, so it is checked again every time it is asked for."""
     key = _pose_key(pose_deg)
-    try:
-        hash(geometry)
-    except TypeError:  # a geometry that cannot be a key is solved every time
+    if type(geometry) is not pkm5.Geometry:  # any other object may be hashed by identity and change meanwhile
         key = None
+    else:
+        try:
+            hash(geometry)
+        except TypeError:  # fields given as lists or arrays: it cannot be a key, it is solved every time
+            key = None
     if key is None:  # or not 5 finite numbers: the solve below names what is wrong
         return _solve_steps(pose_deg, geometry)
     return _proved_steps(key, geometry)
