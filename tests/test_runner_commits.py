@@ -197,3 +197,32 @@ def test_a_pause_requested_as_the_checkpoint_is_reached_waits_for_the_cycles_com
     paused = log.index(("paused", 5))  # the first checkpoint comes after the cycle's 5 samples, all reported
     assert log.index(("durable", 5)) < log.index(("checkpoint", 5)) < paused
     assert [e for e in log[log.index(("taken", 5)):paused] if e[0] == "move"] == []  # the robot waited too
+
+
+def test_a_robot_failure_during_a_failed_commit_names_both(tmp_path, monkeypatch):
+    """The 5th move fails while the 4th sample's commit fails: the run's stored reason names the robot's failure
+    and the lost sample, not the first alone."""
+    log, moved = [], threading.Event()
+    real_insert, commits = sample_writer.insert_sample_row, []
+
+    def insert(db, row):
+        commits.append(row[1])
+        if len(commits) == 4:
+            raise StoreError("store: disk I/O error")
+        real_insert(db, row)
+
+    class FailingRobot(LoggingRobot):
+        def move_to(self, target, *, velocity_pct):
+            super().move_to(target, velocity_pct=velocity_pct)
+            if len([e for e in self.log if e[0] == "move"]) == 5:
+                raise RuntimeError("link lost")
+
+    monkeypatch.setattr(sample_writer, "insert_sample_row", insert)
+    with Store(tmp_path / "bench.db") as store:
+        rig = Rig(FailingRobot(log, moved), LoggingInstrument(log), NoOperator(), speed_factor=1e6,
+                  sleep=lambda s: None)
+        result = Runner(rig, store).run(_protocol())
+        stored_reason = store.run(result.run_id).reason
+    assert result.exit_status == "failed"
+    assert stored_reason == ("RuntimeError: link lost; the last sample's commit failed: StoreError: store: disk I/O "
+                             "error")

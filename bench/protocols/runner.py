@@ -366,6 +366,8 @@ class Runner:
             failure = self._close_writer()
             if failure is not None and status != "failed":  # the last sample's commit failed: it is not stored
                 status, exception, self._reason = "failed", failure, f"{type(failure).__name__}: {failure}"
+            elif failure is not None:  # both failed: the stored reason names the lost sample too
+                self._reason = f"{self._reason}; the last sample's commit failed: {type(failure).__name__}: {failure}"
             reason = None if status == "completed" else self._reason
             self.store.set_status(run_id, status, reason)
             self.store.checkpoint()  # the end of a run segment: the .db file alone is complete

@@ -45,7 +45,12 @@ _PIPE_CHUNK = 24 * 3 * 512
 
 def start_simulator(robot: str, *, seed: int, speed_factor: float, ideal: bool = False, timeout_s: float = 20.0,
                     options: tuple[str, ...] = ()) -> tuple[subprocess.Popen, str]:
-    """Start ``python -m bench.simulators.<robot>`` (plus ``options``); returns the process and its pty path."""
+    """Start ``python -m bench.simulators.<robot>`` (plus ``options``); returns the process and its pty path.
+
+    ``timeout_s`` is for the start itself: a ``--kernel-wait-s W`` among the options (the simulator serves its port
+    once its kernel is loaded) adds its W, so a loaded machine's kernel wait never eats into the start's limit."""
+    if "--kernel-wait-s" in options:
+        timeout_s += float(options[options.index("--kernel-wait-s") + 1])
     command = [sys.executable, "-m", f"bench.simulators.{robot}", "--seed", str(seed), "--speed-factor",
                str(speed_factor)] + (["--ideal"] if ideal else []) + list(options)
     # the simulator's log goes to a file: an undrained pipe would block the simulator once it filled up
