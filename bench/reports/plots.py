@@ -24,6 +24,7 @@ from matplotlib.text import Text
 from matplotlib.ticker import MaxNLocator
 
 from bench.reports.content import RunReport
+from bench.reports.png import rgb_png
 from bench.reports.small_multiples import SmallMultiples
 
 __all__ = ["MIN_FONT_PT", "PRINT_HEIGHT_IN", "PRINT_WIDTH_IN", "Plot", "REPORT_DPI", "comparison_plot",
@@ -107,23 +108,15 @@ REPORT_DPI = 150
 def png_bytes(plot: Plot, dpi: int = REPORT_DPI) -> bytes:
     """The figure as PNG, drawn once per resolution (kept on the figure: the HTML and the PDF share it).
 
-    An RGB image (the figures are opaque): matplotlib's own PNG keeps an alpha channel that the PDF then splits off
-    and compresses as a second image (a third of the PDF's time); zlib level 3 encodes in two thirds of the time of
-    the default 6 for 2 % more bytes."""
+    An RGB image (the figures are opaque), written by :func:`bench.reports.png.rgb_png`: the PDF embeds its
+    compressed pixels as they are; matplotlib's own PNG keeps an alpha channel that the PDF would split off and
+    compress as a second image."""
     rendered = plot.figure.__dict__.setdefault("_bench_png", {})
     if dpi not in rendered:
-        from PIL import Image
-
         buffer = io.BytesIO()
         plot.figure.savefig(buffer, format="rgba", dpi=dpi)
-        raw = buffer.getvalue()
         width, height = (int(side) for side in plot.figure.get_size_inches() * dpi)  # the Agg canvas's size
-        if len(raw) != 4 * width * height:
-            raise RuntimeError(f"figure drawn as {len(raw)} bytes, expected {width} x {height} RGBA pixels")
-        png = io.BytesIO()
-        Image.frombuffer("RGBA", (width, height), raw).convert("RGB").save(png, format="png", compress_level=3,
-                                                                          dpi=(dpi, dpi))
-        rendered[dpi] = png.getvalue()
+        rendered[dpi] = rgb_png(buffer.getbuffer(), width, height, dpi)
     return rendered[dpi]
 
 
