@@ -120,12 +120,19 @@ def _spread(walls: list[float]) -> str:
     return f"min {min(walls):6.2f}  median {statistics.median(walls):6.2f}  max {max(walls):6.2f} s"
 
 
+#: What a report process imports of other packages (the part of its time no change to bench can remove): pandas for
+#: the analysis, matplotlib's Figure (with mplot3d, which matplotlib.projections imports), reportlab and jinja2.
+LIBRARIES = "import numpy, pandas, matplotlib.figure, reportlab.platypus, jinja2"
+
+
 def whole_process(store_path: Path, run_id: int, out: Path, repeat: int) -> None:
     """``bench report RUN`` as a user runs it, against a process that imports only matplotlib and pandas."""
     floor = _process_times(["-c", "import matplotlib, pandas"], repeat)
+    libraries = _process_times(["-c", LIBRARIES], repeat)
     report = _process_times(["-c", "import sys; from bench.cli import main; sys.exit(main())", "report", str(run_id),
                              "--store", str(store_path), "--out", str(out), "--quiet"], repeat)
     print(f"{'floor (import matplotlib, pandas)':<36} wall {_spread(floor)}   {_load()}")
+    print(f"{'the libraries a report imports':<36} wall {_spread(libraries)}   {_load()}")
     print(f"{'bench report RUN (whole process)':<36} wall {_spread(report)}   {_load()}")
     median = statistics.median(report)
     print(f"bench report RUN: median {median:.2f} s = {median / statistics.median(floor):.1f} x the import floor, "

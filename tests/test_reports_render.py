@@ -135,3 +135,23 @@ def test_cli_errors_are_one_line_with_exit_2(reports, capsys, argv, message):
 def test_cli_refuses_a_missing_store(tmp_path, capsys):
     assert main(["report", "1", "--store", str(tmp_path / "none.db"), "--out", str(tmp_path)]) == 2
     assert "no such store file" in capsys.readouterr().err
+
+
+def test_pdf_figures_are_the_html_figures_pixel_for_pixel(reports):
+    """The PDF embeds the PNGs' deflated rows as they are (bench.reports.pdf): decoded by pypdf (Flate with PNG
+    predictors) they are the pixels Pillow decodes from the HTML's PNGs, figure by figure."""
+    import base64
+    import io
+
+    from PIL import Image
+    from pypdf import PdfReader
+
+    _, _, _, single, _ = reports
+    html = single.html.read_text(encoding="utf-8")
+    inline = [np.asarray(Image.open(io.BytesIO(base64.b64decode(data))).convert("RGB"))
+              for data in re.findall(r'<img src="data:image/png;base64,([^"]*)"', html)]
+    embedded = [np.asarray(image.image.convert("RGB")) for page in PdfReader(single.pdf).pages
+                for image in page.images]
+    assert len(embedded) == len(inline) >= 3
+    for pdf, png in zip(embedded, inline):
+        np.testing.assert_array_equal(pdf, png)

@@ -2,12 +2,13 @@
 
 The same sections, paragraphs, tables and figures as the HTML, on A4 pages numbered "page i of n" with the
 report id in the footer. Text uses the DejaVu Sans fonts shipped with matplotlib (±, −, Δ, °, x̄ need more than
-the PDF core fonts' Latin-1); figures are PNG at 150 dpi (reportlab embeds bitmaps natively; the HTML keeps the
-vector SVG).
+the PDF core fonts' Latin-1); figures are the report's PNGs at 150 dpi (the HTML inlines the same images), their
+compressed pixels embedded as they are (:class:`_Png`).
 """
 
 from __future__ import annotations
 
+import hashlib
 import io
 from pathlib import Path
 from xml.sax.saxutils import escape
@@ -18,10 +19,12 @@ from reportlab.lib.enums import TA_LEFT
 from reportlab.lib.pagesizes import A4
 from reportlab.lib.styles import ParagraphStyle, getSampleStyleSheet
 from reportlab.lib.units import mm
+from reportlab.pdfbase import pdfdoc
 from reportlab.pdfbase import pdfmetrics
 from reportlab.pdfbase.ttfonts import TTFont
 from reportlab.pdfgen import canvas as pdf_canvas
 from reportlab.platypus import (
+    Flowable,
     Image,
     KeepTogether,
     SimpleDocTemplate,
@@ -33,6 +36,7 @@ from reportlab.platypus import Table as PdfTable
 
 from bench.reports.document import Document, Figure, Paragraph, Table
 from bench.reports.plots import png_bytes
+from bench.reports.png import DeflatedRgb, deflated_rgb
 
 __all__ = ["render_pdf", "write_pdf"]
 
@@ -125,10 +129,63 @@ def _table(block: Table, styles, width: float) -> list:
     return [*out, table, Spacer(1, 4 * mm)]
 
 
+class _DeflatedImage(pdfdoc.PDFObject):
+    """A PDF image XObject of an RGB PNG's deflated rows: Flate with PNG predictors reads them as they are."""
+
+    def __init__(self, pixels: DeflatedRgb):
+        self.pixels = pixels
+
+    def format(self, document):
+        stream = pdfdoc.PDFStream(content=self.pixels.data)
+        stream.dictionary.dict.update({
+            "Type": pdfdoc.PDFName("XObject"), "Subtype": pdfdoc.PDFName("Image"), "Width": self.pixels.width,
+            "Height": self.pixels.height, "BitsPerComponent": 8, "ColorSpace": pdfdoc.PDFName("DeviceRGB"),
+            "Filter": pdfdoc.PDFName("FlateDecode"),  # one filter: DecodeParms a dictionary, not an array
+            "DecodeParms": pdfdoc.PDFDictionary({"Predictor": 15, "Colors": 3, "BitsPerComponent": 8,
+                                                 "Columns": self.pixels.width})})
+        return stream.format(document)
+
+
+class _Png(Flowable):
+    """A PNG at ``width`` x ``height`` points, its deflated pixels embedded as they are: reportlab's own images
+    decode a PNG and deflate its pixels again (a third of a report's PDF time). Registered as
+    ``Canvas.drawImage`` registers an image (reportlab 4-5), which offers no way to pass compressed pixels."""
+
+    def __init__(self, pixels: DeflatedRgb, png: bytes, width: float, height: float):
+        super().__init__()
+        self.pixels, self.name = pixels, hashlib.md5(png).hexdigest()
+        self.width, self.height = width, height
+        self.hAlign = "CENTER"  # as reportlab's Image
+
+    def wrap(self, available_width, available_height):
+        return self.width, self.height
+
+    def draw(self):
+        canvas, document = self.canv, self.canv._doc
+        reference = document.getXObjectName(self.name)
+        if reference not in document.idToObject:
+            document.Reference(_DeflatedImage(self.pixels), reference)
+        canvas._currentPageHasImages = 1
+        canvas.saveState()
+        canvas.scale(self.width, self.height)
+        canvas._code.append(f"/{reference} Do")
+        canvas.restoreState()
+        canvas._formsinuse.append(self.name)
+
+
+def _image(png: bytes, width: float, height: float) -> Flowable:
+    """``png`` at ``width`` x ``height`` points: its pixels as they are (:class:`_Png`) when it is what the report
+    writes (8-bit RGB), else through reportlab's own image."""
+    pixels = deflated_rgb(png)
+    if pixels is None:
+        return Image(io.BytesIO(png), width=width, height=height)
+    return _Png(pixels, png, width, height)
+
+
 def _figure(block: Figure, styles, width: float) -> list:
     figure_width, figure_height = block.plot.figure.get_size_inches()
     height = min(width * figure_height / figure_width, 200 * mm)
-    image = Image(io.BytesIO(png_bytes(block.plot)), width=height * figure_width / figure_height, height=height)
+    image = _image(png_bytes(block.plot), height * figure_width / figure_height, height)
     return [KeepTogether([image, PdfParagraph(escape(block.plot.caption), styles["caption"]), Spacer(1, 4 * mm)])]
 
 

@@ -20,6 +20,7 @@ from collections.abc import Sequence
 import numpy as np
 from matplotlib.collections import LineCollection
 from matplotlib.figure import Figure
+from matplotlib.lines import Line2D
 from matplotlib.patches import Circle
 from matplotlib.scale import LogTransform
 from matplotlib.ticker import LogLocator, MaxNLocator
@@ -72,21 +73,32 @@ class Panel:
         self.artists.append(artist)
         return artist
 
+    def _add(self, artist):
+        """``artist`` on the grid's Axes without updating its data limits (fixed: the panels' boxes, in inches),
+        which for a line or a circle in a panel's own transform cost more than building it. Unlabelled, it is
+        left out of legends as ``Axes.plot`` leaves it (a label starting with "_")."""
+        if not artist.get_label():
+            artist.set_label("_nolegend_")
+        return self.grid.axes.add_artist(artist)
+
+    def _line(self, x, y, transform, **kwargs) -> Line2D:
+        x, y = (np.atleast_1d(np.asarray(values, dtype=float)) for values in (x, y))
+        return self._add(Line2D(x, y, transform=transform, **kwargs))
+
     def plot(self, x, y, **kwargs):
         """A line (``Axes.plot`` keywords); its points count for the shared limits. Without a colour, the next of
         the panel's own colour cycle (C0, C1, ...), so the n-th series has one colour in every panel."""
         if "color" not in kwargs and "c" not in kwargs:
             kwargs["color"] = f"C{self._unstyled_lines % 10}"
             self._unstyled_lines += 1
-        (line,) = self.grid.axes.plot(x, y, transform=self.transform, **kwargs)
-        return self._placed(line, x, y)
+        return self._placed(self._line(x, y, self.transform, **kwargs), x, y)
 
     def scatter(self, x, y, **kwargs):
         return self._placed(self.grid.axes.scatter(x, y, transform=self.transform, **kwargs), x, y)
 
     def circle(self, centre, radius: float, **kwargs):
         """A circle in data units (round on paper when the grid's x and y scales are equal)."""
-        patch = self.grid.axes.add_patch(Circle(centre, radius, transform=self.transform, **kwargs))
+        patch = self._add(Circle(centre, radius, transform=self.transform, **kwargs))
         return self._placed(patch, [centre[0] - radius, centre[0] + radius], [centre[1] - radius, centre[1] + radius])
 
     def step_histogram(self, values, edges, **kwargs) -> np.ndarray:
@@ -102,16 +114,14 @@ class Panel:
         """A vertical line across the panel at data ``x`` (which counts for the x limits only)."""
         x0, y0, width, height = self.box_in
         across = Affine2D().scale(1.0, height).translate(0.0, y0) + self.grid.axes.transData
-        line = self.grid.axes.plot([x, x], [0.0, 1.0], transform=blended_transform_factory(self.transform, across),
-                                   **kwargs)[0]
+        line = self._line([x, x], [0.0, 1.0], blended_transform_factory(self.transform, across), **kwargs)
         return self._placed(line, [x], [])
 
     def hline(self, y: float, **kwargs):
         """A horizontal line across the panel at data ``y`` (which counts for the y limits only)."""
         x0, y0, width, height = self.box_in
         across = Affine2D().scale(width, 1.0).translate(x0, 0.0) + self.grid.axes.transData
-        line = self.grid.axes.plot([0.0, 1.0], [y, y], transform=blended_transform_factory(across, self.transform),
-                                   **kwargs)[0]
+        line = self._line([0.0, 1.0], [y, y], blended_transform_factory(across, self.transform), **kwargs)
         return self._placed(line, [], [y])
 
     def annotate(self, text: str, xy, *, offset_pt=(3, 3), **kwargs):
