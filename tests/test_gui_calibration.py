@@ -71,6 +71,7 @@ def _run_validation(window, choice) -> int:
         return store.runs()[-1].id
 
 
+@pytest.mark.slow
 def test_identify_in_the_window_then_run_with_the_chosen_calibration_and_with_none(window, tmp_path):
     store_path = tmp_path / "bench.db"
     run_id = _calibration_run(store_path)
