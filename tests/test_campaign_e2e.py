@@ -244,6 +244,7 @@ def test_kill_9_mid_run_then_resume_gives_exactly_the_expected_samples(capsys, t
         assert store.run(1).status == "completed"
 
 
+@pytest.mark.slow
 def test_demo_writes_table_results_and_report(capsys, tmp_path):
     out = tmp_path / "demo"
     assert main(["demo", "--out", str(out), "--cycles", "3", "--no-progress"]) == 0

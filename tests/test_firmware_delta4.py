@@ -465,6 +465,7 @@ REPLAY = [
 REPLAY = [step if len(step) == 4 else (*step, None) for step in REPLAY]
 
 
+@pytest.mark.slow
 def test_one_script_gets_the_same_replies_from_firmware_and_simulator(mcu):
     simulator = subprocess.Popen([sys.executable, "-m", "bench.simulators.delta4", "--ideal", "--no-grid",
                                   "--speed-factor", "8"], cwd=ROOT, stdout=subprocess.PIPE,

@@ -72,6 +72,7 @@ def simulator_replies():
         process.wait(timeout=10)
 
 
+@pytest.mark.slow
 def test_firmware_and_simulator_answer_the_script_alike(simulator_replies, tmp_path):
     elf, harness, _ = build(tmp_path / "build", WATCHDOG_MS=5000)  # no heartbeat in a replay: a patient watchdog
     controller = EmulatedController(elf, harness, tmp_path / "events.txt")

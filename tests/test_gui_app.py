@@ -121,6 +121,7 @@ def test_calliper_prompt_answered_in_the_dialog_then_pause_and_abort(window, tmp
     assert tilt.raw == {"field": "a_deg", "entered": -1.5, "typed": "-1,5 deg"} and (tilt.pose, tilt.cycle) == (dialog.prompt.pose, 1)
 
 
+@pytest.mark.slow
 def test_closing_mid_run_stops_at_a_checkpoint_and_the_run_resumes_from_the_browser(window, tmp_path):
     window.robot_panel.speed_factor.setValue(60)
     _start(window, "iso9283_pose_quick.toml", cycles="3")

@@ -8,10 +8,10 @@ deterministic fit) for the parameters the window stored and shows."""
 
 from __future__ import annotations
 
+import contextlib
+import io
 import json
 import shutil
-import subprocess
-import sys
 from pathlib import Path
 
 import pytest
@@ -23,23 +23,37 @@ from PySide6.QtCore import Qt, QTimer
 from PySide6.QtTest import QTest
 
 from bench.calibration_compensation import NEWEST, OFF
+from bench.cli import main as bench_main
 from bench.gui.campaign_panel import EXAMPLES
 from bench.store import Store
 
 SEED = 3  # true geometry (tests/test_kinematic_compensation.py)
 
 
-def _bench(*args, store: Path) -> str:
-    command = [sys.executable, "-m", "bench.cli", *args, "--store", str(store)]
-    done = subprocess.run(command, capture_output=True, text=True, timeout=300)
-    assert done.returncode == 0, done.stderr
-    return done.stdout
+def _bench(*args: str, store: Path) -> str:
+    """``bench ARGS --store STORE`` through the console script's entry point (in this process); what it printed."""
+    printed = io.StringIO()
+    with contextlib.redirect_stdout(printed):
+        assert bench_main([*args, "--store", str(store)]) == 0
+    return printed.getvalue()
 
 
-def _calibration_run(store: Path) -> int:
+@pytest.fixture(scope="module")
+def calibration_store(tmp_path_factory) -> tuple[Path, int]:
+    """A store holding one calibration run of the seeded true geometry, and its id: run once for the module (each
+    test works on its own copy)."""
+    store = tmp_path_factory.mktemp("calibration") / "bench.db"
     said = _bench("run", str(EXAMPLES / "kinematic_calibration.toml"), "--true-geometry-seed", str(SEED), "--ideal",
                   "--no-kinematic-calibration", "--no-progress", store=store)
-    return int(said.split()[-1])
+    return store, int(said.split()[-1])
+
+
+@pytest.fixture
+def calibration_run(calibration_store, tmp_path) -> int:
+    """The test's ``bench.db`` (the window's store): a copy of the module's calibration store; the run's id."""
+    store, run_id = calibration_store
+    shutil.copy(store, tmp_path / "bench.db")
+    return run_id
 
 
 def _click_identify(window, run_id: int) -> int:
@@ -71,9 +85,10 @@ def _run_validation(window, choice) -> int:
         return store.runs()[-1].id
 
 
-def test_identify_in_the_window_then_run_with_the_chosen_calibration_and_with_none(window, tmp_path):
-    store_path = tmp_path / "bench.db"
-    run_id = _calibration_run(store_path)
+@pytest.mark.slow
+def test_identify_in_the_window_then_run_with_the_chosen_calibration_and_with_none(calibration_run, window,
+                                                                                   tmp_path):
+    store_path, run_id = tmp_path / "bench.db", calibration_run
     shutil.copy(store_path, tmp_path / "copy.db")
     expected = json.loads(_bench("calibrate", str(run_id), "--json", store=tmp_path / "copy.db"))
 
@@ -141,11 +156,11 @@ def test_a_run_without_measured_poses_is_refused_in_one_line(window, tmp_path):
         assert [c for c in store.calibrations() if c.name == "pkm5_kinematics"] == []
 
 
-def test_closing_the_window_during_an_identification_waits_for_it(tmp_path):
+def test_closing_the_window_during_an_identification_waits_for_it(calibration_run, tmp_path):
     from bench.gui.app import MainWindow
     from gui_support import application
 
-    run_id = _calibration_run(tmp_path / "bench.db")
+    run_id = calibration_run
     application()
     main = MainWindow(tmp_path / "bench.db", tmp_path / "reports", open_files=False)
     main.show()

@@ -22,6 +22,7 @@ def _runs(tmp_path):
         return store.runs(), {r.id: store.samples(r.id) for r in store.runs()}
 
 
+@pytest.mark.slow
 def test_queued_runs_run_in_order_and_two_runs_compare(window, tmp_path):
     panel = window.campaign_panel
     panel.choose_file(EXAMPLES / "iso9283_pose_quick.toml")

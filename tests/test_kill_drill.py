@@ -40,6 +40,11 @@ SAMPLES = 30
 #: Samples left for the last segment: an interruption never lands after the run could have completed.
 MARGIN = 4
 COVERAGE = 3.0
+#: The simulator's speed factor: a move takes ~0.02 s of wall time, the 0.1 s settle is wall time (the runner's),
+#: so one sample's move, settle and capture take ~0.15 s; most of a segment is the process start and registration.
+SPEED_FACTOR = 1000
+#: An interruption lands this long (uniformly drawn) after its sample count: into the next move, settle or capture.
+CYCLE_S = 0.15
 
 
 def _stored(store) -> tuple[int | None, int, str | None]:
@@ -115,9 +120,9 @@ def drill(tmp_path_factory) -> Drill:
                         'settle_s = 0.1\n')
     mice, truth_log, store = tmp_path / "mice", tmp_path / "truth.jsonl", tmp_path / "b.db"
     mice.mkdir()
-    simulator = subprocess.Popen([BENCH, "sim", "pkm5", "--mice", str(mice), "--speed-factor", "100", "--seed", "5",
-                                  "--truth", str(truth_log)], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                                 text=True)
+    simulator = subprocess.Popen([BENCH, "sim", "pkm5", "--mice", str(mice), "--speed-factor", str(SPEED_FACTOR),
+                                  "--seed", "5", "--truth", str(truth_log)], stdout=subprocess.PIPE,
+                                 stderr=subprocess.PIPE, text=True)
     rng = random.Random(15)
     snapshots: list[dict[int, tuple]] = []
     kills_at: list[int] = []
@@ -145,7 +150,7 @@ def drill(tmp_path_factory) -> Drill:
                                               or not kill and _stored(store)[2] != "running"):
                 assert time.monotonic() < deadline, f"no {target} samples within 120 s"
                 time.sleep(0.02)
-            time.sleep(rng.uniform(0.0, 0.25))  # into the next move, settle or capture (a move takes ~0.2 s)
+            time.sleep(rng.uniform(0.0, CYCLE_S))
             assert process.poll() is None, process.communicate()
             os.kill(process.pid, interruption)
             _, err = process.communicate(timeout=30)

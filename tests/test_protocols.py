@@ -572,7 +572,7 @@ def test_delta_rig_refuses_moves_once_emergency_stopped():
 
 
 @given(st.text(max_size=40))
-@settings(max_examples=2000, deadline=None)
+@settings(max_examples=500, deadline=None)
 def test_typed_entries_are_a_finite_reading_within_bounds_or_one_line(text):
     from bench.errors import ConfigError
     from bench.rigs.operators import parse_entry

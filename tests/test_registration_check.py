@@ -41,7 +41,7 @@ def test_the_check_pose_is_reachable_and_tells_every_axis_apart():
 def simulator(tmp_path):
     mice = tmp_path / "mice"
     mice.mkdir()
-    process = subprocess.Popen([BENCH, "sim", "pkm5", "--mice", str(mice), "--speed-factor", "50", "--seed", "7"],
+    process = subprocess.Popen([BENCH, "sim", "pkm5", "--mice", str(mice), "--speed-factor", "500", "--seed", "7"],
                                stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:
         ready, _, _ = select.select([process.stdout], [], [], 60)

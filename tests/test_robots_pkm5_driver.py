@@ -293,7 +293,7 @@ def test_settings_and_repr_show_every_setting():
 
 
 @pytest.mark.parametrize("name, value", [("speed_steps_s", 0), ("speed_steps_s", 5000), ("retries", -1),
-                                         ("reply_timeout_s", "1")])
+                                         ("reply_timeout_s", "1"), ("heartbeat_s", 0)])
 def test_settings_are_checked_on_construction(name, value):
     with pytest.raises(ConfigError, match=f"{name} = {value!r}, expected a number in"):
         Pkm5Controller(ScriptedPort([]), **{name: value})

@@ -107,13 +107,18 @@ class Pkm5Controller:
         Extra attempts for an idempotent command whose reply timed out or was corrupted.
     move_margin_s : float
         Slack added to a move's announced duration (x1.5) before ``DONE`` is declared late, s.
+    heartbeat_s : float
+        Interval of the ``POS`` heartbeat while a move runs, s (default :data:`HEARTBEAT_S`, a third of the
+        firmware's default link watchdog); a firmware built with a longer watchdog, or one emulated slower than
+        real time, takes a longer one. A beat more than one interval late goes out even if the last is unanswered.
     fixture : {"assembled", "actuator-bench"}
         What the controller drives: the assembled robot (pose moves only) or free-standing actuators
         (:meth:`move_actuator` only makes sense, and is only allowed, on the bench).
     """
 
     def __init__(self, port: Any, *, geometry: Any = None, speed_steps_s: int = RATED_SPEED_STEPS_S, reply_timeout_s: float = 1.0,
-                 retries: int = 2, move_margin_s: float = 2.0, fixture: str = kinematics.ASSEMBLED) -> None:
+                 retries: int = 2, move_margin_s: float = 2.0, fixture: str = kinematics.ASSEMBLED,
+                 heartbeat_s: float = HEARTBEAT_S) -> None:
         if fixture not in kinematics.FIXTURES:
             raise ConfigError(f"Pkm5Controller: fixture = {fixture!r}, expected one of "
                               f"{', '.join(repr(f) for f in kinematics.FIXTURES)}")
@@ -124,6 +129,7 @@ class Pkm5Controller:
         self.reply_timeout_s = float(_checked_number("reply_timeout_s", reply_timeout_s, 0.001, 600))
         self.retries = int(_checked_number("retries", retries, 0, 10))
         self.move_margin_s = float(_checked_number("move_margin_s", move_margin_s, 0, 600))
+        self.heartbeat_s = float(_checked_number("heartbeat_s", heartbeat_s, 0.001, 60))
         self._tags = itertools.count(1)
         self._line = threading.RLock()  # held by the command reading replies; stop() from elsewhere bypasses it
         # An emergency stop latches: no MOVE is written after it until enable(). The latch and the MOVE/STOP writes
@@ -196,14 +202,14 @@ class Pkm5Controller:
                heartbeat: bool = False, done_at: tuple[int, ...] | None = None) -> wire.Reply:
         """The next reply with ``tag``; stale tags and corrupted lines are dropped until the deadline.
 
-        With ``heartbeat`` a ``POS`` line goes out every :data:`HEARTBEAT_S` (the firmware's link watchdog stops a
+        With ``heartbeat`` a ``POS`` line goes out every ``heartbeat_s`` (the firmware's link watchdog stops a
         move when the host falls silent); its replies are dropped unseen, except that with ``done_at`` (a move's
         targets) a reply showing the controller idle there stands for the ``DONE`` that noise destroyed."""
         deadline = Deadline(timeout_s)
         expected = f"'{kinds[0]} #{tag} ...' from a {wire.DEVICE_NAME} controller"
         dropped: list[bytes] = []
         beats: set[int] = set()
-        next_beat_s = time.monotonic() + HEARTBEAT_S
+        next_beat_s = time.monotonic() + self.heartbeat_s
         heard_since_beat = True
         while True:
             wait_s = deadline.remaining_s()
@@ -212,13 +218,13 @@ class Pkm5Controller:
                 # A beat goes out when the controller has said something since the last one, or that one is
                 # long overdue (its reply lost): never a queue of beats that a controller answering slower than
                 # they come (a 55-byte reply to a 14-byte POS) would take in until its receive buffer overflows.
-                if now_s >= next_beat_s and (heard_since_beat or now_s >= next_beat_s + HEARTBEAT_S):
+                if now_s >= next_beat_s and (heard_since_beat or now_s >= next_beat_s + self.heartbeat_s):
                     beat = next(self._tags)
                     beats.add(beat)
                     with self._write:
                         self._send(wire.format_command("POS", (), beat, self._version), command="POS")
-                    next_beat_s, heard_since_beat = time.monotonic() + HEARTBEAT_S, False
-                due_s = next_beat_s if heard_since_beat else next_beat_s + HEARTBEAT_S
+                    next_beat_s, heard_since_beat = time.monotonic() + self.heartbeat_s, False
+                due_s = next_beat_s if heard_since_beat else next_beat_s + self.heartbeat_s
                 wait_s = min(wait_s, max(0.0, due_s - time.monotonic()))
             try:
                 line = self.link.read_frame(wait_s, command=verb, expected=expected)
