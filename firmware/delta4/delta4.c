@@ -128,6 +128,8 @@ static volatile uint8_t settled_periods, frame_periods;
 static volatile uint32_t setpoint_q8[SERVOS], target_q8[SERVOS];
 static volatile uint16_t watchdog_stops;
 static volatile uint8_t pot_counts[SERVOS];    /* the latest TLC548 readings, servos 1-4 */
+/* queries not yet answered, counted: two `A` read in one pass of service_rx (the main loop busy with a report
+ * while both arrived) get two answers, as the simulator gives */
 static volatile uint8_t pots_asked, capability_asked;
 
 static volatile uint8_t rx_buf[64], rx_head, rx_tail;
@@ -347,9 +349,9 @@ static void on_byte(uint8_t byte) {
   } else if (byte == 'G') {
     stop();
   } else if (byte == 'A') {
-    pots_asked = 1;  /* answered from the main loop, after any report under way */
+    if (pots_asked < 255) pots_asked++;  /* answered from the main loop, after any report under way */
   } else if (byte == 'C') {
-    capability_asked = 1;  /* likewise */
+    if (capability_asked < 255) capability_asked++;  /* likewise */
   }  /* 'z' (acknowledgement), 'T' (undocumented) and anything else: ignored */
 }
 
@@ -466,11 +468,11 @@ int main(void) {
       report_screen(1);
     }
     if (pots_asked) {
-      pots_asked = 0;
+      pots_asked--;
       report_pots();
     }
     if (capability_asked) {
-      capability_asked = 0;
+      capability_asked--;
       report_capability();
     }
     cli();  /* idle until the next interrupt (the PWM tick at the latest); also makes the emulation cheap */
