@@ -152,10 +152,13 @@ def _refuse_if_poor(obs: Observability, limit: float) -> None:
             "parameters (--free) or add poses that spread over the workspace and its orientations")
 
 
-def parameter_covariance(jac, uncertainty) -> np.ndarray:
-    """``(J_w^T J_w)^{-1}`` (pseudo-inverse), the parameters' covariance for known instrument uncertainty."""
-    weighted = _weighted(jac, uncertainty)
-    return np.linalg.pinv(weighted.T @ weighted)
+def parameter_covariance(jac, uncertainty, precision=None) -> np.ndarray:
+    """``(J_w^T J_w + diag(precision))^{-1}`` (pseudo-inverse), the parameters' covariance for known instrument
+    uncertainty; with a Gaussian prior's ``precision`` ``sigma_j^-2`` per parameter (0: none) the posterior one
+    (module docstring). A Jacobian that is not finite is refused (``InsufficientData``, one line)."""
+    weighted = _finite_weighted(jac, uncertainty)
+    normal = weighted.T @ weighted
+    return np.linalg.pinv(normal if precision is None else normal + np.diag(precision))
 
 
 @dataclass(frozen=True)
@@ -200,12 +203,6 @@ class Identification:
             "observability": self.observability.as_dict(),
             "iterations": self.iterations,
         }
-
-
-def _posterior(jac, uncertainty, precision) -> np.ndarray:
-    """Posterior covariance ``(J_w^T J_w + diag(precision))^{-1}`` (pseudo-inverse; precision 0: no prior)."""
-    weighted = _finite_weighted(jac, uncertainty)
-    return np.linalg.pinv(weighted.T @ weighted + np.diag(precision))
 
 
 def _prior_only(names, std, sigma) -> tuple[str, ...]:
@@ -272,7 +269,7 @@ def identify(model, measured, uncertainty, *, theta0=None, limit: float = CONDIT
             obs = observability(jac, u, model.free, limit)
             _refuse_if_poor(obs, limit)
             return obs, parameter_covariance(jac, u), ()
-        cov = _posterior(jac, u, precision)
+        cov = parameter_covariance(jac, u, precision)
         std = np.sqrt(np.clip(np.diag(cov), 0.0, None))
         return None, cov, _refuse_if_uninformed(jac, u, model.free, sigma, std, len(measured), limit)
 

@@ -24,6 +24,7 @@ measured; the calibration literature (methods-turn2.md §1.1) prefers IK residua
 from __future__ import annotations
 
 import dataclasses
+import functools
 import types
 
 import numpy as np
@@ -280,9 +281,10 @@ class ForwardModel:
         out = np.einsum("nlc,nl->nc", pose_jac, residual)
         return out * np.tile(self._mode_mask, (len(p) // len(self._mode_mask), 1))
 
-    @property
+    @functools.cached_property
     def _mode_mask(self) -> np.ndarray:
-        """(N, 5): 1 for the pose columns that move in each pose's mode (x, y, z and the mode's angle)."""
+        """(N, 5): 1 for the pose columns that move in each pose's mode (x, y, z and the mode's angle); computed once,
+        the modes being fixed at construction."""
         mask = np.ones((len(self.modes), 5))
         for mode, angle in MODES.items():
             rows = self.modes == mode
