@@ -228,19 +228,18 @@ def _fit_rows(record: Any) -> tuple[tuple[str, str], ...]:
             ("Pose measurements (poses x cycles)", str(obs.get("n_poses", "—"))),
             ("Instrument standard uncertainty (mm per axis)", f"{params.get('uncertainty_mm', float('nan')):g}"),
             ("Free parameters", str(len(params.get("parameters", {}))))]
-    if params.get("fit") == "map":  # a prior holds what the data cannot (docs/calibration.md, the refusal rule)
+    is_map = params.get("fit") == "map"
+    if is_map:  # a prior holds what the data cannot (docs/calibration.md, the refusal rule)
         rows += [("Fit", f"maximum a posteriori, prior: {(params.get('prior') or {}).get('name', 'tolerances')}"),
                  ("Fixed by the prior (the data did not inform them)", ", ".join(params.get("prior_only", ()))
                   or "none"),
                  ("Condition number of the data part", f"{condition:.3g} (the prior holds the weak directions)")]
     else:
         rows.append(("Condition number (limit 100)", f"{condition:.1f} ({verdict})"))
-    weak = "Combinations the data alone cannot identify" if params.get("fit") == "map" else \
-        "Unidentifiable combinations"
+    weak = "Combinations the data alone cannot identify" if is_map else "Unidentifiable combinations"
     dof = params.get("degrees_of_freedom")  # absent from a MAP fit stored before 2026-12-03: chi^2 per coordinate
-    chi2 = "Chi^2 per coordinate of the fit" if params.get("fit") == "map" and dof is None else \
-        "Reduced chi^2 of the fit"
-    over = "" if dof is None or params.get("fit") != "map" else f" over {float(dof):.1f} degrees of freedom"
+    chi2 = "Chi^2 per coordinate of the fit" if is_map and dof is None else "Reduced chi^2 of the fit"
+    over = "" if dof is None or not is_map else f" over {float(dof):.1f} degrees of freedom"
     rows += [("O1 index (Borm & Menq)", f"{float(obs.get('o1', float('nan'))):.4g}"),
              ("Singular values, largest / smallest", f"{max(singular):.4g} / {min(singular):.4g}"),
              (weak, "; ".join(obs.get("unidentifiable", ())) or "none"),
