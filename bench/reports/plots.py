@@ -25,7 +25,7 @@ from matplotlib.ticker import MaxNLocator
 
 from bench.reports.content import RunReport
 from bench.reports.png import rgb_png
-from bench.reports.small_multiples import SmallMultiples
+from bench.reports.small_multiples import SmallMultiples, legend_entries
 
 __all__ = ["MIN_FONT_PT", "PRINT_HEIGHT_IN", "PRINT_WIDTH_IN", "Plot", "REPORT_DPI", "comparison_plot",
            "deviation_histograms", "draw_all", "error_map_3d", "hull_loop", "legend_entries", "print_ready", "panels",
@@ -120,14 +120,10 @@ def png_bytes(plot: Plot, dpi: int = REPORT_DPI) -> bytes:
     return rendered[dpi]
 
 
-def legend_entries(axes_list) -> dict:
-    """Each label of the panels ``axes_list`` once (its first handle), in the order first met: the entries of the
-    one legend a figure of small multiples gets."""
-    entries: dict = {}
-    for axes in axes_list:
-        for handle, label in zip(*axes.get_legend_handles_labels()):
-            entries.setdefault(label, handle)
-    return entries
+def _panel_count(figure: Figure) -> int:
+    """The panels a figure draws: a :class:`SmallMultiples` figure's panels (all in one Axes), else its Axes."""
+    grid = getattr(figure, "_bench_small_multiples", None)
+    return len(grid.panels) if grid is not None else max(1, len(figure.axes))
 
 
 def _spare_core() -> bool:
@@ -149,12 +145,12 @@ def draw_all(plots, dpi: int = REPORT_DPI, *, parallel: bool | None = None) -> N
         for plot in pending:
             png_bytes(plot, dpi)
         return
-    # balance by the number of axes (panels cost about the same each)
+    # balance by the number of panels (they cost about the same each)
     mine, theirs, load = [], [], [0, 0]
-    for plot in sorted(pending, key=lambda p: -len(p.figure.axes)):
+    for plot in sorted(pending, key=lambda p: -_panel_count(p.figure)):
         side = 0 if load[0] <= load[1] else 1
         (mine, theirs)[side].append(plot)
-        load[side] += max(1, len(plot.figure.axes))
+        load[side] += _panel_count(plot.figure)
     readable, writable = os.pipe()
     child = os.fork()
     if child == 0:  # the child: draw its share, send the PNGs, leave without running any exit handler

@@ -26,12 +26,22 @@ from matplotlib.scale import LogTransform
 from matplotlib.ticker import LogLocator, MaxNLocator
 from matplotlib.transforms import Affine2D, Bbox, IdentityTransform, TransformedBbox, blended_transform_factory
 
-__all__ = ["Panel", "SmallMultiples"]
+__all__ = ["Panel", "SmallMultiples", "legend_entries"]
 
 #: matplotlib's defaults for what is drawn here by hand (rcParams xtick.major.size/pad, axes.linewidth,
 #: axes.xmargin, axes.titlepad is replaced by 2 pt as the report's panels had), points and fractions.
 _TICK_PT, _TICK_PAD_PT, _FRAME_PT, _MARGIN, _TITLE_PAD_PT = 3.5, 3.5, 0.8, 0.05, 2.0
 _MINOR_TICK_PT = 2.0  #: rcParams ytick.minor.size
+
+
+def legend_entries(axes_list) -> dict:
+    """Each label of the panels ``axes_list`` once (its first handle), in the order first met: the entries of the
+    one legend a figure of small multiples gets."""
+    entries: dict = {}
+    for axes in axes_list:
+        for handle, label in zip(*axes.get_legend_handles_labels()):
+            entries.setdefault(label, handle)
+    return entries
 
 
 class Panel:
@@ -149,7 +159,7 @@ class SmallMultiples:
                  equal_aspect: bool = False):
         if count < 1:
             raise ValueError(f"count = {count}, expected at least one panel")
-        self.count, self.font_pt, self.y_log = count, font_pt, y_log
+        self.font_pt, self.y_log = font_pt, y_log
         self.columns = max(1, min(max_columns, count))
         self.rows = math.ceil(count / self.columns)
         left, right, bottom, top = margins_in
@@ -187,9 +197,7 @@ class SmallMultiples:
         size = self.font_pt + 1 if legend_pt is None else legend_pt
         self.figure.supxlabel(xlabel, fontsize=self.font_pt + 1, y=0.005, va="bottom")
         self.figure.supylabel(ylabel, fontsize=self.font_pt + 1, x=0.005, ha="left")
-        entries: dict = {}
-        for handle, label in zip(*self.axes.get_legend_handles_labels()):
-            entries.setdefault(label, handle)
+        entries = legend_entries([self.axes])
         labels = sorted(entries, key=legend_order) if legend_order else list(entries)
         if labels:
             self.figure.legend([entries[label] for label in labels], labels, loc="upper center",
