@@ -16,8 +16,7 @@ from bench.reports.content import ReportBase, calibrations_in_force, counts_inst
 from bench.reports.deviations import Deviation, _fmt, _planned_count, _row
 from bench.reports.document import Paragraph, RawData, Table, assemble, conditions_section, decision_blocks
 from bench.reports.path_run import PathRun, analyze_path_run
-from bench.reports.plots import MIN_FONT_PT, PRINT_WIDTH_IN, Plot
-from bench.reports.small_multiples import SmallMultiples
+from bench.reports.plots import MIN_FONT_PT, Plot, print_grid
 from bench.store import Store
 
 __all__ = ["PathReport", "collect_path", "path_deviations", "path_document", "path_plot"]
@@ -133,8 +132,7 @@ def path_plot(report: PathReport) -> Plot:
     P2 -> P5, v along P2 -> P3, mm from P1), every panel on one scale; one legend for the figure."""
     protocol = report.analysis.design
     shapes = list(protocol.shapes)
-    grid = SmallMultiples(len(shapes), max_columns=2, panel_size=(3.4, 3.0), width_in=PRINT_WIDTH_IN,
-                          font_pt=MIN_FONT_PT, equal_aspect=True)  # one scale for u and v: the paths' true shape
+    grid = print_grid(len(shapes), (3.4, 3.0), max_columns=2, equal_aspect=True)  # one scale for u and v: the paths' true shape
     for panel, shape in zip(grid.panels, shapes):
         path = protocol.path(shape)
         origin = path.centre_mm

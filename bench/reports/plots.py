@@ -28,8 +28,9 @@ from bench.reports.png import rgb_png
 from bench.reports.small_multiples import SmallMultiples, legend_entries
 
 __all__ = ["MIN_FONT_PT", "PRINT_HEIGHT_IN", "PRINT_WIDTH_IN", "Plot", "REPORT_DPI", "comparison_plot",
-           "deviation_histograms", "draw_all", "error_map_3d", "hull_loop", "legend_entries", "print_ready", "panels",
-           "payload_caption", "payload_shift_figure", "png_bytes", "report_plots", "svg_text", "workspace_cloud_mm"]
+           "deviation_histograms", "draw_all", "error_map_3d", "hull_loop", "legend_entries", "print_grid",
+           "print_ready", "panels", "payload_caption", "payload_shift_figure", "png_bytes", "report_plots", "svg_text",
+           "workspace_cloud_mm"]
 
 _log = logging.getLogger(__name__)
 _POSITION = ["x_mm", "y_mm", "z_mm"]
@@ -211,16 +212,17 @@ def _measured(result) -> tuple[np.ndarray, list[str]]:
     return np.asarray(result.commanded_mm)[["xyz".index(a) for a in result.axis_names]], columns
 
 
-def _grid(count: int, panel_size: tuple[float, float], *, equal_aspect: bool = False) -> SmallMultiples:
-    """The pose figures' small multiples: five panels a row at print width."""
-    return SmallMultiples(count, max_columns=5, panel_size=panel_size, width_in=PRINT_WIDTH_IN, font_pt=MIN_FONT_PT,
-                          equal_aspect=equal_aspect)
+def print_grid(count: int, panel_size: tuple[float, float], *, max_columns: int = 5, equal_aspect: bool = False,
+               y_log: bool = False) -> SmallMultiples:
+    """A report's small multiples at print width in the smallest print font (five panels a row unless told)."""
+    return SmallMultiples(count, max_columns=max_columns, panel_size=panel_size, width_in=PRINT_WIDTH_IN,
+                          font_pt=MIN_FONT_PT, equal_aspect=equal_aspect, y_log=y_log)
 
 
 def pose_scatter(report: RunReport) -> Plot:
     """Per pose: attained points minus the command (x-y plane), barycentre and the RP circle around it; one scale
     for every panel (the largest RP circle fits), one legend for the figure."""
-    grid = _grid(len(report.poses), (1.45, 1.45), equal_aspect=True)
+    grid = print_grid(len(report.poses), (1.45, 1.45), equal_aspect=True)
     reach = max(float(np.abs(np.asarray(r.accuracy.ap_axes_mm[:2])).max()) + r.repeatability.rp_mm
                 for r in report.poses)
     for result, panel in zip(report.poses, grid.panels):
@@ -321,7 +323,7 @@ def drift_series(report: RunReport) -> Plot:
     from bench.metrology.formatting import condition_text
 
     names = list(dict.fromkeys(r.pose for r in report.poses))
-    grid = _grid(len(names), (1.45, 1.5))
+    grid = print_grid(len(names), (1.45, 1.5))
     by_pose = dict(zip(names, grid.panels))
     for result in report.poses:
         command, measured = _measured(result)
@@ -345,7 +347,7 @@ def deviation_histograms(report: RunReport) -> Plot:
         command, columns = _measured(result)
         deviations.append(_rows_of(report, result, columns) - command)
     edges = np.histogram_bin_edges(np.concatenate(deviations).ravel(), bins=24)
-    grid = _grid(len(report.poses), (1.45, 1.2))
+    grid = print_grid(len(report.poses), (1.45, 1.2))
     for result, panel, deviation in zip(report.poses, grid.panels, deviations):
         for column, (name, colour) in enumerate(zip(result.axis_names, ("tab:blue", "tab:orange", "tab:green"))):
             panel.step_histogram(deviation[:, column], edges, color=colour, lw=1.0, label=f"{name} − {name}_c")

@@ -27,8 +27,7 @@ from bench.metrology.path_tables import positioning_steps
 from bench.reports.content import ReportBase, calibrations_in_force, counts_instrument, provenance, run_table
 from bench.reports.deviations import ISO_BANDS_MM, Deviation, _fmt, _load, _planned_count, _row
 from bench.reports.document import Paragraph, RawData, Table, assemble, conditions_section, decision_blocks
-from bench.reports.plots import MIN_FONT_PT, PRINT_WIDTH_IN, Plot
-from bench.reports.small_multiples import SmallMultiples
+from bench.reports.plots import MIN_FONT_PT, Plot, print_grid
 from bench.reports.stabilisation import _bands, _hysteresis, count_size_mm
 from bench.store import Store
 
@@ -229,8 +228,7 @@ def positioning_time_plot(report: PositioningTimeReport) -> Plot:
     a = report.analysis
     key = next(iter(a.series))
     steps = a.series[key]
-    grid = SmallMultiples(len(steps), max_columns=3, panel_size=(3.0, 2.2), width_in=PRINT_WIDTH_IN,
-                          font_pt=MIN_FONT_PT, y_log=True)
+    grid = print_grid(len(steps), (3.0, 2.2), max_columns=3, y_log=True)
     smallest = min(a.bands_mm)
     for panel, (step, cycles) in zip(grid.panels, steps.items()):
         for index, (cycle, t, p) in enumerate(cycles):

@@ -42,8 +42,7 @@ from bench.reports.document import (
     conditions_section,
     decision_blocks,
 )
-from bench.reports.plots import MIN_FONT_PT, PRINT_WIDTH_IN, Plot
-from bench.reports.small_multiples import SmallMultiples
+from bench.reports.plots import MIN_FONT_PT, Plot, print_grid
 from bench.store import CalibrationRecord, RunRecord, Store
 
 __all__ = ["Arrival", "BandResult", "StabilisationReport", "collect_stabilisation", "count_size_mm",
@@ -213,8 +212,7 @@ def stabilisation_plot(report: StabilisationReport) -> Plot:
     move-done signal; in the smallest band, every cycle's first entry t_1, settled time t_2 (t_s = t_2 − t_1)
     and, where it exceeds B + h, the overshoot OV at the peak it is read from. One legend for the figure."""
     groups = list(dict.fromkeys(a.group for a in report.arrivals))
-    grid = SmallMultiples(len(groups), max_columns=3, panel_size=(3.0, 2.2), width_in=PRINT_WIDTH_IN,
-                          font_pt=MIN_FONT_PT)
+    grid = print_grid(len(groups), (3.0, 2.2), max_columns=3)
     top = 2.0 * max(report.bands_mm)
     marked = min(report.bands_mm)
     by_key = {(r.group, r.band_mm): r for r in report.results}
