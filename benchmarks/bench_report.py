@@ -125,12 +125,17 @@ def _spread(walls: list[float]) -> str:
 LIBRARIES = "import numpy, pandas, matplotlib.figure, reportlab.platypus, jinja2"
 
 
+def _report_argv(store_path: Path, run_id: int, out: Path) -> list[str]:
+    """A child interpreter's arguments for ``bench report RUN`` through the installed entry point's ``main``."""
+    return ["-c", "import sys; from bench.cli import main; sys.exit(main())", "report", str(run_id), "--store",
+            str(store_path), "--out", str(out), "--quiet"]
+
+
 def whole_process(store_path: Path, run_id: int, out: Path, repeat: int) -> None:
     """``bench report RUN`` as a user runs it, against a process that imports only matplotlib and pandas."""
     floor = _process_times(["-c", "import matplotlib, pandas"], repeat)
     libraries = _process_times(["-c", LIBRARIES], repeat)
-    report = _process_times(["-c", "import sys; from bench.cli import main; sys.exit(main())", "report", str(run_id),
-                             "--store", str(store_path), "--out", str(out), "--quiet"], repeat)
+    report = _process_times(_report_argv(store_path, run_id, out), repeat)
     print(f"{'floor (import matplotlib, pandas)':<36} wall {_spread(floor)}   {_load()}")
     print(f"{'the libraries a report imports':<36} wall {_spread(libraries)}   {_load()}")
     print(f"{'bench report RUN (whole process)':<36} wall {_spread(report)}   {_load()}")
@@ -139,20 +144,16 @@ def whole_process(store_path: Path, run_id: int, out: Path, repeat: int) -> None
           f"{median / PROCESS_TARGET_S:.2f} x the {PROCESS_TARGET_S:g} s target")
 
 
-#: Run in a child process of either checkout: ``write_report`` of the run ``repeat`` times (after the imports), as
-#: JSON lists of wall and CPU seconds.
+#: Run in a child process of either checkout: ``write_report`` of the run once (after the imports, the first call in
+#: the process), as JSON wall and CPU seconds.
 _IN_PROCESS = """
 import json, sys, time
 from pathlib import Path
 from bench.reports import write_report
-store, run_id, out, repeat = sys.argv[1], int(sys.argv[2]), Path(sys.argv[3]), int(sys.argv[4])
-walls, cpus = [], []
-for index in range(repeat):
-    wall, cpu = time.perf_counter(), time.process_time()
-    write_report(store, run_id, out / str(index))
-    walls.append(time.perf_counter() - wall)
-    cpus.append(time.process_time() - cpu)
-print(json.dumps([walls, cpus]))
+store, run_id, out = sys.argv[1], int(sys.argv[2]), Path(sys.argv[3])
+wall, cpu = time.perf_counter(), time.process_time()
+write_report(store, run_id, out)
+print(json.dumps([time.perf_counter() - wall, time.process_time() - cpu]))
 """
 
 
@@ -164,14 +165,12 @@ def against_baseline(baseline: Path, store_path: Path, run_id: int, out: Path, r
     whole = {name: ([], []) for name in checkouts}
     for index in range(repeat):
         for name, checkout in checkouts.items():
-            _, _, said = _process(["-c", _IN_PROCESS, str(store_path), str(run_id), str(out / name / f"in{index}"),
-                                   "1"], checkout)
-            walls, cpus = json.loads(said)
-            inside[name][0].extend(walls)
-            inside[name][1].extend(cpus)
-            wall, cpu, _ = _process(["-c", "import sys; from bench.cli import main; sys.exit(main())", "report",
-                                     str(run_id), "--store", str(store_path), "--out", str(out / name / f"p{index}"),
-                                     "--quiet"], checkout)
+            _, _, said = _process(["-c", _IN_PROCESS, str(store_path), str(run_id), str(out / name / f"in{index}")],
+                                  checkout)
+            wall, cpu = json.loads(said)
+            inside[name][0].append(wall)
+            inside[name][1].append(cpu)
+            wall, cpu, _ = _process(_report_argv(store_path, run_id, out / name / f"p{index}"), checkout)
             whole[name][0].append(wall)
             whole[name][1].append(cpu)
     print(f"before = {checkouts['before']}, after = {checkouts['after']}, taking turns, {repeat} each   {_load()}")
