@@ -27,6 +27,9 @@ PULSE_AT_0_DEG_US, PULSE_AT_180_DEG_US = 1000.0, 2000.0
 STOPS_DEG = (30.0, 170.0)
 SLEW_DEG_S = 286.0
 SLOW = {"settle_timeout_s": 20.0}
+#: the longest another interrupt can hold off the TOP interrupt, cycles: the UART handlers and the main loop's
+#: cli() sections are a few dozen instructions (8 us at 16 MHz leaves them twice their length)
+MAX_INTERRUPT_WAIT_TICKS = 128
 
 
 def expected_pulse_ticks(mapping: wire.ServoMapping, values) -> np.ndarray:
@@ -184,8 +187,15 @@ def test_moves_are_slew_limited_and_z_follows_the_end(mcu):
     moving = np.flatnonzero(np.abs(np.diff(widths)) > 4)
     assert widths[0] == pytest.approx(start, abs=2) and widths[-1] == pytest.approx(end, abs=2)
     assert abs(moving[-1] - moving[0] - (end - start) / step_ticks) <= 2  # it took travel / slew limit
-    steps = np.diff(widths[moving[0] + 1:moving[-1]])
-    assert np.all(np.abs(steps - step_ticks) <= 5), steps  # and never stepped faster (edge jitter: a few cycles)
+    ramp = widths[moving[0] + 1:moving[-1]]
+    on_slew = ramp - step_ticks * np.arange(len(ramp))
+    off_line = on_slew - np.median(on_slew)  # never stepped faster: every width stays on the slew-limited line
+    stretched = np.flatnonzero(off_line > 3)
+    assert np.all(off_line >= -3), off_line  # (the Q8 setpoint rounds each width by under 2 ticks)
+    # A period whose compare latch (latch_compares, first thing in the TOP interrupt) waited for another interrupt
+    # (a received byte) comes out longer in simavr, by that wait: its timer restarts from the latch, not from TOP.
+    # That is the emulator's, not a step: one period, bounded by an interrupt's length, back on the line after it.
+    assert np.all(off_line[stretched] <= MAX_INTERRUPT_WAIT_TICKS) and np.all(np.diff(stretched) > 1), off_line
 
 
 def test_calibrated_mapping_and_a_50_hz_refresh_as_build_options(tmp_path):
