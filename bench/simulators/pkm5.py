@@ -292,7 +292,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="damping ratio of that mode, 0-1 (default %(default)s)")
     parser.add_argument("--kernel-wait-s", type=float, default=0.0, metavar="SECONDS",
                         help="wait up to this long for the compiled FK kernel (numba) before serving the pty, so "
-                             "the first moves run at speed (bench demo); 0: serve at once, the kernel loads behind")
+                             "the first moves run at speed (bench demo); 0: serve at once, the kernel loads behind the port "
+                             "once numpy has solved 200 moves (a short session never loads it)")
     parser.add_argument("--true-geometry-seed", type=int, default=None, metavar="SEED",
                         help="move by a seeded perturbed geometry (bench.simulators.true_geometry) instead of the "
                              "error model's geometric stand-ins")

@@ -34,6 +34,12 @@ _PLANT_STEP_TOL = 1e-7
 #: Warm solves that a compiled plant no simulator warmed up (:meth:`Plant.warm_up`) leaves to numpy (7 ms each)
 #: before it loads numba and waits for it (0.5-2 s from numba's cache): a short use never loads it.
 NUMPY_SOLVES_AT_START = 32
+#: Warm solves that a simulator serving without a kernel wait (``--kernel-wait-s 0``) leaves to numpy before it
+#: starts loading the kernel behind its port. The load costs about 1.5 s of CPU (measured: a simulator that served
+#: nothing used 1.8 s, 0.25 s of it imports), what ~200 numpy solves of 7 ms cost: loading once numpy has spent
+#: that much is never more than twice the better choice made in hindsight (the ski-rental rule), and a short
+#: session (a test, a few jogs) never pays for it. ``--kernel-wait-s`` > 0 (bench demo) loads at once and waits.
+NUMPY_SOLVES_BEFORE_LOAD = 200
 
 #: Error sizes for AP/RP of the order of the documents' physical tests (pkm5.md §6.8: AP 1.2-1.9 mm, RP 1.6-2.7 mm,
 #: angles 0.2-1.9 deg). Joint units mm of leg length; pose units (mm, mm, mm, deg, deg). Actuator noise per
@@ -55,9 +61,10 @@ def plant_engine() -> str:
 
 
 class _KernelLoader(threading.Thread):
-    """Loads numba and the FK kernel (0.5-2 s: the import, machine code from numba's cache) on a thread started
-    once the simulator is built, just before it serves its pty (:meth:`Plant.warm_up`); solves use it once it is
-    loaded (:meth:`engine`). Started while the device is being built, the import fought the seed-table build for
+    """Loads numba and the FK kernel (0.5-2 s: the import, machine code from numba's cache) on a thread: before a
+    simulator serves its pty when it waits for it (``--kernel-wait-s``, :meth:`Plant.warm_up`), else once the
+    plant has solved NUMPY_SOLVES_BEFORE_LOAD moves with numpy; solves use it once it is loaded (:meth:`engine`).
+    Started while the device is being built, the import fought the seed-table build for
     the GIL and doubled the start-up. While it loads, the event loop's replies wait for the GIL and each move's
     solve is numpy's (7-10 ms), so a campaign's first moves ran 30 ms past their end (the demo's first 45 moves at
     load 4: 1.4 s); a simulator started with ``--kernel-wait-s`` waits for it before serving."""
@@ -66,6 +73,9 @@ class _KernelLoader(threading.Thread):
         super().__init__(name="pkm5-fk-kernel", daemon=True)
         self.geometry, self.failure = geometry, None
         self._starting = threading.Lock()
+        #: a simulator serves this plant (warm was called): solves never wait for the load
+        self.served = False
+        self._numpy_solves = itertools.count()
 
     def start_once(self) -> None:
         with self._starting:
@@ -73,10 +83,12 @@ class _KernelLoader(threading.Thread):
                 self.start()
 
     def warm(self, wait_s: float = 0.0) -> None:
-        """Start loading; with ``wait_s`` > 0 return once loaded or after ``wait_s`` (a fresh install compiles
-        for 10-20 s: the load then goes on behind the served port, as without a wait)."""
-        self.start_once()
+        """A simulator is about to serve: with ``wait_s`` > 0 load now and return once loaded or after ``wait_s``
+        (a fresh install compiles for 10-20 s: the load then goes on behind the served port); with 0 the load
+        starts behind the port after NUMPY_SOLVES_BEFORE_LOAD solves."""
+        self.served = True
         if wait_s > 0:
+            self.start_once()
             self.join(wait_s)
 
     def run(self) -> None:
@@ -92,11 +104,14 @@ class _KernelLoader(threading.Thread):
         for it: on a fresh install numba compiles the kernel first (10-20 s of CPU), and a controller that holds a
         reply that long is a dead link to the host (a CI run failed so, at its 33rd move). Until the load is done
         its solves stay numpy's, which the compiled kernel equals within 1e-9 mm, far below a mouse count. A plant
-        used without a simulator (no warm-up) loads at its first warm solve and waits for it."""
+        used without a simulator (no warm-up) loads after NUMPY_SOLVES_AT_START solves and waits for it."""
         if self.ident is None:
+            if next(self._numpy_solves) < (NUMPY_SOLVES_BEFORE_LOAD if self.served else NUMPY_SOLVES_AT_START):
+                return "numpy"
             self.start_once()
-            self.join()
-        elif self.is_alive():
+            if not self.served:
+                self.join()
+        if self.is_alive():
             return "numpy"
         return "numpy" if self.failure is not None else "compiled"
 
@@ -123,6 +138,15 @@ def build_actuator_bench(seed: int, *, ideal: bool = False, geometry: Any = pkm5
     return true_strokes
 
 
+def _home_pose(geometry: Any):
+    """FK of the home lengths, started at the neutral pose: one solve (7 ms) where the default start builds the
+    seed table and imports scipy.spatial (0.8 s of every simulator's start); the seed table's solve if that
+    one does not converge (an unusual geometry). The two agree within 1e-12 mm on the documented geometry."""
+    home = geometry.home_lengths_mm[None, :]
+    fk = pkm5.forward_kinematics(home, geometry, initial_pose=pkm5.NEUTRAL_POSE, engine="numpy")
+    return fk if fk.converged[0] else pkm5.forward_kinematics(home, geometry, engine="numpy")
+
+
 def build_plant(seed: int, *, ideal: bool = False, geometry: Any = pkm5.DEFAULT_GEOMETRY,
                 true_geometry: Any = None, engine: str = "auto") -> Plant:
     """Steps -> leg lengths -> seeded errors -> least-squares FK -> pose errors; pose in mm and degrees.
@@ -147,16 +171,10 @@ def build_plant(seed: int, *, ideal: bool = False, geometry: Any = pkm5.DEFAULT_
     def joints_of(steps: np.ndarray) -> np.ndarray:
         return pkm5.steps_to_lengths(steps[None, :], moved_by)[0]
 
-    solves = itertools.count()
-
     def engine_for(previous: np.ndarray | None) -> str:
-        # The first pose (at power-up, before the pty is served: no previous pose) is numpy's. Once the kernel is
-        # loaded every solve uses it; while it loads (a simulator started it), numpy's, never waiting for it. A
-        # plant no simulator warmed up leaves its first NUMPY_SOLVES_AT_START solves to numpy, then loads the
-        # kernel and waits for it (see _KernelLoader.engine).
+        # The first pose (at power-up, before the pty is served: no previous pose) is numpy's; then
+        # _KernelLoader.engine decides (numpy until the kernel is loaded, and when to load it).
         if previous is None or loader is None:
-            return "numpy"
-        if loader.ident is None and next(solves) < NUMPY_SOLVES_AT_START:
             return "numpy"
         return loader.engine()
 
@@ -165,7 +183,14 @@ def build_plant(seed: int, *, ideal: bool = False, geometry: Any = pkm5.DEFAULT_
         if true_geometry is not None:
             return _forward_true(lengths, commanded, use)
         mode = pkm5.detect_mode(commanded[None, :], MODE_TOL_MM)[0]
-        start = None if previous is None else np.r_[previous[:3], np.radians(previous[3:])]
+        if previous is not None:
+            start = np.r_[previous[:3], np.radians(previous[3:])]
+        elif np.allclose(commanded, geometry.home_lengths_mm, rtol=0, atol=NOMINAL_FIT_MM):
+            # the power-up pose, commanded home: started at the home pose, not from the seed table (scipy.spatial
+            # and 4,000 IK poses, 0.8 s of every simulator's start)
+            start = home_fk.pose[0]
+        else:
+            start = None
         if start is not None:
             # One solve warm-started near the answer (Plant: the pose last attained at this command, else the last
             # pose). The perturbed legs never fit a pose exactly (a 0.1-0.2 mm residual), so the default
@@ -214,6 +239,6 @@ def build_plant(seed: int, *, ideal: bool = False, geometry: Any = pkm5.DEFAULT_
     if true_geometry is not None:
         model = dataclasses.replace(model, offset=np.zeros(6), scale=np.zeros(6), pose_gain=np.zeros((5, 5)),
                                     pose_offset=np.zeros(5))
-    home_fk = pkm5.forward_kinematics(geometry.home_lengths_mm[None, :], geometry)
+    home_fk = _home_pose(geometry)
     return Plant(joints_of, forward, model, pose_deg_from_rad(home_fk.pose[0]), seed,
                  warm_up=None if loader is None else loader.warm)
