@@ -119,11 +119,25 @@ def _busy_python(stop: threading.Event) -> int:
 
 
 def ingest_beside_busy_work(*, reader: str, rate_hz: float = 8000.0, duration_s: float = 10.0,
-                            buffer_bytes: int = 4096, realtime: bool = True) -> PacedIngest:
+                            buffer_bytes: int = 4096, realtime: bool = True, one_cpu: bool = False) -> PacedIngest:
     """Read a paced mouse (:func:`run` in a writer process) with ``reader`` = ``"process"`` (a reader process,
     :mod:`bench.sensors.reader_process`) or ``"thread"`` (the in-process reader, as a reader thread uses it),
     while this process's main thread runs GIL-busy Python work; a thread takes the frames as the mice
-    instrument's reader does. ``realtime``: the reader process asks for real-time priority."""
+    instrument's reader does. ``realtime``: the reader process asks for real-time priority.
+
+    ``one_cpu``: the writer, the reader and the busy work all run on one CPU (this thread's affinity, which the
+    children inherit; restored at the end). The reader then competes with the busy work for that CPU, and a
+    stall of the CPU itself (a virtual machine's CPU taken away by its host for milliseconds, seen once in a test
+    suite on a loaded 2-vCPU machine) stops the writer as well, whose lateness :func:`run` does not count as the
+    reader's loss. Across two CPUs the writer went on filling the 7 ms buffer while the reader's CPU stood."""
+    if one_cpu and hasattr(os, "sched_setaffinity"):
+        allowed = os.sched_getaffinity(0)
+        os.sched_setaffinity(0, {min(allowed)})
+        try:
+            return ingest_beside_busy_work(reader=reader, rate_hz=rate_hz, duration_s=duration_s,
+                                           buffer_bytes=buffer_bytes, realtime=realtime)
+        finally:
+            os.sched_setaffinity(0, allowed)
     with tempfile.TemporaryDirectory() as tmp:
         fifo = os.path.join(tmp, "event-mouse")
         os.mkfifo(fifo)
