@@ -22,8 +22,8 @@ from tests.firmware_sim import (ACCEL_STEPS_S2, DRIVERS_ENABLED_LEVEL, ROOT, Emu
                                 needs_toolchain, read_events, step_times)
 
 pytestmark = needs_toolchain
-#: the emulator runs several times slower than real time (4x on an idle 2-core machine, 20x and more under load) and
-#: the driver's timeouts and heartbeat are wall-clock: a heartbeat of 1 s (the motion tests' build has a 5 s link
+#: the emulator keeps real time only while it gets about a fifth of a core (a loaded machine slows it several times)
+#: and the driver's timeouts and heartbeat are wall-clock: a heartbeat of 1 s (the motion tests' build has a 5 s link
 #: watchdog) never has the driver send beats faster than the emulated firmware answers them, which overflowed its
 #: 256-byte receive ring under load (ERR #0 CHECKSUM)
 SLOW = {"reply_timeout_s": 10.0, "move_margin_s": 60.0, "heartbeat_s": 1.0}

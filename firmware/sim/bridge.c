@@ -11,6 +11,7 @@
 #include <time.h>
 #include <unistd.h>
 
+#include "avr_extint.h"
 #include "avr_uart.h"
 #include "sim_elf.h"
 
@@ -89,11 +90,23 @@ avr_t *bridge_load(const char *elf, const char *mcu) {
   avr_load_firmware(avr, &firmware);
   avr->frequency = 16000000;
   avr->sleep = no_sleep;
+  /* simavr emulates a low-level INTn (ISC = 00, the reset default) by polling the pin every cycle while it is low,
+   * enabled or not: on the ATmega2560 INT4 / INT5 are PE4 / PE5 (pkm5 STEP 1 / DIR 1), on the ATmega128 INT4 is PE4
+   * (delta4 servo 4), outputs that sit low, and the poll took over 90 % of the harness's CPU (the pkm5 ran 15x slower
+   * than without; the delta4's idle sleep could not skip ahead). Neither firmware enables an external interrupt (EIMSK
+   * stays 0), so the poll only ever set an INTF flag nobody reads; without it a low level raises INTn once, at the
+   * falling edge. A firmware that uses a low-level INTn would need the strict polling back. */
+  for (uint8_t i = 0; i < EXTINT_COUNT; i++) avr_extint_set_strict_lvl_trig(avr, i, 0);
   return avr;
 }
 
 void bridge_attach_uart(avr_t *avr, char uart) {
   static int on = 1, off = 0;
+  /* simavr's UART defaults off: STDIO echoes every line the MCU sends on stdout, a pipe the tests stop reading after
+   * the PTY line (the harness would block once 64 KiB filled it); POLL_SLEEP (a usleep on status-register reads, for
+   * a simulation that does not pace itself) is not wanted either: bridge_run paces. */
+  uint32_t uart_flags = 0;
+  avr_ioctl(avr, AVR_IOCTL_UART_SET_FLAGS(uart), &uart_flags);
   uart_input = avr_io_getirq(avr, AVR_IOCTL_UART_GETIRQ(uart), UART_IRQ_INPUT);
   avr_irq_register_notify(avr_io_getirq(avr, AVR_IOCTL_UART_GETIRQ(uart), UART_IRQ_OUTPUT), on_tx, NULL);
   avr_irq_register_notify(avr_io_getirq(avr, AVR_IOCTL_UART_GETIRQ(uart), UART_IRQ_OUT_XON), on_xon, &on);
