@@ -1,5 +1,5 @@
-"""Helpers of the firmware-in-the-loop tests: build the pkm5 firmware and the simavr harness (firmware/Makefile), run
-the firmware on an emulated ATmega2560 with UART0 on a pseudo-terminal, and read the harness's pin-edge log."""
+"""Helpers of the firmware-in-the-loop tests: build a firmware and its simavr harness (firmware/Makefile), run the pkm5
+firmware on an emulated ATmega2560 with UART0 on a pseudo-terminal, and read the harness's pin-edge log."""
 
 from __future__ import annotations
 
@@ -9,6 +9,7 @@ import sys
 import time
 from dataclasses import dataclass
 from pathlib import Path
+from typing import NamedTuple
 
 import numpy as np
 import pytest
@@ -31,14 +32,41 @@ def missing_toolchain() -> str | None:
     return None
 
 
-def build(out_dir: Path, **options: int) -> tuple[Path, Path, str]:
-    """Build firmware and harness into ``out_dir`` with make variables ``options`` (e.g. WATCHDOG_MS=5000); returns
-    (elf, harness, the build's output with avr-size)."""
-    done = subprocess.run(["make", "-C", str(ROOT / "firmware"), f"BUILD={out_dir}", "all",
-                           *(f"{k}={v}" for k, v in options.items())], capture_output=True, text=True, timeout=120)
+class Build(NamedTuple):
+    elf: Path
+    harness: Path
+    output: str  #: make's output for the firmware, with avr-size's flash / RAM use
+
+
+_builds: dict[tuple, Build] = {}
+_harnesses: dict[tuple, Path] = {}
+
+
+def _make(out_dir: Path, targets: list[str], options: dict[str, object]) -> str:
+    done = subprocess.run(["make", "-C", str(ROOT / "firmware"), f"BUILD={out_dir}",
+                           *(str(out_dir / target) for target in targets), *(f"{k}={v}" for k, v in options.items())],
+                          capture_output=True, text=True, timeout=120)
     if done.returncode:
         raise AssertionError(f"firmware build failed:\n{done.stdout}\n{done.stderr}")
-    return out_dir / "pkm5.elf", out_dir / "pkm5_harness", done.stdout
+    return done.stdout
+
+
+def build(tmp_path_factory: pytest.TempPathFactory, firmware: str = "pkm5", **options: object) -> Build:
+    """``firmware`` (pkm5, delta4: firmware/Makefile) built with the make variables ``options`` (e.g.
+    WATCHDOG_MS=5000), and its simavr harness, into the session's temporary directory. Each is built once per test
+    session: a build depends only on the sources and the options, and the harness on none of the options (the
+    Makefile compiles it without them), so every build of one firmware shares one harness."""
+    base = tmp_path_factory.getbasetemp()
+    key = (base, firmware, tuple(sorted(options.items())))
+    if key not in _builds:
+        if (base, firmware) not in _harnesses:
+            harness_dir = tmp_path_factory.mktemp(f"{firmware}_harness")
+            _make(harness_dir, [f"{firmware}_harness"], {})
+            _harnesses[base, firmware] = harness_dir / f"{firmware}_harness"
+        out_dir = tmp_path_factory.mktemp(firmware)
+        output = _make(out_dir, [f"{firmware}.elf", f"{firmware}.hex"], options)
+        _builds[key] = Build(out_dir / f"{firmware}.elf", _harnesses[base, firmware], output)
+    return _builds[key]
 
 
 @dataclass

@@ -17,7 +17,7 @@ from bench.robots import delta4_wire as wire
 from bench.robots.delta4 import DEFAULT_BAUDRATE, Delta4Controller
 from bench.sensors.lasergrid import GridGeometry, decode_frame
 from bench.simulators.lasergrid import LaserGridSimulator
-from tests.firmware_sim import F_CPU_HZ, ROOT, needs_toolchain, start_harness
+from tests.firmware_sim import F_CPU_HZ, ROOT, build, needs_toolchain, start_harness
 
 pytestmark = needs_toolchain
 
@@ -45,9 +45,8 @@ class EmulatedDelta4:
     the events as (cycle, kind, channel, value) tuples."""
 
     def __init__(self, built, events):
-        elf, harness = built
         self.events = events
-        self.process, self.path = start_harness(harness, elf, events, stdin=subprocess.PIPE)
+        self.process, self.path = start_harness(built.harness, built.elf, events, stdin=subprocess.PIPE)
 
     def open(self, timeout_s=0.05):
         import serial
@@ -103,37 +102,26 @@ def received_at(events, byte: bytes):
     return [c for c, kind, channel, *_ in events if kind == "RX" and bytes.fromhex(channel) == byte]
 
 
-def build_delta4(out_dir, **options):
-    """firmware/delta4 and its harness built into ``out_dir`` with make variables ``options``; returns
-    ((elf, harness), the build's output with avr-size)."""
-    targets = [str(out_dir / name) for name in ("delta4.elf", "delta4_harness")]
-    done = subprocess.run(["make", "-C", str(ROOT / "firmware"), f"BUILD={out_dir}", *targets,
-                           *(f"{k}={v}" for k, v in options.items())], capture_output=True, text=True, timeout=120)
-    if done.returncode:
-        raise AssertionError(f"firmware build failed:\n{done.stdout}\n{done.stderr}")
-    return (out_dir / "delta4.elf", out_dir / "delta4_harness"), done.stdout
-
-
 @pytest.fixture(scope="module")
 def built(tmp_path_factory):
-    return build_delta4(tmp_path_factory.mktemp("firmware"))
+    return build(tmp_path_factory, "delta4")
 
 
 @pytest.fixture(scope="module")
 def built_watchdog(tmp_path_factory):
     """Slow servos (20 deg/s) and a 400 ms link watchdog, so that a move outlasts the watchdog."""
-    return build_delta4(tmp_path_factory.mktemp("firmware_wd"), DELTA4_SLEW_DEG_S=20, DELTA4_WATCHDOG_MS=400)[0]
+    return build(tmp_path_factory, "delta4", DELTA4_SLEW_DEG_S=20, DELTA4_WATCHDOG_MS=400)
 
 
 @pytest.fixture
 def mcu(built, tmp_path):
-    controller = EmulatedDelta4(built[0], tmp_path / "events.txt")
+    controller = EmulatedDelta4(built, tmp_path / "events.txt")
     yield controller
     controller.close()
 
 
 def test_build_prints_flash_and_ram_use(built):
-    section = built[1].split("Device: atmega128")[1]
+    section = built.output.split("Device: atmega128")[1]
     program = int(section.split("Program:")[1].split()[0])
     data = int(section.split("Data:")[1].split()[0])
     assert 1000 < program < 128 * 1024 and 50 < data < 4 * 1024  # ATmega128: 128 KiB flash, 4 KiB SRAM
@@ -198,9 +186,9 @@ def test_moves_are_slew_limited_and_z_follows_the_end(mcu):
     assert np.all(off_line[stretched] <= MAX_INTERRUPT_WAIT_TICKS) and np.all(np.diff(stretched) > 1), off_line
 
 
-def test_calibrated_mapping_and_a_50_hz_refresh_as_build_options(tmp_path):
-    (elf, harness), _ = build_delta4(tmp_path, DELTA4_MAPPING="calibrated", DELTA4_PERIOD_US=20000)
-    mcu = EmulatedDelta4((elf, harness), tmp_path / "events.txt")
+def test_calibrated_mapping_and_a_50_hz_refresh_as_build_options(tmp_path, tmp_path_factory):
+    built = build(tmp_path_factory, "delta4", DELTA4_MAPPING="calibrated", DELTA4_PERIOD_US=20000)
+    mcu = EmulatedDelta4(built, tmp_path / "events.txt")
     mapping = wire.CalibratedMapping()
     angles = np.array([30.0, 71.657, 120.0, 170.0])
     try:

@@ -32,19 +32,18 @@ SLOW = {"reply_timeout_s": 10.0, "move_margin_s": 60.0, "heartbeat_s": 1.0}
 @pytest.fixture(scope="module")
 def built(tmp_path_factory):
     """The firmware as shipped (default build options)."""
-    return build(tmp_path_factory.mktemp("firmware"))
+    return build(tmp_path_factory)
 
 
 @pytest.fixture(scope="module")
 def built_patient(tmp_path_factory):
     """The motion tests' build: a 5 s link watchdog, so that a host stalled by a loaded test machine cannot trip it
     (the watchdog test runs the shipped build)."""
-    return build(tmp_path_factory.mktemp("firmware_patient"), WATCHDOG_MS=5000)
+    return build(tmp_path_factory, WATCHDOG_MS=5000)
 
 
 def _run(built, tmp_path):
-    elf, harness, _ = built
-    controller = EmulatedController(elf, harness, tmp_path / "events.txt")
+    controller = EmulatedController(built.elf, built.harness, tmp_path / "events.txt")
     yield controller
     controller.close()
 
@@ -72,7 +71,7 @@ def segments(edges):
 
 
 def test_build_prints_flash_and_ram_use(built):
-    output = built[2]
+    output = built.output
     program = int(output.split("Program:")[1].split()[0])
     data = int(output.split("Data:")[1].split()[0])
     assert 2000 < program < 256 * 1024 and 100 < data < 8 * 1024  # ATmega2560: 256 KiB flash, 8 KiB SRAM

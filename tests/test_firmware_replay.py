@@ -73,9 +73,9 @@ def simulator_replies():
 
 
 @pytest.mark.slow
-def test_firmware_and_simulator_answer_the_script_alike(simulator_replies, tmp_path):
-    elf, harness, _ = build(tmp_path / "build", WATCHDOG_MS=5000)  # no heartbeat in a replay: a patient watchdog
-    controller = EmulatedController(elf, harness, tmp_path / "events.txt")
+def test_firmware_and_simulator_answer_the_script_alike(simulator_replies, tmp_path, tmp_path_factory):
+    built = build(tmp_path_factory, WATCHDOG_MS=5000)  # no heartbeat in a replay: a patient watchdog
+    controller = EmulatedController(built.elf, built.harness, tmp_path / "events.txt")
     try:
         with controller.open(timeout_s=0.02) as port:
             firmware = replay(port, [len(r) for r in simulator_replies], timeout_s=10.0)
