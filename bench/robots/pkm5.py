@@ -221,8 +221,15 @@ class Pkm5Controller:
                 if now_s >= next_beat_s and (heard_since_beat or now_s >= next_beat_s + self.heartbeat_s):
                     beat = next(self._tags)
                     beats.add(beat)
-                    with self._write:
-                        self._send(wire.format_command("POS", (), beat, self._version), command="POS")
+                    try:
+                        with self._write:
+                            self._send(wire.format_command("POS", (), beat, self._version), command="POS")
+                    except LinkError as exc:
+                        # the beat is part of the wait: a device that vanishes during it fails the wait for the
+                        # reply, whether the beat's write or the next read meets the dead port first
+                        raise LinkError(f"{self.link.port_name}: port failed while waiting for the reply to {verb!r} "
+                                        f"(expected {expected}): heartbeat 'POS' not sent: {exc.__cause__ or exc}"
+                                        ) from exc
                     next_beat_s, heard_since_beat = time.monotonic() + self.heartbeat_s, False
                 due_s = next_beat_s if heard_since_beat else next_beat_s + self.heartbeat_s
                 wait_s = min(wait_s, max(0.0, due_s - time.monotonic()))
