@@ -42,7 +42,8 @@ _WORKSPACE_OF_MODE = {"translation": "constant-orientation", "alpha": "alpha", "
 
 #: Largest batch whose start poses are found by comparing each target with the whole seed table: a few targets
 #: (a driver's pre-flight of one move) cost microseconds that way, while the k-d tree costs importing scipy.spatial
-#: (0.3-0.5 s of CPU, a third of every ``bench run`` process on the pkm5); larger batches (n x 4000 distances) query the tree.
+#: (0.3-0.5 s of CPU, a third of every ``bench run`` process on the pkm5); larger batches (n x 4000 distances)
+#: query the tree.
 _BRUTE_FORCE_MAX_TARGETS = 64
 
 
