@@ -110,17 +110,20 @@ def _serve() -> None:
         importlib.import_module(module)
     from bench.cli import main
 
+    written = os.O_WRONLY | os.O_CREAT | os.O_TRUNC
     for line in sys.stdin:
         request = json.loads(line)
+        # opened before the fork: the files exist even when a kill lands before the child has run a line
+        streams = [os.open(os.devnull, os.O_RDONLY), os.open(request["stdout"], written, 0o644),
+                   os.open(request["stderr"], written, 0o644)]
         pid = os.fork()
         if pid == 0:
-            for fd, path, flags in ((0, os.devnull, os.O_RDONLY),
-                                    (1, request["stdout"], os.O_WRONLY | os.O_CREAT | os.O_TRUNC),
-                                    (2, request["stderr"], os.O_WRONLY | os.O_CREAT | os.O_TRUNC)):
-                opened = os.open(path, flags, 0o644)
+            for fd, opened in enumerate(streams):
                 os.dup2(opened, fd)
                 os.close(opened)
             sys.exit(main(request["argv"]))  # the child leaves as the ``bench`` entry point does
+        for opened in streams:
+            os.close(opened)
         print(pid, flush=True)
         _, status = os.waitpid(pid, 0)
         print(os.waitstatus_to_exitcode(status), flush=True)
