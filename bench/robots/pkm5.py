@@ -226,9 +226,10 @@ class Pkm5Controller:
                 try:
                     replies.append(self._await(tag, verb, ("OK",), self.reply_timeout_s))
                 except (ControllerError, LinkTimeout) as exc:
-                    if isinstance(exc, ControllerError) and exc.code not in _NOISE_REFUSALS:
-                        raise
-                    self._noisy = self._noisy or isinstance(exc, ControllerError)
+                    if isinstance(exc, ControllerError):
+                        if exc.code not in _NOISE_REFUSALS:
+                            raise
+                        self._noisy = True  # the command arrived corrupted: the next one starts on a clean line
                     _log.warning("%s: %s #%d failed in a pipelined batch, the rest one at a time: %s",
                                  self.link.port_name, verb, tag, exc)
                     return replies + [self._exchange(verb, args, idempotent=True) for args in commands[len(replies):]]
