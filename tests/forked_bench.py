@@ -43,7 +43,7 @@ class ForkedBench:
                 self.returncode = int(line)
         return self.returncode
 
-    def wait(self, timeout: float) -> int:
+    def wait(self, timeout: float | None = None) -> int:
         if self.returncode is None:
             line = self.forks.answer(timeout_s=timeout)
             if line is None:
@@ -51,7 +51,7 @@ class ForkedBench:
             self.returncode = int(line)
         return self.returncode
 
-    def communicate(self, timeout: float) -> tuple[str, str]:
+    def communicate(self, timeout: float | None = None) -> tuple[str, str]:
         self.wait(timeout)
         return self.stdout.read_text(), self.stderr.read_text()
 
@@ -78,11 +78,12 @@ class BenchForks:
         self._last = ForkedBench(self, int(pid), stdout, stderr)
         return self._last
 
-    def answer(self, timeout_s: float) -> str | None:
-        """The zygote's next answer line, or None if none came within ``timeout_s``."""
-        deadline = time.monotonic() + timeout_s
+    def answer(self, timeout_s: float | None) -> str | None:
+        """The zygote's next answer line, or None if none came within ``timeout_s`` (None: wait for it)."""
+        deadline = None if timeout_s is None else time.monotonic() + timeout_s
         while b"\n" not in self._buffer:
-            ready, _, _ = select.select([self.zygote.stdout], [], [], max(0.0, deadline - time.monotonic()))
+            wait_s = None if deadline is None else max(0.0, deadline - time.monotonic())
+            ready, _, _ = select.select([self.zygote.stdout], [], [], wait_s)
             if not ready:
                 return None
             chunk = os.read(self.zygote.stdout.fileno(), 4096)
