@@ -14,6 +14,8 @@ import numpy as np
 import pandas as pd
 import pytest
 
+from cli_runs import wait_for_samples
+
 from bench.cli import main
 from bench.launch import simulated_rig_in
 from bench.commands.demo import analyze_run
@@ -207,18 +209,6 @@ def test_ap_rp_match_the_injected_errors(tmp_path):
     assert abs(results["RP_mm"].mean() - rp.mean()) < tolerance
 
 
-def _wait_for_samples(db: Path, minimum: int, process: subprocess.Popen, timeout_s: float = 30.0) -> None:
-    deadline = time.monotonic() + timeout_s
-    while time.monotonic() < deadline:
-        if db.exists():
-            with Store(db) as store:
-                if store.runs() and store.runs()[0].n_samples >= minimum:
-                    return
-        assert process.poll() is None, process.stderr.read()
-        time.sleep(0.05)
-    raise AssertionError(f"fewer than {minimum} samples after {timeout_s} s")
-
-
 def test_kill_9_mid_run_then_resume_gives_exactly_the_expected_samples(capsys, tmp_path):
     protocol_file = tmp_path / "pose.toml"
     protocol_file.write_text('protocol = "iso9283_pose"\ncycles = 6\nvelocities_pct = [100, 50]\nsettle_s = 0.2\n')
@@ -226,7 +216,7 @@ def test_kill_9_mid_run_then_resume_gives_exactly_the_expected_samples(capsys, t
     writer = subprocess.Popen([sys.executable, "-m", "bench.cli", "run", str(protocol_file), "--store", str(db),
                                "--no-progress", "--speed-factor", "3000"], cwd=ROOT, stdout=subprocess.PIPE,
                               stderr=subprocess.PIPE, text=True)
-    _wait_for_samples(db, 17, writer)
+    wait_for_samples(db, writer, 17)
     os.kill(writer.pid, signal.SIGKILL)
     writer.wait(timeout=10)
     with Store(db) as store:
@@ -264,7 +254,7 @@ def test_ctrl_c_pauses_at_a_checkpoint_then_stop_ends_the_run(tmp_path):
     run = subprocess.Popen([sys.executable, "-m", "bench.cli", "run", str(protocol_file), "--store", str(db),
                             "--no-progress", "--speed-factor", "3000"], cwd=ROOT, stdin=subprocess.PIPE,
                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    _wait_for_samples(db, 7, run)
+    wait_for_samples(db, run, 7)
     run.send_signal(signal.SIGINT)
     out, err = run.communicate("s\n", timeout=30)
     assert run.returncode == 1 and out.strip() == "1"

@@ -3,7 +3,9 @@ the host, as a controller does), the mice fed from its truth through FIFOs. ``be
 at 10 seeded random moments (a sample count, then a random delay into the next move or settle), then stopped with
 SIGTERM and with SIGHUP at 5 more each, each time followed by ``bench resume``. In the end: every sample once
 (30/30), the rows stored before each interruption byte-identical, every signal a safe stop (the process ends
-itself, the run ``aborted`` naming the signal), and one stored registration per segment.
+itself, the run ``aborted`` naming the signal), and one stored registration per segment. Each segment's ``bench`` is
+forked from a warm parent (tests/forked_bench.py): a process of its own, killed for real, that does not pay the
+interpreter's start and imports 21 times.
 
 Against the simulator's truth log: within one segment (one registration of the mice) measured minus true is one
 offset within 0.05 mm. Between segments the offsets differ: each resume registers the relative mice again at a home
@@ -14,6 +16,7 @@ repeatability over the returns home); every segment's offset agrees with the fir
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 import random
@@ -29,6 +32,7 @@ import numpy as np
 import pytest
 
 from cli_runs import BENCH
+from forked_bench import BenchForks
 
 from bench.store import Store
 
@@ -54,6 +58,24 @@ def _stored(store) -> tuple[int | None, int, str | None]:
     with Store(store, read_only=True) as opened:
         runs = opened.runs()
         return (runs[0].id, runs[0].n_samples, runs[0].status) if runs else (None, 0, None)
+
+
+def _wait_for(store: Path, process, samples: int, *, running: bool, timeout_s: float = 120.0) -> None:
+    """Until the store holds ``samples`` samples (and, with ``running``, the runner drives the run) or ``process``
+    has ended. One read-only connection serves every look of the wait, opened once the file exists: reopening the
+    store for each look (50 a second) was most of the drill's own CPU."""
+    deadline = time.monotonic() + timeout_s
+    with contextlib.ExitStack() as stack:
+        opened = None
+        while process.poll() is None:
+            assert time.monotonic() < deadline, f"no {samples} samples within {timeout_s:g} s"
+            if opened is None and store.exists():
+                opened = stack.enter_context(Store(store, read_only=True))
+            runs = opened.runs() if opened is not None else []
+            stored, status = (runs[0].n_samples, runs[0].status) if runs else (0, None)
+            if stored >= samples and (not running or status == "running"):
+                return
+            time.sleep(0.02)
 
 
 def _rows(store, run_id) -> dict[int, tuple]:
@@ -127,6 +149,7 @@ def drill(tmp_path_factory) -> Drill:
     snapshots: list[dict[int, tuple]] = []
     kills_at: list[int] = []
     stops: list[tuple[str, int, str | None, str | None]] = []
+    forks = BenchForks(tmp_path)
     try:
         ready, _, _ = select.select([simulator.stdout], [], [], 60)
         assert ready, "the simulator printed no device path within 60 s"
@@ -136,8 +159,7 @@ def drill(tmp_path_factory) -> Drill:
         for number, interruption in enumerate([*interruptions, None]):
             run_id, stored, _ = _stored(store)
             command = ["run", str(protocol)] if run_id is None else ["resume", str(run_id)]
-            process = subprocess.Popen([BENCH, *command, *rig], stdin=subprocess.DEVNULL, stdout=subprocess.PIPE,
-                                       stderr=subprocess.PIPE, text=True)
+            process = forks.start([*command, *rig])
             if interruption is None:  # the last segment runs to the end
                 out, err = process.communicate(timeout=300)
                 assert process.returncode == 0, err
@@ -145,11 +167,7 @@ def drill(tmp_path_factory) -> Drill:
             kill = interruption is signal.SIGKILL
             # a kill lands anywhere; a stop signal once the runner drives the run (its handler is installed)
             target = min(SAMPLES - MARGIN, stored + (rng.randint(0, 2) if kill else rng.randint(0, 1)))
-            deadline = time.monotonic() + 120
-            while process.poll() is None and (_stored(store)[1] < target
-                                              or not kill and _stored(store)[2] != "running"):
-                assert time.monotonic() < deadline, f"no {target} samples within 120 s"
-                time.sleep(0.02)
+            _wait_for(store, process, target, running=not kill)
             time.sleep(rng.uniform(0.0, CYCLE_S))
             assert process.poll() is None, process.communicate()
             os.kill(process.pid, interruption)
@@ -165,6 +183,7 @@ def drill(tmp_path_factory) -> Drill:
             if run_id is not None:
                 snapshots.append(_rows(store, run_id))
     finally:
+        forks.close()
         simulator.send_signal(signal.SIGTERM)
         simulator.communicate(timeout=30)
     run_id, stored, status = _stored(store)

@@ -97,6 +97,44 @@ def test_sim_set_load():
         SimulatorClient(robot).set_load(2.45)
 
 
+class WritesCounted(ScriptedPort):
+    """A scripted port that keeps each write, to see how many commands went out together."""
+
+    def __init__(self, *args, **kwargs) -> None:
+        super().__init__(*args, **kwargs)
+        self.writes: list[bytes] = []
+
+    def write(self, data: bytes) -> int:
+        self.writes.append(bytes(data))
+        return super().write(data)
+
+
+def _trace_pairs(first_tag: int, indices, reply=lambda tag, index: f"OK #{tag} SIMTRACE 40 {index} {index}.5 0 0 0 0"):
+    return [(f"SIMTRACE 250 0 100 {index} #{tag}", reply(tag, index)) for tag, index in enumerate(indices, first_tag)]
+
+
+def test_query_many_keeps_as_many_commands_in_flight_as_the_receive_buffer_holds():
+    # 9 lines of 27 bytes (243) fill the 256-byte receive buffer; the tenth (29 bytes with tag 10) would overflow
+    # it: its tag is skipped and it opens the next batch
+    port = WritesCounted(_trace_pairs(1, range(1, 10)) + _trace_pairs(11, range(10, 12)), wire.encode_line)
+    robot = Pkm5Controller(port, reply_timeout_s=0.2)
+    replies = robot.query_many("SIMTRACE", [(250, 0, 100, index) for index in range(1, 12)])
+    assert [reply.fields[3] for reply in replies] == [f"{index}.5" for index in range(1, 12)]
+    assert [len(write) for write in port.writes] == [9 * 27, 2 * 29] and not port.unused
+    with pytest.raises(ConfigError, match="query_many: verb = 'MOVE'"):
+        robot.query_many("MOVE", [])
+
+
+def test_a_pipelined_query_refused_as_noise_goes_on_one_command_at_a_time():
+    refused = _trace_pairs(1, [1, 2, 3], lambda tag, index: "ERR #1 2 CHECKSUM" if tag == 1 else
+                           f"OK #{tag} SIMTRACE 40 {index} stale 0 0 0 0")
+    again = _trace_pairs(4, [1, 2, 3])
+    again[0] = (b"\n" + wire.encode_line(again[0][0]), again[0][1])  # after noise, a newline first
+    with exchange(refused + again) as robot:
+        replies = robot.query_many("SIMTRACE", [(250, 0, 100, index) for index in (1, 2, 3)])
+    assert [(reply.tag, reply.fields[3]) for reply in replies] == [(4, "1.5"), (5, "2.5"), (6, "3.5")]
+
+
 def test_stale_and_corrupted_lines_are_dropped():
     with exchange([("POS #1", ["BOOT #0 bench-pkm5 1 1.0.0", "DONE #77 1 2 3 4 5 6",
                                b"OK #1 POS garbage*00\n", "OK #1 POS 1 2 3 4 5 6 IDLE"])]) as robot:

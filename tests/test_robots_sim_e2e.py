@@ -114,11 +114,28 @@ class _AfterFirstReply(logging.Handler):
             self.timer.start()
 
 
+class _KillAtTheFirstBeatReply(logging.Handler):
+    """At the reply to the first heartbeat (``POS``) of a move: kill the simulator, wait until it is gone, and let
+    the next beat fall due, so the driver meets the dead port with that beat's write rather than with a read (the
+    order a loaded machine produced once: the process was descheduled between a read's timeout and the beat)."""
+
+    def __init__(self, process: subprocess.Popen, heartbeat_s: float) -> None:
+        super().__init__(logging.DEBUG)
+        self.process, self.heartbeat_s = process, heartbeat_s
+
+    def emit(self, record: logging.LogRecord) -> None:
+        frame = record.args[-1] if " -> " in record.msg else b""
+        if self.process.poll() is None and frame.startswith(b"OK") and b" POS " in frame:
+            self.process.kill()
+            self.process.wait()
+            time.sleep(2 * self.heartbeat_s)
+
+
 @contextlib.contextmanager
-def _after_first_reply(delay_s: float, action):
-    """While inside: :class:`_AfterFirstReply` listens to the link's log; on exit it is removed, its action done."""
+def _on_the_link_log(handler: logging.Handler):
+    """While inside: ``handler`` listens to the link's debug log; on exit it is removed."""
     link_log = logging.getLogger("bench.robots.link")
-    handler, level = _AfterFirstReply(delay_s, action), link_log.level
+    level = link_log.level
     link_log.setLevel(logging.DEBUG)
     link_log.addHandler(handler)
     try:
@@ -126,8 +143,17 @@ def _after_first_reply(delay_s: float, action):
     finally:
         link_log.removeHandler(handler)
         link_log.setLevel(level)
-        if handler.timer.is_alive():
-            handler.timer.join()
+
+
+@contextlib.contextmanager
+def _after_first_reply(delay_s: float, action):
+    """While inside: :class:`_AfterFirstReply` listens to the link's log; on exit it is removed, its action done."""
+    with _on_the_link_log(_AfterFirstReply(delay_s, action)) as handler:
+        try:
+            yield handler
+        finally:
+            if handler.timer.is_alive():
+                handler.timer.join()
 
 
 def test_ctrl_c_during_a_move_stops_the_robot_and_closes_the_port():
@@ -176,13 +202,15 @@ def test_late_replies_time_out_cleanly_then_are_recognised_as_stale():
         assert robot.position().state == "DISABLED"  # the late '#1' reply is dropped, '#2' is taken
 
 
-def test_port_vanishing_mid_move_gives_a_bounded_link_error():
+@pytest.mark.parametrize("vanishing", ["during a read", "as a heartbeat falls due"])
+def test_port_vanishing_mid_move_gives_a_bounded_link_error(vanishing):
     with simulator("pkm5") as (process, path, _extra), pkm5_on(path) as robot:
         robot.enable()
         started = time.monotonic()
-        with _after_first_reply(0.3, process.kill), \
-                pytest.raises(LinkError, match=rf"{path}: port failed while waiting for the reply to 'MOVE' "
-                                               r"\(expected 'DONE #\d+ \.\.\.'"):
+        killer = (_after_first_reply(0.3, process.kill) if vanishing == "during a read"
+                  else _on_the_link_log(_KillAtTheFirstBeatReply(process, robot.heartbeat_s)))
+        with killer, pytest.raises(LinkError, match=rf"{path}: port failed while waiting for the reply to 'MOVE' "
+                                                    r"\(expected 'DONE #\d+ \.\.\.'"):
             robot.move_steps([2656, 2656, 2669, 2669, 2720, 2720])
         assert time.monotonic() - started < 3.0
 

@@ -28,6 +28,9 @@ STATIONS = ROOT / "examples" / "stations"
 EXAMPLES = ROOT / "examples"
 
 MINIMAL = {"robot": {"kind": "pkm5"}, "controller": {"port": "/dev/ttyACM0"}}
+#: The simulators' speed factor of the rehearsals here; a rig built on one gets it too (as bench.launch does), so
+#: the registration's settles are the simulated robot's, not a second of real time per rig.
+REHEARSAL_SPEED = 20000
 
 
 def _station(**tables):
@@ -155,7 +158,7 @@ def _truth(path: str) -> np.ndarray:
     return np.array([json.loads(line)["pose"] for line in Path(path).read_text().splitlines()])
 
 
-def _rehearsed_run(store: Store, station: Path, protocol_file: Path, *, operator=None, speed=20000.0):
+def _rehearsed_run(store: Store, station: Path, protocol_file: Path, *, operator=None, speed=REHEARSAL_SPEED):
     protocol = load_protocol(protocol_file)
     rig = open_rig(RigRequest(station=str(station), simulate=True, seed=3, speed_factor=speed), store,
                    robot=protocol.robot, fixture=getattr(protocol, "fixture", "assembled"),
@@ -286,12 +289,12 @@ def test_the_builder_closes_what_it_opened_when_a_later_device_fails(tmp_path):
     from bench.robots.link import open_port
     from bench.simulators.station import rehearse
 
-    rehearsal = rehearse(load_station(STATIONS / "pkm5_mice.toml"), speed_factor=20000)
+    rehearsal = rehearse(load_station(STATIONS / "pkm5_mice.toml"), speed_factor=REHEARSAL_SPEED)
     try:
         broken = dataclasses.replace(rehearsal.station, mice=dataclasses.replace(rehearsal.station.mice,
                                                                                xz=str(tmp_path / "gone")))
         with Store(tmp_path / "b.db") as store, pytest.raises(LinkError, match="gone"):
-            build_rig(broken, store, requires={"pose"})
+            build_rig(broken, store, requires={"pose"}, speed_factor=REHEARSAL_SPEED)
         # the controller's port was released: it opens again, exclusively, and the controller still answers
         port = open_port(rehearsal.station.controller.port, baudrate=115200, timeout=0.05, exclusive=True)
         from bench.robots.pkm5 import Pkm5Controller
@@ -307,13 +310,13 @@ def test_a_second_process_cannot_take_a_controller_port_in_use(tmp_path):
     from bench.rigs.builder import build_rig
     from bench.simulators.station import rehearse
 
-    rehearsal = rehearse(load_station(STATIONS / "pkm5_mice.toml"), speed_factor=20000)
+    rehearsal = rehearse(load_station(STATIONS / "pkm5_mice.toml"), speed_factor=REHEARSAL_SPEED)
     try:
         with Store(tmp_path / "b.db") as store:
-            rig = build_rig(rehearsal.station, store, requires={"pose"})
+            rig = build_rig(rehearsal.station, store, requires={"pose"}, speed_factor=REHEARSAL_SPEED)
             try:
                 with pytest.raises(LinkError, match="controller.port = .*cannot open it"):
-                    build_rig(rehearsal.station, store, requires={"pose"})
+                    build_rig(rehearsal.station, store, requires={"pose"}, speed_factor=REHEARSAL_SPEED)
             finally:
                 rig.close()
     finally:
@@ -328,17 +331,17 @@ def test_a_rig_built_where_the_robot_is_not_at_home_homes_it_before_registering(
 
     p4 = (126.7, 16.3, 303.7)
     capture = Capture("P4", 1)
-    rehearsal = rehearse(load_station(STATIONS / "pkm5_mice.toml"), speed_factor=20000)
+    rehearsal = rehearse(load_station(STATIONS / "pkm5_mice.toml"), speed_factor=REHEARSAL_SPEED)
     try:
         with Store(tmp_path / "b.db") as store:
-            first = build_rig(rehearsal.station, store, requires={"pose"})
+            first = build_rig(rehearsal.station, store, requires={"pose"}, speed_factor=REHEARSAL_SPEED)
             try:
                 first.robot.move_to(p4, velocity_pct=100)
                 before = np.array([first.instrument.measure(capture).values[k] for k in ("x_mm", "y_mm", "z_mm")])
                 truth_before = _truth(rehearsal.truth_path)[-1][:3]
             finally:
                 first.close()  # the controller stays at P4
-            second = build_rig(rehearsal.station, store, requires={"pose"})
+            second = build_rig(rehearsal.station, store, requires={"pose"}, speed_factor=REHEARSAL_SPEED)
             try:
                 assert "not at home" in caplog.text
                 second.robot.move_to(p4, velocity_pct=100)
@@ -417,14 +420,15 @@ def test_the_actuator_bench_with_a_serial_depth_gauge_on_the_hardware_path(tmp_p
                              'settle_s = 0.1\n')
     protocol = load_protocol(protocol_file)
     station = load_station(STATIONS / "pkm5_actuator_bench.toml")
-    rehearsal = rehearse(station, speed_factor=20000)  # the controller; the gauge is this test's own pty
+    rehearsal = rehearse(station, speed_factor=REHEARSAL_SPEED)  # the controller; the gauge is this test's own pty
     gauge = _SerialDepthGauge(rehearsal.truth_path)
     try:
         bench_station = dataclasses.replace(rehearsal.station, calliper=dataclasses.replace(
             station.calliper, port=gauge.path, request="?", timeout_s=5.0))
         with Store(tmp_path / "b.db") as store:
             rig = build_rig(bench_station, store, operator=_PersonAtTheGauge(gauge),
-                            requires=required_capabilities(protocol), protocol=protocol.name, speed_factor=20000)
+                            requires=required_capabilities(protocol), protocol=protocol.name,
+                            speed_factor=REHEARSAL_SPEED)
             try:
                 result = Runner(rig, store, progress=False).run(protocol)
             finally:
@@ -501,22 +505,23 @@ def test_a_rig_opened_on_a_controller_still_moving_stops_that_move_first(tmp_pat
     from bench.robots.pkm5 import Pkm5Controller
     from bench.simulators.station import rehearse
 
-    # speed factor 20 with a 10 steps/s move: the move lasts 9.6 s of wall time as at factor 1 with 200 steps/s,
-    # while the rig's homing after the stop takes seconds rather than the 80 s it takes at factor 1
-    rehearsal = rehearse(load_station(STATIONS / "pkm5_mice.toml"), speed_factor=20)
+    # speed factor 200 with a 1 step/s move (the firmware's slowest): the move's 1856 steps last 9.3 s of wall time,
+    # while the rig's homing after the stop and its registration moves take a fraction of a second
+    speed_factor = 200
+    rehearsal = rehearse(load_station(STATIONS / "pkm5_mice.toml"), speed_factor=speed_factor)
     try:
         port = open_port(rehearsal.station.controller.port, baudrate=115200, timeout=0.05, exclusive=True)
         robot = Pkm5Controller(port)
         version = robot.identify().protocol_version
         robot.enable()
-        port.write(wire.format_command("MOVE", (2656, 2656, 2669, 2669, 2720, 2720, 10), 99, version))
+        port.write(wire.format_command("MOVE", (2656, 2656, 2669, 2669, 2720, 2720, 1), 99, version))
         port.flush()
         deadline = time.monotonic() + 10
-        while robot.position().state != "MOVING":  # the move is under way (9.6 s of wall time)
+        while robot.position().state != "MOVING":  # the move is under way (9.3 s of wall time)
             assert time.monotonic() < deadline
         port.close()  # the host goes away without a STOP
         with Store(tmp_path / "b.db") as store:
-            rig = build_rig(rehearsal.station, store, requires={"pose"})
+            rig = build_rig(rehearsal.station, store, requires={"pose"}, speed_factor=speed_factor)
             try:
                 where = rig.robot.controller.position()
             finally:

@@ -35,7 +35,8 @@ from bench.robots import pkm5_wire as wire
 from bench.robots.link import Deadline, WireProtocolError
 from motion import pkm5
 
-__all__ = ["DEFAULT_BAUDRATE", "RATED_SPEED_STEPS_S", "ControllerError", "Identity", "Pkm5Controller", "Position"]
+__all__ = ["DEFAULT_BAUDRATE", "RATED_SPEED_STEPS_S", "RECEIVE_BUFFER_BYTES", "ControllerError", "Identity",
+           "Pkm5Controller", "Position"]
 
 _log = logging.getLogger(__name__)
 #: Interval of the heartbeat (a ``POS`` line) while waiting for ``DONE``: a third of the firmware's default link
@@ -43,6 +44,9 @@ _log = logging.getLogger(__name__)
 HEARTBEAT_S = 0.05
 
 DEFAULT_BAUDRATE = 115200
+#: Bytes the firmware's receive buffer holds (RX_SIZE, firmware/pkm5/pkm5.c): :meth:`Pkm5Controller.query_many` keeps
+#: no more command bytes than that in flight.
+RECEIVE_BUFFER_BYTES = 256
 _IDEMPOTENT = frozenset({"ID", "POS", "STOP", "ENABLE", "DISABLE", "SETPOS"})
 #: Refusals line noise causes (a corrupted command is refused, not acted on): an idempotent command is sent again.
 _NOISE_REFUSALS = frozenset({wire.ErrorCode.SYNTAX, wire.ErrorCode.CHECKSUM})
@@ -194,9 +198,42 @@ class Pkm5Controller:
     def query(self, verb: str, args: tuple[int, ...] = ()) -> wire.Reply:
         """Send an idempotent command this driver does not know (a protocol extension, e.g. a simulator's own
         verbs) and return its ``OK`` reply; MOVE and the other known verbs have their own methods."""
-        if verb in ("MOVE", "STOP") or verb in _IDEMPOTENT:
-            raise ConfigError(f"Pkm5Controller.query: verb = {verb!r}, expected a verb without a method of its own")
+        _check_extension_verb("query", verb)
         return self._exchange(verb, tuple(args), idempotent=True)
+
+    @_holding_line
+    def query_many(self, verb: str, args_list: Any) -> list[wire.Reply]:
+        """:meth:`query` for each argument tuple of ``args_list`` in turn, pipelined: as many commands in flight as
+        the controller's receive buffer holds (:data:`RECEIVE_BUFFER_BYTES`), so a long read-out (a simulator's
+        sampled trace, hundreds of replies) waits for one round trip per batch instead of one per reply. The replies
+        come in order; from the first that fails (noise, a timeout) on, the commands go one at a time with
+        :meth:`query`'s retries, and the replies still in flight are dropped as stale."""
+        _check_extension_verb("query_many", verb)
+        commands = [tuple(args) for args in args_list]
+        replies: list[wire.Reply] = []
+        while len(replies) < len(commands):
+            batch: list[int] = []
+            lines = b""
+            for args in commands[len(replies):]:
+                tag = next(self._tags)  # one that does not fit is skipped: tags only count up
+                line = wire.format_command(verb, args, tag, self._version)
+                if batch and len(lines) + len(line) + 1 > RECEIVE_BUFFER_BYTES:  # + the newline after noise
+                    break
+                batch.append(tag)
+                lines += line
+            self._send(lines, command=verb)
+            for tag in batch:
+                try:
+                    replies.append(self._await(tag, verb, ("OK",), self.reply_timeout_s))
+                except (ControllerError, LinkTimeout) as exc:
+                    if isinstance(exc, ControllerError):
+                        if exc.code not in _NOISE_REFUSALS:
+                            raise
+                        self._noisy = True  # the command arrived corrupted: the next one starts on a clean line
+                    _log.warning("%s: %s #%d failed in a pipelined batch, the rest one at a time: %s",
+                                 self.link.port_name, verb, tag, exc)
+                    return replies + [self._exchange(verb, args, idempotent=True) for args in commands[len(replies):]]
+        return replies
 
     def _await(self, tag: int, verb: str, kinds: tuple[str, ...], timeout_s: float, *,
                heartbeat: bool = False, done_at: tuple[int, ...] | None = None) -> wire.Reply:
@@ -221,8 +258,15 @@ class Pkm5Controller:
                 if now_s >= next_beat_s and (heard_since_beat or now_s >= next_beat_s + self.heartbeat_s):
                     beat = next(self._tags)
                     beats.add(beat)
-                    with self._write:
-                        self._send(wire.format_command("POS", (), beat, self._version), command="POS")
+                    try:
+                        with self._write:
+                            self._send(wire.format_command("POS", (), beat, self._version), command="POS")
+                    except LinkError as exc:
+                        # the beat is part of the wait: a device that vanishes during it fails the wait for the
+                        # reply, whether the beat's write or the next read meets the dead port first
+                        raise LinkError(f"{self.link.port_name}: port failed while waiting for the reply to {verb!r} "
+                                        f"(expected {expected}): heartbeat 'POS' not sent: {exc.__cause__ or exc}"
+                                        ) from exc
                     next_beat_s, heard_since_beat = time.monotonic() + self.heartbeat_s, False
                 due_s = next_beat_s if heard_since_beat else next_beat_s + self.heartbeat_s
                 wait_s = min(wait_s, max(0.0, due_s - time.monotonic()))
@@ -439,6 +483,11 @@ class Pkm5Controller:
 
     def __exit__(self, *exc_info: object) -> None:
         self.shutdown()
+
+
+def _check_extension_verb(method: str, verb: str) -> None:
+    if verb in ("MOVE", "STOP") or verb in _IDEMPOTENT:
+        raise ConfigError(f"Pkm5Controller.{method}: verb = {verb!r}, expected a verb without a method of its own")
 
 
 def _idle_at(reply: wire.Reply, targets: tuple[int, ...]) -> bool:

@@ -241,20 +241,20 @@ def decode_screen(screen: Screen, indices: list[int] | tuple[int, ...], prior_be
         return ScreenDecode(ScreenStatus.NO_HIT, tuple(prior), reason="no sensor lit; prior kept")
     centres = np.array([screen.centre_mm(*screen.cell_of_index(k)) for k in indices])
     candidates = centres[:, None, :] - screen.offsets_mm[None, :, :]          # (hits, 12, 2)
-    solutions = []
-    for laser0, c0 in enumerate(candidates[0]):
-        near = _chebyshev(candidates[1:], c0) <= 2 * spot_half_width_mm   # (hits-1, 12)
-        if near.any(axis=1).all():
-            chosen = [laser0] + [int(np.argmin(_chebyshev(row, c0))) for row in candidates[1:]]
-            points = candidates[np.arange(len(indices)), chosen]
-            solutions.append((points.mean(axis=0), tuple(LASER_NAMES[c] for c in chosen)))
-    if not solutions:
+    # every laser of the first hit at once (a decoder runs per frame): how far each other hit's 12 candidates lie
+    # from each of its 12, (hits-1, 12, 12); a laser explains the frame when every other hit has a candidate near it
+    apart = _chebyshev(candidates[1:, None, :, :], candidates[0][None, :, None, :])
+    firsts = np.flatnonzero((apart <= 2 * spot_half_width_mm).any(axis=2).all(axis=0))
+    if firsts.size == 0:
         return ScreenDecode(ScreenStatus.FAULT, tuple(prior),
                             reason=f"sensors {list(indices)} cannot all be lit by one BE position "
                                    "(spurious light, wrong index map or misalignment); prior kept")
-    distances = np.array([_chebyshev(point, prior) for point, _ in solutions])
+    # the other hits' nearest candidates to each explaining laser: (solutions, hits)
+    chosen = np.column_stack([firsts, apart[:, firsts, :].argmin(axis=2).T])
+    points = candidates[np.arange(len(indices)), chosen].mean(axis=1)         # (solutions, 2)
+    distances = _chebyshev(points, prior)
     order = np.argsort(distances)
-    best, lasers = solutions[order[0]]
+    best, lasers = points[order[0]], tuple(LASER_NAMES[c] for c in chosen[order[0]])
     margin = float(distances[order[1]] - distances[order[0]]) if len(order) > 1 else float("inf")
     if distances[order[0]] >= gate_mm:
         status, reason = ScreenStatus.AMBIGUOUS, (f"nearest candidate is {distances[order[0]]:.2f} mm from the "

@@ -81,10 +81,8 @@ class SimulatorClient:
         if int(first.fields[1]) != len(times):
             raise WireProtocolError(f"{self._port}: SIMTRACE announced {first.fields[1]} samples, expected "
                                     f"{len(times)} for {window}")
-        samples = [self._trace_fields(first)]
-        for index in range(1, len(times)):
-            samples.append(self._trace_fields(self.controller.query("SIMTRACE", window + (index,))))
-        return times, np.array(samples, dtype=float)
+        rest = self.controller.query_many("SIMTRACE", [window + (index,) for index in range(1, len(times))])
+        return times, np.array([self._trace_fields(reply) for reply in (first, *rest)], dtype=float)
 
     def _trace_fields(self, reply: Any) -> list[float]:
         try:

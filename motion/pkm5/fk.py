@@ -40,28 +40,49 @@ _RESTARTS = {
 _WORKSPACE_OF_MODE = {"translation": "constant-orientation", "alpha": "alpha", "beta": "beta"}
 
 
+#: Largest batch whose start poses are found by comparing each target with the whole seed table: a few targets
+#: (a driver's pre-flight of one move) cost microseconds that way, while the k-d tree costs importing scipy.spatial
+#: (0.3-0.5 s of CPU, a third of every ``bench run`` process on the pkm5); larger batches (n x 4000 distances)
+#: query the tree.
+_BRUTE_FORCE_MAX_TARGETS = 64
+
+
 @lru_cache(maxsize=16)
 def _seed_table(mode: str, geometry: Geometry, size: int = 4000):
-    """Reachable poses of a mode and a k-d tree over their leg lengths, to start each solve near its answer.
+    """Reachable poses of a mode and their leg lengths, to start each solve near its answer.
 
-    Built once per (mode, geometry) from a fixed-seed sample, so results stay deterministic. scipy.spatial is
-    imported here, not at the top: an inverse-kinematics caller (``bench kin ik``) never pays for it.
-    """
-    from scipy.spatial import cKDTree
-
+    Built once per (mode, geometry) from a fixed-seed sample, so results stay deterministic."""
     try:
         poses = sample_reachable(size, kinds=(_WORKSPACE_OF_MODE[mode],), seed=20241123, geometry=geometry)
     except MotionInputError:  # a geometry with no reachable pose in the box: fall back to the neutral guess
         return None, None
     cols = [0, 1, 2] + ([MODES[mode]] if MODES[mode] is not None else [])
-    return poses[:, cols], cKDTree(inverse_kinematics(poses, geometry).lengths_mm)
+    return poses[:, cols], inverse_kinematics(poses, geometry).lengths_mm
+
+
+@lru_cache(maxsize=16)
+def _seed_tree(mode: str, geometry: Geometry):
+    """A k-d tree over the seed table's leg lengths, for large batches. scipy.spatial is imported here, not at the
+    top: an inverse-kinematics caller (``bench kin ik``) and a small batch never pay for it."""
+    from scipy.spatial import cKDTree
+
+    return cKDTree(_seed_table(mode, geometry)[1])
+
+
+def _nearest_seed(target: np.ndarray, mode: str, geometry: Geometry) -> np.ndarray:
+    """Index of the seed whose leg lengths are nearest (Euclidean) to each target: the same neighbour whether a
+    target is solved alone or in a large batch."""
+    if len(target) > _BRUTE_FORCE_MAX_TARGETS:
+        return _seed_tree(mode, geometry).query(target, workers=-1)[1]
+    difference = target[:, None, :] - _seed_table(mode, geometry)[1][None, :, :]
+    return np.einsum("ijk,ijk->ij", difference, difference).argmin(axis=1)
 
 
 def _initial_guess(target, mode, geometry):
-    starts, tree = _seed_table(mode, geometry)
-    if tree is None:
+    starts, lengths = _seed_table(mode, geometry)
+    if lengths is None:
         return np.tile(np.r_[_NEUTRAL, [0.0] * (1 if MODES[mode] is not None else 0)], (len(target), 1))
-    return starts[tree.query(target, workers=-1)[1]]
+    return starts[_nearest_seed(target, mode, geometry)]
 
 
 @dataclass(frozen=True)
