@@ -40,28 +40,44 @@ _RESTARTS = {
 _WORKSPACE_OF_MODE = {"translation": "constant-orientation", "alpha": "alpha", "beta": "beta"}
 
 
+#: Batches up to this size find each start by brute force (4,000 distances a row, microseconds); larger ones query a
+#: k-d tree. The tree's scipy.spatial import costs 0.6 s of CPU, which a simulator solving one move at a time paid
+#: for at its first move (a plant of a true geometry starts each move from the documented geometry's solution).
+_BRUTE_FORCE_MAX = 64
+
+
 @lru_cache(maxsize=16)
 def _seed_table(mode: str, geometry: Geometry, size: int = 4000):
-    """Reachable poses of a mode and a k-d tree over their leg lengths, to start each solve near its answer.
+    """Reachable poses of a mode and their leg lengths, to start each solve near its answer.
 
-    Built once per (mode, geometry) from a fixed-seed sample, so results stay deterministic. scipy.spatial is
-    imported here, not at the top: an inverse-kinematics caller (``bench kin ik``) never pays for it.
+    Built once per (mode, geometry) from a fixed-seed sample, so results stay deterministic.
     """
-    from scipy.spatial import cKDTree
-
     try:
         poses = sample_reachable(size, kinds=(_WORKSPACE_OF_MODE[mode],), seed=20241123, geometry=geometry)
     except MotionInputError:  # a geometry with no reachable pose in the box: fall back to the neutral guess
         return None, None
     cols = [0, 1, 2] + ([MODES[mode]] if MODES[mode] is not None else [])
-    return poses[:, cols], cKDTree(inverse_kinematics(poses, geometry).lengths_mm)
+    return poses[:, cols], inverse_kinematics(poses, geometry).lengths_mm
+
+
+@lru_cache(maxsize=16)
+def _seed_tree(mode: str, geometry: Geometry):
+    """A k-d tree over the seed table's leg lengths. scipy.spatial is imported here, not at the top: an
+    inverse-kinematics caller (``bench kin ik``) and a small batch never pay for it."""
+    from scipy.spatial import cKDTree
+
+    return cKDTree(_seed_table(mode, geometry)[1])
 
 
 def _initial_guess(target, mode, geometry):
-    starts, tree = _seed_table(mode, geometry)
-    if tree is None:
+    starts, lengths = _seed_table(mode, geometry)
+    if lengths is None:
         return np.tile(np.r_[_NEUTRAL, [0.0] * (1 if MODES[mode] is not None else 0)], (len(target), 1))
-    return starts[tree.query(target, workers=-1)[1]]
+    if len(target) <= _BRUTE_FORCE_MAX:  # the nearest row as the tree finds it: the first of the smallest distances
+        nearest = np.argmin(((lengths[None, :, :] - target[:, None, :]) ** 2).sum(axis=-1), axis=1)
+    else:
+        nearest = _seed_tree(mode, geometry).query(target, workers=-1)[1]
+    return starts[nearest]
 
 
 @dataclass(frozen=True)
