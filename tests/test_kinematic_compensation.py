@@ -1,23 +1,24 @@
 """Kinematic compensation end to end on the simulated pkm5 with a seeded true geometry: a calibration run of the
 D-optimal poses (examples/kinematic_calibration.toml), ``bench calibrate``, then the held-out validation poses
-(examples/kinematic_validation.toml) with the calibration in force and with ``--no-kinematic-calibration``."""
+(examples/kinematic_validation.toml) with the calibration in force and with ``--no-kinematic-calibration`` (the
+runs of tests/calibrated_pkm5.py, which the report of tests/test_reports_calibration.py reads too)."""
 
-import json
 import subprocess
 import sys
 from pathlib import Path
 
 import numpy as np
 import pytest
+from calibrated_pkm5 import SEED, calibrated_runs
 
 from bench.calibration_compensation import NEWEST, OFF, select_calibration
+from bench.cli import main
 from bench.errors import ConfigError
 from bench.store import Store
 from motion import pkm5
 from motion.pkm5.calibration import compensation_geometry, geometry_from_calibration
 
 EXAMPLES = Path(__file__).resolve().parent.parent / "examples"
-SEED = 3  # true geometry; seeds 3, 5, 8 measured 15.6x, 9.2x, 11.0x (docs/calibration.md)
 
 
 def _bench(*args, store):
@@ -25,16 +26,9 @@ def _bench(*args, store):
     return subprocess.run(command, capture_output=True, text=True, timeout=300)
 
 
-def _run(protocol, store, *extra):
-    done = _bench("run", str(EXAMPLES / protocol), "--true-geometry-seed", str(SEED), "--ideal", "--no-progress",
-                  *extra, store=store)
-    assert done.returncode == 0, done.stderr
-    return int(done.stdout.split()[-1]), done.stderr
-
-
 def _ap_mm(store, run_id):
     """Mean over the poses of ISO 9283 AP_P: |mean attained position - commanded position| (iso9283.md §7.2.1)."""
-    with Store(store) as s:
+    with Store(store, read_only=True) as s:
         samples = s.samples(run_id, "pose")
     by_pose = {}
     for sample in samples:
@@ -43,29 +37,24 @@ def _ap_mm(store, run_id):
     return float(np.mean([np.linalg.norm(np.mean(errors, axis=0)) for errors in by_pose.values()]))
 
 
-def test_compensation_cuts_the_pose_error_on_held_out_poses(tmp_path):
-    store = tmp_path / "bench.db"
-    calibration_run, said = _run("kinematic_calibration.toml", store)
+def test_compensation_cuts_the_pose_error_on_held_out_poses(tmp_path_factory):
+    runs = calibrated_runs(tmp_path_factory)
     assert "kinematic calibration: none (no pkm5_kinematics calibration for a robot without a serial " \
-           "(simulated) in" in said
-    done = _bench("calibrate", str(calibration_run), "--json", store=store)
-    assert done.returncode == 0, done.stderr
-    calibration = json.loads(done.stdout)
+           "(simulated) in" in runs.said["calibration_run"]
+    calibration = runs.calibration
     assert calibration["fit"] == "map" and len(calibration["parameters"]) == 36  # every parameter, the prior
     assert calibration["prior"]["sigma"] == {"leg_offset": 0.3, "scale": 0.005, "joint": 0.3}
 
-    compensated, said = _run("kinematic_validation.toml", store)
     assert (f"kinematic calibration in force: pkm5_kinematics v1 (id {calibration['id']} from run "
-            f"{calibration_run}; the newest for this robot)") in said
-    nominal, said = _run("kinematic_validation.toml", store, "--no-kinematic-calibration")
-    assert "kinematic calibration: none (--no-kinematic-calibration)" in said
+            f"{runs.calibration_run}; the newest for this robot)") in runs.said["compensated"]
+    assert "kinematic calibration: none (--no-kinematic-calibration)" in runs.said["nominal"]
 
-    with Store(store) as s:
-        on, off = s.run(compensated), s.run(nominal)
+    with Store(runs.store, read_only=True) as s:
+        on, off = s.run(runs.compensated), s.run(runs.nominal)
     assert calibration["id"] in on.calibration_ids and calibration["id"] not in off.calibration_ids
     assert on.settings["kinematic_calibration"]["id"] == calibration["id"]
     assert off.settings["kinematic_calibration"] == {"id": None, "reason": "--no-kinematic-calibration"}
-    ap_on, ap_off = _ap_mm(store, compensated), _ap_mm(store, nominal)
+    ap_on, ap_off = _ap_mm(runs.store, runs.compensated), _ap_mm(runs.store, runs.nominal)
     assert ap_off > 0.5  # the true geometry's error, uncompensated (0.98 mm measured)
     assert ap_off / ap_on > 5  # 15.6x measured with this seed
 
@@ -151,17 +140,17 @@ def test_a_resume_keeps_the_calibration_of_its_run(tmp_path):
                                    False)
 
 
-def test_iterative_correction_brings_the_error_within_the_instrument_uncertainty(tmp_path):
+def test_iterative_correction_brings_the_error_within_the_instrument_uncertainty(tmp_path, capsys):
     """Uncompensated robot of a true geometry: ~1 mm off at the first move; the command corrected by the mice's
     reading brings every target within their 0.05 mm standard uncertainty in at most 3 moves."""
     protocol = tmp_path / "correct.toml"
     protocol.write_text('protocol = "iterative_correction"\nrobot = "pkm5"\ntolerance_mm = 0.05\niterations = 3\n'
                         'settle_s = 0.2\n[poses]\nT1 = [120, 10, 315]\nT2 = [150, -30, 300]\nT3 = [105, 40, 325]\n')
     store = tmp_path / "bench.db"
-    done = _bench("run", str(protocol), "--true-geometry-seed", str(SEED), "--ideal", "--no-progress", store=store)
-    assert done.returncode == 0, done.stderr
-    with Store(store) as s:
-        samples = s.samples(int(done.stdout.split()[-1]), "pose")
+    assert main(["run", str(protocol), "--true-geometry-seed", str(SEED), "--ideal", "--no-progress", "--store",
+                 str(store)]) == 0
+    with Store(store, read_only=True) as s:
+        samples = s.samples(int(capsys.readouterr().out.split()[-1]), "pose")
     errors = {}
     for sample in samples:  # iteration = cycle; the target is the first iteration's command
         target = next(t for t in samples if t.pose == sample.pose and t.cycle == 1)

@@ -1,6 +1,7 @@
 """The kinematic-calibration page of ``bench report AFTER --compare BEFORE``, end to end on the simulated pkm5 with a
 seeded true geometry: a calibration run (examples/kinematic_calibration.toml), ``bench calibrate``, the held-out
-validation poses (examples/kinematic_validation.toml) with and without the calibration in force, then the report.
+validation poses (examples/kinematic_validation.toml) with and without the calibration in force (the runs of
+tests/calibrated_pkm5.py, which tests/test_kinematic_compensation.py checks), then the report.
 
 Independent paths: ``bench analyze iso9283 --json`` on the raw data the report writes (the gain and per-pose
 tables), the JSON ``bench calibrate --json`` printed (the parameter and
@@ -8,13 +9,9 @@ observability tables), the HTML (parsed) and the PDF (pypdf)."""
 
 from __future__ import annotations
 
-import json
-import subprocess
-import sys
-from pathlib import Path
-
 import numpy as np
 import pytest
+from calibrated_pkm5 import calibrated_runs
 from figure_support import printed_font_sizes
 from reports_runs import cli_json, html_tables, pdf_text, rounded_by_u
 
@@ -25,36 +22,17 @@ from bench.reports.plots import MIN_FONT_PT
 from bench.store import Store
 from motion.pkm5.calibration import PARAMETERS
 
-EXAMPLES = Path(__file__).resolve().parent.parent / "examples"
-SEED = 3  # the true geometry of tests/test_kinematic_compensation.py (15.6x measured)
-
-
-def _bench(*args, store):
-    command = [sys.executable, "-m", "bench.cli", *args, "--store", str(store)]
-    done = subprocess.run(command, capture_output=True, text=True, timeout=300)
-    assert done.returncode == 0, done.stderr
-    return done.stdout
-
-
-def _run(protocol, store, *extra) -> int:
-    said = _bench("run", str(EXAMPLES / protocol), "--true-geometry-seed", str(SEED), "--ideal", "--no-progress",
-                  *extra, store=store)
-    return int(said.split()[-1])
-
 
 @pytest.fixture(scope="module")
 def validated(tmp_path_factory):
+    runs = calibrated_runs(tmp_path_factory)
     folder = tmp_path_factory.mktemp("calibration_report")
-    store = folder / "bench.db"
-    calibration_run = _run("kinematic_calibration.toml", store, "--no-kinematic-calibration")
-    calibration = json.loads(_bench("calibrate", str(calibration_run), "--json", store=store))
-    after = _run("kinematic_validation.toml", store)
-    before = _run("kinematic_validation.toml", store, "--no-kinematic-calibration")
+    store, after, before = runs.store, runs.compensated, runs.nominal
     # A (the first run named) is the calibrated run: the page orders the pair by the calibrations, not by A and B
     assert main(["report", str(after), "--compare", str(before), "--store", str(store), "--out",
                  str(folder / "out"), "--quiet"]) == 0
     html = folder / "out" / f"compare_run{after}_run{before}.html"
-    return {"store": store, "folder": folder, "calibration": calibration, "before": before, "after": after,
+    return {"store": store, "folder": folder, "calibration": runs.calibration, "before": before, "after": after,
             "html": html, "tables": html_tables(html)}
 
 

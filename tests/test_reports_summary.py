@@ -36,6 +36,13 @@ def stored(tmp_path_factory):
     store.close()
 
 
+@pytest.fixture(scope="module")
+def simulated_report(stored):
+    """The simulated run's report as written by default (HTML and PDF), read by the tests that need no options."""
+    folder, store, simulated, _ = stored
+    return write_report(store, simulated, folder / "c")
+
+
 def _pdf_pages(path):
     from pypdf import PdfReader
 
@@ -44,7 +51,7 @@ def _pdf_pages(path):
 
 def test_headline_is_the_worst_and_mean_per_velocity(stored):
     folder, store, run_id, _ = stored
-    paths = write_report(store, run_id, folder / "a", criteria={"AP_mm": 0.36, "RP_mm": 1.0})
+    paths = write_report(store, run_id, folder / "a", formats=("html",), criteria={"AP_mm": 0.36, "RP_mm": 1.0})
     report = collect(store, run_id)
     rows = {row[0]: row for row in html_tables(paths.html)["headline"][1:]}
     assert list(rows) == ["100 % velocity", "10 % velocity"]
@@ -63,7 +70,7 @@ def test_verdict_per_characteristic_and_overall(stored):
     report = collect(store, run_id)
     aps = sorted(p.accuracy.ap_mm for p in report.poses)
     limit = (aps[3] + aps[4]) / 2  # between the 4th and 5th smallest AP: 4 of 10 poses pass
-    paths = write_report(store, run_id, folder / "b", criteria={"AP_mm": limit, "RP_mm": 10.0})
+    paths = write_report(store, run_id, folder / "b", formats=("html",), criteria={"AP_mm": limit, "RP_mm": 10.0})
     verdict = {row[0]: row for row in html_tables(paths.html)["verdict"][1:]}
     assert verdict["AP (mm)"][3:] == ["4 of 10", "FAIL"]
     assert verdict["RP (mm)"][3:] == ["10 of 10", "PASS"]
@@ -72,9 +79,9 @@ def test_verdict_per_characteristic_and_overall(stored):
     assert "Decision rule: simple acceptance (ILAC-G8:09/2019 4.2.1)" in text
 
 
-def test_simulated_banner_on_every_page_and_only_for_simulated_runs(stored):
-    folder, store, simulated, live = stored
-    sim = write_report(store, simulated, folder / "c")
+def test_simulated_banner_on_every_page_and_only_for_simulated_runs(stored, simulated_report):
+    folder, store, _, live = stored
+    sim = simulated_report
     pages = _pdf_pages(sim.pdf)
     assert len(pages) > 3 and all(SIMULATED_BANNER in page for page in pages)
     assert f'<div class="banner" id="banner">{SIMULATED_BANNER}</div>' in sim.html.read_text(encoding="utf-8")
@@ -115,9 +122,9 @@ def test_history_table_shows_the_end_status(tmp_path):
     assert [event for _, event in history] == ["started", "aborted: stopped by the operator"]
 
 
-def test_results_csv_markdown_and_html_give_the_same_numbers(stored):
+def test_results_csv_markdown_and_html_give_the_same_numbers(stored, simulated_report):
     folder, store, run_id, _ = stored
-    paths = write_report(store, run_id, folder / "f", formats=("html",))
+    paths = simulated_report
     results = analyze_run(store, run_id)
     csv = rounded_results(results)
     csv_path = folder / "results.csv"

@@ -32,14 +32,34 @@ class SpotDetection:
     area_px: int
 
 
-def _grey(image: np.ndarray, source: str) -> np.ndarray:
+def _channel(image: np.ndarray, source: str) -> np.ndarray:
+    """The image's laser channel as stored: the red channel of BGR (the 635 nm laser), or the grey image."""
     if image is None or image.size == 0:
         raise MalformedSample(f"{source}: empty image; check that the camera is connected and streaming")
     if image.ndim == 3:
-        return image[:, :, 2].astype(np.float64)   # red channel of BGR: the 635 nm laser
+        return image[:, :, 2]
     if image.ndim != 2:
         raise MalformedSample(f"{source}: image shape {image.shape}, expected (rows, cols) or (rows, cols, 3)")
-    return image.astype(np.float64)
+    return image
+
+
+def _grey(image: np.ndarray, source: str) -> np.ndarray:
+    return _channel(image, source).astype(np.float64)
+
+
+def _median(channel: np.ndarray) -> float:
+    """The median grey level, as ``np.median`` gives it. An 8-bit frame's median comes from its 256-bin histogram
+    (OpenCV's, exact counts below 2^24 pixels): a sort of every pixel was a third of a detection's time."""
+    if channel.dtype != np.uint8 or channel.size >= 1 << 24:
+        return float(np.median(channel.astype(np.float64)))
+    counts = cv2.calcHist([np.ascontiguousarray(channel)], [0], None, [256], [0, 256]).ravel()
+    cumulative = np.cumsum(counts)
+    middle = channel.size // 2
+    upper = int(np.searchsorted(cumulative, middle, side="right"))  # the sorted pixel at index ``middle``
+    if channel.size % 2:
+        return float(upper)
+    lower = int(np.searchsorted(cumulative, middle - 1, side="right"))
+    return (lower + upper) / 2
 
 
 def detect_spot(image: np.ndarray, *, min_contrast: float = 25.0, level: float = 0.2,
@@ -53,8 +73,9 @@ def detect_spot(image: np.ndarray, *, min_contrast: float = 25.0, level: float =
     Raises ``MalformedSample`` for an empty image, no spot (contrast below ``min_contrast``), a saturated spot
     (its centroid would be biased by clipping) or a blob larger than ``max_area_px`` (stray light).
     """
-    grey = _grey(image, source)
-    background = float(np.median(grey))
+    channel = _channel(image, source)
+    grey = channel.astype(np.float64)
+    background = _median(channel)
     smooth = cv2.GaussianBlur(grey, (5, 5), 0)
     v0, u0 = np.unravel_index(int(np.argmax(smooth)), smooth.shape)
     contrast = float(smooth[v0, u0] - background)
@@ -63,20 +84,26 @@ def detect_spot(image: np.ndarray, *, min_contrast: float = 25.0, level: float =
                               f"expected >= {min_contrast:g}); check the laser, the exposure and the aim")
     threshold = background + level * contrast
     mask = (smooth > threshold).astype(np.uint8)
-    _, labels = cv2.connectedComponents(mask, connectivity=8)
-    blob = labels == labels[v0, u0]
-    area = int(blob.sum())
+    _, labels, stats, _ = cv2.connectedComponentsWithStats(mask, connectivity=8)
+    label = labels[v0, u0]
+    area = int(stats[label, cv2.CC_STAT_AREA])
     if area > max_area_px:
         raise MalformedSample(f"{source}: bright region of {area} px around ({u0}, {v0}), expected a spot of at "
                               f"most {max_area_px} px; stray light or wrong exposure")
-    if np.any(grey[blob] >= saturation):
-        raise MalformedSample(f"{source}: spot saturated ({int(np.sum(grey[blob] >= saturation))} px at "
+    # the blob's bounding box holds every pixel it weighs: the centroid sums over it, not over the whole frame
+    left, top, width, height = (int(stats[label, k]) for k in (cv2.CC_STAT_LEFT, cv2.CC_STAT_TOP,
+                                                                cv2.CC_STAT_WIDTH, cv2.CC_STAT_HEIGHT))
+    box = (slice(top, top + height), slice(left, left + width))
+    blob = labels[box] == label
+    pixels = grey[box]
+    if np.any(pixels[blob] >= saturation):
+        raise MalformedSample(f"{source}: spot saturated ({int(np.sum(pixels[blob] >= saturation))} px at "
                               f"{saturation:g}); reduce the exposure or laser power")
-    weights = np.where(blob, np.clip(grey - threshold, 0.0, None), 0.0)
+    weights = np.where(blob, np.clip(pixels - threshold, 0.0, None), 0.0)
     total = weights.sum()
-    rows, cols = np.indices(grey.shape)
-    return SpotDetection(float((weights * cols).sum() / total), float((weights * rows).sum() / total),
-                         float(grey[blob].max()), contrast, area)
+    rows, cols = np.indices(pixels.shape)
+    return SpotDetection(float((weights * (cols + left)).sum() / total), float((weights * (rows + top)).sum() / total),
+                         float(pixels[blob].max()), contrast, area)
 
 
 @dataclass(frozen=True, eq=False)

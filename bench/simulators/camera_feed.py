@@ -19,6 +19,7 @@ from __future__ import annotations
 import array
 import errno
 import fcntl
+import functools
 import json
 import logging
 import os
@@ -61,9 +62,21 @@ def write_plane_calibration(path: str | os.PathLike[str], camera: SpotCameraSimu
     at home (the spot's reading at home is subtracted), because :class:`bench.rigs.camera.CameraSpotInstrument` adds
     the home position to every reading. Returns the JSON's dict (``rms_mm``: the fit's RMS, the instrument's u_mm).
     """
+    text = _default_calibration_json() if camera is None else json.dumps(_plane_calibration(camera))
+    Path(path).write_text(text, encoding="utf-8")
+    return json.loads(text)
+
+
+@functools.cache
+def _default_calibration_json() -> str:
+    """The calibration of :func:`delta4_camera`, made once per process: it is the same every time (a rendered
+    chessboard, no noise), and rendering the board is most of a rehearsal's start (0.6 s of CPU)."""
+    return json.dumps(_plane_calibration(delta4_camera()))
+
+
+def _plane_calibration(camera: SpotCameraSimulator) -> dict:
     from bench.sensors.camera_spot import PlaneCalibration, calibrate_from_chessboard, detect_spot
 
-    camera = camera or delta4_camera()
     square_mm, corner_mm = 12.0, np.array([-60.0, -40.0])
     to_corner = np.array([[1.0, 0.0, corner_mm[0]], [0.0, 1.0, corner_mm[1]], [0.0, 0.0, 1.0]])
     board_view = SpotCameraSimulator(camera.homography_mm_to_px @ to_corner, shape=camera.shape)
@@ -74,9 +87,7 @@ def write_plane_calibration(path: str | os.PathLike[str], camera: SpotCameraSimu
     zero_at_home = np.array([[1.0, 0.0, -home_reading[0]], [0.0, 1.0, -home_reading[1]], [0.0, 0.0, 1.0]])
     calibration = PlaneCalibration(zero_at_home @ fitted.homography_px_to_mm, fitted.rms_mm,
                                    fitted.calibration_id, fitted.date)
-    data = calibration.to_dict()
-    Path(path).write_text(json.dumps(data), encoding="utf-8")
-    return data
+    return calibration.to_dict()
 
 
 class CameraFeed:

@@ -31,6 +31,8 @@ NOMINAL_FIT_MM = 0.01
 TRANSLATION_FIT_MM = 0.05
 #: LM step criterion of the plant's warm solve (mm, rad): far below the 0.03 mm count of the simulated mice.
 _PLANT_STEP_TOL = 1e-7
+#: Distinct commands whose documented geometry's pose a plant of a true geometry keeps (a campaign revisits a few).
+_NOMINAL_STARTS_KEPT = 1024
 #: Warm solves that a compiled plant no simulator warmed up (:meth:`Plant.warm_up`) leaves to numpy (7 ms each)
 #: before it loads numba and waits for it (0.5-2 s from numba's cache): a short use never loads it.
 NUMPY_SOLVES_AT_START = 32
@@ -205,10 +207,19 @@ def build_plant(seed: int, *, ideal: bool = False, geometry: Any = pkm5.DEFAULT_
                                      residual_tol_mm=_PLANT_RESIDUAL_TOL_MM, engine=use)
         return pose_deg_from_rad(fk.pose[0]) if fk.converged[0] else None
 
+    nominal_starts: dict[tuple[bytes, str, str], Any] = {}
+
     def _nominal_start(commanded: np.ndarray, mode: str, use: str):
-        # the documented geometry's solution: the true fit's start (no seed table for a perturbed geometry)
-        return pkm5.forward_kinematics(commanded[None, :], geometry, mode=mode, residual_tol_mm=2.0, max_iter=200,
-                                       engine=use)
+        # the documented geometry's solution: the true fit's start (no seed table for a perturbed geometry). It
+        # depends on the command alone, and a campaign commands each pose once per cycle: solved once per command
+        # (with every restart it is 2/3 of a move's solve), kept like the attained poses (Plant's warm starts)
+        key = (commanded.tobytes(), mode, use)
+        if key not in nominal_starts:
+            if len(nominal_starts) >= _NOMINAL_STARTS_KEPT:
+                del nominal_starts[next(iter(nominal_starts))]  # the command solved longest ago
+            nominal_starts[key] = pkm5.forward_kinematics(commanded[None, :], geometry, mode=mode,
+                                                          residual_tol_mm=2.0, max_iter=200, engine=use)
+        return nominal_starts[key]
 
     def _fit_true(lengths: np.ndarray, start: Any, mode: str, use: str):
         # true lengths never fit exactly (6 legs, 3-4 unknowns): retrying every inexact fit from the restart guesses

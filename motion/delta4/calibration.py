@@ -29,6 +29,7 @@ are held at 0 and :data:`BASE_PARAMETERS` are the rest (:func:`base_equivalent` 
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import lru_cache
 
 import numpy as np
 
@@ -68,15 +69,21 @@ def leg_parameters(free, theta, nominal: Geometry = NOMINAL) -> Legs:
     """The :class:`~motion.delta4.geometry.Legs` of the geometry under deviations ``theta`` of parameters ``free``
     (registration entries are not geometry and are skipped)."""
     deviation = {kind: np.zeros(4) for kind in _KINDS}
-    for name, value in zip(_check_names(free), np.asarray(theta, dtype=float)):
-        if name.startswith("reg_"):
-            continue
-        kind, leg = name.rsplit("_", 2)[0], int(name.rsplit("_", 2)[1])
-        deviation[kind][leg - 1] = value
+    for slot, value in zip(_leg_slots(tuple(free)), np.asarray(theta, dtype=float)):
+        if slot is not None:
+            deviation[slot[0]][slot[1]] = value
     origin = ((nominal.thigh_offset_mm + deviation["radial"])[:, None] * LEG_OUTWARD
               + deviation["sideways"][:, None] * LEG_SIDEWAYS + deviation["height"][:, None] * _E_Z)
     return Legs(origin, nominal.upper_arm_mm + deviation["upper_arm"], nominal.lower_arm_mm + deviation["lower_arm"],
                 np.full(4, nominal.ankle_offset_mm), deviation["servo_zero"])
+
+
+@lru_cache(maxsize=64)
+def _leg_slots(free: tuple[str, ...]) -> tuple[tuple[str, int] | None, ...]:
+    """Per name of ``free`` (checked): its kind and leg index, None for a registration entry. Parsed once per
+    parameter set: a fit evaluates the same set hundreds of times."""
+    return tuple(None if name.startswith("reg_") else (name.rsplit("_", 2)[0], int(name.rsplit("_", 2)[1]) - 1)
+                 for name in _check_names(free))
 
 
 def _moved_axes(full: dict[str, float], t: np.ndarray) -> dict[str, float]:
@@ -190,13 +197,18 @@ def attained_positions(servo_deg, free=(), theta=(), nominal: Geometry = NOMINAL
     free = _check_names(free)
     servo = np.atleast_2d(np.asarray(servo_deg, dtype=float))
     legs = leg_parameters(free, theta, nominal)
-    knees = legs.knees_mm(servo)
     p = (forward_kinematics(servo, nominal, method="least_squares").pose_mm if start_mm is None
          else np.array(start_mm, dtype=float))
+    return _closure(legs.knees_mm(servo), legs.ankle_mm, legs.lower_mm, p)
+
+
+def _closure(knees, ankle_mm, lower_mm, p) -> np.ndarray:
+    """Positions (N, 3) where the four legs of each row close best, by Gauss-Newton from ``p`` (N, 3): knees
+    (N, 4, 3), ankle offsets and lower arms (4,) for every row or (N, 4) one set per row."""
     for _ in range(_GAUSS_NEWTON_ITERATIONS):
-        span = legs.ankles_mm(p) - knees  # A_i - K_i
+        span = p[:, None, :] + ankle_mm[..., None] * LEG_OUTWARD - knees  # A_i - K_i (Legs.ankles_mm)
         length = np.linalg.norm(span, axis=-1)
-        residual = length - legs.lower_mm
+        residual = length - lower_mm
         jac = span / length[..., None]  # d|A_i - K_i| / dp
         normal = np.einsum("nij,nik->njk", jac, jac)
         p = p - np.linalg.solve(normal, np.einsum("nij,ni->nj", jac, residual)[..., None])[..., 0]
@@ -241,12 +253,28 @@ class ForwardModel:
 
     def predict(self, theta) -> np.ndarray:
         """Readings (N, len(axes)): attained position plus registration, on the measured axes."""
-        p = attained_positions(self.servo_deg, self.free, theta, self.nominal, self._start)
-        return (p + _registration(self.free, theta))[:, self.axes]
+        return self._predict_each([theta])[0]
+
+    def _predict_each(self, thetas) -> list[np.ndarray]:
+        """:meth:`predict` of each of ``thetas``, the closures of all of them solved in one batch (the same
+        arithmetic row by row: a Jacobian's 2 K predictions cost little more than one)."""
+        legs = [leg_parameters(self.free, theta, self.nominal) for theta in thetas]
+        if not legs:
+            return []
+        rows = len(self.servo_deg)
+        p = _closure(np.concatenate([leg.knees_mm(self.servo_deg) for leg in legs]),
+                     np.repeat([leg.ankle_mm for leg in legs], rows, axis=0),
+                     np.repeat([leg.lower_mm for leg in legs], rows, axis=0), np.tile(self._start, (len(legs), 1)))
+        return [(part + _registration(self.free, theta))[:, self.axes]
+                for part, theta in zip(np.split(p, len(legs)), thetas)]
 
     def jacobian(self, theta) -> np.ndarray:
         """d reading / d theta (N, len(axes), K): central differences (registration columns exact)."""
         theta = np.asarray(theta, dtype=float)
+        varied = [k for k, name in enumerate(self.free) if not name.startswith("reg_")]
+        steps = np.zeros((len(varied), len(theta)))
+        steps[np.arange(len(varied)), varied] = [self._STEP[UNITS[self.free[k]]] for k in varied]
+        readings = iter(self._predict_each([theta + sign * step for step in steps for sign in (1, -1)]))
         columns = []
         for k, name in enumerate(self.free):
             if name.startswith("reg_"):
@@ -254,8 +282,6 @@ class ForwardModel:
                 if _AXES.index(name[4]) in self.axes:
                     column[:, self.axes.index(_AXES.index(name[4]))] = 1.0
             else:
-                step = np.zeros_like(theta)
-                step[k] = self._STEP[UNITS[name]]
-                column = (self.predict(theta + step) - self.predict(theta - step)) / (2 * step[k])
+                column = (next(readings) - next(readings)) / (2 * self._STEP[UNITS[name]])
             columns.append(column)
         return np.stack(columns, axis=-1)

@@ -76,12 +76,17 @@ class FKResult:
 
 
 def _reasons(fail_by_code: list[np.ndarray]) -> np.ndarray:
-    """(N,) reason strings from per-code (N, 4) failure masks; first code and first leg win."""
+    """(N,) reason strings from per-code (N, 4) failure masks; first code and first leg win. Whole arrays at a
+    time: a loop over the failing poses was most of the time of a workspace sample (20,000 poses, 40 % out of
+    reach)."""
     count = fail_by_code[0].shape[0]
     reason = np.full(count, None, dtype=object)
+    open_ = np.ones(count, dtype=bool)  # no reason yet
     for code, failed in zip(REASONS, fail_by_code):
-        for pose in np.flatnonzero(failed.any(axis=1) & (reason == None)):  # noqa: E711 (elementwise)
-            reason[pose] = f"{code} (leg {int(np.argmax(failed[pose])) + 1})"
+        poses = np.flatnonzero(failed.any(axis=1) & open_)
+        labels = np.array([f"{code} (leg {leg})" for leg in range(1, failed.shape[1] + 1)], dtype=object)
+        reason[poses] = labels[np.argmax(failed[poses], axis=1)]
+        open_[poses] = False
     return reason
 
 
