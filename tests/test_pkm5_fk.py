@@ -93,3 +93,17 @@ def test_newton_raphson_worked_examples(mode, lengths, brackets, gradient, expec
     result = pkm5.forward_kinematics_nr(lengths, guess, mode=mode, brackets=brackets, gradient=gradient)
     assert result.converged
     np.testing.assert_allclose(result.solution, expected, atol=6e-4)
+
+
+@pytest.mark.parametrize("mode", ["translation", "alpha", "beta"])
+def test_a_small_batch_starts_from_the_seed_the_k_d_tree_finds(mode):
+    # up to 64 targets are matched to the seed table by brute force (no scipy.spatial import); the tree, which
+    # larger batches query, must give the same nearest seed to every target
+    from motion.pkm5 import fk
+
+    starts, lengths = fk._seed_table(mode, pkm5.DEFAULT_GEOMETRY)
+    rng = np.random.default_rng(7)
+    targets = lengths[rng.integers(0, len(lengths), 64)] + rng.normal(0, 2.0, (64, 6))
+    assert fk._BRUTE_FORCE_MAX_TARGETS == len(targets)
+    np.testing.assert_array_equal(fk._nearest_seed(targets, mode, pkm5.DEFAULT_GEOMETRY),
+                                  fk._seed_tree(mode, pkm5.DEFAULT_GEOMETRY).query(targets)[1])
