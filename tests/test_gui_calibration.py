@@ -143,6 +143,8 @@ def test_a_run_without_measured_poses_is_refused_in_one_line(window, tmp_path):
         run_id = store.start_run(protocol_name="kinematic_calibration", protocol_version="1", robot="pkm5",
                                  config={})
         store.add_sample(run_id, 0, values={"cmd_x_mm": 120.0}, kind="pose", pose="P1", cycle=1, t_s=0.0)
+    # read at once: the store's poll (tests/test_gui_safety.py) would take up to a second
+    QTest.mouseClick(window.results.buttons["refresh"], Qt.MouseButton.LeftButton)
     panel = window.calibration_panel
     assert panel.identify() is None  # nothing selected yet
     assert "Identify: select one run (a kinematic calibration run) in the Results tab" in window.log.toPlainText()

@@ -182,8 +182,11 @@ def test_bench_gui_opens_the_window_on_the_store_and_returns_when_it_closes(tmp_
                 opened.append(widget.windowTitle())
                 widget.close()
 
+    hung: list[bool] = []
     QTimer.singleShot(300, close_windows)
-    QTimer.singleShot(10_000, app.quit)  # never hang the suite, even if closing failed to end the loop
+    # never hang the suite: a loop that closing did not end (a window left open) is ended here, and fails the test
+    QTimer.singleShot(10_000, lambda: (hung.append(True), app.quit()))
     assert main(["gui", "--store", str(tmp_path / "b.db"), "--reports", str(tmp_path / "r")]) == 0
     assert opened == [f"bench - {tmp_path / 'b.db'}"]
+    assert not hung, "bench gui went on after its window closed"
     assert not (tmp_path / "b.db").exists()  # looking creates nothing: the first run creates the store

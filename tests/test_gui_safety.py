@@ -146,7 +146,7 @@ def test_the_legal_buttons_are_the_runners_transitions(state, legal):
 
 def test_the_buttons_follow_the_run_and_the_form_locks(window, tmp_path):
     panel = window.campaign_panel
-    window.robot_panel.speed_factor.setValue(40)
+    window.robot_panel.speed_factor.setValue(100)  # a cycle (5 samples) lasts a second or two: time to click
     enabled = lambda: {action for action, button in panel.buttons.items() if button.isEnabled()}  # noqa: E731
     assert enabled() == {"start"} and panel.form.isEnabled()
     worker = _start(window, "iso9283_pose_quick.toml", cycles="4")
@@ -210,7 +210,7 @@ def test_the_results_table_shows_a_run_whose_owner_was_killed_as_interrupted(win
 def test_report_during_a_run_leaves_the_window_responsive(window, tmp_path):
     _start(window, "iso9283_pose_quick.toml", cycles="2")
     _wait_idle(window)
-    window.robot_panel.speed_factor.setValue(10)  # a 600 s settle lasts 60 s: the run goes on during the report
+    window.robot_panel.speed_factor.setValue(20)  # a 600 s settle lasts 30 s: the run goes on during the report
     worker = _start(window, "iso9283_pose_quick.toml", settle_s="600")
     wait_for(lambda: worker.runner is not None and isinstance(worker.runner.current_step, Settle), RUN_TIMEOUT_S,
              "the long settle")
@@ -298,6 +298,7 @@ def test_export_writes_the_default_kind_of_bench_export(window, tmp_path):
         for index, reading in enumerate((-1.5, 0.25)):
             store.add_sample(run_id, index, values={"a_deg": reading, "cmd_a_deg": 0.0}, kind="tilt", pose="P1",
                              cycle=index + 1, t_s=float(index), raw={"field": "a_deg", "entered": reading})
+    _click(window.results.buttons["refresh"])  # at once: the store's poll (its own test) would take up to a second
     select_runs(window.results, [run_id])
     _click(window.results.buttons["export"])
     wait_for(lambda: window.results.last_dialog is not None, RUN_TIMEOUT_S, "the export")

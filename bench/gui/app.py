@@ -220,7 +220,8 @@ class MainWindow(QMainWindow):
         return dialog
 
     def closeEvent(self, event: QCloseEvent) -> None:
-        """Stop a run at its next checkpoint (resumable, nothing stored is lost), then release the robot."""
+        """Stop a run at its next checkpoint (resumable, nothing stored is lost), release the robot, and close the
+        window's message dialogs."""
         if self.campaign_panel.worker is not None:
             self.say("window closing: stopping the run at the next checkpoint")
             self._close_calliper_dialog()
@@ -233,4 +234,7 @@ class MainWindow(QMainWindow):
         self.calibration_panel.wait_idle()  # an identification being stored ends before the window goes
         self.robot_panel.wait_idle()
         self.robot_panel.disconnect_robot()
+        # its result and error messages go with it: an open one would keep bench gui running, windowless
+        for message in self.findChildren(QMessageBox):
+            message.close()
         event.accept()

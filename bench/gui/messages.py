@@ -9,9 +9,14 @@ __all__ = ["show_message"]
 
 
 def show_message(parent: QWidget, icon: QMessageBox.Icon, title: str, text: str, *, name: str) -> QMessageBox:
-    """Show ``text`` in a non-modal message box named ``name`` (tests find it by that name) and return it."""
+    """Show ``text`` in a non-modal message box named ``name`` (tests find it by that name) and return it.
+
+    A window that is not shown (closed) gets its message box but shows none: the outcome of work that ended after
+    the window closed (an identification it waited for) would otherwise keep the application running, windowless.
+    """
     dialog = QMessageBox(icon, title, text, QMessageBox.StandardButton.Ok, parent)
     dialog.setObjectName(name)
     dialog.setWindowModality(Qt.WindowModality.NonModal)
-    dialog.show()
+    if parent.window().isVisible():
+        dialog.show()
     return dialog
