@@ -183,6 +183,7 @@ class LiveView(QWidget):
         self.title = title
         self.started_s = started_s
         self._statistics: dict[str, dict[str, float]] | None = None
+        self._plots_current = False
         if self._canvas is not None:
             self.redraw()
         else:
@@ -204,6 +205,7 @@ class LiveView(QWidget):
             return False
         self.samples[key] = sample
         self._statistics = None
+        self._plots_current = False
         if not self._timer.isActive():
             self._timer.start(self._redraw_delay_ms())
         return True
@@ -294,8 +296,11 @@ class LiveView(QWidget):
         return curves
 
     def redraw(self) -> None:
-        """Draw both plots from the samples recorded so far (a hidden view draws them when it is shown)."""
+        """Draw both plots from the samples recorded so far, unless they show them already (a hidden view draws
+        them when it is shown)."""
         self._timer.stop()  # this draw shows every sample recorded so far
+        if self._plots_current and self._canvas is not None:
+            return
         self._draw_poses()
         curves = self.arrival_curves()
         if curves:
@@ -303,6 +308,7 @@ class LiveView(QWidget):
         else:
             self._draw_stream()
         self.canvas.draw_idle()
+        self._plots_current = True
 
     def _draw_arrivals(self, curves: list[tuple[str, np.ndarray, np.ndarray]]) -> None:
         axes = self.stream_axes
