@@ -346,3 +346,49 @@ def test_the_live_figures_are_per_pose_and_velocity_as_in_the_report():
         assert shown[label]["n"] == 3
         assert (shown[label]["AP_mm"], shown[label]["RP_mm"]) == (result.accuracy.ap_mm, result.repeatability.rp_mm)
     assert shown["P1 (velocity_pct=100)"]["AP_mm"] == pytest.approx(0.9 * np.sqrt(3), abs=0.2)
+
+
+def _pose_sample(index: int) -> dict:
+    values = {"x_mm": 110.1, "y_mm": 0.1 * index, "z_mm": 320.0, "cmd_x_mm": 110.0, "cmd_y_mm": 0.0,
+              "cmd_z_mm": 320.0}
+    return {"step_index": index, "kind": "pose", "pose": "P1", "cycle": index + 1, "t_s": float(index),
+            "wall_s": float(index), "values": values}
+
+
+def test_the_live_view_draws_after_the_background_imports_and_only_while_it_can_be_seen(monkeypatch):
+    import threading
+
+    from bench.gui import live_view
+    from bench.gui.live_view import REDRAW_MS, LiveView
+
+    application()
+    imported = threading.Event()
+    importing = threading.Thread(target=imported.wait, daemon=True)  # the background imports, not yet done
+    importing.start()
+    monkeypatch.setattr(live_view, "_preloading", importing)
+    view = LiveView()
+    view.resize(700, 500)
+    view.show()
+    view.clear("run 1", started_s=0.0)
+    view.add_sample(_pose_sample(0))
+    QTest.qWait(3 * REDRAW_MS)
+    assert view._canvas is None  # no figure, so no matplotlib import on the GUI thread beside the background one
+    imported.set()
+    wait_for(lambda: view._canvas is not None and view._canvas.drawn_at_s is not None, 5, "the first draw")
+    drawn_at_s = view._canvas.drawn_at_s
+    view.hide()  # another tab
+    view.add_sample(_pose_sample(1))
+    wait_for(lambda: not view._timer.isActive(), 5, "the redraw's turn")
+    assert not view._plots_current and view._canvas.drawn_at_s == drawn_at_s  # collected, neither plotted nor drawn
+    view.show()
+    wait_for(lambda: view._canvas.drawn_at_s != drawn_at_s, 5, "the draw once shown")
+    assert "P1: n=2 " in view.summary.text()  # the plots and their figures followed the collected sample
+    drawn_at_s = view._canvas.drawn_at_s
+    view.hide()
+    view.add_sample(_pose_sample(2))
+    view.redraw()  # as at the end of a run: plotted at once, drawn once shown
+    QTest.qWait(50)
+    assert view._plots_current and view._canvas.drawn_at_s == drawn_at_s
+    view.show()
+    wait_for(lambda: view._canvas.drawn_at_s != drawn_at_s, 5, "the draw once shown")
+    view.close()
