@@ -208,7 +208,8 @@ class LiveView(QWidget):
             self.add_sample(sample)
 
     def add_sample(self, sample: dict) -> bool:
-        """Record one stored sample (once per step index); the plots follow within :data:`REDRAW_MS`.
+        """Record one stored sample (once per step index); the plots follow within :data:`REDRAW_MS` (or once the
+        pause after the last redraw has passed, or once a hidden view is shown).
 
         Returns False for a sample already recorded."""
         index = sample.get("step_index")
