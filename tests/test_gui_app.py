@@ -10,7 +10,7 @@ import pytest
 
 pytest.importorskip("PySide6")
 
-from gui_support import RUN_TIMEOUT_S, select_runs, wait_for
+from gui_support import RUN_TIMEOUT_S, select_runs, serve_events, wait_for
 from PySide6.QtCore import Qt
 from PySide6.QtGui import QImage
 from PySide6.QtTest import QTest
@@ -84,7 +84,7 @@ def test_campaign_from_the_window_stores_every_sample_and_shows_it(window, tmp_p
     # a screenshot of the main window, not blank
     shot = tmp_path / "main_window.png"
     window.live_view.redraw()
-    QTest.qWait(50)
+    serve_events(50)
     assert window.grab().save(str(shot))
     image = QImage(str(shot))
     assert image.width() >= 1000 and image.height() >= 700
@@ -133,7 +133,7 @@ def test_closing_mid_run_stops_at_a_checkpoint_and_the_run_resumes_from_the_brow
         (run,) = store.runs()
     assert run.status == "aborted" and "window closed" in run.reason and "at checkpoint" in run.reason
     assert 2 <= run.n_samples < 15 and run.n_samples % 5 == 0  # ended at a cycle boundary: nothing lost
-    QTest.qWait(100)  # deliver the signals queued while the window waited for the worker
+    serve_events(100)  # deliver the signals queued while the window waited for the worker
     assert run.n_samples == window.campaign_panel.progress.value()
     # a new window on the same store resumes the run from the results browser
     again = MainWindow(tmp_path / "bench.db", tmp_path / "reports", open_files=False)

@@ -18,7 +18,7 @@ import pytest
 
 pytest.importorskip("PySide6")
 
-from gui_support import RUN_TIMEOUT_S, application, real_display, select_runs, wait_for
+from gui_support import RUN_TIMEOUT_S, application, real_display, select_runs, serve_events, wait_for
 from PySide6.QtCore import Qt, QTimer
 from PySide6.QtGui import QImage
 from PySide6.QtTest import QTest
@@ -103,7 +103,7 @@ def test_readings_are_numbered_and_a_cancel_asks_before_it_ends_the_campaign(win
     second = window.calliper_dialog
     assert second.number.text() == f"Reading 2 of {POINTS * 2}"
     QTest.keyClick(second.entry, Qt.Key.Key_Escape)
-    QTest.qWait(100)
+    serve_events(100)
     assert second.isVisible() and worker.runner.state is RunState.RUNNING  # asked, not yet cancelled
     _click(second.cancel_button)
     _wait_idle(window)
@@ -119,7 +119,7 @@ def test_the_calliper_dialog_speaks_to_the_operator_and_keeps_its_layout():
     readings: list[float] = []
     dialog.reading_entered.connect(readings.append)
     dialog.show()
-    QTest.qWait(50)
+    serve_events(50)
     texts = [label.text() for label in dialog.findChildren(QLabel)]
     assert "Reading 3 of 141" in texts and "length in mm" in texts and "150 to 280 mm" in texts
     assert "200 mm: the value the robot was commanded to (a reading more than 2 mm away is asked again)" in texts
@@ -127,7 +127,7 @@ def test_the_calliper_dialog_speaks_to_the_operator_and_keeps_its_layout():
     size = dialog.size()
     QTest.keyClicks(dialog.entry, "12.3.4")
     QTest.keyClick(dialog.entry, Qt.Key.Key_Return)
-    QTest.qWait(50)
+    serve_events(50)
     assert "is not a length" in dialog.error.text() and dialog.size() == size  # room kept for the message
     dialog.entry.clear()
     QTest.keyClicks(dialog.entry, "200,25")
@@ -230,7 +230,7 @@ def test_report_during_a_run_leaves_the_window_responsive(window, tmp_path):
     click_s = time.monotonic() - clicked
     wait_for(lambda: window.results.last_dialog is not None, 4 * RUN_TIMEOUT_S, "the report")
     prober.stop()
-    QTest.qWait(50)
+    serve_events(50)
     latency_s = np.array(answered[:len(asked)]) - np.array(asked[:len(answered)])
     assert click_s < 0.1 and len(latency_s) >= 4
     assert latency_s.max() < 0.1, f"event loop answered in up to {latency_s.max():.3f} s"
@@ -267,7 +267,7 @@ def test_a_screenshot_of_each_panel(window, tmp_path):
     _start(window, "iso9283_pose_quick.toml", cycles="3")
     _wait_idle(window)
     window.live_view.redraw()
-    QTest.qWait(100)
+    serve_events(100)
     shots = {"window": window, "robot_panel": window.robot_panel, "campaign_panel": window.campaign_panel,
              "live_view": window.live_view}
     for name, widget in shots.items():
@@ -277,7 +277,7 @@ def test_a_screenshot_of_each_panel(window, tmp_path):
     dialog, _ = _reading_pending(window)
     dialog.entry.setText("50")
     QTest.keyClick(dialog.entry, Qt.Key.Key_Return)  # a validation message in the picture
-    QTest.qWait(100)
+    serve_events(100)
     path = out / "gui_calliper_dialog.png"
     assert dialog.grab().save(str(path))
     _non_blank(path, 250, 150)
@@ -285,7 +285,7 @@ def test_a_screenshot_of_each_panel(window, tmp_path):
     _wait_idle(window)
     window.tabs.setCurrentWidget(window.results)
     wait_for(lambda: window.results.table.rowCount() == 2, RUN_TIMEOUT_S, "both runs in the results table")
-    QTest.qWait(50)
+    serve_events(50)
     path = out / "gui_results.png"
     assert window.results.grab().save(str(path))
     _non_blank(path, 250, 150)
@@ -346,3 +346,45 @@ def test_the_live_figures_are_per_pose_and_velocity_as_in_the_report():
         assert shown[label]["n"] == 3
         assert (shown[label]["AP_mm"], shown[label]["RP_mm"]) == (result.accuracy.ap_mm, result.repeatability.rp_mm)
     assert shown["P1 (velocity_pct=100)"]["AP_mm"] == pytest.approx(0.9 * np.sqrt(3), abs=0.2)
+
+
+def _pose_sample(index: int) -> dict:
+    values = {"x_mm": 110.1, "y_mm": 0.1 * index, "z_mm": 320.0, "cmd_x_mm": 110.0, "cmd_y_mm": 0.0,
+              "cmd_z_mm": 320.0}
+    return {"step_index": index, "kind": "pose", "pose": "P1", "cycle": index + 1, "t_s": float(index),
+            "wall_s": float(index), "values": values}
+
+
+def test_the_live_view_draws_after_the_background_imports_and_only_while_it_can_be_seen(monkeypatch):
+    import threading
+
+    from bench.gui import live_view
+    from bench.gui.live_view import REDRAW_MS, LiveView
+
+    application()
+    imported = threading.Event()
+    importing = threading.Thread(target=imported.wait, daemon=True)  # the background imports, not yet done
+    importing.start()
+    monkeypatch.setattr(live_view, "_preloading", importing)
+    view = LiveView()
+    view.resize(700, 500)
+    view.clear("run 1", started_s=0.0)
+    view.add_sample(_pose_sample(0))
+    view.show()
+    serve_events(3 * REDRAW_MS)
+    assert view._canvas is None  # no figure, so no matplotlib import on the GUI thread beside the background one
+    imported.set()
+    wait_for(lambda: view._canvas is not None and view._canvas.drawn_at_s is not None, 5, "the first draw")
+    assert "P1: n=1 " in view.summary.text()
+    drawn_at_s = view._canvas.drawn_at_s
+    view.hide()  # another tab
+    view.add_sample(_pose_sample(1))
+    view._timed_redraw()  # the timer's turn (it would come after the pause the first draw asks for)
+    serve_events(50)
+    assert "P1: n=1 " in view.summary.text() and view._canvas.drawn_at_s == drawn_at_s  # collected only
+    view.redraw()  # as at the end of a run: plotted at once, drawn once shown
+    serve_events(50)
+    assert "P1: n=2 " in view.summary.text() and view._canvas.drawn_at_s == drawn_at_s
+    view.show()
+    wait_for(lambda: view._canvas.drawn_at_s != drawn_at_s, 5, "the draw once shown")
+    view.close()

@@ -130,6 +130,7 @@ class CampaignPanel(QGroupBox):
         self.progress.setFormat("%v / %m samples")
         self.eta = QLabel("idle")
         self.eta.setObjectName("campaignEta")
+        self.eta.setWordWrap(True)  # a long outcome wraps: it would widen the panel and squeeze the live view
         layout.addWidget(self.progress)
         layout.addWidget(self.eta)
         self._set_running(False)

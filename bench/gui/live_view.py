@@ -15,17 +15,19 @@ the move's reported end, with the comparison bands of clause 7.4 (A.4) drawn as 
 Samples are kept by step index: a sample seen twice (a resumed run's stored samples, then its live signals) counts
 once.
 
-Drawing is the view's cost (a draw of both plots is 0.2-0.3 s of the GUI thread on the 2-core bench PC, most of it
-matplotlib's constrained layout and text), so the view draws only what can be seen, and not more often than it can
-afford: the plots follow the samples within :data:`REDRAW_MS` of their arrival, but a draw comes no sooner than
-:data:`DRAW_GAP_FACTOR` times the last draw's duration after it (draws take at most a sixth of the GUI thread
-however fast a simulator stores samples); a hidden view (another tab, a closed window) updates its plots and draws
-them when it is shown.
+Drawing is the view's cost (a redraw of both plots is 0.2-0.3 s of the GUI thread on the 2-core bench PC, most of
+it matplotlib's constrained layout and text), so the view draws only what can be seen, and not more often than it
+can afford: the plots follow the samples within :data:`REDRAW_MS` of their arrival, but a redraw comes no sooner
+than :data:`DRAW_GAP_FACTOR` times the last one's duration after it (the plots take at most a sixth of the GUI
+thread however fast a simulator stores samples); a hidden view (another tab, a closed window) only collects the
+samples and draws them when it is shown.
 
 Start-up: matplotlib and pandas (0.5-0.6 s of imports on the 2-core bench PC) are imported by a background thread
 started with the first view, and the figure is built when the first samples arrive (until then the view says that
-the plots appear then), so the main window appears without waiting for them, draws no empty figure, and the GUI
-thread never imports them itself unless a run stores a sample within the first second.
+the plots appear then), so the main window appears without waiting for them and draws no empty figure. The GUI
+thread never imports them beside that thread (two threads importing matplotlib at once fail on its circular
+imports): samples that arrive first are drawn once the imports have ended, and a caller that needs the figure or
+the statistics at once waits for them.
 """
 
 from __future__ import annotations
@@ -53,7 +55,7 @@ __all__ = ["DRAW_GAP_FACTOR", "REDRAW_MS", "LiveView"]
 
 #: Shortest interval between two redraws, ms (samples can arrive much faster with a simulator).
 REDRAW_MS = 200
-#: After a draw, the next waits at least this many times its duration (the view's share of the GUI thread stays
+#: After a redraw, the next waits at least this many times its duration (the view's share of the GUI thread stays
 #: under 1 / (1 + DRAW_GAP_FACTOR) on any PC and under any load).
 DRAW_GAP_FACTOR = 5.0
 _ATTAINED = ("x_mm", "y_mm", "z_mm")
@@ -75,16 +77,26 @@ def preload_plotting() -> None:
         _preloading.start()
 
 
-def _condition_columns() -> tuple[str, ...]:
-    from bench.metrology.tables import CONDITION_COLUMNS
+def _plotting_module(name: str):
+    """``name``, one of :data:`_PLOTTING_MODULES` (or a module of their packages), once the background imports have
+    ended: the GUI thread waits for them rather than import beside them (two threads importing matplotlib's
+    circular modules at once fail: "cannot import name ... from partially initialized module")."""
+    if _preloading is not None:
+        _preloading.join()
+    return importlib.import_module(name)
 
-    return CONDITION_COLUMNS
+
+def _plotting_loaded() -> bool:
+    """True when the GUI thread can use the plotting modules without waiting."""
+    return _preloading is None or not _preloading.is_alive()
+
+
+def _condition_columns() -> tuple[str, ...]:
+    return _plotting_module("bench.metrology.tables").CONDITION_COLUMNS
 
 
 def _condition_groups(table: "pd.DataFrame"):
-    from bench.metrology.tables import condition_groups
-
-    return condition_groups(table)
+    return _plotting_module("bench.metrology.tables").condition_groups(table)
 
 
 def _canvas_class() -> type:
@@ -93,7 +105,7 @@ def _canvas_class() -> type:
     (``draw_s``). Defined on first use: matplotlib loads off the GUI thread."""
     global _LiveCanvas
     if _LiveCanvas is None:
-        from matplotlib.backends.backend_qtagg import FigureCanvasQTAgg
+        FigureCanvasQTAgg = _plotting_module("matplotlib.backends.backend_qtagg").FigureCanvasQTAgg
 
         class LiveCanvas(FigureCanvasQTAgg):
             drawn_at_s: float | None = None
@@ -131,6 +143,7 @@ class LiveView(QWidget):
         self._figure: Figure | None = None
         self._canvas: FigureCanvasQTAgg | None = None
         self._axes: tuple[Axes, Axes] | None = None
+        self._plotted_s = 0.0  #: how long the last redraw took to make its plots (their draw comes after)
         self._placeholder = QLabel("the plots appear with the first samples of a run")
         self.summary = QLabel("no samples yet")
         self.summary.setObjectName("liveSummary")
@@ -140,7 +153,7 @@ class LiveView(QWidget):
         self._layout.addWidget(self.summary)
         self._timer = QTimer(self)
         self._timer.setSingleShot(True)
-        self._timer.timeout.connect(self.redraw)
+        self._timer.timeout.connect(self._timed_redraw)
         self.clear()
 
     # ---- the figure, built on first use ------------------------------------------------------------------------
@@ -148,8 +161,7 @@ class LiveView(QWidget):
     def _build_figure(self) -> None:
         if self._canvas is not None:
             return
-        from matplotlib.backends.backend_qtagg import FigureCanvasQTAgg
-        from matplotlib.figure import Figure
+        Figure = _plotting_module("matplotlib.figure").Figure
 
         self._figure = Figure(figsize=(7, 4), layout="constrained")
         self._canvas = _canvas_class()(self._figure)
@@ -196,7 +208,8 @@ class LiveView(QWidget):
             self.add_sample(sample)
 
     def add_sample(self, sample: dict) -> bool:
-        """Record one stored sample (once per step index); the plots follow within :data:`REDRAW_MS`.
+        """Record one stored sample (once per step index); the plots follow within :data:`REDRAW_MS` (or once the
+        pause after the last redraw has passed, or once a hidden view is shown).
 
         Returns False for a sample already recorded."""
         index = sample.get("step_index")
@@ -211,11 +224,12 @@ class LiveView(QWidget):
         return True
 
     def _redraw_delay_ms(self) -> int:
-        """:data:`REDRAW_MS`, or longer while the pause that the last draw's duration asks for lasts."""
+        """:data:`REDRAW_MS`, or longer while the pause that the last redraw's duration (its plots and their draw)
+        asks for lasts."""
         canvas = self._canvas
         if canvas is None or canvas.drawn_at_s is None:
             return REDRAW_MS
-        quiet_until_s = canvas.drawn_at_s + DRAW_GAP_FACTOR * canvas.draw_s
+        quiet_until_s = canvas.drawn_at_s + DRAW_GAP_FACTOR * (self._plotted_s + canvas.draw_s)
         return max(REDRAW_MS, round((quiet_until_s - time.monotonic()) * 1000))
 
     # ---- figures ---------------------------------------------------------------------------------------------
@@ -231,9 +245,7 @@ class LiveView(QWidget):
             row.update({k: v for k, v in values.items() if k in _ATTAINED or k[4:] in _ATTAINED
                         or k in _condition_columns()})
             rows.append(row)
-        import pandas as pd
-
-        return pd.DataFrame(rows)
+        return _plotting_module("pandas").DataFrame(rows)
 
     def pose_statistics(self) -> dict[str, dict[str, float]]:
         """Per pose and test condition (the report's labels, e.g. ``P1 (velocity_pct=50)``): ``n``, the signed
@@ -295,18 +307,35 @@ class LiveView(QWidget):
                            np.asarray(series["t_s"], dtype=float), distance))
         return curves
 
+    def _timed_redraw(self) -> None:
+        """The timer's redraw: none while the view is hidden (it redraws when shown), and the first one waits
+        (without holding up the window) for the background imports."""
+        if not self.isVisible():
+            return
+        if self._canvas is None and not _plotting_loaded():
+            self._timer.start(50)
+        else:
+            self.redraw()
+
+    def showEvent(self, event: QShowEvent) -> None:
+        super().showEvent(event)
+        if not self._plots_current and (self._canvas is not None or self.samples):
+            self._timed_redraw()
+
     def redraw(self) -> None:
         """Draw both plots from the samples recorded so far, unless they show them already (a hidden view draws
         them when it is shown)."""
         self._timer.stop()  # this draw shows every sample recorded so far
         if self._plots_current and self._canvas is not None:
             return
+        started_s = time.monotonic()
         self._draw_poses()
         curves = self.arrival_curves()
         if curves:
             self._draw_arrivals(curves)
         else:
             self._draw_stream()
+        self._plotted_s = time.monotonic() - started_s
         self.canvas.draw_idle()
         self._plots_current = True
 

@@ -12,6 +12,7 @@ unidirectional, 30 cycles, at 100/50/10 % velocity, with an optional second load
 
 from __future__ import annotations
 
+import functools
 import itertools
 from typing import Any
 
@@ -64,6 +65,15 @@ def fit_cube_side(robot: str, centre_mm, *, max_side_mm: float = 200.0, angles_d
                   threshold: float = DEFAULT_SINGULARITY_THRESHOLD) -> float:
     """Edge (mm, 0.1 mm resolution) of the largest cube around ``centre_mm`` whose 27 lattice points all pass the
     pre-flight of ``robot`` (bisection; the reachable set is assumed star-shaped about the centre)."""
+    return _fit_cube_side(robot, tuple(float(v) for v in centre_mm), float(max_side_mm),
+                          tuple(float(v) for v in angles_deg), float(threshold))
+
+
+@functools.lru_cache(maxsize=64)
+def _fit_cube_side(robot: str, centre_mm: tuple[float, ...], max_side_mm: float, angles_deg: tuple[float, ...],
+                   threshold: float) -> float:
+    """:func:`fit_cube_side`, remembered: the pre-flight models are fixed, and every cube protocol built asks
+    (0.02 s of bisection; the desktop window's form builds one on every edit)."""
     model = robot_model(robot)
     lattice = np.array(list(itertools.product((-0.5, 0.0, 0.5), repeat=3)))
 
