@@ -9,7 +9,6 @@ from __future__ import annotations
 import os
 import subprocess
 import sys
-import time
 from pathlib import Path
 
 import numpy as np
@@ -24,6 +23,7 @@ from PySide6.QtGui import QImage
 from PySide6.QtTest import QTest
 from PySide6.QtWidgets import QLabel
 
+from bench.gui import offload
 from bench.gui.calliper_dialog import CalliperDialog
 from bench.gui.campaign_panel import EXAMPLES, enabled_actions
 from bench.protocols import Prompt, RunState, Settle
@@ -73,13 +73,12 @@ def test_the_emergency_stop_acts_while_a_prompt_is_open_and_withdraws_it(window,
     controller = worker.runner.rig.robot.controller
     assert dialog.isVisible() and not dialog.isModal() and not controller._stop_latched
     assert window.estop.isEnabled() and window.estop.text() == "EMERGENCY STOP (software, F12)"
-    started = time.monotonic()
     if how == "button":
         _click(window.estop)  # the main window is not blocked by the prompt
     else:
         QTest.keyClick(dialog.entry, Qt.Key.Key_F12)  # focus in the dialog: the shortcut is application-wide
-    wait_for(lambda: controller._stop_latched and not dialog.isVisible(), 0.3, "the e-stop to latch")
-    assert time.monotonic() - started < 0.3
+    # latched and withdrawn within the click's own handling: no event loop turn, no other thread, no clock involved
+    assert controller._stop_latched and not dialog.isVisible()
     assert worker.runner is None or worker.runner.state in (RunState.HALTING, RunState.FINISHED)
     assert window.calliper_dialog is None
     _wait_idle(window)
@@ -215,25 +214,25 @@ def test_report_during_a_run_leaves_the_window_responsive(window, tmp_path):
     wait_for(lambda: worker.runner is not None and isinstance(worker.runner.current_step, Settle), RUN_TIMEOUT_S,
              "the long settle")
     select_runs(window.results, [1])
-    asked: list[float] = []
-    answered: list[float] = []
+    report = tmp_path / "reports" / "report_run1.html"
+    answered: list[bool] = []  # per event-loop probe: whether the report was still being written when it ran
 
-    def probe() -> None:  # an event-loop probe: posted now, answered when the loop is free
-        asked.append(time.monotonic())
-        QTimer.singleShot(0, lambda: answered.append(time.monotonic()))
+    def probe() -> None:  # posted now, answered when the loop is free
+        QTimer.singleShot(0, lambda: answered.append(not report.exists()))
 
     prober = QTimer()
     prober.timeout.connect(probe)
     prober.start(25)
-    clicked = time.monotonic()
     _click(window.results.buttons["report"])
-    click_s = time.monotonic() - clicked
+    assert not report.exists()  # the click came back before the report was written: it is made elsewhere
     wait_for(lambda: window.results.last_dialog is not None, 4 * RUN_TIMEOUT_S, "the report")
     prober.stop()
-    serve_events(50)
-    latency_s = np.array(answered[:len(asked)]) - np.array(asked[:len(answered)])
-    assert click_s < 0.1 and len(latency_s) >= 4
-    assert latency_s.max() < 0.1, f"event loop answered in up to {latency_s.max():.3f} s"
+    # the loop kept answering while the report was made, and the report was made in another process (a thread
+    # would hold the interpreter lock for seconds of matplotlib; bench.gui.offload says why). How fast the loop
+    # answers is a figure for a benchmark, not for a test on a loaded machine.
+    assert answered.count(True) >= 4, answered
+    (report_process,) = offload._executor._processes.values()
+    assert report_process.pid != os.getpid()
     assert worker.runner.state is RunState.RUNNING  # the run went on meanwhile
     assert (tmp_path / "reports" / "report_run1.html").is_file()
     _click(window.estop)

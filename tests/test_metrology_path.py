@@ -3,7 +3,7 @@ cases, the standard's step table, and hypothesis invariants."""
 
 import numpy as np
 import pytest
-from hypothesis import given, settings
+from hypothesis import example, given, settings
 from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 
@@ -241,6 +241,7 @@ def test_orientation_drift_hand_computed_across_180():
 @settings(max_examples=40, deadline=None)
 @given(st.floats(0.05, 1.0), st.floats(0.3, 2.0), st.floats(0, 1e4), arrays(float, 3, elements=finite),
        st.floats(-20, 20).filter(lambda d: abs(d) > 1))
+@example(1.0, 0.3, 0.0, np.array([64.0, 64.0, 64.0]), 3.0)  # found by Hypothesis: samples on both band edges
 def test_positioning_time_is_invariant_to_the_clock_origin_and_the_place(t_leave, duration, t0, place, distance):
     t = np.round(np.arange(0.0, t_leave + duration + 0.5, 0.01), 6)
     x = np.interp(t, [0.0, t_leave, t_leave + duration, 1e9], [0.0, 0.0, distance, distance])
@@ -248,7 +249,10 @@ def test_positioning_time_is_invariant_to_the_clock_origin_and_the_place(t_leave
     r = minimum_positioning_time([[(t, step)]], band_mm=0.1)
     moved = minimum_positioning_time([[(t + t0, step + place)]], band_mm=0.1)
     assert r.mean_time_s[0] >= 0
-    assert moved.mean_time_s[0] == pytest.approx(r.mean_time_s[0], abs=1e-6)
+    # a sample on a band edge (|x - x_start| or |x - x_end| = B to rounding, e.g. 1.5 mm in 0.3 s: 0.05 mm a sample)
+    # may land on either side of it once moved, as the last bit falls: then the time may move by one sample an edge
+    edges = sum(np.isclose(np.abs(x - end), 0.1, rtol=0, atol=1e-9).any() for end in (x[0], x[-1]))
+    assert moved.mean_time_s[0] == pytest.approx(r.mean_time_s[0], abs=0.01 * edges + 1e-6)
     assert r.mean_time_s[0] == pytest.approx(duration * (1 - 0.2 / abs(distance)), abs=0.021)  # ramp minus 2 x B
 
 
