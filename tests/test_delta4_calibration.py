@@ -8,6 +8,8 @@ centroid (``detect_spot``) mapped to mm by a plane calibration made from a rende
 
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 import pytest
 
@@ -37,11 +39,14 @@ PLANE = REGISTRATION[:2]  # the camera reads x and y
 CANDIDATES = PLANE + BASE_PARAMETERS
 
 
+@functools.cache  # the same few sets are asked for by several tests; read-only, so no test changes another's
 def _field_points(seed: int, count: int) -> np.ndarray:
     points, reachable = workspace_samples(20000, seed=seed)
     points = points[reachable]
     inside = np.all(np.abs(points[:, :2]) < HALF_FIELD_MM - 5.0, axis=1)
-    return points[inside][:count]
+    field = points[inside][:count]
+    field.flags.writeable = False
+    return field
 
 
 class _Camera:
