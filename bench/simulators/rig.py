@@ -43,6 +43,12 @@ _PATH_JUMP_MM = 0.5
 _PIPE_CHUNK = 24 * 3 * 512
 
 
+#: How a simulator's process starts: ``subprocess.Popen``'s signature and an object with its interface. The test
+#: suite forks its simulators from a parent that has imported them (tests/simulator_forks.py: the same program,
+#: without 0.3 s of interpreter start and imports at each of its ~130 starts).
+spawn: Callable[..., subprocess.Popen] = subprocess.Popen
+
+
 def start_simulator(robot: str, *, seed: int, speed_factor: float, ideal: bool = False, timeout_s: float = 20.0,
                     options: tuple[str, ...] = ()) -> tuple[subprocess.Popen, str]:
     """Start ``python -m bench.simulators.<robot>`` (plus ``options``); returns the process and its pty path.
@@ -55,7 +61,7 @@ def start_simulator(robot: str, *, seed: int, speed_factor: float, ideal: bool =
                str(speed_factor)] + (["--ideal"] if ideal else []) + list(options)
     # the simulator's log goes to a file: an undrained pipe would block the simulator once it filled up
     with tempfile.TemporaryFile(mode="w+") as log:
-        process = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=log, text=True)
+        process = spawn(command, stdout=subprocess.PIPE, stderr=log, text=True)
         ready, _, _ = select.select([process.stdout], [], [], timeout_s)
         line = process.stdout.readline().strip() if ready else ""
         if not line.startswith("/dev/"):

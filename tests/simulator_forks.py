@@ -1,0 +1,239 @@
+"""Simulator processes forked from a warm parent: the test suite's way to start the ~130 simulators it needs.
+
+A simulator started as ``python -m bench.simulators.pkm5`` spends ~0.3 s of CPU in the interpreter's start and its
+imports before it prints its pty (about a tenth of the suite's CPU over all its starts). :class:`SimulatorForks`
+starts this file once per test process as a *zygote* that has imported the simulators, and forks one child per
+simulator: the child takes the pipe and log file the caller passed as its standard streams and runs the module as
+``python -m`` does (``runpy``, ``__main__``), so it parses the same argv, prints the same pty path and leaves through
+the interpreter's own exit. Each child is a real process of its own (its own pid, pty, signal handlers) that
+SIGTERM asks to stop and SIGKILL ends at once; the driver under test talks to it through the pty as to any
+simulator. :func:`install` puts :meth:`SimulatorForks.popen` in :data:`bench.simulators.rig.spawn` (production code
+starts simulators with ``subprocess.Popen``; this file is test infrastructure only).
+
+Wire: one ``SOCK_SEQPACKET`` Unix socket between the test process and the zygote. A request is a JSON packet
+``{"module", "argv", "cwd", "env"}`` carrying the child's stdout and stderr descriptors (``SCM_RIGHTS``); the zygote answers
+``{"pid"}`` once the child exists, and ``{"exited": pid, "code": N}`` when it has reaped it (``-N`` for signal N, as
+``Popen.returncode``). A simulator ends when its parent does, and the zygote is that parent: when the test process
+closes the socket (or dies), the zygote kills the children left and ends.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import select
+import signal
+import socket
+import subprocess
+import sys
+import threading
+from typing import Any
+
+#: What the zygote imports before it forks (each child imports anything else itself).
+PRELOAD = ("numpy", "bench.simulators.pkm5", "bench.simulators.pkm5_plant", "bench.simulators.delta4",
+           "bench.simulators.lasergrid", "bench.simulators.true_geometry", "bench.simulators.error_model",
+           "motion.pkm5", "motion.delta4")
+_PACKET = 65536
+
+
+class ForkedProcess:
+    """A simulator forked by the zygote: ``pid``, ``args``, ``stdout``, ``returncode``, ``poll``, ``wait``,
+    ``terminate``, ``kill``, ``send_signal`` and ``communicate`` as on the ``subprocess.Popen`` it stands for."""
+
+    def __init__(self, forks: SimulatorForks, pid: int, args: list[str], stdout: Any) -> None:
+        self.forks, self.pid, self.args, self.stdout = forks, pid, args, stdout
+        self.stdin = self.stderr = None
+
+    @property
+    def returncode(self) -> int | None:
+        return self.forks.exit_codes.get(self.pid)
+
+    def poll(self) -> int | None:
+        return self.returncode
+
+    def wait(self, timeout: float | None = None) -> int:
+        with self.forks.exited:
+            if not self.forks.exited.wait_for(lambda: self.pid in self.forks.exit_codes, timeout):
+                raise subprocess.TimeoutExpired(self.args, timeout)
+            return self.forks.exit_codes[self.pid]
+
+    def send_signal(self, signum: int) -> None:
+        if self.returncode is None:  # not reaped, so the pid is still this child's
+            try:
+                os.kill(self.pid, signum)
+            except ProcessLookupError:  # reaped by the zygote, its exit not yet read here (as Popen)
+                pass
+
+    def terminate(self) -> None:
+        self.send_signal(signal.SIGTERM)
+
+    def kill(self) -> None:
+        self.send_signal(signal.SIGKILL)
+
+    def communicate(self, timeout: float | None = None) -> tuple[Any, None]:
+        out = self.stdout.read() if self.stdout is not None else None
+        self.wait(timeout)
+        return out, None
+
+    def __enter__(self) -> ForkedProcess:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        if self.stdout is not None:
+            self.stdout.close()
+        self.wait()
+
+
+class SimulatorForks:
+    """The zygote of this test process (started on first use), and what its children's exits were."""
+
+    def __init__(self) -> None:
+        ours, theirs = socket.socketpair(socket.AF_UNIX, socket.SOCK_SEQPACKET)
+        self.zygote = subprocess.Popen([sys.executable, __file__, str(theirs.fileno())], pass_fds=(theirs.fileno(),),
+                                       stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL)
+        theirs.close()
+        self.socket = ours
+        self.exit_codes: dict[int, int] = {}
+        self.exited = threading.Condition()
+        self._started: list[int] = []
+        self._request = threading.Lock()  # one request in flight: its answer is the next "pid" packet
+        self._pids = threading.Condition()
+        threading.Thread(target=self._listen, name="simulator-forks", daemon=True).start()
+
+    def _listen(self) -> None:
+        while True:
+            packet = self.socket.recv(_PACKET)
+            if not packet:  # the zygote ended
+                return
+            message = json.loads(packet)
+            if "pid" in message:
+                with self._pids:
+                    self._started.append(message["pid"])
+                    self._pids.notify_all()
+            else:
+                with self.exited:
+                    self.exit_codes[message["exited"]] = message["code"]
+                    self.exited.notify_all()
+
+    def popen(self, command: list[str], *, stdout: int | None = None, stderr: Any = None, text: bool = False,
+              **unsupported: Any) -> ForkedProcess | subprocess.Popen:
+        """``subprocess.Popen(command, stdout=, stderr=, text=)`` for ``[python, -m, bench.simulators.X, ...]``
+        (stdout a pipe or None, stderr a file or None); any other command or option goes to ``subprocess.Popen``."""
+        if unsupported or len(command) < 3 or command[:2] != [sys.executable, "-m"] \
+                or not command[2].startswith("bench.simulators.") or stdout not in (None, subprocess.PIPE):
+            return subprocess.Popen(command, stdout=stdout, stderr=stderr, text=text, **unsupported)
+        read_end, write_end = os.pipe() if stdout == subprocess.PIPE else (None, os.open(os.devnull, os.O_WRONLY))
+        error = os.open(os.devnull, os.O_WRONLY) if stderr is None else os.dup(stderr.fileno())
+        request = {"module": command[2], "argv": command[3:], "cwd": os.getcwd(), "env": dict(os.environ)}
+        try:
+            with self._request, self._pids:
+                socket.send_fds(self.socket, [json.dumps(request).encode()], [write_end, error])
+                if not self._pids.wait_for(lambda: self._started, 60):
+                    raise RuntimeError("the simulator zygote forked nothing within 60 s")
+                pid = self._started.pop()
+        finally:
+            os.close(write_end)
+            os.close(error)
+        pipe = None if read_end is None else open(read_end, "r" if text else "rb", buffering=-1 if text else 0)
+        return ForkedProcess(self, pid, command, pipe)
+
+    def close(self) -> None:
+        """End the zygote (it kills any child still running)."""
+        self.socket.shutdown(socket.SHUT_RDWR)  # wakes the listening thread; the zygote reads the end
+        self.zygote.wait(30)
+        self.socket.close()
+
+
+_forks: SimulatorForks | None = None
+_starting = threading.Lock()
+
+
+def spawn(command: list[str], **options: Any) -> ForkedProcess | subprocess.Popen:
+    """:meth:`SimulatorForks.popen` of this process's zygote, started on first use."""
+    global _forks
+    with _starting:
+        if _forks is None:
+            _forks = SimulatorForks()
+    return _forks.popen(command, **options)
+
+
+def install() -> None:
+    """Start this process's simulators by forking them (:data:`bench.simulators.rig.spawn`). The zygote ends with
+    the process (it reads the end of the socket)."""
+    import bench.simulators.rig as rig
+
+    rig.spawn = spawn
+
+
+# ---- the zygote (this file run as a program) --------------------------------------------------------------------
+
+def _serve(sock: socket.socket) -> dict | None:
+    """Fork a child per request until the test process closes the socket; in a child, return its request."""
+    children: set[int] = set()
+    woken, wake = os.pipe()
+    os.set_blocking(wake, False)
+    signal.set_wakeup_fd(wake)
+    signal.signal(signal.SIGCHLD, lambda *_: None)  # a handler, so that SIGCHLD wakes the select below
+    while True:
+        readable, _, _ = select.select([sock, woken], [], [])
+        if woken in readable:
+            os.read(woken, 512)
+        while children:  # reap every child that has ended, and say how it ended
+            pid, status = os.waitpid(-1, os.WNOHANG)
+            if pid == 0:
+                break
+            children.discard(pid)
+            _tell(sock, {"exited": pid, "code": os.waitstatus_to_exitcode(status)})
+        if sock not in readable:
+            continue
+        packet, fds, _, _ = socket.recv_fds(sock, _PACKET, 2)
+        if not packet:  # the test process has gone: so do its simulators
+            for pid in children:
+                os.kill(pid, signal.SIGKILL)
+                os.waitpid(pid, 0)
+            return None
+        pid = os.fork()
+        if pid == 0:
+            signal.set_wakeup_fd(-1)
+            signal.signal(signal.SIGCHLD, signal.SIG_DFL)
+            sock.close()
+            os.close(woken)
+            os.close(wake)
+            stdin = os.open(os.devnull, os.O_RDONLY)
+            for target, fd in enumerate((stdin, *fds)):
+                os.dup2(fd, target)
+                os.close(fd)
+            return json.loads(packet)
+        for fd in fds:
+            os.close(fd)
+        children.add(pid)
+        _tell(sock, {"pid": pid})
+
+
+def _tell(sock: socket.socket, message: dict) -> None:
+    try:
+        sock.send(json.dumps(message).encode())
+    except OSError:  # the test process has gone; the loop finds the socket closed and ends its children
+        pass
+
+
+def _main() -> None:
+    import importlib
+    import runpy
+
+    del sys.path[0]  # the tests folder: nothing of it may shadow what a simulator imports
+    sock = socket.socket(fileno=int(sys.argv[1]))
+    for module in PRELOAD:
+        importlib.import_module(module)
+    request = _serve(sock)
+    if request is None:
+        return
+    os.chdir(request["cwd"])
+    os.environ.clear()
+    os.environ.update(request["env"])
+    sys.argv = [request["module"], *request["argv"]]  # runpy puts the module's file first, as ``python -m`` does
+    runpy.run_module(request["module"], run_name="__main__", alter_sys=True)
+
+
+if __name__ == "__main__":
+    _main()
