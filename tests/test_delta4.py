@@ -7,10 +7,10 @@ The document works in cm; values are converted to mm here, tolerances scaled wit
 from __future__ import annotations
 
 import dataclasses
-import doctest
 
 import numpy as np
 import pytest
+from doctests import run_doctests
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -376,5 +376,5 @@ def test_monte_carlo_volume_agrees_with_a_grid_count_and_stays_inside_the_box():
     "module", [motion.delta4.geometry, motion.delta4.kinematics, motion.delta4.error_models], ids=lambda m: m.__name__
 )
 def test_docstring_examples(module):
-    failures, tried = doctest.testmod(module, optionflags=doctest.NORMALIZE_WHITESPACE)
+    failures, tried = run_doctests(module)
     assert tried > 0 and failures == 0

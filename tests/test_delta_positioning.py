@@ -286,10 +286,11 @@ def test_each_axis_counts_only_its_own_readings(rows):
 @pytest.mark.parametrize("module", ["bench.metrology.partial_pose", "bench.rigs.lasergrid", "bench.sensors.lasergrid",
                                     "bench.simulators.lasergrid"])
 def test_docstring_examples(module):
-    import doctest
     import importlib
 
-    result = doctest.testmod(importlib.import_module(module), optionflags=doctest.NORMALIZE_WHITESPACE)
+    from doctests import run_doctests
+
+    result = run_doctests(importlib.import_module(module))
     assert result.failed == 0 and result.attempted > 0
 
 

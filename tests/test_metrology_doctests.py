@@ -1,9 +1,9 @@
 """The Examples sections of the metrology docstrings are run, so the documented numbers stay true."""
 
-import doctest
 import importlib
 
 import pytest
+from doctests import run_doctests
 
 import bench.metrology
 
@@ -16,7 +16,7 @@ WITHOUT_EXAMPLES = {"iso9283_dynamics", "tables"}
 @pytest.mark.parametrize("name", MODULES)
 def test_docstring_examples(name):
     module = importlib.import_module(f"bench.metrology.{name}")
-    result = doctest.testmod(module, optionflags=doctest.NORMALIZE_WHITESPACE)
+    result = run_doctests(module)
     assert result.failed == 0
     assert result.attempted > 0 or name in WITHOUT_EXAMPLES
 

@@ -72,9 +72,9 @@ def test_report_order_keeps_the_condition_order_and_sorts_poses_naturally():
 
 
 def test_docstring_examples():
-    import doctest
+    from doctests import run_doctests
 
     import bench.metrology.formatting as module
 
-    result = doctest.testmod(module)
+    result = run_doctests(module)
     assert result.failed == 0 and result.attempted >= 3

@@ -89,7 +89,7 @@ def test_inverse_condition_restricted_columns_and_degenerate_jacobians():
 
 
 def test_column_conditioning_is_each_targets_own_svd_over_its_mode_columns():
-    import doctest
+    from doctests import run_doctests
 
     import motion.model
 
@@ -109,4 +109,4 @@ def test_column_conditioning_is_each_targets_own_svd_over_its_mode_columns():
     radians[:, 3:] = np.radians(radians[:, 3:])
     np.testing.assert_array_equal(pkm5.singularity_proximity(radians).sigma_min, column_conditioning(
         pkm5.jacobian(radians) * np.array([1, 1, 1, np.pi / 180, np.pi / 180]), mode_columns(radians))[0])
-    assert doctest.testmod(motion.model).failed == 0
+    assert run_doctests(motion.model).failed == 0

@@ -6,11 +6,11 @@ b = 75, c = 100, stroke 0-1200 mm, n = 0), the paper's explicit equations (Eqs. 
 from __future__ import annotations
 
 import dataclasses
-import doctest
 import math
 
 import numpy as np
 import pytest
+from doctests import run_doctests
 
 import motion.prus3.jacobian
 import motion.prus3.kinematics
@@ -542,5 +542,5 @@ def test_trajectory_in_o2_slider_table_and_rates():
     "module", [motion.prus3.kinematics, motion.prus3.jacobian, motion.prus3.trajectory], ids=lambda m: m.__name__
 )
 def test_docstring_examples(module):
-    failures, tried = doctest.testmod(module, optionflags=doctest.NORMALIZE_WHITESPACE)
+    failures, tried = run_doctests(module)
     assert tried > 0 and failures == 0
