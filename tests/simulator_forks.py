@@ -19,6 +19,7 @@ closes the socket (or dies), the zygote kills the children left and ends.
 
 from __future__ import annotations
 
+import glob
 import json
 import os
 import select
@@ -28,6 +29,9 @@ import subprocess
 import sys
 import threading
 from typing import Any
+
+from motion import pkm5
+from motion.pkm5 import compiled as pkm5_compiled
 
 #: What the zygote imports before it forks (each child imports anything else itself).
 PRELOAD = ("numpy", "bench.simulators.pkm5", "bench.simulators.pkm5_plant", "bench.simulators.delta4",
@@ -192,6 +196,7 @@ def _serve(sock: socket.socket) -> dict | None:
                 os.kill(pid, signal.SIGKILL)
                 os.waitpid(pid, 0)
             return None
+        _load_kernel_once_cached()
         pid = os.fork()
         if pid == 0:
             signal.set_wakeup_fd(-1)
@@ -208,6 +213,27 @@ def _serve(sock: socket.socket) -> dict | None:
             os.close(fd)
         children.add(pid)
         _tell(sock, {"pid": pid})
+
+
+_kernel_loaded = False
+
+
+def _load_kernel_once_cached() -> None:
+    """Load the pkm5 plant's compiled FK kernel here once numba's cache holds it (a load, 0.5-1 s, never a compile
+    of 10-20 s of CPU: on a fresh checkout the first compile happens elsewhere), so that every child has it from
+    its first solve instead of solving ~200 moves with numpy before it loads the kernel itself
+    (:meth:`bench.simulators.pkm5_plant._KernelLoader.engine`)."""
+    global _kernel_loaded
+    if _kernel_loaded or not glob.glob(os.path.join(os.path.dirname(pkm5_compiled.__file__), "__pycache__",
+                                                    "_kernels.fk_batch-*.nbi")):
+        return
+    _kernel_loaded = True
+    try:
+        geometry = pkm5.DEFAULT_GEOMETRY
+        pkm5.forward_kinematics(geometry.home_lengths_mm[None, :], geometry, mode="translation",
+                                initial_pose=(150.0, 0.0, 300.0, 0.0, 0.0), engine="compiled")
+    except Exception:  # noqa: BLE001 - no numba, a broken cache: each child decides for itself, as on its own
+        pass
 
 
 def _tell(sock: socket.socket, message: dict) -> None:

@@ -17,6 +17,7 @@ from bench.robots.pkm5_kinematics import MODE_TOL_MM, pose_deg_from_rad
 from bench.simulators.error_model import ErrorMagnitudes, ErrorModel, JointMemory
 from bench.simulators.plant import Plant
 from motion import kernels, pkm5
+from motion.pkm5 import compiled as pkm5_compiled
 
 __all__ = ["PKM5_ERRORS", "build_actuator_bench", "build_plant", "plant_engine"]
 
@@ -106,13 +107,19 @@ class _KernelLoader(threading.Thread):
         for it: on a fresh install numba compiles the kernel first (10-20 s of CPU), and a controller that holds a
         reply that long is a dead link to the host (a CI run failed so, at its 33rd move). Until the load is done
         its solves stay numpy's, which the compiled kernel equals within 1e-9 mm, far below a mouse count. A plant
-        used without a simulator (no warm-up) loads after NUMPY_SOLVES_AT_START solves and waits for it."""
+        used without a simulator (no warm-up) loads after NUMPY_SOLVES_AT_START solves and waits for it. A kernel
+        already in the process (a parent loaded it before it forked this one) costs nothing to load: it is used
+        from the first solve (the loader's one solve then takes milliseconds)."""
         if self.ident is None:
-            if next(self._numpy_solves) < (NUMPY_SOLVES_BEFORE_LOAD if self.served else NUMPY_SOLVES_AT_START):
-                return "numpy"
-            self.start_once()
-            if not self.served:
+            if pkm5_compiled.fk_kernel_loaded():
+                self.start_once()
                 self.join()
+            elif next(self._numpy_solves) < (NUMPY_SOLVES_BEFORE_LOAD if self.served else NUMPY_SOLVES_AT_START):
+                return "numpy"
+            else:
+                self.start_once()
+                if not self.served:
+                    self.join()
         if self.is_alive():
             return "numpy"
         return "numpy" if self.failure is not None else "compiled"

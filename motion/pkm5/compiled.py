@@ -18,6 +18,7 @@ Geometry is an input (packed by :func:`pack_geometry` into one float vector), ne
 
 from __future__ import annotations
 
+import sys
 from functools import lru_cache
 
 import numpy as np
@@ -26,7 +27,7 @@ from motion import kernels
 from motion.kernels import run_chunks
 from motion.pkm5.geometry import Geometry
 
-__all__ = ["use_compiled", "COMPILED_MIN_POSES", "pack_geometry", "ik_arrays", "fk_arrays", "fk_pose", "MODE_CODES"]
+__all__ = ["use_compiled", "COMPILED_MIN_POSES", "fk_kernel_loaded", "pack_geometry", "ik_arrays", "fk_arrays", "fk_pose", "MODE_CODES"]
 
 #: Smallest batch for which inverse_kinematics / forward_kinematics use the compiled kernels by default. Loading
 #: numba and the cached kernels costs ~0.3-0.6 s per process; the numpy IK does ~10^5-10^6 poses in that time and the
@@ -74,6 +75,13 @@ def _kernels():
     from motion.pkm5 import _kernels
 
     return _kernels
+
+
+def fk_kernel_loaded() -> bool:
+    """Whether the FK kernel's machine code is already in this process (compiled or loaded from the cache here, or
+    by a parent before it forked this process): then a compiled solve costs no load at all."""
+    module = sys.modules.get("motion.pkm5._kernels")
+    return module is not None and bool(module.fk_batch.signatures)
 
 
 def ik_arrays(poses: np.ndarray, geometry: Geometry, check_limits: bool, block: int = _IK_BLOCK):
