@@ -21,7 +21,7 @@ from gui_support import RUN_TIMEOUT_S, application, real_display, select_runs, s
 from PySide6.QtCore import Qt, QTimer
 from PySide6.QtGui import QImage
 from PySide6.QtTest import QTest
-from PySide6.QtWidgets import QLabel
+from PySide6.QtWidgets import QApplication, QLabel
 
 from bench.gui import offload
 from bench.gui.calliper_dialog import CalliperDialog
@@ -76,6 +76,11 @@ def test_the_emergency_stop_acts_while_a_prompt_is_open_and_withdraws_it(window,
     if how == "button":
         _click(window.estop)  # the main window is not blocked by the prompt
     else:
+        # a key reaches an application only through its focused window: Qt delivers an application-wide shortcut only
+        # while one of the application's windows is active, which the X server grants asynchronously after a show
+        # (under load it came after the key once, and F12 went to the entry as a plain key)
+        wait_for(lambda: QApplication.activeWindow() is not None, RUN_TIMEOUT_S, "a window of the application to "
+                 "have the keyboard focus")
         QTest.keyClick(dialog.entry, Qt.Key.Key_F12)  # focus in the dialog: the shortcut is application-wide
     # latched and withdrawn within the click's own handling: no event loop turn, no other thread, no clock involved
     assert controller._stop_latched and not dialog.isVisible()
