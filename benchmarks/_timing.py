@@ -31,13 +31,12 @@ def min_median_max(times) -> str:
     return f"min {min(times):.3f} s, median {float(np.median(times)):.3f} s, max {max(times):.3f} s"
 
 
-def copy_bandwidth_bytes_s(megabytes: int = 256, repeat: int = 5) -> float:
-    """Memory bandwidth of this machine as numpy sees it: bytes read + written per second by ``np.copyto`` of a
-    ``megabytes`` array (best of ``repeat``), the floor any streaming array computation is measured against."""
+def copy_bandwidths_bytes_s(megabytes: int = 256, repeat: int = 5) -> list[float]:
+    """Memory bandwidth of this machine as numpy sees it, once per ``repeat``: bytes read + written per second by
+    ``np.copyto`` of a ``megabytes`` array, the floor any streaming array computation is measured against."""
     source = np.ones(megabytes * 2**20 // 8)
     target = np.empty_like(source)
-    best = min(spread(np.copyto, target, source, repeat=repeat)[0])
-    return 2 * source.nbytes / best
+    return [2 * source.nbytes / seconds for seconds in spread(np.copyto, target, source, repeat=repeat)[0]]
 
 
 def nbytes_of(result) -> int:
