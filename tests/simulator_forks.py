@@ -30,7 +30,7 @@ import sys
 import threading
 from typing import Any
 
-from motion import pkm5
+from bench.simulators.pkm5_plant import load_fk_kernel
 from motion.pkm5 import compiled as pkm5_compiled
 
 #: What the zygote imports before it forks (each child imports anything else itself).
@@ -229,9 +229,7 @@ def _load_kernel_once_cached() -> None:
         return
     _kernel_loaded = True
     try:
-        geometry = pkm5.DEFAULT_GEOMETRY
-        pkm5.forward_kinematics(geometry.home_lengths_mm[None, :], geometry, mode="translation",
-                                initial_pose=(150.0, 0.0, 300.0, 0.0, 0.0), engine="compiled")
+        load_fk_kernel()
     except Exception:  # noqa: BLE001 - no numba, a broken cache: each child decides for itself, as on its own
         pass
 

@@ -43,10 +43,6 @@ def _channel(image: np.ndarray, source: str) -> np.ndarray:
     return image
 
 
-def _grey(image: np.ndarray, source: str) -> np.ndarray:
-    return _channel(image, source).astype(np.float64)
-
-
 def _median(channel: np.ndarray) -> float:
     """The median grey level, as ``np.median`` gives it. An 8-bit frame's median comes from its 256-bin histogram
     (OpenCV's, exact counts below 2^24 pixels): a sort of every pixel was a third of a detection's time."""
@@ -144,7 +140,7 @@ def calibrate_from_chessboard(image: np.ndarray, pattern_size: tuple[int, int], 
     """
     if not square_mm > 0:
         raise ConfigError(f"camera calibration: square_mm = {square_mm!r}, expected the square size in mm")
-    grey = _grey(image, "camera calibration").astype(np.uint8)
+    grey = _channel(image, "camera calibration").astype(np.uint8)
     found, corners = cv2.findChessboardCorners(grey, pattern_size,
                                                flags=cv2.CALIB_CB_ADAPTIVE_THRESH | cv2.CALIB_CB_NORMALIZE_IMAGE)
     if not found:

@@ -19,7 +19,7 @@ from bench.simulators.plant import Plant
 from motion import kernels, pkm5
 from motion.pkm5 import compiled as pkm5_compiled
 
-__all__ = ["PKM5_ERRORS", "build_actuator_bench", "build_plant", "plant_engine"]
+__all__ = ["PKM5_ERRORS", "build_actuator_bench", "build_plant", "load_fk_kernel", "plant_engine"]
 
 _log = logging.getLogger(__name__)
 
@@ -63,6 +63,13 @@ def plant_engine() -> str:
     return "compiled" if importlib.util.find_spec("numba") is not None else "numpy"
 
 
+def load_fk_kernel(geometry: Any = pkm5.DEFAULT_GEOMETRY) -> None:
+    """Load numba and the compiled FK kernel into this process (machine code from numba's cache, or compiled on a
+    fresh install): one solve of ``geometry``'s home lengths. Raises what a broken numba install raises."""
+    pkm5.forward_kinematics(geometry.home_lengths_mm[None, :], geometry, mode="translation",
+                            initial_pose=(150.0, 0.0, 300.0, 0.0, 0.0), engine="compiled")
+
+
 class _KernelLoader(threading.Thread):
     """Loads numba and the FK kernel (0.5-2 s: the import, machine code from numba's cache) on a thread: before a
     simulator serves its pty when it waits for it (``--kernel-wait-s``, :meth:`Plant.warm_up`), else once the
@@ -96,8 +103,7 @@ class _KernelLoader(threading.Thread):
 
     def run(self) -> None:
         try:
-            pkm5.forward_kinematics(self.geometry.home_lengths_mm[None, :], self.geometry, mode="translation",
-                                    initial_pose=(150.0, 0.0, 300.0, 0.0, 0.0), engine="compiled")
+            load_fk_kernel(self.geometry)
         except Exception as exc:  # a broken numba install: the plant keeps the numpy reference, and says so
             self.failure = exc
             _log.warning("compiled FK kernel not loaded (%s): the plant solves with numpy", exc)

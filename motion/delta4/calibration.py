@@ -33,7 +33,7 @@ from functools import lru_cache
 
 import numpy as np
 
-from motion.delta4.geometry import LEG_OUTWARD, LEG_SIDEWAYS, NOMINAL, Geometry, Legs
+from motion.delta4.geometry import LEG_OUTWARD, LEG_SIDEWAYS, NOMINAL, Geometry, Legs, ankle_positions
 from motion.delta4.kinematics import forward_kinematics, inverse_kinematics
 from motion.errors import MotionInputError
 
@@ -206,7 +206,7 @@ def _closure(knees, ankle_mm, lower_mm, p) -> np.ndarray:
     """Positions (N, 3) where the four legs of each row close best, by Gauss-Newton from ``p`` (N, 3): knees
     (N, 4, 3), ankle offsets and lower arms (4,) for every row or (N, 4) one set per row."""
     for _ in range(_GAUSS_NEWTON_ITERATIONS):
-        span = p[:, None, :] + ankle_mm[..., None] * LEG_OUTWARD - knees  # A_i - K_i (Legs.ankles_mm)
+        span = ankle_positions(p, ankle_mm) - knees  # A_i - K_i
         length = np.linalg.norm(span, axis=-1)
         residual = length - lower_mm
         jac = span / length[..., None]  # d|A_i - K_i| / dp

@@ -20,6 +20,7 @@ __all__ = [
     "THESIS",
     "LEG_OUTWARD",
     "LEG_SIDEWAYS",
+    "ankle_positions",
     "coord_from_servo_deg",
     "servo_from_coord_deg",
     "knees_mm",
@@ -62,7 +63,13 @@ class Legs:
 
     def ankles_mm(self, points_mm: np.ndarray) -> np.ndarray:
         """Ankle positions A_i = p + n_i u_i (N, 4, 3) of end-effector centres (N, 3)."""
-        return np.asarray(points_mm, dtype=float)[:, None, :] + self.ankle_mm[:, None] * LEG_OUTWARD
+        return ankle_positions(points_mm, self.ankle_mm)
+
+
+def ankle_positions(points_mm: np.ndarray, ankle_mm: np.ndarray) -> np.ndarray:
+    """Ankle positions A_i = p + n_i u_i (N, 4, 3) of end-effector centres p (N, 3), with ankle offsets n_i (4,)
+    for every row or (N, 4) one set per row (a calibration's candidate geometries solved in one batch)."""
+    return np.asarray(points_mm, dtype=float)[:, None, :] + np.asarray(ankle_mm)[..., None] * LEG_OUTWARD
 
 
 @dataclass(frozen=True)

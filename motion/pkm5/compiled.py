@@ -27,7 +27,8 @@ from motion import kernels
 from motion.kernels import run_chunks
 from motion.pkm5.geometry import Geometry
 
-__all__ = ["use_compiled", "COMPILED_MIN_POSES", "fk_kernel_loaded", "pack_geometry", "ik_arrays", "fk_arrays", "fk_pose", "MODE_CODES"]
+__all__ = ["use_compiled", "COMPILED_MIN_POSES", "fk_kernel_loaded", "pack_geometry", "ik_arrays", "fk_arrays",
+           "fk_pose", "MODE_CODES"]
 
 #: Smallest batch for which inverse_kinematics / forward_kinematics use the compiled kernels by default. Loading
 #: numba and the cached kernels costs ~0.3-0.6 s per process; the numpy IK does ~10^5-10^6 poses in that time and the
