@@ -1,6 +1,6 @@
 """Shared pytest configuration: the tests folder is importable for its small helpers, the desktop-window fixture
 ``window`` comes from ``gui_support`` (offscreen Qt), simulators are forked from a warm parent
-(``simulator_forks``), and the modules with long-running tests run first."""
+(``zygote``), and the modules with long-running tests run first."""
 
 import sys
 from pathlib import Path
@@ -10,10 +10,10 @@ sys.path.insert(0, str(Path(__file__).parent))
 pytest_plugins = ["gui_support"]
 
 import os  # noqa: E402
-import simulator_forks  # noqa: E402 - after the path above
+import zygote  # noqa: E402 - after the path above
 
 if os.environ.get("BENCH_TEST_SIMULATOR_FORKS", "1") != "0":  # 0: each simulator a `python -m` of its own
-    simulator_forks.install()  # the simulators this process starts are forked from a warm parent
+    zygote.install()  # the simulators this process starts are forked from a warm parent
 
 
 def pytest_collection_modifyitems(config, items):

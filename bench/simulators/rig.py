@@ -44,7 +44,7 @@ _PIPE_CHUNK = 24 * 3 * 512
 
 
 #: How a simulator's process starts: ``subprocess.Popen``'s signature and an object with its interface. The test
-#: suite forks its simulators from a parent that has imported them (tests/simulator_forks.py: the same program,
+#: suite forks its simulators from a parent that has imported them (tests/zygote.py: the same program,
 #: without 0.3 s of interpreter start and imports at each of its ~130 starts).
 spawn: Callable[..., subprocess.Popen] = subprocess.Popen
 

@@ -1,20 +1,22 @@
-"""Simulator processes forked from a warm parent: the test suite's way to start the ~130 simulators it needs.
+"""Programs forked from a warm parent (a *zygote*), for a test suite that starts the same programs many times.
 
-A simulator started as ``python -m bench.simulators.pkm5`` spends ~0.3 s of CPU in the interpreter's start and its
-imports before it prints its pty (about a tenth of the suite's CPU over all its starts). :class:`SimulatorForks`
-starts this file once per test process as a *zygote* that has imported the simulators, and forks one child per
-simulator: the child takes the pipe and log file the caller passed as its standard streams and runs the module as
-``python -m`` does (``runpy``, ``__main__``), so it parses the same argv, prints the same pty path and leaves through
-the interpreter's own exit. Each child is a real process of its own (its own pid, pty, signal handlers) that
-SIGTERM asks to stop and SIGKILL ends at once; the driver under test talks to it through the pty as to any
-simulator. :func:`install` puts :meth:`SimulatorForks.popen` in :data:`bench.simulators.rig.spawn` (production code
-starts simulators with ``subprocess.Popen``; this file is test infrastructure only).
+``python -m bench.simulators.pkm5`` spends ~0.3 s of CPU in the interpreter's start and its imports before it
+prints its pty, and ``bench run`` ~0.4 s before it does anything; the suite starts ~130 simulators and the kill drill
+21 ``bench`` processes. A :class:`Zygote` runs this file once as a process that has imported what those programs
+import (its ``preload``), and forks one child per ``python -m MODULE ...`` command: the child takes the caller's
+pipe or files as its standard streams and runs the module as ``python -m`` does (``runpy``, ``__main__``), so it
+parses the same argv, prints the same lines and leaves through the interpreter's own exit. Each child is a real
+process of its own (its own pid, pty or port, store connection, signal handlers) that SIGTERM asks to stop and
+SIGKILL ends at once.
+
+:func:`install` puts the simulators' zygote in :data:`bench.simulators.rig.spawn` (production code starts simulators
+with ``subprocess.Popen``; this file is test infrastructure only); tests/forked_bench.py has a zygote of ``bench``.
 
 Wire: one ``SOCK_SEQPACKET`` Unix socket between the test process and the zygote. A request is a JSON packet
-``{"module", "argv", "cwd", "env"}`` carrying the child's stdout and stderr descriptors (``SCM_RIGHTS``); the zygote answers
-``{"pid"}`` once the child exists, and ``{"exited": pid, "code": N}`` when it has reaped it (``-N`` for signal N, as
-``Popen.returncode``). A simulator ends when its parent does, and the zygote is that parent: when the test process
-closes the socket (or dies), the zygote kills the children left and ends.
+``{"module", "argv", "cwd", "env"}`` carrying the child's stdout and stderr descriptors (``SCM_RIGHTS``); the zygote
+answers ``{"pid"}`` once the child exists, and ``{"exited": pid, "code": N}`` when it has reaped it (``-N`` for
+signal N, as ``Popen.returncode``). A simulator ends when its parent does, and the zygote is that parent: when the
+test process closes the socket (or dies), the zygote kills the children left and ends.
 """
 
 from __future__ import annotations
@@ -33,18 +35,18 @@ from typing import Any
 from bench.simulators.pkm5_plant import load_fk_kernel
 from motion.pkm5 import compiled as pkm5_compiled
 
-#: What the zygote imports before it forks (each child imports anything else itself).
-PRELOAD = ("numpy", "bench.simulators.pkm5", "bench.simulators.pkm5_plant", "bench.simulators.delta4",
+#: What the simulators' zygote imports before it forks (each child imports anything else itself).
+SIMULATORS = ("numpy", "bench.simulators.pkm5", "bench.simulators.pkm5_plant", "bench.simulators.delta4",
            "bench.simulators.lasergrid", "bench.simulators.true_geometry", "bench.simulators.error_model",
            "motion.pkm5", "motion.delta4")
 _PACKET = 65536
 
 
 class ForkedProcess:
-    """A simulator forked by the zygote: ``pid``, ``args``, ``stdout``, ``returncode``, ``poll``, ``wait``,
+    """A program forked by a zygote: ``pid``, ``args``, ``stdout``, ``returncode``, ``poll``, ``wait``,
     ``terminate``, ``kill``, ``send_signal`` and ``communicate`` as on the ``subprocess.Popen`` it stands for."""
 
-    def __init__(self, forks: SimulatorForks, pid: int, args: list[str], stdout: Any) -> None:
+    def __init__(self, forks: Zygote, pid: int, args: list[str], stdout: Any) -> None:
         self.forks, self.pid, self.args, self.stdout = forks, pid, args, stdout
         self.stdin = self.stderr = None
 
@@ -88,13 +90,17 @@ class ForkedProcess:
         self.wait()
 
 
-class SimulatorForks:
-    """The zygote of this test process (started on first use), and what its children's exits were."""
+class Zygote:
+    """A warm parent that has imported ``preload`` (module names) and forks the programs of :meth:`popen`, and what
+    its children's exits were; ``load_fk_kernel``: it also loads the pkm5 plant's compiled FK kernel once numba's
+    cache holds it (the simulators' zygote)."""
 
-    def __init__(self) -> None:
+    def __init__(self, preload: tuple[str, ...], *, load_fk_kernel: bool = False) -> None:
         ours, theirs = socket.socketpair(socket.AF_UNIX, socket.SOCK_SEQPACKET)
-        self.zygote = subprocess.Popen([sys.executable, __file__, str(theirs.fileno())], pass_fds=(theirs.fileno(),),
-                                       stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL)
+        setup = json.dumps({"preload": list(preload), "load_fk_kernel": load_fk_kernel})
+        self.zygote = subprocess.Popen([sys.executable, __file__, str(theirs.fileno()), setup],
+                                       pass_fds=(theirs.fileno(),), stdin=subprocess.DEVNULL,
+                                       stdout=subprocess.DEVNULL)
         theirs.close()
         self.socket = ours
         self.exit_codes: dict[int, int] = {}
@@ -119,21 +125,27 @@ class SimulatorForks:
                     self.exit_codes[message["exited"]] = message["code"]
                     self.exited.notify_all()
 
-    def popen(self, command: list[str], *, stdout: int | None = None, stderr: Any = None, text: bool = False,
+    def popen(self, command: list[str], *, stdout: Any = None, stderr: Any = None, text: bool = False,
               **unsupported: Any) -> ForkedProcess | subprocess.Popen:
-        """``subprocess.Popen(command, stdout=, stderr=, text=)`` for ``[python, -m, bench.simulators.X, ...]``
-        (stdout a pipe or None, stderr a file or None); any other command or option goes to ``subprocess.Popen``."""
-        if unsupported or len(command) < 3 or command[:2] != [sys.executable, "-m"] \
-                or not command[2].startswith("bench.simulators.") or stdout not in (None, subprocess.PIPE):
+        """``subprocess.Popen(command, stdout=, stderr=, text=)`` for ``[python, -m, MODULE, ...]``, stdout a pipe,
+        a file or None, stderr a file or None; any other command or option goes to ``subprocess.Popen``."""
+        forkable_out = stdout in (None, subprocess.PIPE) or hasattr(stdout, "fileno")
+        forkable_err = stderr is None or hasattr(stderr, "fileno")
+        if unsupported or len(command) < 3 or command[:2] != [sys.executable, "-m"] or not forkable_out \
+                or not forkable_err:
             return subprocess.Popen(command, stdout=stdout, stderr=stderr, text=text, **unsupported)
-        read_end, write_end = os.pipe() if stdout == subprocess.PIPE else (None, os.open(os.devnull, os.O_WRONLY))
+        read_end = None
+        if stdout == subprocess.PIPE:
+            read_end, write_end = os.pipe()
+        else:
+            write_end = os.open(os.devnull, os.O_WRONLY) if stdout is None else os.dup(stdout.fileno())
         error = os.open(os.devnull, os.O_WRONLY) if stderr is None else os.dup(stderr.fileno())
         request = {"module": command[2], "argv": command[3:], "cwd": os.getcwd(), "env": dict(os.environ)}
         try:
             with self._request, self._pids:
                 socket.send_fds(self.socket, [json.dumps(request).encode()], [write_end, error])
                 if not self._pids.wait_for(lambda: self._started, 60):
-                    raise RuntimeError("the simulator zygote forked nothing within 60 s")
+                    raise RuntimeError(f"the zygote forked nothing within 60 s for {command[2]}")
                 pid = self._started.pop()
         finally:
             os.close(write_end)
@@ -148,17 +160,20 @@ class SimulatorForks:
         self.socket.close()
 
 
-_forks: SimulatorForks | None = None
+_simulators: Zygote | None = None
 _starting = threading.Lock()
 
 
 def spawn(command: list[str], **options: Any) -> ForkedProcess | subprocess.Popen:
-    """:meth:`SimulatorForks.popen` of this process's zygote, started on first use."""
-    global _forks
+    """A simulator's ``python -m bench.simulators.X`` forked by this process's simulator zygote (started on first
+    use); any other command as ``subprocess.Popen`` starts it."""
+    global _simulators
+    if len(command) < 3 or not command[2].startswith("bench.simulators."):
+        return subprocess.Popen(command, **options)
     with _starting:
-        if _forks is None:
-            _forks = SimulatorForks()
-    return _forks.popen(command, **options)
+        if _simulators is None:
+            _simulators = Zygote(SIMULATORS, load_fk_kernel=True)
+    return _simulators.popen(command, **options)
 
 
 def install() -> None:
@@ -171,7 +186,7 @@ def install() -> None:
 
 # ---- the zygote (this file run as a program) --------------------------------------------------------------------
 
-def _serve(sock: socket.socket) -> dict | None:
+def _serve(sock: socket.socket, load_kernel: bool) -> dict | None:
     """Fork a child per request until the test process closes the socket; in a child, return its request."""
     children: set[int] = set()
     woken, wake = os.pipe()
@@ -191,12 +206,13 @@ def _serve(sock: socket.socket) -> dict | None:
         if sock not in readable:
             continue
         packet, fds, _, _ = socket.recv_fds(sock, _PACKET, 2)
-        if not packet:  # the test process has gone: so do its simulators
+        if not packet:  # the test process has gone: so do its children
             for pid in children:
                 os.kill(pid, signal.SIGKILL)
                 os.waitpid(pid, 0)
             return None
-        _load_kernel_once_cached()
+        if load_kernel:
+            _load_kernel_once_cached()
         pid = os.fork()
         if pid == 0:
             signal.set_wakeup_fd(-1)
@@ -245,11 +261,12 @@ def _main() -> None:
     import importlib
     import runpy
 
-    del sys.path[0]  # the tests folder: nothing of it may shadow what a simulator imports
+    del sys.path[0]  # the tests folder: nothing of it may shadow what a program imports
     sock = socket.socket(fileno=int(sys.argv[1]))
-    for module in PRELOAD:
+    setup = json.loads(sys.argv[2])
+    for module in setup["preload"]:
         importlib.import_module(module)
-    request = _serve(sock)
+    request = _serve(sock, setup["load_fk_kernel"])
     if request is None:
         return
     os.chdir(request["cwd"])
