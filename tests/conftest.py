@@ -2,6 +2,7 @@
 ``window`` comes from ``gui_support`` (offscreen Qt), simulators are forked from a warm parent
 (``zygote``), and the modules with long-running tests run first."""
 
+import os
 import sys
 from pathlib import Path
 
@@ -9,7 +10,6 @@ sys.path.insert(0, str(Path(__file__).parent))
 
 pytest_plugins = ["gui_support"]
 
-import os  # noqa: E402
 import zygote  # noqa: E402 - after the path above
 
 if os.environ.get("BENCH_TEST_SIMULATOR_FORKS", "1") != "0":  # 0: each simulator a `python -m` of its own

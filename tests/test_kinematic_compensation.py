@@ -5,11 +5,10 @@ runs of tests/calibrated_pkm5.py, which the report of tests/test_reports_calibra
 
 import subprocess
 import sys
-from pathlib import Path
 
 import numpy as np
 import pytest
-from calibrated_pkm5 import SEED, calibrated_runs
+from calibrated_pkm5 import EXAMPLES, SEED, calibrated_runs
 
 from bench.calibration_compensation import NEWEST, OFF, select_calibration
 from bench.cli import main
@@ -17,8 +16,6 @@ from bench.errors import ConfigError
 from bench.store import Store
 from motion import pkm5
 from motion.pkm5.calibration import compensation_geometry, geometry_from_calibration
-
-EXAMPLES = Path(__file__).resolve().parent.parent / "examples"
 
 
 def _bench(*args, store):
