@@ -50,7 +50,7 @@ def test_ik_matches_numpy_on_the_dissertation_tables(mode):
 
 
 def test_ik_matches_numpy_on_random_poses_with_every_failure_flag():
-    # 10,000 poses cross the kernel's 4,096-pose blocks; all five flags occur
+    # 10,000 poses cross the kernel's 2,048-pose blocks, the last one partial; all five flags occur
     reference, fast = assert_same_ik(random_poses(10_000, seed=17))
     seen = np.bitwise_or.reduce(reference.failure)
     assert seen == int(pkm5.Failure.MODE | pkm5.Failure.ORIENTATION_RANGE | pkm5.Failure.ALPHA_PLANE
@@ -59,6 +59,26 @@ def test_ik_matches_numpy_on_random_poses_with_every_failure_flag():
     # translation lengths are the same IEEE operations in the same order: equal to the bit
     translation = (random_poses(10_000, seed=17)[:, 3:] == 0).all(1)
     np.testing.assert_array_equal(fast.lengths_mm[translation], reference.lengths_mm[translation])
+
+
+def test_ik_tasks_on_the_thread_pool_give_the_single_thread_answer():
+    # three tasks of eight blocks, the last one short and ending in a partial block: every row written once, in place
+    kernels = compiled._kernels()
+    n = 2 * compiled._IK_TASK_BLOCKS * kernels.IK_BLOCK + kernels.IK_BLOCK + 7
+    poses = random_poses(n, seed=29)
+    reference, fast = assert_same_ik(poses)
+    assert fast.lengths_mm.flags.c_contiguous and fast.failure.dtype == np.int64
+    np.testing.assert_array_equal(pkm5.inverse_kinematics(poses[-9:], engine="compiled").tilt_rad, fast.tilt_rad[-9:])
+
+
+def test_an_oversized_ik_block_is_refused_not_written_past_its_scratch():
+    kernels = compiled._kernels()
+    inputs, outputs = np.empty(kernels.IN_ROWS * kernels.IK_BLOCK), np.empty(kernels.OUT_ROWS * kernels.IK_BLOCK)
+    packed = compiled.pack_geometry(pkm5.DEFAULT_GEOMETRY)
+    with pytest.raises(ValueError, match="at most IK_BLOCK poses"):
+        kernels.ik_values(np.zeros((kernels.IK_BLOCK + 1, 5)), packed, inputs, outputs)
+    with pytest.raises(ValueError, match="at most IK_BLOCK poses"):
+        kernels.ik_values(np.zeros((4, 5)), packed, inputs[:-1], outputs)
 
 
 def test_ik_matches_numpy_for_another_geometry():

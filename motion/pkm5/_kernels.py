@@ -1,9 +1,10 @@
 """numba kernels behind :mod:`motion.pkm5.compiled` (imported only from there: importing this module imports numba).
 
 Values: :func:`ik_values` repeats motion.pkm5.ik.leg_lengths operation by operation (same order, so the same IEEE
-results; only the libm sin/cos may differ from numpy's by 1 ulp). The elevation angles are left to numpy's SIMD
-``arctan2`` over cache-sized blocks (3 ns a value against 18 ns for a scalar libm atan2, which would be 2/3 of the
-kernel's time), so they are numpy's own values. Jacobian: the same loop on 5-tuples
+results; only the libm sin/cos may differ from numpy's by 1 ulp), on blocks of poses laid out one row per quantity
+(structure of arrays) so that the arithmetic vectorises across poses. The elevation angles are left to numpy's SIMD
+``arctan2`` over each cache-sized block (3 ns a value against 18 ns for a scalar libm atan2, which would be 2/3 of
+the kernel's time), so they are numpy's own values. Jacobian: the same loop on 5-tuples
 (value, d/dx, d/dy, d/dz, d/dangle), forward-mode dual numbers as in motion.dual, for the FK's Levenberg-Marquardt.
 """
 
@@ -22,6 +23,15 @@ _jit = njit(cache=True, nogil=True, error_model="numpy")
 # dual-number helpers stay plain functions (LLVM inlines them): numba-level inline="always" on them made the FK
 # kernel compile for ~50 s instead of ~10 s
 _dual_op = _jit
+
+# An IK block's scratch: one quantity a row, one pose a column (the layout that vectorises across poses), flat, with
+# rows IK_BLOCK apart. These constants live here, beside the machine code that bakes them in: numba's cache is keyed
+# on this file, so a layout defined elsewhere could change under a stale cached kernel.
+IK_BLOCK = 2048  # poses a block: its 27 rows of floats (442 KB) stay in the L2 cache
+_IN_CA, _IN_SA, _IN_CB, _IN_SB, _IN_X, _IN_Y, _IN_Z, _IN_ALPHA, _IN_BETA = range(9)
+IN_ROWS = 9
+OUT_BU, OUT_BW, _OUT_LENGTH = 0, 6, 12  # six rows each, one a leg
+OUT_ROWS = 18
 
 # Failure flags (motion.pkm5.ik.Failure; numba cannot read an IntFlag)
 _MODE, _ORIENTATION_RANGE, _ALPHA_PLANE, _LEG_LENGTH, _TILT = 1, 2, 4, 8, 16
@@ -89,55 +99,121 @@ def _trig(angle):
     return math.cos(angle), math.sin(angle)
 
 
+@_scalar
+def _put(scratch, row, j, value):
+    """scratch[row, j] of a block's scratch, flat with the compile-time row stride IK_BLOCK: constant strides let
+    LLVM prove the rows apart and vectorise the pose loop without run-time alias checks."""
+    scratch[row * IK_BLOCK + j] = value
+
+
+@_scalar
+def _get(scratch, row, j):
+    return scratch[row * IK_BLOCK + j]
+
+
+@_scalar
+def _put_leg(outputs, leg, j, components):
+    """Leg ``leg``'s in-plane B->C components (bu, bw) and its length."""
+    bu, bw = components
+    _put(outputs, OUT_BU + leg, j, bu)
+    _put(outputs, OUT_BW + leg, j, bw)
+    _put(outputs, _OUT_LENGTH + leg, j, math.sqrt(bu * bu + bw * bw))
+
+
+@_scalar
+def _check_block(n, inputs, outputs):
+    """No bounds checks in compiled code: refuse a block that would write past its scratch."""
+    if n > IK_BLOCK or inputs.size < IN_ROWS * IK_BLOCK or outputs.size < OUT_ROWS * IK_BLOCK:
+        raise ValueError("an IK block holds at most IK_BLOCK poses and scratch of IN_ROWS, OUT_ROWS rows")
+
+
 @_jit
-def ik_values(poses, g, lengths, bw, bu):
-    """Lengths |BC| (N, 6) of N poses (ik.leg_lengths) and the in-plane B->C components (bw, bu) whose angle is
-    the leg elevation phi = atan2(bw, bu)."""
+def ik_values(poses, g, inputs, outputs):
+    """Lengths |BC| of a block of poses (ik.leg_lengths) and the in-plane B->C components (bw, bu) whose angle is
+    the leg elevation phi = atan2(bw, bu), into ``outputs`` rows _OUT_LENGTH, OUT_BW, OUT_BU.
+
+    Two loops: the first takes each pose's sines and cosines (a branch and libm calls per pose) into ``inputs``,
+    the second is straight-line arithmetic that LLVM vectorises across poses (4 or 8 square roots an instruction).
+    """
+    _check_block(poses.shape[0], inputs, outputs)
+    for j in range(poses.shape[0]):
+        ca, sa = _trig(poses[j, 3])
+        cb, sb = _trig(poses[j, 4])
+        _put(inputs, _IN_CA, j, ca)
+        _put(inputs, _IN_SA, j, sa)
+        _put(inputs, _IN_CB, j, cb)
+        _put(inputs, _IN_SB, j, sb)
+        _put(inputs, _IN_X, j, poses[j, 0])
+        _put(inputs, _IN_Y, j, poses[j, 1])
+        _put(inputs, _IN_Z, j, poses[j, 2])
+        _put(inputs, _IN_ALPHA, j, poses[j, 3])
+        _put(inputs, _IN_BETA, j, poses[j, 4])
     pd12, oa12, pd34, oa34 = _v3(g, _PD12), _v3(g, _OA12), _v3(g, _PD34), _v3(g, _OA34)
     pd5, pd6, oa56, h = _v3(g, _PD5), _v3(g, _PD6), _v3(g, _OA56), g[_H]
     ab_odd, cd_odd, ab_even, cd_even = _v2(g, _AB_ODD), _v2(g, _CD_ODD), _v2(g, _AB_EVEN), _v2(g, _CD_EVEN)
     ab5, cd5, ab6, cd6 = _v2(g, _AB5), _v2(g, _CD5), _v2(g, _AB6), _v2(g, _CD6)
-    for i in range(poses.shape[0]):
-        x, y, z, beta = poses[i, 0], poses[i, 1], poses[i, 2], poses[i, 4]
-        ca, sa = _trig(poses[i, 3])
-        cb, sb = _trig(beta)
+    for j in range(poses.shape[0]):
+        ca, sa, cb, sb = _get(inputs, _IN_CA, j), _get(inputs, _IN_SA, j), _get(inputs, _IN_CB, j), \
+            _get(inputs, _IN_SB, j)
+        x, y, z, beta = _get(inputs, _IN_X, j), _get(inputs, _IN_Y, j), _get(inputs, _IN_Z, j), \
+            _get(inputs, _IN_BETA, j)
         u, w, cos_d, sin_d = _pair_plane(x, y, z, ca, sa, cb, sb, pd12, oa12, h)
-        bu[i, 0], bw[i, 0] = _leg(u, w, ab_odd, cd_odd, cos_d, sin_d)
-        bu[i, 1], bw[i, 1] = _leg(u, w, ab_even, cd_even, cos_d, sin_d)
+        _put_leg(outputs, 0, j, _leg(u, w, ab_odd, cd_odd, cos_d, sin_d))
+        _put_leg(outputs, 1, j, _leg(u, w, ab_even, cd_even, cos_d, sin_d))
         u, w, cos_d, sin_d = _pair_plane(x, y, z, ca, sa, cb, sb, pd34, oa34, h)
-        bu[i, 2], bw[i, 2] = _leg(u, w, ab_odd, cd_odd, cos_d, sin_d)
-        bu[i, 3], bw[i, 3] = _leg(u, w, ab_even, cd_even, cos_d, sin_d)
-        # legs 5-6: the bracket turns with alpha in alpha mode only (pkm5.md §3.2 step 4b)
-        cos_56, sin_56 = (ca, sa) if beta == 0.0 else (1.0, 0.0)
+        _put_leg(outputs, 2, j, _leg(u, w, ab_odd, cd_odd, cos_d, sin_d))
+        _put_leg(outputs, 3, j, _leg(u, w, ab_even, cd_even, cos_d, sin_d))
+        # legs 5-6: the bracket turns with alpha in alpha mode only (pkm5.md §3.2 step 4b); selects, not branches
+        cos_56 = ca if beta == 0.0 else 1.0
+        sin_56 = sa if beta == 0.0 else 0.0
         dx, dy, dz = _rotate(pd5, ca, sa, cb, sb)
         ax, ay, az = x + dx - oa56[0], y + dy - oa56[1], z + dz - oa56[2]
-        bu[i, 4], bw[i, 4] = _leg(ay, math.sqrt(ax * ax + az * az), ab5, cd5, cos_56, sin_56)
+        _put_leg(outputs, 4, j, _leg(ay, math.sqrt(ax * ax + az * az), ab5, cd5, cos_56, sin_56))
         dx, dy, dz = _rotate(pd6, ca, sa, cb, sb)
         ax, ay, az = x + dx - oa56[0], y + dy - oa56[1], z + dz - oa56[2]
-        bu[i, 5], bw[i, 5] = _leg(ay, math.sqrt(ax * ax + az * az), ab6, cd6, cos_56, sin_56)
-        for leg in range(6):
-            lengths[i, leg] = math.sqrt(bu[i, leg] * bu[i, leg] + bw[i, leg] * bw[i, leg])
+        _put_leg(outputs, 5, j, _leg(ay, math.sqrt(ax * ax + az * az), ab6, cd6, cos_56, sin_56))
+
+
+@_scalar
+def _v6(g, i):
+    return g[i], g[i + 1], g[i + 2], g[i + 3], g[i + 4], g[i + 5]
 
 
 @_jit
-def ik_limits(poses, g, check_limits, lengths, tilts, failure, length_ok, tilt_ok):
-    """The failure flags and per-leg windows of inverse_kinematics (failure zeroed, ok flags True on entry)."""
-    for i in range(poses.shape[0]):
-        x, alpha, beta = poses[i, 0], poses[i, 3], poses[i, 4]
-        flags = _MODE if (alpha != 0.0 and beta != 0.0) else 0
+def ik_limits(inputs, outputs, g, check_limits, lengths, tilts, failure, length_ok, tilt_ok):
+    """A block's results into its rows of the (N, 6) outputs, given flat (``lengths``, ``tilts``, ``length_ok``,
+    ``tilt_ok``: 6 values a pose), with the failure flags and per-leg windows of inverse_kinematics; ``outputs``
+    rows OUT_BW hold the tilts (arctan2 applied). Branch-free per leg, so it vectorises across poses too."""
+    a_lo, a_hi, b_lo, b_hi, plane_x, plane_tol = g[_A_LO], g[_A_HI], g[_B_LO], g[_B_HI], g[_PLANE_X], g[_PLANE_TOL]
+    leg_min, leg_max, tilt_min, tilt_max = _v6(g, _LEG_MIN), _v6(g, _LEG_MAX), _v6(g, _TILT_MIN), _v6(g, _TILT_MAX)
+    _check_block(failure.shape[0], inputs, outputs)
+    n = failure.shape[0]
+    if lengths.size < 6 * n or tilts.size < 6 * n or length_ok.size < 6 * n or tilt_ok.size < 6 * n:
+        raise ValueError("lengths, tilts, length_ok and tilt_ok need 6 values a pose")
+    for j in range(n):
+        x, alpha, beta = _get(inputs, _IN_X, j), _get(inputs, _IN_ALPHA, j), _get(inputs, _IN_BETA, j)
+        flags = _MODE if (alpha != 0.0) & (beta != 0.0) else 0
         if check_limits:
-            if alpha < g[_A_LO] or alpha > g[_A_HI] or beta < g[_B_LO] or beta > g[_B_HI]:
+            if (alpha < a_lo) | (alpha > a_hi) | (beta < b_lo) | (beta > b_hi):
                 flags |= _ORIENTATION_RANGE
-            if alpha != 0.0 and abs(x - g[_PLANE_X]) > g[_PLANE_TOL]:
+            if (alpha != 0.0) & (abs(x - plane_x) > plane_tol):
                 flags |= _ALPHA_PLANE
-            for leg in range(6):
-                length_ok[i, leg] = lengths[i, leg] > g[_LEG_MIN + leg] and lengths[i, leg] < g[_LEG_MAX + leg]
-                tilt_ok[i, leg] = tilts[i, leg] > g[_TILT_MIN + leg] and tilts[i, leg] < g[_TILT_MAX + leg]
-                if not length_ok[i, leg]:
-                    flags |= _LEG_LENGTH
-                if not tilt_ok[i, leg]:
-                    flags |= _TILT
-        failure[i] = flags
+        all_lengths_ok, all_tilts_ok = True, True
+        for leg in range(6):
+            length, tilt = _get(outputs, _OUT_LENGTH + leg, j), _get(outputs, OUT_BW + leg, j)
+            lengths[6 * j + leg] = length
+            tilts[6 * j + leg] = tilt
+            length_in = (length > leg_min[leg]) & (length < leg_max[leg]) if check_limits else True
+            tilt_in = (tilt > tilt_min[leg]) & (tilt < tilt_max[leg]) if check_limits else True
+            length_ok[6 * j + leg] = length_in
+            tilt_ok[6 * j + leg] = tilt_in
+            all_lengths_ok &= length_in
+            all_tilts_ok &= tilt_in
+        if not all_lengths_ok:
+            flags |= _LEG_LENGTH
+        if not all_tilts_ok:
+            flags |= _TILT
+        failure[j] = flags
 
 
 # --- dual numbers: (value, d/dx, d/dy, d/dz, d/dangle) ---------------------------------------------------------

@@ -45,7 +45,7 @@ _AB_ODD, _AB_EVEN, _AB5, _AB6, _CD_ODD, _CD_EVEN, _CD5, _CD6 = 22, 24, 26, 28, 3
 _LEG_MIN, _LEG_MAX, _TILT_MIN, _TILT_MAX = 38, 44, 50, 56
 _A_LO, _A_HI, _B_LO, _B_HI, _PLANE_X, _PLANE_TOL = 62, 63, 64, 65, 66, 67
 _PACKED_SIZE = 68
-_IK_BLOCK = 4096  # poses per IK block: its six (4096, 6) float arrays (1.2 MB) stay in the L2 cache
+_IK_TASK_BLOCKS = 8  # IK blocks (_kernels.IK_BLOCK poses each) per thread-pool task: one scratch allocation each
 _FK_CHUNK = 2048  # FK rows per thread task: ~10-20 ms of work, small enough to balance uneven solves
 
 
@@ -85,29 +85,37 @@ def fk_kernel_loaded() -> bool:
     return module is not None and bool(module.fk_batch.signatures)
 
 
-def ik_arrays(poses: np.ndarray, geometry: Geometry, check_limits: bool, block: int = _IK_BLOCK):
+def ik_arrays(poses: np.ndarray, geometry: Geometry, check_limits: bool):
     """Lengths (N, 6), tilts (N, 6), failure flags (N,), length_ok and tilt_ok (N, 6) of validated poses (N, 5).
 
-    Per block of ``block`` poses (in cache): the kernel writes the lengths and the tilt components, numpy's
-    ``arctan2`` turns those into angles in place, a second kernel applies the windows. Blocks run on one thread
-    per CPU (the kernels and arctan2 release the GIL); the results do not depend on the thread count.
+    Per block of ``_kernels.IK_BLOCK`` poses (in cache): a kernel writes the lengths and the tilt components, one row
+    per quantity, numpy's ``arctan2`` turns the components into angles in place, a second kernel applies the
+    windows and writes the block's rows of the results. Tasks of a few blocks run on one thread per CPU (the
+    kernels and arctan2 release the GIL); the results do not depend on the thread count.
     """
     kernels = _kernels()
+    block_size = kernels.IK_BLOCK
     poses = np.ascontiguousarray(poses)
     packed = pack_geometry(geometry)
     n = len(poses)
     lengths, tilts = np.empty((n, 6)), np.empty((n, 6))
-    failure = np.zeros(n, np.int64)
-    length_ok, tilt_ok = np.ones((n, 6), bool), np.ones((n, 6), bool)
+    failure = np.empty(n, np.int64)
+    length_ok, tilt_ok = np.empty((n, 6), bool), np.empty((n, 6), bool)
 
-    def one_block(rows):
-        tilt, across = tilts[rows], np.empty((rows.stop - rows.start, 6))
-        kernels.ik_values(poses[rows], packed, lengths[rows], tilt, across)
-        np.arctan2(tilt, across, out=tilt)
-        kernels.ik_limits(poses[rows], packed, check_limits, lengths[rows], tilt, failure[rows], length_ok[rows],
-                          tilt_ok[rows])
+    def some_blocks(rows):
+        inputs, outputs = np.empty(kernels.IN_ROWS * block_size), np.empty(kernels.OUT_ROWS * block_size)
+        by_row = outputs.reshape(kernels.OUT_ROWS, block_size)
+        for start in range(rows.start, rows.stop, block_size):
+            block = slice(start, min(start + block_size, rows.stop))
+            size = block.stop - block.start
+            kernels.ik_values(poses[block], packed, inputs, outputs)
+            tilt = by_row[kernels.OUT_BW:kernels.OUT_BW + 6, :size]
+            np.arctan2(tilt, by_row[kernels.OUT_BU:kernels.OUT_BU + 6, :size], out=tilt)
+            kernels.ik_limits(inputs, outputs, packed, check_limits, lengths[block].reshape(-1),
+                              tilts[block].reshape(-1), failure[block], length_ok[block].reshape(-1),
+                              tilt_ok[block].reshape(-1))
 
-    run_chunks(one_block, n, block)
+    run_chunks(some_blocks, n, block_size * _IK_TASK_BLOCKS)
     return lengths, tilts, failure, length_ok, tilt_ok
 
 
