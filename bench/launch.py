@@ -77,9 +77,8 @@ def open_rig(request: RigRequest, store: Any, *, robot: str, stored: dict[str, A
                                true_geometry_seed=_true_geometry_seed(request, stored),
                                ideal=request.ideal or bool(stored.get("simulator", {}).get("ideal")))
         return put_in_force(rig, *kinematic)
-    if not request.simulate and (request.true_geometry_seed is not None or request.ideal):
-        what = "--ideal" if request.ideal else f"--true-geometry-seed {request.true_geometry_seed}"
-        raise ConfigError(f"{what}: only for a simulated rig (no --port; --station with --sim)")
+    if not request.simulate:
+        _refuse_simulator_options(request)
     if station.robot != robot:
         raise ConfigError(f"{station.source}: robot.kind = {station.robot!r}, expected {robot!r} for {protocol}")
     if station.controller.fixture != fixture:
@@ -97,6 +96,20 @@ def open_rig(request: RigRequest, store: Any, *, robot: str, stored: dict[str, A
     rig.extra["simulator"] = {"seed": seed, "station": station.source, "truth_log": rehearsal.truth_path,
                               **rehearsal.settings}
     return _synced_after(put_in_force(rig, *kinematic), station, store)
+
+
+def _refuse_simulator_options(request: RigRequest) -> None:
+    """A simulator's setting given for real hardware is refused in one line, never silently ignored: a user who
+    asked for a seed or a speed factor on a real controller believes something about the run that is not true."""
+    given = ["--ideal"] if request.ideal else []
+    if request.true_geometry_seed is not None:
+        given.append(f"--true-geometry-seed {request.true_geometry_seed}")
+    if request.seed is not None:
+        given.append(f"--seed {request.seed}")
+    if request.speed_factor is not None:
+        given.append(f"--speed-factor {request.speed_factor:g}")
+    if given:
+        raise ConfigError(f"{', '.join(given)}: only for a simulated rig (no --port; --station with --sim)")
 
 
 def _synced_after(rig: Rig, station: Station, store: Any) -> Rig:

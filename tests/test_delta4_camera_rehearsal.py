@@ -219,3 +219,11 @@ def test_bench_run_rehearses_the_delta4_camera_station_with_a_true_geometry(tmp_
     assert all(sample.raw["calibration"] == "sim-delta4-camera" for sample in samples)
     assert main(argv[:2] + ["--port", "/dev/null", "--true-geometry-seed", "3", "--store", str(store)]) == 2
     assert "--true-geometry-seed 3: only for a simulated rig" in capsys.readouterr().err
+    # a simulator's seed or speed factor on hardware is refused too, not silently ignored; nothing is stored
+    with Store(store, read_only=True) as s:
+        runs_before = len(s.runs())
+    assert main(argv[:2] + ["--port", "/dev/null", "--seed", "4", "--speed-factor", "50", "--store", str(store)]) == 2
+    assert capsys.readouterr().err.strip().endswith(
+        "--seed 4, --speed-factor 50: only for a simulated rig (no --port; --station with --sim)")
+    with Store(store, read_only=True) as s:
+        assert len(s.runs()) == runs_before

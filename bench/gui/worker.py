@@ -63,8 +63,12 @@ class RigSpec:
     kinematic_calibration: int | str = NEWEST
 
     def request(self) -> RigRequest:
+        # the seed and the speed factor are the simulators'; real hardware (a port, a station not rehearsed) has
+        # neither, and open_rig refuses them there
+        hardware = self.port is not None or (self.station is not None and not self.simulate)
         return RigRequest(station=self.station, port=self.port, mouse_xy=self.mouse_xy, mouse_xz=self.mouse_xz,
-                          simulate=self.simulate, seed=self.seed, speed_factor=self.speed_factor,
+                          simulate=self.simulate, seed=None if hardware else self.seed,
+                          speed_factor=None if hardware else self.speed_factor,
                           kinematic_calibration=self.kinematic_calibration)
 
 
