@@ -66,7 +66,8 @@ def test_bench_backup_copies_a_store_while_a_run_writes(tmp_path, capsys):
     try:
         assert main(["backup", str(tmp_path / "backup.db"), "--store", str(store)]) == 0
     finally:
-        process.wait(120)
+        _, errors = process.communicate(timeout=120)
+    assert process.returncode == 0, errors  # the run the backup was taken beside ended well
     assert capsys.readouterr().out.strip() == str(tmp_path / "backup.db")
     backup, final = _values(tmp_path / "backup.db"), _values(store)
     assert len(backup) >= 3 and all(final[step] == row for step, row in backup.items())
