@@ -145,15 +145,13 @@ def test_iterative_correction_on_the_delta4_with_the_camera(rehearsed):
         assert len(series) <= 3 and series[-1] <= u_mm, (pose, series)  # within the camera's uncertainty
 
 
-def test_the_camera_stream_serves_a_host_that_reopens_it(tmp_path):
-    """A host that closes the video FIFO (``bench station check``) and a later one that opens it again (once the
-    feed has noticed the first one left) each get a stream of their own from its header; each reading shows the spot where the robot stands when it is read."""
+@pytest.fixture
+def served_feed(tmp_path):
+    """The simulator's camera feed on a FIFO, served every 2 ms (as the simulator's loop does) from a thread; the
+    spot is where ``pose['xy']`` says the robot stands."""
     import threading
 
-    from bench.rigs.camera import video_grab
-    from bench.sensors.camera_spot import detect_spot
     from bench.simulators.camera_feed import CameraFeed
-    from bench.simulators.camera import apply_homography
 
     feed = CameraFeed(tmp_path / "camera.y4m", seed=1)
     pose = {"xy": np.array([10.0, -5.0, -160.0])}
@@ -167,25 +165,68 @@ def test_the_camera_stream_serves_a_host_that_reopens_it(tmp_path):
     server = threading.Thread(target=serve, daemon=True)
     server.start()
     try:
-        for place in ([10.0, -5.0], [-30.0, 20.0]):
-            grab, release = video_grab(str(tmp_path / "camera.y4m"))
-            try:
-                for x, y in (place, [place[0] + 7.0, place[1] - 3.0]):
-                    pose["xy"] = np.array([x, y, -160.0])
-                    spot = detect_spot(grab())
-                    expected = apply_homography(feed.camera.homography_mm_to_px, np.array([x, y]))[0]
-                    assert np.hypot(spot.u_px - expected[0], spot.v_px - expected[1]) < 0.3, (x, y)
-            finally:
-                release()
-            for _ in range(5000):  # the feed notices the host has gone before a later host opens (2 ms turns)
-                if not feed.connected:
-                    break
-                stop.wait(0.002)
-            assert not feed.connected
+        yield feed, pose, stop
     finally:
         stop.set()
         server.join(5)
         feed.close()
+
+
+def _expected_px(feed, x, y):
+    from bench.simulators.camera import apply_homography
+
+    return apply_homography(feed.camera.homography_mm_to_px, np.array([x, y]))[0]
+
+
+def test_the_camera_stream_serves_a_host_that_reopens_it(served_feed):
+    """A host that closes the video FIFO (``bench station check``) and a later one that opens it again (once the
+    feed has noticed the first one left) each get a stream of their own from its header; each reading shows the spot where the robot stands when it is read."""
+    from bench.rigs.camera import video_grab
+    from bench.sensors.camera_spot import detect_spot
+
+    feed, pose, stop = served_feed
+    for place in ([10.0, -5.0], [-30.0, 20.0]):
+        grab, _, release = video_grab(feed.path)
+        try:
+            for x, y in (place, [place[0] + 7.0, place[1] - 3.0]):
+                pose["xy"] = np.array([x, y, -160.0])
+                spot = detect_spot(grab())
+                expected = _expected_px(feed, x, y)
+                assert np.hypot(spot.u_px - expected[0], spot.v_px - expected[1]) < 0.3, (x, y)
+        finally:
+            release()
+        for _ in range(5000):  # the feed notices the host has gone before a later host opens (2 ms turns)
+            if not feed.connected:
+                break
+            stop.wait(0.002)
+        assert not feed.connected
+
+
+def test_a_reading_of_several_frames_drops_only_the_frame_queued_before_the_move(served_feed, tmp_path):
+    """``camera.frames = 4``: the stale frame queued before the move is dropped once, then four frames taken at
+    the new rest are read one after the other (four frame periods, not eight), each showing the spot there."""
+    from bench.rigs.camera import CameraSpotInstrument, load_plane_calibration, video_grab
+    from bench.sensors.camera_spot import LaserSpotCamera
+    from bench.simulators.camera_feed import write_plane_calibration
+
+    feed, pose, _ = served_feed
+    write_plane_calibration(tmp_path / "plane.json", feed.camera)
+    calibration = load_plane_calibration(str(tmp_path / "plane.json"))
+    grab, grab_next, release = video_grab(feed.path)
+    try:
+        instrument = CameraSpotInstrument(LaserSpotCamera(grab, calibration, grab_next=grab_next), (0.0, 0.0, 0.0),
+                                          frames=4)
+        for x, y in ([12.0, -7.0], [-20.0, 31.0]):
+            pose["xy"] = np.array([x, y, -160.0])  # the robot moved; one frame of the old rest waits in the FIFO
+            rendered = feed.frames
+            measured = instrument.measure(Capture("P", 1))
+            # 4 frames read after the stale one; the feed may have rendered the next one since
+            assert feed.frames - rendered in (4, 5)
+            for u, v in measured.raw["frames_spot_px"]:
+                expected = _expected_px(feed, x, y)
+                assert np.hypot(u - expected[0], v - expected[1]) < 0.3, (x, y)
+    finally:
+        release()
 
 
 @pytest.mark.parametrize("station, options, message", [

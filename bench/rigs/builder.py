@@ -198,10 +198,10 @@ def _open_camera(station: Station, opened: ExitStack) -> Any:
     spec = station.camera
     assert spec is not None
     calibration = load_plane_calibration(spec.calibration)
-    grab, release = video_grab(spec.device)
+    grab, grab_next, release = video_grab(spec.device)
     opened.callback(release)
-    return CameraSpotInstrument(LaserSpotCamera(grab, calibration), _home(station.robot), plane=spec.plane,
-                                frames=spec.frames)
+    return CameraSpotInstrument(LaserSpotCamera(grab, calibration, grab_next=grab_next), _home(station.robot),
+                                plane=spec.plane, frames=spec.frames)
 
 
 def _home(robot: str) -> tuple[float, ...]:

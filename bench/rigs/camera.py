@@ -38,13 +38,16 @@ def load_plane_calibration(path: str) -> Any:
                           "calibration (homography_px_to_mm, rms_mm, calibration_id, date)") from None
 
 
-def video_grab(device: str) -> tuple[Callable[[], np.ndarray], Callable[[], None]]:
-    """A frame grabber on a video device, camera index or stream URL (OpenCV), and its release.
+def video_grab(device: str) -> tuple[Callable[[], np.ndarray], Callable[[], np.ndarray], Callable[[], None]]:
+    """Frame grabbers on a video device, camera index or stream URL (OpenCV), and its release: ``grab`` for the
+    first frame after a move, ``grab_next`` for the frames that follow it while the robot rests.
 
     A camera keeps delivering (or queueing) frames while nobody reads: the frame at the head of its queue after a move
     was taken before the move. The driver's queue is asked for one buffer (``CAP_PROP_BUFFERSIZE``, where the backend
-    honours it), one frame is read at open (a device that gives none is refused at once), and every reading drops the
-    frame queued since the previous reading before it reads the one it returns."""
+    honours it), one frame is read at open (a device that gives none is refused at once), and ``grab`` drops the
+    frame queued since the previous reading before it reads the one it returns. ``grab_next`` reads the next frame
+    as it comes: right after a reading, the queued frame was taken after it, so nothing is stale to drop (a
+    reading of several frames costs one frame period each, not two)."""
     import cv2
 
     from bench.errors import LinkError
@@ -70,7 +73,7 @@ def video_grab(device: str) -> tuple[Callable[[], np.ndarray], Callable[[], None
         capture.grab()  # the frame queued since the last reading: taken before the robot moved
         return read()
 
-    return grab, capture.release
+    return grab, read, capture.release
 
 
 class CameraSpotInstrument:
@@ -88,7 +91,8 @@ class CameraSpotInstrument:
     def measure(self, capture: Capture) -> Measurement:
         if capture.kind != "pose":
             raise ConfigError(f"camera: capture kind {capture.kind!r}, expected 'pose' (the camera measures a plane)")
-        readings = [self.camera.read() for _ in range(self.frames)]
+        # the first frame after the move, then the frames that follow it (none of them queued before the move)
+        readings = [self.camera.read()] + [self.camera.read(next_frame=True) for _ in range(self.frames - 1)]
         mean = np.mean([reading.value for reading in readings], axis=0)
         axes = _AXES[self.plane]
         values = {axis: float(self.origin[_INDEX[axis]] + v) for axis, v in zip(axes, mean)}

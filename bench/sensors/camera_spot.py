@@ -164,15 +164,19 @@ class LaserSpotCamera:
     Parameters
     ----------
     grab : callable
-        Returns one frame (ndarray); wrap ``cv2.VideoCapture`` as ``lambda: cap.read()[1]``.
+        Returns one frame (ndarray) taken after the robot came to rest; wrap ``cv2.VideoCapture`` as
+        ``lambda: cap.read()[1]``, or use :func:`bench.rigs.camera.video_grab`, which drops a queued stale frame.
     calibration : PlaneCalibration
         Pixel -> mm map of the plane; its id travels with every reading.
+    grab_next : callable, optional
+        Returns the frame after the one just read (a series of frames at one rest); default ``grab``.
     """
 
     def __init__(self, grab: Callable[[], np.ndarray], calibration: PlaneCalibration, *, name: str = "camera",
-                 **detect_options: float) -> None:
+                 grab_next: Callable[[], np.ndarray] | None = None, **detect_options: float) -> None:
         self.name = name
         self._grab = grab
+        self._grab_next = grab_next or grab
         self.calibration = calibration
         self.detect_options = detect_options
 
@@ -181,9 +185,10 @@ class LaserSpotCamera:
         return {"sensor": "camera laser spot", "name": self.name, "detect_options": dict(self.detect_options),
                 "calibration": self.calibration.to_dict()}
 
-    def read(self) -> Reading:
-        """Grab a frame, detect the spot, and return its plane position (mm); raw holds the pixels."""
-        frame = self._grab()
+    def read(self, *, next_frame: bool = False) -> Reading:
+        """Grab a frame, detect the spot, and return its plane position (mm); raw holds the pixels. ``next_frame``:
+        the frame after the one just read (``grab_next``), for a series at one rest."""
+        frame = self._grab_next() if next_frame else self._grab()
         t_mono, t_wall = now()
         spot = detect_spot(frame, source=self.name, **self.detect_options)
         x_mm, y_mm = self.calibration.pixel_to_mm(np.array([spot.u_px, spot.v_px]))
