@@ -22,7 +22,7 @@ __all__ = [
     "Settle",
     "Step",
     "commanded_values",
-    "load_prompt",
+    "Payload",
     "visit",
 ]
 
@@ -108,14 +108,28 @@ def commanded_values(target: tuple[float, ...]) -> dict[str, float]:
     return {name: float(value) for name, value in zip(_AXES_PKM5, target)}
 
 
-def load_prompt(load_kg: float, previous_kg: float | None) -> Plan:
-    """Ask the operator to mount the payload ``load_kg`` when it differs from the one before (``previous_kg``;
-    None at the start, where no load needs no prompt)."""
-    if previous_kg is None and load_kg == 0:
-        return
-    if load_kg != previous_kg:
-        yield Prompt(f"Mount a payload of {load_kg:g} kg on the end effector, then confirm",
-                     conditions={"load_kg": load_kg})
+class Payload:
+    """The payload the operator has confirmed mounted during one walk of a plan: asked for only when it changes,
+    and asked to be taken off by the clean-up, so that no run leaves a payload on the robot for the next one to
+    measure under unawares. A plan is walked more than once (counted, pre-flighted, run): a protocol makes a new
+    one at the start of its steps."""
+
+    def __init__(self) -> None:
+        self.mounted_kg = 0.0  # a run starts without a payload
+
+    def mount(self, load_kg: float) -> Plan:
+        """Ask the operator to mount ``load_kg`` when it differs from the payload mounted now."""
+        if load_kg != self.mounted_kg:
+            yield Prompt(f"Mount a payload of {load_kg:g} kg on the end effector, then confirm",
+                         conditions={"load_kg": load_kg})
+        self.mounted_kg = load_kg
+
+    def remove(self) -> Plan:
+        """The clean-up's prompt to take off the payload mounted now (none, or 0 kg: no prompt)."""
+        if self.mounted_kg:
+            yield Prompt(f"Remove the {self.mounted_kg:g} kg payload from the end effector, then confirm",
+                         conditions={"load_kg": 0.0})
+            self.mounted_kg = 0.0
 
 
 def visit(label: str, target: tuple[float, ...], cycle: int, *, velocity_pct: float, settle_s: float,

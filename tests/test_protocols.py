@@ -27,7 +27,9 @@ from bench.protocols import (
     summarize,
 )
 from bench.protocols.iso9283 import (
+    Drift,
     DistanceAccuracy,
+    MultiDirectional,
     PoseAccuracy,
     cube_poses,
     fit_cube_side,
@@ -278,6 +280,41 @@ def test_prompts_store_readings_and_loads_ask_confirmation(store):
     assert [s.label for s in steps if isinstance(s, Move)][:2] == ["P4", "P2"]
     result = Runner(_rig(), store).run(protocol)
     assert result.samples == 8
+
+
+def _payload_prompts(protocol):
+    """(text, load_kg) of every confirmation in the plan, clean-up included, and the label of the move before it."""
+    steps, out = list(iterate(protocol)), []
+    for i, step in enumerate(steps):
+        if isinstance(step, Prompt):
+            before = next((s.label for s in reversed(steps[:i]) if isinstance(s, Move)), None)
+            out.append((step.text, step.conditions["load_kg"], before))
+    return out
+
+
+def test_the_clean_up_asks_for_the_last_payload_to_be_removed_at_home(store):
+    protocol = DistanceAccuracy(cycles=2, velocities_pct=[100], loads_kg=[0, 2.5], settle_s=0)
+    expected = [("Mount a payload of 2.5 kg on the end effector, then confirm", 2.5, "P2"),
+                ("Remove the 2.5 kg payload from the end effector, then confirm", 0.0, "home")]
+    assert _payload_prompts(protocol) == expected
+    assert _payload_prompts(protocol) == expected  # a plan walked again (counted, pre-flighted, run) asks the same
+    rig = _rig()
+    assert Runner(rig, store).run(protocol).exit_status == "completed"
+    assert [prompt.text for prompt in rig.operator.asked] == [text for text, _, _ in expected]
+    # the same loads the other way round: the last payload is 0 kg, nothing is left to take off
+    assert [load for _, load, _ in _payload_prompts(DistanceAccuracy(cycles=2, velocities_pct=[100],
+                                                                     loads_kg=[2.5, 0], settle_s=0))] == [2.5, 0.0]
+    assert _payload_prompts(PoseAccuracy(cycles=2, velocities_pct=[100], settle_s=0)) == []
+
+
+@pytest.mark.parametrize("protocol_class, clause", [(MultiDirectional, "7.2.3"), (Drift, "7.6")])
+def test_one_load_protocols_mount_their_load_and_refuse_several(protocol_class, clause):
+    assert [load for _, load, _ in _payload_prompts(protocol_class(cycles=2, loads_kg=[3.0], settle_s=0))] == \
+        [3.0, 0.0]
+    with pytest.raises(ConfigError) as refused:
+        protocol_class(cycles=2, loads_kg=[3.0, 0.3], source="p.toml")
+    assert str(refused.value) == (f"p.toml: loads_kg = [3.0, 0.3]: {protocol_class.name} runs at one load "
+                                  f"(ISO 9283 {clause}: rated), expected one value")
 
 
 def test_resume_sends_stored_prompt_readings_back(store):

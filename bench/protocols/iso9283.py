@@ -29,7 +29,7 @@ from bench.protocols.parameters import (
     IntegerParameter,
     PoseTableParameter,
 )
-from bench.steps import Capture, Checkpoint, Move, Plan, Settle, commanded_values, load_prompt, visit
+from bench.steps import Capture, Checkpoint, Move, Payload, Plan, Settle, commanded_values, visit
 
 __all__ = ["DistanceAccuracy", "Drift", "MultiDirectional", "PoseAccuracy", "StabilisationOvershoot", "cube_poses",
            "fit_cube_side"]
@@ -109,6 +109,7 @@ class _CubeProtocol(Protocol):
     plane = ChoiceParameter("x=z", choices=tuple(_PLANES), description="diagonal plane of P2-P5 (cube frame)")
     poses = PoseTableParameter(None, description="explicit labelled poses instead of the cube (plane or grid)")
     settle_s = FloatParameter(1.0, unit="s", minimum=0.0, maximum=600.0, description="dwell before each capture")
+    _payload: Payload | None = None  # the payload of the latest walk of the steps (none before one)
 
     def validate(self) -> None:
         if self.poses is None:
@@ -142,10 +143,9 @@ class _CubeProtocol(Protocol):
     def _cycles(self, order: list[str]) -> Plan:
         """Per load (confirmed by the operator), per velocity: ``cycles`` visits of ``order`` (each by
         :meth:`_visit`), a Checkpoint after each cycle."""
-        previous_load = None
+        self._payload = Payload()
         for load in self.loads_kg:
-            yield from load_prompt(load, previous_load)
-            previous_load = load
+            yield from self._payload.mount(load)
             for velocity in self.velocities_pct:
                 for cycle in range(1, self.cycles + 1):
                     for label in order:
@@ -159,6 +159,18 @@ class _CubeProtocol(Protocol):
 
     def final_steps(self) -> Plan:
         yield from self.return_home()
+        if self._payload is not None:
+            yield from self._payload.remove()  # at home, where the operator can reach the end effector
+
+    def _one_load(self) -> Plan:
+        """The single load of a protocol that runs at one (validated by :meth:`_validate_one_load`)."""
+        self._payload = Payload()
+        yield from self._payload.mount(self.loads_kg[0])
+
+    def _validate_one_load(self, clause: str) -> None:
+        if len(self.loads_kg) != 1:
+            raise ConfigError(f"{self.source}: loads_kg = {list(self.loads_kg)}: {self.name} runs at one load "
+                              f"(ISO 9283 {clause}: rated), expected one value")
 
 
 @register
@@ -201,7 +213,12 @@ class MultiDirectional(_CubeProtocol):
     approach_mm = FloatParameter(10.0, unit="mm", minimum=0.5, maximum=100.0,
                                  description="pre-pose offset along each approach direction")
 
+    def validate(self) -> None:
+        super().validate()
+        self._validate_one_load("7.2.3")
+
     def steps(self) -> Plan:
+        yield from self._one_load()
         labels = [p for p in ("P1", "P2", "P4") if p in self._poses] or list(self._poses)
         centre = np.asarray(next(iter(self._poses.values()))[:3]) if self.poses else np.asarray(self._poses["P1"][:3])
         for velocity in self.velocities_pct:
@@ -233,7 +250,12 @@ class Drift(_CubeProtocol):
     title = "ISO 9283 drift of pose characteristics (7.6), short run"
     pause_s = FloatParameter(0.0, unit="s", minimum=0.0, maximum=3600.0, description="wait between cycles")
 
+    def validate(self) -> None:
+        super().validate()
+        self._validate_one_load("7.6")
+
     def steps(self) -> Plan:
+        yield from self._one_load()
         others = [p for p in POSE_ORDER[1:] if p in self._poses]
         velocity = self.velocities_pct[0]
         for cycle in range(1, self.cycles + 1):

@@ -30,7 +30,7 @@ from bench.protocols.base import Protocol, register
 from bench.protocols.kinematics import robot_model
 from bench.protocols.parameters import FloatListParameter, FloatParameter, IntegerParameter
 from bench.rigs.mice import POSITIONING
-from bench.steps import Capture, Checkpoint, Move, Plan, Settle, commanded_values, load_prompt
+from bench.steps import Capture, Checkpoint, Move, Payload, Plan, Settle, commanded_values
 
 __all__ = ["MinimumPositioningTime", "PositioningStep"]
 
@@ -72,6 +72,7 @@ class MinimumPositioningTime(Protocol):
                             description="streamed rest before each step's move starts")
     hold_s = FloatParameter(3.0, unit="s", minimum=0.1, maximum=MAX_WINDOW_S,
                             description="streamed time after the move is reported done (the settling)")
+    _payload: Payload | None = None  # the payload of the latest walk of the steps (none before one)
 
     def validate(self) -> None:
         if not self.steps_mm or any(d == 0 for d in self.steps_mm):
@@ -129,10 +130,9 @@ class MinimumPositioningTime(Protocol):
         return {**super().config(), "steps": steps, "skipped_steps": [dict(s) for s in self.skipped_steps]}
 
     def steps(self) -> Plan:
-        previous_load = None
+        self._payload = Payload()
         for load in self.loads_kg:
-            yield from load_prompt(load, previous_load)
-            previous_load = load
+            yield from self._payload.mount(load)
             for velocity in self.velocities_pct:
                 durations = self._move_s(velocity)
                 for cycle in range(1, self.cycles + 1):
@@ -150,3 +150,5 @@ class MinimumPositioningTime(Protocol):
 
     def final_steps(self) -> Plan:
         yield from self.return_home()
+        if self._payload is not None:
+            yield from self._payload.remove()  # at home, where the operator can reach the end effector
