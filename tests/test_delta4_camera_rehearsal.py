@@ -220,8 +220,9 @@ def test_a_reading_of_several_frames_drops_only_the_frame_queued_before_the_move
             pose["xy"] = np.array([x, y, -160.0])  # the robot moved; one frame of the old rest waits in the FIFO
             rendered = feed.frames
             measured = instrument.measure(Capture("P", 1))
-            # 4 frames read after the stale one; the feed may have rendered the next one since
-            assert feed.frames - rendered in (4, 5)
+            # rendered meanwhile: the 4 frames read, the stale one if the feed's turn had not come yet, and the
+            # next one if its turn came after the last read; dropping before every frame would take 7 to 9
+            assert 4 <= feed.frames - rendered <= 6
             for u, v in measured.raw["frames_spot_px"]:
                 expected = _expected_px(feed, x, y)
                 assert np.hypot(u - expected[0], v - expected[1]) < 0.3, (x, y)
