@@ -8,7 +8,7 @@ spends its time writing and re-reading ~60 temporary arrays of N values; a loop 
 Blocks of poses run on one thread per CPU (the kernels release the GIL).
 
 numba is an optional dependency (``pip install 'bench[fast]'``; the test extra includes it). The kernels are
-compiled with ``cache=True``: the first call after an install compiles for several seconds (IK ~2 s, FK ~10 s of
+compiled with ``cache=True``: the first call after an install compiles for several seconds (IK ~3 s, FK ~10 s of
 CPU), later processes load the machine code from numba's cache (~0.3-1 s with the numba import). Because of that
 one-off cost, ``engine='auto'`` dispatches here only from :data:`COMPILED_MIN_POSES` poses on, so importing motion/
 or running ``bench kin ik`` never imports numba.
