@@ -1,11 +1,13 @@
-"""Compiled (numba) kernels of the PKM inverse and forward kinematics: the same formulas, one pose per loop step.
+"""Compiled (numba) kernels of the PKM inverse and forward kinematics: the same formulas, pose by pose.
 
 The numpy code of :mod:`motion.pkm5.ik` and :mod:`motion.pkm5.fk` is the reference; these kernels repeat its
 arithmetic in the same order (000 §5.3 / App. B.1, pkm5.md §3.2-3.3, §4.3): the lengths equal numpy's to the bit
 in translation mode and to 1 ulp of the libm sin/cos otherwise, the tilts come from numpy's own ``arctan2``, and
 the FK takes the same Levenberg-Marquardt steps and restarts, pose by pose (tests/test_pkm5_compiled.py). numpy
-spends its time writing and re-reading ~60 temporary arrays of N values; a loop keeps one pose in registers.
-Blocks of poses run on one thread per CPU (the kernels release the GIL).
+spends its time writing and re-reading ~60 temporary arrays of N values; the kernels keep a pose in registers.
+The IK runs on cache-sized blocks laid out one quantity a row, so its arithmetic vectorises across poses (4 poses
+an AVX2 instruction); the FK's iterations differ pose by pose, so it loops over them. Blocks of poses run on one
+thread per CPU (the kernels release the GIL).
 
 numba is an optional dependency (``pip install 'bench[fast]'``; the test extra includes it). The kernels are
 compiled with ``cache=True``: the first call after an install compiles for several seconds (IK ~3 s, FK ~10 s of
