@@ -16,13 +16,16 @@ __all__ = [
     "ActuatorMove",
     "Capture",
     "Checkpoint",
+    "MountedPayload",
     "Move",
+    "Payload",
     "Plan",
     "Prompt",
     "Settle",
     "Step",
     "commanded_values",
-    "Payload",
+    "confirms_payload",
+    "payload_removal",
     "visit",
 ]
 
@@ -108,28 +111,66 @@ def commanded_values(target: tuple[float, ...]) -> dict[str, float]:
     return {name: float(value) for name, value in zip(_AXES_PKM5, target)}
 
 
+def payload_removal(load_kg: float) -> Prompt:
+    """The confirmation that the ``load_kg`` payload is off the end effector."""
+    return Prompt(f"Remove the {load_kg:g} kg payload from the end effector, then confirm", conditions={"load_kg": 0.0})
+
+
+def confirms_payload(step: object) -> bool:
+    """Whether ``step`` is a payload confirmation: a prompt without a reading whose conditions state ``load_kg``."""
+    return isinstance(step, Prompt) and step.field is None and "load_kg" in step.conditions
+
+
 class Payload:
-    """The payload the operator has confirmed mounted during one walk of a plan: asked for only when it changes,
-    and asked to be taken off by the clean-up, so that no run leaves a payload on the robot for the next one to
-    measure under unawares. A plan is walked more than once (counted, pre-flighted, run): a protocol makes a new
-    one at the start of its steps."""
+    """The payload a walk of a plan has asked for, so that a protocol asks only when it changes. A plan is walked
+    more than once (counted, pre-flighted, run): a protocol makes one at the start of its steps. What is actually
+    on the robot is the runner's business (:class:`MountedPayload`)."""
 
     def __init__(self) -> None:
-        self.mounted_kg = 0.0  # a run starts without a payload
+        self.mounted_kg = 0.0  # a plan starts without a payload
 
     def mount(self, load_kg: float) -> Plan:
-        """Ask the operator to mount ``load_kg`` when it differs from the payload mounted now."""
+        """Ask the operator to mount ``load_kg`` (to take the payload off, for 0) when it differs from the last."""
         if load_kg != self.mounted_kg:
-            yield Prompt(f"Mount a payload of {load_kg:g} kg on the end effector, then confirm",
-                         conditions={"load_kg": load_kg})
+            yield (payload_removal(self.mounted_kg) if load_kg == 0 else
+                   Prompt(f"Mount a payload of {load_kg:g} kg on the end effector, then confirm",
+                          conditions={"load_kg": load_kg}))
         self.mounted_kg = load_kg
 
-    def remove(self) -> Plan:
-        """The clean-up's prompt to take off the payload mounted now (none, or 0 kg: no prompt)."""
-        if self.mounted_kg:
-            yield Prompt(f"Remove the {self.mounted_kg:g} kg payload from the end effector, then confirm",
-                         conditions={"load_kg": 0.0})
-            self.mounted_kg = 0.0
+
+class MountedPayload:
+    """What a run knows of the payload on the end effector: the load of the last payload confirmation the operator
+    gave (:func:`confirms_payload`). The runner keeps one per run segment:
+
+    - a resume skips the steps before its resume point, the payload confirmation in force there with them; it is
+      asked again before the first step performed, since the payload may have come off since (a stopped run's
+      clean-up asks for that);
+    - after the protocol's clean-up, a payload still on is asked to come off (:meth:`removal`), so that no run
+      leaves a payload for the next one to measure under unawares.
+    """
+
+    def __init__(self) -> None:
+        self.load_kg = 0.0
+        self._skipped: Prompt | None = None
+
+    def skipped(self, step: object) -> None:
+        """A step before the resume point, not performed."""
+        if confirms_payload(step):
+            self._skipped = step  # type: ignore[assignment]
+
+    def to_confirm_again(self) -> Prompt | None:
+        """The payload confirmation in force at the resume point, once (None: none to ask)."""
+        prompt, self._skipped = self._skipped, None
+        return prompt
+
+    def performed(self, step: object) -> None:
+        """A step performed (a confirmation: the operator confirmed it)."""
+        if confirms_payload(step):
+            self.load_kg = float(step.conditions["load_kg"])  # type: ignore[attr-defined]
+
+    def removal(self) -> Prompt | None:
+        """The confirmation that the payload still on is off (None: none is on)."""
+        return payload_removal(self.load_kg) if self.load_kg else None
 
 
 def visit(label: str, target: tuple[float, ...], cycle: int, *, velocity_pct: float, settle_s: float,

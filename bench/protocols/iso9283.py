@@ -109,7 +109,6 @@ class _CubeProtocol(Protocol):
     plane = ChoiceParameter("x=z", choices=tuple(_PLANES), description="diagonal plane of P2-P5 (cube frame)")
     poses = PoseTableParameter(None, description="explicit labelled poses instead of the cube (plane or grid)")
     settle_s = FloatParameter(1.0, unit="s", minimum=0.0, maximum=600.0, description="dwell before each capture")
-    _payload: Payload | None = None  # the payload of the latest walk of the steps (none before one)
 
     def validate(self) -> None:
         if self.poses is None:
@@ -143,9 +142,9 @@ class _CubeProtocol(Protocol):
     def _cycles(self, order: list[str]) -> Plan:
         """Per load (confirmed by the operator), per velocity: ``cycles`` visits of ``order`` (each by
         :meth:`_visit`), a Checkpoint after each cycle."""
-        self._payload = Payload()
+        payload = Payload()
         for load in self.loads_kg:
-            yield from self._payload.mount(load)
+            yield from payload.mount(load)
             for velocity in self.velocities_pct:
                 for cycle in range(1, self.cycles + 1):
                     for label in order:
@@ -159,13 +158,10 @@ class _CubeProtocol(Protocol):
 
     def final_steps(self) -> Plan:
         yield from self.return_home()
-        if self._payload is not None:
-            yield from self._payload.remove()  # at home, where the operator can reach the end effector
 
     def _one_load(self) -> Plan:
         """The single load of a protocol that runs at one (validated by :meth:`_validate_one_load`)."""
-        self._payload = Payload()
-        yield from self._payload.mount(self.loads_kg[0])
+        yield from Payload().mount(self.loads_kg[0])
 
     def _validate_one_load(self, clause: str) -> None:
         if len(self.loads_kg) != 1:
@@ -208,7 +204,7 @@ class MultiDirectional(_CubeProtocol):
     """
 
     name = "iso9283_multidirectional"
-    version = "1"
+    version = "2"  # 2: the load's confirmation is the first step (every step index moved by one where it is asked)
     title = "ISO 9283 multi-directional pose accuracy variation (7.2.3)"
     approach_mm = FloatParameter(10.0, unit="mm", minimum=0.5, maximum=100.0,
                                  description="pre-pose offset along each approach direction")
@@ -246,7 +242,7 @@ class Drift(_CubeProtocol):
     """
 
     name = "iso9283_drift"
-    version = "1"
+    version = "2"  # 2: the load's confirmation is the first step (every step index moved by one where it is asked)
     title = "ISO 9283 drift of pose characteristics (7.6), short run"
     pause_s = FloatParameter(0.0, unit="s", minimum=0.0, maximum=3600.0, description="wait between cycles")
 

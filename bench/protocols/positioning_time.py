@@ -72,7 +72,6 @@ class MinimumPositioningTime(Protocol):
                             description="streamed rest before each step's move starts")
     hold_s = FloatParameter(3.0, unit="s", minimum=0.1, maximum=MAX_WINDOW_S,
                             description="streamed time after the move is reported done (the settling)")
-    _payload: Payload | None = None  # the payload of the latest walk of the steps (none before one)
 
     def validate(self) -> None:
         if not self.steps_mm or any(d == 0 for d in self.steps_mm):
@@ -130,9 +129,9 @@ class MinimumPositioningTime(Protocol):
         return {**super().config(), "steps": steps, "skipped_steps": [dict(s) for s in self.skipped_steps]}
 
     def steps(self) -> Plan:
-        self._payload = Payload()
+        payload = Payload()
         for load in self.loads_kg:
-            yield from self._payload.mount(load)
+            yield from payload.mount(load)
             for velocity in self.velocities_pct:
                 durations = self._move_s(velocity)
                 for cycle in range(1, self.cycles + 1):
@@ -150,5 +149,3 @@ class MinimumPositioningTime(Protocol):
 
     def final_steps(self) -> Plan:
         yield from self.return_home()
-        if self._payload is not None:
-            yield from self._payload.remove()  # at home, where the operator can reach the end effector

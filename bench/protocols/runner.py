@@ -62,6 +62,7 @@ from bench.steps import (
     ActuatorMove,
     Capture,
     Checkpoint,
+    MountedPayload,
     Move,
     Plan,
     Prompt,
@@ -194,6 +195,7 @@ class Runner:
         self.samples_stored = 0
         self._bar: _Progress | None = None
         self._writer: SampleWriter | None = None
+        self._payload = MountedPayload()  # what this run segment knows is on the end effector
 
     # ---- requests --------------------------------------------------------------------------------------------
 
@@ -332,6 +334,7 @@ class Runner:
         self._bar = _Progress(self.progress, total=self.samples_total, done=self.samples_stored,
                               label=protocol.name)
         self._writer = None
+        self._payload = MountedPayload()
         try:
             self._writer = SampleWriter(self.store)
             with self._bar:
@@ -342,6 +345,7 @@ class Runner:
                 if self.state is not RunState.HALTING:
                     self._wake.clear()  # an abort cut the main steps short, not the clean-up's settles
                     self._loop(protocol.final_steps(), run_id, {}, 0, final=True)
+                    self._payload_off()
                 self._await_commit()
             if self.state in (RunState.STOPPING, RunState.ABORTING, RunState.HALTING):
                 status = "aborted"
@@ -390,10 +394,19 @@ class Runner:
                 reply = stored[index]
             elif index < start_at:
                 reply = None
+                self._payload.skipped(step)
             else:
+                again = self._payload.to_confirm_again()
+                if again is not None:  # a resume: the payload in force here may have come off since the stop
+                    self._act(again, run_id, index)
+                    self._payload.performed(again)
+                    if self.state in ending:
+                        return
                 self.current_step = step
                 reply = self._act(step, run_id, index)
                 self.current_step = None
+                if self.state is not RunState.HALTING:  # not a withdrawn prompt
+                    self._payload.performed(step)
             if isinstance(step, Checkpoint) and not final and index >= start_at:
                 # the .db file alone holds every sample so far once this checkpoint has run on the writer thread,
                 # during the next move (the next sample is stored after it); a pause or an end waits for it here
@@ -403,6 +416,21 @@ class Runner:
                 if self._at_checkpoint(step):
                     return
             index += 1
+
+    def _payload_off(self) -> None:
+        """After the clean-up (the robot home), ask for a payload still on to come off (:class:`MountedPayload`).
+        A withdrawn confirmation does not change how the run ended: its samples are stored; the log says the
+        payload may still be on."""
+        prompt = self._payload.removal()
+        if prompt is None or self.state is RunState.HALTING:
+            return
+        try:
+            self.rig.operator.ask(prompt)
+        except PromptWithdrawn as exc:
+            _log.warning("run %d: the operator did not confirm %r (%s): the %g kg payload may still be on the end "
+                         "effector", self.run_id, prompt.text, exc, self._payload.load_kg)
+            return
+        self._payload.performed(prompt)
 
     def _at_checkpoint(self, step: Checkpoint) -> bool:
         """Handle pause and stop requests; True when the run must end here."""
