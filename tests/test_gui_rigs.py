@@ -56,3 +56,16 @@ def test_the_window_refuses_a_station_that_lacks_what_the_protocol_needs(tmp_pat
     assert results == [] and len(failures) == 1
     assert failures[0].endswith("protocol 'mouse_calibration' needs mouse_counts (add [mice])")
     assert "--" not in failures[0]  # no command-line flag names in the window
+
+
+@pytest.mark.parametrize("where, simulated", [({"port": "/dev/ttyUSB0"}, False),
+                                              ({"station": "examples/stations/pkm5_camera.toml"}, False),
+                                              ({"station": "examples/stations/pkm5_camera.toml", "simulate": True},
+                                               True), ({}, True)])
+def test_the_window_sends_a_seed_and_a_speed_factor_for_simulators_only(where, simulated):
+    """The robot panel always holds a seed and a speed factor; real hardware has neither, and open_rig refuses them
+    there (a run would otherwise believe something untrue about itself)."""
+    from bench.gui.worker import RigSpec
+
+    request = RigSpec(seed=3, speed_factor=500.0, **where).request()
+    assert (request.seed, request.speed_factor) == ((3, 500.0) if simulated else (None, None))

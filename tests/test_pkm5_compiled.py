@@ -61,8 +61,9 @@ def test_ik_matches_numpy_on_random_poses_with_every_failure_flag():
     np.testing.assert_array_equal(fast.lengths_mm[translation], reference.lengths_mm[translation])
 
 
-def test_ik_tasks_on_the_thread_pool_give_the_single_thread_answer():
-    # three tasks of eight blocks, the last one short and ending in a partial block: every row written once, in place
+def test_ik_in_tasks_of_blocks_matches_numpy_across_task_and_block_edges():
+    # two full tasks and a short one ending in a partial block (on the thread pool where there are several CPUs):
+    # every row written once, in place
     kernels = compiled._kernels()
     n = 2 * compiled._IK_TASK_BLOCKS * kernels.IK_BLOCK + kernels.IK_BLOCK + 7
     poses = random_poses(n, seed=29)
@@ -79,6 +80,11 @@ def test_an_oversized_ik_block_is_refused_not_written_past_its_scratch():
         kernels.ik_values(np.zeros((kernels.IK_BLOCK + 1, 5)), packed, inputs, outputs)
     with pytest.raises(ValueError, match="at most IK_BLOCK poses"):
         kernels.ik_values(np.zeros((4, 5)), packed, inputs[:-1], outputs)
+    flat, flags = np.empty(6 * 4), np.empty(4, np.int64)
+    with pytest.raises(ValueError, match="6 values a pose"):
+        kernels.ik_limits(inputs, outputs, packed, True, flat[:-1], flat, flags, flat.astype(bool), flat.astype(bool))
+    with pytest.raises(ValueError, match="at most IK_BLOCK poses"):
+        kernels.ik_limits(inputs, outputs[:-1], packed, True, flat, flat, flags, flat.astype(bool), flat.astype(bool))
 
 
 def test_ik_matches_numpy_for_another_geometry():

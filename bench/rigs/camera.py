@@ -47,7 +47,10 @@ def video_grab(device: str) -> tuple[Callable[[], np.ndarray], Callable[[], np.n
     honours it), one frame is read at open (a device that gives none is refused at once), and ``grab`` drops the
     frame queued since the previous reading before it reads the one it returns. ``grab_next`` reads the next frame
     as it comes: right after a reading, the queued frame was taken after it, so nothing is stale to drop (a
-    reading of several frames costs one frame period each, not two)."""
+    reading of several frames costs one frame period each, not two). A backend that ignores the one-buffer request
+    keeps a deeper queue: ``grab`` then drops one stale frame of several, and ``camera.frames`` > 1 averages the
+    rest in with the new frames; such a camera needs its driver's buffer set to one (or its frames read as they
+    come, between readings)."""
     import cv2
 
     from bench.errors import LinkError

@@ -40,14 +40,7 @@ COMPILED_MIN_POSES = {"ik": 200_000, "fk": 10_000}
 #: FK mode -> kernel code (same order as motion.pkm5.fk.MODES).
 MODE_CODES = {"translation": 0, "alpha": 1, "beta": 2}
 
-# --- layout of the packed geometry vector: offsets of each field (one home: pack_geometry writes this order)
-_OA12, _OA34, _OA56, _PD12, _PD34, _PD5, _PD6 = 0, 3, 6, 9, 12, 15, 18
-_H = 21
-_AB_ODD, _AB_EVEN, _AB5, _AB6, _CD_ODD, _CD_EVEN, _CD5, _CD6 = 22, 24, 26, 28, 30, 32, 34, 36
-_LEG_MIN, _LEG_MAX, _TILT_MIN, _TILT_MAX = 38, 44, 50, 56
-_A_LO, _A_HI, _B_LO, _B_HI, _PLANE_X, _PLANE_TOL = 62, 63, 64, 65, 66, 67
-_PACKED_SIZE = 68
-_IK_TASK_BLOCKS = 8  # IK blocks (_kernels.IK_BLOCK poses each) per thread-pool task: one scratch allocation each
+_IK_TASK_BLOCKS = 4  # IK blocks (_kernels.IK_BLOCK poses each) per thread-pool task: one scratch allocation each
 _FK_CHUNK = 2048  # FK rows per thread task: ~10-20 ms of work, small enough to balance uneven solves
 
 
@@ -59,17 +52,9 @@ def use_compiled(engine: str, n: int, kind: str) -> bool:
 
 @lru_cache(maxsize=32)
 def pack_geometry(geometry: Geometry) -> np.ndarray:
-    """The geometry fields the kinematics read, as one float64 vector (limits in radians, as the numpy IK compares)."""
-    g = geometry
-    parts = [g.oa_12_mm, g.oa_34_mm, g.oa_56_mm, g.pd_12_mm, g.pd_34_mm, g.pd_5_mm, g.pd_6_mm,
-             [g.bracket_half_height_mm], g.ab_odd_mm, g.ab_even_mm, g.ab_5_mm, g.ab_6_mm,
-             g.cd_odd_mm, g.cd_even_mm, g.cd_5_mm, g.cd_6_mm, g.leg_min_mm, g.leg_max_mm,
-             np.radians(g.tilt_min_deg), np.radians(g.tilt_max_deg), np.radians(g.alpha_range_deg),
-             np.radians(g.beta_range_deg), [g.alpha_plane_x_mm, g.alpha_plane_tolerance_mm]]
-    packed = np.concatenate([np.asarray(part, dtype=float) for part in parts])
-    assert packed.size == _PACKED_SIZE
-    packed.setflags(write=False)
-    return packed
+    """The geometry fields the kinematics read, as one read-only float64 vector (``_kernels.pack_geometry``: the
+    layout lives beside the machine code that reads it)."""
+    return _kernels().pack_geometry(geometry)
 
 
 @lru_cache(maxsize=1)
