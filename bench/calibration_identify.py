@@ -7,10 +7,11 @@ calibrated one of the kinematic calibration that was in force), identifies the p
 the result as a new version of the robot's calibration (``pkm5_kinematics``, ``delta4_kinematics``) with the source
 run, the residuals, the observability, the fit and its prior (docs/calibration.md). Fits (``fit``):
 
-* ``map`` (the pkm5's default): maximum a posteriori of every parameter and the registration, the manufacturing
-  tolerances (:data:`motion.pkm5.calibration.TOLERANCES`) as the prior
-  (:func:`bench.metrology.kinematic_calibration.identify`); ``free`` given, of those and the registration only;
-* ``free-set`` (the delta4's default and only fit; the pkm5's with ``--free``): least squares of the free
+* ``map`` (the default): maximum a posteriori of every parameter and the
+  registration, the manufacturing tolerances (:data:`motion.pkm5.calibration.TOLERANCES`,
+  :data:`motion.delta4.calibration.TOLERANCES`) as the prior (:func:`bench.metrology.kinematic_calibration.identify`);
+  ``free`` given, of those and the registration only;
+* ``free-set`` (the default where ``--free`` names parameters): least squares of the free
   parameters, default what the pose set and instrument can identify
   (:func:`bench.metrology.kinematic_calibration.identifiable_subset`), the others held at their documented values.
 
@@ -50,7 +51,7 @@ COMMANDED = {"pkm5": ("cmd_x_mm", "cmd_y_mm", "cmd_z_mm", "cmd_a_deg", "cmd_b_de
 MEASURED = ("x_mm", "y_mm", "z_mm")
 #: The mice's standard uncertainty per axis, mm (the pkm5 calibration protocol's pose selection assumes it).
 DEFAULT_UNCERTAINTY_MM = 0.05
-#: The identification fits (module doc); the first is the default where the robot has a prior.
+#: The identification fits (module doc); the first is the default where the robot has a prior (both robots have).
 FITS = ("map", "free-set")
 
 
@@ -177,7 +178,8 @@ def _delta4_problem(store, run_id: int, uncertainty_mm: float | None) -> _Proble
 
     from bench.robots.delta4_wire import fine_from_settings, mapping_from_settings
     from motion import delta4
-    from motion.delta4.calibration import BASE_PARAMETERS, REGISTRATION, ForwardModel, attained_positions
+    from motion.delta4.calibration import (BASE_PARAMETERS, REGISTRATION, TOLERANCES, ForwardModel,
+                                           attained_positions, prior_sigma)
 
     settings = store.run(run_id).settings
     mapping_settings = (settings.get("robot") or {}).get("mapping")
@@ -202,13 +204,17 @@ def _delta4_problem(store, run_id: int, uncertainty_mm: float | None) -> _Proble
     rounding = attained_positions(servo) - attained_positions(ik.servo_deg)
     extra = {"command_resolution_mm": float(np.mean(np.linalg.norm(rounding[:, read], axis=1))),
              "servo_mapping": mapping_settings, "servo_references": mapping.name}
+    prior = {"prior": prior_sigma,
+             "prior_source": {"name": "manufacturing tolerances (motion.delta4.calibration.TOLERANCES; servo axis "
+                                      "positions sqrt 2 of it, measured from the frame legs 1 and 4 fix)",
+                              "sigma": dict(TOLERANCES)}}
     if mask[:, read].all():  # every sample read the same axes (the camera's plane)
         return _Problem(lambda free: ForwardModel(servo, free, axes=read), registration + BASE_PARAMETERS,
-                        registration, measured[:, read], u, np.arange(len(measured)), len(measured), extra)
+                        registration, measured[:, read], u, np.arange(len(measured)), len(measured), extra, **prior)
     rows = np.nonzero(mask)[0]
     return _Problem(lambda free: _ReadAxes(ForwardModel(servo, free, axes=(0, 1, 2)), mask),
                     registration + BASE_PARAMETERS, registration, measured[mask][:, None], u, rows, len(measured),
-                    extra)
+                    extra, **prior)
 
 
 _PROBLEMS = {"pkm5": _pkm5_problem, "delta4": _delta4_problem}

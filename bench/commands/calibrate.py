@@ -1,8 +1,8 @@
 """``bench calibrate RUN_ID``: identify the robot's geometry (pkm5, delta4) from a stored run of commanded and
 measured poses.
 
-Identifies the geometry (``--fit map``, the pkm5's default: every parameter, the manufacturing tolerances as the
-prior; ``--fit free-set``, the delta4's: the free parameters, default what the pose set and instrument can
+Identifies the geometry (``--fit map``, the default: every parameter, the manufacturing tolerances as the prior;
+``--fit free-set``, the default with ``--free``: the free parameters, default what the pose set and instrument can
 identify; docs/calibration.md) and stores the result as a new version of the calibration ``pkm5_kinematics`` /
 ``delta4_kinematics`` with the source run, the residuals, the observability, the fit and its prior
 (:func:`bench.calibration_identify.identify_run`, the window's "Identify" button runs the same).
@@ -25,8 +25,8 @@ def register(groups: argparse._SubParsersAction) -> None:
     parser.add_argument("run_id", metavar="RUN_ID", type=int, help="the run with commanded and measured poses")
     parser.add_argument("--fit", choices=FITS, default=None,
                         help="map: maximum a posteriori of every parameter with the manufacturing tolerances as "
-                             "the prior (pkm5 default); free-set: least squares of the free parameters, the others "
-                             "held at their documented values (delta4 default, or the pkm5 with --free)")
+                             "the prior (the default); free-set: least squares of the free parameters, the others "
+                             "held at their documented values (the default with --free)")
     parser.add_argument("--free", nargs="+", metavar="PARAM", default=None,
                         help="free parameters (default: every one for --fit map, the identifiable set for "
                              "--fit free-set); see docs/calibration.md")

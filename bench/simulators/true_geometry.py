@@ -7,8 +7,9 @@ from a normal distribution of the size below, truncated at 2.5 sigma, from ``np.
 (a stream of its own, so the error model's draws of the same seed do not change).
 
 The delta4 (``bench sim delta4 --true-geometry-seed SEED``): every parameter of
-:data:`motion.delta4.calibration.PARAMETERS` (servo zeros 0.3 deg; arm lengths and servo axis positions 0.3 mm, the
-sizes of docs/calibration.md's delta4 section), the same truncation, from ``np.random.default_rng([seed, 40])``.
+:data:`motion.delta4.calibration.PARAMETERS` (servo zeros 0.3 deg; arm lengths and servo axis positions 0.3 mm: the
+tolerances of :data:`motion.delta4.calibration.TOLERANCES`), the same truncation, from
+``np.random.default_rng([seed, 40])``.
 """
 
 from __future__ import annotations
@@ -16,6 +17,7 @@ from __future__ import annotations
 import numpy as np
 
 from motion.pkm5 import DEFAULT_GEOMETRY, Geometry
+from motion.delta4.calibration import TOLERANCES as DELTA4_TOLERANCES
 from motion.pkm5.calibration import PARAMETERS, TOLERANCES, apply_parameters, tolerance
 
 __all__ = ["DELTA4_TRUE_GEOMETRY_SIGMA", "TRUE_GEOMETRY_SIGMA", "attained_poses", "delta4_true_deviations",
@@ -24,8 +26,9 @@ __all__ = ["DELTA4_TRUE_GEOMETRY_SIGMA", "TRUE_GEOMETRY_SIGMA", "attained_poses"
 #: 1-sigma size per parameter family: the manufacturing tolerances the calibration's prior states (joint positions
 #: 0.3 mm, leg zero offsets 0.3 mm, lead 0.5 %; :data:`motion.pkm5.calibration.TOLERANCES`).
 TRUE_GEOMETRY_SIGMA = TOLERANCES
-#: 1-sigma size per delta4 parameter unit: servo zeros 0.3 deg, lengths and axis positions 0.3 mm.
-DELTA4_TRUE_GEOMETRY_SIGMA = {"deg": 0.3, "mm": 0.3}
+#: 1-sigma size per delta4 parameter family: the tolerances the delta4 calibration's prior states (servo zeros 0.3 deg,
+#: arm lengths and servo axis positions 0.3 mm; :data:`motion.delta4.calibration.TOLERANCES`).
+DELTA4_TRUE_GEOMETRY_SIGMA = DELTA4_TOLERANCES
 _TRUNCATE_SIGMA = 2.5
 
 
@@ -53,8 +56,8 @@ def attained_poses(steps, modes, geometry: Geometry) -> np.ndarray:
 def delta4_true_deviations(seed: int) -> dict[str, float]:
     """Seeded deviations of every :data:`motion.delta4.calibration.PARAMETERS` entry (deg or mm, by its unit) from
     the documented delta4 geometry: the truth a delta4 simulator moves by (:func:`bench.simulators.delta4.build_plant`)."""
-    from motion.delta4.calibration import PARAMETERS as DELTA4_PARAMETERS, UNITS
+    from motion.delta4.calibration import PARAMETERS as DELTA4_PARAMETERS, tolerance as delta4_tolerance
 
     rng = np.random.default_rng([int(seed), 40])
     draws = np.clip(rng.normal(0.0, 1.0, len(DELTA4_PARAMETERS)), -_TRUNCATE_SIGMA, _TRUNCATE_SIGMA)
-    return {name: float(draw * DELTA4_TRUE_GEOMETRY_SIGMA[UNITS[name]]) for name, draw in zip(DELTA4_PARAMETERS, draws)}
+    return {name: float(draw * delta4_tolerance(name)) for name, draw in zip(DELTA4_PARAMETERS, draws)}

@@ -37,9 +37,9 @@ from motion.delta4.geometry import LEG_OUTWARD, LEG_SIDEWAYS, NOMINAL, Geometry,
 from motion.delta4.kinematics import forward_kinematics, inverse_kinematics
 from motion.errors import MotionInputError
 
-__all__ = ["BASE_PARAMETERS", "FRAME_PARAMETERS", "PARAMETERS", "REGISTRATION", "UNITS", "CalibratedGeometry",
-           "ForwardModel", "attained_positions", "base_equivalent", "commanded_servo_deg", "compensation_geometry",
-           "leg_parameters"]
+__all__ = ["BASE_PARAMETERS", "FRAME_PARAMETERS", "PARAMETERS", "REGISTRATION", "TOLERANCES", "UNITS",
+           "CalibratedGeometry", "ForwardModel", "attained_positions", "base_equivalent", "commanded_servo_deg",
+           "compensation_geometry", "leg_parameters", "prior_sigma"]
 
 _E_Z = np.array([0.0, 0.0, 1.0])
 _KINDS = ("servo_zero", "upper_arm", "lower_arm", "radial", "sideways", "height")
@@ -54,6 +54,37 @@ FRAME_PARAMETERS = ("radial_1_mm", "radial_4_mm", "height_4_mm")
 BASE_PARAMETERS = tuple(name for name in PARAMETERS if name not in FRAME_PARAMETERS)
 UNITS = {name: name.rsplit("_", 1)[1] for name in PARAMETERS + REGISTRATION}
 _GAUSS_NEWTON_ITERATIONS = 8
+#: Manufacturing tolerances, 1 sigma per parameter family: servo zeros 0.3 deg (a horn set on its spline and
+#: trimmed by hand), arm lengths 0.3 mm and servo axis positions 0.3 mm (printed parts, hand assembly): the same
+#: sizes as the pkm5's joints (:data:`motion.pkm5.calibration.TOLERANCES`). The prior of the maximum a posteriori
+#: identification (``bench calibrate --fit map``) and the size of the simulator's seeded true geometry.
+TOLERANCES = {"servo_zero": 0.3, "arm": 0.3, "axis": 0.3}
+
+
+def tolerance(name: str) -> float:
+    """The 1-sigma tolerance of deviation ``name`` about the drawing (:data:`TOLERANCES`; ``inf`` for the
+    registration, which the instrument's placement sets)."""
+    _check_names((name,))
+    if name.startswith("reg_"):
+        return float("inf")
+    if name.startswith("servo_zero_"):
+        return TOLERANCES["servo_zero"]
+    return TOLERANCES["arm"] if name.startswith(("upper_arm_", "lower_arm_")) else TOLERANCES["axis"]
+
+
+def prior_sigma(names) -> np.ndarray:
+    """The 1-sigma prior of each of ``names`` (base parameters and registration) for the MAP fit.
+
+    A base parameter's axis position is measured from the frame that legs 1 and 4 fix (module docstring): it is the
+    deviation of its own axis less the frame translation t, itself drawn from the axes' tolerance, so it spreads by
+    sqrt 2 times the tolerance (the shared t also correlates them, which a per-parameter prior leaves out: a slightly
+    looser prior than the truth's). Servo zeros and arm lengths are not moved by t: their tolerance as it is.
+    """
+    sigma = []
+    for name in _check_names(names):
+        moved_by_frame = name.startswith(("radial_", "sideways_", "height_"))
+        sigma.append(tolerance(name) * (np.sqrt(2.0) if moved_by_frame else 1.0))
+    return np.array(sigma)
 
 
 def _check_names(names) -> tuple[str, ...]:
