@@ -143,8 +143,10 @@ class MountedPayload:
     gave (:func:`confirms_payload`). The runner keeps one per run segment:
 
     - a resume skips the steps before its resume point, the payload confirmation in force there with them; it is
-      asked again before the first step performed, since the payload may have come off since (a stopped run's
-      clean-up asks for that);
+      asked again before the first step performed that is not a checkpoint, since the payload may have come off
+      since (a stopped run's clean-up asks for that), unless that step is itself a payload confirmation (the next
+      block's), and not at all when only the clean-up is left (the payload is taken as on, so that its removal is
+      asked);
     - after the protocol's clean-up, a payload still on is asked to come off (:meth:`removal`), so that no run
       leaves a payload for the next one to measure under unawares.
     """
@@ -158,10 +160,14 @@ class MountedPayload:
         if confirms_payload(step):
             self._skipped = step  # type: ignore[assignment]
 
-    def to_confirm_again(self) -> Prompt | None:
-        """The payload confirmation in force at the resume point, once (None: none to ask)."""
+    def to_confirm_before(self, step: object, *, clean_up: bool) -> Prompt | None:
+        """The skipped payload confirmation to ask again before performing ``step`` (None: none; see above)."""
+        if self._skipped is None or isinstance(step, Checkpoint):
+            return None
         prompt, self._skipped = self._skipped, None
-        return prompt
+        if clean_up:
+            self.performed(prompt)
+        return None if clean_up or confirms_payload(step) else prompt
 
     def performed(self, step: object) -> None:
         """A step performed (a confirmation: the operator confirmed it)."""

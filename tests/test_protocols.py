@@ -360,6 +360,63 @@ def test_a_stopped_run_takes_its_payload_off_and_its_resume_asks_for_it_again(st
         assert [s.values["load_kg"] for s in reader.samples(stopped.run_id)] == [0, 0, 0, 0, 2.5, 2.5, 2.5, 2.5]
 
 
+class _StopAtCapture(BiasedInstrument):
+    """Asks ``runner`` to stop (at its next checkpoint) during capture number ``at``."""
+
+    def __init__(self, at: int):
+        self.at, self.count, self.runner = at, 0, None
+
+    def measure(self, capture):
+        self.count += 1
+        if self.count == self.at:
+            self.runner.stop()
+        return super().measure(capture)
+
+
+def test_a_resume_between_two_loads_asks_for_the_next_load_only(store):
+    # stopped at the checkpoint that closes the 2.5 kg block: the resume's first step is the 5 kg confirmation
+    protocol = DistanceAccuracy(cycles=2, velocities_pct=[100], loads_kg=[2.5, 5], settle_s=0)
+    rig = _payload_rig()
+    rig.instrument = _StopAtCapture(at=4)
+    rig.instrument.runner = Runner(rig, store)
+    stopped = rig.instrument.runner.run(protocol)
+    assert (stopped.exit_status, stopped.samples) == ("aborted", 4)
+    assert [prompt.text for prompt in rig.operator.asked] == [MOUNT_25, REMOVE_25]
+    rig = _payload_rig()
+    assert Runner(rig, store).resume_run(stopped.run_id).exit_status == "completed"
+    assert [prompt.text for prompt in rig.operator.asked] == [MOUNT_25.replace("2.5", "5"),
+                                                              REMOVE_25.replace("2.5", "5")]
+
+
+def test_a_resume_with_only_the_clean_up_left_asks_for_the_removal_only(store):
+    # every sample stored, the move home failed: the payload is still on, and only its removal is asked
+    protocol = DistanceAccuracy(cycles=2, velocities_pct=[100], loads_kg=[0, 2.5], settle_s=0)
+    rig = _payload_rig()
+    rig.robot.fail_after = 8  # the ninth move is the clean-up's move home
+    failed = Runner(rig, store).run(protocol)
+    assert (failed.exit_status, failed.samples) == ("failed", 8)
+    assert [prompt.text for prompt in rig.operator.asked] == [MOUNT_25]
+    rig = _payload_rig()
+    assert Runner(rig, store).resume_run(failed.run_id).exit_status == "completed"
+    assert [prompt.text for prompt in rig.operator.asked] == [REMOVE_25]
+
+
+class _StopDuringRemoval(_PayloadOperator):
+    def ask(self, prompt):
+        if prompt.text.startswith("Remove"):
+            self.runner.stop()
+            self.runner.emergency_stop()
+        return super().ask(prompt)
+
+
+def test_a_stop_during_the_removal_leaves_a_completed_run_completed(store):
+    rig = _rig()
+    rig.operator = _StopDuringRemoval(rig.robot)
+    rig.operator.runner = Runner(rig, store)
+    result = rig.operator.runner.run(DistanceAccuracy(cycles=2, velocities_pct=[100], loads_kg=[0, 2.5], settle_s=0))
+    assert (result.exit_status, result.samples, result.reason) == ("completed", 8, None)
+
+
 def test_a_withdrawn_removal_leaves_a_completed_run_completed(store, caplog):
     protocol = DistanceAccuracy(cycles=2, velocities_pct=[100], loads_kg=[0, 2.5], settle_s=0)
     rig = _payload_rig(withdraw="Remove")

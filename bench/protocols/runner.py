@@ -345,9 +345,10 @@ class Runner:
                 if self.state is not RunState.HALTING:
                     self._wake.clear()  # an abort cut the main steps short, not the clean-up's settles
                     self._loop(protocol.final_steps(), run_id, {}, 0, final=True)
-                    self._payload_off()
                 self._await_commit()
-            if self.state in (RunState.STOPPING, RunState.ABORTING, RunState.HALTING):
+            ended_early = self.state in (RunState.STOPPING, RunState.ABORTING, RunState.HALTING)
+            self._payload_off()  # after the run's end is decided: a stop asked during it changes nothing
+            if ended_early:
                 status = "aborted"
             else:
                 protocol.on_completed(self.store, run_id)
@@ -396,12 +397,12 @@ class Runner:
                 reply = None
                 self._payload.skipped(step)
             else:
-                again = self._payload.to_confirm_again()
+                again = self._payload.to_confirm_before(step, clean_up=final)
                 if again is not None:  # a resume: the payload in force here may have come off since the stop
                     self._act(again, run_id, index)
-                    self._payload.performed(again)
                     if self.state in ending:
                         return
+                    self._payload.performed(again)
                 self.current_step = step
                 reply = self._act(step, run_id, index)
                 self.current_step = None
