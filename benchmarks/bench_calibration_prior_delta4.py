@@ -1,4 +1,4 @@
-"""Held-out error of the delta4 camera calibration: the free-set fit (the default) against the MAP fit (``--fit map``).
+"""Held-out error of the delta4 camera calibration: the MAP fit (the default) against the free-set fit.
 
 Run as ``python benchmarks/bench_calibration_prior_delta4.py [SEEDS]`` (default: seeds 0-5). Every one of the 24
 deviations perturbed (``delta4_true_deviations(seed)``: 0.3 deg servo zeros, 0.3 mm arm lengths and servo axes,
@@ -6,9 +6,10 @@ the frame's included), 30 D-optimal poses of 300 candidates in the camera's fiel
 0.02 mm per axis), 50 held-out positions commanded by each fit (continuous angles: the geometry's share, without
 the servo bytes' steps) and read by the true robot. Before: the documented geometry with the registration fitted.
 
-* free-set: ``identify`` over ``identifiable_subset`` (condition <= 100), the others held at the drawing;
-* MAP: every base parameter and the registration, ``prior_sigma`` (the tolerances; servo axis positions sqrt 2 of
-  theirs, measured from the frame legs 1 and 4 fix) as a Gaussian prior.
+* free-set (``--fit free-set``): ``identify`` over ``identifiable_subset`` (condition <= 100), the others held at
+  the drawing;
+* MAP (``bench calibrate``'s default): every base parameter and the registration, ``prior_sigma`` (the tolerances;
+  servo axis positions sqrt 2 of theirs, measured from the frame legs 1 and 4 fix) as a Gaussian prior.
 
 Prints per seed the held-out mean |reading - target| before and after each fit, its factor, and the largest |z| of
 the fitted parameters against the truth's base equivalent (one run; the fits take well under a second).

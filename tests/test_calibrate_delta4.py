@@ -178,6 +178,11 @@ def test_map_fits_a_robot_perturbed_in_every_parameter_within_its_uncertainties(
     assert main(["calibrate", str(run_id), "--store", str(path), "--json"]) == 0
     out = json.loads(capsys.readouterr().out)
     assert out["fit"] == "map" and out["prior"]["sigma"] == TOLERANCES
+    # the prior as stated: servo zeros and arms at their tolerance, an axis position (measured from the frame legs
+    # 1 and 4 fix, the difference of two) sqrt 2 of it, the registration free
+    assert out["prior_sigma"]["servo_zero_2_deg"] == 0.3 and out["prior_sigma"]["lower_arm_3_mm"] == 0.3
+    assert out["prior_sigma"]["sideways_1_mm"] == pytest.approx(0.3 * np.sqrt(2), rel=1e-12)
+    assert out["prior_sigma"]["reg_x_mm"] is None
     params = out["parameters"]
     assert set(params) == set(CANDIDATES)
     base = base_equivalent({**deviations, "reg_x_mm": TRUE_REGISTRATION[0], "reg_y_mm": TRUE_REGISTRATION[1]})

@@ -223,7 +223,8 @@ def _refuse_if_uninformed(jac, uncertainty, names, sigma, std, n_poses: int, lim
             f"kinematic calibration refused: the {n_poses} poses inform only {informed} of the {with_prior} "
             f"parameters with a prior (posterior uncertainty above {PRIOR_ONLY_RATIO:.2f} of the prior's for "
             f"{', '.join(prior_only)}), expected at least {MIN_INFORMED_SHARE:.0%}; the poses cannot identify "
-            "them: add poses that spread over the workspace and its orientations")
+            "them: add poses that spread over the workspace (and its orientations), read them with a finer "
+            "instrument, or fit only what they identify (the free-set fit)")
     return prior_only
 
 
