@@ -152,3 +152,14 @@ def test_commanded_points_lie_on_their_path_and_stations_are_at_most_the_spacing
     stations = path.stations(spacing)
     gaps = np.linalg.norm(np.diff(np.vstack([stations, stations[:1]]) if path.closed else stations, axis=0), axis=1)
     assert gaps.max() <= spacing + 1e-9 and path.distance_mm(stations).max() < 1e-9 * side
+
+
+@pytest.mark.parametrize("load_kg, prompts", [(0.0, []), (2.0, [2.0])])
+def test_a_path_run_asks_for_its_load_before_its_first_move(load_kg, prompts):
+    # its samples are labelled with the load: the operator confirms it is on (the runner asks for its removal)
+    from bench.protocols.plan import iterate
+    from bench.steps import Move, Prompt
+
+    steps = list(iterate(Cornering(cycles=2, velocities_pct=[100.0], load_kg=load_kg), final=False))
+    assert [s.conditions["load_kg"] for s in steps if isinstance(s, Prompt)] == prompts
+    assert isinstance(steps[0], Prompt if prompts else Move)

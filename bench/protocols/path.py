@@ -31,7 +31,7 @@ from bench.protocols.kinematics import robot_model
 from bench.protocols.parameters import ChoiceParameter, FloatListParameter, FloatParameter, IntegerParameter
 from bench.metrology.path_geometry import CommandedPath, Segmentation, commanded_path, segment_path
 from bench.rigs.mice import PATH as PATH_KIND
-from bench.steps import Capture, Checkpoint, Move, Plan, Settle, commanded_values
+from bench.steps import Capture, Checkpoint, Move, Payload, Plan, Settle, commanded_values
 
 __all__ = ["Cornering", "PathAccuracy", "PathProtocol"]
 
@@ -147,6 +147,7 @@ class PathProtocol(Protocol):
                 for end, sps, n in zip(ends, steps_per_s, steps)]
 
     def steps(self) -> Plan:
+        yield from Payload().mount(self.load_kg)  # the samples are labelled with it: the operator confirms it is on
         for shape in self.shapes:
             seg = self.segmentation(shape)
             start = tuple(float(v) for v in seg.targets_mm[0])
@@ -176,7 +177,7 @@ class PathAccuracy(PathProtocol):
     """ISO 9283 8.2, 8.3, 8.6: AT/RT on a straight line and a circle, AV/RV/FV on the line, 10 cycles."""
 
     name = "iso9283_path"
-    version = "1"
+    version = "2"  # 2: a load's confirmation is the first step (the step indices after it moved by one)
     title = "ISO 9283 path accuracy and repeatability, path velocity (8.2, 8.3, 8.6)"
     shapes = ("line", "circle")
     cycles = IntegerParameter(10, minimum=2, description="cycles per path and velocity (ISO Table 5: 10)")
@@ -192,7 +193,7 @@ class Cornering(PathProtocol):
     """ISO 9283 8.5: cornering round-off CR and overshoot CO on a rectangle with sharp corners, 3 cycles."""
 
     name = "iso9283_cornering"
-    version = "1"
+    version = "2"  # 2: a load's confirmation is the first step (the step indices after it moved by one)
     title = "ISO 9283 cornering deviations (8.5)"
     shapes = ("rectangle",)
     cycles = IntegerParameter(3, minimum=2, description="cycles per velocity (ISO Table 5: 3)")
