@@ -274,7 +274,7 @@ def test_resume_refuses_changed_calibration(store):
 
 
 def test_prompts_store_readings_and_loads_ask_confirmation(store):
-    protocol = DistanceAccuracy(cycles=2, velocities_pct=[100], loads_kg=[0, 2.5], settle_s=0)
+    protocol = _two_loads()
     steps = list(iterate(protocol, final=False))
     prompts = [s for s in steps if isinstance(s, Prompt)]
     assert [p.conditions for p in prompts] == [{"load_kg": 2.5}]
@@ -291,6 +291,11 @@ def _payload_prompts(protocol):
             before = next((s.label for s in reversed(steps[:i]) if isinstance(s, Move)), None)
             out.append((step.text, step.conditions["load_kg"], before))
     return out
+
+
+def _two_loads(loads=(0, 2.5)):
+    """A short distance run at two loads (two poses, two cycles each)."""
+    return DistanceAccuracy(cycles=2, velocities_pct=[100], loads_kg=list(loads), settle_s=0)
 
 
 MOUNT_25 = "Mount a payload of 2.5 kg on the end effector, then confirm"
@@ -323,7 +328,7 @@ def _payload_rig(**operator):
 
 
 def test_a_payload_still_on_after_the_clean_up_is_asked_to_come_off_at_home(store):
-    protocol = DistanceAccuracy(cycles=2, velocities_pct=[100], loads_kg=[0, 2.5], settle_s=0)
+    protocol = _two_loads()
     assert _payload_prompts(protocol) == [(MOUNT_25, 2.5, "P2")]
     assert _payload_prompts(protocol) == [(MOUNT_25, 2.5, "P2")]  # walked again (counted, pre-flighted, run)
     rig = _payload_rig()
@@ -334,7 +339,7 @@ def test_a_payload_still_on_after_the_clean_up_is_asked_to_come_off_at_home(stor
     assert rig.operator.at[-1] == home and rig.robot.log[-2][1] == home  # asked after the clean-up's move home
     # the loads the other way round: the plan itself takes the payload off (its last load is 0 kg), once
     rig = _payload_rig()
-    reverse = DistanceAccuracy(cycles=2, velocities_pct=[100], loads_kg=[2.5, 0], settle_s=0)
+    reverse = _two_loads((2.5, 0))
     assert [text for text, _, _ in _payload_prompts(reverse)] == [MOUNT_25, REMOVE_25]
     assert Runner(rig, store).run(reverse).exit_status == "completed"
     assert [prompt.text for prompt in rig.operator.asked] == [MOUNT_25, REMOVE_25]
@@ -344,7 +349,7 @@ def test_a_payload_still_on_after_the_clean_up_is_asked_to_come_off_at_home(stor
 
 
 def test_a_stopped_run_takes_its_payload_off_and_its_resume_asks_for_it_again(store):
-    protocol = DistanceAccuracy(cycles=2, velocities_pct=[100], loads_kg=[0, 2.5], settle_s=0)
+    protocol = _two_loads()
     rig = _payload_rig(stop_on=MOUNT_25)
     rig.operator.runner = Runner(rig, store)
     stopped = rig.operator.runner.run(protocol)  # stops at the checkpoint after the first 2.5 kg cycle
@@ -375,7 +380,7 @@ class _StopAtCapture(BiasedInstrument):
 
 def test_a_resume_between_two_loads_asks_for_the_next_load_only(store):
     # stopped at the checkpoint that closes the 2.5 kg block: the resume's first step is the 5 kg confirmation
-    protocol = DistanceAccuracy(cycles=2, velocities_pct=[100], loads_kg=[2.5, 5], settle_s=0)
+    protocol = _two_loads((2.5, 5))
     rig = _payload_rig()
     rig.instrument = _StopAtCapture(at=4)
     rig.instrument.runner = Runner(rig, store)
@@ -390,7 +395,7 @@ def test_a_resume_between_two_loads_asks_for_the_next_load_only(store):
 
 def test_a_resume_with_only_the_clean_up_left_asks_for_the_removal_only(store):
     # every sample stored, the move home failed: the payload is still on, and only its removal is asked
-    protocol = DistanceAccuracy(cycles=2, velocities_pct=[100], loads_kg=[0, 2.5], settle_s=0)
+    protocol = _two_loads()
     rig = _payload_rig()
     rig.robot.fail_after = 8  # the ninth move is the clean-up's move home
     failed = Runner(rig, store).run(protocol)
@@ -413,12 +418,12 @@ def test_a_stop_during_the_removal_leaves_a_completed_run_completed(store):
     rig = _rig()
     rig.operator = _StopDuringRemoval(rig.robot)
     rig.operator.runner = Runner(rig, store)
-    result = rig.operator.runner.run(DistanceAccuracy(cycles=2, velocities_pct=[100], loads_kg=[0, 2.5], settle_s=0))
+    result = rig.operator.runner.run(_two_loads())
     assert (result.exit_status, result.samples, result.reason) == ("completed", 8, None)
 
 
 def test_a_withdrawn_removal_leaves_a_completed_run_completed(store, caplog):
-    protocol = DistanceAccuracy(cycles=2, velocities_pct=[100], loads_kg=[0, 2.5], settle_s=0)
+    protocol = _two_loads()
     rig = _payload_rig(withdraw="Remove")
     with caplog.at_level(logging.WARNING, logger="bench.protocols.runner"):
         result = Runner(rig, store).run(protocol)
@@ -564,7 +569,7 @@ class _Withdrawing(Answers):
 
 
 def test_withdrawn_prompt_aborts_without_clean_up_and_the_run_resumes(store):
-    protocol = DistanceAccuracy(cycles=2, velocities_pct=[100], loads_kg=[0, 2.5], settle_s=0)
+    protocol = _two_loads()
     robot = RecordingRobot()
     rig = _rig(robot)
     rig.operator = _Withdrawing()

@@ -10,8 +10,8 @@ rendered, as the laser grid reports it). Like a camera that exposes on demand, a
 once the host has read everything written before (the FIFO is empty), so the host holds at most the one frame taken
 when it read the previous one: :func:`bench.rigs.camera.video_grab` drops that frame before the first reading after
 a move, as it drops a real camera's queued frames. A host that closes the stream is noticed at the next turn, and
-the next one that opens it then gets a fresh stream header (a host that reopened within that turn would read the end of the earlier stream: the
-simulator's turn is 2 ms, a rehearsal opens the camera once).
+the next one that opens it then gets a fresh stream header (a host that reopened within that turn would read the
+end of the earlier stream: the simulator's turn is 2 ms, a rehearsal opens the camera once).
 """
 
 from __future__ import annotations

@@ -3,8 +3,10 @@
 Printed parts and hand-assembled joints put each joint a fraction of a millimetre off its drawing; leg zero offsets
 are set by hand; lead screws differ by fractions of a percent (methods-turn2.md §1.1: geometry explains ~90 % of
 the pose error of a lightly loaded robot). Each parameter of :data:`motion.pkm5.calibration.PARAMETERS` is drawn
-from a normal distribution of the size below, truncated at 2.5 sigma, from ``np.random.default_rng([seed, 20])``
-(a stream of its own, so the error model's draws of the same seed do not change).
+from a normal distribution of its manufacturing tolerance (:func:`motion.pkm5.calibration.tolerance`: joint
+positions 0.3 mm, leg zero offsets 0.3 mm, lead 0.5 %, the calibration's prior), truncated at 2.5 sigma, from
+``np.random.default_rng([seed, 20])`` (a stream of its own, so the error model's draws of the same seed do not
+change).
 
 The delta4 (``bench sim delta4 --true-geometry-seed SEED``): every parameter of
 :data:`motion.delta4.calibration.PARAMETERS` (servo zeros 0.3 deg; arm lengths and servo axis positions 0.3 mm: the
@@ -17,18 +19,10 @@ from __future__ import annotations
 import numpy as np
 
 from motion.pkm5 import DEFAULT_GEOMETRY, Geometry
-from motion.delta4.calibration import TOLERANCES as DELTA4_TOLERANCES
-from motion.pkm5.calibration import PARAMETERS, TOLERANCES, apply_parameters, tolerance
+from motion.pkm5.calibration import PARAMETERS, apply_parameters, tolerance
 
-__all__ = ["DELTA4_TRUE_GEOMETRY_SIGMA", "TRUE_GEOMETRY_SIGMA", "attained_poses", "delta4_true_deviations",
-           "true_geometry", "true_deviations"]
+__all__ = ["attained_poses", "delta4_true_deviations", "true_geometry", "true_deviations"]
 
-#: 1-sigma size per parameter family: the manufacturing tolerances the calibration's prior states (joint positions
-#: 0.3 mm, leg zero offsets 0.3 mm, lead 0.5 %; :data:`motion.pkm5.calibration.TOLERANCES`).
-TRUE_GEOMETRY_SIGMA = TOLERANCES
-#: 1-sigma size per delta4 parameter family: the tolerances the delta4 calibration's prior states (servo zeros 0.3 deg,
-#: arm lengths and servo axis positions 0.3 mm; :data:`motion.delta4.calibration.TOLERANCES`).
-DELTA4_TRUE_GEOMETRY_SIGMA = DELTA4_TOLERANCES
 _TRUNCATE_SIGMA = 2.5
 
 
