@@ -27,6 +27,7 @@ import numpy as np
 
 from motion import kernels
 from motion.kernels import run_chunks
+from motion.pkm5.fk_starts import RESTARTS
 from motion.pkm5.geometry import Geometry
 
 __all__ = ["use_compiled", "COMPILED_MIN_POSES", "fk_kernel_loaded", "pack_geometry", "ik_arrays", "fk_arrays",
@@ -108,10 +109,8 @@ def ik_arrays(poses: np.ndarray, geometry: Geometry, check_limits: bool):
 
 def restart_table(mode: str) -> np.ndarray:
     """The restart guesses of motion.pkm5.fk for ``mode`` as rows of four (x, y, z, angle; angle 0 in translation)."""
-    from motion.pkm5.fk import _RESTARTS
-
-    table = np.zeros((len(_RESTARTS[mode]), 4))
-    for i, start in enumerate(_RESTARTS[mode]):
+    table = np.zeros((len(RESTARTS[mode]), 4))
+    for i, start in enumerate(RESTARTS[mode]):
         table[i, :len(start)] = start
     return table
 

@@ -16,6 +16,7 @@ import numpy as np
 from motion import dual
 from motion.errors import MotionInputError
 from motion.pkm5 import compiled
+from motion.pkm5.fk_starts import RESTARTS as _RESTARTS
 from motion.pkm5.geometry import DEFAULT_GEOMETRY, Geometry, _as_legs
 from motion.pkm5.ik import inverse_kinematics, leg_lengths
 from motion.pkm5.workspace import sample_reachable
@@ -28,13 +29,6 @@ _NEUTRAL = np.array([150.0, 0.0, 300.0])          # pkm5.md §4.3 neutral guess
 #: The neutral pose (x, y, z mm, alpha, beta rad) of pkm5.md §4.3: a start for one well-conditioned solve (the home
 #: pose) that needs no seed table.
 NEUTRAL_POSE = (*_NEUTRAL, 0.0, 0.0)
-# Restarts for solutions whose residual stays above tolerance. The beta local minima sit at large positive beta and
-# low x (pkm5.md §4.3); (80, 0, 320, 0.4 rad) solved all 25 such cases among 12,567 random feasible beta poses.
-_RESTARTS = {
-    "translation": [(150.0, 0.0, 300.0), (120.0, 0.0, 320.0)],
-    "alpha": [(111.31, 0.0, 300.0, 0.0), (111.31, 0.0, 300.0, 0.4), (111.31, 0.0, 300.0, -0.4)],
-    "beta": [(80.0, 0.0, 320.0, 0.4), (150.0, 0.0, 300.0, 0.0), (120.0, 0.0, 320.0, 0.4), (150.0, 0.0, 300.0, -0.4)],
-}
 
 
 _WORKSPACE_OF_MODE = {"translation": "constant-orientation", "alpha": "alpha", "beta": "beta"}
