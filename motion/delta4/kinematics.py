@@ -11,6 +11,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from motion.delta4 import compiled
 from motion.delta4.geometry import (
@@ -90,7 +91,7 @@ def _reasons(fail_by_code: list[np.ndarray]) -> np.ndarray:
     return reason
 
 
-def inverse_kinematics(points_mm: object, geometry: Geometry = NOMINAL) -> IKResult:
+def inverse_kinematics(points_mm: ArrayLike, geometry: Geometry = NOMINAL) -> IKResult:
     """Servo angles that place the end-effector centre at each point.
 
     Parameters
@@ -251,7 +252,7 @@ def _joint_residuals(servo_deg: np.ndarray, geometry: Geometry):
 
 
 def forward_kinematics(
-    servo_deg: object,
+    servo_deg: ArrayLike,
     geometry: Geometry = NOMINAL,
     *,
     method: str = "least_squares",
@@ -321,7 +322,7 @@ def forward_kinematics(
     )
 
 
-def jacobian_deg_per_mm(points_mm: object, geometry: Geometry = NOMINAL) -> np.ndarray:
+def jacobian_deg_per_mm(points_mm: ArrayLike, geometry: Geometry = NOMINAL) -> np.ndarray:
     """Servo-angle Jacobian d theta_R / d p, shape (N, 4, 3), deg/mm.
 
     Notes

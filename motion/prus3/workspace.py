@@ -7,14 +7,14 @@ branch inside the stroke; branches are chosen freely per leg (reference ``prus3.
 
 from __future__ import annotations
 
-
 import numpy as np
+from numpy.typing import ArrayLike
 
 from motion.errors import MotionInputError
-from motion.sampling import WorkspaceVolume, as_rows, check_box, hit_or_miss_volume
 from motion.prus3.geometry import STAND_IN, Geometry, corners_mm, rotation_matrix
 from motion.prus3.kinematics import _slider_solutions, link_directions
 from motion.prus3.revolute import existence_margin
+from motion.sampling import WorkspaceVolume, as_rows, check_box, hit_or_miss_volume
 
 __all__ = [
     "DEFAULT_BOX_MM",
@@ -42,7 +42,7 @@ def _direction_ok(u: np.ndarray, geometry: Geometry, criterion: str) -> np.ndarr
     raise MotionInputError(f"criterion = {criterion!r}, expected one of {', '.join(CRITERIA)}")
 
 
-def reachable_any_branch(pose: object, geometry: Geometry = STAND_IN, *, criterion: str = "existence") -> np.ndarray:
+def reachable_any_branch(pose: ArrayLike, geometry: Geometry = STAND_IN, *, criterion: str = "existence") -> np.ndarray:
     """(N,) bool: some slider branch per leg reaches the pose within stroke and revolute ranges."""
     poses = as_rows(pose, 6, "pose")
     corners, _, _ = corners_mm(poses, geometry)
@@ -63,7 +63,7 @@ def workspace_samples(
     geometry: Geometry = STAND_IN,
     *,
     orientation_deg: tuple[float, float, float] = (0.0, 0.0, 0.0),
-    box_mm: object = DEFAULT_BOX_MM,
+    box_mm: ArrayLike = DEFAULT_BOX_MM,
     seed: int | None = 0,
     criterion: str = "existence",
 ) -> tuple[np.ndarray, np.ndarray]:
@@ -81,7 +81,7 @@ def workspace_volume(
     geometry: Geometry = STAND_IN,
     *,
     orientation_deg: tuple[float, float, float] = (0.0, 0.0, 0.0),
-    box_mm: object = DEFAULT_BOX_MM,
+    box_mm: ArrayLike = DEFAULT_BOX_MM,
     seed: int | None = 0,
     criterion: str = "existence",
     chunk: int = 500_000,
