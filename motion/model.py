@@ -87,7 +87,7 @@ def robot_models() -> dict[str, RobotModel]:
     return {model.name: model for model in models}
 
 
-def column_conditioning(jacobian, columns) -> tuple[np.ndarray, np.ndarray]:
+def column_conditioning(jacobian: ArrayLike, columns: ArrayLike) -> tuple[np.ndarray, np.ndarray]:
     """Smallest singular value and inverse condition number of each Jacobian restricted to its own columns.
 
     Parameters

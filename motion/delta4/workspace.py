@@ -73,7 +73,7 @@ def reachable_square_half_width_mm(
         ],
         axis=-1,
     )
-    ok = inverse_kinematics(points.reshape(-1, 3), geometry).reachable.reshape(len(heights), len(widths), -1)
-    square_ok = ok.all(axis=2)  # (Z, W)
+    reachable = np.asarray(inverse_kinematics(points.reshape(-1, 3), geometry).reachable)
+    square_ok = np.all(reachable.reshape(len(heights), len(widths), -1), axis=2)  # (Z, W)
     first_failure = np.where(square_ok.all(axis=1), len(widths), np.argmin(square_ok, axis=1))
     return np.where(first_failure > 0, widths[np.maximum(first_failure - 1, 0)], 0.0)

@@ -19,7 +19,7 @@ __all__ = ["Pkm5Model", "MODEL"]
 _DEG_COLS = slice(3, 5)
 
 
-def _to_radians(pose_deg) -> np.ndarray:
+def _to_radians(pose_deg: ArrayLike) -> np.ndarray:
     poses = as_poses(pose_deg, "pose").copy()
     poses[:, _DEG_COLS] = np.radians(poses[:, _DEG_COLS])
     return poses

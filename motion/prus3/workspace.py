@@ -7,6 +7,8 @@ branch inside the stroke; branches are chosen freely per leg (reference ``prus3.
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import numpy as np
 from numpy.typing import ArrayLike
 
@@ -55,7 +57,7 @@ def reachable_any_branch(pose: ArrayLike, geometry: Geometry = STAND_IN, *, crit
         sliders = t + sigma * r
         u = link_directions(corners, sliders, geometry)
         branch_ok |= (sliders >= low) & (sliders <= high) & _direction_ok(u, geometry, criterion)
-    return (ok & branch_ok).all(axis=1)
+    return np.asarray((ok & branch_ok).all(axis=1))
 
 
 def workspace_samples(
@@ -64,7 +66,7 @@ def workspace_samples(
     *,
     orientation_deg: tuple[float, float, float] = (0.0, 0.0, 0.0),
     box_mm: ArrayLike = DEFAULT_BOX_MM,
-    seed: int | None = 0,
+    seed: int | np.random.Generator | None = 0,
     criterion: str = "existence",
 ) -> tuple[np.ndarray, np.ndarray]:
     """Uniform tip positions in the box at a fixed orientation, as poses (count, 6), and reachability (count,)."""
@@ -85,7 +87,7 @@ def workspace_volume(
     seed: int | None = 0,
     criterion: str = "existence",
     chunk: int = 500_000,
-    progress=None,
+    progress: Callable[[int], object] | None = None,
 ) -> WorkspaceVolume:
     """Monte Carlo constant-orientation volume: V = p V_box, SE = V_box sqrt(p (1 - p) / N) (reference §7.2).
 
