@@ -8,6 +8,8 @@ use; each pose is computed on its own, so the results do not depend on the numbe
 from __future__ import annotations
 
 import os
+from collections.abc import Callable
+from concurrent.futures import ThreadPoolExecutor
 from functools import lru_cache
 
 from motion.errors import MotionInputError
@@ -35,7 +37,8 @@ def use_compiled(engine: str, n: int, threshold: int) -> bool:
         return False
     if engine == "compiled":
         if not available():
-            raise MotionInputError("engine = 'compiled' needs numba, which is not installed (pip install 'bench[fast]')")
+            raise MotionInputError("engine = 'compiled' needs numba, which is not installed "
+                                   "(pip install 'bench[fast]')")
         return True
     if engine != "auto":
         raise MotionInputError(f"engine = {engine!r}, expected one of {list(ENGINES)}")
@@ -43,14 +46,12 @@ def use_compiled(engine: str, n: int, threshold: int) -> bool:
 
 
 @lru_cache(maxsize=1)
-def _pool():
-    from concurrent.futures import ThreadPoolExecutor
-
+def _pool() -> ThreadPoolExecutor | None:
     workers = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
     return ThreadPoolExecutor(workers, thread_name_prefix="motion-kernel") if workers > 1 else None
 
 
-def run_chunks(work, n: int, chunk: int) -> None:
+def run_chunks(work: Callable[[slice], object], n: int, chunk: int) -> None:
     """``work(rows)`` for consecutive slices of ``chunk`` rows of ``n``, on the thread pool when there is more than
     one slice (exceptions propagate)."""
     slices = [slice(start, min(start + chunk, n)) for start in range(0, n, chunk)]

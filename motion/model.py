@@ -13,6 +13,7 @@ from dataclasses import dataclass
 from typing import Protocol, runtime_checkable
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 __all__ = ["JointSpec", "ModelIK", "ModelFK", "RobotModel", "robot_models", "MODEL_MODULES", "column_conditioning"]
 
@@ -67,13 +68,13 @@ class RobotModel(Protocol):
     joints: tuple[JointSpec, ...]
     jacobian_joints: tuple[str, ...]
 
-    def ik(self, pose: object) -> ModelIK:
+    def ik(self, pose: ArrayLike) -> ModelIK:
         """Joint values for poses (N, P)."""
 
-    def fk(self, joints: object) -> ModelFK:
+    def fk(self, joints: ArrayLike) -> ModelFK:
         """Poses for joint values (N, J)."""
 
-    def jacobian(self, pose: object) -> np.ndarray:
+    def jacobian(self, pose: ArrayLike) -> np.ndarray:
         """d(jacobian_joints)/d(pose fields), (N, len(jacobian_joints), P), in joint units per pose-field unit."""
 
     def workspace_samples(self, count: int, *, seed: int | None = 0) -> tuple[np.ndarray, np.ndarray]:
@@ -86,7 +87,7 @@ def robot_models() -> dict[str, RobotModel]:
     return {model.name: model for model in models}
 
 
-def column_conditioning(jacobian, columns) -> tuple[np.ndarray, np.ndarray]:
+def column_conditioning(jacobian: ArrayLike, columns: ArrayLike) -> tuple[np.ndarray, np.ndarray]:
     """Smallest singular value and inverse condition number of each Jacobian restricted to its own columns.
 
     Parameters

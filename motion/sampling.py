@@ -9,13 +9,14 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from motion.errors import MotionInputError
 
 __all__ = ["as_rows", "check_box", "WorkspaceVolume", "hit_or_miss_volume"]
 
 
-def as_rows(values: object, width: int, name: str) -> np.ndarray:
+def as_rows(values: ArrayLike, width: int, name: str) -> np.ndarray:
     """Coerce ``values`` to a finite float array of shape (N, width); a single row becomes N = 1."""
     array = np.asarray(values, dtype=float)
     if array.ndim == 1:
@@ -27,7 +28,7 @@ def as_rows(values: object, width: int, name: str) -> np.ndarray:
     return array
 
 
-def check_box(box_mm: object) -> np.ndarray:
+def check_box(box_mm: ArrayLike) -> np.ndarray:
     """A sampling box ((x_lo, x_hi), (y_lo, y_hi), (z_lo, z_hi)) in mm as a (3, 2) array, lo < hi."""
     box = np.asarray(box_mm, dtype=float)
     if box.shape != (3, 2) or not np.all(box[:, 0] < box[:, 1]):
@@ -46,7 +47,7 @@ class WorkspaceVolume:
     box_mm: tuple[tuple[float, float], ...]
 
 
-def hit_or_miss_volume(accepted: int, count: int, box_mm: object) -> WorkspaceVolume:
+def hit_or_miss_volume(accepted: int, count: int, box_mm: ArrayLike) -> WorkspaceVolume:
     """Hit-or-miss volume of a set from ``accepted`` of ``count`` uniform samples in ``box_mm``."""
     box = check_box(box_mm)
     box_volume = float(np.prod(box[:, 1] - box[:, 0]))

@@ -6,7 +6,8 @@ import numpy as np
 import pytest
 
 from bench.errors import ConfigError
-from bench.protocols.kinematics import ROBOT_MODELS, PreflightModel, inverse_condition, robot_model
+from bench.protocols.kinematics import PreflightModel, inverse_condition, robot_model
+from bench.robot_kinds import robot_names
 from motion import delta4, pkm5
 from motion.model import column_conditioning, robot_models
 from motion.pkm5.jacobian import mode_columns
@@ -19,7 +20,8 @@ def _samples(name: str, count: int = 600) -> np.ndarray:
 
 
 def test_models_are_the_motion_models_with_their_fields():
-    for name, model in ROBOT_MODELS.items():
+    for name in robot_names():
+        model = robot_model(name)
         assert isinstance(model, PreflightModel) and robot_model(name) is model
         assert model.kinematics is robot_models()[name]
         assert model.target_fields == model.kinematics.pose_fields

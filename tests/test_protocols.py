@@ -134,9 +134,20 @@ def test_parameter_conversion(tmp_path, text, message):
             load_protocol(path)
 
 
-@given(st.integers(min_value=2, max_value=10**6))
-def test_any_valid_cycle_count_round_trips(cycles):
-    assert PoseAccuracy(cycles=cycles, cube_side_mm=20).resolved()["cycles"] == cycles
+@settings(max_examples=40, deadline=None)
+@given(st.integers(min_value=2, max_value=40),
+       st.lists(st.sampled_from([100.0, 50.0, 10.0]), min_size=1, max_size=3, unique=True))
+def test_a_pose_plan_captures_every_pose_once_per_cycle_and_velocity(cycles, velocities):
+    """ISO 9283 7.2.1: each of P1-P5 measured `cycles` times at each velocity, in cycles 1..n visiting P1, P5, P4,
+    P3, P2 (the standard's order), velocity after velocity in the order given."""
+    protocol = PoseAccuracy(cycles=cycles, velocities_pct=velocities, cube_side_mm=20)
+    captures = [step for step in protocol.steps() if isinstance(step, Capture)]
+    assert len(captures) == 5 * cycles * len(velocities)
+    for block, velocity in enumerate(velocities):
+        visits = captures[block * 5 * cycles:(block + 1) * 5 * cycles]
+        assert {step.conditions["velocity_pct"] for step in visits} == {velocity}
+        assert [(step.pose, step.cycle) for step in visits] == [
+            (pose, cycle) for cycle in range(1, cycles + 1) for pose in ("P1", "P5", "P4", "P3", "P2")]
 
 
 # ---- cube and steps ----------------------------------------------------------------------------------------------

@@ -100,6 +100,19 @@ def test_tidy_export_orders_columns_and_keeps_values(store, tmp_path):
         export_run(store, run_id, tmp_path / "run.xls", fmt="xls")
 
 
+def test_parquet_export_holds_the_same_table_as_csv(store, tmp_path):
+    """The parquet extra (pyarrow, installed with the test extras): the same values and dtypes as the CSV."""
+    run_id = _start(store)
+    for step, (pose, x) in enumerate([("P1", 10.125), ("P2", -3.5)]):
+        store.add_sample(run_id, step, pose=pose, cycle=1, t_s=step * 0.5,
+                         values={"x_mm": x, "y_mm": 0.0, "z_mm": 300.0, "cmd_x_mm": 10.0,
+                                 "cmd_y_mm": 0.0, "cmd_z_mm": 300.0, "velocity_pct": 100.0, "load_kg": 0.0})
+    csv = pd.read_csv(export_run(store, run_id, tmp_path / "run.csv"))
+    parquet = pd.read_parquet(export_run(store, run_id, tmp_path / "run.parquet", fmt="parquet"))
+    assert parquet["x_mm"].tolist() == [10.125, -3.5] and parquet["pose"].tolist() == ["P1", "P2"]
+    pd.testing.assert_frame_equal(parquet[csv.columns], csv, check_dtype=False)
+
+
 def test_export_of_empty_run_says_so(store):
     run_id = _start(store)
     with pytest.raises(InsufficientData, match="run 1: no 'pose' samples"):

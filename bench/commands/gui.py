@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import argparse
 
-from bench.errors import ConfigError
+from bench.extras import ensure_installed
 
 
 def register(groups: argparse._SubParsersAction) -> None:
@@ -16,8 +16,7 @@ def register(groups: argparse._SubParsersAction) -> None:
 
 
 def _gui(args: argparse.Namespace) -> int:
-    try:
-        from bench.gui import launch
-    except ImportError as exc:
-        raise ConfigError(f"bench gui: PySide6 is not installed ({exc}); pip install 'PySide6-Essentials>=6.6'") from None
+    ensure_installed("PySide6")
+    from bench.gui import launch
+
     return launch(args.store, args.reports)

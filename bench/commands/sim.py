@@ -11,20 +11,16 @@ import argparse
 import importlib
 
 from bench.commands.lazy import defer
-
-#: Robot -> (simulator module, help); the module (numpy, the plant) is imported when its command is parsed.
-_SIMULATORS = {
-    "pkm5": ("bench.simulators.pkm5", "5-DOF PKM controller (line protocol, docs/protocol-pkm5.md)"),
-    "delta4": ("bench.simulators.delta4", "delta4 ATmega128 controller (ASCII protocol, docs/protocol-delta4.md)"),
-}
+from bench.robot_kinds import ROBOT_KINDS
 
 
 def register(groups: argparse._SubParsersAction) -> None:
     sim = groups.add_parser("sim", help="run a simulated robot controller on a pseudo-terminal")
     robots = sim.add_subparsers(dest="robot", metavar="ROBOT", required=True)
-    for name, (module_name, help_text) in _SIMULATORS.items():
-        parser = robots.add_parser(name, help=help_text, formatter_class=argparse.ArgumentDefaultsHelpFormatter)
-        defer(parser, lambda parser, module_name=module_name: _add_simulator_arguments(parser, module_name))
+    for name, kind in ROBOT_KINDS.items():  # the simulator module (numpy, the plant) is imported when parsed
+        parser = robots.add_parser(name, help=kind.simulator_help,
+                                   formatter_class=argparse.ArgumentDefaultsHelpFormatter)
+        defer(parser, lambda parser, module_name=kind.simulator: _add_simulator_arguments(parser, module_name))
 
 
 def _add_simulator_arguments(parser: argparse.ArgumentParser, module_name: str) -> None:

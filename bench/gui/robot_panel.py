@@ -30,11 +30,8 @@ from PySide6.QtWidgets import (
 
 from bench.errors import BenchError
 from bench.gui.worker import RigSpec
-from bench.protocols.kinematics import (
-    DEFAULT_SINGULARITY_THRESHOLD,
-    ROBOT_MODELS,
-    robot_model,
-)
+from bench.protocols.kinematics import DEFAULT_SINGULARITY_THRESHOLD, robot_model
+from bench.robot_kinds import robot_names
 
 __all__ = ["RobotPanel", "check_target", "open_mover"]
 
@@ -92,7 +89,7 @@ class RobotPanel(QGroupBox):
         self._call: _Call | None = None
         form = QFormLayout()
         self.robot = QComboBox()
-        self.robot.addItems(list(ROBOT_MODELS))
+        self.robot.addItems(list(robot_names()))
         self.connection = QComboBox()
         self.connection.addItems(["simulator", "serial port"])
         self.port = QLineEdit()

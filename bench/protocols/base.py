@@ -15,6 +15,7 @@ from typing import Any, ClassVar
 from bench.errors import ConfigError
 from bench.protocols.kinematics import DEFAULT_SINGULARITY_THRESHOLD, robot_model
 from bench.protocols.parameters import ChoiceParameter, FloatParameter, Parameter
+from bench.robot_kinds import robot_names
 from bench.steps import Move, Plan
 
 __all__ = ["PROTOCOLS", "Protocol", "load_protocol", "protocol_from_config", "register"]
@@ -40,12 +41,13 @@ class Protocol:
     name: ClassVar[str] = "base"
     version: ClassVar[str] = "0"
     title: ClassVar[str] = ""
-    robots: ClassVar[tuple[str, ...]] = ("pkm5", "delta4")
+    #: the robots it is written for; None: every robot of the registry (bench.robot_kinds)
+    robots: ClassVar[tuple[str, ...] | None] = None
     #: Keys :meth:`config` adds that state the protocol's fixed design for the report (not parameters): a stored
     #: run's configuration carries them, and rebuilding the protocol from it (a resume) leaves them out.
     design_keys: ClassVar[tuple[str, ...]] = ()
 
-    robot = ChoiceParameter("pkm5", choices=("pkm5", "delta4"), description="robot the protocol drives")
+    robot = ChoiceParameter("pkm5", choices=robot_names, description="robot the protocol drives")
     min_inverse_condition = FloatParameter(DEFAULT_SINGULARITY_THRESHOLD, minimum=0.0, maximum=1.0,
                                            description="pre-flight refuses targets whose Jacobian inverse condition "
                                                        "number is below this (singularity proximity)")
@@ -57,7 +59,7 @@ class Protocol:
             if key not in known:
                 raise ConfigError(f"{source}: unknown key {key!r}, expected one of {', '.join(sorted(known))}")
             setattr(self, key, value)
-        if self.robot not in self.robots:
+        if self.robots is not None and self.robot not in self.robots:
             raise ConfigError(f"{source}: robot = {self.robot!r}, expected one of {', '.join(self.robots)} "
                               f"for protocol {self.name!r}")
         self.validate()

@@ -11,6 +11,7 @@ The kinematics module (``motion.<robot>.model``) is imported on first use, so li
 
 from __future__ import annotations
 
+import functools
 import importlib
 from collections.abc import Callable
 from dataclasses import dataclass, replace
@@ -19,12 +20,11 @@ from functools import cached_property
 import numpy as np
 
 from bench.errors import ConfigError
-from bench.robots.delta4 import HOME_MM as DELTA4_HOME_MM
-from bench.robots.pkm5_kinematics import home_pose as pkm5_home_pose
+from bench.robot_kinds import robot_kind
 from motion.model import column_conditioning
 
-__all__ = ["DEFAULT_SINGULARITY_THRESHOLD", "ROBOT_MODELS", "PreflightModel", "TargetCheck", "inverse_condition",
-           "robot_model"]
+__all__ = ["DEFAULT_SINGULARITY_THRESHOLD", "PreflightModel", "TargetCheck", "inverse_condition", "pkm5_mode_columns",
+           "robot_model", "servo_travel_s", "stepper_travel_s"]
 
 #: Inverse condition number below which a target is refused as too close to a singularity. With the units of
 #: motion.pkm5.singularity_proximity the cube poses lie near 0.17-0.20 and the documents' beta test poses (000 Table
@@ -61,7 +61,8 @@ class PreflightModel:
     Parameters
     ----------
     name : str
-        The robot; its kinematics are ``motion.<name>.model.MODEL`` (a :class:`motion.model.RobotModel`).
+        The robot (:mod:`bench.robot_kinds`); its kinematics are the ``MODEL`` of its registered ``model`` module
+        (a :class:`motion.model.RobotModel`).
     home_of : callable
         ``home_of()``: where the robot starts and ends a campaign, in the target fields (read once, as
         :attr:`home`: the pkm5's comes from its forward kinematics, which listing the robots should not pay for).
@@ -88,9 +89,10 @@ class PreflightModel:
     @cached_property
     def kinematics(self):
         """The robot's :class:`motion.model.RobotModel` (imported on first use), of :attr:`geometry` if given."""
-        model = importlib.import_module(f"motion.{self.name}.model").MODEL
+        module = robot_kind(self.name).model
+        model = importlib.import_module(module).MODEL
         if model.name != self.name:
-            raise ConfigError(f"motion.{self.name}.model.MODEL is named {model.name!r}, expected {self.name!r}")
+            raise ConfigError(f"{module}.MODEL is named {model.name!r}, expected {self.name!r}")
         return model if self.geometry is None else replace(model, geometry=self.geometry)
 
     @property
@@ -131,7 +133,7 @@ class PreflightModel:
         return self.travel_s(self.kinematics, np.nan_to_num(travel), velocity_pct)
 
 
-def _stepper_travel_s(kinematics, travel_mm: np.ndarray, velocity_pct: np.ndarray) -> np.ndarray:
+def stepper_travel_s(kinematics, travel_mm: np.ndarray, velocity_pct: np.ndarray) -> np.ndarray:
     """Constant-speed MultiStepper moves: all legs arrive together, the leg with the most steps runs at the set
     speed (100 % = the firmware's maximum, 200 steps/s) and sets the time."""
     g = kinematics.geometry
@@ -143,28 +145,27 @@ def _stepper_travel_s(kinematics, travel_mm: np.ndarray, velocity_pct: np.ndarra
 _DELTA4_SERVO_DEG_PER_S = 300.0
 
 
-def _servo_travel_s(kinematics, travel_deg: np.ndarray, velocity_pct: np.ndarray) -> np.ndarray:
+def servo_travel_s(kinematics, travel_deg: np.ndarray, velocity_pct: np.ndarray) -> np.ndarray:
     """Hobby servos turn together at their own speed: the longest turn sets the time."""
     return travel_deg.max(axis=1) / (_DELTA4_SERVO_DEG_PER_S * velocity_pct / 100.0)
 
 
-def _pkm5_mode_columns(targets: np.ndarray) -> np.ndarray:
+def pkm5_mode_columns(targets: np.ndarray) -> np.ndarray:
     """The pkm5's motion mode: x, y, z always, alpha or beta when non-zero (pkm5.md §5.2)."""
     from motion.pkm5.jacobian import mode_columns
 
     return mode_columns(targets)
 
 
-ROBOT_MODELS: dict[str, PreflightModel] = {
-    # the documents' home (every actuator at 5 mm stroke), from the geometry's FK: (88.649, 0, 300.937, 0, 0)
-    "pkm5": PreflightModel("pkm5", pkm5_home_pose, _stepper_travel_s, _pkm5_mode_columns),
-    "delta4": PreflightModel("delta4", lambda: DELTA4_HOME_MM, _servo_travel_s),
-}
-
-
 def robot_model(name: str) -> PreflightModel:
-    """The pre-flight model of robot ``name``; ``ConfigError`` lists the known robots."""
-    try:
-        return ROBOT_MODELS[name]
-    except KeyError:
-        raise ConfigError(f"--robot {name}: expected one of {', '.join(ROBOT_MODELS)}") from None
+    """The pre-flight model of robot ``name`` (its :mod:`bench.robot_kinds` record), one per robot; ``ConfigError``
+    lists the known robots."""
+    robot_kind(name)  # an unknown (or unhashable) name is refused here, before the cache sees it
+    return _preflight_model(name)
+
+
+@functools.cache
+def _preflight_model(name: str) -> PreflightModel:
+    kind = robot_kind(name)
+    mode_columns = kind.resolved("mode_columns") if kind.mode_columns else _all_columns
+    return PreflightModel(name, kind.resolved("home"), kind.resolved("travel_time"), mode_columns)

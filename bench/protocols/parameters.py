@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import math
 import re
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from typing import Any
 
 from bench.errors import ConfigError
@@ -169,11 +169,17 @@ class TextParameter(Parameter):
 
 
 class ChoiceParameter(Parameter):
-    """One of a fixed set of strings, e.g. ``robot = ChoiceParameter("pkm5", choices=("pkm5", "delta4"))``."""
+    """One of a set of strings, e.g. ``ChoiceParameter("line", choices=("line", "circle"))``; ``choices`` may be a
+    function that lists them when asked (the registered robots: :func:`bench.robot_kinds.robot_names`)."""
 
-    def __init__(self, default: str, *, choices: Sequence[str], description: str = "") -> None:
-        self.choices = tuple(choices)
+    def __init__(self, default: str, *, choices: Sequence[str] | Callable[[], Sequence[str]],
+                 description: str = "") -> None:
+        self._choices = choices
         super().__init__(default, description=description)
+
+    @property
+    def choices(self) -> tuple[str, ...]:
+        return tuple(self._choices() if callable(self._choices) else self._choices)
 
     @property
     def expected(self) -> str:

@@ -28,6 +28,7 @@ from bench.rigs.interfaces import Operator, Rig
 from bench.rigs.movers import DeltaMover, Pkm5Mover
 from bench.rigs.registration import home_before_registering, register_at_home
 from bench.rigs.station import CAPTURE_CAPABILITIES, Station
+from bench.robot_kinds import robot_kind
 from bench.robots.link import open_port
 
 __all__ = ["build_rig", "check_capabilities", "mouse_calibration", "open_mover"]
@@ -205,13 +206,7 @@ def _open_camera(station: Station, opened: ExitStack) -> Any:
 
 
 def _home(robot: str) -> tuple[float, ...]:
-    if robot == "pkm5":
-        from bench.robots.pkm5_kinematics import home_pose
-
-        return home_pose()
-    from bench.robots.delta4 import HOME_MM
-
-    return HOME_MM
+    return tuple(robot_kind(robot).resolved("home")())
 
 
 def _open_calliper(station: Station, opened: ExitStack) -> Any:

@@ -51,7 +51,9 @@ def video_grab(device: str) -> tuple[Callable[[], np.ndarray], Callable[[], np.n
     keeps a deeper queue: ``grab`` then drops one stale frame of several, and ``camera.frames`` > 1 averages the
     rest in with the new frames; such a camera needs its driver's buffer set to one (or its frames read as they
     come, between readings)."""
-    import cv2
+    from bench.extras import require
+
+    cv2 = require("cv2")
 
     from bench.errors import LinkError
 

@@ -126,7 +126,9 @@ def _serial_opens(port_name: str, baud: int) -> str:
 
 
 def _camera(device: str, calibration: str) -> str:
-    import cv2
+    from bench.extras import require
+
+    cv2 = require("cv2")
 
     if not os.path.exists(calibration):
         raise OSError(errno.ENOENT, f"calibration file {calibration} not found")

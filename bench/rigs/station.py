@@ -47,12 +47,12 @@ from pathlib import Path
 from typing import Any
 
 from bench.errors import ConfigError
+from bench.robot_kinds import robot_kind, robot_names
 
 __all__ = ["CAPABILITY_KEYS", "CAPTURE_CAPABILITIES", "CalliperSpec", "CameraSpec", "ControllerSpec", "Identity", "LabStoreSpec",
            "LaserGridSpec", "MiceSpec", "Station", "load_station", "parse_station"]
 
-#: The robots a station can name, with their controllers' documented baud rates (docs/protocol-*.md).
-ROBOT_BAUD = {"pkm5": 115200, "delta4": 9600}
+#: Every fixture a controller can be in; which a robot supports is its registry record's ``fixtures``.
 FIXTURES = ("assembled", "actuator-bench")
 CALLIPER_KINDS = ("typed", "serial")
 
@@ -272,7 +272,7 @@ def parse_station(data: Mapping[str, Any], *, source: str = "station") -> Statio
             raise ConfigError(f"{source}: [{required}] missing, expected a table ({example})")
     head = _Table(source, "station", data.get("station", {}))
     robot_table = _Table(source, "robot", data["robot"])
-    robot = robot_table.choice("kind", tuple(ROBOT_BAUD), None)
+    robot = robot_table.choice("kind", robot_names(), None)
     identity = Identity(bench=head.get("name", str, Path(source).stem), lab=head.get("lab", str, ""),
                         operator=head.get("operator", str, ""), robot_serial=robot_table.get("serial", str, ""),
                         robot_asset=robot_table.get("asset", str, ""), customer=head.get("customer", str, ""),
@@ -282,11 +282,13 @@ def parse_station(data: Mapping[str, Any], *, source: str = "station") -> Statio
 
     table = _Table(source, "controller", data["controller"])
     controller = ControllerSpec(port=table.get("port", str, required=True, expected="a serial port, e.g. /dev/ttyUSB0"),
-                                baud=int(table.get("baud", int, ROBOT_BAUD[robot], expected="a baud rate (integer)")),
+                                baud=int(table.get("baud", int, robot_kind(robot).baud,
+                                                   expected="a baud rate (integer)")),
                                 fixture=table.choice("fixture", FIXTURES, "assembled"))
     table.done()
-    if controller.fixture == "actuator-bench" and robot != "pkm5":
-        raise _fail(source, "controller.fixture", controller.fixture, "'assembled' (the actuator bench is the pkm5's)")
+    if controller.fixture not in robot_kind(robot).fixtures:
+        raise _fail(source, "controller.fixture", controller.fixture,
+                    f"one of the {robot}'s fixtures: {', '.join(robot_kind(robot).fixtures)}")
     devices = {"controller.port": controller.port}
 
     mice = calliper = grid = camera = None

@@ -24,7 +24,7 @@ from bench.errors import ConfigError, LinkError, LinkTimeout, UnreachableTarget
 from bench.robots import delta4_wire as wire
 from bench.robots.link import Deadline, WireProtocolError
 
-__all__ = ["DEFAULT_BAUDRATE", "HOME_MM", "Delta4Controller", "MoveResult", "PotReading", "SensorFrame"]
+__all__ = ["DEFAULT_BAUDRATE", "HOME_MM", "home_pose", "Delta4Controller", "MoveResult", "PotReading", "SensorFrame"]
 
 _log = logging.getLogger(__name__)
 
@@ -35,6 +35,11 @@ HOME_MM = (0.0, 0.0, -150.0)
 _SENSOR_EXPECTED = "a sensor report (H<n>X, V<n>X, h or v)"
 _POTS_EXPECTED = "the pot counts p<n>X q<n>X r<n>X s<n>X (firmware with pot readback, docs/protocol-delta4.md)"
 _CAPABILITY_EXPECTED = "c<ddddd>X (firmware with fine references, docs/protocol-delta4.md)"
+
+
+def home_pose() -> tuple[float, ...]:
+    """The delta4's home pose (x, y, z mm): :data:`HOME_MM` (the robot registry's ``home``)."""
+    return HOME_MM
 
 
 @dataclass(frozen=True)

@@ -109,6 +109,9 @@ class WedgeListener:
         self._listener: Any = None
 
     def start(self) -> None:
+        from bench.extras import ensure_installed
+
+        ensure_installed("pynput")
         try:
             from pynput import (
                 keyboard,  # imported here: pynput needs a display or uinput at import time

@@ -11,11 +11,13 @@ import datetime as _dt
 from collections.abc import Callable
 from dataclasses import dataclass
 
-import cv2
 import numpy as np
 
 from bench.errors import ConfigError
+from bench.extras import require
 from bench.sensors.reading import MalformedSample, Reading, now
+
+cv2 = require("cv2")  # the camera extra: a station without a camera never imports this module
 
 __all__ = ["LaserSpotCamera", "PlaneCalibration", "SpotDetection", "calibrate_from_chessboard", "detect_spot"]
 

@@ -30,6 +30,9 @@ class PointerMethodWarning(UserWarning):
 
 
 def _pynput_position() -> Callable[[], tuple[float, float]]:
+    from bench.extras import ensure_installed
+
+    ensure_installed("pynput")
     try:
         from pynput import mouse  # needs a display at import time
     except ImportError as exc:  # pynput's backends refuse to import without a display

@@ -24,6 +24,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from bench.errors import ConfigError, InsufficientData
+from bench.extras import install_hint
 from bench.store.database import Store
 from bench.store.descriptors import SAMPLE_KINDS, dtype_of, unit_of
 from bench.store.registrations import registration_of, registrations
@@ -165,7 +166,7 @@ def export_run(store: Store, run_id: int, path: str | Path, fmt: str = "csv", ki
     if fmt not in EXPORT_FORMATS:
         raise ConfigError(f"--format {fmt}: expected one of {', '.join(EXPORT_FORMATS)}")
     if fmt == "parquet" and not _parquet_available():
-        raise ConfigError("--format parquet: needs pyarrow (pip install pyarrow); use --format csv")
+        raise ConfigError(f"--format parquet: {install_hint('pyarrow')} (or use --format csv)")
     table = series_table(store, run_id, kind=kind) if series else tidy_table(store, run_id, kind=kind)
     path = Path(path)
     if fmt == "csv":

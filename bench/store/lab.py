@@ -146,11 +146,9 @@ def redacted(url: str) -> str:
 
 
 def _psycopg():
-    try:
-        import psycopg
-    except ImportError as exc:
-        raise ConfigError('the lab store needs psycopg 3: pip install "psycopg[binary]"') from exc
-    return psycopg
+    from bench.extras import require
+
+    return require("psycopg")
 
 
 def _one_line(exc: BaseException) -> str:

@@ -13,6 +13,7 @@ sets on (numba and the cached kernel load in 0.3-1 s a process).
 from __future__ import annotations
 
 from functools import lru_cache
+from typing import Any
 
 import numpy as np
 
@@ -32,13 +33,14 @@ def use_compiled(engine: str, n: int) -> bool:
 
 
 @lru_cache(maxsize=1)
-def _kernel():
+def _kernel() -> Any:
     import math
 
     from numba import njit
 
     @njit(cache=True, nogil=True, error_model="numpy")
-    def gauss_newton_rows(start, knees, outward, offset_mm, lower_arm_mm, iterations, tolerance_mm, pose, converged):
+    def gauss_newton_rows(start, knees,  # type: ignore[no-untyped-def]  # numba infers the kernel's types
+                           outward, offset_mm, lower_arm_mm, iterations, tolerance_mm, pose, converged):
         for row in range(start.shape[0]):
             px, py, pz = start[row, 0], start[row, 1], start[row, 2]
             ok = False
@@ -85,7 +87,8 @@ def _kernel():
     return gauss_newton_rows
 
 
-def gauss_newton(start: np.ndarray, knees: np.ndarray, geometry: Geometry, iterations: int, tolerance_mm: float):
+def gauss_newton(start: np.ndarray, knees: np.ndarray, geometry: Geometry, iterations: int,
+                 tolerance_mm: float) -> tuple[np.ndarray, np.ndarray]:
     """Least-squares FK of N poses from starts (N, 3) and knees (N, 4, 3) mm: pose (N, 3), converged (N,)."""
     kernel = _kernel()
     start, knees = np.ascontiguousarray(start, dtype=float), np.ascontiguousarray(knees, dtype=float)
@@ -93,7 +96,7 @@ def gauss_newton(start: np.ndarray, knees: np.ndarray, geometry: Geometry, itera
     pose, converged = np.empty((n, 3)), np.empty(n, bool)
     outward = np.ascontiguousarray(LEG_OUTWARD, dtype=float)
 
-    def some_rows(rows):
+    def some_rows(rows: slice) -> None:
         kernel(start[rows], knees[rows], outward, float(geometry.ankle_offset_mm), float(geometry.lower_arm_mm),
                iterations, tolerance_mm, pose[rows], converged[rows])
 

@@ -7,6 +7,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from motion.delta4.geometry import NOMINAL, Geometry, coord_from_servo_deg, servo_from_coord_deg
 from motion.delta4.kinematics import forward_kinematics, inverse_kinematics
@@ -29,7 +30,7 @@ _ADC_FULL_SCALE = 255
 _LEGACY_FACTOR = float(np.float32(255.0 / 190.0))  # VB Single-precision factor
 
 
-def quantise_thesis_deg(servo_deg: object, step_deg: float = THESIS_QUANTUM_DEG) -> np.ndarray:
+def quantise_thesis_deg(servo_deg: ArrayLike, step_deg: float = THESIS_QUANTUM_DEG) -> np.ndarray:
     """The thesis' quantisation rule theta_q = floor(theta_R / step) * step, deg (same shape as the input).
 
     This is the modelling rule of thesis §8.2.1 (reference TV7), not the ADC transfer function
@@ -52,7 +53,8 @@ def _check_direction(direction: int) -> None:
         raise MotionInputError(f"direction = {direction!r}, expected +1 (count 0 at the low stop) or -1")
 
 
-def adc_counts(servo_deg: object, *, stops_deg: tuple[float, float] = (30.0, 170.0), direction: int = 1) -> np.ndarray:
+def adc_counts(servo_deg: ArrayLike, *, stops_deg: tuple[float, float] = (30.0, 170.0),
+               direction: int = 1) -> np.ndarray:
     """8-bit pot ADC counts for servo angles, in ``calibrated`` mode (reference §5.8 b).
 
     count = round(255 / (high - low) * (theta_R - low)) for direction +1, or with (high - theta_R) for -1 (the
@@ -67,7 +69,7 @@ def adc_counts(servo_deg: object, *, stops_deg: tuple[float, float] = (30.0, 170
 
 
 def servo_deg_from_counts(
-    counts: object, *, stops_deg: tuple[float, float] = (30.0, 170.0), direction: int = 1
+    counts: ArrayLike, *, stops_deg: tuple[float, float] = (30.0, 170.0), direction: int = 1
 ) -> np.ndarray:
     """Servo angle (deg) at the centre of each ADC count: the inverse of :func:`adc_counts`."""
     _check_direction(direction)
@@ -76,7 +78,7 @@ def servo_deg_from_counts(
     return low + travel if direction == 1 else high - travel
 
 
-def legacy_command_byte(servo_deg: object) -> np.ndarray:
+def legacy_command_byte(servo_deg: ArrayLike) -> np.ndarray:
     """Command byte of the legacy VB client: round-half-up(theta_R * 255/190), integer array.
 
     The VB code accepts theta_R <= 160 deg only (and never checked a lower bound); here angles outside
@@ -115,7 +117,7 @@ class VibrationResult:
 
 
 def vibration_envelope(
-    points_mm: object,
+    points_mm: ArrayLike,
     geometry: Geometry = NOMINAL,
     *,
     amplitude_deg: float = 1.0,

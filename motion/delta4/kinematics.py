@@ -8,9 +8,11 @@ pose with a reason code; outputs stay finite. Reference: ``delta4-lasergrid.md``
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from motion.delta4 import compiled
 from motion.delta4.geometry import (
@@ -74,6 +76,9 @@ class FKResult:
     ok: np.ndarray
     reason: np.ndarray
 
+#: ``pose (N, 3) -> (residual (N, 4), Jacobian (N, 4, 3))`` of a Gauss-Newton solve.
+Residuals = Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]]
+
 
 def _reasons(fail_by_code: list[np.ndarray]) -> np.ndarray:
     """(N,) reason strings from per-code (N, 4) failure masks; first code and first leg win. Whole arrays at a
@@ -90,7 +95,7 @@ def _reasons(fail_by_code: list[np.ndarray]) -> np.ndarray:
     return reason
 
 
-def inverse_kinematics(points_mm: object, geometry: Geometry = NOMINAL) -> IKResult:
+def inverse_kinematics(points_mm: ArrayLike, geometry: Geometry = NOMINAL) -> IKResult:
     """Servo angles that place the end-effector centre at each point.
 
     Parameters
@@ -210,7 +215,7 @@ def _leg_vectors(pose: np.ndarray, knees: np.ndarray, geometry: Geometry) -> np.
 
 
 def _gauss_newton(
-    pose: np.ndarray, residual_and_jacobian, *, iterations: int, tolerance_mm: float
+    pose: np.ndarray, residual_and_jacobian: Residuals, *, iterations: int, tolerance_mm: float
 ) -> tuple[np.ndarray, np.ndarray]:
     """Batched Gauss-Newton: ``residual_and_jacobian(pose) -> (r (N, 4), J (N, 4, 3))``; returns pose, converged."""
     converged = np.zeros(len(pose), dtype=bool)
@@ -230,7 +235,7 @@ def _gauss_newton(
     return pose, converged
 
 
-def _sphere_residuals(knees: np.ndarray, geometry: Geometry):
+def _sphere_residuals(knees: np.ndarray, geometry: Geometry) -> Residuals:
     """Cartesian residuals |A_i(p) - K_i| - R0 (mm) and their Jacobian (reference §2.6)."""
 
     def evaluate(pose: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -241,7 +246,7 @@ def _sphere_residuals(knees: np.ndarray, geometry: Geometry):
     return evaluate
 
 
-def _joint_residuals(servo_deg: np.ndarray, geometry: Geometry):
+def _joint_residuals(servo_deg: np.ndarray, geometry: Geometry) -> Residuals:
     """Joint-space residuals IK_i(p) - theta_Ri (deg) and their Jacobian (reference §2.6, "variant")."""
 
     def evaluate(pose: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -251,7 +256,7 @@ def _joint_residuals(servo_deg: np.ndarray, geometry: Geometry):
 
 
 def forward_kinematics(
-    servo_deg: object,
+    servo_deg: ArrayLike,
     geometry: Geometry = NOMINAL,
     *,
     method: str = "least_squares",
@@ -308,7 +313,8 @@ def forward_kinematics(
                 _sphere_residuals(knees, geometry) if method == "least_squares" else _joint_residuals(servo, geometry)
             )
             pose, converged = _gauss_newton(start, residuals, iterations=iterations, tolerance_mm=tolerance_mm)
-        reason = np.where(converged, None, "not_converged")
+        reason = np.full(len(converged), None, dtype=object)
+        reason[~converged] = "not_converged"
         ok = converged
     leg_residual = np.linalg.norm(_leg_vectors(pose, knees, geometry), axis=2) - geometry.lower_arm_mm
     return FKResult(
@@ -321,7 +327,7 @@ def forward_kinematics(
     )
 
 
-def jacobian_deg_per_mm(points_mm: object, geometry: Geometry = NOMINAL) -> np.ndarray:
+def jacobian_deg_per_mm(points_mm: ArrayLike, geometry: Geometry = NOMINAL) -> np.ndarray:
     """Servo-angle Jacobian d theta_R / d p, shape (N, 4, 3), deg/mm.
 
     Notes

@@ -5,6 +5,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from motion.delta4.geometry import NOMINAL, Geometry
 from motion.delta4.kinematics import forward_kinematics, inverse_kinematics, jacobian_deg_per_mm
@@ -36,18 +37,18 @@ class Delta4Model:
         object.__setattr__(self, "joints", specs)
         object.__setattr__(self, "jacobian_joints", tuple(spec.name for spec in specs))
 
-    def ik(self, pose: object) -> ModelIK:
+    def ik(self, pose: ArrayLike) -> ModelIK:
         result = inverse_kinematics(pose, self.geometry)
         return ModelIK(joints=result.servo_deg, reachable=result.reachable, reason=result.reason)
 
-    def fk(self, joints: object) -> ModelFK:
+    def fk(self, joints: ArrayLike) -> ModelFK:
         if not isinstance(self.geometry, Geometry):
             pose = self.geometry.attained_mm(as_rows(joints, 4, "joints"))
             return ModelFK(pose=pose, residual_mm=np.full(len(pose), np.nan), ok=np.all(np.isfinite(pose), axis=1))
         result = forward_kinematics(joints, self.geometry)
         return ModelFK(pose=result.pose_mm, residual_mm=result.residual_mm, ok=result.ok)
 
-    def jacobian(self, pose: object) -> np.ndarray:
+    def jacobian(self, pose: ArrayLike) -> np.ndarray:
         return jacobian_deg_per_mm(pose, self.geometry)
 
     def workspace_samples(self, count: int, *, seed: int | None = 0) -> tuple[np.ndarray, np.ndarray]:

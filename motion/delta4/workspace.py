@@ -6,8 +6,8 @@ angles within the geometry's limits). Reference: ``delta4-lasergrid.md`` §1.7.
 
 from __future__ import annotations
 
-
 import numpy as np
+from numpy.typing import ArrayLike
 
 from motion.delta4.geometry import NOMINAL, Geometry
 from motion.delta4.kinematics import inverse_kinematics
@@ -28,7 +28,7 @@ DEFAULT_BOX_MM = ((-250.0, 250.0), (-250.0, 250.0), (-300.0, 0.0))
 
 
 def workspace_samples(
-    count: int, geometry: Geometry = NOMINAL, *, box_mm: object = DEFAULT_BOX_MM, seed: int | None = 0
+    count: int, geometry: Geometry = NOMINAL, *, box_mm: ArrayLike = DEFAULT_BOX_MM, seed: int | None = 0
 ) -> tuple[np.ndarray, np.ndarray]:
     """Uniform random points in the box, (count, 3) mm, and their reachability, (count,) bool."""
     if count < 1:
@@ -39,7 +39,7 @@ def workspace_samples(
 
 
 def workspace_volume(
-    count: int = 200_000, geometry: Geometry = NOMINAL, *, box_mm: object = DEFAULT_BOX_MM, seed: int | None = 0
+    count: int = 200_000, geometry: Geometry = NOMINAL, *, box_mm: ArrayLike = DEFAULT_BOX_MM, seed: int | None = 0
 ) -> WorkspaceVolume:
     """Monte Carlo volume of the reachable set: V = p V_box, SE = V_box sqrt(p (1 - p) / count)."""
     box = check_box(box_mm)
@@ -48,7 +48,7 @@ def workspace_volume(
 
 
 def reachable_square_half_width_mm(
-    z_mm: object, geometry: Geometry = NOMINAL, *, step_mm: float = 2.5, grid: int = 13, max_mm: float = 250.0
+    z_mm: ArrayLike, geometry: Geometry = NOMINAL, *, step_mm: float = 2.5, grid: int = 13, max_mm: float = 250.0
 ) -> np.ndarray:
     """Largest half-width h (mm, a multiple of ``step_mm``) such that every centred square of half-width
     <= h at height z is reachable, checked on a ``grid`` x ``grid`` lattice of each square. (Z,) array.
@@ -73,7 +73,7 @@ def reachable_square_half_width_mm(
         ],
         axis=-1,
     )
-    ok = inverse_kinematics(points.reshape(-1, 3), geometry).reachable.reshape(len(heights), len(widths), -1)
-    square_ok = ok.all(axis=2)  # (Z, W)
+    reachable = np.asarray(inverse_kinematics(points.reshape(-1, 3), geometry).reachable)
+    square_ok = np.all(reachable.reshape(len(heights), len(widths), -1), axis=2)  # (Z, W)
     first_failure = np.where(square_ok.all(axis=1), len(widths), np.argmin(square_ok, axis=1))
     return np.where(first_failure > 0, widths[np.maximum(first_failure - 1, 0)], 0.0)

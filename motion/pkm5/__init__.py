@@ -7,9 +7,9 @@ mm, shape (N, 6). Three motion modes as in the documents: translation, translati
 x = 111.31 mm), translation + beta; alpha and beta together are refused (parasitic gamma is not modelled).
 """
 
+from motion.pkm5.fk import NEUTRAL_POSE, FKResult, detect_mode, forward_kinematics
 from motion.pkm5.geometry import DEFAULT_GEOMETRY, Geometry, lengths_to_steps, steps_to_lengths
 from motion.pkm5.ik import Failure, IKResult, bracket_vectors, inverse_kinematics
-from motion.pkm5.fk import NEUTRAL_POSE, FKResult, detect_mode, forward_kinematics
 from motion.pkm5.jacobian import SingularityProximity, jacobian, singularity_proximity
 from motion.pkm5.nr import NRResult, forward_kinematics_nr
 from motion.pkm5.workspace import WORKSPACE_KINDS, WorkspaceEstimate, estimate_workspace, sample_reachable

@@ -22,11 +22,13 @@ from __future__ import annotations
 
 import sys
 from functools import lru_cache
+from types import ModuleType
 
 import numpy as np
 
 from motion import kernels
 from motion.kernels import run_chunks
+from motion.pkm5.fk_starts import RESTARTS
 from motion.pkm5.geometry import Geometry
 
 __all__ = ["use_compiled", "COMPILED_MIN_POSES", "fk_kernel_loaded", "pack_geometry", "ik_arrays", "fk_arrays",
@@ -58,7 +60,7 @@ def pack_geometry(geometry: Geometry) -> np.ndarray:
 
 
 @lru_cache(maxsize=1)
-def _kernels():
+def _kernels() -> ModuleType:
     """Compile (or load from numba's cache) the kernels; numba is imported here, on first use only."""
     from motion.pkm5 import _kernels
 
@@ -72,7 +74,8 @@ def fk_kernel_loaded() -> bool:
     return module is not None and bool(module.fk_batch.signatures)
 
 
-def ik_arrays(poses: np.ndarray, geometry: Geometry, check_limits: bool):
+def ik_arrays(poses: np.ndarray, geometry: Geometry,
+              check_limits: bool) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Lengths (N, 6), tilts (N, 6), failure flags (N,), length_ok and tilt_ok (N, 6) of validated poses (N, 5).
 
     Per block of ``_kernels.IK_BLOCK`` poses (in cache): a kernel writes the lengths and the tilt components, one row
@@ -89,7 +92,7 @@ def ik_arrays(poses: np.ndarray, geometry: Geometry, check_limits: bool):
     failure = np.empty(n, np.int64)
     length_ok, tilt_ok = np.empty((n, 6), bool), np.empty((n, 6), bool)
 
-    def some_blocks(rows):
+    def some_blocks(rows: slice) -> None:
         inputs, outputs = np.empty(kernels.IN_ROWS * block_size), np.empty(kernels.OUT_ROWS * block_size)
         by_row = outputs.reshape(kernels.OUT_ROWS, block_size)
         for start in range(rows.start, rows.stop, block_size):
@@ -108,16 +111,14 @@ def ik_arrays(poses: np.ndarray, geometry: Geometry, check_limits: bool):
 
 def restart_table(mode: str) -> np.ndarray:
     """The restart guesses of motion.pkm5.fk for ``mode`` as rows of four (x, y, z, angle; angle 0 in translation)."""
-    from motion.pkm5.fk import _RESTARTS
-
-    table = np.zeros((len(_RESTARTS[mode]), 4))
-    for i, start in enumerate(_RESTARTS[mode]):
+    table = np.zeros((len(RESTARTS[mode]), 4))
+    for i, start in enumerate(RESTARTS[mode]):
         table[i, :len(start)] = start
     return table
 
 
 def fk_arrays(q0: np.ndarray, target: np.ndarray, mode: str, geometry: Geometry, max_iter: int, step_tol: float,
-              retry_above_mm: float):
+              retry_above_mm: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """LM with restarts for one mode's rows, as fk._with_restarts: q (n, k), cost, iterations, stationary flag.
 
     Each pose is solved on its own, so chunks of rows run on the thread pool with the same results."""
@@ -129,7 +130,7 @@ def fk_arrays(q0: np.ndarray, target: np.ndarray, mode: str, geometry: Geometry,
     kernel, target, packed, code = _kernels().fk_batch, np.ascontiguousarray(target), pack_geometry(geometry), \
         MODE_CODES[mode]
 
-    def some_rows(rows):
+    def some_rows(rows: slice) -> None:
         kernel(target[rows], q[rows], code, restarts, len(restarts), packed, max_iter, step_tol, retry_above_mm,
                cost[rows], iterations[rows], done[rows])
 
@@ -138,7 +139,8 @@ def fk_arrays(q0: np.ndarray, target: np.ndarray, mode: str, geometry: Geometry,
 
 
 def fk_pose(target: np.ndarray, q0: np.ndarray, mode: int, restarts: np.ndarray, packed: np.ndarray,
-            max_iter: int = 50, step_tol: float = 1e-9, retry_above_mm: float = 1e-9):
+            max_iter: int = 50, step_tol: float = 1e-9,
+            retry_above_mm: float = 1e-9) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """One pose, one compiled call (the per-pose peer of the batched FK): cost, iterations, stationary (1,) arrays.
 
     ``target`` (1, 6); ``q0`` (1, 4) holds x, y, z and the mode angle (ignored in translation mode) and receives

@@ -10,12 +10,15 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from functools import lru_cache
+from typing import Any
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from motion import dual
 from motion.errors import MotionInputError
 from motion.pkm5 import compiled
+from motion.pkm5.fk_starts import RESTARTS as _RESTARTS
 from motion.pkm5.geometry import DEFAULT_GEOMETRY, Geometry, _as_legs
 from motion.pkm5.ik import inverse_kinematics, leg_lengths
 from motion.pkm5.workspace import sample_reachable
@@ -28,13 +31,6 @@ _NEUTRAL = np.array([150.0, 0.0, 300.0])          # pkm5.md §4.3 neutral guess
 #: The neutral pose (x, y, z mm, alpha, beta rad) of pkm5.md §4.3: a start for one well-conditioned solve (the home
 #: pose) that needs no seed table.
 NEUTRAL_POSE = (*_NEUTRAL, 0.0, 0.0)
-# Restarts for solutions whose residual stays above tolerance. The beta local minima sit at large positive beta and
-# low x (pkm5.md §4.3); (80, 0, 320, 0.4 rad) solved all 25 such cases among 12,567 random feasible beta poses.
-_RESTARTS = {
-    "translation": [(150.0, 0.0, 300.0), (120.0, 0.0, 320.0)],
-    "alpha": [(111.31, 0.0, 300.0, 0.0), (111.31, 0.0, 300.0, 0.4), (111.31, 0.0, 300.0, -0.4)],
-    "beta": [(80.0, 0.0, 320.0, 0.4), (150.0, 0.0, 300.0, 0.0), (120.0, 0.0, 320.0, 0.4), (150.0, 0.0, 300.0, -0.4)],
-}
 
 
 _WORKSPACE_OF_MODE = {"translation": "constant-orientation", "alpha": "alpha", "beta": "beta"}
@@ -48,7 +44,8 @@ _BRUTE_FORCE_MAX_TARGETS = 64
 
 
 @lru_cache(maxsize=16)
-def _seed_table(mode: str, geometry: Geometry, size: int = 4000):
+def _seed_table(mode: str, geometry: Geometry,
+                size: int = 4000) -> tuple[np.ndarray, np.ndarray] | tuple[None, None]:
     """Reachable poses of a mode and their leg lengths, to start each solve near its answer.
 
     Built once per (mode, geometry) from a fixed-seed sample, so results stay deterministic."""
@@ -56,12 +53,13 @@ def _seed_table(mode: str, geometry: Geometry, size: int = 4000):
         poses = sample_reachable(size, kinds=(_WORKSPACE_OF_MODE[mode],), seed=20241123, geometry=geometry)
     except MotionInputError:  # a geometry with no reachable pose in the box: fall back to the neutral guess
         return None, None
-    cols = [0, 1, 2] + ([MODES[mode]] if MODES[mode] is not None else [])
+    angle_col = MODES[mode]
+    cols = [0, 1, 2] + ([angle_col] if angle_col is not None else [])
     return poses[:, cols], inverse_kinematics(poses, geometry).lengths_mm
 
 
 @lru_cache(maxsize=16)
-def _seed_tree(mode: str, geometry: Geometry):
+def _seed_tree(mode: str, geometry: Geometry) -> Any:
     """A k-d tree over the seed table's leg lengths, for large batches. scipy.spatial is imported here, not at the
     top: an inverse-kinematics caller (``bench kin ik``) and a small batch never pay for it."""
     from scipy.spatial import cKDTree
@@ -74,13 +72,15 @@ def _nearest_seed(target: np.ndarray, mode: str, geometry: Geometry) -> np.ndarr
     target is solved alone or in a large batch."""
     if len(target) > _BRUTE_FORCE_MAX_TARGETS:
         return _seed_tree(mode, geometry).query(target, workers=-1)[1]
-    difference = target[:, None, :] - _seed_table(mode, geometry)[1][None, :, :]
+    lengths = _seed_table(mode, geometry)[1]
+    assert lengths is not None  # _initial_guess asks only where the seed table exists
+    difference = target[:, None, :] - lengths[None, :, :]
     return np.einsum("ijk,ijk->ij", difference, difference).argmin(axis=1)
 
 
-def _initial_guess(target, mode, geometry):
+def _initial_guess(target: np.ndarray, mode: str, geometry: Geometry) -> np.ndarray:
     starts, lengths = _seed_table(mode, geometry)
-    if lengths is None:
+    if starts is None or lengths is None:
         return np.tile(np.r_[_NEUTRAL, [0.0] * (1 if MODES[mode] is not None else 0)], (len(target), 1))
     return starts[_nearest_seed(target, mode, geometry)]
 
@@ -110,7 +110,7 @@ class FKResult:
     mode: np.ndarray
 
 
-def detect_mode(lengths_mm, tol_mm: float = 1e-3) -> np.ndarray:
+def detect_mode(lengths_mm: ArrayLike, tol_mm: float = 1e-3) -> np.ndarray:
     """Motion mode from the length pattern (pkm5.md §4.3): 'alpha' if L5 != L6, else 'beta' if a pair is unequal,
     else 'translation'. ``tol_mm`` should be a few times the length noise for measured data."""
     lengths = _as_legs(lengths_mm, "lengths_mm")
@@ -119,7 +119,7 @@ def detect_mode(lengths_mm, tol_mm: float = 1e-3) -> np.ndarray:
     return np.where(alpha, "alpha", np.where(beta, "beta", "translation")).astype(object)
 
 
-def _residual(q, target, mode, geometry):
+def _residual(q: Any, target: np.ndarray, mode: str, geometry: Geometry) -> Any:
     """IK(q) - target (n, 6) and its Jacobian (n, 6, k), from one dual-number pass."""
     n = len(q)
     zeros = np.zeros(n)
@@ -132,7 +132,8 @@ def _residual(q, target, mode, geometry):
     return r, np.stack([length.grad for length in lengths], 1)
 
 
-def _levenberg_marquardt(q, target, mode, geometry, max_iter, step_tol):
+def _levenberg_marquardt(q: np.ndarray, target: np.ndarray, mode: str, geometry: Geometry, max_iter: int,
+                         step_tol: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Batched LM; each pose has its own damping. Returns q, cost, iterations, stationary flag.
 
     The residual and Jacobian at a trial point come from one pass and are kept if the step is accepted, so each
@@ -172,7 +173,8 @@ def _levenberg_marquardt(q, target, mode, geometry, max_iter, step_tol):
     return q, cost, iterations, done
 
 
-def _with_restarts(q0, target, mode, geometry, max_iter, step_tol, retry_above_mm):
+def _with_restarts(q0: np.ndarray, target: np.ndarray, mode: str, geometry: Geometry, max_iter: int,
+                   step_tol: float, retry_above_mm: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """LM from q0, then from each restart guess of ``mode`` for the rows still above ``retry_above_mm``."""
     q, cost, its, done = _levenberg_marquardt(q0, target, mode, geometry, max_iter, step_tol)
     for restart in _RESTARTS[mode]:
@@ -187,7 +189,8 @@ def _with_restarts(q0, target, mode, geometry, max_iter, step_tol, retry_above_m
     return q, cost, its, done
 
 
-def forward_kinematics(lengths_mm, geometry: Geometry = DEFAULT_GEOMETRY, *, initial_pose=None, mode="auto",
+def forward_kinematics(lengths_mm: ArrayLike, geometry: Geometry = DEFAULT_GEOMETRY, *,
+                       initial_pose: ArrayLike | None = None, mode: str = "auto",
                        max_iter: int = 50, step_tol: float = 1e-9, residual_tol_mm: float = 0.01,
                        retry_above_mm: float = 1e-9, mode_tol_mm: float = 1e-6, engine: str = "auto") -> FKResult:
     """Poses from six leg lengths, batched least squares.
@@ -254,7 +257,7 @@ def forward_kinematics(lengths_mm, geometry: Geometry = DEFAULT_GEOMETRY, *, ini
         q0 = start[rows][:, cols] if start is not None else _initial_guess(target[rows], name, geometry)
         solve = compiled.fk_arrays if run_compiled else _with_restarts
         q, cost, its, done = solve(q0, target[rows], name, geometry, max_iter, step_tol, retry_above_mm)
-        pose[np.ix_(rows, cols)] = q
+        pose[np.ix_(rows, np.asarray(cols))] = q
         rms = np.sqrt(cost / 6)
         residual[rows] = rms
         iterations[rows] = its

@@ -12,8 +12,10 @@ from __future__ import annotations
 
 import dataclasses
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from motion.sampling import as_rows
 
@@ -90,7 +92,7 @@ class Geometry:
         if self.microsteps < 1:
             raise ValueError(f"Geometry.microsteps = {self.microsteps!r}, expected an integer >= 1")
 
-    def replace(self, **changes) -> "Geometry":
+    def replace(self, **changes: Any) -> Geometry:
         """A copy with some fields changed (``dataclasses.replace``), validated again."""
         return dataclasses.replace(self, **changes)
 
@@ -109,7 +111,7 @@ class Geometry:
         """Leg lengths |BC| at the home stroke, shape (6,): (189 x4, 197 x2) with the defaults."""
         return np.asarray(self.leg_length_offset_mm) + self.home_stroke_mm
 
-    def as_dict(self) -> dict:
+    def as_dict(self) -> dict[str, Any]:
         """Plain-data form (stored with every run)."""
         return dataclasses.asdict(self)
 
@@ -118,7 +120,7 @@ class Geometry:
 DEFAULT_GEOMETRY = Geometry()
 
 
-def lengths_to_steps(lengths_mm, geometry: Geometry = DEFAULT_GEOMETRY) -> np.ndarray:
+def lengths_to_steps(lengths_mm: ArrayLike, geometry: Geometry = DEFAULT_GEOMETRY) -> np.ndarray:
     """Absolute step targets for leg lengths.
 
     ``steps = direction * round((L - L0) / (CR / microsteps))`` with L0 the leg-length offset (zero stroke) and CR
@@ -139,11 +141,12 @@ def lengths_to_steps(lengths_mm, geometry: Geometry = DEFAULT_GEOMETRY) -> np.nd
     return (np.rint(stroke / geometry.mm_per_step) * np.asarray(geometry.step_direction)).astype(np.int64)
 
 
-def steps_to_lengths(steps, geometry: Geometry = DEFAULT_GEOMETRY) -> np.ndarray:
+def steps_to_lengths(steps: ArrayLike, geometry: Geometry = DEFAULT_GEOMETRY) -> np.ndarray:
     """Leg lengths |BC| (mm, shape (N, 6)) for absolute step counts (shape (N, 6)); inverse of lengths_to_steps."""
     counts = _as_legs(steps, "steps")
-    return np.asarray(geometry.leg_length_offset_mm) + counts * np.asarray(geometry.step_direction) * geometry.mm_per_step
+    direction = np.asarray(geometry.step_direction)
+    return np.asarray(geometry.leg_length_offset_mm) + counts * direction * geometry.mm_per_step
 
 
-def _as_legs(values, name: str) -> np.ndarray:
+def _as_legs(values: ArrayLike, name: str) -> np.ndarray:
     return as_rows(values, _LEGS, name)

@@ -9,10 +9,13 @@ values (plain arrays) and the exact Jacobian (dual numbers).
 from __future__ import annotations
 
 import enum
+from collections.abc import Sequence
 from dataclasses import dataclass
 from functools import cached_property
+from typing import Any
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from motion import dual
 from motion.pkm5 import compiled
@@ -33,12 +36,12 @@ class Failure(enum.IntFlag):
     TILT = 16              # leg elevation outside the tilt window
 
 
-def as_poses(poses, name: str = "poses") -> np.ndarray:
+def as_poses(poses: ArrayLike, name: str = "poses") -> np.ndarray:
     """Validate and return poses as float64 (N, 5): x, y, z [mm], alpha, beta [rad]."""
     return as_rows(poses, 5, f"{name} (x, y, z [mm], alpha, beta [rad])")
 
 
-def _rotate(vector, ca, sa, cb, sb):
+def _rotate(vector: Sequence[Any], ca: Any, sa: Any, cb: Any, sb: Any) -> tuple[Any, Any, Any]:
     """R(beta, alpha) @ vector with R = Ry(beta) Rx(alpha) (000 Eq. 5.4); vector is a constant 3-tuple (of floats,
     or of per-row arrays when many geometries are evaluated in one batch, as the calibration's Jacobian does)."""
     vx, vy, vz = vector
@@ -47,7 +50,8 @@ def _rotate(vector, ca, sa, cb, sb):
     return cb * vx + sb * t, ca * vy - sa * vz if has_z else ca * vy, -sb * vx + cb * t
 
 
-def _pair_plane(x, y, z, trig, pd, oa, half_height):
+def _pair_plane(x: Any, y: Any, z: Any, trig: tuple[Any, Any, Any, Any], pd: Sequence[Any], oa: Sequence[Any],
+                half_height: Any) -> tuple[Any, Any, Any, Any]:
     """Pair 1-2 or 3-4: AD in (u, w) and the bracket rotation (cos, sin of lambda - 90 deg)."""
     ca, sa, cb, sb = trig
     dx, dy, dz = _rotate(pd, ca, sa, cb, sb)
@@ -65,7 +69,8 @@ def _pair_plane(x, y, z, trig, pd, oa, half_height):
     return u, az, dw / r, -du / r
 
 
-def _leg_in_plane(u, w, ab, cd, cos_d, sin_d, with_tilt):
+def _leg_in_plane(u: Any, w: Any, ab: Sequence[Any], cd: Sequence[Any], cos_d: Any, sin_d: Any,
+                  with_tilt: bool) -> tuple[Any, Any]:
     """Inner loop BC = AD - AB - Rot2(delta) CD (000 Eqs. 5.13-5.22): length and elevation angle (or None)."""
     cu = cos_d * cd[0] - sin_d * cd[1]
     cw = sin_d * cd[0] + cos_d * cd[1]
@@ -74,7 +79,8 @@ def _leg_in_plane(u, w, ab, cd, cos_d, sin_d, with_tilt):
     return dual.hypot(bu, bw), dual.atan2(bw, bu) if with_tilt else None
 
 
-def leg_lengths(x, y, z, alpha, beta, geometry: Geometry = DEFAULT_GEOMETRY, with_tilt: bool = True):
+def leg_lengths(x: Any, y: Any, z: Any, alpha: Any, beta: Any, geometry: Geometry = DEFAULT_GEOMETRY,
+                with_tilt: bool = True) -> tuple[list[Any], list[Any]]:
     """Six leg lengths |BC| and elevation angles phi (rad) as lists of six arrays or duals.
 
     Accepts arrays (N,) or :class:`motion.dual.Dual` for every coordinate; constants may be plain arrays.
@@ -103,7 +109,7 @@ def leg_lengths(x, y, z, alpha, beta, geometry: Geometry = DEFAULT_GEOMETRY, wit
     return lengths, tilts
 
 
-def bracket_vectors(poses, geometry: Geometry = DEFAULT_GEOMETRY) -> dict[str, np.ndarray]:
+def bracket_vectors(poses: ArrayLike, geometry: Geometry = DEFAULT_GEOMETRY) -> dict[str, np.ndarray]:
     """Rotated bracket vectors C->D in the pair planes (000 Eqs. 5.25-5.27, App. C.4), each (N, 2) mm.
 
     Keys ``cd1``, ``cd3`` (pairs 1-2 and 3-4, odd legs), ``cd2``, ``cd4`` (even legs), ``cd5``, ``cd6``.
@@ -193,7 +199,7 @@ class IKResult:
         return np.array([self.reason(i) or "" for i in range(len(self.failure))], dtype=object)
 
 
-def inverse_kinematics(poses, geometry: Geometry = DEFAULT_GEOMETRY, *, check_limits: bool = True,
+def inverse_kinematics(poses: ArrayLike, geometry: Geometry = DEFAULT_GEOMETRY, *, check_limits: bool = True,
                        engine: str = "auto") -> IKResult:
     """Leg lengths for poses of the PKM, batched.
 

@@ -9,6 +9,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from motion import dual
 from motion.model import column_conditioning
@@ -18,7 +19,7 @@ from motion.pkm5.ik import as_poses, leg_lengths
 __all__ = ["jacobian", "SingularityProximity", "singularity_proximity", "mode_columns"]
 
 
-def jacobian(poses, geometry: Geometry = DEFAULT_GEOMETRY) -> np.ndarray:
+def jacobian(poses: ArrayLike, geometry: Geometry = DEFAULT_GEOMETRY) -> np.ndarray:
     """dL_i/dq_j of the six leg lengths with respect to the pose, batched.
 
     Parameters
@@ -33,11 +34,12 @@ def jacobian(poses, geometry: Geometry = DEFAULT_GEOMETRY) -> np.ndarray:
         legs 5-6 bracket turning with alpha (alpha mode); at beta != 0 that bracket is fixed (beta mode).
     """
     p = as_poses(poses)
-    lengths, _ = leg_lengths(*dual.seed(p), geometry=geometry)
+    x, y, z, alpha, beta = dual.seed(p)
+    lengths, _ = leg_lengths(x, y, z, alpha, beta, geometry=geometry)
     return np.stack([length.grad for length in lengths], 1)
 
 
-def mode_columns(poses) -> np.ndarray:
+def mode_columns(poses: ArrayLike) -> np.ndarray:
     """Which pose columns move in each pose's mode, (N, 5) bool: x, y, z always; alpha or beta if non-zero."""
     p = as_poses(poses)
     cols = np.ones((len(p), 5), bool)
@@ -63,7 +65,7 @@ class SingularityProximity:
     inverse_condition: np.ndarray
 
 
-def singularity_proximity(poses, geometry: Geometry = DEFAULT_GEOMETRY) -> SingularityProximity:
+def singularity_proximity(poses: ArrayLike, geometry: Geometry = DEFAULT_GEOMETRY) -> SingularityProximity:
     """Smallest singular value and inverse condition number of the mode-restricted length Jacobian.
 
     The Jacobian columns are x, y, z and, in alpha or beta mode, that angle in degrees (pkm5.md §5.2: "lengths in

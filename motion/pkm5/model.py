@@ -5,20 +5,21 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from motion.model import JointSpec, ModelFK, ModelIK
 from motion.pkm5.fk import forward_kinematics
 from motion.pkm5.geometry import DEFAULT_GEOMETRY, Geometry
 from motion.pkm5.ik import as_poses, inverse_kinematics
 from motion.pkm5.jacobian import jacobian
-from motion.pkm5.workspace import WORKSPACE_KINDS, feasible, _draw
+from motion.pkm5.workspace import WORKSPACE_KINDS, _draw, feasible
 
 __all__ = ["Pkm5Model", "MODEL"]
 
 _DEG_COLS = slice(3, 5)
 
 
-def _to_radians(pose_deg) -> np.ndarray:
+def _to_radians(pose_deg: ArrayLike) -> np.ndarray:
     poses = as_poses(pose_deg, "pose").copy()
     poses[:, _DEG_COLS] = np.radians(poses[:, _DEG_COLS])
     return poses
@@ -44,18 +45,18 @@ class Pkm5Model:
         object.__setattr__(self, "joints", specs)
         object.__setattr__(self, "jacobian_joints", tuple(spec.name for spec in specs))
 
-    def ik(self, pose: object) -> ModelIK:
+    def ik(self, pose: ArrayLike) -> ModelIK:
         result = inverse_kinematics(_to_radians(pose), self.geometry)
         reasons = np.array([text or None for text in result.reasons], dtype=object)
         return ModelIK(joints=result.lengths_mm, reachable=result.reachable, reason=reasons)
 
-    def fk(self, joints: object) -> ModelFK:
+    def fk(self, joints: ArrayLike) -> ModelFK:
         result = forward_kinematics(joints, self.geometry)
         pose = result.pose.copy()
         pose[:, _DEG_COLS] = np.degrees(pose[:, _DEG_COLS])
         return ModelFK(pose=pose, residual_mm=result.residual_mm, ok=result.converged)
 
-    def jacobian(self, pose: object) -> np.ndarray:
+    def jacobian(self, pose: ArrayLike) -> np.ndarray:
         """dL/d(x, y, z, alpha, beta) in mm/mm and mm/deg, (N, 6, 5)."""
         return jacobian(_to_radians(pose), self.geometry) * np.array([1, 1, 1, np.pi / 180, np.pi / 180])
 

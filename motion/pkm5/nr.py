@@ -10,9 +10,12 @@ the documents have no iteration cap, here ``max_iter`` (default 100) flags diver
 
 from __future__ import annotations
 
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from motion import dual
 from motion.errors import MotionInputError
@@ -35,16 +38,17 @@ class NRResult:
     converged: bool
 
 
-def _squared(vector):
+def _squared(vector: Sequence[Any]) -> Any:
     return vector[0] * vector[0] + vector[1] * vector[1] + vector[2] * vector[2]
 
 
-def _system(v, mode, lengths, brackets, gradient, g):
+def _system(v: Sequence[Any], mode: str, lengths: Sequence[np.ndarray], brackets: Mapping[str, Any], gradient: Any,
+            g: Geometry) -> list[Any]:
     """Residuals F1..F6 (translation) or F1..F7 (alpha, beta) of 000 Eqs. 5.28-5.38."""
     l1, l3, l5 = lengths
     x, y, z = v[:3]
     zero = np.zeros(1)
-    angle = v[3] if mode != "translation" else zero
+    angle: Any = v[3] if mode != "translation" else zero
     th1, th3, th5 = v[-3:]
     alpha = angle if mode == "alpha" else zero
     beta = angle if mode == "beta" else zero
@@ -60,7 +64,8 @@ def _system(v, mode, lengths, brackets, gradient, g):
         residuals.append(_squared(ad) - (in_u * in_u + in_w * in_w))
         heights.append(in_w - ad[2])
     if mode == "alpha":   # real leg 5 with the rotated bracket (App. B.3.2)
-        pd5, ab_v, cd5 = g.pd_5_mm, g.ab_5_mm[0], brackets["cd5"]
+        pd5: Sequence[float] = g.pd_5_mm
+        ab_v, cd5 = g.ab_5_mm[0], brackets["cd5"]
     else:                 # virtual leg 5-6 midway between D5 and D6 (App. B.3.1, B.3.3)
         pd5 = (0.5 * (g.pd_5_mm[0] + g.pd_6_mm[0]), 0.0, 0.0)
         ab_v, cd5 = g.ab_5_mm[0] + g.cd_5_mm[0] - g.pd_5_mm[1], (0.0, g.cd_5_mm[1])
@@ -76,7 +81,8 @@ def _system(v, mode, lengths, brackets, gradient, g):
     return residuals
 
 
-def forward_kinematics_nr(lengths_135_mm, guess, *, mode: str = "translation", brackets=None, gradient=None,
+def forward_kinematics_nr(lengths_135_mm: ArrayLike, guess: ArrayLike, *, mode: str = "translation",
+                          brackets: Mapping[str, ArrayLike] | None = None, gradient: Any = None,
                           geometry: Geometry = DEFAULT_GEOMETRY, tol: float = 1e-6,
                           max_iter: int = 100) -> NRResult:
     """Newton-Raphson FK exactly as in 000 App. B.3 (one pose).
@@ -107,7 +113,7 @@ def forward_kinematics_nr(lengths_135_mm, guess, *, mode: str = "translation", b
     g = geometry
     brackets = brackets or {"cd1": g.cd_odd_mm, "cd3": g.cd_odd_mm, "cd5": g.cd_5_mm}
     v[3:] = np.radians(v[3:])
-    lengths = [np.array([float(length)]) for length in lengths_135_mm]
+    lengths = [np.array([float(length)]) for length in np.asarray(lengths_135_mm, dtype=float)]
     iterations = 0
     delta = 100.0
     while delta > tol and iterations < max_iter:

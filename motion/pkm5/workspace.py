@@ -14,9 +14,11 @@ The alpha workspace lies on the plane x = 111.31 mm, so its "volume" is an area 
 
 from __future__ import annotations
 
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from motion.errors import MotionInputError
 from motion.pkm5.geometry import DEFAULT_GEOMETRY, Geometry
@@ -64,18 +66,18 @@ class WorkspaceEstimate:
     hull_points: np.ndarray
 
 
-def feasible(poses, geometry: Geometry = DEFAULT_GEOMETRY) -> np.ndarray:
+def feasible(poses: ArrayLike, geometry: Geometry = DEFAULT_GEOMETRY) -> np.ndarray:
     """The membership test of 000 App. B.4: leg-length and tilt windows (strict), every leg including phi_6."""
     return inverse_kinematics(poses, geometry).reachable
 
 
-def _uniform(rng, bounds, n):
+def _uniform(rng: np.random.Generator, bounds: Sequence[tuple[float, float]], n: int) -> np.ndarray:
     low = np.array([b[0] for b in bounds])
     high = np.array([b[1] for b in bounds])
     return low + (high - low) * rng.random((n, len(bounds)))
 
 
-def _poses(kind: WorkspaceKind, positions, angles_rad):
+def _poses(kind: WorkspaceKind, positions: np.ndarray, angles_rad: np.ndarray) -> np.ndarray:
     """Pose array for positions (n, 3) and angles (n,) of the kind's rotation."""
     poses = np.zeros((len(positions), 5))
     poses[:, :3] = positions
@@ -84,14 +86,14 @@ def _poses(kind: WorkspaceKind, positions, angles_rad):
     return poses
 
 
-def _draw(kind: WorkspaceKind, rng, n):
+def _draw(kind: WorkspaceKind, rng: np.random.Generator, n: int) -> np.ndarray:
     """n uniform poses from the kind's box and angle range."""
     positions = _uniform(rng, (kind.x_mm, kind.y_mm, kind.z_mm), n)
     angles = np.radians(_uniform(rng, (kind.angle_deg,), n)[:, 0])
     return _poses(kind, positions, angles)
 
 
-def sample_reachable(n: int, *, kinds=("constant-orientation",), seed: int | None = 0,
+def sample_reachable(n: int, *, kinds: Sequence[str] = ("constant-orientation",), seed: int | None = 0,
                      geometry: Geometry = DEFAULT_GEOMETRY) -> np.ndarray:
     """n reachable poses (N, 5), drawn uniformly from the sampling boxes of the given workspace kinds.
 
@@ -116,7 +118,9 @@ def sample_reachable(n: int, *, kinds=("constant-orientation",), seed: int | Non
     raise MotionInputError(f"kinds {list(kinds)}: fewer than {n} reachable poses found for this geometry")
 
 
-def _hit_or_miss(kind, geometry, rng, samples, angle_step_deg, chunk=20000, progress=None):
+def _hit_or_miss(kind: WorkspaceKind, geometry: Geometry, rng: np.random.Generator, samples: int,
+                 angle_step_deg: float, chunk: int = 20000,
+                 progress: Callable[[int], object] | None = None) -> int:
     """Count box samples reachable with at least one angle of the grid; ``progress(done)`` after each chunk."""
     lo, hi = kind.angle_deg
     grid = np.radians(np.linspace(lo, hi, max(2, int(round((hi - lo) / angle_step_deg)) + 1))) \
@@ -132,7 +136,8 @@ def _hit_or_miss(kind, geometry, rng, samples, angle_step_deg, chunk=20000, prog
     return hits
 
 
-def _feasible_cloud(kind, geometry, rng, points, batch=50000):
+def _feasible_cloud(kind: WorkspaceKind, geometry: Geometry, rng: np.random.Generator, points: int,
+                    batch: int = 50000) -> np.ndarray:
     """The dissertation's cloud: uniform (position, angle) samples kept while the IK accepts them."""
     cloud = []
     count = 0
@@ -148,7 +153,8 @@ def _feasible_cloud(kind, geometry, rng, points, batch=50000):
 
 def estimate_workspace(kind: str = "constant-orientation", *, samples: int = 200_000, hull_points: int = 12_000,
                        seed: int | None = 0, angle_step_deg: float = 1.0,
-                       geometry: Geometry = DEFAULT_GEOMETRY, progress=None) -> WorkspaceEstimate:
+                       geometry: Geometry = DEFAULT_GEOMETRY,
+                       progress: Callable[[int], object] | None = None) -> WorkspaceEstimate:
     """Workspace volume by hit-or-miss Monte Carlo, and the convex hull of a feasible cloud.
 
     Parameters

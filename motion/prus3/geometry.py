@@ -11,6 +11,7 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from motion.errors import MotionInputError
 
@@ -155,7 +156,7 @@ class PoseFit:
     residual_mm: np.ndarray
 
 
-def pose_from_corners(corners: object, geometry: Geometry = STAND_IN, *, method: str = "kabsch") -> PoseFit:
+def pose_from_corners(corners: ArrayLike, geometry: Geometry = STAND_IN, *, method: str = "kabsch") -> PoseFit:
     """Platform pose from its three corner positions (N, 3, 3) mm (reference §5.2).
 
     ``method="closed_form"`` builds the frame from the corners directly (exact corners only):

@@ -9,6 +9,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from motion.errors import MotionInputError
 from motion.prus3.geometry import STAND_IN, Geometry
@@ -40,7 +41,7 @@ class SliderJacobian:
 
 
 def slider_jacobian(
-    pose: object, geometry: Geometry = STAND_IN, *, branch: object = (1, 1, 1), form: str = "euler"
+    pose: ArrayLike, geometry: Geometry = STAND_IN, *, branch: ArrayLike = (1, 1, 1), form: str = "euler"
 ) -> SliderJacobian:
     """ds_i/dx for platform poses (N, 6) (mm, deg).
 

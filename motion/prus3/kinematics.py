@@ -13,6 +13,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from motion.errors import MotionInputError
 from motion.prus3.geometry import STAND_IN, Geometry, PoseFit, corners_mm, pose_from_corners
@@ -62,7 +63,7 @@ class IKResult:
     reason: np.ndarray
 
 
-def _branches(branch: object, count: int) -> np.ndarray:
+def _branches(branch: ArrayLike, count: int) -> np.ndarray:
     sigma = np.broadcast_to(np.asarray(branch, dtype=float), (count, 3)) if np.ndim(branch) else None
     if sigma is None or not np.all(np.isin(sigma, (-1.0, 1.0))):
         raise MotionInputError(f"branch = {branch!r}, expected +1/-1 per leg, shape (3,) or (N, 3)")
@@ -84,12 +85,12 @@ def link_directions(corners: np.ndarray, sliders_mm: np.ndarray, geometry: Geome
 
 
 def inverse_kinematics(
-    pose: object,
+    pose: ArrayLike,
     geometry: Geometry = STAND_IN,
     *,
-    branch: object = (1, 1, 1),
+    branch: ArrayLike = (1, 1, 1),
     revolute_convention: str = "clip",
-    fixed_revolute_deg: object | None = None,
+    fixed_revolute_deg: ArrayLike | None = None,
 ) -> IKResult:
     """Slider positions and leg joint angles for platform poses.
 
@@ -165,9 +166,9 @@ def _link_unit(x2: np.ndarray, x3: np.ndarray, x4: np.ndarray) -> np.ndarray:
 
 
 def forward_kinematics(
-    sliders_mm: object,
-    revolute_deg: object,
-    universal_deg: object,
+    sliders_mm: ArrayLike,
+    revolute_deg: ArrayLike,
+    universal_deg: ArrayLike,
     geometry: Geometry = STAND_IN,
     *,
     method: str = "kabsch",
@@ -190,7 +191,7 @@ def forward_kinematics(
     return pose_from_corners(corners, geometry, method=method)
 
 
-def actuator_residual_mm(pose: object, sliders_mm: object, geometry: Geometry = STAND_IN) -> np.ndarray:
+def actuator_residual_mm(pose: ArrayLike, sliders_mm: ArrayLike, geometry: Geometry = STAND_IN) -> np.ndarray:
     """Leg-length misfit |K_i - Q_i| - a (N, 3) mm of a measured pose against measured slider positions.
 
     The six actuators fix only three functions of the pose (reference §5.3, TV-6), so this consistency

@@ -12,6 +12,7 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from motion.model import JointSpec, ModelFK, ModelIK
 from motion.prus3.geometry import STAND_IN, Geometry
@@ -46,17 +47,17 @@ class Prus3Model:
         )
         object.__setattr__(self, "joints", sliders + revolutes + universal)
 
-    def ik(self, pose: object) -> ModelIK:
+    def ik(self, pose: ArrayLike) -> ModelIK:
         result = inverse_kinematics(pose, self.geometry, branch=self.branch)
         joints = np.concatenate([result.sliders_mm, result.revolute_deg, result.universal_deg.reshape(-1, 6)], axis=1)
         return ModelIK(joints=joints, reachable=result.reachable, reason=result.reason)
 
-    def fk(self, joints: object) -> ModelFK:
+    def fk(self, joints: ArrayLike) -> ModelFK:
         values = as_rows(joints, 12, "joints")
         fit = forward_kinematics(values[:, :3], values[:, 3:6], values[:, 6:].reshape(-1, 3, 2), self.geometry)
         return ModelFK(pose=fit.pose, residual_mm=fit.residual_mm, ok=np.ones(len(values), dtype=bool))
 
-    def jacobian(self, pose: object) -> np.ndarray:
+    def jacobian(self, pose: ArrayLike) -> np.ndarray:
         matrix = slider_jacobian(pose, self.geometry, branch=self.branch).matrix.copy()
         matrix[:, :, 3:] *= math.pi / 180.0  # mm/rad -> mm/deg
         return matrix

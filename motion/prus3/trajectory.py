@@ -13,6 +13,7 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from motion.errors import MotionInputError
 
@@ -39,7 +40,7 @@ class Trajectory:
 
 
 def paper_trajectory(
-    t_s: object | None = None,
+    t_s: ArrayLike | None = None,
     *,
     duration_s: float = 10.0,
     start_mm: tuple[float, float, float] = (40.0, 580.0, 360.0),

@@ -7,14 +7,16 @@ branch inside the stroke; branches are chosen freely per leg (reference ``prus3.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from motion.errors import MotionInputError
-from motion.sampling import WorkspaceVolume, as_rows, check_box, hit_or_miss_volume
 from motion.prus3.geometry import STAND_IN, Geometry, corners_mm, rotation_matrix
 from motion.prus3.kinematics import _slider_solutions, link_directions
 from motion.prus3.revolute import existence_margin
+from motion.sampling import WorkspaceVolume, as_rows, check_box, hit_or_miss_volume
 
 __all__ = [
     "DEFAULT_BOX_MM",
@@ -42,7 +44,7 @@ def _direction_ok(u: np.ndarray, geometry: Geometry, criterion: str) -> np.ndarr
     raise MotionInputError(f"criterion = {criterion!r}, expected one of {', '.join(CRITERIA)}")
 
 
-def reachable_any_branch(pose: object, geometry: Geometry = STAND_IN, *, criterion: str = "existence") -> np.ndarray:
+def reachable_any_branch(pose: ArrayLike, geometry: Geometry = STAND_IN, *, criterion: str = "existence") -> np.ndarray:
     """(N,) bool: some slider branch per leg reaches the pose within stroke and revolute ranges."""
     poses = as_rows(pose, 6, "pose")
     corners, _, _ = corners_mm(poses, geometry)
@@ -55,7 +57,7 @@ def reachable_any_branch(pose: object, geometry: Geometry = STAND_IN, *, criteri
         sliders = t + sigma * r
         u = link_directions(corners, sliders, geometry)
         branch_ok |= (sliders >= low) & (sliders <= high) & _direction_ok(u, geometry, criterion)
-    return (ok & branch_ok).all(axis=1)
+    return np.asarray((ok & branch_ok).all(axis=1))
 
 
 def workspace_samples(
@@ -63,8 +65,8 @@ def workspace_samples(
     geometry: Geometry = STAND_IN,
     *,
     orientation_deg: tuple[float, float, float] = (0.0, 0.0, 0.0),
-    box_mm: object = DEFAULT_BOX_MM,
-    seed: int | None = 0,
+    box_mm: ArrayLike = DEFAULT_BOX_MM,
+    seed: int | np.random.Generator | None = 0,
     criterion: str = "existence",
 ) -> tuple[np.ndarray, np.ndarray]:
     """Uniform tip positions in the box at a fixed orientation, as poses (count, 6), and reachability (count,)."""
@@ -81,11 +83,11 @@ def workspace_volume(
     geometry: Geometry = STAND_IN,
     *,
     orientation_deg: tuple[float, float, float] = (0.0, 0.0, 0.0),
-    box_mm: object = DEFAULT_BOX_MM,
+    box_mm: ArrayLike = DEFAULT_BOX_MM,
     seed: int | None = 0,
     criterion: str = "existence",
     chunk: int = 500_000,
-    progress=None,
+    progress: Callable[[int], object] | None = None,
 ) -> WorkspaceVolume:
     """Monte Carlo constant-orientation volume: V = p V_box, SE = V_box sqrt(p (1 - p) / N) (reference §7.2).
 
