@@ -89,9 +89,11 @@ class Observability:
 
 
 def _weighted(jac, uncertainty) -> np.ndarray:
+    """``jac`` (N, a, K) over the standard uncertainty of each coordinate ((a,) per axis or (N, a) per pose and
+    axis), rows stacked (N a, K)."""
     jac = np.asarray(jac, dtype=float)
-    u = np.broadcast_to(np.asarray(uncertainty, dtype=float), jac.shape[1:2])
-    return (jac / u[None, :, None]).reshape(-1, jac.shape[-1])
+    u = np.broadcast_to(np.asarray(uncertainty, dtype=float), jac.shape[:2])
+    return (jac / u[:, :, None]).reshape(-1, jac.shape[-1])
 
 
 def _finite_weighted(jac, uncertainty) -> np.ndarray:
@@ -238,12 +240,12 @@ def identify(model, measured, uncertainty, *, theta0=None, limit: float = CONDIT
     restated rule of the module docstring.
     """
     measured = np.asarray(measured, dtype=float)
-    u = np.broadcast_to(np.asarray(uncertainty, dtype=float), measured.shape[1:])
     if measured.ndim != 2 or len(measured) == 0:
         raise InsufficientData(f"measured has shape {measured.shape}, expected (N, a) with N >= 1 measured poses")
     if not np.all(np.isfinite(measured)):
         raise InsufficientData(f"measured poses: {int(np.sum(~np.isfinite(measured).all(1)))} rows are not finite, "
                                "expected a measured coordinate for every pose")
+    u = np.broadcast_to(np.asarray(uncertainty, dtype=float), measured.shape)  # per axis or per pose and axis
     if not np.all((u > 0) & np.isfinite(u)):
         raise ConfigError(f"instrument uncertainty = {np.asarray(uncertainty).tolist()}, expected finite values > 0")
     k = len(model.free)
