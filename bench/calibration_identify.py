@@ -315,9 +315,10 @@ def _cycles_advice(plan, campaign) -> str:
     if plan.informing_cycles is None or plan.informing_cycles <= now:
         return (f" (more cycles would not help: with the measured scatter even {MAX_CYCLES} cycles per pose leave "
                 "the data short; it is the poses)") if plan.informing_cycles is None else ""
-    return (f". With the measured scatter ({plan.scatter_mm:.2g} mm a reading) the poses inform half the "
-            f"parameters from {plan.informing_cycles} cycles per pose (this run: {now}); for a {plan.target_gain:g}x "
-            f"gain measure {plan.calibration_cycles or f'over {MAX_CYCLES}'} cycles per pose (set cycles in the "
+    wanted = max(plan.calibration_cycles or MAX_CYCLES, plan.informing_cycles)
+    return (f". Here the cycles are short, not the poses: with the measured scatter ({plan.scatter_mm:.2g} mm a "
+            f"reading) the poses inform half the parameters from {plan.informing_cycles} cycles per pose (this run: "
+            f"{now}); measure {wanted} cycles per pose (the plan for a {plan.target_gain:g}x gain; set cycles in the "
             "protocol file)")
 
 
