@@ -35,6 +35,7 @@ measured axes, after ``mean_j |m_j - f(theta_hat)_j|``.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass, field
 from typing import Any
@@ -177,13 +178,20 @@ def _campaign(commanded, measured, instrument_mm: float):
     by the measured scatter of the mean (:func:`bench.metrology.kinematic_campaign.pose_means`)."""
     import numpy as np
 
-    from bench.metrology.kinematic_campaign import pose_means
+    from bench.metrology.kinematic_campaign import erratic_poses, pose_means
 
     poses, first, index = np.unique(commanded, axis=0, return_index=True, return_inverse=True)
     order = np.argsort(first)  # first-visit order, so pose i is the protocol's i-th
     rank = np.empty_like(order)
     rank[order] = np.arange(len(order))
-    return poses[order], pose_means(measured, rank[np.ravel(index)], instrument_mm)
+    labels, poses = rank[np.ravel(index)], poses[order]
+    erratic = erratic_poses(measured, labels)
+    if erratic.any():  # left out: their means measure no geometry (erratic_poses); the summary names them
+        keep = ~erratic[labels]
+        renumber = np.cumsum(~erratic) - 1
+        campaign = pose_means(measured[keep], renumber[labels[keep]], instrument_mm)
+        return poses[~erratic], dataclasses.replace(campaign, left_out=tuple(int(i) for i in np.flatnonzero(erratic)))
+    return poses, pose_means(measured, labels, instrument_mm)
 
 
 def _robot_time(store, run_id: int) -> dict:
@@ -449,12 +457,17 @@ def _campaign_lines(params: dict) -> list[str]:
     lines.append(f"robot scatter of one reading: {shown}; instrument: {campaign['instrument_uncertainty_mm']:.3g} mm "
                  f"(stated, the floor); {min(cycles)}-{max(cycles)} cycles per pose, so each pose's mean is "
                  f"uncertain by {', '.join(f'{u:.3f}' for u in campaign['mean_uncertainty_mm'])} mm (RMS per axis)")
+    if campaign.get("left_out_poses"):
+        lines.append("left out, erratic (a scatter beyond the other poses', F-test at 1e-6; their means measure no "
+                     "geometry): the poses visited " + ", ".join(f"#{i + 1}" for i in campaign["left_out_poses"])
+                     + " first-visit order")
     plan, per_sample = campaign.get("plan"), campaign.get("seconds_per_sample")
     if plan:
         poses = len(cycles)
 
         def robot_time(n):
-            return "" if per_sample is None else f", {n * poses * per_sample / 60:.1f} min of robot time"
+            clock = " by the simulator's clock" if params.get("simulated") else ""
+            return "" if per_sample is None else f", {n * poses * per_sample / 60:.0f} min of robot time{clock}"
 
         wanted = plan["calibration_cycles"]
         lines.append(

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from bench.cli import main
-from bench.metrology.kinematic_campaign import plan_campaign, pose_means
+from bench.metrology.kinematic_campaign import erratic_poses, plan_campaign, pose_means
 from bench.robots.pkm5_kinematics import steps_for_pose
 from bench.simulators.true_geometry import attained_poses, true_deviations, true_geometry
 from bench.store import Store
@@ -61,12 +61,30 @@ def test_pose_means_weigh_by_the_pooled_scatter_of_the_mean_with_the_instrument_
     readings = np.array([[0.0, 1.0], [2.0, 1.0], [10.0, 5.0], [11.0, 5.0], [12.0, 5.0]])
     means = pose_means(readings, [0, 0, 1, 1, 1], instrument_mm=0.5)
     assert means.mean_mm.tolist() == [[1.0, 1.0], [11.0, 5.0]]
-    # pooled over the poses: x (1 + 1 + 1 + 0 + 1) / (5 - 2) = 4/3; y: no scatter, so the instrument's 0.5
+    # pooled over the poses: x (1 + 1 + 1 + 0 + 1) / (5 - 2) = 4/3; y: no scatter, so the instrument's 0.5.
+    # Each pose's own sum of squares (x: 2 and 2) joins the pooled variance counted as 10 degrees of freedom:
+    # pose 0 (2 + 10 * 4/3) / (1 + 10), pose 1 (2 + 10 * 4/3) / (2 + 10)
     assert means.scatter_mm == pytest.approx([np.sqrt(4 / 3), 0.0]) and means.scatter_dof == 3
-    assert means.uncertainty_mm == pytest.approx(np.array([[np.sqrt(4 / 3) / np.sqrt(2), 0.5 / np.sqrt(2)],
-                                                           [np.sqrt(4 / 3) / np.sqrt(3), 0.5 / np.sqrt(3)]]))
+    own = 2 + 10 * 4 / 3
+    assert means.uncertainty_mm == pytest.approx(np.array([[np.sqrt(own / 11) / np.sqrt(2), 0.5 / np.sqrt(2)],
+                                                           [np.sqrt(own / 12) / np.sqrt(3), 0.5 / np.sqrt(3)]]))
     single = pose_means(readings[:2], [0, 1], instrument_mm=0.5)  # one reading a pose: nothing measured
     assert np.isnan(single.scatter_mm).all() and single.uncertainty_mm.tolist() == [[0.5, 0.5], [0.5, 0.5]]
+
+
+def test_a_pose_that_scatters_far_beyond_the_others_is_erratic():
+    rng = np.random.default_rng(4)
+    readings = rng.normal(0.0, 0.6, (10, 30, 3))  # 10 cycles of 30 poses
+    readings[:, 0, 0] = rng.normal(0.0, 7.0, 10)  # pose 0 spreads in x as the simulated fold pose did
+    index = np.tile(np.arange(30), 10)
+    erratic = erratic_poses(readings.reshape(-1, 3), index)
+    assert erratic.tolist() == [True] + [False] * 29
+    # its own variance ratio against the other poses' pooled one, by hand: above the F quantile at 1e-6
+    from scipy.stats import f
+    own = np.var(readings[:, 0, 0], ddof=1)
+    rest = np.sum((readings[:, 1:, 0] - readings[:, 1:, 0].mean(axis=0)) ** 2) / (29 * 9)
+    assert own / rest > f.isf(1e-6, 9, 29 * 9)
+    assert not erratic_poses(readings[:, 1:].reshape(-1, 3), np.tile(np.arange(29), 10)).any()
 
 
 @pytest.mark.parametrize("seed", [51, 53])  # one start from the documented geometry: pd_6_x 18.9 u, pd_5_x 24.8 u
@@ -107,6 +125,7 @@ def test_the_plan_of_a_linear_model_is_the_closed_form():
     # -> n / 0.25 + 1 >= 8 -> n >= 1.75 -> 2 cycles; the validation n_v = ceil(2 * 4 * 0.25 / 1) = 2
     campaign = pose_means(np.array([[1.0], [0.0]]), [0, 0], instrument_mm=0.01)  # scatter sqrt(0.5)
     campaign = type(campaign)(campaign.mean_mm, campaign.uncertainty_mm, campaign.cycles, np.array([0.5]), 1, 0.01)
+    assert campaign.uncertainty_mm[0, 0] == pytest.approx(np.sqrt((0.5 + 10 * 0.5) / 11) / np.sqrt(2))
     noise = float(campaign.uncertainty_mm[0, 0])
     plan = plan_campaign(np.ones((1, 1, 1)), campaign, [1.0], before_mm=float(np.hypot(1.0, noise)), target_gain=2)
     assert plan.geometric_error_mm == pytest.approx(1.0)

@@ -231,13 +231,14 @@ def _refuse_if_uninformed(jac, uncertainty, names, sigma, std, n_poses: int, lim
 
 
 def identify(model, measured, uncertainty, *, theta0=None, limit: float = CONDITION_LIMIT,
-             prior_sigma=None) -> Identification:
+             prior_sigma=None, check_start: bool = True) -> Identification:
     """Identification of ``model.free`` from ``measured`` (N, a) (module docstring): weighted least squares, or
     maximum a posteriori when ``prior_sigma`` (K,) gives each parameter's 1-sigma prior about 0 (``inf``: none).
 
     Raises :class:`UnidentifiableParameters` (one line naming the weak parameters or combinations), before and after
-    the solve: without a prior when the scaled Jacobian's condition number exceeds ``limit``; with a prior by the
-    restated rule of the module docstring.
+    the solve (``check_start`` False: after it only): without a prior when the scaled Jacobian's condition number
+    exceeds ``limit``; with a prior by the restated rule of the module docstring. ``uncertainty``: per axis (a,) or
+    per pose and axis (N, a).
     """
     measured = np.asarray(measured, dtype=float)
     if measured.ndim != 2 or len(measured) == 0:
@@ -285,7 +286,8 @@ def identify(model, measured, uncertainty, *, theta0=None, limit: float = CONDIT
             # be a rejected trial)
         return latest[1]
 
-    check(model_jacobian(theta0))
+    if check_start:  # a search's other starts (kinematic_search) are judged at their solution only
+        check(model_jacobian(theta0))
 
     def residual(theta):
         r = np.nan_to_num((measured - model.predict(theta)) / u, nan=1e6).ravel()
@@ -311,6 +313,11 @@ def identify(model, measured, uncertainty, *, theta0=None, limit: float = CONDIT
                                "measurements against the commanded poses")
     final_jac = model_jacobian(theta)
     after = measured - model.predict(theta)
+    failed = np.flatnonzero(~np.all(np.isfinite(after), axis=1))
+    if failed.size:  # a solution where the model cannot place a pose explains nothing there: no calibration
+        raise InsufficientData(f"kinematic calibration refused: at the solution the forward kinematics fails at "
+                               f"{failed.size} measured poses (first: pose {failed[0]}); expected poses the fitted "
+                               "geometry reaches: leave such poses out or measure them again")
     obs, cov, prior_only = check(final_jac)
     obs = obs or observability(final_jac, u, model.free, limit)  # a prior's: the data part, reported
     std = np.sqrt(np.clip(np.diag(cov), 0.0, None))

@@ -87,7 +87,8 @@ def identify_global(model, measured, uncertainty, *, prior_sigma, starts: int = 
     for _ in range(int(starts) - 1):
         theta0 = np.where(finite, rng.normal(0.0, 1.0, len(sigma)) * np.where(finite, sigma, 0.0), first.values)
         try:
-            fits.append(identify(model, measured, uncertainty, prior_sigma=sigma, theta0=theta0, **options))
+            fits.append(identify(model, measured, uncertainty, prior_sigma=sigma, theta0=theta0, check_start=False,
+                                 **options))
         except (InsufficientData, UnidentifiableParameters):  # a start that left the model's domain
             fits.append(None)
     objectives = np.array([np.nan if f is None else map_objective(f, uncertainty) for f in fits])
