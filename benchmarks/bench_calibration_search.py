@@ -25,6 +25,7 @@ from pathlib import Path
 import numpy as np
 
 from bench.metrology.kinematic_campaign import pose_means
+from bench.errors import InsufficientData
 from bench.metrology.kinematic_calibration import UnidentifiableParameters, identify
 from bench.metrology.kinematic_search import identify_global
 from bench.robots.pkm5_kinematics import steps_for_pose
@@ -72,7 +73,7 @@ def main() -> None:
                     fit = identify(model, measured, u, prior_sigma=sigma)
                 else:
                     fit = identify_global(model, measured, u, prior_sigma=sigma, starts=args.starts, seed=seed).best
-            except UnidentifiableParameters as exc:
+            except (UnidentifiableParameters, InsufficientData) as exc:
                 refused[kind] += 1
                 line.append(f"{kind} refused ({str(exc)[:60]})")
                 continue

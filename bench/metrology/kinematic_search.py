@@ -18,8 +18,9 @@ the negative log posterior up to a constant (Tarantola 2005 §3.2). Refused (:cl
 the parameters) when another solution's objective lies within :data:`AMBIGUITY_DELTA` of the best (posterior density
 ratio above ``exp(-2)``: both are plausible) yet some parameter differs from the best by more than
 :data:`AMBIGUITY_Z` of the best's standard uncertainties: the data then cannot tell the two geometries apart, and the
-stated uncertainty would not cover the other. A start whose solve fails (FK failures on the way, no convergence) is
-left out; the first start's failure is the fit's. Pure computation, arrays in and out.
+stated uncertainty would not cover the other. A start whose solve fails (FK failures on the way or at its
+solution, no convergence) is left out; when every start fails, the documented start's failure is the fit's. Pure
+computation, arrays in and out.
 """
 
 from __future__ import annotations
@@ -80,17 +81,24 @@ def identify_global(model, measured, uncertainty, *, prior_sigma, starts: int = 
     ``seed`` seeds the prior draws, so a search is reproducible. Raises what :func:`identify` raises at the
     documented start, and :class:`AmbiguousFit` when two solutions are both plausible and distinct."""
     sigma = np.broadcast_to(np.asarray(prior_sigma, dtype=float), (len(model.free),))
-    first = identify(model, measured, uncertainty, prior_sigma=sigma, **options)
+    failure = None
+    try:  # the documented start; its pose-set refusal (UnidentifiableParameters) is the fit's at once
+        first = identify(model, measured, uncertainty, prior_sigma=sigma, **options)
+    except InsufficientData as exc:  # its solve stopped where the model fails: the other starts may not
+        failure, first = exc, None
     fits: list[Identification | None] = [first]
     rng = np.random.default_rng([int(seed), 35])
     finite = np.isfinite(sigma)
     for _ in range(int(starts) - 1):
-        theta0 = np.where(finite, rng.normal(0.0, 1.0, len(sigma)) * np.where(finite, sigma, 0.0), first.values)
+        registration = np.zeros(len(sigma)) if first is None else first.values
+        theta0 = np.where(finite, rng.normal(0.0, 1.0, len(sigma)) * np.where(finite, sigma, 0.0), registration)
         try:
             fits.append(identify(model, measured, uncertainty, prior_sigma=sigma, theta0=theta0, check_start=False,
                                  **options))
         except (InsufficientData, UnidentifiableParameters):  # a start that left the model's domain
             fits.append(None)
+    if all(f is None for f in fits):
+        raise failure or InsufficientData("kinematic calibration refused: no start of the search converged")
     objectives = np.array([np.nan if f is None else map_objective(f, uncertainty) for f in fits])
     kept = int(np.nanargmin(objectives))
     best = fits[kept]
