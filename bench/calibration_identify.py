@@ -185,7 +185,7 @@ def _campaign(commanded, measured, instrument_mm: float):
     rank = np.empty_like(order)
     rank[order] = np.arange(len(order))
     labels, poses = rank[np.ravel(index)], poses[order]
-    erratic = erratic_poses(measured, labels)
+    erratic = erratic_poses(measured, labels, instrument_mm)
     if erratic.any():  # left out: their means measure no geometry (erratic_poses); the summary names them
         keep = ~erratic[labels]
         renumber = np.cumsum(~erratic) - 1

@@ -85,6 +85,11 @@ def test_a_pose_that_scatters_far_beyond_the_others_is_erratic():
     rest = np.sum((readings[:, 1:, 0] - readings[:, 1:, 0].mean(axis=0)) ** 2) / (29 * 9)
     assert own / rest > f.isf(1e-6, 9, 29 * 9)
     assert not erratic_poses(readings[:, 1:].reshape(-1, 3), np.tile(np.arange(29), 10)).any()
+    # a deterministic instrument: identical readings but for one count at one pose is its resolution, not the robot
+    counts = np.zeros((2, 30, 3))
+    counts[1, 7, 0] = 0.03175
+    assert erratic_poses(counts.reshape(-1, 3), np.tile(np.arange(30), 2)).tolist() == [False] * 7 + [True] + [False] * 22
+    assert not erratic_poses(counts.reshape(-1, 3), np.tile(np.arange(30), 2), instrument_mm=0.05).any()
 
 
 @pytest.mark.parametrize("seed", [51, 53])  # one start from the documented geometry: pd_6_x 18.9 u, pd_5_x 24.8 u

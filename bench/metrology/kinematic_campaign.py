@@ -98,10 +98,12 @@ def pose_means(readings, pose_index, instrument_mm: float) -> PoseMeans:
     return PoseMeans(mean, per_reading / np.sqrt(cycles)[:, None], cycles, scatter, dof, float(instrument_mm))
 
 
-def erratic_poses(readings, pose_index, false_alarm: float = ERRATIC_FALSE_ALARM) -> np.ndarray:
+def erratic_poses(readings, pose_index, instrument_mm: float = 0.0,
+                  false_alarm: float = ERRATIC_FALSE_ALARM) -> np.ndarray:
     """Which poses (bool (N,)) scatter more than the others beyond chance: per axis, the variance ratio
-    ``F = hat s_i^2 / s_rest^2`` of the pose's own readings against the pooled within-pose variance of the other
-    poses, with ``(n_i - 1, M - N - (n_i - 1))`` degrees of freedom (the F-test of equal variances, NIST/SEMATECH
+    ``F = max(hat s_i, u_inst)^2 / max(s_rest, u_inst)^2`` of the pose's own readings against the pooled
+    within-pose variance of the other poses, both floored at the instrument's stated ``instrument_mm`` (a scatter
+    below it is the instrument's resolution, e.g. one count among repeated identical readings, not the robot), with ``(n_i - 1, M - N - (n_i - 1))`` degrees of freedom (the F-test of equal variances, NIST/SEMATECH
     e-Handbook §1.3.5.9), above its upper ``false_alarm`` quantile on any axis. Such a pose does not repeat as the
     robot does elsewhere (seen on the simulated pkm5: a beta pose near an FK fold spread 22 mm in x over 10 cycles
     against 0.7 mm elsewhere, its mean 19 mm off the others' geometry): its mean measures no geometry, so the fit
@@ -121,7 +123,9 @@ def erratic_poses(readings, pose_index, false_alarm: float = ERRATIC_FALSE_ALARM
     rest_dof = (len(readings) - count) - own_dof
     testable = (own_dof > 0) & (rest_dof > 0)
     with np.errstate(divide="ignore", invalid="ignore"):
-        ratio = (squares / own_dof[:, None]) / ((squares.sum(axis=0) - squares) / rest_dof[:, None])
+        floor = float(instrument_mm) ** 2
+        ratio = (np.maximum(squares / own_dof[:, None], floor)
+                 / np.maximum((squares.sum(axis=0) - squares) / rest_dof[:, None], floor))
     limit = f_distribution.isf(false_alarm, np.maximum(own_dof, 1), np.maximum(rest_dof, 1))
     return testable & np.any(ratio > limit[:, None], axis=1)
 
