@@ -136,3 +136,16 @@ def test_the_plan_of_a_linear_model_is_the_closed_form():
     assert plan.geometric_error_mm == pytest.approx(1.0)
     assert plan.calibration_cycles == 2 and plan.validation_cycles == 2
     assert plan.ceiling_gain(100) == pytest.approx(1.0 / (0.5 / 10))
+
+
+def test_two_plausible_distinct_geometries_are_refused_and_nothing_is_stored(tmp_path, capsys, protocol):
+    # seed 14: one start stops with pd_5_x 10 u from its truth at an objective 5.6 above the truth's basin (ideal
+    # data); with 0.05 mm of noise the two basins lie within 4 of each other: neither is stored
+    path = tmp_path / "bench.db"
+    run_id = _store_campaign(path, protocol[0], _readings(protocol, 14, 1, 0.0))
+    assert main(["calibrate", str(run_id), "--store", str(path)]) == 2
+    err = capsys.readouterr().err
+    assert "two geometries explain the 30 readings about equally well" in err and "nothing stored" in err
+    assert re.search(r"pd_[56]_x_mm \(\d+\.\d u\)", err) and "these poses cannot tell them apart" in err
+    with Store(path) as store:
+        assert store.calibrations() == []

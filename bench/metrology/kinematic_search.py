@@ -46,7 +46,14 @@ AMBIGUITY_Z = 5.0
 
 
 class AmbiguousFit(UnidentifiableParameters):
-    """Distinct geometries explain the data about equally well (module docstring): the fit is not stored."""
+    """Distinct geometries explain the data about equally well (module docstring): the fit is not stored.
+    ``separation`` is how far apart their predictions lie, ``sum |(f_rival - f_best) / u|^2`` over the readings:
+    measured, it stays ~1 as the cycles per pose grow (each solution refits the better data), so only poses that
+    see the difference resolve it (docs/calibration.md)."""
+
+    def __init__(self, message: str, separation: float = float("nan")) -> None:
+        super().__init__(message)
+        self.separation = separation
 
 
 @dataclass(frozen=True)
@@ -110,10 +117,11 @@ def identify_global(model, measured, uncertainty, *, prior_sigma, starts: int = 
         rival = fits[rivals[0]]
         z = np.abs(rival.values - best.values) / best.uncertainty
         named = ", ".join(f"{best.names[j]} ({z[j]:.1f} u)" for j in np.argsort(-z)[:3] if z[j] > AMBIGUITY_Z)
+        separation = float(np.sum(((rival.residuals - best.residuals)
+                                   / np.broadcast_to(uncertainty, best.residuals.shape)) ** 2))
         raise AmbiguousFit(
             f"kinematic calibration refused: two geometries explain the {len(np.asarray(measured))} readings about "
             f"equally well (MAP objectives {objectives[kept]:.1f} and {objectives[rivals[0]]:.1f}, within "
             f"{AMBIGUITY_DELTA:g}) yet differ by more than {AMBIGUITY_Z:g} standard uncertainties in {named}; "
-            "nothing stored. Measure more cycles per pose (a smaller scatter of the mean separates them) or more "
-            "poses that spread over the workspace and its orientations")
+            f"nothing stored. Their predictions differ by chi^2 {separation:.3g} over the readings", separation)
     return SearchResult(best, objectives, spread, kept)
