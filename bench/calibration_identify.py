@@ -15,6 +15,13 @@ run, the residuals, the observability, the fit and its prior (docs/calibration.m
   parameters, default what the pose set and instrument can identify
   (:func:`bench.metrology.kinematic_calibration.identifiable_subset`), the others held at their documented values.
 
+Campaign (:mod:`bench.metrology.kinematic_campaign`): the samples of one commanded pose are fitted by their mean,
+weighted by its measured scatter of the mean (the instrument's stated uncertainty, ``--uncertainty-mm``, a floor);
+an erratic pose is left out and named; the stored ``campaign`` keeps the robot's scatter apart from the
+instrument's figure, with the run's robot time and the plan of cycles per pose for ``target_gain``. The ``map``
+fit starts from the documented geometry and 7 prior draws (:func:`bench.metrology.kinematic_search.identify_global`:
+the best kept, two plausible distinct solutions refused).
+
 The in-sample mean position error before is that of
 the documented geometry with only the registration fitted: ``mean_j |m_j - f(theta_reg)_j|`` over each sample's
 measured axes, after ``mean_j |m_j - f(theta_hat)_j|``.
@@ -485,6 +492,6 @@ def _campaign_lines(params: dict) -> list[str]:
         lines.append(
             f"plan for {plan['target_gain']:g}x over the {plan['geometric_error_mm']:.3f} mm the geometry explains: "
             + (f"{wanted} cycles per pose{robot_time(wanted)}" if wanted else "out of reach by cycles")
-            + (f"; a validation run needs {plan['validation_cycles']} cycles per pose to show it (the play's "
-               f"{plan['scatter_mm']:.2f} mm a reading)" if plan["validation_cycles"] else ""))
+            + (f"; a validation run needs {plan['validation_cycles']} cycles per pose to show it (the measured "
+               f"scatter, {plan['scatter_mm']:.2f} mm a reading over the axes)" if plan["validation_cycles"] else ""))
     return lines

@@ -149,3 +149,10 @@ def test_two_plausible_distinct_geometries_are_refused_and_nothing_is_stored(tmp
     assert re.search(r"pd_[56]_x_mm \(\d+\.\d u\)", err) and "these poses cannot tell them apart" in err
     with Store(path) as store:
         assert store.calibrations() == []
+
+
+@pytest.mark.parametrize("gain", ["0.5", "1", "inf", "nan"])
+def test_a_target_gain_that_is_no_gain_is_one_line(tmp_path, capsys, gain):
+    assert main(["calibrate", "1", "--target-gain", gain, "--store", str(tmp_path / "bench.db")]) == 2
+    assert capsys.readouterr().err == (f"bench: error: --target-gain = {float(gain)!r}, expected a number above 1 "
+                                       "(the held-out AP before / after)\n")
