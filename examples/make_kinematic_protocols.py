@@ -48,9 +48,9 @@ def candidates(count: int, kinds: tuple[str, ...], seed: int) -> np.ndarray:
 
 #: Cycles per pose of the pkm5's protocols. The documented pkm5's passive joints play 0.6 mm per axis per move
 #: (sigma): with 2 cycles the pose means are too uncertain to inform the fit (``bench calibrate`` refuses and plans
-#: the cycles: half the parameters informed from 3-5 on the simulated robots); 10 cycles inform it with margin. A validation run reads each pose's
-#: mean to the play's ~1.1 mm / sqrt(cycles): 50 cycles keep that ~0.15 mm floor under the calibrated error
-#: (docs/calibration.md, "A robot with play").
+#: the cycles; half the parameters were informed from 3-5 on the simulated robots); 10 inform it with margin. A
+#: validation run reads each pose's mean to the play's ~1.1 mm / sqrt(cycles): 50 cycles put that floor at ~0.15 mm
+#: of AP (docs/calibration.md, "A robot with play").
 PKM5_CALIBRATION_CYCLES = 10
 PKM5_VALIDATION_CYCLES = 50
 
