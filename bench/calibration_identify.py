@@ -50,7 +50,8 @@ from typing import Any
 from bench.calibration_compensation import calibration_name
 from bench.errors import ConfigError, InsufficientData
 
-__all__ = ["COMMANDED", "DEFAULT_TARGET_GAIN", "DEFAULT_UNCERTAINTY_MM", "FITS", "IdentifiedRun", "InconsistentFit", "MEASURED", "check_fit",
+__all__ = ["COMMANDED", "DEFAULT_TARGET_GAIN", "DEFAULT_UNCERTAINTY_MM", "FITS", "IdentifiedRun", "InconsistentFit",
+           "MEASURED", "check_fit",
            "check_uncertainty", "identify_run", "summary_lines"]
 
 #: Commanded fields of a pose sample per robot.

@@ -40,7 +40,8 @@ import numpy as np
 
 from bench.errors import InsufficientData
 
-__all__ = ["ERRATIC_FALSE_ALARM", "MAX_CYCLES", "POOLED_DOF", "erratic_poses", "CampaignPlan", "PoseMeans", "plan_campaign", "pose_means"]
+__all__ = ["ERRATIC_FALSE_ALARM", "MAX_CYCLES", "POOLED_DOF", "CampaignPlan", "PoseMeans", "erratic_poses",
+           "plan_campaign", "pose_means"]
 
 #: Degrees of freedom the pooled scatter counts for in each pose's own (module docstring): as much as 10 readings.
 POOLED_DOF = 10.0
@@ -103,7 +104,8 @@ def erratic_poses(readings, pose_index, instrument_mm: float = 0.0,
     """Which poses (bool (N,)) scatter more than the others beyond chance: per axis, the variance ratio
     ``F = max(hat s_i, u_inst)^2 / max(s_rest, u_inst)^2`` of the pose's own readings against the pooled
     within-pose variance of the other poses, both floored at the instrument's stated ``instrument_mm`` (a scatter
-    below it is the instrument's resolution, e.g. one count among repeated identical readings, not the robot), with ``(n_i - 1, M - N - (n_i - 1))`` degrees of freedom (the F-test of equal variances, NIST/SEMATECH
+    below it is the instrument's resolution, e.g. one count among repeated identical readings, not the robot), with
+    ``(n_i - 1, M - N - (n_i - 1))`` degrees of freedom (the F-test of equal variances, NIST/SEMATECH
     e-Handbook §1.3.5.9), above its upper ``false_alarm`` quantile on any axis. Such a pose does not repeat as the
     robot does elsewhere (seen on the simulated pkm5: a beta pose near an FK fold spread 22 mm in x over 10 cycles
     against 0.7 mm elsewhere, its mean 19 mm off the others' geometry): its mean measures no geometry, so the fit

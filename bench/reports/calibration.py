@@ -220,7 +220,8 @@ def _correlations(params: dict) -> tuple[tuple[str, str, str], ...]:
 def _campaign_rows(params: dict, obs: dict) -> list[tuple[str, str]]:
     """The measurements and their two uncertainties, kept apart: the instrument's stated figure and the robot's
     measured scatter (a calibration stored before the per-pose means: every reading fitted alone)."""
-    instrument = ("Instrument standard uncertainty (mm per axis, stated)", f"{params.get('uncertainty_mm', float('nan')):g}")
+    instrument = ("Instrument standard uncertainty (mm per axis, stated)",
+                  f"{params.get('uncertainty_mm', float('nan')):g}")
     campaign = params.get("campaign")
     if not campaign:
         return [("Pose measurements (poses x cycles)", str(obs.get("n_poses", "—"))), instrument]
