@@ -18,13 +18,13 @@ import pytest
 
 pytest.importorskip("PySide6")
 
+from calibrated_pkm5 import example_with_cycles
 from gui_support import RUN_TIMEOUT_S, select_runs, wait_for
 from PySide6.QtCore import Qt, QTimer
 from PySide6.QtTest import QTest
 
 from bench.calibration_compensation import NEWEST, OFF
 from bench.cli import main as bench_main
-from bench.gui.campaign_panel import EXAMPLES
 from bench.store import Store
 
 SEED = 3  # true geometry (tests/test_kinematic_compensation.py)
@@ -43,7 +43,7 @@ def calibration_store(tmp_path_factory) -> tuple[Path, int]:
     """A store holding one calibration run of the seeded true geometry, and its id: run once for the module (each
     test works on its own copy)."""
     store = tmp_path_factory.mktemp("calibration") / "bench.db"
-    said = _bench("run", str(EXAMPLES / "kinematic_calibration.toml"), "--true-geometry-seed", str(SEED), "--ideal",
+    said = _bench("run", str(example_with_cycles("kinematic_calibration.toml", store.parent)), "--true-geometry-seed", str(SEED), "--ideal",
                   "--no-kinematic-calibration", "--no-progress", store=store)
     return store, int(said.split()[-1])
 
@@ -76,7 +76,7 @@ def _click_identify(window, run_id: int) -> int:
 def _run_validation(window, choice) -> int:
     panel = window.campaign_panel
     window.calibration_panel.choose(choice)
-    panel.choose_file(EXAMPLES / "kinematic_validation.toml")
+    panel.choose_file(example_with_cycles("kinematic_validation.toml", Path(window.store_path).parent))
     assert panel.form.protocol is not None, panel.preflight.text()
     QTest.mouseClick(panel.buttons["start"], Qt.MouseButton.LeftButton)
     assert panel.worker is not None, window.log.toPlainText()
@@ -92,8 +92,10 @@ def test_identify_in_the_window_then_run_with_the_chosen_calibration_and_with_no
     shutil.copy(store_path, tmp_path / "copy.db")
     expected = json.loads(_bench("calibrate", str(run_id), "--json", store=tmp_path / "copy.db"))
 
-    ticks = _click_identify(window, run_id)
     panel = window.calibration_panel
+    panel.gain_box.setValue(10.0)  # bench calibrate --target-gain 10; the fit and uncertainty left at the defaults
+    assert panel.identify_options() == {"fit": None, "uncertainty_mm": None, "target_gain": 10.0}
+    ticks = _click_identify(window, run_id)
     assert ticks >= 3  # the window kept serving events while the fit ran in its background task
     assert panel.last_dialog.windowTitle() == "Calibration stored"
     with Store(store_path, read_only=True) as store:
@@ -105,13 +107,17 @@ def test_identify_in_the_window_then_run_with_the_chosen_calibration_and_with_no
         assert record.params["parameters"][name]["value"] == pytest.approx(entry["value"], abs=1e-9)
         assert record.params["parameters"][name]["uncertainty"] == pytest.approx(entry["uncertainty"], rel=1e-6)
     condition = expected["observability"]["condition_number"]
+    assert record.params["campaign"]["plan"]["target_gain"] == 10.0 != expected["campaign"]["plan"]["target_gain"]
     shown = panel.result_text.toPlainText().splitlines()
-    assert shown[0] == (f"pkm5_kinematics v1 (id {record.id}) from run {run_id}: 60 poses, "
+    assert shown[0] == (f"pkm5_kinematics v1 (id {record.id}) from run {run_id}: 30 poses, "
                         f"{len(expected['parameters'])} free parameters")
-    assert shown[-3].startswith("fit: maximum a posteriori, prior: manufacturing tolerances")  # the default fit
-    assert shown[-2].startswith(f"data part: condition number {condition:.3g} (the prior holds")
-    assert shown[-1] == (f"mean position error on the calibration poses (in-sample): before "
+    assert shown[-6].startswith("fit: maximum a posteriori, prior: manufacturing tolerances")  # the default fit
+    assert shown[-5].startswith(f"data part: condition number {condition:.3g} (the prior holds")
+    assert shown[-4] == (f"mean position error on the calibration poses (in-sample): before "
                          f"{expected['ap_before_mm']:.3f} mm, after {expected['ap_after_mm']:.3f} mm")
+    assert shown[-3].startswith("search: 8 starts from the prior")
+    assert shown[-2].startswith("robot scatter of one reading: ") and "instrument: 0.05 mm" in shown[-2]
+    assert shown[-1].startswith("plan for 10x over the ")
     assert f"{shown[0]}" in window.log.toPlainText()
 
     # the new calibration is listed (read again in the background) and can be chosen for the window's runs

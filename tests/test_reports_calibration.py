@@ -18,6 +18,7 @@ from reports_runs import cli_json, html_tables, pdf_text, rounded_by_u
 from bench.cli import main
 from bench.reports import collect
 from bench.reports.calibration import calibration_comparison, error_vectors
+from bench.reports.document import fmt_mm
 from bench.reports.plots import MIN_FONT_PT
 from bench.store import Store
 from motion.pkm5.calibration import PARAMETERS
@@ -115,7 +116,12 @@ def test_the_parameter_and_observability_tables_are_the_stored_calibration(valid
     assert observed["Combinations the data alone cannot identify"] == "; ".join(
         calibration["observability"]["unidentifiable"])
     assert observed["Source run"] == "1"
-    assert observed["Pose measurements (poses x cycles)"] == "60"  # 30 poses, 2 cycles
+    assert observed["Poses (each fitted by its mean)"] == "30" and observed["Cycles per pose"] == "2"
+    # the instrument's stated figure and the robot's measured scatter, apart
+    assert observed["Instrument standard uncertainty (mm per axis, stated)"] == "0.05"
+    scatter = calibration["campaign"]["scatter_mm"]
+    assert observed["Robot scatter of one reading (mm per axis, measured)"].startswith(
+        " / ".join(fmt_mm(v) for v in scatter))
     assert observed["Reduced chi^2 of the fit"] == (f"{calibration['reduced_chi2']:.2f} over "
                                                     f"{calibration['degrees_of_freedom']:.1f} degrees of freedom")
     html = validated["html"].read_text(encoding="utf-8")

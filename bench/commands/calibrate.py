@@ -14,7 +14,7 @@ from __future__ import annotations
 import argparse
 import json
 
-from bench.calibration_identify import DEFAULT_UNCERTAINTY_MM, FITS
+from bench.calibration_identify import DEFAULT_TARGET_GAIN, DEFAULT_UNCERTAINTY_MM, FITS
 
 DEFAULT_STORE = "bench.db"
 
@@ -31,9 +31,12 @@ def register(groups: argparse._SubParsersAction) -> None:
                         help="free parameters (default: every one for --fit map, the identifiable set for "
                              "--fit free-set); see docs/calibration.md")
     parser.add_argument("--uncertainty-mm", type=float, default=None,
-                        help="the instrument's standard uncertainty per axis, mm (default: pkm5 mice "
+                        help="the instrument's standard uncertainty per reading and axis, mm, the floor of the "
+                             "measured scatter each pose's mean is weighted by (default: pkm5 mice "
                              f"{DEFAULT_UNCERTAINTY_MM:g}; delta4: the run's instrument, camera plane calibration "
                              "RMS or laser-grid window / sqrt 3)")
+    parser.add_argument("--target-gain", type=float, default=DEFAULT_TARGET_GAIN,
+                        help="the held-out AP gain the printed campaign plan (cycles per pose, robot time) is for")
     parser.add_argument("--store", default=DEFAULT_STORE, help="run store (SQLite file)")
     parser.add_argument("--json", action="store_true", help="print the result as JSON")
     parser.set_defaults(handler=run)
@@ -41,12 +44,16 @@ def register(groups: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from bench.calibration_identify import check_uncertainty, identify_run, summary_lines
+    from bench.errors import ConfigError
     from bench.store import Store
 
     check_uncertainty(args.uncertainty_mm)
+    if not 1 < args.target_gain < float("inf"):
+        raise ConfigError(f"--target-gain = {args.target_gain!r}, expected a number above 1 (the held-out AP "
+                          "before / after)")
     with Store(args.store) as store:
         identified = identify_run(store, args.run_id, free=args.free, uncertainty_mm=args.uncertainty_mm,
-                                  fit=args.fit)
+                                  fit=args.fit, target_gain=args.target_gain)
     if args.json:
         record = identified.record
         print(json.dumps({"calibration": record.name, "version": record.version, "id": record.id,

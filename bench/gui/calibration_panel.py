@@ -11,7 +11,11 @@ in the background whenever the robot changes or the results browser sees the sto
 "Identify from the selected run" runs ``bench calibrate``'s function
 (:func:`bench.calibration_identify.identify_run`) on the run selected in the results browser, in a background task
 (never on the GUI thread; its own store connection), then shows the text ``bench calibrate`` prints, and a dialog;
-a refusal (no measured poses, an ill-conditioned pose set) shows its one line.
+a refusal (no measured poses, an ill-conditioned pose set) shows its one line. The choices of ``bench calibrate``
+sit beside the button: the fit (``--fit``: the robot's default, map or free-set), the instrument's uncertainty
+(``--uncertainty-mm``: 0 = the instrument's own) and the target gain the campaign plan is made for
+(``--target-gain``); the result shows the whole stored summary (parameters, the robot's scatter apart from the
+instrument's, the search, and the plan: cycles per pose and robot time).
 """
 
 from __future__ import annotations
@@ -23,6 +27,7 @@ from pathlib import Path
 from PySide6.QtCore import Signal
 from PySide6.QtWidgets import (
     QComboBox,
+    QDoubleSpinBox,
     QFormLayout,
     QGroupBox,
     QLabel,
@@ -34,7 +39,7 @@ from PySide6.QtWidgets import (
 )
 
 from bench.calibration_compensation import CALIBRATION_NAMES, NEWEST, OFF
-from bench.calibration_identify import identify_run, summary_lines
+from bench.calibration_identify import DEFAULT_TARGET_GAIN, FITS, identify_run, summary_lines
 from bench.gui.messages import show_message
 from bench.gui.tasks import Task, run_in_background
 from bench.store import Store
@@ -61,9 +66,9 @@ def _describe(record) -> str:
             f"{simulated})")
 
 
-def _identify(store_path: str, run_id: int):
+def _identify(store_path: str, run_id: int, options: dict):
     with Store(store_path) as store:
-        return identify_run(store, run_id)
+        return identify_run(store, run_id, **options)
 
 
 class CalibrationPanel(QGroupBox):
@@ -101,16 +106,42 @@ class CalibrationPanel(QGroupBox):
         self.identify_button.setToolTip("bench calibrate RUN_ID on the run selected in the Results tab: identify "
                                         "the robot's geometry and store it as a new <robot>_kinematics version")
         self.identify_button.clicked.connect(lambda _=False: self.identify())
+        self.fit_box = QComboBox()
+        self.fit_box.setObjectName("calibrationFit")
+        self.fit_box.addItem("default (map)", None)
+        for fit in FITS:
+            self.fit_box.addItem(fit, fit)
+        self.fit_box.setToolTip("bench calibrate --fit: map fits every parameter with the tolerances as the prior; "
+                                "free-set only what the poses identify")
+        self.uncertainty_box = QDoubleSpinBox()
+        self.uncertainty_box.setObjectName("calibrationUncertainty")
+        self.uncertainty_box.setRange(0.0, 10.0)
+        self.uncertainty_box.setDecimals(3)
+        self.uncertainty_box.setSingleStep(0.01)
+        self.uncertainty_box.setSuffix(" mm")
+        self.uncertainty_box.setSpecialValueText("the instrument's")
+        self.uncertainty_box.setToolTip("bench calibrate --uncertainty-mm: the instrument's standard uncertainty "
+                                        "per reading, the floor of the measured scatter (0: the instrument's own)")
+        self.gain_box = QDoubleSpinBox()
+        self.gain_box.setObjectName("calibrationTargetGain")
+        self.gain_box.setRange(1.5, 1000.0)
+        self.gain_box.setValue(DEFAULT_TARGET_GAIN)
+        self.gain_box.setSuffix(" x")
+        self.gain_box.setToolTip("bench calibrate --target-gain: the held-out AP gain the campaign plan (cycles per "
+                                 "pose, robot time) is made for")
         self.status = QLabel("")
         self.status.setObjectName("calibrationStatus")
         self.status.setWordWrap(True)
         self.result_text = QPlainTextEdit()
         self.result_text.setObjectName("calibrationResult")
         self.result_text.setReadOnly(True)
-        self.result_text.setMaximumHeight(160)
+        self.result_text.setMaximumHeight(220)
         self.result_text.setPlaceholderText("identified parameters, uncertainties and observability")
         form = QFormLayout()
         form.addRow("In force for runs", self.choice_box)
+        form.addRow("Fit", self.fit_box)
+        form.addRow("Instrument uncertainty", self.uncertainty_box)
+        form.addRow("Plan for gain", self.gain_box)
         layout = QVBoxLayout(self)
         layout.addLayout(form)
         layout.addWidget(self.identify_button)
@@ -166,6 +197,12 @@ class CalibrationPanel(QGroupBox):
 
     # ---- identification --------------------------------------------------------------------------------------
 
+    def identify_options(self) -> dict:
+        """The keyword arguments of :func:`identify_run` the box's choices give (``bench calibrate``'s flags)."""
+        uncertainty = self.uncertainty_box.value()
+        return {"fit": self.fit_box.currentData(), "uncertainty_mm": uncertainty if uncertainty > 0 else None,
+                "target_gain": self.gain_box.value()}
+
     def identify(self) -> Task | None:
         """``bench calibrate`` on the selected run, in the background; the result is shown when it is stored."""
         ids = self.selected_runs()
@@ -178,8 +215,9 @@ class CalibrationPanel(QGroupBox):
         run_id = ids[0]
         self.status.setText(f"identifying the geometry from run {run_id}...")
         self.identify_button.setEnabled(False)
-        path = self.store_path
-        self._task = run_in_background(f"identification from run {run_id}", lambda: _identify(path, run_id), self,
+        path, options = self.store_path, self.identify_options()
+        self._task = run_in_background(f"identification from run {run_id}", lambda: _identify(path, run_id, options),
+                                       self,
                                        on_done=self._identified, on_failed=lambda text: self._failed(run_id, text),
                                        on_ended=self._ended)
         return self._task
@@ -191,7 +229,8 @@ class CalibrationPanel(QGroupBox):
         self.status.setText(lines[0])
         self.message.emit(lines[0])
         self.last_dialog = show_message(self, QMessageBox.Icon.Information, "Calibration stored",
-                                        "\n".join([lines[0], *lines[-2:]]), name="calibrationDialog")
+                                        "\n".join([lines[0], *lines[2 + len(identified.result.names):]]),
+                                        name="calibrationDialog")
         self.refresh()
         self.identified.emit(identified)
 

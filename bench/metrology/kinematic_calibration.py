@@ -89,9 +89,11 @@ class Observability:
 
 
 def _weighted(jac, uncertainty) -> np.ndarray:
+    """``jac`` (N, a, K) over the standard uncertainty of each coordinate ((a,) per axis or (N, a) per pose and
+    axis), rows stacked (N a, K)."""
     jac = np.asarray(jac, dtype=float)
-    u = np.broadcast_to(np.asarray(uncertainty, dtype=float), jac.shape[1:2])
-    return (jac / u[None, :, None]).reshape(-1, jac.shape[-1])
+    u = np.broadcast_to(np.asarray(uncertainty, dtype=float), jac.shape[:2])
+    return (jac / u[:, :, None]).reshape(-1, jac.shape[-1])
 
 
 def _finite_weighted(jac, uncertainty) -> np.ndarray:
@@ -229,21 +231,22 @@ def _refuse_if_uninformed(jac, uncertainty, names, sigma, std, n_poses: int, lim
 
 
 def identify(model, measured, uncertainty, *, theta0=None, limit: float = CONDITION_LIMIT,
-             prior_sigma=None) -> Identification:
+             prior_sigma=None, check_start: bool = True) -> Identification:
     """Identification of ``model.free`` from ``measured`` (N, a) (module docstring): weighted least squares, or
     maximum a posteriori when ``prior_sigma`` (K,) gives each parameter's 1-sigma prior about 0 (``inf``: none).
 
     Raises :class:`UnidentifiableParameters` (one line naming the weak parameters or combinations), before and after
-    the solve: without a prior when the scaled Jacobian's condition number exceeds ``limit``; with a prior by the
-    restated rule of the module docstring.
+    the solve (``check_start`` False: after it only): without a prior when the scaled Jacobian's condition number
+    exceeds ``limit``; with a prior by the restated rule of the module docstring. ``uncertainty``: per axis (a,) or
+    per pose and axis (N, a).
     """
     measured = np.asarray(measured, dtype=float)
-    u = np.broadcast_to(np.asarray(uncertainty, dtype=float), measured.shape[1:])
     if measured.ndim != 2 or len(measured) == 0:
         raise InsufficientData(f"measured has shape {measured.shape}, expected (N, a) with N >= 1 measured poses")
     if not np.all(np.isfinite(measured)):
         raise InsufficientData(f"measured poses: {int(np.sum(~np.isfinite(measured).all(1)))} rows are not finite, "
                                "expected a measured coordinate for every pose")
+    u = np.broadcast_to(np.asarray(uncertainty, dtype=float), measured.shape)  # per axis or per pose and axis
     if not np.all((u > 0) & np.isfinite(u)):
         raise ConfigError(f"instrument uncertainty = {np.asarray(uncertainty).tolist()}, expected finite values > 0")
     k = len(model.free)
@@ -283,7 +286,8 @@ def identify(model, measured, uncertainty, *, theta0=None, limit: float = CONDIT
             # be a rejected trial)
         return latest[1]
 
-    check(model_jacobian(theta0))
+    if check_start:  # a search's other starts (kinematic_search) are judged at their solution only
+        check(model_jacobian(theta0))
 
     def residual(theta):
         r = np.nan_to_num((measured - model.predict(theta)) / u, nan=1e6).ravel()
@@ -309,6 +313,11 @@ def identify(model, measured, uncertainty, *, theta0=None, limit: float = CONDIT
                                "measurements against the commanded poses")
     final_jac = model_jacobian(theta)
     after = measured - model.predict(theta)
+    failed = np.flatnonzero(~np.all(np.isfinite(after), axis=1))
+    if failed.size:  # a solution where the model cannot place a pose explains nothing there: no calibration
+        raise InsufficientData(f"kinematic calibration refused: at the solution the forward kinematics fails at "
+                               f"{failed.size} measured poses (first: pose {failed[0]}); expected poses the fitted "
+                               "geometry reaches: leave such poses out or measure them again")
     obs, cov, prior_only = check(final_jac)
     obs = obs or observability(final_jac, u, model.free, limit)  # a prior's: the data part, reported
     std = np.sqrt(np.clip(np.diag(cov), 0.0, None))

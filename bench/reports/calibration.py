@@ -217,6 +217,31 @@ def _correlations(params: dict) -> tuple[tuple[str, str, str], ...]:
     return tuple((names[i[k]], names[j[k]], f"{matrix[i[k], j[k]]:+.3f}") for k in order)
 
 
+def _campaign_rows(params: dict, obs: dict) -> list[tuple[str, str]]:
+    """The measurements and their two uncertainties, kept apart: the instrument's stated figure and the robot's
+    measured scatter (a calibration stored before the per-pose means: every reading fitted alone)."""
+    instrument = ("Instrument standard uncertainty (mm per axis, stated)",
+                  f"{params.get('uncertainty_mm', float('nan')):g}")
+    campaign = params.get("campaign")
+    if not campaign:
+        return [("Pose measurements (poses x cycles)", str(obs.get("n_poses", "—"))), instrument]
+    cycles = campaign["cycles_per_pose"]
+    scatter = campaign["scatter_mm"]
+    rows = [("Poses (each fitted by its mean)", str(len(cycles))),
+            ("Cycles per pose", f"{min(cycles)}" if min(cycles) == max(cycles) else f"{min(cycles)}-{max(cycles)}"),
+            instrument,
+            ("Robot scatter of one reading (mm per axis, measured)",
+             "not measured (one cycle)" if scatter[0] is None else
+             f"{' / '.join(fmt_mm(v) for v in scatter)} ({campaign['scatter_dof']} degrees of freedom)"),
+            ("Standard uncertainty of a pose mean (mm per axis, RMS)",
+             " / ".join(fmt_mm(v) for v in campaign["mean_uncertainty_mm"]))]
+    plan = campaign.get("plan")
+    if plan and plan.get("calibration_cycles"):
+        rows.append((f"Plan for a {plan['target_gain']:g}x gain (cycles per pose: calibration / validation)",
+                     f"{plan['calibration_cycles']} / {plan.get('validation_cycles') or '—'}"))
+    return rows
+
+
 def _fit_rows(record: Any) -> tuple[tuple[str, str], ...]:
     params = record.params
     obs = params.get("observability", {})
@@ -225,8 +250,7 @@ def _fit_rows(record: Any) -> tuple[tuple[str, str], ...]:
     verdict = "accepted" if condition <= _CONDITION_LIMIT else "above the limit"
     rows = [("Source run", str(record.source_run_id)), ("Stored (UTC)", record.created_utc),
             ("Robot serial", str(params.get("dut_serial", "not recorded"))),
-            ("Pose measurements (poses x cycles)", str(obs.get("n_poses", "—"))),
-            ("Instrument standard uncertainty (mm per axis)", f"{params.get('uncertainty_mm', float('nan')):g}"),
+            *_campaign_rows(params, obs),
             ("Free parameters", str(len(params.get("parameters", {}))))]
     is_map = params.get("fit") == "map"
     if is_map:  # a prior holds what the data cannot (docs/calibration.md, the refusal rule)
