@@ -13,7 +13,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
-from bench.calibration_compensation import NEWEST, choose_calibration, put_in_force
+from bench.calibration.compensate import NEWEST, choose_calibration, put_in_force
 from bench.errors import ConfigError
 from bench.rigs.builder import build_rig, check_capabilities, station_identity
 from bench.rigs.builder import open_mover as builder_open_mover
@@ -125,7 +125,7 @@ def _synced_after(rig: Rig, station: Station, store: Any) -> Rig:
 
 def _kinematic_calibration(request: RigRequest, store: Any, robot: str, stored: dict[str, Any],
                            serial: str | None, fixture: str, simulated: bool) -> tuple[Any, str]:
-    """The kinematic calibration the request selects (:mod:`bench.calibration_compensation`) and why, decided before
+    """The kinematic calibration the request selects (:mod:`bench.calibration.compensate`) and why, decided before
     anything opens; a resumed run keeps its own unless another is named."""
     choice = request.kinematic_calibration
     if stored and choice == NEWEST:

@@ -49,6 +49,12 @@ class RobotKind:
         ``"module:callable"`` ``targets -> (N, P) bool``: the pose columns a target moves in (None: all of them).
     calibration : str or None
         The name of its kinematic calibration in the store (``pkm5_kinematics``); None when it has none.
+    calibration_model : str or None
+        The module whose ``compensation_geometry`` turns a stored calibration's parameters into the geometry a run
+        commands by (``motion.pkm5.calibration``).
+    calibration_problem : str or None
+        ``"module:callable"`` ``(store, run_id, uncertainty_mm) -> problem``: the identification problem
+        :mod:`bench.calibration.identify` fits for a calibration run of this robot.
     commanded : tuple of str
         The commanded-pose columns of its samples, in pose-field order.
     fixtures : tuple of str
@@ -65,6 +71,8 @@ class RobotKind:
     simulator_help: str
     mode_columns: str | None = None
     calibration: str | None = None
+    calibration_model: str | None = None
+    calibration_problem: str | None = None
     commanded: tuple[str, ...] = ("cmd_x_mm", "cmd_y_mm", "cmd_z_mm")
     fixtures: tuple[str, ...] = ("assembled",)
 
@@ -116,7 +124,8 @@ register(RobotKind(
     travel_time="bench.protocols.kinematics:stepper_travel_s",
     mode_columns="bench.protocols.kinematics:pkm5_mode_columns",
     simulator="bench.simulators.pkm5", simulator_help="5-DOF PKM controller (line protocol, docs/protocol-pkm5.md)",
-    calibration="pkm5_kinematics", commanded=("cmd_x_mm", "cmd_y_mm", "cmd_z_mm", "cmd_a_deg", "cmd_b_deg"),
+    calibration="pkm5_kinematics", calibration_model="motion.pkm5.calibration",
+    calibration_problem="bench.calibration.identify:pkm5_problem", commanded=("cmd_x_mm", "cmd_y_mm", "cmd_z_mm", "cmd_a_deg", "cmd_b_deg"),
     fixtures=("assembled", "actuator-bench")))
 
 register(RobotKind(
@@ -125,4 +134,5 @@ register(RobotKind(
     travel_time="bench.protocols.kinematics:servo_travel_s",
     simulator="bench.simulators.delta4",
     simulator_help="delta4 ATmega128 controller (ASCII protocol, docs/protocol-delta4.md)",
-    calibration="delta4_kinematics"))
+    calibration="delta4_kinematics", calibration_model="motion.delta4.calibration",
+    calibration_problem="bench.calibration.identify:delta4_problem"))

@@ -14,7 +14,7 @@ import json
 import numpy as np
 import pytest
 
-from bench.calibration_compensation import calibrated_geometry, select_calibration
+from bench.calibration.compensate import calibrated_geometry, select_calibration
 from bench.cli import main
 from bench.errors import ConfigError
 from bench.metrology.kinematic_calibration import identifiable_subset, select_poses
@@ -110,7 +110,7 @@ def test_the_stored_calibration_commands_held_out_positions_onto_their_targets(c
     with Store(path) as store:
         record = store.calibration("delta4_kinematics")
     if record is None:  # the CLI test did not run first
-        from bench.calibration_identify import identify_run
+        from bench.calibration.identify import identify_run
 
         with Store(path) as store:
             record = identify_run(store, run_id).record
@@ -161,7 +161,7 @@ def test_map_fits_a_robot_perturbed_in_every_parameter_within_its_uncertainties(
     the other axes and the registration, the form any instrument sees): every parameter within 4 posterior
     standard uncertainties; the held-out positions the stored calibration commands land nearer their targets than
     the documented robot's and the free-set fit's."""
-    from bench.calibration_compensation import calibrated_geometry
+    from bench.calibration.compensate import calibrated_geometry
     from bench.simulators.true_geometry import delta4_true_deviations
     from motion.delta4.calibration import TOLERANCES, base_equivalent
 
@@ -298,7 +298,7 @@ FINE_SETTINGS = {**CAMERA_SETTINGS, "robot": {**CAMERA_SETTINGS["robot"],
 def _gain_by_references(tmp_path, seed: int, fine: bool) -> tuple[float, float, dict]:
     """A run of 30 D-optimal poses of a seeded true geometry, commanded with fine references (or bytes), calibrated;
     the held-out AP (50 positions, x-y, what the servos are sent) by the documented and by the calibrated IK."""
-    from bench.calibration_identify import identify_run
+    from bench.calibration.identify import identify_run
 
     sent = FINE.sent_deg if fine else _sent
     tmp_path.mkdir()

@@ -12,7 +12,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from bench.calibration_compensation import calibrated_geometry
+from bench.calibration.compensate import calibrated_geometry
 from bench.protocols.kinematics import robot_model
 from bench.robots import delta4_wire as wire
 from bench.robots.delta4 import Delta4Controller
@@ -125,7 +125,7 @@ def test_a_target_the_calibrated_geometry_cannot_reach_is_refused_before_anythin
 
 
 def test_a_calibration_of_another_robot_is_refused_in_one_line(tmp_path):
-    from bench.calibration_compensation import NEWEST, select_calibration
+    from bench.calibration.compensate import NEWEST, select_calibration
     from bench.errors import ConfigError
 
     with Store(tmp_path / "bench.db") as store:

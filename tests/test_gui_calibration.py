@@ -23,7 +23,7 @@ from gui_support import RUN_TIMEOUT_S, select_runs, wait_for
 from PySide6.QtCore import Qt, QTimer
 from PySide6.QtTest import QTest
 
-from bench.calibration_compensation import NEWEST, OFF
+from bench.calibration.compensate import NEWEST, OFF
 from bench.cli import main as bench_main
 from bench.store import Store
 

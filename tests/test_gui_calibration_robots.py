@@ -10,7 +10,7 @@ pytest.importorskip("PySide6")
 
 from gui_support import RUN_TIMEOUT_S, wait_for
 
-from bench.calibration_compensation import NEWEST, OFF
+from bench.calibration.compensate import NEWEST, OFF
 from bench.store import Store
 
 

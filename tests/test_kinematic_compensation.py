@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 from calibrated_pkm5 import EXAMPLES, SEED, calibrated_runs
 
-from bench.calibration_compensation import NEWEST, OFF, select_calibration
+from bench.calibration.compensate import NEWEST, OFF, select_calibration
 from bench.cli import main
 from bench.errors import ConfigError
 from bench.store import Store
@@ -110,7 +110,7 @@ def test_a_resume_keeps_the_calibration_of_its_run(tmp_path):
     without one stays without one."""
     from types import SimpleNamespace
 
-    from bench.calibration_compensation import put_in_force
+    from bench.calibration.compensate import put_in_force
     from bench.launch import RigRequest, _kinematic_calibration
     from bench.rigs.interfaces import Rig
     from bench.rigs.movers import Pkm5Mover

@@ -5,7 +5,7 @@ Identifies the geometry (``--fit map``, the default: every parameter, the manufa
 ``--fit free-set``, the default with ``--free``: the free parameters, default what the pose set and instrument can
 identify; docs/calibration.md) and stores the result as a new version of the calibration ``pkm5_kinematics`` /
 ``delta4_kinematics`` with the source run, the residuals, the observability, the fit and its prior
-(:func:`bench.calibration_identify.identify_run`, the window's "Identify" button runs the same).
+(:func:`bench.calibration.identify.identify_run`, the window's "Identify" button runs the same).
 Heavy modules load inside the handler.
 """
 
@@ -14,7 +14,7 @@ from __future__ import annotations
 import argparse
 import json
 
-from bench.calibration_identify import DEFAULT_TARGET_GAIN, DEFAULT_UNCERTAINTY_MM, FITS
+from bench.calibration.identify import DEFAULT_TARGET_GAIN, DEFAULT_UNCERTAINTY_MM, FITS
 
 DEFAULT_STORE = "bench.db"
 
@@ -43,7 +43,7 @@ def register(groups: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from bench.calibration_identify import check_uncertainty, identify_run, summary_lines
+    from bench.calibration.identify import check_uncertainty, identify_run, summary_lines
     from bench.errors import ConfigError
     from bench.store import Store
 

@@ -110,7 +110,7 @@ def _rig_arguments(parser: argparse.ArgumentParser) -> None:
 
 def rig_request(args: argparse.Namespace) -> RigRequest:
     """What the rig options ask for, as the :class:`bench.launch.RigRequest` the GUI fills in too."""
-    from bench.calibration_compensation import NEWEST, OFF
+    from bench.calibration.compensate import NEWEST, OFF
     from bench.launch import RigRequest
 
     kinematic = OFF if args.no_kinematic_calibration else (
@@ -125,7 +125,7 @@ def build_rig(args: argparse.Namespace, robot: str, store: Store, stored: dict[s
               fixture: str = "assembled", requires: frozenset[str] = frozenset(), protocol: str = "the protocol"):
     """The rig the command-line options describe (see :func:`bench.launch.open_rig`); says on stderr which
     kinematic calibration is in force."""
-    from bench.calibration_compensation import describe_in_force
+    from bench.calibration.compensate import describe_in_force
     from bench.launch import open_rig
 
     with _stop_signals_interrupt():  # homing and the registration's check moves are a safe stop too
@@ -210,7 +210,7 @@ def execute(runner: Runner, start) -> RunResult:
 
 
 def _run(args: argparse.Namespace) -> int:
-    from bench.calibration_compensation import preflight_by_rig
+    from bench.calibration.compensate import preflight_by_rig
     from bench.launch import check_speed_factor
     from bench.protocols import Runner, load_protocol, preflight, summarize
     from bench.protocols.plan import required_capabilities
@@ -237,7 +237,7 @@ def _run(args: argparse.Namespace) -> int:
 
 
 def _resume(args: argparse.Namespace) -> int:
-    from bench.calibration_compensation import preflight_by_rig
+    from bench.calibration.compensate import preflight_by_rig
     from bench.protocols import Runner, protocol_from_config
     from bench.protocols.plan import required_capabilities
     from bench.store import Store

@@ -1,15 +1,15 @@
 """The kinematic-calibration panel: which calibration the window's runs command by, and identifying a new one.
 
 "In force for runs" chooses, for every run and resume started from the window, what ``bench run`` chooses with its
-flags (:mod:`bench.calibration_compensation`, through :func:`bench.launch.open_rig`): the newest calibration of this
+flags (:mod:`bench.calibration.compensate`, through :func:`bench.launch.open_rig`): the newest calibration of this
 robot (default; a resume keeps its run's own), none (``--no-kinematic-calibration``), or one stored calibration by
 id (``--kinematic-calibration ID``). The list is the store's calibrations of the robot chosen in the robot panel
 (``pkm5_kinematics`` for the pkm5, ``delta4_kinematics`` for the delta4:
-:data:`bench.calibration_compensation.CALIBRATION_NAMES`; none for a robot without a calibration model), read again
+:data:`bench.calibration.compensate.CALIBRATION_NAMES`; none for a robot without a calibration model), read again
 in the background whenever the robot changes or the results browser sees the store change.
 
 "Identify from the selected run" runs ``bench calibrate``'s function
-(:func:`bench.calibration_identify.identify_run`) on the run selected in the results browser, in a background task
+(:func:`bench.calibration.identify.identify_run`) on the run selected in the results browser, in a background task
 (never on the GUI thread; its own store connection), then shows the text ``bench calibrate`` prints, and a dialog;
 a refusal (no measured poses, an ill-conditioned pose set) shows its one line. The choices of ``bench calibrate``
 sit beside the button: the fit (``--fit``: the robot's default, map or free-set), the instrument's uncertainty
@@ -38,8 +38,8 @@ from PySide6.QtWidgets import (
     QWidget,
 )
 
-from bench.calibration_compensation import CALIBRATION_NAMES, NEWEST, OFF
-from bench.calibration_identify import DEFAULT_TARGET_GAIN, FITS, identify_run, summary_lines
+from bench.calibration.compensate import CALIBRATION_NAMES, NEWEST, OFF
+from bench.calibration.identify import DEFAULT_TARGET_GAIN, FITS, identify_run, summary_lines
 from bench.gui.messages import show_message
 from bench.gui.tasks import Task, run_in_background
 from bench.store import Store
@@ -78,12 +78,12 @@ class CalibrationPanel(QGroupBox):
     ----------
     last_dialog : QMessageBox or None
         The latest result or error dialog (non-modal).
-    last_identified : bench.calibration_identify.IdentifiedRun or None
+    last_identified : bench.calibration.identify.IdentifiedRun or None
         The latest identification made from the window.
     """
 
     message = Signal(str)
-    identified = Signal(object)  #: an :class:`bench.calibration_identify.IdentifiedRun`
+    identified = Signal(object)  #: an :class:`bench.calibration.identify.IdentifiedRun`
 
     def __init__(self, store_path: str, selected_runs: Callable[[], list[int]],
                  parent: QWidget | None = None, *, robot: Callable[[], str] = lambda: "pkm5") -> None:

@@ -28,7 +28,7 @@ from typing import Any
 
 from PySide6.QtCore import QThread, Signal
 
-from bench.calibration_compensation import NEWEST, describe_in_force, preflight_by_rig
+from bench.calibration.compensate import NEWEST, describe_in_force, preflight_by_rig
 from bench.errors import BenchError, PromptWithdrawn
 from bench.launch import RigRequest, open_rig
 from bench.protocols import Prompt, Protocol, Runner, RunState, TransitionError, protocol_from_config

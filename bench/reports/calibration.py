@@ -1,7 +1,7 @@
 """The kinematic-calibration page of a comparison: two validation runs that differ by the calibration in force.
 
 ``bench report AFTER --compare BEFORE`` (either order) adds this page when the two pose runs commanded by different
-kinematic calibrations (``settings.kinematic_calibration.id``, recorded by :mod:`bench.calibration_compensation`):
+kinematic calibrations (``settings.kinematic_calibration.id``, recorded by :mod:`bench.calibration.compensate`):
 the run without one (or with the older one) is *before*, the other *after*. The page shows
 
 * the gain (laser-grid runs with partial readings: :mod:`bench.reports.calibration_partial`): over the poses

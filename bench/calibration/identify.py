@@ -47,16 +47,14 @@ import math
 from dataclasses import dataclass, field
 from typing import Any
 
-from bench.calibration_compensation import calibration_name
+from bench.calibration.compensate import calibration_name
 from bench.errors import ConfigError, InsufficientData
+from bench.robot_kinds import robot_kind
 
-__all__ = ["COMMANDED", "DEFAULT_TARGET_GAIN", "DEFAULT_UNCERTAINTY_MM", "FITS", "IdentifiedRun", "InconsistentFit",
+__all__ = ["DEFAULT_TARGET_GAIN", "DEFAULT_UNCERTAINTY_MM", "FITS", "IdentifiedRun", "InconsistentFit",
            "MEASURED", "check_fit",
            "check_uncertainty", "identify_run", "summary_lines"]
 
-#: Commanded fields of a pose sample per robot.
-COMMANDED = {"pkm5": ("cmd_x_mm", "cmd_y_mm", "cmd_z_mm", "cmd_a_deg", "cmd_b_deg"),
-             "delta4": ("cmd_x_mm", "cmd_y_mm", "cmd_z_mm")}
 MEASURED = ("x_mm", "y_mm", "z_mm")
 #: The mice's standard uncertainty per axis, mm (the pkm5 calibration protocol's pose selection assumes it).
 DEFAULT_UNCERTAINTY_MM = 0.05
@@ -129,7 +127,7 @@ def _pose_samples(store, run_id: int, robot: str):
     if not samples:
         raise InsufficientData(f"run {run_id}: no pose samples with measured {', '.join(MEASURED)}; expected a run "
                                "of commanded and measured poses")
-    commanded_fields = COMMANDED[robot]
+    commanded_fields = robot_kind(robot).commanded
     missing = [k for k in commanded_fields if k not in samples[0].values]
     if missing:
         raise InsufficientData(f"run {run_id}: pose samples lack {missing[0]}; expected commanded {robot} poses")
@@ -142,7 +140,7 @@ def _pose_samples(store, run_id: int, robot: str):
 def _commanded_geometry(store, run_id: int, documented):
     """The geometry the run's targets were commanded by: ``documented``, or the calibrated one of the kinematic
     calibration that was in force (its joints are what the robot really received)."""
-    from bench.calibration_compensation import calibrated_geometry
+    from bench.calibration.compensate import calibrated_geometry
 
     entry = store.run(run_id).settings.get("kinematic_calibration") or {}
     return documented if entry.get("id") is None else calibrated_geometry(store.calibration_by_id(entry["id"]))
@@ -155,7 +153,7 @@ def check_uncertainty(uncertainty_mm: float | None) -> None:
                           "instrument's standard uncertainty per axis, mm)")
 
 
-def _pkm5_problem(store, run_id: int, uncertainty_mm: float | None) -> _Problem:
+def pkm5_problem(store, run_id: int, uncertainty_mm: float | None) -> _Problem:
     import numpy as np
 
     from bench.robots.pkm5_kinematics import steps_for_pose
@@ -224,7 +222,7 @@ def _instrument_uncertainty_mm(settings: dict, run_id: int) -> float:
                       "decoder.spot_half_width_mm), expected --uncertainty-mm")
 
 
-def _delta4_problem(store, run_id: int, uncertainty_mm: float | None) -> _Problem:
+def delta4_problem(store, run_id: int, uncertainty_mm: float | None) -> _Problem:
     import numpy as np
 
     from bench.robots.delta4_wire import fine_from_settings, mapping_from_settings
@@ -270,9 +268,6 @@ def _delta4_problem(store, run_id: int, uncertainty_mm: float | None) -> _Proble
     return _Problem(lambda free: _ReadAxes(ForwardModel(servo, free, axes=(0, 1, 2)), mask),
                     registration + BASE_PARAMETERS, registration, measured[mask][:, None], u, rows, len(measured),
                     extra, **prior)
-
-
-_PROBLEMS = {"pkm5": _pkm5_problem, "delta4": _delta4_problem}
 
 
 def _mean_error_mm(problem: _Problem, residuals) -> float:
@@ -375,7 +370,7 @@ def identify_run(store: Any, run_id: int, *, free: list[str] | tuple[str, ...] |
     check_fit(fit)
     run = store.run(run_id)
     name = calibration_name(run.robot)
-    problem = _PROBLEMS[run.robot](store, run_id, uncertainty_mm)
+    problem = robot_kind(run.robot).resolved("calibration_problem")(store, run_id, uncertainty_mm)
     if fit is None:
         fit = "map" if problem.prior is not None and not free else "free-set"
     if fit == "map" and problem.prior is None:

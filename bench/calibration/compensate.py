@@ -22,14 +22,17 @@ from __future__ import annotations
 from typing import Any
 
 from bench.errors import ConfigError
+from bench.robot_kinds import ROBOT_KINDS
 
 __all__ = ["CALIBRATION_NAME", "CALIBRATION_NAMES", "NEWEST", "OFF", "calibrated_geometry", "calibration_name",
            "choose_calibration", "describe_in_force", "preflight_by_rig", "put_in_force", "select_calibration"]
 
-#: The store name of each robot's kinematic calibration (``bench calibrate`` writes versions of it) and the module
-#: whose ``compensation_geometry`` turns its parameters into the geometry a run commands by.
-CALIBRATION_NAMES = {"pkm5": "pkm5_kinematics", "delta4": "delta4_kinematics"}
-_GEOMETRY_MODULES = {"pkm5_kinematics": "motion.pkm5.calibration", "delta4_kinematics": "motion.delta4.calibration"}
+#: The store name of each robot's kinematic calibration (``bench calibrate`` writes versions of it), from the robots'
+#: registry (bench.robot_kinds: ``calibration``, and ``calibration_model``, the module whose ``compensation_geometry``
+#: turns its parameters into the geometry a run commands by).
+CALIBRATION_NAMES = {name: kind.calibration for name, kind in ROBOT_KINDS.items() if kind.calibration}
+_GEOMETRY_MODULES = {kind.calibration: kind.calibration_model for kind in ROBOT_KINDS.values()
+                     if kind.calibration and kind.calibration_model}
 #: The pkm5's (the window's calibration box lists these).
 CALIBRATION_NAME = CALIBRATION_NAMES["pkm5"]
 
