@@ -357,19 +357,29 @@ def _mouse_matrix(args: argparse.Namespace, table) -> int:
 
     reference = table[["ref_x_mm", "ref_y_mm"]].to_numpy()
     counts = table[["counts_x", "counts_y"]].to_numpy()
-    fit = fit_matrix(reference, counts)
-    diagnostic = fit_matrix(reference, counts, intercept=True)
+    # an intercept per move direction models a start/stop offset (sensors.md: without it the offset goes into A)
+    fit = fit_matrix(reference, counts, per_direction=True)
+    k = fit.coverage_factor
+    intercepts = {label: {"counts": fit.offsets_counts[i].tolist(), "u_counts": fit.u_offsets_counts[i].tolist(),
+                          "significant": fit.offsets_significant[i].tolist()}
+                  for i, label in enumerate(fit.offset_labels)}
     result = {"method": "matrix", "n": fit.n, "A_mm_per_count": fit.a_mm_per_count.tolist(),
-              "u_A_mm_per_count": fit.u_a_mm_per_count.tolist(), "rotation_deg": fit.rotation_deg,
+              "u_A_mm_per_count": fit.u_a_mm_per_count.tolist(), "k": k,
+              "U_A_mm_per_count": fit.expanded_a_mm_per_count.tolist(), "dof": fit.dof,
+              "rotation_deg": fit.rotation_deg,
               "scale_mm_per_count": fit.scale_mm_per_count.tolist(), "sigma_counts": fit.sigma_counts.tolist(),
-              "intercept_counts": diagnostic.offset_counts.tolist()}
-    a, u = fit.a_mm_per_count, fit.u_a_mm_per_count
-    lines = [f"A (mm/count), n = {fit.n} moves:",
-             *(f"  [{a[i, 0]:+.6f} ± {u[i, 0]:.1e}  {a[i, 1]:+.6f} ± {u[i, 1]:.1e}]" for i in range(2)),
+              "intercepts_by_direction": intercepts}
+    a, big_u = fit.a_mm_per_count, fit.expanded_a_mm_per_count
+    lines = [f"A (mm/count), n = {fit.n} moves, ± U (95 %, k = {k:.2f}, {fit.dof} dof):",
+             *(f"  [{a[i, 0]:+.6f} ± {big_u[i, 0]:.1e}  {a[i, 1]:+.6f} ± {big_u[i, 1]:.1e}]" for i in range(2)),
              (f"rotation {fit.rotation_deg:+.3f} deg, scale x/y {fit.scale_mm_per_count[0]:.6f} / "
               f"{fit.scale_mm_per_count[1]:.6f} mm/count, residual SD {fit.sigma_counts[0]:.3f} / "
               f"{fit.sigma_counts[1]:.3f} counts"),
-             f"diagnostic intercept {diagnostic.offset_counts[0]:+.3f} / {diagnostic.offset_counts[1]:+.3f} counts"]
+             "intercept per move direction (counts, ± U; * = significant at 95 %: a start/stop offset or lost counts):"]
+    for i, label in enumerate(fit.offset_labels):
+        cells = [f"{fit.offsets_counts[i, j]:+.3f} ± {k * fit.u_offsets_counts[i, j]:.3f}"
+                 f"{'*' if fit.offsets_significant[i, j] else ' '}" for j in range(2)]
+        lines.append(f"  {label}: sensor x {cells[0]}  sensor y {cells[1]}")
     emit(result, args.json, lines)
     return 0
 
