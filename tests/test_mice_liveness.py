@@ -137,10 +137,35 @@ def test_a_stalled_mouse_fails_the_run_at_the_first_sample_after_it_stalled(tmp_
 
 def test_a_capture_without_commanded_positions_is_not_judged(fifo_mice):
     """A capture that names no commanded position (a hand-held check) cannot be compared: it reads, unjudged."""
-    mice, writers, calibration = fifo_mice
+    mice, _writers, calibration = fifo_mice
     instrument = MiceInstrument(mice, (0.0, 0.0, 0.0), calibration)
     try:
         measured = instrument.measure(Capture("P", 1))
     finally:
         instrument.close()
     assert measured.values == {"x_mm": 0.0, "y_mm": 0.0, "z_mm": 0.0}
+
+
+# ---- a stored mouse calibration is put in force only when the station names it --------------------------------
+
+def test_a_measured_calibration_is_in_force_only_when_the_station_names_it(tmp_path, caplog):
+    from bench.errors import ConfigError
+    from bench.rigs.builder import calibration_summary, mouse_calibration
+
+    with Store(tmp_path / "bench.db") as store:
+        measured = store.add_calibration("mouse", {"x_mm_per_count": 0.0311, "u_x_mm_per_count": 2e-5,
+                                                   "y_mm_per_count": 0.0324, "u_y_mm_per_count": 3e-5,
+                                                   "mm_per_count": 0.03175})
+        record, calibration = mouse_calibration(store, 800.0, source="bench.toml")
+        assert record.params["nominal"] is True and record.version == measured.version + 1
+        assert calibration.counts_to_mm(np.array([800, 800])) == pytest.approx([25.4, 25.4])
+        assert "mouse-v1 is not used unless the station names it ([mice] calibration = 1)" in caplog.text
+        record, calibration = mouse_calibration(store, 800.0, measured.version, source="bench.toml")
+        assert record.id == measured.id
+        assert calibration.counts_to_mm(np.array([1000, 1000])) == pytest.approx([31.1, 32.4])  # per-axis scales
+        assert calibration_summary(record) == {"version": 1, "nominal": False, "x_mm_per_count": 0.0311,
+                                               "u_x_mm_per_count": 2e-5, "y_mm_per_count": 0.0324,
+                                               "u_y_mm_per_count": 3e-5}
+        with pytest.raises(ConfigError, match=r"^bench.toml: mice.calibration = 7, expected a stored mouse "
+                                              r"calibration version \(1, 2\)$"):
+            mouse_calibration(store, 800.0, 7, source="bench.toml")

@@ -13,7 +13,11 @@ import pytest
 
 from bench.metrology import fit_matrix
 from bench.metrology.mouse_calibration import coverage_factor
-from bench.simulators.mouse_calibration_mc import DESIGNS, calibration_moves, matrix_coverage
+from bench.simulators.mouse_calibration_mc import (
+    DESIGNS,
+    calibration_moves,
+    matrix_coverage,
+)
 
 TRIALS = 600  # binomial SD of a 95 % coverage: 0.9 %
 

@@ -244,9 +244,9 @@ def fit_matrix(reference_mm, counts, *, intercept: bool = False, per_direction: 
 
     .. math::
 
-        [B\;C_0]^T = (X^T X)^{-1} X^T C, \quad E = C - X [B\;C_0]^T, \quad
-        \hat\sigma_i^2 = \frac{\sum_k E_{ki}^2}{K - p}, \quad
-        \operatorname{Cov}(B_{i\cdot}) = \hat\sigma_i^2 [(X^T X)^{-1}]_{RR}
+        [B\\;C_0]^T = (X^T X)^{-1} X^T C, \\quad E = C - X [B\\;C_0]^T, \\quad
+        \\hat\\sigma_i^2 = \\frac{\\sum_k E_{ki}^2}{K - p}, \\quad
+        \\operatorname{Cov}(B_{i\\cdot}) = \\hat\\sigma_i^2 [(X^T X)^{-1}]_{RR}
 
     and u(A) by first-order propagation of dA = -A dB A (sensor axes independent); p = 2 + q. The 95 % expanded
     uncertainty uses Student's t at K - p degrees of freedom (:attr:`MatrixCalibration.expanded_a_mm_per_count`).

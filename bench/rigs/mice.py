@@ -75,9 +75,11 @@ class MiceInstrument:
     """
 
     def __init__(self, mice: dict[str, Any], origin_mm, calibration: Any, *, follow: bool = False,
-                 noise_counts: float | None = None) -> None:
+                 noise_counts: float | None = None, calibration_record: Mapping[str, Any] | None = None) -> None:
         self.mice = mice
         self.noise_counts = noise_counts
+        #: the stored calibration in force (version, nominal, scales and their u): the report's budget reads it
+        self.calibration_record = dict(calibration_record) if calibration_record is not None else None
         for mouse in mice.values():  # registration is now: reports from before it are motion to somewhere else
             mouse.read_frames()
             mouse.rezero()
@@ -254,6 +256,8 @@ class MiceInstrument:
                "cpi": round(float(cpi.mean()), 3), "resolution_mm": round(float(MM_PER_INCH / cpi.min()), 6)}
         if self.noise_counts is not None:
             out["noise_counts"] = self.noise_counts
+        if self.calibration_record is not None:
+            out["calibration"] = self.calibration_record
         return out
 
     def close(self) -> None:
