@@ -169,3 +169,24 @@ def test_a_measured_calibration_is_in_force_only_when_the_station_names_it(tmp_p
         with pytest.raises(ConfigError, match=r"^bench.toml: mice.calibration = 7, expected a stored mouse "
                                               r"calibration version \(1, 2\)$"):
             mouse_calibration(store, 800.0, 7, source="bench.toml")
+
+
+@pytest.mark.parametrize("calibration, relative", [
+    ({"version": 1, "nominal": False, "x_mm_per_count": 0.0311, "u_x_mm_per_count": 3.11e-5,
+      "y_mm_per_count": 0.0324, "u_y_mm_per_count": 6.48e-5}, 0.002),   # the larger of 0.1 % and 0.2 %
+    ({"version": 2, "nominal": True, "x_mm_per_count": 0.03175, "y_mm_per_count": 0.03175}, 0.04 / np.sqrt(3)),
+])
+def test_the_calibration_in_force_enters_the_runs_budget(tmp_path, calibration, relative):
+    from bench.reports.content import counts_instrument
+
+    settings = {"instrument": {"cpi": 800.0, "registration_mm": [110.0, 0.0, 320.0], "calibration": calibration}}
+    with Store(tmp_path / "bench.db") as store:
+        run_id = store.start_run(protocol_name="iso9283_pose", protocol_version="1", robot="pkm5", config={},
+                                 settings=settings)
+        run = store.run(run_id)
+    info = counts_instrument(run, (), 3, span_mm=40.0)
+    lines = {name: u for name, u, _ in info.budget}
+    assert lines["calibration scale"] == pytest.approx(40.0 * relative)
+    resolution = MM_PER_INCH / 800.0 / np.sqrt(6.0)
+    assert info.sigma_mm == pytest.approx(np.hypot(resolution, 40.0 * relative))
+    assert "calibration scale" not in {name for name, _, _ in counts_instrument(run, (), 3).budget}
