@@ -22,6 +22,8 @@ import logging
 from contextlib import ExitStack
 from typing import Any
 
+import numpy as np
+
 from bench.errors import ConfigError, LinkError
 from bench.rigs.gauges import CalliperOnly, GaugeOperator
 from bench.rigs.interfaces import Operator, Rig
@@ -73,10 +75,10 @@ def mouse_calibration(store: Any, cpi: float, version: int | None = None, *,
                          "station names it ([mice] calibration = %d)", source, cpi, measured[-1].version,
                          measured[-1].version)
     params = record.params
-    scale_x = params.get("x_mm_per_count", params["mm_per_count"])
-    scale_y = params.get("y_mm_per_count", params["mm_per_count"])
-    calibration = CountsCalibration.from_scales(scale_x, scale_y, calibration_id=f"mouse-v{record.version}",
-                                                date=record.created_utc[:10])
+    matrix = params.get("matrix_mm_per_count") or np.diag([params.get(f"{axis}_mm_per_count", params["mm_per_count"])
+                                                            for axis in "xy"])
+    calibration = CountsCalibration(np.asarray(matrix, dtype=float), f"mouse-v{record.version}",
+                                    record.created_utc[:10], nominal=bool(params.get("nominal", False)))
     return record, calibration
 
 
