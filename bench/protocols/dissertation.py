@@ -14,13 +14,13 @@
 
 from __future__ import annotations
 
+import itertools
 import logging
 from typing import Any
 
 import numpy as np
 
 from bench.errors import ConfigError
-from bench.sensors.calibration import MM_PER_INCH
 from bench.metrology.documents import LADDER_KG, LADDER_LIFT_MM
 from bench.protocols.base import Protocol, register
 from bench.protocols.kinematics import robot_model
@@ -30,6 +30,7 @@ from bench.protocols.parameters import (
     FloatParameter,
     IntegerParameter,
 )
+from bench.sensors.calibration import MM_PER_INCH
 from bench.steps import (
     Capture,
     Checkpoint,
@@ -211,8 +212,8 @@ class MouseCalibration(Protocol):
 
     def validate(self) -> None:
         super().validate()
-        for key, expected in (("reference", "'calliper' or 'calibrated-axis' (what the travel is known from; "
-                                             "the robot under test is no reference)"),
+        for key, expected in (("reference", ("'calliper' or 'calibrated-axis' (what the travel is known from; "
+                                              "the robot under test is no reference)")),
                               ("reference_u_pct", "the reference's relative standard uncertainty of scale, %")):
             if getattr(self, key) is None:
                 raise ConfigError(f"{self.source}: {key} missing, expected {expected}")
@@ -254,7 +255,7 @@ def mouse_calibration_moves(samples: Any, references: Any = None) -> tuple[np.nd
     """
     readings = {(r.pose, r.cycle): r.values["reference_mm"] for r in references or ()}
     reference, counts = [], []
-    for before, after in zip(samples, samples[1:]):
+    for before, after in itertools.pairwise(samples):
         axis = (after.pose or "?")[0]
         if axis not in "xy" or (before.pose or "?")[0] != axis:
             continue

@@ -14,8 +14,22 @@ from typing import Any
 from bench.metrology import fit_matrix
 from bench.metrology.mouse_calibration import MatrixCalibration
 from bench.protocols.dissertation import mouse_calibration_moves
-from bench.reports.content import InstrumentInfo, ReportBase, calibrations_in_force, provenance, run_table
-from bench.reports.document import Block, Document, RawData, Table, assemble, conditions_section, decision_blocks
+from bench.reports.content import (
+    InstrumentInfo,
+    ReportBase,
+    calibrations_in_force,
+    provenance,
+    run_table,
+)
+from bench.reports.document import (
+    Block,
+    Document,
+    RawData,
+    Table,
+    assemble,
+    conditions_section,
+    decision_blocks,
+)
 from bench.sensors.calibration import MM_PER_INCH
 from bench.store import Store
 

@@ -132,8 +132,9 @@ class MiceInstrument:
         The net commanded displacement between two captures (whatever path the robot took between them) against
         the net counts, as mm: below :data:`_LIVENESS_MIN_SHARE` of a move of at least
         :data:`LIVENESS_MIN_MOVE_MM`, the mouse stopped reporting (no report), froze (reports without motion) or
-        lost most of the move; :class:`SensorStalled` names which. Captures without commanded positions are not
-        judged and do not move the reference.
+        lost most of the move; :class:`SensorStalled` names which. A streamed capture (its window may close before
+        the commanded end) is refused only without any motion. Captures without commanded positions are not judged
+        and do not move the reference.
         """
         commanded = {axis: float(capture.commanded[axis]) for axis in ("cmd_x_mm", "cmd_y_mm", "cmd_z_mm")
                      if axis in capture.commanded}
@@ -149,7 +150,10 @@ class MiceInstrument:
                 continue
             counts = self._counts_at_last[plane] - counts_then[plane]
             reported_mm = float(np.linalg.norm(self.calibration.counts_to_mm(counts)))
-            if reported_mm >= _LIVENESS_MIN_SHARE * expected_mm:
+            # a streamed capture (a path segment) may end its window before the commanded end: only no motion at
+            # all is judged there
+            share = 0.0 if capture.kind in STREAMED_KINDS else _LIVENESS_MIN_SHARE
+            if counts.any() and reported_mm >= share * expected_mm:
                 continue
             if not counts.any():
                 what = (f"sent {reports[plane]} reports without motion (a frozen counter)" if reports[plane]
