@@ -89,3 +89,27 @@ def test_bad_images_give_clear_errors():
         detect_spot(cv2.circle(np.full(SHAPE, 20, np.uint8), (160, 120), 60, 200, -1))
     with pytest.raises(MalformedSample, match="chessboard with \\(9, 6\\) inner corners not found"):
         calibrate_from_chessboard(np.full(SHAPE, 128, np.uint8), (9, 6), 10.0, calibration_id="x")
+
+
+def test_a_frozen_camera_is_refused_at_its_first_repeated_frame():
+    """Drill: the driver hands back its last buffer after the robot moved; the stale spot is refused, never read."""
+    from bench.errors import LinkError
+
+    camera = SpotCameraSimulator(true_homography(), shape=(300, 400), sigma_px=2.5, noise_sigma=3.0)
+    calibration = calibrate_from_chessboard(camera.chessboard((9, 6), 10.0), (9, 6), 10.0, calibration_id="cam-1",
+                                            date="2026-11-23")
+    live = camera.frame_source(lambda: np.array([42.5, 17.25]))
+    frames = {"frozen": None}
+
+    def grab():
+        if frames["frozen"] is None:
+            return live()
+        return frames["frozen"].copy()  # a new array with the old bytes, as a driver re-delivers a buffer
+
+    sensor = LaserSpotCamera(grab, calibration, name="cam-xy")
+    assert sensor.read().value == pytest.approx((42.5, 17.25), abs=0.05)
+    assert sensor.read().value == pytest.approx((42.5, 17.25), abs=0.05)  # same pose, fresh read noise: accepted
+    frames["frozen"] = live()
+    sensor.read()
+    with pytest.raises(LinkError, match=r"^cam-xy: this frame is identical to the previous one, bit for bit"):
+        sensor.read()

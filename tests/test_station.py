@@ -55,7 +55,11 @@ def test_every_example_station_parses_with_the_capabilities_of_its_devices():
 
 @pytest.mark.parametrize("tables, message", [
     (_station(mice={"xy": "/dev/input/a", "xz": "/dev/input/b", "dpi": 800}),
-     "unknown key 'mice.dpi', expected one of cpi, grab, noise_counts, xy, xz"),
+     "unknown key 'mice.dpi', expected one of calibration, cpi, grab, noise_counts, xy, xz"),
+    (_station(mice={"xy": "/dev/input/a", "xz": "/dev/input/b", "calibration": 0}),
+     "mice.calibration = 0, expected a stored mouse calibration version, an integer >= 1"),
+    (_station(mice={"xy": "/dev/input/a", "xz": "/dev/input/b", "calibration": "v3"}),
+     "mice.calibration = 'v3', expected a stored mouse calibration version, an integer >= 1"),
     (_station(mice={"xy": "/dev/input/a"}), "mice.xz missing, expected the x-z mouse's event device"),
     (_station(mice={"xy": "/dev/input/a", "xz": "/dev/input/a"}),
      "mice.xz = '/dev/input/a', expected a device of its own (mice.xy names it too)"),

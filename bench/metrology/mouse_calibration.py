@@ -7,9 +7,10 @@ model c = B r fitted by ordinary least squares, inverted to A = B⁻¹ in mm/cou
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
+from scipy import stats
 
 from bench.errors import ConfigError, InsufficientData
 from bench.metrology._validation import (
@@ -23,6 +24,8 @@ __all__ = [
     "AxisCalibration",
     "IncrementResolution",
     "MatrixCalibration",
+    "coverage_factor",
+    "direction_labels",
     "fit_axis_scale",
     "fit_matrix",
     "increment_resolution",
@@ -57,17 +60,66 @@ class AxisCalibration:
 
 @dataclass(frozen=True, eq=False)
 class MatrixCalibration:
-    """2x2 calibration absorbing sensor rotation and cross-talk: d = A · c (sensors.md §5.2)."""
+    """2x2 calibration absorbing sensor rotation and cross-talk: d = A · c (sensors.md §5.2).
+
+    ``offsets_counts`` are the fitted intercepts, one row (sensor x, sensor y) per entry of ``offset_labels``:
+    ``("all",)`` for one common intercept, a move direction each (``"+x"``, ``"-y"``...) when fitted per direction,
+    none without. A significant one (:attr:`offsets_significant`) is a start/stop offset, lost counts or backlash
+    that a fit without it would have put into A.
+    """
 
     a_mm_per_count: np.ndarray  #: (2, 2) A = B⁻¹
     u_a_mm_per_count: np.ndarray  #: (2, 2) standard uncertainty of each element of A
     b_counts_per_mm: np.ndarray  #: (2, 2) forward matrix B
-    offset_counts: np.ndarray  #: (2,) intercept (zeros when fitted without one)
+    offset_counts: np.ndarray  #: (2,) the common intercept (zeros when fitted without one or per direction)
     residuals_counts: np.ndarray  #: (K, 2)
     sigma_counts: np.ndarray  #: (2,) residual standard deviation per sensor axis
     rotation_deg: float  #: θ of the polar decomposition A = Rot(θ) S
     scale_mm_per_count: np.ndarray  #: (2,) |A e_x|, |A e_y|: mm per count along each sensor axis
     n: int
+    dof: int = 0  #: residual degrees of freedom K - p per sensor axis
+    offset_labels: tuple[str, ...] = ()  #: what each row of ``offsets_counts`` belongs to
+    #: (len(offset_labels), 2) fitted intercepts, counts, and their standard uncertainties
+    offsets_counts: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
+    u_offsets_counts: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
+
+    @property
+    def coverage_factor(self) -> float:
+        """k for 95 % coverage: Student's t at ``dof`` (the residual SD is estimated from few moves)."""
+        return coverage_factor(self.dof)
+
+    @property
+    def expanded_a_mm_per_count(self) -> np.ndarray:
+        """U(A) = k · u(A), the 95 % expanded uncertainty of each element of A."""
+        return self.coverage_factor * self.u_a_mm_per_count
+
+    @property
+    def offsets_significant(self) -> np.ndarray:
+        """(len(offset_labels), 2) bool: |intercept| > k · u(intercept), non-zero at 95 %."""
+        return np.abs(self.offsets_counts) > self.coverage_factor * self.u_offsets_counts
+
+
+def coverage_factor(dof: int, level: float = 0.95) -> float:
+    """Coverage factor k = t_{(1+p)/2, ν} of a quantity whose standard uncertainty has ν degrees of freedom.
+
+    GUM (JCGM 100:2008) G.3 and G.4: with a variance estimated from ν degrees of freedom, Student's t replaces
+    the normal k = 1.96; k = 2.36 at ν = 7, 2.05 at ν = 27.
+    """
+    if dof < 1:
+        raise InsufficientData(f"coverage factor: {dof} degrees of freedom, expected >= 1")
+    return float(stats.t.ppf(0.5 + level / 2, dof))
+
+
+def direction_labels(reference_mm) -> tuple[str, ...]:
+    """The direction of each move: its dominant stage axis and sign (``"+x"``, ``"-x"``, ``"+y"``, ``"-y"``).
+
+    >>> direction_labels([[5.0, 0.1], [-10.0, 0.0], [0.0, 20.0]])
+    ('+x', '-x', '+y')
+    """
+    reference = np.asarray(reference_mm, dtype=float).reshape(-1, 2)
+    axis = np.argmax(np.abs(reference), axis=1)
+    sign = np.sign(reference[np.arange(len(reference)), axis])
+    return tuple(f"{'+' if s >= 0 else '-'}{'xy'[a]}" for a, s in zip(axis, sign))
 
 
 def increments_from_positions(positions) -> np.ndarray:
@@ -185,19 +237,22 @@ def _rotation_deg(matrix: np.ndarray) -> float:
     return float(np.degrees(np.arctan2(rotation[1, 0], rotation[0, 0])))
 
 
-def fit_matrix(reference_mm, counts, *, intercept: bool = False) -> MatrixCalibration:
-    """Least-squares 2x2 calibration c = B r (+ c_0) and its inverse A = B⁻¹ with uncertainties.
+def fit_matrix(reference_mm, counts, *, intercept: bool = False, per_direction: bool = False) -> MatrixCalibration:
+    """Least-squares 2x2 calibration c = B r (+ c_0 or + c_0,d per move direction d) and A = B⁻¹ with uncertainties.
 
-    sensors.md §5.2 [P], rows k stacked into R (K x 2) and C (K x 2):
+    sensors.md §5.2 [P], rows k stacked into R (K x 2), the intercept columns D (K x q) and C (K x 2), X = [R D]:
 
     .. math::
 
-        B^T = (R^T R)^{-1} R^T C, \\quad E = C - R B^T, \\quad
+        [B\\;C_0]^T = (X^T X)^{-1} X^T C, \\quad E = C - X [B\\;C_0]^T, \\quad
         \\hat\\sigma_i^2 = \\frac{\\sum_k E_{ki}^2}{K - p}, \\quad
-        \\operatorname{Cov}(B_{i\\cdot}) = \\hat\\sigma_i^2 (R^T R)^{-1}
+        \\operatorname{Cov}(B_{i\\cdot}) = \\hat\\sigma_i^2 [(X^T X)^{-1}]_{RR}
 
-    and u(A) by first-order propagation of dA = -A dB A (sensor axes independent). p = 2, or 3 with intercept.
-    Fit once with ``intercept=True`` as a diagnostic; report the production matrix without one.
+    and u(A) by first-order propagation of dA = -A dB A (sensor axes independent); p = 2 + q. The 95 % expanded
+    uncertainty uses Student's t at K - p degrees of freedom (:attr:`MatrixCalibration.expanded_a_mm_per_count`).
+    A start/stop offset (a fraction of a count every move, in the move's direction) biases a fit without
+    intercept; ``per_direction`` fits one intercept per move direction (:func:`direction_labels`), which models it
+    whether the moves go one way or both, and is the production fit (``intercept`` fits one common intercept).
 
     Parameters
     ----------
@@ -209,37 +264,57 @@ def fit_matrix(reference_mm, counts, *, intercept: bool = False) -> MatrixCalibr
     Raises
     ------
     InsufficientData
-        K <= p (no residual degrees of freedom) or moves along one direction only (cross terms unidentifiable).
+        K <= p (no residual degrees of freedom), moves along one direction only (cross terms unidentifiable), or,
+        per direction, a direction whose moves all have one length (its intercept and the scale confound).
     """
     reference = as_points("reference_mm", reference_mm, dims=(2,))
     measured = as_points("counts", counts, dims=(2,))
     require_same_length("reference_mm", reference, "counts", measured)
-    parameters = 3 if intercept else 2
+    if per_direction:
+        per_move = direction_labels(reference)
+        labels = tuple(sorted(set(per_move)))
+        columns = np.array([[label == d for d in labels] for label in per_move], dtype=float)
+    elif intercept:
+        labels, columns = ("all",), np.ones((len(reference), 1))
+    else:
+        labels, columns = (), np.zeros((len(reference), 0))
+    parameters = 2 + len(labels)
     require_count("matrix calibration moves", len(reference), parameters + 1)
-    design = np.column_stack([reference, np.ones(len(reference))]) if intercept else reference
+    design = np.column_stack([reference, columns])
     normal = design.T @ design
-    if np.linalg.matrix_rank(normal) < parameters:
+    if np.linalg.matrix_rank(reference.T @ reference) < 2:
         raise InsufficientData("fit_matrix: moves along fewer than two non-parallel directions, cannot fit 2x2")
-    coefficients = np.linalg.solve(normal, design.T @ measured)
+    if np.linalg.matrix_rank(normal) < parameters:
+        raise InsufficientData(f"fit_matrix: the moves of some direction ({', '.join(labels)}) all have one length, "
+                               "so its intercept and the scale cannot be told apart; use at least two lengths each")
+    inverse = np.linalg.inv(normal)
+    coefficients = inverse @ design.T @ measured
     residuals = measured - design @ coefficients
-    sigma2 = np.sum(residuals**2, axis=0) / (len(reference) - parameters)
+    dof = len(reference) - parameters
+    sigma2 = np.sum(residuals**2, axis=0) / dof
     b = coefficients[:2].T
     a = np.linalg.inv(b)
-    m = np.linalg.inv(normal)[:2, :2]
+    m = inverse[:2, :2]
     # Jacobian of vec(A) w.r.t. vec(B): ∂A_kl/∂B_ij = -A_ki A_jl; rows of B are independent with Cov σ_i² M.
     jacobian = -np.einsum("ki,jl->klij", a, a).reshape(4, 4)
     cov_b = np.zeros((4, 4))
     for i in range(2):
         cov_b[2 * i : 2 * i + 2, 2 * i : 2 * i + 2] = sigma2[i] * m
     cov_a = jacobian @ cov_b @ jacobian.T
+    offsets = coefficients[2:]
+    u_offsets = np.sqrt(np.outer(np.diag(inverse)[2:], sigma2))
     return MatrixCalibration(
         a_mm_per_count=a,
         u_a_mm_per_count=np.sqrt(np.diag(cov_a)).reshape(2, 2),
         b_counts_per_mm=b,
-        offset_counts=coefficients[2] if intercept else np.zeros(2),
+        offset_counts=offsets[0] if labels == ("all",) else np.zeros(2),
         residuals_counts=residuals,
         sigma_counts=np.sqrt(sigma2),
         rotation_deg=_rotation_deg(a),
         scale_mm_per_count=np.linalg.norm(a, axis=0),
         n=len(reference),
+        dof=dof,
+        offset_labels=labels,
+        offsets_counts=offsets,
+        u_offsets_counts=u_offsets,
     )

@@ -14,6 +14,8 @@
 
 from __future__ import annotations
 
+import itertools
+import logging
 from typing import Any
 
 import numpy as np
@@ -28,6 +30,7 @@ from bench.protocols.parameters import (
     FloatParameter,
     IntegerParameter,
 )
+from bench.sensors.calibration import MM_PER_INCH
 from bench.steps import (
     Capture,
     Checkpoint,
@@ -38,7 +41,10 @@ from bench.steps import (
     commanded_values,
 )
 
-__all__ = ["DissertationPose", "MouseCalibration", "PayloadLadder", "store_mouse_calibration"]
+__all__ = ["DissertationPose", "MouseCalibration", "PayloadLadder", "mouse_calibration_moves",
+           "mouse_calibration_text", "store_mouse_calibration"]
+
+_log = logging.getLogger(__name__)
 
 #: 000 Table A.11 (translation), A.12 (alpha, deg) and A.13 (beta, deg): x, y, z in mm, angle in degrees.
 POINTS = {
@@ -177,10 +183,18 @@ class PayloadLadder(Protocol):
 
 @register
 class MouseCalibration(Protocol):
-    """000 App. A.7: known steps along x then y, raw counts at both ends; fitted and stored as calibration."""
+    """000 App. A.7: known steps along x then y, raw counts at both ends, against a reference the person states;
+    fitted (an intercept per move direction) and stored as a new calibration version, put in force by none.
+
+    ``reference`` says what the travel is known from: ``calliper`` (the operator reads the end effector's position
+    along the step axis against a fixed stop after every capture: the robot under test is not the reference) or
+    ``calibrated-axis`` (the commanded travel of an axis the person states is calibrated, e.g. a certified stage
+    carrying the mouse). ``reference_u_pct`` is the reference's stated relative standard uncertainty of scale; it
+    is combined with the fit's own into the stored u.
+    """
 
     name = "mouse_calibration"
-    version = "1"
+    version = "2"  # 2: a stated reference (calliper readings or a calibrated axis), every move between readings
     title = "Optical-mouse resolution calibration (000 App. A.7)"
     robots = ("pkm5",)
 
@@ -190,6 +204,19 @@ class MouseCalibration(Protocol):
     start_mm = FloatListParameter((90.0, -20.0, 310.0), length=3, unit="mm", description="start of every step")
     velocity_pct = FloatParameter(100.0, unit="%", minimum=0.1, maximum=100.0, description="velocity")
     settle_s = FloatParameter(0.5, unit="s", minimum=0.0, maximum=600.0, description="dwell before a reading")
+    reference = ChoiceParameter(None, choices=("calliper", "calibrated-axis"),
+                                description="what the travel is known from (required): calliper readings, or the "
+                                            "commanded travel of an axis stated to be calibrated")
+    reference_u_pct = FloatParameter(None, unit="%", minimum=0.0, maximum=10.0,
+                                     description="the reference's relative standard uncertainty of scale (required)")
+
+    def validate(self) -> None:
+        super().validate()
+        for key, expected in (("reference", ("'calliper' or 'calibrated-axis' (what the travel is known from; "
+                                              "the robot under test is no reference)")),
+                              ("reference_u_pct", "the reference's relative standard uncertainty of scale, %")):
+            if getattr(self, key) is None:
+                raise ConfigError(f"{self.source}: {key} missing, expected {expected}")
 
     def steps(self) -> Plan:
         start = tuple(self.start_mm)
@@ -199,36 +226,97 @@ class MouseCalibration(Protocol):
                 end[axis] += distance
                 for repeat in range(1, self.repeats + 1):
                     for where, target in (("start", start), ("end", tuple(end))):
-                        yield Move(target, self.velocity_pct, f"{name}{distance:g}/{where}")
+                        label = f"{name}{distance:g}/{where}"
+                        yield Move(target, self.velocity_pct, label)
                         yield Settle(self.settle_s)
-                        yield Capture(f"{name}{distance:g}/{where}", repeat, kind="mouse",
-                                      commanded={**commanded_values(target), "step_mm": distance})
+                        commanded = {**commanded_values(target), "step_mm": distance}
+                        yield Capture(label, repeat, kind="mouse", commanded=commanded)
+                        if self.reference == "calliper":
+                            yield Prompt(f"Calliper: the end effector's {name} position against the fixed stop",
+                                         field="reference_mm", unit="mm", minimum=-1000.0, maximum=1000.0,
+                                         pose=label, cycle=repeat, kind="mouse_reference", commanded=commanded)
                     yield Checkpoint(f"{name} {distance:g} mm, repeat {repeat}")
 
     def on_completed(self, store: Any, run_id: int) -> None:
-        store_mouse_calibration(store, run_id)
+        record = store_mouse_calibration(store, run_id)
+        _log.warning("stored mouse calibration mouse-v%d: %s; not in force until a station names it "
+                     "([mice] calibration = %d)", record.version, mouse_calibration_text(record.params),
+                     record.version)
+
+
+def mouse_calibration_moves(samples: Any, references: Any = None) -> tuple[np.ndarray, np.ndarray]:
+    """The moves between consecutive readings of one step axis: reference displacements (K, 2) mm and the x-y
+    mouse's count increments (K, 2).
+
+    ``samples`` are the ``mouse`` samples in step order (pose ``<axis><mm>/<start|end>``); the reference position of
+    each is its calliper reading along the axis (``references``, ``mouse_reference`` samples matched by pose and
+    cycle) when given, else its commanded position. The moves back to a step's start count too (moves in both
+    directions: a start/stop offset is told from the scale).
+    """
+    readings = {(r.pose, r.cycle): r.values["reference_mm"] for r in references or ()}
+    reference, counts = [], []
+    for before, after in itertools.pairwise(samples):
+        axis = (after.pose or "?")[0]
+        if axis not in "xy" or (before.pose or "?")[0] != axis:
+            continue
+        index = "xy".index(axis)
+        if references is not None:
+            if (before.pose, before.cycle) not in readings or (after.pose, after.cycle) not in readings:
+                continue
+            travel = [0.0, 0.0]
+            travel[index] = readings[(after.pose, after.cycle)] - readings[(before.pose, before.cycle)]
+        else:
+            travel = [after.values[f"cmd_{a}_mm"] - before.values[f"cmd_{a}_mm"] for a in "xy"]
+        if abs(travel[index]) < 1e-9:
+            continue
+        reference.append(travel)
+        counts.append([after.values[f"mouse_xy_{a}_counts"] - before.values[f"mouse_xy_{a}_counts"] for a in "xy"])
+    return np.array(reference, dtype=float).reshape(-1, 2), np.array(counts, dtype=float).reshape(-1, 2)
+
+
+def mouse_calibration_text(params: dict[str, Any]) -> str:
+    """One line of what a stored mouse calibration says: each scale with its U, and significant intercepts."""
+    k = params.get("k", 2.0)
+    scales = ", ".join(f"{a} {params[f'{a}_mm_per_count']:.6f} ± {k * params[f'u_{a}_mm_per_count']:.1e} mm/count "
+                       f"({MM_PER_INCH / params[f'{a}_mm_per_count']:.1f} cpi)" for a in "xy")
+    flagged = [f"{label} {value:+.2f} counts" for label, value in params.get("significant_intercepts", {}).items()]
+    return (f"{scales} (U, k = {k:.2f}); reference {params.get('reference', '?')}"
+            + (f"; significant start/stop intercepts: {', '.join(flagged)}" if flagged else ""))
 
 
 def store_mouse_calibration(store: Any, run_id: int, name: str = "mouse") -> Any:
-    """Fit counts = slope * displacement + offset per axis of the x-y mouse and store it as a new version of
-    calibration ``name`` (scale in mm/count, with its uncertainty and residual)."""
-    from bench.metrology import fit_axis_scale
+    """Fit the x-y mouse's 2x2 matrix with an intercept per move direction against the run's stated reference
+    (:func:`bench.metrology.fit_matrix`) and store it as a new version of calibration ``name``: the matrix, each
+    axis's scale in mm/count with its u (the fit's and the reference's ``reference_u_pct`` combined), k, the
+    intercepts with their u and which are significant."""
+    from bench.metrology import fit_matrix
 
-    samples = store.samples(run_id, kind="mouse")
-    by_key = {(s.pose, s.cycle): s.values for s in samples}
-    params: dict[str, Any] = {"source": f"run {run_id}"}
-    for axis, column in (("x", "mouse_xy_x_counts"), ("y", "mouse_xy_y_counts")):
-        reference, counts = [], []
-        for (label, cycle), end in by_key.items():
-            if label.startswith(axis) and label.endswith("/end") and (label[:-4] + "/start", cycle) in by_key:
-                start = by_key[(label[:-4] + "/start", cycle)]
-                reference.append(end[f"cmd_{axis}_mm"] - start[f"cmd_{axis}_mm"])
-                counts.append(end[column] - start[column])
-        if len(reference) < 3:
-            raise ConfigError(f"run {run_id}: {len(reference)} {axis} steps with both ends stored, expected >= 3")
-        fit = fit_axis_scale(np.asarray(reference), np.asarray(counts))
-        params[f"{axis}_mm_per_count"] = fit.scale_mm_per_count
-        params[f"u_{axis}_mm_per_count"] = fit.u_scale_mm_per_count
-        params[f"{axis}_residual_rms_counts"] = fit.residual_rms_counts
+    run = store.run(run_id)
+    config = run.config
+    samples = sorted(store.samples(run_id, kind="mouse"), key=lambda s: s.step_index)
+    references = store.samples(run_id, kind="mouse_reference") if config.get("reference") == "calliper" else None
+    reference, counts = mouse_calibration_moves(samples, references)
+    if len(reference) < 6:
+        raise ConfigError(f"run {run_id}: {len(reference)} moves with both readings stored, expected >= 6")
+    fit = fit_matrix(reference, counts, per_direction=True)
+    reference_u = float(config.get("reference_u_pct") or 0.0) / 100.0
+    params: dict[str, Any] = {"source": f"run {run_id}", "reference": config.get("reference", "commanded travel"),
+                              "reference_u_pct": 100.0 * reference_u, "k": fit.coverage_factor, "dof": fit.dof,
+                              "matrix_mm_per_count": fit.a_mm_per_count.tolist(),
+                              "u_matrix_mm_per_count": fit.u_a_mm_per_count.tolist()}
+    a, u = fit.a_mm_per_count, fit.u_a_mm_per_count
+    for column, axis in enumerate("xy"):
+        scale = float(fit.scale_mm_per_count[column])
+        u_fit = float(np.sqrt(np.sum((a[:, column] / scale * u[:, column]) ** 2)))  # u(|A e_axis|), first order
+        params[f"{axis}_mm_per_count"] = scale
+        params[f"u_{axis}_mm_per_count"] = float(np.hypot(u_fit, reference_u * scale))
+        params[f"{axis}_residual_sd_counts"] = float(fit.sigma_counts[column])
     params["mm_per_count"] = (params["x_mm_per_count"] + params["y_mm_per_count"]) / 2
-    return store.add_calibration(name, params, source_run_id=run_id, notes="least-squares fit (sensors.md §5.2)")
+    params["intercepts_counts"] = {label: fit.offsets_counts[i].tolist() for i, label in enumerate(fit.offset_labels)}
+    params["u_intercepts_counts"] = {label: fit.u_offsets_counts[i].tolist()
+                                     for i, label in enumerate(fit.offset_labels)}
+    params["significant_intercepts"] = {f"{label} sensor {'xy'[j]}": float(fit.offsets_counts[i, j])
+                                        for i, label in enumerate(fit.offset_labels) for j in range(2)
+                                        if fit.offsets_significant[i, j]}
+    return store.add_calibration(name, params, source_run_id=run_id,
+                                 notes="2x2 least squares, an intercept per move direction (sensors.md §5.2)")

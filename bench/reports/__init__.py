@@ -32,6 +32,7 @@ from bench.reports.document import Document, Figure, RawData, Section, compariso
 from bench.reports.language import customer_document
 from bench.reports.lasergrid import GridHitReport, collect_grid_hits, grid_hit_document
 from bench.reports.ladder import LadderReport, collect_ladder, ladder_document
+from bench.reports.mouse_calibration import collect_mouse_calibration, mouse_calibration_document
 from bench.reports.path import collect_path, path_document
 from bench.reports.positioning import (
     GridPositioningReport,
@@ -72,6 +73,7 @@ class Layout:
 LAYOUTS = {
     "actuator_accuracy": Layout(collect_actuator, actuator_document),
     "payload_ladder": Layout(collect_ladder, ladder_document),
+    "mouse_calibration": Layout(collect_mouse_calibration, mouse_calibration_document),
     "lasergrid_hits": Layout(collect_grid_hits, grid_hit_document),
     "delta_positioning": Layout(collect_grid_positioning, grid_positioning_document, applies=grid_readings),
     "iso9283_stabilisation": Layout(collect_stabilisation, stabilisation_document, ("bands_mm", "hysteresis_mm")),

@@ -319,10 +319,35 @@ def calibration_fits(store: Store, record: CalibrationRecord) -> tuple[Calibrati
     return tuple(fits)
 
 
+#: Half-width of the scale error of a mouse read at its nominal cpi, as a fraction: sensors.md §1.3 (1-4 % before
+#: calibration), taken as a rectangular distribution.
+NOMINAL_CPI_SCALE_ERROR = 0.04
+
+
+def calibration_scale_u(calibration: Mapping[str, Any], span_mm: float) -> tuple[float, str]:
+    """Standard uncertainty (mm) a mouse calibration's scale adds to a reading ``span_mm`` from the registration.
+
+    .. math:: u = d \\cdot \\max_i u(s_i)/s_i
+
+    with u(s_i) the stored uncertainty of each axis's scale; a nominal calibration has none measured, so its
+    scale error is taken as rectangular of half-width :data:`NOMINAL_CPI_SCALE_ERROR` (u = 0.04/√3 of the span).
+    """
+    if calibration.get("nominal"):
+        relative = NOMINAL_CPI_SCALE_ERROR / np.sqrt(3.0)
+        why = f"nominal cpi (mouse-v{calibration.get('version')}): ±{100 * NOMINAL_CPI_SCALE_ERROR:g} % rectangular"
+    else:
+        relative = max(float(calibration.get(f"u_{a}_mm_per_count", 0.0)) / float(calibration[f"{a}_mm_per_count"])
+                       for a in ("x", "y"))
+        why = f"mouse-v{calibration.get('version')}: u(scale) {100 * relative:.3g} %"
+    return span_mm * relative, f"{why} x {span_mm:.1f} mm from the registration"
+
+
 def counts_instrument(run: RunRecord, calibrations: tuple[CalibrationRecord, ...], dims: int,
-                      fits: tuple[CalibrationFit, ...] = ()) -> InstrumentInfo:
+                      fits: tuple[CalibrationFit, ...] = (), *, span_mm: float | None = None) -> InstrumentInfo:
     """A counts instrument (the mice) as stored with the run: u per axis from ``settings.instrument.u_mm``, else
-    from its resolution 25.4/cpi (δ/√6) and ``noise_counts``; the RP floor in ``dims`` dimensions (none for 0)."""
+    from its resolution 25.4/cpi (δ/√6) and ``noise_counts``, plus the scale of the calibration in force at the
+    largest displacement from the registration ``span_mm`` (:func:`calibration_scale_u`) where the run recorded
+    it; the RP floor in ``dims`` dimensions (none for 0)."""
     settings = dict(run.settings.get("instrument") or {})
     budget: list[tuple[str, float, str]] = []
     if "u_mm" in settings:
@@ -335,9 +360,21 @@ def counts_instrument(run: RunRecord, calibrations: tuple[CalibrationRecord, ...
         if "noise_counts" in settings:
             budget.append(("count noise", float(settings["noise_counts"]) * step_mm,
                            f"{settings['noise_counts']} counts x {step_mm:.4g} mm"))
+    if isinstance(settings.get("calibration"), Mapping) and span_mm is not None:
+        budget.append(("calibration scale", *calibration_scale_u(settings["calibration"], span_mm)))
     sigma = combine(*(u for _, u, _ in budget)) if budget else None
     floor = instrument_rp_floor(sigma, dims=dims) if sigma is not None and dims else None
     return InstrumentInfo(settings, sigma, tuple(budget), dims, floor, calibrations, fits)
+
+
+def _span_from_registration(run: RunRecord, table: pd.DataFrame) -> float | None:
+    """The largest per-axis distance (mm) of the run's measured positions from the instrument's registration."""
+    registration = (run.settings.get("instrument") or {}).get("registration_mm")
+    columns = [c for c in _POSITION if c in table.columns]
+    if registration is None or not columns:
+        return None
+    offsets = [np.nanmax(np.abs(table[c].to_numpy(float) - registration[_POSITION.index(c)])) for c in columns]
+    return float(np.nanmax(offsets))
 
 
 def _condition_groups(table: pd.DataFrame):
@@ -427,7 +464,8 @@ def collect(store: Store, run_id: int, *, criteria: Mapping[str, float] | None =
     measured = tuple(c for c in (*_POSITION, *(a for _, a in ANGLE_PAIRS)) if c in table.columns)
     calibrations = calibrations_in_force(store, run)
     fits = tuple(fit for record in calibrations for fit in calibration_fits(store, record))
-    instrument = counts_instrument(run, calibrations, sum(c in table.columns for c in _POSITION), fits)
+    instrument = counts_instrument(run, calibrations, sum(c in table.columns for c in _POSITION), fits,
+                                   span_mm=_span_from_registration(run, table))
     # a relative instrument's frame is known to its registrations' u: AP carries it (bench.store.registrations)
     ap_u_mm = combine(instrument.sigma_mm or 0.0, registration_u_mm(registrations(run.settings)))
     poses = report_order(analyze_poses(table, instrument_u_mm=ap_u_mm, k=k, resamples=resamples))

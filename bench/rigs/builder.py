@@ -22,6 +22,8 @@ import logging
 from contextlib import ExitStack
 from typing import Any
 
+import numpy as np
+
 from bench.errors import ConfigError, LinkError
 from bench.rigs.gauges import CalliperOnly, GaugeOperator
 from bench.rigs.interfaces import Operator, Rig
@@ -31,7 +33,7 @@ from bench.rigs.station import CAPTURE_CAPABILITIES, Station
 from bench.robot_kinds import robot_kind
 from bench.robots.link import open_port
 
-__all__ = ["build_rig", "check_capabilities", "mouse_calibration", "open_mover"]
+__all__ = ["build_rig", "calibration_summary", "check_capabilities", "mouse_calibration", "open_mover"]
 
 _log = logging.getLogger(__name__)
 
@@ -48,20 +50,48 @@ def check_capabilities(station: Station, requires: frozenset[str] | set[str], pr
         raise ConfigError(f"{station.source}: robot.kind = {station.robot!r}, expected pkm5 or delta4")
 
 
-def mouse_calibration(store: Any, cpi: float) -> tuple[Any, Any]:
-    """The mouse calibration in force (the latest ``mouse`` record), or a nominal one at ``cpi`` recorded as such
-    until a ``mouse_calibration`` run is stored; returns (store record, :class:`CountsCalibration`)."""
+def mouse_calibration(store: Any, cpi: float, version: int | None = None, *,
+                      source: str = "station") -> tuple[Any, Any]:
+    """The mouse calibration a station puts in force; returns (store record, :class:`CountsCalibration`).
+
+    With ``version`` (``[mice] calibration``), that stored ``mouse`` calibration, per-axis scales where it has
+    them; without, the nominal resolution at ``cpi``, recorded and flagged nominal. A measured calibration is never
+    put in force because it is the newest: a warning names the newest measured one and the key that would use it.
+    """
     from bench.sensors.calibration import MM_PER_INCH, CountsCalibration
 
-    try:
-        record = store.calibration("mouse")
-    except ConfigError:  # before the first mouse_calibration run: the sensor's nominal resolution, flagged nominal
+    if version is not None:
+        try:
+            record = store.calibration("mouse", version)
+        except ConfigError:
+            stored = [str(c.version) for c in store.calibrations() if c.name == "mouse"]
+            raise ConfigError(f"{source}: mice.calibration = {version}, expected a stored mouse calibration version "
+                              f"({', '.join(stored) or 'none stored yet'})") from None
+    else:
+        measured = [c for c in store.calibrations() if c.name == "mouse" and not c.params.get("nominal")]
         record = store.ensure_calibration("mouse", {"mm_per_count": MM_PER_INCH / cpi, "nominal": True},
-                                          notes=f"nominal {cpi:g} cpi; run examples/mouse_calibration.toml")
-    scale = record.params["mm_per_count"]
-    calibration = CountsCalibration.from_scales(scale, scale, calibration_id=f"mouse-v{record.version}",
-                                                date=record.created_utc[:10])
+                                          notes=f"nominal {cpi:g} cpi (no [mice] calibration named)")
+        if measured:
+            _log.warning("%s: the nominal %g cpi is in force; stored calibration mouse-v%d is not used unless the "
+                         "station names it ([mice] calibration = %d)", source, cpi, measured[-1].version,
+                         measured[-1].version)
+    params = record.params
+    matrix = params.get("matrix_mm_per_count") or np.diag([params.get(f"{axis}_mm_per_count", params["mm_per_count"])
+                                                            for axis in "xy"])
+    calibration = CountsCalibration(np.asarray(matrix, dtype=float), f"mouse-v{record.version}",
+                                    record.created_utc[:10], nominal=bool(params.get("nominal", False)))
     return record, calibration
+
+
+def calibration_summary(record: Any) -> dict[str, Any]:
+    """What a run records of the mouse calibration it used: version, nominal or not, and each scale with its u."""
+    params = record.params
+    summary: dict[str, Any] = {"version": record.version, "nominal": bool(params.get("nominal", False))}
+    for axis in ("x", "y"):
+        summary[f"{axis}_mm_per_count"] = params.get(f"{axis}_mm_per_count", params["mm_per_count"])
+        if f"u_{axis}_mm_per_count" in params:
+            summary[f"u_{axis}_mm_per_count"] = params[f"u_{axis}_mm_per_count"]
+    return summary
 
 
 def build_rig(station: Station, store: Any, *, operator: Operator | None = None,
@@ -180,14 +210,15 @@ def _open_mice(station: Station, store: Any, opened: ExitStack, calibration_ids:
 
     spec = station.mice
     assert spec is not None
-    record, calibration = mouse_calibration(store, spec.cpi)
+    record, calibration = mouse_calibration(store, spec.cpi, spec.calibration, source=station.source)
     calibration_ids.append(record.id)
     mice = {}
     for plane, path in (("xy", spec.xy), ("xz", spec.xz)):
         mice[plane] = EvdevMouse(path, calibration, label=f"mouse_{plane}", grab=spec.grab)
         opened.callback(mice[plane].close)
     # zeroed at the home pose (the robot was homed), then verified at the check pose (bench.rigs.registration)
-    instrument = MiceInstrument(mice, _home("pkm5"), calibration, follow=True, noise_counts=spec.noise_counts)
+    instrument = MiceInstrument(mice, _home("pkm5"), calibration, follow=True, noise_counts=spec.noise_counts,
+                                calibration_record=calibration_summary(record))
     opened.callback(instrument.close)
     return instrument
 

@@ -12,6 +12,13 @@ capture (by the reader processes on hardware) hold the end of the move; the inst
 The sample keeps the raw reports of both mice in the window and the counts at its start (the raw data), the
 position series they give (times relative to the request), and, as its values, the position at the end of the
 window.
+
+A mouse reports only when it moves, so a mouse that stops reporting, closes or freezes would leave its last counts
+in place and every later reading stale. Each capture is therefore checked against the robot's commanded motion
+since the previous one (:meth:`MiceInstrument._check_alive`): a mouse whose stream ended, or which reported less
+than half of a commanded move of at least :data:`LIVENESS_MIN_MOVE_MM` in its plane, fails that capture with
+:class:`bench.sensors.reading.SensorStalled` naming the mouse and what it did (no report, reports without motion,
+or how far it moved); the run then ends ``failed`` with that reason and nothing of the capture is stored.
 """
 
 from __future__ import annotations
@@ -27,9 +34,11 @@ import numpy as np
 from bench.errors import LinkError
 from bench.rigs.interfaces import Measurement
 from bench.sensors.calibration import MM_PER_INCH
+from bench.sensors.reading import SensorStalled
 from bench.steps import Capture
 
-__all__ = ["ARRIVAL", "PATH", "POSITIONING", "STREAMED_KINDS", "MiceInstrument", "arrival_series"]
+__all__ = ["ARRIVAL", "LIVENESS_MIN_MOVE_MM", "PATH", "POSITIONING", "STREAMED_KINDS", "MiceInstrument",
+           "arrival_series"]
 
 #: Capture kind of a streamed arrival at a pose; ``conditions`` give ``lead_s`` and ``hold_s``.
 ARRIVAL = "arrival"
@@ -41,6 +50,15 @@ POSITIONING = "positioning"
 STREAMED_KINDS = frozenset({ARRIVAL, PATH, POSITIONING})
 #: Decimals kept in the stored series (0.1 um, 1 us): far below a count (32 um at 800 cpi).
 _MM_DECIMALS, _S_DECIMALS = 4, 6
+#: A commanded move at least this long in a mouse's plane must show in its counts (mm; 31 counts at 800 cpi): a
+#: mouse that stopped reporting is then caught at the first capture after the move [choice: far above the count
+#: noise and a robot's positioning error, far below a protocol's moves].
+LIVENESS_MIN_MOVE_MM = 1.0
+#: Reporting less than this share of such a move is a stalled mouse (or a robot that did not move: either way the
+#: sample cannot be trusted) [choice].
+_LIVENESS_MIN_SHARE = 0.5
+#: The commanded axes each mouse sees (x-y mouse: x, y; x-z mouse: x, z).
+_PLANE_AXES = {"xy": ("cmd_x_mm", "cmd_y_mm"), "xz": ("cmd_x_mm", "cmd_z_mm")}
 
 
 class MiceInstrument:
@@ -57,14 +75,20 @@ class MiceInstrument:
     """
 
     def __init__(self, mice: dict[str, Any], origin_mm, calibration: Any, *, follow: bool = False,
-                 noise_counts: float | None = None) -> None:
+                 noise_counts: float | None = None, calibration_record: Mapping[str, Any] | None = None) -> None:
         self.mice = mice
         self.noise_counts = noise_counts
+        #: the stored calibration in force (version, nominal, scales and their u): the report's budget reads it
+        self.calibration_record = dict(calibration_record) if calibration_record is not None else None
         for mouse in mice.values():  # registration is now: reports from before it are motion to somewhere else
             mouse.read_frames()
             mouse.rezero()
         self.origin = np.asarray(origin_mm, dtype=float)[:3].copy()
         self.calibration = calibration
+        # the liveness check's reference: the registration pose with zero counts, then each checked capture
+        self._last_commanded = dict(zip(("cmd_x_mm", "cmd_y_mm", "cmd_z_mm"), (float(v) for v in self.origin)))
+        self._counts_at_last = {plane: np.zeros(2, np.int64) for plane in mice}
+        self._reports_since = {plane: 0 for plane in mice}
         self._lock = threading.Lock()  # every read of a mouse holds it: the reader thread's and the captures'
         self._pending: dict[str, list[Any]] = {plane: [] for plane in mice}
         self._closing = threading.Event()
@@ -86,6 +110,7 @@ class MiceInstrument:
             frames = mouse.read_frames(up_to_now=up_to_now)
             if len(frames):
                 self._pending[plane].append(frames)
+                self._reports_since[plane] += len(frames)
 
     def _take_pending(self) -> dict[str, Any]:
         """Every report read since the last capture (counts already integrated), and forget them."""
@@ -94,7 +119,52 @@ class MiceInstrument:
         with self._lock:
             self._drain_locked(up_to_now=True)
             taken, self._pending = self._pending, {plane: [] for plane in self.mice}
+        for mouse in self.mice.values():
+            if mouse.exhausted:  # a device never ends: its stream closed, and every later count would be missing
+                raise SensorStalled(f"{mouse.name} ({mouse.binding}): the device closed (end of stream); its "
+                                    "counts stopped there, so this sample is refused; check the mouse's cable "
+                                    "and reader, then resume the run")
         return {plane: MotionFrames.concatenate(parts) for plane, parts in taken.items()}
+
+    def _check_alive(self, capture: Capture) -> None:
+        """Refuse the capture when a mouse did not see a commanded move in its plane since the last capture.
+
+        The net commanded displacement between two captures (whatever path the robot took between them) against
+        the net counts, as mm: below :data:`_LIVENESS_MIN_SHARE` of a move of at least
+        :data:`LIVENESS_MIN_MOVE_MM`, the mouse stopped reporting (no report), froze (reports without motion) or
+        lost most of the move; :class:`SensorStalled` names which. A streamed capture (its window may close before
+        the commanded end) is refused only without any motion. Captures without commanded positions are not judged
+        and do not move the reference.
+        """
+        commanded = {axis: float(capture.commanded[axis]) for axis in ("cmd_x_mm", "cmd_y_mm", "cmd_z_mm")
+                     if axis in capture.commanded}
+        if len(commanded) < 3:
+            return
+        previous, self._last_commanded = self._last_commanded, commanded
+        counts_then = self._counts_at_last
+        self._counts_at_last = {plane: mouse.counts.copy() for plane, mouse in self.mice.items()}
+        reports, self._reports_since = self._reports_since, {plane: 0 for plane in self.mice}
+        for plane, axes in _PLANE_AXES.items():
+            expected_mm = float(np.hypot(*(commanded[a] - previous[a] for a in axes)))
+            if plane not in self.mice or expected_mm < LIVENESS_MIN_MOVE_MM:
+                continue
+            counts = self._counts_at_last[plane] - counts_then[plane]
+            reported_mm = float(np.linalg.norm(self.calibration.counts_to_mm(counts)))
+            # a streamed capture (a path segment) may end its window before the commanded end: only no motion at
+            # all is judged there
+            share = 0.0 if capture.kind in STREAMED_KINDS else _LIVENESS_MIN_SHARE
+            if counts.any() and reported_mm >= share * expected_mm:
+                continue
+            if not counts.any():
+                what = (f"sent {reports[plane]} reports without motion (a frozen counter)" if reports[plane]
+                        else "sent no report")
+            else:
+                what = f"reported {reported_mm:.3f} mm"
+            mouse = self.mice[plane]
+            raise SensorStalled(f"{mouse.name} ({mouse.binding}): {what} while the robot was commanded "
+                                f"{expected_mm:.3f} mm in its plane since the last capture (pose {capture.pose!r}, "
+                                f"cycle {capture.cycle}); the mouse stopped, froze or lost the surface (or the "
+                                "robot did not move), so this sample is refused")
 
     def _read(self) -> tuple[Any, Any]:
         """The integrated readings of both mice now."""
@@ -119,6 +189,7 @@ class MiceInstrument:
         if capture.kind in STREAMED_KINDS:
             return self._measure_arrival(capture)
         xy, xz = self._read()
+        self._check_alive(capture)
         if capture.kind == "mouse":  # calibration runs store the raw counts themselves
             counts = {"mouse_xy_x_counts": xy.raw[0], "mouse_xy_y_counts": xy.raw[1],
                       "mouse_xz_x_counts": xz.raw[0], "mouse_xz_z_counts": xz.raw[1]}
@@ -135,6 +206,7 @@ class MiceInstrument:
 
         lead_s, hold_s = float(capture.conditions["lead_s"]), float(capture.conditions["hold_s"])
         streamed, t_request = self._stream(lead_s, hold_s)
+        self._check_alive(capture)
         frames = {}  # the window only: older reports (the rest of the move) are in the counts already
         for plane, f in streamed.items():
             keep = f.t_s >= t_request - lead_s
@@ -188,6 +260,8 @@ class MiceInstrument:
                "cpi": round(float(cpi.mean()), 3), "resolution_mm": round(float(MM_PER_INCH / cpi.min()), 6)}
         if self.noise_counts is not None:
             out["noise_counts"] = self.noise_counts
+        if self.calibration_record is not None:
+            out["calibration"] = self.calibration_record
         return out
 
     def close(self) -> None:

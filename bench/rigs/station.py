@@ -27,7 +27,8 @@ Example (``examples/stations/`` holds one per seed setup)::
     [mice]                         # the dissertation's two optical mice (pkm5 pose tests)
     xy = "/dev/input/by-id/usb-Logitech_M100-event-mouse"   # measures x and y
     xz = "/dev/input/by-id/usb-Dell_MS116-event-mouse"      # measures x and z
-    cpi = 800                      # nominal, used until a mouse_calibration run is stored
+    cpi = 800                      # nominal resolution, in force unless a stored calibration is named:
+    calibration = 3                # the stored mouse calibration version in force (bench store calibrations)
 
     [calliper]                     # readings the operator takes
     kind = "typed"                 # typed | serial
@@ -148,6 +149,15 @@ class ControllerSpec:
     fixture: str = "assembled"
 
 
+def _calibration_version(table: _Table) -> int | None:
+    """``[mice] calibration``: a stored calibration version, an integer >= 1 (or absent)."""
+    expected = "a stored mouse calibration version, an integer >= 1"
+    value = table.get("calibration", int, None, expected=expected)
+    if value is not None and value < 1:
+        raise _fail(table.source, table._key("calibration"), value, expected)
+    return value
+
+
 @dataclass(frozen=True)
 class MiceSpec:
     """Two optical mice by event device: ``xy`` measures x and y, ``xz`` measures x and z."""
@@ -157,6 +167,9 @@ class MiceSpec:
     cpi: float = 800.0
     noise_counts: float | None = None  #: reading noise per count, when measured; stated in the report's budget
     grab: bool = True  #: take the mice exclusively (EVIOCGRAB) so the desktop pointer does not move
+    #: the stored ``mouse`` calibration version in force; None: the nominal ``cpi`` (a stored one is never put in
+    #: force because it is the newest)
+    calibration: int | None = None
 
 
 @dataclass(frozen=True)
@@ -297,7 +310,8 @@ def parse_station(data: Mapping[str, Any], *, source: str = "station") -> Statio
         mice = MiceSpec(xy=table.get("xy", str, required=True, expected="the x-y mouse's event device"),
                         xz=table.get("xz", str, required=True, expected="the x-z mouse's event device"),
                         cpi=table.number("cpi", 800.0), noise_counts=table.number("noise_counts", None, zero_allowed=True),
-                        grab=table.get("grab", bool, True))
+                        grab=table.get("grab", bool, True),
+                        calibration=_calibration_version(table))
         table.done()
         devices.update({"mice.xy": mice.xy, "mice.xz": mice.xz})
     if "calliper" in data:

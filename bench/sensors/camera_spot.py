@@ -8,6 +8,7 @@ The homography model assumes negligible lens distortion over the target; for wid
 from __future__ import annotations
 
 import datetime as _dt
+import hashlib
 from collections.abc import Callable
 from dataclasses import dataclass
 
@@ -15,7 +16,7 @@ import numpy as np
 
 from bench.errors import ConfigError
 from bench.extras import require
-from bench.sensors.reading import MalformedSample, Reading, now
+from bench.sensors.reading import MalformedSample, Reading, SensorStalled, now
 
 cv2 = require("cv2")  # the camera extra: a station without a camera never imports this module
 
@@ -181,6 +182,7 @@ class LaserSpotCamera:
         self._grab_next = grab_next or grab
         self.calibration = calibration
         self.detect_options = detect_options
+        self._last_frame_digest: bytes | None = None
 
     def settings(self) -> dict[str, object]:
         """What a run manifest stores about this camera: detection options and the plane calibration."""
@@ -192,6 +194,13 @@ class LaserSpotCamera:
         the frame after the one just read (``grab_next``), for a series at one rest."""
         frame = self._grab_next() if next_frame else self._grab()
         t_mono, t_wall = now()
+        # a camera's read noise makes every frame differ somewhere; the same bytes again are a frozen camera or
+        # driver handing back its last buffer, and the spot in it is stale
+        digest = hashlib.blake2b(np.ascontiguousarray(frame).tobytes(), digest_size=16).digest()
+        if digest == self._last_frame_digest:
+            raise SensorStalled(f"{self.name}: this frame is identical to the previous one, bit for bit (a frozen "
+                                "camera or driver); the reading is refused; check the camera, then resume the run")
+        self._last_frame_digest = digest
         spot = detect_spot(frame, source=self.name, **self.detect_options)
         x_mm, y_mm = self.calibration.pixel_to_mm(np.array([spot.u_px, spot.v_px]))
         return Reading((float(x_mm), float(y_mm)), "mm", t_mono, t_wall, raw=(spot.u_px, spot.v_px),

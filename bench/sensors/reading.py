@@ -13,11 +13,16 @@ from typing import Protocol, runtime_checkable
 
 from bench.errors import LinkError
 
-__all__ = ["MalformedSample", "Reading", "Sensor", "now"]
+__all__ = ["MalformedSample", "Reading", "Sensor", "SensorStalled", "now"]
 
 
 class MalformedSample(LinkError):
     """A device sent bytes, a line or an image that cannot be turned into a sample; nothing was stored."""
+
+
+class SensorStalled(LinkError):
+    """A streaming sensor stopped reporting, closed (end of stream) or froze: its sample would repeat stale data, so
+    it is refused and the run ends with this reason; nothing was stored."""
 
 
 def now() -> tuple[float, float]:

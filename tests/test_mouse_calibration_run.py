@@ -1,0 +1,83 @@
+"""A mouse_calibration run (issue 32, item 5): against a stated reference, printed with its U, stored but not put
+in force, and its export analysed and reported to the same numbers."""
+
+from __future__ import annotations
+
+import json
+import logging
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+from bench.cli import main
+from bench.errors import ConfigError
+from bench.launch import simulated_rig_in
+from bench.protocols import Runner
+from bench.protocols.base import PROTOCOLS
+from bench.protocols.dissertation import mouse_calibration_moves
+from bench.store import Store, export_run
+
+QUICK = {"settle_s": 0.1, "repeats": 2, "distances_mm": [5, 20, 40]}
+
+
+def test_the_reference_must_be_stated():
+    with pytest.raises(ConfigError, match="reference missing, expected 'calliper' or 'calibrated-axis'"):
+        PROTOCOLS["mouse_calibration"](**QUICK).validate()
+    with pytest.raises(ConfigError, match="reference_u_pct missing"):
+        PROTOCOLS["mouse_calibration"](reference="calliper", **QUICK).validate()
+
+
+def test_a_run_is_stored_printed_exported_analysed_and_reported(tmp_path, caplog, capsys):
+    protocol = PROTOCOLS["mouse_calibration"](reference="calibrated-axis", reference_u_pct=0.05, **QUICK)
+    caplog.set_level(logging.WARNING)
+    with Store(tmp_path / "b.db") as store:
+        rig = simulated_rig_in(store, "pkm5", seed=2, speed_factor=20000)
+        try:
+            result = Runner(rig, store).run(protocol)
+        finally:
+            rig.close()
+        assert result.exit_status == "completed"
+        stored = next(c for c in store.calibrations() if c.source_run_id == result.run_id)
+        export_run(store, result.run_id, tmp_path / "mouse.csv", fmt="csv", kind="mouse")
+    params = stored.params
+    assert f"stored mouse calibration mouse-v{stored.version}" in caplog.text
+    assert f"not in force until a station names it ([mice] calibration = {stored.version})" in caplog.text
+    assert f"± {params['k'] * params['u_x_mm_per_count']:.1e} mm/count" in caplog.text
+    assert params["reference"] == "calibrated-axis" and params["k"] > 2.0  # Student's t at the fit's dof
+    # 3 lengths x 2 repeats per axis: 6 steps there and 5 back per axis
+    assert params["dof"] == 22 - 6
+    capsys.readouterr()
+    assert main(["analyze", "mouse", str(tmp_path / "mouse.csv"), "--json"]) == 0
+    analysed = json.loads(capsys.readouterr().out)
+    assert np.array(analysed["A_mm_per_count"]) == pytest.approx(np.array(params["matrix_mm_per_count"]), rel=1e-12)
+    assert analysed["k"] == pytest.approx(params["k"])
+    assert main(["report", str(result.run_id), "--store", str(tmp_path / "b.db"), "--out", str(tmp_path / "r"),
+                 "--format", "html", "--quiet"]) == 0
+    page = (tmp_path / "r" / f"report_run{result.run_id}.html").read_text()
+    a = np.array(params["matrix_mm_per_count"])
+    assert f"{a[0, 0]:+.6f} ±" in page and f"[mice] calibration = {stored.version}" in page
+
+
+def _sample(pose, cycle, **values):
+    return SimpleNamespace(pose=pose, cycle=cycle, values=values)
+
+
+def test_a_calliper_reference_replaces_the_robots_commanded_travel():
+    """The robot under test travels 3 % short of its commands; the calliper reads the true travel, which the mouse
+    counts at exactly 31.5 counts/mm: the fit against the calliper finds 31.5, the commanded one would not."""
+    samples, references, counts_per_mm = [], [], 31.5
+    for distance in (5.0, 20.0, 40.0):
+        for cycle in (1, 2):
+            for where, commanded in (("start", 90.0), ("end", 90.0 + distance)):
+                true_x = 90.0 + 0.97 * (commanded - 90.0)
+                samples.append(_sample(f"x{distance:g}/{where}", cycle, cmd_x_mm=commanded, cmd_y_mm=-20.0,
+                                       mouse_xy_x_counts=round(true_x * counts_per_mm), mouse_xy_y_counts=0.0))
+                references.append(_sample(f"x{distance:g}/{where}", cycle, reference_mm=true_x))
+    calliper, counts = mouse_calibration_moves(samples, references)
+    commanded, _ = mouse_calibration_moves(samples)
+    assert len(calliper) == 11 and (calliper[:, 1] == 0).all()
+    slope = np.linalg.lstsq(calliper[:, :1], counts[:, 0], rcond=None)[0][0]
+    assert slope == pytest.approx(counts_per_mm, rel=2e-3)
+    assert np.linalg.lstsq(commanded[:, :1], counts[:, 0], rcond=None)[0][0] == pytest.approx(0.97 * counts_per_mm,
+                                                                                              rel=2e-3)
