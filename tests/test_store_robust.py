@@ -93,7 +93,8 @@ def test_store_check_says_ok_and_names_each_orphan_row(sound_store, capsys):
         (rowid,) = db.execute("SELECT id FROM samples WHERE run_id = 7").fetchone()
     db.close()
     assert check_store(str(sound_store)) == [
-        f"{sound_store}: table samples row {rowid}: runs id missing (foreign key 0)"]
+        f"{sound_store}: table samples row {rowid}: runs id missing (foreign key 0)",
+        f"{sound_store}: run 7 sample at step 0 (samples row {rowid}): it has no checksum (written outside bench)"]
 
 
 def test_a_read_only_store_reads_and_a_write_is_one_line(sound_store):

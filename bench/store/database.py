@@ -34,6 +34,7 @@ from bench.errors import BenchError, ConfigError
 from bench.store.connection import GuardedConnection, open_connection, store_error
 from bench.store.ownership import RunLease, owner_of
 from bench.store.recovery import refuse_if_damaged
+from bench.store.sample_checksum import CHECKED_COLUMNS, sample_checksum, verify_sample
 from bench.store.schema import SCHEMA_VERSION, StoreSchemaError, default_bench_name, open_schema
 
 __all__ = [
@@ -155,8 +156,10 @@ def encode_sample(run_id: int, step_index: int, *, values: Mapping[str, float], 
     for key, value in values.items():
         if not isinstance(value, (int, float)) or not math.isfinite(value):
             raise ConfigError(f"run {run_id} step {step_index}: {key} = {value!r}, expected a finite number")
-    return (int(run_id), int(step_index), kind, pose, cycle, float(t_s), _utc_now(),
-            _to_json({k: float(v) for k, v in values.items()}, "values"), None if raw is None else _to_json(raw, "raw"))
+    columns = (int(step_index), kind, pose, cycle, float(t_s), _utc_now(),
+               _to_json({k: float(v) for k, v in values.items()}, "values"),
+               None if raw is None else _to_json(raw, "raw"))
+    return (int(run_id), *columns, sample_checksum(*columns))
 
 
 def checkpoint_wal(db: GuardedConnection) -> None:
@@ -180,8 +183,8 @@ def insert_sample_row(db: GuardedConnection, row: tuple) -> None:
     """Insert and commit one row of :func:`encode_sample` on ``db`` (in its own transaction: ``synchronous=FULL``
     makes it durable before this returns)."""
     try:
-        db.execute("INSERT INTO samples (run_id, step_index, kind, pose, cycle, t_s, wall_utc, values_json, raw_json)"
-                   " VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?)", row)
+        db.execute("INSERT INTO samples (run_id, step_index, kind, pose, cycle, t_s, wall_utc, values_json, raw_json,"
+                   " checksum) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?)", row)
     except sqlite3.IntegrityError as exc:
         if "UNIQUE" in str(exc):
             raise DuplicateSample(f"run {row[0]}: step {row[1]} already has a stored sample") from exc
@@ -469,13 +472,19 @@ class Store:
         return {row[0] for row in self._db.execute("SELECT step_index FROM samples WHERE run_id = ?", (run_id,))}
 
     def samples(self, run_id: int, kind: str | None = None) -> list[SampleRecord]:
-        """The samples of a run in step order, optionally of one ``kind`` only."""
-        query = ("SELECT run_id, step_index, kind, pose, cycle, t_s, wall_utc, values_json, raw_json FROM samples"
+        """The samples of a run in step order, optionally of one ``kind`` only. Each is checked against its checksum
+        as it is read: a damaged one raises :class:`bench.store.sample_checksum.DamagedSample` naming the run and
+        the step, so nothing is computed from a changed number."""
+        query = (f"SELECT {', '.join(CHECKED_COLUMNS)}, checksum FROM samples"
                  " WHERE run_id = ?" + (" AND kind = ?" if kind else "") + " ORDER BY step_index")
         args = (run_id, kind) if kind else (run_id,)
-        return [SampleRecord(run_id=r[0], step_index=r[1], kind=r[2], pose=r[3], cycle=r[4], t_s=r[5],
-                             wall_utc=r[6], values=json.loads(r[7]), raw=None if r[8] is None else json.loads(r[8]))
-                for r in self._db.execute(query, args)]
+        samples = []
+        for row in self._db.execute(query, args):
+            verify_sample(run_id, row, self.path)
+            samples.append(SampleRecord(run_id=run_id, step_index=row[0], kind=row[1], pose=row[2], cycle=row[3],
+                                        t_s=row[4], wall_utc=row[5], values=json.loads(row[6]),
+                                        raw=None if row[7] is None else json.loads(row[7])))
+        return samples
 
     def stored_rows(self, run_id: int, after_step: int = -1, *, extract: Sequence[str] = ()) -> Iterator[tuple]:
         """The samples of a run after step ``after_step`` exactly as stored, in step order: ``(step_index, kind,
