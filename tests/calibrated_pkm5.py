@@ -61,7 +61,7 @@ def _bench(*argv: str, store: Path) -> tuple[str, str]:
 
 
 def _run(protocol: str, store: Path, *extra: str) -> tuple[int, str]:
-    out, err = _bench("run", str(EXAMPLES / protocol), "--true-geometry-seed", str(SEED), "--ideal", "--no-progress",
+    out, err = _bench("run", str(EXAMPLES / protocol), "--sim", "--true-geometry-seed", str(SEED), "--ideal", "--no-progress",
                       *extra, store=store)
     return int(out.split()[-1]), err
 

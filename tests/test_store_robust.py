@@ -54,7 +54,7 @@ def test_another_applications_sqlite_file_is_refused_and_untouched(tmp_path, cap
     before = other.read_bytes()
     expected = (f"bench: error: --store {other}: not a bench store (its tables are notes; no runs table); left "
                 "untouched, expected a bench.db that bench wrote or a new file name")
-    for command in (["runs"], ["run", str(QUICK), "--no-progress"], ["export", "1"], ["report", "1"]):
+    for command in (["runs"], ["run", str(QUICK), "--sim", "--no-progress"], ["export", "1"], ["report", "1"]):
         assert main([*command, "--store", str(other)]) == 2
         assert _one_error_line(capsys) == expected
     assert other.read_bytes() == before

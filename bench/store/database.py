@@ -88,10 +88,17 @@ class RunRecord:
     ended_utc: str | None
     n_samples: int
 
+    @property
+    def simulated(self) -> bool:
+        """True for a run on simulators (the simulated rig or a station's rehearsal): its settings name the
+        simulator it ran on."""
+        return "simulator" in self.settings
+
     def as_dict(self) -> dict[str, Any]:
-        """Plain, JSON-ready form (used by ``bench runs --json``)."""
+        """Plain, JSON-ready form (used by ``bench runs --json``), with ``simulated``."""
         out = dict(self.__dict__)
         out["calibration_ids"] = list(self.calibration_ids)
+        out["simulated"] = self.simulated
         return out
 
 
