@@ -251,6 +251,7 @@ def _resume(args: argparse.Namespace) -> int:
     with Store(args.store) as store:
         record = store.run(args.run_id)
         store.claim(args.run_id)  # before the rig opens: a run another live process drives is never touched
+        store.resuming = args.run_id  # opening the rig writes no new calibration: a refused resume writes nothing
         protocol = protocol_from_config(record.config, source=f"run {args.run_id}", stored=True)
         rig = build_rig(args, record.robot, store, stored=record.settings,
                         fixture=record.config.get("fixture", "assembled"), requires=required_capabilities(protocol),

@@ -23,7 +23,7 @@ import sqlite3
 import subprocess
 import time
 import uuid
-from collections.abc import Iterable, Iterator, Mapping, Sequence
+from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
 from dataclasses import dataclass
 from datetime import UTC, datetime
 from pathlib import Path
@@ -157,13 +157,14 @@ def software_git_sha() -> str:
 
 
 def encode_sample(run_id: int, step_index: int, *, values: Mapping[str, float], kind: str, pose: str | None,
-                  cycle: int | None, t_s: float, raw: Any) -> tuple:
-    """The ``samples`` row of one sample, its ``wall_utc`` now (when it was taken); a value that is not a finite
-    number, or raw data that is not JSON, raises ``ConfigError`` here, before anything is written."""
+                  cycle: int | None, t_s: float, raw: Any, wall_clock: Callable[[], str] = _utc_now) -> tuple:
+    """The ``samples`` row of one sample, its ``wall_utc`` now by ``wall_clock`` (when it was taken); a value that
+    is not a finite number, or raw data that is not JSON, raises ``ConfigError`` here, before anything is
+    written."""
     for key, value in values.items():
         if not isinstance(value, (int, float)) or not math.isfinite(value):
             raise ConfigError(f"run {run_id} step {step_index}: {key} = {value!r}, expected a finite number")
-    columns = (int(step_index), kind, pose, cycle, float(t_s), _utc_now(),
+    columns = (int(step_index), kind, pose, cycle, float(t_s), wall_clock(),
                _to_json({k: float(v) for k, v in values.items()}, "values"),
                None if raw is None else _to_json(raw, "raw"))
     return (int(run_id), *columns, sample_checksum(*columns))
@@ -230,6 +231,10 @@ class Store:
         self.path = str(path)
         self.read_only = read_only
         self._leases: dict[int, RunLease] = {}
+        #: the run being resumed (``bench resume``): no new calibration version is written while it is set
+        self.resuming: int | None = None
+        #: the wall clock a sample's ``wall_utc`` is read from (ISO UTC text); replaceable, e.g. by a clock that jumps
+        self.wall_clock: Callable[[], str] = _utc_now
         self.bench = bench or default_bench_name()
         self.backup = None
         try:
@@ -385,14 +390,21 @@ class Store:
         """Settle (or reopen, with ``running``) the status of a run; ``reason`` says why it failed or stopped."""
         if status not in RUN_STATUSES:
             raise ConfigError(f"store: status = {status!r}, expected one of {', '.join(RUN_STATUSES)}")
-        self.run(run_id)
-        ended = None if status == "running" else _utc_now()
-        self._db.execute("UPDATE runs SET status = ?, reason = ?, ended_utc = ? WHERE id = ?",
-                         (status, reason, ended, run_id))
+        record = self.run(run_id)
+        now = _utc_now()
+        ended = None if status == "running" else now
+        # every settle and every reopening is kept in the run's history (the report lists each abort and resume)
+        event = {"utc": now, "event": "resumed" if status == "running" else status,
+                 **({"reason": reason} if reason else {})}
+        settings = {**record.settings, "history": [*record.settings.get("history", ()), event]}
+        self._db.execute("UPDATE runs SET status = ?, reason = ?, ended_utc = ?, settings_json = ? WHERE id = ?",
+                         (status, reason, ended, _to_json(settings, "settings"), run_id))
 
     def add_registration(self, run_id: int, registration: Mapping[str, Any]) -> int:
         """Append one registration of the run's instruments (a run segment, :mod:`bench.rigs.registration`) to its
-        settings' ``registrations`` list, in one transaction; returns its number (1 for the first)."""
+        settings' ``registrations`` list, in one transaction; returns its number (1 for the first). It records
+        ``after_t_s``, the largest ``t_s`` stored so far: the samples after it are the new segment's, whatever the
+        wall clock says (:mod:`bench.store.registrations`)."""
         self._db.execute("BEGIN IMMEDIATE")
         try:
             row = self._db.execute("SELECT settings_json FROM runs WHERE id = ?", (int(run_id),)).fetchone()
@@ -400,7 +412,10 @@ class Store:
                 raise ConfigError(f"run {run_id}: no such run in {self.path}")
             settings = json.loads(row[0])
             entries = settings.setdefault("registrations", [])
-            entries.append({**registration, "segment": len(entries) + 1})
+            (after_t_s,) = self._db.execute("SELECT MAX(t_s) FROM samples WHERE run_id = ?",
+                                            (int(run_id),)).fetchone()
+            entries.append({**registration, "segment": len(entries) + 1,
+                            **({} if after_t_s is None else {"after_t_s": after_t_s})})
             self._db.execute("UPDATE runs SET settings_json = ? WHERE id = ?",
                              (_to_json(settings, "settings"), int(run_id)))
             self._db.execute("COMMIT")
@@ -466,7 +481,7 @@ class Store:
             The raw counts, bytes (as hex) or readings the values were computed from.
         """
         self.insert_sample(encode_sample(run_id, step_index, values=values, kind=kind, pose=pose, cycle=cycle,
-                                         t_s=t_s, raw=raw))
+                                         t_s=t_s, raw=raw, wall_clock=self.wall_clock))
 
     def insert_sample(self, row: tuple) -> None:
         """Insert and commit one row of :func:`encode_sample` before returning (:meth:`add_sample` in two parts:
@@ -592,13 +607,19 @@ class Store:
         return self.calibration_by_id(int(cursor.lastrowid))
 
     def ensure_calibration(self, name: str, params: Mapping[str, Any], *, notes: str = "") -> CalibrationRecord:
-        """The latest version of ``name`` if its parameters equal ``params``, else a new version with them."""
+        """The latest version of ``name`` if its parameters equal ``params``, else a new version with them; while
+        :attr:`resuming` a run, a new version is refused instead (a refused resume writes nothing)."""
         try:
             latest = self.calibration(name)
         except ConfigError:
             latest = None
         if latest is not None and latest.params == json.loads(_to_json(dict(params), "params")):
             return latest
+        if self.resuming is not None:
+            now = f"version {latest.version} is the latest" if latest else "none is stored"
+            raise ConfigError(f"run {self.resuming}: calibration {name!r} in force would be a new version ({now}, "
+                              f"with other parameters); a run resumes only with the calibrations it started with: "
+                              "start a new run (bench run)")
         return self.add_calibration(name, params, notes=notes)
 
     def calibration(self, name: str, version: int | None = None) -> CalibrationRecord:
