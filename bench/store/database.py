@@ -34,7 +34,7 @@ from bench.errors import BenchError, ConfigError
 from bench.store.connection import GuardedConnection, open_connection, store_error
 from bench.store.ownership import RunLease, owner_of
 from bench.store.recovery import refuse_if_damaged
-from bench.store.sample_checksum import CHECKED_COLUMNS, sample_checksum, verify_sample
+from bench.store.sample_checksum import CHECKED_COLUMNS, parse_sample, sample_checksum
 from bench.store.schema import SCHEMA_VERSION, StoreSchemaError, default_bench_name, open_schema
 
 __all__ = [
@@ -502,10 +502,9 @@ class Store:
         args = (run_id, kind) if kind else (run_id,)
         samples = []
         for row in self._db.execute(query, args):
-            verify_sample(run_id, row, self.path)
+            values, raw = parse_sample(run_id, row, self.path)
             samples.append(SampleRecord(run_id=run_id, step_index=row[0], kind=row[1], pose=row[2], cycle=row[3],
-                                        t_s=row[4], wall_utc=row[5], values=json.loads(row[6]),
-                                        raw=None if row[7] is None else json.loads(row[7])))
+                                        t_s=row[4], wall_utc=row[5], values=values, raw=raw))
         return samples
 
     def stored_rows(self, run_id: int, after_step: int = -1, *, extract: Sequence[str] = ()) -> Iterator[tuple]:

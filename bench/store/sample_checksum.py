@@ -18,10 +18,11 @@ import hashlib
 import json
 import sqlite3
 from collections.abc import Iterable
+from typing import Any
 
 from bench.errors import BenchError
 
-__all__ = ["CHECKED_COLUMNS", "DamagedSample", "damaged_sample_lines", "sample_checksum", "verify_sample"]
+__all__ = ["CHECKED_COLUMNS", "DamagedSample", "damaged_sample_lines", "parse_sample", "sample_checksum"]
 
 #: The ``samples`` columns the checksum covers, in the order hashed.
 CHECKED_COLUMNS = ("step_index", "kind", "pose", "cycle", "t_s", "wall_utc", "values_json", "raw_json")
@@ -31,21 +32,26 @@ class DamagedSample(BenchError):
     """A stored sample whose bytes no longer match its checksum, or whose JSON does not parse: its run is refused."""
 
 
+#: Separates the columns in the hashed text; ``NULL`` is hashed as :data:`_NULL` (neither occurs in bench's text).
+_SEPARATOR, _NULL = "\x1f", "\x00"
+
+
 def sample_checksum(step_index: int, kind: str, pose: str | None, cycle: int | None, t_s: float, wall_utc: str,
                     values_json: str, raw_json: str | None) -> str:
-    """SHA-256 (hex) of one sample's stored columns (:data:`CHECKED_COLUMNS`), as one canonical JSON array.
-
-    ``t_s`` is hashed as the shortest text that reads back as the same double (Python's ``repr``), which SQLite's
-    REAL keeps exactly.
+    """SHA-256 (hex) of one sample's stored columns (:data:`CHECKED_COLUMNS`) as one text: the columns joined by
+    U+001F, NULL as U+0000, integers in decimal, ``t_s`` as the shortest text that reads back as the same double
+    (Python's ``repr``, which SQLite's REAL keeps exactly), all encoded as UTF-8 (bytes that are not UTF-8, read
+    with ``surrogateescape``, hash as themselves).
     """
-    text = json.dumps([int(step_index), kind, pose, cycle, float(t_s), wall_utc, values_json, raw_json],
-                      separators=(",", ":"), ensure_ascii=True)
-    return hashlib.sha256(text.encode("ascii")).hexdigest()
+    text = _SEPARATOR.join((str(int(step_index)), kind, _NULL if pose is None else pose,
+                            _NULL if cycle is None else str(int(cycle)), repr(float(t_s)), wall_utc, values_json,
+                            _NULL if raw_json is None else raw_json))
+    return hashlib.sha256(text.encode("utf-8", "surrogateescape")).hexdigest()
 
 
-def _problem(step_index: int, kind: str, pose: str | None, cycle: int | None, t_s: float, wall_utc: str,
-             values_json: str, raw_json: str | None, checksum: str | None) -> str | None:
-    """What is wrong with one stored row (None when nothing)."""
+def _mismatch(step_index: int, kind: str, pose: str | None, cycle: int | None, t_s: float, wall_utc: str,
+              values_json: str, raw_json: str | None, checksum: str | None) -> str | None:
+    """What is wrong with one stored row's checksum (None when it matches)."""
     if checksum is None:
         return "it has no checksum (written outside bench)"
     try:
@@ -54,24 +60,28 @@ def _problem(step_index: int, kind: str, pose: str | None, cycle: int | None, t_
         return f"a column has the wrong type ({exc})"
     if expected != checksum:
         return "its stored bytes no longer match their checksum (changed since it was stored)"
-    for name, text in (("values_json", values_json), ("raw_json", raw_json)):
-        if text is None and name == "raw_json":
-            continue
-        try:
-            json.loads(text)
-        except (TypeError, ValueError) as exc:
-            return f"its {name} does not parse ({exc})"
     return None
 
 
-def verify_sample(run_id: int, row: tuple, path: str) -> None:
-    """Raise :class:`DamagedSample` in one line when the stored row (:data:`CHECKED_COLUMNS` then ``checksum``) of
-    run ``run_id`` fails its checksum or holds JSON that does not parse."""
-    problem = _problem(*row)
+def _refusal(run_id: int, step_index: int, path: str, problem: str) -> DamagedSample:
+    return DamagedSample(f"store {path}: run {run_id} sample at step {step_index} is damaged: {problem}; its run is "
+                         f"refused, nothing computed from it: list the damage with `bench store check {path}` and "
+                         "read a backup copy")
+
+
+def parse_sample(run_id: int, row: tuple, path: str) -> tuple[Any, Any]:
+    """The parsed ``(values, raw)`` of a stored row (:data:`CHECKED_COLUMNS` then ``checksum``) of run ``run_id``;
+    :class:`DamagedSample` in one line when the row fails its checksum or its JSON does not parse."""
+    problem = _mismatch(*row)
     if problem is not None:
-        raise DamagedSample(f"store {path}: run {run_id} sample at step {row[0]} is damaged: {problem}; its run is "
-                            f"refused, nothing computed from it: list the damage with `bench store check {path}` "
-                            "and read a backup copy")
+        raise _refusal(run_id, row[0], path, problem)
+    parsed = []
+    for name, text in (("values_json", row[6]), ("raw_json", row[7])):
+        try:
+            parsed.append(None if text is None and name == "raw_json" else json.loads(text))
+        except (TypeError, ValueError) as exc:
+            raise _refusal(run_id, row[0], path, f"its {name} does not parse ({exc})") from None
+    return parsed[0], parsed[1]
 
 
 def damaged_sample_lines(db: sqlite3.Connection, path: str) -> Iterable[str]:
@@ -80,8 +90,12 @@ def damaged_sample_lines(db: sqlite3.Connection, path: str) -> Iterable[str]:
     columns = {row[1] for row in db.execute("PRAGMA table_info(samples)")}
     if "checksum" not in columns:
         return
-    query = f"SELECT id, run_id, {', '.join(CHECKED_COLUMNS)}, checksum FROM samples ORDER BY run_id, step_index"
-    for rowid, run_id, *row in db.execute(query):
-        problem = _problem(*row)
+    # JSON validity by SQLite (json_valid, in C): bench writes only strict JSON (no NaN), which it accepts
+    query = (f"SELECT id, run_id, {', '.join(CHECKED_COLUMNS)}, checksum, json_valid(values_json),"
+             " raw_json IS NULL OR json_valid(raw_json) FROM samples ORDER BY run_id, step_index")
+    for rowid, run_id, *row, values_ok, raw_ok in db.execute(query):
+        problem = _mismatch(*row)
+        if problem is None and not (values_ok and raw_ok):
+            problem = f"its {'values_json' if not values_ok else 'raw_json'} does not parse"
         if problem is not None:
             yield f"{path}: run {run_id} sample at step {row[0]} (samples row {rowid}): {problem}"
