@@ -3,11 +3,11 @@ writes nothing and says what to do, and the report's run history shows every abo
 
 from __future__ import annotations
 
-import sqlite3
 from datetime import UTC, datetime, timedelta
 from pathlib import Path
 
 import pytest
+from cli_runs import store_dump
 
 from bench.cli import main
 from bench.reports.summary import run_history
@@ -56,19 +56,11 @@ def aborted_run(tmp_path) -> Path:
     return store
 
 
-def _dump(path: Path) -> list[str]:
-    db = sqlite3.connect(path)
-    try:
-        return list(db.iterdump())
-    finally:
-        db.close()
-
-
 def test_a_resume_refused_for_its_calibration_writes_nothing_and_says_what_to_do(aborted_run, capsys):
     with Store(aborted_run) as store:  # the simulated mice's calibration changed since the run began
         calibration = store.calibration_by_id(store.run(1).calibration_ids[0])
         store.add_calibration(calibration.name, {**calibration.params, "mm_per_count": 0.0318})
-    before = _dump(aborted_run)
+    before = store_dump(aborted_run)
     capsys.readouterr()
     assert main(["resume", "1", "--store", str(aborted_run), "--no-progress"]) == 2
     captured = capsys.readouterr()
@@ -77,7 +69,7 @@ def test_a_resume_refused_for_its_calibration_writes_nothing_and_says_what_to_do
                          "(version 2 is the latest, with other parameters); a run resumes only with the "
                          "calibrations it started with: start a new run (bench run)"), captured.err
     assert "Traceback" not in captured.err
-    assert _dump(aborted_run) == before
+    assert store_dump(aborted_run) == before
 
 
 def test_the_run_history_shows_every_abort_and_resume(aborted_run, capsys):

@@ -4,10 +4,10 @@ simulated runs as such, and a resume on another device under test or another rig
 from __future__ import annotations
 
 import json
-import sqlite3
 from pathlib import Path
 
 import pytest
+from cli_runs import store_dump
 
 from bench.cli import main
 from bench.store import Store
@@ -22,14 +22,6 @@ def _one_error_line(capsys) -> str:
     lines = captured.err.strip().splitlines()
     assert len(lines) == 1 and "Traceback" not in captured.err, captured.err
     return lines[0]
-
-
-def _dump(path: Path) -> list[str]:
-    db = sqlite3.connect(path)
-    try:
-        return list(db.iterdump())
-    finally:
-        db.close()
 
 
 @pytest.fixture(scope="module")
@@ -76,21 +68,21 @@ def test_resume_with_another_device_under_test_is_refused_and_writes_nothing(reh
     text = STATION.read_text()
     assert text.count('serial = "PKM5-0001"') == 1
     other.write_text(text.replace('serial = "PKM5-0001"', 'serial = "PKM5-0002"'))
-    before = _dump(store)
+    before = store_dump(store)
     capsys.readouterr()
     assert main(["resume", "1", "--station", str(other), "--sim", "--store", str(store), "--no-progress"]) == 2
     assert _one_error_line(capsys) == (f"bench: error: the resumed run: device under test is PKM5-0001, the station "
                                        f"{other} names PKM5-0002; resume it with the station it ran on")
-    assert _dump(store) == before
+    assert store_dump(store) == before
 
 
 def test_resume_of_a_station_run_on_the_simulator_is_refused_and_writes_nothing(rehearsed, tmp_path, capsys):
     store = tmp_path / "bench.db"
     store.write_bytes(rehearsed.read_bytes())
-    before = _dump(store)
+    before = store_dump(store)
     capsys.readouterr()
     assert main(["resume", "1", "--store", str(store), "--no-progress"]) == 2
     assert _one_error_line(capsys) == (f"bench: error: the resumed run: ran on station {STATION} rehearsed on "
                                        "simulators (--sim), resume asked for the simulator (--sim); resume it on the "
                                        "rig it ran on")
-    assert _dump(store) == before
+    assert store_dump(store) == before
