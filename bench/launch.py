@@ -18,6 +18,7 @@ from bench.errors import ConfigError
 from bench.rigs.builder import build_rig, check_capabilities, station_identity
 from bench.rigs.builder import open_mover as builder_open_mover
 from bench.rigs.interfaces import Operator, Rig
+from bench.rigs.resume_identity import refuse_another_rig
 from bench.rigs.station import Station, load_station, parse_station
 from bench.simulators import CAMPAIGN_KERNEL_WAIT_S, DEFAULT_SPEED_FACTOR
 
@@ -66,8 +67,10 @@ def open_rig(request: RigRequest, store: Any, *, robot: str, stored: dict[str, A
     ``operator`` answers prompts on a station rig (default: the terminal); the simulated default rig answers them
     from the simulator's truth unless the caller replaces its ``answer``.
     """
-    stored = stored or {}
     station = _station(request, robot, fixture)
+    if stored:  # a resume: on the rig the run ran on, or refused before anything is opened or written
+        refuse_another_rig("the resumed run", stored, station, request.simulate)
+    stored = stored or {}
     serial = None if station is None else station_identity(station).get("dut_serial")
     kinematic = _kinematic_calibration(request, store, robot, stored, serial, fixture,
                                        simulated=station is None or request.simulate)

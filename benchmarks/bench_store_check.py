@@ -7,6 +7,8 @@ is checked ``--repeat`` times each way, min/median/max:
 * ``PRAGMA quick_check`` (pages and records, no index against table), ``PRAGMA integrity_check`` (also every
   index against its table), and :func:`bench.store.connection.check_store` (integrity and foreign keys, what the
   check before appending and ``bench store check`` run);
+* the sample checksums alone (:func:`bench.store.sample_checksum.damaged_sample_lines`: SHA-256 of every row,
+  what ``bench store check`` adds to SQLite's checks to find a flipped bit in a stored digit);
 * floor: one full scan of the samples table (``SELECT SUM(LENGTH(values_json))``), the least any check that
   reads every sample costs.
 
@@ -30,6 +32,8 @@ from _timing import min_median_max, spread  # noqa: E402
 
 from bench.store import Store  # noqa: E402
 from bench.store.connection import check_store  # noqa: E402
+from bench.store.sample_checksum import damaged_sample_lines  # noqa: E402
+from bench.store.sample_checksum import sample_checksum  # noqa: E402
 
 
 def make_store(path: Path, samples: int) -> None:
@@ -40,10 +44,11 @@ def make_store(path: Path, samples: int) -> None:
         for step in range(samples):
             values = {"x_mm": step * 1e-3, "y_mm": 1.5, "z_mm": 250.0, "cmd_x_mm": 0.0, "cmd_y_mm": 1.5,
                       "cmd_z_mm": 250.0}
+            columns = (step, "pose", "P1", step // 5 + 1, float(step), "2026-12-02T00:00:00.000000+00:00",
+                       json.dumps(values), json.dumps({"counts": [step, -step, 3, 4]}))
             raw.execute("INSERT INTO samples (run_id, step_index, kind, pose, cycle, t_s, wall_utc, values_json,"
-                        " raw_json) VALUES (?, ?, 'pose', 'P1', ?, ?, '2026-12-02T00:00:00.000000+00:00', ?, ?)",
-                        (run_id, step, step // 5 + 1, float(step), json.dumps(values),
-                         json.dumps({"counts": [step, -step, 3, 4]})))
+                        " raw_json, checksum) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?)",
+                        (run_id, *columns, sample_checksum(*columns)))
         raw.execute("COMMIT")
         store.set_status(run_id, "completed")
 
@@ -52,6 +57,14 @@ def pragma(path: Path, name: str) -> list:
     db = sqlite3.connect(path)
     try:
         return db.execute(name).fetchall()
+    finally:
+        db.close()
+
+
+def _checksums(path: Path) -> list[str]:
+    db = sqlite3.connect(path)
+    try:
+        return list(damaged_sample_lines(db, str(path)))
     finally:
         db.close()
 
@@ -69,6 +82,7 @@ def main() -> None:
         print(f"floor (one scan of the samples): {min_median_max(floor)}")
         for label, call in (("quick_check", lambda: pragma(path, "PRAGMA quick_check")),
                             ("integrity_check", lambda: pragma(path, "PRAGMA integrity_check")),
+                            ("checksums", lambda: _checksums(path)),
                             ("check_store", lambda: check_store(str(path)))):
             times, result = spread(call, repeat=args.repeat)
             ratio = statistics.median(times) / statistics.median(floor)

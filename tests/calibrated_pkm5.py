@@ -73,7 +73,7 @@ def _bench(*argv: str, store: Path) -> tuple[str, str]:
 
 
 def _run(protocol: str, store: Path, *extra: str) -> tuple[int, str]:
-    out, err = _bench("run", str(example_with_cycles(protocol, store.parent)), "--true-geometry-seed", str(SEED),
+    out, err = _bench("run", str(example_with_cycles(protocol, store.parent)), "--sim", "--true-geometry-seed", str(SEED),
                       "--ideal", "--no-progress",
                       *extra, store=store)
     return int(out.split()[-1]), err

@@ -1,7 +1,9 @@
-"""``bench run`` in a child process, for the tests that signal, kill or copy a run while it writes."""
+"""``bench run`` in a child process, for the tests that signal, kill or copy a run while it writes; a store's SQL dump,
+for the tests that a refused command writes nothing."""
 
 from __future__ import annotations
 
+import sqlite3
 import subprocess
 import sys
 import time
@@ -27,3 +29,13 @@ def wait_for_samples(store: Path, process: subprocess.Popen, at_least: int, time
         time.sleep(0.05)
     process.kill()
     raise AssertionError(f"no {at_least} samples within {timeout_s:g} s")
+
+
+def store_dump(path: Path) -> list[str]:
+    """The SQL dump of the store at ``path`` (every table and row): equal before and after a command that wrote
+    nothing."""
+    db = sqlite3.connect(path)
+    try:
+        return list(db.iterdump())
+    finally:
+        db.close()

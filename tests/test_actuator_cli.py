@@ -44,7 +44,7 @@ def simulated(tmp_path_factory):
     toml = folder / "actuators.toml"
     toml.write_text(PROTOCOL)
     db = folder / "bench.db"
-    assert main(["run", str(toml), "--store", str(db), "--no-progress", "--seed", "3", "--speed-factor", "50000"]) == 0
+    assert main(["run", str(toml), "--sim", "--store", str(db), "--no-progress", "--seed", "3", "--speed-factor", "50000"]) == 0
     with Store(db) as store:
         (record,) = store.runs()
         expected = actuator_results(store, record.id)

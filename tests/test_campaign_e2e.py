@@ -48,7 +48,7 @@ def test_dry_run_prints_the_plan_and_moves_nothing(capsys, tmp_path):
 def test_unreachable_target_is_refused_before_any_motion(capsys, tmp_path):
     bad = tmp_path / "far.toml"
     bad.write_text('protocol = "iso9283_pose"\ncycles = 2\n[poses]\nP1 = [110, 0, 320]\nFAR = [110, 0, 400]\n')
-    assert main(["run", str(bad), "--store", str(tmp_path / "b.db")]) == 2
+    assert main(["run", str(bad), "--sim", "--store", str(tmp_path / "b.db")]) == 2
     err = capsys.readouterr().err.strip()
     assert err.startswith("bench: error: far.toml: target FAR (x 110.00 mm, y 0.00 mm, z 400.00 mm")
     assert "is not reachable: leg 1 length" in err and len(err.splitlines()) == 1
@@ -57,7 +57,7 @@ def test_unreachable_target_is_refused_before_any_motion(capsys, tmp_path):
 
 def test_run_list_export_analyze(capsys, tmp_path):
     db = str(tmp_path / "b.db")
-    assert main(["run", str(QUICK), "--store", db, "--no-progress", "--seed", "4"]) == 0
+    assert main(["run", str(QUICK), "--sim", "--store", db, "--no-progress", "--seed", "4"]) == 0
     run_id = _run_id(capsys)
     assert main(["runs", "--store", db, "--json"]) == 0
     (record,) = [json.loads(line) for line in capsys.readouterr().out.splitlines()]
@@ -218,7 +218,7 @@ def test_kill_9_mid_run_then_resume_gives_exactly_the_expected_samples(capsys, t
     protocol_file = tmp_path / "pose.toml"
     protocol_file.write_text('protocol = "iso9283_pose"\ncycles = 6\nvelocities_pct = [100, 50]\nsettle_s = 0.2\n')
     db = tmp_path / "b.db"
-    writer = subprocess.Popen([sys.executable, "-m", "bench.cli", "run", str(protocol_file), "--store", str(db),
+    writer = subprocess.Popen([sys.executable, "-m", "bench.cli", "run", str(protocol_file), "--sim", "--store", str(db),
                                "--no-progress", "--speed-factor", "3000"], cwd=ROOT, stdout=subprocess.PIPE,
                               stderr=subprocess.PIPE, text=True)
     wait_for_samples(db, writer, 17)
@@ -256,7 +256,7 @@ def test_ctrl_c_pauses_at_a_checkpoint_then_stop_ends_the_run(tmp_path):
     protocol_file = tmp_path / "pose.toml"
     protocol_file.write_text('protocol = "iso9283_pose"\ncycles = 20\nvelocities_pct = [100]\nsettle_s = 0.2\n')
     db = tmp_path / "b.db"
-    run = subprocess.Popen([sys.executable, "-m", "bench.cli", "run", str(protocol_file), "--store", str(db),
+    run = subprocess.Popen([sys.executable, "-m", "bench.cli", "run", str(protocol_file), "--sim", "--store", str(db),
                             "--no-progress", "--speed-factor", "3000"], cwd=ROOT, stdin=subprocess.PIPE,
                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     wait_for_samples(db, run, 7)

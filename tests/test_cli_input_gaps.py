@@ -24,7 +24,7 @@ def _one_line(capsys) -> str:
 @pytest.mark.parametrize("factor", ["inf", "nan", "-1", "0"])
 def test_a_speed_factor_that_is_not_finite_and_positive_is_refused_naming_the_option(tmp_path, capsys, factor):
     store = tmp_path / "b.db"
-    assert main(["run", str(QUICK), "--store", str(store), "--no-progress", "--speed-factor", factor]) == 2
+    assert main(["run", str(QUICK), "--sim", "--store", str(store), "--no-progress", "--speed-factor", factor]) == 2
     shown = f"{float(factor):g}"
     assert _one_line(capsys) == (f"bench: error: speed factor = {shown}, expected a finite number > 0 "
                                  "(--speed-factor, how much faster than real time the simulators run)")

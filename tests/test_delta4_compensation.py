@@ -92,12 +92,12 @@ def test_a_run_records_the_calibration_in_force_and_can_turn_it_off(tmp_path):
     store = tmp_path / "bench.db"
     with Store(store) as s:
         record = s.add_calibration("delta4_kinematics", {**PARAMS, "simulated": True}, notes="test")
-    done = _bench("run", str(protocol), "--no-progress", store=store, cwd=tmp_path)
+    done = _bench("run", str(protocol), "--sim", "--no-progress", store=store, cwd=tmp_path)
     assert done.returncode == 0, done.stderr
     assert (f"kinematic calibration in force: delta4_kinematics v1 (id {record.id}; the newest for this robot)"
             in done.stderr)
     on = int(done.stdout.split()[-1])
-    done = _bench("run", str(protocol), "--no-progress", "--no-kinematic-calibration", store=store, cwd=tmp_path)
+    done = _bench("run", str(protocol), "--sim", "--no-progress", "--no-kinematic-calibration", store=store, cwd=tmp_path)
     assert done.returncode == 0, done.stderr
     assert "kinematic calibration: none (--no-kinematic-calibration)" in done.stderr
     off = int(done.stdout.split()[-1])
@@ -117,10 +117,10 @@ def test_a_target_the_calibrated_geometry_cannot_reach_is_refused_before_anythin
     with Store(store) as s:
         s.add_calibration("delta4_kinematics", {"parameters": {"servo_zero_1_deg": {"value": -50.0}},
                                                 "simulated": True})
-    done = _bench("run", str(protocol), "--no-progress", store=store, cwd=tmp_path)
+    done = _bench("run", str(protocol), "--sim", "--no-progress", store=store, cwd=tmp_path)
     assert done.returncode == 2 and done.stderr.count("\n") == 2, done.stderr
     assert "target P2 (x -70.00 mm, y -70.00 mm, z -180.00 mm) is not reachable: servo_limit (leg 1)" in done.stderr
-    assert _bench("run", str(protocol), "--no-progress", "--no-kinematic-calibration", store=store,
+    assert _bench("run", str(protocol), "--sim", "--no-progress", "--no-kinematic-calibration", store=store,
                   cwd=tmp_path).returncode == 0
 
 

@@ -43,7 +43,7 @@ def calibration_store(tmp_path_factory) -> tuple[Path, int]:
     """A store holding one calibration run of the seeded true geometry, and its id: run once for the module (each
     test works on its own copy)."""
     store = tmp_path_factory.mktemp("calibration") / "bench.db"
-    said = _bench("run", str(example_with_cycles("kinematic_calibration.toml", store.parent)), "--true-geometry-seed", str(SEED), "--ideal",
+    said = _bench("run", str(example_with_cycles("kinematic_calibration.toml", store.parent)), "--sim", "--true-geometry-seed", str(SEED), "--ideal",
                   "--no-kinematic-calibration", "--no-progress", store=store)
     return store, int(said.split()[-1])
 

@@ -99,7 +99,7 @@ def test_the_calibration_in_force_is_chosen_per_robot(tmp_path):
 
 
 def test_an_unknown_calibration_id_is_one_line(tmp_path):
-    done = _bench("run", str(EXAMPLES / "kinematic_validation.toml"), "--kinematic-calibration", "99",
+    done = _bench("run", str(EXAMPLES / "kinematic_validation.toml"), "--sim", "--kinematic-calibration", "99",
                   "--no-progress", store=tmp_path / "bench.db")
     assert done.returncode == 2
     assert done.stderr == f"bench: error: calibration id 99: not found in {tmp_path / 'bench.db'}\n"
@@ -144,7 +144,7 @@ def test_iterative_correction_brings_the_error_within_the_instrument_uncertainty
     protocol.write_text('protocol = "iterative_correction"\nrobot = "pkm5"\ntolerance_mm = 0.05\niterations = 3\n'
                         'settle_s = 0.2\n[poses]\nT1 = [120, 10, 315]\nT2 = [150, -30, 300]\nT3 = [105, 40, 325]\n')
     store = tmp_path / "bench.db"
-    assert main(["run", str(protocol), "--true-geometry-seed", str(SEED), "--ideal", "--no-progress", "--store",
+    assert main(["run", str(protocol), "--sim", "--true-geometry-seed", str(SEED), "--ideal", "--no-progress", "--store",
                  str(store)]) == 0
     with Store(store, read_only=True) as s:
         samples = s.samples(int(capsys.readouterr().out.split()[-1]), "pose")

@@ -64,11 +64,11 @@ def test_ctrl_c_with_stdin_at_its_end_aborts_once(tmp_path):
 
 def test_a_resume_that_changes_the_seed_is_refused(tmp_path, capsys):
     store = tmp_path / "b.db"
-    assert main(["run", str(QUICK), "--store", str(store), "--no-progress", "--seed", "3"]) == 0
+    assert main(["run", str(QUICK), "--sim", "--store", str(store), "--no-progress", "--seed", "3"]) == 0
     run_id = int(capsys.readouterr().out.split()[-1])
     assert main(["resume", str(run_id), "--store", str(store), "--seed", "4"]) == 2
     err = capsys.readouterr().err.strip()
     assert err == ("bench: error: seed = 4: the run was made with seed 3, expected the same (a resume keeps the "
                    "run's own; leave the seed out)")
-    assert main(["run", str(QUICK), "--store", str(store), "--speed-factor", "inf"]) == 2
+    assert main(["run", str(QUICK), "--sim", "--store", str(store), "--speed-factor", "inf"]) == 2
     assert "speed factor = inf, expected a finite number > 0" in capsys.readouterr().err

@@ -28,7 +28,7 @@ def _values(path: Path) -> dict[int, dict]:
 
 
 def _start_and_wait(store: Path, at_least: int) -> subprocess.Popen:
-    process = subprocess.Popen([BENCH, "run", str(QUICK), "--store", str(store), "--no-progress",
+    process = subprocess.Popen([BENCH, "run", str(QUICK), "--sim", "--store", str(store), "--no-progress",
                                 "--speed-factor", "60"], stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL,
                                stderr=subprocess.PIPE, text=True)
     wait_for_samples(store, process, at_least, timeout_s=120.0)
@@ -53,7 +53,7 @@ def test_the_db_file_alone_holds_every_sample_up_to_the_last_checkpoint_even_aft
 
 def test_a_clean_run_leaves_a_complete_db_file(tmp_path, capsys):
     store = tmp_path / "b.db"
-    assert main(["run", str(QUICK), "--store", str(store), "--no-progress"]) == 0
+    assert main(["run", str(QUICK), "--sim", "--store", str(store), "--no-progress"]) == 0
     capsys.readouterr()
     alone = tmp_path / "alone.db"
     shutil.copyfile(store, alone)
@@ -77,7 +77,7 @@ def test_bench_backup_copies_a_store_while_a_run_writes(tmp_path, capsys):
 
 def test_export_into_a_missing_folder_and_a_header_only_table_are_one_line(tmp_path, capsys):
     store = tmp_path / "b.db"
-    assert main(["run", str(QUICK), "--store", str(store), "--no-progress"]) == 0
+    assert main(["run", str(QUICK), "--sim", "--store", str(store), "--no-progress"]) == 0
     capsys.readouterr()
     missing = tmp_path / "nope" / "run.csv"
     assert main(["export", "1", "--store", str(store), "--out", str(missing)]) == 2
@@ -118,7 +118,7 @@ def test_copies_of_the_db_file_at_random_moments_of_a_run_hold_every_sample_befo
     protocol = tmp_path / "four_cycles.toml"
     protocol.write_text(QUICK.read_text().replace("cycles = 3", "cycles = 4"))
     store, rng = tmp_path / "b.db", random.Random(15)
-    process = subprocess.Popen([BENCH, "run", str(protocol), "--store", str(store), "--no-progress",
+    process = subprocess.Popen([BENCH, "run", str(protocol), "--sim", "--store", str(store), "--no-progress",
                                 "--speed-factor", "60"], stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL,
                                stderr=subprocess.PIPE, text=True)
     moments = sorted(rng.sample(range(1, 18), 8))  # after how many stored samples, then a random delay

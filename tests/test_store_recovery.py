@@ -58,7 +58,7 @@ def test_a_damaged_store_left_by_an_interrupted_run_is_refused_before_anything_i
     store = _interrupted_store(tmp_path / "bench.db")
     page = _damage_a_sample_page(store)
     before = store.read_bytes()
-    for command in (["run", str(QUICK), "--no-progress"], ["resume", "1", "--no-progress"]):
+    for command in (["run", str(QUICK), "--sim", "--no-progress"], ["resume", "1", "--no-progress"]):
         assert main([*command, "--store", str(store)]) == 1
         line = _one_error_line(capsys)
         assert line.startswith(f"bench: error: store {store}: not closed cleanly (run 1 interrupted) and damaged: "
@@ -85,7 +85,7 @@ def test_a_damaged_store_that_was_closed_cleanly_is_not_checked_on_open(tmp_path
 
 def test_an_interrupted_healthy_store_passes_the_check_and_is_appended_to(tmp_path, capsys, caplog):
     store = tmp_path / "bench.db"
-    process = subprocess.Popen([BENCH, "run", str(QUICK), "--store", str(store), "--no-progress",
+    process = subprocess.Popen([BENCH, "run", str(QUICK), "--sim", "--store", str(store), "--no-progress",
                                 "--speed-factor", "60"], stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL,
                                stderr=subprocess.PIPE, text=True)
     wait_for_samples(store, process, 6, timeout_s=120.0)
@@ -107,7 +107,7 @@ def test_an_interrupted_healthy_store_passes_the_check_and_is_appended_to(tmp_pa
     assert run.status == "completed" and len(after) == 15
     assert all(after[step] == values for step, values in before.items())  # appended, nothing changed
     caplog.clear()
-    assert main(["run", str(QUICK), "--store", str(store), "--no-progress"]) == 0  # closed cleanly: no check
+    assert main(["run", str(QUICK), "--sim", "--store", str(store), "--no-progress"]) == 0  # closed cleanly: no check
     capsys.readouterr()
     assert not [r for r in caplog.records if r.name == "bench.store.recovery"]
 

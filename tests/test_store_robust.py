@@ -54,7 +54,7 @@ def test_another_applications_sqlite_file_is_refused_and_untouched(tmp_path, cap
     before = other.read_bytes()
     expected = (f"bench: error: --store {other}: not a bench store (its tables are notes; no runs table); left "
                 "untouched, expected a bench.db that bench wrote or a new file name")
-    for command in (["runs"], ["run", str(QUICK), "--no-progress"], ["export", "1"], ["report", "1"]):
+    for command in (["runs"], ["run", str(QUICK), "--sim", "--no-progress"], ["export", "1"], ["report", "1"]):
         assert main([*command, "--store", str(other)]) == 2
         assert _one_error_line(capsys) == expected
     assert other.read_bytes() == before
@@ -93,7 +93,8 @@ def test_store_check_says_ok_and_names_each_orphan_row(sound_store, capsys):
         (rowid,) = db.execute("SELECT id FROM samples WHERE run_id = 7").fetchone()
     db.close()
     assert check_store(str(sound_store)) == [
-        f"{sound_store}: table samples row {rowid}: runs id missing (foreign key 0)"]
+        f"{sound_store}: table samples row {rowid}: runs id missing (foreign key 0)",
+        f"{sound_store}: run 7 sample at step 0 (samples row {rowid}): it has no checksum (written outside bench)"]
 
 
 def test_a_read_only_store_reads_and_a_write_is_one_line(sound_store):

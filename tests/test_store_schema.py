@@ -12,6 +12,7 @@ from pathlib import Path
 import pytest
 
 from bench.cli import main
+from bench.store.connection import check_store
 from bench.store import SCHEMA_VERSION, SampleMismatch, Store, StoreSchemaError, export_run, validate_sample
 from bench.store.descriptors import unit_of
 
@@ -59,8 +60,9 @@ def test_old_file_migrates_with_a_backup_and_exports_identically(old_store, tmp_
     with sqlite3.connect(backup) as db:
         assert db.execute("PRAGMA user_version").fetchone() == (0,)
     assert _table_rows(backup, "samples") == _table_rows(V0, "samples")
-    # the samples themselves are untouched by the migration
-    assert _table_rows(old_store, "samples") == _table_rows(V0, "samples")
+    # the samples themselves are untouched by the migration, which adds each one's checksum (version 3)
+    assert [row[:-1] for row in _table_rows(old_store, "samples")] == _table_rows(V0, "samples")
+    assert check_store(str(old_store)) == []
     assert V0.read_bytes() == original
 
 
@@ -76,7 +78,8 @@ def test_a_store_of_the_previous_release_migrates_with_a_backup_and_exports_iden
         assert (run.protocol_name, run.n_samples, run.status) == ("iso9283_pose", 15, "completed")
         out = export_run(store, 1, tmp_path / "run1.csv", kind="pose")
         assert out.read_text() == (DATA / "store_schema1_run1.csv").read_text()
-    assert _table_rows(path, "samples") == _table_rows(V1, "samples")
+    assert [row[:-1] for row in _table_rows(path, "samples")] == _table_rows(V1, "samples")
+    assert check_store(str(path)) == []
     with sqlite3.connect(Path(f"{path}.schema-v1.bak")) as db:
         assert db.execute("PRAGMA user_version").fetchone() == (1,)
 

@@ -1,7 +1,9 @@
 """``bench run``, ``bench runs``, ``bench resume``, ``bench export``: campaigns on a robot, into the run store.
 
 ``bench run PROTOCOL.toml`` pre-flights every target, prints the plan with ``--dry-run``, otherwise runs it on the
-simulator (``--sim``, the default) or on hardware (``--port``), storing every sample at once in ``--store``
+simulator (``--sim``), on a station's devices (``--station``) or on a controller (``--port``): with none of them it
+is refused in one line, so a forgotten ``--station`` never stores a simulated run beside the real ones. It stores
+every sample at once in ``--store``
 (``bench.db``); it prints the run id. Ctrl-C once pauses at the next checkpoint (then resume, stop, abort or
 halt); twice aborts at once (the robot is stopped). Progress goes to stderr, results and paths to stdout.
 """
@@ -32,7 +34,7 @@ DEFAULT_STORE = "bench.db"
 
 
 def register(groups: argparse._SubParsersAction) -> None:
-    run = _parser(groups, "run", "run a protocol file on a robot (simulated by default)")
+    run = _parser(groups, "run", "run a protocol file on a robot (--station, --sim or --port)")
     run.add_argument("protocol", metavar="PROTOCOL.toml", help="protocol file (see examples/)")
     run.add_argument("--robot", choices=("pkm5", "delta4"), default=None, help="robot (overrides the file)")
     run.add_argument("--dry-run", action="store_true", help="print the plan and pre-flight; move nothing")
@@ -85,7 +87,8 @@ def _parser(groups: argparse._SubParsersAction, name: str, text: str) -> argpars
 def _rig_arguments(parser: argparse.ArgumentParser) -> None:
     where = parser.add_mutually_exclusive_group()
     where.add_argument("--sim", action="store_true",
-                       help="simulated controller and sensors (the default without --station or --port)")
+                       help="simulated controller and sensors (bench run needs --sim, --station or --port; "
+                            "resume: the run's own rig)")
     where.add_argument("--port", default=None, help="serial port of a real controller, e.g. /dev/ttyUSB0")
     parser.add_argument("--station", default=None, metavar="STATION.toml",
                         help="the bench's devices (examples/stations/); with --sim each is replaced by its simulator")
@@ -224,6 +227,9 @@ def _run(args: argparse.Namespace) -> int:
             from bench.errors import UnreachableTarget
             raise UnreachableTarget(f"{protocol.source}: {summary.problems()[0]}")
         return 0
+    if not (args.sim or args.station or args.port):  # before the store opens: a refused run writes nothing
+        raise ConfigError(f"bench run {args.protocol}: no rig named, expected --station STATION.toml (the bench's "
+                          "devices) or --sim (the simulator)")
     preflight(protocol)  # before a simulator or a port is opened; the runner checks again
     if args.speed_factor is not None:  # before the store opens: a refused run leaves no new file behind
         check_speed_factor(args.speed_factor)
@@ -245,6 +251,7 @@ def _resume(args: argparse.Namespace) -> int:
     with Store(args.store) as store:
         record = store.run(args.run_id)
         store.claim(args.run_id)  # before the rig opens: a run another live process drives is never touched
+        store.resuming = args.run_id  # opening the rig writes no new calibration: a refused resume writes nothing
         protocol = protocol_from_config(record.config, source=f"run {args.run_id}", stored=True)
         rig = build_rig(args, record.robot, store, stored=record.settings,
                         fixture=record.config.get("fixture", "assembled"), requires=required_capabilities(protocol),
@@ -280,10 +287,11 @@ def _runs(args: argparse.Namespace) -> int:
     # columns as wide as their longest entry (a station's bench name can be long), at least the old widths
     bench_w = max([12, *(len(r.bench) for r in records)])
     protocol_w = max([26, *(len(p) for p in protocols)])
-    print(f"{'id':>4}  {'bench':<{bench_w}} {'protocol':<{protocol_w}} {'robot':<6} {'status':<11} {'samples':>7}  "
-          f"{'started (UTC)':<19}  reason")
+    print(f"{'id':>4}  {'bench':<{bench_w}} {'protocol':<{protocol_w}} {'robot':<6} {'rig':<9} {'status':<11} "
+          f"{'samples':>7}  {'started (UTC)':<19}  reason")
     for r, protocol in zip(records, protocols):
-        print(f"{r.id:>4}  {r.bench:<{bench_w}} {protocol:<{protocol_w}} {r.robot:<6} {r.status:<11} "
+        rig = "simulated" if r.simulated else "hardware"
+        print(f"{r.id:>4}  {r.bench:<{bench_w}} {protocol:<{protocol_w}} {r.robot:<6} {rig:<9} {r.status:<11} "
               f"{r.n_samples:>7}  {r.started_utc[:19]:<19}  {r.reason or ''}")
     return 0
 

@@ -296,7 +296,9 @@ class Runner:
                               f"used version {record.protocol_version}; cannot resume across versions")
         if tuple(sorted(self.rig.calibration_ids)) != tuple(record.calibration_ids):
             raise ConfigError(f"run {run_id}: calibrations in force {sorted(self.rig.calibration_ids)} differ from "
-                              f"the run's {list(record.calibration_ids)}; cannot resume")
+                              f"the run's {list(record.calibration_ids)}; a run resumes only with the calibrations "
+                              "it started with (a calibration stored since would change its numbers): start a new "
+                              "run (bench run)")
         preflight(protocol)
         stored_base = record.settings.get("time_base", "wall s (runs stored before time bases were recorded)")
         if stored_base != self.rig.time_base():

@@ -9,8 +9,9 @@ and what happened during the run.
 - :func:`verdicts`: per characteristic, the worst pose against the stated criterion, and the overall result
   (simple acceptance, ILAC-G8:09/2019 4.2.1, as :class:`bench.reports.content.Decision`).
 - :func:`is_simulated`: whether any device of the run was simulated (the run's settings name a simulator).
-- :func:`run_history`: start, interruptions (gaps in the stored sample times: pauses, aborts and resumes), end
-  status with its reason; the store keeps the samples' wall-clock times, so the history is computed from them.
+- :func:`run_history`: start, every abort, failure and resume the store recorded (the run's settings' ``history``,
+  written by :meth:`bench.store.Store.set_status`), interruptions (gaps in the stored sample times: pauses, and
+  the runs stored before that history), end status with its reason.
 """
 
 from __future__ import annotations
@@ -161,11 +162,16 @@ def run_history(store: Store, run: RunRecord) -> tuple[HistoryEvent, ...]:
     device), and the end with its status and reason."""
     started = HistoryEvent(_seconds(run.started_utc), "started")
     gaps = interruptions([_parse(wall_utc) for wall_utc in _sample_wall_times(store, run.id)])
+    stored = list(run.settings.get("history", ()))  # every settle and resume, as the store recorded them
+    if stored and stored[-1]["event"] == run.status:
+        stored.pop()  # the run's end: said below, once
+    events = [HistoryEvent(_seconds(e["utc"]), e["event"] + (f": {e['reason']}" if e.get("reason") else ""))
+              for e in stored]
     end = {"running": "no end stored (still running, or the program stopped without settling the status)"
            }.get(run.status, run.status)
     ended = HistoryEvent(_seconds(run.ended_utc) if run.ended_utc else "—",
                          end + (f": {run.reason}" if run.reason else ""))
-    return (started, *gaps, ended)
+    return (started, *sorted([*events, *gaps], key=lambda event: event.time_utc), ended)
 
 
 def _sample_wall_times(store: Store, run_id: int) -> list[str]:

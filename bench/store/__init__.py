@@ -12,6 +12,7 @@ from bench.store.database import (
     software_git_sha,
 )
 from bench.store.ownership import RunOwned
+from bench.store.sample_checksum import DamagedSample
 from bench.store.schema import SCHEMA_VERSION, StoreSchemaError
 from bench.store.descriptors import SAMPLE_KINDS, SampleMismatch, validate_sample
 from bench.store.export import EXPORT_FORMATS, TIDY_COLUMNS, default_kind, export_run, series_table, tidy_table
@@ -24,6 +25,7 @@ __all__ = [
     "SCHEMA_VERSION",
     "TIDY_COLUMNS",
     "CalibrationRecord",
+    "DamagedSample",
     "DuplicateSample",
     "RunOwned",
     "RunRecord",

@@ -7,7 +7,8 @@
   anything is written to it (not even the switch to WAL).
 - :class:`GuardedConnection` turns each ``sqlite3.Error`` of a query into :class:`StoreError` (one line: the
   file, SQLite's words, what to do); ``IntegrityError`` passes through for the store to name (a duplicate sample).
-- :func:`check_store` runs ``PRAGMA integrity_check`` and ``PRAGMA foreign_key_check`` (``bench store check``).
+- :func:`check_store` runs ``PRAGMA integrity_check`` and ``PRAGMA foreign_key_check`` (``bench store check``),
+  then checks every sample against its checksum (:mod:`bench.store.sample_checksum`: a flipped bit in a digit).
 """
 
 from __future__ import annotations
@@ -18,6 +19,7 @@ from pathlib import Path
 from typing import Any
 
 from bench.errors import BenchError, ConfigError
+from bench.store.sample_checksum import damaged_sample_lines
 
 __all__ = ["BUSY_TIMEOUT_S", "GuardedConnection", "StoreError", "check_store", "open_connection", "store_error"]
 
@@ -156,9 +158,12 @@ def open_connection(path: str, *, read_only: bool = False) -> sqlite3.Connection
 
 
 def check_store(path: str) -> list[str]:
-    """The problems of the store at ``path``, one line each (empty when sound): SQLite's ``integrity_check`` and
-    every row whose foreign key names a missing parent (``foreign_key_check``). Opens read-only."""
+    """The problems of the store at ``path``, one line each (empty when sound): SQLite's ``integrity_check``,
+    every row whose foreign key names a missing parent (``foreign_key_check``) and every sample that fails its
+    checksum or holds JSON that does not parse. Opens read-only."""
     db = open_connection(path, read_only=True)
+    # a flipped bit can leave bytes that are not UTF-8: read them as they are, for the checksum to name the row
+    db.text_factory = lambda data: data.decode("utf-8", "surrogateescape")
     problems: list[str] = []
     try:
         # one row may hold many messages, one a line, the first under a "*** in database main ***" title
@@ -167,6 +172,7 @@ def check_store(path: str) -> list[str]:
                      if message not in ("ok", "") and not message.startswith("*** in database")]
         problems += [f"{path}: table {table} row {rowid}: {parent} id missing (foreign key {fk})"
                      for table, rowid, parent, fk in db.execute("PRAGMA foreign_key_check")]
+        problems += damaged_sample_lines(db, path)
     except sqlite3.Error as exc:  # a page too damaged to walk: what was found so far, then SQLite's words
         problems.append(f"{path}: {exc}")
     finally:

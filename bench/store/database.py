@@ -23,7 +23,7 @@ import sqlite3
 import subprocess
 import time
 import uuid
-from collections.abc import Iterable, Iterator, Mapping, Sequence
+from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
 from dataclasses import dataclass
 from datetime import UTC, datetime
 from pathlib import Path
@@ -34,6 +34,7 @@ from bench.errors import BenchError, ConfigError
 from bench.store.connection import GuardedConnection, open_connection, store_error
 from bench.store.ownership import RunLease, owner_of
 from bench.store.recovery import refuse_if_damaged
+from bench.store.sample_checksum import CHECKED_COLUMNS, parse_sample, sample_checksum
 from bench.store.schema import SCHEMA_VERSION, StoreSchemaError, default_bench_name, open_schema
 
 __all__ = [
@@ -87,10 +88,17 @@ class RunRecord:
     ended_utc: str | None
     n_samples: int
 
+    @property
+    def simulated(self) -> bool:
+        """True for a run on simulators (the simulated rig or a station's rehearsal): its settings name the
+        simulator it ran on."""
+        return "simulator" in self.settings
+
     def as_dict(self) -> dict[str, Any]:
-        """Plain, JSON-ready form (used by ``bench runs --json``)."""
+        """Plain, JSON-ready form (used by ``bench runs --json``), with ``simulated``."""
         out = dict(self.__dict__)
         out["calibration_ids"] = list(self.calibration_ids)
+        out["simulated"] = self.simulated
         return out
 
 
@@ -149,14 +157,17 @@ def software_git_sha() -> str:
 
 
 def encode_sample(run_id: int, step_index: int, *, values: Mapping[str, float], kind: str, pose: str | None,
-                  cycle: int | None, t_s: float, raw: Any) -> tuple:
-    """The ``samples`` row of one sample, its ``wall_utc`` now (when it was taken); a value that is not a finite
-    number, or raw data that is not JSON, raises ``ConfigError`` here, before anything is written."""
+                  cycle: int | None, t_s: float, raw: Any, wall_clock: Callable[[], str] = _utc_now) -> tuple:
+    """The ``samples`` row of one sample, its ``wall_utc`` now by ``wall_clock`` (when it was taken); a value that
+    is not a finite number, or raw data that is not JSON, raises ``ConfigError`` here, before anything is
+    written."""
     for key, value in values.items():
         if not isinstance(value, (int, float)) or not math.isfinite(value):
             raise ConfigError(f"run {run_id} step {step_index}: {key} = {value!r}, expected a finite number")
-    return (int(run_id), int(step_index), kind, pose, cycle, float(t_s), _utc_now(),
-            _to_json({k: float(v) for k, v in values.items()}, "values"), None if raw is None else _to_json(raw, "raw"))
+    columns = (int(step_index), kind, pose, cycle, float(t_s), wall_clock(),
+               _to_json({k: float(v) for k, v in values.items()}, "values"),
+               None if raw is None else _to_json(raw, "raw"))
+    return (int(run_id), *columns, sample_checksum(*columns))
 
 
 def checkpoint_wal(db: GuardedConnection) -> None:
@@ -180,8 +191,8 @@ def insert_sample_row(db: GuardedConnection, row: tuple) -> None:
     """Insert and commit one row of :func:`encode_sample` on ``db`` (in its own transaction: ``synchronous=FULL``
     makes it durable before this returns)."""
     try:
-        db.execute("INSERT INTO samples (run_id, step_index, kind, pose, cycle, t_s, wall_utc, values_json, raw_json)"
-                   " VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?)", row)
+        db.execute("INSERT INTO samples (run_id, step_index, kind, pose, cycle, t_s, wall_utc, values_json, raw_json,"
+                   " checksum) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?)", row)
     except sqlite3.IntegrityError as exc:
         if "UNIQUE" in str(exc):
             raise DuplicateSample(f"run {row[0]}: step {row[1]} already has a stored sample") from exc
@@ -220,6 +231,10 @@ class Store:
         self.path = str(path)
         self.read_only = read_only
         self._leases: dict[int, RunLease] = {}
+        #: the run being resumed (``bench resume``): no new calibration version is written while it is set
+        self.resuming: int | None = None
+        #: the wall clock a sample's ``wall_utc`` is read from (ISO UTC text); replaceable, e.g. by a clock that jumps
+        self.wall_clock: Callable[[], str] = _utc_now
         self.bench = bench or default_bench_name()
         self.backup = None
         try:
@@ -375,14 +390,21 @@ class Store:
         """Settle (or reopen, with ``running``) the status of a run; ``reason`` says why it failed or stopped."""
         if status not in RUN_STATUSES:
             raise ConfigError(f"store: status = {status!r}, expected one of {', '.join(RUN_STATUSES)}")
-        self.run(run_id)
-        ended = None if status == "running" else _utc_now()
-        self._db.execute("UPDATE runs SET status = ?, reason = ?, ended_utc = ? WHERE id = ?",
-                         (status, reason, ended, run_id))
+        record = self.run(run_id)
+        now = _utc_now()
+        ended = None if status == "running" else now
+        # every settle and every reopening is kept in the run's history (the report lists each abort and resume)
+        event = {"utc": now, "event": "resumed" if status == "running" else status,
+                 **({"reason": reason} if reason else {})}
+        settings = {**record.settings, "history": [*record.settings.get("history", ()), event]}
+        self._db.execute("UPDATE runs SET status = ?, reason = ?, ended_utc = ?, settings_json = ? WHERE id = ?",
+                         (status, reason, ended, _to_json(settings, "settings"), run_id))
 
     def add_registration(self, run_id: int, registration: Mapping[str, Any]) -> int:
         """Append one registration of the run's instruments (a run segment, :mod:`bench.rigs.registration`) to its
-        settings' ``registrations`` list, in one transaction; returns its number (1 for the first)."""
+        settings' ``registrations`` list, in one transaction; returns its number (1 for the first). It records
+        ``after_t_s``, the largest ``t_s`` stored so far: the samples after it are the new segment's, whatever the
+        wall clock says (:mod:`bench.store.registrations`)."""
         self._db.execute("BEGIN IMMEDIATE")
         try:
             row = self._db.execute("SELECT settings_json FROM runs WHERE id = ?", (int(run_id),)).fetchone()
@@ -390,7 +412,10 @@ class Store:
                 raise ConfigError(f"run {run_id}: no such run in {self.path}")
             settings = json.loads(row[0])
             entries = settings.setdefault("registrations", [])
-            entries.append({**registration, "segment": len(entries) + 1})
+            (after_t_s,) = self._db.execute("SELECT MAX(t_s) FROM samples WHERE run_id = ?",
+                                            (int(run_id),)).fetchone()
+            entries.append({**registration, "segment": len(entries) + 1,
+                            **({} if after_t_s is None else {"after_t_s": after_t_s})})
             self._db.execute("UPDATE runs SET settings_json = ? WHERE id = ?",
                              (_to_json(settings, "settings"), int(run_id)))
             self._db.execute("COMMIT")
@@ -456,7 +481,7 @@ class Store:
             The raw counts, bytes (as hex) or readings the values were computed from.
         """
         self.insert_sample(encode_sample(run_id, step_index, values=values, kind=kind, pose=pose, cycle=cycle,
-                                         t_s=t_s, raw=raw))
+                                         t_s=t_s, raw=raw, wall_clock=self.wall_clock))
 
     def insert_sample(self, row: tuple) -> None:
         """Insert and commit one row of :func:`encode_sample` before returning (:meth:`add_sample` in two parts:
@@ -469,13 +494,18 @@ class Store:
         return {row[0] for row in self._db.execute("SELECT step_index FROM samples WHERE run_id = ?", (run_id,))}
 
     def samples(self, run_id: int, kind: str | None = None) -> list[SampleRecord]:
-        """The samples of a run in step order, optionally of one ``kind`` only."""
-        query = ("SELECT run_id, step_index, kind, pose, cycle, t_s, wall_utc, values_json, raw_json FROM samples"
+        """The samples of a run in step order, optionally of one ``kind`` only. Each is checked against its checksum
+        as it is read: a damaged one raises :class:`bench.store.sample_checksum.DamagedSample` naming the run and
+        the step, so nothing is computed from a changed number."""
+        query = (f"SELECT {', '.join(CHECKED_COLUMNS)}, checksum FROM samples"
                  " WHERE run_id = ?" + (" AND kind = ?" if kind else "") + " ORDER BY step_index")
         args = (run_id, kind) if kind else (run_id,)
-        return [SampleRecord(run_id=r[0], step_index=r[1], kind=r[2], pose=r[3], cycle=r[4], t_s=r[5],
-                             wall_utc=r[6], values=json.loads(r[7]), raw=None if r[8] is None else json.loads(r[8]))
-                for r in self._db.execute(query, args)]
+        samples = []
+        for row in self._db.execute(query, args):
+            values, raw = parse_sample(run_id, row, self.path)
+            samples.append(SampleRecord(run_id=run_id, step_index=row[0], kind=row[1], pose=row[2], cycle=row[3],
+                                        t_s=row[4], wall_utc=row[5], values=values, raw=raw))
+        return samples
 
     def stored_rows(self, run_id: int, after_step: int = -1, *, extract: Sequence[str] = ()) -> Iterator[tuple]:
         """The samples of a run after step ``after_step`` exactly as stored, in step order: ``(step_index, kind,
@@ -576,13 +606,19 @@ class Store:
         return self.calibration_by_id(int(cursor.lastrowid))
 
     def ensure_calibration(self, name: str, params: Mapping[str, Any], *, notes: str = "") -> CalibrationRecord:
-        """The latest version of ``name`` if its parameters equal ``params``, else a new version with them."""
+        """The latest version of ``name`` if its parameters equal ``params``, else a new version with them; while
+        :attr:`resuming` a run, a new version is refused instead (a refused resume writes nothing)."""
         try:
             latest = self.calibration(name)
         except ConfigError:
             latest = None
         if latest is not None and latest.params == json.loads(_to_json(dict(params), "params")):
             return latest
+        if self.resuming is not None:
+            now = f"version {latest.version} is the latest" if latest else "none is stored"
+            raise ConfigError(f"run {self.resuming}: calibration {name!r} in force would be a new version ({now}, "
+                              f"with other parameters); a run resumes only with the calibrations it started with: "
+                              "start a new run (bench run)")
         return self.add_calibration(name, params, notes=notes)
 
     def calibration(self, name: str, version: int | None = None) -> CalibrationRecord:

@@ -60,7 +60,7 @@ def tidy_table(store: Store, run_id: int, kind: str = "pose") -> pd.DataFrame:
     entries = registrations(store.run(run_id).settings)
     if entries:  # a relative instrument: which registration (segment) each row was measured in
         for row, sample in zip(rows, samples):
-            row["registration"] = registration_of(sample.wall_utc, entries)
+            row["registration"] = registration_of(sample.wall_utc, entries, sample.t_s)
     table = pd.DataFrame(rows)
     if {"length_mm", "cmd_length_mm"} <= set(table.columns):  # manual leg readings: signed actuation error
         table["error_mm"] = table["length_mm"] - table["cmd_length_mm"]

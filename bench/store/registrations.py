@@ -1,9 +1,14 @@
 """The registrations of a run's relative instruments, as the run stores them (its settings' ``registrations``, one
 per segment: the start and every resume; made by :mod:`bench.rigs.registration`, filed by the runner).
 
-A sample belongs to the last registration stored before it (the registration's ``utc`` against the sample's
-``wall_utc``): a segment's samples are stored after its registration and before the next one, since one process
-owns a run at a time.
+A sample belongs to the last registration filed before it. "Before" is read on the run's own monotonic time,
+never on a wall clock: a registration filed on a resume records ``after_t_s``, the largest ``t_s`` of the run's
+samples stored until then (:meth:`bench.store.database.Store.add_registration`), and the resumed segment's samples
+continue from there (the runner's ``t_s`` is ``time.monotonic`` seconds after the stored maximum), so a sample
+belongs to the last registration whose ``after_t_s`` is below its ``t_s`` (the first registration, filed before any
+sample, has none). A wall clock set 2 h back on resume, or stepped back mid-segment, relabels nothing. Runs stored
+before ``after_t_s`` was recorded are read as before, by the registration's ``utc`` against the sample's
+``wall_utc``.
 
 What it means for a result: a relative instrument's frame is the robot's home as reached at the registration,
 known to the registration's standard uncertainty ``u_mm`` per axis. Every attained position of a segment shares
@@ -27,8 +32,12 @@ def registrations(settings: Mapping[str, Any]) -> list[dict[str, Any]]:
     return list(settings.get("registrations") or ())
 
 
-def registration_of(wall_utc: str, entries: Sequence[Mapping[str, Any]]) -> int | None:
-    """The segment number of the registration in force when a sample was stored at ``wall_utc`` (None: none)."""
+def registration_of(wall_utc: str, entries: Sequence[Mapping[str, Any]], t_s: float | None = None) -> int | None:
+    """The segment number of the registration in force when the sample at run time ``t_s`` (stored at ``wall_utc``)
+    was taken (None: none). By ``t_s`` when every later registration records ``after_t_s``, else by wall clock."""
+    if t_s is not None and entries and all("after_t_s" in e for e in entries[1:]):
+        segments = [e["segment"] for e in entries if float(e.get("after_t_s", float("-inf"))) < t_s]
+        return max(segments) if segments else None
     stored = datetime.fromisoformat(wall_utc)
     segments = [e["segment"] for e in entries if datetime.fromisoformat(e["utc"]) <= stored]
     return max(segments) if segments else None

@@ -69,7 +69,8 @@ class SampleWriter:
         for (one in flight at a time, each one's outcome seen once)."""
         if self._pending is not None:
             raise RuntimeError("SampleWriter.add: the commit before is unsettled, expected wait() first")
-        row = encode_sample(run_id, step_index, values=values, kind=kind, pose=pose, cycle=cycle, t_s=t_s, raw=raw)
+        row = encode_sample(run_id, step_index, values=values, kind=kind, pose=pose, cycle=cycle, t_s=t_s, raw=raw,
+                            wall_clock=self.store.wall_clock)
         if self._executor is None:
             self.store.insert_sample(row)
             self._pending = ([], report)

@@ -25,7 +25,7 @@ from bench.errors import ConfigError
 __all__ = ["SCHEMA_VERSION", "StoreSchemaError", "backup_path", "default_bench_name", "open_schema"]
 
 #: The schema version this bench writes.
-SCHEMA_VERSION = 2
+SCHEMA_VERSION = 3
 
 #: Version 0: the tables of the first release, exactly as it created them.
 _SCHEMA_V0 = """
@@ -112,8 +112,17 @@ def _v1_to_v2(db: sqlite3.Connection, bench: str) -> None:
     db.execute("CREATE INDEX stream_rows_run ON stream_rows(run_id, stream)")
 
 
+def _v2_to_v3(db: sqlite3.Connection, bench: str) -> None:
+    """A checksum on every sample (:mod:`bench.store.sample_checksum`): the rows stored before get theirs now."""
+    from bench.store.sample_checksum import CHECKED_COLUMNS, sample_checksum
+
+    db.execute("ALTER TABLE samples ADD COLUMN checksum TEXT")
+    db.create_function("bench_sample_checksum", len(CHECKED_COLUMNS), sample_checksum, deterministic=True)
+    db.execute(f"UPDATE samples SET checksum = bench_sample_checksum({', '.join(CHECKED_COLUMNS)})")
+
+
 #: ``MIGRATIONS[v]`` takes a store from version ``v`` to ``v + 1``.
-MIGRATIONS: tuple[Callable[[sqlite3.Connection, str], None], ...] = (_v0_to_v1, _v1_to_v2)
+MIGRATIONS: tuple[Callable[[sqlite3.Connection, str], None], ...] = (_v0_to_v1, _v1_to_v2, _v2_to_v3)
 assert len(MIGRATIONS) == SCHEMA_VERSION
 
 

@@ -1,0 +1,88 @@
+"""A run says what it ran on: ``bench run`` names its rig (--station or --sim) or is refused, ``bench runs`` shows
+simulated runs as such, and a resume on another device under test or another rig is refused, writing nothing."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+from cli_runs import store_dump
+
+from bench.cli import main
+from bench.store import Store
+
+ROOT = Path(__file__).resolve().parents[1]
+QUICK = ROOT / "examples" / "iso9283_pose_quick.toml"
+STATION = ROOT / "examples" / "stations" / "pkm5_mice.toml"
+
+
+def _one_error_line(capsys) -> str:
+    captured = capsys.readouterr()
+    lines = captured.err.strip().splitlines()
+    assert len(lines) == 1 and "Traceback" not in captured.err, captured.err
+    return lines[0]
+
+
+@pytest.fixture(scope="module")
+def rehearsed(tmp_path_factory) -> Path:
+    """A store holding one iso9283_pose_quick run on the pkm5_mice station rehearsed on simulators, left aborted
+    (resumable) as a stop would leave it."""
+    store = tmp_path_factory.mktemp("rig") / "bench.db"
+    assert main(["run", str(QUICK), "--station", str(STATION), "--sim", "--store", str(store), "--no-progress",
+                 "--speed-factor", "300"]) == 0
+    with Store(store) as opened:
+        opened.set_status(1, "aborted", "interrupted (SIGTERM)")
+    return store
+
+
+def test_run_without_a_rig_is_refused_in_one_line_naming_both_flags(tmp_path, capsys):
+    store = tmp_path / "bench.db"
+    assert main(["run", str(QUICK), "--store", str(store), "--no-progress"]) == 2
+    assert _one_error_line(capsys) == (f"bench: error: bench run {QUICK}: no rig named, expected --station "
+                                       "STATION.toml (the bench's devices) or --sim (the simulator)")
+    assert not store.exists()
+
+
+def test_runs_shows_simulated_runs_as_such(rehearsed, tmp_path, capsys):
+    store = tmp_path / "bench.db"
+    store.write_bytes(rehearsed.read_bytes())
+    with Store(store) as opened:  # a run on hardware: its settings name a station and no simulator
+        settings = {key: value for key, value in opened.run(1).settings.items() if key != "simulator"}
+        opened.start_run(protocol_name="iso9283_pose", protocol_version="1", robot="pkm5", config={},
+                         settings=settings)
+        opened.set_status(2, "completed")
+    capsys.readouterr()
+    assert main(["runs", "--store", str(store)]) == 0
+    header, first, second = capsys.readouterr().out.splitlines()
+    assert header.split()[:6] == ["id", "bench", "protocol", "robot", "rig", "status"]
+    assert first.split()[4:6] == ["pkm5", "simulated"] and second.split()[4:6] == ["pkm5", "hardware"]
+    assert main(["runs", "--store", str(store), "--json"]) == 0
+    assert [json.loads(line)["simulated"] for line in capsys.readouterr().out.splitlines()] == [True, False]
+
+
+def test_resume_with_another_device_under_test_is_refused_and_writes_nothing(rehearsed, tmp_path, capsys):
+    store = tmp_path / "bench.db"
+    store.write_bytes(rehearsed.read_bytes())
+    other = tmp_path / "pkm5_mice_0002.toml"
+    text = STATION.read_text()
+    assert text.count('serial = "PKM5-0001"') == 1
+    other.write_text(text.replace('serial = "PKM5-0001"', 'serial = "PKM5-0002"'))
+    before = store_dump(store)
+    capsys.readouterr()
+    assert main(["resume", "1", "--station", str(other), "--sim", "--store", str(store), "--no-progress"]) == 2
+    assert _one_error_line(capsys) == (f"bench: error: the resumed run: device under test is PKM5-0001, the station "
+                                       f"{other} names PKM5-0002; resume it with the station it ran on")
+    assert store_dump(store) == before
+
+
+def test_resume_of_a_station_run_on_the_simulator_is_refused_and_writes_nothing(rehearsed, tmp_path, capsys):
+    store = tmp_path / "bench.db"
+    store.write_bytes(rehearsed.read_bytes())
+    before = store_dump(store)
+    capsys.readouterr()
+    assert main(["resume", "1", "--store", str(store), "--no-progress"]) == 2
+    assert _one_error_line(capsys) == (f"bench: error: the resumed run: ran on station {STATION} rehearsed on "
+                                       "simulators (--sim), resume asked for the simulator (--sim); resume it on the "
+                                       "rig it ran on")
+    assert store_dump(store) == before
