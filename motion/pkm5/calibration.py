@@ -26,8 +26,11 @@ from __future__ import annotations
 import dataclasses
 import functools
 import types
+from collections.abc import Iterable, Mapping, Sequence
+from typing import Any
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from motion import dual, kernels
 from motion.errors import MotionInputError
@@ -71,7 +74,7 @@ def tolerance(name: str) -> float:
 _BRANCH_JUMP_MM = 20.0
 
 
-def _bumped_joints(geometry: Geometry, names, step: float, rows: int):
+def _bumped_joints(geometry: Geometry, names: Sequence[str], step: float, rows: int) -> Any:
     """One geometry for a batched IK of ``2 * len(names) * rows`` poses: ``geometry`` with joint parameter
     ``names[i]`` moved by +``step`` (rows ``2i * rows ..``) and by -``step`` (rows ``(2i + 1) * rows ..``); its joint
     vectors hold per-row arrays (the IK broadcasts them), the other fields are ``geometry``'s."""
@@ -85,7 +88,7 @@ def _bumped_joints(geometry: Geometry, names, step: float, rows: int):
     return types.SimpleNamespace(**fields)
 
 
-def _check_names(names) -> tuple[str, ...]:
+def _check_names(names: Iterable[str]) -> tuple[str, ...]:
     names = tuple(names)
     unknown = [n for n in names if n not in UNITS]
     if unknown:
@@ -97,7 +100,7 @@ def _check_names(names) -> tuple[str, ...]:
     return names
 
 
-def apply_parameters(names, values, geometry: Geometry = DEFAULT_GEOMETRY) -> Geometry:
+def apply_parameters(names: Iterable[str], values: ArrayLike, geometry: Geometry = DEFAULT_GEOMETRY) -> Geometry:
     """The geometry with the deviations ``values`` of parameters ``names`` added (registration names ignored)."""
     names = _check_names(names)
     values = np.asarray(values, dtype=float).reshape(len(names))
@@ -130,7 +133,7 @@ def parameter_deviations(geometry: Geometry, nominal: Geometry = DEFAULT_GEOMETR
     return {name: float(value) for name, value in out.items()}
 
 
-def geometry_from_calibration(params, nominal: Geometry = DEFAULT_GEOMETRY) -> Geometry:
+def geometry_from_calibration(params: Mapping[str, Any], nominal: Geometry = DEFAULT_GEOMETRY) -> Geometry:
     """The calibrated geometry of a stored kinematic calibration's parameters (``{"parameters": {name: {"value":
     ...}}}``, as ``bench calibrate`` stores them); registration entries are not geometry and are skipped."""
     try:
@@ -142,7 +145,7 @@ def geometry_from_calibration(params, nominal: Geometry = DEFAULT_GEOMETRY) -> G
     return apply_parameters(tuple(geometric), tuple(geometric.values()), nominal)
 
 
-def compensation_geometry(params, nominal: Geometry = DEFAULT_GEOMETRY) -> Geometry:
+def compensation_geometry(params: Mapping[str, Any], nominal: Geometry = DEFAULT_GEOMETRY) -> Geometry:
     """The geometry a compensated run commands by: :func:`geometry_from_calibration` in the instrument's frame.
 
     The calibration predicts a measurement as ``m = FK(s; theta) + r`` (``r`` the registration ``reg_*_mm``).
@@ -160,7 +163,7 @@ def compensation_geometry(params, nominal: Geometry = DEFAULT_GEOMETRY) -> Geome
                                for field in ("oa_12", "oa_34", "oa_56")})
 
 
-def modes_of_poses(poses) -> np.ndarray:
+def modes_of_poses(poses: ArrayLike) -> np.ndarray:
     """Motion mode of commanded poses (N, 5; angles in any unit): 'alpha' if alpha != 0, 'beta' if beta != 0."""
     p = np.asarray(poses, dtype=float).reshape(-1, 5)
     return np.where(p[:, 3] != 0, "alpha", np.where(p[:, 4] != 0, "beta", "translation")).astype(object)
@@ -186,7 +189,8 @@ class ForwardModel:
         installed.
     """
 
-    def __init__(self, steps, modes, free, axes=(0, 1, 2), nominal: Geometry = DEFAULT_GEOMETRY,
+    def __init__(self, steps: ArrayLike, modes: ArrayLike, free: Iterable[str], axes: Sequence[int] = (0, 1, 2),
+                 nominal: Geometry = DEFAULT_GEOMETRY,
                  engine: str = "auto") -> None:
         # 'auto': the compiled FK whenever numba is installed, whatever the batch size (the FK's own 'auto' waits
         # for 10,000 poses): an identification solves the same 30-100 poses some 30 times, and numpy's per-call
@@ -218,7 +222,7 @@ class ForwardModel:
     def units(self) -> tuple[str, ...]:
         return tuple(UNITS[name] for name in self.free)
 
-    def poses(self, theta) -> np.ndarray:
+    def poses(self, theta: ArrayLike) -> np.ndarray:
         """Attained poses (N, 5; mm, rad) under parameters ``theta``; NaN rows where the FK fails."""
         theta = np.asarray(theta, dtype=float)
         if self._evaluated is not None and np.array_equal(self._evaluated[0], theta):
@@ -258,24 +262,25 @@ class ForwardModel:
         self._evaluated = (theta.copy(), out.copy())
         return out
 
-    def _registration(self, theta) -> np.ndarray:
+    def _registration(self, theta: ArrayLike) -> np.ndarray:
         shift = np.zeros(3)
         for name, value in zip(self.free, np.asarray(theta, dtype=float)):
             if name.startswith("reg_"):
                 shift[_AXES.index(name[4])] = value
         return shift
 
-    def predict(self, theta) -> np.ndarray:
+    def predict(self, theta: ArrayLike) -> np.ndarray:
         """Predicted measured coordinates (N, len(axes)), mm."""
         positions = self.poses(theta)[:, :3] + self._registration(theta)
         return positions[:, list(self.axes)]
 
-    def _stationarity(self, p, geometry, lengths) -> np.ndarray:
+    def _stationarity(self, p: np.ndarray, geometry: Any, lengths: np.ndarray) -> np.ndarray:
         """F(p) = J_m^T (IK(p; geometry) - lengths) per row, (M, 5) (zero columns outside the mode): the normal
         equations the least-squares FK solves, F = 0 at every attained pose. ``p`` (M, 5) is a whole number of
         copies of the pose set, ``geometry`` a Geometry or :func:`_bumped_joints` (one geometry per copy),
         ``lengths`` (M, 6) the commanded leg lengths; one batched dual-number pass gives IK and J_m together."""
-        legs, _ = leg_lengths(*dual.seed(p), geometry=geometry, with_tilt=False)
+        x, y, z, alpha, beta = dual.seed(p)
+        legs, _ = leg_lengths(x, y, z, alpha, beta, geometry=geometry, with_tilt=False)
         residual = np.stack([leg.value for leg in legs], -1) - lengths
         pose_jac = np.stack([leg.grad for leg in legs], 1)
         out = np.einsum("nlc,nl->nc", pose_jac, residual)
@@ -292,7 +297,7 @@ class ForwardModel:
             mask[rows, 4] = angle == 4
         return mask
 
-    def _dfdp(self, p, geometry, lengths) -> np.ndarray:
+    def _dfdp(self, p: np.ndarray, geometry: Any, lengths: np.ndarray) -> np.ndarray:
         """dF/dp per pose (N, 5, 5) by central differences, the ten bumped pose sets in one batch."""
         n = len(p)
         steps = (1e-4, 1e-4, 1e-4, 1e-6, 1e-6)
@@ -301,7 +306,7 @@ class ForwardModel:
         f = self._stationarity(bumped, geometry, np.tile(lengths, (10, 1))).reshape(2, 5, n, 5)
         return ((f[0] - f[1]) / np.reshape(2.0 * np.asarray(steps), (5, 1, 1))).transpose(1, 2, 0)
 
-    def fold_ratio(self, theta) -> np.ndarray:
+    def fold_ratio(self, theta: ArrayLike) -> np.ndarray:
         """Per pose, smallest / largest eigenvalue of the symmetric part of dF/dp over the mode's columns (raw mm and
         rad units): near 0 the pose is near a fold of the FK, where nearby geometries' solves may change branch (so a
         fit through it meets a barrier; docs/calibration.md, the MAP candidate)."""
@@ -316,7 +321,7 @@ class ForwardModel:
             out[i] = eig[0] / eig[-1]
         return out
 
-    def jacobian(self, theta, poses=None) -> np.ndarray:
+    def jacobian(self, theta: ArrayLike, poses: np.ndarray | None = None) -> np.ndarray:
         """d predict / d theta, shape (N, len(axes), len(free)), exact up to central-difference error.
 
         Implicit function theorem on the FK's normal equations F(p, theta) = 0 (:meth:`_stationarity`):
