@@ -23,6 +23,7 @@ __all__ = [
     "bootstrap_uncertainty",
     "combine",
     "coverage_factor",
+    "instrument_budget",
     "expanded",
     "instrument_rp_floor",
     "mean_confidence_interval",
@@ -384,3 +385,23 @@ def repeatability_uncertainty_model(attained_mm, *, k: float = 2.0) -> float:
     shape = tuple(float(v) for v in np.round(sigmas / sigmas[0] / MODEL_SHAPE_STEP) * MODEL_SHAPE_STEP)
     level = math.erf(k / math.sqrt(2.0))
     return rp * _rp_relative_half_width(n, shape, level) / k
+
+
+def instrument_budget(instrument_u_mm: float | None, source: str) -> str:
+    """The instrument's place in a U budget, in words: its standard uncertainty and where it came from, or a plain
+    statement that U excludes it. Never a silent 0: a bias the instrument adds to every reading cannot be seen in
+    the readings' scatter, so a U without it covers only the robot's scatter (46 % coverage with an undeclared
+    offset of the instrument's size, issue 32).
+
+    Examples
+    --------
+    >>> instrument_budget(None, "--instrument-u-mm")
+    'U excludes the instrument: none declared (--instrument-u-mm)'
+    >>> instrument_budget(0.05, "station file")
+    'U includes the instrument: u = 0.05 mm per axis (station file)'
+    """
+    if instrument_u_mm is None:
+        return f"U excludes the instrument: none declared ({source})"
+    if instrument_u_mm < 0 or not math.isfinite(instrument_u_mm):
+        raise ConfigError(f"instrument_u_mm = {instrument_u_mm}, expected a finite number >= 0")
+    return f"U includes the instrument: u = {instrument_u_mm:g} mm per axis ({source})"
