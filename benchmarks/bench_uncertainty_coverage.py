@@ -7,6 +7,7 @@ and counts how often [value - U, value + U] holds the truth. The truths:
   drawn from N(0, u_inst²) per axis, declared to the analysis as ``instrument_u_mm = u_inst`` (case "AP declared")
   or not declared (case "AP undeclared": the data alone cannot see a bias, which is why the output must say "U
   excludes the instrument: none declared").
+- Groover repeatability 3 σ̄: 3 x the mean of the targets' true standard deviations.
 - RP: the population l_mean + 3 sigma_l of the simulated scatter (distances to the true mean), computed by a 4·10^6
   draw Monte Carlo of the same model; U must cover it including the estimator's small-sample bias.
 
@@ -22,10 +23,16 @@ import argparse
 
 import numpy as np
 
-from bench.metrology.uncertainty import accuracy_uncertainty, repeatability_uncertainty
+from bench.metrology.uncertainty import (
+    accuracy_uncertainty,
+    bootstrap_uncertainty,
+    mean_sd_uncertainty,
+    repeatability_uncertainty,
+)
 
 ROBOT_OFFSET_MM = np.array([0.6, -0.4, 0.3])  #: true mean offset from the command (the AP truth)
 INSTRUMENT_U_MM = 0.1  #: standard deviation of the per-campaign instrument bias, per axis
+TARGET_SIGMAS_MM = np.array([0.02, 0.03, 0.05, 0.04, 0.03])  #: an actuator's per-target scatter (Groover)
 SHAPES = {"isotropic 3-D": (0.1, 0.1, 0.1), "anisotropic 3-D": (0.1, 0.03, 0.01), "2-D": (0.1, 0.1)}
 
 
@@ -65,6 +72,23 @@ def ap_coverage(n: int, campaigns: int, seed: int, *, declared: bool, method: st
     return axis_hits / (3 * campaigns), norm_hits / campaigns
 
 
+def groover_coverage(n: int, campaigns: int, seed: int, *, method: str) -> float:
+    """Share of campaigns whose Groover repeatability 3 σ̄ ± U holds 3 x the mean true per-target SD."""
+    rng = np.random.default_rng(seed)
+    truth = 3.0 * float(TARGET_SIGMAS_MM.mean())
+    hits = 0
+    for _ in range(campaigns):
+        readings = rng.standard_normal((n, len(TARGET_SIGMAS_MM))) * TARGET_SIGMAS_MM
+        value = 3.0 * float(readings.std(axis=0, ddof=1).mean())
+        if method == "before":
+            u = bootstrap_uncertainty(lambda r: 3.0 * float(r.std(axis=0, ddof=1).mean()), readings, resamples=200,
+                                      seed=int(rng.integers(1 << 30)))
+        else:
+            u = 3.0 * mean_sd_uncertainty(readings)
+        hits += abs(value - truth) <= 2.0 * u
+    return hits / campaigns
+
+
 def coverage_table(campaigns: int, seed: int, sizes=(10, 30)) -> list[tuple[str, int, float, float]]:
     """(case, n, coverage before, coverage after) for every case and number of cycles."""
     rows = []
@@ -72,6 +96,8 @@ def coverage_table(campaigns: int, seed: int, sizes=(10, 30)) -> list[tuple[str,
         for name, sigmas in SHAPES.items():
             rows.append((f"RP {name}", n, rp_coverage(sigmas, n, campaigns, seed, method="bootstrap"),
                          rp_coverage(sigmas, n, campaigns, seed, method="auto")))
+        rows.append(("Groover 3 sigma-bar", n, groover_coverage(n, campaigns, seed, method="before"),
+                     groover_coverage(n, campaigns, seed, method="after")))
         for declared in (True, False):
             label = "declared" if declared else "undeclared"
             before = ap_coverage(n, campaigns, seed, declared=declared, method="before")

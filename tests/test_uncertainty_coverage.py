@@ -24,3 +24,7 @@ def test_u_ap_with_the_instrument_declared_covers_95_percent_at_10_cycles():
     axes, norm = coverage.ap_coverage(10, 400, 6, declared=True, method="after")
     assert 0.92 <= axes <= 0.98
     assert 0.92 <= norm <= 0.98
+
+
+def test_u_of_groover_repeatability_covers_95_percent_at_10_repeats():
+    assert 0.92 <= coverage.groover_coverage(10, 1000, 1, method="after") <= 0.98  # the bootstrap: 87 %
