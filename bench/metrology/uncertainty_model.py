@@ -2,8 +2,9 @@
 
 Both figures are non-linear in the readings and biased low at small n, so neither s/√n nor a bootstrap covers their
 population value as often as a k = 2 interval promises (75-89 % at n = 10-30, issue 32). Under a Gaussian model of
-the cycles, |estimate - measurand| / estimate is a pivot that depends only on n and the scatter's shape; its quantile,
-simulated once per (n, shape) and cached, scales the estimate into U. Coverage: benchmarks/bench_uncertainty_coverage.py.
+the cycles, |estimate - measurand| / estimate is a pivot that depends only on n and the scatter's shape; its
+quantile, simulated once per (n, shape) and cached, scales the estimate into U. Coverage:
+benchmarks/bench_uncertainty_coverage.py.
 """
 
 from __future__ import annotations
