@@ -7,6 +7,7 @@ and counts how often [value - U, value + U] holds the truth. The truths:
   drawn from N(0, u_inst²) per axis, declared to the analysis as ``instrument_u_mm = u_inst`` (case "AP declared")
   or not declared (case "AP undeclared": the data alone cannot see a bias, which is why the output must say "U
   excludes the instrument: none declared").
+- AD: E[D] - D_c for the distance between two poses 100 mm apart, D_j = |p2_j - p4_j| (no instrument term).
 - Groover repeatability 3 σ̄: 3 x the mean of the targets' true standard deviations.
 - RP: the population l_mean + 3 sigma_l of the simulated scatter (distances to the true mean), computed by a 4·10^6
   draw Monte Carlo of the same model; U must cover it including the estimator's small-sample bias.
@@ -26,6 +27,7 @@ import numpy as np
 from bench.metrology.uncertainty import (
     accuracy_uncertainty,
     bootstrap_uncertainty,
+    distance_accuracy_uncertainty,
     mean_sd_uncertainty,
     repeatability_uncertainty,
 )
@@ -89,6 +91,22 @@ def groover_coverage(n: int, campaigns: int, seed: int, *, method: str) -> float
     return hits / campaigns
 
 
+def ad_coverage(n: int, campaigns: int, seed: int, *, method: str) -> float:
+    """Share of campaigns whose AD ± U holds E[D] - D_c (robot scatter 0.3 mm per axis at both poses)."""
+    rng = np.random.default_rng(seed)
+    offset = np.array([100.0, 0.0, 0.0]) + ROBOT_OFFSET_MM
+    population = np.linalg.norm(offset + np.random.default_rng(98).normal(0.0, 0.3 * np.sqrt(2.0), (2_000_000, 3)),
+                                axis=1)
+    truth = float(population.mean()) - 100.0
+    hits = 0
+    for _ in range(campaigns):
+        distances = np.linalg.norm(offset + rng.normal(0.0, 0.3, (n, 3)) - rng.normal(0.0, 0.3, (n, 3)), axis=1)
+        ad, u = float(distances.mean()) - 100.0, float(distances.std(ddof=1) / np.sqrt(n))
+        half = 2.0 * u if method == "before" else distance_accuracy_uncertainty(ad, u, n).expanded_uncertainty
+        hits += abs(ad - truth) <= half
+    return hits / campaigns
+
+
 def coverage_table(campaigns: int, seed: int, sizes=(10, 30)) -> list[tuple[str, int, float, float]]:
     """(case, n, coverage before, coverage after) for every case and number of cycles."""
     rows = []
@@ -96,6 +114,8 @@ def coverage_table(campaigns: int, seed: int, sizes=(10, 30)) -> list[tuple[str,
         for name, sigmas in SHAPES.items():
             rows.append((f"RP {name}", n, rp_coverage(sigmas, n, campaigns, seed, method="bootstrap"),
                          rp_coverage(sigmas, n, campaigns, seed, method="auto")))
+        rows.append(("AD", n, ad_coverage(n, campaigns, seed, method="before"),
+                     ad_coverage(n, campaigns, seed, method="after")))
         rows.append(("Groover 3 sigma-bar", n, groover_coverage(n, campaigns, seed, method="before"),
                      groover_coverage(n, campaigns, seed, method="after")))
         for declared in (True, False):

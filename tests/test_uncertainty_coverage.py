@@ -29,3 +29,7 @@ def test_u_ap_with_the_instrument_declared_covers_95_percent_at_10_cycles():
 
 def test_u_of_groover_repeatability_covers_95_percent_at_10_repeats():
     assert 0.92 <= coverage.groover_coverage(10, 1000, 1, method="after") <= 0.98  # the bootstrap: 87 %
+
+
+def test_u_ad_covers_95_percent_at_10_cycles():
+    assert 0.93 <= coverage.ad_coverage(10, 2000, 1, method="after") <= 0.97  # k = 2 on S_D/sqrt(n): 92.2 %

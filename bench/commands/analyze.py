@@ -156,10 +156,6 @@ def _iso9283(args: argparse.Namespace) -> int:
 
 
 def _distance(args: argparse.Namespace) -> int:
-    import numpy as np
-
-    from bench.metrology import combine, expanded
-    from bench.metrology.uncertainty import instrument_budget
     from bench.metrology.tables import (
         POSE_NUMERIC_COLUMNS,
         analyze_distance,
@@ -167,12 +163,12 @@ def _distance(args: argparse.Namespace) -> int:
         pose_table,
         read_table_csv,
     )
+    from bench.metrology.uncertainty import distance_accuracy_uncertainty, instrument_budget
 
     table = pose_table(read_table_csv(args.file, numeric=POSE_NUMERIC_COLUMNS))
     r = analyze_distance(table, args.first, args.second)
-    # D_j is the difference of two readings: the instrument term enters twice (uncorrelated).
     budget = instrument_budget(args.instrument_u_mm, "--instrument-u-mm")
-    u_ad = expanded(r.ad_mm, combine(r.u_ad_mm, np.sqrt(2.0) * (args.instrument_u_mm or 0.0)), unit="mm")
+    u_ad = distance_accuracy_uncertainty(r.ad_mm, r.u_ad_mm, r.n, instrument_u_mm=args.instrument_u_mm or 0.0)
     result = {"from": args.first, "to": args.second, "n": r.n, "AD_mm": r.ad_mm, "U_AD_mm": u_ad.expanded_uncertainty,
               "k": u_ad.coverage_factor, "RD_mm": r.rd_mm,
               "AD_axes_mm": list(r.ad_axes_mm), "RD_axes_mm": list(r.rd_axes_mm),

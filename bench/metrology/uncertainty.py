@@ -27,6 +27,7 @@ __all__ = [
     "bootstrap_uncertainty",
     "combine",
     "coverage_factor",
+    "distance_accuracy_uncertainty",
     "expanded",
     "instrument_budget",
     "instrument_rp_floor",
@@ -171,6 +172,18 @@ def accuracy_uncertainty(attained_mm, commanded_mm, *, instrument_u_mm: float = 
                  for d, u, a in zip(deviation, u_axes, type_a))
     nu_norm = welch_satterthwaite([*np.sqrt(weights * type_a), instrument_u_mm], [*[n - 1] * len(type_a), math.inf])
     return expanded(norm, u_norm, unit="mm", k=coverage_factor(k, nu_norm)), axes
+
+
+def distance_accuracy_uncertainty(ad_mm: float, u_ad_mm: float, n: int, *, instrument_u_mm: float = 0.0,
+                                  k: float = 2.0) -> Measured:
+    """Expanded uncertainty of AD (ISO 9283 7.3): the scatter of the D_j and twice the instrument (a distance is
+    the difference of two uncorrelated readings), at Student's factor for the Welch-Satterthwaite ν_eff.
+
+    .. math:: u^2(AD) = S_D^2 / n + 2 u_{inst}^2, \\qquad U = k_p(\\nu_{eff}) \\, u(AD)
+    """
+    instrument = math.sqrt(2.0) * instrument_u_mm
+    nu = welch_satterthwaite([u_ad_mm, instrument], [n - 1, math.inf])
+    return expanded(ad_mm, combine(u_ad_mm, instrument), unit="mm", k=coverage_factor(k, nu))
 
 
 def coverage_factor(k: float, degrees_of_freedom: float) -> float:

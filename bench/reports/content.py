@@ -49,7 +49,7 @@ from bench.metrology import (
     OrientationVariation,
     PayloadShift,
     combine,
-    expanded,
+    distance_accuracy_uncertainty,
     fit_axis_scale,
     instrument_rp_floor,
     payload_shift,
@@ -367,7 +367,7 @@ def _distances(table: pd.DataFrame, sigma_mm: float, k: float) -> tuple[Distance
     rows = []
     for label, group in _condition_groups(table):
         result = analyze_distance(group, first, second)
-        u_ad = expanded(result.ad_mm, combine(result.u_ad_mm, math.sqrt(2.0) * sigma_mm), unit="mm", k=k)
+        u_ad = distance_accuracy_uncertainty(result.ad_mm, result.u_ad_mm, result.n, instrument_u_mm=sigma_mm, k=k)
         angles = analyze_orientation_distance(group, first, second)
         names, orientation = angles if angles is not None else ((), None)
         rows.append(DistanceRow(label or f"{first}-{second}", first, second, result, u_ad, orientation, names))
