@@ -50,6 +50,23 @@ def test_iso9283_readable_table(capsys):
     assert "orientation (deg)" in out
 
 
+def test_every_analysis_says_whether_its_u_includes_the_instrument(capsys):
+    # Issue 32 item 2: the default used to be a silent instrument u = 0 and the output said only "U with k = 2".
+    example = str(DATA / "iso9283_example.csv")
+    code, out, _ = _run(capsys, "analyze", "iso9283", example)
+    assert code == 0 and "U excludes the instrument: none declared (--instrument-u-mm)." in out
+    code, out, _ = _run(capsys, "analyze", "iso9283", example, "--json")
+    assert json.loads(out)["U_budget"] == "U excludes the instrument: none declared (--instrument-u-mm)"
+    code, out, _ = _run(capsys, "analyze", "iso9283", example, "--instrument-u-mm", "0.05", "--json")
+    declared = json.loads(out)["poses"]["P1"]
+    assert json.loads(out)["U_budget"] == "U includes the instrument: u = 0.05 mm per axis (--instrument-u-mm)"
+    code, out, _ = _run(capsys, "analyze", "iso9283", example, "--json")
+    bare = json.loads(out)["poses"]["P1"]
+    assert declared["U_AP_mm"] > bare["U_AP_mm"]
+    code, out, _ = _run(capsys, "analyze", "distance", example)
+    assert code == 0 and "U excludes the instrument: none declared" in out
+
+
 @pytest.mark.parametrize(
     "text, message",
     [

@@ -325,7 +325,8 @@ def analyze_poses(
     k : float
         Coverage factor of the reported expanded uncertainties.
     resamples : int
-        Bootstrap resamples for the uncertainty of RP (seeded: the result is reproducible).
+        Bootstrap resamples of ``repeatability_uncertainty(method="bootstrap")``; the default U(RP) (a measurement-model
+        Monte Carlo up to 100 cycles, the delta method above) does not resample.
 
     Raises
     ------

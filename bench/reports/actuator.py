@@ -79,7 +79,7 @@ def collect_actuator(store: Store, run_id: int, *, k: float = 2.0, resamples: in
     calibrations = calibrations_in_force(store, run)
     instrument = reading_instrument(run, calibrations, table["travel_mm"], difference=True)
     results = analyze_actuators(actuator_table(table), control_resolution_mm=robot_control_resolution(run.robot),
-                                instrument_u_mm=instrument.sigma_mm or 0.0, k=k, resamples=resamples)
+                                instrument_u_mm=instrument.sigma_mm or 0.0, k=k)
     both_ways = "direction" in table.columns and bool((table["direction"] < 0).any())
     bidirectional = tuple(analyze_bidirectional(table)) if both_ways else ()
     deviations = actuator_deviations(config=run.config, settings=run.settings,

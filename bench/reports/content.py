@@ -49,7 +49,7 @@ from bench.metrology import (
     OrientationVariation,
     PayloadShift,
     combine,
-    expanded,
+    distance_accuracy_uncertainty,
     fit_axis_scale,
     instrument_rp_floor,
     payload_shift,
@@ -73,8 +73,8 @@ from bench.store import CalibrationRecord, RunRecord, Store, series_table, tidy_
 from bench.store.registrations import registration_u_mm, registrations
 
 __all__ = ["CRITERIA", "MM_PER_INCH", "CalibrationFit", "Decision", "DistanceRow", "InstrumentInfo", "PayloadRow",
-           "ReportBase", "RunReport", "VapRow", "analysis_table", "axes_statement", "calibration_fits", "check_same_axes",
-           "calibrations_in_force",
+           "ReportBase", "RunReport", "VapRow", "analysis_table", "ap_instrument_u_mm", "axes_statement",
+           "calibration_fits", "check_same_axes", "calibrations_in_force",
            "collect", "counts_instrument", "provenance", "reading_instrument", "reading_step_mm", "run_table",
            "uncertainty_stated"]
 
@@ -389,13 +389,22 @@ def _condition_groups(table: pd.DataFrame):
         yield ", ".join(f"{n}={v:g}" for n, v in zip(varying, key)), group
 
 
+def ap_instrument_u_mm(sigma_mm: float | None, run: RunRecord) -> float | None:
+    """The instrument's term of the AP budget per axis, mm: the reading's u and, for a relative instrument, its
+    registrations' u measured in the run (bench.rigs.registration); None when neither is declared."""
+    registered = registration_u_mm(registrations(run.settings))
+    if sigma_mm is None and not registrations(run.settings):
+        return None
+    return combine(sigma_mm or 0.0, registered)
+
+
 def _distances(table: pd.DataFrame, sigma_mm: float, k: float) -> tuple[DistanceRow, ...]:
     """AD/RD per set of conditions, with U(AD) combined as ``bench analyze distance`` does."""
     first, second = list(dict.fromkeys(table["pose"]))[:2]
     rows = []
     for label, group in _condition_groups(table):
         result = analyze_distance(group, first, second)
-        u_ad = expanded(result.ad_mm, combine(result.u_ad_mm, math.sqrt(2.0) * sigma_mm), unit="mm", k=k)
+        u_ad = distance_accuracy_uncertainty(result.ad_mm, result.u_ad_mm, result.n, instrument_u_mm=sigma_mm, k=k)
         angles = analyze_orientation_distance(group, first, second)
         names, orientation = angles if angles is not None else ((), None)
         rows.append(DistanceRow(label or f"{first}-{second}", first, second, result, u_ad, orientation, names))
@@ -467,8 +476,8 @@ def collect(store: Store, run_id: int, *, criteria: Mapping[str, float] | None =
     instrument = counts_instrument(run, calibrations, sum(c in table.columns for c in _POSITION), fits,
                                    span_mm=_span_from_registration(run, table))
     # a relative instrument's frame is known to its registrations' u: AP carries it (bench.store.registrations)
-    ap_u_mm = combine(instrument.sigma_mm or 0.0, registration_u_mm(registrations(run.settings)))
-    poses = report_order(analyze_poses(table, instrument_u_mm=ap_u_mm, k=k, resamples=resamples))
+    ap_u_mm = ap_instrument_u_mm(instrument.sigma_mm, run)
+    poses = report_order(analyze_poses(table, instrument_u_mm=ap_u_mm or 0.0, k=k, resamples=resamples))
     protocol = run.protocol_name
     if len(measured_axes(table)) < 3 and protocol in ("iso9283_distance", "iso9283_multidirectional"):
         raise ConfigError(f"run {run_id}: the instrument measured {', '.join(measured_axes(table))} only; the "

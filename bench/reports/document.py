@@ -14,7 +14,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from bench.metrology.formatting import format_measured, format_value, pose_label
-from bench.reports.content import ReportBase, RunReport, axes_statement
+from bench.reports.content import ReportBase, RunReport, ap_instrument_u_mm, axes_statement
 from bench.reports.orientation import orientation_blocks
 from bench.reports.plots import Plot, comparison_plot, report_plots
 
@@ -292,8 +292,10 @@ def _raw(raw: list[RawData], notes: tuple[str, ...], recompute: str) -> Section:
 
 def recompute_command(report: RunReport) -> str:
     """The CLI call that recomputes the per-pose results from the raw-data CSV."""
-    sigma = report.instrument.sigma_mm or 0.0
-    command = f"bench analyze iso9283 FILE.csv --instrument-u-mm {sigma:.6g} --k {report.coverage_factor:g}"
+    # the same instrument term as the report's U(AP): the reading's u and the registrations' (a relative instrument)
+    u_mm = ap_instrument_u_mm(report.instrument.sigma_mm, report.run)
+    declared = "" if u_mm is None else f" --instrument-u-mm {u_mm:.6g}"
+    command = f"bench analyze iso9283 FILE.csv{declared} --k {report.coverage_factor:g}"
     if report.orientation:  # the tilt readings' own file and gauge
         g = report.tilt_gauge
         command += (f"; orientation: bench analyze orientation run{report.run.id}_tilts.csv --spacing-mm "
