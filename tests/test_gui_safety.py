@@ -82,8 +82,9 @@ def test_the_emergency_stop_acts_while_a_prompt_is_open_and_withdraws_it(window,
         wait_for(lambda: QApplication.activeWindow() is not None, RUN_TIMEOUT_S, "a window of the application to "
                  "have the keyboard focus")
         QTest.keyClick(dialog.entry, Qt.Key.Key_F12)  # focus in the dialog: the shortcut is application-wide
-    # latched and withdrawn within the click's own handling: no event loop turn, no other thread, no clock involved
-    assert controller._stop_latched and not dialog.isVisible()
+    # pressed and withdrawn within the click's own handling; the stop thread takes the press to the wire
+    assert window.estop_latch.latched and not dialog.isVisible()
+    wait_for(lambda: controller._stop_latched, RUN_TIMEOUT_S, "the stop thread's emergency stop")
     assert worker.runner is None or worker.runner.state in (RunState.HALTING, RunState.FINISHED)
     assert window.calliper_dialog is None
     _wait_idle(window)
