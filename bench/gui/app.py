@@ -235,7 +235,7 @@ class MainWindow(QMainWindow):
         self.results.refresh()
 
     def _run_finished(self, result: RunResult) -> None:
-        self.live_view.redraw()
+        self.live_view.schedule_redraw()
         reason = f": {result.reason}" if result.reason else ""
         self.say(f"run {result.run_id} {result.exit_status} ({result.samples} samples){reason}")
         self.results.refresh()

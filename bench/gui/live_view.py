@@ -15,19 +15,19 @@ the move's reported end, with the comparison bands of clause 7.4 (A.4) drawn as 
 Samples are kept by step index: a sample seen twice (a resumed run's stored samples, then its live signals) counts
 once.
 
-Drawing is the view's cost (a redraw of both plots is 0.2-0.3 s of the GUI thread on the 2-core bench PC, most of
-it matplotlib's constrained layout and text), so the view draws only what can be seen, and not more often than it
-can afford: the plots follow the samples within :data:`REDRAW_MS` of their arrival, but a redraw comes no sooner
-than :data:`DRAW_GAP_FACTOR` times the last one's duration after it (the plots take at most a sixth of the GUI
-thread however fast a simulator stores samples); a hidden view (another tab, a closed window) only collects the
-samples and draws them when it is shown.
+Drawing is the view's cost (a redraw of both plots is 0.2-0.3 s of matplotlib on the 2-core bench PC, most of it
+constrained layout and text), so it happens on a render thread of the view's own, never on the window's thread: the
+window hands a copy of the samples to that thread (:meth:`LiveView.schedule_redraw`) and returns at once; the thread
+draws them on a matplotlib figure of its own (Agg) and sends the picture back, which the window shows (a pixmap swap).
+The window's thread thus stays free for the emergency stop, dialogs and input while a redraw runs (issue 31: the
+e-stop waited 0.66-0.92 s behind redraws). The plots follow the samples within :data:`REDRAW_MS` of their arrival,
+but a redraw comes no sooner than :data:`DRAW_GAP_FACTOR` times the last one's duration after it (the render thread
+takes at most a sixth of the interpreter however fast a simulator stores samples); a hidden view (another tab, a
+closed window) only collects the samples and draws them when it is shown.
 
 Start-up: matplotlib and pandas (0.5-0.6 s of imports on the 2-core bench PC) are imported by a background thread
-started with the first view, and the figure is built when the first samples arrive (until then the view says that
-the plots appear then), so the main window appears without waiting for them and draws no empty figure. The GUI
-thread never imports them beside that thread (two threads importing matplotlib at once fail on its circular
-imports): samples that arrive first are drawn once the imports have ended, and a caller that needs the figure or
-the statistics at once waits for them.
+started with the first view; the render thread waits for those imports (two threads importing matplotlib at once
+fail on its circular imports), and the window's thread never imports them for drawing.
 """
 
 from __future__ import annotations
@@ -37,10 +37,12 @@ import threading
 import time
 from typing import TYPE_CHECKING
 
+import logging
+
 import numpy as np
-from PySide6.QtCore import QTimer
-from PySide6.QtGui import QShowEvent
-from PySide6.QtWidgets import QLabel, QVBoxLayout, QWidget
+from PySide6.QtCore import QObject, Qt, QTimer, Signal
+from PySide6.QtGui import QImage, QPixmap, QShowEvent
+from PySide6.QtWidgets import QLabel, QSizePolicy, QVBoxLayout, QWidget
 
 from bench.metrology.documents import ISO9283_STABILISATION_BANDS_MM
 from bench.metrology.iso9283 import pose_accuracy, pose_repeatability
@@ -48,7 +50,6 @@ from bench.metrology.iso9283 import pose_accuracy, pose_repeatability
 if TYPE_CHECKING:
     import pandas as pd
     from matplotlib.axes import Axes
-    from matplotlib.backends.backend_qtagg import FigureCanvasQTAgg
     from matplotlib.figure import Figure
 
 __all__ = ["DRAW_GAP_FACTOR", "REDRAW_MS", "LiveView"]
@@ -64,7 +65,10 @@ _ATTAINED = ("x_mm", "y_mm", "z_mm")
 _NOT_MEASURED = ("velocity_pct", "load_kg", "leg", "lead_s", "hold_s")
 #: What the figures need, imported off the GUI thread by :func:`preload_plotting`.
 _PLOTTING_MODULES = ("pandas", "matplotlib.figure", "matplotlib.patches", "matplotlib.ticker",
-                     "matplotlib.backends.backend_qtagg", "bench.metrology.tables")
+                     "matplotlib.backends.backend_agg", "bench.metrology.tables")
+#: The pictures' resolution, pixels per inch (their size is the view's, in device pixels).
+_DPI = 100
+_log = logging.getLogger(__name__)
 _preloading: threading.Thread | None = None
 
 
@@ -86,11 +90,6 @@ def _plotting_module(name: str):
     return importlib.import_module(name)
 
 
-def _plotting_loaded() -> bool:
-    """True when the GUI thread can use the plotting modules without waiting."""
-    return _preloading is None or not _preloading.is_alive()
-
-
 def _condition_columns() -> tuple[str, ...]:
     return _plotting_module("bench.metrology.tables").CONDITION_COLUMNS
 
@@ -99,143 +98,23 @@ def _condition_groups(table: "pd.DataFrame"):
     return _plotting_module("bench.metrology.tables").condition_groups(table)
 
 
-def _canvas_class() -> type:
-    """Matplotlib's Qt canvas that draws only while it can be seen (a draw asked for while it is hidden happens
-    when it is shown) and records when its last draw ended (``drawn_at_s``, monotonic s) and how long it took
-    (``draw_s``). Defined on first use: matplotlib loads off the GUI thread."""
-    global _LiveCanvas
-    if _LiveCanvas is None:
-        FigureCanvasQTAgg = _plotting_module("matplotlib.backends.backend_qtagg").FigureCanvasQTAgg
+class _Samples:
+    """The samples of one run as the view has them (by step index), and what the plots show of them. The view keeps
+    one; each redraw gets a copy (:meth:`snapshot`) that only the render thread reads."""
 
-        class LiveCanvas(FigureCanvasQTAgg):
-            drawn_at_s: float | None = None
-            draw_s = 0.0
-            _draw_when_shown = False
-
-            def draw(self) -> None:
-                if not self.isVisible():
-                    self._draw_when_shown = True
-                    return
-                started_s = time.monotonic()
-                super().draw()
-                self.drawn_at_s = time.monotonic()
-                self.draw_s = self.drawn_at_s - started_s
-
-            def showEvent(self, event: QShowEvent) -> None:
-                super().showEvent(event)
-                if self._draw_when_shown:
-                    self._draw_when_shown = False
-                    self.draw_idle()
-
-        _LiveCanvas = LiveCanvas
-    return _LiveCanvas
-
-
-_LiveCanvas: type | None = None
-
-
-class LiveView(QWidget):
-    """Two plots fed by :meth:`add_sample` (a dict as emitted by ``CampaignWorker.sample_stored``)."""
-
-    def __init__(self, parent: QWidget | None = None) -> None:
-        super().__init__(parent)
-        preload_plotting()
-        self._figure: Figure | None = None
-        self._canvas: FigureCanvasQTAgg | None = None
-        self._axes: tuple[Axes, Axes] | None = None
-        self._plotted_s = 0.0  #: how long the last redraw took to make its plots (their draw comes after)
-        self._placeholder = QLabel("the plots appear with the first samples of a run")
-        self.summary = QLabel("no samples yet")
-        self.summary.setObjectName("liveSummary")
-        self.summary.setWordWrap(True)
-        self._layout = QVBoxLayout(self)
-        self._layout.addWidget(self._placeholder, 1)
-        self._layout.addWidget(self.summary)
-        self._timer = QTimer(self)
-        self._timer.setSingleShot(True)
-        self._timer.timeout.connect(self._timed_redraw)
-        self.clear()
-
-    # ---- the figure, built on first use ------------------------------------------------------------------------
-
-    def _build_figure(self) -> None:
-        if self._canvas is not None:
-            return
-        Figure = _plotting_module("matplotlib.figure").Figure
-
-        self._figure = Figure(figsize=(7, 4), layout="constrained")
-        self._canvas = _canvas_class()(self._figure)
-        self._axes = tuple(self._figure.subplots(1, 2, width_ratios=(1, 1.4)))
-        self._layout.replaceWidget(self._placeholder, self._canvas)
-        self._placeholder.deleteLater()
-
-    @property
-    def figure(self) -> "Figure":
-        self._build_figure()
-        return self._figure
-
-    @property
-    def canvas(self) -> "FigureCanvasQTAgg":
-        self._build_figure()
-        return self._canvas
-
-    @property
-    def pose_axes(self) -> "Axes":
-        self._build_figure()
-        return self._axes[0]
-
-    @property
-    def stream_axes(self) -> "Axes":
-        self._build_figure()
-        return self._axes[1]
-
-    def clear(self, title: str = "", started_s: float | None = None) -> None:
-        """Forget every sample (a new run starts); ``started_s`` is the run's start (Unix s), the stream's zero."""
-        self.samples: dict[int, dict] = {}  #: by step index
+    def __init__(self, samples: dict[int, dict], title: str, started_s: float | None) -> None:
+        self.samples = samples
         self.title = title
         self.started_s = started_s
         self._statistics: dict[str, dict[str, float]] | None = None
-        self._plots_current = False
-        if self._canvas is not None:
-            self.redraw()
-        else:
-            self.summary.setText(self._summary_text({}))
 
-    def load(self, title: str, started_s: float, samples: list[dict]) -> None:
-        """Start afresh on a run that began at ``started_s`` (Unix s) and holds ``samples`` already."""
-        self.clear(title, started_s)
-        for sample in samples:
-            self.add_sample(sample)
+    def snapshot(self) -> "_Samples":
+        return _Samples(dict(self.samples), self.title, self.started_s)
 
-    def add_sample(self, sample: dict) -> bool:
-        """Record one stored sample (once per step index); the plots follow within :data:`REDRAW_MS` (or once the
-        pause after the last redraw has passed, or once a hidden view is shown).
-
-        Returns False for a sample already recorded."""
-        index = sample.get("step_index")
-        key = int(index) if index is not None else -1 - len(self.samples)
-        if key in self.samples:
-            return False
-        self.samples[key] = sample
+    def changed(self) -> None:
         self._statistics = None
-        self._plots_current = False
-        if not self._timer.isActive():
-            self._timer.start(self._redraw_delay_ms())
-        return True
-
-    def _redraw_delay_ms(self) -> int:
-        """:data:`REDRAW_MS`, or longer while the pause that the last redraw's duration (its plots and their draw)
-        asks for lasts."""
-        canvas = self._canvas
-        if canvas is None or canvas.drawn_at_s is None:
-            return REDRAW_MS
-        quiet_until_s = canvas.drawn_at_s + DRAW_GAP_FACTOR * (self._plotted_s + canvas.draw_s)
-        return max(REDRAW_MS, round((quiet_until_s - time.monotonic()) * 1000))
-
-    # ---- figures ---------------------------------------------------------------------------------------------
 
     def pose_table(self) -> "pd.DataFrame":
-        """The pose samples as a table with the report's columns (pose, cycle, commanded and attained, conditions)."""
         rows = []
         for index, sample in sorted(self.samples.items()):
             values = sample["values"]
@@ -248,9 +127,6 @@ class LiveView(QWidget):
         return _plotting_module("pandas").DataFrame(rows)
 
     def pose_statistics(self) -> dict[str, dict[str, float]]:
-        """Per pose and test condition (the report's labels, e.g. ``P1 (velocity_pct=50)``): ``n``, the signed
-        barycentre deviations ``APx_mm``, ``APy_mm``, ``APz_mm``, ``AP_mm`` and, with two or more cycles,
-        ``RP_mm``."""
         if self._statistics is not None:
             return self._statistics
         table = self.pose_table()
@@ -273,7 +149,6 @@ class LiveView(QWidget):
         return out
 
     def stream(self) -> dict[str, tuple[list[float], list[float]]]:
-        """Per stored value: (wall-clock s since the run started, value - commanded or the value)."""
         out: dict[str, tuple[list[float], list[float]]] = {}
         for _, sample in sorted(self.samples.items()):
             values = sample["values"]
@@ -293,8 +168,6 @@ class LiveView(QWidget):
         return out
 
     def arrival_curves(self) -> list[tuple[str, np.ndarray, np.ndarray]]:
-        """Per streamed arrival in step order: (pose and cycle, t_s from the move's reported end, d_mm), where d is
-        the distance from the series' last point (see the module docstring)."""
         curves = []
         for _, sample in sorted(self.samples.items()):
             raw = sample.get("raw")
@@ -307,42 +180,237 @@ class LiveView(QWidget):
                            np.asarray(series["t_s"], dtype=float), distance))
         return curves
 
-    def _timed_redraw(self) -> None:
-        """The timer's redraw: none while the view is hidden (it redraws when shown), and the first one waits
-        (without holding up the window) for the background imports."""
-        if not self.isVisible():
-            return
-        if self._canvas is None and not _plotting_loaded():
-            self._timer.start(50)
+
+class _Job:
+    """One redraw: the samples as they were when it was asked for and the picture's size in device pixels."""
+
+    def __init__(self, data: _Samples, width_px: int, height_px: int, number: int) -> None:
+        self.data, self.width_px, self.height_px, self.number = data, width_px, height_px, number
+
+
+class _Rendered(QObject):
+    """Carries a finished picture from the render thread to the window's thread (a queued signal)."""
+
+    done = Signal(object, str, float, int)  #: QImage, summary text, seconds the render took, job number
+
+
+class _Renderer:
+    """The render thread: draws the newest job on a matplotlib figure of its own (Agg) and sends the picture.
+
+    The figure, its axes and the Agg canvas belong to this thread only; a newer job replaces one not yet started."""
+
+    def __init__(self, rendered: _Rendered) -> None:
+        self._rendered = rendered
+        self._jobs = threading.Condition()
+        self._job: _Job | None = None
+        self.finished_number = 0  #: the last job whose picture was sent
+        self._finished = threading.Condition()
+        self.figure: Figure | None = None
+        self.axes: tuple[Axes, Axes] | None = None
+        threading.Thread(target=self._serve, name="bench-live-view-render", daemon=True).start()
+
+    def submit(self, job: _Job) -> None:
+        with self._jobs:
+            self._job = job
+            self._jobs.notify()
+
+    def wait_for(self, number: int, timeout_s: float = 60.0) -> bool:
+        with self._finished:
+            return self._finished.wait_for(lambda: self.finished_number >= number, timeout_s)
+
+    def _serve(self) -> None:
+        while True:
+            with self._jobs:
+                self._jobs.wait_for(lambda: self._job is not None)
+                job, self._job = self._job, None
+            try:
+                self._render(job)
+            except Exception:  # noqa: BLE001 - a failed picture is logged; the window and the run go on
+                _log.exception("live view: the redraw failed")
+            with self._finished:
+                self.finished_number = job.number
+                self._finished.notify_all()
+
+    def _render(self, job: _Job) -> None:
+        started_s = time.monotonic()
+        if self.figure is None:
+            Figure = _plotting_module("matplotlib.figure").Figure
+            FigureCanvasAgg = _plotting_module("matplotlib.backends.backend_agg").FigureCanvasAgg
+            self.figure = Figure(figsize=(7, 4), dpi=_DPI, layout="constrained")
+            FigureCanvasAgg(self.figure)
+            self.axes = tuple(self.figure.subplots(1, 2, width_ratios=(1, 1.4)))
+        self.figure.set_size_inches(max(job.width_px, 200) / _DPI, max(job.height_px, 150) / _DPI)
+        pose_axes, stream_axes = self.axes
+        summary = LiveView._draw_poses(pose_axes, job.data)
+        curves = job.data.arrival_curves()
+        if curves:
+            LiveView._draw_arrivals(stream_axes, job.data, curves)
         else:
-            self.redraw()
+            LiveView._draw_stream(stream_axes, job.data)
+        canvas = self.figure.canvas
+        canvas.draw()
+        width, height = canvas.get_width_height(physical=True)
+        image = QImage(bytes(canvas.buffer_rgba()), width, height, QImage.Format.Format_RGBA8888).copy()
+        self._rendered.done.emit(image, summary, time.monotonic() - started_s, job.number)
+
+
+class LiveView(QWidget):
+    """Two plots fed by :meth:`add_sample` (a dict as emitted by ``CampaignWorker.sample_stored``)."""
+
+    def __init__(self, parent: QWidget | None = None) -> None:
+        super().__init__(parent)
+        preload_plotting()
+        self.picture = QLabel("the plots appear with the first samples of a run")
+        self.picture.setObjectName("livePlots")
+        self.picture.setAlignment(Qt.AlignmentFlag.AlignCenter)
+        self.picture.setMinimumSize(200, 150)
+        self.picture.setSizePolicy(QSizePolicy.Policy.Ignored, QSizePolicy.Policy.Ignored)
+        self.summary = QLabel("no samples yet")
+        self.summary.setObjectName("liveSummary")
+        self.summary.setWordWrap(True)
+        layout = QVBoxLayout(self)
+        layout.addWidget(self.picture, 1)
+        layout.addWidget(self.summary)
+        self._rendered = _Rendered(self)
+        self._rendered.done.connect(self._show_picture)
+        self._renderer = _Renderer(self._rendered)
+        self._asked = 0  #: the number of the last redraw asked for
+        self.renders = 0  #: pictures shown so far
+        self.drawn_at_s: float | None = None  #: when the last picture arrived (monotonic s)
+        self.render_s = 0.0  #: how long the render thread took for it
+        self._timer = QTimer(self)
+        self._timer.setSingleShot(True)
+        self._timer.timeout.connect(self._timed_redraw)
+        self.clear()
+
+    # ---- the samples -----------------------------------------------------------------------------------------
+
+    @property
+    def samples(self) -> dict[int, dict]:
+        return self._data.samples
+
+    @property
+    def title(self) -> str:
+        return self._data.title
+
+    @property
+    def started_s(self) -> float | None:
+        return self._data.started_s
+
+    def clear(self, title: str = "", started_s: float | None = None) -> None:
+        """Forget every sample (a new run starts); ``started_s`` is the run's start (Unix s), the stream's zero."""
+        self._data = _Samples({}, title, started_s)
+        self._plots_current = False
+        if self.renders:
+            self.schedule_redraw()
+        else:
+            self.summary.setText(self._summary_text({}))
+
+    def load(self, title: str, started_s: float, samples: list[dict]) -> None:
+        """Start afresh on a run that began at ``started_s`` (Unix s) and holds ``samples`` already."""
+        self.clear(title, started_s)
+        for sample in samples:
+            self.add_sample(sample)
+
+    def add_sample(self, sample: dict) -> bool:
+        """Record one stored sample (once per step index); the plots follow within :data:`REDRAW_MS` (or once the
+        pause after the last redraw has passed, or once a hidden view is shown).
+
+        Returns False for a sample already recorded."""
+        index = sample.get("step_index")
+        key = int(index) if index is not None else -1 - len(self.samples)
+        if key in self.samples:
+            return False
+        self.samples[key] = sample
+        self._data.changed()
+        self._plots_current = False
+        if not self._timer.isActive():
+            self._timer.start(self._redraw_delay_ms())
+        return True
+
+    def _redraw_delay_ms(self) -> int:
+        """:data:`REDRAW_MS`, or longer while the pause that the last redraw's duration asks for lasts."""
+        if self.drawn_at_s is None:
+            return REDRAW_MS
+        quiet_until_s = self.drawn_at_s + DRAW_GAP_FACTOR * self.render_s
+        return max(REDRAW_MS, round((quiet_until_s - time.monotonic()) * 1000))
+
+    def pose_table(self) -> "pd.DataFrame":
+        """The pose samples as a table with the report's columns (pose, cycle, commanded and attained, conditions)."""
+        return self._data.pose_table()
+
+    def pose_statistics(self) -> dict[str, dict[str, float]]:
+        """Per pose and test condition (the report's labels, e.g. ``P1 (velocity_pct=50)``): ``n``, the signed
+        barycentre deviations ``APx_mm``, ``APy_mm``, ``APz_mm``, ``AP_mm`` and, with two or more cycles,
+        ``RP_mm``."""
+        return self._data.pose_statistics()
+
+    def stream(self) -> dict[str, tuple[list[float], list[float]]]:
+        """Per stored value: (wall-clock s since the run started, value - commanded or the value)."""
+        return self._data.stream()
+
+    def arrival_curves(self) -> list[tuple[str, np.ndarray, np.ndarray]]:
+        """Per streamed arrival in step order: (pose and cycle, t_s from the move's reported end, d_mm), where d is
+        the distance from the series' last point (see the module docstring)."""
+        return self._data.arrival_curves()
+
+    # ---- the figure (the render thread's; read it only after :meth:`redraw`) ----------------------------------
+
+    @property
+    def figure(self) -> "Figure":
+        self.redraw()
+        return self._renderer.figure
+
+    @property
+    def pose_axes(self) -> "Axes":
+        return self.figure.axes[0]
+
+    @property
+    def stream_axes(self) -> "Axes":
+        return self.figure.axes[1]
+
+    # ---- redraws -----------------------------------------------------------------------------------------------
+
+    def _timed_redraw(self) -> None:
+        """The timer's redraw: none while the view is hidden (it redraws when shown)."""
+        if self.isVisible():
+            self.schedule_redraw()
 
     def showEvent(self, event: QShowEvent) -> None:
         super().showEvent(event)
-        if not self._plots_current and (self._canvas is not None or self.samples):
+        if not self._plots_current and (self.renders or self.samples):
             self._timed_redraw()
 
-    def redraw(self) -> None:
-        """Draw both plots from the samples recorded so far, unless they show them already (a hidden view draws
-        them when it is shown)."""
-        self._timer.stop()  # this draw shows every sample recorded so far
-        if self._plots_current and self._canvas is not None:
-            return
-        started_s = time.monotonic()
-        self._draw_poses()
-        curves = self.arrival_curves()
-        if curves:
-            self._draw_arrivals(curves)
-        else:
-            self._draw_stream()
-        self._plotted_s = time.monotonic() - started_s
-        self.canvas.draw_idle()
+    def schedule_redraw(self) -> int:
+        """Hand the samples recorded so far to the render thread and return at once (its number); the picture
+        replaces the shown one when it is ready."""
+        self._timer.stop()  # this redraw shows every sample recorded so far
         self._plots_current = True
+        ratio = self.picture.devicePixelRatioF()
+        self._asked += 1
+        self._renderer.submit(_Job(self._data.snapshot(), round(self.picture.width() * ratio),
+                                   round(self.picture.height() * ratio), self._asked))
+        return self._asked
 
-    def _draw_arrivals(self, curves: list[tuple[str, np.ndarray, np.ndarray]]) -> None:
-        axes = self.stream_axes
+    def redraw(self, timeout_s: float = 60.0) -> None:
+        """Draw both plots from the samples recorded so far and wait until the render thread has (for a caller
+        that reads the figure, and for screenshots; the window itself uses :meth:`schedule_redraw`)."""
+        number = self._asked if self._plots_current and self._asked else self.schedule_redraw()
+        self._renderer.wait_for(number, timeout_s)
+
+    def _show_picture(self, image: QImage, summary: str, render_s: float, number: int) -> None:
+        """The window's thread: show a finished picture (a QPixmap is made here, never on another thread)."""
+        self.picture.setPixmap(QPixmap.fromImage(image))
+        self.picture.pixmap().setDevicePixelRatio(self.picture.devicePixelRatioF())
+        self.summary.setText(summary)
+        self.renders += 1
+        self.drawn_at_s = time.monotonic()
+        self.render_s = render_s
+
+    @staticmethod
+    def _draw_arrivals(axes: "Axes", data: _Samples, curves: list[tuple[str, np.ndarray, np.ndarray]]) -> None:
         axes.clear()
-        axes.set_title(f"arrivals {self.title}: distance from the settled position".strip(), fontsize=9)
+        axes.set_title(f"arrivals {data.title}: distance from the settled position".strip(), fontsize=9)
         axes.set_xlabel("time from the move's reported end (s)")
         axes.set_ylabel("d (mm)")
         for index, (label, t_s, distance) in enumerate(curves):
@@ -357,16 +425,17 @@ class LiveView(QWidget):
         axes.set_ylim(0, max(2 * max(ISO9283_STABILISATION_BANDS_MM), min(10.0, max(d.max() for *_, d in curves))))
         axes.legend(fontsize=7, loc="upper right")
 
-    def _draw_poses(self) -> None:
-        axes = self.pose_axes
+    @staticmethod
+    def _draw_poses(axes: "Axes", data: _Samples) -> str:
+        """The pose plot; returns the summary line (the window's thread shows it with the picture)."""
         axes.clear()
         axes.set_title("attained - commanded (x-y)", fontsize=9)
         axes.set_xlabel("dx (mm)")
         axes.set_ylabel("dy (mm)")
         axes.axhline(0, color="0.8", lw=0.8)
         axes.axvline(0, color="0.8", lw=0.8)
-        statistics = self.pose_statistics()
-        table = self.pose_table()
+        statistics = data.pose_statistics()
+        table = data.pose_table()
         if not table.empty:
             for index, (label, _pose, _conditions, rows) in enumerate(_condition_groups(table)):
                 colour = f"C{index % 10}"
@@ -382,17 +451,17 @@ class LiveView(QWidget):
                     axes.add_patch(Circle(centre, stats["RP_mm"], fill=False, color=colour, lw=1))
             axes.legend(fontsize=7, loc="upper right")
             axes.set_aspect("equal", adjustable="datalim")
-        self.summary.setText(self._summary_text(statistics))
+        return LiveView._summary_text(statistics)
 
-    def _draw_stream(self) -> None:
-        axes = self.stream_axes
+    @staticmethod
+    def _draw_stream(axes: "Axes", data: _Samples) -> None:
         axes.clear()
-        axes.set_title(f"sensor stream {self.title}".strip(), fontsize=9)
+        axes.set_title(f"sensor stream {data.title}".strip(), fontsize=9)
         axes.set_xlabel("wall-clock time since the run started (s)")
         from matplotlib.ticker import MaxNLocator
 
         axes.xaxis.set_major_locator(MaxNLocator(nbins=6))
-        stream = self.stream()
+        stream = data.stream()
         for name, (times, series) in sorted(stream.items()):
             axes.plot(times, series, ".", ms=3, label=name)
         if stream:
