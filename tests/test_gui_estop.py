@@ -10,7 +10,7 @@ import pytest
 
 pytest.importorskip("PySide6")
 
-from gui_support import RUN_TIMEOUT_S, WireLog, application, serve_events, wait_for
+from gui_support import RUN_TIMEOUT_S, WireLog, serve_events, wait_for
 from PySide6.QtCore import Qt, QTimer
 from PySide6.QtTest import QTest
 from PySide6.QtWidgets import QApplication, QMessageBox
@@ -26,7 +26,7 @@ def _click(widget) -> None:
 
 
 def _moving_run(window, *, speed_factor: float = 40.0, samples: int = 2):
-    """A long run that is moving (its controller's link observed) once ``samples`` are stored."""
+    """A long run that is moving once ``samples`` are stored: (its worker, its controller's link observed)."""
     window.robot_panel.speed_factor.setValue(speed_factor)
     panel = window.campaign_panel
     panel.choose_file(EXAMPLES / "iso9283_pose_quick.toml")
@@ -50,7 +50,7 @@ def _ended_by_the_stop(window, tmp_path):
 def test_the_stop_reaches_the_wire_while_a_modal_dialog_is_open(window, tmp_path):
     """F12 in a modal dialog (an application-modal one, as Qt's own dialogs can be) stops the robot before the
     dialog returns; the window's own "Open..." dialog is not modal, so the button stays clickable too."""
-    worker, wire = _moving_run(window)
+    _, wire = _moving_run(window)
     mark = wire.mark()
     modal = QMessageBox(QMessageBox.Icon.Information, "modal", "an application-modal dialog", parent=window)
     modal.setWindowModality(Qt.WindowModality.ApplicationModal)
@@ -65,7 +65,9 @@ def test_the_stop_reaches_the_wire_while_a_modal_dialog_is_open(window, tmp_path
         QTest.keyClick(target, Qt.Key.Key_F12)
         poll_until_stopped()
 
-    def poll_until_stopped(tries: list[int] = [0]) -> None:
+    tries = [0]
+
+    def poll_until_stopped() -> None:
         tries[0] += 1
         if wire.stopped_since(mark) or tries[0] > RUN_TIMEOUT_S * 50:
             seen["stopped before the dialog returned"] = wire.stopped_since(mark)
@@ -89,7 +91,7 @@ def test_the_open_dialog_is_not_modal_and_the_button_stops_the_robot_while_it_is
     guard.stop()
     dialog = window.campaign_panel.file_dialog
     assert dialog is not None and dialog.isVisible() and QApplication.activeModalWidget() is None
-    worker, wire = _moving_run(window)  # started from the window while the dialog is open
+    _, wire = _moving_run(window)  # started from the window while the dialog is open
     mark = wire.mark()
     _click(window.estop)
     wait_for(lambda: wire.stopped_since(mark), RUN_TIMEOUT_S, "STOP on the wire")
@@ -102,7 +104,7 @@ def test_the_open_dialog_is_not_modal_and_the_button_stops_the_robot_while_it_is
 def test_the_stop_reaches_the_wire_while_a_redraw_of_the_live_view_is_in_progress(window, tmp_path, monkeypatch):
     """A redraw held open (a gate in the pose plot's drawing, as a slow redraw under load) does not hold the
     stop: STOP is on the wire before that redraw ends."""
-    worker, wire = _moving_run(window)
+    _, wire = _moving_run(window)
     drawing, release = threading.Event(), threading.Event()
     order: list[str] = []
     draw_poses = LiveView._draw_poses
@@ -158,7 +160,7 @@ def test_after_a_jog_emergency_stop_jog_needs_a_reset(window):
 
 
 def test_closing_the_window_during_a_run_stops_the_robot_first_then_asks(window, tmp_path):
-    worker, wire = _moving_run(window)
+    _, wire = _moving_run(window)
     mark = wire.mark()
     window.close()
     # the press went out within close(): the window asks, and stays responsive meanwhile
