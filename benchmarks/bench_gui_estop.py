@@ -147,18 +147,35 @@ def stop_latency(window, presses: int) -> tuple[list[float], list[float]]:
     return through_window, direct
 
 
-def event_loop_blocks(window, cycles: int) -> list[float]:
-    """Lateness of each 10 ms probe tick during one simulated campaign from the window, seconds."""
-    lateness, last = [], [time.perf_counter()]
+def _probe() -> tuple[QTimer, list[float], list[float], list[float]]:
+    """A 10 ms probe timer (not started) and its lists: lateness of each tick (s), its time, the last tick."""
+    lateness, at, last = [], [], [time.perf_counter()]
 
     def tick() -> None:
         now = time.perf_counter()
         lateness.append(max(0.0, now - last[0] - PROBE_MS / 1000))
+        at.append(now)
         last[0] = now
 
     probe = QTimer()
     probe.setTimerType(Qt.TimerType.PreciseTimer)
     probe.timeout.connect(tick)
+    return probe, lateness, at, last
+
+
+def idle_blocks(seconds: float) -> list[float]:
+    """The floor: the same probe for ``seconds`` with the window idle (no run, no redraw), same load."""
+    probe, lateness, _, last = _probe()
+    last[0] = time.perf_counter()
+    probe.start(PROBE_MS)
+    _serve(round(seconds * 1000))
+    probe.stop()
+    return lateness
+
+
+def event_loop_blocks(window, cycles: int) -> tuple[list[float], float]:
+    """Lateness of each 10 ms probe tick during one simulated campaign from the window, seconds; its duration."""
+    probe, lateness, at, last = _probe()
     panel = window.campaign_panel
     panel.choose_file(Path(__file__).resolve().parents[1] / "examples" / "iso9283_pose_quick.toml")
     panel.form.set_value("cycles", str(cycles))
@@ -167,10 +184,15 @@ def event_loop_blocks(window, cycles: int) -> list[float]:
     panel.start()
     last[0] = time.perf_counter()
     probe.start(PROBE_MS)
+    started = last[0]
     _wait(lambda: panel.worker is None, 600, "the campaign")
     probe.stop()
-    print(f"  campaign: {panel.last_outcome}; live view pictures: {window.live_view.renders}")
-    return lateness
+    print(f"  campaign: {panel.last_outcome} in {at[-1] - started:.1f} s; live view pictures: "
+          f"{window.live_view.renders}")
+    longest = sorted(range(len(lateness)), key=lateness.__getitem__)[-3:]
+    print("  longest blocks: " + ", ".join(f"{lateness[i] * 1000:.0f} ms at {at[i] - started:.2f} s"
+                                           for i in reversed(longest)))
+    return lateness, at[-1] - started
 
 
 def _figures(seconds: list[float]) -> str:
@@ -207,8 +229,11 @@ def main() -> int:
             print(f"press -> STOP on the wire, through the window: {_figures(through_window)}")
             print(f"floor, emergency_stop() from a plain thread:   {_figures(direct)}")
             print(f"  ratio of medians window / floor: {np.median(through_window) / np.median(direct):.2f}")
-            lateness = event_loop_blocks(window, args.cycles)
+            lateness, seconds = event_loop_blocks(window, args.cycles)
             print(f"event-loop block during a run ({PROBE_MS} ms probe, its lateness): {_figures(lateness)}")
+            floor = idle_blocks(seconds)
+            print(f"floor, the same probe with the window idle, as long:  {_figures(floor)}")
+            print(f"  ratio of maxima run / idle: {max(lateness) / max(max(floor), 1e-6):.2f}")
             window.close()
             _serve(200)
     finally:

@@ -16,7 +16,6 @@ from PySide6.QtTest import QTest
 from PySide6.QtWidgets import QApplication, QMessageBox
 
 from bench.gui.campaign_panel import EXAMPLES
-from bench.gui.live_view import LiveView
 from bench.gui.robot_panel import LATCHED_TEXT
 from bench.store import Store
 
@@ -102,20 +101,22 @@ def test_the_open_dialog_is_not_modal_and_the_button_stops_the_robot_while_it_is
 
 
 def test_the_stop_reaches_the_wire_while_a_redraw_of_the_live_view_is_in_progress(window, tmp_path, monkeypatch):
-    """A redraw held open (a gate in the pose plot's drawing, as a slow redraw under load) does not hold the
-    stop: STOP is on the wire before that redraw ends."""
+    """A redraw held open (a gate in the drawing, as a slow redraw under load) does not hold the stop: STOP is on
+    the wire before that redraw ends."""
+    from bench.gui import live_view
+
     _, wire = _moving_run(window)
     drawing, release = threading.Event(), threading.Event()
     order: list[str] = []
-    draw_poses = LiveView._draw_poses
+    render_picture = live_view._render_picture
 
     def held_redraw(*args, **kwargs):
         drawing.set()
-        release.wait(RUN_TIMEOUT_S)  # bounded: on a window that draws on its own thread this held the window
+        release.wait(RUN_TIMEOUT_S)  # bounded: a window that drew on its own thread was held here too
         order.append("STOP out when the redraw ended" if wire.stopped_since(mark) else "redraw ended first")
-        return draw_poses(*args, **kwargs)
+        return render_picture(*args, **kwargs)
 
-    monkeypatch.setattr(LiveView, "_draw_poses", staticmethod(held_redraw))
+    monkeypatch.setattr(live_view, "_render_picture", held_redraw)
     window.tabs.setCurrentWidget(window.live_view)
     mark = wire.mark()
     QTimer.singleShot(0, window.live_view._timed_redraw)  # the redraw timer's turn...

@@ -360,33 +360,26 @@ def _pose_sample(index: int) -> dict:
             "wall_s": float(index), "values": values}
 
 
-def test_the_live_view_draws_after_the_background_imports_and_only_while_it_can_be_seen(monkeypatch):
-    import threading
-
+def test_the_live_view_draws_in_its_render_process_and_only_while_it_can_be_seen():
     from bench.gui import live_view
-    from bench.gui.live_view import REDRAW_MS, LiveView
+    from bench.gui.live_view import LiveView
 
     application()
-    imported = threading.Event()
-    importing = threading.Thread(target=imported.wait, daemon=True)  # the background imports, not yet done
-    importing.start()
-    monkeypatch.setattr(live_view, "_preloading", importing)
     view = LiveView()
     view.resize(700, 500)
     view.clear("run 1", started_s=0.0)
     view.add_sample(_pose_sample(0))
     view.show()
-    serve_events(3 * REDRAW_MS)  # the window's thread answers meanwhile: the render thread waits for the imports
-    assert view.renders == 0
-    imported.set()
-    wait_for(lambda: view.renders == 1, 5, "the first picture")
+    wait_for(lambda: view.renders == 1, RUN_TIMEOUT_S, "the first picture")
     assert "P1: n=1 " in view.summary.text() and view.picture.pixmap().width() > 0
+    (render_process,) = live_view._render_executor._processes.values()
+    assert render_process.pid != os.getpid()  # drawn in the render process, not under the window's lock
     view.hide()  # another tab
     view.add_sample(_pose_sample(1))
     view._timed_redraw()  # the timer's turn (it would come after the pause the first draw asks for)
     serve_events(50)
     assert view.renders == 1 and "P1: n=1 " in view.summary.text()  # collected only
     view.show()
-    wait_for(lambda: view.renders == 2, 5, "the picture once shown")
+    wait_for(lambda: view.renders == 2, RUN_TIMEOUT_S, "the picture once shown")
     assert "P1: n=2 " in view.summary.text()
     view.close()
