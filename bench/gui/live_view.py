@@ -41,7 +41,6 @@ import time
 from typing import TYPE_CHECKING
 
 import logging
-import multiprocessing
 from concurrent.futures import ProcessPoolExecutor
 from concurrent.futures.process import BrokenProcessPool
 
@@ -52,6 +51,7 @@ from PySide6.QtWidgets import QLabel, QSizePolicy, QVBoxLayout, QWidget
 
 from bench.gui import live_plots
 from bench.gui.live_plots import Picture, Samples, render, summary_text
+from bench.gui.offload import one_worker_pool
 
 if TYPE_CHECKING:
     import pandas as pd
@@ -106,22 +106,16 @@ class _Rendered(QObject):
     done = Signal(object, str, float, int)  #: QImage, summary text, seconds the render took, job number
 
 
-#: What the render process's parent imports once, so that the render process starts with it loaded.
-_RENDER_PRELOAD = ["bench.gui.live_plots", "pandas", "matplotlib.figure", "matplotlib.backends.backend_agg",
-                   "bench.metrology.tables"]
 _render_lock = threading.Lock()
 _render_executor: ProcessPoolExecutor | None = None
 
 
 def _render_pool() -> ProcessPoolExecutor:
-    """The render process (one, started on first use and kept), forked from a clean ``forkserver`` process that has
-    imported matplotlib and pandas: no fork of the threaded Qt process."""
+    """The render process (one, started on first use and kept; :func:`bench.gui.offload.one_worker_pool`)."""
     global _render_executor
     with _render_lock:
         if _render_executor is None:
-            context = multiprocessing.get_context("forkserver")
-            context.set_forkserver_preload(_RENDER_PRELOAD)
-            _render_executor = ProcessPoolExecutor(max_workers=1, mp_context=context)
+            _render_executor = one_worker_pool()
         return _render_executor
 
 

@@ -16,6 +16,7 @@ never from the GUI thread: it waits for the result.
 from __future__ import annotations
 
 import multiprocessing
+import os
 import threading
 from collections.abc import Callable
 from concurrent.futures import ProcessPoolExecutor
@@ -25,21 +26,33 @@ from typing import Any
 
 from bench.errors import BenchError
 
-__all__ = ["in_worker_process", "shutdown_worker_process", "write_comparison_html", "write_report_html"]
+__all__ = ["in_worker_process", "one_worker_pool", "shutdown_worker_process", "write_comparison_html",
+           "write_report_html"]
 
-#: What the worker's parent process imports once, so that every worker starts with it loaded.
-_PRELOAD = ["bench.reports", "bench.store"]
+#: What the worker processes' parent (one ``forkserver`` per application) imports once, so that every worker
+#: starts with it loaded: the reports' code, and the live view's plots (its render process, bench.gui.live_view).
+_PRELOAD = ["bench.reports", "bench.store", "bench.gui.live_plots", "matplotlib.backends.backend_agg"]
+#: How much lower than the window's the worker processes' priority is (``nice`` increment; raising it needs no
+#: privilege).
+WORKER_NICENESS = 10
 _lock = threading.Lock()
 _executor: ProcessPoolExecutor | None = None
+
+
+def one_worker_pool() -> ProcessPoolExecutor:
+    """A pool of one worker process, forked from the application's clean ``forkserver`` process (no fork of the
+    threaded Qt process), which has imported :data:`_PRELOAD`. The worker runs at a lower priority (nice
+    :data:`WORKER_NICENESS`): on a loaded PC the window's thread and its emergency stop go first."""
+    context = multiprocessing.get_context("forkserver")
+    context.set_forkserver_preload(_PRELOAD)
+    return ProcessPoolExecutor(max_workers=1, mp_context=context, initializer=os.nice, initargs=(WORKER_NICENESS,))
 
 
 def _pool() -> ProcessPoolExecutor:
     global _executor
     with _lock:
         if _executor is None:
-            context = multiprocessing.get_context("forkserver")
-            context.set_forkserver_preload(_PRELOAD)
-            _executor = ProcessPoolExecutor(max_workers=1, mp_context=context)
+            _executor = one_worker_pool()
         return _executor
 
 
