@@ -64,12 +64,15 @@ class _StopTimes:
 
     def __init__(self, controller) -> None:
         self.times: list[float] = []
+        self.written = threading.Condition()  # the presser sleeps on it: no polling thread beside the window's
         link, write = controller.link, controller.link.write
 
         def noting(data: bytes, *, command: str, **options) -> None:
             write(data, command=command, **options)
             if command == "STOP":
                 self.times.append(time.perf_counter())
+                with self.written:
+                    self.written.notify_all()
 
         link.write = noting
 
@@ -115,10 +118,9 @@ def stop_latency(window, presses: int) -> tuple[list[float], list[float]]:
         before = len(stops.times)
         time.sleep(rng.uniform(0.02, 0.3))  # a random moment of the redraw cycle
         started = time.perf_counter()
-        press()
-        deadline = time.monotonic() + 10
-        while len(stops.times) == before and time.monotonic() < deadline:
-            time.sleep(0.0005)
+        with stops.written:
+            press()
+            stops.written.wait_for(lambda: len(stops.times) > before, 10)
         return stops.times[before] - started if len(stops.times) > before else float("inf")
 
     def post_press() -> None:

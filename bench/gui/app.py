@@ -38,7 +38,7 @@ from PySide6.QtWidgets import (
 
 from bench.gui.calibration_panel import CalibrationPanel
 from bench.gui.calliper_dialog import CalliperDialog
-from bench.gui.estop import EmergencyStop
+from bench.gui.estop import HANDOFF_S, EmergencyStop
 from bench.gui.messages import show_message
 from bench.gui.campaign_panel import CampaignPanel
 from bench.gui.live_view import LiveView
@@ -178,8 +178,8 @@ class MainWindow(QMainWindow):
     def emergency_stop(self) -> None:
         """Press the emergency stop: the stop thread stops the campaign's robot (the run ends aborted, resumable, no
         clean-up moves) and the jogging robot; a pending calliper dialog closes (its prompt is withdrawn). The press
-        comes first, before anything is drawn."""
-        self.estop_latch.press()
+        comes first, before anything is drawn, and the stop thread goes first (up to HANDOFF_S)."""
+        self.estop_latch.press(HANDOFF_S)
         self._close_calliper_dialog()
         self.robot_panel.show_latched()
         self.campaign_panel.refresh_buttons()

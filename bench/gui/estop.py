@@ -17,11 +17,16 @@ from __future__ import annotations
 import logging
 import threading
 import time
+from collections import deque
 from collections.abc import Callable
 
-__all__ = ["EmergencyStop"]
+__all__ = ["HANDOFF_S", "EmergencyStop"]
 
 _log = logging.getLogger(__name__)
+
+#: How long the window's thread lets the stop thread go first after a press, s (it redraws nothing meanwhile; the
+#: stop never waits for the window).
+HANDOFF_S = 0.05
 
 
 class EmergencyStop:
@@ -41,6 +46,7 @@ class EmergencyStop:
         self._lock = threading.Lock()  # only between registrations (window thread, worker start), never the stop
         self.pressed_at_s: float | None = None
         self.presses = 0
+        self._served: deque[threading.Event] = deque()  # each press's "the stop thread has called every target"
         self._thread = threading.Thread(target=self._serve, name="bench-emergency-stop", daemon=True)
         self._thread.start()
 
@@ -48,12 +54,20 @@ class EmergencyStop:
     def latched(self) -> bool:
         return self._latched.is_set()
 
-    def press(self) -> None:
-        """Latch and wake the stop thread; returns at once (safe from any thread, any number of times)."""
+    def press(self, handoff_s: float = 0.0) -> bool:
+        """Latch and wake the stop thread (safe from any thread, any number of times, never blocks beyond
+        ``handoff_s``).
+
+        ``handoff_s``: wait up to this long for the stop thread to have called every stop (the window's thread
+        passes :data:`HANDOFF_S`: on a loaded PC its own work right after a press, e.g. the jog panel's pre-flight,
+        would otherwise compete with the stop thread for the interpreter lock). True when it had."""
+        served = threading.Event()
+        self._served.append(served)
         self.pressed_at_s = time.perf_counter()
         self.presses += 1
         self._latched.set()
         self._wake.set()
+        return served.wait(handoff_s) if handoff_s > 0 else False
 
     def reset(self) -> None:
         """The operator checked the robot: runs and jogs may start again (each robot's own latch is released by
@@ -75,8 +89,13 @@ class EmergencyStop:
         while True:
             self._wake.wait()
             self._wake.clear()
+            served = []
+            while self._served:
+                served.append(self._served.popleft())
             for stop in self._targets:
                 try:
                     stop()
                 except Exception:  # noqa: BLE001 - one failed target never keeps the stop from the others
                     _log.exception("emergency stop: %r failed", stop)
+            for event in served:
+                event.set()
