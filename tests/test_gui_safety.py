@@ -237,7 +237,7 @@ def test_report_during_a_run_leaves_the_window_responsive(window, tmp_path):
     # would hold the interpreter lock for seconds of matplotlib; bench.gui.offload says why). How fast the loop
     # answers is a figure for a benchmark, not for a test on a loaded machine.
     assert answered.count(True) >= 4, answered
-    (report_process,) = offload._executor._processes.values()
+    (report_process,) = offload._reports.executor._processes.values()
     assert report_process.pid != os.getpid()
     assert worker.runner.state is RunState.RUNNING  # the run went on meanwhile
     assert (tmp_path / "reports" / "report_run1.html").is_file()
@@ -372,7 +372,7 @@ def test_the_live_view_draws_in_its_render_process_and_only_while_it_can_be_seen
     view.show()
     wait_for(lambda: view.renders == 1, RUN_TIMEOUT_S, "the first picture")
     assert "P1: n=1 " in view.summary.text() and view.picture.pixmap().width() > 0
-    (render_process,) = live_view._render_executor._processes.values()
+    (render_process,) = live_view._render_process.executor._processes.values()
     assert render_process.pid != os.getpid()  # drawn in the render process, not under the window's lock
     view.hide()  # another tab
     view.add_sample(_pose_sample(1))

@@ -41,8 +41,6 @@ import time
 from typing import TYPE_CHECKING
 
 import logging
-from concurrent.futures import ProcessPoolExecutor
-from concurrent.futures.process import BrokenProcessPool
 
 import numpy as np
 from PySide6.QtCore import QObject, Qt, QTimer, Signal
@@ -51,7 +49,7 @@ from PySide6.QtWidgets import QLabel, QSizePolicy, QVBoxLayout, QWidget
 
 from bench.gui import live_plots
 from bench.gui.live_plots import Picture, Samples, render, summary_text
-from bench.gui.offload import one_worker_pool
+from bench.gui.offload import WorkerProcess
 
 if TYPE_CHECKING:
     import pandas as pd
@@ -106,30 +104,13 @@ class _Rendered(QObject):
     done = Signal(object, str, float, int)  #: QImage, summary text, seconds the render took, job number
 
 
-_render_lock = threading.Lock()
-_render_executor: ProcessPoolExecutor | None = None
-
-
-def _render_pool() -> ProcessPoolExecutor:
-    """The render process (one, started on first use and kept; :func:`bench.gui.offload.one_worker_pool`)."""
-    global _render_executor
-    with _render_lock:
-        if _render_executor is None:
-            _render_executor = one_worker_pool()
-        return _render_executor
+#: The render process (one, started on first use and kept).
+_render_process = WorkerProcess("live view's render process")
 
 
 def _render_picture(job: _Job) -> Picture:
-    """Both plots of ``job``, drawn in the render process (a process that died is replaced at the next call)."""
-    global _render_executor
-    pool = _render_pool()
-    try:
-        return pool.submit(render, job.data, job.width_px, job.height_px).result()
-    except BrokenProcessPool:
-        with _render_lock:
-            if _render_executor is pool:
-                _render_executor = None
-        raise
+    """Both plots of ``job``, drawn in the render process."""
+    return _render_process.call(render, job.data, job.width_px, job.height_px)
 
 
 class _Renderer:
