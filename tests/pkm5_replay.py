@@ -82,6 +82,7 @@ SCRIPT = [
     (encode_line("MOVE 1 2 3 #57", 2), False),
     (encode_line("POS #58 #59", 2), False),
     (b"Q" * 97 + b"\n", False),
-    (encode_line("ID #60"), False),                             # a v1 ID returns the link to v1
-    (encode_line("POS #61"), False),
+    (encode_line("ID #60"), False),                             # a v1 ID does not downgrade a v2 link
+    (encode_line("PROTOCOL 1 #61", 2), False),                  # nor does PROTOCOL 1: ARGUMENT
+    (encode_line("POS #62", 2), False),
 ]

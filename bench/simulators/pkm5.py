@@ -88,7 +88,7 @@ class Pkm5SimDevice:
         self._line = bytearray()
         self._overflow = False
         self._booted = False
-        self.protocol = 1  # framing of the link: 1 = XOR-8, 2 = CRC-16 after PROTOCOL 2; a v1 "ID" returns to 1
+        self.protocol = 1  # framing of the link: 1 = XOR-8, 2 = CRC-16 after PROTOCOL 2 (until reset)
 
     # -- bytes in, bytes out -----------------------------------------------------------------------------------
     def feed(self, data: bytes, now_s: float) -> bytes:
@@ -120,11 +120,8 @@ class Pkm5SimDevice:
         try:
             command = wire.parse_command(line, version)
         except wire.CommandRefused as exc:  # the code and the tag follow the firmware's rules (pkm5_wire)
-            if not (version == 2 and exc.code == wire.ErrorCode.CHECKSUM and wire.is_v1_identify(line)):
-                _log.info("refused %r: %s", line, exc)
-                return _reframe(_error(exc.tag, exc.code), version)
-            command = wire.parse_command(line, 1)
-            self.protocol = version = 1
+            _log.info("refused %r: %s", line, exc)  # version 2 is kept until reset: no line downgrades it
+            return _reframe(_error(exc.tag, exc.code), version)
         return _reframe(self._execute(command, now_s), version)
 
     def tick(self, now_s: float) -> bytes:
@@ -169,7 +166,7 @@ class Pkm5SimDevice:
         if verb == "ID":
             return wire.format_reply("OK", tag, "ID", wire.DEVICE_NAME, max(wire.PROTOCOL_VERSIONS), FIRMWARE_VERSION)
         if verb == "PROTOCOL":
-            if args[0] not in wire.PROTOCOL_VERSIONS:
+            if args[0] not in wire.PROTOCOL_VERSIONS or args[0] < self.protocol:  # never back to XOR-8
                 return _error(tag, wire.ErrorCode.ARGUMENT)
             self.protocol = args[0]
             return wire.format_reply("OK", tag, "PROTOCOL", args[0])

@@ -9,8 +9,8 @@
  * phase by its velocity every tick and steps on each overflow; the other axes follow by Bresenham, so all six start
  * and finish together. The velocity ramps trapezoidally: +dv per tick (dv = a / f_tick^2 steps/tick^2) until the
  * commanded speed, and down again over as many steps as the ramp up took (symmetric, no division in the ISR).
- * Link watchdog: while moving, a gap of WATCHDOG_MS without a valid line ramps the axes down at STOP_DECEL,
- * disables the drivers and latches a WATCHDOG fault, reported on the next command.
+ * Link watchdog (in the timer interrupt): while moving, a gap of WATCHDOG_MS without a valid host command line ramps
+ * the axes down at STOP_DECEL, disables the drivers and latches a WATCHDOG fault, reported on the next command.
  *
  * Build options (-D, see firmware/Makefile): ACCEL_STEPS_S2, STOP_DECEL_STEPS_S2, WATCHDOG_MS and
  * DRIVERS_ENABLED_LEVEL (the EN pin level that powers the motors; 1 = HIGH is right for the TB6560 wiring: EN- on
@@ -37,7 +37,7 @@
 
 #define DEVICE_NAME "bench-pkm5"
 #define PROTOCOL_VERSION "2"          /* the highest offered; the link starts in 1 (XOR-8), PROTOCOL 2 -> CRC-16 */
-#define FIRMWARE_VERSION "2.0.0"
+#define FIRMWARE_VERSION "2.1.0"
 #define AXES 6
 #define MAX_LINE 96
 #define MAX_TOKENS 48
@@ -72,6 +72,14 @@ static int8_t direction[AXES];
 static uint32_t delta[AXES], error[AXES];
 static uint32_t lead_steps, done_steps, ramp_steps;
 static uint32_t phase, velocity, v_max, v_floor, dv, dv_stop;
+/* The link watchdog runs in the timer interrupt, not the main loop, so nothing that keeps the main loop busy (a
+ * babbling line, a long reply) can keep the drives powered: the interrupt starts the ramp-down WATCHDOG_MS after the
+ * last host heartbeat and drives the enable pins to the disabled level itself when the axes are at rest. */
+#define WATCHDOG_TICKS (WATCHDOG_MS * (TICK_HZ / 1000))
+static volatile uint32_t last_beat_tick;   /* ticks at the last valid host command line (written under cli) */
+static volatile uint8_t watchdog_tripped;  /* set by the interrupt; the main loop reports it and latches the fault */
+
+static void set_drivers(uint8_t on);
 
 ISR(TIMER1_COMPA_vect) {
   ticks++;
@@ -91,7 +99,16 @@ ISR(TIMER1_COMPA_vect) {
     }
     done_steps++;
   }
-  if (done_steps >= lead_steps) { motion = IDLE; return; }
+  if (done_steps >= lead_steps) state = IDLE;
+  else if (WATCHDOG_TICKS > 0 && state != HALT && ticks - last_beat_tick > WATCHDOG_TICKS) {
+    watchdog_tripped = 1;
+    state = HALT;
+  }
+  if (state == IDLE) {
+    if (watchdog_tripped) set_drivers(0);
+    motion = IDLE;
+    return;
+  }
   if (state == ACCEL) {
     if (lead_steps - done_steps <= done_steps) { ramp_steps = done_steps; state = DECEL; }
     else if (velocity + dv >= v_max) { velocity = v_max; ramp_steps = done_steps; state = CRUISE; }
@@ -102,16 +119,13 @@ ISR(TIMER1_COMPA_vect) {
   if (state == DECEL) velocity = velocity > v_floor + dv ? velocity - dv : v_floor;
   if (state == HALT) {
     if (velocity > v_floor + dv_stop) velocity -= dv_stop;
-    else { motion = IDLE; return; }
+    else {
+      set_drivers(0);  /* only the watchdog halts */
+      motion = IDLE;
+      return;
+    }
   }
   motion = state;
-}
-
-static uint32_t now_ms(void) {
-  cli();
-  uint32_t t = ticks;
-  sei();
-  return t / (TICK_HZ / 1000);
 }
 
 static void read_positions(int32_t *out) {
@@ -120,9 +134,12 @@ static void read_positions(int32_t *out) {
   sei();
 }
 
-static void set_drivers(uint8_t on) {
+static void set_drivers(uint8_t on) {  /* from the main loop and the timer interrupt: PORTA's read-modify-write atomic */
   uint8_t level_high = on ? DRIVERS_ENABLED_LEVEL : !DRIVERS_ENABLED_LEVEL;
+  uint8_t sreg = SREG;
+  cli();
   if (level_high) PORTA |= EN_MASK; else PORTA &= (uint8_t)~EN_MASK;
+  SREG = sreg;
 }
 
 /* ---- UART0: 115200 8-N-1, interrupt-driven receive ring, polled transmit -------------------------------- */
@@ -215,9 +232,7 @@ static void send_error(int32_t tag, uint8_t code, uint8_t with_positions) {
 static uint8_t enabled;
 static int32_t move_tag;
 static uint8_t move_active;          /* a MOVE whose DONE / ERR has not been sent yet */
-static uint8_t watchdog_tripped;     /* ramp-down in progress after a link timeout */
 static uint8_t fault_latched;        /* reported on the next valid command */
-static uint32_t last_line_ms;
 
 static int hex_value(char c) {
   if (c >= '0' && c <= '9') return c - '0';
@@ -310,10 +325,44 @@ static void halt_now(void) {
   sei();
 }
 
+/* The running move is over (the axes are at rest): report it. A watchdog trip wins over everything else, a STOP
+ * that arrives during its ramp-down included: the drives go to the disabled level and the fault is latched. */
+static void finish_move(uint8_t stopped) {
+  move_active = 0;
+  if (watchdog_tripped) {
+    watchdog_tripped = 0;
+    enabled = 0;
+    set_drivers(0);
+    fault_latched = 1;
+    send_error(move_tag, ERR_WATCHDOG, 1);
+  } else if (stopped) {
+    send_error(move_tag, ERR_STOPPED, 1);
+  } else {
+    reply_start("DONE", move_tag);
+    put_positions();
+    reply_send();
+  }
+}
+
+/* A host heartbeat: a valid line whose verb only a host sends (a reply echoed back to us is no heartbeat). */
+static const char *const HOST_VERBS[] = {"ID", "POS", "STOP", "ENABLE", "DISABLE", "SETPOS", "MOVE", "PROTOCOL"};
+
+static void heartbeat_if_host(const char *verb) {
+  for (uint8_t i = 0; i < sizeof HOST_VERBS / sizeof HOST_VERBS[0]; i++) {
+    if (strcmp(verb, HOST_VERBS[i]) == 0) {
+      cli();
+      last_beat_tick = ticks;
+      sei();
+      return;
+    }
+  }
+}
+
 static void execute(int32_t tag, const char *verb, uint8_t argc, const int64_t *args) {
   uint8_t busy = move_active;
   if (strcmp(verb, "PROTOCOL") == 0 && argc == 1) {
-    if (args[0] != 1 && args[0] != 2) { send_error(tag, ERR_ARGUMENT, 0); return; }
+    /* no way back to XOR-8 once CRC-16 is on: a damaged CRC line must never downgrade the link */
+    if ((args[0] != 1 && args[0] != 2) || args[0] < protocol) { send_error(tag, ERR_ARGUMENT, 0); return; }
     reply_start("OK", tag);
     put_text(" PROTOCOL");
     put_long((int32_t)args[0]);
@@ -332,8 +381,7 @@ static void execute(int32_t tag, const char *verb, uint8_t argc, const int64_t *
   } else if (strcmp(verb, "STOP") == 0 && argc == 0) {
     if (busy) {
       halt_now();
-      move_active = 0;
-      send_error(move_tag, ERR_STOPPED, 1);
+      finish_move(1);
     }
     reply_start("OK", tag);
     put_text(" STOP");
@@ -387,12 +435,6 @@ static uint8_t frame_ok(const char *line, uint8_t length, uint8_t version, uint8
   return claimed == actual;
 }
 
-static uint8_t is_plain_id(const char *line, uint8_t body) {  /* exactly "ID #" + 1-9 digits */
-  if (body < 5 || body > 13 || strncmp(line, "ID #", 4) != 0) return 0;
-  for (uint8_t i = 4; i < body; i++) if (line[i] < '0' || line[i] > '9') return 0;
-  return 1;
-}
-
 /* One received line (terminator removed). Order of checks, as bench/robots/pkm5_wire.py: length (done by the
  * reader), one trailing '\r' dropped, empty -> ignored, '*HH' and checksum -> CHECKSUM #0, then the tokens:
  * the tag is trusted when exactly one token starts with '#' and it is '#' + 1-9 digits; every later refusal
@@ -402,14 +444,11 @@ static void handle_line(char *line, uint8_t length) {
   if (length == 0) return;
   uint8_t body;
   if (!frame_ok(line, length, protocol, &body)) {
-    /* a version-1 "ID #t" returns a version-2 link to version 1 (a new host starts with it) */
-    if (!(protocol == 2 && frame_ok(line, length, 1, &body) && is_plain_id(line, body))) {
-      send_error(0, ERR_CHECKSUM, 0);
-      return;
-    }
-    protocol = 1;
-  }  line[body] = '\0';
-  last_line_ms = now_ms();
+    /* version 2 is kept until reset: a CRC line that lost two characters reads as an XOR line 1 time in 256 */
+    send_error(0, ERR_CHECKSUM, 0);
+    return;
+  }
+  line[body] = '\0';
   char *tokens[MAX_TOKENS];
   uint8_t count = 0, tag_tokens = 0, printable = 1;
   int32_t tag = 0;
@@ -437,6 +476,7 @@ static void handle_line(char *line, uint8_t length) {
     while (*p && *p != ' ') p++;
   }
   if (tag_tokens != 1) { send_error(0, ERR_SYNTAX, 0); return; }
+  if (count) heartbeat_if_host(tokens[0]);
   if (fault_latched) {
     fault_latched = 0;
     send_error(tag, ERR_WATCHDOG, 1);
@@ -463,6 +503,7 @@ static void poll_uart(void) {
       else { line_buf[line_len] = '\0'; handle_line(line_buf, line_len); }
       line_len = 0;
       line_overflow = 0;
+      return;  /* one line per pass: the main loop reports the motion between lines, whatever the babble */
     } else if (line_len >= MAX_LINE) {
       line_overflow = 1;
     } else {
@@ -472,26 +513,7 @@ static void poll_uart(void) {
 }
 
 static void poll_motion(void) {
-  if (!move_active) return;
-  if (WATCHDOG_MS > 0 && !watchdog_tripped && now_ms() - last_line_ms > WATCHDOG_MS) {
-    watchdog_tripped = 1;
-    cli();
-    if (motion != IDLE) motion = HALT;
-    sei();
-  }
-  if (motion != IDLE) return;
-  move_active = 0;
-  if (watchdog_tripped) {
-    watchdog_tripped = 0;
-    enabled = 0;
-    set_drivers(0);
-    fault_latched = 1;
-    send_error(move_tag, ERR_WATCHDOG, 1);
-  } else {
-    reply_start("DONE", move_tag);
-    put_positions();
-    reply_send();
-  }
+  if (move_active && motion == IDLE) finish_move(0);
 }
 
 int main(void) {
