@@ -5,6 +5,7 @@ test_robots_pkm5_wire.py).
 """
 
 import re
+import threading
 import time
 
 import numpy as np
@@ -238,10 +239,21 @@ def test_lost_move_acceptance_asks_the_position_and_waits_for_done():
 
 def test_lost_move_acceptance_with_the_robot_elsewhere_raises():
     with exchange([("MOVE 2656 2656 2669 2669 2720 2720 200 #1", None),
-                   ("POS #2", "OK #2 POS 800 800 800 800 1600 1600 IDLE")]) as robot, \
+                   ("POS #2", "OK #2 POS 800 800 800 800 1600 1600 IDLE")], heartbeat_s=60) as robot, \
             pytest.raises(LinkError, match=r"MOVE #1 not confirmed: the controller is IDLE at \(800, 800, 800, 800, "
                                            r"1600, 1600\), expected a move to \(2656, "):
         robot.move_steps(POINT_3_1_STEPS)
+
+
+def test_the_heartbeat_flows_while_a_lost_move_acceptance_is_awaited():
+    """Issue 31 item 10: waiting up to reply_timeout_s for a lost ``OK MOVE`` must not starve the firmware's
+    150 ms link watchdog: a POS heartbeat goes out within the wait (one here: beat 50 ms, wait 80 ms)."""
+    with exchange([("MOVE 2656 2656 2669 2669 2720 2720 200 #1", None),
+                   ("POS #2", "OK #2 POS 1000 1000 1000 1000 1800 1800 MOVING"),  # the heartbeat
+                   ("POS #3", ["OK #3 POS 1000 1000 1000 1000 1800 1800 MOVING",  # the recovery's question
+                               "DONE #1 2656 2656 2669 2669 2720 2720"])],
+                  reply_timeout_s=0.08, heartbeat_s=0.05) as robot:
+        assert robot.move_steps(POINT_3_1_STEPS) == POINT_3_1_STEPS
 
 
 def test_missing_done_sends_stop_and_raises():  # a DONE deadline shorter than the heartbeat: one POS at the end
@@ -359,3 +371,29 @@ def test_a_geometry_that_is_not_the_frozen_geometry_is_proved_again_each_time():
     editable.geometry = longer
     assert pkm5_kinematics.steps_for_pose(POINT_3_1, editable) == pkm5_kinematics.steps_for_pose(POINT_3_1, longer)
     assert pkm5_kinematics.steps_for_pose(POINT_3_1, longer) != POINT_3_1_STEPS
+
+
+def test_a_stop_from_another_thread_is_resent_until_acknowledged():
+    """Issue 31 item 11: the first STOP is lost (noise); stop() from another thread sends it again until the waiting
+    move reads an acknowledgement, and the move ends STOPPED, not at its target."""
+    stopped = "ERR #1 8 STOPPED 900 900 900 900 1700 1700"
+    port = ScriptedPort([("MOVE 2656 2656 2669 2669 2720 2720 200 #1", "OK #1 MOVE 9345"),
+                         (b"\n" + wire.encode_line("STOP #2"), None),  # lost
+                         (b"\n" + wire.encode_line("STOP #3"), [stopped, "OK #3 STOP 900 900 900 900 1700 1700"])],
+                        frame=wire.encode_line)
+    robot = Pkm5Controller(port, reply_timeout_s=5.0, heartbeat_s=60)
+    outcome = []
+
+    def mover():
+        try:
+            outcome.append(robot.move_steps(POINT_3_1_STEPS))
+        except ControllerError as exc:
+            outcome.append(exc.code)
+
+    thread = threading.Thread(target=mover)
+    thread.start()
+    while len(port.unused) == 3:  # until the MOVE is written (the mover then holds the line)
+        threading.Event().wait(0.001)
+    assert robot.stop() is None
+    thread.join(10)
+    assert outcome == [8] and port.unused == []

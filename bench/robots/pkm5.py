@@ -309,6 +309,8 @@ class Pkm5Controller:
                 continue
             if reply.kind == "ERR":
                 code = reply.ints(0, 1)[0]
+                if code == wire.ErrorCode.STOPPED:  # the move ended by a STOP: acknowledges a cross-thread stop()
+                    self._stop_acknowledged.set()
                 name = reply.fields[1] if len(reply.fields) > 1 else "?"
                 raise ControllerError(f"{self.link.port_name}: controller refused {verb!r} with error {code} "
                                       f"{name} ({' '.join(reply.fields[2:])})".rstrip(" ()"), code)
