@@ -155,9 +155,9 @@ def test_a_crc_line_that_lost_two_characters_does_not_downgrade_the_link(built, 
     edges = run_script(built, tmp_path / "events.txt", host.lines, 0.3)
     said = [e.line for e in edges if e.kind == "TX"]
     assert wire.decode_line(said[-4], 2) == "ERR #0 2 CHECKSUM"
-    assert wire.decode_line(said[-3], 2).startswith("OK #4 POS")
-    assert wire.decode_line(said[-2], 2) == "ERR #5 4 ARGUMENT"
-    assert wire.decode_line(said[-1], 2).startswith("OK #6 POS")
+    assert wire.decode_line(said[-3], 2).startswith("OK #3 POS")
+    assert wire.decode_line(said[-2], 2) == "ERR #4 4 ARGUMENT"
+    assert wire.decode_line(said[-1], 2).startswith("OK #5 POS")
 
 
 def random_kills(count, seed):
