@@ -44,6 +44,7 @@ class Host:
         while t <= until_s + 1e-9:
             self.send(t, "POS")
             t += 0.05
+        return t - 0.05
 
 
 def host_lines(edges):
@@ -100,8 +101,8 @@ def test_a_silent_host_mid_move_loses_the_drives_within_250_ms(built, tmp_path):
 def test_a_stop_during_the_ramp_down_keeps_the_trip_and_the_next_move_is_watched(built, tmp_path):
     """Item 6: a STOP 170 ms after the last heartbeat (the ramp-down runs 150-190 ms) must not clear the trip."""
     host = Host()
-    host.move_with_heartbeats(0.05, 0.5)
-    host.send(0.5 + 0.170, "STOP")
+    last = host.move_with_heartbeats(0.05, 0.5)
+    host.send(last + 0.170, "STOP")
     host.send(0.9, "POS")  # answered by the latched fault
     host.move_with_heartbeats(1.0, 1.2, "MOVE 800 800 800 800 1600 1600 1000")  # back home, then silence
     edges = run_script(built, tmp_path / "events.txt", host.lines, 2.5)

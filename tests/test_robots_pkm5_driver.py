@@ -247,12 +247,11 @@ def test_lost_move_acceptance_with_the_robot_elsewhere_raises():
 
 def test_the_heartbeat_flows_while_a_lost_move_acceptance_is_awaited():
     """Issue 31 item 10: waiting up to reply_timeout_s for a lost ``OK MOVE`` must not starve the firmware's
-    150 ms link watchdog: a POS heartbeat goes out within the wait (one here: beat 50 ms, wait 80 ms)."""
+    150 ms link watchdog: a POS heartbeat goes out within the wait (beat 50 ms, wait 300 ms); the move's DONE
+    arrives after it (without the beat the driver would ask POS after 300 ms and read the DONE as a stale line)."""
     with exchange([("MOVE 2656 2656 2669 2669 2720 2720 200 #1", None),
-                   ("POS #2", "OK #2 POS 1000 1000 1000 1000 1800 1800 MOVING"),  # the heartbeat
-                   ("POS #3", ["OK #3 POS 1000 1000 1000 1000 1800 1800 MOVING",  # the recovery's question
-                               "DONE #1 2656 2656 2669 2669 2720 2720"])],
-                  reply_timeout_s=0.08, heartbeat_s=0.05) as robot:
+                   ("POS #2", "DONE #1 2656 2656 2669 2669 2720 2720")],  # the heartbeat, then the DONE
+                  reply_timeout_s=0.3, heartbeat_s=0.05) as robot:
         assert robot.move_steps(POINT_3_1_STEPS) == POINT_3_1_STEPS
 
 
