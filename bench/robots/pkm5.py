@@ -149,6 +149,7 @@ class Pkm5Controller:
         self._version = 1  # link framing; identify() negotiates 2 (CRC-16) with a controller that offers it
         self._stops_sent: set[int] = set()  # tags of STOPs written past a waiting command (another thread's stop)
         self._stop_acknowledged = threading.Event()  # set by the waiting command when one of them is answered
+        self._stops_requested = 0  # stop() calls so far: a MOVE is never re-sent across one (under _write)
 
     # -- description -------------------------------------------------------------------------------------------
     def settings(self) -> dict[str, Any]:
@@ -347,7 +348,7 @@ class Pkm5Controller:
                 raise LinkError(f"{self.link.port_name}: 'ID' answered {' '.join(fields)!r}, expected "
                                 f"'ID {wire.DEVICE_NAME} {offered} <firmware version>' (wrong device?)")
             version = int(fields[2])
-            if version == 1 or self._version == 2:
+            if version == 1:
                 break
             try:  # a lost OK leaves the controller's framing unknown: ask ID again (a CRC-16 refusal tells)
                 self._exchange("PROTOCOL", (version,))
@@ -393,6 +394,8 @@ class Pkm5Controller:
         :data:`STOP_SENDS` times; None is returned, or LinkError when no STOP was acknowledged. Takes no lock a
         waiting mover holds (only the write lock, held for one write).
         """
+        with self._write:
+            self._stops_requested += 1
         if not self._line.acquire(blocking=False):
             self._stop_acknowledged.clear()
             for _ in range(STOP_SENDS):
@@ -461,19 +464,32 @@ class Pkm5Controller:
         speed = int(_checked_number("speed_steps_s", self.speed_steps_s if speed_steps_s is None else speed_steps_s,
                                     1, 1000))
         tag = next(self._tags)
-        with self._write:
-            if self._stop_latched:
-                raise LinkError(f"{self.link.port_name}: MOVE to {targets} refused: an emergency stop is latched; "
-                                "enable() the controller to move again")
-            self._send(wire.format_command("MOVE", (*targets, speed), tag, self._version), command="MOVE")
+        line = wire.format_command("MOVE", (*targets, speed), tag, self._version)
+        stops_before = self._stops_requested
+        # Version 3 controllers answer a MOVE with the tag of the last one they accepted without executing it again,
+        # so a MOVE whose OK does not come (corrupted either way) is re-sent as it was; never across a stop().
+        sends = 1 + (self.retries if self._version >= 3 else 0)
         try:
-            try:
-                # heartbeats while waiting: a lost OK must not leave the watchdog without a valid line
-                reply = self._await(tag, "MOVE", ("OK", "DONE"), self.reply_timeout_s, heartbeat=True)
-            except (LinkTimeout, WireProtocolError) as exc:  # acceptance lost (noise): ask before doing anything
-                _log.warning("%s: MOVE #%d acceptance lost (%s); querying the controller", self.link.port_name,
-                             tag, exc)
-                return self._recover_move(tag, targets, speed)
+            for send in range(1, sends + 1):
+                with self._write:
+                    if self._stop_latched:
+                        raise LinkError(f"{self.link.port_name}: MOVE to {targets} refused: an emergency stop is "
+                                        "latched; enable() the controller to move again")
+                    if self._stops_requested != stops_before:
+                        raise LinkError(f"{self.link.port_name}: MOVE #{tag} not re-sent: stop() was called")
+                    self._send(line, command="MOVE")
+                try:
+                    # heartbeats while waiting: a lost OK must not leave the watchdog without a valid line
+                    reply = self._await(tag, "MOVE", ("OK", "DONE"), self.reply_timeout_s, heartbeat=True)
+                    break
+                except (LinkTimeout, WireProtocolError) as exc:  # acceptance lost (noise)
+                    if send < sends:
+                        _log.warning("%s: MOVE #%d not acknowledged (%s); sent again", self.link.port_name, tag, exc)
+                        self._noisy = True
+                        continue
+                    _log.warning("%s: MOVE #%d acceptance lost (%s); querying the controller", self.link.port_name,
+                                 tag, exc)
+                    return self._recover_move(tag, targets, speed)
             if reply.kind == "DONE":
                 return reply.ints(0, wire.AXES)
             duration_s = reply.ints(1, 1)[0] / 1000.0

@@ -36,7 +36,7 @@ __all__ = [
 
 PROTOCOL_VERSION = 1
 #: Protocol versions this module speaks: 1 = XOR-8 ``*HH``, 2 = CRC-16-CCITT ``*HHHH`` (negotiated after ``ID``).
-PROTOCOL_VERSIONS = (1, 2)
+PROTOCOL_VERSIONS = (1, 2, 3)
 DEVICE_NAME = "bench-pkm5"
 AXES = 6
 MAX_LINE = 96

@@ -36,8 +36,8 @@
 #endif
 
 #define DEVICE_NAME "bench-pkm5"
-#define PROTOCOL_VERSION "2"          /* the highest offered; the link starts in 1 (XOR-8), PROTOCOL 2 -> CRC-16 */
-#define FIRMWARE_VERSION "2.1.0"
+#define PROTOCOL_VERSION "3"  /* the highest offered; the link starts in 1 (XOR-8), PROTOCOL 2 -> CRC-16, 3 -> + MOVE dedup */
+#define FIRMWARE_VERSION "3.0.0"
 #define AXES 6
 #define MAX_LINE 96
 #define MAX_TOKENS 48
@@ -160,7 +160,7 @@ static void uart_put(char c) {
 
 static char reply[MAX_LINE + 8];
 static uint8_t reply_len;
-static uint8_t protocol = 1;          /* framing: 1 = *HH XOR-8, 2 = *HHHH CRC-16-CCITT */
+static uint8_t protocol = 1;          /* 1 = *HH XOR-8, 2 = *HHHH CRC-16-CCITT, 3 = CRC-16 + MOVE retransmission */
 
 /* CRC-16-CCITT: polynomial 0x1021, initial 0xFFFF, no reflection, no final XOR (check("123456789") = 0x29B1). */
 static uint16_t crc16(const char *bytes, uint8_t length) {
@@ -199,7 +199,7 @@ static void reply_send(void) {
   static const char HEX[] = "0123456789ABCDEF";
   uint16_t check;
   uint8_t digits;
-  if (protocol == 2) {
+  if (protocol >= 2) {
     check = crc16(reply, reply_len);
     digits = 4;
   } else {
@@ -233,6 +233,12 @@ static uint8_t enabled;
 static int32_t move_tag;
 static uint8_t move_active;          /* a MOVE whose DONE / ERR has not been sent yet */
 static uint8_t fault_latched;        /* reported on the next valid command */
+/* Version 3: the last accepted MOVE, so that a retransmission (the same tag) is answered, never executed again */
+static int32_t last_move_tag = -1;
+static int32_t last_move_duration;
+static uint8_t last_move_end;        /* 0 while it runs, else ERR_STOPPED, ERR_WATCHDOG or 0xFF (DONE) */
+static int32_t last_move_where[AXES];
+#define END_DONE 0xFF
 
 static int hex_value(char c) {
   if (c >= '0' && c <= '9') return c - '0';
@@ -289,11 +295,16 @@ static void start_move(int32_t tag, const int64_t *targets, uint32_t speed) {
     uint8_t high = (d < 0) ^ DIR_INVERTED[i];
     if (high) *DIR_PORT[i] |= DIR_BIT[i]; else *DIR_PORT[i] &= (uint8_t)~DIR_BIT[i];
   }
+  last_move_tag = tag;
+  last_move_duration = longest == 0 ? 0 : move_duration_ms(longest, speed);
+  last_move_end = 0;
   reply_start("OK", tag);
   put_text(" MOVE");
-  put_long(longest == 0 ? 0 : move_duration_ms(longest, speed));
+  put_long(last_move_duration);
   reply_send();
   if (longest == 0) {
+    last_move_end = END_DONE;
+    read_positions(last_move_where);
     reply_start("DONE", tag);
     put_positions();
     reply_send();
@@ -329,6 +340,8 @@ static void halt_now(void) {
  * that arrives during its ramp-down included: the drives go to the disabled level and the fault is latched. */
 static void finish_move(uint8_t stopped) {
   move_active = 0;
+  read_positions(last_move_where);
+  last_move_end = watchdog_tripped ? ERR_WATCHDOG : stopped ? ERR_STOPPED : END_DONE;
   if (watchdog_tripped) {
     watchdog_tripped = 0;
     enabled = 0;
@@ -358,11 +371,29 @@ static void heartbeat_if_host(const char *verb) {
   }
 }
 
+/* A retransmitted MOVE (version 3, the tag of the last accepted one): its OK again and, once it has ended, its end. */
+static void replay_move(void) {
+  reply_start("OK", last_move_tag);
+  put_text(" MOVE");
+  put_long(last_move_duration);
+  reply_send();
+  if (!last_move_end) return;
+  if (last_move_end == END_DONE) reply_start("DONE", last_move_tag);
+  else {
+    reply_start("ERR", last_move_tag);
+    put_long(last_move_end);
+    put_text(" ");
+    put_text(ERROR_NAMES[last_move_end]);
+  }
+  for (uint8_t i = 0; i < AXES; i++) put_long(last_move_where[i]);
+  reply_send();
+}
+
 static void execute(int32_t tag, const char *verb, uint8_t argc, const int64_t *args) {
   uint8_t busy = move_active;
   if (strcmp(verb, "PROTOCOL") == 0 && argc == 1) {
     /* no way back to XOR-8 once CRC-16 is on: a damaged CRC line must never downgrade the link */
-    if ((args[0] != 1 && args[0] != 2) || args[0] < protocol) { send_error(tag, ERR_ARGUMENT, 0); return; }
+    if (args[0] < 1 || args[0] > 3 || args[0] < protocol) { send_error(tag, ERR_ARGUMENT, 0); return; }
     reply_start("OK", tag);
     put_text(" PROTOCOL");
     put_long((int32_t)args[0]);
@@ -408,7 +439,8 @@ static void execute(int32_t tag, const char *verb, uint8_t argc, const int64_t *
     }
   } else if (strcmp(verb, "MOVE") == 0 && argc == AXES + 1) {
     int64_t speed = args[AXES];
-    if (busy) send_error(tag, ERR_BUSY, 0);
+    if (protocol >= 3 && tag == last_move_tag) replay_move();
+    else if (busy) send_error(tag, ERR_BUSY, 0);
     else if (speed < 1 || speed > MAX_SPEED_STEPS_S) send_error(tag, ERR_ARGUMENT, 0);
     else if (!within_limits(args)) send_error(tag, ERR_LIMIT, 0);
     else if (!enabled) send_error(tag, ERR_DISABLED, 0);
@@ -420,7 +452,7 @@ static void execute(int32_t tag, const char *verb, uint8_t argc, const int64_t *
 
 /* Whether line[0..length) ends in a valid *HH (version 1) or *HHHH (version 2); *body = the body length. */
 static uint8_t frame_ok(const char *line, uint8_t length, uint8_t version, uint8_t *body) {
-  uint8_t digits = version == 2 ? 4 : 2;
+  uint8_t digits = version >= 2 ? 4 : 2;
   if (length < digits + 1 || line[length - digits - 1] != '*') return 0;
   uint16_t claimed = 0;
   for (uint8_t i = length - digits; i < length; i++) {
@@ -430,7 +462,7 @@ static uint8_t frame_ok(const char *line, uint8_t length, uint8_t version, uint8
   }
   *body = length - digits - 1;
   uint16_t actual = 0;
-  if (version == 2) actual = crc16(line, *body);
+  if (version >= 2) actual = crc16(line, *body);
   else for (uint8_t i = 0; i < *body; i++) actual ^= (uint8_t)line[i];
   return claimed == actual;
 }
