@@ -297,6 +297,10 @@ class Pkm5Controller:
                 continue
             if reply.tag in self._stops_sent:  # a STOP sent from another thread: its acknowledgement
                 self._stop_acknowledged.set()
+                if done_at is not None:  # the controller ends the move (ERR 8) before it answers STOP: that was lost
+                    raise ControllerError(f"{self.link.port_name}: MOVE #{tag} ended by STOP #{reply.tag} (its "
+                                          f"'ERR #{tag} 8 STOPPED' lost; STOP answered {' '.join(reply.fields)})",
+                                          wire.ErrorCode.STOPPED)
                 continue
             if reply.tag in beats:
                 if done_at is not None and reply.kind == "OK" and _idle_at(reply, done_at):

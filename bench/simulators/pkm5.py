@@ -91,7 +91,7 @@ class Pkm5SimDevice:
         self.protocol = 1  # framing of the link: 1 = XOR-8, 2 = CRC-16 after PROTOCOL 2 (until reset), 3 = + dedup
         #: version 3: the last accepted MOVE's tag, its OK and (once it ended) its end reply, for a retransmission
         self._last_move: tuple[int, bytes, bytes] = (-1, b"", b"")
-        self.executed_moves = 0  #: MOVEs started (a retransmission answered from _last_move is not one)
+        self.started_moves: list[int] = []  #: tags of the MOVEs started (a retransmission answered is not one)
 
     # -- bytes in, bytes out -----------------------------------------------------------------------------------
     def feed(self, data: bytes, now_s: float) -> bytes:
@@ -253,7 +253,7 @@ class Pkm5SimDevice:
         ok = wire.format_reply("OK", tag, "MOVE", round(duration_ms(int(np.max(np.abs(target - self.steps))), speed)
                                                         / self.speed_factor))
         self._last_move = (tag, ok, b"")
-        self.executed_moves += 1
+        self.started_moves.append(tag)
         return ok
 
     def _stop(self, tag: int, now_s: float) -> bytes:
