@@ -199,3 +199,21 @@ def test_random_host_kills_disable_the_drives_within_250_ms(built, tmp_path):
     """Item (d): 40 random kills in one emulated run (tools/pkm5_kill_drill.py runs more)."""
     worst, watched = kill_drill(built, tmp_path / "events.txt", 40, seed=31)
     assert watched > 20 and worst < LIMIT_S
+
+
+def test_a_move_resent_with_its_tag_is_answered_not_executed_again(built, tmp_path):
+    """Item 12 (protocol 3): the driver re-sends a MOVE whose OK it did not get; the firmware answers it again (and,
+    once it has ended, its end) without a second execution: the STEP edges are one move's."""
+    host = Host()
+    host.lines[-1] = (0.020, host.frame("PROTOCOL 3", 1))
+    host.send(0.03, "ENABLE", 3)
+    move = host.frame("MOVE 900 800 800 800 1600 1600 1000", 3)
+    host.lines += [(0.04, move), (0.06, move)]
+    for k in range(6):
+        host.send(0.1 + 0.05 * k, "POS", 3)  # heartbeats: the move takes 316 ms
+    host.lines.append((0.40, move))
+    edges = run_script(built, tmp_path / "events.txt", host.lines, 0.6)
+    said = [r for r in replies(edges) if " #5 " in r]
+    assert said == ["OK #5 MOVE 316", "OK #5 MOVE 316", "DONE #5 900 800 800 800 1600 1600", "OK #5 MOVE 316",
+                    "DONE #5 900 800 800 800 1600 1600"]
+    assert sum(1 for e in edges if e.kind == "STEP" and e.level == 1) == 100

@@ -19,6 +19,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 FW = "firmware/pkm5/pkm5.c"
 DRIVER = "bench/robots/pkm5.py"
+SIMULATOR = "bench/simulators/pkm5.py"
 SAFETY = "tests/test_firmware_pkm5_safety.py::"
 DRIVER_TESTS = "tests/test_robots_pkm5_driver.py::"
 
@@ -45,6 +46,14 @@ MUTATIONS = {
                                         DRIVER_TESTS + "test_the_heartbeat_flows_while_a_lost_move_acceptance_is_awaited"),
     "item11-stop-sent-once": (DRIVER, "STOP_SENDS = 10", "STOP_SENDS = 1",
                               DRIVER_TESTS + "test_a_stop_from_another_thread_is_resent_until_acknowledged"),
+    "item12-firmware-executes-a-resent-move": (FW, "if (protocol >= 3 && tag == last_move_tag) replay_move();",
+                                               "if (0) replay_move();",
+                                               SAFETY + "test_a_move_resent_with_its_tag_is_answered_not_executed_again"),
+    "item12-simulator-executes-a-resent-move": (SIMULATOR, 'if verb == "MOVE" and self.protocol >= 3 and tag == '
+                                                'self._last_move[0]:', "if False:",
+                                                "tests/test_pkm5_noisy_link.py"),
+    "item12-move-resent-across-a-stop": (DRIVER, "if self._stops_requested != stops_before:", "if False:",
+                                         "tests/test_pkm5_noisy_link.py"),
 }
 
 
