@@ -69,15 +69,17 @@ static void load_script(const char *path) {
   fclose(f);
 }
 
-static void log_tx(uint8_t byte) {
-  static char line[2 * 256 + 1];
-  static size_t length;
+void bridge_log_line_byte(FILE *events, avr_cycle_count_t cycle, const char *kind, uint8_t byte) {
+  static char lines[2][2 * 128 + 1];
+  static size_t lengths[2];
+  int slot = kind[0] == 'T';
+  char *line = lines[slot];
   if (byte == '\n') {
-    line[length] = '\0';
-    fprintf(script_events, "%llu TX %s\n", (unsigned long long)script_avr->cycle, length ? line : "-");
-    length = 0;
-  } else if (length + 2 < sizeof line) {
-    length += (size_t)sprintf(line + length, "%02x", byte);
+    line[lengths[slot]] = '\0';
+    fprintf(events, "%llu %s %s\n", (unsigned long long)cycle, kind, lengths[slot] ? line : "-");
+    lengths[slot] = 0;
+  } else if (lengths[slot] + 2 < sizeof lines[slot]) {
+    lengths[slot] += (size_t)sprintf(line + lengths[slot], "%02x", byte);
   }
 }
 
@@ -98,7 +100,7 @@ static void on_tx(struct avr_irq_t *irq, uint32_t value, void *param) {
   (void)irq;
   (void)param;
   if (script) {
-    log_tx((uint8_t)value);
+    bridge_log_line_byte(script_events, script_avr->cycle, "TX", (uint8_t)value);
     return;
   }
   if (outbox_len == OUTBOX) {
