@@ -396,3 +396,30 @@ def test_a_stop_from_another_thread_is_resent_until_acknowledged():
     assert robot.stop() is None
     thread.join(10)
     assert outcome == [8] and port.unused == []
+
+
+def test_an_unacknowledged_move_is_not_resent_after_a_stop():
+    """Protocol 3 re-sends a MOVE whose OK does not come, but never once stop() was called meanwhile: the re-sent
+    MOVE would start a move the operator stopped."""
+    v3 = lambda body: wire.encode_line(body, 3)  # noqa: E731
+    port = ScriptedPort([("ID #1", "OK #1 ID bench-pkm5 3 3.0.0"), ("PROTOCOL 3 #2", "OK #2 PROTOCOL 3"),
+                         (v3("MOVE 2656 2656 2669 2669 2720 2720 200 #3"), None),  # its OK lost
+                         (b"\n" + v3("STOP #4"), v3("OK #4 STOP 800 800 800 800 1600 1600"))],
+                        frame=wire.encode_line)
+    robot = Pkm5Controller(port, reply_timeout_s=0.3, heartbeat_s=60)
+    assert robot.identify().protocol_version == 3
+    failure = []
+
+    def mover():
+        try:
+            robot.move_steps(POINT_3_1_STEPS)
+        except LinkError as exc:
+            failure.append(str(exc))
+
+    thread = threading.Thread(target=mover)
+    thread.start()
+    while len(port.unused) == 2:  # until the MOVE is written
+        threading.Event().wait(0.001)
+    assert robot.stop() is None
+    thread.join(10)
+    assert len(failure) == 1 and "MOVE #3 not re-sent: stop() was called" in failure[0] and port.unused == []
