@@ -162,7 +162,8 @@ def test_a_crc_line_that_lost_two_characters_does_not_downgrade_the_link(built, 
 
 
 def random_kills(count, seed):
-    """``count`` moves, each killed (the host falls silent) at a random time; a new host clears the fault."""
+    """``count`` moves, each killed (the host falls silent) at a random time; a new host clears the fault. Returns
+    the host, (when each MOVE was sent, when its host fell silent), and the end time."""
     rng = random.Random(seed)
     host, t, kills = Host(), 0.05, []
     for _ in range(count):
@@ -174,7 +175,7 @@ def random_kills(count, seed):
         while beat < kill:
             host.send(beat, "POS")
             beat += 0.05
-        kills.append(kill)
+        kills.append((t + 0.010, kill))
         t = kill + 0.5
     return host, kills, t
 
@@ -186,9 +187,9 @@ def kill_drill(built, events, count, seed):
     beats = host_lines(edges)
     done = [e.t_s for e in edges if e.kind == "TX" and e.line.startswith(b"DONE")]
     worst, watched = 0.0, 0
-    for kill in kills:
+    for move, kill in kills:
         last = max(t for t in beats if t <= kill + 0.01)
-        if not [t for t in done if last < t < kill + 0.5]:  # a move that ended (DONE) keeps its drives at rest
+        if not [t for t in done if move < t < kill + 0.5]:  # a move that ended (DONE) keeps its drives at rest
             worst = max(worst, powered_after(edges, last))
             watched += 1
     return worst, watched

@@ -1,7 +1,7 @@
 """Random host kills against the pkm5 firmware on the emulated ATmega2560 (issue 31): moves to random targets at
 random speeds, the host falling silent at a random moment of each, in the harness's script mode (deterministic
 emulated time). Prints the worst time from the last host line to the drives' disabled level over every kill that
-caught a move running (the promise: <= 250 ms; the design: <= 190.1 ms).
+caught a move running (the promise: <= 250 ms; measured: about 192 ms).
 
     python tools/pkm5_kill_drill.py --kills 10000 [--per-run 200] [--seed 0]
 
