@@ -401,7 +401,9 @@ def test_a_stop_from_another_thread_is_resent_until_acknowledged():
 def test_an_unacknowledged_move_is_not_resent_after_a_stop():
     """Protocol 3 re-sends a MOVE whose OK does not come, but never once stop() was called meanwhile: the re-sent
     MOVE would start a move the operator stopped."""
-    v3 = lambda body: wire.encode_line(body, 3)  # noqa: E731
+    def v3(body):
+        return wire.encode_line(body, 3)
+
     port = ScriptedPort([("ID #1", "OK #1 ID bench-pkm5 3 3.0.0"), ("PROTOCOL 3 #2", "OK #2 PROTOCOL 3"),
                          (v3("MOVE 2656 2656 2669 2669 2720 2720 200 #3"), None),  # its OK lost
                          (b"\n" + v3("STOP #4"), v3("OK #4 STOP 800 800 800 800 1600 1600"))],

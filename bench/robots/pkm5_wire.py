@@ -29,8 +29,7 @@ from bench.robots.link import FramedLink, WireProtocolError
 
 __all__ = [
     "AXES", "COMMAND_ARITY", "DEVICE_NAME", "MAX_LINE", "PROTOCOL_VERSION", "PROTOCOL_VERSIONS", "Command",
-    "CommandRefused", "ErrorCode", "LineLink", "crc16",
-    "Reply", "checksum", "decode_line", "encode_line", "format_command", "format_reply", "parse_command",
+    "CommandRefused", "ErrorCode", "LineLink", "Reply", "checksum", "crc16", "decode_line", "encode_line", "format_command", "format_reply", "parse_command",
     "parse_reply",
 ]
 

@@ -117,7 +117,7 @@ def corrupted_frames_drill(rate: float, moves: int, *, seed: int = 0, stop_every
             stops += 1
             outcome: list[bool] = []
 
-            def stop_mid_move() -> None:
+            def stop_mid_move(outcome: list[bool] = outcome) -> None:
                 time.sleep(float(rng.uniform(0.0, 0.1)))
                 try:
                     robot.stop()
