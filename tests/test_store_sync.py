@@ -137,7 +137,7 @@ def test_bad_url_credentials_and_server_are_one_line_each(tmp_path, lab_url, cap
                                        "postgresql://USER:PASSWORD@HOST/DBNAME URL")
     assert main(["sync", "--store", str(path), "--to", "postgresql://bench@/lab?colour=blue"]) == 2
     line = _one_error_line(capsys)  # libpq's own words follow: "invalid URI query parameter" in libpq 15
-    assert line.startswith("bench: error: lab store postgresql://bench@/lab?colour=blue: not a valid PostgreSQL "
+    assert line.startswith("bench: error: --to postgresql://bench@/lab?colour=blue: not a valid PostgreSQL "
                            "URL (invalid ") and '"colour"' in line
     wrong = lab_url.replace(PASSWORD, "not-the-password") if PASSWORD in lab_url else lab_url + "&password=nope"
     assert main(["sync", "--store", str(path), "--to", wrong, "--retries", "0"]) == 1

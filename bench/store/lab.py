@@ -32,13 +32,13 @@ import hashlib
 import itertools
 import json
 import logging
+import re
 import sys
 import time
 from collections.abc import Callable, Iterable, Iterator, Mapping
 from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass
 from typing import Any, Self
-from urllib.parse import urlsplit, urlunsplit
 
 from bench.errors import BenchError, ConfigError
 from bench.store.database import RunRecord, Store
@@ -46,8 +46,8 @@ from bench.store.lab_copy import (COPY_COLUMNS, SAMPLE_COLUMNS, TYPED_COLUMNS, c
                                   typed_columns_ddl)
 from bench.store.lab_summary import POSE_TABLES_BACKFILL, POSE_TABLES_DDL
 
-__all__ = ["LAB_SCHEMA_VERSION", "LabStore", "LabStoreError", "LabURLError", "SyncResult", "is_lab_url",
-           "open_runs_store", "redacted", "rows_checksum", "sync_after_run", "sync_store"]
+__all__ = ["LAB_SCHEMA_VERSION", "LabStore", "LabStoreError", "LabURLError", "SyncResult", "check_lab_url",
+           "is_lab_url", "open_runs_store", "redacted", "rows_checksum", "sync_after_run", "sync_store"]
 
 _log = logging.getLogger(__name__)
 
@@ -136,13 +136,38 @@ def is_lab_url(spec: str) -> bool:
     return str(spec).startswith(("postgresql://", "postgres://"))
 
 
+#: ``scheme://user:PASSWORD@`` and ``password=VALUE`` (a query parameter or a conninfo keyword): what
+#: :func:`redacted` hides. The user part stops at the first ``:``; the password runs to the last ``@`` (an unencoded
+#: ``@`` in a password hides a little more, never less), wherever such a URL stands in the text.
+_PASSWORD_PARTS = (re.compile(r"([A-Za-z][A-Za-z0-9+.-]*://[^:/@?#\s\"']*):[^\s\"']*@"),
+                   re.compile(r"(?i)\b(password=)[^&\s]*"))
+#: libpq's own checks of an option's value start so ("invalid sslmode value", "invalid port number",
+#: "invalid integer value ... for connection option"): a bad URL, not an unreachable server.
+_BAD_OPTION = re.compile(r"^(connection is bad: )?invalid ")
+
+
 def redacted(url: str) -> str:
-    """``url`` with its password replaced by ``***`` (for messages)."""
-    parts = urlsplit(url)
-    if parts.password is None:
-        return url
-    netloc = parts.netloc.replace(f":{parts.password}@", ":***@", 1)
-    return urlunsplit(parts._replace(netloc=netloc))
+    """``url`` with its password (user info or ``password=`` parameter) replaced by ``***``, for messages; never
+    fails, whatever the text (a malformed URL is shown redacted too)."""
+    shown = _PASSWORD_PARTS[0].sub(r"\1:***@", str(url))
+    return _PASSWORD_PARTS[1].sub(r"\1***", shown)
+
+
+def check_lab_url(url: str, option: str = "lab store") -> None:
+    """Refuse, in one :class:`LabURLError` line with the password hidden, a lab store address that is not a
+    well-formed PostgreSQL URL: another scheme, a malformed host, an unknown parameter, a port out of range. Nothing
+    is connected to; a bad value that only libpq knows (``sslmode=bogus``) is refused by :func:`connect` as fast."""
+    shown = redacted(url)
+    if not is_lab_url(url):
+        raise LabURLError(f"{option} {shown}: expected a postgresql://USER:PASSWORD@HOST/DBNAME URL")
+    psycopg = _psycopg()
+    try:
+        options = psycopg.conninfo.conninfo_to_dict(url)
+    except psycopg.ProgrammingError as exc:
+        raise LabURLError(f"{option} {shown}: not a valid PostgreSQL URL ({redacted(_one_line(exc))})") from None
+    for port in str(options.get("port", "5432")).split(","):
+        if not (port.isdigit() and 1 <= int(port) <= 65535):
+            raise LabURLError(f"{option} {shown}: port {port!r}, expected a number from 1 to 65535")
 
 
 def _psycopg():
@@ -160,18 +185,15 @@ def _one_line(exc: BaseException) -> str:
 
 def connect(url: str, *, connect_timeout_s: int = 5):
     """An open psycopg connection to ``url``; :class:`LabStoreError` says in one line what is wrong."""
+    check_lab_url(url)
     psycopg = _psycopg()
     shown = redacted(url)
-    if not is_lab_url(url):
-        raise LabURLError(f"lab store {shown}: expected a postgresql://USER:PASSWORD@HOST/DBNAME URL")
-    try:
-        psycopg.conninfo.conninfo_to_dict(url)
-    except psycopg.ProgrammingError as exc:
-        raise LabURLError(f"lab store {shown}: not a valid PostgreSQL URL ({_one_line(exc)})") from exc
     try:
         return psycopg.connect(url, connect_timeout=connect_timeout_s)
     except psycopg.OperationalError as exc:
-        detail = _one_line(exc)
+        detail = redacted(_one_line(exc))
+        if _BAD_OPTION.match(detail):
+            raise LabURLError(f"lab store {shown}: not a usable PostgreSQL URL ({detail})") from None
         if "password authentication failed" in detail or "no password supplied" in detail:
             raise LabStoreError(f"lab store {shown}: bad credentials ({detail})") from exc
         if "does not exist" in detail:
@@ -412,7 +434,7 @@ def sync_store(store: Store, url: str, *, batch_size: int = 20_000, retries: int
             finally:
                 conn.close()
             return SyncResult(runs, calibrations, sent[0], time.perf_counter() - started)
-        except (psycopg.OperationalError, LabStoreError) as exc:
+        except (psycopg.OperationalError, LabStoreError) as exc:  # (a LabURLError is no LabStoreError: at once)
             retryable = isinstance(exc, psycopg.OperationalError) or "server unreachable" in str(exc)
             if not retryable or attempt >= retries:
                 if isinstance(exc, LabStoreError):
