@@ -211,12 +211,16 @@ def summarize(protocol: Protocol, *, singularity_threshold: float | None = None,
     strokes = _StrokeTally()
     distinct: dict[tuple[float, ...], str] = {}
     settle_s = captures_s = 0.0
+    width = len(model.target_fields)
+    names: dict[type, str] = {}  # per step type, its count's name ("moves")
     for step in iterate(protocol):
-        counts[type(step).__name__.lower() + "s"] += 1
+        kind = type(step)
+        counts[names.get(kind) or names.setdefault(kind, kind.__name__.lower() + "s")] += 1
         if isinstance(step, Move):
             target = tuple(step.target)
-            padded = tuple(model.as_targets([target])[0]) if len(target) < len(model.target_fields) else target
-            distinct.setdefault(tuple(float(v) for v in padded), step.label or str(counts["moves"] - 1))
+            key = target if len(target) == width else tuple(model.as_targets([target])[0])  # (1 == 1.0 as keys)
+            if key not in distinct:
+                distinct[key] = step.label or str(counts["moves"] - 1)
             timer.add(target, step.velocity_pct)
         elif isinstance(step, ActuatorMove):
             strokes.add(step)

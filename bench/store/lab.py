@@ -152,6 +152,11 @@ _PASSWORD_PARTS = (re.compile(r"([A-Za-z][A-Za-z0-9+.-]*://[^:/@?#\s\"']*):[^\s\
 _BAD_OPTION = re.compile(r"^(connection is bad: )?invalid ")
 
 
+#: What the server (or its socket's full listen queue: EAGAIN) says when it has no connection slot free now.
+_BUSY = ("too many clients", "too many connections for role", "remaining connection slots are reserved",
+         "Resource temporarily unavailable")
+
+
 def redacted(url: str) -> str:
     """``url`` with its password (user info or ``password=`` parameter) replaced by ``***``, for messages; never
     fails, whatever the text (a malformed URL is shown redacted too)."""
@@ -202,8 +207,7 @@ def connect(url: str, *, connect_timeout_s: int = 5):
             raise LabURLError(f"lab store {shown}: not a usable PostgreSQL URL ({detail})") from None
         if "password authentication failed" in detail or "no password supplied" in detail:
             raise LabStoreError(f"lab store {shown}: bad credentials ({detail})") from exc
-        if any(words in detail for words in ("too many clients", "too many connections for role",
-                                             "remaining connection slots are reserved")):
+        if any(words in detail for words in _BUSY):
             raise LabServerBusy(f"lab store {shown}: server busy, no connection slot free ({detail})") from exc
         if "does not exist" in detail:
             raise LabStoreError(f"lab store {shown}: {detail}") from exc
