@@ -17,7 +17,6 @@ from __future__ import annotations
 import argparse
 import statistics
 import sys
-import tempfile
 import threading
 import time
 from pathlib import Path
@@ -25,10 +24,11 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "tests"))
 
-from postgres_support import Cluster, _bindir, make_store, with_database  # noqa: E402
+from drill_lab_sync import drill_server
+from postgres_support import make_store
 
-from bench.store import Store  # noqa: E402
-from bench.store.lab import LabStore, rows_checksum, sync_store  # noqa: E402
+from bench.store import Store
+from bench.store.lab import LabStore, rows_checksum, sync_store
 
 
 def main(argv=None) -> int:
@@ -37,18 +37,8 @@ def main(argv=None) -> int:
     parser.add_argument("--samples", type=int, default=200, help="samples per bench (two runs)")
     parser.add_argument("--max-connections", type=int, default=100, help="the server's max_connections")
     args = parser.parse_args(argv)
-    if _bindir() is None:
-        sys.exit("drill_lab_crowd: no PostgreSQL (install Debian's postgresql: initdb, pg_ctl)")
-    cluster = Cluster(_bindir())
-    work = Path(tempfile.mkdtemp(prefix="bench-crowd-"))
-    try:
+    with drill_server("crowd", f"max_connections = {int(args.max_connections)}") as (_, url, work):
         import psycopg
-        with psycopg.connect(cluster.url, autocommit=True) as admin:
-            admin.execute('CREATE DATABASE "crowd"')
-            admin.execute(f"ALTER SYSTEM SET max_connections = {int(args.max_connections)}")
-        cluster.stop()
-        cluster.start()
-        url = with_database(cluster.url, "crowd")
         half = args.samples // 2
         start = time.perf_counter()
         paths = [make_store(work / f"bench{i:03d}.db", f"bench-{i:03d}", [args.samples - half, half])
@@ -114,11 +104,6 @@ def main(argv=None) -> int:
         for text, ok in checks:
             print(f"{'ok  ' if ok else 'FAIL'} {text}")
         return 0 if all(ok for _, ok in checks) else 1
-    finally:
-        cluster.close()
-        for path in work.glob("*"):
-            path.unlink()
-        work.rmdir()
 
 
 if __name__ == "__main__":

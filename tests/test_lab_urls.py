@@ -11,9 +11,9 @@ from hypothesis import strategies as st
 
 pytest.importorskip("psycopg", reason='the lab store needs psycopg 3 (pip install "psycopg[binary]")')
 
-from bench.cli import main  # noqa: E402
-from bench.store import Store  # noqa: E402
-from bench.store.lab import redacted  # noqa: E402
+from bench.cli import main
+from bench.store import Store
+from bench.store.lab import redacted
 
 SECRET = "s3cr3t-Pw"
 
