@@ -15,8 +15,10 @@ from typing import Any
 
 from bench.metrology.formatting import format_measured, format_value, pose_label
 from bench.reports.content import ReportBase, RunReport, axes_statement
+from bench.reports.differences import NO_DIFFERENCE, configuration_differences
 from bench.reports.orientation import orientation_blocks
 from bench.reports.plots import Plot, comparison_plot, report_plots
+from bench.reports.signature import PLACEHOLDER_SHOWN, is_placeholder
 
 __all__ = ["Document", "Figure", "Paragraph", "RawData", "Section", "Table", "assemble", "comparison_document",
            "conditions_section", "decision_blocks", "fmt_mm", "fmt_pm", "key_values", "pose_rows", "recompute_command",
@@ -134,8 +136,12 @@ def settings_appendix(report: ReportBase) -> Section:
     """Every stored setting of the robot and the instrument, for traceability (the sections show those that matter)."""
     settings = report.run.settings
     rows = [*_pairs(settings.get("robot") or {}, "robot."), *_pairs(settings.get("instrument") or {}, "instrument."),
+            *_pairs(settings.get("dut") or {}, "dut."),
             *((key, str(value)) for key, value in settings.items() if key not in ("robot", "instrument")
               and not isinstance(value, dict))]
+    # a station template's sample text ("Operator name") is stored as entered but never printed as if a value
+    rows = [(key, PLACEHOLDER_SHOWN if value not in ("—", "") and is_placeholder(value) else value)
+            for key, value in rows]
     return Section("Appendix A. All stored settings", (
         Paragraph("The complete settings stored with the run, as recorded; the sections above show the ones that "
                   "matter for the result."), key_values("settings", rows)))
@@ -271,13 +277,10 @@ def decision_blocks(rule: str, header: tuple[str, ...] = (), verdicts=()) -> tup
 
 
 def _decision(report: RunReport) -> tuple[Block, ...]:
-    u = {(name, pose_label(p.pose, p.conditions)): (p.ap_u if name == "AP_mm" else p.rp_u).expanded_uncertainty
-         for p in report.poses for name in ("AP_mm", "RP_mm")}
     return decision_blocks(report.decision.rule, ("Project criterion", "Pose", "Value ± U (mm)", "Limit (mm)",
                                                   "Result"),
-                           [(f"{name} (project criterion)", label, format_measured(value, u.get((name, label), 0.0)),
-                             f"{limit:g}", "pass" if ok else "fail")
-                            for name, label, value, limit, ok in report.decision.verdicts])
+                           [(f"{name} (project criterion)", label, format_measured(value, u), f"{limit:g}", result)
+                            for name, label, value, u, limit, result in report.decision.verdicts])
 
 
 def _raw(raw: list[RawData], notes: tuple[str, ...], recompute: str) -> Section:
@@ -309,7 +312,7 @@ def assemble(report: ReportBase, raw: list[RawData], *, operator: str, laborator
     """One run's report in the order of iso9283.md §9, whatever the protocol: identification, device, method and
     deviations, conditions, instruments, results, plots, decision, raw data with the recomputing command, scope."""
     return Document(
-        title=f"{report.title}: run {report.run.id}", subtitle=f"Report {report.report_id}",
+        title=report.title, subtitle=f"Report {report.report_id} (stored run {report.run.id})",
         sections=(_identification(report, operator, laboratory), _device(report), _method(report, method, scope),
                   conditions, _instruments(report), Section("6. Results", tuple(results)),
                   Section("7. Plots", tuple(Figure(p) for p in plots)), Section("8. Decision", tuple(decision)),
@@ -318,8 +321,8 @@ def assemble(report: ReportBase, raw: list[RawData], *, operator: str, laborator
         meta={"report_id": report.report_id})
 
 
-def run_document(report: RunReport, raw: list[RawData], *, operator: str = "not recorded",
-                 laboratory: str = "not recorded") -> Document:
+def run_document(report: RunReport, raw: list[RawData], *, operator: str = "—",
+                 laboratory: str = "—") -> Document:
     """The document of one pose run's report."""
     clauses = "; ".join(report.clauses) or "none"
     robot = report.run.settings.get("robot") or {}
@@ -338,13 +341,12 @@ def run_document(report: RunReport, raw: list[RawData], *, operator: str = "not 
 def comparison_document(first: RunReport, second: RunReport, raw: list[RawData]) -> Document:
     """Two runs side by side: identification, differing conditions, deviations, paired results, plot."""
     a, b = first.run, second.run
-    ident = [("Report ID", first.report_id, second.report_id), ("Protocol", a.protocol_name, b.protocol_name),
+    ident = [("Configuration ID", first.report_id, second.report_id), ("Protocol", a.protocol_name, b.protocol_name),
              ("Robot", a.robot, b.robot), ("Status", a.status, b.status),
              ("Started (UTC)", a.started_utc, b.started_utc), ("Git SHA", a.git_sha, b.git_sha),
              ("Configuration SHA-256", first.config_sha256[:16], second.config_sha256[:16]),
              ("Calibration ids", str(list(a.calibration_ids)), str(list(b.calibration_ids)))]
-    keys = sorted(set(a.config) | set(b.config))
-    differ = tuple((k, str(a.config.get(k)), str(b.config.get(k))) for k in keys if a.config.get(k) != b.config.get(k))
+    differ = configuration_differences(first, second)
     deviations = tuple((d.clause, d.topic, f"{d.status}: {d.done}", f"{e.status}: {e.done}")
                        for d, e in zip(first.deviations, second.deviations))
     second_poses = {r.label: r for r in second.poses}
@@ -361,12 +363,12 @@ def comparison_document(first: RunReport, second: RunReport, raw: list[RawData])
                        format_value(s.repeatability.rp_mm - r.repeatability.rp_mm, u_rp, signed=True)))
     runs = f"run {a.id} (A) and run {b.id} (B)"
     return Document(
-        title=f"Comparison of {runs}", subtitle=f"Reports {first.report_id} / {second.report_id}",
+        title=f"Comparison of {runs}", subtitle=f"Runs {a.id} (A) and {b.id} (B)",
         sections=(
             Section("1. Identification", (Table("identification", ("Item", f"A: run {a.id}", f"B: run {b.id}"),
                                                 tuple(ident)),)),
             Section("2. Conditions that differ", (Table("conditions", ("Parameter", "A", "B"), differ or (
-                ("—", "identical configuration", ""),)),)),
+                ("—", NO_DIFFERENCE, ""),), "Configuration, settings and calibrations in force"),)),
             Section("3. Deviations from ISO 9283", (Paragraph(SCOPE), Table(
                 "deviations", ("Clause", "Topic", "A", "B"), deviations)),),
             Section("4. Results", (Table("results", ("Pose", "AP_P ± U A (mm)", "AP_P ± U B (mm)", "ΔAP (B − A)",

@@ -58,7 +58,7 @@ def trend_document(reports: Sequence[RunReport], histories: Sequence[tuple[Histo
                           str(len(h) - 2)) for r, h in zip(reports, histories))
     ids = ", ".join(str(r.run.id) for r in reports)
     return Document(
-        title=f"Trend over runs {ids}", subtitle=f"Reports {', '.join(r.report_id for r in reports)}",
+        title=f"Trend over runs {ids}", subtitle=f"Runs {ids}",
         sections=(
             Section("1. Results per run", (
                 Paragraph("Each run's headline as its own report gives it; runs in the order they started."
