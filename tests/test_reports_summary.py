@@ -1,5 +1,5 @@
 """Page 1 of a report: identity, headline per velocity and load, verdict per characteristic, SIMULATED banner on
-every page, run history; and one rounding in results.csv, report.md and the HTML."""
+every page, run history; and one rounding in results.csv and the HTML."""
 
 from __future__ import annotations
 
@@ -124,7 +124,7 @@ def test_history_table_shows_the_end_status(tmp_path):
     assert [event for _, event in history] == ["started", "aborted: stopped by the operator"]
 
 
-def test_results_csv_markdown_and_html_give_the_same_numbers(stored, simulated_report):
+def test_results_csv_and_html_give_the_same_numbers(stored, simulated_report):
     folder, store, run_id, _ = stored
     paths = simulated_report
     results = analyze_run(store, run_id)

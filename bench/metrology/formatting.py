@@ -3,7 +3,7 @@
 GUM (JCGM 100:2008) 7.2.6: the numerical values of an estimate and its uncertainty should not be given with an
 excessive number of digits; it usually suffices to quote U to at most two significant digits, and the estimate is
 then rounded to the same decimal place. This module is the one home of that rule; the HTML and PDF reports, the
-demo's ``results.csv``/``report.md`` and the CLI's text output all call it, so the same number reads the same
+demo's ``results.csv`` and the CLI's text output all call it, so the same number reads the same
 everywhere.
 
 Examples
