@@ -108,6 +108,8 @@ class InstrumentInfo:
     rp_floor_mm: float | None  #: expected RP of a perfect robot seen through this instrument
     calibrations: tuple[CalibrationRecord, ...]
     fits: tuple[CalibrationFit, ...] = ()
+    #: the readings' last recorded decimal (manual readings), mm: no printed figure is finer (formatting)
+    resolution_mm: float | None = None
 
 
 @dataclass(frozen=True)
@@ -245,10 +247,10 @@ def reading_instrument(run: RunRecord, calibrations: tuple[CalibrationRecord, ..
     stored = dict(run.settings.get("instrument") or {})
     own = stored if reader is None else {}
     budget: list[tuple[str, float, str]] = []
+    step = reading_step_mm(readings)
     if "u_mm" in own:
         budget.append(("instrument, per reading", float(own["u_mm"]), f"{STATED} standard uncertainty"))
     else:
-        step = reading_step_mm(readings)
         if step is not None:
             budget.append((f"resolution ({'difference of the zero and the reading' if difference else 'one reading'})",
                            resolution_uncertainty(step, difference=difference),
@@ -258,7 +260,7 @@ def reading_instrument(run: RunRecord, calibrations: tuple[CalibrationRecord, ..
                            f"{STATED} maximum permissible error, {own['mpe_mm']} mm, rectangular"))
     sigma = combine(*(u for _, u, _ in budget)) if budget else None
     settings = stored if reader is None else {"readings": reader, **({"rig": stored} if stored else {})}
-    return InstrumentInfo(settings, sigma, tuple(budget), 1, None, calibrations)
+    return InstrumentInfo(settings, sigma, tuple(budget), 1, None, calibrations, resolution_mm=step)
 
 
 #: How a budget line whose figure the stored instrument settings state (u or MPE) names its source.

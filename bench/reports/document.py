@@ -13,7 +13,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Any
 
-from bench.metrology.formatting import format_measured, format_value, pose_label
+from bench.metrology.formatting import format_length, format_measured, format_uncertainty, format_value, pose_label
 from bench.reports.content import ReportBase, RunReport, axes_statement
 from bench.reports.differences import NO_DIFFERENCE, configuration_differences
 from bench.reports.orientation import orientation_blocks
@@ -21,8 +21,8 @@ from bench.reports.plots import Plot, comparison_plot, report_plots
 from bench.reports.signature import PLACEHOLDER_SHOWN, is_placeholder
 
 __all__ = ["Document", "Figure", "Paragraph", "RawData", "Section", "Table", "assemble", "comparison_document",
-           "conditions_section", "decision_blocks", "fmt_mm", "fmt_pm", "key_values", "pose_rows", "recompute_command",
-           "run_document"]
+           "conditions_section", "decision_blocks", "fmt_mm", "fmt_pm", "key_values", "pose_rows", "reading_formatter",
+           "recompute_command", "run_document"]
 
 SCOPE = ("Tested following the methods of ISO 9283:1998, with the deviations listed in the deviations table. "
          "Results are ISO 9283-style; this is not an ISO 9283 certification.")
@@ -75,9 +75,20 @@ class Document:
     meta: dict[str, Any] = field(default_factory=dict)
 
 
-def fmt_mm(value: float) -> str:
-    """A length without an uncertainty of its own (a budget component, a floor): to 0.1 µm."""
-    return f"{value:.4f}"
+def fmt_mm(value: float, resolution_mm: float | None = None) -> str:
+    """A length without an uncertainty of its own: to 1 µm, never finer than the readings' ``resolution_mm``
+    (:func:`bench.metrology.formatting.format_length`)."""
+    return format_length(value, resolution=resolution_mm)
+
+
+def reading_formatter(report: ReportBase):
+    """``mm(value, signed=False)`` for the figures of ``report`` without a U of their own: to 1 µm, never finer than
+    its readings' resolution (``report.instrument.resolution_mm``: 0.01 mm calliper readings -> 2 decimals)."""
+    resolution = getattr(report.instrument, "resolution_mm", None)
+
+    def mm(value: float, signed: bool = False) -> str:
+        return format_length(value, resolution=resolution, signed=signed)
+    return mm
 
 
 def fmt_pm(measured) -> str:
@@ -199,12 +210,13 @@ def _instruments(report: ReportBase) -> Section:
                          for c in info.calibrations)
     blocks.append(Table("calibrations", ("ID", "Name", "Version", "Date (UTC)", "Notes"), calibrations or (
         ("—", "no stored calibration in force", "", "", ""),), "Calibrations in force"))
-    budget = [(name, fmt_mm(u), source) for name, u, source in info.budget]
+    budget = [(name, format_uncertainty(u), source) for name, u, source in info.budget]
     if info.sigma_mm is not None:
-        budget.append((f"combined, per {'axis' if info.rp_floor_mm is not None else 'reading'}", fmt_mm(info.sigma_mm),
+        budget.append((f"combined, per {'axis' if info.rp_floor_mm is not None else 'reading'}",
+                       format_uncertainty(info.sigma_mm),
                        "root sum of squares"))
     if info.rp_floor_mm is not None:
-        budget.append((f"instrument RP floor ({info.dims}-D)", fmt_mm(info.rp_floor_mm),
+        budget.append((f"instrument RP floor ({info.dims}-D)", format_uncertainty(info.rp_floor_mm),
                        "RP a perfect robot would show through this instrument (its noise only)"))
     blocks.append(Table("budget", ("Component", "Standard uncertainty (mm)", "Source"), tuple(budget) or (
         ("—", "—", "no length uncertainty stated or derivable"),), "Instrument uncertainty budget"))
@@ -216,7 +228,8 @@ def pose_rows(report: RunReport) -> tuple[tuple[str, ...], tuple[tuple[str, ...]
     angles = report.poses[0].angle_names if report.poses else ()
     header = ("Pose", "n", "Command x, y, z (mm)", "AP_P ± U (mm)", "AP_x (mm)", "AP_y (mm)", "AP_z (mm)",
               "RP_l ± U (mm)", "RP floor (mm)", *(f"AP_{a} / RP_{a} (°)" for a in angles))
-    floor = fmt_mm(report.instrument.rp_floor_mm) if report.instrument.rp_floor_mm is not None else "—"
+    floor = (format_uncertainty(report.instrument.rp_floor_mm) if report.instrument.rp_floor_mm is not None
+             else "—")
     rows = []
     for r in report.poses:
         u_ap = r.ap_u.expanded_uncertainty
@@ -244,8 +257,8 @@ def _results(report: RunReport) -> tuple[Block, ...]:
         blocks.append(Table("distance", ("Pair / conditions", "D_c (mm)", "D̄ (mm)", "AD_p (mm)", "RD (mm)",
                                          f"U(AD) (mm, k = {k})", *(f"AD_{a} / RD_{a} (°)" for a in angles)),
                             tuple((d.label, fmt_mm(d.result.commanded_distance_mm), fmt_mm(d.result.mean_distance_mm),
-                                   fmt_mm(d.result.ad_mm), f"± {fmt_mm(d.result.rd_mm)}",
-                                   fmt_mm(d.u_ad.expanded_uncertainty),
+                                   format_value(d.result.ad_mm, d.u_ad.expanded_uncertainty),
+                                   f"± {fmt_mm(d.result.rd_mm)}", format_uncertainty(d.u_ad.expanded_uncertainty),
                                    *(f"{ad:+.3f} / ±{rd:.3f}" for ad, rd in (
                                        zip(d.orientation.ad_deg, d.orientation.rd_deg) if d.orientation else ())))
                                   for d in report.distances),
