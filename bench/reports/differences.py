@@ -6,6 +6,8 @@ from __future__ import annotations
 
 from typing import Any
 
+from bench.reports.signature import PLACEHOLDER_SHOWN, is_placeholder
+
 __all__ = ["NO_DIFFERENCE", "configuration_differences"]
 
 #: What the comparison prints when nothing differs.
@@ -37,4 +39,7 @@ def configuration_differences(first, second) -> tuple[tuple[str, str, str], ...]
                       **_calibrations(report)})
     a, b = sides
     keys = [*a, *(k for k in b if k not in a)]
-    return tuple((k, a.get(k, "—"), b.get(k, "—")) for k in keys if a.get(k) != b.get(k))
+
+    def shown(value: str) -> str:  # a template's sample text is never printed as a value
+        return PLACEHOLDER_SHOWN if value != "—" and is_placeholder(value) else value
+    return tuple((k, shown(a.get(k, "—")), shown(b.get(k, "—"))) for k in keys if a.get(k) != b.get(k))

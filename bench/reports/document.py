@@ -161,7 +161,8 @@ def settings_appendix(report: ReportBase) -> Section:
 def _device(report: ReportBase) -> Section:
     robot = report.run.settings.get("robot") or {}
     rows = [("Robot", report.run.robot), ("Kinematic type", _KINEMATICS.get(report.run.robot, "not stated")),
-            ("Tool centre / measuring point", robot.get("tcp", "not stated (platform centre of the model)")),
+            ("Tool centre point (stored robot setting)",
+             robot.get("tcp", "not stored (the measuring point is stated on page 1)")),
             *_shown(robot, _ROBOT_SHOWN)]
     return Section("2. Device under test", (key_values("device", rows),))
 
