@@ -42,7 +42,8 @@ def content_hash(document) -> str:
 
 
 def _prefix(stem: str) -> str:
-    """``report_run7`` -> ``BR-00007``, ``compare_run1_run2`` -> ``BC-00001-00002``, ``trend_run1_...`` -> ``BT-00001``."""
+    """``report_run7`` -> ``BR-00007``, ``compare_run1_run2`` -> ``BC-00001-00002``, ``trend_run1_...`` ->
+    ``BT-00001``."""
     runs = [int(part[3:]) for part in stem.split("_") if part.startswith("run") and part[3:].isdigit()]
     kind = {"report": "BR", "compare": "BC", "trend": "BT"}.get(stem.split("_", 1)[0], "BR")
     shown = runs if kind != "BT" else runs[:1]
