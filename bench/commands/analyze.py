@@ -301,6 +301,8 @@ def _actuator(args: argparse.Namespace) -> int:
 
 
 def _payload(args: argparse.Namespace) -> int:
+    import numpy as np
+
     from bench.metrology import leg_error_summary
     from bench.metrology.tables import numeric_columns, read_table_csv
 
@@ -315,14 +317,20 @@ def _payload(args: argparse.Namespace) -> int:
         raise ConfigError(f"{args.file}: some load has no error for some leg, expected every leg at every load")
     s = leg_error_summary(wide.index.to_numpy(), wide.to_numpy())
     names = [str(c) for c in wide.columns]
-    result = {"legs": {n: {"max_error_mm": m, "load_at_max_kg": l, "mean_error_mm": a, "correlation_with_load": c}
-                       for n, m, l, a, c in zip(names, s.max_error_mm, s.load_at_max_kg, s.mean_error_mm,
-                                                s.correlation_with_load)},
+    # the worst error of a leg is its largest |e|, shown with its sign (a signed table's max can be a tiny positive
+    # error while the leg's real worst is a large negative one); the first load wins a tie
+    errors = wide.to_numpy()
+    at_worst = np.argmax(np.abs(errors), axis=0)
+    worst = [float(errors[i, j]) for j, i in enumerate(at_worst)]
+    worst_load = [float(wide.index[i]) for i in at_worst]
+    result = {"legs": {n: {"worst_error_mm": w, "load_at_worst_kg": wl, "max_error_mm": m, "load_at_max_kg": l,
+                           "mean_error_mm": a, "correlation_with_load": c}
+                       for n, w, wl, m, l, a, c in zip(names, worst, worst_load, s.max_error_mm, s.load_at_max_kg,
+                                                       s.mean_error_mm, s.correlation_with_load)},
               "overall_mean_mm": s.overall_mean_mm, "overall_sd_mm": s.overall_sd_mm, "n_loads": s.n_loads}
-    lines = [f"{'leg':<5} {'max_mm':>7} {'at_kg':>7} {'mean_mm':>8} {'r(load)':>8}"]
-    lines += [f"{n:<5} {m:7.3f} {l:7.2f} {a:8.3f} {('n/a' if c is None else f'{c:+.3f}'):>8}"
-              for n, m, l, a, c in zip(names, s.max_error_mm, s.load_at_max_kg, s.mean_error_mm,
-                                       s.correlation_with_load)]
+    lines = [f"{'leg':<5} {'worst_mm':>8} {'at_kg':>7} {'mean_mm':>8} {'r(load)':>8}  (worst: largest |e|, signed)"]
+    lines += [f"{n:<5} {w:+8.3f} {wl:7.2f} {a:+8.3f} {('n/a' if c is None else f'{c:+.3f}'):>8}"
+              for n, w, wl, a, c in zip(names, worst, worst_load, s.mean_error_mm, s.correlation_with_load)]
     lines.append(f"all legs: mean {s.overall_mean_mm:.3f} mm, SD {s.overall_sd_mm:.3f} mm over {s.n_loads} loads")
     emit(result, args.json, lines)
     return 0

@@ -95,6 +95,11 @@ class Protocol:
     def validate(self) -> None:
         """Cross-parameter checks; raise ``ConfigError`` naming ``self.source``. Default: none."""
 
+    def limit_warnings(self) -> tuple[str, ...]:
+        """One line per setting that goes beyond a documented failure or limit of the robot (printed by the dry
+        run before anything moves). Default: none."""
+        return ()
+
     def steps(self) -> Plan:
         """The step generator of the protocol."""
         raise NotImplementedError

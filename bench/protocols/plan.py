@@ -108,6 +108,8 @@ class PlanSummary:
     capture_s: float
     #: per actuator of the actuator bench, its commanded strokes and their pre-flight
     strokes: tuple[AxisStrokes, ...] = ()
+    #: settings beyond a documented failure or limit (:meth:`bench.protocols.base.Protocol.limit_warnings`)
+    warnings: tuple[str, ...] = ()
 
     @property
     def actuator_problems(self) -> tuple[str, ...]:
@@ -134,6 +136,7 @@ class PlanSummary:
         out.append(f"estimated duration {_hms(self.estimated_s)} (moves {_hms(self.move_s)}, settling "
                    f"{_hms(self.settle_s)}, captures {_hms(self.capture_s)}, prompts {_hms(self.prompt_s)}) at "
                    "real speed")
+        out.extend(f"WARNING: {line}" for line in self.warnings)
         if self.labels or not self.strokes:
             out.append(f"{len(self.labels)} distinct targets:")
         for i, label in enumerate(self.labels):
@@ -235,7 +238,7 @@ def summarize(protocol: Protocol, *, singularity_threshold: float | None = None,
     return PlanSummary(protocol.name, protocol.robot, dict(counts), tuple(distinct.values()), targets,
                        check.reachable, tuple(str(r) for r in check.reason), check.proximity,
                        move_s + sum(a.move_s for a in axes), settle_s, counts["prompts"] * PROMPT_S,
-                       captures_s, axes)
+                       captures_s, axes, protocol.limit_warnings())
 
 
 class _StrokeTally:
