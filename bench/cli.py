@@ -63,6 +63,17 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def _check_store_urls(args: argparse.Namespace) -> None:
+    """A ``--store`` or ``--to`` that is a URL must be a well-formed PostgreSQL one: one line, exit 2, the password
+    hidden, before any command opens anything (a file path is each command's to check)."""
+    for option in ("store", "to"):
+        spec = getattr(args, option, None)
+        if isinstance(spec, str) and "://" in spec:
+            from bench.store.lab import check_lab_url
+
+            check_lab_url(spec, f"--{option}")
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
@@ -74,6 +85,7 @@ def main(argv: list[str] | None = None) -> int:
         stream=sys.stderr,
     )
     try:
+        _check_store_urls(args)
         return int(args.handler(args) or 0)
     except (BenchError, MotionInputError) as exc:
         if args.debug:

@@ -9,6 +9,8 @@ Prints rates and ratios, asserts nothing; every figure is min / median / max of 
   compiled. Both start from the same k-d-tree guesses (part of the timed call).
 * Per-pose peer: the compiled single-pose solver (the same kernel, same Jacobian, same restarts) called once per
   pose from Python, from the same initial guesses, on a subset: what a loop over poses costs with no numpy overhead.
+  It runs on one thread, so the batched FK is compared with it at equal threads: the batched call again with this
+  process held to one CPU (its thread pool then runs every chunk on the calling thread).
 
 Targets on a 2-core machine (issues 3 and 17): IK within 10x of its floor; batched FK >= 100 k solves/s.
 Usage: ``python benchmarks/bench_pkm5.py [--ik N] [--fk N] [--peer N] [--repeat R]``.
@@ -53,6 +55,19 @@ def per_pose_peer(lengths: np.ndarray, geometry=pkm5.DEFAULT_GEOMETRY):
     for i, (q0, columns) in enumerate(zip(starts, cols)):
         poses[i, columns] = q0[0, :len(columns)]
     return seconds, poses
+
+
+def on_one_thread(function, *args, **kwargs):
+    """``spread(function, ...)`` with this thread held to one CPU and the kernels' thread pool rebuilt for it (no
+    pool: every chunk on the calling thread); the CPUs and the pool are given back afterwards."""
+    cpus = os.sched_getaffinity(0)
+    os.sched_setaffinity(0, {min(cpus)})
+    kernels._pool.cache_clear()
+    try:
+        return spread(function, *args, **kwargs)
+    finally:
+        os.sched_setaffinity(0, cpus)
+        kernels._pool.cache_clear()
 
 
 def _stats(times, count, unit, scale):
@@ -102,6 +117,9 @@ def main(argv=None) -> None:
         peer_times.append(seconds)
     peer_med = float(np.median(peer_times))
     c_rate, peer_rate = args.fk / fk_c_med, args.peer / peer_med
+    fk_c1_times, _ = on_one_thread(pkm5.forward_kinematics, lengths, engine="compiled", repeat=args.repeat)
+    c1_rate = args.fk / float(np.median(fk_c1_times))
+    threads = len(os.sched_getaffinity(0))
 
     print(f"IK {args.ik:,} poses ({args.repeat} runs each; rates: median (min, max))")
     print(f"  numpy     {_stats(np_times, args.ik, 'M poses/s', 1e6)}   {min_median_max(np_times)}")
@@ -121,7 +139,9 @@ def main(argv=None) -> None:
     print(f"  one-off seed-table build (first call in a process): {setup_time:.3f} s")
     print(f"  per-pose peer, the compiled single-pose solver called per pose ({args.peer:,} solves): "
           f"{_stats(peer_times, args.peer, 'k solves/s', 1e3)}, max error "
-          f"{np.abs(peer_poses - poses[: args.peer]).max():.1e} mm; batched compiled / per-pose = "
+          f"{np.abs(peer_poses - poses[: args.peer]).max():.1e} mm")
+    print(f"  compiled batched on 1 thread {_stats(fk_c1_times, args.fk, 'k solves/s', 1e3)}; at equal threads "
+          f"(1): batched / per-pose = {c1_rate / peer_rate:.2f}x; batched on {threads} threads / per-pose on 1 = "
           f"{c_rate / peer_rate:.2f}x")
     print(load_line(started))
 

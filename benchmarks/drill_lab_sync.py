@@ -21,21 +21,48 @@ import sys
 import tempfile
 import threading
 import time
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "tests"))
 
-from postgres_support import Cluster, _bindir, make_store, with_database  # noqa: E402
+from postgres_support import Cluster, _bindir, make_store, with_database
 
-from bench.store import Store  # noqa: E402
-from bench.store.lab import LabStore, rows_checksum, sync_store  # noqa: E402
+from bench.store import Store
+from bench.store.lab import LabStore, rows_checksum, sync_store
 
 
 def _sync(path: Path, url: str, batch: int, retries: int, **streams) -> subprocess.Popen:
     return subprocess.Popen([sys.executable, "-m", "bench.cli", "sync", "--store", str(path), "--to", url,
                              "--batch", str(batch), "--retries", str(retries)], cwd=ROOT, text=True,
                             env={**os.environ, "PYTHONPATH": str(ROOT)}, **streams)
+
+
+@contextmanager
+def drill_server(name: str, *settings: str) -> Iterator[tuple[Cluster, str, Path]]:
+    """A throwaway cluster with database ``name`` (``settings``: ``ALTER SYSTEM SET`` lines, then a restart), its
+    URL and a work folder; all removed afterwards."""
+    if _bindir() is None:
+        sys.exit(f"drill {name}: no PostgreSQL (install Debian's postgresql: initdb, pg_ctl)")
+    cluster = Cluster(_bindir())
+    work = Path(tempfile.mkdtemp(prefix=f"bench-{name}-"))
+    try:
+        import psycopg
+        with psycopg.connect(cluster.url, autocommit=True) as admin:
+            admin.execute(f'CREATE DATABASE "{name}"')
+            for setting in settings:
+                admin.execute(f"ALTER SYSTEM SET {setting}")
+        if settings:
+            cluster.stop()
+            cluster.start()
+        yield cluster, with_database(cluster.url, name), work
+    finally:
+        cluster.close()
+        for path in work.glob("*"):
+            path.unlink()
+        work.rmdir()
 
 
 def main(argv=None) -> int:
@@ -47,15 +74,7 @@ def main(argv=None) -> int:
     parser.add_argument("--down-s", type=float, default=1.0, help="seconds the server stays down")
     parser.add_argument("--retries", type=int, default=8, help="reconnections each sync may make")
     args = parser.parse_args(argv)
-    if _bindir() is None:
-        sys.exit("drill_lab_sync: no PostgreSQL (install Debian's postgresql: initdb, pg_ctl)")
-    cluster = Cluster(_bindir())
-    work = Path(tempfile.mkdtemp(prefix="bench-drill-"))
-    try:
-        import psycopg
-        with psycopg.connect(cluster.url, autocommit=True) as admin:
-            admin.execute('CREATE DATABASE "drill"')
-        url = with_database(cluster.url, "drill")
+    with drill_server("drill") as (cluster, url, work):
         half = args.samples // 2
         paths = [make_store(work / f"bench{i:02d}.db", f"bench-{i:02d}", [args.samples - half, half],
                             robot=("pkm5", "delta4")[i % 2]) for i in range(args.benches)]
@@ -106,11 +125,6 @@ def main(argv=None) -> int:
             print(f"{'ok  ' if ok else 'FAIL'} {text}")
         print(f"load average: {os.getloadavg()[0]:.1f} on {os.cpu_count()} CPUs")
         return 0 if all(ok for _, ok in checks) else 1
-    finally:
-        cluster.close()
-        for path in work.glob("*"):
-            path.unlink()
-        work.rmdir()
 
 
 if __name__ == "__main__":

@@ -3,6 +3,7 @@ firmware on an emulated ATmega2560 with UART0 on a pseudo-terminal, and read the
 
 from __future__ import annotations
 
+import os
 import shutil
 import subprocess
 import sys
@@ -110,9 +111,9 @@ def read_events(path: Path) -> list[Edge]:
     text = path.read_text()
     for line in text[:text.rfind("\n") + 1].splitlines():  # complete lines: the harness may be writing
         fields = line.split()
-        if fields[1] == "RX":
+        if fields[1] in ("RX", "TX"):  # a line received / (script mode) sent by the MCU
             line = b"" if fields[2] == "-" else bytes.fromhex(fields[2])
-            edges.append(Edge(int(fields[0]) / F_CPU_HZ, "RX", 0, 0, line))
+            edges.append(Edge(int(fields[0]) / F_CPU_HZ, fields[1], 0, 0, line))
         else:
             edges.append(Edge(int(fields[0]) / F_CPU_HZ, fields[1], int(fields[2]), int(fields[3])))
     return edges
@@ -145,3 +146,18 @@ def exchange(port: serial.Serial, raw: bytes, settle_s: float = 0.15) -> list[by
 
 toolchain_reason = missing_toolchain()
 needs_toolchain = pytest.mark.skipif(toolchain_reason is not None, reason=f"firmware emulation: {toolchain_reason}")
+
+
+def run_script(built: Build, events: Path, lines: list[tuple[float, bytes]], end_s: float) -> list[Edge]:
+    """Run ``built`` in the harness's script mode: each ``(t_s, raw)`` of ``lines`` goes to UART0 at emulated time
+    ``t_s`` (in order, as fast as the UART takes it), the run ends at ``end_s``; unpaced, so deterministic whatever
+    the load of the machine. Returns the events, the MCU's reply lines as ``TX`` edges."""
+    script = events.with_suffix(".script")
+    with script.open("w") as out:
+        for t_s, raw in lines:
+            for i in range(0, len(raw), 1000):
+                out.write(f"{round(t_s * 1e6)} {raw[i:i + 1000].hex()}\n")
+        out.write(f"{round(end_s * 1e6)} END\n")
+    subprocess.run([str(built.harness), str(built.elf), str(events)], env=dict(os.environ, HARNESS_SCRIPT=str(script)),
+                   stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, timeout=600, check=True)
+    return read_events(events)

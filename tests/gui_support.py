@@ -63,7 +63,8 @@ def select_runs(browser, run_ids: list[int]) -> None:
 
 @pytest.fixture
 def window(tmp_path):
-    """A shown main window on a fresh store; closing it stops any run at its next checkpoint and waits for it."""
+    """A shown main window on a fresh store; closing it during a run presses the emergency stop, and the question
+    that follows is confirmed: the window closes once the run has ended."""
     from bench.gui.app import MainWindow
 
     application()
@@ -73,4 +74,40 @@ def window(tmp_path):
     worker = main.campaign_panel.worker
     main.close()
     if worker is not None:
+        main.confirm_close()
         assert worker.wait(int(RUN_TIMEOUT_S * 1000)), "campaign worker still running after the window closed"
+        wait_for(lambda: not main.isVisible(), RUN_TIMEOUT_S, "the window to close after its stopped run")
+
+
+class WireLog:
+    """The command verbs a controller's link writes (``MOVE``, ``STOP``, ...), in wire order.
+
+    Each verb is noted once its write has returned, i.e. once it is on the wire (the pty). The pkm5 driver writes
+    MOVE and STOP under one lock, from whichever thread, and the note is taken inside the write: the list's order
+    is the wire's. An observer of the real link, not a stand-in: the bytes go to the simulator as before."""
+
+    def __init__(self, controller) -> None:
+        self.verbs: list[str] = []
+        link = controller.link
+        write = link.write
+
+        def recording(data: bytes, *, command: str, **options) -> None:
+            write(data, command=command, **options)
+            self.verbs.append(command)
+
+        link.write = recording
+
+    def mark(self) -> int:
+        """Where the log stands now (before a press)."""
+        return len(self.verbs)
+
+    def moves_after_stop(self, mark: int) -> list[int]:
+        """Positions of MOVEs written after the first STOP that follows ``mark`` (none, if the stop latched)."""
+        after = self.verbs[mark:]
+        if "STOP" not in after:
+            return []
+        first = after.index("STOP")
+        return [mark + i for i, verb in enumerate(after) if verb == "MOVE" and i > first]
+
+    def stopped_since(self, mark: int) -> bool:
+        return "STOP" in self.verbs[mark:]

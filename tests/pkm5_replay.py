@@ -72,7 +72,7 @@ SCRIPT = [
     (encode_line("MOVE 1000 1000 1000 1000 2000 2000 500 #40"), False),  # already there
     (encode_line("DISABLE #41"), False),
     (encode_line("POS #42"), False),
-    (encode_line("PROTOCOL 3 #50"), False),                     # protocol v2: negotiation
+    (encode_line("PROTOCOL 4 #50"), False),                     # protocol v2: negotiation (4: none such)
     (encode_line("PROTOCOL 2 #51"), False),                     # answered in v1, then CRC-16 both ways
     (encode_line("ID #52", 2), False),
     (encode_line("POS #53"), False),                            # a v1 line on a v2 link: CHECKSUM
@@ -82,6 +82,7 @@ SCRIPT = [
     (encode_line("MOVE 1 2 3 #57", 2), False),
     (encode_line("POS #58 #59", 2), False),
     (b"Q" * 97 + b"\n", False),
-    (encode_line("ID #60"), False),                             # a v1 ID returns the link to v1
-    (encode_line("POS #61"), False),
+    (encode_line("ID #60"), False),                             # a v1 ID does not downgrade a v2 link
+    (encode_line("PROTOCOL 1 #61", 2), False),                  # nor does PROTOCOL 1: ARGUMENT
+    (encode_line("POS #62", 2), False),
 ]

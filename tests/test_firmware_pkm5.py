@@ -80,7 +80,7 @@ def test_build_prints_flash_and_ram_use(built):
 @pytest.mark.slow
 def test_identify_enable_and_move_through_the_driver(mcu):
     with Pkm5Controller(mcu.open(), **SLOW) as robot:
-        assert robot.identify() == Identity("bench-pkm5", 2, "2.0.0")  # CRC-16 lines negotiated
+        assert robot.identify() == Identity("bench-pkm5", 3, "3.0.0")  # CRC-16 lines and MOVE retransmission negotiated
         assert robot.position().state == "DISABLED"
         robot.enable()
         target = robot.steps_for_pose(home_pose_deg() + [0.0, 0.0, 2.0, 0.0, 0.0])

@@ -96,8 +96,8 @@ def test_the_script_covers_what_the_protocol_document_promises(simulator_replies
                                                                       "#0", "#7", "#0", "#0"]
     assert "ERR #31 7 BUSY" in flat and "ERR #30 8 STOPPED <n> <n> <n> <n> <n> <n>" in flat
     assert "OK #40 MOVE 0" in flat and "DONE #40 1000 1000 1000 1000 2000 2000" in flat
-    assert simulator_replies[-12:] == [
-        ["ERR #50 4 ARGUMENT"], ["OK #51 PROTOCOL 2"], ["v2: OK #52 ID bench-pkm5 2 <version>"],
+    assert simulator_replies[-13:] == [
+        ["ERR #50 4 ARGUMENT"], ["OK #51 PROTOCOL 2"], ["v2: OK #52 ID bench-pkm5 3 <version>"],
         ["v2: ERR #0 2 CHECKSUM"], ["v2: ERR #0 2 CHECKSUM"], ["v2: ERR #0 2 CHECKSUM"], ["v2: ERR #0 2 CHECKSUM"],
         ["v2: ERR #57 1 SYNTAX"], ["v2: ERR #0 1 SYNTAX"], ["v2: ERR #0 3 TOO_LONG"],
-        ["OK #60 ID bench-pkm5 2 <version>"], ["OK #61 POS 1000 1000 1000 1000 2000 2000 DISABLED"]]
+        ["v2: ERR #0 2 CHECKSUM"], ["v2: ERR #61 4 ARGUMENT"], ["v2: OK #62 POS 1000 1000 1000 1000 2000 2000 DISABLED"]]

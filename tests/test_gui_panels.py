@@ -88,7 +88,7 @@ def test_the_form_refuses_a_bad_value_with_the_parameters_message():
     form.changed.connect(lambda protocol, errors: seen.append(errors))
     form.set_value("cycles", "1")
     assert form.protocol is None
-    assert seen[-1] == ["iso9283_pose_quick.toml: cycles = 1, expected an integer >= 2"]
+    assert seen[-1] == ["iso9283_pose_quick.toml: cycles = 1, expected an integer in [2, 100000]"]
     form.set_value("cycles", "4")
     form.set_value("settle_s", "250 ms")
     assert form.protocol is None and "settle_s" in seen[-1][0]
@@ -125,7 +125,9 @@ def test_jog_targets_are_checked_before_the_jog_button_allows_a_move():
         true_pose = SimulatorClient(panel.mover.controller).true_pose()
         assert true_pose[0] == pytest.approx(88.649 + 5.0, abs=1.5)  # the simulated robot's own error model
         panel.emergency_stop()
-        assert panel.status.text() == "EMERGENCY STOP sent"
+        assert panel.status.text() == "EMERGENCY STOP latched: check the robot, then Reset e-stop"
+        assert not panel.jog_button.isEnabled()
+        wait_for(lambda: panel.mover.stop_latched, 30, "the stop thread's stop")
     finally:
         panel.wait_idle()
         panel.disconnect_robot()

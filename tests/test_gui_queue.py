@@ -8,9 +8,10 @@ import pytest
 
 pytest.importorskip("PySide6")
 
-from gui_support import RUN_TIMEOUT_S, select_runs, wait_for
+from gui_support import RUN_TIMEOUT_S, WireLog, select_runs, wait_for
 from PySide6.QtCore import Qt
 from PySide6.QtTest import QTest
+from PySide6.QtWidgets import QMessageBox
 
 from bench.gui.campaign_panel import EXAMPLES
 from bench.protocols import Settle
@@ -72,12 +73,24 @@ def _reading_pending(window):
     return window.calliper_dialog.prompt
 
 
-def test_closing_with_a_reading_pending_withdraws_it_and_keeps_every_stored_sample(window, tmp_path):
+def test_closing_with_a_reading_pending_stops_first_then_asks_and_keeps_every_stored_sample(window, tmp_path):
     prompt = _reading_pending(window)
+    dialog, worker = window.calliper_dialog, window.campaign_panel.worker
+    wire = WireLog(worker.runner.rig.robot.controller)
+    mark = wire.mark()
     window.close()
+    # not closed: the emergency stop was pressed, the prompt withdrawn, and the window asks
+    assert window.isVisible() and window.close_question.isVisible() and not dialog.isVisible()
+    assert window.estop_latch.latched
+    wait_for(lambda: wire.stopped_since(mark), RUN_TIMEOUT_S, "STOP on the wire")
+    assert window.close_question.isVisible()  # the stop went out before anyone answered the question
+    wait_for(lambda: window.campaign_panel.worker is None, RUN_TIMEOUT_S, "the stopped run to end")
     (run,), samples = _runs(tmp_path)
-    assert (run.status, run.reason) == ("aborted", f"prompt withdrawn by the operator: {prompt.text} (window closed)")
+    assert (run.status, run.reason) == ("aborted", "emergency stop"), prompt.text
     assert [s.kind for s in samples[run.id]] == ["pose"]
+    assert wire.moves_after_stop(mark) == []
+    QTest.mouseClick(window.close_question.button(QMessageBox.StandardButton.Close), Qt.MouseButton.LeftButton)
+    wait_for(lambda: not window.isVisible(), RUN_TIMEOUT_S, "the window to close")
 
 
 def test_a_reading_cancelled_in_the_dialog_ends_the_run_resumable(window, tmp_path):

@@ -82,8 +82,9 @@ def test_the_emergency_stop_acts_while_a_prompt_is_open_and_withdraws_it(window,
         wait_for(lambda: QApplication.activeWindow() is not None, RUN_TIMEOUT_S, "a window of the application to "
                  "have the keyboard focus")
         QTest.keyClick(dialog.entry, Qt.Key.Key_F12)  # focus in the dialog: the shortcut is application-wide
-    # latched and withdrawn within the click's own handling: no event loop turn, no other thread, no clock involved
-    assert controller._stop_latched and not dialog.isVisible()
+    # pressed and withdrawn within the click's own handling; the stop thread takes the press to the wire
+    assert window.estop_latch.latched and not dialog.isVisible()
+    wait_for(lambda: controller._stop_latched, RUN_TIMEOUT_S, "the stop thread's emergency stop")
     assert worker.runner is None or worker.runner.state in (RunState.HALTING, RunState.FINISHED)
     assert window.calliper_dialog is None
     _wait_idle(window)
@@ -236,7 +237,7 @@ def test_report_during_a_run_leaves_the_window_responsive(window, tmp_path):
     # would hold the interpreter lock for seconds of matplotlib; bench.gui.offload says why). How fast the loop
     # answers is a figure for a benchmark, not for a test on a loaded machine.
     assert answered.count(True) >= 4, answered
-    (report_process,) = offload._executor._processes.values()
+    (report_process,) = offload._reports.executor._processes.values()
     assert report_process.pid != os.getpid()
     assert worker.runner.state is RunState.RUNNING  # the run went on meanwhile
     assert (tmp_path / "reports" / "report_run1.html").is_file()
@@ -359,36 +360,26 @@ def _pose_sample(index: int) -> dict:
             "wall_s": float(index), "values": values}
 
 
-def test_the_live_view_draws_after_the_background_imports_and_only_while_it_can_be_seen(monkeypatch):
-    import threading
-
+def test_the_live_view_draws_in_its_render_process_and_only_while_it_can_be_seen():
     from bench.gui import live_view
-    from bench.gui.live_view import REDRAW_MS, LiveView
+    from bench.gui.live_view import LiveView
 
     application()
-    imported = threading.Event()
-    importing = threading.Thread(target=imported.wait, daemon=True)  # the background imports, not yet done
-    importing.start()
-    monkeypatch.setattr(live_view, "_preloading", importing)
     view = LiveView()
     view.resize(700, 500)
     view.clear("run 1", started_s=0.0)
     view.add_sample(_pose_sample(0))
     view.show()
-    serve_events(3 * REDRAW_MS)
-    assert view._canvas is None  # no figure, so no matplotlib import on the GUI thread beside the background one
-    imported.set()
-    wait_for(lambda: view._canvas is not None and view._canvas.drawn_at_s is not None, 5, "the first draw")
-    assert "P1: n=1 " in view.summary.text()
-    drawn_at_s = view._canvas.drawn_at_s
+    wait_for(lambda: view.renders == 1, RUN_TIMEOUT_S, "the first picture")
+    assert "P1: n=1 " in view.summary.text() and view.picture.pixmap().width() > 0
+    (render_process,) = live_view._render_process.executor._processes.values()
+    assert render_process.pid != os.getpid()  # drawn in the render process, not under the window's lock
     view.hide()  # another tab
     view.add_sample(_pose_sample(1))
     view._timed_redraw()  # the timer's turn (it would come after the pause the first draw asks for)
     serve_events(50)
-    assert "P1: n=1 " in view.summary.text() and view._canvas.drawn_at_s == drawn_at_s  # collected only
-    view.redraw()  # as at the end of a run: plotted at once, drawn once shown
-    serve_events(50)
-    assert "P1: n=2 " in view.summary.text() and view._canvas.drawn_at_s == drawn_at_s
+    assert view.renders == 1 and "P1: n=1 " in view.summary.text()  # collected only
     view.show()
-    wait_for(lambda: view._canvas.drawn_at_s != drawn_at_s, 5, "the draw once shown")
+    wait_for(lambda: view.renders == 2, RUN_TIMEOUT_S, "the picture once shown")
+    assert "P1: n=2 " in view.summary.text()
     view.close()

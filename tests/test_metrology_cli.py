@@ -50,6 +50,23 @@ def test_iso9283_readable_table(capsys):
     assert "orientation (deg)" in out
 
 
+def test_every_analysis_says_whether_its_u_includes_the_instrument(capsys):
+    # Issue 32 item 2: the default used to be a silent instrument u = 0 and the output said only "U with k = 2".
+    example = str(DATA / "iso9283_example.csv")
+    code, out, _ = _run(capsys, "analyze", "iso9283", example)
+    assert code == 0 and "U excludes the instrument: none declared (--instrument-u-mm)." in out
+    code, out, _ = _run(capsys, "analyze", "iso9283", example, "--json")
+    assert json.loads(out)["U_budget"] == "U excludes the instrument: none declared (--instrument-u-mm)"
+    code, out, _ = _run(capsys, "analyze", "iso9283", example, "--instrument-u-mm", "0.05", "--json")
+    declared = json.loads(out)["poses"]["P1"]
+    assert json.loads(out)["U_budget"] == "U includes the instrument: u = 0.05 mm per axis (--instrument-u-mm)"
+    code, out, _ = _run(capsys, "analyze", "iso9283", example, "--json")
+    bare = json.loads(out)["poses"]["P1"]
+    assert declared["U_AP_mm"] > bare["U_AP_mm"]
+    code, out, _ = _run(capsys, "analyze", "distance", example)
+    assert code == 0 and "U excludes the instrument: none declared" in out
+
+
 @pytest.mark.parametrize(
     "text, message",
     [
@@ -153,3 +170,18 @@ def test_any_table_gives_a_result_or_one_line_error(capsys, tmp_path, rows):
         assert "poses" in json.loads(out)
     else:
         assert err.startswith("bench: error: ") and err.count("\n") == 1
+
+
+def test_payload_command_shows_each_legs_worst_error_with_its_sign(capsys, tmp_path):
+    """A leg whose signed maximum is +0.002 mm at 0.45 kg but whose error reaches -0.248 mm at 25.23 kg: the
+    worst is -0.248 mm at 25.23 kg (the signed maximum hid it)."""
+    path = tmp_path / "legs.csv"
+    path.write_text("load_kg,leg,error_mm\n0.45,1,0.002\n12.07,1,-0.1\n25.23,1,-0.248\n"
+                    "0.45,2,0.01\n12.07,2,0.05\n25.23,2,0.03\n")
+    code, out, _ = _run(capsys, "analyze", "payload", str(path), "--json")
+    legs = json.loads(out)["legs"]
+    assert code == 0
+    assert (legs["1"]["worst_error_mm"], legs["1"]["load_at_worst_kg"]) == (-0.248, 25.23)
+    assert (legs["2"]["worst_error_mm"], legs["2"]["load_at_worst_kg"]) == (0.05, 12.07)
+    _, text, _ = _run(capsys, "analyze", "payload", str(path))
+    assert "-0.248   25.23" in text.splitlines()[1]

@@ -36,6 +36,9 @@ def test_hand_rounded_cases(value, u, text):
 
 def test_without_an_uncertainty_three_decimals():
     assert format_pair(0.5, 0.0) == ("0.500", "0.000")
+    # a U of 0 (RP of 2 cycles) is no uncertainty: said so, never "± 0.000"
+    assert format_measured(0.5, 0.0) == "0.500 (U not determined)"
+    assert format_measured(0.5, float("nan")) == "0.500 (U not determined)"
     assert uncertainty_decimals(float("nan")) == 3
 
 

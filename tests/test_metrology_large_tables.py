@@ -1,5 +1,5 @@
 """Large pose tables: the fast CSV path (pandas' C reader, numbers read as numbers) means the same as the row-by-row
-reader, and U(RP) by the delta method agrees with the bootstrap it replaces above BOOTSTRAP_MAX_CYCLES cycles."""
+reader, and U(RP) by the delta method agrees with the bootstrap above MODEL_MAX_CYCLES cycles."""
 
 from pathlib import Path
 
@@ -13,7 +13,7 @@ from bench.errors import ConfigError, InsufficientData
 from bench.metrology import uncertainty
 from bench.metrology.tables import POSE_NUMERIC_COLUMNS, analyze_poses, pose_result_json, pose_table, read_table_csv
 from bench.metrology.uncertainty import (
-    BOOTSTRAP_MAX_CYCLES,
+    MODEL_MAX_CYCLES,
     repeatability_uncertainty,
     repeatability_uncertainty_delta,
 )
@@ -107,23 +107,22 @@ def test_the_delta_method_counts_the_barycentre_and_the_skew():
     assert full == pytest.approx(repeatability_uncertainty(cloud, resamples=4000, method="bootstrap"), rel=0.04)
 
 
-def test_auto_uses_the_bootstrap_up_to_the_limit_and_the_delta_method_above():
+def test_auto_uses_the_measurement_model_up_to_the_limit_and_the_delta_method_above():
     rng = np.random.default_rng(7)
-    small, large = rng.normal(size=(BOOTSTRAP_MAX_CYCLES, 3)), rng.normal(size=(BOOTSTRAP_MAX_CYCLES + 1, 3))
-    assert repeatability_uncertainty(small, resamples=50) == repeatability_uncertainty(small, resamples=50,
-                                                                                       method="bootstrap")
+    small, large = rng.normal(size=(MODEL_MAX_CYCLES, 3)), rng.normal(size=(MODEL_MAX_CYCLES + 1, 3))
+    assert repeatability_uncertainty(small) == repeatability_uncertainty(small, method="model")
     assert repeatability_uncertainty(large) == repeatability_uncertainty_delta(large)
 
 
 def test_the_chunked_bootstrap_draws_what_one_batch_would(monkeypatch):
     cloud = np.random.default_rng(8).normal(size=(31, 3))
-    whole = repeatability_uncertainty(cloud, resamples=500, seed=3)
+    whole = repeatability_uncertainty(cloud, resamples=500, seed=3, method="bootstrap")
     monkeypatch.setattr(uncertainty, "_BOOTSTRAP_CHUNK_CYCLES", 31 * 7)  # chunks of 7 resamples
-    assert repeatability_uncertainty(cloud, resamples=500, seed=3) == whole
+    assert repeatability_uncertainty(cloud, resamples=500, seed=3, method="bootstrap") == whole
 
 
 def test_bad_method_and_too_few_cycles_are_refused():
-    with pytest.raises(ConfigError, match="method = 'jackknife', expected 'auto', 'bootstrap' or 'delta'"):
+    with pytest.raises(ConfigError, match="method = 'jackknife', expected 'auto', 'bootstrap', 'delta' or 'model'"):
         repeatability_uncertainty(np.zeros((5, 3)), method="jackknife")
     with pytest.raises(InsufficientData, match="2 sample"):
         repeatability_uncertainty_delta(np.zeros((2, 3)))

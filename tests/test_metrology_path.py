@@ -164,6 +164,15 @@ def test_minimum_positioning_time_refuses_unequal_cycles_and_a_step_that_never_m
         minimum_positioning_time([[(t, np.zeros(11))]], band_mm=0.1)
 
 
+@pytest.mark.parametrize("distance", [0.15, 0.2])
+def test_minimum_positioning_time_refuses_a_step_no_longer_than_twice_the_band(distance):
+    # Issue 32 item 6: a 0.15 mm step in a 0.1 mm band entered the end band before leaving the start band and read
+    # as -0.1 s; the two bands overlap, so there is no positioning time to give.
+    with pytest.raises(InsufficientData, match="no longer than twice the 0.1 mm band"):
+        minimum_positioning_time([[_step(0.10, 0.60, distance)]], band_mm=0.1)
+    assert minimum_positioning_time([[_step(0.10, 0.60, 0.25)]], band_mm=0.1).mean_time_s[0] > 0
+
+
 # --- 7.2.1 / 7.2.2 / 7.2.3 orientation ----------------------------------------------------------------------------
 
 def test_orientation_vap_hand_computed_per_angle():

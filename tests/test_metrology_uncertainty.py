@@ -1,7 +1,10 @@
 """GUM helpers: Type A/B components, t-based intervals, the instrument RP floor, AP and RP uncertainty."""
 
+import math
+
 import numpy as np
 import pytest
+from scipy import stats
 
 from bench.errors import ConfigError, InsufficientData
 from bench.metrology import (
@@ -79,11 +82,16 @@ def test_rp_floor_matches_simulation_of_a_perfect_robot():
 def test_accuracy_uncertainty_per_axis_and_norm():
     attained = np.array([[1.0, 0.0, 0.0], [1.2, 0.0, 0.0], [0.8, 0.0, 0.0], [1.0, 0.0, 0.0]])
     ap, axes = accuracy_uncertainty(attained, [0, 0, 0], instrument_u_mm=0.01)
-    u_x = np.sqrt(np.var(attained[:, 0], ddof=1) / 4 + 0.01**2)
-    assert axes[0].expanded_uncertainty == pytest.approx(2 * u_x)
-    assert axes[1].expanded_uncertainty == pytest.approx(0.02)
+    s2_mean = np.var(attained[:, 0], ddof=1) / 4
+    u_x = np.sqrt(s2_mean + 0.01**2)
+    # Welch-Satterthwaite: nu_eff = u_x^4 / (s2_mean^2 / 3); k = Student's t at 95.45 % for it, not 2
+    nu = u_x**4 / (s2_mean**2 / 3)
+    k_x = stats.t.ppf((1 + math.erf(2 / math.sqrt(2))) / 2, nu)
+    assert axes[0].coverage_factor == pytest.approx(k_x)
+    assert axes[0].expanded_uncertainty == pytest.approx(k_x * u_x)
+    assert axes[1].expanded_uncertainty == pytest.approx(0.02)  # instrument only: Type B, k = 2
     assert ap.value == pytest.approx(1.0)
-    assert ap.expanded_uncertainty == pytest.approx(2 * u_x)  # AP lies along x: only u(AP_x) propagates
+    assert ap.expanded_uncertainty == pytest.approx(k_x * u_x)  # AP lies along x: only u(AP_x) propagates
 
 
 def test_bootstrap_is_reproducible_and_scales():
@@ -101,4 +109,5 @@ def test_vectorised_rp_bootstrap_equals_the_generic_one():
 
     cloud = np.random.default_rng(2).normal(0, 0.3, (12, 3))
     generic = bootstrap_uncertainty(lambda p: pose_repeatability(p).rp_mm, cloud, resamples=200, seed=4)
-    assert repeatability_uncertainty(cloud, resamples=200, seed=4) == pytest.approx(generic, rel=1e-12)
+    assert repeatability_uncertainty(cloud, resamples=200, seed=4, method="bootstrap") == pytest.approx(generic,
+                                                                                          rel=1e-12)

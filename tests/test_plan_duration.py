@@ -30,3 +30,18 @@ def test_a_longer_hold_lengthens_the_estimate_by_exactly_the_added_hold_time():
     short, long = (summarize(StabilisationOvershoot(cycles=2, hold_s=h, poses=POSES)) for h in (1.0, 3.0))
     assert long.move_s == short.move_s
     assert long.estimated_s - short.estimated_s == pytest.approx(4 * 2.0)
+
+
+def test_the_dry_run_warns_when_the_payload_reaches_the_documented_failure_load():
+    """000 §8.7.5: the structure failed on reloading at 25 kg; the shipped example stays below it, the dissertation's
+    own ladder (top rung 25.23 kg) is warned about before anything moves."""
+    from bench.metrology.documents import LADDER_KG, PAYLOAD_FAILURE_KG
+    from bench.protocols.base import load_protocol
+    from bench.protocols.dissertation import PayloadLadder
+
+    example = summarize(load_protocol("examples/payload_ladder.toml"))
+    assert example.warnings == () and not any(line.startswith("WARNING") for line in example.lines())
+    ladder = summarize(PayloadLadder(loads_kg=LADDER_KG))
+    (warning,) = ladder.warnings
+    assert "25.23 kg" in warning and f"failure load {PAYLOAD_FAILURE_KG:g} kg" in warning
+    assert f"WARNING: {warning}" in ladder.lines()

@@ -35,6 +35,7 @@ from bench.protocols.iso9283 import (
     fit_cube_side,
 )
 from bench.protocols.kinematics import robot_model
+from bench.protocols.parameters import MAX_COUNT
 from bench.protocols.plan import iterate
 from bench.protocols.runner import TRANSITIONS, RunState
 from bench.store import Store, tidy_table
@@ -105,7 +106,15 @@ def _small(**kw):
 def test_toml_error_names_file_field_value_and_expectation(tmp_path):
     path = tmp_path / "pose_test.toml"
     path.write_text('protocol = "iso9283_pose"\ncycles = 0\n')
-    with pytest.raises(ConfigError, match=r"^pose_test.toml: cycles = 0, expected an integer >= 2$"):
+    with pytest.raises(ConfigError, match=r"^pose_test.toml: cycles = 0, expected an integer in \[2, 100000\]$"):
+        load_protocol(path)
+
+
+@pytest.mark.parametrize("value", ['["iso9283_pose"]', '{ name = "iso9283_pose" }', "3"])
+def test_protocol_name_that_is_no_string_is_one_line(tmp_path, value):
+    path = tmp_path / "pose_test.toml"
+    path.write_text(f"protocol = {value}\n")
+    with pytest.raises(ConfigError, match=r"^pose_test.toml: protocol = .*, expected one of .*iso9283_pose"):
         load_protocol(path)
 
 
@@ -122,7 +131,10 @@ def test_unknown_key_is_refused(tmp_path):
     ("velocities_pct = [100, 150]", (r"velocities_pct = \[100, 150\], expected a non-empty list of numbers in "
                                     r"\[0.1, 100\]%")),
     ('robot = "scara"', "robot = 'scara', expected one of 'pkm5', 'delta4'"),
-    ("cycles = 2.5", "cycles = 2.5, expected an integer >= 2"),
+    ("cycles = 2.5", r"cycles = 2.5, expected an integer in \[2, 100000\]"),
+    ("cycles = 100001", r"cycles = 100001, expected an integer in \[2, 100000\]"),  # absurd sizes: refused at once
+    ("cycles = 1e20", r"cycles = 1e\+20, expected an integer in \[2, 100000\]"),
+    ("cycles = 1e308", r"cycles = 1e\+308, expected an integer in \[2, 100000\]"),
 ])
 def test_parameter_conversion(tmp_path, text, message):
     path = tmp_path / "p.toml"
@@ -148,6 +160,12 @@ def test_a_pose_plan_captures_every_pose_once_per_cycle_and_velocity(cycles, vel
         assert {step.conditions["velocity_pct"] for step in visits} == {velocity}
         assert [(step.pose, step.cycle) for step in visits] == [
             (pose, cycle) for cycle in range(1, cycles + 1) for pose in ("P1", "P5", "P4", "P3", "P2")]
+
+
+@given(st.one_of(st.integers(min_value=MAX_COUNT + 1), st.floats(min_value=MAX_COUNT + 1, allow_infinity=True)))
+def test_any_absurd_cycle_count_is_refused_before_a_plan_exists(cycles):
+    with pytest.raises(ConfigError, match=r"cycles = .*, expected an integer in \[2, 100000\]$"):
+        PoseAccuracy(cycles=cycles, cube_side_mm=20)
 
 
 # ---- cube and steps ----------------------------------------------------------------------------------------------

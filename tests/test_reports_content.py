@@ -148,10 +148,10 @@ def test_decision_only_against_project_criteria(stored):
     store, run_id, report, _ = stored
     assert report.decision.passed is None and "no pass/fail" in report.decision.rule
     judged = collect(store, run_id, criteria={"AP_mm": 0.36, "RP_mm": 10.0}, resamples=50)
-    verdicts = {(name, label): ok for name, label, _, _, ok in judged.decision.verdicts}
+    verdicts = {(name, label): result for name, label, _, _, _, result in judged.decision.verdicts}
     for result in judged.poses:
-        assert verdicts[("AP_mm", result.label)] == (result.accuracy.ap_mm <= 0.36)
-        assert verdicts[("RP_mm", result.label)]
+        assert verdicts[("AP_mm", result.label)] == ("pass" if result.accuracy.ap_mm <= 0.36 else "fail")
+        assert verdicts[("RP_mm", result.label)] == "pass"
     with pytest.raises(ConfigError, match="criteria: grade_mm not known"):
         collect(store, run_id, criteria={"grade_mm": 1.0})
 

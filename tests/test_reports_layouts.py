@@ -100,6 +100,12 @@ def test_actuator_report_equals_bench_analyze_actuator_on_its_raw_data(runs, cap
         paths["actuator"].html.read_text(encoding="utf-8")
 
 
+def _decimals(report) -> int:
+    """Decimals of the run's readings, from the written-out resolution (0.01 -> 2)."""
+    text = f"{report.instrument.resolution_mm:g}"
+    return len(text.split(".")[1]) if "." in text else 0
+
+
 def test_actuator_html_and_pdf_print_the_tables(runs):
     _, _, reports, paths, _ = runs
     report = reports["actuator"]
@@ -109,7 +115,8 @@ def test_actuator_html_and_pdf_print_the_tables(runs):
     for result in report.actuators:
         repeatability = rounded_by_u(result.groover.repeatability_mm, result.repeatability_u.expanded_uncertainty)
         assert summary[result.actuator][4] == repeatability and repeatability in pdf
-        assert summary[result.actuator][9] == f"{result.iso230_2.accuracy_forward_mm:.4f}"
+        # a figure without a U: to the calliper readings' last decimal (0.01 mm -> 2), not 4 decimals
+        assert summary[result.actuator][9] == f"{result.iso230_2.accuracy_forward_mm:.{_decimals(report)}f}"
     bias_rows = [row for row in tables["actuator-targets"][1:] if row[:2] == ["5", "50"]]
     (row,) = bias_rows
     assert row[4] == rounded_by_u(report.actuators[1].bias_u[2].value, report.actuators[1].bias_u[2].expanded_uncertainty)
@@ -207,9 +214,9 @@ def test_ladder_html_and_pdf_print_the_tables_and_the_deviations(runs):
     report = reports["ladder"]
     tables = html_tables(paths["ladder"].html)
     assert tables["ladder"][0][:3] == ["Load (kg)", "Lifts", "e_1 (mm)"] and len(tables["ladder"]) == 5
-    assert tables["ladder"][4][2] == f"{report.leg_errors.loc[10.0, '1']:+.4f}"
+    assert tables["ladder"][4][2] == f"{report.leg_errors.loc[10.0, '1']:+.{_decimals(report)}f}"
     shift = {row[0]: row for row in tables["payload-shift"][1:]}
-    assert shift["10"][3] == f"{report.shift.shift_norm_mm[3]:.4f}"
+    assert shift["10"][3] == f"{report.shift.shift_norm_mm[3]:.{_decimals(report)}f}"
     assert len(tables["lifts"]) == 13
     deviations = {row[1]: row for row in tables["deviations"][1:]}
     assert deviations["repeats"][4] == "conforms"  # 3 lifts per load (project §12.3)

@@ -126,3 +126,11 @@ def test_hull_loop_has_scipys_vertices():
 
     points = np.random.default_rng(1).normal(size=(2500, 2))
     assert sorted(hull_loop(points)[:-1].tolist()) == sorted(ConvexHull(points).vertices.tolist())
+
+
+def test_error_bars_of_a_length_stop_at_zero():
+    """AP_P 0.1 ± 0.3 mm: the bar runs from 0 to 0.4 mm, never below 0 (a length cannot be negative)."""
+    from bench.reports.plots import nonnegative_yerr
+
+    lower, upper = nonnegative_yerr([0.1, 2.0, float("nan")], [0.3, 0.5, 0.0])
+    assert lower == pytest.approx([0.1, 0.5, 0.0]) and upper == pytest.approx([0.3, 0.5, 0.0])

@@ -166,10 +166,11 @@ def test_written_run_spatial_figures_come_from_the_complete_readings_only(writte
     assert p1.statistics.axes[0].n == 4 and p1.statistics.axes[0].ap_mm == pytest.approx(x1.mean())
     tables = html_tables(paths.html)
     spatial = {row[0]: row for row in tables["grid-spatial"][1:]}
-    assert spatial["P1"] == ["P1", "3 / 4", f"{p1.statistics.ap_mm:.4f}", f"{p1.statistics.rp_mm:.4f}"]
+    # the grid reads a 2.5 mm lattice: one decimal, never more than the readings carry (not 0.0000)
+    assert spatial["P1"] == ["P1", "3 / 4", f"{p1.statistics.ap_mm:.1f}", f"{p1.statistics.rp_mm:.1f}"]
     assert spatial["P2"][2:] == ["— (no complete reading)", "— (fewer than 2 complete readings)"]
     axes = {(row[0], row[1]): row for row in tables["grid-axes"][1:]}
-    assert axes[("P2", "x")][3] == "no reading" and axes[("P2", "z")][3:5] == ["3", f"{-2.5 / 3:+.4f}"]
+    assert axes[("P2", "x")][3] == "no reading" and axes[("P2", "z")][3:5] == ["3", f"{-2.5 / 3:+.1f}"]
     assert all(axes[("P3", a)][3] == "no reading" for a in "xyz")
     screens = {row[0]: row for row in tables["grid-screens"][1:]}
     rate = p1.valid["vertical"]  # 3 of 4: Wilson at z = 2 by its closed form
@@ -177,7 +178,7 @@ def test_written_run_spatial_figures_come_from_the_complete_readings_only(writte
     assert (rate.low, rate.high) == pytest.approx((centre_w - half_w, centre_w + half_w), abs=1e-12)
     assert screens["P1"][5] == f"3 / 4, 75.00 % [{100 * rate.low:.1f}, {100 * rate.high:.1f}]"
     pdf = pdf_text(paths.pdf)
-    for text in (screens["P1"][5], f"{p1.statistics.rp_mm:.4f}", "Deviations from thesis §8.4.2 / ISO 9283",
+    for text in (screens["P1"][5], f"{p1.statistics.rp_mm:.1f}", "Deviations from thesis §8.4.2 / ISO 9283",
                  "Reading the figures: they are conditional on detection"):
         assert text in pdf, text
 

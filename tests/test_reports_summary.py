@@ -1,5 +1,5 @@
 """Page 1 of a report: identity, headline per velocity and load, verdict per characteristic, SIMULATED banner on
-every page, run history; and one rounding in results.csv, report.md and the HTML."""
+every page, run history; and one rounding in results.csv and the HTML."""
 
 from __future__ import annotations
 
@@ -98,7 +98,9 @@ def test_identity_from_the_stored_settings_overridden_by_the_cli(stored, capsys)
     rows = dict(html_tables(folder / "e" / f"report_run{run_id}.html")["summary-identity"][1:])
     assert rows["Device under test (serial / asset)"] == "PKM5-0042"  # stored with the run
     assert rows["Customer"] == "ACME Robotics"  # the option wins over the stored value
-    assert rows["Order"] == "PO-17" and rows["Laboratory"] == "Bench lab 2" and rows["Operator"] == "not recorded"
+    # nobody named the operator: an empty line to fill in by hand, never a placeholder's text
+    assert rows["Order"] == "PO-17" and rows["Laboratory"] == "Bench lab 2" and rows["Operator"] == ""
+    assert rows["Measuring point (TCP / reference point)"].startswith("platform centre of the kinematic model")
     with pytest.raises(ConfigError, match="settings.dut: unknown key 'colour'"):
         Identity.from_mapping({"colour": "red"})
 
@@ -123,7 +125,7 @@ def test_history_table_shows_the_end_status(tmp_path):
     assert [event for _, event in history] == ["started", "completed", "aborted: stopped by the operator"]
 
 
-def test_results_csv_markdown_and_html_give_the_same_numbers(stored, simulated_report):
+def test_results_csv_and_html_give_the_same_numbers(stored, simulated_report):
     folder, store, run_id, _ = stored
     paths = simulated_report
     results = analyze_run(store, run_id)
@@ -186,7 +188,8 @@ def test_compare_works_for_an_own_layout_and_shows_the_histories(tmp_path):
     assert history[0][1].endswith("started") and history[0][2].endswith("started")
     assert [row[1] for row in history if row[1] != "—"][-1].endswith("completed")  # A's history is shorter
     assert history[-1][2].endswith("aborted: stopped by the operator")
-    assert tables["conditions"][1] == ["—", "identical configuration, different history (see Run histories)", ""]
+    assert tables["conditions"][1] == ["—", "same configuration, settings and calibrations in force, different "
+                                            "history (see Run histories)", ""]
     text = paths.html.read_text(encoding="utf-8")
     assert "The runs differ in their history" in text
 
@@ -209,3 +212,58 @@ def test_trend_over_three_runs_in_start_order(tmp_path, capsys):
     assert main(["report", str(ids[0]), "--trend", str(ids[0]), "--store", str(tmp_path / "bench.db"),
                  "--out", str(out)]) == 2
     assert "--trend: 1 distinct run(s), expected two or more" in capsys.readouterr().err
+
+
+def test_page_one_is_signable_without_placeholders(stored, capsys):
+    """A station template's "Operator name" is not a name; the measuring point and the signature block are on
+    page 1, and the title names the test, not "run N"."""
+    folder, store, _, _ = stored
+    run_id = write_pose_run(store, seed=4, settings={**SETTINGS, "dut": {"operator": "Operator name",
+                                                                          "laboratory": "<lab>"}})
+    assert main(["report", str(run_id), "--store", str(store.path), "--out", str(folder / "sign"), "--format",
+                 "html", "--measuring-point", "TCP 40 mm below the platform flange", "--customer", "ACME"]) == 0
+    capsys.readouterr()
+    html = folder / "sign" / f"report_run{run_id}.html"
+    tables = html_tables(html)
+    rows = dict(tables["summary-identity"][1:])
+    assert rows["Operator"] == "" and rows["Laboratory"] == "" and rows["Customer"] == "ACME"
+    assert rows["Measuring point (TCP / reference point)"] == "TCP 40 mm below the platform flange"
+    assert tables["signature"][0] == ["Role", "Name", "Signature", "Date"]
+    assert [row[0] for row in tables["signature"][1:]] == ["Tested by", "Approved by"]
+    text = html.read_text(encoding="utf-8")
+    assert "Operator name" not in text and "&lt;lab&gt;" not in text
+    assert not any("not recorded" in cell for row in tables["summary-identity"] + tables["signature"] for cell in row)
+    assert f": run {run_id}<" not in text
+
+
+def test_guarded_rule_says_not_proven_where_simple_passes(stored):
+    """A value under the limit whose value + U is over it: simple acceptance passes it, guarded acceptance
+    (ISO 14253-1) says "not proven"; a value whose value - U is over the limit fails under both."""
+    folder, store, run_id, _ = stored
+    report = collect(store, run_id)
+    pose = max(report.poses, key=lambda p: p.accuracy.ap_mm)
+    value, u = pose.ap_u.value, pose.ap_u.expanded_uncertainty
+    limit = value + u / 2  # inside the uncertainty range above the value
+    simple = write_report(store, run_id, folder / "simple", formats=("html",), criteria={"AP_mm": limit})
+    guarded = write_report(store, run_id, folder / "guarded", formats=("html",), criteria={"AP_mm": limit},
+                           decision_rule="guarded")
+    simple_rows = {row[1]: row[-1] for row in html_tables(simple.html)["decision"][1:]}
+    guarded_rows = {row[1]: row[-1] for row in html_tables(guarded.html)["decision"][1:]}
+    label = next(k for k in simple_rows if k.startswith(pose.pose + ",") or k == pose.pose)
+    assert simple_rows[label] == "pass" and guarded_rows[label] == "not proven"
+    assert html_tables(guarded.html)["verdict"][-1][-1] == "NOT PROVEN"
+    assert "guarded acceptance (ISO 14253-1:2017" in guarded.html.read_text(encoding="utf-8")
+    assert simple.report_id != guarded.report_id  # different verdicts, different report numbers
+
+
+def test_report_numbers_are_unique_per_document(stored):
+    """Same content issued twice: same content hash, issue counter 1 then 2; with a verdict: another hash."""
+    folder, store, run_id, _ = stored
+    first = write_report(store, run_id, folder / "numbers", formats=("html",))
+    again = write_report(store, run_id, folder / "numbers", formats=("html",))
+    judged = write_report(store, run_id, folder / "numbers", formats=("html",), criteria={"RP_mm": 10.0})
+    assert first.report_id.endswith("-1") and again.report_id == first.report_id[:-1] + "2"
+    assert judged.report_id.rsplit("-", 2)[1] != first.report_id.rsplit("-", 2)[1]
+    assert re.fullmatch(rf"BR-{run_id:05d}-[0-9a-f]{{8}}-1", first.report_id)
+    text = judged.html.read_text(encoding="utf-8")
+    assert judged.report_id in text and first.report_id not in text

@@ -5,6 +5,7 @@ test_robots_pkm5_wire.py).
 """
 
 import re
+import threading
 import time
 
 import numpy as np
@@ -238,10 +239,20 @@ def test_lost_move_acceptance_asks_the_position_and_waits_for_done():
 
 def test_lost_move_acceptance_with_the_robot_elsewhere_raises():
     with exchange([("MOVE 2656 2656 2669 2669 2720 2720 200 #1", None),
-                   ("POS #2", "OK #2 POS 800 800 800 800 1600 1600 IDLE")]) as robot, \
+                   ("POS #2", "OK #2 POS 800 800 800 800 1600 1600 IDLE")], heartbeat_s=60) as robot, \
             pytest.raises(LinkError, match=r"MOVE #1 not confirmed: the controller is IDLE at \(800, 800, 800, 800, "
                                            r"1600, 1600\), expected a move to \(2656, "):
         robot.move_steps(POINT_3_1_STEPS)
+
+
+def test_the_heartbeat_flows_while_a_lost_move_acceptance_is_awaited():
+    """Issue 31 item 10: waiting up to reply_timeout_s for a lost ``OK MOVE`` must not starve the firmware's
+    150 ms link watchdog: a POS heartbeat goes out within the wait (beat 50 ms, wait 300 ms); the move's DONE
+    arrives after it (without the beat the driver would ask POS after 300 ms and read the DONE as a stale line)."""
+    with exchange([("MOVE 2656 2656 2669 2669 2720 2720 200 #1", None),
+                   ("POS #2", "DONE #1 2656 2656 2669 2669 2720 2720")],  # the heartbeat, then the DONE
+                  reply_timeout_s=0.3, heartbeat_s=0.05) as robot:
+        assert robot.move_steps(POINT_3_1_STEPS) == POINT_3_1_STEPS
 
 
 def test_missing_done_sends_stop_and_raises():  # a DONE deadline shorter than the heartbeat: one POS at the end
@@ -359,3 +370,58 @@ def test_a_geometry_that_is_not_the_frozen_geometry_is_proved_again_each_time():
     editable.geometry = longer
     assert pkm5_kinematics.steps_for_pose(POINT_3_1, editable) == pkm5_kinematics.steps_for_pose(POINT_3_1, longer)
     assert pkm5_kinematics.steps_for_pose(POINT_3_1, longer) != POINT_3_1_STEPS
+
+
+def test_a_stop_from_another_thread_is_resent_until_acknowledged():
+    """Issue 31 item 11: the first STOP is lost (noise); stop() from another thread sends it again until the waiting
+    move reads an acknowledgement, and the move ends STOPPED, not at its target."""
+    stopped = "ERR #1 8 STOPPED 900 900 900 900 1700 1700"
+    port = ScriptedPort([("MOVE 2656 2656 2669 2669 2720 2720 200 #1", "OK #1 MOVE 9345"),
+                         (b"\n" + wire.encode_line("STOP #2"), None),  # lost
+                         (b"\n" + wire.encode_line("STOP #3"), [stopped, "OK #3 STOP 900 900 900 900 1700 1700"])],
+                        frame=wire.encode_line)
+    robot = Pkm5Controller(port, reply_timeout_s=5.0, heartbeat_s=60)
+    outcome = []
+
+    def mover():
+        try:
+            outcome.append(robot.move_steps(POINT_3_1_STEPS))
+        except ControllerError as exc:
+            outcome.append(exc.code)
+
+    thread = threading.Thread(target=mover)
+    thread.start()
+    while len(port.unused) == 3:  # until the MOVE is written (the mover then holds the line)
+        threading.Event().wait(0.001)
+    assert robot.stop() is None
+    thread.join(10)
+    assert outcome == [8] and port.unused == []
+
+
+def test_an_unacknowledged_move_is_not_resent_after_a_stop():
+    """Protocol 3 re-sends a MOVE whose OK does not come, but never once stop() was called meanwhile: the re-sent
+    MOVE would start a move the operator stopped."""
+    def v3(body):
+        return wire.encode_line(body, 3)
+
+    port = ScriptedPort([("ID #1", "OK #1 ID bench-pkm5 3 3.0.0"), ("PROTOCOL 3 #2", "OK #2 PROTOCOL 3"),
+                         (v3("MOVE 2656 2656 2669 2669 2720 2720 200 #3"), None),  # its OK lost
+                         (b"\n" + v3("STOP #4"), v3("OK #4 STOP 800 800 800 800 1600 1600"))],
+                        frame=wire.encode_line)
+    robot = Pkm5Controller(port, reply_timeout_s=0.3, heartbeat_s=60)
+    assert robot.identify().protocol_version == 3
+    failure = []
+
+    def mover():
+        try:
+            robot.move_steps(POINT_3_1_STEPS)
+        except LinkError as exc:
+            failure.append(str(exc))
+
+    thread = threading.Thread(target=mover)
+    thread.start()
+    while len(port.unused) == 2:  # until the MOVE is written
+        threading.Event().wait(0.001)
+    assert robot.stop() is None
+    thread.join(10)
+    assert len(failure) == 1 and "MOVE #3 not re-sent: stop() was called" in failure[0] and port.unused == []

@@ -29,7 +29,7 @@ def lines(data):
 @pytest.fixture
 def pkm5_device():
     device = Pkm5SimDevice(still, speed_factor=10.0)
-    assert lines(device.tick(0.0)) == ["BOOT #0 bench-pkm5 2 1.0.0-sim"]
+    assert lines(device.tick(0.0)) == ["BOOT #0 bench-pkm5 3 1.0.0-sim"]
     return device
 
 
@@ -71,7 +71,7 @@ def test_pkm5_refusals_carry_their_code(pkm5_device, raw, reply):
 def test_pkm5_line_split_across_reads_is_joined(pkm5_device):
     line = wire.encode_line("ID #7")
     assert pkm5_device.feed(line[:3], 0.0) == b""
-    assert lines(pkm5_device.feed(line[3:], 0.0)) == ["OK #7 ID bench-pkm5 2 1.0.0-sim"]
+    assert lines(pkm5_device.feed(line[3:], 0.0)) == ["OK #7 ID bench-pkm5 3 1.0.0-sim"]
 
 
 def test_pkm5_simulator_only_commands(pkm5_device):

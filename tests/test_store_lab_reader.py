@@ -116,7 +116,7 @@ def test_bad_names_and_servers_are_one_line_each(benches, lab_url, tmp_path, cap
     assert _one_error_line(capsys) == ("bench: error: run 'first': expected a run id, BENCH/ID or a run UUID "
                                        "(or its first 8+ hex digits)")
     assert main(["report", "bench-a/1", "--store", "postgresql://bench@/lab?colour=blue", *out]) == 2
-    assert _one_error_line(capsys).startswith("bench: error: lab store postgresql://bench@/lab?colour=blue: not a "
+    assert _one_error_line(capsys).startswith("bench: error: --store postgresql://bench@/lab?colour=blue: not a "
                                               "valid PostgreSQL URL (invalid ")
     wrong = lab_url.replace(PASSWORD, "not-the-password") if PASSWORD in lab_url else lab_url + "&password=nope"
     assert main(["export", "bench-a/1", "--store", wrong]) == 1

@@ -37,8 +37,12 @@ def test_lab_store_table_is_read_and_checked(tmp_path):
     assert load_station(station_with(tmp_path, f'url = "{UNREACHABLE}"\n')).lab_store == LabStoreSpec(UNREACHABLE)
     spec = load_station(station_with(tmp_path, 'url = "postgres://lab/x"\nauto_sync = false\n')).lab_store
     assert spec == LabStoreSpec("postgres://lab/x", auto_sync=False)
-    with pytest.raises(ConfigError, match=r"lab_store.url = 'mysql://lab/x', expected a postgresql://USER@HOST/"):
+    with pytest.raises(ConfigError, match=r"lab_store.url = mysql://lab/x: expected a postgresql://USER:PASSWORD@"):
         load_station(station_with(tmp_path, 'url = "mysql://lab/x"\n'))
+    with pytest.raises(ConfigError, match=r"lab_store.url = postgresql://b:\*\*\*@\[::1/lab: not a valid PostgreSQL"
+                                          r" URL \(.*\)$") as refused:
+        load_station(station_with(tmp_path, 'url = "postgresql://b:s3cret@[::1/lab"\n'))
+    assert "s3cret" not in str(refused.value)
     with pytest.raises(ConfigError, match=r"unknown key 'lab_store.sync', expected one of auto_sync, url"):
         load_station(station_with(tmp_path, 'url = "postgres://lab/x"\nsync = true\n'))
     assert "127.0.0.1:9" not in str(load_station(station_with(tmp_path, f'url = "{UNREACHABLE}"\n')).settings())

@@ -18,7 +18,7 @@ psycopg = pytest.importorskip("psycopg", reason='the lab store needs psycopg 3 (
 
 from bench.cli import main  # noqa: E402
 from bench.store import Store  # noqa: E402
-from bench.store.lab import LAB_SCHEMA_VERSION, LabStore, rows_checksum, sync_store  # noqa: E402
+from bench.store.lab import LAB_SCHEMA_VERSION, LabServerBusy, LabStore, rows_checksum, sync_store  # noqa: E402
 from postgres_support import PASSWORD, Cluster, lab_server, lab_url, make_store  # noqa: E402, F401  (fixtures)
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -137,7 +137,7 @@ def test_bad_url_credentials_and_server_are_one_line_each(tmp_path, lab_url, cap
                                        "postgresql://USER:PASSWORD@HOST/DBNAME URL")
     assert main(["sync", "--store", str(path), "--to", "postgresql://bench@/lab?colour=blue"]) == 2
     line = _one_error_line(capsys)  # libpq's own words follow: "invalid URI query parameter" in libpq 15
-    assert line.startswith("bench: error: lab store postgresql://bench@/lab?colour=blue: not a valid PostgreSQL "
+    assert line.startswith("bench: error: --to postgresql://bench@/lab?colour=blue: not a valid PostgreSQL "
                            "URL (invalid ") and '"colour"' in line
     wrong = lab_url.replace(PASSWORD, "not-the-password") if PASSWORD in lab_url else lab_url + "&password=nope"
     assert main(["sync", "--store", str(path), "--to", wrong, "--retries", "0"]) == 1
@@ -221,3 +221,53 @@ def test_two_syncs_of_one_file_at_once_store_every_sample_once(tmp_path, lab_url
     sent = [int(out.split(" new samples")[0].rsplit(" ", 1)[1]) for out in outs]
     assert sum(sent) == 8000
     assert server_state(lab_url) == (8000, 8000, local_checksums(path))
+
+
+def _limited_role(lab_url: str, limit: int) -> str:
+    """A lab URL for a role of ``limit`` connections at most (superusers have no limit), allowed to sync."""
+    role = f"crowd_{abs(hash(lab_url)) % 10**8}"
+    with psycopg.connect(lab_url, autocommit=True) as admin:
+        admin.execute(f"CREATE ROLE {role} LOGIN PASSWORD 'crowd-pw' CONNECTION LIMIT {limit}")
+        admin.execute("CREATE SCHEMA IF NOT EXISTS bench")
+        admin.execute(f"GRANT USAGE, CREATE ON SCHEMA bench TO {role}")
+        admin.execute(f"GRANT ALL ON ALL TABLES IN SCHEMA bench TO {role}")
+        admin.execute(f"GRANT ALL ON ALL SEQUENCES IN SCHEMA bench TO {role}")
+    return lab_url.replace(f"bench:{PASSWORD}@", f"{role}:crowd-pw@")
+
+
+def test_a_crowded_server_makes_a_sync_wait_for_a_slot_not_fail(tmp_path, lab_url):
+    first = make_store(tmp_path / "first.db", "bench-first", [10])
+    with Store(first) as store:
+        sync_store(store, lab_url)  # the schema exists before the limited role syncs
+    url = _limited_role(lab_url, 1)
+    path = make_store(tmp_path / "crowd.db", "bench-crowd", [300, 200])
+    holder = psycopg.connect(url)  # another bench holds the role's only slot
+    waiting, lines = threading.Event(), []
+
+    def progress(line: str) -> None:
+        lines.append(line)
+        if "server busy, no connection slot free" in line:
+            waiting.set()
+
+    def release() -> None:
+        waiting.wait(timeout=120)
+        holder.close()
+
+    releaser = threading.Thread(target=release)
+    releaser.start()
+    with Store(path, read_only=True) as store:
+        result = sync_store(store, url, batch_size=100, retry_wait_s=0.05, progress=progress)
+    releaser.join()
+    assert waiting.is_set() and result.samples_sent == 500  # it waited, then sent through the one slot
+    assert sum("waiting for a free connection" in line for line in lines) == 1
+    total, distinct, checksums = server_state(lab_url)
+    assert (total, distinct) == (510, 510)
+    assert checksums == {**local_checksums(first), **local_checksums(path)}
+
+
+def test_a_busy_server_past_the_wait_is_one_line(tmp_path, lab_url, capsys):
+    url = _limited_role(lab_url, 0)
+    path = make_store(tmp_path / "never.db", "bench-never", [10])
+    with Store(path, read_only=True) as store, pytest.raises(LabServerBusy, match=r"server busy, no connection slot "
+                                                                                 r"free \(.*too many connections"):
+        sync_store(store, url, retry_wait_s=0.01, busy_wait_s=0.2)

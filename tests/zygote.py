@@ -126,21 +126,23 @@ class Zygote:
                     self.exited.notify_all()
 
     def popen(self, command: list[str], *, stdout: Any = None, stderr: Any = None, text: bool = False,
-              **unsupported: Any) -> ForkedProcess | subprocess.Popen:
+              start_new_session: bool = False, **unsupported: Any) -> ForkedProcess | subprocess.Popen:
         """``subprocess.Popen(command, stdout=, stderr=, text=)`` for ``[python, -m, MODULE, ...]``, stdout a pipe,
         a file or None, stderr a file or None; any other command or option goes to ``subprocess.Popen``."""
         forkable_out = stdout in (None, subprocess.PIPE) or hasattr(stdout, "fileno")
         forkable_err = stderr is None or hasattr(stderr, "fileno")
         if unsupported or len(command) < 3 or command[:2] != [sys.executable, "-m"] or not forkable_out \
                 or not forkable_err:
-            return subprocess.Popen(command, stdout=stdout, stderr=stderr, text=text, **unsupported)
+            return subprocess.Popen(command, stdout=stdout, stderr=stderr, text=text,
+                                    start_new_session=start_new_session, **unsupported)
         read_end = None
         if stdout == subprocess.PIPE:
             read_end, write_end = os.pipe()
         else:
             write_end = os.open(os.devnull, os.O_WRONLY) if stdout is None else os.dup(stdout.fileno())
         error = os.open(os.devnull, os.O_WRONLY) if stderr is None else os.dup(stderr.fileno())
-        request = {"module": command[2], "argv": command[3:], "cwd": os.getcwd(), "env": dict(os.environ)}
+        request = {"module": command[2], "argv": command[3:], "cwd": os.getcwd(), "env": dict(os.environ),
+                   "new_session": start_new_session}
         try:
             with self._request, self._pids:
                 socket.send_fds(self.socket, [json.dumps(request).encode()], [write_end, error])
@@ -218,6 +220,8 @@ def _serve(sock: socket.socket, load_kernel: bool) -> dict | None:
             signal.set_wakeup_fd(-1)
             signal.signal(signal.SIGCHLD, signal.SIG_DFL)
             sock.close()
+            if json.loads(packet).get("new_session"):
+                os.setsid()  # as Popen(start_new_session=True): out of the terminal's foreground process group
             os.close(woken)
             os.close(wake)
             stdin = os.open(os.devnull, os.O_RDONLY)

@@ -23,16 +23,18 @@ def register(groups: argparse._SubParsersAction) -> None:
     actions = analyze.add_subparsers(dest="action", metavar="ANALYSIS", required=True)
 
     iso = _new_parser(actions, "iso9283", "pose accuracy AP and repeatability RP per pose (ISO 9283 7.2)")
-    iso.add_argument("--instrument-u-mm", type=float, default=0.0,
-                     help="instrument standard uncertainty per axis (mm), added to the AP budget")
+    iso.add_argument("--instrument-u-mm", type=float, default=None,
+                     help="instrument standard uncertainty per axis (mm, from the station file or the calibration "
+                          "in force), added to the AP budget; without it U excludes the instrument and says so")
     iso.add_argument("--k", type=float, default=2.0, help="coverage factor of the expanded uncertainties")
     iso.set_defaults(handler=_iso9283)
 
     distance = _new_parser(actions, "distance", "distance accuracy AD and repeatability RD (ISO 9283 7.3)")
     distance.add_argument("--from", dest="first", default="P2", help="first command pose")
     distance.add_argument("--to", dest="second", default="P4", help="second command pose")
-    distance.add_argument("--instrument-u-mm", type=float, default=0.0,
-                          help="instrument standard uncertainty of one position reading (mm)")
+    distance.add_argument("--instrument-u-mm", type=float, default=None,
+                          help="instrument standard uncertainty of one position reading (mm); without it U "
+                               "excludes the instrument and says so")
     distance.set_defaults(handler=_distance)
 
     drift = _new_parser(actions, "drift", "drift dAP/dRP of one pose over time windows (ISO 9283 7.6), needs t_s")
@@ -54,8 +56,9 @@ def register(groups: argparse._SubParsersAction) -> None:
     actuator.add_argument("--cr-mm", type=float, default=None,
                           help="control resolution (mm/step) when the table has no cr_mm column")
     defer(actuator, _add_actuator_robot)
-    actuator.add_argument("--instrument-u-mm", type=float, default=0.0,
-                          help="instrument standard uncertainty of one travel reading (mm)")
+    actuator.add_argument("--instrument-u-mm", type=float, default=None,
+                          help="instrument standard uncertainty of one travel reading (mm); without it U "
+                               "excludes the instrument and says so")
     actuator.add_argument("--k", type=float, default=2.0, help="coverage factor of the expanded uncertainties")
     actuator.set_defaults(handler=_actuator)
 
@@ -122,7 +125,10 @@ def _iso9283(args: argparse.Namespace) -> int:
     table = pose_table(frame, partial_axes=True)
     if table.empty:  # a header and no rows: nothing measured, never an empty result printed as if it were one
         raise ConfigError(f"{args.file}: no rows, expected at least one measured pose")
-    results = report_order(analyze_poses(table, instrument_u_mm=args.instrument_u_mm, k=args.k))
+    from bench.metrology.uncertainty import instrument_budget
+
+    budget = instrument_budget(args.instrument_u_mm, "--instrument-u-mm")
+    results = report_order(analyze_poses(table, instrument_u_mm=args.instrument_u_mm or 0.0, k=args.k))
     labels = [pose_label(r.pose, r.conditions) for r in results]
     width = max([12, *map(len, labels)])
     lines = [(f"{'pose':<{width}} {'n':>3} {'AP_mm':>8} {'APx_mm':>8} {'APy_mm':>8} {'APz_mm':>8} {'RP_mm':>8} "
@@ -144,16 +150,15 @@ def _iso9283(args: argparse.Namespace) -> int:
         missing = ", ".join(c for c in "xyz" if c not in axes)
         lines.append(f"AP and RP over the measured axes {', '.join(axes)} only ({missing} not in {args.file}: n/m, "
                      "not measured); not the 3-D figures.")
-    lines.append(f"AP against the commanded pose; RP = l̄ + 3 S_l; U with k = {args.k:g}; values rounded by their U "
-                 f"(--json: full precision).")
-    emit({"poses": {r.label: pose_result_json(r) for r in results}}, args.json, lines)
+    lines.append(f"AP against the commanded pose; RP = l̄ + 3 S_l; U for the coverage of k = {args.k:g}: U_AP the "
+                 f"cycles' scatter (Student's k at ν_eff) and the instrument, U_RP a Monte Carlo of the measurement "
+                 f"model (docs/metrology.md); values rounded by their U (--json: full precision).")
+    lines.append(budget + ".")
+    emit({"poses": {r.label: pose_result_json(r) for r in results}, "U_budget": budget}, args.json, lines)
     return 0
 
 
 def _distance(args: argparse.Namespace) -> int:
-    import numpy as np
-
-    from bench.metrology import combine, expanded
     from bench.metrology.tables import (
         POSE_NUMERIC_COLUMNS,
         analyze_distance,
@@ -161,18 +166,20 @@ def _distance(args: argparse.Namespace) -> int:
         pose_table,
         read_table_csv,
     )
+    from bench.metrology.uncertainty import distance_accuracy_uncertainty, instrument_budget
 
     table = pose_table(read_table_csv(args.file, numeric=POSE_NUMERIC_COLUMNS))
     r = analyze_distance(table, args.first, args.second)
-    # D_j is the difference of two readings: the instrument term enters twice (uncorrelated).
-    u_ad = expanded(r.ad_mm, combine(r.u_ad_mm, np.sqrt(2.0) * args.instrument_u_mm), unit="mm")
+    budget = instrument_budget(args.instrument_u_mm, "--instrument-u-mm")
+    u_ad = distance_accuracy_uncertainty(r.ad_mm, r.u_ad_mm, r.n, instrument_u_mm=args.instrument_u_mm or 0.0)
     result = {"from": args.first, "to": args.second, "n": r.n, "AD_mm": r.ad_mm, "U_AD_mm": u_ad.expanded_uncertainty,
               "k": u_ad.coverage_factor, "RD_mm": r.rd_mm,
               "AD_axes_mm": list(r.ad_axes_mm), "RD_axes_mm": list(r.rd_axes_mm),
-              "mean_distance_mm": r.mean_distance_mm, "commanded_distance_mm": r.commanded_distance_mm}
+              "mean_distance_mm": r.mean_distance_mm, "commanded_distance_mm": r.commanded_distance_mm,
+              "U_budget": budget}
     lines = [(f"{args.first} -> {args.second}, n = {r.n}: D_c = {r.commanded_distance_mm:.3f} mm, "
               f"D̄ = {r.mean_distance_mm:.3f} mm"),
-             f"AD_p = {u_ad}, RD = ±{r.rd_mm:.4f} mm",
+             f"AD_p = {u_ad}, RD = ±{r.rd_mm:.4f} mm; {budget}",
              "AD x/y/z = " + " / ".join(f"{v:+.4f}" for v in r.ad_axes_mm) + " mm, RD x/y/z = ±"
              + " / ±".join(f"{v:.4f}" for v in r.rd_axes_mm) + " mm"]
     angles = analyze_orientation_distance(table, args.first, args.second)
@@ -265,6 +272,9 @@ def actuator_result_json(r) -> dict:
 def _actuator(args: argparse.Namespace) -> int:
     from bench.metrology.actuator_tables import actuator_table, analyze_actuators, robot_control_resolution
     from bench.metrology.tables import read_table_csv
+    from bench.metrology.uncertainty import instrument_budget
+
+    budget = instrument_budget(args.instrument_u_mm, "--instrument-u-mm")
 
     frame = read_table_csv(args.file)
     resolution = args.cr_mm if args.cr_mm is not None else (
@@ -273,7 +283,7 @@ def _actuator(args: argparse.Namespace) -> int:
         raise ConfigError(f"{args.file}: no cr_mm column and no --cr-mm given, expected one of them (an "
                           "actuator_accuracy export: --robot pkm5)")
     results = analyze_actuators(actuator_table(frame), control_resolution_mm=resolution,
-                                instrument_u_mm=args.instrument_u_mm, k=args.k)
+                                instrument_u_mm=args.instrument_u_mm or 0.0, k=args.k)
     lines = [(f"{'actuator':<9} {'n':>3} {'repeat_mm':>9} {'accuracy_mm':>11} {'max|bias|_mm':>12} {'R230_mm':>8} "
               f"{'E230_mm':>8} {'A230_mm':>8}  mean deviation per target (mm)")]
     for r in results:
@@ -284,11 +294,15 @@ def _actuator(args: argparse.Namespace) -> int:
                      + (f"  ({r.dropped} readings of incomplete repeats left out)" if r.dropped else ""))
     lines.append("Repeatability = 3 σ̄, accuracy = CR/2 + 3 σ̄ (dissertation Eqs. 8.2-8.3); bias = x̄ - target; "
                  "R/E/A: ISO 230-2 unidirectional (approach from below).")
-    emit({"actuators": {r.actuator: actuator_result_json(r) for r in results}}, args.json, lines)
+    lines.append(budget + ".")
+    emit({"actuators": {r.actuator: actuator_result_json(r) for r in results}, "U_budget": budget}, args.json,
+         lines)
     return 0
 
 
 def _payload(args: argparse.Namespace) -> int:
+    import numpy as np
+
     from bench.metrology import leg_error_summary
     from bench.metrology.tables import numeric_columns, read_table_csv
 
@@ -303,14 +317,20 @@ def _payload(args: argparse.Namespace) -> int:
         raise ConfigError(f"{args.file}: some load has no error for some leg, expected every leg at every load")
     s = leg_error_summary(wide.index.to_numpy(), wide.to_numpy())
     names = [str(c) for c in wide.columns]
-    result = {"legs": {n: {"max_error_mm": m, "load_at_max_kg": l, "mean_error_mm": a, "correlation_with_load": c}
-                       for n, m, l, a, c in zip(names, s.max_error_mm, s.load_at_max_kg, s.mean_error_mm,
-                                                s.correlation_with_load)},
+    # the worst error of a leg is its largest |e|, shown with its sign (a signed table's max can be a tiny positive
+    # error while the leg's real worst is a large negative one); the first load wins a tie
+    errors = wide.to_numpy()
+    at_worst = np.argmax(np.abs(errors), axis=0)
+    worst = [float(errors[i, j]) for j, i in enumerate(at_worst)]
+    worst_load = [float(wide.index[i]) for i in at_worst]
+    result = {"legs": {n: {"worst_error_mm": w, "load_at_worst_kg": wl, "max_error_mm": m, "load_at_max_kg": l,
+                           "mean_error_mm": a, "correlation_with_load": c}
+                       for n, w, wl, m, l, a, c in zip(names, worst, worst_load, s.max_error_mm, s.load_at_max_kg,
+                                                       s.mean_error_mm, s.correlation_with_load)},
               "overall_mean_mm": s.overall_mean_mm, "overall_sd_mm": s.overall_sd_mm, "n_loads": s.n_loads}
-    lines = [f"{'leg':<5} {'max_mm':>7} {'at_kg':>7} {'mean_mm':>8} {'r(load)':>8}"]
-    lines += [f"{n:<5} {m:7.3f} {l:7.2f} {a:8.3f} {('n/a' if c is None else f'{c:+.3f}'):>8}"
-              for n, m, l, a, c in zip(names, s.max_error_mm, s.load_at_max_kg, s.mean_error_mm,
-                                       s.correlation_with_load)]
+    lines = [f"{'leg':<5} {'worst_mm':>8} {'at_kg':>7} {'mean_mm':>8} {'r(load)':>8}  (worst: largest |e|, signed)"]
+    lines += [f"{n:<5} {w:+8.3f} {wl:7.2f} {a:+8.3f} {('n/a' if c is None else f'{c:+.3f}'):>8}"
+              for n, w, wl, a, c in zip(names, worst, worst_load, s.mean_error_mm, s.correlation_with_load)]
     lines.append(f"all legs: mean {s.overall_mean_mm:.3f} mm, SD {s.overall_sd_mm:.3f} mm over {s.n_loads} loads")
     emit(result, args.json, lines)
     return 0

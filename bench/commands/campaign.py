@@ -169,12 +169,22 @@ def _stop_signals_interrupt():
 
 
 def _ctrl_c_pauses(runner: Runner):
-    """First Ctrl-C: pause at the next checkpoint; a second one, SIGTERM or SIGHUP: abort at once (robot stopped)."""
+    """Ctrl-C while running: pause at the next checkpoint. Ctrl-C once a pause is asked for, at the pause menu, or in
+    any state but running, and SIGTERM or SIGHUP: abort at once (robot stopped, resumable). The handler stays the
+    same for the whole run (a resume does not re-arm it) and only raises the abort's KeyboardInterrupt."""
+    from bench.protocols import RunState, TransitionError
 
     def on_signal(signum: int, frame: Any) -> None:
-        signal.signal(signal.SIGINT, signal.default_int_handler)
-        print("\nbench: pausing at the next checkpoint (Ctrl-C again aborts now)", file=sys.stderr)
-        runner.request_pause()
+        if runner.state is RunState.RUNNING and not runner.pause_requested:
+            try:
+                runner.request_pause()
+            except TransitionError:  # the run left RUNNING between the look and the request: abort instead
+                pass
+            else:
+                print("\nbench: pausing at the next checkpoint (Ctrl-C again aborts now)", file=sys.stderr)
+                return
+        print("\nbench: Ctrl-C: stopping the robot and aborting the run (resumable)", file=sys.stderr)
+        raise KeyboardInterrupt("Ctrl-C")
 
     return _signal_handlers({signal.SIGINT: on_signal, **{number: _raise_interrupt for number in STOP_SIGNALS}})
 
@@ -182,7 +192,7 @@ def _ctrl_c_pauses(runner: Runner):
 def _ask_after_pause(runner: Runner) -> None:
     actions = {"r": runner.resume, "s": runner.stop, "a": runner.abort, "h": runner.halt}
     while True:
-        print("paused: [r]esume, [s]top, [a]bort, [h]alt? ", end="", file=sys.stderr, flush=True)
+        print("paused: [r]esume, [s]top, [a]bort, [h]alt (Ctrl-C aborts)? ", end="", file=sys.stderr, flush=True)
         line = sys.stdin.readline()
         if not line:  # end of input: nobody can answer, so abort once (the run stays resumable)
             print("\nbench: end of input while paused: aborting (resumable)", file=sys.stderr)
@@ -191,8 +201,6 @@ def _ask_after_pause(runner: Runner) -> None:
         choice = line.strip()[:1].lower()
         if choice in actions:
             actions[choice]()
-            if choice == "r":
-                signal.signal(signal.SIGINT, lambda *_: (runner.request_pause()))
             return
 
 

@@ -3,15 +3,14 @@
 Starts the simulated pkm5 controller (a separate process on a pseudo-terminal) and the simulated optical mice,
 runs a complete ISO 9283 pose campaign (P1-P5 of the largest cube in the workspace, 30 cycles, 100/50/10 %
 velocity) with the simulator's speed factor, stores every sample in ``OUT/bench.db``, exports the tidy table,
-analyses it with :mod:`bench.metrology`, and writes ``OUT/results.csv`` and ``OUT/report.md`` (a quick table that
-also compares the measured AP/RP with the simulator's true attained poses) and the full report of
-:mod:`bench.reports` (``OUT/report_run<ID>.html`` and ``.pdf``).
+analyses it with :mod:`bench.metrology`, and writes ``OUT/results.csv`` (per pose, rounded by U, with the simulator's
+true attained AP/RP next to the measured ones) and the report of :mod:`bench.reports` (``OUT/report_run<ID>.html``
+and ``.pdf``: the one report, rendered from one content model, so no second document can disagree with it).
 """
 
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 import time
 from pathlib import Path
@@ -22,7 +21,6 @@ from bench.errors import ConfigError, InsufficientData
 if TYPE_CHECKING:  # imported inside the functions: building the parser stays cheap
     import pandas as pd
 
-    from bench.protocols.iso9283 import PoseAccuracy
     from bench.store import Store
 
 __all__ = ["analyze_run", "register", "rounded_results"]
@@ -45,8 +43,8 @@ def analyze_run(store: Store, run_id: int) -> pd.DataFrame:
     simulator's truth when the samples carry it.
 
     U(AP) carries the instrument's standard uncertainty exactly as the full report does (the run's stored
-    instrument settings, :func:`bench.reports.content.counts_instrument`), so results.csv, report.md and the
-    HTML/PDF give the same U.
+    instrument settings, :func:`bench.reports.content.counts_instrument`), so results.csv and the HTML/PDF
+    give the same U.
     """
     import pandas as pd
 
@@ -100,64 +98,6 @@ def rounded_results(frame: pd.DataFrame) -> pd.DataFrame:
     return out
 
 
-def _markdown(frame: pd.DataFrame) -> str:
-    header = "| " + " | ".join(frame.columns) + " |\n|" + "---|" * len(frame.columns) + "\n"
-    body = "".join("| " + " | ".join(str(v) for v in row) + " |\n" for row in frame.itertuples(index=False))
-    return header + body
-
-
-def _report(store: Store, run_id: int, protocol: PoseAccuracy, results: pd.DataFrame, elapsed_s: float) -> str:
-    run = store.run(run_id)
-    calibrations = ", ".join(f"{c.name} v{c.version} (id {c.id})" for c in store.calibrations()
-                             if c.id in run.calibration_ids)
-    poses = "; ".join(f"{k} = ({', '.join(f'{v:.2f}' for v in p)}) mm" for k, p in protocol.test_poses().items())
-    lines = [
-        "# ISO 9283-style pose accuracy and repeatability: simulated pkm5",
-        "",
-        ("Tested following the methods of ISO 9283:1998 with the deviations listed below; results are "
-        "\"ISO 9283-style\", not certified. No pass/fail criterion is configured, so none is given."),
-        "",
-        "## Provenance",
-        (f"- run {run_id}, protocol {run.protocol_name} v{run.protocol_version}, status {run.status}, "
-        f"{run.n_samples} samples, {elapsed_s:.1f} s wall time"),
-        f"- bench {run.software_version}, git {run.git_sha}; store `{store.path}`",
-        (f"- simulator seed {run.settings.get('simulator', {}).get('seed')}, speed factor "
-        f"{run.settings.get('speed_factor'):g}; calibrations: {calibrations or 'none'}"),
-        f"- configuration: `{json.dumps(run.config, sort_keys=True)}`",
-        "",
-        "## Test conditions",
-        (f"- cube centre {list(protocol.cube_centre_mm)} mm, edge {protocol.resolved()['cube_side_mm']:g} mm "
-        f"(largest cube whose 27 lattice points pass the pre-flight), plane {protocol.plane}"),
-        f"- poses: {poses}",
-        (f"- order P1 -> P5 -> P4 -> P3 -> P2, unidirectional; {protocol.cycles} cycles; velocities "
-        f"{', '.join(f'{v:g}' for v in protocol.velocities_pct)} % of 200 steps/s; dwell {protocol.settle_s:g} s"),
-        "",
-        "## Deviations from ISO 9283",
-        "| Clause | ISO requirement | What was done | Reason | Expected effect |",
-        "|---|---|---|---|---|",
-        ("| 6.6 | 100 % rated load | no payload (the pkm5 has no rated load) | no specification | AP/RP optimistic "
-        "for loaded use |"),
-        ("| 6.7 | rated velocity | 100 % = the documents' firmware speed, 200 steps/s | no rated velocity | "
-        "velocities not comparable with other robots |"),
-        (f"| 6.8 | largest cube in the working space | {protocol.resolved()['cube_side_mm']:g} mm cube | small "
-        "workspace with 60 mm leg windows | not comparable with other robots |"),
-        ("| 6.5 | instrument uncertainty << RP | two optical mice, 800 cpi (0.032 mm/count), simulated | low-cost "
-        "bench | RP includes the instrument floor |"),
-        "| 6.2, 6.3 | warm-up, temperature recorded | simulated; none | simulation | none |",
-        "",
-        "## Results (mm; U at k = 2; values rounded by their U)",
-        _markdown(rounded_results(results)),
-    ]
-    if "true_AP_mm" in results:
-        worst_ap = (results["AP_mm"] - results["true_AP_mm"]).abs().max()
-        worst_rp = (results["RP_mm"] - results["true_RP_mm"]).abs().max()
-        lines += ["## Simulation check",
-                  (f"Measured against the simulator's true attained poses: largest |AP - AP_true| = "
-                  f"{worst_ap:.3f} mm, largest |RP - RP_true| = {worst_rp:.3f} mm (instrument quantisation "
-                  "and noise)."), ""]
-    return "\n".join(lines)
-
-
 def _demo(args: argparse.Namespace) -> int:
     from bench import __version__
     from bench.commands.campaign import execute
@@ -183,16 +123,13 @@ def _demo(args: argparse.Namespace) -> int:
         results = analyze_run(store, result.run_id)
         results_path = out / "results.csv"
         rounded_results(results).to_csv(results_path, index=False)
-        report_path = out / "report.md"
-        report_path.write_text(_report(store, result.run_id, protocol, results, time.monotonic() - started),
-                               encoding="utf-8")
         from bench.reports import write_report
         full = write_report(store, result.run_id, out)
     shown = results[[c for c in ("pose", "velocity_pct", "n", "AP_mm", "RP_mm", "true_AP_mm", "true_RP_mm")
                      if c in results]]
     print(rounded_results(shown.assign(U_AP_mm=results["U_AP_mm"], U_RP_mm=results["U_RP_mm"]))
           .drop(columns=["U_AP_mm", "U_RP_mm"]).to_string(index=False), file=sys.stderr)
-    for path in (out / "bench.db", table_path, results_path, report_path, full.html, full.pdf):
+    for path in (out / "bench.db", table_path, results_path, full.html, full.pdf):
         print(path)
     print(f"bench demo: {time.monotonic() - started:.1f} s (bench {__version__})", file=sys.stderr)
     return 0

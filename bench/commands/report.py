@@ -30,6 +30,7 @@ def register(groups: argparse._SubParsersAction) -> None:
 def _add_arguments(parser: argparse.ArgumentParser) -> None:
     """Added when ``bench report`` is parsed: the choices come from bench.reports (matplotlib, reportlab)."""
     from bench.reports import CRITERIA, FORMATS
+    from bench.reports.decision import DECISION_RULES
 
     parser.add_argument("--compare", metavar="RUN_B", default=None,
                         help="second run: write a side-by-side comparison of RUN_ID (A) and RUN_B (B)")
@@ -42,13 +43,19 @@ def _add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--criterion", action="append", default=[], metavar="NAME=MM",
                         help=f"project acceptance criterion, repeatable; NAME in {', '.join(CRITERIA)}")
     identity = parser.add_argument_group("device under test and people (page 1; default: the run's stored "
-                                         "settings.dut, else \"not recorded\")")
+                                         "settings.dut, else an empty line to fill in by hand)")
     identity.add_argument("--dut-serial", default=None, metavar="TEXT", help="robot serial number or asset tag")
     identity.add_argument("--customer", default=None, metavar="TEXT", help="customer the robot is tested for")
     identity.add_argument("--order", default=None, metavar="TEXT", help="order or job number")
+    identity.add_argument("--measuring-point", default=None, metavar="TEXT",
+                          help="point measured (TCP / reference point, ISO 9283 6.3); default: the robot's stored tcp "
+                               "setting, else the platform centre of the kinematic model")
     identity.add_argument("--operator", default=None, metavar="TEXT", help="operator named in the report")
     identity.add_argument("--lab", "--laboratory", dest="laboratory", default=None, metavar="TEXT",
                           help="laboratory named in the report")
+    parser.add_argument("--decision-rule", choices=DECISION_RULES, default=DECISION_RULES[0],
+                        help="how the verdict uses U: simple acceptance (ILAC-G8 4.2.1) or guarded acceptance "
+                             "(ISO 14253-1: pass / not proven / fail)")
     parser.add_argument("--k", type=float, default=2.0, help="coverage factor of the expanded uncertainties")
     parser.add_argument("--band-mm", type=float, nargs="+", default=None, metavar="MM",
                         help="stabilisation and positioning-time runs: limit bands (default: the ISO comparison "
@@ -120,10 +127,11 @@ def _write(args: argparse.Namespace, store, ids: list[int], formats, criteria, p
                                  progress=progress)
     else:
         identity = {name: getattr(args, name) for name in ("dut_serial", "customer", "order", "operator",
-                                                            "laboratory")}
+                                                            "laboratory", "measuring_point")}
         paths = write_report(store, run_id, args.out, formats, criteria=criteria, k=args.k,
                              allow_unknown=args.allow_unknown, bands_mm=args.band_mm,
-                             hysteresis_mm=args.hysteresis_mm, identity=identity, progress=progress)
+                             hysteresis_mm=args.hysteresis_mm, identity=identity,
+                             decision_rule=args.decision_rule, progress=progress)
     for path in (paths.html, paths.pdf, *paths.csv):
         if path is not None:
             print(path)

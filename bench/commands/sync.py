@@ -44,15 +44,15 @@ def register(groups: argparse._SubParsersAction) -> None:
 
 def _sync(args: argparse.Namespace) -> int:
     from bench.store import Store
-    from bench.store.lab import is_lab_url, redacted, sync_store
+    from bench.store.lab import check_lab_url, redacted, sync_store
 
-    if not is_lab_url(args.to):
-        raise ConfigError(f"--to {args.to}: expected a postgresql://USER:PASSWORD@HOST/DBNAME URL")
+    check_lab_url(args.to, "--to")
     if args.batch < 1:
         raise ConfigError(f"--batch {args.batch}: expected a positive number of samples")
     if args.retries < 0:
         raise ConfigError(f"--retries {args.retries}: expected 0 or more")
-    with Store(args.store, bench=args.bench) as store:
+    # read-only: sync never writes the local file, and a path that names no store is refused, never created
+    with Store(args.store, bench=args.bench, read_only=True) as store:
         result = sync_store(store, args.to, batch_size=args.batch, retries=args.retries,
                             progress=lambda line: print(line, file=sys.stderr, flush=True))
     print(f"synced {result.runs} runs, {result.calibrations} calibrations, {result.samples_sent} new samples "
@@ -74,11 +74,10 @@ def _iso_date(option: str, text: str | None) -> str | None:
 def _lab_summary(args: argparse.Namespace) -> int:
     import json
 
-    from bench.store.lab import LabStore, is_lab_url
+    from bench.store.lab import LabStore, check_lab_url
     from bench.store.lab_summary import pose_summary
 
-    if not is_lab_url(args.store):
-        raise ConfigError(f"--store {args.store}: lab summary needs the lab store, a postgresql:// URL")
+    check_lab_url(args.store, "--store")
     since, until = _iso_date("--since", args.since), _iso_date("--until", args.until)
     with LabStore(args.store) as lab:
         groups = pose_summary(lab, since=since, until=until, bench=args.bench, robot=args.robot)

@@ -4,8 +4,14 @@ emergency stop that is always visible and always reachable (button and F12, even
 The window wires the panels to the campaign worker's signals and adds no logic of its own: runs go through
 bench's runner and store (:mod:`bench.gui.worker`), with the kinematic calibration chosen in the calibration panel
 (:mod:`bench.gui.calibration_panel`), pre-flight through :mod:`bench.protocols`, statistics through
-:mod:`bench.metrology`, reports through :mod:`bench.reports`. Closing the window during a run stops it at the next
-checkpoint through the runner (status ``aborted``, resumable; every stored sample stays) and waits for it.
+:mod:`bench.metrology`, reports through :mod:`bench.reports`.
+
+The emergency stop is a latch (:class:`bench.gui.estop.EmergencyStop`): the button (on mouse-down) and F12 only set
+it; its own thread takes it to the wire. F12 is caught by an application-wide event filter, so it acts in every window
+of bench, a modal dialog of Qt's included (a ``QShortcut`` is blocked by one); the window itself opens no modal
+dialog, so the button stays clickable. Closing the window during a run presses the emergency stop first (the robot
+stops at once, the run ends aborted and resumable), then asks whether to close; the window never waits on its own
+thread for a run to end.
 """
 
 from __future__ import annotations
@@ -14,9 +20,10 @@ import dataclasses
 import logging
 from pathlib import Path
 
-from PySide6.QtCore import Qt
-from PySide6.QtGui import QCloseEvent, QKeySequence, QShortcut
+from PySide6.QtCore import QEvent, QObject, Qt
+from PySide6.QtGui import QCloseEvent, QKeyEvent
 from PySide6.QtWidgets import (
+    QApplication,
     QLabel,
     QMainWindow,
     QMessageBox,
@@ -31,6 +38,7 @@ from PySide6.QtWidgets import (
 
 from bench.gui.calibration_panel import CalibrationPanel
 from bench.gui.calliper_dialog import CalliperDialog
+from bench.gui.estop import HANDOFF_S, EmergencyStop
 from bench.gui.messages import show_message
 from bench.gui.campaign_panel import CampaignPanel
 from bench.gui.live_view import LiveView
@@ -51,8 +59,25 @@ ESTOP_TOOLTIP = ("Software emergency stop (stop category 1/2, IEC 60204-1), F12 
 
 _log = logging.getLogger(__name__)
 
-#: How long closing the window waits for a run to reach its next checkpoint, s.
-CLOSE_TIMEOUT_S = 60.0
+#: The question a close during a run asks, after the emergency stop went out.
+CLOSE_QUESTION = ("The robot was stopped (software emergency stop) and the run ends aborted; every stored sample "
+                  "stays, and Resume continues it.\n\nClose the window?")
+
+
+class _EstopKeyFilter(QObject):
+    """F12 anywhere in the application, a modal dialog's window included, presses the emergency stop."""
+
+    def __init__(self, press) -> None:
+        super().__init__()
+        self._press = press
+
+    def eventFilter(self, watched: QObject, event: QEvent) -> bool:
+        if event.type() in (QEvent.Type.KeyPress, QEvent.Type.ShortcutOverride) \
+                and isinstance(event, QKeyEvent) and event.key() == ESTOP_KEY:
+            if event.type() is QEvent.Type.KeyPress and not event.isAutoRepeat():
+                self._press()
+            return True  # consumed: never typed into a field, never a shortcut of a dialog
+        return False
 
 
 class MainWindow(QMainWindow):
@@ -65,12 +90,15 @@ class MainWindow(QMainWindow):
         self.setWindowTitle(f"bench - {self.store_path}")
         self.calliper_dialog: CalliperDialog | None = None
         self.last_dialog: QMessageBox | None = None
-        self.robot_panel = RobotPanel()
+        self.close_question: QMessageBox | None = None
+        self._close_confirmed = False
+        self.estop_latch = EmergencyStop()
+        self.robot_panel = RobotPanel(estop=self.estop_latch)
         self.live_view = LiveView()
         self.results = ResultsBrowser(self.store_path, report_dir, open_files=open_files)
         self.calibration_panel = CalibrationPanel(self.store_path, self.results.selected_run_ids,
                                                   robot=self.robot_panel.robot.currentText)
-        self.campaign_panel = CampaignPanel(self.store_path, self.rig_spec)
+        self.campaign_panel = CampaignPanel(self.store_path, self.rig_spec, estop=self.estop_latch)
         self.log = QPlainTextEdit()
         self.log.setObjectName("log")
         self.log.setReadOnly(True)
@@ -116,12 +144,17 @@ class MainWindow(QMainWindow):
         self.estop.setMinimumHeight(44)
         self.estop.setStyleSheet("QPushButton {background: #c62828; color: white; font-weight: bold;"
                                  " font-size: 15px; padding: 6px 24px; border-radius: 4px}")
-        self.estop.clicked.connect(self.emergency_stop)
+        self.estop.pressed.connect(self.emergency_stop)  # on mouse-down: nothing more to wait for
         self.estop.setFocusPolicy(Qt.FocusPolicy.NoFocus)  # never the target of a stray Space or Enter
-        self.estop_shortcut = QShortcut(QKeySequence(ESTOP_KEY), self)
-        self.estop_shortcut.setContext(Qt.ShortcutContext.ApplicationShortcut)  # also in the calliper dialog
-        self.estop_shortcut.activated.connect(self.emergency_stop)
+        self._key_filter = _EstopKeyFilter(self.emergency_stop)
+        QApplication.instance().installEventFilter(self._key_filter)
+        self.reset_estop = QPushButton("Reset e-stop")
+        self.reset_estop.setObjectName("resetEmergencyStop")
+        self.reset_estop.setToolTip("After checking the robot: allow runs and jogs again (releases the robot's latch)")
+        self.reset_estop.clicked.connect(self.reset_emergency_stop)
+        self.reset_estop.setEnabled(False)
         bar.addWidget(self.estop)
+        bar.addWidget(self.reset_estop)
         note = QLabel("  software stop (category 1/2): the hard-wired emergency stop of the cell is the safety device")
         note.setObjectName("estopNote")
         bar.addWidget(note)
@@ -143,14 +176,26 @@ class MainWindow(QMainWindow):
         self.log.appendPlainText(text)
 
     def emergency_stop(self) -> None:
-        """Stop the campaign's robot now (the run ends aborted, resumable, no clean-up moves) and the jogging
-        robot; a pending calliper dialog closes (its prompt is withdrawn)."""
-        worker = self.campaign_panel.worker
-        if worker is not None:
-            worker.emergency_stop()
+        """Press the emergency stop: the stop thread stops the campaign's robot (the run ends aborted, resumable, no
+        clean-up moves) and the jogging robot; a pending calliper dialog closes (its prompt is withdrawn). The press
+        comes first, before anything is drawn, and the stop thread goes first (up to HANDOFF_S)."""
+        self.estop_latch.press(HANDOFF_S)
         self._close_calliper_dialog()
-        self.robot_panel.emergency_stop()
+        self.robot_panel.show_latched()
+        self.campaign_panel.refresh_buttons()
+        self.reset_estop.setEnabled(self.campaign_panel.worker is None)
         self.say("EMERGENCY STOP (software)")
+
+    def reset_emergency_stop(self) -> None:
+        """The operator checked the robot: runs and jogs may start again."""
+        if self.campaign_panel.worker is not None:
+            self.say("reset e-stop: wait for the stopped run to end")
+            return
+        self.estop_latch.reset()
+        self.reset_estop.setEnabled(False)
+        self.robot_panel.release_stop()
+        self.campaign_panel.refresh_buttons()
+        self.say("emergency stop reset")
 
     def _close_calliper_dialog(self) -> None:
         """Close the dialog without its signals: the worker has already withdrawn the prompt."""
@@ -176,15 +221,21 @@ class MainWindow(QMainWindow):
         worker.prompt_requested.connect(self.ask_reading)
         worker.run_finished.connect(self._run_finished)
         worker.failed.connect(self._job_failed)
-        worker.finished.connect(lambda: self.robot_panel.setEnabled(True))
+        worker.finished.connect(self._worker_finished)
         self.tabs.setCurrentWidget(self.live_view)
+
+    def _worker_finished(self) -> None:
+        self.robot_panel.setEnabled(True)
+        self.reset_estop.setEnabled(self.estop_latch.latched)
+        if self._close_confirmed:
+            self.close()
 
     def _run_started(self, run_id: int, total: int, done: int) -> None:
         self.say(f"run {run_id} started ({total - done} of {total} samples to take)")
         self.results.refresh()
 
     def _run_finished(self, result: RunResult) -> None:
-        self.live_view.redraw()
+        self.live_view.schedule_redraw()
         reason = f": {result.reason}" if result.reason else ""
         self.say(f"run {result.run_id} {result.exit_status} ({result.samples} samples){reason}")
         self.results.refresh()
@@ -220,15 +271,16 @@ class MainWindow(QMainWindow):
         return dialog
 
     def closeEvent(self, event: QCloseEvent) -> None:
-        """Stop a run at its next checkpoint (resumable, nothing stored is lost), release the robot, and close the
-        window's message dialogs."""
-        if self.campaign_panel.worker is not None:
-            self.say("window closing: stopping the run at the next checkpoint")
-            self._close_calliper_dialog()
-            if not self.campaign_panel.shut_down(CLOSE_TIMEOUT_S):
-                _log.error("the run did not reach a checkpoint within %g s; halting it", CLOSE_TIMEOUT_S)
-                self.campaign_panel.request("halt")
-                self.campaign_panel.worker.wait(int(CLOSE_TIMEOUT_S * 1000))
+        """During a run: press the emergency stop first, then ask (the window stays open meanwhile and closes
+        once the stopped run has ended). Otherwise release the robot and close the window's message dialogs."""
+        worker = self.campaign_panel.worker
+        if worker is not None:
+            event.ignore()
+            if not self._close_confirmed:
+                self.say("window closing during a run: emergency stop first")
+                self.emergency_stop()
+                self._ask_to_close()
+            return
         self.results.stop_watching()
         shutdown_worker_process()  # a report being written there still ends; the process then exits
         self.calibration_panel.wait_idle()  # an identification being stored ends before the window goes
@@ -237,4 +289,25 @@ class MainWindow(QMainWindow):
         # its result and error messages go with it: an open one would keep bench gui running, windowless
         for message in self.findChildren(QMessageBox):
             message.close()
+        QApplication.instance().removeEventFilter(self._key_filter)
         event.accept()
+
+    def _ask_to_close(self) -> None:
+        """The non-modal question of a close during a run (the robot is stopped already)."""
+        if self.close_question is not None and self.close_question.isVisible():
+            self.close_question.raise_()
+            return
+        question = QMessageBox(QMessageBox.Icon.Question, "Close bench?", CLOSE_QUESTION,
+                               QMessageBox.StandardButton.Close | QMessageBox.StandardButton.Cancel, self)
+        question.setObjectName("closeQuestion")
+        question.setWindowModality(Qt.WindowModality.NonModal)
+        question.button(QMessageBox.StandardButton.Close).clicked.connect(self.confirm_close)
+        self.close_question = question
+        question.show()
+
+    def confirm_close(self) -> None:
+        """Close the window once the stopped run has ended (at once when it has)."""
+        self._close_confirmed = True
+        self.campaign_panel.ended_by_operator = True
+        if self.campaign_panel.worker is None:
+            self.close()

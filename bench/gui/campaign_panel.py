@@ -14,7 +14,7 @@ import time
 from collections.abc import Callable
 from pathlib import Path
 
-from PySide6.QtCore import Signal
+from PySide6.QtCore import Qt, Signal
 from PySide6.QtWidgets import (
     QCheckBox,
     QComboBox,
@@ -32,6 +32,7 @@ from PySide6.QtWidgets import (
 )
 
 from bench.errors import BenchError
+from bench.gui.estop import EmergencyStop
 from bench.gui.parameter_form import ParameterForm
 from bench.gui.worker import CampaignWorker, RigSpec
 from bench.protocols import Protocol, RunResult, RunState, load_protocol, summarize
@@ -86,15 +87,20 @@ class CampaignPanel(QGroupBox):
         The run store the worker writes to.
     rig_spec : callable
         Returns the :class:`RigSpec` chosen in the robot panel (asked when a run starts).
+    estop : EmergencyStop, optional
+        The window's emergency stop: each worker's stop is registered with it, and nothing starts while it is
+        latched.
     """
 
     worker_started = Signal(object)  #: the new :class:`CampaignWorker`, for the window to connect
     message = Signal(str)
 
-    def __init__(self, store_path: str, rig_spec: Callable[..., RigSpec], parent: QWidget | None = None) -> None:
+    def __init__(self, store_path: str, rig_spec: Callable[..., RigSpec], parent: QWidget | None = None, *,
+                 estop: EmergencyStop | None = None) -> None:
         super().__init__("Campaign", parent)
         self.store_path = store_path
         self.rig_spec = rig_spec
+        self.estop = estop or EmergencyStop()
         self.worker: CampaignWorker | None = None
         self.summary: PlanSummary | None = None
         self.queue: list[Protocol] = []
@@ -103,6 +109,7 @@ class CampaignPanel(QGroupBox):
         self.state: str | None = None  #: the worker's state (None: no campaign)
         self.last_outcome = ""  #: how the last run ended, e.g. "run 3 aborted (175 / 450 samples): emergency stop"
         self.ended_by_operator = False  #: Stop, Abort or the window closing ended the current campaign
+        self.file_dialog: QFileDialog | None = None  #: the last "Open..." dialog
         layout = QVBoxLayout(self)
         layout.addLayout(self._file_row())
         self.form = ParameterForm()
@@ -157,7 +164,18 @@ class CampaignPanel(QGroupBox):
         return row
 
     def _browse(self) -> None:
-        path, _ = QFileDialog.getOpenFileName(self, "Protocol file", str(EXAMPLES), "Protocols (*.toml)")
+        """A non-modal file dialog: a modal one would block the window, its emergency stop button included."""
+        dialog = QFileDialog(self, "Protocol file", str(EXAMPLES), "Protocols (*.toml)")
+        dialog.setObjectName("protocolFileDialog")
+        dialog.setFileMode(QFileDialog.FileMode.ExistingFile)
+        dialog.setOption(QFileDialog.Option.DontUseNativeDialog)  # a desktop's native one may be modal regardless
+        dialog.setWindowModality(Qt.WindowModality.NonModal)
+        dialog.fileSelected.connect(self._file_chosen)
+        dialog.finished.connect(dialog.deleteLater)
+        self.file_dialog = dialog
+        dialog.show()
+
+    def _file_chosen(self, path: str) -> None:
         if path:
             self.files.addItem(Path(path).name, path)
             self.files.setCurrentIndex(self.files.count() - 1)
@@ -247,7 +265,7 @@ class CampaignPanel(QGroupBox):
         self.state = state
         ready = self.summary is not None and self.summary.ok
         legal = enabled_actions(state)
-        self.buttons["start"].setEnabled("start" in legal and (ready or bool(self.queue)))
+        self.buttons["start"].setEnabled("start" in legal and (ready or bool(self.queue)) and not self.estop.latched)
         for action in ACTION_TARGETS:
             self.buttons[action].setEnabled(action in legal)
         idle = state is None
@@ -260,6 +278,9 @@ class CampaignPanel(QGroupBox):
         """Run the queue (or the protocol in the form when the queue is empty), or resume stored runs (ids)."""
         if self.worker is not None:
             self.message.emit("a campaign is running: wait for it to end")
+            return None
+        if self.estop.latched:
+            self.message.emit("not started: the emergency stop is latched (check the robot, then Reset e-stop)")
             return None
         if jobs is None:
             if not self.queue and not self.add_to_queue():
@@ -277,6 +298,7 @@ class CampaignPanel(QGroupBox):
         worker.message.connect(self.message.emit)
         worker.finished.connect(self._worker_finished)
         self.worker = worker
+        self.estop.register(worker.emergency_stop)
         self.ended_by_operator = False
         self._set_state("starting")
         self.eta.setText("starting the rig")
@@ -328,7 +350,13 @@ class CampaignPanel(QGroupBox):
         remaining = elapsed / taken * (total - done)
         return f"{done} / {total} samples, elapsed {format_duration(elapsed)}, ETA {format_duration(remaining)}"
 
+    def refresh_buttons(self) -> None:
+        """Enable the buttons again for the current state (the emergency stop latched or was reset)."""
+        self._set_state(self.state)
+
     def _worker_finished(self) -> None:
+        if self.worker is not None:
+            self.estop.unregister(self.worker.emergency_stop)
         self.worker = None
         self._set_state(None)
         self.eta.setText(f"idle - last: {self.last_outcome}" if self.last_outcome else "idle")

@@ -5,6 +5,10 @@ inverse kinematics from motion/, joint limits, singularity proximity) as it is t
 only for a target proved reachable. The simulator connection is the same simulated rig a campaign uses
 (:func:`bench.simulators.rig.simulated_rig`); a serial connection opens the robot's real driver on the port.
 Moves run in a :class:`QThread`, so the window stays responsive.
+
+The emergency stop (:class:`bench.gui.estop.EmergencyStop`) reaches the jogging robot through its stop thread (the
+mover's latching ``emergency_stop``); after it Jog stays disabled until the operator resets the stop, which releases
+the robot's latch (``release_stop``: the pkm5's drives are enabled again) off the window's thread.
 """
 
 from __future__ import annotations
@@ -29,6 +33,7 @@ from PySide6.QtWidgets import (
 )
 
 from bench.errors import BenchError
+from bench.gui.estop import EmergencyStop
 from bench.gui.worker import RigSpec
 from bench.protocols.kinematics import DEFAULT_SINGULARITY_THRESHOLD, robot_model
 from bench.robot_kinds import robot_names
@@ -37,6 +42,8 @@ __all__ = ["RobotPanel", "check_target", "open_mover"]
 
 _log = logging.getLogger(__name__)
 _BOUND_MM_DEG = 1000.0
+#: The robot panel's status while the emergency stop is latched.
+LATCHED_TEXT = "EMERGENCY STOP latched: check the robot, then Reset e-stop"
 
 
 def check_target(robot: str, target: tuple[float, ...]) -> tuple[bool, str]:
@@ -82,8 +89,10 @@ class RobotPanel(QGroupBox):
     connection_changed = Signal(bool)
     message = Signal(str)
 
-    def __init__(self, parent: QWidget | None = None) -> None:
+    def __init__(self, parent: QWidget | None = None, *, estop: EmergencyStop | None = None) -> None:
         super().__init__("Robot", parent)
+        self.estop = estop or EmergencyStop()
+        self.estop.register(self._stop_jog_robot)
         self.mover: Any = None
         self._release: Callable[[], None] | None = None
         self._call: _Call | None = None
@@ -203,12 +212,13 @@ class RobotPanel(QGroupBox):
         reachable, text = check_target(self.robot.currentText(), self.target())
         self.reach.setText(text)
         self.reach.setStyleSheet("color: #1b5e20" if reachable else "color: #b00020")
-        self.jog_button.setEnabled(reachable and self.mover is not None and self._call is None)
+        self.jog_button.setEnabled(reachable and self.mover is not None and self._call is None
+                                   and not self.estop.latched)
         return reachable
 
     def jog(self) -> None:
         """Move to the target, after checking it again (never move to an unchecked target)."""
-        if self.mover is None or not self.update_reachability():
+        if self.mover is None or not self.update_reachability() or self.estop.latched:
             return
         target, velocity = self.target(), self.velocity.value()
         self.status.setText(f"moving to {', '.join(f'{v:g}' for v in target)}")
@@ -259,15 +269,32 @@ class RobotPanel(QGroupBox):
         self.update_reachability()
         self.connection_changed.emit(False)
 
+    def _stop_jog_robot(self) -> None:
+        """The stop thread's part (never the window's thread): the jogging robot's latching stop."""
+        mover = self.mover
+        if mover is not None:
+            getattr(mover, "emergency_stop", mover.stop)()
+
     def emergency_stop(self) -> None:
-        """Stop the jogging robot now (the campaign's robot is stopped by the window through its runner)."""
-        if self.mover is None:
+        """Press the emergency stop (the stop thread stops the jogging robot) and show the latch."""
+        self.estop.press()
+        self.show_latched()
+
+    def show_latched(self) -> None:
+        """The stop is latched: say so, and no Jog until it is reset."""
+        if self.mover is not None:
+            self.status.setText(LATCHED_TEXT)
+        self.update_reachability()
+
+    def release_stop(self) -> None:
+        """After the operator reset the emergency stop: release the jogging robot's latch (off the window's
+        thread: the pkm5's ENABLE waits for its reply)."""
+        mover = self.mover
+        if mover is None or not hasattr(mover, "release_stop"):
+            self.update_reachability()
             return
-        try:
-            self.mover.stop()
-            self.status.setText("EMERGENCY STOP sent")
-        except Exception as exc:  # noqa: BLE001 - an e-stop must never raise into the GUI
-            self.status.setText(f"EMERGENCY STOP failed: {exc}")
+        self.status.setText("releasing the emergency stop")
+        self._start(mover.release_stop, lambda _: self.status.setText("ready: emergency stop released"))
 
     def _start(self, function: Callable[[], Any], on_done: Callable[[Any], None]) -> None:
         call = _Call(function, self)
@@ -279,7 +306,8 @@ class RobotPanel(QGroupBox):
         call.start()
 
     def _failed(self, text: str) -> None:
-        self.status.setText(f"error: {text}")
+        # a move the emergency stop cut short ends with the controller's error: the latch is the news
+        self.status.setText(f"{LATCHED_TEXT} (the move ended: {text})" if self.estop.latched else f"error: {text}")
         self.connect_button.setEnabled(True)
         self.message.emit(text)
 

@@ -5,7 +5,8 @@ The worker owns everything that touches the rig and the store during a run: it o
 function as ``bench run`` (:func:`bench.launch.open_rig`), and drives :class:`bench.protocols.Runner`.
 It talks to the window only through Qt signals. Requests from the window (pause, resume, stop, abort, halt) go to
 the runner's own thread-safe request methods; the runner honours them at its safe points. The emergency stop goes
-to :meth:`bench.protocols.Runner.emergency_stop` at once, from the window's thread.
+to :meth:`bench.protocols.Runner.emergency_stop` at once, from the stop thread of :mod:`bench.gui.estop` (never
+the window's thread: a driver's stop may wait for its acknowledgement).
 
 The runner's hooks report to the window: ``on_start`` (run id, samples in all, samples already stored) and
 ``on_sample`` (after the store committed it, so the live view shows only what is already on disk). At the start of
@@ -129,8 +130,9 @@ class CampaignWorker(QThread):
     def emergency_stop(self) -> None:
         """Stop the robot now and end the run (aborted, resumable, no clean-up moves); drop the queue.
 
-        Called in the window's thread: the runner sends the robot's stop from here, at once. A pending prompt is
-        withdrawn, and a run whose rig is still starting ends before its first step.
+        Called on the stop thread (:class:`bench.gui.estop.EmergencyStop`), never the window's: the runner sends the
+        robot's stop from here, at once, and may wait for its acknowledgement. A pending prompt is withdrawn, and a
+        run whose rig is still starting ends before its first step. Touches no widget (signals only).
         """
         self._emergency = True
         self.jobs.clear()

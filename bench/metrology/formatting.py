@@ -3,7 +3,7 @@
 GUM (JCGM 100:2008) 7.2.6: the numerical values of an estimate and its uncertainty should not be given with an
 excessive number of digits; it usually suffices to quote U to at most two significant digits, and the estimate is
 then rounded to the same decimal place. This module is the one home of that rule; the HTML and PDF reports, the
-demo's ``results.csv``/``report.md`` and the CLI's text output all call it, so the same number reads the same
+demo's ``results.csv`` and the CLI's text output all call it, so the same number reads the same
 everywhere.
 
 Examples
@@ -21,11 +21,13 @@ from __future__ import annotations
 import math
 import re
 
-__all__ = ["condition_text", "format_measured", "format_pair", "format_value", "natural_key", "pose_label",
-           "report_order", "uncertainty_decimals"]
+__all__ = ["condition_text", "figure_decimals", "format_length", "format_measured", "format_pair", "format_uncertainty",
+           "format_value", "natural_key", "pose_label", "reading_decimals", "report_order", "uncertainty_decimals"]
 
 #: Significant digits of a printed uncertainty (GUM 7.2.6).
 U_SIGNIFICANT_DIGITS = 2
+#: What a ``value ± U`` figure says instead of ``± 0.000`` when U is 0 or not finite.
+U_NOT_DETERMINED = "U not determined"
 #: Decimal places used when a value has no usable uncertainty (U = 0, not finite): a length in mm to 1 µm.
 FALLBACK_DECIMALS = 3
 
@@ -46,6 +48,34 @@ def uncertainty_decimals(uncertainty: float, *, digits: int = U_SIGNIFICANT_DIGI
     return decimals
 
 
+def reading_decimals(resolution: float) -> int:
+    """Decimal places the readings of an instrument of ``resolution`` carry: those of the resolution written to
+    two significant digits, trailing zeros dropped (0.01 mm -> 2, 1 mm -> 0, a 2.5 mm lattice -> 1, one count of
+    an 800 cpi mouse 25.4/800 = 0.03175 mm -> 0.032 -> 3). Not finite or <= 0: :data:`FALLBACK_DECIMALS`."""
+    r = abs(float(resolution))
+    if not math.isfinite(r) or r == 0.0:
+        return FALLBACK_DECIMALS
+    decimals = uncertainty_decimals(r)
+    while decimals > 0 and math.isclose(round(r, decimals - 1), round(r, decimals), rel_tol=0, abs_tol=1e-12):
+        decimals -= 1
+    return decimals
+
+
+def figure_decimals(uncertainty: float | None = None, resolution: float | None = None) -> int:
+    """The one decision of how many decimals a printed figure gets (GUM 7.2.6 and the readings' resolution).
+
+    With a usable U: the decimal place of U at two significant digits (:func:`uncertainty_decimals`); without one
+    :data:`FALLBACK_DECIMALS`; never more than the readings carry when their ``resolution`` is known
+    (:func:`reading_decimals`).
+
+    >>> figure_decimals(0.0123), figure_decimals(0.0123, resolution=0.01), figure_decimals(resolution=1.0)
+    (3, 2, 0)
+    """
+    usable = uncertainty is not None and math.isfinite(float(uncertainty)) and float(uncertainty) != 0.0
+    decimals = uncertainty_decimals(uncertainty) if usable else FALLBACK_DECIMALS
+    return decimals if resolution is None else min(decimals, reading_decimals(resolution))
+
+
 def _fixed(value: float, decimals: int) -> str:
     if not math.isfinite(value):
         return str(value)
@@ -57,10 +87,23 @@ def _fixed(value: float, decimals: int) -> str:
     return "0" + text[2:] if text.startswith("-0") and float(text) == 0 else text
 
 
-def format_value(value: float, uncertainty: float, *, signed: bool = False) -> str:
-    """``value`` rounded to the decimal place of ``uncertainty`` shown to two significant digits."""
-    text = _fixed(float(value), uncertainty_decimals(uncertainty))
+def format_value(value: float, uncertainty: float | None, *, signed: bool = False,
+                 resolution: float | None = None) -> str:
+    """``value`` rounded to the decimal place of ``uncertainty`` shown to two significant digits (no usable U: to
+    1 µm), never finer than the readings' ``resolution`` (:func:`figure_decimals`)."""
+    text = _fixed(float(value), figure_decimals(uncertainty, resolution))
     return f"+{text}" if signed and not text.startswith("-") and float(text) != 0 else text
+
+
+def format_length(value: float, *, resolution: float | None = None, signed: bool = False) -> str:
+    """A length without an uncertainty of its own (a mean error, a spread): to 1 µm, or to the readings'
+    ``resolution`` when known (0.01 mm calliper readings -> 2 decimals)."""
+    return format_value(value, None, signed=signed, resolution=resolution)
+
+
+def format_uncertainty(uncertainty: float) -> str:
+    """An uncertainty on its own (a budget component, an instrument floor): two significant digits (GUM 7.2.6)."""
+    return _fixed(abs(float(uncertainty)), uncertainty_decimals(uncertainty))
 
 
 def format_pair(value: float, uncertainty: float, *, signed: bool = False) -> tuple[str, str]:
@@ -70,7 +113,14 @@ def format_pair(value: float, uncertainty: float, *, signed: bool = False) -> tu
 
 
 def format_measured(value: float, uncertainty: float, *, signed: bool = False) -> str:
-    """``"value ± U"`` rounded by :func:`format_pair` (0.44051, 0.23432 -> ``"0.44 ± 0.23"``)."""
+    """``"value ± U"`` rounded by :func:`format_pair` (0.44051, 0.23432 -> ``"0.44 ± 0.23"``).
+
+    A U of 0 or not finite (RP of 2 cycles: a bootstrap over two cycles cannot spread) is no uncertainty: the value
+    is printed with ``(U not determined)``, never ``± 0.000``.
+    """
+    u_value = float(uncertainty)
+    if not math.isfinite(u_value) or u_value == 0.0:
+        return f"{format_value(value, None, signed=signed)} ({U_NOT_DETERMINED})"
     shown, u = format_pair(value, uncertainty, signed=signed)
     return f"{shown} ± {u}"
 

@@ -354,7 +354,8 @@ def minimum_positioning_time(steps: Sequence, *, band_mm: float, hysteresis_mm: 
     Raises
     ------
     InsufficientData
-        No step, or a series that never leaves the start band or never settles.
+        No step, a series that never leaves the start band or never settles, or a step no longer than 2 B (the
+        start and end bands overlap: the time would read negative).
 
     Examples
     --------
@@ -383,9 +384,16 @@ def minimum_positioning_time(steps: Sequence, *, band_mm: float, hysteresis_mm: 
             if len(moved) == 0:
                 raise InsufficientData(f"positioning step {i + 1} cycle {j + 1}: never leaves the {band_mm:g} mm "
                                        "band of its start pose")
+            step_mm = float(np.linalg.norm(series_p[-1] - series_p[0]))
+            if step_mm <= 2.0 * band_mm:
+                # The start and end bands overlap: the robot is "stabilised" before it has left, and t_2 - t_leave
+                # would read as a negative or meaningless time (ISO 9283 9 assumes steps much longer than B).
+                raise InsufficientData(f"positioning step {i + 1} cycle {j + 1}: the step ({step_mm:.3g} mm) is "
+                                       f"no longer than twice the {band_mm:g} mm band, so its start and end bands "
+                                       "overlap and the positioning time is undefined; use a smaller band")
             settled = position_stabilisation(series_t, series_p, band_mm=band_mm, hysteresis_mm=hysteresis_mm)
             per_cycle.append(float(settled.settled_s - series_t[moved[0]]))
-            per_distance.append(float(np.linalg.norm(series_p[-1] - series_p[0])))
+            per_distance.append(step_mm)
         times.append(tuple(per_cycle))
         distances.append(float(np.mean(per_distance)))
     return MinimumPositioningTime(

@@ -13,6 +13,7 @@ import codecs
 import csv
 import io
 import re
+import warnings
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -110,53 +111,67 @@ def read_table_csv(path: str | Path, *, numeric: Sequence[str] = ()) -> pd.DataF
     """
     path = Path(path)
     try:
-        data = path.read_bytes()
+        frame = _read_regular_csv(path, numeric) if numeric else None
+        if frame is None:
+            return _read_csv_rows(path, path.read_bytes())
     except FileNotFoundError:
         raise ConfigError(f"{path}: no such file") from None
     except OSError as exc:
         raise ConfigError(f"{path}: not a readable CSV table ({exc})") from None
-    frame = _read_regular_csv(data, numeric) if numeric else None
-    if frame is None:
-        return _read_csv_rows(path, data)
     frame.attrs["source"] = str(path)
     return frame
 
 
-def _read_regular_csv(data: bytes, numeric: Sequence[str]) -> pd.DataFrame | None:
-    """The fast path of `read_table_csv`, or ``None`` when the file needs the row-by-row reader."""
-    data = data.removeprefix(codecs.BOM_UTF8)
-    if b"#" in data:
-        data = _COMMENT_LINE.sub(b"", data)
-    if not data.strip() or b'"' in data:
-        return None
-    raw = np.frombuffer(data, dtype=np.uint8)
-    ends = np.flatnonzero(raw == 0x0A)
-    if not data.endswith(b"\n"):
-        ends = np.append(ends, len(data))
-    starts = np.r_[0, ends[:-1] + 1]
-    commas = np.flatnonzero(raw == 0x2C)
-    fields = np.searchsorted(commas, ends) - np.searchsorted(commas, starts) + 1
-    if np.any(ends - starts < 1) or np.any(fields != fields[0]):
-        return None  # blank lines or ragged rows: the row-by-row reader skips or names them
-    try:
-        first = data[:ends[0]].decode("utf-8")
-    except UnicodeDecodeError:
-        return None
-    header = [name.strip() for name in next(csv.reader([first], skipinitialspace=True))]
-    if len(set(header)) != len(header) or "" in header:
-        return None
-    types = {column: np.float64 for column in numeric if column in header}
-    types.update({column: str for column in header if column not in types})
-    try:
-        frame = pd.read_csv(io.BytesIO(data), header=0, names=header, dtype=types, keep_default_na=False,
-                            na_values=[], skipinitialspace=True, index_col=False, engine="c", encoding="utf-8")
-    except (ValueError, UnicodeDecodeError, pd.errors.ParserError):  # a cell that is not a number, bad bytes
-        return None
-    return frame
-
-
+#: Bytes read at a time by the scan that decides between the readers (a bound on its memory).
+_SCAN_BYTES = 1 << 24
 #: A comment line of a CSV table: optional blanks, then ``#`` (a ``#`` inside a cell is data).
 _COMMENT_LINE = re.compile(rb"(?m)^[ \t]*#[^\n]*(?:\n|$)")
+
+
+def _scan(path: Path) -> tuple[bool, bool]:
+    """Whether the file holds a ``"`` (quoting) and a ``#`` (maybe comment lines), scanned a block at a time."""
+    quotes = hashes = False
+    with path.open("rb") as handle:
+        while block := handle.read(_SCAN_BYTES):
+            quotes, hashes = quotes or b'"' in block, hashes or b"#" in block
+            if quotes:
+                break
+    return quotes, hashes
+
+
+def _read_regular_csv(path: Path, numeric: Sequence[str]) -> pd.DataFrame | None:
+    """The fast path of `read_table_csv`: pandas' C reader, straight from the file (no copy of it in memory;
+    a file with comment lines is read, stripped of them, and parsed from memory), or ``None`` when the file needs
+    the row-by-row reader (quotes, a blank or odd header, a row with too many or too few fields, a cell that is not
+    a number, bad bytes), which names the row and column at fault."""
+    quotes, hashes = _scan(path)
+    if quotes:
+        return None
+    source: Path | io.BytesIO = path
+    if hashes:
+        source = io.BytesIO(_COMMENT_LINE.sub(b"", path.read_bytes().removeprefix(codecs.BOM_UTF8)))
+    with open(source, "rb") if isinstance(source, Path) else source as handle:
+        first = handle.readline().removeprefix(codecs.BOM_UTF8)
+        handle.seek(0)
+        try:
+            header = [name.strip() for name in next(csv.reader([first.decode("utf-8")], skipinitialspace=True))]
+        except (UnicodeDecodeError, StopIteration):
+            return None
+        if len(set(header)) != len(header) or "" in header:
+            return None
+        types = {column: np.float64 for column in numeric if column in header}
+        types.update({column: str for column in header if column not in types})
+        try:
+            with warnings.catch_warnings():  # pandas drops a first row's extra fields with a warning: refused
+                warnings.simplefilter("error", pd.errors.ParserWarning)
+                frame = pd.read_csv(handle, header=0, names=header, dtype=types, keep_default_na=False,
+                                    na_values=[], skipinitialspace=True, index_col=False, engine="c",
+                                    encoding="utf-8")
+        except (ValueError, UnicodeDecodeError, pd.errors.ParserError, pd.errors.ParserWarning):
+            return None  # a cell that is not a number, bad bytes, a row with too many fields
+    if frame.empty or any(frame[column].isna().any() for column in header):
+        return None  # a short row (pandas fills it) or a "nan" cell: the row-by-row reader names it
+    return frame
 
 
 def _read_csv_rows(path: Path, data: bytes) -> pd.DataFrame:
@@ -325,7 +340,8 @@ def analyze_poses(
     k : float
         Coverage factor of the reported expanded uncertainties.
     resamples : int
-        Bootstrap resamples for the uncertainty of RP (seeded: the result is reproducible).
+        Bootstrap resamples of ``repeatability_uncertainty(method="bootstrap")``; the default U(RP) (a measurement-model
+        Monte Carlo up to 100 cycles, the delta method above) does not resample.
 
     Raises
     ------

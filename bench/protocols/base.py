@@ -95,6 +95,11 @@ class Protocol:
     def validate(self) -> None:
         """Cross-parameter checks; raise ``ConfigError`` naming ``self.source``. Default: none."""
 
+    def limit_warnings(self) -> tuple[str, ...]:
+        """One line per setting that goes beyond a documented failure or limit of the robot (printed by the dry
+        run before anything moves). Default: none."""
+        return ()
+
     def steps(self) -> Plan:
         """The step generator of the protocol."""
         raise NotImplementedError
@@ -120,7 +125,7 @@ def protocol_from_config(config: Mapping[str, Any], source: str = "parameters", 
     values.pop("protocol_version", None)
     if name is None:
         raise ConfigError(f"{source}: missing key 'protocol', expected one of {', '.join(sorted(PROTOCOLS))}")
-    if name not in PROTOCOLS:
+    if not isinstance(name, str) or name not in PROTOCOLS:  # (a list or a table is no name either)
         raise ConfigError(f"{source}: protocol = {name!r}, expected one of {', '.join(sorted(PROTOCOLS))}")
     if stored:
         for key in PROTOCOLS[name].design_keys:

@@ -84,7 +84,8 @@ class LaserGridHits(_DeltaProtocol):
     spread = IntegerParameter(4, minimum=1, maximum=16, description="sensors per side of the tested spread")
     offset_mm = FloatListParameter(GRID_OFFSET_MM, length=2, unit="mm", minimum=0.0, maximum=50.0,
                                    description="range of the random re-approach offset")
-    seed = IntegerParameter(0, minimum=0, description="seed of the re-approach offsets (the plan is reproducible)")
+    seed = IntegerParameter(0, minimum=0, maximum=2**63 - 1,
+                            description="seed of the re-approach offsets (the plan is reproducible)")
 
     def steps(self) -> Plan:
         rng = np.random.default_rng(self.seed)

@@ -21,7 +21,7 @@ from typing import Any
 import numpy as np
 
 from bench.errors import ConfigError
-from bench.metrology.documents import LADDER_KG, LADDER_LIFT_MM
+from bench.metrology.documents import LADDER_KG, LADDER_LIFT_MM, PAYLOAD_FAILURE_KG
 from bench.protocols.base import Protocol, register
 from bench.protocols.kinematics import robot_model
 from bench.protocols.parameters import (
@@ -151,6 +151,15 @@ class PayloadLadder(Protocol):
     repeats = IntegerParameter(1, minimum=1, description="lifts per load (000: 1; reference §12.3: at least 3)")
     velocity_pct = FloatParameter(100.0, unit="%", minimum=0.1, maximum=100.0, description="velocity")
     settle_s = FloatParameter(1.0, unit="s", minimum=0.0, maximum=600.0, description="dwell before the readings")
+
+    def limit_warnings(self) -> tuple[str, ...]:
+        """A load at or above the documented failure load (000 §8.7.5: the structure failed on reloading at 25 kg)."""
+        over = [load for load in self.loads_kg if load >= PAYLOAD_FAILURE_KG]
+        if not over:
+            return ()
+        return (f"{self.source}: loads_kg {', '.join(f'{v:g}' for v in over)} kg reach the documented failure load "
+                f"{PAYLOAD_FAILURE_KG:g} kg (000 §8.7.5: the mouse bracket and end effector failed on reloading at "
+                f"25 kg); keep the top rung below your safe maximum",)
 
     def lifted(self) -> tuple[float, ...]:
         x, y, z = self.start_mm

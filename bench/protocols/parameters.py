@@ -2,7 +2,7 @@
 
 A protocol declares its parameters as class attributes (as PyMeasure procedures do); every value a TOML file or
 the command line gives goes through :meth:`Parameter.convert`, and a bad one raises ``ConfigError`` naming the
-place, the field, the value and the expectation, e.g. ``pose_test.toml: cycles = 0, expected an integer >= 2``.
+place, the field, the value and the expectation, e.g. ``pose_test.toml: cycles = 0, expected an integer in [2, 100000]``.
 A number may carry its unit as a string (``"50 mm"``); a wrong unit is refused, never converted silently.
 """
 
@@ -16,9 +16,14 @@ from typing import Any
 from bench.errors import ConfigError
 
 __all__ = ["BoolParameter", "ChoiceParameter", "FloatListParameter", "FloatParameter", "IntegerParameter",
-           "Parameter", "PoseTableParameter", "TextParameter"]
+           "MAX_COUNT", "Parameter", "PoseTableParameter", "TextParameter"]
 
 _NUMBER_WITH_UNIT = re.compile(r"^\s*([-+0-9.eE]+)\s*([A-Za-z%/]+)?\s*$")
+
+#: The largest count (cycles, repeats, attempts) an integer parameter takes unless it states its own maximum:
+#: 100 000 cycles of one pose at a second each is more than a day of one bench; an absurd size (``1e20``) is
+#: refused in one line before any plan is built, never iterated.
+MAX_COUNT = 100_000
 
 
 class Parameter:
@@ -102,7 +107,11 @@ class _Bounded(Parameter):
 
 
 class IntegerParameter(_Bounded):
-    """An integer, e.g. ``cycles = IntegerParameter(30, minimum=2)``."""
+    """An integer, e.g. ``cycles = IntegerParameter(30, minimum=2)``; at most :data:`MAX_COUNT` unless ``maximum``
+    says otherwise (a count bounds a plan's size)."""
+
+    def __init__(self, default: Any, *, maximum: float | None = MAX_COUNT, **kwargs: Any) -> None:
+        super().__init__(default, maximum=maximum, **kwargs)
 
     @property
     def expected(self) -> str:

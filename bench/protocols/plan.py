@@ -108,6 +108,8 @@ class PlanSummary:
     capture_s: float
     #: per actuator of the actuator bench, its commanded strokes and their pre-flight
     strokes: tuple[AxisStrokes, ...] = ()
+    #: settings beyond a documented failure or limit (:meth:`bench.protocols.base.Protocol.limit_warnings`)
+    warnings: tuple[str, ...] = ()
 
     @property
     def actuator_problems(self) -> tuple[str, ...]:
@@ -134,6 +136,7 @@ class PlanSummary:
         out.append(f"estimated duration {_hms(self.estimated_s)} (moves {_hms(self.move_s)}, settling "
                    f"{_hms(self.settle_s)}, captures {_hms(self.capture_s)}, prompts {_hms(self.prompt_s)}) at "
                    "real speed")
+        out.extend(f"WARNING: {line}" for line in self.warnings)
         if self.labels or not self.strokes:
             out.append(f"{len(self.labels)} distinct targets:")
         for i, label in enumerate(self.labels):
@@ -162,12 +165,44 @@ def _hms(seconds: float) -> str:
     return f"{seconds // 3600}:{seconds // 60 % 60:02d}:{seconds % 60:02d}"
 
 
+#: Moves timed together in :func:`summarize`: the dry run holds one such chunk, never the whole plan, so a plan of
+#: 10^6 steps is summarised in memory bounded by its distinct targets and linear time.
+_MOVES_PER_CHUNK = 4096
+
+
+class _MoveTimer:
+    """The estimated time of a stream of moves, from the robot's home, timed a chunk at a time."""
+
+    def __init__(self, model: Any) -> None:
+        self.model = model
+        self.last = model.as_targets([model.home])[0]
+        self.targets: list[tuple[float, ...]] = []
+        self.velocity: list[float] = []
+        self.seconds = 0.0
+
+    def add(self, target: tuple[float, ...], velocity_pct: float) -> None:
+        self.targets.append(target)
+        self.velocity.append(velocity_pct)
+        if len(self.targets) == _MOVES_PER_CHUNK:
+            self.flush()
+
+    def flush(self) -> float:
+        if self.targets:
+            ends = self.model.as_targets(self.targets)
+            starts = np.vstack([self.last[None, :], ends[:-1]])
+            self.seconds += float(self.model.move_s(starts, ends, np.array(self.velocity, dtype=float)).sum())
+            self.last = ends[-1]
+            self.targets, self.velocity = [], []
+        return self.seconds
+
+
 def summarize(protocol: Protocol, *, singularity_threshold: float | None = None,
               geometry: Any = None) -> PlanSummary:
     """Dry-run ``protocol``: count its steps, pre-flight every distinct target, estimate its duration.
 
     ``singularity_threshold`` defaults to the protocol's ``min_inverse_condition``; ``geometry`` (default: the
-    documented one) is the robot's geometry under a kinematic calibration in force.
+    documented one) is the robot's geometry under a kinematic calibration in force. The plan is streamed: memory
+    holds its distinct targets and strokes and one chunk of moves (:data:`_MOVES_PER_CHUNK`), whatever its length.
     """
     if singularity_threshold is None:
         singularity_threshold = getattr(protocol, "min_inverse_condition", DEFAULT_SINGULARITY_THRESHOLD)
@@ -175,62 +210,76 @@ def summarize(protocol: Protocol, *, singularity_threshold: float | None = None,
     if geometry is not None:
         model = replace(model, geometry=geometry)
     counts: Counter[str] = Counter()
-    moves: list[tuple[str, tuple[float, ...], float]] = []
-    actuator_moves: list[ActuatorMove] = []
+    timer = _MoveTimer(model)
+    strokes = _StrokeTally()
+    distinct: dict[tuple[float, ...], str] = {}
     settle_s = captures_s = 0.0
+    width = len(model.target_fields)
+    names: dict[type, str] = {}  # per step type, its count's name ("moves")
     for step in iterate(protocol):
-        counts[type(step).__name__.lower() + "s"] += 1
+        kind = type(step)
+        counts[names.get(kind) or names.setdefault(kind, kind.__name__.lower() + "s")] += 1
         if isinstance(step, Move):
-            moves.append((step.label or str(len(moves)), tuple(step.target), step.velocity_pct))
+            target = tuple(step.target)
+            key = target if len(target) == width else tuple(model.as_targets([target])[0])  # (1 == 1.0 as keys)
+            if key not in distinct:
+                distinct[key] = step.label or str(counts["moves"] - 1)
+            timer.add(target, step.velocity_pct)
         elif isinstance(step, ActuatorMove):
-            actuator_moves.append(step)
+            strokes.add(step)
         elif isinstance(step, Settle):
             settle_s += step.duration_s
         elif isinstance(step, Capture):
             captures_s += capture_s(step)
-    strokes = _actuator_moves(actuator_moves)
-    distinct: dict[tuple[float, ...], str] = {}
-    for label, target, _ in moves:
-        distinct.setdefault(tuple(model.as_targets([target])[0]), label)
     targets = np.array(list(distinct), dtype=float).reshape(-1, len(model.target_fields))
     check = model.check(targets, singularity_threshold)
-    move_s = 0.0
-    if moves and check.reachable.all():
-        path = model.as_targets([model.home] + [t for _, t, _ in moves])
-        velocity = np.array([v for _, _, v in moves], dtype=float)
-        move_s = float(model.move_s(path[:-1], path[1:], velocity).sum())
+    move_s = timer.flush() if check.reachable.all() else 0.0
+    axes = strokes.axes()
     return PlanSummary(protocol.name, protocol.robot, dict(counts), tuple(distinct.values()), targets,
                        check.reachable, tuple(str(r) for r in check.reason), check.proximity,
-                       move_s + sum(a.move_s for a in strokes), settle_s, counts["prompts"] * PROMPT_S,
-                       captures_s, strokes)
+                       move_s + sum(a.move_s for a in axes), settle_s, counts["prompts"] * PROMPT_S,
+                       captures_s, axes, protocol.limit_warnings())
 
 
-def _actuator_moves(moves: list[ActuatorMove]) -> tuple[AxisStrokes, ...]:
+class _StrokeTally:
     """Per actuator, in order of first use: the distinct strokes of a pkm5's actuator-bench moves, each checked
     exactly as the driver's ``move_actuator`` checks it (``steps_for_stroke``: the 0-66 mm window), and the time of
-    its moves from the home stroke at the rated speed scaled by the commanded velocity."""
-    from bench.robots.pkm5 import RATED_SPEED_STEPS_S
-    from bench.robots.pkm5_kinematics import steps_for_stroke, stroke_range_mm
-    from motion import pkm5
+    its moves from the home stroke at the rated speed scaled by the commanded velocity; fed one move at a time."""
 
-    geometry = pkm5.DEFAULT_GEOMETRY
-    where = dict(enumerate(np.round(geometry.home_stroke_mm / geometry.mm_per_step).astype(int), start=1))
-    per_axis: dict[Any, dict[str, Any]] = {}
-    for move in moves:
-        axis = per_axis.setdefault(move.axis, {"strokes": set(), "moves": 0, "s": 0.0, "refused": []})
+    def __init__(self) -> None:
+        self.per_axis: dict[Any, dict[str, Any]] = {}
+        self.where: dict[int, int] | None = None
+
+    def add(self, move: ActuatorMove) -> None:
+        from bench.robots.pkm5 import RATED_SPEED_STEPS_S
+        from bench.robots.pkm5_kinematics import steps_for_stroke
+        from motion import pkm5
+
+        geometry = pkm5.DEFAULT_GEOMETRY
+        if self.where is None:
+            self.where = dict(enumerate(np.round(geometry.home_stroke_mm / geometry.mm_per_step).astype(int),
+                                        start=1))
+        axis = self.per_axis.setdefault(move.axis, {"strokes": set(), "moves": 0, "s": 0.0, "refused": []})
         axis["moves"] += 1
         axis["strokes"].add(float(move.stroke_mm))
         try:
             target = abs(steps_for_stroke(move.axis, move.stroke_mm, geometry))
         except UnreachableTarget as exc:
             axis["refused"].append(f"target {move.label or 'actuator move'}: {exc}")
-            continue
+            return
         speed = max(1.0, RATED_SPEED_STEPS_S * move.velocity_pct / 100.0)
-        axis["s"] += abs(target - where[move.axis]) / speed
-        where[move.axis] = target
-    return tuple(AxisStrokes(number, stroke_range_mm(number, geometry) if number in where else (float("nan"),) * 2,
-                             tuple(sorted(a["strokes"])), a["moves"], a["s"], tuple(a["refused"]))
-                 for number, a in per_axis.items())
+        axis["s"] += abs(target - self.where[move.axis]) / speed
+        self.where[move.axis] = target
+
+    def axes(self) -> tuple[AxisStrokes, ...]:
+        from bench.robots.pkm5_kinematics import stroke_range_mm
+        from motion import pkm5
+
+        where = self.where or {}
+        return tuple(AxisStrokes(number, stroke_range_mm(number, pkm5.DEFAULT_GEOMETRY) if number in where
+                                 else (float("nan"),) * 2, tuple(sorted(a["strokes"])), a["moves"], a["s"],
+                                 tuple(a["refused"]))
+                     for number, a in self.per_axis.items())
 
 
 def preflight(protocol: Protocol, **kwargs: Any) -> PlanSummary:

@@ -215,6 +215,11 @@ class Runner:
             self._transition_locked(new)
             self._reason = reason
 
+    @property
+    def pause_requested(self) -> bool:
+        """A pause is asked for and the run has not reached its checkpoint yet."""
+        return self._pause_requested
+
     def request_pause(self) -> None:
         """Pause at the next Checkpoint."""
         if self.state is not RunState.RUNNING:

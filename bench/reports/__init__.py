@@ -117,7 +117,7 @@ def _layout_options(run_id: int, protocol: str, layout: Layout | None,
 
 def collect(store: Store, run_id: int, *, criteria: Mapping[str, float] | None = None, k: float = 2.0,
             resamples: int = 1000, allow_unknown: bool = False, bands_mm: Sequence[float] | None = None,
-            hysteresis_mm: float | None = None) -> ReportBase:
+            hysteresis_mm: float | None = None, decision_rule: str = "simple") -> ReportBase:
     """Every fact and number of the report of run ``run_id``, laid out for its protocol (:data:`LAYOUTS`; pose
     protocols: :func:`bench.reports.content.collect`). Project criteria apply to pose runs only; limit bands and
     hysteresis to stabilisation runs only."""
@@ -126,7 +126,7 @@ def collect(store: Store, run_id: int, *, criteria: Mapping[str, float] | None =
     options = _layout_options(run_id, protocol, layout, {"bands_mm": bands_mm, "hysteresis_mm": hysteresis_mm})
     if layout is None:
         return content.collect(store, run_id, criteria=criteria, k=k, resamples=resamples,
-                               allow_unknown=allow_unknown)
+                               allow_unknown=allow_unknown, decision_rule=decision_rule)
     if criteria:
         raise ConfigError(f"--criterion {', '.join(criteria)}: project criteria ({', '.join(CRITERIA)}) apply to pose "
                           f"runs; run {run_id} is a {protocol} run")
@@ -138,7 +138,7 @@ def _document(report: ReportBase, raw: list[RawData], identity: Identity,
     """The layout's document with the summary (page 1) in front and, for simulated data, the banner of every page."""
     document = (run_document if isinstance(report, RunReport) else grid_positioning_document
                 if isinstance(report, GridPositioningReport) else LAYOUTS[report.run.protocol_name].document)
-    body = document(report, raw, operator=identity.operator, laboratory=identity.laboratory)
+    body = document(report, raw, operator=identity.operator or "—", laboratory=identity.laboratory or "—")
     return customer_document(with_summary(body, summary_section(report, identity, history, is_simulated(report.run)),
                                           simulated=is_simulated(report.run)))
 
@@ -194,19 +194,23 @@ def _write_tilts(report: ReportBase, out: Path) -> list[tuple[Path, RawData]]:
 
 
 def _write(document: Document, out: Path, stem: str, formats: tuple[str, ...],
-           progress: Callable[[str], None]) -> dict[str, Path]:
+           progress: Callable[[str], None]) -> tuple[dict[str, Path], str]:
+    """Write ``document`` in ``formats`` under its unique number (:mod:`bench.reports.numbering`); the files written
+    and that number."""
     from bench.reports.html import write_html
+    from bench.reports.numbering import numbered
     from bench.reports.pdf import write_pdf
 
     from bench.reports.plots import draw_all
 
     draw_all([block.plot for section in document.sections for block in section.blocks if isinstance(block, Figure)])
+    document = numbered(document, out, stem)
     writers = {"html": write_html, "pdf": write_pdf}
     written = {}
     for fmt in formats:
         progress(f"writing {stem}.{fmt}")
         written[fmt] = writers[fmt](document, out / f"{stem}.{fmt}")
-    return written
+    return written, document.meta["report_id"]
 
 
 def _quiet(message: str) -> None:
@@ -225,7 +229,7 @@ def write_report(store: str | Path | Store, run_id: int, out_dir: str | Path, fo
                  criteria: Mapping[str, float] | None = None, operator: str | None = None,
                  laboratory: str | None = None, k: float = 2.0, allow_unknown: bool = False,
                  bands_mm: Sequence[float] | None = None, hysteresis_mm: float | None = None,
-                 identity: Mapping[str, str | None] | None = None,
+                 identity: Mapping[str, str | None] | None = None, decision_rule: str = "simple",
                  progress: Callable[[str], None] = _quiet) -> ReportPaths:
     """Write the report of one run: ``report_run<ID>.html`` / ``.pdf`` and ``run<ID>_samples.csv`` in ``out_dir``.
 
@@ -239,11 +243,14 @@ def write_report(store: str | Path | Store, run_id: int, out_dir: str | Path, fo
     formats : iterable of {"html", "pdf"}
     criteria : mapping, optional
         Project acceptance criteria (``AP_mm``, ``RP_mm``); without them no pass/fail is stated.
+    decision_rule : {"simple", "guarded"}
+        How the verdict uses U (:mod:`bench.reports.decision`; guarded: pass / not proven / fail, ISO 14253-1).
     operator, laboratory : str, optional
         Printed on the summary page and in the identification section (override ``identity``).
     identity : mapping, optional
         Fields of :class:`bench.reports.summary.Identity` (``dut_serial``, ``customer``, ``order``, ``operator``,
-        ``laboratory``); they override the run's stored ``settings.dut``. Missing fields print "not recorded".
+        ``laboratory``, ``measuring_point``); they override the run's stored ``settings.dut``. Missing fields print an
+        empty line to fill in by hand (never a template's placeholder).
     k : float
         Coverage factor of the expanded uncertainties.
     allow_unknown : bool
@@ -260,7 +267,7 @@ def write_report(store: str | Path | Store, run_id: int, out_dir: str | Path, fo
     store, opened = _open(store)
     try:
         report = collect(store, run_id, criteria=criteria, k=k, allow_unknown=allow_unknown, bands_mm=bands_mm,
-                         hysteresis_mm=hysteresis_mm)
+                         hysteresis_mm=hysteresis_mm, decision_rule=decision_rule)
         history = run_history(store, report.run)
     finally:
         if opened:
@@ -272,9 +279,8 @@ def write_report(store: str | Path | Store, run_id: int, out_dir: str | Path, fo
     tilts = _write_tilts(report, out)
     progress(f"run {run_id} analysed; drawing the figures")
     document = _document(report, [raw, *(r for _, r in tilts)], Identity.of_run(report.run, given), history)
-    written = _write(document, out, f"report_run{run_id}", formats, progress)
-    return ReportPaths(written.get("html"), written.get("pdf"), (csv_path, *(p for p, _ in tilts)),
-                       report.report_id)
+    written, number = _write(document, out, f"report_run{run_id}", formats, progress)
+    return ReportPaths(written.get("html"), written.get("pdf"), (csv_path, *(p for p, _ in tilts)), number)
 
 
 def write_comparison(store: str | Path | Store, first_run: int, second_run: int, out_dir: str | Path,
@@ -313,9 +319,8 @@ def write_comparison(store: str | Path | Store, first_run: int, second_run: int,
     if is_simulated(first.run) or is_simulated(second.run):
         document = replace(document, meta={**document.meta, "banner": SIMULATED_BANNER})
     document = customer_document(document)
-    written = _write(document, out, f"compare_run{first_run}_run{second_run}", formats, progress)
-    return ReportPaths(written.get("html"), written.get("pdf"), tuple(p for p, _ in raws),
-                       document.meta["report_id"])
+    written, number = _write(document, out, f"compare_run{first_run}_run{second_run}", formats, progress)
+    return ReportPaths(written.get("html"), written.get("pdf"), tuple(p for p, _ in raws), number)
 
 
 def write_trend(store: str | Path | Store, run_ids: Sequence[int], out_dir: str | Path,
@@ -346,6 +351,6 @@ def write_trend(store: str | Path | Store, run_ids: Sequence[int], out_dir: str 
     if any(is_simulated(r.run) for r in reports):
         document = replace(document, meta={**document.meta, "banner": SIMULATED_BANNER})
     document = customer_document(document)
-    written = _write(document, out, "trend_" + "_".join(f"run{r.run.id}" for r in reports), formats, progress)
-    return ReportPaths(written.get("html"), written.get("pdf"), tuple(p for p, _ in raws),
-                       document.meta["report_id"])
+    written, number = _write(document, out, "trend_" + "_".join(f"run{r.run.id}" for r in reports), formats,
+                             progress)
+    return ReportPaths(written.get("html"), written.get("pdf"), tuple(p for p, _ in raws), number)

@@ -44,6 +44,7 @@ from bench.reports.document import (
     decision_blocks,
     fmt_mm,
     fmt_pm,
+    reading_formatter,
 )
 from bench.metrology.bidirectional_tables import BidirectionalResult, analyze_bidirectional
 from bench.reports.bidirectional import bidirectional_plot
@@ -79,7 +80,7 @@ def collect_actuator(store: Store, run_id: int, *, k: float = 2.0, resamples: in
     calibrations = calibrations_in_force(store, run)
     instrument = reading_instrument(run, calibrations, table["travel_mm"], difference=True)
     results = analyze_actuators(actuator_table(table), control_resolution_mm=robot_control_resolution(run.robot),
-                                instrument_u_mm=instrument.sigma_mm or 0.0, k=k, resamples=resamples)
+                                instrument_u_mm=instrument.sigma_mm or 0.0, k=k)
     both_ways = "direction" in table.columns and bool((table["direction"] < 0).any())
     bidirectional = tuple(analyze_bidirectional(table)) if both_ways else ()
     deviations = actuator_deviations(config=run.config, settings=run.settings,
@@ -106,14 +107,15 @@ def _with_u(value: float, measured) -> str:
 
 
 def _results(report: ActuatorReport) -> tuple[Block, ...]:
+    mm = reading_formatter(report)
     k = f"{report.coverage_factor:g}"
     summary = tuple((r.actuator, str(r.groover.n), ", ".join(f"{t:g}" for t in r.targets_mm),
                      f"{r.control_resolution_mm:g}", _with_u(r.groover.repeatability_mm, r.repeatability_u),
-                     _with_u(r.groover.accuracy_mm, r.accuracy_u), fmt_mm(r.groover.max_abs_bias_mm),
-                     fmt_mm(r.iso230_2.repeatability_forward_mm), fmt_mm(r.iso230_2.systematic_forward_mm),
-                     fmt_mm(r.iso230_2.accuracy_forward_mm)) for r in report.actuators)
-    targets = tuple((r.actuator, f"{t:g}", str(r.groover.n), fmt_mm(float(r.readings_mm[:, i].mean())), fmt_pm(u),
-                     fmt_mm(s), fmt_mm(4.0 * s))
+                     _with_u(r.groover.accuracy_mm, r.accuracy_u), mm(r.groover.max_abs_bias_mm),
+                     mm(r.iso230_2.repeatability_forward_mm), mm(r.iso230_2.systematic_forward_mm),
+                     mm(r.iso230_2.accuracy_forward_mm)) for r in report.actuators)
+    targets = tuple((r.actuator, f"{t:g}", str(r.groover.n), mm(float(r.readings_mm[:, i].mean())), fmt_pm(u),
+                     mm(s), mm(4.0 * s))
                     for r in report.actuators for i, (t, u, s) in enumerate(zip(r.targets_mm, r.bias_u,
                                                                                r.groover.sigma_mm)))
     return (
@@ -132,14 +134,15 @@ def _results(report: ActuatorReport) -> tuple[Block, ...]:
 
 def _bidirectional_results(report: ActuatorReport) -> tuple[Block, ...]:
     """The ISO 230-2 bidirectional tables of a bidirectional run (none otherwise)."""
+    mm = reading_formatter(report)
     if not report.bidirectional:
         return ()
-    axes = tuple((r.axis, f"{r.forward_mm.shape[0]} / {r.backward_mm.shape[0]}", fmt_mm(r.result.reversal_max_mm),
-                  fmt_mm(r.result.repeatability_forward_mm), fmt_mm(r.result.repeatability_backward_mm),
-                  fmt_mm(r.result.repeatability_mm), fmt_mm(r.result.systematic_mm),
-                  fmt_mm(r.result.mean_bidirectional_mm), fmt_mm(r.result.accuracy_mm)) for r in report.bidirectional)
-    targets = tuple((r.axis, f"{t:g}", f"{up:+.4f}", f"{down:+.4f}", f"{b:+.4f}",
-                     fmt_mm(float(s_up)), fmt_mm(float(s_down)))
+    axes = tuple((r.axis, f"{r.forward_mm.shape[0]} / {r.backward_mm.shape[0]}", mm(r.result.reversal_max_mm),
+                  mm(r.result.repeatability_forward_mm), mm(r.result.repeatability_backward_mm),
+                  mm(r.result.repeatability_mm), mm(r.result.systematic_mm),
+                  mm(r.result.mean_bidirectional_mm), mm(r.result.accuracy_mm)) for r in report.bidirectional)
+    targets = tuple((r.axis, f"{t:g}", mm(up, True), mm(down, True), mm(b, True),
+                     mm(float(s_up)), mm(float(s_down)))
                     for r in report.bidirectional
                     for t, up, down, b, s_up, s_down in zip(
                         r.targets_mm, r.result.mean_deviation_forward_mm, r.result.mean_deviation_backward_mm,

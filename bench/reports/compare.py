@@ -14,6 +14,7 @@ from dataclasses import replace
 from itertools import zip_longest
 
 from bench.reports.content import ReportBase
+from bench.reports.differences import NO_DIFFERENCE, configuration_differences
 from bench.reports.document import Document, Paragraph, RawData, Section, Table, _raw
 from bench.reports.summary import HistoryEvent
 
@@ -38,15 +39,15 @@ def history_section(first: ReportBase, second: ReportBase, histories) -> Section
 
 
 def with_histories(document: Document, first: ReportBase, second: ReportBase, histories) -> Document:
-    """``document`` (a comparison) with :func:`history_section` after its conditions, and its "identical
-    configuration" line qualified when the histories differ."""
+    """``document`` (a comparison) with :func:`history_section` after its conditions, and its "same configuration"
+    line qualified when the histories differ."""
     section = history_section(first, second, histories)
     sections = list(document.sections)
     sections.insert(min(2, len(sections)), section)
     if "differ in their history" in section.blocks[0].text:
         sections = [replace(s, blocks=tuple(
-            replace(b, rows=tuple(tuple("identical configuration, different history (see Run histories)"
-                                        if c == "identical configuration" else c for c in row) for row in b.rows))
+            replace(b, rows=tuple(tuple(f"{NO_DIFFERENCE}, different history (see Run histories)"
+                                        if c == NO_DIFFERENCE else c for c in row) for row in b.rows))
             if isinstance(b, Table) else b for b in s.blocks)) for s in sections]
     return replace(document, sections=tuple(sections))
 
@@ -63,22 +64,21 @@ def layout_comparison(first: ReportBase, second: ReportBase, first_document: Doc
                       raw: list[RawData]) -> Document:
     """Two runs of the same own-layout protocol side by side (see module doc)."""
     a, b = first.run, second.run
-    ident = (("Report ID", first.report_id, second.report_id), ("Protocol", a.protocol_name, b.protocol_name),
+    ident = (("Configuration ID", first.report_id, second.report_id), ("Protocol", a.protocol_name, b.protocol_name),
              ("Robot", a.robot, b.robot), ("Status", a.status, b.status),
              ("Started (UTC)", a.started_utc, b.started_utc),
              ("Configuration SHA-256", first.config_sha256[:16], second.config_sha256[:16]))
-    keys = sorted(set(a.config) | set(b.config))
-    differ = tuple((k, str(a.config.get(k)), str(b.config.get(k))) for k in keys if a.config.get(k) != b.config.get(k))
+    differ = configuration_differences(first, second)
     deviations = tuple((d.clause, d.topic, f"{d.status}: {d.done}", f"{e.status}: {e.done}")
                        for d, e in zip(first.deviations, second.deviations))
     return Document(
         title=f"Comparison of run {a.id} (A) and run {b.id} (B): {first.title}",
-        subtitle=f"Reports {first.report_id} / {second.report_id}",
+        subtitle=f"Runs {a.id} (A) and {b.id} (B)",
         sections=(
             Section("1. Identification", (Table("identification", ("Item", f"A: run {a.id}", f"B: run {b.id}"),
                                                 ident),)),
             Section("2. Conditions that differ", (Table("conditions", ("Parameter", "A", "B"), differ or (
-                ("—", "identical configuration", ""),)),)),
+                ("—", NO_DIFFERENCE, ""),), "Configuration, settings and calibrations in force"),)),
             Section(f"3. Deviations from {first.reference}", (Table(
                 "deviations", ("Clause", "Topic", "A", "B"), deviations),)),
             Section(f"4. Results of A (run {a.id})", _results(first_document, "a")),

@@ -21,8 +21,9 @@ Decisions (documented here because the renderers only print them):
   (:func:`axes_statement`: "AP and RP in the x-y plane: ... z not measured"); a missing axis is never filled.
   Readings that are partial reading by reading (the laser grid: NaN where a screen did not decode) get the
   partial-pose layout instead (:mod:`bench.reports.positioning`, whatever the protocol).
-- The decision uses simple acceptance (ILAC-G8:09/2019 §4.2.1, no guard band) against criteria passed by the
-  caller, labelled "project criterion"; without criteria no pass/fail is stated (ISO 9283 defines no grades).
+- The decision uses the rule the caller chooses (:mod:`bench.reports.decision`: simple acceptance, ILAC-G8:09/2019
+  4.2.1, or guarded acceptance, ISO 14253-1, with the zones pass / not proven / fail) against criteria passed by
+  the caller, labelled "project criterion"; without criteria no pass/fail is stated (ISO 9283 defines no grades).
 """
 
 from __future__ import annotations
@@ -49,7 +50,7 @@ from bench.metrology import (
     OrientationVariation,
     PayloadShift,
     combine,
-    expanded,
+    distance_accuracy_uncertainty,
     fit_axis_scale,
     instrument_rp_floor,
     payload_shift,
@@ -68,13 +69,14 @@ from bench.metrology.tables import (
 )
 from bench.metrology.orientation import TiltGauge
 from bench.metrology.orientation_tables import TiltPoseResult, analyze_tilts, table_spacing_mm, tilt_table
+from bench.reports.decision import PASS, decide, rule_text
 from bench.reports.deviations import CLAUSES_APPLIED, Deviation, iso_deviations, orientation_deviation
 from bench.store import CalibrationRecord, RunRecord, Store, series_table, tidy_table
 from bench.store.registrations import registration_u_mm, registrations
 
 __all__ = ["CRITERIA", "MM_PER_INCH", "CalibrationFit", "Decision", "DistanceRow", "InstrumentInfo", "PayloadRow",
-           "ReportBase", "RunReport", "VapRow", "analysis_table", "axes_statement", "calibration_fits", "check_same_axes",
-           "calibrations_in_force",
+           "ReportBase", "RunReport", "VapRow", "analysis_table", "ap_instrument_u_mm", "axes_statement",
+           "calibration_fits", "check_same_axes", "calibrations_in_force",
            "collect", "counts_instrument", "provenance", "reading_instrument", "reading_step_mm", "run_table",
            "uncertainty_stated"]
 
@@ -106,6 +108,8 @@ class InstrumentInfo:
     rp_floor_mm: float | None  #: expected RP of a perfect robot seen through this instrument
     calibrations: tuple[CalibrationRecord, ...]
     fits: tuple[CalibrationFit, ...] = ()
+    #: the readings' last recorded decimal (manual readings), mm: no printed figure is finer (formatting)
+    resolution_mm: float | None = None
 
 
 @dataclass(frozen=True)
@@ -136,14 +140,17 @@ class PayloadRow:
 
 @dataclass(frozen=True)
 class Decision:
-    """Pass/fail against stated project criteria (simple acceptance), or none."""
+    """Verdicts against stated project criteria under a named decision rule (:mod:`bench.reports.decision`), or
+    none."""
 
-    rule: str
-    verdicts: tuple[tuple[str, str, float, float, bool], ...]  #: (criterion, pose label, value, limit, passed)
+    rule: str  #: the sentence naming the rule
+    #: (criterion, pose label, value, expanded U, limit, result: "pass" / "not proven" / "fail")
+    verdicts: tuple[tuple[str, str, float, float, float, str], ...]
 
     @property
     def passed(self) -> bool | None:
-        return None if not self.verdicts else all(v[-1] for v in self.verdicts)
+        """True when every verdict passes, None without verdicts (a "not proven" is not a pass)."""
+        return None if not self.verdicts else all(v[-1] == PASS for v in self.verdicts)
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -240,10 +247,10 @@ def reading_instrument(run: RunRecord, calibrations: tuple[CalibrationRecord, ..
     stored = dict(run.settings.get("instrument") or {})
     own = stored if reader is None else {}
     budget: list[tuple[str, float, str]] = []
+    step = reading_step_mm(readings)
     if "u_mm" in own:
         budget.append(("instrument, per reading", float(own["u_mm"]), f"{STATED} standard uncertainty"))
     else:
-        step = reading_step_mm(readings)
         if step is not None:
             budget.append((f"resolution ({'difference of the zero and the reading' if difference else 'one reading'})",
                            resolution_uncertainty(step, difference=difference),
@@ -253,7 +260,7 @@ def reading_instrument(run: RunRecord, calibrations: tuple[CalibrationRecord, ..
                            f"{STATED} maximum permissible error, {own['mpe_mm']} mm, rectangular"))
     sigma = combine(*(u for _, u, _ in budget)) if budget else None
     settings = stored if reader is None else {"readings": reader, **({"rig": stored} if stored else {})}
-    return InstrumentInfo(settings, sigma, tuple(budget), 1, None, calibrations)
+    return InstrumentInfo(settings, sigma, tuple(budget), 1, None, calibrations, resolution_mm=step)
 
 
 #: How a budget line whose figure the stored instrument settings state (u or MPE) names its source.
@@ -389,13 +396,22 @@ def _condition_groups(table: pd.DataFrame):
         yield ", ".join(f"{n}={v:g}" for n, v in zip(varying, key)), group
 
 
+def ap_instrument_u_mm(sigma_mm: float | None, run: RunRecord) -> float | None:
+    """The instrument's term of the AP budget per axis, mm: the reading's u and, for a relative instrument, its
+    registrations' u measured in the run (bench.rigs.registration); None when neither is declared."""
+    registered = registration_u_mm(registrations(run.settings))
+    if sigma_mm is None and not registrations(run.settings):
+        return None
+    return combine(sigma_mm or 0.0, registered)
+
+
 def _distances(table: pd.DataFrame, sigma_mm: float, k: float) -> tuple[DistanceRow, ...]:
     """AD/RD per set of conditions, with U(AD) combined as ``bench analyze distance`` does."""
     first, second = list(dict.fromkeys(table["pose"]))[:2]
     rows = []
     for label, group in _condition_groups(table):
         result = analyze_distance(group, first, second)
-        u_ad = expanded(result.ad_mm, combine(result.u_ad_mm, math.sqrt(2.0) * sigma_mm), unit="mm", k=k)
+        u_ad = distance_accuracy_uncertainty(result.ad_mm, result.u_ad_mm, result.n, instrument_u_mm=sigma_mm, k=k)
         angles = analyze_orientation_distance(group, first, second)
         names, orientation = angles if angles is not None else ((), None)
         rows.append(DistanceRow(label or f"{first}-{second}", first, second, result, u_ad, orientation, names))
@@ -422,23 +438,24 @@ def _payload(table: pd.DataFrame) -> tuple[PayloadRow, ...]:
     return tuple(rows)
 
 
-def _decision(poses: tuple[PoseResult, ...], criteria: Mapping[str, float]) -> Decision:
+def _decision(poses: tuple[PoseResult, ...], criteria: Mapping[str, float], rule: str) -> Decision:
     unknown = sorted(set(criteria) - set(CRITERIA))
     if unknown:
         raise ConfigError(f"criteria: {', '.join(unknown)} not known, expected some of {', '.join(CRITERIA)}")
     verdicts = []
     for name, limit in criteria.items():
         for pose in poses:
-            value = pose.accuracy.ap_mm if name == "AP_mm" else pose.repeatability.rp_mm
-            verdicts.append((name, pose_label(pose.pose, pose.conditions), value, float(limit), value <= float(limit)))
-    rule = ("simple acceptance (ILAC-G8:09/2019 4.2.1): pass when the measured value <= the project criterion; "
-            "the expanded uncertainty is reported but not used as a guard band") if criteria else \
+            measured = pose.ap_u if name == "AP_mm" else pose.rp_u
+            u = measured.expanded_uncertainty
+            verdicts.append((name, pose_label(pose.pose, pose.conditions), measured.value, u, float(limit),
+                             decide(measured.value, u, float(limit), rule)))
+    text = rule_text(rule) if criteria else \
         "no acceptance criterion stated: no pass/fail statement (ISO 9283 defines methods, not grades)"
-    return Decision(rule, tuple(verdicts))
+    return Decision(text, tuple(verdicts))
 
 
 def collect(store: Store, run_id: int, *, criteria: Mapping[str, float] | None = None, k: float = 2.0,
-            resamples: int = 1000, allow_unknown: bool = False) -> RunReport:
+            resamples: int = 1000, allow_unknown: bool = False, decision_rule: str = "simple") -> RunReport:
     """Gather every fact and number of the report of run ``run_id``.
 
     Parameters
@@ -447,6 +464,8 @@ def collect(store: Store, run_id: int, *, criteria: Mapping[str, float] | None =
     run_id : int
     criteria : mapping, optional
         Project acceptance criteria, keys from :data:`CRITERIA` (mm).
+    decision_rule : {"simple", "guarded"}
+        How the verdicts use U (:mod:`bench.reports.decision`).
     k : float
         Coverage factor of every expanded uncertainty.
     resamples : int
@@ -467,8 +486,8 @@ def collect(store: Store, run_id: int, *, criteria: Mapping[str, float] | None =
     instrument = counts_instrument(run, calibrations, sum(c in table.columns for c in _POSITION), fits,
                                    span_mm=_span_from_registration(run, table))
     # a relative instrument's frame is known to its registrations' u: AP carries it (bench.store.registrations)
-    ap_u_mm = combine(instrument.sigma_mm or 0.0, registration_u_mm(registrations(run.settings)))
-    poses = report_order(analyze_poses(table, instrument_u_mm=ap_u_mm, k=k, resamples=resamples))
+    ap_u_mm = ap_instrument_u_mm(instrument.sigma_mm, run)
+    poses = report_order(analyze_poses(table, instrument_u_mm=ap_u_mm or 0.0, k=k, resamples=resamples))
     protocol = run.protocol_name
     if len(measured_axes(table)) < 3 and protocol in ("iso9283_distance", "iso9283_multidirectional"):
         raise ConfigError(f"run {run_id}: the instrument measured {', '.join(measured_axes(table))} only; the "
@@ -497,7 +516,7 @@ def collect(store: Store, run_id: int, *, criteria: Mapping[str, float] | None =
         distances=_distances(table, instrument.sigma_mm or 0.0, k) if protocol == "iso9283_distance" else (),
         multidirectional=_multidirectional(table) if protocol == "iso9283_multidirectional" else (),
         payload=_payload(table),
-        decision=_decision(poses, criteria or {}),
+        decision=_decision(poses, criteria or {}, decision_rule),
         coverage_factor=k,
         orientation=orientation,
         tilt_table=tilts,

@@ -13,14 +13,16 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Any
 
-from bench.metrology.formatting import format_measured, format_value, pose_label
-from bench.reports.content import ReportBase, RunReport, axes_statement
+from bench.metrology.formatting import format_length, format_measured, format_uncertainty, format_value, pose_label
+from bench.reports.content import ReportBase, RunReport, ap_instrument_u_mm, axes_statement
+from bench.reports.differences import NO_DIFFERENCE, configuration_differences
 from bench.reports.orientation import orientation_blocks
 from bench.reports.plots import Plot, comparison_plot, report_plots
+from bench.reports.signature import PLACEHOLDER_SHOWN, is_placeholder
 
 __all__ = ["Document", "Figure", "Paragraph", "RawData", "Section", "Table", "assemble", "comparison_document",
-           "conditions_section", "decision_blocks", "fmt_mm", "fmt_pm", "key_values", "pose_rows", "recompute_command",
-           "run_document"]
+           "conditions_section", "decision_blocks", "fmt_mm", "fmt_pm", "key_values", "pose_rows", "reading_formatter",
+           "recompute_command", "run_document"]
 
 SCOPE = ("Tested following the methods of ISO 9283:1998, with the deviations listed in the deviations table. "
          "Results are ISO 9283-style; this is not an ISO 9283 certification.")
@@ -73,9 +75,20 @@ class Document:
     meta: dict[str, Any] = field(default_factory=dict)
 
 
-def fmt_mm(value: float) -> str:
-    """A length without an uncertainty of its own (a budget component, a floor): to 0.1 µm."""
-    return f"{value:.4f}"
+def fmt_mm(value: float, resolution_mm: float | None = None) -> str:
+    """A length without an uncertainty of its own: to 1 µm, never finer than the readings' ``resolution_mm``
+    (:func:`bench.metrology.formatting.format_length`)."""
+    return format_length(value, resolution=resolution_mm)
+
+
+def reading_formatter(report: ReportBase):
+    """``mm(value, signed=False)`` for the figures of ``report`` without a U of their own: to 1 µm, never finer than
+    its readings' resolution (``report.instrument.resolution_mm``: 0.01 mm calliper readings -> 2 decimals)."""
+    resolution = getattr(report.instrument, "resolution_mm", None)
+
+    def mm(value: float, signed: bool = False) -> str:
+        return format_length(value, resolution=resolution, signed=signed)
+    return mm
 
 
 def fmt_pm(measured) -> str:
@@ -134,8 +147,12 @@ def settings_appendix(report: ReportBase) -> Section:
     """Every stored setting of the robot and the instrument, for traceability (the sections show those that matter)."""
     settings = report.run.settings
     rows = [*_pairs(settings.get("robot") or {}, "robot."), *_pairs(settings.get("instrument") or {}, "instrument."),
+            *_pairs(settings.get("dut") or {}, "dut."),
             *((key, str(value)) for key, value in settings.items() if key not in ("robot", "instrument")
               and not isinstance(value, dict))]
+    # a station template's sample text ("Operator name") is stored as entered but never printed as if a value
+    rows = [(key, PLACEHOLDER_SHOWN if value not in ("—", "") and is_placeholder(value) else value)
+            for key, value in rows]
     return Section("Appendix A. All stored settings", (
         Paragraph("The complete settings stored with the run, as recorded; the sections above show the ones that "
                   "matter for the result."), key_values("settings", rows)))
@@ -144,7 +161,8 @@ def settings_appendix(report: ReportBase) -> Section:
 def _device(report: ReportBase) -> Section:
     robot = report.run.settings.get("robot") or {}
     rows = [("Robot", report.run.robot), ("Kinematic type", _KINEMATICS.get(report.run.robot, "not stated")),
-            ("Tool centre / measuring point", robot.get("tcp", "not stated (platform centre of the model)")),
+            ("Tool centre point (stored robot setting)",
+             robot.get("tcp", "not stored (the measuring point is stated on page 1)")),
             *_shown(robot, _ROBOT_SHOWN)]
     return Section("2. Device under test", (key_values("device", rows),))
 
@@ -193,12 +211,13 @@ def _instruments(report: ReportBase) -> Section:
                          for c in info.calibrations)
     blocks.append(Table("calibrations", ("ID", "Name", "Version", "Date (UTC)", "Notes"), calibrations or (
         ("—", "no stored calibration in force", "", "", ""),), "Calibrations in force"))
-    budget = [(name, fmt_mm(u), source) for name, u, source in info.budget]
+    budget = [(name, format_uncertainty(u), source) for name, u, source in info.budget]
     if info.sigma_mm is not None:
-        budget.append((f"combined, per {'axis' if info.rp_floor_mm is not None else 'reading'}", fmt_mm(info.sigma_mm),
+        budget.append((f"combined, per {'axis' if info.rp_floor_mm is not None else 'reading'}",
+                       format_uncertainty(info.sigma_mm),
                        "root sum of squares"))
     if info.rp_floor_mm is not None:
-        budget.append((f"instrument RP floor ({info.dims}-D)", fmt_mm(info.rp_floor_mm),
+        budget.append((f"instrument RP floor ({info.dims}-D)", format_uncertainty(info.rp_floor_mm),
                        "RP a perfect robot would show through this instrument (its noise only)"))
     blocks.append(Table("budget", ("Component", "Standard uncertainty (mm)", "Source"), tuple(budget) or (
         ("—", "—", "no length uncertainty stated or derivable"),), "Instrument uncertainty budget"))
@@ -210,7 +229,8 @@ def pose_rows(report: RunReport) -> tuple[tuple[str, ...], tuple[tuple[str, ...]
     angles = report.poses[0].angle_names if report.poses else ()
     header = ("Pose", "n", "Command x, y, z (mm)", "AP_P ± U (mm)", "AP_x (mm)", "AP_y (mm)", "AP_z (mm)",
               "RP_l ± U (mm)", "RP floor (mm)", *(f"AP_{a} / RP_{a} (°)" for a in angles))
-    floor = fmt_mm(report.instrument.rp_floor_mm) if report.instrument.rp_floor_mm is not None else "—"
+    floor = (format_uncertainty(report.instrument.rp_floor_mm) if report.instrument.rp_floor_mm is not None
+             else "—")
     rows = []
     for r in report.poses:
         u_ap = r.ap_u.expanded_uncertainty
@@ -238,8 +258,8 @@ def _results(report: RunReport) -> tuple[Block, ...]:
         blocks.append(Table("distance", ("Pair / conditions", "D_c (mm)", "D̄ (mm)", "AD_p (mm)", "RD (mm)",
                                          f"U(AD) (mm, k = {k})", *(f"AD_{a} / RD_{a} (°)" for a in angles)),
                             tuple((d.label, fmt_mm(d.result.commanded_distance_mm), fmt_mm(d.result.mean_distance_mm),
-                                   fmt_mm(d.result.ad_mm), f"± {fmt_mm(d.result.rd_mm)}",
-                                   fmt_mm(d.u_ad.expanded_uncertainty),
+                                   format_value(d.result.ad_mm, d.u_ad.expanded_uncertainty),
+                                   f"± {fmt_mm(d.result.rd_mm)}", format_uncertainty(d.u_ad.expanded_uncertainty),
                                    *(f"{ad:+.3f} / ±{rd:.3f}" for ad, rd in (
                                        zip(d.orientation.ad_deg, d.orientation.rd_deg) if d.orientation else ())))
                                   for d in report.distances),
@@ -271,13 +291,10 @@ def decision_blocks(rule: str, header: tuple[str, ...] = (), verdicts=()) -> tup
 
 
 def _decision(report: RunReport) -> tuple[Block, ...]:
-    u = {(name, pose_label(p.pose, p.conditions)): (p.ap_u if name == "AP_mm" else p.rp_u).expanded_uncertainty
-         for p in report.poses for name in ("AP_mm", "RP_mm")}
     return decision_blocks(report.decision.rule, ("Project criterion", "Pose", "Value ± U (mm)", "Limit (mm)",
                                                   "Result"),
-                           [(f"{name} (project criterion)", label, format_measured(value, u.get((name, label), 0.0)),
-                             f"{limit:g}", "pass" if ok else "fail")
-                            for name, label, value, limit, ok in report.decision.verdicts])
+                           [(f"{name} (project criterion)", label, format_measured(value, u), f"{limit:g}", result)
+                            for name, label, value, u, limit, result in report.decision.verdicts])
 
 
 def _raw(raw: list[RawData], notes: tuple[str, ...], recompute: str) -> Section:
@@ -292,8 +309,10 @@ def _raw(raw: list[RawData], notes: tuple[str, ...], recompute: str) -> Section:
 
 def recompute_command(report: RunReport) -> str:
     """The CLI call that recomputes the per-pose results from the raw-data CSV."""
-    sigma = report.instrument.sigma_mm or 0.0
-    command = f"bench analyze iso9283 FILE.csv --instrument-u-mm {sigma:.6g} --k {report.coverage_factor:g}"
+    # the same instrument term as the report's U(AP): the reading's u and the registrations' (a relative instrument)
+    u_mm = ap_instrument_u_mm(report.instrument.sigma_mm, report.run)
+    declared = "" if u_mm is None else f" --instrument-u-mm {u_mm:.6g}"
+    command = f"bench analyze iso9283 FILE.csv{declared} --k {report.coverage_factor:g}"
     if report.orientation:  # the tilt readings' own file and gauge
         g = report.tilt_gauge
         command += (f"; orientation: bench analyze orientation run{report.run.id}_tilts.csv --spacing-mm "
@@ -309,7 +328,7 @@ def assemble(report: ReportBase, raw: list[RawData], *, operator: str, laborator
     """One run's report in the order of iso9283.md §9, whatever the protocol: identification, device, method and
     deviations, conditions, instruments, results, plots, decision, raw data with the recomputing command, scope."""
     return Document(
-        title=f"{report.title}: run {report.run.id}", subtitle=f"Report {report.report_id}",
+        title=report.title, subtitle=f"Report {report.report_id} (stored run {report.run.id})",
         sections=(_identification(report, operator, laboratory), _device(report), _method(report, method, scope),
                   conditions, _instruments(report), Section("6. Results", tuple(results)),
                   Section("7. Plots", tuple(Figure(p) for p in plots)), Section("8. Decision", tuple(decision)),
@@ -318,8 +337,8 @@ def assemble(report: ReportBase, raw: list[RawData], *, operator: str, laborator
         meta={"report_id": report.report_id})
 
 
-def run_document(report: RunReport, raw: list[RawData], *, operator: str = "not recorded",
-                 laboratory: str = "not recorded") -> Document:
+def run_document(report: RunReport, raw: list[RawData], *, operator: str = "—",
+                 laboratory: str = "—") -> Document:
     """The document of one pose run's report."""
     clauses = "; ".join(report.clauses) or "none"
     robot = report.run.settings.get("robot") or {}
@@ -338,13 +357,12 @@ def run_document(report: RunReport, raw: list[RawData], *, operator: str = "not 
 def comparison_document(first: RunReport, second: RunReport, raw: list[RawData]) -> Document:
     """Two runs side by side: identification, differing conditions, deviations, paired results, plot."""
     a, b = first.run, second.run
-    ident = [("Report ID", first.report_id, second.report_id), ("Protocol", a.protocol_name, b.protocol_name),
+    ident = [("Configuration ID", first.report_id, second.report_id), ("Protocol", a.protocol_name, b.protocol_name),
              ("Robot", a.robot, b.robot), ("Status", a.status, b.status),
              ("Started (UTC)", a.started_utc, b.started_utc), ("Git SHA", a.git_sha, b.git_sha),
              ("Configuration SHA-256", first.config_sha256[:16], second.config_sha256[:16]),
              ("Calibration ids", str(list(a.calibration_ids)), str(list(b.calibration_ids)))]
-    keys = sorted(set(a.config) | set(b.config))
-    differ = tuple((k, str(a.config.get(k)), str(b.config.get(k))) for k in keys if a.config.get(k) != b.config.get(k))
+    differ = configuration_differences(first, second)
     deviations = tuple((d.clause, d.topic, f"{d.status}: {d.done}", f"{e.status}: {e.done}")
                        for d, e in zip(first.deviations, second.deviations))
     second_poses = {r.label: r for r in second.poses}
@@ -361,12 +379,12 @@ def comparison_document(first: RunReport, second: RunReport, raw: list[RawData])
                        format_value(s.repeatability.rp_mm - r.repeatability.rp_mm, u_rp, signed=True)))
     runs = f"run {a.id} (A) and run {b.id} (B)"
     return Document(
-        title=f"Comparison of {runs}", subtitle=f"Reports {first.report_id} / {second.report_id}",
+        title=f"Comparison of {runs}", subtitle=f"Runs {a.id} (A) and {b.id} (B)",
         sections=(
             Section("1. Identification", (Table("identification", ("Item", f"A: run {a.id}", f"B: run {b.id}"),
                                                 tuple(ident)),)),
             Section("2. Conditions that differ", (Table("conditions", ("Parameter", "A", "B"), differ or (
-                ("—", "identical configuration", ""),)),)),
+                ("—", NO_DIFFERENCE, ""),), "Configuration, settings and calibrations in force"),)),
             Section("3. Deviations from ISO 9283", (Paragraph(SCOPE), Table(
                 "deviations", ("Clause", "Topic", "A", "B"), deviations)),),
             Section("4. Results", (Table("results", ("Pose", "AP_P ± U A (mm)", "AP_P ± U B (mm)", "ΔAP (B − A)",

@@ -47,6 +47,7 @@ from bench.reports.document import (
     conditions_section,
     decision_blocks,
     fmt_mm,
+    reading_formatter,
 )
 from bench.reports.plots import Plot, payload_caption, payload_shift_figure
 from bench.store import Store
@@ -202,13 +203,14 @@ def _slope(slope: PayloadCompliance | None, k: float) -> str:
 
 
 def _results(report: LadderReport) -> tuple[Block, ...]:
+    mm = reading_formatter(report)
     k = report.coverage_factor
     legs = [str(c) for c in report.leg_errors.columns]
-    ladder = tuple((f"{load:g}", str(n), *(f"{v:+.4f}" for v in row))
+    ladder = tuple((f"{load:g}", str(n), *(mm(v, True) for v in row))
                    for (load, row), n in zip(report.leg_errors.iterrows(), report.lifts_per_load))
     s, a = report.summary, report.summary_abs
-    per_leg = tuple((leg, fmt_mm(s.max_error_mm[i]), f"{s.load_at_max_kg[i]:g}", fmt_mm(a.max_error_mm[i]),
-                     f"{a.load_at_max_kg[i]:g}", f"{s.mean_error_mm[i]:+.4f}", _r(s.correlation_with_load[i]),
+    per_leg = tuple((leg, mm(s.max_error_mm[i]), f"{s.load_at_max_kg[i]:g}", mm(a.max_error_mm[i]),
+                     f"{a.load_at_max_kg[i]:g}", mm(s.mean_error_mm[i], True), _r(s.correlation_with_load[i]),
                      _slope(report.leg_slopes[i], k)) for i, leg in enumerate(legs))
     blocks: list[Block] = [
         Table("ladder", ("Load (kg)", "Lifts", *(f"e_{leg} (mm)" for leg in legs)), ladder,
@@ -218,15 +220,15 @@ def _results(report: LadderReport) -> tuple[Block, ...]:
                        f"slope of e against weight ± U (mm/N, k = {k:g})"), per_leg,
               "Per leg: bench.metrology.leg_error_summary on the signed e (as bench analyze payload) and on |e| "
               "(000 Table 8-5); the slope is bench.metrology.payload_compliance of e against (m − m₀)·g"),
-        Paragraph(f"All legs: mean e {s.overall_mean_mm:+.4f} mm, SD {s.overall_sd_mm:.4f} mm; mean |e| "
-                  f"{a.overall_mean_mm:.4f} mm, SD {a.overall_sd_mm:.4f} mm, over {s.n_loads} loads."),
+        Paragraph(f"All legs: mean e {mm(s.overall_mean_mm, True)} mm, SD {mm(s.overall_sd_mm)} mm; mean |e| "
+                  f"{mm(a.overall_mean_mm)} mm, SD {mm(a.overall_sd_mm)} mm, over {s.n_loads} loads."),
     ]
     if report.shift is not None:
         shift = report.shift
         blocks.append(Table("payload-shift", ("Load (kg)", "FK barycentre x, y, z (mm)", "PE(m) x, y, z (mm)",
                                               "|PE(m)| (mm)"),
-                            tuple((f"{m:g}", ", ".join(f"{v:.4f}" for v in b), ", ".join(f"{v:+.4f}" for v in d),
-                                   fmt_mm(n)) for m, b, d, n in zip(shift.load_kg, shift.barycentre_mm,
+                            tuple((f"{m:g}", ", ".join(mm(v) for v in b), ", ".join(mm(v, True) for v in d),
+                                   mm(n)) for m, b, d, n in zip(shift.load_kg, shift.barycentre_mm,
                                                                     shift.shift_mm, shift.shift_norm_mm)),
                             f"Pose-level payload error PE(m) = x̄(m) − x̄(m₀), m₀ = {shift.reference_load_kg:g} kg, "
                             f"from the forward kinematics of the calliper lengths (commanded lifted pose "
@@ -239,12 +241,12 @@ def _results(report: LadderReport) -> tuple[Block, ...]:
         blocks.append(Paragraph(
             f"Payload compliance estimate k = {c.compliance_mm_per_n:+.3e} ± {k * c.u_compliance_mm_per_n:.3e} mm/N "
             f"(k = {k:g}; slope of PE_z against (m − m₀)·g, g = {report.g_m_s2:g} m/s², intercept "
-            f"{c.intercept_mm:+.4f} mm, residual SD {c.residual_sd_mm:.4f} mm, {c.n} lifts). Next to, never "
+            f"{mm(c.intercept_mm, True)} mm, residual SD {mm(c.residual_sd_mm)} mm, {c.n} lifts). Next to, never "
             f"called, ISO 9283 static compliance."))
     blocks.append(Table("lifts", ("Load (kg)", "Repeat", "L_1-L_6 (mm)", "FK x, y, z (mm)", "Residual RMS (mm)",
                                   "Used"),
                         tuple((f"{lift.load_kg:g}", str(lift.repeat), " ".join(f"{v:.2f}" for v in lift.lengths_mm),
-                               ", ".join(f"{v:.4f}" for v in lift.position_mm), f"{lift.residual_mm:.4f}",
+                               ", ".join(mm(v) for v in lift.position_mm), mm(lift.residual_mm),
                                "yes" if lift.used else "no") for lift in report.lifts),
                         "Every lift: the six calliper lengths and the pose the forward kinematics finds for them "
                         "(translation mode)"))

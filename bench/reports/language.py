@@ -19,7 +19,7 @@ from __future__ import annotations
 import re
 from dataclasses import replace
 
-__all__ = ["INTERNAL_PATTERNS", "customer_document", "customer_text", "local_paths"]
+__all__ = ["INTERNAL_PATTERNS", "customer_document", "customer_text", "local_paths", "map_text"]
 
 PKM5_DISSERTATION = "pkm5 dissertation"
 DELTA_DISSERTATION = "delta-robot dissertation"
@@ -71,22 +71,29 @@ def customer_text(text: str) -> str:
     return text
 
 
-def customer_document(document):
-    """``document`` with :func:`customer_text` applied to every printed string."""
+def map_text(document, text, verbatim=None):
+    """``document`` with ``text`` applied to every printed string (title, subtitle, section titles, paragraphs,
+    table headers, cells and captions, figure captions); verbatim paragraphs get ``verbatim`` (default ``text``)."""
     from bench.reports.document import Figure, Paragraph, Section, Table
     from bench.reports.plots import Plot
 
+    verbatim = verbatim or text
+
     def block(item):
-        if isinstance(item, Paragraph):  # a verbatim command keeps its module names, loses only local paths
-            return replace(item, text=local_paths(item.text) if item.verbatim else customer_text(item.text))
+        if isinstance(item, Paragraph):
+            return replace(item, text=verbatim(item.text) if item.verbatim else text(item.text))
         if isinstance(item, Table):
-            return replace(item, header=tuple(customer_text(c) for c in item.header),
-                           rows=tuple(tuple(customer_text(c) for c in row) for row in item.rows),
-                           caption=customer_text(item.caption))
+            return replace(item, header=tuple(text(c) for c in item.header),
+                           rows=tuple(tuple(text(c) for c in row) for row in item.rows), caption=text(item.caption))
         if isinstance(item, Figure):
-            return Figure(Plot(customer_text(item.plot.caption), item.plot.figure))
+            return Figure(Plot(text(item.plot.caption), item.plot.figure))
         return item
 
-    sections = tuple(Section(customer_text(s.title), tuple(block(b) for b in s.blocks)) for s in document.sections)
-    return replace(document, title=customer_text(document.title), subtitle=customer_text(document.subtitle),
-                   sections=sections)
+    sections = tuple(Section(text(s.title), tuple(block(b) for b in s.blocks)) for s in document.sections)
+    return replace(document, title=text(document.title), subtitle=text(document.subtitle), sections=sections)
+
+
+def customer_document(document):
+    """``document`` with :func:`customer_text` applied to every printed string (a verbatim command keeps its module
+    names and loses only local paths)."""
+    return map_text(document, customer_text, local_paths)

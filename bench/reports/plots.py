@@ -452,6 +452,14 @@ def report_plots(report: RunReport) -> list[Plot]:
     return [p for p in plots if p is not None]
 
 
+def nonnegative_yerr(values, errors) -> list[list[float]]:
+    """Error bars ``value ± U`` of a figure that cannot be negative (AP_P, RP_l: lengths of vectors): the lower bar
+    stops at 0 mm (lower = min(U, value)), the upper one is U; matplotlib's ``yerr`` as [lower, upper]."""
+    values = np.nan_to_num(np.asarray(values, dtype=float))
+    errors = np.asarray(errors, dtype=float)
+    return [list(np.minimum(errors, np.maximum(values, 0.0))), list(errors)]
+
+
 def comparison_plot(first: RunReport, second: RunReport) -> Plot:
     """AP_P and RP_l per pose label for two runs, with the expanded uncertainties as error bars."""
     labels = list(dict.fromkeys([r.label for r in first.poses] + [r.label for r in second.poses]))
@@ -463,7 +471,8 @@ def comparison_plot(first: RunReport, second: RunReport) -> Plot:
             by_label = {r.label: getattr(r, attribute) for r in report.poses}
             values = [by_label[label].value if label in by_label else np.nan for label in labels]
             errors = [by_label[label].expanded_uncertainty if label in by_label else 0.0 for label in labels]
-            axes.bar(positions + offset, values, width=0.4, yerr=errors, capsize=2, label=f"run {report.run.id}")
+            axes.bar(positions + offset, values, width=0.4, yerr=nonnegative_yerr(values, errors), capsize=2,
+                     label=f"run {report.run.id}")
         axes.set_xticks(positions, labels, rotation=45, ha="right", fontsize=6)
         axes.set_ylabel(f"{name} (mm)")
         axes.legend(fontsize=7)

@@ -32,6 +32,7 @@ from bench.metrology.partial_pose import (
 )
 from bench.reports.content import InstrumentInfo, ReportBase, calibrations_in_force, provenance, run_table
 from bench.reports.deviations import grid_positioning_deviations
+from bench.metrology.formatting import format_length
 from bench.reports.document import (
     Block,
     Document,
@@ -138,7 +139,8 @@ def collect_grid_positioning(store: Store, run_id: int, *, k: float = 2.0, resam
 def _value(value: float | None, *, signed: bool = False, missing: str = "—") -> str:
     if value is None:
         return missing
-    return f"{value:+.4f}" if signed else fmt_mm(value)
+    # the grid reads whole lattice steps: no figure gets more decimals than its readings carry
+    return format_length(value, resolution=GRID_RESOLUTION_MM, signed=signed)
 
 
 def axis_cells(axis: AxisErrors) -> tuple[str, ...]:

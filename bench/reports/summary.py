@@ -17,19 +17,21 @@ and what happened during the run.
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, fields
+from dataclasses import dataclass, fields, replace
 from datetime import datetime
 from statistics import median
 from typing import Any
 
 from bench.errors import ConfigError
-from bench.metrology.formatting import condition_text, format_measured, pose_label
+from bench.metrology.formatting import condition_text, format_measured
 from bench.metrology.tables import PoseResult
+from bench.reports.signature import is_placeholder, measuring_point, signature_table
 from bench.store import RunRecord, Store
 
 __all__ = ["HistoryEvent", "Identity", "headline_rows", "is_simulated", "run_history", "summary_section", "verdicts"]
 
-NOT_RECORDED = "not recorded"
+#: A field nobody stated: printed as an empty line to fill in (:data:`bench.reports.signature.BLANK`).
+NOT_RECORDED = ""
 #: A gap between two stored samples longer than this many times the run's median interval, and at least
 #: :data:`MIN_GAP_S`, is an interruption (pause, abort then resume, loss of a device).
 GAP_FACTOR = 20.0
@@ -45,6 +47,7 @@ class Identity:
     order: str = NOT_RECORDED  #: order or job number
     operator: str = NOT_RECORDED
     laboratory: str = NOT_RECORDED
+    measuring_point: str = NOT_RECORDED  #: TCP / reference point measured (ISO 9283 6.3); see signature.measuring_point
 
     @classmethod
     def from_mapping(cls, values: Mapping[str, Any], source: str = "settings.dut") -> Identity:
@@ -53,20 +56,26 @@ class Identity:
         unknown = sorted(set(values) - names)
         if unknown:
             raise ConfigError(f"{source}: unknown key {unknown[0]!r}, expected some of {', '.join(sorted(names))}")
-        return cls(**{k: str(v) for k, v in values.items() if v not in (None, "")})
+        return cls(**{k: str(v) for k, v in values.items() if not is_placeholder(v)})
 
     def merged(self, given: Mapping[str, str | None]) -> Identity:
-        """This identity with the ``given`` values (e.g. command-line options) replacing the stored ones."""
-        return Identity(**{f.name: (given.get(f.name) or getattr(self, f.name)) for f in fields(self)})
+        """This identity with the ``given`` values (e.g. command-line options) replacing the stored ones; a
+        placeholder (a template's sample text) is no value."""
+        return Identity(**{f.name: (given.get(f.name) if not is_placeholder(given.get(f.name))
+                                    else getattr(self, f.name)) for f in fields(self)})
 
     @classmethod
     def of_run(cls, run: RunRecord, given: Mapping[str, str | None] | None = None) -> Identity:
         """The run's stored identity (``settings.dut``), completed or overridden by ``given``."""
-        return cls.from_mapping(run.settings.get("dut") or {}).merged(given or {})
+        identity = cls.from_mapping(run.settings.get("dut") or {}).merged(given or {})
+        return replace(identity, measuring_point=measuring_point(identity.measuring_point or None,
+                                                                 run.settings.get("robot") or {}))
 
     def rows(self) -> list[tuple[str, str]]:
-        return [("Device under test (serial / asset)", self.dut_serial), ("Customer", self.customer),
-                ("Order", self.order), ("Operator", self.operator), ("Laboratory", self.laboratory)]
+        return [("Customer", self.customer), ("Order", self.order),
+                ("Device under test (serial / asset)", self.dut_serial),
+                ("Measuring point (TCP / reference point)", self.measuring_point),
+                ("Operator", self.operator), ("Laboratory", self.laboratory)]
 
 
 def is_simulated(run: RunRecord) -> bool:
@@ -111,25 +120,27 @@ def headline_rows(poses: Sequence[PoseResult]) -> tuple[tuple[str, ...], ...]:
     return tuple(rows)
 
 
-def verdicts(decision_verdicts, uncertainties: Mapping[tuple[str, str], float]) -> tuple[tuple[str, ...], ...]:
+def verdicts(decision_verdicts) -> tuple[tuple[str, ...], ...]:
     """Per criterion: name, limit, the worst value ± U and where, poses passed, result; then the overall row.
 
-    ``decision_verdicts``: (criterion, pose label, value, limit, passed) rows of a Decision; ``uncertainties``:
-    U per (criterion, pose label), printed next to the worst value.
+    ``decision_verdicts``: (criterion, pose label, value, U, limit, result) rows of a Decision. The worst value is
+    the one whose upper end value + U is highest (the one closest to failing under either rule); the result of a
+    criterion and the overall one follow :func:`bench.reports.decision.overall` (fail > not proven > pass).
     """
+    from bench.reports.decision import PASS, overall
+
     by_name: dict[str, list] = {}
     for row in decision_verdicts:
         by_name.setdefault(row[0], []).append(row)
     out = []
     for name, rows in by_name.items():
-        worst = max(rows, key=lambda r: r[2])
-        u = uncertainties.get((name, worst[1]), 0.0)
-        passed = sum(r[4] for r in rows)
-        out.append((name.removesuffix("_mm") + " (mm)", f"≤ {worst[3]:g}",
-                    f"{format_measured(worst[2], u)} ({worst[1]})", f"{passed} of {len(rows)}",
-                    "PASS" if passed == len(rows) else "FAIL"))
+        worst = max(rows, key=lambda r: r[2] + r[3])
+        passed = sum(r[5] == PASS for r in rows)
+        out.append((name.removesuffix("_mm") + " (mm)", f"≤ {worst[4]:g}",
+                    f"{format_measured(worst[2], worst[3])} ({worst[1]})", f"{passed} of {len(rows)}",
+                    overall(r[5] for r in rows).upper()))
     if out:
-        out.append(("Overall", "", "", "", "PASS" if all(r[-1] == "PASS" for r in out) else "FAIL"))
+        out.append(("Overall", "", "", "", overall(r[-1].lower() for r in out).upper()))
     return tuple(out)
 
 
@@ -214,16 +225,16 @@ def summary_section(report, identity: Identity, history: Sequence[HistoryEvent],
                             f"Headline results per velocity and load (U: expanded uncertainty, k = {k}; U of a mean "
                             f"is the mean of the poses' U" + (f"; {axes}" if axes else "") + ")"))
         blocks.extend(orientation_headline(report))
-        u = {(name, label): (p.ap_u if name == "AP_mm" else p.rp_u).expanded_uncertainty
-             for p in report.poses for name in ("AP_mm", "RP_mm") for label in (p.label, pose_label(p.pose, p.conditions))}
-        verdict = verdicts(report.decision.verdicts, u)
+        verdict = verdicts(report.decision.verdicts)
+        blocks.append(Paragraph(f"Decision rule: {report.decision.rule}."))
         if verdict:
             blocks.append(Table("verdict", ("Characteristic", "Criterion", "Worst value ± U (where)", "Poses passed",
-                                            "Result"), verdict, "Verdict against the stated criteria"))
-        blocks.append(Paragraph(f"Decision rule: {report.decision.rule}."))
+                                            "Result"), verdict, "Verdict against the stated criteria under the "
+                                                                "decision rule above"))
     blocks.append(Table("history", ("Time (UTC)", "Event"), tuple((e.time_utc, e.event) for e in history),
                         "Run history"))
     blocks.extend(registration_blocks(run))
+    blocks.append(signature_table(identity.operator))
     return Section("Summary", tuple(blocks))
 
 

@@ -15,7 +15,7 @@ from matplotlib.figure import Figure as MplFigure
 
 from bench.reports.content import RunReport, axes_statement, check_same_axes
 from bench.reports.document import Document, Figure, Paragraph, RawData, Section, Table, _raw
-from bench.reports.plots import Plot
+from bench.reports.plots import Plot, nonnegative_yerr
 from bench.reports.summary import HistoryEvent, headline_rows
 
 __all__ = ["trend_document", "trend_plot"]
@@ -33,7 +33,8 @@ def trend_plot(reports: Sequence[RunReport]) -> Plot:
     for index, (name, attribute) in enumerate((("worst AP_P", "ap_u"), ("worst RP_l", "rp_u"))):
         axes = figure.add_subplot(1, 2, index + 1)
         worst = [_worst(r, attribute) for r in reports]
-        axes.errorbar(positions, [m.value for m in worst], yerr=[m.expanded_uncertainty for m in worst],
+        values = [m.value for m in worst]
+        axes.errorbar(positions, values, yerr=nonnegative_yerr(values, [m.expanded_uncertainty for m in worst]),
                       marker="o", capsize=3)
         axes.set_xticks(positions, labels)
         axes.set_ylabel(f"{name} (mm)")
@@ -58,7 +59,7 @@ def trend_document(reports: Sequence[RunReport], histories: Sequence[tuple[Histo
                           str(len(h) - 2)) for r, h in zip(reports, histories))
     ids = ", ".join(str(r.run.id) for r in reports)
     return Document(
-        title=f"Trend over runs {ids}", subtitle=f"Reports {', '.join(r.report_id for r in reports)}",
+        title=f"Trend over runs {ids}", subtitle=f"Runs {ids}",
         sections=(
             Section("1. Results per run", (
                 Paragraph("Each run's headline as its own report gives it; runs in the order they started."

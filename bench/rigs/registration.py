@@ -32,10 +32,20 @@ repeatability RP = l̄ + 3 S_l (ISO 9283 7.2.2): the spread all along one axis (
 l̄ + 3 S_l = (√(2/π) + 3 √(1 - 2/π)) σ = 2.606 σ); an isotropic spread gives 3.616 σ, so this is the
 conservative reading of a datasheet value.
 
-Registration standard uncertainty per axis (the frame's offset from the robot's mean home, recorded with the run):
-:math:`u_{reg} = \\max(\\sigma_R, s_A) / \\sqrt{n}`, where :math:`s_A` is the type A standard deviation of the n
-returns pooled over the three axes (3 (n - 1) degrees of freedom; too few to stand alone, so the rated value is the
-floor). Two registrations of one run (a resume) share a frame only within :math:`\\sqrt{u_1^2 + u_2^2}` per axis.
+Registration standard uncertainty per axis (the frame's offset from the robot's mean home, recorded with the run),
+measured in the run from the n returns home, never borrowed from a document:
+
+.. math::
+
+    u_{reg} = \\sqrt{\\Big(\\frac{t_{p,\\nu}}{2}\\Big)^2 \\frac{s_A^2}{n} + \\frac{r^2}{6 n}}, \\qquad \\nu = 3 (n - 1)
+
+where :math:`s_A` is the type A standard deviation of the returns pooled over the three axes and :math:`r^2/6` one
+reading's quantisation (a difference of two counts, seen even when every return reads the same count). With so few
+degrees of freedom a k = 2 interval on :math:`s_A/\\sqrt{n}` would cover too rarely, so the Type A term is stated at
+Student's :math:`t_{p,\\nu}` for the coverage p of k = 2 (95.45 %; 3.31 at ν = 3), divided by 2: a U = 2 u that
+enters the AP budget as a Type B term then keeps its coverage. (It was floored by the documents' worst rated RP,
+2.7 mm, which made every mice AP read ± 1.5 mm whatever the robot did, issue 32.) Two registrations of one run (a
+resume) share a frame only within :math:`\\sqrt{u_1^2 + u_2^2}` per axis.
 
 What a relative instrument cannot see: a controller that does not know its own position (steps lost, a counter
 reset while the robot stood elsewhere) moves the robot and the mice alike, so the check agrees. That needs an
@@ -54,9 +64,10 @@ from typing import Any
 import numpy as np
 
 from bench.errors import BenchError
+from bench.metrology.uncertainty import coverage_factor, resolution_uncertainty
 
 __all__ = ["CHECK_OFFSET_MM", "CHECK_RETURNS", "PKM5_RATED_RP_MM", "RegistrationError", "axis_sigma_from_rp_mm",
-           "check_tolerance_mm", "home_before_registering", "register_at_home"]
+           "check_tolerance_mm", "home_before_registering", "register_at_home", "registration_uncertainty_mm"]
 
 _log = logging.getLogger(__name__)
 
@@ -88,6 +99,14 @@ def check_tolerance_mm(rated_rp_mm: float, resolution_mm: float) -> float:
     sigma = axis_sigma_from_rp_mm(rated_rp_mm)
     u_inst = math.sqrt(2.0) * resolution_mm / math.sqrt(12.0)
     return CHECK_COVERAGE * math.sqrt(2 * sigma**2 + u_inst**2)
+
+
+def registration_uncertainty_mm(s_a_mm: float, dof: int, returns: int, resolution_mm: float) -> float:
+    """Standard uncertainty per axis of the frame registered at the mean of ``returns`` returns home: u_reg of the
+    module docstring, from their pooled standard deviation ``s_a_mm`` (``dof`` degrees of freedom) and one count."""
+    k_t = coverage_factor(2.0, dof) / 2.0
+    return math.sqrt((k_t * s_a_mm) ** 2 / returns + resolution_uncertainty(resolution_mm, difference=True) ** 2
+                     / returns)
 
 
 def home_before_registering(controller: Any) -> None:
@@ -156,6 +175,7 @@ def register_at_home(controller: Any, instrument: Any, *, speed_factor: float = 
     dof = 3 * (CHECK_RETURNS - 1)
     s_a = float(math.sqrt(np.sum(returns**2) / dof))
     sigma_r = axis_sigma_from_rp_mm(rated_rp_mm)
+    u_mm = registration_uncertainty_mm(s_a, dof, CHECK_RETURNS, resolution)
     record = {
         "utc": utc, "instrument": "mice", "controller_steps": list(steps),
         "pose_mm": [round(float(v), 4) for v in home], "check_pose_mm": [round(float(v), 4) for v in check],
@@ -166,7 +186,7 @@ def register_at_home(controller: Any, instrument: Any, *, speed_factor: float = 
         "frame_shift_mm": [round(float(v), 4) for v in shift],
         "rated_rp_mm": rated_rp_mm, "sigma_rated_mm": round(sigma_r, 4),
         "sigma_type_a_mm": round(s_a, 4), "sigma_type_a_dof": dof,
-        "u_mm": round(max(sigma_r, s_a) / math.sqrt(CHECK_RETURNS), 4),
+        "u_mm": round(u_mm, 4), "u_source": "measured: the returns home (type A, Student's t) and one count",
     }
     _log.info("registration: check-pose discrepancy %.3f mm (tolerance %.2f mm), u %.3f mm per axis", worst,
               tolerance, record["u_mm"])

@@ -354,8 +354,9 @@ def parse_station(data: Mapping[str, Any], *, source: str = "station") -> Statio
         table = _Table(source, "lab_store", data["lab_store"])
         expected = "a postgresql://USER@HOST/DBNAME URL"
         url = table.get("url", str, required=True, expected=expected)
-        if not url.startswith(("postgresql://", "postgres://")):
-            raise _fail(source, "lab_store.url", url, expected)
+        from bench.store.lab import check_lab_url  # (psycopg only for a station with a lab store)
+
+        check_lab_url(url, f"{source}: lab_store.url =")  # one line, the password hidden
         lab_store = LabStoreSpec(url=url, auto_sync=table.get("auto_sync", bool, True))
         table.done()
     named: dict[str, str] = {}

@@ -42,6 +42,9 @@ _log = logging.getLogger(__name__)
 #: Interval of the heartbeat (a ``POS`` line) while waiting for ``DONE``: a third of the firmware's default link
 #: watchdog (150 ms, docs/protocol-pkm5.md), so that one lost line never trips it.
 HEARTBEAT_S = 0.05
+#: A STOP from another thread goes out again every STOP_RESEND_S until acknowledged, at most STOP_SENDS times (1 s)
+STOP_RESEND_S = 0.1
+STOP_SENDS = 10
 
 DEFAULT_BAUDRATE = 115200
 #: Bytes the firmware's receive buffer holds (RX_SIZE, firmware/pkm5/pkm5.c): :meth:`Pkm5Controller.query_many` keeps
@@ -144,6 +147,9 @@ class Pkm5Controller:
         self._stop_latched = False
         self._identity: Identity | None = None
         self._version = 1  # link framing; identify() negotiates 2 (CRC-16) with a controller that offers it
+        self._stops_sent: set[int] = set()  # tags of STOPs written past a waiting command (another thread's stop)
+        self._stop_acknowledged = threading.Event()  # set by the waiting command when one of them is answered
+        self._stops_requested = 0  # stop() calls so far: a MOVE is never re-sent across one (under _write)
 
     # -- description -------------------------------------------------------------------------------------------
     def settings(self) -> dict[str, Any]:
@@ -277,8 +283,10 @@ class Pkm5Controller:
                 if heartbeat and not deadline.expired():
                     continue
                 if dropped:
-                    raise LinkTimeout(f"{exc}; dropped {len(dropped)} invalid or stale lines, first "
-                                      f"{dropped[0]!r} (is this a {wire.DEVICE_NAME}?)") from None
+                    timeout = LinkTimeout(f"{exc}; dropped {len(dropped)} invalid or stale lines, first "
+                                          f"{dropped[0]!r} (is this a {wire.DEVICE_NAME}?)")
+                    timeout.dropped = dropped
+                    raise timeout from None
                 raise
             try:
                 reply = wire.parse_reply(line, self._version)
@@ -286,6 +294,13 @@ class Pkm5Controller:
                 _log.warning("%s: dropped line while waiting for %s: %s", self.link.port_name, verb, exc)
                 dropped.append(line)
                 self._noisy = True
+                continue
+            if reply.tag in self._stops_sent:  # a STOP sent from another thread: its acknowledgement
+                self._stop_acknowledged.set()
+                if done_at is not None:  # the controller ends the move (ERR 8) before it answers STOP: that was lost
+                    raise ControllerError(f"{self.link.port_name}: MOVE #{tag} ended by STOP #{reply.tag} (its "
+                                          f"'ERR #{tag} 8 STOPPED' lost; STOP answered {' '.join(reply.fields)})",
+                                          wire.ErrorCode.STOPPED)
                 continue
             if reply.tag in beats:
                 if done_at is not None and reply.kind == "OK" and _idle_at(reply, done_at):
@@ -299,6 +314,8 @@ class Pkm5Controller:
                 continue
             if reply.kind == "ERR":
                 code = reply.ints(0, 1)[0]
+                if code == wire.ErrorCode.STOPPED:  # the move ended by a STOP: acknowledges a cross-thread stop()
+                    self._stop_acknowledged.set()
                 name = reply.fields[1] if len(reply.fields) > 1 else "?"
                 raise ControllerError(f"{self.link.port_name}: controller refused {verb!r} with error {code} "
                                       f"{name} ({' '.join(reply.fields[2:])})".rstrip(" ()"), code)
@@ -308,13 +325,28 @@ class Pkm5Controller:
 
     # -- commands ----------------------------------------------------------------------------------------------
     def identify(self) -> Identity:
-        """Ask ``ID`` (always in version-1 framing, which also returns a controller to version 1) and negotiate the
-        highest protocol both sides speak: ``PROTOCOL 2`` (CRC-16 lines) with a controller that offers 2, version 1
-        with one that offers 1 (firmware 1.x). A device other than a bench-pkm5 raises LinkError."""
+        """Ask ``ID`` and negotiate the highest protocol both sides speak: ``PROTOCOL 2`` (CRC-16 lines) with a
+        controller that offers 2, version 1 with one that offers 1 (firmware 1.x). A controller already on a
+        version-2 link (an earlier host negotiated it; no line takes it back to version 1) refuses the version-1
+        ``ID`` with a CRC-16 ``ERR #0 2 CHECKSUM``: the driver then asks in version 2. A device other than a
+        bench-pkm5 raises LinkError."""
         offered = " or ".join(str(v) for v in wire.PROTOCOL_VERSIONS)
         for attempt in range(1, self.retries + 2):
             self._version = 1
-            fields = self._exchange("ID").fields
+            try:  # one try per attempt: a version-2 link answers in CRC-16, which a retry in version 1 cannot read
+                fields = self._exchange("ID", idempotent=False).fields
+            except ControllerError as exc:
+                if exc.code not in _NOISE_REFUSALS or attempt > self.retries:
+                    raise
+                self._noisy = True
+                continue
+            except LinkTimeout as exc:
+                if not self._link_is_crc(exc):
+                    if attempt > self.retries:
+                        raise
+                    continue
+                self._version = 2
+                fields = self._exchange("ID").fields
             if len(fields) != 4 or fields[0] != "ID" or fields[1] != wire.DEVICE_NAME \
                     or fields[2] not in [str(v) for v in wire.PROTOCOL_VERSIONS]:
                 raise LinkError(f"{self.link.port_name}: 'ID' answered {' '.join(fields)!r}, expected "
@@ -322,7 +354,7 @@ class Pkm5Controller:
             version = int(fields[2])
             if version == 1:
                 break
-            try:  # a lost OK leaves the controller's framing unknown: start again from ID, which resets it
+            try:  # a lost OK leaves the controller's framing unknown: ask ID again (a CRC-16 refusal tells)
                 self._exchange("PROTOCOL", (version,))
             except (LinkTimeout, WireProtocolError) as exc:
                 if attempt > self.retries:
@@ -334,6 +366,10 @@ class Pkm5Controller:
             break
         self._identity = Identity(fields[1], version, fields[3])
         return self._identity
+
+    def _link_is_crc(self, exc: Exception) -> bool:
+        """Whether a failed version-1 exchange met a controller framing its lines in CRC-16 (a version-2 link)."""
+        return any(_verifies(line, 2) for line in getattr(exc, "dropped", ()))
 
     def position(self) -> Position:
         reply = self._exchange("POS")
@@ -356,14 +392,29 @@ class Pkm5Controller:
     def stop(self) -> Position | None:
         """Stop all axes now; returns where they stopped.
 
-        Safe from another thread while a command waits for its replies (an emergency stop during a move): only the
-        ``STOP`` line is sent then, at once, and None is returned. Only the waiting command reads the port, so the
-        move ends with the controller's ``ERR #move 8 STOPPED`` and STOP's own ``OK`` is later dropped as stale.
+        Safe from another thread while a command waits for its replies (an emergency stop during a move): the
+        ``STOP`` line goes out at once and again every :data:`STOP_RESEND_S` until the waiting command reads its
+        acknowledgement (the move then ends with the controller's ``ERR #move 8 STOPPED``), at most
+        :data:`STOP_SENDS` times; None is returned, or LinkError when no STOP was acknowledged. Takes no lock a
+        waiting mover holds (only the write lock, held for one write).
         """
+        with self._write:
+            self._stops_requested += 1
         if not self._line.acquire(blocking=False):
-            with self._write:
-                self.link.write(wire.format_command("STOP", (), next(self._tags), self._version), command="STOP")
-            return None
+            self._stop_acknowledged.clear()
+            for _ in range(STOP_SENDS):
+                tag = next(self._tags)
+                self._stops_sent.add(tag)
+                with self._write:
+                    self.link.write(b"\n" + wire.format_command("STOP", (), tag, self._version), command="STOP")
+                if self._stop_acknowledged.wait(STOP_RESEND_S):
+                    return None
+                if self._line.acquire(blocking=False):  # the mover has ended: confirm the stop ourselves
+                    try:
+                        return Position(self._exchange("STOP").ints(1, wire.AXES), "IDLE")
+                    finally:
+                        self._line.release()
+            raise LinkError(f"{self.link.port_name}: STOP sent {STOP_SENDS} times, none acknowledged")
         try:
             return Position(self._exchange("STOP").ints(1, wire.AXES), "IDLE")
         finally:
@@ -417,18 +468,32 @@ class Pkm5Controller:
         speed = int(_checked_number("speed_steps_s", self.speed_steps_s if speed_steps_s is None else speed_steps_s,
                                     1, 1000))
         tag = next(self._tags)
-        with self._write:
-            if self._stop_latched:
-                raise LinkError(f"{self.link.port_name}: MOVE to {targets} refused: an emergency stop is latched; "
-                                "enable() the controller to move again")
-            self._send(wire.format_command("MOVE", (*targets, speed), tag, self._version), command="MOVE")
+        line = wire.format_command("MOVE", (*targets, speed), tag, self._version)
+        stops_before = self._stops_requested
+        # Version 3 controllers answer a MOVE with the tag of the last one they accepted without executing it again,
+        # so a MOVE whose OK does not come (corrupted either way) is re-sent as it was; never across a stop().
+        sends = 1 + (self.retries if self._version >= 3 else 0)
         try:
-            try:
-                reply = self._await(tag, "MOVE", ("OK", "DONE"), self.reply_timeout_s)
-            except (LinkTimeout, WireProtocolError) as exc:  # acceptance lost (noise): ask before doing anything
-                _log.warning("%s: MOVE #%d acceptance lost (%s); querying the controller", self.link.port_name,
-                             tag, exc)
-                return self._recover_move(tag, targets, speed)
+            for send in range(1, sends + 1):
+                with self._write:
+                    if self._stop_latched:
+                        raise LinkError(f"{self.link.port_name}: MOVE to {targets} refused: an emergency stop is "
+                                        "latched; enable() the controller to move again")
+                    if self._stops_requested != stops_before:
+                        raise LinkError(f"{self.link.port_name}: MOVE #{tag} not re-sent: stop() was called")
+                    self._send(line, command="MOVE")
+                try:
+                    # heartbeats while waiting: a lost OK must not leave the watchdog without a valid line
+                    reply = self._await(tag, "MOVE", ("OK", "DONE"), self.reply_timeout_s, heartbeat=True)
+                    break
+                except (LinkTimeout, WireProtocolError) as exc:  # acceptance lost (noise)
+                    if send < sends:
+                        _log.warning("%s: MOVE #%d not acknowledged (%s); sent again", self.link.port_name, tag, exc)
+                        self._noisy = True
+                        continue
+                    _log.warning("%s: MOVE #%d acceptance lost (%s); querying the controller", self.link.port_name,
+                                 tag, exc)
+                    return self._recover_move(tag, targets, speed)
             if reply.kind == "DONE":
                 return reply.ints(0, wire.AXES)
             duration_s = reply.ints(1, 1)[0] / 1000.0
@@ -488,6 +553,14 @@ class Pkm5Controller:
 def _check_extension_verb(method: str, verb: str) -> None:
     if verb in ("MOVE", "STOP") or verb in _IDEMPOTENT:
         raise ConfigError(f"Pkm5Controller.{method}: verb = {verb!r}, expected a verb without a method of its own")
+
+
+def _verifies(line: bytes, version: int) -> bool:
+    try:
+        wire.decode_line(line, version)
+    except WireProtocolError:
+        return False
+    return True
 
 
 def _idle_at(reply: wire.Reply, targets: tuple[int, ...]) -> bool:

@@ -23,26 +23,23 @@ from __future__ import annotations
 import binascii
 import contextlib
 import enum
-import re
 from dataclasses import dataclass
 
 from bench.robots.link import FramedLink, WireProtocolError
 
 __all__ = [
     "AXES", "COMMAND_ARITY", "DEVICE_NAME", "MAX_LINE", "PROTOCOL_VERSION", "PROTOCOL_VERSIONS", "Command",
-    "CommandRefused", "ErrorCode", "LineLink", "crc16", "is_v1_identify",
-    "Reply", "checksum", "decode_line", "encode_line", "format_command", "format_reply", "parse_command",
+    "CommandRefused", "ErrorCode", "LineLink", "Reply", "checksum", "crc16", "decode_line", "encode_line", "format_command", "format_reply", "parse_command",
     "parse_reply",
 ]
 
 PROTOCOL_VERSION = 1
 #: Protocol versions this module speaks: 1 = XOR-8 ``*HH``, 2 = CRC-16-CCITT ``*HHHH`` (negotiated after ``ID``).
-PROTOCOL_VERSIONS = (1, 2)
+PROTOCOL_VERSIONS = (1, 2, 3)
 DEVICE_NAME = "bench-pkm5"
 AXES = 6
 MAX_LINE = 96
 _REPLY_KINDS = ("OK", "DONE", "ERR", "BOOT")
-_V1_ID = re.compile(rb"ID #[0-9]{1,9}\*[0-9A-F]{2}")
 
 #: Number of integer arguments of each command; simulator-only commands start with ``SIM``.
 COMMAND_ARITY = {
@@ -213,13 +210,6 @@ class Reply:
 
 def format_reply(kind: str, tag: int, *fields: object, version: int = 1) -> bytes:
     return encode_line(" ".join([kind, f"#{int(tag)}", *(str(f) for f in fields)]), version)
-
-
-def is_v1_identify(line: bytes) -> bool:
-    """A version-1 ``ID #t`` line, exactly: accepted in version 2 too, it returns the link to version 1 (a new host
-    that does not know the controller's state starts with it)."""
-    line = line[:-1] if line.endswith(b"\r") else line
-    return bool(_V1_ID.fullmatch(line)) and line[-2:] == checksum(line[:-3]).encode("ascii")
 
 
 def parse_reply(line: bytes, version: int = 1) -> Reply:

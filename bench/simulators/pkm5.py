@@ -88,7 +88,10 @@ class Pkm5SimDevice:
         self._line = bytearray()
         self._overflow = False
         self._booted = False
-        self.protocol = 1  # framing of the link: 1 = XOR-8, 2 = CRC-16 after PROTOCOL 2; a v1 "ID" returns to 1
+        self.protocol = 1  # framing of the link: 1 = XOR-8, 2 = CRC-16 after PROTOCOL 2 (until reset), 3 = + dedup
+        #: version 3: the last accepted MOVE's tag, its OK and (once it ended) its end reply, for a retransmission
+        self._last_move: tuple[int, bytes, bytes] = (-1, b"", b"")
+        self.started_moves: list[int] = []  #: tags of the MOVEs started (a retransmission answered is not one)
 
     # -- bytes in, bytes out -----------------------------------------------------------------------------------
     def feed(self, data: bytes, now_s: float) -> bytes:
@@ -120,11 +123,8 @@ class Pkm5SimDevice:
         try:
             command = wire.parse_command(line, version)
         except wire.CommandRefused as exc:  # the code and the tag follow the firmware's rules (pkm5_wire)
-            if not (version == 2 and exc.code == wire.ErrorCode.CHECKSUM and wire.is_v1_identify(line)):
-                _log.info("refused %r: %s", line, exc)
-                return _reframe(_error(exc.tag, exc.code), version)
-            command = wire.parse_command(line, 1)
-            self.protocol = version = 1
+            _log.info("refused %r: %s", line, exc)  # version 2 is kept until reset: no line downgrades it
+            return _reframe(_error(exc.tag, exc.code), version)
         return _reframe(self._execute(command, now_s), version)
 
     def tick(self, now_s: float) -> bytes:
@@ -139,8 +139,14 @@ class Pkm5SimDevice:
             move, self.move = self.move, None
             self.steps = move.target.copy()
             self._settle(move.duration_s * self.speed_factor)
-            out += wire.format_reply("DONE", move.tag, *self.steps)
+            out += self._ended(move.tag, wire.format_reply("DONE", move.tag, *self.steps))
         return out
+
+    def _ended(self, tag: int, reply: bytes) -> bytes:
+        """``reply`` ends move ``tag``: kept for a version-3 retransmission of its MOVE."""
+        if self._last_move[0] == tag:
+            self._last_move = (tag, self._last_move[1], reply)
+        return reply
 
     def next_due_s(self) -> float | None:
         """When the running move ends (monotonic s), so the event loop wakes for its ``DONE`` on time."""
@@ -164,12 +170,14 @@ class Pkm5SimDevice:
     # -- commands ----------------------------------------------------------------------------------------------
     def _execute(self, command: wire.Command, now_s: float) -> bytes:
         verb, args, tag = command.verb, command.args, command.tag
+        if verb == "MOVE" and self.protocol >= 3 and tag == self._last_move[0]:  # a retransmission: not again
+            return self._last_move[1] + self._last_move[2]
         if verb in _IDLE_ONLY and self.move is not None:
             return _error(tag, wire.ErrorCode.BUSY)
         if verb == "ID":
             return wire.format_reply("OK", tag, "ID", wire.DEVICE_NAME, max(wire.PROTOCOL_VERSIONS), FIRMWARE_VERSION)
         if verb == "PROTOCOL":
-            if args[0] not in wire.PROTOCOL_VERSIONS:
+            if args[0] not in wire.PROTOCOL_VERSIONS or args[0] < self.protocol:  # never back to XOR-8
                 return _error(tag, wire.ErrorCode.ARGUMENT)
             self.protocol = args[0]
             return wire.format_reply("OK", tag, "PROTOCOL", args[0])
@@ -242,15 +250,18 @@ class Pkm5SimDevice:
         duration_s = float(np.max(np.abs(target - self.steps))) / speed
         self.move = _Move(tag, self.steps.copy(), target, now_s, duration_s / self.speed_factor)
         self._unprepared = target
-        return wire.format_reply("OK", tag, "MOVE", round(duration_ms(int(np.max(np.abs(target - self.steps))), speed)
-                                                          / self.speed_factor))
+        ok = wire.format_reply("OK", tag, "MOVE", round(duration_ms(int(np.max(np.abs(target - self.steps))), speed)
+                                                        / self.speed_factor))
+        self._last_move = (tag, ok, b"")
+        self.started_moves.append(tag)
+        return ok
 
     def _stop(self, tag: int, now_s: float) -> bytes:
         out = b""
         if self.move is not None:
             self.steps = self.move.at(now_s)
             ran_s = min(self.move.duration_s, now_s - self.move.t_start_s) * self.speed_factor
-            out += _error(self.move.tag, wire.ErrorCode.STOPPED, *self.steps)
+            out += self._ended(self.move.tag, _error(self.move.tag, wire.ErrorCode.STOPPED, *self.steps))
             self.move = None
             self._settle(ran_s)
         return out + wire.format_reply("OK", tag, "STOP", *self.steps)

@@ -59,9 +59,11 @@ def start_simulator(robot: str, *, seed: int, speed_factor: float, ideal: bool =
         timeout_s += float(options[options.index("--kernel-wait-s") + 1])
     command = [sys.executable, "-m", f"bench.simulators.{robot}", "--seed", str(seed), "--speed-factor",
                str(speed_factor)] + (["--ideal"] if ideal else []) + list(options)
-    # the simulator's log goes to a file: an undrained pipe would block the simulator once it filled up
+    # the simulator's log goes to a file: an undrained pipe would block the simulator once it filled up. Its own
+    # session: a Ctrl-C at the terminal goes to the terminal's foreground process group, which must hold bench alone
+    # (bench pauses; the simulator, the robot's stand-in, must not die under it: issue 31)
     with tempfile.TemporaryFile(mode="w+") as log:
-        process = spawn(command, stdout=subprocess.PIPE, stderr=log, text=True)
+        process = spawn(command, stdout=subprocess.PIPE, stderr=log, text=True, start_new_session=True)
         ready, _, _ = select.select([process.stdout], [], [], timeout_s)
         line = process.stdout.readline().strip() if ready else ""
         if not line.startswith("/dev/"):

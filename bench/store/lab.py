@@ -32,13 +32,14 @@ import hashlib
 import itertools
 import json
 import logging
+import random
+import re
 import sys
 import time
 from collections.abc import Callable, Iterable, Iterator, Mapping
 from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass
 from typing import Any, Self
-from urllib.parse import urlsplit, urlunsplit
 
 from bench.errors import BenchError, ConfigError
 from bench.store.database import RunRecord, Store
@@ -46,8 +47,8 @@ from bench.store.lab_copy import (COPY_COLUMNS, SAMPLE_COLUMNS, TYPED_COLUMNS, c
                                   typed_columns_ddl)
 from bench.store.lab_summary import POSE_TABLES_BACKFILL, POSE_TABLES_DDL
 
-__all__ = ["LAB_SCHEMA_VERSION", "LabStore", "LabStoreError", "LabURLError", "SyncResult", "is_lab_url",
-           "open_runs_store", "redacted", "rows_checksum", "sync_after_run", "sync_store"]
+__all__ = ["LAB_SCHEMA_VERSION", "LabServerBusy", "LabStore", "LabStoreError", "LabURLError", "SyncResult",
+           "check_lab_url", "is_lab_url", "open_runs_store", "redacted", "rows_checksum", "sync_after_run", "sync_store"]
 
 _log = logging.getLogger(__name__)
 
@@ -127,6 +128,11 @@ class LabStoreError(BenchError):
     exit_code = 1
 
 
+class LabServerBusy(LabStoreError):
+    """The server has no connection slot free now (more benches at once than its ``max_connections``): a sync
+    waits a jittered, growing while and tries again (:func:`sync_store`), never counting it as a lost connection."""
+
+
 class LabURLError(ConfigError):
     """A lab store address that is not a usable PostgreSQL URL (bad input, exit 2)."""
 
@@ -136,13 +142,43 @@ def is_lab_url(spec: str) -> bool:
     return str(spec).startswith(("postgresql://", "postgres://"))
 
 
+#: ``scheme://user:PASSWORD@`` and ``password=VALUE`` (a query parameter or a conninfo keyword): what
+#: :func:`redacted` hides. The user part stops at the first ``:``; the password runs to the last ``@`` (an unencoded
+#: ``@`` in a password hides a little more, never less), wherever such a URL stands in the text.
+_PASSWORD_PARTS = (re.compile(r"([A-Za-z][A-Za-z0-9+.-]*://[^:/@?#\s\"']*):[^\s\"']*@"),
+                   re.compile(r"(?i)\b(password=)[^&\s]*"))
+#: libpq's own checks of an option's value start so ("invalid sslmode value", "invalid port number",
+#: "invalid integer value ... for connection option"): a bad URL, not an unreachable server.
+_BAD_OPTION = re.compile(r"^(connection is bad: )?invalid ")
+
+
+#: What the server (or its socket's full listen queue: EAGAIN) says when it has no connection slot free now.
+_BUSY = ("too many clients", "too many connections for role", "remaining connection slots are reserved",
+         "Resource temporarily unavailable")
+
+
 def redacted(url: str) -> str:
-    """``url`` with its password replaced by ``***`` (for messages)."""
-    parts = urlsplit(url)
-    if parts.password is None:
-        return url
-    netloc = parts.netloc.replace(f":{parts.password}@", ":***@", 1)
-    return urlunsplit(parts._replace(netloc=netloc))
+    """``url`` with its password (user info or ``password=`` parameter) replaced by ``***``, for messages; never
+    fails, whatever the text (a malformed URL is shown redacted too)."""
+    shown = _PASSWORD_PARTS[0].sub(r"\1:***@", str(url))
+    return _PASSWORD_PARTS[1].sub(r"\1***", shown)
+
+
+def check_lab_url(url: str, option: str = "lab store") -> None:
+    """Refuse, in one :class:`LabURLError` line with the password hidden, a lab store address that is not a
+    well-formed PostgreSQL URL: another scheme, a malformed host, an unknown parameter, a port out of range. Nothing
+    is connected to; a bad value that only libpq knows (``sslmode=bogus``) is refused by :func:`connect` as fast."""
+    shown = redacted(url)
+    if not is_lab_url(url):
+        raise LabURLError(f"{option} {shown}: expected a postgresql://USER:PASSWORD@HOST/DBNAME URL")
+    psycopg = _psycopg()
+    try:
+        options = psycopg.conninfo.conninfo_to_dict(url)
+    except psycopg.ProgrammingError as exc:
+        raise LabURLError(f"{option} {shown}: not a valid PostgreSQL URL ({redacted(_one_line(exc))})") from None
+    for port in str(options.get("port", "5432")).split(","):
+        if not (port.isdigit() and 1 <= int(port) <= 65535):
+            raise LabURLError(f"{option} {shown}: port {port!r}, expected a number from 1 to 65535")
 
 
 def _psycopg():
@@ -158,20 +194,19 @@ def _one_line(exc: BaseException) -> str:
 
 def connect(url: str, *, connect_timeout_s: int = 5):
     """An open psycopg connection to ``url``; :class:`LabStoreError` says in one line what is wrong."""
+    check_lab_url(url)
     psycopg = _psycopg()
     shown = redacted(url)
-    if not is_lab_url(url):
-        raise LabURLError(f"lab store {shown}: expected a postgresql://USER:PASSWORD@HOST/DBNAME URL")
-    try:
-        psycopg.conninfo.conninfo_to_dict(url)
-    except psycopg.ProgrammingError as exc:
-        raise LabURLError(f"lab store {shown}: not a valid PostgreSQL URL ({_one_line(exc)})") from exc
     try:
         return psycopg.connect(url, connect_timeout=connect_timeout_s)
     except psycopg.OperationalError as exc:
-        detail = _one_line(exc)
+        detail = redacted(_one_line(exc))
+        if _BAD_OPTION.match(detail):
+            raise LabURLError(f"lab store {shown}: not a usable PostgreSQL URL ({detail})") from None
         if "password authentication failed" in detail or "no password supplied" in detail:
             raise LabStoreError(f"lab store {shown}: bad credentials ({detail})") from exc
+        if any(words in detail for words in _BUSY):
+            raise LabServerBusy(f"lab store {shown}: server busy, no connection slot free ({detail})") from exc
         if "does not exist" in detail:
             raise LabStoreError(f"lab store {shown}: {detail}") from exc
         raise LabStoreError(f"lab store {shown}: server unreachable ({detail})") from exc
@@ -374,9 +409,16 @@ def _push(store: Store, conn, url: str, *, batch_size: int, progress: Callable[[
               run_uuids.get(c.source_run_id), c.notes) for c in calibrations])
     conn.commit()
     held = _held_steps(conn, runs)
-    lanes = _deal([run for run in runs if held[run.uuid] is not None], held, _LANES)
-    connections = [conn] + [connect(url) for _ in lanes[1:]]
+    to_send = [run for run in runs if held[run.uuid] is not None]
+    lanes = _deal(to_send, held, _LANES)
+    connections = [conn]
     try:
+        for _ in lanes[1:]:
+            try:
+                connections.append(connect(url))
+            except LabServerBusy:  # a crowded server: this bench sends through the connection it holds
+                lanes = _deal(to_send, held, len(connections))
+                break
         for lane_conn in connections:
             _prepare_sender(lane_conn)
         _send_lanes(store, lanes, connections, held, batch_size=batch_size, progress=progress, sent=sent)
@@ -387,10 +429,12 @@ def _push(store: Store, conn, url: str, *, batch_size: int, progress: Callable[[
 
 
 def sync_store(store: Store, url: str, *, batch_size: int = 20_000, retries: int = 3, retry_wait_s: float = 1.0,
-               progress: Callable[[str], None] | None = None) -> SyncResult:
+               busy_wait_s: float = 600.0, progress: Callable[[str], None] | None = None) -> SyncResult:
     """Push every run, calibration and sample of ``store`` that the server at ``url`` lacks (see the module
     docstring); after a lost connection, reconnect and resume up to ``retries`` times (waits ``retry_wait_s``,
-    then twice that, ...).
+    then twice that, ...). A server with no connection slot free (:class:`LabServerBusy`) is asked again after a
+    random wait (0.5-1.5 times ``retry_wait_s``, doubling up to 30 s), for ``busy_wait_s`` in all: a crowd of benches
+    syncing at once shares the server's connections instead of failing.
 
     Raises
     ------
@@ -400,7 +444,7 @@ def sync_store(store: Store, url: str, *, batch_size: int = 20_000, retries: int
     psycopg = _psycopg()
     report = progress or (lambda line: _log.info("%s", line))
     started = time.perf_counter()
-    sent, attempt = [0], 0
+    sent, attempt, busy = [0], 0, 0
     while True:
         try:
             conn = connect(url)
@@ -410,7 +454,15 @@ def sync_store(store: Store, url: str, *, batch_size: int = 20_000, retries: int
             finally:
                 conn.close()
             return SyncResult(runs, calibrations, sent[0], time.perf_counter() - started)
-        except (psycopg.OperationalError, LabStoreError) as exc:
+        except LabServerBusy as exc:
+            wait = min(30.0, retry_wait_s * 2 ** min(busy, 10)) * random.uniform(0.5, 1.5)
+            if time.perf_counter() - started + wait > busy_wait_s:
+                raise
+            busy += 1
+            if busy == 1:
+                report(f"sync: {_one_line(exc)}; waiting for a free connection")
+            time.sleep(wait)
+        except (psycopg.OperationalError, LabStoreError) as exc:  # (a LabURLError is no LabStoreError: at once)
             retryable = isinstance(exc, psycopg.OperationalError) or "server unreachable" in str(exc)
             if not retryable or attempt >= retries:
                 if isinstance(exc, LabStoreError):
@@ -428,7 +480,7 @@ def sync_after_run(store: Store, url: str, *, say: Callable[[str], None] | None 
     the local file stays the source of truth. Returns the result, or None when the sync failed."""
     tell = say or (lambda line: print(line, file=sys.stderr, flush=True))
     try:
-        result = sync_store(store, url, retries=1, retry_wait_s=0.5, progress=lambda line: None)
+        result = sync_store(store, url, retries=1, retry_wait_s=0.5, busy_wait_s=30.0, progress=lambda line: None)
     except BenchError as exc:
         tell(f"bench: lab store sync failed, the run is kept locally (bench sync catches up): {_one_line(exc)}")
         return None

@@ -9,8 +9,8 @@
  * phase by its velocity every tick and steps on each overflow; the other axes follow by Bresenham, so all six start
  * and finish together. The velocity ramps trapezoidally: +dv per tick (dv = a / f_tick^2 steps/tick^2) until the
  * commanded speed, and down again over as many steps as the ramp up took (symmetric, no division in the ISR).
- * Link watchdog: while moving, a gap of WATCHDOG_MS without a valid line ramps the axes down at STOP_DECEL,
- * disables the drivers and latches a WATCHDOG fault, reported on the next command.
+ * Link watchdog (in the timer interrupt): while moving, a gap of WATCHDOG_MS without a valid host command line ramps
+ * the axes down at STOP_DECEL, disables the drivers and latches a WATCHDOG fault, reported on the next command.
  *
  * Build options (-D, see firmware/Makefile): ACCEL_STEPS_S2, STOP_DECEL_STEPS_S2, WATCHDOG_MS and
  * DRIVERS_ENABLED_LEVEL (the EN pin level that powers the motors; 1 = HIGH is right for the TB6560 wiring: EN- on
@@ -36,8 +36,8 @@
 #endif
 
 #define DEVICE_NAME "bench-pkm5"
-#define PROTOCOL_VERSION "2"          /* the highest offered; the link starts in 1 (XOR-8), PROTOCOL 2 -> CRC-16 */
-#define FIRMWARE_VERSION "2.0.0"
+#define PROTOCOL_VERSION "3"  /* the highest offered; the link starts in 1 (XOR-8), PROTOCOL 2 -> CRC-16, 3 -> + MOVE dedup */
+#define FIRMWARE_VERSION "3.0.0"
 #define AXES 6
 #define MAX_LINE 96
 #define MAX_TOKENS 48
@@ -72,6 +72,14 @@ static int8_t direction[AXES];
 static uint32_t delta[AXES], error[AXES];
 static uint32_t lead_steps, done_steps, ramp_steps;
 static uint32_t phase, velocity, v_max, v_floor, dv, dv_stop;
+/* The link watchdog runs in the timer interrupt, not the main loop, so nothing that keeps the main loop busy (a
+ * babbling line, a long reply) can keep the drives powered: the interrupt starts the ramp-down WATCHDOG_MS after the
+ * last host heartbeat and drives the enable pins to the disabled level itself when the axes are at rest. */
+#define WATCHDOG_TICKS (WATCHDOG_MS * (TICK_HZ / 1000))
+static volatile uint32_t last_beat_tick;   /* ticks at the last valid host command line (written under cli) */
+static volatile uint8_t watchdog_tripped;  /* set by the interrupt; the main loop reports it and latches the fault */
+
+static void set_drivers(uint8_t on);
 
 ISR(TIMER1_COMPA_vect) {
   ticks++;
@@ -91,7 +99,16 @@ ISR(TIMER1_COMPA_vect) {
     }
     done_steps++;
   }
-  if (done_steps >= lead_steps) { motion = IDLE; return; }
+  if (done_steps >= lead_steps) state = IDLE;
+  else if (WATCHDOG_TICKS > 0 && state != HALT && ticks - last_beat_tick > WATCHDOG_TICKS) {
+    watchdog_tripped = 1;
+    state = HALT;
+  }
+  if (state == IDLE) {
+    if (watchdog_tripped) set_drivers(0);
+    motion = IDLE;
+    return;
+  }
   if (state == ACCEL) {
     if (lead_steps - done_steps <= done_steps) { ramp_steps = done_steps; state = DECEL; }
     else if (velocity + dv >= v_max) { velocity = v_max; ramp_steps = done_steps; state = CRUISE; }
@@ -102,16 +119,13 @@ ISR(TIMER1_COMPA_vect) {
   if (state == DECEL) velocity = velocity > v_floor + dv ? velocity - dv : v_floor;
   if (state == HALT) {
     if (velocity > v_floor + dv_stop) velocity -= dv_stop;
-    else { motion = IDLE; return; }
+    else {
+      set_drivers(0);  /* only the watchdog halts */
+      motion = IDLE;
+      return;
+    }
   }
   motion = state;
-}
-
-static uint32_t now_ms(void) {
-  cli();
-  uint32_t t = ticks;
-  sei();
-  return t / (TICK_HZ / 1000);
 }
 
 static void read_positions(int32_t *out) {
@@ -120,9 +134,12 @@ static void read_positions(int32_t *out) {
   sei();
 }
 
-static void set_drivers(uint8_t on) {
+static void set_drivers(uint8_t on) {  /* from the main loop and the timer interrupt: PORTA's read-modify-write atomic */
   uint8_t level_high = on ? DRIVERS_ENABLED_LEVEL : !DRIVERS_ENABLED_LEVEL;
+  uint8_t sreg = SREG;
+  cli();
   if (level_high) PORTA |= EN_MASK; else PORTA &= (uint8_t)~EN_MASK;
+  SREG = sreg;
 }
 
 /* ---- UART0: 115200 8-N-1, interrupt-driven receive ring, polled transmit -------------------------------- */
@@ -143,7 +160,7 @@ static void uart_put(char c) {
 
 static char reply[MAX_LINE + 8];
 static uint8_t reply_len;
-static uint8_t protocol = 1;          /* framing: 1 = *HH XOR-8, 2 = *HHHH CRC-16-CCITT */
+static uint8_t protocol = 1;          /* 1 = *HH XOR-8, 2 = *HHHH CRC-16-CCITT, 3 = CRC-16 + MOVE retransmission */
 
 /* CRC-16-CCITT: polynomial 0x1021, initial 0xFFFF, no reflection, no final XOR (check("123456789") = 0x29B1). */
 static uint16_t crc16(const char *bytes, uint8_t length) {
@@ -182,7 +199,7 @@ static void reply_send(void) {
   static const char HEX[] = "0123456789ABCDEF";
   uint16_t check;
   uint8_t digits;
-  if (protocol == 2) {
+  if (protocol >= 2) {
     check = crc16(reply, reply_len);
     digits = 4;
   } else {
@@ -215,9 +232,13 @@ static void send_error(int32_t tag, uint8_t code, uint8_t with_positions) {
 static uint8_t enabled;
 static int32_t move_tag;
 static uint8_t move_active;          /* a MOVE whose DONE / ERR has not been sent yet */
-static uint8_t watchdog_tripped;     /* ramp-down in progress after a link timeout */
 static uint8_t fault_latched;        /* reported on the next valid command */
-static uint32_t last_line_ms;
+/* Version 3: the last accepted MOVE, so that a retransmission (the same tag) is answered, never executed again */
+static int32_t last_move_tag = -1;
+static int32_t last_move_duration;
+static uint8_t last_move_end;        /* 0 while it runs, else ERR_STOPPED, ERR_WATCHDOG or 0xFF (DONE) */
+static int32_t last_move_where[AXES];
+#define END_DONE 0xFF
 
 static int hex_value(char c) {
   if (c >= '0' && c <= '9') return c - '0';
@@ -274,11 +295,16 @@ static void start_move(int32_t tag, const int64_t *targets, uint32_t speed) {
     uint8_t high = (d < 0) ^ DIR_INVERTED[i];
     if (high) *DIR_PORT[i] |= DIR_BIT[i]; else *DIR_PORT[i] &= (uint8_t)~DIR_BIT[i];
   }
+  last_move_tag = tag;
+  last_move_duration = longest == 0 ? 0 : move_duration_ms(longest, speed);
+  last_move_end = 0;
   reply_start("OK", tag);
   put_text(" MOVE");
-  put_long(longest == 0 ? 0 : move_duration_ms(longest, speed));
+  put_long(last_move_duration);
   reply_send();
   if (longest == 0) {
+    last_move_end = END_DONE;
+    read_positions(last_move_where);
     reply_start("DONE", tag);
     put_positions();
     reply_send();
@@ -310,10 +336,64 @@ static void halt_now(void) {
   sei();
 }
 
+/* The running move is over (the axes are at rest): report it. A watchdog trip wins over everything else, a STOP
+ * that arrives during its ramp-down included: the drives go to the disabled level and the fault is latched. */
+static void finish_move(uint8_t stopped) {
+  move_active = 0;
+  read_positions(last_move_where);
+  last_move_end = watchdog_tripped ? ERR_WATCHDOG : stopped ? ERR_STOPPED : END_DONE;
+  if (watchdog_tripped) {
+    watchdog_tripped = 0;
+    enabled = 0;
+    set_drivers(0);
+    fault_latched = 1;
+    send_error(move_tag, ERR_WATCHDOG, 1);
+  } else if (stopped) {
+    send_error(move_tag, ERR_STOPPED, 1);
+  } else {
+    reply_start("DONE", move_tag);
+    put_positions();
+    reply_send();
+  }
+}
+
+/* A host heartbeat: a valid line whose verb only a host sends (a reply echoed back to us is no heartbeat). */
+static const char *const HOST_VERBS[] = {"ID", "POS", "STOP", "ENABLE", "DISABLE", "SETPOS", "MOVE", "PROTOCOL"};
+
+static void heartbeat_if_host(const char *verb) {
+  for (uint8_t i = 0; i < sizeof HOST_VERBS / sizeof HOST_VERBS[0]; i++) {
+    if (strcmp(verb, HOST_VERBS[i]) == 0) {
+      cli();
+      last_beat_tick = ticks;
+      sei();
+      return;
+    }
+  }
+}
+
+/* A retransmitted MOVE (version 3, the tag of the last accepted one): its OK again and, once it has ended, its end. */
+static void replay_move(void) {
+  reply_start("OK", last_move_tag);
+  put_text(" MOVE");
+  put_long(last_move_duration);
+  reply_send();
+  if (!last_move_end) return;
+  if (last_move_end == END_DONE) reply_start("DONE", last_move_tag);
+  else {
+    reply_start("ERR", last_move_tag);
+    put_long(last_move_end);
+    put_text(" ");
+    put_text(ERROR_NAMES[last_move_end]);
+  }
+  for (uint8_t i = 0; i < AXES; i++) put_long(last_move_where[i]);
+  reply_send();
+}
+
 static void execute(int32_t tag, const char *verb, uint8_t argc, const int64_t *args) {
   uint8_t busy = move_active;
   if (strcmp(verb, "PROTOCOL") == 0 && argc == 1) {
-    if (args[0] != 1 && args[0] != 2) { send_error(tag, ERR_ARGUMENT, 0); return; }
+    /* no way back to XOR-8 once CRC-16 is on: a damaged CRC line must never downgrade the link */
+    if (args[0] < 1 || args[0] > 3 || args[0] < protocol) { send_error(tag, ERR_ARGUMENT, 0); return; }
     reply_start("OK", tag);
     put_text(" PROTOCOL");
     put_long((int32_t)args[0]);
@@ -332,8 +412,7 @@ static void execute(int32_t tag, const char *verb, uint8_t argc, const int64_t *
   } else if (strcmp(verb, "STOP") == 0 && argc == 0) {
     if (busy) {
       halt_now();
-      move_active = 0;
-      send_error(move_tag, ERR_STOPPED, 1);
+      finish_move(1);
     }
     reply_start("OK", tag);
     put_text(" STOP");
@@ -360,7 +439,8 @@ static void execute(int32_t tag, const char *verb, uint8_t argc, const int64_t *
     }
   } else if (strcmp(verb, "MOVE") == 0 && argc == AXES + 1) {
     int64_t speed = args[AXES];
-    if (busy) send_error(tag, ERR_BUSY, 0);
+    if (protocol >= 3 && tag == last_move_tag) replay_move();
+    else if (busy) send_error(tag, ERR_BUSY, 0);
     else if (speed < 1 || speed > MAX_SPEED_STEPS_S) send_error(tag, ERR_ARGUMENT, 0);
     else if (!within_limits(args)) send_error(tag, ERR_LIMIT, 0);
     else if (!enabled) send_error(tag, ERR_DISABLED, 0);
@@ -372,7 +452,7 @@ static void execute(int32_t tag, const char *verb, uint8_t argc, const int64_t *
 
 /* Whether line[0..length) ends in a valid *HH (version 1) or *HHHH (version 2); *body = the body length. */
 static uint8_t frame_ok(const char *line, uint8_t length, uint8_t version, uint8_t *body) {
-  uint8_t digits = version == 2 ? 4 : 2;
+  uint8_t digits = version >= 2 ? 4 : 2;
   if (length < digits + 1 || line[length - digits - 1] != '*') return 0;
   uint16_t claimed = 0;
   for (uint8_t i = length - digits; i < length; i++) {
@@ -382,15 +462,9 @@ static uint8_t frame_ok(const char *line, uint8_t length, uint8_t version, uint8
   }
   *body = length - digits - 1;
   uint16_t actual = 0;
-  if (version == 2) actual = crc16(line, *body);
+  if (version >= 2) actual = crc16(line, *body);
   else for (uint8_t i = 0; i < *body; i++) actual ^= (uint8_t)line[i];
   return claimed == actual;
-}
-
-static uint8_t is_plain_id(const char *line, uint8_t body) {  /* exactly "ID #" + 1-9 digits */
-  if (body < 5 || body > 13 || strncmp(line, "ID #", 4) != 0) return 0;
-  for (uint8_t i = 4; i < body; i++) if (line[i] < '0' || line[i] > '9') return 0;
-  return 1;
 }
 
 /* One received line (terminator removed). Order of checks, as bench/robots/pkm5_wire.py: length (done by the
@@ -402,14 +476,11 @@ static void handle_line(char *line, uint8_t length) {
   if (length == 0) return;
   uint8_t body;
   if (!frame_ok(line, length, protocol, &body)) {
-    /* a version-1 "ID #t" returns a version-2 link to version 1 (a new host starts with it) */
-    if (!(protocol == 2 && frame_ok(line, length, 1, &body) && is_plain_id(line, body))) {
-      send_error(0, ERR_CHECKSUM, 0);
-      return;
-    }
-    protocol = 1;
-  }  line[body] = '\0';
-  last_line_ms = now_ms();
+    /* version 2 is kept until reset: a CRC line that lost two characters reads as an XOR line 1 time in 256 */
+    send_error(0, ERR_CHECKSUM, 0);
+    return;
+  }
+  line[body] = '\0';
   char *tokens[MAX_TOKENS];
   uint8_t count = 0, tag_tokens = 0, printable = 1;
   int32_t tag = 0;
@@ -437,6 +508,7 @@ static void handle_line(char *line, uint8_t length) {
     while (*p && *p != ' ') p++;
   }
   if (tag_tokens != 1) { send_error(0, ERR_SYNTAX, 0); return; }
+  if (count) heartbeat_if_host(tokens[0]);
   if (fault_latched) {
     fault_latched = 0;
     send_error(tag, ERR_WATCHDOG, 1);
@@ -463,6 +535,7 @@ static void poll_uart(void) {
       else { line_buf[line_len] = '\0'; handle_line(line_buf, line_len); }
       line_len = 0;
       line_overflow = 0;
+      return;  /* one line per pass: the main loop reports the motion between lines, whatever the babble */
     } else if (line_len >= MAX_LINE) {
       line_overflow = 1;
     } else {
@@ -472,26 +545,7 @@ static void poll_uart(void) {
 }
 
 static void poll_motion(void) {
-  if (!move_active) return;
-  if (WATCHDOG_MS > 0 && !watchdog_tripped && now_ms() - last_line_ms > WATCHDOG_MS) {
-    watchdog_tripped = 1;
-    cli();
-    if (motion != IDLE) motion = HALT;
-    sei();
-  }
-  if (motion != IDLE) return;
-  move_active = 0;
-  if (watchdog_tripped) {
-    watchdog_tripped = 0;
-    enabled = 0;
-    set_drivers(0);
-    fault_latched = 1;
-    send_error(move_tag, ERR_WATCHDOG, 1);
-  } else {
-    reply_start("DONE", move_tag);
-    put_positions();
-    reply_send();
-  }
+  if (move_active && motion == IDLE) finish_move(0);
 }
 
 int main(void) {

@@ -28,9 +28,81 @@ static volatile sig_atomic_t stopping;
 static uint8_t outbox[OUTBOX];
 static size_t outbox_head, outbox_len;
 
+/* Script mode (HARNESS_SCRIPT=FILE): no host on the pty; the UART gets the bytes of FILE's lines
+ * `<emulated us> <hex bytes>` at those emulated times (in file order, as fast as the UART takes them), the run goes
+ * unpaced and ends at a line `<emulated us> END`; every line the MCU sends goes to the events file as
+ * `<cycle> TX <hex>`. Deterministic: the safety tests place host lines to the microsecond of emulated time. */
+typedef struct {
+  avr_cycle_count_t at;
+  uint8_t *bytes;
+  size_t length;  /* SIZE_MAX: END */
+} script_line_t;
+static script_line_t *script;
+static size_t script_count, script_next, script_done;
+static avr_t *script_avr;
+static FILE *script_events;
+
+static void load_script(const char *path) {
+  FILE *f = fopen(path, "r");
+  if (!f) {
+    perror(path);
+    exit(1);
+  }
+  size_t capacity = 0;
+  char text[4096];
+  while (fgets(text, sizeof text, f)) {
+    unsigned long long us;
+    char hex[4000];
+    if (sscanf(text, "%llu %3999s", &us, hex) != 2) continue;
+    if (script_count == capacity) script = realloc(script, (capacity = capacity ? 2 * capacity : 1024) * sizeof *script);
+    script_line_t *line = &script[script_count++];
+    line->at = (avr_cycle_count_t)(us * 16);  /* 16 MHz */
+    if (strcmp(hex, "END") == 0) {
+      line->bytes = NULL;
+      line->length = SIZE_MAX;
+      continue;
+    }
+    line->length = strlen(hex) / 2;
+    line->bytes = malloc(line->length + 1);
+    for (size_t i = 0; i < line->length; i++) sscanf(hex + 2 * i, "%2hhx", &line->bytes[i]);
+  }
+  fclose(f);
+}
+
+void bridge_log_line_byte(FILE *events, avr_cycle_count_t cycle, const char *kind, uint8_t byte) {
+  static char lines[2][2 * 128 + 1];
+  static size_t lengths[2];
+  int slot = kind[0] == 'T';
+  char *line = lines[slot];
+  if (byte == '\n') {
+    line[lengths[slot]] = '\0';
+    fprintf(events, "%llu %s %s\n", (unsigned long long)cycle, kind, lengths[slot] ? line : "-");
+    lengths[slot] = 0;
+  } else if (lengths[slot] + 2 < sizeof lines[slot]) {
+    lengths[slot] += (size_t)sprintf(line + lengths[slot], "%02x", byte);
+  }
+}
+
+/* Feeds the script's due bytes; returns 0 once its END is due. */
+static int pump_script(avr_t *avr) {
+  while (script_next < script_count && script[script_next].at <= avr->cycle) {
+    script_line_t *line = &script[script_next];
+    if (line->length == SIZE_MAX) return 0;
+    while (uart_xon && script_done < line->length) avr_raise_irq(uart_input, line->bytes[script_done++]);
+    if (script_done < line->length) return 1;  /* the UART's FIFO is full: the rest at the next poll */
+    script_next++;
+    script_done = 0;
+  }
+  return script_next < script_count;
+}
+
 static void on_tx(struct avr_irq_t *irq, uint32_t value, void *param) {
   (void)irq;
   (void)param;
+  if (script) {
+    bridge_log_line_byte(script_events, script_avr->cycle, "TX", (uint8_t)value);
+    return;
+  }
   if (outbox_len == OUTBOX) {
     fprintf(stderr, "harness: host not reading, %u bytes queued: oldest byte dropped\n", OUTBOX);
     outbox_head = (outbox_head + 1) % OUTBOX;
@@ -134,10 +206,21 @@ void bridge_run(avr_t *avr, FILE *events, void (*every_poll)(void)) {
   avr_cycle_count_t next_check = pace, next_poll = poll;
   double start = wall_s(), start0 = start;
   int state = cpu_Running;
+  const char *script_path = getenv("HARNESS_SCRIPT");
+  if (script_path) {
+    script_avr = avr;
+    script_events = events;
+    load_script(script_path);
+  }
   while (!stopping && state != cpu_Done && state != cpu_Crashed) {
     state = avr_run(avr);
     if (avr->cycle >= next_poll) {
       next_poll = avr->cycle + poll;
+      if (script) {
+        if (!pump_script(avr)) break;
+        if (every_poll) every_poll();
+        continue;
+      }
       pump_input();
       pump_output();
       if (every_poll) every_poll();

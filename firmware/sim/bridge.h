@@ -14,4 +14,7 @@ void bridge_attach_uart(avr_t *avr, char uart);
  * with HARNESS_FREE_RUN set), calling `every_poll` (may be NULL) every 100 us of emulated time and flushing `events`
  * every 100 ms; prints the emulated / wall time on stderr and exits (1 after a crash). */
 void bridge_run(avr_t *avr, FILE *events, void (*every_poll)(void));
+/* One byte of a line the MCU received ("RX") or sent ("TX"): at its '\n' the line goes to `events` as
+ * `<cycle> KIND <hex of its first 128 bytes>` (`-` when empty). */
+void bridge_log_line_byte(FILE *events, avr_cycle_count_t cycle, const char *kind, uint8_t byte);
 #endif

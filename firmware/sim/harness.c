@@ -10,6 +10,7 @@
  *   <cycle> RX <hex bytes>|-                          a line received by UART0, at its '\n' (hex, first 128 bytes)
  * with cycle / 16e6 the emulated time in seconds. Emulated time is paced to wall time (the host's timeouts are
  * wall-clock), catching up at most 50 ms after a stall. Runs until killed (SIGTERM / SIGINT flush the file).
+ * HARNESS_SCRIPT=FILE: script mode (bridge.c), host lines at set emulated times, replies logged as TX lines.
  */
 #include <stdio.h>
 #include <stdlib.h>
@@ -39,16 +40,7 @@ static void on_pin(struct avr_irq_t *irq, uint32_t value, void *param) {
 static void on_rx(struct avr_irq_t *irq, uint32_t value, void *param) {
   (void)irq;
   (void)param;
-  static char line[2 * 128 + 1];
-  static size_t length;
-  uint8_t byte = (uint8_t)value;
-  if (byte == '\n') {
-    line[length] = '\0';
-    fprintf(events, "%llu RX %s\n", (unsigned long long)avr->cycle, length ? line : "-");
-    length = 0;
-  } else if (length + 2 < sizeof line) {
-    length += (size_t)sprintf(line + length, "%02x", byte);
-  }
+  bridge_log_line_byte(events, avr->cycle, "RX", (uint8_t)value);
 }
 
 int main(int argc, char **argv) {

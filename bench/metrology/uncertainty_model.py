@@ -1,0 +1,124 @@
+"""Uncertainty of RP and of Groover's 3 σ̄ from a Monte Carlo of their measurement model (JCGM 101:2008, GUM S1).
+
+Both figures are non-linear in the readings and biased low at small n, so neither s/√n nor a bootstrap covers their
+population value as often as a k = 2 interval promises (75-89 % at n = 10-30, issue 32). Under a Gaussian model of
+the cycles, |estimate - measurand| / estimate is a pivot that depends only on n and the scatter's shape; its
+quantile, simulated once per (n, shape) and cached, scales the estimate into U. Coverage:
+benchmarks/bench_uncertainty_coverage.py.
+"""
+
+from __future__ import annotations
+
+import math
+from functools import lru_cache
+
+import numpy as np
+
+from bench.metrology._validation import as_points, require_count
+
+__all__ = ["MODEL_MAX_CYCLES", "mean_sd_uncertainty", "repeatability_uncertainty_model"]
+
+#: Up to this many cycles per pose U(RP) is the measurement model's (:func:`repeatability_uncertainty_model`); above,
+#: the delta method's: RP's small-sample bias (about -0.6 % of RP at n = 100) is then small against its spread.
+MODEL_MAX_CYCLES = 100
+#: Monte Carlo draws of the measurement model per (n, shape) (cached: a campaign of many poses pays for it once).
+MODEL_DRAWS = 2000
+#: Grid of the scatter's shape (axis sigmas over the largest) on which the model's factor is computed and cached.
+MODEL_SHAPE_STEP = 0.1
+#: Population draws that fix the measurand l_mean + 3 sigma_l of a shape (its Monte Carlo error is under 0.1 %).
+MODEL_TARGET_DRAWS = 400_000
+
+
+def _rp_of_samples(samples: np.ndarray) -> np.ndarray:
+    """RP_l = l̄ + 3 S_l of every sample of a stack (..., n, d) of cycles."""
+    distances = np.sqrt(np.sum((samples - samples.mean(axis=-2, keepdims=True)) ** 2, axis=-1))
+    return distances.mean(axis=-1) + 3.0 * distances.std(axis=-1, ddof=1)
+
+
+@lru_cache(maxsize=4096)
+def _rp_population(shape: tuple[float, ...]) -> float:
+    """The measurand l_mean + 3 sigma_l of a Gaussian scatter with axis sigmas ``shape`` (distances to the mean)."""
+    draws = np.random.default_rng(20_260_001).standard_normal((MODEL_TARGET_DRAWS, len(shape))) * np.array(shape)
+    distances = np.sqrt(np.sum(draws**2, axis=1))
+    return float(distances.mean() + 3.0 * distances.std())
+
+
+@lru_cache(maxsize=4096)
+def _rp_relative_half_width(n: int, shape: tuple[float, ...], level: float) -> float:
+    """Quantile ``level`` of |RP̂ - RP| / RP̂ for n cycles of a Gaussian scatter of axis sigmas ``shape``."""
+    draws = np.random.default_rng(20_260_002 + n).standard_normal((MODEL_DRAWS, n, len(shape))) * np.array(shape)
+    estimates = _rp_of_samples(draws)
+    return float(np.quantile(np.abs(estimates - _rp_population(shape)) / estimates, level))
+
+
+def repeatability_uncertainty_model(attained_mm, *, k: float = 2.0) -> float:
+    """Uncertainty of RP_l from a Monte Carlo of its measurement model (JCGM 101:2008, GUM Supplement 1).
+
+    The measurand is the population value RP = E[l] + 3 SD[l], l the distance of an attained position from the
+    true mean position (what RP_l = l̄ + 3 S_l estimates; at n = 10 the estimator reads about 6-8 % low). The model:
+    the n cycles are Gaussian about their mean, with the pose's axis sigmas (eigenvalues of the sample covariance).
+    W = |RP̂ - RP| / RP̂ is then a pivot: its distribution depends only on n and the scatter's *shape*, not on its
+    size, so the half-width
+
+    .. math::
+
+        U = w_p \\cdot RP_l, \\qquad P(W \\le w_p) = p = \\mathrm{erf}(k/\\sqrt2) \\; (95.45 \\% \\text{ for } k = 2)
+
+    covers the measurand with probability p, small-sample bias included. w_p comes from ``MODEL_DRAWS``
+    simulated campaigns of n cycles for the shape rounded to ``MODEL_SHAPE_STEP`` (cached, so a table of many
+    poses pays for it once per (n, shape)); O(n d²) per pose otherwise. Coverage measured by
+    ``benchmarks/bench_uncertainty_coverage.py`` (docs/metrology.md).
+
+    Returns
+    -------
+    float
+        The standard-uncertainty equivalent U / k, so that ``expanded(rp, u, k=k)`` states this U.
+    """
+    points = as_points("attained_mm", attained_mm, dims=None)
+    n = len(points)
+    require_count("cycles", n, 3)
+    rp = float(_rp_of_samples(points))
+    if rp == 0.0:
+        return 0.0
+    covariance = np.atleast_2d(np.cov(points, rowvar=False))
+    sigmas = np.sqrt(np.clip(np.linalg.eigvalsh(covariance), 0.0, None))[::-1]
+    shape = tuple(float(v) for v in np.round(sigmas / sigmas[0] / MODEL_SHAPE_STEP) * MODEL_SHAPE_STEP)
+    level = math.erf(k / math.sqrt(2.0))
+    return rp * _rp_relative_half_width(n, shape, level) / k
+
+
+@lru_cache(maxsize=4096)
+def _mean_sd_relative_half_width(n: int, shape: tuple[float, ...], level: float) -> float:
+    """Quantile ``level`` of |σ̄̂ - σ̄| / σ̄̂ for n Gaussian readings at targets of standard deviations ``shape``."""
+    sigmas = np.array(shape)
+    draws = np.random.default_rng(20_260_003 + n).standard_normal((MODEL_DRAWS, n, len(shape))) * sigmas
+    estimates = draws.std(axis=1, ddof=1).mean(axis=1)
+    return float(np.quantile(np.abs(estimates - sigmas.mean()) / estimates, level))
+
+
+def mean_sd_uncertainty(readings, *, k: float = 2.0) -> float:
+    """Uncertainty of σ̄, the mean over targets of the per-target sample SDs (Groover's repeatability 3 σ̄), from
+    a Monte Carlo of its measurement model (JCGM 101), as :func:`repeatability_uncertainty_model` does for RP.
+
+    The measurand is the mean of the targets' true standard deviations; σ̄ reads low at small n (E[s] = c_4 σ, 0.973 σ
+    at n = 10). Model: Gaussian readings per target with the observed SDs' shape (over the largest, rounded to
+    ``MODEL_SHAPE_STEP``); U = w_p σ̄ with w_p the quantile p = erf(k/√2) of |σ̄̂ - σ̄| / σ̄̂. Cached per (n, shape).
+
+    Parameters
+    ----------
+    readings : array_like, shape (n, m)
+        n repeats (rows) at m targets (columns), n >= 3.
+
+    Returns
+    -------
+    float
+        The standard-uncertainty equivalent U / k of σ̄ (multiply by 3 for Groover's 3 σ̄).
+    """
+    values = as_points("readings", readings, dims=None)
+    require_count("repeats", len(values), 3)
+    sds = values.std(axis=0, ddof=1)
+    if sds.max() == 0.0:
+        return 0.0
+    shape = tuple(float(v) for v in np.round(sds / sds.max() / MODEL_SHAPE_STEP) * MODEL_SHAPE_STEP)
+    level = math.erf(k / math.sqrt(2.0))
+    return float(sds.mean()) * _mean_sd_relative_half_width(len(values), shape, level) / k
