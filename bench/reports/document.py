@@ -10,15 +10,16 @@ without an uncertainty of their own (budget components) to 0.1 µm (``0.1234``).
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
 from typing import Any
 
 from bench.metrology.formatting import format_length, format_measured, format_uncertainty, format_value, pose_label
+from bench.reports.blocks import Block, Document, Figure, Paragraph, RawData, Section, Table
 from bench.reports.content import ReportBase, RunReport, ap_instrument_u_mm, axes_statement
 from bench.reports.differences import NO_DIFFERENCE, configuration_differences
 from bench.reports.orientation import orientation_blocks
-from bench.reports.plots import Plot, comparison_plot, report_plots
+from bench.reports.plots import comparison_plot, report_plots
 from bench.reports.signature import PLACEHOLDER_SHOWN, is_placeholder
+from bench.robot_kinds import ROBOT_KINDS
 
 __all__ = ["Document", "Figure", "Paragraph", "RawData", "Section", "Table", "assemble", "comparison_document",
            "conditions_section", "decision_blocks", "fmt_mm", "fmt_pm", "key_values", "pose_rows", "reading_formatter",
@@ -26,53 +27,6 @@ __all__ = ["Document", "Figure", "Paragraph", "RawData", "Section", "Table", "as
 
 SCOPE = ("Tested following the methods of ISO 9283:1998, with the deviations listed in the deviations table. "
          "Results are ISO 9283-style; this is not an ISO 9283 certification.")
-_KINEMATICS = {"pkm5": "parallel kinematic machine, 5 DOF (x, y, z, α, β)", "delta4": "4-RSS delta, 3 DOF",
-               "prus3": "3-PRUS parallel robot, 6 DOF"}
-
-
-@dataclass(frozen=True)
-class Paragraph:
-    text: str
-    verbatim: bool = False  #: a command to type: printed as written (module names kept; local paths still removed)
-
-
-@dataclass(frozen=True)
-class Table:
-    ident: str  #: HTML id, e.g. "results"
-    header: tuple[str, ...]
-    rows: tuple[tuple[str, ...], ...]
-    caption: str = ""
-
-
-@dataclass(frozen=True)
-class Figure:
-    plot: Plot
-
-
-Block = Paragraph | Table | Figure
-
-
-@dataclass(frozen=True)
-class Section:
-    title: str
-    blocks: tuple[Block, ...]
-
-
-@dataclass(frozen=True)
-class RawData:
-    """A raw-data file written next to the report."""
-
-    name: str
-    sha256: str
-    rows: int
-
-
-@dataclass(frozen=True)
-class Document:
-    title: str
-    subtitle: str
-    sections: tuple[Section, ...]
-    meta: dict[str, Any] = field(default_factory=dict)
 
 
 def fmt_mm(value: float, resolution_mm: float | None = None) -> str:
@@ -160,7 +114,7 @@ def settings_appendix(report: ReportBase) -> Section:
 
 def _device(report: ReportBase) -> Section:
     robot = report.run.settings.get("robot") or {}
-    rows = [("Robot", report.run.robot), ("Kinematic type", _KINEMATICS.get(report.run.robot, "not stated")),
+    rows = [("Robot", report.run.robot), ("Kinematic type", (ROBOT_KINDS[report.run.robot].title if report.run.robot in ROBOT_KINDS else "not stated")),
             ("Tool centre point (stored robot setting)",
              robot.get("tcp", "not stored (the measuring point is stated on page 1)")),
             *_shown(robot, _ROBOT_SHOWN)]

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 from bench.metrology.formatting import format_measured, pose_label
 from bench.metrology.orientation import tilt_standard_uncertainty_deg
+from bench.reports.blocks import Paragraph, Table
 
 __all__ = ["orientation_blocks", "orientation_headline"]
 
@@ -17,7 +18,6 @@ _ANGLE_WORDS = {"a": "alpha (about x)", "b": "beta (about y)", "c": "gamma (abou
 
 def orientation_blocks(report) -> tuple:
     """The results table and the budget table of ``report.orientation`` (empty without tilt readings)."""
-    from bench.reports.document import Paragraph, Table
 
     if not report.orientation:
         return ()
@@ -57,7 +57,6 @@ def orientation_headline(report) -> tuple:
     """Page 1's orientation headline of a run with tilt readings: per angle, the worst and mean |AP| and RP over
     the poses (:func:`bench.metrology.orientation_tables.orientation_summary`); empty without tilt readings."""
     from bench.metrology.orientation_tables import orientation_summary
-    from bench.reports.document import Table
 
     if not report.orientation:
         return ()

@@ -15,6 +15,8 @@ import re
 from collections.abc import Mapping
 from typing import Any
 
+from bench.reports.blocks import Table
+
 __all__ = ["BLANK", "PLACEHOLDER_SHOWN", "is_placeholder", "measuring_point", "signature_table"]
 
 #: A field nobody filled in: an empty line on the printed page, to be written on by hand.
@@ -42,7 +44,6 @@ def measuring_point(stated: str | None, robot_settings: Mapping[str, Any]) -> st
 
 def signature_table(operator: str):
     """The signature block: who tested (the operator when named) and who approves, each to sign and date."""
-    from bench.reports.document import Table
 
     return Table("signature", ("Role", "Name", "Signature", "Date"),
                  (("Tested by", BLANK if is_placeholder(operator) else operator, BLANK, BLANK),
