@@ -24,12 +24,15 @@ def test_a_broken_contract_is_caught(tmp_path):
     """The check can fail: a contract that forbids what bench.rigs really imports (its drivers) is reported
     broken."""
     config = tmp_path / "contracts.toml"
-    config.write_text('[tool.importlinter]\nroot_packages = ["bench"]\n\n[[tool.importlinter.contracts]]\n'
-                      'name = "rigs without robots"\ntype = "forbidden"\nsource_modules = ["bench.rigs"]\n'
-                      'forbidden_modules = ["bench.robots"]\n')
+    config.write_text(
+        '[tool.importlinter]\nroot_packages = ["bench"]\n\n[[tool.importlinter.contracts]]\n'
+        'name = "rigs without robots"\ntype = "forbidden"\nsource_modules = ["bench.rigs"]\n'
+        'forbidden_modules = ["bench.robots"]\n'
+    )
     lint = Path(sys.executable).with_name("lint-imports")
-    result = subprocess.run([str(lint), "--no-cache", "--config", str(config)], cwd=ROOT, capture_output=True,
-                            text=True, timeout=300)
+    result = subprocess.run(
+        [str(lint), "--no-cache", "--config", str(config)], cwd=ROOT, capture_output=True, text=True, timeout=300
+    )
     assert result.returncode == 1 and "rigs without robots BROKEN" in result.stdout
 
 

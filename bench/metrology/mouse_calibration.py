@@ -285,8 +285,10 @@ def fit_matrix(reference_mm, counts, *, intercept: bool = False, per_direction: 
     if np.linalg.matrix_rank(reference.T @ reference) < 2:
         raise InsufficientData("fit_matrix: moves along fewer than two non-parallel directions, cannot fit 2x2")
     if np.linalg.matrix_rank(normal) < parameters:
-        raise InsufficientData(f"fit_matrix: the moves of some direction ({', '.join(labels)}) all have one length, "
-                               "so its intercept and the scale cannot be told apart; use at least two lengths each")
+        raise InsufficientData(
+            f"fit_matrix: the moves of some direction ({', '.join(labels)}) all have one length, "
+            "so its intercept and the scale cannot be told apart; use at least two lengths each"
+        )
     inverse = np.linalg.inv(normal)
     coefficients = inverse @ design.T @ measured
     residuals = measured - design @ coefficients

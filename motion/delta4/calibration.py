@@ -40,16 +40,28 @@ from motion.delta4.geometry import LEG_OUTWARD, LEG_SIDEWAYS, NOMINAL, Geometry,
 from motion.delta4.kinematics import forward_kinematics, inverse_kinematics
 from motion.errors import MotionInputError
 
-__all__ = ["BASE_PARAMETERS", "FRAME_PARAMETERS", "PARAMETERS", "REGISTRATION", "TOLERANCES", "UNITS",
-           "CalibratedGeometry", "ForwardModel", "attained_positions", "base_equivalent", "commanded_servo_deg",
-           "compensation_geometry", "leg_parameters", "prior_sigma"]
+__all__ = [
+    "BASE_PARAMETERS",
+    "FRAME_PARAMETERS",
+    "PARAMETERS",
+    "REGISTRATION",
+    "TOLERANCES",
+    "UNITS",
+    "CalibratedGeometry",
+    "ForwardModel",
+    "attained_positions",
+    "base_equivalent",
+    "commanded_servo_deg",
+    "compensation_geometry",
+    "leg_parameters",
+    "prior_sigma",
+]
 
 _E_Z = np.array([0.0, 0.0, 1.0])
 _KINDS = ("servo_zero", "upper_arm", "lower_arm", "radial", "sideways", "height")
 _AXES = "xyz"
 #: Per-leg deviations, leg by leg (``servo_zero_1_deg``, ``upper_arm_1_mm``, ... ``height_4_mm``).
-PARAMETERS = tuple(f"{kind}_{leg}_{'deg' if kind == 'servo_zero' else 'mm'}" for leg in range(1, 5)
-                   for kind in _KINDS)
+PARAMETERS = tuple(f"{kind}_{leg}_{'deg' if kind == 'servo_zero' else 'mm'}" for leg in range(1, 5) for kind in _KINDS)
 REGISTRATION = tuple(f"reg_{axis}_mm" for axis in _AXES)
 #: The three parameters that fix the base frame against the end effector (module docstring), held at 0.
 FRAME_PARAMETERS = ("radial_1_mm", "radial_4_mm", "height_4_mm")
@@ -94,8 +106,10 @@ def _check_names(names: Iterable[str]) -> tuple[str, ...]:
     names = tuple(names)
     for name in names:
         if name not in UNITS:
-            raise MotionInputError(f"parameter {name!r} is not a delta4 calibration parameter, expected one of "
-                                   f"{', '.join(PARAMETERS + REGISTRATION)}")
+            raise MotionInputError(
+                f"parameter {name!r} is not a delta4 calibration parameter, expected one of "
+                f"{', '.join(PARAMETERS + REGISTRATION)}"
+            )
     return names
 
 
@@ -106,18 +120,28 @@ def leg_parameters(free: Iterable[str], theta: ArrayLike, nominal: Geometry = NO
     for slot, value in zip(_leg_slots(tuple(free)), np.asarray(theta, dtype=float)):
         if slot is not None:
             deviation[slot[0]][slot[1]] = value
-    origin = ((nominal.thigh_offset_mm + deviation["radial"])[:, None] * LEG_OUTWARD
-              + deviation["sideways"][:, None] * LEG_SIDEWAYS + deviation["height"][:, None] * _E_Z)
-    return Legs(origin, nominal.upper_arm_mm + deviation["upper_arm"], nominal.lower_arm_mm + deviation["lower_arm"],
-                np.full(4, nominal.ankle_offset_mm), deviation["servo_zero"])
+    origin = (
+        (nominal.thigh_offset_mm + deviation["radial"])[:, None] * LEG_OUTWARD
+        + deviation["sideways"][:, None] * LEG_SIDEWAYS
+        + deviation["height"][:, None] * _E_Z
+    )
+    return Legs(
+        origin,
+        nominal.upper_arm_mm + deviation["upper_arm"],
+        nominal.lower_arm_mm + deviation["lower_arm"],
+        np.full(4, nominal.ankle_offset_mm),
+        deviation["servo_zero"],
+    )
 
 
 @lru_cache(maxsize=64)
 def _leg_slots(free: tuple[str, ...]) -> tuple[tuple[str, int] | None, ...]:
     """Per name of ``free`` (checked): its kind and leg index, None for a registration entry. Parsed once per
     parameter set: a fit evaluates the same set hundreds of times."""
-    return tuple(None if name.startswith("reg_") else (name.rsplit("_", 2)[0], int(name.rsplit("_", 2)[1]) - 1)
-                 for name in _check_names(free))
+    return tuple(
+        None if name.startswith("reg_") else (name.rsplit("_", 2)[0], int(name.rsplit("_", 2)[1]) - 1)
+        for name in _check_names(free)
+    )
 
 
 def _moved_axes(full: dict[str, float], t: np.ndarray) -> dict[str, float]:
@@ -148,8 +172,10 @@ class CalibratedGeometry:
         names = _check_names(name for name, _ in self.deviations)
         registration = [name for name in names if name in REGISTRATION]
         if registration:
-            raise MotionInputError(f"CalibratedGeometry: {registration[0]} is not a leg parameter, expected the "
-                                   "registration folded into the servo axes (compensation_geometry)")
+            raise MotionInputError(
+                f"CalibratedGeometry: {registration[0]} is not a leg parameter, expected the "
+                "registration folded into the servo axes (compensation_geometry)"
+            )
 
     @property
     def servo_limits_deg(self) -> tuple[float, float]:
@@ -183,8 +209,9 @@ def compensation_geometry(params: Mapping[str, Any], nominal: Geometry = NOMINAL
     try:
         entries = {name: float(entry["value"]) for name, entry in params["parameters"].items()}
     except (KeyError, TypeError, ValueError, AttributeError) as exc:
-        raise MotionInputError(f"kinematic calibration parameters: {exc!r}, expected {{'parameters': {{name: "
-                               "{'value': number}}}}") from None
+        raise MotionInputError(
+            f"kinematic calibration parameters: {exc!r}, expected {{'parameters': {{name: {{'value': number}}}}}}}}"
+        ) from None
     _check_names(entries)
     shift = np.array([entries.get(name, 0.0) for name in REGISTRATION])
     legs = _moved_axes({n: v for n, v in entries.items() if n not in REGISTRATION}, shift)
@@ -212,8 +239,9 @@ def _registration(free: Sequence[str], theta: ArrayLike) -> np.ndarray:
     return shift
 
 
-def commanded_servo_deg(points_mm: ArrayLike, free: Iterable[str] = (), theta: ArrayLike = (),
-                        nominal: Geometry = NOMINAL) -> np.ndarray:
+def commanded_servo_deg(
+    points_mm: ArrayLike, free: Iterable[str] = (), theta: ArrayLike = (), nominal: Geometry = NOMINAL
+) -> np.ndarray:
     """Servo angles (N, 4) that close every leg of the geometry under ``theta`` at positions ``points_mm`` (N, 3)
     (the IK of :func:`compensation_geometry`, module docstring; NaN rows where a leg cannot close). A registration
     in ``free`` is folded in: the points are instrument readings, so the command makes the predicted reading equal
@@ -226,16 +254,24 @@ def commanded_servo_deg(points_mm: ArrayLike, free: Iterable[str] = (), theta: A
     return np.where(closes[:, None], result.servo_deg, np.nan)
 
 
-def attained_positions(servo_deg: ArrayLike, free: Iterable[str] = (), theta: ArrayLike = (),
-                       nominal: Geometry = NOMINAL, start_mm: ArrayLike | None = None) -> np.ndarray:
+def attained_positions(
+    servo_deg: ArrayLike,
+    free: Iterable[str] = (),
+    theta: ArrayLike = (),
+    nominal: Geometry = NOMINAL,
+    start_mm: ArrayLike | None = None,
+) -> np.ndarray:
     """End-effector positions (N, 3) where the robot of deviations ``theta`` stands at servo angles (N, 4): the
     least-squares closure of the four legs, by Gauss-Newton from ``start_mm`` (default: the documented
     geometry's least-squares FK). Registration is not added (see :class:`ForwardModel`)."""
     free = _check_names(free)
     servo = np.atleast_2d(np.asarray(servo_deg, dtype=float))
     legs = leg_parameters(free, theta, nominal)
-    p = (forward_kinematics(servo, nominal, method="least_squares").pose_mm if start_mm is None
-         else np.array(start_mm, dtype=float))
+    p = (
+        forward_kinematics(servo, nominal, method="least_squares").pose_mm
+        if start_mm is None
+        else np.array(start_mm, dtype=float)
+    )
     return _closure(legs.knees_mm(servo), legs.ankle_mm, legs.lower_mm, p)
 
 
@@ -268,8 +304,9 @@ class ForwardModel:
 
     _STEP = {"deg": 1e-4, "mm": 1e-4}
 
-    def __init__(self, servo_deg: ArrayLike, free: Iterable[str], axes: Sequence[int] = (0, 1),
-                 nominal: Geometry = NOMINAL) -> None:
+    def __init__(
+        self, servo_deg: ArrayLike, free: Iterable[str], axes: Sequence[int] = (0, 1), nominal: Geometry = NOMINAL
+    ) -> None:
         self.servo_deg = np.atleast_2d(np.asarray(servo_deg, dtype=float))
         if self.servo_deg.shape[1:] != (4,):
             raise MotionInputError(f"servo_deg has shape {self.servo_deg.shape}, expected (N, 4)")
@@ -300,11 +337,16 @@ class ForwardModel:
         if not legs:
             return []
         rows = len(self.servo_deg)
-        p = _closure(np.concatenate([leg.knees_mm(self.servo_deg) for leg in legs]),
-                     np.repeat([leg.ankle_mm for leg in legs], rows, axis=0),
-                     np.repeat([leg.lower_mm for leg in legs], rows, axis=0), np.tile(self._start, (len(legs), 1)))
-        return [(part + _registration(self.free, theta))[:, self.axes]
-                for part, theta in zip(np.split(p, len(legs)), thetas)]
+        p = _closure(
+            np.concatenate([leg.knees_mm(self.servo_deg) for leg in legs]),
+            np.repeat([leg.ankle_mm for leg in legs], rows, axis=0),
+            np.repeat([leg.lower_mm for leg in legs], rows, axis=0),
+            np.tile(self._start, (len(legs), 1)),
+        )
+        return [
+            (part + _registration(self.free, theta))[:, self.axes]
+            for part, theta in zip(np.split(p, len(legs)), thetas)
+        ]
 
     def jacobian(self, theta: ArrayLike) -> np.ndarray:
         """d reading / d theta (N, len(axes), K): central differences (registration columns exact)."""
@@ -314,7 +356,7 @@ class ForwardModel:
         steps[np.arange(len(varied)), varied] = [self._STEP[UNITS[self.free[k]]] for k in varied]
         readings = iter(self._predict_each([theta + sign * step for step in steps for sign in (1, -1)]))
         columns = []
-        for k, name in enumerate(self.free):
+        for _k, name in enumerate(self.free):
             if name.startswith("reg_"):
                 column = np.zeros((len(self.servo_deg), len(self.axes)))
                 if _AXES.index(name[4]) in self.axes:

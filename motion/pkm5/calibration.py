@@ -39,8 +39,19 @@ from motion.pkm5.geometry import DEFAULT_GEOMETRY, Geometry, steps_to_lengths
 from motion.pkm5.ik import leg_lengths
 from motion.pkm5.jacobian import jacobian
 
-__all__ = ["PARAMETERS", "REGISTRATION", "TOLERANCES", "UNITS", "apply_parameters", "compensation_geometry",
-           "geometry_from_calibration", "parameter_deviations", "modes_of_poses", "tolerance", "ForwardModel"]
+__all__ = [
+    "PARAMETERS",
+    "REGISTRATION",
+    "TOLERANCES",
+    "UNITS",
+    "apply_parameters",
+    "compensation_geometry",
+    "geometry_from_calibration",
+    "parameter_deviations",
+    "modes_of_poses",
+    "tolerance",
+    "ForwardModel",
+]
 
 _AXES = ("x", "y", "z")
 _JOINT_FIELDS = ("oa_12", "oa_34", "oa_56", "pd_12", "pd_34", "pd_5", "pd_6")
@@ -48,8 +59,11 @@ _JOINT_FIELDS = ("oa_12", "oa_34", "oa_56", "pd_12", "pd_34", "pd_5", "pd_6")
 REGISTRATION = tuple(f"reg_{axis}_mm" for axis in _AXES)
 #: Every geometric parameter, in the order the default free set is built (joint zeros first, then scales, then
 #: the joint positions, pkm5.md §2.6: the fields the documents never give come first).
-PARAMETERS = (tuple(f"leg_offset_{i}_mm" for i in range(1, 7)) + tuple(f"scale_{i}" for i in range(1, 7))
-              + tuple(f"{field}_{axis}_mm" for field in _JOINT_FIELDS for axis in _AXES))
+PARAMETERS = (
+    tuple(f"leg_offset_{i}_mm" for i in range(1, 7))
+    + tuple(f"scale_{i}" for i in range(1, 7))
+    + tuple(f"{field}_{axis}_mm" for field in _JOINT_FIELDS for axis in _AXES)
+)
 #: Unit of each parameter (``1`` for the dimensionless scale).
 UNITS = {name: ("1" if name.startswith("scale_") else "mm") for name in PARAMETERS + REGISTRATION}
 _FD_STEP = {"mm": 1e-4, "1": 1e-6}
@@ -83,7 +97,7 @@ def _bumped_joints(geometry: Geometry, names: Sequence[str], step: float, rows: 
         values = np.tile(np.asarray(fields[f"{field}_mm"], dtype=float), (2 * len(names), 1))  # (2K, 3)
         for i, name in enumerate(names):
             if name[:-5] == field:
-                values[2 * i:2 * i + 2, _AXES.index(name[-4])] += (step, -step)
+                values[2 * i : 2 * i + 2, _AXES.index(name[-4])] += (step, -step)
         fields[f"{field}_mm"] = tuple(np.repeat(values[:, axis], rows) for axis in range(3))
     return types.SimpleNamespace(**fields)
 
@@ -92,9 +106,11 @@ def _check_names(names: Iterable[str]) -> tuple[str, ...]:
     names = tuple(names)
     unknown = [n for n in names if n not in UNITS]
     if unknown:
-        raise MotionInputError(f"calibration parameter {unknown[0]!r} is not a pkm5 parameter; expected one of "
-                               f"leg_offset_1_mm..leg_offset_6_mm, scale_1..scale_6, oa_12_x_mm.., pd_6_z_mm, "
-                               f"reg_x_mm..reg_z_mm")
+        raise MotionInputError(
+            f"calibration parameter {unknown[0]!r} is not a pkm5 parameter; expected one of "
+            f"leg_offset_1_mm..leg_offset_6_mm, scale_1..scale_6, oa_12_x_mm.., pd_6_z_mm, "
+            f"reg_x_mm..reg_z_mm"
+        )
     if len(set(names)) != len(names):
         raise MotionInputError(f"calibration parameters {list(names)} name one parameter twice")
     return names
@@ -116,8 +132,11 @@ def apply_parameters(names: Iterable[str], values: ArrayLike, geometry: Geometry
         elif not name.startswith("reg_"):
             field, axis = name[:-5], name[-4]
             joints[field][_AXES.index(axis)] += value
-    return geometry.replace(leg_length_offset_mm=tuple(offsets), mm_per_full_step=tuple(lead),
-                            **{f"{field}_mm": tuple(v) for field, v in joints.items()})
+    return geometry.replace(
+        leg_length_offset_mm=tuple(offsets),
+        mm_per_full_step=tuple(lead),
+        **{f"{field}_mm": tuple(v) for field, v in joints.items()},
+    )
 
 
 def parameter_deviations(geometry: Geometry, nominal: Geometry = DEFAULT_GEOMETRY) -> dict[str, float]:
@@ -139,8 +158,9 @@ def geometry_from_calibration(params: Mapping[str, Any], nominal: Geometry = DEF
     try:
         entries = {name: float(entry["value"]) for name, entry in params["parameters"].items()}
     except (KeyError, TypeError, ValueError, AttributeError) as exc:
-        raise MotionInputError(f"kinematic calibration parameters: {exc!r}, expected {{'parameters': {{name: "
-                               "{'value': number}}}}") from None
+        raise MotionInputError(
+            f"kinematic calibration parameters: {exc!r}, expected {{'parameters': {{name: {{'value': number}}}}}}}}"
+        ) from None
     geometric = {n: v for n, v in entries.items() if not n.startswith("reg_")}
     return apply_parameters(tuple(geometric), tuple(geometric.values()), nominal)
 
@@ -159,8 +179,12 @@ def compensation_geometry(params: Mapping[str, Any], nominal: Geometry = DEFAULT
     for name, entry in params["parameters"].items():
         if name in REGISTRATION:
             shift[_AXES.index(name[4])] = float(entry["value"])
-    return geometry.replace(**{f"{field}_mm": tuple(np.asarray(getattr(geometry, f"{field}_mm")) + shift)
-                               for field in ("oa_12", "oa_34", "oa_56")})
+    return geometry.replace(
+        **{
+            f"{field}_mm": tuple(np.asarray(getattr(geometry, f"{field}_mm")) + shift)
+            for field in ("oa_12", "oa_34", "oa_56")
+        }
+    )
 
 
 def modes_of_poses(poses: ArrayLike) -> np.ndarray:
@@ -189,9 +213,15 @@ class ForwardModel:
         installed.
     """
 
-    def __init__(self, steps: ArrayLike, modes: ArrayLike, free: Iterable[str], axes: Sequence[int] = (0, 1, 2),
-                 nominal: Geometry = DEFAULT_GEOMETRY,
-                 engine: str = "auto") -> None:
+    def __init__(
+        self,
+        steps: ArrayLike,
+        modes: ArrayLike,
+        free: Iterable[str],
+        axes: Sequence[int] = (0, 1, 2),
+        nominal: Geometry = DEFAULT_GEOMETRY,
+        engine: str = "auto",
+    ) -> None:
         # 'auto': the compiled FK whenever numba is installed, whatever the batch size (the FK's own 'auto' waits
         # for 10,000 poses): an identification solves the same 30-100 poses some 30 times, and numpy's per-call
         # overhead, not arithmetic, is its time (100 poses: 4.9 s numpy, 0.76 s compiled, equal to 1e-5)
@@ -238,24 +268,44 @@ class ForwardModel:
                 # every solve starts from the documented geometry's solution: its k-d seed tables are cached (a
                 # perturbed geometry's alpha plane moves and rejection-sampling a new table takes minutes), and a
                 # fixed start keeps each solve on the same branch whatever trial parameters came before
-                self._starts[mode] = forward_kinematics(steps_to_lengths(self.steps[rows], DEFAULT_GEOMETRY),
-                                                        DEFAULT_GEOMETRY, mode=mode, residual_tol_mm=2.0,
-                                                        max_iter=200, engine=self.engine).pose
+                self._starts[mode] = forward_kinematics(
+                    steps_to_lengths(self.steps[rows], DEFAULT_GEOMETRY),
+                    DEFAULT_GEOMETRY,
+                    mode=mode,
+                    residual_tol_mm=2.0,
+                    max_iter=200,
+                    engine=self.engine,
+                ).pose
             # warm start: the poses of the last evaluation (a nearby trial: the solver's steps are small), which
             # cuts the LM iterations several-fold; a row that did not converge there starts from the fixed start
             last = self._last.get(mode)
             start = self._starts[mode] if last is None else np.where(np.isfinite(last), last, self._starts[mode])
-            fk = forward_kinematics(lengths[rows], geometry, initial_pose=start, mode=mode, residual_tol_mm=2.0,
-                                    retry_above_mm=0.5, max_iter=200, engine=self.engine)
+            fk = forward_kinematics(
+                lengths[rows],
+                geometry,
+                initial_pose=start,
+                mode=mode,
+                residual_tol_mm=2.0,
+                retry_above_mm=0.5,
+                max_iter=200,
+                engine=self.engine,
+            )
             solved = np.where(fk.converged[:, None], fk.pose, np.nan)
             # a warm start can walk a pose onto another FK branch (seen at a beta pose: 57 mm away, and the
             # solver then stays in that basin); sub-millimetre deviations move a pose by a few mm at most, so a
             # row far from the documented geometry's pose is solved again from that fixed start
             far = ~(np.linalg.norm(solved[:, :3] - self._starts[mode][:, :3], axis=1) <= _BRANCH_JUMP_MM)
             if last is not None and far.any():
-                again = forward_kinematics(lengths[rows][far], geometry, initial_pose=self._starts[mode][far],
-                                           mode=mode, residual_tol_mm=2.0, retry_above_mm=0.5, max_iter=200,
-                                           engine=self.engine)
+                again = forward_kinematics(
+                    lengths[rows][far],
+                    geometry,
+                    initial_pose=self._starts[mode][far],
+                    mode=mode,
+                    residual_tol_mm=2.0,
+                    retry_above_mm=0.5,
+                    max_iter=200,
+                    engine=self.engine,
+                )
                 solved[far] = np.where(again.converged[:, None], again.pose, np.nan)
             out[rows] = solved
             self._last[mode] = out[rows]
@@ -356,8 +406,9 @@ class ForwardModel:
             # joint parameter) in one batched evaluation, since numpy's per-call overhead dominates 30-100 poses
             h = _FD_STEP["mm"]
             bumped = _bumped_joints(geometry, [self.free[j] for j in joints], h, n)
-            f = self._stationarity(np.tile(p, (2 * len(joints), 1)), bumped,
-                                   np.tile(lengths, (2 * len(joints), 1))).reshape(len(joints), 2, n, 5)
+            f = self._stationarity(
+                np.tile(p, (2 * len(joints), 1)), bumped, np.tile(lengths, (2 * len(joints), 1))
+            ).reshape(len(joints), 2, n, 5)
             dfdt[:, :, joints] = ((f[:, 0] - f[:, 1]) / (2 * h)).transpose(1, 2, 0)
         # outside the mode's columns put an identity block, so the solve leaves those pose derivatives at zero
         dfdp = dfdp + np.einsum("nc,cd->ncd", 1.0 - mask, np.eye(5))
