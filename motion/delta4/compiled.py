@@ -39,9 +39,9 @@ def _kernel() -> Any:
     from numba import njit
 
     @njit(cache=True, nogil=True, error_model="numpy")
-    def gauss_newton_rows(
+    def gauss_newton_rows(  # type: ignore[no-untyped-def]  # numba infers the kernel's types
         start,
-        knees,  # type: ignore[no-untyped-def]  # numba infers the kernel's types
+        knees,
         outward,
         offset_mm,
         lower_arm_mm,
