@@ -320,7 +320,9 @@ def test_ctrl_c_pauses_at_a_checkpoint_then_stop_ends_the_run(tmp_path):
     run.send_signal(signal.SIGINT)
     out, err = run.communicate("s\n", timeout=30)
     assert run.returncode == 1 and out.strip() == "1"
-    assert "pausing at the next checkpoint" in err and "paused: [r]esume, [s]top, [a]bort, [h]alt?" in err
+    assert (
+        "pausing at the next checkpoint" in err and "paused: [r]esume, [s]top, [a]bort, [h]alt (Ctrl-C aborts)?" in err
+    )
     with Store(db) as store:
         record = store.run(1)
         assert record.status == "aborted" and record.reason.startswith("stopped by the operator at checkpoint")

@@ -34,7 +34,7 @@ class TerminalJob:
         self.err_path = tmp_path / "stderr.txt"
         self._err = open(self.err_path, "w")
         self.process = subprocess.Popen(
-            [BENCH, "run", str(QUICK), "--store", str(self.store), "--no-progress", "--speed-factor", "40"],
+            [BENCH, "run", str(QUICK), "--sim", "--store", str(self.store), "--no-progress", "--speed-factor", "40"],
             stdin=subprocess.PIPE,
             stdout=subprocess.DEVNULL,
             stderr=self._err,

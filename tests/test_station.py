@@ -151,7 +151,8 @@ def test_protocols_ask_for_what_their_own_plans_capture():
     needs = {path.stem: required_capabilities(load_protocol(path)) for path in EXAMPLES.glob("*.toml")}
     assert needs["iso9283_pose"] == {"assembled", "pose"}
     assert needs["iso9283_stabilisation"] == {"assembled", "arrival"}
-    assert needs["mouse_calibration"] == {"assembled", "mouse_counts"}
+    # the example reads a calliper after every move (reference = "calliper"): it asks for readings too
+    assert needs["mouse_calibration"] == {"assembled", "mouse_counts", "reading"}
     assert needs["actuator_accuracy"] == {"actuator_bench", "reading"}
     assert needs["payload_ladder"] == {"assembled", "reading"}
     assert needs["lasergrid_hits"] == {"assembled", "grid_hit"}
@@ -162,7 +163,7 @@ def test_station_check_names_every_device_and_fails_for_the_missing_one(tmp_path
     checks = [json.loads(line) for line in capsys.readouterr().out.splitlines()]
     assert [c["key"] for c in checks] == ["controller.port", "mice.xy", "mice.xz", "calliper"]
     assert all(c["ok"] for c in checks), checks
-    assert checks[0]["detail"] == "bench-pkm5 firmware 1.0.0-sim, protocol v2"
+    assert checks[0]["detail"] == "bench-pkm5 firmware 1.0.0-sim, protocol v3"
     # the same station on this machine, where its devices do not exist
     assert main(["station", "check", str(STATIONS / "pkm5_mice.toml")]) == 1
     lines = capsys.readouterr().out.splitlines()

@@ -112,6 +112,7 @@ def test_report_compare_and_trend_from_the_server_equal_the_file(benches, lab_ur
     )
     assert sorted(p.name for p in (tmp_path / "compare").iterdir()) == [
         "compare_run1_run10001.html",
+        "report-numbers.tsv",  # the issue counter of the report numbers (bench.reports.numbering)
         "run10001_samples.csv",
         "run1_samples.csv",
     ]

@@ -22,6 +22,7 @@ from bench.store import Store  # noqa: E402
 from bench.store.lab import LAB_SCHEMA_VERSION, LabStore, sync_store  # noqa: E402
 from bench.store.lab_copy import TYPED_COLUMNS  # noqa: E402
 from bench.store.lab_summary import pose_summary  # noqa: E402
+from bench.store.sample_checksum import CHECKED_COLUMNS, sample_checksum
 
 COMMANDS = {"P1": (110.0, 0.0, 320.0), "P2": (60.5, -40.25, 300.0)}
 #: (bench, robot, start of the run); 2026-11-02 and 2026-11-04 share the ISO week of Monday 2026-11-02.
@@ -106,6 +107,9 @@ def test_typed_columns_hold_the_json_numbers(tmp_path, lab_url):
             " WHERE step_index = 2"
         )
         db.execute("UPDATE samples SET values_json = '[1, 2]' WHERE step_index = 3")
+        # as a file written so: each edited sample carries the checksum of what it now holds (bench store check)
+        db.create_function("checksum", 8, sample_checksum)
+        db.execute(f"UPDATE samples SET checksum = checksum({', '.join(CHECKED_COLUMNS)}) WHERE step_index IN (2, 3)")
     db.close()
     with Store(path) as store:
         sync_store(store, lab_url)
@@ -185,7 +189,7 @@ def test_summary_equals_metrology_on_the_same_samples(tmp_path, lab_url, capsys)
     assert len(text) == 1 + 5 and all(line.split()[:3] == ["bench-b", "delta4", "2026-11-02"] for line in text[1:])
     assert main(["lab", "summary", "--store", str(tmp_path / "x.db")]) == 2
     assert capsys.readouterr().err.strip() == (
-        f"bench: error: --store {tmp_path / 'x.db'}: lab summary needs the lab store, a postgresql:// URL"
+        f"bench: error: --store {tmp_path / 'x.db'}: expected a postgresql://USER:PASSWORD@HOST/DBNAME URL"
     )
 
 

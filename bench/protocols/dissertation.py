@@ -14,7 +14,6 @@
 
 from __future__ import annotations
 
-import itertools
 import logging
 from typing import Any
 
@@ -22,6 +21,7 @@ import numpy as np
 
 from bench.errors import ConfigError
 from bench.metrology.documents import LADDER_KG, LADDER_LIFT_MM, PAYLOAD_FAILURE_KG
+from bench.metrology.mouse_calibration import mouse_calibration_moves
 from bench.protocols.base import Protocol, register
 from bench.protocols.kinematics import robot_model
 from bench.protocols.parameters import (
@@ -372,36 +372,6 @@ class MouseCalibration(Protocol):
             mouse_calibration_text(record.params),
             record.version,
         )
-
-
-def mouse_calibration_moves(samples: Any, references: Any = None) -> tuple[np.ndarray, np.ndarray]:
-    """The moves between consecutive readings of one step axis: reference displacements (K, 2) mm and the x-y
-    mouse's count increments (K, 2).
-
-    ``samples`` are the ``mouse`` samples in step order (pose ``<axis><mm>/<start|end>``); the reference position of
-    each is its calliper reading along the axis (``references``, ``mouse_reference`` samples matched by pose and
-    cycle) when given, else its commanded position. The moves back to a step's start count too (moves in both
-    directions: a start/stop offset is told from the scale).
-    """
-    readings = {(r.pose, r.cycle): r.values["reference_mm"] for r in references or ()}
-    reference, counts = [], []
-    for before, after in itertools.pairwise(samples):
-        axis = (after.pose or "?")[0]
-        if axis not in "xy" or (before.pose or "?")[0] != axis:
-            continue
-        index = "xy".index(axis)
-        if references is not None:
-            if (before.pose, before.cycle) not in readings or (after.pose, after.cycle) not in readings:
-                continue
-            travel = [0.0, 0.0]
-            travel[index] = readings[(after.pose, after.cycle)] - readings[(before.pose, before.cycle)]
-        else:
-            travel = [after.values[f"cmd_{a}_mm"] - before.values[f"cmd_{a}_mm"] for a in "xy"]
-        if abs(travel[index]) < 1e-9:
-            continue
-        reference.append(travel)
-        counts.append([after.values[f"mouse_xy_{a}_counts"] - before.values[f"mouse_xy_{a}_counts"] for a in "xy"])
-    return np.array(reference, dtype=float).reshape(-1, 2), np.array(counts, dtype=float).reshape(-1, 2)
 
 
 def mouse_calibration_text(params: dict[str, Any]) -> str:

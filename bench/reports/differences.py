@@ -37,7 +37,8 @@ def configuration_differences(first, second) -> tuple[tuple[str, str, str], ...]
         sides.append(
             {
                 **{f"config {k}": v for k, v in _flat(report.run.config).items()},
-                **{f"setting {k}": v for k, v in _flat(report.run.settings).items()},
+                # the run's history (aborts, resumes) is compared in its own table, not as a setting
+                **{f"setting {k}": v for k, v in _flat(report.run.settings).items() if not k.startswith("history")},
                 **_calibrations(report),
             }
         )

@@ -1,7 +1,7 @@
 """The report of a ``mouse_calibration`` run: the x-y mouse's 2x2 matrix with its U, against the stated reference.
 
 The fit is recomputed from the run's raw ``mouse`` samples (and its calliper readings, ``mouse_reference``) by the
-same pairing and fit as the stored calibration (:func:`bench.protocols.dissertation.mouse_calibration_moves`,
+same pairing and fit as the stored calibration (:func:`bench.metrology.mouse_calibration.mouse_calibration_moves`,
 :func:`bench.metrology.fit_matrix` with an intercept per move direction); the calibration the run stored, and
 whether any station put it in force, are named.
 """
@@ -12,8 +12,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from bench.metrology import fit_matrix
-from bench.metrology.mouse_calibration import MatrixCalibration
-from bench.protocols.dissertation import mouse_calibration_moves
+from bench.metrology.mouse_calibration import MM_PER_INCH, MatrixCalibration, mouse_calibration_moves
 from bench.reports.content import (
     InstrumentInfo,
     ReportBase,
@@ -30,7 +29,6 @@ from bench.reports.document import (
     conditions_section,
     decision_blocks,
 )
-from bench.sensors.calibration import MM_PER_INCH
 from bench.store import Store
 
 __all__ = ["MouseCalibrationReport", "collect_mouse_calibration", "mouse_calibration_document"]

@@ -14,11 +14,9 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from bench.errors import ConfigError
+from bench.metrology.mouse_calibration import MM_PER_INCH
 
 __all__ = ["MM_PER_INCH", "CountsCalibration"]
-
-#: Millimetres per inch; one count is ``MM_PER_INCH / CPI`` mm (``sensors.md`` §1.1).
-MM_PER_INCH = 25.4
 
 
 @dataclass(frozen=True, eq=False)
