@@ -9,7 +9,6 @@ Units at every public boundary are mm and degrees; every column name carries its
 """
 
 
-
 def __getattr__(name: str) -> str:
     """``bench.__version__``, read from the installed metadata on first use (importlib.metadata costs ~40 ms, and
     ``bench --help`` should not pay it)."""

@@ -22,9 +22,7 @@ from bench.rigs.resume_identity import refuse_another_rig
 from bench.rigs.station import Station, load_station, parse_station
 from bench.simulators import CAMPAIGN_KERNEL_WAIT_S, DEFAULT_SPEED_FACTOR
 
-__all__ = ["CAMPAIGN_KERNEL_WAIT_S", "DEFAULT_SPEED_FACTOR", "RigRequest", "open_mover", "open_rig",
-           "simulated_rig_in"]
-
+__all__ = ["CAMPAIGN_KERNEL_WAIT_S", "DEFAULT_SPEED_FACTOR", "RigRequest", "open_mover", "open_rig", "simulated_rig_in"]
 
 
 @dataclass(frozen=True)
@@ -59,9 +57,17 @@ class RigRequest:
         return f"controller on {self.port}" if self.port else "simulator"
 
 
-def open_rig(request: RigRequest, store: Any, *, robot: str, stored: dict[str, Any] | None = None,
-             fixture: str = "assembled", requires: frozenset[str] = frozenset(), protocol: str = "the protocol",
-             operator: Operator | None = None) -> Rig:
+def open_rig(
+    request: RigRequest,
+    store: Any,
+    *,
+    robot: str,
+    stored: dict[str, Any] | None = None,
+    fixture: str = "assembled",
+    requires: frozenset[str] = frozenset(),
+    protocol: str = "the protocol",
+    operator: Operator | None = None,
+) -> Rig:
     """The rig ``request`` describes for a protocol on ``robot`` with ``fixture`` needing ``requires``.
 
     ``operator`` answers prompts on a station rig (default: the terminal); the simulated default rig answers them
@@ -72,32 +78,51 @@ def open_rig(request: RigRequest, store: Any, *, robot: str, stored: dict[str, A
         refuse_another_rig("the resumed run", stored, station, request.simulate)
     stored = stored or {}
     serial = None if station is None else station_identity(station).get("dut_serial")
-    kinematic = _kinematic_calibration(request, store, robot, stored, serial, fixture,
-                                       simulated=station is None or request.simulate)
+    kinematic = _kinematic_calibration(
+        request, store, robot, stored, serial, fixture, simulated=station is None or request.simulate
+    )
     if station is None:
         seed, speed = _simulation_settings(request, stored)
-        rig = simulated_rig_in(store, robot, seed=seed, speed_factor=speed, fixture=fixture,
-                               true_geometry_seed=_true_geometry_seed(request, stored),
-                               ideal=request.ideal or bool(stored.get("simulator", {}).get("ideal")))
+        rig = simulated_rig_in(
+            store,
+            robot,
+            seed=seed,
+            speed_factor=speed,
+            fixture=fixture,
+            true_geometry_seed=_true_geometry_seed(request, stored),
+            ideal=request.ideal or bool(stored.get("simulator", {}).get("ideal")),
+        )
         return put_in_force(rig, *kinematic)
     if not request.simulate:
         _refuse_simulator_options(request)
     if station.robot != robot:
         raise ConfigError(f"{station.source}: robot.kind = {station.robot!r}, expected {robot!r} for {protocol}")
     if station.controller.fixture != fixture:
-        raise ConfigError(f"{station.source}: controller.fixture = {station.controller.fixture!r}, expected "
-                          f"{fixture!r} for {protocol}")
+        raise ConfigError(
+            f"{station.source}: controller.fixture = {station.controller.fixture!r}, expected "
+            f"{fixture!r} for {protocol}"
+        )
     if request.station:
         store.bench = station.identity.bench  # runs are stored under the station's name (the lab store's key)
     if not request.simulate:
         rig = build_rig(station, store, requires=requires, protocol=protocol, operator=operator)
         return _synced_after(put_in_force(rig, *kinematic), station, store)
     check_capabilities(station, requires, protocol)  # before a simulator starts
-    rig, rehearsal, seed = _on_rehearsal(station, request, stored, lambda devices, speed: build_rig(
-        devices, store, requires=requires, protocol=protocol, speed_factor=speed, operator=operator))
+    rig, rehearsal, seed = _on_rehearsal(
+        station,
+        request,
+        stored,
+        lambda devices, speed: build_rig(
+            devices, store, requires=requires, protocol=protocol, speed_factor=speed, operator=operator
+        ),
+    )
     rig.closers.insert(0, rehearsal.close)  # closed last: after the drivers let go of the simulators' devices
-    rig.extra["simulator"] = {"seed": seed, "station": station.source, "truth_log": rehearsal.truth_path,
-                              **rehearsal.settings}
+    rig.extra["simulator"] = {
+        "seed": seed,
+        "station": station.source,
+        "truth_log": rehearsal.truth_path,
+        **rehearsal.settings,
+    }
     return _synced_after(put_in_force(rig, *kinematic), station, store)
 
 
@@ -126,8 +151,15 @@ def _synced_after(rig: Rig, station: Station, store: Any) -> Rig:
     return rig
 
 
-def _kinematic_calibration(request: RigRequest, store: Any, robot: str, stored: dict[str, Any],
-                           serial: str | None, fixture: str, simulated: bool) -> tuple[Any, str]:
+def _kinematic_calibration(
+    request: RigRequest,
+    store: Any,
+    robot: str,
+    stored: dict[str, Any],
+    serial: str | None,
+    fixture: str,
+    simulated: bool,
+) -> tuple[Any, str]:
     """The kinematic calibration the request selects (:mod:`bench.calibration.compensate`) and why, decided before
     anything opens; a resumed run keeps its own unless another is named."""
     choice = request.kinematic_calibration
@@ -144,8 +176,10 @@ def _true_geometry_seed(request: RigRequest, stored: dict[str, Any]) -> int | No
     if request.true_geometry_seed is None:
         return own
     if stored and request.true_geometry_seed != own:
-        raise ConfigError(f"--true-geometry-seed {request.true_geometry_seed}: the run was made with "
-                          f"{own}, expected the same (leave it out)")
+        raise ConfigError(
+            f"--true-geometry-seed {request.true_geometry_seed}: the run was made with "
+            f"{own}, expected the same (leave it out)"
+        )
     return request.true_geometry_seed
 
 
@@ -160,8 +194,9 @@ def open_mover(request: RigRequest, robot: str) -> tuple[Any, Any]:
         return rig.robot, rig.close
     if not request.simulate:
         return builder_open_mover(station)
-    (mover, close), rehearsal, _ = _on_rehearsal(station, request, {},
-                                                 lambda devices, speed: builder_open_mover(devices))
+    (mover, close), rehearsal, _ = _on_rehearsal(
+        station, request, {}, lambda devices, speed: builder_open_mover(devices)
+    )
 
     def close_all() -> None:
         close()
@@ -170,17 +205,22 @@ def open_mover(request: RigRequest, robot: str) -> tuple[Any, Any]:
     return mover, close_all
 
 
-def _on_rehearsal(station: Station, request: RigRequest, stored: dict[str, Any],
-                  build: Callable[[Station, float], Any]) -> tuple[Any, Any, int]:
+def _on_rehearsal(
+    station: Station, request: RigRequest, stored: dict[str, Any], build: Callable[[Station, float], Any]
+) -> tuple[Any, Any, int]:
     """Start a simulator for every device of ``station`` and ``build(simulated station, speed factor)`` on them;
     returns what was built, the rehearsal (the caller closes it with what it built) and the seed. The simulators
     are stopped again when the build fails."""
     from bench.simulators.station import rehearse
 
     seed, speed = _simulation_settings(request, stored)
-    rehearsal = rehearse(station, seed=seed, speed_factor=speed,
-                         ideal=request.ideal or bool(stored.get("simulator", {}).get("ideal")),
-                         true_geometry_seed=_true_geometry_seed(request, stored))
+    rehearsal = rehearse(
+        station,
+        seed=seed,
+        speed_factor=speed,
+        ideal=request.ideal or bool(stored.get("simulator", {}).get("ideal")),
+        true_geometry_seed=_true_geometry_seed(request, stored),
+    )
     try:
         return build(rehearsal.station, speed), rehearsal, seed
     except BaseException:
@@ -194,12 +234,20 @@ def _simulation_settings(request: RigRequest, stored: dict[str, Any]) -> tuple[i
     stored_seed = stored.get("simulator", {}).get("seed")
     stored_speed = stored.get("speed_factor")
     if stored and request.seed is not None and stored_seed is not None and request.seed != stored_seed:
-        raise ConfigError(f"seed = {request.seed}: the run was made with seed {stored_seed}, expected the same "
-                          "(a resume keeps the run's own; leave the seed out)")
-    if stored and request.speed_factor is not None and stored_speed is not None \
-            and request.speed_factor != stored_speed:
-        raise ConfigError(f"speed factor = {request.speed_factor:g}: the run's time base is speed factor "
-                          f"{stored_speed:g}, expected the same (leave the speed factor out)")
+        raise ConfigError(
+            f"seed = {request.seed}: the run was made with seed {stored_seed}, expected the same "
+            "(a resume keeps the run's own; leave the seed out)"
+        )
+    if (
+        stored
+        and request.speed_factor is not None
+        and stored_speed is not None
+        and request.speed_factor != stored_speed
+    ):
+        raise ConfigError(
+            f"speed factor = {request.speed_factor:g}: the run's time base is speed factor "
+            f"{stored_speed:g}, expected the same (leave the speed factor out)"
+        )
     seed = request.seed if request.seed is not None else (stored_seed if stored_seed is not None else 0)
     speed = request.speed_factor if request.speed_factor is not None else (stored_speed or DEFAULT_SPEED_FACTOR)
     check_speed_factor(speed)
@@ -214,8 +262,10 @@ def check_speed_factor(speed: float) -> None:
     ConfigError
     """
     if not 0 < speed < float("inf"):
-        raise ConfigError(f"speed factor = {speed:g}, expected a finite number > 0 (--speed-factor, how much faster "
-                          "than real time the simulators run)")
+        raise ConfigError(
+            f"speed factor = {speed:g}, expected a finite number > 0 (--speed-factor, how much faster "
+            "than real time the simulators run)"
+        )
 
 
 def _station(request: RigRequest, robot: str, fixture: str) -> Station | None:
@@ -224,8 +274,11 @@ def _station(request: RigRequest, robot: str, fixture: str) -> Station | None:
         return load_station(request.station)
     if request.port is None:
         return None
-    table: dict[str, Any] = {"robot": {"kind": robot}, "controller": {"port": request.port, "fixture": fixture},
-                             "calliper": {"kind": "typed"}}
+    table: dict[str, Any] = {
+        "robot": {"kind": robot},
+        "controller": {"port": request.port, "fixture": fixture},
+        "calliper": {"kind": "typed"},
+    }
     if request.mouse_xy or request.mouse_xz:
         if not (request.mouse_xy and request.mouse_xz):
             raise ConfigError("mice: only one mouse named, expected two event devices (the x-y and the x-z mouse)")
@@ -233,8 +286,17 @@ def _station(request: RigRequest, robot: str, fixture: str) -> Station | None:
     return parse_station(table, source=request.port_label)
 
 
-def simulated_rig_in(store: Any, robot: str, *, seed: int, speed_factor: float, fixture: str = "assembled",
-                     true_geometry_seed: int | None = None, ideal: bool = False, kernel_wait_s: float = 0.0):
+def simulated_rig_in(
+    store: Any,
+    robot: str,
+    *,
+    seed: int,
+    speed_factor: float,
+    fixture: str = "assembled",
+    true_geometry_seed: int | None = None,
+    ideal: bool = False,
+    kernel_wait_s: float = 0.0,
+):
     """A simulated rig whose mouse calibration is recorded (get-or-create) in ``store``; with
     ``true_geometry_seed`` the pkm5 moves by that seed's true geometry, ``ideal`` without the error model (both
     recorded in the simulator settings); ``kernel_wait_s``: the assembled pkm5's simulator serves its port once its
@@ -243,8 +305,9 @@ def simulated_rig_in(store: Any, robot: str, *, seed: int, speed_factor: float, 
 
     check_speed_factor(speed_factor)
     if true_geometry_seed is not None and fixture != "assembled":
-        raise ConfigError(f"--true-geometry-seed {true_geometry_seed}: the {fixture} has no geometry, expected the "
-                          "assembled robot")
+        raise ConfigError(
+            f"--true-geometry-seed {true_geometry_seed}: the {fixture} has no geometry, expected the assembled robot"
+        )
     options = () if true_geometry_seed is None else ("--true-geometry-seed", str(true_geometry_seed))
     if kernel_wait_s > 0 and robot == "pkm5" and fixture == "assembled":
         options += ("--kernel-wait-s", f"{kernel_wait_s:g}")
@@ -256,9 +319,11 @@ def simulated_rig_in(store: Any, robot: str, *, seed: int, speed_factor: float, 
         return rig  # no calibration in force: the readings are typed-in gauge values
     if robot == "pkm5":
         params = {"cpi": rig.instrument.cpi, "mm_per_count": 25.4 / rig.instrument.cpi}
-        rig.calibration_ids = (store.ensure_calibration(rig.instrument.calibration.calibration_id, params,
-                                                        notes="nominal calibration of the simulated mice").id,)
+        rig.calibration_ids = (
+            store.ensure_calibration(
+                rig.instrument.calibration.calibration_id, params, notes="nominal calibration of the simulated mice"
+            ).id,
+        )
     else:
         rig.calibration_ids = (rig.instrument.record_geometry(store),)
     return rig
-

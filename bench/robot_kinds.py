@@ -118,21 +118,37 @@ def resolve(reference: str) -> Any:
 
 # --- the registrations: one call per robot ---------------------------------------------------------------------
 
-register(RobotKind(
-    name="pkm5", title="parallel kinematic machine, 5 DOF (x, y, z, α, β)", baud=115200,
-    model="motion.pkm5.model", home="bench.robots.pkm5_kinematics:home_pose",
-    travel_time="bench.protocols.kinematics:stepper_travel_s",
-    mode_columns="bench.protocols.kinematics:pkm5_mode_columns",
-    simulator="bench.simulators.pkm5", simulator_help="5-DOF PKM controller (line protocol, docs/protocol-pkm5.md)",
-    calibration="pkm5_kinematics", calibration_model="motion.pkm5.calibration",
-    calibration_problem="bench.calibration.identify:pkm5_problem", commanded=("cmd_x_mm", "cmd_y_mm", "cmd_z_mm", "cmd_a_deg", "cmd_b_deg"),
-    fixtures=("assembled", "actuator-bench")))
+register(
+    RobotKind(
+        name="pkm5",
+        title="parallel kinematic machine, 5 DOF (x, y, z, α, β)",
+        baud=115200,
+        model="motion.pkm5.model",
+        home="bench.robots.pkm5_kinematics:home_pose",
+        travel_time="bench.protocols.kinematics:stepper_travel_s",
+        mode_columns="bench.protocols.kinematics:pkm5_mode_columns",
+        simulator="bench.simulators.pkm5",
+        simulator_help="5-DOF PKM controller (line protocol, docs/protocol-pkm5.md)",
+        calibration="pkm5_kinematics",
+        calibration_model="motion.pkm5.calibration",
+        calibration_problem="bench.calibration.identify:pkm5_problem",
+        commanded=("cmd_x_mm", "cmd_y_mm", "cmd_z_mm", "cmd_a_deg", "cmd_b_deg"),
+        fixtures=("assembled", "actuator-bench"),
+    )
+)
 
-register(RobotKind(
-    name="delta4", title="4-RSS delta, 3 DOF", baud=9600,  # 003 §5.3 states none: 9600 8-N-1 is its first guess
-    model="motion.delta4.model", home="bench.robots.delta4:home_pose",
-    travel_time="bench.protocols.kinematics:servo_travel_s",
-    simulator="bench.simulators.delta4",
-    simulator_help="delta4 ATmega128 controller (ASCII protocol, docs/protocol-delta4.md)",
-    calibration="delta4_kinematics", calibration_model="motion.delta4.calibration",
-    calibration_problem="bench.calibration.identify:delta4_problem"))
+register(
+    RobotKind(
+        name="delta4",
+        title="4-RSS delta, 3 DOF",
+        baud=9600,  # 003 §5.3 states none: 9600 8-N-1 is its first guess
+        model="motion.delta4.model",
+        home="bench.robots.delta4:home_pose",
+        travel_time="bench.protocols.kinematics:servo_travel_s",
+        simulator="bench.simulators.delta4",
+        simulator_help="delta4 ATmega128 controller (ASCII protocol, docs/protocol-delta4.md)",
+        calibration="delta4_kinematics",
+        calibration_model="motion.delta4.calibration",
+        calibration_problem="bench.calibration.identify:delta4_problem",
+    )
+)

@@ -132,9 +132,14 @@ class Payload:
     def mount(self, load_kg: float) -> Plan:
         """Ask the operator to mount ``load_kg`` (to take the payload off, for 0) when it differs from the last."""
         if load_kg != self.mounted_kg:
-            yield (payload_removal(self.mounted_kg) if load_kg == 0 else
-                   Prompt(f"Mount a payload of {load_kg:g} kg on the end effector, then confirm",
-                          conditions={"load_kg": load_kg}))
+            yield (
+                payload_removal(self.mounted_kg)
+                if load_kg == 0
+                else Prompt(
+                    f"Mount a payload of {load_kg:g} kg on the end effector, then confirm",
+                    conditions={"load_kg": load_kg},
+                )
+            )
         self.mounted_kg = load_kg
 
 
@@ -179,12 +184,23 @@ class MountedPayload:
         return payload_removal(self.load_kg) if self.load_kg else None
 
 
-def visit(label: str, target: tuple[float, ...], cycle: int, *, velocity_pct: float, settle_s: float,
-          conditions: Mapping[str, float] | None = None) -> Plan:
+def visit(
+    label: str,
+    target: tuple[float, ...],
+    cycle: int,
+    *,
+    velocity_pct: float,
+    settle_s: float,
+    conditions: Mapping[str, float] | None = None,
+) -> Plan:
     """Stub: move to ``target``, settle, capture; returns the captured values."""
     yield Move(target, velocity_pct, label)
     if settle_s > 0:
         yield Settle(settle_s)
-    values = yield Capture(label, cycle, commanded=commanded_values(target),
-                           conditions={"velocity_pct": velocity_pct, **(conditions or {})})
+    values = yield Capture(
+        label,
+        cycle,
+        commanded=commanded_values(target),
+        conditions={"velocity_pct": velocity_pct, **(conditions or {})},
+    )
     return values

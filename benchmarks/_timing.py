@@ -48,5 +48,4 @@ def nbytes_of(result) -> int:
 def load_line(started: tuple[float, float, float]) -> str:
     """The machine's load during a run: the 1-minute load average at its start (``os.getloadavg()`` taken then)
     and now, on this many CPUs (the figures of a shared machine mean little without it)."""
-    return (f"load average {started[0]:.1f} at the start, {os.getloadavg()[0]:.1f} at the end, on "
-            f"{os.cpu_count()} CPUs")
+    return f"load average {started[0]:.1f} at the start, {os.getloadavg()[0]:.1f} at the end, on {os.cpu_count()} CPUs"

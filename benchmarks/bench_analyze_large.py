@@ -61,8 +61,10 @@ def write_table(path: Path, poses: int, cycles: int, seed: int = 0) -> None:
         for p in range(poses):
             attained = command[p] + bias[p] + rng.normal(0, [0.3, 0.2, 0.1], size=(cycles, 3))
             cells = np.column_stack([np.arange(1, cycles + 1), np.tile(command[p], (cycles, 1)), attained])
-            lines = "\n".join(f"P{p + 1}," + ",".join(row) for row in
-                              np.char.mod(["%d", "%.3f", "%.3f", "%.3f", "%.4f", "%.4f", "%.4f"], cells).tolist())
+            lines = "\n".join(
+                f"P{p + 1}," + ",".join(row)
+                for row in np.char.mod(["%d", "%.3f", "%.3f", "%.3f", "%.4f", "%.4f", "%.4f"], cells).tolist()
+            )
             handle.write(lines + "\n")
 
 
@@ -76,8 +78,10 @@ def measured(argv: list[str]) -> tuple[dict, bytes]:
 
 def summary(name: str, runs: list[dict]) -> str:
     walls, peaks = [r["wall_s"] for r in runs], [r["peak_mb"] for r in runs]
-    return (f"{name:<34} {min(walls):7.2f} {statistics.median(walls):8.2f} {max(walls):7.2f}   "
-            f"{min(peaks):7.0f} {statistics.median(peaks):8.0f} {max(peaks):7.0f}")
+    return (
+        f"{name:<34} {min(walls):7.2f} {statistics.median(walls):8.2f} {max(walls):7.2f}   "
+        f"{min(peaks):7.0f} {statistics.median(peaks):8.0f} {max(peaks):7.0f}"
+    )
 
 
 def main() -> None:
@@ -90,8 +94,10 @@ def main() -> None:
         table = Path(folder) / "poses.csv"
         start = time.perf_counter()
         write_table(table, args.poses, args.cycles)
-        print(f"table: {args.poses} poses x {args.cycles} cycles = {args.poses * args.cycles:,} rows, "
-              f"{table.stat().st_size / 1e6:.0f} MB (written in {time.perf_counter() - start:.1f} s)")
+        print(
+            f"table: {args.poses} poses x {args.cycles} cycles = {args.poses * args.cycles:,} rows, "
+            f"{table.stat().st_size / 1e6:.0f} MB (written in {time.perf_counter() - start:.1f} s)"
+        )
         bench_runs, peer_runs = [], []
         for _ in range(args.repeat):
             figures, out = measured([sys.executable, "-m", "bench.cli", "analyze", "iso9283", str(table), "--json"])
@@ -107,8 +113,10 @@ def main() -> None:
     ratio = statistics.median(r["wall_s"] for r in bench_runs) / statistics.median(r["wall_s"] for r in peer_runs)
     memory = statistics.median(r["peak_mb"] for r in bench_runs) / statistics.median(r["peak_mb"] for r in peer_runs)
     difference = max(abs(ours[p][key] - peer[p][key]) for p in peer for key in ("AP_mm", "RP_mm"))
-    print(f"ratio of medians: time {ratio:.2f}x, peak memory {memory:.2f}x; largest |AP/RP difference| "
-          f"{difference:.1e} mm")
+    print(
+        f"ratio of medians: time {ratio:.2f}x, peak memory {memory:.2f}x; largest |AP/RP difference| "
+        f"{difference:.1e} mm"
+    )
 
 
 if __name__ == "__main__":

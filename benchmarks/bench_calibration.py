@@ -19,14 +19,12 @@ import os
 import sys
 
 import numpy as np
-
 from _timing import load_line, min_median_max, spread
 
 from bench.metrology.kinematic_calibration import identifiable_subset, identify, select_poses
 from bench.simulators.true_geometry import attained_poses, true_geometry
 from motion import pkm5
-from motion.pkm5.calibration import (PARAMETERS, REGISTRATION, ForwardModel, apply_parameters, modes_of_poses,
-                                     tolerance)
+from motion.pkm5.calibration import PARAMETERS, REGISTRATION, ForwardModel, apply_parameters, modes_of_poses, tolerance
 from motion.pkm5.geometry import steps_to_lengths
 
 UNCERTAINTY_MM = 0.05
@@ -70,19 +68,30 @@ def main() -> None:
             model = ForwardModel(steps[pick], modes[pick], ALL, engine=engine)
             (fk_s,), _ = spread(model.predict, np.zeros(len(ALL)), repeat=1)
             for fit, names, prior in (("map", ALL, sigma), ("free-set", free, None)):
-                times, result = spread(lambda: identify(ForwardModel(steps[pick], modes[pick], names, engine=engine),
-                                                        measured, UNCERTAINTY_MM, prior_sigma=prior))
-                print(f"{n:4d} poses, {fit:8s} {len(names)} parameters, FK {engine:8s}: {min_median_max(times)}; "
-                      f"{result.iterations} model evaluations; median / one FK solve = {np.median(times) / fk_s:.0f}x",
-                      flush=True)
+                times, result = spread(
+                    lambda: identify(
+                        ForwardModel(steps[pick], modes[pick], names, engine=engine),
+                        measured,
+                        UNCERTAINTY_MM,
+                        prior_sigma=prior,
+                    )
+                )
+                print(
+                    f"{n:4d} poses, {fit:8s} {len(names)} parameters, FK {engine:8s}: {min_median_max(times)}; "
+                    f"{result.iterations} model evaluations; median / one FK solve = {np.median(times) / fk_s:.0f}x",
+                    flush=True,
+                )
         model = ForwardModel(steps[pick], modes[pick], ALL)
         theta = np.zeros(len(ALL))
         model.predict(theta)
         batched, _ = spread(model.jacobian, theta)
         one_at_a_time, _ = spread(joint_columns_one_geometry_at_a_time, model, theta)
-        print(f"{n:4d} poses, Jacobian of all {len(ALL)}: batched {min_median_max(batched)}; the joint columns "
-              f"alone one geometry at a time {min_median_max(one_at_a_time)}; ratio of the minima "
-              f"{min(one_at_a_time) / min(batched):.1f}x", flush=True)
+        print(
+            f"{n:4d} poses, Jacobian of all {len(ALL)}: batched {min_median_max(batched)}; the joint columns "
+            f"alone one geometry at a time {min_median_max(one_at_a_time)}; ratio of the minima "
+            f"{min(one_at_a_time) / min(batched):.1f}x",
+            flush=True,
+        )
     print(load_line(started))
 
 

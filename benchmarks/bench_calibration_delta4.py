@@ -7,7 +7,6 @@ kinematics solve of the same poses (the physical floor: every model evaluation n
 """
 
 import numpy as np
-
 from _timing import min_median_max, spread
 
 from bench.metrology.kinematic_calibration import identifiable_subset, identify, select_poses
@@ -34,8 +33,10 @@ def main() -> None:
         measured = attained_positions(servo[pick], PARAMETERS, truth)[:, :2] + rng.normal(0, UNCERTAINTY_MM, (n, 2))
         times, result = spread(lambda: identify(ForwardModel(servo[pick], free), measured, UNCERTAINTY_MM))
         (fk_s,), _ = spread(ForwardModel(servo[pick], free).predict, np.zeros(len(free)), repeat=1)
-        print(f"{n:4d} poses, {len(free)} parameters: {min_median_max(times)}; {result.iterations} model "
-              f"evaluations; median / one FK solve = {np.median(times) / fk_s:.0f}x")
+        print(
+            f"{n:4d} poses, {len(free)} parameters: {min_median_max(times)}; {result.iterations} model "
+            f"evaluations; median / one FK solve = {np.median(times) / fk_s:.0f}x"
+        )
 
 
 if __name__ == "__main__":

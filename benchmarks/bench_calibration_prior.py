@@ -33,8 +33,9 @@ KINDS = ("constant-orientation", "alpha", "beta")
 
 def held_out_ap(held, command_geometry, registration, truth) -> float:
     truth_steps = pkm5.lengths_to_steps(pkm5.inverse_kinematics(held, truth).lengths_mm, truth)
-    attainable = np.linalg.norm(attained_poses(truth_steps, modes_of_poses(held), truth)[:, :3] - held[:, :3],
-                                axis=1) < 1.0
+    attainable = (
+        np.linalg.norm(attained_poses(truth_steps, modes_of_poses(held), truth)[:, :3] - held[:, :3], axis=1) < 1.0
+    )
     target = np.array(held)
     target[:, :3] -= registration
     steps = pkm5.lengths_to_steps(pkm5.inverse_kinematics(target, command_geometry).lengths_mm, command_geometry)
@@ -57,8 +58,10 @@ def main() -> None:
     steps, modes = all_steps[pick], all_modes[pick]
     held = pkm5.sample_reachable(50, kinds=KINDS, seed=99)
     left_out = 0 if ratio is None else int(np.sum(~away_from_folds(ratio)))
-    print(f"prior sigma x {scale:g}; {left_out} candidates left out near an FK fold; default free "
-          f"set {len(free)} of {len(ALL)}")
+    print(
+        f"prior sigma x {scale:g}; {left_out} candidates left out near an FK fold; default free "
+        f"set {len(free)} of {len(ALL)}"
+    )
     for seed in range(6):
         truth, deviations = true_geometry(seed), true_deviations(seed)
         noise = np.random.default_rng([seed, 8]).normal(0.0, U_MM, (len(steps), 3))
@@ -67,19 +70,24 @@ def main() -> None:
         before = held_out_ap(held, pkm5.DEFAULT_GEOMETRY, frame.values, truth)
         subset = identify(ForwardModel(steps, modes, free), measured, U_MM)
         after_subset = held_out_ap(held, apply_parameters(free, subset.values), subset.values[:3], truth)
-        z_subset = max(abs(v - deviations[n]) / s for n, v, s in zip(free, subset.values, subset.uncertainty)
-                       if n in deviations)
+        z_subset = max(
+            abs(v - deviations[n]) / s for n, v, s in zip(free, subset.values, subset.uncertainty) if n in deviations
+        )
         start = time.perf_counter()
         fit = identify(ForwardModel(steps, modes, ALL), measured, U_MM, prior_sigma=sigma)
         seconds = time.perf_counter() - start
         after_map = held_out_ap(held, apply_parameters(ALL, fit.values), fit.values[:3], truth)
-        z_map = max(abs(fit.values[i] - deviations[n]) / fit.uncertainty[i] for i, n in enumerate(ALL)
-                    if n in deviations)
-        print(f"seed {seed}: AP before {before:.3f} mm | subset {after_subset:.3f} mm x{before / after_subset:.1f} "
-              f"chi2 {subset.reduced_chi2:.1f} max|z| {z_subset:.1f} | MAP {after_map:.3f} mm "
-              f"x{before / after_map:.1f} chi2/dof {fit.reduced_chi2:.2f} (dof {fit.degrees_of_freedom:.1f}) "
-              f"max|z| {z_map:.2f} ({seconds:.2f} s, "
-              f"{fit.iterations} evaluations; prior only: {', '.join(fit.prior_only) or 'none'})", flush=True)
+        z_map = max(
+            abs(fit.values[i] - deviations[n]) / fit.uncertainty[i] for i, n in enumerate(ALL) if n in deviations
+        )
+        print(
+            f"seed {seed}: AP before {before:.3f} mm | subset {after_subset:.3f} mm x{before / after_subset:.1f} "
+            f"chi2 {subset.reduced_chi2:.1f} max|z| {z_subset:.1f} | MAP {after_map:.3f} mm "
+            f"x{before / after_map:.1f} chi2/dof {fit.reduced_chi2:.2f} (dof {fit.degrees_of_freedom:.1f}) "
+            f"max|z| {z_map:.2f} ({seconds:.2f} s, "
+            f"{fit.iterations} evaluations; prior only: {', '.join(fit.prior_only) or 'none'})",
+            flush=True,
+        )
 
 
 if __name__ == "__main__":

@@ -22,8 +22,15 @@ import numpy as np
 from bench.metrology.kinematic_calibration import identifiable_subset, identify, select_poses
 from bench.simulators.true_geometry import delta4_true_deviations
 from motion import delta4
-from motion.delta4.calibration import (BASE_PARAMETERS, REGISTRATION, ForwardModel, attained_positions,
-                                       base_equivalent, commanded_servo_deg, prior_sigma)
+from motion.delta4.calibration import (
+    BASE_PARAMETERS,
+    REGISTRATION,
+    ForwardModel,
+    attained_positions,
+    base_equivalent,
+    commanded_servo_deg,
+    prior_sigma,
+)
 from motion.delta4.workspace import workspace_samples
 
 U_MM = 0.02
@@ -50,8 +57,11 @@ def main(seeds) -> None:
         deviations = delta4_true_deviations(seed)
         names, values = list(deviations), list(deviations.values())
         rng = np.random.default_rng([seed, 5])
-        measured = (attained_positions(servo[pick], names, values)[:, :2] + REGISTRATION_MM
-                    + rng.normal(0.0, U_MM, (len(pick), 2)))
+        measured = (
+            attained_positions(servo[pick], names, values)[:, :2]
+            + REGISTRATION_MM
+            + rng.normal(0.0, U_MM, (len(pick), 2))
+        )
         base = base_equivalent({**deviations, "reg_x_mm": REGISTRATION_MM[0], "reg_y_mm": REGISTRATION_MM[1]})
 
         def held_out_mm(fit):
@@ -63,11 +73,12 @@ def main(seeds) -> None:
 
         before = held_out_mm(identify(ForwardModel(servo[pick], PLANE), measured, U_MM))
         subset = identify(ForwardModel(servo[pick], free), measured, U_MM)
-        posterior = identify(ForwardModel(servo[pick], CANDIDATES), measured, U_MM,
-                             prior_sigma=prior_sigma(CANDIDATES))
+        posterior = identify(ForwardModel(servo[pick], CANDIDATES), measured, U_MM, prior_sigma=prior_sigma(CANDIDATES))
         a, b = held_out_mm(subset), held_out_mm(posterior)
-        print(f"{seed:4d}  {before:9.3f}  {a:11.3f} ({before / a:4.1f}x, {max_z(subset):5.1f})    "
-              f"{b:6.3f} ({before / b:4.1f}x, {max_z(posterior):4.1f}, {posterior.reduced_chi2:.2f})")
+        print(
+            f"{seed:4d}  {before:9.3f}  {a:11.3f} ({before / a:4.1f}x, {max_z(subset):5.1f})    "
+            f"{b:6.3f} ({before / b:4.1f}x, {max_z(posterior):4.1f}, {posterior.reduced_chi2:.2f})"
+        )
 
 
 if __name__ == "__main__":

@@ -24,9 +24,9 @@ from pathlib import Path
 
 import numpy as np
 
-from bench.metrology.kinematic_campaign import pose_means
 from bench.errors import InsufficientData
 from bench.metrology.kinematic_calibration import UnidentifiableParameters, identify
+from bench.metrology.kinematic_campaign import pose_means
 from bench.metrology.kinematic_search import identify_global
 from bench.robots.pkm5_kinematics import steps_for_pose
 from bench.simulators.true_geometry import attained_poses, true_deviations, true_geometry
@@ -58,8 +58,7 @@ def main() -> None:
         truth[:3] = REGISTRATION_MM
         rng = np.random.default_rng([seed, 8])
         attained = attained_poses(steps, modes, true_geometry(seed))[:, :3] + REGISTRATION_MM
-        readings = attained[None] + rng.normal(0.0, 1.0, (args.cycles, *attained.shape)) * np.hypot(U_MM,
-                                                                                                  args.play_mm)
+        readings = attained[None] + rng.normal(0.0, 1.0, (args.cycles, *attained.shape)) * np.hypot(U_MM, args.play_mm)
         if args.cycles > 1:
             campaign = pose_means(readings.reshape(-1, 3), np.tile(np.arange(len(poses)), args.cycles), U_MM)
             measured, u = campaign.mean_mm, campaign.uncertainty_mm
@@ -83,15 +82,19 @@ def main() -> None:
             rows[kind].append(z)
             line.append(f"{kind} max|z| {z.max():.1f} ({ALL[int(np.argmax(z))]}), within 2u {np.mean(z <= 2):.0%}")
         print(" | ".join(line), flush=True)
-    print(f"\n{args.seeds} seeds from {args.first}, {args.starts} starts, {args.cycles} cycles, play "
-          f"{args.play_mm:g} mm; load {os.getloadavg()[0]:.1f}")
+    print(
+        f"\n{args.seeds} seeds from {args.first}, {args.starts} starts, {args.cycles} cycles, play "
+        f"{args.play_mm:g} mm; load {os.getloadavg()[0]:.1f}"
+    )
     for kind, zs in rows.items():
         zs = np.array(zs)
         if not len(zs):
             continue
-        print(f"{kind}: stored {len(zs)}, refused {refused[kind]}; stored with a parameter beyond 5 u: "
-              f"{int(np.sum(zs.max(axis=1) > 5))}; coverage of the k=2 intervals {np.mean(zs <= 2):.2%} "
-              f"({zs.size} parameters); worst |z| {zs.max():.1f}")
+        print(
+            f"{kind}: stored {len(zs)}, refused {refused[kind]}; stored with a parameter beyond 5 u: "
+            f"{int(np.sum(zs.max(axis=1) > 5))}; coverage of the k=2 intervals {np.mean(zs <= 2):.2%} "
+            f"({zs.size} parameters); worst |z| {zs.max():.1f}"
+        )
     if times:
         print(f"search time min/median/max {min(times):.2f} / {np.median(times):.2f} / {max(times):.2f} s")
 

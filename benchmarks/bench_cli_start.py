@@ -21,7 +21,18 @@ COMMANDS = {
     "bench --version": [*BENCH, "--version"],
     "bench --help": [*BENCH, "--help"],
     "bench kin ik pkm5 111.31 -20 310": [*BENCH, "kin", "ik", "pkm5", "111.31", "-20", "310"],
-    "bench kin fk pkm5 184 184 184 184 192 192": [*BENCH, "kin", "fk", "pkm5", "184", "184", "184", "184", "192", "192"],
+    "bench kin fk pkm5 184 184 184 184 192 192": [
+        *BENCH,
+        "kin",
+        "fk",
+        "pkm5",
+        "184",
+        "184",
+        "184",
+        "184",
+        "192",
+        "192",
+    ],
 }
 
 

@@ -14,13 +14,11 @@ FK figures are min / median / max of ``--repeat`` runs. Usage:
 from __future__ import annotations
 
 import argparse
-
-import numpy as np
-from scipy.optimize import least_squares
-
 import time
 
+import numpy as np
 from _timing import min_median_max, spread, timed
+from scipy.optimize import least_squares
 
 from motion import delta4, kernels
 from motion.delta4 import compiled
@@ -95,14 +93,18 @@ def main(argv=None) -> None:
     for _ in range(args.repeat):
         begin = time.perf_counter()
         for i in range(args.baseline * 10):
-            compiled.gauss_newton(starts[i:i + 1], knees[i:i + 1], delta4.NOMINAL, 50, 1e-10)
+            compiled.gauss_newton(starts[i : i + 1], knees[i : i + 1], delta4.NOMINAL, 50, 1e-10)
         peer_times.append(time.perf_counter() - begin)
     peer_rate = args.baseline * 10 / float(np.median(peer_times))
-    print(f"delta4 FK LS compiled {len(truth):>9,} sets: {c_rate / 1e3:7.1f} k solves/s ({min_median_max(c_times)}), "
-          f"{c_rate / ls_rate:.2f}x numpy; max |dp| vs numpy {np.abs(fast.pose_mm - ls.pose_mm)[ls.ok].max():.1e} mm")
-    print(f"  per-pose peer, the compiled kernel called per pose ({args.baseline * 10:,} solves): "
-          f"{peer_rate / 1e3:7.1f} k solves/s ({min_median_max(peer_times)}); batched compiled / per-pose = "
-          f"{c_rate / peer_rate:.2f}x")
+    print(
+        f"delta4 FK LS compiled {len(truth):>9,} sets: {c_rate / 1e3:7.1f} k solves/s ({min_median_max(c_times)}), "
+        f"{c_rate / ls_rate:.2f}x numpy; max |dp| vs numpy {np.abs(fast.pose_mm - ls.pose_mm)[ls.ok].max():.1e} mm"
+    )
+    print(
+        f"  per-pose peer, the compiled kernel called per pose ({args.baseline * 10:,} solves): "
+        f"{peer_rate / 1e3:7.1f} k solves/s ({min_median_max(peer_times)}); batched compiled / per-pose = "
+        f"{c_rate / peer_rate:.2f}x"
+    )
 
 
 if __name__ == "__main__":

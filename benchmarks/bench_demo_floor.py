@@ -47,8 +47,9 @@ def run_once(cycles: int, speed_factor: float, seed: int, folder: Path) -> dict[
     """One campaign in a fresh store and simulator: its wall time and the parts of its floor."""
     protocol = PoseAccuracy(source="bench demo", cycles=cycles)
     with Store(folder / "bench.db") as store:
-        rig = simulated_rig_in(store, "pkm5", seed=seed, speed_factor=speed_factor,
-                               kernel_wait_s=CAMPAIGN_KERNEL_WAIT_S)  # as bench demo starts it
+        rig = simulated_rig_in(
+            store, "pkm5", seed=seed, speed_factor=speed_factor, kernel_wait_s=CAMPAIGN_KERNEL_WAIT_S
+        )  # as bench demo starts it
         controller = rig.robot.controller
         try:
             rtt_s = round_trip_s(controller)
@@ -77,8 +78,14 @@ def run_once(cycles: int, speed_factor: float, seed: int, folder: Path) -> dict[
     if result.exit_status != "completed":
         raise SystemExit(f"campaign {result.exit_status}: {result.reason}")
     dwell_s = summarize(protocol).settle_s / speed_factor
-    return {"wall_s": wall_s, "motion_s": counted["motion_s"], "dwell_s": dwell_s, "exchanges": counted["exchanges"],
-            "rtt_s": rtt_s, "floor_s": counted["motion_s"] + dwell_s + counted["exchanges"] * rtt_s}
+    return {
+        "wall_s": wall_s,
+        "motion_s": counted["motion_s"],
+        "dwell_s": dwell_s,
+        "exchanges": counted["exchanges"],
+        "rtt_s": rtt_s,
+        "floor_s": counted["motion_s"] + dwell_s + counted["exchanges"] * rtt_s,
+    }
 
 
 def main() -> None:
@@ -90,7 +97,7 @@ def main() -> None:
     args = parser.parse_args()
     started = os.getloadavg()
     runs = []
-    for i in range(args.repeat):
+    for _i in range(args.repeat):
         with tempfile.TemporaryDirectory() as folder:
             runs.append(run_once(args.cycles, args.speed_factor, args.seed, Path(folder)))
     first = runs[0]
@@ -99,12 +106,16 @@ def main() -> None:
     print(f"campaign: {args.cycles} cycles x 5 poses x 3 velocities, speed factor {args.speed_factor:g}")
     print(f"  simulated motion / speed factor {first['motion_s']:8.3f} s")
     print(f"  dwells / speed factor           {first['dwell_s']:8.3f} s")
-    print(f"  round trips {first['exchanges']:5d} x {1e3 * first['rtt_s']:.3f} ms  "
-          f"{first['exchanges'] * first['rtt_s']:8.3f} s")
+    print(
+        f"  round trips {first['exchanges']:5d} x {1e3 * first['rtt_s']:.3f} ms  "
+        f"{first['exchanges'] * first['rtt_s']:8.3f} s"
+    )
     print(f"  physical floor (median of {len(runs)})    {floor:8.3f} s")
-    print(f"measured wall time, {len(runs)} runs: min {min(walls):.3f} s, median {statistics.median(walls):.3f} s, "
-          f"max {max(walls):.3f} s; median / floor = {statistics.median(walls) / floor:.2f}x, min / floor = "
-          f"{min(walls) / floor:.2f}x (target <= 1.5x)")
+    print(
+        f"measured wall time, {len(runs)} runs: min {min(walls):.3f} s, median {statistics.median(walls):.3f} s, "
+        f"max {max(walls):.3f} s; median / floor = {statistics.median(walls) / floor:.2f}x, min / floor = "
+        f"{min(walls) / floor:.2f}x (target <= 1.5x)"
+    )
     print(load_line(started))
 
 

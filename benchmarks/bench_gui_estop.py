@@ -83,10 +83,23 @@ class _Feeder(QObject):
 
 def _pose_sample(index: int, rng: np.random.Generator) -> dict:
     pose, cycle = index % 5, index // 5
-    values = {"x_mm": 110.0 + rng.normal(0, 0.05), "y_mm": 10.0 * pose + rng.normal(0, 0.05),
-              "z_mm": 320.0 + rng.normal(0, 0.05), "cmd_x_mm": 110.0, "cmd_y_mm": 10.0 * pose, "cmd_z_mm": 320.0}
-    return {"step_index": index, "kind": "pose", "pose": f"P{pose + 1}", "cycle": cycle + 1, "t_s": float(index),
-            "wall_s": time.time(), "values": values}
+    values = {
+        "x_mm": 110.0 + rng.normal(0, 0.05),
+        "y_mm": 10.0 * pose + rng.normal(0, 0.05),
+        "z_mm": 320.0 + rng.normal(0, 0.05),
+        "cmd_x_mm": 110.0,
+        "cmd_y_mm": 10.0 * pose,
+        "cmd_z_mm": 320.0,
+    }
+    return {
+        "step_index": index,
+        "kind": "pose",
+        "pose": f"P{pose + 1}",
+        "cycle": cycle + 1,
+        "t_s": float(index),
+        "wall_s": time.time(),
+        "values": values,
+    }
 
 
 def stop_latency(window, presses: int) -> tuple[list[float], list[float]]:
@@ -125,9 +138,17 @@ def stop_latency(window, presses: int) -> tuple[list[float], list[float]]:
 
     def post_press() -> None:
         for kind in (QEvent.Type.MouseButtonPress, QEvent.Type.MouseButtonRelease):
-            QCoreApplication.postEvent(button, QMouseEvent(kind, centre, button.mapToGlobal(centre),
-                                                           Qt.MouseButton.LeftButton, Qt.MouseButton.LeftButton,
-                                                           Qt.KeyboardModifier.NoModifier))
+            QCoreApplication.postEvent(
+                button,
+                QMouseEvent(
+                    kind,
+                    centre,
+                    button.mapToGlobal(centre),
+                    Qt.MouseButton.LeftButton,
+                    Qt.MouseButton.LeftButton,
+                    Qt.KeyboardModifier.NoModifier,
+                ),
+            )
 
     done = threading.Event()
 
@@ -189,18 +210,23 @@ def event_loop_blocks(window, cycles: int) -> tuple[list[float], float]:
     started = last[0]
     _wait(lambda: panel.worker is None, 600, "the campaign")
     probe.stop()
-    print(f"  campaign: {panel.last_outcome} in {at[-1] - started:.1f} s; live view pictures: "
-          f"{window.live_view.renders}")
+    print(
+        f"  campaign: {panel.last_outcome} in {at[-1] - started:.1f} s; live view pictures: {window.live_view.renders}"
+    )
     longest = sorted(range(len(lateness)), key=lateness.__getitem__)[-3:]
-    print("  longest blocks: " + ", ".join(f"{lateness[i] * 1000:.0f} ms at {at[i] - started:.2f} s"
-                                           for i in reversed(longest)))
+    print(
+        "  longest blocks: "
+        + ", ".join(f"{lateness[i] * 1000:.0f} ms at {at[i] - started:.2f} s" for i in reversed(longest))
+    )
     return lateness, at[-1] - started
 
 
 def _figures(seconds: list[float]) -> str:
     ms = np.asarray(seconds) * 1000
-    return (f"p50 {np.percentile(ms, 50):.1f} ms, p99 {np.percentile(ms, 99):.1f} ms, max {ms.max():.1f} ms "
-            f"(min {ms.min():.1f} ms, n = {len(ms)})")
+    return (
+        f"p50 {np.percentile(ms, 50):.1f} ms, p99 {np.percentile(ms, 99):.1f} ms, max {ms.max():.1f} ms "
+        f"(min {ms.min():.1f} ms, n = {len(ms)})"
+    )
 
 
 def main() -> int:
@@ -210,8 +236,7 @@ def main() -> int:
     parser.add_argument("--cycles", type=int, default=20, help="cycles of the campaign of the event-loop part")
     args = parser.parse_args()
     if not os.environ.get("DISPLAY"):
-        print("bench_gui_estop: needs an X server (xvfb-run -a python benchmarks/bench_gui_estop.py)",
-              file=sys.stderr)
+        print("bench_gui_estop: needs an X server (xvfb-run -a python benchmarks/bench_gui_estop.py)", file=sys.stderr)
         return 2
     from bench.gui.app import MainWindow
 
@@ -225,8 +250,9 @@ def main() -> int:
             window.show()
             window.tabs.setCurrentWidget(window.live_view)
             _serve(500)
-            print(f"bench_gui_estop: {args.burners} CPU burners on {os.cpu_count()} CPUs, platform "
-                  f"{app.platformName()}")
+            print(
+                f"bench_gui_estop: {args.burners} CPU burners on {os.cpu_count()} CPUs, platform {app.platformName()}"
+            )
             through_window, direct = stop_latency(window, args.presses)
             print(f"press -> STOP on the wire, through the window: {_figures(through_window)}")
             print(f"floor, emergency_stop() from a plain thread:   {_figures(direct)}")

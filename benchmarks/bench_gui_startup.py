@@ -28,14 +28,19 @@ def since_start():
     return uptime - ticks / os.sysconf('SC_CLK_TCK')
 """
 
-FLOOR = _SINCE_START + """
+FLOOR = (
+    _SINCE_START
+    + """
 from PySide6.QtWidgets import QApplication, QLabel
 app = QApplication([])
 label = QLabel("floor"); label.show(); app.processEvents()
 print(f"{since_start():.3f} {since_start():.3f}")
 """
+)
 
-BENCH_GUI = _SINCE_START + """
+BENCH_GUI = (
+    _SINCE_START
+    + """
 import sys
 from PySide6.QtCore import QTimer
 from PySide6.QtWidgets import QApplication, QLabel
@@ -59,12 +64,19 @@ from bench.gui import launch
 launch(sys.argv[1], sys.argv[2])
 print(f"{shown['first']:.3f} {shown['main']:.3f}")
 """
+)
 
 
 def _run(script: str, folder: str) -> tuple[float, float]:
     env = dict(os.environ, PYTHONPATH=str(ROOT))
-    done = subprocess.run([sys.executable, "-c", script, f"{folder}/b.db", f"{folder}/reports"], env=env,
-                          capture_output=True, text=True, timeout=300, check=True)
+    done = subprocess.run(
+        [sys.executable, "-c", script, f"{folder}/b.db", f"{folder}/reports"],
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=300,
+        check=True,
+    )
     first, main = (float(v) for v in done.stdout.split()[-2:])
     return first, main
 
@@ -76,10 +88,15 @@ def main() -> None:
     with tempfile.TemporaryDirectory() as folder:
         floor = np.array([_run(FLOOR, folder)[0] for _ in range(repeat)])
         gui = np.array([_run(BENCH_GUI, folder) for _ in range(repeat)])
-    for name, values in (("bare Qt window (floor)", floor), ("bench gui: first window", gui[:, 0]),
-                         ("bench gui: main window", gui[:, 1])):
-        print(f"{name:28s} min {values.min():6.2f} s  median {np.median(values):6.2f} s  max {values.max():6.2f} s"
-              f"  ratio to floor (median) {np.median(values) / np.median(floor):5.2f}")
+    for name, values in (
+        ("bare Qt window (floor)", floor),
+        ("bench gui: first window", gui[:, 0]),
+        ("bench gui: main window", gui[:, 1]),
+    ):
+        print(
+            f"{name:28s} min {values.min():6.2f} s  median {np.median(values):6.2f} s  max {values.max():6.2f} s"
+            f"  ratio to floor (median) {np.median(values) / np.median(floor):5.2f}"
+        )
 
 
 if __name__ == "__main__":

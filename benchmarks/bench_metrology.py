@@ -48,12 +48,15 @@ def main() -> None:
     t = np.sort(rng.uniform(0, 8 * 3600, n))
     stream = rng.normal(0, 0.02, (n, 3)) + (t / 28800)[:, None] * [0.1, 0, 0]
     total = 0.0
-    total += report("ISO pose analysis, 30 groups x 30 cycles (+U, bootstrap)",
-                   lambda: analyze_poses(pose_table(table)))
-    total += report("AD/RD over 10^6 paired cycles", lambda: distance_characteristics(first, second, [0, 0, 0],
-                                                                                      [100, 0, 0]))
-    total += report("drift over a 10^6-sample stream, 60 windows", lambda: pose_drift(t, stream, [0, 0, 0],
-                                                                                     window_s=480))
+    total += report(
+        "ISO pose analysis, 30 groups x 30 cycles (+U, bootstrap)", lambda: analyze_poses(pose_table(table))
+    )
+    total += report(
+        "AD/RD over 10^6 paired cycles", lambda: distance_characteristics(first, second, [0, 0, 0], [100, 0, 0])
+    )
+    total += report(
+        "drift over a 10^6-sample stream, 60 windows", lambda: pose_drift(t, stream, [0, 0, 0], window_s=480)
+    )
     print(f"{'total':<55} {total * 1000:8.1f} ms  ratio to target {total / TARGET_S:.2f}")
 
 

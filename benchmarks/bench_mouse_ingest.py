@@ -32,15 +32,13 @@ import time
 import numpy as np
 from _timing import load_line, min_median_max
 
-from bench.sensors.input_event import MotionFrames
+from bench.sensors.calibration import CountsCalibration
+from bench.sensors.input_event import EVENT_DTYPE, FrameAssembler, MotionFrames
+from bench.sensors.mouse import EvdevMouse, MouseGroup
+from bench.simulators.mouse import MouseSimulator, circle_motion
 from bench.simulators.paced_mouse import ingest_beside_busy_work
 from bench.store import Store
 from bench.store.streams import StreamWriter
-
-from bench.sensors.calibration import CountsCalibration
-from bench.sensors.input_event import EVENT_DTYPE, FrameAssembler
-from bench.sensors.mouse import EvdevMouse, MouseGroup
-from bench.simulators.mouse import MouseSimulator, circle_motion
 
 
 def _timed(action) -> float:
@@ -50,12 +48,15 @@ def _timed(action) -> float:
 
 
 def paced(reader: str, duration_s: float, rate_hz: float, *, realtime: bool = True) -> bool:
-    r = ingest_beside_busy_work(reader=reader, rate_hz=rate_hz, duration_s=duration_s, buffer_bytes=4096,
-                                realtime=realtime)
+    r = ingest_beside_busy_work(
+        reader=reader, rate_hz=rate_hz, duration_s=duration_s, buffer_bytes=4096, realtime=realtime
+    )
     label = "thread reader (in process)" if reader == "thread" else r.reader_kind
-    print(f"paced {rate_hz:g} Hz x {duration_s:g} s into 4 KiB, beside busy Python, {label:34s}: "
-          f"lost {r.lost} of {r.expected} ({100 * r.lost / r.expected:.2f} %), largest gap {r.largest_gap_ms:.3f} ms,"
-          f" busy loops done {r.busy_loops}")
+    print(
+        f"paced {rate_hz:g} Hz x {duration_s:g} s into 4 KiB, beside busy Python, {label:34s}: "
+        f"lost {r.lost} of {r.expected} ({100 * r.lost / r.expected:.2f} %), largest gap {r.largest_gap_ms:.3f} ms,"
+        f" busy loops done {r.busy_loops}"
+    )
     return r.lost == 0
 
 
@@ -63,8 +64,10 @@ def _batches(rate_hz: float, batch_s: float, count: int) -> list[MotionFrames]:
     n = int(rate_hz * batch_s)
     k = np.arange(n * count)
     frames = MotionFrames(k / rate_hz, k % 7 - 3, -(k % 5), np.ones(len(k), bool))
-    return [MotionFrames(*(getattr(frames, f)[i * n:(i + 1) * n] for f in ("t_s", "dx", "dy", "valid")))
-            for i in range(count)]
+    return [
+        MotionFrames(*(getattr(frames, f)[i * n : (i + 1) * n] for f in ("t_s", "dx", "dy", "valid")))
+        for i in range(count)
+    ]
 
 
 def store_rates(folder: str, rate_hz: float, repeat: int = 5, batches: int = 20) -> bool:
@@ -86,8 +89,19 @@ def store_rates(folder: str, rate_hz: float, repeat: int = 5, batches: int = 20)
         db.execute("PRAGMA journal_mode=WAL")
         db.execute("PRAGMA synchronous=FULL")
         db.execute("CREATE TABLE t (run_id, stream, t_s, dx_counts, dy_counts, valid)")
-        plain = [list(zip([1] * len(p), ["mouse_xy"] * len(p), p.t_s.tolist(), p.dx.tolist(), p.dy.tolist(),
-                          p.valid.astype(int).tolist())) for p in parts]
+        plain = [
+            list(
+                zip(
+                    [1] * len(p),
+                    ["mouse_xy"] * len(p),
+                    p.t_s.tolist(),
+                    p.dx.tolist(),
+                    p.dy.tolist(),
+                    p.valid.astype(int).tolist(),
+                )
+            )
+            for p in parts
+        ]
         start = time.perf_counter()
         for batch in plain:
             db.execute("BEGIN")
@@ -103,15 +117,23 @@ def store_rates(folder: str, rate_hz: float, repeat: int = 5, batches: int = 20)
         sample_rate = 200 / (time.perf_counter() - start)
     store_rate = [rows / t for t in store_times]
     floor_rate = [rows / t for t in floor_times]
-    print(f"store: {batches} batches of {len(parts[0])} rows (0.1 s of {rate_hz:g} Hz), one transaction each; "
-          f"{repeat} runs")
-    print(f"  StreamWriter -> stream_rows: rows/s min {min(store_rate):,.0f}, median {np.median(store_rate):,.0f}, "
-          f"max {max(store_rate):,.0f} ({min_median_max(store_times)} for {rows} rows)")
-    print(f"  floor, bare executemany into an unindexed table: rows/s min {min(floor_rate):,.0f}, median "
-          f"{np.median(floor_rate):,.0f}, max {max(floor_rate):,.0f}")
+    print(
+        f"store: {batches} batches of {len(parts[0])} rows (0.1 s of {rate_hz:g} Hz), one transaction each; "
+        f"{repeat} runs"
+    )
+    print(
+        f"  StreamWriter -> stream_rows: rows/s min {min(store_rate):,.0f}, median {np.median(store_rate):,.0f}, "
+        f"max {max(store_rate):,.0f} ({min_median_max(store_times)} for {rows} rows)"
+    )
+    print(
+        f"  floor, bare executemany into an unindexed table: rows/s min {min(floor_rate):,.0f}, median "
+        f"{np.median(floor_rate):,.0f}, max {max(floor_rate):,.0f}"
+    )
     print(f"  before, one add_sample (one transaction) per report: {sample_rate:,.0f} rows/s")
-    print(f"  median ratio floor / store {np.median(floor_rate) / np.median(store_rate):.2f}x; sustained "
-          f"{np.median(store_rate) / rate_hz:.1f}x the {rate_hz:g} Hz stream (min {min(store_rate) / rate_hz:.1f}x)")
+    print(
+        f"  median ratio floor / store {np.median(floor_rate) / np.median(store_rate):.2f}x; sustained "
+        f"{np.median(store_rate) / rate_hz:.1f}x the {rate_hz:g} Hz stream (min {min(store_rate) / rate_hz:.1f}x)"
+    )
     return min(store_rate) >= rate_hz
 
 
@@ -127,9 +149,22 @@ def main() -> int:
     with tempfile.TemporaryDirectory() as tmp:
         fifo = os.path.join(tmp, "event-mouse")
         os.mkfifo(fifo)
-        writer = subprocess.Popen([sys.executable, "-m", "bench.simulators.mouse", "--out", fifo,
-                                   "--duration-s", str(args.duration_s), "--rate-hz", str(args.rate_hz),
-                                   "--cpi", str(args.cpi), *(["--realtime"] if args.realtime else [])])
+        writer = subprocess.Popen(
+            [
+                sys.executable,
+                "-m",
+                "bench.simulators.mouse",
+                "--out",
+                fifo,
+                "--duration-s",
+                str(args.duration_s),
+                "--rate-hz",
+                str(args.rate_hz),
+                "--cpi",
+                str(args.cpi),
+                *(["--realtime"] if args.realtime else []),
+            ]
+        )
         mouse = EvdevMouse(fifo, CountsCalibration.from_cpi(args.cpi), label="bench")
         group = MouseGroup([mouse])
         wall0, cpu0 = time.perf_counter(), time.process_time()
@@ -143,29 +178,38 @@ def main() -> int:
     sim = MouseSimulator(cpi=args.cpi, report_rate_hz=args.rate_hz, report_idle=True)
     expected = sim.reports(*circle_motion(args.duration_s, 20.0, 4.0, args.rate_hz))
     lost = len(expected.t_s) - len(frames)
-    counts_match = (np.array_equal(frames.dx, expected.dx) and np.array_equal(frames.dy, expected.dy))
+    counts_match = np.array_equal(frames.dx, expected.dx) and np.array_equal(frames.dy, expected.dy)
     gaps_ms = np.diff(frames.t_s).max() * 1e3 if len(frames) > 1 else float("nan")
-    print(f"stream: {args.rate_hz:g} Hz x {args.duration_s:g} s at {args.cpi:g} CPI "
-          f"({'real time' if args.realtime else 'as fast as the pipe allows'})")
-    print(f"reports: received {len(frames)}, expected {len(expected.t_s)}, lost {lost}; "
-          f"per-report counts identical: {counts_match}; all valid: {bool(frames.valid.all())}; "
-          f"largest gap {gaps_ms:.3f} ms")
-    print(f"reader: {cpu_s:.2f} s CPU, {wall_s:.2f} s wall -> CPU share of the {args.duration_s:g} s stream "
-          f"{100 * cpu_s / args.duration_s:.2f} %")
+    print(
+        f"stream: {args.rate_hz:g} Hz x {args.duration_s:g} s at {args.cpi:g} CPI "
+        f"({'real time' if args.realtime else 'as fast as the pipe allows'})"
+    )
+    print(
+        f"reports: received {len(frames)}, expected {len(expected.t_s)}, lost {lost}; "
+        f"per-report counts identical: {counts_match}; all valid: {bool(frames.valid.all())}; "
+        f"largest gap {gaps_ms:.3f} ms"
+    )
+    print(
+        f"reader: {cpu_s:.2f} s CPU, {wall_s:.2f} s wall -> CPU share of the {args.duration_s:g} s stream "
+        f"{100 * cpu_s / args.duration_s:.2f} %"
+    )
 
     data = sim.input_events(*circle_motion(min(args.duration_s, 5.0), 20.0, 4.0, args.rate_hz))
     fast = min(_timed(lambda: FrameAssembler().feed(data)) for _ in range(5))
     events = np.frombuffer(data, EVENT_DTYPE)
     slow = min(_timed(lambda: FrameAssembler()._feed_events_loop(events)) for _ in range(3))
-    print(f"decode of {len(data) // EVENT_DTYPE.itemsize} events: vectorised {fast * 1e3:.1f} ms, "
-          f"per-event loop {slow * 1e3:.1f} ms -> ratio {slow / fast:.1f}x (best of repeats)")
+    print(
+        f"decode of {len(data) // EVENT_DTYPE.itemsize} events: vectorised {fast * 1e3:.1f} ms, "
+        f"per-event loop {slow * 1e3:.1f} ms -> ratio {slow / fast:.1f}x (best of repeats)"
+    )
     live = data[: 8 * 3 * EVENT_DTYPE.itemsize]  # 8 reports: what one read of a live 8 kHz mouse gets in 1 ms
     fast = min(_timed(lambda: [FrameAssembler().feed(live) for _ in range(1000)]) for _ in range(5))
     live_events = np.frombuffer(live, EVENT_DTYPE)
-    slow = min(_timed(lambda: [FrameAssembler()._feed_events_loop(live_events) for _ in range(1000)])
-               for _ in range(5))
-    print(f"decode at live read size (8 reports): vectorised {fast * 1e3:.1f} us, per-event loop {slow * 1e3:.1f} us"
-          f" -> ratio vectorised / loop {fast / slow:.1f}x (the reader process decodes with the loop)")
+    slow = min(_timed(lambda: [FrameAssembler()._feed_events_loop(live_events) for _ in range(1000)]) for _ in range(5))
+    print(
+        f"decode at live read size (8 reports): vectorised {fast * 1e3:.1f} us, per-event loop {slow * 1e3:.1f} us"
+        f" -> ratio vectorised / loop {fast / slow:.1f}x (the reader process decodes with the loop)"
+    )
 
     paced_s = args.duration_s if args.realtime else 10.0
     paced_ok = paced("process", paced_s, args.rate_hz)

@@ -23,7 +23,6 @@ import os
 import time
 
 import numpy as np
-
 from _timing import copy_bandwidths_bytes_s, load_line, min_median_max, nbytes_of, spread, timed
 
 from motion import kernels, pkm5
@@ -40,8 +39,8 @@ def per_pose_peer(lengths: np.ndarray, geometry=pkm5.DEFAULT_GEOMETRY):
         angle_col = MODES[mode]
         columns = [0, 1, 2] + ([angle_col] if angle_col is not None else [])
         q0 = np.zeros((1, 4))
-        q0[0, :len(columns)] = _initial_guess(lengths[i:i + 1], mode, geometry)[0]
-        targets.append(np.ascontiguousarray(lengths[i:i + 1]))
+        q0[0, : len(columns)] = _initial_guess(lengths[i : i + 1], mode, geometry)[0]
+        targets.append(np.ascontiguousarray(lengths[i : i + 1]))
         starts.append(q0)
         codes.append(compiled.MODE_CODES[mode])
         tables.append(compiled.restart_table(mode))
@@ -53,7 +52,7 @@ def per_pose_peer(lengths: np.ndarray, geometry=pkm5.DEFAULT_GEOMETRY):
     seconds = time.perf_counter() - begin
     poses = np.zeros((len(lengths), 5))
     for i, (q0, columns) in enumerate(zip(starts, cols)):
-        poses[i, columns] = q0[0, :len(columns)]
+        poses[i, columns] = q0[0, : len(columns)]
     return seconds, poses
 
 
@@ -124,25 +123,35 @@ def main(argv=None) -> None:
     print(f"IK {args.ik:,} poses ({args.repeat} runs each; rates: median (min, max))")
     print(f"  numpy     {_stats(np_times, args.ik, 'M poses/s', 1e6)}   {min_median_max(np_times)}")
     print(f"  compiled  {_stats(c_times, args.ik, 'M poses/s', 1e6)}   {min_median_max(c_times)}")
-    print(f"  memory-bandwidth floor {ik_floor:.4f} s median, {ik_floor_best:.4f} s best ({ik_bytes / 1e6:.0f} MB "
-          f"at {bandwidth / 1e9:.1f} GB/s median copy bandwidth, {max(bandwidths) / 1e9:.1f} best): medians: numpy / "
-          f"floor = {np_med / ik_floor:.1f}x, compiled / floor = {c_med / ik_floor:.1f}x (target <= 10x); best: "
-          f"compiled / floor = {min(c_times) / ik_floor_best:.1f}x; numpy / compiled = {np_med / c_med:.2f}x; "
-          f"max |dL| {ik_same:.1e} mm")
+    print(
+        f"  memory-bandwidth floor {ik_floor:.4f} s median, {ik_floor_best:.4f} s best ({ik_bytes / 1e6:.0f} MB "
+        f"at {bandwidth / 1e9:.1f} GB/s median copy bandwidth, {max(bandwidths) / 1e9:.1f} best): medians: numpy / "
+        f"floor = {np_med / ik_floor:.1f}x, compiled / floor = {c_med / ik_floor:.1f}x (target <= 10x); best: "
+        f"compiled / floor = {min(c_times) / ik_floor_best:.1f}x; numpy / compiled = {np_med / c_med:.2f}x; "
+        f"max |dL| {ik_same:.1e} mm"
+    )
     print(f"  one-off kernel load (numba import + cache, or first compile): {load_time:.2f} s")
     print(f"FK {args.fk:,} solves (translation, alpha, beta mixed)")
-    print(f"  numpy     {_stats(fk_np_times, args.fk, 'k solves/s', 1e3)}   {min_median_max(fk_np_times)}, "
-          f"max error {np.abs(fk_np.pose - poses).max():.1e} mm, converged {fk_np.converged.mean():.4%}")
-    print(f"  compiled  {_stats(fk_c_times, args.fk, 'k solves/s', 1e3)}   {min_median_max(fk_c_times)}, "
-          f"max error {np.abs(fk_c.pose - poses).max():.1e} mm, converged {fk_c.converged.mean():.4%} "
-          f"(target >= 100 k/s); compiled / numpy = {fk_np_med / fk_c_med:.2f}x")
+    print(
+        f"  numpy     {_stats(fk_np_times, args.fk, 'k solves/s', 1e3)}   {min_median_max(fk_np_times)}, "
+        f"max error {np.abs(fk_np.pose - poses).max():.1e} mm, converged {fk_np.converged.mean():.4%}"
+    )
+    print(
+        f"  compiled  {_stats(fk_c_times, args.fk, 'k solves/s', 1e3)}   {min_median_max(fk_c_times)}, "
+        f"max error {np.abs(fk_c.pose - poses).max():.1e} mm, converged {fk_c.converged.mean():.4%} "
+        f"(target >= 100 k/s); compiled / numpy = {fk_np_med / fk_c_med:.2f}x"
+    )
     print(f"  one-off seed-table build (first call in a process): {setup_time:.3f} s")
-    print(f"  per-pose peer, the compiled single-pose solver called per pose ({args.peer:,} solves): "
-          f"{_stats(peer_times, args.peer, 'k solves/s', 1e3)}, max error "
-          f"{np.abs(peer_poses - poses[: args.peer]).max():.1e} mm")
-    print(f"  compiled batched on 1 thread {_stats(fk_c1_times, args.fk, 'k solves/s', 1e3)}; at equal threads "
-          f"(1): batched / per-pose = {c1_rate / peer_rate:.2f}x; batched on {threads} threads / per-pose on 1 = "
-          f"{c_rate / peer_rate:.2f}x")
+    print(
+        f"  per-pose peer, the compiled single-pose solver called per pose ({args.peer:,} solves): "
+        f"{_stats(peer_times, args.peer, 'k solves/s', 1e3)}, max error "
+        f"{np.abs(peer_poses - poses[: args.peer]).max():.1e} mm"
+    )
+    print(
+        f"  compiled batched on 1 thread {_stats(fk_c1_times, args.fk, 'k solves/s', 1e3)}; at equal threads "
+        f"(1): batched / per-pose = {c1_rate / peer_rate:.2f}x; batched on {threads} threads / per-pose on 1 = "
+        f"{c_rate / peer_rate:.2f}x"
+    )
     print(load_line(started))
 
 

@@ -22,10 +22,12 @@ def main() -> None:
     for rate in (0.05, 0.10):
         start = time.monotonic()
         r = corrupted_frames_drill(rate, args.moves, seed=args.seed)
-        print(f"rate {rate:.0%} each way: {r.moves} moves, {r.completed} completed, {r.stopped} stopped, {r.failed} "
-              f"failed; frames corrupted {r.corrupted['to_controller']} to the controller, {r.corrupted['to_host']} "
-              f"to the host; MOVEs re-sent {r.resent_moves}, executed twice {r.executed_twice}; stops {r.stops}, "
-              f"lost {r.lost_stops} ({time.monotonic() - start:.0f} s)")
+        print(
+            f"rate {rate:.0%} each way: {r.moves} moves, {r.completed} completed, {r.stopped} stopped, {r.failed} "
+            f"failed; frames corrupted {r.corrupted['to_controller']} to the controller, {r.corrupted['to_host']} "
+            f"to the host; MOVEs re-sent {r.resent_moves}, executed twice {r.executed_twice}; stops {r.stops}, "
+            f"lost {r.lost_stops} ({time.monotonic() - start:.0f} s)"
+        )
         for message in r.failures[:3]:
             print(f"  failed: {message}")
 

@@ -16,13 +16,15 @@ from bench.robots.line_fuzz import accepted_count
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--frames", type=int, default=10 ** 6)
+    parser.add_argument("--frames", type=int, default=10**6)
     frames = parser.parse_args().frames
     for label, version in (("v2 CRC-16", 2), ("v1 XOR-8 (peer)", 1)):
         start = time.perf_counter()
         accepted = accepted_count(frames, version, seed=16)
-        print(f"{label:28s} {accepted:8d} of {frames} corrupted frames accepted ({accepted / frames:.4%}), "
-              f"{frames / (time.perf_counter() - start):,.0f} frames/s")
+        print(
+            f"{label:28s} {accepted:8d} of {frames} corrupted frames accepted ({accepted / frames:.4%}), "
+            f"{frames / (time.perf_counter() - start):,.0f} frames/s"
+        )
 
 
 if __name__ == "__main__":

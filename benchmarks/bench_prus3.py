@@ -13,9 +13,8 @@ from __future__ import annotations
 import argparse
 
 import numpy as np
-from scipy.optimize import least_squares
-
 from _timing import timed
+from scipy.optimize import least_squares
 
 from motion import prus3
 

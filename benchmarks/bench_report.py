@@ -40,34 +40,54 @@ from bench.store import Store
 #: write_report of the demo run (issue 17) and ``bench report`` of it as a whole process (issue 18), seconds.
 TARGET_S = 2.0
 PROCESS_TARGET_S = 3.0
-CUBE = {"P1": (110.0, 0.0, 320.0), "P2": (94.0, -16.0, 304.0), "P3": (94.0, 16.0, 304.0),
-        "P4": (126.0, 16.0, 336.0), "P5": (126.0, -16.0, 336.0)}
-SETTINGS = {"robot": {"driver": "Pkm5Controller", "firmware": {"firmware_version": "1.0.0-sim"},
-                      "rated_speed_steps_s": 200},
-            "instrument": {"instrument": "two simulated optical mice (x-y, x-z)", "cpi": 800.0,
-                           "noise_counts": 0.05},
-            "simulator": {"seed": 0}}
+CUBE = {
+    "P1": (110.0, 0.0, 320.0),
+    "P2": (94.0, -16.0, 304.0),
+    "P3": (94.0, 16.0, 304.0),
+    "P4": (126.0, 16.0, 336.0),
+    "P5": (126.0, -16.0, 336.0),
+}
+SETTINGS = {
+    "robot": {"driver": "Pkm5Controller", "firmware": {"firmware_version": "1.0.0-sim"}, "rated_speed_steps_s": 200},
+    "instrument": {"instrument": "two simulated optical mice (x-y, x-z)", "cpi": 800.0, "noise_counts": 0.05},
+    "simulator": {"seed": 0},
+}
 
 
 def demo_like_run(store: Store) -> int:
     """A completed pose run of the demo's size (the simulator's run takes 15-20 s; the report reads only this)."""
-    config = {"protocol": "iso9283_pose", "protocol_version": "1", "robot": "pkm5", "cycles": 30,
-              "velocities_pct": [100.0, 50.0, 10.0], "loads_kg": [0.0], "cube_centre_mm": [110.0, 0.0, 320.0],
-              "cube_side_mm": 40.0, "plane": "x=z", "poses": None, "settle_s": 1.0}
+    config = {
+        "protocol": "iso9283_pose",
+        "protocol_version": "1",
+        "robot": "pkm5",
+        "cycles": 30,
+        "velocities_pct": [100.0, 50.0, 10.0],
+        "loads_kg": [0.0],
+        "cube_centre_mm": [110.0, 0.0, 320.0],
+        "cube_side_mm": 40.0,
+        "plane": "x=z",
+        "poses": None,
+        "settle_s": 1.0,
+    }
     rng = np.random.default_rng(0)
-    run_id = store.start_run(protocol_name="iso9283_pose", protocol_version="1", robot="pkm5", config=config,
-                             settings=SETTINGS)
+    run_id = store.start_run(
+        protocol_name="iso9283_pose", protocol_version="1", robot="pkm5", config=config, settings=SETTINGS
+    )
     step = 0
     for velocity in config["velocities_pct"]:
         for cycle in range(1, 31):
             for pose in ("P1", "P5", "P4", "P3", "P2"):
                 command = np.array(CUBE[pose])
                 attained = command + (1.0, 1.4, -0.7) + rng.normal(0.0, 0.4, 3)
-                values = dict(zip(("x_mm", "y_mm", "z_mm", "cmd_x_mm", "cmd_y_mm", "cmd_z_mm"),
-                                  (*attained, *command)))
-                store.add_sample(run_id, step, values={**{k: float(v) for k, v in values.items()},
-                                                       "velocity_pct": velocity, "load_kg": 0.0},
-                                 pose=pose, cycle=cycle, t_s=1.5 * step)
+                values = dict(zip(("x_mm", "y_mm", "z_mm", "cmd_x_mm", "cmd_y_mm", "cmd_z_mm"), (*attained, *command)))
+                store.add_sample(
+                    run_id,
+                    step,
+                    values={**{k: float(v) for k, v in values.items()}, "velocity_pct": velocity, "load_kg": 0.0},
+                    pose=pose,
+                    cycle=cycle,
+                    t_s=1.5 * step,
+                )
                 step += 1
     store.set_status(run_id, "completed")
     return run_id
@@ -84,12 +104,14 @@ def _timed(function, repeat: int):
 
 
 def _line(name: str, walls: list[float], cpus: list[float]) -> str:
-    return (f"{name:<14} wall min {min(walls):6.2f}  median {statistics.median(walls):6.2f}  max {max(walls):6.2f} s"
-            f"   CPU median {statistics.median(cpus):6.2f} s")
+    return (
+        f"{name:<14} wall min {min(walls):6.2f}  median {statistics.median(walls):6.2f}  max {max(walls):6.2f} s"
+        f"   CPU median {statistics.median(cpus):6.2f} s"
+    )
 
 
 def _load() -> str:
-    return "load average %.2f, %.2f, %.2f" % os.getloadavg()
+    return "load average {:.2f}, {:.2f}, {:.2f}".format(*os.getloadavg())
 
 
 HERE = Path(__file__).resolve().parents[1]
@@ -104,8 +126,15 @@ def _process(arguments: list[str], checkout: Path = HERE) -> tuple[float, float,
     """Wall and CPU seconds (user + system, the child's) of one ``python ARGUMENTS``, and its stdout."""
     before = resource.getrusage(resource.RUSAGE_CHILDREN)
     start = time.perf_counter()
-    done = subprocess.run([sys.executable, *arguments], check=True, env=_environment(checkout), cwd=checkout,
-                          stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True)
+    done = subprocess.run(
+        [sys.executable, *arguments],
+        check=True,
+        env=_environment(checkout),
+        cwd=checkout,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.DEVNULL,
+        text=True,
+    )
     wall = time.perf_counter() - start
     after = resource.getrusage(resource.RUSAGE_CHILDREN)
     return wall, after.ru_utime - before.ru_utime + after.ru_stime - before.ru_stime, done.stdout
@@ -127,8 +156,17 @@ LIBRARIES = "import numpy, pandas, matplotlib.figure, reportlab.platypus, jinja2
 
 def _report_argv(store_path: Path, run_id: int, out: Path) -> list[str]:
     """A child interpreter's arguments for ``bench report RUN`` through the installed entry point's ``main``."""
-    return ["-c", "import sys; from bench.cli import main; sys.exit(main())", "report", str(run_id), "--store",
-            str(store_path), "--out", str(out), "--quiet"]
+    return [
+        "-c",
+        "import sys; from bench.cli import main; sys.exit(main())",
+        "report",
+        str(run_id),
+        "--store",
+        str(store_path),
+        "--out",
+        str(out),
+        "--quiet",
+    ]
 
 
 def whole_process(store_path: Path, run_id: int, out: Path, repeat: int) -> None:
@@ -140,8 +178,10 @@ def whole_process(store_path: Path, run_id: int, out: Path, repeat: int) -> None
     print(f"{'the libraries a report imports':<36} wall {_spread(libraries)}   {_load()}")
     print(f"{'bench report RUN (whole process)':<36} wall {_spread(report)}   {_load()}")
     median = statistics.median(report)
-    print(f"bench report RUN: median {median:.2f} s = {median / statistics.median(floor):.1f} x the import floor, "
-          f"{median / PROCESS_TARGET_S:.2f} x the {PROCESS_TARGET_S:g} s target")
+    print(
+        f"bench report RUN: median {median:.2f} s = {median / statistics.median(floor):.1f} x the import floor, "
+        f"{median / PROCESS_TARGET_S:.2f} x the {PROCESS_TARGET_S:g} s target"
+    )
 
 
 #: Run in a child process of either checkout: ``write_report`` of the run once (after the imports, the first call in
@@ -165,8 +205,9 @@ def against_baseline(baseline: Path, store_path: Path, run_id: int, out: Path, r
     whole = {name: ([], []) for name in checkouts}
     for index in range(repeat):
         for name, checkout in checkouts.items():
-            _, _, said = _process(["-c", _IN_PROCESS, str(store_path), str(run_id), str(out / name / f"in{index}")],
-                                  checkout)
+            _, _, said = _process(
+                ["-c", _IN_PROCESS, str(store_path), str(run_id), str(out / name / f"in{index}")], checkout
+            )
             wall, cpu = json.loads(said)
             inside[name][0].append(wall)
             inside[name][1].append(cpu)
@@ -195,19 +236,25 @@ def long_path_run(folder: Path, points: int) -> tuple[Path, int]:
     with Store(path) as store:
         rig = simulated_rig("pkm5", seed=6, speed_factor=10000)
         try:
-            run_id = Runner(rig, store).run(PathAccuracy(shape="both", cycles=2, velocities_pct=[100.0],
-                                                         final_hold_s=0.2)).run_id
+            run_id = (
+                Runner(rig, store)
+                .run(PathAccuracy(shape="both", cycles=2, velocities_pct=[100.0], final_hold_s=0.2))
+                .run_id
+            )
         finally:
             rig.close()
         per_copy = sum(len(s.raw["series"]["t_s"]) for s in store.samples(run_id, kind="path"))
     with sqlite3.connect(path) as db:
-        (steps, cycles), = db.execute("SELECT MAX(step_index) + 1, MAX(cycle) FROM samples WHERE run_id = ?",
-                                      (run_id,))
+        ((steps, cycles),) = db.execute(
+            "SELECT MAX(step_index) + 1, MAX(cycle) FROM samples WHERE run_id = ?", (run_id,)
+        )
         for copy in range(1, max(1, round(points / per_copy))):
-            db.execute("INSERT INTO samples (run_id, step_index, kind, pose, cycle, t_s, wall_utc, values_json, "
-                       "raw_json) SELECT run_id, step_index + ?, kind, pose, cycle + ?, t_s, wall_utc, values_json, "
-                       "raw_json FROM samples WHERE run_id = ? AND kind = 'path' AND step_index < ?",
-                       (copy * steps, copy * cycles, run_id, steps))
+            db.execute(
+                "INSERT INTO samples (run_id, step_index, kind, pose, cycle, t_s, wall_utc, values_json, "
+                "raw_json) SELECT run_id, step_index + ?, kind, pose, cycle + ?, t_s, wall_utc, values_json, "
+                "raw_json FROM samples WHERE run_id = ? AND kind = 'path' AND step_index < ?",
+                (copy * steps, copy * cycles, run_id, steps),
+            )
     return path, run_id
 
 
@@ -218,14 +265,21 @@ def main() -> None:
     parser.add_argument("--repeat", type=int, default=5)
     parser.add_argument("--path", action="store_true", help="also a long path run's report (simulates one, ~1 min)")
     parser.add_argument("--path-points", type=int, default=2_300_000)
-    parser.add_argument("--baseline", type=Path, default=None, metavar="CHECKOUT",
-                        help="another checkout of bench (e.g. a git worktree of the previous commit): before/after "
-                             "ratios of write_report and bench report RUN, the two taking turns")
+    parser.add_argument(
+        "--baseline",
+        type=Path,
+        default=None,
+        metavar="CHECKOUT",
+        help="another checkout of bench (e.g. a git worktree of the previous commit): before/after "
+        "ratios of write_report and bench report RUN, the two taking turns",
+    )
     args = parser.parse_args()
     print(_load())
     if sys.flags.dont_write_bytecode:  # PYTHONDONTWRITEBYTECODE: no .pyc is written, each child compiles bench
-        print("note: bytecode is not written here; without `python -m compileall bench motion` (in each checkout) "
-              "every child process compiles bench from source (about 0.5 s)")
+        print(
+            "note: bytecode is not written here; without `python -m compileall bench motion` (in each checkout) "
+            "every child process compiles bench from source (about 0.5 s)"
+        )
     with tempfile.TemporaryDirectory() as folder:
         store = Store(args.store) if args.store else Store(Path(folder) / "bench.db")
         run_id = args.run if args.store else demo_like_run(store)
@@ -234,8 +288,11 @@ def main() -> None:
         stages = {"document": ([], []), "html": ([], []), "pdf": ([], [])}
         for _ in range(args.repeat):  # a fresh document each time: its figures are drawn once, by the first format
             walls, cpus, document = _timed(lambda: run_document(report, []), 1)
-            timed = {"document": (walls, cpus), "html": _timed(lambda: render_html(document), 1)[:2],
-                     "pdf": _timed(lambda: render_pdf(document), 1)[:2]}
+            timed = {
+                "document": (walls, cpus),
+                "html": _timed(lambda: render_html(document), 1)[:2],
+                "pdf": _timed(lambda: render_pdf(document), 1)[:2],
+            }
             for name, (walls, cpus) in timed.items():
                 stages[name][0].extend(walls)
                 stages[name][1].extend(cpus)
@@ -245,22 +302,28 @@ def main() -> None:
         print(_line("write_report", walls, cpus) + f"   {_load()}")
         store.close()
         median = statistics.median(walls)
-        print(f"demo-sized write_report: median {median:.2f} s wall, {statistics.median(cpus):.2f} s CPU = "
-              f"{median / TARGET_S:.2f} x the {TARGET_S:g} s target")
+        print(
+            f"demo-sized write_report: median {median:.2f} s wall, {statistics.median(cpus):.2f} s CPU = "
+            f"{median / TARGET_S:.2f} x the {TARGET_S:g} s target"
+        )
         whole_process(args.store or Path(folder) / "bench.db", run_id, Path(folder) / "process", args.repeat)
         if args.baseline is not None:
-            against_baseline(args.baseline, args.store or Path(folder) / "bench.db", run_id, Path(folder) / "ab",
-                             args.repeat)
+            against_baseline(
+                args.baseline, args.store or Path(folder) / "bench.db", run_id, Path(folder) / "ab", args.repeat
+            )
         if args.path:
             path, path_run = long_path_run(Path(folder), args.path_points)
-            walls, cpus, paths = _timed(lambda: write_report(path, path_run, Path(folder) / "path-out"),
-                                        max(1, args.repeat // 2))
+            walls, cpus, paths = _timed(
+                lambda: write_report(path, path_run, Path(folder) / "path-out"), max(1, args.repeat // 2)
+            )
             rows = sum(1 for _ in paths.csv[0].open("rb")) - 1
             size = paths.csv[0].stat().st_size / 2**20
             print(_line("path report", walls, cpus) + f"   {rows:,} rows in its CSV ({size:.0f} MiB)   {_load()}")
             floor = _timed(lambda: shutil.copyfile(paths.csv[0], Path(folder) / "copy.csv"), 3)[0]
-            print(f"long path run report: median {statistics.median(walls):.1f} s wall; copying its CSV alone "
-                  f"{min(floor):.2f} s")
+            print(
+                f"long path run report: median {statistics.median(walls):.1f} s wall; copying its CSV alone "
+                f"{min(floor):.2f} s"
+            )
 
 
 if __name__ == "__main__":

@@ -32,8 +32,10 @@ from _timing import min_median_max, spread  # noqa: E402
 
 from bench.store import Store  # noqa: E402
 from bench.store.connection import check_store  # noqa: E402
-from bench.store.sample_checksum import damaged_sample_lines  # noqa: E402
-from bench.store.sample_checksum import sample_checksum  # noqa: E402
+from bench.store.sample_checksum import (
+    damaged_sample_lines,  # noqa: E402
+    sample_checksum,  # noqa: E402
+)
 
 
 def make_store(path: Path, samples: int) -> None:
@@ -42,13 +44,29 @@ def make_store(path: Path, samples: int) -> None:
         raw = store._db.raw  # one transaction for the fill: add_sample commits each sample (fsync) by design
         raw.execute("BEGIN")
         for step in range(samples):
-            values = {"x_mm": step * 1e-3, "y_mm": 1.5, "z_mm": 250.0, "cmd_x_mm": 0.0, "cmd_y_mm": 1.5,
-                      "cmd_z_mm": 250.0}
-            columns = (step, "pose", "P1", step // 5 + 1, float(step), "2026-12-02T00:00:00.000000+00:00",
-                       json.dumps(values), json.dumps({"counts": [step, -step, 3, 4]}))
-            raw.execute("INSERT INTO samples (run_id, step_index, kind, pose, cycle, t_s, wall_utc, values_json,"
-                        " raw_json, checksum) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?)",
-                        (run_id, *columns, sample_checksum(*columns)))
+            values = {
+                "x_mm": step * 1e-3,
+                "y_mm": 1.5,
+                "z_mm": 250.0,
+                "cmd_x_mm": 0.0,
+                "cmd_y_mm": 1.5,
+                "cmd_z_mm": 250.0,
+            }
+            columns = (
+                step,
+                "pose",
+                "P1",
+                step // 5 + 1,
+                float(step),
+                "2026-12-02T00:00:00.000000+00:00",
+                json.dumps(values),
+                json.dumps({"counts": [step, -step, 3, 4]}),
+            )
+            raw.execute(
+                "INSERT INTO samples (run_id, step_index, kind, pose, cycle, t_s, wall_utc, values_json,"
+                " raw_json, checksum) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?)",
+                (run_id, *columns, sample_checksum(*columns)),
+            )
         raw.execute("COMMIT")
         store.set_status(run_id, "completed")
 
@@ -80,10 +98,12 @@ def main() -> None:
         print(f"store: {args.samples} samples, {path.stat().st_size / 2**20:.1f} MiB, SQLite {sqlite3.sqlite_version}")
         floor, _ = spread(pragma, path, "SELECT SUM(LENGTH(values_json)) FROM samples", repeat=args.repeat)
         print(f"floor (one scan of the samples): {min_median_max(floor)}")
-        for label, call in (("quick_check", lambda: pragma(path, "PRAGMA quick_check")),
-                            ("integrity_check", lambda: pragma(path, "PRAGMA integrity_check")),
-                            ("checksums", lambda: _checksums(path)),
-                            ("check_store", lambda: check_store(str(path)))):
+        for label, call in (
+            ("quick_check", lambda: pragma(path, "PRAGMA quick_check")),
+            ("integrity_check", lambda: pragma(path, "PRAGMA integrity_check")),
+            ("checksums", lambda: _checksums(path)),
+            ("check_store", lambda: check_store(str(path))),
+        ):
             times, result = spread(call, repeat=args.repeat)
             ratio = statistics.median(times) / statistics.median(floor)
             print(f"{label}: {min_median_max(times)}; median {ratio:.1f} x the floor; result {result!r:.40}")

@@ -52,46 +52,72 @@ def run_suite(checkout: Path, log: Path) -> dict:
     busy0, steal0 = _busy_ticks()
     started = time.monotonic()
     with open(log, "w") as out:
-        code = subprocess.run(["./dev", "test", "-q"], cwd=checkout, env=env, stdout=out, stderr=subprocess.STDOUT,
-                              stdin=subprocess.DEVNULL).returncode
+        code = subprocess.run(
+            ["./dev", "test", "-q"],
+            cwd=checkout,
+            env=env,
+            stdout=out,
+            stderr=subprocess.STDOUT,
+            stdin=subprocess.DEVNULL,
+        ).returncode
     wall_s = time.monotonic() - started
     busy1, steal1 = _busy_ticks()
     summary = log.read_text().strip().splitlines()[-1]
-    return {"code": code, "wall_s": wall_s, "busy_s": (busy1 - busy0) / hz, "steal_s": (steal1 - steal0) / hz,
-            "speed_s": (before_s + speed_reference_s()) / 2, "summary": summary}
+    return {
+        "code": code,
+        "wall_s": wall_s,
+        "busy_s": (busy1 - busy0) / hz,
+        "steal_s": (steal1 - steal0) / hz,
+        "speed_s": (before_s + speed_reference_s()) / 2,
+        "summary": summary,
+    }
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--repeat", type=int, default=1, help="runs of each checkout (taking turns)")
-    parser.add_argument("--baseline", type=Path, default=None, metavar="CHECKOUT",
-                        help="another checkout (e.g. a git worktree of an older commit) to take turns with")
+    parser.add_argument(
+        "--baseline",
+        type=Path,
+        default=None,
+        metavar="CHECKOUT",
+        help="another checkout (e.g. a git worktree of an older commit) to take turns with",
+    )
     parser.add_argument("--logs", type=Path, default=Path("suite-logs"), help="folder of the runs' pytest output")
     args = parser.parse_args()
     args.logs.mkdir(parents=True, exist_ok=True)
     checkouts = {"this": HERE} if args.baseline is None else {"before": args.baseline.resolve(), "after": HERE}
     for checkout in checkouts.values():  # ./dev would install another pyproject.toml into this environment
         if (checkout / "pyproject.toml").read_bytes() != (HERE / "pyproject.toml").read_bytes():
-            sys.exit(f"bench_suite: --baseline {checkout}: its pyproject.toml differs from this checkout's, "
-                     "expected the same dependencies (give the baseline a virtual environment of its own)")
+            sys.exit(
+                f"bench_suite: --baseline {checkout}: its pyproject.toml differs from this checkout's, "
+                "expected the same dependencies (give the baseline a virtual environment of its own)"
+            )
     cpus = os.cpu_count()
     runs: dict[str, list[dict]] = {name: [] for name in checkouts}
     for i in range(args.repeat):
         for name, checkout in checkouts.items():
             run = run_suite(checkout, args.logs / f"{name}-{i + 1}.log")
             runs[name].append(run)
-            print(f"{name:6s} run {i + 1}: wall {run['wall_s']:6.1f} s, machine CPU {run['busy_s']:6.1f} s (steal "
-                  f"{run['steal_s']:.1f} s), floor {run['busy_s'] / cpus:6.1f} s, wall / floor "
-                  f"{run['wall_s'] * cpus / run['busy_s']:.2f}, speed ref {run['speed_s']:.2f} s, exit {run['code']}: "
-                  f"{run['summary']}", flush=True)
+            print(
+                f"{name:6s} run {i + 1}: wall {run['wall_s']:6.1f} s, machine CPU {run['busy_s']:6.1f} s (steal "
+                f"{run['steal_s']:.1f} s), floor {run['busy_s'] / cpus:6.1f} s, wall / floor "
+                f"{run['wall_s'] * cpus / run['busy_s']:.2f}, speed ref {run['speed_s']:.2f} s, exit {run['code']}: "
+                f"{run['summary']}",
+                flush=True,
+            )
     for name, done in runs.items():
         walls = [r["wall_s"] for r in done]
         busy = [r["busy_s"] for r in done]
-        print(f"{name:6s} wall min {min(walls):.1f} median {float(np.median(walls)):.1f} max {max(walls):.1f} s; "
-              f"machine CPU min {min(busy):.1f} median {float(np.median(busy)):.1f} max {max(busy):.1f} s; "
-              f"target 180 s wall on {cpus} CPUs")
+        print(
+            f"{name:6s} wall min {min(walls):.1f} median {float(np.median(walls)):.1f} max {max(walls):.1f} s; "
+            f"machine CPU min {min(busy):.1f} median {float(np.median(busy)):.1f} max {max(busy):.1f} s; "
+            f"target 180 s wall on {cpus} CPUs"
+        )
     if args.baseline is not None:
-        ratio = float(np.median([r["wall_s"] for r in runs["before"]]) / np.median([r["wall_s"] for r in runs["after"]]))
+        ratio = float(
+            np.median([r["wall_s"] for r in runs["before"]]) / np.median([r["wall_s"] for r in runs["after"]])
+        )
         cpu = float(np.median([r["busy_s"] for r in runs["before"]]) / np.median([r["busy_s"] for r in runs["after"]]))
         print(f"before / after, medians: wall {ratio:.2f}x, machine CPU {cpu:.2f}x")
 

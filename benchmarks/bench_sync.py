@@ -54,6 +54,7 @@ with Store(sys.argv[1]) as store:
 
 def _database(url: str, name: str) -> str:
     import psycopg
+
     with psycopg.connect(url, autocommit=True) as admin:
         admin.execute(f'DROP DATABASE IF EXISTS "{name}" WITH (FORCE)')
         admin.execute(f'CREATE DATABASE "{name}"')
@@ -63,6 +64,7 @@ def _database(url: str, name: str) -> str:
 def copy_floor(url: str, path: Path) -> float:
     """Seconds of a bare COPY of the samples of ``path`` (as sync formats them) into an unlogged table without keys."""
     import psycopg
+
     with Store(path) as store, psycopg.connect(url) as conn:
         data = [copy_text(r.uuid, store.stored_rows(r.id, extract=TYPED_COLUMNS)) for r in store.runs()]
         conn.execute("CREATE UNLOGGED TABLE floor (LIKE bench.samples)")
@@ -123,11 +125,15 @@ def main(argv=None) -> None:
         url = _database(server, "bench_sync_benchmark")
         start = time.perf_counter()
         per_run = [args.samples // args.runs] * args.runs
-        stores = [make_store(work / f"bench{i:02d}.db", f"bench-{i:02d}", per_run,
-                             robot=("pkm5", "delta4")[i % 2]) for i in range(args.benches)]
+        stores = [
+            make_store(work / f"bench{i:02d}.db", f"bench-{i:02d}", per_run, robot=("pkm5", "delta4")[i % 2])
+            for i in range(args.benches)
+        ]
         total = sum(per_run) * args.benches
-        print(f"local stores       {args.benches} benches x {sum(per_run):,} samples written in "
-              f"{time.perf_counter() - start:.1f} s")
+        print(
+            f"local stores       {args.benches} benches x {sum(per_run):,} samples written in "
+            f"{time.perf_counter() - start:.1f} s"
+        )
 
         print(f"load average before the syncs: {os.getloadavg()[0]:.1f} on {os.cpu_count()} CPUs")
         rates, client_cpu, server_cpu = [], [], []
@@ -138,27 +144,43 @@ def main(argv=None) -> None:
                 client_cpu.append((time.process_time() - cpu) / result.samples_sent * 1e6)
                 server_cpu.append((server_cpu_s(cluster) - server) / result.samples_sent * 1e6)
             rates.append(result.samples_per_s)
-        print(f"sync, one bench    {sum(per_run):>9,} samples  min {min(rates):9,.0f}  median "
-              f"{statistics.median(rates):9,.0f}  max {max(rates):9,.0f} samples/s ({len(rates)} benches)")
-        print(f"CPU per sample     this process (read, format) median {statistics.median(client_cpu):.1f} us; "
-              f"server median {statistics.median(server_cpu):.1f} us")
+        print(
+            f"sync, one bench    {sum(per_run):>9,} samples  min {min(rates):9,.0f}  median "
+            f"{statistics.median(rates):9,.0f}  max {max(rates):9,.0f} samples/s ({len(rates)} benches)"
+        )
+        print(
+            f"CPU per sample     this process (read, format) median {statistics.median(client_cpu):.1f} us; "
+            f"server median {statistics.median(server_cpu):.1f} us"
+        )
 
-        rest = stores[args.sequential:]
+        rest = stores[args.sequential :]
         if rest:  # one process per bench; the window runs from the first sync's start to the last one's end
-            procs = [subprocess.Popen([sys.executable, "-c", _CHILD, str(p), url], cwd=ROOT, stdout=subprocess.PIPE,
-                                      text=True, env={**os.environ, "PYTHONPATH": str(ROOT)}) for p in rest]
+            procs = [
+                subprocess.Popen(
+                    [sys.executable, "-c", _CHILD, str(p), url],
+                    cwd=ROOT,
+                    stdout=subprocess.PIPE,
+                    text=True,
+                    env={**os.environ, "PYTHONPATH": str(ROOT)},
+                )
+                for p in rest
+            ]
             spans = [tuple(map(float, p.communicate()[0].split())) for p in procs]
             window = max(end for _, end in spans) - min(start for start, _ in spans)
             n = sum(per_run) * len(rest)
-            print(f"sync, {len(rest)} at once    {n:>9,} samples  {window:7.2f} s  {n / window:9,.0f} samples/s "
-                  "aggregate")
+            print(
+                f"sync, {len(rest)} at once    {n:>9,} samples  {window:7.2f} s  {n / window:9,.0f} samples/s aggregate"
+            )
 
         floors = [sum(per_run) / copy_floor(url, stores[0]) for _ in range(5)]
-        print(f"floor: bare COPY   {sum(per_run):>9,} samples  min {min(floors):9,.0f}  median "
-              f"{statistics.median(floors):9,.0f}  max {max(floors):9,.0f} samples/s; sync median / floor median "
-              f"= {statistics.median(rates) / statistics.median(floors):.2f}")
+        print(
+            f"floor: bare COPY   {sum(per_run):>9,} samples  min {min(floors):9,.0f}  median "
+            f"{statistics.median(floors):9,.0f}  max {max(floors):9,.0f} samples/s; sync median / floor median "
+            f"= {statistics.median(rates) / statistics.median(floors):.2f}"
+        )
 
         import psycopg
+
         with psycopg.connect(url, autocommit=True) as conn:  # the statistics autovacuum would have gathered by now
             conn.execute("ANALYZE bench.runs")
             conn.execute("ANALYZE bench.samples")
@@ -169,9 +191,11 @@ def main(argv=None) -> None:
                 start = time.perf_counter()
                 groups = pose_summary(lab, since="2026-01-01")
                 times.append(time.perf_counter() - start)
-        print(f"lab summary (AP/RP per bench, robot, week, pose, velocity) over {held:,} samples (expected "
-              f"{total:,}), {len(groups)} groups: min {min(times):.3f}  median {statistics.median(times):.3f}  "
-              f"max {max(times):.3f} s")
+        print(
+            f"lab summary (AP/RP per bench, robot, week, pose, velocity) over {held:,} samples (expected "
+            f"{total:,}), {len(groups)} groups: min {min(times):.3f}  median {statistics.median(times):.3f}  "
+            f"max {max(times):.3f} s"
+        )
         print(f"load average during the run: {os.getloadavg()[0]:.1f} on {os.cpu_count()} CPUs")
     finally:
         if cluster is not None:

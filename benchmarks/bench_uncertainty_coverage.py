@@ -83,8 +83,12 @@ def groover_coverage(n: int, campaigns: int, seed: int, *, method: str) -> float
         readings = rng.standard_normal((n, len(TARGET_SIGMAS_MM))) * TARGET_SIGMAS_MM
         value = 3.0 * float(readings.std(axis=0, ddof=1).mean())
         if method == "before":
-            u = bootstrap_uncertainty(lambda r: 3.0 * float(r.std(axis=0, ddof=1).mean()), readings, resamples=200,
-                                      seed=int(rng.integers(1 << 30)))
+            u = bootstrap_uncertainty(
+                lambda r: 3.0 * float(r.std(axis=0, ddof=1).mean()),
+                readings,
+                resamples=200,
+                seed=int(rng.integers(1 << 30)),
+            )
         else:
             u = 3.0 * mean_sd_uncertainty(readings)
         hits += abs(value - truth) <= 2.0 * u
@@ -95,8 +99,9 @@ def ad_coverage(n: int, campaigns: int, seed: int, *, method: str) -> float:
     """Share of campaigns whose AD ± U holds E[D] - D_c (robot scatter 0.3 mm per axis at both poses)."""
     rng = np.random.default_rng(seed)
     offset = np.array([100.0, 0.0, 0.0]) + ROBOT_OFFSET_MM
-    population = np.linalg.norm(offset + np.random.default_rng(98).normal(0.0, 0.3 * np.sqrt(2.0), (2_000_000, 3)),
-                                axis=1)
+    population = np.linalg.norm(
+        offset + np.random.default_rng(98).normal(0.0, 0.3 * np.sqrt(2.0), (2_000_000, 3)), axis=1
+    )
     truth = float(population.mean()) - 100.0
     hits = 0
     for _ in range(campaigns):
@@ -112,12 +117,25 @@ def coverage_table(campaigns: int, seed: int, sizes=(10, 30)) -> list[tuple[str,
     rows = []
     for n in sizes:
         for name, sigmas in SHAPES.items():
-            rows.append((f"RP {name}", n, rp_coverage(sigmas, n, campaigns, seed, method="bootstrap"),
-                         rp_coverage(sigmas, n, campaigns, seed, method="auto")))
-        rows.append(("AD", n, ad_coverage(n, campaigns, seed, method="before"),
-                     ad_coverage(n, campaigns, seed, method="after")))
-        rows.append(("Groover 3 sigma-bar", n, groover_coverage(n, campaigns, seed, method="before"),
-                     groover_coverage(n, campaigns, seed, method="after")))
+            rows.append(
+                (
+                    f"RP {name}",
+                    n,
+                    rp_coverage(sigmas, n, campaigns, seed, method="bootstrap"),
+                    rp_coverage(sigmas, n, campaigns, seed, method="auto"),
+                )
+            )
+        rows.append(
+            ("AD", n, ad_coverage(n, campaigns, seed, method="before"), ad_coverage(n, campaigns, seed, method="after"))
+        )
+        rows.append(
+            (
+                "Groover 3 sigma-bar",
+                n,
+                groover_coverage(n, campaigns, seed, method="before"),
+                groover_coverage(n, campaigns, seed, method="after"),
+            )
+        )
         for declared in (True, False):
             label = "declared" if declared else "undeclared"
             before = ap_coverage(n, campaigns, seed, declared=declared, method="before")

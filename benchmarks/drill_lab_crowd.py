@@ -39,18 +39,24 @@ def main(argv=None) -> int:
     args = parser.parse_args(argv)
     with drill_server("crowd", f"max_connections = {int(args.max_connections)}") as (_, url, work):
         import psycopg
+
         half = args.samples // 2
         start = time.perf_counter()
-        paths = [make_store(work / f"bench{i:03d}.db", f"bench-{i:03d}", [args.samples - half, half])
-                 for i in range(args.benches)]
+        paths = [
+            make_store(work / f"bench{i:03d}.db", f"bench-{i:03d}", [args.samples - half, half])
+            for i in range(args.benches)
+        ]
         print(f"{args.benches} stores of {args.samples} samples written in {time.perf_counter() - start:.1f} s")
         monitor = psycopg.connect(url, autocommit=True)  # before the crowd: the drill's own slot
         open_connections, done = [], threading.Event()
 
         def watch() -> None:
             while not done.is_set():
-                open_connections.append(monitor.execute(
-                    "SELECT count(*) FROM pg_stat_activity WHERE backend_type = 'client backend'").fetchone()[0])
+                open_connections.append(
+                    monitor.execute(
+                        "SELECT count(*) FROM pg_stat_activity WHERE backend_type = 'client backend'"
+                    ).fetchone()[0]
+                )
                 time.sleep(0.05)
 
         results: dict[int, object] = {}
@@ -62,8 +68,15 @@ def main(argv=None) -> int:
                 go.wait()
                 began = time.perf_counter()
                 try:
-                    sync_store(store, url, batch_size=1000, retries=5, retry_wait_s=0.2, busy_wait_s=900,
-                               progress=lambda line: waited.add(i) if "waiting for a free" in line else None)
+                    sync_store(
+                        store,
+                        url,
+                        batch_size=1000,
+                        retries=5,
+                        retry_wait_s=0.2,
+                        busy_wait_s=900,
+                        progress=lambda line: waited.add(i) if "waiting for a free" in line else None,
+                    )
                     results[i] = time.perf_counter() - began
                 except Exception as exc:  # noqa: BLE001 - the drill reports every failure
                     results[i] = exc
@@ -82,10 +95,12 @@ def main(argv=None) -> int:
         monitor.close()
         failures = [r for r in results.values() if isinstance(r, Exception)]
         times = [r for r in results.values() if isinstance(r, float)]
-        print(f"{args.benches} benches synced in {elapsed:.1f} s (per bench min {min(times, default=0):.2f}, median "
-              f"{statistics.median(times) if times else 0:.2f}, max {max(times, default=0):.2f} s); {len(waited)} "
-              f"waited for a free connection; server connections peak {max(open_connections, default=0)} "
-              f"(max_connections {args.max_connections}, the monitor's included)")
+        print(
+            f"{args.benches} benches synced in {elapsed:.1f} s (per bench min {min(times, default=0):.2f}, median "
+            f"{statistics.median(times) if times else 0:.2f}, max {max(times, default=0):.2f} s); {len(waited)} "
+            f"waited for a free connection; server connections peak {max(open_connections, default=0)} "
+            f"(max_connections {args.max_connections}, the monitor's included)"
+        )
         expected = {}
         for path in paths:
             with Store(path, read_only=True) as store:
@@ -95,12 +110,21 @@ def main(argv=None) -> int:
             total, distinct = lab.query("SELECT count(*), count(DISTINCT (run_uuid, step_index)) FROM bench.samples")[0]
             checksums = {r.uuid: lab.checksum(r.uuid) for r in lab.runs()}
         want = args.benches * args.samples
-        checks = [(f"samples on the server {total:,}, distinct (run, step) {distinct:,}, expected {want:,}",
-                   total == distinct == want),
-                  (f"checksums equal to the local stores' for {sum(checksums.get(u) == d for u, d in expected.items())}"
-                   f" of {len(expected)} runs", checksums == expected),
-                  (f"every sync returned ({len(failures)} failed"
-                   + (f", first: {failures[0]}" if failures else "") + ")", not failures)]
+        checks = [
+            (
+                f"samples on the server {total:,}, distinct (run, step) {distinct:,}, expected {want:,}",
+                total == distinct == want,
+            ),
+            (
+                f"checksums equal to the local stores' for {sum(checksums.get(u) == d for u, d in expected.items())}"
+                f" of {len(expected)} runs",
+                checksums == expected,
+            ),
+            (
+                f"every sync returned ({len(failures)} failed" + (f", first: {failures[0]}" if failures else "") + ")",
+                not failures,
+            ),
+        ]
         for text, ok in checks:
             print(f"{'ok  ' if ok else 'FAIL'} {text}")
         return 0 if all(ok for _, ok in checks) else 1

@@ -35,9 +35,26 @@ from bench.store.lab import LabStore, rows_checksum, sync_store
 
 
 def _sync(path: Path, url: str, batch: int, retries: int, **streams) -> subprocess.Popen:
-    return subprocess.Popen([sys.executable, "-m", "bench.cli", "sync", "--store", str(path), "--to", url,
-                             "--batch", str(batch), "--retries", str(retries)], cwd=ROOT, text=True,
-                            env={**os.environ, "PYTHONPATH": str(ROOT)}, **streams)
+    return subprocess.Popen(
+        [
+            sys.executable,
+            "-m",
+            "bench.cli",
+            "sync",
+            "--store",
+            str(path),
+            "--to",
+            url,
+            "--batch",
+            str(batch),
+            "--retries",
+            str(retries),
+        ],
+        cwd=ROOT,
+        text=True,
+        env={**os.environ, "PYTHONPATH": str(ROOT)},
+        **streams,
+    )
 
 
 @contextmanager
@@ -50,6 +67,7 @@ def drill_server(name: str, *settings: str) -> Iterator[tuple[Cluster, str, Path
     work = Path(tempfile.mkdtemp(prefix=f"bench-{name}-"))
     try:
         import psycopg
+
         with psycopg.connect(cluster.url, autocommit=True) as admin:
             admin.execute(f'CREATE DATABASE "{name}"')
             for setting in settings:
@@ -76,12 +94,21 @@ def main(argv=None) -> int:
     args = parser.parse_args(argv)
     with drill_server("drill") as (cluster, url, work):
         half = args.samples // 2
-        paths = [make_store(work / f"bench{i:02d}.db", f"bench-{i:02d}", [args.samples - half, half],
-                            robot=("pkm5", "delta4")[i % 2]) for i in range(args.benches)]
+        paths = [
+            make_store(
+                work / f"bench{i:02d}.db",
+                f"bench-{i:02d}",
+                [args.samples - half, half],
+                robot=("pkm5", "delta4")[i % 2],
+            )
+            for i in range(args.benches)
+        ]
         start = time.perf_counter()
         victim = _sync(paths[0], url, args.batch, args.retries, stderr=subprocess.PIPE)
-        others = [_sync(p, url, args.batch, args.retries, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-                  for p in paths[1:]]
+        others = [
+            _sync(p, url, args.batch, args.retries, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+            for p in paths[1:]
+        ]
         seen = 0
         for line in victim.stderr:
             seen += line.startswith("sync: run ")
@@ -99,8 +126,10 @@ def main(argv=None) -> int:
         with Store(paths[0]) as store:
             again = sync_store(store, url)
         elapsed = time.perf_counter() - start
-        print(f"other benches' syncs exited {sorted(set(codes))}; bench-00 synced again: {again.samples_sent} samples "
-              f"sent; {elapsed:.1f} s in all")
+        print(
+            f"other benches' syncs exited {sorted(set(codes))}; bench-00 synced again: {again.samples_sent} samples "
+            f"sent; {elapsed:.1f} s in all"
+        )
 
         expected, pose_samples = {}, 0
         for path in paths:
@@ -111,16 +140,26 @@ def main(argv=None) -> int:
         with LabStore(url) as lab:
             total, distinct = lab.query("SELECT count(*), count(DISTINCT (run_uuid, step_index)) FROM bench.samples")[0]
             checksums = {r.uuid: lab.checksum(r.uuid) for r in lab.runs()}
-            points, folded = lab.query("SELECT (SELECT count(*) FROM bench.pose_points),"
-                                       " (SELECT sum(n) FROM bench.pose_keys)")[0]
+            points, folded = lab.query(
+                "SELECT (SELECT count(*) FROM bench.pose_points), (SELECT sum(n) FROM bench.pose_keys)"
+            )[0]
         want = args.benches * args.samples
-        checks = [(f"samples on the server {total:,}, distinct (run, step) {distinct:,}, expected {want:,}",
-                   total == distinct == want),
-                  (f"checksums equal to the local stores' for {sum(checksums.get(u) == d for u, d in expected.items())}"
-                   f" of {len(expected)} runs", checksums == expected),
-                  (f"pose tables: {points:,} points, sums over {int(folded or 0):,} samples, expected {pose_samples:,}",
-                   points == folded == pose_samples),
-                  ("every sync exited 0 (bench-00's second by the API)", codes == [0] * len(others))]
+        checks = [
+            (
+                f"samples on the server {total:,}, distinct (run, step) {distinct:,}, expected {want:,}",
+                total == distinct == want,
+            ),
+            (
+                f"checksums equal to the local stores' for {sum(checksums.get(u) == d for u, d in expected.items())}"
+                f" of {len(expected)} runs",
+                checksums == expected,
+            ),
+            (
+                f"pose tables: {points:,} points, sums over {int(folded or 0):,} samples, expected {pose_samples:,}",
+                points == folded == pose_samples,
+            ),
+            ("every sync exited 0 (bench-00's second by the API)", codes == [0] * len(others)),
+        ]
         for text, ok in checks:
             print(f"{'ok  ' if ok else 'FAIL'} {text}")
         print(f"load average: {os.getloadavg()[0]:.1f} on {os.cpu_count()} CPUs")

@@ -57,8 +57,15 @@ PKM5_VALIDATION_CYCLES = 50
 
 def protocol_text(title: str, prefix: str, poses: np.ndarray, robot: str = "pkm5", cycles: int = 2) -> str:
     lines = [f"# {line}" for line in title.splitlines()]
-    lines += ['protocol = "iso9283_pose"', f'robot = "{robot}"', f"cycles = {cycles}", "velocities_pct = [100]",
-              "settle_s = 0.2", "", "[poses]"]
+    lines += [
+        'protocol = "iso9283_pose"',
+        f'robot = "{robot}"',
+        f"cycles = {cycles}",
+        "velocities_pct = [100]",
+        "settle_s = 0.2",
+        "",
+        "[poses]",
+    ]
     lines += [f"{prefix}{i:02d} = [{', '.join(f'{v:g}' for v in pose)}]" for i, pose in enumerate(poses, 1)]
     return "\n".join(lines) + "\n"
 
@@ -79,16 +86,27 @@ def write_delta4() -> None:
     names = delta4_calibration.REGISTRATION[:2] + delta4_calibration.BASE_PARAMETERS
     jac = delta4_calibration.ForwardModel(servo, names).jacobian(np.zeros(len(names)))
     chosen = pool[select_poses(jac, CAMERA_UNCERTAINTY_MM, 30)]
-    (HERE / "kinematic_calibration_delta4.toml").write_text(protocol_text(
-        "Kinematic calibration of the delta4 with the camera spot sensor (x-y plane): 30 positions chosen for\n"
-        "observability (greedy D-optimal from 300 candidates in the camera's field; written by\n"
-        "examples/make_kinematic_protocols.py). Run it without a calibration in force, then: bench calibrate RUN_ID\n"
-        "(docs/calibration.md).", "C", chosen, "delta4"))
-    (HERE / "kinematic_validation_delta4.toml").write_text(protocol_text(
-        "Validation of a delta4 kinematic calibration: the ISO 9283 pose test on 12 held-out positions. Run it\n"
-        "twice, with the calibration in force (the default) and with --no-kinematic-calibration, and compare AP\n"
-        "(written by examples/make_kinematic_protocols.py; docs/calibration.md).", "V",
-        delta4_field(12, 7, 60.0), "delta4"))
+    (HERE / "kinematic_calibration_delta4.toml").write_text(
+        protocol_text(
+            "Kinematic calibration of the delta4 with the camera spot sensor (x-y plane): 30 positions chosen for\n"
+            "observability (greedy D-optimal from 300 candidates in the camera's field; written by\n"
+            "examples/make_kinematic_protocols.py). Run it without a calibration in force, then: bench calibrate RUN_ID\n"
+            "(docs/calibration.md).",
+            "C",
+            chosen,
+            "delta4",
+        )
+    )
+    (HERE / "kinematic_validation_delta4.toml").write_text(
+        protocol_text(
+            "Validation of a delta4 kinematic calibration: the ISO 9283 pose test on 12 held-out positions. Run it\n"
+            "twice, with the calibration in force (the default) and with --no-kinematic-calibration, and compare AP\n"
+            "(written by examples/make_kinematic_protocols.py; docs/calibration.md).",
+            "V",
+            delta4_field(12, 7, 60.0),
+            "delta4",
+        )
+    )
 
 
 def main() -> None:
@@ -100,17 +118,28 @@ def main() -> None:
     model = ForwardModel(steps, modes_of_poses(pool), names)
     fold_ratio = model.fold_ratio(np.zeros(len(names)))  # candidates near an FK fold are never chosen
     chosen = pool[select_poses(model.jacobian(np.zeros(len(names))), MICE_UNCERTAINTY_MM, 30, fold_ratio=fold_ratio)]
-    (HERE / "kinematic_calibration.toml").write_text(protocol_text(
-        "Kinematic calibration of the pkm5: 30 poses chosen for observability (greedy D-optimal from 300\n"
-        "candidates; written by examples/make_kinematic_protocols.py). Run it without a calibration in force,\n"
-        "then: bench calibrate RUN_ID (docs/calibration.md).", "C", chosen, cycles=PKM5_CALIBRATION_CYCLES))
+    (HERE / "kinematic_calibration.toml").write_text(
+        protocol_text(
+            "Kinematic calibration of the pkm5: 30 poses chosen for observability (greedy D-optimal from 300\n"
+            "candidates; written by examples/make_kinematic_protocols.py). Run it without a calibration in force,\n"
+            "then: bench calibrate RUN_ID (docs/calibration.md).",
+            "C",
+            chosen,
+            cycles=PKM5_CALIBRATION_CYCLES,
+        )
+    )
     held = candidates(60, ("constant-orientation",), seed=7)
     held = held[(held[:, 0] > 95) & (held[:, 0] < 170) & (np.abs(held[:, 1]) < 60)][:12]
-    (HERE / "kinematic_validation.toml").write_text(protocol_text(
-        "Validation of a kinematic calibration: the ISO 9283 pose test on 12 held-out translation poses. Run it\n"
-        "twice, with the calibration in force (the default) and with --no-kinematic-calibration, and compare AP\n"
-        "(written by examples/make_kinematic_protocols.py; docs/calibration.md).", "V", held,
-        cycles=PKM5_VALIDATION_CYCLES))
+    (HERE / "kinematic_validation.toml").write_text(
+        protocol_text(
+            "Validation of a kinematic calibration: the ISO 9283 pose test on 12 held-out translation poses. Run it\n"
+            "twice, with the calibration in force (the default) and with --no-kinematic-calibration, and compare AP\n"
+            "(written by examples/make_kinematic_protocols.py; docs/calibration.md).",
+            "V",
+            held,
+            cycles=PKM5_VALIDATION_CYCLES,
+        )
+    )
 
 
 if __name__ == "__main__":

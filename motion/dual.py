@@ -46,8 +46,7 @@ class Dual:
 
     def __mul__(self, other: Number) -> Dual:
         if isinstance(other, Dual):
-            return Dual(self.value * other.value,
-                        self.grad * other.value[:, None] + other.grad * self.value[:, None])
+            return Dual(self.value * other.value, self.grad * other.value[:, None] + other.grad * self.value[:, None])
         other = np.asarray(other, dtype=float)
         return Dual(self.value * other, self.grad * (other[:, None] if other.ndim else other))
 

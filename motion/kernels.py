@@ -37,8 +37,9 @@ def use_compiled(engine: str, n: int, threshold: int) -> bool:
         return False
     if engine == "compiled":
         if not available():
-            raise MotionInputError("engine = 'compiled' needs numba, which is not installed "
-                                   "(pip install 'bench[fast]')")
+            raise MotionInputError(
+                "engine = 'compiled' needs numba, which is not installed (pip install 'bench[fast]')"
+            )
         return True
     if engine != "auto":
         raise MotionInputError(f"engine = {engine!r}, expected one of {list(ENGINES)}")

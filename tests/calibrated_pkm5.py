@@ -30,8 +30,10 @@ IDEAL_CYCLES = 2
 
 def example_with_cycles(name: str, folder: Path, cycles: int = IDEAL_CYCLES) -> Path:
     """A copy of ``examples/NAME`` in ``folder`` with ``cycles`` cycles (the poses and every other line as written)."""
-    lines = [f"cycles = {cycles}" if line.startswith("cycles = ") else line
-             for line in (EXAMPLES / name).read_text().splitlines()]
+    lines = [
+        f"cycles = {cycles}" if line.startswith("cycles = ") else line
+        for line in (EXAMPLES / name).read_text().splitlines()
+    ]
     path = folder / name
     path.write_text("\n".join(lines) + "\n")
     return path
@@ -73,9 +75,17 @@ def _bench(*argv: str, store: Path) -> tuple[str, str]:
 
 
 def _run(protocol: str, store: Path, *extra: str) -> tuple[int, str]:
-    out, err = _bench("run", str(example_with_cycles(protocol, store.parent)), "--sim", "--true-geometry-seed", str(SEED),
-                      "--ideal", "--no-progress",
-                      *extra, store=store)
+    out, err = _bench(
+        "run",
+        str(example_with_cycles(protocol, store.parent)),
+        "--sim",
+        "--true-geometry-seed",
+        str(SEED),
+        "--ideal",
+        "--no-progress",
+        *extra,
+        store=store,
+    )
     return int(out.split()[-1]), err
 
 
@@ -85,5 +95,10 @@ def _make(store: Path) -> dict:
     calibration = json.loads(_bench("calibrate", str(calibration_run), "--json", store=store)[0])
     compensated, said["compensated"] = _run("kinematic_validation.toml", store)
     nominal, said["nominal"] = _run("kinematic_validation.toml", store, "--no-kinematic-calibration")
-    return {"calibration_run": calibration_run, "calibration": calibration, "compensated": compensated,
-            "nominal": nominal, "said": said}
+    return {
+        "calibration_run": calibration_run,
+        "calibration": calibration,
+        "compensated": compensated,
+        "nominal": nominal,
+        "said": said,
+    }

@@ -14,8 +14,11 @@ def printed_font_sizes(plot) -> list[float]:
     svg_text(plot)  # draw: tick labels exist after a draw
     width, height = plot.figure.get_size_inches()
     scale = min(PRINT_WIDTH_IN / width, PRINT_HEIGHT_IN / height)
-    return [text.get_fontsize() * scale for text in plot.figure.findobj(Text)
-            if text.get_visible() and text.get_text().strip()]
+    return [
+        text.get_fontsize() * scale
+        for text in plot.figure.findobj(Text)
+        if text.get_visible() and text.get_text().strip()
+    ]
 
 
 def small_multiples(plot):

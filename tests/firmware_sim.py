@@ -44,9 +44,19 @@ _harnesses: dict[tuple, Path] = {}
 
 
 def _make(out_dir: Path, targets: list[str], options: dict[str, object]) -> str:
-    done = subprocess.run(["make", "-C", str(ROOT / "firmware"), f"BUILD={out_dir}",
-                           *(str(out_dir / target) for target in targets), *(f"{k}={v}" for k, v in options.items())],
-                          capture_output=True, text=True, timeout=120)
+    done = subprocess.run(
+        [
+            "make",
+            "-C",
+            str(ROOT / "firmware"),
+            f"BUILD={out_dir}",
+            *(str(out_dir / target) for target in targets),
+            *(f"{k}={v}" for k, v in options.items()),
+        ],
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
     if done.returncode:
         raise AssertionError(f"firmware build failed:\n{done.stdout}\n{done.stderr}")
     return done.stdout
@@ -81,8 +91,9 @@ class Edge:
 
 def start_harness(harness: Path, elf: Path, events: Path, **popen: object) -> tuple[subprocess.Popen, str]:
     """Start a simavr harness on ``elf``; returns the process and the pty it printed (``PTY /dev/pts/N``)."""
-    process = subprocess.Popen([str(harness), str(elf), str(events)], stdout=subprocess.PIPE,
-                               stderr=subprocess.DEVNULL, text=True, **popen)
+    process = subprocess.Popen(
+        [str(harness), str(elf), str(events)], stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True, **popen
+    )
     for line in process.stdout:
         if line.startswith("PTY "):
             return process, line.split()[1]
@@ -109,7 +120,7 @@ class EmulatedController:
 def read_events(path: Path) -> list[Edge]:
     edges = []
     text = path.read_text()
-    for line in text[:text.rfind("\n") + 1].splitlines():  # complete lines: the harness may be writing
+    for line in text[: text.rfind("\n") + 1].splitlines():  # complete lines: the harness may be writing
         fields = line.split()
         if fields[1] in ("RX", "TX"):  # a line received / (script mode) sent by the MCU
             line = b"" if fields[2] == "-" else bytes.fromhex(fields[2])
@@ -126,8 +137,13 @@ def step_times(edges: list[Edge], axis: int) -> np.ndarray:
 
 def serve_simulator() -> tuple[subprocess.Popen, str]:
     """``python -m bench.simulators.pkm5 --ideal`` started as a user would; returns the process and its pty path."""
-    process = subprocess.Popen([sys.executable, "-m", "bench.simulators.pkm5", "--ideal"], cwd=ROOT,
-                               stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True)
+    process = subprocess.Popen(
+        [sys.executable, "-m", "bench.simulators.pkm5", "--ideal"],
+        cwd=ROOT,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.DEVNULL,
+        text=True,
+    )
     return process, process.stdout.readline().strip()
 
 
@@ -156,8 +172,14 @@ def run_script(built: Build, events: Path, lines: list[tuple[float, bytes]], end
     with script.open("w") as out:
         for t_s, raw in lines:
             for i in range(0, len(raw), 1000):
-                out.write(f"{round(t_s * 1e6)} {raw[i:i + 1000].hex()}\n")
+                out.write(f"{round(t_s * 1e6)} {raw[i : i + 1000].hex()}\n")
         out.write(f"{round(end_s * 1e6)} END\n")
-    subprocess.run([str(built.harness), str(built.elf), str(events)], env=dict(os.environ, HARNESS_SCRIPT=str(script)),
-                   stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, timeout=600, check=True)
+    subprocess.run(
+        [str(built.harness), str(built.elf), str(events)],
+        env=dict(os.environ, HARNESS_SCRIPT=str(script)),
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+        timeout=600,
+        check=True,
+    )
     return read_events(events)

@@ -18,8 +18,16 @@ from zygote import ForkedProcess, Zygote
 
 #: What ``bench run`` / ``bench resume`` on a ``--port`` rig import in their handlers (the rest, if any, the child
 #: imports itself).
-PRELOAD = ("bench.cli", "bench.commands.campaign", "bench.calibration.compensate", "bench.launch",
-           "bench.protocols", "bench.protocols.plan", "bench.rigs.builder", "bench.store")
+PRELOAD = (
+    "bench.cli",
+    "bench.commands.campaign",
+    "bench.calibration.compensate",
+    "bench.launch",
+    "bench.protocols",
+    "bench.protocols.plan",
+    "bench.rigs.builder",
+    "bench.store",
+)
 
 
 class ForkedBench:

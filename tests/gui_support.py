@@ -54,6 +54,7 @@ def wait_for(predicate: Callable[[], bool], timeout_s: float, what: str) -> None
 
 def select_runs(browser, run_ids: list[int]) -> None:
     """Select ``run_ids`` in a results browser once its background scan lists them."""
+
     def listed() -> set[int]:
         return {int(browser.table.item(row, 0).text()) for row in range(browser.table.rowCount())}
 

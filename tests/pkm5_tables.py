@@ -8,8 +8,11 @@ import pandas as pd
 DATA = Path(__file__).parent / "data" / "pkm5"
 LENGTHS = [f"L{i}_mm" for i in range(1, 7)]
 IK_TABLES = {"translation": "table_a8_translation.csv", "alpha": "table_a9_alpha.csv", "beta": "table_a10_beta.csv"}
-FK_TABLES = {"translation": "table_a15_fk_translation.csv", "alpha": "table_a16_fk_alpha.csv",
-             "beta": "table_a17_fk_beta.csv"}
+FK_TABLES = {
+    "translation": "table_a15_fk_translation.csv",
+    "alpha": "table_a16_fk_alpha.csv",
+    "beta": "table_a17_fk_beta.csv",
+}
 
 
 def poses_from(df: pd.DataFrame, mode: str, prefix: str = "") -> np.ndarray:

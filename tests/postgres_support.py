@@ -9,8 +9,8 @@ gets a fresh database on it. Without either, the tests skip and say why.
 from __future__ import annotations
 
 import glob
-import os
 import json
+import os
 import shutil
 import sqlite3
 import subprocess
@@ -40,20 +40,47 @@ def make_store(path: Path, bench: str, samples_per_run: list[int], robot: str = 
     the simulator would write them (used by the sync tests and ``benchmarks/bench_sync.py``)."""
     with Store(path, bench=bench) as store:
         calibration = store.ensure_calibration("mouse", {"mm_per_count": 0.03175, "nominal": True})
-        run_ids = [store.start_run(protocol_name="iso9283_pose", protocol_version="1", robot=robot,
-                                   config={"cycles": n}, calibration_ids=[calibration.id], campaign="c1")
-                   for n in samples_per_run]
+        run_ids = [
+            store.start_run(
+                protocol_name="iso9283_pose",
+                protocol_version="1",
+                robot=robot,
+                config={"cycles": n},
+                calibration_ids=[calibration.id],
+                campaign="c1",
+            )
+            for n in samples_per_run
+        ]
     db = sqlite3.connect(path)
     with db:
         for run_id, n in zip(run_ids, samples_per_run):
             db.executemany(
                 "INSERT INTO samples (run_id, step_index, kind, pose, cycle, t_s, wall_utc, values_json, raw_json)"
                 " VALUES (?, ?, 'pose', ?, ?, ?, ?, ?, ?)",
-                [(run_id, 2 * i + 1, f"P{i % 5 + 1}", i // 5 + 1, i * 0.1 + 1e-9 * run_id,
-                  f"2026-11-02T10:00:{i % 60:02d}.000000+00:00",
-                  json.dumps({"cmd_x_mm": 110.0, "cmd_y_mm": 0.0, "cmd_z_mm": 320.0, "x_mm": 110.0 + (i % 7) * 1e-3,
-                              "y_mm": -1.3 + run_id / 7, "z_mm": 318.3}, sort_keys=True),
-                  json.dumps({"counts": [i, -i]}) if i % 3 else None) for i in range(n)])
+                [
+                    (
+                        run_id,
+                        2 * i + 1,
+                        f"P{i % 5 + 1}",
+                        i // 5 + 1,
+                        i * 0.1 + 1e-9 * run_id,
+                        f"2026-11-02T10:00:{i % 60:02d}.000000+00:00",
+                        json.dumps(
+                            {
+                                "cmd_x_mm": 110.0,
+                                "cmd_y_mm": 0.0,
+                                "cmd_z_mm": 320.0,
+                                "x_mm": 110.0 + (i % 7) * 1e-3,
+                                "y_mm": -1.3 + run_id / 7,
+                                "z_mm": 318.3,
+                            },
+                            sort_keys=True,
+                        ),
+                        json.dumps({"counts": [i, -i]}) if i % 3 else None,
+                    )
+                    for i in range(n)
+                ],
+            )
             db.execute("UPDATE runs SET status = 'completed', ended_utc = started_utc WHERE id = ?", (run_id,))
     db.close()  # the last connection checkpoints the WAL: the file's bytes are final
     return path
@@ -72,20 +99,47 @@ class Cluster:
         pwfile.write_text(PASSWORD + "\n")
         if self.user:
             shutil.chown(pwfile, user=self.user)
-        self._call("initdb", "-D", str(self.root / "data"), "-U", "bench", f"--pwfile={pwfile}",
-                   "--auth=scram-sha-256", "-E", "UTF8", "--locale=C", "--no-sync")
+        self._call(
+            "initdb",
+            "-D",
+            str(self.root / "data"),
+            "-U",
+            "bench",
+            f"--pwfile={pwfile}",
+            "--auth=scram-sha-256",
+            "-E",
+            "UTF8",
+            "--locale=C",
+            "--no-sync",
+        )
         self.url = f"postgresql://bench:{PASSWORD}@/postgres?host={self.root}&port=5432"
         self.start()
 
     def _call(self, tool: str, *args: str) -> None:
-        result = subprocess.run([str(self.bindir / tool), *args], cwd=self.root, user=self.user,
-                                capture_output=True, text=True, timeout=120, check=False)
+        result = subprocess.run(
+            [str(self.bindir / tool), *args],
+            cwd=self.root,
+            user=self.user,
+            capture_output=True,
+            text=True,
+            timeout=120,
+            check=False,
+        )
         if result.returncode != 0:
             raise RuntimeError(f"{tool} failed: {result.stdout}{result.stderr}")
 
     def start(self) -> None:
-        self._call("pg_ctl", "-D", str(self.root / "data"), "-l", str(self.root / "log"), "-w", "-o",
-                   f"-k {self.root} -c listen_addresses='' -p 5432", "start")
+        self._call(
+            "pg_ctl",
+            "-D",
+            str(self.root / "data"),
+            "-l",
+            str(self.root / "log"),
+            "-w",
+            "-o",
+            f"-k {self.root} -c listen_addresses='' -p 5432",
+            "start",
+        )
 
     def stop(self, mode: str = "fast") -> None:
         self._call("pg_ctl", "-D", str(self.root / "data"), "-m", mode, "-w", "stop")
@@ -132,6 +186,7 @@ def lab_server():
 def lab_url(lab_server):
     """A fresh, empty database on the session's server, dropped afterwards."""
     import psycopg
+
     name = f"bench_test_{uuid.uuid4().hex[:12]}"
     with psycopg.connect(lab_server.url, autocommit=True) as admin:
         admin.execute(f'CREATE DATABASE "{name}"')

@@ -13,11 +13,11 @@ import serial
 from bench.errors import ConfigError, UnreachableTarget
 from bench.protocols import PROTOCOLS, Runner, load_protocol, summarize
 from bench.protocols.actuator import ActuatorAccuracy, actuator_results
-from bench.simulators.rig import simulated_rig, start_simulator
-from bench.steps import ActuatorMove
 from bench.robots.pkm5 import Pkm5Controller
 from bench.robots.pkm5_kinematics import steps_for_stroke
 from bench.simulators.pkm5_plant import build_actuator_bench
+from bench.simulators.rig import simulated_rig, start_simulator
+from bench.steps import ActuatorMove
 from bench.store import Store, tidy_table
 
 EXAMPLE = Path(__file__).resolve().parents[1] / "examples" / "actuator_accuracy.toml"
@@ -125,8 +125,7 @@ def test_ideal_actuators_read_the_commanded_travel(tmp_path):
 
 def test_simulated_actuators_show_the_injected_scale_and_noise(tmp_path):
     seed = 3
-    results, _ = _run(tmp_path, ideal=False, seed=seed, actuators=[1, 2], distances_mm=[10, 20, 30, 40, 50],
-                      repeats=10)
+    results, _ = _run(tmp_path, ideal=False, seed=seed, actuators=[1, 2], distances_mm=[10, 20, 30, 40, 50], repeats=10)
     model = build_actuator_bench(seed).model
     distances = np.array([10, 20, 30, 40, 50.0])
     for axis in (1, 2):

@@ -48,8 +48,11 @@ def test_each_target_is_approached_from_below_and_from_above_past_an_overrun():
             assert (target - before) * direction > 0  # approached in its direction
         assert mine[3][0] == 40.0 + 2.0  # the reversal: 2 mm past the highest target
         assert mine[0][0] == 5.0  # the start stroke, below the lowest target
-    with pytest.raises(ConfigError, match=r"overrun_mm = 7: the reversals at 5 and 67 mm stroke, expected both "
-                                          r"within 0-66 mm"):
+    with pytest.raises(
+        ConfigError,
+        match=r"overrun_mm = 7: the reversals at 5 and 67 mm stroke, expected both "
+        r"within 0-66 mm",
+    ):
         ActuatorAccuracy(distances_mm=[10.0, 55.0], approach="bidirectional", overrun_mm=7.0, actuators=[1])
     unidirectional = ActuatorAccuracy(actuators=[2], distances_mm=[10.0], repeats=3)
     assert all("direction" not in s.conditions for s in unidirectional.steps() if isinstance(s, Prompt))
@@ -60,10 +63,14 @@ def test_hand_computed_signed_directions_and_a_repeatability_set_by_one_directio
     s↓ = 0): B = 0 and 2s↑ + 2s↓ + |B| = 0.2√2 < R↑ = 0.4√2, so R = R↑; at 20 mm every reading is 20.0."""
     import pandas as pd
 
-    frame = pd.DataFrame({"cmd_travel_mm": [10, 10, 10, 10, 20, 20, 20, 20],
-                          "direction": [1.0, 1.0, -1.0, -1.0, 1.0, -1.0, 1.0, -1.0],
-                          "travel_mm": [10.0, 10.2, 10.1, 10.1, 20.0, 20.0, 20.0, 20.0],
-                          "actuator": [3.0] * 8})
+    frame = pd.DataFrame(
+        {
+            "cmd_travel_mm": [10, 10, 10, 10, 20, 20, 20, 20],
+            "direction": [1.0, 1.0, -1.0, -1.0, 1.0, -1.0, 1.0, -1.0],
+            "travel_mm": [10.0, 10.2, 10.1, 10.1, 20.0, 20.0, 20.0, 20.0],
+            "actuator": [3.0] * 8,
+        }
+    )
     (r,) = analyze_bidirectional(frame)
     s_up = 0.1 * np.sqrt(2)
     assert r.axis == "3" and r.result.reversal_mm == pytest.approx((0.0, 0.0), abs=1e-12)
@@ -77,11 +84,12 @@ def bench_run(tmp_path_factory):
     """actuator 2 on the simulated actuator bench, 3 targets, 5 bidirectional cycles, the gauge typed by a person."""
     folder = tmp_path_factory.mktemp("bidirectional")
     protocol = folder / "actuators.toml"
-    protocol.write_text('protocol = "actuator_accuracy"\nactuators = [2]\ndistances_mm = [10, 20, 35]\n'
-                        'approach = "bidirectional"\nsettle_s = 0.1\n')
+    protocol.write_text(
+        'protocol = "actuator_accuracy"\nactuators = [2]\ndistances_mm = [10, 20, 35]\n'
+        'approach = "bidirectional"\nsettle_s = 0.1\n'
+    )
     station = folder / "bench.toml"
-    station.write_text((STATIONS / "pkm5_actuator_bench.toml").read_text().replace('kind = "serial"',
-                                                                                    'kind = "typed"'))
+    station.write_text((STATIONS / "pkm5_actuator_bench.toml").read_text().replace('kind = "serial"', 'kind = "typed"'))
     with Store(folder / "b.db") as store:
         result, _ = _rehearsed_run(store, station, protocol, operator=_GaugeReader())
         assert result.exit_status == "completed", result.reason
@@ -97,8 +105,9 @@ def _independent(table):
     s_up, s_down = x_up.std(axis=1, ddof=1), x_down.std(axis=1, ddof=1)
     b = m_up - m_down
     r = np.max(np.maximum(2 * s_up + 2 * s_down + np.abs(b), np.maximum(4 * s_up, 4 * s_down)))
-    a = max(np.max(m_up + 2 * s_up), np.max(m_down + 2 * s_down)) - min(np.min(m_up - 2 * s_up),
-                                                                         np.min(m_down - 2 * s_down))
+    a = max(np.max(m_up + 2 * s_up), np.max(m_down + 2 * s_down)) - min(
+        np.min(m_up - 2 * s_up), np.min(m_down - 2 * s_down)
+    )
     return b, r, a
 
 
@@ -121,7 +130,8 @@ def test_the_stored_bidirectional_run_gives_b_r_a_and_the_simulators_backlash(be
     assert main(["analyze", "iso230-2-run", str(run_id), "--store", db, "--json"]) == 0
     from_store = json.loads(capsys.readouterr().out)["axes"]["2"]  # the stored run gives the CSV's figures
     assert {k: from_store[k] for k in ("B_mm", "R_mm", "A_mm")} == pytest.approx(
-        {k: axis[k] for k in ("B_mm", "R_mm", "A_mm")}, abs=1e-12)
+        {k: axis[k] for k in ("B_mm", "R_mm", "A_mm")}, abs=1e-12
+    )
     assert main(["analyze", "iso230-2-run", str(run_id), "--store", str(tmp_path / "none.db")]) == 2
     assert capsys.readouterr().err.strip().endswith("no such store file")
     # the truth: the leg lengthens on an up approach, so x↑ - x↓ = -backlash of actuator 2 (seed 3), plus the
@@ -134,7 +144,8 @@ def test_the_stored_bidirectional_run_gives_b_r_a_and_the_simulators_backlash(be
     up = table[table["direction"] == 1.0]
     assert groover["n"] == 5
     assert groover["mean_deviation_mm"] == pytest.approx(
-        [float((up.loc[up["cmd_travel_mm"] == t, "travel_mm"] - t).mean()) for t in TRAVELS], abs=1e-9)
+        [float((up.loc[up["cmd_travel_mm"] == t, "travel_mm"] - t).mean()) for t in TRAVELS], abs=1e-9
+    )
     assert groover["mean_deviation_mm"] == pytest.approx(axis["mean_deviation_up_mm"], abs=1e-9)
 
 
@@ -154,7 +165,9 @@ def test_the_report_of_a_bidirectional_run_shows_b_r_a(bench_run, tmp_path):
     assert main(["report", str(run_id), "--store", db, "--out", str(tmp_path), "--format", "html"]) == 0
     html = (tmp_path / f"report_run{run_id}.html").read_text()
     assert "ISO 230-2 bidirectional figures per actuator" in html
-    assert f"{np.abs(b).max():.4f}" in html and f"{r:.4f}" in html and f"{a:.4f}" in html
+    # figures without a U of their own to 1 um, never finer than the gauge's readings (0.01 mm typed: 2 decimals)
+    for value in (np.abs(b).max(), r, a):
+        assert f"{value:.3f}" in html or f"{value:.2f}" in html, value
 
 
 @settings(max_examples=60, deadline=None)
@@ -166,8 +179,7 @@ def test_swapping_the_directions_negates_b_and_keeps_r_and_a(deviations):
 
     targets = [10.0, 20.0, 30.0] * 4
     directions = [1.0] * 6 + [-1.0] * 6
-    frame = pd.DataFrame({"target_mm": targets, "direction": directions,
-                          "reading_mm": np.add(targets, deviations)})
+    frame = pd.DataFrame({"target_mm": targets, "direction": directions, "reading_mm": np.add(targets, deviations)})
     (forward,) = analyze_bidirectional(frame)
     (swapped,) = analyze_bidirectional(frame.assign(direction=-frame["direction"]).iloc[::-1])
     np.testing.assert_allclose(swapped.result.reversal_mm, -np.asarray(forward.result.reversal_mm), atol=1e-12)

@@ -44,7 +44,10 @@ def simulated(tmp_path_factory):
     toml = folder / "actuators.toml"
     toml.write_text(PROTOCOL)
     db = folder / "bench.db"
-    assert main(["run", str(toml), "--sim", "--store", str(db), "--no-progress", "--seed", "3", "--speed-factor", "50000"]) == 0
+    assert (
+        main(["run", str(toml), "--sim", "--store", str(db), "--no-progress", "--seed", "3", "--speed-factor", "50000"])
+        == 0
+    )
     with Store(db) as store:
         (record,) = store.runs()
         expected = actuator_results(store, record.id)
@@ -74,8 +77,9 @@ def test_dry_run_names_a_stroke_outside_the_window():
     summary = summarize(Overreach(actuators=[3]))
     (axis,) = summary.strokes
     assert (axis.axis, axis.strokes_mm, axis.moves, axis.window_mm) == (3, (5.0, 10.0, 70.0), 3, (0.0, 66.0))
-    assert not summary.ok and summary.problems() == ["target A3/far: actuator 3: stroke_mm = 70.0, expected a number "
-                                                     "in [0, 66] mm"]
+    assert not summary.ok and summary.problems() == [
+        "target A3/far: actuator 3: stroke_mm = 70.0, expected a number in [0, 66] mm"
+    ]
     line = next(line for line in summary.lines() if line.startswith("  actuator 3"))
     assert line.endswith("REFUSED: target A3/far: actuator 3: stroke_mm = 70.0, expected a number in [0, 66] mm")
     # the refused move is not timed: 5 -> 10 mm (800 steps at 200/s) and back to the 5 mm home stroke
@@ -85,8 +89,9 @@ def test_dry_run_names_a_stroke_outside_the_window():
 def test_export_then_analyze_actuator_reproduces_the_protocols_own_figures(simulated, capsys, tmp_path):
     _, _, db, run_id, expected = simulated
     csv = tmp_path / "a.csv"
-    assert _out(capsys, "export", str(run_id), "--store", str(db), "--kind", "actuator_travel", "--out",
-                str(csv)).strip() == str(csv)
+    assert _out(
+        capsys, "export", str(run_id), "--store", str(db), "--kind", "actuator_travel", "--out", str(csv)
+    ).strip() == str(csv)
     table = pd.read_csv(csv)
     assert {"actuator", "cmd_travel_mm", "travel_mm", "cycle"} <= set(table.columns) and len(table) == 18
     result = json.loads(_out(capsys, "analyze", "actuator", str(csv), "--robot", "pkm5", "--json"))["actuators"]
@@ -108,8 +113,9 @@ def test_export_then_analyze_actuator_reproduces_the_protocols_own_figures(simul
         assert ours["repeatability_mm"] == pytest.approx(3 * sd.mean(), abs=1e-6)
         assert ours["accuracy_mm"] == pytest.approx(cr / 2 + 3 * sd.mean(), abs=1e-6)
         assert ours["mean_deviation_mm"] == pytest.approx(list(mean), abs=1e-6)
-        assert ours["iso230_2_forward"]["A_mm"] == pytest.approx(float((mean + 2 * sd).max() - (mean - 2 * sd).min()),
-                                                                 abs=1e-6)
+        assert ours["iso230_2_forward"]["A_mm"] == pytest.approx(
+            float((mean + 2 * sd).max() - (mean - 2 * sd).min()), abs=1e-6
+        )
         assert ours["U_repeatability_mm"] > 0 and ours["dropped_readings"] == 0
     # the simulator's actuators read their travel within the gauge noise and the seeded joint errors
     assert all(abs(b) < 0.6 for a in result.values() for b in a["mean_deviation_mm"])
@@ -134,13 +140,14 @@ def test_report_prints_the_numbers_bench_analyze_gives_on_its_raw_data(simulated
     html = html_path.read_text(encoding="utf-8")
     command = re.search(r"bench analyze actuator FILE\.csv (--robot pkm5 --instrument-u-mm \S+ --k 2)", html)
     assert command is not None
-    result = json.loads(_out(capsys, "analyze", "actuator", str(csv_path), *command.group(1).split(),
-                             "--json"))["actuators"]
+    result = json.loads(_out(capsys, "analyze", "actuator", str(csv_path), *command.group(1).split(), "--json"))[
+        "actuators"
+    ]
     summary = re.search(r'<table id="actuators">(.*?)</table>', html, re.DOTALL).group(1)
     for axis, groover in expected.items():
         figures = result[str(axis)]
-        assert rounded_by_u(figures['repeatability_mm'], figures['U_repeatability_mm']) in summary
-        assert rounded_by_u(groover.accuracy_mm, figures['U_accuracy_mm']) in summary
+        assert rounded_by_u(figures["repeatability_mm"], figures["U_repeatability_mm"]) in summary
+        assert rounded_by_u(groover.accuracy_mm, figures["U_accuracy_mm"]) in summary
         for bias, u in zip(figures["mean_deviation_mm"], figures["U_mean_deviation_mm"]):
             assert rounded_by_u(bias, u) in html
     assert np.isclose(float(command.group(1).split()[3]), 0.01 / np.sqrt(6), rtol=1e-5)  # the gauge reads 0.01 mm

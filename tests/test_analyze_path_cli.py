@@ -20,8 +20,9 @@ def _write(path, header, rows, shuffle=False):
     rows = list(rows)
     if shuffle:
         rows = [rows[i] for i in np.random.default_rng(7).permutation(len(rows))]
-    path.write_text("\n".join([header, *(",".join(f"{v:g}" if not isinstance(v, str) else v for v in r)
-                                         for r in rows)]) + "\n")
+    path.write_text(
+        "\n".join([header, *(",".join(f"{v:g}" if not isinstance(v, str) else v for v in r) for r in rows)]) + "\n"
+    )
     return str(path)
 
 
@@ -70,10 +71,15 @@ def _line_cycles(offsets_y, angle_offsets=None, n=21):
 
 @pytest.mark.parametrize("shuffle", [False, True])
 def test_path_at_rt_and_orientation(capsys, tmp_path, shuffle):
-    path = _write(tmp_path / "path.csv", "cycle,t_s,x_mm,y_mm,z_mm,a_deg",
-                  _line_cycles((0.1, 0.3, 0.2), (0.0, 0.2, 0.1)), shuffle)
-    stations = _write(tmp_path / "stations.csv", "station,x_mm,y_mm,z_mm,a_deg",
-                      [(i + 1, x, 0, 0, 0.05 * x) for i, x in enumerate((10.0, 50.0, 90.0))], shuffle)
+    path = _write(
+        tmp_path / "path.csv", "cycle,t_s,x_mm,y_mm,z_mm,a_deg", _line_cycles((0.1, 0.3, 0.2), (0.0, 0.2, 0.1)), shuffle
+    )
+    stations = _write(
+        tmp_path / "stations.csv",
+        "station,x_mm,y_mm,z_mm,a_deg",
+        [(i + 1, x, 0, 0, 0.05 * x) for i, x in enumerate((10.0, 50.0, 90.0))],
+        shuffle,
+    )
     code, out, _ = _run(capsys, "analyze", "path", path, "--commanded", stations, "--json")
     assert code == 0
     r = json.loads(out)
@@ -97,8 +103,9 @@ def test_cornering_json_per_cycle(capsys, tmp_path):
     past = [(-10, 0), (0.5, 0), (0.5, 0.5), (0, 1), (0, 10)]
     rows = [(cycle, 0.1 * i, x, y) for cycle, points in ((1, cut), (2, past)) for i, (x, y) in enumerate(points)]
     path = _write(tmp_path / "corner.csv", "cycle,t_s,x_mm,y_mm", rows, shuffle=True)
-    code, out, _ = _run(capsys, "analyze", "cornering", path, "--corner", "0,0", "--from=-10,0", "--to", "0,10",
-                        "--json")
+    code, out, _ = _run(
+        capsys, "analyze", "cornering", path, "--corner", "0,0", "--from=-10,0", "--to", "0,10", "--json"
+    )
     assert code == 0
     r = json.loads(out)
     assert [c["CR_mm"] for c in r["cycles"]] == pytest.approx([np.sqrt(0.5), 0.0])
@@ -156,19 +163,27 @@ def test_drift_reports_the_orientation_of_the_pose(capsys):
     rows = rows[rows["pose"] == "P1"]
     names = [a for a in ("a", "b", "c") if f"{a}_deg" in rows.columns]
     assert names  # the example carries angles
-    direct = orientation_drift(rows["t_s"], rows[[f"{a}_deg" for a in names]],
-                               rows[[f"cmd_{a}_deg" for a in names]].to_numpy()[0], window_s=100)
+    direct = orientation_drift(
+        rows["t_s"],
+        rows[[f"{a}_deg" for a in names]],
+        rows[[f"cmd_{a}_deg" for a in names]].to_numpy()[0],
+        window_s=100,
+    )
     for i, name in enumerate(names):
         assert r[f"dAP_{name}_deg"] == pytest.approx(direct.dap_deg[i])
         assert r[f"dRP_{name}_deg"] == pytest.approx(direct.drp_deg[i])
-        assert r[f"dAP_{name}_deg"] == pytest.approx(abs(r["windows"][0][f"AP_{name}_deg"]
-                                                         - r["windows"][1][f"AP_{name}_deg"]))
+        assert r[f"dAP_{name}_deg"] == pytest.approx(
+            abs(r["windows"][0][f"AP_{name}_deg"] - r["windows"][1][f"AP_{name}_deg"])
+        )
 
 
 def test_exchangeability_per_pose(capsys, tmp_path):
     header = "pose,cycle,cmd_x_mm,cmd_y_mm,cmd_z_mm,x_mm,y_mm,z_mm,robot"
-    rows = [("P1", c, 0, 0, 0, x + d, 0, 0, robot) for robot, x in (("SN1", 0.0), ("SN2", 0.3), ("SN3", 0.1))
-            for c, d in ((1, -0.05), (2, 0.05))]
+    rows = [
+        ("P1", c, 0, 0, 0, x + d, 0, 0, robot)
+        for robot, x in (("SN1", 0.0), ("SN2", 0.3), ("SN3", 0.1))
+        for c, d in ((1, -0.05), (2, 0.05))
+    ]
     path = _write(tmp_path / "e.csv", header, rows, shuffle=True)
     code, out, _ = _run(capsys, "analyze", "exchangeability", path, "--json")
     assert code == 0
@@ -182,9 +197,14 @@ def test_exchangeability_per_pose(capsys, tmp_path):
 def test_distance_reports_orientation_ad_rd_paired_by_cycle(capsys, tmp_path):
     header = "pose,cycle,cmd_x_mm,cmd_y_mm,cmd_z_mm,x_mm,y_mm,z_mm,cmd_a_deg,a_deg"
     # P2 at a_c = 10°, P4 at a_c = -10°: attained differences 19.8, 20.0, 20.4° (cycle order shuffled in the file)
-    rows = [("P2", 1, 0, 0, 0, 0, 0, 0, 10, 9.9), ("P4", 1, 10, 0, 0, 10, 0, 0, -10, -9.9),
-            ("P2", 2, 0, 0, 0, 0, 0, 0, 10, 10.0), ("P4", 2, 10, 0, 0, 10, 0, 0, -10, -10.0),
-            ("P2", 3, 0, 0, 0, 0, 0, 0, 10, 10.1), ("P4", 3, 10, 0, 0, 10, 0, 0, -10, -10.3)]
+    rows = [
+        ("P2", 1, 0, 0, 0, 0, 0, 0, 10, 9.9),
+        ("P4", 1, 10, 0, 0, 10, 0, 0, -10, -9.9),
+        ("P2", 2, 0, 0, 0, 0, 0, 0, 10, 10.0),
+        ("P4", 2, 10, 0, 0, 10, 0, 0, -10, -10.0),
+        ("P2", 3, 0, 0, 0, 0, 0, 0, 10, 10.1),
+        ("P4", 3, 10, 0, 0, 10, 0, 0, -10, -10.3),
+    ]
     path = _write(tmp_path / "d.csv", header, rows, shuffle=True)
     code, out, _ = _run(capsys, "analyze", "distance", path, "--json")
     assert code == 0

@@ -30,7 +30,7 @@ def _stabilisation():
     rows = []
     for pose, target in (("P1", 0.0), ("P2", 5.0)):
         for cycle in (1, 2, 3):
-            for i, t in enumerate(np.arange(0.0, 1.0, 0.05)):
+            for _i, t in enumerate(np.arange(0.0, 1.0, 0.05)):
                 x = target + 0.8 * math.exp(-4 * t) * math.cos(9 * t) * (1 + 0.1 * cycle)
                 rows.append((pose, cycle, round(t, 3), x, 0.0, 0.0))
     return _table("pose,cycle,t_s,x_mm,y_mm,z_mm", rows)
@@ -38,9 +38,14 @@ def _stabilisation():
 
 def _vap():
     clouds = {"+x": ((0.1, 0, 0), 0.0), "-y": ((0, -0.2, 0), 0.3), "+z": ((0, 0, 0.05), 0.1)}
-    return _table("pose,cycle,cmd_x_mm,cmd_y_mm,cmd_z_mm,x_mm,y_mm,z_mm,cmd_a_deg,a_deg",
-                  [(f"P1/{d}", c, 0, 0, 0, x + n, y, z, 0, a + n) for d, ((x, y, z), a) in clouds.items()
-                   for c, n in enumerate((-0.01, 0.01, 0.004), start=1)])
+    return _table(
+        "pose,cycle,cmd_x_mm,cmd_y_mm,cmd_z_mm,x_mm,y_mm,z_mm,cmd_a_deg,a_deg",
+        [
+            (f"P1/{d}", c, 0, 0, 0, x + n, y, z, 0, a + n)
+            for d, ((x, y, z), a) in clouds.items()
+            for c, n in enumerate((-0.01, 0.01, 0.004), start=1)
+        ],
+    )
 
 
 def _exchangeability():
@@ -50,16 +55,24 @@ def _exchangeability():
 
 
 def _tilts():
-    return _table("pose,cycle,cmd_b_deg,b_deg,velocity_pct",
-                  [(p, c, cmd, cmd + 0.3 * c - 0.1 * (c % 2) + off, v) for p, cmd, off in (("1-1", 10.11, 0.2),
-                                                                                          ("1-2", -5.5, -0.4))
-                   for c in (1, 2, 3) for v in (50, 100)])
+    return _table(
+        "pose,cycle,cmd_b_deg,b_deg,velocity_pct",
+        [
+            (p, c, cmd, cmd + 0.3 * c - 0.1 * (c % 2) + off, v)
+            for p, cmd, off in (("1-1", 10.11, 0.2), ("1-2", -5.5, -0.4))
+            for c in (1, 2, 3)
+            for v in (50, 100)
+        ],
+    )
 
 
 def _depths():
     rows = [f"{p},{c},{cmd},{20 + 0.01 * c:.2f},,50" for p, cmd in (("1-1", 5.0), ("1-2", -3.0)) for c in (1, 2, 3)]
-    rows += [f"{p},{c},{cmd},,{20 + 50 * math.tan(math.radians(cmd)) + 0.02 * c:.3f},50"
-             for p, cmd in (("1-1", 5.0), ("1-2", -3.0)) for c in (1, 2, 3)]
+    rows += [
+        f"{p},{c},{cmd},,{20 + 50 * math.tan(math.radians(cmd)) + 0.02 * c:.3f},50"
+        for p, cmd in (("1-1", 5.0), ("1-2", -3.0))
+        for c in (1, 2, 3)
+    ]
     return "pose,cycle,cmd_a_deg,depth1_mm,depth2_mm,hole_spacing_mm", rows
 
 
@@ -71,22 +84,30 @@ def _grid():
             x = f"{command[0] + 0.1 * cycle:g}" if h else ""
             y = f"{command[1] - 0.05 * cycle:g}" if (h or v) else ""
             z = f"{command[2] + 0.02 * cycle:g}" if v else ""
-            rows.append(f"{pose},{cycle},{command[0]:g},{command[1]:g},{command[2]:g},{h},{v},{2 * h},{3 * v},{x},{y},{z}")
-    return ("pose,cycle,cmd_x_mm,cmd_y_mm,cmd_z_mm,horizontal_valid,vertical_valid,horizontal_hits,vertical_hits,"
-            "x_mm,y_mm,z_mm"), rows
+            rows.append(
+                f"{pose},{cycle},{command[0]:g},{command[1]:g},{command[2]:g},{h},{v},{2 * h},{3 * v},{x},{y},{z}"
+            )
+    return (
+        "pose,cycle,cmd_x_mm,cmd_y_mm,cmd_z_mm,horizontal_valid,vertical_valid,horizontal_hits,vertical_hits,"
+        "x_mm,y_mm,z_mm"
+    ), rows
 
 
 def _line():
     x = np.linspace(0.0, 100.0, 21)
-    return _table("cycle,t_s,x_mm,y_mm,z_mm", [(c, 0.1 * i, xi, dy + 0.01 * i % 3, 0.0)
-                                               for c, dy in enumerate((0.1, 0.3, 0.2), 1) for i, xi in enumerate(x)])
+    return _table(
+        "cycle,t_s,x_mm,y_mm,z_mm",
+        [(c, 0.1 * i, xi, dy + 0.01 * i % 3, 0.0) for c, dy in enumerate((0.1, 0.3, 0.2), 1) for i, xi in enumerate(x)],
+    )
 
 
 def _corner():
     cut = [(-10, 0), (-1, 0), (0, 1), (0, 10)]
     past = [(-10, 0), (0.5, 0), (0.5, 0.5), (0, 1), (0, 10)]
-    return _table("cycle,t_s,x_mm,y_mm", [(c, 0.1 * i, x, y) for c, points in ((1, cut), (2, past))
-                                          for i, (x, y) in enumerate(points)])
+    return _table(
+        "cycle,t_s,x_mm,y_mm",
+        [(c, 0.1 * i, x, y) for c, points in ((1, cut), (2, past)) for i, (x, y) in enumerate(points)],
+    )
 
 
 def _velocity():
@@ -102,14 +123,20 @@ def _positioning():
     for step, distance in ((1, -10.0), (2, 20.0)):
         for cycle in (1, 2):
             t = np.round(np.arange(0.0, 1.5, 0.05), 6)
-            rows += [(step, cycle, ti, xi, 0.0, 0.0)
-                     for ti, xi in zip(t, np.interp(t, [0.0, 0.2, 1.0, 2.0], [0.0, 0.0, distance, distance]))]
+            rows += [
+                (step, cycle, ti, xi, 0.0, 0.0)
+                for ti, xi in zip(t, np.interp(t, [0.0, 0.2, 1.0, 2.0], [0.0, 0.0, distance, distance]))
+            ]
     return _table("step,cycle,t_s,x_mm,y_mm,z_mm", rows)
 
 
 def _bidirectional():
-    readings = {(0, "up"): (0.02, 0.04, 0.03), (0, "down"): (-0.03, -0.01, -0.02),
-                (10, "up"): (10.05, 10.03, 10.04), (10, "down"): (9.98, 10.00, 9.99)}
+    readings = {
+        (0, "up"): (0.02, 0.04, 0.03),
+        (0, "down"): (-0.03, -0.01, -0.02),
+        (10, "up"): (10.05, 10.03, 10.04),
+        (10, "down"): (9.98, 10.00, 9.99),
+    }
     return _table("target_mm,direction,reading_mm", [(t, d, v) for (t, d), values in readings.items() for v in values])
 
 

@@ -11,8 +11,14 @@ from bench.metrology.kinematic_calibration import identifiable_subset, select_po
 from bench.simulators.true_geometry import attained_poses, true_deviations, true_geometry
 from bench.store import Store
 from motion import pkm5
-from motion.pkm5.calibration import (PARAMETERS, REGISTRATION, ForwardModel, geometry_from_calibration,
-                                     modes_of_poses, parameter_deviations)
+from motion.pkm5.calibration import (
+    PARAMETERS,
+    REGISTRATION,
+    ForwardModel,
+    geometry_from_calibration,
+    modes_of_poses,
+    parameter_deviations,
+)
 
 ALL = REGISTRATION + PARAMETERS
 UNCERTAINTY_MM = 0.05
@@ -20,11 +26,12 @@ UNCERTAINTY_MM = 0.05
 
 def _store_run(path, commanded_deg, measured):
     with Store(path) as store:
-        run_id = store.start_run(protocol_name="kinematic_calibration", protocol_version="1", robot="pkm5",
-                                 config={})
+        run_id = store.start_run(protocol_name="kinematic_calibration", protocol_version="1", robot="pkm5", config={})
         for i, (cmd, meas) in enumerate(zip(commanded_deg, measured)):
-            values = {**dict(zip(("cmd_x_mm", "cmd_y_mm", "cmd_z_mm", "cmd_a_deg", "cmd_b_deg"), map(float, cmd))),
-                      **dict(zip(("x_mm", "y_mm", "z_mm"), map(float, meas)))}
+            values = {
+                **dict(zip(("cmd_x_mm", "cmd_y_mm", "cmd_z_mm", "cmd_a_deg", "cmd_b_deg"), map(float, cmd))),
+                **dict(zip(("x_mm", "y_mm", "z_mm"), map(float, meas))),
+            }
             store.add_sample(run_id, i, values=values, kind="pose", pose=f"P{i}", cycle=1, t_s=float(i))
     return run_id
 
@@ -78,8 +85,22 @@ def test_calibrate_identifies_and_stores_a_version(tmp_path, capsys):
     err = capsys.readouterr().err
     assert "--fit map frees every parameter" in err and "nothing stored" in err
     suggested = err.split("--uncertainty-mm ")[1].split(")")[0]
-    assert main(["calibrate", str(run_id), "--store", str(path), "--json", "--fit", "free-set",
-                 "--uncertainty-mm", suggested]) == 0
+    assert (
+        main(
+            [
+                "calibrate",
+                str(run_id),
+                "--store",
+                str(path),
+                "--json",
+                "--fit",
+                "free-set",
+                "--uncertainty-mm",
+                suggested,
+            ]
+        )
+        == 0
+    )
     out = json.loads(capsys.readouterr().out)
     free = identifiable_subset(jac, float(suggested), ALL, required=REGISTRATION)
     assert out["version"] == 2 and out["fit"] == "free-set" and out["prior"] is None
@@ -96,20 +117,22 @@ def test_calibrate_prints_which_parameters_only_the_prior_fixes(tmp_path, capsys
     assert main(["calibrate", str(run_id), "--store", str(path)]) == 0
     lines = capsys.readouterr().out.splitlines()
     assert len(lines) == 2 + 36 + 3 + 3  # ... the search, the scatter and the plan
-    for line in lines[2:2 + 36]:  # GUM 7.2.6, as the report: the uncertainty to 2 significant digits, the value to
+    for line in lines[2 : 2 + 36]:  # GUM 7.2.6, as the report: the uncertainty to 2 significant digits, the value to
         name, value, u, unit = line.split()  # the same decimal place (not 0.13474 +- 0.14998 mm)
         decimals = len(u.split(".")[1]) if "." in u else 0
         assert len(u.replace(".", "").lstrip("0")) == 2 and len(value.split(".")[1]) == decimals, line
         entry = stored["parameters"][name]
-        assert float(u) == pytest.approx(entry["uncertainty"], abs=0.5 * 10.0 ** -decimals), line
-        assert float(value) == pytest.approx(entry["value"], abs=0.5 * 10.0 ** -decimals), line
+        assert float(u) == pytest.approx(entry["uncertainty"], abs=0.5 * 10.0**-decimals), line
+        assert float(value) == pytest.approx(entry["value"], abs=0.5 * 10.0**-decimals), line
         assert unit == entry["unit"] and (value[0] in "+-" or float(value) == 0), line
-    assert lines[-6] == ("fit: maximum a posteriori, prior: manufacturing tolerances (motion.pkm5.calibration."
-                         "TOLERANCES); fixed by the prior (the data did not inform them): "
-                         + (", ".join(stored["prior_only"]) or "none"))
+    assert lines[-6] == (
+        "fit: maximum a posteriori, prior: manufacturing tolerances (motion.pkm5.calibration."
+        "TOLERANCES); fixed by the prior (the data did not inform them): " + (", ".join(stored["prior_only"]) or "none")
+    )
     assert lines[-5].startswith(f"data part: condition number {stored['observability']['condition_number']:.3g} ")
-    assert lines[-5].endswith(f"reduced chi2 {stored['reduced_chi2']:.2f} over {stored['degrees_of_freedom']:.1f} "
-                              "degrees of freedom")
+    assert lines[-5].endswith(
+        f"reduced chi2 {stored['reduced_chi2']:.2f} over {stored['degrees_of_freedom']:.1f} degrees of freedom"
+    )
     assert 90 - 36 < stored["degrees_of_freedom"] < 90 - 3  # the prior holds part of the 33, none of the registration
 
 
@@ -119,8 +142,10 @@ def test_calibrate_a_run_without_measured_poses_is_one_line(tmp_path, capsys):
         run_id = store.start_run(protocol_name="pose_test", protocol_version="1", robot="pkm5", config={})
     assert main(["calibrate", str(run_id), "--store", str(path)]) == 1
     err = capsys.readouterr().err
-    assert err == (f"bench: error: run {run_id}: no pose samples with measured x_mm, y_mm, z_mm; expected a run of "
-                   "commanded and measured poses\n")
+    assert err == (
+        f"bench: error: run {run_id}: no pose samples with measured x_mm, y_mm, z_mm; expected a run of "
+        "commanded and measured poses\n"
+    )
 
 
 def test_calibrate_a_singular_pose_set_names_the_parameters(tmp_path, capsys):
@@ -128,8 +153,7 @@ def test_calibrate_a_singular_pose_set_names_the_parameters(tmp_path, capsys):
     commanded = np.column_stack([x, np.zeros(12), np.full(12, 300.0), np.zeros(12), np.zeros(12)])
     path = tmp_path / "bench.db"
     run_id = _store_run(path, commanded, commanded[:, :3])
-    code = main(["calibrate", str(run_id), "--store", str(path), "--free", "leg_offset_1_mm", "scale_1",
-                 "oa_12_x_mm"])
+    code = main(["calibrate", str(run_id), "--store", str(path), "--free", "leg_offset_1_mm", "scale_1", "oa_12_x_mm"])
     err = capsys.readouterr().err
     assert code == 2
     assert err.count("\n") == 1 and "condition number" in err and "oa_12_x_mm" in err
@@ -146,8 +170,10 @@ def test_calibrate_refuses_an_uncertainty_that_is_not_a_positive_finite_number_i
     path = tmp_path / "bench.db"
     run_id = _store_run(path, np.zeros((2, 5)), np.zeros((2, 3)))
     assert main(["calibrate", str(run_id), "--store", str(path), "--uncertainty-mm", value]) == 2
-    assert capsys.readouterr().err == (f"bench: error: --uncertainty-mm = {float(value)!r}, expected a positive finite "
-                                       "number (the instrument's standard uncertainty per axis, mm)\n")
+    assert capsys.readouterr().err == (
+        f"bench: error: --uncertainty-mm = {float(value)!r}, expected a positive finite "
+        "number (the instrument's standard uncertainty per axis, mm)\n"
+    )
 
 
 def test_a_fit_the_stated_uncertainty_cannot_explain_is_refused_and_stored_once_stated_right(tmp_path, capsys):

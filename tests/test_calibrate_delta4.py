@@ -50,17 +50,22 @@ def _read(servo_deg, truth) -> np.ndarray:
 
 def _store_run(path, commanded, measured, settings) -> int:
     with Store(path) as store:
-        run_id = store.start_run(protocol_name="iso9283_pose", protocol_version="1", robot="delta4", config={},
-                                 settings=settings)
+        run_id = store.start_run(
+            protocol_name="iso9283_pose", protocol_version="1", robot="delta4", config={}, settings=settings
+        )
         for i, (cmd, reading) in enumerate(zip(commanded, measured)):
-            values = {**dict(zip(("cmd_x_mm", "cmd_y_mm", "cmd_z_mm"), map(float, cmd))),
-                      **dict(zip(("x_mm", "y_mm"), map(float, reading)))}
+            values = {
+                **dict(zip(("cmd_x_mm", "cmd_y_mm", "cmd_z_mm"), map(float, cmd))),
+                **dict(zip(("x_mm", "y_mm"), map(float, reading))),
+            }
             store.add_sample(run_id, i, values=values, kind="pose", pose=f"C{i + 1:02d}", cycle=1, t_s=float(i))
     return run_id
 
 
-CAMERA_SETTINGS = {"robot": {"driver": "Delta4Controller", "mapping": MAPPING.settings()},
-                   "instrument": {"instrument": "camera laser spot (xy plane)", "u_mm": U_MM}}
+CAMERA_SETTINGS = {
+    "robot": {"driver": "Delta4Controller", "mapping": MAPPING.settings()},
+    "instrument": {"instrument": "camera laser spot (xy plane)", "u_mm": U_MM},
+}
 
 
 @pytest.fixture(scope="module")
@@ -96,12 +101,17 @@ def test_calibrate_identifies_the_true_geometry_and_stores_a_version(calibrated,
     # the floor the bytes set: the documented robot at the sent angles against the commanded positions (x-y)
     sent_at = attained_positions(_sent(delta4.inverse_kinematics(commanded).servo_deg))
     assert out["command_resolution_mm"] == pytest.approx(
-        np.mean(np.linalg.norm(sent_at[:, :2] - commanded[:, :2], axis=1)), rel=1e-6)
+        np.mean(np.linalg.norm(sent_at[:, :2] - commanded[:, :2], axis=1)), rel=1e-6
+    )
     assert 0.3 < out["command_resolution_mm"] < 0.6 and out["servo_mapping"]["name"] == "legacy_vb"
     with Store(path) as store:
         record, reason = select_calibration(store, "delta4")
-    assert (record.id, record.version, record.source_run_id, reason) == (out["id"], 1, run_id,
-                                                                        "the newest for this robot")
+    assert (record.id, record.version, record.source_run_id, reason) == (
+        out["id"],
+        1,
+        run_id,
+        "the newest for this robot",
+    )
 
 
 def test_the_stored_calibration_commands_held_out_positions_onto_their_targets(calibrated):
@@ -130,26 +140,39 @@ def test_the_stored_calibration_commands_held_out_positions_onto_their_targets(c
     before, after = ap(documented, False), ap(compensated.servo_deg, False)
     assert before > 0.2 and after < before / 10
     # what the servos are sent: a byte, 0.75 deg a step, which alone misplaces the robot by ~0.43 mm (x-y)
-    quantisation_only = float(np.mean(np.linalg.norm(
-        attained_positions(_sent(documented)) - targets, axis=1)))
+    quantisation_only = float(np.mean(np.linalg.norm(attained_positions(_sent(documented)) - targets, axis=1)))
     assert ap(compensated.servo_deg, True) < ap(documented, True)
     assert ap(compensated.servo_deg, True) < quantisation_only * 1.2
 
 
 def test_a_run_without_its_servo_mapping_is_one_line(tmp_path, capsys):
-    run_id = _store_run(tmp_path / "bench.db", _field(2, 20), _field(2, 20)[:, :2],
-                        {"instrument": CAMERA_SETTINGS["instrument"]})
+    run_id = _store_run(
+        tmp_path / "bench.db", _field(2, 20), _field(2, 20)[:, :2], {"instrument": CAMERA_SETTINGS["instrument"]}
+    )
     assert main(["calibrate", str(run_id), "--store", str(tmp_path / "bench.db")]) == 2
-    assert capsys.readouterr().err == (f"bench: error: run {run_id}: settings.robot.mapping is missing, expected the "
-                                       "servo mapping the run commanded by (its bytes are the angles the servos "
-                                       "were sent)\n")
+    assert capsys.readouterr().err == (
+        f"bench: error: run {run_id}: settings.robot.mapping is missing, expected the "
+        "servo mapping the run commanded by (its bytes are the angles the servos "
+        "were sent)\n"
+    )
 
 
 def test_poses_on_one_line_are_refused_naming_the_parameters(tmp_path, capsys):
     line = np.column_stack([np.linspace(-60.0, 60.0, 12), np.zeros(12), np.full(12, -200.0)])
     run_id = _store_run(tmp_path / "bench.db", line, line[:, :2], CAMERA_SETTINGS)
-    code = main(["calibrate", str(run_id), "--store", str(tmp_path / "bench.db"), "--free", "servo_zero_1_deg",
-                 "servo_zero_3_deg", "upper_arm_1_mm", "upper_arm_3_mm"])
+    code = main(
+        [
+            "calibrate",
+            str(run_id),
+            "--store",
+            str(tmp_path / "bench.db"),
+            "--free",
+            "servo_zero_1_deg",
+            "servo_zero_3_deg",
+            "upper_arm_1_mm",
+            "upper_arm_3_mm",
+        ]
+    )
     err = capsys.readouterr().err
     assert code == 2 and err.count("\n") == 1 and "condition number" in err and "servo_zero" in err
 
@@ -166,8 +189,7 @@ def test_map_fits_a_robot_perturbed_in_every_parameter_within_its_uncertainties(
     from motion.delta4.calibration import TOLERANCES, base_equivalent
 
     pool = _field(1, 300)
-    jac = ForwardModel(_sent(delta4.inverse_kinematics(pool).servo_deg), CANDIDATES).jacobian(
-        np.zeros(len(CANDIDATES)))
+    jac = ForwardModel(_sent(delta4.inverse_kinematics(pool).servo_deg), CANDIDATES).jacobian(np.zeros(len(CANDIDATES)))
     pick = select_poses(jac, U_MM, 30)
     deviations = delta4_true_deviations(3)
     truth = (list(deviations), list(deviations.values()))
@@ -203,8 +225,10 @@ def test_map_fits_a_robot_perturbed_in_every_parameter_within_its_uncertainties(
         return float(np.mean(np.linalg.norm(reading - targets[:, :2], axis=1)))
 
     before = held_out_mm(delta4.inverse_kinematics(targets).servo_deg)
-    after_map, after_free_set = (held_out_mm(delta4.inverse_kinematics(targets, calibrated_geometry(record)).servo_deg)
-                                 for record in (map_record, free_record))
+    after_map, after_free_set = (
+        held_out_mm(delta4.inverse_kinematics(targets, calibrated_geometry(record)).servo_deg)
+        for record in (map_record, free_record)
+    )
     assert after_map < before / 2 and after_map < after_free_set, (before, after_map, after_free_set)
 
 
@@ -215,15 +239,20 @@ def test_the_laser_grid_reads_per_screen_and_is_weighted_by_its_window(tmp_path,
     truth_names, truth_values = ["servo_zero_2_deg", "upper_arm_3_mm"], [0.3, -0.3]
     attained = attained_positions(_sent(delta4.inverse_kinematics(pool).servo_deg), truth_names, truth_values)
     path = tmp_path / "bench.db"
-    settings = {"robot": {"mapping": MAPPING.settings()},
-                "instrument": {"instrument": "laser grid (controller reports)", "decoder": {"spot_half_width_mm": 1.0}}}
+    settings = {
+        "robot": {"mapping": MAPPING.settings()},
+        "instrument": {"instrument": "laser grid (controller reports)", "decoder": {"spot_half_width_mm": 1.0}},
+    }
     with Store(path) as store:
-        run_id = store.start_run(protocol_name="iso9283_pose", protocol_version="1", robot="delta4", config={},
-                                 settings=settings)
+        run_id = store.start_run(
+            protocol_name="iso9283_pose", protocol_version="1", robot="delta4", config={}, settings=settings
+        )
         for i, (cmd, position) in enumerate(zip(pool, attained)):
             read = ((0, 1), (1, 2), (0, 1, 2))[i % 3]
-            values = {**dict(zip(("cmd_x_mm", "cmd_y_mm", "cmd_z_mm"), map(float, cmd))),
-                      **{("x_mm", "y_mm", "z_mm")[a]: float(position[a]) for a in read}}
+            values = {
+                **dict(zip(("cmd_x_mm", "cmd_y_mm", "cmd_z_mm"), map(float, cmd))),
+                **{("x_mm", "y_mm", "z_mm")[a]: float(position[a]) for a in read},
+            }
             store.add_sample(run_id, i, values=values, kind="pose", pose=f"L{i}", cycle=1, t_s=float(i))
     assert main(["calibrate", str(run_id), "--store", str(path), "--json", "--free", *truth_names]) == 0
     out = json.loads(capsys.readouterr().out)
@@ -269,8 +298,14 @@ def test_the_example_protocols_pass_the_preflight_and_are_well_conditioned():
 def test_a_run_commanded_by_a_calibration_is_identified_from_the_angles_it_sent(tmp_path, capsys):
     """The joints of a run made with a calibration in force are its calibrated IK's (through the bytes): a robot
     that really has that geometry is identified as it, noise-free, to 1e-6."""
-    in_force = {"parameters": {"servo_zero_1_deg": {"value": 0.6}, "upper_arm_3_mm": {"value": -0.4},
-                               "reg_x_mm": {"value": 0.3}, "reg_y_mm": {"value": -0.2}}}
+    in_force = {
+        "parameters": {
+            "servo_zero_1_deg": {"value": 0.6},
+            "upper_arm_3_mm": {"value": -0.4},
+            "reg_x_mm": {"value": 0.3},
+            "reg_y_mm": {"value": -0.2},
+        }
+    }
     path = tmp_path / "bench.db"
     targets = _field(6, 40)
     with Store(path) as store:
@@ -279,11 +314,21 @@ def test_a_run_commanded_by_a_calibration_is_identified_from_the_angles_it_sent(
     targets = targets[delta4.inverse_kinematics(targets, geometry).reachable]  # what the driver let through
     sent = _sent(delta4.inverse_kinematics(targets, geometry).servo_deg)
     readings = attained_positions(sent, ["servo_zero_1_deg", "upper_arm_3_mm"], [0.6, -0.4])[:, :2] + [0.3, -0.2]
-    settings = {**CAMERA_SETTINGS, "kinematic_calibration": {"id": record.id, "name": record.name, "version": 1,
-                                                             "source_run_id": None, "reason": "chosen"}}
+    settings = {
+        **CAMERA_SETTINGS,
+        "kinematic_calibration": {
+            "id": record.id,
+            "name": record.name,
+            "version": 1,
+            "source_run_id": None,
+            "reason": "chosen",
+        },
+    }
     run_id = _store_run(path, targets, readings, settings)
-    assert main(["calibrate", str(run_id), "--store", str(path), "--json", "--free", "servo_zero_1_deg",
-                 "upper_arm_3_mm"]) == 0
+    assert (
+        main(["calibrate", str(run_id), "--store", str(path), "--json", "--free", "servo_zero_1_deg", "upper_arm_3_mm"])
+        == 0
+    )
     out = json.loads(capsys.readouterr().out)
     assert out["version"] == 2
     for name, entry in in_force["parameters"].items():
@@ -291,8 +336,10 @@ def test_a_run_commanded_by_a_calibration_is_identified_from_the_angles_it_sent(
 
 
 FINE = wire.FineReference()  # the firmware's answer to C: 0.01 deg references on its 0.01125 deg PWM tick
-FINE_SETTINGS = {**CAMERA_SETTINGS, "robot": {**CAMERA_SETTINGS["robot"],
-                                              "fine_reference": {"in_use": True, "probed": True, **FINE.settings()}}}
+FINE_SETTINGS = {
+    **CAMERA_SETTINGS,
+    "robot": {**CAMERA_SETTINGS["robot"], "fine_reference": {"in_use": True, "probed": True, **FINE.settings()}},
+}
 
 
 def _gain_by_references(tmp_path, seed: int, fine: bool) -> tuple[float, float, dict]:
@@ -303,14 +350,16 @@ def _gain_by_references(tmp_path, seed: int, fine: bool) -> tuple[float, float, 
     sent = FINE.sent_deg if fine else _sent
     tmp_path.mkdir()
     pool = _field(10 + seed, 300)
-    jac = ForwardModel(sent(delta4.inverse_kinematics(pool).servo_deg), CANDIDATES).jacobian(
-        np.zeros(len(CANDIDATES)))
+    jac = ForwardModel(sent(delta4.inverse_kinematics(pool).servo_deg), CANDIDATES).jacobian(np.zeros(len(CANDIDATES)))
     pick = select_poses(jac, U_MM, 30)
     geometric = [n for n in identifiable_subset(jac[pick], U_MM, CANDIDATES, required=PLANE) if n not in REGISTRATION]
     rng = np.random.default_rng(seed)
     names, values = geometric, rng.normal(0.0, 0.3, len(geometric))
-    readings = attained_positions(sent(delta4.inverse_kinematics(pool[pick]).servo_deg), names, values)[:, :2] \
-        + TRUE_REGISTRATION + rng.normal(0.0, U_MM, (30, 2))
+    readings = (
+        attained_positions(sent(delta4.inverse_kinematics(pool[pick]).servo_deg), names, values)[:, :2]
+        + TRUE_REGISTRATION
+        + rng.normal(0.0, U_MM, (30, 2))
+    )
     run_id = _store_run(tmp_path / "bench.db", pool[pick], readings, FINE_SETTINGS if fine else CAMERA_SETTINGS)
     with Store(tmp_path / "bench.db") as store:
         identified = identify_run(store, run_id)
@@ -335,9 +384,11 @@ def test_fine_references_let_the_calibration_cut_the_held_out_ap_ten_times(tmp_p
     byte_before, byte_after, byte_params = _gain_by_references(tmp_path / "bytes", seed, fine=False)
     assert byte_after > 0.3 and byte_before / byte_after < before / after  # the bytes' floor, same truth
     assert 0.3 < byte_params["command_resolution_mm"] < 0.6
-    print(f"seed {seed}: fine {before:.3f} -> {after:.4f} mm ({before / after:.1f}x, floor "
-          f"{params['command_resolution_mm']:.4f} mm); bytes {byte_before:.3f} -> {byte_after:.3f} mm "
-          f"({byte_before / byte_after:.1f}x)")
+    print(
+        f"seed {seed}: fine {before:.3f} -> {after:.4f} mm ({before / after:.1f}x, floor "
+        f"{params['command_resolution_mm']:.4f} mm); bytes {byte_before:.3f} -> {byte_after:.3f} mm "
+        f"({byte_before / byte_after:.1f}x)"
+    )
 
 
 def test_the_command_resolution_of_a_fine_run_is_its_fine_steps(tmp_path, capsys):
@@ -350,5 +401,7 @@ def test_the_command_resolution_of_a_fine_run_is_its_fine_steps(tmp_path, capsys
     assert main(["calibrate", str(run_id), "--store", str(tmp_path / "bench.db"), "--free", "servo_zero_1_deg"]) == 0
     out = capsys.readouterr().out
     floor = float(np.mean(np.linalg.norm(attained_positions(on_tick)[:, :2] - commanded[:, :2], axis=1)))
-    assert f"command resolution: the servos' fine steps (0.01 deg references) move these poses by {floor:.3f} mm" \
-        in out and floor < 0.01
+    assert (
+        f"command resolution: the servos' fine steps (0.01 deg references) move these poses by {floor:.3f} mm" in out
+        and floor < 0.01
+    )

@@ -32,15 +32,17 @@ def protocol():
 def _store_campaign(path, poses, readings):
     """A run of ``readings`` (C, N, 3): C cycles of the N poses, in the protocol's order."""
     with Store(path) as store:
-        run_id = store.start_run(protocol_name="kinematic_calibration", protocol_version="1", robot="pkm5",
-                                 config={})
+        run_id = store.start_run(protocol_name="kinematic_calibration", protocol_version="1", robot="pkm5", config={})
         index = 0
         for cycle, cycle_readings in enumerate(readings, start=1):
             for i, (cmd, meas) in enumerate(zip(poses, cycle_readings)):
-                values = {**dict(zip(("cmd_x_mm", "cmd_y_mm", "cmd_z_mm", "cmd_a_deg", "cmd_b_deg"), map(float, cmd))),
-                          **dict(zip(("x_mm", "y_mm", "z_mm"), map(float, meas)))}
-                store.add_sample(run_id, index, values=values, kind="pose", pose=f"C{i + 1:02d}", cycle=cycle,
-                                 t_s=60.0 * index)
+                values = {
+                    **dict(zip(("cmd_x_mm", "cmd_y_mm", "cmd_z_mm", "cmd_a_deg", "cmd_b_deg"), map(float, cmd))),
+                    **dict(zip(("x_mm", "y_mm", "z_mm"), map(float, meas))),
+                }
+                store.add_sample(
+                    run_id, index, values=values, kind="pose", pose=f"C{i + 1:02d}", cycle=cycle, t_s=60.0 * index
+                )
                 index += 1
     return run_id
 
@@ -66,8 +68,11 @@ def test_pose_means_weigh_by_the_pooled_scatter_of_the_mean_with_the_instrument_
     # pose 0 (2 + 10 * 4/3) / (1 + 10), pose 1 (2 + 10 * 4/3) / (2 + 10)
     assert means.scatter_mm == pytest.approx([np.sqrt(4 / 3), 0.0]) and means.scatter_dof == 3
     own = 2 + 10 * 4 / 3
-    assert means.uncertainty_mm == pytest.approx(np.array([[np.sqrt(own / 11) / np.sqrt(2), 0.5 / np.sqrt(2)],
-                                                           [np.sqrt(own / 12) / np.sqrt(3), 0.5 / np.sqrt(3)]]))
+    assert means.uncertainty_mm == pytest.approx(
+        np.array(
+            [[np.sqrt(own / 11) / np.sqrt(2), 0.5 / np.sqrt(2)], [np.sqrt(own / 12) / np.sqrt(3), 0.5 / np.sqrt(3)]]
+        )
+    )
     single = pose_means(readings[:2], [0, 1], instrument_mm=0.5)  # one reading a pose: nothing measured
     assert np.isnan(single.scatter_mm).all() and single.uncertainty_mm.tolist() == [[0.5, 0.5], [0.5, 0.5]]
 
@@ -81,6 +86,7 @@ def test_a_pose_that_scatters_far_beyond_the_others_is_erratic():
     assert erratic.tolist() == [True] + [False] * 29
     # its own variance ratio against the other poses' pooled one, by hand: above the F quantile at 1e-6
     from scipy.stats import f
+
     own = np.var(readings[:, 0, 0], ddof=1)
     rest = np.sum((readings[:, 1:, 0] - readings[:, 1:, 0].mean(axis=0)) ** 2) / (29 * 9)
     assert own / rest > f.isf(1e-6, 9, 29 * 9)
@@ -155,5 +161,6 @@ def test_two_plausible_distinct_geometries_are_refused_and_nothing_is_stored(tmp
 @pytest.mark.parametrize("gain", ["0.5", "1", "inf", "nan"])
 def test_a_target_gain_that_is_no_gain_is_one_line(tmp_path, capsys, gain):
     assert main(["calibrate", "1", "--target-gain", gain, "--store", str(tmp_path / "bench.db")]) == 2
-    assert capsys.readouterr().err == (f"bench: error: --target-gain = {float(gain)!r}, expected a number above 1 "
-                                       "(the held-out AP before / after)\n")
+    assert capsys.readouterr().err == (
+        f"bench: error: --target-gain = {float(gain)!r}, expected a number above 1 (the held-out AP before / after)\n"
+    )

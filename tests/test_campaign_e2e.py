@@ -13,19 +13,18 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 import pytest
-
 from cli_runs import wait_for_samples
 
 from bench.cli import main
-from bench.launch import simulated_rig_in
 from bench.commands.demo import analyze_run
+from bench.launch import simulated_rig_in
 from bench.protocols import PROTOCOLS, Runner
 from bench.protocols.iso9283 import PoseAccuracy
 from bench.protocols.plan import iterate
 from bench.protocols.runner import step_stores_sample
-from bench.simulators.rig import simulated_rig
 from bench.simulators.error_model import ErrorModel
 from bench.simulators.pkm5_plant import PKM5_ERRORS
+from bench.simulators.rig import simulated_rig
 from bench.store import Store, tidy_table
 from motion import pkm5
 
@@ -85,15 +84,29 @@ QUICK_PARAMETERS = {
     "lasergrid_hits": {"attempts": 2, "heights_mm": [-170], "spread": 2},
     "delta_positioning": {"cycles": 2},
     "payload_ladder": {"loads_kg": [0.45, 7.08, 25.23]},
-    "mouse_calibration": {"repeats": 2, "distances_mm": [5, 20, 40], "reference": "calibrated-axis",
-                          "reference_u_pct": 0.05},
+    "mouse_calibration": {
+        "repeats": 2,
+        "distances_mm": [5, 20, 40],
+        "reference": "calibrated-axis",
+        "reference_u_pct": 0.05,
+    },
     "actuator_accuracy": {"repeats": 2, "distances_mm": [10, 50], "actuators": [1, 6]},
     "iso9283_stabilisation": {"cycles": 1, "lead_s": 0.2, "hold_s": 0.4},
     "iterative_correction": {"iterations": 1},
-    "iso9283_path": {"shape": "line", "cycles": 2, "velocities_pct": [100], "final_hold_s": 0.1,
-                     "chord_error_mm": 0.05},
+    "iso9283_path": {
+        "shape": "line",
+        "cycles": 2,
+        "velocities_pct": [100],
+        "final_hold_s": 0.1,
+        "chord_error_mm": 0.05,
+    },
     "iso9283_positioning_time": {"steps_mm": [-2, 4], "cycles": 1, "rest_s": 0.1, "hold_s": 0.4},
-    "iso9283_cornering": {"cycles": 2, "velocities_pct": [100], "final_hold_s": 0.1, "chord_error_mm": 0.05},  # more adapt to the readings (tests/test_kinematic_compensation.py)
+    "iso9283_cornering": {
+        "cycles": 2,
+        "velocities_pct": [100],
+        "final_hold_s": 0.1,
+        "chord_error_mm": 0.05,
+    },  # more adapt to the readings (tests/test_kinematic_compensation.py)
 }
 
 
@@ -106,8 +119,9 @@ def test_each_protocol_completes_on_the_simulator(tmp_path, name, capsys):
     protocol = PROTOCOLS[name](settle_s=0.1, **QUICK_PARAMETERS[name])
     expected = sum(1 for step in iterate(protocol, final=False) if step_stores_sample(step))
     with Store(tmp_path / "b.db") as store:
-        rig = simulated_rig_in(store, protocol.robot, seed=2, speed_factor=20000,
-                               fixture=getattr(protocol, "fixture", "assembled"))
+        rig = simulated_rig_in(
+            store, protocol.robot, seed=2, speed_factor=20000, fixture=getattr(protocol, "fixture", "assembled")
+        )
         try:
             result = Runner(rig, store).run(protocol)
         finally:
@@ -122,8 +136,11 @@ def test_each_protocol_completes_on_the_simulator(tmp_path, name, capsys):
             assert sorted(set(legs["leg"])) == [1, 2, 3, 4, 5, 6]
             model = ErrorModel.draw(PKM5_ERRORS, 6, 2, np.asarray(pkm5.DEFAULT_GEOMETRY.leg_length_offset_mm))
             leg = legs["leg"].to_numpy() - 1
-            systematic = (model.offset[leg] + model.scale[leg] * (legs["cmd_length_mm"] - model.joint_zero[leg])
-                          - model.sag_per_kg[leg] * legs["load_kg"])
+            systematic = (
+                model.offset[leg]
+                + model.scale[leg] * (legs["cmd_length_mm"] - model.joint_zero[leg])
+                - model.sag_per_kg[leg] * legs["load_kg"]
+            )
             # what is left: half the backlash (<= 0.075), joint noise 0.05 and calliper 0.02 (1 sigma)
             assert (legs["error_mm"] - systematic).abs().max() < 0.35
             assert legs["error_mm"].abs().max() > 0.2  # not calliper scatter alone (that is 0.02)
@@ -150,8 +167,9 @@ def test_each_protocol_completes_on_the_simulator(tmp_path, name, capsys):
                 true = np.array([truth[(pose.pose, c)] for c in (1, 2)])
                 assert beta.ap_deg == pytest.approx(true.mean() - beta.commanded_deg, abs=0.35)
                 assert beta.rp_deg == pytest.approx(3 * true.std(ddof=1), abs=3 * 0.35)
-            true_ap = [np.mean([truth[(p.pose, c)] for c in (1, 2)]) - p.figures[0].commanded_deg
-                       for p in report.orientation]
+            true_ap = [
+                np.mean([truth[(p.pose, c)] for c in (1, 2)]) - p.figures[0].commanded_deg for p in report.orientation
+            ]
             assert max(map(abs, true_ap)) > 0.5  # a real robot error the readings show, not calliper noise alone
             # the report's tables and its recomputing command give the same numbers as the CLI on the tilts CSV
             from bench.reports.orientation import orientation_blocks, orientation_headline
@@ -218,9 +236,25 @@ def test_kill_9_mid_run_then_resume_gives_exactly_the_expected_samples(capsys, t
     protocol_file = tmp_path / "pose.toml"
     protocol_file.write_text('protocol = "iso9283_pose"\ncycles = 6\nvelocities_pct = [100, 50]\nsettle_s = 0.2\n')
     db = tmp_path / "b.db"
-    writer = subprocess.Popen([sys.executable, "-m", "bench.cli", "run", str(protocol_file), "--sim", "--store", str(db),
-                               "--no-progress", "--speed-factor", "3000"], cwd=ROOT, stdout=subprocess.PIPE,
-                              stderr=subprocess.PIPE, text=True)
+    writer = subprocess.Popen(
+        [
+            sys.executable,
+            "-m",
+            "bench.cli",
+            "run",
+            str(protocol_file),
+            "--sim",
+            "--store",
+            str(db),
+            "--no-progress",
+            "--speed-factor",
+            "3000",
+        ],
+        cwd=ROOT,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
     wait_for_samples(db, writer, 17)
     os.kill(writer.pid, signal.SIGKILL)
     writer.wait(timeout=10)
@@ -231,6 +265,7 @@ def test_kill_9_mid_run_then_resume_gives_exactly_the_expected_samples(capsys, t
     assert _run_id(capsys) == 1
     with Store(db) as store:
         from bench.protocols import protocol_from_config
+
         protocol = protocol_from_config(store.run(1).config)
         expected = {i for i, step in enumerate(iterate(protocol, final=False)) if step_stores_sample(step)}
         after = {s.step_index: s.values for s in store.samples(1)}
@@ -245,8 +280,13 @@ def test_demo_writes_table_results_and_report(capsys, tmp_path):
     assert main(["demo", "--out", str(out), "--cycles", "3", "--no-progress"]) == 0
     printed = capsys.readouterr().out.split()
     # one report (HTML and PDF from one document): no report.md that could disagree with it
-    assert [Path(p).name for p in printed[1:]] == ["bench.db", "run-1.csv", "results.csv", "report_run1.html",
-                                                  "report_run1.pdf"]
+    assert [Path(p).name for p in printed[1:]] == [
+        "bench.db",
+        "run-1.csv",
+        "results.csv",
+        "report_run1.html",
+        "report_run1.pdf",
+    ]
     results = pd.read_csv(out / "results.csv")
     assert len(results) == 15 and set(results["velocity_pct"]) == {100, 50, 10}
     assert not (out / "report.md").exists()
@@ -256,14 +296,33 @@ def test_ctrl_c_pauses_at_a_checkpoint_then_stop_ends_the_run(tmp_path):
     protocol_file = tmp_path / "pose.toml"
     protocol_file.write_text('protocol = "iso9283_pose"\ncycles = 20\nvelocities_pct = [100]\nsettle_s = 0.2\n')
     db = tmp_path / "b.db"
-    run = subprocess.Popen([sys.executable, "-m", "bench.cli", "run", str(protocol_file), "--sim", "--store", str(db),
-                            "--no-progress", "--speed-factor", "3000"], cwd=ROOT, stdin=subprocess.PIPE,
-                           stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    run = subprocess.Popen(
+        [
+            sys.executable,
+            "-m",
+            "bench.cli",
+            "run",
+            str(protocol_file),
+            "--sim",
+            "--store",
+            str(db),
+            "--no-progress",
+            "--speed-factor",
+            "3000",
+        ],
+        cwd=ROOT,
+        stdin=subprocess.PIPE,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
     wait_for_samples(db, run, 7)
     run.send_signal(signal.SIGINT)
     out, err = run.communicate("s\n", timeout=30)
     assert run.returncode == 1 and out.strip() == "1"
-    assert "pausing at the next checkpoint" in err and "paused: [r]esume, [s]top, [a]bort, [h]alt?" in err
+    assert (
+        "pausing at the next checkpoint" in err and "paused: [r]esume, [s]top, [a]bort, [h]alt (Ctrl-C aborts)?" in err
+    )
     with Store(db) as store:
         record = store.run(1)
         assert record.status == "aborted" and record.reason.startswith("stopped by the operator at checkpoint")
@@ -307,12 +366,30 @@ def test_hardware_path_on_a_pty_with_mice_that_see_nothing_is_refused_at_the_che
         db = str(tmp_path / "b.db")
         quick = tmp_path / "quick.toml"
         quick.write_text(QUICK.read_text().replace("settle_s = 0.5", "settle_s = 0"))
-        assert main(["run", str(quick), "--store", db, "--port", pty, "--mouse-xy", fifos[0], "--mouse-xz", fifos[1],
-                     "--no-progress"]) == 1
+        assert (
+            main(
+                [
+                    "run",
+                    str(quick),
+                    "--store",
+                    db,
+                    "--port",
+                    pty,
+                    "--mouse-xy",
+                    fifos[0],
+                    "--mouse-xz",
+                    fifos[1],
+                    "--no-progress",
+                ]
+            )
+            == 1
+        )
         err = capsys.readouterr().err.strip().splitlines()[-1]
-        assert err.startswith("bench: error: registration check: at the check pose home + (10.0, 6.0, 14.0) mm the "
-                              "instruments read (-10.00, -6.00, -14.00) mm = 18.22 mm from the commanded pose, "
-                              "tolerance 6.74 mm"), err
+        assert err.startswith(
+            "bench: error: registration check: at the check pose home + (10.0, 6.0, 14.0) mm the "
+            "instruments read (-10.00, -6.00, -14.00) mm = 18.22 mm from the commanded pose, "
+            "tolerance 6.74 mm"
+        ), err
         with Store(db) as store:
             assert store.runs() == []
     finally:
@@ -323,7 +400,25 @@ def test_hardware_path_on_a_pty_with_mice_that_see_nothing_is_refused_at_the_che
 
 
 def test_missing_port_is_one_line(capsys, tmp_path):
-    assert main(["run", str(QUICK), "--store", str(tmp_path / "b.db"), "--port", "/dev/ttyNONE", "--mouse-xy", "a",
-                 "--mouse-xz", "b"]) == 1
+    assert (
+        main(
+            [
+                "run",
+                str(QUICK),
+                "--store",
+                str(tmp_path / "b.db"),
+                "--port",
+                "/dev/ttyNONE",
+                "--mouse-xy",
+                "a",
+                "--mouse-xz",
+                "b",
+            ]
+        )
+        == 1
+    )
     err = capsys.readouterr().err.strip()
-    assert err.startswith("bench: error: --port: controller.port = '/dev/ttyNONE': cannot open it") and len(err.splitlines()) == 1
+    assert (
+        err.startswith("bench: error: --port: controller.port = '/dev/ttyNONE': cannot open it")
+        and len(err.splitlines()) == 1
+    )

@@ -14,7 +14,6 @@ import time
 from pathlib import Path
 
 import pytest
-
 from cli_runs import BENCH, wait_for_samples
 
 from bench.store import Store
@@ -35,8 +34,13 @@ class TerminalJob:
         self.err_path = tmp_path / "stderr.txt"
         self._err = open(self.err_path, "w")
         self.process = subprocess.Popen(
-            [BENCH, "run", str(QUICK), "--store", str(self.store), "--no-progress", "--speed-factor", "40"],
-            stdin=subprocess.PIPE, stdout=subprocess.DEVNULL, stderr=self._err, text=True, process_group=0)
+            [BENCH, "run", str(QUICK), "--sim", "--store", str(self.store), "--no-progress", "--speed-factor", "40"],
+            stdin=subprocess.PIPE,
+            stdout=subprocess.DEVNULL,
+            stderr=self._err,
+            text=True,
+            process_group=0,
+        )
 
     def stderr(self) -> str:
         return self.err_path.read_text()

@@ -26,8 +26,10 @@ def test_a_speed_factor_that_is_not_finite_and_positive_is_refused_naming_the_op
     store = tmp_path / "b.db"
     assert main(["run", str(QUICK), "--sim", "--store", str(store), "--no-progress", "--speed-factor", factor]) == 2
     shown = f"{float(factor):g}"
-    assert _one_line(capsys) == (f"bench: error: speed factor = {shown}, expected a finite number > 0 "
-                                 "(--speed-factor, how much faster than real time the simulators run)")
+    assert _one_line(capsys) == (
+        f"bench: error: speed factor = {shown}, expected a finite number > 0 "
+        "(--speed-factor, how much faster than real time the simulators run)"
+    )
     assert not store.exists()  # refused before the store opens: no empty file left behind
 
 
@@ -41,8 +43,10 @@ def test_calliper_entry_into_a_missing_folder_or_onto_a_folder_is_one_line(tmp_p
     monkeypatch.setattr("sys.stdin", open("/dev/null"))  # noqa: SIM115 - nothing is read before the refusal
     missing = tmp_path / "nope" / "readings.csv"
     assert main(["sensors", "calliper-entry", "--out", str(missing)]) == 2
-    assert _one_line(capsys) == (f"bench: error: calliper-entry: --out {missing}: folder {missing.parent} does not "
-                                 "exist, expected an existing folder")
+    assert _one_line(capsys) == (
+        f"bench: error: calliper-entry: --out {missing}: folder {missing.parent} does not "
+        "exist, expected an existing folder"
+    )
     assert main(["sensors", "calliper-entry", "--out", str(tmp_path)]) == 2
     assert _one_line(capsys) == f"bench: error: calliper-entry: --out {tmp_path}: a folder, expected a CSV file name"
     assert list(tmp_path.iterdir()) == []

@@ -32,8 +32,9 @@ def test_ik_reachable_with_alpha(capsys):
 
 
 def test_unreachable_is_one_line_without_traceback():
-    proc = subprocess.run([sys.executable, "-m", "bench.cli", "kin", "ik", "pkm5", "300", "0", "300"],
-                          capture_output=True, text=True)
+    proc = subprocess.run(
+        [sys.executable, "-m", "bench.cli", "kin", "ik", "pkm5", "300", "0", "300"], capture_output=True, text=True
+    )
     assert proc.returncode == 2
     assert proc.stderr.count("\n") == 1 and "Traceback" not in proc.stderr
     assert proc.stderr.startswith("bench: error: pose (300, 0, 300) mm") and "leg 1 length 316.729 mm" in proc.stderr
@@ -59,8 +60,9 @@ def test_fk_beta_pose(capsys):
 
 
 def test_workspace_json(capsys):
-    code, data, _ = run_json(capsys, ["kin", "workspace", "pkm5", "--samples", "20000", "--hull-points", "2000",
-                                      "--seed", "1", "--json"])
+    code, data, _ = run_json(
+        capsys, ["kin", "workspace", "pkm5", "--samples", "20000", "--hull-points", "2000", "--seed", "1", "--json"]
+    )
     assert code == 0
     assert {"volume_mm3", "stderr_mm3", "hull_volume_mm3"} <= set(data)
     assert 0.78e6 < data["volume_mm3"] < 0.87e6 and data["stderr_mm3"] > 0

@@ -19,11 +19,16 @@ def test_the_workspace_estimate_reports_its_samples_as_it_goes():
     assert counted == [500, 1000, 1200]
 
 
-@pytest.mark.parametrize(("argv", "label"), [
-    (["kin", "workspace", "pkm5", "--samples", "50000", "--hull-points", "200"],
-     "pkm5 constant-orientation workspace, samples"),
-    (["kin", "workspace", "prus3", "--samples", "3000"], "prus3 workspace, samples"),
-])
+@pytest.mark.parametrize(
+    ("argv", "label"),
+    [
+        (
+            ["kin", "workspace", "pkm5", "--samples", "50000", "--hull-points", "200"],
+            "pkm5 constant-orientation workspace, samples",
+        ),
+        (["kin", "workspace", "prus3", "--samples", "3000"], "prus3 workspace, samples"),
+    ],
+)
 def test_a_long_workspace_run_draws_a_bar_on_stderr(capsys, monkeypatch, argv, label):
     monkeypatch.setattr(kin, "SHOW_AFTER_S", 0.0)
     assert main([*argv, "--json"]) == 0

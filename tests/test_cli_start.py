@@ -16,10 +16,11 @@ HEAVY = ("scipy", "matplotlib", "pandas", "numpy", "PySide6", "reportlab", "seri
 
 def imported_after(code: str) -> dict:
     """Run ``code`` in a fresh interpreter; the heavy top-level packages it left in ``sys.modules``, and its output."""
-    probe = (f"import sys\n{code}\n"
-             f"print(json.dumps(sorted({{m.split('.')[0] for m in sys.modules}} & set({list(HEAVY)!r}))))")
-    proc = subprocess.run([sys.executable, "-c", "import json\n" + probe], capture_output=True, text=True,
-                          timeout=120)
+    probe = (
+        f"import sys\n{code}\n"
+        f"print(json.dumps(sorted({{m.split('.')[0] for m in sys.modules}} & set({list(HEAVY)!r}))))"
+    )
+    proc = subprocess.run([sys.executable, "-c", "import json\n" + probe], capture_output=True, text=True, timeout=120)
     assert proc.returncode == 0, proc.stderr
     return {"heavy": json.loads(proc.stdout.splitlines()[-1]), "stdout": proc.stdout}
 
@@ -30,32 +31,41 @@ def test_building_the_whole_parser_imports_no_heavy_package():
 
 
 def test_top_level_help_and_version_import_no_heavy_package():
-    help_text = imported_after("import contextlib, io\nimport bench.cli\nout = io.StringIO()\n"
-                               "with contextlib.redirect_stdout(out), contextlib.suppress(SystemExit):\n"
-                               "    bench.cli.main(['--help'])\n"
-                               "print(repr('kin' in out.getvalue() and 'analyze' in out.getvalue()))")
+    help_text = imported_after(
+        "import contextlib, io\nimport bench.cli\nout = io.StringIO()\n"
+        "with contextlib.redirect_stdout(out), contextlib.suppress(SystemExit):\n"
+        "    bench.cli.main(['--help'])\n"
+        "print(repr('kin' in out.getvalue() and 'analyze' in out.getvalue()))"
+    )
     assert help_text["heavy"] == [] and "True" in help_text["stdout"]
-    version = imported_after("import contextlib, io\nimport bench.cli\nout = io.StringIO()\n"
-                             "with contextlib.redirect_stdout(out), contextlib.suppress(SystemExit):\n"
-                             "    bench.cli.main(['--version'])\n"
-                             "print(repr(out.getvalue()))")
+    version = imported_after(
+        "import contextlib, io\nimport bench.cli\nout = io.StringIO()\n"
+        "with contextlib.redirect_stdout(out), contextlib.suppress(SystemExit):\n"
+        "    bench.cli.main(['--version'])\n"
+        "print(repr(out.getvalue()))"
+    )
     assert version["heavy"] == [] and "'bench " in version["stdout"]
 
 
 def test_inverse_kinematics_imports_numpy_only():
-    result = imported_after("import contextlib, io\nimport bench.cli\n"
-                            "with contextlib.redirect_stdout(io.StringIO()):\n"
-                            "    code = bench.cli.main(['kin', 'ik', 'pkm5', '111.31', '-20', '310', '--json'])\n"
-                            "assert code == 0, code")
+    result = imported_after(
+        "import contextlib, io\nimport bench.cli\n"
+        "with contextlib.redirect_stdout(io.StringIO()):\n"
+        "    code = bench.cli.main(['kin', 'ik', 'pkm5', '111.31', '-20', '310', '--json'])\n"
+        "assert code == 0, code"
+    )
     assert result["heavy"] == ["numpy"]
 
 
-@pytest.mark.parametrize(("argv", "option", "choices"), [
-    (["kin", "fk", "pkm5"], "--mode", ["auto", "translation", "alpha", "beta"]),
-    (["analyze", "actuator"], "--robot", ["pkm5"]),
-    (["export"], "--format", ["csv", "parquet"]),
-    (["report"], "--format", ["html", "pdf", "all"]),
-])
+@pytest.mark.parametrize(
+    ("argv", "option", "choices"),
+    [
+        (["kin", "fk", "pkm5"], "--mode", ["auto", "translation", "alpha", "beta"]),
+        (["analyze", "actuator"], "--robot", ["pkm5"]),
+        (["export"], "--format", ["csv", "parquet"]),
+        (["report"], "--format", ["html", "pdf", "all"]),
+    ],
+)
 def test_deferred_arguments_appear_when_their_command_is_parsed(argv, option, choices):
     from bench.cli import build_parser
 
@@ -96,15 +106,21 @@ def test_the_desktop_app_and_the_runner_import_no_table_plotting_or_scipy_packag
 
 
 def test_the_metrology_package_still_offers_every_name():
-    result = imported_after("import bench.metrology as m\nfrom bench.metrology import pose_accuracy, "
-                            "analyze_actuators\nprint(len(m.__all__), all(hasattr(m, n) for n in m.__all__))")
+    result = imported_after(
+        "import bench.metrology as m\nfrom bench.metrology import pose_accuracy, "
+        "analyze_actuators\nprint(len(m.__all__), all(hasattr(m, n) for n in m.__all__))"
+    )
     count, every = result["stdout"].splitlines()[-2].split()
     assert int(count) > 90 and every == "True"
 
 
 def test_python_dash_m_bench_is_the_same_entry_point():
-    proc = subprocess.run([sys.executable, "-m", "bench", "kin", "ik", "pkm5", "111.31", "-20", "310", "--json"],
-                          capture_output=True, text=True, timeout=120)
+    proc = subprocess.run(
+        [sys.executable, "-m", "bench", "kin", "ik", "pkm5", "111.31", "-20", "310", "--json"],
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
     assert proc.returncode == 0, proc.stderr
     from bench.cli import main
 
@@ -112,6 +128,7 @@ def test_python_dash_m_bench_is_the_same_entry_point():
     with contextlib.redirect_stdout(out):
         assert main(["kin", "ik", "pkm5", "111.31", "-20", "310", "--json"]) == 0
     assert json.loads(proc.stdout) == json.loads(out.getvalue())
-    bad = subprocess.run([sys.executable, "-m", "bench", "kin", "ik", "pkm5", "x"], capture_output=True, text=True,
-                         timeout=120)
+    bad = subprocess.run(
+        [sys.executable, "-m", "bench", "kin", "ik", "pkm5", "x"], capture_output=True, text=True, timeout=120
+    )
     assert bad.returncode == 2 and "Traceback" not in bad.stderr

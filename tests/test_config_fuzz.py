@@ -58,12 +58,21 @@ def _plausible(number: float) -> bool:  # small, absurd or not finite; never a h
 
 
 LEAVES = st.one_of(
-    st.booleans(), st.integers(-3, 40), st.sampled_from([0, -1, 10**6, 2**31, 2**63 - 1, -(2**63)]),
-    st.floats().filter(_plausible), st.sampled_from([1e20, 1e308, -1e308, 5e-324]),
-    st.text(max_size=8), st.sampled_from(["50 mm", "2 s", "10 %", "", "pkm5", "delta4", "1e20", "iso9283_pose"]),
-    st.dates(), st.datetimes())
-VALUES = st.recursive(LEAVES, lambda inner: st.lists(inner, max_size=4)
-                      | st.dictionaries(st.text(min_size=1, max_size=6), inner, max_size=3), max_leaves=8)
+    st.booleans(),
+    st.integers(-3, 40),
+    st.sampled_from([0, -1, 10**6, 2**31, 2**63 - 1, -(2**63)]),
+    st.floats().filter(_plausible),
+    st.sampled_from([1e20, 1e308, -1e308, 5e-324]),
+    st.text(max_size=8),
+    st.sampled_from(["50 mm", "2 s", "10 %", "", "pkm5", "delta4", "1e20", "iso9283_pose"]),
+    st.dates(),
+    st.datetimes(),
+)
+VALUES = st.recursive(
+    LEAVES,
+    lambda inner: st.lists(inner, max_size=4) | st.dictionaries(st.text(min_size=1, max_size=6), inner, max_size=3),
+    max_leaves=8,
+)
 
 
 @st.composite

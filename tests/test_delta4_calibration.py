@@ -59,8 +59,9 @@ class _Camera:
         square = 2 * HALF_FIELD_MM / 11
         board_at = np.array([[1.0, 0.0, square + 3], [0.0, 1.0, square + 3], [0.0, 0.0, 1.0]])  # whole board in view
         board = SpotCameraSimulator(mm_to_px @ board_at, shape=(size, size)).chessboard((9, 6), square)
-        self.calibration = calibrate_from_chessboard(board, (9, 6), square, calibration_id="delta-cam",
-                                                     date="2026-12-02")
+        self.calibration = calibrate_from_chessboard(
+            board, (9, 6), square, calibration_id="delta-cam", date="2026-12-02"
+        )
         self._spot = np.zeros(2)
         simulator = SpotCameraSimulator(mm_to_px, shape=(size, size), sigma_px=2.5, noise_sigma=3.0)
         self.sensor = LaserSpotCamera(simulator.frame_source(lambda: self._spot), self.calibration)
@@ -108,8 +109,9 @@ def _held_out_ap_mm(camera, names, values, fit, seed: int) -> float:
     """Mean |reading - target| over 50 held-out positions commanded by the fitted geometry."""
     targets = _field_points(50 + seed, 50)
     servo = commanded_servo_deg(targets, fit.names, fit.values)
-    return float(np.mean(np.linalg.norm(camera.read(attained_positions(servo, names, values)) - targets[:, :2],
-                                        axis=1)))
+    return float(
+        np.mean(np.linalg.norm(camera.read(attained_positions(servo, names, values)) - targets[:, :2], axis=1))
+    )
 
 
 def test_zero_deviations_are_the_documented_kinematics():
@@ -172,11 +174,9 @@ def test_camera_calibration_cuts_the_held_out_error_tenfold(camera, seed):
 def test_identified_parameters_lie_within_three_uncertainties_of_the_truth(camera):
     """Truth perturbed in the identified parameters only (the others cannot be told from them by this pose set)."""
     candidates = _field_points(1, 300)
-    jac = ForwardModel(delta4.inverse_kinematics(candidates).servo_deg, CANDIDATES).jacobian(
-        np.zeros(len(CANDIDATES)))
+    jac = ForwardModel(delta4.inverse_kinematics(candidates).servo_deg, CANDIDATES).jacobian(np.zeros(len(CANDIDATES)))
     pick = select_poses(jac, UNCERTAINTY_MM, 30)
-    free = [n for n in identifiable_subset(jac[pick], UNCERTAINTY_MM, CANDIDATES, required=PLANE)
-            if n not in PLANE]
+    free = [n for n in identifiable_subset(jac[pick], UNCERTAINTY_MM, CANDIDATES, required=PLANE) if n not in PLANE]
     names, values = _truth(3, free)
     _, fit = _calibrate(camera, names, values)
     truth = dict(zip(names, values))
@@ -204,8 +204,9 @@ def test_the_laser_grid_resolution_leaves_no_useful_gain():
     for seed in range(5):
         rng = np.random.default_rng(seed)
         truth = rng.normal(0.0, 0.3, len(PARAMETERS))
-        measured = attained_positions(servo[pick], PARAMETERS, truth) + rng.uniform(-half_window_mm,
-                                                                                     half_window_mm, (30, 3))
+        measured = attained_positions(servo[pick], PARAMETERS, truth) + rng.uniform(
+            -half_window_mm, half_window_mm, (30, 3)
+        )
         held = _field_points(50 + seed, 50)
         error = []
         for names in (REGISTRATION, free):

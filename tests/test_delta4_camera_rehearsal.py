@@ -27,8 +27,12 @@ from motion.delta4.calibration import PARAMETERS
 
 STATION = "examples/stations/delta4_camera.toml"
 TRUE_SEED = 3
-TARGETS = {"T1": (0.0, 0.0, -160.0), "T2": (40.0, 25.0, -170.0), "T3": (-35.0, 30.0, -150.0),
-           "T4": (25.0, -45.0, -165.0)}
+TARGETS = {
+    "T1": (0.0, 0.0, -160.0),
+    "T2": (40.0, 25.0, -170.0),
+    "T3": (-35.0, 30.0, -150.0),
+    "T4": (25.0, -45.0, -165.0),
+}
 #: 3 x the camera's stated standard uncertainty (its plane calibration's RMS, ~0.02 mm) plus margin for noise.
 READING_TOLERANCE_MM = 0.08
 
@@ -41,8 +45,10 @@ def _closure_residuals(p, servo_deg, deviations):
     v = np.cross([0.0, 0.0, 1.0], u)
     residuals, gradient = [], np.zeros(3)
     for i in range(4):
-        d = {kind: deviations.get(f"{kind}_{i + 1}_{'deg' if kind == 'servo_zero' else 'mm'}", 0.0)
-             for kind in ("servo_zero", "upper_arm", "lower_arm", "radial", "sideways", "height")}
+        d = {
+            kind: deviations.get(f"{kind}_{i + 1}_{'deg' if kind == 'servo_zero' else 'mm'}", 0.0)
+            for kind in ("servo_zero", "upper_arm", "lower_arm", "radial", "sideways", "height")
+        }
         phi = np.radians(45.0 - (servo_deg[i] + d["servo_zero"]))
         origin = (g.thigh_offset_mm + d["radial"]) * u[i] + d["sideways"] * v[i] + d["height"] * np.array([0, 0, 1.0])
         knee = origin + (g.upper_arm_mm + d["upper_arm"]) * (np.cos(phi) * u[i] + np.sin(phi) * np.array([0, 0, 1.0]))
@@ -126,8 +132,9 @@ def test_iterative_correction_on_the_delta4_with_the_camera(rehearsed):
     rig, rehearsal, store = rehearsed
     u_mm = rig.instrument.settings()["u_mm"]
     assert rig.robot.controller.settings()["fine_reference"]["in_use"], "the simulated controller answers C"
-    protocol = PROTOCOLS["iterative_correction"](robot="delta4", poses={k: list(v) for k, v in TARGETS.items()},
-                                                 tolerance_mm=u_mm, iterations=3, settle_s=0.0)
+    protocol = PROTOCOLS["iterative_correction"](
+        robot="delta4", poses={k: list(v) for k, v in TARGETS.items()}, tolerance_mm=u_mm, iterations=3, settle_s=0.0
+    )
     result = Runner(rig, store).run(protocol)
     assert result.exit_status == "completed", result.reason
     samples = store.samples(result.run_id, "pose")
@@ -138,7 +145,8 @@ def test_iterative_correction_on_the_delta4_with_the_camera(rehearsed):
         if sample.cycle == 1:
             assert np.allclose(command, target)
         errors.setdefault(sample.pose, []).append(
-            float(np.max(np.abs([sample.values["x_mm"], sample.values["y_mm"]] - target))))
+            float(np.max(np.abs([sample.values["x_mm"], sample.values["y_mm"]] - target)))
+        )
     assert set(errors) == set(TARGETS)
     assert max(series[0] for series in errors.values()) > 0.3  # the true geometry's first-move error
     for pose, series in errors.items():
@@ -214,8 +222,9 @@ def test_a_reading_of_several_frames_drops_only_the_frame_queued_before_the_move
     calibration = load_plane_calibration(str(tmp_path / "plane.json"))
     grab, grab_next, release = video_grab(feed.path)
     try:
-        instrument = CameraSpotInstrument(LaserSpotCamera(grab, calibration, grab_next=grab_next), (0.0, 0.0, 0.0),
-                                          frames=4)
+        instrument = CameraSpotInstrument(
+            LaserSpotCamera(grab, calibration, grab_next=grab_next), (0.0, 0.0, 0.0), frames=4
+        )
         for x, y in ([12.0, -7.0], [-20.0, 31.0]):
             pose["xy"] = np.array([x, y, -160.0])  # the robot moved; one frame of the old rest waits in the FIFO
             rendered = feed.frames
@@ -230,11 +239,21 @@ def test_a_reading_of_several_frames_drops_only_the_frame_queued_before_the_move
         release()
 
 
-@pytest.mark.parametrize("station, options, message", [
-    ("pkm5_camera", {}, "[camera] on the pkm5 cannot be rehearsed yet (only the delta4 simulator streams a camera)"),
-    ("pkm5_actuator_bench", {"true_geometry_seed": 3},
-     "--true-geometry-seed 3: the actuator-bench has no geometry, expected an assembled robot's station"),
-])
+@pytest.mark.parametrize(
+    "station, options, message",
+    [
+        (
+            "pkm5_camera",
+            {},
+            "[camera] on the pkm5 cannot be rehearsed yet (only the delta4 simulator streams a camera)",
+        ),
+        (
+            "pkm5_actuator_bench",
+            {"true_geometry_seed": 3},
+            "--true-geometry-seed 3: the actuator-bench has no geometry, expected an assembled robot's station",
+        ),
+    ],
+)
 def test_a_rehearsal_the_simulators_cannot_give_is_refused_before_anything_starts(station, options, message):
     from bench.errors import ConfigError
 
@@ -249,8 +268,19 @@ def test_bench_run_rehearses_the_delta4_camera_station_with_a_true_geometry(tmp_
     from bench.cli import main
 
     store = tmp_path / "bench.db"
-    argv = ["run", "examples/delta4_iterative_correction.toml", "--station", STATION, "--sim", "--true-geometry-seed",
-            str(TRUE_SEED), "--ideal", "--no-progress", "--store", str(store)]
+    argv = [
+        "run",
+        "examples/delta4_iterative_correction.toml",
+        "--station",
+        STATION,
+        "--sim",
+        "--true-geometry-seed",
+        str(TRUE_SEED),
+        "--ideal",
+        "--no-progress",
+        "--store",
+        str(store),
+    ]
     assert main(argv) == 0
     run_id = int(capsys.readouterr().out.split()[-1])
     with Store(store, read_only=True) as s:
@@ -265,7 +295,10 @@ def test_bench_run_rehearses_the_delta4_camera_station_with_a_true_geometry(tmp_
     with Store(store, read_only=True) as s:
         runs_before = len(s.runs())
     assert main(argv[:2] + ["--port", "/dev/null", "--seed", "4", "--speed-factor", "50", "--store", str(store)]) == 2
-    assert capsys.readouterr().err.strip().endswith(
-        "--seed 4, --speed-factor 50: only for a simulated rig (no --port; --station with --sim)")
+    assert (
+        capsys.readouterr()
+        .err.strip()
+        .endswith("--seed 4, --speed-factor 50: only for a simulated rig (no --port; --station with --sim)")
+    )
     with Store(store, read_only=True) as s:
         assert len(s.runs()) == runs_before

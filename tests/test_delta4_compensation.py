@@ -14,16 +14,23 @@ import pytest
 
 from bench.calibration.compensate import calibrated_geometry
 from bench.protocols.kinematics import robot_model
+from bench.rigs.movers import DeltaMover
 from bench.robots import delta4_wire as wire
 from bench.robots.delta4 import Delta4Controller
 from bench.robots.testing import ScriptedPort
-from bench.rigs.movers import DeltaMover
 from bench.store import Store
 from motion import delta4
 from motion.delta4.calibration import attained_positions, commanded_servo_deg, compensation_geometry
 
-PARAMS = {"parameters": {"servo_zero_1_deg": {"value": 0.4}, "upper_arm_2_mm": {"value": -0.3},
-                         "sideways_3_mm": {"value": 0.25}, "reg_x_mm": {"value": 0.5}, "reg_y_mm": {"value": -0.3}}}
+PARAMS = {
+    "parameters": {
+        "servo_zero_1_deg": {"value": 0.4},
+        "upper_arm_2_mm": {"value": -0.3},
+        "sideways_3_mm": {"value": 0.25},
+        "reg_x_mm": {"value": 0.5},
+        "reg_y_mm": {"value": -0.3},
+    }
+}
 TARGET = (-70.0, -70.0, -180.0)
 PROTOCOL = 'protocol = "delta_positioning"\nrobot = "delta4"\ncycles = 2\nsettle_s = 0.1\n'
 
@@ -41,8 +48,10 @@ def test_the_calibrated_ik_puts_the_calibrated_robot_on_the_target_in_the_instru
     values = [PARAMS["parameters"][n]["value"] for n in names]
     # the identified robot stands where the reading (attained + registration) is the target
     assert attained_positions(servo, names, values) + [0.5, -0.3, 0.0] == pytest.approx(points, abs=1e-9)
-    assert servo == pytest.approx(commanded_servo_deg(points, list(PARAMS["parameters"]),
-                                                      [e["value"] for e in PARAMS["parameters"].values()]), abs=1e-9)
+    assert servo == pytest.approx(
+        commanded_servo_deg(points, list(PARAMS["parameters"]), [e["value"] for e in PARAMS["parameters"].values()]),
+        abs=1e-9,
+    )
     assert np.abs(servo - delta4.inverse_kinematics(points).servo_deg).max() > 0.3
 
 
@@ -64,8 +73,7 @@ def test_the_mover_sends_fine_references_by_the_geometry_in_force_once_the_contr
     geometry = calibrated_geometry(record)
     angles = delta4.inverse_kinematics([TARGET], geometry).servo_deg[0]
     fine = "".join(wire.format_fine_command(i, int(round(a * 100))).decode() for i, a in enumerate(angles))
-    mover = DeltaMover(Delta4Controller(ScriptedPort([("C", "c01125X"), (fine, "z"), ("z", "")]),
-                                        settle_timeout_s=0.5))
+    mover = DeltaMover(Delta4Controller(ScriptedPort([("C", "c01125X"), (fine, "z"), ("z", "")]), settle_timeout_s=0.5))
     mover.controller.probe_fine_references()
     mover.use_geometry(geometry)
     mover.move_to(TARGET, velocity_pct=100.0)  # the port refuses any other bytes
@@ -94,10 +102,14 @@ def test_a_run_records_the_calibration_in_force_and_can_turn_it_off(tmp_path):
         record = s.add_calibration("delta4_kinematics", {**PARAMS, "simulated": True}, notes="test")
     done = _bench("run", str(protocol), "--sim", "--no-progress", store=store, cwd=tmp_path)
     assert done.returncode == 0, done.stderr
-    assert (f"kinematic calibration in force: delta4_kinematics v1 (id {record.id}; the newest for this robot)"
-            in done.stderr)
+    assert (
+        f"kinematic calibration in force: delta4_kinematics v1 (id {record.id}; the newest for this robot)"
+        in done.stderr
+    )
     on = int(done.stdout.split()[-1])
-    done = _bench("run", str(protocol), "--sim", "--no-progress", "--no-kinematic-calibration", store=store, cwd=tmp_path)
+    done = _bench(
+        "run", str(protocol), "--sim", "--no-progress", "--no-kinematic-calibration", store=store, cwd=tmp_path
+    )
     assert done.returncode == 0, done.stderr
     assert "kinematic calibration: none (--no-kinematic-calibration)" in done.stderr
     off = int(done.stdout.split()[-1])
@@ -115,13 +127,18 @@ def test_a_target_the_calibrated_geometry_cannot_reach_is_refused_before_anythin
     protocol.write_text(PROTOCOL)
     store = tmp_path / "bench.db"
     with Store(store) as s:
-        s.add_calibration("delta4_kinematics", {"parameters": {"servo_zero_1_deg": {"value": -50.0}},
-                                                "simulated": True})
+        s.add_calibration(
+            "delta4_kinematics", {"parameters": {"servo_zero_1_deg": {"value": -50.0}}, "simulated": True}
+        )
     done = _bench("run", str(protocol), "--sim", "--no-progress", store=store, cwd=tmp_path)
     assert done.returncode == 2 and done.stderr.count("\n") == 2, done.stderr
     assert "target P2 (x -70.00 mm, y -70.00 mm, z -180.00 mm) is not reachable: servo_limit (leg 1)" in done.stderr
-    assert _bench("run", str(protocol), "--sim", "--no-progress", "--no-kinematic-calibration", store=store,
-                  cwd=tmp_path).returncode == 0
+    assert (
+        _bench(
+            "run", str(protocol), "--sim", "--no-progress", "--no-kinematic-calibration", store=store, cwd=tmp_path
+        ).returncode
+        == 0
+    )
 
 
 def test_a_calibration_of_another_robot_is_refused_in_one_line(tmp_path):
@@ -133,9 +150,15 @@ def test_a_calibration_of_another_robot_is_refused_in_one_line(tmp_path):
         delta4_record = store.add_calibration("delta4_kinematics", PARAMS)
         assert select_calibration(store, "delta4", NEWEST)[0].id == delta4_record.id
         assert select_calibration(store, "pkm5", NEWEST)[0].id == pkm5_record.id
-        with pytest.raises(ConfigError, match=f"^--kinematic-calibration {pkm5_record.id}: calibration "
-                                              "pkm5_kinematics v1, expected a delta4_kinematics calibration$"):
+        with pytest.raises(
+            ConfigError,
+            match=f"^--kinematic-calibration {pkm5_record.id}: calibration "
+            "pkm5_kinematics v1, expected a delta4_kinematics calibration$",
+        ):
             select_calibration(store, "delta4", pkm5_record.id)
-        with pytest.raises(ConfigError, match=f"^--kinematic-calibration {delta4_record.id}: no kinematic "
-                                              "calibration exists for the prus3, expected none$"):
+        with pytest.raises(
+            ConfigError,
+            match=f"^--kinematic-calibration {delta4_record.id}: no kinematic "
+            "calibration exists for the prus3, expected none$",
+        ):
             select_calibration(store, "prus3", delta4_record.id)

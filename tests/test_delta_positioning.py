@@ -16,11 +16,11 @@ from bench.errors import ConfigError
 from bench.metrology.partial_pose import axis_errors, detection_rate, partial_pose_statistics
 from bench.protocols import PROTOCOLS, Runner
 from bench.rigs.lasergrid import LaserGridInstrument
-from bench.simulators.rig import simulated_rig
-from bench.steps import Capture, commanded_values
-from bench.simulators import delta4 as sim_delta4
 from bench.robots.delta4 import Delta4Controller, SensorFrame
 from bench.robots.testing import ScriptedPort
+from bench.simulators import delta4 as sim_delta4
+from bench.simulators.rig import simulated_rig
+from bench.steps import Capture, commanded_values
 from bench.store import Store, export_run, tidy_table
 
 CYCLES = 4
@@ -29,8 +29,22 @@ SEED = 4  # P1 and P3 seen by the horizontal screen, P3 by the vertical one, P2 
 # Reference tables, typed in from delta4-lasergrid.md: laser offsets from BE (§4.4), GUI screen placement (§4.3:
 # first sensor centre, 10 mm pitch, index = 16 row + column), the vertical laser set 40 mm below z0 (§4.2), the
 # simulator's 1 mm detection window (§4.10) and the 3.75 mm decoding gate (§4.7).
-OFFSETS_MM = np.array([(0, 0), (15, 0), (0, -15), (15, -15), (-22.5, 0), (22.5, 0), (0, -22.5), (0, 22.5),
-                       (-22.5, -22.5), (-22.5, 22.5), (22.5, -22.5), (22.5, 22.5)])
+OFFSETS_MM = np.array(
+    [
+        (0, 0),
+        (15, 0),
+        (0, -15),
+        (15, -15),
+        (-22.5, 0),
+        (22.5, 0),
+        (0, -22.5),
+        (0, 22.5),
+        (-22.5, -22.5),
+        (-22.5, 22.5),
+        (22.5, -22.5),
+        (22.5, 22.5),
+    ]
+)
 FIRST_CENTRE_MM = {"horizontal": np.array([-75.0, -75.0]), "vertical": np.array([-75.0, -225.0])}
 R_MM, GATE_MM = 1.0, 3.75
 
@@ -91,10 +105,10 @@ def test_stored_readings_are_within_the_detection_window_of_the_true_pose(positi
     for sample in store.samples(result.run_id):
         true = np.array(sample.raw["true_pose"])
         command = np.array([sample.values[k] for k in ("cmd_x_mm", "cmd_y_mm", "cmd_z_mm")])
-        assert 0.0 < np.abs(true - command).max() < 4.5   # the attained pose, off by the robot's error
+        assert 0.0 < np.abs(true - command).max() < 4.5  # the attained pose, off by the robot's error
         for axis, name in enumerate(("x_mm", "y_mm", "z_mm")):
             if name in sample.values:
-                assert abs(sample.values[name] - true[axis]) <= R_MM + 1e-9   # one lattice point, window r
+                assert abs(sample.values[name] - true[axis]) <= R_MM + 1e-9  # one lattice point, window r
                 compared += 1
     assert compared >= 6
 
@@ -121,7 +135,8 @@ def test_hit_rates_and_axis_counts_match_the_raw_frames(positioning_run, capsys)
             assert figures["screens"][screen]["lit"]["k"] == sum(bool(s.raw[screen]) for s in frames)
             assert figures["screens"][screen]["valid"]["k"] == sum(axis in d for d in decoded)
             assert figures["screens"][screen]["valid"]["rate"] == pytest.approx(
-                sum(axis in d for d in decoded) / CYCLES)
+                sum(axis in d for d in decoded) / CYCLES
+            )
         for axis in "xyz":
             values = [d[f"{axis}_mm"] for d in decoded if f"{axis}_mm" in d]
             assert figures["axes"][axis]["n"] == len(values)
@@ -134,8 +149,10 @@ def test_a_pose_without_valid_readings_is_reported_as_such_not_as_zero(positioni
     assert main(["analyze", "grid-positioning", str(csv), "--json"]) == 0
     p2 = json.loads(capsys.readouterr().out)["poses"]["P2"]
     assert p2["screens"]["horizontal"]["valid"]["rate"] == 0.0
-    assert all(axis == {"n": 0, "AP_mm": None, "spread_3s_mm": None, "max_abs_error_mm": None,
-                        "mean_abs_error_mm": None} for axis in p2["axes"].values())
+    assert all(
+        axis == {"n": 0, "AP_mm": None, "spread_3s_mm": None, "max_abs_error_mm": None, "mean_abs_error_mm": None}
+        for axis in p2["axes"].values()
+    )
     assert (p2["n_complete"], p2["AP_mm"], p2["RP_mm"]) == (0, None, None)
     assert main(["analyze", "grid-positioning", str(csv)]) == 0
     text = capsys.readouterr().out
@@ -164,6 +181,7 @@ def test_an_axis_from_an_invalid_screen_is_refused(positioning_run, tmp_path, ca
 
 
 # -- frames that must not become positions ------------------------------------------------------------------------
+
 
 class FrameSource:
     """Serves prepared sensor frames, as the driver's ``read_sensor_frame`` does (stamped when served)."""
@@ -222,6 +240,7 @@ def test_a_report_begun_before_the_servos_settled_is_never_stored():
 
 # -- the simulator program's options ---------------------------------------------------------------------------------
 
+
 def _device(*options: str):
     import argparse
 
@@ -249,7 +268,7 @@ def test_miss_probability_by_height_reproduces_appendix_d2_at_each_height():
     from bench.simulators.lasergrid import LaserGridSimulator
 
     simulator = LaserGridSimulator(p_miss_by_distance=True, seed=5)
-    for height_mm, thesis in ((140.0, 0.9925), (200.0, 0.98)):   # hits / 400 attempts in Appendix D2
+    for height_mm, thesis in ((140.0, 0.9925), (200.0, 0.98)):  # hits / 400 attempts in Appendix D2
         frames = simulator.frames(np.tile([-5.0, -5.0, -height_mm], (4000, 1)))  # BE on sensor (7, 7)
         assert np.mean([len(f.horizontal) == 1 for f in frames]) == pytest.approx(thesis, abs=0.006)
     with pytest.raises(ConfigError, match="p_miss = 0.1 with p_miss_by_distance"):
@@ -258,10 +277,11 @@ def test_miss_probability_by_height_reproduces_appendix_d2_at_each_height():
 
 # -- statistics of partial readings ----------------------------------------------------------------------------------
 
+
 def test_detection_rate_wilson_interval_against_the_closed_form_at_zero():
     rate = detection_rate([0] * 15)
     assert (rate.k, rate.n, rate.rate, rate.low) == (0, 15, 0.0, 0.0)
-    assert rate.high == pytest.approx(4 / (15 + 4))   # 0 of n: Wilson upper bound z^2 / (n + z^2), z = 2
+    assert rate.high == pytest.approx(4 / (15 + 4))  # 0 of n: Wilson upper bound z^2 / (n + z^2), z = 2
 
 
 @settings(max_examples=60, deadline=None)
@@ -283,8 +303,10 @@ def test_each_axis_counts_only_its_own_readings(rows):
     assert stats.n_complete == complete.sum() and (stats.rp_mm is None) == (complete.sum() < 2)
 
 
-@pytest.mark.parametrize("module", ["bench.metrology.partial_pose", "bench.rigs.lasergrid", "bench.sensors.lasergrid",
-                                    "bench.simulators.lasergrid"])
+@pytest.mark.parametrize(
+    "module",
+    ["bench.metrology.partial_pose", "bench.rigs.lasergrid", "bench.sensors.lasergrid", "bench.simulators.lasergrid"],
+)
 def test_docstring_examples(module):
     import importlib
 

@@ -31,18 +31,27 @@ SITECUSTOMIZE = textwrap.dedent(f"""
     sys.meta_path[:] = [_NotInstalled if finder is PathFinder else finder for finder in sys.meta_path]
 """)
 
+
 @pytest.mark.slow
 def test_the_demo_runs_without_any_extra(tmp_path):
     hook = tmp_path / "hook"
     hook.mkdir()
     (hook / "sitecustomize.py").write_text(SITECUSTOMIZE)
-    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(hook), *filter(None, [os.environ.get("PYTHONPATH")])]),
-           "BENCH_TEST_SIMULATOR_FORKS": "0"}
+    env = {
+        **os.environ,
+        "PYTHONPATH": os.pathsep.join([str(hook), *filter(None, [os.environ.get("PYTHONPATH")])]),
+        "BENCH_TEST_SIMULATOR_FORKS": "0",
+    }
     probe = subprocess.run([sys.executable, "-c", "import cv2"], env=env, capture_output=True, text=True)
     assert "No module named 'cv2'" in probe.stderr  # the hook works: the extras are gone for the demo below
     out = tmp_path / "demo"
-    done = subprocess.run([sys.executable, "-m", "bench", "demo", "--out", str(out), "--cycles", "3"], env=env,
-                          capture_output=True, text=True, timeout=300)
+    done = subprocess.run(
+        [sys.executable, "-m", "bench", "demo", "--out", str(out), "--cycles", "3"],
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
     assert done.returncode == 0, done.stderr
     assert (out / "bench.db").is_file()
     assert any(path.suffix == ".pdf" for path in out.iterdir())

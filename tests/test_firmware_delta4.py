@@ -51,6 +51,7 @@ class EmulatedDelta4:
 
     def open(self, timeout_s=0.05):
         import serial
+
         return serial.serial_for_url(self.path, baudrate=DEFAULT_BAUDRATE, timeout=timeout_s)
 
     def light(self, screen: str, indices) -> None:
@@ -68,7 +69,7 @@ class EmulatedDelta4:
             with open(self.events) as log:
                 log.seek(offset)
                 tail = log.read()
-            for line in tail[:tail.rfind("\n") + 1].splitlines()[1:]:  # complete lines; the first may be a rest
+            for line in tail[: tail.rfind("\n") + 1].splitlines()[1:]:  # complete lines; the first may be a rest
                 fields = line.split()  # <cycle> ADC <clocks> <cs low> <setup> <high> <low> <c1> <c2> <c3> <c4>
                 if len(fields) == 11 and fields[1] == "ADC" and fields[7:] == wanted:
                     return
@@ -81,7 +82,7 @@ class EmulatedDelta4:
             self.process.wait(timeout=10)
         text = self.events.read_text()
         rows = []
-        for line in text[:text.rfind("\n") + 1].splitlines():
+        for line in text[: text.rfind("\n") + 1].splitlines():
             cycle, kind, channel, *value = line.split()
             rows.append((int(cycle), kind, channel, value[0] if value else "", tuple(value)))
         return rows
@@ -147,7 +148,7 @@ def test_pulse_widths_and_period_follow_the_documented_mapping_through_the_drive
 def assert_pulses_at_rest(events, first_byte, expected_ticks):
     """Each move (begun by a message starting with ``first_byte``) ends with its servos pulsing
     ``expected_ticks`` (one row per move) at a steady 2 ms period."""
-    starts = received_at(events, first_byte)[::4 if first_byte == b"F" else 1]  # a fine move: four F messages
+    starts = received_at(events, first_byte)[:: 4 if first_byte == b"F" else 1]  # a fine move: four F messages
     ends = starts[1:] + [max(r for r, _ in pulses(events, 1)) + PERIOD_TICKS]
     assert len(ends) == len(expected_ticks)
     for values, end in zip(expected_ticks, ends):
@@ -176,7 +177,7 @@ def test_moves_are_slew_limited_and_z_follows_the_end(mcu):
     moving = np.flatnonzero(np.abs(np.diff(widths)) > 4)
     assert widths[0] == pytest.approx(start, abs=2) and widths[-1] == pytest.approx(end, abs=2)
     assert abs(moving[-1] - moving[0] - (end - start) / step_ticks) <= 2  # it took travel / slew limit
-    ramp = widths[moving[0] + 1:moving[-1]]
+    ramp = widths[moving[0] + 1 : moving[-1]]
     on_slew = ramp - step_ticks * np.arange(len(ramp))
     off_line = on_slew - np.median(on_slew)  # never stepped faster: every width stays on the slew-limited line
     stretched = np.flatnonzero(off_line > 3)
@@ -213,8 +214,9 @@ def test_calibrated_mapping_and_a_50_hz_refresh_as_build_options(tmp_path, tmp_p
 def first_frames_showing(robot, horizontal, vertical, limit=40):
     """Reports up to the first that shows this pattern, and the one after it (the pattern holds)."""
     frames = []
-    while len(frames) < limit and (not frames or (frames[-1].horizontal, frames[-1].vertical) != (horizontal,
-                                                                                                 vertical)):
+    while len(frames) < limit and (
+        not frames or (frames[-1].horizontal, frames[-1].vertical) != (horizontal, vertical)
+    ):
         frames.append(robot.read_sensor_frame(10.0))
     return frames + [robot.read_sensor_frame(10.0)]
 
@@ -244,8 +246,9 @@ def test_laser_grid_hits_on_the_screen_inputs_are_reported_and_decode_as_the_doc
     assert decoded.position_mm[:2] == (0.0, -5.0) and decoded.horizontal.lasers == ("G5-a",)
     assert [(f.horizontal, f.vertical) for f in later[-2:]] == [(tuple(sorted(horizontal + (200, 17))), vertical)] * 2
     assert crowded[-1].horizontal == tuple(range(0, 256, 2))
-    decoded = decode_frame(geometry, [i for i in later[-1].horizontal if i in horizontal], later[-1].vertical,
-                           pose_mm + [1.0, -1.0, 1.0])
+    decoded = decode_frame(
+        geometry, [i for i in later[-1].horizontal if i in horizontal], later[-1].vertical, pose_mm + [1.0, -1.0, 1.0]
+    )
     assert decoded.position_mm == tuple(pose_mm)
     events = mcu.close()
     final = [pulses(events, servo + 1)[-2][1] for servo in range(4)]
@@ -254,14 +257,15 @@ def test_laser_grid_hits_on_the_screen_inputs_are_reported_and_decode_as_the_doc
     on = [c for c, kind, channel, value, _ in events if kind == "LASER" and channel == "1" and value == "1"]
     off = [c for c, kind, channel, value, _ in events if kind == "LASER" and channel == "1" and value == "0"]
     assert len(on) >= 4
-    assert np.all(np.array(off[:len(on)]) - np.array(on[:len(off)]) >= 1e-3 * F_CPU_HZ)  # 1 ms on before the load
+    assert np.all(np.array(off[: len(on)]) - np.array(on[: len(off)]) >= 1e-3 * F_CPU_HZ)  # 1 ms on before the load
     assert abs(np.median(np.diff(on[:5])) / F_CPU_HZ - 0.080) < 0.003  # one frame per 80 ms (§5.5), few hits
 
 
 def pot_reads(events):
     """The harness's TLC548 reads: (cycle CS rose, clocks, CS low, setup, min high, min low cycles, counts)."""
-    return [(c, int(clocks), *map(int, v[:4]), tuple(map(int, v[4:]))) for c, kind, clocks, _, v in events
-            if kind == "ADC"]
+    return [
+        (c, int(clocks), *map(int, v[:4]), tuple(map(int, v[4:]))) for c, kind, clocks, _, v in events if kind == "ADC"
+    ]
 
 
 def documented_pot_count(servo_deg):
@@ -417,60 +421,65 @@ def pot_query(raw, servo_bytes, why, answers=1):
 
 #: (bytes sent, the reply expected once sensor reports are taken out, why[, pot counts fed before the step])
 REPLAY = [
-    (b'A', b'p076Xq076Xr076Xs076X', "pot query before E: the home pose, 71.657 deg", (76, 76, 76, 76)),
-    (b'P100X', b'', "stored while stopped: nothing until E"),
-    (b'E', b'z', "start: the stored reference is applied, one z"),
-    pot_query(b'A', (100, 96, 96, 96), "pot query: servo 1 on 100"),
-    (b'E', b'', "start again: nothing"),
-    (b'P080XQ075XR110XS092X', b'z', "four references: one z"),
-    pot_query(b'AA', (80, 75, 110, 92), "two queries, two answers", answers=2),
-    pot_query(b'Q12A', (80, 75, 110, 92), "a query breaks a message: discarded, then answered"),
-    (b'P1234X', b'', "four digits: discarded"),
-    (b'P256X', b'', "value over 255: discarded"),
-    (b'PX', b'', "no digit: discarded"),
-    (b'Q12E', b'', "broken by E: discarded, then E (already started)"),
-    (b'T', b'', "undocumented T: ignored"),
-    (b'\x00\xff*#zzX17', b'', "garbage and acks: ignored"),
-    (b'R5X', b'z', "one digit: accepted, z"),
-    (b'PP100X', b'z', "a letter restarts the message: P100X accepted, z"),
-    (b'P0100X', b'', "four digits with a leading zero: discarded"),
-    (b'p100x', b'', "lower case: ignored"),
-    (b'P200XG', b'', "stopped mid-move: no z while stopped"),
-    (b'E', b'z', "restarted: the move goes on, z"),
-    (b'G', b'', "stop: no reports, no z"),
-    (b'E', b'', "start with nothing stored: no z"),
-    (b'G', b'', "stop"),
-    (b'S070X', b'', "stored while stopped"),
-    pot_query(b'A', (200, 75, 5, 92), "stopped: the pots still answer (S070X not applied yet)"),
-    (b'E', b'z', "start: z"),
-    (b'G', b'', "stop"),
-    (b'C', b'c01125X', "capability query, stopped: the fine step, one tick (1e-5 deg)"),
-    (b'E', b'', "start with nothing stored: no z"),
-    (b'F107166X', b'z', "fine reference, servo 1 to 71.66 deg: z"),
-    (b'F112000XF212000XF312000XF412000X', b'z', "four fine references: one z"),
-    pot_query(b'A', (161, 161, 161, 161), "pot query after fine references of 120 deg (byte 161: 119.96 deg)"),
-    (b'F512000X', b'', "servo 5: discarded"),
-    (b'F0X', b'', "servo 0: discarded"),
-    (b'F1X', b'', "no value digit: discarded"),
-    (b'F118001X', b'', "value over 18000: discarded"),
-    (b'F1120000X', b'', "six value digits: discarded"),
-    (b'F1120E', b'', "broken by E: discarded, then E (already started)"),
-    (b'F1 12000X', b'', "a space breaks it: discarded"),
-    (b'F1CX', b'c01125X', "C breaks a fine message: discarded, then answered"),
-    (b'FP100X', b'z', "a byte letter restarts the message: P100X accepted, z"),
-    (b'F309000X', b'z', "servo 3 to 90 deg: z"),
-    (b'G', b'', "stop"),
+    (b"A", b"p076Xq076Xr076Xs076X", "pot query before E: the home pose, 71.657 deg", (76, 76, 76, 76)),
+    (b"P100X", b"", "stored while stopped: nothing until E"),
+    (b"E", b"z", "start: the stored reference is applied, one z"),
+    pot_query(b"A", (100, 96, 96, 96), "pot query: servo 1 on 100"),
+    (b"E", b"", "start again: nothing"),
+    (b"P080XQ075XR110XS092X", b"z", "four references: one z"),
+    pot_query(b"AA", (80, 75, 110, 92), "two queries, two answers", answers=2),
+    pot_query(b"Q12A", (80, 75, 110, 92), "a query breaks a message: discarded, then answered"),
+    (b"P1234X", b"", "four digits: discarded"),
+    (b"P256X", b"", "value over 255: discarded"),
+    (b"PX", b"", "no digit: discarded"),
+    (b"Q12E", b"", "broken by E: discarded, then E (already started)"),
+    (b"T", b"", "undocumented T: ignored"),
+    (b"\x00\xff*#zzX17", b"", "garbage and acks: ignored"),
+    (b"R5X", b"z", "one digit: accepted, z"),
+    (b"PP100X", b"z", "a letter restarts the message: P100X accepted, z"),
+    (b"P0100X", b"", "four digits with a leading zero: discarded"),
+    (b"p100x", b"", "lower case: ignored"),
+    (b"P200XG", b"", "stopped mid-move: no z while stopped"),
+    (b"E", b"z", "restarted: the move goes on, z"),
+    (b"G", b"", "stop: no reports, no z"),
+    (b"E", b"", "start with nothing stored: no z"),
+    (b"G", b"", "stop"),
+    (b"S070X", b"", "stored while stopped"),
+    pot_query(b"A", (200, 75, 5, 92), "stopped: the pots still answer (S070X not applied yet)"),
+    (b"E", b"z", "start: z"),
+    (b"G", b"", "stop"),
+    (b"C", b"c01125X", "capability query, stopped: the fine step, one tick (1e-5 deg)"),
+    (b"E", b"", "start with nothing stored: no z"),
+    (b"F107166X", b"z", "fine reference, servo 1 to 71.66 deg: z"),
+    (b"F112000XF212000XF312000XF412000X", b"z", "four fine references: one z"),
+    pot_query(b"A", (161, 161, 161, 161), "pot query after fine references of 120 deg (byte 161: 119.96 deg)"),
+    (b"F512000X", b"", "servo 5: discarded"),
+    (b"F0X", b"", "servo 0: discarded"),
+    (b"F1X", b"", "no value digit: discarded"),
+    (b"F118001X", b"", "value over 18000: discarded"),
+    (b"F1120000X", b"", "six value digits: discarded"),
+    (b"F1120E", b"", "broken by E: discarded, then E (already started)"),
+    (b"F1 12000X", b"", "a space breaks it: discarded"),
+    (b"F1CX", b"c01125X", "C breaks a fine message: discarded, then answered"),
+    (b"FP100X", b"z", "a byte letter restarts the message: P100X accepted, z"),
+    (b"F309000X", b"z", "servo 3 to 90 deg: z"),
+    (b"G", b"", "stop"),
 ]
 REPLAY = [step if len(step) == 4 else (*step, None) for step in REPLAY]
 
 
 def simulator_replies(steps):
     """:func:`replies` to ``steps`` from ``python -m bench.simulators.delta4`` started as a user starts it."""
-    simulator = subprocess.Popen([sys.executable, "-m", "bench.simulators.delta4", "--ideal", "--no-grid",
-                                  "--speed-factor", "8"], cwd=ROOT, stdout=subprocess.PIPE,
-                                 stderr=subprocess.DEVNULL, text=True)
+    simulator = subprocess.Popen(
+        [sys.executable, "-m", "bench.simulators.delta4", "--ideal", "--no-grid", "--speed-factor", "8"],
+        cwd=ROOT,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.DEVNULL,
+        text=True,
+    )
     try:
         import serial
+
         path = simulator.stdout.readline().strip()
         with serial.serial_for_url(path, timeout=0.05) as port:
             return replies(port, steps)

@@ -18,8 +18,16 @@ from bench.robots import pkm5_kinematics as kinematics
 from bench.robots.pkm5 import ControllerError, Identity, Pkm5Controller
 from bench.simulators.pkm5 import HOME_STEPS
 from motion import pkm5
-from tests.firmware_sim import (ACCEL_STEPS_S2, DRIVERS_ENABLED_LEVEL, ROOT, EmulatedController, build,
-                                needs_toolchain, read_events, step_times)
+from tests.firmware_sim import (
+    ACCEL_STEPS_S2,
+    DRIVERS_ENABLED_LEVEL,
+    ROOT,
+    EmulatedController,
+    build,
+    needs_toolchain,
+    read_events,
+    step_times,
+)
 
 pytestmark = needs_toolchain
 #: the emulator keeps real time only while it gets about a fifth of a core (a loaded machine slows it several times)
@@ -134,12 +142,12 @@ def test_step_rate_holds_the_command_and_the_ramp_the_acceleration(mcu):
     n = abs(out[lead - 1] - HOME_STEPS[lead - 1])
     assert n > 900 and len(times) == 2 * n
     for t, speed in ((times[:n], 1000), (times[n:], 600)):
-        ramp = int(speed ** 2 / (2 * ACCEL_STEPS_S2)) + 20
-        cruise = t[ramp:n - ramp]
+        ramp = int(speed**2 / (2 * ACCEL_STEPS_S2)) + 20
+        cruise = t[ramp : n - ramp]
         rate = (len(cruise) - 1) / (cruise[-1] - cruise[0])
         assert abs(rate / speed - 1) < 0.01, rate
         # the ramps: a quadratic fitted to step number against time over each ramp gives its acceleration
-        ramp_steps = int(0.8 * (speed ** 2 - 20 ** 2) / (2 * ACCEL_STEPS_S2))
+        ramp_steps = int(0.8 * (speed**2 - 20**2) / (2 * ACCEL_STEPS_S2))
         for part in (t[:ramp_steps], t[-ramp_steps:]):
             accel = 2 * np.polyfit(part - part[0], np.arange(len(part)), 2)[0]
             assert 0.9 * ACCEL_STEPS_S2 < abs(accel) < 1.02 * ACCEL_STEPS_S2, accel
@@ -180,7 +188,11 @@ def test_killed_host_mid_move_disables_the_drivers_and_the_next_driver_gets_the_
     assert caught.value.code == 9
     robot.identify()
     where = robot.position()
-    assert where.state == "DISABLED" and where.steps[0] != HOME_STEPS[0] and where.steps != kinematics.steps_for_pose((88.649, 0.0, 312.0, 0.0, 0.0))  # stopped part way
+    assert (
+        where.state == "DISABLED"
+        and where.steps[0] != HOME_STEPS[0]
+        and where.steps != kinematics.steps_for_pose((88.649, 0.0, 312.0, 0.0, 0.0))
+    )  # stopped part way
     edges = mcu.close()
     disabled = disabled_after_enable(edges)
     assert sorted(e.axis for e in disabled) == [1, 2, 3, 4, 5, 6]

@@ -215,6 +215,11 @@ def test_a_move_resent_with_its_tag_is_answered_not_executed_again(built, tmp_pa
     host.lines.append((0.40, move))
     edges = run_script(built, tmp_path / "events.txt", host.lines, 0.6)
     said = [r for r in replies(edges) if " #5 " in r]
-    assert said == ["OK #5 MOVE 316", "OK #5 MOVE 316", "DONE #5 900 800 800 800 1600 1600", "OK #5 MOVE 316",
-                    "DONE #5 900 800 800 800 1600 1600"]
+    assert said == [
+        "OK #5 MOVE 316",
+        "OK #5 MOVE 316",
+        "DONE #5 900 800 800 800 1600 1600",
+        "OK #5 MOVE 316",
+        "DONE #5 900 800 800 800 1600 1600",
+    ]
     assert sum(1 for e in edges if e.kind == "STEP" and e.level == 1) == 100

@@ -87,17 +87,40 @@ def test_firmware_and_simulator_answer_the_script_alike(simulator_replies, tmp_p
 
 def test_the_script_covers_what_the_protocol_document_promises(simulator_replies):
     flat = [line for replies in simulator_replies for line in replies]
-    assert simulator_replies[0] == []                                       # an empty line is ignored
-    assert simulator_replies[3:9] == [["ERR #0 2 CHECKSUM"]] * 3 + [["ERR #0 2 CHECKSUM"], ["ERR #5 1 SYNTAX"],
-                                                                      ["ERR #0 2 CHECKSUM"]]
+    assert simulator_replies[0] == []  # an empty line is ignored
+    assert simulator_replies[3:9] == [["ERR #0 2 CHECKSUM"]] * 3 + [
+        ["ERR #0 2 CHECKSUM"],
+        ["ERR #5 1 SYNTAX"],
+        ["ERR #0 2 CHECKSUM"],
+    ]
     assert simulator_replies[9] == ["ERR #7 1 SYNTAX"] and simulator_replies[11] == ["ERR #0 3 TOO_LONG"]
     assert simulator_replies[12][0].startswith("OK #12 POS") and simulator_replies[13] == ["ERR #0 3 TOO_LONG"]
-    assert [r[0].split(" ")[1] for r in simulator_replies[15:25]] == ["#0", "#9", "#999999999", "#0", "#0", "#0",
-                                                                      "#0", "#7", "#0", "#0"]
+    assert [r[0].split(" ")[1] for r in simulator_replies[15:25]] == [
+        "#0",
+        "#9",
+        "#999999999",
+        "#0",
+        "#0",
+        "#0",
+        "#0",
+        "#7",
+        "#0",
+        "#0",
+    ]
     assert "ERR #31 7 BUSY" in flat and "ERR #30 8 STOPPED <n> <n> <n> <n> <n> <n>" in flat
     assert "OK #40 MOVE 0" in flat and "DONE #40 1000 1000 1000 1000 2000 2000" in flat
     assert simulator_replies[-13:] == [
-        ["ERR #50 4 ARGUMENT"], ["OK #51 PROTOCOL 2"], ["v2: OK #52 ID bench-pkm5 3 <version>"],
-        ["v2: ERR #0 2 CHECKSUM"], ["v2: ERR #0 2 CHECKSUM"], ["v2: ERR #0 2 CHECKSUM"], ["v2: ERR #0 2 CHECKSUM"],
-        ["v2: ERR #57 1 SYNTAX"], ["v2: ERR #0 1 SYNTAX"], ["v2: ERR #0 3 TOO_LONG"],
-        ["v2: ERR #0 2 CHECKSUM"], ["v2: ERR #61 4 ARGUMENT"], ["v2: OK #62 POS 1000 1000 1000 1000 2000 2000 DISABLED"]]
+        ["ERR #50 4 ARGUMENT"],
+        ["OK #51 PROTOCOL 2"],
+        ["v2: OK #52 ID bench-pkm5 3 <version>"],
+        ["v2: ERR #0 2 CHECKSUM"],
+        ["v2: ERR #0 2 CHECKSUM"],
+        ["v2: ERR #0 2 CHECKSUM"],
+        ["v2: ERR #0 2 CHECKSUM"],
+        ["v2: ERR #57 1 SYNTAX"],
+        ["v2: ERR #0 1 SYNTAX"],
+        ["v2: ERR #0 3 TOO_LONG"],
+        ["v2: ERR #0 2 CHECKSUM"],
+        ["v2: ERR #61 4 ARGUMENT"],
+        ["v2: OK #62 POS 1000 1000 1000 1000 2000 2000 DISABLED"],
+    ]

@@ -59,8 +59,10 @@ def test_campaign_from_the_window_stores_every_sample_and_shows_it(window, tmp_p
         assert shown[pose]["APy_mm"] == pytest.approx(barycentre[1], abs=1e-9)
         assert shown[pose]["AP_mm"] == pytest.approx(np.linalg.norm(barycentre), abs=1e-9)
         assert shown[pose]["RP_mm"] == pytest.approx(distances.mean() + 3 * distances.std(ddof=1), abs=1e-9)
-        assert (shown[pose]["AP_mm"], shown[pose]["RP_mm"]) == (report[pose].accuracy.ap_mm,
-                                                                report[pose].repeatability.rp_mm)
+        assert (shown[pose]["AP_mm"], shown[pose]["RP_mm"]) == (
+            report[pose].accuracy.ap_mm,
+            report[pose].repeatability.rp_mm,
+        )
     # the stream's time axis is wall-clock time since the run started (a 2-cycle run takes seconds, not hours)
     window.live_view.redraw()
     assert window.live_view.stream_axes.get_xlabel() == "wall-clock time since the run started (s)"
@@ -70,8 +72,11 @@ def test_campaign_from_the_window_stores_every_sample_and_shows_it(window, tmp_p
     assert window.campaign_panel.eta.text() == f"idle - last: run {run.id} completed (10 / 10 samples)"
     # results browser lists the run with its status (read in the background)
     browser = window.results
-    wait_for(lambda: browser.table.rowCount() == 1 and browser.table.item(0, 4).text() == "completed",
-             RUN_TIMEOUT_S, "the results table")
+    wait_for(
+        lambda: browser.table.rowCount() == 1 and browser.table.item(0, 4).text() == "completed",
+        RUN_TIMEOUT_S,
+        "the results table",
+    )
     assert [r.id for r in browser.records] == [run.id]
     assert [browser.table.item(0, c).text() for c in (0, 4, 5)] == [str(run.id), "completed", "10"]
     # the report of bench.reports, written from the browser in the background; a dialog names the file
@@ -107,8 +112,11 @@ def test_calliper_prompt_answered_in_the_dialog_then_pause_and_abort(window, tmp
     dialog.entry.clear()
     QTest.keyClicks(dialog.entry, "-1,5 deg")  # a keyboard wedge types the reading, then Enter
     QTest.keyClick(dialog.entry, Qt.Key.Key_Return)
-    wait_for(lambda: worker.runner is not None and worker.runner.state is RunState.PAUSED, RUN_TIMEOUT_S,
-             "the run to pause at the checkpoint after the reading")
+    wait_for(
+        lambda: worker.runner is not None and worker.runner.state is RunState.PAUSED,
+        RUN_TIMEOUT_S,
+        "the run to pause at the checkpoint after the reading",
+    )
     QTest.mouseClick(window.campaign_panel.buttons["abort"], Qt.MouseButton.LeftButton)
     _wait_idle(window)
     with Store(tmp_path / "bench.db") as store:
@@ -118,7 +126,10 @@ def test_calliper_prompt_answered_in_the_dialog_then_pause_and_abort(window, tmp
     assert [s.kind for s in samples] == ["pose", "tilt"]
     tilt = samples[1]
     assert tilt.values == {"a_deg": -1.5, "cmd_a_deg": dialog.prompt.commanded["cmd_a_deg"]}
-    assert tilt.raw == {"field": "a_deg", "entered": -1.5, "typed": "-1,5 deg"} and (tilt.pose, tilt.cycle) == (dialog.prompt.pose, 1)
+    assert tilt.raw == {"field": "a_deg", "entered": -1.5, "typed": "-1,5 deg"} and (tilt.pose, tilt.cycle) == (
+        dialog.prompt.pose,
+        1,
+    )
 
 
 @pytest.mark.slow
@@ -162,7 +173,7 @@ def test_stabilisation_run_shows_each_arrival_curve_as_stored_with_the_iso_bands
     assert run.status == "completed" and run.n_samples == 5
     curves = window.live_view.arrival_curves()
     assert [label for label, _, _ in curves] == [f"{pose} cycle 1" for pose in ("P1", "P5", "P4", "P3", "P2")]
-    for (label, t_s, distance), (_, stored) in zip(curves, series.groupby("pose", sort=False), strict=True):
+    for (_label, t_s, distance), (_, stored) in zip(curves, series.groupby("pose", sort=False), strict=True):
         # independently: the distance of every stored series point from the series' last point
         xyz = stored[["x_mm", "y_mm", "z_mm"]].to_numpy()
         np.testing.assert_allclose(t_s, stored["t_s"].to_numpy(), atol=1e-12)

@@ -43,8 +43,17 @@ def calibration_store(tmp_path_factory) -> tuple[Path, int]:
     """A store holding one calibration run of the seeded true geometry, and its id: run once for the module (each
     test works on its own copy)."""
     store = tmp_path_factory.mktemp("calibration") / "bench.db"
-    said = _bench("run", str(example_with_cycles("kinematic_calibration.toml", store.parent)), "--sim", "--true-geometry-seed", str(SEED), "--ideal",
-                  "--no-kinematic-calibration", "--no-progress", store=store)
+    said = _bench(
+        "run",
+        str(example_with_cycles("kinematic_calibration.toml", store.parent)),
+        "--sim",
+        "--true-geometry-seed",
+        str(SEED),
+        "--ideal",
+        "--no-kinematic-calibration",
+        "--no-progress",
+        store=store,
+    )
     return store, int(said.split()[-1])
 
 
@@ -86,8 +95,7 @@ def _run_validation(window, choice) -> int:
 
 
 @pytest.mark.slow
-def test_identify_in_the_window_then_run_with_the_chosen_calibration_and_with_none(calibration_run, window,
-                                                                                   tmp_path):
+def test_identify_in_the_window_then_run_with_the_chosen_calibration_and_with_none(calibration_run, window, tmp_path):
     store_path, run_id = tmp_path / "bench.db", calibration_run
     shutil.copy(store_path, tmp_path / "copy.db")
     expected = json.loads(_bench("calibrate", str(run_id), "--json", store=tmp_path / "copy.db"))
@@ -109,12 +117,16 @@ def test_identify_in_the_window_then_run_with_the_chosen_calibration_and_with_no
     condition = expected["observability"]["condition_number"]
     assert record.params["campaign"]["plan"]["target_gain"] == 10.0 != expected["campaign"]["plan"]["target_gain"]
     shown = panel.result_text.toPlainText().splitlines()
-    assert shown[0] == (f"pkm5_kinematics v1 (id {record.id}) from run {run_id}: 30 poses, "
-                        f"{len(expected['parameters'])} free parameters")
+    assert shown[0] == (
+        f"pkm5_kinematics v1 (id {record.id}) from run {run_id}: 30 poses, "
+        f"{len(expected['parameters'])} free parameters"
+    )
     assert shown[-6].startswith("fit: maximum a posteriori, prior: manufacturing tolerances")  # the default fit
     assert shown[-5].startswith(f"data part: condition number {condition:.3g} (the prior holds")
-    assert shown[-4] == (f"mean position error on the calibration poses (in-sample): before "
-                         f"{expected['ap_before_mm']:.3f} mm, after {expected['ap_after_mm']:.3f} mm")
+    assert shown[-4] == (
+        f"mean position error on the calibration poses (in-sample): before "
+        f"{expected['ap_before_mm']:.3f} mm, after {expected['ap_after_mm']:.3f} mm"
+    )
     assert shown[-3].startswith("search: 8 starts from the prior")
     assert shown[-2].startswith("robot scatter of one reading: ") and "instrument: 0.05 mm" in shown[-2]
     assert shown[-1].startswith("plan for 10x over the ")
@@ -123,31 +135,38 @@ def test_identify_in_the_window_then_run_with_the_chosen_calibration_and_with_no
     # the new calibration is listed (read again in the background) and can be chosen for the window's runs
     box = panel.choice_box
     wait_for(lambda: box.findData(record.id) >= 0, RUN_TIMEOUT_S, "the calibration in the list")
-    assert box.itemText(box.findData(record.id)) == f"pkm5_kinematics v1 (id {record.id}, from run {run_id}, " \
-                                                    f"simulated)"
+    assert box.itemText(box.findData(record.id)) == f"pkm5_kinematics v1 (id {record.id}, from run {run_id}, simulated)"
     assert panel.choice() == NEWEST and [box.itemData(i) for i in range(box.count())] == [NEWEST, OFF, record.id]
 
     chosen = _run_validation(window, record.id)
-    assert (f"kinematic calibration in force: pkm5_kinematics v1 (id {record.id} from run {run_id}; chosen)"
-            in window.log.toPlainText())
+    assert (
+        f"kinematic calibration in force: pkm5_kinematics v1 (id {record.id} from run {run_id}; chosen)"
+        in window.log.toPlainText()
+    )
     none = _run_validation(window, OFF)
-    assert "kinematic calibration: none (--no-kinematic-calibration); commanding by the documented geometry" \
-           in window.log.toPlainText()
+    assert (
+        "kinematic calibration: none (--no-kinematic-calibration); commanding by the documented geometry"
+        in window.log.toPlainText()
+    )
     window.calibration_panel.choose(NEWEST)  # the default: what bench run does without a flag (its own test)
     assert window.rig_spec().request().kinematic_calibration == NEWEST
     with Store(store_path, read_only=True) as store:
         runs = {r.id: r for r in store.runs()}
     assert runs[chosen].status == runs[none].status == "completed"
     assert runs[chosen].settings["kinematic_calibration"] == {
-        "id": record.id, "name": "pkm5_kinematics", "version": 1, "source_run_id": run_id, "reason": "chosen"}
+        "id": record.id,
+        "name": "pkm5_kinematics",
+        "version": 1,
+        "source_run_id": run_id,
+        "reason": "chosen",
+    }
     assert record.id in runs[chosen].calibration_ids and record.id not in runs[none].calibration_ids
     assert runs[none].settings["kinematic_calibration"] == {"id": None, "reason": "--no-kinematic-calibration"}
 
 
 def test_a_run_without_measured_poses_is_refused_in_one_line(window, tmp_path):
     with Store(tmp_path / "bench.db") as store:
-        run_id = store.start_run(protocol_name="kinematic_calibration", protocol_version="1", robot="pkm5",
-                                 config={})
+        run_id = store.start_run(protocol_name="kinematic_calibration", protocol_version="1", robot="pkm5", config={})
         store.add_sample(run_id, 0, values={"cmd_x_mm": 120.0}, kind="pose", pose="P1", cycle=1, t_s=0.0)
     # read at once: the store's poll (tests/test_gui_safety.py) would take up to a second
     QTest.mouseClick(window.results.buttons["refresh"], Qt.MouseButton.LeftButton)
@@ -155,8 +174,9 @@ def test_a_run_without_measured_poses_is_refused_in_one_line(window, tmp_path):
     assert panel.identify() is None  # nothing selected yet
     assert "Identify: select one run (a kinematic calibration run) in the Results tab" in window.log.toPlainText()
     _click_identify(window, run_id)
-    text = (f"run {run_id}: no pose samples with measured x_mm, y_mm, z_mm; expected a run of commanded and "
-            f"measured poses")
+    text = (
+        f"run {run_id}: no pose samples with measured x_mm, y_mm, z_mm; expected a run of commanded and measured poses"
+    )
     assert panel.last_dialog.windowTitle() == f"Run {run_id} not identified"
     assert panel.last_dialog.text() == text and panel.status.text() == f"not identified: {text}"
     assert panel.identify_button.isEnabled() and panel.last_identified is None
@@ -165,8 +185,9 @@ def test_a_run_without_measured_poses_is_refused_in_one_line(window, tmp_path):
 
 
 def test_closing_the_window_during_an_identification_waits_for_it(calibration_run, tmp_path):
-    from bench.gui.app import MainWindow
     from gui_support import application
+
+    from bench.gui.app import MainWindow
 
     run_id = calibration_run
     application()

@@ -151,8 +151,11 @@ def test_after_a_jog_emergency_stop_jog_needs_a_reset(window):
     assert not panel.busy() and wire.moves_after_stop(mark) == [] and wire.verbs[mark:].count("MOVE") == 0
     assert window.reset_estop.isEnabled() and not window.campaign_panel.buttons["start"].isEnabled()
     _click(window.reset_estop)
-    wait_for(lambda: panel.status.text() == "ready: emergency stop released" and not panel.busy(), RUN_TIMEOUT_S,
-             "the released latch")
+    wait_for(
+        lambda: panel.status.text() == "ready: emergency stop released" and not panel.busy(),
+        RUN_TIMEOUT_S,
+        "the released latch",
+    )
     assert panel.jog_button.isEnabled() and not window.estop_latch.latched
     panel.velocity.setValue(100.0)
     _click(panel.jog_button)

@@ -3,7 +3,6 @@ pre-flight-checked jog on the simulator, and the ``bench gui`` command."""
 
 from __future__ import annotations
 
-
 import pytest
 
 pytest.importorskip("PySide6")
@@ -21,26 +20,42 @@ from bench.gui.robot_panel import RobotPanel, check_target
 from bench.protocols import Prompt, load_protocol
 from bench.simulators.client import SimulatorClient
 
-LEG = Prompt("Load 1 kg: calliper length of leg 2", field="length_mm", unit="mm", minimum=150.0, maximum=280.0,
-             commanded={"cmd_length_mm": 200.0})
+LEG = Prompt(
+    "Load 1 kg: calliper length of leg 2",
+    field="length_mm",
+    unit="mm",
+    minimum=150.0,
+    maximum=280.0,
+    commanded={"cmd_length_mm": 200.0},
+)
 TILT = Prompt("Point 1-1, repeat 1: calliper tilt alpha", field="a_deg", unit="deg", minimum=-45.0, maximum=45.0)
 
 
-@pytest.mark.parametrize(("prompt", "text", "value"), [
-    (LEG, "200,12", 200.12), (LEG, " 200.5 mm ", 200.5), (LEG, '7.8750"', 200.025), (TILT, "-1,5", -1.5),
-    (TILT, "12.25 deg", 12.25), (TILT, "+0.5", 0.5),
-])
+@pytest.mark.parametrize(
+    ("prompt", "text", "value"),
+    [
+        (LEG, "200,12", 200.12),
+        (LEG, " 200.5 mm ", 200.5),
+        (LEG, '7.8750"', 200.025),
+        (TILT, "-1,5", -1.5),
+        (TILT, "12.25 deg", 12.25),
+        (TILT, "+0.5", 0.5),
+    ],
+)
 def test_entries_parse_as_the_terminal_prompt_parses_them(prompt, text, value):
     assert parse_entry(prompt, text) == (pytest.approx(value), "")
 
 
-@pytest.mark.parametrize(("prompt", "text", "message"), [
-    (LEG, "12.3.4", "reading '12.3.4' is not a length"),
-    (LEG, "100", "100 mm, expected 150 to 280 mm"),
-    (TILT, "2 mm", "'2 mm' is not a reading in deg"),
-    (TILT, "-46", "-46 deg, expected -45 to 45 deg"),
-    (TILT, "", "is not a length"),
-])
+@pytest.mark.parametrize(
+    ("prompt", "text", "message"),
+    [
+        (LEG, "12.3.4", "reading '12.3.4' is not a length"),
+        (LEG, "100", "100 mm, expected 150 to 280 mm"),
+        (TILT, "2 mm", "'2 mm' is not a reading in deg"),
+        (TILT, "-46", "-46 deg, expected -45 to 45 deg"),
+        (TILT, "", "is not a length"),
+    ],
+)
 def test_bad_entries_are_refused_naming_the_value_and_the_range(prompt, text, message):
     with pytest.raises(ConfigError, match=message.replace("(", r"\(")):
         parse_entry(prompt, text)
@@ -76,7 +91,11 @@ def test_cancelling_the_dialog_reports_it():
 
 def test_fields_show_and_read_toml_values():
     assert [show_value(v) for v in ([100.0, 50.0], "xy", None, {"P1": (1.0, 2.0)})] == [
-        "[100, 50]", '"xy"', "", "{P1 = [1, 2]}"]
+        "[100, 50]",
+        '"xy"',
+        "",
+        "{P1 = [1, 2]}",
+    ]
     assert parse_field("[100, 50]") == [100, 50] and parse_field("50 mm") == "50 mm" and parse_field("3") == 3
 
 
@@ -141,8 +160,9 @@ def test_bench_gui_is_a_command():
 
 def test_an_instruction_prompt_is_confirmed_with_enter():
     application()
-    dialog = CalliperDialog(Prompt("Mount a payload of 2 kg on the end effector, then confirm",
-                                   conditions={"load_kg": 2.0}))
+    dialog = CalliperDialog(
+        Prompt("Mount a payload of 2 kg on the end effector, then confirm", conditions={"load_kg": 2.0})
+    )
     confirmed: list[bool] = []
     dialog.confirmed.connect(lambda: confirmed.append(True))
     dialog.show()

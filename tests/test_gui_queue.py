@@ -3,7 +3,6 @@ prompts: cancelled in the dialog, or the window closed while a reading is pendin
 
 from __future__ import annotations
 
-
 import pytest
 
 pytest.importorskip("PySide6")
@@ -37,7 +36,9 @@ def test_queued_runs_run_in_order_and_two_runs_compare(window, tmp_path):
     wait_for(lambda: panel.worker is None, 2 * RUN_TIMEOUT_S, "both queued runs")
     runs, _ = _runs(tmp_path)
     assert [(r.status, r.n_samples, r.config["cycles"], r.campaign) for r in runs] == [
-        ("completed", 10, 2, "queue test"), ("completed", 15, 3, "queue test")]
+        ("completed", 10, 2, "queue test"),
+        ("completed", 15, 3, "queue test"),
+    ]
     wait_for(lambda: window.results.table.rowCount() == 2, RUN_TIMEOUT_S, "both runs in the results table")
     window.results.select_runs([r.id for r in runs])
     task = window.results.compare()
@@ -52,8 +53,15 @@ def test_emergency_stop_cuts_the_running_settle_short_and_ends_the_campaign(wind
     panel.choose_file(EXAMPLES / "iso9283_pose_quick.toml")
     panel.form.set_value("settle_s", "600")
     panel.start()
-    wait_for(lambda: panel.worker is not None and panel.worker.runner is not None
-             and isinstance(panel.worker.runner.current_step, Settle), RUN_TIMEOUT_S, "the first settle")
+    wait_for(
+        lambda: (
+            panel.worker is not None
+            and panel.worker.runner is not None
+            and isinstance(panel.worker.runner.current_step, Settle)
+        ),
+        RUN_TIMEOUT_S,
+        "the first settle",
+    )
     QTest.mouseClick(window.estop, Qt.MouseButton.LeftButton)
     wait_for(lambda: panel.worker is None, RUN_TIMEOUT_S, "the stopped run to end")
     (run,), samples = _runs(tmp_path)
@@ -101,7 +109,9 @@ def test_a_reading_cancelled_in_the_dialog_ends_the_run_resumable(window, tmp_pa
     wait_for(lambda: window.campaign_panel.worker is None, RUN_TIMEOUT_S, "the run to end")
     (run,), samples = _runs(tmp_path)
     assert (run.status, run.reason) == (
-        "aborted", f"prompt withdrawn by the operator: {prompt.text} (cancelled in the calliper dialog)")
+        "aborted",
+        f"prompt withdrawn by the operator: {prompt.text} (cancelled in the calliper dialog)",
+    )
     assert [s.kind for s in samples[run.id]] == ["pose"]
     # resumed with the simulated calliper answering: nothing stored twice, every reading taken
     window.campaign_panel.simulated_calliper.setChecked(True)

@@ -34,8 +34,9 @@ def test_the_window_runs_the_actuator_bench_on_the_simulator(tmp_path):
     from bench.gui.worker import RigSpec
 
     protocol = tmp_path / "actuators.toml"
-    protocol.write_text('protocol = "actuator_accuracy"\nactuators = [3]\ndistances_mm = [10]\nrepeats = 2\n'
-                        'settle_s = 0\n')
+    protocol.write_text(
+        'protocol = "actuator_accuracy"\nactuators = [3]\ndistances_mm = [10]\nrepeats = 2\nsettle_s = 0\n'
+    )
     results, failures = _run(tmp_path, protocol, RigSpec(speed_factor=20000))
     assert failures == [] and results[0].exit_status == "completed", (failures, results)
     with Store(tmp_path / "bench.db") as store:
@@ -58,10 +59,15 @@ def test_the_window_refuses_a_station_that_lacks_what_the_protocol_needs(tmp_pat
     assert "--" not in failures[0]  # no command-line flag names in the window
 
 
-@pytest.mark.parametrize("where, simulated", [({"port": "/dev/ttyUSB0"}, False),
-                                              ({"station": "examples/stations/pkm5_camera.toml"}, False),
-                                              ({"station": "examples/stations/pkm5_camera.toml", "simulate": True},
-                                               True), ({}, True)])
+@pytest.mark.parametrize(
+    "where, simulated",
+    [
+        ({"port": "/dev/ttyUSB0"}, False),
+        ({"station": "examples/stations/pkm5_camera.toml"}, False),
+        ({"station": "examples/stations/pkm5_camera.toml", "simulate": True}, True),
+        ({}, True),
+    ],
+)
 def test_the_window_sends_a_seed_and_a_speed_factor_for_simulators_only(where, simulated):
     """The robot panel always holds a seed and a speed factor; real hardware has neither, and open_rig refuses them
     there (a run would otherwise believe something untrue about itself)."""

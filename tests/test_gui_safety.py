@@ -31,8 +31,14 @@ from bench.store import Store
 
 #: dissertation_pose: 15 points (000 §8.6.3, Table 8-2), one tilt reading per point and cycle in the angle variants.
 POINTS = 15
-LEG = Prompt("Load 1 kg: calliper length of leg 2", field="length_mm", unit="mm", minimum=150.0, maximum=280.0,
-             commanded={"cmd_length_mm": 200.0})
+LEG = Prompt(
+    "Load 1 kg: calliper length of leg 2",
+    field="length_mm",
+    unit="mm",
+    minimum=150.0,
+    maximum=280.0,
+    commanded={"cmd_length_mm": 200.0},
+)
 
 
 def _click(widget) -> None:
@@ -61,8 +67,11 @@ def _runs(tmp_path):
 
 def _reading_pending(window):
     worker = _start(window, "dissertation_pose.toml", variant="alpha", cycles="2", settle_s="0")
-    wait_for(lambda: window.calliper_dialog is not None or window.campaign_panel.worker is None, RUN_TIMEOUT_S,
-             "the calliper dialog")
+    wait_for(
+        lambda: window.calliper_dialog is not None or window.campaign_panel.worker is None,
+        RUN_TIMEOUT_S,
+        "the calliper dialog",
+    )
     assert window.calliper_dialog is not None, f"the run ended first: {window.log.toPlainText()}"
     return window.calliper_dialog, worker
 
@@ -79,8 +88,11 @@ def test_the_emergency_stop_acts_while_a_prompt_is_open_and_withdraws_it(window,
         # a key reaches an application only through its focused window: Qt delivers an application-wide shortcut only
         # while one of the application's windows is active, which the X server grants asynchronously after a show
         # (under load it came after the key once, and F12 went to the entry as a plain key)
-        wait_for(lambda: QApplication.activeWindow() is not None, RUN_TIMEOUT_S, "a window of the application to "
-                 "have the keyboard focus")
+        wait_for(
+            lambda: QApplication.activeWindow() is not None,
+            RUN_TIMEOUT_S,
+            "a window of the application to have the keyboard focus",
+        )
         QTest.keyClick(dialog.entry, Qt.Key.Key_F12)  # focus in the dialog: the shortcut is application-wide
     # pressed and withdrawn within the click's own handling; the stop thread takes the press to the wire
     assert window.estop_latch.latched and not dialog.isVisible()
@@ -94,8 +106,10 @@ def test_the_emergency_stop_acts_while_a_prompt_is_open_and_withdraws_it(window,
     # a dialog tells how the run ended and how to continue it
     assert window.last_dialog is not None and window.last_dialog.isVisible()
     assert f"bench resume {run.id} --store {tmp_path / 'bench.db'}" in window.last_dialog.text()
-    assert window.campaign_panel.eta.text() == f"idle - last: run {run.id} aborted (1 / {2 * POINTS * 2} " \
-                                               "samples): emergency stop"
+    assert (
+        window.campaign_panel.eta.text() == f"idle - last: run {run.id} aborted (1 / {2 * POINTS * 2} "
+        "samples): emergency stop"
+    )
 
 
 def test_readings_are_numbered_and_a_cancel_asks_before_it_ends_the_campaign(window, tmp_path):
@@ -140,11 +154,21 @@ def test_the_calliper_dialog_speaks_to_the_operator_and_keeps_its_layout():
     assert readings == [200.25] and not dialog.isVisible()
 
 
-@pytest.mark.parametrize(("state", "legal"), [
-    (None, {"start"}), ("starting", set()), ("idle", set()), ("running", {"pause", "stop", "abort"}),
-    ("pause requested", {"stop", "abort"}), ("paused", {"resume", "stop", "abort"}), ("stopping", {"abort"}),
-    ("aborting", set()), ("halting", set()), ("finished", set()),
-])
+@pytest.mark.parametrize(
+    ("state", "legal"),
+    [
+        (None, {"start"}),
+        ("starting", set()),
+        ("idle", set()),
+        ("running", {"pause", "stop", "abort"}),
+        ("pause requested", {"stop", "abort"}),
+        ("paused", {"resume", "stop", "abort"}),
+        ("stopping", {"abort"}),
+        ("aborting", set()),
+        ("halting", set()),
+        ("finished", set()),
+    ],
+)
 def test_the_legal_buttons_are_the_runners_transitions(state, legal):
     assert enabled_actions(state) == legal
 
@@ -170,7 +194,9 @@ def test_the_buttons_follow_the_run_and_the_form_locks(window, tmp_path):
     assert enabled() == {"start"} and panel.form.isEnabled()
     ((run, samples),) = _runs(tmp_path)
     assert run.status == "aborted" and len(samples) < 20
-    assert panel.eta.text() == f"idle - last: run {run.id} aborted ({len(samples)} / 20 samples): aborted by the operator"
+    assert (
+        panel.eta.text() == f"idle - last: run {run.id} aborted ({len(samples)} / 20 samples): aborted by the operator"
+    )
     assert window.last_dialog is None  # the operator ended it: no failure dialog
 
 
@@ -199,8 +225,12 @@ sys.stdin.read()  # owns the run until killed
 
 
 def test_the_results_table_shows_a_run_whose_owner_was_killed_as_interrupted(window, tmp_path):
-    owner = subprocess.Popen([sys.executable, "-c", _OWNER, str(tmp_path / "bench.db")], stdin=subprocess.PIPE,
-                             stdout=subprocess.PIPE, text=True)
+    owner = subprocess.Popen(
+        [sys.executable, "-c", _OWNER, str(tmp_path / "bench.db")],
+        stdin=subprocess.PIPE,
+        stdout=subprocess.PIPE,
+        text=True,
+    )
     try:
         assert owner.stdout.readline() == "owned\n"
         wait_for(lambda: window.results.table.rowCount() == 1, 5, "the table to list the new run")
@@ -217,8 +247,11 @@ def test_report_during_a_run_leaves_the_window_responsive(window, tmp_path):
     _wait_idle(window)
     window.robot_panel.speed_factor.setValue(20)  # a 600 s settle lasts 30 s: the run goes on during the report
     worker = _start(window, "iso9283_pose_quick.toml", settle_s="600")
-    wait_for(lambda: worker.runner is not None and isinstance(worker.runner.current_step, Settle), RUN_TIMEOUT_S,
-             "the long settle")
+    wait_for(
+        lambda: worker.runner is not None and isinstance(worker.runner.current_step, Settle),
+        RUN_TIMEOUT_S,
+        "the long settle",
+    )
     select_runs(window.results, [1])
     report = tmp_path / "reports" / "report_run1.html"
     answered: list[bool] = []  # per event-loop probe: whether the report was still being written when it ran
@@ -248,13 +281,25 @@ def test_report_during_a_run_leaves_the_window_responsive(window, tmp_path):
 def test_bench_gui_without_a_display_says_so_in_one_line(tmp_path):
     environ = {k: v for k, v in os.environ.items() if k not in ("DISPLAY", "WAYLAND_DISPLAY", "QT_QPA_PLATFORM")}
     environ["PYTHONPATH"] = str(Path(__file__).resolve().parents[1])
-    done = subprocess.run([sys.executable, "-c", "import sys; from bench.cli import main; sys.exit(main())", "gui",
-                           "--store", str(tmp_path / "b.db")], env=environ, capture_output=True, text=True,
-                          timeout=120)
+    done = subprocess.run(
+        [
+            sys.executable,
+            "-c",
+            "import sys; from bench.cli import main; sys.exit(main())",
+            "gui",
+            "--store",
+            str(tmp_path / "b.db"),
+        ],
+        env=environ,
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
     assert done.returncode == 2
     assert done.stderr.strip().splitlines() == [
         "bench: error: bench gui: no display (DISPLAY and WAYLAND_DISPLAY are not set); run it in a desktop "
-        "session, over ssh -X, or under xvfb-run"]
+        "session, over ssh -X, or under xvfb-run"
+    ]
 
 
 def _non_blank(path: Path, min_width: int, min_height: int) -> None:
@@ -273,8 +318,12 @@ def test_a_screenshot_of_each_panel(window, tmp_path):
     _wait_idle(window)
     window.live_view.redraw()
     serve_events(100)
-    shots = {"window": window, "robot_panel": window.robot_panel, "campaign_panel": window.campaign_panel,
-             "live_view": window.live_view}
+    shots = {
+        "window": window,
+        "robot_panel": window.robot_panel,
+        "campaign_panel": window.campaign_panel,
+        "live_view": window.live_view,
+    }
     for name, widget in shots.items():
         path = out / f"gui_{name}.png"
         assert widget.grab().save(str(path))
@@ -301,8 +350,16 @@ def test_export_writes_the_default_kind_of_bench_export(window, tmp_path):
     with Store(tmp_path / "bench.db") as store:  # a run of tilt readings only (no pose samples)
         run_id = store.start_run(protocol_name="tilt", protocol_version="1", robot="pkm5", config={})
         for index, reading in enumerate((-1.5, 0.25)):
-            store.add_sample(run_id, index, values={"a_deg": reading, "cmd_a_deg": 0.0}, kind="tilt", pose="P1",
-                             cycle=index + 1, t_s=float(index), raw={"field": "a_deg", "entered": reading})
+            store.add_sample(
+                run_id,
+                index,
+                values={"a_deg": reading, "cmd_a_deg": 0.0},
+                kind="tilt",
+                pose="P1",
+                cycle=index + 1,
+                t_s=float(index),
+                raw={"field": "a_deg", "entered": reading},
+            )
     _click(window.results.buttons["refresh"])  # at once: the store's poll (its own test) would take up to a second
     select_runs(window.results, [run_id])
     _click(window.results.buttons["export"])
@@ -319,8 +376,14 @@ def test_the_stream_draws_measurements_not_the_conditions_of_a_capture():
     application()
     view = LiveView()
     view.clear("run 1", started_s=1000.0)
-    arrival = {"kind": "arrival", "pose": "P1", "cycle": 1, "t_s": 5e4, "wall_s": 1004.5,
-               "values": {"x_mm": 110.25, "cmd_x_mm": 110.0, "lead_s": 0.2, "hold_s": 2.0, "velocity_pct": 100.0}}
+    arrival = {
+        "kind": "arrival",
+        "pose": "P1",
+        "cycle": 1,
+        "t_s": 5e4,
+        "wall_s": 1004.5,
+        "values": {"x_mm": 110.25, "cmd_x_mm": 110.0, "lead_s": 0.2, "hold_s": 2.0, "velocity_pct": 100.0},
+    }
     assert view.add_sample(dict(arrival, step_index=7)) and not view.add_sample(dict(arrival, step_index=7))
     assert view.stream() == {"x_mm - cmd": ([4.5], [pytest.approx(0.25)])}  # wall-clock s since the start
 
@@ -335,15 +398,41 @@ def test_the_live_figures_are_per_pose_and_velocity_as_in_the_report():
     view.clear("run 1", started_s=0.0)
     rows = []
     for index, (velocity, cycle) in enumerate((v, c) for v in (50.0, 100.0) for c in (1, 2, 3)):
-        offset = (0.1 if velocity == 50.0 else 0.9)  # the faster visits land further off: pooled, AP would mix them
+        offset = 0.1 if velocity == 50.0 else 0.9  # the faster visits land further off: pooled, AP would mix them
         attained = np.array([110.0, 0.0, 320.0]) + offset + rng.normal(0.0, 0.05, 3)
-        values = {"x_mm": attained[0], "y_mm": attained[1], "z_mm": attained[2], "cmd_x_mm": 110.0,
-                  "cmd_y_mm": 0.0, "cmd_z_mm": 320.0, "velocity_pct": velocity, "load_kg": 0.0}
-        view.add_sample({"step_index": index, "kind": "pose", "pose": "P1", "cycle": cycle, "t_s": float(index),
-                         "wall_s": float(index), "values": values})
+        values = {
+            "x_mm": attained[0],
+            "y_mm": attained[1],
+            "z_mm": attained[2],
+            "cmd_x_mm": 110.0,
+            "cmd_y_mm": 0.0,
+            "cmd_z_mm": 320.0,
+            "velocity_pct": velocity,
+            "load_kg": 0.0,
+        }
+        view.add_sample(
+            {
+                "step_index": index,
+                "kind": "pose",
+                "pose": "P1",
+                "cycle": cycle,
+                "t_s": float(index),
+                "wall_s": float(index),
+                "values": values,
+            }
+        )
         rows.append({"pose": "P1", "cycle": cycle, **values})
-    view.add_sample({"step_index": 0, "kind": "pose", "pose": "P1", "cycle": 1, "t_s": 0.0, "wall_s": 0.0,
-                     "values": rows[0] | {"x_mm": 999.0}})  # the same step again (a resume): ignored
+    view.add_sample(
+        {
+            "step_index": 0,
+            "kind": "pose",
+            "pose": "P1",
+            "cycle": 1,
+            "t_s": 0.0,
+            "wall_s": 0.0,
+            "values": rows[0] | {"x_mm": 999.0},
+        }
+    )  # the same step again (a resume): ignored
     shown = view.pose_statistics()
     report = {r.label: r for r in analyze_poses(pose_table(pd.DataFrame(rows)), resamples=10)}
     assert sorted(shown) == sorted(report) == ["P1 (velocity_pct=100)", "P1 (velocity_pct=50)"]
@@ -354,10 +443,16 @@ def test_the_live_figures_are_per_pose_and_velocity_as_in_the_report():
 
 
 def _pose_sample(index: int) -> dict:
-    values = {"x_mm": 110.1, "y_mm": 0.1 * index, "z_mm": 320.0, "cmd_x_mm": 110.0, "cmd_y_mm": 0.0,
-              "cmd_z_mm": 320.0}
-    return {"step_index": index, "kind": "pose", "pose": "P1", "cycle": index + 1, "t_s": float(index),
-            "wall_s": float(index), "values": values}
+    values = {"x_mm": 110.1, "y_mm": 0.1 * index, "z_mm": 320.0, "cmd_x_mm": 110.0, "cmd_y_mm": 0.0, "cmd_z_mm": 320.0}
+    return {
+        "step_index": index,
+        "kind": "pose",
+        "pose": "P1",
+        "cycle": index + 1,
+        "t_s": float(index),
+        "wall_s": float(index),
+        "values": values,
+    }
 
 
 def test_the_live_view_draws_in_its_render_process_and_only_while_it_can_be_seen():

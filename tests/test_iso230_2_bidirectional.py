@@ -14,14 +14,23 @@ from bench.reports.bidirectional import bidirectional_plot
 from bench.reports.plots import MIN_FONT_PT, PRINT_WIDTH_IN
 
 # up/down deviations at targets 0, 10, 25 mm: means ↑ 0.03, 0.04, 0.02 and ↓ -0.02, -0.01, -0.04; s = 0.01·√2
-READINGS = {(0, "up"): (0.02, 0.04), (0, "down"): (-0.03, -0.01), (10, "up"): (10.05, 10.03),
-            (10, "down"): (9.98, 10.00), (25, "up"): (25.01, 25.03), (25, "down"): (24.97, 24.95)}
+READINGS = {
+    (0, "up"): (0.02, 0.04),
+    (0, "down"): (-0.03, -0.01),
+    (10, "up"): (10.05, 10.03),
+    (10, "down"): (9.98, 10.00),
+    (25, "up"): (25.01, 25.03),
+    (25, "down"): (24.97, 24.95),
+}
 
 
 def _table(tmp_path, shuffle=False, axis=None, readings=READINGS, direction_names=("up", "down")):
     names = dict(zip(("up", "down"), direction_names))
-    rows = [f"{target},{names[d]},{value}" + (f",{axis}" if axis else "")
-            for (target, d), values in readings.items() for value in values]
+    rows = [
+        f"{target},{names[d]},{value}" + (f",{axis}" if axis else "")
+        for (target, d), values in readings.items()
+        for value in values
+    ]
     if shuffle:
         rows = [rows[i] for i in np.random.default_rng(3).permutation(len(rows))]
     path = tmp_path / "bi.csv"
@@ -35,11 +44,11 @@ def _run(capsys, *argv):
     return code, out, err
 
 
-@pytest.mark.parametrize("shuffle, names", [(False, ("up", "down")), (True, ("+", "-")),
-                                            (True, ("forward", "backward"))])
+@pytest.mark.parametrize(
+    "shuffle, names", [(False, ("up", "down")), (True, ("+", "-")), (True, ("forward", "backward"))]
+)
 def test_hand_computed_bidirectional_figures(capsys, tmp_path, shuffle, names):
-    code, out, _ = _run(capsys, "analyze", "iso230-2", str(_table(tmp_path, shuffle, direction_names=names)),
-                        "--json")
+    code, out, _ = _run(capsys, "analyze", "iso230-2", str(_table(tmp_path, shuffle, direction_names=names)), "--json")
     assert code == 0
     axis = json.loads(out)["axes"]["1"]
     s = 0.01 * np.sqrt(2)

@@ -30,7 +30,6 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-
 from cli_runs import BENCH
 from forked_bench import BenchForks
 
@@ -92,10 +91,10 @@ def _true_xyz(truth: list[dict], wall_s: float) -> np.ndarray:
 
 @dataclass
 class Drill:
-    samples: list            # the final samples of the run
+    samples: list  # the final samples of the run
     final: dict[int, tuple]  # its rows as stored
     snapshots: list[dict[int, tuple]]  # the rows stored when each kill landed
-    kills_at: list[int]      # samples stored at each kill
+    kills_at: list[int]  # samples stored at each kill
     status: str | None
     truth: list[dict]
     registrations: list[dict]  # as stored with the run, one per segment
@@ -105,9 +104,13 @@ class Drill:
 
     def offsets_mm(self, samples=None) -> np.ndarray:
         """Measured minus true (x, y, z) of each sample, mm."""
-        return np.array([[s.values[a] for a in ("x_mm", "y_mm", "z_mm")]
-                         - _true_xyz(self.truth, datetime.fromisoformat(s.wall_utc).timestamp())
-                         for s in (self.samples if samples is None else samples)])
+        return np.array(
+            [
+                [s.values[a] for a in ("x_mm", "y_mm", "z_mm")]
+                - _true_xyz(self.truth, datetime.fromisoformat(s.wall_utc).timestamp())
+                for s in (self.samples if samples is None else samples)
+            ]
+        )
 
     def segments(self) -> list[list]:
         """The samples grouped by the interruption they were stored before (a segment of the run)."""
@@ -139,13 +142,29 @@ def _spread_mm(offsets: np.ndarray) -> float:
 def drill(tmp_path_factory) -> Drill:
     tmp_path = tmp_path_factory.mktemp("drill")
     protocol = tmp_path / "pose.toml"
-    protocol.write_text('protocol = "iso9283_pose"\nrobot = "pkm5"\ncycles = 6\nvelocities_pct = [100]\n'
-                        'settle_s = 0.1\n')
+    protocol.write_text(
+        'protocol = "iso9283_pose"\nrobot = "pkm5"\ncycles = 6\nvelocities_pct = [100]\nsettle_s = 0.1\n'
+    )
     mice, truth_log, store = tmp_path / "mice", tmp_path / "truth.jsonl", tmp_path / "b.db"
     mice.mkdir()
-    simulator = subprocess.Popen([BENCH, "sim", "pkm5", "--mice", str(mice), "--speed-factor", str(SPEED_FACTOR),
-                                  "--seed", "5", "--truth", str(truth_log)], stdout=subprocess.PIPE,
-                                 stderr=subprocess.PIPE, text=True)
+    simulator = subprocess.Popen(
+        [
+            BENCH,
+            "sim",
+            "pkm5",
+            "--mice",
+            str(mice),
+            "--speed-factor",
+            str(SPEED_FACTOR),
+            "--seed",
+            "5",
+            "--truth",
+            str(truth_log),
+        ],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
     rng = random.Random(15)
     snapshots: list[dict[int, tuple]] = []
     kills_at: list[int] = []
@@ -154,10 +173,19 @@ def drill(tmp_path_factory) -> Drill:
     try:
         ready, _, _ = select.select([simulator.stdout], [], [], 60)
         assert ready, "the simulator printed no device path within 60 s"
-        rig = ["--port", simulator.stdout.readline().strip(), "--mouse-xy", str(mice / "mouse_xy.fifo"),
-               "--mouse-xz", str(mice / "mouse_xz.fifo"), "--store", str(store), "--no-progress"]
+        rig = [
+            "--port",
+            simulator.stdout.readline().strip(),
+            "--mouse-xy",
+            str(mice / "mouse_xy.fifo"),
+            "--mouse-xz",
+            str(mice / "mouse_xz.fifo"),
+            "--store",
+            str(store),
+            "--no-progress",
+        ]
         interruptions = [signal.SIGKILL] * KILLS + list(SIGNALS)
-        for number, interruption in enumerate([*interruptions, None]):
+        for _number, interruption in enumerate([*interruptions, None]):
             run_id, stored, _ = _stored(store)
             command = ["run", str(protocol)] if run_id is None else ["resume", str(run_id)]
             process = forks.start([*command, *rig])
@@ -192,8 +220,7 @@ def drill(tmp_path_factory) -> Drill:
     with Store(store, read_only=True) as opened:
         samples = opened.samples(run_id)
         registrations = opened.run(run_id).settings["registrations"]
-    return Drill(samples, _rows(store, run_id), snapshots, kills_at, status, truth, registrations, stops, store,
-                 run_id)
+    return Drill(samples, _rows(store, run_id), snapshots, kills_at, status, truth, registrations, stops, store, run_id)
 
 
 @pytest.mark.slow
@@ -252,7 +279,8 @@ def test_the_export_and_the_report_say_which_registration_each_row_is_from(drill
     for pose in report.poses:  # the registration term is in U(AP): k u at least
         assert pose.ap_u.expanded_uncertainty >= 2.0 * largest_u, pose
     paragraph, registrations = registration_blocks(run)
-    assert paragraph.text.startswith(f"RESUMED RUN OF A RELATIVE INSTRUMENT: the mice were registered at home "
-                                     f"{len(drill.registrations)} times")
+    assert paragraph.text.startswith(
+        f"RESUMED RUN OF A RELATIVE INSTRUMENT: the mice were registered at home {len(drill.registrations)} times"
+    )
     assert [row[0] for row in registrations.rows] == [str(r["segment"]) for r in drill.registrations]
     assert f"{largest_u:.3f} mm" in registrations.caption

@@ -5,13 +5,27 @@ import numpy as np
 import pytest
 
 from bench.errors import ConfigError, InsufficientData
-from bench.metrology.kinematic_calibration import (CONDITION_LIMIT, UnidentifiableParameters, away_from_folds,
-                                                    identifiable_subset, identify, observability,
-                                                    parameter_covariance, select_poses)
+from bench.metrology.kinematic_calibration import (
+    CONDITION_LIMIT,
+    UnidentifiableParameters,
+    away_from_folds,
+    identifiable_subset,
+    identify,
+    observability,
+    parameter_covariance,
+    select_poses,
+)
 from bench.simulators.true_geometry import attained_poses, true_deviations, true_geometry
 from motion import pkm5
-from motion.pkm5.calibration import (PARAMETERS, REGISTRATION, ForwardModel, apply_parameters, modes_of_poses,
-                                     parameter_deviations, tolerance)
+from motion.pkm5.calibration import (
+    PARAMETERS,
+    REGISTRATION,
+    ForwardModel,
+    apply_parameters,
+    modes_of_poses,
+    parameter_deviations,
+    tolerance,
+)
 
 MICE_UNCERTAINTY_MM = 0.05  # standard uncertainty per axis: ~1.5 counts at 800 CPI (0.032 mm/count)
 ALL = REGISTRATION + PARAMETERS
@@ -84,8 +98,9 @@ def test_every_joint_column_of_the_batched_jacobian_matches_central_differences(
     _, steps, modes, _ = candidates
     rows = [0, 1, 2, 10]  # beta, alpha, translation, beta poses (away from the fold at candidate 129)
     model = ForwardModel(steps[rows], modes[rows], ALL)
-    theta = np.random.default_rng(2).normal(0.0, 0.2, len(ALL)) * np.array([0.02 if n.startswith("scale_") else 1.0
-                                                                             for n in ALL])
+    theta = np.random.default_rng(2).normal(0.0, 0.2, len(ALL)) * np.array(
+        [0.02 if n.startswith("scale_") else 1.0 for n in ALL]
+    )
     jac = model.jacobian(theta)
     for j, name in enumerate(ALL):
         if name[:3] not in ("oa_", "pd_"):
@@ -120,8 +135,11 @@ def test_poses_on_one_line_are_refused_naming_the_parameters():
     free = REGISTRATION + ("leg_offset_1_mm", "leg_offset_5_mm", "scale_1", "oa_12_x_mm")
     model = ForwardModel(steps, modes_of_poses(poses), free)
     measured = model.predict(np.zeros(len(free)))
-    with pytest.raises(UnidentifiableParameters, match=r"condition number .* > 100; the 20 poses cannot identify "
-                                                       r".*reg_y_mm") as info:
+    with pytest.raises(
+        UnidentifiableParameters,
+        match=r"condition number .* > 100; the 20 poses cannot identify "
+        r".*reg_y_mm",
+    ) as info:
         identify(model, measured, MICE_UNCERTAINTY_MM)
     assert "\n" not in str(info.value)
 
@@ -194,7 +212,9 @@ def test_the_simulated_plant_moves_by_the_true_geometry():
 
     truth = true_geometry(5)
     plant = build_plant(5, ideal=True, true_geometry=truth)
-    commanded = np.array([[150.0, 10.0, 300.0, 0.0, 0.0], [111.31, 0.0, 300.0, 0.2, 0.0], [140.0, 0.0, 310.0, 0.0, 0.1]])
+    commanded = np.array(
+        [[150.0, 10.0, 300.0, 0.0, 0.0], [111.31, 0.0, 300.0, 0.2, 0.0], [140.0, 0.0, 310.0, 0.0, 0.1]]
+    )
     steps = pkm5.lengths_to_steps(pkm5.inverse_kinematics(commanded).lengths_mm)
     expected = attained_poses(steps, modes_of_poses(commanded), truth)
     for row, want in zip(steps, expected):
@@ -209,8 +229,9 @@ def test_a_warm_started_fk_branch_jump_does_not_trap_the_fit(design):
     # away) and the fit stayed there (reduced chi^2 19 264); the 13 fixed parameters leave ~20 of model error
     steps, modes, free = design
     rng = np.random.default_rng([3, 8])
-    measured = attained_poses(steps, modes, true_geometry(3))[:, :3] + rng.normal(0.0, MICE_UNCERTAINTY_MM,
-                                                                                  (len(steps), 3))
+    measured = attained_poses(steps, modes, true_geometry(3))[:, :3] + rng.normal(
+        0.0, MICE_UNCERTAINTY_MM, (len(steps), 3)
+    )
     result = identify(ForwardModel(steps, modes, free), measured, MICE_UNCERTAINTY_MM)
     assert np.abs(result.residuals).max() < 1.0
     assert result.reduced_chi2 < 40.0
@@ -277,9 +298,12 @@ def test_map_refuses_poses_on_one_line_naming_the_parameters_the_prior_alone_fix
     model = ForwardModel(steps, modes_of_poses(poses), ALL)
     measured = model.predict(np.zeros(len(ALL)))
     sigma = [tolerance(n) for n in ALL]
-    with pytest.raises(UnidentifiableParameters, match=r"the 20 poses inform only 0 of the 33 parameters with a "
-                                                       r"prior .*leg_offset_1_mm, .*pd_6_z_mm\), expected at least "
-                                                       r"50%") as info:
+    with pytest.raises(
+        UnidentifiableParameters,
+        match=r"the 20 poses inform only 0 of the 33 parameters with a "
+        r"prior .*leg_offset_1_mm, .*pd_6_z_mm\), expected at least "
+        r"50%",
+    ) as info:
         identify(model, measured, MICE_UNCERTAINTY_MM, prior_sigma=sigma)
     assert "\n" not in str(info.value)
 
@@ -299,8 +323,9 @@ def test_map_with_every_parameter_perturbed_meets_the_acceptance(map_design, see
     rng = np.random.default_rng([seed, 8])
     measured = attained_poses(steps, modes, truth)[:, :3] + rng.normal(0.0, MICE_UNCERTAINTY_MM, (len(steps), 3))
     frame_only = identify(ForwardModel(steps, modes, REGISTRATION), measured, MICE_UNCERTAINTY_MM)
-    result = identify(ForwardModel(steps, modes, ALL), measured, MICE_UNCERTAINTY_MM,
-                      prior_sigma=[tolerance(n) for n in ALL])
+    result = identify(
+        ForwardModel(steps, modes, ALL), measured, MICE_UNCERTAINTY_MM, prior_sigma=[tolerance(n) for n in ALL]
+    )
     z = {n: (v - expected[n]) / s for n, v, s in zip(result.names, result.values, result.uncertainty) if n in expected}
     assert len(z) == 33 and max(map(abs, z.values())) < 3.0, {n: round(v, 2) for n, v in z.items()}
     held_out = _attainable(pkm5.sample_reachable(50, kinds=("constant-orientation", "alpha", "beta"), seed=99), truth)
@@ -320,7 +345,7 @@ def test_map_reduced_chi2_counts_the_parameters_the_prior_leaves_to_the_data():
     sigma = np.array([np.inf] + [0.3] * 7)
     u = 0.05
     weighted = jac.reshape(-1, 8) / u
-    covariance = np.linalg.inv(weighted.T @ weighted + np.diag(np.where(np.isfinite(sigma), sigma ** -2.0, 0.0)))
+    covariance = np.linalg.inv(weighted.T @ weighted + np.diag(np.where(np.isfinite(sigma), sigma**-2.0, 0.0)))
     hat = weighted @ covariance @ weighted.T
     model = _LinearModel(jac, "abcdefgh")
     values = []
@@ -355,8 +380,9 @@ def test_the_identifiable_subset_never_has_more_parameters_than_coordinates_less
     chosen = identifiable_subset(jac, 0.05, names, required=("a",))
     assert "a" in chosen and len(chosen) == 5  # 6 coordinates: at most 5 parameters leave a degree of freedom
     columns = [names.index(n) for n in chosen]
-    sv = np.linalg.svd(jac.reshape(6, 10)[:, columns] / np.linalg.norm(jac.reshape(6, 10)[:, columns], axis=0),
-                       compute_uv=False)
+    sv = np.linalg.svd(
+        jac.reshape(6, 10)[:, columns] / np.linalg.norm(jac.reshape(6, 10)[:, columns], axis=0), compute_uv=False
+    )
     assert sv[0] / sv[-1] <= 50.0
     model = _LinearModel(jac[:, :, columns], chosen)
     result = identify(model, model.predict(np.arange(5.0)), 0.05)
@@ -383,8 +409,11 @@ class _JacobianFailsModel(_LinearModel):
 @pytest.mark.parametrize("prior_sigma", [None, [np.inf, 0.3, 0.3]])
 def test_a_jacobian_that_is_not_finite_is_one_line_with_or_without_a_prior(prior_sigma):
     model = _JacobianFailsModel(np.random.default_rng(1).normal(0.0, 1.0, (10, 3, 3)), "abc")
-    with pytest.raises(InsufficientData, match=r"^identification Jacobian is not finite \(forward kinematics failed "
-                                               r"at some pose\)$"):  # MAP: was numpy's "SVD did not converge"
+    with pytest.raises(
+        InsufficientData,
+        match=r"^identification Jacobian is not finite \(forward kinematics failed "
+        r"at some pose\)$",
+    ):  # MAP: was numpy's "SVD did not converge"
         identify(model, model.predict(np.ones(3)), 0.05, prior_sigma=prior_sigma)
 
 
@@ -404,6 +433,9 @@ def test_a_fit_that_stops_before_converging_is_refused_not_stored(monkeypatch, p
             return self.jac + 0.5 * np.cos(theta)[None, None, :]
 
     model = Curved(jac, "abc")
-    with pytest.raises(InsufficientData, match=r"^kinematic calibration refused: the solver stopped after \d model "
-                                               r"evaluations without converging \("):
+    with pytest.raises(
+        InsufficientData,
+        match=r"^kinematic calibration refused: the solver stopped after \d model "
+        r"evaluations without converging \(",
+    ):
         identify(model, model.predict(np.array([0.4, -0.3, 0.2])), 0.05, prior_sigma=prior_sigma)

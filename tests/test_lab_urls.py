@@ -34,9 +34,16 @@ def _one_line(capsys) -> str:
 
 
 @pytest.mark.parametrize("url", sorted(BAD_URLS))
-@pytest.mark.parametrize("command", [["sync", "--store", "STORE", "--to", "URL"], ["runs", "--store", "URL"],
-                                     ["export", "1", "--store", "URL"], ["lab", "summary", "--store", "URL"],
-                                     ["report", "1", "--store", "URL"]])
+@pytest.mark.parametrize(
+    "command",
+    [
+        ["sync", "--store", "STORE", "--to", "URL"],
+        ["runs", "--store", "URL"],
+        ["export", "1", "--store", "URL"],
+        ["lab", "summary", "--store", "URL"],
+        ["report", "1", "--store", "URL"],
+    ],
+)
 def test_every_bad_url_is_one_line_exit_2_and_no_password(tmp_path, capsys, url, command):
     store = tmp_path / "bench.db"
     Store(store).close()
@@ -49,8 +56,9 @@ def test_every_bad_url_is_one_line_exit_2_and_no_password(tmp_path, capsys, url,
     assert store.read_bytes() == before
 
 
-@pytest.mark.parametrize("command", [["sync", "--to", "postgresql://bench@localhost/lab"], ["runs"], ["export", "1"],
-                                     ["report", "1"]])
+@pytest.mark.parametrize(
+    "command", [["sync", "--to", "postgresql://bench@localhost/lab"], ["runs"], ["export", "1"], ["report", "1"]]
+)
 def test_a_store_path_that_names_nothing_is_refused_never_created(tmp_path, capsys, command):
     typo = tmp_path / "typo.db"
     assert main([*command, "--store", str(typo)]) == 2
@@ -62,11 +70,13 @@ _PASSWORD_CHARS = string.ascii_letters + string.digits + "!$%&()*+,-.:;=@[]^_{|}
 
 
 @settings(max_examples=300, deadline=None)
-@given(user=st.text(string.ascii_letters + string.digits + "_.-", max_size=12),
-       password=st.text(_PASSWORD_CHARS, min_size=4, max_size=24).filter(lambda p: not p.startswith("@")),
-       host=st.sampled_from(["localhost", "[::1]", "[::1", "db.lab:5432", "", "10.0.0.7:x"]),
-       rest=st.sampled_from(["/lab", "/lab?sslmode=require", "/", "", "/lab?host=/tmp&options=a@b"]),
-       scheme=st.sampled_from(["postgresql", "postgres", "mysql", "http"]))
+@given(
+    user=st.text(string.ascii_letters + string.digits + "_.-", max_size=12),
+    password=st.text(_PASSWORD_CHARS, min_size=4, max_size=24).filter(lambda p: not p.startswith("@")),
+    host=st.sampled_from(["localhost", "[::1]", "[::1", "db.lab:5432", "", "10.0.0.7:x"]),
+    rest=st.sampled_from(["/lab", "/lab?sslmode=require", "/", "", "/lab?host=/tmp&options=a@b"]),
+    scheme=st.sampled_from(["postgresql", "postgres", "mysql", "http"]),
+)
 def test_redacted_never_shows_the_password_and_never_fails(user, password, host, rest, scheme):
     assume(password not in f"{scheme}://{user}:***@{host}{rest}")
     shown = redacted(f"{scheme}://{user}:{password}@{host}{rest}")

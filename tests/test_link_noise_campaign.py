@@ -15,7 +15,6 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-
 from cli_runs import BENCH
 
 from bench.cli import main
@@ -36,21 +35,55 @@ def _true_pose_at(truth: list[dict], wall_s: float) -> np.ndarray:
 @pytest.mark.slow
 def test_a_campaign_under_line_noise_completes_with_the_true_numbers(tmp_path, capsys, caplog):
     protocol = tmp_path / "pose.toml"
-    protocol.write_text('protocol = "iso9283_pose"\nrobot = "pkm5"\ncycles = 2\nvelocities_pct = [100]\n'
-                        'settle_s = 0.6\n')
+    protocol.write_text(
+        'protocol = "iso9283_pose"\nrobot = "pkm5"\ncycles = 2\nvelocities_pct = [100]\nsettle_s = 0.6\n'
+    )
     mice, truth_log = tmp_path / "mice", tmp_path / "truth.jsonl"
     mice.mkdir()
-    simulator = subprocess.Popen([BENCH, "sim", "pkm5", "--mice", str(mice), "--garbage-every-s", "0.008",
-                                  "--speed-factor", "500", "--seed", "3", "--truth", str(truth_log)],
-                                 stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    simulator = subprocess.Popen(
+        [
+            BENCH,
+            "sim",
+            "pkm5",
+            "--mice",
+            str(mice),
+            "--garbage-every-s",
+            "0.008",
+            "--speed-factor",
+            "500",
+            "--seed",
+            "3",
+            "--truth",
+            str(truth_log),
+        ],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
     try:
         ready, _, _ = select.select([simulator.stdout], [], [], 60)
         assert ready, "the simulator printed no device path within 60 s"
         port = simulator.stdout.readline().strip()
         store = tmp_path / "b.db"
         with caplog.at_level(logging.WARNING, logger="bench.robots.pkm5"):
-            assert main(["run", str(protocol), "--port", port, "--mouse-xy", str(mice / "mouse_xy.fifo"),
-                         "--mouse-xz", str(mice / "mouse_xz.fifo"), "--store", str(store), "--no-progress"]) == 0
+            assert (
+                main(
+                    [
+                        "run",
+                        str(protocol),
+                        "--port",
+                        port,
+                        "--mouse-xy",
+                        str(mice / "mouse_xy.fifo"),
+                        "--mouse-xz",
+                        str(mice / "mouse_xz.fifo"),
+                        "--store",
+                        str(store),
+                        "--no-progress",
+                    ]
+                )
+                == 0
+            )
     finally:
         simulator.terminate()
         simulator.communicate(timeout=30)
@@ -61,7 +94,12 @@ def test_a_campaign_under_line_noise_completes_with_the_true_numbers(tmp_path, c
         (run,) = opened.runs()
         samples = opened.samples(run.id)
     assert (run.status, len(samples)) == ("completed", 10)
-    offsets = np.array([[s.values[a] for a in ("x_mm", "y_mm", "z_mm")]
-                        - _true_pose_at(truth, datetime.fromisoformat(s.wall_utc).timestamp()) for s in samples])
+    offsets = np.array(
+        [
+            [s.values[a] for a in ("x_mm", "y_mm", "z_mm")]
+            - _true_pose_at(truth, datetime.fromisoformat(s.wall_utc).timestamp())
+            for s in samples
+        ]
+    )
     spread_mm = np.abs(offsets - np.median(offsets, axis=0)).max()
     assert spread_mm < TRUTH_TOLERANCE_MM, offsets

@@ -17,11 +17,23 @@ TARGETS = [10.0, 20.0, 30.0, 40.0, 50.0]
 
 # Table 8-1 (printed, mm) and the recomputation from the raw tables (iso9283.md §7.4, [R]).
 TABLE_8_1 = {1: (0.18, 0.19), 2: (0.12, 0.12), 3: (0.13, 0.13), 4: (0.14, 0.14), 5: (0.12, 0.12), 6: (0.20, 0.20)}
-RECOMPUTED = {1: (0.183, 0.186), 2: (0.119, 0.122), 3: (0.127, 0.130), 4: (0.140, 0.143), 5: (0.121, 0.122),
-              6: (0.194, 0.195)}
+RECOMPUTED = {
+    1: (0.183, 0.186),
+    2: (0.119, 0.122),
+    3: (0.127, 0.130),
+    4: (0.140, 0.143),
+    5: (0.121, 0.122),
+    6: (0.194, 0.195),
+}
 # Table A.7: standard deviation (mm) at 10/20/30/40/50 mm per actuator.
-TABLE_A_7 = {1: (0.06, 0.11, 0.04, 0.05, 0.04), 2: (0.02, 0.05, 0.02, 0.05, 0.06), 3: (0.04, 0.04, 0.04, 0.06, 0.03),
-             4: (0.03, 0.06, 0.05, 0.07, 0.03), 5: (0.03, 0.07, 0.03, 0.03, 0.03), 6: (0.06, 0.08, 0.06, 0.07, 0.06)}
+TABLE_A_7 = {
+    1: (0.06, 0.11, 0.04, 0.05, 0.04),
+    2: (0.02, 0.05, 0.02, 0.05, 0.06),
+    3: (0.04, 0.04, 0.04, 0.06, 0.03),
+    4: (0.03, 0.06, 0.05, 0.07, 0.03),
+    5: (0.03, 0.07, 0.03, 0.03, 0.03),
+    6: (0.06, 0.08, 0.06, 0.07, 0.06),
+}
 BIAS_1 = (-0.009, -0.099, -0.132, -0.098, -0.113)
 BIAS_5 = (-0.061, -0.129, -0.142, -0.158, -0.152)
 
@@ -47,7 +59,8 @@ def test_tables_a1_a6_reproduce_table_8_1(actuator):
 def test_bias_hidden_by_groover_is_reported():
     cr = control_resolution(1.25, 200)
     assert groover_actuator(TARGETS, _readings(1), control_resolution_mm=cr).mean_deviation_mm == pytest.approx(
-        BIAS_1, abs=0.0005)
+        BIAS_1, abs=0.0005
+    )
     five = groover_actuator(TARGETS, _readings(5), control_resolution_mm=cr / 2)
     assert five.mean_deviation_mm == pytest.approx(BIAS_5, abs=0.0005)
     assert five.max_abs_bias_mm == pytest.approx(0.158, abs=0.0005)

@@ -31,7 +31,8 @@ def test_iso9283_json(capsys):
     assert p1["n"] == 10
     assert p1["AP_mm"] == pytest.approx((p1["APx_mm"] ** 2 + p1["APy_mm"] ** 2 + p1["APz_mm"] ** 2) ** 0.5)
     assert [b - c for b, c in zip(p1["barycentre_mm"], p1["commanded_mm"])] == pytest.approx(
-        [p1["APx_mm"], p1["APy_mm"], p1["APz_mm"]])
+        [p1["APx_mm"], p1["APy_mm"], p1["APz_mm"]]
+    )
 
 
 def test_iso9283_table_without_angles_has_no_orientation_keys(capsys, tmp_path):
@@ -176,8 +177,9 @@ def test_payload_command_shows_each_legs_worst_error_with_its_sign(capsys, tmp_p
     """A leg whose signed maximum is +0.002 mm at 0.45 kg but whose error reaches -0.248 mm at 25.23 kg: the
     worst is -0.248 mm at 25.23 kg (the signed maximum hid it)."""
     path = tmp_path / "legs.csv"
-    path.write_text("load_kg,leg,error_mm\n0.45,1,0.002\n12.07,1,-0.1\n25.23,1,-0.248\n"
-                    "0.45,2,0.01\n12.07,2,0.05\n25.23,2,0.03\n")
+    path.write_text(
+        "load_kg,leg,error_mm\n0.45,1,0.002\n12.07,1,-0.1\n25.23,1,-0.248\n0.45,2,0.01\n12.07,2,0.05\n25.23,2,0.03\n"
+    )
     code, out, _ = _run(capsys, "analyze", "payload", str(path), "--json")
     legs = json.loads(out)["legs"]
     assert code == 0

@@ -7,8 +7,19 @@ from doctests import run_doctests
 
 import bench.metrology
 
-MODULES = ["iso9283", "iso9283_dynamics", "iso9283_path", "actuator", "actuator_tables", "mouse_calibration", "payload", "uncertainty",
-           "tables", "partial_pose", "hit_rate"]
+MODULES = [
+    "iso9283",
+    "iso9283_dynamics",
+    "iso9283_path",
+    "actuator",
+    "actuator_tables",
+    "mouse_calibration",
+    "payload",
+    "uncertainty",
+    "tables",
+    "partial_pose",
+    "hit_rate",
+]
 #: Modules with no Examples section yet (every other module must run at least one example).
 WITHOUT_EXAMPLES = {"iso9283_dynamics", "tables"}
 

@@ -15,7 +15,7 @@ from bench.protocols import PROTOCOLS
 
 REPORTS = Path(__file__).resolve().parents[1] / "bench" / "reports"
 #: What a report may import from bench: itself, the store, pure metrology and the error family (motion is pure).
-REPORT_IMPORTS = ("bench.reports", "bench.store", "bench.metrology", "bench.errors")
+REPORT_IMPORTS = ("bench.reports", "bench.store", "bench.metrology", "bench.errors", "bench.robot_kinds")
 
 
 def _bench_imports(path: Path) -> list[str]:

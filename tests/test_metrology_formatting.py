@@ -20,16 +20,19 @@ from bench.metrology.formatting import (
 )
 
 
-@pytest.mark.parametrize("value, u, text", [
-    (0.44051, 0.23432, "0.44 ± 0.23"),  # the 0.4405 ± 0.2343
-    (100.02147, 0.00035, "100.02147 ± 0.00035"),  # GUM 7.2.2: m_S = 100.021 47 g, u = 0.35 mg
-    (0.44, 0.0996, "0.44 ± 0.10"),  # U rounds up into the next decade: two digits of 0.10
-    (123.4, 9.96, "123 ± 10"),
-    (1234.0, 56.0, "1234 ± 56"),
-    (12345.0, 678.0, "12350 ± 680"),  # U's second digit is the tens: the value to the tens, half up
-    (-0.0001, 0.02, "0.000 ± 0.020"),  # no "-0.000"
-    (1.0, 1.0, "1.0 ± 1.0"),
-])
+@pytest.mark.parametrize(
+    "value, u, text",
+    [
+        (0.44051, 0.23432, "0.44 ± 0.23"),  # the 0.4405 ± 0.2343
+        (100.02147, 0.00035, "100.02147 ± 0.00035"),  # GUM 7.2.2: m_S = 100.021 47 g, u = 0.35 mg
+        (0.44, 0.0996, "0.44 ± 0.10"),  # U rounds up into the next decade: two digits of 0.10
+        (123.4, 9.96, "123 ± 10"),
+        (1234.0, 56.0, "1234 ± 56"),
+        (12345.0, 678.0, "12350 ± 680"),  # U's second digit is the tens: the value to the tens, half up
+        (-0.0001, 0.02, "0.000 ± 0.020"),  # no "-0.000"
+        (1.0, 1.0, "1.0 ± 1.0"),
+    ],
+)
 def test_hand_rounded_cases(value, u, text):
     assert format_measured(value, u) == text
 
@@ -54,7 +57,7 @@ def test_u_has_two_significant_digits_and_the_value_its_decimal_place(value, u):
     assert float(shown_u) == pytest.approx(u, rel=0.051)  # at most half a unit of the second digit
     places = uncertainty_decimals(u)
     assert len(shown.partition(".")[2]) == len(shown_u.partition(".")[2]) == max(places, 0)
-    assert abs(float(shown) - value) <= 0.5 * 10.0 ** -places * (1 + 1e-9) + 1e-9 * abs(value)
+    assert abs(float(shown) - value) <= 0.5 * 10.0**-places * (1 + 1e-9) + 1e-9 * abs(value)
     digits = shown_u.replace(".", "").lstrip("0")
     assert len(digits.rstrip("0") if places < 0 else digits) in (1, 2)  # "0.10" keeps its trailing zero
     assert math.floor(math.log10(float(shown_u))) - (-places) in (0, 1)

@@ -40,15 +40,20 @@ def test_the_example_table_gives_the_same_figures_through_both_readers():
     assert [pose_result_json(r) for r in analyze_poses(slow)] == [pose_result_json(r) for r in analyze_poses(fast)]
 
 
-@pytest.mark.parametrize(("text", "message"), [
-    (f"{HEADER}\nP1,1,0,0,0,0,0,0\nP1,2,0,0,0,0,abc,0\nP1,3,0,0,0,0,0,0\n",
-     "row 2, column y_mm: 'abc' is not a finite number"),
-    (f"{HEADER}\nP1,1,0,0,0,0,0,\n", "row 1, column z_mm: '' is not a finite number"),
-    (f"{HEADER}\nP1,1,0,0,0,0,0,0\nP1,2,0,0,0,0,0\n", "row 2: 7 fields, expected 8 as in the header"),
-    (f"{HEADER}\nP1,1,0,0,0,0,0,0,9\n", "row 1: 9 fields, expected 8 as in the header"),
-    ("pose,cycle,x_mm,x_mm\nP1,1,0,0\n", "expected unique, non-empty column names"),
-    (f"{HEADER}\nP1,1,0,0,0,0,0,inf\n", "row 1, column z_mm: 'inf' is not a finite number"),
-])
+@pytest.mark.parametrize(
+    ("text", "message"),
+    [
+        (
+            f"{HEADER}\nP1,1,0,0,0,0,0,0\nP1,2,0,0,0,0,abc,0\nP1,3,0,0,0,0,0,0\n",
+            "row 2, column y_mm: 'abc' is not a finite number",
+        ),
+        (f"{HEADER}\nP1,1,0,0,0,0,0,\n", "row 1, column z_mm: '' is not a finite number"),
+        (f"{HEADER}\nP1,1,0,0,0,0,0,0\nP1,2,0,0,0,0,0\n", "row 2: 7 fields, expected 8 as in the header"),
+        (f"{HEADER}\nP1,1,0,0,0,0,0,0,9\n", "row 1: 9 fields, expected 8 as in the header"),
+        ("pose,cycle,x_mm,x_mm\nP1,1,0,0\n", "expected unique, non-empty column names"),
+        (f"{HEADER}\nP1,1,0,0,0,0,0,inf\n", "row 1, column z_mm: 'inf' is not a finite number"),
+    ],
+)
 def test_a_bad_table_gets_the_same_one_line_error_through_both_readers(tmp_path, text, message):
     path = tmp_path / "samples.csv"
     path.write_text(text)
@@ -59,10 +64,14 @@ def test_a_bad_table_gets_the_same_one_line_error_through_both_readers(tmp_path,
 
 def test_comments_blank_lines_spaces_quotes_and_a_bom_read_alike(tmp_path):
     path = tmp_path / "samples.csv"
-    path.write_bytes(("\ufeff# exported by hand\n" + HEADER.replace(",", ", ") + "\n"
-                      "P#1, 1, 100, 0, 300, 100.1, 0.2, 299.9\n  # a comment after blanks\n"
-                      "P#1, 2, 100, 0, 300, 100.3, -0.1, 300.2\n\n\"P2\",1,90,5,310,90.1,5,310\n"
-                      "P2,2,90,5,310,89.8,5.1,310.1\nP#1,3,100,0,300,99.9,0.0,300.1\n").encode("utf-8"))
+    path.write_bytes(
+        (
+            "\ufeff# exported by hand\n" + HEADER.replace(",", ", ") + "\n"
+            "P#1, 1, 100, 0, 300, 100.1, 0.2, 299.9\n  # a comment after blanks\n"
+            'P#1, 2, 100, 0, 300, 100.3, -0.1, 300.2\n\n"P2",1,90,5,310,90.1,5,310\n'
+            "P2,2,90,5,310,89.8,5.1,310.1\nP#1,3,100,0,300,99.9,0.0,300.1\n"
+        ).encode("utf-8")
+    )
     slow, fast = both_readers(path)
     pd.testing.assert_frame_equal(slow, fast, check_dtype=False)
     assert list(slow["pose"]) == ["P#1", "P#1", "P2", "P2", "P#1"]
@@ -74,8 +83,11 @@ def test_comments_blank_lines_spaces_quotes_and_a_bom_read_alike(tmp_path):
 
 
 @settings(max_examples=30, deadline=None)
-@given(st.lists(st.tuples(st.sampled_from(["P1", "P2", "01", "1.50"]), st.floats(-500, 500, width=32)),
-                min_size=3, max_size=12))
+@given(
+    st.lists(
+        st.tuples(st.sampled_from(["P1", "P2", "01", "1.50"]), st.floats(-500, 500, width=32)), min_size=3, max_size=12
+    )
+)
 def test_random_tables_mean_the_same_through_both_readers(tmp_path_factory, rows):
     path = tmp_path_factory.mktemp("t") / "samples.csv"
     lines = [f"{pose},{i},1,2,3,{x!r},{x / 2!r},0.5" for i, (pose, x) in enumerate(rows, start=1)]
@@ -101,7 +113,7 @@ def test_the_delta_method_counts_the_barycentre_and_the_skew():
     l = np.linalg.norm(cloud - cloud.mean(axis=0), axis=1)
     d = l - l.mean()
     s = l.std(ddof=1)
-    naive = np.sqrt(np.sum((d + 1.5 / s * (d ** 2 - s ** 2)) ** 2)) / len(l)
+    naive = np.sqrt(np.sum((d + 1.5 / s * (d**2 - s**2)) ** 2)) / len(l)
     full = repeatability_uncertainty_delta(cloud)
     assert abs(full / naive - 1) > 0.02
     assert full == pytest.approx(repeatability_uncertainty(cloud, resamples=4000, method="bootstrap"), rel=0.04)

@@ -92,7 +92,9 @@ def test_axis_fit_recovers_scale_and_offset():
     assert result.slope_counts_per_mm == pytest.approx(slope)
     assert result.offset_counts == pytest.approx(offset)
     assert result.scale_mm_per_count == pytest.approx(1 / slope)
-    assert result.residual_rms_counts == pytest.approx(np.sqrt(np.mean((counts - np.polyval([slope, offset], reference)) ** 2)))
+    assert result.residual_rms_counts == pytest.approx(
+        np.sqrt(np.mean((counts - np.polyval([slope, offset], reference)) ** 2))
+    )
     cov = np.polyfit(reference, counts, 1, cov="unscaled")[1] * np.sum(np.square(result.residuals_counts)) / (25 - 2)
     assert result.u_scale_mm_per_count == pytest.approx(np.sqrt(cov[0, 0]) / slope**2)
 

@@ -29,6 +29,7 @@ angle_clouds = st.integers(2, 12).flatmap(lambda n: arrays(float, (n, 3), elemen
 
 # --- 8.5 cornering ----------------------------------------------------------------------------------------------
 
+
 def test_cornering_hand_computed_round_off_and_overshoot():
     cut = [[-10, 0], [-2, 0], [0, 2], [0, 10]]  # chord 2 mm before and after the corner: CR = √2
     past = [[-10, 0], [0.3, 0], [0.3, 0.3], [0, 0.6], [0, 10]]  # runs 0.3 mm beyond the outgoing edge
@@ -64,8 +65,11 @@ def test_cornering_refuses_a_straight_corner_and_no_cycles():
 
 
 @settings(max_examples=60, deadline=None)
-@given(st.integers(3, 20).flatmap(lambda n: arrays(float, (n, 3), elements=finite)),
-       arrays(float, 3, elements=finite), st.floats(0.1, 3.0))
+@given(
+    st.integers(3, 20).flatmap(lambda n: arrays(float, (n, 3), elements=finite)),
+    arrays(float, 3, elements=finite),
+    st.floats(0.1, 3.0),
+)
 def test_cornering_nonnegative_and_translation_invariant(path, shift, turn):
     corner, start, end = np.zeros(3), np.array([-100.0, 0, 0]), np.array([100 * np.cos(turn), 100 * np.sin(turn), 0])
     r = cornering_deviations([path], corner, start, end)
@@ -77,6 +81,7 @@ def test_cornering_nonnegative_and_translation_invariant(path, shift, turn):
 
 
 # --- 8.6 path velocity --------------------------------------------------------------------------------------------
+
 
 def test_path_velocity_hand_computed():
     r = path_velocity_characteristics([[10, 10], [12, 12]], 10.0)
@@ -108,8 +113,11 @@ def test_path_velocity_refuses_bad_input():
 
 
 @settings(max_examples=60, deadline=None)
-@given(st.lists(arrays(float, st.integers(1, 8), elements=st.floats(0.1, 500)), min_size=2, max_size=10),
-       st.floats(1, 500), st.floats(0.001, 1000))
+@given(
+    st.lists(arrays(float, st.integers(1, 8), elements=st.floats(0.1, 500)), min_size=2, max_size=10),
+    st.floats(1, 500),
+    st.floats(0.001, 1000),
+)
 def test_path_velocity_invariants(speeds, commanded, scale):
     r = path_velocity_characteristics(speeds, commanded)
     scaled = path_velocity_characteristics([s * scale for s in speeds], commanded * scale)
@@ -120,6 +128,7 @@ def test_path_velocity_invariants(speeds, commanded, scale):
 
 
 # --- 9 minimum positioning time -----------------------------------------------------------------------------------
+
 
 def test_step_table_19_and_cumulative_targets():
     assert MIN_POSITIONING_STEPS_MM == (-10, 20, -50, 100, -200, 500, -1000)
@@ -139,15 +148,16 @@ def _step(t_leave, t_settle, distance, rate_s=0.01, overshoot_mm=0.0):
 
 def test_minimum_positioning_time_per_step_mean_over_cycles():
     band = 0.1
-    steps = [[_step(0.10, 0.60, -10, overshoot_mm=0.5), _step(0.10, 0.70, -10, overshoot_mm=0.5)],
-             [_step(0.20, 1.20, 20), _step(0.20, 1.00, 20)]]
+    steps = [
+        [_step(0.10, 0.60, -10, overshoot_mm=0.5), _step(0.10, 0.70, -10, overshoot_mm=0.5)],
+        [_step(0.20, 1.20, 20), _step(0.20, 1.00, 20)],
+    ]
     r = minimum_positioning_time(steps, band_mm=band)
     # leaves the 0.1 mm band one sample after t_leave, settles at t_settle for the overshoot steps and when the
     # ramp enters the band (0.1 mm before its end) for the others
     leave = [0.11, 0.21]
     ramp = 0.1 / 20 * (1.20 - 0.05 - 0.20), 0.1 / 20 * (1.00 - 0.05 - 0.20)
-    expected = [[0.60 - leave[0], 0.70 - leave[0]],
-                [1.15 - ramp[0] - leave[1], 0.95 - ramp[1] - leave[1]]]
+    expected = [[0.60 - leave[0], 0.70 - leave[0]], [1.15 - ramp[0] - leave[1], 0.95 - ramp[1] - leave[1]]]
     for got, want in zip(r.time_s_per_cycle, expected):
         assert got == pytest.approx(want, abs=0.011)  # one sample period
     assert r.mean_time_s == pytest.approx([np.mean(e) for e in expected], abs=0.011)
@@ -175,10 +185,13 @@ def test_minimum_positioning_time_refuses_a_step_no_longer_than_twice_the_band(d
 
 # --- 7.2.1 / 7.2.2 / 7.2.3 orientation ----------------------------------------------------------------------------
 
+
 def test_orientation_vap_hand_computed_per_angle():
-    directions = [[[1.0, 0.0, 10.0], [1.2, 0.0, 10.0]],   # means (1.1, 0, 10)
-                  [[0.9, 0.3, 10.0], [0.9, 0.5, 10.0]],   # (0.9, 0.4, 10)
-                  [[1.0, -0.2, 9.0]]]                     # (1.0, -0.2, 9)
+    directions = [
+        [[1.0, 0.0, 10.0], [1.2, 0.0, 10.0]],  # means (1.1, 0, 10)
+        [[0.9, 0.3, 10.0], [0.9, 0.5, 10.0]],  # (0.9, 0.4, 10)
+        [[1.0, -0.2, 9.0]],
+    ]  # (1.0, -0.2, 9)
     r = orientation_multidirectional_variation(directions)
     assert r.vap_deg == pytest.approx((0.2, 0.6, 1.0))
     assert r.mean_deg[1] == pytest.approx((0.9, 0.4, 10.0))
@@ -206,18 +219,21 @@ def test_orientation_vap_nonnegative_and_offset_invariant(clouds, offset):
     r = orientation_multidirectional_variation(clouds)
     assert min(r.vap_deg) >= 0
     assert orientation_multidirectional_variation([c + offset for c in clouds]).vap_deg == pytest.approx(
-        r.vap_deg, abs=1e-6)
+        r.vap_deg, abs=1e-6
+    )
 
 
 # --- 8.2 / 8.3 / 8.4 orientation along a path ---------------------------------------------------------------------
+
 
 def test_path_orientation_hand_computed_on_a_reorientation_line():
     # three passes along x; angle a ramps 0 -> 10° over 100 mm as commanded, offset per cycle by +0.1, +0.3, +0.2°;
     # b is commanded 0 and wraps across ±180 in the samples of one cycle
     x = np.linspace(0.0, 100.0, 21)
     paths = [np.column_stack([x, np.full_like(x, y), np.zeros_like(x)]) for y in (0.05, -0.05, 0.0)]
-    angles = [np.column_stack([0.1 * x + off, np.full_like(x, b)]) for off, b in ((0.1, 179.9), (0.3, -179.9),
-                                                                                 (0.2, 180.0))]
+    angles = [
+        np.column_stack([0.1 * x + off, np.full_like(x, b)]) for off, b in ((0.1, 179.9), (0.3, -179.9), (0.2, 180.0))
+    ]
     stations = np.column_stack([np.linspace(12.5, 87.5, 4), np.zeros(4), np.zeros(4)])
     commanded = np.column_stack([0.1 * stations[:, 0], np.full(4, 180.0)])
     r = path_orientation_characteristics(paths, angles, stations, commanded)
@@ -235,6 +251,7 @@ def test_path_orientation_refuses_angles_not_sampled_with_the_positions():
 
 # --- 7.6 drift of the orientation ---------------------------------------------------------------------------------
 
+
 def test_orientation_drift_hand_computed_across_180():
     t = [0, 1, 2, 10, 11, 12]
     a = [[179.9, 0.0], [-179.9, 0.0], [180.0, 0.0], [179.5, 0.1], [179.7, 0.3], [179.6, 0.2]]
@@ -248,8 +265,13 @@ def test_orientation_drift_hand_computed_across_180():
 
 
 @settings(max_examples=40, deadline=None)
-@given(st.floats(0.05, 1.0), st.floats(0.3, 2.0), st.floats(0, 1e4), arrays(float, 3, elements=finite),
-       st.floats(-20, 20).filter(lambda d: abs(d) > 1))
+@given(
+    st.floats(0.05, 1.0),
+    st.floats(0.3, 2.0),
+    st.floats(0, 1e4),
+    arrays(float, 3, elements=finite),
+    st.floats(-20, 20).filter(lambda d: abs(d) > 1),
+)
 @example(1.0, 0.3, 0.0, np.array([64.0, 64.0, 64.0]), 3.0)  # found by Hypothesis: samples on both band edges
 def test_positioning_time_is_invariant_to_the_clock_origin_and_the_place(t_leave, duration, t0, place, distance):
     t = np.round(np.arange(0.0, t_leave + duration + 0.5, 0.01), 6)

@@ -50,6 +50,9 @@ def test_without_partial_axes_or_without_any_axis_the_table_is_refused():
     frame = _table(np.random.default_rng(1))
     with pytest.raises(ConfigError, match=r"^camera.csv: missing column\(s\) z_mm"):
         pose_table(frame)
-    with pytest.raises(ConfigError, match=r"^camera.csv: missing column\(s\) x_mm, y_mm, z_mm; found .*, expected at "
-                                          r"least one measured position axis$"):
+    with pytest.raises(
+        ConfigError,
+        match=r"^camera.csv: missing column\(s\) x_mm, y_mm, z_mm; found .*, expected at "
+        r"least one measured position axis$",
+    ):
         pose_table(frame.drop(columns=["x_mm", "y_mm"]), partial_axes=True)

@@ -157,15 +157,21 @@ def test_missing_pose_column_is_named(tmp_path):
 def test_stabilisation_results_per_band_and_pose_in_numeric_cycle_order(tmp_path):
     # eleven arrivals at P1 written in reverse: "10" < "2" as text, so cycles must be ordered as numbers
     distances = [0.3, 0.12, 0.05, 0.0]
-    rows = [f"P1,{cycle},{0.01 * i:g},{d + 0.001 * cycle:g},0,0"
-            for cycle in range(11, 0, -1) for i, d in enumerate(distances)]
+    rows = [
+        f"P1,{cycle},{0.01 * i:g},{d + 0.001 * cycle:g},0,0"
+        for cycle in range(11, 0, -1)
+        for i, d in enumerate(distances)
+    ]
     rows.append("P2,1,0,5,0,0")  # an arrival of one sample has no t_1: its pose gets the reason, not a figure
-    table = stabilisation_table(read_table_csv(_write(tmp_path, "pose,cycle,t_s,x_mm,y_mm,z_mm\n" +
-                                                        "\n".join(rows) + "\n")))
+    table = stabilisation_table(
+        read_table_csv(_write(tmp_path, "pose,cycle,t_s,x_mm,y_mm,z_mm\n" + "\n".join(rows) + "\n"))
+    )
     results = stabilisation_results(table, [0.1, 0.5], 0.0)
     assert [cycle for cycle, _, _ in results.series["P1"]] == list(range(1, 12))
-    arrivals = [(np.arange(4) * 0.01, np.column_stack([np.array(distances) + 0.001 * c, np.zeros(4), np.zeros(4)]))
-                for c in range(1, 12)]
+    arrivals = [
+        (np.arange(4) * 0.01, np.column_stack([np.array(distances) + 0.001 * c, np.zeros(4), np.zeros(4)]))
+        for c in range(1, 12)
+    ]
     for band in (0.1, 0.5):  # by hand: each arrival is inside the band from its third (0.1) or first (0.5) sample
         assert results.bands[band]["P1"] == pose_stabilisation(arrivals, band_mm=band)
     assert results.bands[0.1]["P1"].mean_time_s == 0.0 and results.bands[0.1]["P1"].cycles[0].first_entry_s == 0.02

@@ -97,7 +97,10 @@ def test_accuracy_uncertainty_per_axis_and_norm():
 def test_bootstrap_is_reproducible_and_scales():
     rng = np.random.default_rng(11)
     cloud = rng.normal(0, 0.2, (30, 3))
-    statistic = lambda p: pose_repeatability(p).rp_mm
+
+    def statistic(p):
+        return pose_repeatability(p).rp_mm
+
     a = bootstrap_uncertainty(statistic, cloud, resamples=300, seed=1)
     assert a == bootstrap_uncertainty(statistic, cloud, resamples=300, seed=1)
     assert bootstrap_uncertainty(statistic, cloud * 10, resamples=300, seed=1) == pytest.approx(10 * a)
@@ -109,5 +112,6 @@ def test_vectorised_rp_bootstrap_equals_the_generic_one():
 
     cloud = np.random.default_rng(2).normal(0, 0.3, (12, 3))
     generic = bootstrap_uncertainty(lambda p: pose_repeatability(p).rp_mm, cloud, resamples=200, seed=4)
-    assert repeatability_uncertainty(cloud, resamples=200, seed=4, method="bootstrap") == pytest.approx(generic,
-                                                                                          rel=1e-12)
+    assert repeatability_uncertainty(cloud, resamples=200, seed=4, method="bootstrap") == pytest.approx(
+        generic, rel=1e-12
+    )

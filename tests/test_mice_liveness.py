@@ -37,8 +37,9 @@ class FifoMiceRobot:
     def __init__(self, writers: dict[str, int], start_mm, *, drill: str = "", healthy: int = 10**9) -> None:
         self.writers, self.drill, self.healthy = writers, drill, healthy
         self.at_mm = np.asarray(start_mm, float)[:3].copy()
-        self.sent = {plane: np.round(self.at_mm[list(axes)] * COUNTS_PER_MM).astype(np.int64)
-                     for plane, axes in PLANES.items()}
+        self.sent = {
+            plane: np.round(self.at_mm[list(axes)] * COUNTS_PER_MM).astype(np.int64) for plane, axes in PLANES.items()
+        }
         self.moves = 0
         self.t_s = 1.0
 
@@ -118,9 +119,9 @@ def test_healthy_mice_complete_the_run_with_the_commanded_positions(tmp_path, fi
             assert sample.values[f"{axis}_mm"] == pytest.approx(sample.values[f"cmd_{axis}_mm"], abs=0.04)
 
 
-@pytest.mark.parametrize("drill, what", [("silent", "sent no report"),
-                                         ("eof", "the device closed"),
-                                         ("frozen", "reports without motion")])
+@pytest.mark.parametrize(
+    "drill, what", [("silent", "sent no report"), ("eof", "the device closed"), ("frozen", "reports without motion")]
+)
 def test_a_stalled_mouse_fails_the_run_at_the_first_sample_after_it_stalled(tmp_path, fifo_mice, drill, what):
     healthy = 4
     result, samples = _run(tmp_path, fifo_mice, drill, healthy)
@@ -148,14 +149,22 @@ def test_a_capture_without_commanded_positions_is_not_judged(fifo_mice):
 
 # ---- a stored mouse calibration is put in force only when the station names it --------------------------------
 
+
 def test_a_measured_calibration_is_in_force_only_when_the_station_names_it(tmp_path, caplog):
     from bench.errors import ConfigError
     from bench.rigs.builder import calibration_summary, mouse_calibration
 
     with Store(tmp_path / "bench.db") as store:
-        measured = store.add_calibration("mouse", {"x_mm_per_count": 0.0311, "u_x_mm_per_count": 2e-5,
-                                                   "y_mm_per_count": 0.0324, "u_y_mm_per_count": 3e-5,
-                                                   "mm_per_count": 0.03175})
+        measured = store.add_calibration(
+            "mouse",
+            {
+                "x_mm_per_count": 0.0311,
+                "u_x_mm_per_count": 2e-5,
+                "y_mm_per_count": 0.0324,
+                "u_y_mm_per_count": 3e-5,
+                "mm_per_count": 0.03175,
+            },
+        )
         record, calibration = mouse_calibration(store, 800.0, source="bench.toml")
         assert record.params["nominal"] is True and record.version == measured.version + 1
         assert calibration.counts_to_mm(np.array([800, 800])) == pytest.approx([25.4, 25.4])
@@ -163,26 +172,47 @@ def test_a_measured_calibration_is_in_force_only_when_the_station_names_it(tmp_p
         record, calibration = mouse_calibration(store, 800.0, measured.version, source="bench.toml")
         assert record.id == measured.id
         assert calibration.counts_to_mm(np.array([1000, 1000])) == pytest.approx([31.1, 32.4])  # per-axis scales
-        assert calibration_summary(record) == {"version": 1, "nominal": False, "x_mm_per_count": 0.0311,
-                                               "u_x_mm_per_count": 2e-5, "y_mm_per_count": 0.0324,
-                                               "u_y_mm_per_count": 3e-5}
-        with pytest.raises(ConfigError, match=r"^bench.toml: mice.calibration = 7, expected a stored mouse "
-                                              r"calibration version \(1, 2\)$"):
+        assert calibration_summary(record) == {
+            "version": 1,
+            "nominal": False,
+            "x_mm_per_count": 0.0311,
+            "u_x_mm_per_count": 2e-5,
+            "y_mm_per_count": 0.0324,
+            "u_y_mm_per_count": 3e-5,
+        }
+        with pytest.raises(
+            ConfigError,
+            match=r"^bench.toml: mice.calibration = 7, expected a stored mouse "
+            r"calibration version \(1, 2\)$",
+        ):
             mouse_calibration(store, 800.0, 7, source="bench.toml")
 
 
-@pytest.mark.parametrize("calibration, relative", [
-    ({"version": 1, "nominal": False, "x_mm_per_count": 0.0311, "u_x_mm_per_count": 3.11e-5,
-      "y_mm_per_count": 0.0324, "u_y_mm_per_count": 6.48e-5}, 0.002),   # the larger of 0.1 % and 0.2 %
-    ({"version": 2, "nominal": True, "x_mm_per_count": 0.03175, "y_mm_per_count": 0.03175}, 0.04 / np.sqrt(3)),
-])
+@pytest.mark.parametrize(
+    "calibration, relative",
+    [
+        (
+            {
+                "version": 1,
+                "nominal": False,
+                "x_mm_per_count": 0.0311,
+                "u_x_mm_per_count": 3.11e-5,
+                "y_mm_per_count": 0.0324,
+                "u_y_mm_per_count": 6.48e-5,
+            },
+            0.002,
+        ),  # the larger of 0.1 % and 0.2 %
+        ({"version": 2, "nominal": True, "x_mm_per_count": 0.03175, "y_mm_per_count": 0.03175}, 0.04 / np.sqrt(3)),
+    ],
+)
 def test_the_calibration_in_force_enters_the_runs_budget(tmp_path, calibration, relative):
     from bench.reports.content import counts_instrument
 
     settings = {"instrument": {"cpi": 800.0, "registration_mm": [110.0, 0.0, 320.0], "calibration": calibration}}
     with Store(tmp_path / "bench.db") as store:
-        run_id = store.start_run(protocol_name="iso9283_pose", protocol_version="1", robot="pkm5", config={},
-                                 settings=settings)
+        run_id = store.start_run(
+            protocol_name="iso9283_pose", protocol_version="1", robot="pkm5", config={}, settings=settings
+        )
         run = store.run(run_id)
     info = counts_instrument(run, (), 3, span_mm=40.0)
     lines = {name: u for name, u, _ in info.budget}

@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from bench.metrology import fit_matrix
-from bench.metrology.mouse_calibration import coverage_factor
+from bench.metrology.mouse_calibration import student_k95 as coverage_factor
 from bench.simulators.mouse_calibration_mc import (
     DESIGNS,
     calibration_moves,

@@ -52,8 +52,22 @@ def test_a_run_is_stored_printed_exported_analysed_and_reported(tmp_path, caplog
     analysed = json.loads(capsys.readouterr().out)
     assert np.array(analysed["A_mm_per_count"]) == pytest.approx(np.array(params["matrix_mm_per_count"]), rel=1e-12)
     assert analysed["k"] == pytest.approx(params["k"])
-    assert main(["report", str(result.run_id), "--store", str(tmp_path / "b.db"), "--out", str(tmp_path / "r"),
-                 "--format", "html", "--quiet"]) == 0
+    assert (
+        main(
+            [
+                "report",
+                str(result.run_id),
+                "--store",
+                str(tmp_path / "b.db"),
+                "--out",
+                str(tmp_path / "r"),
+                "--format",
+                "html",
+                "--quiet",
+            ]
+        )
+        == 0
+    )
     page = (tmp_path / "r" / f"report_run{result.run_id}.html").read_text()
     a = np.array(params["matrix_mm_per_count"])
     assert f"{a[0, 0]:+.6f} ±" in page and f"[mice] calibration = {stored.version}" in page
@@ -71,13 +85,22 @@ def test_a_calliper_reference_replaces_the_robots_commanded_travel():
         for cycle in (1, 2):
             for where, commanded in (("start", 90.0), ("end", 90.0 + distance)):
                 true_x = 90.0 + 0.97 * (commanded - 90.0)
-                samples.append(_sample(f"x{distance:g}/{where}", cycle, cmd_x_mm=commanded, cmd_y_mm=-20.0,
-                                       mouse_xy_x_counts=round(true_x * counts_per_mm), mouse_xy_y_counts=0.0))
+                samples.append(
+                    _sample(
+                        f"x{distance:g}/{where}",
+                        cycle,
+                        cmd_x_mm=commanded,
+                        cmd_y_mm=-20.0,
+                        mouse_xy_x_counts=round(true_x * counts_per_mm),
+                        mouse_xy_y_counts=0.0,
+                    )
+                )
                 references.append(_sample(f"x{distance:g}/{where}", cycle, reference_mm=true_x))
     calliper, counts = mouse_calibration_moves(samples, references)
     commanded, _ = mouse_calibration_moves(samples)
     assert len(calliper) == 11 and (calliper[:, 1] == 0).all()
     slope = np.linalg.lstsq(calliper[:, :1], counts[:, 0], rcond=None)[0][0]
     assert slope == pytest.approx(counts_per_mm, rel=2e-3)
-    assert np.linalg.lstsq(commanded[:, :1], counts[:, 0], rcond=None)[0][0] == pytest.approx(0.97 * counts_per_mm,
-                                                                                              rel=2e-3)
+    assert np.linalg.lstsq(commanded[:, :1], counts[:, 0], rcond=None)[0][0] == pytest.approx(
+        0.97 * counts_per_mm, rel=2e-3
+    )

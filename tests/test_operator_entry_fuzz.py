@@ -39,13 +39,91 @@ PROMPTS = (
 _DIGITS = "0123456789"
 #: The pieces of the grammar: numbers as people and wedges type them, and what goes wrong around them.
 _PIECES = (
-    "+", "-", "\u2212", "--", "+-", " ", "  ", "\t", "\u00a0", "\u2009", "\n", ".", ",", ",,", "..", "\u066b",
-    "e", "E", "e5", "e-3", "E+308", "e400", "e-400", "1e999", "-1e999", "0x1F", "1_000", "\u0661\u0662",
-    "\uff11\uff12", "\u00b2", "\u00bd", "mm", "MM", "Mm", "in", "IN", '"', "''", "deg", "DEG", "\u00b0", "kg",
-    "\u00b5m", "inch", "mm mm", "nan", "NaN", "-nan", "NAN", "inf", "-inf", "+inf", "Infinity", "-Infinity",
-    "\u221e", "nan mm", "inf deg", "None", "null", "", "\x00", "\ufeff", "\U0001f600", "12,5", "0,4865 in",
-    "-0,50 mm", "1.", ".5", ",5", "00012.3400", "1" * 15, "9" * 16, "1" * 400, "0." + "0" * 20 + "1",
-    "9" * 14 + ".9", "150", "150.0000001", "-0", "45", "-45.0", "45.0000001", "20", "22.0001", "y", "yes",
+    "+",
+    "-",
+    "\u2212",
+    "--",
+    "+-",
+    " ",
+    "  ",
+    "\t",
+    "\u00a0",
+    "\u2009",
+    "\n",
+    ".",
+    ",",
+    ",,",
+    "..",
+    "\u066b",
+    "e",
+    "E",
+    "e5",
+    "e-3",
+    "E+308",
+    "e400",
+    "e-400",
+    "1e999",
+    "-1e999",
+    "0x1F",
+    "1_000",
+    "\u0661\u0662",
+    "\uff11\uff12",
+    "\u00b2",
+    "\u00bd",
+    "mm",
+    "MM",
+    "Mm",
+    "in",
+    "IN",
+    '"',
+    "''",
+    "deg",
+    "DEG",
+    "\u00b0",
+    "kg",
+    "\u00b5m",
+    "inch",
+    "mm mm",
+    "nan",
+    "NaN",
+    "-nan",
+    "NAN",
+    "inf",
+    "-inf",
+    "+inf",
+    "Infinity",
+    "-Infinity",
+    "\u221e",
+    "nan mm",
+    "inf deg",
+    "None",
+    "null",
+    "",
+    "\x00",
+    "\ufeff",
+    "\U0001f600",
+    "12,5",
+    "0,4865 in",
+    "-0,50 mm",
+    "1.",
+    ".5",
+    ",5",
+    "00012.3400",
+    "1" * 15,
+    "9" * 16,
+    "1" * 400,
+    "0." + "0" * 20 + "1",
+    "9" * 14 + ".9",
+    "150",
+    "150.0000001",
+    "-0",
+    "45",
+    "-45.0",
+    "45.0000001",
+    "20",
+    "22.0001",
+    "y",
+    "yes",
 )
 
 
@@ -101,8 +179,9 @@ def test_1e5_fuzzed_entries_through_the_parser_are_finite_in_bounds_or_one_line(
     assert accepted + refused == N_ENTRIES
     # the grammar reaches both sides of every rule (the figures move only when the grammar or the seed does)
     assert accepted > 5_000 and refused > 50_000 and confirmations > 100, (accepted, refused, confirmations)
-    print(f"{N_ENTRIES} entries: {accepted} accepted ({confirmations} to confirm), {refused} refused, "
-          f"{elapsed_s:.2f} s")
+    print(
+        f"{N_ENTRIES} entries: {accepted} accepted ({confirmations} to confirm), {refused} refused, {elapsed_s:.2f} s"
+    )
 
 
 def test_1e5_fuzzed_entries_at_the_console_give_finite_readings_and_one_line_per_refusal():
@@ -133,16 +212,23 @@ def test_1e5_fuzzed_entries_at_the_console_give_finite_readings_and_one_line_per
         assert "Traceback" not in line
 
 
-@pytest.mark.parametrize(("prompt", "text", "message"), [
-    (PROMPTS[3], "3 in", "Count: '3 in' is not a reading; expected a number without unit"),  # was 76.2
-    (PROMPTS[3], "3 mm", "Count: '3 mm' is not a reading; expected a number without unit"),
-    (PROMPTS[1], "1 in", "Tilt alpha: '1 in' is not a reading in deg; expected a number, optionally followed by deg"),
-    (PROMPTS[2], "nan kg", "Payload: 'nan' is not a reading in kg; expected a number, optionally followed by kg"),
-    (PROMPTS[2], "45\u0661\u0662", "Payload: reading '45\u0661\u0662' is not a length"),  # was 4512
-    (PROMPTS[0], "\uff11\uff12", "Depth at P1: reading '\uff11\uff12' is not a length"),  # full-width 12
-    (PROMPTS[0], "1" * 400, f"Depth at P1: reading '{'1' * 400}' has 400 digits, expected at most 15"),
-    (PROMPTS[0], "1e999", "Depth at P1: reading '1e999' is not a length"),
-])
+@pytest.mark.parametrize(
+    ("prompt", "text", "message"),
+    [
+        (PROMPTS[3], "3 in", "Count: '3 in' is not a reading; expected a number without unit"),  # was 76.2
+        (PROMPTS[3], "3 mm", "Count: '3 mm' is not a reading; expected a number without unit"),
+        (
+            PROMPTS[1],
+            "1 in",
+            "Tilt alpha: '1 in' is not a reading in deg; expected a number, optionally followed by deg",
+        ),
+        (PROMPTS[2], "nan kg", "Payload: 'nan' is not a reading in kg; expected a number, optionally followed by kg"),
+        (PROMPTS[2], "45\u0661\u0662", "Payload: reading '45\u0661\u0662' is not a length"),  # was 4512
+        (PROMPTS[0], "\uff11\uff12", "Depth at P1: reading '\uff11\uff12' is not a length"),  # full-width 12
+        (PROMPTS[0], "1" * 400, f"Depth at P1: reading '{'1' * 400}' has 400 digits, expected at most 15"),
+        (PROMPTS[0], "1e999", "Depth at P1: reading '1e999' is not a length"),
+    ],
+)
 def test_entries_the_fuzz_found_or_the_issue_named_are_refused_in_one_line(prompt, text, message):
     with pytest.raises(ConfigError) as refused:
         parse_entry(prompt, text)
@@ -163,8 +249,16 @@ class _FuzzedPrompts(Protocol):
     def steps(self):
         for n in range(200):
             prompt = PROMPTS[n % len(PROMPTS)]
-            yield Prompt(prompt.text, field=prompt.field, unit=prompt.unit, minimum=prompt.minimum,
-                         maximum=prompt.maximum, commanded=prompt.commanded, kind="fuzz_reading", cycle=n + 1)
+            yield Prompt(
+                prompt.text,
+                field=prompt.field,
+                unit=prompt.unit,
+                minimum=prompt.minimum,
+                maximum=prompt.maximum,
+                commanded=prompt.commanded,
+                kind="fuzz_reading",
+                cycle=n + 1,
+            )
 
 
 class _StillRobot:

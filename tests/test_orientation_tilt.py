@@ -33,7 +33,9 @@ def test_the_budget_reproduces_the_worked_example_of_the_reference():
     assert tilt_standard_uncertainty_deg(0.0, gauge) == pytest.approx(0.024, abs=5e-4)
     assert tilt_standard_uncertainty_deg(20.0, gauge) == pytest.approx(0.034, abs=5e-4)
     # at 0°: only the depths count, √2·u(h)/s rad
-    assert tilt_standard_uncertainty_deg(0.0, gauge) == pytest.approx(math.degrees(math.sqrt(2) * 0.0119024 / 40), rel=1e-4)
+    assert tilt_standard_uncertainty_deg(0.0, gauge) == pytest.approx(
+        math.degrees(math.sqrt(2) * 0.0119024 / 40), rel=1e-4
+    )
 
 
 def test_the_sensor_and_the_metrology_share_one_tilt_formula():
@@ -41,7 +43,8 @@ def test_the_sensor_and_the_metrology_share_one_tilt_formula():
     theta = float(tilt_deg(h1, h2, s))
     gauge = TiltGauge(spacing_mm=s, u_spacing_mm=0.05, resolution_mm=0.01, mpe_mm=0.02)
     assert tilt_uncertainty_deg(h1, h2, s, gauge.u_depth_mm, 0.05) == pytest.approx(
-        tilt_standard_uncertainty_deg(theta, gauge), rel=1e-12)
+        tilt_standard_uncertainty_deg(theta, gauge), rel=1e-12
+    )
     # independent: numerical derivatives of atan2(h2 - h1, s)
     eps = 1e-6
     d_dh = (math.atan2(h2 - h1 + eps, s) - math.atan2(h2 - h1 - eps, s)) / (2 * eps)
@@ -65,8 +68,9 @@ def test_hand_computed_figures_of_three_readings():
     # the dissertation's -4° play bias about y, subtracted from every reading: AP moves by +4°, RP and U do not
     corrected = orientation_figures([1.0, 2.0, 3.0], 1.5, TiltGauge(bias_deg=-4.0, u_bias_deg=0.5))
     assert corrected.ap_deg == pytest.approx(4.5) and corrected.rp_deg == pytest.approx(3.0)
-    assert corrected.u_ap_deg == pytest.approx(2 * math.sqrt(1 / 3 + tilt_standard_uncertainty_deg(2.0, gauge) ** 2
-                                                                + 0.25))
+    assert corrected.u_ap_deg == pytest.approx(
+        2 * math.sqrt(1 / 3 + tilt_standard_uncertainty_deg(2.0, gauge) ** 2 + 0.25)
+    )
 
 
 def test_bad_input_is_named():
@@ -79,8 +83,7 @@ def test_bad_input_is_named():
 
 
 @settings(max_examples=60, deadline=None)
-@given(st.floats(-30, 30), st.lists(st.floats(-2, 2), min_size=2, max_size=12), st.floats(-30, 30),
-       st.floats(-20, 20))
+@given(st.floats(-30, 30), st.lists(st.floats(-2, 2), min_size=2, max_size=12), st.floats(-30, 30), st.floats(-20, 20))
 def test_invariants(centre, scatter, command, shift):
     readings = list(np.add(centre, scatter))  # a robot's scatter of a few degrees about one angle
     gauge = TiltGauge()
@@ -103,8 +106,14 @@ def _tilt_frame(rows) -> pd.DataFrame:
     return frame
 
 
-ROWS = [("1-1", 1, 10.11, 10.35), ("1-1", 2, 10.11, 10.61), ("1-1", 3, 10.11, 10.05),
-        ("1-2", 1, -5.52, -4.6), ("1-2", 2, -5.52, -4.9), ("1-2", 3, -5.52, -4.8)]
+ROWS = [
+    ("1-1", 1, 10.11, 10.35),
+    ("1-1", 2, 10.11, 10.61),
+    ("1-1", 3, 10.11, 10.05),
+    ("1-2", 1, -5.52, -4.6),
+    ("1-2", 2, -5.52, -4.9),
+    ("1-2", 3, -5.52, -4.8),
+]
 
 
 @settings(max_examples=25, deadline=None)
@@ -115,7 +124,8 @@ def test_the_table_path_ignores_row_order(order):
     assert sorted(shuffled, key=lambda r: r["pose"]) == sorted(reference, key=lambda r: r["pose"])
     summary = orientation_summary(analyze_tilts(tilt_table(_tilt_frame([ROWS[i] for i in order]))))
     assert summary["b"]["worst_AP_pose"] == "1-2" and summary["b"]["worst_abs_AP_deg"] == pytest.approx(
-        np.mean([-4.6, -4.9, -4.8]) + 5.52)
+        np.mean([-4.6, -4.9, -4.8]) + 5.52
+    )
 
 
 def test_the_table_path_refuses_what_it_cannot_trust():
@@ -140,7 +150,10 @@ def test_cli_orientation_json(tmp_path, capsys):
     assert pose["RP_b_deg"] == pytest.approx(3 * np.std(readings, ddof=1))
     assert pose["U_RP_b_deg"] == pytest.approx(2 * pose["RP_b_deg"] / 2)  # k·3S/√(2·2), n = 3
     assert data["gauge"]["spacing_mm"] == 50.0 and set(pose["budget_b_deg"]) == {
-        "scatter of the mean S/√n", "calliper tilt (resolution, MPE, hole spacing)", "play-bias correction"}
+        "scatter of the mean S/√n",
+        "calliper tilt (resolution, MPE, hole spacing)",
+        "play-bias correction",
+    }
     assert main(["analyze", "orientation", str(path)]) == 0
     assert "1-2" in capsys.readouterr().out
     assert main(["analyze", "orientation", str(path), "--spacing-mm", "0"]) == 2
@@ -149,25 +162,53 @@ def test_cli_orientation_json(tmp_path, capsys):
 
 #: 000 Tables A.12 (alpha) and A.13 (beta): per point the command angle, and the dissertation's "accuracy" and
 #: "repeatability" (printed "(mm)", degrees per 000 §8.6.5). Only these summaries were published, not the readings.
-A12 = {"1-1": (-7.39, 1.2, 0.98), "1-2": (-5, 1.74, 1.08), "1-3": (5, 1.69, 1.03), "2-1": (-15.82, 0.47, 0.82),
-       "2-2": (12.26, 0.73, 0.89), "2-3": (-7.09, 1.21, 1.12), "3-1": (15, 0.26, 0.99), "3-2": (-20, 0.53, 1.9),
-       "3-3": (5, 0.3, 0.92), "4-1": (16.7, 0.39, 0.62), "4-2": (20.25, 1.58, 1.67), "4-3": (-9.78, 0.59, 1.27),
-       "5-1": (10.41, 1.63, 0.8), "5-2": (8.78, 1.63, 0.78), "5-3": (-2.3, 1.25, 0.23)}
-A13 = {"1-1": (10.11, 1.55, 0.79), "1-2": (-5.52, 1.76, 0.73), "1-3": (-12.64, 1.73, 0.86), "2-1": (8.57, 1.37, 0.47),
-       "2-2": (15.11, 0.7, 1.34), "2-3": (-9.43, 1.34, 0.63), "3-1": (-11.02, 0.21, 0.58), "3-2": (-17.46, 0.3, 1.07),
-       "3-3": (9.33, 0.45, 0.96), "4-1": (12.93, 0.7, 1.04), "4-2": (-12.48, 0.62, 0.64), "4-3": (-4, 0.66, 0.28),
-       "5-1": (11.87, 1.54, 0.94), "5-2": (6.89, 1.46, 0.47), "5-3": (-7.8, 1.69, 0.5)}
+A12 = {
+    "1-1": (-7.39, 1.2, 0.98),
+    "1-2": (-5, 1.74, 1.08),
+    "1-3": (5, 1.69, 1.03),
+    "2-1": (-15.82, 0.47, 0.82),
+    "2-2": (12.26, 0.73, 0.89),
+    "2-3": (-7.09, 1.21, 1.12),
+    "3-1": (15, 0.26, 0.99),
+    "3-2": (-20, 0.53, 1.9),
+    "3-3": (5, 0.3, 0.92),
+    "4-1": (16.7, 0.39, 0.62),
+    "4-2": (20.25, 1.58, 1.67),
+    "4-3": (-9.78, 0.59, 1.27),
+    "5-1": (10.41, 1.63, 0.8),
+    "5-2": (8.78, 1.63, 0.78),
+    "5-3": (-2.3, 1.25, 0.23),
+}
+A13 = {
+    "1-1": (10.11, 1.55, 0.79),
+    "1-2": (-5.52, 1.76, 0.73),
+    "1-3": (-12.64, 1.73, 0.86),
+    "2-1": (8.57, 1.37, 0.47),
+    "2-2": (15.11, 0.7, 1.34),
+    "2-3": (-9.43, 1.34, 0.63),
+    "3-1": (-11.02, 0.21, 0.58),
+    "3-2": (-17.46, 0.3, 1.07),
+    "3-3": (9.33, 0.45, 0.96),
+    "4-1": (12.93, 0.7, 1.04),
+    "4-2": (-12.48, 0.62, 0.64),
+    "4-3": (-4, 0.66, 0.28),
+    "5-1": (11.87, 1.54, 0.94),
+    "5-2": (6.89, 1.46, 0.47),
+    "5-3": (-7.8, 1.69, 0.5),
+}
 
 
 def test_the_documents_tables_as_far_as_they_go():
     # the protocol's command angles are the tables' (the only part of A.12/A.13 a computation can use)
     for variant, table in (("alpha", A12), ("beta", A13)):
         assert [p[3] for p in POINTS[variant]] == [v[0] for v in table.values()]
+
     # 000 §8.6.5 states the ranges of the tables: alpha accuracy 0.26-1.74°, repeatability 0.23-1.9°; beta accuracy
     # 0.21-1.76°, repeatability 0.28-1.33°. Alpha and beta accuracy agree; beta repeatability does not: Table A.13
     # point 2-2 reads 1.34°, the text's maximum is 1.33°.
     def span(table, column):
         return min(v[column] for v in table.values()), max(v[column] for v in table.values())
+
     assert span(A12, 1) == (0.26, 1.74) and span(A12, 2) == (0.23, 1.9) and span(A13, 1) == (0.21, 1.76)
     assert span(A13, 2) == (0.28, 1.34)
     # the published figures are at least the calliper's own budget at those angles (readings could have
@@ -187,13 +228,19 @@ def _depth_frame(rows) -> pd.DataFrame:
 def test_tilts_from_two_depths_hand_computed():
     # s = 40 mm: h2 - h1 = 40 tan 5° gives 5°; one row per reading, as bench export --kind tilt_depth writes them
     dh = 40 * math.tan(math.radians(5.0))
-    rows = [("P1", 1, 5, 30.0, None, 40), ("P1", 1, 5, None, 30.0 + dh, 40),
-            ("P1", 2, 5, 31.0, None, 40), ("P1", 2, 5, None, 31.0 - dh, 40)]
+    rows = [
+        ("P1", 1, 5, 30.0, None, 40),
+        ("P1", 1, 5, None, 30.0 + dh, 40),
+        ("P1", 2, 5, 31.0, None, 40),
+        ("P1", 2, 5, None, 31.0 - dh, 40),
+    ]
     frame = _depth_frame(rows)
     table = tilt_table(frame, 40.0)
     assert sorted(table["a_deg"]) == pytest.approx([-5.0, 5.0])
     (result,) = analyze_tilts(table)
-    assert result.figures[0].ap_deg == pytest.approx(-5.0) and result.figures[0].rp_deg == pytest.approx(30 / math.sqrt(2))
+    assert result.figures[0].ap_deg == pytest.approx(-5.0) and result.figures[0].rp_deg == pytest.approx(
+        30 / math.sqrt(2)
+    )
     with pytest.raises(ConfigError, match="cycle 2: 1 depth1_mm and 0 depth2_mm readings, expected one of each"):
         tilt_table(_depth_frame(rows[:3]), 40.0)
     with pytest.raises(ConfigError, match="without a hole spacing"):
@@ -221,8 +268,9 @@ def test_the_depths_variant_end_to_end_against_the_simulators_truth(tmp_path):
     from bench.reports import collect, write_report
     from bench.store import Store
 
-    protocol = PROTOCOLS["dissertation_pose"](variant="alpha", cycles=2, settle_s=0.1, tilt_entry="depths",
-                                              hole_spacing_mm=50.0)
+    protocol = PROTOCOLS["dissertation_pose"](
+        variant="alpha", cycles=2, settle_s=0.1, tilt_entry="depths", hole_spacing_mm=50.0
+    )
     prompts = [s for s in protocol.steps() if getattr(s, "kind", "") == "tilt_depth"]
     assert len(prompts) == 2 * 15 * 2 and {p.field for p in prompts} == {"depth1_mm", "depth2_mm"}
     assert all(p.conditions == {"hole_spacing_mm": 50.0} for p in prompts)

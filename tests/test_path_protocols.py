@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from reports_runs import simulated_run
 
 from bench.cli import main
 from bench.errors import ConfigError
@@ -18,7 +19,6 @@ from bench.protocols.kinematics import robot_model
 from bench.protocols.path import Cornering, PathAccuracy
 from bench.reports.path_run import analyze_path_run, attained_cycles
 from bench.store import Store
-from reports_runs import simulated_run
 
 COUNT_MM = 25.4 / 800  # one count of the simulated 800 cpi mice
 
@@ -51,8 +51,9 @@ def test_every_segment_keeps_the_joint_space_chord_error_within_the_bound(shape)
         assert path.distance_mm(np.asarray(fk.pose)[:, :3]).max() <= 0.01
     assert seg.chord_error_mm <= 0.01
     # a looser bound gives fewer, longer segments
-    loose = (Cornering if shape == "rectangle" else PathAccuracy)(cube_side_mm=40.0, chord_error_mm=0.1,
-                                                                  max_segment_mm=20.0)
+    loose = (Cornering if shape == "rectangle" else PathAccuracy)(
+        cube_side_mm=40.0, chord_error_mm=0.1, max_segment_mm=20.0
+    )
     assert len(loose.segmentation(shape).targets_mm) < len(seg.targets_mm)
 
 
@@ -100,6 +101,7 @@ def test_a_streamed_line_run_gives_at_rt_av_near_the_truth_and_an_ideal_robot_ne
     # the demo robot's error model: AT of mm, as its true segment ends give (the stream adds the mice's counts and
     # the structure's lag between the ends)
     from bench.reports.path_run import _stations
+
     truth = _truth_at(samples, _stations(protocol.path("line"), 1.0, 2.0))
     assert 0.3 < line.at_mm < 5.0
     assert line.at_mm == pytest.approx(truth.at_mm, abs=0.2)
@@ -139,12 +141,15 @@ def test_analyze_path_run_refuses_a_pose_run(tmp_path, capsys):
 
 
 @settings(max_examples=60, deadline=None)
-@given(shape=st.sampled_from(["line", "rectangle", "circle"]), side=st.floats(5.0, 200.0),
-       fraction=st.lists(st.floats(0.0, 1.0), min_size=1, max_size=20), spacing=st.floats(0.2, 10.0))
-def test_commanded_points_lie_on_their_path_and_stations_are_at_most_the_spacing_apart(shape, side, fraction,
-                                                                                      spacing):
-    from bench.protocols.iso9283 import cube_poses
+@given(
+    shape=st.sampled_from(["line", "rectangle", "circle"]),
+    side=st.floats(5.0, 200.0),
+    fraction=st.lists(st.floats(0.0, 1.0), min_size=1, max_size=20),
+    spacing=st.floats(0.2, 10.0),
+)
+def test_commanded_points_lie_on_their_path_and_stations_are_at_most_the_spacing_apart(shape, side, fraction, spacing):
     from bench.metrology.path_geometry import commanded_path
+    from bench.protocols.iso9283 import cube_poses
 
     path = commanded_path(shape, cube_poses((110.0, 0.0, 320.0), side))
     points = path.point(np.array(fraction) * path.length_mm)

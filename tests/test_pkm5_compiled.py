@@ -8,11 +8,11 @@ import sys
 
 import numpy as np
 import pytest
+from pkm5_tables import LENGTHS, fk_table, ik_table
 
 from motion import pkm5
 from motion.errors import MotionInputError
 from motion.pkm5 import compiled
-from pkm5_tables import LENGTHS, fk_table, ik_table
 
 pytest.importorskip("numba", reason="numba (the optional 'fast' extra) is not installed")
 
@@ -22,8 +22,9 @@ MODES = ("translation", "alpha", "beta")
 def random_poses(n, seed):
     """Poses in and around the workspace box, every mode, with both angles set on some rows (the MODE flag)."""
     rng = np.random.default_rng(seed)
-    poses = np.column_stack([rng.uniform(40, 240, n), rng.uniform(-140, 140, n), rng.uniform(255, 360, n),
-                             np.zeros(n), np.zeros(n)])
+    poses = np.column_stack(
+        [rng.uniform(40, 240, n), rng.uniform(-140, 140, n), rng.uniform(255, 360, n), np.zeros(n), np.zeros(n)]
+    )
     kind = rng.integers(0, 4, n)
     poses[kind == 1, 0] = 111.31 + rng.uniform(-0.1, 0.1, (kind == 1).sum())
     poses[(kind == 1) | (kind == 3), 3] = rng.uniform(-0.7, 0.7, ((kind == 1) | (kind == 3)).sum())
@@ -53,8 +54,13 @@ def test_ik_matches_numpy_on_random_poses_with_every_failure_flag():
     # 10,000 poses cross the kernel's 2,048-pose blocks, the last one partial; all five flags occur
     reference, fast = assert_same_ik(random_poses(10_000, seed=17))
     seen = np.bitwise_or.reduce(reference.failure)
-    assert seen == int(pkm5.Failure.MODE | pkm5.Failure.ORIENTATION_RANGE | pkm5.Failure.ALPHA_PLANE
-                       | pkm5.Failure.LEG_LENGTH | pkm5.Failure.TILT)
+    assert seen == int(
+        pkm5.Failure.MODE
+        | pkm5.Failure.ORIENTATION_RANGE
+        | pkm5.Failure.ALPHA_PLANE
+        | pkm5.Failure.LEG_LENGTH
+        | pkm5.Failure.TILT
+    )
     assert 0.05 < reference.reachable.mean() < 0.9
     # translation lengths are the same IEEE operations in the same order: equal to the bit
     translation = (random_poses(10_000, seed=17)[:, 3:] == 0).all(1)
@@ -89,9 +95,13 @@ def test_an_oversized_ik_block_is_refused_not_written_past_its_scratch():
 
 def test_ik_matches_numpy_for_another_geometry():
     # non-zero z in the joint vectors takes the other branch of the rotation; other brackets and windows
-    geometry = pkm5.DEFAULT_GEOMETRY.replace(pd_12_mm=(-19.0, -33.0, 2.5), pd_5_mm=(38.0, -25.0, -1.5),
-                                             bracket_half_height_mm=10.0, cd_odd_mm=(44.0, 39.0),
-                                             leg_min_mm=(180, 180, 180, 180, 190, 190))
+    geometry = pkm5.DEFAULT_GEOMETRY.replace(
+        pd_12_mm=(-19.0, -33.0, 2.5),
+        pd_5_mm=(38.0, -25.0, -1.5),
+        bracket_half_height_mm=10.0,
+        cd_odd_mm=(44.0, 39.0),
+        leg_min_mm=(180, 180, 180, 180, 190, 190),
+    )
     assert_same_ik(random_poses(2_000, seed=3), geometry)
 
 
@@ -126,8 +136,9 @@ def test_fk_matches_numpy_on_the_dissertation_fk_tables(mode):
     # flat (residual ~1e-3 mm), the stopping rule max|dq| < 1e-9 leaves its position uncertain to ~1e-8 mm and
     # rounding can change the iteration counts
     df, poses = fk_table(mode)
-    reference, fast = assert_same_fk(df[LENGTHS].to_numpy(), pose_atol=1e-9 if mode == "translation" else 1e-7,
-                                     mode=mode)
+    reference, fast = assert_same_fk(
+        df[LENGTHS].to_numpy(), pose_atol=1e-9 if mode == "translation" else 1e-7, mode=mode
+    )
     np.testing.assert_allclose(fast.pose[:, :3], poses[:, :3], atol=0.5)
 
 
@@ -142,7 +153,7 @@ def test_the_per_pose_entry_point_gives_the_batched_answer():
     packed, restarts = compiled.pack_geometry(pkm5.DEFAULT_GEOMETRY), compiled.restart_table("translation")
     for i in range(20):
         q = np.array([[150.0, 0.0, 300.0, 0.0]])
-        cost, _, _ = compiled.fk_pose(lengths[i:i + 1], q, compiled.MODE_CODES["translation"], restarts, packed)
+        cost, _, _ = compiled.fk_pose(lengths[i : i + 1], q, compiled.MODE_CODES["translation"], restarts, packed)
         assert np.sqrt(cost[0] / 6) == pytest.approx(batched.residual_mm[i], abs=1e-9)
         if batched.converged[i]:
             np.testing.assert_allclose(q[0, :3], batched.pose[i, :3], atol=1e-9)
@@ -156,9 +167,11 @@ def test_an_unknown_engine_is_refused_in_one_line():
 
 
 def test_small_batches_and_importing_motion_do_not_load_numba():
-    code = ("import sys; from motion import pkm5; "
-            "pkm5.inverse_kinematics([[150, 0, 300, 0, 0]] * 1000); pkm5.forward_kinematics([[200] * 6] * 10); "
-            "print('numba' in sys.modules)")
+    code = (
+        "import sys; from motion import pkm5; "
+        "pkm5.inverse_kinematics([[150, 0, 300, 0, 0]] * 1000); pkm5.forward_kinematics([[200] * 6] * 10); "
+        "print('numba' in sys.modules)"
+    )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == "False"
 
@@ -167,5 +180,6 @@ def test_auto_dispatches_large_batches_to_the_compiled_kernel():
     poses = np.tile([150.0, 0.0, 300.0, 0.0, 0.0], (compiled.COMPILED_MIN_POSES["ik"], 1))
     assert compiled.use_compiled("auto", len(poses), "ik")
     assert not compiled.use_compiled("auto", len(poses) - 1, "ik")
-    np.testing.assert_array_equal(pkm5.inverse_kinematics(poses).lengths_mm[:2],
-                                  pkm5.inverse_kinematics(poses[:2], engine="numpy").lengths_mm)
+    np.testing.assert_array_equal(
+        pkm5.inverse_kinematics(poses).lengths_mm[:2], pkm5.inverse_kinematics(poses[:2], engine="numpy").lengths_mm
+    )

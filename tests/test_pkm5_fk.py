@@ -2,10 +2,9 @@
 
 import numpy as np
 import pytest
-
-from motion import pkm5
 from pkm5_tables import LENGTHS, fk_table, ik_table
 
+from motion import pkm5
 
 ALL_MODES = ("constant-orientation", "alpha", "beta")
 
@@ -46,8 +45,9 @@ def test_rounded_table_lengths(mode, tolerance_mm):
 
 
 def test_modes_detected_from_lengths():
-    modes = pkm5.detect_mode([[200, 200, 210, 210, 205, 205], [200, 201, 210, 210, 205, 205],
-                              [200, 200, 210, 210, 205, 206]])
+    modes = pkm5.detect_mode(
+        [[200, 200, 210, 210, 205, 205], [200, 201, 210, 210, 205, 205], [200, 200, 210, 210, 205, 206]]
+    )
     assert modes.tolist() == ["translation", "beta", "alpha"]
 
 
@@ -64,10 +64,13 @@ def test_newton_raphson_parity_with_tables_a15_a17(mode):
     for i, row in df.iterrows():
         kwargs = {}
         if mode != "translation":
-            kwargs = {"brackets": {k: v[i] for k, v in brackets.items()},
-                      "gradient": np.tan(np.radians(row[f"true_{mode}_deg"]))}
-        result = pkm5.forward_kinematics_nr(lengths[i, [0, 2, 4]], row[[f"guess_{c}" for c in columns]].to_numpy(float),
-                                            mode=mode, **kwargs)
+            kwargs = {
+                "brackets": {k: v[i] for k, v in brackets.items()},
+                "gradient": np.tan(np.radians(row[f"true_{mode}_deg"])),
+            }
+        result = pkm5.forward_kinematics_nr(
+            lengths[i, [0, 2, 4]], row[[f"guess_{c}" for c in columns]].to_numpy(float), mode=mode, **kwargs
+        )
         rerun = row["rerun"]
         if rerun == "does not converge":
             assert not result.converged, f"row {row['row']}"
@@ -79,15 +82,27 @@ def test_newton_raphson_parity_with_tables_a15_a17(mode):
         assert np.abs(result.solution - converged).max() <= 0.09, f"row {row['row']}"
 
 
-@pytest.mark.parametrize("mode, lengths, brackets, gradient, expected", [
-    # pkm5.md §4.4: the example inputs of the FK scripts 000 App. B.3.1-B.3.3, solved from a neutral guess
-    ("translation", (216.78, 240.5, 204.12), None, None, (179.871, -47.249, 293.728, 51.109, 44.553, 103.384)),
-    ("alpha", (210.18, 206.49, 216.33), {"cd1": (45.7182, 36.8625), "cd3": (38.6652, 44.2041),
-                                         "cd5": (18.6792, 19.5535)}, -0.1763,
-     (111.297, -23.680, 312.354, -9.9985, 69.0669, 59.1821, 97.1643)),
-    ("beta", (245.97, 227.47, 234.49), {"cd1": (34.9941, 47.1637), "cd3": (33.8522, 47.9899)}, -0.2178,
-     (161.565, 37.869, 323.734, -12.2871, 49.6499, 55.1300, 80.7064)),
-])
+@pytest.mark.parametrize(
+    "mode, lengths, brackets, gradient, expected",
+    [
+        # pkm5.md §4.4: the example inputs of the FK scripts 000 App. B.3.1-B.3.3, solved from a neutral guess
+        ("translation", (216.78, 240.5, 204.12), None, None, (179.871, -47.249, 293.728, 51.109, 44.553, 103.384)),
+        (
+            "alpha",
+            (210.18, 206.49, 216.33),
+            {"cd1": (45.7182, 36.8625), "cd3": (38.6652, 44.2041), "cd5": (18.6792, 19.5535)},
+            -0.1763,
+            (111.297, -23.680, 312.354, -9.9985, 69.0669, 59.1821, 97.1643),
+        ),
+        (
+            "beta",
+            (245.97, 227.47, 234.49),
+            {"cd1": (34.9941, 47.1637), "cd3": (33.8522, 47.9899)},
+            -0.2178,
+            (161.565, 37.869, 323.734, -12.2871, 49.6499, 55.1300, 80.7064),
+        ),
+    ],
+)
 def test_newton_raphson_worked_examples(mode, lengths, brackets, gradient, expected):
     guess = [150, 0, 300] + ([0] if mode != "translation" else []) + [60, 60, 90]
     result = pkm5.forward_kinematics_nr(lengths, guess, mode=mode, brackets=brackets, gradient=gradient)
@@ -105,5 +120,7 @@ def test_a_small_batch_starts_from_the_seed_the_k_d_tree_finds(mode):
     rng = np.random.default_rng(7)
     targets = lengths[rng.integers(0, len(lengths), 64)] + rng.normal(0, 2.0, (64, 6))
     assert fk._BRUTE_FORCE_MAX_TARGETS == len(targets)
-    np.testing.assert_array_equal(fk._nearest_seed(targets, mode, pkm5.DEFAULT_GEOMETRY),
-                                  fk._seed_tree(mode, pkm5.DEFAULT_GEOMETRY).query(targets)[1])
+    np.testing.assert_array_equal(
+        fk._nearest_seed(targets, mode, pkm5.DEFAULT_GEOMETRY),
+        fk._seed_tree(mode, pkm5.DEFAULT_GEOMETRY).query(targets)[1],
+    )

@@ -4,28 +4,46 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from pkm5_tables import LENGTHS, fk_table, ik_table
 
 from motion import pkm5
 from motion.errors import MotionInputError
 from motion.pkm5 import Failure
-from pkm5_tables import LENGTHS, fk_table, ik_table
 
 # pkm5.md §6.1: IK at printed poses, to 1e-6 mm and 1e-4 deg.
 ANCHORS = [
     ((87.82, 0, 295.83, 0, 0), [183.998750] * 4 + [191.996981] * 2, [68.1914] * 4 + [90.0] * 2),
     ((186.11, 0, 312.8, 0, 0), [244.000527] * 4 + [218.633989] * 2, [50.3243] * 4 + [90.0] * 2),
-    ((126.98, -120.41, 290.84, 0, 0), [184.002220] * 2 + [244.005456] * 2 + [221.884678] * 2,
-     [64.3286] * 2 + [42.8168] * 2 + [122.8655] * 2),
-    ((111.31, -95.52, 312.28, 17.6, 0), [187.722605, 187.510298, 252.827358, 266.121991, 214.596012, 238.316768],
-     [70.4963, 70.5938, 55.5779, 52.4597, 113.8715, 112.3411]),
-    ((111.31, -136.1, 274.14, -26.47, 0), [174.758169, 169.212237, 236.159787, 204.702678, 236.623689, 214.967658],
-     [66.1088, 68.3239, 30.8104, 31.6921, 126.8582, 134.3691]),
-    ((133.68, -99.6, 280.91, 0, 15.38), [189.955978, 201.924662, 234.534580, 247.030085, 194.180705, 194.180705],
-     [66.2541, 60.8287, 46.3985, 44.1845, 120.8588, 120.8588]),
-    ((177.17, -94.51, 280.85, 0, -6.44), [199.951895, 192.067831, 250.318173, 243.598587, 211.808937, 211.808937],
-     [48.2219, 49.6439, 36.8418, 37.4279, 116.5004, 116.5004]),
-    ((111.36, -53.27, 311.04, 20, 0), [185.450719, 180.559391, 237.399914, 249.393509, 198.466404, 226.225768],
-     [66.9907, 68.8948, 61.6179, 57.9251, 102.5610, 102.2466]),
+    (
+        (126.98, -120.41, 290.84, 0, 0),
+        [184.002220] * 2 + [244.005456] * 2 + [221.884678] * 2,
+        [64.3286] * 2 + [42.8168] * 2 + [122.8655] * 2,
+    ),
+    (
+        (111.31, -95.52, 312.28, 17.6, 0),
+        [187.722605, 187.510298, 252.827358, 266.121991, 214.596012, 238.316768],
+        [70.4963, 70.5938, 55.5779, 52.4597, 113.8715, 112.3411],
+    ),
+    (
+        (111.31, -136.1, 274.14, -26.47, 0),
+        [174.758169, 169.212237, 236.159787, 204.702678, 236.623689, 214.967658],
+        [66.1088, 68.3239, 30.8104, 31.6921, 126.8582, 134.3691],
+    ),
+    (
+        (133.68, -99.6, 280.91, 0, 15.38),
+        [189.955978, 201.924662, 234.534580, 247.030085, 194.180705, 194.180705],
+        [66.2541, 60.8287, 46.3985, 44.1845, 120.8588, 120.8588],
+    ),
+    (
+        (177.17, -94.51, 280.85, 0, -6.44),
+        [199.951895, 192.067831, 250.318173, 243.598587, 211.808937, 211.808937],
+        [48.2219, 49.6439, 36.8418, 37.4279, 116.5004, 116.5004],
+    ),
+    (
+        (111.36, -53.27, 311.04, 20, 0),
+        [185.450719, 180.559391, 237.399914, 249.393509, 198.466404, 226.225768],
+        [66.9907, 68.8948, 61.6179, 57.9251, 102.5610, 102.2466],
+    ),
 ]
 
 
@@ -87,12 +105,15 @@ def test_design_brackets_in_translation():
     np.testing.assert_array_equal(brackets["cd2"][0], (63, -40))
 
 
-@pytest.mark.parametrize("bound, pose, active", [
-    # pkm5.md §5.4: extremes of Table 6-1 and the constraints active there
-    ("x max", (235.13, 0, 262.08), {"L14": 244, "L56": 192, "phi14": 34.18}),
-    ("x min", (46.50, 0, 305.45), {"L14": 184, "phi14": 78.73}),
-    ("z max", (97.59, 0, 356.68), {"L14": 244, "L56": 252}),
-])
+@pytest.mark.parametrize(
+    "bound, pose, active",
+    [
+        # pkm5.md §5.4: extremes of Table 6-1 and the constraints active there
+        ("x max", (235.13, 0, 262.08), {"L14": 244, "L56": 192, "phi14": 34.18}),
+        ("x min", (46.50, 0, 305.45), {"L14": 184, "phi14": 78.73}),
+        ("z max", (97.59, 0, 356.68), {"L14": 244, "L56": 252}),
+    ],
+)
 def test_table_6_1_extremes_are_limit_corners(bound, pose, active):
     result = pkm5.inverse_kinematics(pose_rad(*pose), check_limits=False)
     checks = {"L14": result.lengths_mm[0, :4], "L56": result.lengths_mm[0, 4:], "phi14": result.tilt_deg[0, :4]}
@@ -101,13 +122,17 @@ def test_table_6_1_extremes_are_limit_corners(bound, pose, active):
 
 
 def test_limits_and_reasons():
-    result = pkm5.inverse_kinematics(np.vstack([
-        pose_rad(150, 0, 300),                 # centre of the workspace
-        pose_rad(300, 0, 300),                 # far outside
-        pose_rad(111.31, 0, 300, 10, 5),       # compound rotation
-        pose_rad(130, 0, 300, 10),             # alpha off its plane
-        pose_rad(111.31, 0, 300, 40),          # alpha beyond 35.73 deg
-    ]))
+    result = pkm5.inverse_kinematics(
+        np.vstack(
+            [
+                pose_rad(150, 0, 300),  # centre of the workspace
+                pose_rad(300, 0, 300),  # far outside
+                pose_rad(111.31, 0, 300, 10, 5),  # compound rotation
+                pose_rad(130, 0, 300, 10),  # alpha off its plane
+                pose_rad(111.31, 0, 300, 40),  # alpha beyond 35.73 deg
+            ]
+        )
+    )
     assert result.reachable.tolist() == [True, False, False, False, False]
     assert result.reason(0) is None
     assert Failure.LEG_LENGTH in Failure(int(result.failure[1]))
@@ -151,8 +176,7 @@ def test_invariants_and_mirror_symmetry(position, angle, mode):
     x, y, z = position
     alpha = angle if mode == "alpha" else 0.0
     beta = angle if mode == "beta" else 0.0
-    result = pkm5.inverse_kinematics(np.array([[x, y, z, alpha, beta], [x, -y, z, -alpha, beta]]),
-                                     check_limits=False)
+    result = pkm5.inverse_kinematics(np.array([[x, y, z, alpha, beta], [x, -y, z, -alpha, beta]]), check_limits=False)
     lengths, tilt = result.lengths_mm, result.tilt_deg
     if mode == "translation":
         np.testing.assert_allclose(lengths[0, [0, 2, 4]], lengths[0, [1, 3, 5]], rtol=0, atol=1e-9)
@@ -168,8 +192,9 @@ def test_steps_and_lengths():
     {-5582, -5582, -5549, -5549, -9254, -9254} steps are |dL| = 34.8875, 34.68125, 28.91875 mm."""
     steps = pkm5.lengths_to_steps([[234, 184, 184, 184, 192, 192]])
     assert steps.tolist() == [[8000, 0, 0, 0, 0, 0]]
-    stroke = pkm5.steps_to_lengths([[-5582, -5582, -5549, -5549, -9254, -9254]]) \
-        - np.array(pkm5.DEFAULT_GEOMETRY.leg_length_offset_mm)
+    stroke = pkm5.steps_to_lengths([[-5582, -5582, -5549, -5549, -9254, -9254]]) - np.array(
+        pkm5.DEFAULT_GEOMETRY.leg_length_offset_mm
+    )
     np.testing.assert_allclose(np.abs(stroke[0]), [34.8875] * 2 + [34.68125] * 2 + [28.91875] * 2, atol=1e-12)
     geometry = pkm5.DEFAULT_GEOMETRY.replace(microsteps=8, step_direction=(-1, 1, 1, 1, 1, -1))
     lengths = np.array([[200.0, 210.0, 220.0, 230.0, 240.0, 250.0]])

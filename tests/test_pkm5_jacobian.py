@@ -2,9 +2,9 @@
 
 import numpy as np
 import pytest
+from pkm5_tables import fk_table, ik_table
 
 from motion import pkm5
-from pkm5_tables import fk_table, ik_table
 
 
 def central_difference(poses, h=(1e-5, 1e-5, 1e-5, 1e-7, 1e-7)):
@@ -35,11 +35,18 @@ def test_translation_jacobian_has_equal_pair_rows():
     np.testing.assert_allclose(jac[:, 0, :3], jac[:, 1, :3], atol=1e-12)
 
 
-@pytest.mark.parametrize("table, mode, low, high", [
-    # pkm5.md §5.2: sigma_min ranges (mm/mm, mm/deg) over the tabulated pose sets
-    ("ik", "translation", 0.397, 0.463), ("ik", "alpha", 0.201, 0.447), ("ik", "beta", 0.023, 0.406),
-    ("fk", "translation", 0.350, 0.453), ("fk", "alpha", 0.197, 0.415), ("fk", "beta", 0.025, 0.454),
-])
+@pytest.mark.parametrize(
+    "table, mode, low, high",
+    [
+        # pkm5.md §5.2: sigma_min ranges (mm/mm, mm/deg) over the tabulated pose sets
+        ("ik", "translation", 0.397, 0.463),
+        ("ik", "alpha", 0.201, 0.447),
+        ("ik", "beta", 0.023, 0.406),
+        ("fk", "translation", 0.350, 0.453),
+        ("fk", "alpha", 0.197, 0.415),
+        ("fk", "beta", 0.025, 0.454),
+    ],
+)
 def test_sigma_min_ranges(table, mode, low, high):
     _, poses = (ik_table if table == "ik" else fk_table)(mode)
     proximity = pkm5.singularity_proximity(poses)

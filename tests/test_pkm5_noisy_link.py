@@ -37,7 +37,9 @@ def test_a_move_resent_with_its_tag_is_answered_not_executed_again():
     device.tick(2.0)  # the move ends
     again = device.feed(wire.encode_line("MOVE 900 900 900 900 1700 1700 100 #3", 3), 2.5)
     assert [wire.decode_line(line, 3) for line in again.splitlines()] == [
-        "OK #3 MOVE 1000", "DONE #3 900 900 900 900 1700 1700"]
+        "OK #3 MOVE 1000",
+        "DONE #3 900 900 900 900 1700 1700",
+    ]
     assert device.started_moves == [3]
     fresh = device.feed(wire.encode_line("MOVE 900 900 900 900 1700 1700 100 #4", 3), 3.0)  # a new tag: executed
     assert wire.decode_line(fresh.splitlines()[0], 3) == "OK #4 MOVE 0" and device.started_moves == [3, 4]

@@ -18,8 +18,13 @@ from bench.simulators.plant import Plant
 from motion import pkm5
 
 # ISO cube of the demo (P1..P5) in cycle order, then poses of the alpha and beta modes (mm, deg)
-CUBE = [(110.0, 0.0, 320.0, 0, 0), (126.16, -16.16, 336.16, 0, 0), (126.16, 16.16, 336.16, 0, 0),
-        (93.84, 16.16, 303.84, 0, 0), (93.84, -16.16, 303.84, 0, 0)]
+CUBE = [
+    (110.0, 0.0, 320.0, 0, 0),
+    (126.16, -16.16, 336.16, 0, 0),
+    (126.16, 16.16, 336.16, 0, 0),
+    (93.84, 16.16, 303.84, 0, 0),
+    (93.84, -16.16, 303.84, 0, 0),
+]
 ALPHA = [(111.31, -20, 310, 5, 0), (111.31, 10, 315, -4, 0)]
 BETA = [(110, 0, 320, 0, 5), (120, 5, 325, 0, -5), (105, -10, 315, 0, 8)]
 
@@ -36,8 +41,13 @@ def reference_plant(seed: int) -> Plant:
 
     model = ErrorModel.draw(pkm5_plant.PKM5_ERRORS, 6, seed, np.asarray(geometry.leg_length_offset_mm))
     home = pkm5.forward_kinematics(geometry.home_lengths_mm[None, :], geometry)
-    return Plant(lambda steps: pkm5.steps_to_lengths(steps[None, :], geometry)[0], forward, model,
-                 kin.pose_deg_from_rad(home.pose[0]), seed)
+    return Plant(
+        lambda steps: pkm5.steps_to_lengths(steps[None, :], geometry)[0],
+        forward,
+        model,
+        kin.pose_deg_from_rad(home.pose[0]),
+        seed,
+    )
 
 
 def steps_of(poses) -> list[np.ndarray]:
@@ -135,8 +145,14 @@ def test_a_plant_engine_that_does_not_exist_is_refused_by_name():
 
 def test_the_simulator_starts_the_plants_deferred_work_once_built_waiting_as_long_as_told():
     started = []
-    plant = Plant(lambda steps: steps.astype(float), lambda joints, commanded, start: np.zeros(5),
-                  ErrorModel.ideal(6, 5), np.zeros(5), 0, warm_up=started.append)
+    plant = Plant(
+        lambda steps: steps.astype(float),
+        lambda joints, commanded, start: np.zeros(5),
+        ErrorModel.ideal(6, 5),
+        np.zeros(5),
+        0,
+        warm_up=started.append,
+    )
     device = Pkm5SimDevice(plant, speed_factor=1000.0, kernel_wait_s=6.0)
     assert started == []  # building the device does not start it
     device.ready()  # the event loop, once built and before it serves the port
@@ -172,5 +188,8 @@ def test_a_kernel_wait_that_is_not_a_finite_number_of_seconds_is_one_line(value,
 
     monkeypatch.setattr(pty, "serve", serve)
     assert pkm5_simulator.main(["--kernel-wait-s", value]) == 2
-    assert capsys.readouterr().err.strip().endswith(
-        f"error: --kernel-wait-s = {float(value)}, expected a finite number of seconds >= 0")
+    assert (
+        capsys.readouterr()
+        .err.strip()
+        .endswith(f"error: --kernel-wait-s = {float(value)}, expected a finite number of seconds >= 0")
+    )

@@ -8,9 +8,10 @@ import json
 
 import numpy as np
 import pytest
-from hypothesis import assume, given, settings
 from figure_support import printed_font_sizes
+from hypothesis import assume, given, settings
 from hypothesis import strategies as st
+from reports_runs import simulated_run
 
 from bench.cli import main
 from bench.errors import ConfigError
@@ -21,7 +22,6 @@ from bench.reports.positioning_time import analyze_positioning_run, collect_posi
 from bench.robots.pkm5_kinematics import steps_for_pose
 from bench.simulators.dynamics import StructuralMode
 from bench.store import Store
-from reports_runs import simulated_run
 
 COUNT_MM = 25.4 / 800  # one count of the simulated 800 cpi mice
 RATED_STEPS_S = 200  # the pkm5 firmware's rated (100 %) step rate
@@ -38,7 +38,9 @@ def _move_s(start, end) -> float:
 def test_the_table_19_steps_from_the_cube_centre_keep_those_in_the_workspace():
     p = MinimumPositioningTime()
     assert [(s.number, s.distance_mm, s.target) for s in p.kept_steps] == [
-        (1, -10.0, (100.0, -10.0, 310.0)), (2, 20.0, (120.0, 10.0, 330.0))]
+        (1, -10.0, (100.0, -10.0, 310.0)),
+        (2, 20.0, (120.0, 10.0, 330.0)),
+    ]
     assert [s["step"] for s in p.skipped_steps] == [3, 4, 5, 6, 7]  # offsets -40, +60, -140, +360, -640 mm
     assert p.skipped_steps[0]["target_mm"] == [70.0, -40.0, 280.0] and "outside" in p.skipped_steps[0]["reason"]
     summary = summarize(p)
@@ -47,8 +49,7 @@ def test_the_table_19_steps_from_the_cube_centre_keep_those_in_the_workspace():
     # each window reaches back over the whole commanded move plus the rest before it (the model plans in
     # fractional steps, the firmware counts whole ones: one step is 5 ms)
     assert captures[0].conditions["lead_s"] == pytest.approx(_move_s(P1, (100, -10, 310)) + 0.5, abs=6e-3)
-    assert captures[1].conditions["lead_s"] == pytest.approx(_move_s((100, -10, 310), (120, 10, 330)) + 0.5,
-                                                             abs=6e-3)
+    assert captures[1].conditions["lead_s"] == pytest.approx(_move_s((100, -10, 310), (120, 10, 330)) + 0.5, abs=6e-3)
     assert {c.kind for c in captures} == {"positioning"} and captures[1].conditions["step"] == 2
     stored = p.config()
     assert stored["steps"][1] == {"step": 2, "distance_mm": 20.0, "target_mm": [120.0, 10.0, 330.0]}
@@ -99,10 +100,16 @@ def test_the_stored_run_gives_the_positioning_time_of_its_raw_series(quick_run):
         figures = by_band[band]
         assert figures.steps == (1, 2) and figures.cycles == (1, 2)
         for i, step in enumerate((1, 2)):
-            direct = [_direct_time(np.array(s.raw["series"]["t_s"]),
-                                   np.column_stack([s.raw["series"][k] for k in ("x_mm", "y_mm", "z_mm")]), band,
-                                   COUNT_MM)
-                      for s in sorted(samples, key=lambda s: s.cycle) if s.values["step"] == step]
+            direct = [
+                _direct_time(
+                    np.array(s.raw["series"]["t_s"]),
+                    np.column_stack([s.raw["series"][k] for k in ("x_mm", "y_mm", "z_mm")]),
+                    band,
+                    COUNT_MM,
+                )
+                for s in sorted(samples, key=lambda s: s.cycle)
+                if s.values["step"] == step
+            ]
             np.testing.assert_allclose(figures.result.time_s_per_cycle[i], direct, atol=1e-9)
             assert figures.result.mean_time_s[i] == pytest.approx(np.mean(direct), abs=1e-9)
     # the series runs from rest before the move (rest_s) to hold_s after the move-done signal
@@ -141,8 +148,21 @@ def test_bench_analyze_and_the_report_give_the_same_times(quick_run, tmp_path, c
     out = tmp_path / "series.csv"
     assert main(["export", str(run_id), "--kind", "positioning", "--series", "--store", db, "--out", str(out)]) == 0
     capsys.readouterr()
-    assert main(["analyze", "positioning-time", str(out), "--band-mm", "0.5", "--hysteresis-mm",
-                 repr(stored["hysteresis_mm"]), "--json"]) == 0
+    assert (
+        main(
+            [
+                "analyze",
+                "positioning-time",
+                str(out),
+                "--band-mm",
+                "0.5",
+                "--hysteresis-mm",
+                repr(stored["hysteresis_mm"]),
+                "--json",
+            ]
+        )
+        == 0
+    )
     from_csv = json.loads(capsys.readouterr().out)["bands"]["0.5"]
     assert [s["mean_time_s"] for s in from_csv] == pytest.approx([s["mean_time_s"] for s in steps], abs=1e-9)
     with Store(path, read_only=True) as store:
@@ -154,18 +174,28 @@ def test_bench_analyze_and_the_report_give_the_same_times(quick_run, tmp_path, c
     assert sizes and min(sizes) >= MIN_FONT_PT - 1e-9 and len(plot.figure.legends) == 1  # readable at print size
     deviations = {d.topic: d for d in report.deviations}
     assert deviations["cycles"].status == "deviates" and deviations["steps"].status == "deviates"
-    assert main(["report", str(run_id), "--store", db, "--out", str(tmp_path / "r"), "--format", "html",
-                 "--band-mm", "0.5"]) == 0
+    assert (
+        main(
+            ["report", str(run_id), "--store", db, "--out", str(tmp_path / "r"), "--format", "html", "--band-mm", "0.5"]
+        )
+        == 0
+    )
     html = (tmp_path / "r" / f"report_run{run_id}.html").read_text()
     assert "Minimum positioning time (ISO 9283 9)" in html
     assert f"{steps[1]['mean_time_s']:.3f}" in html
 
 
 @settings(max_examples=60, deadline=None)
-@given(st.lists(st.floats(-0.3, 0.3), min_size=8, max_size=30), st.floats(1.5, 20.0), st.floats(-50, 50),
-       st.floats(0.05, 0.4), st.floats(0.0, 0.5))
-def test_a_wider_band_never_lengthens_the_positioning_time_and_the_frame_does_not_matter(ripple, step_mm, shift,
-                                                                                         band, wider):
+@given(
+    st.lists(st.floats(-0.3, 0.3), min_size=8, max_size=30),
+    st.floats(1.5, 20.0),
+    st.floats(-50, 50),
+    st.floats(0.05, 0.4),
+    st.floats(0.0, 0.5),
+)
+def test_a_wider_band_never_lengthens_the_positioning_time_and_the_frame_does_not_matter(
+    ripple, step_mm, shift, band, wider
+):
     """Invariants of t_pos = t_2 - t_leave: non-increasing in B (t_leave comes later, t_1 and t_2 earlier), and
     independent of where the time origin and the position frame lie."""
     from bench.metrology import minimum_positioning_time
@@ -173,7 +203,9 @@ def test_a_wider_band_never_lengthens_the_positioning_time_and_the_frame_does_no
     t = np.arange(len(ripple) + 4) * 0.1
     x = np.concatenate([[0.0, 0.0], step_mm + np.asarray(ripple) * np.linspace(1, 0, len(ripple)), [step_mm] * 2])
     distances = np.abs(np.r_[x - x[0], x - x[-1]])
-    assume(min(np.min(np.abs(distances - b)) for b in (band, band + wider)) > 1e-6)  # a sample on the band edge: rounding decides either way
+    assume(
+        min(np.min(np.abs(distances - b)) for b in (band, band + wider)) > 1e-6
+    )  # a sample on the band edge: rounding decides either way
     series = [[(t, x[:, None])]]
     narrow = minimum_positioning_time(series, band_mm=band).mean_time_s[0]
     assert minimum_positioning_time(series, band_mm=band + wider).mean_time_s[0] <= narrow + 1e-12

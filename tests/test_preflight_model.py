@@ -16,7 +16,9 @@ from motion.pkm5.jacobian import mode_columns
 def _samples(name: str, count: int = 600) -> np.ndarray:
     poses, reachable = robot_models()[name].workspace_samples(count, seed=11)
     rng = np.random.default_rng(4)
-    return np.vstack([poses[reachable][:100], poses[~reachable][:100], poses[:50] + rng.normal(0, 15, (50, poses.shape[1]))])
+    return np.vstack(
+        [poses[reachable][:100], poses[~reachable][:100], poses[:50] + rng.normal(0, 15, (50, poses.shape[1]))]
+    )
 
 
 def test_models_are_the_motion_models_with_their_fields():
@@ -78,9 +80,13 @@ def test_delta4_move_time_is_the_longest_servo_turn_at_300_deg_per_s():
 
 
 def test_inverse_condition_restricted_columns_and_degenerate_jacobians():
-    jac = np.array([[[2.0, 0.0, 0.0], [0.0, 0.5, 0.0], [0.0, 0.0, 1e-9]],
-                    [[0.0, 0.0, 0.0]] * 3,
-                    [[np.nan, 1.0, 0.0], [0.0, 4.0, 0.0], [0.0, 0.0, 1.0]]])
+    jac = np.array(
+        [
+            [[2.0, 0.0, 0.0], [0.0, 0.5, 0.0], [0.0, 0.0, 1e-9]],
+            [[0.0, 0.0, 0.0]] * 3,
+            [[np.nan, 1.0, 0.0], [0.0, 4.0, 0.0], [0.0, 0.0, 1.0]],
+        ]
+    )
     columns = np.array([[True, True, False], [True, True, True], [True, True, True]])
     proximity = inverse_condition(jac, columns)
     assert proximity[0] == pytest.approx(0.25)  # the third column is not in this target's mode
@@ -105,10 +111,15 @@ def test_column_conditioning_is_each_targets_own_svd_over_its_mode_columns():
         assert sigma_min[i] == pytest.approx(singular[-1], rel=1e-12)
         assert inverse[i] == pytest.approx(singular[-1] / singular[0], rel=1e-12)
     # the pkm5's index and the pre-flight's are this one computation
-    targets = robot_model("pkm5").as_targets([(110, 0, 320), (111.31, -20, 310, 10, 0),
-                                              (124.47, -90.11, 287.16, 0, 10)])
+    targets = robot_model("pkm5").as_targets(
+        [(110, 0, 320), (111.31, -20, 310, 10, 0), (124.47, -90.11, 287.16, 0, 10)]
+    )
     radians = targets.copy()
     radians[:, 3:] = np.radians(radians[:, 3:])
-    np.testing.assert_array_equal(pkm5.singularity_proximity(radians).sigma_min, column_conditioning(
-        pkm5.jacobian(radians) * np.array([1, 1, 1, np.pi / 180, np.pi / 180]), mode_columns(radians))[0])
+    np.testing.assert_array_equal(
+        pkm5.singularity_proximity(radians).sigma_min,
+        column_conditioning(
+            pkm5.jacobian(radians) * np.array([1, 1, 1, np.pi / 180, np.pi / 180]), mode_columns(radians)
+        )[0],
+    )
     assert run_doctests(motion.model).failed == 0

@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from runner_support import RunInThread, wait_until
 
 from bench.errors import ConfigError, PromptWithdrawn, UnreachableTarget
 from bench.protocols import (
@@ -39,7 +40,6 @@ from bench.protocols.parameters import MAX_COUNT
 from bench.protocols.plan import iterate
 from bench.protocols.runner import TRANSITIONS, RunState
 from bench.store import Store, tidy_table
-from runner_support import RunInThread, wait_until
 
 BIAS = np.array([0.5, -0.25, 0.125])
 
@@ -103,6 +103,7 @@ def _small(**kw):
 
 # ---- parameters and TOML ---------------------------------------------------------------------------------------
 
+
 def test_toml_error_names_file_field_value_and_expectation(tmp_path):
     path = tmp_path / "pose_test.toml"
     path.write_text('protocol = "iso9283_pose"\ncycles = 0\n')
@@ -125,17 +126,25 @@ def test_unknown_key_is_refused(tmp_path):
         load_protocol(path)
 
 
-@pytest.mark.parametrize("text, message", [
-    ('settle_s = "2 s"', None),
-    ('settle_s = "2 mm"', r"settle_s = '2 mm', expected a number in \[0, 600\] s"),
-    ("velocities_pct = [100, 150]", (r"velocities_pct = \[100, 150\], expected a non-empty list of numbers in "
-                                    r"\[0.1, 100\]%")),
-    ('robot = "scara"', "robot = 'scara', expected one of 'pkm5', 'delta4'"),
-    ("cycles = 2.5", r"cycles = 2.5, expected an integer in \[2, 100000\]"),
-    ("cycles = 100001", r"cycles = 100001, expected an integer in \[2, 100000\]"),  # absurd sizes: refused at once
-    ("cycles = 1e20", r"cycles = 1e\+20, expected an integer in \[2, 100000\]"),
-    ("cycles = 1e308", r"cycles = 1e\+308, expected an integer in \[2, 100000\]"),
-])
+@pytest.mark.parametrize(
+    "text, message",
+    [
+        ('settle_s = "2 s"', None),
+        ('settle_s = "2 mm"', r"settle_s = '2 mm', expected a number in \[0, 600\] s"),
+        (
+            "velocities_pct = [100, 150]",
+            (
+                r"velocities_pct = \[100, 150\], expected a non-empty list of numbers in "
+                r"\[0.1, 100\]%"
+            ),
+        ),
+        ('robot = "scara"', "robot = 'scara', expected one of 'pkm5', 'delta4'"),
+        ("cycles = 2.5", r"cycles = 2.5, expected an integer in \[2, 100000\]"),
+        ("cycles = 100001", r"cycles = 100001, expected an integer in \[2, 100000\]"),  # absurd sizes: refused at once
+        ("cycles = 1e20", r"cycles = 1e\+20, expected an integer in \[2, 100000\]"),
+        ("cycles = 1e308", r"cycles = 1e\+308, expected an integer in \[2, 100000\]"),
+    ],
+)
 def test_parameter_conversion(tmp_path, text, message):
     path = tmp_path / "p.toml"
     path.write_text(f'protocol = "iso9283_pose"\n{text}\n')
@@ -147,8 +156,10 @@ def test_parameter_conversion(tmp_path, text, message):
 
 
 @settings(max_examples=40, deadline=None)
-@given(st.integers(min_value=2, max_value=40),
-       st.lists(st.sampled_from([100.0, 50.0, 10.0]), min_size=1, max_size=3, unique=True))
+@given(
+    st.integers(min_value=2, max_value=40),
+    st.lists(st.sampled_from([100.0, 50.0, 10.0]), min_size=1, max_size=3, unique=True),
+)
 def test_a_pose_plan_captures_every_pose_once_per_cycle_and_velocity(cycles, velocities):
     """ISO 9283 7.2.1: each of P1-P5 measured `cycles` times at each velocity, in cycles 1..n visiting P1, P5, P4,
     P3, P2 (the standard's order), velocity after velocity in the order given."""
@@ -156,10 +167,11 @@ def test_a_pose_plan_captures_every_pose_once_per_cycle_and_velocity(cycles, vel
     captures = [step for step in protocol.steps() if isinstance(step, Capture)]
     assert len(captures) == 5 * cycles * len(velocities)
     for block, velocity in enumerate(velocities):
-        visits = captures[block * 5 * cycles:(block + 1) * 5 * cycles]
+        visits = captures[block * 5 * cycles : (block + 1) * 5 * cycles]
         assert {step.conditions["velocity_pct"] for step in visits} == {velocity}
         assert [(step.pose, step.cycle) for step in visits] == [
-            (pose, cycle) for cycle in range(1, cycles + 1) for pose in ("P1", "P5", "P4", "P3", "P2")]
+            (pose, cycle) for cycle in range(1, cycles + 1) for pose in ("P1", "P5", "P4", "P3", "P2")
+        ]
 
 
 @given(st.one_of(st.integers(min_value=MAX_COUNT + 1), st.floats(min_value=MAX_COUNT + 1, allow_infinity=True)))
@@ -169,6 +181,7 @@ def test_any_absurd_cycle_count_is_refused_before_a_plan_exists(cycles):
 
 
 # ---- cube and steps ----------------------------------------------------------------------------------------------
+
 
 def test_cube_poses_follow_iso_geometry():
     poses = cube_poses((100, 0, 300), 50.0)
@@ -206,13 +219,17 @@ def test_unreachable_target_is_refused_before_any_motion(tmp_path, store):
     path = tmp_path / "bad.toml"
     path.write_text('protocol = "iso9283_pose"\ncycles = 2\n[poses]\nP1 = [110, 0, 320]\nFAR = [300, 0, 300]\n')
     robot = RecordingRobot()
-    with pytest.raises(UnreachableTarget, match=r"bad.toml: target FAR \(x 300.00 mm, y 0.00 mm, z 300.00 mm.*"
-                                                r"not reachable: leg 1 length 316.729 mm outside \(184, 244\) mm"):
+    with pytest.raises(
+        UnreachableTarget,
+        match=r"bad.toml: target FAR \(x 300.00 mm, y 0.00 mm, z 300.00 mm.*"
+        r"not reachable: leg 1 length 316.729 mm outside \(184, 244\) mm",
+    ):
         Runner(_rig(robot), store).run(load_protocol(path))
     assert robot.log == [] and store.runs() == []
 
 
 # ---- runner ------------------------------------------------------------------------------------------------------
+
 
 def test_completed_run_stores_every_sample_with_exact_bias(store):
     robot = RecordingRobot()
@@ -242,15 +259,19 @@ def test_illegal_transitions_raise():
 def _pausing(action):
     def on_pause(runner):
         getattr(runner, action)()
+
     return on_pause
 
 
-@pytest.mark.parametrize("action, status, home, stop_sent", [
-    ("resume", "completed", True, False),
-    ("stop", "aborted", True, False),
-    ("abort", "aborted", True, True),
-    ("halt", "aborted", False, True),
-])
+@pytest.mark.parametrize(
+    "action, status, home, stop_sent",
+    [
+        ("resume", "completed", True, False),
+        ("stop", "aborted", True, False),
+        ("abort", "aborted", True, True),
+        ("halt", "aborted", False, True),
+    ],
+)
 def test_pause_at_checkpoint_then_decide(store, action, status, home, stop_sent):
     robot = RecordingRobot()
     runner = Runner(_rig(robot), store, on_pause=_pausing(action))
@@ -418,8 +439,10 @@ def test_a_resume_between_two_loads_asks_for_the_next_load_only(store):
     assert [prompt.text for prompt in rig.operator.asked] == [MOUNT_25, REMOVE_25]
     rig = _payload_rig()
     assert Runner(rig, store).resume_run(stopped.run_id).exit_status == "completed"
-    assert [prompt.text for prompt in rig.operator.asked] == [MOUNT_25.replace("2.5", "5"),
-                                                              REMOVE_25.replace("2.5", "5")]
+    assert [prompt.text for prompt in rig.operator.asked] == [
+        MOUNT_25.replace("2.5", "5"),
+        REMOVE_25.replace("2.5", "5"),
+    ]
 
 
 def test_a_resume_with_only_the_clean_up_left_asks_for_the_removal_only(store):
@@ -465,8 +488,10 @@ def test_one_load_protocols_mount_their_load_and_refuse_several(protocol_class, 
     assert [load for _, load, _ in _payload_prompts(protocol_class(cycles=2, loads_kg=[3.0], settle_s=0))] == [3.0]
     with pytest.raises(ConfigError) as refused:
         protocol_class(cycles=2, loads_kg=[3.0, 0.3], source="p.toml")
-    assert str(refused.value) == (f"p.toml: loads_kg = [3.0, 0.3]: {protocol_class.name} runs at one load "
-                                  f"(ISO 9283 {clause}: rated), expected one value")
+    assert str(refused.value) == (
+        f"p.toml: loads_kg = [3.0, 0.3]: {protocol_class.name} runs at one load "
+        f"(ISO 9283 {clause}: rated), expected one value"
+    )
 
 
 def test_resume_sends_stored_prompt_readings_back(store):
@@ -486,6 +511,7 @@ def test_resume_sends_stored_prompt_readings_back(store):
     failed = Runner(_rig(RecordingRobot(fail_after=1)), store).run(Readings())
     assert failed.exit_status == "failed" and failed.samples == 2  # the first two readings, then a move failed
     from bench.protocols import base
+
     base.PROTOCOLS["test_readings"] = Readings
     try:
         robot = RecordingRobot()
@@ -502,6 +528,7 @@ def test_resume_sends_stored_prompt_readings_back(store):
 
 # ---- emergency stop, withdrawn prompts, time base, hooks ---------------------------------------------------------
 
+
 def _live_rig(robot):
     """A rig whose settles are real waits (rig.sleep None), 600 s at speed factor 1."""
     rig = _rig(robot)
@@ -516,7 +543,11 @@ def test_emergency_stop_from_another_thread_cuts_a_settle_short_and_runs_no_clea
     run.runner.emergency_stop()
     result = run.finished()
     assert (result.exit_status, result.reason, result.samples, result.exception) == (
-        "aborted", "emergency stop", 0, None)
+        "aborted",
+        "emergency stop",
+        0,
+        None,
+    )
     # the stop went out from the calling thread at once, again from the runner's, and no clean-up move (home)
     assert [entry[0] for entry in robot.log] == ["move", "stop", "stop", "shutdown"]
     assert robot.stopped_from == [threading.current_thread().name, "runner-thread"]
@@ -550,7 +581,11 @@ def test_emergency_stop_ends_a_move_in_flight_and_its_error_is_not_a_failure(tmp
     run.runner.emergency_stop()
     result = run.finished()
     assert (result.exit_status, result.reason, result.samples, result.exception) == (
-        "aborted", "emergency stop", 1, None)
+        "aborted",
+        "emergency stop",
+        1,
+        None,
+    )
     assert [entry[0] for entry in robot.log] == ["move", "move", "stop", "stop", "shutdown"]  # nothing after it
 
 
@@ -624,8 +659,10 @@ def test_no_value_for_a_reading_is_a_failure_not_a_withdrawal(store):
     rig.operator.ask = lambda prompt: None
     result = Runner(rig, store).run(OneReading())
     assert result.exit_status == "failed" and isinstance(result.exception, ConfigError)
-    assert result.reason == ("ConfigError: prompt 'depth': no value given for depth_mm; an operator who will not "
-                             "answer raises PromptWithdrawn")
+    assert result.reason == (
+        "ConfigError: prompt 'depth': no value given for depth_mm; an operator who will not "
+        "answer raises PromptWithdrawn"
+    )
 
 
 class _SteppingClock:
@@ -643,21 +680,30 @@ def test_sample_times_are_in_the_rig_time_base_and_stay_monotonic_across_a_resum
     rig = _rig(RecordingRobot(fail_after=8))
     rig.speed_factor, rig.clock = 1000.0, _SteppingClock(5000.0)
     started, seen = [], []
-    runner = Runner(rig, store, on_start=lambda r: started.append((r.run_id, r.samples_total, r.samples_stored)),
-                    on_sample=lambda r, sample: seen.append(sample))
+    runner = Runner(
+        rig,
+        store,
+        on_start=lambda r: started.append((r.run_id, r.samples_total, r.samples_stored)),
+        on_sample=lambda r, sample: seen.append(sample),
+    )
     failed = runner.run(_small())
     # one clock reading at the start and one per sample, 0.25 s apart: 250 simulated s per sample
     assert [s.t_s for s in store.samples(failed.run_id)] == [250.0 * k for k in range(1, 9)]
     assert store.run(failed.run_id).settings["time_base"] == "simulated s (wall x speed factor 1000)"
     rig = _rig()
     rig.speed_factor, rig.clock = 1000.0, _SteppingClock(0.0)  # a new process: its clock reads less than before
-    Runner(rig, store, on_start=lambda r: started.append((r.run_id, r.samples_total, r.samples_stored)),
-           on_sample=lambda r, sample: seen.append(sample)).resume_run(failed.run_id)
+    Runner(
+        rig,
+        store,
+        on_start=lambda r: started.append((r.run_id, r.samples_total, r.samples_stored)),
+        on_sample=lambda r, sample: seen.append(sample),
+    ).resume_run(failed.run_id)
     samples = sorted(store.samples(failed.run_id), key=lambda s: s.step_index)
     assert [s.t_s for s in samples] == [250.0 * k for k in range(1, 9)] + [2000 + 250.0 * k for k in range(1, 23)]
     assert started == [(failed.run_id, 30, 0), (failed.run_id, 30, 8)]
     assert [(s["step_index"], s["t_s"], s["values"], s["pose"], s["cycle"]) for s in seen] == [
-        (s.step_index, s.t_s, s.values, s.pose, s.cycle) for s in samples]
+        (s.step_index, s.t_s, s.values, s.pose, s.cycle) for s in samples
+    ]
 
 
 def test_hardware_time_base_is_wall_seconds_and_a_failing_hook_never_fails_the_run(store, caplog):
@@ -688,8 +734,9 @@ def test_console_operator_reasks_until_valid_and_ctrl_d_withdraws_the_prompt(cap
     assert "Leg 1 length: 300 mm, expected 0 to 100 mm; try again" in err
     assert "reading 'nan' is not a length" in err and "has 400 digits, expected at most 15" in err
     # far from the commanded length: kept only when confirmed
-    far = Prompt("Leg 1 length", field="length_mm", unit="mm", minimum=0.0, maximum=100.0,
-                 commanded={"cmd_length_mm": 50.0})
+    far = Prompt(
+        "Leg 1 length", field="length_mm", unit="mm", minimum=0.0, maximum=100.0, commanded={"cmd_length_mm": 50.0}
+    )
     answers = iter(["60", "n", "60", "y"])
     assert ConsoleOperator(lambda _: next(answers)).ask(far) == 60.0
     assert capsys.readouterr().err.count("from the expected 50 mm; keep it? [y/N]") == 2

@@ -12,9 +12,8 @@ import subprocess
 
 import numpy as np
 import pytest
-from scipy import stats
-
 from cli_runs import BENCH
+from scipy import stats
 
 from bench.cli import main
 from bench.rigs import registration
@@ -35,15 +34,19 @@ def test_the_check_pose_is_reachable_and_tells_every_axis_apart():
     home = np.array(home_pose()[:3])
     steps_for_pose((*(home + registration.CHECK_OFFSET_MM), 0.0, 0.0))  # raises when unreachable
     offset = np.abs(registration.CHECK_OFFSET_MM)
-    assert min(abs(a - b) for i, a in enumerate(offset) for b in offset[i + 1:]) >= 4.0
+    assert min(abs(a - b) for i, a in enumerate(offset) for b in offset[i + 1 :]) >= 4.0
 
 
 @pytest.fixture
 def simulator(tmp_path):
     mice = tmp_path / "mice"
     mice.mkdir()
-    process = subprocess.Popen([BENCH, "sim", "pkm5", "--mice", str(mice), "--speed-factor", "500", "--seed", "7"],
-                               stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    process = subprocess.Popen(
+        [BENCH, "sim", "pkm5", "--mice", str(mice), "--speed-factor", "500", "--seed", "7"],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
     try:
         ready, _, _ = select.select([process.stdout], [], [], 60)
         assert ready, "the simulator printed no device path within 60 s"
@@ -55,11 +58,25 @@ def simulator(tmp_path):
 
 def _run(tmp_path, port, xy, xz):
     protocol = tmp_path / "pose.toml"
-    protocol.write_text('protocol = "iso9283_pose"\nrobot = "pkm5"\ncycles = 2\nvelocities_pct = [100]\n'
-                        'settle_s = 0.1\n')
+    protocol.write_text(
+        'protocol = "iso9283_pose"\nrobot = "pkm5"\ncycles = 2\nvelocities_pct = [100]\nsettle_s = 0.1\n'
+    )
     store = tmp_path / "b.db"
-    code = main(["run", str(protocol), "--port", port, "--mouse-xy", str(xy), "--mouse-xz", str(xz),
-                 "--store", str(store), "--no-progress"])
+    code = main(
+        [
+            "run",
+            str(protocol),
+            "--port",
+            port,
+            "--mouse-xy",
+            str(xy),
+            "--mouse-xz",
+            str(xz),
+            "--store",
+            str(store),
+            "--no-progress",
+        ]
+    )
     with Store(store, read_only=True) as opened:
         runs = opened.runs()
         return code, runs, [opened.samples(r.id) for r in runs]
@@ -102,12 +119,14 @@ def test_swapped_mice_are_refused_and_a_correct_registration_is_recorded(simulat
     # on s_A / sqrt(2), and one count's quantisation of a difference, r / sqrt(6), over sqrt(2)
     resolution = 25.4 / 800
     k_t = stats.t.ppf((1 + math.erf(math.sqrt(2))) / 2, 3) / 2
-    assert entry["u_mm"] == pytest.approx(math.sqrt((k_t * entry["sigma_type_a_mm"]) ** 2 / 2
-                                                    + resolution**2 / 6 / 2), abs=1e-4)
+    assert entry["u_mm"] == pytest.approx(
+        math.sqrt((k_t * entry["sigma_type_a_mm"]) ** 2 / 2 + resolution**2 / 6 / 2), abs=1e-4
+    )
     assert entry["u_mm"] < entry["sigma_rated_mm"] / math.sqrt(2)
     assert entry["controller_steps"] == [800, 800, 800, 800, 1600, 1600]  # read back at home
     assert run.settings["instrument"]["registration_mm"] == pytest.approx(
-        np.array(home_pose()[:3]) - entry["frame_shift_mm"], abs=1e-4)
+        np.array(home_pose()[:3]) - entry["frame_shift_mm"], abs=1e-4
+    )
 
 
 def test_registrations_are_appended_to_the_run_settings_and_rows_find_theirs(tmp_path):
@@ -115,14 +134,20 @@ def test_registrations_are_appended_to_the_run_settings_and_rows_find_theirs(tmp
     from bench.store.registrations import registration_of, registration_u_mm, registrations
 
     with Store(tmp_path / "b.db") as store:
-        run_id = store.start_run(protocol_name="demo", protocol_version="1", robot="pkm5", config={},
-                                 settings={"registrations": [{"utc": "2026-12-02T05:00:00+00:00", "u_mm": 0.73,
-                                                              "segment": 1}]})
+        run_id = store.start_run(
+            protocol_name="demo",
+            protocol_version="1",
+            robot="pkm5",
+            config={},
+            settings={"registrations": [{"utc": "2026-12-02T05:00:00+00:00", "u_mm": 0.73, "segment": 1}]},
+        )
         assert store.add_registration(run_id, {"utc": "2026-12-02T05:10:00+00:00", "u_mm": 0.74}) == 2
         entries = registrations(store.run(run_id).settings)
         with pytest.raises(ConfigError, match="run 99: no such run"):
             store.add_registration(99, {"utc": "2026-12-02T05:20:00+00:00", "u_mm": 0.7})
     assert [e["segment"] for e in entries] == [1, 2] and registration_u_mm(entries) == 0.74
-    assert [registration_of(t, entries) for t in ("2026-12-02T04:59:59+00:00", "2026-12-02T05:09:59.9+00:00",
-                                                  "2026-12-02T05:10:00+00:00")] == [None, 1, 2]
+    assert [
+        registration_of(t, entries)
+        for t in ("2026-12-02T04:59:59+00:00", "2026-12-02T05:09:59.9+00:00", "2026-12-02T05:10:00+00:00")
+    ] == [None, 1, 2]
     assert registration_u_mm([]) == 0.0 and registrations({}) == []

@@ -30,11 +30,32 @@ def validated(tmp_path_factory):
     folder = tmp_path_factory.mktemp("calibration_report")
     store, after, before = runs.store, runs.compensated, runs.nominal
     # A (the first run named) is the calibrated run: the page orders the pair by the calibrations, not by A and B
-    assert main(["report", str(after), "--compare", str(before), "--store", str(store), "--out",
-                 str(folder / "out"), "--quiet"]) == 0
+    assert (
+        main(
+            [
+                "report",
+                str(after),
+                "--compare",
+                str(before),
+                "--store",
+                str(store),
+                "--out",
+                str(folder / "out"),
+                "--quiet",
+            ]
+        )
+        == 0
+    )
     html = folder / "out" / f"compare_run{after}_run{before}.html"
-    return {"store": store, "folder": folder, "calibration": runs.calibration, "before": before, "after": after,
-            "html": html, "tables": html_tables(html)}
+    return {
+        "store": store,
+        "folder": folder,
+        "calibration": runs.calibration,
+        "before": before,
+        "after": after,
+        "html": html,
+        "tables": html_tables(html),
+    }
 
 
 def _instrument_u(store, run_id) -> float:
@@ -53,8 +74,15 @@ def test_the_gain_equals_bench_analyze_on_the_raw_data(validated, capsys):
     analyzed = {}
     for name, run_id in (("before", before), ("after", after)):
         u = _instrument_u(validated["store"], run_id)
-        raw = cli_json(capsys, "analyze", "iso9283", str(folder / "out" / f"run{run_id}_samples.csv"),
-                       "--instrument-u-mm", repr(u), "--json")["poses"]
+        raw = cli_json(
+            capsys,
+            "analyze",
+            "iso9283",
+            str(folder / "out" / f"run{run_id}_samples.csv"),
+            "--instrument-u-mm",
+            repr(u),
+            "--json",
+        )["poses"]
         analyzed[name] = raw
     poses = sorted(analyzed["before"])
     assert poses == sorted(analyzed["after"]) and len(poses) == 12
@@ -64,12 +92,15 @@ def test_the_gain_equals_bench_analyze_on_the_raw_data(validated, capsys):
 
     runs = ("before", "after")
     smallest_u_ap = [column(n, "U_AP_mm").min() for n in runs]  # a mean: to the place of the smallest U it averages
-    expected = {"mean AP_P": ([column(n, "AP_mm").mean() for n in runs], smallest_u_ap),
-                "largest AP_P": ([column(n, "AP_mm").max() for n in runs],
-                                 [column(n, "U_AP_mm")[column(n, "AP_mm").argmax()] for n in runs]),
-                **{f"mean |AP_{a}|": ([np.abs(column(n, f"AP{a}_mm")).mean() for n in runs], smallest_u_ap)
-                   for a in "xyz"},
-                "mean RP_l": ([column(n, "RP_mm").mean() for n in runs], [column(n, "U_RP_mm").min() for n in runs])}
+    expected = {
+        "mean AP_P": ([column(n, "AP_mm").mean() for n in runs], smallest_u_ap),
+        "largest AP_P": (
+            [column(n, "AP_mm").max() for n in runs],
+            [column(n, "U_AP_mm")[column(n, "AP_mm").argmax()] for n in runs],
+        ),
+        **{f"mean |AP_{a}|": ([np.abs(column(n, f"AP{a}_mm")).mean() for n in runs], smallest_u_ap) for a in "xyz"},
+        "mean RP_l": ([column(n, "RP_mm").mean() for n in runs], [column(n, "U_RP_mm").min() for n in runs]),
+    }
     gain = validated["tables"]["calibration-gain"]
     assert gain[0] == ["Quantity (over the poses of both runs)", "Before (mm)", "After (mm)", "Factor before / after"]
     assert [row[0] for row in gain[1:]] == list(expected)
@@ -103,7 +134,7 @@ def test_the_parameter_and_observability_tables_are_the_stored_calibration(valid
     identified = calibration["parameters"]
     rows = validated["tables"]["calibration-parameters"]
     assert rows[0] == ["Parameter", "Deviation from documented", "Standard uncertainty", "Unit"]
-    assert [r[0] for r in rows[1:3 + 1]] == ["reg_x_mm", "reg_y_mm", "reg_z_mm"]  # the model's order
+    assert [r[0] for r in rows[1 : 3 + 1]] == ["reg_x_mm", "reg_y_mm", "reg_z_mm"]  # the model's order
     assert sorted(r[0] for r in rows[1:]) == sorted(identified)
     for name, value, u, unit in rows[1:]:
         assert float(value) == pytest.approx(identified[name]["value"], abs=float(u) / 10 + 1e-12)
@@ -115,22 +146,28 @@ def test_the_parameter_and_observability_tables_are_the_stored_calibration(valid
     assert calibration["fit"] == "map" and observed["Fit"].startswith("maximum a posteriori, prior: manufacturing")
     assert observed["Condition number of the data part"] == f"{condition:.3g} (the prior holds the weak directions)"
     assert observed["Fixed by the prior (the data did not inform them)"] == (
-        ", ".join(calibration["prior_only"]) or "none")
+        ", ".join(calibration["prior_only"]) or "none"
+    )
     assert observed["Combinations the data alone cannot identify"] == "; ".join(
-        calibration["observability"]["unidentifiable"])
+        calibration["observability"]["unidentifiable"]
+    )
     assert observed["Source run"] == "1"
     assert observed["Poses (each fitted by its mean)"] == "30" and observed["Cycles per pose"] == "2"
     # the instrument's stated figure and the robot's measured scatter, apart
     assert observed["Instrument standard uncertainty (mm per axis, stated)"] == "0.05"
     scatter = calibration["campaign"]["scatter_mm"]
     assert observed["Robot scatter of one reading (mm per axis, measured)"].startswith(
-        " / ".join(fmt_mm(v) for v in scatter))
-    assert observed["Reduced chi^2 of the fit"] == (f"{calibration['reduced_chi2']:.2f} over "
-                                                    f"{calibration['degrees_of_freedom']:.1f} degrees of freedom")
+        " / ".join(fmt_mm(v) for v in scatter)
+    )
+    assert observed["Reduced chi^2 of the fit"] == (
+        f"{calibration['reduced_chi2']:.2f} over {calibration['degrees_of_freedom']:.1f} degrees of freedom"
+    )
     html = validated["html"].read_text(encoding="utf-8")
     assert sorted(identified) == sorted(PARAMETERS + ("reg_x_mm", "reg_y_mm", "reg_z_mm"))
-    assert "Held at their documented values (not identifiable from this pose set and instrument, or not freed): " \
-           "none." in html
+    assert (
+        "Held at their documented values (not identifiable from this pose set and instrument, or not freed): "
+        "none." in html
+    )
 
 
 def test_the_page_is_in_the_pdf_and_its_order_does_not_depend_on_which_run_is_named_first(validated):
@@ -139,8 +176,24 @@ def test_the_page_is_in_the_pdf_and_its_order_does_not_depend_on_which_run_is_na
     gain = validated["tables"]["calibration-gain"][1]
     assert "5. Kinematic calibration: before and after" in pdf
     assert f"mean AP_P goes from {gain[1]} mm to {gain[2]} mm: {gain[3]} times smaller" in pdf
-    assert main(["report", str(before), "--compare", str(after), "--store", str(store), "--out",
-                 str(folder / "swapped"), "--quiet", "--format", "html"]) == 0
+    assert (
+        main(
+            [
+                "report",
+                str(before),
+                "--compare",
+                str(after),
+                "--store",
+                str(store),
+                "--out",
+                str(folder / "swapped"),
+                "--quiet",
+                "--format",
+                "html",
+            ]
+        )
+        == 0
+    )
     swapped = html_tables(folder / "swapped" / f"compare_run{before}_run{after}.html")
     assert swapped["calibration-gain"] == validated["tables"]["calibration-gain"]
 
@@ -165,14 +218,32 @@ def test_a_map_fit_stored_before_its_degrees_of_freedom_keeps_its_chi2_per_coord
 
     from bench.reports.calibration import _fit_rows
 
-    params = {"fit": "map", "prior": {"name": "tolerances"}, "prior_only": [], "reduced_chi2": 0.55,
-              "observability": {"condition_number": 5e12, "singular_values": [1.0, 2e-13], "n_poses": 90}}
+    params = {
+        "fit": "map",
+        "prior": {"name": "tolerances"},
+        "prior_only": [],
+        "reduced_chi2": 0.55,
+        "observability": {"condition_number": 5e12, "singular_values": [1.0, 2e-13], "n_poses": 90},
+    }
     old = dict(_fit_rows(SimpleNamespace(params=params, source_run_id=1, created_utc="2026-12-03T08:00:00")))
     assert old["Chi^2 per coordinate of the fit"] == "0.55" and "Reduced chi^2 of the fit" not in old
-    new = dict(_fit_rows(SimpleNamespace(params={**params, "reduced_chi2": 0.74, "degrees_of_freedom": 66.75},
-                                         source_run_id=1, created_utc="2026-12-03T09:00:00")))
+    new = dict(
+        _fit_rows(
+            SimpleNamespace(
+                params={**params, "reduced_chi2": 0.74, "degrees_of_freedom": 66.75},
+                source_run_id=1,
+                created_utc="2026-12-03T09:00:00",
+            )
+        )
+    )
     assert new["Reduced chi^2 of the fit"] == "0.74 over 66.8 degrees of freedom"
-    free_set = dict(_fit_rows(SimpleNamespace(params={**params, "fit": "free-set", "reduced_chi2": 1.2,
-                                                      "degrees_of_freedom": 67.0},
-                                              source_run_id=1, created_utc="2026-12-03T09:00:00")))
+    free_set = dict(
+        _fit_rows(
+            SimpleNamespace(
+                params={**params, "fit": "free-set", "reduced_chi2": 1.2, "degrees_of_freedom": 67.0},
+                source_run_id=1,
+                created_utc="2026-12-03T09:00:00",
+            )
+        )
+    )
     assert free_set["Reduced chi^2 of the fit"] == "1.20"

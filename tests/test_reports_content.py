@@ -76,8 +76,9 @@ def test_report_numbers_equal_the_analysis_api_on_the_raw_data_csv(stored):
 
 def test_cli_analyze_on_the_raw_data_reproduces_the_report(stored, capsys):
     _, _, report, paths = stored
-    code = main(["analyze", "iso9283", str(paths.csv[0]), "--instrument-u-mm", f"{report.instrument.sigma_mm!r}",
-                 "--json"])
+    code = main(
+        ["analyze", "iso9283", str(paths.csv[0]), "--instrument-u-mm", f"{report.instrument.sigma_mm!r}", "--json"]
+    )
     assert code == 0
     poses = json.loads(capsys.readouterr().out)["poses"]
     for result in report.poses:
@@ -119,13 +120,15 @@ def test_raw_data_is_cited_with_its_sha256(stored):
 
 def test_payload_ladder_equals_payload_shift_and_recovers_the_sag(tmp_path):
     store = Store(tmp_path / "bench.db")
-    run_id = write_pose_run(store, config=pose_config(loads_kg=[0.0, 1.0, 2.0], cycles=5), noise_mm=0.01,
-                            load_sag_mm_per_kg=0.1)
+    run_id = write_pose_run(
+        store, config=pose_config(loads_kg=[0.0, 1.0, 2.0], cycles=5), noise_mm=0.01, load_sag_mm_per_kg=0.1
+    )
     report = collect(store, run_id, resamples=50)
     row = next(r for r in report.payload if r.label == "P1")
     table = report.table[report.table["pose"] == "P1"]
-    direct = payload_shift({m: g[["x_mm", "y_mm", "z_mm"]].to_numpy() for m, g in table.groupby("load_kg")},
-                           reference_load_kg=0.0)
+    direct = payload_shift(
+        {m: g[["x_mm", "y_mm", "z_mm"]].to_numpy() for m, g in table.groupby("load_kg")}, reference_load_kg=0.0
+    )
     np.testing.assert_allclose(row.result.shift_mm, direct.shift_mm, atol=1e-12)
     assert row.result.shift_mm[:, 2] == pytest.approx([0.0, -0.1, -0.2], abs=0.02)
     assert len(report.poses) == 15  # 5 poses x 3 loads, never averaged over loads
@@ -169,8 +172,13 @@ def test_multidirectional_vap_equals_the_metrology_function(tmp_path):
 
     store = Store(tmp_path / "bench.db")
     config = pose_config(protocol="iso9283_multidirectional", cycles=4, approach_mm=10.0)
-    run_id = store.start_run(protocol_name=config["protocol"], protocol_version="1", robot="pkm5", config=config,
-                             settings={"robot": {}, "instrument": {"instrument": "tracker", "u_mm": 0.01}})
+    run_id = store.start_run(
+        protocol_name=config["protocol"],
+        protocol_version="1",
+        robot="pkm5",
+        config=config,
+        settings={"robot": {}, "instrument": {"instrument": "tracker", "u_mm": 0.01}},
+    )
     rng, step, clouds, angles = np.random.default_rng(7), 0, {}, {}
     offsets = {"x": (0.1, 0, 0), "y": (0, 0.1, 0), "z": (0, 0, -0.2)}  # direction-dependent barycentres
     tilts = {"x": 0.0, "y": 0.3, "z": 0.1}  # and angles a (deg)
@@ -180,11 +188,17 @@ def test_multidirectional_vap_equals_the_metrology_function(tmp_path):
             clouds.setdefault(direction, []).append(point)
             a = tilts[direction] + rng.normal(0, 0.005)
             angles.setdefault(direction, []).append([a])
-            values = dict(zip(("x_mm", "y_mm", "z_mm"), point)) | dict(zip(("cmd_x_mm", "cmd_y_mm", "cmd_z_mm"),
-                                                                            CUBE["P1"]))
-            store.add_sample(run_id, step, values=values | {"velocity_pct": 100.0, "load_kg": 0.0, "cmd_a_deg": 0.0,
-                                                            "a_deg": a},
-                             pose=f"P1/{direction}", cycle=cycle, t_s=float(step))
+            values = dict(zip(("x_mm", "y_mm", "z_mm"), point)) | dict(
+                zip(("cmd_x_mm", "cmd_y_mm", "cmd_z_mm"), CUBE["P1"])
+            )
+            store.add_sample(
+                run_id,
+                step,
+                values=values | {"velocity_pct": 100.0, "load_kg": 0.0, "cmd_a_deg": 0.0, "a_deg": a},
+                pose=f"P1/{direction}",
+                cycle=cycle,
+                t_s=float(step),
+            )
             step += 1
     report = collect(store, run_id, resamples=50)
     (row,) = report.multidirectional
@@ -204,15 +218,31 @@ def test_other_pose_protocols_take_conditions_from_the_samples_and_refuse_unknow
     """A delta_positioning run read by another instrument than the laser grid (complete readings, no screen flags)
     gets the pose layout."""
     store = Store(tmp_path / "bench.db")
-    config = {"protocol": "delta_positioning", "robot": "delta4", "cycles": 3, "settle_s": 0.5,
-              "poses": {"A": [0.0, 0.0, -200.0], "B": [-70.0, -70.0, -180.0]}}
-    run_id = store.start_run(protocol_name="delta_positioning", protocol_version="1", robot="delta4",
-                             config=config, settings={"robot": {}, "instrument": {"instrument": "calliper",
-                                                                                  "u_mm": 0.01}})
+    config = {
+        "protocol": "delta_positioning",
+        "robot": "delta4",
+        "cycles": 3,
+        "settle_s": 0.5,
+        "poses": {"A": [0.0, 0.0, -200.0], "B": [-70.0, -70.0, -180.0]},
+    }
+    run_id = store.start_run(
+        protocol_name="delta_positioning",
+        protocol_version="1",
+        robot="delta4",
+        config=config,
+        settings={"robot": {}, "instrument": {"instrument": "calliper", "u_mm": 0.01}},
+    )
     for step, (label, cycle) in enumerate((p, c) for c in (1, 2, 3) for p in "AB"):
         command = config["poses"][label]
-        values = {"x_mm": command[0] + 0.1 * cycle, "y_mm": command[1], "z_mm": command[2] - 0.05 * cycle,
-                  "cmd_x_mm": command[0], "cmd_y_mm": command[1], "cmd_z_mm": command[2], "velocity_pct": 100.0}
+        values = {
+            "x_mm": command[0] + 0.1 * cycle,
+            "y_mm": command[1],
+            "z_mm": command[2] - 0.05 * cycle,
+            "cmd_x_mm": command[0],
+            "cmd_y_mm": command[1],
+            "cmd_z_mm": command[2],
+            "velocity_pct": 100.0,
+        }
         store.add_sample(run_id, step, values=values, pose=label, cycle=cycle, t_s=float(step))
     with pytest.raises(InsufficientData, match="clause 6.6 load: not stored: config.loads_kg"):
         collect(store, run_id)
@@ -240,8 +270,15 @@ def test_mouse_calibration_in_force_is_refitted_from_its_source_run_and_plotted(
                 expected[axis][1].append(counts)
                 for where, cmd, c in (("start", 90.0, 100), ("end", 90.0 + distance, 100 + counts)):
                     values = {f"cmd_{axis}_mm": cmd, f"mouse_xy_{axis}_counts": float(c)}
-                    store.add_sample(source, step, kind="mouse", values=values, pose=f"{axis}{distance:g}/{where}",
-                                     cycle=repeat, t_s=float(step))
+                    store.add_sample(
+                        source,
+                        step,
+                        kind="mouse",
+                        values=values,
+                        pose=f"{axis}{distance:g}/{where}",
+                        cycle=repeat,
+                        t_s=float(step),
+                    )
                     step += 1
     calibration = store.add_calibration("mouse", {"mm_per_count": 0.032}, source_run_id=source)
     run_id = write_pose_run(store, calibration_ids=(calibration.id,), config=pose_config(cycles=3))
@@ -263,19 +300,30 @@ def test_distance_run_with_angles_reports_ad_rd_of_each_angle(tmp_path):
 
     store = Store(tmp_path / "bench.db")
     config = pose_config(protocol="iso9283_distance", cycles=4)
-    run_id = store.start_run(protocol_name=config["protocol"], protocol_version="1", robot="pkm5", config=config,
-                             settings={"robot": {}, "instrument": {"instrument": "tracker", "u_mm": 0.01}})
+    run_id = store.start_run(
+        protocol_name=config["protocol"],
+        protocol_version="1",
+        robot="pkm5",
+        config=config,
+        settings={"robot": {}, "instrument": {"instrument": "tracker", "u_mm": 0.01}},
+    )
     rng, step, angles = np.random.default_rng(3), 0, {"P1": [], "P5": []}
     commanded = {"P1": 5.0, "P5": -5.0}  # a_c (deg): D_ca = 10°
     for cycle in range(1, 5):
         for pose in ("P1", "P5"):
             a = commanded[pose] * 1.02 + rng.normal(0, 0.01)  # the robot over-rotates by 2 %
             angles[pose].append([a])
-            values = dict(zip(("x_mm", "y_mm", "z_mm"), CUBE[pose])) | dict(zip(("cmd_x_mm", "cmd_y_mm", "cmd_z_mm"),
-                                                                              CUBE[pose]))
-            store.add_sample(run_id, step, values=values | {"velocity_pct": 100.0, "load_kg": 0.0,
-                                                            "cmd_a_deg": commanded[pose], "a_deg": a},
-                             pose=pose, cycle=cycle, t_s=float(step))
+            values = dict(zip(("x_mm", "y_mm", "z_mm"), CUBE[pose])) | dict(
+                zip(("cmd_x_mm", "cmd_y_mm", "cmd_z_mm"), CUBE[pose])
+            )
+            store.add_sample(
+                run_id,
+                step,
+                values=values | {"velocity_pct": 100.0, "load_kg": 0.0, "cmd_a_deg": commanded[pose], "a_deg": a},
+                pose=pose,
+                cycle=cycle,
+                t_s=float(step),
+            )
             step += 1
     report = collect(store, run_id, resamples=50)
     (row,) = report.distances

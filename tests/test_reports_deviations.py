@@ -8,18 +8,28 @@ from reports_runs import SETTINGS, pose_config
 from bench.errors import InsufficientData
 from bench.reports import iso_deviations
 
-ISO_SETTINGS = {"robot": {"rated_load_kg": 2.0, "rated_velocity_mm_s": 50.0},
-                "instrument": {"instrument": "laser tracker", "u_mm": 0.005}}
-ISO_CONFIG = pose_config(cycles=30, velocities_pct=[100.0, 50.0, 10.0], loads_kg=[2.0], warmup_s=1800.0,
-                         ambient_c=20.5)
+ISO_SETTINGS = {
+    "robot": {"rated_load_kg": 2.0, "rated_velocity_mm_s": 50.0},
+    "instrument": {"instrument": "laser tracker", "u_mm": 0.005},
+}
+ISO_CONFIG = pose_config(cycles=30, velocities_pct=[100.0, 50.0, 10.0], loads_kg=[2.0], warmup_s=1800.0, ambient_c=20.5)
 SIX_D = ("x_mm", "y_mm", "z_mm", "a_deg", "b_deg", "c_deg")
 
 
-def _table(config=ISO_CONFIG, settings=ISO_SETTINGS, measured=SIX_D, cycles=30, sigma=0.005, rp=0.2, floor=0.018,
-           **kwargs):
-    rows = iso_deviations(protocol=config["protocol"], config=config, settings=settings, measured_columns=measured,
-                          cycles_measured=cycles, instrument_sigma_mm=sigma, smallest_rp_mm=rp, rp_floor_mm=floor,
-                          **kwargs)
+def _table(
+    config=ISO_CONFIG, settings=ISO_SETTINGS, measured=SIX_D, cycles=30, sigma=0.005, rp=0.2, floor=0.018, **kwargs
+):
+    rows = iso_deviations(
+        protocol=config["protocol"],
+        config=config,
+        settings=settings,
+        measured_columns=measured,
+        cycles_measured=cycles,
+        instrument_sigma_mm=sigma,
+        smallest_rp_mm=rp,
+        rp_floor_mm=floor,
+        **kwargs,
+    )
     return {r.topic: r for r in rows}
 
 
@@ -34,8 +44,12 @@ def test_a_run_under_iso_conditions_has_no_deviation_but_the_settling_rule():
 
 
 def test_the_dissertation_style_run_deviates_everywhere_it_should():
-    config = pose_config(cycles=10, poses={"1-1": [100.0, -110.0, 300.0], "1-2": [110.0, -100.0, 300.0]},
-                         velocities_pct=[100.0], loads_kg=[0.0])
+    config = pose_config(
+        cycles=10,
+        poses={"1-1": [100.0, -110.0, 300.0], "1-2": [110.0, -100.0, 300.0]},
+        velocities_pct=[100.0],
+        loads_kg=[0.0],
+    )
     rows = _table(config, SETTINGS, ("x_mm", "y_mm"), cycles=10, sigma=0.355, rp=1.56, floor=1.14)
     for topic in ("cycles", "poses", "plane", "load", "velocity", "sensor", "dimensionality", "approach"):
         assert rows[topic].status == "deviates", topic
@@ -73,9 +87,15 @@ def test_position_only_measurement_is_a_dimensionality_deviation():
     assert (row.status, row.effect) == ("deviates", "orientation AP/RP not reported")
 
 
-@pytest.mark.parametrize(("drop", "clause"), [("cycles", "clause 6.9 cycles"), ("loads_kg", "clause 6.6 load"),
-                                              ("velocities_pct", "clause 6.7 velocity"),
-                                              ("settle_s", "clause 6.10 settling")])
+@pytest.mark.parametrize(
+    ("drop", "clause"),
+    [
+        ("cycles", "clause 6.9 cycles"),
+        ("loads_kg", "clause 6.6 load"),
+        ("velocities_pct", "clause 6.7 velocity"),
+        ("settle_s", "clause 6.10 settling"),
+    ],
+)
 def test_unknown_rows_refuse_the_report_naming_the_clause(drop, clause):
     config = {k: v for k, v in ISO_CONFIG.items() if k != drop}
     with pytest.raises(InsufficientData, match=f"refusing to report.*{clause}: not stored: config.{drop}"):

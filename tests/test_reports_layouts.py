@@ -58,6 +58,7 @@ def _readings(store, run_id):
 
 # ---- actuator_accuracy ----
 
+
 def test_actuator_figures_equal_a_hand_computation_from_the_stored_samples(runs):
     store, ids, reports, _, _ = runs
     report = reports["actuator"]
@@ -86,18 +87,29 @@ def test_actuator_figures_equal_a_hand_computation_from_the_stored_samples(runs)
 def test_actuator_report_equals_bench_analyze_actuator_on_its_raw_data(runs, capsys):
     _, _, reports, paths, _ = runs
     report = reports["actuator"]
-    result = cli_json(capsys, "analyze", "actuator", str(paths["actuator"].csv[0]), "--robot", "pkm5",
-                      "--instrument-u-mm", repr(report.instrument.sigma_mm), "--k", "2", "--json")["actuators"]
+    result = cli_json(
+        capsys,
+        "analyze",
+        "actuator",
+        str(paths["actuator"].csv[0]),
+        "--robot",
+        "pkm5",
+        "--instrument-u-mm",
+        repr(report.instrument.sigma_mm),
+        "--k",
+        "2",
+        "--json",
+    )["actuators"]
     for ours in report.actuators:
         theirs = result[ours.actuator]
         assert theirs["repeatability_mm"] == pytest.approx(ours.groover.repeatability_mm, rel=1e-12)
         assert theirs["accuracy_mm"] == pytest.approx(ours.groover.accuracy_mm, rel=1e-12)
         assert theirs["U_repeatability_mm"] == pytest.approx(ours.repeatability_u.expanded_uncertainty, rel=1e-12)
-        assert theirs["U_mean_deviation_mm"] == pytest.approx([u.expanded_uncertainty for u in ours.bias_u],
-                                                             rel=1e-12)
+        assert theirs["U_mean_deviation_mm"] == pytest.approx([u.expanded_uncertainty for u in ours.bias_u], rel=1e-12)
         assert theirs["iso230_2_forward"]["A_mm"] == pytest.approx(ours.iso230_2.accuracy_forward_mm, rel=1e-12)
-    assert "bench analyze actuator FILE.csv --robot pkm5 --instrument-u-mm 0.00408248 --k 2" in \
-        paths["actuator"].html.read_text(encoding="utf-8")
+    assert "bench analyze actuator FILE.csv --robot pkm5 --instrument-u-mm 0.00408248 --k 2" in paths[
+        "actuator"
+    ].html.read_text(encoding="utf-8")
 
 
 def _decimals(report) -> int:
@@ -119,22 +131,33 @@ def test_actuator_html_and_pdf_print_the_tables(runs):
         assert summary[result.actuator][9] == f"{result.iso230_2.accuracy_forward_mm:.{_decimals(report)}f}"
     bias_rows = [row for row in tables["actuator-targets"][1:] if row[:2] == ["5", "50"]]
     (row,) = bias_rows
-    assert row[4] == rounded_by_u(report.actuators[1].bias_u[2].value, report.actuators[1].bias_u[2].expanded_uncertainty)
+    assert row[4] == rounded_by_u(
+        report.actuators[1].bias_u[2].value, report.actuators[1].bias_u[2].expanded_uncertainty
+    )
     assert row[4] in pdf
     deviations = {row[1]: row for row in tables["deviations"][1:]}
     assert deviations["direction"][4] == "deviates" and deviations["fixture"][4] == "conforms"
     assert deviations["travels"][4] == "deviates"  # 10, 30, 50 mm instead of 000's 10-50 mm in 10 mm steps
-    assert "Deviations from pkm5 dissertation §8.4 / ISO 230-2" in pdf and "6. Results" in pdf and "10. Statement of scope" in pdf
+    assert (
+        "Deviations from pkm5 dissertation §8.4 / ISO 230-2" in pdf
+        and "6. Results" in pdf
+        and "10. Statement of scope" in pdf
+    )
 
 
 def test_actuator_deviations_follow_the_stored_configuration(tmp_path):
     with Store(tmp_path / "b.db") as store:
-        conforming = write_actuator_run(store, distances_mm=(10.0, 20.0, 30.0, 40.0, 50.0), repeats=10,
-                                        settings={"instrument": {"instrument": "depth gauge", "mpe_mm": 0.02}})
+        conforming = write_actuator_run(
+            store,
+            distances_mm=(10.0, 20.0, 30.0, 40.0, 50.0),
+            repeats=10,
+            settings={"instrument": {"instrument": "depth gauge", "mpe_mm": 0.02}},
+        )
         report = collect(store, conforming, resamples=50)
         rows = {d.topic: d for d in report.deviations}
         assert {t: rows[t].status for t in ("fixture", "travels", "repeats", "instrument")} == dict.fromkeys(
-            ("fixture", "travels", "repeats", "instrument"), "conforms")
+            ("fixture", "travels", "repeats", "instrument"), "conforms"
+        )
         assert rows["targets"].status == "deviates" and "evenly spaced" in rows["targets"].done  # ISO 230-2
         assert report.instrument.sigma_mm == pytest.approx(math.hypot(0.01 / math.sqrt(6), 0.02 / math.sqrt(3)))
         bare = write_actuator_run(store, settings={})
@@ -148,22 +171,36 @@ def test_actuator_run_with_a_missing_reading_drops_that_repeat_and_says_so(tmp_p
         run_id = write_actuator_run(store, repeats=4)
         samples = store.samples(run_id, kind="actuator_travel")
         # a run cut short: copy every sample but the last reading of actuator 5 into a failed run
-        cut = store.start_run(protocol_name="actuator_accuracy", protocol_version="1", robot="pkm5",
-                              config=store.run(run_id).config, settings=store.run(run_id).settings)
+        cut = store.start_run(
+            protocol_name="actuator_accuracy",
+            protocol_version="1",
+            robot="pkm5",
+            config=store.run(run_id).config,
+            settings=store.run(run_id).settings,
+        )
         for sample in samples[:-1]:
-            store.add_sample(cut, sample.step_index, kind=sample.kind, values=sample.values, pose=sample.pose,
-                             cycle=sample.cycle, t_s=sample.t_s)
+            store.add_sample(
+                cut,
+                sample.step_index,
+                kind=sample.kind,
+                values=sample.values,
+                pose=sample.pose,
+                cycle=sample.cycle,
+                t_s=sample.t_s,
+            )
         store.set_status(cut, "failed", "operator stopped")
         report = collect(store, cut, resamples=50)
         five = report.actuators[1]
         assert five.groover.n == 3 and five.dropped == 2  # repeat 4 kept only 10 and 30 mm
         assert any("actuator 5: 2 readings of repeats missing a travel left out" in n for n in report.notes)
         assert any(n.startswith("run status failed (operator stopped)") for n in report.notes)
-        assert {d.topic: d for d in report.deviations}["repeats"].done == "4 planned, 3 complete (fewest at any " \
-                                                                          "actuator)"
+        assert {d.topic: d for d in report.deviations}[
+            "repeats"
+        ].done == "4 planned, 3 complete (fewest at any actuator)"
 
 
 # ---- payload_ladder ----
+
 
 def test_ladder_leg_summary_equals_bench_analyze_payload_on_its_raw_data(runs, capsys):
     store, ids, reports, paths, _ = runs
@@ -190,8 +227,9 @@ def test_ladder_payload_error_and_compliance_recover_the_injected_sag(runs):
     # independently: FK of each lift's six stored lengths, then the metrology API
     lifts: dict[tuple, dict[int, float]] = {}
     for sample in store.samples(ids["ladder"], kind="leg_length"):
-        lifts.setdefault((sample.values["load_kg"], sample.cycle), {})[int(sample.values["leg"])] = \
-            sample.values["length_mm"]
+        lifts.setdefault((sample.values["load_kg"], sample.cycle), {})[int(sample.values["leg"])] = sample.values[
+            "length_mm"
+        ]
     keys = sorted(lifts)
     fk = pkm5.forward_kinematics(np.array([[lifts[k][leg] for leg in range(1, 7)] for k in keys]), mode="translation")
     by_load: dict[float, list] = {}
@@ -204,8 +242,9 @@ def test_ladder_payload_error_and_compliance_recover_the_injected_sag(runs):
     assert report.compliance.compliance_mm_per_n == pytest.approx(k.compliance_mm_per_n, rel=1e-9)
     # the truth written into the run: 0.02 mm of sag per kg, straight down
     assert report.shift.shift_mm[:, 2] == pytest.approx([0.0, -0.04, -0.1, -0.2], abs=0.01)
-    assert report.compliance.compliance_mm_per_n == pytest.approx(-0.02 / STANDARD_GRAVITY_M_S2,
-                                                                  abs=3 * report.compliance.u_compliance_mm_per_n)
+    assert report.compliance.compliance_mm_per_n == pytest.approx(
+        -0.02 / STANDARD_GRAVITY_M_S2, abs=3 * report.compliance.u_compliance_mm_per_n
+    )
     assert all(lift.used and lift.residual_mm < 0.02 for lift in report.lifts) and len(report.lifts) == 12
 
 
@@ -222,11 +261,18 @@ def test_ladder_html_and_pdf_print_the_tables_and_the_deviations(runs):
     assert deviations["repeats"][4] == "conforms"  # 3 lifts per load (project §12.3)
     assert deviations["ladder"][4] == "deviates" and deviations["reference runs"][4] == "deviates"
     assert "describe the rig's two simulated optical mice" in deviations["instrument"][3]
-    assert tables["instrument"][1] == ["Readings",
-                                       "digital calliper, leg lengths entered by the operator (pkm5 dissertation §8.7)"]
+    assert tables["instrument"][1] == [
+        "Readings",
+        "digital calliper, leg lengths entered by the operator (pkm5 dissertation §8.7)",
+    ]
     pdf = pdf_text(paths["ladder"].pdf)
-    for text in ("Leg actuation error e_i(m)", shift["10"][2], f"{report.compliance.compliance_mm_per_n:+.3e}",
-                 "Deviations from pkm5 dissertation §8.7 / project definition", "bench analyze payload FILE.csv"):
+    for text in (
+        "Leg actuation error e_i(m)",
+        shift["10"][2],
+        f"{report.compliance.compliance_mm_per_n:+.3e}",
+        "Deviations from pkm5 dissertation §8.7 / project definition",
+        "bench analyze payload FILE.csv",
+    ):
         assert text in pdf, text
 
 
@@ -242,18 +288,25 @@ def test_ladder_with_unloaded_references_ascending_then_descending_conforms(tmp_
 
 # ---- lasergrid_hits ----
 
+
 def test_grid_hit_rates_reproduce_appendix_d2(runs):
     store, ids, reports, _, _ = runs
     report = reports["grid"]
     assert isinstance(report, GridHitReport)
     assert [(h.height_mm, h.expected.k, h.expected.n) for h in report.hits.heights] == [
-        (140.0, 397, 400), (170.0, 395, 400), (200.0, 392, 400)]
+        (140.0, 397, 400),
+        (170.0, 395, 400),
+        (200.0, 392, 400),
+    ]
     assert [h.expected.rate for h in report.hits.heights] == [0.9925, 0.9875, 0.98]  # Appendix D2, "%" column
     at_200 = [s.expected.k for s in report.hits.sensors if s.height_mm == 200.0]
     assert tuple(at_200) == APPENDIX_D2[200.0]
     # by hand from the stored samples: misses at 200 mm that lit another sensor (every second miss)
-    misses = [s.values for s in store.samples(ids["grid"], kind="grid_hit") if s.values["cmd_z_mm"] == -200.0
-              and not s.values["hit_expected"]]
+    misses = [
+        s.values
+        for s in store.samples(ids["grid"], kind="grid_hit")
+        if s.values["cmd_z_mm"] == -200.0 and not s.values["hit_expected"]
+    ]
     any_200 = next(h.any for h in report.hits.heights if h.height_mm == 200.0)
     assert any_200.k == 392 + sum(v["hit_any"] for v in misses) and len(misses) == 8
     for h in report.hits.heights:  # Wilson at z = 2 contains the rate and stays in [0, 1]
@@ -269,8 +322,14 @@ def test_grid_hit_html_and_pdf_print_the_tables_and_the_decision(runs):
     assert len(tables["hit-sensors"]) == 1 + 48
     assert [row[3] for row in tables["decision"][1:]] == ["pass", "pass", "pass"]  # >= 97 % (thesis specification)
     deviations = {row[1]: row[4] for row in tables["deviations"][1:]}
-    assert deviations == {"sensors": "conforms", "attempts": "conforms", "heights": "conforms", "approach": "conforms",
-                          "hit": "conforms", "instrument": "conforms"}
+    assert deviations == {
+        "sensors": "conforms",
+        "attempts": "conforms",
+        "heights": "conforms",
+        "approach": "conforms",
+        "hit": "conforms",
+        "instrument": "conforms",
+    }
     pdf = pdf_text(paths["grid"].pdf)
     for text in ("397 / 400", heights["140"][3], "Deviations from thesis §8.4.3", "grid_hit_rates"):
         assert text in pdf, text
@@ -289,6 +348,7 @@ def test_grid_hit_failing_the_specification(tmp_path):
 
 # ---- shared: raw data, CLI, refusals ----
 
+
 @pytest.mark.parametrize("name", ["actuator", "ladder", "grid"])
 def test_raw_data_is_the_tidy_table_cited_with_its_sha256(runs, name):
     store, ids, reports, paths, _ = runs
@@ -296,8 +356,11 @@ def test_raw_data_is_the_tidy_table_cited_with_its_sha256(runs, name):
     html = paths[name].html.read_text(encoding="utf-8")
     assert hashlib.sha256(csv.read_bytes()).hexdigest() in html
     kind = {"actuator": "actuator_travel", "ladder": "leg_length", "grid": "grid_hit"}[name]
-    assert len(reports[name].table) == len(store.samples(ids[name], kind=kind)) == \
-        int(html_tables(paths[name].html)["rawdata"][1][2])
+    assert (
+        len(reports[name].table)
+        == len(store.samples(ids[name], kind=kind))
+        == int(html_tables(paths[name].html)["rawdata"][1][2])
+    )
     assert "Every number above can be recomputed from these files: bench" in html
 
 
@@ -306,22 +369,28 @@ def test_cli_reports_the_three_kinds_and_refuses_criteria_and_comparisons(runs, 
     store = str(folder / "bench.db")
     for run_id in ids.values():
         assert main(["report", str(run_id), "--store", store, "--out", str(tmp_path), "--format", "pdf"]) == 0
-    assert capsys.readouterr().out.split() == [str(tmp_path / f"{stem}{i}{ext}") for i in ids.values()
-                                               for stem, ext in (("report_run", ".pdf"), ("run", "_samples.csv"))]
-    assert main(["report", str(ids["grid"]), "--store", store, "--out", str(tmp_path), "--criterion",
-                 "AP_mm=0.5"]) == 2
-    assert "project criteria (AP_mm, RP_mm) apply to pose runs; run 3 is a lasergrid_hits run" in \
-        capsys.readouterr().err
+    assert capsys.readouterr().out.split() == [
+        str(tmp_path / f"{stem}{i}{ext}")
+        for i in ids.values()
+        for stem, ext in (("report_run", ".pdf"), ("run", "_samples.csv"))
+    ]
+    assert main(["report", str(ids["grid"]), "--store", store, "--out", str(tmp_path), "--criterion", "AP_mm=0.5"]) == 2
+    assert (
+        "project criteria (AP_mm, RP_mm) apply to pose runs; run 3 is a lasergrid_hits run" in capsys.readouterr().err
+    )
     with Store(folder / "bench.db") as opened:
         pose = write_pose_run(opened, config=None)
-        with pytest.raises(ConfigError, match=f"--compare: run {pose} is a iso9283_pose run and run "
-                                              f"{ids['actuator']} a actuator_accuracy run; compare runs of the same"):
+        with pytest.raises(
+            ConfigError,
+            match=f"--compare: run {pose} is a iso9283_pose run and run "
+            f"{ids['actuator']} a actuator_accuracy run; compare runs of the same",
+        ):
             write_comparison(opened, pose, ids["actuator"], tmp_path)
 
 
 @given(st.lists(st.integers(-100_000, 100_000), min_size=1, max_size=20), st.integers(0, 4))
 def test_reading_step_is_the_coarsest_decimal_every_reading_is_a_multiple_of(counts, decimals):
-    step = 10.0 ** -decimals
+    step = 10.0**-decimals
     readings = [round(c * step, decimals) for c in counts]
     found = reading_step_mm(readings)
     assert found is not None and found >= step * (1 - 1e-9)

@@ -19,10 +19,17 @@ MEASURED = re.compile(r"([+-]?\d+(?:\.(\d+))?) ± (\d+(?:\.(\d+))?)")
 def judged(tmp_path_factory):
     folder = tmp_path_factory.mktemp("truth")
     with Store(folder / "bench.db") as store:
-        run_id = write_pose_run(store, seed=5, bias_mm=(0.3, -0.2, 0.1), noise_mm=0.04,
-                                config=pose_config(velocities_pct=[100.0]), settings={**SETTINGS})
-        yield write_report(store, run_id, folder / "out", criteria={"AP_mm": 0.4, "RP_mm": 0.2},
-                           decision_rule="guarded")
+        run_id = write_pose_run(
+            store,
+            seed=5,
+            bias_mm=(0.3, -0.2, 0.1),
+            noise_mm=0.04,
+            config=pose_config(velocities_pct=[100.0]),
+            settings={**SETTINGS},
+        )
+        yield write_report(
+            store, run_id, folder / "out", criteria={"AP_mm": 0.4, "RP_mm": 0.2}, decision_rule="guarded"
+        )
 
 
 def _two_significant_digits(u_text: str) -> bool:
@@ -35,7 +42,7 @@ def test_every_value_with_u_is_rounded_by_its_u(judged):
     for ident, rows in html_tables(judged.html).items():
         for row in rows[1:]:
             for cell in row:
-                for value, value_decimals, u, u_decimals in MEASURED.findall(cell):
+                for _value, value_decimals, u, u_decimals in MEASURED.findall(cell):
                     assert len(value_decimals) == len(u_decimals), (ident, cell)
                     assert _two_significant_digits(u), (ident, cell)
                     checked += 1

@@ -32,8 +32,25 @@ PLANAR = "AP and RP in the x-y plane: the camera laser spot (xy plane) measures 
 
 
 def _run(store: Path, protocol: Path, station: Path, *flags: str) -> int:
-    assert main(["run", str(protocol), "--station", str(station), "--sim", "--true-geometry-seed", "3", "--ideal",
-                 "--store", str(store), "--no-progress", *flags]) == 0
+    assert (
+        main(
+            [
+                "run",
+                str(protocol),
+                "--station",
+                str(station),
+                "--sim",
+                "--true-geometry-seed",
+                "3",
+                "--ideal",
+                "--store",
+                str(store),
+                "--no-progress",
+                *flags,
+            ]
+        )
+        == 0
+    )
     with Store(store, read_only=True) as opened:
         return opened.runs()[-1].id
 
@@ -62,8 +79,10 @@ def runs(tmp_path_factory):
     validation = folder / "validation.toml"
     validation.write_text("\n".join(line for line in lines if not line.startswith("V") or line[:3] in KEPT) + "\n")
     camera = _edited(CAMERA, folder, "\nframes = 4 ", "\nframes = 1 ")
-    ids = {"camera_before": _run(store, validation, camera, "--no-kinematic-calibration"),
-           "grid_before": _run(store, validation, GRID, "--no-kinematic-calibration")}
+    ids = {
+        "camera_before": _run(store, validation, camera, "--no-kinematic-calibration"),
+        "grid_before": _run(store, validation, GRID, "--no-kinematic-calibration"),
+    }
     source = _run(store, EXAMPLES / "kinematic_calibration_delta4.toml", camera, "--no-kinematic-calibration")
     assert main(["calibrate", str(source), "--store", str(store)]) == 0
     ids["camera_after"] = _run(store, validation, camera)
@@ -78,8 +97,13 @@ def _readings(store: Path, run_id: int) -> dict[str, tuple[np.ndarray, np.ndarra
     poses: dict[str, list] = {}
     for s in samples:
         poses.setdefault(s.pose, []).append(s.values)
-    return {pose: (np.array([[v.get(f"{a}_mm", np.nan) for a in "xyz"] for v in rows]),
-                   np.array([rows[0][f"cmd_{a}_mm"] for a in "xyz"])) for pose, rows in poses.items()}
+    return {
+        pose: (
+            np.array([[v.get(f"{a}_mm", np.nan) for a in "xyz"] for v in rows]),
+            np.array([rows[0][f"cmd_{a}_mm"] for a in "xyz"]),
+        )
+        for pose, rows in poses.items()
+    }
 
 
 def _ap_rp(points: np.ndarray, command: np.ndarray) -> tuple[np.ndarray, float, float]:
@@ -97,7 +121,7 @@ def _close(cell: str, value: float) -> None:
     """The printed number (first token) equals ``value`` to the printed decimals."""
     text = cell.split()[0]
     places = len(text.split(".")[1]) if "." in text else 0
-    assert abs(float(text) - value) <= 0.51 * 10 ** -places, (cell, value)
+    assert abs(float(text) - value) <= 0.51 * 10**-places, (cell, value)
 
 
 def test_a_camera_run_reports_planar_ap_rp_labelled_everywhere(runs, tmp_path, capsys):
@@ -170,8 +194,10 @@ def test_a_laser_grid_pose_run_gets_the_partial_pose_statistics(runs, tmp_path, 
             assert row[2].startswith("—")
     deviations = [row[0] for row in tables["deviations"][1:]]
     assert deviations and not any(clause.startswith("thesis") for clause in deviations)
-    assert "ISO 9283-style pose accuracy and repeatability (iso9283_pose) read by the laser grid" in \
-        paths.html.read_text(encoding="utf-8")
+    assert (
+        "ISO 9283-style pose accuracy and repeatability (iso9283_pose) read by the laser grid"
+        in paths.html.read_text(encoding="utf-8")
+    )
 
     csv = tmp_path / "grid.csv"
     assert main(["export", str(run_id), "--kind", "pose", "--store", str(store), "--out", str(csv)]) == 0
@@ -188,8 +214,9 @@ def test_comparing_calibrated_and_uncalibrated_camera_runs_shows_the_calibration
     gain = {row[0]: row[1:] for row in tables["calibration-gain"][1:]}
     before, after = _readings(store, ids["camera_before"]), _readings(store, ids["camera_after"])
     ap = np.array([[_ap_rp(runs_[p][0][:, :2], runs_[p][1][:2])[1] for runs_ in (before, after)] for p in before])
-    axes = np.array([[np.abs(_ap_rp(runs_[p][0][:, :2], runs_[p][1][:2])[0]) for runs_ in (before, after)]
-                     for p in before])  # (poses, before/after, x/y)
+    axes = np.array(
+        [[np.abs(_ap_rp(runs_[p][0][:, :2], runs_[p][1][:2])[0]) for runs_ in (before, after)] for p in before]
+    )  # (poses, before/after, x/y)
     for column in range(2):
         _close(gain["mean AP_P"][column], ap[:, column].mean())
         _close(gain["largest AP_P"][column], ap[:, column].max())

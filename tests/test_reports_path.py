@@ -4,6 +4,8 @@ and the figure of the commanded and attained paths at print size."""
 from __future__ import annotations
 
 import pytest
+from figure_support import printed_font_sizes, same_scale, small_multiples
+from reports_runs import html_tables, pdf_text, simulated_run
 
 from bench.protocols.path import PathAccuracy
 from bench.reports import collect, write_report
@@ -11,8 +13,6 @@ from bench.reports.path import path_plot
 from bench.reports.path_run import analyze_path_run
 from bench.reports.plots import MIN_FONT_PT
 from bench.store import Store
-from figure_support import printed_font_sizes, same_scale, small_multiples
-from reports_runs import html_tables, pdf_text, simulated_run
 
 
 @pytest.fixture(scope="module")

@@ -5,9 +5,9 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from figure_support import printed_font_sizes, same_scale, small_multiples
 from hypothesis import given, settings
 from hypothesis import strategies as st
-from figure_support import printed_font_sizes, same_scale, small_multiples
 from reports_runs import SETTINGS, pose_config, write_pose_run
 
 from bench.reports import collect
@@ -27,8 +27,9 @@ from bench.store import Store
 @pytest.fixture(scope="module")
 def report(tmp_path_factory):
     with Store(tmp_path_factory.mktemp("plots") / "bench.db") as store:
-        run_id = write_pose_run(store, config=pose_config(velocities_pct=[100.0, 50.0, 10.0], cycles=5),
-                                settings=SETTINGS)
+        run_id = write_pose_run(
+            store, config=pose_config(velocities_pct=[100.0, 50.0, 10.0], cycles=5), settings=SETTINGS
+        )
         yield collect(store, run_id, resamples=50)
 
 

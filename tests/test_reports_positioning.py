@@ -38,8 +38,9 @@ def simulated(tmp_path_factory):
     """(store, run id, report, paths, folder) of a 2-cycle delta_positioning run on the simulator."""
     folder = tmp_path_factory.mktemp("positioning")
     store = Store(folder / "bench.db")
-    run_id = simulated_run(store, PROTOCOLS["delta_positioning"](settle_s=0.1, cycles=2), "delta4", seed=4,
-                           speed_factor=20000)
+    run_id = simulated_run(
+        store, PROTOCOLS["delta_positioning"](settle_s=0.1, cycles=2), "delta4", seed=4, speed_factor=20000
+    )
     yield store, run_id, collect(store, run_id), write_report(store, run_id, folder / "out"), folder
     store.close()
 
@@ -57,8 +58,9 @@ def _stored(store, run_id):
     """{pose: (command (3,), readings (n, 3) with NaN where the sample stored no axis, samples)}."""
     out = {}
     for sample in store.samples(run_id, kind="pose"):
-        command, rows, samples = out.setdefault(sample.pose, (np.array([sample.values[f"cmd_{a}"] for a in AXES]),
-                                                              [], []))
+        command, rows, samples = out.setdefault(
+            sample.pose, (np.array([sample.values[f"cmd_{a}"] for a in AXES]), [], [])
+        )
         rows.append([sample.values.get(a, np.nan) for a in AXES])
         samples.append(sample)
     return {pose: (command, np.array(rows), samples) for pose, (command, rows, samples) in out.items()}
@@ -86,9 +88,12 @@ def _check_against_cli(report, cli):
         for name, axis in zip("xyz", p.statistics.axes):
             theirs = figures["axes"][name]
             assert theirs["n"] == axis.n
-            for ours, key in ((axis.ap_mm, "AP_mm"), (axis.spread_3s_mm, "spread_3s_mm"),
-                              (axis.max_abs_error_mm, "max_abs_error_mm"),
-                              (axis.mean_abs_error_mm, "mean_abs_error_mm")):
+            for ours, key in (
+                (axis.ap_mm, "AP_mm"),
+                (axis.spread_3s_mm, "spread_3s_mm"),
+                (axis.max_abs_error_mm, "max_abs_error_mm"),
+                (axis.mean_abs_error_mm, "mean_abs_error_mm"),
+            ):
                 _same(ours, theirs[key])
         assert figures["n_complete"] == p.statistics.n_complete
         _same(p.statistics.ap_mm, figures["AP_mm"])
@@ -108,8 +113,9 @@ def test_simulated_figures_equal_the_metrology_api_on_the_stored_samples(simulat
             assert p.valid[screen] == detection_rate([s.values[f"{screen}_valid"] for s in samples])
             assert p.lit[screen] == detection_rate([s.values[f"{screen}_hits"] > 0 for s in samples])
             # the screen is valid exactly when the raw decoding says ok and the screens agree (never invented)
-            assert p.valid[screen].k == sum(s.raw["status"][screen] == "ok" and not s.raw["screens_disagree"]
-                                            for s in samples)
+            assert p.valid[screen].k == sum(
+                s.raw["status"][screen] == "ok" and not s.raw["screens_disagree"] for s in samples
+            )
         for k, axis in enumerate(p.statistics.axes):  # by hand: mean error over the readings that measured it
             present = readings[~np.isnan(readings[:, k]), k]
             assert axis.n == len(present)
@@ -122,20 +128,28 @@ def test_simulated_report_equals_bench_analyze_on_its_raw_data_and_on_the_export
     store, run_id, report, paths, folder = simulated
     _check_against_cli(report, cli_json(capsys, "analyze", "grid-positioning", str(paths.csv[0]), "--json"))
     exported = tmp_path / "run.csv"
-    assert main(["export", str(run_id), "--kind", "pose", "--store", str(folder / "bench.db"), "--out",
-                 str(exported)]) == 0
+    assert (
+        main(["export", str(run_id), "--kind", "pose", "--store", str(folder / "bench.db"), "--out", str(exported)])
+        == 0
+    )
     _check_against_cli(report, cli_json(capsys, "analyze", "grid-positioning", str(exported), "--json"))
     html = paths.html.read_text(encoding="utf-8")
     assert hashlib.sha256(paths.csv[0].read_bytes()).hexdigest() in html
-    assert f"bench export {run_id} --kind pose --store bench.db --out run{run_id}.csv, then bench " \
-           f"analyze grid-positioning run{run_id}.csv --k 2 --json" in html
+    assert (
+        f"bench export {run_id} --kind pose --store bench.db --out run{run_id}.csv, then bench "
+        f"analyze grid-positioning run{run_id}.csv --k 2 --json" in html
+    )
     assert int(html_tables(paths.html)["rawdata"][1][2]) == len(store.samples(run_id)) == len(report.table)
 
 
 def test_an_axis_never_measured_is_printed_as_no_reading_not_zero(simulated):
     store, run_id, report, paths, _ = simulated
-    never = {(pose, a[0]) for pose, (_, readings, _) in _stored(store, run_id).items()
-             for k, a in enumerate(AXES) if np.isnan(readings[:, k]).all()}
+    never = {
+        (pose, a[0])
+        for pose, (_, readings, _) in _stored(store, run_id).items()
+        for k, a in enumerate(AXES)
+        if np.isnan(readings[:, k]).all()
+    }
     assert ("P2", "x") in never and ("P2", "z") in never
     rows = {(row[0], row[1]): row for row in html_tables(paths.html)["grid-axes"][1:]}
     assert len(rows) == 9
@@ -178,8 +192,12 @@ def test_written_run_spatial_figures_come_from_the_complete_readings_only(writte
     assert (rate.low, rate.high) == pytest.approx((centre_w - half_w, centre_w + half_w), abs=1e-12)
     assert screens["P1"][5] == f"3 / 4, 75.00 % [{100 * rate.low:.1f}, {100 * rate.high:.1f}]"
     pdf = pdf_text(paths.pdf)
-    for text in (screens["P1"][5], f"{p1.statistics.rp_mm:.1f}", "Deviations from thesis §8.4.2 / ISO 9283",
-                 "Reading the figures: they are conditional on detection"):
+    for text in (
+        screens["P1"][5],
+        f"{p1.statistics.rp_mm:.1f}",
+        "Deviations from thesis §8.4.2 / ISO 9283",
+        "Reading the figures: they are conditional on detection",
+    ):
         assert text in pdf, text
 
 
@@ -210,15 +228,19 @@ def test_a_run_without_instrument_settings_is_refused_unless_allowed(tmp_path):
 def test_options_of_other_layouts_are_refused(written, capsys, tmp_path):
     store, run_id, _, _ = written
     assert main(["report", str(run_id), "--store", store.path, "--out", str(tmp_path), "--format", "html"]) == 0
-    assert capsys.readouterr().out.split() == [str(tmp_path / f"report_run{run_id}.html"),
-                                               str(tmp_path / f"run{run_id}_samples.csv")]
-    with pytest.raises(ConfigError, match=f"--band-mm: applies to iso9283_stabilisation, iso9283_positioning_time "
-                                          f"runs; run {run_id} is a delta_positioning run"):
+    assert capsys.readouterr().out.split() == [
+        str(tmp_path / f"report_run{run_id}.html"),
+        str(tmp_path / f"run{run_id}_samples.csv"),
+    ]
+    with pytest.raises(
+        ConfigError,
+        match=f"--band-mm: applies to iso9283_stabilisation, iso9283_positioning_time "
+        f"runs; run {run_id} is a delta_positioning run",
+    ):
         collect(store, run_id, bands_mm=[0.1])
     compared = write_comparison(store, run_id, run_id, tmp_path, formats=("html",))  # every layout compares
     assert "Results of B" in compared.html.read_text(encoding="utf-8")
-    assert main(["report", str(run_id), "--store", store.path, "--out", str(tmp_path), "--hysteresis-mm",
-                 "0.1"]) == 2
+    assert main(["report", str(run_id), "--store", store.path, "--out", str(tmp_path), "--hysteresis-mm", "0.1"]) == 2
     err = capsys.readouterr().err
     assert "--hysteresis-mm: applies to iso9283_stabilisation, iso9283_positioning_time runs" in err
 
@@ -234,5 +256,4 @@ def test_k_is_the_z_of_every_wilson_interval_in_the_report_and_the_cli(written, 
     paths = write_report(store, run_id, tmp_path, ("html",), k=3.0)
     html = paths.html.read_text(encoding="utf-8")
     assert "Wilson score interval, z = 3" in html and f"grid-positioning run{run_id}.csv --k 3 --json" in html
-    _check_against_cli(report, cli_json(capsys, "analyze", "grid-positioning", str(paths.csv[0]), "--k", "3",
-                                        "--json"))
+    _check_against_cli(report, cli_json(capsys, "analyze", "grid-positioning", str(paths.csv[0]), "--k", "3", "--json"))

@@ -22,9 +22,16 @@ def _pandas_bytes(table: pd.DataFrame, path) -> bytes:
 
 
 def test_edge_values_are_written_as_pandas_writes_them(tmp_path):
-    table = pd.DataFrame({"pose": ["P1", "a,b", None, 'q"x', ""], "cycle": [1, 2, 3, 4, 5],
-                          "x_mm": [0.1, np.nan, -0.0, 1e-5, 1e17], "ok": [True, False, True, True, False],
-                          "v": [np.inf, -np.inf, 3.0, 2.5, 100.0], "z_mm": [0.0, -0.0, 0.0, -0.0, 1.0]})
+    table = pd.DataFrame(
+        {
+            "pose": ["P1", "a,b", None, 'q"x', ""],
+            "cycle": [1, 2, 3, 4, 5],
+            "x_mm": [0.1, np.nan, -0.0, 1e-5, 1e17],
+            "ok": [True, False, True, True, False],
+            "v": [np.inf, -np.inf, 3.0, 2.5, 100.0],
+            "z_mm": [0.0, -0.0, 0.0, -0.0, 1.0],
+        }
+    )
     expected = _pandas_bytes(table, tmp_path / "pandas.csv")
     digest = write_table_csv(table, tmp_path / "fast.csv")
     assert (tmp_path / "fast.csv").read_bytes() == expected
@@ -32,8 +39,10 @@ def test_edge_values_are_written_as_pandas_writes_them(tmp_path):
 
 
 def test_a_line_break_in_a_text_and_a_single_column_go_through_pandas(tmp_path):
-    for table in (pd.DataFrame({"note": ["two\nlines", "x"], "x_mm": [1.0, 2.0]}),
-                  pd.DataFrame({"x_mm": [np.nan, 1.0]})):
+    for table in (
+        pd.DataFrame({"note": ["two\nlines", "x"], "x_mm": [1.0, 2.0]}),
+        pd.DataFrame({"x_mm": [np.nan, 1.0]}),
+    ):
         expected = _pandas_bytes(table, tmp_path / "pandas.csv")
         write_table_csv(table, tmp_path / "fast.csv")
         assert (tmp_path / "fast.csv").read_bytes() == expected
@@ -43,20 +52,27 @@ floats = st.floats(allow_nan=True, allow_infinity=True, width=64)
 
 
 @settings(max_examples=60, deadline=None)
-@given(st.lists(st.tuples(st.sampled_from(["P1", "P2", "a,b", "", 'say "x"']), st.integers(-3, 10**12), floats,
-                          floats), min_size=0, max_size=40))
+@given(
+    st.lists(
+        st.tuples(st.sampled_from(["P1", "P2", "a,b", "", 'say "x"']), st.integers(-3, 10**12), floats, floats),
+        min_size=0,
+        max_size=40,
+    )
+)
 def test_any_table_of_texts_integers_and_floats_is_written_as_pandas_writes_it(tmp_path_factory, rows):
     folder = tmp_path_factory.mktemp("csv")
     table = pd.DataFrame(rows, columns=["pose", "cycle", "x_mm", "t_s"]).astype(
-        {"cycle": "int64", "x_mm": "float64", "t_s": "float64"})
+        {"cycle": "int64", "x_mm": "float64", "t_s": "float64"}
+    )
     expected = _pandas_bytes(table, folder / "pandas.csv")
     assert write_table_csv(table, folder / "fast.csv") == hashlib.sha256(expected).hexdigest()
     assert (folder / "fast.csv").read_bytes() == expected
 
 
 def _sample(step: int, pose, cycle, values: dict, series: dict):
-    return SimpleNamespace(step_index=step, pose=pose, cycle=cycle, values=values,
-                           raw={"series": series, "t_request_s": 0.0})
+    return SimpleNamespace(
+        step_index=step, pose=pose, cycle=cycle, values=values, raw={"series": series, "t_request_s": 0.0}
+    )
 
 
 class _Store:
@@ -72,22 +88,42 @@ class _Store:
 
 def test_the_series_table_column_by_column_equals_the_one_sample_by_sample():
     rng = np.random.default_rng(1)
-    samples = [_sample(i, f"P{1 + i % 3}", 1 + i // 3,
-                       {"cmd_x_mm": 10.0 * i, "velocity_pct": 50.0, "load_kg": 0.0, "x_mm": 1.0},
-                       {"t_s": list(np.arange(n) * 0.01), "x_mm": list(rng.normal(size=n)), "y_mm": [0.5] * n})
-               for i, n in enumerate((3, 7, 1, 5, 4, 6))]
+    samples = [
+        _sample(
+            i,
+            f"P{1 + i % 3}",
+            1 + i // 3,
+            {"cmd_x_mm": 10.0 * i, "velocity_pct": 50.0, "load_kg": 0.0, "x_mm": 1.0},
+            {"t_s": list(np.arange(n) * 0.01), "x_mm": list(rng.normal(size=n)), "y_mm": [0.5] * n},
+        )
+        for i, n in enumerate((3, 7, 1, 5, 4, 6))
+    ]
     fast = export.series_table(_Store(samples), 1, kind="path")
-    by_sample = pd.concat([pd.DataFrame({"pose": s.pose, "cycle": s.cycle, "cmd_x_mm": s.values["cmd_x_mm"],
-                                         "velocity_pct": 50.0, "load_kg": 0.0, **s.raw["series"]}) for s in samples],
-                          ignore_index=True)[["pose", "cycle", "cmd_x_mm", "x_mm", "y_mm", "velocity_pct", "load_kg",
-                                              "t_s"]]
+    by_sample = pd.concat(
+        [
+            pd.DataFrame(
+                {
+                    "pose": s.pose,
+                    "cycle": s.cycle,
+                    "cmd_x_mm": s.values["cmd_x_mm"],
+                    "velocity_pct": 50.0,
+                    "load_kg": 0.0,
+                    **s.raw["series"],
+                }
+            )
+            for s in samples
+        ],
+        ignore_index=True,
+    )[["pose", "cycle", "cmd_x_mm", "x_mm", "y_mm", "velocity_pct", "load_kg", "t_s"]]
     pd.testing.assert_frame_equal(fast, by_sample, check_exact=True)
     assert len(fast) == 26
 
 
 def test_samples_with_different_series_columns_are_aligned_with_missing_values():
-    samples = [_sample(0, "P1", 1, {}, {"t_s": [0.0, 0.1], "x_mm": [1.0, 2.0]}),
-               _sample(1, "P1", 2, {}, {"t_s": [0.0], "x_mm": [3.0], "y_mm": [4.0]})]
+    samples = [
+        _sample(0, "P1", 1, {}, {"t_s": [0.0, 0.1], "x_mm": [1.0, 2.0]}),
+        _sample(1, "P1", 2, {}, {"t_s": [0.0], "x_mm": [3.0], "y_mm": [4.0]}),
+    ]
     table = export.series_table(_Store(samples), 1, kind="path")
     assert table["y_mm"].isna().tolist() == [True, True, False]
     assert table["x_mm"].tolist() == pytest.approx([1.0, 2.0, 3.0])

@@ -42,8 +42,17 @@ def test_pdf_has_every_section_on_numbered_pages(reports):
     assert 4 <= len(pages) <= 10
     text = " ".join(pages)
     assert TITLE in pages[0] and f"(stored run {before})" in pages[0]
-    for heading in ("1. Identification", "3. Method", "Deviations from ISO 9283", "5. Instruments", "6. Results",
-                    "7. Plots", "8. Decision", "9. Raw data", "10. Statement of scope"):
+    for heading in (
+        "1. Identification",
+        "3. Method",
+        "Deviations from ISO 9283",
+        "5. Instruments",
+        "6. Results",
+        "7. Plots",
+        "8. Decision",
+        "9. Raw data",
+        "10. Statement of scope",
+    ):
         assert heading in text, heading
     assert all(f"page {i + 1} of {len(pages)}" in page for i, page in enumerate(pages))
     assert reader.metadata.title == TITLE
@@ -56,7 +65,7 @@ def test_html_is_self_contained_with_inline_plots(reports):
     assert not re.search(r"<(script|link|iframe)\b", html)
     assert not re.search(r"(src|href)=\"(https?:|file:|//)", html)
     assert all(src.startswith("data:image/png;base64,") for src in re.findall(r'<img src="([^"]*)"', html))
-    assert html.count("<img src=\"data:image/png;base64,") >= 3  # pose scatter, workspace with AP vectors, drift series
+    assert html.count('<img src="data:image/png;base64,') >= 3  # pose scatter, workspace with AP vectors, drift series
     for ident in ("identification", "deviations", "instrument", "budget", "results", "decision", "rawdata"):
         assert f'<table id="{ident}">' in html
 
@@ -70,18 +79,29 @@ def test_same_tables_in_html_and_pdf(reports):
         assert cell.split()[0] in text, cell
 
 
-@pytest.mark.skipif(not CHROMIUM.exists(), reason="Debian chromium not installed (/usr/bin/chromium); "
-                                                  ".ci/run installs it when apt is available")
+@pytest.mark.skipif(
+    not CHROMIUM.exists(),
+    reason="Debian chromium not installed (/usr/bin/chromium); .ci/run installs it when apt is available",
+)
 def test_html_renders_in_headless_chromium(reports, tmp_path):
     _, before, _, single, _ = reports
-    args = [str(CHROMIUM), "--headless", "--no-sandbox", "--disable-gpu", "--no-first-run",
-            "--disable-background-networking", "--disable-component-update", "--disable-sync",
-            f"--user-data-dir={tmp_path / 'profile'}", "--window-size=1280,1600"]
+    args = [
+        str(CHROMIUM),
+        "--headless",
+        "--no-sandbox",
+        "--disable-gpu",
+        "--no-first-run",
+        "--disable-background-networking",
+        "--disable-component-update",
+        "--disable-sync",
+        f"--user-data-dir={tmp_path / 'profile'}",
+        "--window-size=1280,1600",
+    ]
     shot = tmp_path / "report.png"
-    subprocess.run([*args, f"--screenshot={shot}", single.html.as_uri()], capture_output=True, timeout=120,
-                   check=True)
-    dom = subprocess.run([*args, "--dump-dom", single.html.as_uri()], capture_output=True, text=True, timeout=120,
-                         check=True).stdout
+    subprocess.run([*args, f"--screenshot={shot}", single.html.as_uri()], capture_output=True, timeout=120, check=True)
+    dom = subprocess.run(
+        [*args, "--dump-dom", single.html.as_uri()], capture_output=True, text=True, timeout=120, check=True
+    ).stdout
     from PIL import Image
 
     pixels = np.asarray(Image.open(shot).convert("L"), dtype=float)
@@ -89,8 +109,13 @@ def test_html_renders_in_headless_chromium(reports, tmp_path):
     assert pixels.std() > 10 and (pixels < 128).mean() > 0.005  # text and rules drawn, not a blank page
     assert f"<title>{TITLE}</title>" in dom and f"(stored run {before})" in dom
     results = re.search(r'<table id="results">(.*?)</table>', dom, re.DOTALL).group(1)
-    assert [re.sub("<.*?>", "", c) for c in re.findall(r"<tr><td>(P\d)</td>", results)] == ["P1", "P2", "P3", "P4",
-                                                                                           "P5"]
+    assert [re.sub("<.*?>", "", c) for c in re.findall(r"<tr><td>(P\d)</td>", results)] == [
+        "P1",
+        "P2",
+        "P3",
+        "P4",
+        "P5",
+    ]
 
 
 def test_comparison_pairs_the_poses_of_both_runs(reports):
@@ -105,7 +130,7 @@ def test_comparison_pairs_the_poses_of_both_runs(reports):
         cells = re.findall(r"<td[^>]*>(.*?)</td>", row)
         ap_a, ap_b, delta = float(cells[1].split()[0]), float(cells[2].split()[0]), float(cells[3])
         places = len(cells[3].split(".")[-1])  # the difference is rounded like the values
-        assert delta == pytest.approx(ap_b - ap_a, abs=1.5 * 10 ** -places)
+        assert delta == pytest.approx(ap_b - ap_a, abs=1.5 * 10**-places)
         assert ap_a > ap_b  # the "before" run has the larger bias
     _, pages = _pdf_text(compared.pdf)
     assert "Conditions that differ" in " ".join(pages)
@@ -113,18 +138,36 @@ def test_comparison_pairs_the_poses_of_both_runs(reports):
 
 def test_cli_report_writes_and_prints_the_paths(reports, capsys, tmp_path):
     folder, before, _, _, _ = reports
-    assert main(["report", str(before), "--store", str(folder / "bench.db"), "--out", str(tmp_path),
-                 "--format", "html", "--criterion", "RP_mm=0.5"]) == 0
+    assert (
+        main(
+            [
+                "report",
+                str(before),
+                "--store",
+                str(folder / "bench.db"),
+                "--out",
+                str(tmp_path),
+                "--format",
+                "html",
+                "--criterion",
+                "RP_mm=0.5",
+            ]
+        )
+        == 0
+    )
     printed = capsys.readouterr().out.split()
     assert printed == [str(tmp_path / f"report_run{before}.html"), str(tmp_path / f"run{before}_samples.csv")]
     assert "RP_mm (project criterion)" in Path(printed[0]).read_text(encoding="utf-8")
 
 
-@pytest.mark.parametrize(("argv", "message"), [
-    (["report", "99"], "run 99: no such run"),
-    (["report", "1", "--criterion", "grade=1"], "--criterion grade=1: unknown name 'grade'"),
-    (["report", "1", "--criterion", "AP_mm=small"], "--criterion AP_mm=small: 'small' is not a number of mm"),
-])
+@pytest.mark.parametrize(
+    ("argv", "message"),
+    [
+        (["report", "99"], "run 99: no such run"),
+        (["report", "1", "--criterion", "grade=1"], "--criterion grade=1: unknown name 'grade'"),
+        (["report", "1", "--criterion", "AP_mm=small"], "--criterion AP_mm=small: 'small' is not a number of mm"),
+    ],
+)
 def test_cli_errors_are_one_line_with_exit_2(reports, capsys, argv, message):
     folder = reports[0]
     assert main([*argv, "--store", str(folder / "bench.db"), "--out", str(folder / "cli")]) == 2
@@ -148,10 +191,11 @@ def test_pdf_figures_are_the_html_figures_pixel_for_pixel(reports):
 
     _, _, _, single, _ = reports
     html = single.html.read_text(encoding="utf-8")
-    inline = [np.asarray(Image.open(io.BytesIO(base64.b64decode(data))).convert("RGB"))
-              for data in re.findall(r'<img src="data:image/png;base64,([^"]*)"', html)]
-    embedded = [np.asarray(image.image.convert("RGB")) for page in PdfReader(single.pdf).pages
-                for image in page.images]
+    inline = [
+        np.asarray(Image.open(io.BytesIO(base64.b64decode(data))).convert("RGB"))
+        for data in re.findall(r'<img src="data:image/png;base64,([^"]*)"', html)
+    ]
+    embedded = [np.asarray(image.image.convert("RGB")) for page in PdfReader(single.pdf).pages for image in page.images]
     assert len(embedded) == len(inline) >= 3
     for pdf, png in zip(embedded, inline):
         np.testing.assert_array_equal(pdf, png)

@@ -19,18 +19,29 @@ from bench.reports import SIMULATED_BANNER, collect, write_report
 from bench.reports.summary import Identity, interruptions
 from bench.store import Store
 
-LIVE = {**SETTINGS, "instrument": {**SETTINGS["instrument"], "instrument": "two optical mice (x-y, x-z)"},
-        "robot": {**SETTINGS["robot"], "firmware": {"firmware_version": "1.0.0"}}}
+LIVE = {
+    **SETTINGS,
+    "instrument": {**SETTINGS["instrument"], "instrument": "two optical mice (x-y, x-z)"},
+    "robot": {**SETTINGS["robot"], "firmware": {"firmware_version": "1.0.0"}},
+}
 
 
 @pytest.fixture(scope="module")
 def stored(tmp_path_factory):
     folder = tmp_path_factory.mktemp("summary")
     store = Store(folder / "bench.db")
-    simulated = write_pose_run(store, seed=2, bias_mm=(0.3, -0.2, 0.1), noise_mm=0.04,
-                               config=pose_config(velocities_pct=[100.0, 10.0]),
-                               settings={**SETTINGS, "simulator": {"seed": 2},
-                                         "dut": {"dut_serial": "PKM5-0042", "customer": "stored customer"}})
+    simulated = write_pose_run(
+        store,
+        seed=2,
+        bias_mm=(0.3, -0.2, 0.1),
+        noise_mm=0.04,
+        config=pose_config(velocities_pct=[100.0, 10.0]),
+        settings={
+            **SETTINGS,
+            "simulator": {"seed": 2},
+            "dut": {"dut_serial": "PKM5-0042", "customer": "stored customer"},
+        },
+    )
     live = write_pose_run(store, seed=3, settings=LIVE)
     yield folder, store, simulated, live
     store.close()
@@ -92,8 +103,27 @@ def test_simulated_banner_on_every_page_and_only_for_simulated_runs(stored, simu
 
 def test_identity_from_the_stored_settings_overridden_by_the_cli(stored, capsys):
     folder, store, run_id, _ = stored
-    assert main(["report", str(run_id), "--store", str(store.path), "--out", str(folder / "e"), "--format", "html",
-                 "--customer", "ACME Robotics", "--order", "PO-17", "--lab", "Bench lab 2"]) == 0
+    assert (
+        main(
+            [
+                "report",
+                str(run_id),
+                "--store",
+                str(store.path),
+                "--out",
+                str(folder / "e"),
+                "--format",
+                "html",
+                "--customer",
+                "ACME Robotics",
+                "--order",
+                "PO-17",
+                "--lab",
+                "Bench lab 2",
+            ]
+        )
+        == 0
+    )
     capsys.readouterr()
     rows = dict(html_tables(folder / "e" / f"report_run{run_id}.html")["summary-identity"][1:])
     assert rows["Device under test (serial / asset)"] == "PKM5-0042"  # stored with the run
@@ -146,10 +176,12 @@ def test_results_csv_and_html_give_the_same_numbers(stored, simulated_report):
 def test_customer_language_on_a_simulated_pose_run(tmp_path):
     from bench.reports.language import INTERNAL_PATTERNS, customer_text
 
-    settings = {**SETTINGS, "simulator": {"seed": 1},
-                "robot": {**SETTINGS["robot"], "port": "/dev/pts/3", "move_margin_s": 2.0, "reply_timeout_s": 1.0},
-                "instrument": {**SETTINGS["instrument"],
-                               "mice": {"xy": "mouse 'mouse_xy' (/tmp/bench-sim-abc/mouse_xy.fifo)"}}}
+    settings = {
+        **SETTINGS,
+        "simulator": {"seed": 1},
+        "robot": {**SETTINGS["robot"], "port": "/dev/pts/3", "move_margin_s": 2.0, "reply_timeout_s": 1.0},
+        "instrument": {**SETTINGS["instrument"], "mice": {"xy": "mouse 'mouse_xy' (/tmp/bench-sim-abc/mouse_xy.fifo)"}},
+    }
     with Store(tmp_path / "bench.db") as store:
         run_id = write_pose_run(store, settings=settings)
         paths = write_report(store, run_id, tmp_path / "out", formats=("html",))
@@ -161,8 +193,12 @@ def test_customer_language_on_a_simulated_pose_run(tmp_path):
     assert appendix["instrument.mice.xy"] == "mouse 'mouse_xy' (mouse_xy.fifo)"
     conditions = dict(tables["conditions"][1:])
     assert conditions["Test cube edge (mm)"] == "40" and "Poses (mm)" not in conditions  # no "poses —"
-    text = re.sub(r"<svg.*?</svg>|<style>.*?</style>|<p>Every number above can be recomputed.*?</p>", "",
-                  paths.html.read_text(encoding="utf-8"), flags=re.DOTALL)
+    text = re.sub(
+        r"<svg.*?</svg>|<style>.*?</style>|<p>Every number above can be recomputed.*?</p>",
+        "",
+        paths.html.read_text(encoding="utf-8"),
+        flags=re.DOTALL,
+    )
     assert not [p.pattern for p in INTERNAL_PATTERNS if p.search(text)]
     assert customer_text("as in iso9283.md §7.1 (see docs/campaigns.md)") == "as in ISO 230-2"
     assert customer_text("calliper (000 §8.4, sensors.md §6.2)") == "calliper (pkm5 dissertation §8.4)"
@@ -179,8 +215,9 @@ def test_compare_works_for_an_own_layout_and_shows_the_histories(tmp_path):
         store.set_status(second, "aborted", "stopped by the operator")
         pose = write_pose_run(store)
         paths = write_comparison(store, first, second, tmp_path / "out", formats=("html",))
-        with pytest.raises(ConfigError, match=f"run {first} is a actuator_accuracy run and run {pose} a "
-                                              "iso9283_pose run"):
+        with pytest.raises(
+            ConfigError, match=f"run {first} is a actuator_accuracy run and run {pose} a iso9283_pose run"
+        ):
             write_comparison(store, first, pose, tmp_path / "out", formats=("html",))
     tables = html_tables(paths.html)
     assert {"a-actuators", "b-actuators", "history"} <= set(tables)
@@ -188,8 +225,11 @@ def test_compare_works_for_an_own_layout_and_shows_the_histories(tmp_path):
     assert history[0][1].endswith("started") and history[0][2].endswith("started")
     assert [row[1] for row in history if row[1] != "—"][-1].endswith("completed")  # A's history is shorter
     assert history[-1][2].endswith("aborted: stopped by the operator")
-    assert tables["conditions"][1] == ["—", "same configuration, settings and calibrations in force, different "
-                                            "history (see Run histories)", ""]
+    assert tables["conditions"][1] == [
+        "—",
+        "same configuration, settings and calibrations in force, different history (see Run histories)",
+        "",
+    ]
     text = paths.html.read_text(encoding="utf-8")
     assert "The runs differ in their history" in text
 
@@ -199,8 +239,25 @@ def test_trend_over_three_runs_in_start_order(tmp_path, capsys):
         ids = [write_pose_run(store, seed=s, bias_mm=(0.1 * s, 0.0, 0.0), noise_mm=0.02) for s in (1, 2, 3)]
         reports = [collect(store, i, resamples=50) for i in ids]
     out = tmp_path / "out"
-    assert main(["report", str(ids[2]), "--trend", str(ids[0]), str(ids[1]), "--store", str(tmp_path / "bench.db"),
-                 "--out", str(out), "--format", "html", "--quiet"]) == 0
+    assert (
+        main(
+            [
+                "report",
+                str(ids[2]),
+                "--trend",
+                str(ids[0]),
+                str(ids[1]),
+                "--store",
+                str(tmp_path / "bench.db"),
+                "--out",
+                str(out),
+                "--format",
+                "html",
+                "--quiet",
+            ]
+        )
+        == 0
+    )
     printed = capsys.readouterr().out.split()
     assert printed[0] == str(out / f"trend_run{ids[0]}_run{ids[1]}_run{ids[2]}.html")
     rows = html_tables(out / Path(printed[0]).name)["trend"][1:]
@@ -209,8 +266,10 @@ def test_trend_over_three_runs_in_start_order(tmp_path, capsys):
         worst = max(report.poses, key=lambda p: p.accuracy.ap_mm)
         assert row[4] == f"{rounded_by_u(worst.accuracy.ap_mm, worst.ap_u.expanded_uncertainty)} ({worst.pose})"
     assert float(rows[2][4].split()[0]) > float(rows[0][4].split()[0])  # the growing bias shows
-    assert main(["report", str(ids[0]), "--trend", str(ids[0]), "--store", str(tmp_path / "bench.db"),
-                 "--out", str(out)]) == 2
+    assert (
+        main(["report", str(ids[0]), "--trend", str(ids[0]), "--store", str(tmp_path / "bench.db"), "--out", str(out)])
+        == 2
+    )
     assert "--trend: 1 distinct run(s), expected two or more" in capsys.readouterr().err
 
 
@@ -218,10 +277,28 @@ def test_page_one_is_signable_without_placeholders(stored, capsys):
     """A station template's "Operator name" is not a name; the measuring point and the signature block are on
     page 1, and the title names the test, not "run N"."""
     folder, store, _, _ = stored
-    run_id = write_pose_run(store, seed=4, settings={**SETTINGS, "dut": {"operator": "Operator name",
-                                                                          "laboratory": "<lab>"}})
-    assert main(["report", str(run_id), "--store", str(store.path), "--out", str(folder / "sign"), "--format",
-                 "html", "--measuring-point", "TCP 40 mm below the platform flange", "--customer", "ACME"]) == 0
+    run_id = write_pose_run(
+        store, seed=4, settings={**SETTINGS, "dut": {"operator": "Operator name", "laboratory": "<lab>"}}
+    )
+    assert (
+        main(
+            [
+                "report",
+                str(run_id),
+                "--store",
+                str(store.path),
+                "--out",
+                str(folder / "sign"),
+                "--format",
+                "html",
+                "--measuring-point",
+                "TCP 40 mm below the platform flange",
+                "--customer",
+                "ACME",
+            ]
+        )
+        == 0
+    )
     capsys.readouterr()
     html = folder / "sign" / f"report_run{run_id}.html"
     tables = html_tables(html)
@@ -245,8 +322,9 @@ def test_guarded_rule_says_not_proven_where_simple_passes(stored):
     value, u = pose.ap_u.value, pose.ap_u.expanded_uncertainty
     limit = value + u / 2  # inside the uncertainty range above the value
     simple = write_report(store, run_id, folder / "simple", formats=("html",), criteria={"AP_mm": limit})
-    guarded = write_report(store, run_id, folder / "guarded", formats=("html",), criteria={"AP_mm": limit},
-                           decision_rule="guarded")
+    guarded = write_report(
+        store, run_id, folder / "guarded", formats=("html",), criteria={"AP_mm": limit}, decision_rule="guarded"
+    )
     simple_rows = {row[1]: row[-1] for row in html_tables(simple.html)["decision"][1:]}
     guarded_rows = {row[1]: row[-1] for row in html_tables(guarded.html)["decision"][1:]}
     label = next(k for k in simple_rows if k.startswith(pose.pose + ",") or k == pose.pose)

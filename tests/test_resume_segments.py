@@ -25,18 +25,29 @@ def _clock(offsets_s: list[float]):
 
 
 def _registration(at_s: float) -> dict:
-    return {"utc": (START + timedelta(seconds=at_s)).isoformat(timespec="microseconds"), "u_mm": 0.01,
-            "instrument": "mice"}
+    return {
+        "utc": (START + timedelta(seconds=at_s)).isoformat(timespec="microseconds"),
+        "u_mm": 0.01,
+        "instrument": "mice",
+    }
 
 
-@pytest.mark.parametrize("resumed_wall_s", [
-    [10 + k - 7200 for k in range(5)],  # the clock 2 h behind for the whole resumed segment
-    [10, 11, -3589, -3588, -3587],  # a 1 h step back in the middle of it
-])
+@pytest.mark.parametrize(
+    "resumed_wall_s",
+    [
+        [10 + k - 7200 for k in range(5)],  # the clock 2 h behind for the whole resumed segment
+        [10, 11, -3589, -3588, -3587],  # a 1 h step back in the middle of it
+    ],
+)
 def test_a_wall_clock_jump_relabels_no_segment(tmp_path, resumed_wall_s):
     with Store(tmp_path / "bench.db") as store:
-        run_id = store.start_run(protocol_name="p", protocol_version="1", robot="pkm5", config={},
-                                 settings={"registrations": [{**_registration(0), "segment": 1, "from_step": 0}]})
+        run_id = store.start_run(
+            protocol_name="p",
+            protocol_version="1",
+            robot="pkm5",
+            config={},
+            settings={"registrations": [{**_registration(0), "segment": 1, "from_step": 0}]},
+        )
         store.wall_clock = _clock([1, 2, 3, 4, 5, *resumed_wall_s])
         for step in range(5):  # segment 1, then the run is stopped and resumed with a registration of its own
             store.add_sample(run_id, step, values={"x_mm": 1.0}, pose="P1", cycle=step + 1, t_s=float(step))
@@ -65,9 +76,11 @@ def test_a_resume_refused_for_its_calibration_writes_nothing_and_says_what_to_do
     assert main(["resume", "1", "--store", str(aborted_run), "--no-progress"]) == 2
     captured = capsys.readouterr()
     lines = captured.err.strip().splitlines()
-    assert lines[-1] == (f"bench: error: run 1: calibration {calibration.name!r} in force would be a new version "
-                         "(version 2 is the latest, with other parameters); a run resumes only with the "
-                         "calibrations it started with: start a new run (bench run)"), captured.err
+    assert lines[-1] == (
+        f"bench: error: run 1: calibration {calibration.name!r} in force would be a new version "
+        "(version 2 is the latest, with other parameters); a run resumes only with the "
+        "calibrations it started with: start a new run (bench run)"
+    ), captured.err
     assert "Traceback" not in captured.err
     assert store_dump(aborted_run) == before
 
@@ -79,5 +92,4 @@ def test_the_run_history_shows_every_abort_and_resume(aborted_run, capsys):
         events = [event.event for event in run_history(store, run)]
     assert run.status == "completed"
     assert events[0] == "started" and events[-1] == "completed"
-    assert [e for e in events if e.startswith(("aborted", "resumed"))] == ["aborted: interrupted (SIGTERM)",
-                                                                           "resumed"]
+    assert [e for e in events if e.startswith(("aborted", "resumed"))] == ["aborted: interrupted (SIGTERM)", "resumed"]

@@ -12,12 +12,19 @@ import pytest
 from bench.cli import main
 from bench.errors import ConfigError
 from bench.protocols.kinematics import robot_model
-from bench.robot_kinds import ROBOT_KINDS, RobotKind, register, robot_kind, robot_names
 from bench.rigs.station import parse_station
+from bench.robot_kinds import ROBOT_KINDS, RobotKind, register, robot_kind, robot_names
 
-TOY = RobotKind(name="toy", title="Cartesian gantry, 3 DOF (a test's toy)", baud=57600, model="toy_robot",
-                home="toy_robot:home_pose", travel_time="toy_robot:travel_s", simulator="toy_robot",
-                simulator_help="the toy gantry (tests/toy_robot.py)")
+TOY = RobotKind(
+    name="toy",
+    title="Cartesian gantry, 3 DOF (a test's toy)",
+    baud=57600,
+    model="toy_robot",
+    home="toy_robot:home_pose",
+    travel_time="toy_robot:travel_s",
+    simulator="toy_robot",
+    simulator_help="the toy gantry (tests/toy_robot.py)",
+)
 
 
 @pytest.fixture()
@@ -44,8 +51,10 @@ def test_a_toy_robot_is_a_station_robot_with_its_own_baud_rate(toy, tmp_path):
     station = parse_station({"robot": {"kind": "toy"}, "controller": {"port": "/dev/ttyUSB7"}}, source="toy.toml")
     assert (station.robot, station.controller.baud) == ("toy", 57600)
     with pytest.raises(ConfigError, match="controller.fixture = 'actuator-bench', expected one of the toy's fixtures"):
-        parse_station({"robot": {"kind": "toy"}, "controller": {"port": "/dev/ttyUSB7", "fixture": "actuator-bench"}},
-                      source="toy.toml")
+        parse_station(
+            {"robot": {"kind": "toy"}, "controller": {"port": "/dev/ttyUSB7", "fixture": "actuator-bench"}},
+            source="toy.toml",
+        )
 
 
 def test_a_toy_robot_is_pre_flighted_by_its_own_model(toy):
@@ -61,8 +70,10 @@ def test_a_toy_robot_is_pre_flighted_by_its_own_model(toy):
 
 def test_a_toy_robot_runs_a_protocol_dry_run(toy, tmp_path, capsys):
     protocol = tmp_path / "toy_pose.toml"
-    protocol.write_text('protocol = "iso9283_pose"\nrobot = "toy"\ncycles = 3\nvelocities_pct = [100]\n'
-                        'cube_centre_mm = [0, 0, 0]\ncube_side_mm = 100\n')
+    protocol.write_text(
+        'protocol = "iso9283_pose"\nrobot = "toy"\ncycles = 3\nvelocities_pct = [100]\n'
+        "cube_centre_mm = [0, 0, 0]\ncube_side_mm = 100\n"
+    )
     assert main(["run", str(protocol), "--dry-run"]) == 0
     out = capsys.readouterr().out
     assert "protocol iso9283_pose on toy: 16 moves, 15 settles, 15 captures" in out  # 5 poses x 3 cycles, home

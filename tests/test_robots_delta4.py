@@ -78,9 +78,14 @@ def test_missing_z_is_reported_but_not_required_by_default():
 
 
 def test_missing_z_raises_when_required_naming_the_command():
-    with exchange([("P080XQ073XR122XS127X", None)], settle_timeout_s=0.05) as robot, \
-            pytest.raises(LinkTimeout, match=r"scripted://: no reply to 'P080XQ073XR122XS127X' after 0\.0\d+ s, "
-                                             r"expected 'z' \(all servos in place\); received 0 bytes"):
+    with (
+        exchange([("P080XQ073XR122XS127X", None)], settle_timeout_s=0.05) as robot,
+        pytest.raises(
+            LinkTimeout,
+            match=r"scripted://: no reply to 'P080XQ073XR122XS127X' after 0\.0\d+ s, "
+            r"expected 'z' \(all servos in place\); received 0 bytes",
+        ),
+    ):
         robot.move_servos(TV4_EXACT_DEG, require_settled=True)
 
 
@@ -113,29 +118,45 @@ def test_read_pots_sends_a_and_converts_the_counts_on_the_adc_scale():
         reading = robot.read_pots()  # a sensor report around it is kept; a broken answer (p q r p) is dropped
         frame = robot.read_sensor_frame(0.5)
     assert reading.counts == (0, 44, 111, 118) and robot.last_pots == reading
-    np.testing.assert_allclose(reading.servo_deg, [30.0, 30 + 44 * 140 / 255, 30 + 111 * 140 / 255,
-                                                   30 + 118 * 140 / 255])
+    np.testing.assert_allclose(
+        reading.servo_deg, [30.0, 30 + 44 * 140 / 255, 30 + 111 * 140 / 255, 30 + 118 * 140 / 255]
+    )
     assert np.all(np.abs(np.array(reading.servo_deg[1:]) - TV4_WHOLE_DEG[1:]) <= 140 / 255 / 2)
     assert (frame.horizontal, frame.vertical) == ((), ())
 
 
 def test_read_pots_from_firmware_without_readback_names_the_query():
-    with exchange([("A", None)]) as robot, pytest.raises(LinkTimeout, match=r"no reply to 'A \(read pots\)'.*"
-                                                                             r"firmware with pot readback"):
+    with (
+        exchange([("A", None)]) as robot,
+        pytest.raises(
+            LinkTimeout,
+            match=r"no reply to 'A \(read pots\)'.*"
+            r"firmware with pot readback",
+        ),
+    ):
         robot.read_pots(timeout_s=0.05)
 
 
 def test_silence_after_start_means_no_delta4_controller():
-    with exchange([("E", None)]) as robot, pytest.raises(LinkTimeout, match=r"'E \(start\)'.*expected a sensor "
-                                                                             r"report \(H<n>X, V<n>X, h or v\)"):
+    with (
+        exchange([("E", None)]) as robot,
+        pytest.raises(
+            LinkTimeout,
+            match=r"'E \(start\)'.*expected a sensor "
+            r"report \(H<n>X, V<n>X, h or v\)",
+        ),
+    ):
         robot.start(verify_timeout_s=0.05)
 
 
-@pytest.mark.parametrize("angles, message", [
-    ((20.0, 90, 90, 90), r"servo 1: theta_R = 20\.000 deg, expected within \[30, 160\] deg \(mapping legacy_vb\)"),
-    ((90, 90, 90, 165.0), r"servo 4: theta_R = 165\.000 deg"),
-    ((90, 90, 90), "expected 4 finite angles"),
-])
+@pytest.mark.parametrize(
+    "angles, message",
+    [
+        ((20.0, 90, 90, 90), r"servo 1: theta_R = 20\.000 deg, expected within \[30, 160\] deg \(mapping legacy_vb\)"),
+        ((90, 90, 90, 165.0), r"servo 4: theta_R = 165\.000 deg"),
+        ((90, 90, 90), "expected 4 finite angles"),
+    ],
+)
 def test_out_of_range_servo_angles_are_refused_before_a_byte_is_sent(angles, message):
     with exchange([]) as robot, pytest.raises(UnreachableTarget, match=message):
         robot.move_servos(angles)
@@ -147,8 +168,14 @@ def test_calibrated_mapping_accepts_up_to_170_degrees():
 
 
 def test_unreachable_point_is_refused_before_a_byte_is_sent():
-    with exchange([]) as robot, pytest.raises(UnreachableTarget, match=r"point_mm = \(0\.0, 0\.0, -300\.0\): "
-                                                                         r"unreachable"):
+    with (
+        exchange([]) as robot,
+        pytest.raises(
+            UnreachableTarget,
+            match=r"point_mm = \(0\.0, 0\.0, -300\.0\): "
+            r"unreachable",
+        ),
+    ):
         robot.move_to((0.0, 0.0, -300.0))
 
 
@@ -162,11 +189,16 @@ def test_shutdown_sends_g_and_closes():
 def test_settings_and_repr():
     robot = Delta4Controller(ScriptedPort([]), settle_timeout_s=1.5)
     assert robot.settings() == {
-        "driver": "Delta4Controller", "port": "scripted://", "baudrate": 115200,
+        "driver": "Delta4Controller",
+        "port": "scripted://",
+        "baudrate": 115200,
         "mapping": {"name": "legacy_vb", "degrees_per_span": 190.0, "limits_deg": [30.0, 160.0]},
-        "settle_timeout_s": 1.5, "frame_gap_s": 0.03,
+        "settle_timeout_s": 1.5,
+        "frame_gap_s": 0.03,
         "pot_scale": {"name": "calibrated", "stops_deg": [[30.0, 170.0]] * 4, "direction": [1, 1, 1, 1]},
-        "heartbeat_s": None, "fine_reference": {"in_use": False, "reason": "not probed: byte references"}}
+        "heartbeat_s": None,
+        "fine_reference": {"in_use": False, "reason": "not probed: byte references"},
+    }
     assert "mapping={'name': 'legacy_vb'" in repr(robot)
     with pytest.raises(ConfigError, match=r"settle_timeout_s = 0, expected a number in \(0, 600\] s"):
         Delta4Controller(ScriptedPort([]), settle_timeout_s=0)
@@ -190,8 +222,14 @@ def test_a_controller_answering_c_gets_fine_references_on_its_pwm_tick():
     assert fine.to_deg(np.array([5951]))[0] == pytest.approx(59.5125)
     assert np.all(np.abs(fine.sent_deg(np.array(TV4_EXACT_DEG)) - TV4_EXACT_DEG) <= 0.005 + 0.01125 / 2)
     settings = robot.settings()["fine_reference"]
-    assert settings == {"in_use": True, "probed": True, "name": "fine_centidegree", "degrees_per_unit": 0.01,
-                        "controller_step_deg": pytest.approx(0.01125), "limits_deg": [30.0, 170.0]}
+    assert settings == {
+        "in_use": True,
+        "probed": True,
+        "name": "fine_centidegree",
+        "degrees_per_unit": 0.01,
+        "controller_step_deg": pytest.approx(0.01125),
+        "limits_deg": [30.0, 170.0],
+    }
     assert wire.fine_from_settings(settings) == fine
 
 
@@ -209,8 +247,11 @@ def test_fine_references_keep_the_byte_window_and_the_firmware_stops_before_send
     wide = wire.CalibratedMapping(((25.0, 175.0),) * 4)
     with exchange([("C", "c01125X")], mapping=wide) as robot:
         robot.probe_fine_references()
-        with pytest.raises(UnreachableTarget, match=r"servo 2: theta_R = 172\.000 deg, expected within \[30, 170\] "
-                                                    r"deg \(fine references\)"):
+        with pytest.raises(
+            UnreachableTarget,
+            match=r"servo 2: theta_R = 172\.000 deg, expected within \[30, 170\] "
+            r"deg \(fine references\)",
+        ):
             robot.move_servos((90, 172.0, 90, 90))
     with exchange([("C", "c01125X")]) as robot:  # legacy_vb's 160 deg still holds
         robot.probe_fine_references()
@@ -250,9 +291,12 @@ def test_framing_and_token_parser_raise_only_the_protocol_error(data):
             pass
 
 
-tokens = st.one_of(st.sampled_from([b"z", b"h", b"v"]),
-                   st.builds(lambda k, v: k + b"%03dX" % v, st.sampled_from([b"H", b"V", b"", b"p", b"q", b"r", b"s"]),
-                             st.integers(0, 255)))
+tokens = st.one_of(
+    st.sampled_from([b"z", b"h", b"v"]),
+    st.builds(
+        lambda k, v: k + b"%03dX" % v, st.sampled_from([b"H", b"V", b"", b"p", b"q", b"r", b"s"]), st.integers(0, 255)
+    ),
+)
 
 
 @settings(max_examples=200, deadline=None)

@@ -49,7 +49,7 @@ def test_a_reply_split_across_reads_behind_long_noise_is_kept_whole():
     noise = bytes((i * 37 + 11) % 256 for i in range(500)).replace(b"\n", b"~")
     port.write(noise + reply[:20])
     frame = link.read_frame(0.2, command="POS", expected="the noise, cut")
-    assert frame == noise[:len(noise) + 20 - wire.MAX_LINE]  # all but the last MAX_LINE bytes refused
+    assert frame == noise[: len(noise) + 20 - wire.MAX_LINE]  # all but the last MAX_LINE bytes refused
     with pytest.raises(LinkTimeout):
         link.read_frame(0.05, command="POS", expected="nothing yet")
     port.write(reply[20:])

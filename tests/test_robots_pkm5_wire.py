@@ -37,41 +37,50 @@ def test_noise_glued_before_a_reply_is_skipped_by_the_checksum():
         wire.parse_reply(b"\xf2)DONE #2 1*ZZ")
 
 
-@pytest.mark.parametrize("line, message", [
-    (b"ID #1*3E", "checksum"),
-    (b"ID #1", "no '\\*HH' checksum"),
-    (b"X" * 200 + b"*00", "expected at most 96"),
-    (b"ID\x01 #1*" + wire.checksum(b"ID\x01 #1").encode(), "printable ASCII"),
-])
+@pytest.mark.parametrize(
+    "line, message",
+    [
+        (b"ID #1*3E", "checksum"),
+        (b"ID #1", "no '\\*HH' checksum"),
+        (b"X" * 200 + b"*00", "expected at most 96"),
+        (b"ID\x01 #1*" + wire.checksum(b"ID\x01 #1").encode(), "printable ASCII"),
+    ],
+)
 def test_decode_refuses_corrupted_lines_with_the_reason(line, message):
     with pytest.raises(WireProtocolError, match=message):
         wire.decode_line(line)
 
 
-@pytest.mark.parametrize("body, message", [
-    ("JUMP #1", "unknown command"),
-    ("MOVE 1 2 3 #1", "MOVE takes 7 arguments, got 3"),
-    ("POS", "exactly one '#TAG'"),
-    ("MOVE 1 2 3 4 5 x 200 #1", "'x' is not a decimal integer"),
-])
+@pytest.mark.parametrize(
+    "body, message",
+    [
+        ("JUMP #1", "unknown command"),
+        ("MOVE 1 2 3 #1", "MOVE takes 7 arguments, got 3"),
+        ("POS", "exactly one '#TAG'"),
+        ("MOVE 1 2 3 4 5 x 200 #1", "'x' is not a decimal integer"),
+    ],
+)
 def test_parse_command_names_what_is_wrong(body, message):
     with pytest.raises(WireProtocolError, match=message):
         wire.parse_command(wire.encode_line(body)[:-1])
 
 
-@pytest.mark.parametrize("line, code, tag", [
-    (b"POS #3*00", wire.ErrorCode.CHECKSUM, 0),
-    (b"\xf2\x01garbage*ZZ", wire.ErrorCode.CHECKSUM, 0),                        # garbage: checksum first
-    (b"\x13\x37" + wire.encode_line("POS #6")[:-1], wire.ErrorCode.CHECKSUM, 0),  # noise glued in front
-    (wire.encode_line("\x01\x02 #5")[:-1], wire.ErrorCode.SYNTAX, 5),            # checksummed non-printable
-    (wire.encode_line("MOVE 1 2 3 4 5 6 7 8 9 #7")[:-1], wire.ErrorCode.SYNTAX, 7),  # too many tokens: its tag
-    (wire.encode_line("POS #+5")[:-1], wire.ErrorCode.SYNTAX, 0),
-    (wire.encode_line("POS #1234567890")[:-1], wire.ErrorCode.SYNTAX, 0),        # 10 digits: untrusted tag
-    (wire.encode_line("POS #1 #2")[:-1], wire.ErrorCode.SYNTAX, 0),
-    (wire.encode_line("ID\t#10")[:-1], wire.ErrorCode.SYNTAX, 0),                # fields split on spaces only
-    (wire.encode_line("SETPOS +1 2 3 4 5 6 #11")[:-1], wire.ErrorCode.SYNTAX, 11),
-    (b"Q" * 97, wire.ErrorCode.TOO_LONG, 0),
-])
+@pytest.mark.parametrize(
+    "line, code, tag",
+    [
+        (b"POS #3*00", wire.ErrorCode.CHECKSUM, 0),
+        (b"\xf2\x01garbage*ZZ", wire.ErrorCode.CHECKSUM, 0),  # garbage: checksum first
+        (b"\x13\x37" + wire.encode_line("POS #6")[:-1], wire.ErrorCode.CHECKSUM, 0),  # noise glued in front
+        (wire.encode_line("\x01\x02 #5")[:-1], wire.ErrorCode.SYNTAX, 5),  # checksummed non-printable
+        (wire.encode_line("MOVE 1 2 3 4 5 6 7 8 9 #7")[:-1], wire.ErrorCode.SYNTAX, 7),  # too many tokens: its tag
+        (wire.encode_line("POS #+5")[:-1], wire.ErrorCode.SYNTAX, 0),
+        (wire.encode_line("POS #1234567890")[:-1], wire.ErrorCode.SYNTAX, 0),  # 10 digits: untrusted tag
+        (wire.encode_line("POS #1 #2")[:-1], wire.ErrorCode.SYNTAX, 0),
+        (wire.encode_line("ID\t#10")[:-1], wire.ErrorCode.SYNTAX, 0),  # fields split on spaces only
+        (wire.encode_line("SETPOS +1 2 3 4 5 6 #11")[:-1], wire.ErrorCode.SYNTAX, 11),
+        (b"Q" * 97, wire.ErrorCode.TOO_LONG, 0),
+    ],
+)
 def test_refusals_carry_the_firmware_code_and_tag(line, code, tag):
     with pytest.raises(wire.CommandRefused) as caught:
         wire.parse_command(line)
@@ -95,6 +104,7 @@ def test_crc16_is_ccitt_false_and_frames_version_2():
 def test_no_randomly_corrupted_version_2_frame_is_accepted():
     """3000 frames here (a few seconds); benchmarks/bench_pkm5_link.py runs 10^6 and the XOR-8 peer."""
     from bench.robots.line_fuzz import accepted_count
+
     assert accepted_count(3000, 2, seed=1) == 0
     assert accepted_count(3000, 1, seed=1) > 20  # the same corruptions pass XOR-8: the test can see an acceptance
 

@@ -8,11 +8,11 @@ from hypothesis import strategies as st
 
 from bench.robots import delta4_wire as dwire
 from bench.robots import pkm5_kinematics as kin
-from bench.simulators import pkm5_plant
 from bench.robots import pkm5_wire as wire
-from bench.simulators.error_model import ErrorMagnitudes, ErrorModel, JointMemory
+from bench.simulators import pkm5_plant
 from bench.simulators.delta4 import Delta4SimDevice
 from bench.simulators.delta4 import build_plant as delta4_plant
+from bench.simulators.error_model import ErrorMagnitudes, ErrorModel, JointMemory
 from bench.simulators.pkm5 import Pkm5SimDevice
 from bench.simulators.pty import TruthLog, read_last_truth
 from motion import delta4
@@ -51,18 +51,23 @@ def test_pkm5_move_runs_in_scaled_time_and_reports_done(pkm5_device):
 def test_pkm5_stop_ends_the_move_where_it_is(pkm5_device):
     send(pkm5_device, "ENABLE #1", 0.0)
     send(pkm5_device, "MOVE 2800 2800 2800 2800 1600 1600 200 #2", 0.0)
-    assert send(pkm5_device, "STOP #3", 0.25) == ["ERR #2 8 STOPPED 1300 1300 1300 1300 1600 1600",
-                                                 "OK #3 STOP 1300 1300 1300 1300 1600 1600"]
+    assert send(pkm5_device, "STOP #3", 0.25) == [
+        "ERR #2 8 STOPPED 1300 1300 1300 1300 1600 1600",
+        "OK #3 STOP 1300 1300 1300 1300 1600 1600",
+    ]
     assert lines(pkm5_device.tick(5.0)) == []
 
 
-@pytest.mark.parametrize("raw, reply", [
-    (b"POS #1*00\n", "ERR #0 2 CHECKSUM"),
-    (wire.encode_line("JUMP #4"), "ERR #4 1 SYNTAX"),
-    (wire.encode_line("MOVE 1 2 3 4 5 6 0 #5"), "ERR #5 4 ARGUMENT"),
-    (wire.encode_line("MOVE 99999 2 3 4 5 6 200 #6"), "ERR #6 5 LIMIT"),
-    (b"A" * 300 + b"\n", "ERR #0 3 TOO_LONG"),
-])
+@pytest.mark.parametrize(
+    "raw, reply",
+    [
+        (b"POS #1*00\n", "ERR #0 2 CHECKSUM"),
+        (wire.encode_line("JUMP #4"), "ERR #4 1 SYNTAX"),
+        (wire.encode_line("MOVE 1 2 3 4 5 6 0 #5"), "ERR #5 4 ARGUMENT"),
+        (wire.encode_line("MOVE 99999 2 3 4 5 6 200 #6"), "ERR #6 5 LIMIT"),
+        (b"A" * 300 + b"\n", "ERR #0 3 TOO_LONG"),
+    ],
+)
 def test_pkm5_refusals_carry_their_code(pkm5_device, raw, reply):
     send(pkm5_device, "ENABLE #9", 0.0)
     assert lines(pkm5_device.feed(raw, 0.0)) == [reply]
@@ -81,8 +86,10 @@ def test_pkm5_simulator_only_commands(pkm5_device):
 
 def test_pkm5_truth_log_gets_each_settled_pose(tmp_path):
     path = tmp_path / "truth.jsonl"
-    device = Pkm5SimDevice(lambda steps, load: np.array([1.0, 2.0, 3.0, 4.0, float(steps[0])]),
-                           truth=TruthLog(path, ("x_mm", "y_mm", "z_mm", "alpha_deg", "beta_deg")))
+    device = Pkm5SimDevice(
+        lambda steps, load: np.array([1.0, 2.0, 3.0, 4.0, float(steps[0])]),
+        truth=TruthLog(path, ("x_mm", "y_mm", "z_mm", "alpha_deg", "beta_deg")),
+    )
     device.feed(wire.encode_line("SETPOS 900 800 800 800 1600 1600 #1"), 0.0)
     entry = read_last_truth(path)
     assert entry["seq"] == 1 and entry["pose"] == [1.0, 2.0, 3.0, 4.0, 900.0]
@@ -106,14 +113,15 @@ def test_the_newest_truth_entry_is_read_from_the_log_s_tail_past_a_line_being_wr
 
 
 def delta_device(**kwargs):
-    return Delta4SimDevice(lambda q, load: np.zeros(3), dwire.LegacyVbMapping(),
-                           home_servo_deg=np.full(4, 71.66), **kwargs)
+    return Delta4SimDevice(
+        lambda q, load: np.zeros(3), dwire.LegacyVbMapping(), home_servo_deg=np.full(4, 71.66), **kwargs
+    )
 
 
 def test_delta4_references_while_stopped_are_stored_and_z_follows_start():
     device = delta_device(speed_factor=1.0)
     assert device.feed(b"P174XQ170XR099XS105X", 0.0) == b"" and list(device.references) == [174, 170, 99, 105]
-    assert device.tick(5.0) == b""          # stopped: no z, no reports
+    assert device.tick(5.0) == b""  # stopped: no z, no reports
     device.feed(b"E", 10.0)
     # worst servo 129.65 - 71.66 = 57.99 deg: ln(57.99 / (140/255)) / 4 s + 10 x 2 ms = 1.1863 s
     assert device.tick(10.0) == b"hv"
@@ -146,8 +154,12 @@ def test_delta4_fine_references_set_the_angle_on_the_tick_whatever_came_before(s
 
 
 def test_delta4_stop_ends_reports_and_sensor_hook_formats_hits():
-    device = Delta4SimDevice(lambda q, load: np.zeros(3), dwire.LegacyVbMapping(),
-                             sensor=lambda pose: ((17, 18), ()), home_servo_deg=np.full(4, 71.66))
+    device = Delta4SimDevice(
+        lambda q, load: np.zeros(3),
+        dwire.LegacyVbMapping(),
+        sensor=lambda pose: ((17, 18), ()),
+        home_servo_deg=np.full(4, 71.66),
+    )
     device.feed(b"E", 0.0)
     assert device.tick(0.0) == b"H017XH018Xv"
     assert device.tick(0.08) == b"H017XH018Xv"
@@ -188,11 +200,25 @@ def test_ideal_pkm5_plant_attains_the_commanded_pose_within_step_quantisation():
 
 
 # Table A.11 (pkm5.md §6.8): the 15 translation test points, mm
-TABLE_A11 = np.array([
-    (170.67, -91.43, 268.83), (171.83, -98.75, 264.29), (163.49, -86.82, 275.46), (167.59, -36.14, 293.74),
-    (174.87, -47.07, 293.64), (151.93, -71.93, 292.72), (110.52, -0.19, 305.5), (99.12, -18.53, 345.4),
-    (177.3, 19.54, 294.36), (139.28, 33.52, 312.11), (142.83, 46.43, 302.21), (145.77, 67.62, 304.64),
-    (160.7, 86.19, 281.34), (130.6, 91.48, 297.3), (130.06, 105.95, 292.9)])
+TABLE_A11 = np.array(
+    [
+        (170.67, -91.43, 268.83),
+        (171.83, -98.75, 264.29),
+        (163.49, -86.82, 275.46),
+        (167.59, -36.14, 293.74),
+        (174.87, -47.07, 293.64),
+        (151.93, -71.93, 292.72),
+        (110.52, -0.19, 305.5),
+        (99.12, -18.53, 345.4),
+        (177.3, 19.54, 294.36),
+        (139.28, 33.52, 312.11),
+        (142.83, 46.43, 302.21),
+        (145.77, 67.62, 304.64),
+        (160.7, 86.19, 281.34),
+        (130.6, 91.48, 297.3),
+        (130.06, 105.95, 292.9),
+    ]
+)
 
 
 def ap_rp(attained, commanded):

@@ -20,8 +20,8 @@ import serial
 from bench.errors import LinkError, LinkTimeout
 from bench.robots.delta4 import Delta4Controller
 from bench.robots.pkm5 import Pkm5Controller
-from bench.simulators.pty import read_last_truth
 from bench.simulators.client import SimulatorClient
+from bench.simulators.pty import read_last_truth
 
 POINT_3_1 = (110.52, -0.19, 305.5, 0.0, 0.0)  # Table A.11 point 3-1 (pkm5.md §6.8)
 
@@ -29,8 +29,12 @@ POINT_3_1 = (110.52, -0.19, 305.5, 0.0, 0.0)  # Table A.11 point 3-1 (pkm5.md §
 @contextlib.contextmanager
 def simulator(robot, *args):
     """Start ``python -m bench.simulators.<robot>``; yield (process, device path, stdout lines after it)."""
-    process = subprocess.Popen([sys.executable, "-m", f"bench.simulators.{robot}", *args],
-                               stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    process = subprocess.Popen(
+        [sys.executable, "-m", f"bench.simulators.{robot}", *args],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
     try:
         ready, _, _ = select.select([process.stdout], [], [], 30)
         assert ready, "simulator printed no device path within 30 s"
@@ -56,8 +60,10 @@ def pkm5_on(path, **kwargs):
 
 def test_pkm5_campaign_step_through_the_pty(tmp_path):
     truth = tmp_path / "truth.jsonl"
-    with simulator("pkm5", "--speed-factor", "50", "--seed", "7", "--truth", str(truth)) as (_, path, extra), \
-            pkm5_on(path) as robot:
+    with (
+        simulator("pkm5", "--speed-factor", "50", "--seed", "7", "--truth", str(truth)) as (_, path, extra),
+        pkm5_on(path) as robot,
+    ):
         assert extra == [str(truth)]
         assert robot.identify().firmware_version == "1.0.0-sim"
         assert robot.position().state == "DISABLED"
@@ -75,8 +81,10 @@ def test_pkm5_campaign_step_through_the_pty(tmp_path):
 
 def test_the_truth_log_gives_the_pose_simtrue_answers_after_every_move_stop_and_setpos(tmp_path):
     truth = tmp_path / "truth.jsonl"
-    with simulator("pkm5", "--speed-factor", "50", "--seed", "7", "--truth", str(truth)) as (_, path, _extra), \
-            pkm5_on(path) as robot:
+    with (
+        simulator("pkm5", "--speed-factor", "50", "--seed", "7", "--truth", str(truth)) as (_, path, _extra),
+        pkm5_on(path) as robot,
+    ):
         asked, logged = SimulatorClient(robot), SimulatorClient(robot, str(truth))
         at_power_up = logged.true_pose()  # an empty log: SIMTRUE answers
         assert truth.read_text() == "" and np.array_equal(at_power_up, asked.true_pose())
@@ -181,8 +189,10 @@ def _ctrl_c_during_a_move() -> None:
 
 
 def test_garbage_on_the_line_is_survived():
-    with simulator("pkm5", "--speed-factor", "50", "--garbage-every-s", "0.05") as (_, path, _extra), \
-            pkm5_on(path, retries=4) as robot:
+    with (
+        simulator("pkm5", "--speed-factor", "50", "--garbage-every-s", "0.05") as (_, path, _extra),
+        pkm5_on(path, retries=4) as robot,
+    ):
         robot.link.port.write(b"\x00\xff#!garbage\n")  # and garbage towards the controller
         robot.enable()
         for pose in (POINT_3_1, (99.12, -18.53, 345.4, 0, 0), POINT_3_1):
@@ -192,8 +202,10 @@ def test_garbage_on_the_line_is_survived():
 
 
 def test_late_replies_time_out_cleanly_then_are_recognised_as_stale():
-    with simulator("pkm5", "--reply-delay-s", "0.4") as (_, path, _extra), \
-            pkm5_on(path, reply_timeout_s=0.15, retries=0) as robot:
+    with (
+        simulator("pkm5", "--reply-delay-s", "0.4") as (_, path, _extra),
+        pkm5_on(path, reply_timeout_s=0.15, retries=0) as robot,
+    ):
         started = time.monotonic()
         with pytest.raises(LinkTimeout, match=rf"{path}: no reply to 'POS' after 0\.\d+ s"):
             robot.position()
@@ -207,34 +219,56 @@ def test_port_vanishing_mid_move_gives_a_bounded_link_error(vanishing):
     with simulator("pkm5") as (process, path, _extra), pkm5_on(path) as robot:
         robot.enable()
         started = time.monotonic()
-        killer = (_after_first_reply(0.3, process.kill) if vanishing == "during a read"
-                  else _on_the_link_log(_KillAtTheFirstBeatReply(process, robot.heartbeat_s)))
-        with killer, pytest.raises(LinkError, match=rf"{path}: port failed while waiting for the reply to 'MOVE' "
-                                                    r"\(expected 'DONE #\d+ \.\.\.'"):
+        killer = (
+            _after_first_reply(0.3, process.kill)
+            if vanishing == "during a read"
+            else _on_the_link_log(_KillAtTheFirstBeatReply(process, robot.heartbeat_s))
+        )
+        with (
+            killer,
+            pytest.raises(
+                LinkError,
+                match=rf"{path}: port failed while waiting for the reply to 'MOVE' "
+                r"\(expected 'DONE #\d+ \.\.\.'",
+            ),
+        ):
             robot.move_steps([2656, 2656, 2669, 2669, 2720, 2720])
         assert time.monotonic() - started < 3.0
 
 
 def test_pkm5_driver_on_a_delta4_controller_says_wrong_device():
-    with simulator("delta4") as (_, path, _extra), pkm5_on(path, reply_timeout_s=0.2, retries=0) as robot, \
-            pytest.raises(LinkTimeout, match=rf"{path}: no reply to 'ID' .* expected 'OK #1 \.\.\.' from a "
-                                             r"bench-pkm5 controller"):
+    with (
+        simulator("delta4") as (_, path, _extra),
+        pkm5_on(path, reply_timeout_s=0.2, retries=0) as robot,
+        pytest.raises(
+            LinkTimeout,
+            match=rf"{path}: no reply to 'ID' .* expected 'OK #1 \.\.\.' from a "
+            r"bench-pkm5 controller",
+        ),
+    ):
         robot.identify()
 
 
 def test_delta4_driver_on_a_pkm5_controller_says_wrong_device():
-    with simulator("pkm5") as (_, path, _extra), \
-            Delta4Controller(serial.serial_for_url(path, baudrate=9600)) as robot, \
-            pytest.raises(LinkTimeout, match=rf"{path}: no reply to 'E \(start\)' .* expected a sensor report"):
+    with (
+        simulator("pkm5") as (_, path, _extra),
+        Delta4Controller(serial.serial_for_url(path, baudrate=9600)) as robot,
+        pytest.raises(LinkTimeout, match=rf"{path}: no reply to 'E \(start\)' .* expected a sensor report"),
+    ):
         robot.start(verify_timeout_s=0.3)
 
 
 def test_delta4_move_through_the_pty(tmp_path):
     truth = tmp_path / "truth.jsonl"
-    with simulator("delta4", "--speed-factor", "20", "--seed", "3", "--truth", str(truth), "--no-grid") \
-            as (_, path, _extra), \
-            Delta4Controller(serial.serial_for_url(path, baudrate=9600)) as robot:
-        assert robot.start() .horizontal == ()
+    with (
+        simulator("delta4", "--speed-factor", "20", "--seed", "3", "--truth", str(truth), "--no-grid") as (
+            _,
+            path,
+            _extra,
+        ),
+        Delta4Controller(serial.serial_for_url(path, baudrate=9600)) as robot,
+    ):
+        assert robot.start().horizontal == ()
         result = robot.move_to((-70.0, 60.0, -200.0), require_settled=True)
         frame = robot.read_sensor_frame()
     assert result.settled and result.command_bytes == (174, 170, 99, 105)
@@ -244,8 +278,12 @@ def test_delta4_move_through_the_pty(tmp_path):
 
 
 def test_bench_sim_cli_prints_the_device_path():
-    process = subprocess.Popen([sys.executable, "-m", "bench.cli", "sim", "delta4", "--speed-factor", "5"],
-                               stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    process = subprocess.Popen(
+        [sys.executable, "-m", "bench.cli", "sim", "delta4", "--speed-factor", "5"],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
     try:
         ready, _, _ = select.select([process.stdout], [], [], 30)
         path = process.stdout.readline().strip() if ready else ""
@@ -260,7 +298,11 @@ def test_bench_sim_cli_prints_the_device_path():
 
 
 def test_bench_sim_cli_refuses_a_bad_speed_factor():
-    done = subprocess.run([sys.executable, "-m", "bench.cli", "sim", "pkm5", "--speed-factor", "-1"],
-                          capture_output=True, text=True, timeout=60)
+    done = subprocess.run(
+        [sys.executable, "-m", "bench.cli", "sim", "pkm5", "--speed-factor", "-1"],
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
     assert done.returncode == 2
     assert done.stderr.strip() == "bench: error: --speed-factor = -1.0, expected a finite number > 0"

@@ -12,7 +12,6 @@ import time
 from pathlib import Path
 
 import pytest
-
 from cli_runs import BENCH, wait_for_samples
 
 from bench.cli import main
@@ -25,9 +24,25 @@ STATION = ROOT / "examples" / "stations" / "pkm5_mice.toml"
 
 
 def _start(store, speed_factor: str) -> subprocess.Popen:
-    return subprocess.Popen([BENCH, "run", str(QUICK), "--station", str(STATION), "--sim", "--store", str(store),
-                             "--no-progress", "--speed-factor", speed_factor],
-                            stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    return subprocess.Popen(
+        [
+            BENCH,
+            "run",
+            str(QUICK),
+            "--station",
+            str(STATION),
+            "--sim",
+            "--store",
+            str(store),
+            "--no-progress",
+            "--speed-factor",
+            speed_factor,
+        ],
+        stdin=subprocess.PIPE,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
 
 
 def _runs_json(store, capsys) -> list[dict]:
@@ -48,14 +63,17 @@ def test_a_second_resume_of_a_live_run_is_refused_naming_the_owner_and_the_run_c
         assert run["reason"].startswith(f"owned by pid {process.pid} on {host} since ")
         with Store(store) as opened:
             before = opened.stored_rows(run["id"]).fetchall()
-        assert main(["resume", str(run["id"]), "--store", str(store), "--station", str(STATION), "--sim",
-                     "--no-progress"]) == 1
+        assert (
+            main(["resume", str(run["id"]), "--store", str(store), "--station", str(STATION), "--sim", "--no-progress"])
+            == 1
+        )
         err = capsys.readouterr().err.splitlines()
         assert len(err) == 1 and err[0].startswith(
-            f"bench: error: run {run['id']}: owned by a live process, pid {process.pid} on {host} since ")
+            f"bench: error: run {run['id']}: owned by a live process, pid {process.pid} on {host} since "
+        )
         assert err[0].endswith(f"left untouched (wait for it to end, or stop it: kill -TERM {process.pid} on {host})")
         with Store(store) as opened:  # the refused resume wrote nothing
-            assert opened.stored_rows(run["id"]).fetchall()[:len(before)] == before
+            assert opened.stored_rows(run["id"]).fetchall()[: len(before)] == before
             assert opened.run(run["id"]).status == "running"
         out, err_text = process.communicate("r\n", timeout=120)
     finally:
@@ -80,8 +98,10 @@ def test_a_killed_run_reads_as_interrupted_and_resumes(tmp_path, capsys):
     assert run["reason"].endswith(f") is gone; next: bench resume {run['id']}")
     assert main(["runs", "--store", str(store)]) == 0
     assert f" {INTERRUPTED} " in capsys.readouterr().out
-    assert main(["resume", str(run["id"]), "--store", str(store), "--station", str(STATION), "--sim",
-                 "--no-progress"]) == 0
+    assert (
+        main(["resume", str(run["id"]), "--store", str(store), "--station", str(STATION), "--sim", "--no-progress"])
+        == 0
+    )
     (run,) = _runs_json(store, capsys)
     assert (run["status"], run["n_samples"]) == ("completed", 15)
     assert not lock_path(store, run["id"]).exists()
@@ -119,12 +139,15 @@ def test_an_owner_on_another_host_is_alive_while_its_heartbeat_is_fresh(tmp_path
     lock.write_text(json.dumps({"pid": 4242, "host": "other-host", "since_utc": "2026-12-01T10:00:00+00:00"}))
     with Store(path) as store:
         assert (store.run(run_id).status, store.run(run_id).reason) == (
-            "running", "owned by pid 4242 on other-host since 2026-12-01T10:00:00 UTC")
+            "running",
+            "owned by pid 4242 on other-host since 2026-12-01T10:00:00 UTC",
+        )
         stale = time.time() - STALE_AFTER_S - 1
         os.utime(lock, (stale, stale))
         assert (store.run(run_id).status, store.run(run_id).reason) == (
-            INTERRUPTED, "its owner (pid 4242 on other-host since 2026-12-01T10:00:00 UTC) is gone; "
-                         f"next: bench resume {run_id}")
+            INTERRUPTED,
+            f"its owner (pid 4242 on other-host since 2026-12-01T10:00:00 UTC) is gone; next: bench resume {run_id}",
+        )
 
 
 def test_a_store_in_memory_is_owned_by_its_process(tmp_path):

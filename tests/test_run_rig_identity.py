@@ -29,8 +29,23 @@ def rehearsed(tmp_path_factory) -> Path:
     """A store holding one iso9283_pose_quick run on the pkm5_mice station rehearsed on simulators, left aborted
     (resumable) as a stop would leave it."""
     store = tmp_path_factory.mktemp("rig") / "bench.db"
-    assert main(["run", str(QUICK), "--station", str(STATION), "--sim", "--store", str(store), "--no-progress",
-                 "--speed-factor", "300"]) == 0
+    assert (
+        main(
+            [
+                "run",
+                str(QUICK),
+                "--station",
+                str(STATION),
+                "--sim",
+                "--store",
+                str(store),
+                "--no-progress",
+                "--speed-factor",
+                "300",
+            ]
+        )
+        == 0
+    )
     with Store(store) as opened:
         opened.set_status(1, "aborted", "interrupted (SIGTERM)")
     return store
@@ -39,8 +54,10 @@ def rehearsed(tmp_path_factory) -> Path:
 def test_run_without_a_rig_is_refused_in_one_line_naming_both_flags(tmp_path, capsys):
     store = tmp_path / "bench.db"
     assert main(["run", str(QUICK), "--store", str(store), "--no-progress"]) == 2
-    assert _one_error_line(capsys) == (f"bench: error: bench run {QUICK}: no rig named, expected --station "
-                                       "STATION.toml (the bench's devices) or --sim (the simulator)")
+    assert _one_error_line(capsys) == (
+        f"bench: error: bench run {QUICK}: no rig named, expected --station "
+        "STATION.toml (the bench's devices) or --sim (the simulator)"
+    )
     assert not store.exists()
 
 
@@ -49,8 +66,7 @@ def test_runs_shows_simulated_runs_as_such(rehearsed, tmp_path, capsys):
     store.write_bytes(rehearsed.read_bytes())
     with Store(store) as opened:  # a run on hardware: its settings name a station and no simulator
         settings = {key: value for key, value in opened.run(1).settings.items() if key != "simulator"}
-        opened.start_run(protocol_name="iso9283_pose", protocol_version="1", robot="pkm5", config={},
-                         settings=settings)
+        opened.start_run(protocol_name="iso9283_pose", protocol_version="1", robot="pkm5", config={}, settings=settings)
         opened.set_status(2, "completed")
     capsys.readouterr()
     assert main(["runs", "--store", str(store)]) == 0
@@ -71,8 +87,10 @@ def test_resume_with_another_device_under_test_is_refused_and_writes_nothing(reh
     before = store_dump(store)
     capsys.readouterr()
     assert main(["resume", "1", "--station", str(other), "--sim", "--store", str(store), "--no-progress"]) == 2
-    assert _one_error_line(capsys) == (f"bench: error: the resumed run: device under test is PKM5-0001, the station "
-                                       f"{other} names PKM5-0002; resume it with the station it ran on")
+    assert _one_error_line(capsys) == (
+        f"bench: error: the resumed run: device under test is PKM5-0001, the station "
+        f"{other} names PKM5-0002; resume it with the station it ran on"
+    )
     assert store_dump(store) == before
 
 
@@ -82,7 +100,9 @@ def test_resume_of_a_station_run_on_the_simulator_is_refused_and_writes_nothing(
     before = store_dump(store)
     capsys.readouterr()
     assert main(["resume", "1", "--store", str(store), "--no-progress"]) == 2
-    assert _one_error_line(capsys) == (f"bench: error: the resumed run: ran on station {STATION} rehearsed on "
-                                       "simulators (--sim), resume asked for the simulator (--sim); resume it on the "
-                                       "rig it ran on")
+    assert _one_error_line(capsys) == (
+        f"bench: error: the resumed run: ran on station {STATION} rehearsed on "
+        "simulators (--sim), resume asked for the simulator (--sim); resume it on the "
+        "rig it ran on"
+    )
     assert store_dump(store) == before

@@ -11,8 +11,7 @@ import pytest
 
 from bench.protocols import Measurement, Rig, Runner
 from bench.protocols.iso9283 import PoseAccuracy
-from bench.store import Store
-from bench.store import sample_writer
+from bench.store import Store, sample_writer
 from bench.store.connection import StoreError
 from bench.store.sample_writer import SampleWriter
 
@@ -81,6 +80,7 @@ def held_commits(monkeypatch):
 
     monkeypatch.setattr(SampleWriter, "add", add)
     monkeypatch.setattr(SampleWriter, "wait", wait)
+
     def checkpoint(db):
         real_checkpoint(db)
         log.append(("checkpoint", len([e for e in log if e[0] == "durable"])))
@@ -91,8 +91,7 @@ def held_commits(monkeypatch):
 
 
 def _rig(log, moved):
-    return Rig(LoggingRobot(log, moved), LoggingInstrument(log), NoOperator(), speed_factor=1e6,
-               sleep=lambda s: None)
+    return Rig(LoggingRobot(log, moved), LoggingInstrument(log), NoOperator(), speed_factor=1e6, sleep=lambda s: None)
 
 
 def _protocol():
@@ -112,7 +111,7 @@ def test_each_commit_overlaps_the_next_move_and_a_sample_is_reported_only_once_d
         assert taken < durable < reported  # told only once on disk
         if ("measure", k + 1) in where:
             assert durable < where[("measure", k + 1)]  # the next sample is taken only after this one is durable
-        between = [entry[0] for entry in log[taken + 1:durable]]
+        between = [entry[0] for entry in log[taken + 1 : durable]]
         assert between[:1] in (["move"], ["runner waits"])  # what released the commit
         overlapped += between[:1] == ["move"]
     # every commit overlaps the next move (the last one: the clean-up move): a cycle's checkpoint step queues the
@@ -171,8 +170,9 @@ def test_a_store_in_memory_commits_at_once_and_one_commit_is_in_flight_at_a_time
         assert [s.values for s in store.samples(run_id)] == [{"x_mm": 1.0}]
 
 
-def test_a_pause_requested_as_the_checkpoint_is_reached_waits_for_the_cycles_commits_first(tmp_path, held_commits,
-                                                                                           monkeypatch):
+def test_a_pause_requested_as_the_checkpoint_is_reached_waits_for_the_cycles_commits_first(
+    tmp_path, held_commits, monkeypatch
+):
     # the request comes from another thread (a window's Pause button) between the runner's look at the requests
     # and its pause: the operator must still see every sample of the cycle durable and the .db file complete
     log, release = held_commits
@@ -196,7 +196,7 @@ def test_a_pause_requested_as_the_checkpoint_is_reached_waits_for_the_cycles_com
         assert (result.exit_status, result.samples) == ("completed", SAMPLES)
     paused = log.index(("paused", 5))  # the first checkpoint comes after the cycle's 5 samples, all reported
     assert log.index(("durable", 5)) < log.index(("checkpoint", 5)) < paused
-    assert [e for e in log[log.index(("taken", 5)):paused] if e[0] == "move"] == []  # the robot waited too
+    assert [e for e in log[log.index(("taken", 5)) : paused] if e[0] == "move"] == []  # the robot waited too
 
 
 def test_a_robot_failure_during_a_failed_commit_names_both(tmp_path, monkeypatch):
@@ -219,10 +219,12 @@ def test_a_robot_failure_during_a_failed_commit_names_both(tmp_path, monkeypatch
 
     monkeypatch.setattr(sample_writer, "insert_sample_row", insert)
     with Store(tmp_path / "bench.db") as store:
-        rig = Rig(FailingRobot(log, moved), LoggingInstrument(log), NoOperator(), speed_factor=1e6,
-                  sleep=lambda s: None)
+        rig = Rig(
+            FailingRobot(log, moved), LoggingInstrument(log), NoOperator(), speed_factor=1e6, sleep=lambda s: None
+        )
         result = Runner(rig, store).run(_protocol())
         stored_reason = store.run(result.run_id).reason
     assert result.exit_status == "failed"
-    assert stored_reason == ("RuntimeError: link lost; the last sample's commit failed: StoreError: store: disk I/O "
-                             "error")
+    assert stored_reason == (
+        "RuntimeError: link lost; the last sample's commit failed: StoreError: store: disk I/O error"
+    )

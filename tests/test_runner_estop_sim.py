@@ -6,13 +6,13 @@ from __future__ import annotations
 import threading
 
 import pytest
+from runner_support import RunInThread, wait_until
 
 from bench.protocols import Capture, Move, Settle
 from bench.protocols.base import Protocol
 from bench.simulators.rig import simulated_rig
 from bench.steps import commanded_values
 from bench.store import Store
-from runner_support import RunInThread, wait_until
 
 TARGET = (110.0, 0.0, 320.0, 0.0, 0.0)
 
@@ -94,7 +94,11 @@ def test_emergency_stop_during_a_move_on_the_simulator(tmp_path, rig_at):
     run.runner.emergency_stop()
     result = run.finished()
     assert (result.exit_status, result.reason, result.samples, result.exception) == (
-        "aborted", "emergency stop", 0, None)
+        "aborted",
+        "emergency stop",
+        0,
+        None,
+    )
     (ended,) = rig.robot.moves  # the controller cut the move; no clean-up move followed
     assert "controller refused 'MOVE' with error 8 STOPPED" in ended
     assert rig.robot.stops == [threading.current_thread().name, "runner-thread"]

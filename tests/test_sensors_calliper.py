@@ -22,7 +22,6 @@ from bench.sensors.calliper import (
     tilt_reading,
     tilt_uncertainty_deg,
 )
-from bench.simulators.calliper import CalliperSimulator, depths_for_tilt
 from bench.sensors.calliper_wedge import (
     EvdevWedge,
     WedgeDecoder,
@@ -30,10 +29,21 @@ from bench.sensors.calliper_wedge import (
     encode_keystrokes,
     key_symbol,
 )
+from bench.simulators.calliper import CalliperSimulator, depths_for_tilt
 
 
-@pytest.mark.parametrize("text, mm", [("12.34", 12.34), ("-0,50 mm", -0.5), ("+7", 7.0), (".25", 0.25),
-                                      ("0.4865 in", 12.3571), ('1"', 25.4), (" 150.00MM ", 150.0)])
+@pytest.mark.parametrize(
+    "text, mm",
+    [
+        ("12.34", 12.34),
+        ("-0,50 mm", -0.5),
+        ("+7", 7.0),
+        (".25", 0.25),
+        ("0.4865 in", 12.3571),
+        ('1"', 25.4),
+        (" 150.00MM ", 150.0),
+    ],
+)
 def test_parse_length_accepts_calliper_formats(text, mm):
     assert parse_length(text) == pytest.approx(mm)
 
@@ -44,8 +54,11 @@ def test_parse_length_rejects_naming_the_text(text):
         parse_length(text)
 
 
-@given(st.decimals(min_value=-1000, max_value=1000, places=2, allow_nan=False, allow_infinity=False),
-       st.sampled_from([".", ","]), st.sampled_from(["", " mm", "mm"]))
+@given(
+    st.decimals(min_value=-1000, max_value=1000, places=2, allow_nan=False, allow_infinity=False),
+    st.sampled_from([".", ","]),
+    st.sampled_from(["", " mm", "mm"]),
+)
 def test_parse_length_round_trips_displayed_values(value, separator, unit):
     text = f"{value:.2f}".replace(".", separator) + unit
     assert parse_length(text) == pytest.approx(float(value), abs=1e-9)
@@ -109,7 +122,9 @@ def test_serial_calliper_over_a_pty():
         with pytest.raises(MalformedSample, match=r"'12,3,4' is not a length"):
             calliper.read(timeout_s=2)
         os.write(master, b"13.0")
-        with pytest.raises(LinkTimeout, match=r"calliper .*no complete line after 0\.\d+ s \(received so far: b'13.0'\)"):
+        with pytest.raises(
+            LinkTimeout, match=r"calliper .*no complete line after 0\.\d+ s \(received so far: b'13.0'\)"
+        ):
             calliper.read(timeout_s=0.2)
 
 
@@ -134,7 +149,7 @@ def test_play_bias_is_a_measured_correction():
     repeats = tilt_deg(sim.values(h1), CalliperSimulator(noise_mm=0.003, seed=5).values(h2), 40.0)
     bias = TiltBias.from_repeats(list(repeats), calibration_id="beta-bias-2026-11-23")
     assert bias.mean_deg == pytest.approx(-4.0, abs=0.03)
-    t1, t2 = depths_for_tilt(6.0, 40.0, 25.0)   # a true -4 + 10 deg -> measured 6, corrected 10
+    t1, t2 = depths_for_tilt(6.0, 40.0, 25.0)  # a true -4 + 10 deg -> measured 6, corrected 10
     stamp = {"unit": "mm", "t_monotonic_s": 1.0, "t_wall_s": 1.0, "source": "calliper"}
     reading = tilt_reading(Reading(float(t1), **stamp), Reading(float(t2), **stamp), 40.0, bias)
     assert reading.unit == "deg" and reading.value == pytest.approx(10.0, abs=0.03)
@@ -152,24 +167,26 @@ def test_evdev_wedge_decodes_keyboard_events_with_shift(tmp_path):
     extra = encode_keystrokes(["+", "7", ",", "2", "5", "space", "m", "m", "enter"], t0_s=1.0)
     path.write_bytes(sim.wedge_input_events(true_mm) + extra)
     got, rejects = [], []
-    wedge = EvdevWedge(str(path), WedgeDecoder(got.append, on_reject=rejects.append, name="wedge",
-                                               clock=iter(np.arange(0, 100, 0.001)).__next__))
+    wedge = EvdevWedge(
+        str(path),
+        WedgeDecoder(got.append, on_reject=rejects.append, name="wedge", clock=iter(np.arange(0, 100, 0.001)).__next__),
+    )
     readings = wedge.poll(timeout_s=0.5)
     wedge.close()
     assert readings == got and not rejects
     assert [r.value for r in readings] == pytest.approx([*sim.values(true_mm).tolist(), 7.25])
-    assert readings[-1].raw == "+7,25 mm"          # '+' typed with Shift, ',' decimal, unit suffix
+    assert readings[-1].raw == "+7,25 mm"  # '+' typed with Shift, ',' decimal, unit suffix
 
 
 def test_wedge_events_split_anywhere_give_the_same_readings(tmp_path):
     data = CalliperSimulator().wedge_input_events([3.14, 2.72])
     fifo = tmp_path / "wedge.fifo"
     os.mkfifo(fifo)
-    writer = os.open(fifo, os.O_RDWR)      # keeps the FIFO open, as a device stays open
+    writer = os.open(fifo, os.O_RDWR)  # keeps the FIFO open, as a device stays open
     got = []
     wedge = EvdevWedge(str(fifo), WedgeDecoder(got.append, clock=iter(np.arange(0, 100, 0.001)).__next__))
     for start in range(0, len(data), 37):  # 37 bytes: records cut in the middle
-        os.write(writer, data[start:start + 37])
+        os.write(writer, data[start : start + 37])
         wedge.poll(timeout_s=0.2)
     os.close(writer)
     wedge.close()

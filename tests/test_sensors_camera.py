@@ -6,16 +6,16 @@ import numpy as np
 import pytest
 
 from bench.sensors import MalformedSample, Sensor
+from bench.sensors.camera_spot import (
+    LaserSpotCamera,
+    calibrate_from_chessboard,
+    detect_spot,
+)
 from bench.simulators.camera import (
     SpotCameraSimulator,
     apply_homography,
     render_chessboard,
     render_spot,
-)
-from bench.sensors.camera_spot import (
-    LaserSpotCamera,
-    calibrate_from_chessboard,
-    detect_spot,
 )
 
 SHAPE = (240, 320)
@@ -25,8 +25,13 @@ def true_homography():
     """mm -> px: 3.2 px/mm, rotated 4 deg, shifted, with a slight perspective tilt."""
     angle = np.radians(4.0)
     scale = 3.2
-    similarity = np.array([[scale * np.cos(angle), -scale * np.sin(angle), 40.0],
-                           [scale * np.sin(angle), scale * np.cos(angle), 30.0], [0.0, 0.0, 1.0]])
+    similarity = np.array(
+        [
+            [scale * np.cos(angle), -scale * np.sin(angle), 40.0],
+            [scale * np.sin(angle), scale * np.cos(angle), 30.0],
+            [0.0, 0.0, 1.0],
+        ]
+    )
     return similarity @ np.array([[1, 0, 0], [0, 1, 0], [1.5e-4, -1e-4, 1.0]])
 
 
@@ -41,14 +46,14 @@ def test_centroid_error_is_below_0_1_px_rms(sigma_px, noise):
         errors.append((spot.u_px - u, spot.v_px - v))
     rms = np.sqrt(np.mean(np.sum(np.square(errors), axis=1)))
     assert rms < 0.1
-    assert rms > 0.0     # noise is present: a perfect zero would mean the test is not measuring anything
+    assert rms > 0.0  # noise is present: a perfect zero would mean the test is not measuring anything
 
 
 def test_centroid_on_a_colour_frame_uses_the_red_channel():
     grey = render_spot(SHAPE, (100.3, 50.7), sigma_px=2.0)
     frame = np.zeros(SHAPE + (3,), np.uint8)
     frame[:, :, 2] = grey
-    frame[:, :, 1] = render_spot(SHAPE, (200.0, 200.0), sigma_px=2.0)   # a green distractor is ignored
+    frame[:, :, 1] = render_spot(SHAPE, (200.0, 200.0), sigma_px=2.0)  # a green distractor is ignored
     spot = detect_spot(frame)
     assert (spot.u_px, spot.v_px) == pytest.approx((100.3, 50.7), abs=0.02)
 
@@ -65,8 +70,9 @@ def test_chessboard_homography_recovers_the_plane():
 
 def test_laser_spot_camera_observes_a_true_position_in_mm():
     camera = SpotCameraSimulator(true_homography(), shape=(300, 400), sigma_px=2.5, noise_sigma=3.0)
-    calibration = calibrate_from_chessboard(camera.chessboard((9, 6), 10.0), (9, 6), 10.0, calibration_id="cam-1",
-                                            date="2026-11-23")
+    calibration = calibrate_from_chessboard(
+        camera.chessboard((9, 6), 10.0), (9, 6), 10.0, calibration_id="cam-1", date="2026-11-23"
+    )
     truth = {"xy": np.array([42.5, 17.25])}
     sensor = LaserSpotCamera(camera.frame_source(lambda: truth["xy"]), calibration, name="cam-xy")
     assert isinstance(sensor, Sensor)
@@ -74,7 +80,7 @@ def test_laser_spot_camera_observes_a_true_position_in_mm():
         truth["xy"] = np.array(xy)
         reading = sensor.read()
         assert reading.unit == "mm" and reading.calibration_id == "cam-1"
-        assert reading.value == pytest.approx(tuple(xy), abs=0.05)    # 0.05 mm = 0.16 px at 3.2 px/mm
+        assert reading.value == pytest.approx(tuple(xy), abs=0.05)  # 0.05 mm = 0.16 px at 3.2 px/mm
         assert reading.raw == pytest.approx(tuple(apply_homography(true_homography(), xy)[0]), abs=0.1)
 
 
@@ -96,8 +102,9 @@ def test_a_frozen_camera_is_refused_at_its_first_repeated_frame():
     from bench.errors import LinkError
 
     camera = SpotCameraSimulator(true_homography(), shape=(300, 400), sigma_px=2.5, noise_sigma=3.0)
-    calibration = calibrate_from_chessboard(camera.chessboard((9, 6), 10.0), (9, 6), 10.0, calibration_id="cam-1",
-                                            date="2026-11-23")
+    calibration = calibrate_from_chessboard(
+        camera.chessboard((9, 6), 10.0), (9, 6), 10.0, calibration_id="cam-1", date="2026-11-23"
+    )
     live = camera.frame_source(lambda: np.array([42.5, 17.25]))
     frames = {"frozen": None}
 

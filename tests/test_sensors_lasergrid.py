@@ -27,18 +27,25 @@ from bench.simulators.lasergrid import (
 
 GEOMETRY = GridGeometry()
 H = GEOMETRY.horizontal
-I0, J0 = 7, 7                       # BE starts on sensor s(i, j) = s(7, 7), at (-5, -5) mm
+I0, J0 = 7, 7  # BE starts on sensor s(i, j) = s(7, 7), at (-5, -5) mm
 START = H.centre_mm(I0, J0)
 
 # (caption, BE net displacement (mm), sensor hit as (di, dj) from s(i, j), laser) -- §4.4 caption table
 CAPTIONS = [
-    ("10a", (5, 0), (2, 0), "G5-a"), ("10b", (-5, 0), (1, 0), "G5-a"),
-    ("10c", (0, -5), (0, -2), "G5-b"), ("10d", (0, 5), (0, -1), "G5-b"),
-    ("10e", (5, 5), (2, -1), "G5-c"), ("10f", (-5, -5), (1, -2), "G5-c"),
-    ("11a", (2.5, 0), (-2, 0), "G2.5-W"), ("11b", (2.5, -2.5), (-2, 2), "G2.5-NW"),
-    ("11c", (0, -2.5), (0, 2), "G2.5-N"), ("11d", (-2.5, -2.5), (2, 2), "G2.5-NE"),
-    ("11e", (-2.5, 0), (2, 0), "G2.5-E"), ("11f", (-2.5, 2.5), (2, -2), "G2.5-SE"),
-    ("11g", (0, 2.5), (0, -2), "G2.5-S"), ("11h", (2.5, 2.5), (-2, -2), "G2.5-SW"),
+    ("10a", (5, 0), (2, 0), "G5-a"),
+    ("10b", (-5, 0), (1, 0), "G5-a"),
+    ("10c", (0, -5), (0, -2), "G5-b"),
+    ("10d", (0, 5), (0, -1), "G5-b"),
+    ("10e", (5, 5), (2, -1), "G5-c"),
+    ("10f", (-5, -5), (1, -2), "G5-c"),
+    ("11a", (2.5, 0), (-2, 0), "G2.5-W"),
+    ("11b", (2.5, -2.5), (-2, 2), "G2.5-NW"),
+    ("11c", (0, -2.5), (0, 2), "G2.5-N"),
+    ("11d", (-2.5, -2.5), (2, 2), "G2.5-NE"),
+    ("11e", (-2.5, 0), (2, 0), "G2.5-E"),
+    ("11f", (-2.5, 2.5), (2, -2), "G2.5-SE"),
+    ("11g", (0, 2.5), (0, -2), "G2.5-S"),
+    ("11h", (2.5, 2.5), (-2, -2), "G2.5-SW"),
 ]
 
 
@@ -91,8 +98,9 @@ def test_blind_phases_report_no_hit_and_keep_the_prior(blind):  # §4.5
     assert result.position_mm == pytest.approx(tuple(pose(true_xy)))
 
 
-@pytest.mark.parametrize("r, hit, multi", [(0.5, 0.12, 0.0), (1.0, 0.48, 0.0), (1.25, 0.75, 0.0),
-                                           (1.5, 0.84, 0.20), (2.0, 0.96, 0.60)])
+@pytest.mark.parametrize(
+    "r, hit, multi", [(0.5, 0.12, 0.0), (1.0, 0.48, 0.0), (1.25, 0.75, 0.0), (1.5, 0.84, 0.20), (2.0, 0.96, 0.60)]
+)
 def test_coverage_table_of_finite_spots(r, hit, multi):  # §4.5 finite-spot table
     u = np.linspace(0, 10, 80, endpoint=False) + 0.0625
     grid = np.array([(START[0] + a, START[1] + b, -150.0) for a in u for b in u])
@@ -116,15 +124,21 @@ def test_round_trip_over_a_fine_grid_is_within_the_resolution():
             assert screen.status in (ScreenStatus.OK, ScreenStatus.NO_HIT, ScreenStatus.AMBIGUOUS), screen.reason
         measured = np.array(result.measured)
         err = np.abs(np.array(result.position_mm) - true)[measured]
-        assert np.all(err <= r + 1e-9), (true, result)     # within the detection window: the 2.5 mm step
+        assert np.all(err <= r + 1e-9), (true, result)  # within the detection window: the 2.5 mm step
         ok += result.horizontal.status is ScreenStatus.OK
         lit += len(frame.horizontal) > 0
-    assert ok == lit and lit / len(truth) > 0.8      # with a 1 mm prior every lit frame decodes OK
+    assert ok == lit and lit / len(truth) > 0.8  # with a 1 mm prior every lit frame decodes OK
 
 
 @settings(max_examples=200, deadline=None)
-@given(x=st.floats(-50, 50), y=st.floats(-50, 50), z=st.floats(-200, -120),
-       ex=st.floats(-2.5, 2.5), ey=st.floats(-2.5, 2.5), ez=st.floats(-2.5, 2.5))
+@given(
+    x=st.floats(-50, 50),
+    y=st.floats(-50, 50),
+    z=st.floats(-200, -120),
+    ex=st.floats(-2.5, 2.5),
+    ey=st.floats(-2.5, 2.5),
+    ez=st.floats(-2.5, 2.5),
+)
 def test_decoded_axes_are_within_the_spot_half_width(x, y, z, ex, ey, ez):
     r = 1.0
     truth = np.array([x, y, z])
@@ -137,7 +151,7 @@ def test_decoded_axes_are_within_the_spot_half_width(x, y, z, ex, ey, ez):
 
 
 def test_vertical_screen_adds_back_the_40_mm_laser_offset():
-    truth = np.array([-5.0, -5.0, -150.0])   # vertical BE at (y, z) = (-5, -190): phase (0, 5) -> G5-b
+    truth = np.array([-5.0, -5.0, -150.0])  # vertical BE at (y, z) = (-5, -190): phase (0, 5) -> G5-b
     frame = LaserGridSimulator(spot_half_width_mm=0.5).frames(truth[None])[0]
     v = GEOMETRY.vertical
     assert frame.vertical == (int(v.index_of_cell(7, 2)),)
@@ -169,13 +183,13 @@ def test_miss_probability_reproduces_appendix_d2_repeatability():
     truth = np.tile(pose(START, -140.0), (8000, 1))
     sim = LaserGridSimulator(spot_half_width_mm=1.0, p_miss=P_MISS_AT_DISTANCE[140.0], seed=1)
     hit_rate = np.mean([len(f.horizontal) == 1 for f in sim.frames(truth)])
-    assert hit_rate == pytest.approx(0.9925, abs=0.003)     # 397/400 in Appendix D2 at 14 cm
+    assert hit_rate == pytest.approx(0.9925, abs=0.003)  # 397/400 in Appendix D2 at 14 cm
 
 
 def test_report_grammar_and_bad_input():
     truth = pose(START + (5, 0))
     frame = LaserGridSimulator(spot_half_width_mm=0.5).frames(truth[None])[0]
-    assert format_report(frame) == b"H121XV039X"     # vertical BE at (y, z) = (-5, -190): G5-b on (7, 2)
+    assert format_report(frame) == b"H121XV039X"  # vertical BE at (y, z) = (-5, -190): G5-b on (7, 2)
     blind = LaserGridSimulator(spot_half_width_mm=0.5).frames(pose(START + (2.5, 5), -155.0)[None])[0]
     assert blind.horizontal == () and format_report(blind).startswith(b"h")
     with pytest.raises(ConfigError, match="p_miss = 1.5"):
@@ -192,17 +206,17 @@ def test_sensor_observes_a_true_pose_through_the_simulator():
     reading = sensor.read()
     assert reading.valid and reading.value == pytest.approx((0.0, -5.0, -150.0)) and reading.raw == "H:121 V:39"
     assert reading.calibration_id == "lasergrid-gui-default"
-    true["xyz"] = np.array([*(START + (2.5, 5)), -155.0])   # blind on the horizontal screen, (5, 0) on the vertical
+    true["xyz"] = np.array([*(START + (2.5, 5)), -155.0])  # blind on the horizontal screen, (5, 0) on the vertical
     blind = sensor.read()
     assert not blind.valid and "horizontal: no-hit" in blind.note and "vertical: ok" in blind.note
-    assert blind.value == pytest.approx((-2.5 + 1.0, 0.0, -155.0))      # x keeps the prior; y, z measured
+    assert blind.value == pytest.approx((-2.5 + 1.0, 0.0, -155.0))  # x keeps the prior; y, z measured
 
 
 def test_observer_plugs_into_a_simulated_controller_sensor_hook():
     observe = LaserGridSimulator(spot_half_width_mm=1.0, p_miss=0.5, seed=3).observer()
     frames = [observe(np.array([0.0, -5.0, -150.0])) for _ in range(400)]
     assert all(h in ((), (121,)) and v in ((), (39,)) for h, v in frames)
-    assert np.mean([len(h) for h, _ in frames]) == pytest.approx(0.5, abs=0.08)   # fresh draws every frame
+    assert np.mean([len(h) for h, _ in frames]) == pytest.approx(0.5, abs=0.08)  # fresh draws every frame
 
 
 @given(h=st.sets(st.integers(0, 255), max_size=4), v=st.sets(st.integers(0, 255), max_size=4))
@@ -223,11 +237,12 @@ def test_simulated_delta4_controller_reports_what_the_decoder_reads():
     from bench.simulators import delta4 as sim_delta4
 
     plant, home = sim_delta4.build_plant(0, ideal=True)
-    device = sim_delta4.Delta4SimDevice(plant, delta4_wire.MAPPINGS["legacy_vb"](), home_servo_deg=home,
-                                        sensor=LaserGridSimulator().observer())
+    device = sim_delta4.Delta4SimDevice(
+        plant, delta4_wire.MAPPINGS["legacy_vb"](), home_servo_deg=home, sensor=LaserGridSimulator().observer()
+    )
     device.feed(b"E", 0.0)
     report = device.tick(0.0)
-    assert report == b"H105XV041X"      # home (0, 0, -150): phase (5, 5) on both screens -> G5-c
+    assert report == b"H105XV041X"  # home (0, 0, -150): phase (5, 5) on both screens -> G5-c
     frame = parse_report(report)
     result = decode_frame(GEOMETRY, frame.horizontal, frame.vertical, [1.0, -1.0, -148.0])
     assert result.position_mm == (0.0, 0.0, -150.0) and result.horizontal.lasers == ("G5-c",)

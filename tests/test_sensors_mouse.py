@@ -67,33 +67,48 @@ def test_matrix_calibration_round_trip_and_hash():
     again = CountsCalibration.from_dict(cal.to_dict())
     assert again == cal and again.content_hash() == cal.content_hash()
     np.testing.assert_allclose(cal.mm_to_counts(cal.counts_to_mm([[100, -50]])), [[100, -50]])
-    assert cal.content_hash() != CountsCalibration.from_scales(0.032, 0.0315, calibration_id="ocm-xy-1",
-                                                               date="2026-11-23").content_hash()
+    assert (
+        cal.content_hash()
+        != CountsCalibration.from_scales(0.032, 0.0315, calibration_id="ocm-xy-1", date="2026-11-23").content_hash()
+    )
 
 
-@pytest.mark.parametrize("kwargs, match", [
-    ({"matrix_mm_per_count": [[1, 2], [2, 4]]}, "singular"),
-    ({"matrix_mm_per_count": [1, 2]}, "finite 2x2"),
-    ({"date": "23/11/2026"}, "ISO date"),
-])
+@pytest.mark.parametrize(
+    "kwargs, match",
+    [
+        ({"matrix_mm_per_count": [[1, 2], [2, 4]]}, "singular"),
+        ({"matrix_mm_per_count": [1, 2]}, "finite 2x2"),
+        ({"date": "23/11/2026"}, "ISO date"),
+    ],
+)
 def test_bad_calibration_is_refused_naming_the_field(kwargs, match):
     args = {"matrix_mm_per_count": np.eye(2) * 0.03, "calibration_id": "c1", "date": "2026-11-23"} | kwargs
     with pytest.raises(ConfigError, match=match):
         CountsCalibration(**args)
     with pytest.raises(ConfigError, match="unknown keys"):
-        CountsCalibration.from_dict({"calibration_id": "c", "date": "2026-11-23",
-                                     "matrix_mm_per_count": [[1, 0], [0, 1]], "cpi": 800})
+        CountsCalibration.from_dict(
+            {"calibration_id": "c", "date": "2026-11-23", "matrix_mm_per_count": [[1, 0], [0, 1]], "cpi": 800}
+        )
 
 
 def test_frames_sum_rel_between_syn_reports_and_skip_dropped_events():
-    stream = b"".join([
-        PACK(10, 500, EV_REL, REL_X, 5), PACK(10, 500, EV_REL, REL_Y, -3), PACK(10, 500, EV_SYN, SYN_REPORT, 0),
-        PACK(10, 1500, EV_REL, REL_Y, 2), PACK(10, 1500, EV_KEY, 0x110, 1), PACK(10, 1500, EV_SYN, SYN_REPORT, 0),
-        PACK(10, 2500, EV_SYN, SYN_DROPPED, 0), PACK(10, 2500, EV_REL, REL_X, 100),
-        PACK(10, 2500, EV_SYN, SYN_REPORT, 0),
-        PACK(11, 0, EV_REL, REL_X, 1), PACK(11, 0, EV_REL, REL_X, 1), PACK(11, 0, EV_SYN, SYN_REPORT, 0),
-        PACK(11, 1000, EV_REL, REL_X, 7),  # incomplete frame: carried, not emitted
-    ])
+    stream = b"".join(
+        [
+            PACK(10, 500, EV_REL, REL_X, 5),
+            PACK(10, 500, EV_REL, REL_Y, -3),
+            PACK(10, 500, EV_SYN, SYN_REPORT, 0),
+            PACK(10, 1500, EV_REL, REL_Y, 2),
+            PACK(10, 1500, EV_KEY, 0x110, 1),
+            PACK(10, 1500, EV_SYN, SYN_REPORT, 0),
+            PACK(10, 2500, EV_SYN, SYN_DROPPED, 0),
+            PACK(10, 2500, EV_REL, REL_X, 100),
+            PACK(10, 2500, EV_SYN, SYN_REPORT, 0),
+            PACK(11, 0, EV_REL, REL_X, 1),
+            PACK(11, 0, EV_REL, REL_X, 1),
+            PACK(11, 0, EV_SYN, SYN_REPORT, 0),
+            PACK(11, 1000, EV_REL, REL_X, 7),  # incomplete frame: carried, not emitted
+        ]
+    )
     frames = FrameAssembler().feed(stream)
     assert frames.dx.tolist() == [5, 0, 0, 2]
     assert frames.dy.tolist() == [-3, 2, 0, 0]
@@ -102,7 +117,7 @@ def test_frames_sum_rel_between_syn_reports_and_skip_dropped_events():
 
 
 _event = st.one_of(
-    st.tuples(st.just(EV_REL), st.sampled_from([REL_X, REL_Y]), st.integers(-2**31, 2**31 - 1)),
+    st.tuples(st.just(EV_REL), st.sampled_from([REL_X, REL_Y]), st.integers(-(2**31), 2**31 - 1)),
     st.tuples(st.just(EV_SYN), st.sampled_from([SYN_REPORT, SYN_REPORT, SYN_DROPPED]), st.just(0)),
     st.tuples(st.just(EV_KEY), st.just(0x110), st.integers(0, 1)),
 )
@@ -173,8 +188,10 @@ def test_reader_integrates_a_file_written_by_the_simulator(tmp_path):
 def test_two_mice_over_fifos_are_told_apart(tmp_path):
     sim = MouseSimulator(cpi=800, report_rate_hz=2000, report_idle=True)
     t_s = np.array([0.0, 0.25])
-    streams = {"XY": sim.input_events(t_s, np.array([[0, 0], [10.0, 0]])),
-               "Z": sim.input_events(t_s, np.array([[0, 0], [0, -5.0]]))}
+    streams = {
+        "XY": sim.input_events(t_s, np.array([[0, 0], [10.0, 0]])),
+        "Z": sim.input_events(t_s, np.array([[0, 0], [0, -5.0]])),
+    }
     paths = {}
     for label in streams:
         paths[label] = str(tmp_path / label)
@@ -200,8 +217,11 @@ def test_two_mice_over_fifos_are_told_apart(tmp_path):
 
 def test_lost_counts_invalidate_the_segment_until_rezero(tmp_path):
     path = tmp_path / "dropped.bin"
-    path.write_bytes(encode_frames([1.0], [10], [0]) + PACK(1, 10, EV_SYN, SYN_DROPPED, 0)
-                     + encode_frames([1.01, 1.02], [5, 3], [0, 0]))
+    path.write_bytes(
+        encode_frames([1.0], [10], [0])
+        + PACK(1, 10, EV_SYN, SYN_DROPPED, 0)
+        + encode_frames([1.01, 1.02], [5, 3], [0, 0])
+    )
     with EvdevMouse(str(path), CAL_800, label="XY") as mouse:
         first = mouse.read()
         mouse.rezero()
@@ -236,9 +256,11 @@ def test_eviocgname_request_number():  # include/uapi/linux/input.h: EVIOCGNAME(
 
 def test_list_mice_reads_sysfs_and_prefers_by_path_links(tmp_path):
     sysfs, dev = tmp_path / "sys", tmp_path / "dev"
-    devices = {"event3": ("Logitech USB Optical Mouse", "usb-0000:00:14.0-2/input0", "3"),
-               "event4": ("Logitech USB Optical Mouse", "usb-0000:00:14.0-3/input0", "1943"),
-               "event5": ("AT Translated Set 2 keyboard", "isa0060/serio0/input0", "0")}
+    devices = {
+        "event3": ("Logitech USB Optical Mouse", "usb-0000:00:14.0-2/input0", "3"),
+        "event4": ("Logitech USB Optical Mouse", "usb-0000:00:14.0-3/input0", "1943"),
+        "event5": ("AT Translated Set 2 keyboard", "isa0060/serio0/input0", "0"),
+    }
     for node, (name, phys, rel) in devices.items():
         folder = sysfs / node / "device"
         (folder / "capabilities").mkdir(parents=True)
@@ -250,17 +272,24 @@ def test_list_mice_reads_sysfs_and_prefers_by_path_links(tmp_path):
     (dev / "by-id").mkdir()
     (dev / "by-id" / "usb-Logitech_USB_Optical_Mouse-event-mouse").symlink_to("../event3")
     mice = list_mice(dev_root=str(dev), sysfs_root=str(sysfs))
-    assert [m.label for m in mice] == ["event3", "event4"]           # the keyboard has no REL_X/REL_Y
+    assert [m.label for m in mice] == ["event3", "event4"]  # the keyboard has no REL_X/REL_Y
     assert mice[0].path.endswith("by-path/pci-0000:00:14.0-usb-0:2:1.0-event-mouse")
-    assert mice[1].path == str(dev / "event4")                        # identical mouse told apart by phys
+    assert mice[1].path == str(dev / "event4")  # identical mouse told apart by phys
     assert mice[0].name == mice[1].name and mice[0].phys != mice[1].phys
 
 
 @settings(max_examples=40, deadline=None)
 @given(cuts=st.lists(st.integers(2, 1999), max_size=6, unique=True), noise=st.sampled_from([0.0, 0.4]))
 def test_stream_in_chunks_equals_the_whole_motion(cuts, noise):
-    sim = MouseSimulator(cpi=1000, scale_error=(0.02, -0.01), rotation_deg=3.0, noise_counts=noise,
-                         report_rate_hz=4000, report_idle=True, seed=9)
+    sim = MouseSimulator(
+        cpi=1000,
+        scale_error=(0.02, -0.01),
+        rotation_deg=3.0,
+        noise_counts=noise,
+        report_rate_hz=4000,
+        report_idle=True,
+        seed=9,
+    )
     t_s, xy = circle_motion(2.0, radius_mm=15, period_s=1.5, rate_hz=1000)
     whole = sim.reports(t_s, xy)
     stream = MouseStream(sim, origin_mm=xy[0], t0_s=t_s[0])
@@ -288,13 +317,13 @@ def test_grab_is_attempted_only_on_character_devices_and_fails_clearly(tmp_path,
     monkeypatch.setattr(fcntl, "ioctl", busy)
     with pytest.raises(LinkError, match=r"\(another program holds it\); close that program or run without grab"):
         EvdevMouse("/dev/null", CAL_800, label="XY", grab=True)
-    assert calls[-2:] == [EVIOCSCLOCKID, EVIOCGRAB]     # monotonic clock first, then the grab
-    assert EVIOCGRAB == 0x40044590 and EVIOCSCLOCKID == 0x400445A0   # sensors.md §4.5, §4.6
+    assert calls[-2:] == [EVIOCSCLOCKID, EVIOCGRAB]  # monotonic clock first, then the grab
+    assert EVIOCGRAB == 0x40044590 and EVIOCSCLOCKID == 0x400445A0  # sensors.md §4.5, §4.6
     calls.clear()
     path = tmp_path / "recorded.bin"
     path.write_bytes(b"")
     EvdevMouse(str(path), CAL_800, label="XY", grab=True).close()
-    assert calls == []                                   # a file is never grabbed
+    assert calls == []  # a file is never grabbed
 
 
 def test_unplugged_device_fails_the_segment_with_a_clear_error(tmp_path, monkeypatch):
@@ -306,8 +335,11 @@ def test_unplugged_device_fails_the_segment_with_a_clear_error(tmp_path, monkeyp
         raise OSError(errno.ENODEV, "No such device")
 
     monkeypatch.setattr(os, "read", gone)
-    with pytest.raises(LinkError, match=r"mouse 'XY' .*read failed \(No such device\); the device was probably "
-                                         "unplugged: the run segment is invalid"):
+    with pytest.raises(
+        LinkError,
+        match=r"mouse 'XY' .*read failed \(No such device\); the device was probably "
+        "unplugged: the run segment is invalid",
+    ):
         mouse.read()
     monkeypatch.undo()
     mouse.close()

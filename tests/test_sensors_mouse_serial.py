@@ -25,8 +25,12 @@ def test_parse_mcu_lines():
             parse_mcu_line(bad)
 
 
-@given(t=st.integers(0, 2**63), dx=st.integers(-2**15, 2**15), dy=st.integers(-2**15, 2**15),
-       squal=st.one_of(st.none(), st.integers(0, 255)))
+@given(
+    t=st.integers(0, 2**63),
+    dx=st.integers(-(2**15), 2**15),
+    dy=st.integers(-(2**15), 2**15),
+    squal=st.one_of(st.none(), st.integers(0, 255)),
+)
 def test_parse_mcu_line_round_trip(t, dx, dy, squal):
     line = f"{t},{dx},{dy}" + ("" if squal is None else f",{squal}")
     assert parse_mcu_line(line.encode()) == McuSample(t, dx, dy, squal)
@@ -41,12 +45,12 @@ def test_mcu_mouse_over_a_pty_integrates_and_flags_low_squal():
         os.write(master, lines)
         mouse = McuMouse(port, CountsCalibration.from_cpi(1600), label="XY")
         reading = mouse.read(n_samples=n, timeout_s=2)
-        assert reading.raw == (800, -400)                 # 12.7 mm = 0.5 in = 800 counts at 1600 CPI
+        assert reading.raw == (800, -400)  # 12.7 mm = 0.5 in = 800 counts at 1600 CPI
         assert reading.value == pytest.approx((12.7, -6.35)) and reading.valid and "squal=120" in reading.note
         os.write(master, b"999999999,1,0,12\n")
         assert not mouse.read(timeout_s=2).valid
         mouse.rezero()
-        os.write(master, b"5,0,0,100\n")                  # MCU clock went backwards: reset or lost data
+        os.write(master, b"5,0,0,100\n")  # MCU clock went backwards: reset or lost data
         late = mouse.read(timeout_s=2)
         assert not late.valid and "MCU clock went from 999999999 to 5 us" in late.note
 
@@ -59,9 +63,9 @@ def test_pointer_method_warns_loudly_and_reproduces_table_a28(caplog):
     assert "unfit for metrology" in caplog.text
     readings = list(sampler.samples(len(cursor_y)))
     steps_px = -np.diff([r.raw[1] for r in readings])
-    assert steps_px.mean() == pytest.approx(24.33, abs=0.005)             # Table A.28, 5 mm increments
-    assert 5 / steps_px.mean() == pytest.approx(0.2055, abs=0.0001)        # the true mm/pixel of this axis
-    assert 3 * steps_px.std(ddof=1) == pytest.approx(1.78, abs=0.005)      # Table A.25, speed 4, Y, 5 mm
+    assert steps_px.mean() == pytest.approx(24.33, abs=0.005)  # Table A.28, 5 mm increments
+    assert 5 / steps_px.mean() == pytest.approx(0.2055, abs=0.0001)  # the true mm/pixel of this axis
+    assert 3 * steps_px.std(ddof=1) == pytest.approx(1.78, abs=0.005)  # Table A.25, speed 4, Y, 5 mm
     assert readings[0].value == pytest.approx((0.0, 951 * 0.2)) and "unfit" in readings[0].note
 
 

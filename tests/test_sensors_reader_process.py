@@ -59,10 +59,16 @@ def test_up_to_now_includes_what_the_child_has_not_sent_yet(tmp_path):
 
 
 def test_a_kernel_drop_is_an_invalid_frame_and_counted(tmp_path):
-    data = (PACK(1, 0, EV_REL, REL_X, 5) + PACK(1, 0, EV_SYN, SYN_REPORT, 0)
-            + PACK(1, 10, EV_REL, REL_X, 7) + PACK(1, 10, EV_SYN, SYN_DROPPED, 0)
-            + PACK(1, 20, EV_REL, REL_X, 9) + PACK(1, 20, EV_SYN, SYN_REPORT, 0)  # closes the gap: lost
-            + PACK(1, 30, EV_REL, REL_X, 2) + PACK(1, 30, EV_SYN, SYN_REPORT, 0))
+    data = (
+        PACK(1, 0, EV_REL, REL_X, 5)
+        + PACK(1, 0, EV_SYN, SYN_REPORT, 0)
+        + PACK(1, 10, EV_REL, REL_X, 7)
+        + PACK(1, 10, EV_SYN, SYN_DROPPED, 0)
+        + PACK(1, 20, EV_REL, REL_X, 9)
+        + PACK(1, 20, EV_SYN, SYN_REPORT, 0)  # closes the gap: lost
+        + PACK(1, 30, EV_REL, REL_X, 2)
+        + PACK(1, 30, EV_SYN, SYN_REPORT, 0)
+    )
     path = tmp_path / "dropped.bin"
     path.write_bytes(data)
     with EvdevMouse(str(path), CAL, label="dropped", reader_process=True) as mouse:
@@ -125,12 +131,13 @@ def test_a_paced_8_khz_stream_into_a_4_kib_buffer_loses_nothing_beside_busy_pyth
     ``benchmarks/bench_mouse_ingest.py --realtime``. Counted from the writer's sequence numbers, so it can fail.
     All three on one CPU: the reader must win it from the busy work, and a stall of that CPU by the host (26
     reports lost once, mid-suite, with the writer on the other CPU) stops the writer too."""
-    result = ingest_beside_busy_work(reader="process", rate_hz=8000.0, duration_s=5.0, buffer_bytes=4096,
-                                     one_cpu=True)
+    result = ingest_beside_busy_work(reader="process", rate_hz=8000.0, duration_s=5.0, buffer_bytes=4096, one_cpu=True)
     if result.reader_kind != "reader process, real-time priority":
-        pytest.skip("the reader process got no real-time priority here (needs root, CAP_SYS_NICE or RLIMIT_RTPRIO): "
-                    "at normal priority its latency is the scheduler's, under load not always within 7 ms; "
-                    f"measured anyway: lost {result.lost} of {result.expected}")
+        pytest.skip(
+            "the reader process got no real-time priority here (needs root, CAP_SYS_NICE or RLIMIT_RTPRIO): "
+            "at normal priority its latency is the scheduler's, under load not always within 7 ms; "
+            f"measured anyway: lost {result.lost} of {result.expected}"
+        )
     assert result.expected == 40_000
     assert (result.lost, result.dropped, result.invalid_frames) == (0, 0, 0)
     assert result.received == 40_000

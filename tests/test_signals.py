@@ -8,7 +8,6 @@ import subprocess
 from pathlib import Path
 
 import pytest
-
 from cli_runs import BENCH, wait_for_samples
 
 from bench.cli import main
@@ -20,9 +19,25 @@ STATION = ROOT / "examples" / "stations" / "pkm5_mice.toml"
 
 
 def _start(store: Path, speed_factor: str) -> subprocess.Popen:
-    return subprocess.Popen([BENCH, "run", str(QUICK), "--station", str(STATION), "--sim", "--store", str(store),
-                             "--no-progress", "--speed-factor", speed_factor],
-                            stdin=subprocess.DEVNULL, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    return subprocess.Popen(
+        [
+            BENCH,
+            "run",
+            str(QUICK),
+            "--station",
+            str(STATION),
+            "--sim",
+            "--store",
+            str(store),
+            "--no-progress",
+            "--speed-factor",
+            speed_factor,
+        ],
+        stdin=subprocess.DEVNULL,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
 
 
 @pytest.mark.parametrize("stop", [signal.SIGTERM, signal.SIGHUP])
@@ -38,8 +53,9 @@ def test_a_stop_signal_aborts_the_run_resumably_and_resume_completes_it(tmp_path
         (run,) = opened.runs()
         before = {s.step_index: s.values for s in opened.samples(run.id)}
     assert run.status == "aborted" and run.reason == f"interrupted ({stop.name})" and 2 <= len(before) < 15
-    assert main(["resume", str(run.id), "--station", str(STATION), "--sim", "--store", str(store),
-                 "--no-progress"]) == 0
+    assert (
+        main(["resume", str(run.id), "--station", str(STATION), "--sim", "--store", str(store), "--no-progress"]) == 0
+    )
     capsys.readouterr()
     with Store(store) as opened:
         (run,) = opened.runs()
@@ -68,7 +84,9 @@ def test_a_resume_that_changes_the_seed_is_refused(tmp_path, capsys):
     run_id = int(capsys.readouterr().out.split()[-1])
     assert main(["resume", str(run_id), "--store", str(store), "--seed", "4"]) == 2
     err = capsys.readouterr().err.strip()
-    assert err == ("bench: error: seed = 4: the run was made with seed 3, expected the same (a resume keeps the "
-                   "run's own; leave the seed out)")
+    assert err == (
+        "bench: error: seed = 4: the run was made with seed 3, expected the same (a resume keeps the "
+        "run's own; leave the seed out)"
+    )
     assert main(["run", str(QUICK), "--sim", "--store", str(store), "--speed-factor", "inf"]) == 2
     assert "speed factor = inf, expected a finite number > 0" in capsys.readouterr().err

@@ -9,20 +9,20 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from reports_runs import simulated_run
 from scipy import signal
 
 from bench.cli import main
 from bench.errors import ConfigError
 from bench.metrology import pose_stabilisation, position_stabilisation
 from bench.protocols.iso9283 import StabilisationOvershoot
+from bench.robots.pkm5 import ControllerError
+from bench.simulators.client import SimulatorClient
+from bench.simulators.dynamics import StructuralMode, trace_times
 from bench.simulators.rig import simulated_rig
 from bench.steps import Capture
-from bench.simulators.dynamics import StructuralMode, trace_times
-from bench.robots.pkm5 import ControllerError
 from bench.store import Store, series_table
-from bench.simulators.client import SimulatorClient
 from motion import pkm5
-from reports_runs import simulated_run
 
 #: One count of the simulated 800 cpi mice, mm.
 COUNT_MM = 25.4 / 800
@@ -125,8 +125,9 @@ def test_the_streamed_arrival_matches_the_simulators_truth():
 
 
 def test_a_stabilisation_run_exports_series_that_bench_analyze_reads(tmp_path, capsys):
-    protocol = StabilisationOvershoot(cycles=2, lead_s=0.5, hold_s=2.0,
-                                      poses={"A": [100.0, -10.0, 310.0], "B": [120.0, 10.0, 330.0]})
+    protocol = StabilisationOvershoot(
+        cycles=2, lead_s=0.5, hold_s=2.0, poses={"A": [100.0, -10.0, 310.0], "B": [120.0, 10.0, 330.0]}
+    )
     with Store(tmp_path / "b.db") as store:
         run_id = simulated_run(store, protocol, "pkm5", seed=2, speed_factor=1000)
         table = series_table(store, run_id)
@@ -134,15 +135,23 @@ def test_a_stabilisation_run_exports_series_that_bench_analyze_reads(tmp_path, c
     assert len(samples) == 4
     assert list(table.columns[:2]) == ["pose", "cycle"] and "t_s" in table.columns
     assert len(table) == sum(len(s.raw["series"]["t_s"]) for s in samples)
-    direct = pose_stabilisation([(np.array(s.raw["series"]["t_s"]),
-                                  np.column_stack([s.raw["series"][k] for k in ("x_mm", "y_mm", "z_mm")]))
-                                 for s in samples if s.pose == "B"], band_mm=0.1, hysteresis_mm=COUNT_MM)
+    direct = pose_stabilisation(
+        [
+            (np.array(s.raw["series"]["t_s"]), np.column_stack([s.raw["series"][k] for k in ("x_mm", "y_mm", "z_mm")]))
+            for s in samples
+            if s.pose == "B"
+        ],
+        band_mm=0.1,
+        hysteresis_mm=COUNT_MM,
+    )
     db = str(tmp_path / "b.db")
     out = tmp_path / "series.csv"
     assert main(["export", str(run_id), "--series", "--store", db, "--out", str(out)]) == 0
     capsys.readouterr()
-    assert main(["analyze", "stabilisation", str(out), "--band-mm", "0.1", "--hysteresis-mm", str(COUNT_MM),
-                 "--json"]) == 0
+    assert (
+        main(["analyze", "stabilisation", str(out), "--band-mm", "0.1", "--hysteresis-mm", str(COUNT_MM), "--json"])
+        == 0
+    )
     analysed = json.loads(capsys.readouterr().out)["bands"]["0.1"]["B"]
     assert analysed["n"] == 2
     assert analysed["mean_time_s"] == pytest.approx(direct.mean_time_s, abs=1e-6)
@@ -257,8 +266,10 @@ def test_a_following_instrument_drains_the_mice_during_a_long_move(tmp_path):
         assert static.values["x_mm"] == pytest.approx(10.0 + n * COUNT_MM)
         # an arrival keeps only the window: counts before it are the series' start
         recent = time.monotonic()
-        os.write(writers["xy"], encode_frames(recent - 0.8 + np.arange(100) * 1e-3 * 7, np.ones(100, np.int64),
-                                              np.zeros(100, np.int64)))
+        os.write(
+            writers["xy"],
+            encode_frames(recent - 0.8 + np.arange(100) * 1e-3 * 7, np.ones(100, np.int64), np.zeros(100, np.int64)),
+        )
         arrival = instrument.measure(Capture("P", 2, kind="arrival", conditions={"lead_s": 0.5, "hold_s": 0.1}))
     finally:
         instrument.close()
@@ -268,4 +279,5 @@ def test_a_following_instrument_drains_the_mice_during_a_long_move(tmp_path):
     assert arrival.values["x_mm"] == pytest.approx(10.0 + (n + 100) * COUNT_MM)
     assert len(arrival.raw["reports"]["xy"]["t_s"]) < 100  # reports before the window are not kept
     assert series["x_mm"][0] == pytest.approx(
-        10.0 + (n + 100 - len(arrival.raw["reports"]["xy"]["t_s"])) * COUNT_MM, abs=1e-4)
+        10.0 + (n + 100 - len(arrival.raw["reports"]["xy"]["t_s"])) * COUNT_MM, abs=1e-4
+    )

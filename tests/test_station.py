@@ -53,31 +53,50 @@ def test_every_example_station_parses_with_the_capabilities_of_its_devices():
     assert Path(camera.calibration) == STATIONS / "camera-plane.json"  # relative to the station file
 
 
-@pytest.mark.parametrize("tables, message", [
-    (_station(mice={"xy": "/dev/input/a", "xz": "/dev/input/b", "dpi": 800}),
-     "unknown key 'mice.dpi', expected one of calibration, cpi, grab, noise_counts, xy, xz"),
-    (_station(mice={"xy": "/dev/input/a", "xz": "/dev/input/b", "calibration": 0}),
-     "mice.calibration = 0, expected a stored mouse calibration version, an integer >= 1"),
-    (_station(mice={"xy": "/dev/input/a", "xz": "/dev/input/b", "calibration": "v3"}),
-     "mice.calibration = 'v3', expected a stored mouse calibration version, an integer >= 1"),
-    (_station(mice={"xy": "/dev/input/a"}), "mice.xz missing, expected the x-z mouse's event device"),
-    (_station(mice={"xy": "/dev/input/a", "xz": "/dev/input/a"}),
-     "mice.xz = '/dev/input/a', expected a device of its own (mice.xy names it too)"),
-    (_station(mice={"xy": "/dev/input/a", "xz": "/dev/input/b", "cpi": "800"}),
-     "mice.cpi = '800', expected a finite number > 0"),
-    (_station(mice={"xy": "/dev/input/a", "xz": "/dev/input/b", "cpi": -5}),
-     "mice.cpi = -5, expected a finite number > 0"),
-    ({"robot": {"kind": "scara"}, "controller": {"port": "/dev/ttyACM0"}},
-     "robot.kind = 'scara', expected one of pkm5, delta4"),
-    ({"robot": {"kind": "pkm5"}}, "[controller] missing, expected a table (port = \"/dev/ttyUSB0\")"),
-    (_station(controller={"port": 5}), "controller.port = 5, expected a serial port, e.g. /dev/ttyUSB0"),
-    (_station(controller={"port": "/dev/a", "baud": True}), "controller.baud = True, expected a baud rate"),
-    (_station(calliper={"kind": "serial"}), "calliper.port missing, expected the calliper's serial port"),
-    (_station(laser_grid={}), "[laser_grid] with robot.kind = 'pkm5', expected robot.kind = 'delta4'"),
-    (_station(mouse={}), "unknown table [mouse], expected one of [station], [robot], [controller], [mice]"),
-    (_station(calliper={"kind": "serial", "port": "/dev/ttyACM0"}),
-     "calliper.port = '/dev/ttyACM0', expected a device of its own (controller.port names it too)"),
-])
+@pytest.mark.parametrize(
+    "tables, message",
+    [
+        (
+            _station(mice={"xy": "/dev/input/a", "xz": "/dev/input/b", "dpi": 800}),
+            "unknown key 'mice.dpi', expected one of calibration, cpi, grab, noise_counts, xy, xz",
+        ),
+        (
+            _station(mice={"xy": "/dev/input/a", "xz": "/dev/input/b", "calibration": 0}),
+            "mice.calibration = 0, expected a stored mouse calibration version, an integer >= 1",
+        ),
+        (
+            _station(mice={"xy": "/dev/input/a", "xz": "/dev/input/b", "calibration": "v3"}),
+            "mice.calibration = 'v3', expected a stored mouse calibration version, an integer >= 1",
+        ),
+        (_station(mice={"xy": "/dev/input/a"}), "mice.xz missing, expected the x-z mouse's event device"),
+        (
+            _station(mice={"xy": "/dev/input/a", "xz": "/dev/input/a"}),
+            "mice.xz = '/dev/input/a', expected a device of its own (mice.xy names it too)",
+        ),
+        (
+            _station(mice={"xy": "/dev/input/a", "xz": "/dev/input/b", "cpi": "800"}),
+            "mice.cpi = '800', expected a finite number > 0",
+        ),
+        (
+            _station(mice={"xy": "/dev/input/a", "xz": "/dev/input/b", "cpi": -5}),
+            "mice.cpi = -5, expected a finite number > 0",
+        ),
+        (
+            {"robot": {"kind": "scara"}, "controller": {"port": "/dev/ttyACM0"}},
+            "robot.kind = 'scara', expected one of pkm5, delta4",
+        ),
+        ({"robot": {"kind": "pkm5"}}, '[controller] missing, expected a table (port = "/dev/ttyUSB0")'),
+        (_station(controller={"port": 5}), "controller.port = 5, expected a serial port, e.g. /dev/ttyUSB0"),
+        (_station(controller={"port": "/dev/a", "baud": True}), "controller.baud = True, expected a baud rate"),
+        (_station(calliper={"kind": "serial"}), "calliper.port missing, expected the calliper's serial port"),
+        (_station(laser_grid={}), "[laser_grid] with robot.kind = 'pkm5', expected robot.kind = 'delta4'"),
+        (_station(mouse={}), "unknown table [mouse], expected one of [station], [robot], [controller], [mice]"),
+        (
+            _station(calliper={"kind": "serial", "port": "/dev/ttyACM0"}),
+            "calliper.port = '/dev/ttyACM0', expected a device of its own (controller.port names it too)",
+        ),
+    ],
+)
 def test_bad_station_files_are_one_line_naming_the_key_the_value_and_what_was_expected(tables, message):
     with pytest.raises(ConfigError) as error:
         parse_station(tables, source="s.toml")
@@ -98,13 +117,30 @@ def test_a_bad_station_file_on_the_command_line_is_one_line_and_exit_2(tmp_path,
 
 def test_a_protocol_needing_what_the_station_lacks_is_refused_before_anything_opens(tmp_path, capsys):
     store = tmp_path / "b.db"
-    code = main(["run", str(EXAMPLES / "actuator_accuracy.toml"), "--station", str(STATIONS / "pkm5_mice.toml"),
-                 "--sim", "--store", str(store)])
+    code = main(
+        [
+            "run",
+            str(EXAMPLES / "actuator_accuracy.toml"),
+            "--station",
+            str(STATIONS / "pkm5_mice.toml"),
+            "--sim",
+            "--store",
+            str(store),
+        ]
+    )
     err = capsys.readouterr().err.strip()
     assert code == 2 and len(err.splitlines()) == 1
     assert "controller.fixture = 'assembled', expected 'actuator-bench' for protocol 'actuator_accuracy'" in err
-    code = main(["run", str(EXAMPLES / "mouse_calibration.toml"), "--station",
-                 str(STATIONS / "pkm5_camera.toml"), "--store", str(store)])
+    code = main(
+        [
+            "run",
+            str(EXAMPLES / "mouse_calibration.toml"),
+            "--station",
+            str(STATIONS / "pkm5_camera.toml"),
+            "--store",
+            str(store),
+        ]
+    )
     err = capsys.readouterr().err.strip()
     assert code == 2 and err.endswith("protocol 'mouse_calibration' needs mouse_counts (add [mice])")
     with Store(store) as opened:
@@ -115,7 +151,8 @@ def test_protocols_ask_for_what_their_own_plans_capture():
     needs = {path.stem: required_capabilities(load_protocol(path)) for path in EXAMPLES.glob("*.toml")}
     assert needs["iso9283_pose"] == {"assembled", "pose"}
     assert needs["iso9283_stabilisation"] == {"assembled", "arrival"}
-    assert needs["mouse_calibration"] == {"assembled", "mouse_counts"}
+    # the example reads a calliper after every move (reference = "calliper"): it asks for readings too
+    assert needs["mouse_calibration"] == {"assembled", "mouse_counts", "reading"}
     assert needs["actuator_accuracy"] == {"actuator_bench", "reading"}
     assert needs["payload_ladder"] == {"assembled", "reading"}
     assert needs["lasergrid_hits"] == {"assembled", "grid_hit"}
@@ -126,7 +163,7 @@ def test_station_check_names_every_device_and_fails_for_the_missing_one(tmp_path
     checks = [json.loads(line) for line in capsys.readouterr().out.splitlines()]
     assert [c["key"] for c in checks] == ["controller.port", "mice.xy", "mice.xz", "calliper"]
     assert all(c["ok"] for c in checks), checks
-    assert checks[0]["detail"] == "bench-pkm5 firmware 1.0.0-sim, protocol v2"
+    assert checks[0]["detail"] == "bench-pkm5 firmware 1.0.0-sim, protocol v3"
     # the same station on this machine, where its devices do not exist
     assert main(["station", "check", str(STATIONS / "pkm5_mice.toml")]) == 1
     lines = capsys.readouterr().out.splitlines()
@@ -145,8 +182,9 @@ def test_station_check_explains_a_permission_problem(tmp_path, capsys):
     device.write_bytes(b"")
     device.chmod(0)
     station = tmp_path / "s.toml"
-    station.write_text(f'[robot]\nkind = "pkm5"\n[controller]\nport = "/dev/none"\n'
-                       f'[mice]\nxy = "{device}"\nxz = "/dev/none2"\n')
+    station.write_text(
+        f'[robot]\nkind = "pkm5"\n[controller]\nport = "/dev/none"\n[mice]\nxy = "{device}"\nxz = "/dev/none2"\n'
+    )
     assert main(["station", "check", str(station)]) == 1
     assert "permission denied -> fix: add yourself to the 'input' group" in capsys.readouterr().out
 
@@ -164,9 +202,15 @@ def _truth(path: str) -> np.ndarray:
 
 def _rehearsed_run(store: Store, station: Path, protocol_file: Path, *, operator=None, speed=REHEARSAL_SPEED):
     protocol = load_protocol(protocol_file)
-    rig = open_rig(RigRequest(station=str(station), simulate=True, seed=3, speed_factor=speed), store,
-                   robot=protocol.robot, fixture=getattr(protocol, "fixture", "assembled"),
-                   requires=required_capabilities(protocol), protocol=protocol.name, operator=operator)
+    rig = open_rig(
+        RigRequest(station=str(station), simulate=True, seed=3, speed_factor=speed),
+        store,
+        robot=protocol.robot,
+        fixture=getattr(protocol, "fixture", "assembled"),
+        requires=required_capabilities(protocol),
+        protocol=protocol.name,
+        operator=operator,
+    )
     try:
         if operator is not None and hasattr(operator, "truth_path"):
             operator.truth_path = rig.extra["simulator"]["truth_log"]
@@ -205,16 +249,34 @@ def test_pkm5_with_mice_on_the_hardware_path_measures_the_true_displacements(tmp
 
 def test_a_hardware_path_run_is_exported_analysed_and_reported_with_equal_numbers(tmp_path, capsys):
     store = tmp_path / "b.db"
-    assert main(["run", str(EXAMPLES / "iso9283_pose_quick.toml"), "--station", str(STATIONS / "pkm5_mice.toml"),
-                 "--sim", "--store", str(store), "--no-progress", "--seed", "4"]) == 0
+    assert (
+        main(
+            [
+                "run",
+                str(EXAMPLES / "iso9283_pose_quick.toml"),
+                "--station",
+                str(STATIONS / "pkm5_mice.toml"),
+                "--sim",
+                "--store",
+                str(store),
+                "--no-progress",
+                "--seed",
+                "4",
+            ]
+        )
+        == 0
+    )
     run_id = int(capsys.readouterr().out.split()[-1])
     table = tmp_path / "run.csv"
     assert main(["export", str(run_id), "--store", str(store), "--out", str(table)]) == 0
     with Store(store, read_only=True) as opened:  # the run's instrument term (resolution) and its registration's
         run = opened.run(run_id)
     (registration,) = run.settings["registrations"]
-    instrument_u_mm = float(np.hypot(resolution_uncertainty(run.settings["instrument"]["resolution_mm"],
-                                                            difference=True), registration["u_mm"]))
+    instrument_u_mm = float(
+        np.hypot(
+            resolution_uncertainty(run.settings["instrument"]["resolution_mm"], difference=True), registration["u_mm"]
+        )
+    )
     assert main(["analyze", "iso9283", str(table), "--json", "--instrument-u-mm", str(instrument_u_mm)]) == 0
     analysed = json.loads(capsys.readouterr().out.splitlines()[-1])["poses"]
     out = tmp_path / "reports"
@@ -270,11 +332,11 @@ class _GaugeReader:
 
 def test_the_actuator_bench_with_typed_readings_on_the_hardware_path(tmp_path):
     protocol = tmp_path / "actuators.toml"
-    protocol.write_text('protocol = "actuator_accuracy"\nactuators = [2]\ndistances_mm = [10, 20]\nrepeats = 3\n'
-                        'settle_s = 0.1\n')
+    protocol.write_text(
+        'protocol = "actuator_accuracy"\nactuators = [2]\ndistances_mm = [10, 20]\nrepeats = 3\nsettle_s = 0.1\n'
+    )
     station = tmp_path / "bench.toml"
-    station.write_text((STATIONS / "pkm5_actuator_bench.toml").read_text().replace('kind = "serial"',
-                                                                                    'kind = "typed"'))
+    station.write_text((STATIONS / "pkm5_actuator_bench.toml").read_text().replace('kind = "serial"', 'kind = "typed"'))
     with Store(tmp_path / "b.db") as store:
         result, _ = _rehearsed_run(store, station, protocol, operator=_GaugeReader())
         assert result.exit_status == "completed", result.reason
@@ -295,8 +357,9 @@ def test_the_builder_closes_what_it_opened_when_a_later_device_fails(tmp_path):
 
     rehearsal = rehearse(load_station(STATIONS / "pkm5_mice.toml"), speed_factor=REHEARSAL_SPEED)
     try:
-        broken = dataclasses.replace(rehearsal.station, mice=dataclasses.replace(rehearsal.station.mice,
-                                                                               xz=str(tmp_path / "gone")))
+        broken = dataclasses.replace(
+            rehearsal.station, mice=dataclasses.replace(rehearsal.station.mice, xz=str(tmp_path / "gone"))
+        )
         with Store(tmp_path / "b.db") as store, pytest.raises(LinkError, match="gone"):
             build_rig(broken, store, requires={"pose"}, speed_factor=REHEARSAL_SPEED)
         # the controller's port was released: it opens again, exclusively, and the controller still answers
@@ -420,19 +483,27 @@ def test_the_actuator_bench_with_a_serial_depth_gauge_on_the_hardware_path(tmp_p
     from bench.simulators.station import rehearse
 
     protocol_file = tmp_path / "actuators.toml"
-    protocol_file.write_text('protocol = "actuator_accuracy"\nactuators = [4]\ndistances_mm = [20]\nrepeats = 3\n'
-                             'settle_s = 0.1\n')
+    protocol_file.write_text(
+        'protocol = "actuator_accuracy"\nactuators = [4]\ndistances_mm = [20]\nrepeats = 3\nsettle_s = 0.1\n'
+    )
     protocol = load_protocol(protocol_file)
     station = load_station(STATIONS / "pkm5_actuator_bench.toml")
     rehearsal = rehearse(station, speed_factor=REHEARSAL_SPEED)  # the controller; the gauge is this test's own pty
     gauge = _SerialDepthGauge(rehearsal.truth_path)
     try:
-        bench_station = dataclasses.replace(rehearsal.station, calliper=dataclasses.replace(
-            station.calliper, port=gauge.path, request="?", timeout_s=5.0))
+        bench_station = dataclasses.replace(
+            rehearsal.station,
+            calliper=dataclasses.replace(station.calliper, port=gauge.path, request="?", timeout_s=5.0),
+        )
         with Store(tmp_path / "b.db") as store:
-            rig = build_rig(bench_station, store, operator=_PersonAtTheGauge(gauge),
-                            requires=required_capabilities(protocol), protocol=protocol.name,
-                            speed_factor=REHEARSAL_SPEED)
+            rig = build_rig(
+                bench_station,
+                store,
+                operator=_PersonAtTheGauge(gauge),
+                requires=required_capabilities(protocol),
+                protocol=protocol.name,
+                speed_factor=REHEARSAL_SPEED,
+            )
             try:
                 result = Runner(rig, store, progress=False).run(protocol)
             finally:
@@ -454,9 +525,13 @@ def test_the_actuator_bench_with_a_serial_depth_gauge_on_the_hardware_path(tmp_p
     assert all(round(t, 2) == t for t in travels)  # the gauge's 0.01 mm display, as sent
 
 
-@pytest.mark.parametrize("content, message", [
-    (None, "a folder, expected a protocol file (examples/*.toml)"),
-    (b"\xff\xfe\x00binary", "not a text file, expected a protocol TOML file")])
+@pytest.mark.parametrize(
+    "content, message",
+    [
+        (None, "a folder, expected a protocol file (examples/*.toml)"),
+        (b"\xff\xfe\x00binary", "not a text file, expected a protocol TOML file"),
+    ],
+)
 def test_a_protocol_path_that_is_a_folder_or_binary_is_one_line(tmp_path, capsys, content, message):
     path = tmp_path / "p.toml"
     path.mkdir() if content is None else path.write_bytes(content)

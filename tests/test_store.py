@@ -24,8 +24,15 @@ def store(tmp_path):
 
 
 def _start(store, **overrides):
-    args = {"protocol_name": "iso9283_pose", "protocol_version": "1", "robot": "pkm5", "config": {"cycles": 30},
-                "settings": {"port": "/dev/pts/9"}, "calibration_ids": [3, 1], "campaign": "lab-a"}
+    args = {
+        "protocol_name": "iso9283_pose",
+        "protocol_version": "1",
+        "robot": "pkm5",
+        "config": {"cycles": 30},
+        "settings": {"port": "/dev/pts/9"},
+        "calibration_ids": [3, 1],
+        "campaign": "lab-a",
+    }
     args.update(overrides)
     return store.start_run(**args)
 
@@ -57,8 +64,9 @@ def test_unknown_run_is_named(store):
 
 def test_samples_round_trip_and_duplicates_refused(store):
     run_id = _start(store)
-    store.add_sample(run_id, 4, values={"x_mm": 1.5, "cmd_x_mm": 1.0}, pose="P1", cycle=1, t_s=0.25,
-                     raw={"counts": [3, -2]})
+    store.add_sample(
+        run_id, 4, values={"x_mm": 1.5, "cmd_x_mm": 1.0}, pose="P1", cycle=1, t_s=0.25, raw={"counts": [3, -2]}
+    )
     with pytest.raises(DuplicateSample, match="run 1: step 4 already has a stored sample"):
         store.add_sample(run_id, 4, values={"x_mm": 9.0}, t_s=1.0)
     (sample,) = store.samples(run_id)
@@ -87,9 +95,23 @@ def test_calibrations_are_versioned(store):
 def test_tidy_export_orders_columns_and_keeps_values(store, tmp_path):
     run_id = _start(store)
     for step, (pose, cycle, x) in enumerate([("P1", 1, 10.1), ("P2", 1, 20.2), ("P1", 2, 10.3)]):
-        store.add_sample(run_id, step, pose=pose, cycle=cycle, t_s=step * 0.5,
-                         values={"x_mm": x, "y_mm": 0.0, "z_mm": 300.0, "cmd_x_mm": round(x),
-                                 "cmd_y_mm": 0.0, "cmd_z_mm": 300.0, "velocity_pct": 100.0, "load_kg": 0.0})
+        store.add_sample(
+            run_id,
+            step,
+            pose=pose,
+            cycle=cycle,
+            t_s=step * 0.5,
+            values={
+                "x_mm": x,
+                "y_mm": 0.0,
+                "z_mm": 300.0,
+                "cmd_x_mm": round(x),
+                "cmd_y_mm": 0.0,
+                "cmd_z_mm": 300.0,
+                "velocity_pct": 100.0,
+                "load_kg": 0.0,
+            },
+        )
     table = tidy_table(store, run_id)
     assert list(table.columns[:8]) == ["pose", "cycle", "cmd_x_mm", "cmd_y_mm", "cmd_z_mm", "x_mm", "y_mm", "z_mm"]
     assert list(table.columns[8:]) == ["velocity_pct", "load_kg", "t_s", "step_index"]
@@ -104,9 +126,23 @@ def test_parquet_export_holds_the_same_table_as_csv(store, tmp_path):
     """The parquet extra (pyarrow, installed with the test extras): the same values and dtypes as the CSV."""
     run_id = _start(store)
     for step, (pose, x) in enumerate([("P1", 10.125), ("P2", -3.5)]):
-        store.add_sample(run_id, step, pose=pose, cycle=1, t_s=step * 0.5,
-                         values={"x_mm": x, "y_mm": 0.0, "z_mm": 300.0, "cmd_x_mm": 10.0,
-                                 "cmd_y_mm": 0.0, "cmd_z_mm": 300.0, "velocity_pct": 100.0, "load_kg": 0.0})
+        store.add_sample(
+            run_id,
+            step,
+            pose=pose,
+            cycle=1,
+            t_s=step * 0.5,
+            values={
+                "x_mm": x,
+                "y_mm": 0.0,
+                "z_mm": 300.0,
+                "cmd_x_mm": 10.0,
+                "cmd_y_mm": 0.0,
+                "cmd_z_mm": 300.0,
+                "velocity_pct": 100.0,
+                "load_kg": 0.0,
+            },
+        )
     csv = pd.read_csv(export_run(store, run_id, tmp_path / "run.csv"))
     parquet = pd.read_parquet(export_run(store, run_id, tmp_path / "run.parquet", fmt="parquet"))
     assert parquet["x_mm"].tolist() == [10.125, -3.5] and parquet["pose"].tolist() == ["P1", "P2"]
@@ -120,8 +156,14 @@ def test_export_of_empty_run_says_so(store):
 
 
 @settings(max_examples=30, deadline=None)
-@given(st.dictionaries(st.from_regex(r"[a-z]{1,6}_mm", fullmatch=True),
-                       st.floats(allow_nan=False, allow_infinity=False, width=64), min_size=1, max_size=5))
+@given(
+    st.dictionaries(
+        st.from_regex(r"[a-z]{1,6}_mm", fullmatch=True),
+        st.floats(allow_nan=False, allow_infinity=False, width=64),
+        min_size=1,
+        max_size=5,
+    )
+)
 def test_values_survive_the_round_trip_exactly(values):
     with Store(":memory:") as mem:
         run_id = _start(mem)
@@ -166,8 +208,9 @@ def test_export_without_kind_takes_pose_or_the_runs_most_frequent_kind(tmp_path,
     with Store(db) as store:
         run_id = _start(store)
         for index, kind in enumerate(["leg_length", "leg_length", "manual"]):
-            store.add_sample(run_id, index, values={"length_mm": 200.0 + index}, kind=kind, pose="L", cycle=index,
-                             t_s=float(index))
+            store.add_sample(
+                run_id, index, values={"length_mm": 200.0 + index}, kind=kind, pose="L", cycle=index, t_s=float(index)
+            )
         assert store.sample_kinds(run_id) == {"leg_length": 2, "manual": 1}
     out = tmp_path / "legs.csv"
     assert main(["export", str(run_id), "--store", str(db), "--out", str(out)]) == 0

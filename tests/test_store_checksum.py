@@ -32,8 +32,7 @@ def sound_store(tmp_path_factory) -> Path:
     with Store(path) as store:
         run_id = store.start_run(protocol_name="p", protocol_version="1", robot="pkm5", config={})
         for step in range(N_SAMPLES):
-            store.add_sample(run_id, step, values={"ap_mm": _ap_mm(step)}, pose="P2", cycle=step + 1,
-                             t_s=float(step))
+            store.add_sample(run_id, step, values={"ap_mm": _ap_mm(step)}, pose="P2", cycle=step + 1, t_s=float(step))
         store.set_status(run_id, "completed")
     assert not Path(f"{path}-wal").exists()  # the last close copied the log into the file
     return path
@@ -48,8 +47,7 @@ def _one_error_line(capsys) -> str:
 
 @settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
 @given(step=st.integers(0, N_SAMPLES - 1), digit=st.integers(0, 5), bit=st.integers(0, 7))
-def test_one_flipped_bit_in_a_stored_value_is_found_by_store_check(sound_store, tmp_path, step, digit, bit,
-                                                                   capsys):
+def test_one_flipped_bit_in_a_stored_value_is_found_by_store_check(sound_store, tmp_path, step, digit, bit, capsys):
     text = json.dumps({"ap_mm": _ap_mm(step)}).encode()  # as the store wrote it (sorted keys, one value)
     data = bytearray(sound_store.read_bytes())
     assert data.count(text) == 1
@@ -70,9 +68,11 @@ def test_a_changed_digit_refuses_export_and_report_in_one_line_naming_run_and_st
     with sqlite3.connect(damaged) as db:  # 2.1625 -> 2.4625: the digit changed, the JSON still parses
         db.execute("UPDATE samples SET values_json = replace(values_json, '3.1625', '3.4625') WHERE step_index = 1")
     db.close()
-    expected = (f"bench: error: store {damaged}: run 1 sample at step 1 is damaged: its stored bytes no longer "
-                "match their checksum (changed since it was stored); its run is refused, nothing computed from it: "
-                f"list the damage with `bench store check {damaged}` and read a backup copy")
+    expected = (
+        f"bench: error: store {damaged}: run 1 sample at step 1 is damaged: its stored bytes no longer "
+        "match their checksum (changed since it was stored); its run is refused, nothing computed from it: "
+        f"list the damage with `bench store check {damaged}` and read a backup copy"
+    )
     out = tmp_path / "run1.csv"
     assert main(["export", "1", "--store", str(damaged), "--out", str(out)]) == 1
     assert _one_error_line(capsys) == expected
@@ -94,8 +94,9 @@ def test_damaged_json_is_named_in_one_line_never_a_traceback(sound_store, tmp_pa
     db.close()
     assert main(["export", "1", "--store", str(damaged), "--out", str(tmp_path / "run1.csv")]) == 1
     line = _one_error_line(capsys)
-    assert line.startswith(f"bench: error: store {damaged}: run 1 sample at step 2 is damaged: its values_json "
-                           "does not parse ("), line
+    assert line.startswith(
+        f"bench: error: store {damaged}: run 1 sample at step 2 is damaged: its values_json does not parse ("
+    ), line
     assert main(["store", "check", str(damaged)]) == 1
     [problem] = capsys.readouterr().out.splitlines()
     assert problem.startswith(f"{damaged}: run 1 sample at step 2 (samples row 3): its values_json does not parse")
@@ -105,8 +106,10 @@ def test_a_sound_store_checks_ok_and_its_checksums_are_the_stored_columns(sound_
     assert main(["store", "check", str(sound_store)]) == 0
     assert capsys.readouterr().out == f"{sound_store}: ok\n"
     with sqlite3.connect(sound_store) as db:
-        rows = db.execute("SELECT step_index, kind, pose, cycle, t_s, wall_utc, values_json, raw_json, checksum"
-                          " FROM samples ORDER BY step_index").fetchall()
+        rows = db.execute(
+            "SELECT step_index, kind, pose, cycle, t_s, wall_utc, values_json, raw_json, checksum"
+            " FROM samples ORDER BY step_index"
+        ).fetchall()
     db.close()
     assert len(rows) == N_SAMPLES
     for step, kind, pose, cycle, t_s, wall_utc, values_json, raw_json, checksum in rows:  # recomputed by hand

@@ -28,9 +28,13 @@ def _values(path: Path) -> dict[int, dict]:
 
 
 def _start_and_wait(store: Path, at_least: int) -> subprocess.Popen:
-    process = subprocess.Popen([BENCH, "run", str(QUICK), "--sim", "--store", str(store), "--no-progress",
-                                "--speed-factor", "60"], stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL,
-                               stderr=subprocess.PIPE, text=True)
+    process = subprocess.Popen(
+        [BENCH, "run", str(QUICK), "--sim", "--store", str(store), "--no-progress", "--speed-factor", "60"],
+        stdin=subprocess.DEVNULL,
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
     wait_for_samples(store, process, at_least, timeout_s=120.0)
     return process
 
@@ -81,8 +85,9 @@ def test_export_into_a_missing_folder_and_a_header_only_table_are_one_line(tmp_p
     capsys.readouterr()
     missing = tmp_path / "nope" / "run.csv"
     assert main(["export", "1", "--store", str(store), "--out", str(missing)]) == 2
-    assert capsys.readouterr().err.strip() == (f"bench: error: export: folder {missing.parent} does not exist, "
-                                               "expected an existing folder")
+    assert capsys.readouterr().err.strip() == (
+        f"bench: error: export: folder {missing.parent} does not exist, expected an existing folder"
+    )
     table = tmp_path / "run.csv"
     assert main(["export", "1", "--store", str(store), "--out", str(table)]) == 0
     header = tmp_path / "header.csv"
@@ -118,9 +123,13 @@ def test_copies_of_the_db_file_at_random_moments_of_a_run_hold_every_sample_befo
     protocol = tmp_path / "four_cycles.toml"
     protocol.write_text(QUICK.read_text().replace("cycles = 3", "cycles = 4"))
     store, rng = tmp_path / "b.db", random.Random(15)
-    process = subprocess.Popen([BENCH, "run", str(protocol), "--sim", "--store", str(store), "--no-progress",
-                                "--speed-factor", "60"], stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL,
-                               stderr=subprocess.PIPE, text=True)
+    process = subprocess.Popen(
+        [BENCH, "run", str(protocol), "--sim", "--store", str(store), "--no-progress", "--speed-factor", "60"],
+        stdin=subprocess.DEVNULL,
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
     moments = sorted(rng.sample(range(1, 18), 8))  # after how many stored samples, then a random delay
     taken: list[tuple[Path, dict[int, dict]]] = []
     try:

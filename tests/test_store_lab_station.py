@@ -9,12 +9,13 @@ import pytest
 
 psycopg = pytest.importorskip("psycopg", reason='the lab store needs psycopg 3 (pip install "psycopg[binary]")')
 
+from postgres_support import lab_server, lab_url  # noqa: E402, F401  (fixtures)
+
 from bench.cli import main  # noqa: E402
 from bench.errors import ConfigError  # noqa: E402
 from bench.rigs.station import LabStoreSpec, load_station  # noqa: E402
 from bench.store import Store  # noqa: E402
 from bench.store.lab import LabStore, rows_checksum  # noqa: E402
-from postgres_support import lab_server, lab_url  # noqa: E402, F401  (fixtures)
 
 ROOT = Path(__file__).resolve().parents[1]
 QUICK = ROOT / "examples" / "iso9283_pose_quick.toml"
@@ -29,8 +30,20 @@ def station_with(tmp_path: Path, lab_store: str) -> Path:
 
 
 def run_quick(station: Path, store: Path) -> int:
-    return main(["run", str(QUICK), "--station", str(station), "--sim", "--store", str(store), "--no-progress",
-                 "--speed-factor", "300"])
+    return main(
+        [
+            "run",
+            str(QUICK),
+            "--station",
+            str(station),
+            "--sim",
+            "--store",
+            str(store),
+            "--no-progress",
+            "--speed-factor",
+            "300",
+        ]
+    )
 
 
 def test_lab_store_table_is_read_and_checked(tmp_path):
@@ -39,8 +52,11 @@ def test_lab_store_table_is_read_and_checked(tmp_path):
     assert spec == LabStoreSpec("postgres://lab/x", auto_sync=False)
     with pytest.raises(ConfigError, match=r"lab_store.url = mysql://lab/x: expected a postgresql://USER:PASSWORD@"):
         load_station(station_with(tmp_path, 'url = "mysql://lab/x"\n'))
-    with pytest.raises(ConfigError, match=r"lab_store.url = postgresql://b:\*\*\*@\[::1/lab: not a valid PostgreSQL"
-                                          r" URL \(.*\)$") as refused:
+    with pytest.raises(
+        ConfigError,
+        match=r"lab_store.url = postgresql://b:\*\*\*@\[::1/lab: not a valid PostgreSQL"
+        r" URL \(.*\)$",
+    ) as refused:
         load_station(station_with(tmp_path, 'url = "postgresql://b:s3cret@[::1/lab"\n'))
     assert "s3cret" not in str(refused.value)
     with pytest.raises(ConfigError, match=r"unknown key 'lab_store.sync', expected one of auto_sync, url"):
@@ -66,7 +82,8 @@ def test_a_sync_that_fails_keeps_the_run_and_the_next_sync_catches_up(tmp_path, 
     err = [line for line in capsys.readouterr().err.splitlines() if "lab store" in line]
     assert len(err) == 1 and err[0].startswith(
         "bench: lab store sync failed, the run is kept locally (bench sync catches up): lab store "
-        "postgresql://bench:***@127.0.0.1:9/lab?connect_timeout=2: server unreachable (")
+        "postgresql://bench:***@127.0.0.1:9/lab?connect_timeout=2: server unreachable ("
+    )
     with Store(store) as local:
         (run,) = local.runs()
         assert (run.status, run.n_samples) == ("completed", 15)

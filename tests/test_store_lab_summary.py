@@ -14,18 +14,24 @@ import pytest
 
 psycopg = pytest.importorskip("psycopg", reason='the lab store needs psycopg 3 (pip install "psycopg[binary]")')
 
+from postgres_support import lab_server, lab_url  # noqa: E402, F401  (fixtures)
+
 from bench.cli import main  # noqa: E402
 from bench.metrology.iso9283 import pose_accuracy, pose_repeatability  # noqa: E402
 from bench.store import Store  # noqa: E402
 from bench.store.lab import LAB_SCHEMA_VERSION, LabStore, sync_store  # noqa: E402
 from bench.store.lab_copy import TYPED_COLUMNS  # noqa: E402
 from bench.store.lab_summary import pose_summary  # noqa: E402
-from postgres_support import lab_server, lab_url  # noqa: E402, F401  (fixtures)
+from bench.store.sample_checksum import CHECKED_COLUMNS, sample_checksum
 
 COMMANDS = {"P1": (110.0, 0.0, 320.0), "P2": (60.5, -40.25, 300.0)}
 #: (bench, robot, start of the run); 2026-11-02 and 2026-11-04 share the ISO week of Monday 2026-11-02.
-RUNS = (("bench-a", "pkm5", "2026-11-02T08:00:00.000000+00:00"), ("bench-a", "pkm5", "2026-11-04T23:59:00.000000+00:00"),
-        ("bench-a", "pkm5", "2026-11-09T00:00:01.000000+00:00"), ("bench-b", "delta4", "2026-11-03T12:00:00.000000+00:00"))
+RUNS = (
+    ("bench-a", "pkm5", "2026-11-02T08:00:00.000000+00:00"),
+    ("bench-a", "pkm5", "2026-11-04T23:59:00.000000+00:00"),
+    ("bench-a", "pkm5", "2026-11-09T00:00:01.000000+00:00"),
+    ("bench-b", "delta4", "2026-11-03T12:00:00.000000+00:00"),
+)
 
 
 def make_campaigns(tmp_path, seed=9283):
@@ -43,20 +49,39 @@ def make_campaigns(tmp_path, seed=9283):
                 for pose, command in COMMANDS.items():
                     for velocity in (50.0, None):
                         xyz = tuple(float(c + rng.normal(0.02, 0.01)) for c in command)
-                        values = {**dict(zip(("cmd_x_mm", "cmd_y_mm", "cmd_z_mm"), command)),
-                                  **dict(zip(("x_mm", "y_mm", "z_mm"), xyz))}
+                        values = {
+                            **dict(zip(("cmd_x_mm", "cmd_y_mm", "cmd_z_mm"), command)),
+                            **dict(zip(("x_mm", "y_mm", "z_mm"), xyz)),
+                        }
                         if velocity is not None:
                             values["velocity_pct"] = velocity
                         store.add_sample(run_id, step, values=values, pose=pose, cycle=cycle, t_s=step * 0.5)
                         samples.append((bench, robot, started, pose, velocity, xyz))
                         step += 1
-            store.add_sample(run_id, step, values={"cmd_x_mm": 110.0, "cmd_y_mm": 0.0, "cmd_z_mm": 320.0,
-                                                   "x_mm": 200.0, "y_mm": 9.0}, pose="P1", cycle=4, t_s=99.0)
-            store.add_sample(run_id, step + 1, kind="arrival", values={
-                "cmd_x_mm": 110.0, "cmd_y_mm": 0.0, "cmd_z_mm": 320.0, "x_mm": 1.0, "y_mm": 2.0, "z_mm": 3.0},
-                pose="P1", cycle=4, t_s=100.0)
-            store.add_sample(run_id, step + 2, values={"cmd_x_mm": 1.0, "cmd_y_mm": 2.0, "cmd_z_mm": 3.0,
-                                                       "x_mm": 1.5, "y_mm": 2.0, "z_mm": 3.0}, pose="P9", t_s=101.0)
+            store.add_sample(
+                run_id,
+                step,
+                values={"cmd_x_mm": 110.0, "cmd_y_mm": 0.0, "cmd_z_mm": 320.0, "x_mm": 200.0, "y_mm": 9.0},
+                pose="P1",
+                cycle=4,
+                t_s=99.0,
+            )
+            store.add_sample(
+                run_id,
+                step + 1,
+                kind="arrival",
+                values={"cmd_x_mm": 110.0, "cmd_y_mm": 0.0, "cmd_z_mm": 320.0, "x_mm": 1.0, "y_mm": 2.0, "z_mm": 3.0},
+                pose="P1",
+                cycle=4,
+                t_s=100.0,
+            )
+            store.add_sample(
+                run_id,
+                step + 2,
+                values={"cmd_x_mm": 1.0, "cmd_y_mm": 2.0, "cmd_z_mm": 3.0, "x_mm": 1.5, "y_mm": 2.0, "z_mm": 3.0},
+                pose="P9",
+                t_s=101.0,
+            )
             samples.append((bench, robot, started, "P9", None, (1.5, 2.0, 3.0)))
         db = sqlite3.connect(path)
         with db:
@@ -69,16 +94,22 @@ def test_typed_columns_hold_the_json_numbers(tmp_path, lab_url):
     path = tmp_path / "t.db"
     with Store(path, bench="bench-t") as store:
         run_id = store.start_run(protocol_name="p", protocol_version="1", robot="pkm5", config={})
-        store.add_sample(run_id, 0, kind="grid_hit", values={"x_mm": 0.1 + 0.2, "load_kg": 3, "step_mm": 1e-300},
-                         t_s=0.0)
+        store.add_sample(
+            run_id, 0, kind="grid_hit", values={"x_mm": 0.1 + 0.2, "load_kg": 3, "step_mm": 1e-300}, t_s=0.0
+        )
         store.add_sample(run_id, 1, kind="note", values={"y_mm": True, "z_mm": -0.0}, pose="P\t1", t_s=1.0)
         store.add_sample(run_id, 2, kind="note", values={}, t_s=2.0)
         store.add_sample(run_id, 3, kind="note", values={}, t_s=3.0)
     db = sqlite3.connect(path)  # values no bench writes today, as an old or hand-made file may hold them
     with db:
-        db.execute("""UPDATE samples SET values_json = '{"x_mm": "12.5", "y_mm": true, "velocity_pct": [1], "load_kg": {"a": 1}, "z_mm": 2}'"""
-                   " WHERE step_index = 2")
+        db.execute(
+            """UPDATE samples SET values_json = '{"x_mm": "12.5", "y_mm": true, "velocity_pct": [1], "load_kg": {"a": 1}, "z_mm": 2}'"""
+            " WHERE step_index = 2"
+        )
         db.execute("UPDATE samples SET values_json = '[1, 2]' WHERE step_index = 3")
+        # as a file written so: each edited sample carries the checksum of what it now holds (bench store check)
+        db.create_function("checksum", 8, sample_checksum)
+        db.execute(f"UPDATE samples SET checksum = checksum({', '.join(CHECKED_COLUMNS)}) WHERE step_index IN (2, 3)")
     db.close()
     with Store(path) as store:
         sync_store(store, lab_url)
@@ -86,8 +117,12 @@ def test_typed_columns_hold_the_json_numbers(tmp_path, lab_url):
     with LabStore(lab_url) as lab:
         rows = lab.query(f"SELECT step_index, {columns} FROM bench.samples ORDER BY step_index")
     typed = [{name: value for name, value in zip(TYPED_COLUMNS, row[1:]) if value is not None} for row in rows]
-    assert typed == [{"x_mm": 0.30000000000000004, "load_kg": 3.0, "step_mm": 1e-300},
-                     {"y_mm": 1.0, "z_mm": -0.0}, {"z_mm": 2.0}, {}]  # a string, boolean, list, object: NULL
+    assert typed == [
+        {"x_mm": 0.30000000000000004, "load_kg": 3.0, "step_mm": 1e-300},
+        {"y_mm": 1.0, "z_mm": -0.0},
+        {"z_mm": 2.0},
+        {},
+    ]  # a string, boolean, list, object: NULL
     assert math.copysign(1.0, typed[1]["z_mm"]) == -1.0
 
 
@@ -125,23 +160,37 @@ def test_summary_equals_metrology_on_the_same_samples(tmp_path, lab_url, capsys)
     pooled = got[("bench-a", "pkm5", date(2026, 11, 2), "P1", 50.0)]
     assert pooled[0] == 6 and pooled[2] > 0
     assert [g.rp_refused for g in groups if g.pose == "P9"] == [
-        None, "RP needs at least 2 cycles, this group has 1", "RP needs at least 2 cycles, this group has 1"]
+        None,
+        "RP needs at least 2 cycles, this group has 1",
+        "RP needs at least 2 cycles, this group has 1",
+    ]
 
     assert main(["lab", "summary", "--store", lab_url, "--since", "2026-11-03", "--robot", "pkm5", "--json"]) == 0
     listed = [json.loads(line) for line in capsys.readouterr().out.splitlines()]
     assert sorted({(r["week"], r["pose"], r["velocity_pct"]) for r in listed}, key=str) == [
-        ("2026-11-02", "P1", 50.0), ("2026-11-02", "P1", None), ("2026-11-02", "P2", 50.0), ("2026-11-02", "P2", None),
-        ("2026-11-02", "P9", None), ("2026-11-09", "P1", 50.0), ("2026-11-09", "P1", None), ("2026-11-09", "P2", 50.0),
-        ("2026-11-09", "P2", None), ("2026-11-09", "P9", None)]
+        ("2026-11-02", "P1", 50.0),
+        ("2026-11-02", "P1", None),
+        ("2026-11-02", "P2", 50.0),
+        ("2026-11-02", "P2", None),
+        ("2026-11-02", "P9", None),
+        ("2026-11-09", "P1", 50.0),
+        ("2026-11-09", "P1", None),
+        ("2026-11-09", "P2", 50.0),
+        ("2026-11-09", "P2", None),
+        ("2026-11-09", "P9", None),
+    ]
     row = next(r for r in listed if (r["week"], r["pose"], r["velocity_pct"]) == ("2026-11-09", "P2", 50.0))
-    assert row["n"] == 3 and row["ap_mm"] == pytest.approx(expected[("bench-a", "pkm5", date(2026, 11, 9), "P2", 50.0)][1])
+    assert row["n"] == 3 and row["ap_mm"] == pytest.approx(
+        expected[("bench-a", "pkm5", date(2026, 11, 9), "P2", 50.0)][1]
+    )
     assert main(["lab", "summary", "--store", lab_url, "--bench", "bench-b"]) == 0
     text = capsys.readouterr().out.splitlines()
     assert text[0].split() == ["bench", "robot", "week", "pose", "velocity_pct", "n", "AP_mm", "RP_mm"]
     assert len(text) == 1 + 5 and all(line.split()[:3] == ["bench-b", "delta4", "2026-11-02"] for line in text[1:])
     assert main(["lab", "summary", "--store", str(tmp_path / "x.db")]) == 2
-    assert capsys.readouterr().err.strip() == (f"bench: error: --store {tmp_path / 'x.db'}: lab summary needs the "
-                                               "lab store, a postgresql:// URL")
+    assert capsys.readouterr().err.strip() == (
+        f"bench: error: --store {tmp_path / 'x.db'}: expected a postgresql://USER:PASSWORD@HOST/DBNAME URL"
+    )
 
 
 def test_version_1_lab_store_is_migrated_with_its_typed_columns_filled(tmp_path, lab_url):
@@ -158,8 +207,10 @@ def test_version_1_lab_store_is_migrated_with_its_typed_columns_filled(tmp_path,
         sync_store(store, lab_url)
     with LabStore(lab_url) as lab:
         assert lab.query("SELECT version FROM bench.schema_version") == [(LAB_SCHEMA_VERSION,)]
-        bench_b = lab.query(f"SELECT step_index, {columns} FROM bench.samples s JOIN bench.runs r"
-                            " ON r.uuid = s.run_uuid WHERE r.bench = 'bench-b' ORDER BY step_index")
+        bench_b = lab.query(
+            f"SELECT step_index, {columns} FROM bench.samples s JOIN bench.runs r"
+            " ON r.uuid = s.run_uuid WHERE r.bench = 'bench-b' ORDER BY step_index"
+        )
         assert bench_b == before
         _assert_figures(pose_summary(lab), samples)
 
@@ -168,19 +219,26 @@ def _assert_figures(groups, samples):
     got, expected = _figures(groups), _figures_expected(samples)
     assert [key for key, _ in got] == [key for key, _ in expected]
     assert [n for _, (n, _, _) in got] == [n for _, (n, _, _) in expected]
-    assert [v for _, f in got for v in f[1:]] == pytest.approx([v for _, f in expected for v in f[1:]], rel=1e-12,
-                                                                abs=1e-12)
+    assert [v for _, f in got for v in f[1:]] == pytest.approx(
+        [v for _, f in expected for v in f[1:]], rel=1e-12, abs=1e-12
+    )
 
 
 def _figures(groups):
-    return sorted(((g.bench, g.robot, str(g.week), g.pose, -1.0 if g.velocity_pct is None else g.velocity_pct),
-                   (g.n, g.ap_mm, -1.0 if g.rp_mm is None else g.rp_mm)) for g in groups)
+    return sorted(
+        (
+            (g.bench, g.robot, str(g.week), g.pose, -1.0 if g.velocity_pct is None else g.velocity_pct),
+            (g.n, g.ap_mm, -1.0 if g.rp_mm is None else g.rp_mm),
+        )
+        for g in groups
+    )
 
 
 def _figures_expected(samples):
-    return sorted(((bench, robot, str(week), pose, -1.0 if velocity is None else velocity),
-                   (n, ap, -1.0 if rp is None else rp))
-                  for (bench, robot, week, pose, velocity), (n, ap, rp) in expected_groups(samples).items())
+    return sorted(
+        ((bench, robot, str(week), pose, -1.0 if velocity is None else velocity), (n, ap, -1.0 if rp is None else rp))
+        for (bench, robot, week, pose, velocity), (n, ap, rp) in expected_groups(samples).items()
+    )
 
 
 def test_version_2_lab_store_gets_its_pose_tables_from_the_samples_it_holds(tmp_path, lab_url):

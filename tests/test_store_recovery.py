@@ -35,8 +35,12 @@ def _damage_a_sample_page(path: Path) -> int:
     """Overwrite one leaf page of the samples table (not its root, not the runs table) with bytes 0x5a, as a bad
     disk block or a torn copy would; returns the page number."""
     with sqlite3.connect(path) as db:
-        leaves = [row[0] for row in db.execute(
-            "SELECT pageno FROM dbstat WHERE name = 'samples' AND pagetype = 'leaf' ORDER BY pageno")]
+        leaves = [
+            row[0]
+            for row in db.execute(
+                "SELECT pageno FROM dbstat WHERE name = 'samples' AND pagetype = 'leaf' ORDER BY pageno"
+            )
+        ]
         (page_size,) = db.execute("PRAGMA page_size").fetchone()
     db.close()
     assert page_size == PAGE and len(leaves) > 3
@@ -61,11 +65,14 @@ def test_a_damaged_store_left_by_an_interrupted_run_is_refused_before_anything_i
     for command in (["run", str(QUICK), "--sim", "--no-progress"], ["resume", "1", "--no-progress"]):
         assert main([*command, "--store", str(store)]) == 1
         line = _one_error_line(capsys)
-        assert line.startswith(f"bench: error: store {store}: not closed cleanly (run 1 interrupted) and damaged: "
-                               "integrity: "), line
+        assert line.startswith(
+            f"bench: error: store {store}: not closed cleanly (run 1 interrupted) and damaged: integrity: "
+        ), line
         assert f"Page {page}" in line or f"page {page}" in line, line
-        assert line.endswith(f"nothing was written: list the damage with `bench store check {store}`, keep a copy "
-                             f"with `bench backup COPY.db --store {store}`, and run into a new store (--store NEW.db)")
+        assert line.endswith(
+            f"nothing was written: list the damage with `bench store check {store}`, keep a copy "
+            f"with `bench backup COPY.db --store {store}`, and run into a new store (--store NEW.db)"
+        )
     assert store.read_bytes() == before
     assert sorted(p.name for p in tmp_path.iterdir()) == ["bench.db"]  # no second run, no lock, no journal left
     with pytest.raises(StoreDamaged, match="not closed cleanly"):
@@ -85,9 +92,13 @@ def test_a_damaged_store_that_was_closed_cleanly_is_not_checked_on_open(tmp_path
 
 def test_an_interrupted_healthy_store_passes_the_check_and_is_appended_to(tmp_path, capsys, caplog):
     store = tmp_path / "bench.db"
-    process = subprocess.Popen([BENCH, "run", str(QUICK), "--sim", "--store", str(store), "--no-progress",
-                                "--speed-factor", "60"], stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL,
-                               stderr=subprocess.PIPE, text=True)
+    process = subprocess.Popen(
+        [BENCH, "run", str(QUICK), "--sim", "--store", str(store), "--no-progress", "--speed-factor", "60"],
+        stdin=subprocess.DEVNULL,
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
     wait_for_samples(store, process, 6, timeout_s=120.0)
     process.send_signal(signal.SIGKILL)
     process.wait(30)
@@ -99,8 +110,9 @@ def test_an_interrupted_healthy_store_passes_the_check_and_is_appended_to(tmp_pa
     assert main(["resume", "1", "--store", str(store), "--no-progress"]) == 0
     capsys.readouterr()
     checks = [r.getMessage() for r in caplog.records if r.name == "bench.store.recovery"]
-    assert len(checks) == 1 and checks[0].startswith(f"store {store}: not closed cleanly (run 1 interrupted); "
-                                                     "integrity check ok in "), checks
+    assert len(checks) == 1 and checks[0].startswith(
+        f"store {store}: not closed cleanly (run 1 interrupted); integrity check ok in "
+    ), checks
     with Store(store, read_only=True) as reader:
         (run,) = reader.runs()
         after = {s.step_index: s.values for s in reader.samples(run.id)}
@@ -123,6 +135,5 @@ def test_the_window_reports_a_damaged_store_and_runs_nothing(window, tmp_path):
     window.campaign_panel.choose_file(EXAMPLES / "iso9283_pose_quick.toml")
     window.campaign_panel.start()
     wait_for(lambda: window.campaign_panel.worker is None, RUN_TIMEOUT_S, "the worker to give up")
-    assert f"store {store}: not closed cleanly (run 1 interrupted) and damaged: integrity: " in \
-        window.log.toPlainText()
+    assert f"store {store}: not closed cleanly (run 1 interrupted) and damaged: integrity: " in window.log.toPlainText()
     assert store.read_bytes() == before

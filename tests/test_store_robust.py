@@ -39,7 +39,7 @@ def _damaged(sound: Path) -> Path:
     data = bytearray(sound.read_bytes())
     page = 4096
     assert len(data) >= 6 * page
-    data[3 * page:6 * page] = b"\x5a" * (3 * page)
+    data[3 * page : 6 * page] = b"\x5a" * (3 * page)
     damaged = sound.with_name("damaged.db")
     damaged.write_bytes(bytes(data))
     return damaged
@@ -52,8 +52,10 @@ def test_another_applications_sqlite_file_is_refused_and_untouched(tmp_path, cap
         db.execute("INSERT INTO notes (text) VALUES ('keep me')")
     db.close()
     before = other.read_bytes()
-    expected = (f"bench: error: --store {other}: not a bench store (its tables are notes; no runs table); left "
-                "untouched, expected a bench.db that bench wrote or a new file name")
+    expected = (
+        f"bench: error: --store {other}: not a bench store (its tables are notes; no runs table); left "
+        "untouched, expected a bench.db that bench wrote or a new file name"
+    )
     for command in (["runs"], ["run", str(QUICK), "--sim", "--no-progress"], ["export", "1"], ["report", "1"]):
         assert main([*command, "--store", str(other)]) == 2
         assert _one_error_line(capsys) == expected
@@ -88,19 +90,24 @@ def test_store_check_says_ok_and_names_each_orphan_row(sound_store, capsys):
     assert main(["store", "check", str(sound_store)]) == 0
     assert capsys.readouterr().out == f"{sound_store}: ok\n"
     with sqlite3.connect(sound_store) as db:  # foreign keys are off in a plain connection: orphans get in
-        db.execute("INSERT INTO samples (run_id, step_index, kind, t_s, wall_utc, values_json)"
-                   " VALUES (7, 0, 'pose', 0, '2026-12-01', '{}')")
+        db.execute(
+            "INSERT INTO samples (run_id, step_index, kind, t_s, wall_utc, values_json)"
+            " VALUES (7, 0, 'pose', 0, '2026-12-01', '{}')"
+        )
         (rowid,) = db.execute("SELECT id FROM samples WHERE run_id = 7").fetchone()
     db.close()
     assert check_store(str(sound_store)) == [
         f"{sound_store}: table samples row {rowid}: runs id missing (foreign key 0)",
-        f"{sound_store}: run 7 sample at step 0 (samples row {rowid}): it has no checksum (written outside bench)"]
+        f"{sound_store}: run 7 sample at step 0 (samples row {rowid}): it has no checksum (written outside bench)",
+    ]
 
 
 def test_a_read_only_store_reads_and_a_write_is_one_line(sound_store):
     with Store(sound_store, read_only=True) as store:
         assert [(r.status, r.n_samples) for r in store.runs()] == [("completed", 300)]
         assert store.samples(1)[299].values == {"x_mm": 149.5}
-        with pytest.raises(StoreError, match=f"store {sound_store}: attempt to write a readonly database; the "
-                                             "file or its folder is read-only"):
+        with pytest.raises(
+            StoreError,
+            match=f"store {sound_store}: attempt to write a readonly database; the file or its folder is read-only",
+        ):
             store.set_status(1, "failed", "x")

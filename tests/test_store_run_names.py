@@ -9,9 +9,11 @@ import pytest
 from bench.errors import ConfigError
 from bench.store.lab_reader import pick_run
 
-RECORDS = [SimpleNamespace(bench="bench-a", id=1, uuid="24600023-9f1c-4d2e-8a7b-0c5d6e7f8091"),
-           SimpleNamespace(bench="bench-b", id=1, uuid="a1b2c3d4-0000-4000-8000-000000000001"),
-           SimpleNamespace(bench="bench-b", id=2, uuid="a1b2c3d5-0000-4000-8000-000000000002")]
+RECORDS = [
+    SimpleNamespace(bench="bench-a", id=1, uuid="24600023-9f1c-4d2e-8a7b-0c5d6e7f8091"),
+    SimpleNamespace(bench="bench-b", id=1, uuid="a1b2c3d4-0000-4000-8000-000000000001"),
+    SimpleNamespace(bench="bench-b", id=2, uuid="a1b2c3d5-0000-4000-8000-000000000002"),
+]
 
 
 def test_a_uuid_prefix_of_decimal_digits_names_its_run():

@@ -12,8 +12,8 @@ from pathlib import Path
 import pytest
 
 from bench.cli import main
-from bench.store.connection import check_store
 from bench.store import SCHEMA_VERSION, SampleMismatch, Store, StoreSchemaError, export_run, validate_sample
+from bench.store.connection import check_store
 from bench.store.descriptors import unit_of
 
 DATA = Path(__file__).parent / "data"
@@ -47,7 +47,9 @@ def test_old_file_migrates_with_a_backup_and_exports_identically(old_store, tmp_
         assert store._db.execute("PRAGMA user_version").fetchone() == (SCHEMA_VERSION,)
         runs = store.runs()
         assert [(r.id, r.protocol_name, r.n_samples, r.status) for r in runs] == [
-            (1, "iso9283_pose", 15, "completed"), (2, "mouse_calibration", 100, "completed")]
+            (1, "iso9283_pose", 15, "completed"),
+            (2, "mouse_calibration", 100, "completed"),
+        ]
         assert {r.bench for r in runs} == {"bench-7"}
         assert len({str(uuid.UUID(r.uuid)) for r in runs}) == 2
         assert all(c.uuid for c in store.calibrations())
@@ -131,8 +133,10 @@ def test_newer_file_is_refused_and_untouched(old_store):
     with sqlite3.connect(old_store) as db:
         db.execute(f"PRAGMA user_version = {SCHEMA_VERSION + 1}")
     before = old_store.read_bytes()
-    with pytest.raises(StoreSchemaError, match=f"schema version {SCHEMA_VERSION + 1} is newer than this bench's "
-                                               f"\\({SCHEMA_VERSION}\\); upgrade bench"):
+    with pytest.raises(
+        StoreSchemaError,
+        match=f"schema version {SCHEMA_VERSION + 1} is newer than this bench's \\({SCHEMA_VERSION}\\); upgrade bench",
+    ):
         Store(old_store)
     assert old_store.read_bytes() == before
 
@@ -142,8 +146,10 @@ def test_cli_says_newer_schema_in_one_line(old_store, capsys):
         db.execute("PRAGMA user_version = 99")
     assert main(["runs", "--store", str(old_store)]) == 2
     err = capsys.readouterr().err.strip().splitlines()
-    assert err == [f"bench: error: --store {old_store}: schema version 99 is newer than this bench's "
-                   f"({SCHEMA_VERSION}); upgrade bench to open it"]
+    assert err == [
+        f"bench: error: --store {old_store}: schema version 99 is newer than this bench's "
+        f"({SCHEMA_VERSION}); upgrade bench to open it"
+    ]
 
 
 def test_runs_filter_by_bench_robot_since(tmp_path):
@@ -156,8 +162,15 @@ def test_runs_filter_by_bench_robot_since(tmp_path):
 
 
 def test_descriptor_validation_names_the_column():
-    good = {"cmd_x_mm": 1.0, "cmd_y_mm": 0.0, "cmd_z_mm": 300.0, "x_mm": 1.1, "y_mm": 0.1, "z_mm": 300.2,
-            "velocity_pct": 100.0}
+    good = {
+        "cmd_x_mm": 1.0,
+        "cmd_y_mm": 0.0,
+        "cmd_z_mm": 300.0,
+        "x_mm": 1.1,
+        "y_mm": 0.1,
+        "z_mm": 300.2,
+        "velocity_pct": 100.0,
+    }
     validate_sample("pose", good)
     validate_sample("no_such_kind", {"anything": 1.0})  # undeclared kinds are not checked
     with pytest.raises(SampleMismatch, match="sample kind 'pose': column 'x_in' is not declared"):

@@ -41,7 +41,7 @@ def test_the_writer_flushes_by_rows_and_by_age(tmp_path):
     with Store(tmp_path / "s.db") as store:
         run = _run(store)
         writer = StreamWriter(store, run, "mouse_xy", batch_s=0.1, batch_rows=1000, clock=lambda: now[0])
-        assert writer.append(_frames(0, 600)) == 0   # young and few: waits
+        assert writer.append(_frames(0, 600)) == 0  # young and few: waits
         assert writer.append(_frames(600, 600)) == 1200  # 1200 >= 1000 rows
         assert writer.append(_frames(1200, 10)) == 0
         now[0] = 0.1

@@ -16,10 +16,11 @@ import pytest
 
 psycopg = pytest.importorskip("psycopg", reason='the lab store needs psycopg 3 (pip install "psycopg[binary]")')
 
+from postgres_support import PASSWORD, Cluster, lab_server, lab_url, make_store  # noqa: E402, F401  (fixtures)
+
 from bench.cli import main  # noqa: E402
 from bench.store import Store  # noqa: E402
 from bench.store.lab import LAB_SCHEMA_VERSION, LabServerBusy, LabStore, rows_checksum, sync_store  # noqa: E402
-from postgres_support import PASSWORD, Cluster, lab_server, lab_url, make_store  # noqa: E402, F401  (fixtures)
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -67,32 +68,50 @@ def test_sync_twice_sends_nothing_twice(tmp_path, lab_url):
     with LabStore(lab_url) as lab:
         runs = {r.id: r for r in lab.runs()}
         assert (runs[2].status, runs[2].reason, runs[2].bench, runs[1].n_samples) == (
-            "aborted", "operator abort", "bench-a", 250)
+            "aborted",
+            "operator abort",
+            "bench-a",
+            250,
+        )
         assert runs[2].n_samples == 41
         assert lab.query("SELECT name, params_json FROM bench.calibrations") == [
-            ("mouse", '{"mm_per_count": 0.03175, "nominal": true}')]
+            ("mouse", '{"mm_per_count": 0.03175, "nominal": true}')
+        ]
 
 
 def test_awkward_text_arrives_byte_for_byte(tmp_path, lab_url):
     path = tmp_path / "t.db"
     with Store(path, bench="bench-\\t") as store:
         run_id = store.start_run(protocol_name="p", protocol_version="1", robot="pkm5", config={"note": "a\tb"})
-        store.add_sample(run_id, 0, kind="grid_hit", values={"x_mm": 0.1 + 0.2}, pose="P\t1\\n\nend\r",
-                         t_s=1e-300, raw={"path": "C:\\bench\\new", "text": "tab\there"})
+        store.add_sample(
+            run_id,
+            0,
+            kind="grid_hit",
+            values={"x_mm": 0.1 + 0.2},
+            pose="P\t1\\n\nend\r",
+            t_s=1e-300,
+            raw={"path": "C:\\bench\\new", "text": "tab\there"},
+        )
         store.add_sample(run_id, 1, kind="grid_hit", values={}, pose=None, cycle=None, t_s=5e-324, raw=None)
         sync_store(store, lab_url)
     assert server_state(lab_url) == (2, 2, local_checksums(path))
     with LabStore(lab_url) as lab:
         assert lab.query("SELECT pose, raw_json FROM bench.samples ORDER BY step_index") == [
-            ("P\t1\\n\nend\r", '{"path": "C:\\\\bench\\\\new", "text": "tab\\there"}'), (None, None)]
+            ("P\t1\\n\nend\r", '{"path": "C:\\\\bench\\\\new", "text": "tab\\there"}'),
+            (None, None),
+        ]
 
 
 def test_sync_killed_midway_then_resumed_has_every_sample_once(tmp_path, lab_url):
     path = make_store(tmp_path / "b.db", "bench-b", [6000, 6000, 3000])
     before = file_digest(path)
-    writer = subprocess.Popen([sys.executable, "-m", "bench.cli", "sync", "--store", str(path), "--to", lab_url,
-                               "--batch", "500"], cwd=ROOT, stderr=subprocess.PIPE, text=True,
-                              env={**os.environ, "PYTHONPATH": str(ROOT)})
+    writer = subprocess.Popen(
+        [sys.executable, "-m", "bench.cli", "sync", "--store", str(path), "--to", lab_url, "--batch", "500"],
+        cwd=ROOT,
+        stderr=subprocess.PIPE,
+        text=True,
+        env={**os.environ, "PYTHONPATH": str(ROOT)},
+    )
     _kill_after_batches(writer, 7)
     assert writer.returncode == -signal.SIGKILL
     partial, distinct, _ = server_state(lab_url)
@@ -133,20 +152,36 @@ def test_bad_url_credentials_and_server_are_one_line_each(tmp_path, lab_url, cap
     path = make_store(tmp_path / "d.db", "bench-d", [10])
     before = file_digest(path)
     assert main(["sync", "--store", str(path), "--to", "mysql://bench@localhost/lab"]) == 2
-    assert _one_error_line(capsys) == ("bench: error: --to mysql://bench@localhost/lab: expected a "
-                                       "postgresql://USER:PASSWORD@HOST/DBNAME URL")
+    assert _one_error_line(capsys) == (
+        "bench: error: --to mysql://bench@localhost/lab: expected a postgresql://USER:PASSWORD@HOST/DBNAME URL"
+    )
     assert main(["sync", "--store", str(path), "--to", "postgresql://bench@/lab?colour=blue"]) == 2
     line = _one_error_line(capsys)  # libpq's own words follow: "invalid URI query parameter" in libpq 15
-    assert line.startswith("bench: error: --to postgresql://bench@/lab?colour=blue: not a valid PostgreSQL "
-                           "URL (invalid ") and '"colour"' in line
+    assert (
+        line.startswith("bench: error: --to postgresql://bench@/lab?colour=blue: not a valid PostgreSQL URL (invalid ")
+        and '"colour"' in line
+    )
     wrong = lab_url.replace(PASSWORD, "not-the-password") if PASSWORD in lab_url else lab_url + "&password=nope"
     assert main(["sync", "--store", str(path), "--to", wrong, "--retries", "0"]) == 1
     line = _one_error_line(capsys)
     assert "bad credentials (" in line and "password authentication failed" in line and "not-the-password" not in line
-    assert main(["sync", "--store", str(path), "--to", "postgresql://bench:pw@127.0.0.1:9/lab?connect_timeout=2",
-                 "--retries", "0"]) == 1
-    assert _one_error_line(capsys).startswith("bench: error: lab store postgresql://bench:***@127.0.0.1:9/lab"
-                                              "?connect_timeout=2: server unreachable (")
+    assert (
+        main(
+            [
+                "sync",
+                "--store",
+                str(path),
+                "--to",
+                "postgresql://bench:pw@127.0.0.1:9/lab?connect_timeout=2",
+                "--retries",
+                "0",
+            ]
+        )
+        == 1
+    )
+    assert _one_error_line(capsys).startswith(
+        "bench: error: lab store postgresql://bench:***@127.0.0.1:9/lab?connect_timeout=2: server unreachable ("
+    )
     assert file_digest(path) == before
 
 
@@ -157,8 +192,9 @@ def test_newer_server_schema_is_refused(tmp_path, lab_url, capsys):
         conn.execute("UPDATE bench.schema_version SET version = 7")
     capsys.readouterr()
     assert main(["sync", "--store", str(path), "--to", lab_url]) == 1
-    assert _one_error_line(capsys).endswith(f"server schema version 7 is newer than this bench's "
-                                            f"({LAB_SCHEMA_VERSION}); upgrade bench to sync")
+    assert _one_error_line(capsys).endswith(
+        f"server schema version 7 is newer than this bench's ({LAB_SCHEMA_VERSION}); upgrade bench to sync"
+    )
 
 
 def test_lab_wide_runs_with_filters(tmp_path, lab_url, capsys):
@@ -169,7 +205,11 @@ def test_lab_wide_runs_with_filters(tmp_path, lab_url, capsys):
     assert main(["runs", "--store", lab_url, "--json"]) == 0
     listed = [json.loads(line) for line in capsys.readouterr().out.splitlines()]
     assert sorted((r["bench"], r["robot"], r["id"], r["n_samples"]) for r in listed) == [
-        ("bench-a", "pkm5", 1, 5), ("bench-a", "pkm5", 2, 3), ("bench-b", "delta4", 1, 5), ("bench-b", "delta4", 2, 3)]
+        ("bench-a", "pkm5", 1, 5),
+        ("bench-a", "pkm5", 2, 3),
+        ("bench-b", "delta4", 1, 5),
+        ("bench-b", "delta4", 2, 3),
+    ]
     assert main(["runs", "--store", lab_url, "--json", "--bench", "bench-b", "--robot", "delta4"]) == 0
     assert len(capsys.readouterr().out.splitlines()) == 2
     assert main(["runs", "--store", lab_url, "--robot", "pkm5", "--since", "2999-01-01"]) == 0
@@ -187,8 +227,26 @@ def test_benches_sync_at_once_through_a_kill_and_a_server_restart(tmp_path, lab_
     env = {**os.environ, "PYTHONPATH": str(ROOT)}
 
     def sync(path, **streams):
-        return subprocess.Popen([sys.executable, "-m", "bench.cli", "sync", "--store", str(path), "--to", lab_url,
-                                 "--batch", "100", "--retries", "6"], cwd=ROOT, env=env, text=True, **streams)
+        return subprocess.Popen(
+            [
+                sys.executable,
+                "-m",
+                "bench.cli",
+                "sync",
+                "--store",
+                str(path),
+                "--to",
+                lab_url,
+                "--batch",
+                "100",
+                "--retries",
+                "6",
+            ],
+            cwd=ROOT,
+            env=env,
+            text=True,
+            **streams,
+        )
 
     victim = sync(paths[0], stderr=subprocess.PIPE)
     others = [sync(p, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL) for p in paths[1:]]
@@ -213,9 +271,17 @@ def test_two_syncs_of_one_file_at_once_store_every_sample_once(tmp_path, lab_url
     with psycopg.connect(lab_url, autocommit=True) as conn:
         conn.execute("DELETE FROM bench.samples")
     env = {**os.environ, "PYTHONPATH": str(ROOT)}
-    syncs = [subprocess.Popen([sys.executable, "-m", "bench.cli", "sync", "--store", str(path), "--to", lab_url,
-                               "--batch", "250"], cwd=ROOT, env=env, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL,
-                              text=True) for _ in range(2)]
+    syncs = [
+        subprocess.Popen(
+            [sys.executable, "-m", "bench.cli", "sync", "--store", str(path), "--to", lab_url, "--batch", "250"],
+            cwd=ROOT,
+            env=env,
+            stdout=subprocess.PIPE,
+            stderr=subprocess.DEVNULL,
+            text=True,
+        )
+        for _ in range(2)
+    ]
     outs = [p.communicate(timeout=120)[0] for p in syncs]
     assert [p.returncode for p in syncs] == [0, 0]
     sent = [int(out.split(" new samples")[0].rsplit(" ", 1)[1]) for out in outs]
@@ -268,6 +334,12 @@ def test_a_crowded_server_makes_a_sync_wait_for_a_slot_not_fail(tmp_path, lab_ur
 def test_a_busy_server_past_the_wait_is_one_line(tmp_path, lab_url, capsys):
     url = _limited_role(lab_url, 0)
     path = make_store(tmp_path / "never.db", "bench-never", [10])
-    with Store(path, read_only=True) as store, pytest.raises(LabServerBusy, match=r"server busy, no connection slot "
-                                                                                 r"free \(.*too many connections"):
+    with (
+        Store(path, read_only=True) as store,
+        pytest.raises(
+            LabServerBusy,
+            match=r"server busy, no connection slot "
+            r"free \(.*too many connections",
+        ),
+    ):
         sync_store(store, url, retry_wait_s=0.01, busy_wait_s=0.2)

@@ -36,9 +36,17 @@ from bench.simulators.pkm5_plant import load_fk_kernel
 from motion.pkm5 import compiled as pkm5_compiled
 
 #: What the simulators' zygote imports before it forks (each child imports anything else itself).
-SIMULATORS = ("numpy", "bench.simulators.pkm5", "bench.simulators.pkm5_plant", "bench.simulators.delta4",
-           "bench.simulators.lasergrid", "bench.simulators.true_geometry", "bench.simulators.error_model",
-           "motion.pkm5", "motion.delta4")
+SIMULATORS = (
+    "numpy",
+    "bench.simulators.pkm5",
+    "bench.simulators.pkm5_plant",
+    "bench.simulators.delta4",
+    "bench.simulators.lasergrid",
+    "bench.simulators.true_geometry",
+    "bench.simulators.error_model",
+    "motion.pkm5",
+    "motion.delta4",
+)
 _PACKET = 65536
 
 
@@ -98,9 +106,12 @@ class Zygote:
     def __init__(self, preload: tuple[str, ...], *, load_fk_kernel: bool = False) -> None:
         ours, theirs = socket.socketpair(socket.AF_UNIX, socket.SOCK_SEQPACKET)
         setup = json.dumps({"preload": list(preload), "load_fk_kernel": load_fk_kernel})
-        self.zygote = subprocess.Popen([sys.executable, __file__, str(theirs.fileno()), setup],
-                                       pass_fds=(theirs.fileno(),), stdin=subprocess.DEVNULL,
-                                       stdout=subprocess.DEVNULL)
+        self.zygote = subprocess.Popen(
+            [sys.executable, __file__, str(theirs.fileno()), setup],
+            pass_fds=(theirs.fileno(),),
+            stdin=subprocess.DEVNULL,
+            stdout=subprocess.DEVNULL,
+        )
         theirs.close()
         self.socket = ours
         self.exit_codes: dict[int, int] = {}
@@ -125,24 +136,43 @@ class Zygote:
                     self.exit_codes[message["exited"]] = message["code"]
                     self.exited.notify_all()
 
-    def popen(self, command: list[str], *, stdout: Any = None, stderr: Any = None, text: bool = False,
-              start_new_session: bool = False, **unsupported: Any) -> ForkedProcess | subprocess.Popen:
+    def popen(
+        self,
+        command: list[str],
+        *,
+        stdout: Any = None,
+        stderr: Any = None,
+        text: bool = False,
+        start_new_session: bool = False,
+        **unsupported: Any,
+    ) -> ForkedProcess | subprocess.Popen:
         """``subprocess.Popen(command, stdout=, stderr=, text=)`` for ``[python, -m, MODULE, ...]``, stdout a pipe,
         a file or None, stderr a file or None; any other command or option goes to ``subprocess.Popen``."""
         forkable_out = stdout in (None, subprocess.PIPE) or hasattr(stdout, "fileno")
         forkable_err = stderr is None or hasattr(stderr, "fileno")
-        if unsupported or len(command) < 3 or command[:2] != [sys.executable, "-m"] or not forkable_out \
-                or not forkable_err:
-            return subprocess.Popen(command, stdout=stdout, stderr=stderr, text=text,
-                                    start_new_session=start_new_session, **unsupported)
+        if (
+            unsupported
+            or len(command) < 3
+            or command[:2] != [sys.executable, "-m"]
+            or not forkable_out
+            or not forkable_err
+        ):
+            return subprocess.Popen(
+                command, stdout=stdout, stderr=stderr, text=text, start_new_session=start_new_session, **unsupported
+            )
         read_end = None
         if stdout == subprocess.PIPE:
             read_end, write_end = os.pipe()
         else:
             write_end = os.open(os.devnull, os.O_WRONLY) if stdout is None else os.dup(stdout.fileno())
         error = os.open(os.devnull, os.O_WRONLY) if stderr is None else os.dup(stderr.fileno())
-        request = {"module": command[2], "argv": command[3:], "cwd": os.getcwd(), "env": dict(os.environ),
-                   "new_session": start_new_session}
+        request = {
+            "module": command[2],
+            "argv": command[3:],
+            "cwd": os.getcwd(),
+            "env": dict(os.environ),
+            "new_session": start_new_session,
+        }
         try:
             with self._request, self._pids:
                 socket.send_fds(self.socket, [json.dumps(request).encode()], [write_end, error])
@@ -187,6 +217,7 @@ def install() -> None:
 
 
 # ---- the zygote (this file run as a program) --------------------------------------------------------------------
+
 
 def _serve(sock: socket.socket, load_kernel: bool) -> dict | None:
     """Fork a child per request until the test process closes the socket; in a child, return its request."""
@@ -244,8 +275,9 @@ def _load_kernel_once_cached() -> None:
     its first solve instead of solving ~200 moves with numpy before it loads the kernel itself
     (:meth:`bench.simulators.pkm5_plant._KernelLoader.engine`)."""
     global _kernel_loaded
-    if _kernel_loaded or not glob.glob(os.path.join(os.path.dirname(pkm5_compiled.__file__), "__pycache__",
-                                                    "_kernels.fk_batch-*.nbi")):
+    if _kernel_loaded or not glob.glob(
+        os.path.join(os.path.dirname(pkm5_compiled.__file__), "__pycache__", "_kernels.fk_batch-*.nbi")
+    ):
         return
     _kernel_loaded = True
     try:

@@ -26,8 +26,12 @@ def _spin() -> None:
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--times", type=int, default=20, help="runs in a row (default 20)")
-    parser.add_argument("--burners", type=int, default=os.cpu_count() or 2,
-                        help="CPU-spinning processes beside the tests (default: one per core)")
+    parser.add_argument(
+        "--burners",
+        type=int,
+        default=os.cpu_count() or 2,
+        help="CPU-spinning processes beside the tests (default: one per core)",
+    )
     parser.add_argument("pytest_args", nargs="+", help="test paths and pytest options (e.g. -k, -x)")
     args, extra = parser.parse_known_args(argv)
     args.pytest_args += extra
@@ -38,8 +42,12 @@ def main(argv: list[str] | None = None) -> int:
     try:
         for attempt in range(1, args.times + 1):
             started = time.monotonic()
-            done = subprocess.run([sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider", *args.pytest_args],
-                                  capture_output=True, text=True, check=False)
+            done = subprocess.run(
+                [sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider", *args.pytest_args],
+                capture_output=True,
+                text=True,
+                check=False,
+            )
             durations.append(time.monotonic() - started)
             last = (done.stdout.strip().splitlines() or ["(no output)"])[-1]
             print(f"run {attempt}/{args.times}: {last} ({durations[-1]:.0f} s)", flush=True)
@@ -51,8 +59,10 @@ def main(argv: list[str] | None = None) -> int:
         for burner in burners:
             burner.terminate()
     durations.sort()
-    print(f"{args.times} runs in a row passed under {args.burners} CPU burners; run time min {durations[0]:.0f} s, "
-          f"median {durations[len(durations) // 2]:.0f} s, max {durations[-1]:.0f} s")
+    print(
+        f"{args.times} runs in a row passed under {args.burners} CPU burners; run time min {durations[0]:.0f} s, "
+        f"median {durations[len(durations) // 2]:.0f} s, max {durations[-1]:.0f} s"
+    )
     return 0
 
 

@@ -24,15 +24,29 @@ from typing import Any
 from bench.errors import ConfigError
 from bench.robot_kinds import ROBOT_KINDS
 
-__all__ = ["CALIBRATION_NAME", "CALIBRATION_NAMES", "NEWEST", "OFF", "calibrated_geometry", "calibration_name",
-           "choose_calibration", "describe_in_force", "preflight_by_rig", "put_in_force", "select_calibration"]
+__all__ = [
+    "CALIBRATION_NAME",
+    "CALIBRATION_NAMES",
+    "NEWEST",
+    "OFF",
+    "calibrated_geometry",
+    "calibration_name",
+    "choose_calibration",
+    "describe_in_force",
+    "preflight_by_rig",
+    "put_in_force",
+    "select_calibration",
+]
 
 #: The store name of each robot's kinematic calibration (``bench calibrate`` writes versions of it), from the robots'
 #: registry (bench.robot_kinds: ``calibration``, and ``calibration_model``, the module whose ``compensation_geometry``
 #: turns its parameters into the geometry a run commands by).
 CALIBRATION_NAMES = {name: kind.calibration for name, kind in ROBOT_KINDS.items() if kind.calibration}
-_GEOMETRY_MODULES = {kind.calibration: kind.calibration_model for kind in ROBOT_KINDS.values()
-                     if kind.calibration and kind.calibration_model}
+_GEOMETRY_MODULES = {
+    kind.calibration: kind.calibration_model
+    for kind in ROBOT_KINDS.values()
+    if kind.calibration and kind.calibration_model
+}
 #: The pkm5's (the window's calibration box lists these).
 CALIBRATION_NAME = CALIBRATION_NAMES["pkm5"]
 
@@ -42,14 +56,18 @@ def calibration_name(robot: str) -> str:
     try:
         return CALIBRATION_NAMES[robot]
     except KeyError:
-        raise ConfigError(f"robot {robot!r}: no kinematic calibration exists for it, expected one of "
-                          f"{', '.join(CALIBRATION_NAMES)}") from None
+        raise ConfigError(
+            f"robot {robot!r}: no kinematic calibration exists for it, expected one of {', '.join(CALIBRATION_NAMES)}"
+        ) from None
+
+
 #: Choices besides a calibration id: the newest calibration of this robot, or none at all.
 NEWEST, OFF = "newest", "off"
 
 
-def select_calibration(store: Any, robot: str, choice: int | str = NEWEST, dut_serial: str | None = None,
-                       simulated: bool = False):
+def select_calibration(
+    store: Any, robot: str, choice: int | str = NEWEST, dut_serial: str | None = None, simulated: bool = False
+):
     """The calibration record ``choice`` puts in force for ``robot`` (serial ``dut_serial``, a simulator or not), or
     None with why.
 
@@ -63,31 +81,40 @@ def select_calibration(store: Any, robot: str, choice: int | str = NEWEST, dut_s
     if choice == NEWEST:
         if name is None:
             return None, f"no kinematic calibration exists for the {robot}"
-        mine = [c for c in store.calibrations() if c.name == name
-                and c.params.get("dut_serial") == dut_serial and bool(c.params.get("simulated")) == simulated]
+        mine = [
+            c
+            for c in store.calibrations()
+            if c.name == name
+            and c.params.get("dut_serial") == dut_serial
+            and bool(c.params.get("simulated")) == simulated
+        ]
         if not mine:
             whose = (f"robot {dut_serial}" if dut_serial else "a robot without a serial") + (
-                " (simulated)" if simulated else "")
+                " (simulated)" if simulated else ""
+            )
             return None, f"no {name} calibration for {whose} in {store.path}"
         return max(mine, key=lambda c: c.version), "the newest for this robot"
     if isinstance(choice, bool) or not isinstance(choice, int):
-        raise ConfigError(f"--kinematic-calibration {choice!r}: expected a calibration id (bench calibrate prints "
-                          "it)")
+        raise ConfigError(f"--kinematic-calibration {choice!r}: expected a calibration id (bench calibrate prints it)")
     record = store.calibration_by_id(choice)
     if name is None:
-        raise ConfigError(f"--kinematic-calibration {choice}: no kinematic calibration exists for the {robot}, "
-                          "expected none")
+        raise ConfigError(
+            f"--kinematic-calibration {choice}: no kinematic calibration exists for the {robot}, expected none"
+        )
     if record.name != name:
-        raise ConfigError(f"--kinematic-calibration {choice}: calibration {record.name} v{record.version}, expected "
-                          f"a {name} calibration")
+        raise ConfigError(
+            f"--kinematic-calibration {choice}: calibration {record.name} v{record.version}, expected "
+            f"a {name} calibration"
+        )
     serial = record.params.get("dut_serial")
     if serial != dut_serial:
-        raise ConfigError(f"--kinematic-calibration {choice}: made for robot {serial or '(no serial)'}, expected "
-                          f"one for robot {dut_serial or '(no serial)'}")
+        raise ConfigError(
+            f"--kinematic-calibration {choice}: made for robot {serial or '(no serial)'}, expected "
+            f"one for robot {dut_serial or '(no serial)'}"
+        )
     if bool(record.params.get("simulated")) != simulated:
         made, wanted = ("a simulated", "hardware") if not simulated else ("hardware", "a simulated")
-        raise ConfigError(f"--kinematic-calibration {choice}: made on {made} robot, expected one for {wanted} "
-                          "robot")
+        raise ConfigError(f"--kinematic-calibration {choice}: made on {made} robot, expected one for {wanted} robot")
     return record, "chosen"
 
 
@@ -101,16 +128,24 @@ def calibrated_geometry(record: Any):
 
     module = _GEOMETRY_MODULES.get(record.name)
     if module is None:
-        raise ConfigError(f"calibration id {record.id} ({record.name} v{record.version}): expected a kinematic "
-                          f"calibration ({', '.join(_GEOMETRY_MODULES)})")
+        raise ConfigError(
+            f"calibration id {record.id} ({record.name} v{record.version}): expected a kinematic "
+            f"calibration ({', '.join(_GEOMETRY_MODULES)})"
+        )
     try:
         return importlib.import_module(module).compensation_geometry(record.params)
     except (MotionInputError, ValueError, KeyError, TypeError) as exc:
         raise ConfigError(f"calibration id {record.id} ({record.name} v{record.version}): {exc}") from None
 
 
-def choose_calibration(store: Any, robot: str, choice: int | str = NEWEST, dut_serial: str | None = None,
-                       fixture: str = "assembled", simulated: bool = False):
+def choose_calibration(
+    store: Any,
+    robot: str,
+    choice: int | str = NEWEST,
+    dut_serial: str | None = None,
+    fixture: str = "assembled",
+    simulated: bool = False,
+):
     """:func:`select_calibration` for a rig with ``fixture``, decided before the rig opens (a refused choice starts
     no simulator and opens no port): the actuator bench commands no poses, so none is in force there."""
     if robot == "pkm5" and fixture != "assembled":
@@ -133,8 +168,13 @@ def put_in_force(rig: Any, record: Any, reason: str) -> Any:
         rig.close()
         raise
     rig.calibration_ids = tuple(rig.calibration_ids) + (record.id,)
-    rig.extra["kinematic_calibration"] = {"id": record.id, "name": record.name, "version": record.version,
-                                          "source_run_id": record.source_run_id, "reason": reason}
+    rig.extra["kinematic_calibration"] = {
+        "id": record.id,
+        "name": record.name,
+        "version": record.version,
+        "source_run_id": record.source_run_id,
+        "reason": reason,
+    }
     return rig
 
 
@@ -146,8 +186,10 @@ def describe_in_force(rig: Any) -> str:
     if entry["id"] is None:
         return f"kinematic calibration: none ({entry['reason']}); commanding by the documented geometry"
     source = f" from run {entry['source_run_id']}" if entry.get("source_run_id") is not None else ""
-    return (f"kinematic calibration in force: {entry['name']} v{entry['version']} (id {entry['id']}{source}; "
-            f"{entry['reason']})")
+    return (
+        f"kinematic calibration in force: {entry['name']} v{entry['version']} (id {entry['id']}{source}; "
+        f"{entry['reason']})"
+    )
 
 
 def preflight_by_rig(rig: Any, protocol: Any) -> None:

@@ -51,9 +51,18 @@ from bench.calibration.compensate import calibration_name
 from bench.errors import ConfigError, InsufficientData
 from bench.robot_kinds import robot_kind
 
-__all__ = ["DEFAULT_TARGET_GAIN", "DEFAULT_UNCERTAINTY_MM", "FITS", "IdentifiedRun", "InconsistentFit",
-           "MEASURED", "check_fit",
-           "check_uncertainty", "identify_run", "summary_lines"]
+__all__ = [
+    "DEFAULT_TARGET_GAIN",
+    "DEFAULT_UNCERTAINTY_MM",
+    "FITS",
+    "IdentifiedRun",
+    "InconsistentFit",
+    "MEASURED",
+    "check_fit",
+    "check_uncertainty",
+    "identify_run",
+    "summary_lines",
+]
 
 MEASURED = ("x_mm", "y_mm", "z_mm")
 #: The mice's standard uncertainty per axis, mm (the pkm5 calibration protocol's pose selection assumes it).
@@ -125,8 +134,10 @@ def _pose_samples(store, run_id: int, robot: str):
 
     samples = _measured_pose_samples(store, run_id)
     if not samples:
-        raise InsufficientData(f"run {run_id}: no pose samples with measured {', '.join(MEASURED)}; expected a run "
-                               "of commanded and measured poses")
+        raise InsufficientData(
+            f"run {run_id}: no pose samples with measured {', '.join(MEASURED)}; expected a run "
+            "of commanded and measured poses"
+        )
     commanded_fields = robot_kind(robot).commanded
     missing = [k for k in commanded_fields if k not in samples[0].values]
     if missing:
@@ -149,8 +160,10 @@ def _commanded_geometry(store, run_id: int, documented):
 def check_uncertainty(uncertainty_mm: float | None) -> None:
     """Refuse an instrument uncertainty that is not a positive finite number (one line); None: the instrument's own."""
     if uncertainty_mm is not None and not 0 < uncertainty_mm < math.inf:
-        raise ConfigError(f"--uncertainty-mm = {uncertainty_mm!r}, expected a positive finite number (the "
-                          "instrument's standard uncertainty per axis, mm)")
+        raise ConfigError(
+            f"--uncertainty-mm = {uncertainty_mm!r}, expected a positive finite number (the "
+            "instrument's standard uncertainty per axis, mm)"
+        )
 
 
 def pkm5_problem(store, run_id: int, uncertainty_mm: float | None) -> _Problem:
@@ -163,20 +176,32 @@ def pkm5_problem(store, run_id: int, uncertainty_mm: float | None) -> _Problem:
     commanded, measured, mask = _pose_samples(store, run_id, "pkm5")
     complete = mask.all(axis=1)  # the mice read x, y, z together
     if not complete.any():
-        raise InsufficientData(f"run {run_id}: no pose samples with measured {', '.join(MEASURED)}; expected a run "
-                               "of commanded and measured poses")
+        raise InsufficientData(
+            f"run {run_id}: no pose samples with measured {', '.join(MEASURED)}; expected a run "
+            "of commanded and measured poses"
+        )
     commanded, measured = commanded[complete], measured[complete]
     instrument = DEFAULT_UNCERTAINTY_MM if uncertainty_mm is None else uncertainty_mm
     commanded, campaign = _campaign(commanded, measured, instrument)
     geometry = _commanded_geometry(store, run_id, DEFAULT_GEOMETRY)
     steps = np.array([steps_for_pose(p, geometry) for p in commanded])
     modes = modes_of_poses(commanded)
-    return _Problem(lambda free: ForwardModel(steps, modes, free), REGISTRATION + PARAMETERS, REGISTRATION,
-                    campaign.mean_mm, campaign.uncertainty_mm, np.arange(len(commanded)), len(commanded),
-                    {"campaign": {**campaign.as_dict(), **_robot_time(store, run_id)}}, campaign=campaign,
-                    prior=lambda names: np.array([tolerance(n) for n in names]),
-                    prior_source={"name": "manufacturing tolerances (motion.pkm5.calibration.TOLERANCES)",
-                                  "sigma": dict(TOLERANCES)})
+    return _Problem(
+        lambda free: ForwardModel(steps, modes, free),
+        REGISTRATION + PARAMETERS,
+        REGISTRATION,
+        campaign.mean_mm,
+        campaign.uncertainty_mm,
+        np.arange(len(commanded)),
+        len(commanded),
+        {"campaign": {**campaign.as_dict(), **_robot_time(store, run_id)}},
+        campaign=campaign,
+        prior=lambda names: np.array([tolerance(n) for n in names]),
+        prior_source={
+            "name": "manufacturing tolerances (motion.pkm5.calibration.TOLERANCES)",
+            "sigma": dict(TOLERANCES),
+        },
+    )
 
 
 def _campaign(commanded, measured, instrument_mm: float):
@@ -206,8 +231,10 @@ def _robot_time(store, run_id: int) -> dict:
     times = sorted(s.t_s for s in _measured_pose_samples(store, run_id))
     if len(times) < 2:
         return {}
-    return {"robot_time_s": float(times[-1] - times[0]), "seconds_per_sample": float((times[-1] - times[0]) /
-                                                                                     (len(times) - 1))}
+    return {
+        "robot_time_s": float(times[-1] - times[0]),
+        "seconds_per_sample": float((times[-1] - times[0]) / (len(times) - 1)),
+    }
 
 
 def _instrument_uncertainty_mm(settings: dict, run_id: int) -> float:
@@ -218,8 +245,10 @@ def _instrument_uncertainty_mm(settings: dict, run_id: int) -> float:
     half_width = (instrument.get("decoder") or {}).get("spot_half_width_mm")
     if half_width:
         return float(half_width) / math.sqrt(3.0)  # the laser grid: a uniform error over the detection window
-    raise ConfigError(f"run {run_id}: its instrument settings state no uncertainty (settings.instrument.u_mm or "
-                      "decoder.spot_half_width_mm), expected --uncertainty-mm")
+    raise ConfigError(
+        f"run {run_id}: its instrument settings state no uncertainty (settings.instrument.u_mm or "
+        "decoder.spot_half_width_mm), expected --uncertainty-mm"
+    )
 
 
 def delta4_problem(store, run_id: int, uncertainty_mm: float | None) -> _Problem:
@@ -227,14 +256,22 @@ def delta4_problem(store, run_id: int, uncertainty_mm: float | None) -> _Problem
 
     from bench.robots.delta4_wire import fine_from_settings, mapping_from_settings
     from motion import delta4
-    from motion.delta4.calibration import (BASE_PARAMETERS, REGISTRATION, TOLERANCES, ForwardModel,
-                                           attained_positions, prior_sigma)
+    from motion.delta4.calibration import (
+        BASE_PARAMETERS,
+        REGISTRATION,
+        TOLERANCES,
+        ForwardModel,
+        attained_positions,
+        prior_sigma,
+    )
 
     settings = store.run(run_id).settings
     mapping_settings = (settings.get("robot") or {}).get("mapping")
     if mapping_settings is None:
-        raise ConfigError(f"run {run_id}: settings.robot.mapping is missing, expected the servo mapping the run "
-                          "commanded by (its bytes are the angles the servos were sent)")
+        raise ConfigError(
+            f"run {run_id}: settings.robot.mapping is missing, expected the servo mapping the run "
+            "commanded by (its bytes are the angles the servos were sent)"
+        )
     mapping = mapping_from_settings(mapping_settings)
     fine_settings = (settings.get("robot") or {}).get("fine_reference") or {}
     if fine_settings.get("in_use"):  # the run sent fine references (the controller answered the probe)
@@ -243,31 +280,57 @@ def delta4_problem(store, run_id: int, uncertainty_mm: float | None) -> _Problem
     ik = delta4.inverse_kinematics(commanded, _commanded_geometry(store, run_id, delta4.NOMINAL))
     if not ik.reachable.all():
         first = int(np.flatnonzero(~ik.reachable)[0])
-        raise InsufficientData(f"run {run_id}: commanded position {commanded[first].tolist()} is not reachable "
-                               f"({ik.reason[first]}), expected the positions the run commanded")
+        raise InsufficientData(
+            f"run {run_id}: commanded position {commanded[first].tolist()} is not reachable "
+            f"({ik.reason[first]}), expected the positions the run commanded"
+        )
     servo = mapping.sent_deg(ik.servo_deg)
     read = tuple(int(a) for a in np.flatnonzero(mask.any(axis=0)))
     registration = tuple(REGISTRATION[a] for a in read)
     u = _instrument_uncertainty_mm(settings, run_id) if uncertainty_mm is None else uncertainty_mm
     # the byte steps alone: where the servos' sent angles put the documented robot, against the angles asked for
     rounding = attained_positions(servo) - attained_positions(ik.servo_deg)
-    extra = {"command_resolution_mm": float(np.mean(np.linalg.norm(rounding[:, read], axis=1))),
-             "servo_mapping": mapping_settings, "servo_references": mapping.name}
-    prior = {"prior": prior_sigma,
-             "prior_source": {"name": "manufacturing tolerances (motion.delta4.calibration.TOLERANCES; servo axis "
-                                      "positions sqrt 2 of it, measured from the frame legs 1 and 4 fix)",
-                              "sigma": dict(TOLERANCES)}}
+    extra = {
+        "command_resolution_mm": float(np.mean(np.linalg.norm(rounding[:, read], axis=1))),
+        "servo_mapping": mapping_settings,
+        "servo_references": mapping.name,
+    }
+    prior = {
+        "prior": prior_sigma,
+        "prior_source": {
+            "name": "manufacturing tolerances (motion.delta4.calibration.TOLERANCES; servo axis "
+            "positions sqrt 2 of it, measured from the frame legs 1 and 4 fix)",
+            "sigma": dict(TOLERANCES),
+        },
+    }
     if mask[:, read].all():  # every sample read the same axes (the camera's plane): per-position means
         positions, campaign = _campaign(np.column_stack([commanded, servo]), measured[:, read], u)
-        servo = positions[:, commanded.shape[1]:]
+        servo = positions[:, commanded.shape[1] :]
         extra["campaign"] = {**campaign.as_dict(), **_robot_time(store, run_id)}
-        return _Problem(lambda free: ForwardModel(servo, free, axes=read), registration + BASE_PARAMETERS,
-                        registration, campaign.mean_mm, campaign.uncertainty_mm, np.arange(len(servo)),
-                        len(servo), extra, campaign=campaign, **prior)
+        return _Problem(
+            lambda free: ForwardModel(servo, free, axes=read),
+            registration + BASE_PARAMETERS,
+            registration,
+            campaign.mean_mm,
+            campaign.uncertainty_mm,
+            np.arange(len(servo)),
+            len(servo),
+            extra,
+            campaign=campaign,
+            **prior,
+        )
     rows = np.nonzero(mask)[0]
-    return _Problem(lambda free: _ReadAxes(ForwardModel(servo, free, axes=(0, 1, 2)), mask),
-                    registration + BASE_PARAMETERS, registration, measured[mask][:, None], u, rows, len(measured),
-                    extra, **prior)
+    return _Problem(
+        lambda free: _ReadAxes(ForwardModel(servo, free, axes=(0, 1, 2)), mask),
+        registration + BASE_PARAMETERS,
+        registration,
+        measured[mask][:, None],
+        u,
+        rows,
+        len(measured),
+        extra,
+        **prior,
+    )
 
 
 def _mean_error_mm(problem: _Problem, residuals) -> float:
@@ -296,7 +359,7 @@ def _refuse_if_inconsistent(result, uncertainty_mm: float, run_id: int, campaign
     limit = reduced_chi2_limit(result.degrees_of_freedom)
     if not result.reduced_chi2 > limit:
         return
-    ratio = float(result.reduced_chi2 ** 0.5)
+    ratio = float(result.reduced_chi2**0.5)
     if campaign is not None and campaign.scatter_dof > 0 and (campaign.scatter_mm > campaign.instrument_mm).any():
         # weighted by the measured scatter, not by the stated figure
         raise InconsistentFit(
@@ -305,14 +368,16 @@ def _refuse_if_inconsistent(result, uncertainty_mm: float, run_id: int, campaign
             f"degrees of freedom, above the {limit:.3g} an honest fit exceeds once in a million); nothing stored. "
             "The scatter is measured, so a larger stated uncertainty is not the cure: the robot errs in a way the "
             "geometric model lacks (backlash larger than the play, a loose or slipping joint, a load, a drifting "
-            "instrument mount); check the per-pose residuals (--json) and the robot")
+            "instrument mount); check the per-pose residuals (--json) and the robot"
+        )
     free_more = "" if result.fit == "map" else ", free what the fit held (--fit map frees every parameter)"
     raise InconsistentFit(
         f"run {run_id}: the fit leaves residuals {ratio:.3g} times the stated uncertainty {uncertainty_mm:.3g} mm "
         f"(reduced chi^2 {result.reduced_chi2:.3g} over {result.degrees_of_freedom:.3g} degrees of freedom, above "
         f"the {limit:.3g} an honest fit exceeds once in a million), so its uncertainties would be understated; "
         f"nothing stored. State the instrument's real uncertainty (--uncertainty-mm {uncertainty_mm * ratio:.2g})"
-        f"{free_more} or check the run for an error source the model lacks")
+        f"{free_more} or check the run for an error source the model lacks"
+    )
 
 
 def _cycles_advice(plan, campaign) -> str:
@@ -324,13 +389,21 @@ def _cycles_advice(plan, campaign) -> str:
         return ""
     now = int(round(float(campaign.cycles.mean())))
     if plan.informing_cycles is None or plan.informing_cycles <= now:
-        return (f" (more cycles would not help: with the measured scatter even {MAX_CYCLES} cycles per pose leave "
-                "the data short; it is the poses)") if plan.informing_cycles is None else ""
+        return (
+            (
+                f" (more cycles would not help: with the measured scatter even {MAX_CYCLES} cycles per pose leave "
+                "the data short; it is the poses)"
+            )
+            if plan.informing_cycles is None
+            else ""
+        )
     wanted = max(plan.calibration_cycles or MAX_CYCLES, plan.informing_cycles)
-    return (f". Here the cycles are short, not the poses: with the measured scatter ({plan.scatter_mm:.2g} mm a "
-            f"reading) the poses inform half the parameters from {plan.informing_cycles} cycles per pose (this run: "
-            f"{now}); measure {wanted} cycles per pose (the plan for a {plan.target_gain:g}x gain; set cycles in the "
-            "protocol file)")
+    return (
+        f". Here the cycles are short, not the poses: with the measured scatter ({plan.scatter_mm:.2g} mm a "
+        f"reading) the poses inform half the parameters from {plan.informing_cycles} cycles per pose (this run: "
+        f"{now}); measure {wanted} cycles per pose (the plan for a {plan.target_gain:g}x gain; set cycles in the "
+        "protocol file)"
+    )
 
 
 def _separation_advice(separation: float) -> str:
@@ -338,9 +411,11 @@ def _separation_advice(separation: float) -> str:
     readings); measured, it stays ~1 as the cycles grow (true-geometry seed 76: 0.68 with 1 cycle, 0.90 with 8):
     each solution refits the better data, so the difference lies where these poses see nothing and only the poses
     can resolve it."""
-    return (f"; these poses cannot tell them apart (their predictions differ by chi^2 {separation:.2g} over all the "
-            "readings) and more cycles do not change that: add poses that move the named parameters (other "
-            "orientations, the workspace's edges)")
+    return (
+        f"; these poses cannot tell them apart (their predictions differ by chi^2 {separation:.2g} over all the "
+        "readings) and more cycles do not change that: add poses that move the named parameters (other "
+        "orientations, the workspace's edges)"
+    )
 
 
 def check_fit(fit: str | None) -> None:
@@ -349,9 +424,15 @@ def check_fit(fit: str | None) -> None:
         raise ConfigError(f"--fit = {fit!r}, expected one of {', '.join(FITS)}")
 
 
-def identify_run(store: Any, run_id: int, *, free: list[str] | tuple[str, ...] | None = None,
-                 uncertainty_mm: float | None = None, fit: str | None = None,
-                 target_gain: float = DEFAULT_TARGET_GAIN) -> IdentifiedRun:
+def identify_run(
+    store: Any,
+    run_id: int,
+    *,
+    free: list[str] | tuple[str, ...] | None = None,
+    uncertainty_mm: float | None = None,
+    fit: str | None = None,
+    target_gain: float = DEFAULT_TARGET_GAIN,
+) -> IdentifiedRun:
     """Identify from run ``run_id`` of the open ``store`` and store a new version of its robot's kinematic
     calibration (module doc). ``uncertainty_mm`` None: the instrument's; ``fit`` None: ``map`` where the robot has
     a prior and no ``free`` names are given, else ``free-set`` (module doc). ``target_gain``: the gain the stored
@@ -387,14 +468,17 @@ def identify_run(store: Any, run_id: int, *, free: list[str] | tuple[str, ...] |
     frame_only = identify(problem.model(problem.required), problem.measured, u)
     before_mm = _mean_error_mm(problem, frame_only.residuals)
     prior_sigma = problem.prior(chosen) if fit == "map" else None
-    plan = None if problem.campaign is None or prior_sigma is None else plan_campaign(
-        problem.model(chosen).jacobian(np.zeros(len(chosen))), problem.campaign, prior_sigma, before_mm,
-        target_gain)
+    plan = (
+        None
+        if problem.campaign is None or prior_sigma is None
+        else plan_campaign(
+            problem.model(chosen).jacobian(np.zeros(len(chosen))), problem.campaign, prior_sigma, before_mm, target_gain
+        )
+    )
     search = None
     try:
         if fit == "map":  # several starts from the prior: a local solver may stop in a wrong basin (kinematic_search)
-            search = identify_global(problem.model(chosen), problem.measured, u, prior_sigma=prior_sigma,
-                                     seed=run_id)
+            search = identify_global(problem.model(chosen), problem.measured, u, prior_sigma=prior_sigma, seed=run_id)
             result = search.best
         else:
             result = identify(problem.model(chosen), problem.measured, u, prior_sigma=prior_sigma)
@@ -402,12 +486,16 @@ def identify_run(store: Any, run_id: int, *, free: list[str] | tuple[str, ...] |
         raise AmbiguousFit(f"{exc}{_separation_advice(exc.separation)}", exc.separation) from None
     except UnidentifiableParameters as exc:
         raise type(exc)(f"{exc}{_cycles_advice(plan, problem.campaign)}") from None
-    _refuse_if_inconsistent(result, problem.campaign.instrument_mm if problem.campaign else u, run_id,
-                            problem.campaign)
-    params = {**result.as_dict(), "prior": problem.prior_source if fit == "map" else None,
-              "robot": run.robot, "uncertainty_mm": problem.campaign.instrument_mm if problem.campaign else u,
-              "ap_before_mm": before_mm, "ap_after_mm": _mean_error_mm(problem, result.residuals),
-              **problem.extra}
+    _refuse_if_inconsistent(result, problem.campaign.instrument_mm if problem.campaign else u, run_id, problem.campaign)
+    params = {
+        **result.as_dict(),
+        "prior": problem.prior_source if fit == "map" else None,
+        "robot": run.robot,
+        "uncertainty_mm": problem.campaign.instrument_mm if problem.campaign else u,
+        "ap_before_mm": before_mm,
+        "ap_after_mm": _mean_error_mm(problem, result.residuals),
+        **problem.extra,
+    }
     if search is not None:
         params["search"] = search.as_dict()
     if plan is not None:
@@ -428,30 +516,45 @@ def summary_lines(identified: IdentifiedRun) -> list[str]:
 
     result, record, params = identified.result, identified.record, identified.params
     obs = result.observability
-    lines = [f"{record.name} v{record.version} (id {record.id}) from run {identified.run_id}: "
-             f"{identified.n_measurements} poses, {len(result.names)} free parameters",
-             f"{'parameter':<18} {'value':>12} {'std. unc.':>12}  unit"]
+    lines = [
+        f"{record.name} v{record.version} (id {record.id}) from run {identified.run_id}: "
+        f"{identified.n_measurements} poses, {len(result.names)} free parameters",
+        f"{'parameter':<18} {'value':>12} {'std. unc.':>12}  unit",
+    ]
     for name, value, std, unit in zip(result.names, result.values, result.uncertainty, result.units):
         shown, u = format_pair(value, std, signed=True)  # to the uncertainty's 2 significant digits, as the report
         lines.append(f"{name:<18} {shown:>12} {u:>12}  {unit}")
     if result.fit == "map":
         source = params.get("prior") or {}
-        lines.append(f"fit: maximum a posteriori, prior: {source.get('name', 'the tolerances')}; fixed by the prior "
-                     f"(the data did not inform them): {', '.join(result.prior_only) or 'none'}")
-        lines.append(f"data part: condition number {obs.condition_number:.3g} (the prior holds its weak directions; "
-                     f"refused when the data inform under half the parameters), O1 {obs.o1:.4g}, reduced chi2 "
-                     f"{result.reduced_chi2:.2f} over {result.degrees_of_freedom:.1f} degrees of freedom")
+        lines.append(
+            f"fit: maximum a posteriori, prior: {source.get('name', 'the tolerances')}; fixed by the prior "
+            f"(the data did not inform them): {', '.join(result.prior_only) or 'none'}"
+        )
+        lines.append(
+            f"data part: condition number {obs.condition_number:.3g} (the prior holds its weak directions; "
+            f"refused when the data inform under half the parameters), O1 {obs.o1:.4g}, reduced chi2 "
+            f"{result.reduced_chi2:.2f} over {result.degrees_of_freedom:.1f} degrees of freedom"
+        )
     else:
-        lines.append(f"condition number {obs.condition_number:.1f} (limit 100), O1 {obs.o1:.4g}, reduced chi2 "
-                     f"{result.reduced_chi2:.2f}")
-    lines.append(f"mean position error on the calibration poses (in-sample): before {params['ap_before_mm']:.3f} "
-                 f"mm, after {params['ap_after_mm']:.3f} mm")
+        lines.append(
+            f"condition number {obs.condition_number:.1f} (limit 100), O1 {obs.o1:.4g}, reduced chi2 "
+            f"{result.reduced_chi2:.2f}"
+        )
+    lines.append(
+        f"mean position error on the calibration poses (in-sample): before {params['ap_before_mm']:.3f} "
+        f"mm, after {params['ap_after_mm']:.3f} mm"
+    )
     lines += _campaign_lines(params)
     if "command_resolution_mm" in params:
-        steps = "fine steps (0.01 deg references)" if params.get("servo_references") == "fine_centidegree" else \
-            f"byte steps ({params['servo_mapping']['name']} mapping)"
-        lines.append(f"command resolution: the servos' {steps} move these poses by "
-                     f"{params['command_resolution_mm']:.3f} mm on average, which no compensation goes below")
+        steps = (
+            "fine steps (0.01 deg references)"
+            if params.get("servo_references") == "fine_centidegree"
+            else f"byte steps ({params['servo_mapping']['name']} mapping)"
+        )
+        lines.append(
+            f"command resolution: the servos' {steps} move these poses by "
+            f"{params['command_resolution_mm']:.3f} mm on average, which no compensation goes below"
+        )
     return lines
 
 
@@ -461,21 +564,31 @@ def _campaign_lines(params: dict) -> list[str]:
     campaign, lines = params.get("campaign"), []
     search = params.get("search")
     if search:
-        lines.append(f"search: {search['starts']} starts from the prior, kept start {search['kept_start']} "
-                     "(lowest MAP objective; no other plausible solution differs beyond 5 standard uncertainties)")
+        lines.append(
+            f"search: {search['starts']} starts from the prior, kept start {search['kept_start']} "
+            "(lowest MAP objective; no other plausible solution differs beyond 5 standard uncertainties)"
+        )
     if not campaign:
         return lines
     cycles = campaign["cycles_per_pose"]
     scatter = campaign["scatter_mm"]
-    shown = "not measured (one reading per pose)" if scatter[0] is None else \
-        ", ".join(f"{s:.3f}" for s in scatter) + f" mm per axis ({campaign['scatter_dof']} degrees of freedom)"
-    lines.append(f"robot scatter of one reading: {shown}; instrument: {campaign['instrument_uncertainty_mm']:.3g} mm "
-                 f"(stated, the floor); {min(cycles)}-{max(cycles)} cycles per pose, so each pose's mean is "
-                 f"uncertain by {', '.join(f'{u:.3f}' for u in campaign['mean_uncertainty_mm'])} mm (RMS per axis)")
+    shown = (
+        "not measured (one reading per pose)"
+        if scatter[0] is None
+        else ", ".join(f"{s:.3f}" for s in scatter) + f" mm per axis ({campaign['scatter_dof']} degrees of freedom)"
+    )
+    lines.append(
+        f"robot scatter of one reading: {shown}; instrument: {campaign['instrument_uncertainty_mm']:.3g} mm "
+        f"(stated, the floor); {min(cycles)}-{max(cycles)} cycles per pose, so each pose's mean is "
+        f"uncertain by {', '.join(f'{u:.3f}' for u in campaign['mean_uncertainty_mm'])} mm (RMS per axis)"
+    )
     if campaign.get("left_out_poses"):
-        lines.append("left out, erratic (a scatter beyond the other poses', F-test at 1e-6; their means measure no "
-                     "geometry): the poses visited " + ", ".join(f"#{i + 1}" for i in campaign["left_out_poses"])
-                     + " first-visit order")
+        lines.append(
+            "left out, erratic (a scatter beyond the other poses', F-test at 1e-6; their means measure no "
+            "geometry): the poses visited "
+            + ", ".join(f"#{i + 1}" for i in campaign["left_out_poses"])
+            + " first-visit order"
+        )
     plan, per_sample = campaign.get("plan"), campaign.get("seconds_per_sample")
     if plan:
         poses = len(cycles)
@@ -488,6 +601,11 @@ def _campaign_lines(params: dict) -> list[str]:
         lines.append(
             f"plan for {plan['target_gain']:g}x over the {plan['geometric_error_mm']:.3f} mm the geometry explains: "
             + (f"{wanted} cycles per pose{robot_time(wanted)}" if wanted else "out of reach by cycles")
-            + (f"; a validation run needs {plan['validation_cycles']} cycles per pose to show it (the measured "
-               f"scatter, {plan['scatter_mm']:.2f} mm a reading over the axes)" if plan["validation_cycles"] else ""))
+            + (
+                f"; a validation run needs {plan['validation_cycles']} cycles per pose to show it (the measured "
+                f"scatter, {plan['scatter_mm']:.2f} mm a reading over the axes)"
+                if plan["validation_cycles"]
+                else ""
+            )
+        )
     return lines

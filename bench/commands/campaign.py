@@ -14,10 +14,10 @@ import argparse
 import json
 import signal
 import sys
-from pathlib import Path
 from collections.abc import Iterator
 from contextlib import contextmanager
 from datetime import datetime
+from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from bench.commands.lazy import defer
@@ -59,15 +59,24 @@ def register(groups: argparse._SubParsersAction) -> None:
     backup.set_defaults(handler=_backup)
 
     export = _parser(groups, "export", "write a run's tidy sample table (the input of bench analyze)")
-    export.add_argument("run_id", metavar="RUN", help="the run: its id, BENCH/ID or its UUID (prefix); with "
-                                                       "--store postgresql://... from the lab store")
+    export.add_argument(
+        "run_id",
+        metavar="RUN",
+        help="the run: its id, BENCH/ID or its UUID (prefix); with --store postgresql://... from the lab store",
+    )
     defer(export, _add_export_format)
     export.add_argument("--out", default=None, help="output file (default run-ID.FORMAT)")
-    export.add_argument("--kind", default=None,
-                        help="sample kind to export (pose, arrival, actuator_travel, leg_length, grid_hit, ...; "
-                             "default: pose if the run has any, else its most frequent kind; arrival with --series)")
-    export.add_argument("--series", action="store_true",
-                        help="export the streamed series of each sample (one row per point; stabilisation runs)")
+    export.add_argument(
+        "--kind",
+        default=None,
+        help="sample kind to export (pose, arrival, actuator_travel, leg_length, grid_hit, ...; "
+        "default: pose if the run has any, else its most frequent kind; arrival with --series)",
+    )
+    export.add_argument(
+        "--series",
+        action="store_true",
+        help="export the streamed series of each sample (one row per point; stabilisation runs)",
+    )
     export.set_defaults(handler=_export)
 
 
@@ -78,37 +87,63 @@ def _add_export_format(parser: argparse.ArgumentParser) -> None:
 
 
 def _parser(groups: argparse._SubParsersAction, name: str, text: str) -> argparse.ArgumentParser:
-    parser = groups.add_parser(name, help=text, description=text,
-                               formatter_class=argparse.ArgumentDefaultsHelpFormatter)
+    parser = groups.add_parser(
+        name, help=text, description=text, formatter_class=argparse.ArgumentDefaultsHelpFormatter
+    )
     parser.add_argument("--store", default=DEFAULT_STORE, help="run store (SQLite file)")
     return parser
 
 
 def _rig_arguments(parser: argparse.ArgumentParser) -> None:
     where = parser.add_mutually_exclusive_group()
-    where.add_argument("--sim", action="store_true",
-                       help="simulated controller and sensors (bench run needs --sim, --station or --port; "
-                            "resume: the run's own rig)")
+    where.add_argument(
+        "--sim",
+        action="store_true",
+        help="simulated controller and sensors (bench run needs --sim, --station or --port; resume: the run's own rig)",
+    )
     where.add_argument("--port", default=None, help="serial port of a real controller, e.g. /dev/ttyUSB0")
-    parser.add_argument("--station", default=None, metavar="STATION.toml",
-                        help="the bench's devices (examples/stations/); with --sim each is replaced by its simulator")
+    parser.add_argument(
+        "--station",
+        default=None,
+        metavar="STATION.toml",
+        help="the bench's devices (examples/stations/); with --sim each is replaced by its simulator",
+    )
     parser.add_argument("--seed", type=int, default=None, help="simulator seed (resume: the run's own)")
-    parser.add_argument("--speed-factor", type=float, default=None,
-                        help=f"simulated time speed-up (default {DEFAULT_SPEED_FACTOR:g}; resume: the run's own)")
+    parser.add_argument(
+        "--speed-factor",
+        type=float,
+        default=None,
+        help=f"simulated time speed-up (default {DEFAULT_SPEED_FACTOR:g}; resume: the run's own)",
+    )
     parser.add_argument("--mouse-xy", default=None, help="hardware: event device of the x-y mouse")
     parser.add_argument("--mouse-xz", default=None, help="hardware: event device of the x-z mouse")
     parser.add_argument("--no-progress", action="store_true", help="no progress bar on stderr")
     kinematic = parser.add_mutually_exclusive_group()
-    kinematic.add_argument("--kinematic-calibration", type=int, default=None, metavar="ID",
-                           help="command by this pkm5_kinematics calibration (default: the robot's newest; "
-                                "resume: the run's own)")
-    kinematic.add_argument("--no-kinematic-calibration", action="store_true",
-                           help="command by the documented geometry, whatever calibration is stored")
-    parser.add_argument("--true-geometry-seed", type=int, default=None, metavar="SEED",
-                        help="simulated pkm5 or delta4 (also a --station rehearsed with --sim): move by this seed's "
-                             "perturbed true geometry (docs/calibration.md)")
-    parser.add_argument("--ideal", action="store_true",
-                        help="simulated robot without its error model (backlash, noise, play; resume: the run's own)")
+    kinematic.add_argument(
+        "--kinematic-calibration",
+        type=int,
+        default=None,
+        metavar="ID",
+        help="command by this pkm5_kinematics calibration (default: the robot's newest; resume: the run's own)",
+    )
+    kinematic.add_argument(
+        "--no-kinematic-calibration",
+        action="store_true",
+        help="command by the documented geometry, whatever calibration is stored",
+    )
+    parser.add_argument(
+        "--true-geometry-seed",
+        type=int,
+        default=None,
+        metavar="SEED",
+        help="simulated pkm5 or delta4 (also a --station rehearsed with --sim): move by this seed's "
+        "perturbed true geometry (docs/calibration.md)",
+    )
+    parser.add_argument(
+        "--ideal",
+        action="store_true",
+        help="simulated robot without its error model (backlash, noise, play; resume: the run's own)",
+    )
 
 
 def rig_request(args: argparse.Namespace) -> RigRequest:
@@ -116,24 +151,44 @@ def rig_request(args: argparse.Namespace) -> RigRequest:
     from bench.calibration.compensate import NEWEST, OFF
     from bench.launch import RigRequest
 
-    kinematic = OFF if args.no_kinematic_calibration else (
-        NEWEST if args.kinematic_calibration is None else args.kinematic_calibration)
-    return RigRequest(station=args.station, port=args.port, mouse_xy=args.mouse_xy, mouse_xz=args.mouse_xz,
-                      simulate=args.sim, seed=args.seed, speed_factor=args.speed_factor, port_label="--port",
-                      kinematic_calibration=kinematic, true_geometry_seed=args.true_geometry_seed,
-                      ideal=args.ideal)
+    kinematic = (
+        OFF
+        if args.no_kinematic_calibration
+        else (NEWEST if args.kinematic_calibration is None else args.kinematic_calibration)
+    )
+    return RigRequest(
+        station=args.station,
+        port=args.port,
+        mouse_xy=args.mouse_xy,
+        mouse_xz=args.mouse_xz,
+        simulate=args.sim,
+        seed=args.seed,
+        speed_factor=args.speed_factor,
+        port_label="--port",
+        kinematic_calibration=kinematic,
+        true_geometry_seed=args.true_geometry_seed,
+        ideal=args.ideal,
+    )
 
 
-def build_rig(args: argparse.Namespace, robot: str, store: Store, stored: dict[str, Any] | None = None,
-              fixture: str = "assembled", requires: frozenset[str] = frozenset(), protocol: str = "the protocol"):
+def build_rig(
+    args: argparse.Namespace,
+    robot: str,
+    store: Store,
+    stored: dict[str, Any] | None = None,
+    fixture: str = "assembled",
+    requires: frozenset[str] = frozenset(),
+    protocol: str = "the protocol",
+):
     """The rig the command-line options describe (see :func:`bench.launch.open_rig`); says on stderr which
     kinematic calibration is in force."""
     from bench.calibration.compensate import describe_in_force
     from bench.launch import open_rig
 
     with _stop_signals_interrupt():  # homing and the registration's check moves are a safe stop too
-        rig = open_rig(rig_request(args), store, robot=robot, stored=stored, fixture=fixture, requires=requires,
-                       protocol=protocol)
+        rig = open_rig(
+            rig_request(args), store, robot=robot, stored=stored, fixture=fixture, requires=requires, protocol=protocol
+        )
     print(f"bench: {describe_in_force(rig)}", file=sys.stderr)
     return rig
 
@@ -212,8 +267,10 @@ def execute(runner: Runner, start) -> RunResult:
     finally:
         runner.rig.close()
     reason = f": {result.reason}" if result.reason else ""
-    print(f"run {result.run_id} {result.exit_status} ({result.samples} samples) in {runner.store.path}{reason}",
-          file=sys.stderr)
+    print(
+        f"run {result.run_id} {result.exit_status} ({result.samples} samples) in {runner.store.path}{reason}",
+        file=sys.stderr,
+    )
     print(result.run_id)
     if result.exception is not None and not isinstance(result.exception, KeyboardInterrupt):
         print(f"bench: error: {result.exception}", file=sys.stderr)
@@ -233,17 +290,26 @@ def _run(args: argparse.Namespace) -> int:
         print("\n".join(summary.lines()))
         if not summary.ok:
             from bench.errors import UnreachableTarget
+
             raise UnreachableTarget(f"{protocol.source}: {summary.problems()[0]}")
         return 0
     if not (args.sim or args.station or args.port):  # before the store opens: a refused run writes nothing
-        raise ConfigError(f"bench run {args.protocol}: no rig named, expected --station STATION.toml (the bench's "
-                          "devices) or --sim (the simulator)")
+        raise ConfigError(
+            f"bench run {args.protocol}: no rig named, expected --station STATION.toml (the bench's "
+            "devices) or --sim (the simulator)"
+        )
     preflight(protocol)  # before a simulator or a port is opened; the runner checks again
     if args.speed_factor is not None:  # before the store opens: a refused run leaves no new file behind
         check_speed_factor(args.speed_factor)
     with Store(args.store) as store:
-        rig = build_rig(args, protocol.robot, store, fixture=getattr(protocol, "fixture", "assembled"),
-                        requires=required_capabilities(protocol), protocol=f"protocol {protocol.name!r}")
+        rig = build_rig(
+            args,
+            protocol.robot,
+            store,
+            fixture=getattr(protocol, "fixture", "assembled"),
+            requires=required_capabilities(protocol),
+            protocol=f"protocol {protocol.name!r}",
+        )
         preflight_by_rig(rig, protocol)
         runner = Runner(rig, store, progress=not args.no_progress, on_pause=_ask_after_pause)
         result = execute(runner, lambda: runner.run(protocol, campaign=args.campaign))
@@ -261,9 +327,15 @@ def _resume(args: argparse.Namespace) -> int:
         store.claim(args.run_id)  # before the rig opens: a run another live process drives is never touched
         store.resuming = args.run_id  # opening the rig writes no new calibration: a refused resume writes nothing
         protocol = protocol_from_config(record.config, source=f"run {args.run_id}", stored=True)
-        rig = build_rig(args, record.robot, store, stored=record.settings,
-                        fixture=record.config.get("fixture", "assembled"), requires=required_capabilities(protocol),
-                        protocol=f"protocol {protocol.name!r}")
+        rig = build_rig(
+            args,
+            record.robot,
+            store,
+            stored=record.settings,
+            fixture=record.config.get("fixture", "assembled"),
+            requires=required_capabilities(protocol),
+            protocol=f"protocol {protocol.name!r}",
+        )
         preflight_by_rig(rig, protocol)
         runner = Runner(rig, store, progress=not args.no_progress, on_pause=_ask_after_pause)
         result = execute(runner, lambda: runner.resume_run(args.run_id))
@@ -295,12 +367,16 @@ def _runs(args: argparse.Namespace) -> int:
     # columns as wide as their longest entry (a station's bench name can be long), at least the old widths
     bench_w = max([12, *(len(r.bench) for r in records)])
     protocol_w = max([26, *(len(p) for p in protocols)])
-    print(f"{'id':>4}  {'bench':<{bench_w}} {'protocol':<{protocol_w}} {'robot':<6} {'rig':<9} {'status':<11} "
-          f"{'samples':>7}  {'started (UTC)':<19}  reason")
+    print(
+        f"{'id':>4}  {'bench':<{bench_w}} {'protocol':<{protocol_w}} {'robot':<6} {'rig':<9} {'status':<11} "
+        f"{'samples':>7}  {'started (UTC)':<19}  reason"
+    )
     for r, protocol in zip(records, protocols):
         rig = "simulated" if r.simulated else "hardware"
-        print(f"{r.id:>4}  {r.bench:<{bench_w}} {protocol:<{protocol_w}} {r.robot:<6} {rig:<9} {r.status:<11} "
-              f"{r.n_samples:>7}  {r.started_utc[:19]:<19}  {r.reason or ''}")
+        print(
+            f"{r.id:>4}  {r.bench:<{bench_w}} {protocol:<{protocol_w}} {r.robot:<6} {rig:<9} {r.status:<11} "
+            f"{r.n_samples:>7}  {r.started_utc[:19]:<19}  {r.reason or ''}"
+        )
     return 0
 
 
@@ -340,8 +416,9 @@ def _export(args: argparse.Namespace) -> int:
     from bench.store.lab import is_lab_url
     from bench.store.lab_reader import open_named_runs
 
-    opened, (run_id,) = open_named_runs(args.store if is_lab_url(args.store) else _existing_store(args.store),
-                                        [args.run_id])
+    opened, (run_id,) = open_named_runs(
+        args.store if is_lab_url(args.store) else _existing_store(args.store), [args.run_id]
+    )
     with opened as store:
         out = args.out or f"run-{run_id}.{args.format}"
         kind = args.kind or ("arrival" if args.series else _default_kind(store, run_id))

@@ -27,9 +27,12 @@ __all__ = ["analyze_run", "register", "rounded_results"]
 
 
 def register(groups: argparse._SubParsersAction) -> None:
-    demo = groups.add_parser("demo", help="simulated ISO 9283 pose campaign on the pkm5, analysed, in < 1 min",
-                             description=__doc__.splitlines()[0],
-                             formatter_class=argparse.ArgumentDefaultsHelpFormatter)
+    demo = groups.add_parser(
+        "demo",
+        help="simulated ISO 9283 pose campaign on the pkm5, analysed, in < 1 min",
+        description=__doc__.splitlines()[0],
+        formatter_class=argparse.ArgumentDefaultsHelpFormatter,
+    )
     demo.add_argument("--out", default="demo-out", help="folder for the store, the table and the report")
     demo.add_argument("--seed", type=int, default=1, help="seed of the simulated robot's errors and noise")
     demo.add_argument("--cycles", type=int, default=30, help="cycles per pose (ISO: 30)")
@@ -54,8 +57,9 @@ def analyze_run(store: Store, run_id: int) -> pd.DataFrame:
 
     table = analysis_table(store, run_id)
     run = store.run(run_id)
-    instrument = counts_instrument(run, calibrations_in_force(store, run),
-                                   dims=sum(c in table.columns for c in ("x_mm", "y_mm", "z_mm")))
+    instrument = counts_instrument(
+        run, calibrations_in_force(store, run), dims=sum(c in table.columns for c in ("x_mm", "y_mm", "z_mm"))
+    )
     rows = []
     measured = report_order(analyze_poses(table, instrument_u_mm=instrument.sigma_mm or 0.0))
     truth = None
@@ -113,8 +117,9 @@ def _demo(args: argparse.Namespace) -> int:
     protocol = PoseAccuracy(source="bench demo", cycles=args.cycles)
     started = time.monotonic()
     with Store(out / "bench.db") as store:
-        rig = simulated_rig_in(store, "pkm5", seed=args.seed, speed_factor=args.speed_factor,
-                               kernel_wait_s=CAMPAIGN_KERNEL_WAIT_S)
+        rig = simulated_rig_in(
+            store, "pkm5", seed=args.seed, speed_factor=args.speed_factor, kernel_wait_s=CAMPAIGN_KERNEL_WAIT_S
+        )
         runner = Runner(rig, store, progress=not args.no_progress)
         result = execute(runner, lambda: runner.run(protocol, campaign="demo"))
         if result.exit_status != "completed":
@@ -124,11 +129,17 @@ def _demo(args: argparse.Namespace) -> int:
         results_path = out / "results.csv"
         rounded_results(results).to_csv(results_path, index=False)
         from bench.reports import write_report
+
         full = write_report(store, result.run_id, out)
-    shown = results[[c for c in ("pose", "velocity_pct", "n", "AP_mm", "RP_mm", "true_AP_mm", "true_RP_mm")
-                     if c in results]]
-    print(rounded_results(shown.assign(U_AP_mm=results["U_AP_mm"], U_RP_mm=results["U_RP_mm"]))
-          .drop(columns=["U_AP_mm", "U_RP_mm"]).to_string(index=False), file=sys.stderr)
+    shown = results[
+        [c for c in ("pose", "velocity_pct", "n", "AP_mm", "RP_mm", "true_AP_mm", "true_RP_mm") if c in results]
+    ]
+    print(
+        rounded_results(shown.assign(U_AP_mm=results["U_AP_mm"], U_RP_mm=results["U_RP_mm"]))
+        .drop(columns=["U_AP_mm", "U_RP_mm"])
+        .to_string(index=False),
+        file=sys.stderr,
+    )
     for path in (out / "bench.db", table_path, results_path, full.html, full.pdf):
         print(path)
     print(f"bench demo: {time.monotonic() - started:.1f} s (bench {__version__})", file=sys.stderr)

@@ -8,8 +8,12 @@ from bench.extras import ensure_installed
 
 
 def register(groups: argparse._SubParsersAction) -> None:
-    gui = groups.add_parser("gui", help="open the desktop window (campaigns, live view, calliper, results)",
-                            description=__doc__, formatter_class=argparse.ArgumentDefaultsHelpFormatter)
+    gui = groups.add_parser(
+        "gui",
+        help="open the desktop window (campaigns, live view, calliper, results)",
+        description=__doc__,
+        formatter_class=argparse.ArgumentDefaultsHelpFormatter,
+    )
     gui.add_argument("--store", default="bench.db", help="run store (SQLite file)")
     gui.add_argument("--reports", default="reports", help="folder for the reports opened from the window")
     gui.set_defaults(handler=_gui)

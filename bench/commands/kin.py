@@ -47,12 +47,22 @@ def register(groups: argparse._SubParsersAction) -> None:
 def _list_robots(args: argparse.Namespace) -> int:
     from motion.model import robot_models
 
-    listing = {name: {"pose_fields": list(model.pose_fields),
-                      "joints": [{"name": j.name, "low": j.low, "high": j.high} for j in model.joints]}
-               for name, model in robot_models().items()}
-    emit(listing, args.json, [f"{name}: pose ({', '.join(item['pose_fields'])}); joints "
-                              + ", ".join(f"{j['name']} [{j['low']:g}, {j['high']:g}]" for j in item["joints"])
-                              for name, item in listing.items()])
+    listing = {
+        name: {
+            "pose_fields": list(model.pose_fields),
+            "joints": [{"name": j.name, "low": j.low, "high": j.high} for j in model.joints],
+        }
+        for name, model in robot_models().items()
+    }
+    emit(
+        listing,
+        args.json,
+        [
+            f"{name}: pose ({', '.join(item['pose_fields'])}); joints "
+            + ", ".join(f"{j['name']} [{j['low']:g}, {j['high']:g}]" for j in item["joints"])
+            for name, item in listing.items()
+        ],
+    )
     return 0
 
 
@@ -102,8 +112,14 @@ class _DelayedBar:
             from rich.console import Console
             from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeRemainingColumn
 
-            self._bar = Progress(TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(),
-                                 TextColumn("ETA"), TimeRemainingColumn(), console=Console(stderr=True))
+            self._bar = Progress(
+                TextColumn("{task.description}"),
+                BarColumn(),
+                MofNCompleteColumn(),
+                TextColumn("ETA"),
+                TimeRemainingColumn(),
+                console=Console(stderr=True),
+            )
             self._task = self._bar.add_task(self.label, total=self.total)
             self._bar.start()
         if self._bar is not None:

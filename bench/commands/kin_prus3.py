@@ -137,8 +137,9 @@ def _workspace(args: argparse.Namespace) -> int:
     if args.samples < 1:
         raise ConfigError(f"--samples = {args.samples}, expected an integer >= 1")
     with sampling_progress(args, "prus3 workspace, samples") as progress:
-        volume = prus3.workspace_volume(args.samples, orientation_deg=tuple(args.orientation_deg), seed=args.seed,
-                                        progress=progress)
+        volume = prus3.workspace_volume(
+            args.samples, orientation_deg=tuple(args.orientation_deg), seed=args.seed, progress=progress
+        )
     emit(
         {
             "volume_mm3": volume.volume_mm3,

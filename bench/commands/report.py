@@ -19,9 +19,12 @@ DEFAULT_STORE = "bench.db"
 
 
 def register(groups: argparse._SubParsersAction) -> None:
-    parser = groups.add_parser("report", help="HTML/PDF report of a stored run, or two runs compared",
-                               description=__doc__.splitlines()[0],
-                               formatter_class=argparse.ArgumentDefaultsHelpFormatter)
+    parser = groups.add_parser(
+        "report",
+        help="HTML/PDF report of a stored run, or two runs compared",
+        description=__doc__.splitlines()[0],
+        formatter_class=argparse.ArgumentDefaultsHelpFormatter,
+    )
     parser.add_argument("run_id", metavar="RUN", help="the run to report: its id, BENCH/ID or its UUID (prefix)")
     defer(parser, _add_arguments)
     parser.set_defaults(handler=_report)
@@ -32,40 +35,81 @@ def _add_arguments(parser: argparse.ArgumentParser) -> None:
     from bench.reports import CRITERIA, FORMATS
     from bench.reports.decision import DECISION_RULES
 
-    parser.add_argument("--compare", metavar="RUN_B", default=None,
-                        help="second run: write a side-by-side comparison of RUN_ID (A) and RUN_B (B)")
-    parser.add_argument("--trend", metavar="RUN", nargs="+", default=None,
-                        help="more pose runs: write the trend of RUN_ID and these (drift across days)")
+    parser.add_argument(
+        "--compare",
+        metavar="RUN_B",
+        default=None,
+        help="second run: write a side-by-side comparison of RUN_ID (A) and RUN_B (B)",
+    )
+    parser.add_argument(
+        "--trend",
+        metavar="RUN",
+        nargs="+",
+        default=None,
+        help="more pose runs: write the trend of RUN_ID and these (drift across days)",
+    )
     parser.add_argument("--format", choices=(*FORMATS, "all"), default="all", help="report format(s)")
     parser.add_argument("--out", default="reports", help="folder for the report and its raw data")
-    parser.add_argument("--store", default=DEFAULT_STORE,
-                        help="run store: SQLite file, or the lab store (postgresql://USER:PASSWORD@HOST/DB)")
-    parser.add_argument("--criterion", action="append", default=[], metavar="NAME=MM",
-                        help=f"project acceptance criterion, repeatable; NAME in {', '.join(CRITERIA)}")
-    identity = parser.add_argument_group("device under test and people (page 1; default: the run's stored "
-                                         "settings.dut, else an empty line to fill in by hand)")
+    parser.add_argument(
+        "--store",
+        default=DEFAULT_STORE,
+        help="run store: SQLite file, or the lab store (postgresql://USER:PASSWORD@HOST/DB)",
+    )
+    parser.add_argument(
+        "--criterion",
+        action="append",
+        default=[],
+        metavar="NAME=MM",
+        help=f"project acceptance criterion, repeatable; NAME in {', '.join(CRITERIA)}",
+    )
+    identity = parser.add_argument_group(
+        "device under test and people (page 1; default: the run's stored "
+        "settings.dut, else an empty line to fill in by hand)"
+    )
     identity.add_argument("--dut-serial", default=None, metavar="TEXT", help="robot serial number or asset tag")
     identity.add_argument("--customer", default=None, metavar="TEXT", help="customer the robot is tested for")
     identity.add_argument("--order", default=None, metavar="TEXT", help="order or job number")
-    identity.add_argument("--measuring-point", default=None, metavar="TEXT",
-                          help="point measured (TCP / reference point, ISO 9283 6.3); default: the robot's stored tcp "
-                               "setting, else the platform centre of the kinematic model")
+    identity.add_argument(
+        "--measuring-point",
+        default=None,
+        metavar="TEXT",
+        help="point measured (TCP / reference point, ISO 9283 6.3); default: the robot's stored tcp "
+        "setting, else the platform centre of the kinematic model",
+    )
     identity.add_argument("--operator", default=None, metavar="TEXT", help="operator named in the report")
-    identity.add_argument("--lab", "--laboratory", dest="laboratory", default=None, metavar="TEXT",
-                          help="laboratory named in the report")
-    parser.add_argument("--decision-rule", choices=DECISION_RULES, default=DECISION_RULES[0],
-                        help="how the verdict uses U: simple acceptance (ILAC-G8 4.2.1) or guarded acceptance "
-                             "(ISO 14253-1: pass / not proven / fail)")
+    identity.add_argument(
+        "--lab", "--laboratory", dest="laboratory", default=None, metavar="TEXT", help="laboratory named in the report"
+    )
+    parser.add_argument(
+        "--decision-rule",
+        choices=DECISION_RULES,
+        default=DECISION_RULES[0],
+        help="how the verdict uses U: simple acceptance (ILAC-G8 4.2.1) or guarded acceptance "
+        "(ISO 14253-1: pass / not proven / fail)",
+    )
     parser.add_argument("--k", type=float, default=2.0, help="coverage factor of the expanded uncertainties")
-    parser.add_argument("--band-mm", type=float, nargs="+", default=None, metavar="MM",
-                        help="stabilisation and positioning-time runs: limit bands (default: the ISO comparison "
-                             "bands 0.1 0.5 1)")
-    parser.add_argument("--hysteresis-mm", type=float, default=None, metavar="MM",
-                        help="stabilisation and positioning-time runs: band-edge hysteresis (default: one count of "
-                             "the run's instrument, 25.4/cpi mm, from its calibration or settings; 0 without one)")
+    parser.add_argument(
+        "--band-mm",
+        type=float,
+        nargs="+",
+        default=None,
+        metavar="MM",
+        help="stabilisation and positioning-time runs: limit bands (default: the ISO comparison bands 0.1 0.5 1)",
+    )
+    parser.add_argument(
+        "--hysteresis-mm",
+        type=float,
+        default=None,
+        metavar="MM",
+        help="stabilisation and positioning-time runs: band-edge hysteresis (default: one count of "
+        "the run's instrument, 25.4/cpi mm, from its calibration or settings; 0 without one)",
+    )
     parser.add_argument("--quiet", action="store_true", help="no progress lines on stderr")
-    parser.add_argument("--allow-unknown", action="store_true",
-                        help="report even when the run lacks what a deviations row needs (row printed as unknown)")
+    parser.add_argument(
+        "--allow-unknown",
+        action="store_true",
+        help="report even when the run lacks what a deviations row needs (row printed as unknown)",
+    )
 
 
 def parse_criteria(items: list[str]) -> dict[str, float]:
@@ -76,8 +120,9 @@ def parse_criteria(items: list[str]) -> dict[str, float]:
     for item in items:
         name, _, value = item.partition("=")
         if name not in CRITERIA:
-            raise ConfigError(f"--criterion {item}: unknown name {name!r}, expected NAME=MM with NAME in "
-                              f"{', '.join(CRITERIA)}")
+            raise ConfigError(
+                f"--criterion {item}: unknown name {name!r}, expected NAME=MM with NAME in {', '.join(CRITERIA)}"
+            )
         try:
             criteria[name] = float(value)
         except ValueError:
@@ -88,6 +133,7 @@ def parse_criteria(items: list[str]) -> dict[str, float]:
 def _progress(started: float):
     def say(message: str) -> None:
         print(f"bench report: {time.monotonic() - started:5.1f} s  {message}", file=sys.stderr, flush=True)
+
     return say
 
 
@@ -121,17 +167,29 @@ def _write(args: argparse.Namespace, store, ids: list[int], formats, criteria, p
         if criteria:
             raise ConfigError("--criterion: not used with --compare; report each run on its own for a decision")
         if args.band_mm is not None or args.hysteresis_mm is not None:
-            raise ConfigError("--band-mm/--hysteresis-mm: not used with --compare; report each run on its own for "
-                              "other bands")
-        paths = write_comparison(store, run_id, others[0], args.out, formats, k=args.k,
-                                 progress=progress)
+            raise ConfigError(
+                "--band-mm/--hysteresis-mm: not used with --compare; report each run on its own for other bands"
+            )
+        paths = write_comparison(store, run_id, others[0], args.out, formats, k=args.k, progress=progress)
     else:
-        identity = {name: getattr(args, name) for name in ("dut_serial", "customer", "order", "operator",
-                                                            "laboratory", "measuring_point")}
-        paths = write_report(store, run_id, args.out, formats, criteria=criteria, k=args.k,
-                             allow_unknown=args.allow_unknown, bands_mm=args.band_mm,
-                             hysteresis_mm=args.hysteresis_mm, identity=identity,
-                             decision_rule=args.decision_rule, progress=progress)
+        identity = {
+            name: getattr(args, name)
+            for name in ("dut_serial", "customer", "order", "operator", "laboratory", "measuring_point")
+        }
+        paths = write_report(
+            store,
+            run_id,
+            args.out,
+            formats,
+            criteria=criteria,
+            k=args.k,
+            allow_unknown=args.allow_unknown,
+            bands_mm=args.band_mm,
+            hysteresis_mm=args.hysteresis_mm,
+            identity=identity,
+            decision_rule=args.decision_rule,
+            progress=progress,
+        )
     for path in (paths.html, paths.pdf, *paths.csv):
         if path is not None:
             print(path)

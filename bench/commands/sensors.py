@@ -18,8 +18,14 @@ from bench.errors import ConfigError
 def register(groups: argparse._SubParsersAction) -> None:
     sensors = groups.add_parser("sensors", help="sensors: mouse, laser grid, calliper (mm, degrees)")
     actions = sensors.add_subparsers(dest="action", metavar="ACTION", required=True)
-    for name, adder in (("mouse-list", _add_mouse_list), ("mouse-sim", _add_mouse_sim), ("mouse-read", _add_mouse_read),
-                        ("grid-decode", _add_grid_decode), ("tilt", _add_tilt), ("calliper-entry", _add_entry)):
+    for name, adder in (
+        ("mouse-list", _add_mouse_list),
+        ("mouse-sim", _add_mouse_sim),
+        ("mouse-read", _add_mouse_read),
+        ("grid-decode", _add_grid_decode),
+        ("tilt", _add_tilt),
+        ("calliper-entry", _add_entry),
+    ):
         adder(actions, name)
 
 
@@ -38,8 +44,11 @@ def _mouse_list(args: argparse.Namespace) -> int:
     from bench.sensors.mouse import list_mice
 
     mice = list_mice()
-    emit({"mice": [vars(m) for m in mice]}, args.json,
-         [f"{m.path}\t{m.name}\t{m.phys}" for m in mice] or ["no mice found under /sys/class/input"])
+    emit(
+        {"mice": [vars(m) for m in mice]},
+        args.json,
+        [f"{m.path}\t{m.name}\t{m.phys}" for m in mice] or ["no mice found under /sys/class/input"],
+    )
     return 0
 
 
@@ -97,13 +106,28 @@ def _mouse_read(args: argparse.Namespace) -> int:
         reading = mouse.read()
     finally:
         group.close()
-    result = {"path": args.path, "frames": len(frames), "x_mm": reading.value[0], "y_mm": reading.value[1],
-              "count_x": reading.raw[0], "count_y": reading.raw[1], "valid": reading.valid,
-              "calibration_id": reading.calibration_id}
-    emit(result, args.json, [f"{len(frames)} frames from {args.path}",
-                             (f"x = {reading.value[0]:.4f} mm, y = {reading.value[1]:.4f} mm "
-                              f"({reading.raw[0]}, {reading.raw[1]} counts; calibration {reading.calibration_id})"),
-                             "valid" if reading.valid else f"INVALID: {reading.note}"])
+    result = {
+        "path": args.path,
+        "frames": len(frames),
+        "x_mm": reading.value[0],
+        "y_mm": reading.value[1],
+        "count_x": reading.raw[0],
+        "count_y": reading.raw[1],
+        "valid": reading.valid,
+        "calibration_id": reading.calibration_id,
+    }
+    emit(
+        result,
+        args.json,
+        [
+            f"{len(frames)} frames from {args.path}",
+            (
+                f"x = {reading.value[0]:.4f} mm, y = {reading.value[1]:.4f} mm "
+                f"({reading.raw[0]}, {reading.raw[1]} counts; calibration {reading.calibration_id})"
+            ),
+            "valid" if reading.valid else f"INVALID: {reading.note}",
+        ],
+    )
     return 0 if reading.valid else 1
 
 
@@ -111,8 +135,14 @@ def _add_grid_decode(actions: argparse._SubParsersAction, name: str) -> None:
     parser = _parser(actions, name, "decode laser-grid sensor numbers into the end-effector position (mm)")
     parser.add_argument("--horizontal", type=int, nargs="*", default=[], metavar="N", help="horizontal-screen hits")
     parser.add_argument("--vertical", type=int, nargs="*", default=[], metavar="N", help="vertical-screen hits")
-    parser.add_argument("--prior-mm", type=float, nargs=3, required=True, metavar=("X", "Y", "Z"),
-                        help="expected end-effector centre (command or FK of the pots)")
+    parser.add_argument(
+        "--prior-mm",
+        type=float,
+        nargs=3,
+        required=True,
+        metavar=("X", "Y", "Z"),
+        help="expected end-effector centre (command or FK of the pots)",
+    )
     parser.add_argument("--spot-half-width-mm", type=float, default=1.0)
     parser.set_defaults(handler=_grid_decode)
 
@@ -120,13 +150,20 @@ def _add_grid_decode(actions: argparse._SubParsersAction, name: str) -> None:
 def _grid_decode(args: argparse.Namespace) -> int:
     from bench.sensors.lasergrid import GridGeometry, decode_frame
 
-    result = decode_frame(GridGeometry(), args.horizontal, args.vertical, args.prior_mm,
-                          spot_half_width_mm=args.spot_half_width_mm)
+    result = decode_frame(
+        GridGeometry(), args.horizontal, args.vertical, args.prior_mm, spot_half_width_mm=args.spot_half_width_mm
+    )
     x, y, z = result.position_mm
     screens = {s: getattr(result, s) for s in ("horizontal", "vertical")}
-    out = {"x_mm": x, "y_mm": y, "z_mm": z, "measured": list(result.measured), "misaligned": result.misaligned,
-           **{f"{k}_status": v.status.value for k, v in screens.items()},
-           **{f"{k}_lasers": list(v.lasers) for k, v in screens.items()}}
+    out = {
+        "x_mm": x,
+        "y_mm": y,
+        "z_mm": z,
+        "measured": list(result.measured),
+        "misaligned": result.misaligned,
+        **{f"{k}_status": v.status.value for k, v in screens.items()},
+        **{f"{k}_lasers": list(v.lasers) for k, v in screens.items()},
+    }
     lines = [f"position = ({x:.2f}, {y:.2f}, {z:.2f}) mm, measured axes {result.measured}"]
     lines += [f"{k}: {v.status.value} {' '.join(v.lasers)} {v.reason}".rstrip() for k, v in screens.items()]
     emit(out, args.json, lines)
@@ -150,9 +187,16 @@ def _tilt(args: argparse.Namespace) -> int:
     measured = float(tilt_deg(args.h1_mm, args.h2_mm, args.spacing_mm))
     u = tilt_uncertainty_deg(args.h1_mm, args.h2_mm, args.spacing_mm, args.u_h_mm, args.u_spacing_mm)
     corrected = measured - args.bias_deg
-    emit({"tilt_measured_deg": measured, "tilt_corrected_deg": corrected, "bias_deg": args.bias_deg, "u_deg": u},
-         args.json, [(f"tilt = {corrected:.4f} deg (measured {measured:.4f} deg, bias {args.bias_deg:+.4f} deg), "
-                      f"u = {u:.4f} deg without the bias uncertainty")])
+    emit(
+        {"tilt_measured_deg": measured, "tilt_corrected_deg": corrected, "bias_deg": args.bias_deg, "u_deg": u},
+        args.json,
+        [
+            (
+                f"tilt = {corrected:.4f} deg (measured {measured:.4f} deg, bias {args.bias_deg:+.4f} deg), "
+                f"u = {u:.4f} deg without the bias uncertainty"
+            )
+        ],
+    )
     return 0
 
 
@@ -176,8 +220,9 @@ def _entry(args: argparse.Namespace) -> int:
     if args.count < 1:
         raise ConfigError(f"calliper-entry: --count = {args.count}, expected an integer >= 1")
     if not args.out.parent.is_dir():
-        raise ConfigError(f"calliper-entry: --out {args.out}: folder {args.out.parent} does not exist, expected an "
-                          "existing folder")
+        raise ConfigError(
+            f"calliper-entry: --out {args.out}: folder {args.out.parent} does not exist, expected an existing folder"
+        )
     if args.out.is_dir():
         raise ConfigError(f"calliper-entry: --out {args.out}: a folder, expected a CSV file name")
     new_file = not args.out.exists() or args.out.stat().st_size == 0
@@ -196,8 +241,9 @@ def _entry(args: argparse.Namespace) -> int:
             os.fsync(handle.fileno())
 
         for k in range(args.count):
-            request = ReadingRequest(f"{args.label} #{k + 1}", args.min_mm, args.max_mm, args.expected_mm,
-                                     args.tolerance_mm)
+            request = ReadingRequest(
+                f"{args.label} #{k + 1}", args.min_mm, args.max_mm, args.expected_mm, args.tolerance_mm
+            )
             reading = prompt_reading(request, store, ask=_ask, double_entry=args.double_entry, operator=args.operator)
             print(f"{reading.value:.3f} mm stored in {args.out}", file=sys.stderr)
     emit({"path": str(args.out), "readings": args.count}, args.json, [str(args.out)])

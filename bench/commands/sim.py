@@ -18,8 +18,9 @@ def register(groups: argparse._SubParsersAction) -> None:
     sim = groups.add_parser("sim", help="run a simulated robot controller on a pseudo-terminal")
     robots = sim.add_subparsers(dest="robot", metavar="ROBOT", required=True)
     for name, kind in ROBOT_KINDS.items():  # the simulator module (numpy, the plant) is imported when parsed
-        parser = robots.add_parser(name, help=kind.simulator_help,
-                                   formatter_class=argparse.ArgumentDefaultsHelpFormatter)
+        parser = robots.add_parser(
+            name, help=kind.simulator_help, formatter_class=argparse.ArgumentDefaultsHelpFormatter
+        )
         defer(parser, lambda parser, module_name=kind.simulator: _add_simulator_arguments(parser, module_name))
 
 

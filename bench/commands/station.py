@@ -11,8 +11,11 @@ import json
 
 
 def register(groups: argparse._SubParsersAction) -> None:
-    station = groups.add_parser("station", help="bench station files: check the devices a station names",
-                                description="bench station files (see examples/stations/ and docs/real-bench.md)")
+    station = groups.add_parser(
+        "station",
+        help="bench station files: check the devices a station names",
+        description="bench station files (see examples/stations/ and docs/real-bench.md)",
+    )
     actions = station.add_subparsers(dest="action", metavar="ACTION", required=True)
     check = actions.add_parser("check", help="open every device, identify the controller, read each sensor once")
     check.add_argument("station", metavar="STATION.toml")

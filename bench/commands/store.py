@@ -9,8 +9,11 @@ import sys
 def register(groups: argparse._SubParsersAction) -> None:
     store = groups.add_parser("store", help="check a run store file", description="check a run store file")
     actions = store.add_subparsers(dest="store_action", metavar="ACTION", required=True)
-    check = actions.add_parser("check", help="integrity and foreign-key checks; one line per problem (exit 1)",
-                               description="PRAGMA integrity_check and foreign_key_check, read-only")
+    check = actions.add_parser(
+        "check",
+        help="integrity and foreign-key checks; one line per problem (exit 1)",
+        description="PRAGMA integrity_check and foreign_key_check, read-only",
+    )
     check.add_argument("path", metavar="STORE", help="the run store (SQLite file)")
     check.set_defaults(handler=_check)
 

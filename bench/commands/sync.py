@@ -16,13 +16,19 @@ DEFAULT_STORE = "bench.db"
 
 def register(groups: argparse._SubParsersAction) -> None:
     text = "push runs, calibrations, configurations and samples to the lab's PostgreSQL store"
-    sync = groups.add_parser("sync", help=text, description=text,
-                             formatter_class=argparse.ArgumentDefaultsHelpFormatter)
+    sync = groups.add_parser(
+        "sync", help=text, description=text, formatter_class=argparse.ArgumentDefaultsHelpFormatter
+    )
     sync.add_argument("--store", default=DEFAULT_STORE, help="this bench's run store (SQLite file)")
-    sync.add_argument("--to", required=True, metavar="postgresql://USER:PASSWORD@HOST/DB",
-                      help="the lab store (PostgreSQL URL; a socket folder as ?host=/path)")
-    sync.add_argument("--bench", default=None, help="this bench's name for runs of a file migrated now "
-                                                    "(default: the host name)")
+    sync.add_argument(
+        "--to",
+        required=True,
+        metavar="postgresql://USER:PASSWORD@HOST/DB",
+        help="the lab store (PostgreSQL URL; a socket folder as ?host=/path)",
+    )
+    sync.add_argument(
+        "--bench", default=None, help="this bench's name for runs of a file migrated now (default: the host name)"
+    )
     sync.add_argument("--batch", type=int, default=20_000, help="samples per transaction")
     sync.add_argument("--retries", type=int, default=3, help="reconnections after a lost connection")
     sync.set_defaults(handler=_sync)
@@ -30,8 +36,10 @@ def register(groups: argparse._SubParsersAction) -> None:
     text = "lab-wide figures from the lab's PostgreSQL store"
     lab = groups.add_parser("lab", help=text, description=text)
     lab_commands = lab.add_subparsers(dest="lab_command", required=True, metavar="COMMAND")
-    text = ("AP and RP (ISO 9283 7.2.1, 7.2.2) per bench, robot, week, pose, velocity and commanded position, "
-            "computed by the server")
+    text = (
+        "AP and RP (ISO 9283 7.2.1, 7.2.2) per bench, robot, week, pose, velocity and commanded position, "
+        "computed by the server"
+    )
     summary = lab_commands.add_parser("summary", help=text, description=text)
     summary.add_argument("--store", required=True, metavar="postgresql://USER:PASSWORD@HOST/DB", help="the lab store")
     summary.add_argument("--since", default=None, metavar="DATE", help="only runs started on or after this UTC date")
@@ -53,10 +61,17 @@ def _sync(args: argparse.Namespace) -> int:
         raise ConfigError(f"--retries {args.retries}: expected 0 or more")
     # read-only: sync never writes the local file, and a path that names no store is refused, never created
     with Store(args.store, bench=args.bench, read_only=True) as store:
-        result = sync_store(store, args.to, batch_size=args.batch, retries=args.retries,
-                            progress=lambda line: print(line, file=sys.stderr, flush=True))
-    print(f"synced {result.runs} runs, {result.calibrations} calibrations, {result.samples_sent} new samples "
-          f"in {result.seconds:.2f} s ({result.samples_per_s:,.0f} samples/s) to {redacted(args.to)}")
+        result = sync_store(
+            store,
+            args.to,
+            batch_size=args.batch,
+            retries=args.retries,
+            progress=lambda line: print(line, file=sys.stderr, flush=True),
+        )
+    print(
+        f"synced {result.runs} runs, {result.calibrations} calibrations, {result.samples_sent} new samples "
+        f"in {result.seconds:.2f} s ({result.samples_per_s:,.0f} samples/s) to {redacted(args.to)}"
+    )
     return 0
 
 
@@ -85,11 +100,14 @@ def _lab_summary(args: argparse.Namespace) -> int:
         for group in groups:
             print(json.dumps(group.as_dict(), default=str))
         return 0
-    print(f"{'bench':<12} {'robot':<7} {'week':<10} {'pose':<6} {'velocity_pct':>12} {'n':>7} {'AP_mm':>9} "
-          f"{'RP_mm':>9}")
+    print(
+        f"{'bench':<12} {'robot':<7} {'week':<10} {'pose':<6} {'velocity_pct':>12} {'n':>7} {'AP_mm':>9} {'RP_mm':>9}"
+    )
     for g in groups:
         velocity = "-" if g.velocity_pct is None else f"{g.velocity_pct:g}"
         rp = "n<2" if g.rp_mm is None else f"{g.rp_mm:.4f}"
-        print(f"{g.bench:<12} {g.robot:<7} {g.week.isoformat():<10} {g.pose or '-':<6} {velocity:>12} {g.n:>7} "
-              f"{g.ap_mm:9.4f} {rp:>9}")
+        print(
+            f"{g.bench:<12} {g.robot:<7} {g.week.isoformat():<10} {g.pose or '-':<6} {velocity:>12} {g.n:>7} "
+            f"{g.ap_mm:9.4f} {rp:>9}"
+        )
     return 0

@@ -38,10 +38,10 @@ from PySide6.QtWidgets import (
 
 from bench.gui.calibration_panel import CalibrationPanel
 from bench.gui.calliper_dialog import CalliperDialog
-from bench.gui.estop import HANDOFF_S, EmergencyStop
-from bench.gui.messages import show_message
 from bench.gui.campaign_panel import CampaignPanel
+from bench.gui.estop import HANDOFF_S, EmergencyStop
 from bench.gui.live_view import LiveView
+from bench.gui.messages import show_message
 from bench.gui.offload import shutdown_worker_process
 from bench.gui.results_browser import ResultsBrowser
 from bench.gui.robot_panel import RobotPanel
@@ -53,15 +53,19 @@ __all__ = ["ESTOP_KEY", "MainWindow"]
 #: The keyboard shortcut of the emergency stop, active in every window of the application.
 ESTOP_KEY = Qt.Key.Key_F12
 #: What the emergency stop button says it is (IEC 60204-1 stop categories; a hard-wired stop is the safety device).
-ESTOP_TOOLTIP = ("Software emergency stop (stop category 1/2, IEC 60204-1), F12 from any window of bench: sends the "
-                 "robot's stop at once, withdraws a pending prompt, ends the run aborted (resumable). It is not a "
-                 "safety device: the hard-wired emergency stop of the cell is.")
+ESTOP_TOOLTIP = (
+    "Software emergency stop (stop category 1/2, IEC 60204-1), F12 from any window of bench: sends the "
+    "robot's stop at once, withdraws a pending prompt, ends the run aborted (resumable). It is not a "
+    "safety device: the hard-wired emergency stop of the cell is."
+)
 
 _log = logging.getLogger(__name__)
 
 #: The question a close during a run asks, after the emergency stop went out.
-CLOSE_QUESTION = ("The robot was stopped (software emergency stop) and the run ends aborted; every stored sample "
-                  "stays, and Resume continues it.\n\nClose the window?")
+CLOSE_QUESTION = (
+    "The robot was stopped (software emergency stop) and the run ends aborted; every stored sample "
+    "stays, and Resume continues it.\n\nClose the window?"
+)
 
 
 class _EstopKeyFilter(QObject):
@@ -72,8 +76,11 @@ class _EstopKeyFilter(QObject):
         self._press = press
 
     def eventFilter(self, watched: QObject, event: QEvent) -> bool:
-        if event.type() in (QEvent.Type.KeyPress, QEvent.Type.ShortcutOverride) \
-                and isinstance(event, QKeyEvent) and event.key() == ESTOP_KEY:
+        if (
+            event.type() in (QEvent.Type.KeyPress, QEvent.Type.ShortcutOverride)
+            and isinstance(event, QKeyEvent)
+            and event.key() == ESTOP_KEY
+        ):
             if event.type() is QEvent.Type.KeyPress and not event.isAutoRepeat():
                 self._press()
             return True  # consumed: never typed into a field, never a shortcut of a dialog
@@ -83,8 +90,9 @@ class _EstopKeyFilter(QObject):
 class MainWindow(QMainWindow):
     """The bench desktop window on the run store ``store_path``; reports go to ``report_dir``."""
 
-    def __init__(self, store_path: str | Path = "bench.db", report_dir: str | Path = "reports", *,
-                 open_files: bool = True) -> None:
+    def __init__(
+        self, store_path: str | Path = "bench.db", report_dir: str | Path = "reports", *, open_files: bool = True
+    ) -> None:
         super().__init__()
         self.store_path = str(store_path)
         self.setWindowTitle(f"bench - {self.store_path}")
@@ -96,8 +104,9 @@ class MainWindow(QMainWindow):
         self.robot_panel = RobotPanel(estop=self.estop_latch)
         self.live_view = LiveView()
         self.results = ResultsBrowser(self.store_path, report_dir, open_files=open_files)
-        self.calibration_panel = CalibrationPanel(self.store_path, self.results.selected_run_ids,
-                                                  robot=self.robot_panel.robot.currentText)
+        self.calibration_panel = CalibrationPanel(
+            self.store_path, self.results.selected_run_ids, robot=self.robot_panel.robot.currentText
+        )
         self.campaign_panel = CampaignPanel(self.store_path, self.rig_spec, estop=self.estop_latch)
         self.log = QPlainTextEdit()
         self.log.setObjectName("log")
@@ -142,8 +151,10 @@ class MainWindow(QMainWindow):
         self.estop.setObjectName("emergencyStop")
         self.estop.setToolTip(ESTOP_TOOLTIP)
         self.estop.setMinimumHeight(44)
-        self.estop.setStyleSheet("QPushButton {background: #c62828; color: white; font-weight: bold;"
-                                 " font-size: 15px; padding: 6px 24px; border-radius: 4px}")
+        self.estop.setStyleSheet(
+            "QPushButton {background: #c62828; color: white; font-weight: bold;"
+            " font-size: 15px; padding: 6px 24px; border-radius: 4px}"
+        )
         self.estop.pressed.connect(self.emergency_stop)  # on mouse-down: nothing more to wait for
         self.estop.setFocusPolicy(Qt.FocusPolicy.NoFocus)  # never the target of a stray Space or Enter
         self._key_filter = _EstopKeyFilter(self.emergency_stop)
@@ -167,8 +178,9 @@ class MainWindow(QMainWindow):
     def rig_spec(self, **options) -> RigSpec:
         """Where the window's runs happen: the robot panel's robot and connection, with the kinematic calibration
         chosen in the calibration panel."""
-        return dataclasses.replace(self.robot_panel.rig_spec(**options),
-                                   kinematic_calibration=self.calibration_panel.choice())
+        return dataclasses.replace(
+            self.robot_panel.rig_spec(**options), kinematic_calibration=self.calibration_panel.choice()
+        )
 
     def say(self, text: str) -> None:
         """A line in the log panel (and the log)."""
@@ -216,7 +228,8 @@ class MainWindow(QMainWindow):
         self.robot_panel.setEnabled(False)
         worker.run_started.connect(self._run_started)
         worker.samples_loaded.connect(
-            lambda run_id, started_s, samples: self.live_view.load(f"run {run_id}", started_s, samples))
+            lambda run_id, started_s, samples: self.live_view.load(f"run {run_id}", started_s, samples)
+        )
         worker.sample_stored.connect(lambda run_id, sample: self.live_view.add_sample(sample))
         worker.prompt_requested.connect(self.ask_reading)
         worker.run_finished.connect(self._run_finished)
@@ -240,10 +253,13 @@ class MainWindow(QMainWindow):
         self.say(f"run {result.run_id} {result.exit_status} ({result.samples} samples){reason}")
         self.results.refresh()
         if result.exit_status != "completed" and not self.campaign_panel.ended_by_operator:
-            self._show_dialog(QMessageBox.Icon.Warning, f"Run {result.run_id} {result.exit_status}",
-                              f"Run {result.run_id} ended {result.exit_status}{reason}.\n\n{result.samples} samples "
-                              f"are stored. To continue it: Resume in the Results tab, or\n"
-                              f"bench resume {result.run_id} --store {self.store_path}")
+            self._show_dialog(
+                QMessageBox.Icon.Warning,
+                f"Run {result.run_id} {result.exit_status}",
+                f"Run {result.run_id} ended {result.exit_status}{reason}.\n\n{result.samples} samples "
+                f"are stored. To continue it: Resume in the Results tab, or\n"
+                f"bench resume {result.run_id} --store {self.store_path}",
+            )
 
     def _job_failed(self, text: str) -> None:
         self._show_dialog(QMessageBox.Icon.Warning, "The campaign could not start", text)
@@ -297,8 +313,13 @@ class MainWindow(QMainWindow):
         if self.close_question is not None and self.close_question.isVisible():
             self.close_question.raise_()
             return
-        question = QMessageBox(QMessageBox.Icon.Question, "Close bench?", CLOSE_QUESTION,
-                               QMessageBox.StandardButton.Close | QMessageBox.StandardButton.Cancel, self)
+        question = QMessageBox(
+            QMessageBox.Icon.Question,
+            "Close bench?",
+            CLOSE_QUESTION,
+            QMessageBox.StandardButton.Close | QMessageBox.StandardButton.Cancel,
+            self,
+        )
         question.setObjectName("closeQuestion")
         question.setWindowModality(Qt.WindowModality.NonModal)
         question.button(QMessageBox.StandardButton.Close).clicked.connect(self.confirm_close)

@@ -62,8 +62,7 @@ def _describe(record) -> str:
     serial = record.params.get("dut_serial")
     whose = f", robot {serial}" if serial else ""
     simulated = ", simulated" if record.params.get("simulated") else ""
-    return (f"{record.name} v{record.version} (id {record.id}, from run {record.source_run_id}{whose}"
-            f"{simulated})")
+    return f"{record.name} v{record.version} (id {record.id}, from run {record.source_run_id}{whose}{simulated})"
 
 
 def _identify(store_path: str, run_id: int, options: dict):
@@ -85,8 +84,14 @@ class CalibrationPanel(QGroupBox):
     message = Signal(str)
     identified = Signal(object)  #: an :class:`bench.calibration.identify.IdentifiedRun`
 
-    def __init__(self, store_path: str, selected_runs: Callable[[], list[int]],
-                 parent: QWidget | None = None, *, robot: Callable[[], str] = lambda: "pkm5") -> None:
+    def __init__(
+        self,
+        store_path: str,
+        selected_runs: Callable[[], list[int]],
+        parent: QWidget | None = None,
+        *,
+        robot: Callable[[], str] = lambda: "pkm5",
+    ) -> None:
         super().__init__("Kinematic calibration", parent)
         self.store_path = store_path
         self.selected_runs = selected_runs
@@ -98,21 +103,27 @@ class CalibrationPanel(QGroupBox):
         self._scan: Task | None = None
         self.choice_box = QComboBox()
         self.choice_box.setObjectName("kinematicCalibration")
-        self.choice_box.setToolTip("The kinematic calibration the runs started from this window command by "
-                                   "(bench run --kinematic-calibration ID / --no-kinematic-calibration)")
+        self.choice_box.setToolTip(
+            "The kinematic calibration the runs started from this window command by "
+            "(bench run --kinematic-calibration ID / --no-kinematic-calibration)"
+        )
         self._fill(self.robot(), [])
         self.identify_button = QPushButton("Identify from the selected run")
         self.identify_button.setObjectName("identifyButton")
-        self.identify_button.setToolTip("bench calibrate RUN_ID on the run selected in the Results tab: identify "
-                                        "the robot's geometry and store it as a new <robot>_kinematics version")
+        self.identify_button.setToolTip(
+            "bench calibrate RUN_ID on the run selected in the Results tab: identify "
+            "the robot's geometry and store it as a new <robot>_kinematics version"
+        )
         self.identify_button.clicked.connect(lambda _=False: self.identify())
         self.fit_box = QComboBox()
         self.fit_box.setObjectName("calibrationFit")
         self.fit_box.addItem("default (map)", None)
         for fit in FITS:
             self.fit_box.addItem(fit, fit)
-        self.fit_box.setToolTip("bench calibrate --fit: map fits every parameter with the tolerances as the prior; "
-                                "free-set only what the poses identify")
+        self.fit_box.setToolTip(
+            "bench calibrate --fit: map fits every parameter with the tolerances as the prior; "
+            "free-set only what the poses identify"
+        )
         self.uncertainty_box = QDoubleSpinBox()
         self.uncertainty_box.setObjectName("calibrationUncertainty")
         self.uncertainty_box.setRange(0.0, 10.0)
@@ -120,15 +131,19 @@ class CalibrationPanel(QGroupBox):
         self.uncertainty_box.setSingleStep(0.01)
         self.uncertainty_box.setSuffix(" mm")
         self.uncertainty_box.setSpecialValueText("the instrument's")
-        self.uncertainty_box.setToolTip("bench calibrate --uncertainty-mm: the instrument's standard uncertainty "
-                                        "per reading, the floor of the measured scatter (0: the instrument's own)")
+        self.uncertainty_box.setToolTip(
+            "bench calibrate --uncertainty-mm: the instrument's standard uncertainty "
+            "per reading, the floor of the measured scatter (0: the instrument's own)"
+        )
         self.gain_box = QDoubleSpinBox()
         self.gain_box.setObjectName("calibrationTargetGain")
         self.gain_box.setRange(1.5, 1000.0)
         self.gain_box.setValue(DEFAULT_TARGET_GAIN)
         self.gain_box.setSuffix(" x")
-        self.gain_box.setToolTip("bench calibrate --target-gain: the held-out AP gain the campaign plan (cycles per "
-                                 "pose, robot time) is made for")
+        self.gain_box.setToolTip(
+            "bench calibrate --target-gain: the held-out AP gain the campaign plan (cycles per "
+            "pose, robot time) is made for"
+        )
         self.status = QLabel("")
         self.status.setObjectName("calibrationStatus")
         self.status.setWordWrap(True)
@@ -174,8 +189,9 @@ class CalibrationPanel(QGroupBox):
         self.choice_box.setCurrentIndex(index if index >= 0 else 0)
         self.choice_box.blockSignals(False)
         if index < 0:
-            self.message.emit(f"kinematic calibration id {current} is not a stored calibration of the {robot}: "
-                              "newest chosen")
+            self.message.emit(
+                f"kinematic calibration id {current} is not a stored calibration of the {robot}: newest chosen"
+            )
 
     def refresh(self) -> Task:
         """Read the robot's stored calibrations again in the background; the list follows (a call during a scan
@@ -184,9 +200,14 @@ class CalibrationPanel(QGroupBox):
             self._stale = True
             return self._scan
         path, robot = self.store_path, self.robot()
-        self._scan = run_in_background("reading the calibrations", lambda: stored_calibrations(path, robot), self,
-                                       on_done=lambda records: self._fill(robot, records),
-                                       on_failed=self.message.emit, on_ended=self._scanned)
+        self._scan = run_in_background(
+            "reading the calibrations",
+            lambda: stored_calibrations(path, robot),
+            self,
+            on_done=lambda records: self._fill(robot, records),
+            on_failed=self.message.emit,
+            on_ended=self._scanned,
+        )
         return self._scan
 
     def _scanned(self) -> None:
@@ -200,8 +221,11 @@ class CalibrationPanel(QGroupBox):
     def identify_options(self) -> dict:
         """The keyword arguments of :func:`identify_run` the box's choices give (``bench calibrate``'s flags)."""
         uncertainty = self.uncertainty_box.value()
-        return {"fit": self.fit_box.currentData(), "uncertainty_mm": uncertainty if uncertainty > 0 else None,
-                "target_gain": self.gain_box.value()}
+        return {
+            "fit": self.fit_box.currentData(),
+            "uncertainty_mm": uncertainty if uncertainty > 0 else None,
+            "target_gain": self.gain_box.value(),
+        }
 
     def identify(self) -> Task | None:
         """``bench calibrate`` on the selected run, in the background; the result is shown when it is stored."""
@@ -216,10 +240,14 @@ class CalibrationPanel(QGroupBox):
         self.status.setText(f"identifying the geometry from run {run_id}...")
         self.identify_button.setEnabled(False)
         path, options = self.store_path, self.identify_options()
-        self._task = run_in_background(f"identification from run {run_id}", lambda: _identify(path, run_id, options),
-                                       self,
-                                       on_done=self._identified, on_failed=lambda text: self._failed(run_id, text),
-                                       on_ended=self._ended)
+        self._task = run_in_background(
+            f"identification from run {run_id}",
+            lambda: _identify(path, run_id, options),
+            self,
+            on_done=self._identified,
+            on_failed=lambda text: self._failed(run_id, text),
+            on_ended=self._ended,
+        )
         return self._task
 
     def _identified(self, identified) -> None:
@@ -228,17 +256,22 @@ class CalibrationPanel(QGroupBox):
         self.result_text.setPlainText("\n".join(lines))
         self.status.setText(lines[0])
         self.message.emit(lines[0])
-        self.last_dialog = show_message(self, QMessageBox.Icon.Information, "Calibration stored",
-                                        "\n".join([lines[0], *lines[2 + len(identified.result.names):]]),
-                                        name="calibrationDialog")
+        self.last_dialog = show_message(
+            self,
+            QMessageBox.Icon.Information,
+            "Calibration stored",
+            "\n".join([lines[0], *lines[2 + len(identified.result.names) :]]),
+            name="calibrationDialog",
+        )
         self.refresh()
         self.identified.emit(identified)
 
     def _failed(self, run_id: int, text: str) -> None:
         self.status.setText(f"not identified: {text}")
         self.message.emit(text)
-        self.last_dialog = show_message(self, QMessageBox.Icon.Warning, f"Run {run_id} not identified", text,
-                                        name="calibrationDialog")
+        self.last_dialog = show_message(
+            self, QMessageBox.Icon.Warning, f"Run {run_id} not identified", text, name="calibrationDialog"
+        )
 
     def _ended(self) -> None:
         self._task = None

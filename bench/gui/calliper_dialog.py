@@ -29,6 +29,7 @@ from bench.rigs.operators import TOLERANCE_MM, parse_entry
 
 __all__ = ["TOLERANCE_MM", "CalliperDialog", "parse_entry", "quantity_name"]
 
+
 class CalliperDialog(QDialog):
     """Asks for one reading; emits ``reading_entered(value)`` once the entry is valid (and confirmed).
 
@@ -47,8 +48,7 @@ class CalliperDialog(QDialog):
     confirmed = Signal()  #: a prompt without a field (an instruction such as "mount 2 kg") was confirmed
     cancelled = Signal()
 
-    def __init__(self, prompt: Prompt, parent: QWidget | None = None, *,
-                 number: tuple[int, int] | None = None) -> None:
+    def __init__(self, prompt: Prompt, parent: QWidget | None = None, *, number: tuple[int, int] | None = None) -> None:
         super().__init__(parent)
         self.prompt = prompt
         self._pending_confirmation: float | None = None
@@ -77,8 +77,7 @@ class CalliperDialog(QDialog):
         self.error.setMinimumHeight(3 * self.error.fontMetrics().lineSpacing())  # room kept: no layout jump
         self.error.setAlignment(Qt.AlignmentFlag.AlignTop | Qt.AlignmentFlag.AlignLeft)
         layout.addWidget(self.error)
-        self.buttons = QDialogButtonBox(QDialogButtonBox.StandardButton.Ok
-                                        | QDialogButtonBox.StandardButton.Cancel)
+        self.buttons = QDialogButtonBox(QDialogButtonBox.StandardButton.Ok | QDialogButtonBox.StandardButton.Cancel)
         self.cancel_button = self.buttons.button(QDialogButtonBox.StandardButton.Cancel)
         self.cancel_button.setObjectName("cancelReading")
         self.buttons.accepted.connect(self.submit)
@@ -93,19 +92,19 @@ class CalliperDialog(QDialog):
         prompt = self.prompt
         unit = prompt.unit
         bounds = [f"{b:g}" if b is not None else "…" for b in (prompt.minimum, prompt.maximum)]
-        form.addRow("Measure", QLabel(f"{quantity_name(prompt.field)} in {unit}" if unit else
-                                      quantity_name(prompt.field)))
+        form.addRow(
+            "Measure", QLabel(f"{quantity_name(prompt.field)} in {unit}" if unit else quantity_name(prompt.field))
+        )
         form.addRow("Accepted range", QLabel(f"{bounds[0]} to {bounds[1]} {unit}"))
         expected = prompt.commanded.get(f"cmd_{prompt.field}")
         if expected is not None:
-            note = (f" (a reading more than {TOLERANCE_MM:g} mm away is asked again)" if unit == "mm" else "")
+            note = f" (a reading more than {TOLERANCE_MM:g} mm away is asked again)" if unit == "mm" else ""
             label = QLabel(f"{expected:g} {unit}: the value the robot was commanded to{note}")
             label.setWordWrap(True)
             form.addRow("Expected", label)
         others = {k: v for k, v in prompt.commanded.items() if k != f"cmd_{prompt.field}"}
         if others:
-            label = QLabel(", ".join(f"{quantity_name(k[4:])} {v:g} {k.rsplit('_', 1)[-1]}"
-                                     for k, v in others.items()))
+            label = QLabel(", ".join(f"{quantity_name(k[4:])} {v:g} {k.rsplit('_', 1)[-1]}" for k, v in others.items()))
             label.setWordWrap(True)
             form.addRow("Commanded pose", label)
         self.entry.setPlaceholderText("type the reading (12,34 or 12.34) or press the calliper's data button")
@@ -144,8 +143,10 @@ class CalliperDialog(QDialog):
         """First Cancel/Esc: say what cancelling does; the second one cancels (the campaign ends, resumable)."""
         if not self._cancel_pending:
             self._cancel_pending = True
-            self.error.setText("Cancelling ends the campaign (aborted; it can be resumed later). Press Cancel "
-                               "(or Esc) again to end it, or type the reading to go on.")
+            self.error.setText(
+                "Cancelling ends the campaign (aborted; it can be resumed later). Press Cancel "
+                "(or Esc) again to end it, or type the reading to go on."
+            )
             self.cancel_button.setText("End the campaign")
             return
         self.cancelled.emit()

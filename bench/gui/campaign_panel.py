@@ -42,8 +42,12 @@ from bench.protocols.runner import TRANSITIONS
 __all__ = ["ACTION_TARGETS", "CampaignPanel", "enabled_actions", "example_protocols", "format_duration"]
 
 #: The runner state each run button asks for.
-ACTION_TARGETS = {"pause": RunState.PAUSED, "resume": RunState.RUNNING, "stop": RunState.STOPPING,
-                  "abort": RunState.ABORTING}
+ACTION_TARGETS = {
+    "pause": RunState.PAUSED,
+    "resume": RunState.RUNNING,
+    "stop": RunState.STOPPING,
+    "abort": RunState.ABORTING,
+}
 #: The worker's "pause requested": still running, a second pause means nothing.
 PAUSE_REQUESTED = "pause requested"
 
@@ -61,6 +65,7 @@ def enabled_actions(state: str | None) -> set[str]:
         return set()
     legal = {action for action, target in ACTION_TARGETS.items() if target in TRANSITIONS[current]}
     return legal - {"pause"} if state == PAUSE_REQUESTED else legal
+
 
 #: Where the protocol library of the repository lives (offered in the file list when present).
 EXAMPLES = Path(__file__).resolve().parents[2] / "examples"
@@ -95,8 +100,14 @@ class CampaignPanel(QGroupBox):
     worker_started = Signal(object)  #: the new :class:`CampaignWorker`, for the window to connect
     message = Signal(str)
 
-    def __init__(self, store_path: str, rig_spec: Callable[..., RigSpec], parent: QWidget | None = None, *,
-                 estop: EmergencyStop | None = None) -> None:
+    def __init__(
+        self,
+        store_path: str,
+        rig_spec: Callable[..., RigSpec],
+        parent: QWidget | None = None,
+        *,
+        estop: EmergencyStop | None = None,
+    ) -> None:
         super().__init__("Campaign", parent)
         self.store_path = store_path
         self.rig_spec = rig_spec
@@ -208,7 +219,9 @@ class CampaignPanel(QGroupBox):
         if speed > 1:
             timing += f", about {format_duration(summary.estimated_s / speed)} simulated (prompts excepted)"
         if summary.ok:
-            return f"<span style='color:#1b5e20'>pre-flight OK</span>: {len(summary.labels)} targets; {counts}; {timing}"
+            return (
+                f"<span style='color:#1b5e20'>pre-flight OK</span>: {len(summary.labels)} targets; {counts}; {timing}"
+            )
         return "<span style='color:#b00020'>pre-flight REFUSED</span>: " + "<br>".join(summary.problems())
 
     # ---- queue and controls --------------------------------------------------------------------------------
@@ -248,8 +261,13 @@ class CampaignPanel(QGroupBox):
     def _control_row(self) -> QHBoxLayout:
         row = QHBoxLayout()
         self.buttons: dict[str, QPushButton] = {}
-        for action, text in (("start", "Start"), ("pause", "Pause"), ("resume", "Resume"), ("stop", "Stop"),
-                             ("abort", "Abort")):
+        for action, text in (
+            ("start", "Start"),
+            ("pause", "Pause"),
+            ("resume", "Resume"),
+            ("stop", "Stop"),
+            ("abort", "Abort"),
+        ):
             button = QPushButton(text)
             button.setObjectName(f"{action}Button")
             button.clicked.connect(lambda _=False, a=action: self.start() if a == "start" else self.request(a))
@@ -269,8 +287,14 @@ class CampaignPanel(QGroupBox):
         for action in ACTION_TARGETS:
             self.buttons[action].setEnabled(action in legal)
         idle = state is None
-        for widget in (self.form, self.files, self.browse_button, self.campaign, self.simulated_calliper,
-                       self.remove_button):
+        for widget in (
+            self.form,
+            self.files,
+            self.browse_button,
+            self.campaign,
+            self.simulated_calliper,
+            self.remove_button,
+        ):
             widget.setEnabled(idle)
         self.add_button.setEnabled(idle and ready)
 
@@ -288,8 +312,7 @@ class CampaignPanel(QGroupBox):
             jobs, self.queue = list(self.queue), []
             self.queue_list.clear()
         spec = self.rig_spec(simulated_calliper=self.simulated_calliper.isChecked())
-        worker = CampaignWorker(self.store_path, jobs, spec, campaign=self.campaign.text().strip() or None,
-                                parent=self)
+        worker = CampaignWorker(self.store_path, jobs, spec, campaign=self.campaign.text().strip() or None, parent=self)
         worker.run_started.connect(self._run_started)
         worker.sample_stored.connect(self._sample_stored)
         worker.state_changed.connect(self._state_changed)
@@ -322,8 +345,9 @@ class CampaignPanel(QGroupBox):
 
     def _run_finished(self, result: RunResult) -> None:
         reason = f": {result.reason}" if result.reason else ""
-        self.last_outcome = (f"run {result.run_id} {result.exit_status} "
-                             f"({result.samples} / {self.progress.maximum()} samples){reason}")
+        self.last_outcome = (
+            f"run {result.run_id} {result.exit_status} ({result.samples} / {self.progress.maximum()} samples){reason}"
+        )
         self.eta.setText(self.last_outcome)
 
     def _failed(self, text: str) -> None:

@@ -34,12 +34,15 @@ def require_display(environ: dict[str, str] | None = None) -> None:
     if not sys.platform.startswith("linux") or platform in _HEADLESS_PLATFORMS:
         return
     if not environ.get("DISPLAY") and not environ.get("WAYLAND_DISPLAY"):
-        raise ConfigError("bench gui: no display (DISPLAY and WAYLAND_DISPLAY are not set); run it in a desktop "
-                          "session, over ssh -X, or under xvfb-run")
+        raise ConfigError(
+            "bench gui: no display (DISPLAY and WAYLAND_DISPLAY are not set); run it in a desktop "
+            "session, over ssh -X, or under xvfb-run"
+        )
 
 
-def launch(store_path: str | Path = "bench.db", report_dir: str | Path = "reports",
-           argv: list[str] | None = None) -> int:
+def launch(
+    store_path: str | Path = "bench.db", report_dir: str | Path = "reports", argv: list[str] | None = None
+) -> int:
     """Open the window and run the Qt event loop until it closes; returns the exit code.
 
     Raises

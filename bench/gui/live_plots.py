@@ -42,7 +42,7 @@ def _condition_columns() -> tuple[str, ...]:
     return importer("bench.metrology.tables").CONDITION_COLUMNS
 
 
-def _condition_groups(table: "pd.DataFrame"):
+def _condition_groups(table: pd.DataFrame):
     return importer("bench.metrology.tables").condition_groups(table)
 
 
@@ -56,21 +56,22 @@ class Samples:
         self.started_s = started_s
         self._statistics: dict[str, dict[str, float]] | None = None
 
-    def snapshot(self) -> "Samples":
+    def snapshot(self) -> Samples:
         return Samples(dict(self.samples), self.title, self.started_s)
 
     def changed(self) -> None:
         self._statistics = None
 
-    def pose_table(self) -> "pd.DataFrame":
+    def pose_table(self) -> pd.DataFrame:
         rows = []
         for index, sample in sorted(self.samples.items()):
             values = sample["values"]
             if sample.get("kind") != "pose" or not sample.get("pose") or any(k not in values for k in _ATTAINED):
                 continue
             row = {"step_index": index, "pose": str(sample["pose"]), "cycle": sample.get("cycle")}
-            row.update({k: v for k, v in values.items() if k in _ATTAINED or k[4:] in _ATTAINED
-                        or k in _condition_columns()})
+            row.update(
+                {k: v for k, v in values.items() if k in _ATTAINED or k[4:] in _ATTAINED or k in _condition_columns()}
+            )
             rows.append(row)
         return importer("pandas").DataFrame(rows)
 
@@ -83,13 +84,21 @@ class Samples:
             for label, _pose, _conditions, rows in _condition_groups(table):
                 attained = rows[list(_ATTAINED)].to_numpy(dtype=float)
                 commanded_columns = [f"cmd_{k}" for k in _ATTAINED]
-                commanded = (rows[commanded_columns].to_numpy(dtype=float)[0]
-                             if all(c in rows and rows[c].notna().all() for c in commanded_columns)
-                             else attained.mean(axis=0))
+                commanded = (
+                    rows[commanded_columns].to_numpy(dtype=float)[0]
+                    if all(c in rows and rows[c].notna().all() for c in commanded_columns)
+                    else attained.mean(axis=0)
+                )
                 accuracy = pose_accuracy(attained, commanded)
-                stats = {"n": len(attained), "APx_mm": accuracy.ap_axes_mm[0], "APy_mm": accuracy.ap_axes_mm[1],
-                         "APz_mm": accuracy.ap_axes_mm[2], "AP_mm": accuracy.ap_mm,
-                         "cmd_x_mm": commanded[0], "cmd_y_mm": commanded[1]}
+                stats = {
+                    "n": len(attained),
+                    "APx_mm": accuracy.ap_axes_mm[0],
+                    "APy_mm": accuracy.ap_axes_mm[1],
+                    "APz_mm": accuracy.ap_axes_mm[2],
+                    "AP_mm": accuracy.ap_mm,
+                    "cmd_x_mm": commanded[0],
+                    "cmd_y_mm": commanded[1],
+                }
                 if len(attained) >= 2:
                     stats["RP_mm"] = pose_repeatability(attained).rp_mm
                 out[label] = stats
@@ -124,12 +133,13 @@ class Samples:
                 continue
             position = np.column_stack([np.asarray(series[k], dtype=float) for k in _ATTAINED])
             distance = np.linalg.norm(position - position[-1], axis=1)
-            curves.append((f"{sample.get('pose')} cycle {sample.get('cycle')}",
-                           np.asarray(series["t_s"], dtype=float), distance))
+            curves.append(
+                (f"{sample.get('pose')} cycle {sample.get('cycle')}", np.asarray(series["t_s"], dtype=float), distance)
+            )
         return curves
 
 
-def draw_arrivals(axes: "Axes", data: Samples, curves: list[tuple[str, np.ndarray, np.ndarray]]) -> None:
+def draw_arrivals(axes: Axes, data: Samples, curves: list[tuple[str, np.ndarray, np.ndarray]]) -> None:
     axes.clear()
     axes.set_title(f"arrivals {data.title}: distance from the settled position".strip(), fontsize=9)
     axes.set_xlabel("time from the move's reported end (s)")
@@ -137,16 +147,28 @@ def draw_arrivals(axes: "Axes", data: Samples, curves: list[tuple[str, np.ndarra
     for index, (label, t_s, distance) in enumerate(curves):
         # the latest ten arrivals carry their label; older ones stay as thin grey context
         recent = index >= len(curves) - 10
-        axes.plot(t_s, distance, lw=1.0 if recent else 0.6, color=f"C{index % 10}" if recent else "0.75",
-                  label=label if recent else None)
+        axes.plot(
+            t_s,
+            distance,
+            lw=1.0 if recent else 0.6,
+            color=f"C{index % 10}" if recent else "0.75",
+            label=label if recent else None,
+        )
     for band_mm in ISO9283_STABILISATION_BANDS_MM:
         axes.axhline(band_mm, color="k", lw=0.7, ls="--")
-        axes.annotate(f"{band_mm:g} mm band", (1.0, band_mm), xycoords=("axes fraction", "data"), ha="right",
-                      va="bottom", fontsize=7)
+        axes.annotate(
+            f"{band_mm:g} mm band",
+            (1.0, band_mm),
+            xycoords=("axes fraction", "data"),
+            ha="right",
+            va="bottom",
+            fontsize=7,
+        )
     axes.set_ylim(0, max(2 * max(ISO9283_STABILISATION_BANDS_MM), min(10.0, max(d.max() for *_, d in curves))))
     axes.legend(fontsize=7, loc="upper right")
 
-def draw_poses(axes: "Axes", data: Samples) -> str:
+
+def draw_poses(axes: Axes, data: Samples) -> str:
     """The pose plot; returns the summary line (the window's thread shows it with the picture)."""
     axes.clear()
     axes.set_title("attained - commanded (x-y)", fontsize=9)
@@ -173,7 +195,8 @@ def draw_poses(axes: "Axes", data: Samples) -> str:
         axes.set_aspect("equal", adjustable="datalim")
     return summary_text(statistics)
 
-def draw_stream(axes: "Axes", data: Samples) -> None:
+
+def draw_stream(axes: Axes, data: Samples) -> None:
     axes.clear()
     axes.set_title(f"sensor stream {data.title}".strip(), fontsize=9)
     axes.set_xlabel("wall-clock time since the run started (s)")
@@ -186,11 +209,14 @@ def draw_stream(axes: "Axes", data: Samples) -> None:
     if stream:
         axes.legend(fontsize=7, loc="upper left")
 
+
 def summary_text(statistics: dict[str, dict[str, float]]) -> str:
     if not statistics:
         return "no pose samples yet"
-    parts = [f"{label}: n={s['n']} AP={s['AP_mm']:.3f} mm" + (f" RP={s['RP_mm']:.3f} mm" if "RP_mm" in s else "")
-             for label, s in statistics.items()]
+    parts = [
+        f"{label}: n={s['n']} AP={s['AP_mm']:.3f} mm" + (f" RP={s['RP_mm']:.3f} mm" if "RP_mm" in s else "")
+        for label, s in statistics.items()
+    ]
     return "ISO 9283 (x, y, z; as the report)  |  + barycentre, circle RP in the x-y plot  |  " + "; ".join(parts)
 
 
@@ -208,7 +234,7 @@ class Picture:
 _figure: Figure | None = None
 
 
-def figure() -> "Figure":
+def figure() -> Figure:
     """This process's figure (built on first use): the pose plot and the stream plot."""
     global _figure
     if _figure is None:

@@ -36,11 +36,10 @@ fail on its circular imports), and the window's thread never imports them for dr
 from __future__ import annotations
 
 import importlib
+import logging
 import threading
 import time
 from typing import TYPE_CHECKING
-
-import logging
 
 import numpy as np
 from PySide6.QtCore import QObject, Qt, QTimer, Signal
@@ -64,8 +63,14 @@ REDRAW_MS = 200
 #: under 1 / (1 + DRAW_GAP_FACTOR) on any PC and under any load).
 DRAW_GAP_FACTOR = 5.0
 #: What the figures need, imported off the GUI thread by :func:`preload_plotting`.
-_PLOTTING_MODULES = ("pandas", "matplotlib.figure", "matplotlib.patches", "matplotlib.ticker",
-                     "matplotlib.backends.backend_agg", "bench.metrology.tables")
+_PLOTTING_MODULES = (
+    "pandas",
+    "matplotlib.figure",
+    "matplotlib.patches",
+    "matplotlib.ticker",
+    "matplotlib.backends.backend_agg",
+    "bench.metrology.tables",
+)
 _log = logging.getLogger(__name__)
 _preloading: threading.Thread | None = None
 
@@ -74,8 +79,11 @@ def preload_plotting() -> None:
     """Start importing the plotting modules in a daemon thread (once per process); returns at once."""
     global _preloading
     if _preloading is None:
-        _preloading = threading.Thread(target=lambda: [importlib.import_module(m) for m in _PLOTTING_MODULES],
-                                       name="bench-live-view-imports", daemon=True)
+        _preloading = threading.Thread(
+            target=lambda: [importlib.import_module(m) for m in _PLOTTING_MODULES],
+            name="bench-live-view-imports",
+            daemon=True,
+        )
         _preloading.start()
 
 
@@ -231,7 +239,7 @@ class LiveView(QWidget):
         quiet_until_s = self.drawn_at_s + DRAW_GAP_FACTOR * self.render_s
         return max(REDRAW_MS, round((quiet_until_s - time.monotonic()) * 1000))
 
-    def pose_table(self) -> "pd.DataFrame":
+    def pose_table(self) -> pd.DataFrame:
         """The pose samples as a table with the report's columns (pose, cycle, commanded and attained, conditions)."""
         return self._data.pose_table()
 
@@ -253,7 +261,7 @@ class LiveView(QWidget):
     # ---- the figure, drawn in this process on demand (for a caller that reads it; the window never does) -------
 
     @property
-    def figure(self) -> "Figure":
+    def figure(self) -> Figure:
         """Both plots of the samples recorded so far, drawn here, on the calling thread, as the render process draws
         them (the window shows the render process's pictures)."""
         ratio = self.picture.devicePixelRatioF()
@@ -261,11 +269,11 @@ class LiveView(QWidget):
         return live_plots.figure()
 
     @property
-    def pose_axes(self) -> "Axes":
+    def pose_axes(self) -> Axes:
         return self.figure.axes[0]
 
     @property
-    def stream_axes(self) -> "Axes":
+    def stream_axes(self) -> Axes:
         return self.figure.axes[1]
 
     # ---- redraws -----------------------------------------------------------------------------------------------
@@ -287,8 +295,14 @@ class LiveView(QWidget):
         self._plots_current = True
         ratio = self.picture.devicePixelRatioF()
         self._asked += 1
-        self._renderer.submit(_Job(self._data.snapshot(), round(self.picture.width() * ratio),
-                                   round(self.picture.height() * ratio), self._asked))
+        self._renderer.submit(
+            _Job(
+                self._data.snapshot(),
+                round(self.picture.width() * ratio),
+                round(self.picture.height() * ratio),
+                self._asked,
+            )
+        )
         return self._asked
 
     def redraw(self, timeout_s: float = 60.0) -> None:

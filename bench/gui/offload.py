@@ -26,8 +26,14 @@ from typing import Any
 
 from bench.errors import BenchError
 
-__all__ = ["WorkerProcess", "in_worker_process", "one_worker_pool", "shutdown_worker_process",
-           "write_comparison_html", "write_report_html"]
+__all__ = [
+    "WorkerProcess",
+    "in_worker_process",
+    "one_worker_pool",
+    "shutdown_worker_process",
+    "write_comparison_html",
+    "write_report_html",
+]
 
 #: What the worker processes' parent (one ``forkserver`` per application) imports once, so that every worker
 #: starts with it loaded: the reports' code, and the live view's plots (its render process, bench.gui.live_view).

@@ -73,8 +73,9 @@ class ResultsBrowser(QGroupBox):
     message = Signal(str)
     refreshed = Signal(list)  #: the runs as last read from the store
 
-    def __init__(self, store_path: str, report_dir: str | Path, parent: QWidget | None = None,
-                 *, open_files: bool = True) -> None:
+    def __init__(
+        self, store_path: str, report_dir: str | Path, parent: QWidget | None = None, *, open_files: bool = True
+    ) -> None:
         super().__init__("Results", parent)
         self.store_path = store_path
         self.report_dir = Path(report_dir)
@@ -94,8 +95,13 @@ class ResultsBrowser(QGroupBox):
         self.table.horizontalHeader().setStretchLastSection(True)
         buttons = QHBoxLayout()
         self.buttons: dict[str, QPushButton] = {}
-        for text, slot in (("Refresh", self.refresh), ("Report", self.open_report), ("Compare 2", self.compare),
-                           ("Resume", self._resume), ("Export CSV", self.export_csv)):
+        for text, slot in (
+            ("Refresh", self.refresh),
+            ("Report", self.open_report),
+            ("Compare 2", self.compare),
+            ("Resume", self._resume),
+            ("Export CSV", self.export_csv),
+        ):
             button = QPushButton(text)
             button.setObjectName(f"results{text.split()[0]}")
             button.clicked.connect(lambda _=False, s=slot: s())
@@ -124,8 +130,11 @@ class ResultsBrowser(QGroupBox):
             else:
                 stamp.append((info.st_mtime_ns, info.st_size))
         # a run whose owner dies changes no file: its owner's liveness is part of the stamp (a lock probe, us)
-        stamp += [(r.id, getattr(owner_of(self.store_path, r.id), "alive", False))
-                  for r in getattr(self, "records", []) if r.status == "running"]
+        stamp += [
+            (r.id, getattr(owner_of(self.store_path, r.id), "alive", False))
+            for r in getattr(self, "records", [])
+            if r.status == "running"
+        ]
         return tuple(stamp)
 
     def _poll_store(self) -> None:
@@ -151,8 +160,14 @@ class ResultsBrowser(QGroupBox):
             with Store(path, read_only=True) as store:
                 return store.runs()
 
-        self._scan = run_in_background("reading the store", scan, self, on_done=self._show_records,
-                                       on_failed=self.message.emit, on_ended=self._scan_ended)
+        self._scan = run_in_background(
+            "reading the store",
+            scan,
+            self,
+            on_done=self._show_records,
+            on_failed=self.message.emit,
+            on_ended=self._scan_ended,
+        )
         return self._scan
 
     def _scan_ended(self) -> None:
@@ -166,9 +181,16 @@ class ResultsBrowser(QGroupBox):
         self.records = records
         self.table.setRowCount(len(records))
         for row, record in enumerate(reversed(records)):  # newest first
-            cells = (record.id, f"{record.protocol_name} v{record.protocol_version}", record.robot,
-                     record.campaign or "", record.status, record.n_samples, record.started_utc[:19],
-                     record.reason or "")
+            cells = (
+                record.id,
+                f"{record.protocol_name} v{record.protocol_version}",
+                record.robot,
+                record.campaign or "",
+                record.status,
+                record.n_samples,
+                record.started_utc[:19],
+                record.reason or "",
+            )
             for column, value in enumerate(cells):
                 self.table.setItem(row, column, QTableWidgetItem(str(value)))
         if selected:
@@ -197,9 +219,11 @@ class ResultsBrowser(QGroupBox):
             self.message.emit("Report: select one run")
             return None
         store_path, report_dir = str(self.store_path), self.report_dir
-        return self._background(f"report of run {ids[0]}",
-                                lambda: in_worker_process(write_report_html, store_path, ids[0], report_dir),
-                                show=True)
+        return self._background(
+            f"report of run {ids[0]}",
+            lambda: in_worker_process(write_report_html, store_path, ids[0], report_dir),
+            show=True,
+        )
 
     def compare(self) -> Task | None:
         """Write the comparison of the two selected runs in the background, then open it."""
@@ -221,14 +245,17 @@ class ResultsBrowser(QGroupBox):
             self.message.emit("Export: select one run")
             return None
         store_path, report_dir = self.store_path, self.report_dir
-        return self._background(f"export of run {ids[0]}", lambda: _export(store_path, ids[0], report_dir),
-                                show=False)
+        return self._background(f"export of run {ids[0]}", lambda: _export(store_path, ids[0], report_dir), show=False)
 
     def _background(self, what: str, write, *, show: bool) -> Task:
         self.busy.setText(f"writing the {what}...")
-        task = run_in_background(what, write, self,
-                                 on_done=lambda path: self._written(what, Path(path).resolve(), show),
-                                 on_failed=lambda text: self._task_failed(what, text))
+        task = run_in_background(
+            what,
+            write,
+            self,
+            on_done=lambda path: self._written(what, Path(path).resolve(), show),
+            on_failed=lambda text: self._task_failed(what, text),
+        )
         return task
 
     def _written(self, what: str, path: Path, show: bool) -> None:

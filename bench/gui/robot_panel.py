@@ -112,9 +112,15 @@ class RobotPanel(QGroupBox):
         self.mouse_xy, self.mouse_xz = QLineEdit(), QLineEdit()
         self.mouse_xy.setPlaceholderText("/dev/input/by-id/...-event-mouse (hardware campaigns)")
         self.mouse_xz.setPlaceholderText("/dev/input/by-id/...-event-mouse (hardware campaigns)")
-        for label, widget in (("Robot", self.robot), ("Connection", self.connection), ("Port", self.port),
-                              ("Simulator seed", self.seed), ("Speed factor", self.speed_factor),
-                              ("Mouse x-y", self.mouse_xy), ("Mouse x-z", self.mouse_xz)):
+        for label, widget in (
+            ("Robot", self.robot),
+            ("Connection", self.connection),
+            ("Port", self.port),
+            ("Simulator seed", self.seed),
+            ("Speed factor", self.speed_factor),
+            ("Mouse x-y", self.mouse_xy),
+            ("Mouse x-z", self.mouse_xz),
+        ):
             form.addRow(label, widget)
         self.connect_button = QPushButton("Connect")
         self.connect_button.setObjectName("connectButton")
@@ -140,9 +146,15 @@ class RobotPanel(QGroupBox):
     def rig_spec(self, *, simulated_calliper: bool = False) -> RigSpec:
         """The robot and connection chosen, as a campaign's :class:`RigSpec`."""
         port = self.port.text().strip() if self.connection.currentText() == "serial port" else None
-        return RigSpec(robot=self.robot.currentText(), port=port or None, seed=self.seed.value(),
-                       speed_factor=self.speed_factor.value(), mouse_xy=self.mouse_xy.text().strip() or None,
-                       mouse_xz=self.mouse_xz.text().strip() or None, simulated_calliper=simulated_calliper)
+        return RigSpec(
+            robot=self.robot.currentText(),
+            port=port or None,
+            seed=self.seed.value(),
+            speed_factor=self.speed_factor.value(),
+            mouse_xy=self.mouse_xy.text().strip() or None,
+            mouse_xz=self.mouse_xz.text().strip() or None,
+            simulated_calliper=simulated_calliper,
+        )
 
     def _connection_kind_changed(self, kind: str) -> None:
         serial_port = kind == "serial port"
@@ -212,8 +224,9 @@ class RobotPanel(QGroupBox):
         reachable, text = check_target(self.robot.currentText(), self.target())
         self.reach.setText(text)
         self.reach.setStyleSheet("color: #1b5e20" if reachable else "color: #b00020")
-        self.jog_button.setEnabled(reachable and self.mover is not None and self._call is None
-                                   and not self.estop.latched)
+        self.jog_button.setEnabled(
+            reachable and self.mover is not None and self._call is None and not self.estop.latched
+        )
         return reachable
 
     def jog(self) -> None:
@@ -222,8 +235,10 @@ class RobotPanel(QGroupBox):
             return
         target, velocity = self.target(), self.velocity.value()
         self.status.setText(f"moving to {', '.join(f'{v:g}' for v in target)}")
-        self._start(lambda: self.mover.move_to(target, velocity_pct=velocity),
-                    lambda _: self.status.setText(f"at {', '.join(f'{v:g}' for v in target)}"))
+        self._start(
+            lambda: self.mover.move_to(target, velocity_pct=velocity),
+            lambda _: self.status.setText(f"at {', '.join(f'{v:g}' for v in target)}"),
+        )
 
     # ---- connection ----------------------------------------------------------------------------------------
 

@@ -69,10 +69,15 @@ class _Runnable(QRunnable):
         self.task._run()
 
 
-def run_in_background(what: str, function: Callable[[], Any], parent: QObject | None = None, *,
-                      on_done: Callable[[Any], None] | None = None,
-                      on_failed: Callable[[str], None] | None = None,
-                      on_ended: Callable[[], None] | None = None) -> Task:
+def run_in_background(
+    what: str,
+    function: Callable[[], Any],
+    parent: QObject | None = None,
+    *,
+    on_done: Callable[[Any], None] | None = None,
+    on_failed: Callable[[str], None] | None = None,
+    on_ended: Callable[[], None] | None = None,
+) -> Task:
     """Start ``function`` on the global thread pool, its outcome connected first (a quick function could end before
     a later ``connect``)."""
     task = Task(what, function, parent)

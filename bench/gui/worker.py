@@ -67,10 +67,16 @@ class RigSpec:
         # the seed and the speed factor are the simulators'; real hardware (a port, a station not rehearsed) has
         # neither, and open_rig refuses them there
         hardware = self.port is not None or (self.station is not None and not self.simulate)
-        return RigRequest(station=self.station, port=self.port, mouse_xy=self.mouse_xy, mouse_xz=self.mouse_xz,
-                          simulate=self.simulate, seed=None if hardware else self.seed,
-                          speed_factor=None if hardware else self.speed_factor,
-                          kinematic_calibration=self.kinematic_calibration)
+        return RigRequest(
+            station=self.station,
+            port=self.port,
+            mouse_xy=self.mouse_xy,
+            mouse_xz=self.mouse_xz,
+            simulate=self.simulate,
+            seed=None if hardware else self.seed,
+            speed_factor=None if hardware else self.speed_factor,
+            kinematic_calibration=self.kinematic_calibration,
+        )
 
 
 class CampaignWorker(QThread):
@@ -88,8 +94,15 @@ class CampaignWorker(QThread):
     failed = Signal(str)  #: a job that could not start (bad configuration, simulator did not start...)
     message = Signal(str)  #: a line for the log
 
-    def __init__(self, store_path: str, jobs: list[Protocol | int], rig_spec: RigSpec, *,
-                 campaign: str | None = None, parent: Any = None) -> None:
+    def __init__(
+        self,
+        store_path: str,
+        jobs: list[Protocol | int],
+        rig_spec: RigSpec,
+        *,
+        campaign: str | None = None,
+        parent: Any = None,
+    ) -> None:
         super().__init__(parent)
         self.store_path = store_path
         self.jobs = list(jobs)
@@ -114,8 +127,13 @@ class CampaignWorker(QThread):
         if runner is None:
             self.message.emit(f"{action}: no run in progress")
             return
-        methods = {"pause": runner.request_pause, "resume": runner.resume, "stop": runner.stop,
-                   "abort": runner.abort, "halt": runner.halt}
+        methods = {
+            "pause": runner.request_pause,
+            "resume": runner.resume,
+            "stop": runner.stop,
+            "abort": runner.abort,
+            "halt": runner.halt,
+        }
         try:
             methods[action]()
         except TransitionError as exc:
@@ -177,18 +195,27 @@ class CampaignWorker(QThread):
             while self.jobs and not self._cancelled:
                 job, robot = self.jobs.pop(0), "robot"
                 try:
-                    protocol = (protocol_from_config(store.run(job).config, source=f"run {job}", stored=True)
-                                if isinstance(job, int) else job)
+                    protocol = (
+                        protocol_from_config(store.run(job).config, source=f"run {job}", stored=True)
+                        if isinstance(job, int)
+                        else job
+                    )
                     robot = protocol.robot
                     stored = store.run(job).settings if isinstance(job, int) else None
                     request = self.rig_spec.request()
                     if isinstance(job, int):  # a resume keeps the run's own seed and speed factor (its time base)
                         request = dataclasses.replace(request, seed=None, speed_factor=None)
                     self.message.emit(f"starting the {robot} rig ({request.describe()})")
-                    rig = open_rig(request, store, robot=robot, stored=stored,
-                                   fixture=getattr(protocol, "fixture", "assembled"),
-                                   requires=required_capabilities(protocol), protocol=f"protocol {protocol.name!r}",
-                                   operator=None if request.simulator_default else WindowOperator(self))
+                    rig = open_rig(
+                        request,
+                        store,
+                        robot=robot,
+                        stored=stored,
+                        fixture=getattr(protocol, "fixture", "assembled"),
+                        requires=required_capabilities(protocol),
+                        protocol=f"protocol {protocol.name!r}",
+                        operator=None if request.simulator_default else WindowOperator(self),
+                    )
                     self.message.emit(describe_in_force(rig))
                     preflight_by_rig(rig, protocol)
                 except BenchError as exc:
@@ -210,10 +237,13 @@ class CampaignWorker(QThread):
             # the simulated operator still tells the simulator the payload; the person types the readings
             # (on the simulated actuator bench the simulated depth gauge reads the travel itself)
             rig.operator.answer = self.answer_prompt
-        runner = Runner(rig, store, on_pause=self._on_pause,
-                        on_start=lambda r: self._started(r, job, store),
-                        on_sample=lambda r, sample: self.sample_stored.emit(r.run_id,
-                                                                            dict(sample, wall_s=time.time())))
+        runner = Runner(
+            rig,
+            store,
+            on_pause=self._on_pause,
+            on_start=lambda r: self._started(r, job, store),
+            on_sample=lambda r, sample: self.sample_stored.emit(r.run_id, dict(sample, wall_s=time.time())),
+        )
         self.runner = runner
         if self._emergency:  # pressed while the rig was starting (emergency_stop saw no runner yet)
             runner.emergency_stop()
@@ -233,11 +263,28 @@ class CampaignWorker(QThread):
         self.state_changed.emit(runner.state.value)
         record = store.run(run_id)
         stored = store.samples(run_id) if runner.samples_stored else []
-        self.samples_loaded.emit(run_id, _unix_s(record.started_utc), [
-            {"step_index": s.step_index, "kind": s.kind, "pose": s.pose, "cycle": s.cycle, "t_s": s.t_s,
-             "wall_s": _unix_s(s.wall_utc), "values": s.values, "raw": s.raw} for s in stored])
-        protocol = job if isinstance(job, Protocol) else protocol_from_config(record.config, source=f"run {run_id}",
-                                                                               stored=True)
+        self.samples_loaded.emit(
+            run_id,
+            _unix_s(record.started_utc),
+            [
+                {
+                    "step_index": s.step_index,
+                    "kind": s.kind,
+                    "pose": s.pose,
+                    "cycle": s.cycle,
+                    "t_s": s.t_s,
+                    "wall_s": _unix_s(s.wall_utc),
+                    "values": s.values,
+                    "raw": s.raw,
+                }
+                for s in stored
+            ],
+        )
+        protocol = (
+            job
+            if isinstance(job, Protocol)
+            else protocol_from_config(record.config, source=f"run {run_id}", stored=True)
+        )
         total = sum(1 for step in iterate(protocol, final=False) if isinstance(step, Prompt) and step.field)
         taken = sum(1 for s in stored if isinstance(s.raw, dict) and "field" in s.raw and "entered" in s.raw)
         self._readings = (taken, total)

@@ -21,8 +21,18 @@ import importlib
 
 #: The submodules whose public names the package re-exports; the pandas-based table paths come last, so that
 #: resolving a plain function never imports pandas.
-_SUBMODULES = ("iso9283", "iso9283_dynamics", "iso9283_path", "actuator", "mouse_calibration", "payload",
-               "uncertainty", "partial_pose", "actuator_tables", "hit_rate")
+_SUBMODULES = (
+    "iso9283",
+    "iso9283_dynamics",
+    "iso9283_path",
+    "actuator",
+    "mouse_calibration",
+    "payload",
+    "uncertainty",
+    "partial_pose",
+    "actuator_tables",
+    "hit_rate",
+)
 
 
 def __getattr__(name: str):

@@ -167,9 +167,18 @@ def positioning_iso230_2(targets_mm, forward_mm, backward_mm=None) -> Positionin
     }
     if backward_mm is None:
         empty = dict.fromkeys(
-            ("mean_deviation_backward_mm", "reversal_mm", "repeatability_backward_mm", "repeatability_mm",
-             "systematic_backward_mm", "systematic_mm", "mean_bidirectional_mm", "accuracy_backward_mm",
-             "accuracy_mm", "reversal_max_mm"),
+            (
+                "mean_deviation_backward_mm",
+                "reversal_mm",
+                "repeatability_backward_mm",
+                "repeatability_mm",
+                "systematic_backward_mm",
+                "systematic_mm",
+                "mean_bidirectional_mm",
+                "accuracy_backward_mm",
+                "accuracy_mm",
+                "reversal_max_mm",
+            ),
         )
         return PositioningIso2302(**common, **empty)
     _, backward = _targets_and_readings(targets, backward_mm, "backward_mm")

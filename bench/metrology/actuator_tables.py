@@ -39,8 +39,15 @@ from bench.metrology.actuator import (
 from bench.metrology.tables import numeric_columns
 from bench.metrology.uncertainty import Measured, combine, expanded, mean_sd_uncertainty
 
-__all__ = ["ACTUATOR_ROBOTS", "COMMAND_COLUMNS", "REPEAT_COLUMNS", "ActuatorResult", "actuator_table",
-           "analyze_actuators", "robot_control_resolution"]
+__all__ = [
+    "ACTUATOR_ROBOTS",
+    "COMMAND_COLUMNS",
+    "REPEAT_COLUMNS",
+    "ActuatorResult",
+    "actuator_table",
+    "analyze_actuators",
+    "robot_control_resolution",
+]
 
 #: Accepted names of the commanded-travel column, in order of preference.
 COMMAND_COLUMNS = ("cmd_mm", "cmd_travel_mm")
@@ -88,8 +95,15 @@ def actuator_table(frame: pd.DataFrame) -> pd.DataFrame:
     as float and ``actuator`` as a stripped string. ``cmd_travel_mm`` (an exported run) is read as ``cmd_mm``."""
     source = frame.attrs.get("source", "table")
     command = next((c for c in COMMAND_COLUMNS if c in frame.columns), None)
-    missing = [name for name, ok in (("actuator", "actuator" in frame.columns), ("travel_mm", "travel_mm" in
-                                     frame.columns), (" or ".join(COMMAND_COLUMNS), command is not None)) if not ok]
+    missing = [
+        name
+        for name, ok in (
+            ("actuator", "actuator" in frame.columns),
+            ("travel_mm", "travel_mm" in frame.columns),
+            (" or ".join(COMMAND_COLUMNS), command is not None),
+        )
+        if not ok
+    ]
     if missing:
         raise ConfigError(f"{source}: missing column(s) {', '.join(missing)}; found {', '.join(frame.columns)}")
     optional = [c for c in ("cr_mm", *REPEAT_COLUMNS) if c in frame.columns]
@@ -103,8 +117,10 @@ def actuator_table(frame: pd.DataFrame) -> pd.DataFrame:
         direction = approach_directions(frame["direction"])
         if direction.isna().any():
             index = direction.isna().idxmax()
-            raise ConfigError(f"{source}: row {int(index) + 1}, column direction: {frame.at[index, 'direction']!r}, "
-                              "expected up or down (+/-, +1/-1)")
+            raise ConfigError(
+                f"{source}: row {int(index) + 1}, column direction: {frame.at[index, 'direction']!r}, "
+                "expected up or down (+/-, +1/-1)"
+            )
         table = table[direction == "up"].drop(columns=["direction"])
     table.attrs["source"] = source
     return table
@@ -121,8 +137,9 @@ def _resolution(rows: pd.DataFrame, name: str, given, source: str) -> float:
         except ValueError:
             number = 0.0
         if number != int(number) or not 1 <= number <= len(given):
-            raise ConfigError(f"{source}: actuator {name!r}: no control resolution for it, expected an actuator "
-                              f"number 1-{len(given)}")
+            raise ConfigError(
+                f"{source}: actuator {name!r}: no control resolution for it, expected an actuator number 1-{len(given)}"
+            )
         return float(given[int(number) - 1])
     return float(given)
 
@@ -134,22 +151,31 @@ def _readings(rows: pd.DataFrame, name: str, source: str) -> tuple[np.ndarray, n
     if repeat is None:
         counts = {float(t): int((rows["cmd_mm"] == t).sum()) for t in targets}
         if len(set(counts.values())) != 1:
-            raise ConfigError(f"{source}: actuator {name}: repeats per target {counts}, expected equal counts "
-                              f"(or a {' or '.join(REPEAT_COLUMNS)} column to pair the readings)")
+            raise ConfigError(
+                f"{source}: actuator {name}: repeats per target {counts}, expected equal counts "
+                f"(or a {' or '.join(REPEAT_COLUMNS)} column to pair the readings)"
+            )
         readings = np.column_stack([rows.loc[rows["cmd_mm"] == t, "travel_mm"].to_numpy() for t in targets])
         return targets, readings, 0
     doubled = rows.duplicated([repeat, "cmd_mm"])
     if doubled.any():
         row = rows[doubled].iloc[0]
-        raise ConfigError(f"{source}: actuator {name}: two readings for {repeat} {row[repeat]:g} at "
-                          f"{row['cmd_mm']:g} mm, expected one")
+        raise ConfigError(
+            f"{source}: actuator {name}: two readings for {repeat} {row[repeat]:g} at "
+            f"{row['cmd_mm']:g} mm, expected one"
+        )
     wide = rows.pivot(index=repeat, columns="cmd_mm", values="travel_mm").sort_index()
     complete = wide.dropna()
     return targets, complete[targets].to_numpy(), int(wide.notna().sum().sum() - complete.size)
 
 
-def analyze_actuators(table: pd.DataFrame, *, control_resolution_mm: float | Sequence[float] | None = None,
-                      instrument_u_mm: float = 0.0, k: float = 2.0) -> tuple[ActuatorResult, ...]:
+def analyze_actuators(
+    table: pd.DataFrame,
+    *,
+    control_resolution_mm: float | Sequence[float] | None = None,
+    instrument_u_mm: float = 0.0,
+    k: float = 2.0,
+) -> tuple[ActuatorResult, ...]:
     """Figures of every actuator of a checked table (:func:`actuator_table`), in order of appearance.
 
     Parameters
@@ -173,20 +199,35 @@ def analyze_actuators(table: pd.DataFrame, *, control_resolution_mm: float | Seq
     for name, rows in table.groupby("actuator", sort=False):
         targets, readings, dropped = _readings(rows, name, source)
         if len(readings) < 2:
-            raise InsufficientData(f"{source}: actuator {name}: {len(readings)} complete repeat(s) over the targets "
-                                   f"{', '.join(f'{t:g}' for t in targets)} mm, at least 2 required")
+            raise InsufficientData(
+                f"{source}: actuator {name}: {len(readings)} complete repeat(s) over the targets "
+                f"{', '.join(f'{t:g}' for t in targets)} mm, at least 2 required"
+            )
         cr = _resolution(rows, name, control_resolution_mm, source)
         groover = groover_actuator(targets, readings, control_resolution_mm=cr)
-        bias_u = tuple(expanded(b, combine(s / np.sqrt(groover.n), instrument_u_mm), unit="mm", k=k)
-                       for b, s in zip(groover.mean_deviation_mm, groover.sigma_mm))
+        bias_u = tuple(
+            expanded(b, combine(s / np.sqrt(groover.n), instrument_u_mm), unit="mm", k=k)
+            for b, s in zip(groover.mean_deviation_mm, groover.sigma_mm)
+        )
         repeatability_u = accuracy_u = None
         if len(readings) >= 3:
             u = 3.0 * mean_sd_uncertainty(readings, k=k)
             repeatability_u = expanded(groover.repeatability_mm, u, unit="mm", k=k)
             accuracy_u = expanded(groover.accuracy_mm, u, unit="mm", k=k)
-        results.append(ActuatorResult(str(name), tuple(float(t) for t in targets), readings, cr, groover,
-                                      positioning_iso230_2(targets, readings), bias_u, repeatability_u, accuracy_u,
-                                      dropped))
+        results.append(
+            ActuatorResult(
+                str(name),
+                tuple(float(t) for t in targets),
+                readings,
+                cr,
+                groover,
+                positioning_iso230_2(targets, readings),
+                bias_u,
+                repeatability_u,
+                accuracy_u,
+                dropped,
+            )
+        )
     if not results:
         raise InsufficientData(f"{source}: no actuator readings")
     return tuple(results)

@@ -52,8 +52,12 @@ def _readings(rows: pd.DataFrame, targets: np.ndarray, direction: str, where: st
 
 
 #: Columns of an actuator travel table (an exported ``actuator_accuracy`` run) and the names they stand for here.
-_ACTUATOR_ALIASES = (("cmd_travel_mm", "target_mm"), ("cmd_mm", "target_mm"), ("travel_mm", "reading_mm"),
-                     ("actuator", "axis"))
+_ACTUATOR_ALIASES = (
+    ("cmd_travel_mm", "target_mm"),
+    ("cmd_mm", "target_mm"),
+    ("travel_mm", "reading_mm"),
+    ("actuator", "axis"),
+)
 
 
 def _aliased(frame: pd.DataFrame) -> pd.DataFrame:
@@ -97,8 +101,10 @@ def analyze_bidirectional(frame: pd.DataFrame) -> list[BidirectionalResult]:
     unknown = direction.isna()
     if unknown.any():
         index = unknown.idxmax()
-        raise ConfigError(f"{source}: row {int(index) + 1}, column direction: {frame.at[index, 'direction']!r}, "
-                          "expected up or down (+/-, forward/backward, +1/-1)")
+        raise ConfigError(
+            f"{source}: row {int(index) + 1}, column direction: {frame.at[index, 'direction']!r}, "
+            "expected up or down (+/-, forward/backward, +1/-1)"
+        )
     table["direction"] = direction
     axis = frame["axis"] if "axis" in frame.columns else pd.Series("1", index=frame.index)
     numbers = pd.to_numeric(axis, errors="coerce")  # an exported actuator number (2.0) reads as "2"
@@ -110,6 +116,7 @@ def analyze_bidirectional(frame: pd.DataFrame) -> list[BidirectionalResult]:
         targets = np.sort(rows["target_mm"].unique())
         forward = _readings(rows[rows["direction"] == "up"], targets, "up", where)
         backward = _readings(rows[rows["direction"] == "down"], targets, "down", where)
-        results.append(BidirectionalResult(str(axis), targets, forward, backward,
-                                           positioning_iso230_2(targets, forward, backward)))
+        results.append(
+            BidirectionalResult(str(axis), targets, forward, backward, positioning_iso230_2(targets, forward, backward))
+        )
     return results

@@ -8,9 +8,25 @@ source: 000 is the pkm5 dissertation (shared/reference/pkm5.md), "thesis" the de
 
 from __future__ import annotations
 
-__all__ = ["ISO9283_CYCLES", "ISO9283_STABILISATION_BANDS_MM", "ISO9283_POSE_ORDER", "ISO9283_VELOCITIES_PCT", "ACTUATOR_REPEATS", "ACTUATOR_TRAVELS_MM", "GRID_HEIGHTS_MM", "GRID_HIT_ATTEMPTS", "GRID_OFFSET_MM",
-           "GRID_RESOLUTION_MM", "GRID_SENSORS", "LADDER_KG", "LADDER_LIFT_MM", "LASERGRID_GUI_PLACEMENT",
-           "PAYLOAD_FAILURE_KG", "POSITIONING_POSES", "POSITIONING_READINGS"]
+__all__ = [
+    "ISO9283_CYCLES",
+    "ISO9283_STABILISATION_BANDS_MM",
+    "ISO9283_POSE_ORDER",
+    "ISO9283_VELOCITIES_PCT",
+    "ACTUATOR_REPEATS",
+    "ACTUATOR_TRAVELS_MM",
+    "GRID_HEIGHTS_MM",
+    "GRID_HIT_ATTEMPTS",
+    "GRID_OFFSET_MM",
+    "GRID_RESOLUTION_MM",
+    "GRID_SENSORS",
+    "LADDER_KG",
+    "LADDER_LIFT_MM",
+    "LASERGRID_GUI_PLACEMENT",
+    "PAYLOAD_FAILURE_KG",
+    "POSITIONING_POSES",
+    "POSITIONING_READINGS",
+]
 
 # ---- ISO 9283:1998, the test conditions the pose protocols and the deviations tables share ----
 
@@ -29,8 +45,7 @@ ISO9283_STABILISATION_BANDS_MM = (0.1, 0.5, 1.0)
 ACTUATOR_TRAVELS_MM = (10.0, 20.0, 30.0, 40.0, 50.0)
 ACTUATOR_REPEATS = 10
 #: 000 Table A.14: the payload ladder, kg.
-LADDER_KG = (0.45, 1, 1.45, 2, 2.45, 3, 3.45, 5.27, 6.18, 7.08, 8.44, 9.35, 10.26, 12.07, 13.43, 15, 18, 20, 23,
-             25.23)
+LADDER_KG = (0.45, 1, 1.45, 2, 2.45, 3, 3.45, 5.27, 6.18, 7.08, 8.44, 9.35, 10.26, 12.07, 13.43, 15, 18, 20, 23, 25.23)
 #: 000 §8.7: the pure vertical lift of the payload ladder, mm.
 LADDER_LIFT_MM = 50.42
 #: 000 §8.7.5, Fig. 8-21 (pkm5.md): on reloading at 25 kg the mouse bracket and the end effector failed, kg.

@@ -21,8 +21,20 @@ from __future__ import annotations
 import math
 import re
 
-__all__ = ["condition_text", "figure_decimals", "format_length", "format_measured", "format_pair", "format_uncertainty",
-           "format_value", "natural_key", "pose_label", "reading_decimals", "report_order", "uncertainty_decimals"]
+__all__ = [
+    "condition_text",
+    "figure_decimals",
+    "format_length",
+    "format_measured",
+    "format_pair",
+    "format_uncertainty",
+    "format_value",
+    "natural_key",
+    "pose_label",
+    "reading_decimals",
+    "report_order",
+    "uncertainty_decimals",
+]
 
 #: Significant digits of a printed uncertainty (GUM 7.2.6).
 U_SIGNIFICANT_DIGITS = 2
@@ -82,13 +94,14 @@ def _fixed(value: float, decimals: int) -> str:
     if decimals >= 0:
         text = f"{value:.{decimals}f}"
     else:
-        scale = 10 ** -decimals  # whole tens, hundreds ...: half away from zero (Python's round() is half-even)
+        scale = 10**-decimals  # whole tens, hundreds ...: half away from zero (Python's round() is half-even)
         text = f"{math.copysign(math.floor(abs(value) / scale + 0.5), value) * scale:.0f}"
     return "0" + text[2:] if text.startswith("-0") and float(text) == 0 else text
 
 
-def format_value(value: float, uncertainty: float | None, *, signed: bool = False,
-                 resolution: float | None = None) -> str:
+def format_value(
+    value: float, uncertainty: float | None, *, signed: bool = False, resolution: float | None = None
+) -> str:
     """``value`` rounded to the decimal place of ``uncertainty`` shown to two significant digits (no usable U: to
     1 µm), never finer than the readings' ``resolution`` (:func:`figure_decimals`)."""
     text = _fixed(float(value), figure_decimals(uncertainty, resolution))

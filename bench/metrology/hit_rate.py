@@ -25,8 +25,16 @@ from bench.metrology.tables import numeric_columns
 __all__ = ["GRID_HIT_COLUMNS", "GridHits", "HeightHits", "HitRate", "SensorHits", "grid_hit_rates"]
 
 #: Columns a grid-hit table needs.
-GRID_HIT_COLUMNS = ("cmd_x_mm", "cmd_y_mm", "cmd_z_mm", "expected_i", "expected_j", "expected_index", "hit_expected",
-                    "hit_any")
+GRID_HIT_COLUMNS = (
+    "cmd_x_mm",
+    "cmd_y_mm",
+    "cmd_z_mm",
+    "expected_i",
+    "expected_j",
+    "expected_index",
+    "hit_expected",
+    "hit_any",
+)
 
 
 @dataclass(frozen=True)
@@ -82,13 +90,24 @@ def grid_hit_rates(frame: pd.DataFrame, *, k: float = 2.0) -> GridHits:
     keys = ["cmd_z_mm", "expected_i", "expected_j"]
     sensors = []
     for (z, i, j), rows in table.groupby(keys, sort=False):
-        sensors.append(SensorHits(-float(z), int(i), int(j), int(rows["expected_index"].iloc[0]),
-                                  float(rows["cmd_x_mm"].iloc[0]), float(rows["cmd_y_mm"].iloc[0]),
-                                  detection_rate(rows["hit_expected"], k=k),
-                                  detection_rate(rows["hit_any"], k=k)))
+        sensors.append(
+            SensorHits(
+                -float(z),
+                int(i),
+                int(j),
+                int(rows["expected_index"].iloc[0]),
+                float(rows["cmd_x_mm"].iloc[0]),
+                float(rows["cmd_y_mm"].iloc[0]),
+                detection_rate(rows["hit_expected"], k=k),
+                detection_rate(rows["hit_any"], k=k),
+            )
+        )
     heights = []
     for z, rows in table.groupby("cmd_z_mm", sort=False):
         count = len(rows.groupby(keys[1:]))
-        heights.append(HeightHits(-float(z), count, detection_rate(rows["hit_expected"], k=k),
-                                  detection_rate(rows["hit_any"], k=k)))
+        heights.append(
+            HeightHits(
+                -float(z), count, detection_rate(rows["hit_expected"], k=k), detection_rate(rows["hit_any"], k=k)
+            )
+        )
     return GridHits(tuple(sensors), tuple(heights))

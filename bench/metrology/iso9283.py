@@ -341,8 +341,9 @@ def orientation_multidirectional_variation(approaches_deg: Sequence) -> Orientat
     clouds = _approach_clouds("approaches_deg", approaches_deg)
     means = np.array([circular_mean_deg(c) for c in clouds])
     spread = np.max([np.abs(wrap_deg(means[h] - means[k])) for h, k in combinations(range(len(means)), 2)], axis=0)
-    return OrientationVariation(vap_deg=tuple(float(v) for v in spread),
-                                mean_deg=tuple(tuple(float(v) for v in m) for m in means))
+    return OrientationVariation(
+        vap_deg=tuple(float(v) for v in spread), mean_deg=tuple(tuple(float(v) for v in m) for m in means)
+    )
 
 
 def exchangeability(clouds_mm: Sequence) -> MultidirectionalVariation:

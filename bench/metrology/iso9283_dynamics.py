@@ -192,8 +192,9 @@ def orientation_drift(t_s, attained_deg, commanded_deg, *, window_s: float) -> O
     )
 
 
-def position_stabilisation(t_s, position_mm, *, band_mm: float, final_mm=None,
-                           hysteresis_mm: float = 0.0) -> Stabilisation:
+def position_stabilisation(
+    t_s, position_mm, *, band_mm: float, final_mm=None, hysteresis_mm: float = 0.0
+) -> Stabilisation:
     """Stabilisation time and overshoot of one move towards a pose, from a sampled time series.
 
     ISO 9283:1998 clauses 7.4 and 7.5 [U]; limit bands 0.1, 0.5 and 1.0 mm for comparison tests [N]:
@@ -285,8 +286,9 @@ def pose_stabilisation(series: Sequence, *, band_mm: float, hysteresis_mm: float
     cycles = tuple(position_stabilisation(t, p, band_mm=band_mm, hysteresis_mm=hysteresis_mm) for t, p in series)
     times = np.array([c.stabilisation_time_s for c in cycles])
     overshoots = np.array([c.overshoot_mm for c in cycles])
-    return PoseStabilisation(float(times.mean()), float(times.max()), float(overshoots.mean()),
-                             float(overshoots.max()), cycles)
+    return PoseStabilisation(
+        float(times.mean()), float(times.max()), float(overshoots.mean()), float(overshoots.max()), cycles
+    )
 
 
 def _plane_crossing(path: np.ndarray, station: np.ndarray, normal: np.ndarray) -> tuple[int, float] | None:

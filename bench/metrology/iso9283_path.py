@@ -101,8 +101,7 @@ def _nearest_on_polyline(point: np.ndarray, path: np.ndarray) -> tuple[float, in
         return float(np.linalg.norm(path[0] - point)), 0, path[0]
     start, step = path[:-1], np.diff(path, axis=0)
     length2 = np.sum(step**2, axis=1)
-    fraction = np.divide(np.sum((point - start) * step, axis=1), length2, out=np.zeros(len(step)),
-                         where=length2 > 0)
+    fraction = np.divide(np.sum((point - start) * step, axis=1), length2, out=np.zeros(len(step)), where=length2 > 0)
     nearest = start + np.clip(fraction, 0.0, 1.0)[:, None] * step
     distance = np.linalg.norm(nearest - point, axis=1)
     # ties (a path that passes the corner twice at the same distance) go to the first pass, also after rounding
@@ -168,15 +167,15 @@ def cornering_deviations(paths_mm: Sequence, corner_mm, incoming_from_mm, outgoi
     for j, raw in enumerate(paths_mm):
         path = as_points(f"paths_mm[{j}]", raw, dims=(d,))
         distance, segment, nearest = _nearest_on_polyline(corner, path)
-        after = np.vstack([nearest, path[segment + 1:]])
+        after = np.vstack([nearest, path[segment + 1 :]])
         cr.append(distance)
         co.append(max(0.0, float(((after - corner) @ across).max())))
-    return CorneringDeviations(max(cr), max(co), float(np.mean(cr)), float(np.mean(co)), tuple(cr), tuple(co),
-                               len(cr))
+    return CorneringDeviations(max(cr), max(co), float(np.mean(cr)), float(np.mean(co)), tuple(cr), tuple(co), len(cr))
 
 
-def path_orientation_characteristics(paths_mm: Sequence, angles_deg: Sequence, commanded_mm,
-                                     commanded_deg) -> PathOrientation:
+def path_orientation_characteristics(
+    paths_mm: Sequence, angles_deg: Sequence, commanded_mm, commanded_deg
+) -> PathOrientation:
     """Orientation path accuracy AT_a and repeatability RT_a (ISO 9283 8.2, 8.3; 8.4 on reorientation [U]).
 
     Each attained path is cut with the plane normal to the commanded path at every station, as for AT_p
@@ -224,8 +223,9 @@ def path_orientation_characteristics(paths_mm: Sequence, angles_deg: Sequence, c
     q = angles[0].shape[1]
     commanded = as_points("commanded_deg", commanded_deg, dims=(q,))
     if len(commanded) != points.shape[0]:
-        raise ConfigError(f"commanded_deg has {len(commanded)} rows and commanded_mm {points.shape[0]}, expected "
-                          "one per station")
+        raise ConfigError(
+            f"commanded_deg has {len(commanded)} rows and commanded_mm {points.shape[0]}, expected one per station"
+        )
     at_station = np.empty((points.shape[0], points.shape[1], q))
     for i, row in enumerate(where):
         for j, (k, fraction) in enumerate(row):
@@ -382,15 +382,18 @@ def minimum_positioning_time(steps: Sequence, *, band_mm: float, hysteresis_mm: 
             require_same_length("t_s", series_t, "position_mm", series_p)
             moved = np.flatnonzero(np.linalg.norm(series_p - series_p[0], axis=1) > band_mm)
             if len(moved) == 0:
-                raise InsufficientData(f"positioning step {i + 1} cycle {j + 1}: never leaves the {band_mm:g} mm "
-                                       "band of its start pose")
+                raise InsufficientData(
+                    f"positioning step {i + 1} cycle {j + 1}: never leaves the {band_mm:g} mm band of its start pose"
+                )
             step_mm = float(np.linalg.norm(series_p[-1] - series_p[0]))
             if step_mm <= 2.0 * band_mm:
                 # The start and end bands overlap: the robot is "stabilised" before it has left, and t_2 - t_leave
                 # would read as a negative or meaningless time (ISO 9283 9 assumes steps much longer than B).
-                raise InsufficientData(f"positioning step {i + 1} cycle {j + 1}: the step ({step_mm:.3g} mm) is "
-                                       f"no longer than twice the {band_mm:g} mm band, so its start and end bands "
-                                       "overlap and the positioning time is undefined; use a smaller band")
+                raise InsufficientData(
+                    f"positioning step {i + 1} cycle {j + 1}: the step ({step_mm:.3g} mm) is "
+                    f"no longer than twice the {band_mm:g} mm band, so its start and end bands "
+                    "overlap and the positioning time is undefined; use a smaller band"
+                )
             settled = position_stabilisation(series_t, series_p, band_mm=band_mm, hysteresis_mm=hysteresis_mm)
             per_cycle.append(float(settled.settled_s - series_t[moved[0]]))
             per_distance.append(step_mm)

@@ -46,9 +46,24 @@ from scipy.optimize import least_squares
 
 from bench.errors import ConfigError, InsufficientData
 
-__all__ = ["CHI2_FALSE_ALARM", "CONDITION_LIMIT", "FOLD_MARGIN", "FREE_SET_LIMIT", "Identification", "MIN_INFORMED_SHARE", "Observability",
-           "PRIOR_ONLY_RATIO", "UnidentifiableParameters", "away_from_folds", "identifiable_subset", "identify",
-           "observability", "parameter_covariance", "reduced_chi2_limit", "select_poses"]
+__all__ = [
+    "CHI2_FALSE_ALARM",
+    "CONDITION_LIMIT",
+    "FOLD_MARGIN",
+    "FREE_SET_LIMIT",
+    "Identification",
+    "MIN_INFORMED_SHARE",
+    "Observability",
+    "PRIOR_ONLY_RATIO",
+    "UnidentifiableParameters",
+    "away_from_folds",
+    "identifiable_subset",
+    "identify",
+    "observability",
+    "parameter_covariance",
+    "reduced_chi2_limit",
+    "select_poses",
+]
 
 #: Largest condition number of the scaled identification Jacobian that is accepted (Schroer et al., in Nahvi &
 #: Hollerbach 1996: "a condition number below 100 is required for reliable results").
@@ -83,9 +98,14 @@ class Observability:
     unidentifiable: tuple[str, ...]  # "name" or "0.71 a + 0.71 b" per weak direction, weakest first
 
     def as_dict(self) -> dict:
-        return {"names": list(self.names), "singular_values": [float(s) for s in self.singular_values],
-                "condition_number": float(self.condition_number), "o1": float(self.o1), "n_poses": self.n_poses,
-                "unidentifiable": list(self.unidentifiable)}
+        return {
+            "names": list(self.names),
+            "singular_values": [float(s) for s in self.singular_values],
+            "condition_number": float(self.condition_number),
+            "o1": float(self.o1),
+            "n_poses": self.n_poses,
+            "unidentifiable": list(self.unidentifiable),
+        }
 
 
 def _weighted(jac, uncertainty) -> np.ndarray:
@@ -151,7 +171,8 @@ def _refuse_if_poor(obs: Observability, limit: float) -> None:
         raise UnidentifiableParameters(
             f"kinematic calibration refused: condition number {obs.condition_number:.3g} > {limit:g}; the "
             f"{obs.n_poses} poses cannot identify {'; '.join(obs.unidentifiable) or 'the free set'}; fix these "
-            "parameters (--free) or add poses that spread over the workspace and its orientations")
+            "parameters (--free) or add poses that spread over the workspace and its orientations"
+        )
 
 
 def parameter_covariance(jac, uncertainty, precision=None) -> np.ndarray:
@@ -169,16 +190,16 @@ class Identification:
 
     names: tuple[str, ...]
     units: tuple[str, ...]
-    values: np.ndarray             # (K,)
-    uncertainty: np.ndarray        # (K,) standard uncertainties
-    correlation: np.ndarray        # (K, K)
-    residuals: np.ndarray          # (N, a) measured - predicted, instrument units
-    residuals_before: np.ndarray   # (N, a) at theta0
+    values: np.ndarray  # (K,)
+    uncertainty: np.ndarray  # (K,) standard uncertainties
+    correlation: np.ndarray  # (K, K)
+    residuals: np.ndarray  # (N, a) measured - predicted, instrument units
+    residuals_before: np.ndarray  # (N, a) at theta0
     reduced_chi2: float
     observability: Observability
     iterations: int
     prior_sigma: np.ndarray | None = None  # (K,) the prior's 1-sigma per parameter (inf: none); None: no prior
-    prior_only: tuple[str, ...] = ()       # parameters the prior alone fixes (posterior ~ prior)
+    prior_only: tuple[str, ...] = ()  # parameters the prior alone fixes (posterior ~ prior)
     degrees_of_freedom: float = float("nan")  # of the data residuals, the reduced chi^2's divisor (module doc)
 
     @property
@@ -188,17 +209,22 @@ class Identification:
 
     def as_dict(self) -> dict:
         """Plain data (stored as the calibration's parameters)."""
-        prior = None if self.prior_sigma is None else {
-            n: (None if np.isinf(s) else float(s)) for n, s in zip(self.names, self.prior_sigma)}
+        prior = (
+            None
+            if self.prior_sigma is None
+            else {n: (None if np.isinf(s) else float(s)) for n, s in zip(self.names, self.prior_sigma)}
+        )
         return {
             "fit": self.fit,
             "prior_sigma": prior,
             "prior_only": list(self.prior_only),
-            "parameters": {n: {"value": float(v), "uncertainty": float(u), "unit": unit}
-                           for n, v, u, unit in zip(self.names, self.values, self.uncertainty, self.units)},
+            "parameters": {
+                n: {"value": float(v), "uncertainty": float(u), "unit": unit}
+                for n, v, u, unit in zip(self.names, self.values, self.uncertainty, self.units)
+            },
             "correlation": np.round(self.correlation, 6).tolist(),
-            "residual_rms": float(np.sqrt(np.mean(self.residuals ** 2))),
-            "residual_rms_before": float(np.sqrt(np.mean(self.residuals_before ** 2))),
+            "residual_rms": float(np.sqrt(np.mean(self.residuals**2))),
+            "residual_rms_before": float(np.sqrt(np.mean(self.residuals_before**2))),
             "residuals": np.round(self.residuals, 6).tolist(),
             "reduced_chi2": float(self.reduced_chi2),
             "degrees_of_freedom": float(self.degrees_of_freedom),
@@ -215,8 +241,7 @@ def _refuse_if_uninformed(jac, uncertainty, names, sigma, std, n_poses: int, lim
     """The refusal rule of a maximum a posteriori fit (module docstring); returns the prior-only parameters."""
     free = np.flatnonzero(~np.isfinite(sigma))
     if free.size:
-        _refuse_if_poor(observability(np.asarray(jac)[:, :, free], uncertainty, [names[j] for j in free], limit),
-                        limit)
+        _refuse_if_poor(observability(np.asarray(jac)[:, :, free], uncertainty, [names[j] for j in free], limit), limit)
     prior_only = _prior_only(names, std, sigma)
     with_prior = int(np.sum(np.isfinite(sigma)))
     informed = with_prior - len(prior_only)
@@ -226,12 +251,21 @@ def _refuse_if_uninformed(jac, uncertainty, names, sigma, std, n_poses: int, lim
             f"parameters with a prior (posterior uncertainty above {PRIOR_ONLY_RATIO:.2f} of the prior's for "
             f"{', '.join(prior_only)}), expected at least {MIN_INFORMED_SHARE:.0%}; the poses cannot identify "
             "them: add poses that spread over the workspace (and its orientations), read them with a finer "
-            "instrument, or fit only what they identify (the free-set fit)")
+            "instrument, or fit only what they identify (the free-set fit)"
+        )
     return prior_only
 
 
-def identify(model, measured, uncertainty, *, theta0=None, limit: float = CONDITION_LIMIT,
-             prior_sigma=None, check_start: bool = True) -> Identification:
+def identify(
+    model,
+    measured,
+    uncertainty,
+    *,
+    theta0=None,
+    limit: float = CONDITION_LIMIT,
+    prior_sigma=None,
+    check_start: bool = True,
+) -> Identification:
     """Identification of ``model.free`` from ``measured`` (N, a) (module docstring): weighted least squares, or
     maximum a posteriori when ``prior_sigma`` (K,) gives each parameter's 1-sigma prior about 0 (``inf``: none).
 
@@ -244,8 +278,10 @@ def identify(model, measured, uncertainty, *, theta0=None, limit: float = CONDIT
     if measured.ndim != 2 or len(measured) == 0:
         raise InsufficientData(f"measured has shape {measured.shape}, expected (N, a) with N >= 1 measured poses")
     if not np.all(np.isfinite(measured)):
-        raise InsufficientData(f"measured poses: {int(np.sum(~np.isfinite(measured).all(1)))} rows are not finite, "
-                               "expected a measured coordinate for every pose")
+        raise InsufficientData(
+            f"measured poses: {int(np.sum(~np.isfinite(measured).all(1)))} rows are not finite, "
+            "expected a measured coordinate for every pose"
+        )
     u = np.broadcast_to(np.asarray(uncertainty, dtype=float), measured.shape)  # per axis or per pose and axis
     if not np.all((u > 0) & np.isfinite(u)):
         raise ConfigError(f"instrument uncertainty = {np.asarray(uncertainty).tolist()}, expected finite values > 0")
@@ -255,14 +291,18 @@ def identify(model, measured, uncertainty, *, theta0=None, limit: float = CONDIT
         raise ConfigError(f"prior_sigma = {sigma.tolist()}, expected values > 0 (inf: no prior)")
     constrained = 0 if sigma is None else int(np.sum(np.isfinite(sigma)))
     if measured.size + constrained <= k:
-        raise InsufficientData(f"{len(measured)} measured poses give {measured.size} coordinates for {k} free "
-                               "parameters; expected more coordinates than parameters")
+        raise InsufficientData(
+            f"{len(measured)} measured poses give {measured.size} coordinates for {k} free "
+            "parameters; expected more coordinates than parameters"
+        )
     theta0 = np.zeros(k) if theta0 is None else np.asarray(theta0, dtype=float)
     before = measured - model.predict(theta0)
     failed = np.flatnonzero(~np.all(np.isfinite(before), axis=1))
     if failed.size:
-        raise InsufficientData(f"forward kinematics failed at {failed.size} measured poses (first: pose "
-                               f"{failed[0]}); expected commanded steps the model can solve")
+        raise InsufficientData(
+            f"forward kinematics failed at {failed.size} measured poses (first: pose "
+            f"{failed[0]}); expected commanded steps the model can solve"
+        )
     precision = np.zeros(k) if sigma is None else np.where(np.isfinite(sigma), 1.0 / np.square(sigma), 0.0)
     weight = np.sqrt(precision)
 
@@ -299,8 +339,9 @@ def identify(model, measured, uncertainty, *, theta0=None, limit: float = CONDIT
 
     if sigma is None:  # the plausibility box bounds the plain fit (trf: bounded)
         bounds = (theta0 - model.bound, theta0 + model.bound) if hasattr(model, "bound") else (-np.inf, np.inf)
-        fit = least_squares(residual, theta0, jac=jac, method="trf", x_scale="jac", xtol=1e-10, ftol=1e-10,
-                            bounds=bounds)
+        fit = least_squares(
+            residual, theta0, jac=jac, method="trf", x_scale="jac", xtol=1e-10, ftol=1e-10, bounds=bounds
+        )
     else:
         # the prior bounds the posterior itself; MINPACK's Levenberg-Marquardt (its own QR, no SVD per step)
         # needed 9-15 Jacobians against trf's 13-22 and 0.2-0.6 s against 1.1-2.9 s for 100 poses on a loaded
@@ -308,16 +349,20 @@ def identify(model, measured, uncertainty, *, theta0=None, limit: float = CONDIT
         fit = least_squares(residual, theta0, jac=jac, method="lm", x_scale="jac", xtol=1e-10, ftol=1e-10)
     theta, nfev = fit.x, int(fit.nfev)
     if not fit.success:  # status 0: the evaluation budget ran out; a solution short of the minimum is no calibration
-        raise InsufficientData(f"kinematic calibration refused: the solver stopped after {nfev} model evaluations "
-                               f"without converging ({fit.message}); expected a fit that converges: check the "
-                               "measurements against the commanded poses")
+        raise InsufficientData(
+            f"kinematic calibration refused: the solver stopped after {nfev} model evaluations "
+            f"without converging ({fit.message}); expected a fit that converges: check the "
+            "measurements against the commanded poses"
+        )
     final_jac = model_jacobian(theta)
     after = measured - model.predict(theta)
     failed = np.flatnonzero(~np.all(np.isfinite(after), axis=1))
     if failed.size:  # a solution where the model cannot place a pose explains nothing there: no calibration
-        raise InsufficientData(f"kinematic calibration refused: at the solution the forward kinematics fails at "
-                               f"{failed.size} measured poses (first: pose {failed[0]}); expected poses the fitted "
-                               "geometry reaches: leave such poses out or measure them again")
+        raise InsufficientData(
+            f"kinematic calibration refused: at the solution the forward kinematics fails at "
+            f"{failed.size} measured poses (first: pose {failed[0]}); expected poses the fitted "
+            "geometry reaches: leave such poses out or measure them again"
+        )
     obs, cov, prior_only = check(final_jac)
     obs = obs or observability(final_jac, u, model.free, limit)  # a prior's: the data part, reported
     std = np.sqrt(np.clip(np.diag(cov), 0.0, None))
@@ -325,9 +370,21 @@ def identify(model, measured, uncertainty, *, theta0=None, limit: float = CONDIT
     # the parameters the data fit, tr(J_w C J_w^T) = K - sum_j C_jj / sigma_j^2: K without a prior (m - K degrees of
     # freedom), less what a prior holds; chi^2 over m - that has expectation 1 when the instrument and prior are right
     dof = max(measured.size - (k - float(np.sum(np.diag(cov) * precision))), 1.0)
-    return Identification(tuple(model.free), tuple(model.units), theta, std, correlation, after, before,
-                          float(np.sum((after / u) ** 2) / dof), obs, nfev,
-                          None if sigma is None else np.array(sigma), prior_only, dof)
+    return Identification(
+        tuple(model.free),
+        tuple(model.units),
+        theta,
+        std,
+        correlation,
+        after,
+        before,
+        float(np.sum((after / u) ** 2) / dof),
+        obs,
+        nfev,
+        None if sigma is None else np.array(sigma),
+        prior_only,
+        dof,
+    )
 
 
 #: Condition number the default free set is built to: half the acceptance limit, since the Jacobian at the
@@ -363,7 +420,7 @@ def identifiable_subset(jac, uncertainty, names, limit: float = FREE_SET_LIMIT, 
         if not trial:
             return ()
         if len(trial) >= len(scaled):  # identify needs more coordinates than parameters (and an SVD of m rows has
-            continue                   # only m singular values: a wider matrix would look well conditioned)
+            continue  # only m singular values: a wider matrix would look well conditioned)
         sv = np.linalg.svd(scaled[:, trial], compute_uv=False)
         if sv[-1] > 0 and sv[0] / sv[-1] <= limit:
             return tuple(names[i] for i in sorted(trial))
@@ -394,8 +451,10 @@ def select_poses(jac, uncertainty, n: int, *, first=(), fold_ratio=None) -> np.n
     count, a, k = jac.shape
     usable = np.ones(count, bool) if fold_ratio is None else away_from_folds(fold_ratio)
     if not 1 <= n <= int(usable.sum()):
-        raise ConfigError(f"n = {n!r} poses to select, expected 1..{int(usable.sum())} (the number of candidates"
-                          f"{'' if fold_ratio is None else ' away from an FK fold'})")
+        raise ConfigError(
+            f"n = {n!r} poses to select, expected 1..{int(usable.sum())} (the number of candidates"
+            f"{'' if fold_ratio is None else ' away from an FK fold'})"
+        )
     u = np.broadcast_to(np.asarray(uncertainty, dtype=float), (a,))
     blocks = jac / u[None, :, None]
     norms = np.linalg.norm(blocks[usable].reshape(-1, k), axis=0) / np.sqrt(usable.sum())  # over the usable ones

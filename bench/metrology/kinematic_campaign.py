@@ -40,8 +40,16 @@ import numpy as np
 
 from bench.errors import InsufficientData
 
-__all__ = ["ERRATIC_FALSE_ALARM", "MAX_CYCLES", "POOLED_DOF", "CampaignPlan", "PoseMeans", "erratic_poses",
-           "plan_campaign", "pose_means"]
+__all__ = [
+    "ERRATIC_FALSE_ALARM",
+    "MAX_CYCLES",
+    "POOLED_DOF",
+    "CampaignPlan",
+    "PoseMeans",
+    "erratic_poses",
+    "plan_campaign",
+    "pose_means",
+]
 
 #: Degrees of freedom the pooled scatter counts for in each pose's own (module docstring): as much as 10 readings.
 POOLED_DOF = 10.0
@@ -56,19 +64,23 @@ MAX_CYCLES = 1000
 class PoseMeans:
     """Per-pose means of a campaign and their uncertainties (module docstring)."""
 
-    mean_mm: np.ndarray         # (N, a)
+    mean_mm: np.ndarray  # (N, a)
     uncertainty_mm: np.ndarray  # (N, a) standard uncertainty of each mean
-    cycles: np.ndarray          # (N,) readings per pose
-    scatter_mm: np.ndarray      # (a,) pooled within-pose standard deviation of one reading; NaN: not measured
-    scatter_dof: int            # its degrees of freedom, M - N
-    instrument_mm: float        # the instrument's stated standard uncertainty per reading
+    cycles: np.ndarray  # (N,) readings per pose
+    scatter_mm: np.ndarray  # (a,) pooled within-pose standard deviation of one reading; NaN: not measured
+    scatter_dof: int  # its degrees of freedom, M - N
+    instrument_mm: float  # the instrument's stated standard uncertainty per reading
     left_out: tuple[int, ...] = ()  # erratic poses left out (their indices in the protocol's order)
 
     def as_dict(self) -> dict:
-        return {"scatter_mm": [None if not np.isfinite(s) else float(s) for s in self.scatter_mm],
-                "scatter_dof": self.scatter_dof, "instrument_uncertainty_mm": float(self.instrument_mm),
-                "cycles_per_pose": [int(n) for n in self.cycles], "left_out_poses": list(self.left_out),
-                "mean_uncertainty_mm": [float(u) for u in np.sqrt(np.mean(self.uncertainty_mm ** 2, axis=0))]}
+        return {
+            "scatter_mm": [None if not np.isfinite(s) else float(s) for s in self.scatter_mm],
+            "scatter_dof": self.scatter_dof,
+            "instrument_uncertainty_mm": float(self.instrument_mm),
+            "cycles_per_pose": [int(n) for n in self.cycles],
+            "left_out_poses": list(self.left_out),
+            "mean_uncertainty_mm": [float(u) for u in np.sqrt(np.mean(self.uncertainty_mm**2, axis=0))],
+        }
 
 
 def pose_means(readings, pose_index, instrument_mm: float) -> PoseMeans:
@@ -91,7 +103,7 @@ def pose_means(readings, pose_index, instrument_mm: float) -> PoseMeans:
         np.add.at(squares, index, (readings - mean[index]) ** 2)
         scatter = np.sqrt(squares.sum(axis=0) / dof)
         own_dof = (cycles - 1)[:, None]
-        per_pose = np.sqrt((squares + POOLED_DOF * scatter ** 2) / (own_dof + POOLED_DOF))
+        per_pose = np.sqrt((squares + POOLED_DOF * scatter**2) / (own_dof + POOLED_DOF))
         per_reading = np.maximum(per_pose, instrument_mm)
     else:
         scatter = np.full(readings.shape[1], np.nan)
@@ -99,8 +111,9 @@ def pose_means(readings, pose_index, instrument_mm: float) -> PoseMeans:
     return PoseMeans(mean, per_reading / np.sqrt(cycles)[:, None], cycles, scatter, dof, float(instrument_mm))
 
 
-def erratic_poses(readings, pose_index, instrument_mm: float = 0.0,
-                  false_alarm: float = ERRATIC_FALSE_ALARM) -> np.ndarray:
+def erratic_poses(
+    readings, pose_index, instrument_mm: float = 0.0, false_alarm: float = ERRATIC_FALSE_ALARM
+) -> np.ndarray:
     """Which poses (bool (N,)) scatter more than the others beyond chance: per axis, the variance ratio
     ``F = max(hat s_i, u_inst)^2 / max(s_rest, u_inst)^2`` of the pose's own readings against the pooled
     within-pose variance of the other poses, both floored at the instrument's stated ``instrument_mm`` (a scatter
@@ -126,8 +139,9 @@ def erratic_poses(readings, pose_index, instrument_mm: float = 0.0,
     testable = (own_dof > 0) & (rest_dof > 0)
     with np.errstate(divide="ignore", invalid="ignore"):
         floor = float(instrument_mm) ** 2
-        ratio = (np.maximum(squares / own_dof[:, None], floor)
-                 / np.maximum((squares.sum(axis=0) - squares) / rest_dof[:, None], floor))
+        ratio = np.maximum(squares / own_dof[:, None], floor) / np.maximum(
+            (squares.sum(axis=0) - squares) / rest_dof[:, None], floor
+        )
     limit = f_distribution.isf(false_alarm, np.maximum(own_dof, 1), np.maximum(rest_dof, 1))
     return testable & np.any(ratio > limit[:, None], axis=1)
 
@@ -137,22 +151,27 @@ class CampaignPlan:
     """Cycles per pose a target gain needs (module docstring); None where :data:`MAX_CYCLES` do not reach it."""
 
     target_gain: float
-    geometric_error_mm: float     # g: what the calibration can remove
-    scatter_mm: float             # sqrt(sum_a s_a^2): one reading's play, all axes
+    geometric_error_mm: float  # g: what the calibration can remove
+    scatter_mm: float  # sqrt(sum_a s_a^2): one reading's play, all axes
     calibration_cycles: int | None
     validation_cycles: int | None
     informing_cycles: int | None  # the least cycles with which the data inform half the parameters with a prior
-    predicted_error_mm: float     # mean_i e_i at the campaign's own cycles
+    predicted_error_mm: float  # mean_i e_i at the campaign's own cycles
 
     def ceiling_gain(self, validation_cycles: int) -> float:
         """The most gain a validation of ``validation_cycles`` cycles can show (module docstring)."""
         return self.geometric_error_mm / (self.scatter_mm / np.sqrt(validation_cycles))
 
     def as_dict(self) -> dict:
-        return {"target_gain": self.target_gain, "geometric_error_mm": self.geometric_error_mm,
-                "scatter_mm": self.scatter_mm, "calibration_cycles": self.calibration_cycles,
-                "validation_cycles": self.validation_cycles, "informing_cycles": self.informing_cycles,
-                "predicted_error_mm": self.predicted_error_mm}
+        return {
+            "target_gain": self.target_gain,
+            "geometric_error_mm": self.geometric_error_mm,
+            "scatter_mm": self.scatter_mm,
+            "calibration_cycles": self.calibration_cycles,
+            "validation_cycles": self.validation_cycles,
+            "informing_cycles": self.informing_cycles,
+            "predicted_error_mm": self.predicted_error_mm,
+        }
 
 
 def _least_cycles(good) -> int | None:
@@ -166,15 +185,25 @@ def _least_cycles(good) -> int | None:
     return high
 
 
-def plan_campaign(jac, campaign: PoseMeans, prior_sigma, before_mm: float, target_gain: float,
-                  informed_share: float = 0.5, prior_only_ratio: float = 1 / np.sqrt(2)) -> CampaignPlan:
+def plan_campaign(
+    jac,
+    campaign: PoseMeans,
+    prior_sigma,
+    before_mm: float,
+    target_gain: float,
+    informed_share: float = 0.5,
+    prior_only_ratio: float = 1 / np.sqrt(2),
+) -> CampaignPlan:
     """The plan of :class:`CampaignPlan` (module docstring) from the model Jacobian ``jac`` (N, a, K) at the
     poses' means, the campaign's scatter, the prior's 1-sigma ``prior_sigma`` (K,) (inf: none) and the in-sample
     error before ``before_mm``."""
     jac = np.asarray(jac, dtype=float)
     sigma = np.asarray(prior_sigma, dtype=float)
-    scatter = np.where(np.isfinite(campaign.scatter_mm), np.maximum(campaign.scatter_mm, campaign.instrument_mm),
-                       campaign.instrument_mm)
+    scatter = np.where(
+        np.isfinite(campaign.scatter_mm),
+        np.maximum(campaign.scatter_mm, campaign.instrument_mm),
+        campaign.instrument_mm,
+    )
     one = (jac / scatter[None, :, None]).reshape(-1, jac.shape[-1])
     normal = one.T @ one
     precision = np.where(np.isfinite(sigma), 1.0 / np.square(sigma), 0.0)
@@ -191,11 +220,17 @@ def plan_campaign(jac, campaign: PoseMeans, prior_sigma, before_mm: float, targe
         with_prior = np.isfinite(sigma)
         return np.sum(std[with_prior] <= prior_only_ratio * sigma[with_prior]) >= informed_share * with_prior.sum()
 
-    noise = float(np.sqrt(np.mean(np.sum(campaign.uncertainty_mm ** 2, axis=1))))
-    geometric = float(np.sqrt(max(before_mm ** 2 - noise ** 2, 0.0)))
+    noise = float(np.sqrt(np.mean(np.sum(campaign.uncertainty_mm**2, axis=1))))
+    geometric = float(np.sqrt(max(before_mm**2 - noise**2, 0.0)))
     allowed = geometric / (target_gain * np.sqrt(2.0))
-    total = float(np.sqrt(np.sum(scatter ** 2)))
-    validation = int(np.ceil(2.0 * target_gain ** 2 * total ** 2 / geometric ** 2)) if geometric > 0 else None
-    return CampaignPlan(float(target_gain), geometric, total, _least_cycles(lambda n: pose_error(n) <= allowed),
-                        validation if validation is not None and validation <= MAX_CYCLES else None,
-                        _least_cycles(informs), pose_error(float(np.mean(campaign.cycles))))
+    total = float(np.sqrt(np.sum(scatter**2)))
+    validation = int(np.ceil(2.0 * target_gain**2 * total**2 / geometric**2)) if geometric > 0 else None
+    return CampaignPlan(
+        float(target_gain),
+        geometric,
+        total,
+        _least_cycles(lambda n: pose_error(n) <= allowed),
+        validation if validation is not None and validation <= MAX_CYCLES else None,
+        _least_cycles(informs),
+        pose_error(float(np.mean(campaign.cycles))),
+    )

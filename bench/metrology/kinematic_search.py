@@ -32,8 +32,15 @@ import numpy as np
 from bench.errors import InsufficientData
 from bench.metrology.kinematic_calibration import Identification, UnidentifiableParameters, identify
 
-__all__ = ["AMBIGUITY_DELTA", "AMBIGUITY_Z", "DEFAULT_STARTS", "AmbiguousFit", "SearchResult", "identify_global",
-           "map_objective"]
+__all__ = [
+    "AMBIGUITY_DELTA",
+    "AMBIGUITY_Z",
+    "DEFAULT_STARTS",
+    "AmbiguousFit",
+    "SearchResult",
+    "identify_global",
+    "map_objective",
+]
 
 #: Starts of the search: the documented geometry and seven prior draws (measured: on the ideal simulator's seeds
 #: 0-99 every stuck fit found its better basin within the first four draws, docs/calibration.md).
@@ -67,9 +74,12 @@ class SearchResult:
     kept_start: int
 
     def as_dict(self) -> dict:
-        return {"starts": len(self.objectives), "kept_start": self.kept_start,
-                "objectives": [None if not np.isfinite(o) else round(float(o), 4) for o in self.objectives],
-                "spread_z": [None if not np.isfinite(z) else round(float(z), 3) for z in self.spread_z]}
+        return {
+            "starts": len(self.objectives),
+            "kept_start": self.kept_start,
+            "objectives": [None if not np.isfinite(o) else round(float(o), 4) for o in self.objectives],
+            "spread_z": [None if not np.isfinite(z) else round(float(z), 3) for z in self.spread_z],
+        }
 
 
 def map_objective(result: Identification, uncertainty) -> float:
@@ -82,8 +92,9 @@ def map_objective(result: Identification, uncertainty) -> float:
     return data + float(np.sum((result.values[finite] / result.prior_sigma[finite]) ** 2))
 
 
-def identify_global(model, measured, uncertainty, *, prior_sigma, starts: int = DEFAULT_STARTS, seed: int = 0,
-                    **options) -> SearchResult:
+def identify_global(
+    model, measured, uncertainty, *, prior_sigma, starts: int = DEFAULT_STARTS, seed: int = 0, **options
+) -> SearchResult:
     """Maximum a posteriori identification (:func:`identify`) from ``starts`` starting points (module docstring);
     ``seed`` seeds the prior draws, so a search is reproducible. Raises what :func:`identify` raises at the
     documented start, and :class:`AmbiguousFit` when two solutions are both plausible and distinct."""
@@ -100,8 +111,9 @@ def identify_global(model, measured, uncertainty, *, prior_sigma, starts: int = 
         registration = np.zeros(len(sigma)) if first is None else first.values
         theta0 = np.where(finite, rng.normal(0.0, 1.0, len(sigma)) * np.where(finite, sigma, 0.0), registration)
         try:
-            fits.append(identify(model, measured, uncertainty, prior_sigma=sigma, theta0=theta0, check_start=False,
-                                 **options))
+            fits.append(
+                identify(model, measured, uncertainty, prior_sigma=sigma, theta0=theta0, check_start=False, **options)
+            )
         except (InsufficientData, UnidentifiableParameters):  # a start that left the model's domain
             fits.append(None)
     if all(f is None for f in fits):
@@ -109,19 +121,29 @@ def identify_global(model, measured, uncertainty, *, prior_sigma, starts: int = 
     objectives = np.array([np.nan if f is None else map_objective(f, uncertainty) for f in fits])
     kept = int(np.nanargmin(objectives))
     best = fits[kept]
-    spread = np.array([np.nan if f is None else float(np.max(np.abs(f.values - best.values) / best.uncertainty))
-                       for f in fits])
-    rivals = [i for i, f in enumerate(fits) if f is not None and i != kept
-              and objectives[i] - objectives[kept] < AMBIGUITY_DELTA and spread[i] > AMBIGUITY_Z]
+    spread = np.array(
+        [np.nan if f is None else float(np.max(np.abs(f.values - best.values) / best.uncertainty)) for f in fits]
+    )
+    rivals = [
+        i
+        for i, f in enumerate(fits)
+        if f is not None
+        and i != kept
+        and objectives[i] - objectives[kept] < AMBIGUITY_DELTA
+        and spread[i] > AMBIGUITY_Z
+    ]
     if rivals:
         rival = fits[rivals[0]]
         z = np.abs(rival.values - best.values) / best.uncertainty
         named = ", ".join(f"{best.names[j]} ({z[j]:.1f} u)" for j in np.argsort(-z)[:3] if z[j] > AMBIGUITY_Z)
-        separation = float(np.sum(((rival.residuals - best.residuals)
-                                   / np.broadcast_to(uncertainty, best.residuals.shape)) ** 2))
+        separation = float(
+            np.sum(((rival.residuals - best.residuals) / np.broadcast_to(uncertainty, best.residuals.shape)) ** 2)
+        )
         raise AmbiguousFit(
             f"kinematic calibration refused: two geometries explain the {len(np.asarray(measured))} readings about "
             f"equally well (MAP objectives {objectives[kept]:.1f} and {objectives[rivals[0]]:.1f}, within "
             f"{AMBIGUITY_DELTA:g}) yet differ by more than {AMBIGUITY_Z:g} standard uncertainties in {named}; "
-            f"nothing stored. Their predictions differ by chi^2 {separation:.3g} over the readings", separation)
+            f"nothing stored. Their predictions differ by chi^2 {separation:.3g} over the readings",
+            separation,
+        )
     return SearchResult(best, objectives, spread, kept)

@@ -7,10 +7,11 @@ model c = B r fitted by ordinary least squares, inverted to A = B⁻¹ in mm/cou
 
 from __future__ import annotations
 
+import itertools
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
-from scipy import stats
 
 from bench.errors import ConfigError, InsufficientData
 from bench.metrology._validation import (
@@ -19,18 +20,26 @@ from bench.metrology._validation import (
     require_count,
     require_same_length,
 )
+from bench.metrology.uncertainty import coverage_factor
 
 __all__ = [
+    "MM_PER_INCH",
     "AxisCalibration",
     "IncrementResolution",
     "MatrixCalibration",
-    "coverage_factor",
+    "student_k95",
     "direction_labels",
     "fit_axis_scale",
     "fit_matrix",
     "increment_resolution",
     "increments_from_positions",
+    "mouse_calibration_moves",
 ]
+
+#: Millimetres per inch; one count is ``MM_PER_INCH / CPI`` mm (``sensors.md`` §1.1).
+MM_PER_INCH = 25.4
+#: The normal coverage factor of 95 % (Student's factor replaces it at finite degrees of freedom).
+_K95 = 1.959963984540054
 
 
 @dataclass(frozen=True)
@@ -86,7 +95,7 @@ class MatrixCalibration:
     @property
     def coverage_factor(self) -> float:
         """k for 95 % coverage: Student's t at ``dof`` (the residual SD is estimated from few moves)."""
-        return coverage_factor(self.dof)
+        return student_k95(self.dof)
 
     @property
     def expanded_a_mm_per_count(self) -> np.ndarray:
@@ -99,15 +108,13 @@ class MatrixCalibration:
         return np.abs(self.offsets_counts) > self.coverage_factor * self.u_offsets_counts
 
 
-def coverage_factor(dof: int, level: float = 0.95) -> float:
-    """Coverage factor k = t_{(1+p)/2, ν} of a quantity whose standard uncertainty has ν degrees of freedom.
-
-    GUM (JCGM 100:2008) G.3 and G.4: with a variance estimated from ν degrees of freedom, Student's t replaces
-    the normal k = 1.96; k = 2.36 at ν = 7, 2.05 at ν = 27.
-    """
+def student_k95(dof: int) -> float:
+    """Coverage factor k = t_{0.975, ν} for 95 % of a quantity whose standard uncertainty has ν degrees of freedom
+    (GUM, JCGM 100:2008, G.3 and G.4): k = 2.36 at ν = 7, 2.05 at ν = 27. One home for Student's factor:
+    :func:`bench.metrology.uncertainty.coverage_factor` at the normal k of 95 % (1.96)."""
     if dof < 1:
         raise InsufficientData(f"coverage factor: {dof} degrees of freedom, expected >= 1")
-    return float(stats.t.ppf(0.5 + level / 2, dof))
+    return coverage_factor(_K95, dof)
 
 
 def direction_labels(reference_mm) -> tuple[str, ...]:
@@ -285,8 +292,10 @@ def fit_matrix(reference_mm, counts, *, intercept: bool = False, per_direction: 
     if np.linalg.matrix_rank(reference.T @ reference) < 2:
         raise InsufficientData("fit_matrix: moves along fewer than two non-parallel directions, cannot fit 2x2")
     if np.linalg.matrix_rank(normal) < parameters:
-        raise InsufficientData(f"fit_matrix: the moves of some direction ({', '.join(labels)}) all have one length, "
-                               "so its intercept and the scale cannot be told apart; use at least two lengths each")
+        raise InsufficientData(
+            f"fit_matrix: the moves of some direction ({', '.join(labels)}) all have one length, "
+            "so its intercept and the scale cannot be told apart; use at least two lengths each"
+        )
     inverse = np.linalg.inv(normal)
     coefficients = inverse @ design.T @ measured
     residuals = measured - design @ coefficients
@@ -318,3 +327,33 @@ def fit_matrix(reference_mm, counts, *, intercept: bool = False, per_direction: 
         offsets_counts=offsets,
         u_offsets_counts=u_offsets,
     )
+
+
+def mouse_calibration_moves(samples: Any, references: Any = None) -> tuple[np.ndarray, np.ndarray]:
+    """The moves between consecutive readings of one step axis: reference displacements (K, 2) mm and the x-y
+    mouse's count increments (K, 2).
+
+    ``samples`` are the ``mouse`` samples in step order (pose ``<axis><mm>/<start|end>``); the reference position of
+    each is its calliper reading along the axis (``references``, ``mouse_reference`` samples matched by pose and
+    cycle) when given, else its commanded position. The moves back to a step's start count too (moves in both
+    directions: a start/stop offset is told from the scale).
+    """
+    readings = {(r.pose, r.cycle): r.values["reference_mm"] for r in references or ()}
+    reference, counts = [], []
+    for before, after in itertools.pairwise(samples):
+        axis = (after.pose or "?")[0]
+        if axis not in "xy" or (before.pose or "?")[0] != axis:
+            continue
+        index = "xy".index(axis)
+        if references is not None:
+            if (before.pose, before.cycle) not in readings or (after.pose, after.cycle) not in readings:
+                continue
+            travel = [0.0, 0.0]
+            travel[index] = readings[(after.pose, after.cycle)] - readings[(before.pose, before.cycle)]
+        else:
+            travel = [after.values[f"cmd_{a}_mm"] - before.values[f"cmd_{a}_mm"] for a in "xy"]
+        if abs(travel[index]) < 1e-9:
+            continue
+        reference.append(travel)
+        counts.append([after.values[f"mouse_xy_{a}_counts"] - before.values[f"mouse_xy_{a}_counts"] for a in "xy"])
+    return np.array(reference, dtype=float).reshape(-1, 2), np.array(counts, dtype=float).reshape(-1, 2)

@@ -34,8 +34,13 @@ from bench.metrology._validation import as_series
 from bench.metrology.iso9283 import orientation_accuracy, orientation_repeatability
 from bench.metrology.uncertainty import combine, rectangular, resolution_uncertainty
 
-__all__ = ["OrientationFigures", "TiltGauge", "orientation_figures", "tilt_gradient_uncertainty_deg",
-           "tilt_standard_uncertainty_deg"]
+__all__ = [
+    "OrientationFigures",
+    "TiltGauge",
+    "orientation_figures",
+    "tilt_gradient_uncertainty_deg",
+    "tilt_standard_uncertainty_deg",
+]
 
 
 @dataclass(frozen=True)
@@ -70,14 +75,20 @@ class TiltGauge:
         return combine(resolution_uncertainty(self.resolution_mm), rectangular(self.mpe_mm))
 
     def as_dict(self) -> dict[str, float]:
-        return {"spacing_mm": self.spacing_mm, "u_spacing_mm": self.u_spacing_mm,
-                "resolution_mm": self.resolution_mm, "mpe_mm": self.mpe_mm, "bias_deg": self.bias_deg,
-                "u_bias_deg": self.u_bias_deg,
-                "u_depth_mm": self.u_depth_mm}
+        return {
+            "spacing_mm": self.spacing_mm,
+            "u_spacing_mm": self.u_spacing_mm,
+            "resolution_mm": self.resolution_mm,
+            "mpe_mm": self.mpe_mm,
+            "bias_deg": self.bias_deg,
+            "u_bias_deg": self.u_bias_deg,
+            "u_depth_mm": self.u_depth_mm,
+        }
 
 
-def tilt_gradient_uncertainty_deg(delta_h_mm: float, spacing_mm: float, u_depth_mm: float,
-                                  u_spacing_mm: float) -> float:
+def tilt_gradient_uncertainty_deg(
+    delta_h_mm: float, spacing_mm: float, u_depth_mm: float, u_spacing_mm: float
+) -> float:
     """u(θ) of θ = atan2(Δh, s) from two independent depth readings (``iso9283.md`` §8.2(d)).
 
     .. math:: u^2(\\theta) = \\Big[\\frac{s}{s^2+\\Delta h^2}\\Big]^2 2u^2(h)
@@ -86,8 +97,9 @@ def tilt_gradient_uncertainty_deg(delta_h_mm: float, spacing_mm: float, u_depth_
     Worked example there: s = 40 mm, u(h) = 0.0119 mm, u(s) = 0.058 mm give 0.024° at 0° and 0.034° at 20°.
     """
     denominator = spacing_mm * spacing_mm + delta_h_mm * delta_h_mm
-    return math.degrees(math.hypot(spacing_mm / denominator * math.sqrt(2.0) * u_depth_mm,
-                                   delta_h_mm / denominator * u_spacing_mm))
+    return math.degrees(
+        math.hypot(spacing_mm / denominator * math.sqrt(2.0) * u_depth_mm, delta_h_mm / denominator * u_spacing_mm)
+    )
 
 
 def tilt_standard_uncertainty_deg(tilt_deg: float, gauge: TiltGauge) -> float:
@@ -114,14 +126,22 @@ class OrientationFigures:
 
     def as_json(self) -> dict:
         name = self.angle
-        return {"n": self.n, f"cmd_{name}_deg": self.commanded_deg, f"mean_{name}_deg": self.mean_deg,
-                f"AP_{name}_deg": self.ap_deg, f"U_AP_{name}_deg": self.u_ap_deg,
-                f"RP_{name}_deg": self.rp_deg, f"U_RP_{name}_deg": self.u_rp_deg, "k": self.k,
-                "budget_deg": dict(self.budget)}
+        return {
+            "n": self.n,
+            f"cmd_{name}_deg": self.commanded_deg,
+            f"mean_{name}_deg": self.mean_deg,
+            f"AP_{name}_deg": self.ap_deg,
+            f"U_AP_{name}_deg": self.u_ap_deg,
+            f"RP_{name}_deg": self.rp_deg,
+            f"U_RP_{name}_deg": self.u_rp_deg,
+            "k": self.k,
+            "budget_deg": dict(self.budget),
+        }
 
 
-def orientation_figures(attained_deg, commanded_deg: float, gauge: TiltGauge, *, angle: str = "a",
-                        k: float = 2.0) -> OrientationFigures:
+def orientation_figures(
+    attained_deg, commanded_deg: float, gauge: TiltGauge, *, angle: str = "a", k: float = 2.0
+) -> OrientationFigures:
     """AP_a, RP_a and their expanded uncertainties from n >= 2 tilt readings of one angle (module docstring).
 
     Raises
@@ -138,13 +158,25 @@ def orientation_figures(attained_deg, commanded_deg: float, gauge: TiltGauge, *,
     n = len(readings)
     s = rp / 3.0
     mean = accuracy.mean_deg[0]
-    budget = (("scatter of the mean S/√n", s / math.sqrt(n)),
-              ("calliper tilt (resolution, MPE, hole spacing)",
-               tilt_standard_uncertainty_deg(mean + gauge.bias_deg, gauge)),  # at the angle the calliper read
-              ("play-bias correction", gauge.u_bias_deg))
+    budget = (
+        ("scatter of the mean S/√n", s / math.sqrt(n)),
+        (
+            "calliper tilt (resolution, MPE, hole spacing)",
+            tilt_standard_uncertainty_deg(mean + gauge.bias_deg, gauge),
+        ),  # at the angle the calliper read
+        ("play-bias correction", gauge.u_bias_deg),
+    )
     u_ap = combine(*(u for _, u in budget))
     u_rp = 3.0 * s / math.sqrt(2.0 * (n - 1))
-    return OrientationFigures(angle=angle, n=n, commanded_deg=float(commanded_deg), mean_deg=float(mean),
-                              ap_deg=float(accuracy.ap_deg[0]), rp_deg=float(rp), u_ap_deg=float(k * u_ap),
-                              u_rp_deg=float(k * u_rp), k=float(k), budget=budget)
-
+    return OrientationFigures(
+        angle=angle,
+        n=n,
+        commanded_deg=float(commanded_deg),
+        mean_deg=float(mean),
+        ap_deg=float(accuracy.ap_deg[0]),
+        rp_deg=float(rp),
+        u_ap_deg=float(k * u_ap),
+        u_rp_deg=float(k * u_rp),
+        k=float(k),
+        budget=budget,
+    )

@@ -10,10 +10,9 @@ meaning: each pose's readings are taken in cycle order.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from dataclasses import dataclass
-
-import math
 
 import pandas as pd
 
@@ -30,8 +29,17 @@ from bench.metrology.tables import (
     with_pose_labels,
 )
 
-__all__ = ["DEPTH_COLUMNS", "TILT_NUMERIC_COLUMNS", "TiltPoseResult", "analyze_tilts", "orientation_summary",
-           "table_spacing_mm", "tilt_result_json", "tilt_table", "tilts_from_depths"]
+__all__ = [
+    "DEPTH_COLUMNS",
+    "TILT_NUMERIC_COLUMNS",
+    "TiltPoseResult",
+    "analyze_tilts",
+    "orientation_summary",
+    "table_spacing_mm",
+    "tilt_result_json",
+    "tilt_table",
+    "tilts_from_depths",
+]
 
 #: Columns a tilt table's reader turns into numbers.
 TILT_NUMERIC_COLUMNS = ("cycle", *(c for pair in ANGLE_PAIRS for c in pair), *CONDITION_COLUMNS)
@@ -60,8 +68,10 @@ def table_spacing_mm(frame: pd.DataFrame) -> float | None:
     values = numeric_columns(frame[["hole_spacing_mm"]][given], ["hole_spacing_mm"])
     spacings = sorted(set(values["hole_spacing_mm"]))
     if len(spacings) != 1:
-        raise ConfigError(f"{source}: column hole_spacing_mm holds {', '.join(f'{v:g}' for v in spacings) or 'nothing'}"
-                          f", expected the one spacing of the bracket")
+        raise ConfigError(
+            f"{source}: column hole_spacing_mm holds {', '.join(f'{v:g}' for v in spacings) or 'nothing'}"
+            f", expected the one spacing of the bracket"
+        )
     return float(spacings[0])
 
 
@@ -78,8 +88,10 @@ def tilts_from_depths(frame: pd.DataFrame, spacing_mm: float) -> pd.DataFrame:
     source = frame.attrs.get("source", "table")
     commands = [c for c, _ in ANGLE_PAIRS if c in frame.columns]
     if len(commands) != 1:
-        raise ConfigError(f"{source}: depth readings with {len(commands)} commanded angle column(s), expected one of "
-                          f"cmd_a_deg, cmd_b_deg, cmd_c_deg naming the angle the depths measure")
+        raise ConfigError(
+            f"{source}: depth readings with {len(commands)} commanded angle column(s), expected one of "
+            f"cmd_a_deg, cmd_b_deg, cmd_c_deg naming the angle the depths measure"
+        )
     keys = ["pose", "cycle", *(c for c in CONDITION_COLUMNS if c in frame.columns)]
     table = frame[[*keys, *commands, *DEPTH_COLUMNS]].copy()
     for column in DEPTH_COLUMNS:
@@ -94,12 +106,20 @@ def tilts_from_depths(frame: pd.DataFrame, spacing_mm: float) -> pd.DataFrame:
     for key, visit in table.groupby(keys, sort=True):
         counts = [int(visit[c].notna().sum()) for c in DEPTH_COLUMNS]
         if counts != [1, 1]:
-            raise ConfigError(f"{source}: pose {key[0]!r}, cycle {key[1]:g}: {counts[0]} depth1_mm and {counts[1]} "
-                              f"depth2_mm readings, expected one of each")
+            raise ConfigError(
+                f"{source}: pose {key[0]!r}, cycle {key[1]:g}: {counts[0]} depth1_mm and {counts[1]} "
+                f"depth2_mm readings, expected one of each"
+            )
         h1, h2 = (float(visit[c].dropna().iloc[0]) for c in DEPTH_COLUMNS)
         row = dict(zip(keys, key))
-        row.update({commands[0]: float(visit[commands[0]].iloc[0]), "depth1_mm": h1, "depth2_mm": h2,
-                    commands[0][4:]: math.degrees(math.atan2(h2 - h1, spacing_mm))})
+        row.update(
+            {
+                commands[0]: float(visit[commands[0]].iloc[0]),
+                "depth1_mm": h1,
+                "depth2_mm": h2,
+                commands[0][4:]: math.degrees(math.atan2(h2 - h1, spacing_mm)),
+            }
+        )
         rows.append(row)
     out = pd.DataFrame(rows)
     out.attrs["source"] = source
@@ -121,18 +141,25 @@ def tilt_table(frame: pd.DataFrame, spacing_mm: float | None = None) -> pd.DataF
         raise ConfigError(f"{source}: missing column(s) {', '.join(missing)}; found {', '.join(frame.columns)}")
     if set(DEPTH_COLUMNS) <= set(frame.columns) and not any(a in frame.columns for _, a in ANGLE_PAIRS):
         if spacing_mm is None:
-            raise ConfigError(f"{source}: depth readings without a hole spacing, expected a hole_spacing_mm column "
-                              f"or --spacing-mm")
+            raise ConfigError(
+                f"{source}: depth readings without a hole spacing, expected a hole_spacing_mm column or --spacing-mm"
+            )
         frame = tilts_from_depths(frame, spacing_mm).astype({"pose": str})
     for command, attained in ANGLE_PAIRS:
         if attained in frame.columns and command not in frame.columns:
             raise ConfigError(f"{source}: column {attained} given without {command}")
     pairs = [pair for pair in ANGLE_PAIRS if pair[1] in frame.columns]
     if not pairs:
-        raise ConfigError(f"{source}: no measured angle (a_deg, b_deg or c_deg with cmd_a_deg ...), expected the "
-                          f"tilt readings of an alpha or beta run (bench export RUN --kind tilt)")
-    columns = ["pose", "cycle", *(c for pair in pairs for c in pair),
-               *(c for c in CONDITION_COLUMNS if c in frame.columns)]
+        raise ConfigError(
+            f"{source}: no measured angle (a_deg, b_deg or c_deg with cmd_a_deg ...), expected the "
+            f"tilt readings of an alpha or beta run (bench export RUN --kind tilt)"
+        )
+    columns = [
+        "pose",
+        "cycle",
+        *(c for pair in pairs for c in pair),
+        *(c for c in CONDITION_COLUMNS if c in frame.columns),
+    ]
     return with_pose_labels(numeric_columns(frame[columns], columns[1:]), frame, source)
 
 
@@ -151,8 +178,11 @@ def analyze_tilts(table: pd.DataFrame, gauge: TiltGauge | None = None, *, k: flo
         figures = []
         for command, attained in pairs:
             try:
-                figures.append(orientation_figures(rows[attained].to_numpy(float), float(rows[command].iloc[0]),
-                                                   gauge, angle=attained[0], k=k))
+                figures.append(
+                    orientation_figures(
+                        rows[attained].to_numpy(float), float(rows[command].iloc[0]), gauge, angle=attained[0], k=k
+                    )
+                )
             except InsufficientData as exc:
                 raise InsufficientData(f"{source}: pose {label!r}: {exc}") from None
         results.append(TiltPoseResult(label, pose, conditions, tuple(figures)))
@@ -176,13 +206,19 @@ def orientation_summary(results: Sequence[TiltPoseResult]) -> dict:
     summary = {}
     for angle in dict.fromkeys(f.angle for r in results for f in r.figures):
         # in label order, so that a tie names the same pose whatever the order of the table's rows
-        rows = [(r, f) for r in sorted(results, key=lambda r: natural_key(r.label)) for f in r.figures
-                if f.angle == angle]
+        rows = [
+            (r, f) for r in sorted(results, key=lambda r: natural_key(r.label)) for f in r.figures if f.angle == angle
+        ]
         worst_ap = max(rows, key=lambda rf: abs(rf[1].ap_deg))
         worst_rp = max(rows, key=lambda rf: rf[1].rp_deg)
-        summary[angle] = {"worst_abs_AP_deg": abs(worst_ap[1].ap_deg), "U_AP_deg": worst_ap[1].u_ap_deg,
-                          "worst_AP_pose": worst_ap[0].label, "worst_RP_deg": worst_rp[1].rp_deg,
-                          "U_RP_deg": worst_rp[1].u_rp_deg, "worst_RP_pose": worst_rp[0].label,
-                          "mean_abs_AP_deg": sum(abs(f.ap_deg) for _, f in rows) / len(rows),
-                          "mean_RP_deg": sum(f.rp_deg for _, f in rows) / len(rows)}
+        summary[angle] = {
+            "worst_abs_AP_deg": abs(worst_ap[1].ap_deg),
+            "U_AP_deg": worst_ap[1].u_ap_deg,
+            "worst_AP_pose": worst_ap[0].label,
+            "worst_RP_deg": worst_rp[1].rp_deg,
+            "U_RP_deg": worst_rp[1].u_rp_deg,
+            "worst_RP_pose": worst_rp[0].label,
+            "mean_abs_AP_deg": sum(abs(f.ap_deg) for _, f in rows) / len(rows),
+            "mean_RP_deg": sum(f.rp_deg for _, f in rows) / len(rows),
+        }
     return summary

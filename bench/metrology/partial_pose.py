@@ -28,9 +28,24 @@ import numpy as np
 from bench.errors import ConfigError
 from bench.metrology.iso9283 import pose_accuracy, pose_repeatability
 
-__all__ = ["AXIS_NAMES", "GRID_COLUMNS", "NO_READING", "AxisErrors", "DetectionRate", "GridPoseResult",
-           "PartialPoseStatistics", "analyze_grid_positioning", "axis_errors", "axis_json", "detection_rate",
-           "grid_pose_json", "grid_positioning_table", "partial_pose_statistics", "pooled_axis_errors", "rate_text"]
+__all__ = [
+    "AXIS_NAMES",
+    "GRID_COLUMNS",
+    "NO_READING",
+    "AxisErrors",
+    "DetectionRate",
+    "GridPoseResult",
+    "PartialPoseStatistics",
+    "analyze_grid_positioning",
+    "axis_errors",
+    "axis_json",
+    "detection_rate",
+    "grid_pose_json",
+    "grid_positioning_table",
+    "partial_pose_statistics",
+    "pooled_axis_errors",
+    "rate_text",
+]
 
 AXIS_NAMES = ("x", "y", "z")
 #: What a rate (or an axis) without a single reading prints: never 0.
@@ -83,16 +98,23 @@ def axis_errors(measured_mm, commanded_mm: float) -> AxisErrors:
     """
     values = np.asarray(measured_mm, dtype=float).reshape(-1)
     if np.isinf(values).any() or not math.isfinite(commanded_mm):
-        raise ConfigError(f"axis readings {values.tolist()} against {commanded_mm!r}: expected finite numbers or NaN "
-                          "(not measured), and a finite command")
+        raise ConfigError(
+            f"axis readings {values.tolist()} against {commanded_mm!r}: expected finite numbers or NaN "
+            "(not measured), and a finite command"
+        )
     present = values[~np.isnan(values)]
     n = len(present)
     if n == 0:
         return AxisErrors(0, None, None, None, None)
     errors = np.abs(present - commanded_mm)
     spread = pose_repeatability(present[:, None]).spread_3s_axes_mm[0] if n >= 2 else None
-    return AxisErrors(n, pose_accuracy(present[:, None], [commanded_mm]).ap_axes_mm[0], spread,
-                      float(errors.max()), float(errors.mean()))
+    return AxisErrors(
+        n,
+        pose_accuracy(present[:, None], [commanded_mm]).ap_axes_mm[0],
+        spread,
+        float(errors.max()),
+        float(errors.mean()),
+    )
 
 
 def partial_pose_statistics(measured_mm, commanded_mm) -> PartialPoseStatistics:
@@ -115,8 +137,9 @@ def partial_pose_statistics(measured_mm, commanded_mm) -> PartialPoseStatistics:
     readings = np.asarray(measured_mm, dtype=float)
     command = np.asarray(commanded_mm, dtype=float)
     if readings.ndim != 2 or readings.shape[1] != 3 or command.shape != (3,):
-        raise ConfigError(f"measured_mm shape {readings.shape} and commanded_mm shape {command.shape}: expected "
-                          "(n, 3) and (3,)")
+        raise ConfigError(
+            f"measured_mm shape {readings.shape} and commanded_mm shape {command.shape}: expected (n, 3) and (3,)"
+        )
     axes = tuple(axis_errors(readings[:, k], float(command[k])) for k in range(3))
     complete = readings[~np.isnan(readings).any(axis=1)]
     ap = pose_accuracy(complete, command).ap_mm if len(complete) >= 1 else None
@@ -177,8 +200,17 @@ def rate_text(rate: DetectionRate, *, counts: bool = True) -> str:
 
 #: Columns of a grid positioning table (``bench export RUN --kind pose`` of ``delta_positioning``); ``x_mm``,
 #: ``y_mm``, ``z_mm`` may be missing or have empty cells (not measured).
-GRID_COLUMNS = ("pose", "cycle", "cmd_x_mm", "cmd_y_mm", "cmd_z_mm", "horizontal_valid", "vertical_valid",
-                "horizontal_hits", "vertical_hits")
+GRID_COLUMNS = (
+    "pose",
+    "cycle",
+    "cmd_x_mm",
+    "cmd_y_mm",
+    "cmd_z_mm",
+    "horizontal_valid",
+    "vertical_valid",
+    "horizontal_hits",
+    "vertical_hits",
+)
 #: Which screens can measure each axis (delta4-lasergrid.md §4.6 step 7).
 _AXIS_SCREENS = {"x_mm": ("horizontal",), "y_mm": ("horizontal", "vertical"), "z_mm": ("vertical",)}
 _SCREEN_AXES = {"horizontal": ("x_mm", "y_mm"), "vertical": ("y_mm", "z_mm")}
@@ -214,14 +246,24 @@ def grid_positioning_table(frame):
     for column, screens in _AXIS_SCREENS.items():
         stored = table[column].notna()
         from_valid = np.logical_or.reduce([table[f"{s}_valid"] == 1 for s in screens])
-        _refuse_first(source, stored & ~from_valid, column, frame,
-                      f"expected it only with {' or '.join(f'{s}_valid = 1' for s in screens)}")
+        _refuse_first(
+            source,
+            stored & ~from_valid,
+            column,
+            frame,
+            f"expected it only with {' or '.join(f'{s}_valid = 1' for s in screens)}",
+        )
     for screen, axes in _SCREEN_AXES.items():
         flags = table[f"{screen}_valid"]
         _refuse_first(source, ~flags.isin([0.0, 1.0]), f"{screen}_valid", frame, "expected 0 or 1")
         for column in axes:
-            _refuse_first(source, (flags == 1) & table[column].isna(), column, frame,
-                          f"empty while {screen}_valid = 1, expected the value that screen measured")
+            _refuse_first(
+                source,
+                (flags == 1) & table[column].isna(),
+                column,
+                frame,
+                f"empty while {screen}_valid = 1, expected the value that screen measured",
+            )
     table["pose"] = frame["pose"].astype(str).str.strip()
     table.attrs["source"] = source
     return table
@@ -242,15 +284,22 @@ def analyze_grid_positioning(table, *, k: float = 2.0) -> list[GridPoseResult]:
     for pose, rows in table.groupby("pose", sort=False):
         commands = rows[["cmd_x_mm", "cmd_y_mm", "cmd_z_mm"]].drop_duplicates()
         if len(commands) != 1:
-            raise ConfigError(f"{table.attrs.get('source', 'table')}: pose {pose!r} has {len(commands)} commanded "
-                              "positions, expected one")
+            raise ConfigError(
+                f"{table.attrs.get('source', 'table')}: pose {pose!r} has {len(commands)} commanded "
+                "positions, expected one"
+            )
         command = tuple(float(v) for v in commands.iloc[0])
         statistics = partial_pose_statistics(rows[["x_mm", "y_mm", "z_mm"]].to_numpy(float), command)
         screens = ("horizontal", "vertical")
-        results.append(GridPoseResult(
-            str(pose), command, statistics,
-            valid={s: detection_rate(rows[f"{s}_valid"], k=k) for s in screens},
-            lit={s: detection_rate(rows[f"{s}_hits"] > 0, k=k) for s in screens}))
+        results.append(
+            GridPoseResult(
+                str(pose),
+                command,
+                statistics,
+                valid={s: detection_rate(rows[f"{s}_valid"], k=k) for s in screens},
+                lit={s: detection_rate(rows[f"{s}_hits"] > 0, k=k) for s in screens},
+            )
+        )
     return results
 
 
@@ -267,16 +316,28 @@ def _rate_json(rate: DetectionRate) -> dict[str, object]:
 
 def axis_json(axis: AxisErrors) -> dict[str, object]:
     """One axis as JSON (``null`` where there are too few readings)."""
-    return {"n": axis.n, "AP_mm": axis.ap_mm, "spread_3s_mm": axis.spread_3s_mm,
-            "max_abs_error_mm": axis.max_abs_error_mm, "mean_abs_error_mm": axis.mean_abs_error_mm}
+    return {
+        "n": axis.n,
+        "AP_mm": axis.ap_mm,
+        "spread_3s_mm": axis.spread_3s_mm,
+        "max_abs_error_mm": axis.max_abs_error_mm,
+        "mean_abs_error_mm": axis.mean_abs_error_mm,
+    }
 
 
 def grid_pose_json(result: GridPoseResult) -> dict[str, object]:
     """One pose as JSON: screens (valid and lit rates: k of n, rate, Wilson interval at the analysis's z), axes,
     complete readings, spatial AP and RP."""
     s = result.statistics
-    return {"commanded_mm": list(result.commanded_mm), "n": s.n_readings,
-            "screens": {name: {"valid": _rate_json(result.valid[name]), "lit": _rate_json(result.lit[name])}
-                        for name in result.valid},
-            "axes": {name: axis_json(axis) for name, axis in zip(AXIS_NAMES, s.axes)},
-            "n_complete": s.n_complete, "AP_mm": s.ap_mm, "RP_mm": s.rp_mm}
+    return {
+        "commanded_mm": list(result.commanded_mm),
+        "n": s.n_readings,
+        "screens": {
+            name: {"valid": _rate_json(result.valid[name]), "lit": _rate_json(result.lit[name])}
+            for name in result.valid
+        },
+        "axes": {name: axis_json(axis) for name, axis in zip(AXIS_NAMES, s.axes)},
+        "n_complete": s.n_complete,
+        "AP_mm": s.ap_mm,
+        "RP_mm": s.rp_mm,
+    }

@@ -59,8 +59,7 @@ class CommandedPath:
         s = np.atleast_1d(np.asarray(s_mm, dtype=float))
         if self.shape == "circle":
             angle = s / self.radius_mm
-            return (self.centre_mm - self.radius_mm * (np.cos(angle)[:, None] * self.u
-                                                        - np.sin(angle)[:, None] * self.v))
+            return self.centre_mm - self.radius_mm * (np.cos(angle)[:, None] * self.u - np.sin(angle)[:, None] * self.v)
         edges = np.diff(self.vertices_mm, axis=0)
         ends = np.concatenate([[0.0], np.cumsum(np.linalg.norm(edges, axis=1))])
         index = np.clip(np.searchsorted(ends, s, side="right") - 1, 0, len(edges) - 1)
@@ -124,13 +123,16 @@ def _pieces(path: CommandedPath, count: int) -> np.ndarray:
         return np.linspace(0.0, path.length_mm, count + 1)
     lengths = np.linalg.norm(np.diff(path.vertices_mm, axis=0), axis=1)
     ends = np.concatenate([[0.0], np.cumsum(lengths)])
-    per_edge = [np.linspace(a, b, max(1, int(np.ceil(count * (b - a) / path.length_mm))) + 1)[:-1]
-                for a, b in zip(ends[:-1], ends[1:])]
+    per_edge = [
+        np.linspace(a, b, max(1, int(np.ceil(count * (b - a) / path.length_mm))) + 1)[:-1]
+        for a, b in zip(ends[:-1], ends[1:])
+    ]
     return np.concatenate(per_edge + [[path.length_mm]])
 
 
-def segment_path(path: CommandedPath, kinematics, *, max_segment_mm: float, chord_error_mm: float,
-                 max_segments: int = 4096) -> Segmentation:
+def segment_path(
+    path: CommandedPath, kinematics, *, max_segment_mm: float, chord_error_mm: float, max_segments: int = 4096
+) -> Segmentation:
     """Cut ``path`` into segments no longer than ``max_segment_mm`` and halve them until the joint-space chord error
     (module docstring) is at most ``chord_error_mm``. ``kinematics`` is a :class:`motion.model.RobotModel`.
 
@@ -148,8 +150,10 @@ def segment_path(path: CommandedPath, kinematics, *, max_segment_mm: float, chor
         ik = kinematics.ik(targets)
         if not np.all(ik.reachable):
             bad = int(np.flatnonzero(~np.asarray(ik.reachable))[0])
-            raise ConfigError(f"{path.shape} path: point ({', '.join(f'{v:.2f}' for v in points[bad])}) mm is not "
-                              f"reachable ({ik.reason[bad]}), expected a path inside the workspace")
+            raise ConfigError(
+                f"{path.shape} path: point ({', '.join(f'{v:.2f}' for v in points[bad])}) mm is not "
+                f"reachable ({ik.reason[bad]}), expected a path inside the workspace"
+            )
         joints = np.asarray(ik.joints, dtype=float)
         middle = kinematics.fk((joints[:-1] + joints[1:]) / 2)
         error = float(path.distance_mm(np.asarray(middle.pose, dtype=float)[:, :3]).max())
@@ -157,5 +161,7 @@ def segment_path(path: CommandedPath, kinematics, *, max_segment_mm: float, chor
             return Segmentation(points, error, joints)
         count *= 2
         if count > max_segments:
-            raise ConfigError(f"{path.shape} path: chord_error_mm = {chord_error_mm:g} needs more than "
-                              f"{max_segments} segments, expected a looser bound")
+            raise ConfigError(
+                f"{path.shape} path: chord_error_mm = {chord_error_mm:g} needs more than "
+                f"{max_segments} segments, expected a looser bound"
+            )

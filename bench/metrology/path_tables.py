@@ -87,16 +87,24 @@ def analyze_multidirectional(table: pd.DataFrame) -> list[MultidirectionalResult
     for label, pose, conditions, rows in condition_groups(grouped):
         directions = tuple(sorted(rows["direction"].unique()))
         if len(directions) < 2:
-            raise ConfigError(f"{source}: pose {pose!r} has {len(directions)} approach direction(s) "
-                              f"({', '.join(directions)}), expected labels like {pose}/+x, {pose}/-y, {pose}/+z")
+            raise ConfigError(
+                f"{source}: pose {pose!r} has {len(directions)} approach direction(s) "
+                f"({', '.join(directions)}), expected labels like {pose}/+x, {pose}/-y, {pose}/+z"
+            )
         clouds = [rows[rows["direction"] == d] for d in directions]
-        orientation = (orientation_multidirectional_variation([c[angles].to_numpy() for c in clouds])
-                       if angles else None)
-        results.append(MultidirectionalResult(
-            label=label, pose=pose, conditions=conditions, directions=directions,
-            n_per_direction=tuple(len(c) for c in clouds),
-            position=multidirectional_variation([c[positions].to_numpy() for c in clouds]),
-            orientation=orientation, angle_names=tuple(a[0] for a in angles)))
+        orientation = orientation_multidirectional_variation([c[angles].to_numpy() for c in clouds]) if angles else None
+        results.append(
+            MultidirectionalResult(
+                label=label,
+                pose=pose,
+                conditions=conditions,
+                directions=directions,
+                n_per_direction=tuple(len(c) for c in clouds),
+                position=multidirectional_variation([c[positions].to_numpy() for c in clouds]),
+                orientation=orientation,
+                angle_names=tuple(a[0] for a in angles),
+            )
+        )
     return results
 
 
@@ -123,9 +131,15 @@ def path_table(frame: pd.DataFrame) -> pd.DataFrame:
 def path_cycles(table: pd.DataFrame) -> list[PathCycle]:
     """The cycles of a checked path table, in cycle order, each in time order."""
     positions, angles = _positions(table), _angles(table)
-    return [PathCycle(int(cycle), rows["t_s"].to_numpy(float), rows[positions].to_numpy(float),
-                      rows[angles].to_numpy(float) if angles else None)
-            for cycle, rows in table.groupby("cycle", sort=True)]
+    return [
+        PathCycle(
+            int(cycle),
+            rows["t_s"].to_numpy(float),
+            rows[positions].to_numpy(float),
+            rows[angles].to_numpy(float) if angles else None,
+        )
+        for cycle, rows in table.groupby("cycle", sort=True)
+    ]
 
 
 def station_table(frame: pd.DataFrame) -> tuple[np.ndarray, np.ndarray | None, tuple[str, ...]]:
@@ -149,6 +163,7 @@ def positioning_steps(frame: pd.DataFrame) -> tuple[tuple[int, ...], list[list[t
     numbers, steps = [], []
     for step, rows in table.groupby("step", sort=True):
         numbers.append(int(step))
-        steps.append([(r["t_s"].to_numpy(float), r[positions].to_numpy(float))
-                      for _, r in rows.groupby("cycle", sort=True)])
+        steps.append(
+            [(r["t_s"].to_numpy(float), r[positions].to_numpy(float)) for _, r in rows.groupby("cycle", sort=True)]
+        )
     return tuple(numbers), steps

@@ -164,9 +164,18 @@ def _read_regular_csv(path: Path, numeric: Sequence[str]) -> pd.DataFrame | None
         try:
             with warnings.catch_warnings():  # pandas drops a first row's extra fields with a warning: refused
                 warnings.simplefilter("error", pd.errors.ParserWarning)
-                frame = pd.read_csv(handle, header=0, names=header, dtype=types, keep_default_na=False,
-                                    na_values=[], skipinitialspace=True, index_col=False, engine="c",
-                                    encoding="utf-8")
+                frame = pd.read_csv(
+                    handle,
+                    header=0,
+                    names=header,
+                    dtype=types,
+                    keep_default_na=False,
+                    na_values=[],
+                    skipinitialspace=True,
+                    index_col=False,
+                    engine="c",
+                    encoding="utf-8",
+                )
         except (ValueError, UnicodeDecodeError, pd.errors.ParserError, pd.errors.ParserWarning):
             return None  # a cell that is not a number, bad bytes, a row with too many fields
     if frame.empty or any(frame[column].isna().any() for column in header):
@@ -210,8 +219,10 @@ def numeric_columns(frame: pd.DataFrame, columns: Sequence[str], *, required: bo
             finite = np.isfinite(frame[column].to_numpy())
             if not finite.all():
                 index = frame.index[int(np.argmin(finite))]
-                raise ConfigError(f"{source}: row {int(index) + 1}, column {column}: "
-                                  f"{str(frame.at[index, column])!r} is not a finite number")
+                raise ConfigError(
+                    f"{source}: row {int(index) + 1}, column {column}: "
+                    f"{str(frame.at[index, column])!r} is not a finite number"
+                )
             continue
         text = frame[column].astype(str).str.strip()
         values = pd.to_numeric(text, errors="coerce")
@@ -242,8 +253,10 @@ def pose_table(frame: pd.DataFrame, *, partial_axes: bool = False) -> pd.DataFra
     filled. By default all three are required (the distance, drift and path analyses need them)."""
     source = frame.attrs.get("source", "table")
     if partial_axes and not measured_axes(frame):
-        raise ConfigError(f"{source}: missing column(s) {', '.join(_ATTAINED)}; found {', '.join(frame.columns)}, "
-                          "expected at least one measured position axis")
+        raise ConfigError(
+            f"{source}: missing column(s) {', '.join(_ATTAINED)}; found {', '.join(frame.columns)}, "
+            "expected at least one measured position axis"
+        )
     for command, attained in ANGLE_PAIRS:
         if attained in frame.columns and command not in frame.columns:
             raise ConfigError(f"{source}: column {attained} given without {command}")
@@ -458,8 +471,9 @@ def analyze_distance(table: pd.DataFrame, first_pose: str, second_pose: str) -> 
     )
 
 
-def analyze_orientation_distance(table: pd.DataFrame, first_pose: str,
-                                 second_pose: str) -> tuple[tuple[str, ...], OrientationDistanceCharacteristics] | None:
+def analyze_orientation_distance(
+    table: pd.DataFrame, first_pose: str, second_pose: str
+) -> tuple[tuple[str, ...], OrientationDistanceCharacteristics] | None:
     """AD_a/b/c and RD_a/b/c between two poses, paired by cycle (ISO 9283 7.3), for the angles the table has:
     ``(("a", "b"), result)``, or None without angle columns."""
     pairs = [(c, a) for c, a in ANGLE_PAIRS if a in table.columns]
@@ -471,8 +485,11 @@ def analyze_orientation_distance(table: pd.DataFrame, first_pose: str,
     for rows in (first, second):
         _check_constant_command(rows.reset_index(), commanded, source)
     return tuple(a[0] for a in attained), orientation_distance_characteristics(
-        first.loc[cycles, attained].to_numpy(), second.loc[cycles, attained].to_numpy(),
-        first[commanded].to_numpy()[0], second[commanded].to_numpy()[0])
+        first.loc[cycles, attained].to_numpy(),
+        second.loc[cycles, attained].to_numpy(),
+        first[commanded].to_numpy()[0],
+        second[commanded].to_numpy()[0],
+    )
 
 
 # -- streamed arrivals: position stabilisation time and overshoot (ISO 9283 7.4, 7.5) ---------------------------------
@@ -514,16 +531,21 @@ def stabilisation_results(table: pd.DataFrame, bands_mm: Sequence[float], hyster
     :func:`~bench.metrology.iso9283_dynamics.pose_stabilisation`. The one grouping that ``bench analyze
     stabilisation`` and the stabilisation report share.
     """
-    series = {label: tuple((int(cycle), arrival["t_s"].to_numpy(float), arrival[list(_ATTAINED)].to_numpy(float))
-                           for cycle, arrival in rows.groupby("cycle", sort=True))
-              for label, _, _, rows in condition_groups(table)}
+    series = {
+        label: tuple(
+            (int(cycle), arrival["t_s"].to_numpy(float), arrival[list(_ATTAINED)].to_numpy(float))
+            for cycle, arrival in rows.groupby("cycle", sort=True)
+        )
+        for label, _, _, rows in condition_groups(table)
+    }
     bands: dict[float, dict[str, PoseStabilisation | str]] = {}
     for band in bands_mm:
         per_group = bands[float(band)] = {}
         for label, arrivals in series.items():
             try:
-                per_group[label] = pose_stabilisation([(t, p) for _, t, p in arrivals], band_mm=band,
-                                                      hysteresis_mm=hysteresis_mm)
+                per_group[label] = pose_stabilisation(
+                    [(t, p) for _, t, p in arrivals], band_mm=band, hysteresis_mm=hysteresis_mm
+                )
             except InsufficientData as exc:
                 per_group[label] = str(exc)
     return StabilisationResults(series, bands)

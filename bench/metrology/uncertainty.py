@@ -167,15 +167,22 @@ def accuracy_uncertainty(attained_mm, commanded_mm, *, instrument_u_mm: float = 
     if norm == 0:
         weights[np.argmax(u_axes)] = 1.0
     u_norm = float(np.sqrt(np.sum(weights * u_axes**2)))
-    axes = tuple(expanded(d, u, unit="mm", k=coverage_factor(k, welch_satterthwaite([math.sqrt(a), instrument_u_mm],
-                                                                                   [n - 1, math.inf])))
-                 for d, u, a in zip(deviation, u_axes, type_a))
+    axes = tuple(
+        expanded(
+            d,
+            u,
+            unit="mm",
+            k=coverage_factor(k, welch_satterthwaite([math.sqrt(a), instrument_u_mm], [n - 1, math.inf])),
+        )
+        for d, u, a in zip(deviation, u_axes, type_a)
+    )
     nu_norm = welch_satterthwaite([*np.sqrt(weights * type_a), instrument_u_mm], [*[n - 1] * len(type_a), math.inf])
     return expanded(norm, u_norm, unit="mm", k=coverage_factor(k, nu_norm)), axes
 
 
-def distance_accuracy_uncertainty(ad_mm: float, u_ad_mm: float, n: int, *, instrument_u_mm: float = 0.0,
-                                  k: float = 2.0) -> Measured:
+def distance_accuracy_uncertainty(
+    ad_mm: float, u_ad_mm: float, n: int, *, instrument_u_mm: float = 0.0, k: float = 2.0
+) -> Measured:
     """Expanded uncertainty of AD (ISO 9283 7.3): the scatter of the D_j and twice the instrument (a distance is
     the difference of two uncorrelated readings), at Student's factor for the Welch-Satterthwaite ν_eff.
 
@@ -266,7 +273,7 @@ def repeatability_uncertainty(attained_mm, *, resamples: int = 1000, seed: int =
         count = min(chunk, resamples - first)
         samples = points[rng.integers(0, n, size=(count, n))]
         distances = np.sqrt(np.sum((samples - samples.mean(axis=1, keepdims=True)) ** 2, axis=2))
-        rp[first:first + count] = distances.mean(axis=1) + 3.0 * distances.std(axis=1, ddof=1)
+        rp[first : first + count] = distances.mean(axis=1) + 3.0 * distances.std(axis=1, ddof=1)
     return float(rp.std(ddof=1))
 
 
@@ -304,9 +311,10 @@ def repeatability_uncertainty_delta(attained_mm) -> float:
     deviation = distances - mean_l
     mean_u = units.mean(axis=0)
     mean_w = (deviation[:, None] * units).mean(axis=0)
-    influence = (deviation - offsets @ mean_u
-                 + 3.0 / (2.0 * spread) * (deviation ** 2 - spread ** 2 - 2.0 * (offsets @ mean_w)))
-    return float(np.sqrt(np.sum(influence ** 2)) / n)
+    influence = (
+        deviation - offsets @ mean_u + 3.0 / (2.0 * spread) * (deviation**2 - spread**2 - 2.0 * (offsets @ mean_w))
+    )
+    return float(np.sqrt(np.sum(influence**2)) / n)
 
 
 def instrument_rp_floor(sigma_mm: float, *, dims: int) -> float:

@@ -8,17 +8,35 @@ every sample at once in a :class:`bench.store.Store`.
 
 from bench.protocols import actuator, delta, dissertation, iso9283, iterative, path, positioning_time  # noqa: F401 - registers the protocol library
 from bench.protocols.base import (
-           PROTOCOLS,
-           Protocol,
-           load_protocol,
-           protocol_from_config,
-           register,
+    PROTOCOLS,
+    Protocol,
+    load_protocol,
+    protocol_from_config,
+    register,
 )
 from bench.protocols.plan import PlanSummary, preflight, summarize
-from bench.rigs.interfaces import Measurement, Rig
 from bench.protocols.runner import Runner, RunResult, RunState, TransitionError
+from bench.rigs.interfaces import Measurement, Rig
 from bench.steps import Capture, Checkpoint, Move, Prompt, Settle
 
-__all__ = ["PROTOCOLS", "Capture", "Checkpoint", "Measurement", "Move", "PlanSummary", "Prompt", "Protocol", "Rig",
-           "RunResult", "RunState", "Runner", "Settle", "TransitionError", "load_protocol", "preflight",
-           "protocol_from_config", "register", "summarize"]
+__all__ = [
+    "PROTOCOLS",
+    "Capture",
+    "Checkpoint",
+    "Measurement",
+    "Move",
+    "PlanSummary",
+    "Prompt",
+    "Protocol",
+    "Rig",
+    "RunResult",
+    "RunState",
+    "Runner",
+    "Settle",
+    "TransitionError",
+    "load_protocol",
+    "preflight",
+    "protocol_from_config",
+    "register",
+    "summarize",
+]

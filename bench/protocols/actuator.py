@@ -46,43 +46,72 @@ class ActuatorAccuracy(Protocol):
     title = "Linear-actuator accuracy and repeatability (000 §8.4, Tables A.1-A.7, 8-1)"
     robots = ("pkm5",)
 
-    fixture = ChoiceParameter("actuator-bench", choices=("actuator-bench",),
-                              description="the actuators free-standing; single-axis moves are refused otherwise")
+    fixture = ChoiceParameter(
+        "actuator-bench",
+        choices=("actuator-bench",),
+        description="the actuators free-standing; single-axis moves are refused otherwise",
+    )
     actuators = FloatListParameter((1, 2, 3, 4, 5, 6), minimum=1, maximum=6, description="actuators tested, 1-6")
-    distances_mm = FloatListParameter(ACTUATOR_TRAVELS_MM, unit="mm", minimum=0.1, maximum=STROKE_MM,
-                                      description="commanded travels (000: 10, 20, 30, 40, 50 mm)")
+    distances_mm = FloatListParameter(
+        ACTUATOR_TRAVELS_MM,
+        unit="mm",
+        minimum=0.1,
+        maximum=STROKE_MM,
+        description="commanded travels (000: 10, 20, 30, 40, 50 mm)",
+    )
     repeats = IntegerParameter(ACTUATOR_REPEATS, minimum=2, description="repeats per travel (000: 10)")
-    start_mm = FloatParameter(5.0, unit="mm", minimum=0.0, maximum=STROKE_MM,
-                              description="stroke where the gauge is zeroed, mm from full retraction (home: 5 mm)")
+    start_mm = FloatParameter(
+        5.0,
+        unit="mm",
+        minimum=0.0,
+        maximum=STROKE_MM,
+        description="stroke where the gauge is zeroed, mm from full retraction (home: 5 mm)",
+    )
     velocity_pct = FloatParameter(100.0, unit="%", minimum=0.1, maximum=100.0, description="velocity")
     settle_s = FloatParameter(1.0, unit="s", minimum=0.0, maximum=600.0, description="dwell before a reading")
-    approach = ChoiceParameter("up", choices=("up", "bidirectional"),
-                               description="up: every target from below (000 §8.4); bidirectional: ISO 230-2 "
-                                           "linear cycles, each target approached up and down")
-    cycles = IntegerParameter(ISO230_2_CYCLES, minimum=2,
-                              description="bidirectional cycles: approaches per target and direction (ISO 230-2: 5)")
-    overrun_mm = FloatParameter(2.0, unit="mm", minimum=0.0, maximum=10.0,
-                                description="bidirectional: travel past the last target before each reversal")
+    approach = ChoiceParameter(
+        "up",
+        choices=("up", "bidirectional"),
+        description="up: every target from below (000 §8.4); bidirectional: ISO 230-2 "
+        "linear cycles, each target approached up and down",
+    )
+    cycles = IntegerParameter(
+        ISO230_2_CYCLES,
+        minimum=2,
+        description="bidirectional cycles: approaches per target and direction (ISO 230-2: 5)",
+    )
+    overrun_mm = FloatParameter(
+        2.0,
+        unit="mm",
+        minimum=0.0,
+        maximum=10.0,
+        description="bidirectional: travel past the last target before each reversal",
+    )
 
     def validate(self) -> None:
         if any(a != int(a) for a in self.actuators) or len(set(self.actuators)) != len(self.actuators):
-            raise ConfigError(f"{self.source}: actuators = {list(self.actuators)}, expected distinct whole numbers "
-                              "1-6")
+            raise ConfigError(f"{self.source}: actuators = {list(self.actuators)}, expected distinct whole numbers 1-6")
         if self.approach == "bidirectional":
             low, high = self._reversals()
             if low < 0.0 or high > STROKE_MM:
-                raise ConfigError(f"{self.source}: overrun_mm = {self.overrun_mm:g}: the reversals at {low:g} and "
-                                  f"{high:g} mm stroke, expected both within 0-{STROKE_MM:g} mm (the actuator's "
-                                  "stroke)")
+                raise ConfigError(
+                    f"{self.source}: overrun_mm = {self.overrun_mm:g}: the reversals at {low:g} and "
+                    f"{high:g} mm stroke, expected both within 0-{STROKE_MM:g} mm (the actuator's "
+                    "stroke)"
+                )
         if self.start_mm + max(self.distances_mm) > STROKE_MM:
-            raise ConfigError(f"{self.source}: start_mm + max(distances_mm) = "
-                              f"{self.start_mm + max(self.distances_mm):g} mm, expected <= {STROKE_MM:g} mm "
-                              "(the actuator's stroke)")
+            raise ConfigError(
+                f"{self.source}: start_mm + max(distances_mm) = "
+                f"{self.start_mm + max(self.distances_mm):g} mm, expected <= {STROKE_MM:g} mm "
+                "(the actuator's stroke)"
+            )
 
     def _reversals(self) -> tuple[float, float]:
         """Strokes of the two reversals of a bidirectional cycle: below the lowest target, past the highest (mm)."""
-        return (min(self.start_mm, self.start_mm + min(self.distances_mm) - self.overrun_mm),
-                self.start_mm + max(self.distances_mm) + self.overrun_mm)
+        return (
+            min(self.start_mm, self.start_mm + min(self.distances_mm) - self.overrun_mm),
+            self.start_mm + max(self.distances_mm) + self.overrun_mm,
+        )
 
     def steps(self) -> Plan:
         if self.approach == "bidirectional":
@@ -92,16 +121,26 @@ class ActuatorAccuracy(Protocol):
             for distance in self.distances_mm:
                 label = f"A{axis}/{distance:g}mm"
                 yield ActuatorMove(axis, self.start_mm, self.velocity_pct, f"A{axis}/start")
-                yield Prompt(f"Actuator {axis} at {self.start_mm:g} mm stroke: zero the depth gauge on it, then "
-                             "confirm", conditions={"zero_actuator": axis})
+                yield Prompt(
+                    f"Actuator {axis} at {self.start_mm:g} mm stroke: zero the depth gauge on it, then confirm",
+                    conditions={"zero_actuator": axis},
+                )
                 for repeat in range(1, self.repeats + 1):
                     yield ActuatorMove(axis, self.start_mm, self.velocity_pct, f"A{axis}/start")
                     yield ActuatorMove(axis, self.start_mm + distance, self.velocity_pct, label)
                     yield Settle(self.settle_s)
-                    yield Prompt(f"Actuator {axis}, {distance:g} mm, repeat {repeat}: depth gauge travel",
-                                 field="travel_mm", unit="mm", minimum=-1.0, maximum=STROKE_MM + 1.0, pose=label,
-                                 cycle=repeat, kind="actuator_travel", commanded={"cmd_travel_mm": distance},
-                                 conditions={"actuator": axis, "velocity_pct": self.velocity_pct})
+                    yield Prompt(
+                        f"Actuator {axis}, {distance:g} mm, repeat {repeat}: depth gauge travel",
+                        field="travel_mm",
+                        unit="mm",
+                        minimum=-1.0,
+                        maximum=STROKE_MM + 1.0,
+                        pose=label,
+                        cycle=repeat,
+                        kind="actuator_travel",
+                        commanded={"cmd_travel_mm": distance},
+                        conditions={"actuator": axis, "velocity_pct": self.velocity_pct},
+                    )
                 yield Checkpoint(f"actuator {axis}, {distance:g} mm")
 
     def _bidirectional_steps(self) -> Plan:
@@ -111,8 +150,10 @@ class ActuatorAccuracy(Protocol):
         travels = sorted(self.distances_mm)
         for axis in (int(a) for a in self.actuators):
             yield ActuatorMove(axis, self.start_mm, self.velocity_pct, f"A{axis}/start")
-            yield Prompt(f"Actuator {axis} at {self.start_mm:g} mm stroke: zero the depth gauge on it, then confirm",
-                         conditions={"zero_actuator": axis})
+            yield Prompt(
+                f"Actuator {axis} at {self.start_mm:g} mm stroke: zero the depth gauge on it, then confirm",
+                conditions={"zero_actuator": axis},
+            )
             for cycle in range(1, self.cycles + 1):
                 yield ActuatorMove(axis, low, self.velocity_pct, f"A{axis}/below")
                 for direction, order in ((1, travels), (-1, travels[::-1])):
@@ -127,11 +168,19 @@ class ActuatorAccuracy(Protocol):
         label = f"A{axis}/{distance:g}mm{arrow}"
         yield ActuatorMove(axis, self.start_mm + distance, self.velocity_pct, label)
         yield Settle(self.settle_s)
-        yield Prompt(f"Actuator {axis}, {distance:g} mm approached {'up' if direction > 0 else 'down'} ({arrow}), "
-                     f"cycle {cycle}: depth gauge travel", field="travel_mm", unit="mm", minimum=-1.0,
-                     maximum=STROKE_MM + 1.0, pose=label, cycle=cycle, kind="actuator_travel",
-                     commanded={"cmd_travel_mm": distance},
-                     conditions={"actuator": axis, "velocity_pct": self.velocity_pct, "direction": direction})
+        yield Prompt(
+            f"Actuator {axis}, {distance:g} mm approached {'up' if direction > 0 else 'down'} ({arrow}), "
+            f"cycle {cycle}: depth gauge travel",
+            field="travel_mm",
+            unit="mm",
+            minimum=-1.0,
+            maximum=STROKE_MM + 1.0,
+            pose=label,
+            cycle=cycle,
+            kind="actuator_travel",
+            commanded={"cmd_travel_mm": distance},
+            conditions={"actuator": axis, "velocity_pct": self.velocity_pct, "direction": direction},
+        )
 
     def final_steps(self) -> Plan:
         from motion import pkm5
@@ -152,6 +201,8 @@ def actuator_results(store: Any, run_id: int) -> dict[int, Any]:
     from bench.store import tidy_table
 
     robot = store.run(run_id).robot
-    results = analyze_actuators(actuator_table(tidy_table(store, run_id, kind="actuator_travel")),
-                                control_resolution_mm=robot_control_resolution(robot))
+    results = analyze_actuators(
+        actuator_table(tidy_table(store, run_id, kind="actuator_travel")),
+        control_resolution_mm=robot_control_resolution(robot),
+    )
     return {int(r.actuator): r.groover for r in results}

@@ -48,9 +48,13 @@ class Protocol:
     design_keys: ClassVar[tuple[str, ...]] = ()
 
     robot = ChoiceParameter("pkm5", choices=robot_names, description="robot the protocol drives")
-    min_inverse_condition = FloatParameter(DEFAULT_SINGULARITY_THRESHOLD, minimum=0.0, maximum=1.0,
-                                           description="pre-flight refuses targets whose Jacobian inverse condition "
-                                                       "number is below this (singularity proximity)")
+    min_inverse_condition = FloatParameter(
+        DEFAULT_SINGULARITY_THRESHOLD,
+        minimum=0.0,
+        maximum=1.0,
+        description="pre-flight refuses targets whose Jacobian inverse condition "
+        "number is below this (singularity proximity)",
+    )
 
     def __init__(self, source: str = "parameters", **values: Any) -> None:
         self.source = source
@@ -60,8 +64,9 @@ class Protocol:
                 raise ConfigError(f"{source}: unknown key {key!r}, expected one of {', '.join(sorted(known))}")
             setattr(self, key, value)
         if self.robots is not None and self.robot not in self.robots:
-            raise ConfigError(f"{source}: robot = {self.robot!r}, expected one of {', '.join(self.robots)} "
-                              f"for protocol {self.name!r}")
+            raise ConfigError(
+                f"{source}: robot = {self.robot!r}, expected one of {', '.join(self.robots)} for protocol {self.name!r}"
+            )
         self.validate()
 
     def __repr__(self) -> str:

@@ -54,8 +54,12 @@ class DeltaPositioning(_DeltaProtocol):
     title = "Delta robot positioning test (thesis §8.4.2), 3 poses x 15"
 
     cycles = IntegerParameter(POSITIONING_READINGS, minimum=2, description="readings per pose (thesis: 15)")
-    poses = PoseTableParameter(POSITIONING_POSES, min_width=3, max_width=3,
-                               description="labelled poses, mm (thesis: (0,0,-20), (-7,-7,-18), (5,-5,-16) cm)")
+    poses = PoseTableParameter(
+        POSITIONING_POSES,
+        min_width=3,
+        max_width=3,
+        description="labelled poses, mm (thesis: (0,0,-20), (-7,-7,-18), (5,-5,-16) cm)",
+    )
 
     def steps(self) -> Plan:
         for cycle in range(1, self.cycles + 1):
@@ -79,13 +83,25 @@ class LaserGridHits(_DeltaProtocol):
     title = "Laser-grid hit repeatability (thesis §8.4.3), 16 sensors x 25 attempts"
 
     attempts = IntegerParameter(GRID_HIT_ATTEMPTS, minimum=1, description="attempts per sensor and height (thesis: 25)")
-    heights_mm = FloatListParameter((-140.0, -170.0, -200.0), unit="mm", minimum=-260.0, maximum=-100.0,
-                                    description="z of the end effector (thesis: 14, 17, 20 cm below the base)")
+    heights_mm = FloatListParameter(
+        (-140.0, -170.0, -200.0),
+        unit="mm",
+        minimum=-260.0,
+        maximum=-100.0,
+        description="z of the end effector (thesis: 14, 17, 20 cm below the base)",
+    )
     spread = IntegerParameter(4, minimum=1, maximum=16, description="sensors per side of the tested spread")
-    offset_mm = FloatListParameter(GRID_OFFSET_MM, length=2, unit="mm", minimum=0.0, maximum=50.0,
-                                   description="range of the random re-approach offset")
-    seed = IntegerParameter(0, minimum=0, maximum=2**63 - 1,
-                            description="seed of the re-approach offsets (the plan is reproducible)")
+    offset_mm = FloatListParameter(
+        GRID_OFFSET_MM,
+        length=2,
+        unit="mm",
+        minimum=0.0,
+        maximum=50.0,
+        description="range of the random re-approach offset",
+    )
+    seed = IntegerParameter(
+        0, minimum=0, maximum=2**63 - 1, description="seed of the re-approach offsets (the plan is reproducible)"
+    )
 
     def steps(self) -> Plan:
         rng = np.random.default_rng(self.seed)
@@ -99,6 +115,11 @@ class LaserGridHits(_DeltaProtocol):
                     yield Move((x + radius * np.cos(angle), y + radius * np.sin(angle), z), 100.0, f"{label}/pre")
                     yield Move((x, y, z), 100.0, label)
                     yield Settle(self.settle_s)
-                    yield Capture(label, attempt, kind="grid_hit", commanded=commanded_values((x, y, z)),
-                                  conditions={"expected_i": i, "expected_j": j})
+                    yield Capture(
+                        label,
+                        attempt,
+                        kind="grid_hit",
+                        commanded=commanded_values((x, y, z)),
+                        conditions={"expected_i": i, "expected_j": j},
+                    )
                 yield Checkpoint(f"sensor ({i}, {j}) at z = {z:g} mm")

@@ -14,7 +14,6 @@
 
 from __future__ import annotations
 
-import itertools
 import logging
 from typing import Any
 
@@ -22,6 +21,7 @@ import numpy as np
 
 from bench.errors import ConfigError
 from bench.metrology.documents import LADDER_KG, LADDER_LIFT_MM, PAYLOAD_FAILURE_KG
+from bench.metrology.mouse_calibration import mouse_calibration_moves
 from bench.protocols.base import Protocol, register
 from bench.protocols.kinematics import robot_model
 from bench.protocols.parameters import (
@@ -41,28 +41,70 @@ from bench.steps import (
     commanded_values,
 )
 
-__all__ = ["DissertationPose", "MouseCalibration", "PayloadLadder", "mouse_calibration_moves",
-           "mouse_calibration_text", "store_mouse_calibration"]
+__all__ = [
+    "DissertationPose",
+    "MouseCalibration",
+    "PayloadLadder",
+    "mouse_calibration_moves",
+    "mouse_calibration_text",
+    "store_mouse_calibration",
+]
 
 _log = logging.getLogger(__name__)
 
 #: 000 Table A.11 (translation), A.12 (alpha, deg) and A.13 (beta, deg): x, y, z in mm, angle in degrees.
 POINTS = {
-    "translation": [(170.67, -91.43, 268.83), (171.83, -98.75, 264.29), (163.49, -86.82, 275.46),
-                    (167.59, -36.14, 293.74), (174.87, -47.07, 293.64), (151.93, -71.93, 292.72),
-                    (110.52, -0.19, 305.5), (99.12, -18.53, 345.4), (177.3, 19.54, 294.36),
-                    (139.28, 33.52, 312.11), (142.83, 46.43, 302.21), (145.77, 67.62, 304.64),
-                    (160.7, 86.19, 281.34), (130.6, 91.48, 297.3), (130.06, 105.95, 292.9)],
-    "alpha": [(111.31, -80.44, 311.76, -7.39), (111.31, -89.17, 296.29, -5), (111.31, -83.08, 302.83, 5),
-              (111.31, -45.29, 310.77, -15.82), (111.31, -33.65, 309.97, 12.26), (111.31, -68.9, 299.1, -7.09),
-              (111.31, -4.66, 310.83, 15), (111.31, -26.81, 311.43, -20), (111.31, -0.26, 311.09, 5),
-              (111.31, 31.15, 317.07, 16.7), (111.31, 77.88, 304.67, 20.25), (111.31, 46.86, 309.34, -9.78),
-              (111.31, 89.04, 305.48, 10.41), (111.31, 103.97, 299.41, 8.78), (111.31, 84.59, 306.17, -2.3)],
-    "beta": [(124.47, -90.11, 287.16, 10.11), (101.57, -97.88, 314.82, -5.52), (105.16, -93.48, 322.4, -12.64),
-             (105.45, -33.76, 317.56, 8.57), (113.84, -31.64, 308.17, 15.11), (97.84, -54.65, 322.13, -9.43),
-             (164.34, -15, 305.66, -11.02), (164.48, 15.15, 296.16, -17.46), (138.51, 23.44, 304.56, 9.33),
-             (111.03, 43.04, 308.45, 12.93), (135.94, 29.14, 319.64, -12.48), (137.56, 51.8, 315.32, -4),
-             (123.69, 91.82, 287.49, 11.87), (151.61, 95.94, 273.93, 6.89), (142.28, 84.02, 301.35, -7.8)],
+    "translation": [
+        (170.67, -91.43, 268.83),
+        (171.83, -98.75, 264.29),
+        (163.49, -86.82, 275.46),
+        (167.59, -36.14, 293.74),
+        (174.87, -47.07, 293.64),
+        (151.93, -71.93, 292.72),
+        (110.52, -0.19, 305.5),
+        (99.12, -18.53, 345.4),
+        (177.3, 19.54, 294.36),
+        (139.28, 33.52, 312.11),
+        (142.83, 46.43, 302.21),
+        (145.77, 67.62, 304.64),
+        (160.7, 86.19, 281.34),
+        (130.6, 91.48, 297.3),
+        (130.06, 105.95, 292.9),
+    ],
+    "alpha": [
+        (111.31, -80.44, 311.76, -7.39),
+        (111.31, -89.17, 296.29, -5),
+        (111.31, -83.08, 302.83, 5),
+        (111.31, -45.29, 310.77, -15.82),
+        (111.31, -33.65, 309.97, 12.26),
+        (111.31, -68.9, 299.1, -7.09),
+        (111.31, -4.66, 310.83, 15),
+        (111.31, -26.81, 311.43, -20),
+        (111.31, -0.26, 311.09, 5),
+        (111.31, 31.15, 317.07, 16.7),
+        (111.31, 77.88, 304.67, 20.25),
+        (111.31, 46.86, 309.34, -9.78),
+        (111.31, 89.04, 305.48, 10.41),
+        (111.31, 103.97, 299.41, 8.78),
+        (111.31, 84.59, 306.17, -2.3),
+    ],
+    "beta": [
+        (124.47, -90.11, 287.16, 10.11),
+        (101.57, -97.88, 314.82, -5.52),
+        (105.16, -93.48, 322.4, -12.64),
+        (105.45, -33.76, 317.56, 8.57),
+        (113.84, -31.64, 308.17, 15.11),
+        (97.84, -54.65, 322.13, -9.43),
+        (164.34, -15, 305.66, -11.02),
+        (164.48, 15.15, 296.16, -17.46),
+        (138.51, 23.44, 304.56, 9.33),
+        (111.03, 43.04, 308.45, 12.93),
+        (135.94, 29.14, 319.64, -12.48),
+        (137.56, 51.8, 315.32, -4),
+        (123.69, 91.82, 287.49, 11.87),
+        (151.61, 95.94, 273.93, 6.89),
+        (142.28, 84.02, 301.35, -7.8),
+    ],
 }
 
 
@@ -90,12 +132,20 @@ class DissertationPose(Protocol):
     cycles = IntegerParameter(10, minimum=2, description="repeats per point (000: 10)")
     velocity_pct = FloatParameter(100.0, unit="%", minimum=0.1, maximum=100.0, description="velocity")
     settle_s = FloatParameter(1.0, unit="s", minimum=0.0, maximum=600.0, description="dwell before a reading")
-    tilt_entry = ChoiceParameter("angle", choices=("angle", "depths"),
-                                 description="alpha/beta: the operator enters the tilt (deg), or the two calliper "
-                                             "depths through the bracket holes (mm; the tilt is derived in the "
-                                             "analysis, raw data first)")
-    hole_spacing_mm = FloatParameter(40.0, unit="mm", minimum=1.0, maximum=500.0,
-                                     description="bracket hole spacing s: tilt = atan2(h2 - h1, s) (not stated in 000)")
+    tilt_entry = ChoiceParameter(
+        "angle",
+        choices=("angle", "depths"),
+        description="alpha/beta: the operator enters the tilt (deg), or the two calliper "
+        "depths through the bracket holes (mm; the tilt is derived in the "
+        "analysis, raw data first)",
+    )
+    hole_spacing_mm = FloatParameter(
+        40.0,
+        unit="mm",
+        minimum=1.0,
+        maximum=500.0,
+        description="bracket hole spacing s: tilt = atan2(h2 - h1, s) (not stated in 000)",
+    )
     design_keys = ("poses", "loads_kg")
 
     def config(self) -> dict:
@@ -113,20 +163,38 @@ class DissertationPose(Protocol):
                 yield Move(home, self.velocity_pct, "home")
                 yield Move(target, self.velocity_pct, _label(index))
                 yield Settle(self.settle_s)
-                yield Capture(_label(index), cycle, commanded=commanded_values(target[:3]),
-                              conditions={"velocity_pct": self.velocity_pct})
+                yield Capture(
+                    _label(index),
+                    cycle,
+                    commanded=commanded_values(target[:3]),
+                    conditions={"velocity_pct": self.velocity_pct},
+                )
                 if angle is not None and self.tilt_entry == "depths":
                     for hole in (1, 2):  # 000 §8.6.3 step 5: "the depth at two different points"
-                        yield Prompt(f"Point {_label(index)}, repeat {cycle}: calliper depth at hole {hole} "
-                                     f"({self.variant})", field=f"depth{hole}_mm", unit="mm", minimum=0.0,
-                                     maximum=300.0, pose=_label(index), cycle=cycle, kind="tilt_depth",
-                                     commanded={f"cmd_{angle}_deg": point[3]},
-                                     conditions={"hole_spacing_mm": self.hole_spacing_mm})
+                        yield Prompt(
+                            f"Point {_label(index)}, repeat {cycle}: calliper depth at hole {hole} ({self.variant})",
+                            field=f"depth{hole}_mm",
+                            unit="mm",
+                            minimum=0.0,
+                            maximum=300.0,
+                            pose=_label(index),
+                            cycle=cycle,
+                            kind="tilt_depth",
+                            commanded={f"cmd_{angle}_deg": point[3]},
+                            conditions={"hole_spacing_mm": self.hole_spacing_mm},
+                        )
                 elif angle is not None:
-                    yield Prompt(f"Point {_label(index)}, repeat {cycle}: calliper tilt {self.variant}",
-                                 field=f"{angle}_deg", unit="deg", minimum=-45.0, maximum=45.0, pose=_label(index),
-                                 cycle=cycle, kind="tilt",
-                                 commanded={f"cmd_{angle}_deg": point[3]})
+                    yield Prompt(
+                        f"Point {_label(index)}, repeat {cycle}: calliper tilt {self.variant}",
+                        field=f"{angle}_deg",
+                        unit="deg",
+                        minimum=-45.0,
+                        maximum=45.0,
+                        pose=_label(index),
+                        cycle=cycle,
+                        kind="tilt",
+                        commanded={f"cmd_{angle}_deg": point[3]},
+                    )
                 yield Checkpoint(f"point {_label(index)}, repeat {cycle}")
 
     def final_steps(self) -> Plan:
@@ -142,12 +210,23 @@ class PayloadLadder(Protocol):
     title = "Payload ladder (000 §8.7, Table A.14)"
     robots = ("pkm5",)
 
-    loads_kg = FloatListParameter(LADDER_KG, unit="kg", minimum=0.0, maximum=25.23,
-                                  description="load sequence (000 Table A.14); the structure failed on reload at 25 kg")
-    lift_mm = FloatParameter(LADDER_LIFT_MM, unit="mm", minimum=1.0, maximum=60.0, description="vertical lift (000 §8.7)")
-    start_mm = FloatListParameter((95.0, 0.0, 301.0), length=3, unit="mm",
-                                  description="pose before the lift (with the 60 mm leg windows only x ~ 70-120 mm, "
-                                              "z ~ 297-305 mm allow a 50.42 mm lift)")
+    loads_kg = FloatListParameter(
+        LADDER_KG,
+        unit="kg",
+        minimum=0.0,
+        maximum=25.23,
+        description="load sequence (000 Table A.14); the structure failed on reload at 25 kg",
+    )
+    lift_mm = FloatParameter(
+        LADDER_LIFT_MM, unit="mm", minimum=1.0, maximum=60.0, description="vertical lift (000 §8.7)"
+    )
+    start_mm = FloatListParameter(
+        (95.0, 0.0, 301.0),
+        length=3,
+        unit="mm",
+        description="pose before the lift (with the 60 mm leg windows only x ~ 70-120 mm, "
+        "z ~ 297-305 mm allow a 50.42 mm lift)",
+    )
     repeats = IntegerParameter(1, minimum=1, description="lifts per load (000: 1; reference §12.3: at least 3)")
     velocity_pct = FloatParameter(100.0, unit="%", minimum=0.1, maximum=100.0, description="velocity")
     settle_s = FloatParameter(1.0, unit="s", minimum=0.0, maximum=600.0, description="dwell before the readings")
@@ -157,9 +236,11 @@ class PayloadLadder(Protocol):
         over = [load for load in self.loads_kg if load >= PAYLOAD_FAILURE_KG]
         if not over:
             return ()
-        return (f"{self.source}: loads_kg {', '.join(f'{v:g}' for v in over)} kg reach the documented failure load "
-                f"{PAYLOAD_FAILURE_KG:g} kg (000 §8.7.5: the mouse bracket and end effector failed on reloading at "
-                f"25 kg); keep the top rung below your safe maximum",)
+        return (
+            f"{self.source}: loads_kg {', '.join(f'{v:g}' for v in over)} kg reach the documented failure load "
+            f"{PAYLOAD_FAILURE_KG:g} kg (000 §8.7.5: the mouse bracket and end effector failed on reloading at "
+            f"25 kg); keep the top rung below your safe maximum",
+        )
 
     def lifted(self) -> tuple[float, ...]:
         x, y, z = self.start_mm
@@ -168,6 +249,7 @@ class PayloadLadder(Protocol):
     def expected_legs_mm(self) -> np.ndarray:
         """Leg lengths |BC| the IK predicts at the lifted pose (the L_cmd of reference §12.1)."""
         from motion import pkm5
+
         return pkm5.inverse_kinematics(list(self.lifted()) + [0.0, 0.0]).lengths_mm[0]
 
     def steps(self) -> Plan:
@@ -179,10 +261,18 @@ class PayloadLadder(Protocol):
                 yield Move(self.lifted(), self.velocity_pct, "lift")
                 yield Settle(self.settle_s)
                 for leg in range(6):
-                    yield Prompt(f"Load {load:g} kg: calliper length of leg {leg + 1}", field="length_mm",
-                                 unit="mm", minimum=150.0, maximum=280.0, pose=f"{load:g}kg", cycle=repeat,
-                                 kind="leg_length", commanded={"cmd_length_mm": float(legs[leg])},
-                                 conditions={"load_kg": load, "leg": leg + 1})
+                    yield Prompt(
+                        f"Load {load:g} kg: calliper length of leg {leg + 1}",
+                        field="length_mm",
+                        unit="mm",
+                        minimum=150.0,
+                        maximum=280.0,
+                        pose=f"{load:g}kg",
+                        cycle=repeat,
+                        kind="leg_length",
+                        commanded={"cmd_length_mm": float(legs[leg])},
+                        conditions={"load_kg": load, "leg": leg + 1},
+                    )
             yield Move(robot_model(self.robot).home, self.velocity_pct, "home")
             yield Checkpoint(f"rung {rung}: {load:g} kg")
 
@@ -207,23 +297,43 @@ class MouseCalibration(Protocol):
     title = "Optical-mouse resolution calibration (000 App. A.7)"
     robots = ("pkm5",)
 
-    distances_mm = FloatListParameter((5.0, 10.0, 15.0, 20.0, 40.0), unit="mm", minimum=0.5, maximum=60.0,
-                                      description="step lengths (000: 5, 10, 15, 20, 40 mm)")
+    distances_mm = FloatListParameter(
+        (5.0, 10.0, 15.0, 20.0, 40.0),
+        unit="mm",
+        minimum=0.5,
+        maximum=60.0,
+        description="step lengths (000: 5, 10, 15, 20, 40 mm)",
+    )
     repeats = IntegerParameter(5, minimum=2, description="repeats per step length")
     start_mm = FloatListParameter((90.0, -20.0, 310.0), length=3, unit="mm", description="start of every step")
     velocity_pct = FloatParameter(100.0, unit="%", minimum=0.1, maximum=100.0, description="velocity")
     settle_s = FloatParameter(0.5, unit="s", minimum=0.0, maximum=600.0, description="dwell before a reading")
-    reference = ChoiceParameter(None, choices=("calliper", "calibrated-axis"),
-                                description="what the travel is known from (required): calliper readings, or the "
-                                            "commanded travel of an axis stated to be calibrated")
-    reference_u_pct = FloatParameter(None, unit="%", minimum=0.0, maximum=10.0,
-                                     description="the reference's relative standard uncertainty of scale (required)")
+    reference = ChoiceParameter(
+        None,
+        choices=("calliper", "calibrated-axis"),
+        description="what the travel is known from (required): calliper readings, or the "
+        "commanded travel of an axis stated to be calibrated",
+    )
+    reference_u_pct = FloatParameter(
+        None,
+        unit="%",
+        minimum=0.0,
+        maximum=10.0,
+        description="the reference's relative standard uncertainty of scale (required)",
+    )
 
     def validate(self) -> None:
         super().validate()
-        for key, expected in (("reference", ("'calliper' or 'calibrated-axis' (what the travel is known from; "
-                                              "the robot under test is no reference)")),
-                              ("reference_u_pct", "the reference's relative standard uncertainty of scale, %")):
+        for key, expected in (
+            (
+                "reference",
+                (
+                    "'calliper' or 'calibrated-axis' (what the travel is known from; "
+                    "the robot under test is no reference)"
+                ),
+            ),
+            ("reference_u_pct", "the reference's relative standard uncertainty of scale, %"),
+        ):
             if getattr(self, key) is None:
                 raise ConfigError(f"{self.source}: {key} missing, expected {expected}")
 
@@ -241,56 +351,41 @@ class MouseCalibration(Protocol):
                         commanded = {**commanded_values(target), "step_mm": distance}
                         yield Capture(label, repeat, kind="mouse", commanded=commanded)
                         if self.reference == "calliper":
-                            yield Prompt(f"Calliper: the end effector's {name} position against the fixed stop",
-                                         field="reference_mm", unit="mm", minimum=-1000.0, maximum=1000.0,
-                                         pose=label, cycle=repeat, kind="mouse_reference", commanded=commanded)
+                            yield Prompt(
+                                f"Calliper: the end effector's {name} position against the fixed stop",
+                                field="reference_mm",
+                                unit="mm",
+                                minimum=-1000.0,
+                                maximum=1000.0,
+                                pose=label,
+                                cycle=repeat,
+                                kind="mouse_reference",
+                                commanded=commanded,
+                            )
                     yield Checkpoint(f"{name} {distance:g} mm, repeat {repeat}")
 
     def on_completed(self, store: Any, run_id: int) -> None:
         record = store_mouse_calibration(store, run_id)
-        _log.warning("stored mouse calibration mouse-v%d: %s; not in force until a station names it "
-                     "([mice] calibration = %d)", record.version, mouse_calibration_text(record.params),
-                     record.version)
-
-
-def mouse_calibration_moves(samples: Any, references: Any = None) -> tuple[np.ndarray, np.ndarray]:
-    """The moves between consecutive readings of one step axis: reference displacements (K, 2) mm and the x-y
-    mouse's count increments (K, 2).
-
-    ``samples`` are the ``mouse`` samples in step order (pose ``<axis><mm>/<start|end>``); the reference position of
-    each is its calliper reading along the axis (``references``, ``mouse_reference`` samples matched by pose and
-    cycle) when given, else its commanded position. The moves back to a step's start count too (moves in both
-    directions: a start/stop offset is told from the scale).
-    """
-    readings = {(r.pose, r.cycle): r.values["reference_mm"] for r in references or ()}
-    reference, counts = [], []
-    for before, after in itertools.pairwise(samples):
-        axis = (after.pose or "?")[0]
-        if axis not in "xy" or (before.pose or "?")[0] != axis:
-            continue
-        index = "xy".index(axis)
-        if references is not None:
-            if (before.pose, before.cycle) not in readings or (after.pose, after.cycle) not in readings:
-                continue
-            travel = [0.0, 0.0]
-            travel[index] = readings[(after.pose, after.cycle)] - readings[(before.pose, before.cycle)]
-        else:
-            travel = [after.values[f"cmd_{a}_mm"] - before.values[f"cmd_{a}_mm"] for a in "xy"]
-        if abs(travel[index]) < 1e-9:
-            continue
-        reference.append(travel)
-        counts.append([after.values[f"mouse_xy_{a}_counts"] - before.values[f"mouse_xy_{a}_counts"] for a in "xy"])
-    return np.array(reference, dtype=float).reshape(-1, 2), np.array(counts, dtype=float).reshape(-1, 2)
+        _log.warning(
+            "stored mouse calibration mouse-v%d: %s; not in force until a station names it ([mice] calibration = %d)",
+            record.version,
+            mouse_calibration_text(record.params),
+            record.version,
+        )
 
 
 def mouse_calibration_text(params: dict[str, Any]) -> str:
     """One line of what a stored mouse calibration says: each scale with its U, and significant intercepts."""
     k = params.get("k", 2.0)
-    scales = ", ".join(f"{a} {params[f'{a}_mm_per_count']:.6f} ± {k * params[f'u_{a}_mm_per_count']:.1e} mm/count "
-                       f"({MM_PER_INCH / params[f'{a}_mm_per_count']:.1f} cpi)" for a in "xy")
+    scales = ", ".join(
+        f"{a} {params[f'{a}_mm_per_count']:.6f} ± {k * params[f'u_{a}_mm_per_count']:.1e} mm/count "
+        f"({MM_PER_INCH / params[f'{a}_mm_per_count']:.1f} cpi)"
+        for a in "xy"
+    )
     flagged = [f"{label} {value:+.2f} counts" for label, value in params.get("significant_intercepts", {}).items()]
-    return (f"{scales} (U, k = {k:.2f}); reference {params.get('reference', '?')}"
-            + (f"; significant start/stop intercepts: {', '.join(flagged)}" if flagged else ""))
+    return f"{scales} (U, k = {k:.2f}); reference {params.get('reference', '?')}" + (
+        f"; significant start/stop intercepts: {', '.join(flagged)}" if flagged else ""
+    )
 
 
 def store_mouse_calibration(store: Any, run_id: int, name: str = "mouse") -> Any:
@@ -309,10 +404,15 @@ def store_mouse_calibration(store: Any, run_id: int, name: str = "mouse") -> Any
         raise ConfigError(f"run {run_id}: {len(reference)} moves with both readings stored, expected >= 6")
     fit = fit_matrix(reference, counts, per_direction=True)
     reference_u = float(config.get("reference_u_pct") or 0.0) / 100.0
-    params: dict[str, Any] = {"source": f"run {run_id}", "reference": config.get("reference", "commanded travel"),
-                              "reference_u_pct": 100.0 * reference_u, "k": fit.coverage_factor, "dof": fit.dof,
-                              "matrix_mm_per_count": fit.a_mm_per_count.tolist(),
-                              "u_matrix_mm_per_count": fit.u_a_mm_per_count.tolist()}
+    params: dict[str, Any] = {
+        "source": f"run {run_id}",
+        "reference": config.get("reference", "commanded travel"),
+        "reference_u_pct": 100.0 * reference_u,
+        "k": fit.coverage_factor,
+        "dof": fit.dof,
+        "matrix_mm_per_count": fit.a_mm_per_count.tolist(),
+        "u_matrix_mm_per_count": fit.u_a_mm_per_count.tolist(),
+    }
     a, u = fit.a_mm_per_count, fit.u_a_mm_per_count
     for column, axis in enumerate("xy"):
         scale = float(fit.scale_mm_per_count[column])
@@ -322,10 +422,15 @@ def store_mouse_calibration(store: Any, run_id: int, name: str = "mouse") -> Any
         params[f"{axis}_residual_sd_counts"] = float(fit.sigma_counts[column])
     params["mm_per_count"] = (params["x_mm_per_count"] + params["y_mm_per_count"]) / 2
     params["intercepts_counts"] = {label: fit.offsets_counts[i].tolist() for i, label in enumerate(fit.offset_labels)}
-    params["u_intercepts_counts"] = {label: fit.u_offsets_counts[i].tolist()
-                                     for i, label in enumerate(fit.offset_labels)}
-    params["significant_intercepts"] = {f"{label} sensor {'xy'[j]}": float(fit.offsets_counts[i, j])
-                                        for i, label in enumerate(fit.offset_labels) for j in range(2)
-                                        if fit.offsets_significant[i, j]}
-    return store.add_calibration(name, params, source_run_id=run_id,
-                                 notes="2x2 least squares, an intercept per move direction (sensors.md §5.2)")
+    params["u_intercepts_counts"] = {
+        label: fit.u_offsets_counts[i].tolist() for i, label in enumerate(fit.offset_labels)
+    }
+    params["significant_intercepts"] = {
+        f"{label} sensor {'xy'[j]}": float(fit.offsets_counts[i, j])
+        for i, label in enumerate(fit.offset_labels)
+        for j in range(2)
+        if fit.offsets_significant[i, j]
+    }
+    return store.add_calibration(
+        name, params, source_run_id=run_id, notes="2x2 least squares, an intercept per move direction (sensors.md §5.2)"
+    )

@@ -31,8 +31,15 @@ from bench.protocols.parameters import (
 )
 from bench.steps import Capture, Checkpoint, Move, Payload, Plan, Settle, commanded_values, visit
 
-__all__ = ["DistanceAccuracy", "Drift", "MultiDirectional", "PoseAccuracy", "StabilisationOvershoot", "cube_poses",
-           "fit_cube_side"]
+__all__ = [
+    "DistanceAccuracy",
+    "Drift",
+    "MultiDirectional",
+    "PoseAccuracy",
+    "StabilisationOvershoot",
+    "cube_poses",
+    "fit_cube_side",
+]
 
 #: Sign patterns of P2..P5 on each diagonal plane (cube coordinates); P2/P4 and P3/P5 are opposite corners.
 _PLANES = {
@@ -61,17 +68,29 @@ def cube_poses(centre_mm, side_mm: float, plane: str = "x=z", angles_deg=()) -> 
     return poses
 
 
-def fit_cube_side(robot: str, centre_mm, *, max_side_mm: float = 200.0, angles_deg=(),
-                  threshold: float = DEFAULT_SINGULARITY_THRESHOLD) -> float:
+def fit_cube_side(
+    robot: str,
+    centre_mm,
+    *,
+    max_side_mm: float = 200.0,
+    angles_deg=(),
+    threshold: float = DEFAULT_SINGULARITY_THRESHOLD,
+) -> float:
     """Edge (mm, 0.1 mm resolution) of the largest cube around ``centre_mm`` whose 27 lattice points all pass the
     pre-flight of ``robot`` (bisection; the reachable set is assumed star-shaped about the centre)."""
-    return _fit_cube_side(robot, tuple(float(v) for v in centre_mm), float(max_side_mm),
-                          tuple(float(v) for v in angles_deg), float(threshold))
+    return _fit_cube_side(
+        robot,
+        tuple(float(v) for v in centre_mm),
+        float(max_side_mm),
+        tuple(float(v) for v in angles_deg),
+        float(threshold),
+    )
 
 
 @functools.lru_cache(maxsize=64)
-def _fit_cube_side(robot: str, centre_mm: tuple[float, ...], max_side_mm: float, angles_deg: tuple[float, ...],
-                   threshold: float) -> float:
+def _fit_cube_side(
+    robot: str, centre_mm: tuple[float, ...], max_side_mm: float, angles_deg: tuple[float, ...], threshold: float
+) -> float:
     """:func:`fit_cube_side`, remembered: the pre-flight models are fixed, and every cube protocol built asks
     (0.02 s of bisection; the desktop window's form builds one on every edit)."""
     model = robot_model(robot)
@@ -97,15 +116,30 @@ class _CubeProtocol(Protocol):
     """Shared parameters: the robot, the cube or explicit poses, velocities, loads, cycles and settling."""
 
     cycles = IntegerParameter(ISO9283_CYCLES, minimum=2, description="cycles per pose (ISO Table 5: 30)")
-    velocities_pct = FloatListParameter(ISO9283_VELOCITIES_PCT, unit="%", minimum=0.1, maximum=100.0,
-                                        description="test velocities, % of rated (ISO 6.7: 100, 50, 10)")
-    loads_kg = FloatListParameter((0.0,), unit="kg", minimum=0.0, maximum=30.0,
-                                  description="loads, kg (ISO 6.6: 100 % rated, optionally 10 %)")
-    cube_centre_mm = FloatListParameter((110.0, 0.0, 320.0), length=3, unit="mm",
-                                        description="centre of the test cube (P1), mm; the default holds the "
-                                                    "largest pkm5 cube found by a grid search (40 mm)")
-    cube_side_mm = FloatParameter(0.0, unit="mm", minimum=0.0, maximum=1000.0,
-                                  description="edge of the test cube; 0 = the largest that fits the workspace")
+    velocities_pct = FloatListParameter(
+        ISO9283_VELOCITIES_PCT,
+        unit="%",
+        minimum=0.1,
+        maximum=100.0,
+        description="test velocities, % of rated (ISO 6.7: 100, 50, 10)",
+    )
+    loads_kg = FloatListParameter(
+        (0.0,), unit="kg", minimum=0.0, maximum=30.0, description="loads, kg (ISO 6.6: 100 % rated, optionally 10 %)"
+    )
+    cube_centre_mm = FloatListParameter(
+        (110.0, 0.0, 320.0),
+        length=3,
+        unit="mm",
+        description="centre of the test cube (P1), mm; the default holds the "
+        "largest pkm5 cube found by a grid search (40 mm)",
+    )
+    cube_side_mm = FloatParameter(
+        0.0,
+        unit="mm",
+        minimum=0.0,
+        maximum=1000.0,
+        description="edge of the test cube; 0 = the largest that fits the workspace",
+    )
     plane = ChoiceParameter("x=z", choices=tuple(_PLANES), description="diagonal plane of P2-P5 (cube frame)")
     poses = PoseTableParameter(None, description="explicit labelled poses instead of the cube (plane or grid)")
     settle_s = FloatParameter(1.0, unit="s", minimum=0.0, maximum=600.0, description="dwell before each capture")
@@ -114,15 +148,19 @@ class _CubeProtocol(Protocol):
         if self.poses is None:
             self._side_mm = self.cube_side_mm or fit_cube_side(self.robot, self.cube_centre_mm)
             if self._side_mm <= 0:
-                raise ConfigError(f"{self.source}: cube_centre_mm = {list(self.cube_centre_mm)}, expected a centre "
-                                  f"inside the {self.robot} workspace (no cube fits around it)")
+                raise ConfigError(
+                    f"{self.source}: cube_centre_mm = {list(self.cube_centre_mm)}, expected a centre "
+                    f"inside the {self.robot} workspace (no cube fits around it)"
+                )
             self._poses = cube_poses(self.cube_centre_mm, self._side_mm, self.plane)
         else:
             width = len(robot_model(self.robot).target_fields)
             for label, pose in self.poses.items():
                 if len(pose) > width:
-                    raise ConfigError(f"{self.source}: poses.{label} = {list(pose)}, expected at most {width} "
-                                      f"numbers for the {self.robot}")
+                    raise ConfigError(
+                        f"{self.source}: poses.{label} = {list(pose)}, expected at most {width} "
+                        f"numbers for the {self.robot}"
+                    )
             self._poses = dict(self.poses)
 
     def resolved(self) -> dict[str, Any]:
@@ -133,7 +171,6 @@ class _CubeProtocol(Protocol):
     def test_poses(self) -> dict[str, tuple[float, ...]]:
         """The labelled command poses (mm, degrees) this protocol visits."""
         return dict(self._poses)
-
 
     def _iso_order(self) -> list[str]:
         """The cube's poses in ISO cycle order, or the explicit poses in file order."""
@@ -153,8 +190,9 @@ class _CubeProtocol(Protocol):
 
     def _visit(self, label: str, target: tuple[float, ...], cycle: int, velocity: float, load: float) -> Plan:
         """One visit of a pose: move, settle, capture."""
-        yield from visit(label, target, cycle, velocity_pct=velocity, settle_s=self.settle_s,
-                         conditions={"load_kg": load})
+        yield from visit(
+            label, target, cycle, velocity_pct=velocity, settle_s=self.settle_s, conditions={"load_kg": load}
+        )
 
     def final_steps(self) -> Plan:
         yield from self.return_home()
@@ -165,8 +203,10 @@ class _CubeProtocol(Protocol):
 
     def _validate_one_load(self, clause: str) -> None:
         if len(self.loads_kg) != 1:
-            raise ConfigError(f"{self.source}: loads_kg = {list(self.loads_kg)}: {self.name} runs at one load "
-                              f"(ISO 9283 {clause}: rated), expected one value")
+            raise ConfigError(
+                f"{self.source}: loads_kg = {list(self.loads_kg)}: {self.name} runs at one load "
+                f"(ISO 9283 {clause}: rated), expected one value"
+            )
 
 
 @register
@@ -206,8 +246,9 @@ class MultiDirectional(_CubeProtocol):
     name = "iso9283_multidirectional"
     version = "2"  # 2: the load's confirmation is the first step (every step index moved by one where it is asked)
     title = "ISO 9283 multi-directional pose accuracy variation (7.2.3)"
-    approach_mm = FloatParameter(10.0, unit="mm", minimum=0.5, maximum=100.0,
-                                 description="pre-pose offset along each approach direction")
+    approach_mm = FloatParameter(
+        10.0, unit="mm", minimum=0.5, maximum=100.0, description="pre-pose offset along each approach direction"
+    )
 
     def validate(self) -> None:
         super().validate()
@@ -227,8 +268,14 @@ class MultiDirectional(_CubeProtocol):
                         pre[axis] += side * self.approach_mm
                         direction = f"{'-' if side > 0 else '+'}{name}"
                         yield Move(tuple(pre), velocity, f"{label}/pre{direction}")
-                        yield from visit(f"{label}/{direction}", target, cycle, velocity_pct=velocity,
-                                         settle_s=self.settle_s, conditions={"load_kg": self.loads_kg[0]})
+                        yield from visit(
+                            f"{label}/{direction}",
+                            target,
+                            cycle,
+                            velocity_pct=velocity,
+                            settle_s=self.settle_s,
+                            conditions={"load_kg": self.loads_kg[0]},
+                        )
                 yield Checkpoint(f"{velocity:g} %, cycle {cycle}")
 
 
@@ -255,8 +302,14 @@ class Drift(_CubeProtocol):
         others = [p for p in POSE_ORDER[1:] if p in self._poses]
         velocity = self.velocities_pct[0]
         for cycle in range(1, self.cycles + 1):
-            yield from visit("P1", self._poses["P1"], cycle, velocity_pct=velocity, settle_s=self.settle_s,
-                             conditions={"load_kg": self.loads_kg[0]})
+            yield from visit(
+                "P1",
+                self._poses["P1"],
+                cycle,
+                velocity_pct=velocity,
+                settle_s=self.settle_s,
+                conditions={"load_kg": self.loads_kg[0]},
+            )
             for label in others:
                 yield Move(self._poses[label], velocity, label)
             if self.pause_s > 0:
@@ -280,12 +333,15 @@ class StabilisationOvershoot(_CubeProtocol):
     title = "ISO 9283 position stabilisation time and overshoot (7.4, 7.5)"
 
     cycles = IntegerParameter(3, minimum=1, description="cycles per pose (ISO Table 5: 3)")
-    velocities_pct = FloatListParameter((100.0,), unit="%", minimum=0.1, maximum=100.0,
-                                        description="test velocities, % of rated (ISO 4.2: 100)")
-    lead_s = FloatParameter(1.0, unit="s", minimum=0.0, maximum=60.0,
-                            description="streamed time kept before the move is reported done")
-    hold_s = FloatParameter(3.0, unit="s", minimum=0.1, maximum=60.0,
-                            description="streamed time recorded after the move is reported done")
+    velocities_pct = FloatListParameter(
+        (100.0,), unit="%", minimum=0.1, maximum=100.0, description="test velocities, % of rated (ISO 4.2: 100)"
+    )
+    lead_s = FloatParameter(
+        1.0, unit="s", minimum=0.0, maximum=60.0, description="streamed time kept before the move is reported done"
+    )
+    hold_s = FloatParameter(
+        3.0, unit="s", minimum=0.1, maximum=60.0, description="streamed time recorded after the move is reported done"
+    )
 
     def steps(self) -> Plan:
         yield from self._cycles(self._iso_order())
@@ -293,6 +349,10 @@ class StabilisationOvershoot(_CubeProtocol):
     def _visit(self, label: str, target: tuple[float, ...], cycle: int, velocity: float, load: float) -> Plan:
         """Move, then at once capture the streamed arrival (no dwell: the settling is what is measured)."""
         yield Move(target, velocity, label)
-        yield Capture(label, cycle, kind="arrival", commanded=commanded_values(target),
-                      conditions={"velocity_pct": velocity, "load_kg": load, "lead_s": self.lead_s,
-                                  "hold_s": self.hold_s})
+        yield Capture(
+            label,
+            cycle,
+            kind="arrival",
+            commanded=commanded_values(target),
+            conditions={"velocity_pct": velocity, "load_kg": load, "lead_s": self.lead_s, "hold_s": self.hold_s},
+        )

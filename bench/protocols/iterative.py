@@ -25,8 +25,11 @@ _AXES = ("x_mm", "y_mm", "z_mm")
 def corrected_command(command, target, measured: dict) -> tuple[tuple[float, ...], dict[str, float]]:
     """The next command ``c - (m - T)`` on the position axes ``measured`` holds (finite), and the errors ``m - T``
     by axis; the other coordinates keep their command."""
-    errors = {axis: float(measured[axis]) - float(target[i]) for i, axis in enumerate(_AXES)
-              if i < len(target) and axis in measured and np.isfinite(measured[axis])}
+    errors = {
+        axis: float(measured[axis]) - float(target[i])
+        for i, axis in enumerate(_AXES)
+        if i < len(target) and axis in measured and np.isfinite(measured[axis])
+    }
     nxt = list(command)
     for i, axis in enumerate(_AXES):
         if axis in errors:
@@ -43,8 +46,13 @@ class IterativeCorrection(Protocol):
     title = "Iterative correction of the command from the measured position"
 
     poses = PoseTableParameter({"T1": (110.0, 0.0, 320.0)}, description="labelled targets (mm, deg)")
-    tolerance_mm = FloatParameter(0.05, unit="mm", minimum=0.0, maximum=100.0,
-                                  description="largest |error| on every measured axis that ends the correction")
+    tolerance_mm = FloatParameter(
+        0.05,
+        unit="mm",
+        minimum=0.0,
+        maximum=100.0,
+        description="largest |error| on every measured axis that ends the correction",
+    )
     iterations = IntegerParameter(3, minimum=1, maximum=20, description="most moves per target")
     settle_s = FloatParameter(0.5, unit="s", minimum=0.0, maximum=600.0, description="dwell before each reading")
 

@@ -23,8 +23,16 @@ from bench.errors import ConfigError
 from bench.robot_kinds import robot_kind
 from motion.model import column_conditioning
 
-__all__ = ["DEFAULT_SINGULARITY_THRESHOLD", "PreflightModel", "TargetCheck", "inverse_condition", "pkm5_mode_columns",
-           "robot_model", "servo_travel_s", "stepper_travel_s"]
+__all__ = [
+    "DEFAULT_SINGULARITY_THRESHOLD",
+    "PreflightModel",
+    "TargetCheck",
+    "inverse_condition",
+    "pkm5_mode_columns",
+    "robot_model",
+    "servo_travel_s",
+    "stepper_travel_s",
+]
 
 #: Inverse condition number below which a target is refused as too close to a singularity. With the units of
 #: motion.pkm5.singularity_proximity the cube poses lie near 0.17-0.20 and the documents' beta test poses (000 Table

@@ -15,8 +15,17 @@ from typing import Any
 
 from bench.errors import ConfigError
 
-__all__ = ["BoolParameter", "ChoiceParameter", "FloatListParameter", "FloatParameter", "IntegerParameter",
-           "MAX_COUNT", "Parameter", "PoseTableParameter", "TextParameter"]
+__all__ = [
+    "BoolParameter",
+    "ChoiceParameter",
+    "FloatListParameter",
+    "FloatParameter",
+    "IntegerParameter",
+    "MAX_COUNT",
+    "Parameter",
+    "PoseTableParameter",
+    "TextParameter",
+]
 
 _NUMBER_WITH_UNIT = re.compile(r"^\s*([-+0-9.eE]+)\s*([A-Za-z%/]+)?\s*$")
 
@@ -84,8 +93,15 @@ def _bounds_text(minimum: float | None, maximum: float | None, unit: str | None)
 
 
 class _Bounded(Parameter):
-    def __init__(self, default: Any, *, unit: str | None = None, minimum: float | None = None,
-                 maximum: float | None = None, description: str = "") -> None:
+    def __init__(
+        self,
+        default: Any,
+        *,
+        unit: str | None = None,
+        minimum: float | None = None,
+        maximum: float | None = None,
+        description: str = "",
+    ) -> None:
         self.minimum = minimum
         self.maximum = maximum
         super().__init__(default, unit=unit, description=description)
@@ -181,8 +197,9 @@ class ChoiceParameter(Parameter):
     """One of a set of strings, e.g. ``ChoiceParameter("line", choices=("line", "circle"))``; ``choices`` may be a
     function that lists them when asked (the registered robots: :func:`bench.robot_kinds.robot_names`)."""
 
-    def __init__(self, default: str, *, choices: Sequence[str] | Callable[[], Sequence[str]],
-                 description: str = "") -> None:
+    def __init__(
+        self, default: str, *, choices: Sequence[str] | Callable[[], Sequence[str]], description: str = ""
+    ) -> None:
         self._choices = choices
         super().__init__(default, description=description)
 
@@ -212,8 +229,10 @@ class PoseTableParameter(Parameter):
 
     @property
     def expected(self) -> str:
-        return (f"a table of labelled poses, each [x_mm, y_mm, z_mm{', angles_deg' if self.max_width > 3 else ''}]"
-                f" with {self.min_width} to {self.max_width} finite numbers")
+        return (
+            f"a table of labelled poses, each [x_mm, y_mm, z_mm{', angles_deg' if self.max_width > 3 else ''}]"
+            f" with {self.min_width} to {self.max_width} finite numbers"
+        )
 
     def _convert(self, value: Any) -> dict[str, tuple[float, ...]] | None:
         if value is None:

@@ -25,16 +25,15 @@ import numpy as np
 
 from bench.errors import ConfigError
 from bench.metrology.documents import ISO9283_VELOCITIES_PCT
+from bench.metrology.path_geometry import CommandedPath, Segmentation, commanded_path, segment_path
 from bench.protocols.base import Protocol, register
 from bench.protocols.iso9283 import _PLANES, cube_poses, fit_cube_side
 from bench.protocols.kinematics import robot_model
 from bench.protocols.parameters import ChoiceParameter, FloatListParameter, FloatParameter, IntegerParameter
-from bench.metrology.path_geometry import CommandedPath, Segmentation, commanded_path, segment_path
 from bench.rigs.mice import PATH as PATH_KIND
 from bench.steps import Capture, Checkpoint, Move, Payload, Plan, Settle, commanded_values
 
 __all__ = ["Cornering", "PathAccuracy", "PathProtocol"]
-
 
 
 class PathProtocol(Protocol):
@@ -43,43 +42,80 @@ class PathProtocol(Protocol):
     robots = ("pkm5",)
     shapes: tuple[str, ...] = ("line", "circle")
 
-    velocities_pct = FloatListParameter(ISO9283_VELOCITIES_PCT, unit="%", minimum=0.1, maximum=100.0,
-                                        description="path velocities, % of the rated path velocity (ISO 6.7)")
-    path_speed_mm_s = FloatParameter(0.0, unit="mm/s", minimum=0.0, maximum=100.0,
-                                     description="rated path velocity (100 %); 0 = the largest the robot holds on "
-                                                 "every segment at its rated leg speed")
+    velocities_pct = FloatListParameter(
+        ISO9283_VELOCITIES_PCT,
+        unit="%",
+        minimum=0.1,
+        maximum=100.0,
+        description="path velocities, % of the rated path velocity (ISO 6.7)",
+    )
+    path_speed_mm_s = FloatParameter(
+        0.0,
+        unit="mm/s",
+        minimum=0.0,
+        maximum=100.0,
+        description="rated path velocity (100 %); 0 = the largest the robot holds on "
+        "every segment at its rated leg speed",
+    )
     load_kg = FloatParameter(0.0, unit="kg", minimum=0.0, maximum=30.0, description="payload (ISO 6.6: rated)")
     cube_centre_mm = FloatListParameter((110.0, 0.0, 320.0), length=3, unit="mm", description="centre P1 of the cube")
-    cube_side_mm = FloatParameter(0.0, unit="mm", minimum=0.0, maximum=1000.0,
-                                  description="edge of the test cube; 0 = the largest that fits the workspace")
+    cube_side_mm = FloatParameter(
+        0.0,
+        unit="mm",
+        minimum=0.0,
+        maximum=1000.0,
+        description="edge of the test cube; 0 = the largest that fits the workspace",
+    )
     plane = ChoiceParameter("x=z", choices=tuple(_PLANES), description="diagonal plane of the cube: the test plane")
-    chord_error_mm = FloatParameter(0.01, unit="mm", minimum=0.0001, maximum=1.0,
-                                    description="bound on the joint-space chord error of every segment")
-    max_segment_mm = FloatParameter(4.0, unit="mm", minimum=0.1, maximum=100.0,
-                                    description="longest segment before the chord error is checked")
-    settle_s = FloatParameter(1.0, unit="s", minimum=0.0, maximum=600.0,
-                              description="dwell at the path's start before each cycle (the robot starts at rest)")
-    final_hold_s = FloatParameter(1.0, unit="s", minimum=0.0, maximum=60.0,
-                                  description="streamed time after the last segment of a cycle (the arrival)")
+    chord_error_mm = FloatParameter(
+        0.01,
+        unit="mm",
+        minimum=0.0001,
+        maximum=1.0,
+        description="bound on the joint-space chord error of every segment",
+    )
+    max_segment_mm = FloatParameter(
+        4.0, unit="mm", minimum=0.1, maximum=100.0, description="longest segment before the chord error is checked"
+    )
+    settle_s = FloatParameter(
+        1.0,
+        unit="s",
+        minimum=0.0,
+        maximum=600.0,
+        description="dwell at the path's start before each cycle (the robot starts at rest)",
+    )
+    final_hold_s = FloatParameter(
+        1.0,
+        unit="s",
+        minimum=0.0,
+        maximum=60.0,
+        description="streamed time after the last segment of a cycle (the arrival)",
+    )
 
     def validate(self) -> None:
         if self.robot != "pkm5":  # the segmentation is the pkm5's (joint-linear legs)
             raise ConfigError(f"{self.source}: robot = {self.robot!r}, expected pkm5 for protocol {self.name!r}")
         self._side_mm = self.cube_side_mm or fit_cube_side(self.robot, self.cube_centre_mm)
         if self._side_mm <= 0:
-            raise ConfigError(f"{self.source}: cube_centre_mm = {list(self.cube_centre_mm)}, expected a centre "
-                              f"inside the {self.robot} workspace (no cube fits around it)")
+            raise ConfigError(
+                f"{self.source}: cube_centre_mm = {list(self.cube_centre_mm)}, expected a centre "
+                f"inside the {self.robot} workspace (no cube fits around it)"
+            )
         model = robot_model(self.robot)
         for shape in self.shapes:
             targets = model.as_targets([tuple(p) for p in self.segmentation(shape).targets_mm])
             check = model.check(targets, self.min_inverse_condition)
             if not check.reachable.all():
                 bad = int(np.flatnonzero(~check.reachable)[0])
-                raise ConfigError(f"{self.source}: {shape} path point "
-                                  f"({', '.join(f'{v:.2f}' for v in targets[bad][:3])}) mm: {check.reason[bad]}")
+                raise ConfigError(
+                    f"{self.source}: {shape} path point "
+                    f"({', '.join(f'{v:.2f}' for v in targets[bad][:3])}) mm: {check.reason[bad]}"
+                )
         if self.path_speed_mm_s > self.rated_limit_mm_s:
-            raise ConfigError(f"{self.source}: path_speed_mm_s = {self.path_speed_mm_s:g}, expected at most "
-                              f"{self.rated_limit_mm_s:g} mm/s (the rated leg speed on the slowest segment)")
+            raise ConfigError(
+                f"{self.source}: path_speed_mm_s = {self.path_speed_mm_s:g}, expected at most "
+                f"{self.rated_limit_mm_s:g} mm/s (the rated leg speed on the slowest segment)"
+            )
 
     @cached_property
     def poses(self) -> dict[str, tuple[float, ...]]:
@@ -92,8 +128,12 @@ class PathProtocol(Protocol):
     def segmentation(self, shape: str) -> Segmentation:
         cache = self.__dict__.setdefault("_segmentations", {})
         if shape not in cache:
-            cache[shape] = segment_path(self.path(shape), robot_model(self.robot).kinematics,
-                                        max_segment_mm=self.max_segment_mm, chord_error_mm=self.chord_error_mm)
+            cache[shape] = segment_path(
+                self.path(shape),
+                robot_model(self.robot).kinematics,
+                max_segment_mm=self.max_segment_mm,
+                chord_error_mm=self.chord_error_mm,
+            )
         return cache[shape]
 
     def _segment_steps(self, shape: str) -> tuple[np.ndarray, np.ndarray]:
@@ -108,8 +148,9 @@ class PathProtocol(Protocol):
     def rated_limit_mm_s(self) -> float:
         """The largest path velocity every segment holds at the rated leg speed, mm/s (0.01 mm/s resolution)."""
         rated = robot_model(self.robot).kinematics.geometry.max_speed_steps_per_s
-        limit = min(float(np.min(length * rated / steps))
-                    for length, steps in (self._segment_steps(s) for s in self.shapes))
+        limit = min(
+            float(np.min(length * rated / steps)) for length, steps in (self._segment_steps(s) for s in self.shapes)
+        )
         return float(np.floor(limit * 100) / 100)
 
     @property
@@ -130,10 +171,18 @@ class PathProtocol(Protocol):
         paths = []  # a list: the order driven (a stored mapping's keys come back sorted)
         for shape in self.shapes:
             path, segmentation = self.path(shape), self.segmentation(shape)
-            paths.append({"shape": shape, "vertices_mm": path.vertices_mm.tolist(),
-                          "centre_mm": path.centre_mm.tolist(), "radius_mm": path.radius_mm, "u": path.u.tolist(), "v": path.v.tolist(),
-                          "segment_targets_mm": segmentation.targets_mm.tolist(),
-                          "max_chord_error_mm": segmentation.chord_error_mm})
+            paths.append(
+                {
+                    "shape": shape,
+                    "vertices_mm": path.vertices_mm.tolist(),
+                    "centre_mm": path.centre_mm.tolist(),
+                    "radius_mm": path.radius_mm,
+                    "u": path.u.tolist(),
+                    "v": path.v.tolist(),
+                    "segment_targets_mm": segmentation.targets_mm.tolist(),
+                    "max_chord_error_mm": segmentation.chord_error_mm,
+                }
+            )
         return {**super().config(), "paths": paths, "rated_path_speed_mm_s": self.rated_mm_s}
 
     def segment_plan(self, shape: str, velocity_pct: float) -> list[tuple[tuple[float, ...], float, float]]:
@@ -143,8 +192,10 @@ class PathProtocol(Protocol):
         speed_mm_s = self.rated_mm_s * velocity_pct / 100.0
         steps_per_s = np.clip(np.rint(steps * speed_mm_s / lengths), 1, rated)
         ends = self.segmentation(shape).targets_mm[1:]
-        return [(tuple(float(v) for v in end), float(sps / rated * 100.0), float(n / sps))
-                for end, sps, n in zip(ends, steps_per_s, steps)]
+        return [
+            (tuple(float(v) for v in end), float(sps / rated * 100.0), float(n / sps))
+            for end, sps, n in zip(ends, steps_per_s, steps)
+        ]
 
     def steps(self) -> Plan:
         yield from Payload().mount(self.load_kg)  # the samples are labelled with it: the operator confirms it is on
@@ -160,9 +211,18 @@ class PathProtocol(Protocol):
                     for number, (end, move_pct, duration_s) in enumerate(plan, start=1):
                         yield Move(end, move_pct, f"{shape} {number}")
                         hold = self.final_hold_s if number == len(plan) else 0.0
-                        yield Capture(shape, cycle, kind=PATH_KIND, commanded=commanded_values(end),
-                                      conditions={"velocity_pct": velocity, "load_kg": self.load_kg,
-                                                  "lead_s": round(duration_s, 3), "hold_s": hold})
+                        yield Capture(
+                            shape,
+                            cycle,
+                            kind=PATH_KIND,
+                            commanded=commanded_values(end),
+                            conditions={
+                                "velocity_pct": velocity,
+                                "load_kg": self.load_kg,
+                                "lead_s": round(duration_s, 3),
+                                "hold_s": hold,
+                            },
+                        )
                     if not self.path(shape).closed:  # back to the start along the pre-flighted targets
                         for back in seg.targets_mm[-2::-1]:
                             yield Move(tuple(float(v) for v in back), 100.0, f"{shape} return")

@@ -21,8 +21,16 @@ from bench.protocols.base import Protocol
 from bench.protocols.kinematics import DEFAULT_SINGULARITY_THRESHOLD, robot_model
 from bench.steps import ActuatorMove, Capture, Move, Prompt, Settle, Step
 
-__all__ = ["AxisStrokes", "PlanSummary", "capture_s", "dry_run_result", "iterate", "preflight",
-           "required_capabilities", "summarize"]
+__all__ = [
+    "AxisStrokes",
+    "PlanSummary",
+    "capture_s",
+    "dry_run_result",
+    "iterate",
+    "preflight",
+    "required_capabilities",
+    "summarize",
+]
 
 #: Time a capture and a prompt are assumed to take in the estimate, s (a prompt waits for a person).
 CAPTURE_S = 0.05
@@ -61,8 +69,14 @@ def iterate(protocol: Protocol, *, final: bool = True) -> Iterator[Step]:
 
 
 #: The capability a capture of each kind needs from the station (the kinds the protocol library captures).
-_CAPTURE_NEEDS = {"pose": "pose", "mouse": "mouse_counts", "arrival": "arrival", "path": "arrival", "positioning": "arrival",
-                 "grid_hit": "grid_hit"}
+_CAPTURE_NEEDS = {
+    "pose": "pose",
+    "mouse": "mouse_counts",
+    "arrival": "arrival",
+    "path": "arrival",
+    "positioning": "arrival",
+    "grid_hit": "grid_hit",
+}
 
 
 def required_capabilities(protocol: Protocol) -> frozenset[str]:
@@ -126,32 +140,46 @@ class PlanSummary:
 
     def problems(self) -> list[str]:
         """One line per refused target, naming its label and coordinates."""
-        return [f"target {self.labels[i]} {_describe(self.targets[i], self.robot)} is not reachable: "
-                f"{self.reasons[i]}" for i in np.flatnonzero(~self.reachable)] + list(self.actuator_problems)
+        return [
+            f"target {self.labels[i]} {_describe(self.targets[i], self.robot)} is not reachable: {self.reasons[i]}"
+            for i in np.flatnonzero(~self.reachable)
+        ] + list(self.actuator_problems)
 
     def lines(self) -> list[str]:
         """The human-readable summary printed by ``bench run --dry-run``."""
-        out = [f"protocol {self.protocol} on {self.robot}: " + ", ".join(
-            f"{n} {kind}" for kind, n in self.counts.items())]
-        out.append(f"estimated duration {_hms(self.estimated_s)} (moves {_hms(self.move_s)}, settling "
-                   f"{_hms(self.settle_s)}, captures {_hms(self.capture_s)}, prompts {_hms(self.prompt_s)}) at "
-                   "real speed")
+        out = [
+            f"protocol {self.protocol} on {self.robot}: " + ", ".join(f"{n} {kind}" for kind, n in self.counts.items())
+        ]
+        out.append(
+            f"estimated duration {_hms(self.estimated_s)} (moves {_hms(self.move_s)}, settling "
+            f"{_hms(self.settle_s)}, captures {_hms(self.capture_s)}, prompts {_hms(self.prompt_s)}) at "
+            "real speed"
+        )
         out.extend(f"WARNING: {line}" for line in self.warnings)
         if self.labels or not self.strokes:
             out.append(f"{len(self.labels)} distinct targets:")
         for i, label in enumerate(self.labels):
             status = "ok" if self.reachable[i] else f"REFUSED: {self.reasons[i]}"
-            out.append(f"  {label:>8}  {_describe(self.targets[i], self.robot)}  "
-                       f"singularity proximity {self.proximity[i]:.3f}  {status}")
+            out.append(
+                f"  {label:>8}  {_describe(self.targets[i], self.robot)}  "
+                f"singularity proximity {self.proximity[i]:.3f}  {status}"
+            )
         if self.strokes:
             moves = sum(a.moves for a in self.strokes)
-            out.append(f"actuator bench: {len(self.strokes)} actuator(s), {moves} single-axis moves "
-                       f"({_hms(sum(a.move_s for a in self.strokes))}); strokes in mm from full retraction:")
+            out.append(
+                f"actuator bench: {len(self.strokes)} actuator(s), {moves} single-axis moves "
+                f"({_hms(sum(a.move_s for a in self.strokes))}); strokes in mm from full retraction:"
+            )
         for a in self.strokes:
-            status = "ok" if not a.refused else f"REFUSED: {a.refused[0]}" + (
-                f" (and {len(a.refused) - 1} more)" if len(a.refused) > 1 else "")
-            out.append(f"  actuator {a.axis}  strokes {', '.join(f'{v:g}' for v in a.strokes_mm)} mm  window "
-                       f"{a.window_mm[0]:g}-{a.window_mm[1]:g} mm  {a.moves} moves  {_hms(a.move_s)}  {status}")
+            status = (
+                "ok"
+                if not a.refused
+                else f"REFUSED: {a.refused[0]}" + (f" (and {len(a.refused) - 1} more)" if len(a.refused) > 1 else "")
+            )
+            out.append(
+                f"  actuator {a.axis}  strokes {', '.join(f'{v:g}' for v in a.strokes_mm)} mm  window "
+                f"{a.window_mm[0]:g}-{a.window_mm[1]:g} mm  {a.moves} moves  {_hms(a.move_s)}  {status}"
+            )
         return out
 
 
@@ -196,8 +224,7 @@ class _MoveTimer:
         return self.seconds
 
 
-def summarize(protocol: Protocol, *, singularity_threshold: float | None = None,
-              geometry: Any = None) -> PlanSummary:
+def summarize(protocol: Protocol, *, singularity_threshold: float | None = None, geometry: Any = None) -> PlanSummary:
     """Dry-run ``protocol``: count its steps, pre-flight every distinct target, estimate its duration.
 
     ``singularity_threshold`` defaults to the protocol's ``min_inverse_condition``; ``geometry`` (default: the
@@ -235,10 +262,22 @@ def summarize(protocol: Protocol, *, singularity_threshold: float | None = None,
     check = model.check(targets, singularity_threshold)
     move_s = timer.flush() if check.reachable.all() else 0.0
     axes = strokes.axes()
-    return PlanSummary(protocol.name, protocol.robot, dict(counts), tuple(distinct.values()), targets,
-                       check.reachable, tuple(str(r) for r in check.reason), check.proximity,
-                       move_s + sum(a.move_s for a in axes), settle_s, counts["prompts"] * PROMPT_S,
-                       captures_s, axes, protocol.limit_warnings())
+    return PlanSummary(
+        protocol.name,
+        protocol.robot,
+        dict(counts),
+        tuple(distinct.values()),
+        targets,
+        check.reachable,
+        tuple(str(r) for r in check.reason),
+        check.proximity,
+        move_s + sum(a.move_s for a in axes),
+        settle_s,
+        counts["prompts"] * PROMPT_S,
+        captures_s,
+        axes,
+        protocol.limit_warnings(),
+    )
 
 
 class _StrokeTally:
@@ -257,8 +296,7 @@ class _StrokeTally:
 
         geometry = pkm5.DEFAULT_GEOMETRY
         if self.where is None:
-            self.where = dict(enumerate(np.round(geometry.home_stroke_mm / geometry.mm_per_step).astype(int),
-                                        start=1))
+            self.where = dict(enumerate(np.round(geometry.home_stroke_mm / geometry.mm_per_step).astype(int), start=1))
         axis = self.per_axis.setdefault(move.axis, {"strokes": set(), "moves": 0, "s": 0.0, "refused": []})
         axis["moves"] += 1
         axis["strokes"].add(float(move.stroke_mm))
@@ -276,10 +314,17 @@ class _StrokeTally:
         from motion import pkm5
 
         where = self.where or {}
-        return tuple(AxisStrokes(number, stroke_range_mm(number, pkm5.DEFAULT_GEOMETRY) if number in where
-                                 else (float("nan"),) * 2, tuple(sorted(a["strokes"])), a["moves"], a["s"],
-                                 tuple(a["refused"]))
-                     for number, a in self.per_axis.items())
+        return tuple(
+            AxisStrokes(
+                number,
+                stroke_range_mm(number, pkm5.DEFAULT_GEOMETRY) if number in where else (float("nan"),) * 2,
+                tuple(sorted(a["strokes"])),
+                a["moves"],
+                a["s"],
+                tuple(a["refused"]),
+            )
+            for number, a in self.per_axis.items()
+        )
 
 
 def preflight(protocol: Protocol, **kwargs: Any) -> PlanSummary:

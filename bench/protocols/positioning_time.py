@@ -57,21 +57,44 @@ class MinimumPositioningTime(Protocol):
     #: The design the analysis reads (stored with the run): the steps kept and the steps skipped with the reason.
     design_keys = ("steps", "skipped_steps")
 
-    p1_mm = FloatListParameter((110.0, 0.0, 320.0), length=3, unit="mm",
-                               description="start pose P1 of the step sequence (the cube centre)")
-    steps_mm = FloatListParameter(MIN_POSITIONING_STEPS_MM, unit="mm", minimum=-1000.0, maximum=1000.0,
-                                  description="step distances from the previous pose, Dx = Dy = Dz (ISO Table 19)")
+    p1_mm = FloatListParameter(
+        (110.0, 0.0, 320.0), length=3, unit="mm", description="start pose P1 of the step sequence (the cube centre)"
+    )
+    steps_mm = FloatListParameter(
+        MIN_POSITIONING_STEPS_MM,
+        unit="mm",
+        minimum=-1000.0,
+        maximum=1000.0,
+        description="step distances from the previous pose, Dx = Dy = Dz (ISO Table 19)",
+    )
     cycles = IntegerParameter(3, minimum=1, description="cycles (ISO Table 5: 3)")
-    velocities_pct = FloatListParameter((100.0,), unit="%", minimum=0.1, maximum=100.0,
-                                        description="velocities, % of rated (ISO 9: 100 %, and optimised ones)")
-    loads_kg = FloatListParameter((0.0,), unit="kg", minimum=0.0, maximum=30.0,
-                                  description="loads, kg (ISO 6.6: 100 % rated, optionally 10 %)")
-    settle_s = FloatParameter(1.0, unit="s", minimum=0.0, maximum=600.0,
-                              description="dwell at P1 before each cycle (the sequence starts at rest)")
-    rest_s = FloatParameter(0.5, unit="s", minimum=0.05, maximum=10.0,
-                            description="streamed rest before each step's move starts")
-    hold_s = FloatParameter(3.0, unit="s", minimum=0.1, maximum=MAX_WINDOW_S,
-                            description="streamed time after the move is reported done (the settling)")
+    velocities_pct = FloatListParameter(
+        (100.0,),
+        unit="%",
+        minimum=0.1,
+        maximum=100.0,
+        description="velocities, % of rated (ISO 9: 100 %, and optimised ones)",
+    )
+    loads_kg = FloatListParameter(
+        (0.0,), unit="kg", minimum=0.0, maximum=30.0, description="loads, kg (ISO 6.6: 100 % rated, optionally 10 %)"
+    )
+    settle_s = FloatParameter(
+        1.0,
+        unit="s",
+        minimum=0.0,
+        maximum=600.0,
+        description="dwell at P1 before each cycle (the sequence starts at rest)",
+    )
+    rest_s = FloatParameter(
+        0.5, unit="s", minimum=0.05, maximum=10.0, description="streamed rest before each step's move starts"
+    )
+    hold_s = FloatParameter(
+        3.0,
+        unit="s",
+        minimum=0.1,
+        maximum=MAX_WINDOW_S,
+        description="streamed time after the move is reported done (the settling)",
+    )
 
     def validate(self) -> None:
         if not self.steps_mm or any(d == 0 for d in self.steps_mm):
@@ -80,15 +103,19 @@ class MinimumPositioningTime(Protocol):
         if not model.check(model.as_targets([tuple(self.p1_mm)]), self.min_inverse_condition).reachable[0]:
             raise ConfigError(f"{self.source}: p1_mm = {list(self.p1_mm)}: outside the {self.robot} workspace")
         if not self.kept_steps:
-            raise ConfigError(f"{self.source}: steps_mm = {list(self.steps_mm)}: no step target lies in the "
-                              f"{self.robot} workspace from p1_mm = {list(self.p1_mm)} "
-                              f"({self.skipped_steps[0]['reason']})")
+            raise ConfigError(
+                f"{self.source}: steps_mm = {list(self.steps_mm)}: no step target lies in the "
+                f"{self.robot} workspace from p1_mm = {list(self.p1_mm)} "
+                f"({self.skipped_steps[0]['reason']})"
+            )
         for velocity in self.velocities_pct:
             longest = max(self._move_s(velocity))
             if longest + self.rest_s > MAX_WINDOW_S:
-                raise ConfigError(f"{self.source}: a step takes {longest:.1f} s at {velocity:g} %; with rest_s it "
-                                  f"exceeds the {MAX_WINDOW_S:g} s streamed window, expected shorter steps_mm or a "
-                                  "higher velocity")
+                raise ConfigError(
+                    f"{self.source}: a step takes {longest:.1f} s at {velocity:g} %; with rest_s it "
+                    f"exceeds the {MAX_WINDOW_S:g} s streamed window, expected shorter steps_mm or a "
+                    "higher velocity"
+                )
 
     @cached_property
     def _plan(self) -> tuple[tuple[PositioningStep, ...], tuple[dict[str, Any], ...]]:
@@ -98,8 +125,9 @@ class MinimumPositioningTime(Protocol):
         kept, skipped, previous = [], [], np.asarray(self.p1_mm, float)
         for number, (target, ok, reason) in enumerate(zip(targets, check.reachable, check.reason), start=1):
             if not ok:
-                skipped.append({"step": number, "target_mm": [round(float(v), 6) for v in target],
-                                "reason": str(reason)})
+                skipped.append(
+                    {"step": number, "target_mm": [round(float(v), 6) for v in target], "reason": str(reason)}
+                )
                 continue
             distance = float(np.mean(target - previous))  # Dx = Dy = Dz: every axis moves the same
             kept.append(PositioningStep(number, distance, tuple(round(float(v), 6) for v in target)))
@@ -124,8 +152,7 @@ class MinimumPositioningTime(Protocol):
         return [float(v) for v in model.move_s(starts, ends, np.full(len(ends), velocity_pct))]
 
     def config(self) -> dict[str, Any]:
-        steps = [{"step": s.number, "distance_mm": s.distance_mm, "target_mm": list(s.target)}
-                 for s in self.kept_steps]
+        steps = [{"step": s.number, "distance_mm": s.distance_mm, "target_mm": list(s.target)} for s in self.kept_steps]
         return {**super().config(), "steps": steps, "skipped_steps": [dict(s) for s in self.skipped_steps]}
 
     def steps(self) -> Plan:
@@ -140,11 +167,20 @@ class MinimumPositioningTime(Protocol):
                         yield Settle(self.settle_s)
                     for step, move_s in zip(self.kept_steps, durations):
                         yield Move(step.target, velocity, f"step {step.number}")
-                        yield Capture(f"step {step.number}", cycle, kind=POSITIONING,
-                                      commanded=commanded_values(step.target),
-                                      conditions={"velocity_pct": velocity, "load_kg": load, "step": step.number,
-                                                  "step_distance_mm": step.distance_mm,
-                                                  "lead_s": round(move_s + self.rest_s, 3), "hold_s": self.hold_s})
+                        yield Capture(
+                            f"step {step.number}",
+                            cycle,
+                            kind=POSITIONING,
+                            commanded=commanded_values(step.target),
+                            conditions={
+                                "velocity_pct": velocity,
+                                "load_kg": load,
+                                "step": step.number,
+                                "step_distance_mm": step.distance_mm,
+                                "lead_s": round(move_s + self.rest_s, 3),
+                                "hold_s": self.hold_s,
+                            },
+                        )
                     yield Checkpoint(f"load {load:g} kg, {velocity:g} %, cycle {cycle}")
 
     def final_steps(self) -> Plan:

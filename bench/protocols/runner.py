@@ -173,10 +173,16 @@ class Runner:
         The step being performed (None between steps), e.g. for a window to show what the rig is doing.
     """
 
-    def __init__(self, rig: Rig, store: Store, *, progress: bool = False,
-                 on_pause: Callable[[Runner], None] | None = None,
-                 on_start: Callable[[Runner], None] | None = None,
-                 on_sample: Callable[[Runner, dict[str, Any]], None] | None = None) -> None:
+    def __init__(
+        self,
+        rig: Rig,
+        store: Store,
+        *,
+        progress: bool = False,
+        on_pause: Callable[[Runner], None] | None = None,
+        on_start: Callable[[Runner], None] | None = None,
+        on_sample: Callable[[Runner, dict[str, Any]], None] | None = None,
+    ) -> None:
         self.rig = rig
         self.store = store
         self.progress = progress
@@ -276,9 +282,15 @@ class Runner:
         registration = settings.pop("registration", None)
         if registration is not None:  # segment 1 (bench.rigs.registration); a resume appends its own
             settings["registrations"] = [{**registration, "segment": 1, "from_step": 0}]
-        run_id = self.store.start_run(protocol_name=protocol.name, protocol_version=protocol.version,
-                                      robot=protocol.robot, config=protocol.config(), settings=settings,
-                                      calibration_ids=self.rig.calibration_ids, campaign=campaign)
+        run_id = self.store.start_run(
+            protocol_name=protocol.name,
+            protocol_version=protocol.version,
+            robot=protocol.robot,
+            config=protocol.config(),
+            settings=settings,
+            calibration_ids=self.rig.calibration_ids,
+            campaign=campaign,
+        )
         return self._perform(protocol, run_id, stored={}, start_at=0)
 
     def resume_run(self, run_id: int) -> RunResult:
@@ -297,29 +309,38 @@ class Runner:
             raise ConfigError(f"run {run_id}: already completed, nothing to resume")
         protocol = protocol_from_config(record.config, source=f"run {run_id}", stored=True)
         if protocol.version != record.protocol_version:
-            raise ConfigError(f"run {run_id}: protocol {protocol.name} is now version {protocol.version}, the run "
-                              f"used version {record.protocol_version}; cannot resume across versions")
+            raise ConfigError(
+                f"run {run_id}: protocol {protocol.name} is now version {protocol.version}, the run "
+                f"used version {record.protocol_version}; cannot resume across versions"
+            )
         if tuple(sorted(self.rig.calibration_ids)) != tuple(record.calibration_ids):
-            raise ConfigError(f"run {run_id}: calibrations in force {sorted(self.rig.calibration_ids)} differ from "
-                              f"the run's {list(record.calibration_ids)}; a run resumes only with the calibrations "
-                              "it started with (a calibration stored since would change its numbers): start a new "
-                              "run (bench run)")
+            raise ConfigError(
+                f"run {run_id}: calibrations in force {sorted(self.rig.calibration_ids)} differ from "
+                f"the run's {list(record.calibration_ids)}; a run resumes only with the calibrations "
+                "it started with (a calibration stored since would change its numbers): start a new "
+                "run (bench run)"
+            )
         preflight(protocol)
         stored_base = record.settings.get("time_base", "wall s (runs stored before time bases were recorded)")
         if stored_base != self.rig.time_base():
-            _log.warning("run %d: stored t_s in %s, continues in %s (t_s stays monotonic)", run_id, stored_base,
-                         self.rig.time_base())
+            _log.warning(
+                "run %d: stored t_s in %s, continues in %s (t_s stays monotonic)",
+                run_id,
+                stored_base,
+                self.rig.time_base(),
+            )
         stored = {s.step_index: self._reply_of(s) for s in self.store.samples(run_id)}
         start_at = resume_point(protocol, stored)
         registration = self.rig.extra.get("registration")
         if registration is not None:  # a new segment: the instruments were registered again (bench.rigs.registration)
             self.store.add_registration(run_id, {**registration, "from_step": start_at})
         elif record.settings.get("registrations"):
-            raise ConfigError(f"run {run_id}: its instruments were registered at a check pose, this rig's were not; "
-                              "resume it on the rig that made it")
+            raise ConfigError(
+                f"run {run_id}: its instruments were registered at a check pose, this rig's were not; "
+                "resume it on the rig that made it"
+            )
         self.store.set_status(run_id, "running")
-        return self._perform(protocol, run_id, stored=stored,
-                             start_at=start_at if start_at is not None else 10**12)
+        return self._perform(protocol, run_id, stored=stored, start_at=start_at if start_at is not None else 10**12)
 
     @staticmethod
     def _reply_of(sample: Any) -> Any:
@@ -327,8 +348,7 @@ class Runner:
             return sample.values[sample.raw["field"]]
         return dict(sample.values)
 
-    def _perform(self, protocol: Protocol, run_id: int, *, stored: dict[int, Any],
-                 start_at: int) -> RunResult:
+    def _perform(self, protocol: Protocol, run_id: int, *, stored: dict[int, Any], start_at: int) -> RunResult:
         self.run_id = run_id
         with self._lock:
             self._transition_locked(RunState.RUNNING)
@@ -338,8 +358,7 @@ class Runner:
         self._t_offset_s = max((s.t_s for s in self.store.samples(run_id)), default=0.0)
         self._t_start = self.rig.clock()
         self.samples_total, self.samples_stored = _count_samples(protocol), len(stored)
-        self._bar = _Progress(self.progress, total=self.samples_total, done=self.samples_stored,
-                              label=protocol.name)
+        self._bar = _Progress(self.progress, total=self.samples_total, done=self.samples_stored, label=protocol.name)
         self._writer = None
         self._payload = MountedPayload()
         try:
@@ -367,8 +386,14 @@ class Runner:
         except Exception as exc:  # noqa: BLE001 - any failure is stored with its reason, then reported
             if self._emergency:  # the stop ended the step it interrupted (e.g. a move: ERR STOPPED)
                 status = "aborted"
-                _log.warning("run %d: %s ended the step %r: %s: %s", run_id, self._reason, self.current_step,
-                             type(exc).__name__, exc)
+                _log.warning(
+                    "run %d: %s ended the step %r: %s: %s",
+                    run_id,
+                    self._reason,
+                    self.current_step,
+                    type(exc).__name__,
+                    exc,
+                )
             else:
                 status, exception, self._reason = "failed", exc, f"{type(exc).__name__}: {exc}"
             self._stop_robot()
@@ -435,8 +460,13 @@ class Runner:
         try:
             self.rig.operator.ask(prompt)
         except PromptWithdrawn as exc:
-            _log.warning("run %d: the operator did not confirm %r (%s): the %g kg payload may still be on the end "
-                         "effector", self.run_id, prompt.text, exc, self._payload.load_kg)
+            _log.warning(
+                "run %d: the operator did not confirm %r (%s): the %g kg payload may still be on the end effector",
+                self.run_id,
+                prompt.text,
+                exc,
+                self._payload.load_kg,
+            )
             return
         self._payload.performed(prompt)
 
@@ -477,8 +507,9 @@ class Runner:
         if isinstance(step, Capture):
             measured = rig.instrument.measure(step)
             values = {**step.commanded, **measured.values, **step.conditions}
-            self._store_sample(run_id, index, values, kind=step.kind, pose=step.pose, cycle=step.cycle,
-                               raw=measured.raw)
+            self._store_sample(
+                run_id, index, values, kind=step.kind, pose=step.pose, cycle=step.cycle, raw=measured.raw
+            )
             return values
         if isinstance(step, Prompt):
             try:
@@ -488,19 +519,23 @@ class Runner:
                 return None
             if step.field is not None:
                 if answer is None:
-                    raise ConfigError(f"prompt {step.text!r}: no value given for {step.field}; an operator who "
-                                      "will not answer raises PromptWithdrawn")
+                    raise ConfigError(
+                        f"prompt {step.text!r}: no value given for {step.field}; an operator who "
+                        "will not answer raises PromptWithdrawn"
+                    )
                 values = {**step.commanded, step.field: float(answer), **step.conditions}
                 raw = {"field": step.field, "entered": float(answer)}
                 if isinstance(answer, Entry):  # the text as typed (or the gauge's line), beside the value
                     raw["typed"] = answer.typed
-                self._store_sample(run_id, index, values, kind=step.kind, pose=step.pose or None,
-                                   cycle=step.cycle or None, raw=raw)
+                self._store_sample(
+                    run_id, index, values, kind=step.kind, pose=step.pose or None, cycle=step.cycle or None, raw=raw
+                )
             return answer
         if isinstance(step, Checkpoint):
             return None
-        raise ConfigError(f"protocol yielded {step!r}, expected a Move, ActuatorMove, Settle, Capture, Prompt or "
-                          "Checkpoint")
+        raise ConfigError(
+            f"protocol yielded {step!r}, expected a Move, ActuatorMove, Settle, Capture, Prompt or Checkpoint"
+        )
 
     def _settle(self, wait_s: float) -> None:
         if self.rig.sleep is not None:  # a test stand-in
@@ -512,15 +547,32 @@ class Runner:
         """Seconds since the run started, in the rig's time base, after the last stored time of a resumed run."""
         return self._t_offset_s + (self.rig.clock() - self._t_start) * self.rig.speed_factor
 
-    def _store_sample(self, run_id: int, index: int, values: dict[str, float], *, kind: str, pose: str | None,
-                      cycle: int | None, raw: Any) -> None:
+    def _store_sample(
+        self,
+        run_id: int,
+        index: int,
+        values: dict[str, float],
+        *,
+        kind: str,
+        pose: str | None,
+        cycle: int | None,
+        raw: Any,
+    ) -> None:
         t_s = self._now_s()
         validate_sample(kind, values)  # a sample off its descriptor is a bug: refused, never stored
         self._await_commit()  # (done already before the step) one sample in flight at a time, each reported once
-        sample = {"step_index": index, "kind": kind, "pose": pose, "cycle": cycle, "t_s": t_s, "values": values,
-                  "raw": raw}
-        self._writer.add(run_id, index, values=values, kind=kind, pose=pose, cycle=cycle, t_s=t_s, raw=raw,
-                         report=sample)
+        sample = {
+            "step_index": index,
+            "kind": kind,
+            "pose": pose,
+            "cycle": cycle,
+            "t_s": t_s,
+            "values": values,
+            "raw": raw,
+        }
+        self._writer.add(
+            run_id, index, values=values, kind=kind, pose=pose, cycle=cycle, t_s=t_s, raw=raw, report=sample
+        )
 
     def _await_commit(self) -> None:
         """Wait until the last sample taken is durable (raising the failure of its commit), then report it."""
@@ -602,9 +654,16 @@ class _Progress:
                 TextColumn,
                 TimeRemainingColumn,
             )
-            self._bar = Progress(TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(),
-                                 TextColumn("ETA"), TimeRemainingColumn(), console=Console(stderr=True),
-                                 transient=False)
+
+            self._bar = Progress(
+                TextColumn("{task.description}"),
+                BarColumn(),
+                MofNCompleteColumn(),
+                TextColumn("ETA"),
+                TimeRemainingColumn(),
+                console=Console(stderr=True),
+                transient=False,
+            )
             self._task = self._bar.add_task(label, total=total, completed=done)
 
     def __enter__(self) -> Self:

@@ -29,9 +29,9 @@ from bench.reports.compare import layout_comparison, with_histories
 from bench.reports.content import CRITERIA, ReportBase, RunReport
 from bench.reports.deviations import Deviation, iso_deviations
 from bench.reports.document import Document, Figure, RawData, Section, comparison_document, run_document
+from bench.reports.ladder import LadderReport, collect_ladder, ladder_document
 from bench.reports.language import customer_document
 from bench.reports.lasergrid import GridHitReport, collect_grid_hits, grid_hit_document
-from bench.reports.ladder import LadderReport, collect_ladder, ladder_document
 from bench.reports.mouse_calibration import collect_mouse_calibration, mouse_calibration_document
 from bench.reports.path import collect_path, path_document
 from bench.reports.positioning import (
@@ -46,10 +46,28 @@ from bench.reports.stabilisation import StabilisationReport, collect_stabilisati
 from bench.reports.summary import HistoryEvent, Identity, is_simulated, run_history, summary_section
 from bench.store import Store
 
-__all__ = ["CRITERIA", "FORMATS", "LAYOUTS", "ActuatorReport", "Deviation", "GridHitReport", "GridPositioningReport",
-           "LadderReport", "Layout", "ReportBase", "ReportPaths", "RunReport", "SIMULATED_BANNER", "StabilisationReport",
-           "collect",
-           "iso_deviations", "own_layout", "write_comparison", "write_report", "write_trend"]
+__all__ = [
+    "CRITERIA",
+    "FORMATS",
+    "LAYOUTS",
+    "ActuatorReport",
+    "Deviation",
+    "GridHitReport",
+    "GridPositioningReport",
+    "LadderReport",
+    "Layout",
+    "ReportBase",
+    "ReportPaths",
+    "RunReport",
+    "SIMULATED_BANNER",
+    "StabilisationReport",
+    "collect",
+    "iso_deviations",
+    "own_layout",
+    "write_comparison",
+    "write_report",
+    "write_trend",
+]
 
 #: Report formats, in the order they are written.
 FORMATS = ("html", "pdf")
@@ -79,8 +97,9 @@ LAYOUTS = {
     "iso9283_stabilisation": Layout(collect_stabilisation, stabilisation_document, ("bands_mm", "hysteresis_mm")),
     "iso9283_path": Layout(collect_path, path_document),
     "iso9283_cornering": Layout(collect_path, path_document),
-    "iso9283_positioning_time": Layout(collect_positioning_time, positioning_time_document,
-                                       ("bands_mm", "hysteresis_mm")),
+    "iso9283_positioning_time": Layout(
+        collect_positioning_time, positioning_time_document, ("bands_mm", "hysteresis_mm")
+    ),
 }
 
 
@@ -104,8 +123,9 @@ def own_layout(store: Store, run_id: int) -> Layout | None:
 _FLAGS = {"bands_mm": "--band-mm", "hysteresis_mm": "--hysteresis-mm"}
 
 
-def _layout_options(run_id: int, protocol: str, layout: Layout | None,
-                    options: Mapping[str, object]) -> dict[str, object]:
+def _layout_options(
+    run_id: int, protocol: str, layout: Layout | None, options: Mapping[str, object]
+) -> dict[str, object]:
     """The layout keywords given (not None), refusing those the run's layout does not take."""
     given = {name: value for name, value in options.items() if value is not None}
     for name in given:
@@ -115,9 +135,18 @@ def _layout_options(run_id: int, protocol: str, layout: Layout | None,
     return given
 
 
-def collect(store: Store, run_id: int, *, criteria: Mapping[str, float] | None = None, k: float = 2.0,
-            resamples: int = 1000, allow_unknown: bool = False, bands_mm: Sequence[float] | None = None,
-            hysteresis_mm: float | None = None, decision_rule: str = "simple") -> ReportBase:
+def collect(
+    store: Store,
+    run_id: int,
+    *,
+    criteria: Mapping[str, float] | None = None,
+    k: float = 2.0,
+    resamples: int = 1000,
+    allow_unknown: bool = False,
+    bands_mm: Sequence[float] | None = None,
+    hysteresis_mm: float | None = None,
+    decision_rule: str = "simple",
+) -> ReportBase:
     """Every fact and number of the report of run ``run_id``, laid out for its protocol (:data:`LAYOUTS`; pose
     protocols: :func:`bench.reports.content.collect`). Project criteria apply to pose runs only; limit bands and
     hysteresis to stabilisation runs only."""
@@ -125,22 +154,42 @@ def collect(store: Store, run_id: int, *, criteria: Mapping[str, float] | None =
     layout = own_layout(store, run_id)
     options = _layout_options(run_id, protocol, layout, {"bands_mm": bands_mm, "hysteresis_mm": hysteresis_mm})
     if layout is None:
-        return content.collect(store, run_id, criteria=criteria, k=k, resamples=resamples,
-                               allow_unknown=allow_unknown, decision_rule=decision_rule)
+        return content.collect(
+            store,
+            run_id,
+            criteria=criteria,
+            k=k,
+            resamples=resamples,
+            allow_unknown=allow_unknown,
+            decision_rule=decision_rule,
+        )
     if criteria:
-        raise ConfigError(f"--criterion {', '.join(criteria)}: project criteria ({', '.join(CRITERIA)}) apply to pose "
-                          f"runs; run {run_id} is a {protocol} run")
+        raise ConfigError(
+            f"--criterion {', '.join(criteria)}: project criteria ({', '.join(CRITERIA)}) apply to pose "
+            f"runs; run {run_id} is a {protocol} run"
+        )
     return layout.collect(store, run_id, k=k, resamples=resamples, allow_unknown=allow_unknown, **options)
 
 
-def _document(report: ReportBase, raw: list[RawData], identity: Identity,
-              history: tuple[HistoryEvent, ...]) -> Document:
+def _document(
+    report: ReportBase, raw: list[RawData], identity: Identity, history: tuple[HistoryEvent, ...]
+) -> Document:
     """The layout's document with the summary (page 1) in front and, for simulated data, the banner of every page."""
-    document = (run_document if isinstance(report, RunReport) else grid_positioning_document
-                if isinstance(report, GridPositioningReport) else LAYOUTS[report.run.protocol_name].document)
+    document = (
+        run_document
+        if isinstance(report, RunReport)
+        else grid_positioning_document
+        if isinstance(report, GridPositioningReport)
+        else LAYOUTS[report.run.protocol_name].document
+    )
     body = document(report, raw, operator=identity.operator or "—", laboratory=identity.laboratory or "—")
-    return customer_document(with_summary(body, summary_section(report, identity, history, is_simulated(report.run)),
-                                          simulated=is_simulated(report.run)))
+    return customer_document(
+        with_summary(
+            body,
+            summary_section(report, identity, history, is_simulated(report.run)),
+            simulated=is_simulated(report.run),
+        )
+    )
 
 
 def with_summary(document: Document, summary: Section, *, simulated: bool) -> Document:
@@ -193,14 +242,14 @@ def _write_tilts(report: ReportBase, out: Path) -> list[tuple[Path, RawData]]:
     return [] if tilts is None else [_write_table(tilts, out / f"run{report.run.id}_tilts.csv")]
 
 
-def _write(document: Document, out: Path, stem: str, formats: tuple[str, ...],
-           progress: Callable[[str], None]) -> tuple[dict[str, Path], str]:
+def _write(
+    document: Document, out: Path, stem: str, formats: tuple[str, ...], progress: Callable[[str], None]
+) -> tuple[dict[str, Path], str]:
     """Write ``document`` in ``formats`` under its unique number (:mod:`bench.reports.numbering`); the files written
     and that number."""
     from bench.reports.html import write_html
     from bench.reports.numbering import numbered
     from bench.reports.pdf import write_pdf
-
     from bench.reports.plots import draw_all
 
     draw_all([block.plot for section in document.sections for block in section.blocks if isinstance(block, Figure)])
@@ -225,12 +274,23 @@ def _open(store: str | Path | Store) -> tuple[Store, bool]:
     return Store(store, read_only=True), True
 
 
-def write_report(store: str | Path | Store, run_id: int, out_dir: str | Path, formats: Iterable[str] = FORMATS, *,
-                 criteria: Mapping[str, float] | None = None, operator: str | None = None,
-                 laboratory: str | None = None, k: float = 2.0, allow_unknown: bool = False,
-                 bands_mm: Sequence[float] | None = None, hysteresis_mm: float | None = None,
-                 identity: Mapping[str, str | None] | None = None, decision_rule: str = "simple",
-                 progress: Callable[[str], None] = _quiet) -> ReportPaths:
+def write_report(
+    store: str | Path | Store,
+    run_id: int,
+    out_dir: str | Path,
+    formats: Iterable[str] = FORMATS,
+    *,
+    criteria: Mapping[str, float] | None = None,
+    operator: str | None = None,
+    laboratory: str | None = None,
+    k: float = 2.0,
+    allow_unknown: bool = False,
+    bands_mm: Sequence[float] | None = None,
+    hysteresis_mm: float | None = None,
+    identity: Mapping[str, str | None] | None = None,
+    decision_rule: str = "simple",
+    progress: Callable[[str], None] = _quiet,
+) -> ReportPaths:
     """Write the report of one run: ``report_run<ID>.html`` / ``.pdf`` and ``run<ID>_samples.csv`` in ``out_dir``.
 
     Parameters
@@ -266,14 +326,25 @@ def write_report(store: str | Path | Store, run_id: int, out_dir: str | Path, fo
     formats = _check_formats(formats)
     store, opened = _open(store)
     try:
-        report = collect(store, run_id, criteria=criteria, k=k, allow_unknown=allow_unknown, bands_mm=bands_mm,
-                         hysteresis_mm=hysteresis_mm, decision_rule=decision_rule)
+        report = collect(
+            store,
+            run_id,
+            criteria=criteria,
+            k=k,
+            allow_unknown=allow_unknown,
+            bands_mm=bands_mm,
+            hysteresis_mm=hysteresis_mm,
+            decision_rule=decision_rule,
+        )
         history = run_history(store, report.run)
     finally:
         if opened:
             store.close()
-    given = {**(identity or {}), **({"operator": operator} if operator else {}),
-             **({"laboratory": laboratory} if laboratory else {})}
+    given = {
+        **(identity or {}),
+        **({"operator": operator} if operator else {}),
+        **({"laboratory": laboratory} if laboratory else {}),
+    }
     out = _out_dir(out_dir)
     csv_path, raw = _write_raw(report, out)
     tilts = _write_tilts(report, out)
@@ -283,9 +354,16 @@ def write_report(store: str | Path | Store, run_id: int, out_dir: str | Path, fo
     return ReportPaths(written.get("html"), written.get("pdf"), (csv_path, *(p for p, _ in tilts)), number)
 
 
-def write_comparison(store: str | Path | Store, first_run: int, second_run: int, out_dir: str | Path,
-                     formats: Iterable[str] = FORMATS, *, k: float = 2.0,
-                     progress: Callable[[str], None] = _quiet) -> ReportPaths:
+def write_comparison(
+    store: str | Path | Store,
+    first_run: int,
+    second_run: int,
+    out_dir: str | Path,
+    formats: Iterable[str] = FORMATS,
+    *,
+    k: float = 2.0,
+    progress: Callable[[str], None] = _quiet,
+) -> ReportPaths:
     """Write two runs side by side (before/after calibration, two loads, two robots): ``compare_run<A>_run<B>``.
 
     Pose runs are paired pose by pose; runs of a protocol with a layout of its own must both be of that protocol
@@ -296,13 +374,18 @@ def write_comparison(store: str | Path | Store, first_run: int, second_run: int,
         layouts = [own_layout(store, run_id) for run_id in (first_run, second_run)]
         protocols = [store.run(run_id).protocol_name for run_id in (first_run, second_run)]
         if (layouts[0] is None) != (layouts[1] is None) or (layouts[0] is not None and protocols[0] != protocols[1]):
-            raise ConfigError(f"--compare: run {first_run} is a {protocols[0]} run and run {second_run} a "
-                              f"{protocols[1]} run; compare runs of the same kind")
+            raise ConfigError(
+                f"--compare: run {first_run} is a {protocols[0]} run and run {second_run} a "
+                f"{protocols[1]} run; compare runs of the same kind"
+            )
         first, second = collect(store, first_run, k=k), collect(store, second_run, k=k)
         content.check_same_axes((first, second), "--compare")
         histories = (run_history(store, first.run), run_history(store, second.run))
-        calibrated = (calibration_comparison(store, first, second)
-                      if layouts[0] is None or layouts[0] is PARTIAL_READINGS else None)
+        calibrated = (
+            calibration_comparison(store, first, second)
+            if layouts[0] is None or layouts[0] is PARTIAL_READINGS
+            else None
+        )
     finally:
         if opened:
             store.close()
@@ -313,8 +396,7 @@ def write_comparison(store: str | Path | Store, first_run: int, second_run: int,
         document = with_calibration_page(comparison_document(first, second, [raw for _, raw in raws]), calibrated)
     else:
         own = [layouts[0].document(report, [raw]) for report, (_, raw) in zip((first, second), raws)]
-        document = with_calibration_page(layout_comparison(first, second, *own, [raw for _, raw in raws]),
-                                         calibrated)
+        document = with_calibration_page(layout_comparison(first, second, *own, [raw for _, raw in raws]), calibrated)
     document = with_histories(document, first, second, histories)
     if is_simulated(first.run) or is_simulated(second.run):
         document = replace(document, meta={**document.meta, "banner": SIMULATED_BANNER})
@@ -323,9 +405,15 @@ def write_comparison(store: str | Path | Store, first_run: int, second_run: int,
     return ReportPaths(written.get("html"), written.get("pdf"), tuple(p for p, _ in raws), number)
 
 
-def write_trend(store: str | Path | Store, run_ids: Sequence[int], out_dir: str | Path,
-                formats: Iterable[str] = FORMATS, *, k: float = 2.0,
-                progress: Callable[[str], None] = _quiet) -> ReportPaths:
+def write_trend(
+    store: str | Path | Store,
+    run_ids: Sequence[int],
+    out_dir: str | Path,
+    formats: Iterable[str] = FORMATS,
+    *,
+    k: float = 2.0,
+    progress: Callable[[str], None] = _quiet,
+) -> ReportPaths:
     """Write the trend of N >= 2 pose runs (drift across days): ``trend_run<A>_..._run<Z>`` (:mod:`.trend`)."""
     from bench.reports.trend import trend_document
 
@@ -337,8 +425,9 @@ def write_trend(store: str | Path | Store, run_ids: Sequence[int], out_dir: str 
     try:
         for run_id in ids:
             if own_layout(store, run_id) is not None:
-                raise ConfigError(f"--trend: run {run_id} is a {store.run(run_id).protocol_name} run; trends cover "
-                                  f"pose runs")
+                raise ConfigError(
+                    f"--trend: run {run_id} is a {store.run(run_id).protocol_name} run; trends cover pose runs"
+                )
         reports = sorted((collect(store, run_id, k=k) for run_id in ids), key=lambda r: r.run.started_utc)
         histories = [run_history(store, r.run) for r in reports]
     finally:
@@ -351,6 +440,5 @@ def write_trend(store: str | Path | Store, run_ids: Sequence[int], out_dir: str 
     if any(is_simulated(r.run) for r in reports):
         document = replace(document, meta={**document.meta, "banner": SIMULATED_BANNER})
     document = customer_document(document)
-    written, number = _write(document, out, "trend_" + "_".join(f"run{r.run.id}" for r in reports), formats,
-                             progress)
+    written, number = _write(document, out, "trend_" + "_".join(f"run{r.run.id}" for r in reports), formats, progress)
     return ReportPaths(written.get("html"), written.get("pdf"), tuple(p for p, _ in raws), number)

@@ -21,17 +21,23 @@ def bidirectional_plot(results) -> Plot:
         s_up = (r.forward_mm - r.targets_mm).std(axis=0, ddof=1)
         s_down = (r.backward_mm - r.targets_mm).std(axis=0, ddof=1)
         axes.axhline(0.0, color="0.6", lw=0.8)
-        for mean, s, colour, name in ((up, s_up, "tab:blue", "↑ approach"), (down, s_down, "tab:orange",
-                                                                                "↓ approach")):
-            axes.fill_between(r.targets_mm, mean - 2 * s, mean + 2 * s, color=colour, alpha=0.2, lw=0,
-                              label=f"{name}: x̄ ± 2s")
+        for mean, s, colour, name in ((up, s_up, "tab:blue", "↑ approach"), (down, s_down, "tab:orange", "↓ approach")):
+            axes.fill_between(
+                r.targets_mm, mean - 2 * s, mean + 2 * s, color=colour, alpha=0.2, lw=0, label=f"{name}: x̄ ± 2s"
+            )
             axes.plot(r.targets_mm, mean, "o-", color=colour, ms=3, lw=1, label=f"{name}: mean deviation x̄")
         axes.vlines(r.targets_mm, down, up, color="0.2", lw=1.2, label="reversal B_i = x̄↑ − x̄↓")
-        axes.set_title(f"axis {r.axis}: B = {f.reversal_max_mm:.3g} mm, R = {f.repeatability_mm:.3g} mm, "
-                       f"A = {f.accuracy_mm:.3g} mm", fontsize=8)
+        axes.set_title(
+            f"axis {r.axis}: B = {f.reversal_max_mm:.3g} mm, R = {f.repeatability_mm:.3g} mm, "
+            f"A = {f.accuracy_mm:.3g} mm",
+            fontsize=8,
+        )
         axes.set_xlabel("target position (mm)", fontsize=8)
         axes.set_ylabel("reading − target (mm)", fontsize=8)
         handles = axes.get_legend_handles_labels()
     figure.legend(*handles, loc="outside upper center", ncols=3, fontsize=7, frameon=False)
-    return Plot("Bidirectional positioning (ISO 230-2): mean deviation from the target for each approach direction "
-                "with its ±2s band, and the reversal B_i between them at every target.", figure)
+    return Plot(
+        "Bidirectional positioning (ISO 230-2): mean deviation from the target for each approach direction "
+        "with its ±2s band, and the reversal B_i between them at every target.",
+        figure,
+    )

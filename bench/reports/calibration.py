@@ -31,8 +31,14 @@ from bench.reports.content import RunReport, axes_statement
 from bench.reports.document import Document, Figure, Paragraph, Section, Table, fmt_mm, fmt_pm
 from bench.reports.plots import MIN_FONT_PT, Plot, workspace_cloud_mm
 
-__all__ = ["CalibrationComparison", "calibration_comparison", "calibration_section", "gain_rows",
-           "kinematic_calibration_id", "with_calibration_page"]
+__all__ = [
+    "CalibrationComparison",
+    "calibration_comparison",
+    "calibration_section",
+    "gain_rows",
+    "kinematic_calibration_id",
+    "with_calibration_page",
+]
 
 _CONDITION_LIMIT = 100.0  # bench.metrology.kinematic_calibration.CONDITION_LIMIT (not imported: scipy at import)
 _SHOWN_CORRELATIONS = 5
@@ -60,10 +66,15 @@ def calibration_comparison(store: Any, first: Any, second: Any) -> CalibrationCo
     if ids[0] == ids[1]:
         return None
     after_first = ids[1] is None or (ids[0] is not None and ids[0] > ids[1])
-    (before, before_id), (after, after_id) = (((second, ids[1]), (first, ids[0])) if after_first else
-                                              ((first, ids[0]), (second, ids[1])))
-    return CalibrationComparison(before, after, None if before_id is None else store.calibration_by_id(before_id),
-                                 store.calibration_by_id(after_id))
+    (before, before_id), (after, after_id) = (
+        ((second, ids[1]), (first, ids[0])) if after_first else ((first, ids[0]), (second, ids[1]))
+    )
+    return CalibrationComparison(
+        before,
+        after,
+        None if before_id is None else store.calibration_by_id(before_id),
+        store.calibration_by_id(after_id),
+    )
 
 
 def _name(record: Any | None) -> str:
@@ -94,14 +105,16 @@ def gain_rows(pair: CalibrationComparison) -> tuple[tuple[str, str, str, str], .
     rp = np.array([[b.repeatability.rp_mm, a.repeatability.rp_mm] for b, a in paired])
     rp_u = np.array([[b.rp_u.expanded_uncertainty, a.rp_u.expanded_uncertainty] for b, a in paired])
     largest = ap.argmax(axis=0)
-    rows = [("mean AP_P", ap.mean(axis=0), ap_u.min(axis=0)),
-            ("largest AP_P", ap.max(axis=0), ap_u[largest, [0, 1]])]
-    rows += [(f"mean |AP_{name}|", np.abs(axes[:, :, i]).mean(axis=0), ap_u.min(axis=0))
-             for i, name in enumerate(_axes(pair))]
+    rows = [("mean AP_P", ap.mean(axis=0), ap_u.min(axis=0)), ("largest AP_P", ap.max(axis=0), ap_u[largest, [0, 1]])]
+    rows += [
+        (f"mean |AP_{name}|", np.abs(axes[:, :, i]).mean(axis=0), ap_u.min(axis=0))
+        for i, name in enumerate(_axes(pair))
+    ]
     rows.append(("mean RP_l", rp.mean(axis=0), rp_u.min(axis=0)))
     rows = [(name, format_value(v[0], u[0]), format_value(v[1], u[1]), _factor(*v)) for name, v, u in rows]
-    rows[-1:-1] = [(f"mean |AP_{name}|", "not measured", "not measured", "—") for name in "xyz"
-                   if name not in _axes(pair)]
+    rows[-1:-1] = [
+        (f"mean |AP_{name}|", "not measured", "not measured", "—") for name in "xyz" if name not in _axes(pair)
+    ]
     return tuple(rows)
 
 
@@ -111,8 +124,10 @@ def _axes(pair: CalibrationComparison) -> tuple[str, ...]:
     if before and after and before[0].axis_names != after[0].axis_names:
         from bench.errors import ConfigError
 
-        raise ConfigError(f"--compare: run {pair.before.run.id} measured {', '.join(before[0].axis_names)} and run "
-                          f"{pair.after.run.id} {', '.join(after[0].axis_names)}; compare runs of the same axes")
+        raise ConfigError(
+            f"--compare: run {pair.before.run.id} measured {', '.join(before[0].axis_names)} and run "
+            f"{pair.after.run.id} {', '.join(after[0].axis_names)}; compare runs of the same axes"
+        )
     return before[0].axis_names if before else ("x", "y", "z")
 
 
@@ -121,8 +136,14 @@ def _pose_rows(pair: CalibrationComparison) -> tuple[tuple[str, ...], ...]:
     for b, a in _paired(pair):
         cells = [pose_label(b.pose, b.conditions), fmt_pm(b.ap_u), fmt_pm(a.ap_u)]
         for name in "xyz":
-            cells += [format_value(dict(zip(r.axis_names, r.accuracy.ap_axes_mm))[name], r.ap_u.expanded_uncertainty,
-                                   signed=True) if name in r.axis_names else "not measured" for r in (b, a)]
+            cells += [
+                format_value(
+                    dict(zip(r.axis_names, r.accuracy.ap_axes_mm))[name], r.ap_u.expanded_uncertainty, signed=True
+                )
+                if name in r.axis_names
+                else "not measured"
+                for r in (b, a)
+            ]
         rows.append((*cells, fmt_pm(b.rp_u), fmt_pm(a.rp_u)))
     return tuple(rows)
 
@@ -139,33 +160,48 @@ def error_vectors(pair: CalibrationComparison) -> Plot | None:
     commands = np.array([b.commanded_mm for b, _ in paired])
     vectors = [np.zeros((len(paired), 3)) for _ in range(2)]
     for vector, rows in zip(vectors, zip(*paired)):
-        vector[:, :len(axes_measured)] = [r.accuracy.ap_axes_mm for r in rows]  # z stays 0: only x-y is drawn
+        vector[:, : len(axes_measured)] = [r.accuracy.ap_axes_mm for r in rows]  # z stays 0: only x-y is drawn
     cloud = workspace_cloud_mm(pair.after.run.robot)
     points = commands if cloud is None else cloud
     scale = 0.15 * float(np.ptp(points, axis=0).max()) / max(float(np.abs(vectors[0]).max()), 1e-9)
     figure = MplFigure(figsize=(10 if len(projections) == 2 else 5.5, 8.4), layout="constrained")
     grid = figure.subplots(2, len(projections), squeeze=False)
-    for row, (label, run, vector, colour) in enumerate((("before", pair.before, vectors[0], "tab:red"),
-                                                        ("after", pair.after, vectors[1], "tab:blue"))):
+    for row, (label, run, vector, colour) in enumerate(
+        (("before", pair.before, vectors[0], "tab:red"), ("after", pair.after, vectors[1], "tab:blue"))
+    ):
         for column, (i, j) in enumerate(projections):
             axes = grid[row][column]
             if cloud is not None:
-                axes.scatter(cloud[:, i], cloud[:, j], s=1, color="0.85", rasterized=True,
-                             label="reachable (kinematic model)")
+                axes.scatter(
+                    cloud[:, i], cloud[:, j], s=1, color="0.85", rasterized=True, label="reachable (kinematic model)"
+                )
             axes.scatter(commands[:, i], commands[:, j], s=8, color="black", label="command poses")
-            axes.quiver(commands[:, i], commands[:, j], vector[:, i] * scale, vector[:, j] * scale, color=colour,
-                        angles="xy", scale_units="xy", scale=1, width=0.005, zorder=3,
-                        label=f"AP vector x{scale:.0f}")
+            axes.quiver(
+                commands[:, i],
+                commands[:, j],
+                vector[:, i] * scale,
+                vector[:, j] * scale,
+                color=colour,
+                angles="xy",
+                scale_units="xy",
+                scale=1,
+                width=0.005,
+                zorder=3,
+                label=f"AP vector x{scale:.0f}",
+            )
             axes.set_xlabel(f"{'xyz'[i]} (mm)")
             axes.set_ylabel(f"{'xyz'[j]} (mm)")
             axes.set_title(f"{label}: run {run.run.id}", fontsize=MIN_FONT_PT + 1)
             axes.set_aspect("equal", adjustable="datalim")
             axes.legend(fontsize=MIN_FONT_PT, loc="lower left")
     views = "x-y and x-z projections" if len(projections) == 2 else "x-y projection; z not measured"
-    return Plot(f"Error vectors over the workspace of the {pair.after.run.robot} ({views}): the "
-                f"signed AP vector of every pose, before (run {pair.before.run.id}, {_name(pair.before_calibration)}) "
-                f"and after (run {pair.after.run.id}, {_name(pair.after_calibration)}), both magnified {scale:.0f} "
-                f"times.", figure)
+    return Plot(
+        f"Error vectors over the workspace of the {pair.after.run.robot} ({views}): the "
+        f"signed AP vector of every pose, before (run {pair.before.run.id}, {_name(pair.before_calibration)}) "
+        f"and after (run {pair.after.run.id}, {_name(pair.after_calibration)}), both magnified {scale:.0f} "
+        f"times.",
+        figure,
+    )
 
 
 def _model_parameters(params: dict) -> tuple[tuple[str, ...], tuple[str, ...]] | None:
@@ -220,25 +256,38 @@ def _correlations(params: dict) -> tuple[tuple[str, str, str], ...]:
 def _campaign_rows(params: dict, obs: dict) -> list[tuple[str, str]]:
     """The measurements and their two uncertainties, kept apart: the instrument's stated figure and the robot's
     measured scatter (a calibration stored before the per-pose means: every reading fitted alone)."""
-    instrument = ("Instrument standard uncertainty (mm per axis, stated)",
-                  f"{params.get('uncertainty_mm', float('nan')):g}")
+    instrument = (
+        "Instrument standard uncertainty (mm per axis, stated)",
+        f"{params.get('uncertainty_mm', float('nan')):g}",
+    )
     campaign = params.get("campaign")
     if not campaign:
         return [("Pose measurements (poses x cycles)", str(obs.get("n_poses", "—"))), instrument]
     cycles = campaign["cycles_per_pose"]
     scatter = campaign["scatter_mm"]
-    rows = [("Poses (each fitted by its mean)", str(len(cycles))),
-            ("Cycles per pose", f"{min(cycles)}" if min(cycles) == max(cycles) else f"{min(cycles)}-{max(cycles)}"),
-            instrument,
-            ("Robot scatter of one reading (mm per axis, measured)",
-             "not measured (one cycle)" if scatter[0] is None else
-             f"{' / '.join(fmt_mm(v) for v in scatter)} ({campaign['scatter_dof']} degrees of freedom)"),
-            ("Standard uncertainty of a pose mean (mm per axis, RMS)",
-             " / ".join(fmt_mm(v) for v in campaign["mean_uncertainty_mm"]))]
+    rows = [
+        ("Poses (each fitted by its mean)", str(len(cycles))),
+        ("Cycles per pose", f"{min(cycles)}" if min(cycles) == max(cycles) else f"{min(cycles)}-{max(cycles)}"),
+        instrument,
+        (
+            "Robot scatter of one reading (mm per axis, measured)",
+            "not measured (one cycle)"
+            if scatter[0] is None
+            else f"{' / '.join(fmt_mm(v) for v in scatter)} ({campaign['scatter_dof']} degrees of freedom)",
+        ),
+        (
+            "Standard uncertainty of a pose mean (mm per axis, RMS)",
+            " / ".join(fmt_mm(v) for v in campaign["mean_uncertainty_mm"]),
+        ),
+    ]
     plan = campaign.get("plan")
     if plan and plan.get("calibration_cycles"):
-        rows.append((f"Plan for a {plan['target_gain']:g}x gain (cycles per pose: calibration / validation)",
-                     f"{plan['calibration_cycles']} / {plan.get('validation_cycles') or '—'}"))
+        rows.append(
+            (
+                f"Plan for a {plan['target_gain']:g}x gain (cycles per pose: calibration / validation)",
+                f"{plan['calibration_cycles']} / {plan.get('validation_cycles') or '—'}",
+            )
+        )
     return rows
 
 
@@ -248,32 +297,44 @@ def _fit_rows(record: Any) -> tuple[tuple[str, str], ...]:
     singular = obs.get("singular_values") or [float("nan")]
     condition = float(obs.get("condition_number", float("nan")))
     verdict = "accepted" if condition <= _CONDITION_LIMIT else "above the limit"
-    rows = [("Source run", str(record.source_run_id)), ("Stored (UTC)", record.created_utc),
-            ("Robot serial", str(params.get("dut_serial", "not recorded"))),
-            *_campaign_rows(params, obs),
-            ("Free parameters", str(len(params.get("parameters", {}))))]
+    rows = [
+        ("Source run", str(record.source_run_id)),
+        ("Stored (UTC)", record.created_utc),
+        ("Robot serial", str(params.get("dut_serial", "not recorded"))),
+        *_campaign_rows(params, obs),
+        ("Free parameters", str(len(params.get("parameters", {})))),
+    ]
     is_map = params.get("fit") == "map"
     if is_map:  # a prior holds what the data cannot (docs/calibration.md, the refusal rule)
-        rows += [("Fit", f"maximum a posteriori, prior: {(params.get('prior') or {}).get('name', 'tolerances')}"),
-                 ("Fixed by the prior (the data did not inform them)", ", ".join(params.get("prior_only", ()))
-                  or "none"),
-                 ("Condition number of the data part", f"{condition:.3g} (the prior holds the weak directions)")]
+        rows += [
+            ("Fit", f"maximum a posteriori, prior: {(params.get('prior') or {}).get('name', 'tolerances')}"),
+            ("Fixed by the prior (the data did not inform them)", ", ".join(params.get("prior_only", ())) or "none"),
+            ("Condition number of the data part", f"{condition:.3g} (the prior holds the weak directions)"),
+        ]
     else:
         rows.append(("Condition number (limit 100)", f"{condition:.1f} ({verdict})"))
     weak = "Combinations the data alone cannot identify" if is_map else "Unidentifiable combinations"
     dof = params.get("degrees_of_freedom")  # absent from a MAP fit stored before 2026-12-03: chi^2 per coordinate
     chi2 = "Chi^2 per coordinate of the fit" if is_map and dof is None else "Reduced chi^2 of the fit"
     over = "" if dof is None or not is_map else f" over {float(dof):.1f} degrees of freedom"
-    rows += [("O1 index (Borm & Menq)", f"{float(obs.get('o1', float('nan'))):.4g}"),
-             ("Singular values, largest / smallest", f"{max(singular):.4g} / {min(singular):.4g}"),
-             (weak, "; ".join(obs.get("unidentifiable", ())) or "none"),
-             (chi2, f"{float(params.get('reduced_chi2', float('nan'))):.2f}{over}"),
-             ("Residual RMS per coordinate before / after (mm)",
-             f"{fmt_mm(params.get('residual_rms_before', float('nan')))} / "
-             f"{fmt_mm(params.get('residual_rms', float('nan')))}")]
+    rows += [
+        ("O1 index (Borm & Menq)", f"{float(obs.get('o1', float('nan'))):.4g}"),
+        ("Singular values, largest / smallest", f"{max(singular):.4g} / {min(singular):.4g}"),
+        (weak, "; ".join(obs.get("unidentifiable", ())) or "none"),
+        (chi2, f"{float(params.get('reduced_chi2', float('nan'))):.2f}{over}"),
+        (
+            "Residual RMS per coordinate before / after (mm)",
+            f"{fmt_mm(params.get('residual_rms_before', float('nan')))} / "
+            f"{fmt_mm(params.get('residual_rms', float('nan')))}",
+        ),
+    ]
     if "ap_before_mm" in params:
-        rows.append(("Mean position error on the calibration poses, before / after (mm, in-sample)",
-                     f"{fmt_mm(params['ap_before_mm'])} / {fmt_mm(params['ap_after_mm'])}"))
+        rows.append(
+            (
+                "Mean position error on the calibration poses, before / after (mm, in-sample)",
+                f"{fmt_mm(params['ap_before_mm'])} / {fmt_mm(params['ap_after_mm'])}",
+            )
+        )
     return tuple(rows)
 
 
@@ -283,22 +344,43 @@ def _pose_run_blocks(pair: CalibrationComparison) -> list:
     rows = gain_rows(pair)
     k = f"{before.coverage_factor:g}"
     axes = axes_statement(after)
-    blocks: list = [Paragraph(
-        f"Before: run {before.run.id}, {_name(pair.before_calibration)} in force. After: run {after.run.id}, "
-        f"{_name(record)} in force (identified from run {record.source_run_id}). Over the {len(_paired(pair))} "
-        f"poses present in both runs the mean AP_P goes from {rows[0][1]} mm to {rows[0][2]} mm: "
-        f"{rows[0][3]} times smaller." + (f" {axes}." if axes else "")),
-        Table("calibration-gain", ("Quantity (over the poses of both runs)", "Before (mm)", "After (mm)",
-                                   "Factor before / after"), rows,
-              f"Gain of the calibration: run {before.run.id} (before) against run {after.run.id} (after); each "
-              "value to the decimal place of the U of the pose results it comes from (a mean: the smallest U among "
-              "them; a mean has no U of its own, as the poses share the instrument's systematic errors)"
-              + (f"; {axes}" if axes else "")),
-        Table("calibration-poses", ("Pose", "AP_P ± U before (mm)", "AP_P ± U after (mm)", "AP_x before",
-                                    "AP_x after", "AP_y before", "AP_y after", "AP_z before", "AP_z after",
-                                    "RP_l ± U before (mm)", "RP_l ± U after (mm)"), _pose_rows(pair),
-              f"Per pose and axis, before and after (AP axes signed, barycentre − command, mm; U with k = {k}"
-              + (f"; {axes}" if axes else "") + ")")]
+    blocks: list = [
+        Paragraph(
+            f"Before: run {before.run.id}, {_name(pair.before_calibration)} in force. After: run {after.run.id}, "
+            f"{_name(record)} in force (identified from run {record.source_run_id}). Over the {len(_paired(pair))} "
+            f"poses present in both runs the mean AP_P goes from {rows[0][1]} mm to {rows[0][2]} mm: "
+            f"{rows[0][3]} times smaller." + (f" {axes}." if axes else "")
+        ),
+        Table(
+            "calibration-gain",
+            ("Quantity (over the poses of both runs)", "Before (mm)", "After (mm)", "Factor before / after"),
+            rows,
+            f"Gain of the calibration: run {before.run.id} (before) against run {after.run.id} (after); each "
+            "value to the decimal place of the U of the pose results it comes from (a mean: the smallest U among "
+            "them; a mean has no U of its own, as the poses share the instrument's systematic errors)"
+            + (f"; {axes}" if axes else ""),
+        ),
+        Table(
+            "calibration-poses",
+            (
+                "Pose",
+                "AP_P ± U before (mm)",
+                "AP_P ± U after (mm)",
+                "AP_x before",
+                "AP_x after",
+                "AP_y before",
+                "AP_y after",
+                "AP_z before",
+                "AP_z after",
+                "RP_l ± U before (mm)",
+                "RP_l ± U after (mm)",
+            ),
+            _pose_rows(pair),
+            f"Per pose and axis, before and after (AP axes signed, barycentre − command, mm; U with k = {k}"
+            + (f"; {axes}" if axes else "")
+            + ")",
+        ),
+    ]
     plot = error_vectors(pair)
     if plot is not None:
         blocks.append(Figure(plot))
@@ -314,20 +396,40 @@ def calibration_section(pair: CalibrationComparison, number: int) -> Section:
     record = pair.after_calibration
     blocks = _pose_run_blocks(pair) if isinstance(pair.after, RunReport) else partial_blocks(pair, _name)
     params = record.params
-    blocks.append(Table("calibration-parameters", ("Parameter", "Deviation from documented", "Standard uncertainty",
-                                                   "Unit"), _parameter_rows(params),
-                        f"Identified parameters of {_name(record)} (deviations from the documented geometry; "
-                        f"standard uncertainties, k = 1)"))
+    blocks.append(
+        Table(
+            "calibration-parameters",
+            ("Parameter", "Deviation from documented", "Standard uncertainty", "Unit"),
+            _parameter_rows(params),
+            f"Identified parameters of {_name(record)} (deviations from the documented geometry; "
+            f"standard uncertainties, k = 1)",
+        )
+    )
     held = _held(params)
-    blocks.append(Paragraph("Held at their documented values (not identifiable from this pose set and "
-                            "instrument, or not freed): " + (", ".join(held) if held else "none") + "."))
+    blocks.append(
+        Paragraph(
+            "Held at their documented values (not identifiable from this pose set and "
+            "instrument, or not freed): " + (", ".join(held) if held else "none") + "."
+        )
+    )
     correlations = _correlations(params)
     if correlations:
-        blocks.append(Table("calibration-correlations", ("Parameter", "Parameter", "Correlation"), correlations,
-                            f"The {len(correlations)} strongest correlations between identified parameters"))
-    blocks.append(Table("calibration-observability", ("Item", "Value"), _fit_rows(record),
-                        "Fit and observability of the identification (SVD of the column-scaled, uncertainty-"
-                        "weighted Jacobian)"))
+        blocks.append(
+            Table(
+                "calibration-correlations",
+                ("Parameter", "Parameter", "Correlation"),
+                correlations,
+                f"The {len(correlations)} strongest correlations between identified parameters",
+            )
+        )
+    blocks.append(
+        Table(
+            "calibration-observability",
+            ("Item", "Value"),
+            _fit_rows(record),
+            "Fit and observability of the identification (SVD of the column-scaled, uncertainty-weighted Jacobian)",
+        )
+    )
     return Section(f"{number}. Kinematic calibration: before and after", tuple(blocks))
 
 

@@ -39,27 +39,53 @@ def _row(name: str, values: list[tuple[float, float]]) -> tuple[str, str, str, s
     if not values:
         return (f"{name} (n = 0)", NONE_IN_BOTH, NONE_IN_BOTH, "—")
     before, after = np.asarray(values, dtype=float).mean(axis=0)
-    return (f"{name} (n = {len(values)} pose{'' if len(values) == 1 else 's'})", fmt_mm(before), fmt_mm(after),
-            f"{before / after:.1f}" if after > 0 else "—")
+    return (
+        f"{name} (n = {len(values)} pose{'' if len(values) == 1 else 's'})",
+        fmt_mm(before),
+        fmt_mm(after),
+        f"{before / after:.1f}" if after > 0 else "—",
+    )
 
 
 def partial_gain_rows(pair) -> tuple[tuple[str, str, str, str], ...]:
     """The gain table's rows: quantity (with its n of poses), before (mm), after (mm), factor (module docstring)."""
     paired = _paired(pair)
-    rows = [_row("mean AP_P, complete readings",
-                 [(b.statistics.ap_mm, a.statistics.ap_mm) for b, a in paired
-                  if b.statistics.ap_mm is not None and a.statistics.ap_mm is not None])]
+    rows = [
+        _row(
+            "mean AP_P, complete readings",
+            [
+                (b.statistics.ap_mm, a.statistics.ap_mm)
+                for b, a in paired
+                if b.statistics.ap_mm is not None and a.statistics.ap_mm is not None
+            ],
+        )
+    ]
     for k, name in enumerate(AXIS_NAMES):
-        rows.append(_row(f"mean |AP_{name}|, readings that measured {name}",
-                         [(abs(b.statistics.axes[k].ap_mm), abs(a.statistics.axes[k].ap_mm)) for b, a in paired
-                          if b.statistics.axes[k].n and a.statistics.axes[k].n]))
-    rows.append(_row("mean RP_l, complete readings", [(b.statistics.rp_mm, a.statistics.rp_mm) for b, a in paired
-                                                      if b.statistics.rp_mm is not None
-                                                      and a.statistics.rp_mm is not None]))
+        rows.append(
+            _row(
+                f"mean |AP_{name}|, readings that measured {name}",
+                [
+                    (abs(b.statistics.axes[k].ap_mm), abs(a.statistics.axes[k].ap_mm))
+                    for b, a in paired
+                    if b.statistics.axes[k].n and a.statistics.axes[k].n
+                ],
+            )
+        )
+    rows.append(
+        _row(
+            "mean RP_l, complete readings",
+            [
+                (b.statistics.rp_mm, a.statistics.rp_mm)
+                for b, a in paired
+                if b.statistics.rp_mm is not None and a.statistics.rp_mm is not None
+            ],
+        )
+    )
     complete = [sum(p.statistics.n_complete for p in run) for run in zip(*paired)] if paired else [0, 0]
     readings = [sum(p.statistics.n_readings for p in run) for run in zip(*paired)] if paired else [0, 0]
-    rows.append(("readings with x, y and z (complete)", f"{complete[0]} / {readings[0]}",
-                 f"{complete[1]} / {readings[1]}", "—"))
+    rows.append(
+        ("readings with x, y and z (complete)", f"{complete[0]} / {readings[0]}", f"{complete[1]} / {readings[1]}", "—")
+    )
     return tuple(rows)
 
 
@@ -86,19 +112,38 @@ def partial_blocks(pair, name: Callable[[Any], str]) -> list:
     before, after, record = pair.before, pair.after, pair.after_calibration
     rows = partial_gain_rows(pair)
     return [
-        Paragraph(f"Before: run {before.run.id}, {name(pair.before_calibration)} in force. After: run "
-                  f"{after.run.id}, {name(record)} in force (identified from run {record.source_run_id}). Both runs "
-                  "were read by the laser grid, whose readings are partial: each figure is over the readings that "
-                  "measured it (its n of poses in the first column), never a filled axis, and is conditional on "
-                  "detection. Over those poses the mean AP_P (complete readings) goes from "
-                  f"{rows[0][1]} mm to {rows[0][2]} mm (factor {rows[0][3]})."),
-        Table("calibration-gain", ("Quantity (over the poses measured in both runs)", "Before (mm)", "After (mm)",
-                                   "Factor before / after"), rows,
-              f"Gain of the calibration seen by the laser grid: run {before.run.id} (before) against run "
-              f"{after.run.id} (after); readings quantised to the grid's lattice within ±r"),
-        Table("calibration-poses", ("Pose", "AP_P before (mm)", "AP_P after (mm)", "AP_x before", "AP_x after",
-                                    "AP_y before", "AP_y after", "AP_z before", "AP_z after",
-                                    "Complete before", "Complete after"), _pose_rows(pair),
-              f"Per pose, before and after: AP_P over the complete readings (—: none), the signed per-axis AP over "
-              f"the readings that measured the axis ({NO_READING}: none), mm"),
+        Paragraph(
+            f"Before: run {before.run.id}, {name(pair.before_calibration)} in force. After: run "
+            f"{after.run.id}, {name(record)} in force (identified from run {record.source_run_id}). Both runs "
+            "were read by the laser grid, whose readings are partial: each figure is over the readings that "
+            "measured it (its n of poses in the first column), never a filled axis, and is conditional on "
+            "detection. Over those poses the mean AP_P (complete readings) goes from "
+            f"{rows[0][1]} mm to {rows[0][2]} mm (factor {rows[0][3]})."
+        ),
+        Table(
+            "calibration-gain",
+            ("Quantity (over the poses measured in both runs)", "Before (mm)", "After (mm)", "Factor before / after"),
+            rows,
+            f"Gain of the calibration seen by the laser grid: run {before.run.id} (before) against run "
+            f"{after.run.id} (after); readings quantised to the grid's lattice within ±r",
+        ),
+        Table(
+            "calibration-poses",
+            (
+                "Pose",
+                "AP_P before (mm)",
+                "AP_P after (mm)",
+                "AP_x before",
+                "AP_x after",
+                "AP_y before",
+                "AP_y after",
+                "AP_z before",
+                "AP_z after",
+                "Complete before",
+                "Complete after",
+            ),
+            _pose_rows(pair),
+            f"Per pose, before and after: AP_P over the complete readings (—: none), the signed per-axis AP over "
+            f"the readings that measured the axis ({NO_READING}: none), mm",
+        ),
     ]

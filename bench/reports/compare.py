@@ -31,11 +31,16 @@ def history_section(first: ReportBase, second: ReportBase, histories) -> Section
     rows = tuple((str(i + 1), x or "—", y or "—") for i, (x, y) in enumerate(zip_longest(a, b)))
     kinds = [tuple(e.event.split(":")[0] for e in h[1:]) for h in histories]
     same = kinds[0] == kinds[1]
-    text = ("Both runs ran the same way (same sequence of events)." if same else
-            "The runs differ in their history (interruptions or end status): their results are not comparable "
-            "as like for like.")
-    return Section("Run histories", (Paragraph(text), Table("history", ("#", f"A: run {first.run.id}",
-                                                                         f"B: run {second.run.id}"), rows)))
+    text = (
+        "Both runs ran the same way (same sequence of events)."
+        if same
+        else "The runs differ in their history (interruptions or end status): their results are not comparable "
+        "as like for like."
+    )
+    return Section(
+        "Run histories",
+        (Paragraph(text), Table("history", ("#", f"A: run {first.run.id}", f"B: run {second.run.id}"), rows)),
+    )
 
 
 def with_histories(document: Document, first: ReportBase, second: ReportBase, histories) -> Document:
@@ -45,43 +50,80 @@ def with_histories(document: Document, first: ReportBase, second: ReportBase, hi
     sections = list(document.sections)
     sections.insert(min(2, len(sections)), section)
     if "differ in their history" in section.blocks[0].text:
-        sections = [replace(s, blocks=tuple(
-            replace(b, rows=tuple(tuple(f"{NO_DIFFERENCE}, different history (see Run histories)"
-                                        if c == NO_DIFFERENCE else c for c in row) for row in b.rows))
-            if isinstance(b, Table) else b for b in s.blocks)) for s in sections]
+        sections = [
+            replace(
+                s,
+                blocks=tuple(
+                    replace(
+                        b,
+                        rows=tuple(
+                            tuple(
+                                f"{NO_DIFFERENCE}, different history (see Run histories)" if c == NO_DIFFERENCE else c
+                                for c in row
+                            )
+                            for row in b.rows
+                        ),
+                    )
+                    if isinstance(b, Table)
+                    else b
+                    for b in s.blocks
+                ),
+            )
+            for s in sections
+        ]
     return replace(document, sections=tuple(sections))
 
 
 def _results(document: Document, prefix: str) -> tuple:
     for section in document.sections:
         if section.title.startswith("6."):
-            return tuple(replace(b, ident=f"{prefix}-{b.ident}") if isinstance(b, Table) else b
-                         for b in section.blocks)
+            return tuple(replace(b, ident=f"{prefix}-{b.ident}") if isinstance(b, Table) else b for b in section.blocks)
     return (Paragraph("no results section"),)
 
 
-def layout_comparison(first: ReportBase, second: ReportBase, first_document: Document, second_document: Document,
-                      raw: list[RawData]) -> Document:
+def layout_comparison(
+    first: ReportBase, second: ReportBase, first_document: Document, second_document: Document, raw: list[RawData]
+) -> Document:
     """Two runs of the same own-layout protocol side by side (see module doc)."""
     a, b = first.run, second.run
-    ident = (("Configuration ID", first.report_id, second.report_id), ("Protocol", a.protocol_name, b.protocol_name),
-             ("Robot", a.robot, b.robot), ("Status", a.status, b.status),
-             ("Started (UTC)", a.started_utc, b.started_utc),
-             ("Configuration SHA-256", first.config_sha256[:16], second.config_sha256[:16]))
+    ident = (
+        ("Configuration ID", first.report_id, second.report_id),
+        ("Protocol", a.protocol_name, b.protocol_name),
+        ("Robot", a.robot, b.robot),
+        ("Status", a.status, b.status),
+        ("Started (UTC)", a.started_utc, b.started_utc),
+        ("Configuration SHA-256", first.config_sha256[:16], second.config_sha256[:16]),
+    )
     differ = configuration_differences(first, second)
-    deviations = tuple((d.clause, d.topic, f"{d.status}: {d.done}", f"{e.status}: {e.done}")
-                       for d, e in zip(first.deviations, second.deviations))
+    deviations = tuple(
+        (d.clause, d.topic, f"{d.status}: {d.done}", f"{e.status}: {e.done}")
+        for d, e in zip(first.deviations, second.deviations)
+    )
     return Document(
         title=f"Comparison of run {a.id} (A) and run {b.id} (B): {first.title}",
         subtitle=f"Runs {a.id} (A) and {b.id} (B)",
         sections=(
-            Section("1. Identification", (Table("identification", ("Item", f"A: run {a.id}", f"B: run {b.id}"),
-                                                ident),)),
-            Section("2. Conditions that differ", (Table("conditions", ("Parameter", "A", "B"), differ or (
-                ("—", NO_DIFFERENCE, ""),), "Configuration, settings and calibrations in force"),)),
-            Section(f"3. Deviations from {first.reference}", (Table(
-                "deviations", ("Clause", "Topic", "A", "B"), deviations),)),
+            Section(
+                "1. Identification", (Table("identification", ("Item", f"A: run {a.id}", f"B: run {b.id}"), ident),)
+            ),
+            Section(
+                "2. Conditions that differ",
+                (
+                    Table(
+                        "conditions",
+                        ("Parameter", "A", "B"),
+                        differ or (("—", NO_DIFFERENCE, ""),),
+                        "Configuration, settings and calibrations in force",
+                    ),
+                ),
+            ),
+            Section(
+                f"3. Deviations from {first.reference}",
+                (Table("deviations", ("Clause", "Topic", "A", "B"), deviations),),
+            ),
             Section(f"4. Results of A (run {a.id})", _results(first_document, "a")),
             Section(f"5. Results of B (run {b.id})", _results(second_document, "b")),
-            _raw(raw, first.notes + second.notes, "see each run's own report")),
-        meta={"report_id": f"{first.report_id}_vs_{second.report_id}"})
+            _raw(raw, first.notes + second.notes, "see each run's own report"),
+        ),
+        meta={"report_id": f"{first.report_id}_vs_{second.report_id}"},
+    )

@@ -57,6 +57,8 @@ from bench.metrology import (
     resolution_uncertainty,
 )
 from bench.metrology.formatting import pose_label, report_order
+from bench.metrology.orientation import TiltGauge
+from bench.metrology.orientation_tables import TiltPoseResult, analyze_tilts, table_spacing_mm, tilt_table
 from bench.metrology.path_tables import analyze_multidirectional
 from bench.metrology.tables import (
     ANGLE_PAIRS,
@@ -67,18 +69,36 @@ from bench.metrology.tables import (
     measured_axes,
     pose_table,
 )
-from bench.metrology.orientation import TiltGauge
-from bench.metrology.orientation_tables import TiltPoseResult, analyze_tilts, table_spacing_mm, tilt_table
 from bench.reports.decision import PASS, decide, rule_text
 from bench.reports.deviations import CLAUSES_APPLIED, Deviation, iso_deviations, orientation_deviation
 from bench.store import CalibrationRecord, RunRecord, Store, series_table, tidy_table
 from bench.store.registrations import registration_u_mm, registrations
 
-__all__ = ["CRITERIA", "MM_PER_INCH", "CalibrationFit", "Decision", "DistanceRow", "InstrumentInfo", "PayloadRow",
-           "ReportBase", "RunReport", "VapRow", "analysis_table", "ap_instrument_u_mm", "axes_statement",
-           "calibration_fits", "check_same_axes", "calibrations_in_force",
-           "collect", "counts_instrument", "provenance", "reading_instrument", "reading_step_mm", "run_table",
-           "uncertainty_stated"]
+__all__ = [
+    "CRITERIA",
+    "MM_PER_INCH",
+    "CalibrationFit",
+    "Decision",
+    "DistanceRow",
+    "InstrumentInfo",
+    "PayloadRow",
+    "ReportBase",
+    "RunReport",
+    "VapRow",
+    "analysis_table",
+    "ap_instrument_u_mm",
+    "axes_statement",
+    "calibration_fits",
+    "check_same_axes",
+    "calibrations_in_force",
+    "collect",
+    "counts_instrument",
+    "provenance",
+    "reading_instrument",
+    "reading_step_mm",
+    "run_table",
+    "uncertainty_stated",
+]
 
 MM_PER_INCH = 25.4
 #: Acceptance criteria a caller may state, with the result each applies to (all "smaller is better").
@@ -197,8 +217,7 @@ def run_table(store: Store, run_id: int, kind: str, *, series: bool = False, sam
     """The stored samples of ``kind`` of run ``run_id`` as a report analyses them: the tidy table (``series``: the
     table of their streamed series, from ``samples`` when already read), its source named ``run <id>`` so that
     analysis messages name the run."""
-    table = (series_table(store, run_id, kind=kind, samples=samples) if series
-             else tidy_table(store, run_id, kind=kind))
+    table = series_table(store, run_id, kind=kind, samples=samples) if series else tidy_table(store, run_id, kind=kind)
     table.attrs["source"] = f"run {run_id}"
     return table
 
@@ -214,12 +233,20 @@ def provenance(run: RunRecord, calibrations: tuple[CalibrationRecord, ...]) -> d
     config_hash = _sha256_json({"config": run.config, "settings": run.settings})
     notes = []
     if run.status != "completed":
-        notes.append(f"run status {run.status}" + (f" ({run.reason})" if run.reason else "") +
-                     ": results cover the samples stored before it ended")
-    return {"run": run, "report_id": f"BR-{run.id:05d}-{config_hash[:8]}",
-            "generated_utc": datetime.now(UTC).isoformat(timespec="seconds"),
-            "report_software_version": __version__, "config_sha256": config_hash,
-            "calibration_sha256": _sha256_json([c.params for c in calibrations]), "notes": tuple(notes)}
+        notes.append(
+            f"run status {run.status}"
+            + (f" ({run.reason})" if run.reason else "")
+            + ": results cover the samples stored before it ended"
+        )
+    return {
+        "run": run,
+        "report_id": f"BR-{run.id:05d}-{config_hash[:8]}",
+        "generated_utc": datetime.now(UTC).isoformat(timespec="seconds"),
+        "report_software_version": __version__,
+        "config_sha256": config_hash,
+        "calibration_sha256": _sha256_json([c.params for c in calibrations]),
+        "notes": tuple(notes),
+    }
 
 
 def reading_step_mm(values) -> float | None:
@@ -227,14 +254,20 @@ def reading_step_mm(values) -> float | None:
     ..., 0.0001 mm that every reading is a whole multiple of; None when the readings carry more decimals."""
     array = np.asarray(values, dtype=float)
     for decimals in range(5):
-        scaled = array * 10 ** decimals
+        scaled = array * 10**decimals
         if np.all(np.abs(scaled - np.round(scaled)) < 1e-6):
-            return 10.0 ** -decimals
+            return 10.0**-decimals
     return None
 
 
-def reading_instrument(run: RunRecord, calibrations: tuple[CalibrationRecord, ...], readings, *, difference: bool,
-                       reader: str | None = None) -> InstrumentInfo:
+def reading_instrument(
+    run: RunRecord,
+    calibrations: tuple[CalibrationRecord, ...],
+    readings,
+    *,
+    difference: bool,
+    reader: str | None = None,
+) -> InstrumentInfo:
     """The instrument of manual length readings (calliper, depth gauge) and its uncertainty per reading.
 
     When the stored instrument settings describe the reading instrument (``reader`` None): ``settings.instrument
@@ -252,12 +285,21 @@ def reading_instrument(run: RunRecord, calibrations: tuple[CalibrationRecord, ..
         budget.append(("instrument, per reading", float(own["u_mm"]), f"{STATED} standard uncertainty"))
     else:
         if step is not None:
-            budget.append((f"resolution ({'difference of the zero and the reading' if difference else 'one reading'})",
-                           resolution_uncertainty(step, difference=difference),
-                           f"last recorded decimal of the readings, {step:g} mm; δ/{'√6' if difference else '√12'}"))
+            budget.append(
+                (
+                    f"resolution ({'difference of the zero and the reading' if difference else 'one reading'})",
+                    resolution_uncertainty(step, difference=difference),
+                    f"last recorded decimal of the readings, {step:g} mm; δ/{'√6' if difference else '√12'}",
+                )
+            )
         if "mpe_mm" in own:
-            budget.append(("maximum permissible error", float(own["mpe_mm"]) / math.sqrt(3.0),
-                           f"{STATED} maximum permissible error, {own['mpe_mm']} mm, rectangular"))
+            budget.append(
+                (
+                    "maximum permissible error",
+                    float(own["mpe_mm"]) / math.sqrt(3.0),
+                    f"{STATED} maximum permissible error, {own['mpe_mm']} mm, rectangular",
+                )
+            )
     sigma = combine(*(u for _, u, _ in budget)) if budget else None
     settings = stored if reader is None else {"readings": reader, **({"rig": stored} if stored else {})}
     return InstrumentInfo(settings, sigma, tuple(budget), 1, None, calibrations, resolution_mm=step)
@@ -287,8 +329,11 @@ def check_same_axes(reports, flag: str) -> None:
     axes: a planar AP next to a 3-D AP would read as a change of the robot."""
     measured = {r.run.id: r.poses[0].axis_names for r in reports if isinstance(r, RunReport) and r.poses}
     if len(set(measured.values())) > 1:
-        raise ConfigError(f"{flag}: " + "; ".join(f"run {i} measured {', '.join(a)}" for i, a in measured.items())
-                          + "; expected runs measured on the same axes")
+        raise ConfigError(
+            f"{flag}: "
+            + "; ".join(f"run {i} measured {', '.join(a)}" for i, a in measured.items())
+            + "; expected runs measured on the same axes"
+        )
 
 
 def axes_statement(report: RunReport) -> str | None:
@@ -301,8 +346,10 @@ def axes_statement(report: RunReport) -> str | None:
         return None
     where = {1: f"along {axes[0]}", 2: f"in the {'-'.join(axes)} plane"}[len(axes)]
     name = report.instrument.settings.get("instrument") or report.instrument.settings.get("name") or "instrument"
-    return (f"AP and RP {where}: the {name} measures {', '.join(axes)}; {', '.join(missing)} not measured (never "
-            f"filled), so these are not the 3-D figures of ISO 9283 7.2.1/7.2.2")
+    return (
+        f"AP and RP {where}: the {name} measures {', '.join(axes)}; {', '.join(missing)} not measured (never "
+        f"filled), so these are not the 3-D figures of ISO 9283 7.2.1/7.2.2"
+    )
 
 
 def calibration_fits(store: Store, record: CalibrationRecord) -> tuple[CalibrationFit, ...]:
@@ -314,8 +361,11 @@ def calibration_fits(store: Store, record: CalibrationRecord) -> tuple[Calibrati
     ends = {(s.pose, s.cycle): s.values for s in samples if s.pose and "/" in s.pose}
     fits = []
     for axis in ("x", "y"):
-        steps = [(values, ends[(pose[:-3] + "start", cycle)]) for (pose, cycle), values in ends.items()
-                 if pose.startswith(axis) and pose.endswith("/end") and (pose[:-3] + "start", cycle) in ends]
+        steps = [
+            (values, ends[(pose[:-3] + "start", cycle)])
+            for (pose, cycle), values in ends.items()
+            if pose.startswith(axis) and pose.endswith("/end") and (pose[:-3] + "start", cycle) in ends
+        ]
         column = f"mouse_xy_{axis}_counts"
         steps = [(end, start) for end, start in steps if column in end and column in start]
         if len(steps) < 3:
@@ -343,14 +393,22 @@ def calibration_scale_u(calibration: Mapping[str, Any], span_mm: float) -> tuple
         relative = NOMINAL_CPI_SCALE_ERROR / np.sqrt(3.0)
         why = f"nominal cpi (mouse-v{calibration.get('version')}): ±{100 * NOMINAL_CPI_SCALE_ERROR:g} % rectangular"
     else:
-        relative = max(float(calibration.get(f"u_{a}_mm_per_count", 0.0)) / float(calibration[f"{a}_mm_per_count"])
-                       for a in ("x", "y"))
+        relative = max(
+            float(calibration.get(f"u_{a}_mm_per_count", 0.0)) / float(calibration[f"{a}_mm_per_count"])
+            for a in ("x", "y")
+        )
         why = f"mouse-v{calibration.get('version')}: u(scale) {100 * relative:.3g} %"
     return span_mm * relative, f"{why} x {span_mm:.1f} mm from the registration"
 
 
-def counts_instrument(run: RunRecord, calibrations: tuple[CalibrationRecord, ...], dims: int,
-                      fits: tuple[CalibrationFit, ...] = (), *, span_mm: float | None = None) -> InstrumentInfo:
+def counts_instrument(
+    run: RunRecord,
+    calibrations: tuple[CalibrationRecord, ...],
+    dims: int,
+    fits: tuple[CalibrationFit, ...] = (),
+    *,
+    span_mm: float | None = None,
+) -> InstrumentInfo:
     """A counts instrument (the mice) as stored with the run: u per axis from ``settings.instrument.u_mm``, else
     from its resolution 25.4/cpi (δ/√6) and ``noise_counts``, plus the scale of the calibration in force at the
     largest displacement from the registration ``span_mm`` (:func:`calibration_scale_u`) where the run recorded
@@ -361,13 +419,26 @@ def counts_instrument(run: RunRecord, calibrations: tuple[CalibrationRecord, ...
         budget.append(("instrument, per axis", float(settings["u_mm"]), f"{STATED} standard uncertainty"))
     elif "cpi" in settings:
         step_mm = MM_PER_INCH / float(settings["cpi"])
-        budget.append(("resolution (difference of two readings)",
-                       resolution_uncertainty(step_mm, difference=True),
-                       f"one count at {float(settings['cpi']):g} counts per inch, {step_mm:.4g} mm, δ/√6"))
+        budget.append(
+            (
+                "resolution (difference of two readings)",
+                resolution_uncertainty(step_mm, difference=True),
+                f"one count at {float(settings['cpi']):g} counts per inch, {step_mm:.4g} mm, δ/√6",
+            )
+        )
         if "noise_counts" in settings:
-            budget.append(("count noise", float(settings["noise_counts"]) * step_mm,
-                           f"{settings['noise_counts']} counts x {step_mm:.4g} mm"))
-    if isinstance(settings.get("calibration"), Mapping) and span_mm is not None:
+            budget.append(
+                (
+                    "count noise",
+                    float(settings["noise_counts"]) * step_mm,
+                    f"{settings['noise_counts']} counts x {step_mm:.4g} mm",
+                )
+            )
+    mouse_calibration = settings.get("calibration")
+    is_mouse_scale = isinstance(mouse_calibration, Mapping) and (
+        mouse_calibration.get("nominal") or "x_mm_per_count" in mouse_calibration
+    )  # a camera's plane calibration is stored under the same key: it has no counts scale
+    if is_mouse_scale and span_mm is not None:
         budget.append(("calibration scale", *calibration_scale_u(settings["calibration"], span_mm)))
     sigma = combine(*(u for _, u, _ in budget)) if budget else None
     floor = instrument_rp_floor(sigma, dims=dims) if sigma is not None and dims else None
@@ -419,8 +490,9 @@ def _distances(table: pd.DataFrame, sigma_mm: float, k: float) -> tuple[Distance
 
 
 def _multidirectional(table: pd.DataFrame) -> tuple[VapRow, ...]:
-    return tuple(VapRow(r.label, r.directions, r.position, r.orientation, r.angle_names)
-                 for r in analyze_multidirectional(table))
+    return tuple(
+        VapRow(r.label, r.directions, r.position, r.orientation, r.angle_names) for r in analyze_multidirectional(table)
+    )
 
 
 def _payload(table: pd.DataFrame) -> tuple[PayloadRow, ...]:
@@ -447,15 +519,34 @@ def _decision(poses: tuple[PoseResult, ...], criteria: Mapping[str, float], rule
         for pose in poses:
             measured = pose.ap_u if name == "AP_mm" else pose.rp_u
             u = measured.expanded_uncertainty
-            verdicts.append((name, pose_label(pose.pose, pose.conditions), measured.value, u, float(limit),
-                             decide(measured.value, u, float(limit), rule)))
-    text = rule_text(rule) if criteria else \
-        "no acceptance criterion stated: no pass/fail statement (ISO 9283 defines methods, not grades)"
+            verdicts.append(
+                (
+                    name,
+                    pose_label(pose.pose, pose.conditions),
+                    measured.value,
+                    u,
+                    float(limit),
+                    decide(measured.value, u, float(limit), rule),
+                )
+            )
+    text = (
+        rule_text(rule)
+        if criteria
+        else "no acceptance criterion stated: no pass/fail statement (ISO 9283 defines methods, not grades)"
+    )
     return Decision(text, tuple(verdicts))
 
 
-def collect(store: Store, run_id: int, *, criteria: Mapping[str, float] | None = None, k: float = 2.0,
-            resamples: int = 1000, allow_unknown: bool = False, decision_rule: str = "simple") -> RunReport:
+def collect(
+    store: Store,
+    run_id: int,
+    *,
+    criteria: Mapping[str, float] | None = None,
+    k: float = 2.0,
+    resamples: int = 1000,
+    allow_unknown: bool = False,
+    decision_rule: str = "simple",
+) -> RunReport:
     """Gather every fact and number of the report of run ``run_id``.
 
     Parameters
@@ -483,25 +574,32 @@ def collect(store: Store, run_id: int, *, criteria: Mapping[str, float] | None =
     measured = tuple(c for c in (*_POSITION, *(a for _, a in ANGLE_PAIRS)) if c in table.columns)
     calibrations = calibrations_in_force(store, run)
     fits = tuple(fit for record in calibrations for fit in calibration_fits(store, record))
-    instrument = counts_instrument(run, calibrations, sum(c in table.columns for c in _POSITION), fits,
-                                   span_mm=_span_from_registration(run, table))
+    instrument = counts_instrument(
+        run, calibrations, sum(c in table.columns for c in _POSITION), fits, span_mm=_span_from_registration(run, table)
+    )
     # a relative instrument's frame is known to its registrations' u: AP carries it (bench.store.registrations)
     ap_u_mm = ap_instrument_u_mm(instrument.sigma_mm, run)
     poses = report_order(analyze_poses(table, instrument_u_mm=ap_u_mm or 0.0, k=k, resamples=resamples))
     protocol = run.protocol_name
     if len(measured_axes(table)) < 3 and protocol in ("iso9283_distance", "iso9283_multidirectional"):
-        raise ConfigError(f"run {run_id}: the instrument measured {', '.join(measured_axes(table))} only; the "
-                          f"{protocol} figures need x_mm, y_mm and z_mm")
+        raise ConfigError(
+            f"run {run_id}: the instrument measured {', '.join(measured_axes(table))} only; the "
+            f"{protocol} figures need x_mm, y_mm and z_mm"
+        )
     tilts, orientation, gauge = _orientation(store, run_id, k)
     tilt_angles = tuple(f"{f.angle}_deg" for f in orientation[0].figures) if orientation else ()
-    cycles = int(table.groupby(["pose", *[c for c in ("velocity_pct", "load_kg") if c in table.columns]])
-                 .size().min())
+    cycles = int(table.groupby(["pose", *[c for c in ("velocity_pct", "load_kg") if c in table.columns]]).size().min())
     deviations = iso_deviations(
-        protocol=protocol, config=_effective_config(run.config, table), settings=run.settings,
+        protocol=protocol,
+        config=_effective_config(run.config, table),
+        settings=run.settings,
         measured_columns=(*measured, *(a for a in tilt_angles if a not in measured)),
-        cycles_measured=cycles, instrument_sigma_mm=instrument.sigma_mm,
-        smallest_rp_mm=min(p.repeatability.rp_mm for p in poses), rp_floor_mm=instrument.rp_floor_mm,
-        allow_unknown=allow_unknown)
+        cycles_measured=cycles,
+        instrument_sigma_mm=instrument.sigma_mm,
+        smallest_rp_mm=min(p.repeatability.rp_mm for p in poses),
+        rp_floor_mm=instrument.rp_floor_mm,
+        allow_unknown=allow_unknown,
+    )
     if orientation:
         deviations = [*deviations, orientation_deviation(tilt_angles, gauge.as_dict())]
     return RunReport(
@@ -555,6 +653,9 @@ def _effective_config(config: Mapping[str, Any], table: pd.DataFrame) -> dict[st
 
 
 def _title(protocol: str) -> str:
-    names = {"iso9283_pose": "pose accuracy and repeatability", "iso9283_distance": "distance accuracy and "
-             "repeatability", "iso9283_multidirectional": "multi-directional pose accuracy variation"}
+    names = {
+        "iso9283_pose": "pose accuracy and repeatability",
+        "iso9283_distance": "distance accuracy and repeatability",
+        "iso9283_multidirectional": "multi-directional pose accuracy variation",
+    }
     return f"ISO 9283-style {names.get(protocol, f'pose accuracy and repeatability ({protocol})')}"

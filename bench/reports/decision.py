@@ -28,9 +28,9 @@ DECISION_RULES = ("simple", "guarded")
 
 _RULE_TEXT = {
     "simple": "simple acceptance (ILAC-G8:09/2019 4.2.1): pass when the measured value <= the project criterion; "
-              "the expanded uncertainty U is reported but not used as a guard band",
+    "the expanded uncertainty U is reported but not used as a guard band",
     "guarded": "guarded acceptance (ISO 14253-1:2017, guard band w = U, ILAC-G8:09/2019 4.2.2): zones pass "
-               "(value + U <= limit), not proven (value − U <= limit < value + U), fail (value − U > limit)",
+    "(value + U <= limit), not proven (value − U <= limit < value + U), fail (value − U > limit)",
 }
 
 

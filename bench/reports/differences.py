@@ -34,12 +34,18 @@ def configuration_differences(first, second) -> tuple[tuple[str, str, str], ...]
     the reports ``first`` and ``second`` (absent on one side: "—"); empty when they agree on all of them."""
     sides = []
     for report in (first, second):
-        sides.append({**{f"config {k}": v for k, v in _flat(report.run.config).items()},
-                      **{f"setting {k}": v for k, v in _flat(report.run.settings).items()},
-                      **_calibrations(report)})
+        sides.append(
+            {
+                **{f"config {k}": v for k, v in _flat(report.run.config).items()},
+                # the run's history (aborts, resumes) is compared in its own table, not as a setting
+                **{f"setting {k}": v for k, v in _flat(report.run.settings).items() if not k.startswith("history")},
+                **_calibrations(report),
+            }
+        )
     a, b = sides
     keys = [*a, *(k for k in b if k not in a)]
 
     def shown(value: str) -> str:  # a template's sample text is never printed as a value
         return PLACEHOLDER_SHOWN if value != "—" and is_placeholder(value) else value
+
     return tuple((k, shown(a.get(k, "—")), shown(b.get(k, "—"))) for k in keys if a.get(k) != b.get(k))

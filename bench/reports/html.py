@@ -17,28 +17,45 @@ from bench.reports.plots import png_bytes
 
 __all__ = ["render_html", "write_html"]
 
-_ENVIRONMENT = Environment(loader=PackageLoader("bench.reports", "templates"),
-                           autoescape=select_autoescape(["html", "j2"]), trim_blocks=True, lstrip_blocks=True)
+_ENVIRONMENT = Environment(
+    loader=PackageLoader("bench.reports", "templates"),
+    autoescape=select_autoescape(["html", "j2"]),
+    trim_blocks=True,
+    lstrip_blocks=True,
+)
 
 
 def _block(block) -> dict:
     if isinstance(block, Paragraph):
         return {"kind": "paragraph", "text": block.text}
     if isinstance(block, Table):
-        return {"kind": "table", "ident": block.ident, "header": block.header, "rows": block.rows,
-                "caption": block.caption}
+        return {
+            "kind": "table",
+            "ident": block.ident,
+            "header": block.header,
+            "rows": block.rows,
+            "caption": block.caption,
+        }
     if isinstance(block, Figure):
         width_in, _ = block.plot.figure.get_size_inches()
-        return {"kind": "figure", "png": base64.b64encode(png_bytes(block.plot)).decode("ascii"),
-                "width_mm": round(width_in * 25.4, 1), "caption": block.plot.caption}
+        return {
+            "kind": "figure",
+            "png": base64.b64encode(png_bytes(block.plot)).decode("ascii"),
+            "width_mm": round(width_in * 25.4, 1),
+            "caption": block.plot.caption,
+        }
     raise TypeError(f"unknown report block {block!r}")
 
 
 def render_html(document: Document) -> str:
     """The HTML text of ``document``."""
     sections = [{"title": s.title, "blocks": [_block(b) for b in s.blocks]} for s in document.sections]
-    view = {"title": document.title, "subtitle": document.subtitle, "sections": sections,
-            "banner": document.meta.get("banner")}
+    view = {
+        "title": document.title,
+        "subtitle": document.subtitle,
+        "sections": sections,
+        "banner": document.meta.get("banner"),
+    }
     return _ENVIRONMENT.get_template("report.html.j2").render(doc=view)
 
 

@@ -25,16 +25,29 @@ PKM5_DISSERTATION = "pkm5 dissertation"
 DELTA_DISSERTATION = "delta-robot dissertation"
 
 #: Sections of the project's ISO 9283 note that stand for a published method, by section prefix.
-_ISO_NOTE = (("§7.1", "ISO 230-2"), ("§7.4", "Groover's actuator accuracy"), ("§12", "project definition"),
-             ("§4.2", "ISO 9283:1998 6.7"), ("§6.6", "ISO 9283:1998 7.2"))
+_ISO_NOTE = (
+    ("§7.1", "ISO 230-2"),
+    ("§7.4", "Groover's actuator accuracy"),
+    ("§12", "project definition"),
+    ("§4.2", "ISO 9283:1998 6.7"),
+    ("§6.6", "ISO 9283:1998 7.2"),
+)
 
-_MODULES = {"instrument_rp_floor": "RP of a perfect robot seen through the instrument",
-            "leg_error_summary": "per-leg error statistics", "payload_compliance": "least-squares compliance",
-            "payload_shift": "payload error PE(m)"}
+_MODULES = {
+    "instrument_rp_floor": "RP of a perfect robot seen through the instrument",
+    "leg_error_summary": "per-leg error statistics",
+    "payload_compliance": "least-squares compliance",
+    "payload_shift": "payload error PE(m)",
+}
 
 #: What must never reach a customer (a test checks every printed report against these).
-INTERNAL_PATTERNS = (re.compile(r"\b[\w-]+\.md\b"), re.compile(r"\bdocs/"), re.compile(r"\bbench\.\w"),
-                     re.compile(r"(?<![\w.])/(?:tmp|dev|home|work|var|usr)/"), re.compile(r"\(motion/\)"))
+INTERNAL_PATTERNS = (
+    re.compile(r"\b[\w-]+\.md\b"),
+    re.compile(r"\bdocs/"),
+    re.compile(r"\bbench\.\w"),
+    re.compile(r"(?<![\w.])/(?:tmp|dev|home|work|var|usr)/"),
+    re.compile(r"\(motion/\)"),
+)
 
 
 def _iso_note(match: re.Match) -> str:
@@ -47,8 +60,11 @@ def _iso_note(match: re.Match) -> str:
 
 def local_paths(text: str) -> str:
     """Absolute paths of the bench PC reduced to their file name (``/tmp/x/bench.db`` -> ``bench.db``)."""
-    return re.sub(r"(?<![\w.])/(?:tmp|dev|home|work|var|usr|root|mnt|srv)/[^\s),;'\"]*",
-                  lambda m: m.group(0).rstrip("/").rsplit("/", 1)[-1], text)
+    return re.sub(
+        r"(?<![\w.])/(?:tmp|dev|home|work|var|usr|root|mnt|srv)/[^\s),;'\"]*",
+        lambda m: m.group(0).rstrip("/").rsplit("/", 1)[-1],
+        text,
+    )
 
 
 def customer_text(text: str) -> str:
@@ -83,8 +99,12 @@ def map_text(document, text, verbatim=None):
         if isinstance(item, Paragraph):
             return replace(item, text=verbatim(item.text) if item.verbatim else text(item.text))
         if isinstance(item, Table):
-            return replace(item, header=tuple(text(c) for c in item.header),
-                           rows=tuple(tuple(text(c) for c in row) for row in item.rows), caption=text(item.caption))
+            return replace(
+                item,
+                header=tuple(text(c) for c in item.header),
+                rows=tuple(tuple(text(c) for c in row) for row in item.rows),
+                caption=text(item.caption),
+            )
         if isinstance(item, Figure):
             return Figure(Plot(text(item.plot.caption), item.plot.figure))
         return item

@@ -65,6 +65,7 @@ def numbered(document, out: Path, stem: str):
     if provisional and provisional in document.subtitle:
         document = map_text(document, lambda text: text.replace(provisional, number))
     else:
-        document = replace(document, subtitle=f"Report {number}" + (f"; {document.subtitle}" if document.subtitle
-                                                                     else ""))
+        document = replace(
+            document, subtitle=f"Report {number}" + (f"; {document.subtitle}" if document.subtitle else "")
+        )
     return replace(document, meta={**document.meta, "report_id": number})

@@ -57,16 +57,30 @@ class PathFigures:
     duration_s: float = 0.0  #: mean attained time of one cycle, s
 
     def as_json(self) -> dict:
-        out = {"shape": self.shape, "velocity_pct": self.velocity_pct, "commanded_mm_s": self.commanded_mm_s,
-               "n_cycles": self.n_cycles, "n_segments": self.n_segments, "n_stations": self.n_stations,
-               "AT_mm": self.at_mm, "RT_mm": self.rt_mm, "cycle_duration_s": self.duration_s}
+        out = {
+            "shape": self.shape,
+            "velocity_pct": self.velocity_pct,
+            "commanded_mm_s": self.commanded_mm_s,
+            "n_cycles": self.n_cycles,
+            "n_segments": self.n_segments,
+            "n_stations": self.n_stations,
+            "AT_mm": self.at_mm,
+            "RT_mm": self.rt_mm,
+            "cycle_duration_s": self.duration_s,
+        }
         if self.corners:
             out["corners"] = [{"corner": c, "CR_mm": cr, "CO_mm": co} for c, cr, co in self.corners]
             out["CR_mm"] = max(cr for _, cr, _ in self.corners)
             out["CO_mm"] = max(co for _, _, co in self.corners)
         if self.av_pct is not None:
-            out.update({"AV_pct": self.av_pct, "RV_pct": self.rv_pct, "FV_mm_s": self.fv_mm_s,
-                        "mean_speed_mm_s": self.mean_speed_mm_s})
+            out.update(
+                {
+                    "AV_pct": self.av_pct,
+                    "RV_pct": self.rv_pct,
+                    "FV_mm_s": self.fv_mm_s,
+                    "mean_speed_mm_s": self.mean_speed_mm_s,
+                }
+            )
         return out
 
 
@@ -76,7 +90,7 @@ class PathRun:
 
     run_id: int
     protocol_name: str
-    design: "PathDesign"  #: the commanded paths, as stored with the run
+    design: PathDesign  #: the commanded paths, as stored with the run
     figures: tuple[PathFigures, ...]
     #: (shape, velocity_pct) -> list of (t_s (k,), position_mm (k, 3)) per cycle in cycle order
     cycles: dict
@@ -91,8 +105,10 @@ def attained_cycles(samples) -> dict[tuple[str, float], list[tuple[int, np.ndarr
     for s in samples:
         series = s.raw.get("series") if isinstance(s.raw, dict) else None
         if not series or "t_request_s" not in s.raw:
-            raise InsufficientData(f"sample at step {s.step_index}: no streamed series with its start time, "
-                                   "expected a path segment captured by a streaming instrument")
+            raise InsufficientData(
+                f"sample at step {s.step_index}: no streamed series with its start time, "
+                "expected a path segment captured by a streaming instrument"
+            )
         grouped.setdefault((s.pose, float(s.values["velocity_pct"]), int(s.cycle)), []).append(s)
     out: dict = {}
     for (shape, velocity, cycle), parts in sorted(grouped.items()):
@@ -131,8 +147,10 @@ def _speeds(cycles, spacing_mm: float, commanded_mm_s: float, hold_s: float) -> 
         start, end = t[0], t[-1] - hold_s
         grid = np.arange(start + 0.1 * (end - start), start + 0.9 * (end - start) + 1e-9, step_s)
         if len(grid) < 3:
-            raise InsufficientData(f"path velocity: {len(grid)} speed samples per cycle, expected a longer line "
-                                   f"than {spacing_mm:g} mm steps allow")
+            raise InsufficientData(
+                f"path velocity: {len(grid)} speed samples per cycle, expected a longer line "
+                f"than {spacing_mm:g} mm steps allow"
+            )
         read = np.column_stack([np.interp(grid, t, p[:, axis]) for axis in range(p.shape[1])])
         speeds.append(np.linalg.norm(np.diff(read, axis=0), axis=1) / step_s)
     return speeds
@@ -155,7 +173,7 @@ def _corners(cycles, path) -> tuple[tuple[str, float, float], ...]:
                 lo -= 1
             while hi < len(p) - 1 and inside[hi + 1]:
                 hi += 1
-            near.append(p[lo:hi + 1])
+            near.append(p[lo : hi + 1])
         r = cornering_deviations(near, corner, before, after)
         out.append((label, r.cr_mm, r.co_mm))
     return tuple(out)
@@ -184,25 +202,45 @@ class PathDesign:
         return len(self.segment_targets_mm[shape]) - 1
 
     @classmethod
-    def from_config(cls, config: dict, source: str) -> "PathDesign":
+    def from_config(cls, config: dict, source: str) -> PathDesign:
         missing = [k for k in ("paths", "rated_path_speed_mm_s", "chord_error_mm", "final_hold_s") if k not in config]
         if missing:
-            raise ConfigError(f"{source}: not stored: config.{', config.'.join(missing)} (a path run stores its "
-                              "commanded paths), expected a run made by this version's path protocols")
+            raise ConfigError(
+                f"{source}: not stored: config.{', config.'.join(missing)} (a path run stores its "
+                "commanded paths), expected a run made by this version's path protocols"
+            )
         paths, targets, chords = {}, {}, {}
         for stored in config["paths"]:
             shape = stored["shape"]
-            paths[shape] = CommandedPath(shape, np.asarray(stored["vertices_mm"], float).reshape(-1, 3),
-                                         np.asarray(stored["centre_mm"], float), float(stored["radius_mm"]),
-                                         np.asarray(stored["u"], float), np.asarray(stored["v"], float))
+            paths[shape] = CommandedPath(
+                shape,
+                np.asarray(stored["vertices_mm"], float).reshape(-1, 3),
+                np.asarray(stored["centre_mm"], float),
+                float(stored["radius_mm"]),
+                np.asarray(stored["u"], float),
+                np.asarray(stored["v"], float),
+            )
             targets[shape] = np.asarray(stored["segment_targets_mm"], float)
             chords[shape] = float(stored["max_chord_error_mm"])
-        return cls(paths, targets, chords, float(config["rated_path_speed_mm_s"]), float(config["chord_error_mm"]),
-                   float(config["final_hold_s"]))
+        return cls(
+            paths,
+            targets,
+            chords,
+            float(config["rated_path_speed_mm_s"]),
+            float(config["chord_error_mm"]),
+            float(config["final_hold_s"]),
+        )
 
 
-def analyze_path_run(store: Store, run_id: int, *, station_mm: float = 1.0, margin_mm: float = 2.0,
-                     speed_station_mm: float = 2.0, samples=None) -> PathRun:
+def analyze_path_run(
+    store: Store,
+    run_id: int,
+    *,
+    station_mm: float = 1.0,
+    margin_mm: float = 2.0,
+    speed_station_mm: float = 2.0,
+    samples=None,
+) -> PathRun:
     """The figures of every path and velocity of path run ``run_id`` (module docstring); ``samples``: its ``path``
     samples when the caller has read them already (a report reads them once).
 
@@ -223,8 +261,9 @@ def analyze_path_run(store: Store, run_id: int, *, station_mm: float = 1.0, marg
         n_segments = protocol.n_segments(shape)
         complete = [c for c in cycles if len(c[3]) == n_segments]
         if len(complete) < 2:
-            raise InsufficientData(f"run {run_id}: {shape} at {velocity:g} %: {len(complete)} complete cycle(s), "
-                                   "expected at least 2")
+            raise InsufficientData(
+                f"run {run_id}: {shape} at {velocity:g} %: {len(complete)} complete cycle(s), expected at least 2"
+            )
         path = protocol.path(shape)
         stations = _stations(path, station_mm, margin_mm)
         r = path_characteristics([p for _, _, p, _ in complete], stations)
@@ -236,9 +275,26 @@ def analyze_path_run(store: Store, run_id: int, *, station_mm: float = 1.0, marg
             v = path_velocity_characteristics(_speeds(complete, speed_station_mm, v_c, protocol.final_hold_s), v_c)
             extra.update(av_pct=v.av_pct, rv_pct=v.rv_pct, fv_mm_s=v.fv_mm_s, mean_speed_mm_s=v.mean_speed_mm_s)
         duration = float(np.mean([t[-1] - t[0] for _, t, _, _ in complete]))
-        figures.append(PathFigures(shape, velocity, v_c, len(complete), n_segments, r.at_mm, r.rt_mm,
-                                   len(stations), duration_s=duration, **extra))
+        figures.append(
+            PathFigures(
+                shape,
+                velocity,
+                v_c,
+                len(complete),
+                n_segments,
+                r.at_mm,
+                r.rt_mm,
+                len(stations),
+                duration_s=duration,
+                **extra,
+            )
+        )
     if not figures:
         raise InsufficientData(f"run {run_id}: no path samples")
-    return PathRun(run_id, run.protocol_name, protocol, tuple(figures),
-                   {key: [(t, p) for _, t, p, _ in cycles] for key, cycles in grouped.items()})
+    return PathRun(
+        run_id,
+        run.protocol_name,
+        protocol,
+        tuple(figures),
+        {key: [(t, p) for _, t, p, _ in cycles] for key, cycles in grouped.items()},
+    )

@@ -19,8 +19,7 @@ from reportlab.lib.enums import TA_LEFT
 from reportlab.lib.pagesizes import A4
 from reportlab.lib.styles import ParagraphStyle, getSampleStyleSheet
 from reportlab.lib.units import mm
-from reportlab.pdfbase import pdfdoc
-from reportlab.pdfbase import pdfmetrics
+from reportlab.pdfbase import pdfdoc, pdfmetrics
 from reportlab.pdfbase.ttfonts import TTFont
 from reportlab.pdfgen import canvas as pdf_canvas
 from reportlab.platypus import (
@@ -56,15 +55,23 @@ def _styles() -> dict[str, ParagraphStyle]:
     base = getSampleStyleSheet()
     return {
         "title": ParagraphStyle("title", parent=base["Title"], fontName=_BOLD, fontSize=16, leading=20),
-        "subtitle": ParagraphStyle("subtitle", parent=base["Normal"], fontName=_FONT, fontSize=9,
-                                   textColor=colors.HexColor("#555555")),
-        "h2": ParagraphStyle("h2", parent=base["Heading2"], fontName=_BOLD, fontSize=12,
-                             textColor=colors.HexColor("#2b5797")),
+        "subtitle": ParagraphStyle(
+            "subtitle", parent=base["Normal"], fontName=_FONT, fontSize=9, textColor=colors.HexColor("#555555")
+        ),
+        "h2": ParagraphStyle(
+            "h2", parent=base["Heading2"], fontName=_BOLD, fontSize=12, textColor=colors.HexColor("#2b5797")
+        ),
         "body": ParagraphStyle("body", parent=base["Normal"], fontName=_FONT, fontSize=9, leading=12),
         "cell": ParagraphStyle("cell", fontName=_FONT, fontSize=6.5, leading=8, alignment=TA_LEFT),
         "head": ParagraphStyle("head", fontName=_BOLD, fontSize=6.5, leading=8, alignment=TA_LEFT),
-        "caption": ParagraphStyle("caption", parent=base["Normal"], fontName=_FONT, fontSize=8, leading=10,
-                                  textColor=colors.HexColor("#444444")),
+        "caption": ParagraphStyle(
+            "caption",
+            parent=base["Normal"],
+            fontName=_FONT,
+            fontSize=8,
+            leading=10,
+            textColor=colors.HexColor("#444444"),
+        ),
     }
 
 
@@ -103,8 +110,10 @@ def _column_widths(block: Table, width: float) -> list[float]:
     """Widths proportional to each column's longest text (capped), but never narrower than its longest word."""
     columns = list(zip(block.header, *block.rows))
     weights = [min(max(len(c) for c in column), 60) for column in columns]
-    floors = [max(pdfmetrics.stringWidth(word, _BOLD, 6.5) for c in column for word in (c.split() or [""])) + 6
-              for column in columns]
+    floors = [
+        max(pdfmetrics.stringWidth(word, _BOLD, 6.5) for c in column for word in (c.split() or [""])) + 6
+        for column in columns
+    ]
     widths = [width * w / sum(weights) for w in weights]
     narrow = {i for i, (w, f) in enumerate(zip(widths, floors)) if w < f}
     if sum(floors[i] for i in narrow) > 0.8 * width:  # unbreakable text everywhere: keep proportions, let it wrap
@@ -119,12 +128,17 @@ def _table(block: Table, styles, width: float) -> list:
     rows = [[PdfParagraph(escape(c), styles["cell"]) for c in row] for row in block.rows]
     widths = _column_widths(block, width)
     table = PdfTable([header, *rows], colWidths=widths, repeatRows=1)
-    table.setStyle(TableStyle([
-        ("GRID", (0, 0), (-1, -1), 0.4, colors.HexColor("#b8c2d6")),
-        ("BACKGROUND", (0, 0), (-1, 0), colors.HexColor("#dfe6f3")),
-        ("VALIGN", (0, 0), (-1, -1), "TOP"),
-        ("LEFTPADDING", (0, 0), (-1, -1), 2), ("RIGHTPADDING", (0, 0), (-1, -1), 2),
-    ]))
+    table.setStyle(
+        TableStyle(
+            [
+                ("GRID", (0, 0), (-1, -1), 0.4, colors.HexColor("#b8c2d6")),
+                ("BACKGROUND", (0, 0), (-1, 0), colors.HexColor("#dfe6f3")),
+                ("VALIGN", (0, 0), (-1, -1), "TOP"),
+                ("LEFTPADDING", (0, 0), (-1, -1), 2),
+                ("RIGHTPADDING", (0, 0), (-1, -1), 2),
+            ]
+        )
+    )
     out = [PdfParagraph(escape(block.caption), styles["caption"])] if block.caption else []
     return [*out, table, Spacer(1, 4 * mm)]
 
@@ -137,12 +151,20 @@ class _DeflatedImage(pdfdoc.PDFObject):
 
     def format(self, document):
         stream = pdfdoc.PDFStream(content=self.pixels.data)
-        stream.dictionary.dict.update({
-            "Type": pdfdoc.PDFName("XObject"), "Subtype": pdfdoc.PDFName("Image"), "Width": self.pixels.width,
-            "Height": self.pixels.height, "BitsPerComponent": 8, "ColorSpace": pdfdoc.PDFName("DeviceRGB"),
-            "Filter": pdfdoc.PDFName("FlateDecode"),  # one filter: DecodeParms a dictionary, not an array
-            "DecodeParms": pdfdoc.PDFDictionary({"Predictor": 15, "Colors": 3, "BitsPerComponent": 8,
-                                                 "Columns": self.pixels.width})})
+        stream.dictionary.dict.update(
+            {
+                "Type": pdfdoc.PDFName("XObject"),
+                "Subtype": pdfdoc.PDFName("Image"),
+                "Width": self.pixels.width,
+                "Height": self.pixels.height,
+                "BitsPerComponent": 8,
+                "ColorSpace": pdfdoc.PDFName("DeviceRGB"),
+                "Filter": pdfdoc.PDFName("FlateDecode"),  # one filter: DecodeParms a dictionary, not an array
+                "DecodeParms": pdfdoc.PDFDictionary(
+                    {"Predictor": 15, "Colors": 3, "BitsPerComponent": 8, "Columns": self.pixels.width}
+                ),
+            }
+        )
         return stream.format(document)
 
 
@@ -194,12 +216,23 @@ def render_pdf(document: Document) -> bytes:
     _register_fonts()
     styles = _styles()
     buffer = io.BytesIO()
-    frame = SimpleDocTemplate(buffer, pagesize=A4, leftMargin=15 * mm, rightMargin=15 * mm, topMargin=15 * mm,
-                              bottomMargin=18 * mm, title=document.title, author="bench",
-                              subject=document.subtitle)
+    frame = SimpleDocTemplate(
+        buffer,
+        pagesize=A4,
+        leftMargin=15 * mm,
+        rightMargin=15 * mm,
+        topMargin=15 * mm,
+        bottomMargin=18 * mm,
+        title=document.title,
+        author="bench",
+        subject=document.subtitle,
+    )
     width = frame.width
-    story = [PdfParagraph(escape(document.title), styles["title"]),
-             PdfParagraph(escape(document.subtitle), styles["subtitle"]), Spacer(1, 4 * mm)]
+    story = [
+        PdfParagraph(escape(document.title), styles["title"]),
+        PdfParagraph(escape(document.subtitle), styles["subtitle"]),
+        Spacer(1, 4 * mm),
+    ]
     for section in document.sections:
         story.append(PdfParagraph(escape(section.title), styles["h2"]))
         for block in section.blocks:
@@ -210,8 +243,9 @@ def render_pdf(document: Document) -> bytes:
                 story.extend(_table(block, styles, width))
             elif isinstance(block, Figure):
                 story.extend(_figure(block, styles, width))
-    canvas_class = type("ReportCanvas", (_NumberedCanvas,), {"footer": document.subtitle,
-                                                             "banner": document.meta.get("banner") or ""})
+    canvas_class = type(
+        "ReportCanvas", (_NumberedCanvas,), {"footer": document.subtitle, "banner": document.meta.get("banner") or ""}
+    )
     frame.build(story, canvasmaker=canvas_class)
     return buffer.getvalue()
 

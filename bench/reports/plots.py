@@ -27,10 +27,28 @@ from bench.reports.content import RunReport
 from bench.reports.png import rgb_png
 from bench.reports.small_multiples import SmallMultiples, legend_entries
 
-__all__ = ["MIN_FONT_PT", "PRINT_HEIGHT_IN", "PRINT_WIDTH_IN", "Plot", "REPORT_DPI", "comparison_plot",
-           "deviation_histograms", "draw_all", "error_map_3d", "hull_loop", "legend_entries", "print_grid",
-           "print_ready", "panels", "payload_caption", "payload_shift_figure", "png_bytes", "report_plots", "svg_text",
-           "workspace_cloud_mm"]
+__all__ = [
+    "MIN_FONT_PT",
+    "PRINT_HEIGHT_IN",
+    "PRINT_WIDTH_IN",
+    "Plot",
+    "REPORT_DPI",
+    "comparison_plot",
+    "deviation_histograms",
+    "draw_all",
+    "error_map_3d",
+    "hull_loop",
+    "legend_entries",
+    "print_grid",
+    "print_ready",
+    "panels",
+    "payload_caption",
+    "payload_shift_figure",
+    "png_bytes",
+    "report_plots",
+    "svg_text",
+    "workspace_cloud_mm",
+]
 
 _log = logging.getLogger(__name__)
 _POSITION = ["x_mm", "y_mm", "z_mm"]
@@ -99,7 +117,7 @@ def svg_text(plot: Plot) -> str:
     buffer = io.StringIO()
     plot.figure.savefig(buffer, format="svg", metadata={"Date": None})
     text = buffer.getvalue()
-    return text[text.index("<svg"):]
+    return text[text.index("<svg") :]
 
 
 #: Resolution of the report's figures (dots per inch at print size: 180 mm wide is 1063 px).
@@ -174,7 +192,7 @@ def draw_all(plots, dpi: int = REPORT_DPI, *, parallel: bool | None = None) -> N
     os.waitpid(child, 0)
     for plot, image in zip(theirs, images):
         plot.figure.__dict__.setdefault("_bench_png", {})[dpi] = image
-    for plot in theirs[len(images):]:
+    for plot in theirs[len(images) :]:
         png_bytes(plot, dpi)
 
 
@@ -212,32 +230,50 @@ def _measured(result) -> tuple[np.ndarray, list[str]]:
     return np.asarray(result.commanded_mm)[["xyz".index(a) for a in result.axis_names]], columns
 
 
-def print_grid(count: int, panel_size: tuple[float, float], *, max_columns: int = 5, equal_aspect: bool = False,
-               y_log: bool = False) -> SmallMultiples:
+def print_grid(
+    count: int,
+    panel_size: tuple[float, float],
+    *,
+    max_columns: int = 5,
+    equal_aspect: bool = False,
+    y_log: bool = False,
+) -> SmallMultiples:
     """A report's small multiples at print width in the smallest print font (five panels a row unless told)."""
-    return SmallMultiples(count, max_columns=max_columns, panel_size=panel_size, width_in=PRINT_WIDTH_IN,
-                          font_pt=MIN_FONT_PT, equal_aspect=equal_aspect, y_log=y_log)
+    return SmallMultiples(
+        count,
+        max_columns=max_columns,
+        panel_size=panel_size,
+        width_in=PRINT_WIDTH_IN,
+        font_pt=MIN_FONT_PT,
+        equal_aspect=equal_aspect,
+        y_log=y_log,
+    )
 
 
 def pose_scatter(report: RunReport) -> Plot:
     """Per pose: attained points minus the command (x-y plane), barycentre and the RP circle around it; one scale
     for every panel (the largest RP circle fits), one legend for the figure."""
     grid = print_grid(len(report.poses), (1.45, 1.45), equal_aspect=True)
-    reach = max(float(np.abs(np.asarray(r.accuracy.ap_axes_mm[:2])).max()) + r.repeatability.rp_mm
-                for r in report.poses)
+    reach = max(
+        float(np.abs(np.asarray(r.accuracy.ap_axes_mm[:2])).max()) + r.repeatability.rp_mm for r in report.poses
+    )
     for result, panel in zip(report.poses, grid.panels):
         points = _rows_of(report, result, _POSITION[:2]) - np.asarray(result.commanded_mm[:2])
         centre = np.asarray(result.accuracy.ap_axes_mm[:2])
         panel.scatter(points[:, 0], points[:, 1], s=3, color="tab:blue", label="attained", linewidths=0)
         panel.plot(*centre, marker="+", color="tab:red", markersize=7, linestyle="", label="barycentre")
         panel.plot(0, 0, marker="x", color="black", linestyle="", label="command")
-        panel.circle(centre, result.repeatability.rp_mm, fill=False, color="tab:red", lw=0.8,
-                     label="circle of radius RP_l")
+        panel.circle(
+            centre, result.repeatability.rp_mm, fill=False, color="tab:red", lw=0.8, label="circle of radius RP_l"
+        )
         panel.set_title(_short_label(result))
     grid.xlim = grid.ylim = (-reach * 1.05, reach * 1.05)  # square panels, one scale: circles are round
     figure = grid.finish("x − x_c (mm)", "y − y_c (mm)")
-    return Plot("Attained positions per pose relative to the command (x-y projection), with the barycentre "
-                "and a circle of radius RP_l around it; every panel on the same scale.", figure)
+    return Plot(
+        "Attained positions per pose relative to the command (x-y projection), with the barycentre "
+        "and a circle of radius RP_l around it; every panel on the same scale.",
+        figure,
+    )
 
 
 def workspace_cloud_mm(robot: str, count: int = 2500) -> np.ndarray | None:
@@ -296,16 +332,27 @@ def ap_on_workspace(report: RunReport) -> Plot | None:
     # constrained layout and loc="best" over 2,500 points each measured the figure once more (half of its time)
     width, height = PRINT_WIDTH_IN, 3.2
     figure = Figure(figsize=(width, height))
-    figure.subplots_adjust(left=0.62 / width, right=1 - 0.06 / width, bottom=0.48 / height, top=1 - 0.32 / height,
-                           wspace=0.22)
+    figure.subplots_adjust(
+        left=0.62 / width, right=1 - 0.06 / width, bottom=0.48 / height, top=1 - 0.32 / height, wspace=0.22
+    )
     for index, (i, j) in enumerate(((0, 1), (0, 2))):
         axes = figure.add_subplot(1, 2, index + 1)
         axes.scatter(cloud[:, i], cloud[:, j], s=1, color="0.8", label="reachable (kinematic model)", rasterized=True)
         loop = hull_loop(cloud[:, [i, j]])
         if loop is not None:
             axes.plot(cloud[loop, i], cloud[loop, j], color="0.4", lw=1, label="hull")
-        axes.quiver(commands[:, i], commands[:, j], vectors[:, i] * scale, vectors[:, j] * scale, color="tab:red",
-                    angles="xy", scale_units="xy", scale=1, width=0.004, label=f"AP vector x{scale:.0f}")
+        axes.quiver(
+            commands[:, i],
+            commands[:, j],
+            vectors[:, i] * scale,
+            vectors[:, j] * scale,
+            color="tab:red",
+            angles="xy",
+            scale_units="xy",
+            scale=1,
+            width=0.004,
+            label=f"AP vector x{scale:.0f}",
+        )
         axes.scatter(commands[:, i], commands[:, j], s=12, color="black", label="command poses")
         names = "xyz"
         axes.set_xlabel(f"{names[i]} (mm)")
@@ -313,8 +360,11 @@ def ap_on_workspace(report: RunReport) -> Plot | None:
         axes.set_aspect("equal", adjustable="datalim")
     legend = legend_entries(figure.axes)
     figure.legend(list(legend.values()), list(legend), loc="upper center", ncols=len(legend), fontsize=MIN_FONT_PT)
-    return Plot(f"Workspace of the {report.run.robot} (reachable points and convex hull, projections) with the "
-                f"signed AP vector of every pose magnified {scale:.0f} times.", figure)
+    return Plot(
+        f"Workspace of the {report.run.robot} (reachable points and convex hull, projections) with the "
+        f"signed AP vector of every pose magnified {scale:.0f} times.",
+        figure,
+    )
 
 
 def drift_series(report: RunReport) -> Plot:
@@ -329,14 +379,23 @@ def drift_series(report: RunReport) -> Plot:
         command, measured = _measured(result)
         rows = _rows_of(report, result, ["cycle", *measured])
         distance = np.linalg.norm(rows[:, 1:] - command, axis=1)
-        by_pose[result.pose].plot(rows[:, 0], distance, marker=".", markersize=2, lw=0.8,
-                                  label=condition_text(result.conditions) or "all cycles")
+        by_pose[result.pose].plot(
+            rows[:, 0],
+            distance,
+            marker=".",
+            markersize=2,
+            lw=0.8,
+            label=condition_text(result.conditions) or "all cycles",
+        )
     for name, panel in by_pose.items():
         panel.set_title(name)
     grid.x_locator = MaxNLocator(integer=True, nbins=4)
     figure = grid.finish("cycle", "|attained − command| (mm)")
-    return Plot("Per pose, on one scale: distance of each attained point from its command, cycle by cycle (a trend "
-                "shows drift or warm-up).", figure)
+    return Plot(
+        "Per pose, on one scale: distance of each attained point from its command, cycle by cycle (a trend "
+        "shows drift or warm-up).",
+        figure,
+    )
 
 
 def deviation_histograms(report: RunReport) -> Plot:
@@ -355,9 +414,12 @@ def deviation_histograms(report: RunReport) -> Plot:
         panel.set_title(_short_label(result))
     grid.y_locator = MaxNLocator(integer=True, nbins=4)
     figure = grid.finish("attained − command (mm)", "cycles")
-    return Plot("Per pose, on one scale and with the same bins: histograms of the deviation of every attained "
-                "position from its command, per axis (the offset of a histogram from 0 is the signed AP of that "
-                "axis, its width the scatter behind RP).", figure)
+    return Plot(
+        "Per pose, on one scale and with the same bins: histograms of the deviation of every attained "
+        "position from its command, per axis (the offset of a histogram from 0 is the signed AP of that "
+        "axis, its width the scatter behind RP).",
+        figure,
+    )
 
 
 def error_map_3d(report: RunReport) -> Plot | None:
@@ -376,8 +438,9 @@ def error_map_3d(report: RunReport) -> Plot | None:
     tips = commands + vectors * scale
     axes.quiver(*commands.T, *(vectors * scale).T, color="0.35", lw=0.8, arrow_length_ratio=0.15)
     axes.scatter(*commands.T, color="black", marker="x", s=14, depthshade=False, label="command pose")
-    points = axes.scatter(*tips.T, c=ap, cmap="viridis", vmin=0.0, s=16, depthshade=False,
-                          label=f"barycentre (AP vector x{scale:.0f})")
+    points = axes.scatter(
+        *tips.T, c=ap, cmap="viridis", vmin=0.0, s=16, depthshade=False, label=f"barycentre (AP vector x{scale:.0f})"
+    )
     for pose, command in dict((r.pose, r.commanded_mm) for r in report.poses).items():
         axes.text(*command, f"  {pose}", fontsize=MIN_FONT_PT)
     for name, setter in zip("xyz", (axes.set_xlabel, axes.set_ylabel, axes.set_zlabel)):
@@ -386,9 +449,12 @@ def error_map_3d(report: RunReport) -> Plot | None:
     axes.legend(loc="upper left", fontsize=MIN_FONT_PT, frameon=False)
     figure.colorbar(points, ax=axes, shrink=0.6, pad=0.08, label="AP_P (mm)")
     groups = len({r.conditions for r in report.poses})
-    return Plot(f"Error map over the test volume: at every command pose (x) the signed AP vector to the barycentre, "
-                f"magnified {scale:.0f} times, its tip coloured by AP_P (one colour scale)"
-                + (f"; one vector per set of conditions ({groups})." if groups > 1 else "."), figure)
+    return Plot(
+        f"Error map over the test volume: at every command pose (x) the signed AP vector to the barycentre, "
+        f"magnified {scale:.0f} times, its tip coloured by AP_P (one colour scale)"
+        + (f"; one vector per set of conditions ({groups})." if groups > 1 else "."),
+        figure,
+    )
 
 
 def payload_shift_figure(series) -> tuple[Figure, list]:
@@ -407,8 +473,10 @@ def payload_shift_figure(series) -> tuple[Figure, list]:
 
 
 def payload_caption(reference_load_kg: float) -> str:
-    return (f"Payload error PE(m) = x̄(m) − x̄(m₀) against load, m₀ = {reference_load_kg:g} kg (project definition, "
-            f"iso9283.md §12).")
+    return (
+        f"Payload error PE(m) = x̄(m) − x̄(m₀) against load, m₀ = {reference_load_kg:g} kg (project definition, "
+        f"iso9283.md §12)."
+    )
 
 
 def payload_plot(report: RunReport) -> Plot | None:
@@ -430,8 +498,12 @@ def mouse_calibration_plots(report: RunReport) -> list[Plot]:
         figure = Figure(figsize=(10, 3.4), layout="constrained")
         data, residual = figure.add_subplot(1, 2, 1), figure.add_subplot(1, 2, 2)
         data.scatter(reference, item.counts, s=10, label="calibration steps")
-        data.plot(reference, fit.slope_counts_per_mm * reference + fit.offset_counts, color="tab:red",
-                  label=f"fit: {fit.scale_mm_per_count:.5f} mm/count")
+        data.plot(
+            reference,
+            fit.slope_counts_per_mm * reference + fit.offset_counts,
+            color="tab:red",
+            label=f"fit: {fit.scale_mm_per_count:.5f} mm/count",
+        )
         data.set_xlabel(f"commanded {item.axis} step (mm)")
         data.set_ylabel("counts")
         data.legend(fontsize=7)
@@ -439,16 +511,28 @@ def mouse_calibration_plots(report: RunReport) -> list[Plot]:
         residual.scatter(reference, fit.residuals_counts, s=10)
         residual.set_xlabel(f"commanded {item.axis} step (mm)")
         residual.set_ylabel("residual (counts)")
-        plots.append(Plot(f"Calibration {record.name} v{record.version} (id {record.id}, from run "
-                          f"{record.source_run_id}), {item.axis} axis: linear fit and residuals, RMS "
-                          f"{fit.residual_rms_counts:.3g} counts.", figure))
+        plots.append(
+            Plot(
+                f"Calibration {record.name} v{record.version} (id {record.id}, from run "
+                f"{record.source_run_id}), {item.axis} axis: linear fit and residuals, RMS "
+                f"{fit.residual_rms_counts:.3g} counts.",
+                figure,
+            )
+        )
     return plots
 
 
 def report_plots(report: RunReport) -> list[Plot]:
     """Every figure of one run's report, in report order (optional ones left out when their data is absent)."""
-    plots = [pose_scatter(report), deviation_histograms(report), error_map_3d(report), ap_on_workspace(report),
-             drift_series(report), payload_plot(report), *mouse_calibration_plots(report)]
+    plots = [
+        pose_scatter(report),
+        deviation_histograms(report),
+        error_map_3d(report),
+        ap_on_workspace(report),
+        drift_series(report),
+        payload_plot(report),
+        *mouse_calibration_plots(report),
+    ]
     return [p for p in plots if p is not None]
 
 
@@ -471,10 +555,19 @@ def comparison_plot(first: RunReport, second: RunReport) -> Plot:
             by_label = {r.label: getattr(r, attribute) for r in report.poses}
             values = [by_label[label].value if label in by_label else np.nan for label in labels]
             errors = [by_label[label].expanded_uncertainty if label in by_label else 0.0 for label in labels]
-            axes.bar(positions + offset, values, width=0.4, yerr=nonnegative_yerr(values, errors), capsize=2,
-                     label=f"run {report.run.id}")
+            axes.bar(
+                positions + offset,
+                values,
+                width=0.4,
+                yerr=nonnegative_yerr(values, errors),
+                capsize=2,
+                label=f"run {report.run.id}",
+            )
         axes.set_xticks(positions, labels, rotation=45, ha="right", fontsize=6)
         axes.set_ylabel(f"{name} (mm)")
         axes.legend(fontsize=7)
-    return Plot(f"AP_P and RP_l per pose, run {first.run.id} against run {second.run.id} "
-                f"(error bars: U, k = {first.coverage_factor:g}).", figure)
+    return Plot(
+        f"AP_P and RP_l per pose, run {first.run.id} against run {second.run.id} "
+        f"(error bars: U, k = {first.coverage_factor:g}).",
+        figure,
+    )

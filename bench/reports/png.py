@@ -37,11 +37,15 @@ def rgb_png(rgba: bytes | np.ndarray, width: int, height: int, dpi: float) -> by
     rows[:, 0] = 0  # filter type 0 (none) on every row
     rows[:, 1:] = pixels.reshape(height, width, 4)[:, :, :3].reshape(height, 3 * width)
     per_metre = round(dpi / 0.0254)
-    return b"".join((_SIGNATURE,
-                     _chunk(b"IHDR", struct.pack(">IIBBBBB", width, height, 8, 2, 0, 0, 0)),
-                     _chunk(b"pHYs", struct.pack(">IIB", per_metre, per_metre, 1)),
-                     _chunk(b"IDAT", zlib.compress(rows.tobytes(), COMPRESS_LEVEL)),
-                     _chunk(b"IEND", b"")))
+    return b"".join(
+        (
+            _SIGNATURE,
+            _chunk(b"IHDR", struct.pack(">IIBBBBB", width, height, 8, 2, 0, 0, 0)),
+            _chunk(b"pHYs", struct.pack(">IIB", per_metre, per_metre, 1)),
+            _chunk(b"IDAT", zlib.compress(rows.tobytes(), COMPRESS_LEVEL)),
+            _chunk(b"IEND", b""),
+        )
+    )
 
 
 @dataclass(frozen=True)
@@ -61,7 +65,7 @@ def deflated_rgb(png: bytes) -> DeflatedRgb | None:
     position, header, parts = len(_SIGNATURE), None, []
     while position + 8 <= len(png):
         length, kind = struct.unpack_from(">I4s", png, position)
-        data = png[position + 8:position + 8 + length]
+        data = png[position + 8 : position + 8 + length]
         position += 12 + length
         if kind == b"IHDR":
             header = struct.unpack(">IIBBBBB", data)

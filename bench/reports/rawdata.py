@@ -49,8 +49,11 @@ def _plain(table: pd.DataFrame) -> bool:
         return False
     for name in table.columns:
         column = table[name]
-        if not (pd.api.types.is_numeric_dtype(column.dtype) or pd.api.types.is_object_dtype(column.dtype)
-                or pd.api.types.is_string_dtype(column.dtype)):
+        if not (
+            pd.api.types.is_numeric_dtype(column.dtype)
+            or pd.api.types.is_object_dtype(column.dtype)
+            or pd.api.types.is_string_dtype(column.dtype)
+        ):
             return False  # dates, categories, ...: left to pandas
         if column.dtype == object or pd.api.types.is_string_dtype(column.dtype):
             values = column.dropna().astype(str)
@@ -75,7 +78,7 @@ def write_table_csv(table: pd.DataFrame, path: str | Path) -> str:
         file.write(header.encode("utf-8"))
         digest.update(header.encode("utf-8"))
         for start in range(0, len(table), _CHUNK_ROWS):
-            rows = zip(*(column[start:start + _CHUNK_ROWS] for column in columns))
+            rows = zip(*(column[start : start + _CHUNK_ROWS] for column in columns))
             chunk = ("\n".join(map(",".join, rows)) + "\n").encode("utf-8")
             file.write(chunk)
             digest.update(chunk)

@@ -15,14 +15,32 @@ import re
 from collections.abc import Mapping
 from typing import Any
 
+from bench.reports.blocks import Table
+
 __all__ = ["BLANK", "PLACEHOLDER_SHOWN", "is_placeholder", "measuring_point", "signature_table"]
 
 #: A field nobody filled in: an empty line on the printed page, to be written on by hand.
 BLANK = ""
 #: How the settings appendix shows a stored placeholder (the value itself is never printed).
 PLACEHOLDER_SHOWN = "— (template placeholder, no value stated)"
-_PLACEHOLDERS = {"operator name", "customer name", "laboratory name", "lab name", "order number", "serial number",
-                 "not recorded", "not stated", "tbd", "todo", "n/a", "name", "xxx", "...", "-", "—"}
+_PLACEHOLDERS = {
+    "operator name",
+    "customer name",
+    "laboratory name",
+    "lab name",
+    "order number",
+    "serial number",
+    "not recorded",
+    "not stated",
+    "tbd",
+    "todo",
+    "n/a",
+    "name",
+    "xxx",
+    "...",
+    "-",
+    "—",
+}
 _TEMPLATE_MARK = re.compile(r"^\s*(<[^>]*>|\{[^}]*\}|\[[^\]]*\]|_+)\s*$")
 
 
@@ -42,8 +60,13 @@ def measuring_point(stated: str | None, robot_settings: Mapping[str, Any]) -> st
 
 def signature_table(operator: str):
     """The signature block: who tested (the operator when named) and who approves, each to sign and date."""
-    from bench.reports.document import Table
 
-    return Table("signature", ("Role", "Name", "Signature", "Date"),
-                 (("Tested by", BLANK if is_placeholder(operator) else operator, BLANK, BLANK),
-                  ("Approved by", BLANK, BLANK, BLANK)), "Signatures")
+    return Table(
+        "signature",
+        ("Role", "Name", "Signature", "Date"),
+        (
+            ("Tested by", BLANK if is_placeholder(operator) else operator, BLANK, BLANK),
+            ("Approved by", BLANK, BLANK, BLANK),
+        ),
+        "Signatures",
+    )

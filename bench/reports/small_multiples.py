@@ -52,8 +52,11 @@ class Panel:
         self._to_box = Affine2D()  # data -> inches of the panel area, set once the limits are known (finish)
         # a log y scale maps y to log10(y) first (values <= 0 fall far below the panel and are clipped, as on a
         # matplotlib log axis)
-        to_box = (blended_transform_factory(IdentityTransform(), LogTransform(10)) + self._to_box if grid.y_log
-                  else self._to_box)
+        to_box = (
+            blended_transform_factory(IdentityTransform(), LogTransform(10)) + self._to_box
+            if grid.y_log
+            else self._to_box
+        )
         self.transform = to_box + grid.axes.transData
         # (min, max, smallest positive) of the finite values of each artist drawn, per axis: the shared limits
         self.x_extent: list[tuple[float, float, float]] = []
@@ -76,8 +79,9 @@ class Panel:
             values = values[np.isfinite(values)]
             if len(values):
                 positive = values[values > 0]
-                extent.append((float(values.min()), float(values.max()),
-                               float(positive.min()) if len(positive) else math.nan))
+                extent.append(
+                    (float(values.min()), float(values.max()), float(positive.min()) if len(positive) else math.nan)
+                )
         x0, y0, width, height = self.box_in
         artist.set_clip_box(TransformedBbox(Bbox.from_bounds(x0, y0, width, height), self.grid.axes.transData))
         self.artists.append(artist)
@@ -136,8 +140,15 @@ class Panel:
 
     def annotate(self, text: str, xy, *, offset_pt=(3, 3), **kwargs):
         """``text`` beside the data point ``xy``, ``offset_pt`` points away (not counted for the limits)."""
-        label = self.grid.axes.annotate(text, xy, xycoords=self.transform, xytext=offset_pt,
-                                        textcoords="offset points", annotation_clip=False, **kwargs)
+        label = self.grid.axes.annotate(
+            text,
+            xy,
+            xycoords=self.transform,
+            xytext=offset_pt,
+            textcoords="offset points",
+            annotation_clip=False,
+            **kwargs,
+        )
         self.artists.append(label)
         return label
 
@@ -153,10 +164,19 @@ class SmallMultiples:
     the data limits with 5 % margins); ``x_locator``/``y_locator``: tick positions (default: matplotlib's automatic
     choice for the panel's size)."""
 
-    def __init__(self, count: int, *, max_columns: int, panel_size: tuple[float, float], width_in: float,
-                 margins_in: tuple[float, float, float, float] = (0.62, 0.08, 0.5, 0.5),
-                 gaps: tuple[float, float] = (0.12, 0.32), font_pt: float = 7.0, y_log: bool = False,
-                 equal_aspect: bool = False):
+    def __init__(
+        self,
+        count: int,
+        *,
+        max_columns: int,
+        panel_size: tuple[float, float],
+        width_in: float,
+        margins_in: tuple[float, float, float, float] = (0.62, 0.08, 0.5, 0.5),
+        gaps: tuple[float, float] = (0.12, 0.32),
+        font_pt: float = 7.0,
+        y_log: bool = False,
+        equal_aspect: bool = False,
+    ):
         if count < 1:
             raise ValueError(f"count = {count}, expected at least one panel")
         self.font_pt, self.y_log = font_pt, y_log
@@ -176,8 +196,9 @@ class SmallMultiples:
             self.x_offset_in = (area_width - used) / 2
         height_in = area_height + bottom + top
         self.figure = Figure(figsize=(width_in, height_in))
-        self.axes = self.figure.add_axes((left / width_in, bottom / height_in, area_width / width_in,
-                                          area_height / height_in))
+        self.axes = self.figure.add_axes(
+            (left / width_in, bottom / height_in, area_width / width_in, area_height / height_in)
+        )
         self.axes.set_xlim(0.0, area_width)
         self.axes.set_ylim(0.0, area_height)
         self.axes.set_axis_off()  # frames, ticks and labels are drawn per panel (finish)
@@ -188,8 +209,15 @@ class SmallMultiples:
         self.y_floor: float | None = None
         self.figure._bench_small_multiples = self
 
-    def finish(self, xlabel: str, ylabel: str, *, legend_columns: int | None = None, legend_pt: float | None = None,
-               legend_order=None) -> Figure:
+    def finish(
+        self,
+        xlabel: str,
+        ylabel: str,
+        *,
+        legend_columns: int | None = None,
+        legend_pt: float | None = None,
+        legend_order=None,
+    ) -> Figure:
         """Fix the shared limits, map every panel's data into its box, draw frames, ticks, tick labels and titles;
         name the quantities once for the figure and give it one legend on top (each label once, in the order first
         drawn, or sorted by ``legend_order``, a key on the label; ``legend_columns`` a row, default all)."""
@@ -200,24 +228,32 @@ class SmallMultiples:
         entries = legend_entries([self.axes])
         labels = sorted(entries, key=legend_order) if legend_order else list(entries)
         if labels:
-            self.figure.legend([entries[label] for label in labels], labels, loc="upper center",
-                               ncols=min(legend_columns or len(labels), len(labels)), fontsize=size)
+            self.figure.legend(
+                [entries[label] for label in labels],
+                labels,
+                loc="upper center",
+                ncols=min(legend_columns or len(labels), len(labels)),
+                fontsize=size,
+            )
         return self.figure
 
     def _place(self) -> None:
-        xlim = self.xlim or self._data_limits([(low, high) for p in self.panels for low, high, _ in p.x_extent],
-                                              None)
+        xlim = self.xlim or self._data_limits([(low, high) for p in self.panels for low, high, _ in p.x_extent], None)
         y_values = [(low, high) for p in self.panels for low, high, _ in p.y_extent]
         if self.y_log:  # limits, margins and ticks in log10(y), as on a matplotlib log axis
-            y_values = [(math.log10(positive), math.log10(high)) for p in self.panels
-                        for _, high, positive in p.y_extent if positive > 0]
-        ylim = self.ylim or self._data_limits(y_values, self.y_floor, back=(lambda v: 10.0 ** v) if self.y_log
-                                                                          else None)
+            y_values = [
+                (math.log10(positive), math.log10(high))
+                for p in self.panels
+                for _, high, positive in p.y_extent
+                if positive > 0
+            ]
+        ylim = self.ylim or self._data_limits(y_values, self.y_floor, back=(lambda v: 10.0**v) if self.y_log else None)
         low, high = self._y_scaled(ylim)
         for panel in self.panels:
             x0, y0, width, height = panel.box_in
             panel._to_box.clear().translate(-xlim[0], -low).scale(
-                width / (xlim[1] - xlim[0]), height / (high - low)).translate(x0, y0)
+                width / (xlim[1] - xlim[0]), height / (high - low)
+            ).translate(x0, y0)
         self.xlim, self.ylim = xlim, ylim
         x_ticks = self._ticks(xlim, self.x_locator, self.panel_width_in * 72 / (3 * self.font_pt))
         if self.y_log:
@@ -236,6 +272,7 @@ class SmallMultiples:
     def _log_ticks(limits) -> tuple[np.ndarray, list[str], np.ndarray]:
         """Decades labelled 10^k and the unlabelled 2..9 between them (matplotlib's LogLocator and its
         LogFormatterSciNotation); under two decades in range, every one of them labelled with its value."""
+
         def within(ticks):
             ticks = np.asarray(ticks, dtype=float)
             return ticks[(ticks >= limits[0] * (1 - 1e-9)) & (ticks <= limits[1] * (1 + 1e-9))]
@@ -264,8 +301,7 @@ class SmallMultiples:
     def _ticks(limits, locator, tick_space: float) -> np.ndarray:
         """Tick positions within ``limits``: ``locator``'s, else matplotlib's automatic choice (MaxNLocator with
         as many bins as fit the panel: 3 label heights per x tick, 2 per y tick, at most 9)."""
-        locator = locator or MaxNLocator(nbins=int(np.clip(math.floor(tick_space), 1, 9)),
-                                         steps=[1, 2, 2.5, 5, 10])
+        locator = locator or MaxNLocator(nbins=int(np.clip(math.floor(tick_space), 1, 9)), steps=[1, 2, 2.5, 5, 10])
         ticks = np.asarray(locator.tick_values(*limits), dtype=float)
         span = limits[1] - limits[0]
         return ticks[(ticks >= limits[0] - 1e-9 * span) & (ticks <= limits[1] + 1e-9 * span)]
@@ -275,8 +311,7 @@ class SmallMultiples:
         """The labels matplotlib's ScalarFormatter gives evenly spaced ticks: the fewest decimals that show every
         tick exactly, the same for all, "−" for negatives, and 0 unsigned."""
         span = float(np.ptp(ticks)) if len(ticks) > 1 else max(abs(float(ticks[0])), 1.0) if len(ticks) else 1.0
-        decimals = next((d for d in range(12) if np.allclose(np.round(ticks, d), ticks, rtol=0, atol=1e-6 * span)),
-                        12)
+        decimals = next((d for d in range(12) if np.allclose(np.round(ticks, d), ticks, rtol=0, atol=1e-6 * span)), 12)
         labels = []
         for value in ticks:
             text = f"{value:.{decimals}f}"
@@ -298,20 +333,40 @@ class SmallMultiples:
             marks.extend([[(x, y0), (x, y0 - tick)] for x in xs])
             marks.extend([[(x0, y), (x0 - tick, y)] for y in ys])
             if len(y_minor):
-                marks.extend([[(x0, y), (x0 - minor_tick, y)]
-                              for y in y0 + (self._y_scaled(y_minor) - low) * height / (high - low)])
+                marks.extend(
+                    [
+                        [(x0, y), (x0 - minor_tick, y)]
+                        for y in y0 + (self._y_scaled(y_minor) - low) * height / (high - low)
+                    ]
+                )
             if lowest[panel.column] is panel:
                 for x, label in zip(xs, x_labels):
-                    axes.text(x, y0 - (_TICK_PT + _TICK_PAD_PT) / 72, label, ha="center", va="top",
-                              fontsize=self.font_pt)
+                    axes.text(
+                        x, y0 - (_TICK_PT + _TICK_PAD_PT) / 72, label, ha="center", va="top", fontsize=self.font_pt
+                    )
             if panel.column == 0:
                 for y, label in zip(ys, y_labels):
-                    axes.text(x0 - (_TICK_PT + _TICK_PAD_PT) / 72, y, label, ha="right", va="center",
-                              fontsize=self.font_pt)
+                    axes.text(
+                        x0 - (_TICK_PT + _TICK_PAD_PT) / 72, y, label, ha="right", va="center", fontsize=self.font_pt
+                    )
             if panel.title:
-                axes.text(x0 + width / 2, y0 + height + _TITLE_PAD_PT / 72, panel.title, ha="center",
-                          va="baseline", fontsize=self.font_pt)
-        axes.add_collection(LineCollection(frames, colors="black", linewidths=_FRAME_PT, capstyle="projecting",
-                                           joinstyle="miter", zorder=2.5, clip_on=False))  # edges on the rim
-        axes.add_collection(LineCollection(marks, colors="black", linewidths=_FRAME_PT, clip_on=False,
-                                           zorder=2.5))
+                axes.text(
+                    x0 + width / 2,
+                    y0 + height + _TITLE_PAD_PT / 72,
+                    panel.title,
+                    ha="center",
+                    va="baseline",
+                    fontsize=self.font_pt,
+                )
+        axes.add_collection(
+            LineCollection(
+                frames,
+                colors="black",
+                linewidths=_FRAME_PT,
+                capstyle="projecting",
+                joinstyle="miter",
+                zorder=2.5,
+                clip_on=False,
+            )
+        )  # edges on the rim
+        axes.add_collection(LineCollection(marks, colors="black", linewidths=_FRAME_PT, clip_on=False, zorder=2.5))

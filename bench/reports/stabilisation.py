@@ -45,12 +45,22 @@ from bench.reports.document import (
 from bench.reports.plots import MIN_FONT_PT, Plot, print_grid
 from bench.store import CalibrationRecord, RunRecord, Store
 
-__all__ = ["Arrival", "BandResult", "StabilisationReport", "collect_stabilisation", "count_size_mm",
-           "recompute_stabilisation", "stabilisation_document", "stabilisation_plot"]
+__all__ = [
+    "Arrival",
+    "BandResult",
+    "StabilisationReport",
+    "collect_stabilisation",
+    "count_size_mm",
+    "recompute_stabilisation",
+    "stabilisation_document",
+    "stabilisation_plot",
+]
 
-SCOPE = ("Tested following the methods of ISO 9283:1998 clauses 7.4 (position stabilisation time) and 7.5 (position "
-         "overshoot), with the deviations listed in the deviations table. Results are ISO 9283-style; this is not "
-         "an ISO 9283 certification.")
+SCOPE = (
+    "Tested following the methods of ISO 9283:1998 clauses 7.4 (position stabilisation time) and 7.5 (position "
+    "overshoot), with the deviations listed in the deviations table. Results are ISO 9283-style; this is not "
+    "an ISO 9283 certification."
+)
 NO_CRITERION = "no acceptance criterion stated: no pass/fail statement (ISO 9283 defines methods, not grades)"
 
 
@@ -129,15 +139,24 @@ def _window_problems(arrivals: list[Arrival], results: list[BandResult], bands: 
     for band in bands:
         inside = [a for a in arrivals if a.distance_mm[0] <= band]
         if inside:
-            problems.append(f"{band:g} mm band: {len(inside)} of {len(arrivals)} arrivals began inside it (t_1 is "
-                            "the window's start)")
+            problems.append(
+                f"{band:g} mm band: {len(inside)} of {len(arrivals)} arrivals began inside it (t_1 is "
+                "the window's start)"
+            )
     problems += [f"{r.group}, {r.band_mm:g} mm: {r.reason}" for r in results if r.result is None]
     return tuple(problems)
 
 
-def collect_stabilisation(store: Store, run_id: int, *, k: float = 2.0, resamples: int = 1000,
-                          allow_unknown: bool = False, bands_mm=None,
-                          hysteresis_mm: float | None = None) -> StabilisationReport:
+def collect_stabilisation(
+    store: Store,
+    run_id: int,
+    *,
+    k: float = 2.0,
+    resamples: int = 1000,
+    allow_unknown: bool = False,
+    bands_mm=None,
+    hysteresis_mm: float | None = None,
+) -> StabilisationReport:
     """Gather the facts and figures of the report of ``iso9283_stabilisation`` run ``run_id``.
 
     ``bands_mm`` defaults to the ISO comparison bands; ``hysteresis_mm`` to one count of the run's instrument (see
@@ -151,28 +170,52 @@ def collect_stabilisation(store: Store, run_id: int, *, k: float = 2.0, resample
     figures = stabilisation_results(stabilisation_table(table), bands, hysteresis)
     results, arrivals = [], []
     for label, series in figures.series.items():
-        arrivals += [Arrival(label, cycle, t, np.sqrt(np.sum((position - position[-1]) ** 2, axis=1)))
-                     for cycle, t, position in series]
+        arrivals += [
+            Arrival(label, cycle, t, np.sqrt(np.sum((position - position[-1]) ** 2, axis=1)))
+            for cycle, t, position in series
+        ]
         numbers = tuple(cycle for cycle, _, _ in series)
         for band in bands:
             result = figures.bands[band][label]
-            results.append(BandResult(label, band, numbers, None, result) if isinstance(result, str) else
-                           BandResult(label, band, numbers, result))
+            results.append(
+                BandResult(label, band, numbers, None, result)
+                if isinstance(result, str)
+                else BandResult(label, band, numbers, result)
+            )
     cycles = min(len(r.cycles) for r in results)
     problems = _window_problems(arrivals, results, bands)
-    deviations = stabilisation_deviations(config=run.config, settings=run.settings, cycles_measured=cycles,
-                                          bands_mm=bands, hysteresis_mm=hysteresis, hysteresis_source=source,
-                                          count_mm=None if count is None else count[0], window_problems=problems,
-                                          allow_unknown=allow_unknown)
+    deviations = stabilisation_deviations(
+        config=run.config,
+        settings=run.settings,
+        cycles_measured=cycles,
+        bands_mm=bands,
+        hysteresis_mm=hysteresis,
+        hysteresis_source=source,
+        count_mm=None if count is None else count[0],
+        window_problems=problems,
+        allow_unknown=allow_unknown,
+    )
     base = provenance(run, calibrations)
     return StabilisationReport(
-        **{**base, "notes": base["notes"] + tuple(f"{r.group}, {r.band_mm:g} mm band: no figure ({r.reason})"
-                                                  for r in results if r.result is None)},
+        **{
+            **base,
+            "notes": base["notes"]
+            + tuple(f"{r.group}, {r.band_mm:g} mm band: no figure ({r.reason})" for r in results if r.result is None),
+        },
         title=run.config.get("title") or "ISO 9283-style position stabilisation time and overshoot",
-        clauses=("7.4 position stabilisation time", "7.5 position overshoot"), deviations=tuple(deviations),
-        instrument=counts_instrument(run, calibrations, 0), table=table, coverage_factor=k, bands_mm=bands,
-        hysteresis_mm=hysteresis, hysteresis_source=source, count_mm=None if count is None else count[0],
-        results=tuple(results), arrivals=tuple(arrivals), store_path=store.path)
+        clauses=("7.4 position stabilisation time", "7.5 position overshoot"),
+        deviations=tuple(deviations),
+        instrument=counts_instrument(run, calibrations, 0),
+        table=table,
+        coverage_factor=k,
+        bands_mm=bands,
+        hysteresis_mm=hysteresis,
+        hysteresis_source=source,
+        count_mm=None if count is None else count[0],
+        results=tuple(results),
+        arrivals=tuple(arrivals),
+        store_path=store.path,
+    )
 
 
 def _seconds(value: float) -> str:
@@ -184,26 +227,58 @@ def _results(report: StabilisationReport) -> tuple[Block, ...]:
     summary, cycles = [], []
     for r in report.results:
         if r.result is None:
-            summary.append((r.group, f"{r.band_mm:g}", str(len(r.cycles)), "—", "—", "—", "—",
-                            f"no figure: {r.reason}"))
+            summary.append(
+                (r.group, f"{r.band_mm:g}", str(len(r.cycles)), "—", "—", "—", "—", f"no figure: {r.reason}")
+            )
             continue
         s = r.result
-        summary.append((r.group, f"{r.band_mm:g}", str(len(r.cycles)), _seconds(s.mean_time_s), _seconds(s.max_time_s),
-                        f"{s.mean_overshoot_mm:.4f}", f"{s.max_overshoot_mm:.4f}", ""))
-        cycles += [(r.group, f"{r.band_mm:g}", str(cycle), _seconds(c.first_entry_s), _seconds(c.settled_s),
-                    _seconds(c.stabilisation_time_s), f"{c.overshoot_mm:.4f}")
-                   for cycle, c in zip(r.cycles, s.cycles)]
+        summary.append(
+            (
+                r.group,
+                f"{r.band_mm:g}",
+                str(len(r.cycles)),
+                _seconds(s.mean_time_s),
+                _seconds(s.max_time_s),
+                f"{s.mean_overshoot_mm:.4f}",
+                f"{s.max_overshoot_mm:.4f}",
+                "",
+            )
+        )
+        cycles += [
+            (
+                r.group,
+                f"{r.band_mm:g}",
+                str(cycle),
+                _seconds(c.first_entry_s),
+                _seconds(c.settled_s),
+                _seconds(c.stabilisation_time_s),
+                f"{c.overshoot_mm:.4f}",
+            )
+            for cycle, c in zip(r.cycles, s.cycles)
+        ]
     return (
-        Table("stabilisation", ("Pose", "Band B (mm)", "Cycles", "mean t_s (s)", "max t_s (s)", "OV (mm)",
-                                "max OV (mm)", "Note"), tuple(summary),
-              f"Position stabilisation time t_s (ISO 9283 7.4) and overshoot OV (7.5) per pose and limit band: mean "
-              f"and largest over the cycles ({h}, {report.hysteresis_source})"),
-        Table("stabilisation-cycles", ("Pose", "Band B (mm)", "Cycle", "t_1 (s)", "t_2 (s)", "t_s (s)", "OV_j (mm)"),
-              tuple(cycles), "Every arrival: first entry into the band t_1, settled from t_2 on, t_s = t_2 − t_1 and "
-                             "its overshoot (times relative to the move-done signal)"),
-        Paragraph(f"Hysteresis used: {h} ({report.hysteresis_source}). " + (
-            "Excursions up to B + h after the first entry are not counted as leaving the band or as overshoot."
-            if report.hysteresis_mm else "The definitions as written: any excursion beyond B counts.")),
+        Table(
+            "stabilisation",
+            ("Pose", "Band B (mm)", "Cycles", "mean t_s (s)", "max t_s (s)", "OV (mm)", "max OV (mm)", "Note"),
+            tuple(summary),
+            f"Position stabilisation time t_s (ISO 9283 7.4) and overshoot OV (7.5) per pose and limit band: mean "
+            f"and largest over the cycles ({h}, {report.hysteresis_source})",
+        ),
+        Table(
+            "stabilisation-cycles",
+            ("Pose", "Band B (mm)", "Cycle", "t_1 (s)", "t_2 (s)", "t_s (s)", "OV_j (mm)"),
+            tuple(cycles),
+            "Every arrival: first entry into the band t_1, settled from t_2 on, t_s = t_2 − t_1 and "
+            "its overshoot (times relative to the move-done signal)",
+        ),
+        Paragraph(
+            f"Hysteresis used: {h} ({report.hysteresis_source}). "
+            + (
+                "Excursions up to B + h after the first entry are not counted as leaving the band or as overshoot."
+                if report.hysteresis_mm
+                else "The definitions as written: any excursion beyond B counts."
+            )
+        ),
     )
 
 
@@ -226,15 +301,37 @@ def stabilisation_plot(report: StabilisationReport) -> Plot:
             cycle = figures.get(arrival.cycle)
             if cycle is None:
                 continue
-            panel.plot(cycle.first_entry_s, marked, marker="o", ms=4, mfc="none", color="black", ls="",
-                       label=f"t_1: first entry into B = {marked:g} mm")
-            panel.plot(cycle.settled_s, marked, marker="s", ms=4, mfc="none", color="tab:green", ls="",
-                       label="t_2: inside from here on (t_s = t_2 − t_1)")
-            panel.plot([cycle.first_entry_s, cycle.settled_s], [marked, marked], color="tab:green", lw=2.0,
-                       alpha=0.6)
+            panel.plot(
+                cycle.first_entry_s,
+                marked,
+                marker="o",
+                ms=4,
+                mfc="none",
+                color="black",
+                ls="",
+                label=f"t_1: first entry into B = {marked:g} mm",
+            )
+            panel.plot(
+                cycle.settled_s,
+                marked,
+                marker="s",
+                ms=4,
+                mfc="none",
+                color="tab:green",
+                ls="",
+                label="t_2: inside from here on (t_s = t_2 − t_1)",
+            )
+            panel.plot([cycle.first_entry_s, cycle.settled_s], [marked, marked], color="tab:green", lw=2.0, alpha=0.6)
             if cycle.overshoot_mm > 0:
-                panel.plot(cycle.peak_s, min(cycle.overshoot_mm, top), marker="v", ms=5, color="tab:red", ls="",
-                           label="OV: largest d(t) after t_1")
+                panel.plot(
+                    cycle.peak_s,
+                    min(cycle.overshoot_mm, top),
+                    marker="v",
+                    ms=5,
+                    color="tab:red",
+                    ls="",
+                    label="OV: largest d(t) after t_1",
+                )
         for band in report.bands_mm:
             panel.hline(band, ls="--", color="tab:red", lw=0.7)
             if report.hysteresis_mm:
@@ -242,43 +339,79 @@ def stabilisation_plot(report: StabilisationReport) -> Plot:
         panel.vline(0.0, color="0.5", lw=0.7)
         panel.set_title(group)
     grid.ylim = (0.0, top)
-    figure = grid.finish("t from the move-done signal (s)", "d(t) = |p(t) − p_att| (mm)", legend_pt=MIN_FONT_PT,
-                         legend_columns=4, legend_order=lambda label: not label.startswith("cycle"))  # curves first
+    figure = grid.finish(
+        "t from the move-done signal (s)",
+        "d(t) = |p(t) − p_att| (mm)",
+        legend_pt=MIN_FONT_PT,
+        legend_columns=4,
+        legend_order=lambda label: not label.startswith("cycle"),
+    )  # curves first
     bands = ", ".join(f"{b:g}" for b in report.bands_mm)
-    return Plot(f"Arrival at each pose, every panel on one scale: distance d(t) from the settled position (the last "
-                f"sample) per cycle, with the limit bands {bands} mm (dashed)" + (
-                    f" and B + h, h = {report.hysteresis_mm:g} mm (dotted)" if report.hysteresis_mm else "") +
-                f"; in the {marked:g} mm band the first entry t_1, the settled time t_2 (green bar: t_s) and the "
-                f"overshoot OV where it is read; clipped at {top:g} mm (the approach lies above).", figure)
+    return Plot(
+        f"Arrival at each pose, every panel on one scale: distance d(t) from the settled position (the last "
+        f"sample) per cycle, with the limit bands {bands} mm (dashed)"
+        + (f" and B + h, h = {report.hysteresis_mm:g} mm (dotted)" if report.hysteresis_mm else "")
+        + f"; in the {marked:g} mm band the first entry t_1, the settled time t_2 (green bar: t_s) and the "
+        f"overshoot OV where it is read; clipped at {top:g} mm (the approach lies above).",
+        figure,
+    )
 
 
 def recompute_stabilisation(report: StabilisationReport) -> str:
     """The exact commands that give every figure again from the store."""
     run_id = report.run.id
     bands = " ".join(f"{b:g}" for b in report.bands_mm)
-    return (f"bench export {run_id} --series --store {report.store_path} --out run{run_id}_series.csv, then bench "
-            f"analyze stabilisation run{run_id}_series.csv --band-mm {bands} --hysteresis-mm "
-            f"{report.hysteresis_mm!r} --json (or on the raw-data file below, the same rows at full precision)")
+    return (
+        f"bench export {run_id} --series --store {report.store_path} --out run{run_id}_series.csv, then bench "
+        f"analyze stabilisation run{run_id}_series.csv --band-mm {bands} --hysteresis-mm "
+        f"{report.hysteresis_mm!r} --json (or on the raw-data file below, the same rows at full precision)"
+    )
 
 
-def stabilisation_document(report: StabilisationReport, raw: list[RawData], *, operator: str = "not recorded",
-                           laboratory: str = "not recorded") -> Document:
+def stabilisation_document(
+    report: StabilisationReport, raw: list[RawData], *, operator: str = "not recorded", laboratory: str = "not recorded"
+) -> Document:
     config = report.run.config
-    method = (f"ISO 9283:1998 7.4 and 7.5. Each visit moves to the pose and, with no dwell, captures the streamed "
-              f"arrival from {config.get('lead_s', '—')} s before the controller reports the move done to "
-              f"{config.get('hold_s', '—')} s after. Per arrival: d(t) = |p(t) − p_att| with p_att its last "
-              "sample; t_1 = first time d <= B; t_2 = first time from which d <= B + h for the rest of the arrival; "
-              "t_s = t_2 − t_1; OV_j = max d after t_1 when it exceeds B + h, else 0 (h: hysteresis, 0 in the "
-              "standard). Per pose and band: mean and largest t_s and OV_j over the cycles "
-              "(bench.metrology.pose_stabilisation).")
+    method = (
+        f"ISO 9283:1998 7.4 and 7.5. Each visit moves to the pose and, with no dwell, captures the streamed "
+        f"arrival from {config.get('lead_s', '—')} s before the controller reports the move done to "
+        f"{config.get('hold_s', '—')} s after. Per arrival: d(t) = |p(t) − p_att| with p_att its last "
+        "sample; t_1 = first time d <= B; t_2 = first time from which d <= B + h for the rest of the arrival; "
+        "t_s = t_2 − t_1; OV_j = max d after t_1 when it exceeds B + h, else 0 (h: hysteresis, 0 in the "
+        "standard). Per pose and band: mean and largest t_s and OV_j over the cycles "
+        "(bench.metrology.pose_stabilisation)."
+    )
     settings = report.run.settings
-    extra = (("time base", str(settings.get("time_base", "not stated"))),
-             ("limit bands (mm, chosen at analysis)", ", ".join(f"{b:g}" for b in report.bands_mm)),
-             ("hysteresis h (mm)", f"{report.hysteresis_mm:g} ({report.hysteresis_source})"))
+    extra = (
+        ("time base", str(settings.get("time_base", "not stated"))),
+        ("limit bands (mm, chosen at analysis)", ", ".join(f"{b:g}" for b in report.bands_mm)),
+        ("hysteresis h (mm)", f"{report.hysteresis_mm:g} ({report.hysteresis_source})"),
+    )
     return assemble(
-        report, raw, operator=operator, laboratory=laboratory, method=method, scope=SCOPE,
-        conditions=conditions_section(report, ("velocities_pct", "loads_kg", "cycles", "lead_s", "hold_s",
-                                               "cube_centre_mm", "cube_side_mm", "poses", "warmup_s", "ambient_c"),
-                                      extra),
-        results=_results(report), plots=[stabilisation_plot(report)], decision=decision_blocks(NO_CRITERION),
-        recompute=recompute_stabilisation(report))
+        report,
+        raw,
+        operator=operator,
+        laboratory=laboratory,
+        method=method,
+        scope=SCOPE,
+        conditions=conditions_section(
+            report,
+            (
+                "velocities_pct",
+                "loads_kg",
+                "cycles",
+                "lead_s",
+                "hold_s",
+                "cube_centre_mm",
+                "cube_side_mm",
+                "poses",
+                "warmup_s",
+                "ambient_c",
+            ),
+            extra,
+        ),
+        results=_results(report),
+        plots=[stabilisation_plot(report)],
+        decision=decision_blocks(NO_CRITERION),
+        recompute=recompute_stabilisation(report),
+    )

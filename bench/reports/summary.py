@@ -61,21 +61,30 @@ class Identity:
     def merged(self, given: Mapping[str, str | None]) -> Identity:
         """This identity with the ``given`` values (e.g. command-line options) replacing the stored ones; a
         placeholder (a template's sample text) is no value."""
-        return Identity(**{f.name: (given.get(f.name) if not is_placeholder(given.get(f.name))
-                                    else getattr(self, f.name)) for f in fields(self)})
+        return Identity(
+            **{
+                f.name: (given.get(f.name) if not is_placeholder(given.get(f.name)) else getattr(self, f.name))
+                for f in fields(self)
+            }
+        )
 
     @classmethod
     def of_run(cls, run: RunRecord, given: Mapping[str, str | None] | None = None) -> Identity:
         """The run's stored identity (``settings.dut``), completed or overridden by ``given``."""
         identity = cls.from_mapping(run.settings.get("dut") or {}).merged(given or {})
-        return replace(identity, measuring_point=measuring_point(identity.measuring_point or None,
-                                                                 run.settings.get("robot") or {}))
+        return replace(
+            identity, measuring_point=measuring_point(identity.measuring_point or None, run.settings.get("robot") or {})
+        )
 
     def rows(self) -> list[tuple[str, str]]:
-        return [("Customer", self.customer), ("Order", self.order),
-                ("Device under test (serial / asset)", self.dut_serial),
-                ("Measuring point (TCP / reference point)", self.measuring_point),
-                ("Operator", self.operator), ("Laboratory", self.laboratory)]
+        return [
+            ("Customer", self.customer),
+            ("Order", self.order),
+            ("Device under test (serial / asset)", self.dut_serial),
+            ("Measuring point (TCP / reference point)", self.measuring_point),
+            ("Operator", self.operator),
+            ("Laboratory", self.laboratory),
+        ]
 
 
 def is_simulated(run: RunRecord) -> bool:
@@ -110,13 +119,20 @@ def headline_rows(poses: Sequence[PoseResult]) -> tuple[tuple[str, ...], ...]:
         worst_ap = max(group, key=lambda p: p.accuracy.ap_mm)
         worst_rp = max(group, key=lambda p: p.repeatability.rp_mm)
         mean = lambda values: sum(values) / len(values)  # noqa: E731
-        rows.append((condition_text(conditions) or "all", str(len(group)),
-                     f"{format_measured(worst_ap.ap_u.value, worst_ap.ap_u.expanded_uncertainty)} ({worst_ap.pose})",
-                     format_measured(mean([p.ap_u.value for p in group]),
-                                     mean([p.ap_u.expanded_uncertainty for p in group])),
-                     f"{format_measured(worst_rp.rp_u.value, worst_rp.rp_u.expanded_uncertainty)} ({worst_rp.pose})",
-                     format_measured(mean([p.rp_u.value for p in group]),
-                                     mean([p.rp_u.expanded_uncertainty for p in group]))))
+        rows.append(
+            (
+                condition_text(conditions) or "all",
+                str(len(group)),
+                f"{format_measured(worst_ap.ap_u.value, worst_ap.ap_u.expanded_uncertainty)} ({worst_ap.pose})",
+                format_measured(
+                    mean([p.ap_u.value for p in group]), mean([p.ap_u.expanded_uncertainty for p in group])
+                ),
+                f"{format_measured(worst_rp.rp_u.value, worst_rp.rp_u.expanded_uncertainty)} ({worst_rp.pose})",
+                format_measured(
+                    mean([p.rp_u.value for p in group]), mean([p.rp_u.expanded_uncertainty for p in group])
+                ),
+            )
+        )
     return tuple(rows)
 
 
@@ -136,9 +152,15 @@ def verdicts(decision_verdicts) -> tuple[tuple[str, ...], ...]:
     for name, rows in by_name.items():
         worst = max(rows, key=lambda r: r[2] + r[3])
         passed = sum(r[5] == PASS for r in rows)
-        out.append((name.removesuffix("_mm") + " (mm)", f"≤ {worst[4]:g}",
-                    f"{format_measured(worst[2], worst[3])} ({worst[1]})", f"{passed} of {len(rows)}",
-                    overall(r[5] for r in rows).upper()))
+        out.append(
+            (
+                name.removesuffix("_mm") + " (mm)",
+                f"≤ {worst[4]:g}",
+                f"{format_measured(worst[2], worst[3])} ({worst[1]})",
+                f"{passed} of {len(rows)}",
+                overall(r[5] for r in rows).upper(),
+            )
+        )
     if out:
         out.append(("Overall", "", "", "", overall(r[-1].lower() for r in out).upper()))
     return tuple(out)
@@ -162,10 +184,15 @@ def interruptions(times: Sequence[datetime]) -> list[HistoryEvent]:
     if not gaps:
         return []
     limit = max(MIN_GAP_S, GAP_FACTOR * median(gaps))
-    return [HistoryEvent(before.isoformat(timespec="seconds"),
-                         f"interrupted: no sample for {gap:.0f} s (paused, or stopped and resumed); sampling "
-                         f"resumed {after.isoformat(timespec='seconds')}")
-            for before, after, gap in zip(times, times[1:], gaps) if gap >= limit]
+    return [
+        HistoryEvent(
+            before.isoformat(timespec="seconds"),
+            f"interrupted: no sample for {gap:.0f} s (paused, or stopped and resumed); sampling "
+            f"resumed {after.isoformat(timespec='seconds')}",
+        )
+        for before, after, gap in zip(times, times[1:], gaps)
+        if gap >= limit
+    ]
 
 
 def run_history(store: Store, run: RunRecord) -> tuple[HistoryEvent, ...]:
@@ -176,12 +203,15 @@ def run_history(store: Store, run: RunRecord) -> tuple[HistoryEvent, ...]:
     stored = list(run.settings.get("history", ()))  # every settle and resume, as the store recorded them
     if stored and stored[-1]["event"] == run.status:
         stored.pop()  # the run's end: said below, once
-    events = [HistoryEvent(_seconds(e["utc"]), e["event"] + (f": {e['reason']}" if e.get("reason") else ""))
-              for e in stored]
-    end = {"running": "no end stored (still running, or the program stopped without settling the status)"
-           }.get(run.status, run.status)
-    ended = HistoryEvent(_seconds(run.ended_utc) if run.ended_utc else "—",
-                         end + (f": {run.reason}" if run.reason else ""))
+    events = [
+        HistoryEvent(_seconds(e["utc"]), e["event"] + (f": {e['reason']}" if e.get("reason") else "")) for e in stored
+    ]
+    end = {"running": "no end stored (still running, or the program stopped without settling the status)"}.get(
+        run.status, run.status
+    )
+    ended = HistoryEvent(
+        _seconds(run.ended_utc) if run.ended_utc else "—", end + (f": {run.reason}" if run.reason else "")
+    )
     return (started, *sorted([*events, *gaps], key=lambda event: event.time_utc), ended)
 
 
@@ -206,12 +236,20 @@ def summary_section(report, identity: Identity, history: Sequence[HistoryEvent],
     from bench.reports.orientation import orientation_headline
 
     run = report.run
-    rows = [*identity.rows(), ("Test", f"{report.title} ({run.robot})"),
-            ("Test date (UTC)", (run.started_utc or "—")[:10]), ("Report", report.report_id)]
+    rows = [
+        *identity.rows(),
+        ("Test", f"{report.title} ({run.robot})"),
+        ("Test date (UTC)", (run.started_utc or "—")[:10]),
+        ("Report", report.report_id),
+    ]
     blocks: list = []
     if simulated:
-        blocks.append(Paragraph("SIMULATED DATA: at least one device of this run (robot or instrument) was a "
-                                "simulator. The numbers describe the simulation, not a physical robot."))
+        blocks.append(
+            Paragraph(
+                "SIMULATED DATA: at least one device of this run (robot or instrument) was a "
+                "simulator. The numbers describe the simulation, not a physical robot."
+            )
+        )
     blocks.append(key_values("summary-identity", rows))
     if isinstance(report, RunReport) and report.poses:
         from bench.reports.content import axes_statement
@@ -220,19 +258,37 @@ def summary_section(report, identity: Identity, history: Sequence[HistoryEvent],
         axes = axes_statement(report)
         if axes:
             blocks.append(Paragraph(axes + "."))
-        blocks.append(Table("headline", ("Conditions", "Poses", "Worst AP_P ± U (mm)", "Mean AP_P ± U (mm)",
-                                         "Worst RP_l ± U (mm)", "Mean RP_l ± U (mm)"), headline_rows(report.poses),
-                            f"Headline results per velocity and load (U: expanded uncertainty, k = {k}; U of a mean "
-                            f"is the mean of the poses' U" + (f"; {axes}" if axes else "") + ")"))
+        blocks.append(
+            Table(
+                "headline",
+                (
+                    "Conditions",
+                    "Poses",
+                    "Worst AP_P ± U (mm)",
+                    "Mean AP_P ± U (mm)",
+                    "Worst RP_l ± U (mm)",
+                    "Mean RP_l ± U (mm)",
+                ),
+                headline_rows(report.poses),
+                f"Headline results per velocity and load (U: expanded uncertainty, k = {k}; U of a mean "
+                f"is the mean of the poses' U" + (f"; {axes}" if axes else "") + ")",
+            )
+        )
         blocks.extend(orientation_headline(report))
         verdict = verdicts(report.decision.verdicts)
         blocks.append(Paragraph(f"Decision rule: {report.decision.rule}."))
         if verdict:
-            blocks.append(Table("verdict", ("Characteristic", "Criterion", "Worst value ± U (where)", "Poses passed",
-                                            "Result"), verdict, "Verdict against the stated criteria under the "
-                                                                "decision rule above"))
-    blocks.append(Table("history", ("Time (UTC)", "Event"), tuple((e.time_utc, e.event) for e in history),
-                        "Run history"))
+            blocks.append(
+                Table(
+                    "verdict",
+                    ("Characteristic", "Criterion", "Worst value ± U (where)", "Poses passed", "Result"),
+                    verdict,
+                    "Verdict against the stated criteria under the decision rule above",
+                )
+            )
+    blocks.append(
+        Table("history", ("Time (UTC)", "Event"), tuple((e.time_utc, e.event) for e in history), "Run history")
+    )
     blocks.extend(registration_blocks(run))
     blocks.append(signature_table(identity.operator))
     return Section("Summary", tuple(blocks))
@@ -247,18 +303,33 @@ def registration_blocks(run: RunRecord) -> list:
     entries = registrations(run.settings)
     if not entries:
         return []
-    rows = tuple((str(e["segment"]), _seconds(e["utc"]), str(e.get("from_step", "—")),
-                  f"{e['check_discrepancy_max_mm']:.3f}", f"{e['tolerance_mm']:.2f}", f"{e['u_mm']:.3f}")
-                 for e in entries)
+    rows = tuple(
+        (
+            str(e["segment"]),
+            _seconds(e["utc"]),
+            str(e.get("from_step", "—")),
+            f"{e['check_discrepancy_max_mm']:.3f}",
+            f"{e['tolerance_mm']:.2f}",
+            f"{e['u_mm']:.3f}",
+        )
+        for e in entries
+    )
     blocks: list = []
     if len(entries) > 1:
-        blocks.append(Paragraph(
-            f"RESUMED RUN OF A RELATIVE INSTRUMENT: the mice were registered at home {len(entries)} times (export "
-            "column registration). Rows of two registrations share a frame only within √(u_i² + u_j²) per axis; "
-            "a pose measured in several of them has that spread in its RP."))
-    blocks.append(Table("registrations", ("Segment", "Registered (UTC)", "From step", "Check discrepancy (mm)",
-                                          "Tolerance (mm)", "u per axis (mm)"), rows,
-                        f"Registrations at home, each verified at the check pose (bench.rigs.registration); the U "
-                        f"of AP includes the largest u, {registration_u_mm(entries):.3f} mm"))
+        blocks.append(
+            Paragraph(
+                f"RESUMED RUN OF A RELATIVE INSTRUMENT: the mice were registered at home {len(entries)} times (export "
+                "column registration). Rows of two registrations share a frame only within √(u_i² + u_j²) per axis; "
+                "a pose measured in several of them has that spread in its RP."
+            )
+        )
+    blocks.append(
+        Table(
+            "registrations",
+            ("Segment", "Registered (UTC)", "From step", "Check discrepancy (mm)", "Tolerance (mm)", "u per axis (mm)"),
+            rows,
+            f"Registrations at home, each verified at the check pose (bench.rigs.registration); the U "
+            f"of AP includes the largest u, {registration_u_mm(entries):.3f} mm",
+        )
+    )
     return blocks
-

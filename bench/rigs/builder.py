@@ -50,8 +50,9 @@ def check_capabilities(station: Station, requires: frozenset[str] | set[str], pr
         raise ConfigError(f"{station.source}: robot.kind = {station.robot!r}, expected pkm5 or delta4")
 
 
-def mouse_calibration(store: Any, cpi: float, version: int | None = None, *,
-                      source: str = "station") -> tuple[Any, Any]:
+def mouse_calibration(
+    store: Any, cpi: float, version: int | None = None, *, source: str = "station"
+) -> tuple[Any, Any]:
     """The mouse calibration a station puts in force; returns (store record, :class:`CountsCalibration`).
 
     With ``version`` (``[mice] calibration``), that stored ``mouse`` calibration, per-axis scales where it has
@@ -65,21 +66,36 @@ def mouse_calibration(store: Any, cpi: float, version: int | None = None, *,
             record = store.calibration("mouse", version)
         except ConfigError:
             stored = [str(c.version) for c in store.calibrations() if c.name == "mouse"]
-            raise ConfigError(f"{source}: mice.calibration = {version}, expected a stored mouse calibration version "
-                              f"({', '.join(stored) or 'none stored yet'})") from None
+            raise ConfigError(
+                f"{source}: mice.calibration = {version}, expected a stored mouse calibration version "
+                f"({', '.join(stored) or 'none stored yet'})"
+            ) from None
     else:
         measured = [c for c in store.calibrations() if c.name == "mouse" and not c.params.get("nominal")]
-        record = store.ensure_calibration("mouse", {"mm_per_count": MM_PER_INCH / cpi, "nominal": True},
-                                          notes=f"nominal {cpi:g} cpi (no [mice] calibration named)")
+        record = store.ensure_calibration(
+            "mouse",
+            {"mm_per_count": MM_PER_INCH / cpi, "nominal": True},
+            notes=f"nominal {cpi:g} cpi (no [mice] calibration named)",
+        )
         if measured:
-            _log.warning("%s: the nominal %g cpi is in force; stored calibration mouse-v%d is not used unless the "
-                         "station names it ([mice] calibration = %d)", source, cpi, measured[-1].version,
-                         measured[-1].version)
+            _log.warning(
+                "%s: the nominal %g cpi is in force; stored calibration mouse-v%d is not used unless the "
+                "station names it ([mice] calibration = %d)",
+                source,
+                cpi,
+                measured[-1].version,
+                measured[-1].version,
+            )
     params = record.params
-    matrix = params.get("matrix_mm_per_count") or np.diag([params.get(f"{axis}_mm_per_count", params["mm_per_count"])
-                                                            for axis in "xy"])
-    calibration = CountsCalibration(np.asarray(matrix, dtype=float), f"mouse-v{record.version}",
-                                    record.created_utc[:10], nominal=bool(params.get("nominal", False)))
+    matrix = params.get("matrix_mm_per_count") or np.diag(
+        [params.get(f"{axis}_mm_per_count", params["mm_per_count"]) for axis in "xy"]
+    )
+    calibration = CountsCalibration(
+        np.asarray(matrix, dtype=float),
+        f"mouse-v{record.version}",
+        record.created_utc[:10],
+        nominal=bool(params.get("nominal", False)),
+    )
     return record, calibration
 
 
@@ -94,9 +110,15 @@ def calibration_summary(record: Any) -> dict[str, Any]:
     return summary
 
 
-def build_rig(station: Station, store: Any, *, operator: Operator | None = None,
-              requires: frozenset[str] | set[str] = frozenset(), protocol: str = "the protocol",
-              speed_factor: float = 1.0) -> Rig:
+def build_rig(
+    station: Station,
+    store: Any,
+    *,
+    operator: Operator | None = None,
+    requires: frozenset[str] | set[str] = frozenset(),
+    protocol: str = "the protocol",
+    speed_factor: float = 1.0,
+) -> Rig:
     """The rig of ``station`` for a protocol that ``requires`` these capabilities.
 
     ``operator`` answers the prompts (default: the person at the terminal); a serial calliper answers the reading
@@ -121,8 +143,14 @@ def build_rig(station: Station, store: Any, *, operator: Operator | None = None,
         if station.calliper is not None and station.calliper.kind == "serial":
             operator = GaugeOperator(_open_calliper(station, opened), operator, timeout_s=station.calliper.timeout_s)
         closers = opened.pop_all()
-    rig = Rig(mover, instrument, operator, speed_factor=speed_factor, calibration_ids=tuple(calibration_ids),
-              closers=[closers.close])
+    rig = Rig(
+        mover,
+        instrument,
+        operator,
+        speed_factor=speed_factor,
+        calibration_ids=tuple(calibration_ids),
+        closers=[closers.close],
+    )
     rig.extra["station"] = station.settings()
     rig.extra["dut"] = station_identity(station)
     if registration is not None:
@@ -133,8 +161,13 @@ def build_rig(station: Station, store: Any, *, operator: Operator | None = None,
 def station_identity(station: Station) -> dict[str, str]:
     """The device under test and the people, as the report's page 1 reads them (``settings.dut``)."""
     identity = station.identity
-    fields = {"dut_serial": identity.robot_serial or identity.robot_asset, "customer": identity.customer,
-              "order": identity.order, "operator": identity.operator, "laboratory": identity.lab}
+    fields = {
+        "dut_serial": identity.robot_serial or identity.robot_asset,
+        "customer": identity.customer,
+        "order": identity.order,
+        "operator": identity.operator,
+        "laboratory": identity.lab,
+    }
     return {key: value for key, value in fields.items() if value}
 
 
@@ -153,8 +186,10 @@ def _open_port(station: Station, key: str, url: str, baud: int, opened: ExitStac
     except LinkError as exc:
         cause = exc.__cause__
         why = getattr(cause, "strerror", None) or str(cause or exc)
-        raise LinkError(f"{station.source}: {key} = {url!r}: cannot open it ({why}); is the device plugged in, the "
-                        "name right and the port free? (bench station check)") from None
+        raise LinkError(
+            f"{station.source}: {key} = {url!r}: cannot open it ({why}); is the device plugged in, the "
+            "name right and the port free? (bench station check)"
+        ) from None
     opened.callback(port.close)
     return port
 
@@ -184,20 +219,33 @@ def _open_robot(station: Station, opened: ExitStack) -> tuple[Any, Any]:
     return DeltaMover(controller), controller
 
 
-def _open_instrument(station: Station, controller: Any, store: Any, requires: frozenset[str] | set[str],
-                     opened: ExitStack, calibration_ids: list[int]) -> Any:
+def _open_instrument(
+    station: Station,
+    controller: Any,
+    store: Any,
+    requires: frozenset[str] | set[str],
+    opened: ExitStack,
+    calibration_ids: list[int],
+) -> Any:
     needs_capture = bool(set(requires) & CAPTURE_CAPABILITIES) or not requires
     calliper = {} if station.calliper is None else {"calliper": vars(station.calliper)}
-    if station.robot == "pkm5" and station.mice is not None and station.controller.fixture == "assembled" \
-            and needs_capture:
+    if (
+        station.robot == "pkm5"
+        and station.mice is not None
+        and station.controller.fixture == "assembled"
+        and needs_capture
+    ):
         return _open_mice(station, store, opened, calibration_ids)
     if station.camera is not None and needs_capture:
         return _open_camera(station, opened)
     if station.robot == "delta4" and station.laser_grid is not None and needs_capture:
         from bench.rigs.lasergrid import DEFAULT_DECODER, LaserGridInstrument
 
-        decoder = {**DEFAULT_DECODER, "spot_half_width_mm": station.laser_grid.spot_half_width_mm,
-                   "gate_mm": station.laser_grid.gate_mm}
+        decoder = {
+            **DEFAULT_DECODER,
+            "spot_half_width_mm": station.laser_grid.spot_half_width_mm,
+            "gate_mm": station.laser_grid.gate_mm,
+        }
         instrument = LaserGridInstrument(controller, decoder=decoder)
         calibration_ids.append(instrument.record_geometry(store))
         return instrument
@@ -217,8 +265,14 @@ def _open_mice(station: Station, store: Any, opened: ExitStack, calibration_ids:
         mice[plane] = EvdevMouse(path, calibration, label=f"mouse_{plane}", grab=spec.grab)
         opened.callback(mice[plane].close)
     # zeroed at the home pose (the robot was homed), then verified at the check pose (bench.rigs.registration)
-    instrument = MiceInstrument(mice, _home("pkm5"), calibration, follow=True, noise_counts=spec.noise_counts,
-                                calibration_record=calibration_summary(record))
+    instrument = MiceInstrument(
+        mice,
+        _home("pkm5"),
+        calibration,
+        follow=True,
+        noise_counts=spec.noise_counts,
+        calibration_record=calibration_summary(record),
+    )
     opened.callback(instrument.close)
     return instrument
 
@@ -232,8 +286,12 @@ def _open_camera(station: Station, opened: ExitStack) -> Any:
     calibration = load_plane_calibration(spec.calibration)
     grab, grab_next, release = video_grab(spec.device)
     opened.callback(release)
-    return CameraSpotInstrument(LaserSpotCamera(grab, calibration, grab_next=grab_next), _home(station.robot),
-                                plane=spec.plane, frames=spec.frames)
+    return CameraSpotInstrument(
+        LaserSpotCamera(grab, calibration, grab_next=grab_next),
+        _home(station.robot),
+        plane=spec.plane,
+        frames=spec.frames,
+    )
 
 
 def _home(robot: str) -> tuple[float, ...]:

@@ -31,11 +31,17 @@ def load_plane_calibration(path: str) -> Any:
 
     try:
         data = json.loads(Path(path).read_text(encoding="utf-8"))
-        return PlaneCalibration(np.asarray(data["homography_px_to_mm"], dtype=float), float(data["rms_mm"]),
-                                str(data["calibration_id"]), str(data["date"]))
+        return PlaneCalibration(
+            np.asarray(data["homography_px_to_mm"], dtype=float),
+            float(data["rms_mm"]),
+            str(data["calibration_id"]),
+            str(data["date"]),
+        )
     except (OSError, ValueError, KeyError, TypeError) as exc:
-        raise ConfigError(f"camera.calibration = {path!r}: cannot read it ({exc}), expected the JSON of a plane "
-                          "calibration (homography_px_to_mm, rms_mm, calibration_id, date)") from None
+        raise ConfigError(
+            f"camera.calibration = {path!r}: cannot read it ({exc}), expected the JSON of a plane "
+            "calibration (homography_px_to_mm, rms_mm, calibration_id, date)"
+        ) from None
 
 
 def video_grab(device: str) -> tuple[Callable[[], np.ndarray], Callable[[], np.ndarray], Callable[[], None]]:
@@ -109,7 +115,11 @@ class CameraSpotInstrument:
 
     def settings(self) -> dict[str, Any]:
         calibration = self.camera.calibration
-        return {"instrument": f"camera laser spot ({self.plane} plane)", **self.camera.settings(),
-                "calibration_id": calibration.calibration_id, "u_mm": float(calibration.rms_mm),
-                "frames_per_reading": self.frames,
-                "registration_mm": [float(v) for v in self.origin]}
+        return {
+            "instrument": f"camera laser spot ({self.plane} plane)",
+            **self.camera.settings(),
+            "calibration_id": calibration.calibration_id,
+            "u_mm": float(calibration.rms_mm),
+            "frames_per_reading": self.frames,
+            "registration_mm": [float(v) for v in self.origin],
+        }

@@ -15,10 +15,14 @@ from bench.robots.link import open_port
 
 __all__ = ["DeviceCheck", "check_station"]
 
-_SERIAL_FIX = ("add yourself to the 'dialout' group (sudo usermod -aG dialout $USER, then log in again) or install "
-               "the udev rule of docs/real-bench.md")
-_INPUT_FIX = ("add yourself to the 'input' group (sudo usermod -aG input $USER, then log in again) or install the "
-              "udev rule of docs/real-bench.md")
+_SERIAL_FIX = (
+    "add yourself to the 'dialout' group (sudo usermod -aG dialout $USER, then log in again) or install "
+    "the udev rule of docs/real-bench.md"
+)
+_INPUT_FIX = (
+    "add yourself to the 'input' group (sudo usermod -aG input $USER, then log in again) or install the "
+    "udev rule of docs/real-bench.md"
+)
 
 
 @dataclass(frozen=True)
@@ -39,7 +43,9 @@ class DeviceCheck:
 
 def _missing_fix(path: str, kind: str) -> str:
     if kind == "input":
-        return "plug the mouse in and name it by /dev/input/by-id/... (ls -l /dev/input/by-id; bench sensors mouse-list)"
+        return (
+            "plug the mouse in and name it by /dev/input/by-id/... (ls -l /dev/input/by-id; bench sensors mouse-list)"
+        )
     return "plug the controller in and name it by /dev/serial/by-id/... (ls -l /dev/serial/by-id)"
 
 
@@ -102,8 +108,11 @@ def _controller(station: Station) -> str:
         except LinkTimeout:
             detail += "; no pot readback (firmware without the A query: positions are not read back)"
         fine = controller.probe_fine_references()
-        detail += (f"; fine servo references ({fine.step_deg():.5f} deg a step)" if fine is not None else
-                   "; byte servo references only (no answer to C)")
+        detail += (
+            f"; fine servo references ({fine.step_deg():.5f} deg a step)"
+            if fine is not None
+            else "; byte servo references only (no answer to C)"
+        )
         controller.shutdown()
         return detail
     finally:

@@ -26,8 +26,10 @@ class CalliperOnly:
         self.calliper = dict(calliper or {})
 
     def measure(self, capture: Capture) -> Measurement:
-        raise LinkError(f"actuator bench: no instrument for capture {capture.kind!r} at {capture.pose!r}; readings "
-                        "are calliper entries")
+        raise LinkError(
+            f"actuator bench: no instrument for capture {capture.kind!r} at {capture.pose!r}; readings "
+            "are calliper entries"
+        )
 
     def settings(self) -> dict[str, Any]:
         return {"instrument": "depth gauge / calliper entries (actuator bench, 000 §8.4)", **self.calliper}
@@ -50,7 +52,12 @@ class GaugeOperator:
             low, high = prompt.minimum, prompt.maximum
             if (low is None or value >= low) and (high is None or value <= high):
                 return value
-            print(f"  {prompt.field} = {value:g} from the calliper, expected a value in [{low}, {high}]; "
-                  "read again", file=sys.stderr, flush=True)
-        raise LinkError(f"calliper: {prompt.field} out of [{prompt.minimum}, {prompt.maximum}] on "
-                        f"{self.attempts} readings in a row ({prompt.text})")
+            print(
+                f"  {prompt.field} = {value:g} from the calliper, expected a value in [{low}, {high}]; read again",
+                file=sys.stderr,
+                flush=True,
+            )
+        raise LinkError(
+            f"calliper: {prompt.field} out of [{prompt.minimum}, {prompt.maximum}] on "
+            f"{self.attempts} readings in a row ({prompt.text})"
+        )

@@ -115,8 +115,13 @@ class Rig:
 
     def settings(self) -> dict[str, Any]:
         """Robot and instrument settings (plus ``extra``, e.g. the simulator's seed), stored with the run."""
-        return {"robot": self.robot.settings(), "instrument": self.instrument.settings(),
-                "speed_factor": self.speed_factor, "time_base": self.time_base(), **self.extra}
+        return {
+            "robot": self.robot.settings(),
+            "instrument": self.instrument.settings(),
+            "speed_factor": self.speed_factor,
+            "time_base": self.time_base(),
+            **self.extra,
+        }
 
     def close(self) -> None:
         """Release what the rig started (simulator processes, ports), newest first."""

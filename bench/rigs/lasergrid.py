@@ -46,8 +46,9 @@ AXES = ("x_mm", "y_mm", "z_mm")
 DEFAULT_DECODER = {"spot_half_width_mm": 1.0, "gate_mm": 3.75, "prior_uncertainty_mm": 0.0}
 
 
-def grid_pose_values(geometry: Any, horizontal: Sequence[int], vertical: Sequence[int], prior_mm: Any,
-                     **options: float) -> tuple[dict[str, float], dict[str, Any]]:
+def grid_pose_values(
+    geometry: Any, horizontal: Sequence[int], vertical: Sequence[int], prior_mm: Any, **options: float
+) -> tuple[dict[str, float], dict[str, Any]]:
     """Decode one report into the stored values (measured axes only) and the decoding's raw record.
 
     Returns ``(values, decoding)``: ``values`` holds ``x_mm``/``y_mm``/``z_mm`` for the axes a valid screen
@@ -73,14 +74,20 @@ def grid_pose_values(geometry: Any, horizontal: Sequence[int], vertical: Sequenc
             for axis, value in screen_axes_mm(screen, decoded).items():
                 measured.setdefault(axis, value)
     values = {AXES[axis]: measured[axis] for axis in sorted(measured)}
-    values |= {"horizontal_valid": float(valid["horizontal"]), "vertical_valid": float(valid["vertical"]),
-               "horizontal_hits": float(len(horizontal)), "vertical_hits": float(len(vertical))}
+    values |= {
+        "horizontal_valid": float(valid["horizontal"]),
+        "vertical_valid": float(valid["vertical"]),
+        "horizontal_hits": float(len(horizontal)),
+        "vertical_hits": float(len(vertical)),
+    }
     if result.y_disagreement_mm is not None:
         values["y_disagreement_mm"] = result.y_disagreement_mm
-    decoding = {"status": {s.name: d.status.value for s, d in screens},
-                "reason": {s.name: d.reason for s, d in screens if d.reason},
-                "lasers": {s.name: list(d.lasers) for s, d in screens if d.lasers},
-                "screens_disagree": bool(result.misaligned)}
+    decoding = {
+        "status": {s.name: d.status.value for s, d in screens},
+        "reason": {s.name: d.reason for s, d in screens if d.reason},
+        "lasers": {s.name: list(d.lasers) for s, d in screens if d.lasers},
+        "screens_disagree": bool(result.misaligned),
+    }
     return values, decoding
 
 
@@ -103,9 +110,15 @@ class LaserGridInstrument:
         ``true_pose`` for comparison; never used to decode.
     """
 
-    def __init__(self, controller: Any, geometry: Any = None, *, report_timeout_s: float = 2.0,
-                 decoder: dict[str, float] | None = None,
-                 truth: Callable[[], Sequence[float]] | None = None) -> None:
+    def __init__(
+        self,
+        controller: Any,
+        geometry: Any = None,
+        *,
+        report_timeout_s: float = 2.0,
+        decoder: dict[str, float] | None = None,
+        truth: Callable[[], Sequence[float]] | None = None,
+    ) -> None:
         from bench.sensors.lasergrid import GridGeometry
 
         self.controller = controller
@@ -116,8 +129,11 @@ class LaserGridInstrument:
 
     def record_geometry(self, store: Any) -> int:
         """Record the screens' geometry as the calibration in force (get-or-create) in ``store``; returns its id."""
-        return store.ensure_calibration(self.geometry.calibration_id, {"screens": repr(self.geometry)},
-                                        notes="laser-grid geometry of the legacy GUI drawing").id
+        return store.ensure_calibration(
+            self.geometry.calibration_id,
+            {"screens": repr(self.geometry)},
+            notes="laser-grid geometry of the legacy GUI drawing",
+        ).id
 
     def _fresh_frame(self) -> Any:
         asked = time.monotonic()
@@ -125,31 +141,46 @@ class LaserGridInstrument:
         while True:
             remaining = deadline - time.monotonic()
             if remaining <= 0:
-                raise LinkTimeout(f"laser grid: no sensor report begun within {self.report_timeout_s:g} s of the "
-                                  "capture; check that the controller was started (E) and its screens are wired")
+                raise LinkTimeout(
+                    f"laser grid: no sensor report begun within {self.report_timeout_s:g} s of the "
+                    "capture; check that the controller was started (E) and its screens are wired"
+                )
             frame = self.controller.read_sensor_frame(remaining)
             if frame.t_first_token_s >= asked:
                 return frame
 
     def measure(self, capture: Capture) -> Measurement:
         frame = self._fresh_frame()
-        raw: dict[str, Any] = {"report": frame.raw.decode("ascii", "replace"), "horizontal": list(frame.horizontal),
-                               "vertical": list(frame.vertical), "calibration": self.geometry.calibration_id}
+        raw: dict[str, Any] = {
+            "report": frame.raw.decode("ascii", "replace"),
+            "horizontal": list(frame.horizontal),
+            "vertical": list(frame.vertical),
+            "calibration": self.geometry.calibration_id,
+        }
         if self.truth is not None:
             raw["true_pose"] = [round(float(v), 6) for v in self.truth()]
         if capture.kind == "grid_hit":
             screen = self.geometry.horizontal
             expected = int(screen.index_of_cell(capture.conditions["expected_i"], capture.conditions["expected_j"]))
-            return Measurement({"expected_index": float(expected),
-                                "hit_expected": float(expected in frame.horizontal),
-                                "hit_any": float(bool(frame.horizontal)),
-                                "hits": float(len(frame.horizontal))}, raw=raw)
+            return Measurement(
+                {
+                    "expected_index": float(expected),
+                    "hit_expected": float(expected in frame.horizontal),
+                    "hit_any": float(bool(frame.horizontal)),
+                    "hits": float(len(frame.horizontal)),
+                },
+                raw=raw,
+            )
         prior = [capture.commanded[k] for k in ("cmd_x_mm", "cmd_y_mm", "cmd_z_mm")]
         values, decoding = grid_pose_values(self.geometry, frame.horizontal, frame.vertical, prior, **self.decoder)
         return Measurement(values, raw={**raw, **decoding, "decoder": self.decoder})
 
     def settings(self) -> dict[str, Any]:
-        return {"instrument": "laser grid (controller reports)", "calibration_id": self.geometry.calibration_id,
-                "report_timeout_s": self.report_timeout_s, "decoder": self.decoder,
-                "prior": "commanded position", "readings": "per screen; axes of a screen without a valid decode "
-                                                           "are not stored"}
+        return {
+            "instrument": "laser grid (controller reports)",
+            "calibration_id": self.geometry.calibration_id,
+            "report_timeout_s": self.report_timeout_s,
+            "decoder": self.decoder,
+            "prior": "commanded position",
+            "readings": "per screen; axes of a screen without a valid decode are not stored",
+        }

@@ -37,8 +37,15 @@ from bench.sensors.calibration import MM_PER_INCH
 from bench.sensors.reading import SensorStalled
 from bench.steps import Capture
 
-__all__ = ["ARRIVAL", "LIVENESS_MIN_MOVE_MM", "PATH", "POSITIONING", "STREAMED_KINDS", "MiceInstrument",
-           "arrival_series"]
+__all__ = [
+    "ARRIVAL",
+    "LIVENESS_MIN_MOVE_MM",
+    "PATH",
+    "POSITIONING",
+    "STREAMED_KINDS",
+    "MiceInstrument",
+    "arrival_series",
+]
 
 #: Capture kind of a streamed arrival at a pose; ``conditions`` give ``lead_s`` and ``hold_s``.
 ARRIVAL = "arrival"
@@ -74,8 +81,16 @@ class MiceInstrument:
         Counts -> mm, applied by the mice.
     """
 
-    def __init__(self, mice: dict[str, Any], origin_mm, calibration: Any, *, follow: bool = False,
-                 noise_counts: float | None = None, calibration_record: Mapping[str, Any] | None = None) -> None:
+    def __init__(
+        self,
+        mice: dict[str, Any],
+        origin_mm,
+        calibration: Any,
+        *,
+        follow: bool = False,
+        noise_counts: float | None = None,
+        calibration_record: Mapping[str, Any] | None = None,
+    ) -> None:
         self.mice = mice
         self.noise_counts = noise_counts
         #: the stored calibration in force (version, nominal, scales and their u): the report's budget reads it
@@ -121,9 +136,11 @@ class MiceInstrument:
             taken, self._pending = self._pending, {plane: [] for plane in self.mice}
         for mouse in self.mice.values():
             if mouse.exhausted:  # a device never ends: its stream closed, and every later count would be missing
-                raise SensorStalled(f"{mouse.name} ({mouse.binding}): the device closed (end of stream); its "
-                                    "counts stopped there, so this sample is refused; check the mouse's cable "
-                                    "and reader, then resume the run")
+                raise SensorStalled(
+                    f"{mouse.name} ({mouse.binding}): the device closed (end of stream); its "
+                    "counts stopped there, so this sample is refused; check the mouse's cable "
+                    "and reader, then resume the run"
+                )
         return {plane: MotionFrames.concatenate(parts) for plane, parts in taken.items()}
 
     def _check_alive(self, capture: Capture) -> None:
@@ -136,8 +153,11 @@ class MiceInstrument:
         the commanded end) is refused only without any motion. Captures without commanded positions are not judged
         and do not move the reference.
         """
-        commanded = {axis: float(capture.commanded[axis]) for axis in ("cmd_x_mm", "cmd_y_mm", "cmd_z_mm")
-                     if axis in capture.commanded}
+        commanded = {
+            axis: float(capture.commanded[axis])
+            for axis in ("cmd_x_mm", "cmd_y_mm", "cmd_z_mm")
+            if axis in capture.commanded
+        }
         if len(commanded) < 3:
             return
         previous, self._last_commanded = self._last_commanded, commanded
@@ -156,15 +176,20 @@ class MiceInstrument:
             if counts.any() and reported_mm >= share * expected_mm:
                 continue
             if not counts.any():
-                what = (f"sent {reports[plane]} reports without motion (a frozen counter)" if reports[plane]
-                        else "sent no report")
+                what = (
+                    f"sent {reports[plane]} reports without motion (a frozen counter)"
+                    if reports[plane]
+                    else "sent no report"
+                )
             else:
                 what = f"reported {reported_mm:.3f} mm"
             mouse = self.mice[plane]
-            raise SensorStalled(f"{mouse.name} ({mouse.binding}): {what} while the robot was commanded "
-                                f"{expected_mm:.3f} mm in its plane since the last capture (pose {capture.pose!r}, "
-                                f"cycle {capture.cycle}); the mouse stopped, froze or lost the surface (or the "
-                                "robot did not move), so this sample is refused")
+            raise SensorStalled(
+                f"{mouse.name} ({mouse.binding}): {what} while the robot was commanded "
+                f"{expected_mm:.3f} mm in its plane since the last capture (pose {capture.pose!r}, "
+                f"cycle {capture.cycle}); the mouse stopped, froze or lost the surface (or the "
+                "robot did not move), so this sample is refused"
+            )
 
     def _read(self) -> tuple[Any, Any]:
         """The integrated readings of both mice now."""
@@ -191,15 +216,25 @@ class MiceInstrument:
         xy, xz = self._read()
         self._check_alive(capture)
         if capture.kind == "mouse":  # calibration runs store the raw counts themselves
-            counts = {"mouse_xy_x_counts": xy.raw[0], "mouse_xy_y_counts": xy.raw[1],
-                      "mouse_xz_x_counts": xz.raw[0], "mouse_xz_z_counts": xz.raw[1]}
-            return Measurement({k: float(v) for k, v in counts.items()},
-                               raw={"calibration": self.calibration.calibration_id})
+            counts = {
+                "mouse_xy_x_counts": xy.raw[0],
+                "mouse_xy_y_counts": xy.raw[1],
+                "mouse_xz_x_counts": xz.raw[0],
+                "mouse_xz_z_counts": xz.raw[1],
+            }
+            return Measurement(
+                {k: float(v) for k, v in counts.items()}, raw={"calibration": self.calibration.calibration_id}
+            )
         x_mm, y_mm, z_mm = self._position_mm(xy, xz)
-        return Measurement({"x_mm": float(x_mm), "y_mm": float(y_mm), "z_mm": float(z_mm)},
-                           raw={"counts_xy": list(xy.raw), "counts_xz": list(xz.raw), "valid": bool(xy.valid
-                                                                                                   and xz.valid),
-                                "calibration": self.calibration.calibration_id})
+        return Measurement(
+            {"x_mm": float(x_mm), "y_mm": float(y_mm), "z_mm": float(z_mm)},
+            raw={
+                "counts_xy": list(xy.raw),
+                "counts_xz": list(xz.raw),
+                "valid": bool(xy.valid and xz.valid),
+                "calibration": self.calibration.calibration_id,
+            },
+        )
 
     def _measure_arrival(self, capture: Capture) -> Measurement:
         from bench.sensors.input_event import MotionFrames
@@ -211,15 +246,24 @@ class MiceInstrument:
         for plane, f in streamed.items():
             keep = f.t_s >= t_request - lead_s
             frames[plane] = MotionFrames(f.t_s[keep], f.dx[keep], f.dy[keep], f.valid[keep])
-        counts_before = {plane: self.mice[plane].counts - np.array([f.dx.sum(), f.dy.sum()], np.int64)
-                         for plane, f in frames.items()}
-        series, raw = arrival_series(frames, counts_before, self.calibration, self.origin,
-                                     t_request=t_request, lead_s=lead_s, hold_s=hold_s)
+        counts_before = {
+            plane: self.mice[plane].counts - np.array([f.dx.sum(), f.dy.sum()], np.int64) for plane, f in frames.items()
+        }
+        series, raw = arrival_series(
+            frames, counts_before, self.calibration, self.origin, t_request=t_request, lead_s=lead_s, hold_s=hold_s
+        )
         values = {axis: float(series[axis][-1]) for axis in ("x_mm", "y_mm", "z_mm")}
         valid = all(mouse.segment_valid for mouse in self.mice.values())
-        return Measurement(values, raw={**raw, "series": series, "valid": valid,
-                                        "t_request_s": round(t_request, _S_DECIMALS),
-                                        "calibration": self.calibration.calibration_id})
+        return Measurement(
+            values,
+            raw={
+                **raw,
+                "series": series,
+                "valid": valid,
+                "t_request_s": round(t_request, _S_DECIMALS),
+                "calibration": self.calibration.calibration_id,
+            },
+        )
 
     def _stream(self, lead_s: float, hold_s: float) -> tuple[dict[str, Any], float]:
         """The reports of both mice since the last capture up to ``hold_s`` after now, and now, on the mice's clock
@@ -236,8 +280,7 @@ class MiceInstrument:
         with selectors.PollSelector() as selector:
             for mouse in self.mice.values():
                 selector.register(mouse.fileno(), selectors.EVENT_READ, mouse)
-            while (selector.get_map() and not self._closing.is_set()
-                   and (remaining := until_s - time.monotonic()) > 0):
+            while selector.get_map() and not self._closing.is_set() and (remaining := until_s - time.monotonic()) > 0:
                 if selector.select(min(remaining, 0.05)):
                     try:
                         with self._lock:
@@ -254,10 +297,14 @@ class MiceInstrument:
         """What the report needs, on hardware and in simulation alike: the counts' resolution (``cpi``, from the
         calibration in force), the noise when it was measured, the calibration and the registration."""
         cpi = np.asarray(self.calibration.effective_cpi)
-        out = {"instrument": "optical mice (x-y, x-z)", "calibration_id": self.calibration.calibration_id,
-               "mice": {plane: str(mouse.binding) for plane, mouse in self.mice.items()},
-               "registration_mm": [float(v) for v in self.origin],
-               "cpi": round(float(cpi.mean()), 3), "resolution_mm": round(float(MM_PER_INCH / cpi.min()), 6)}
+        out = {
+            "instrument": "optical mice (x-y, x-z)",
+            "calibration_id": self.calibration.calibration_id,
+            "mice": {plane: str(mouse.binding) for plane, mouse in self.mice.items()},
+            "registration_mm": [float(v) for v in self.origin],
+            "cpi": round(float(cpi.mean()), 3),
+            "resolution_mm": round(float(MM_PER_INCH / cpi.min()), 6),
+        }
         if self.noise_counts is not None:
             out["noise_counts"] = self.noise_counts
         if self.calibration_record is not None:
@@ -272,9 +319,16 @@ class MiceInstrument:
             mouse.close()
 
 
-def arrival_series(frames: Mapping[str, Any], counts_before: Mapping[str, np.ndarray], calibration: Any,
-                   origin_mm: np.ndarray, *, t_request: float, lead_s: float, hold_s: float
-                   ) -> tuple[dict[str, list[float]], dict[str, Any]]:
+def arrival_series(
+    frames: Mapping[str, Any],
+    counts_before: Mapping[str, np.ndarray],
+    calibration: Any,
+    origin_mm: np.ndarray,
+    *,
+    t_request: float,
+    lead_s: float,
+    hold_s: float,
+) -> tuple[dict[str, list[float]], dict[str, Any]]:
     """Position series of an x-y and an x-z mouse in the window [t_request - lead_s, t_request + hold_s].
 
     ``frames`` are the mice's reports from the window's start on and ``counts_before`` their counts there. A mouse
@@ -290,26 +344,34 @@ def arrival_series(frames: Mapping[str, Any], counts_before: Mapping[str, np.nda
         counts_at_start[plane] = np.asarray(counts_before[plane], np.int64)
         cumulative = counts_at_start[plane] + np.cumsum(np.column_stack([f.dx, f.dy]), axis=0)
         inside = f.t_s <= end
-        reports[plane] = {"t_s": np.round(f.t_s[inside] - t_request, _S_DECIMALS).tolist(),
-                          "dx_counts": f.dx[inside].tolist(), "dy_counts": f.dy[inside].tolist()}
+        reports[plane] = {
+            "t_s": np.round(f.t_s[inside] - t_request, _S_DECIMALS).tolist(),
+            "dx_counts": f.dx[inside].tolist(),
+            "dy_counts": f.dy[inside].tolist(),
+        }
         count_paths[plane] = (f.t_s[inside], cumulative[inside], counts_at_start[plane])
         times.append(f.t_s[inside])
     grid = np.unique(np.concatenate(times))
     position = {}
     for plane, (t_reports, cumulative, at_start) in count_paths.items():
         latest = np.searchsorted(t_reports, grid, side="right") - 1
-        counts = np.where(latest[:, None] >= 0, cumulative[np.maximum(latest, 0)] if len(cumulative) else at_start,
-                          at_start)
+        counts = np.where(
+            latest[:, None] >= 0, cumulative[np.maximum(latest, 0)] if len(cumulative) else at_start, at_start
+        )
         position[plane] = calibration.counts_to_mm(counts)
     origin = np.asarray(origin_mm, dtype=float)
     relative = np.round(grid - t_request, _S_DECIMALS)
     distinct = np.r_[relative[1:] != relative[:-1], True]  # times equal once rounded: the later position holds
-    series = {"t_s": relative[distinct].tolist(),
-              "x_mm": np.round(origin[0] + position["xy"][distinct, 0], _MM_DECIMALS).tolist(),
-              "y_mm": np.round(origin[1] + position["xy"][distinct, 1], _MM_DECIMALS).tolist(),
-              "z_mm": np.round(origin[2] + position["xz"][distinct, 1], _MM_DECIMALS).tolist()}
-    raw = {"lead_s": lead_s, "hold_s": hold_s, "reports": reports,
-           "counts_at_start": {plane: [int(c) for c in counts] for plane, counts in counts_at_start.items()}}
+    series = {
+        "t_s": relative[distinct].tolist(),
+        "x_mm": np.round(origin[0] + position["xy"][distinct, 0], _MM_DECIMALS).tolist(),
+        "y_mm": np.round(origin[1] + position["xy"][distinct, 1], _MM_DECIMALS).tolist(),
+        "z_mm": np.round(origin[2] + position["xz"][distinct, 1], _MM_DECIMALS).tolist(),
+    }
+    raw = {
+        "lead_s": lead_s,
+        "hold_s": hold_s,
+        "reports": reports,
+        "counts_at_start": {plane: [int(c) for c in counts] for plane, counts in counts_at_start.items()},
+    }
     return series, raw
-
-

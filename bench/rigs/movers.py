@@ -33,8 +33,9 @@ class LatchingMover:
 
     def _refuse_if_latched(self, what: str) -> None:
         if self._latched.is_set():
-            raise LinkError(f"{self.robot}: {what} refused: an emergency stop is latched (release it after "
-                            "checking the robot)")
+            raise LinkError(
+                f"{self.robot}: {what} refused: an emergency stop is latched (release it after checking the robot)"
+            )
 
     def move_to(self, target: tuple[float, ...], *, velocity_pct: float) -> None:
         self._refuse_if_latched(f"move to {tuple(target)}")

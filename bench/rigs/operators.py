@@ -27,9 +27,13 @@ TOLERANCE_MM = 2.0
 
 def _request(prompt: Prompt) -> ReadingRequest:
     expected = next((v for k, v in prompt.commanded.items() if k == f"cmd_{prompt.field}"), None)
-    return ReadingRequest(prompt.text, min_mm=-float("inf") if prompt.minimum is None else prompt.minimum,
-                          max_mm=float("inf") if prompt.maximum is None else prompt.maximum,
-                          expected_mm=expected if prompt.unit == "mm" else None, tolerance_mm=TOLERANCE_MM)
+    return ReadingRequest(
+        prompt.text,
+        min_mm=-float("inf") if prompt.minimum is None else prompt.minimum,
+        max_mm=float("inf") if prompt.maximum is None else prompt.maximum,
+        expected_mm=expected if prompt.unit == "mm" else None,
+        tolerance_mm=TOLERANCE_MM,
+    )
 
 
 def parse_entry(prompt: Prompt, text: str) -> tuple[Entry, str]:
@@ -50,8 +54,10 @@ def parse_entry(prompt: Prompt, text: str) -> tuple[Entry, str]:
         text = re.sub(rf"\s*{re.escape(prompt.unit)}\s*$", "", typed) if prompt.unit else typed
         if re.search(r"[A-Za-z\"]", text):
             wanted = f"a number, optionally followed by {prompt.unit}" if prompt.unit else "a number without unit"
-            raise ConfigError(f"{prompt.text}: {text!r} is not a reading{f' in {prompt.unit}' if prompt.unit else ''}"
-                              f"; expected {wanted}")
+            raise ConfigError(
+                f"{prompt.text}: {text!r} is not a reading{f' in {prompt.unit}' if prompt.unit else ''}"
+                f"; expected {wanted}"
+            )
     try:
         value = parse_length(text, source=prompt.text)
     except MalformedSample as exc:
@@ -79,8 +85,12 @@ class ConsoleOperator:
     def ask(self, prompt: Prompt) -> float | None:
         unit = f" [{prompt.unit}]" if prompt.unit else ""
         while True:
-            print(f"{prompt.text}{unit}: " if prompt.field else f"{prompt.text} (Enter): ", end="", file=sys.stderr,
-                  flush=True)
+            print(
+                f"{prompt.text}{unit}: " if prompt.field else f"{prompt.text} (Enter): ",
+                end="",
+                file=sys.stderr,
+                flush=True,
+            )
             text = self._line()
             if prompt.field is None:
                 return None

@@ -66,8 +66,17 @@ import numpy as np
 from bench.errors import BenchError
 from bench.metrology.uncertainty import coverage_factor, resolution_uncertainty
 
-__all__ = ["CHECK_OFFSET_MM", "CHECK_RETURNS", "PKM5_RATED_RP_MM", "RegistrationError", "axis_sigma_from_rp_mm",
-           "check_tolerance_mm", "home_before_registering", "register_at_home", "registration_uncertainty_mm"]
+__all__ = [
+    "CHECK_OFFSET_MM",
+    "CHECK_RETURNS",
+    "PKM5_RATED_RP_MM",
+    "RegistrationError",
+    "axis_sigma_from_rp_mm",
+    "check_tolerance_mm",
+    "home_before_registering",
+    "register_at_home",
+    "registration_uncertainty_mm",
+]
 
 _log = logging.getLogger(__name__)
 
@@ -105,8 +114,9 @@ def registration_uncertainty_mm(s_a_mm: float, dof: int, returns: int, resolutio
     """Standard uncertainty per axis of the frame registered at the mean of ``returns`` returns home: u_reg of the
     module docstring, from their pooled standard deviation ``s_a_mm`` (``dof`` degrees of freedom) and one count."""
     k_t = coverage_factor(2.0, dof) / 2.0
-    return math.sqrt((k_t * s_a_mm) ** 2 / returns + resolution_uncertainty(resolution_mm, difference=True) ** 2
-                     / returns)
+    return math.sqrt(
+        (k_t * s_a_mm) ** 2 / returns + resolution_uncertainty(resolution_mm, difference=True) ** 2 / returns
+    )
 
 
 def home_before_registering(controller: Any) -> None:
@@ -119,14 +129,20 @@ def home_before_registering(controller: Any) -> None:
     home = tuple(int(s) for s in home_steps())
     where = controller.position()
     if tuple(where.steps) != home:
-        _log.warning("pkm5 at steps %s, not at home %s: moving home before registering the instruments",
-                     where.steps, home)
+        _log.warning(
+            "pkm5 at steps %s, not at home %s: moving home before registering the instruments", where.steps, home
+        )
         controller.move_steps(home)
 
 
-def register_at_home(controller: Any, instrument: Any, *, speed_factor: float = 1.0,
-                     rated_rp_mm: float = PKM5_RATED_RP_MM,
-                     sleep: Callable[[float], None] = time.sleep) -> dict[str, Any]:
+def register_at_home(
+    controller: Any,
+    instrument: Any,
+    *,
+    speed_factor: float = 1.0,
+    rated_rp_mm: float = PKM5_RATED_RP_MM,
+    sleep: Callable[[float], None] = time.sleep,
+) -> dict[str, Any]:
     """Verify the registration of ``instrument`` (zeroed at home, see :func:`home_before_registering`) at the check
     pose, re-reference it to the mean return home, and return the registration record stored with the run.
 
@@ -161,14 +177,16 @@ def register_at_home(controller: Any, instrument: Any, *, speed_factor: float = 
     worst = float(distances.max())
     if worst > tolerance:
         d = readings[int(distances.argmax())]
-        where = "check pose home + " + str(CHECK_OFFSET_MM) + " mm" if distances.argmax() < len(at_check) else \
-            "return home"
+        where = (
+            "check pose home + " + str(CHECK_OFFSET_MM) + " mm" if distances.argmax() < len(at_check) else "return home"
+        )
         raise RegistrationError(
             f"registration check: at the {where} the instruments read "
             f"({d[0]:+.2f}, {d[1]:+.2f}, {d[2]:+.2f}) mm = {worst:.2f} mm from the commanded pose, tolerance "
             f"{tolerance:.2f} mm (rated RP {rated_rp_mm:g} mm); the robot was not at home when they were zeroed, or "
             "a mouse is swapped, lifted or miscalibrated: check the mice and the robot, then run again (nothing "
-            "was measured)")
+            "was measured)"
+        )
     shift = home_discrepancies.mean(axis=0)  # the frame moves to the mean return home
     instrument.shift_origin(shift)
     returns = home_discrepancies - shift
@@ -177,17 +195,28 @@ def register_at_home(controller: Any, instrument: Any, *, speed_factor: float = 
     sigma_r = axis_sigma_from_rp_mm(rated_rp_mm)
     u_mm = registration_uncertainty_mm(s_a, dof, CHECK_RETURNS, resolution)
     record = {
-        "utc": utc, "instrument": "mice", "controller_steps": list(steps),
-        "pose_mm": [round(float(v), 4) for v in home], "check_pose_mm": [round(float(v), 4) for v in check],
+        "utc": utc,
+        "instrument": "mice",
+        "controller_steps": list(steps),
+        "pose_mm": [round(float(v), 4) for v in home],
+        "check_pose_mm": [round(float(v), 4) for v in check],
         "returns": CHECK_RETURNS,
         "check_discrepancy_mm": [[round(float(v), 4) for v in d] for d in discrepancies],
         "home_discrepancy_mm": [[round(float(v), 4) for v in d] for d in home_discrepancies],
-        "check_discrepancy_max_mm": round(worst, 4), "tolerance_mm": round(tolerance, 4),
+        "check_discrepancy_max_mm": round(worst, 4),
+        "tolerance_mm": round(tolerance, 4),
         "frame_shift_mm": [round(float(v), 4) for v in shift],
-        "rated_rp_mm": rated_rp_mm, "sigma_rated_mm": round(sigma_r, 4),
-        "sigma_type_a_mm": round(s_a, 4), "sigma_type_a_dof": dof,
-        "u_mm": round(u_mm, 4), "u_source": "measured: the returns home (type A, Student's t) and one count",
+        "rated_rp_mm": rated_rp_mm,
+        "sigma_rated_mm": round(sigma_r, 4),
+        "sigma_type_a_mm": round(s_a, 4),
+        "sigma_type_a_dof": dof,
+        "u_mm": round(u_mm, 4),
+        "u_source": "measured: the returns home (type A, Student's t) and one count",
     }
-    _log.info("registration: check-pose discrepancy %.3f mm (tolerance %.2f mm), u %.3f mm per axis", worst,
-              tolerance, record["u_mm"])
+    _log.info(
+        "registration: check-pose discrepancy %.3f mm (tolerance %.2f mm), u %.3f mm per axis",
+        worst,
+        tolerance,
+        record["u_mm"],
+    )
     return record

@@ -42,14 +42,20 @@ def refuse_another_rig(run: str, stored: Mapping[str, Any], station: Station | N
     now_simulated = station is None or simulate
     now_station = None if station is None else station.settings()
     if (was_station is None) != (now_station is None) or was_simulated != now_simulated:
-        raise ConfigError(f"{run}: ran on {_describe(was_station, was_simulated)}, resume asked for "
-                          f"{_describe(now_station, now_simulated)}; resume it on the rig it ran on")
+        raise ConfigError(
+            f"{run}: ran on {_describe(was_station, was_simulated)}, resume asked for "
+            f"{_describe(now_station, now_simulated)}; resume it on the rig it ran on"
+        )
     if was_station is None or now_station is None:
         return
     before, after = was_station.get("identity", {}), now_station["identity"]
-    for what, was, now in (("device under test", _dut(before), _dut(after)),
-                           ("bench", before.get("bench", ""), after.get("bench", "")),
-                           ("robot", was_station.get("robot", ""), now_station["robot"])):
+    for what, was, now in (
+        ("device under test", _dut(before), _dut(after)),
+        ("bench", before.get("bench", ""), after.get("bench", "")),
+        ("robot", was_station.get("robot", ""), now_station["robot"]),
+    ):
         if was != now:
-            raise ConfigError(f"{run}: {what} is {was or '(none named)'}, the station {now_station['source']} "
-                              f"names {now or '(none)'}; resume it with the station it ran on")
+            raise ConfigError(
+                f"{run}: {what} is {was or '(none named)'}, the station {now_station['source']} "
+                f"names {now or '(none)'}; resume it with the station it ran on"
+            )

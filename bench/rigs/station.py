@@ -50,8 +50,20 @@ from typing import Any
 from bench.errors import ConfigError
 from bench.robot_kinds import robot_kind, robot_names
 
-__all__ = ["CAPABILITY_KEYS", "CAPTURE_CAPABILITIES", "CalliperSpec", "CameraSpec", "ControllerSpec", "Identity", "LabStoreSpec",
-           "LaserGridSpec", "MiceSpec", "Station", "load_station", "parse_station"]
+__all__ = [
+    "CAPABILITY_KEYS",
+    "CAPTURE_CAPABILITIES",
+    "CalliperSpec",
+    "CameraSpec",
+    "ControllerSpec",
+    "Identity",
+    "LabStoreSpec",
+    "LaserGridSpec",
+    "MiceSpec",
+    "Station",
+    "load_station",
+    "parse_station",
+]
 
 #: Every fixture a controller can be in; which a robot supports is its registry record's ``fixtures``.
 FIXTURES = ("assembled", "actuator-bench")
@@ -64,8 +76,8 @@ CAPABILITY_KEYS = {
     "arrival": "[mice]",
     "grid_hit": "[laser_grid]",
     "reading": "[calliper]",
-    "actuator_bench": "[controller] fixture = \"actuator-bench\"",
-    "assembled": "[controller] fixture = \"assembled\"",
+    "actuator_bench": '[controller] fixture = "actuator-bench"',
+    "assembled": '[controller] fixture = "assembled"',
 }
 
 
@@ -88,8 +100,16 @@ class _Table:
     def _key(self, key: str) -> str:
         return f"{self.name}.{key}"
 
-    def get(self, key: str, kind: type | tuple[type, ...], default: Any = None, *, required: bool = False,
-            expected: str = "", blank_ok: bool = False) -> Any:
+    def get(
+        self,
+        key: str,
+        kind: type | tuple[type, ...],
+        default: Any = None,
+        *,
+        required: bool = False,
+        expected: str = "",
+        blank_ok: bool = False,
+    ) -> Any:
         self.used.add(key)
         if key not in self.data:
             if required:
@@ -119,8 +139,9 @@ class _Table:
     def done(self) -> None:
         unknown = sorted(set(self.data) - self.used)
         if unknown:
-            raise ConfigError(f"{self.source}: unknown key {self._key(unknown[0])!r}, expected one of "
-                              f"{', '.join(sorted(self.used))}")
+            raise ConfigError(
+                f"{self.source}: unknown key {self._key(unknown[0])!r}, expected one of {', '.join(sorted(self.used))}"
+            )
 
 
 def _kind_text(kind: type | tuple[type, ...]) -> str:
@@ -249,9 +270,13 @@ class Station:
 
     def settings(self) -> dict[str, Any]:
         """What a run stores about its station (devices as named in the file, identity)."""
-        out: dict[str, Any] = {"source": self.source, "robot": self.robot, "simulated": self.simulated,
-                               "identity": {f.name: getattr(self.identity, f.name) for f in fields(Identity)},
-                               "controller": vars(self.controller)}
+        out: dict[str, Any] = {
+            "source": self.source,
+            "robot": self.robot,
+            "simulated": self.simulated,
+            "identity": {f.name: getattr(self.identity, f.name) for f in fields(Identity)},
+            "controller": vars(self.controller),
+        }
         for key in ("mice", "calliper", "laser_grid", "camera"):
             spec = getattr(self, key)
             if spec is not None:
@@ -278,71 +303,94 @@ def parse_station(data: Mapping[str, Any], *, source: str = "station") -> Statio
     known = ("station", "robot", "controller", "mice", "calliper", "laser_grid", "camera", "lab_store")
     unknown = sorted(set(data) - set(known))
     if unknown:
-        raise ConfigError(f"{source}: unknown table [{unknown[0]}], expected one of "
-                          f"{', '.join('[' + k + ']' for k in known)}")
+        raise ConfigError(
+            f"{source}: unknown table [{unknown[0]}], expected one of {', '.join('[' + k + ']' for k in known)}"
+        )
     for required, example in (("robot", 'kind = "pkm5" or "delta4"'), ("controller", 'port = "/dev/ttyUSB0"')):
         if required not in data:
             raise ConfigError(f"{source}: [{required}] missing, expected a table ({example})")
     head = _Table(source, "station", data.get("station", {}))
     robot_table = _Table(source, "robot", data["robot"])
     robot = robot_table.choice("kind", robot_names(), None)
-    identity = Identity(bench=head.get("name", str, Path(source).stem), lab=head.get("lab", str, ""),
-                        operator=head.get("operator", str, ""), robot_serial=robot_table.get("serial", str, ""),
-                        robot_asset=robot_table.get("asset", str, ""), customer=head.get("customer", str, ""),
-                        order=head.get("order", str, ""))
+    identity = Identity(
+        bench=head.get("name", str, Path(source).stem),
+        lab=head.get("lab", str, ""),
+        operator=head.get("operator", str, ""),
+        robot_serial=robot_table.get("serial", str, ""),
+        robot_asset=robot_table.get("asset", str, ""),
+        customer=head.get("customer", str, ""),
+        order=head.get("order", str, ""),
+    )
     head.done()
     robot_table.done()
 
     table = _Table(source, "controller", data["controller"])
-    controller = ControllerSpec(port=table.get("port", str, required=True, expected="a serial port, e.g. /dev/ttyUSB0"),
-                                baud=int(table.get("baud", int, robot_kind(robot).baud,
-                                                   expected="a baud rate (integer)")),
-                                fixture=table.choice("fixture", FIXTURES, "assembled"))
+    controller = ControllerSpec(
+        port=table.get("port", str, required=True, expected="a serial port, e.g. /dev/ttyUSB0"),
+        baud=int(table.get("baud", int, robot_kind(robot).baud, expected="a baud rate (integer)")),
+        fixture=table.choice("fixture", FIXTURES, "assembled"),
+    )
     table.done()
     if controller.fixture not in robot_kind(robot).fixtures:
-        raise _fail(source, "controller.fixture", controller.fixture,
-                    f"one of the {robot}'s fixtures: {', '.join(robot_kind(robot).fixtures)}")
+        raise _fail(
+            source,
+            "controller.fixture",
+            controller.fixture,
+            f"one of the {robot}'s fixtures: {', '.join(robot_kind(robot).fixtures)}",
+        )
     devices = {"controller.port": controller.port}
 
     mice = calliper = grid = camera = None
     if "mice" in data:
         table = _Table(source, "mice", data["mice"])
-        mice = MiceSpec(xy=table.get("xy", str, required=True, expected="the x-y mouse's event device"),
-                        xz=table.get("xz", str, required=True, expected="the x-z mouse's event device"),
-                        cpi=table.number("cpi", 800.0), noise_counts=table.number("noise_counts", None, zero_allowed=True),
-                        grab=table.get("grab", bool, True),
-                        calibration=_calibration_version(table))
+        mice = MiceSpec(
+            xy=table.get("xy", str, required=True, expected="the x-y mouse's event device"),
+            xz=table.get("xz", str, required=True, expected="the x-z mouse's event device"),
+            cpi=table.number("cpi", 800.0),
+            noise_counts=table.number("noise_counts", None, zero_allowed=True),
+            grab=table.get("grab", bool, True),
+            calibration=_calibration_version(table),
+        )
         table.done()
         devices.update({"mice.xy": mice.xy, "mice.xz": mice.xz})
     if "calliper" in data:
         table = _Table(source, "calliper", data["calliper"])
         kind = table.choice("kind", CALLIPER_KINDS, "typed")
-        calliper = CalliperSpec(kind=kind,
-                                port=table.get("port", str, "", required=kind == "serial",
-                                               expected="the calliper's serial port (kind = \"serial\")"),
-                                baud=int(table.get("baud", int, 9600)), request=table.get("request", str, "", blank_ok=True),
-                                terminator=table.get("terminator", str, "\n", blank_ok=True),
-                                resolution_mm=table.number("resolution_mm", 0.01),
-                                timeout_s=table.number("timeout_s", 60.0))
+        calliper = CalliperSpec(
+            kind=kind,
+            port=table.get(
+                "port", str, "", required=kind == "serial", expected='the calliper\'s serial port (kind = "serial")'
+            ),
+            baud=int(table.get("baud", int, 9600)),
+            request=table.get("request", str, "", blank_ok=True),
+            terminator=table.get("terminator", str, "\n", blank_ok=True),
+            resolution_mm=table.number("resolution_mm", 0.01),
+            timeout_s=table.number("timeout_s", 60.0),
+        )
         table.done()
         if kind == "serial":
             devices["calliper.port"] = calliper.port
     if "laser_grid" in data:
         if robot != "delta4":
-            raise ConfigError(f"{source}: [laser_grid] with robot.kind = {robot!r}, expected robot.kind = 'delta4' "
-                              "(the grid is read by the delta4 controller)")
+            raise ConfigError(
+                f"{source}: [laser_grid] with robot.kind = {robot!r}, expected robot.kind = 'delta4' "
+                "(the grid is read by the delta4 controller)"
+            )
         table = _Table(source, "laser_grid", data["laser_grid"])
-        grid = LaserGridSpec(spot_half_width_mm=table.number("spot_half_width_mm", 1.0),
-                             gate_mm=table.number("gate_mm", 3.75))
+        grid = LaserGridSpec(
+            spot_half_width_mm=table.number("spot_half_width_mm", 1.0), gate_mm=table.number("gate_mm", 3.75)
+        )
         table.done()
     if "camera" in data:
         table = _Table(source, "camera", data["camera"])
-        camera = CameraSpec(device=str(table.get("device", (str, int), required=True,
-                                                 expected="a video device, camera index or stream URL")),
-                            calibration=table.get("calibration", str, required=True,
-                                                  expected="the plane calibration JSON file"),
-                            plane=table.choice("plane", ("xy", "xz", "yz"), "xy"),
-                            frames=table.get("frames", int, 1, expected="an integer 1-100 (frames averaged per reading)"))
+        camera = CameraSpec(
+            device=str(
+                table.get("device", (str, int), required=True, expected="a video device, camera index or stream URL")
+            ),
+            calibration=table.get("calibration", str, required=True, expected="the plane calibration JSON file"),
+            plane=table.choice("plane", ("xy", "xz", "yz"), "xy"),
+            frames=table.get("frames", int, 1, expected="an integer 1-100 (frames averaged per reading)"),
+        )
         if not 1 <= camera.frames <= 100:
             raise _fail(source, "camera.frames", camera.frames, "an integer 1-100 (frames averaged per reading)")
         table.done()
@@ -362,8 +410,19 @@ def parse_station(data: Mapping[str, Any], *, source: str = "station") -> Statio
     named: dict[str, str] = {}
     for key, device in devices.items():
         if device in named:
-            raise ConfigError(f"{source}: {key} = {device!r}, expected a device of its own ({named[device]} names it "
-                              "too)")
+            raise ConfigError(
+                f"{source}: {key} = {device!r}, expected a device of its own ({named[device]} names it too)"
+            )
         named[device] = key
-    return Station(robot=robot, controller=controller, identity=identity, mice=mice, calliper=calliper,
-                   laser_grid=grid, camera=camera, lab_store=lab_store, source=source, devices=devices)
+    return Station(
+        robot=robot,
+        controller=controller,
+        identity=identity,
+        mice=mice,
+        calliper=calliper,
+        laser_grid=grid,
+        camera=camera,
+        lab_store=lab_store,
+        source=source,
+        devices=devices,
+    )

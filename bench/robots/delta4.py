@@ -111,11 +111,22 @@ class Delta4Controller:
         shipped watchdog (1 s) outlasts the longest move (0.66 s), and the original firmware does not know ``A``.
     """
 
-    def __init__(self, port: Any, *, mapping: wire.ServoMapping | None = None, geometry: Any = None,
-                 settle_timeout_s: float = 2.0, frame_gap_s: float = 0.03,
-                 pot_scale: wire.CalibratedMapping | None = None, heartbeat_s: float | None = None) -> None:
-        for name, value in (("settle_timeout_s", settle_timeout_s), ("frame_gap_s", frame_gap_s),
-                            ("heartbeat_s", 1.0 if heartbeat_s is None else heartbeat_s)):
+    def __init__(
+        self,
+        port: Any,
+        *,
+        mapping: wire.ServoMapping | None = None,
+        geometry: Any = None,
+        settle_timeout_s: float = 2.0,
+        frame_gap_s: float = 0.03,
+        pot_scale: wire.CalibratedMapping | None = None,
+        heartbeat_s: float | None = None,
+    ) -> None:
+        for name, value in (
+            ("settle_timeout_s", settle_timeout_s),
+            ("frame_gap_s", frame_gap_s),
+            ("heartbeat_s", 1.0 if heartbeat_s is None else heartbeat_s),
+        ):
             if isinstance(value, bool) or not isinstance(value, (int, float)) or not 0 < value <= 600:
                 raise ConfigError(f"Delta4Controller: {name} = {value!r}, expected a number in (0, 600] s")
         self.pot_scale = pot_scale or wire.POT_SCALE
@@ -139,11 +150,17 @@ class Delta4Controller:
         self._capability: list[int] = []
 
     def settings(self) -> dict[str, Any]:
-        return {"driver": type(self).__name__, "port": self.link.port_name,
-                "baudrate": getattr(self.link.port, "baudrate", None), "mapping": self.mapping.settings(),
-                "settle_timeout_s": self.settle_timeout_s, "frame_gap_s": self.frame_gap_s,
-                "pot_scale": self.pot_scale.settings(), "heartbeat_s": self.heartbeat_s,
-                "fine_reference": dict(self._fine_state)}
+        return {
+            "driver": type(self).__name__,
+            "port": self.link.port_name,
+            "baudrate": getattr(self.link.port, "baudrate", None),
+            "mapping": self.mapping.settings(),
+            "settle_timeout_s": self.settle_timeout_s,
+            "frame_gap_s": self.frame_gap_s,
+            "pot_scale": self.pot_scale.settings(),
+            "heartbeat_s": self.heartbeat_s,
+            "fine_reference": dict(self._fine_state),
+        }
 
     def __repr__(self) -> str:
         shown = ", ".join(f"{k}={v!r}" for k, v in self.settings().items() if k != "driver")
@@ -178,8 +195,9 @@ class Delta4Controller:
                 self._consume(deadline, "C (capabilities)", _CAPABILITY_EXPECTED)
         except LinkTimeout:
             step = wire.degrees_per_count(self.mapping)
-            reason = (f"no answer to C within {timeout_s:g} s: byte references ({self.mapping.name}, {step:.3f} deg "
-                      "a step)")
+            reason = (
+                f"no answer to C within {timeout_s:g} s: byte references ({self.mapping.name}, {step:.3f} deg a step)"
+            )
             _log.warning("%s: %s", self.link.port_name, reason)
             self._fine_state = {"in_use": False, "probed": True, "reason": reason}
             return None
@@ -187,8 +205,9 @@ class Delta4Controller:
         self._fine_state = {"in_use": True, "probed": True, **self.fine.settings()}
         return self.fine
 
-    def move_servos(self, servo_deg: Any, *, wait: bool = True, require_settled: bool = False,
-                    read_back: bool = False) -> MoveResult:
+    def move_servos(
+        self, servo_deg: Any, *, wait: bool = True, require_settled: bool = False, read_back: bool = False
+    ) -> MoveResult:
         """Send the four servo references ``P..X Q..X R..X S..X`` (theta_R in degrees) after the range check, or
         ``F1..X F2..X F3..X F4..X`` where the controller proved it takes fine references (checked against both
         windows: the same angles pass either way).
@@ -212,8 +231,13 @@ class Delta4Controller:
         self.link.write(message, command=message.decode("ascii"))
         settled = self.wait_settled(command=message.decode("ascii"), required=require_settled) if wait else False
         measured = self.read_pots() if read_back else None
-        return MoveResult(tuple(float(a) for a in angles), tuple(int(v) for v in values), settled, measured,
-                          tuple(int(v) for v in fine))
+        return MoveResult(
+            tuple(float(a) for a in angles),
+            tuple(int(v) for v in values),
+            settled,
+            measured,
+            tuple(int(v) for v in fine),
+        )
 
     def move_to(self, point_mm: Any, **kwargs: Any) -> MoveResult:
         """Move the end effector to ``point_mm`` = (x, y, z) after the :mod:`motion.delta4` pre-flight."""
@@ -223,19 +247,22 @@ class Delta4Controller:
         """Servo angles (4,), deg, of ``point_mm``; UnreachableTarget names the point and the reason."""
         from motion import delta4
         from motion.errors import MotionInputError
+
         geometry = self.geometry or delta4.NOMINAL
         try:
             result = delta4.inverse_kinematics(np.asarray(point_mm, dtype=float).reshape(1, 3), geometry)
         except (MotionInputError, ValueError) as exc:
             raise UnreachableTarget(f"point_mm = {point_mm!r}: {exc}") from exc
         if not result.reachable[0]:
-            raise UnreachableTarget(f"point_mm = {tuple(float(v) for v in np.ravel(point_mm))}: unreachable "
-                                    f"({result.reason[0]})")
+            raise UnreachableTarget(
+                f"point_mm = {tuple(float(v) for v in np.ravel(point_mm))}: unreachable ({result.reason[0]})"
+            )
         angles = self.mapping.check(result.servo_deg[0])
         return angles if self.fine is None else self.fine.check(angles)
 
-    def wait_settled(self, *, timeout_s: float | None = None, command: str = "servo move",
-                     required: bool = False) -> bool:
+    def wait_settled(
+        self, *, timeout_s: float | None = None, command: str = "servo move", required: bool = False
+    ) -> bool:
         """Wait for ``z`` (acknowledged with ``z``); False on timeout unless ``required`` (then LinkTimeout)."""
         deadline = Deadline(self.settle_timeout_s if timeout_s is None else timeout_s)
         beat_due_s, answered = time.monotonic(), True
@@ -349,8 +376,9 @@ class Delta4Controller:
             self._pot_counts = {}
         expected = chr(wire.POT_LETTERS[len(self._pot_counts)]) if len(self._pot_counts) < 4 else "p"
         if token.kind != expected:
-            _log.warning("%s: dropped pot count %s%03d: expected %s", self.link.port_name, token.kind,
-                         int(token.value), expected)  # type: ignore[arg-type]
+            _log.warning(
+                "%s: dropped pot count %s%03d: expected %s", self.link.port_name, token.kind, int(token.value), expected
+            )  # type: ignore[arg-type]
             self._pot_counts = {}
             return
         self._pot_counts[token.kind] = int(token.value)  # type: ignore[arg-type]
@@ -364,8 +392,9 @@ class Delta4Controller:
 
     def _close_frame(self) -> None:
         b = self._builder
-        self._frames.append(SensorFrame(tuple(b.horizontal), tuple(b.vertical), bytes(b.raw), time.monotonic(),
-                                        b.t_first_token_s))
+        self._frames.append(
+            SensorFrame(tuple(b.horizontal), tuple(b.vertical), bytes(b.raw), time.monotonic(), b.t_first_token_s)
+        )
         self._builder = _FrameBuilder()
 
     # -- lifecycle ---------------------------------------------------------------------------------------------
@@ -379,7 +408,7 @@ class Delta4Controller:
             _log.warning("%s: could not send G: %s", self.link.port_name, exc)
         self.link.close()
 
-    def __enter__(self) -> "Delta4Controller":
+    def __enter__(self) -> Delta4Controller:
         return self
 
     def __exit__(self, *exc_info: object) -> None:

@@ -28,11 +28,28 @@ import numpy as np
 from bench.errors import UnreachableTarget
 from bench.robots.link import FramedLink, WireProtocolError
 
-__all__ = ["CAPABILITY_QUERY", "FINE_LETTER", "FineReference", "POT_LETTERS", "POT_QUERY", "POT_SCALE",
-           "SERVO_LETTERS", "CalibratedMapping", "Delta4Link",
-           "LegacyVbMapping", "ServoMapping", "Token", "fine_from_settings", "format_capability_reply",
-           "format_fine_command", "format_pot_reply", "format_servo_command", "parse_token", "mapping_from_settings",
-           "round_half_up"]
+__all__ = [
+    "CAPABILITY_QUERY",
+    "FINE_LETTER",
+    "FineReference",
+    "POT_LETTERS",
+    "POT_QUERY",
+    "POT_SCALE",
+    "SERVO_LETTERS",
+    "CalibratedMapping",
+    "Delta4Link",
+    "LegacyVbMapping",
+    "ServoMapping",
+    "Token",
+    "fine_from_settings",
+    "format_capability_reply",
+    "format_fine_command",
+    "format_pot_reply",
+    "format_servo_command",
+    "parse_token",
+    "mapping_from_settings",
+    "round_half_up",
+]
 
 SERVO_LETTERS = b"PQRS"
 #: The pot query (this project's extension) and the letters of its four reply tokens, servos 1-4.
@@ -78,8 +95,10 @@ class ServoMapping:
         limits = self.limits_deg()
         for i, (angle, (low, high)) in enumerate(zip(angles, limits)):
             if not low <= angle <= high:
-                raise UnreachableTarget(f"servo {i + 1}: theta_R = {angle:.3f} deg, expected within "
-                                        f"[{low:g}, {high:g}] deg (mapping {self.name})")
+                raise UnreachableTarget(
+                    f"servo {i + 1}: theta_R = {angle:.3f} deg, expected within "
+                    f"[{low:g}, {high:g}] deg (mapping {self.name})"
+                )
         return angles
 
     def settings(self) -> dict[str, Any]:
@@ -105,8 +124,11 @@ class LegacyVbMapping(ServoMapping):
         return np.asarray(values, dtype=float) * self.degrees_per_span / 255.0
 
     def settings(self) -> dict[str, Any]:
-        return {"name": self.name, "degrees_per_span": self.degrees_per_span,
-                "limits_deg": [self.low_deg, self.high_deg]}
+        return {
+            "name": self.name,
+            "degrees_per_span": self.degrees_per_span,
+            "limits_deg": [self.low_deg, self.high_deg],
+        }
 
 
 @dataclass(frozen=True)
@@ -184,8 +206,10 @@ class FineReference:
         angles = np.asarray(servo_deg, dtype=float)
         for i, angle in enumerate(angles):
             if not self.low_deg <= angle <= self.high_deg:
-                raise UnreachableTarget(f"servo {i + 1}: theta_R = {angle:.3f} deg, expected within "
-                                        f"[{self.low_deg:g}, {self.high_deg:g}] deg (fine references)")
+                raise UnreachableTarget(
+                    f"servo {i + 1}: theta_R = {angle:.3f} deg, expected within "
+                    f"[{self.low_deg:g}, {self.high_deg:g}] deg (fine references)"
+                )
         return angles
 
     def to_values(self, servo_deg: np.ndarray) -> np.ndarray:
@@ -204,8 +228,12 @@ class FineReference:
         return max(self.degrees_per_unit, self.controller_step_deg)
 
     def settings(self) -> dict[str, Any]:
-        return {"name": self.name, "degrees_per_unit": self.degrees_per_unit,
-                "controller_step_deg": self.controller_step_deg, "limits_deg": [self.low_deg, self.high_deg]}
+        return {
+            "name": self.name,
+            "degrees_per_unit": self.degrees_per_unit,
+            "controller_step_deg": self.controller_step_deg,
+            "limits_deg": [self.low_deg, self.high_deg],
+        }
 
 
 def fine_from_settings(settings: Any) -> FineReference:
@@ -215,11 +243,13 @@ def fine_from_settings(settings: Any) -> FineReference:
     try:
         if settings["name"] == FineReference.name:
             low, high = settings["limits_deg"]
-            return FineReference(float(settings["controller_step_deg"]), float(settings["degrees_per_unit"]),
-                                 float(low), float(high))
+            return FineReference(
+                float(settings["controller_step_deg"]), float(settings["degrees_per_unit"]), float(low), float(high)
+            )
     except (KeyError, TypeError, ValueError) as exc:
-        raise ConfigError(f"fine reference settings {settings!r}: {exc!r}, expected those of "
-                          f"{FineReference.name}") from None
+        raise ConfigError(
+            f"fine reference settings {settings!r}: {exc!r}, expected those of {FineReference.name}"
+        ) from None
     raise ConfigError(f"fine reference settings {settings!r}, expected name {FineReference.name!r}")
 
 
@@ -267,8 +297,9 @@ def parse_token(frame: bytes) -> Token:
     if frame in (b"z", b"h", b"v"):
         return Token(frame.decode("ascii"))
     if len(frame) < 2 or not frame.endswith(b"X"):
-        raise WireProtocolError(f"token {frame!r}: expected z, h, v, H<digits>X, V<digits>X, <digits>X or a pot "
-                                f"count p/q/r/s<digits>X")
+        raise WireProtocolError(
+            f"token {frame!r}: expected z, h, v, H<digits>X, V<digits>X, <digits>X or a pot count p/q/r/s<digits>X"
+        )
     kind, digits = ("N", frame[:-1]) if frame[:1].isdigit() else (chr(frame[0]), frame[1:-1])
     if kind == "c":
         if not digits.isdigit() or len(digits) != _CAPABILITY_DIGITS or int(digits) == 0:
@@ -299,8 +330,8 @@ class Delta4Link(FramedLink):
         for end in range(1, len(pending)):
             byte = pending[end]
             if byte == ord("X"):
-                frame = bytes(pending[:end + 1])
-                del pending[:end + 1]
+                frame = bytes(pending[: end + 1])
+                del pending[: end + 1]
                 return frame
             if not 0x30 <= byte <= 0x39 or end > most + 1:
                 frame = bytes(pending[:end])
@@ -320,11 +351,14 @@ def mapping_from_settings(settings: Any) -> ServoMapping:
             low, high = settings["limits_deg"]
             return LegacyVbMapping(float(settings["degrees_per_span"]), float(low), float(high))
         if name == "calibrated":
-            return CalibratedMapping(tuple(tuple(float(v) for v in pair) for pair in settings["stops_deg"]),
-                                     tuple(int(d) for d in settings["direction"]))
+            return CalibratedMapping(
+                tuple(tuple(float(v) for v in pair) for pair in settings["stops_deg"]),
+                tuple(int(d) for d in settings["direction"]),
+            )
     except (KeyError, TypeError, ValueError) as exc:
-        raise ConfigError(f"servo mapping settings {settings!r}: {exc!r}, expected those of a "
-                          f"{' or '.join(MAPPINGS)} mapping") from None
+        raise ConfigError(
+            f"servo mapping settings {settings!r}: {exc!r}, expected those of a {' or '.join(MAPPINGS)} mapping"
+        ) from None
     raise ConfigError(f"servo mapping {name!r}, expected one of {', '.join(MAPPINGS)}")
 
 

@@ -25,9 +25,9 @@ def corrupt(line: bytes, rng: np.random.Generator, *, max_flips: int = 3) -> byt
     else:
         length = int(rng.integers(1, 17))
         start = int(rng.integers(0, len(bits) - length + 1))
-        original = bits[start:start + length].copy()
-        while np.array_equal(bits[start:start + length], original):
-            bits[start:start + length] = rng.integers(0, 2, length)
+        original = bits[start : start + length].copy()
+        while np.array_equal(bits[start : start + length], original):
+            bits[start : start + length] = rng.integers(0, 2, length)
     return np.packbits(bits).tobytes()
 
 
@@ -36,10 +36,16 @@ def random_bodies(rng: np.random.Generator, count: int) -> list[str]:
     bodies = []
     for _ in range(count):
         steps = " ".join(str(int(s)) for s in rng.integers(0, 21121, 6))
-        tag = int(rng.integers(0, 10 ** 9))
+        tag = int(rng.integers(0, 10**9))
         kind = int(rng.integers(4))
-        bodies.append([f"MOVE {steps} {int(rng.integers(1, 1001))} #{tag}", f"OK #{tag} POS {steps} MOVING",
-                       f"DONE #{tag} {steps}", f"ERR #{tag} 8 STOPPED {steps}"][kind])
+        bodies.append(
+            [
+                f"MOVE {steps} {int(rng.integers(1, 1001))} #{tag}",
+                f"OK #{tag} POS {steps} MOVING",
+                f"DONE #{tag} {steps}",
+                f"ERR #{tag} 8 STOPPED {steps}",
+            ][kind]
+        )
     return bodies
 
 

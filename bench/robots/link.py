@@ -22,10 +22,11 @@ try:  # pyserial's POSIX flush() is termios.tcdrain, whose errors are termios.er
 except ImportError:  # no termios (Windows): nothing extra to catch
     _TermiosError = OSError
 
+from bench.errors import LinkError, LinkTimeout
+
 #: Flush attempts when a signal interrupts tcdrain (EINTR: the bytes are still queued, draining simply resumes).
 _FLUSH_ATTEMPTS = 3
 
-from bench.errors import LinkError, LinkTimeout
 
 __all__ = ["Deadline", "FramedLink", "WireProtocolError", "open_port"]
 
@@ -135,8 +136,7 @@ class FramedLink:
             chunk = self.port.read(max(1, self.port.in_waiting))
         except (serial.SerialException, OSError) as exc:
             raise LinkError(
-                f"{self.port_name}: port failed while waiting for the reply to {command!r} "
-                f"(expected {expected}): {exc}"
+                f"{self.port_name}: port failed while waiting for the reply to {command!r} (expected {expected}): {exc}"
             ) from exc
         self._pending += chunk
         overflow = len(self._pending) - self.max_pending

@@ -35,8 +35,15 @@ from bench.robots import pkm5_wire as wire
 from bench.robots.link import Deadline, WireProtocolError
 from motion import pkm5
 
-__all__ = ["DEFAULT_BAUDRATE", "RATED_SPEED_STEPS_S", "RECEIVE_BUFFER_BYTES", "ControllerError", "Identity",
-           "Pkm5Controller", "Position"]
+__all__ = [
+    "DEFAULT_BAUDRATE",
+    "RATED_SPEED_STEPS_S",
+    "RECEIVE_BUFFER_BYTES",
+    "ControllerError",
+    "Identity",
+    "Pkm5Controller",
+    "Position",
+]
 
 _log = logging.getLogger(__name__)
 #: Interval of the heartbeat (a ``POS`` line) while waiting for ``DONE``: a third of the firmware's default link
@@ -123,12 +130,23 @@ class Pkm5Controller:
         (:meth:`move_actuator` only makes sense, and is only allowed, on the bench).
     """
 
-    def __init__(self, port: Any, *, geometry: Any = None, speed_steps_s: int = RATED_SPEED_STEPS_S, reply_timeout_s: float = 1.0,
-                 retries: int = 2, move_margin_s: float = 2.0, fixture: str = kinematics.ASSEMBLED,
-                 heartbeat_s: float = HEARTBEAT_S) -> None:
+    def __init__(
+        self,
+        port: Any,
+        *,
+        geometry: Any = None,
+        speed_steps_s: int = RATED_SPEED_STEPS_S,
+        reply_timeout_s: float = 1.0,
+        retries: int = 2,
+        move_margin_s: float = 2.0,
+        fixture: str = kinematics.ASSEMBLED,
+        heartbeat_s: float = HEARTBEAT_S,
+    ) -> None:
         if fixture not in kinematics.FIXTURES:
-            raise ConfigError(f"Pkm5Controller: fixture = {fixture!r}, expected one of "
-                              f"{', '.join(repr(f) for f in kinematics.FIXTURES)}")
+            raise ConfigError(
+                f"Pkm5Controller: fixture = {fixture!r}, expected one of "
+                f"{', '.join(repr(f) for f in kinematics.FIXTURES)}"
+            )
         self.fixture = fixture
         self.link = wire.LineLink(port)
         self.geometry = geometry or pkm5.DEFAULT_GEOMETRY
@@ -173,8 +191,9 @@ class Pkm5Controller:
 
     # -- transport ---------------------------------------------------------------------------------------------
     @_holding_line
-    def _exchange(self, verb: str, args: tuple[int, ...] = (), *, timeout_s: float | None = None,
-                  idempotent: bool | None = None) -> wire.Reply:
+    def _exchange(
+        self, verb: str, args: tuple[int, ...] = (), *, timeout_s: float | None = None, idempotent: bool | None = None
+    ) -> wire.Reply:
         """Send one command and return its ``OK`` reply, retrying idempotent commands."""
         idempotent = verb in _IDEMPOTENT if idempotent is None else idempotent
         attempts = 1 + (self.retries if idempotent else 0)
@@ -220,7 +239,7 @@ class Pkm5Controller:
         while len(replies) < len(commands):
             batch: list[int] = []
             lines = b""
-            for args in commands[len(replies):]:
+            for args in commands[len(replies) :]:
                 tag = next(self._tags)  # one that does not fit is skipped: tags only count up
                 line = wire.format_command(verb, args, tag, self._version)
                 if batch and len(lines) + len(line) + 1 > RECEIVE_BUFFER_BYTES:  # + the newline after noise
@@ -236,13 +255,26 @@ class Pkm5Controller:
                         if exc.code not in _NOISE_REFUSALS:
                             raise
                         self._noisy = True  # the command arrived corrupted: the next one starts on a clean line
-                    _log.warning("%s: %s #%d failed in a pipelined batch, the rest one at a time: %s",
-                                 self.link.port_name, verb, tag, exc)
-                    return replies + [self._exchange(verb, args, idempotent=True) for args in commands[len(replies):]]
+                    _log.warning(
+                        "%s: %s #%d failed in a pipelined batch, the rest one at a time: %s",
+                        self.link.port_name,
+                        verb,
+                        tag,
+                        exc,
+                    )
+                    return replies + [self._exchange(verb, args, idempotent=True) for args in commands[len(replies) :]]
         return replies
 
-    def _await(self, tag: int, verb: str, kinds: tuple[str, ...], timeout_s: float, *,
-               heartbeat: bool = False, done_at: tuple[int, ...] | None = None) -> wire.Reply:
+    def _await(
+        self,
+        tag: int,
+        verb: str,
+        kinds: tuple[str, ...],
+        timeout_s: float,
+        *,
+        heartbeat: bool = False,
+        done_at: tuple[int, ...] | None = None,
+    ) -> wire.Reply:
         """The next reply with ``tag``; stale tags and corrupted lines are dropped until the deadline.
 
         With ``heartbeat`` a ``POS`` line goes out every ``heartbeat_s`` (the firmware's link watchdog stops a
@@ -270,9 +302,10 @@ class Pkm5Controller:
                     except LinkError as exc:
                         # the beat is part of the wait: a device that vanishes during it fails the wait for the
                         # reply, whether the beat's write or the next read meets the dead port first
-                        raise LinkError(f"{self.link.port_name}: port failed while waiting for the reply to {verb!r} "
-                                        f"(expected {expected}): heartbeat 'POS' not sent: {exc.__cause__ or exc}"
-                                        ) from exc
+                        raise LinkError(
+                            f"{self.link.port_name}: port failed while waiting for the reply to {verb!r} "
+                            f"(expected {expected}): heartbeat 'POS' not sent: {exc.__cause__ or exc}"
+                        ) from exc
                     next_beat_s, heard_since_beat = time.monotonic() + self.heartbeat_s, False
                 due_s = next_beat_s if heard_since_beat else next_beat_s + self.heartbeat_s
                 wait_s = min(wait_s, max(0.0, due_s - time.monotonic()))
@@ -283,8 +316,10 @@ class Pkm5Controller:
                 if heartbeat and not deadline.expired():
                     continue
                 if dropped:
-                    timeout = LinkTimeout(f"{exc}; dropped {len(dropped)} invalid or stale lines, first "
-                                          f"{dropped[0]!r} (is this a {wire.DEVICE_NAME}?)")
+                    timeout = LinkTimeout(
+                        f"{exc}; dropped {len(dropped)} invalid or stale lines, first "
+                        f"{dropped[0]!r} (is this a {wire.DEVICE_NAME}?)"
+                    )
                     timeout.dropped = dropped
                     raise timeout from None
                 raise
@@ -298,14 +333,20 @@ class Pkm5Controller:
             if reply.tag in self._stops_sent:  # a STOP sent from another thread: its acknowledgement
                 self._stop_acknowledged.set()
                 if done_at is not None:  # the controller ends the move (ERR 8) before it answers STOP: that was lost
-                    raise ControllerError(f"{self.link.port_name}: MOVE #{tag} ended by STOP #{reply.tag} (its "
-                                          f"'ERR #{tag} 8 STOPPED' lost; STOP answered {' '.join(reply.fields)})",
-                                          wire.ErrorCode.STOPPED)
+                    raise ControllerError(
+                        f"{self.link.port_name}: MOVE #{tag} ended by STOP #{reply.tag} (its "
+                        f"'ERR #{tag} 8 STOPPED' lost; STOP answered {' '.join(reply.fields)})",
+                        wire.ErrorCode.STOPPED,
+                    )
                 continue
             if reply.tag in beats:
                 if done_at is not None and reply.kind == "OK" and _idle_at(reply, done_at):
-                    _log.warning("%s: %s #%d: DONE lost; POS shows the controller idle at the target",
-                                 self.link.port_name, verb, tag)
+                    _log.warning(
+                        "%s: %s #%d: DONE lost; POS shows the controller idle at the target",
+                        self.link.port_name,
+                        verb,
+                        tag,
+                    )
                     return wire.Reply("DONE", tag, tuple(str(s) for s in done_at))
                 continue
             if reply.tag != tag:
@@ -317,8 +358,11 @@ class Pkm5Controller:
                 if code == wire.ErrorCode.STOPPED:  # the move ended by a STOP: acknowledges a cross-thread stop()
                     self._stop_acknowledged.set()
                 name = reply.fields[1] if len(reply.fields) > 1 else "?"
-                raise ControllerError(f"{self.link.port_name}: controller refused {verb!r} with error {code} "
-                                      f"{name} ({' '.join(reply.fields[2:])})".rstrip(" ()"), code)
+                raise ControllerError(
+                    f"{self.link.port_name}: controller refused {verb!r} with error {code} "
+                    f"{name} ({' '.join(reply.fields[2:])})".rstrip(" ()"),
+                    code,
+                )
             if reply.kind in kinds:
                 return reply
             dropped.append(line)
@@ -347,10 +391,16 @@ class Pkm5Controller:
                     continue
                 self._version = 2
                 fields = self._exchange("ID").fields
-            if len(fields) != 4 or fields[0] != "ID" or fields[1] != wire.DEVICE_NAME \
-                    or fields[2] not in [str(v) for v in wire.PROTOCOL_VERSIONS]:
-                raise LinkError(f"{self.link.port_name}: 'ID' answered {' '.join(fields)!r}, expected "
-                                f"'ID {wire.DEVICE_NAME} {offered} <firmware version>' (wrong device?)")
+            if (
+                len(fields) != 4
+                or fields[0] != "ID"
+                or fields[1] != wire.DEVICE_NAME
+                or fields[2] not in [str(v) for v in wire.PROTOCOL_VERSIONS]
+            ):
+                raise LinkError(
+                    f"{self.link.port_name}: 'ID' answered {' '.join(fields)!r}, expected "
+                    f"'ID {wire.DEVICE_NAME} {offered} <firmware version>' (wrong device?)"
+                )
             version = int(fields[2])
             if version == 1:
                 break
@@ -359,8 +409,7 @@ class Pkm5Controller:
             except (LinkTimeout, WireProtocolError) as exc:
                 if attempt > self.retries:
                     raise
-                _log.warning("%s: PROTOCOL %d not confirmed (%s); identifying again", self.link.port_name,
-                             version, exc)
+                _log.warning("%s: PROTOCOL %d not confirmed (%s); identifying again", self.link.port_name, version, exc)
                 continue
             self._version = version
             break
@@ -445,9 +494,11 @@ class Pkm5Controller:
         stroke outside the actuator's window; nothing is sent then.
         """
         if self.fixture != kinematics.ACTUATOR_BENCH:
-            raise UnreachableTarget(f"move_actuator(axis={axis!r}, stroke_mm={stroke_mm!r}): refused on the "
-                                    f"{self.fixture} robot, one leg cannot move alone (6 legs, 5 DOF); expected a "
-                                    f"controller opened with fixture='{kinematics.ACTUATOR_BENCH}'")
+            raise UnreachableTarget(
+                f"move_actuator(axis={axis!r}, stroke_mm={stroke_mm!r}): refused on the "
+                f"{self.fixture} robot, one leg cannot move alone (6 legs, 5 DOF); expected a "
+                f"controller opened with fixture='{kinematics.ACTUATOR_BENCH}'"
+            )
         target = kinematics.steps_for_stroke(axis, stroke_mm, self.geometry)
         where = self.position()
         if where.state != "IDLE":
@@ -465,8 +516,9 @@ class Pkm5Controller:
 
     @_holding_line
     def _move(self, targets: tuple[int, ...], speed_steps_s: int | None) -> tuple[int, ...]:
-        speed = int(_checked_number("speed_steps_s", self.speed_steps_s if speed_steps_s is None else speed_steps_s,
-                                    1, 1000))
+        speed = int(
+            _checked_number("speed_steps_s", self.speed_steps_s if speed_steps_s is None else speed_steps_s, 1, 1000)
+        )
         tag = next(self._tags)
         line = wire.format_command("MOVE", (*targets, speed), tag, self._version)
         stops_before = self._stops_requested
@@ -477,8 +529,10 @@ class Pkm5Controller:
             for send in range(1, sends + 1):
                 with self._write:
                     if self._stop_latched:
-                        raise LinkError(f"{self.link.port_name}: MOVE to {targets} refused: an emergency stop is "
-                                        "latched; enable() the controller to move again")
+                        raise LinkError(
+                            f"{self.link.port_name}: MOVE to {targets} refused: an emergency stop is "
+                            "latched; enable() the controller to move again"
+                        )
                     if self._stops_requested != stops_before:
                         raise LinkError(f"{self.link.port_name}: MOVE #{tag} not re-sent: stop() was called")
                     self._send(line, command="MOVE")
@@ -491,8 +545,9 @@ class Pkm5Controller:
                         _log.warning("%s: MOVE #%d not acknowledged (%s); sent again", self.link.port_name, tag, exc)
                         self._noisy = True
                         continue
-                    _log.warning("%s: MOVE #%d acceptance lost (%s); querying the controller", self.link.port_name,
-                                 tag, exc)
+                    _log.warning(
+                        "%s: MOVE #%d acceptance lost (%s); querying the controller", self.link.port_name, tag, exc
+                    )
                     return self._recover_move(tag, targets, speed)
             if reply.kind == "DONE":
                 return reply.ints(0, wire.AXES)
@@ -509,8 +564,9 @@ class Pkm5Controller:
         except LinkTimeout:
             where = self.position()  # one last look: idle at the target is the move done, its DONE lost
             if where.state == "IDLE" and where.steps == targets:
-                _log.warning("%s: MOVE #%d: DONE lost; POS shows the controller idle at the target",
-                             self.link.port_name, tag)
+                _log.warning(
+                    "%s: MOVE #%d: DONE lost; POS shows the controller idle at the target", self.link.port_name, tag
+                )
                 return where.steps
             raise
 
@@ -522,8 +578,10 @@ class Pkm5Controller:
             return self._await_done(tag, targets, 1.5 * remaining_s + self.move_margin_s)
         if where.steps == targets:
             return where.steps
-        raise LinkError(f"{self.link.port_name}: MOVE #{tag} not confirmed: the controller is {where.state} at "
-                        f"{where.steps}, expected a move to {targets}")
+        raise LinkError(
+            f"{self.link.port_name}: MOVE #{tag} not confirmed: the controller is {where.state} at "
+            f"{where.steps}, expected a move to {targets}"
+        )
 
     # -- lifecycle ---------------------------------------------------------------------------------------------
     @_holding_line
@@ -543,7 +601,7 @@ class Pkm5Controller:
         self._stop_quietly()
         self.link.close()
 
-    def __enter__(self) -> "Pkm5Controller":
+    def __enter__(self) -> Pkm5Controller:
         return self
 
     def __exit__(self, *exc_info: object) -> None:

@@ -16,8 +16,19 @@ from bench.errors import UnreachableTarget
 from motion import pkm5
 from motion.errors import MotionInputError
 
-__all__ = ["ACTUATOR_BENCH", "ASSEMBLED", "FIXTURES", "home_pose",
-           "check_steps", "forward_kinematics", "home_steps", "pose_deg_from_rad", "steps_for_pose", "steps_for_stroke", "stroke_range_mm"]
+__all__ = [
+    "ACTUATOR_BENCH",
+    "ASSEMBLED",
+    "FIXTURES",
+    "home_pose",
+    "check_steps",
+    "forward_kinematics",
+    "home_steps",
+    "pose_deg_from_rad",
+    "steps_for_pose",
+    "steps_for_stroke",
+    "stroke_range_mm",
+]
 
 #: The robot assembled (every move a pre-flighted pose) or its actuators free-standing on the bench (000 §8.4).
 ASSEMBLED, ACTUATOR_BENCH = "assembled", "actuator-bench"
@@ -36,8 +47,9 @@ def pose_deg_from_rad(pose: np.ndarray) -> np.ndarray:
 def _pose_rad(pose_deg: Any) -> np.ndarray:
     pose = np.array(pose_deg, dtype=float)
     if pose.shape != (5,) or not np.all(np.isfinite(pose)):
-        raise UnreachableTarget(f"pose = {pose_deg!r}, expected 5 finite numbers (x_mm, y_mm, z_mm, alpha_deg, "
-                                "beta_deg)")
+        raise UnreachableTarget(
+            f"pose = {pose_deg!r}, expected 5 finite numbers (x_mm, y_mm, z_mm, alpha_deg, beta_deg)"
+        )
     pose[3:] = np.radians(pose[3:])
     return pose
 
@@ -88,8 +100,9 @@ def _solve_steps(pose_deg: Any, geometry: Any) -> tuple[int, ...]:
     except MotionInputError as exc:
         raise UnreachableTarget(f"pose = {pose_deg!r}: {exc}") from exc
     if not result.reachable[0]:
-        raise UnreachableTarget(f"pose = {tuple(float(v) for v in np.ravel(pose_deg))} (mm, deg) is not reachable: "
-                                f"{result.reason(0)}")
+        raise UnreachableTarget(
+            f"pose = {tuple(float(v) for v in np.ravel(pose_deg))} (mm, deg) is not reachable: {result.reason(0)}"
+        )
     return tuple(int(s) for s in pkm5.lengths_to_steps(result.lengths_mm, geometry)[0])
 
 
@@ -100,16 +113,21 @@ def check_steps(steps: tuple[int, ...], geometry: Any = pkm5.DEFAULT_GEOMETRY) -
     outside = np.flatnonzero((lengths[0] < low) | (lengths[0] > high))
     if outside.size:
         leg = int(outside[0])
-        raise UnreachableTarget(f"steps = {tuple(steps)}: leg {leg + 1} length {lengths[0, leg]:.3f} mm, expected "
-                                f"within [{low[leg]:g}, {high[leg]:g}] mm")
+        raise UnreachableTarget(
+            f"steps = {tuple(steps)}: leg {leg + 1} length {lengths[0, leg]:.3f} mm, expected "
+            f"within [{low[leg]:g}, {high[leg]:g}] mm"
+        )
     fk = forward_kinematics(lengths, geometry, steps)
     if not fk.converged[0]:
-        raise UnreachableTarget(f"steps = {tuple(steps)}: no pose fits these leg lengths "
-                                f"(FK residual {fk.residual_mm[0]:.3g} mm)")
+        raise UnreachableTarget(
+            f"steps = {tuple(steps)}: no pose fits these leg lengths (FK residual {fk.residual_mm[0]:.3g} mm)"
+        )
     ik = pkm5.inverse_kinematics(fk.pose, geometry)
     if not ik.reachable[0]:
-        raise UnreachableTarget(f"steps = {tuple(steps)}: pose {np.round(pose_deg_from_rad(fk.pose[0]), 3)} "
-                                f"(mm, deg) is not reachable: {ik.reason(0)}")
+        raise UnreachableTarget(
+            f"steps = {tuple(steps)}: pose {np.round(pose_deg_from_rad(fk.pose[0]), 3)} "
+            f"(mm, deg) is not reachable: {ik.reason(0)}"
+        )
 
 
 def forward_kinematics(lengths_mm: np.ndarray, geometry: Any, steps: Any):
@@ -119,8 +137,9 @@ def forward_kinematics(lengths_mm: np.ndarray, geometry: Any, steps: Any):
     if geometry == pkm5.DEFAULT_GEOMETRY:
         return pkm5.forward_kinematics(lengths_mm, geometry, mode_tol_mm=MODE_TOL_MM)
     nominal = pkm5.forward_kinematics(pkm5.steps_to_lengths(np.asarray(steps)[None, :]), mode_tol_mm=MODE_TOL_MM)
-    return pkm5.forward_kinematics(lengths_mm, geometry, initial_pose=nominal.pose, mode=nominal.mode[0],
-                                   retry_above_mm=0.5)
+    return pkm5.forward_kinematics(
+        lengths_mm, geometry, initial_pose=nominal.pose, mode=nominal.mode[0], retry_above_mm=0.5
+    )
 
 
 def stroke_range_mm(axis: int, geometry: Any = pkm5.DEFAULT_GEOMETRY) -> tuple[float, float]:
@@ -135,10 +154,14 @@ def steps_for_stroke(axis: Any, stroke_mm: Any, geometry: Any = pkm5.DEFAULT_GEO
     if isinstance(axis, bool) or not isinstance(axis, (int, np.integer)) or not 1 <= axis <= 6:
         raise UnreachableTarget(f"axis = {axis!r}, expected an actuator number 1-6")
     low, high = stroke_range_mm(int(axis), geometry)
-    if isinstance(stroke_mm, bool) or not isinstance(stroke_mm, (int, float, np.number)) \
-            or not low <= float(stroke_mm) <= high:
-        raise UnreachableTarget(f"actuator {axis}: stroke_mm = {stroke_mm!r}, expected a number in "
-                                f"[{low:g}, {high:g}] mm")
+    if (
+        isinstance(stroke_mm, bool)
+        or not isinstance(stroke_mm, (int, float, np.number))
+        or not low <= float(stroke_mm) <= high
+    ):
+        raise UnreachableTarget(
+            f"actuator {axis}: stroke_mm = {stroke_mm!r}, expected a number in [{low:g}, {high:g}] mm"
+        )
     index = int(axis) - 1
     counts = round(float(stroke_mm) / geometry.mm_per_step[index])
     return int(counts * geometry.step_direction[index])

@@ -28,8 +28,24 @@ from dataclasses import dataclass
 from bench.robots.link import FramedLink, WireProtocolError
 
 __all__ = [
-    "AXES", "COMMAND_ARITY", "DEVICE_NAME", "MAX_LINE", "PROTOCOL_VERSION", "PROTOCOL_VERSIONS", "Command",
-    "CommandRefused", "ErrorCode", "LineLink", "Reply", "checksum", "crc16", "decode_line", "encode_line", "format_command", "format_reply", "parse_command",
+    "AXES",
+    "COMMAND_ARITY",
+    "DEVICE_NAME",
+    "MAX_LINE",
+    "PROTOCOL_VERSION",
+    "PROTOCOL_VERSIONS",
+    "Command",
+    "CommandRefused",
+    "ErrorCode",
+    "LineLink",
+    "Reply",
+    "checksum",
+    "crc16",
+    "decode_line",
+    "encode_line",
+    "format_command",
+    "format_reply",
+    "parse_command",
     "parse_reply",
 ]
 
@@ -43,25 +59,33 @@ _REPLY_KINDS = ("OK", "DONE", "ERR", "BOOT")
 
 #: Number of integer arguments of each command; simulator-only commands start with ``SIM``.
 COMMAND_ARITY = {
-    "ID": 0, "POS": 0, "STOP": 0, "ENABLE": 0, "DISABLE": 0,
-    "MOVE": AXES + 1, "SETPOS": AXES,
+    "ID": 0,
+    "POS": 0,
+    "STOP": 0,
+    "ENABLE": 0,
+    "DISABLE": 0,
+    "MOVE": AXES + 1,
+    "SETPOS": AXES,
     "PROTOCOL": 1,
-    "SIMLOAD": 1, "SIMTRUE": 0, "SIMLEGS": 0, "SIMTRACE": 4,
+    "SIMLOAD": 1,
+    "SIMTRUE": 0,
+    "SIMLEGS": 0,
+    "SIMTRACE": 4,
 }
 
 
 class ErrorCode(enum.IntEnum):
     """Error codes of ``ERR`` replies; the name follows the code on the wire."""
 
-    SYNTAX = 1      # unknown verb, wrong argument count, not an integer, missing tag
-    CHECKSUM = 2    # checksum missing or wrong
-    TOO_LONG = 3    # line longer than MAX_LINE
-    ARGUMENT = 4    # an argument out of its documented range (e.g. speed)
-    LIMIT = 5       # a target outside the firmware's step limits
-    DISABLED = 6    # motion requested while the drivers are disabled
-    BUSY = 7        # a command that needs the robot idle arrived during a move
-    STOPPED = 8     # the move was ended by STOP before reaching its target
-    WATCHDOG = 9    # the link watchdog ended a move and disabled the drivers (latched: also the next command's reply)
+    SYNTAX = 1  # unknown verb, wrong argument count, not an integer, missing tag
+    CHECKSUM = 2  # checksum missing or wrong
+    TOO_LONG = 3  # line longer than MAX_LINE
+    ARGUMENT = 4  # an argument out of its documented range (e.g. speed)
+    LIMIT = 5  # a target outside the firmware's step limits
+    DISABLED = 6  # motion requested while the drivers are disabled
+    BUSY = 7  # a command that needs the robot idle arrived during a move
+    STOPPED = 8  # the move was ended by STOP before reaching its target
+    WATCHDOG = 9  # the link watchdog ended a move and disabled the drivers (latched: also the next command's reply)
 
 
 class CommandRefused(WireProtocolError):
@@ -109,20 +133,21 @@ def encode_line(body: str, version: int = 1) -> bytes:
 def decode_line(line: bytes, version: int = 1) -> str:
     """The body of one line (terminator already removed; a trailing ``\\r`` is tolerated)."""
     if len(line) > MAX_LINE:
-        raise CommandRefused(f"line of {len(line)} bytes, expected at most {MAX_LINE}: {line[:32]!r}...",
-                             ErrorCode.TOO_LONG)
+        raise CommandRefused(
+            f"line of {len(line)} bytes, expected at most {MAX_LINE}: {line[:32]!r}...", ErrorCode.TOO_LONG
+        )
     if line.endswith(b"\r"):
         line = line[:-1]
     digits = 2 if version == 1 else 4
-    body, star, check = line[:-digits - 1], line[-digits - 1:-digits], line[-digits:]
+    body, star, check = line[: -digits - 1], line[-digits - 1 : -digits], line[-digits:]
     if star != b"*":
         raise CommandRefused(f"line {line!r} has no '*{'H' * digits}' checksum", ErrorCode.CHECKSUM)
     if check != _check(body, version).encode("ascii"):
-        raise CommandRefused(f"line {line!r}: checksum {check!r}, expected {_check(body, version)!r}",
-                             ErrorCode.CHECKSUM)
+        raise CommandRefused(
+            f"line {line!r}: checksum {check!r}, expected {_check(body, version)!r}", ErrorCode.CHECKSUM
+        )
     if body.translate(None, _PRINTABLE):  # anything left once the printable bytes are deleted
-        raise CommandRefused(f"line {line!r} has bytes outside printable ASCII", ErrorCode.SYNTAX,
-                             _trusted_tag(body))
+        raise CommandRefused(f"line {line!r} has bytes outside printable ASCII", ErrorCode.SYNTAX, _trusted_tag(body))
     return body.decode("ascii")
 
 
@@ -180,12 +205,14 @@ def parse_command(line: bytes, version: int = 1) -> Command:
     except WireProtocolError as exc:
         raise CommandRefused(str(exc), ErrorCode.SYNTAX) from None
     if not tokens or tokens[0] not in COMMAND_ARITY:
-        raise CommandRefused(f"line {line!r}: unknown command, expected one of {sorted(COMMAND_ARITY)}",
-                             ErrorCode.SYNTAX, tag)
+        raise CommandRefused(
+            f"line {line!r}: unknown command, expected one of {sorted(COMMAND_ARITY)}", ErrorCode.SYNTAX, tag
+        )
     verb, args = tokens[0], tokens[1:]
     if len(args) != COMMAND_ARITY[verb]:
-        raise CommandRefused(f"line {line!r}: {verb} takes {COMMAND_ARITY[verb]} arguments, got {len(args)}",
-                             ErrorCode.SYNTAX, tag)
+        raise CommandRefused(
+            f"line {line!r}: {verb} takes {COMMAND_ARITY[verb]} arguments, got {len(args)}", ErrorCode.SYNTAX, tag
+        )
     try:
         return Command(verb, tuple(_parse_int(a, line) for a in args), tag)
     except WireProtocolError as exc:
@@ -202,7 +229,7 @@ class Reply:
 
     def ints(self, start: int, count: int) -> tuple[int, ...]:
         """``count`` integer fields from ``start``; a short or non-integer reply raises WireProtocolError."""
-        chunk = self.fields[start:start + count]
+        chunk = self.fields[start : start + count]
         if len(chunk) != count:
             raise WireProtocolError(f"reply {self}: expected {count} integers from field {start}")
         return tuple(_parse_int(t, self) for t in chunk)
@@ -254,5 +281,5 @@ class LineLink(FramedLink):
                 return frame
             return None
         frame = bytes(self._pending[:end])
-        del self._pending[:end + 1]
+        del self._pending[: end + 1]
         return frame

@@ -25,8 +25,13 @@ def _as_bytes(value: bytes | str) -> bytes:
 class ScriptedPort:
     """A stand-in for an open pyserial port that follows a script of (command, reply) pairs."""
 
-    def __init__(self, pairs: Sequence[tuple[bytes | str, Reply]], frame: Callable[[str], bytes] | None = None,
-                 *, name: str = "scripted://") -> None:
+    def __init__(
+        self,
+        pairs: Sequence[tuple[bytes | str, Reply]],
+        frame: Callable[[str], bytes] | None = None,
+        *,
+        name: str = "scripted://",
+    ) -> None:
         self._frame = frame or (lambda body: body.encode("ascii"))
         self._script = [(self._framed(cmd), reply) for cmd, reply in pairs]
         self._written = b""
@@ -49,11 +54,11 @@ class ScriptedPort:
             if not self._script:
                 raise AssertionError(f"unexpected write {self._written!r}: the script is exhausted")
             command, reply = self._script[0]
-            if not command.startswith(self._written[:len(command)]):
+            if not command.startswith(self._written[: len(command)]):
                 raise AssertionError(f"wrote {self._written!r}, expected {command!r}")
             if len(self._written) < len(command):
                 break
-            self._written = self._written[len(command):]
+            self._written = self._written[len(command) :]
             self._script.pop(0)
             replies = [] if reply is None else [reply] if isinstance(reply, (bytes, str)) else list(reply)
             for item in replies:
@@ -83,8 +88,13 @@ class ScriptedPort:
 
 
 @contextlib.contextmanager
-def expected_exchange(driver_cls: Callable[..., Any], pairs: Sequence[tuple[bytes | str, Reply]], *,
-                      frame: Callable[[str], bytes] | None = None, **driver_kwargs: Any) -> Iterator[Any]:
+def expected_exchange(
+    driver_cls: Callable[..., Any],
+    pairs: Sequence[tuple[bytes | str, Reply]],
+    *,
+    frame: Callable[[str], bytes] | None = None,
+    **driver_kwargs: Any,
+) -> Iterator[Any]:
     """Yield ``driver_cls(port, **driver_kwargs)`` on a :class:`ScriptedPort`; fail if pairs remain unused."""
     port = ScriptedPort(pairs, frame)
     yield driver_cls(port, **driver_kwargs)

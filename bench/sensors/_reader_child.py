@@ -60,8 +60,7 @@ class Decoder:
             elif etype == EV_SYN:
                 if code == SYN_REPORT:
                     valid = not self.dropping
-                    out.append(RECORD.pack(sec + usec * 1e-6, self.fx if valid else 0, self.fy if valid else 0,
-                                           valid))
+                    out.append(RECORD.pack(sec + usec * 1e-6, self.fx if valid else 0, self.fy if valid else 0, valid))
                     self.dropping = False
                     self.fx = self.fy = 0
                 elif code == SYN_DROPPED:
@@ -119,7 +118,7 @@ def main(source: int, realtime: bool = True) -> int:
                 if event & (select.POLLERR | select.POLLHUP):
                     return 0
                 try:
-                    del backlog[:os.write(1, backlog)]
+                    del backlog[: os.write(1, backlog)]
                 except BlockingIOError:
                     pass
                 except BrokenPipeError:

@@ -14,11 +14,9 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from bench.errors import ConfigError
+from bench.metrology.mouse_calibration import MM_PER_INCH
 
 __all__ = ["MM_PER_INCH", "CountsCalibration"]
-
-#: Millimetres per inch; one count is ``MM_PER_INCH / CPI`` mm (``sensors.md`` §1.1).
-MM_PER_INCH = 25.4
 
 
 @dataclass(frozen=True, eq=False)
@@ -49,24 +47,30 @@ class CountsCalibration:
     def __post_init__(self) -> None:
         matrix = np.array(self.matrix_mm_per_count, dtype=float)
         if matrix.shape != (2, 2) or not np.all(np.isfinite(matrix)):
-            raise ConfigError(f"calibration {self.calibration_id!r}: matrix_mm_per_count = "
-                              f"{self.matrix_mm_per_count!r}, expected a finite 2x2 matrix (mm/count)")
+            raise ConfigError(
+                f"calibration {self.calibration_id!r}: matrix_mm_per_count = "
+                f"{self.matrix_mm_per_count!r}, expected a finite 2x2 matrix (mm/count)"
+            )
         if abs(np.linalg.det(matrix)) < 1e-12:
-            raise ConfigError(f"calibration {self.calibration_id!r}: matrix_mm_per_count is singular "
-                              f"(det = {np.linalg.det(matrix):.3g}), expected an invertible 2x2 matrix")
+            raise ConfigError(
+                f"calibration {self.calibration_id!r}: matrix_mm_per_count is singular "
+                f"(det = {np.linalg.det(matrix):.3g}), expected an invertible 2x2 matrix"
+            )
         if not self.calibration_id:
             raise ConfigError("calibration: calibration_id is empty, expected a non-empty identifier")
         try:
             _dt.date.fromisoformat(self.date[:10])
         except (TypeError, ValueError):
-            raise ConfigError(f"calibration {self.calibration_id!r}: date = {self.date!r}, "
-                              "expected an ISO date such as '2026-11-23'") from None
+            raise ConfigError(
+                f"calibration {self.calibration_id!r}: date = {self.date!r}, expected an ISO date such as '2026-11-23'"
+            ) from None
         matrix.setflags(write=False)
         object.__setattr__(self, "matrix_mm_per_count", matrix)
 
     @classmethod
-    def from_scales(cls, x_mm_per_count: float, y_mm_per_count: float, *, calibration_id: str, date: str,
-                    notes: str = "") -> CountsCalibration:
+    def from_scales(
+        cls, x_mm_per_count: float, y_mm_per_count: float, *, calibration_id: str, date: str, notes: str = ""
+    ) -> CountsCalibration:
         """Per-axis scales (mm/count), no cross terms."""
         return cls(np.diag([x_mm_per_count, y_mm_per_count]), calibration_id, date, notes=notes)
 
@@ -76,8 +80,13 @@ class CountsCalibration:
         if not cpi > 0:
             raise ConfigError(f"calibration: cpi = {cpi!r}, expected a positive counts-per-inch value")
         scale = MM_PER_INCH / cpi
-        return cls(np.diag([scale, scale]), calibration_id or f"nominal-{cpi:g}cpi",
-                   date or _dt.date.today().isoformat(), nominal=True, notes=f"nominal {cpi:g} CPI")
+        return cls(
+            np.diag([scale, scale]),
+            calibration_id or f"nominal-{cpi:g}cpi",
+            date or _dt.date.today().isoformat(),
+            nominal=True,
+            notes=f"nominal {cpi:g} CPI",
+        )
 
     def counts_to_mm(self, counts: np.ndarray) -> np.ndarray:
         """Apply ``A``: counts of shape (N, 2) (or (2,)) -> displacement in mm of the same shape."""
@@ -95,8 +104,13 @@ class CountsCalibration:
 
     def to_dict(self) -> dict[str, object]:
         """Plain-data form for run manifests and calibration files."""
-        return {"calibration_id": self.calibration_id, "date": self.date, "nominal": self.nominal,
-                "matrix_mm_per_count": self.matrix_mm_per_count.tolist(), "notes": self.notes}
+        return {
+            "calibration_id": self.calibration_id,
+            "date": self.date,
+            "nominal": self.nominal,
+            "matrix_mm_per_count": self.matrix_mm_per_count.tolist(),
+            "notes": self.notes,
+        }
 
     @classmethod
     def from_dict(cls, data: dict[str, object], *, where: str = "calibration") -> CountsCalibration:
@@ -105,10 +119,17 @@ class CountsCalibration:
         unknown = set(data) - expected
         missing = {"calibration_id", "date", "matrix_mm_per_count"} - set(data)
         if unknown or missing:
-            raise ConfigError(f"{where}: unknown keys {sorted(unknown)} / missing keys {sorted(missing)}, "
-                              f"expected keys {sorted(expected)}")
-        return cls(np.asarray(data["matrix_mm_per_count"], dtype=float), str(data["calibration_id"]),
-                   str(data["date"]), bool(data.get("nominal", False)), str(data.get("notes", "")))
+            raise ConfigError(
+                f"{where}: unknown keys {sorted(unknown)} / missing keys {sorted(missing)}, "
+                f"expected keys {sorted(expected)}"
+            )
+        return cls(
+            np.asarray(data["matrix_mm_per_count"], dtype=float),
+            str(data["calibration_id"]),
+            str(data["date"]),
+            bool(data.get("nominal", False)),
+            str(data.get("notes", "")),
+        )
 
     def __eq__(self, other: object) -> bool:
         return isinstance(other, CountsCalibration) and self.to_dict() == other.to_dict()

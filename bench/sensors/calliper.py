@@ -48,8 +48,9 @@ def parse_length(text: str, *, source: str = "calliper") -> float:
     """
     match = _NUMBER.fullmatch(text)
     if match is None:
-        raise MalformedSample(f"{source}: reading {text!r} is not a length; expected e.g. '12.34', '-0,50 mm' "
-                              "or '0.4865 in'")
+        raise MalformedSample(
+            f"{source}: reading {text!r} is not a length; expected e.g. '12.34', '-0,50 mm' or '0.4865 in'"
+        )
     sign, digits, unit = match.groups()
     if len(digits) > _MAX_DIGITS:  # no calliper shows that many digits; a float would round or overflow to inf
         raise MalformedSample(f"{source}: reading {text!r} has {len(digits)} digits, expected at most {_MAX_DIGITS}")
@@ -82,14 +83,22 @@ class ReadingRequest:
         if not self.min_mm <= value_mm <= self.max_mm:
             raise ConfigError(f"{self.label}: {value_mm:g} mm, expected {self.min_mm:g} to {self.max_mm:g} mm")
         if self.expected_mm is not None and abs(value_mm - self.expected_mm) > self.tolerance_mm:
-            return (f"{value_mm:g} mm is {value_mm - self.expected_mm:+.3f} mm from the expected "
-                    f"{self.expected_mm:g} mm; keep it? [y/N] ")
+            return (
+                f"{value_mm:g} mm is {value_mm - self.expected_mm:+.3f} mm from the expected "
+                f"{self.expected_mm:g} mm; keep it? [y/N] "
+            )
         return ""
 
 
-def prompt_reading(request: ReadingRequest, store: Callable[[Reading], None], *,
-                   ask: Callable[[str], str] = input, out: TextIO | None = None, double_entry: bool = False,
-                   operator: str = "") -> Reading:
+def prompt_reading(
+    request: ReadingRequest,
+    store: Callable[[Reading], None],
+    *,
+    ask: Callable[[str], str] = input,
+    out: TextIO | None = None,
+    double_entry: bool = False,
+    operator: str = "",
+) -> Reading:
     """Ask for one manual reading until a valid one is given, store it at once, and return it.
 
     ``ask`` shows a prompt and returns the typed line (``input`` on the CLI, a form field in a GUI). Invalid text
@@ -118,8 +127,15 @@ def prompt_reading(request: ReadingRequest, store: Callable[[Reading], None], *,
                 print(f"  the two entries differ ({text!r} and {again!r}); enter the reading again", file=out)
                 continue
         t_mono, t_wall = now()
-        reading = Reading(value, "mm", t_mono, t_wall, raw=text, source=f"manual:{operator or 'operator'}",
-                          note=request.label + ("; confirmed outside the expected range" if question else ""))
+        reading = Reading(
+            value,
+            "mm",
+            t_mono,
+            t_wall,
+            raw=text,
+            source=f"manual:{operator or 'operator'}",
+            note=request.label + ("; confirmed outside the expected range" if question else ""),
+        )
         store(reading)
         return reading
 
@@ -147,8 +163,13 @@ class SerialCalliper:
 
     def settings(self) -> dict[str, object]:
         """What a run manifest stores about this calliper: port, request string and line end."""
-        return {"sensor": "serial calliper", "name": self.name, "port": self._lines.name,
-                "request": self.request.decode(errors="replace"), "terminator": self._lines.terminator.decode()}
+        return {
+            "sensor": "serial calliper",
+            "name": self.name,
+            "port": self._lines.name,
+            "request": self.request.decode(errors="replace"),
+            "terminator": self._lines.terminator.decode(),
+        }
 
     def read(self, timeout_s: float = 30.0) -> Reading:
         """Wait for the next line (the operator presses the data button) and return it as a reading in mm."""
@@ -201,8 +222,9 @@ class TiltBias:
     def from_repeats(cls, angles_deg: list[float], *, calibration_id: str) -> TiltBias:
         """Mean and sample standard deviation of repeated bias measurements (at least 5)."""
         if len(angles_deg) < cls.MIN_REPEATS:
-            raise InsufficientData(f"tilt bias {calibration_id}: {len(angles_deg)} repeats, "
-                                   f"expected at least {cls.MIN_REPEATS}")
+            raise InsufficientData(
+                f"tilt bias {calibration_id}: {len(angles_deg)} repeats, expected at least {cls.MIN_REPEATS}"
+            )
         return cls(statistics.fmean(angles_deg), statistics.stdev(angles_deg), len(angles_deg), calibration_id)
 
     @property
@@ -220,6 +242,14 @@ def tilt_reading(h1: Reading, h2: Reading, spacing_mm: float, bias: TiltBias | N
     measured = float(tilt_deg(float(h1.value), float(h2.value), spacing_mm))  # type: ignore[arg-type]
     corrected = measured - (bias.mean_deg if bias else 0.0)
     note = f"measured {measured:.4f} deg" + (f", bias {bias.mean_deg:+.4f} deg removed" if bias else ", no bias")
-    return Reading(corrected, "deg", max(h1.t_monotonic_s, h2.t_monotonic_s), max(h1.t_wall_s, h2.t_wall_s),
-                   raw=(f"{h1.value}|{h2.value}|{spacing_mm}"), calibration_id=bias.calibration_id if bias else None,
-                   source="tilt:" + h1.source, valid=h1.valid and h2.valid, note=note)
+    return Reading(
+        corrected,
+        "deg",
+        max(h1.t_monotonic_s, h2.t_monotonic_s),
+        max(h1.t_wall_s, h2.t_wall_s),
+        raw=(f"{h1.value}|{h2.value}|{spacing_mm}"),
+        calibration_id=bias.calibration_id if bias else None,
+        source="tilt:" + h1.source,
+        valid=h1.valid and h2.valid,
+        note=note,
+    )

@@ -25,7 +25,7 @@ __all__ = ["US_KEYS", "EvdevWedge", "WedgeDecoder", "WedgeListener", "encode_key
 
 logger = logging.getLogger(__name__)
 
-_ACCEPTED = set("0123456789+-.,") | set("mMiInN\"")
+_ACCEPTED = set("0123456789+-.,") | set('mMiInN"')
 _END_KEYS = {"enter", "tab"}
 
 
@@ -45,8 +45,15 @@ class WedgeDecoder:
         Monotonic clock (injected in tests).
     """
 
-    def __init__(self, on_reading: Callable[[Reading], None], *, on_reject: Callable[[MalformedSample], None] | None = None,
-                 name: str = "wedge", stale_after_s: float = 1.0, clock: Callable[[], float] = time.monotonic) -> None:
+    def __init__(
+        self,
+        on_reading: Callable[[Reading], None],
+        *,
+        on_reject: Callable[[MalformedSample], None] | None = None,
+        name: str = "wedge",
+        stale_after_s: float = 1.0,
+        clock: Callable[[], float] = time.monotonic,
+    ) -> None:
         self.name = name
         self.on_reading = on_reading
         self.on_reject = on_reject or (lambda exc: logger.warning("%s", exc))
@@ -71,7 +78,7 @@ class WedgeDecoder:
         elif len(symbol) == 1 and (symbol in _ACCEPTED or symbol == " "):
             self._typed.append(symbol)
         else:
-            self._typed.append(f"<{symbol}>")   # keeps the bad key so the reading is rejected, not mangled
+            self._typed.append(f"<{symbol}>")  # keeps the bad key so the reading is rejected, not mangled
         return None
 
     def _finish(self) -> Reading | None:
@@ -117,8 +124,10 @@ class WedgeListener:
                 keyboard,  # imported here: pynput needs a display or uinput at import time
             )
         except ImportError as exc:  # pynput's backends refuse to import without a display
-            raise LinkError(f"{self.decoder.name}: cannot start a keyboard listener ({exc}); run on a desktop "
-                            "session, or read the wedge's evdev keyboard device instead") from None
+            raise LinkError(
+                f"{self.decoder.name}: cannot start a keyboard listener ({exc}); run on a desktop "
+                "session, or read the wedge's evdev keyboard device instead"
+            ) from None
         self._listener = keyboard.Listener(on_press=lambda key: self.decoder.feed(key_symbol(key)))
         self._listener.start()
         logger.warning("%s armed: keystrokes typed now are taken as calliper readings", self.decoder.name)
@@ -138,16 +147,41 @@ class WedgeListener:
 
 #: Linux key codes (``input-event-codes.h``) -> (symbol, shifted symbol) on the US layout wedges assume.
 US_KEYS: dict[int, tuple[str, str]] = {
-    **{code: (str(code - 1), "!@#$%^&*("[code - 2]) for code in range(2, 11)}, 11: ("0", ")"),
-    12: ("-", "_"), 13: ("=", "+"), 14: ("backspace", "backspace"), 15: ("tab", "tab"), 23: ("i", "I"),
-    28: ("enter", "enter"), 40: ("'", '"'), 49: ("n", "N"), 50: ("m", "M"), 51: (",", "<"), 52: (".", ">"),
-    57: ("space", "space"), 71: ("7", "7"), 72: ("8", "8"), 73: ("9", "9"), 74: ("-", "-"), 75: ("4", "4"),
-    76: ("5", "5"), 77: ("6", "6"), 78: ("+", "+"), 79: ("1", "1"), 80: ("2", "2"), 81: ("3", "3"),
-    82: ("0", "0"), 83: (".", "."), 96: ("enter", "enter"),
+    **{code: (str(code - 1), "!@#$%^&*("[code - 2]) for code in range(2, 11)},
+    11: ("0", ")"),
+    12: ("-", "_"),
+    13: ("=", "+"),
+    14: ("backspace", "backspace"),
+    15: ("tab", "tab"),
+    23: ("i", "I"),
+    28: ("enter", "enter"),
+    40: ("'", '"'),
+    49: ("n", "N"),
+    50: ("m", "M"),
+    51: (",", "<"),
+    52: (".", ">"),
+    57: ("space", "space"),
+    71: ("7", "7"),
+    72: ("8", "8"),
+    73: ("9", "9"),
+    74: ("-", "-"),
+    75: ("4", "4"),
+    76: ("5", "5"),
+    77: ("6", "6"),
+    78: ("+", "+"),
+    79: ("1", "1"),
+    80: ("2", "2"),
+    81: ("3", "3"),
+    82: ("0", "0"),
+    83: (".", "."),
+    96: ("enter", "enter"),
 }
-_SHIFT_KEYS = {42, 54}   # KEY_LEFTSHIFT, KEY_RIGHTSHIFT
-_KEY_OF_SYMBOL = {symbol: (code, shifted) for code, pair in sorted(US_KEYS.items(), reverse=True)
-                  for shifted, symbol in ((True, pair[1]), (False, pair[0]))}
+_SHIFT_KEYS = {42, 54}  # KEY_LEFTSHIFT, KEY_RIGHTSHIFT
+_KEY_OF_SYMBOL = {
+    symbol: (code, shifted)
+    for code, pair in sorted(US_KEYS.items(), reverse=True)
+    for shifted, symbol in ((True, pair[1]), (False, pair[0]))
+}
 
 
 def encode_keystrokes(symbols: list[str], *, t0_s: float = 0.0, key_interval_s: float = 0.002) -> bytes:
@@ -180,8 +214,9 @@ class EvdevWedge:
         Key code -> (symbol, shifted symbol); the US layout by default, as wedges usually assume.
     """
 
-    def __init__(self, path: str, decoder: WedgeDecoder, *, grab: bool = True,
-                 layout: dict[int, tuple[str, str]] | None = None) -> None:
+    def __init__(
+        self, path: str, decoder: WedgeDecoder, *, grab: bool = True, layout: dict[int, tuple[str, str]] | None = None
+    ) -> None:
         self.name = decoder.name
         self.decoder = decoder
         self.layout = layout or US_KEYS
@@ -203,7 +238,7 @@ class EvdevWedge:
             code, value = int(event["code"]), int(event["value"])
             if code in _SHIFT_KEYS:
                 self._shift = value != 0
-            elif value == 1:   # a press; releases (0) and auto-repeats (2) carry no new character
+            elif value == 1:  # a press; releases (0) and auto-repeats (2) carry no new character
                 pair = self.layout.get(code, (f"key{code}", f"key{code}"))
                 reading = self.decoder.feed(pair[1] if self._shift else pair[0])
                 if reading is not None:
@@ -213,8 +248,13 @@ class EvdevWedge:
     def settings(self) -> dict[str, object]:
         """What a run manifest stores about the wedge: its device binding."""
         binding = self._stream.binding
-        return {"sensor": "keyboard-wedge calliper (evdev)", "name": self.name, "path": binding.path,
-                "device_name": binding.name, "is_device": binding.is_device}
+        return {
+            "sensor": "keyboard-wedge calliper (evdev)",
+            "name": self.name,
+            "path": binding.path,
+            "device_name": binding.name,
+            "is_device": binding.is_device,
+        }
 
     @property
     def exhausted(self) -> bool:

@@ -61,8 +61,15 @@ def _median(channel: np.ndarray) -> float:
     return (lower + upper) / 2
 
 
-def detect_spot(image: np.ndarray, *, min_contrast: float = 25.0, level: float = 0.2,
-                saturation: float = 255.0, max_area_px: int = 5000, source: str = "camera") -> SpotDetection:
+def detect_spot(
+    image: np.ndarray,
+    *,
+    min_contrast: float = 25.0,
+    level: float = 0.2,
+    saturation: float = 255.0,
+    max_area_px: int = 5000,
+    source: str = "camera",
+) -> SpotDetection:
     """Find the laser spot and its intensity-weighted centroid.
 
     The background is the image median. Pixels of the connected blob around the brightest (smoothed) pixel that
@@ -79,30 +86,42 @@ def detect_spot(image: np.ndarray, *, min_contrast: float = 25.0, level: float =
     v0, u0 = np.unravel_index(int(np.argmax(smooth)), smooth.shape)
     contrast = float(smooth[v0, u0] - background)
     if contrast < min_contrast:
-        raise MalformedSample(f"{source}: no laser spot (peak {contrast:.1f} grey levels above background, "
-                              f"expected >= {min_contrast:g}); check the laser, the exposure and the aim")
+        raise MalformedSample(
+            f"{source}: no laser spot (peak {contrast:.1f} grey levels above background, "
+            f"expected >= {min_contrast:g}); check the laser, the exposure and the aim"
+        )
     threshold = background + level * contrast
     mask = (smooth > threshold).astype(np.uint8)
     _, labels, stats, _ = cv2.connectedComponentsWithStats(mask, connectivity=8)
     label = labels[v0, u0]
     area = int(stats[label, cv2.CC_STAT_AREA])
     if area > max_area_px:
-        raise MalformedSample(f"{source}: bright region of {area} px around ({u0}, {v0}), expected a spot of at "
-                              f"most {max_area_px} px; stray light or wrong exposure")
+        raise MalformedSample(
+            f"{source}: bright region of {area} px around ({u0}, {v0}), expected a spot of at "
+            f"most {max_area_px} px; stray light or wrong exposure"
+        )
     # the blob's bounding box holds every pixel it weighs: the centroid sums over it, not over the whole frame
-    left, top, width, height = (int(stats[label, k]) for k in (cv2.CC_STAT_LEFT, cv2.CC_STAT_TOP,
-                                                                cv2.CC_STAT_WIDTH, cv2.CC_STAT_HEIGHT))
+    left, top, width, height = (
+        int(stats[label, k]) for k in (cv2.CC_STAT_LEFT, cv2.CC_STAT_TOP, cv2.CC_STAT_WIDTH, cv2.CC_STAT_HEIGHT)
+    )
     box = (slice(top, top + height), slice(left, left + width))
     blob = labels[box] == label
     pixels = grey[box]
     if np.any(pixels[blob] >= saturation):
-        raise MalformedSample(f"{source}: spot saturated ({int(np.sum(pixels[blob] >= saturation))} px at "
-                              f"{saturation:g}); reduce the exposure or laser power")
+        raise MalformedSample(
+            f"{source}: spot saturated ({int(np.sum(pixels[blob] >= saturation))} px at "
+            f"{saturation:g}); reduce the exposure or laser power"
+        )
     weights = np.where(blob, np.clip(pixels - threshold, 0.0, None), 0.0)
     total = weights.sum()
     rows, cols = np.indices(pixels.shape)
-    return SpotDetection(float((weights * (cols + left)).sum() / total), float((weights * (rows + top)).sum() / total),
-                         float(pixels[blob].max()), contrast, area)
+    return SpotDetection(
+        float((weights * (cols + left)).sum() / total),
+        float((weights * (rows + top)).sum() / total),
+        float(pixels[blob].max()),
+        contrast,
+        area,
+    )
 
 
 @dataclass(frozen=True, eq=False)
@@ -129,12 +148,17 @@ class PlaneCalibration:
         return points.reshape(uv.shape)
 
     def to_dict(self) -> dict[str, object]:
-        return {"calibration_id": self.calibration_id, "date": self.date, "rms_mm": self.rms_mm,
-                "homography_px_to_mm": self.homography_px_to_mm.tolist()}
+        return {
+            "calibration_id": self.calibration_id,
+            "date": self.date,
+            "rms_mm": self.rms_mm,
+            "homography_px_to_mm": self.homography_px_to_mm.tolist(),
+        }
 
 
-def calibrate_from_chessboard(image: np.ndarray, pattern_size: tuple[int, int], square_mm: float, *,
-                              calibration_id: str, date: str | None = None) -> PlaneCalibration:
+def calibrate_from_chessboard(
+    image: np.ndarray, pattern_size: tuple[int, int], square_mm: float, *, calibration_id: str, date: str | None = None
+) -> PlaneCalibration:
     """Fit the pixel -> mm homography from a chessboard target in the measuring plane.
 
     ``findChessboardCorners`` + ``cornerSubPix`` locate the ``pattern_size`` inner corners; the target frame has
@@ -144,20 +168,23 @@ def calibrate_from_chessboard(image: np.ndarray, pattern_size: tuple[int, int], 
     if not square_mm > 0:
         raise ConfigError(f"camera calibration: square_mm = {square_mm!r}, expected the square size in mm")
     grey = _channel(image, "camera calibration").astype(np.uint8)
-    found, corners = cv2.findChessboardCorners(grey, pattern_size,
-                                               flags=cv2.CALIB_CB_ADAPTIVE_THRESH | cv2.CALIB_CB_NORMALIZE_IMAGE)
+    found, corners = cv2.findChessboardCorners(
+        grey, pattern_size, flags=cv2.CALIB_CB_ADAPTIVE_THRESH | cv2.CALIB_CB_NORMALIZE_IMAGE
+    )
     if not found:
-        raise MalformedSample(f"camera calibration: chessboard with {pattern_size} inner corners not found; "
-                              "check pattern_size, focus, lighting and that the whole target is in view")
+        raise MalformedSample(
+            f"camera calibration: chessboard with {pattern_size} inner corners not found; "
+            "check pattern_size, focus, lighting and that the whole target is in view"
+        )
     criteria = (cv2.TERM_CRITERIA_EPS + cv2.TERM_CRITERIA_MAX_ITER, 100, 1e-4)
     corners = cv2.cornerSubPix(grey, corners, (5, 5), (-1, -1), criteria).reshape(-1, 2)
     if np.linalg.norm(corners[0]) > np.linalg.norm(corners[-1]):
-        corners = corners[::-1]   # the detector may start from either end of the grid
+        corners = corners[::-1]  # the detector may start from either end of the grid
     nx, ny = pattern_size
     target_mm = np.array([(i * square_mm, j * square_mm) for j in range(ny) for i in range(nx)], float)
     homography, _ = cv2.findHomography(corners, target_mm, 0)
     residual = cv2.perspectiveTransform(corners.reshape(-1, 1, 2), homography).reshape(-1, 2) - target_mm
-    rms = float(np.sqrt(np.mean(np.sum(residual ** 2, axis=1))))
+    rms = float(np.sqrt(np.mean(np.sum(residual**2, axis=1))))
     return PlaneCalibration(homography, rms, calibration_id, date or _dt.date.today().isoformat())
 
 
@@ -175,8 +202,15 @@ class LaserSpotCamera:
         Returns the frame after the one just read (a series of frames at one rest); default ``grab``.
     """
 
-    def __init__(self, grab: Callable[[], np.ndarray], calibration: PlaneCalibration, *, name: str = "camera",
-                 grab_next: Callable[[], np.ndarray] | None = None, **detect_options: float) -> None:
+    def __init__(
+        self,
+        grab: Callable[[], np.ndarray],
+        calibration: PlaneCalibration,
+        *,
+        name: str = "camera",
+        grab_next: Callable[[], np.ndarray] | None = None,
+        **detect_options: float,
+    ) -> None:
         self.name = name
         self._grab = grab
         self._grab_next = grab_next or grab
@@ -186,8 +220,12 @@ class LaserSpotCamera:
 
     def settings(self) -> dict[str, object]:
         """What a run manifest stores about this camera: detection options and the plane calibration."""
-        return {"sensor": "camera laser spot", "name": self.name, "detect_options": dict(self.detect_options),
-                "calibration": self.calibration.to_dict()}
+        return {
+            "sensor": "camera laser spot",
+            "name": self.name,
+            "detect_options": dict(self.detect_options),
+            "calibration": self.calibration.to_dict(),
+        }
 
     def read(self, *, next_frame: bool = False) -> Reading:
         """Grab a frame, detect the spot, and return its plane position (mm); raw holds the pixels. ``next_frame``:
@@ -198,11 +236,20 @@ class LaserSpotCamera:
         # driver handing back its last buffer, and the spot in it is stale
         digest = hashlib.blake2b(np.ascontiguousarray(frame).tobytes(), digest_size=16).digest()
         if digest == self._last_frame_digest:
-            raise SensorStalled(f"{self.name}: this frame is identical to the previous one, bit for bit (a frozen "
-                                "camera or driver); the reading is refused; check the camera, then resume the run")
+            raise SensorStalled(
+                f"{self.name}: this frame is identical to the previous one, bit for bit (a frozen "
+                "camera or driver); the reading is refused; check the camera, then resume the run"
+            )
         self._last_frame_digest = digest
         spot = detect_spot(frame, source=self.name, **self.detect_options)
         x_mm, y_mm = self.calibration.pixel_to_mm(np.array([spot.u_px, spot.v_px]))
-        return Reading((float(x_mm), float(y_mm)), "mm", t_mono, t_wall, raw=(spot.u_px, spot.v_px),
-                       calibration_id=self.calibration.calibration_id, source=self.name,
-                       note=f"contrast={spot.contrast:.0f} area_px={spot.area_px}")
+        return Reading(
+            (float(x_mm), float(y_mm)),
+            "mm",
+            t_mono,
+            t_wall,
+            raw=(spot.u_px, spot.v_px),
+            calibration_id=self.calibration.calibration_id,
+            source=self.name,
+            note=f"contrast={spot.contrast:.0f} area_px={spot.area_px}",
+        )

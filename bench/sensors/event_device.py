@@ -71,11 +71,15 @@ def _open(kind: str, label: str, path: str) -> int:
             return fd
         return os.open(path, os.O_RDONLY | os.O_NONBLOCK)
     except FileNotFoundError:
-        raise LinkError(f"{kind} {label!r}: {path} does not exist; is the {kind} plugged in? "
-                        "List /dev/input/by-path/ and bind the device again") from None
+        raise LinkError(
+            f"{kind} {label!r}: {path} does not exist; is the {kind} plugged in? "
+            "List /dev/input/by-path/ and bind the device again"
+        ) from None
     except PermissionError:
-        raise LinkError(f"{kind} {label!r}: permission denied on {path}; add a udev rule giving your group "
-                        "access to the device (sensors.md §4.7), then re-plug it") from None
+        raise LinkError(
+            f"{kind} {label!r}: permission denied on {path}; add a udev rule giving your group "
+            "access to the device (sensors.md §4.7), then re-plug it"
+        ) from None
 
 
 class EventStream:
@@ -95,8 +99,14 @@ class EventStream:
     def __init__(self, path: str, *, kind: str, label: str, grab: bool = False) -> None:
         self._fd = _open(kind, label, path)
         is_device = stat.S_ISCHR(os.fstat(self._fd).st_mode)
-        self.binding = DeviceBinding(label, path, _query_string(self._fd, 0x06) if is_device else "",
-                                     _query_string(self._fd, 0x07) if is_device else "", is_device, kind)
+        self.binding = DeviceBinding(
+            label,
+            path,
+            _query_string(self._fd, 0x06) if is_device else "",
+            _query_string(self._fd, 0x07) if is_device else "",
+            is_device,
+            kind,
+        )
         self.exhausted = False
         if is_device:
             self._setup_device(grab)
@@ -114,15 +124,16 @@ class EventStream:
             except OSError as exc:
                 self.close()
                 hint = "another program holds it" if exc.errno == errno.EBUSY else exc.strerror
-                raise LinkError(f"{self.binding}: exclusive grab failed ({hint}); close that program "
-                                "or run without grab") from None
+                raise LinkError(
+                    f"{self.binding}: exclusive grab failed ({hint}); close that program or run without grab"
+                ) from None
 
     def fileno(self) -> int:
         return self._fd
 
     def wait(self, timeout_s: float) -> bool:
         """Wait up to ``timeout_s`` until data (or the end of a pipe or file) can be read."""
-        with selectors.PollSelector() as selector:   # epoll refuses regular files
+        with selectors.PollSelector() as selector:  # epoll refuses regular files
             selector.register(self._fd, selectors.EVENT_READ)
             return bool(selector.select(timeout_s))
 
@@ -135,8 +146,10 @@ class EventStream:
             except BlockingIOError:
                 return chunks
             except OSError as exc:
-                raise LinkError(f"{self.binding}: read failed ({exc.strerror}); the device was probably "
-                                "unplugged: the run segment is invalid, re-bind and restart the cycle") from None
+                raise LinkError(
+                    f"{self.binding}: read failed ({exc.strerror}); the device was probably "
+                    "unplugged: the run segment is invalid, re-bind and restart the cycle"
+                ) from None
             if not data:
                 self.exhausted = True
                 return chunks

@@ -35,10 +35,14 @@ REL_X, REL_Y = 0x00, 0x01
 EVENT = struct.Struct("llHHi")
 _LONG = struct.calcsize("l")
 #: The same layout as a numpy dtype, for bulk decoding.
-EVENT_DTYPE = np.dtype({"names": ["sec", "usec", "type", "code", "value"],
-                        "formats": [f"i{_LONG}", f"i{_LONG}", "u2", "u2", "i4"],
-                        "offsets": [0, _LONG, 2 * _LONG, 2 * _LONG + 2, 2 * _LONG + 4],
-                        "itemsize": EVENT.size})
+EVENT_DTYPE = np.dtype(
+    {
+        "names": ["sec", "usec", "type", "code", "value"],
+        "formats": [f"i{_LONG}", f"i{_LONG}", "u2", "u2", "i4"],
+        "offsets": [0, _LONG, 2 * _LONG, 2 * _LONG + 2, 2 * _LONG + 4],
+        "itemsize": EVENT.size,
+    }
+)
 
 
 @dataclass(frozen=True)
@@ -132,7 +136,7 @@ class FrameAssembler:
             frames, used = self._feed_events_loop(events)
         else:
             frames, used = self._feed_events_vectorised(events, report)
-        self._pending = buffer[used * EVENT.size:]
+        self._pending = buffer[used * EVENT.size :]
         return frames
 
     @staticmethod
@@ -145,8 +149,9 @@ class FrameAssembler:
         sums = []
         for code in (REL_X, REL_Y):
             sel = rel & (events["code"] == code)
-            sums.append(np.bincount(frame_of_event[sel], weights=events["value"][sel],
-                                    minlength=n_frames).astype(np.int64))
+            sums.append(
+                np.bincount(frame_of_event[sel], weights=events["value"][sel], minlength=n_frames).astype(np.int64)
+            )
         ends = events[report]
         t_s = ends["sec"] + ends["usec"] * 1e-6
         return MotionFrames(t_s, sums[0], sums[1], np.ones(n_frames, bool)), last + 1
@@ -170,5 +175,6 @@ class FrameAssembler:
                 self._dropping = False
                 fx = fy = 0
                 used = k + 1
-        return MotionFrames(np.array(t_out, float), np.array(dx_out, np.int64), np.array(dy_out, np.int64),
-                            np.array(valid_out, bool)), used
+        return MotionFrames(
+            np.array(t_out, float), np.array(dx_out, np.int64), np.array(dy_out, np.int64), np.array(valid_out, bool)
+        ), used

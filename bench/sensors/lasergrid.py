@@ -36,13 +36,36 @@ __all__ = [
 ]
 
 #: Laser names and offsets from BE in the screen's (i right, j up) axes, mm (§4.4, reconstructed table).
-LASER_NAMES = ("BE", "G5-a", "G5-b", "G5-c", "G2.5-W", "G2.5-E", "G2.5-S", "G2.5-N",
-               "G2.5-SW", "G2.5-NW", "G2.5-SE", "G2.5-NE")
-LASER_OFFSETS_MM = np.array([
-    (0.0, 0.0), (15.0, 0.0), (0.0, -15.0), (15.0, -15.0),
-    (-22.5, 0.0), (22.5, 0.0), (0.0, -22.5), (0.0, 22.5),
-    (-22.5, -22.5), (-22.5, 22.5), (22.5, -22.5), (22.5, 22.5),
-])
+LASER_NAMES = (
+    "BE",
+    "G5-a",
+    "G5-b",
+    "G5-c",
+    "G2.5-W",
+    "G2.5-E",
+    "G2.5-S",
+    "G2.5-N",
+    "G2.5-SW",
+    "G2.5-NW",
+    "G2.5-SE",
+    "G2.5-NE",
+)
+LASER_OFFSETS_MM = np.array(
+    [
+        (0.0, 0.0),
+        (15.0, 0.0),
+        (0.0, -15.0),
+        (15.0, -15.0),
+        (-22.5, 0.0),
+        (22.5, 0.0),
+        (0.0, -22.5),
+        (0.0, 22.5),
+        (-22.5, -22.5),
+        (-22.5, 22.5),
+        (22.5, -22.5),
+        (22.5, 22.5),
+    ]
+)
 LASER_OFFSETS_MM.setflags(write=False)
 #: Smallest Chebyshev distance between two candidates of one sensor (mm): the prior must be within half (§4.7).
 MIN_CANDIDATE_SEPARATION_MM = 7.5
@@ -87,8 +110,10 @@ class Screen:
         if self.index_base not in (0, 1):
             raise ConfigError(f"screen {self.name}: index_base = {self.index_base!r}, expected 0 or 1")
         if self.index_map is not None and np.shape(self.index_map) != (self.size * self.size, 2):
-            raise ConfigError(f"screen {self.name}: index_map has shape {np.shape(self.index_map)}, "
-                              f"expected ({self.size * self.size}, 2) rows of (i, j)")
+            raise ConfigError(
+                f"screen {self.name}: index_map has shape {np.shape(self.index_map)}, "
+                f"expected ({self.size * self.size}, 2) rows of (i, j)"
+            )
 
     @property
     def offsets_mm(self) -> np.ndarray:
@@ -99,8 +124,10 @@ class Screen:
         """(i, j) of a reported sensor number; raises ``ConfigError`` outside the screen."""
         k = int(index) - self.index_base
         if not 0 <= k < self.size * self.size:
-            raise ConfigError(f"screen {self.name}: sensor index = {index!r}, expected "
-                              f"{self.index_base}..{self.size * self.size - 1 + self.index_base}")
+            raise ConfigError(
+                f"screen {self.name}: sensor index = {index!r}, expected "
+                f"{self.index_base}..{self.size * self.size - 1 + self.index_base}"
+            )
         if self.index_map is not None:
             i, j = self.index_map[k]
             return int(i), int(j)
@@ -121,8 +148,9 @@ class Screen:
     def be_from_pose(self, position_mm: np.ndarray) -> np.ndarray:
         """Where this screen's BE laser points, in screen-plane coordinates: shape (..., 3) -> (..., 2)."""
         position_mm = np.asarray(position_mm, float)
-        return np.stack([position_mm[..., self.axes[0]], position_mm[..., self.axes[1]] - self.laser_offset_mm],
-                        axis=-1)
+        return np.stack(
+            [position_mm[..., self.axes[0]], position_mm[..., self.axes[1]] - self.laser_offset_mm], axis=-1
+        )
 
 
 @dataclass(frozen=True)
@@ -199,8 +227,10 @@ def parse_report(report: bytes, *, source: str = "laser grid") -> GridFrame:
     while position < len(report):
         match = _REPORT_TOKEN.match(report, position)
         if match is None:
-            raise MalformedSample(f"{source}: unexpected bytes {report[position:position + 8]!r} at offset "
-                                  f"{position} of {report!r}; expected H<n>X, V<n>X, h or v")
+            raise MalformedSample(
+                f"{source}: unexpected bytes {report[position : position + 8]!r} at offset "
+                f"{position} of {report!r}; expected H<n>X, V<n>X, h or v"
+            )
         if match.group(1):
             hits[match.group(1)].add(int(match.group(2)))
         position = match.end()
@@ -211,9 +241,15 @@ def _chebyshev(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return np.max(np.abs(a - b), axis=-1)
 
 
-def decode_screen(screen: Screen, indices: list[int] | tuple[int, ...], prior_be_mm: np.ndarray, *,
-                  spot_half_width_mm: float = 1.0, gate_mm: float = 3.75,
-                  prior_uncertainty_mm: float = 0.0) -> ScreenDecode:
+def decode_screen(
+    screen: Screen,
+    indices: list[int] | tuple[int, ...],
+    prior_be_mm: np.ndarray,
+    *,
+    spot_half_width_mm: float = 1.0,
+    gate_mm: float = 3.75,
+    prior_uncertainty_mm: float = 0.0,
+) -> ScreenDecode:
     """Decode the sensor numbers one screen reported into the BE position on that screen (§4.6).
 
     Parameters
@@ -240,30 +276,40 @@ def decode_screen(screen: Screen, indices: list[int] | tuple[int, ...], prior_be
     if len(indices) == 0:
         return ScreenDecode(ScreenStatus.NO_HIT, tuple(prior), reason="no sensor lit; prior kept")
     centres = np.array([screen.centre_mm(*screen.cell_of_index(k)) for k in indices])
-    candidates = centres[:, None, :] - screen.offsets_mm[None, :, :]          # (hits, 12, 2)
+    candidates = centres[:, None, :] - screen.offsets_mm[None, :, :]  # (hits, 12, 2)
     # every laser of the first hit at once (a decoder runs per frame): how far each other hit's 12 candidates lie
     # from each of its 12, (hits-1, 12, 12); a laser explains the frame when every other hit has a candidate near it
     apart = _chebyshev(candidates[1:, None, :, :], candidates[0][None, :, None, :])
     firsts = np.flatnonzero((apart <= 2 * spot_half_width_mm).any(axis=2).all(axis=0))
     if firsts.size == 0:
-        return ScreenDecode(ScreenStatus.FAULT, tuple(prior),
-                            reason=f"sensors {list(indices)} cannot all be lit by one BE position "
-                                   "(spurious light, wrong index map or misalignment); prior kept")
+        return ScreenDecode(
+            ScreenStatus.FAULT,
+            tuple(prior),
+            reason=f"sensors {list(indices)} cannot all be lit by one BE position "
+            "(spurious light, wrong index map or misalignment); prior kept",
+        )
     # the other hits' nearest candidates to each explaining laser: (solutions, hits)
     chosen = np.column_stack([firsts, apart[:, firsts, :].argmin(axis=2).T])
-    points = candidates[np.arange(len(indices)), chosen].mean(axis=1)         # (solutions, 2)
+    points = candidates[np.arange(len(indices)), chosen].mean(axis=1)  # (solutions, 2)
     distances = _chebyshev(points, prior)
     order = np.argsort(distances)
     best, lasers = points[order[0]], tuple(LASER_NAMES[c] for c in chosen[order[0]])
     margin = float(distances[order[1]] - distances[order[0]]) if len(order) > 1 else float("inf")
     if distances[order[0]] >= gate_mm:
-        status, reason = ScreenStatus.AMBIGUOUS, (f"nearest candidate is {distances[order[0]]:.2f} mm from the "
-                                                   f"prior, outside the {gate_mm} mm gate")
+        status, reason = (
+            ScreenStatus.AMBIGUOUS,
+            (f"nearest candidate is {distances[order[0]]:.2f} mm from the prior, outside the {gate_mm} mm gate"),
+        )
     elif margin < 2 * spot_half_width_mm:
         status, reason = ScreenStatus.AMBIGUOUS, f"two candidates within {margin:.2f} mm of each other"
     elif prior_uncertainty_mm >= MIN_CANDIDATE_SEPARATION_MM / 2:
-        status, reason = ScreenStatus.AMBIGUOUS, (f"prior uncertainty {prior_uncertainty_mm} mm >= "
-                                                   f"{MIN_CANDIDATE_SEPARATION_MM / 2} mm: laser identity not assured")
+        status, reason = (
+            ScreenStatus.AMBIGUOUS,
+            (
+                f"prior uncertainty {prior_uncertainty_mm} mm >= "
+                f"{MIN_CANDIDATE_SEPARATION_MM / 2} mm: laser identity not assured"
+            ),
+        )
     else:
         status, reason = ScreenStatus.OK, ""
     return ScreenDecode(status, (float(best[0]), float(best[1])), lasers, margin, reason)
@@ -280,8 +326,13 @@ def screen_axes_mm(screen: Screen, result: ScreenDecode) -> dict[int, float]:
     return {axis: float(value) for axis, value in zip(screen.axes, values)}
 
 
-def decode_frame(geometry: GridGeometry, horizontal_indices: list[int] | tuple[int, ...],
-                 vertical_indices: list[int] | tuple[int, ...], prior_mm: np.ndarray, **options: float) -> GridDecode:
+def decode_frame(
+    geometry: GridGeometry,
+    horizontal_indices: list[int] | tuple[int, ...],
+    vertical_indices: list[int] | tuple[int, ...],
+    prior_mm: np.ndarray,
+    **options: float,
+) -> GridDecode:
     """Decode both screens into the end-effector centre (x, y, z) in mm (§4.6 step 7).
 
     The horizontal screen gives (x, y), the vertical one (y, z) after adding back its laser offset. y is taken from
@@ -313,8 +364,15 @@ def decode_frame(geometry: GridGeometry, horizontal_indices: list[int] | tuple[i
     if h.status is ScreenStatus.OK and v.status is ScreenStatus.OK:
         disagreement = float(v.be_mm[0] - h.be_mm[1])
     error = np.where(measured, position - prior, 0.0)
-    return GridDecode(tuple(float(p) for p in position), tuple(measured), tuple(float(e) for e in error), h, v,
-                      disagreement, disagreement is not None and abs(disagreement) > 2.5)
+    return GridDecode(
+        tuple(float(p) for p in position),
+        tuple(measured),
+        tuple(float(e) for e in error),
+        h,
+        v,
+        disagreement,
+        disagreement is not None and abs(disagreement) > 2.5,
+    )
 
 
 class LaserGridSensor:
@@ -336,8 +394,15 @@ class LaserGridSensor:
     value holds the prior on unmeasured axes.
     """
 
-    def __init__(self, frames: Callable[[], GridFrame], prior_mm: Callable[[], np.ndarray], *,
-                 geometry: GridGeometry = GridGeometry(), name: str = "laser-grid", **options: float) -> None:
+    def __init__(
+        self,
+        frames: Callable[[], GridFrame],
+        prior_mm: Callable[[], np.ndarray],
+        *,
+        geometry: GridGeometry = GridGeometry(),
+        name: str = "laser-grid",
+        **options: float,
+    ) -> None:
         self.name = name
         self._frames = frames
         self._prior = prior_mm
@@ -346,12 +411,26 @@ class LaserGridSensor:
 
     def settings(self) -> dict[str, object]:
         """What a run manifest stores about the laser grid: geometry choices and decoding options."""
-        screens = {s.name: {"axes": list(s.axes), "first_centre_mm": list(s.first_centre_mm),
-                            "laser_offset_mm": s.laser_offset_mm, "pitch_mm": s.pitch_mm, "size": s.size,
-                            "index_base": s.index_base, "mirror": s.mirror, "index_map": s.index_map is not None}
-                   for s in (self.geometry.horizontal, self.geometry.vertical)}
-        return {"sensor": "laser grid", "name": self.name, "calibration_id": self.geometry.calibration_id,
-                "screens": screens, "options": dict(self.options)}
+        screens = {
+            s.name: {
+                "axes": list(s.axes),
+                "first_centre_mm": list(s.first_centre_mm),
+                "laser_offset_mm": s.laser_offset_mm,
+                "pitch_mm": s.pitch_mm,
+                "size": s.size,
+                "index_base": s.index_base,
+                "mirror": s.mirror,
+                "index_map": s.index_map is not None,
+            }
+            for s in (self.geometry.horizontal, self.geometry.vertical)
+        }
+        return {
+            "sensor": "laser grid",
+            "name": self.name,
+            "calibration_id": self.geometry.calibration_id,
+            "screens": screens,
+            "options": dict(self.options),
+        }
 
     def read(self) -> Reading:
         frame = self._frames()
@@ -363,5 +442,14 @@ class LaserGridSensor:
         if result.misaligned:
             note += f"; screens disagree on y by {result.y_disagreement_mm:+.2f} mm (misalignment)"
         raw = f"H:{','.join(map(str, frame.horizontal))} V:{','.join(map(str, frame.vertical))}"
-        return Reading(result.position_mm, "mm", t_mono, t_wall, raw=raw, calibration_id=self.geometry.calibration_id,
-                       source=self.name, valid=valid, note=note)
+        return Reading(
+            result.position_mm,
+            "mm",
+            t_mono,
+            t_wall,
+            raw=raw,
+            calibration_id=self.geometry.calibration_id,
+            source=self.name,
+            valid=valid,
+            note=note,
+        )

@@ -60,10 +60,17 @@ def list_mice(*, dev_root: str = "/dev/input", sysfs_root: str = "/sys/class/inp
     nodes = sorted(Path(sysfs_root).glob("event*"), key=lambda p: int(p.name[5:]) if p.name[5:].isdigit() else -1)
     for node in nodes:
         words = _read_text(node / "device" / "capabilities" / "rel").split()
-        if not words or int(words[-1], 16) & 0b11 != 0b11:   # REL_X and REL_Y are bits 0 and 1 of the last word
+        if not words or int(words[-1], 16) & 0b11 != 0b11:  # REL_X and REL_Y are bits 0 and 1 of the last word
             continue
-        found.append(DeviceBinding(node.name, stable.get(node.name, str(Path(dev_root) / node.name)),
-                                   _read_text(node / "device" / "name"), _read_text(node / "device" / "phys"), True))
+        found.append(
+            DeviceBinding(
+                node.name,
+                stable.get(node.name, str(Path(dev_root) / node.name)),
+                _read_text(node / "device" / "name"),
+                _read_text(node / "device" / "phys"),
+                True,
+            )
+        )
     return found
 
 
@@ -85,8 +92,15 @@ class EvdevMouse:
         Read through a child process (:meth:`start_reader_process`) from the start.
     """
 
-    def __init__(self, path: str, calibration: CountsCalibration, *, label: str = "mouse",
-                 grab: bool = False, reader_process: bool = False) -> None:
+    def __init__(
+        self,
+        path: str,
+        calibration: CountsCalibration,
+        *,
+        label: str = "mouse",
+        grab: bool = False,
+        reader_process: bool = False,
+    ) -> None:
         self.name = label
         self.calibration = calibration
         self._stream = EventStream(path, kind="mouse", label=label, grab=grab)
@@ -139,10 +153,17 @@ class EvdevMouse:
 
     def settings(self) -> dict[str, object]:
         """What a run manifest stores about this sensor: binding and calibration (id, hash, matrix)."""
-        return {"sensor": "evdev mouse", "label": self.name, "path": self.binding.path, "name": self.binding.name,
-                "phys": self.binding.phys, "is_device": self.binding.is_device,
-                "calibration": self.calibration.to_dict(), "calibration_hash": self.calibration.content_hash(),
-                "reader": self._reader_kind()}
+        return {
+            "sensor": "evdev mouse",
+            "label": self.name,
+            "path": self.binding.path,
+            "name": self.binding.name,
+            "phys": self.binding.phys,
+            "is_device": self.binding.is_device,
+            "calibration": self.calibration.to_dict(),
+            "calibration_hash": self.calibration.content_hash(),
+            "reader": self._reader_kind(),
+        }
 
     def _reader_kind(self) -> str:
         """How the device is read: by this process, or by a reader process (at real-time priority or not)."""
@@ -164,9 +185,17 @@ class EvdevMouse:
             t_wall -= t_mono - self._last_t_s
             t_mono = self._last_t_s
         x_mm, y_mm = self.calibration.counts_to_mm(self.counts)
-        return Reading((float(x_mm), float(y_mm)), "mm", t_mono, t_wall, raw=tuple(int(c) for c in self.counts),
-                       calibration_id=self.calibration.calibration_id, source=str(self.binding),
-                       valid=self.segment_valid, note="" if self.segment_valid else "SYN_DROPPED: counts lost")
+        return Reading(
+            (float(x_mm), float(y_mm)),
+            "mm",
+            t_mono,
+            t_wall,
+            raw=tuple(int(c) for c in self.counts),
+            calibration_id=self.calibration.calibration_id,
+            source=str(self.binding),
+            valid=self.segment_valid,
+            note="" if self.segment_valid else "SYN_DROPPED: counts lost",
+        )
 
     def close(self) -> None:
         """Stop the reader process if any, close the device; the kernel releases any grab with it."""
@@ -181,8 +210,10 @@ class EvdevMouse:
         self.close()
 
     def __repr__(self) -> str:
-        return (f"EvdevMouse(path={self.binding.path!r}, label={self.name!r}, "
-                f"calibration={self.calibration.calibration_id!r}, device={self.binding.is_device})")
+        return (
+            f"EvdevMouse(path={self.binding.path!r}, label={self.name!r}, "
+            f"calibration={self.calibration.calibration_id!r}, device={self.binding.is_device})"
+        )
 
 
 class MouseGroup:

@@ -34,8 +34,9 @@ def parse_mcu_line(line: bytes, *, source: str = "mouse MCU") -> McuSample:
     """Parse ``t_us,dx,dy[,squal]`` (integers; optional spaces); anything else raises ``MalformedSample``."""
     match = _LINE.fullmatch(line)
     if match is None:
-        raise MalformedSample(f"{source}: malformed line {line!r}, expected 't_us,dx,dy[,squal]' with integers; "
-                              "sample not stored")
+        raise MalformedSample(
+            f"{source}: malformed line {line!r}, expected 't_us,dx,dy[,squal]' with integers; sample not stored"
+        )
     t_us, dx, dy, squal = match.groups()
     return McuSample(int(t_us), int(dx), int(dy), None if squal is None else int(squal))
 
@@ -55,8 +56,9 @@ class McuMouse:
         Reports with a lower surface quality invalidate the segment (lift-off, poor surface).
     """
 
-    def __init__(self, port: Port, calibration: CountsCalibration, *, label: str = "mouse-mcu",
-                 min_squal: int = 30) -> None:
+    def __init__(
+        self, port: Port, calibration: CountsCalibration, *, label: str = "mouse-mcu", min_squal: int = 30
+    ) -> None:
         self.name = label
         self.calibration = calibration
         self.min_squal = min_squal
@@ -89,9 +91,14 @@ class McuMouse:
 
     def settings(self) -> dict[str, object]:
         """What a run manifest stores about this sensor: port, SQUAL threshold and calibration."""
-        return {"sensor": "MCU mouse stream", "label": self.name, "port": self._lines.name,
-                "min_squal": self.min_squal, "calibration": self.calibration.to_dict(),
-                "calibration_hash": self.calibration.content_hash()}
+        return {
+            "sensor": "MCU mouse stream",
+            "label": self.name,
+            "port": self._lines.name,
+            "min_squal": self.min_squal,
+            "calibration": self.calibration.to_dict(),
+            "calibration_hash": self.calibration.content_hash(),
+        }
 
     def read(self, n_samples: int = 1, timeout_s: float = 1.0) -> Reading:
         """Read ``n_samples`` reports, then return the integrated displacement (mm) since :meth:`rezero`."""
@@ -100,6 +107,14 @@ class McuMouse:
         t_mono, t_wall = now()
         x_mm, y_mm = self.calibration.counts_to_mm(self.counts)
         squal = "" if self._last is None or self._last.squal is None else f"squal={self._last.squal}"
-        return Reading((float(x_mm), float(y_mm)), "mm", t_mono, t_wall, raw=tuple(int(c) for c in self.counts),
-                       calibration_id=self.calibration.calibration_id, source=self._lines.name,
-                       valid=self.segment_valid, note="; ".join([squal, *self.notes]).strip("; "))
+        return Reading(
+            (float(x_mm), float(y_mm)),
+            "mm",
+            t_mono,
+            t_wall,
+            raw=tuple(int(c) for c in self.counts),
+            calibration_id=self.calibration.calibration_id,
+            source=self._lines.name,
+            valid=self.segment_valid,
+            note="; ".join([squal, *self.notes]).strip("; "),
+        )

@@ -71,16 +71,19 @@ class ReaderProcess:
         self._failure: str | None = None  # why the child failed: raised by every later read, never forgotten
         self._pending = b""
         command = [sys.executable, "-I", _CHILD, str(fd), *([] if realtime else ["normal"])]
-        self._process = subprocess.Popen(command, pass_fds=(fd,), stdin=subprocess.PIPE, stdout=subprocess.PIPE,
-                                         stderr=subprocess.PIPE)
+        self._process = subprocess.Popen(
+            command, pass_fds=(fd,), stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.PIPE
+        )
         self._finalizer = weakref.finalize(self, _reap, self._process)
         started = select.select([self._process.stderr], [], [], _START_S)[0]
         ready = self._process.stderr.read(1) if started else b""
         if ready not in (b"R", b"N"):  # started, or why not
             why = "" if not started else (ready + self._process.stderr.read(2000)).decode(errors="replace").strip()
             self._finalizer()
-            raise LinkError(f"{name}: the reader process did not start within {_START_S:g} s"
-                            + (f": {why.splitlines()[-1]}" if why else f" (exit status {self._process.returncode})"))
+            raise LinkError(
+                f"{name}: the reader process did not start within {_START_S:g} s"
+                + (f": {why.splitlines()[-1]}" if why else f" (exit status {self._process.returncode})")
+            )
         #: Whether the child runs at real-time priority (``SCHED_FIFO``); stored in the sensor's settings.
         self.realtime = ready == b"R"
         self._fd = self._process.stdout.fileno()
@@ -139,8 +142,10 @@ class ReaderProcess:
         status = self._process.wait()
         if status != 0:
             reason = self._process.stderr.read().decode(errors="replace").strip() or f"exit status {status}"
-            self._failure = (f"{self.name}: {reason}; the device was probably unplugged: the run segment is "
-                             "invalid, re-bind and restart the cycle")
+            self._failure = (
+                f"{self.name}: {reason}; the device was probably unplugged: the run segment is "
+                "invalid, re-bind and restart the cycle"
+            )
             raise LinkError(self._failure)
 
     def close(self) -> None:

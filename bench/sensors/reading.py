@@ -72,16 +72,17 @@ class Reading:
     def __post_init__(self) -> None:
         values = self.value if isinstance(self.value, tuple) else (self.value,)
         if not values or not all(isinstance(v, (int, float)) and math.isfinite(v) for v in values):
-            raise ValueError(f"Reading from {self.source or 'sensor'}: value = {self.value!r}, "
-                             "expected a finite number or a non-empty tuple of finite numbers")
+            raise ValueError(
+                f"Reading from {self.source or 'sensor'}: value = {self.value!r}, "
+                "expected a finite number or a non-empty tuple of finite numbers"
+            )
         if not self.unit:
             raise ValueError(f"Reading from {self.source or 'sensor'}: unit is empty, expected e.g. 'mm'")
 
     def as_row(self) -> dict[str, object]:
         """Flatten to one storage row; column names carry the unit (``value_mm``, ``value1_mm``...)."""
         values = self.value if isinstance(self.value, tuple) else (self.value,)
-        row: dict[str, object] = {"t_monotonic_s": self.t_monotonic_s, "t_wall_s": self.t_wall_s,
-                                  "source": self.source}
+        row: dict[str, object] = {"t_monotonic_s": self.t_monotonic_s, "t_wall_s": self.t_wall_s, "source": self.source}
         if len(values) == 1:
             row[f"value_{self.unit}"] = values[0]
         else:

@@ -52,12 +52,16 @@ class LineReader:
         while self.terminator not in self._buffer:
             if len(self._buffer) > self.max_line_bytes:
                 garbage, self._buffer = self._buffer, b""
-                raise MalformedSample(f"{self.name}: {len(garbage)} bytes without a line end "
-                                      f"({garbage[:32]!r}...); check the baud rate and framing")
+                raise MalformedSample(
+                    f"{self.name}: {len(garbage)} bytes without a line end "
+                    f"({garbage[:32]!r}...); check the baud rate and framing"
+                )
             waited = time.monotonic() - start
             if waited >= timeout_s:
-                raise LinkTimeout(f"{self.name}: no complete line after {waited:.2f} s "
-                                  f"(received so far: {self._buffer!r}); is the device connected and sending?")
+                raise LinkTimeout(
+                    f"{self.name}: no complete line after {waited:.2f} s "
+                    f"(received so far: {self._buffer!r}); is the device connected and sending?"
+                )
             try:
                 self._buffer += self.port.read(256)
             except OSError as exc:

@@ -33,9 +33,16 @@ def _pixel_integral(edges_lo: np.ndarray, centre: float, sigma: float) -> np.nda
     return 0.5 * (_erf((edges_lo + 1.0 - centre) * scale) - _erf((edges_lo - centre) * scale))
 
 
-def render_spot(shape: tuple[int, int], centre_px: tuple[float, float], *, sigma_px: float = 2.0,
-                peak: float = 180.0, background: float = 20.0, noise_sigma: float = 0.0,
-                rng: np.random.Generator | None = None) -> np.ndarray:
+def render_spot(
+    shape: tuple[int, int],
+    centre_px: tuple[float, float],
+    *,
+    sigma_px: float = 2.0,
+    peak: float = 180.0,
+    background: float = 20.0,
+    noise_sigma: float = 0.0,
+    rng: np.random.Generator | None = None,
+) -> np.ndarray:
     """An 8-bit grey image of a Gaussian laser spot.
 
     Each pixel holds the integral of the Gaussian over its area (so the true centroid is exact, not sampled),
@@ -56,7 +63,7 @@ def render_spot(shape: tuple[int, int], centre_px: tuple[float, float], *, sigma
     rows, cols = shape
     u, v = centre_px
     # 2*pi*sigma^2 turns the per-pixel integrals back into a spot whose centre pixel reads about ``peak``
-    gain = peak * 2.0 * math.pi * sigma_px ** 2
+    gain = peak * 2.0 * math.pi * sigma_px**2
     profile_u = _pixel_integral(np.arange(cols) - 0.5, u, sigma_px)
     profile_v = _pixel_integral(np.arange(rows) - 0.5, v, sigma_px)
     # the noise array is the image: rng.normal(0, s) draws s x the same standard normals, so the frame is the same
@@ -72,8 +79,14 @@ def render_spot(shape: tuple[int, int], centre_px: tuple[float, float], *, sigma
     return image.astype(np.uint8)
 
 
-def render_chessboard(shape: tuple[int, int], pattern_size: tuple[int, int], square_mm: float,
-                      homography_mm_to_px: np.ndarray, *, supersample: int = 4) -> np.ndarray:
+def render_chessboard(
+    shape: tuple[int, int],
+    pattern_size: tuple[int, int],
+    square_mm: float,
+    homography_mm_to_px: np.ndarray,
+    *,
+    supersample: int = 4,
+) -> np.ndarray:
     """An 8-bit image of a chessboard target lying in a plane, seen through ``homography_mm_to_px``.
 
     The target frame has its origin at the first inner corner, x along the ``pattern_size[0]`` inner corners and y
@@ -84,8 +97,12 @@ def render_chessboard(shape: tuple[int, int], pattern_size: tuple[int, int], squ
     image = np.full((rows, cols), 225, dtype=np.uint8)
     # only the pixels of the board's bounding box are sampled: the surround is white (a projective image of the
     # board's outline is the quadrilateral of its mapped corners, inside their bounding box)
-    outline = np.array([[-1, -1], [pattern_size[0], -1], [pattern_size[0], pattern_size[1]], [-1, pattern_size[1]]],
-                       dtype=float) * square_mm
+    outline = (
+        np.array(
+            [[-1, -1], [pattern_size[0], -1], [pattern_size[0], pattern_size[1]], [-1, pattern_size[1]]], dtype=float
+        )
+        * square_mm
+    )
     corners_px = apply_homography(homography_mm_to_px, outline)
     u0, v0 = np.maximum(np.floor(corners_px.min(axis=0)).astype(int) - 2, 0)
     u1, v1 = np.minimum(np.ceil(corners_px.max(axis=0)).astype(int) + 3, (cols, rows))
@@ -134,8 +151,15 @@ class SpotCameraSimulator:
     def frame(self, xy_mm: np.ndarray, rng: np.random.Generator | None = None) -> np.ndarray:
         """The frame showing the spot at plane position ``xy_mm`` (2,)."""
         u, v = apply_homography(self.homography_mm_to_px, np.asarray(xy_mm, float))[0]
-        return render_spot(self.shape, (u, v), sigma_px=self.sigma_px, peak=self.peak, background=self.background,
-                           noise_sigma=self.noise_sigma, rng=rng or np.random.default_rng(self.seed))
+        return render_spot(
+            self.shape,
+            (u, v),
+            sigma_px=self.sigma_px,
+            peak=self.peak,
+            background=self.background,
+            noise_sigma=self.noise_sigma,
+            rng=rng or np.random.default_rng(self.seed),
+        )
 
     def frame_source(self, true_xy_mm: Callable[[], np.ndarray]) -> Callable[[], np.ndarray]:
         """A ``grab`` callable for :class:`~bench.sensors.camera_spot.LaserSpotCamera` observing a true position."""

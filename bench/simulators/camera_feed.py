@@ -49,8 +49,7 @@ def delta4_camera(seed: int = 0) -> SpotCameraSimulator:
     0.03 rad of roll and a slight perspective, as a hand-mounted camera has."""
     roll = 0.03
     tilt = np.array([[np.cos(roll), -np.sin(roll), 0.0], [np.sin(roll), np.cos(roll), 0.0], [1e-5, -1e-5, 1.0]])
-    centre = np.array([[_PX_PER_MM, 0.0, CAMERA_SHAPE[1] / 2], [0.0, _PX_PER_MM, CAMERA_SHAPE[0] / 2],
-                       [0.0, 0.0, 1.0]])
+    centre = np.array([[_PX_PER_MM, 0.0, CAMERA_SHAPE[1] / 2], [0.0, _PX_PER_MM, CAMERA_SHAPE[0] / 2], [0.0, 0.0, 1.0]])
     return SpotCameraSimulator(centre @ tilt, shape=CAMERA_SHAPE, sigma_px=2.5, noise_sigma=3.0, seed=seed)
 
 
@@ -80,21 +79,28 @@ def _plane_calibration(camera: SpotCameraSimulator) -> dict:
     square_mm, corner_mm = 12.0, np.array([-60.0, -40.0])
     to_corner = np.array([[1.0, 0.0, corner_mm[0]], [0.0, 1.0, corner_mm[1]], [0.0, 0.0, 1.0]])
     board_view = SpotCameraSimulator(camera.homography_mm_to_px @ to_corner, shape=camera.shape)
-    fitted = calibrate_from_chessboard(board_view.chessboard((9, 6), square_mm), (9, 6), square_mm,
-                                       calibration_id="sim-delta4-camera", date="2026-12-02")
+    fitted = calibrate_from_chessboard(
+        board_view.chessboard((9, 6), square_mm),
+        (9, 6),
+        square_mm,
+        calibration_id="sim-delta4-camera",
+        date="2026-12-02",
+    )
     spot = detect_spot(camera.frame(np.asarray(HOME_XY_MM), np.random.default_rng(0)))
     home_reading = fitted.pixel_to_mm(np.array([spot.u_px, spot.v_px]))
     zero_at_home = np.array([[1.0, 0.0, -home_reading[0]], [0.0, 1.0, -home_reading[1]], [0.0, 0.0, 1.0]])
-    calibration = PlaneCalibration(zero_at_home @ fitted.homography_px_to_mm, fitted.rms_mm,
-                                   fitted.calibration_id, fitted.date)
+    calibration = PlaneCalibration(
+        zero_at_home @ fitted.homography_px_to_mm, fitted.rms_mm, fitted.calibration_id, fitted.date
+    )
     return calibration.to_dict()
 
 
 class CameraFeed:
     """Renders frames of the true x, y on demand into ``path`` (a FIFO, made if missing) as YUV4MPEG2 mono."""
 
-    def __init__(self, path: str | os.PathLike[str], *, seed: int = 0,
-                 camera: SpotCameraSimulator | None = None) -> None:
+    def __init__(
+        self, path: str | os.PathLike[str], *, seed: int = 0, camera: SpotCameraSimulator | None = None
+    ) -> None:
         self.path = str(path)
         if not os.path.exists(self.path):
             os.mkfifo(self.path)

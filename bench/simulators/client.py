@@ -79,8 +79,9 @@ class SimulatorClient:
         first = self.controller.query("SIMTRACE", window + (0,))
         times = trace_times(window[0], window[1] / 1000.0, window[2] / 1000.0)
         if int(first.fields[1]) != len(times):
-            raise WireProtocolError(f"{self._port}: SIMTRACE announced {first.fields[1]} samples, expected "
-                                    f"{len(times)} for {window}")
+            raise WireProtocolError(
+                f"{self._port}: SIMTRACE announced {first.fields[1]} samples, expected {len(times)} for {window}"
+            )
         rest = self.controller.query_many("SIMTRACE", [window + (index,) for index in range(1, len(times))])
         return times, np.array([self._trace_fields(reply) for reply in (first, *rest)], dtype=float)
 

@@ -37,13 +37,22 @@ import numpy as np
 
 from bench.errors import ConfigError
 from bench.robots import delta4_wire as wire
+from bench.robots.delta4 import HOME_MM
 from bench.simulators.error_model import ErrorMagnitudes, ErrorModel
 from bench.simulators.plant import Plant
-from bench.robots.delta4 import HOME_MM
 from bench.simulators.pty import TruthLog, add_common_arguments, main_for
 
-__all__ = ["DELTA4_ERRORS", "DESCRIPTION", "Delta4SimDevice", "add_arguments", "build_device", "build_grid_sensor",
-           "build_plant", "grid_seed", "main"]
+__all__ = [
+    "DELTA4_ERRORS",
+    "DESCRIPTION",
+    "Delta4SimDevice",
+    "add_arguments",
+    "build_device",
+    "build_grid_sensor",
+    "build_plant",
+    "grid_seed",
+    "main",
+]
 
 _log = logging.getLogger(__name__)
 
@@ -57,8 +66,14 @@ GRID_STREAM = 0x4C47
 
 #: Error sizes giving axial errors of 2-3 mm and spatial errors up to about 4 mm (reference §7.2); joint units deg.
 DELTA4_ERRORS = ErrorMagnitudes(
-    scale_sigma=0.004, offset_sigma=0.35, backlash=0.6, noise_sigma=ADC_DEG_PER_COUNT / math.sqrt(3),
-    sag_per_kg=0.15, pose_gain_sigma=0.004, pose_play_sigma=(0.6, 0.6, 0.6), pose_sag_per_kg=(0.0, 0.0, -0.8),
+    scale_sigma=0.004,
+    offset_sigma=0.35,
+    backlash=0.6,
+    noise_sigma=ADC_DEG_PER_COUNT / math.sqrt(3),
+    sag_per_kg=0.15,
+    pose_gain_sigma=0.004,
+    pose_play_sigma=(0.6, 0.6, 0.6),
+    pose_sag_per_kg=(0.0, 0.0, -0.8),
     pose_offset_sigma=(0.3, 0.3, 0.3),
 )
 
@@ -73,9 +88,17 @@ class Delta4SimDevice:
     """The firmware state machine over simulated servos; ``plant(servo_deg, load_kg) -> (x, y, z) mm``. Fine
     references as the firmware: ``C`` answered with its step, ``F<n><ddddd>X`` on its PWM tick (0.01125 deg)."""
 
-    def __init__(self, plant: Any, mapping: wire.ServoMapping, *, speed_factor: float = 1.0,
-                 truth: TruthLog | None = None, load_kg: float = 0.0, sensor: Sensor | None = None,
-                 home_servo_deg: np.ndarray | None = None) -> None:
+    def __init__(
+        self,
+        plant: Any,
+        mapping: wire.ServoMapping,
+        *,
+        speed_factor: float = 1.0,
+        truth: TruthLog | None = None,
+        load_kg: float = 0.0,
+        sensor: Sensor | None = None,
+        home_servo_deg: np.ndarray | None = None,
+    ) -> None:
         self.plant = plant
         self.mapping = mapping
         self.speed_factor = speed_factor
@@ -83,7 +106,7 @@ class Delta4SimDevice:
         self.load_kg = load_kg
         self.sensor = sensor or _no_hit
         home = np.full(4, 71.66) if home_servo_deg is None else np.asarray(home_servo_deg, dtype=float)
-        self.angle_deg = home.copy()        # where the servos are at t0
+        self.angle_deg = home.copy()  # where the servos are at t0
         self.target_deg = home.copy()
         self.references = mapping.to_bytes(home)
         # the angle each servo is sent to: its byte's, or its fine reference's
@@ -117,10 +140,14 @@ class Delta4SimDevice:
             if 0x30 <= byte <= 0x39 and len(self._digits) < (6 if fine else 3):
                 self._digits.append(byte)
                 return
-            if byte == ord("X") and fine and len(self._digits) >= 2 and 0x31 <= self._digits[0] <= 0x34 \
-                    and int(self._digits[1:]) <= 18000:
-                self._reference(self._digits[0] - 0x31, None, now_s, wire.FineReference().to_deg(
-                    int(self._digits[1:])))
+            if (
+                byte == ord("X")
+                and fine
+                and len(self._digits) >= 2
+                and 0x31 <= self._digits[0] <= 0x34
+                and int(self._digits[1:]) <= 18000
+            ):
+                self._reference(self._digits[0] - 0x31, None, now_s, wire.FineReference().to_deg(int(self._digits[1:])))
                 self._letter = None
                 return
             if byte == ord("X") and not fine and self._digits and int(self._digits) <= 255:
@@ -159,8 +186,9 @@ class Delta4SimDevice:
     def _reference(self, servo: int, value: int | None, now_s: float, fine_deg: float | None = None) -> None:
         if value is not None:
             self.references[servo] = value
-        self.reference_deg[servo] = self.mapping.to_deg(self.references.astype(float))[servo] \
-            if fine_deg is None else fine_deg
+        self.reference_deg[servo] = (
+            self.mapping.to_deg(self.references.astype(float))[servo] if fine_deg is None else fine_deg
+        )
         self._stored_while_stopped = not self.started
         if self.started:
             self._hold(now_s)
@@ -212,8 +240,9 @@ class Delta4SimDevice:
         return report + (b"".join(b"V%03dX" % i for i in vertical) if vertical else b"v")
 
 
-def build_plant(seed: int, *, ideal: bool = False, geometry: Any = None,
-                true_deviations: dict[str, float] | None = None) -> tuple[Plant, np.ndarray]:
+def build_plant(
+    seed: int, *, ideal: bool = False, geometry: Any = None, true_deviations: dict[str, float] | None = None
+) -> tuple[Plant, np.ndarray]:
     """The seeded delta4 plant and the servo angles of the home point (0, 0, -150) mm (by the documented IK).
 
     With ``true_deviations`` (names of :data:`motion.delta4.calibration.PARAMETERS` -> deg or mm, e.g.
@@ -222,20 +251,23 @@ def build_plant(seed: int, *, ideal: bool = False, geometry: Any = None,
     geometry (joint offset and scale, pose gain and bias) are zeroed; backlash, noise, sag and play stay."""
     from motion import delta4
     from motion.delta4.calibration import attained_positions
+
     geometry = geometry or delta4.NOMINAL
 
     def forward(servo_deg: np.ndarray, _commanded: np.ndarray, _previous: np.ndarray | None) -> np.ndarray | None:
         if true_deviations is not None:
-            pose = attained_positions(servo_deg.reshape(1, 4), tuple(true_deviations),
-                                      tuple(true_deviations.values()), geometry)[0]
+            pose = attained_positions(
+                servo_deg.reshape(1, 4), tuple(true_deviations), tuple(true_deviations.values()), geometry
+            )[0]
             return pose if bool(np.all(np.isfinite(pose))) else None
         result = delta4.forward_kinematics(servo_deg.reshape(1, 4), geometry)
         return result.pose_mm[0] if bool(result.ok[0]) else None
 
     model = ErrorModel.ideal(4, 3) if ideal else ErrorModel.draw(DELTA4_ERRORS, 4, seed, joint_zero=100.0)
     if true_deviations is not None:
-        model = dataclasses.replace(model, offset=np.zeros(4), scale=np.zeros(4), pose_gain=np.zeros((3, 3)),
-                                    pose_offset=np.zeros(3))
+        model = dataclasses.replace(
+            model, offset=np.zeros(4), scale=np.zeros(4), pose_gain=np.zeros((3, 3)), pose_offset=np.zeros(3)
+        )
     home = delta4.inverse_kinematics(np.array([HOME_MM]), geometry).servo_deg[0]
     return Plant(lambda q: q, forward, model, np.array(HOME_MM), seed), home
 
@@ -251,17 +283,27 @@ def build_grid_sensor(args: argparse.Namespace) -> Sensor | None:
 
     if args.no_grid:
         return None
-    checks = (("--grid-p-miss", args.grid_p_miss, 0.0 <= (args.grid_p_miss or 0.0) <= 1.0, "in [0, 1]"),
-              ("--grid-p-false", args.grid_p_false, 0.0 <= args.grid_p_false <= 1.0, "in [0, 1]"),
-              ("--grid-spot-half-width-mm", args.grid_spot_half_width_mm, 0.0 < args.grid_spot_half_width_mm < 5.0,
-               "in (0, 5) mm, below half the 10 mm pitch"))
+    checks = (
+        ("--grid-p-miss", args.grid_p_miss, 0.0 <= (args.grid_p_miss or 0.0) <= 1.0, "in [0, 1]"),
+        ("--grid-p-false", args.grid_p_false, 0.0 <= args.grid_p_false <= 1.0, "in [0, 1]"),
+        (
+            "--grid-spot-half-width-mm",
+            args.grid_spot_half_width_mm,
+            0.0 < args.grid_spot_half_width_mm < 5.0,
+            "in (0, 5) mm, below half the 10 mm pitch",
+        ),
+    )
     for option, value, ok, expected in checks:
         if not ok:
             raise ConfigError(f"{option} = {value!r}, expected a number {expected}")
     by_distance = args.grid_p_miss is None
-    return LaserGridSimulator(spot_half_width_mm=args.grid_spot_half_width_mm,
-                              p_miss=0.0 if by_distance else args.grid_p_miss, p_miss_by_distance=by_distance,
-                              p_false=args.grid_p_false, seed=grid_seed(args.seed)).observer()
+    return LaserGridSimulator(
+        spot_half_width_mm=args.grid_spot_half_width_mm,
+        p_miss=0.0 if by_distance else args.grid_p_miss,
+        p_miss_by_distance=by_distance,
+        p_false=args.grid_p_false,
+        seed=grid_seed(args.seed),
+    ).observer()
 
 
 def build_device(args: argparse.Namespace) -> Delta4SimDevice:
@@ -276,8 +318,15 @@ def build_device(args: argparse.Namespace) -> Delta4SimDevice:
     plant, home = build_plant(args.seed, ideal=args.ideal, true_deviations=deviations)
     truth = TruthLog(args.truth, ("x_mm", "y_mm", "z_mm"))
     mapping = wire.MAPPINGS[args.mapping]()
-    device = Delta4SimDevice(plant, mapping, speed_factor=args.speed_factor, truth=truth, load_kg=args.load_kg,
-                             home_servo_deg=home, sensor=build_grid_sensor(args))
+    device = Delta4SimDevice(
+        plant,
+        mapping,
+        speed_factor=args.speed_factor,
+        truth=truth,
+        load_kg=args.load_kg,
+        home_servo_deg=home,
+        sensor=build_grid_sensor(args),
+    )
     if getattr(args, "camera", None):
         from bench.simulators.camera_feed import CameraFeed
 
@@ -288,22 +337,45 @@ def build_device(args: argparse.Namespace) -> Delta4SimDevice:
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Options of ``bench sim delta4`` / ``python -m bench.simulators.delta4``."""
     add_common_arguments(parser)
-    parser.add_argument("--mapping", choices=sorted(wire.MAPPINGS), default="legacy_vb",
-                        help="servo byte <-> angle mapping the firmware uses (must match the driver)")
-    parser.add_argument("--no-grid", action="store_true",
-                        help="no laser-grid simulator: every sensor report is 'h' 'v' (no hit)")
-    parser.add_argument("--grid-spot-half-width-mm", type=float, default=1.0,
-                        help="half-width r of a phototransistor's detection window, mm (reference §4.10)")
-    parser.add_argument("--grid-p-miss", type=float, default=None,
-                        help="probability of losing each hit (default: Appendix D2 values by height)")
-    parser.add_argument("--grid-p-false", type=float, default=0.0,
-                        help="probability of one stray lit sensor per screen and frame")
-    parser.add_argument("--true-geometry-seed", type=int, default=None, metavar="SEED",
-                        help="move by a seeded perturbed geometry (bench.simulators.true_geometry) instead of the "
-                             "error model's geometric stand-ins")
-    parser.add_argument("--camera", default=None, metavar="FIFO",
-                        help="a simulated camera watching the laser spot of the true pose, streamed as YUV4MPEG2 "
-                             "video into this FIFO (bench.simulators.camera_feed)")
+    parser.add_argument(
+        "--mapping",
+        choices=sorted(wire.MAPPINGS),
+        default="legacy_vb",
+        help="servo byte <-> angle mapping the firmware uses (must match the driver)",
+    )
+    parser.add_argument(
+        "--no-grid", action="store_true", help="no laser-grid simulator: every sensor report is 'h' 'v' (no hit)"
+    )
+    parser.add_argument(
+        "--grid-spot-half-width-mm",
+        type=float,
+        default=1.0,
+        help="half-width r of a phototransistor's detection window, mm (reference §4.10)",
+    )
+    parser.add_argument(
+        "--grid-p-miss",
+        type=float,
+        default=None,
+        help="probability of losing each hit (default: Appendix D2 values by height)",
+    )
+    parser.add_argument(
+        "--grid-p-false", type=float, default=0.0, help="probability of one stray lit sensor per screen and frame"
+    )
+    parser.add_argument(
+        "--true-geometry-seed",
+        type=int,
+        default=None,
+        metavar="SEED",
+        help="move by a seeded perturbed geometry (bench.simulators.true_geometry) instead of the "
+        "error model's geometric stand-ins",
+    )
+    parser.add_argument(
+        "--camera",
+        default=None,
+        metavar="FIFO",
+        help="a simulated camera watching the laser spot of the true pose, streamed as YUV4MPEG2 "
+        "video into this FIFO (bench.simulators.camera_feed)",
+    )
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -64,8 +64,9 @@ class StructuralMode:
         """Response r(t) to a unit-slope ramp starting at t = 0 from rest (zero before)."""
         omega, zeta, omega_d = self._omegas
         tt = np.maximum(t, 0.0)
-        ringing = np.exp(-zeta * omega * tt) * (2 * zeta / omega * np.cos(omega_d * tt)
-                                                 + (2 * zeta**2 - 1) / omega_d * np.sin(omega_d * tt))
+        ringing = np.exp(-zeta * omega * tt) * (
+            2 * zeta / omega * np.cos(omega_d * tt) + (2 * zeta**2 - 1) / omega_d * np.sin(omega_d * tt)
+        )
         return np.where(t > 0, tt - 2 * zeta / omega + ringing, 0.0)
 
     def arrival(self, t_s, start, end, duration_s: float) -> np.ndarray:

@@ -70,21 +70,22 @@ class ErrorMagnitudes:
 class ErrorModel:
     """The systematic errors of one simulated robot plus its random-error sizes (see module docstring)."""
 
-    scale: np.ndarray          # (J,)
-    offset: np.ndarray         # (J,)
-    backlash: np.ndarray       # (J,)
+    scale: np.ndarray  # (J,)
+    offset: np.ndarray  # (J,)
+    backlash: np.ndarray  # (J,)
     noise_sigma: float
-    sag_per_kg: np.ndarray     # (J,)
-    pose_gain: np.ndarray      # (P, P)
+    sag_per_kg: np.ndarray  # (J,)
+    pose_gain: np.ndarray  # (P, P)
     pose_play_sigma: np.ndarray  # (P,)
     pose_sag_per_kg: np.ndarray  # (P,)
-    pose_offset: np.ndarray      # (P,)
+    pose_offset: np.ndarray  # (P,)
     joint_zero: np.ndarray | float = 0.0  # (J,) or scalar: where the scale error vanishes
     seed: int = 0
 
     @classmethod
-    def draw(cls, magnitudes: ErrorMagnitudes, n_joints: int, seed: int,
-             joint_zero: np.ndarray | float = 0.0) -> "ErrorModel":
+    def draw(
+        cls, magnitudes: ErrorMagnitudes, n_joints: int, seed: int, joint_zero: np.ndarray | float = 0.0
+    ) -> ErrorModel:
         """Draw one robot's systematic errors from ``seed`` (deterministic)."""
         rng = np.random.default_rng([seed, 0])
         n_pose = len(magnitudes.pose_play_sigma)
@@ -103,25 +104,43 @@ class ErrorModel:
         )
 
     @classmethod
-    def ideal(cls, n_joints: int, n_pose: int) -> "ErrorModel":
+    def ideal(cls, n_joints: int, n_pose: int) -> ErrorModel:
         """No error at all (the attained pose is the commanded one, up to step quantisation)."""
         zeros = np.zeros(n_joints)
-        return cls(zeros, zeros, zeros, 0.0, zeros, np.zeros((n_pose, n_pose)), np.zeros(n_pose), np.zeros(n_pose),
-                   np.zeros(n_pose))
+        return cls(
+            zeros,
+            zeros,
+            zeros,
+            0.0,
+            zeros,
+            np.zeros((n_pose, n_pose)),
+            np.zeros(n_pose),
+            np.zeros(n_pose),
+            np.zeros(n_pose),
+        )
 
-    def true_joints(self, commanded: np.ndarray, direction: np.ndarray, load_kg: float,
-                    rng: np.random.Generator) -> np.ndarray:
+    def true_joints(
+        self, commanded: np.ndarray, direction: np.ndarray, load_kg: float, rng: np.random.Generator
+    ) -> np.ndarray:
         """Attained joint values, shape (J,), from commanded (J,) and last-motion directions (J,)."""
         noise = rng.normal(0.0, self.noise_sigma, commanded.shape) if self.noise_sigma else 0.0
-        return (commanded + self.offset + self.scale * (commanded - self.joint_zero)
-                - 0.5 * self.backlash * direction - self.sag_per_kg * load_kg + noise)
+        return (
+            commanded
+            + self.offset
+            + self.scale * (commanded - self.joint_zero)
+            - 0.5 * self.backlash * direction
+            - self.sag_per_kg * load_kg
+            + noise
+        )
 
-    def true_pose(self, pose: np.ndarray, reference_pose: np.ndarray, load_kg: float,
-                  rng: np.random.Generator) -> np.ndarray:
+    def true_pose(
+        self, pose: np.ndarray, reference_pose: np.ndarray, load_kg: float, rng: np.random.Generator
+    ) -> np.ndarray:
         """Attained pose, shape (P,), from the forward kinematics of the attained joints."""
         play = rng.normal(0.0, 1.0, pose.shape) * self.pose_play_sigma
-        return (pose + self.pose_offset + self.pose_gain @ (pose - reference_pose) + load_kg * self.pose_sag_per_kg
-                + play)
+        return (
+            pose + self.pose_offset + self.pose_gain @ (pose - reference_pose) + load_kg * self.pose_sag_per_kg + play
+        )
 
 
 @dataclass

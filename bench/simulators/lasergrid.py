@@ -67,11 +67,14 @@ class LaserGridSimulator:
             if not 0.0 <= getattr(self, name) <= 1.0:
                 raise ConfigError(f"laser-grid simulator: {name} = {getattr(self, name)!r}, expected 0..1")
         if not 0.0 < self.spot_half_width_mm < 5.0:
-            raise ConfigError(f"laser-grid simulator: spot_half_width_mm = {self.spot_half_width_mm!r}, "
-                              "expected 0 < r < half the 10 mm pitch")
+            raise ConfigError(
+                f"laser-grid simulator: spot_half_width_mm = {self.spot_half_width_mm!r}, "
+                "expected 0 < r < half the 10 mm pitch"
+            )
         if self.p_miss_by_distance and self.p_miss:
-            raise ConfigError(f"laser-grid simulator: p_miss = {self.p_miss!r} with p_miss_by_distance, expected "
-                              "one of them")
+            raise ConfigError(
+                f"laser-grid simulator: p_miss = {self.p_miss!r} with p_miss_by_distance, expected one of them"
+            )
 
     def _miss_probability(self, positions_mm: np.ndarray) -> np.ndarray:
         """(N,) probability of losing each hit of each frame."""
@@ -80,11 +83,12 @@ class LaserGridSimulator:
         return np.full(len(positions_mm), self.p_miss)
 
     def _screen_hits(self, screen: Screen, positions_mm: np.ndarray, rng: np.random.Generator) -> list[tuple[int, ...]]:
-        spots = screen.be_from_pose(positions_mm)[:, None, :] + screen.offsets_mm[None, :, :]   # (N, 12, 2)
+        spots = screen.be_from_pose(positions_mm)[:, None, :] + screen.offsets_mm[None, :, :]  # (N, 12, 2)
         cell = np.rint((spots - np.asarray(screen.first_centre_mm)) / screen.pitch_mm).astype(int)
         residual = spots - (np.asarray(screen.first_centre_mm) + screen.pitch_mm * cell)
-        lit = (np.all(np.abs(residual) <= self.spot_half_width_mm, axis=-1)
-               & np.all((cell >= 0) & (cell < screen.size), axis=-1))
+        lit = np.all(np.abs(residual) <= self.spot_half_width_mm, axis=-1) & np.all(
+            (cell >= 0) & (cell < screen.size), axis=-1
+        )
         p_miss = self._miss_probability(positions_mm)
         if np.any(p_miss > 0):
             lit &= rng.random(lit.shape) >= p_miss[:, None]
@@ -119,8 +123,10 @@ class LaserGridSimulator:
         """One :class:`GridFrame` per true end-effector centre, positions of shape (N, 3) in mm."""
         positions_mm = np.asarray(positions_mm, float)
         if positions_mm.ndim != 2 or positions_mm.shape[1] != 3 or not np.all(np.isfinite(positions_mm)):
-            raise ConfigError(f"laser-grid simulator: positions_mm shape {positions_mm.shape}, "
-                              "expected finite (N, 3) end-effector centres in mm")
+            raise ConfigError(
+                f"laser-grid simulator: positions_mm shape {positions_mm.shape}, "
+                "expected finite (N, 3) end-effector centres in mm"
+            )
         return self._frames(positions_mm, np.random.default_rng(self.seed))
 
     def _frames(self, positions_mm: np.ndarray, rng: np.random.Generator) -> list[GridFrame]:
@@ -132,6 +138,8 @@ class LaserGridSimulator:
 def format_report(frame: GridFrame) -> bytes:
     """A frame in the default wire grammar: ``HnnnX`` / ``VnnnX`` per hit (3 digits, as the simulated delta4
     controller sends them), ``h`` / ``v`` for no hit, horizontal first (delta4-lasergrid.md §5.7 item 5)."""
-    parts = [b"".join(b"%s%03dX" % (tag, k) for k in hits) if hits else tag.lower()
-             for tag, hits in ((b"H", frame.horizontal), (b"V", frame.vertical))]
+    parts = [
+        b"".join(b"%s%03dX" % (tag, k) for k in hits) if hits else tag.lower()
+        for tag, hits in ((b"H", frame.horizontal), (b"V", frame.vertical))
+    ]
     return b"".join(parts)

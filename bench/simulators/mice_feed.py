@@ -42,8 +42,16 @@ def fifo_paths(folder: str | Path) -> dict[str, str]:
 class MiceFeed:
     """Two simulated mice fed from the simulator's true pose, writing ``input_event`` records into FIFOs."""
 
-    def __init__(self, folder: str | Path, start_pose: np.ndarray, *, seed: int, cpi: float = 800.0,
-                 noise_counts: float = 0.05, report_rate_hz: float = 500.0) -> None:
+    def __init__(
+        self,
+        folder: str | Path,
+        start_pose: np.ndarray,
+        *,
+        seed: int,
+        cpi: float = 800.0,
+        noise_counts: float = 0.05,
+        report_rate_hz: float = 500.0,
+    ) -> None:
         self._clock_s = 0.0
         self._writers: dict[str, int] = {}
         self._streams: dict[str, MouseStream] = {}
@@ -54,8 +62,9 @@ class MiceFeed:
             # read-write and non-blocking: the open returns before the host opens its end, and a full FIFO never
             # blocks the simulator (the reports are lost instead, as a kernel buffer overflows)
             self._writers[plane] = os.open(path, os.O_RDWR | os.O_NONBLOCK)
-            simulator = MouseSimulator(cpi=cpi, noise_counts=noise_counts, report_rate_hz=report_rate_hz,
-                                       seed=plane_seed(seed, index))
+            simulator = MouseSimulator(
+                cpi=cpi, noise_counts=noise_counts, report_rate_hz=report_rate_hz, seed=plane_seed(seed, index)
+            )
             self._streams[plane] = MouseStream(simulator, origin_mm=start[list(PLANES[plane])])
 
     def rest(self, true_pose: np.ndarray) -> None:
@@ -64,15 +73,17 @@ class MiceFeed:
         xyz = np.asarray(true_pose, dtype=float)[:3]
         offset = _monotonic_now() - self._clock_s  # kernel-like timestamps on the host's CLOCK_MONOTONIC
         for plane, columns in PLANES.items():
-            data = self._streams[plane].input_events(np.array([self._clock_s]), xyz[None, list(columns)],
-                                                     clock_offset_s=offset)
+            data = self._streams[plane].input_events(
+                np.array([self._clock_s]), xyz[None, list(columns)], clock_offset_s=offset
+            )
             try:
                 written = os.write(self._writers[plane], data)
             except BlockingIOError:
                 written = 0
             if written < len(data):
-                _log.warning("mouse_%s: FIFO full, %d of %d bytes of reports lost", plane, len(data) - written,
-                             len(data))
+                _log.warning(
+                    "mouse_%s: FIFO full, %d of %d bytes of reports lost", plane, len(data) - written, len(data)
+                )
 
     def close(self) -> None:
         for writer in self._writers.values():

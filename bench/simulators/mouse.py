@@ -80,8 +80,10 @@ class MouseSimulator:
 
     def __post_init__(self) -> None:
         if not 0 < self.report_rate_hz <= MAX_REPORT_RATE_HZ:
-            raise ConfigError(f"mouse simulator: report_rate_hz = {self.report_rate_hz!r}, "
-                              f"expected 0 < rate <= {MAX_REPORT_RATE_HZ:g}")
+            raise ConfigError(
+                f"mouse simulator: report_rate_hz = {self.report_rate_hz!r}, "
+                f"expected 0 < rate <= {MAX_REPORT_RATE_HZ:g}"
+            )
         if not self.cpi > 0:
             raise ConfigError(f"mouse simulator: cpi = {self.cpi!r}, expected a positive number")
 
@@ -117,15 +119,23 @@ class MouseSimulator:
         return "".join(f"{t},{x},{y}{tail}\n" for t, x, y in zip(t_us, rep.dx, rep.dy)).encode()
 
 
-def _checked_motion(t_s: np.ndarray, xy_mm: np.ndarray, *, min_points: int, after_s: float = -np.inf
-                    ) -> tuple[np.ndarray, np.ndarray]:
+def _checked_motion(
+    t_s: np.ndarray, xy_mm: np.ndarray, *, min_points: int, after_s: float = -np.inf
+) -> tuple[np.ndarray, np.ndarray]:
     t_s, xy_mm = np.asarray(t_s, float), np.asarray(xy_mm, float)
-    if (t_s.ndim != 1 or xy_mm.shape != (len(t_s), 2) or len(t_s) < min_points
-            or (len(t_s) > 1 and not (t_s[1:] > t_s[:-1]).all()) or (len(t_s) and t_s[0] <= after_s)
-            or not np.isfinite(xy_mm).all()):
+    if (
+        t_s.ndim != 1
+        or xy_mm.shape != (len(t_s), 2)
+        or len(t_s) < min_points
+        or (len(t_s) > 1 and not (t_s[1:] > t_s[:-1]).all())
+        or (len(t_s) and t_s[0] <= after_s)
+        or not np.isfinite(xy_mm).all()
+    ):
         after = f" after {after_s:g} s" if np.isfinite(after_s) else ""
-        raise ConfigError(f"mouse simulator: t_s {t_s.shape} and xy_mm {xy_mm.shape}, expected increasing "
-                          f"times of shape (N,){after} and finite positions of shape (N, 2) with N >= {min_points}")
+        raise ConfigError(
+            f"mouse simulator: t_s {t_s.shape} and xy_mm {xy_mm.shape}, expected increasing "
+            f"times of shape (N,){after} and finite positions of shape (N, 2) with N >= {min_points}"
+        )
     return t_s, xy_mm
 
 
@@ -175,7 +185,7 @@ class MouseStream:
         deltas = whole.copy()
         deltas[1:] -= whole[:-1]
         deltas[:1] -= self._whole
-        if self.simulator.max_delta is not None:   # counts beyond the report field are lost for good
+        if self.simulator.max_delta is not None:  # counts beyond the report field are lost for good
             deltas = np.clip(deltas, -self.simulator.max_delta, self.simulator.max_delta)
         if n_reports:
             self._whole, self._last_report_t_s = whole[-1], float(report_t[-1])
@@ -191,8 +201,9 @@ class MouseStream:
         return encode_frames(reports.t_s + clock_offset_s, reports.dx, reports.dy)
 
 
-def circle_motion(duration_s: float, radius_mm: float = 20.0, period_s: float = 4.0,
-                  rate_hz: float = 1000.0) -> tuple[np.ndarray, np.ndarray]:
+def circle_motion(
+    duration_s: float, radius_mm: float = 20.0, period_s: float = 4.0, rate_hz: float = 1000.0
+) -> tuple[np.ndarray, np.ndarray]:
     """A circle traced at constant speed from (radius, 0): times (N,) in s and positions (N, 2) in mm."""
     t_s = np.arange(0.0, duration_s + 0.5 / rate_hz, 1.0 / rate_hz)
     phase = 2 * np.pi * t_s / period_s
@@ -207,13 +218,21 @@ def write_stream(fd: int, data: bytes, *, realtime_rate_bytes_s: float | None = 
             delay = start + offset / realtime_rate_bytes_s - time.monotonic()
             if delay > 0:
                 time.sleep(delay)
-        view = memoryview(data)[offset: offset + chunk]
+        view = memoryview(data)[offset : offset + chunk]
         while view:
-            view = view[os.write(fd, view):]
+            view = view[os.write(fd, view) :]
 
 
-def write_circle_stream(out: str, *, duration_s: float = 10.0, rate_hz: float = 1000.0, cpi: float = 800.0,
-                        radius_mm: float = 20.0, period_s: float = 4.0, realtime: bool = False) -> int:
+def write_circle_stream(
+    out: str,
+    *,
+    duration_s: float = 10.0,
+    rate_hz: float = 1000.0,
+    cpi: float = 800.0,
+    radius_mm: float = 20.0,
+    period_s: float = 4.0,
+    realtime: bool = False,
+) -> int:
     """Simulate a circle and write its ``input_event`` records to the FIFO or file ``out``; return the event count.
 
     Timestamps start at ``time.monotonic()`` so that a reader on the same machine sees a live clock.
@@ -240,14 +259,24 @@ def add_stream_arguments(parser: argparse.ArgumentParser) -> None:
 
 def write_stream_from_args(args: argparse.Namespace) -> int:
     """:func:`write_circle_stream` with the options of :func:`add_stream_arguments` (and ``args.out``)."""
-    return write_circle_stream(args.out, duration_s=args.duration_s, rate_hz=args.rate_hz, cpi=args.cpi,
-                               radius_mm=args.radius_mm, period_s=args.period_s, realtime=args.realtime)
+    return write_circle_stream(
+        args.out,
+        duration_s=args.duration_s,
+        rate_hz=args.rate_hz,
+        cpi=args.cpi,
+        radius_mm=args.radius_mm,
+        period_s=args.period_s,
+        realtime=args.realtime,
+    )
 
 
 def main(argv: list[str] | None = None) -> int:
     """Program entry: ``python -m bench.simulators.mouse --out FIFO [options]``."""
-    parser = argparse.ArgumentParser(prog="python -m bench.simulators.mouse", description=__doc__.split("\n")[0],
-                                     formatter_class=argparse.ArgumentDefaultsHelpFormatter)
+    parser = argparse.ArgumentParser(
+        prog="python -m bench.simulators.mouse",
+        description=__doc__.split("\n")[0],
+        formatter_class=argparse.ArgumentDefaultsHelpFormatter,
+    )
     parser.add_argument("--out", required=True, help="FIFO or file to write input_event records into")
     add_stream_arguments(parser)
     args = parser.parse_args(argv)

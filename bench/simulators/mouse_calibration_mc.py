@@ -28,9 +28,16 @@ _LENGTHS_MM = (5.0, 10.0, 15.0, 20.0, 40.0)
 DESIGNS = {"both directions": ((1, 0), (-1, 0), (0, 1), (0, -1)), "one direction": ((1, 0), (0, 1))}
 
 
-def calibration_moves(rng: np.random.Generator, n: int, design: str, *, offset_counts: float = 0.6,
-                      noise_counts: float = 0.3, travel_sd_mm: float = 0.01,
-                      b: np.ndarray = TRUE_B) -> tuple[np.ndarray, np.ndarray]:
+def calibration_moves(
+    rng: np.random.Generator,
+    n: int,
+    design: str,
+    *,
+    offset_counts: float = 0.6,
+    noise_counts: float = 0.3,
+    travel_sd_mm: float = 0.01,
+    b: np.ndarray = TRUE_B,
+) -> tuple[np.ndarray, np.ndarray]:
     """Reference displacements (n, 2) mm and simulated count increments (n, 2) of one calibration run.
 
     The reference's travel scatters by ``travel_sd_mm`` about its stated length (a calibrated axis repeats to some
@@ -47,8 +54,15 @@ def calibration_moves(rng: np.random.Generator, n: int, design: str, *, offset_c
     return reference, increments + rng.normal(0.0, noise_counts, (n, 2))
 
 
-def matrix_coverage(fit: Callable[[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray]], n: int, design: str,
-                    *, trials: int, seed: int, offset_counts: float = 0.6) -> np.ndarray:
+def matrix_coverage(
+    fit: Callable[[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray]],
+    n: int,
+    design: str,
+    *,
+    trials: int,
+    seed: int,
+    offset_counts: float = 0.6,
+) -> np.ndarray:
     """Share of ``trials`` runs in which |Â - A| <= U(Â), per element of A (2, 2).
 
     ``fit(reference_mm, counts)`` returns (Â, U(Â)) in mm/count; the truth is A = B⁻¹ of :data:`TRUE_B`.

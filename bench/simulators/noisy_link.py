@@ -85,19 +85,20 @@ class NoisyDevicePort:
 @dataclass
 class DrillResult:
     moves: int
-    completed: int          #: moves that reached their target
-    stopped: int            #: moves ended by a stop() (ERR 8) or not re-sent after one
-    failed: int             #: moves that raised anything else
-    failures: list          #: their messages
-    executed_twice: int     #: MOVEs the controller started more than once
-    resent_moves: int       #: MOVE lines the driver sent more than once (the retransmissions the dedup answered)
+    completed: int  #: moves that reached their target
+    stopped: int  #: moves ended by a stop() (ERR 8) or not re-sent after one
+    failed: int  #: moves that raised anything else
+    failures: list  #: their messages
+    executed_twice: int  #: MOVEs the controller started more than once
+    resent_moves: int  #: MOVE lines the driver sent more than once (the retransmissions the dedup answered)
     stops: int
-    lost_stops: int         #: stop() raised, or the move still ran after stop() returned
+    lost_stops: int  #: stop() raised, or the move still ran after stop() returned
     corrupted: dict
 
 
-def corrupted_frames_drill(rate: float, moves: int, *, seed: int = 0, stop_every: int = 4,
-                           speed_factor: float = 2.0, retries: int = 5) -> DrillResult:
+def corrupted_frames_drill(
+    rate: float, moves: int, *, seed: int = 0, stop_every: int = 4, speed_factor: float = 2.0, retries: int = 5
+) -> DrillResult:
     """``moves`` random moves (every ``stop_every``-th stopped from another thread mid-move) through a line
     corrupting ``rate`` of the frames each way; the simulated controller runs ``speed_factor`` times real speed."""
     device = Pkm5SimDevice(lambda steps, load_kg: np.zeros(5), speed_factor=speed_factor)
@@ -143,5 +144,15 @@ def corrupted_frames_drill(rate: float, moves: int, *, seed: int = 0, stop_every
             lost += not all(outcome)
         robot.position()  # settles the link (a late ERR 8 / OK STOP is dropped as stale)
     moves_sent = [line for line in port.lines_written if b"MOVE " in line]
-    return DrillResult(moves, completed, stopped, failed, failures, len(device.started_moves) - len(set(device.started_moves)),
-                       len(moves_sent) - len(set(moves_sent)), stops, lost, dict(port.corrupted))
+    return DrillResult(
+        moves,
+        completed,
+        stopped,
+        failed,
+        failures,
+        len(device.started_moves) - len(set(device.started_moves)),
+        len(moves_sent) - len(set(moves_sent)),
+        stops,
+        lost,
+        dict(port.corrupted),
+    )

@@ -49,8 +49,9 @@ def sequence_numbers(t_s: np.ndarray) -> np.ndarray:
     return np.round(np.asarray(t_s, float) * 1e6).astype(np.int64)
 
 
-def run(out: str, *, rate_hz: float, duration_s: float, buffer_bytes: int, start_on_stdin: bool = False
-        ) -> dict[str, int]:
+def run(
+    out: str, *, rate_hz: float, duration_s: float, buffer_bytes: int, start_on_stdin: bool = False
+) -> dict[str, int]:
     """Write ``rate_hz * duration_s`` reports into the FIFO ``out``, paced (after a line on stdin with
     ``start_on_stdin``: the reader is set up by then, as a mouse is read before the robot moves); the counts."""
     fd = os.open(out, os.O_WRONLY)  # waits for the reader, as a device waits to be opened
@@ -118,8 +119,15 @@ def _busy_python(stop: threading.Event) -> int:
     return loops
 
 
-def ingest_beside_busy_work(*, reader: str, rate_hz: float = 8000.0, duration_s: float = 10.0,
-                            buffer_bytes: int = 4096, realtime: bool = True, one_cpu: bool = False) -> PacedIngest:
+def ingest_beside_busy_work(
+    *,
+    reader: str,
+    rate_hz: float = 8000.0,
+    duration_s: float = 10.0,
+    buffer_bytes: int = 4096,
+    realtime: bool = True,
+    one_cpu: bool = False,
+) -> PacedIngest:
     """Read a paced mouse (:func:`run` in a writer process) with ``reader`` = ``"process"`` (a reader process,
     :mod:`bench.sensors.reader_process`) or ``"thread"`` (the in-process reader, as a reader thread uses it),
     while this process's main thread runs GIL-busy Python work; a thread takes the frames as the mice
@@ -134,17 +142,32 @@ def ingest_beside_busy_work(*, reader: str, rate_hz: float = 8000.0, duration_s:
         allowed = os.sched_getaffinity(0)
         os.sched_setaffinity(0, {min(allowed)})
         try:
-            return ingest_beside_busy_work(reader=reader, rate_hz=rate_hz, duration_s=duration_s,
-                                           buffer_bytes=buffer_bytes, realtime=realtime)
+            return ingest_beside_busy_work(
+                reader=reader, rate_hz=rate_hz, duration_s=duration_s, buffer_bytes=buffer_bytes, realtime=realtime
+            )
         finally:
             os.sched_setaffinity(0, allowed)
     with tempfile.TemporaryDirectory() as tmp:
         fifo = os.path.join(tmp, "event-mouse")
         os.mkfifo(fifo)
-        writer = subprocess.Popen([sys.executable, "-m", "bench.simulators.paced_mouse", "--out", fifo,
-                                   "--rate-hz", str(rate_hz), "--duration-s", str(duration_s),
-                                   "--buffer-bytes", str(buffer_bytes), "--start-on-stdin"],
-                                  stdin=subprocess.PIPE, stdout=subprocess.PIPE)
+        writer = subprocess.Popen(
+            [
+                sys.executable,
+                "-m",
+                "bench.simulators.paced_mouse",
+                "--out",
+                fifo,
+                "--rate-hz",
+                str(rate_hz),
+                "--duration-s",
+                str(duration_s),
+                "--buffer-bytes",
+                str(buffer_bytes),
+                "--start-on-stdin",
+            ],
+            stdin=subprocess.PIPE,
+            stdout=subprocess.PIPE,
+        )
         mouse = EvdevMouse(fifo, CountsCalibration.from_cpi(1600), label="paced")
         if reader == "process":
             mouse.start_reader_process(realtime=realtime)
@@ -177,8 +200,16 @@ def ingest_beside_busy_work(*, reader: str, rate_hz: float = 8000.0, duration_s:
     sequence = np.unique(sequence_numbers(frames.t_s[frames.valid]))
     expected = counts["written"] + counts["dropped"]
     gaps = np.diff(np.r_[-1, sequence, expected])
-    return PacedIngest(expected, len(sequence), expected - len(sequence), counts["dropped"],
-                       float(gaps.max() * 1e3 / rate_hz), loops, int((~frames.valid).sum()), reader_kind)
+    return PacedIngest(
+        expected,
+        len(sequence),
+        expected - len(sequence),
+        counts["dropped"],
+        float(gaps.max() * 1e3 / rate_hz),
+        loops,
+        int((~frames.valid).sum()),
+        reader_kind,
+    )
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -189,8 +220,17 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--buffer-bytes", type=int, default=4096)
     parser.add_argument("--start-on-stdin", action="store_true", help="start once a line arrives on stdin")
     args = parser.parse_args(argv)
-    print(json.dumps(run(args.out, rate_hz=args.rate_hz, duration_s=args.duration_s,
-                         buffer_bytes=args.buffer_bytes, start_on_stdin=args.start_on_stdin)))
+    print(
+        json.dumps(
+            run(
+                args.out,
+                rate_hz=args.rate_hz,
+                duration_s=args.duration_s,
+                buffer_bytes=args.buffer_bytes,
+                start_on_stdin=args.start_on_stdin,
+            )
+        )
+    )
     return 0
 
 

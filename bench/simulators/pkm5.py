@@ -27,8 +27,16 @@ from bench.robots import pkm5_wire as wire
 from bench.simulators.dynamics import StructuralMode, trace_times
 from bench.simulators.pty import TruthLog, add_common_arguments, main_for
 
-__all__ = ["DESCRIPTION", "FIRMWARE_VERSION", "HOME_STEPS", "MAX_STEPS", "Pkm5SimDevice", "add_arguments",
-           "build_device", "main"]
+__all__ = [
+    "DESCRIPTION",
+    "FIRMWARE_VERSION",
+    "HOME_STEPS",
+    "MAX_STEPS",
+    "Pkm5SimDevice",
+    "add_arguments",
+    "build_device",
+    "main",
+]
 
 _log = logging.getLogger(__name__)
 
@@ -63,9 +71,18 @@ def duration_ms(steps: int, speed_steps_s: int) -> int:
 class Pkm5SimDevice:
     """The firmware state machine; ``plant(steps, load_kg) -> pose`` supplies the true pose after each move."""
 
-    def __init__(self, plant: Any, *, speed_factor: float = 1.0, truth: TruthLog | None = None,
-                 load_kg: float = 0.0, mode: StructuralMode | None = None, sim_verbs: bool = True,
-                 observers: tuple[Any, ...] = (), kernel_wait_s: float = 0.0) -> None:
+    def __init__(
+        self,
+        plant: Any,
+        *,
+        speed_factor: float = 1.0,
+        truth: TruthLog | None = None,
+        load_kg: float = 0.0,
+        mode: StructuralMode | None = None,
+        sim_verbs: bool = True,
+        observers: tuple[Any, ...] = (),
+        kernel_wait_s: float = 0.0,
+    ) -> None:
         self.plant = plant
         #: how long :meth:`ready` waits for the plant's deferred start-up work (its compiled kernel), s
         self.kernel_wait_s = kernel_wait_s
@@ -239,7 +256,7 @@ class Pkm5SimDevice:
         return wire.format_reply("OK", tag, "SETPOS")
 
     def _start_move(self, tag: int, args: tuple[int, ...], now_s: float) -> bytes:
-        targets, speed = args[:wire.AXES], args[wire.AXES]
+        targets, speed = args[: wire.AXES], args[wire.AXES]
         if not 1 <= speed <= MAX_SPEED_STEPS_S:
             return _error(tag, wire.ErrorCode.ARGUMENT)
         if not _within_limits(targets):
@@ -250,8 +267,9 @@ class Pkm5SimDevice:
         duration_s = float(np.max(np.abs(target - self.steps))) / speed
         self.move = _Move(tag, self.steps.copy(), target, now_s, duration_s / self.speed_factor)
         self._unprepared = target
-        ok = wire.format_reply("OK", tag, "MOVE", round(duration_ms(int(np.max(np.abs(target - self.steps))), speed)
-                                                        / self.speed_factor))
+        ok = wire.format_reply(
+            "OK", tag, "MOVE", round(duration_ms(int(np.max(np.abs(target - self.steps))), speed) / self.speed_factor)
+        )
         self._last_move = (tag, ok, b"")
         self.started_moves.append(tag)
         return ok
@@ -293,46 +311,83 @@ def _error(tag: int, code: wire.ErrorCode, *fields: object) -> bytes:
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Options of ``bench sim pkm5`` / ``python -m bench.simulators.pkm5``."""
     add_common_arguments(parser)
-    parser.add_argument("--fixture", choices=("assembled", "actuator-bench"), default="assembled",
-                        help="the assembled robot (SIMTRUE: the pose) or the six actuators free-standing on the "
-                             "bench, 000 §8.4 (SIMTRUE: the six true strokes, mm)")
-    parser.add_argument("--mice", default=None, metavar="DIR",
-                        help="two simulated optical mice watching the robot, read as event devices from "
-                             "DIR/mouse_xy.fifo and DIR/mouse_xz.fifo (assembled robot)")
-    parser.add_argument("--hardware-only", action="store_true",
-                        help="answer the SIM verbs as the real firmware does (unknown verb): proves a rig built "
-                             "for hardware never asks the simulator for its truth")
-    parser.add_argument("--mode-hz", type=float, default=StructuralMode.frequency_hz,
-                        help="natural frequency of the structural mode that rings after each move, Hz "
-                             "(default %(default)s; a choice, no document measures it)")
-    parser.add_argument("--damping", type=float, default=StructuralMode.damping_ratio,
-                        help="damping ratio of that mode, 0-1 (default %(default)s)")
-    parser.add_argument("--kernel-wait-s", type=float, default=0.0, metavar="SECONDS",
-                        help="wait up to this long for the compiled FK kernel (numba) before serving the pty, so "
-                             "the first moves run at speed (bench demo); 0: serve at once, the kernel loads behind the port "
-                             "once numpy has solved 200 moves (a short session never loads it)")
-    parser.add_argument("--true-geometry-seed", type=int, default=None, metavar="SEED",
-                        help="move by a seeded perturbed geometry (bench.simulators.true_geometry) instead of the "
-                             "error model's geometric stand-ins")
+    parser.add_argument(
+        "--fixture",
+        choices=("assembled", "actuator-bench"),
+        default="assembled",
+        help="the assembled robot (SIMTRUE: the pose) or the six actuators free-standing on the "
+        "bench, 000 §8.4 (SIMTRUE: the six true strokes, mm)",
+    )
+    parser.add_argument(
+        "--mice",
+        default=None,
+        metavar="DIR",
+        help="two simulated optical mice watching the robot, read as event devices from "
+        "DIR/mouse_xy.fifo and DIR/mouse_xz.fifo (assembled robot)",
+    )
+    parser.add_argument(
+        "--hardware-only",
+        action="store_true",
+        help="answer the SIM verbs as the real firmware does (unknown verb): proves a rig built "
+        "for hardware never asks the simulator for its truth",
+    )
+    parser.add_argument(
+        "--mode-hz",
+        type=float,
+        default=StructuralMode.frequency_hz,
+        help="natural frequency of the structural mode that rings after each move, Hz "
+        "(default %(default)s; a choice, no document measures it)",
+    )
+    parser.add_argument(
+        "--damping",
+        type=float,
+        default=StructuralMode.damping_ratio,
+        help="damping ratio of that mode, 0-1 (default %(default)s)",
+    )
+    parser.add_argument(
+        "--kernel-wait-s",
+        type=float,
+        default=0.0,
+        metavar="SECONDS",
+        help="wait up to this long for the compiled FK kernel (numba) before serving the pty, so "
+        "the first moves run at speed (bench demo); 0: serve at once, the kernel loads behind the port "
+        "once numpy has solved 200 moves (a short session never loads it)",
+    )
+    parser.add_argument(
+        "--true-geometry-seed",
+        type=int,
+        default=None,
+        metavar="SEED",
+        help="move by a seeded perturbed geometry (bench.simulators.true_geometry) instead of the "
+        "error model's geometric stand-ins",
+    )
 
 
 def build_device(args: argparse.Namespace) -> Pkm5SimDevice:
     """The simulated controller described by the command-line ``args``."""
     from bench.robots.pkm5_kinematics import ACTUATOR_BENCH
     from bench.simulators.pkm5_plant import build_actuator_bench, build_plant
+
     kernel_wait_s = getattr(args, "kernel_wait_s", 0.0)
     if not 0 <= kernel_wait_s < float("inf"):  # (NaN fails too) a thread's join refuses inf with a traceback
         raise ConfigError(f"--kernel-wait-s = {kernel_wait_s}, expected a finite number of seconds >= 0")
     try:
-        mode = StructuralMode(getattr(args, "mode_hz", StructuralMode.frequency_hz),
-                              getattr(args, "damping", StructuralMode.damping_ratio))
+        mode = StructuralMode(
+            getattr(args, "mode_hz", StructuralMode.frequency_hz),
+            getattr(args, "damping", StructuralMode.damping_ratio),
+        )
     except ValueError as exc:
         raise ConfigError(f"--mode-hz/--damping: {exc}") from None
     if getattr(args, "fixture", "assembled") == ACTUATOR_BENCH:
         plant = build_actuator_bench(args.seed, ideal=args.ideal)
         truth = TruthLog(args.truth, tuple(f"stroke{axis}_mm" for axis in range(1, wire.AXES + 1)))
-        return Pkm5SimDevice(plant, speed_factor=args.speed_factor, truth=truth, mode=mode,
-                             sim_verbs=not getattr(args, "hardware_only", False))
+        return Pkm5SimDevice(
+            plant,
+            speed_factor=args.speed_factor,
+            truth=truth,
+            mode=mode,
+            sim_verbs=not getattr(args, "hardware_only", False),
+        )
     true_seed = getattr(args, "true_geometry_seed", None)
     if true_seed is None:
         plant = build_plant(args.seed, ideal=args.ideal)
@@ -346,9 +401,16 @@ def build_device(args: argparse.Namespace) -> Pkm5SimDevice:
         from bench.simulators.mice_feed import MiceFeed
 
         observers = (MiceFeed(args.mice, plant(np.array(HOME_STEPS), args.load_kg), seed=args.seed),)
-    return Pkm5SimDevice(plant, speed_factor=args.speed_factor, truth=truth, load_kg=args.load_kg, mode=mode,
-                         sim_verbs=not getattr(args, "hardware_only", False), observers=observers,
-                         kernel_wait_s=kernel_wait_s)
+    return Pkm5SimDevice(
+        plant,
+        speed_factor=args.speed_factor,
+        truth=truth,
+        load_kg=args.load_kg,
+        mode=mode,
+        sim_verbs=not getattr(args, "hardware_only", False),
+        observers=observers,
+        kernel_wait_s=kernel_wait_s,
+    )
 
 
 def main(argv: list[str] | None = None) -> int:

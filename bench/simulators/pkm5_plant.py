@@ -48,9 +48,15 @@ NUMPY_SOLVES_BEFORE_LOAD = 200
 #: angles 0.2-1.9 deg). Joint units mm of leg length; pose units (mm, mm, mm, deg, deg). Actuator noise per
 #: Table A.7 (sigma 0.02-0.11 mm); passive-joint play dominates the random part (joint tolerance <= 1 mm, Table 4-2).
 PKM5_ERRORS = ErrorMagnitudes(
-    scale_sigma=0.003, offset_sigma=0.25, backlash=0.10, noise_sigma=0.05, sag_per_kg=0.005,
-    pose_gain_sigma=0.004, pose_play_sigma=(0.6, 0.6, 0.6, 0.35, 0.35),
-    pose_sag_per_kg=(0.0, 0.0, -0.03, 0.0, 0.0), pose_offset_sigma=(0.5, 0.5, 0.5, 1.0, 1.0),
+    scale_sigma=0.003,
+    offset_sigma=0.25,
+    backlash=0.10,
+    noise_sigma=0.05,
+    sag_per_kg=0.005,
+    pose_gain_sigma=0.004,
+    pose_play_sigma=(0.6, 0.6, 0.6, 0.35, 0.35),
+    pose_sag_per_kg=(0.0, 0.0, -0.03, 0.0, 0.0),
+    pose_offset_sigma=(0.5, 0.5, 0.5, 1.0, 1.0),
 )
 
 
@@ -66,8 +72,13 @@ def plant_engine() -> str:
 def load_fk_kernel(geometry: Any = pkm5.DEFAULT_GEOMETRY) -> None:
     """Load numba and the compiled FK kernel into this process (machine code from numba's cache, or compiled on a
     fresh install): one solve of ``geometry``'s home lengths. Raises what a broken numba install raises."""
-    pkm5.forward_kinematics(geometry.home_lengths_mm[None, :], geometry, mode="translation",
-                            initial_pose=(150.0, 0.0, 300.0, 0.0, 0.0), engine="compiled")
+    pkm5.forward_kinematics(
+        geometry.home_lengths_mm[None, :],
+        geometry,
+        mode="translation",
+        initial_pose=(150.0, 0.0, 300.0, 0.0, 0.0),
+        engine="compiled",
+    )
 
 
 class _KernelLoader(threading.Thread):
@@ -162,8 +173,14 @@ def _home_pose(geometry: Any):
     return fk if fk.converged[0] else pkm5.forward_kinematics(home, geometry, engine="numpy")
 
 
-def build_plant(seed: int, *, ideal: bool = False, geometry: Any = pkm5.DEFAULT_GEOMETRY,
-                true_geometry: Any = None, engine: str = "auto") -> Plant:
+def build_plant(
+    seed: int,
+    *,
+    ideal: bool = False,
+    geometry: Any = pkm5.DEFAULT_GEOMETRY,
+    true_geometry: Any = None,
+    engine: str = "auto",
+) -> Plant:
     """Steps -> leg lengths -> seeded errors -> least-squares FK -> pose errors; pose in mm and degrees.
 
     With ``true_geometry`` (a perturbed :class:`motion.pkm5.Geometry`, e.g. from
@@ -211,13 +228,26 @@ def build_plant(seed: int, *, ideal: bool = False, geometry: Any = pkm5.DEFAULT_
             # pose). The perturbed legs never fit a pose exactly (a 0.1-0.2 mm residual), so the default
             # ``retry_above_mm`` would run every restart on every move; they run only when the warm solve did not
             # converge (tests/test_plant_forward.py: the same poses within 1e-6 mm).
-            fk = pkm5.forward_kinematics(lengths[None, :], geometry, initial_pose=start, mode=mode,
-                                         residual_tol_mm=_PLANT_RESIDUAL_TOL_MM, retry_above_mm=np.inf,
-                                         step_tol=_PLANT_STEP_TOL, engine=use)
+            fk = pkm5.forward_kinematics(
+                lengths[None, :],
+                geometry,
+                initial_pose=start,
+                mode=mode,
+                residual_tol_mm=_PLANT_RESIDUAL_TOL_MM,
+                retry_above_mm=np.inf,
+                step_tol=_PLANT_STEP_TOL,
+                engine=use,
+            )
             if fk.converged[0]:
                 return pose_deg_from_rad(fk.pose[0])
-        fk = pkm5.forward_kinematics(lengths[None, :], geometry, initial_pose=start, mode=mode,
-                                     residual_tol_mm=_PLANT_RESIDUAL_TOL_MM, engine=use)
+        fk = pkm5.forward_kinematics(
+            lengths[None, :],
+            geometry,
+            initial_pose=start,
+            mode=mode,
+            residual_tol_mm=_PLANT_RESIDUAL_TOL_MM,
+            engine=use,
+        )
         return pose_deg_from_rad(fk.pose[0]) if fk.converged[0] else None
 
     nominal_starts: dict[tuple[bytes, str, str], Any] = {}
@@ -230,16 +260,24 @@ def build_plant(seed: int, *, ideal: bool = False, geometry: Any = pkm5.DEFAULT_
         if key not in nominal_starts:
             if len(nominal_starts) >= _NOMINAL_STARTS_KEPT:
                 del nominal_starts[next(iter(nominal_starts))]  # the command solved longest ago
-            nominal_starts[key] = pkm5.forward_kinematics(commanded[None, :], geometry, mode=mode,
-                                                          residual_tol_mm=2.0, max_iter=200, engine=use)
+            nominal_starts[key] = pkm5.forward_kinematics(
+                commanded[None, :], geometry, mode=mode, residual_tol_mm=2.0, max_iter=200, engine=use
+            )
         return nominal_starts[key]
 
     def _fit_true(lengths: np.ndarray, start: Any, mode: str, use: str):
         # true lengths never fit exactly (6 legs, 3-4 unknowns): retrying every inexact fit from the restart guesses
         # would trade the near solution for a far branch with a smaller residual
-        return pkm5.forward_kinematics(lengths[None, :], moved_by, initial_pose=start.pose, mode=mode,
-                                       residual_tol_mm=_PLANT_RESIDUAL_TOL_MM, retry_above_mm=0.5, max_iter=200,
-                                       engine=use)
+        return pkm5.forward_kinematics(
+            lengths[None, :],
+            moved_by,
+            initial_pose=start.pose,
+            mode=mode,
+            residual_tol_mm=_PLANT_RESIDUAL_TOL_MM,
+            retry_above_mm=0.5,
+            max_iter=200,
+            engine=use,
+        )
 
     def _forward_true(lengths: np.ndarray, commanded: np.ndarray, use: str) -> np.ndarray | None:
         # the commanded mode shows in the nominal lengths (the true pairs differ)
@@ -258,11 +296,21 @@ def build_plant(seed: int, *, ideal: bool = False, geometry: Any = pkm5.DEFAULT_
                 fk = min(fits, key=lambda f: (not f.converged[0], f.residual_mm[0]))
         return pose_deg_from_rad(fk.pose[0]) if fk.converged[0] else None
 
-    model = (ErrorModel.ideal(6, 5) if ideal else
-             ErrorModel.draw(PKM5_ERRORS, 6, seed, np.asarray(geometry.leg_length_offset_mm)))
+    model = (
+        ErrorModel.ideal(6, 5)
+        if ideal
+        else ErrorModel.draw(PKM5_ERRORS, 6, seed, np.asarray(geometry.leg_length_offset_mm))
+    )
     if true_geometry is not None:
-        model = dataclasses.replace(model, offset=np.zeros(6), scale=np.zeros(6), pose_gain=np.zeros((5, 5)),
-                                    pose_offset=np.zeros(5))
+        model = dataclasses.replace(
+            model, offset=np.zeros(6), scale=np.zeros(6), pose_gain=np.zeros((5, 5)), pose_offset=np.zeros(5)
+        )
     home_fk = _home_pose(geometry)
-    return Plant(joints_of, forward, model, pose_deg_from_rad(home_fk.pose[0]), seed,
-                 warm_up=None if loader is None else loader.warm)
+    return Plant(
+        joints_of,
+        forward,
+        model,
+        pose_deg_from_rad(home_fk.pose[0]),
+        seed,
+        warm_up=None if loader is None else loader.warm,
+    )

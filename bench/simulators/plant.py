@@ -47,9 +47,15 @@ class Plant:
         built, e.g. loading a compiled kernel on a thread; ``wait_s`` > 0 waits for it up to that long.
     """
 
-    def __init__(self, joints_of: Callable[[np.ndarray], np.ndarray],
-                 forward: Callable[[np.ndarray, np.ndarray, np.ndarray | None], np.ndarray | None], model: ErrorModel,
-                 reference_pose: np.ndarray, seed: int, warm_up: Callable[[], None] | None = None) -> None:
+    def __init__(
+        self,
+        joints_of: Callable[[np.ndarray], np.ndarray],
+        forward: Callable[[np.ndarray, np.ndarray, np.ndarray | None], np.ndarray | None],
+        model: ErrorModel,
+        reference_pose: np.ndarray,
+        seed: int,
+        warm_up: Callable[[], None] | None = None,
+    ) -> None:
         self.joints_of = joints_of
         self.forward = forward
         self.model = model
@@ -92,7 +98,12 @@ class Plant:
         if prepared is not None and prepared[1] == float(load_kg) and np.array_equal(prepared[0], command):
             _, _, trial, pose = prepared
             self._rng, self._memory, self._previous, self.true_joints, self._attained = (
-                trial._rng, trial._memory, trial._previous, trial.true_joints, trial._attained)
+                trial._rng,
+                trial._memory,
+                trial._previous,
+                trial.true_joints,
+                trial._attained,
+            )
             return pose
         return self._advance(command, load_kg)
 

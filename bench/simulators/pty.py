@@ -61,9 +61,15 @@ class TruthLog:
 
     def record(self, commanded: list[float], pose: list[float], load_kg: float) -> dict[str, Any]:
         self._seq += 1
-        entry = {"seq": self._seq, "t_monotonic_s": time.monotonic(), "t_wall_s": time.time(),
-                 "commanded": [float(c) for c in commanded], "pose": [float(p) for p in pose],
-                 "pose_fields": list(self.pose_fields), "load_kg": float(load_kg)}
+        entry = {
+            "seq": self._seq,
+            "t_monotonic_s": time.monotonic(),
+            "t_wall_s": time.time(),
+            "commanded": [float(c) for c in commanded],
+            "pose": [float(p) for p in pose],
+            "pose_fields": list(self.pose_fields),
+            "load_kg": float(load_kg),
+        }
         if self._handle is not None:
             self._handle.write(json.dumps(entry) + "\n")
             self._handle.flush()
@@ -95,13 +101,18 @@ def read_last_truth(path: str | os.PathLike[str]) -> dict[str, Any] | None:
 def add_common_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--seed", type=int, default=0, help="seed of the robot's error model and noise")
     parser.add_argument("--ideal", action="store_true", help="no error model: attain exactly what is commanded")
-    parser.add_argument("--speed-factor", type=float, default=1.0,
-                        help="simulated time runs this many times faster than real moves")
+    parser.add_argument(
+        "--speed-factor", type=float, default=1.0, help="simulated time runs this many times faster than real moves"
+    )
     parser.add_argument("--load-kg", type=float, default=0.0, help="payload on the end effector, kg")
     parser.add_argument("--truth", default=None, help="append the true attained pose after each move to this file")
     parser.add_argument("--reply-delay-s", type=float, default=0.0, help="fault: delay every reply by this, s")
-    parser.add_argument("--garbage-every-s", type=float, default=0.0,
-                        help="fault: send a burst of random bytes this often, s (0: never)")
+    parser.add_argument(
+        "--garbage-every-s",
+        type=float,
+        default=0.0,
+        help="fault: send a burst of random bytes this often, s (0: never)",
+    )
 
 
 def _open_pty() -> tuple[int, int, str]:
@@ -215,8 +226,7 @@ def run_simulator(build_device: Any, args: argparse.Namespace) -> int:
 
 def main_for(build_device: Any, add_arguments: Any, description: str, argv: list[str] | None = None) -> int:
     """``python -m`` entry point shared by the simulators: parse arguments, build the device, serve it."""
-    parser = argparse.ArgumentParser(description=description,
-                                     formatter_class=argparse.ArgumentDefaultsHelpFormatter)
+    parser = argparse.ArgumentParser(description=description, formatter_class=argparse.ArgumentDefaultsHelpFormatter)
     add_arguments(parser)
     args = parser.parse_args(argv)
     try:

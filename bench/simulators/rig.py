@@ -24,16 +24,23 @@ import numpy as np
 
 from bench.errors import LinkError
 from bench.rigs.gauges import CalliperOnly
+from bench.rigs.interfaces import Measurement, Rig
 from bench.rigs.mice import PATH, STREAMED_KINDS, MiceInstrument
 from bench.rigs.movers import DeltaMover, Pkm5Mover
 from bench.simulators.calliper import depths_for_tilt
 from bench.simulators.client import SimulatorClient
 from bench.simulators.mice_feed import MOTION_S, PLANES, plane_seed
-from bench.rigs.interfaces import Measurement, Rig
 from bench.steps import Capture, Prompt
 
-__all__ = ["BenchCalliper", "SimulatedCalliper", "end_process", "SimulatedMice", "SimulatedOperator",
-           "simulated_rig", "start_simulator"]
+__all__ = [
+    "BenchCalliper",
+    "SimulatedCalliper",
+    "end_process",
+    "SimulatedMice",
+    "SimulatedOperator",
+    "simulated_rig",
+    "start_simulator",
+]
 
 #: True samples taken of each streamed path segment, and the host's turnaround between two segments (s): [choice].
 _PATH_TRACE_SAMPLES, _PATH_TURNAROUND_S = 40, 0.005
@@ -49,16 +56,26 @@ _PIPE_CHUNK = 24 * 3 * 512
 spawn: Callable[..., subprocess.Popen] = subprocess.Popen
 
 
-def start_simulator(robot: str, *, seed: int, speed_factor: float, ideal: bool = False, timeout_s: float = 20.0,
-                    options: tuple[str, ...] = ()) -> tuple[subprocess.Popen, str]:
+def start_simulator(
+    robot: str,
+    *,
+    seed: int,
+    speed_factor: float,
+    ideal: bool = False,
+    timeout_s: float = 20.0,
+    options: tuple[str, ...] = (),
+) -> tuple[subprocess.Popen, str]:
     """Start ``python -m bench.simulators.<robot>`` (plus ``options``); returns the process and its pty path.
 
     ``timeout_s`` is for the start itself: a ``--kernel-wait-s W`` among the options (the simulator serves its port
     once its kernel is loaded) adds its W, so a loaded machine's kernel wait never eats into the start's limit."""
     if "--kernel-wait-s" in options:
         timeout_s += float(options[options.index("--kernel-wait-s") + 1])
-    command = [sys.executable, "-m", f"bench.simulators.{robot}", "--seed", str(seed), "--speed-factor",
-               str(speed_factor)] + (["--ideal"] if ideal else []) + list(options)
+    command = (
+        [sys.executable, "-m", f"bench.simulators.{robot}", "--seed", str(seed), "--speed-factor", str(speed_factor)]
+        + (["--ideal"] if ideal else [])
+        + list(options)
+    )
     # the simulator's log goes to a file: an undrained pipe would block the simulator once it filled up. Its own
     # session: a Ctrl-C at the terminal goes to the terminal's foreground process group, which must hold bench alone
     # (bench pauses; the simulator, the robot's stand-in, must not die under it: issue 31)
@@ -71,8 +88,10 @@ def start_simulator(robot: str, *, seed: int, speed_factor: float, ideal: bool =
             process.wait(5)
             log.seek(0)
             error = log.read().strip().splitlines()
-            raise LinkError(f"simulator {' '.join(command[1:3])}: no pty path within {timeout_s:g} s "
-                            f"({error[-1] if error else 'no output'})")
+            raise LinkError(
+                f"simulator {' '.join(command[1:3])}: no pty path within {timeout_s:g} s "
+                f"({error[-1] if error else 'no output'})"
+            )
     return process, line
 
 
@@ -85,9 +104,19 @@ class SimulatedMice(MiceInstrument):
     follow the simulator's sampled true arrival (``SIMTRACE``), so the stream shows the lag and the ringing.
     """
 
-    def __init__(self, controller: Any, folder: str, *, seed: int, cpi: float = 800.0,
-                 noise_counts: float = 0.05, report_rate_hz: float = 500.0, trace_rate_hz: int = 250,
-                 calibration_id: str = "sim-mouse-800cpi", truth_log: str | None = None) -> None:
+    def __init__(
+        self,
+        controller: Any,
+        folder: str,
+        *,
+        seed: int,
+        cpi: float = 800.0,
+        noise_counts: float = 0.05,
+        report_rate_hz: float = 500.0,
+        trace_rate_hz: int = 250,
+        calibration_id: str = "sim-mouse-800cpi",
+        truth_log: str | None = None,
+    ) -> None:
         from bench.sensors.calibration import CountsCalibration
         from bench.sensors.mouse import EvdevMouse
         from bench.simulators.mouse import MouseSimulator, MouseStream
@@ -108,11 +137,15 @@ class SimulatedMice(MiceInstrument):
         self._clock_s = 0.0
         self._kind = ""
         self._last_xyz = registration.copy()
-        self._streams = {plane: MouseStream(MouseSimulator(cpi=cpi, noise_counts=noise_counts,
-                                                           report_rate_hz=report_rate_hz,
-                                                           seed=plane_seed(seed, index)),
-                                            origin_mm=registration[list(columns)])
-                         for index, (plane, columns) in enumerate(PLANES.items())}
+        self._streams = {
+            plane: MouseStream(
+                MouseSimulator(
+                    cpi=cpi, noise_counts=noise_counts, report_rate_hz=report_rate_hz, seed=plane_seed(seed, index)
+                ),
+                origin_mm=registration[list(columns)],
+            )
+            for index, (plane, columns) in enumerate(PLANES.items())
+        }
 
     def _follow(self, t_s: np.ndarray, true_xyz: np.ndarray) -> dict[str, Any]:
         """Feed the true motion (times on the simulated clock, positions (n, 3) mm) to both mice and read back
@@ -124,7 +157,7 @@ class SimulatedMice(MiceInstrument):
             data = self._streams[plane].input_events(t_s, true_xyz[:, list(columns)])
             parts = []
             for offset in range(0, len(data), _PIPE_CHUNK):
-                os.write(self._writers[plane], data[offset:offset + _PIPE_CHUNK])
+                os.write(self._writers[plane], data[offset : offset + _PIPE_CHUNK])
                 parts.append(self.mice[plane].read_frames())
             frames[plane] = MotionFrames.concatenate(parts)
         self._clock_s = float(t_s[-1])
@@ -154,12 +187,16 @@ class SimulatedMice(MiceInstrument):
         if capture.kind not in STREAMED_KINDS:
             self._follow(np.array([self._clock_s + MOTION_S]), true_pose[None, :3])
         measured = super().measure(capture)
-        return Measurement(measured.values, raw={**measured.raw,
-                                                 "true_pose": [round(float(v), 6) for v in true_pose]})
+        return Measurement(measured.values, raw={**measured.raw, "true_pose": [round(float(v), 6) for v in true_pose]})
 
     def settings(self) -> dict[str, Any]:
-        return {**super().settings(), "instrument": "two simulated optical mice (x-y, x-z) over FIFOs",
-                "cpi": self.cpi, "noise_counts": self.noise_counts, "report_rate_hz": self.report_rate_hz}
+        return {
+            **super().settings(),
+            "instrument": "two simulated optical mice (x-y, x-z) over FIFOs",
+            "cpi": self.cpi,
+            "noise_counts": self.noise_counts,
+            "report_rate_hz": self.report_rate_hz,
+        }
 
     def close(self) -> None:
         super().close()
@@ -191,8 +228,9 @@ class SimulatedCalliper:
     true, perturbed leg lengths (``SIMLEGS``), so a leg reading shows the actuator's own error (offset, scale,
     backlash, load compression) as well as the calliper's scatter."""
 
-    def __init__(self, controller: Any, *, seed: int, length_sigma_mm: float = 0.02,
-                 tilt_sigma_deg: float = 0.1) -> None:
+    def __init__(
+        self, controller: Any, *, seed: int, length_sigma_mm: float = 0.02, tilt_sigma_deg: float = 0.1
+    ) -> None:
         self.controller = controller
         self.truth = SimulatorClient(controller)
         self.rng = np.random.default_rng(seed + 7919)
@@ -236,15 +274,23 @@ class BenchCalliper:
             return None
         axis = int(prompt.conditions.get("actuator", 0))
         if prompt.field != "travel_mm" or axis not in self.zero_mm:
-            raise LinkError(f"simulated depth gauge: cannot answer {prompt.field!r} ({prompt.text}): not zeroed on "
-                            f"actuator {axis}")
+            raise LinkError(
+                f"simulated depth gauge: cannot answer {prompt.field!r} ({prompt.text}): not zeroed on actuator {axis}"
+            )
         travel = self.truth.true_strokes()[axis - 1] - self.zero_mm[axis]
         return round(float(travel + self.rng.normal(0.0, self.sigma_mm)), 2)
 
 
-def simulated_rig(robot: str = "pkm5", *, seed: int = 0, speed_factor: float = 1000.0, ideal: bool = False,
-                  answer: Callable[[Prompt], float] | None = None, fixture: str = "assembled",
-                  options: tuple[str, ...] = ()) -> Rig:
+def simulated_rig(
+    robot: str = "pkm5",
+    *,
+    seed: int = 0,
+    speed_factor: float = 1000.0,
+    ideal: bool = False,
+    answer: Callable[[Prompt], float] | None = None,
+    fixture: str = "assembled",
+    options: tuple[str, ...] = (),
+) -> Rig:
     """A rig on a freshly started simulator (close it with ``rig.close()``); ``fixture="actuator-bench"``: the
     pkm5's actuators free-standing, moved one at a time and read by a simulated depth gauge. ``options`` go to the
     assembled robot's simulator command line (e.g. ``("--mode-hz", "1.0")``, ``("--true-geometry-seed", "3")``)."""
@@ -264,8 +310,9 @@ def simulated_rig(robot: str = "pkm5", *, seed: int = 0, speed_factor: float = 1
     # the mice read the true pose after each move from the truth log, not by a SIMTRUE round trip (SimulatorClient)
     truth_log = os.path.join(folder.name, "truth.jsonl")
     try:
-        process, path = start_simulator(robot, seed=seed, speed_factor=speed_factor, ideal=ideal,
-                                        options=("--truth", truth_log) + tuple(options))
+        process, path = start_simulator(
+            robot, seed=seed, speed_factor=speed_factor, ideal=ideal, options=("--truth", truth_log) + tuple(options)
+        )
     except BaseException:
         folder.cleanup()
         raise
@@ -292,18 +339,25 @@ def _simulated_actuator_bench(robot: str, *, seed: int, speed_factor: float, ide
 
     if robot != "pkm5":
         raise LinkError(f"--robot {robot}: the actuator bench exists for the pkm5 only")
-    process, path = start_simulator(robot, seed=seed, speed_factor=speed_factor, ideal=ideal,
-                                    options=("--fixture", "actuator-bench"))
+    process, path = start_simulator(
+        robot, seed=seed, speed_factor=speed_factor, ideal=ideal, options=("--fixture", "actuator-bench")
+    )
     try:
-        controller = Pkm5Controller(serial.serial_for_url(path, baudrate=115200, timeout=0.05),
-                                    fixture="actuator-bench")
+        controller = Pkm5Controller(
+            serial.serial_for_url(path, baudrate=115200, timeout=0.05), fixture="actuator-bench"
+        )
         controller.identify()
         controller.enable()
     except BaseException:
         end_process(process)
         raise
-    return Rig(Pkm5Mover(controller), CalliperOnly(), BenchCalliper(controller, seed=seed),
-               speed_factor=speed_factor, closers=[lambda: end_process(process)])
+    return Rig(
+        Pkm5Mover(controller),
+        CalliperOnly(),
+        BenchCalliper(controller, seed=seed),
+        speed_factor=speed_factor,
+        closers=[lambda: end_process(process)],
+    )
 
 
 def end_process(process: subprocess.Popen) -> None:
@@ -329,8 +383,13 @@ def _simulated_delta_rig(*, seed: int, speed_factor: float, ideal: bool, options
     folder = tempfile.TemporaryDirectory(prefix="bench-sim-delta4-")
     truth_path = os.path.join(folder.name, "truth.jsonl")
     try:
-        process, path = start_simulator("delta4", seed=seed, speed_factor=speed_factor, ideal=ideal,
-                                        options=("--truth", truth_path) + tuple(options))
+        process, path = start_simulator(
+            "delta4",
+            seed=seed,
+            speed_factor=speed_factor,
+            ideal=ideal,
+            options=("--truth", truth_path) + tuple(options),
+        )
     except BaseException:
         folder.cleanup()
         raise
@@ -351,5 +410,6 @@ def _simulated_delta_rig(*, seed: int, speed_factor: float, ideal: bool, options
         return entry["pose"]
 
     instrument = LaserGridInstrument(controller, truth=true_position)
-    return Rig(DeltaMover(controller), instrument, SimulatedOperator(controller), speed_factor=speed_factor,
-               closers=closers)
+    return Rig(
+        DeltaMover(controller), instrument, SimulatedOperator(controller), speed_factor=speed_factor, closers=closers
+    )

@@ -43,20 +43,32 @@ class Rehearsal:
             self.closers.pop()()
 
 
-def rehearse(station: Station, *, seed: int = 0, speed_factor: float = 10000.0, ideal: bool = False,
-             true_geometry_seed: int | None = None) -> Rehearsal:
+def rehearse(
+    station: Station,
+    *,
+    seed: int = 0,
+    speed_factor: float = 10000.0,
+    ideal: bool = False,
+    true_geometry_seed: int | None = None,
+) -> Rehearsal:
     """Start a simulator for every device of ``station``; the returned station names the simulators' devices.
     ``true_geometry_seed``: the simulated robot moves by that seed's true geometry (``--true-geometry-seed``)."""
     if station.camera is not None and station.robot != "delta4":
-        raise ConfigError(f"{station.source}: [camera] on the {station.robot} cannot be rehearsed yet (only the "
-                          "delta4 simulator streams a camera); check it with bench station check, or rehearse the "
-                          "protocol with [mice]")
+        raise ConfigError(
+            f"{station.source}: [camera] on the {station.robot} cannot be rehearsed yet (only the "
+            "delta4 simulator streams a camera); check it with bench station check, or rehearse the "
+            "protocol with [mice]"
+        )
     if station.camera is not None and station.camera.plane != "xy":
-        raise ConfigError(f"{station.source}: camera.plane = {station.camera.plane!r}: the simulated camera watches "
-                          "the x-y plane, expected 'xy' for a rehearsal")
+        raise ConfigError(
+            f"{station.source}: camera.plane = {station.camera.plane!r}: the simulated camera watches "
+            "the x-y plane, expected 'xy' for a rehearsal"
+        )
     if true_geometry_seed is not None and station.controller.fixture != "assembled":
-        raise ConfigError(f"--true-geometry-seed {true_geometry_seed}: the {station.controller.fixture} has no "
-                          "geometry, expected an assembled robot's station")
+        raise ConfigError(
+            f"--true-geometry-seed {true_geometry_seed}: the {station.controller.fixture} has no "
+            "geometry, expected an assembled robot's station"
+        )
     if not speed_factor > 0 or speed_factor == float("inf"):
         raise ConfigError(f"--speed-factor = {speed_factor:g}, expected a finite number > 0")
     folder = tempfile.TemporaryDirectory(prefix="bench-rehearsal-")
@@ -84,11 +96,17 @@ def rehearse(station: Station, *, seed: int = 0, speed_factor: float = 10000.0, 
             paths = fifo_paths(folder.name)
             for path in paths.values():
                 os.mkfifo(path)
-            mice = dataclasses.replace(mice, xy=paths["xy"], xz=paths["xz"], grab=False,
-                                       noise_counts=mice.noise_counts if mice.noise_counts is not None else 0.05)
+            mice = dataclasses.replace(
+                mice,
+                xy=paths["xy"],
+                xz=paths["xz"],
+                grab=False,
+                noise_counts=mice.noise_counts if mice.noise_counts is not None else 0.05,
+            )
     try:
-        process, pty_path = start_simulator(station.robot, seed=seed, speed_factor=speed_factor, ideal=ideal,
-                                            options=tuple(options))
+        process, pty_path = start_simulator(
+            station.robot, seed=seed, speed_factor=speed_factor, ideal=ideal, options=tuple(options)
+        )
     except BaseException:
         folder.cleanup()
         raise
@@ -96,10 +114,21 @@ def rehearse(station: Station, *, seed: int = 0, speed_factor: float = 10000.0, 
     calliper = station.calliper
     if calliper is not None and calliper.kind == "serial":
         calliper = CalliperSpec(kind="typed", resolution_mm=calliper.resolution_mm)
-    simulated = dataclasses.replace(station, controller=dataclasses.replace(station.controller, port=pty_path),
-                                    mice=mice, camera=camera, calliper=calliper, simulated=True,
-                                    devices={**station.devices, "controller.port": pty_path,
-                                             **({"camera.device": camera.device} if camera else {})})
-    settings = {**({"ideal": True} if ideal else {}),
-                **({"true_geometry_seed": int(true_geometry_seed)} if true_geometry_seed is not None else {})}
+    simulated = dataclasses.replace(
+        station,
+        controller=dataclasses.replace(station.controller, port=pty_path),
+        mice=mice,
+        camera=camera,
+        calliper=calliper,
+        simulated=True,
+        devices={
+            **station.devices,
+            "controller.port": pty_path,
+            **({"camera.device": camera.device} if camera else {}),
+        },
+    )
+    settings = {
+        **({"ideal": True} if ideal else {}),
+        **({"true_geometry_seed": int(true_geometry_seed)} if true_geometry_seed is not None else {}),
+    }
     return Rehearsal(simulated, truth_path, closers, settings)

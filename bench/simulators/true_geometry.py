@@ -29,7 +29,9 @@ _TRUNCATE_SIGMA = 2.5
 def true_deviations(seed: int, names=PARAMETERS) -> dict[str, float]:
     """Seeded deviations of ``names`` from the nominal geometry (the other parameters stay nominal)."""
     rng = np.random.default_rng([int(seed), 20])
-    draws = np.clip(rng.normal(0.0, 1.0, len(PARAMETERS)), -_TRUNCATE_SIGMA, _TRUNCATE_SIGMA)  # always all, so a subset keeps its values
+    draws = np.clip(
+        rng.normal(0.0, 1.0, len(PARAMETERS)), -_TRUNCATE_SIGMA, _TRUNCATE_SIGMA
+    )  # always all, so a subset keeps its values
     return {name: float(draw * tolerance(name)) for name, draw in zip(PARAMETERS, draws) if name in set(names)}
 
 
@@ -50,7 +52,8 @@ def attained_poses(steps, modes, geometry: Geometry) -> np.ndarray:
 def delta4_true_deviations(seed: int) -> dict[str, float]:
     """Seeded deviations of every :data:`motion.delta4.calibration.PARAMETERS` entry (deg or mm, by its unit) from
     the documented delta4 geometry: the truth a delta4 simulator moves by (:func:`bench.simulators.delta4.build_plant`)."""
-    from motion.delta4.calibration import PARAMETERS as DELTA4_PARAMETERS, tolerance as delta4_tolerance
+    from motion.delta4.calibration import PARAMETERS as DELTA4_PARAMETERS
+    from motion.delta4.calibration import tolerance as delta4_tolerance
 
     rng = np.random.default_rng([int(seed), 40])
     draws = np.clip(rng.normal(0.0, 1.0, len(DELTA4_PARAMETERS)), -_TRUNCATE_SIGMA, _TRUNCATE_SIGMA)

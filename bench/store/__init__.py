@@ -11,11 +11,11 @@ from bench.store.database import (
     Store,
     software_git_sha,
 )
+from bench.store.descriptors import SAMPLE_KINDS, SampleMismatch, validate_sample
+from bench.store.export import EXPORT_FORMATS, TIDY_COLUMNS, default_kind, export_run, series_table, tidy_table
 from bench.store.ownership import RunOwned
 from bench.store.sample_checksum import DamagedSample
 from bench.store.schema import SCHEMA_VERSION, StoreSchemaError
-from bench.store.descriptors import SAMPLE_KINDS, SampleMismatch, validate_sample
-from bench.store.export import EXPORT_FORMATS, TIDY_COLUMNS, default_kind, export_run, series_table, tidy_table
 
 __all__ = [
     "EXPORT_FORMATS",

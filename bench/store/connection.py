@@ -123,8 +123,10 @@ def _refuse_foreign(db: sqlite3.Connection, path: str) -> None:
     names = [row[0] for row in db.execute("SELECT name FROM sqlite_master WHERE type = 'table' ORDER BY name")]
     if names and "runs" not in names:
         listed = ", ".join(names[:5]) + (", ..." if len(names) > 5 else "")
-        raise ConfigError(f"--store {path}: not a bench store (its tables are {listed}; no runs table); left "
-                          "untouched, expected a bench.db that bench wrote or a new file name")
+        raise ConfigError(
+            f"--store {path}: not a bench store (its tables are {listed}; no runs table); left "
+            "untouched, expected a bench.db that bench wrote or a new file name"
+        )
 
 
 def open_connection(path: str, *, read_only: bool = False) -> sqlite3.Connection:
@@ -167,11 +169,16 @@ def check_store(path: str) -> list[str]:
     problems: list[str] = []
     try:
         # one row may hold many messages, one a line, the first under a "*** in database main ***" title
-        problems += [f"{path}: integrity: {message}" for row in db.execute("PRAGMA integrity_check")
-                     for message in str(row[0]).splitlines()
-                     if message not in ("ok", "") and not message.startswith("*** in database")]
-        problems += [f"{path}: table {table} row {rowid}: {parent} id missing (foreign key {fk})"
-                     for table, rowid, parent, fk in db.execute("PRAGMA foreign_key_check")]
+        problems += [
+            f"{path}: integrity: {message}"
+            for row in db.execute("PRAGMA integrity_check")
+            for message in str(row[0]).splitlines()
+            if message not in ("ok", "") and not message.startswith("*** in database")
+        ]
+        problems += [
+            f"{path}: table {table} row {rowid}: {parent} id missing (foreign key {fk})"
+            for table, rowid, parent, fk in db.execute("PRAGMA foreign_key_check")
+        ]
         problems += damaged_sample_lines(db, path)
     except sqlite3.Error as exc:  # a page too damaged to walk: what was found so far, then SQLite's words
         problems.append(f"{path}: {exc}")

@@ -61,7 +61,6 @@ INTERRUPTED = "interrupted"
 CHECKPOINT_RETRY_S = 0.5
 
 
-
 class DuplicateSample(BenchError):
     """A sample for a step that already has one: resuming must skip stored steps, never store them twice."""
 
@@ -146,27 +145,52 @@ def software_git_sha() -> str:
     """The git commit of the source tree bench runs from, with ``-dirty`` when it has local changes."""
     root = Path(__file__).resolve().parents[2]
     try:
-        sha = subprocess.run(["git", "rev-parse", "HEAD"], cwd=root, capture_output=True, text=True, timeout=5, check=False)
+        sha = subprocess.run(
+            ["git", "rev-parse", "HEAD"], cwd=root, capture_output=True, text=True, timeout=5, check=False
+        )
         if sha.returncode != 0:
             return "unknown"
-        dirty = subprocess.run(["git", "status", "--porcelain", "--untracked-files=no"], cwd=root,
-                               capture_output=True, text=True, timeout=5, check=False)
+        dirty = subprocess.run(
+            ["git", "status", "--porcelain", "--untracked-files=no"],
+            cwd=root,
+            capture_output=True,
+            text=True,
+            timeout=5,
+            check=False,
+        )
         return sha.stdout.strip() + ("-dirty" if dirty.stdout.strip() else "")
     except (OSError, subprocess.SubprocessError):
         return "unknown"
 
 
-def encode_sample(run_id: int, step_index: int, *, values: Mapping[str, float], kind: str, pose: str | None,
-                  cycle: int | None, t_s: float, raw: Any, wall_clock: Callable[[], str] = _utc_now) -> tuple:
+def encode_sample(
+    run_id: int,
+    step_index: int,
+    *,
+    values: Mapping[str, float],
+    kind: str,
+    pose: str | None,
+    cycle: int | None,
+    t_s: float,
+    raw: Any,
+    wall_clock: Callable[[], str] = _utc_now,
+) -> tuple:
     """The ``samples`` row of one sample, its ``wall_utc`` now by ``wall_clock`` (when it was taken); a value that
     is not a finite number, or raw data that is not JSON, raises ``ConfigError`` here, before anything is
     written."""
     for key, value in values.items():
         if not isinstance(value, (int, float)) or not math.isfinite(value):
             raise ConfigError(f"run {run_id} step {step_index}: {key} = {value!r}, expected a finite number")
-    columns = (int(step_index), kind, pose, cycle, float(t_s), wall_clock(),
-               _to_json({k: float(v) for k, v in values.items()}, "values"),
-               None if raw is None else _to_json(raw, "raw"))
+    columns = (
+        int(step_index),
+        kind,
+        pose,
+        cycle,
+        float(t_s),
+        wall_clock(),
+        _to_json({k: float(v) for k, v in values.items()}, "values"),
+        None if raw is None else _to_json(raw, "raw"),
+    )
     return (int(run_id), *columns, sample_checksum(*columns))
 
 
@@ -179,8 +203,13 @@ def checkpoint_wal(db: GuardedConnection) -> None:
             if copied >= log_frames:  # all of it (-1, -1: not in WAL mode, a store in memory)
                 return
             if time.monotonic() > deadline:
-                _log.warning("store %s: checkpoint copied %d of %d log frames (a reader held an older "
-                             "snapshot for %g s)", db.path, copied, log_frames, CHECKPOINT_RETRY_S)
+                _log.warning(
+                    "store %s: checkpoint copied %d of %d log frames (a reader held an older snapshot for %g s)",
+                    db.path,
+                    copied,
+                    log_frames,
+                    CHECKPOINT_RETRY_S,
+                )
                 return
             time.sleep(0.005)
     except sqlite3.Error as exc:
@@ -191,8 +220,11 @@ def insert_sample_row(db: GuardedConnection, row: tuple) -> None:
     """Insert and commit one row of :func:`encode_sample` on ``db`` (in its own transaction: ``synchronous=FULL``
     makes it durable before this returns)."""
     try:
-        db.execute("INSERT INTO samples (run_id, step_index, kind, pose, cycle, t_s, wall_utc, values_json, raw_json,"
-                   " checksum) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?)", row)
+        db.execute(
+            "INSERT INTO samples (run_id, step_index, kind, pose, cycle, t_s, wall_utc, values_json, raw_json,"
+            " checksum) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?)",
+            row,
+        )
     except sqlite3.IntegrityError as exc:
         if "UNIQUE" in str(exc):
             raise DuplicateSample(f"run {row[0]}: step {row[1]} already has a stored sample") from exc
@@ -245,8 +277,10 @@ class Store:
             if read_only:
                 (version,) = raw.execute("PRAGMA user_version").fetchone()
                 if version > SCHEMA_VERSION:
-                    raise StoreSchemaError(f"--store {self.path}: schema version {version} is newer than this "
-                                           f"bench's ({SCHEMA_VERSION}); upgrade bench to open it")
+                    raise StoreSchemaError(
+                        f"--store {self.path}: schema version {version} is newer than this "
+                        f"bench's ({SCHEMA_VERSION}); upgrade bench to open it"
+                    )
                 if version < SCHEMA_VERSION:  # an old store is migrated (with its backup) before it is read
                     raw.close()
                     raw = self._migrated()
@@ -262,8 +296,7 @@ class Store:
             raise
         self._db = GuardedConnection(raw, self.path)
         if self.backup is not None:
-            _log.warning("store %s migrated to the current schema; the old file is kept as %s", self.path,
-                         self.backup)
+            _log.warning("store %s migrated to the current schema; the old file is kept as %s", self.path, self.backup)
 
     def _migrated(self) -> sqlite3.Connection:
         """Migrate the old store at ``self.path`` for a reader; then reopen it read-only."""
@@ -350,23 +383,41 @@ class Store:
 
     def campaign_id(self, name: str, notes: str = "") -> int:
         """The id of campaign ``name``, created on first use."""
-        self._db.execute("INSERT OR IGNORE INTO campaigns (name, created_utc, notes) VALUES (?, ?, ?)",
-                         (name, _utc_now(), notes))
+        self._db.execute(
+            "INSERT OR IGNORE INTO campaigns (name, created_utc, notes) VALUES (?, ?, ?)", (name, _utc_now(), notes)
+        )
         return int(self._db.execute("SELECT id FROM campaigns WHERE name = ?", (name,)).fetchone()[0])
 
     # ---- runs ------------------------------------------------------------------------------------------------
 
-    def start_run(self, *, protocol_name: str, protocol_version: str, robot: str, config: Mapping[str, Any],
-                  settings: Mapping[str, Any] | None = None, calibration_ids: Iterable[int] = (),
-                  campaign: str | None = None) -> int:
+    def start_run(
+        self,
+        *,
+        protocol_name: str,
+        protocol_version: str,
+        robot: str,
+        config: Mapping[str, Any],
+        settings: Mapping[str, Any] | None = None,
+        calibration_ids: Iterable[int] = (),
+        campaign: str | None = None,
+    ) -> int:
         """Create a run with status ``running``, its full provenance, a new UUID and this bench's name; returns the
         run id (an integer local to this file; the UUID is the run's name everywhere else)."""
         campaign_id = self.campaign_id(campaign) if campaign else None
-        row = (str(uuid.uuid4()), self.bench, campaign_id, protocol_name, str(protocol_version), robot,
-               _to_json(dict(config), "config"),
-               _to_json(dict(settings or {}), "settings"), _to_json(sorted(int(i) for i in calibration_ids),
-                                                                    "calibration_ids"),
-               __version__, software_git_sha(), _utc_now())
+        row = (
+            str(uuid.uuid4()),
+            self.bench,
+            campaign_id,
+            protocol_name,
+            str(protocol_version),
+            robot,
+            _to_json(dict(config), "config"),
+            _to_json(dict(settings or {}), "settings"),
+            _to_json(sorted(int(i) for i in calibration_ids), "calibration_ids"),
+            __version__,
+            software_git_sha(),
+            _utc_now(),
+        )
         # owned before anyone can read it: the run and its lock appear together (the commit comes after the lock)
         run_id = None
         self._db.execute("BEGIN IMMEDIATE")
@@ -374,7 +425,9 @@ class Store:
             cursor = self._db.execute(
                 "INSERT INTO runs (uuid, bench, campaign_id, protocol_name, protocol_version, robot, config_json,"
                 " settings_json, calibration_ids_json, software_version, git_sha, status, started_utc)"
-                " VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, 'running', ?)", row)
+                " VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, 'running', ?)",
+                row,
+            )
             run_id = int(cursor.lastrowid)
             self.claim(run_id)
             self._db.execute("COMMIT")
@@ -394,11 +447,16 @@ class Store:
         now = _utc_now()
         ended = None if status == "running" else now
         # every settle and every reopening is kept in the run's history (the report lists each abort and resume)
-        event = {"utc": now, "event": "resumed" if status == "running" else status,
-                 **({"reason": reason} if reason else {})}
+        event = {
+            "utc": now,
+            "event": "resumed" if status == "running" else status,
+            **({"reason": reason} if reason else {}),
+        }
         settings = {**record.settings, "history": [*record.settings.get("history", ()), event]}
-        self._db.execute("UPDATE runs SET status = ?, reason = ?, ended_utc = ?, settings_json = ? WHERE id = ?",
-                         (status, reason, ended, _to_json(settings, "settings"), run_id))
+        self._db.execute(
+            "UPDATE runs SET status = ?, reason = ?, ended_utc = ?, settings_json = ? WHERE id = ?",
+            (status, reason, ended, _to_json(settings, "settings"), run_id),
+        )
 
     def add_registration(self, run_id: int, registration: Mapping[str, Any]) -> int:
         """Append one registration of the run's instruments (a run segment, :mod:`bench.rigs.registration`) to its
@@ -412,12 +470,13 @@ class Store:
                 raise ConfigError(f"run {run_id}: no such run in {self.path}")
             settings = json.loads(row[0])
             entries = settings.setdefault("registrations", [])
-            (after_t_s,) = self._db.execute("SELECT MAX(t_s) FROM samples WHERE run_id = ?",
-                                            (int(run_id),)).fetchone()
-            entries.append({**registration, "segment": len(entries) + 1,
-                            **({} if after_t_s is None else {"after_t_s": after_t_s})})
-            self._db.execute("UPDATE runs SET settings_json = ? WHERE id = ?",
-                             (_to_json(settings, "settings"), int(run_id)))
+            (after_t_s,) = self._db.execute("SELECT MAX(t_s) FROM samples WHERE run_id = ?", (int(run_id),)).fetchone()
+            entries.append(
+                {**registration, "segment": len(entries) + 1, **({} if after_t_s is None else {"after_t_s": after_t_s})}
+            )
+            self._db.execute(
+                "UPDATE runs SET settings_json = ? WHERE id = ?", (_to_json(settings, "settings"), int(run_id))
+            )
             self._db.execute("COMMIT")
         except BaseException:
             self._db.execute("ROLLBACK")
@@ -431,8 +490,7 @@ class Store:
             raise ConfigError(f"run {run_id}: no such run in {self.path}")
         return rows[0]
 
-    def runs(self, *, bench: str | None = None, robot: str | None = None, since: str | None = None
-             ) -> list[RunRecord]:
+    def runs(self, *, bench: str | None = None, robot: str | None = None, since: str | None = None) -> list[RunRecord]:
         """Every run, oldest first; optionally only those of one bench, of one robot, started on or after ``since``
         (an ISO date or UTC time, e.g. ``2026-11-01``)."""
         clauses, args = [], []
@@ -448,20 +506,46 @@ class Store:
             " r.settings_json,"
             " r.calibration_ids_json, r.software_version, r.git_sha, r.status, r.reason, r.started_utc,"
             " r.ended_utc, (SELECT COUNT(*) FROM samples s WHERE s.run_id = r.id)"
-            f" FROM runs r LEFT JOIN campaigns c ON c.id = r.campaign_id {where} ORDER BY r.id")
+            f" FROM runs r LEFT JOIN campaigns c ON c.id = r.campaign_id {where} ORDER BY r.id"
+        )
         return [
-            RunRecord(id=row[0], uuid=row[1], bench=row[2], campaign=row[3], protocol_name=row[4],
-                      protocol_version=row[5], robot=row[6], config=json.loads(row[7]), settings=json.loads(row[8]),
-                      calibration_ids=tuple(json.loads(row[9])), software_version=row[10], git_sha=row[11],
-                      status=status, reason=reason, started_utc=row[14], ended_utc=row[15], n_samples=row[16])
+            RunRecord(
+                id=row[0],
+                uuid=row[1],
+                bench=row[2],
+                campaign=row[3],
+                protocol_name=row[4],
+                protocol_version=row[5],
+                robot=row[6],
+                config=json.loads(row[7]),
+                settings=json.loads(row[8]),
+                calibration_ids=tuple(json.loads(row[9])),
+                software_version=row[10],
+                git_sha=row[11],
+                status=status,
+                reason=reason,
+                started_utc=row[14],
+                ended_utc=row[15],
+                n_samples=row[16],
+            )
             for row in self._db.execute(query, args).fetchall()
             for status, reason in (self._reads_as(row[0], row[12], row[13]),)
         ]
 
     # ---- samples ---------------------------------------------------------------------------------------------
 
-    def add_sample(self, run_id: int, step_index: int, *, values: Mapping[str, float], kind: str = "pose",
-                   pose: str | None = None, cycle: int | None = None, t_s: float, raw: Any = None) -> None:
+    def add_sample(
+        self,
+        run_id: int,
+        step_index: int,
+        *,
+        values: Mapping[str, float],
+        kind: str = "pose",
+        pose: str | None = None,
+        cycle: int | None = None,
+        t_s: float,
+        raw: Any = None,
+    ) -> None:
         """Store one sample and commit it before returning.
 
         Parameters
@@ -480,8 +564,19 @@ class Store:
         raw : JSON-serialisable, optional
             The raw counts, bytes (as hex) or readings the values were computed from.
         """
-        self.insert_sample(encode_sample(run_id, step_index, values=values, kind=kind, pose=pose, cycle=cycle,
-                                         t_s=t_s, raw=raw, wall_clock=self.wall_clock))
+        self.insert_sample(
+            encode_sample(
+                run_id,
+                step_index,
+                values=values,
+                kind=kind,
+                pose=pose,
+                cycle=cycle,
+                t_s=t_s,
+                raw=raw,
+                wall_clock=self.wall_clock,
+            )
+        )
 
     def insert_sample(self, row: tuple) -> None:
         """Insert and commit one row of :func:`encode_sample` before returning (:meth:`add_sample` in two parts:
@@ -497,14 +592,27 @@ class Store:
         """The samples of a run in step order, optionally of one ``kind`` only. Each is checked against its checksum
         as it is read: a damaged one raises :class:`bench.store.sample_checksum.DamagedSample` naming the run and
         the step, so nothing is computed from a changed number."""
-        query = (f"SELECT {', '.join(CHECKED_COLUMNS)}, checksum FROM samples"
-                 " WHERE run_id = ?" + (" AND kind = ?" if kind else "") + " ORDER BY step_index")
+        query = (
+            f"SELECT {', '.join(CHECKED_COLUMNS)}, checksum FROM samples"
+            " WHERE run_id = ?" + (" AND kind = ?" if kind else "") + " ORDER BY step_index"
+        )
         args = (run_id, kind) if kind else (run_id,)
         samples = []
         for row in self._db.execute(query, args):
             values, raw = parse_sample(run_id, row, self.path)
-            samples.append(SampleRecord(run_id=run_id, step_index=row[0], kind=row[1], pose=row[2], cycle=row[3],
-                                        t_s=row[4], wall_utc=row[5], values=values, raw=raw))
+            samples.append(
+                SampleRecord(
+                    run_id=run_id,
+                    step_index=row[0],
+                    kind=row[1],
+                    pose=row[2],
+                    cycle=row[3],
+                    t_s=row[4],
+                    wall_utc=row[5],
+                    values=values,
+                    raw=raw,
+                )
+            )
         return samples
 
     def stored_rows(self, run_id: int, after_step: int = -1, *, extract: Sequence[str] = ()) -> Iterator[tuple]:
@@ -513,10 +621,12 @@ class Store:
         :func:`bench.store.lab.rows_checksum` hashes); with ``extract`` (two or more value names) a ninth item, the
         JSON array of those values as stored (``null`` where absent; SQLite's ``json_extract``, number text kept)."""
         paths = "".join(", ?" for _ in extract)
-        return self._db.execute("SELECT step_index, kind, pose, cycle, t_s, wall_utc, values_json, raw_json"
-                                + (f", json_extract(values_json{paths})" if extract else "")
-                                + " FROM samples WHERE run_id = ? AND step_index > ? ORDER BY step_index",
-                                (*(f"$.{name}" for name in extract), int(run_id), int(after_step)))
+        return self._db.execute(
+            "SELECT step_index, kind, pose, cycle, t_s, wall_utc, values_json, raw_json"
+            + (f", json_extract(values_json{paths})" if extract else "")
+            + " FROM samples WHERE run_id = ? AND step_index > ? ORDER BY step_index",
+            (*(f"$.{name}" for name in extract), int(run_id), int(after_step)),
+        )
 
     # ---- streamed rows ---------------------------------------------------------------------------------------
 
@@ -547,19 +657,28 @@ class Store:
         t = np.asarray(t_s, dtype=float)
         columns = (np.asarray(dx_counts, np.int64), np.asarray(dy_counts, np.int64), np.asarray(valid, bool))
         if any(c.shape != t.shape for c in columns) or t.ndim != 1:
-            raise ConfigError(f"run {run_id} stream {stream}: t_s, dx_counts, dy_counts and valid have shapes "
-                              f"{[t.shape, *(c.shape for c in columns)]}, expected one length")
+            raise ConfigError(
+                f"run {run_id} stream {stream}: t_s, dx_counts, dy_counts and valid have shapes "
+                f"{[t.shape, *(c.shape for c in columns)]}, expected one length"
+            )
         if not np.isfinite(t).all():
             bad = int(np.flatnonzero(~np.isfinite(t))[0])
-            raise ConfigError(f"run {run_id} stream {stream}: t_s[{bad}] = {float(t[bad])!r}, expected a finite "
-                              "number")
-        rows = zip(itertools.repeat(int(run_id)), itertools.repeat(stream), t.tolist(), columns[0].tolist(),
-                   columns[1].tolist(), columns[2].astype(int).tolist())
+            raise ConfigError(f"run {run_id} stream {stream}: t_s[{bad}] = {float(t[bad])!r}, expected a finite number")
+        rows = zip(
+            itertools.repeat(int(run_id)),
+            itertools.repeat(stream),
+            t.tolist(),
+            columns[0].tolist(),
+            columns[1].tolist(),
+            columns[2].astype(int).tolist(),
+        )
         raw = self._db.raw
         try:
             raw.execute("BEGIN IMMEDIATE")  # the write lock now, under the busy timeout, as every writer here
-            raw.executemany("INSERT INTO stream_rows (run_id, stream, t_s, dx_counts, dy_counts, valid) "
-                            "VALUES (?, ?, ?, ?, ?, ?)", rows)
+            raw.executemany(
+                "INSERT INTO stream_rows (run_id, stream, t_s, dx_counts, dy_counts, valid) VALUES (?, ?, ?, ?, ?, ?)",
+                rows,
+            )
             raw.execute("COMMIT")
         except sqlite3.Error as exc:
             if raw.in_transaction:
@@ -574,31 +693,44 @@ class Store:
         valid)``."""
         import numpy as np
 
-        rows = self._db.execute("SELECT t_s, dx_counts, dy_counts, valid FROM stream_rows WHERE run_id = ? AND "
-                                "stream = ? ORDER BY rowid", (int(run_id), stream)).fetchall()
+        rows = self._db.execute(
+            "SELECT t_s, dx_counts, dy_counts, valid FROM stream_rows WHERE run_id = ? AND stream = ? ORDER BY rowid",
+            (int(run_id), stream),
+        ).fetchall()
         table = np.array(rows, dtype=float).reshape(-1, 4)
         return table[:, 0], table[:, 1].astype(np.int64), table[:, 2].astype(np.int64), table[:, 3] != 0
 
     def sample_kinds(self, run_id: int) -> dict[str, int]:
         """How many samples of each kind run ``run_id`` holds, most frequent first."""
-        rows = self._db.execute("SELECT kind, COUNT(*) FROM samples WHERE run_id = ? GROUP BY kind "
-                                "ORDER BY COUNT(*) DESC, kind", (run_id,))
+        rows = self._db.execute(
+            "SELECT kind, COUNT(*) FROM samples WHERE run_id = ? GROUP BY kind ORDER BY COUNT(*) DESC, kind", (run_id,)
+        )
         return {kind: count for kind, count in rows}
 
     # ---- calibrations ----------------------------------------------------------------------------------------
 
-    def add_calibration(self, name: str, params: Mapping[str, Any], *, source_run_id: int | None = None,
-                        notes: str = "") -> CalibrationRecord:
+    def add_calibration(
+        self, name: str, params: Mapping[str, Any], *, source_run_id: int | None = None, notes: str = ""
+    ) -> CalibrationRecord:
         """Store a new version of calibration ``name`` (versions count from 1) and return it."""
         self._db.execute("BEGIN IMMEDIATE")
         try:
-            (latest,) = self._db.execute("SELECT COALESCE(MAX(version), 0) FROM calibrations WHERE name = ?",
-                                         (name,)).fetchone()
+            (latest,) = self._db.execute(
+                "SELECT COALESCE(MAX(version), 0) FROM calibrations WHERE name = ?", (name,)
+            ).fetchone()
             cursor = self._db.execute(
                 "INSERT INTO calibrations (uuid, name, version, created_utc, params_json, source_run_id, notes)"
                 " VALUES (?, ?, ?, ?, ?, ?, ?)",
-                (str(uuid.uuid4()), name, latest + 1, _utc_now(), _to_json(dict(params), "params"), source_run_id,
-                 notes))
+                (
+                    str(uuid.uuid4()),
+                    name,
+                    latest + 1,
+                    _utc_now(),
+                    _to_json(dict(params), "params"),
+                    source_run_id,
+                    notes,
+                ),
+            )
             self._db.execute("COMMIT")
         except BaseException:
             self._db.execute("ROLLBACK")
@@ -616,9 +748,11 @@ class Store:
             return latest
         if self.resuming is not None:
             now = f"version {latest.version} is the latest" if latest else "none is stored"
-            raise ConfigError(f"run {self.resuming}: calibration {name!r} in force would be a new version ({now}, "
-                              f"with other parameters); a run resumes only with the calibrations it started with: "
-                              "start a new run (bench run)")
+            raise ConfigError(
+                f"run {self.resuming}: calibration {name!r} in force would be a new version ({now}, "
+                f"with other parameters); a run resumes only with the calibrations it started with: "
+                "start a new run (bench run)"
+            )
         return self.add_calibration(name, params, notes=notes)
 
     def calibration(self, name: str, version: int | None = None) -> CalibrationRecord:
@@ -632,12 +766,23 @@ class Store:
         return self.calibration_by_id(row[0])
 
     def calibration_by_id(self, calibration_id: int) -> CalibrationRecord:
-        row = self._db.execute("SELECT id, uuid, name, version, created_utc, params_json, source_run_id, notes"
-                               " FROM calibrations WHERE id = ?", (calibration_id,)).fetchone()
+        row = self._db.execute(
+            "SELECT id, uuid, name, version, created_utc, params_json, source_run_id, notes"
+            " FROM calibrations WHERE id = ?",
+            (calibration_id,),
+        ).fetchone()
         if row is None:
             raise ConfigError(f"calibration id {calibration_id}: not found in {self.path}")
-        return CalibrationRecord(id=row[0], uuid=row[1], name=row[2], version=row[3], created_utc=row[4],
-                                 params=json.loads(row[5]), source_run_id=row[6], notes=row[7])
+        return CalibrationRecord(
+            id=row[0],
+            uuid=row[1],
+            name=row[2],
+            version=row[3],
+            created_utc=row[4],
+            params=json.loads(row[5]),
+            source_run_id=row[6],
+            notes=row[7],
+        )
 
     def calibrations(self) -> list[CalibrationRecord]:
         """Every calibration version, by name then version."""

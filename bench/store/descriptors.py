@@ -19,7 +19,16 @@ from dataclasses import dataclass
 
 from bench.errors import BenchError
 
-__all__ = ["SAMPLE_KINDS", "VALUE_COLUMNS", "Column", "SampleKind", "SampleMismatch", "dtype_of", "unit_of", "validate_sample"]
+__all__ = [
+    "SAMPLE_KINDS",
+    "VALUE_COLUMNS",
+    "Column",
+    "SampleKind",
+    "SampleMismatch",
+    "dtype_of",
+    "unit_of",
+    "validate_sample",
+]
 
 _KNOWN_UNITS = ("mm", "deg", "pct", "kg", "s", "counts")
 
@@ -41,8 +50,13 @@ class Column:
     required: bool = True
 
     def as_dict(self) -> dict[str, object]:
-        return {"name": self.name, "unit": self.unit, "dtype": self.dtype, "meaning": self.meaning,
-                "required": self.required}
+        return {
+            "name": self.name,
+            "unit": self.unit,
+            "dtype": self.dtype,
+            "meaning": self.meaning,
+            "required": self.required,
+        }
 
 
 @dataclass(frozen=True)
@@ -84,33 +98,68 @@ _LASER_GRID = (
 _COMMANDED = _xyz("cmd_", "commanded position") + _abc("cmd_", "commanded orientation")
 
 #: The declared sample kinds, by name.
-SAMPLE_KINDS: dict[str, SampleKind] = {kind.name: kind for kind in (
-    SampleKind("pose", "an attained pose measured after settling (ISO 9283 pose tests); an axis the instrument could "
-                       "not read is absent (e.g. a laser-grid screen that did not decode)",
-               _COMMANDED + _xyz("", "measured position", required=False) + _abc("", "measured orientation")
-               + _CONDITIONS + _LASER_GRID),
-    SampleKind("arrival", "the last point of a streamed arrival series (the series itself is in raw)",
-               _COMMANDED + _xyz("", "measured position at the end of the series") + _CONDITIONS),
-    SampleKind("path", "the last point of one streamed segment of a continuous path (ISO 9283 clause 8): cmd_* is "
-                       "the segment's commanded end, velocity_pct the path velocity in percent of the rated path "
-                       "velocity; the series (t_s, x_mm, y_mm, z_mm) and its start time t_request_s are in raw",
-               _COMMANDED + _xyz("", "measured position at the end of the segment") + _CONDITIONS),
-    SampleKind("positioning", "the last point of one streamed step of the minimum positioning time sequence (ISO "
-                              "9283 clause 9): cmd_* is the step's target, step its number in Table 19; the series "
-                              "(t_s, x_mm, y_mm, z_mm) from rest before the move to hold_s after it, and its start "
-                              "time t_request_s, are in raw",
-               _COMMANDED + _xyz("", "measured position at the end of the series") + _CONDITIONS
-               + (Column("step", "1", "int", "number of the step in ISO 9283 Table 19"),
-                  Column("step_distance_mm", "mm", "float", "commanded per-axis distance from the previous pose "
-                                                            "(Dx = Dy = Dz)"))),
-    SampleKind("mouse", "raw counts of the two optical mice at one end of a calibration stroke",
-               _xyz("cmd_", "commanded position")
-               + (Column("step_mm", "mm", "float", "length of the calibration stroke"),)
-               + tuple(Column(f"mouse_{plane}_{axis}_counts", "counts", "float",
-                              f"accumulated counts of the {plane} mouse along {axis}")
-                       for plane, axis in (("xy", "x"), ("xy", "y"), ("xz", "x"), ("xz", "z")))
-               + _CONDITIONS),
-)}
+SAMPLE_KINDS: dict[str, SampleKind] = {
+    kind.name: kind
+    for kind in (
+        SampleKind(
+            "pose",
+            "an attained pose measured after settling (ISO 9283 pose tests); an axis the instrument could "
+            "not read is absent (e.g. a laser-grid screen that did not decode)",
+            _COMMANDED
+            + _xyz("", "measured position", required=False)
+            + _abc("", "measured orientation")
+            + _CONDITIONS
+            + _LASER_GRID,
+        ),
+        SampleKind(
+            "arrival",
+            "the last point of a streamed arrival series (the series itself is in raw)",
+            _COMMANDED + _xyz("", "measured position at the end of the series") + _CONDITIONS,
+        ),
+        SampleKind(
+            "path",
+            "the last point of one streamed segment of a continuous path (ISO 9283 clause 8): cmd_* is "
+            "the segment's commanded end, velocity_pct the path velocity in percent of the rated path "
+            "velocity; the series (t_s, x_mm, y_mm, z_mm) and its start time t_request_s are in raw",
+            _COMMANDED + _xyz("", "measured position at the end of the segment") + _CONDITIONS,
+        ),
+        SampleKind(
+            "positioning",
+            "the last point of one streamed step of the minimum positioning time sequence (ISO "
+            "9283 clause 9): cmd_* is the step's target, step its number in Table 19; the series "
+            "(t_s, x_mm, y_mm, z_mm) from rest before the move to hold_s after it, and its start "
+            "time t_request_s, are in raw",
+            _COMMANDED
+            + _xyz("", "measured position at the end of the series")
+            + _CONDITIONS
+            + (
+                Column("step", "1", "int", "number of the step in ISO 9283 Table 19"),
+                Column(
+                    "step_distance_mm",
+                    "mm",
+                    "float",
+                    "commanded per-axis distance from the previous pose (Dx = Dy = Dz)",
+                ),
+            ),
+        ),
+        SampleKind(
+            "mouse",
+            "raw counts of the two optical mice at one end of a calibration stroke",
+            _xyz("cmd_", "commanded position")
+            + (Column("step_mm", "mm", "float", "length of the calibration stroke"),)
+            + tuple(
+                Column(
+                    f"mouse_{plane}_{axis}_counts",
+                    "counts",
+                    "float",
+                    f"accumulated counts of the {plane} mouse along {axis}",
+                )
+                for plane, axis in (("xy", "x"), ("xy", "y"), ("xz", "x"), ("xz", "z"))
+            )
+            + _CONDITIONS,
+        ),
+    )
+}
 
 
 def _value_columns() -> tuple[Column, ...]:
@@ -142,8 +191,9 @@ def validate_sample(kind: str, values: Mapping[str, float]) -> None:
         if column is None:
             declared = ", ".join(c.name for c in descriptor.columns)
             raise SampleMismatch(f"sample kind {kind!r}: column {name!r} is not declared (declared: {declared})")
-        if column.dtype == "int" and not (isinstance(value, (int, float)) and math.isfinite(value)
-                                          and float(value).is_integer()):
+        if column.dtype == "int" and not (
+            isinstance(value, (int, float)) and math.isfinite(value) and float(value).is_integer()
+        ):
             raise SampleMismatch(f"sample kind {kind!r}: {name} = {value!r}, expected an integer")
     missing = [c.name for c in descriptor.columns if c.required and c.name not in values]
     if missing:

@@ -35,8 +35,25 @@ if TYPE_CHECKING:
 __all__ = ["EXPORT_FORMATS", "TIDY_COLUMNS", "default_kind", "export_run", "series_table", "tidy_table"]
 
 #: The leading columns of the tidy table, in order.
-TIDY_COLUMNS = ("pose", "cycle", "cmd_x_mm", "cmd_y_mm", "cmd_z_mm", "x_mm", "y_mm", "z_mm",
-                "cmd_a_deg", "cmd_b_deg", "cmd_c_deg", "a_deg", "b_deg", "c_deg", "velocity_pct", "load_kg", "t_s")
+TIDY_COLUMNS = (
+    "pose",
+    "cycle",
+    "cmd_x_mm",
+    "cmd_y_mm",
+    "cmd_z_mm",
+    "x_mm",
+    "y_mm",
+    "z_mm",
+    "cmd_a_deg",
+    "cmd_b_deg",
+    "cmd_c_deg",
+    "a_deg",
+    "b_deg",
+    "c_deg",
+    "velocity_pct",
+    "load_kg",
+    "t_s",
+)
 
 EXPORT_FORMATS = ("csv", "parquet")
 
@@ -55,8 +72,7 @@ def tidy_table(store: Store, run_id: int, kind: str = "pose") -> pd.DataFrame:
     samples = store.samples(run_id, kind=kind)
     if not samples:
         raise InsufficientData(f"run {run_id}: no {kind!r} samples to export")
-    rows = [{"pose": s.pose, "cycle": s.cycle, **s.values, "t_s": s.t_s, "step_index": s.step_index}
-            for s in samples]
+    rows = [{"pose": s.pose, "cycle": s.cycle, **s.values, "t_s": s.t_s, "step_index": s.step_index} for s in samples]
     entries = registrations(store.run(run_id).settings)
     if entries:  # a relative instrument: which registration (segment) each row was measured in
         for row, sample in zip(rows, samples):
@@ -96,8 +112,11 @@ def series_table(store: Store, run_id: int, kind: str = "arrival", samples=None)
     for sample in store.samples(run_id, kind=kind) if samples is None else samples:
         series = sample.raw.get("series") if isinstance(sample.raw, dict) else None
         if series:
-            context = {"pose": sample.pose, "cycle": sample.cycle,
-                       **{k: v for k, v in sample.values.items() if k.startswith("cmd_") or k in _SERIES_CONTEXT}}
+            context = {
+                "pose": sample.pose,
+                "cycle": sample.cycle,
+                **{k: v for k, v in sample.values.items() if k.startswith("cmd_") or k in _SERIES_CONTEXT},
+            }
             streamed.append((context, series))
     if not streamed:
         raise InsufficientData(f"run {run_id}: no {kind!r} samples with a streamed series to export")
@@ -154,8 +173,9 @@ def default_kind(store: Store, run_id: int) -> str:
     return "pose" if "pose" in kinds or not kinds else next(iter(kinds))
 
 
-def export_run(store: Store, run_id: int, path: str | Path, fmt: str = "csv", kind: str = "pose",
-               series: bool = False) -> Path:
+def export_run(
+    store: Store, run_id: int, path: str | Path, fmt: str = "csv", kind: str = "pose", series: bool = False
+) -> Path:
     """Write the tidy table of a run (``series=True``: its streamed series) to ``path`` as ``csv`` or ``parquet``;
     returns the path written.
 
@@ -184,7 +204,15 @@ def _write_meta(store: Store, run_id: int, kind: str, table: pd.DataFrame, meta_
     for name in table.columns:
         declared = descriptor.column(name) if descriptor else None
         columns[name] = declared.as_dict() if declared else {"name": name, "unit": unit_of(kind, name)}
-    meta = {"run_uuid": run.uuid, "bench": run.bench, "run_id": run.id, "protocol": run.protocol_name,
-            "protocol_version": run.protocol_version, "robot": run.robot, "campaign": run.campaign,
-            "kind": kind, "columns": columns}
+    meta = {
+        "run_uuid": run.uuid,
+        "bench": run.bench,
+        "run_id": run.id,
+        "protocol": run.protocol_name,
+        "protocol_version": run.protocol_version,
+        "robot": run.robot,
+        "campaign": run.campaign,
+        "kind": kind,
+        "columns": columns,
+    }
     meta_path.write_text(json.dumps(meta, indent=1, sort_keys=True) + "\n", encoding="utf-8")

@@ -43,12 +43,24 @@ from typing import Any, Self
 
 from bench.errors import BenchError, ConfigError
 from bench.store.database import RunRecord, Store
-from bench.store.lab_copy import (COPY_COLUMNS, SAMPLE_COLUMNS, TYPED_COLUMNS, copy_text,
-                                  typed_columns_ddl)
+from bench.store.lab_copy import COPY_COLUMNS, SAMPLE_COLUMNS, TYPED_COLUMNS, copy_text, typed_columns_ddl
 from bench.store.lab_summary import POSE_TABLES_BACKFILL, POSE_TABLES_DDL
 
-__all__ = ["LAB_SCHEMA_VERSION", "LabServerBusy", "LabStore", "LabStoreError", "LabURLError", "SyncResult",
-           "check_lab_url", "is_lab_url", "open_runs_store", "redacted", "rows_checksum", "sync_after_run", "sync_store"]
+__all__ = [
+    "LAB_SCHEMA_VERSION",
+    "LabServerBusy",
+    "LabStore",
+    "LabStoreError",
+    "LabURLError",
+    "SyncResult",
+    "check_lab_url",
+    "is_lab_url",
+    "open_runs_store",
+    "redacted",
+    "rows_checksum",
+    "sync_after_run",
+    "sync_store",
+]
 
 _log = logging.getLogger(__name__)
 
@@ -112,13 +124,31 @@ _LANES = 2
 #: Memory for the pose trigger's transition table of one batch (about 400 bytes a row): with the server's default
 #: (4 MB) a 20 000-sample batch spills to a temporary file (10-15 % more of the server's time per sample).
 _WORK_MEM = "64MB"
-_RUN_COLUMNS = ("uuid", "bench", "local_id", "campaign", "protocol_name", "protocol_version", "robot", "config_json",
-                "settings_json", "calibration_ids_json", "calibration_uuids_json", "software_version", "git_sha",
-                "status", "reason", "started_utc", "ended_utc")
+_RUN_COLUMNS = (
+    "uuid",
+    "bench",
+    "local_id",
+    "campaign",
+    "protocol_name",
+    "protocol_version",
+    "robot",
+    "config_json",
+    "settings_json",
+    "calibration_ids_json",
+    "calibration_uuids_json",
+    "software_version",
+    "git_sha",
+    "status",
+    "reason",
+    "started_utc",
+    "ended_utc",
+)
 #: Version 1 -> 2: each typed column from the stored JSON, where it holds a number there.
-_BACKFILL_TYPED = ("UPDATE bench.samples SET " + ", ".join(
+_BACKFILL_TYPED = "UPDATE bench.samples SET " + ", ".join(
     f"\"{name}\" = CASE WHEN jsonb_typeof(values_json::jsonb -> '{name}') = 'number'"
-    f" THEN (values_json::jsonb ->> '{name}')::double precision END" for name in TYPED_COLUMNS))
+    f" THEN (values_json::jsonb ->> '{name}')::double precision END"
+    for name in TYPED_COLUMNS
+)
 _LOCK_KEY = 9283_21  # advisory lock serialising schema creation by benches that connect at once
 
 
@@ -145,16 +175,22 @@ def is_lab_url(spec: str) -> bool:
 #: ``scheme://user:PASSWORD@`` and ``password=VALUE`` (a query parameter or a conninfo keyword): what
 #: :func:`redacted` hides. The user part stops at the first ``:``; the password runs to the last ``@`` (an unencoded
 #: ``@`` in a password hides a little more, never less), wherever such a URL stands in the text.
-_PASSWORD_PARTS = (re.compile(r"([A-Za-z][A-Za-z0-9+.-]*://[^:/@?#\s\"']*):[^\s\"']*@"),
-                   re.compile(r"(?i)\b(password=)[^&\s]*"))
+_PASSWORD_PARTS = (
+    re.compile(r"([A-Za-z][A-Za-z0-9+.-]*://[^:/@?#\s\"']*):[^\s\"']*@"),
+    re.compile(r"(?i)\b(password=)[^&\s]*"),
+)
 #: libpq's own checks of an option's value start so ("invalid sslmode value", "invalid port number",
 #: "invalid integer value ... for connection option"): a bad URL, not an unreachable server.
 _BAD_OPTION = re.compile(r"^(connection is bad: )?invalid ")
 
 
 #: What the server (or its socket's full listen queue: EAGAIN) says when it has no connection slot free now.
-_BUSY = ("too many clients", "too many connections for role", "remaining connection slots are reserved",
-         "Resource temporarily unavailable")
+_BUSY = (
+    "too many clients",
+    "too many connections for role",
+    "remaining connection slots are reserved",
+    "Resource temporarily unavailable",
+)
 
 
 def redacted(url: str) -> str:
@@ -220,8 +256,10 @@ def ensure_schema(conn, url: str) -> None:
         if row[0] is not None:
             found = conn.execute("SELECT max(version) FROM bench.schema_version").fetchone()[0]
             if found is not None and found > LAB_SCHEMA_VERSION:
-                raise LabStoreError(f"lab store {redacted(url)}: server schema version {found} is newer than "
-                                    f"this bench's ({LAB_SCHEMA_VERSION}); upgrade bench to sync")
+                raise LabStoreError(
+                    f"lab store {redacted(url)}: server schema version {found} is newer than "
+                    f"this bench's ({LAB_SCHEMA_VERSION}); upgrade bench to sync"
+                )
             if found == LAB_SCHEMA_VERSION:
                 return
         else:
@@ -265,11 +303,25 @@ class SyncResult:
 
 
 def _run_row(store: Store, run: RunRecord, calibration_uuids: dict[int, str]) -> tuple:
-    return (run.uuid, run.bench, run.id, run.campaign, run.protocol_name, run.protocol_version, run.robot,
-            json.dumps(run.config, sort_keys=True), json.dumps(run.settings, sort_keys=True),
-            json.dumps(list(run.calibration_ids)),
-            json.dumps([calibration_uuids.get(i) for i in run.calibration_ids]),
-            run.software_version, run.git_sha, run.status, run.reason, run.started_utc, run.ended_utc)
+    return (
+        run.uuid,
+        run.bench,
+        run.id,
+        run.campaign,
+        run.protocol_name,
+        run.protocol_version,
+        run.robot,
+        json.dumps(run.config, sort_keys=True),
+        json.dumps(run.settings, sort_keys=True),
+        json.dumps(list(run.calibration_ids)),
+        json.dumps([calibration_uuids.get(i) for i in run.calibration_ids]),
+        run.software_version,
+        run.git_sha,
+        run.status,
+        run.reason,
+        run.started_utc,
+        run.ended_utc,
+    )
 
 
 def _copy(cur, table: str, chunks: list[bytes]) -> None:
@@ -279,8 +331,9 @@ def _copy(cur, table: str, chunks: list[bytes]) -> None:
             copy.write(chunk)
 
 
-def _read_batches(store: Store, run: RunRecord, held: set[int], batch_size: int
-                  ) -> Iterator[tuple[list[bytes], int, RunRecord]]:
+def _read_batches(
+    store: Store, run: RunRecord, held: set[int], batch_size: int
+) -> Iterator[tuple[list[bytes], int, RunRecord]]:
     """The samples of ``run`` that the server lacks (steps not in ``held``), batch by batch: each batch as its COPY
     text in chunks of :data:`_CHUNK_ROWS` rows at most, its number of samples (``batch_size`` at most), the run."""
     rows = store.stored_rows(run.id, extract=TYPED_COLUMNS)
@@ -311,16 +364,22 @@ def _send_batch(conn, chunks: list[bytes], n: int) -> int:
     except psycopg.errors.UniqueViolation:  # another sync of this file got there first: skip its rows
         with conn.transaction(), conn.cursor() as cur:
             _copy(cur, "sample_stage", chunks)
-            cur.execute(f"INSERT INTO bench.samples ({_COPY_COLUMNS}) SELECT {_COPY_COLUMNS}"
-                        " FROM sample_stage ON CONFLICT DO NOTHING")
+            cur.execute(
+                f"INSERT INTO bench.samples ({_COPY_COLUMNS}) SELECT {_COPY_COLUMNS}"
+                " FROM sample_stage ON CONFLICT DO NOTHING"
+            )
             return cur.rowcount
 
 
 def _held_steps(conn, runs: list[RunRecord]) -> dict[str, set[int] | None]:
     """Per run UUID, the steps the server holds: None when it holds all of the run's samples (nothing to send),
     an empty set when it holds none."""
-    counts = dict(conn.execute("SELECT run_uuid::text, count(*) FROM bench.samples WHERE run_uuid = ANY(%s::uuid[])"
-                               " GROUP BY run_uuid", ([r.uuid for r in runs],)).fetchall())
+    counts = dict(
+        conn.execute(
+            "SELECT run_uuid::text, count(*) FROM bench.samples WHERE run_uuid = ANY(%s::uuid[]) GROUP BY run_uuid",
+            ([r.uuid for r in runs],),
+        ).fetchall()
+    )
     held: dict[str, set[int] | None] = {}
     for run in runs:
         count = counts.get(run.uuid, 0)
@@ -329,8 +388,9 @@ def _held_steps(conn, runs: list[RunRecord]) -> dict[str, set[int] | None]:
         elif count == 0:
             held[run.uuid] = set()
         else:  # partly synced (a sync cut off, or a run resumed since): the steps it holds
-            held[run.uuid] = {row[0] for row in conn.execute(
-                "SELECT step_index FROM bench.samples WHERE run_uuid = %s", (run.uuid,))}
+            held[run.uuid] = {
+                row[0] for row in conn.execute("SELECT step_index FROM bench.samples WHERE run_uuid = %s", (run.uuid,))
+            }
     conn.commit()
     return held
 
@@ -354,12 +414,22 @@ def _deal(runs: list[RunRecord], held: dict[str, set[int] | None], lanes: int) -
     return dealt
 
 
-def _send_lanes(store: Store, lanes: list[list[RunRecord]], connections: list, held: dict[str, set[int] | None],
-                *, batch_size: int, progress: Callable[[str], None], sent: list[int]) -> None:
+def _send_lanes(
+    store: Store,
+    lanes: list[list[RunRecord]],
+    connections: list,
+    held: dict[str, set[int] | None],
+    *,
+    batch_size: int,
+    progress: Callable[[str], None],
+    sent: list[int],
+) -> None:
     """Send the lanes' batches, each lane through its own connection and sender thread, one batch in flight per
     lane; this thread reads and formats the next batches meanwhile, taking the lanes in turn."""
-    batches = [itertools.chain.from_iterable(_read_batches(store, run, held[run.uuid], batch_size)
-                                             for run in lane) for lane in lanes]
+    batches = [
+        itertools.chain.from_iterable(_read_batches(store, run, held[run.uuid], batch_size) for run in lane)
+        for lane in lanes
+    ]
     in_flight: list[tuple | None] = [None] * len(lanes)
     with ThreadPoolExecutor(max_workers=len(lanes), thread_name_prefix="lab-sync") as senders:
         live = list(range(len(lanes)))
@@ -387,8 +457,9 @@ def _settle(batch: Future, run: RunRecord, n: int, *, progress: Callable[[str], 
     progress(f"sync: run {run.id} ({run.uuid}) +{n} samples")
 
 
-def _push(store: Store, conn, url: str, *, batch_size: int, progress: Callable[[str], None], sent: list[int]
-          ) -> tuple[int, int]:
+def _push(
+    store: Store, conn, url: str, *, batch_size: int, progress: Callable[[str], None], sent: list[int]
+) -> tuple[int, int]:
     """Upsert runs and calibrations, then send the samples the server lacks; ``sent[0]`` counts the samples
     committed (kept when a later batch fails)."""
     calibrations = store.calibrations()
@@ -401,12 +472,26 @@ def _push(store: Store, conn, url: str, *, batch_size: int, progress: Callable[[
         cur.executemany(
             f"INSERT INTO bench.runs ({', '.join(_RUN_COLUMNS)}) VALUES ({placeholders})"
             f" ON CONFLICT (uuid) DO UPDATE SET {updates}, synced_utc = now()",
-            [_run_row(store, r, calibration_uuids) for r in runs])
+            [_run_row(store, r, calibration_uuids) for r in runs],
+        )
         cur.executemany(
             "INSERT INTO bench.calibrations (uuid, bench, local_id, name, version, created_utc, params_json,"
             " source_run_uuid, notes) VALUES (%s, %s, %s, %s, %s, %s, %s, %s, %s) ON CONFLICT (uuid) DO NOTHING",
-            [(c.uuid, store.bench, c.id, c.name, c.version, c.created_utc, json.dumps(c.params, sort_keys=True),
-              run_uuids.get(c.source_run_id), c.notes) for c in calibrations])
+            [
+                (
+                    c.uuid,
+                    store.bench,
+                    c.id,
+                    c.name,
+                    c.version,
+                    c.created_utc,
+                    json.dumps(c.params, sort_keys=True),
+                    run_uuids.get(c.source_run_id),
+                    c.notes,
+                )
+                for c in calibrations
+            ],
+        )
     conn.commit()
     held = _held_steps(conn, runs)
     to_send = [run for run in runs if held[run.uuid] is not None]
@@ -428,8 +513,16 @@ def _push(store: Store, conn, url: str, *, batch_size: int, progress: Callable[[
     return len(runs), len(calibrations)
 
 
-def sync_store(store: Store, url: str, *, batch_size: int = 20_000, retries: int = 3, retry_wait_s: float = 1.0,
-               busy_wait_s: float = 600.0, progress: Callable[[str], None] | None = None) -> SyncResult:
+def sync_store(
+    store: Store,
+    url: str,
+    *,
+    batch_size: int = 20_000,
+    retries: int = 3,
+    retry_wait_s: float = 1.0,
+    busy_wait_s: float = 600.0,
+    progress: Callable[[str], None] | None = None,
+) -> SyncResult:
     """Push every run, calibration and sample of ``store`` that the server at ``url`` lacks (see the module
     docstring); after a lost connection, reconnect and resume up to ``retries`` times (waits ``retry_wait_s``,
     then twice that, ...). A server with no connection slot free (:class:`LabServerBusy`) is asked again after a
@@ -467,8 +560,9 @@ def sync_store(store: Store, url: str, *, batch_size: int = 20_000, retries: int
             if not retryable or attempt >= retries:
                 if isinstance(exc, LabStoreError):
                     raise
-                raise LabStoreError(f"lab store {redacted(url)}: connection lost ({_one_line(exc)}); "
-                                    "run bench sync again to resume") from exc
+                raise LabStoreError(
+                    f"lab store {redacted(url)}: connection lost ({_one_line(exc)}); run bench sync again to resume"
+                ) from exc
             attempt += 1
             report(f"sync: {_one_line(exc)}; retry {attempt} of {retries}")
             time.sleep(retry_wait_s * 2 ** (attempt - 1))
@@ -486,8 +580,10 @@ def sync_after_run(store: Store, url: str, *, say: Callable[[str], None] | None 
         return None
     except Exception as exc:  # noqa: BLE001 - the local run must survive whatever the sync meets
         _log.exception("lab store sync after the run failed")
-        tell(f"bench: lab store sync failed, the run is kept locally (bench sync catches up): "
-             f"{type(exc).__name__}: {_one_line(exc)}")
+        tell(
+            f"bench: lab store sync failed, the run is kept locally (bench sync catches up): "
+            f"{type(exc).__name__}: {_one_line(exc)}"
+        )
         return None
     tell(f"bench: synced to the lab store {redacted(url)}: {result.samples_sent} new samples")
     return result
@@ -515,8 +611,7 @@ class LabStore:
     def close(self) -> None:
         self._conn.close()
 
-    def runs(self, *, bench: str | None = None, robot: str | None = None, since: str | None = None
-             ) -> list[RunRecord]:
+    def runs(self, *, bench: str | None = None, robot: str | None = None, since: str | None = None) -> list[RunRecord]:
         """Every synced run, oldest first, optionally filtered as :meth:`Store.runs` is."""
         clauses, args = [], []
         for clause, value in (("r.bench = %s", bench), ("r.robot = %s", robot), ("r.started_utc >= %s", since)):
@@ -529,18 +624,38 @@ class LabStore:
             " r.config_json, r.settings_json, r.calibration_ids_json, r.software_version, r.git_sha, r.status,"
             " r.reason, r.started_utc, r.ended_utc,"
             " (SELECT count(*) FROM bench.samples s WHERE s.run_uuid = r.uuid)"
-            f" FROM bench.runs r {where} ORDER BY r.started_utc, r.bench, r.local_id", args).fetchall()
+            f" FROM bench.runs r {where} ORDER BY r.started_utc, r.bench, r.local_id",
+            args,
+        ).fetchall()
         self._conn.rollback()
-        return [RunRecord(id=r[0], uuid=r[1], bench=r[2], campaign=r[3], protocol_name=r[4], protocol_version=r[5],
-                          robot=r[6], config=json.loads(r[7]), settings=json.loads(r[8]),
-                          calibration_ids=tuple(json.loads(r[9])), software_version=r[10], git_sha=r[11],
-                          status=r[12], reason=r[13], started_utc=r[14], ended_utc=r[15], n_samples=int(r[16]))
-                for r in rows]
+        return [
+            RunRecord(
+                id=r[0],
+                uuid=r[1],
+                bench=r[2],
+                campaign=r[3],
+                protocol_name=r[4],
+                protocol_version=r[5],
+                robot=r[6],
+                config=json.loads(r[7]),
+                settings=json.loads(r[8]),
+                calibration_ids=tuple(json.loads(r[9])),
+                software_version=r[10],
+                git_sha=r[11],
+                status=r[12],
+                reason=r[13],
+                started_utc=r[14],
+                ended_utc=r[15],
+                n_samples=int(r[16]),
+            )
+            for r in rows
+        ]
 
     def checksum(self, run_uuid: str) -> str:
         """:func:`rows_checksum` of the samples the server holds for ``run_uuid``."""
-        rows = self._conn.execute(f"SELECT {_SAMPLE_COLUMNS} FROM bench.samples WHERE run_uuid = %s"
-                                  " ORDER BY step_index", (run_uuid,))
+        rows = self._conn.execute(
+            f"SELECT {_SAMPLE_COLUMNS} FROM bench.samples WHERE run_uuid = %s ORDER BY step_index", (run_uuid,)
+        )
         result = rows_checksum(rows)
         self._conn.rollback()
         return result

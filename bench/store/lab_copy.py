@@ -39,8 +39,9 @@ _EMPTY_TYPED = "\t".join([_NULL] * len(TYPED_COLUMNS))
 
 def typed_columns_ddl(table: str) -> str:
     """``ALTER TABLE`` statements adding the typed columns to ``table`` where missing (idempotent)."""
-    return "".join(f'ALTER TABLE {table} ADD COLUMN IF NOT EXISTS "{name}" double precision;\n'
-                   for name in TYPED_COLUMNS)
+    return "".join(
+        f'ALTER TABLE {table} ADD COLUMN IF NOT EXISTS "{name}" double precision;\n' for name in TYPED_COLUMNS
+    )
 
 
 def _text(value: str | None) -> str:
@@ -78,8 +79,10 @@ def _typed_fields(values_json: str, extracted: str | None) -> str:
 def _line(run_uuid: str, row: tuple) -> str:
     """One COPY line, escaping every text field (the general path of :func:`copy_text`)."""
     step, kind, pose, cycle, t_s, wall, values, raw, extracted = row
-    return (f"{run_uuid}\t{step}\t{_text(kind)}\t{_text(pose)}\t{_NULL if cycle is None else cycle}\t"
-            f"{float(t_s)!r}\t{_text(wall)}\t{_text(values)}\t{_text(raw)}\t{_typed_fields(values, extracted)}\n")
+    return (
+        f"{run_uuid}\t{step}\t{_text(kind)}\t{_text(pose)}\t{_NULL if cycle is None else cycle}\t"
+        f"{float(t_s)!r}\t{_text(wall)}\t{_text(values)}\t{_text(raw)}\t{_typed_fields(values, extracted)}\n"
+    )
 
 
 def copy_text(run_uuid: str, rows: Iterable[tuple]) -> bytes:
@@ -95,11 +98,22 @@ def copy_text(run_uuid: str, rows: Iterable[tuple]) -> bytes:
             lines.append(_line(run_uuid, row))
             continue
         texts = f"{kind}{pose}{wall}{values}{raw}{extracted}"
-        if ("\\" in texts or "\t" in texts or "\n" in texts or "\r" in texts or '"' in extracted
-                or "t" in extracted or "f" in extracted or "{" in extracted or "[" in extracted[1:]):
+        if (
+            "\\" in texts
+            or "\t" in texts
+            or "\n" in texts
+            or "\r" in texts
+            or '"' in extracted
+            or "t" in extracted
+            or "f" in extracted
+            or "{" in extracted
+            or "[" in extracted[1:]
+        ):
             lines.append(_line(run_uuid, row))
             continue
         typed = extracted[1:-1].replace(",", "\t").replace("null", _NULL)
-        lines.append(f"{run_uuid}\t{step}\t{kind}\t{pose}\t{cycle}\t{float(t_s)!r}\t{wall}\t{values}\t"
-                     f"{_NULL if raw is None else raw}\t{typed}\n")
+        lines.append(
+            f"{run_uuid}\t{step}\t{kind}\t{pose}\t{cycle}\t{float(t_s)!r}\t{wall}\t{values}\t"
+            f"{_NULL if raw is None else raw}\t{typed}\n"
+        )
     return "".join(lines).encode()

@@ -54,8 +54,9 @@ def pick_run(records: Sequence[RunRecord], name: str, where: str) -> RunRecord:
         raise ConfigError(f"run {text}: no such run in {where}")
     if len(matches) > 1:
         listed = ", ".join(f"{r.bench}/{r.id} ({r.uuid[:8]})" for r in matches[:6])
-        raise ConfigError(f"run {text}: names {len(matches)} runs in {where} ({listed}); name one as BENCH/ID or "
-                          "by its UUID")
+        raise ConfigError(
+            f"run {text}: names {len(matches)} runs in {where} ({listed}); name one as BENCH/ID or by its UUID"
+        )
     return matches[0]
 
 
@@ -82,13 +83,17 @@ class _Numbering:
             raise ConfigError(f"{what} {shown}: no such {what} in {where}") from None
 
 
-_RUN_SQL = ("SELECT r.local_id, r.uuid::text, r.bench, r.campaign, r.protocol_name, r.protocol_version, r.robot,"
-            " r.config_json, r.settings_json, r.calibration_uuids_json, r.software_version, r.git_sha, r.status,"
-            " r.reason, r.started_utc, r.ended_utc,"
-            " (SELECT count(*) FROM bench.samples s WHERE s.run_uuid = r.uuid) FROM bench.runs r WHERE r.uuid = %s")
-_CALIBRATION_SQL = ("SELECT c.local_id, c.uuid::text, c.name, c.version, c.created_utc, c.params_json,"
-                    " c.source_run_uuid::text, r.local_id, c.notes, c.bench"
-                    " FROM bench.calibrations c LEFT JOIN bench.runs r ON r.uuid = c.source_run_uuid")
+_RUN_SQL = (
+    "SELECT r.local_id, r.uuid::text, r.bench, r.campaign, r.protocol_name, r.protocol_version, r.robot,"
+    " r.config_json, r.settings_json, r.calibration_uuids_json, r.software_version, r.git_sha, r.status,"
+    " r.reason, r.started_utc, r.ended_utc,"
+    " (SELECT count(*) FROM bench.samples s WHERE s.run_uuid = r.uuid) FROM bench.runs r WHERE r.uuid = %s"
+)
+_CALIBRATION_SQL = (
+    "SELECT c.local_id, c.uuid::text, c.name, c.version, c.created_utc, c.params_json,"
+    " c.source_run_uuid::text, r.local_id, c.notes, c.bench"
+    " FROM bench.calibrations c LEFT JOIN bench.runs r ON r.uuid = c.source_run_uuid"
+)
 
 
 class LabRunView:
@@ -136,18 +141,31 @@ class LabRunView:
             r = rows[0]
             calibrations = tuple(self._calibration_number(u) for u in json.loads(r[9]))
             self._records[uuid] = RunRecord(
-                id=self._runs.number(r[1], r[0]), uuid=r[1], bench=r[2], campaign=r[3], protocol_name=r[4],
-                protocol_version=r[5], robot=r[6], config=json.loads(r[7]), settings=json.loads(r[8]),
-                calibration_ids=calibrations, software_version=r[10], git_sha=r[11], status=r[12], reason=r[13],
-                started_utc=r[14], ended_utc=r[15], n_samples=int(r[16]))
+                id=self._runs.number(r[1], r[0]),
+                uuid=r[1],
+                bench=r[2],
+                campaign=r[3],
+                protocol_name=r[4],
+                protocol_version=r[5],
+                robot=r[6],
+                config=json.loads(r[7]),
+                settings=json.loads(r[8]),
+                calibration_ids=calibrations,
+                software_version=r[10],
+                git_sha=r[11],
+                status=r[12],
+                reason=r[13],
+                started_utc=r[14],
+                ended_utc=r[15],
+                n_samples=int(r[16]),
+            )
         return self._records[uuid]
 
     def run(self, run_id: int) -> RunRecord:
         """The run this view shows as ``run_id``; ``ConfigError`` when it shows none."""
         return self._record(self._runs.uuid(run_id, "run", f"lab store {self.path}"))
 
-    def runs(self, *, bench: str | None = None, robot: str | None = None, since: str | None = None
-             ) -> list[RunRecord]:
+    def runs(self, *, bench: str | None = None, robot: str | None = None, since: str | None = None) -> list[RunRecord]:
         """The synced runs, filtered as :meth:`bench.store.Store.runs`, numbered by this view."""
         return [self._record(r.uuid) for r in self._lab.runs(bench=bench, robot=robot, since=since)]
 
@@ -157,26 +175,43 @@ class LabRunView:
         """The synced samples of a run in step order, optionally of one ``kind`` only (as
         :meth:`bench.store.Store.samples`: the JSON the file holds, parsed)."""
         uuid = self._runs.uuid(run_id, "run", f"lab store {self.path}")
-        rows = self._lab.query("SELECT step_index, kind, pose, cycle, t_s, wall_utc, values_json, raw_json"
-                               " FROM bench.samples WHERE run_uuid = %s" + (" AND kind = %s" if kind else "")
-                               + " ORDER BY step_index", (uuid, kind) if kind else (uuid,))
-        return [SampleRecord(run_id=run_id, step_index=r[0], kind=r[1], pose=r[2], cycle=r[3], t_s=r[4],
-                             wall_utc=r[5], values=json.loads(r[6]), raw=None if r[7] is None else json.loads(r[7]))
-                for r in rows]
+        rows = self._lab.query(
+            "SELECT step_index, kind, pose, cycle, t_s, wall_utc, values_json, raw_json"
+            " FROM bench.samples WHERE run_uuid = %s" + (" AND kind = %s" if kind else "") + " ORDER BY step_index",
+            (uuid, kind) if kind else (uuid,),
+        )
+        return [
+            SampleRecord(
+                run_id=run_id,
+                step_index=r[0],
+                kind=r[1],
+                pose=r[2],
+                cycle=r[3],
+                t_s=r[4],
+                wall_utc=r[5],
+                values=json.loads(r[6]),
+                raw=None if r[7] is None else json.loads(r[7]),
+            )
+            for r in rows
+        ]
 
     def sample_kinds(self, run_id: int) -> dict[str, int]:
         """How many samples of each kind the run holds on the server, most frequent first."""
         uuid = self._runs.uuid(run_id, "run", f"lab store {self.path}")
-        rows = self._lab.query("SELECT kind, count(*) FROM bench.samples WHERE run_uuid = %s GROUP BY kind"
-                               " ORDER BY count(*) DESC, kind COLLATE \"C\"", (uuid,))
+        rows = self._lab.query(
+            "SELECT kind, count(*) FROM bench.samples WHERE run_uuid = %s GROUP BY kind"
+            ' ORDER BY count(*) DESC, kind COLLATE "C"',
+            (uuid,),
+        )
         return {kind: int(count) for kind, count in rows}
 
     # ---- calibrations ----------------------------------------------------------------------------------------
 
     def _calibration_number(self, uuid: str | None) -> int:
         if uuid is None:
-            raise ConfigError(f"lab store {self.path}: a run names a calibration that was never synced; sync its "
-                              "bench again")
+            raise ConfigError(
+                f"lab store {self.path}: a run names a calibration that was never synced; sync its bench again"
+            )
         if uuid not in self._calibrations.shown:
             rows = self._lab.query(_CALIBRATION_SQL + " WHERE c.uuid = %s", (uuid,))
             if not rows:
@@ -188,8 +223,16 @@ class LabRunView:
         uuid = self._calibrations.uuid(calibration_id, "calibration id", f"lab store {self.path}")
         r = self._lab.query(_CALIBRATION_SQL + " WHERE c.uuid = %s", (uuid,))[0]
         source = None if r[6] is None or r[7] is None else self._runs.number(r[6], r[7])
-        return CalibrationRecord(id=calibration_id, uuid=r[1], name=r[2], version=r[3], created_utc=r[4],
-                                 params=json.loads(r[5]), source_run_id=source, notes=r[8])
+        return CalibrationRecord(
+            id=calibration_id,
+            uuid=r[1],
+            name=r[2],
+            version=r[3],
+            created_utc=r[4],
+            params=json.loads(r[5]),
+            source_run_id=source,
+            notes=r[8],
+        )
 
     def calibrations(self) -> list[CalibrationRecord]:
         """Every synced calibration version, by name then version (then bench)."""

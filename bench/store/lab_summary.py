@@ -42,8 +42,9 @@ _RUNS_SQL = """SELECT uuid, bench, robot, date_trunc('week', started_utc::timest
 FROM bench.runs r WHERE true {where}"""
 
 #: The pose key of a sample: a missing pose or velocity becomes '' or NaN (NaN equals NaN in PostgreSQL).
-_KEY = ("run_uuid, coalesce(pose, '') AS pose, coalesce(velocity_pct, 'NaN') AS velocity_pct, cmd_x_mm, cmd_y_mm,"
-        " cmd_z_mm")
+_KEY = (
+    "run_uuid, coalesce(pose, '') AS pose, coalesce(velocity_pct, 'NaN') AS velocity_pct, cmd_x_mm, cmd_y_mm, cmd_z_mm"
+)
 _SAME_KEY = """k.run_uuid = {s}.run_uuid AND k.pose = coalesce({s}.pose, '')
     AND k.velocity_pct = coalesce({s}.velocity_pct, 'NaN') AND k.cmd_x_mm = {s}.cmd_x_mm AND k.cmd_y_mm = {s}.cmd_y_mm
     AND k.cmd_z_mm = {s}.cmd_z_mm"""
@@ -69,7 +70,8 @@ WHERE s.kind = 'pose' AND s.x_mm IS NOT NULL AND s.y_mm IS NOT NULL AND s.z_mm I
 """
 
 #: Lab schema 3: the pose tables and the trigger that keeps them (see the module docstring).
-POSE_TABLES_DDL = """
+POSE_TABLES_DDL = (
+    """
 CREATE TABLE IF NOT EXISTS bench.pose_keys (
     id serial PRIMARY KEY,
     run_uuid uuid NOT NULL REFERENCES bench.runs (uuid),
@@ -92,7 +94,9 @@ CREATE TABLE IF NOT EXISTS bench.pose_points (
 );
 CREATE OR REPLACE FUNCTION bench.fold_new_pose_samples() RETURNS trigger LANGUAGE plpgsql AS $fold$
 BEGIN
-""" + _FOLD_SQL.format(source="new_samples") + """
+"""
+    + _FOLD_SQL.format(source="new_samples")
+    + """
     RETURN NULL;
 END
 $fold$;
@@ -101,7 +105,9 @@ BEGIN
     DELETE FROM bench.pose_points p USING bench.pose_keys k
         WHERE p.key = k.id AND k.run_uuid IN (SELECT run_uuid FROM old_samples);
     DELETE FROM bench.pose_keys WHERE run_uuid IN (SELECT run_uuid FROM old_samples);
-""" + _FOLD_SQL.format(source="(SELECT * FROM bench.samples WHERE run_uuid IN (SELECT run_uuid FROM old_samples))") + """
+"""
+    + _FOLD_SQL.format(source="(SELECT * FROM bench.samples WHERE run_uuid IN (SELECT run_uuid FROM old_samples))")
+    + """
     RETURN NULL;
 END
 $refold$;
@@ -124,10 +130,12 @@ DROP TRIGGER IF EXISTS samples_empty_pose_tables ON bench.samples;
 CREATE TRIGGER samples_empty_pose_tables AFTER TRUNCATE ON bench.samples
     FOR EACH STATEMENT EXECUTE FUNCTION bench.empty_pose_tables();
 """
+)
 
 #: Lab schema 2 -> 3: the pose tables filled from the samples the server holds.
-POSE_TABLES_BACKFILL = ("TRUNCATE bench.pose_points, bench.pose_keys RESTART IDENTITY;"
-                        + _FOLD_SQL.format(source="bench.samples"))
+POSE_TABLES_BACKFILL = "TRUNCATE bench.pose_points, bench.pose_keys RESTART IDENTITY;" + _FOLD_SQL.format(
+    source="bench.samples"
+)
 
 _KEYS_SQL = """
 SELECT id, run_uuid, pose, velocity_pct, cmd_x_mm, cmd_y_mm, cmd_z_mm, sum_x_mm, sum_y_mm, sum_z_mm, n
@@ -185,18 +193,25 @@ def _group_key(run: tuple, pose: str, velocity: float, cx: float, cy: float, cz:
     return (*run, pose, None if math.isnan(velocity) else velocity, cx, cy, cz)
 
 
-def pose_summary(lab, *, since: str | None = None, until: str | None = None, bench: str | None = None,
-                 robot: str | None = None) -> list[PoseGroup]:
+def pose_summary(
+    lab, *, since: str | None = None, until: str | None = None, bench: str | None = None, robot: str | None = None
+) -> list[PoseGroup]:
     """The :class:`PoseGroup` rows of the lab store ``lab`` (a :class:`bench.store.lab.LabStore`), for runs started
     at or after ``since`` and before ``until`` (ISO dates or times, UTC), of ``bench`` and ``robot`` when given."""
     clauses, args = [], []
-    for clause, value in (("r.started_utc >= %s", since), ("r.started_utc < %s", until), ("r.bench = %s", bench),
-                          ("r.robot = %s", robot)):
+    for clause, value in (
+        ("r.started_utc >= %s", since),
+        ("r.started_utc < %s", until),
+        ("r.bench = %s", bench),
+        ("r.robot = %s", robot),
+    ):
         if value is not None:
             clauses.append(f"AND {clause}")
             args.append(value)
-    runs = {uuid: (run_bench, run_robot, week)
-            for uuid, run_bench, run_robot, week in lab.query(_RUNS_SQL.format(where=" ".join(clauses)), args)}
+    runs = {
+        uuid: (run_bench, run_robot, week)
+        for uuid, run_bench, run_robot, week in lab.query(_RUNS_SQL.format(where=" ".join(clauses)), args)
+    }
     if not runs:
         return []
     sums = lab.query(_KEYS_SQL, (list(runs),))
@@ -222,16 +237,30 @@ def pose_summary(lab, *, since: str | None = None, until: str | None = None, ben
             at = key_id - first
             arrays["group"][at] = index[group]
             arrays["bx"][at], arrays["by"][at], arrays["bz"][at] = barycentres[group]
-        distances = {g: (l_mean, s_l) for g, l_mean, s_l in lab.query(
-            _DISTANCES_SQL, {**arrays, "first": first, "last": last}, settings=_SETTINGS)}
+        distances = {
+            g: (l_mean, s_l)
+            for g, l_mean, s_l in lab.query(
+                _DISTANCES_SQL, {**arrays, "first": first, "last": last}, settings=_SETTINGS
+            )
+        }
     groups = []
     for key in keys:
         run_bench, run_robot, week, pose, velocity, cx, cy, cz = key
         b = barycentres[key]
         l_mean, s_l = distances[index[key]]
-        groups.append(PoseGroup(bench=run_bench, robot=run_robot, week=week, pose=pose or None,
-                                velocity_pct=velocity, commanded_mm=(cx, cy, cz),
-                                n=pooled[key][3], barycentre_mm=b,
-                                ap_mm=math.sqrt((b[0] - cx) ** 2 + (b[1] - cy) ** 2 + (b[2] - cz) ** 2),
-                                l_mean_mm=l_mean, rp_mm=None if s_l is None else l_mean + 3.0 * s_l))
+        groups.append(
+            PoseGroup(
+                bench=run_bench,
+                robot=run_robot,
+                week=week,
+                pose=pose or None,
+                velocity_pct=velocity,
+                commanded_mm=(cx, cy, cz),
+                n=pooled[key][3],
+                barycentre_mm=b,
+                ap_mm=math.sqrt((b[0] - cx) ** 2 + (b[1] - cy) ** 2 + (b[2] - cz) ** 2),
+                l_mean_mm=l_mean,
+                rp_mm=None if s_l is None else l_mean + 3.0 * s_l,
+            )
+        )
     return groups

@@ -84,8 +84,12 @@ def _read_owner(fd: int) -> dict:
 
 
 def _owner(data: dict, alive: bool) -> Owner:
-    return Owner(pid=int(data.get("pid", 0) or 0), host=str(data.get("host", "?")),
-                 since_utc=str(data.get("since_utc", "?")), alive=alive)
+    return Owner(
+        pid=int(data.get("pid", 0) or 0),
+        host=str(data.get("host", "?")),
+        since_utc=str(data.get("since_utc", "?")),
+        alive=alive,
+    )
 
 
 def owner_of(store_path: str | Path, run_id: int) -> Owner | None:
@@ -146,8 +150,10 @@ class RunLease:
                     time.sleep(0.01)
                     continue
                 owner = _owner(data, alive=True)
-                raise RunOwned(f"run {self.run_id}: owned by a live process, {owner.describe()}; left untouched "
-                               f"(wait for it to end, or stop it: kill -TERM {owner.pid} on {owner.host})") from None
+                raise RunOwned(
+                    f"run {self.run_id}: owned by a live process, {owner.describe()}; left untouched "
+                    f"(wait for it to end, or stop it: kill -TERM {owner.pid} on {owner.host})"
+                ) from None
             try:
                 same = os.fstat(fd).st_ino == os.stat(self.path).st_ino
             except FileNotFoundError:

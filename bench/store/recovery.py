@@ -77,7 +77,7 @@ def refuse_if_damaged(db: sqlite3.Connection, path: str, owned: set[int] = froze
         raise StoreDamaged(
             f"store {path}: not closed cleanly (run {runs} interrupted) and damaged: {first}{more}; nothing was "
             f"written: list the damage with `bench store check {path}`, keep a copy with `bench backup COPY.db "
-            f"--store {path}`, and run into a new store (--store NEW.db)")
-    _log.info("store %s: not closed cleanly (run %s interrupted); integrity check ok in %.3f s", path, runs,
-              elapsed_s)
+            f"--store {path}`, and run into a new store (--store NEW.db)"
+        )
+    _log.info("store %s: not closed cleanly (run %s interrupted); integrity check ok in %.3f s", path, runs, elapsed_s)
     return gone

@@ -36,21 +36,47 @@ class DamagedSample(BenchError):
 _SEPARATOR, _NULL = "\x1f", "\x00"
 
 
-def sample_checksum(step_index: int, kind: str, pose: str | None, cycle: int | None, t_s: float, wall_utc: str,
-                    values_json: str, raw_json: str | None) -> str:
+def sample_checksum(
+    step_index: int,
+    kind: str,
+    pose: str | None,
+    cycle: int | None,
+    t_s: float,
+    wall_utc: str,
+    values_json: str,
+    raw_json: str | None,
+) -> str:
     """SHA-256 (hex) of one sample's stored columns (:data:`CHECKED_COLUMNS`) as one text: the columns joined by
     U+001F, NULL as U+0000, integers in decimal, ``t_s`` as the shortest text that reads back as the same double
     (Python's ``repr``, which SQLite's REAL keeps exactly), all encoded as UTF-8 (bytes that are not UTF-8, read
     with ``surrogateescape``, hash as themselves).
     """
-    text = _SEPARATOR.join((str(int(step_index)), kind, _NULL if pose is None else pose,
-                            _NULL if cycle is None else str(int(cycle)), repr(float(t_s)), wall_utc, values_json,
-                            _NULL if raw_json is None else raw_json))
+    text = _SEPARATOR.join(
+        (
+            str(int(step_index)),
+            kind,
+            _NULL if pose is None else pose,
+            _NULL if cycle is None else str(int(cycle)),
+            repr(float(t_s)),
+            wall_utc,
+            values_json,
+            _NULL if raw_json is None else raw_json,
+        )
+    )
     return hashlib.sha256(text.encode("utf-8", "surrogateescape")).hexdigest()
 
 
-def _mismatch(step_index: int, kind: str, pose: str | None, cycle: int | None, t_s: float, wall_utc: str,
-              values_json: str, raw_json: str | None, checksum: str | None) -> str | None:
+def _mismatch(
+    step_index: int,
+    kind: str,
+    pose: str | None,
+    cycle: int | None,
+    t_s: float,
+    wall_utc: str,
+    values_json: str,
+    raw_json: str | None,
+    checksum: str | None,
+) -> str | None:
     """What is wrong with one stored row's checksum (None when it matches)."""
     if checksum is None:
         return "it has no checksum (written outside bench)"
@@ -64,9 +90,11 @@ def _mismatch(step_index: int, kind: str, pose: str | None, cycle: int | None, t
 
 
 def _refusal(run_id: int, step_index: int, path: str, problem: str) -> DamagedSample:
-    return DamagedSample(f"store {path}: run {run_id} sample at step {step_index} is damaged: {problem}; its run is "
-                         f"refused, nothing computed from it: list the damage with `bench store check {path}` and "
-                         "read a backup copy")
+    return DamagedSample(
+        f"store {path}: run {run_id} sample at step {step_index} is damaged: {problem}; its run is "
+        f"refused, nothing computed from it: list the damage with `bench store check {path}` and "
+        "read a backup copy"
+    )
 
 
 def parse_sample(run_id: int, row: tuple, path: str) -> tuple[Any, Any]:
@@ -91,8 +119,10 @@ def damaged_sample_lines(db: sqlite3.Connection, path: str) -> Iterable[str]:
     if "checksum" not in columns:
         return
     # JSON validity by SQLite (json_valid, in C): bench writes only strict JSON (no NaN), which it accepts
-    query = (f"SELECT id, run_id, {', '.join(CHECKED_COLUMNS)}, checksum, json_valid(values_json),"
-             " raw_json IS NULL OR json_valid(raw_json) FROM samples ORDER BY run_id, step_index")
+    query = (
+        f"SELECT id, run_id, {', '.join(CHECKED_COLUMNS)}, checksum, json_valid(values_json),"
+        " raw_json IS NULL OR json_valid(raw_json) FROM samples ORDER BY run_id, step_index"
+    )
     for rowid, run_id, *row, values_ok, raw_ok in db.execute(query):
         problem = _mismatch(*row)
         if problem is None and not (values_ok and raw_ok):

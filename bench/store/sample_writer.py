@@ -56,21 +56,42 @@ class SampleWriter:
         if store.path != ":memory:":
             self._executor = ThreadPoolExecutor(max_workers=1, thread_name_prefix="store-writer")
             try:  # the connection is made, used and closed on the writer thread only (sqlite3's one-thread rule)
-                self._db = self._executor.submit(lambda: GuardedConnection(open_connection(store.path),
-                                                                           store.path)).result()
+                self._db = self._executor.submit(
+                    lambda: GuardedConnection(open_connection(store.path), store.path)
+                ).result()
             except BaseException:
                 self._executor.shutdown(wait=True)
                 raise
 
-    def add(self, run_id: int, step_index: int, *, values: Mapping[str, float], kind: str, pose: str | None,
-            cycle: int | None, t_s: float, raw: Any, report: Any = None) -> None:
+    def add(
+        self,
+        run_id: int,
+        step_index: int,
+        *,
+        values: Mapping[str, float],
+        kind: str,
+        pose: str | None,
+        cycle: int | None,
+        t_s: float,
+        raw: Any,
+        report: Any = None,
+    ) -> None:
         """Check and encode the sample now (a refused value raises here, nothing written), then start its commit
         and return; :meth:`wait` returns ``report`` once it is durable. The commit before must have been waited
         for (one in flight at a time, each one's outcome seen once)."""
         if self._pending is not None:
             raise RuntimeError("SampleWriter.add: the commit before is unsettled, expected wait() first")
-        row = encode_sample(run_id, step_index, values=values, kind=kind, pose=pose, cycle=cycle, t_s=t_s, raw=raw,
-                            wall_clock=self.store.wall_clock)
+        row = encode_sample(
+            run_id,
+            step_index,
+            values=values,
+            kind=kind,
+            pose=pose,
+            cycle=cycle,
+            t_s=t_s,
+            raw=raw,
+            wall_clock=self.store.wall_clock,
+        )
         if self._executor is None:
             self.store.insert_sample(row)
             self._pending = ([], report)

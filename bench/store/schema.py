@@ -106,9 +106,11 @@ def _v1_to_v2(db: sqlite3.Connection, bench: str) -> None:
     """Streamed rows: the frames of a streaming sensor (mice during a move), one narrow row each, stored in
     batches (:meth:`bench.store.database.Store.add_stream_rows`). ``valid`` is 0 for the frame that closes a
     ``SYN_DROPPED`` gap (its counts were lost)."""
-    db.execute("CREATE TABLE stream_rows (run_id INTEGER NOT NULL REFERENCES runs(id), stream TEXT NOT NULL, "
-               "t_s REAL NOT NULL, dx_counts INTEGER NOT NULL, dy_counts INTEGER NOT NULL, "
-               "valid INTEGER NOT NULL CHECK (valid IN (0, 1)))")
+    db.execute(
+        "CREATE TABLE stream_rows (run_id INTEGER NOT NULL REFERENCES runs(id), stream TEXT NOT NULL, "
+        "t_s REAL NOT NULL, dx_counts INTEGER NOT NULL, dy_counts INTEGER NOT NULL, "
+        "valid INTEGER NOT NULL CHECK (valid IN (0, 1)))"
+    )
     db.execute("CREATE INDEX stream_rows_run ON stream_rows(run_id, stream)")
 
 
@@ -153,8 +155,10 @@ def open_schema(db: sqlite3.Connection, path: str, bench: str) -> Path | None:
     try:
         (version,) = db.execute("PRAGMA user_version").fetchone()
         if version > SCHEMA_VERSION:
-            raise StoreSchemaError(f"--store {path}: schema version {version} is newer than this bench's "
-                                   f"({SCHEMA_VERSION}); upgrade bench to open it")
+            raise StoreSchemaError(
+                f"--store {path}: schema version {version} is newer than this bench's "
+                f"({SCHEMA_VERSION}); upgrade bench to open it"
+            )
         has_tables = db.execute("SELECT COUNT(*) FROM sqlite_master WHERE name = 'runs'").fetchone()[0] > 0
         if has_tables and version < SCHEMA_VERSION and path != ":memory:":
             backup = backup_path(path, version)
@@ -175,8 +179,10 @@ def open_schema(db: sqlite3.Connection, path: str, bench: str) -> Path | None:
         db.execute("COMMIT")
     except sqlite3.DatabaseError as exc:
         db.execute("ROLLBACK")
-        raise StoreSchemaError(f"--store {path}: migration v{version} -> v{SCHEMA_VERSION} failed ({exc}); "
-                               f"the file is unchanged{f', a copy is in {backup}' if backup else ''}") from exc
+        raise StoreSchemaError(
+            f"--store {path}: migration v{version} -> v{SCHEMA_VERSION} failed ({exc}); "
+            f"the file is unchanged{f', a copy is in {backup}' if backup else ''}"
+        ) from exc
     except BaseException:
         db.execute("ROLLBACK")
         raise

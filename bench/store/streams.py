@@ -33,8 +33,16 @@ class StreamWriter:
         Flush when the oldest unflushed frame was appended ``batch_s`` ago, or ``batch_rows`` are waiting.
     """
 
-    def __init__(self, store: Any, run_id: int, stream: str, *, batch_s: float = 0.1, batch_rows: int = 4000,
-                 clock=time.monotonic) -> None:
+    def __init__(
+        self,
+        store: Any,
+        run_id: int,
+        stream: str,
+        *,
+        batch_s: float = 0.1,
+        batch_rows: int = 4000,
+        clock=time.monotonic,
+    ) -> None:
         self.store, self.run_id, self.stream = store, run_id, stream
         self.batch_s, self.batch_rows, self._clock = batch_s, batch_rows, clock
         self._parts: list[tuple[np.ndarray, ...]] = []
@@ -51,8 +59,9 @@ class StreamWriter:
             self._waiting += len(frames)
             if self._oldest_s is None:
                 self._oldest_s = self._clock()
-        due = self._oldest_s is not None and (self._waiting >= self.batch_rows
-                                              or self._clock() - self._oldest_s >= self.batch_s)
+        due = self._oldest_s is not None and (
+            self._waiting >= self.batch_rows or self._clock() - self._oldest_s >= self.batch_s
+        )
         return self.flush() if due else 0
 
     def flush(self) -> int:

@@ -28,25 +28,40 @@ are held at 0 and :data:`BASE_PARAMETERS` are the rest (:func:`base_equivalent` 
 
 from __future__ import annotations
 
+from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from functools import lru_cache
+from typing import Any
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from motion.delta4.geometry import LEG_OUTWARD, LEG_SIDEWAYS, NOMINAL, Geometry, Legs, ankle_positions
 from motion.delta4.kinematics import forward_kinematics, inverse_kinematics
 from motion.errors import MotionInputError
 
-__all__ = ["BASE_PARAMETERS", "FRAME_PARAMETERS", "PARAMETERS", "REGISTRATION", "TOLERANCES", "UNITS",
-           "CalibratedGeometry", "ForwardModel", "attained_positions", "base_equivalent", "commanded_servo_deg",
-           "compensation_geometry", "leg_parameters", "prior_sigma"]
+__all__ = [
+    "BASE_PARAMETERS",
+    "FRAME_PARAMETERS",
+    "PARAMETERS",
+    "REGISTRATION",
+    "TOLERANCES",
+    "UNITS",
+    "CalibratedGeometry",
+    "ForwardModel",
+    "attained_positions",
+    "base_equivalent",
+    "commanded_servo_deg",
+    "compensation_geometry",
+    "leg_parameters",
+    "prior_sigma",
+]
 
 _E_Z = np.array([0.0, 0.0, 1.0])
 _KINDS = ("servo_zero", "upper_arm", "lower_arm", "radial", "sideways", "height")
 _AXES = "xyz"
 #: Per-leg deviations, leg by leg (``servo_zero_1_deg``, ``upper_arm_1_mm``, ... ``height_4_mm``).
-PARAMETERS = tuple(f"{kind}_{leg}_{'deg' if kind == 'servo_zero' else 'mm'}" for leg in range(1, 5)
-                   for kind in _KINDS)
+PARAMETERS = tuple(f"{kind}_{leg}_{'deg' if kind == 'servo_zero' else 'mm'}" for leg in range(1, 5) for kind in _KINDS)
 REGISTRATION = tuple(f"reg_{axis}_mm" for axis in _AXES)
 #: The three parameters that fix the base frame against the end effector (module docstring), held at 0.
 FRAME_PARAMETERS = ("radial_1_mm", "radial_4_mm", "height_4_mm")
@@ -72,7 +87,7 @@ def tolerance(name: str) -> float:
     return TOLERANCES["arm"] if name.startswith(("upper_arm_", "lower_arm_")) else TOLERANCES["axis"]
 
 
-def prior_sigma(names) -> np.ndarray:
+def prior_sigma(names: Iterable[str]) -> np.ndarray:
     """The 1-sigma prior of each of ``names`` (base parameters and registration) for the MAP fit.
 
     A base parameter's axis position is measured from the frame that legs 1 and 4 fix (module docstring): it is the
@@ -87,34 +102,46 @@ def prior_sigma(names) -> np.ndarray:
     return np.array(sigma)
 
 
-def _check_names(names) -> tuple[str, ...]:
+def _check_names(names: Iterable[str]) -> tuple[str, ...]:
     names = tuple(names)
     for name in names:
         if name not in UNITS:
-            raise MotionInputError(f"parameter {name!r} is not a delta4 calibration parameter, expected one of "
-                                   f"{', '.join(PARAMETERS + REGISTRATION)}")
+            raise MotionInputError(
+                f"parameter {name!r} is not a delta4 calibration parameter, expected one of "
+                f"{', '.join(PARAMETERS + REGISTRATION)}"
+            )
     return names
 
 
-def leg_parameters(free, theta, nominal: Geometry = NOMINAL) -> Legs:
+def leg_parameters(free: Iterable[str], theta: ArrayLike, nominal: Geometry = NOMINAL) -> Legs:
     """The :class:`~motion.delta4.geometry.Legs` of the geometry under deviations ``theta`` of parameters ``free``
     (registration entries are not geometry and are skipped)."""
     deviation = {kind: np.zeros(4) for kind in _KINDS}
     for slot, value in zip(_leg_slots(tuple(free)), np.asarray(theta, dtype=float)):
         if slot is not None:
             deviation[slot[0]][slot[1]] = value
-    origin = ((nominal.thigh_offset_mm + deviation["radial"])[:, None] * LEG_OUTWARD
-              + deviation["sideways"][:, None] * LEG_SIDEWAYS + deviation["height"][:, None] * _E_Z)
-    return Legs(origin, nominal.upper_arm_mm + deviation["upper_arm"], nominal.lower_arm_mm + deviation["lower_arm"],
-                np.full(4, nominal.ankle_offset_mm), deviation["servo_zero"])
+    origin = (
+        (nominal.thigh_offset_mm + deviation["radial"])[:, None] * LEG_OUTWARD
+        + deviation["sideways"][:, None] * LEG_SIDEWAYS
+        + deviation["height"][:, None] * _E_Z
+    )
+    return Legs(
+        origin,
+        nominal.upper_arm_mm + deviation["upper_arm"],
+        nominal.lower_arm_mm + deviation["lower_arm"],
+        np.full(4, nominal.ankle_offset_mm),
+        deviation["servo_zero"],
+    )
 
 
 @lru_cache(maxsize=64)
 def _leg_slots(free: tuple[str, ...]) -> tuple[tuple[str, int] | None, ...]:
     """Per name of ``free`` (checked): its kind and leg index, None for a registration entry. Parsed once per
     parameter set: a fit evaluates the same set hundreds of times."""
-    return tuple(None if name.startswith("reg_") else (name.rsplit("_", 2)[0], int(name.rsplit("_", 2)[1]) - 1)
-                 for name in _check_names(free))
+    return tuple(
+        None if name.startswith("reg_") else (name.rsplit("_", 2)[0], int(name.rsplit("_", 2)[1]) - 1)
+        for name in _check_names(free)
+    )
 
 
 def _moved_axes(full: dict[str, float], t: np.ndarray) -> dict[str, float]:
@@ -145,8 +172,10 @@ class CalibratedGeometry:
         names = _check_names(name for name, _ in self.deviations)
         registration = [name for name in names if name in REGISTRATION]
         if registration:
-            raise MotionInputError(f"CalibratedGeometry: {registration[0]} is not a leg parameter, expected the "
-                                   "registration folded into the servo axes (compensation_geometry)")
+            raise MotionInputError(
+                f"CalibratedGeometry: {registration[0]} is not a leg parameter, expected the "
+                "registration folded into the servo axes (compensation_geometry)"
+            )
 
     @property
     def servo_limits_deg(self) -> tuple[float, float]:
@@ -160,16 +189,16 @@ class CalibratedGeometry:
         names, values = zip(*self.deviations) if self.deviations else ((), ())
         return leg_parameters(names, values, self.nominal)
 
-    def attained_mm(self, servo_deg) -> np.ndarray:
+    def attained_mm(self, servo_deg: ArrayLike) -> np.ndarray:
         """Where this robot stands at servo angles (N, 4): :func:`attained_positions`."""
         names, values = zip(*self.deviations) if self.deviations else ((), ())
         return attained_positions(servo_deg, names, values, self.nominal)
 
-    def settings(self) -> dict:
+    def settings(self) -> dict[str, Any]:
         return {**self.nominal.settings(), "deviations": {name: value for name, value in self.deviations}}
 
 
-def compensation_geometry(params, nominal: Geometry = NOMINAL) -> CalibratedGeometry:
+def compensation_geometry(params: Mapping[str, Any], nominal: Geometry = NOMINAL) -> CalibratedGeometry:
     """The geometry a compensated run commands by, from a stored calibration's parameters (``{"parameters": {name:
     {"value": ...}}}``, as ``bench calibrate`` stores them).
 
@@ -180,8 +209,9 @@ def compensation_geometry(params, nominal: Geometry = NOMINAL) -> CalibratedGeom
     try:
         entries = {name: float(entry["value"]) for name, entry in params["parameters"].items()}
     except (KeyError, TypeError, ValueError, AttributeError) as exc:
-        raise MotionInputError(f"kinematic calibration parameters: {exc!r}, expected {{'parameters': {{name: "
-                               "{'value': number}}}}") from None
+        raise MotionInputError(
+            f"kinematic calibration parameters: {exc!r}, expected {{'parameters': {{name: {{'value': number}}}}}}}}"
+        ) from None
     _check_names(entries)
     shift = np.array([entries.get(name, 0.0) for name in REGISTRATION])
     legs = _moved_axes({n: v for n, v in entries.items() if n not in REGISTRATION}, shift)
@@ -201,7 +231,7 @@ def base_equivalent(deviations: dict[str, float]) -> dict[str, float]:
     return full
 
 
-def _registration(free, theta) -> np.ndarray:
+def _registration(free: Sequence[str], theta: ArrayLike) -> np.ndarray:
     shift = np.zeros(3)
     for name, value in zip(free, np.asarray(theta, dtype=float)):
         if name.startswith("reg_"):
@@ -209,31 +239,43 @@ def _registration(free, theta) -> np.ndarray:
     return shift
 
 
-def commanded_servo_deg(points_mm, free=(), theta=(), nominal: Geometry = NOMINAL) -> np.ndarray:
+def commanded_servo_deg(
+    points_mm: ArrayLike, free: Iterable[str] = (), theta: ArrayLike = (), nominal: Geometry = NOMINAL
+) -> np.ndarray:
     """Servo angles (N, 4) that close every leg of the geometry under ``theta`` at positions ``points_mm`` (N, 3)
     (the IK of :func:`compensation_geometry`, module docstring; NaN rows where a leg cannot close). A registration
     in ``free`` is folded in: the points are instrument readings, so the command makes the predicted reading equal
     the target."""
     free = _check_names(free)
     params = {"parameters": {name: {"value": value} for name, value in zip(free, np.asarray(theta, dtype=float))}}
-    result = inverse_kinematics(points_mm, compensation_geometry(params, nominal))
+    # a CalibratedGeometry stands in for a Geometry: the IK reads only the legs, which it gives
+    result = inverse_kinematics(points_mm, compensation_geometry(params, nominal))  # type: ignore[arg-type]
     closes = np.array([not str(reason).startswith("out_of_reach") for reason in result.reason])
     return np.where(closes[:, None], result.servo_deg, np.nan)
 
 
-def attained_positions(servo_deg, free=(), theta=(), nominal: Geometry = NOMINAL, start_mm=None) -> np.ndarray:
+def attained_positions(
+    servo_deg: ArrayLike,
+    free: Iterable[str] = (),
+    theta: ArrayLike = (),
+    nominal: Geometry = NOMINAL,
+    start_mm: ArrayLike | None = None,
+) -> np.ndarray:
     """End-effector positions (N, 3) where the robot of deviations ``theta`` stands at servo angles (N, 4): the
     least-squares closure of the four legs, by Gauss-Newton from ``start_mm`` (default: the documented
     geometry's least-squares FK). Registration is not added (see :class:`ForwardModel`)."""
     free = _check_names(free)
     servo = np.atleast_2d(np.asarray(servo_deg, dtype=float))
     legs = leg_parameters(free, theta, nominal)
-    p = (forward_kinematics(servo, nominal, method="least_squares").pose_mm if start_mm is None
-         else np.array(start_mm, dtype=float))
+    p = (
+        forward_kinematics(servo, nominal, method="least_squares").pose_mm
+        if start_mm is None
+        else np.array(start_mm, dtype=float)
+    )
     return _closure(legs.knees_mm(servo), legs.ankle_mm, legs.lower_mm, p)
 
 
-def _closure(knees, ankle_mm, lower_mm, p) -> np.ndarray:
+def _closure(knees: np.ndarray, ankle_mm: np.ndarray, lower_mm: np.ndarray, p: np.ndarray) -> np.ndarray:
     """Positions (N, 3) where the four legs of each row close best, by Gauss-Newton from ``p`` (N, 3): knees
     (N, 4, 3), ankle offsets and lower arms (4,) for every row or (N, 4) one set per row."""
     for _ in range(_GAUSS_NEWTON_ITERATIONS):
@@ -262,7 +304,9 @@ class ForwardModel:
 
     _STEP = {"deg": 1e-4, "mm": 1e-4}
 
-    def __init__(self, servo_deg, free, axes=(0, 1), nominal: Geometry = NOMINAL) -> None:
+    def __init__(
+        self, servo_deg: ArrayLike, free: Iterable[str], axes: Sequence[int] = (0, 1), nominal: Geometry = NOMINAL
+    ) -> None:
         self.servo_deg = np.atleast_2d(np.asarray(servo_deg, dtype=float))
         if self.servo_deg.shape[1:] != (4,):
             raise MotionInputError(f"servo_deg has shape {self.servo_deg.shape}, expected (N, 4)")
@@ -282,24 +326,29 @@ class ForwardModel:
         """Largest plausible |deviation|: 5 mm or 5 deg per leg parameter, 20 mm of registration."""
         return np.array([20.0 if n.startswith("reg_") else 5.0 for n in self.free])
 
-    def predict(self, theta) -> np.ndarray:
+    def predict(self, theta: ArrayLike) -> np.ndarray:
         """Readings (N, len(axes)): attained position plus registration, on the measured axes."""
         return self._predict_each([theta])[0]
 
-    def _predict_each(self, thetas) -> list[np.ndarray]:
+    def _predict_each(self, thetas: Sequence[ArrayLike]) -> list[np.ndarray]:
         """:meth:`predict` of each of ``thetas``, the closures of all of them solved in one batch (the same
         arithmetic row by row: a Jacobian's 2 K predictions cost little more than one)."""
         legs = [leg_parameters(self.free, theta, self.nominal) for theta in thetas]
         if not legs:
             return []
         rows = len(self.servo_deg)
-        p = _closure(np.concatenate([leg.knees_mm(self.servo_deg) for leg in legs]),
-                     np.repeat([leg.ankle_mm for leg in legs], rows, axis=0),
-                     np.repeat([leg.lower_mm for leg in legs], rows, axis=0), np.tile(self._start, (len(legs), 1)))
-        return [(part + _registration(self.free, theta))[:, self.axes]
-                for part, theta in zip(np.split(p, len(legs)), thetas)]
+        p = _closure(
+            np.concatenate([leg.knees_mm(self.servo_deg) for leg in legs]),
+            np.repeat([leg.ankle_mm for leg in legs], rows, axis=0),
+            np.repeat([leg.lower_mm for leg in legs], rows, axis=0),
+            np.tile(self._start, (len(legs), 1)),
+        )
+        return [
+            (part + _registration(self.free, theta))[:, self.axes]
+            for part, theta in zip(np.split(p, len(legs)), thetas)
+        ]
 
-    def jacobian(self, theta) -> np.ndarray:
+    def jacobian(self, theta: ArrayLike) -> np.ndarray:
         """d reading / d theta (N, len(axes), K): central differences (registration columns exact)."""
         theta = np.asarray(theta, dtype=float)
         varied = [k for k, name in enumerate(self.free) if not name.startswith("reg_")]
@@ -307,7 +356,7 @@ class ForwardModel:
         steps[np.arange(len(varied)), varied] = [self._STEP[UNITS[self.free[k]]] for k in varied]
         readings = iter(self._predict_each([theta + sign * step for step in steps for sign in (1, -1)]))
         columns = []
-        for k, name in enumerate(self.free):
+        for _k, name in enumerate(self.free):
             if name.startswith("reg_"):
                 column = np.zeros((len(self.servo_deg), len(self.axes)))
                 if _AXES.index(name[4]) in self.axes:

@@ -39,8 +39,17 @@ def _kernel() -> Any:
     from numba import njit
 
     @njit(cache=True, nogil=True, error_model="numpy")
-    def gauss_newton_rows(start, knees,  # type: ignore[no-untyped-def]  # numba infers the kernel's types
-                           outward, offset_mm, lower_arm_mm, iterations, tolerance_mm, pose, converged):
+    def gauss_newton_rows(  # type: ignore[no-untyped-def]  # numba infers the kernel's types
+        start,
+        knees,
+        outward,
+        offset_mm,
+        lower_arm_mm,
+        iterations,
+        tolerance_mm,
+        pose,
+        converged,
+    ):
         for row in range(start.shape[0]):
             px, py, pz = start[row, 0], start[row, 1], start[row, 2]
             ok = False
@@ -87,8 +96,9 @@ def _kernel() -> Any:
     return gauss_newton_rows
 
 
-def gauss_newton(start: np.ndarray, knees: np.ndarray, geometry: Geometry, iterations: int,
-                 tolerance_mm: float) -> tuple[np.ndarray, np.ndarray]:
+def gauss_newton(
+    start: np.ndarray, knees: np.ndarray, geometry: Geometry, iterations: int, tolerance_mm: float
+) -> tuple[np.ndarray, np.ndarray]:
     """Least-squares FK of N poses from starts (N, 3) and knees (N, 4, 3) mm: pose (N, 3), converged (N,)."""
     kernel = _kernel()
     start, knees = np.ascontiguousarray(start, dtype=float), np.ascontiguousarray(knees, dtype=float)
@@ -97,8 +107,17 @@ def gauss_newton(start: np.ndarray, knees: np.ndarray, geometry: Geometry, itera
     outward = np.ascontiguousarray(LEG_OUTWARD, dtype=float)
 
     def some_rows(rows: slice) -> None:
-        kernel(start[rows], knees[rows], outward, float(geometry.ankle_offset_mm), float(geometry.lower_arm_mm),
-               iterations, tolerance_mm, pose[rows], converged[rows])
+        kernel(
+            start[rows],
+            knees[rows],
+            outward,
+            float(geometry.ankle_offset_mm),
+            float(geometry.lower_arm_mm),
+            iterations,
+            tolerance_mm,
+            pose[rows],
+            converged[rows],
+        )
 
     kernels.run_chunks(some_rows, n, _CHUNK)
     return pose, converged

@@ -53,8 +53,9 @@ def _check_direction(direction: int) -> None:
         raise MotionInputError(f"direction = {direction!r}, expected +1 (count 0 at the low stop) or -1")
 
 
-def adc_counts(servo_deg: ArrayLike, *, stops_deg: tuple[float, float] = (30.0, 170.0),
-               direction: int = 1) -> np.ndarray:
+def adc_counts(
+    servo_deg: ArrayLike, *, stops_deg: tuple[float, float] = (30.0, 170.0), direction: int = 1
+) -> np.ndarray:
     """8-bit pot ADC counts for servo angles, in ``calibrated`` mode (reference §5.8 b).
 
     count = round(255 / (high - low) * (theta_R - low)) for direction +1, or with (high - theta_R) for -1 (the

@@ -122,8 +122,13 @@ class Geometry:
 
     def legs(self) -> Legs:
         """The documented legs: every servo axis at ``m u_i``, the lengths of this geometry, no zero error."""
-        return Legs(self.thigh_offset_mm * LEG_OUTWARD, np.full(4, self.upper_arm_mm), np.full(4, self.lower_arm_mm),
-                    np.full(4, self.ankle_offset_mm), np.zeros(4))
+        return Legs(
+            self.thigh_offset_mm * LEG_OUTWARD,
+            np.full(4, self.upper_arm_mm),
+            np.full(4, self.lower_arm_mm),
+            np.full(4, self.ankle_offset_mm),
+            np.zeros(4),
+        )
 
     def settings(self) -> dict[str, float | tuple[float, float]]:
         """The geometry as a plain dict, to store with a run."""

@@ -76,6 +76,7 @@ class FKResult:
     ok: np.ndarray
     reason: np.ndarray
 
+
 #: ``pose (N, 3) -> (residual (N, 4), Jacobian (N, 4, 3))`` of a Gauss-Newton solve.
 Residuals = Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]]
 

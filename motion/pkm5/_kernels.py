@@ -37,11 +37,31 @@ def pack_geometry(geometry: Geometry) -> np.ndarray:
     """The geometry fields the kinematics read, as one read-only float64 vector (limits in radians, as the numpy
     IK compares); callers use the cached :func:`motion.pkm5.compiled.pack_geometry`."""
     g = geometry
-    parts = [g.oa_12_mm, g.oa_34_mm, g.oa_56_mm, g.pd_12_mm, g.pd_34_mm, g.pd_5_mm, g.pd_6_mm,
-             [g.bracket_half_height_mm], g.ab_odd_mm, g.ab_even_mm, g.ab_5_mm, g.ab_6_mm,
-             g.cd_odd_mm, g.cd_even_mm, g.cd_5_mm, g.cd_6_mm, g.leg_min_mm, g.leg_max_mm,
-             np.radians(g.tilt_min_deg), np.radians(g.tilt_max_deg), np.radians(g.alpha_range_deg),
-             np.radians(g.beta_range_deg), [g.alpha_plane_x_mm, g.alpha_plane_tolerance_mm]]
+    parts = [
+        g.oa_12_mm,
+        g.oa_34_mm,
+        g.oa_56_mm,
+        g.pd_12_mm,
+        g.pd_34_mm,
+        g.pd_5_mm,
+        g.pd_6_mm,
+        [g.bracket_half_height_mm],
+        g.ab_odd_mm,
+        g.ab_even_mm,
+        g.ab_5_mm,
+        g.ab_6_mm,
+        g.cd_odd_mm,
+        g.cd_even_mm,
+        g.cd_5_mm,
+        g.cd_6_mm,
+        g.leg_min_mm,
+        g.leg_max_mm,
+        np.radians(g.tilt_min_deg),
+        np.radians(g.tilt_max_deg),
+        np.radians(g.alpha_range_deg),
+        np.radians(g.beta_range_deg),
+        [g.alpha_plane_x_mm, g.alpha_plane_tolerance_mm],
+    ]
     packed = np.concatenate([np.asarray(part, dtype=float) for part in parts])
     if packed.size != _PACKED_SIZE:
         raise AssertionError(f"packed geometry holds {packed.size} values, the kernels read {_PACKED_SIZE}")
@@ -177,10 +197,18 @@ def ik_values(poses, g, inputs, outputs):
     ab_odd, cd_odd, ab_even, cd_even = _v2(g, _AB_ODD), _v2(g, _CD_ODD), _v2(g, _AB_EVEN), _v2(g, _CD_EVEN)
     ab5, cd5, ab6, cd6 = _v2(g, _AB5), _v2(g, _CD5), _v2(g, _AB6), _v2(g, _CD6)
     for j in range(poses.shape[0]):
-        ca, sa, cb, sb = _get(inputs, _IN_CA, j), _get(inputs, _IN_SA, j), _get(inputs, _IN_CB, j), \
-            _get(inputs, _IN_SB, j)
-        x, y, z, beta = _get(inputs, _IN_X, j), _get(inputs, _IN_Y, j), _get(inputs, _IN_Z, j), \
-            _get(inputs, _IN_BETA, j)
+        ca, sa, cb, sb = (
+            _get(inputs, _IN_CA, j),
+            _get(inputs, _IN_SA, j),
+            _get(inputs, _IN_CB, j),
+            _get(inputs, _IN_SB, j),
+        )
+        x, y, z, beta = (
+            _get(inputs, _IN_X, j),
+            _get(inputs, _IN_Y, j),
+            _get(inputs, _IN_Z, j),
+            _get(inputs, _IN_BETA, j),
+        )
         u, w, cos_d, sin_d = _pair_plane(x, y, z, ca, sa, cb, sb, pd12, oa12, h)
         _put_leg(outputs, 0, j, _leg(u, w, ab_odd, cd_odd, cos_d, sin_d))
         _put_leg(outputs, 1, j, _leg(u, w, ab_even, cd_even, cos_d, sin_d))
@@ -263,8 +291,13 @@ def _scale(a, c):
 
 @_dual_op
 def _mul(a, b):
-    return (a[0] * b[0], a[1] * b[0] + b[1] * a[0], a[2] * b[0] + b[2] * a[0], a[3] * b[0] + b[3] * a[0],
-            a[4] * b[0] + b[4] * a[0])
+    return (
+        a[0] * b[0],
+        a[1] * b[0] + b[1] * a[0],
+        a[2] * b[0] + b[2] * a[0],
+        a[3] * b[0] + b[3] * a[0],
+        a[4] * b[0] + b[4] * a[0],
+    )
 
 
 @_dual_op
@@ -342,8 +375,11 @@ def _residual(q, mode, target, g, r, jac):
     cos_56, sin_56 = (ca, sa) if beta[0] == 0.0 else (one, zero)
     for pd, ab, cd in ((_PD5, _AB5, _CD5), (_PD6, _AB6, _CD6)):
         dx, dy, dz = _d_rotate(g, pd, ca, sa, cb, sb)
-        ax, ay, az = (_shift(_add(x, dx), -g[_OA56]), _shift(_add(y, dy), -g[_OA56 + 1]),
-                      _shift(_add(z, dz), -g[_OA56 + 2]))
+        ax, ay, az = (
+            _shift(_add(x, dx), -g[_OA56]),
+            _shift(_add(y, dy), -g[_OA56 + 1]),
+            _shift(_add(z, dz), -g[_OA56 + 2]),
+        )
         length = _d_leg(ay, _hypot(ax, az), g, ab, cd, cos_56, sin_56)
         r[leg] = length[0] - target[leg]
         for c in range(4):
@@ -475,5 +511,6 @@ def fk_batch(target, q, mode, restarts, n_restarts, g, max_iter, step_tol, retry
     """The FK of N rows of one mode; q (N, 4) holds the initial guesses and receives the solutions."""
     work = _workspace()
     for i in range(target.shape[0]):
-        cost[i], iterations[i], done[i] = _fk_with_restarts(target[i], q[i], mode, restarts, n_restarts, g,
-                                                            max_iter, step_tol, retry_above_mm, work)
+        cost[i], iterations[i], done[i] = _fk_with_restarts(
+            target[i], q[i], mode, restarts, n_restarts, g, max_iter, step_tol, retry_above_mm, work
+        )

@@ -26,8 +26,11 @@ from __future__ import annotations
 import dataclasses
 import functools
 import types
+from collections.abc import Iterable, Mapping, Sequence
+from typing import Any
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from motion import dual, kernels
 from motion.errors import MotionInputError
@@ -36,8 +39,19 @@ from motion.pkm5.geometry import DEFAULT_GEOMETRY, Geometry, steps_to_lengths
 from motion.pkm5.ik import leg_lengths
 from motion.pkm5.jacobian import jacobian
 
-__all__ = ["PARAMETERS", "REGISTRATION", "TOLERANCES", "UNITS", "apply_parameters", "compensation_geometry",
-           "geometry_from_calibration", "parameter_deviations", "modes_of_poses", "tolerance", "ForwardModel"]
+__all__ = [
+    "PARAMETERS",
+    "REGISTRATION",
+    "TOLERANCES",
+    "UNITS",
+    "apply_parameters",
+    "compensation_geometry",
+    "geometry_from_calibration",
+    "parameter_deviations",
+    "modes_of_poses",
+    "tolerance",
+    "ForwardModel",
+]
 
 _AXES = ("x", "y", "z")
 _JOINT_FIELDS = ("oa_12", "oa_34", "oa_56", "pd_12", "pd_34", "pd_5", "pd_6")
@@ -45,8 +59,11 @@ _JOINT_FIELDS = ("oa_12", "oa_34", "oa_56", "pd_12", "pd_34", "pd_5", "pd_6")
 REGISTRATION = tuple(f"reg_{axis}_mm" for axis in _AXES)
 #: Every geometric parameter, in the order the default free set is built (joint zeros first, then scales, then
 #: the joint positions, pkm5.md §2.6: the fields the documents never give come first).
-PARAMETERS = (tuple(f"leg_offset_{i}_mm" for i in range(1, 7)) + tuple(f"scale_{i}" for i in range(1, 7))
-              + tuple(f"{field}_{axis}_mm" for field in _JOINT_FIELDS for axis in _AXES))
+PARAMETERS = (
+    tuple(f"leg_offset_{i}_mm" for i in range(1, 7))
+    + tuple(f"scale_{i}" for i in range(1, 7))
+    + tuple(f"{field}_{axis}_mm" for field in _JOINT_FIELDS for axis in _AXES)
+)
 #: Unit of each parameter (``1`` for the dimensionless scale).
 UNITS = {name: ("1" if name.startswith("scale_") else "mm") for name in PARAMETERS + REGISTRATION}
 _FD_STEP = {"mm": 1e-4, "1": 1e-6}
@@ -71,7 +88,7 @@ def tolerance(name: str) -> float:
 _BRANCH_JUMP_MM = 20.0
 
 
-def _bumped_joints(geometry: Geometry, names, step: float, rows: int):
+def _bumped_joints(geometry: Geometry, names: Sequence[str], step: float, rows: int) -> Any:
     """One geometry for a batched IK of ``2 * len(names) * rows`` poses: ``geometry`` with joint parameter
     ``names[i]`` moved by +``step`` (rows ``2i * rows ..``) and by -``step`` (rows ``(2i + 1) * rows ..``); its joint
     vectors hold per-row arrays (the IK broadcasts them), the other fields are ``geometry``'s."""
@@ -80,24 +97,26 @@ def _bumped_joints(geometry: Geometry, names, step: float, rows: int):
         values = np.tile(np.asarray(fields[f"{field}_mm"], dtype=float), (2 * len(names), 1))  # (2K, 3)
         for i, name in enumerate(names):
             if name[:-5] == field:
-                values[2 * i:2 * i + 2, _AXES.index(name[-4])] += (step, -step)
+                values[2 * i : 2 * i + 2, _AXES.index(name[-4])] += (step, -step)
         fields[f"{field}_mm"] = tuple(np.repeat(values[:, axis], rows) for axis in range(3))
     return types.SimpleNamespace(**fields)
 
 
-def _check_names(names) -> tuple[str, ...]:
+def _check_names(names: Iterable[str]) -> tuple[str, ...]:
     names = tuple(names)
     unknown = [n for n in names if n not in UNITS]
     if unknown:
-        raise MotionInputError(f"calibration parameter {unknown[0]!r} is not a pkm5 parameter; expected one of "
-                               f"leg_offset_1_mm..leg_offset_6_mm, scale_1..scale_6, oa_12_x_mm.., pd_6_z_mm, "
-                               f"reg_x_mm..reg_z_mm")
+        raise MotionInputError(
+            f"calibration parameter {unknown[0]!r} is not a pkm5 parameter; expected one of "
+            f"leg_offset_1_mm..leg_offset_6_mm, scale_1..scale_6, oa_12_x_mm.., pd_6_z_mm, "
+            f"reg_x_mm..reg_z_mm"
+        )
     if len(set(names)) != len(names):
         raise MotionInputError(f"calibration parameters {list(names)} name one parameter twice")
     return names
 
 
-def apply_parameters(names, values, geometry: Geometry = DEFAULT_GEOMETRY) -> Geometry:
+def apply_parameters(names: Iterable[str], values: ArrayLike, geometry: Geometry = DEFAULT_GEOMETRY) -> Geometry:
     """The geometry with the deviations ``values`` of parameters ``names`` added (registration names ignored)."""
     names = _check_names(names)
     values = np.asarray(values, dtype=float).reshape(len(names))
@@ -113,8 +132,11 @@ def apply_parameters(names, values, geometry: Geometry = DEFAULT_GEOMETRY) -> Ge
         elif not name.startswith("reg_"):
             field, axis = name[:-5], name[-4]
             joints[field][_AXES.index(axis)] += value
-    return geometry.replace(leg_length_offset_mm=tuple(offsets), mm_per_full_step=tuple(lead),
-                            **{f"{field}_mm": tuple(v) for field, v in joints.items()})
+    return geometry.replace(
+        leg_length_offset_mm=tuple(offsets),
+        mm_per_full_step=tuple(lead),
+        **{f"{field}_mm": tuple(v) for field, v in joints.items()},
+    )
 
 
 def parameter_deviations(geometry: Geometry, nominal: Geometry = DEFAULT_GEOMETRY) -> dict[str, float]:
@@ -130,19 +152,20 @@ def parameter_deviations(geometry: Geometry, nominal: Geometry = DEFAULT_GEOMETR
     return {name: float(value) for name, value in out.items()}
 
 
-def geometry_from_calibration(params, nominal: Geometry = DEFAULT_GEOMETRY) -> Geometry:
+def geometry_from_calibration(params: Mapping[str, Any], nominal: Geometry = DEFAULT_GEOMETRY) -> Geometry:
     """The calibrated geometry of a stored kinematic calibration's parameters (``{"parameters": {name: {"value":
     ...}}}``, as ``bench calibrate`` stores them); registration entries are not geometry and are skipped."""
     try:
         entries = {name: float(entry["value"]) for name, entry in params["parameters"].items()}
     except (KeyError, TypeError, ValueError, AttributeError) as exc:
-        raise MotionInputError(f"kinematic calibration parameters: {exc!r}, expected {{'parameters': {{name: "
-                               "{'value': number}}}}") from None
+        raise MotionInputError(
+            f"kinematic calibration parameters: {exc!r}, expected {{'parameters': {{name: {{'value': number}}}}}}}}"
+        ) from None
     geometric = {n: v for n, v in entries.items() if not n.startswith("reg_")}
     return apply_parameters(tuple(geometric), tuple(geometric.values()), nominal)
 
 
-def compensation_geometry(params, nominal: Geometry = DEFAULT_GEOMETRY) -> Geometry:
+def compensation_geometry(params: Mapping[str, Any], nominal: Geometry = DEFAULT_GEOMETRY) -> Geometry:
     """The geometry a compensated run commands by: :func:`geometry_from_calibration` in the instrument's frame.
 
     The calibration predicts a measurement as ``m = FK(s; theta) + r`` (``r`` the registration ``reg_*_mm``).
@@ -156,11 +179,15 @@ def compensation_geometry(params, nominal: Geometry = DEFAULT_GEOMETRY) -> Geome
     for name, entry in params["parameters"].items():
         if name in REGISTRATION:
             shift[_AXES.index(name[4])] = float(entry["value"])
-    return geometry.replace(**{f"{field}_mm": tuple(np.asarray(getattr(geometry, f"{field}_mm")) + shift)
-                               for field in ("oa_12", "oa_34", "oa_56")})
+    return geometry.replace(
+        **{
+            f"{field}_mm": tuple(np.asarray(getattr(geometry, f"{field}_mm")) + shift)
+            for field in ("oa_12", "oa_34", "oa_56")
+        }
+    )
 
 
-def modes_of_poses(poses) -> np.ndarray:
+def modes_of_poses(poses: ArrayLike) -> np.ndarray:
     """Motion mode of commanded poses (N, 5; angles in any unit): 'alpha' if alpha != 0, 'beta' if beta != 0."""
     p = np.asarray(poses, dtype=float).reshape(-1, 5)
     return np.where(p[:, 3] != 0, "alpha", np.where(p[:, 4] != 0, "beta", "translation")).astype(object)
@@ -186,8 +213,15 @@ class ForwardModel:
         installed.
     """
 
-    def __init__(self, steps, modes, free, axes=(0, 1, 2), nominal: Geometry = DEFAULT_GEOMETRY,
-                 engine: str = "auto") -> None:
+    def __init__(
+        self,
+        steps: ArrayLike,
+        modes: ArrayLike,
+        free: Iterable[str],
+        axes: Sequence[int] = (0, 1, 2),
+        nominal: Geometry = DEFAULT_GEOMETRY,
+        engine: str = "auto",
+    ) -> None:
         # 'auto': the compiled FK whenever numba is installed, whatever the batch size (the FK's own 'auto' waits
         # for 10,000 poses): an identification solves the same 30-100 poses some 30 times, and numpy's per-call
         # overhead, not arithmetic, is its time (100 poses: 4.9 s numpy, 0.76 s compiled, equal to 1e-5)
@@ -218,7 +252,7 @@ class ForwardModel:
     def units(self) -> tuple[str, ...]:
         return tuple(UNITS[name] for name in self.free)
 
-    def poses(self, theta) -> np.ndarray:
+    def poses(self, theta: ArrayLike) -> np.ndarray:
         """Attained poses (N, 5; mm, rad) under parameters ``theta``; NaN rows where the FK fails."""
         theta = np.asarray(theta, dtype=float)
         if self._evaluated is not None and np.array_equal(self._evaluated[0], theta):
@@ -234,48 +268,69 @@ class ForwardModel:
                 # every solve starts from the documented geometry's solution: its k-d seed tables are cached (a
                 # perturbed geometry's alpha plane moves and rejection-sampling a new table takes minutes), and a
                 # fixed start keeps each solve on the same branch whatever trial parameters came before
-                self._starts[mode] = forward_kinematics(steps_to_lengths(self.steps[rows], DEFAULT_GEOMETRY),
-                                                        DEFAULT_GEOMETRY, mode=mode, residual_tol_mm=2.0,
-                                                        max_iter=200, engine=self.engine).pose
+                self._starts[mode] = forward_kinematics(
+                    steps_to_lengths(self.steps[rows], DEFAULT_GEOMETRY),
+                    DEFAULT_GEOMETRY,
+                    mode=mode,
+                    residual_tol_mm=2.0,
+                    max_iter=200,
+                    engine=self.engine,
+                ).pose
             # warm start: the poses of the last evaluation (a nearby trial: the solver's steps are small), which
             # cuts the LM iterations several-fold; a row that did not converge there starts from the fixed start
             last = self._last.get(mode)
             start = self._starts[mode] if last is None else np.where(np.isfinite(last), last, self._starts[mode])
-            fk = forward_kinematics(lengths[rows], geometry, initial_pose=start, mode=mode, residual_tol_mm=2.0,
-                                    retry_above_mm=0.5, max_iter=200, engine=self.engine)
+            fk = forward_kinematics(
+                lengths[rows],
+                geometry,
+                initial_pose=start,
+                mode=mode,
+                residual_tol_mm=2.0,
+                retry_above_mm=0.5,
+                max_iter=200,
+                engine=self.engine,
+            )
             solved = np.where(fk.converged[:, None], fk.pose, np.nan)
             # a warm start can walk a pose onto another FK branch (seen at a beta pose: 57 mm away, and the
             # solver then stays in that basin); sub-millimetre deviations move a pose by a few mm at most, so a
             # row far from the documented geometry's pose is solved again from that fixed start
             far = ~(np.linalg.norm(solved[:, :3] - self._starts[mode][:, :3], axis=1) <= _BRANCH_JUMP_MM)
             if last is not None and far.any():
-                again = forward_kinematics(lengths[rows][far], geometry, initial_pose=self._starts[mode][far],
-                                           mode=mode, residual_tol_mm=2.0, retry_above_mm=0.5, max_iter=200,
-                                           engine=self.engine)
+                again = forward_kinematics(
+                    lengths[rows][far],
+                    geometry,
+                    initial_pose=self._starts[mode][far],
+                    mode=mode,
+                    residual_tol_mm=2.0,
+                    retry_above_mm=0.5,
+                    max_iter=200,
+                    engine=self.engine,
+                )
                 solved[far] = np.where(again.converged[:, None], again.pose, np.nan)
             out[rows] = solved
             self._last[mode] = out[rows]
         self._evaluated = (theta.copy(), out.copy())
         return out
 
-    def _registration(self, theta) -> np.ndarray:
+    def _registration(self, theta: ArrayLike) -> np.ndarray:
         shift = np.zeros(3)
         for name, value in zip(self.free, np.asarray(theta, dtype=float)):
             if name.startswith("reg_"):
                 shift[_AXES.index(name[4])] = value
         return shift
 
-    def predict(self, theta) -> np.ndarray:
+    def predict(self, theta: ArrayLike) -> np.ndarray:
         """Predicted measured coordinates (N, len(axes)), mm."""
         positions = self.poses(theta)[:, :3] + self._registration(theta)
         return positions[:, list(self.axes)]
 
-    def _stationarity(self, p, geometry, lengths) -> np.ndarray:
+    def _stationarity(self, p: np.ndarray, geometry: Any, lengths: np.ndarray) -> np.ndarray:
         """F(p) = J_m^T (IK(p; geometry) - lengths) per row, (M, 5) (zero columns outside the mode): the normal
         equations the least-squares FK solves, F = 0 at every attained pose. ``p`` (M, 5) is a whole number of
         copies of the pose set, ``geometry`` a Geometry or :func:`_bumped_joints` (one geometry per copy),
         ``lengths`` (M, 6) the commanded leg lengths; one batched dual-number pass gives IK and J_m together."""
-        legs, _ = leg_lengths(*dual.seed(p), geometry=geometry, with_tilt=False)
+        x, y, z, alpha, beta = dual.seed(p)
+        legs, _ = leg_lengths(x, y, z, alpha, beta, geometry=geometry, with_tilt=False)
         residual = np.stack([leg.value for leg in legs], -1) - lengths
         pose_jac = np.stack([leg.grad for leg in legs], 1)
         out = np.einsum("nlc,nl->nc", pose_jac, residual)
@@ -292,7 +347,7 @@ class ForwardModel:
             mask[rows, 4] = angle == 4
         return mask
 
-    def _dfdp(self, p, geometry, lengths) -> np.ndarray:
+    def _dfdp(self, p: np.ndarray, geometry: Any, lengths: np.ndarray) -> np.ndarray:
         """dF/dp per pose (N, 5, 5) by central differences, the ten bumped pose sets in one batch."""
         n = len(p)
         steps = (1e-4, 1e-4, 1e-4, 1e-6, 1e-6)
@@ -301,7 +356,7 @@ class ForwardModel:
         f = self._stationarity(bumped, geometry, np.tile(lengths, (10, 1))).reshape(2, 5, n, 5)
         return ((f[0] - f[1]) / np.reshape(2.0 * np.asarray(steps), (5, 1, 1))).transpose(1, 2, 0)
 
-    def fold_ratio(self, theta) -> np.ndarray:
+    def fold_ratio(self, theta: ArrayLike) -> np.ndarray:
         """Per pose, smallest / largest eigenvalue of the symmetric part of dF/dp over the mode's columns (raw mm and
         rad units): near 0 the pose is near a fold of the FK, where nearby geometries' solves may change branch (so a
         fit through it meets a barrier; docs/calibration.md, the MAP candidate)."""
@@ -316,7 +371,7 @@ class ForwardModel:
             out[i] = eig[0] / eig[-1]
         return out
 
-    def jacobian(self, theta, poses=None) -> np.ndarray:
+    def jacobian(self, theta: ArrayLike, poses: np.ndarray | None = None) -> np.ndarray:
         """d predict / d theta, shape (N, len(axes), len(free)), exact up to central-difference error.
 
         Implicit function theorem on the FK's normal equations F(p, theta) = 0 (:meth:`_stationarity`):
@@ -351,8 +406,9 @@ class ForwardModel:
             # joint parameter) in one batched evaluation, since numpy's per-call overhead dominates 30-100 poses
             h = _FD_STEP["mm"]
             bumped = _bumped_joints(geometry, [self.free[j] for j in joints], h, n)
-            f = self._stationarity(np.tile(p, (2 * len(joints), 1)), bumped,
-                                   np.tile(lengths, (2 * len(joints), 1))).reshape(len(joints), 2, n, 5)
+            f = self._stationarity(
+                np.tile(p, (2 * len(joints), 1)), bumped, np.tile(lengths, (2 * len(joints), 1))
+            ).reshape(len(joints), 2, n, 5)
             dfdt[:, :, joints] = ((f[:, 0] - f[:, 1]) / (2 * h)).transpose(1, 2, 0)
         # outside the mode's columns put an identity block, so the solve leaves those pose derivatives at zero
         dfdp = dfdp + np.einsum("nc,cd->ncd", 1.0 - mask, np.eye(5))

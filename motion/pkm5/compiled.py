@@ -31,8 +31,16 @@ from motion.kernels import run_chunks
 from motion.pkm5.fk_starts import RESTARTS
 from motion.pkm5.geometry import Geometry
 
-__all__ = ["use_compiled", "COMPILED_MIN_POSES", "fk_kernel_loaded", "pack_geometry", "ik_arrays", "fk_arrays",
-           "fk_pose", "MODE_CODES"]
+__all__ = [
+    "use_compiled",
+    "COMPILED_MIN_POSES",
+    "fk_kernel_loaded",
+    "pack_geometry",
+    "ik_arrays",
+    "fk_arrays",
+    "fk_pose",
+    "MODE_CODES",
+]
 
 #: Smallest batch for which inverse_kinematics / forward_kinematics use the compiled kernels by default. Loading
 #: numba and the cached kernels costs ~0.3-0.6 s per process; the numpy IK does ~10^5-10^6 poses in that time and the
@@ -74,8 +82,9 @@ def fk_kernel_loaded() -> bool:
     return module is not None and bool(module.fk_batch.signatures)
 
 
-def ik_arrays(poses: np.ndarray, geometry: Geometry,
-              check_limits: bool) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+def ik_arrays(
+    poses: np.ndarray, geometry: Geometry, check_limits: bool
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Lengths (N, 6), tilts (N, 6), failure flags (N,), length_ok and tilt_ok (N, 6) of validated poses (N, 5).
 
     Per block of ``_kernels.IK_BLOCK`` poses (in cache): a kernel writes the lengths and the tilt components, one row
@@ -99,11 +108,19 @@ def ik_arrays(poses: np.ndarray, geometry: Geometry,
             block = slice(start, min(start + block_size, rows.stop))
             size = block.stop - block.start
             kernels.ik_values(poses[block], packed, inputs, outputs)
-            tilt = by_row[kernels.OUT_BW:kernels.OUT_BW + 6, :size]
-            np.arctan2(tilt, by_row[kernels.OUT_BU:kernels.OUT_BU + 6, :size], out=tilt)
-            kernels.ik_limits(inputs, outputs, packed, check_limits, lengths[block].reshape(-1),
-                              tilts[block].reshape(-1), failure[block], length_ok[block].reshape(-1),
-                              tilt_ok[block].reshape(-1))
+            tilt = by_row[kernels.OUT_BW : kernels.OUT_BW + 6, :size]
+            np.arctan2(tilt, by_row[kernels.OUT_BU : kernels.OUT_BU + 6, :size], out=tilt)
+            kernels.ik_limits(
+                inputs,
+                outputs,
+                packed,
+                check_limits,
+                lengths[block].reshape(-1),
+                tilts[block].reshape(-1),
+                failure[block],
+                length_ok[block].reshape(-1),
+                tilt_ok[block].reshape(-1),
+            )
 
     run_chunks(some_blocks, n, block_size * _IK_TASK_BLOCKS)
     return lengths, tilts, failure, length_ok, tilt_ok
@@ -113,12 +130,19 @@ def restart_table(mode: str) -> np.ndarray:
     """The restart guesses of motion.pkm5.fk for ``mode`` as rows of four (x, y, z, angle; angle 0 in translation)."""
     table = np.zeros((len(RESTARTS[mode]), 4))
     for i, start in enumerate(RESTARTS[mode]):
-        table[i, :len(start)] = start
+        table[i, : len(start)] = start
     return table
 
 
-def fk_arrays(q0: np.ndarray, target: np.ndarray, mode: str, geometry: Geometry, max_iter: int, step_tol: float,
-              retry_above_mm: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+def fk_arrays(
+    q0: np.ndarray,
+    target: np.ndarray,
+    mode: str,
+    geometry: Geometry,
+    max_iter: int,
+    step_tol: float,
+    retry_above_mm: float,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """LM with restarts for one mode's rows, as fk._with_restarts: q (n, k), cost, iterations, stationary flag.
 
     Each pose is solved on its own, so chunks of rows run on the thread pool with the same results."""
@@ -127,20 +151,43 @@ def fk_arrays(q0: np.ndarray, target: np.ndarray, mode: str, geometry: Geometry,
     q[:, :k] = q0
     restarts = restart_table(mode)
     cost, iterations, done = np.empty(n), np.empty(n, np.int64), np.empty(n, bool)
-    kernel, target, packed, code = _kernels().fk_batch, np.ascontiguousarray(target), pack_geometry(geometry), \
-        MODE_CODES[mode]
+    kernel, target, packed, code = (
+        _kernels().fk_batch,
+        np.ascontiguousarray(target),
+        pack_geometry(geometry),
+        MODE_CODES[mode],
+    )
 
     def some_rows(rows: slice) -> None:
-        kernel(target[rows], q[rows], code, restarts, len(restarts), packed, max_iter, step_tol, retry_above_mm,
-               cost[rows], iterations[rows], done[rows])
+        kernel(
+            target[rows],
+            q[rows],
+            code,
+            restarts,
+            len(restarts),
+            packed,
+            max_iter,
+            step_tol,
+            retry_above_mm,
+            cost[rows],
+            iterations[rows],
+            done[rows],
+        )
 
     run_chunks(some_rows, n, _FK_CHUNK)
     return q[:, :k], cost, iterations, done
 
 
-def fk_pose(target: np.ndarray, q0: np.ndarray, mode: int, restarts: np.ndarray, packed: np.ndarray,
-            max_iter: int = 50, step_tol: float = 1e-9,
-            retry_above_mm: float = 1e-9) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def fk_pose(
+    target: np.ndarray,
+    q0: np.ndarray,
+    mode: int,
+    restarts: np.ndarray,
+    packed: np.ndarray,
+    max_iter: int = 50,
+    step_tol: float = 1e-9,
+    retry_above_mm: float = 1e-9,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """One pose, one compiled call (the per-pose peer of the batched FK): cost, iterations, stationary (1,) arrays.
 
     ``target`` (1, 6); ``q0`` (1, 4) holds x, y, z and the mode angle (ignored in translation mode) and receives
@@ -148,6 +195,7 @@ def fk_pose(target: np.ndarray, q0: np.ndarray, mode: int, restarts: np.ndarray,
     :func:`pack_geometry`. No validation: the caller (a tracking loop, the benchmark's peer) prepares the arrays.
     """
     cost, iterations, done = np.empty(1), np.empty(1, np.int64), np.empty(1, bool)
-    _kernels().fk_batch(target, q0, mode, restarts, len(restarts), packed, max_iter, step_tol, retry_above_mm,
-                        cost, iterations, done)
+    _kernels().fk_batch(
+        target, q0, mode, restarts, len(restarts), packed, max_iter, step_tol, retry_above_mm, cost, iterations, done
+    )
     return cost, iterations, done

@@ -27,7 +27,7 @@ __all__ = ["FKResult", "NEUTRAL_POSE", "detect_mode", "forward_kinematics", "MOD
 
 #: Mode name -> index of the rotation column that is solved for (None: translation only).
 MODES = {"translation": None, "alpha": 3, "beta": 4}
-_NEUTRAL = np.array([150.0, 0.0, 300.0])          # pkm5.md §4.3 neutral guess
+_NEUTRAL = np.array([150.0, 0.0, 300.0])  # pkm5.md §4.3 neutral guess
 #: The neutral pose (x, y, z mm, alpha, beta rad) of pkm5.md §4.3: a start for one well-conditioned solve (the home
 #: pose) that needs no seed table.
 NEUTRAL_POSE = (*_NEUTRAL, 0.0, 0.0)
@@ -44,8 +44,7 @@ _BRUTE_FORCE_MAX_TARGETS = 64
 
 
 @lru_cache(maxsize=16)
-def _seed_table(mode: str, geometry: Geometry,
-                size: int = 4000) -> tuple[np.ndarray, np.ndarray] | tuple[None, None]:
+def _seed_table(mode: str, geometry: Geometry, size: int = 4000) -> tuple[np.ndarray, np.ndarray] | tuple[None, None]:
     """Reachable poses of a mode and their leg lengths, to start each solve near its answer.
 
     Built once per (mode, geometry) from a fixed-seed sample, so results stay deterministic."""
@@ -132,8 +131,9 @@ def _residual(q: Any, target: np.ndarray, mode: str, geometry: Geometry) -> Any:
     return r, np.stack([length.grad for length in lengths], 1)
 
 
-def _levenberg_marquardt(q: np.ndarray, target: np.ndarray, mode: str, geometry: Geometry, max_iter: int,
-                         step_tol: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+def _levenberg_marquardt(
+    q: np.ndarray, target: np.ndarray, mode: str, geometry: Geometry, max_iter: int, step_tol: float
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Batched LM; each pose has its own damping. Returns q, cost, iterations, stationary flag.
 
     The residual and Jacobian at a trial point come from one pass and are kept if the step is accepted, so each
@@ -173,8 +173,15 @@ def _levenberg_marquardt(q: np.ndarray, target: np.ndarray, mode: str, geometry:
     return q, cost, iterations, done
 
 
-def _with_restarts(q0: np.ndarray, target: np.ndarray, mode: str, geometry: Geometry, max_iter: int,
-                   step_tol: float, retry_above_mm: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+def _with_restarts(
+    q0: np.ndarray,
+    target: np.ndarray,
+    mode: str,
+    geometry: Geometry,
+    max_iter: int,
+    step_tol: float,
+    retry_above_mm: float,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """LM from q0, then from each restart guess of ``mode`` for the rows still above ``retry_above_mm``."""
     q, cost, its, done = _levenberg_marquardt(q0, target, mode, geometry, max_iter, step_tol)
     for restart in _RESTARTS[mode]:
@@ -182,17 +189,27 @@ def _with_restarts(q0: np.ndarray, target: np.ndarray, mode: str, geometry: Geom
         if retry.size == 0:
             break
         q_r, cost_r, its_r, done_r = _levenberg_marquardt(
-            np.tile(restart, (retry.size, 1)), target[retry], mode, geometry, max_iter, step_tol)
+            np.tile(restart, (retry.size, 1)), target[retry], mode, geometry, max_iter, step_tol
+        )
         better = cost_r < cost[retry]
         idx = retry[better]
         q[idx], cost[idx], its[idx], done[idx] = q_r[better], cost_r[better], its_r[better], done_r[better]
     return q, cost, its, done
 
 
-def forward_kinematics(lengths_mm: ArrayLike, geometry: Geometry = DEFAULT_GEOMETRY, *,
-                       initial_pose: ArrayLike | None = None, mode: str = "auto",
-                       max_iter: int = 50, step_tol: float = 1e-9, residual_tol_mm: float = 0.01,
-                       retry_above_mm: float = 1e-9, mode_tol_mm: float = 1e-6, engine: str = "auto") -> FKResult:
+def forward_kinematics(
+    lengths_mm: ArrayLike,
+    geometry: Geometry = DEFAULT_GEOMETRY,
+    *,
+    initial_pose: ArrayLike | None = None,
+    mode: str = "auto",
+    max_iter: int = 50,
+    step_tol: float = 1e-9,
+    residual_tol_mm: float = 0.01,
+    retry_above_mm: float = 1e-9,
+    mode_tol_mm: float = 1e-6,
+    engine: str = "auto",
+) -> FKResult:
     """Poses from six leg lengths, batched least squares.
 
     Parameters

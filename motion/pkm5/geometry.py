@@ -47,11 +47,11 @@ class Geometry:
     # --- bracket auxiliary points E/F: D +/- this offset along the EE local z axis (000 App. B.1.1 PPDORG1top)
     bracket_half_height_mm: float = 12.0
     # --- in-plane vectors A->B (bottom pivot) and C->D (top bracket): 000 App. B.1.1 AB1..AB6, DC1..DC6
-    ab_odd_mm: tuple[float, ...] = _vec(61.5, 85.0)    # legs 1, 3 (u, w)
+    ab_odd_mm: tuple[float, ...] = _vec(61.5, 85.0)  # legs 1, 3 (u, w)
     ab_even_mm: tuple[float, ...] = _vec(41.5, 165.0)  # legs 2, 4 (u, w)
-    ab_5_mm: tuple[float, ...] = _vec(-40.0, 22.5)     # leg 5 (v, w')
-    ab_6_mm: tuple[float, ...] = _vec(40.0, 22.5)      # leg 6 (v, w')
-    cd_odd_mm: tuple[float, ...] = _vec(43.0, 40.0)    # legs 1, 3
+    ab_5_mm: tuple[float, ...] = _vec(-40.0, 22.5)  # leg 5 (v, w')
+    ab_6_mm: tuple[float, ...] = _vec(40.0, 22.5)  # leg 6 (v, w')
+    cd_odd_mm: tuple[float, ...] = _vec(43.0, 40.0)  # legs 1, 3
     cd_even_mm: tuple[float, ...] = _vec(63.0, -40.0)  # legs 2, 4
     cd_5_mm: tuple[float, ...] = _vec(15.0, 22.5)
     cd_6_mm: tuple[float, ...] = _vec(-15.0, 22.5)
@@ -75,16 +75,24 @@ class Geometry:
     # --- actuation (000 §7.3.1, App. C.2, Eq. 8.1): M8 lead screw (1.25 mm pitch), 200 / 400 full steps per rev
     mm_per_full_step: tuple[float, ...] = _vec(0.00625, 0.00625, 0.00625, 0.00625, 0.003125, 0.003125)
     # --- calibration fields the documents never give (pkm5.md §2.6)
-    microsteps: int = 1                                   # TB6560 S3/S4 setting; App. C.2 assumes full steps
-    step_direction: tuple[int, ...] = (1, 1, 1, 1, 1, 1)   # +1: positive steps lengthen the leg
+    microsteps: int = 1  # TB6560 S3/S4 setting; App. C.2 assumes full steps
+    step_direction: tuple[int, ...] = (1, 1, 1, 1, 1, 1)  # +1: positive steps lengthen the leg
     leg_length_offset_mm: tuple[float, ...] = _vec(184, 184, 184, 184, 192, 192)  # |BC| at zero stroke (001 Table I)
-    home_stroke_mm: float = 5.0                            # 000 §8.3: every actuator at 5 mm stroke before a test
-    max_speed_steps_per_s: float = 200.0                   # 000 App. B.2 setMaxSpeed(200)
+    home_stroke_mm: float = 5.0  # 000 §8.3: every actuator at 5 mm stroke before a test
+    max_speed_steps_per_s: float = 200.0  # 000 App. B.2 setMaxSpeed(200)
 
     # ----------------------------------------------------------------------------------------------------------
     def __post_init__(self) -> None:
-        for name in ("leg_min_mm", "leg_max_mm", "stroke_end_mm", "tilt_min_deg", "tilt_max_deg",
-                     "mm_per_full_step", "step_direction", "leg_length_offset_mm"):
+        for name in (
+            "leg_min_mm",
+            "leg_max_mm",
+            "stroke_end_mm",
+            "tilt_min_deg",
+            "tilt_max_deg",
+            "mm_per_full_step",
+            "step_direction",
+            "leg_length_offset_mm",
+        ):
             if len(getattr(self, name)) != _LEGS:
                 raise ValueError(f"Geometry.{name} = {getattr(self, name)!r}, expected {_LEGS} values (one per leg)")
         if any(d not in (-1, 1) for d in self.step_direction):

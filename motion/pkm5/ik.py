@@ -29,11 +29,11 @@ class Failure(enum.IntFlag):
     """Why a pose is not reachable; several flags may be set at once."""
 
     NONE = 0
-    MODE = 1               # alpha and beta both non-zero: compound rotation is not modelled (pkm5.md §1.2)
+    MODE = 1  # alpha and beta both non-zero: compound rotation is not modelled (pkm5.md §1.2)
     ORIENTATION_RANGE = 2  # alpha or beta outside 000 Tables 6-2 / 6-3
-    ALPHA_PLANE = 4        # alpha pose off the plane x = 111.31 mm (legs 5-6 plane cannot contain D5 and D6)
-    LEG_LENGTH = 8         # |BC| outside the leg window
-    TILT = 16              # leg elevation outside the tilt window
+    ALPHA_PLANE = 4  # alpha pose off the plane x = 111.31 mm (legs 5-6 plane cannot contain D5 and D6)
+    LEG_LENGTH = 8  # |BC| outside the leg window
+    TILT = 16  # leg elevation outside the tilt window
 
 
 def as_poses(poses: ArrayLike, name: str = "poses") -> np.ndarray:
@@ -50,8 +50,9 @@ def _rotate(vector: Sequence[Any], ca: Any, sa: Any, cb: Any, sb: Any) -> tuple[
     return cb * vx + sb * t, ca * vy - sa * vz if has_z else ca * vy, -sb * vx + cb * t
 
 
-def _pair_plane(x: Any, y: Any, z: Any, trig: tuple[Any, Any, Any, Any], pd: Sequence[Any], oa: Sequence[Any],
-                half_height: Any) -> tuple[Any, Any, Any, Any]:
+def _pair_plane(
+    x: Any, y: Any, z: Any, trig: tuple[Any, Any, Any, Any], pd: Sequence[Any], oa: Sequence[Any], half_height: Any
+) -> tuple[Any, Any, Any, Any]:
     """Pair 1-2 or 3-4: AD in (u, w) and the bracket rotation (cos, sin of lambda - 90 deg)."""
     ca, sa, cb, sb = trig
     dx, dy, dz = _rotate(pd, ca, sa, cb, sb)
@@ -69,8 +70,9 @@ def _pair_plane(x: Any, y: Any, z: Any, trig: tuple[Any, Any, Any, Any], pd: Seq
     return u, az, dw / r, -du / r
 
 
-def _leg_in_plane(u: Any, w: Any, ab: Sequence[Any], cd: Sequence[Any], cos_d: Any, sin_d: Any,
-                  with_tilt: bool) -> tuple[Any, Any]:
+def _leg_in_plane(
+    u: Any, w: Any, ab: Sequence[Any], cd: Sequence[Any], cos_d: Any, sin_d: Any, with_tilt: bool
+) -> tuple[Any, Any]:
     """Inner loop BC = AD - AB - Rot2(delta) CD (000 Eqs. 5.13-5.22): length and elevation angle (or None)."""
     cu = cos_d * cd[0] - sin_d * cd[1]
     cw = sin_d * cd[0] + cos_d * cd[1]
@@ -79,8 +81,9 @@ def _leg_in_plane(u: Any, w: Any, ab: Sequence[Any], cd: Sequence[Any], cos_d: A
     return dual.hypot(bu, bw), dual.atan2(bw, bu) if with_tilt else None
 
 
-def leg_lengths(x: Any, y: Any, z: Any, alpha: Any, beta: Any, geometry: Geometry = DEFAULT_GEOMETRY,
-                with_tilt: bool = True) -> tuple[list[Any], list[Any]]:
+def leg_lengths(
+    x: Any, y: Any, z: Any, alpha: Any, beta: Any, geometry: Geometry = DEFAULT_GEOMETRY, with_tilt: bool = True
+) -> tuple[list[Any], list[Any]]:
     """Six leg lengths |BC| and elevation angles phi (rad) as lists of six arrays or duals.
 
     Accepts arrays (N,) or :class:`motion.dual.Dual` for every coordinate; constants may be plain arrays.
@@ -127,8 +130,9 @@ def bracket_vectors(poses: ArrayLike, geometry: Geometry = DEFAULT_GEOMETRY) -> 
             out[name] = np.stack([cos_d * cd[0] - sin_d * cd[1], sin_d * cd[0] + cos_d * cd[1]], -1)
     delta = np.where(beta == 0, alpha, 0.0)
     for name, cd in (("cd5", g.cd_5_mm), ("cd6", g.cd_6_mm)):
-        out[name] = np.stack([np.cos(delta) * cd[0] - np.sin(delta) * cd[1],
-                              np.sin(delta) * cd[0] + np.cos(delta) * cd[1]], -1)
+        out[name] = np.stack(
+            [np.cos(delta) * cd[0] - np.sin(delta) * cd[1], np.sin(delta) * cd[0] + np.cos(delta) * cd[1]], -1
+        )
     return out
 
 
@@ -176,21 +180,31 @@ class IKResult:
         a_deg, b_deg = np.degrees(alpha), np.degrees(beta)
         parts = []
         if Failure.MODE in flags:
-            parts.append(f"alpha = {a_deg:.4g} deg and beta = {b_deg:.4g} deg are both non-zero; compound rotation "
-                         "(with its parasitic gamma) is not modelled, expected one of translation, "
-                         "translation + alpha, translation + beta")
+            parts.append(
+                f"alpha = {a_deg:.4g} deg and beta = {b_deg:.4g} deg are both non-zero; compound rotation "
+                "(with its parasitic gamma) is not modelled, expected one of translation, "
+                "translation + alpha, translation + beta"
+            )
         if Failure.ORIENTATION_RANGE in flags:
-            parts.append(f"alpha = {a_deg:.4g} deg / beta = {b_deg:.4g} deg outside alpha {list(g.alpha_range_deg)} "
-                         f"deg, beta {list(g.beta_range_deg)} deg")
+            parts.append(
+                f"alpha = {a_deg:.4g} deg / beta = {b_deg:.4g} deg outside alpha {list(g.alpha_range_deg)} "
+                f"deg, beta {list(g.beta_range_deg)} deg"
+            )
         if Failure.ALPHA_PLANE in flags:
-            parts.append(f"x = {x:.4f} mm but alpha poses need x = {g.alpha_plane_x_mm:.2f} mm "
-                         f"(+/- {g.alpha_plane_tolerance_mm} mm) to keep D5, D6 in the legs 5-6 plane")
+            parts.append(
+                f"x = {x:.4f} mm but alpha poses need x = {g.alpha_plane_x_mm:.2f} mm "
+                f"(+/- {g.alpha_plane_tolerance_mm} mm) to keep D5, D6 in the legs 5-6 plane"
+            )
         for leg in np.flatnonzero(~self.length_ok[i]):
-            parts.append(f"leg {leg + 1} length {self.lengths_mm[i, leg]:.3f} mm outside "
-                         f"({g.leg_min_mm[leg]:g}, {g.leg_max_mm[leg]:g}) mm")
+            parts.append(
+                f"leg {leg + 1} length {self.lengths_mm[i, leg]:.3f} mm outside "
+                f"({g.leg_min_mm[leg]:g}, {g.leg_max_mm[leg]:g}) mm"
+            )
         for leg in np.flatnonzero(~self.tilt_ok[i]):
-            parts.append(f"leg {leg + 1} tilt {self.tilt_deg[i, leg]:.3f} deg outside "
-                         f"({g.tilt_min_deg[leg]:g}, {g.tilt_max_deg[leg]:g}) deg")
+            parts.append(
+                f"leg {leg + 1} tilt {self.tilt_deg[i, leg]:.3f} deg outside "
+                f"({g.tilt_min_deg[leg]:g}, {g.tilt_max_deg[leg]:g}) deg"
+            )
         return "; ".join(parts)
 
     @cached_property
@@ -199,8 +213,9 @@ class IKResult:
         return np.array([self.reason(i) or "" for i in range(len(self.failure))], dtype=object)
 
 
-def inverse_kinematics(poses: ArrayLike, geometry: Geometry = DEFAULT_GEOMETRY, *, check_limits: bool = True,
-                       engine: str = "auto") -> IKResult:
+def inverse_kinematics(
+    poses: ArrayLike, geometry: Geometry = DEFAULT_GEOMETRY, *, check_limits: bool = True, engine: str = "auto"
+) -> IKResult:
     """Leg lengths for poses of the PKM, batched.
 
     Parameters
@@ -260,9 +275,11 @@ def inverse_kinematics(poses: ArrayLike, geometry: Geometry = DEFAULT_GEOMETRY, 
         off_plane = (alpha != 0) & (np.abs(x - g.alpha_plane_x_mm) > g.alpha_plane_tolerance_mm)
         length_ok = (lengths_mm > np.asarray(g.leg_min_mm)) & (lengths_mm < np.asarray(g.leg_max_mm))
         tilt_ok = (tilt_rad > np.radians(g.tilt_min_deg)) & (tilt_rad < np.radians(g.tilt_max_deg))
-        failure = (failure
-                   | np.where(out_of_range, int(Failure.ORIENTATION_RANGE), 0)
-                   | np.where(off_plane, int(Failure.ALPHA_PLANE), 0)
-                   | np.where(length_ok.all(1), 0, int(Failure.LEG_LENGTH))
-                   | np.where(tilt_ok.all(1), 0, int(Failure.TILT)))
+        failure = (
+            failure
+            | np.where(out_of_range, int(Failure.ORIENTATION_RANGE), 0)
+            | np.where(off_plane, int(Failure.ALPHA_PLANE), 0)
+            | np.where(length_ok.all(1), 0, int(Failure.LEG_LENGTH))
+            | np.where(tilt_ok.all(1), 0, int(Failure.TILT))
+        )
     return IKResult(p, lengths_mm, tilt_rad, failure, length_ok, tilt_ok, g)

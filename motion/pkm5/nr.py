@@ -42,8 +42,9 @@ def _squared(vector: Sequence[Any]) -> Any:
     return vector[0] * vector[0] + vector[1] * vector[1] + vector[2] * vector[2]
 
 
-def _system(v: Sequence[Any], mode: str, lengths: Sequence[np.ndarray], brackets: Mapping[str, Any], gradient: Any,
-            g: Geometry) -> list[Any]:
+def _system(
+    v: Sequence[Any], mode: str, lengths: Sequence[np.ndarray], brackets: Mapping[str, Any], gradient: Any, g: Geometry
+) -> list[Any]:
     """Residuals F1..F6 (translation) or F1..F7 (alpha, beta) of 000 Eqs. 5.28-5.38."""
     l1, l3, l5 = lengths
     x, y, z = v[:3]
@@ -63,10 +64,10 @@ def _system(v: Sequence[Any], mode: str, lengths: Sequence[np.ndarray], brackets
         in_w = length * dual.sin(theta) + g.ab_odd_mm[1] + cd[1]
         residuals.append(_squared(ad) - (in_u * in_u + in_w * in_w))
         heights.append(in_w - ad[2])
-    if mode == "alpha":   # real leg 5 with the rotated bracket (App. B.3.2)
+    if mode == "alpha":  # real leg 5 with the rotated bracket (App. B.3.2)
         pd5: Sequence[float] = g.pd_5_mm
         ab_v, cd5 = g.ab_5_mm[0], brackets["cd5"]
-    else:                 # virtual leg 5-6 midway between D5 and D6 (App. B.3.1, B.3.3)
+    else:  # virtual leg 5-6 midway between D5 and D6 (App. B.3.1, B.3.3)
         pd5 = (0.5 * (g.pd_5_mm[0] + g.pd_6_mm[0]), 0.0, 0.0)
         ab_v, cd5 = g.ab_5_mm[0] + g.cd_5_mm[0] - g.pd_5_mm[1], (0.0, g.cd_5_mm[1])
     dx, dy, dz = _rotate(pd5, ca, sa, cb, sb)
@@ -81,10 +82,17 @@ def _system(v: Sequence[Any], mode: str, lengths: Sequence[np.ndarray], brackets
     return residuals
 
 
-def forward_kinematics_nr(lengths_135_mm: ArrayLike, guess: ArrayLike, *, mode: str = "translation",
-                          brackets: Mapping[str, ArrayLike] | None = None, gradient: Any = None,
-                          geometry: Geometry = DEFAULT_GEOMETRY, tol: float = 1e-6,
-                          max_iter: int = 100) -> NRResult:
+def forward_kinematics_nr(
+    lengths_135_mm: ArrayLike,
+    guess: ArrayLike,
+    *,
+    mode: str = "translation",
+    brackets: Mapping[str, ArrayLike] | None = None,
+    gradient: Any = None,
+    geometry: Geometry = DEFAULT_GEOMETRY,
+    tol: float = 1e-6,
+    max_iter: int = 100,
+) -> NRResult:
     """Newton-Raphson FK exactly as in 000 App. B.3 (one pose).
 
     Parameters

@@ -24,8 +24,14 @@ from motion.errors import MotionInputError
 from motion.pkm5.geometry import DEFAULT_GEOMETRY, Geometry
 from motion.pkm5.ik import inverse_kinematics
 
-__all__ = ["WORKSPACE_KINDS", "WorkspaceKind", "WorkspaceEstimate", "estimate_workspace", "feasible",
-           "sample_reachable"]
+__all__ = [
+    "WORKSPACE_KINDS",
+    "WorkspaceKind",
+    "WorkspaceEstimate",
+    "estimate_workspace",
+    "feasible",
+    "sample_reachable",
+]
 
 
 @dataclass(frozen=True)
@@ -93,8 +99,13 @@ def _draw(kind: WorkspaceKind, rng: np.random.Generator, n: int) -> np.ndarray:
     return _poses(kind, positions, angles)
 
 
-def sample_reachable(n: int, *, kinds: Sequence[str] = ("constant-orientation",), seed: int | None = 0,
-                     geometry: Geometry = DEFAULT_GEOMETRY) -> np.ndarray:
+def sample_reachable(
+    n: int,
+    *,
+    kinds: Sequence[str] = ("constant-orientation",),
+    seed: int | None = 0,
+    geometry: Geometry = DEFAULT_GEOMETRY,
+) -> np.ndarray:
     """n reachable poses (N, 5), drawn uniformly from the sampling boxes of the given workspace kinds.
 
     Each draw picks one of ``kinds`` with equal probability; draws the IK refuses are discarded (rejection
@@ -118,13 +129,22 @@ def sample_reachable(n: int, *, kinds: Sequence[str] = ("constant-orientation",)
     raise MotionInputError(f"kinds {list(kinds)}: fewer than {n} reachable poses found for this geometry")
 
 
-def _hit_or_miss(kind: WorkspaceKind, geometry: Geometry, rng: np.random.Generator, samples: int,
-                 angle_step_deg: float, chunk: int = 20000,
-                 progress: Callable[[int], object] | None = None) -> int:
+def _hit_or_miss(
+    kind: WorkspaceKind,
+    geometry: Geometry,
+    rng: np.random.Generator,
+    samples: int,
+    angle_step_deg: float,
+    chunk: int = 20000,
+    progress: Callable[[int], object] | None = None,
+) -> int:
     """Count box samples reachable with at least one angle of the grid; ``progress(done)`` after each chunk."""
     lo, hi = kind.angle_deg
-    grid = np.radians(np.linspace(lo, hi, max(2, int(round((hi - lo) / angle_step_deg)) + 1))) \
-        if kind.angle is not None else np.zeros(1)
+    grid = (
+        np.radians(np.linspace(lo, hi, max(2, int(round((hi - lo) / angle_step_deg)) + 1)))
+        if kind.angle is not None
+        else np.zeros(1)
+    )
     hits = 0
     for start in range(0, samples, chunk):
         n = min(chunk, samples - start)
@@ -136,8 +156,9 @@ def _hit_or_miss(kind: WorkspaceKind, geometry: Geometry, rng: np.random.Generat
     return hits
 
 
-def _feasible_cloud(kind: WorkspaceKind, geometry: Geometry, rng: np.random.Generator, points: int,
-                    batch: int = 50000) -> np.ndarray:
+def _feasible_cloud(
+    kind: WorkspaceKind, geometry: Geometry, rng: np.random.Generator, points: int, batch: int = 50000
+) -> np.ndarray:
     """The dissertation's cloud: uniform (position, angle) samples kept while the IK accepts them."""
     cloud = []
     count = 0
@@ -151,10 +172,16 @@ def _feasible_cloud(kind: WorkspaceKind, geometry: Geometry, rng: np.random.Gene
     raise MotionInputError(f"workspace kind {kind!r}: fewer than {points} feasible samples found")
 
 
-def estimate_workspace(kind: str = "constant-orientation", *, samples: int = 200_000, hull_points: int = 12_000,
-                       seed: int | None = 0, angle_step_deg: float = 1.0,
-                       geometry: Geometry = DEFAULT_GEOMETRY,
-                       progress: Callable[[int], object] | None = None) -> WorkspaceEstimate:
+def estimate_workspace(
+    kind: str = "constant-orientation",
+    *,
+    samples: int = 200_000,
+    hull_points: int = 12_000,
+    seed: int | None = 0,
+    angle_step_deg: float = 1.0,
+    geometry: Geometry = DEFAULT_GEOMETRY,
+    progress: Callable[[int], object] | None = None,
+) -> WorkspaceEstimate:
     """Workspace volume by hit-or-miss Monte Carlo, and the convex hull of a feasible cloud.
 
     Parameters
@@ -196,7 +223,7 @@ def estimate_workspace(kind: str = "constant-orientation", *, samples: int = 200
         unit="mm^2" if spec.planar else "mm^3",
         volume=box * share,
         stderr=box * float(np.sqrt(share * (1 - share) / samples)),
-        hull_volume=float(hull.volume),   # in 2-D scipy's "volume" is the area
+        hull_volume=float(hull.volume),  # in 2-D scipy's "volume" is the area
         samples=samples,
         hits=hits,
         box_volume=box,

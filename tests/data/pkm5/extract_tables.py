@@ -37,27 +37,51 @@ def write(name, header, data):
 def main():
     text = REFERENCE.read_text()
     lengths = [f"L{i}_mm" for i in range(1, 7)]
-    for title, name, angle in (("### 6.3 000 Table A.8", "table_a8_translation.csv", None),
-                               ("### 6.4 000 Table A.9", "table_a9_alpha.csv", "alpha_deg"),
-                               ("### 6.5 000 Table A.10", "table_a10_beta.csv", "beta_deg")):
+    for title, name, angle in (
+        ("### 6.3 000 Table A.8", "table_a8_translation.csv", None),
+        ("### 6.4 000 Table A.9", "table_a9_alpha.csv", "alpha_deg"),
+        ("### 6.5 000 Table A.10", "table_a10_beta.csv", "beta_deg"),
+    ):
         data = []
         for cells in rows(section(text, title)):
             pose = cells[1:5] if angle else cells[1:4]
             data.append([cells[0], *pose, *cells[-1].split()])
         write(name, ["region", "x_mm", "y_mm", "z_mm"] + ([angle] if angle else []) + lengths, data)
-    for title, name, mode in (("**Table A.15", "table_a15_fk_translation.csv", "translation"),
-                              ("**Table A.16", "table_a16_fk_alpha.csv", "alpha"),
-                              ("**Table A.17", "table_a17_fk_beta.csv", "beta")):
+    for title, name, mode in (
+        ("**Table A.15", "table_a15_fk_translation.csv", "translation"),
+        ("**Table A.16", "table_a16_fk_alpha.csv", "alpha"),
+        ("**Table A.17", "table_a17_fk_beta.csv", "beta"),
+    ):
         start = text.index(title)
-        block = text[start:text.index("\n**Table", start + 1) if mode != "beta" else text.index("\n### ", start)]
-        cols = ["x_mm", "y_mm", "z_mm"] + ([f"{mode}_deg"] if mode != "translation" else []) \
+        block = text[start : text.index("\n**Table", start + 1) if mode != "beta" else text.index("\n### ", start)]
+        cols = (
+            ["x_mm", "y_mm", "z_mm"]
+            + ([f"{mode}_deg"] if mode != "translation" else [])
             + ["theta1_deg", "theta3_deg", "theta5_deg"]
-        header = (["row", "region"] + [f"true_{c}" for c in cols] + [f"guess_{c}" for c in cols]
-                  + [f"converged_{c}" for c in cols] + ["iterations"] + lengths + ["rerun"])
+        )
+        header = (
+            ["row", "region"]
+            + [f"true_{c}" for c in cols]
+            + [f"guess_{c}" for c in cols]
+            + [f"converged_{c}" for c in cols]
+            + ["iterations"]
+            + lengths
+            + ["rerun"]
+        )
         data = []
         for cells in rows(block):
-            data.append([cells[0], cells[1], *cells[2].split(), *cells[3].split(), *cells[4].split(), cells[6],
-                         *cells[7].split(), cells[8]])
+            data.append(
+                [
+                    cells[0],
+                    cells[1],
+                    *cells[2].split(),
+                    *cells[3].split(),
+                    *cells[4].split(),
+                    cells[6],
+                    *cells[7].split(),
+                    cells[8],
+                ]
+            )
         write(name, header, data)
 
 
