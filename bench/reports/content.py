@@ -434,12 +434,8 @@ def counts_instrument(
                     f"{settings['noise_counts']} counts x {step_mm:.4g} mm",
                 )
             )
-    mouse_calibration = settings.get("calibration")
-    is_mouse_scale = isinstance(mouse_calibration, Mapping) and (
-        mouse_calibration.get("nominal") or "x_mm_per_count" in mouse_calibration
-    )  # a camera's plane calibration is stored under the same key: it has no counts scale
-    if is_mouse_scale and span_mm is not None:
-        budget.append(("calibration scale", *calibration_scale_u(settings["calibration"], span_mm)))
+    if isinstance(settings.get("scale_calibration"), Mapping) and span_mm is not None:
+        budget.append(("calibration scale", *calibration_scale_u(settings["scale_calibration"], span_mm)))
     sigma = combine(*(u for _, u, _ in budget)) if budget else None
     floor = instrument_rp_floor(sigma, dims=dims) if sigma is not None and dims else None
     return InstrumentInfo(settings, sigma, tuple(budget), dims, floor, calibrations, fits)

@@ -308,7 +308,8 @@ class MiceInstrument:
         if self.noise_counts is not None:
             out["noise_counts"] = self.noise_counts
         if self.calibration_record is not None:
-            out["calibration"] = self.calibration_record
+            # its own key: a camera's settings carry its plane calibration under "calibration"
+            out["scale_calibration"] = self.calibration_record
         return out
 
     def close(self) -> None:
