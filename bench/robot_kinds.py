@@ -33,7 +33,8 @@ class RobotKind:
     title : str
         The kinematic type as a report states it.
     baud : int
-        The controller's documented baud rate (a station's ``[controller] baud`` default).
+        The controller's documented baud rate (a station's ``[controller] baud`` default and the driver's
+        ``DEFAULT_BAUDRATE``: one home).
     model : str
         The module whose ``MODEL`` is the robot's :class:`motion.model.RobotModel`.
     home : str

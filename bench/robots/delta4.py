@@ -21,6 +21,7 @@ from typing import Any
 import numpy as np
 
 from bench.errors import ConfigError, LinkError, LinkTimeout, UnreachableTarget
+from bench.robot_kinds import robot_kind
 from bench.robots import delta4_wire as wire
 from bench.robots.link import Deadline, WireProtocolError
 
@@ -28,8 +29,8 @@ __all__ = ["DEFAULT_BAUDRATE", "HOME_MM", "home_pose", "Delta4Controller", "Move
 
 _log = logging.getLogger(__name__)
 
-#: Not stated by the document (§5.3); 9600 8-N-1 is the recommended first guess.
-DEFAULT_BAUDRATE = 9600
+#: Not stated by the document (§5.3); 9600 8-N-1 is the recommended first guess (the robot registry's record).
+DEFAULT_BAUDRATE = robot_kind("delta4").baud
 #: The home pose the legacy GUI sends at start-up, (0, 0, -15) cm (003 App. F; delta4-lasergrid.md).
 HOME_MM = (0.0, 0.0, -150.0)
 _SENSOR_EXPECTED = "a sensor report (H<n>X, V<n>X, h or v)"

@@ -30,6 +30,7 @@ from typing import Any
 import numpy as np
 
 from bench.errors import ConfigError, LinkError, LinkTimeout, UnreachableTarget
+from bench.robot_kinds import robot_kind
 from bench.robots import pkm5_kinematics as kinematics
 from bench.robots import pkm5_wire as wire
 from bench.robots.link import Deadline, WireProtocolError
@@ -53,7 +54,8 @@ HEARTBEAT_S = 0.05
 STOP_RESEND_S = 0.1
 STOP_SENDS = 10
 
-DEFAULT_BAUDRATE = 115200
+#: The controller's documented baud rate (docs/protocol-pkm5.md; the robot registry's record).
+DEFAULT_BAUDRATE = robot_kind("pkm5").baud
 #: Bytes the firmware's receive buffer holds (RX_SIZE, firmware/pkm5/pkm5.c): :meth:`Pkm5Controller.query_many` keeps
 #: no more command bytes than that in flight.
 RECEIVE_BUFFER_BYTES = 256
