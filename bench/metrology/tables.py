@@ -9,14 +9,8 @@ between poses. Results are grouped by pose and, when they vary, by the condition
 
 from __future__ import annotations
 
-import codecs
-import csv
-import io
-import re
-import warnings
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
-from pathlib import Path
 
 import numpy as np
 import pandas as pd
@@ -37,6 +31,7 @@ from bench.metrology.iso9283 import (
     pose_repeatability,
 )
 from bench.metrology.iso9283_dynamics import PoseStabilisation, pose_stabilisation
+from bench.metrology.table_reading import numeric_columns, read_table_csv
 from bench.metrology.uncertainty import (
     Measured,
     accuracy_uncertainty,
@@ -95,145 +90,6 @@ class PoseResult:
     #: the position axes the instrument measured, in x, y, z order; ``accuracy.ap_axes_mm`` and the RP are over
     #: these only (:func:`analyze_poses`; a camera on the x-y plane: ("x", "y"))
     axis_names: tuple[str, ...] = ("x", "y", "z")
-
-
-def read_table_csv(path: str | Path, *, numeric: Sequence[str] = ()) -> pd.DataFrame:
-    """Read a CSV as strings (no type guessing); lines starting with ``#`` and blank lines are skipped.
-
-    Data rows are numbered from 1 after the header, the numbering every error message uses. A missing file, an
-    empty table, a repeated column name or a row with the wrong number of fields is a one-line ``ConfigError``.
-
-    ``numeric``: columns to read as float64 at once (those present; the others stay strings), which is what
-    :func:`numeric_columns` makes of them anyway: a table of 10^6 rows then never holds millions of strings. A file
-    without quotes whose every line has the header's number of fields is parsed by pandas' C reader; anything else
-    (quotes, blank lines, a bad row, a cell that is not a number) by the row-by-row reader below, which names the
-    row and column at fault.
-    """
-    path = Path(path)
-    try:
-        frame = _read_regular_csv(path, numeric) if numeric else None
-        if frame is None:
-            return _read_csv_rows(path, path.read_bytes())
-    except FileNotFoundError:
-        raise ConfigError(f"{path}: no such file") from None
-    except OSError as exc:
-        raise ConfigError(f"{path}: not a readable CSV table ({exc})") from None
-    frame.attrs["source"] = str(path)
-    return frame
-
-
-#: Bytes read at a time by the scan that decides between the readers (a bound on its memory).
-_SCAN_BYTES = 1 << 24
-#: A comment line of a CSV table: optional blanks, then ``#`` (a ``#`` inside a cell is data).
-_COMMENT_LINE = re.compile(rb"(?m)^[ \t]*#[^\n]*(?:\n|$)")
-
-
-def _scan(path: Path) -> tuple[bool, bool]:
-    """Whether the file holds a ``"`` (quoting) and a ``#`` (maybe comment lines), scanned a block at a time."""
-    quotes = hashes = False
-    with path.open("rb") as handle:
-        while block := handle.read(_SCAN_BYTES):
-            quotes, hashes = quotes or b'"' in block, hashes or b"#" in block
-            if quotes:
-                break
-    return quotes, hashes
-
-
-def _read_regular_csv(path: Path, numeric: Sequence[str]) -> pd.DataFrame | None:
-    """The fast path of `read_table_csv`: pandas' C reader, straight from the file (no copy of it in memory;
-    a file with comment lines is read, stripped of them, and parsed from memory), or ``None`` when the file needs
-    the row-by-row reader (quotes, a blank or odd header, a row with too many or too few fields, a cell that is not
-    a number, bad bytes), which names the row and column at fault."""
-    quotes, hashes = _scan(path)
-    if quotes:
-        return None
-    source: Path | io.BytesIO = path
-    if hashes:
-        source = io.BytesIO(_COMMENT_LINE.sub(b"", path.read_bytes().removeprefix(codecs.BOM_UTF8)))
-    with open(source, "rb") if isinstance(source, Path) else source as handle:
-        first = handle.readline().removeprefix(codecs.BOM_UTF8)
-        handle.seek(0)
-        try:
-            header = [name.strip() for name in next(csv.reader([first.decode("utf-8")], skipinitialspace=True))]
-        except (UnicodeDecodeError, StopIteration):
-            return None
-        if len(set(header)) != len(header) or "" in header:
-            return None
-        types = {column: np.float64 for column in numeric if column in header}
-        types.update({column: str for column in header if column not in types})
-        try:
-            with warnings.catch_warnings():  # pandas drops a first row's extra fields with a warning: refused
-                warnings.simplefilter("error", pd.errors.ParserWarning)
-                frame = pd.read_csv(
-                    handle,
-                    header=0,
-                    names=header,
-                    dtype=types,
-                    keep_default_na=False,
-                    na_values=[],
-                    skipinitialspace=True,
-                    index_col=False,
-                    engine="c",
-                    encoding="utf-8",
-                )
-        except (ValueError, UnicodeDecodeError, pd.errors.ParserError, pd.errors.ParserWarning):
-            return None  # a cell that is not a number, bad bytes, a row with too many fields
-    if frame.empty or any(frame[column].isna().any() for column in header):
-        return None  # a short row (pandas fills it) or a "nan" cell: the row-by-row reader names it
-    return frame
-
-
-def _read_csv_rows(path: Path, data: bytes) -> pd.DataFrame:
-    """`read_table_csv` row by row with the csv module: every cell a string, every fault named."""
-    try:
-        text = data.decode("utf-8-sig")
-    except UnicodeDecodeError as exc:
-        raise ConfigError(f"{path}: not a readable CSV table ({exc})") from None
-    lines = [line for line in text.splitlines() if line.strip() and not line.lstrip().startswith("#")]
-    rows = list(csv.reader(lines, skipinitialspace=True))
-    if not rows:
-        raise ConfigError(f"{path}: not a readable CSV table (no header line)")
-    header = [name.strip() for name in rows[0]]
-    if len(set(header)) != len(header) or "" in header:
-        raise ConfigError(f"{path}: header {', '.join(header)}: expected unique, non-empty column names")
-    for number, row in enumerate(rows[1:], start=1):
-        if len(row) != len(header):
-            raise ConfigError(f"{path}: row {number}: {len(row)} fields, expected {len(header)} as in the header")
-    frame = pd.DataFrame(rows[1:], columns=header, dtype=str)
-    frame.attrs["source"] = str(path)
-    return frame
-
-
-def numeric_columns(frame: pd.DataFrame, columns: Sequence[str], *, required: bool = True) -> pd.DataFrame:
-    """Convert ``columns`` to float, naming the line, column and value of the first cell that is not a number.
-
-    Missing columns raise ``ConfigError`` when ``required``; otherwise they are skipped.
-    """
-    source = frame.attrs.get("source", "table")
-    missing = [c for c in columns if c not in frame.columns]
-    if missing and required:
-        raise ConfigError(f"{source}: missing column(s) {', '.join(missing)}; found {', '.join(frame.columns)}")
-    out = frame.copy()
-    for column in (c for c in columns if c in frame.columns):
-        if pd.api.types.is_float_dtype(frame[column]):  # read as numbers already (read_table_csv's numeric=)
-            finite = np.isfinite(frame[column].to_numpy())
-            if not finite.all():
-                index = frame.index[int(np.argmin(finite))]
-                raise ConfigError(
-                    f"{source}: row {int(index) + 1}, column {column}: "
-                    f"{str(frame.at[index, column])!r} is not a finite number"
-                )
-            continue
-        text = frame[column].astype(str).str.strip()
-        values = pd.to_numeric(text, errors="coerce")
-        bad = values.isna() | ~np.isfinite(values.fillna(0.0))
-        if bad.any():
-            index = bad.idxmax()
-            raise ConfigError(
-                f"{source}: row {int(index) + 1}, column {column}: {frame.at[index, column]!r} is not a finite number"
-            )
-        out[column] = values.astype(float)
-    return out
 
 
 def measured_axes(table: pd.DataFrame) -> tuple[str, ...]:
@@ -332,6 +188,48 @@ def _check_unique_cycles(group: pd.DataFrame, source: str) -> None:
         )
 
 
+def _checked_pose_groups(
+    table: pd.DataFrame, commands: Sequence[str], source: str
+) -> Iterator[tuple[str, str, tuple[tuple[str, float], ...], np.ndarray]]:
+    """Yield ``(label, pose, conditions, rows)`` as :func:`condition_groups` does, ``rows`` the group's positions in
+    ``table`` in cycle order, after the checks of every group (one command, one frame, one row per cycle).
+
+    The checks run on whole columns at once (a table of 10^7 rows in 100 poses: no per-group frames); when one
+    fails, the group-by-group checks run to raise the message they always gave (the first group and row at fault).
+    """
+    keys = [c for c in CONDITION_COLUMNS if c in table.columns and table[c].nunique() > 1]
+    if keys:
+        codes = table.groupby([table["pose"].astype(str), *(table[c] for c in keys)], sort=False).ngroup().to_numpy()
+    else:
+        codes = pd.factorize(table["pose"].astype(str))[0]
+    # a stable sort by group keeps each group's rows in table order; int16 codes sort by radix, in linear time
+    codes = codes.astype(np.int16 if codes.max(initial=0) < 2**15 else np.int64)
+    order = np.argsort(codes, kind="stable")
+    grouped, cycles = codes[order], table["cycle"].to_numpy(float)[order]
+    same_group = grouped[1:] == grouped[:-1]
+    if not np.all(cycles[1:][same_group] > cycles[:-1][same_group]):  # not in cycle order yet (or a cycle repeated)
+        order = np.lexsort((table["cycle"].to_numpy(float), codes))
+        cycles = table["cycle"].to_numpy(float)[order]
+    starts = np.flatnonzero(np.r_[True, grouped[1:] != grouped[:-1]])
+    first_of_row = np.repeat(order[starts], np.diff(np.r_[starts, len(order)]))
+    checked = [table[c].to_numpy(float) for c in commands]
+    if "frame" in table.columns:
+        checked.append(pd.factorize(table["frame"].astype(str).str.strip())[0])
+    if np.any(cycles[1:][same_group] == cycles[:-1][same_group]) or any(
+        np.any(values[order] != values[first_of_row]) for values in checked
+    ):
+        for _, _, _, group in condition_groups(table):  # the message of the first group and row at fault
+            _check_constant_command(group, commands, source)
+            _check_single_frame(group, source)
+            _check_unique_cycles(group, source)
+    pose_labels = table["pose"].astype(str).to_numpy()
+    key_values = [table[c].to_numpy() for c in keys]
+    for rows in np.split(order, starts[1:]):
+        pose, conditions = str(pose_labels[rows[0]]), tuple((c, float(v[rows[0]])) for c, v in zip(keys, key_values))
+        label = pose if not conditions else f"{pose} ({', '.join(f'{n}={v:g}' for n, v in conditions)})"
+        yield label, pose, conditions, rows
+
+
 def analyze_poses(
     table: pd.DataFrame, *, instrument_u_mm: float = 0.0, k: float = 2.0, resamples: int = 1000
 ) -> list[PoseResult]:
@@ -363,15 +261,13 @@ def analyze_poses(
     """
     source = table.attrs.get("source", "table")
     angles = [(cmd, att) for cmd, att in ANGLE_PAIRS if cmd in table.columns]
+    axes = measured_axes(table)
+    columns = {c: table[c].to_numpy(float) for c in (*axes, *_COMMAND, *(c for pair in angles for c in pair))}
     results = []
-    for label, pose, conditions, group in condition_groups(table):
-        _check_constant_command(group, [*_COMMAND, *(cmd for cmd, _ in angles)], source)
-        _check_single_frame(group, source)
-        _check_unique_cycles(group, source)
-        group = group.sort_values("cycle", kind="stable")
-        axes = measured_axes(group)
-        attained = group[list(axes)].to_numpy()
-        full_command = group[list(_COMMAND)].to_numpy()[0]
+    for label, pose, conditions, rows in _checked_pose_groups(table, [*_COMMAND, *(c for c, _ in angles)], source):
+        # column-major, as a frame's block: each axis contiguous (and the sums in the order they always had)
+        attained = np.array([columns[c][rows] for c in axes]).T
+        full_command = np.array([columns[c][rows[0]] for c in _COMMAND])
         command = full_command[[_ATTAINED.index(c) for c in axes]]
         try:
             repeatability = pose_repeatability(attained)
@@ -381,9 +277,9 @@ def analyze_poses(
         u_rp = repeatability_uncertainty(attained, resamples=resamples) if len(attained) >= 3 else 0.0
         orientation = None
         if angles:
-            attained_deg = group[[att for _, att in angles]].to_numpy()
+            attained_deg = np.array([columns[att][rows] for _, att in angles]).T
             orientation = (
-                orientation_accuracy(attained_deg, group[[cmd for cmd, _ in angles]].to_numpy()[0]),
+                orientation_accuracy(attained_deg, np.array([columns[cmd][rows[0]] for cmd, _ in angles])),
                 orientation_repeatability(attained_deg),
             )
         results.append(

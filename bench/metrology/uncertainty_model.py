@@ -35,10 +35,19 @@ def _rp_of_samples(samples: np.ndarray) -> np.ndarray:
     return distances.mean(axis=-1) + 3.0 * distances.std(axis=-1, ddof=1)
 
 
+@lru_cache(maxsize=8)
+def _standard_draws(seed: int, size: tuple[int, ...]) -> np.ndarray:
+    """``default_rng(seed).standard_normal(size)``, drawn once: every shape scales the same standard draws (the
+    figures are those of drawing them anew per shape), so a table of many poses pays for the draws once per n."""
+    draws = np.random.default_rng(seed).standard_normal(size)
+    draws.flags.writeable = False
+    return draws
+
+
 @lru_cache(maxsize=4096)
 def _rp_population(shape: tuple[float, ...]) -> float:
     """The measurand l_mean + 3 sigma_l of a Gaussian scatter with axis sigmas ``shape`` (distances to the mean)."""
-    draws = np.random.default_rng(20_260_001).standard_normal((MODEL_TARGET_DRAWS, len(shape))) * np.array(shape)
+    draws = _standard_draws(20_260_001, (MODEL_TARGET_DRAWS, len(shape))) * np.array(shape)
     distances = np.sqrt(np.sum(draws**2, axis=1))
     return float(distances.mean() + 3.0 * distances.std())
 
@@ -46,7 +55,7 @@ def _rp_population(shape: tuple[float, ...]) -> float:
 @lru_cache(maxsize=4096)
 def _rp_relative_half_width(n: int, shape: tuple[float, ...], level: float) -> float:
     """Quantile ``level`` of |RP̂ - RP| / RP̂ for n cycles of a Gaussian scatter of axis sigmas ``shape``."""
-    draws = np.random.default_rng(20_260_002 + n).standard_normal((MODEL_DRAWS, n, len(shape))) * np.array(shape)
+    draws = _standard_draws(20_260_002 + n, (MODEL_DRAWS, n, len(shape))) * np.array(shape)
     estimates = _rp_of_samples(draws)
     return float(np.quantile(np.abs(estimates - _rp_population(shape)) / estimates, level))
 
@@ -91,7 +100,7 @@ def repeatability_uncertainty_model(attained_mm, *, k: float = 2.0) -> float:
 def _mean_sd_relative_half_width(n: int, shape: tuple[float, ...], level: float) -> float:
     """Quantile ``level`` of |σ̄̂ - σ̄| / σ̄̂ for n Gaussian readings at targets of standard deviations ``shape``."""
     sigmas = np.array(shape)
-    draws = np.random.default_rng(20_260_003 + n).standard_normal((MODEL_DRAWS, n, len(shape))) * sigmas
+    draws = _standard_draws(20_260_003 + n, (MODEL_DRAWS, n, len(shape))) * sigmas
     estimates = draws.std(axis=1, ddof=1).mean(axis=1)
     return float(np.quantile(np.abs(estimates - sigmas.mean()) / estimates, level))
 
