@@ -46,7 +46,7 @@ def _squared_offsets(seed: int, size: tuple[int, ...]) -> np.ndarray:
     draws = np.random.default_rng(seed).standard_normal(size)
     if len(size) == 3:
         draws -= draws.mean(axis=-2, keepdims=True)
-    squares = draws**2
+    squares = np.square(draws, out=draws)  # in place: the draws are not needed again
     squares.flags.writeable = False
     return squares
 
