@@ -222,10 +222,9 @@ def _checked_pose_groups(
             _check_constant_command(group, commands, source)
             _check_single_frame(group, source)
             _check_unique_cycles(group, source)
-    pose_labels = table["pose"].astype(str).to_numpy()
-    key_values = [table[c].to_numpy() for c in keys]
+    poses, key_values = table["pose"], [table[c].to_numpy() for c in keys]  # the labels: a string per group only
     for rows in np.split(order, starts[1:]):
-        pose, conditions = str(pose_labels[rows[0]]), tuple((c, float(v[rows[0]])) for c, v in zip(keys, key_values))
+        pose, conditions = str(poses.iat[rows[0]]), tuple((c, float(v[rows[0]])) for c, v in zip(keys, key_values))
         label = pose if not conditions else f"{pose} ({', '.join(f'{n}={v:g}' for n, v in conditions)})"
         yield label, pose, conditions, rows
 
