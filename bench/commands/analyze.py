@@ -32,6 +32,14 @@ def register(groups: argparse._SubParsersAction) -> None:
         "in force), added to the AP budget; without it U excludes the instrument and says so",
     )
     iso.add_argument("--k", type=float, default=2.0, help="coverage factor of the expanded uncertainties")
+    iso.add_argument(
+        "--chunk-rows",
+        type=int,
+        default=None,
+        metavar="ROWS",
+        help="read the table this many rows at a time (memory: one chunk and the largest pose; the same figures); "
+        "default: whole below 1 GiB, 2^20 rows at a time above",
+    )
     iso.set_defaults(handler=_iso9283)
 
     distance = _new_parser(actions, "distance", "distance accuracy AD and repeatability RD (ISO 9283 7.3)")
@@ -100,29 +108,16 @@ def _new_parser(actions: argparse._SubParsersAction, name: str, text: str) -> ar
 
 def _iso9283(args: argparse.Namespace) -> int:
     from bench.metrology.formatting import format_pair, format_value, pose_label, report_order
-    from bench.metrology.tables import (
-        POSE_NUMERIC_COLUMNS,
-        analyze_poses,
-        pose_result_json,
-        pose_table,
-        read_table_csv,
-    )
-
-    frame = read_table_csv(args.file, numeric=POSE_NUMERIC_COLUMNS)
-    if "horizontal_valid" in frame.columns:  # the laser grid: partial readings, as bench report lays them out
-        raise ConfigError(
-            f"{args.file}: laser-grid readings (column horizontal_valid; axes empty where a screen did "
-            f"not decode), expected complete readings; analyse them with bench analyze "
-            f"grid-positioning {args.file}"
-        )
-    # an instrument that measures a subset of the axes (the camera: x, y): AP/RP over those, as bench report does
-    table = pose_table(frame, partial_axes=True)
-    if table.empty:  # a header and no rows: nothing measured, never an empty result printed as if it were one
-        raise ConfigError(f"{args.file}: no rows, expected at least one measured pose")
+    from bench.metrology.pose_stream import pose_file_results
+    from bench.metrology.tables import pose_result_json
     from bench.metrology.uncertainty import instrument_budget
 
+    if args.chunk_rows is not None and args.chunk_rows < 1:
+        raise ConfigError(f"--chunk-rows {args.chunk_rows}: expected a number of rows >= 1")
     budget = instrument_budget(args.instrument_u_mm, "--instrument-u-mm")
-    results = report_order(analyze_poses(table, instrument_u_mm=args.instrument_u_mm or 0.0, k=args.k))
+    results = report_order(
+        pose_file_results(args.file, instrument_u_mm=args.instrument_u_mm or 0.0, k=args.k, chunk_rows=args.chunk_rows)
+    )
     labels = [pose_label(r.pose, r.conditions) for r in results]
     width = max([12, *map(len, labels)])
     lines = [

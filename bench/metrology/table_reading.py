@@ -12,15 +12,16 @@ import csv
 import io
 import re
 import warnings
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from pathlib import Path
+from typing import Any, BinaryIO
 
 import numpy as np
 import pandas as pd
 
 from bench.errors import ConfigError
 
-__all__ = ["numeric_columns", "read_table_csv"]
+__all__ = ["NotPlainTable", "numeric_columns", "read_table_chunks", "read_table_csv"]
 
 #: pandas >= 3 copies a shared column before any write, so a converted table need not copy the whole frame
 #: (a 10^7-row table: 640 MB and a second of copying saved per call).
@@ -81,36 +82,97 @@ def _read_regular_csv(path: Path, numeric: Sequence[str]) -> pd.DataFrame | None
     if hashes:
         source = io.BytesIO(_COMMENT_LINE.sub(b"", path.read_bytes().removeprefix(codecs.BOM_UTF8)))
     with open(source, "rb") if isinstance(source, Path) else source as handle:
-        first = handle.readline().removeprefix(codecs.BOM_UTF8)
-        handle.seek(0)
-        try:
-            header = [name.strip() for name in next(csv.reader([first.decode("utf-8")], skipinitialspace=True))]
-        except (UnicodeDecodeError, StopIteration):
+        header = _plain_header(handle)
+        if header is None:
             return None
-        if len(set(header)) != len(header) or "" in header:
-            return None
-        types = {column: np.float64 for column in numeric if column in header}
-        types.update({column: str for column in header if column not in types})
         try:
             with warnings.catch_warnings():  # pandas drops a first row's extra fields with a warning: refused
                 warnings.simplefilter("error", pd.errors.ParserWarning)
-                frame = pd.read_csv(
-                    handle,
-                    header=0,
-                    names=header,
-                    dtype=types,
-                    keep_default_na=False,
-                    na_values=[],
-                    skipinitialspace=True,
-                    index_col=False,
-                    engine="c",
-                    encoding="utf-8",
-                )
-        except (ValueError, UnicodeDecodeError, pd.errors.ParserError, pd.errors.ParserWarning):
+                frame = _c_reader(handle, header, numeric)
+        except _C_READER_FAULTS:
             return None  # a cell that is not a number, bad bytes, a row with too many fields
-    if frame.empty or any(frame[column].isna().any() for column in header):
+    if frame.empty or _has_missing_cells(frame):
         return None  # a short row (pandas fills it) or a "nan" cell: the row-by-row reader names it
     return frame
+
+
+#: What pandas' C reader raises on a row it cannot take (the row-by-row reader then names it).
+_C_READER_FAULTS = (ValueError, UnicodeDecodeError, pd.errors.ParserError, pd.errors.ParserWarning)
+
+
+def _plain_header(handle: BinaryIO) -> list[str] | None:
+    """The column names of the header line (the handle left at the file's start), or None when they are not unique,
+    non-empty names."""
+    first = handle.readline().removeprefix(codecs.BOM_UTF8)
+    handle.seek(0)
+    try:
+        header = [name.strip() for name in next(csv.reader([first.decode("utf-8")], skipinitialspace=True))]
+    except (UnicodeDecodeError, StopIteration):
+        return None
+    return None if len(set(header)) != len(header) or "" in header else header
+
+
+def _c_reader(handle: BinaryIO, header: list[str], numeric: Sequence[str], chunk_rows: int | None = None) -> Any:
+    """pandas' C reader on ``handle``: ``numeric`` columns as float64, the others as strings, nothing read as NaN;
+    the whole table, or a reader of ``chunk_rows`` rows at a time."""
+    types: dict[str, Any] = {column: np.float64 for column in numeric if column in header}
+    types.update({column: str for column in header if column not in types})
+    return pd.read_csv(
+        handle,
+        header=0,
+        names=header,
+        dtype=types,
+        keep_default_na=False,
+        na_values=[],
+        skipinitialspace=True,
+        index_col=False,
+        engine="c",
+        encoding="utf-8",
+        chunksize=chunk_rows,
+    )
+
+
+def _has_missing_cells(frame: pd.DataFrame) -> bool:
+    return any(frame[column].isna().any() for column in frame.columns)
+
+
+class NotPlainTable(Exception):
+    """A chunk of a table read by :func:`read_table_chunks` that pandas' C reader cannot take: the caller reads the
+    file whole, where the row-by-row reader names the row and column at fault."""
+
+
+def read_table_chunks(path: str | Path, *, numeric: Sequence[str], chunk_rows: int) -> Iterator[pd.DataFrame] | None:
+    """A plain table (no quotes, no ``#``) ``chunk_rows`` rows at a time, each chunk as :func:`read_table_csv` reads
+    the rows (``numeric`` columns as float64, the index the row number - 1, ``attrs["source"]`` the path); None when
+    the file is not plain. A chunk the C reader cannot take raises :class:`NotPlainTable`. Memory: one chunk."""
+    path = Path(path)
+    try:
+        quotes, hashes = _scan(path)
+        handle = path.open("rb")
+    except FileNotFoundError:
+        raise ConfigError(f"{path}: no such file") from None
+    except OSError as exc:
+        raise ConfigError(f"{path}: not a readable CSV table ({exc})") from None
+    header = None if quotes or hashes else _plain_header(handle)
+    if header is None:
+        handle.close()
+        return None
+    return _chunks(handle, header, numeric, chunk_rows, str(path))
+
+
+def _chunks(
+    handle: BinaryIO, header: list[str], numeric: Sequence[str], chunk_rows: int, source: str
+) -> Iterator[pd.DataFrame]:
+    with handle, warnings.catch_warnings():
+        warnings.simplefilter("error", pd.errors.ParserWarning)
+        try:
+            for chunk in _c_reader(handle, header, numeric, chunk_rows):
+                if _has_missing_cells(chunk):
+                    raise NotPlainTable(source)
+                chunk.attrs["source"] = source
+                yield chunk
+        except _C_READER_FAULTS:
+            raise NotPlainTable(source) from None
 
 
 def _read_csv_rows(path: Path, data: bytes) -> pd.DataFrame:

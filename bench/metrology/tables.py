@@ -266,38 +266,58 @@ def analyze_poses(
     for label, pose, conditions, rows in _checked_pose_groups(table, [*_COMMAND, *(c for c, _ in angles)], source):
         # column-major, as a frame's block: each axis contiguous (and the sums in the order they always had)
         attained = np.array([columns[c][rows] for c in axes]).T
-        full_command = np.array([columns[c][rows[0]] for c in _COMMAND])
-        command = full_command[[_ATTAINED.index(c) for c in axes]]
-        try:
-            repeatability = pose_repeatability(attained)
-        except InsufficientData as exc:
-            raise type(exc)(f"{source}: pose {label!r}: {exc}") from None
-        ap_u, _ = accuracy_uncertainty(attained, command, instrument_u_mm=instrument_u_mm, k=k)
-        u_rp = repeatability_uncertainty(attained, resamples=resamples) if len(attained) >= 3 else 0.0
-        orientation = None
-        if angles:
-            attained_deg = np.array([columns[att][rows] for _, att in angles]).T
-            orientation = (
-                orientation_accuracy(attained_deg, np.array([columns[cmd][rows[0]] for cmd, _ in angles])),
-                orientation_repeatability(attained_deg),
-            )
-        results.append(
-            PoseResult(
-                label=label,
-                pose=pose,
-                conditions=conditions,
-                commanded_mm=tuple(float(v) for v in full_command),
-                accuracy=pose_accuracy(attained, command),
-                repeatability=repeatability,
-                ap_u=ap_u,
-                rp_u=expanded(repeatability.rp_mm, u_rp, unit="mm", k=k),
-                orientation_accuracy=orientation[0] if orientation else None,
-                orientation_repeatability=orientation[1] if orientation else None,
-                angle_names=tuple(att[0] for _, att in angles),
-                axis_names=tuple(c[0] for c in axes),
-            )
-        )
+        attained_deg = np.array([columns[att][rows] for _, att in angles]).T if angles else None
+        commands = {c: float(columns[c][rows[0]]) for c in (*_COMMAND, *(cmd for cmd, _ in angles))}
+        group = PoseGroup(label, pose, conditions, axes, attained, angles, attained_deg, commands)
+        results.append(pose_result(group, source=source, instrument_u_mm=instrument_u_mm, k=k, resamples=resamples))
     return results
+
+
+@dataclass(frozen=True, eq=False)
+class PoseGroup:
+    """The checked samples of one pose (and set of conditions), in cycle order, as :func:`pose_result` takes them."""
+
+    label: str
+    pose: str
+    conditions: tuple[tuple[str, float], ...]
+    axes: tuple[str, ...]  #: the measured position columns (``x_mm``.. in x, y, z order)
+    attained: np.ndarray  #: (n, len(axes)) mm, column-major
+    angles: list[tuple[str, str]]  #: the (commanded, attained) angle column pairs
+    attained_deg: np.ndarray | None  #: (n, len(angles)) degrees
+    commands: dict[str, float]  #: the pose's command per column (cmd_x_mm.., cmd_a_deg..)
+
+
+def pose_result(group: PoseGroup, *, source: str, instrument_u_mm: float, k: float, resamples: int) -> PoseResult:
+    """AP, RP, their uncertainties and the orientation figures of one checked pose group (:func:`analyze_poses`)."""
+    full_command = np.array([group.commands[c] for c in _COMMAND])
+    command = full_command[[_ATTAINED.index(c) for c in group.axes]]
+    attained = group.attained
+    try:
+        repeatability = pose_repeatability(attained)
+    except InsufficientData as exc:
+        raise type(exc)(f"{source}: pose {group.label!r}: {exc}") from None
+    ap_u, _ = accuracy_uncertainty(attained, command, instrument_u_mm=instrument_u_mm, k=k)
+    u_rp = repeatability_uncertainty(attained, resamples=resamples) if len(attained) >= 3 else 0.0
+    orientation = None
+    if group.attained_deg is not None:
+        orientation = (
+            orientation_accuracy(group.attained_deg, np.array([group.commands[cmd] for cmd, _ in group.angles])),
+            orientation_repeatability(group.attained_deg),
+        )
+    return PoseResult(
+        label=group.label,
+        pose=group.pose,
+        conditions=group.conditions,
+        commanded_mm=tuple(float(v) for v in full_command),
+        accuracy=pose_accuracy(attained, command),
+        repeatability=repeatability,
+        ap_u=ap_u,
+        rp_u=expanded(repeatability.rp_mm, u_rp, unit="mm", k=k),
+        orientation_accuracy=orientation[0] if orientation else None,
+        orientation_repeatability=orientation[1] if orientation else None,
+        angle_names=tuple(att[0] for _, att in group.angles),
+        axis_names=tuple(c[0] for c in group.axes),
+    )
 
 
 def pose_result_json(result: PoseResult) -> dict:
