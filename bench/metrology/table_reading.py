@@ -59,15 +59,17 @@ _SCAN_BYTES = 1 << 24
 _COMMENT_LINE = re.compile(rb"(?m)^[ \t]*#[^\n]*(?:\n|$)")
 
 
-def _scan(path: Path) -> tuple[bool, bool]:
-    """Whether the file holds a ``"`` (quoting) and a ``#`` (maybe comment lines), scanned a block at a time."""
-    quotes = hashes = False
+def _scan(path: Path) -> tuple[bool, bool, bool]:
+    """Whether the file holds a ``"`` (quoting), a ``#`` (maybe comment lines) and a blank (space or tab: cells to
+    strip; a file without one parses without pandas' slower ``skipinitialspace``), scanned a block at a time."""
+    quotes = hashes = blanks = False
     with path.open("rb") as handle:
         while block := handle.read(_SCAN_BYTES):
             quotes, hashes = quotes or b'"' in block, hashes or b"#" in block
+            blanks = blanks or b" " in block or b"\t" in block
             if quotes:
                 break
-    return quotes, hashes
+    return quotes, hashes, blanks
 
 
 def _read_regular_csv(path: Path, numeric: Sequence[str]) -> pd.DataFrame | None:
@@ -75,7 +77,7 @@ def _read_regular_csv(path: Path, numeric: Sequence[str]) -> pd.DataFrame | None
     a file with comment lines is read, stripped of them, and parsed from memory), or ``None`` when the file needs
     the row-by-row reader (quotes, a blank or odd header, a row with too many or too few fields, a cell that is not
     a number, bad bytes), which names the row and column at fault."""
-    quotes, hashes = _scan(path)
+    quotes, hashes, blanks = _scan(path)
     if quotes:
         return None
     source: Path | io.BytesIO = path
@@ -88,7 +90,7 @@ def _read_regular_csv(path: Path, numeric: Sequence[str]) -> pd.DataFrame | None
         try:
             with warnings.catch_warnings():  # pandas drops a first row's extra fields with a warning: refused
                 warnings.simplefilter("error", pd.errors.ParserWarning)
-                frame = _c_reader(handle, header, numeric)
+                frame = _c_reader(handle, header, numeric, blanks=blanks)
         except _C_READER_FAULTS:
             return None  # a cell that is not a number, bad bytes, a row with too many fields
     if frame.empty or _has_missing_cells(frame):
@@ -112,9 +114,12 @@ def _plain_header(handle: BinaryIO) -> list[str] | None:
     return None if len(set(header)) != len(header) or "" in header else header
 
 
-def _c_reader(handle: BinaryIO, header: list[str], numeric: Sequence[str], chunk_rows: int | None = None) -> Any:
-    """pandas' C reader on ``handle``: ``numeric`` columns as float64, the others as strings, nothing read as NaN;
-    the whole table, or a reader of ``chunk_rows`` rows at a time."""
+def _c_reader(
+    handle: BinaryIO, header: list[str], numeric: Sequence[str], *, blanks: bool, chunk_rows: int | None = None
+) -> Any:
+    """pandas' C reader on ``handle``: ``numeric`` columns as float64, the others as strings, nothing read as NaN,
+    blanks before a cell skipped when the file has any; the whole table, or a reader of ``chunk_rows`` rows at a
+    time."""
     types: dict[str, Any] = {column: np.float64 for column in numeric if column in header}
     types.update({column: str for column in header if column not in types})
     return pd.read_csv(
@@ -124,7 +129,7 @@ def _c_reader(handle: BinaryIO, header: list[str], numeric: Sequence[str], chunk
         dtype=types,
         keep_default_na=False,
         na_values=[],
-        skipinitialspace=True,
+        skipinitialspace=blanks,
         index_col=False,
         engine="c",
         encoding="utf-8",
@@ -147,7 +152,7 @@ def read_table_chunks(path: str | Path, *, numeric: Sequence[str], chunk_rows: i
     the file is not plain. A chunk the C reader cannot take raises :class:`NotPlainTable`. Memory: one chunk."""
     path = Path(path)
     try:
-        quotes, hashes = _scan(path)
+        quotes, hashes, blanks = _scan(path)
         handle = path.open("rb")
     except FileNotFoundError:
         raise ConfigError(f"{path}: no such file") from None
@@ -157,16 +162,16 @@ def read_table_chunks(path: str | Path, *, numeric: Sequence[str], chunk_rows: i
     if header is None:
         handle.close()
         return None
-    return _chunks(handle, header, numeric, chunk_rows, str(path))
+    return _chunks(handle, header, numeric, chunk_rows, str(path), blanks)
 
 
 def _chunks(
-    handle: BinaryIO, header: list[str], numeric: Sequence[str], chunk_rows: int, source: str
+    handle: BinaryIO, header: list[str], numeric: Sequence[str], chunk_rows: int, source: str, blanks: bool
 ) -> Iterator[pd.DataFrame]:
     with handle, warnings.catch_warnings():
         warnings.simplefilter("error", pd.errors.ParserWarning)
         try:
-            for chunk in _c_reader(handle, header, numeric, chunk_rows):
+            for chunk in _c_reader(handle, header, numeric, blanks=blanks, chunk_rows=chunk_rows):
                 if _has_missing_cells(chunk):
                     raise NotPlainTable(source)
                 chunk.attrs["source"] = source
