@@ -211,12 +211,12 @@ def _checked_pose_groups(
         order = np.lexsort((table["cycle"].to_numpy(float), codes))
         cycles = table["cycle"].to_numpy(float)[order]
     starts = np.flatnonzero(np.r_[True, grouped[1:] != grouped[:-1]])
-    first_of_row = np.repeat(order[starts], np.diff(np.r_[starts, len(order)]))
+    first_rows = order[starts]  # per group code (0, 1, .. in order of appearance): its first row in the table
     checked = [table[c].to_numpy(float) for c in commands]
     if "frame" in table.columns:
         checked.append(pd.factorize(table["frame"].astype(str).str.strip())[0])
     if np.any(cycles[1:][same_group] == cycles[:-1][same_group]) or any(
-        np.any(values[order] != values[first_of_row]) for values in checked
+        np.any(values != values[first_rows][codes]) for values in checked
     ):
         for _, _, _, group in condition_groups(table):  # the message of the first group and row at fault
             _check_constant_command(group, commands, source)
