@@ -38,7 +38,7 @@ def register(groups: argparse._SubParsersAction) -> None:
         default=None,
         metavar="ROWS",
         help="read the table this many rows at a time (memory: one chunk and the largest pose; the same figures); "
-        "default: whole below 1 GiB, 2^20 rows at a time above",
+        "default: whole below 128 MiB, 2^20 rows at a time above",
     )
     iso.set_defaults(handler=_iso9283)
 
