@@ -603,18 +603,8 @@ class Store:
         )
         args = (run_id, kind) if kind else (run_id,)
         for row in self._db.execute(query, args):
-            values, raw = parse_sample(run_id, row, self.path)
-            yield SampleRecord(
-                run_id=run_id,
-                step_index=row[0],
-                kind=row[1],
-                pose=row[2],
-                cycle=row[3],
-                t_s=row[4],
-                wall_utc=row[5],
-                values=values,
-                raw=raw,
-            )
+            # the row's step_index, kind, pose, cycle, t_s, wall_utc, then the parsed JSON (CHECKED_COLUMNS' order)
+            yield SampleRecord(run_id, *row[:6], *parse_sample(run_id, row, self.path))
 
     def stored_rows(self, run_id: int, after_step: int = -1, *, extract: Sequence[str] = ()) -> Iterator[tuple]:
         """The samples of a run after step ``after_step`` exactly as stored, in step order: ``(step_index, kind,
