@@ -12,6 +12,8 @@ Targets (issue 34): within 2x of the peer's time at every size, peak memory with
 within 1.5x between 10^5 and 10^7 rows.
 
     python benchmarks/bench_analyze_large.py [--rows 1e4 1e5 1e6 1e7] [--poses 100] [--repeat 5] [--repeat-large 1]
+
+The tables are written with pyarrow (installed with pandas 3 here; `pip install pyarrow` otherwise).
 """
 
 from __future__ import annotations
