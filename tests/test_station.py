@@ -47,9 +47,11 @@ def test_every_example_station_parses_with_the_capabilities_of_its_devices():
         "delta4_camera": {"assembled", "pose"},
     }
     mice = load_station(STATIONS / "pkm5_mice.toml")
-    assert mice.controller.baud == 115200 and mice.mice.cpi == 800 and mice.identity.robot_serial == "PKM5-0001"
+    assert (
+        mice.controller.baud == 115200 and mice.sensor("mice").cpi == 800 and mice.identity.robot_serial == "PKM5-0001"
+    )
     assert load_station(STATIONS / "delta4_lasergrid.toml").controller.baud == 9600
-    camera = load_station(STATIONS / "pkm5_camera.toml").camera
+    camera = load_station(STATIONS / "pkm5_camera.toml").sensor("camera")
     assert Path(camera.calibration) == STATIONS / "camera-plane.json"  # relative to the station file
 
 
@@ -348,8 +350,6 @@ def test_the_actuator_bench_with_typed_readings_on_the_hardware_path(tmp_path):
 
 
 def test_the_builder_closes_what_it_opened_when_a_later_device_fails(tmp_path):
-    import dataclasses
-
     from bench.errors import LinkError
     from bench.rigs.builder import build_rig
     from bench.robots.link import open_port
@@ -357,9 +357,7 @@ def test_the_builder_closes_what_it_opened_when_a_later_device_fails(tmp_path):
 
     rehearsal = rehearse(load_station(STATIONS / "pkm5_mice.toml"), speed_factor=REHEARSAL_SPEED)
     try:
-        broken = dataclasses.replace(
-            rehearsal.station, mice=dataclasses.replace(rehearsal.station.mice, xz=str(tmp_path / "gone"))
-        )
+        broken = rehearsal.station.with_sensor("mice", xz=str(tmp_path / "gone"))
         with Store(tmp_path / "b.db") as store, pytest.raises(LinkError, match="gone"):
             build_rig(broken, store, requires={"pose"}, speed_factor=REHEARSAL_SPEED)
         # the controller's port was released: it opens again, exclusively, and the controller still answers
@@ -491,9 +489,9 @@ def test_the_actuator_bench_with_a_serial_depth_gauge_on_the_hardware_path(tmp_p
     rehearsal = rehearse(station, speed_factor=REHEARSAL_SPEED)  # the controller; the gauge is this test's own pty
     gauge = _SerialDepthGauge(rehearsal.truth_path)
     try:
+        gauge_spec = dataclasses.replace(station.sensor("calliper"), port=gauge.path, request="?", timeout_s=5.0)
         bench_station = dataclasses.replace(
-            rehearsal.station,
-            calliper=dataclasses.replace(station.calliper, port=gauge.path, request="?", timeout_s=5.0),
+            rehearsal.station, sensors={**rehearsal.station.sensors, "calliper": gauge_spec}
         )
         with Store(tmp_path / "b.db") as store:
             rig = build_rig(
@@ -548,7 +546,7 @@ def test_station_check_with_one_device_removed_names_that_device_only():
 
     rehearsal = rehearse(load_station(STATIONS / "pkm5_mice.toml"))
     try:
-        os.unlink(rehearsal.station.mice.xz)  # the x-z mouse unplugged
+        os.unlink(rehearsal.station.sensor("mice").xz)  # the x-z mouse unplugged
         checks = {check.key: check for check in check_station(rehearsal.station)}
     finally:
         rehearsal.close()
