@@ -147,10 +147,12 @@ def open_mice(opening: SensorOpening) -> MiceInstrument:
 
 def check_mice(station: Station, spec: MiceSpec) -> list[DeviceCheck]:
     """Each mouse opened (grabbed as a run would), its waiting reports counted, and closed."""
+    from functools import partial
+
     from bench.rigs.check import guarded
 
     return [
-        guarded(f"mice.{plane}", path, "input", lambda path=path: _mouse(path, spec.grab))
+        guarded(f"mice.{plane}", path, "input", partial(_mouse, path, spec.grab))
         for plane, path in (("xy", spec.xy), ("xz", spec.xz))
     ]
 

@@ -96,7 +96,8 @@ class StationTable:
     def __init__(self, source: str, name: str, data: Any) -> None:
         if not isinstance(data, Mapping):
             raise _fail(source, f"[{name}]", data, "a table")
-        self.source, self.name, self.data, self.used = source, name, dict(data), set()
+        self.source, self.name, self.data = source, name, dict(data)
+        self.used: set[str] = set()
 
     def _key(self, key: str) -> str:
         return f"{self.name}.{key}"
