@@ -12,10 +12,12 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+import toy_sensor
 
 from bench.cli import main
 from bench.columns import Column
 from bench.errors import ConfigError
+from bench.reports.content import collect as collect_pose_report
 from bench.rigs.station import parse_station
 from bench.sensor_kinds import SENSOR_KINDS, SensorKind, capability_sources, register, sensor_kind, sensor_names
 from bench.store import SampleMismatch, Store, validate_sample
@@ -147,3 +149,10 @@ def test_a_rehearsed_protocol_captures_with_a_toy_sensor_and_stores_its_declared
     assert columns["tracker_range_mm"]["unit"] == "mm"
     assert columns["tracker_range_mm"]["meaning"] == "toy tracker: distance from its base to the target"
     assert columns["tracker_seq"]["unit"] == "1"
+    # the report's uncertainty budget takes the instrument's u from the settings it stated
+    with Store(store_path) as store:
+        report = collect_pose_report(store, record.id, resamples=20)
+    assert report.instrument.sigma_mm == toy_sensor.U_MM
+    assert [row.done for row in report.deviations if row.topic == "sensor"][0].startswith(
+        "toy laser tracker; u = 0.005"
+    )

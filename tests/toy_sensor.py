@@ -21,6 +21,8 @@ from bench.rigs.interfaces import Measurement
 from bench.steps import Capture
 
 _BASE_EXPECTED = "the tracker's base [x, y, z] in mm"
+#: The toy tracker's standard uncertainty per axis (mm).
+U_MM = 0.005
 
 
 @dataclass(frozen=True)
@@ -60,7 +62,8 @@ class Tracker:
         )
 
     def settings(self) -> dict[str, Any]:
-        return {"instrument": "toy laser tracker", "log": self.path, "base_mm": list(self.base_mm)}
+        # u_mm: its standard uncertainty per axis, which the report's budget reads (a tracker's few micrometres)
+        return {"instrument": "toy laser tracker", "log": self.path, "base_mm": list(self.base_mm), "u_mm": U_MM}
 
 
 def open_tracker(opening: Any) -> Tracker:
