@@ -49,7 +49,8 @@ class SensorKind:
         ``"module:callable"`` ``(table: bench.rigs.station.StationTable) -> spec``: reads its station table (every
         key checked, one line per mistake) into a frozen spec dataclass.
     provides : tuple of str
-        The capabilities it gives a station (keys of :data:`bench.rigs.station.CAPABILITY_KEYS`).
+        The capabilities it gives a station (``pose``, ``arrival``, ``grid_hit``, ``reading``, ...): what a protocol's
+        captures and prompts ask for (:func:`bench.protocols.plan.required_capabilities`).
     robots : tuple of str or None
         The robots it serves (None: any); a station of another robot that names it is refused, with ``robots_why``.
     robots_why : str

@@ -7,6 +7,10 @@ typo never silently drops a device). A station says what it *can* do as capabili
 a protocol asks for capabilities (:func:`bench.protocols.plan.required_capabilities`) and the rig builder refuses a
 station that lacks one before anything moves, naming the station key that would provide it.
 
+The tables of sensors (``[mice]``, ``[camera]``, ``[laser_grid]``, ``[calliper]``, and any other) are those of the
+sensor registry (:mod:`bench.sensor_kinds`): each is read by the spec parser its record names, into
+:attr:`Station.sensors`, and gives the capabilities its record lists.
+
 Example (``examples/stations/`` holds one per seed setup)::
 
     [station]
