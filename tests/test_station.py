@@ -311,6 +311,36 @@ def test_delta4_with_the_laser_grid_on_the_hardware_path(tmp_path):
         assert np.abs(position - nearest).max() < 2.5  # within one grid phase of the true position
 
 
+def test_a_station_with_two_instruments_opens_the_one_the_protocol_captures_with(tmp_path):
+    """A delta4 bench with a camera and the laser grid: a hit-rate run captures grid hits, which only the grid gives
+    (the camera measures a plane and refuses them), and a pose run takes the first registered pose instrument."""
+    from bench.rigs.builder import build_rig
+    from bench.simulators.station import rehearse
+
+    station = parse_station(
+        {
+            "robot": {"kind": "delta4"},
+            "controller": {"port": "/dev/ttyUSB0"},
+            "camera": {"device": "/dev/video0", "calibration": "plane.json"},
+            "laser_grid": {},
+        },
+        source="two.toml",
+    )
+    assert station.capabilities() == {"assembled", "pose", "grid_hit"}
+    rehearsal = rehearse(station, speed_factor=REHEARSAL_SPEED)
+    try:
+        with Store(tmp_path / "b.db") as store:
+            hits = required_capabilities(load_protocol(EXAMPLES / "lasergrid_hits.toml"))
+            for requires, instrument in ((hits, "laser grid (controller reports)"), ({"assembled", "pose"}, "camera")):
+                rig = build_rig(rehearsal.station, store, requires=requires, speed_factor=REHEARSAL_SPEED)
+                try:
+                    assert rig.instrument.settings()["instrument"].startswith(instrument)
+                finally:
+                    rig.close()
+    finally:
+        rehearsal.close()
+
+
 class _GaugeReader:
     """The person at the actuator bench: zeroes the depth gauge on an actuator and reads it (the simulator's truth
     log is what the gauge shows)."""
