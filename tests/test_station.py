@@ -94,6 +94,11 @@ def test_every_example_station_parses_with_the_capabilities_of_its_devices():
         (_station(laser_grid={}), "[laser_grid] with robot.kind = 'pkm5', expected robot.kind = 'delta4'"),
         (_station(mouse={}), "unknown table [mouse], expected one of [station], [robot], [controller], [mice]"),
         (
+            {"robot": {"kind": "delta4"}, "controller": {"port": "/dev/a"}, "mice": {"xy": "/dev/b", "xz": "/dev/c"}},
+            "[mice] with robot.kind = 'delta4', expected robot.kind = 'pkm5' (the mice are mounted on the pkm5's",
+        ),
+        (_station(camera={"device": "/dev/video0", "calibration": "p.json", "frames": 0}), "camera.frames = 0"),
+        (
             _station(calliper={"kind": "serial", "port": "/dev/ttyACM0"}),
             "calliper.port = '/dev/ttyACM0', expected a device of its own (controller.port names it too)",
         ),
