@@ -79,8 +79,8 @@ _FIXTURE_CAPABILITIES = {
 
 def capability_source(capability: str) -> str:
     """The station key that provides ``capability`` (named when a protocol needs it): a fixture, or the tables of the
-    registered sensors that provide it (:func:`bench.sensor_kinds.capability_sources`)."""
-    return _FIXTURE_CAPABILITIES.get(capability) or capability_sources(capability) or "no station key"
+    registered sensors that provide it (:func:`bench.sensor_kinds.capability_sources`); ``""`` when none does."""
+    return _FIXTURE_CAPABILITIES.get(capability) or capability_sources(capability)
 
 
 def capture_capabilities() -> frozenset[str]:
@@ -202,7 +202,7 @@ class Station:
     controller: ControllerSpec
     identity: Identity
     #: station table -> its sensor's spec (:attr:`bench.sensor_kinds.SensorKind.spec`), in registration order
-    sensors: dict[str, Any] = field(default_factory=dict)
+    sensors: dict[str, Any] = field(default_factory=dict, hash=False)
     lab_store: LabStoreSpec | None = None  #: never stored with the runs (its URL may hold a password)
     source: str = "station"
     simulated: bool = False  #: every device is a simulator standing in for the one named (``bench run --sim``)
@@ -228,7 +228,11 @@ class Station:
 
     def missing(self, required: frozenset[str] | set[str]) -> list[str]:
         """The capabilities of ``required`` this station lacks, each with the key that would provide it."""
-        return [f"{need} (add {capability_source(need)})" for need in sorted(set(required) - self.capabilities())]
+        lacking = sorted(set(required) - self.capabilities())
+        return [
+            f"{need} (add {capability_source(need)})" if capability_source(need) else f"{need} (no sensor provides it)"
+            for need in lacking
+        ]
 
     def settings(self) -> dict[str, Any]:
         """What a run stores about its station (devices as named in the file, identity)."""
