@@ -88,6 +88,14 @@ def test_the_store_declares_the_columns_a_sensor_registers_and_only_those():
         del SENSOR_KINDS["toy_tracker"]
 
 
+@pytest.mark.parametrize(
+    ("name", "unit"), [("tracker_range_mm", "deg"), ("tracker_range", "mm"), ("tracker_seq", "counts"), ("t_s", "1")]
+)
+def test_a_column_whose_name_does_not_end_in_its_unit_is_refused(name, unit):
+    with pytest.raises(ValueError, match=f"column '{name}' in '{unit}': a column's name ends in its unit"):
+        Column(name, unit, "float", "a toy tracker's column")
+
+
 def test_a_toy_sensor_is_a_station_table_with_its_capabilities_and_devices(toy, tmp_path):
     import tomllib
 

@@ -17,7 +17,7 @@ import math
 from collections.abc import Mapping
 from dataclasses import dataclass
 
-from bench.columns import Column
+from bench.columns import UNITS, Column
 from bench.errors import BenchError
 from bench.sensor_kinds import sensor_columns
 
@@ -31,8 +31,6 @@ __all__ = [
     "unit_of",
     "validate_sample",
 ]
-
-_KNOWN_UNITS = ("mm", "deg", "pct", "kg", "s", "counts")
 
 
 class SampleMismatch(BenchError):
@@ -176,7 +174,7 @@ def unit_of(kind: str, name: str) -> str | None:
     if column is not None:
         return column.unit
     suffix = name.rsplit("_", 1)[-1] if "_" in name else ""
-    return suffix if suffix in _KNOWN_UNITS else None
+    return suffix if suffix in UNITS else None
 
 
 def dtype_of(kind: str, name: str) -> str | None:
