@@ -9,7 +9,8 @@ import :mod:`bench.simulators` (it starts them); the production packages below i
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass
 from typing import Any
 
@@ -22,7 +23,15 @@ from bench.rigs.resume_identity import refuse_another_rig
 from bench.rigs.station import Station, load_station, parse_station
 from bench.simulators import CAMPAIGN_KERNEL_WAIT_S, DEFAULT_SPEED_FACTOR
 
-__all__ = ["CAMPAIGN_KERNEL_WAIT_S", "DEFAULT_SPEED_FACTOR", "RigRequest", "open_mover", "open_rig", "simulated_rig_in"]
+__all__ = [
+    "CAMPAIGN_KERNEL_WAIT_S",
+    "DEFAULT_SPEED_FACTOR",
+    "RigRequest",
+    "open_mover",
+    "open_rig",
+    "resuming",
+    "simulated_rig_in",
+]
 
 
 @dataclass(frozen=True)
@@ -124,6 +133,24 @@ def open_rig(
         **rehearsal.settings,
     }
     return _synced_after(put_in_force(rig, *kinematic), station, store)
+
+
+@contextmanager
+def resuming(store: Any, run_id: int) -> Iterator[Any]:
+    """Hold run ``run_id`` while a face opens its rig and resumes it (``bench resume`` and the window's Resume
+    alike, so a resume is refused or accepted the same way from both): the run is claimed first (one that another
+    live process drives is refused before a port opens) and the store is told it is resuming (opening the rig writes
+    no new calibration: a refused resume writes nothing). Yields the run's record. On leaving, the store resumes
+    nothing and the run is released (the runner released it already if it took the run; a refusal before it did
+    must not keep the run from ``bench resume`` while the window stays open)."""
+    record = store.run(run_id)
+    store.claim(run_id)
+    store.resuming = run_id
+    try:
+        yield record
+    finally:
+        store.resuming = None
+        store.release(run_id)
 
 
 def _refuse_simulator_options(request: RigRequest) -> None:

@@ -152,7 +152,7 @@ def test_a_capture_without_commanded_positions_is_not_judged(fifo_mice):
 
 def test_a_measured_calibration_is_in_force_only_when_the_station_names_it(tmp_path, caplog):
     from bench.errors import ConfigError
-    from bench.rigs.builder import calibration_summary, mouse_calibration
+    from bench.rigs.mice_station import calibration_summary, mouse_calibration
 
     with Store(tmp_path / "bench.db") as store:
         measured = store.add_calibration(

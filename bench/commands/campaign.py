@@ -318,14 +318,12 @@ def _run(args: argparse.Namespace) -> int:
 
 def _resume(args: argparse.Namespace) -> int:
     from bench.calibration.compensate import preflight_by_rig
+    from bench.launch import resuming
     from bench.protocols import Runner, protocol_from_config
     from bench.protocols.plan import required_capabilities
     from bench.store import Store
 
-    with Store(args.store) as store:
-        record = store.run(args.run_id)
-        store.claim(args.run_id)  # before the rig opens: a run another live process drives is never touched
-        store.resuming = args.run_id  # opening the rig writes no new calibration: a refused resume writes nothing
+    with Store(args.store) as store, resuming(store, args.run_id) as record:
         protocol = protocol_from_config(record.config, source=f"run {args.run_id}", stored=True)
         rig = build_rig(
             args,

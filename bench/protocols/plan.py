@@ -82,7 +82,7 @@ _CAPTURE_NEEDS = {
 def required_capabilities(protocol: Protocol) -> frozenset[str]:
     """What a station must provide to run ``protocol``, read from its own plan (so it cannot drift from the steps):
     a capability per capture kind, ``reading`` when an operator reading is prompted, and the fixture the protocol
-    moves (``actuator_bench`` or ``assembled``). Names are the keys of :data:`bench.rigs.station.CAPABILITY_KEYS`."""
+    moves (``actuator_bench`` or ``assembled``). A station provides them by its fixture and its sensors (:meth:`bench.rigs.station.Station.capabilities`)."""
     needs = {str(getattr(protocol, "fixture", "assembled")).replace("-", "_")}
     for step in iterate(protocol):
         if isinstance(step, Capture):

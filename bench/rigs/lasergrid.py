@@ -30,7 +30,8 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable, Sequence
-from typing import Any
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -38,12 +39,51 @@ from bench.errors import LinkTimeout
 from bench.rigs.interfaces import Measurement
 from bench.steps import Capture
 
-__all__ = ["AXES", "DEFAULT_DECODER", "LaserGridInstrument", "grid_pose_values"]
+if TYPE_CHECKING:
+    from bench.rigs.opening import SensorOpening
+    from bench.rigs.station import StationTable
+
+__all__ = [
+    "AXES",
+    "DEFAULT_DECODER",
+    "LaserGridInstrument",
+    "LaserGridSpec",
+    "grid_pose_values",
+    "open_laser_grid",
+    "parse_laser_grid",
+]
 
 #: Robot-frame axis names, in the order of :attr:`bench.sensors.lasergrid.Screen.axes`.
 AXES = ("x_mm", "y_mm", "z_mm")
 #: Decoder options stored with every run unless the rig sets others (delta4-lasergrid.md §4.6, §4.10 defaults).
 DEFAULT_DECODER = {"spot_half_width_mm": 1.0, "gate_mm": 3.75, "prior_uncertainty_mm": 0.0}
+
+
+@dataclass(frozen=True)
+class LaserGridSpec:
+    """The delta4's laser grid (its screens are read by the delta4 controller) and the decoder's options."""
+
+    spot_half_width_mm: float = DEFAULT_DECODER["spot_half_width_mm"]
+    gate_mm: float = DEFAULT_DECODER["gate_mm"]
+
+
+def parse_laser_grid(table: StationTable) -> LaserGridSpec:
+    """``[laser_grid]`` of a station file (``spot_half_width_mm``, ``gate_mm``)."""
+    defaults = LaserGridSpec()
+    return LaserGridSpec(
+        spot_half_width_mm=table.number("spot_half_width_mm", defaults.spot_half_width_mm),
+        gate_mm=table.number("gate_mm", defaults.gate_mm),
+    )
+
+
+def open_laser_grid(opening: SensorOpening) -> LaserGridInstrument:
+    """The grid as the rig's instrument, read from the delta4 controller's reports; its geometry recorded as the
+    calibration in force."""
+    spec: LaserGridSpec = opening.spec
+    decoder = {**DEFAULT_DECODER, "spot_half_width_mm": spec.spot_half_width_mm, "gate_mm": spec.gate_mm}
+    instrument = LaserGridInstrument(opening.controller, decoder=decoder)
+    opening.calibration_ids.append(instrument.record_geometry(opening.store))
+    return instrument
 
 
 def grid_pose_values(
