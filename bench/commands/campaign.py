@@ -278,10 +278,8 @@ def execute(runner: Runner, start) -> RunResult:
 
 
 def _run(args: argparse.Namespace) -> int:
-    from bench.calibration.compensate import preflight_by_rig
     from bench.launch import check_speed_factor
     from bench.protocols import Runner, load_protocol, preflight, summarize
-    from bench.protocols.plan import required_capabilities
     from bench.store import Store
 
     protocol = load_protocol(args.protocol, robot=args.robot)
@@ -298,7 +296,9 @@ def _run(args: argparse.Namespace) -> int:
             f"bench run {args.protocol}: no rig named, expected --station STATION.toml (the bench's "
             "devices) or --sim (the simulator)"
         )
-    preflight(protocol)  # before a simulator or a port is opened; the runner checks again
+    # one walk before a simulator or a port is opened: the capabilities it needs and the documented geometry's
+    # pre-flight; the runner proves every target again by the geometry the rig's robot commands by
+    early = preflight(protocol)
     if args.speed_factor is not None:  # before the store opens: a refused run leaves no new file behind
         check_speed_factor(args.speed_factor)
     with Store(args.store) as store:
@@ -307,17 +307,15 @@ def _run(args: argparse.Namespace) -> int:
             protocol.robot,
             store,
             fixture=getattr(protocol, "fixture", "assembled"),
-            requires=required_capabilities(protocol),
+            requires=early.capabilities,
             protocol=f"protocol {protocol.name!r}",
         )
-        preflight_by_rig(rig, protocol)
         runner = Runner(rig, store, progress=not args.no_progress, on_pause=_ask_after_pause)
         result = execute(runner, lambda: runner.run(protocol, campaign=args.campaign))
     return 0 if result.exit_status == "completed" else 1
 
 
 def _resume(args: argparse.Namespace) -> int:
-    from bench.calibration.compensate import preflight_by_rig
     from bench.protocols import Runner, protocol_from_config
     from bench.protocols.plan import required_capabilities
     from bench.store import Store
@@ -336,7 +334,6 @@ def _resume(args: argparse.Namespace) -> int:
             requires=required_capabilities(protocol),
             protocol=f"protocol {protocol.name!r}",
         )
-        preflight_by_rig(rig, protocol)
         runner = Runner(rig, store, progress=not args.no_progress, on_pause=_ask_after_pause)
         result = execute(runner, lambda: runner.resume_run(args.run_id))
     return 0 if result.exit_status == "completed" else 1

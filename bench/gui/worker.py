@@ -29,7 +29,7 @@ from typing import Any
 
 from PySide6.QtCore import QThread, Signal
 
-from bench.calibration.compensate import NEWEST, describe_in_force, preflight_by_rig
+from bench.calibration.compensate import NEWEST, describe_in_force
 from bench.errors import BenchError, PromptWithdrawn
 from bench.launch import RigRequest, open_rig
 from bench.protocols import Prompt, Protocol, Runner, RunState, TransitionError, protocol_from_config
@@ -217,7 +217,6 @@ class CampaignWorker(QThread):
                         operator=None if request.simulator_default else WindowOperator(self),
                     )
                     self.message.emit(describe_in_force(rig))
-                    preflight_by_rig(rig, protocol)
                 except BenchError as exc:
                     self.failed.emit(str(exc))
                     continue

@@ -10,16 +10,17 @@ times, the captures (a streamed arrival records for its ``hold_s``) and the prom
 from __future__ import annotations
 
 from collections import Counter
-from collections.abc import Iterator
-from dataclasses import dataclass, replace
+from collections.abc import Iterator, Mapping, Sequence
+from dataclasses import dataclass, field, replace
+from functools import cached_property
 from typing import Any
 
 import numpy as np
 
 from bench.errors import UnreachableTarget
 from bench.protocols.base import Protocol
-from bench.protocols.kinematics import DEFAULT_SINGULARITY_THRESHOLD, robot_model
-from bench.steps import ActuatorMove, Capture, Move, Prompt, Settle, Step
+from bench.protocols.kinematics import DEFAULT_SINGULARITY_THRESHOLD, PreflightModel, robot_model
+from bench.steps import ActuatorMove, Capture, Checkpoint, Move, Prompt, Settle, Step
 
 __all__ = [
     "AxisStrokes",
@@ -57,15 +58,33 @@ def dry_run_result(step: Step) -> Any:
 
 def iterate(protocol: Protocol, *, final: bool = True) -> Iterator[Step]:
     """Every step of ``protocol`` (then of its clean-up plan), driven with :func:`dry_run_result`."""
-    for plan in (protocol.steps(), protocol.final_steps()) if final else (protocol.steps(),):
-        reply = None
+    for _, step in walk(protocol, final=final):
+        yield step
+
+
+def walk(
+    protocol: Protocol, *, final: bool = True, stored: Mapping[int, Any] | None = None
+) -> Iterator[tuple[int | None, Step]]:
+    """``(index, step)`` for every step of ``protocol``'s plan (then ``(None, step)`` for its clean-up plan), driven
+    with ``stored[index]`` where a sample is stored (a resumed run: its plan as it ran) and :func:`dry_run_result`
+    elsewhere."""
+    replies = stored or {}
+    for main in (True, False) if final else (True,):
+        plan = protocol.steps() if main else protocol.final_steps()
+        reply, index = None, 0
         while True:
             try:
                 step = plan.send(reply)
             except StopIteration:
                 break
-            yield step
-            reply = dry_run_result(step)
+            yield (index if main else None), step
+            reply = replies[index] if main and index in replies and step_stores_sample(step) else dry_run_result(step)
+            index += 1
+
+
+def step_stores_sample(step: Step) -> bool:
+    """A step whose result is a stored sample: a capture, or a prompt for a reading."""
+    return isinstance(step, Capture) or (isinstance(step, Prompt) and step.field is not None)
 
 
 #: The capability a capture of each kind needs from the station (the kinds the protocol library captures).
@@ -82,14 +101,23 @@ _CAPTURE_NEEDS = {
 def required_capabilities(protocol: Protocol) -> frozenset[str]:
     """What a station must provide to run ``protocol``, read from its own plan (so it cannot drift from the steps):
     a capability per capture kind, ``reading`` when an operator reading is prompted, and the fixture the protocol
-    moves (``actuator_bench`` or ``assembled``). Names are the keys of :data:`bench.rigs.station.CAPABILITY_KEYS`."""
-    needs = {str(getattr(protocol, "fixture", "assembled")).replace("-", "_")}
+    moves (``actuator_bench`` or ``assembled``). Names are the keys of :data:`bench.rigs.station.CAPABILITY_KEYS`.
+    :attr:`PlanSummary.capabilities` is the same, from the pre-flight's walk."""
+    needs = _fixture_need(protocol)
     for step in iterate(protocol):
-        if isinstance(step, Capture):
-            needs.add(_CAPTURE_NEEDS.get(step.kind, step.kind))
-        elif isinstance(step, Prompt) and step.field is not None:
-            needs.add("reading")
+        _add_need(needs, step)
     return frozenset(needs)
+
+
+def _fixture_need(protocol: Protocol) -> set[str]:
+    return {str(getattr(protocol, "fixture", "assembled")).replace("-", "_")}
+
+
+def _add_need(needs: set[str], step: Step) -> None:
+    if isinstance(step, Capture):
+        needs.add(_CAPTURE_NEEDS.get(step.kind, step.kind))
+    elif isinstance(step, Prompt) and step.field is not None:
+        needs.add("reading")
 
 
 @dataclass(frozen=True)
@@ -124,6 +152,39 @@ class PlanSummary:
     strokes: tuple[AxisStrokes, ...] = ()
     #: settings beyond a documented failure or limit (:meth:`bench.protocols.base.Protocol.limit_warnings`)
     warnings: tuple[str, ...] = ()
+    #: steps of the plan that store a sample (captures and reading prompts; the clean-up plan stores none)
+    samples: int = 0
+    #: the step a resumed run acts from (the last checkpoint before the first sample not stored); None: all stored
+    resume_at: int | None = None
+    #: what a station must provide to run it (:func:`required_capabilities`)
+    capabilities: frozenset[str] = frozenset()
+
+    #: the model (with the geometry) the targets were checked by, and the singularity threshold
+    model: PreflightModel | None = field(default=None, repr=False, compare=False)
+    threshold: float = DEFAULT_SINGULARITY_THRESHOLD
+
+    @cached_property
+    def _proved(self) -> frozenset[tuple[float, ...]]:
+        return frozenset(tuple(row) for row in self.targets[self.reachable].tolist())
+
+    def require(self, step: Move | ActuatorMove) -> None:
+        """Refuse (``UnreachableTarget``) the target of ``step`` unless it is proved reachable: one this pre-flight
+        proved, or, for a target the plan chose only during the run (it adapts to the readings), checked here alone
+        by the same model before it is commanded."""
+        if isinstance(step, ActuatorMove):
+            if not any(a.axis == step.axis and float(step.stroke_mm) in a.strokes_mm for a in self.strokes):
+                _StrokeTally(self.model.geometry if self.model else None).check(step)
+            return
+        model = self.model or robot_model(self.robot)
+        key = target_key(model, step.target)
+        if key in self._proved:
+            return
+        check = model.check(np.array([key]), self.threshold)
+        if not check.reachable[0]:
+            raise UnreachableTarget(
+                f"target {step.label or 'of the run'} {_describe(np.array(key), self.robot)} is not reachable: "
+                f"{check.reason[0]} (the plan chose it during the run; nothing was moved to it)"
+            )
 
     @property
     def actuator_problems(self) -> tuple[str, ...]:
@@ -224,12 +285,21 @@ class _MoveTimer:
         return self.seconds
 
 
-def summarize(protocol: Protocol, *, singularity_threshold: float | None = None, geometry: Any = None) -> PlanSummary:
-    """Dry-run ``protocol``: count its steps, pre-flight every distinct target, estimate its duration.
+def summarize(
+    protocol: Protocol,
+    *,
+    singularity_threshold: float | None = None,
+    geometry: Any = None,
+    stored: Mapping[int, Any] | None = None,
+) -> PlanSummary:
+    """Dry-run ``protocol`` in one walk of its plan: count its steps and samples, pre-flight every distinct target
+    and actuator stroke, estimate its duration, and (``stored``: the samples of a run being resumed, by step index)
+    find the step a resume acts from.
 
     ``singularity_threshold`` defaults to the protocol's ``min_inverse_condition``; ``geometry`` (default: the
-    documented one) is the robot's geometry under a kinematic calibration in force. The plan is streamed: memory
-    holds its distinct targets and strokes and one chunk of moves (:data:`_MOVES_PER_CHUNK`), whatever its length.
+    documented one) is the geometry the robot commands by (a kinematic calibration in force). The plan is streamed:
+    memory holds its distinct targets and strokes and one chunk of moves (:data:`_MOVES_PER_CHUNK`), whatever its
+    length.
     """
     if singularity_threshold is None:
         singularity_threshold = getattr(protocol, "min_inverse_condition", DEFAULT_SINGULARITY_THRESHOLD)
@@ -238,26 +308,33 @@ def summarize(protocol: Protocol, *, singularity_threshold: float | None = None,
         model = replace(model, geometry=geometry)
     counts: Counter[str] = Counter()
     timer = _MoveTimer(model)
-    strokes = _StrokeTally()
+    strokes = _StrokeTally(geometry)
     distinct: dict[tuple[float, ...], str] = {}
     settle_s = captures_s = 0.0
-    width = len(model.target_fields)
+    samples, missing, checkpoint = 0, None, 0
+    needs = _fixture_need(protocol)
     names: dict[type, str] = {}  # per step type, its count's name ("moves")
-    for step in iterate(protocol):
+    for index, step in walk(protocol, stored=stored):
         kind = type(step)
         counts[names.get(kind) or names.setdefault(kind, kind.__name__.lower() + "s")] += 1
+        if index is not None and missing is None:  # where a resume acts from: the last checkpoint before a gap
+            if isinstance(step, Checkpoint):
+                checkpoint = index
+            elif step_stores_sample(step) and index not in (stored or {}):
+                missing = index
         if isinstance(step, Move):
-            target = tuple(step.target)
-            key = target if len(target) == width else tuple(model.as_targets([target])[0])  # (1 == 1.0 as keys)
+            key = target_key(model, step.target)
             if key not in distinct:
                 distinct[key] = step.label or str(counts["moves"] - 1)
-            timer.add(target, step.velocity_pct)
+            timer.add(key, step.velocity_pct)
         elif isinstance(step, ActuatorMove):
             strokes.add(step)
         elif isinstance(step, Settle):
             settle_s += step.duration_s
         elif isinstance(step, Capture):
             captures_s += capture_s(step)
+        samples += index is not None and step_stores_sample(step)
+        _add_need(needs, step)
     targets = np.array(list(distinct), dtype=float).reshape(-1, len(model.target_fields))
     check = model.check(targets, singularity_threshold)
     move_s = timer.flush() if check.reachable.all() else 0.0
@@ -277,31 +354,53 @@ def summarize(protocol: Protocol, *, singularity_threshold: float | None = None,
         captures_s,
         axes,
         protocol.limit_warnings(),
+        samples=samples,
+        resume_at=None if missing is None else checkpoint,
+        capabilities=frozenset(needs),
+        model=model,
+        threshold=singularity_threshold,
     )
+
+
+def target_key(model: PreflightModel, target: Sequence[float]) -> tuple[float, ...]:
+    """``target`` as a row of ``model``'s target fields in floats (a short pkm5 row padded with zero angles), so that
+    equal targets give equal keys (1 == 1.0)."""
+    row = tuple(float(v) for v in target)
+    width = len(model.target_fields)
+    return row + (0.0,) * (width - len(row)) if len(row) < width else row
 
 
 class _StrokeTally:
     """Per actuator, in order of first use: the distinct strokes of a pkm5's actuator-bench moves, each checked
-    exactly as the driver's ``move_actuator`` checks it (``steps_for_stroke``: the 0-66 mm window), and the time of
-    its moves from the home stroke at the rated speed scaled by the commanded velocity; fed one move at a time."""
+    exactly as the driver's ``move_actuator`` checks it (``steps_for_stroke``: the 0-66 mm window of ``geometry``,
+    default the documented one), and the time of its moves from the home stroke at the rated speed scaled by the
+    commanded velocity; fed one move at a time."""
 
-    def __init__(self) -> None:
+    def __init__(self, geometry: Any = None) -> None:
+        self.geometry = geometry
         self.per_axis: dict[Any, dict[str, Any]] = {}
         self.where: dict[int, int] | None = None
 
-    def add(self, move: ActuatorMove) -> None:
-        from bench.robots.pkm5 import RATED_SPEED_STEPS_S
+    def check(self, move: ActuatorMove) -> int:
+        """The step target of ``move`` (``UnreachableTarget`` outside the actuator's window)."""
         from bench.robots.pkm5_kinematics import steps_for_stroke
         from motion import pkm5
 
-        geometry = pkm5.DEFAULT_GEOMETRY
+        self.geometry = self.geometry or pkm5.DEFAULT_GEOMETRY
+        return abs(steps_for_stroke(move.axis, move.stroke_mm, self.geometry))
+
+    def add(self, move: ActuatorMove) -> None:
+        from bench.robots.pkm5 import RATED_SPEED_STEPS_S
+        from motion import pkm5
+
+        geometry = self.geometry = self.geometry or pkm5.DEFAULT_GEOMETRY
         if self.where is None:
             self.where = dict(enumerate(np.round(geometry.home_stroke_mm / geometry.mm_per_step).astype(int), start=1))
         axis = self.per_axis.setdefault(move.axis, {"strokes": set(), "moves": 0, "s": 0.0, "refused": []})
         axis["moves"] += 1
         axis["strokes"].add(float(move.stroke_mm))
         try:
-            target = abs(steps_for_stroke(move.axis, move.stroke_mm, geometry))
+            target = self.check(move)
         except UnreachableTarget as exc:
             axis["refused"].append(f"target {move.label or 'actuator move'}: {exc}")
             return
@@ -311,13 +410,12 @@ class _StrokeTally:
 
     def axes(self) -> tuple[AxisStrokes, ...]:
         from bench.robots.pkm5_kinematics import stroke_range_mm
-        from motion import pkm5
 
         where = self.where or {}
         return tuple(
             AxisStrokes(
                 number,
-                stroke_range_mm(number, pkm5.DEFAULT_GEOMETRY) if number in where else (float("nan"),) * 2,
+                stroke_range_mm(number, self.geometry) if number in where else (float("nan"),) * 2,
                 tuple(sorted(a["strokes"])),
                 a["moves"],
                 a["s"],

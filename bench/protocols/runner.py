@@ -20,6 +20,13 @@ thread or a signal handler, are honoured at safe points:
   operator: <prompt>", resumable);
 - an exception (or Ctrl-C) stops the robot (status ``failed``, or ``aborted`` for Ctrl-C).
 
+Before anything is stored or moved, the runner pre-flights the plan (:meth:`Runner.preflight`) by the model of the
+rig's own robot and the geometry it commands by (a kinematic calibration in force included), in one walk of the plan
+that also counts its samples and, for a resume, finds the step to act from. Every ``Move`` and ``ActuatorMove`` is
+then commanded only to a target that walk proved; a target the plan chooses during the run (an adaptive protocol's
+corrected command) is checked alone by the same model before it is commanded, and refused (the run fails) when it
+is out of reach. No other module pre-flights for the runner.
+
 Each sample's commit starts the moment it is taken and runs on the store's writer thread
 (:class:`bench.store.sample_writer.SampleWriter`) while the next ``Move`` and ``Settle`` steps go on (a
 ``Checkpoint`` queues the store's checkpoint behind it); the runner waits for both before anything else (the next
@@ -33,7 +40,7 @@ is stored or resumed until its status is settled; resuming a run another live pr
 configuration, replays it without acting up to the last ``Checkpoint`` before the first missing sample, then acts
 from there, skipping every step whose sample is already stored (its stored values are sent back instead).
 
-A rig whose instruments are relative (the mice) brings a registration record (``rig.extra["registration"]``, made by
+A rig whose instruments are relative (the mice) brings a registration record (``rig.registration``, made by
 :mod:`bench.rigs.registration`); the runner files it in the run's settings, ``registrations``, one per segment (the
 start and every resume), with the step it acts from. A sample belongs to the last registration stored before it
 (by ``utc`` against the sample's ``wall_utc``).
@@ -47,16 +54,16 @@ continues after the last stored ``t_s``, so ``t_s`` never decreases within a run
 
 from __future__ import annotations
 
-import enum
 import logging
 import threading
-from collections.abc import Callable
-from dataclasses import dataclass
-from typing import Any, Self
+from collections.abc import Callable, Mapping
+from typing import Any
 
-from bench.errors import BenchError, ConfigError, PromptWithdrawn
+from bench.errors import ConfigError, PromptWithdrawn
 from bench.protocols.base import Protocol, protocol_from_config
-from bench.protocols.plan import iterate, preflight
+from bench.protocols.plan import PlanSummary, preflight
+from bench.protocols.progress import ProgressBar
+from bench.protocols.run_state import TRANSITIONS, RunResult, RunState, TransitionError
 from bench.rigs.interfaces import Entry, Rig
 from bench.steps import (
     ActuatorMove,
@@ -73,77 +80,9 @@ from bench.store import Store
 from bench.store.descriptors import validate_sample
 from bench.store.sample_writer import SampleWriter
 
-__all__ = ["TRANSITIONS", "RunResult", "RunState", "Runner", "TransitionError", "resume_point"]
+__all__ = ["TRANSITIONS", "RunResult", "RunState", "Runner", "TransitionError"]
 
 _log = logging.getLogger(__name__)
-
-
-class RunState(enum.Enum):
-    IDLE = "idle"
-    RUNNING = "running"
-    PAUSED = "paused"
-    STOPPING = "stopping"
-    ABORTING = "aborting"
-    HALTING = "halting"
-    FINISHED = "finished"
-
-
-S = RunState
-#: Legal state transitions of the runner.
-TRANSITIONS: dict[RunState, frozenset[RunState]] = {
-    S.IDLE: frozenset({S.RUNNING}),
-    S.RUNNING: frozenset({S.PAUSED, S.STOPPING, S.ABORTING, S.HALTING, S.FINISHED}),
-    S.PAUSED: frozenset({S.RUNNING, S.STOPPING, S.ABORTING, S.HALTING}),
-    S.STOPPING: frozenset({S.ABORTING, S.HALTING, S.FINISHED}),
-    S.ABORTING: frozenset({S.HALTING, S.FINISHED}),
-    S.HALTING: frozenset({S.FINISHED}),
-    S.FINISHED: frozenset(),
-}
-
-
-class TransitionError(BenchError):
-    """A request the runner's current state does not allow (e.g. resume while running)."""
-
-
-@dataclass(frozen=True)
-class RunResult:
-    """How a run ended: ``exit_status`` is the stored status (completed, aborted, failed)."""
-
-    run_id: int
-    exit_status: str
-    reason: str | None
-    samples: int
-    exception: BaseException | None = None
-
-
-def _sample_steps(protocol: Protocol, stored: dict[int, Any]) -> tuple[int | None, int]:
-    """(index of the first sample step not stored or None, index of the last Checkpoint before it or 0)."""
-    plan, reply, index, checkpoint = protocol.steps(), None, 0, 0
-    while True:
-        try:
-            step = plan.send(reply)
-        except StopIteration:
-            return None, checkpoint
-        if isinstance(step, Checkpoint):
-            checkpoint = index
-        if isinstance(step, (Capture, Prompt)) and step_stores_sample(step):
-            if index not in stored:
-                return index, checkpoint
-            reply = stored[index]
-        else:
-            reply = None
-        index += 1
-
-
-def step_stores_sample(step: Step) -> bool:
-    return isinstance(step, Capture) or (isinstance(step, Prompt) and step.field is not None)
-
-
-def resume_point(protocol: Protocol, stored: dict[int, Any]) -> int | None:
-    """Index of the step a resumed run acts from (the last Checkpoint before the first missing sample), or None
-    when every sample is stored."""
-    missing, checkpoint = _sample_steps(protocol, stored)
-    return None if missing is None else checkpoint
 
 
 class Runner:
@@ -199,9 +138,10 @@ class Runner:
         self.current_step: Step | None = None
         self.samples_total = 0
         self.samples_stored = 0
-        self._bar: _Progress | None = None
+        self._bar: ProgressBar | None = None
         self._writer: SampleWriter | None = None
         self._payload = MountedPayload()  # what this run segment knows is on the end effector
+        self._plan: PlanSummary | None = None  # the run's pre-flight: what it proved reachable
 
     # ---- requests --------------------------------------------------------------------------------------------
 
@@ -276,10 +216,10 @@ class Runner:
     # ---- running ---------------------------------------------------------------------------------------------
 
     def run(self, protocol: Protocol, *, campaign: str | None = None) -> RunResult:
-        """Pre-flight ``protocol``, store a new run, perform it; returns how it ended."""
-        preflight(protocol)
+        """Pre-flight ``protocol`` by this rig's robot, store a new run, perform it; returns how it ended."""
+        plan = self.preflight(protocol)
         settings = self.rig.settings()
-        registration = settings.pop("registration", None)
+        registration = self.rig.registration
         if registration is not None:  # segment 1 (bench.rigs.registration); a resume appends its own
             settings["registrations"] = [{**registration, "segment": 1, "from_step": 0}]
         run_id = self.store.start_run(
@@ -291,7 +231,20 @@ class Runner:
             calibration_ids=self.rig.calibration_ids,
             campaign=campaign,
         )
-        return self._perform(protocol, run_id, stored={}, start_at=0)
+        return self._perform(protocol, plan, run_id, stored={}, start_at=0)
+
+    def preflight(self, protocol: Protocol, stored: Mapping[int, Any] | None = None) -> PlanSummary:
+        """The run's pre-flight, in one walk of the plan (:func:`bench.protocols.plan.preflight`), by the model of
+        this rig's robot and the geometry it commands by (a kinematic calibration in force included): every target
+        and stroke proved before anything moves, ``UnreachableTarget`` naming the refused ones otherwise; with
+        ``stored`` (a resume) the plan is walked as it ran."""
+        robot = self.rig.robot
+        if robot.kind != protocol.robot:
+            raise ConfigError(
+                f"{protocol.source}: robot = {protocol.robot!r}, but this rig's robot is {robot.kind!r}; expected "
+                "a rig of the protocol's robot"
+            )
+        return preflight(protocol, geometry=robot.geometry, stored=stored)
 
     def resume_run(self, run_id: int) -> RunResult:
         """Continue stored run ``run_id`` at its last checkpoint, without storing any sample twice."""
@@ -320,7 +273,8 @@ class Runner:
                 "it started with (a calibration stored since would change its numbers): start a new "
                 "run (bench run)"
             )
-        preflight(protocol)
+        stored = {s.step_index: self._reply_of(s) for s in self.store.samples(run_id)}
+        plan = self.preflight(protocol, stored)
         stored_base = record.settings.get("time_base", "wall s (runs stored before time bases were recorded)")
         if stored_base != self.rig.time_base():
             _log.warning(
@@ -329,9 +283,8 @@ class Runner:
                 stored_base,
                 self.rig.time_base(),
             )
-        stored = {s.step_index: self._reply_of(s) for s in self.store.samples(run_id)}
-        start_at = resume_point(protocol, stored)
-        registration = self.rig.extra.get("registration")
+        start_at = plan.resume_at
+        registration = self.rig.registration
         if registration is not None:  # a new segment: the instruments were registered again (bench.rigs.registration)
             self.store.add_registration(run_id, {**registration, "from_step": start_at})
         elif record.settings.get("registrations"):
@@ -340,7 +293,9 @@ class Runner:
                 "resume it on the rig that made it"
             )
         self.store.set_status(run_id, "running")
-        return self._perform(protocol, run_id, stored=stored, start_at=start_at if start_at is not None else 10**12)
+        return self._perform(
+            protocol, plan, run_id, stored=stored, start_at=start_at if start_at is not None else 10**12
+        )
 
     @staticmethod
     def _reply_of(sample: Any) -> Any:
@@ -348,8 +303,11 @@ class Runner:
             return sample.values[sample.raw["field"]]
         return dict(sample.values)
 
-    def _perform(self, protocol: Protocol, run_id: int, *, stored: dict[int, Any], start_at: int) -> RunResult:
+    def _perform(
+        self, protocol: Protocol, plan: PlanSummary, run_id: int, *, stored: dict[int, Any], start_at: int
+    ) -> RunResult:
         self.run_id = run_id
+        self._plan = plan
         with self._lock:
             self._transition_locked(RunState.RUNNING)
             if self._emergency:  # stopped before the run started: it ends before its first step
@@ -357,8 +315,8 @@ class Runner:
         status, exception = "completed", None
         self._t_offset_s = max((s.t_s for s in self.store.samples(run_id)), default=0.0)
         self._t_start = self.rig.clock()
-        self.samples_total, self.samples_stored = _count_samples(protocol), len(stored)
-        self._bar = _Progress(self.progress, total=self.samples_total, done=self.samples_stored, label=protocol.name)
+        self.samples_total, self.samples_stored = plan.samples, len(stored)
+        self._bar = ProgressBar(self.progress, total=self.samples_total, done=self.samples_stored, label=protocol.name)
         self._writer = None
         self._payload = MountedPayload()
         try:
@@ -492,11 +450,13 @@ class Runner:
         if isinstance(step, (Move, ActuatorMove)) and self.state is RunState.HALTING:
             return None  # an emergency stop came after the loop's check: never start a move after it
         if isinstance(step, Move):
+            assert self._plan is not None, "a move before the run's pre-flight"
+            self._plan.require(step)  # proved by the pre-flight, or (an adaptive plan's) checked alone now
             rig.robot.move_to(tuple(step.target), velocity_pct=step.velocity_pct)
             return None
         if isinstance(step, ActuatorMove):
-            if not hasattr(rig.robot, "move_actuator"):
-                raise ConfigError(f"{step!r}: this rig's robot has no actuator-bench mode")
+            assert self._plan is not None, "a move before the run's pre-flight"
+            self._plan.require(step)
             rig.robot.move_actuator(step.axis, step.stroke_mm, velocity_pct=step.velocity_pct)
             return None
         if isinstance(step, Settle):
@@ -625,7 +585,7 @@ class Runner:
         """Stop the robot (best effort); an emergency stop latches where the robot offers it (no move after it)."""
         robot = self.rig.robot
         try:
-            (getattr(robot, "emergency_stop", robot.stop) if emergency else robot.stop)()
+            (robot.emergency_stop if emergency else robot.stop)()
         except Exception as exc:  # noqa: BLE001 - stopping is best effort; shutdown follows
             _log.error("robot stop failed: %s", exc)
 
@@ -634,47 +594,3 @@ class Runner:
             self.rig.robot.shutdown()
         except Exception as exc:  # noqa: BLE001
             _log.error("robot shutdown failed: %s", exc)
-
-
-def _count_samples(protocol: Protocol) -> int:
-    return sum(1 for step in iterate(protocol, final=False) if step_stores_sample(step))
-
-
-class _Progress:
-    """A Rich progress bar (samples stored, ETA) on stderr, or nothing."""
-
-    def __init__(self, enabled: bool, *, total: int, done: int, label: str) -> None:
-        self.enabled = enabled
-        if enabled:
-            from rich.console import Console
-            from rich.progress import (
-                BarColumn,
-                MofNCompleteColumn,
-                Progress,
-                TextColumn,
-                TimeRemainingColumn,
-            )
-
-            self._bar = Progress(
-                TextColumn("{task.description}"),
-                BarColumn(),
-                MofNCompleteColumn(),
-                TextColumn("ETA"),
-                TimeRemainingColumn(),
-                console=Console(stderr=True),
-                transient=False,
-            )
-            self._task = self._bar.add_task(label, total=total, completed=done)
-
-    def __enter__(self) -> Self:
-        if self.enabled:
-            self._bar.start()
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        if self.enabled:
-            self._bar.stop()
-
-    def advance(self) -> None:
-        if self.enabled:
-            self._bar.advance(self._task)

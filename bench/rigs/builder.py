@@ -9,7 +9,7 @@ The command line (``bench run --station``) and the desktop app build rigs here a
 3. records the calibrations in force get-or-create in the store (a nominal one, flagged as such, when none was
    measured yet), so every sample names them;
 4. registers relative instruments (the mice) at home and verifies them at a check pose before anything is measured
-   (:mod:`bench.rigs.registration`; the record goes into ``rig.extra["registration"]``);
+   (:mod:`bench.rigs.registration`; the record is the rig's ``registration``);
 5. closes everything it opened, newest first, when a later device fails.
 
 Production code never imports :mod:`bench.simulators`; a simulated station is a station whose devices are
@@ -143,32 +143,16 @@ def build_rig(
         if station.calliper is not None and station.calliper.kind == "serial":
             operator = GaugeOperator(_open_calliper(station, opened), operator, timeout_s=station.calliper.timeout_s)
         closers = opened.pop_all()
-    rig = Rig(
+    return Rig(
         mover,
         instrument,
         operator,
         speed_factor=speed_factor,
         calibration_ids=tuple(calibration_ids),
         closers=[closers.close],
+        station=station,
+        registration=registration,  # the runner files it as the run's (or the segment's)
     )
-    rig.extra["station"] = station.settings()
-    rig.extra["dut"] = station_identity(station)
-    if registration is not None:
-        rig.extra["registration"] = registration  # the runner files it as the run's (or the segment's)
-    return rig
-
-
-def station_identity(station: Station) -> dict[str, str]:
-    """The device under test and the people, as the report's page 1 reads them (``settings.dut``)."""
-    identity = station.identity
-    fields = {
-        "dut_serial": identity.robot_serial or identity.robot_asset,
-        "customer": identity.customer,
-        "order": identity.order,
-        "operator": identity.operator,
-        "laboratory": identity.lab,
-    }
-    return {key: value for key, value in fields.items() if value}
 
 
 def open_mover(station: Station) -> tuple[Any, Any]:
