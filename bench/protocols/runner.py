@@ -55,15 +55,16 @@ continues after the last stored ``t_s``, so ``t_s`` never decreases within a run
 from __future__ import annotations
 
 import logging
-import threading
 from collections.abc import Callable, Mapping
 from typing import Any
 
 from bench.errors import ConfigError, PromptWithdrawn
-from bench.protocols.base import Protocol, protocol_from_config
+from bench.protocols.base import Protocol
 from bench.protocols.plan import PlanSummary, preflight
 from bench.protocols.progress import ProgressBar
-from bench.protocols.run_state import TRANSITIONS, RunResult, RunState, TransitionError
+from bench.protocols.recording import SampleRecorder
+from bench.protocols.resume import resumable_protocol, stored_replies
+from bench.protocols.run_state import TRANSITIONS, RunControl, RunResult, RunState, TransitionError
 from bench.rigs.interfaces import Entry, Rig
 from bench.steps import (
     ActuatorMove,
@@ -77,15 +78,13 @@ from bench.steps import (
     Step,
 )
 from bench.store import Store
-from bench.store.descriptors import validate_sample
-from bench.store.sample_writer import SampleWriter
 
 __all__ = ["TRANSITIONS", "RunResult", "RunState", "Runner", "TransitionError"]
 
 _log = logging.getLogger(__name__)
 
 
-class Runner:
+class Runner(RunControl):
     """Runs protocols on a rig into a store.
 
     Parameters
@@ -128,69 +127,17 @@ class Runner:
         self.on_pause = on_pause or (lambda runner: runner.resume())
         self.on_start = on_start
         self.on_sample = on_sample
-        self.state = RunState.IDLE
-        self._lock = threading.Lock()
-        self._wake = threading.Event()  # set to cut a Settle short (abort, halt, emergency stop)
-        self._pause_requested = False
-        self._emergency = False
-        self._reason: str | None = None
+        super().__init__()
         self.run_id: int | None = None
         self.current_step: Step | None = None
         self.samples_total = 0
         self.samples_stored = 0
         self._bar: ProgressBar | None = None
-        self._writer: SampleWriter | None = None
+        self._recorder: SampleRecorder | None = None
         self._payload = MountedPayload()  # what this run segment knows is on the end effector
         self._plan: PlanSummary | None = None  # the run's pre-flight: what it proved reachable
 
-    # ---- requests --------------------------------------------------------------------------------------------
-
-    def _transition(self, new: RunState) -> None:
-        with self._lock:
-            self._transition_locked(new)
-
-    def _transition_locked(self, new: RunState) -> None:
-        if new not in TRANSITIONS[self.state]:
-            raise TransitionError(f"runner: cannot go from {self.state.value} to {new.value}")
-        _log.info("runner: %s -> %s", self.state.value, new.value)
-        self.state = new
-
-    def _end(self, new: RunState, reason: str) -> None:
-        """Go to an ending state with ``reason``; a refused request leaves the reason of the current end alone."""
-        with self._lock:
-            self._transition_locked(new)
-            self._reason = reason
-
-    @property
-    def pause_requested(self) -> bool:
-        """A pause is asked for and the run has not reached its checkpoint yet."""
-        return self._pause_requested
-
-    def request_pause(self) -> None:
-        """Pause at the next Checkpoint."""
-        if self.state is not RunState.RUNNING:
-            raise TransitionError(f"runner: cannot pause while {self.state.value}")
-        self._pause_requested = True
-
-    def resume(self) -> None:
-        """Leave PAUSED and continue."""
-        if self.state is not RunState.PAUSED:
-            raise TransitionError(f"runner: cannot resume while {self.state.value}")
-        self._transition(RunState.RUNNING)
-
-    def stop(self, reason: str = "stopped by the operator") -> None:
-        """End cleanly at the next Checkpoint."""
-        self._end(RunState.STOPPING, reason)
-
-    def abort(self, reason: str = "aborted by the operator") -> None:
-        """Stop the robot after the current step (a Settle is cut short) and end; clean-up steps still run."""
-        self._end(RunState.ABORTING, reason)
-        self._wake.set()
-
-    def halt(self, reason: str = "halted by the operator") -> None:
-        """Stop the robot after the current step (a Settle is cut short) and end without clean-up steps."""
-        self._end(RunState.HALTING, reason)
-        self._wake.set()
+    # ---- requests (pause, resume, stop, abort, halt: bench.protocols.run_state.RunControl) ------------------
 
     def emergency_stop(self, reason: str = "emergency stop") -> None:
         """Stop the robot now and end the run as soon as the current step returns, with nothing more run.
@@ -258,22 +205,8 @@ class Runner:
 
     def _resume_owned(self, run_id: int) -> RunResult:
         record = self.store.run(run_id)
-        if record.status == "completed":
-            raise ConfigError(f"run {run_id}: already completed, nothing to resume")
-        protocol = protocol_from_config(record.config, source=f"run {run_id}", stored=True)
-        if protocol.version != record.protocol_version:
-            raise ConfigError(
-                f"run {run_id}: protocol {protocol.name} is now version {protocol.version}, the run "
-                f"used version {record.protocol_version}; cannot resume across versions"
-            )
-        if tuple(sorted(self.rig.calibration_ids)) != tuple(record.calibration_ids):
-            raise ConfigError(
-                f"run {run_id}: calibrations in force {sorted(self.rig.calibration_ids)} differ from "
-                f"the run's {list(record.calibration_ids)}; a run resumes only with the calibrations "
-                "it started with (a calibration stored since would change its numbers): start a new "
-                "run (bench run)"
-            )
-        stored = {s.step_index: self._reply_of(s) for s in self.store.samples(run_id)}
+        protocol = resumable_protocol(record, self.rig)
+        stored = stored_replies(self.store, run_id)
         plan = self.preflight(protocol, stored)
         stored_base = record.settings.get("time_base", "wall s (runs stored before time bases were recorded)")
         if stored_base != self.rig.time_base():
@@ -297,12 +230,6 @@ class Runner:
             protocol, plan, run_id, stored=stored, start_at=start_at if start_at is not None else 10**12
         )
 
-    @staticmethod
-    def _reply_of(sample: Any) -> Any:
-        if isinstance(sample.raw, dict) and "field" in sample.raw and "entered" in sample.raw:  # a prompt's reading
-            return sample.values[sample.raw["field"]]
-        return dict(sample.values)
-
     def _perform(
         self, protocol: Protocol, plan: PlanSummary, run_id: int, *, stored: dict[int, Any], start_at: int
     ) -> RunResult:
@@ -312,15 +239,14 @@ class Runner:
             self._transition_locked(RunState.RUNNING)
             if self._emergency:  # stopped before the run started: it ends before its first step
                 self._transition_locked(RunState.HALTING)
-        status, exception = "completed", None
-        self._t_offset_s = max((s.t_s for s in self.store.samples(run_id)), default=0.0)
-        self._t_start = self.rig.clock()
+        status = "completed"
+        exception: BaseException | None = None
         self.samples_total, self.samples_stored = plan.samples, len(stored)
         self._bar = ProgressBar(self.progress, total=self.samples_total, done=self.samples_stored, label=protocol.name)
-        self._writer = None
+        self._recorder = None
         self._payload = MountedPayload()
         try:
-            self._writer = SampleWriter(self.store)
+            self._recorder = SampleRecorder(self.store, self.rig, run_id, self._durable)
             with self._bar:
                 self._call_hook(self.on_start, self)
                 self._loop(protocol.steps(), run_id, stored, start_at)
@@ -358,7 +284,7 @@ class Runner:
         finally:
             self.current_step = None
             self._shutdown()
-            failure = self._close_writer()
+            failure = None if self._recorder is None else self._recorder.close()  # None: it never opened
             if failure is not None and status != "failed":  # the last sample's commit failed: it is not stored
                 status, exception, self._reason = "failed", failure, f"{type(failure).__name__}: {failure}"
             elif failure is not None:  # both failed: the stored reason names the lost sample too
@@ -401,7 +327,8 @@ class Runner:
             if isinstance(step, Checkpoint) and not final and index >= start_at:
                 # the .db file alone holds every sample so far once this checkpoint has run on the writer thread,
                 # during the next move (the next sample is stored after it); a pause or an end waits for it here
-                self._writer.checkpoint()
+                assert self._recorder is not None, "a checkpoint outside a run"
+                self._recorder.checkpoint()
                 if self._pause_requested or self.state is not RunState.RUNNING:
                     self._await_commit()
                 if self._at_checkpoint(step):
@@ -467,9 +394,7 @@ class Runner:
         if isinstance(step, Capture):
             measured = rig.instrument.measure(step)
             values = {**step.commanded, **measured.values, **step.conditions}
-            self._store_sample(
-                run_id, index, values, kind=step.kind, pose=step.pose, cycle=step.cycle, raw=measured.raw
-            )
+            self._record(index, values, kind=step.kind, pose=step.pose, cycle=step.cycle, raw=measured.raw)
             return values
         if isinstance(step, Prompt):
             try:
@@ -487,9 +412,7 @@ class Runner:
                 raw = {"field": step.field, "entered": float(answer)}
                 if isinstance(answer, Entry):  # the text as typed (or the gauge's line), beside the value
                     raw["typed"] = answer.typed
-                self._store_sample(
-                    run_id, index, values, kind=step.kind, pose=step.pose or None, cycle=step.cycle or None, raw=raw
-                )
+                self._record(index, values, kind=step.kind, pose=step.pose or None, cycle=step.cycle or None, raw=raw)
             return answer
         if isinstance(step, Checkpoint):
             return None
@@ -503,64 +426,21 @@ class Runner:
         else:
             self._wake.wait(wait_s)
 
-    def _now_s(self) -> float:
-        """Seconds since the run started, in the rig's time base, after the last stored time of a resumed run."""
-        return self._t_offset_s + (self.rig.clock() - self._t_start) * self.rig.speed_factor
-
-    def _store_sample(
-        self,
-        run_id: int,
-        index: int,
-        values: dict[str, float],
-        *,
-        kind: str,
-        pose: str | None,
-        cycle: int | None,
-        raw: Any,
-    ) -> None:
-        t_s = self._now_s()
-        validate_sample(kind, values)  # a sample off its descriptor is a bug: refused, never stored
-        self._await_commit()  # (done already before the step) one sample in flight at a time, each reported once
-        sample = {
-            "step_index": index,
-            "kind": kind,
-            "pose": pose,
-            "cycle": cycle,
-            "t_s": t_s,
-            "values": values,
-            "raw": raw,
-        }
-        self._writer.add(
-            run_id, index, values=values, kind=kind, pose=pose, cycle=cycle, t_s=t_s, raw=raw, report=sample
-        )
+    def _record(self, index: int, values: dict[str, float], **sample: Any) -> None:
+        assert self._recorder is not None, "a sample outside a run"
+        self._recorder.add(index, values, **sample)
 
     def _await_commit(self) -> None:
-        """Wait until the last sample taken is durable (raising the failure of its commit), then report it."""
-        sample = self._writer.wait()
-        if sample is None:
-            return
+        """Wait until the last sample taken is durable (raising the failure of its commit); it is reported then."""
+        if self._recorder is not None:
+            self._recorder.await_commit()
+
+    def _durable(self, sample: dict[str, Any]) -> None:
+        """A sample's commit is durable: count it, advance the bar, tell ``on_sample``."""
         self.samples_stored += 1
         if self._bar is not None:
             self._bar.advance()
         self._call_hook(self.on_sample, self, sample)
-
-    def _close_writer(self) -> Exception | None:
-        """Settle the last commit (reported if it succeeded) and close the writer; returns its failure, if any."""
-        if self._writer is None:  # it never opened: the run's failure says why
-            return None
-        failure = None
-        while True:
-            try:
-                self._await_commit()
-                break
-            except KeyboardInterrupt:  # the run is ending already: the commit in flight (ms) settles first
-                continue
-            except Exception as exc:  # noqa: BLE001 - stored in the run's status and reason
-                failure = exc
-                _log.error("run %d: the last sample's commit failed: %s: %s", self.run_id, type(exc).__name__, exc)
-                break
-        self._writer.close()  # nothing in flight any more
-        return failure
 
     @staticmethod
     def _call_hook(hook: Callable[..., None] | None, *args: Any) -> None:

@@ -19,6 +19,7 @@ simulator processes (:func:`bench.simulators.station.rehearse`), built here by t
 from __future__ import annotations
 
 import logging
+from collections.abc import Callable
 from contextlib import ExitStack
 from typing import Any
 
@@ -27,7 +28,7 @@ import numpy as np
 from bench.errors import ConfigError, LinkError
 from bench.rigs.gauges import CalliperOnly, GaugeOperator
 from bench.rigs.interfaces import Operator, Rig
-from bench.rigs.movers import DeltaMover, Pkm5Mover
+from bench.rigs.movers import DeltaMover, LatchingMover, Pkm5Mover
 from bench.rigs.registration import home_before_registering, register_at_home
 from bench.rigs.station import CAPTURE_CAPABILITIES, Station
 from bench.robot_kinds import robot_kind
@@ -155,7 +156,7 @@ def build_rig(
     )
 
 
-def open_mover(station: Station) -> tuple[Any, Any]:
+def open_mover(station: Station) -> tuple[LatchingMover, Callable[[], None]]:
     """Only the robot of ``station`` (jogging): its mover and the function that releases it."""
     with ExitStack() as opened:
         mover, _ = _open_robot(station, opened)
@@ -178,7 +179,7 @@ def _open_port(station: Station, key: str, url: str, baud: int, opened: ExitStac
     return port
 
 
-def _open_robot(station: Station, opened: ExitStack) -> tuple[Any, Any]:
+def _open_robot(station: Station, opened: ExitStack) -> tuple[LatchingMover, Any]:
     spec = station.controller
     port = _open_port(station, "controller.port", spec.port, spec.baud, opened)
     if station.robot == "pkm5":
@@ -196,11 +197,11 @@ def _open_robot(station: Station, opened: ExitStack) -> tuple[Any, Any]:
         return Pkm5Mover(controller), controller
     from bench.robots.delta4 import Delta4Controller
 
-    controller = Delta4Controller(port)
-    opened.callback(controller.shutdown)
-    controller.start()
-    controller.probe_fine_references()  # fine references only if the firmware answers (the run settings say)
-    return DeltaMover(controller), controller
+    delta = Delta4Controller(port)
+    opened.callback(delta.shutdown)
+    delta.start()
+    delta.probe_fine_references()  # fine references only if the firmware answers (the run settings say)
+    return DeltaMover(delta), delta
 
 
 def _open_instrument(

@@ -4,6 +4,7 @@ whether it is usable and, when not, what fixes it (the udev rule, the group, the
 from __future__ import annotations
 
 import errno
+import functools
 import os
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -71,19 +72,19 @@ def _guarded(key: str, path: str, kind: str, probe: Callable[[], str]) -> Device
 def check_station(station: Station) -> list[DeviceCheck]:
     """One :class:`DeviceCheck` per device of ``station``, each opened, identified or read once and closed."""
     checks = [_guarded("controller.port", station.controller.port, "serial", lambda: _controller(station))]
-    if station.mice is not None:
-        for plane in ("xy", "xz"):
-            path = getattr(station.mice, plane)
-            checks.append(_guarded(f"mice.{plane}", path, "input", lambda path=path: _mouse(path, station.mice.grab)))
-    if station.calliper is not None:
-        spec = station.calliper
-        if spec.kind == "serial":
-            checks.append(_guarded("calliper.port", spec.port, "serial", lambda: _serial_opens(spec.port, spec.baud)))
+    mice, calliper, camera = station.mice, station.calliper, station.camera
+    if mice is not None:
+        for plane, path in (("xy", mice.xy), ("xz", mice.xz)):
+            checks.append(_guarded(f"mice.{plane}", path, "input", functools.partial(_mouse, path, mice.grab)))
+    if calliper is not None:
+        if calliper.kind == "serial":
+            probe = functools.partial(_serial_opens, calliper.port, calliper.baud)
+            checks.append(_guarded("calliper.port", calliper.port, "serial", probe))
         else:
             checks.append(DeviceCheck("calliper", "typed", True, "readings typed at the prompt"))
-    if station.camera is not None:
-        spec = station.camera
-        checks.append(_guarded("camera.device", spec.device, "video", lambda: _camera(spec.device, spec.calibration)))
+    if camera is not None:
+        probe = functools.partial(_camera, camera.device, camera.calibration)
+        checks.append(_guarded("camera.device", camera.device, "video", probe))
     return checks
 
 

@@ -45,7 +45,7 @@ import tomllib
 from collections.abc import Mapping
 from dataclasses import dataclass, field, fields, replace
 from pathlib import Path
-from typing import Any
+from typing import Any, overload
 
 from bench.errors import ConfigError
 from bench.robot_kinds import robot_kind, robot_names
@@ -96,7 +96,8 @@ class _Table:
     def __init__(self, source: str, name: str, data: Any) -> None:
         if not isinstance(data, Mapping):
             raise _fail(source, f"[{name}]", data, "a table")
-        self.source, self.name, self.data, self.used = source, name, dict(data), set()
+        self.source, self.name, self.data = source, name, dict(data)
+        self.used: set[str] = set()
 
     def _key(self, key: str) -> str:
         return f"{self.name}.{key}"
@@ -123,6 +124,12 @@ class _Table:
         if isinstance(value, str) and not value.strip() and not blank_ok:
             raise _fail(self.source, self._key(key), value, expected or "a non-empty string")
         return value
+
+    @overload
+    def number(self, key: str, default: float, *, zero_allowed: bool = False) -> float: ...
+
+    @overload
+    def number(self, key: str, default: None, *, zero_allowed: bool = False) -> float | None: ...
 
     def number(self, key: str, default: float | None, *, zero_allowed: bool = False) -> float | None:
         expected = "a finite number >= 0" if zero_allowed else "a finite number > 0"
