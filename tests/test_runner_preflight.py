@@ -140,3 +140,19 @@ def test_a_rig_of_another_robot_is_refused_before_anything_is_stored(store):
     with pytest.raises(ConfigError, match="robot = 'pkm5', but this rig's robot is 'delta4'"):
         Runner(_rig(robot), store).run(_Counted())
     assert robot.log == [] and store.runs() == []
+
+
+def test_one_walk_counts_samples_and_readings_and_finds_where_a_resume_acts_from():
+    from bench.protocols import Prompt
+
+    class WithReadings(_Counted):
+        def steps(self):
+            yield from super().steps()
+            yield Prompt("depth", field="depth_mm", unit="mm", pose="P", cycle=1, kind="depth")
+
+    # steps per cycle: Move, Capture, Checkpoint (indices 3k, 3k + 1, 3k + 2); cycles 1 and 2 stored
+    summary = preflight(WithReadings(), stored={1: {"x_mm": 0.0}, 4: {"x_mm": 0.0}})
+    assert (summary.samples, summary.readings, summary.resume_at) == (6, 1, 5)  # from cycle 2's checkpoint
+    assert preflight(WithReadings()).resume_at == 0  # nothing stored: from the start
+    stored = {1: {}, 4: {}, 7: {}, 10: {}, 13: {}, 16: 1.0}  # every sample stored (the prompt is step 16)
+    assert preflight(WithReadings(), stored=stored).resume_at is None

@@ -33,7 +33,7 @@ from bench.calibration.compensate import NEWEST, describe_in_force
 from bench.errors import BenchError, PromptWithdrawn
 from bench.launch import RigRequest, open_rig
 from bench.protocols import Prompt, Protocol, Runner, RunState, TransitionError, protocol_from_config
-from bench.protocols.plan import iterate, required_capabilities
+from bench.protocols.plan import required_capabilities
 from bench.rigs.interfaces import Entry
 from bench.store import Store
 
@@ -279,12 +279,7 @@ class CampaignWorker(QThread):
                 for s in stored
             ],
         )
-        protocol = (
-            job
-            if isinstance(job, Protocol)
-            else protocol_from_config(record.config, source=f"run {run_id}", stored=True)
-        )
-        total = sum(1 for step in iterate(protocol, final=False) if isinstance(step, Prompt) and step.field)
+        total = runner.plan.readings if runner.plan is not None else 0  # the run's pre-flight counted them
         taken = sum(1 for s in stored if isinstance(s.raw, dict) and "field" in s.raw and "entered" in s.raw)
         self._readings = (taken, total)
 

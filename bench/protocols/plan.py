@@ -154,6 +154,8 @@ class PlanSummary:
     warnings: tuple[str, ...] = ()
     #: steps of the plan that store a sample (captures and reading prompts; the clean-up plan stores none)
     samples: int = 0
+    #: of those, the operator's readings (prompts for a value)
+    readings: int = 0
     #: the step a resumed run acts from (the last checkpoint before the first sample not stored); None: all stored
     resume_at: int | None = None
     #: what a station must provide to run it (:func:`required_capabilities`)
@@ -311,7 +313,8 @@ def summarize(
     strokes = _StrokeTally(geometry)
     distinct: dict[tuple[float, ...], str] = {}
     settle_s = captures_s = 0.0
-    samples, missing, checkpoint = 0, None, 0
+    samples = readings = checkpoint = 0
+    missing = None
     needs = _fixture_need(protocol)
     names: dict[type, str] = {}  # per step type, its count's name ("moves")
     for index, step in walk(protocol, stored=stored):
@@ -333,7 +336,9 @@ def summarize(
             settle_s += step.duration_s
         elif isinstance(step, Capture):
             captures_s += capture_s(step)
-        samples += index is not None and step_stores_sample(step)
+        if index is not None and step_stores_sample(step):
+            samples += 1
+            readings += isinstance(step, Prompt)
         _add_need(needs, step)
     targets = np.array(list(distinct), dtype=float).reshape(-1, len(model.target_fields))
     check = model.check(targets, singularity_threshold)
@@ -355,6 +360,7 @@ def summarize(
         axes,
         protocol.limit_warnings(),
         samples=samples,
+        readings=readings,
         resume_at=None if missing is None else checkpoint,
         capabilities=frozenset(needs),
         model=model,

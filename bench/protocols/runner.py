@@ -109,6 +109,8 @@ class Runner(RunControl):
     ----------
     current_step : Step or None
         The step being performed (None between steps), e.g. for a window to show what the rig is doing.
+    plan : PlanSummary or None
+        The run's pre-flight (its counts, targets and duration; set before ``on_start``).
     """
 
     def __init__(
@@ -135,7 +137,7 @@ class Runner(RunControl):
         self._bar: ProgressBar | None = None
         self._recorder: SampleRecorder | None = None
         self._payload = MountedPayload()  # what this run segment knows is on the end effector
-        self._plan: PlanSummary | None = None  # the run's pre-flight: what it proved reachable
+        self.plan: PlanSummary | None = None  # the run's pre-flight: what it proved reachable
 
     # ---- requests (pause, resume, stop, abort, halt: bench.protocols.run_state.RunControl) ------------------
 
@@ -234,7 +236,7 @@ class Runner(RunControl):
         self, protocol: Protocol, plan: PlanSummary, run_id: int, *, stored: dict[int, Any], start_at: int
     ) -> RunResult:
         self.run_id = run_id
-        self._plan = plan
+        self.plan = plan
         with self._lock:
             self._transition_locked(RunState.RUNNING)
             if self._emergency:  # stopped before the run started: it ends before its first step
@@ -377,13 +379,13 @@ class Runner(RunControl):
         if isinstance(step, (Move, ActuatorMove)) and self.state is RunState.HALTING:
             return None  # an emergency stop came after the loop's check: never start a move after it
         if isinstance(step, Move):
-            assert self._plan is not None, "a move before the run's pre-flight"
-            self._plan.require(step)  # proved by the pre-flight, or (an adaptive plan's) checked alone now
+            assert self.plan is not None, "a move before the run's pre-flight"
+            self.plan.require(step)  # proved by the pre-flight, or (an adaptive plan's) checked alone now
             rig.robot.move_to(tuple(step.target), velocity_pct=step.velocity_pct)
             return None
         if isinstance(step, ActuatorMove):
-            assert self._plan is not None, "a move before the run's pre-flight"
-            self._plan.require(step)
+            assert self.plan is not None, "a move before the run's pre-flight"
+            self.plan.require(step)
             rig.robot.move_actuator(step.axis, step.stroke_mm, velocity_pct=step.velocity_pct)
             return None
         if isinstance(step, Settle):
