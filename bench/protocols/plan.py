@@ -306,7 +306,7 @@ def summarize(
     if singularity_threshold is None:
         singularity_threshold = getattr(protocol, "min_inverse_condition", DEFAULT_SINGULARITY_THRESHOLD)
     model = robot_model(protocol.robot)
-    if geometry is not None:
+    if geometry is not None and geometry is not getattr(model.kinematics, "geometry", None):  # documented: cached
         model = replace(model, geometry=geometry)
     counts: Counter[str] = Counter()
     timer = _MoveTimer(model)
