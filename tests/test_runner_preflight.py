@@ -156,3 +156,20 @@ def test_one_walk_counts_samples_and_readings_and_finds_where_a_resume_acts_from
     assert preflight(WithReadings()).resume_at == 0  # nothing stored: from the start
     stored = {1: {}, 4: {}, 7: {}, 10: {}, 13: {}, 16: 1.0}  # every sample stored (the prompt is step 16)
     assert preflight(WithReadings(), stored=stored).resume_at is None
+
+
+def test_a_pre_flight_made_before_the_rig_opened_is_checked_again_by_its_geometry_without_a_walk(store):
+    """``bench run`` walks the plan before it opens the rig (its capabilities); the runner then checks that walk's
+    targets by the rig's own geometry instead of walking the plan again."""
+    protocol = _Counted(last=HIGH)
+    robot = _WalksAtFirstMove(geometry=SHORT_LEGS)
+    early = preflight(protocol)
+    with pytest.raises(UnreachableTarget, match=r"target LAST \(x 110.00 mm, y 0.00 mm, z 340.00 mm.*not reachable"):
+        Runner(_rig(robot), store).run(protocol, plan=early)
+    assert len(WALKS) == 1 and robot.log == [] and store.runs() == []  # the early walk only; nothing moved
+
+    robot = _WalksAtFirstMove()
+    early = preflight(protocol)
+    result = Runner(_rig(robot), store).run(protocol, plan=early)
+    assert result.exit_status == "completed" and result.samples == 5
+    assert robot.walks_at_first_move == 2 and len(WALKS) == 2  # the early walk, then the run's own

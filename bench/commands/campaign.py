@@ -296,8 +296,8 @@ def _run(args: argparse.Namespace) -> int:
             f"bench run {args.protocol}: no rig named, expected --station STATION.toml (the bench's "
             "devices) or --sim (the simulator)"
         )
-    # one walk before a simulator or a port is opened: the capabilities it needs and the documented geometry's
-    # pre-flight; the runner proves every target again by the geometry the rig's robot commands by
+    # the one walk of the plan, before a simulator or a port is opened: the capabilities it needs and the documented
+    # geometry's pre-flight; the runner checks its targets again by the geometry the rig's robot commands by
     early = preflight(protocol)
     if args.speed_factor is not None:  # before the store opens: a refused run leaves no new file behind
         check_speed_factor(args.speed_factor)
@@ -311,7 +311,7 @@ def _run(args: argparse.Namespace) -> int:
             protocol=f"protocol {protocol.name!r}",
         )
         runner = Runner(rig, store, progress=not args.no_progress, on_pause=_ask_after_pause)
-        result = execute(runner, lambda: runner.run(protocol, campaign=args.campaign))
+        result = execute(runner, lambda: runner.run(protocol, campaign=args.campaign, plan=early))
     return 0 if result.exit_status == "completed" else 1
 
 

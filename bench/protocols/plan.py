@@ -208,6 +208,32 @@ class PlanSummary:
             for i in np.flatnonzero(~self.reachable)
         ] + list(self.actuator_problems)
 
+    def refuse_unless_ok(self, source: str) -> PlanSummary:
+        """This summary, or ``UnreachableTarget`` naming the first refused target (and how many more)."""
+        if not self.ok:
+            problems = self.problems()
+            more = f" (and {len(problems) - 1} more)" if len(problems) > 1 else ""
+            raise UnreachableTarget(f"{source}: {problems[0]}{more}")
+        return self
+
+    def checked_by(self, geometry: Any) -> PlanSummary | None:
+        """This pre-flight's distinct targets checked again by ``geometry`` (the robot's, e.g. a kinematic
+        calibration in force), without walking the plan again; None when that takes a walk (actuator-bench strokes
+        by another geometry than they were checked by). The duration estimate stays the first geometry's."""
+        model = _model_of(self.robot, geometry)
+        if self.model is not None and model.geometry is self.model.geometry:
+            return self
+        if self.strokes:
+            return None
+        check = model.check(self.targets, self.threshold)
+        return replace(
+            self,
+            reachable=check.reachable,
+            reasons=tuple(str(r) for r in check.reason),
+            proximity=check.proximity,
+            model=model,
+        )
+
     def lines(self) -> list[str]:
         """The human-readable summary printed by ``bench run --dry-run``."""
         out = [
@@ -305,9 +331,7 @@ def summarize(
     """
     if singularity_threshold is None:
         singularity_threshold = getattr(protocol, "min_inverse_condition", DEFAULT_SINGULARITY_THRESHOLD)
-    model = robot_model(protocol.robot)
-    if geometry is not None and geometry is not getattr(model.kinematics, "geometry", None):  # documented: cached
-        model = replace(model, geometry=geometry)
+    model = _model_of(protocol.robot, geometry)
     counts: Counter[str] = Counter()
     timer = _MoveTimer(model)
     strokes = _StrokeTally(geometry)
@@ -366,6 +390,14 @@ def summarize(
         model=model,
         threshold=singularity_threshold,
     )
+
+
+def _model_of(robot: str, geometry: Any) -> PreflightModel:
+    """The pre-flight model of ``robot`` by ``geometry`` (None or the documented one: the cached model)."""
+    model = robot_model(robot)
+    if geometry is None or geometry is getattr(model.kinematics, "geometry", None):
+        return model
+    return replace(model, geometry=geometry)
 
 
 def target_key(model: PreflightModel, target: Sequence[float]) -> tuple[float, ...]:
@@ -433,9 +465,4 @@ class _StrokeTally:
 
 def preflight(protocol: Protocol, **kwargs: Any) -> PlanSummary:
     """:func:`summarize`, raising ``UnreachableTarget`` naming every refused target before anything moves."""
-    summary = summarize(protocol, **kwargs)
-    if not summary.ok:
-        problems = summary.problems()
-        more = f" (and {len(problems) - 1} more)" if len(problems) > 1 else ""
-        raise UnreachableTarget(f"{protocol.source}: {problems[0]}{more}")
-    return summary
+    return summarize(protocol, **kwargs).refuse_unless_ok(protocol.source)

@@ -164,9 +164,13 @@ class Runner(RunControl):
 
     # ---- running ---------------------------------------------------------------------------------------------
 
-    def run(self, protocol: Protocol, *, campaign: str | None = None) -> RunResult:
-        """Pre-flight ``protocol`` by this rig's robot, store a new run, perform it; returns how it ended."""
-        plan = self.preflight(protocol)
+    def run(self, protocol: Protocol, *, campaign: str | None = None, plan: PlanSummary | None = None) -> RunResult:
+        """Pre-flight ``protocol`` by this rig's robot, store a new run, perform it; returns how it ended.
+
+        ``plan``: the pre-flight of this very protocol made before the rig opened (``bench run`` needs its
+        capabilities first); its targets are then checked again by this rig's geometry without a second walk.
+        """
+        plan = self.preflight(protocol, earlier=plan)
         settings = self.rig.settings()
         registration = self.rig.registration
         if registration is not None:  # segment 1 (bench.rigs.registration); a resume appends its own
@@ -182,17 +186,24 @@ class Runner(RunControl):
         )
         return self._perform(protocol, plan, run_id, stored={}, start_at=0)
 
-    def preflight(self, protocol: Protocol, stored: Mapping[int, Any] | None = None) -> PlanSummary:
+    def preflight(
+        self, protocol: Protocol, stored: Mapping[int, Any] | None = None, *, earlier: PlanSummary | None = None
+    ) -> PlanSummary:
         """The run's pre-flight, in one walk of the plan (:func:`bench.protocols.plan.preflight`), by the model of
         this rig's robot and the geometry it commands by (a kinematic calibration in force included): every target
         and stroke proved before anything moves, ``UnreachableTarget`` naming the refused ones otherwise; with
-        ``stored`` (a resume) the plan is walked as it ran."""
+        ``stored`` (a resume) the plan is walked as it ran. ``earlier``: a pre-flight of ``protocol`` already made,
+        whose distinct targets are checked again by this rig's geometry instead of a walk."""
         robot = self.rig.robot
         if robot.kind != protocol.robot:
             raise ConfigError(
                 f"{protocol.source}: robot = {protocol.robot!r}, but this rig's robot is {robot.kind!r}; expected "
                 "a rig of the protocol's robot"
             )
+        if earlier is not None and stored is None and (earlier.protocol, earlier.robot) == (protocol.name, robot.kind):
+            again = earlier.checked_by(robot.geometry)
+            if again is not None:
+                return again.refuse_unless_ok(protocol.source)
         return preflight(protocol, geometry=robot.geometry, stored=stored)
 
     def resume_run(self, run_id: int) -> RunResult:
