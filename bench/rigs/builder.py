@@ -21,18 +21,22 @@ from __future__ import annotations
 import logging
 from collections.abc import Callable
 from contextlib import ExitStack
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from bench.errors import ConfigError, LinkError
 from bench.rigs.gauges import CalliperOnly, GaugeOperator
-from bench.rigs.interfaces import Operator, Rig
+from bench.rigs.interfaces import Instrument, Operator, Rig
 from bench.rigs.movers import DeltaMover, LatchingMover, Pkm5Mover
 from bench.rigs.registration import home_before_registering, register_at_home
 from bench.rigs.station import CAPTURE_CAPABILITIES, Station
 from bench.robot_kinds import robot_kind
 from bench.robots.link import open_port
+
+if TYPE_CHECKING:  # opened on first use: the camera's and the mice's modules import their device libraries
+    from bench.rigs.camera import CameraSpotInstrument
+    from bench.rigs.mice import MiceInstrument
 
 __all__ = ["build_rig", "calibration_summary", "check_capabilities", "mouse_calibration", "open_mover"]
 
@@ -211,7 +215,7 @@ def _open_instrument(
     requires: frozenset[str] | set[str],
     opened: ExitStack,
     calibration_ids: list[int],
-) -> Any:
+) -> Instrument:
     needs_capture = bool(set(requires) & CAPTURE_CAPABILITIES) or not requires
     calliper = {} if station.calliper is None else {"calliper": vars(station.calliper)}
     if (
@@ -237,7 +241,7 @@ def _open_instrument(
     return CalliperOnly(calliper)
 
 
-def _open_mice(station: Station, store: Any, opened: ExitStack, calibration_ids: list[int]) -> Any:
+def _open_mice(station: Station, store: Any, opened: ExitStack, calibration_ids: list[int]) -> MiceInstrument:
     from bench.rigs.mice import MiceInstrument
     from bench.sensors.mouse import EvdevMouse
 
@@ -262,7 +266,7 @@ def _open_mice(station: Station, store: Any, opened: ExitStack, calibration_ids:
     return instrument
 
 
-def _open_camera(station: Station, opened: ExitStack) -> Any:
+def _open_camera(station: Station, opened: ExitStack) -> CameraSpotInstrument:
     from bench.rigs.camera import CameraSpotInstrument, load_plane_calibration, video_grab
     from bench.sensors.camera_spot import LaserSpotCamera
 
