@@ -116,6 +116,24 @@ def test_a_resume_walks_the_plan_once_before_its_first_move(store):
     assert len([entry for entry in robot.log if entry[0] == "move"]) == 4  # from the checkpoint of cycle 2 on
 
 
+def test_a_resume_uses_the_pre_flight_made_with_its_stored_samples_and_no_other(store):
+    from bench.protocols.resume import stored_replies
+
+    PROTOCOLS[_Counted.name] = _Counted
+    try:
+        for with_stored, walks in ((True, 2), (False, 3)):
+            failed = Runner(_rig(_WalksAtFirstMove(fail_after=2)), store).run(_Counted())
+            robot = _WalksAtFirstMove()
+            # made without the stored samples its resume point would be wrong: the runner walks the plan itself
+            early = preflight(_Counted(), stored=stored_replies(store, failed.run_id) if with_stored else None)
+            resumed = Runner(_rig(robot), store).resume_run(failed.run_id, plan=early)
+            assert resumed.exit_status == "completed" and resumed.samples == 5
+            assert robot.walks_at_first_move == walks
+            assert len([entry for entry in robot.log if entry[0] == "move"]) == 4  # from cycle 2's checkpoint
+    finally:
+        del PROTOCOLS[_Counted.name]
+
+
 def test_a_target_the_plan_chooses_during_the_run_is_checked_before_it_is_commanded(store):
     """An adaptive plan (the iterative correction) moves to corrected commands no dry run can foresee: each is
     checked alone by the rig's model before it is commanded, and one out of reach fails the run unmoved."""

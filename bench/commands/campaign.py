@@ -316,8 +316,8 @@ def _run(args: argparse.Namespace) -> int:
 
 
 def _resume(args: argparse.Namespace) -> int:
-    from bench.protocols import Runner, protocol_from_config
-    from bench.protocols.plan import required_capabilities
+    from bench.protocols import Runner, preflight, protocol_from_config
+    from bench.protocols.resume import stored_replies
     from bench.store import Store
 
     with Store(args.store) as store:
@@ -325,17 +325,19 @@ def _resume(args: argparse.Namespace) -> int:
         store.claim(args.run_id)  # before the rig opens: a run another live process drives is never touched
         store.resuming = args.run_id  # opening the rig writes no new calibration: a refused resume writes nothing
         protocol = protocol_from_config(record.config, source=f"run {args.run_id}", stored=True)
+        # the one walk of the plan (as it ran), before the rig opens: capabilities, pre-flight, where it resumes
+        early = preflight(protocol, stored=stored_replies(store, args.run_id))
         rig = build_rig(
             args,
             record.robot,
             store,
             stored=record.settings,
             fixture=record.config.get("fixture", "assembled"),
-            requires=required_capabilities(protocol),
+            requires=early.capabilities,
             protocol=f"protocol {protocol.name!r}",
         )
         runner = Runner(rig, store, progress=not args.no_progress, on_pause=_ask_after_pause)
-        result = execute(runner, lambda: runner.resume_run(args.run_id))
+        result = execute(runner, lambda: runner.resume_run(args.run_id, plan=early))
     return 0 if result.exit_status == "completed" else 1
 
 

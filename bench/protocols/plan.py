@@ -224,6 +224,7 @@ def summarize(
         samples=samples,
         readings=readings,
         resume_at=None if missing is None else checkpoint,
+        stored_samples=len(stored or {}),
         capabilities=frozenset(needs),
         model=model,
         threshold=singularity_threshold,

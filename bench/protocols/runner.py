@@ -192,35 +192,39 @@ class Runner(RunControl):
         """The run's pre-flight, in one walk of the plan (:func:`bench.protocols.plan.preflight`), by the model of
         this rig's robot and the geometry it commands by (a kinematic calibration in force included): every target
         and stroke proved before anything moves, ``UnreachableTarget`` naming the refused ones otherwise; with
-        ``stored`` (a resume) the plan is walked as it ran. ``earlier``: a pre-flight of ``protocol`` already made,
-        whose distinct targets are checked again by this rig's geometry instead of a walk."""
+        ``stored`` (a resume) the plan is walked as it ran. ``earlier``: a pre-flight of ``protocol`` already made
+        (with the same ``stored`` replies), whose distinct targets are checked again by this rig's geometry instead
+        of a walk."""
         robot = self.rig.robot
         if robot.kind != protocol.robot:
             raise ConfigError(
                 f"{protocol.source}: robot = {protocol.robot!r}, but this rig's robot is {robot.kind!r}; expected "
                 "a rig of the protocol's robot"
             )
-        if earlier is not None and stored is None and (earlier.protocol, earlier.robot) == (protocol.name, robot.kind):
+        made_alike = (protocol.name, robot.kind, len(stored or {}))
+        if earlier is not None and (earlier.protocol, earlier.robot, earlier.stored_samples) == made_alike:
             again = earlier.checked_by(robot.geometry)
             if again is not None:
                 return again.refuse_unless_ok(protocol.source)
         return preflight(protocol, geometry=robot.geometry, stored=stored)
 
-    def resume_run(self, run_id: int) -> RunResult:
-        """Continue stored run ``run_id`` at its last checkpoint, without storing any sample twice."""
+    def resume_run(self, run_id: int, *, plan: PlanSummary | None = None) -> RunResult:
+        """Continue stored run ``run_id`` at its last checkpoint, without storing any sample twice. ``plan``: its
+        pre-flight made before the rig opened, with the stored replies (:func:`bench.protocols.resume.stored_replies`)
+        while this process owned the run."""
         self.store.claim(run_id)  # first: a run another live process drives is refused before anything is read
         try:
-            return self._resume_owned(run_id)
+            return self._resume_owned(run_id, plan)
         except BaseException:
             if self.state is RunState.IDLE:  # refused before it started: the ownership goes back at once
                 self.store.release(run_id)
             raise
 
-    def _resume_owned(self, run_id: int) -> RunResult:
+    def _resume_owned(self, run_id: int, earlier: PlanSummary | None) -> RunResult:
         record = self.store.run(run_id)
         protocol = resumable_protocol(record, self.rig)
         stored = stored_replies(self.store, run_id)
-        plan = self.preflight(protocol, stored)
+        plan = self.preflight(protocol, stored, earlier=earlier)
         stored_base = record.settings.get("time_base", "wall s (runs stored before time bases were recorded)")
         if stored_base != self.rig.time_base():
             _log.warning(

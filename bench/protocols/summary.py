@@ -56,6 +56,8 @@ class PlanSummary:
     readings: int = 0
     #: the step a resumed run acts from (the last checkpoint before the first sample not stored); None: all stored
     resume_at: int | None = None
+    #: the stored samples (of a run being resumed) the walk sent back to the plan; 0 for a new run
+    stored_samples: int = 0
     #: what a station must provide to run it (:func:`required_capabilities`)
     capabilities: frozenset[str] = frozenset()
 
