@@ -33,7 +33,8 @@ from bench.calibration.compensate import NEWEST, describe_in_force
 from bench.errors import BenchError, PromptWithdrawn
 from bench.launch import RigRequest, open_rig
 from bench.protocols import Prompt, Protocol, Runner, RunState, TransitionError, protocol_from_config
-from bench.protocols.plan import required_capabilities
+from bench.protocols.plan import PlanSummary, preflight
+from bench.protocols.resume import stored_replies
 from bench.rigs.interfaces import Entry
 from bench.store import Store
 
@@ -202,6 +203,9 @@ class CampaignWorker(QThread):
                     )
                     robot = protocol.robot
                     stored = store.run(job).settings if isinstance(job, int) else None
+                    # the one walk of the plan (a resumed one as it ran) before the rig opens: its capabilities,
+                    # and a plain refusal before anything starts; the runner re-checks it by the rig's geometry
+                    early = preflight(protocol, stored=stored_replies(store, job) if isinstance(job, int) else None)
                     request = self.rig_spec.request()
                     if isinstance(job, int):  # a resume keeps the run's own seed and speed factor (its time base)
                         request = dataclasses.replace(request, seed=None, speed_factor=None)
@@ -212,7 +216,7 @@ class CampaignWorker(QThread):
                         robot=robot,
                         stored=stored,
                         fixture=getattr(protocol, "fixture", "assembled"),
-                        requires=required_capabilities(protocol),
+                        requires=early.capabilities,
                         protocol=f"protocol {protocol.name!r}",
                         operator=None if request.simulator_default else WindowOperator(self),
                     )
@@ -225,12 +229,12 @@ class CampaignWorker(QThread):
                     self.failed.emit(f"rig for {robot}: {type(exc).__name__}: {exc}")
                     continue
                 try:
-                    self._run_job(job, rig, store)
+                    self._run_job(job, rig, store, early)
                 finally:
                     rig.close()
                     self.runner = None
 
-    def _run_job(self, job: Protocol | int, rig: Any, store: Store) -> None:
+    def _run_job(self, job: Protocol | int, rig: Any, store: Store, early: PlanSummary) -> None:
         assembled = rig.robot.settings().get("fixture", "assembled") == "assembled"
         if self.rig_spec.request().simulator_default and assembled and not self.rig_spec.simulated_calliper:
             # the simulated operator still tells the simulator the payload; the person types the readings
@@ -248,7 +252,10 @@ class CampaignWorker(QThread):
             runner.emergency_stop()
         self.state_changed.emit("starting")  # "running" once the runner is (its on_start)
         try:
-            result = runner.resume_run(job) if isinstance(job, int) else runner.run(job, campaign=self.campaign)
+            if isinstance(job, int):
+                result = runner.resume_run(job, plan=early)
+            else:
+                result = runner.run(job, campaign=self.campaign, plan=early)
         except BenchError as exc:  # refused before the run started (pre-flight, resume checks)
             self.failed.emit(str(exc))
             return
