@@ -12,6 +12,7 @@ import os
 
 import numpy as np
 import pytest
+from runner_support import StandInMover
 
 from bench.protocols import Rig, Runner
 from bench.protocols.iso9283 import PoseAccuracy
@@ -29,7 +30,7 @@ _REPORTS = 8
 PLANES = {"xy": (0, 1), "xz": (0, 2)}
 
 
-class FifoMiceRobot:
+class FifoMiceRobot(StandInMover):
     """A robot that reaches every commanded target exactly and whose moves reach the mice as ``input_event``
     reports (counts with carry, so they never drift); ``drill`` says what the x-y mouse does after ``healthy``
     moves: ``silent`` (sends nothing), ``eof`` (its device closes) or ``frozen`` (reports without motion)."""

@@ -220,9 +220,9 @@ def _rehearsed_run(store: Store, station: Path, protocol_file: Path, *, operator
     )
     try:
         if operator is not None and hasattr(operator, "truth_path"):
-            operator.truth_path = rig.extra["simulator"]["truth_log"]
+            operator.truth_path = rig.simulator.truth_log
         result = Runner(rig, store, progress=False).run(protocol)
-        truth = _truth(rig.extra["simulator"]["truth_log"])
+        truth = _truth(rig.simulator.truth_log)
     finally:
         rig.close()
     return result, truth

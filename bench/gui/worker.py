@@ -30,11 +30,12 @@ from typing import Any
 
 from PySide6.QtCore import QThread, Signal
 
-from bench.calibration.compensate import NEWEST, describe_in_force, preflight_by_rig
+from bench.calibration.compensate import NEWEST, describe_in_force
 from bench.errors import BenchError, PromptWithdrawn
 from bench.launch import RigRequest, open_rig, resuming
 from bench.protocols import Prompt, Protocol, Runner, RunState, TransitionError, protocol_from_config
-from bench.protocols.plan import iterate, required_capabilities
+from bench.protocols.plan import PlanSummary, preflight
+from bench.protocols.resume import stored_replies
 from bench.rigs.interfaces import Entry
 from bench.store import Store
 
@@ -209,6 +210,9 @@ class CampaignWorker(QThread):
             else:
                 protocol = job
             robot = protocol.robot
+            # the one walk of the plan (a resumed one as it ran) before the rig opens: its capabilities, and a
+            # plain refusal before anything starts; the runner re-checks it by the rig's geometry
+            early = preflight(protocol, stored=stored_replies(store, job) if isinstance(job, int) else None)
             request = self.rig_spec.request()
             if isinstance(job, int):  # a resume keeps the run's own seed and speed factor (its time base)
                 request = dataclasses.replace(request, seed=None, speed_factor=None)
@@ -219,12 +223,11 @@ class CampaignWorker(QThread):
                 robot=robot,
                 stored=stored,
                 fixture=getattr(protocol, "fixture", "assembled"),
-                requires=required_capabilities(protocol),
+                requires=early.capabilities,
                 protocol=f"protocol {protocol.name!r}",
                 operator=None if request.simulator_default else WindowOperator(self),
             )
             self.message.emit(describe_in_force(rig))
-            preflight_by_rig(rig, protocol)
         except BenchError as exc:
             self.failed.emit(str(exc))
             return
@@ -233,12 +236,12 @@ class CampaignWorker(QThread):
             self.failed.emit(f"rig for {robot}: {type(exc).__name__}: {exc}")
             return
         try:
-            self._run_job(job, rig, store)
+            self._run_job(job, rig, store, early)
         finally:
             rig.close()
             self.runner = None
 
-    def _run_job(self, job: Protocol | int, rig: Any, store: Store) -> None:
+    def _run_job(self, job: Protocol | int, rig: Any, store: Store, early: PlanSummary) -> None:
         assembled = rig.robot.settings().get("fixture", "assembled") == "assembled"
         if self.rig_spec.request().simulator_default and assembled and not self.rig_spec.simulated_calliper:
             # the simulated operator still tells the simulator the payload; the person types the readings
@@ -256,7 +259,10 @@ class CampaignWorker(QThread):
             runner.emergency_stop()
         self.state_changed.emit("starting")  # "running" once the runner is (its on_start)
         try:
-            result = runner.resume_run(job) if isinstance(job, int) else runner.run(job, campaign=self.campaign)
+            if isinstance(job, int):
+                result = runner.resume_run(job, plan=early)
+            else:
+                result = runner.run(job, campaign=self.campaign, plan=early)
         except BenchError as exc:  # refused before the run started (pre-flight, resume checks)
             self.failed.emit(str(exc))
             return
@@ -287,12 +293,7 @@ class CampaignWorker(QThread):
                 for s in stored
             ],
         )
-        protocol = (
-            job
-            if isinstance(job, Protocol)
-            else protocol_from_config(record.config, source=f"run {run_id}", stored=True)
-        )
-        total = sum(1 for step in iterate(protocol, final=False) if isinstance(step, Prompt) and step.field)
+        total = runner.plan.readings if runner.plan is not None else 0  # the run's pre-flight counted them
         taken = sum(1 for s in stored if isinstance(s.raw, dict) and "field" in s.raw and "entered" in s.raw)
         self._readings = (taken, total)
 

@@ -9,7 +9,7 @@ The command line (``bench run --station``) and the desktop app build rigs here a
 3. records the calibrations in force get-or-create in the store (a nominal one, flagged as such, when none was
    measured yet), so every sample names them;
 4. registers relative instruments (the mice) at home and verifies them at a check pose before anything is measured
-   (:mod:`bench.rigs.registration`; the record goes into ``rig.extra["registration"]``);
+   (:mod:`bench.rigs.registration`; the record is the rig's ``registration``);
 5. closes everything it opened, newest first, when a later device fails.
 
 Each sensor is opened by the opener its record in :mod:`bench.sensor_kinds` names (given a :class:`SensorOpening`);
@@ -22,13 +22,14 @@ simulator processes (:func:`bench.simulators.station.rehearse`), built here by t
 from __future__ import annotations
 
 import logging
+from collections.abc import Callable
 from contextlib import ExitStack
 from typing import Any
 
 from bench.errors import ConfigError
 from bench.rigs.gauges import CalliperOnly
 from bench.rigs.interfaces import Instrument, Operator, Rig
-from bench.rigs.movers import DeltaMover, Pkm5Mover
+from bench.rigs.movers import DeltaMover, LatchingMover, Pkm5Mover
 from bench.rigs.opening import SensorOpening, open_station_port
 from bench.rigs.registration import home_before_registering, register_at_home
 from bench.rigs.station import Station, capture_capabilities
@@ -86,35 +87,19 @@ def build_rig(
                 opening = SensorOpening(station, spec, controller, store, opened, calibration_ids)
                 operator = kind.resolved("operator")(opening, operator)
         closers = opened.pop_all()
-    rig = Rig(
+    return Rig(
         mover,
         instrument,
         operator,
         speed_factor=speed_factor,
         calibration_ids=tuple(calibration_ids),
         closers=[closers.close],
+        station=station,
+        registration=registration,  # the runner files it as the run's (or the segment's)
     )
-    rig.extra["station"] = station.settings()
-    rig.extra["dut"] = station_identity(station)
-    if registration is not None:
-        rig.extra["registration"] = registration  # the runner files it as the run's (or the segment's)
-    return rig
 
 
-def station_identity(station: Station) -> dict[str, str]:
-    """The device under test and the people, as the report's page 1 reads them (``settings.dut``)."""
-    identity = station.identity
-    fields = {
-        "dut_serial": identity.robot_serial or identity.robot_asset,
-        "customer": identity.customer,
-        "order": identity.order,
-        "operator": identity.operator,
-        "laboratory": identity.lab,
-    }
-    return {key: value for key, value in fields.items() if value}
-
-
-def open_mover(station: Station) -> tuple[Any, Any]:
+def open_mover(station: Station) -> tuple[LatchingMover, Callable[[], None]]:
     """Only the robot of ``station`` (jogging): its mover and the function that releases it."""
     with ExitStack() as opened:
         mover, _ = _open_robot(station, opened)
@@ -122,7 +107,7 @@ def open_mover(station: Station) -> tuple[Any, Any]:
     return mover, closers.close
 
 
-def _open_robot(station: Station, opened: ExitStack) -> tuple[Any, Any]:
+def _open_robot(station: Station, opened: ExitStack) -> tuple[LatchingMover, Any]:
     spec = station.controller
     port = open_station_port(station, "controller.port", spec.port, spec.baud, opened)
     if station.robot == "pkm5":
@@ -140,11 +125,11 @@ def _open_robot(station: Station, opened: ExitStack) -> tuple[Any, Any]:
         return Pkm5Mover(controller), controller
     from bench.robots.delta4 import Delta4Controller
 
-    controller = Delta4Controller(port)
-    opened.callback(controller.shutdown)
-    controller.start()
-    controller.probe_fine_references()  # fine references only if the firmware answers (the run settings say)
-    return DeltaMover(controller), controller
+    delta = Delta4Controller(port)
+    opened.callback(delta.shutdown)
+    delta.start()
+    delta.probe_fine_references()  # fine references only if the firmware answers (the run settings say)
+    return DeltaMover(delta), delta
 
 
 def _serving(station: Station) -> list[tuple[SensorKind, Any]]:

@@ -201,7 +201,8 @@ class LaserGridInstrument:
             raw["true_pose"] = [round(float(v), 6) for v in self.truth()]
         if capture.kind == "grid_hit":
             screen = self.geometry.horizontal
-            expected = int(screen.index_of_cell(capture.conditions["expected_i"], capture.conditions["expected_j"]))
+            cell = (np.asarray(int(capture.conditions[key])) for key in ("expected_i", "expected_j"))
+            expected = int(screen.index_of_cell(*cell))
             return Measurement(
                 {
                     "expected_index": float(expected),

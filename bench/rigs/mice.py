@@ -23,6 +23,7 @@ or how far it moved); the run then ends ``failed`` with that reason and nothing 
 
 from __future__ import annotations
 
+import math
 import selectors
 import threading
 import time
@@ -30,11 +31,12 @@ from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from bench.errors import LinkError
 from bench.rigs.interfaces import Measurement
 from bench.sensors.calibration import MM_PER_INCH
-from bench.sensors.reading import SensorStalled
+from bench.sensors.reading import Reading, SensorStalled
 from bench.steps import Capture
 
 __all__ = [
@@ -84,7 +86,7 @@ class MiceInstrument:
     def __init__(
         self,
         mice: dict[str, Any],
-        origin_mm,
+        origin_mm: ArrayLike,
         calibration: Any,
         *,
         follow: bool = False,
@@ -165,7 +167,8 @@ class MiceInstrument:
         self._counts_at_last = {plane: mouse.counts.copy() for plane, mouse in self.mice.items()}
         reports, self._reports_since = self._reports_since, {plane: 0 for plane in self.mice}
         for plane, axes in _PLANE_AXES.items():
-            expected_mm = float(np.hypot(*(commanded[a] - previous[a] for a in axes)))
+            first, second = (commanded[a] - previous[a] for a in axes)
+            expected_mm = math.hypot(first, second)
             if plane not in self.mice or expected_mm < LIVENESS_MIN_MOVE_MM:
                 continue
             counts = self._counts_at_last[plane] - counts_then[plane]
@@ -201,11 +204,12 @@ class MiceInstrument:
         """The position (x, y, z) the mice read now, mm (the registration's check, :mod:`bench.rigs.registration`)."""
         return self._position_mm(*self._read())
 
-    def _position_mm(self, xy, xz) -> np.ndarray:
+    def _position_mm(self, xy: Reading, xz: Reading) -> np.ndarray:
         """x and y from the x-y mouse, z from the x-z mouse, in the registered frame, mm."""
-        return np.array([*(self.origin[:2] + np.asarray(xy.value)), self.origin[2] + xz.value[1]], dtype=float)
+        x_z = np.asarray(xz.value, dtype=float)
+        return np.array([*(self.origin[:2] + np.asarray(xy.value)), self.origin[2] + x_z[1]], dtype=float)
 
-    def shift_origin(self, shift_mm) -> None:
+    def shift_origin(self, shift_mm: ArrayLike) -> None:
         """Move the frame by ``shift_mm`` (x, y, z): every later reading is ``shift_mm`` smaller (the registration
         re-referenced to the mean return home)."""
         self.origin = self.origin - np.asarray(shift_mm, dtype=float)[:3]

@@ -65,6 +65,7 @@ __all__ = [
     "capture_capabilities",
     "load_station",
     "parse_station",
+    "station_identity",
 ]
 
 #: Every fixture a controller can be in; which a robot supports is its registry record's ``fixtures``.
@@ -246,6 +247,19 @@ class Station:
         for name, spec in self.sensors.items():
             out[name] = vars(spec)
         return out
+
+
+def station_identity(station: Station) -> dict[str, str]:
+    """The device under test and the people, as the report's page 1 reads them (``settings.dut``)."""
+    identity = station.identity
+    fields = {
+        "dut_serial": identity.robot_serial or identity.robot_asset,
+        "customer": identity.customer,
+        "order": identity.order,
+        "operator": identity.operator,
+        "laboratory": identity.lab,
+    }
+    return {key: value for key, value in fields.items() if value}
 
 
 def load_station(path: str | Path) -> Station:
