@@ -618,12 +618,13 @@ class Store:
     def stored_rows(self, run_id: int, after_step: int = -1, *, extract: Sequence[str] = ()) -> Iterator[tuple]:
         """The samples of a run after step ``after_step`` exactly as stored, in step order: ``(step_index, kind,
         pose, cycle, t_s, wall_utc, values_json, raw_json)`` with the JSON unparsed (what sync sends and what
-        :func:`bench.store.lab.rows_checksum` hashes); with ``extract`` (two or more value names) a ninth item, the
-        JSON array of those values as stored (``null`` where absent; SQLite's ``json_extract``, number text kept)."""
+        :func:`bench.store.lab.rows_checksum` hashes); with ``extract`` (two or more value names) two more items,
+        the row's stored checksum and the JSON array of those values as stored (``null`` where absent; SQLite's
+        ``json_extract``, number text kept): what the lab sync sends."""
         paths = "".join(", ?" for _ in extract)
         return self._db.execute(
             "SELECT step_index, kind, pose, cycle, t_s, wall_utc, values_json, raw_json"
-            + (f", json_extract(values_json{paths})" if extract else "")
+            + (f", checksum, json_extract(values_json{paths})" if extract else "")
             + " FROM samples WHERE run_id = ? AND step_index > ? ORDER BY step_index",
             (*(f"$.{name}" for name in extract), int(run_id), int(after_step)),
         )

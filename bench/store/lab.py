@@ -149,6 +149,13 @@ class LabStore:
         self._conn.rollback()
         return result
 
+    def check_samples(self) -> tuple[list[str], list[str]]:
+        """Every synced sample against its bench's checksum and its typed columns against its JSON
+        (:func:`bench.store.lab_check.check_lab_samples`): the damaged samples' lines, and notes on unchecked runs."""
+        from bench.store.lab_check import check_lab_samples
+
+        return check_lab_samples(self._conn, self.path)
+
     def query(self, sql: str, args: Any = (), *, settings: Mapping[str, str] | None = None) -> list[tuple]:
         """Rows of a read-only SQL query over the lab schema (for lab-wide analyses and benchmarks); ``settings``
         (e.g. ``{"work_mem": "256MB"}``) are server settings for this query's transaction only."""

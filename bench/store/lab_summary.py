@@ -50,20 +50,30 @@ _SAME_KEY = """k.run_uuid = {s}.run_uuid AND k.pose = coalesce({s}.pose, '')
     AND k.cmd_z_mm = {s}.cmd_z_mm"""
 
 #: Fold the pose samples of ``{source}`` (new rows, or all of bench.samples for a migration) into the pose tables:
-#: new keys first (only those missing, so that key ids stay dense: a conflicting insert would use up an id), then
-#: the sums, then the points.
+#: the sums of each key, aggregated once (schema 3 aggregated twice: 25 % of the fold's time), are added to the keys
+#: that exist and inserted as new keys for the others (only those missing, so that key ids stay dense: a
+#: conflicting insert uses up an id; the ``ON CONFLICT`` adds the sums when another sync of the same run inserted
+#: the key meanwhile); then the points.
 _FOLD_SQL = f"""
-INSERT INTO bench.pose_keys (run_uuid, pose, velocity_pct, cmd_x_mm, cmd_y_mm, cmd_z_mm, sum_x_mm, sum_y_mm,
-                             sum_z_mm, n)
-SELECT DISTINCT {_KEY}, 0.0, 0.0, 0.0, 0 FROM {{source}} AS s WHERE {_POSE_SAMPLES}
-    AND NOT EXISTS (SELECT FROM bench.pose_keys k WHERE {_SAME_KEY.format(s="s")})
-ON CONFLICT DO NOTHING;
-UPDATE bench.pose_keys k SET sum_x_mm = k.sum_x_mm + a.sum_x_mm, sum_y_mm = k.sum_y_mm + a.sum_y_mm,
-                             sum_z_mm = k.sum_z_mm + a.sum_z_mm, n = k.n + a.n
-FROM (SELECT {_KEY}, sum(x_mm) AS sum_x_mm, sum(y_mm) AS sum_y_mm, sum(z_mm) AS sum_z_mm, count(*) AS n
-      FROM {{source}} AS s WHERE {_POSE_SAMPLES} GROUP BY 1, 2, 3, 4, 5, 6) AS a
-WHERE k.run_uuid = a.run_uuid AND k.pose = a.pose AND k.velocity_pct = a.velocity_pct AND k.cmd_x_mm = a.cmd_x_mm
-    AND k.cmd_y_mm = a.cmd_y_mm AND k.cmd_z_mm = a.cmd_z_mm;
+WITH batch AS MATERIALIZED (
+    SELECT {_KEY}, sum(x_mm) AS sum_x_mm, sum(y_mm) AS sum_y_mm, sum(z_mm) AS sum_z_mm, count(*) AS n
+    FROM {{source}} AS s WHERE {_POSE_SAMPLES} GROUP BY 1, 2, 3, 4, 5, 6
+), added_to AS (
+    UPDATE bench.pose_keys k SET sum_x_mm = k.sum_x_mm + a.sum_x_mm, sum_y_mm = k.sum_y_mm + a.sum_y_mm,
+                                 sum_z_mm = k.sum_z_mm + a.sum_z_mm, n = k.n + a.n
+    FROM batch AS a
+    WHERE k.run_uuid = a.run_uuid AND k.pose = a.pose AND k.velocity_pct = a.velocity_pct
+        AND k.cmd_x_mm = a.cmd_x_mm AND k.cmd_y_mm = a.cmd_y_mm AND k.cmd_z_mm = a.cmd_z_mm
+)
+INSERT INTO bench.pose_keys AS k (run_uuid, pose, velocity_pct, cmd_x_mm, cmd_y_mm, cmd_z_mm, sum_x_mm, sum_y_mm,
+                                  sum_z_mm, n)
+SELECT * FROM batch AS a WHERE NOT EXISTS (
+    SELECT FROM bench.pose_keys k WHERE k.run_uuid = a.run_uuid AND k.pose = a.pose
+        AND k.velocity_pct = a.velocity_pct AND k.cmd_x_mm = a.cmd_x_mm AND k.cmd_y_mm = a.cmd_y_mm
+        AND k.cmd_z_mm = a.cmd_z_mm)
+ON CONFLICT (run_uuid, pose, velocity_pct, cmd_x_mm, cmd_y_mm, cmd_z_mm) DO UPDATE
+    SET sum_x_mm = k.sum_x_mm + EXCLUDED.sum_x_mm, sum_y_mm = k.sum_y_mm + EXCLUDED.sum_y_mm,
+        sum_z_mm = k.sum_z_mm + EXCLUDED.sum_z_mm, n = k.n + EXCLUDED.n;
 INSERT INTO bench.pose_points (key, x_mm, y_mm, z_mm)
 SELECT k.id, s.x_mm, s.y_mm, s.z_mm FROM {{source}} AS s JOIN bench.pose_keys k ON {_SAME_KEY.format(s="s")}
 WHERE s.kind = 'pose' AND s.x_mm IS NOT NULL AND s.y_mm IS NOT NULL AND s.z_mm IS NOT NULL;
