@@ -31,7 +31,7 @@ def _check(args: argparse.Namespace) -> int:
             problems, notes = lab.check_samples()
         args.path = redacted(args.path)
     else:
-        problems = check_store(args.path)
+        problems = check_store(args.path, option="STORE")
     for line in notes:
         print(line, file=sys.stderr)
     for line in problems:

@@ -129,15 +129,15 @@ def _refuse_foreign(db: sqlite3.Connection, path: str) -> None:
         )
 
 
-def open_connection(path: str, *, read_only: bool = False) -> sqlite3.Connection:
+def open_connection(path: str, *, read_only: bool = False, option: str = "--store") -> sqlite3.Connection:
     """A connection to the store at ``path``: read-only (the file must exist; nothing is created) or for writing
     (WAL, ``synchronous=FULL``, foreign keys on; a missing file is created). Another application's SQLite file is
-    refused in either mode before anything is written."""
+    refused in either mode before anything is written. ``option`` names where the path came from in a refusal."""
     if path != ":memory:" and not Path(path).parent.is_dir():
-        raise ConfigError(f"--store {path}: folder {Path(path).parent} does not exist")
+        raise ConfigError(f"{option} {path}: folder {Path(path).parent} does not exist")
     if read_only:
         if not Path(path).is_file():
-            raise ConfigError(f"--store {path}: no run store there, expected the bench.db a run wrote (--store)")
+            raise ConfigError(f"{option} {path}: no run store there, expected the bench.db a run wrote (--store)")
         uri = Path(path).resolve().as_uri()
         db = sqlite3.connect(f"{uri}?mode=ro", uri=True, isolation_level=None, timeout=BUSY_TIMEOUT_S)
         try:
@@ -159,11 +159,11 @@ def open_connection(path: str, *, read_only: bool = False) -> sqlite3.Connection
     return db
 
 
-def check_store(path: str) -> list[str]:
+def check_store(path: str, option: str = "--store") -> list[str]:
     """The problems of the store at ``path``, one line each (empty when sound): SQLite's ``integrity_check``,
     every row whose foreign key names a missing parent (``foreign_key_check``) and every sample that fails its
-    checksum or holds JSON that does not parse. Opens read-only."""
-    db = open_connection(path, read_only=True)
+    checksum or holds JSON that does not parse. Opens read-only (``option``: as :func:`open_connection`)."""
+    db = open_connection(path, read_only=True, option=option)
     # a flipped bit can leave bytes that are not UTF-8: read them as they are, for the checksum to name the row
     db.text_factory = lambda data: data.decode("utf-8", "surrogateescape")
     problems: list[str] = []
