@@ -3,7 +3,7 @@
 SQLite's own checks (``PRAGMA integrity_check``) see a damaged page, not a changed digit: one flipped bit in a
 stored ``values_json`` ("2.1" becoming "2.3") leaves a sound file that exports a different number. Each sample row
 therefore carries ``checksum``: the SHA-256 (hex) of its stored columns as stored (the JSON text unparsed), computed
-when the sample is encoded, before its commit (:func:`bench.store.database.encode_sample`). Reading a sample
+when the sample is encoded, before its commit (:func:`bench.store.sample_rows.encode_sample`). Reading a sample
 (:meth:`bench.store.database.Store.samples`) recomputes it and refuses the run in one line naming the run and the
 sample's step (:class:`DamagedSample`); ``bench store check`` lists every such row.
 
