@@ -282,7 +282,7 @@ class Store(StoreSamples, StoreCalibrations):
                 " VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, 'running', ?)",
                 row,
             )
-            run_id = int(cursor.lastrowid)
+            run_id = cursor.inserted_id()
             self.claim(run_id)
             self._db.execute("COMMIT")
         except BaseException:
@@ -354,7 +354,7 @@ class Store(StoreSamples, StoreCalibrations):
                 args.append(value)
         return self._select_runs("WHERE " + " AND ".join(clauses) if clauses else "", tuple(args))
 
-    def _select_runs(self, where: str, args: tuple) -> list[RunRecord]:
+    def _select_runs(self, where: str, args: tuple[Any, ...]) -> list[RunRecord]:
         query = (
             "SELECT r.id, r.uuid, r.bench, c.name, r.protocol_name, r.protocol_version, r.robot, r.config_json,"
             " r.settings_json,"

@@ -66,7 +66,7 @@ __all__ = [
 _SAMPLE_COLUMNS = ", ".join(SAMPLE_COLUMNS)
 
 
-def rows_checksum(rows: Iterable[tuple]) -> str:
+def rows_checksum(rows: Iterable[tuple[Any, ...]]) -> str:
     """SHA-256 over a run's sample rows in step order (``Store.stored_rows`` layout), one JSON line per row.
 
     Equal on the local file and on the server exactly when every stored column of every sample is equal
@@ -156,7 +156,7 @@ class LabStore:
 
         return check_lab_samples(self._conn, self.path)
 
-    def query(self, sql: str, args: Any = (), *, settings: Mapping[str, str] | None = None) -> list[tuple]:
+    def query(self, sql: str, args: Any = (), *, settings: Mapping[str, str] | None = None) -> list[tuple[Any, ...]]:
         """Rows of a read-only SQL query over the lab schema (for lab-wide analyses and benchmarks); ``settings``
         (e.g. ``{"work_mem": "256MB"}``) are server settings for this query's transaction only."""
         for name, value in (settings or {}).items():

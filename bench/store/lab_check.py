@@ -47,21 +47,19 @@ def check_lab_samples(conn: Any, where: str) -> tuple[list[str], list[str]]:
     its password hidden), one line each, and one line per run whose samples carry no checksum (not damage)."""
     damaged: list[str] = []
     unchecked: dict[str, int] = {}
-    n_stored = len(SAMPLE_COLUMNS)
     with conn.transaction(), conn.cursor(name="bench_lab_check") as rows:
         rows.itersize = _ROWS_PER_FETCH
         rows.execute(_QUERY)
-        for bench, local_id, run_uuid, *row in rows:
-            stored, checksum, typed = row[:n_stored], row[n_stored], tuple(row[n_stored + 1 :])
+        for bench, local_id, run_uuid, step, kind, pose, cycle, t_s, wall, values, raw, checksum, *typed in rows:
             name = f"run {bench}/{local_id} ({run_uuid[:8]})"
             problem = None
             if checksum is None:
                 unchecked[name] = unchecked.get(name, 0) + 1
             else:
-                problem = checksum_problem(*stored, checksum)
-            problem = problem or _typed_problem(stored[6], typed)
+                problem = checksum_problem(step, kind, pose, cycle, t_s, wall, values, raw, checksum)
+            problem = problem or _typed_problem(values, tuple(typed))
             if problem is not None:
-                damaged.append(f"{where}: {name} sample at step {stored[0]}: {problem}")
+                damaged.append(f"{where}: {name} sample at step {step}: {problem}")
     notes = [
         f"{where}: {name}: {count} samples synced before lab schema 4 carry no checksum (not checked)"
         for name, count in unchecked.items()

@@ -100,7 +100,7 @@ def one_line(exc: BaseException) -> str:
     return lines[0] if lines else type(exc).__name__
 
 
-def connect(url: str, *, connect_timeout_s: int = 5):
+def connect(url: str, *, connect_timeout_s: int = 5) -> Any:
     """An open psycopg connection to ``url``; :class:`LabStoreError` says in one line what is wrong."""
     check_lab_url(url)
     psycopg = psycopg_module()

@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import json
 from collections.abc import Iterable
+from typing import Any
 
 from bench.store.descriptors import VALUE_COLUMNS
 
@@ -78,7 +79,7 @@ def _typed_fields(values_json: str, extracted: str | None) -> str:
     return extracted[1:-1].replace(",", "\t").replace("null", _NULL)
 
 
-def _line(run_uuid: str, row: tuple) -> str:
+def _line(run_uuid: str, row: tuple[Any, ...]) -> str:
     """One COPY line, escaping every text field (the general path of :func:`copy_text`)."""
     step, kind, pose, cycle, t_s, wall, values, raw, checksum, extracted = row
     return (
@@ -88,7 +89,7 @@ def _line(run_uuid: str, row: tuple) -> str:
     )
 
 
-def copy_text(run_uuid: str, rows: Iterable[tuple]) -> bytes:
+def copy_text(run_uuid: str, rows: Iterable[tuple[Any, ...]]) -> bytes:
     """Rows of ``Store.stored_rows(run_id, extract=TYPED_COLUMNS)`` as COPY text for :data:`COPY_COLUMNS`;
     ``t_s`` as its shortest round-trip repr.
 

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import logging
+from typing import Any
 
 from bench.store.lab_connection import LabStoreError, redacted
 from bench.store.lab_copy import TYPED_COLUMNS, typed_columns_ddl
@@ -115,7 +116,7 @@ _BACKFILL_TYPED = "UPDATE bench.samples SET " + ", ".join(
 _LOCK_KEY = 9283_21  # advisory lock serialising schema creation by benches that connect at once
 
 
-def ensure_schema(conn, url: str) -> None:
+def ensure_schema(conn: Any, url: str) -> None:
     """Create the lab schema when missing; refuse a server whose schema is newer than this bench's."""
     with conn.transaction():
         conn.execute("SELECT pg_advisory_xact_lock(%s)", (_LOCK_KEY,))

@@ -32,6 +32,10 @@ from __future__ import annotations
 import datetime as dt
 import math
 from dataclasses import asdict, dataclass
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    from bench.store.lab import LabStore
 
 __all__ = ["POSE_TABLES_BACKFILL", "POSE_TABLES_DDL", "PoseGroup", "pose_summary"]
 
@@ -197,14 +201,19 @@ class PoseGroup:
         return out
 
 
-def _group_key(run: tuple, pose: str, velocity: float, cx: float, cy: float, cz: float) -> tuple:
+def _group_key(run: tuple[Any, ...], pose: str, velocity: float, cx: float, cy: float, cz: float) -> tuple[Any, ...]:
     """The group of a run and pose key: the run's (bench, robot, week), the pose, the velocity (None for the
     server's NaN, which as a dict key would never equal itself) and the command."""
     return (*run, pose, None if math.isnan(velocity) else velocity, cx, cy, cz)
 
 
 def pose_summary(
-    lab, *, since: str | None = None, until: str | None = None, bench: str | None = None, robot: str | None = None
+    lab: LabStore,
+    *,
+    since: str | None = None,
+    until: str | None = None,
+    bench: str | None = None,
+    robot: str | None = None,
 ) -> list[PoseGroup]:
     """The :class:`PoseGroup` rows of the lab store ``lab`` (a :class:`bench.store.lab.LabStore`), for runs started
     at or after ``since`` and before ``until`` (ISO dates or times, UTC), of ``bench`` and ``robot`` when given."""
@@ -225,8 +234,8 @@ def pose_summary(
     if not runs:
         return []
     sums = lab.query(_KEYS_SQL, (list(runs),))
-    pooled: dict[tuple, list[float]] = {}
-    group_of_key: dict[int, tuple] = {}
+    pooled: dict[tuple[Any, ...], list[float]] = {}
+    group_of_key: dict[int, tuple[Any, ...]] = {}
     for key_id, run_uuid, pose, velocity, cx, cy, cz, sx, sy, sz, n in sums:
         group = _group_key(runs[run_uuid], pose, velocity, cx, cy, cz)
         group_of_key[key_id] = group
@@ -242,7 +251,12 @@ def pose_summary(
     if group_of_key:
         first, last = min(group_of_key), max(group_of_key)
         size = last - first + 1
-        arrays = {"group": [-1] * size, "bx": [0.0] * size, "by": [0.0] * size, "bz": [0.0] * size}
+        arrays: dict[str, list[Any]] = {
+            "group": [-1] * size,
+            "bx": [0.0] * size,
+            "by": [0.0] * size,
+            "bz": [0.0] * size,
+        }
         for key_id, group in group_of_key.items():
             at = key_id - first
             arrays["group"][at] = index[group]
@@ -266,7 +280,7 @@ def pose_summary(
                 pose=pose or None,
                 velocity_pct=velocity,
                 commanded_mm=(cx, cy, cz),
-                n=pooled[key][3],
+                n=int(pooled[key][3]),
                 barycentre_mm=b,
                 ap_mm=math.sqrt((b[0] - cx) ** 2 + (b[1] - cy) ** 2 + (b[2] - cz) ** 2),
                 l_mean_mm=l_mean,

@@ -11,12 +11,16 @@ import time
 from collections.abc import Callable, Iterator
 from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any
 
 from bench.errors import BenchError
 from bench.store.database import RunRecord, Store
 from bench.store.lab_connection import LabServerBusy, LabStoreError, connect, one_line, psycopg_module, redacted
 from bench.store.lab_copy import COPY_COLUMNS, TYPED_COLUMNS, copy_text
 from bench.store.lab_schema import ensure_schema
+
+if TYPE_CHECKING:  # psycopg is the lab-store extra, imported when a sync starts
+    from psycopg import Connection, Cursor
 
 __all__ = ["SyncResult", "sync_after_run", "sync_store"]
 
@@ -64,7 +68,7 @@ class SyncResult:
         return self.samples_sent / self.seconds if self.seconds > 0 else float("inf")
 
 
-def _run_row(store: Store, run: RunRecord, calibration_uuids: dict[int, str]) -> tuple:
+def _run_row(store: Store, run: RunRecord, calibration_uuids: dict[int, str]) -> tuple[Any, ...]:
     return (
         run.uuid,
         run.bench,
@@ -86,7 +90,7 @@ def _run_row(store: Store, run: RunRecord, calibration_uuids: dict[int, str]) ->
     )
 
 
-def _copy(cur, table: str, chunks: list[bytes]) -> None:
+def _copy(cur: Cursor[Any], table: str, chunks: list[bytes]) -> None:
     """COPY the formatted ``chunks`` into ``table``, one write each (the server parses one while the next goes)."""
     with cur.copy(f"COPY {table} ({_COPY_COLUMNS}) FROM STDIN") as copy:
         for chunk in chunks:
@@ -116,7 +120,7 @@ def _read_batches(
             yield chunks, n, run
 
 
-def _send_batch(conn, chunks: list[bytes], n: int) -> int:
+def _send_batch(conn: Connection[Any], chunks: list[bytes], n: int) -> int:
     """Store one batch in its own transaction; returns how many of its ``n`` samples were new on the server."""
     psycopg = psycopg_module()
     try:  # fast path: straight into bench.samples, the server lacked these steps when asked
@@ -133,7 +137,7 @@ def _send_batch(conn, chunks: list[bytes], n: int) -> int:
             return cur.rowcount
 
 
-def _held_steps(conn, runs: list[RunRecord]) -> dict[str, set[int] | None]:
+def _held_steps(conn: Connection[Any], runs: list[RunRecord]) -> dict[str, set[int] | None]:
     """Per run UUID, the steps the server holds: None when it holds all of the run's samples (nothing to send),
     an empty set when it holds none."""
     counts = dict(
@@ -157,7 +161,7 @@ def _held_steps(conn, runs: list[RunRecord]) -> dict[str, set[int] | None]:
     return held
 
 
-def _prepare_sender(conn) -> None:
+def _prepare_sender(conn: Connection[Any]) -> None:
     """A connection ready to send batches: its staging table, and memory for the pose trigger's transition table."""
     conn.execute("CREATE TEMP TABLE IF NOT EXISTS sample_stage (LIKE bench.samples) ON COMMIT DELETE ROWS")
     conn.execute(f"SET work_mem = '{_WORK_MEM}'")
@@ -179,7 +183,7 @@ def _deal(runs: list[RunRecord], held: dict[str, set[int] | None], lanes: int) -
 def _send_lanes(
     store: Store,
     lanes: list[list[RunRecord]],
-    connections: list,
+    connections: list[Connection[Any]],
     held: dict[str, set[int] | None],
     *,
     batch_size: int,
@@ -189,18 +193,19 @@ def _send_lanes(
     """Send the lanes' batches, each lane through its own connection and sender thread, one batch in flight per
     lane; this thread reads and formats the next batches meanwhile, taking the lanes in turn."""
     batches = [
-        itertools.chain.from_iterable(_read_batches(store, run, held[run.uuid], batch_size) for run in lane)
+        itertools.chain.from_iterable(_read_batches(store, run, held[run.uuid] or set(), batch_size) for run in lane)
         for lane in lanes
     ]
-    in_flight: list[tuple | None] = [None] * len(lanes)
+    in_flight: list[tuple[Future[int], RunRecord, int] | None] = [None] * len(lanes)
     with ThreadPoolExecutor(max_workers=len(lanes), thread_name_prefix="lab-sync") as senders:
         live = list(range(len(lanes)))
         try:
             while live:
                 for lane in list(live):
                     batch = next(batches[lane], None)
-                    if in_flight[lane] is not None:
-                        _settle(*in_flight[lane], progress=progress, sent=sent)
+                    settling = in_flight[lane]
+                    if settling is not None:
+                        _settle(*settling, progress=progress, sent=sent)
                         in_flight[lane] = None
                     if batch is None:
                         live.remove(lane)
@@ -213,14 +218,14 @@ def _send_lanes(
                     _settle(*pending, progress=progress, sent=sent)
 
 
-def _settle(batch: Future, run: RunRecord, n: int, *, progress: Callable[[str], None], sent: list[int]) -> None:
+def _settle(batch: Future[int], run: RunRecord, n: int, *, progress: Callable[[str], None], sent: list[int]) -> None:
     """Wait for a batch sent (its exception raised here), count its new samples once committed, report it."""
     sent[0] += batch.result()
     progress(f"sync: run {run.id} ({run.uuid}) +{n} samples")
 
 
 def _push(
-    store: Store, conn, url: str, *, batch_size: int, progress: Callable[[str], None], sent: list[int]
+    store: Store, conn: Connection[Any], url: str, *, batch_size: int, progress: Callable[[str], None], sent: list[int]
 ) -> tuple[int, int]:
     """Upsert runs and calibrations, then send the samples the server lacks; ``sent[0]`` counts the samples
     committed (kept when a later batch fails)."""
@@ -248,7 +253,7 @@ def _push(
                     c.version,
                     c.created_utc,
                     json.dumps(c.params, sort_keys=True),
-                    run_uuids.get(c.source_run_id),
+                    None if c.source_run_id is None else run_uuids.get(c.source_run_id),
                     c.notes,
                 )
                 for c in calibrations

@@ -104,7 +104,7 @@ def _refusal(run_id: int, step_index: int, path: str, problem: str) -> DamagedSa
     )
 
 
-def parse_sample(run_id: int, row: tuple, path: str) -> tuple[Any, Any]:
+def parse_sample(run_id: int, row: tuple[Any, ...], path: str) -> tuple[Any, Any]:
     """The parsed ``(values, raw)`` of a stored row (:data:`CHECKED_COLUMNS` then ``checksum``) of run ``run_id``;
     :class:`DamagedSample` in one line when the row fails its checksum or its JSON does not parse."""
     problem = checksum_problem(*row)

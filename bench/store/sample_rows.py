@@ -35,7 +35,7 @@ def encode_sample(
     t_s: float,
     raw: Any,
     wall_clock: Callable[[], str] = utc_now,
-) -> tuple:
+) -> tuple[Any, ...]:
     """The ``samples`` row of one sample, its ``wall_utc`` now by ``wall_clock`` (when it was taken); a value that
     is not a finite number, or raw data that is not JSON, raises ``ConfigError`` here, before anything is
     written."""
@@ -77,7 +77,7 @@ def checkpoint_wal(db: GuardedConnection) -> None:
         raise BenchError(f"{db.path}: cannot checkpoint the store ({exc})") from None
 
 
-def insert_sample_row(db: GuardedConnection, row: tuple) -> None:
+def insert_sample_row(db: GuardedConnection, row: tuple[Any, ...]) -> None:
     """Insert and commit one row of :func:`encode_sample` on ``db`` (in its own transaction: ``synchronous=FULL``
     makes it durable before this returns)."""
     try:

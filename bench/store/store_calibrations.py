@@ -47,7 +47,7 @@ class StoreCalibrations:
         except BaseException:
             self._db.execute("ROLLBACK")
             raise
-        return self.calibration_by_id(int(cursor.lastrowid))
+        return self.calibration_by_id(cursor.inserted_id())
 
     def ensure_calibration(self, name: str, params: Mapping[str, Any], *, notes: str = "") -> CalibrationRecord:
         """The latest version of ``name`` if its parameters equal ``params``, else a new version with them; while

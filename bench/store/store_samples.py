@@ -3,14 +3,18 @@
 from __future__ import annotations
 
 import sqlite3
-from collections.abc import Callable, Iterator, Mapping, Sequence
-from typing import Any
+from collections.abc import Callable, Mapping, Sequence
+from typing import TYPE_CHECKING, Any
 
 from bench.errors import ConfigError
-from bench.store.connection import GuardedConnection, store_error
+from bench.store.connection import GuardedConnection, GuardedCursor, store_error
 from bench.store.records import SampleRecord
 from bench.store.sample_checksum import CHECKED_COLUMNS, parse_sample
 from bench.store.sample_rows import encode_sample, insert_sample_row
+
+if TYPE_CHECKING:  # numpy is imported when streamed rows are used, not with the store
+    import numpy as np
+    from numpy.typing import ArrayLike, NDArray
 
 __all__ = ["StoreSamples"]
 
@@ -66,7 +70,7 @@ class StoreSamples:
             )
         )
 
-    def insert_sample(self, row: tuple) -> None:
+    def insert_sample(self, row: tuple[Any, ...]) -> None:
         """Insert and commit one row of :func:`encode_sample` before returning (:meth:`add_sample` in two parts:
         :class:`bench.store.sample_writer.SampleWriter` encodes a sample when it is taken and commits it on its
         writer thread)."""
@@ -103,7 +107,7 @@ class StoreSamples:
             )
         return samples
 
-    def stored_rows(self, run_id: int, after_step: int = -1, *, extract: Sequence[str] = ()) -> Iterator[tuple]:
+    def stored_rows(self, run_id: int, after_step: int = -1, *, extract: Sequence[str] = ()) -> GuardedCursor:
         """The samples of a run after step ``after_step`` exactly as stored, in step order: ``(step_index, kind,
         pose, cycle, t_s, wall_utc, values_json, raw_json)`` with the JSON unparsed (what sync sends and what
         :func:`bench.store.lab.rows_checksum` hashes); with ``extract`` (two or more value names) two more items,
@@ -119,7 +123,9 @@ class StoreSamples:
 
     # ---- streamed rows ---------------------------------------------------------------------------------------
 
-    def add_stream_rows(self, run_id: int, stream: str, t_s, dx_counts, dy_counts, valid) -> int:
+    def add_stream_rows(
+        self, run_id: int, stream: str, t_s: ArrayLike, dx_counts: ArrayLike, dy_counts: ArrayLike, valid: ArrayLike
+    ) -> int:
         """Store one batch of a streaming sensor's frames (narrow rows) in one transaction, committed before
         returning: one fsync for the batch, so a stream of thousands of frames a second keeps the guarantee of
         :meth:`add_sample` for every batch this returned from (:class:`bench.store.streams.StreamWriter` batches).
@@ -177,7 +183,9 @@ class StoreSamples:
             raise store_error(self.path, exc) from None
         return len(t)
 
-    def stream_rows(self, run_id: int, stream: str) -> tuple:
+    def stream_rows(
+        self, run_id: int, stream: str
+    ) -> tuple[NDArray[np.float64], NDArray[np.int64], NDArray[np.int64], NDArray[np.bool_]]:
         """The stored frames of one stream of a run in the order stored: arrays ``(t_s, dx_counts, dy_counts,
         valid)``."""
         import numpy as np
