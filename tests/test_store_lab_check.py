@@ -82,6 +82,27 @@ def test_store_check_finds_a_changed_digit_a_changed_t_s_and_a_changed_typed_val
     assert err[-1] == f"bench: 3 problem(s) in {shown}; work on a backup copy"
 
 
+def test_a_run_changed_on_the_server_is_refused_by_export_and_report(tmp_path, lab_url, capsys):
+    _, runs = _synced(tmp_path, lab_url)
+    out = tmp_path / "run.csv"
+    assert main(["export", "bench-a/1", "--store", lab_url, "--out", str(out)]) == 0
+    with psycopg.connect(lab_url, autocommit=True) as conn:
+        conn.execute(
+            "UPDATE bench.samples SET values_json = replace(values_json, '318.3', '318.7')"
+            " WHERE run_uuid = %s AND step_index = 5",
+            (runs[0].uuid,),
+        )
+    shown = lab_url.replace("bench-test-pw", "***")
+    for command in (["export", "bench-a/1", "--out", str(tmp_path / "again.csv")], ["report", "bench-a/1"]):
+        capsys.readouterr()
+        assert main([*command, "--store", lab_url]) == 1
+        assert capsys.readouterr().err.startswith(
+            f"bench: error: store {shown}: run 1 sample at step 5 is damaged: its stored bytes no longer "
+            "match their checksum"
+        )
+    assert not (tmp_path / "again.csv").exists()
+
+
 def test_samples_synced_before_schema_4_are_named_not_counted_as_damage(tmp_path, lab_url, capsys):
     _, runs = _synced(tmp_path, lab_url)
     with psycopg.connect(lab_url, autocommit=True) as conn:

@@ -24,6 +24,7 @@ from typing import Any, Self
 
 from bench.errors import ConfigError
 from bench.store.database import CalibrationRecord, RunRecord, SampleRecord, Store
+from bench.store.sample_checksum import CHECKED_COLUMNS, parse_sample, sample_checksum
 
 __all__ = ["COLLIDING_ID_STEP", "LabRunView", "open_named_runs", "pick_run"]
 
@@ -173,27 +174,34 @@ class LabRunView:
 
     def samples(self, run_id: int, kind: str | None = None) -> list[SampleRecord]:
         """The synced samples of a run in step order, optionally of one ``kind`` only (as
-        :meth:`bench.store.Store.samples`: the JSON the file holds, parsed)."""
+        :meth:`bench.store.Store.samples`: the JSON the file holds, parsed, each sample checked against the checksum
+        its bench stored, so a sample changed on the server refuses its run: :class:`DamagedSample`). A sample synced
+        before lab schema 4 has no checksum to check; its JSON is parsed as the file's is."""
         uuid = self._runs.uuid(run_id, "run", f"lab store {self.path}")
         rows = self._lab.query(
-            "SELECT step_index, kind, pose, cycle, t_s, wall_utc, values_json, raw_json"
+            f"SELECT {', '.join(CHECKED_COLUMNS)}, checksum"
             " FROM bench.samples WHERE run_uuid = %s" + (" AND kind = %s" if kind else "") + " ORDER BY step_index",
             (uuid, kind) if kind else (uuid,),
         )
-        return [
-            SampleRecord(
-                run_id=run_id,
-                step_index=r[0],
-                kind=r[1],
-                pose=r[2],
-                cycle=r[3],
-                t_s=r[4],
-                wall_utc=r[5],
-                values=json.loads(r[6]),
-                raw=None if r[7] is None else json.loads(r[7]),
+        samples = []
+        for row in rows:
+            if row[8] is None:  # synced before lab schema 4: nothing to check it against
+                row = (*row[:8], sample_checksum(*row[:8]))
+            values, raw = parse_sample(run_id, row, self.path)
+            samples.append(
+                SampleRecord(
+                    run_id=run_id,
+                    step_index=row[0],
+                    kind=row[1],
+                    pose=row[2],
+                    cycle=row[3],
+                    t_s=row[4],
+                    wall_utc=row[5],
+                    values=values,
+                    raw=raw,
+                )
             )
-            for r in rows
-        ]
+        return samples
 
     def sample_kinds(self, run_id: int) -> dict[str, int]:
         """How many samples of each kind the run holds on the server, most frequent first."""
