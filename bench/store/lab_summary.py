@@ -31,11 +31,9 @@ from __future__ import annotations
 
 import datetime as dt
 import math
+from collections.abc import Mapping
 from dataclasses import asdict, dataclass
-from typing import TYPE_CHECKING, Any
-
-if TYPE_CHECKING:
-    from bench.store.lab import LabStore
+from typing import Any, Protocol
 
 __all__ = ["POSE_TABLES_BACKFILL", "POSE_TABLES_DDL", "PoseGroup", "pose_summary"]
 
@@ -201,6 +199,14 @@ class PoseGroup:
         return out
 
 
+class LabQueries(Protocol):
+    """What the summary needs of a lab store: :meth:`bench.store.lab.LabStore.query`."""
+
+    def query(
+        self, sql: str, args: Any = (), *, settings: Mapping[str, str] | None = None
+    ) -> list[tuple[Any, ...]]: ...
+
+
 def _group_key(run: tuple[Any, ...], pose: str, velocity: float, cx: float, cy: float, cz: float) -> tuple[Any, ...]:
     """The group of a run and pose key: the run's (bench, robot, week), the pose, the velocity (None for the
     server's NaN, which as a dict key would never equal itself) and the command."""
@@ -208,7 +214,7 @@ def _group_key(run: tuple[Any, ...], pose: str, velocity: float, cx: float, cy: 
 
 
 def pose_summary(
-    lab: LabStore,
+    lab: LabQueries,
     *,
     since: str | None = None,
     until: str | None = None,
