@@ -24,7 +24,8 @@ from typing import Any, Self
 
 from bench.errors import ConfigError
 from bench.store.database import CalibrationRecord, RunRecord, SampleRecord, Store
-from bench.store.sample_checksum import CHECKED_COLUMNS, parse_sample, sample_checksum
+from bench.store.sample_checksum import CHECKED_COLUMNS, sample_checksum
+from bench.store.store_samples import checked_sample
 
 __all__ = ["COLLIDING_ID_STEP", "LabRunView", "open_named_runs", "pick_run"]
 
@@ -183,25 +184,11 @@ class LabRunView:
             " FROM bench.samples WHERE run_uuid = %s" + (" AND kind = %s" if kind else "") + " ORDER BY step_index",
             (uuid, kind) if kind else (uuid,),
         )
-        samples = []
-        for row in rows:
-            if row[8] is None:  # synced before lab schema 4: nothing to check it against
-                row = (*row[:8], sample_checksum(*row[:8]))
-            values, raw = parse_sample(run_id, row, self.path)
-            samples.append(
-                SampleRecord(
-                    run_id=run_id,
-                    step_index=row[0],
-                    kind=row[1],
-                    pose=row[2],
-                    cycle=row[3],
-                    t_s=row[4],
-                    wall_utc=row[5],
-                    values=values,
-                    raw=raw,
-                )
-            )
-        return samples
+        return [
+            # a row synced before lab schema 4 has no checksum to check: its JSON is still parsed as the file's is
+            checked_sample(run_id, row if row[8] is not None else (*row[:8], sample_checksum(*row[:8])), self.path)
+            for row in rows
+        ]
 
     def sample_kinds(self, run_id: int) -> dict[str, int]:
         """How many samples of each kind the run holds on the server, most frequent first."""

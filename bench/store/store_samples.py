@@ -16,7 +16,24 @@ if TYPE_CHECKING:  # numpy is imported when streamed rows are used, not with the
     import numpy as np
     from numpy.typing import ArrayLike, NDArray
 
-__all__ = ["StoreSamples"]
+__all__ = ["StoreSamples", "checked_sample"]
+
+
+def checked_sample(run_id: int, row: tuple[Any, ...], path: str) -> SampleRecord:
+    """The record of a stored row (:data:`CHECKED_COLUMNS` then ``checksum``) of run ``run_id``, its JSON parsed
+    once the row has passed its checksum (:func:`bench.store.sample_checksum.parse_sample`: else DamagedSample)."""
+    values, raw = parse_sample(run_id, row, path)
+    return SampleRecord(
+        run_id=run_id,
+        step_index=row[0],
+        kind=row[1],
+        pose=row[2],
+        cycle=row[3],
+        t_s=row[4],
+        wall_utc=row[5],
+        values=values,
+        raw=raw,
+    )
 
 
 class StoreSamples:
@@ -89,23 +106,7 @@ class StoreSamples:
             " WHERE run_id = ?" + (" AND kind = ?" if kind else "") + " ORDER BY step_index"
         )
         args = (run_id, kind) if kind else (run_id,)
-        samples = []
-        for row in self._db.execute(query, args):
-            values, raw = parse_sample(run_id, row, self.path)
-            samples.append(
-                SampleRecord(
-                    run_id=run_id,
-                    step_index=row[0],
-                    kind=row[1],
-                    pose=row[2],
-                    cycle=row[3],
-                    t_s=row[4],
-                    wall_utc=row[5],
-                    values=values,
-                    raw=raw,
-                )
-            )
-        return samples
+        return [checked_sample(run_id, row, self.path) for row in self._db.execute(query, args)]
 
     def stored_rows(self, run_id: int, after_step: int = -1, *, extract: Sequence[str] = ()) -> GuardedCursor:
         """The samples of a run after step ``after_step`` exactly as stored, in step order: ``(step_index, kind,
