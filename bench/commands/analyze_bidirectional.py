@@ -81,8 +81,6 @@ def _iso230_2_run(args: argparse.Namespace) -> int:
     from bench.store import Store, tidy_table
 
     _check_plot(args.plot)
-    if not Path(args.store).is_file():
-        raise ConfigError(f"--store {args.store}: no such store file")
     store = Store(args.store, read_only=True)
     try:
         run = store.run(args.run_id)

@@ -140,14 +140,11 @@ def register_run(actions: argparse._SubParsersAction) -> None:
 
 
 def _path_run(args: argparse.Namespace) -> int:
-    from pathlib import Path
 
     from bench.reports.path import REORIENTATION_NOT_MEASURED
     from bench.reports.path_run import analyze_path_run
     from bench.store import Store
 
-    if not Path(args.store).is_file():
-        raise ConfigError(f"--store {args.store}: no such store file")
     store = Store(args.store, read_only=True)
     try:
         result = analyze_path_run(store, args.run_id)
@@ -184,13 +181,10 @@ def _path_run(args: argparse.Namespace) -> int:
 
 
 def _positioning_run(args: argparse.Namespace) -> int:
-    from pathlib import Path
 
     from bench.reports.positioning_time import analyze_positioning_run
     from bench.store import Store
 
-    if not Path(args.store).is_file():
-        raise ConfigError(f"--store {args.store}: no such store file")
     store = Store(args.store, read_only=True)
     try:
         result = analyze_positioning_run(store, args.run_id, bands_mm=args.band_mm, hysteresis_mm=args.hysteresis_mm)
