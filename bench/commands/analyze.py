@@ -221,6 +221,7 @@ def _iso9283(args: argparse.Namespace) -> int:
 
 
 def _distance(args: argparse.Namespace) -> int:
+    from bench.metrology.formatting import format_length
     from bench.metrology.tables import (
         POSE_NUMERIC_COLUMNS,
         analyze_distance,
@@ -253,11 +254,11 @@ def _distance(args: argparse.Namespace) -> int:
             f"{args.first} -> {args.second}, n = {r.n}: D_c = {r.commanded_distance_mm:.3f} mm, "
             f"D̄ = {r.mean_distance_mm:.3f} mm"
         ),
-        f"AD_p = {u_ad}, RD = ±{r.rd_mm:.4f} mm; {budget}",
+        f"AD_p = {u_ad}, RD = ±{format_length(r.rd_mm)} mm; {budget}",
         "AD x/y/z = "
-        + " / ".join(f"{v:+.4f}" for v in r.ad_axes_mm)
+        + " / ".join(format_length(v, signed=True) for v in r.ad_axes_mm)
         + " mm, RD x/y/z = ±"
-        + " / ±".join(f"{v:.4f}" for v in r.rd_axes_mm)
+        + " / ±".join(map(format_length, r.rd_axes_mm))
         + " mm",
     ]
     angles = analyze_orientation_distance(table, args.first, args.second)
@@ -267,7 +268,10 @@ def _distance(args: argparse.Namespace) -> int:
             result[f"AD_{name}_deg"], result[f"RD_{name}_deg"] = ad, rd
         lines.append(
             "orientation: "
-            + ", ".join(f"AD_{n} {ad:+.4f} deg, RD_{n} ±{rd:.4f} deg" for n, ad, rd in zip(names, o.ad_deg, o.rd_deg))
+            + ", ".join(
+                f"AD_{n} {format_length(ad, signed=True)} deg, RD_{n} ±{format_length(rd)} deg"
+                for n, ad, rd in zip(names, o.ad_deg, o.rd_deg)
+            )
         )
     emit(result, args.json, lines)
     return 0
@@ -275,6 +279,7 @@ def _distance(args: argparse.Namespace) -> int:
 
 def _drift(args: argparse.Namespace) -> int:
     from bench.metrology import orientation_drift, pose_drift
+    from bench.metrology.formatting import format_length
     from bench.metrology.tables import ANGLE_PAIRS, POSE_NUMERIC_COLUMNS, pose_table, read_table_csv
 
     table = pose_table(read_table_csv(args.file, numeric=POSE_NUMERIC_COLUMNS))
@@ -298,9 +303,10 @@ def _drift(args: argparse.Namespace) -> int:
             for t, n, a, p in zip(r.window_start_s, r.n_per_window, r.ap_mm, r.rp_mm)
         ],
     }
-    lines = [f"pose {args.pose}: dAP = {r.dap_mm:.4f} mm, dRP = {r.drp_mm:.4f} mm over {len(r.ap_mm)} windows"]
+    mm = format_length
+    lines = [f"pose {args.pose}: dAP = {mm(r.dap_mm)} mm, dRP = {mm(r.drp_mm)} mm over {len(r.ap_mm)} windows"]
     lines += [
-        f"  t >= {t:10.1f} s  n = {n:4d}  AP = {a:.4f} mm  RP = {p:.4f} mm"
+        f"  t >= {t:10.1f} s  n = {n:4d}  AP = {mm(a)} mm  RP = {mm(p)} mm"
         for t, n, a, p in zip(r.window_start_s, r.n_per_window, r.ap_mm, r.rp_mm)
     ]
     pairs = [(c, a) for c, a in ANGLE_PAIRS if a in rows.columns]
@@ -314,13 +320,14 @@ def _drift(args: argparse.Namespace) -> int:
             for window, ap, rp in zip(result["windows"], o.ap_deg[:, i], o.rp_deg[:, i]):
                 window[f"AP_{name}_deg"], window[f"RP_{name}_deg"] = float(ap), float(rp)
             lines.append(
-                f"  orientation {name}: dAP_{name} = {o.dap_deg[i]:.4f} deg, dRP_{name} = {o.drp_deg[i]:.4f} deg"
+                f"  orientation {name}: dAP_{name} = {mm(o.dap_deg[i])} deg, dRP_{name} = {mm(o.drp_deg[i])} deg"
             )
     emit(result, args.json, lines)
     return 0
 
 
 def _stabilisation(args: argparse.Namespace) -> int:
+    from bench.metrology.formatting import format_length
     from bench.metrology.tables import read_table_csv, stabilisation_results, stabilisation_table
 
     table = stabilisation_table(read_table_csv(args.file))
@@ -350,7 +357,7 @@ def _stabilisation(args: argparse.Namespace) -> int:
             }
             lines.append(
                 f"{band:>7g}  {pose:<{width}} {n:>2} {r.mean_time_s:>8.3f} {r.max_time_s:>8.3f} "
-                f"{r.mean_overshoot_mm:>7.4f} {r.max_overshoot_mm:>9.4f}"
+                f"{format_length(r.mean_overshoot_mm):>7} {format_length(r.max_overshoot_mm):>9}"
             )
     emit(result, args.json, lines)
     return 0
@@ -383,6 +390,7 @@ def actuator_result_json(r) -> dict:
 
 def _actuator(args: argparse.Namespace) -> int:
     from bench.metrology.actuator_tables import actuator_table, analyze_actuators, robot_control_resolution
+    from bench.metrology.formatting import format_length, format_value
     from bench.metrology.tables import read_table_csv
     from bench.metrology.uncertainty import instrument_budget
 
@@ -409,17 +417,22 @@ def _actuator(args: argparse.Namespace) -> int:
         )
     ]
     for r in results:
-        g, iso = r.groover, r.iso230_2
+        g, iso, mm = r.groover, r.iso230_2, format_length
+        repeat_u, accuracy_u = (
+            None if m is None else m.expanded_uncertainty for m in (r.repeatability_u, r.accuracy_u)
+        )
         lines.append(
-            f"{r.actuator:<9} {g.n:>3} {g.repeatability_mm:9.3f} {g.accuracy_mm:11.3f} "
-            f"{g.max_abs_bias_mm:12.3f} {iso.repeatability_forward_mm:8.3f} {iso.systematic_forward_mm:8.3f} "
-            f"{iso.accuracy_forward_mm:8.3f}  "
-            + " ".join(f"{v:+.3f}" for v in g.mean_deviation_mm)
+            f"{r.actuator:<9} {g.n:>3} {format_value(g.repeatability_mm, repeat_u):>9} "
+            f"{format_value(g.accuracy_mm, accuracy_u):>11} {mm(g.max_abs_bias_mm):>12} "
+            f"{mm(iso.repeatability_forward_mm):>8} {mm(iso.systematic_forward_mm):>8} {mm(iso.accuracy_forward_mm):>8}  "
+            + " ".join(
+                format_value(v, u.expanded_uncertainty, signed=True) for v, u in zip(g.mean_deviation_mm, r.bias_u)
+            )
             + (f"  ({r.dropped} readings of incomplete repeats left out)" if r.dropped else "")
         )
     lines.append(
         "Repeatability = 3 σ̄, accuracy = CR/2 + 3 σ̄ (dissertation Eqs. 8.2-8.3); bias = x̄ - target; "
-        "R/E/A: ISO 230-2 unidirectional (approach from below)."
+        "R/E/A: ISO 230-2 unidirectional (approach from below); figures with a U rounded by it (--json: U, full precision)."
     )
     lines.append(budget + ".")
     emit({"actuators": {r.actuator: actuator_result_json(r) for r in results}, "U_budget": budget}, args.json, lines)
@@ -430,6 +443,7 @@ def _payload(args: argparse.Namespace) -> int:
     import numpy as np
 
     from bench.metrology import leg_error_summary
+    from bench.metrology.formatting import format_length
     from bench.metrology.tables import numeric_columns, read_table_csv
 
     table = numeric_columns(read_table_csv(args.file), ["load_kg", "error_mm"])
@@ -470,10 +484,13 @@ def _payload(args: argparse.Namespace) -> int:
     }
     lines = [f"{'leg':<5} {'worst_mm':>8} {'at_kg':>7} {'mean_mm':>8} {'r(load)':>8}  (worst: largest |e|, signed)"]
     lines += [
-        f"{n:<5} {w:+8.3f} {wl:7.2f} {a:+8.3f} {('n/a' if c is None else f'{c:+.3f}'):>8}"
+        f"{n:<5} {format_length(w, signed=True):>8} {wl:7.2f} {format_length(a, signed=True):>8} "
+        f"{('n/a' if c is None else f'{c:+.3f}'):>8}"
         for n, w, wl, a, c in zip(names, worst, worst_load, s.mean_error_mm, s.correlation_with_load)
     ]
-    lines.append(f"all legs: mean {s.overall_mean_mm:.3f} mm, SD {s.overall_sd_mm:.3f} mm over {s.n_loads} loads")
+    lines.append(
+        f"all legs: mean {format_length(s.overall_mean_mm)} mm, SD {format_length(s.overall_sd_mm)} mm over {s.n_loads} loads"
+    )
     emit(result, args.json, lines)
     return 0
 
@@ -569,6 +586,8 @@ def _run_export_moves(args: argparse.Namespace, frame):
 
 def _mouse_matrix(args: argparse.Namespace, reference, counts) -> int:
     from bench.metrology import fit_matrix
+    from bench.metrology.formatting import format_measured, format_uncertainty
+    from bench.metrology.mouse_calibration import counts_per_inch
 
     # an intercept per move direction models a start/stop offset (sensors.md: without it the offset goes into A)
     fit = fit_matrix(reference, counts, per_direction=True)
@@ -595,20 +614,26 @@ def _mouse_matrix(args: argparse.Namespace, reference, counts) -> int:
         "intercepts_by_direction": intercepts,
     }
     a, big_u = fit.a_mm_per_count, fit.expanded_a_mm_per_count
+    scales = [(s, k * u) for s, u in zip(fit.scale_mm_per_count, fit.u_scale_mm_per_count())]
     lines = [
         f"A (mm/count), n = {fit.n} moves, ± U (95 %, k = {k:.2f}, {fit.dof} dof):",
-        *(f"  [{a[i, 0]:+.6f} ± {big_u[i, 0]:.1e}  {a[i, 1]:+.6f} ± {big_u[i, 1]:.1e}]" for i in range(2)),
+        *(
+            "  [" + "  ".join(format_measured(a[i, j], big_u[i, j], signed=True) for j in range(2)) + "]"
+            for i in range(2)
+        ),
         (
-            f"rotation {fit.rotation_deg:+.3f} deg, scale x/y {fit.scale_mm_per_count[0]:.6f} / "
-            f"{fit.scale_mm_per_count[1]:.6f} mm/count, residual SD {fit.sigma_counts[0]:.3f} / "
-            f"{fit.sigma_counts[1]:.3f} counts"
+            f"rotation {fit.rotation_deg:+.3f} deg, scale x/y (± U, the fit's only) "
+            + " / ".join(
+                f"{format_measured(s, u)} mm/count ({format_measured(*counts_per_inch(s, u))} cpi)" for s, u in scales
+            )
+            + f", residual SD {format_uncertainty(fit.sigma_counts[0])} / {format_uncertainty(fit.sigma_counts[1])} counts"
         ),
         "intercept per move direction (counts, ± U; * = significant at 95 %: a start/stop offset or lost counts):",
     ]
     for i, label in enumerate(fit.offset_labels):
         cells = [
-            f"{fit.offsets_counts[i, j]:+.3f} ± {k * fit.u_offsets_counts[i, j]:.3f}"
-            f"{'*' if fit.offsets_significant[i, j] else ' '}"
+            format_measured(fit.offsets_counts[i, j], k * fit.u_offsets_counts[i, j], signed=True)
+            + f"{'*' if fit.offsets_significant[i, j] else ' '}"
             for j in range(2)
         ]
         lines.append(f"  {label}: sensor x {cells[0]}  sensor y {cells[1]}")

@@ -35,6 +35,7 @@ from bench.metrology.documents import (
     POSITIONING_POSES,
     POSITIONING_READINGS,
 )
+from bench.metrology.formatting import format_uncertainty
 
 __all__ = [
     "ACTUATOR_REPEATS",
@@ -249,7 +250,7 @@ def _sensor(
     if not instrument or sigma_mm is None:
         return _unknown("6.5", "sensor", requirement, "settings.instrument (description and uncertainty)")
     name = instrument.get("instrument", instrument.get("name", "instrument"))
-    done = f"{name}; u = {sigma_mm:.4g} mm per axis, RP floor {floor_mm:.4g} mm"
+    done = f"{name}; u = {format_uncertainty(sigma_mm)} mm per axis, RP floor {format_uncertainty(floor_mm)} mm"
     if smallest_rp_mm is None or smallest_rp_mm <= 0:
         return _row("6.5", "sensor", requirement, done, False, "no RP to compare the instrument with")
     share = floor_mm / smallest_rp_mm
@@ -423,7 +424,9 @@ def _instrument_row(clause: str, reader: str | None, sigma_mm: float | None, sta
     if reader is None:
         return _unknown(clause, "instrument", requirement, "settings.instrument")
     if stated:
-        return _row(clause, "instrument", requirement, f"{reader}; u = {sigma_mm:.4g} mm per reading", True, "")
+        return _row(
+            clause, "instrument", requirement, f"{reader}; u = {format_uncertainty(sigma_mm)} mm per reading", True, ""
+        )
     if sigma_mm is None:
         return _row(
             clause,
@@ -437,7 +440,7 @@ def _instrument_row(clause: str, reader: str | None, sigma_mm: float | None, sta
         clause,
         "instrument",
         requirement,
-        f"{reader}; u = {sigma_mm:.4g} mm from the reading resolution only (no MPE or calibration stored){note}",
+        f"{reader}; u = {format_uncertainty(sigma_mm)} mm from the reading resolution only (no MPE or calibration stored){note}",
         False,
         "U covers the scatter and the resolution, not the gauge's own error (about ±0.02 mm for a 150 mm calliper [U])",
     )

@@ -34,6 +34,7 @@ from bench.metrology import (
     payload_compliance,
     payload_shift,
 )
+from bench.metrology.formatting import format_measured
 from bench.metrology.tables import numeric_columns
 from bench.reports.content import ReportBase, calibrations_in_force, provenance, reading_instrument, run_table
 from bench.reports.deviations import ladder_deviations
@@ -250,7 +251,7 @@ def _r(value: float | None) -> str:
 def _slope(slope: PayloadCompliance | None, k: float) -> str:
     if slope is None:
         return "— (needs 3 readings at 2 loads)"
-    return f"{slope.compliance_mm_per_n:+.2e} ± {k * slope.u_compliance_mm_per_n:.2e}"
+    return format_measured(slope.compliance_mm_per_n, k * slope.u_compliance_mm_per_n, signed=True)
 
 
 def _results(report: LadderReport) -> tuple[Block, ...]:

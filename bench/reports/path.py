@@ -12,6 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from bench.metrology.formatting import format_length
 from bench.reports.content import ReportBase, calibrations_in_force, counts_instrument, provenance, run_table
 from bench.reports.deviations import Deviation, _fmt, _planned_count, _row
 from bench.reports.document import Paragraph, RawData, Table, assemble, conditions_section, decision_blocks
@@ -102,7 +103,7 @@ def path_deviations(run, analysis: PathRun) -> list[Deviation]:
             "interpolation",
             "continuous path control by the robot",
             f"host-side segments, joint-linear moves, chord error <= {protocol.chord_error_mm:g} mm "
-            f"(largest {chord:.4f} mm); the robot stops briefly at every segment end",
+            f"(largest {format_length(chord)} mm); the robot stops briefly at every segment end",
             False,
             "stops at the segment ends lower the mean path speed and raise FV; corners are approached "
             "from rest, so CO shows the structure's ringing rather than a controller's smoothing",

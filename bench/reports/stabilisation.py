@@ -41,6 +41,7 @@ from bench.reports.document import (
     assemble,
     conditions_section,
     decision_blocks,
+    reading_formatter,
 )
 from bench.reports.plots import MIN_FONT_PT, Plot, print_grid
 from bench.store import CalibrationRecord, RunRecord, Store
@@ -224,6 +225,7 @@ def _seconds(value: float) -> str:
 
 def _results(report: StabilisationReport) -> tuple[Block, ...]:
     h = f"h = {report.hysteresis_mm:g} mm"
+    mm = reading_formatter(report)
     summary, cycles = [], []
     for r in report.results:
         if r.result is None:
@@ -239,8 +241,8 @@ def _results(report: StabilisationReport) -> tuple[Block, ...]:
                 str(len(r.cycles)),
                 _seconds(s.mean_time_s),
                 _seconds(s.max_time_s),
-                f"{s.mean_overshoot_mm:.4f}",
-                f"{s.max_overshoot_mm:.4f}",
+                mm(s.mean_overshoot_mm),
+                mm(s.max_overshoot_mm),
                 "",
             )
         )
@@ -252,7 +254,7 @@ def _results(report: StabilisationReport) -> tuple[Block, ...]:
                 _seconds(c.first_entry_s),
                 _seconds(c.settled_s),
                 _seconds(c.stabilisation_time_s),
-                f"{c.overshoot_mm:.4f}",
+                mm(c.overshoot_mm),
             )
             for cycle, c in zip(r.cycles, s.cycles)
         ]
