@@ -36,8 +36,9 @@ from bench.metrology import (
 )
 from bench.metrology.formatting import format_measured
 from bench.metrology.tables import numeric_columns
-from bench.reports.content import ReportBase, calibrations_in_force, provenance, reading_instrument, run_table
-from bench.reports.deviations import ladder_deviations
+from bench.reports.content import ReportBase, calibrations_in_force, provenance, run_table
+from bench.reports.criteria import Characteristic, decision_section
+from bench.reports.deviations_bench import ladder_deviations
 from bench.reports.document import (
     Block,
     Document,
@@ -46,9 +47,9 @@ from bench.reports.document import (
     Table,
     assemble,
     conditions_section,
-    decision_blocks,
     reading_formatter,
 )
+from bench.reports.instrument import reading_instrument
 from bench.reports.plots import Plot, payload_caption, payload_shift_figure
 from bench.store import Store
 
@@ -415,6 +416,18 @@ def ladder_document(
         ),
         results=_results(report),
         plots=ladder_plots(report),
-        decision=decision_blocks(NO_CRITERION),
+        decision=decision_section(report, NO_CRITERION),
         recompute=recompute,
     )
+
+
+#: What ``--criterion`` judges in a payload-ladder report: the largest |e| of every leg over the loads (no U stated).
+CHARACTERISTICS = {
+    "leg_error_mm": Characteristic(
+        "largest leg actuation error |e| of every leg over the loads",
+        lambda report: [
+            (f"leg {leg}", float(report.summary_abs.max_error_mm[i]), None)
+            for i, leg in enumerate(report.leg_errors.columns)
+        ],
+    ),
+}

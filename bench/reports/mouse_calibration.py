@@ -14,13 +14,7 @@ from typing import Any
 from bench.metrology import fit_matrix
 from bench.metrology.formatting import format_measured, format_uncertainty
 from bench.metrology.mouse_calibration import MatrixCalibration, counts_per_inch, mouse_calibration_moves
-from bench.reports.content import (
-    InstrumentInfo,
-    ReportBase,
-    calibrations_in_force,
-    provenance,
-    run_table,
-)
+from bench.reports.content import ReportBase, calibrations_in_force, provenance, run_table
 from bench.reports.document import (
     Block,
     Document,
@@ -30,6 +24,7 @@ from bench.reports.document import (
     conditions_section,
     decision_blocks,
 )
+from bench.reports.instrument import InstrumentInfo
 from bench.store import Store
 
 __all__ = ["MouseCalibrationReport", "collect_mouse_calibration", "mouse_calibration_document"]

@@ -24,9 +24,11 @@ import pandas as pd
 from bench.errors import ConfigError, InsufficientData
 from bench.metrology import MinimumPositioningTime, minimum_positioning_time
 from bench.metrology.path_tables import positioning_steps
-from bench.reports.content import ReportBase, calibrations_in_force, counts_instrument, provenance, run_table
-from bench.reports.deviations import ISO_BANDS_MM, Deviation, _fmt, _load, _planned_count, _row
+from bench.reports.content import ReportBase, calibrations_in_force, provenance, run_table
+from bench.reports.deviations import Deviation, _fmt, _load, _planned_count, _row
+from bench.reports.deviations_arrivals import ISO_BANDS_MM
 from bench.reports.document import Paragraph, RawData, Table, assemble, conditions_section, decision_blocks
+from bench.reports.instrument import counts_instrument
 from bench.reports.plots import MIN_FONT_PT, Plot, print_grid
 from bench.reports.stabilisation import _bands, _hysteresis, count_size_mm
 from bench.store import Store

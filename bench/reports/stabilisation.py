@@ -23,15 +23,9 @@ import numpy as np
 from bench.errors import ConfigError
 from bench.metrology import PoseStabilisation
 from bench.metrology.tables import stabilisation_results, stabilisation_table
-from bench.reports.content import (
-    MM_PER_INCH,
-    ReportBase,
-    calibrations_in_force,
-    counts_instrument,
-    provenance,
-    run_table,
-)
-from bench.reports.deviations import ISO_BANDS_MM, stabilisation_deviations
+from bench.reports.content import ReportBase, calibrations_in_force, provenance, run_table
+from bench.reports.criteria import Characteristic, decision_section
+from bench.reports.deviations_arrivals import ISO_BANDS_MM, stabilisation_deviations
 from bench.reports.document import (
     Block,
     Document,
@@ -40,9 +34,9 @@ from bench.reports.document import (
     Table,
     assemble,
     conditions_section,
-    decision_blocks,
     reading_formatter,
 )
+from bench.reports.instrument import MM_PER_INCH, counts_instrument
 from bench.reports.plots import MIN_FONT_PT, Plot, print_grid
 from bench.store import CalibrationRecord, RunRecord, Store
 
@@ -414,6 +408,22 @@ def stabilisation_document(
         ),
         results=_results(report),
         plots=[stabilisation_plot(report)],
-        decision=decision_blocks(NO_CRITERION),
+        decision=decision_section(report, NO_CRITERION),
         recompute=recompute_stabilisation(report),
     )
+
+
+def _figures(report, figure: str):
+    return [
+        (f"{r.group}, {r.band_mm:g} mm band", getattr(r.result, figure), None)
+        for r in report.results
+        if r.result is not None
+    ]
+
+
+#: What ``--criterion`` judges in a stabilisation report: per pose and band, the largest stabilisation time and
+#: overshoot over the cycles (no U stated).
+CHARACTERISTICS = {
+    "t_s": Characteristic("largest stabilisation time of every pose and band", lambda r: _figures(r, "max_time_s")),
+    "OV_mm": Characteristic("largest overshoot of every pose and band", lambda r: _figures(r, "max_overshoot_mm")),
+}
