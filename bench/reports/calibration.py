@@ -301,7 +301,7 @@ def _fit_rows(record: Any) -> tuple[tuple[str, str], ...]:
     rows = [
         ("Source run", str(record.source_run_id)),
         ("Stored (UTC)", record.created_utc),
-        ("Robot serial", str(params.get("dut_serial", "not recorded"))),
+        ("Robot serial", str(params.get("dut_serial") or "none stated (the calibration run recorded no robot serial)")),
         *_campaign_rows(params, obs),
         ("Free parameters", str(len(params.get("parameters", {})))),
     ]
