@@ -22,7 +22,7 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 from bench.errors import ConfigError
-from bench.reports import actuator, content, ladder, path, positioning, stabilisation
+from bench.reports import actuator, content, ladder, path, positioning, positioning_time, stabilisation
 from bench.reports.actuator import ActuatorReport, actuator_document, collect_actuator
 from bench.reports.calibration import calibration_comparison, with_calibration_page
 from bench.reports.compare import layout_comparison, with_histories
@@ -121,7 +121,10 @@ LAYOUTS = {
     "iso9283_path": Layout(collect_path, path_document, characteristics=path.CHARACTERISTICS),
     "iso9283_cornering": Layout(collect_path, path_document, characteristics=path.CHARACTERISTICS),
     "iso9283_positioning_time": Layout(
-        collect_positioning_time, positioning_time_document, ("bands_mm", "hysteresis_mm")
+        collect_positioning_time,
+        positioning_time_document,
+        ("bands_mm", "hysteresis_mm"),
+        characteristics=positioning_time.CHARACTERISTICS,
     ),
 }
 

@@ -29,7 +29,6 @@ __all__ = ["NO_VERDICT", "Characteristic", "decision_section", "judge"]
 NO_VERDICT = {
     "mouse_calibration": "a calibration yields a matrix and its U to put in force, not a pass/fail",
     "lasergrid_hits": "the hit rate is judged against the thesis's own specification (>= 97 % at every height)",
-    "iso9283_positioning_time": "ISO 9283 clause 9 times carry no acceptance limit a customer can state here yet",
 }
 
 #: One figure a criterion judges: (where, value, expanded U or None when the layout states none).
