@@ -298,7 +298,7 @@ def recompute_actuator(report: ActuatorReport) -> str:
 
 
 def actuator_document(
-    report: ActuatorReport, raw: list[RawData], *, operator: str = "not recorded", laboratory: str = "not recorded"
+    report: ActuatorReport, raw: list[RawData], *, operator: str = "—", laboratory: str = "—"
 ) -> Document:
     config = report.run.config
     if report.bidirectional:

@@ -387,7 +387,7 @@ def ladder_plots(report: LadderReport) -> list[Plot]:
 
 
 def ladder_document(
-    report: LadderReport, raw: list[RawData], *, operator: str = "not recorded", laboratory: str = "not recorded"
+    report: LadderReport, raw: list[RawData], *, operator: str = "—", laboratory: str = "—"
 ) -> Document:
     config = report.run.config
     method = (

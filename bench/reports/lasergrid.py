@@ -194,7 +194,7 @@ def grid_hit_plot(report: GridHitReport) -> Plot:
 
 
 def grid_hit_document(
-    report: GridHitReport, raw: list[RawData], *, operator: str = "not recorded", laboratory: str = "not recorded"
+    report: GridHitReport, raw: list[RawData], *, operator: str = "—", laboratory: str = "—"
 ) -> Document:
     config = report.run.config
     method = (

@@ -141,8 +141,8 @@ def mouse_calibration_document(
     report: MouseCalibrationReport,
     raw: list[RawData],
     *,
-    operator: str = "not recorded",
-    laboratory: str = "not recorded",
+    operator: str = "—",
+    laboratory: str = "—",
 ) -> Document:
     config = report.run.config
     source = {

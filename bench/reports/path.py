@@ -278,9 +278,7 @@ def path_plot(report: PathReport) -> Plot:
     )
 
 
-def path_document(
-    report: PathReport, raw: list[RawData], *, operator: str = "not recorded", laboratory: str = "not recorded"
-):
+def path_document(report: PathReport, raw: list[RawData], *, operator: str = "—", laboratory: str = "—"):
     protocol = report.analysis.design
     method = (
         "ISO 9283:1998 clause 8. The path is cut into straight segments whose joint-space chord error is at "

@@ -325,8 +325,8 @@ def grid_positioning_document(
     report: GridPositioningReport,
     raw: list[RawData],
     *,
-    operator: str = "not recorded",
-    laboratory: str = "not recorded",
+    operator: str = "—",
+    laboratory: str = "—",
 ) -> Document:
     config = report.run.config
     test = (

@@ -378,8 +378,8 @@ def positioning_time_document(
     report: PositioningTimeReport,
     raw: list[RawData],
     *,
-    operator: str = "not recorded",
-    laboratory: str = "not recorded",
+    operator: str = "—",
+    laboratory: str = "—",
 ):
     config = report.run.config
     method = (

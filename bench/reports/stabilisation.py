@@ -365,7 +365,7 @@ def recompute_stabilisation(report: StabilisationReport) -> str:
 
 
 def stabilisation_document(
-    report: StabilisationReport, raw: list[RawData], *, operator: str = "not recorded", laboratory: str = "not recorded"
+    report: StabilisationReport, raw: list[RawData], *, operator: str = "—", laboratory: str = "—"
 ) -> Document:
     config = report.run.config
     method = (
