@@ -31,8 +31,8 @@ from reports_runs import (
 from bench.cli import main
 from bench.errors import ConfigError, InsufficientData
 from bench.metrology import STANDARD_GRAVITY_M_S2, payload_compliance, payload_shift
+from bench.metrology.formatting import reading_step_mm
 from bench.reports import ActuatorReport, GridHitReport, LadderReport, collect, write_comparison, write_report
-from bench.reports.instrument import reading_step_mm
 from bench.store import Store
 
 

@@ -379,7 +379,7 @@ def actuator_result_json(r) -> dict:
 
 def _actuator(args: argparse.Namespace) -> int:
     from bench.metrology.actuator_tables import actuator_table, analyze_actuators, robot_control_resolution
-    from bench.metrology.formatting import format_length, format_value
+    from bench.metrology.formatting import format_value, reading_step_mm
     from bench.metrology.tables import read_table_csv
     from bench.metrology.uncertainty import instrument_budget
 
@@ -405,18 +405,22 @@ def _actuator(args: argparse.Namespace) -> int:
             f"{'E230_mm':>8} {'A230_mm':>8}  mean deviation per target (mm)"
         )
     ]
+    step = reading_step_mm(frame["travel_mm"]) if "travel_mm" in frame else None
+
+    def mm(value: float, u: float | None = None, signed: bool = False) -> str:
+        """By its U when it has one, else never finer than the readings (as the report: figure_decimals)."""
+        return format_value(value, u, signed=signed, resolution=None if u is not None else step)
+
     for r in results:
-        g, iso, mm = r.groover, r.iso230_2, format_length
+        g, iso = r.groover, r.iso230_2
         repeat_u, accuracy_u = (
             None if m is None else m.expanded_uncertainty for m in (r.repeatability_u, r.accuracy_u)
         )
         lines.append(
-            f"{r.actuator:<9} {g.n:>3} {format_value(g.repeatability_mm, repeat_u):>9} "
-            f"{format_value(g.accuracy_mm, accuracy_u):>11} {mm(g.max_abs_bias_mm):>12} "
+            f"{r.actuator:<9} {g.n:>3} {mm(g.repeatability_mm, repeat_u):>9} "
+            f"{mm(g.accuracy_mm, accuracy_u):>11} {mm(g.max_abs_bias_mm):>12} "
             f"{mm(iso.repeatability_forward_mm):>8} {mm(iso.systematic_forward_mm):>8} {mm(iso.accuracy_forward_mm):>8}  "
-            + " ".join(
-                format_value(v, u.expanded_uncertainty, signed=True) for v, u in zip(g.mean_deviation_mm, r.bias_u)
-            )
+            + " ".join(mm(v, u.expanded_uncertainty, True) for v, u in zip(g.mean_deviation_mm, r.bias_u))
             + (f"  ({r.dropped} readings of incomplete repeats left out)" if r.dropped else "")
         )
     lines.append(

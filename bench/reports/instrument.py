@@ -23,6 +23,7 @@ from bench.metrology import (
     instrument_rp_floor,
     resolution_uncertainty,
 )
+from bench.metrology.formatting import reading_step_mm
 from bench.metrology.mouse_calibration import MM_PER_INCH
 from bench.store import CalibrationRecord, RunRecord, Store
 from bench.store.registrations import registration_u_mm, registrations
@@ -39,7 +40,6 @@ __all__ = [
     "calibration_scale_u",
     "counts_instrument",
     "reading_instrument",
-    "reading_step_mm",
     "uncertainty_stated",
 ]
 
@@ -68,17 +68,6 @@ class InstrumentInfo:
     fits: tuple[CalibrationFit, ...] = ()
     #: the readings' last recorded decimal (manual readings), mm: no printed figure is finer (formatting)
     resolution_mm: float | None = None
-
-
-def reading_step_mm(values) -> float | None:
-    """The last decimal recorded in manual readings (0.01 for a calliper read to 0.01 mm): the largest of 1, 0.1,
-    ..., 0.0001 mm that every reading is a whole multiple of; None when the readings carry more decimals."""
-    array = np.asarray(values, dtype=float)
-    for decimals in range(5):
-        scaled = array * 10**decimals
-        if np.all(np.abs(scaled - np.round(scaled)) < 1e-6):
-            return 10.0**-decimals
-    return None
 
 
 def reading_instrument(
