@@ -35,7 +35,7 @@ def test_combined_and_expanded():
     assert combine(0.003, 0.004) == pytest.approx(0.005)
     measured = expanded(1.5, 0.005, unit="mm")
     assert measured.expanded_uncertainty == pytest.approx(0.01)
-    assert str(measured) == "1.5 ± 0.01 mm (k = 2)"
+    assert str(measured) == "1.500 ± 0.010 mm (k = 2)"  # U to two significant digits, GUM 7.2.6
     with pytest.raises(ConfigError, match="standard_uncertainty = nan"):
         expanded(1.0, float("nan"), unit="mm")
 

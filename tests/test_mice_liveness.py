@@ -207,7 +207,7 @@ def test_a_measured_calibration_is_in_force_only_when_the_station_names_it(tmp_p
     ],
 )
 def test_the_calibration_in_force_enters_the_runs_budget(tmp_path, calibration, relative):
-    from bench.reports.content import counts_instrument
+    from bench.reports.instrument import counts_instrument
 
     settings = {"instrument": {"cpi": 800.0, "registration_mm": [110.0, 0.0, 320.0], "scale_calibration": calibration}}
     with Store(tmp_path / "bench.db") as store:

@@ -1,6 +1,7 @@
 """``bench analyze``: metrology figures from tidy CSV tables (ISO 9283 poses, distance, drift, actuators, payload;
 vAP, paths, cornering, path velocity and positioning time in `bench.commands.analyze_path`, ISO 230-2 in
-`bench.commands.analyze_bidirectional`, orientation from calliper tilts in `bench.commands.analyze_orientation`).
+`bench.commands.analyze_bidirectional`, orientation from calliper tilts in `bench.commands.analyze_orientation`, the
+mouse's resolution in `bench.commands.analyze_mouse`).
 
 Every handler reads a CSV through `bench.metrology.tables`, computes with `bench.metrology`, and prints a readable
 table or, with ``--json``, one JSON object on stdout. Bad cells give a one-line ``ConfigError`` naming the row,
@@ -94,21 +95,9 @@ def register(groups: argparse._SubParsersAction) -> None:
     payload = _new_parser(actions, "payload", "leg actuation error against load (project payload error)")
     payload.set_defaults(handler=_payload)
 
-    mouse = _new_parser(
-        actions,
-        "mouse",
-        "mouse resolution: per-distance (reading, distance_mm, position; reading "
-        "numbers the readings in the order taken; N/A = restart), "
-        "2x2 fit (ref_x_mm, ref_y_mm, counts_x, counts_y), or a mouse_calibration "
-        "run's export (bench export RUN --kind mouse)",
-    )
-    mouse.add_argument(
-        "--reference",
-        metavar="REF.csv",
-        default=None,
-        help="a calliper-referenced run's readings (bench export RUN --kind mouse_reference)",
-    )
-    mouse.set_defaults(handler=_mouse)
+    from bench.commands.analyze_mouse import register as register_mouse
+
+    register_mouse(actions, _new_parser)
 
     grid = _new_parser(
         actions,
@@ -221,6 +210,7 @@ def _iso9283(args: argparse.Namespace) -> int:
 
 
 def _distance(args: argparse.Namespace) -> int:
+    from bench.metrology.formatting import format_length
     from bench.metrology.tables import (
         POSE_NUMERIC_COLUMNS,
         analyze_distance,
@@ -253,11 +243,11 @@ def _distance(args: argparse.Namespace) -> int:
             f"{args.first} -> {args.second}, n = {r.n}: D_c = {r.commanded_distance_mm:.3f} mm, "
             f"D̄ = {r.mean_distance_mm:.3f} mm"
         ),
-        f"AD_p = {u_ad}, RD = ±{r.rd_mm:.4f} mm; {budget}",
+        f"AD_p = {u_ad}, RD = ±{format_length(r.rd_mm)} mm; {budget}",
         "AD x/y/z = "
-        + " / ".join(f"{v:+.4f}" for v in r.ad_axes_mm)
+        + " / ".join(format_length(v, signed=True) for v in r.ad_axes_mm)
         + " mm, RD x/y/z = ±"
-        + " / ±".join(f"{v:.4f}" for v in r.rd_axes_mm)
+        + " / ±".join(map(format_length, r.rd_axes_mm))
         + " mm",
     ]
     angles = analyze_orientation_distance(table, args.first, args.second)
@@ -267,7 +257,10 @@ def _distance(args: argparse.Namespace) -> int:
             result[f"AD_{name}_deg"], result[f"RD_{name}_deg"] = ad, rd
         lines.append(
             "orientation: "
-            + ", ".join(f"AD_{n} {ad:+.4f} deg, RD_{n} ±{rd:.4f} deg" for n, ad, rd in zip(names, o.ad_deg, o.rd_deg))
+            + ", ".join(
+                f"AD_{n} {format_length(ad, signed=True)} deg, RD_{n} ±{format_length(rd)} deg"
+                for n, ad, rd in zip(names, o.ad_deg, o.rd_deg)
+            )
         )
     emit(result, args.json, lines)
     return 0
@@ -275,6 +268,7 @@ def _distance(args: argparse.Namespace) -> int:
 
 def _drift(args: argparse.Namespace) -> int:
     from bench.metrology import orientation_drift, pose_drift
+    from bench.metrology.formatting import format_length
     from bench.metrology.tables import ANGLE_PAIRS, POSE_NUMERIC_COLUMNS, pose_table, read_table_csv
 
     table = pose_table(read_table_csv(args.file, numeric=POSE_NUMERIC_COLUMNS))
@@ -298,9 +292,10 @@ def _drift(args: argparse.Namespace) -> int:
             for t, n, a, p in zip(r.window_start_s, r.n_per_window, r.ap_mm, r.rp_mm)
         ],
     }
-    lines = [f"pose {args.pose}: dAP = {r.dap_mm:.4f} mm, dRP = {r.drp_mm:.4f} mm over {len(r.ap_mm)} windows"]
+    mm = format_length
+    lines = [f"pose {args.pose}: dAP = {mm(r.dap_mm)} mm, dRP = {mm(r.drp_mm)} mm over {len(r.ap_mm)} windows"]
     lines += [
-        f"  t >= {t:10.1f} s  n = {n:4d}  AP = {a:.4f} mm  RP = {p:.4f} mm"
+        f"  t >= {t:10.1f} s  n = {n:4d}  AP = {mm(a)} mm  RP = {mm(p)} mm"
         for t, n, a, p in zip(r.window_start_s, r.n_per_window, r.ap_mm, r.rp_mm)
     ]
     pairs = [(c, a) for c, a in ANGLE_PAIRS if a in rows.columns]
@@ -314,13 +309,14 @@ def _drift(args: argparse.Namespace) -> int:
             for window, ap, rp in zip(result["windows"], o.ap_deg[:, i], o.rp_deg[:, i]):
                 window[f"AP_{name}_deg"], window[f"RP_{name}_deg"] = float(ap), float(rp)
             lines.append(
-                f"  orientation {name}: dAP_{name} = {o.dap_deg[i]:.4f} deg, dRP_{name} = {o.drp_deg[i]:.4f} deg"
+                f"  orientation {name}: dAP_{name} = {mm(o.dap_deg[i])} deg, dRP_{name} = {mm(o.drp_deg[i])} deg"
             )
     emit(result, args.json, lines)
     return 0
 
 
 def _stabilisation(args: argparse.Namespace) -> int:
+    from bench.metrology.formatting import format_length
     from bench.metrology.tables import read_table_csv, stabilisation_results, stabilisation_table
 
     table = stabilisation_table(read_table_csv(args.file))
@@ -350,7 +346,7 @@ def _stabilisation(args: argparse.Namespace) -> int:
             }
             lines.append(
                 f"{band:>7g}  {pose:<{width}} {n:>2} {r.mean_time_s:>8.3f} {r.max_time_s:>8.3f} "
-                f"{r.mean_overshoot_mm:>7.4f} {r.max_overshoot_mm:>9.4f}"
+                f"{format_length(r.mean_overshoot_mm):>7} {format_length(r.max_overshoot_mm):>9}"
             )
     emit(result, args.json, lines)
     return 0
@@ -383,6 +379,7 @@ def actuator_result_json(r) -> dict:
 
 def _actuator(args: argparse.Namespace) -> int:
     from bench.metrology.actuator_tables import actuator_table, analyze_actuators, robot_control_resolution
+    from bench.metrology.formatting import format_value, reading_step_mm
     from bench.metrology.tables import read_table_csv
     from bench.metrology.uncertainty import instrument_budget
 
@@ -408,18 +405,27 @@ def _actuator(args: argparse.Namespace) -> int:
             f"{'E230_mm':>8} {'A230_mm':>8}  mean deviation per target (mm)"
         )
     ]
+    step = reading_step_mm(frame["travel_mm"]) if "travel_mm" in frame else None
+
+    def mm(value: float, u: float | None = None, signed: bool = False) -> str:
+        """By its U when it has one, else never finer than the readings (as the report: figure_decimals)."""
+        return format_value(value, u, signed=signed, resolution=None if u is not None else step)
+
     for r in results:
         g, iso = r.groover, r.iso230_2
+        repeat_u, accuracy_u = (
+            None if m is None else m.expanded_uncertainty for m in (r.repeatability_u, r.accuracy_u)
+        )
         lines.append(
-            f"{r.actuator:<9} {g.n:>3} {g.repeatability_mm:9.3f} {g.accuracy_mm:11.3f} "
-            f"{g.max_abs_bias_mm:12.3f} {iso.repeatability_forward_mm:8.3f} {iso.systematic_forward_mm:8.3f} "
-            f"{iso.accuracy_forward_mm:8.3f}  "
-            + " ".join(f"{v:+.3f}" for v in g.mean_deviation_mm)
+            f"{r.actuator:<9} {g.n:>3} {mm(g.repeatability_mm, repeat_u):>9} "
+            f"{mm(g.accuracy_mm, accuracy_u):>11} {mm(g.max_abs_bias_mm):>12} "
+            f"{mm(iso.repeatability_forward_mm):>8} {mm(iso.systematic_forward_mm):>8} {mm(iso.accuracy_forward_mm):>8}  "
+            + " ".join(mm(v, u.expanded_uncertainty, True) for v, u in zip(g.mean_deviation_mm, r.bias_u))
             + (f"  ({r.dropped} readings of incomplete repeats left out)" if r.dropped else "")
         )
     lines.append(
         "Repeatability = 3 σ̄, accuracy = CR/2 + 3 σ̄ (dissertation Eqs. 8.2-8.3); bias = x̄ - target; "
-        "R/E/A: ISO 230-2 unidirectional (approach from below)."
+        "R/E/A: ISO 230-2 unidirectional (approach from below); figures with a U rounded by it (--json: U, full precision)."
     )
     lines.append(budget + ".")
     emit({"actuators": {r.actuator: actuator_result_json(r) for r in results}, "U_budget": budget}, args.json, lines)
@@ -430,6 +436,7 @@ def _payload(args: argparse.Namespace) -> int:
     import numpy as np
 
     from bench.metrology import leg_error_summary
+    from bench.metrology.formatting import format_length
     from bench.metrology.tables import numeric_columns, read_table_csv
 
     table = numeric_columns(read_table_csv(args.file), ["load_kg", "error_mm"])
@@ -470,148 +477,13 @@ def _payload(args: argparse.Namespace) -> int:
     }
     lines = [f"{'leg':<5} {'worst_mm':>8} {'at_kg':>7} {'mean_mm':>8} {'r(load)':>8}  (worst: largest |e|, signed)"]
     lines += [
-        f"{n:<5} {w:+8.3f} {wl:7.2f} {a:+8.3f} {('n/a' if c is None else f'{c:+.3f}'):>8}"
+        f"{n:<5} {format_length(w, signed=True):>8} {wl:7.2f} {format_length(a, signed=True):>8} "
+        f"{('n/a' if c is None else f'{c:+.3f}'):>8}"
         for n, w, wl, a, c in zip(names, worst, worst_load, s.mean_error_mm, s.correlation_with_load)
     ]
-    lines.append(f"all legs: mean {s.overall_mean_mm:.3f} mm, SD {s.overall_sd_mm:.3f} mm over {s.n_loads} loads")
-    emit(result, args.json, lines)
-    return 0
-
-
-def _mouse(args: argparse.Namespace) -> int:
-    import numpy as np
-
-    from bench.metrology import increment_resolution, increments_from_positions
-    from bench.metrology.tables import numeric_columns, read_table_csv
-
-    frame = read_table_csv(args.file)
-    if {"ref_x_mm", "ref_y_mm", "counts_x", "counts_y"} <= set(frame.columns):
-        table = numeric_columns(frame, ["ref_x_mm", "ref_y_mm", "counts_x", "counts_y"])
-        return _mouse_matrix(
-            args, table[["ref_x_mm", "ref_y_mm"]].to_numpy(), table[["counts_x", "counts_y"]].to_numpy()
-        )
-    if _RUN_EXPORT <= set(frame.columns):
-        return _mouse_matrix(args, *_run_export_moves(args, frame))
-    if not {"distance_mm", "position"} <= set(frame.columns):
-        raise ConfigError(
-            f"{args.file}: expected columns distance_mm, position (per-distance method) or "
-            f"ref_x_mm, ref_y_mm, counts_x, counts_y (2x2 fit); found {', '.join(frame.columns)}"
-        )
-    if "reading" not in frame.columns:  # the increments are differences of consecutive readings
-        raise ConfigError(
-            f"{args.file}: missing column reading, expected the number of each position reading in the "
-            f"order taken (row order carries no meaning)"
-        )
-    restart = frame["position"].str.strip().str.upper().isin(["N/A", "NA", ""])
-    table = numeric_columns(
-        frame.assign(position=frame["position"].where(~restart, "0")), ["reading", "distance_mm", "position"]
+    lines.append(
+        f"all legs: mean {format_length(s.overall_mean_mm)} mm, SD {format_length(s.overall_sd_mm)} mm over {s.n_loads} loads"
     )
-    table.loc[restart, "position"] = np.nan  # a restart marker breaks the segment; it is never a zero
-    repeated = table["reading"].duplicated()
-    if repeated.any():
-        index = repeated.idxmax()
-        raise ConfigError(
-            f"{args.file}: row {int(index) + 1}, column reading: {table.at[index, 'reading']:g} repeated, "
-            f"expected one row per reading"
-        )
-    table = table.sort_values("reading", kind="stable")
-    header = f"{'distance_mm':>11} {'n':>4} {'mean_delta':>10} {'mm_per_count':>12} {'3sigma':>7} {'tolerance_mm':>12}"
-    result, lines = {}, [header]
-    for distance, rows in table.groupby("distance_mm", sort=True):
-        r = increment_resolution(distance, increments_from_positions(rows["position"].to_numpy()))
-        result[f"{distance:g}"] = {
-            "n": r.n,
-            "mean_delta_counts": r.mean_delta_counts,
-            "resolution_mm_per_count": r.resolution_mm_per_count,
-            "three_sigma_counts": r.three_sigma_counts,
-            "tolerance_mm": r.tolerance_mm,
-        }
-        lines.append(
-            f"{distance:11g} {r.n:4d} {r.mean_delta_counts:10.3f} {r.resolution_mm_per_count:12.5f} "
-            f"{r.three_sigma_counts:7.3f} {r.tolerance_mm:12.4f}"
-        )
-    lines.append("Resolution = distance / mean Δ; tolerance = 3 S(Δ) x resolution (dissertation App. A.7).")
-    emit({"method": "increments", "distances": result}, args.json, lines)
-    return 0
-
-
-#: The columns of a mouse_calibration run's ``mouse`` export that the 2x2 fit reads.
-_RUN_EXPORT = {"pose", "cycle", "step_index", "cmd_x_mm", "cmd_y_mm", "mouse_xy_x_counts", "mouse_xy_y_counts"}
-
-
-def _run_export_moves(args: argparse.Namespace, frame):
-    """The moves of a mouse_calibration run's export, as the run's own fit pairs them
-    (:func:`bench.protocols.dissertation.mouse_calibration_moves`): against the calliper readings of ``--reference``
-    when given, else the commanded travel."""
-    from types import SimpleNamespace
-
-    from bench.metrology.tables import numeric_columns, read_table_csv
-    from bench.protocols.dissertation import mouse_calibration_moves
-
-    numbers = numeric_columns(frame, sorted(_RUN_EXPORT - {"pose"})).sort_values("step_index", kind="stable")
-    rows = [
-        SimpleNamespace(pose=str(row["pose"]), cycle=int(row["cycle"]), values=row) for _, row in numbers.iterrows()
-    ]
-    references = None
-    if args.reference is not None:
-        readings = read_table_csv(args.reference)
-        if not {"pose", "cycle", "reference_mm"} <= set(readings.columns):
-            raise ConfigError(
-                f"{args.reference}: expected columns pose, cycle, reference_mm (bench export RUN "
-                f"--kind mouse_reference); found {', '.join(readings.columns)}"
-            )
-        references = [
-            SimpleNamespace(pose=str(row["pose"]), cycle=int(row["cycle"]), values=row)
-            for _, row in numeric_columns(readings, ["cycle", "reference_mm"]).iterrows()
-        ]
-    return mouse_calibration_moves(rows, references)
-
-
-def _mouse_matrix(args: argparse.Namespace, reference, counts) -> int:
-    from bench.metrology import fit_matrix
-
-    # an intercept per move direction models a start/stop offset (sensors.md: without it the offset goes into A)
-    fit = fit_matrix(reference, counts, per_direction=True)
-    k = fit.coverage_factor
-    intercepts = {
-        label: {
-            "counts": fit.offsets_counts[i].tolist(),
-            "u_counts": fit.u_offsets_counts[i].tolist(),
-            "significant": fit.offsets_significant[i].tolist(),
-        }
-        for i, label in enumerate(fit.offset_labels)
-    }
-    result = {
-        "method": "matrix",
-        "n": fit.n,
-        "A_mm_per_count": fit.a_mm_per_count.tolist(),
-        "u_A_mm_per_count": fit.u_a_mm_per_count.tolist(),
-        "k": k,
-        "U_A_mm_per_count": fit.expanded_a_mm_per_count.tolist(),
-        "dof": fit.dof,
-        "rotation_deg": fit.rotation_deg,
-        "scale_mm_per_count": fit.scale_mm_per_count.tolist(),
-        "sigma_counts": fit.sigma_counts.tolist(),
-        "intercepts_by_direction": intercepts,
-    }
-    a, big_u = fit.a_mm_per_count, fit.expanded_a_mm_per_count
-    lines = [
-        f"A (mm/count), n = {fit.n} moves, ± U (95 %, k = {k:.2f}, {fit.dof} dof):",
-        *(f"  [{a[i, 0]:+.6f} ± {big_u[i, 0]:.1e}  {a[i, 1]:+.6f} ± {big_u[i, 1]:.1e}]" for i in range(2)),
-        (
-            f"rotation {fit.rotation_deg:+.3f} deg, scale x/y {fit.scale_mm_per_count[0]:.6f} / "
-            f"{fit.scale_mm_per_count[1]:.6f} mm/count, residual SD {fit.sigma_counts[0]:.3f} / "
-            f"{fit.sigma_counts[1]:.3f} counts"
-        ),
-        "intercept per move direction (counts, ± U; * = significant at 95 %: a start/stop offset or lost counts):",
-    ]
-    for i, label in enumerate(fit.offset_labels):
-        cells = [
-            f"{fit.offsets_counts[i, j]:+.3f} ± {k * fit.u_offsets_counts[i, j]:.3f}"
-            f"{'*' if fit.offsets_significant[i, j] else ' '}"
-            for j in range(2)
-        ]
-        lines.append(f"  {label}: sensor x {cells[0]}  sensor y {cells[1]}")
     emit(result, args.json, lines)
     return 0
 

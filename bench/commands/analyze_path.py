@@ -271,6 +271,7 @@ def _exchangeability(args: argparse.Namespace) -> int:
 
 def _path(args: argparse.Namespace) -> int:
     from bench.metrology import path_characteristics, path_orientation_characteristics
+    from bench.metrology.formatting import format_length
     from bench.metrology.path_tables import path_cycles, path_table, station_table
     from bench.metrology.tables import read_table_csv
 
@@ -288,7 +289,7 @@ def _path(args: argparse.Namespace) -> int:
         "RT_per_station_mm": r.rt_per_station_mm.tolist(),
     }
     lines = [
-        f"{r.n_cycles} cycles, {len(stations)} stations: AT_p = {r.at_mm:.4f} mm, RT_p = {r.rt_mm:.4f} mm "
+        f"{r.n_cycles} cycles, {len(stations)} stations: AT_p = {format_length(r.at_mm)} mm, RT_p = {format_length(r.rt_mm)} mm "
         f"(worst station {int(r.at_per_station_mm.argmax()) + 1} / {int(r.rt_per_station_mm.argmax()) + 1})"
     ]
     attained_columns = tuple(c for c in ("a_deg", "b_deg", "c_deg") if c in table.columns)
@@ -302,13 +303,14 @@ def _path(args: argparse.Namespace) -> int:
         for column, at, rt in zip(angle_columns, o.at_deg, o.rt_deg):
             name = column[0]
             result[f"AT_{name}_deg"], result[f"RT_{name}_deg"] = at, rt
-            lines.append(f"AT_{name} = {at:.4f} deg, RT_{name} = ±{rt:.4f} deg")
+            lines.append(f"AT_{name} = {format_length(at)} deg, RT_{name} = ±{format_length(rt)} deg")
     emit(result, args.json, lines)
     return 0
 
 
 def _cornering(args: argparse.Namespace) -> int:
     from bench.metrology import cornering_deviations
+    from bench.metrology.formatting import format_length
     from bench.metrology.path_tables import path_cycles, path_table
     from bench.metrology.tables import read_table_csv
 
@@ -332,11 +334,11 @@ def _cornering(args: argparse.Namespace) -> int:
         ],
     }
     lines = [
-        f"{r.n} cycles: CR = {r.cr_mm:.4f} mm (mean {r.mean_cr_mm:.4f}), CO = {r.co_mm:.4f} mm "
-        f"(mean {r.mean_co_mm:.4f}); worst cycle shown"
+        f"{r.n} cycles: CR = {format_length(r.cr_mm)} mm (mean {format_length(r.mean_cr_mm)}), "
+        f"CO = {format_length(r.co_mm)} mm (mean {format_length(r.mean_co_mm)}); worst cycle shown"
     ]
     lines += [
-        f"  cycle {c.cycle:>3}: CR = {cr:.4f} mm, CO = {co:.4f} mm"
+        f"  cycle {c.cycle:>3}: CR = {format_length(cr)} mm, CO = {format_length(co)} mm"
         for c, cr, co in zip(cycles, r.cr_per_cycle_mm, r.co_per_cycle_mm)
     ]
     emit(result, args.json, lines)

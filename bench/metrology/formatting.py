@@ -32,6 +32,7 @@ __all__ = [
     "natural_key",
     "pose_label",
     "reading_decimals",
+    "reading_step_mm",
     "report_order",
     "uncertainty_decimals",
 ]
@@ -86,6 +87,19 @@ def figure_decimals(uncertainty: float | None = None, resolution: float | None =
     usable = uncertainty is not None and math.isfinite(float(uncertainty)) and float(uncertainty) != 0.0
     decimals = uncertainty_decimals(uncertainty) if usable else FALLBACK_DECIMALS
     return decimals if resolution is None else min(decimals, reading_decimals(resolution))
+
+
+def reading_step_mm(values) -> float | None:
+    """The last decimal recorded in manual readings (0.01 for a calliper read to 0.01 mm): the largest of 1, 0.1,
+    ..., 0.0001 mm that every reading is a whole multiple of; None when the readings carry more decimals."""
+    import numpy as np  # imported when called: this module stays light for the window and the CLI
+
+    array = np.asarray(values, dtype=float)
+    for decimals in range(5):
+        scaled = array * 10**decimals
+        if np.all(np.abs(scaled - np.round(scaled)) < 1e-6):
+            return 10.0**-decimals
+    return None
 
 
 def _fixed(value: float, decimals: int) -> str:

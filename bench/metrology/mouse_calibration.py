@@ -27,6 +27,7 @@ __all__ = [
     "AxisCalibration",
     "IncrementResolution",
     "MatrixCalibration",
+    "counts_per_inch",
     "student_k95",
     "direction_labels",
     "fit_axis_scale",
@@ -106,6 +107,21 @@ class MatrixCalibration:
     def offsets_significant(self) -> np.ndarray:
         """(len(offset_labels), 2) bool: |intercept| > k · u(intercept), non-zero at 95 %."""
         return np.abs(self.offsets_counts) > self.coverage_factor * self.u_offsets_counts
+
+    def u_scale_mm_per_count(self, reference_u_rel: float = 0.0) -> np.ndarray:
+        """(2,) standard uncertainty of :attr:`scale_mm_per_count`: the fit's, to first order,
+        u(|a|)² = Σ_i (a_i / |a|)² u(a_i)² over the column a = A e_axis, combined with the reference's relative
+        scale u (``reference_u_rel`` · scale; GUM 5.1.2, uncorrelated)."""
+        a, u = self.a_mm_per_count, self.u_a_mm_per_count
+        u_fit = np.sqrt(np.sum((a / self.scale_mm_per_count * u) ** 2, axis=0))
+        return np.hypot(u_fit, reference_u_rel * self.scale_mm_per_count)
+
+
+def counts_per_inch(scale_mm_per_count: float, u_scale_mm_per_count: float) -> tuple[float, float]:
+    """A scale in mm/count as counts per inch with its uncertainty: cpi = 25.4 / s, u(cpi) = cpi · u(s) / s
+    (first order, GUM 5.1.3), so a printed cpi carries no more digits than the scale's U supports."""
+    cpi = MM_PER_INCH / scale_mm_per_count
+    return cpi, cpi * u_scale_mm_per_count / scale_mm_per_count
 
 
 def student_k95(dof: int) -> float:

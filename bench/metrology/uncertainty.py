@@ -53,7 +53,10 @@ class Measured:
     unit: str
 
     def __str__(self) -> str:
-        return f"{self.value:.4g} ± {self.expanded_uncertainty:.2g} {self.unit} (k = {self.coverage_factor:g})"
+        """``value ± U unit (k = ...)`` rounded by U (GUM 7.2.6, :func:`bench.metrology.formatting.format_measured`)."""
+        from bench.metrology.formatting import format_measured  # formatting imports nothing of bench: no cycle
+
+        return f"{format_measured(self.value, self.expanded_uncertainty)} {self.unit} (k = {self.coverage_factor:g})"
 
 
 @dataclass(frozen=True)
