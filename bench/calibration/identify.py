@@ -145,16 +145,55 @@ def _cycles_advice(plan, campaign) -> str:
     )
 
 
-def _separation_advice(separation: float) -> str:
+def _separation_advice(separation: float, where: str = "") -> str:
     """What an ambiguous fit's refusal adds. The two solutions' predictions differ by ``separation`` (chi^2 over the
     readings); measured, it stays ~1 as the cycles grow (true-geometry seed 76: 0.68 with 1 cycle, 0.90 with 8):
     each solution refits the better data, so the difference lies where these poses see nothing and only the poses
-    can resolve it."""
+    can resolve it: ``where`` names the workspace poses where they differ most (followed, seed 33 was stored)."""
     return (
         f"; these poses cannot tell them apart (their predictions differ by chi^2 {separation:.2g} over all the "
-        "readings) and more cycles do not change that: add poses that move the named parameters (other "
-        "orientations, the workspace's edges)"
+        "readings) and more cycles do not change that: "
+        + (
+            f"add poses where they differ most: {where}"
+            if where
+            else "add poses that move the named parameters (other orientations, the workspace's edges)"
+        )
     )
+
+
+def _resolved_or_refused(problem, chosen, exc):
+    """An ambiguous fit (two plausible, distinct solutions) stored when, at every pose of a sample of the robot's
+    workspace, the two predict positions within the best one's own stated uncertainty of prediction at k = 2
+    (:func:`bench.metrology.kinematic_search.rival_apart`: commanding by it is then as good as it claims whichever
+    is true), with each parameter's uncertainty widened to cover the rival
+    (:func:`bench.metrology.kinematic_search.covering_rival`); else refused, naming the workspace poses where they
+    differ most (measuring those resolves it). Returns the search, the identification to store and the stored
+    ``ambiguity`` record."""
+    import numpy as np
+
+    from bench.metrology.kinematic_search import covering_rival, rival_apart
+
+    best, rival = exc.search.best, exc.rival
+    if problem.workspace is None:
+        raise type(exc)(f"{exc}{_separation_advice(exc.separation)}", exc.separation) from None
+    poses, model = problem.workspace(chosen)
+    apart, beyond = rival_apart(best, rival, model)
+    if not np.all(beyond <= 1.0):
+        where = ", ".join(
+            f"[{', '.join(f'{v:g}' for v in poses[i])}] ({apart[i]:.3g} mm apart, {beyond[i]:.2g} times the k = 2 "
+            "uncertainty there)"
+            for i in np.argsort(-np.nan_to_num(beyond, nan=np.inf))[:3]
+        )
+        raise type(exc)(f"{exc}{_separation_advice(exc.separation, where)}", exc.separation) from None
+    z = np.abs(rival.values - best.values) / best.uncertainty
+    record = {
+        "rival": {n: float(v) for n, v in zip(best.names, rival.values)},
+        "workspace_difference_mm": float(apart.max()),
+        "workspace_difference_of_k2_uncertainty": float(beyond.max()),
+        "workspace_poses": len(poses),
+        "widened": [n for n, zj in zip(best.names, z) if zj > 1.0],
+    }
+    return exc.search, covering_rival(best, rival), record
 
 
 def check_fit(fit: str | None) -> None:
@@ -214,7 +253,7 @@ def identify_run(
             problem.model(chosen).jacobian(np.zeros(len(chosen))), problem.campaign, prior_sigma, before_mm, target_gain
         )
     )
-    search = None
+    search, ambiguity = None, None
     try:
         if fit == "map":  # several starts from the prior: a local solver may stop in a wrong basin (kinematic_search)
             search = identify_global(problem.model(chosen), problem.measured, u, prior_sigma=prior_sigma, seed=run_id)
@@ -222,7 +261,7 @@ def identify_run(
         else:
             result = identify(problem.model(chosen), problem.measured, u, prior_sigma=prior_sigma)
     except AmbiguousFit as exc:
-        raise AmbiguousFit(f"{exc}{_separation_advice(exc.separation)}", exc.separation) from None
+        search, result, ambiguity = _resolved_or_refused(problem, chosen, exc)
     except UnidentifiableParameters as exc:
         raise type(exc)(f"{exc}{_cycles_advice(plan, problem.campaign)}") from None
     _refuse_if_inconsistent(result, problem.campaign.instrument_mm if problem.campaign else u, run_id, problem.campaign)
@@ -237,6 +276,8 @@ def identify_run(
     }
     if search is not None:
         params["search"] = search.as_dict()
+    if ambiguity:
+        params["ambiguity"] = ambiguity
     if plan is not None:
         params["campaign"] = {**params["campaign"], "plan": plan.as_dict()}
     settings = run.settings

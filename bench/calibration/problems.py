@@ -19,6 +19,7 @@ readings of the axes the instrument read and their uncertainty, the per-pose mea
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
 from dataclasses import dataclass, field
 from typing import Any
@@ -31,15 +32,19 @@ __all__ = [
     "MEASURED",
     "Problem",
     "ReadAxes",
+    "WORKSPACE_POSES",
     "check_uncertainty",
     "delta4_problem",
     "mean_error_mm",
     "pkm5_problem",
+    "pkm5_workspace",
 ]
 
 MEASURED = ("x_mm", "y_mm", "z_mm")
 #: The mice's standard uncertainty per axis, mm (the pkm5 calibration protocol's pose selection assumes it).
 DEFAULT_UNCERTAINTY_MM = 0.05
+#: Workspace poses at which two ambiguous pkm5 solutions are compared (the calibration protocol's 300 candidates).
+WORKSPACE_POSES = 300
 
 
 @dataclass(frozen=True)
@@ -64,6 +69,9 @@ class Problem:
     #: the per-pose means and their scatter (:class:`bench.metrology.kinematic_campaign.PoseMeans`); None: the
     #: readings are fitted one by one (the laser grid, whose samples read different axes)
     campaign: Any = None
+    #: ``workspace(free)`` -> (poses (M, c) in the protocol's units, the forward model of ``free`` at them): a sample
+    #: of the robot's workspace where two ambiguous solutions are compared (None: not offered for this robot)
+    workspace: Any = None
 
 
 class ReadAxes:
@@ -159,7 +167,33 @@ def pkm5_problem(store, run_id: int, uncertainty_mm: float | None) -> Problem:
             "name": "manufacturing tolerances (motion.pkm5.calibration.TOLERANCES)",
             "sigma": dict(TOLERANCES),
         },
+        workspace=lambda free: (pkm5_workspace()[0], ForwardModel(*pkm5_workspace()[1:], free)),
     )
+
+
+@functools.lru_cache(maxsize=1)
+def pkm5_workspace():
+    """Where two pkm5 solutions are compared: :data:`WORKSPACE_POSES` reachable poses of the three motion modes
+    (seed 1, the calibration protocol's candidates; mm, deg rounded as a protocol states them), those the pre-flight
+    passes: the poses, their steps (the documented geometry) and modes."""
+    import numpy as np
+
+    from bench.errors import UnreachableTarget
+    from bench.robots.pkm5_kinematics import steps_for_pose
+    from motion import pkm5
+    from motion.pkm5.calibration import modes_of_poses
+
+    poses = np.array(pkm5.sample_reachable(WORKSPACE_POSES, kinds=("constant-orientation", "alpha", "beta"), seed=1))
+    poses[:, 3:] = np.degrees(poses[:, 3:])
+    poses = np.round(poses, 2)
+    kept, steps = [], []
+    for pose in poses:
+        try:
+            steps.append(steps_for_pose(pose))
+        except UnreachableTarget:
+            continue
+        kept.append(pose)
+    return np.array(kept), np.array(steps), modes_of_poses(np.array(kept))
 
 
 def _campaign(commanded, measured, instrument_mm: float):

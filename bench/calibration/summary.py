@@ -70,6 +70,14 @@ def _campaign_lines(params: dict) -> list[str]:
             f"search: {search['starts']} starts from the prior, kept start {search['kept_start']} "
             "(lowest MAP objective; no other plausible solution differs beyond 5 standard uncertainties)"
         )
+    ambiguity = params.get("ambiguity")
+    if ambiguity:
+        lines.append(
+            f"ambiguous: a second solution as plausible differs in {', '.join(ambiguity['widened'])} yet predicts "
+            f"the same positions within this one's k = 2 uncertainty at {ambiguity['workspace_poses']} workspace "
+            f"poses (at most {ambiguity['workspace_difference_mm']:.3f} mm apart): stored with those parameters' "
+            "uncertainties widened to cover it"
+        )
     if not campaign:
         return lines
     cycles = campaign["cycles_per_pose"]
