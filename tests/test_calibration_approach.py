@@ -71,3 +71,11 @@ def test_a_direct_approach_makes_no_extra_move():
     protocol = PoseAccuracy(poses={"A": [110.0, 0.0, 320.0], "B": [120.0, 5.0, 310.0]}, cycles=2)
     assert [m.label for m in _first_cycle_moves(protocol)] == ["A", "B"]
     assert "approach_mm" not in protocol.resolved()
+
+
+def test_the_calibration_records_how_its_poses_were_approached(tmp_path_factory):
+    # the ideal simulator's calibration run of examples/kinematic_calibration.toml (2 cycles, as written otherwise)
+    from calibrated_pkm5 import calibrated_runs
+
+    runs = calibrated_runs(tmp_path_factory)
+    assert runs.calibration["approach_from_below_mm"] == 1.0

@@ -284,6 +284,8 @@ def identify_run(
     serial = (settings.get("dut") or {}).get("dut_serial")
     if serial:  # the calibration belongs to this robot: runs of other robots never use it by default
         params["dut_serial"] = serial
+    # how the poses were arrived at: the legs' backlash is in the identified offsets for that approach only
+    params["approach_from_below_mm"] = float(run.config.get("approach_from_below_mm") or 0.0)
     if "simulator" in settings:  # a simulated robot's geometry: never in force on hardware
         params["simulated"] = True
     record = store.add_calibration(name, params, source_run_id=run_id, notes=f"bench calibrate {run_id}")

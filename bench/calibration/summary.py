@@ -46,6 +46,14 @@ def summary_lines(identified: IdentifiedRun) -> list[str]:
         f"mean position error on the calibration poses (in-sample): before {params['ap_before_mm']:.3f} "
         f"mm, after {params['ap_after_mm']:.3f} mm"
     )
+    below = params.get("approach_from_below_mm")
+    if below is not None:
+        lines.append(
+            f"poses approached from {below:g} mm below (the legs' backlash is in the identified offsets for that "
+            "approach: runs commanded by this calibration should approach the same way)"
+            if below
+            else "poses approached directly (the legs' backlash, whose sign follows the pose before, is not modelled)"
+        )
     lines += _campaign_lines(params)
     if "command_resolution_mm" in params:
         steps = (
