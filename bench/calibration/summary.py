@@ -4,16 +4,14 @@ the instrument's figure, the search, the plan for the target gain)."""
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
-
-if TYPE_CHECKING:
-    from bench.calibration.identify import IdentifiedRun
+from typing import Any
 
 __all__ = ["summary_lines"]
 
 
-def summary_lines(identified: IdentifiedRun) -> list[str]:
-    """The text ``bench calibrate`` prints (and the window shows): parameters, uncertainties, observability."""
+def summary_lines(identified: Any) -> list[str]:
+    """The text ``bench calibrate`` prints (and the window shows) for ``identified``, a
+    :class:`bench.calibration.identify.IdentifiedRun`: parameters, uncertainties, observability."""
     from bench.metrology.formatting import format_pair
 
     result, record, params = identified.result, identified.record, identified.params
@@ -26,6 +24,14 @@ def summary_lines(identified: IdentifiedRun) -> list[str]:
     for name, value, std, unit in zip(result.names, result.values, result.uncertainty, result.units):
         shown, u = format_pair(value, std, signed=True)  # to the uncertainty's 2 significant digits, as the report
         lines.append(f"{name:<18} {shown:>12} {u:>12}  {unit}")
+    below = params.get("approach_from_below_mm")
+    if below is not None:
+        lines.append(
+            f"poses approached from {below:g} mm below (the legs' backlash is in the identified offsets for that "
+            "approach: runs commanded by this calibration should approach the same way)"
+            if below
+            else "poses approached directly (the legs' backlash, whose sign follows the pose before, is not modelled)"
+        )
     if result.fit == "map":
         source = params.get("prior") or {}
         lines.append(
@@ -46,14 +52,6 @@ def summary_lines(identified: IdentifiedRun) -> list[str]:
         f"mean position error on the calibration poses (in-sample): before {params['ap_before_mm']:.3f} "
         f"mm, after {params['ap_after_mm']:.3f} mm"
     )
-    below = params.get("approach_from_below_mm")
-    if below is not None:
-        lines.append(
-            f"poses approached from {below:g} mm below (the legs' backlash is in the identified offsets for that "
-            "approach: runs commanded by this calibration should approach the same way)"
-            if below
-            else "poses approached directly (the legs' backlash, whose sign follows the pose before, is not modelled)"
-        )
     lines += _campaign_lines(params)
     if "command_resolution_mm" in params:
         steps = (
