@@ -128,12 +128,12 @@ def test_calibrate_prints_which_parameters_only_the_prior_fixes(tmp_path, capsys
         assert float(u) == pytest.approx(entry["uncertainty"], abs=0.5 * 10.0**-decimals), line
         assert float(value) == pytest.approx(entry["value"], abs=0.5 * 10.0**-decimals), line
         assert unit == entry["unit"] and (value[0] in "+-" or float(value) == 0), line
-    assert lines[-7] == (
+    assert lines[-6] == (
         "fit: maximum a posteriori, prior: manufacturing tolerances (motion.pkm5.calibration."
         "TOLERANCES); fixed by the prior (the data did not inform them): " + (", ".join(stored["prior_only"]) or "none")
     )
-    assert lines[-6].startswith(f"data part: condition number {stored['observability']['condition_number']:.3g} ")
-    assert lines[-6].endswith(
+    assert lines[-5].startswith(f"data part: condition number {stored['observability']['condition_number']:.3g} ")
+    assert lines[-5].endswith(
         f"reduced chi2 {stored['reduced_chi2']:.2f} over {stored['degrees_of_freedom']:.1f} degrees of freedom"
     )
     assert 90 - 36 < stored["degrees_of_freedom"] < 90 - 3  # the prior holds part of the 33, none of the registration
