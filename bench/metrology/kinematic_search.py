@@ -25,6 +25,7 @@ computation, arrays in and out.
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
@@ -35,11 +36,14 @@ from bench.metrology.kinematic_calibration import Identification, Unidentifiable
 __all__ = [
     "AMBIGUITY_DELTA",
     "AMBIGUITY_Z",
+    "COVERAGE_K",
     "DEFAULT_STARTS",
     "AmbiguousFit",
     "SearchResult",
+    "covering_rival",
     "identify_global",
     "map_objective",
+    "rival_apart",
 ]
 
 #: Starts of the search: the documented geometry and seven prior draws (measured: on the ideal simulator's seeds
@@ -50,17 +54,21 @@ DEFAULT_STARTS = 8
 AMBIGUITY_DELTA = 4.0
 #: ... and are distinct when a parameter differs by more than this many of the best solution's standard uncertainties.
 AMBIGUITY_Z = 5.0
+#: Coverage factor of the prediction uncertainty within which two ambiguous solutions command alike (k = 2, 95 %).
+COVERAGE_K = 2.0
 
 
 class AmbiguousFit(UnidentifiableParameters):
     """Distinct geometries explain the data about equally well (module docstring): the fit is not stored.
     ``separation`` is how far apart their predictions lie, ``sum |(f_rival - f_best) / u|^2`` over the readings:
     measured, it stays ~1 as the cycles per pose grow (each solution refits the better data), so only poses that
-    see the difference resolve it (docs/calibration.md)."""
+    see the difference resolve it (docs/calibration.md). ``search`` is the search (its best kept) and ``rival`` the
+    other solution, so a caller can see where the two differ (:func:`covering_rival`)."""
 
-    def __init__(self, message: str, separation: float = float("nan")) -> None:
+    def __init__(self, message: str, separation: float = float("nan"), search=None, rival=None) -> None:
         super().__init__(message)
         self.separation = separation
+        self.search, self.rival = search, rival
 
 
 @dataclass(frozen=True)
@@ -145,5 +153,37 @@ def identify_global(
             f"{AMBIGUITY_DELTA:g}) yet differ by more than {AMBIGUITY_Z:g} standard uncertainties in {named}; "
             f"nothing stored. Their predictions differ by chi^2 {separation:.3g} over the readings",
             separation,
+            SearchResult(best, objectives, spread, kept),
+            rival,
         )
     return SearchResult(best, objectives, spread, kept)
+
+
+def rival_apart(best: Identification, rival: Identification, model) -> tuple[np.ndarray, np.ndarray]:
+    """Where two solutions differ, at the poses of ``model`` (a forward model of the same free parameters, e.g. a
+    sample of the workspace): per pose the distance of their predictions ``d_i = |f_i(rival) - f_i(best)|`` (inf
+    where one cannot be evaluated) and its ratio to the best's own stated uncertainty of prediction there at
+    coverage :data:`COVERAGE_K`,
+
+    .. math:: r_i = d_i / (k \\sqrt{\\operatorname{tr}(J_i C J_i^T)}),
+
+    ``C`` the best's (posterior) covariance, ``J_i`` its Jacobian at the pose. Every ``r_i <= 1``: commanding by the
+    best is as good as it states whichever solution is true."""
+    apart = np.linalg.norm(model.predict(best.values) - model.predict(rival.values), axis=1)
+    apart = np.where(np.isfinite(apart), apart, np.inf)
+    jac = model.jacobian(best.values)
+    covariance = best.correlation * np.outer(best.uncertainty, best.uncertainty)
+    stated = np.sqrt(np.einsum("nak,kl,nal->n", jac, covariance, jac))
+    return apart, apart / (COVERAGE_K * stated)
+
+
+def covering_rival(best: Identification, rival: Identification) -> Identification:
+    """``best`` with each standard uncertainty widened to cover the rival solution's value,
+
+    .. math:: u'_j = \\sqrt{u_j^2 + (\\theta^{rival}_j - \\theta^{best}_j)^2},
+
+    so that the truth, near either of two equally plausible solutions, lies within about one u' of the stored value
+    (a conservative bound on the spread of the two-mode posterior; the correlations stay the best mode's). For
+    ambiguities the data cannot resolve but that change no predicted position (the caller checks that)."""
+    widened = np.sqrt(best.uncertainty**2 + (rival.values - best.values) ** 2)
+    return dataclasses.replace(best, uncertainty=widened)
