@@ -229,11 +229,13 @@ def _distance(args: argparse.Namespace) -> int:
         read_table_csv,
     )
     from bench.metrology.uncertainty import distance_accuracy_uncertainty, instrument_budget
+    from bench.metrology.uncertainty_figures import spread_uncertainty
 
     table = pose_table(read_table_csv(args.file, numeric=POSE_NUMERIC_COLUMNS))
     r = analyze_distance(table, args.first, args.second)
     budget = instrument_budget(args.instrument_u_mm, "--instrument-u-mm")
     u_ad = distance_accuracy_uncertainty(r.ad_mm, r.u_ad_mm, r.n, instrument_u_mm=args.instrument_u_mm or 0.0)
+    u_rd = spread_uncertainty(r.rd_mm, r.n, unit="mm")
     result = {
         "from": args.first,
         "to": args.second,
@@ -242,6 +244,7 @@ def _distance(args: argparse.Namespace) -> int:
         "U_AD_mm": u_ad.expanded_uncertainty,
         "k": u_ad.coverage_factor,
         "RD_mm": r.rd_mm,
+        "U_RD_mm": u_rd.expanded_uncertainty,
         "AD_axes_mm": list(r.ad_axes_mm),
         "RD_axes_mm": list(r.rd_axes_mm),
         "mean_distance_mm": r.mean_distance_mm,
@@ -253,7 +256,7 @@ def _distance(args: argparse.Namespace) -> int:
             f"{args.first} -> {args.second}, n = {r.n}: D_c = {r.commanded_distance_mm:.3f} mm, "
             f"D̄ = {r.mean_distance_mm:.3f} mm"
         ),
-        f"AD_p = {u_ad}, RD = ±{r.rd_mm:.4f} mm; {budget}",
+        f"AD_p = {u_ad}, RD = ±{r.rd_mm:.4f} mm (U {u_rd.expanded_uncertainty:.2g} mm, k = 2); {budget}",
         "AD x/y/z = "
         + " / ".join(f"{v:+.4f}" for v in r.ad_axes_mm)
         + " mm, RD x/y/z = ±"
