@@ -15,9 +15,8 @@ from bench.metrology.tables import (
     analyze_poses,
     pose_table,
     read_table_csv,
-    stabilisation_results,
-    stabilisation_table,
 )
+from bench.metrology.stabilisation_tables import stabilisation_results, stabilisation_table
 
 EXAMPLE = Path(__file__).resolve().parents[1] / "examples" / "data" / "iso9283_example.csv"
 HEADER = "pose,cycle,cmd_x_mm,cmd_y_mm,cmd_z_mm,x_mm,y_mm,z_mm"
