@@ -18,6 +18,7 @@ for a constant, no longer imports pandas and scipy with every other one (the des
 from __future__ import annotations
 
 import importlib
+from typing import Any
 
 #: The submodules whose public names the package re-exports; the pandas-based table paths come last, so that
 #: resolving a plain function never imports pandas.
@@ -35,7 +36,7 @@ _SUBMODULES = (
 )
 
 
-def __getattr__(name: str):
+def __getattr__(name: str) -> Any:
     if name == "__all__":
         names = [n for sub in _SUBMODULES for n in importlib.import_module(f"{__name__}.{sub}").__all__]
         globals()["__all__"] = names

@@ -26,8 +26,10 @@ computation, arrays in and out.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from bench.errors import InsufficientData
 from bench.metrology.kinematic_calibration import Identification, UnidentifiableParameters, identify
@@ -73,7 +75,7 @@ class SearchResult:
     spread_z: np.ndarray
     kept_start: int
 
-    def as_dict(self) -> dict:
+    def as_dict(self) -> dict[str, Any]:
         return {
             "starts": len(self.objectives),
             "kept_start": self.kept_start,
@@ -82,7 +84,7 @@ class SearchResult:
         }
 
 
-def map_objective(result: Identification, uncertainty) -> float:
+def map_objective(result: Identification, uncertainty: ArrayLike) -> float:
     """``Phi`` of the module docstring at ``result``'s solution: weighted data residuals squared plus the prior's
     rows squared (the prior's only where ``result.prior_sigma`` is finite)."""
     data = float(np.sum((np.asarray(result.residuals) / np.broadcast_to(uncertainty, result.residuals.shape)) ** 2))
@@ -93,7 +95,14 @@ def map_objective(result: Identification, uncertainty) -> float:
 
 
 def identify_global(
-    model, measured, uncertainty, *, prior_sigma, starts: int = DEFAULT_STARTS, seed: int = 0, **options
+    model: Any,
+    measured: ArrayLike,
+    uncertainty: ArrayLike,
+    *,
+    prior_sigma: ArrayLike,
+    starts: int = DEFAULT_STARTS,
+    seed: int = 0,
+    **options: Any,
 ) -> SearchResult:
     """Maximum a posteriori identification (:func:`identify`) from ``starts`` starting points (module docstring);
     ``seed`` seeds the prior draws, so a search is reproducible. Raises what :func:`identify` raises at the
@@ -121,6 +130,7 @@ def identify_global(
     objectives = np.array([np.nan if f is None else map_objective(f, uncertainty) for f in fits])
     kept = int(np.nanargmin(objectives))
     best = fits[kept]
+    assert best is not None  # the least objective is a finite one: a fit
     spread = np.array(
         [np.nan if f is None else float(np.max(np.abs(f.values - best.values) / best.uncertainty)) for f in fits]
     )
@@ -134,6 +144,7 @@ def identify_global(
     ]
     if rivals:
         rival = fits[rivals[0]]
+        assert rival is not None
         z = np.abs(rival.values - best.values) / best.uncertainty
         named = ", ".join(f"{best.names[j]} ({z[j]:.1f} u)" for j in np.argsort(-z)[:3] if z[j] > AMBIGUITY_Z)
         separation = float(

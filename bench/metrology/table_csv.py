@@ -86,7 +86,7 @@ def _read_regular_csv(path: Path, numeric: Sequence[str]) -> pd.DataFrame | None
             return None
         if len(set(header)) != len(header) or "" in header:
             return None
-        types = {column: np.float64 for column in numeric if column in header}
+        types: dict[str, type] = {column: np.float64 for column in numeric if column in header}
         types.update({column: str for column in header if column not in types})
         try:
             with warnings.catch_warnings():  # pandas drops a first row's extra fields with a warning: refused

@@ -9,8 +9,9 @@ between poses. Results are grouped by pose and, when they vary, by the condition
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 import pandas as pd
@@ -134,7 +135,9 @@ def with_pose_labels(table: pd.DataFrame, frame: pd.DataFrame, source: str) -> p
     return table
 
 
-def condition_groups(table: pd.DataFrame):
+def condition_groups(
+    table: pd.DataFrame,
+) -> Iterator[tuple[str, str, tuple[tuple[str, float], ...], pd.DataFrame]]:
     """Yield ``(label, pose, conditions, rows)`` per pose and set of test conditions, in order of appearance.
 
     The table is split by the condition columns (velocity, load) only where they vary within it; ``label`` is the
@@ -243,7 +246,7 @@ def analyze_poses(
                 label=label,
                 pose=pose,
                 conditions=conditions,
-                commanded_mm=tuple(float(v) for v in full_command),
+                commanded_mm=(float(full_command[0]), float(full_command[1]), float(full_command[2])),
                 accuracy=pose_accuracy(attained, command),
                 repeatability=repeatability,
                 ap_u=ap_u,
@@ -257,10 +260,10 @@ def analyze_poses(
     return results
 
 
-def pose_result_json(result: PoseResult) -> dict:
+def pose_result_json(result: PoseResult) -> dict[str, Any]:
     """The JSON object of one pose for ``bench analyze iso9283 --json``."""
     ax, ay, az = (dict(zip(result.axis_names, result.accuracy.ap_axes_mm)).get(a) for a in "xyz")  # None: not measured
-    out = {
+    out: dict[str, Any] = {
         "n": result.accuracy.n,
         "AP_mm": result.accuracy.ap_mm,
         "APx_mm": ax,
@@ -275,7 +278,7 @@ def pose_result_json(result: PoseResult) -> dict:
     }
     if result.axis_names != ("x", "y", "z"):
         out["measured_axes"] = list(result.axis_names)
-    if result.orientation_accuracy is not None:
+    if result.orientation_accuracy is not None and result.orientation_repeatability is not None:
         for name, ap, rp in zip(
             result.angle_names, result.orientation_accuracy.ap_deg, result.orientation_repeatability.rp_deg
         ):
@@ -287,7 +290,9 @@ def pose_result_json(result: PoseResult) -> dict:
     return out
 
 
-def _paired_by_cycle(table: pd.DataFrame, first_pose: str, second_pose: str):
+def _paired_by_cycle(
+    table: pd.DataFrame, first_pose: str, second_pose: str
+) -> tuple[pd.DataFrame, pd.DataFrame, list[Any]]:
     """The rows of two poses indexed by cycle, and the cycles they share (all of them, or a ConfigError)."""
     source = table.attrs.get("source", "table")
     groups = {}

@@ -178,7 +178,9 @@ def _pooled_toward(deviations: np.ndarray) -> np.ndarray:
     return np.einsum("mnd,mde->mne", deviations, transform)
 
 
-def _at_and_scale(barycentres: np.ndarray, deviations: np.ndarray, stations: np.ndarray, instrument_u_mm: float):
+def _at_and_scale(
+    barycentres: np.ndarray, deviations: np.ndarray, stations: np.ndarray, instrument_u_mm: float
+) -> tuple[np.ndarray, np.ndarray]:
     """AT = max_i |p̄_i - p_ci| of stacks (..., m, d) and its standard error at the arg-max station along the
     deviation there: √(e·S_i·e / n + u_inst²); ``deviations`` (..., m, n, d) are the cycles about p̄_i."""
     offsets = barycentres - stations
