@@ -20,6 +20,7 @@ from bench.protocols.delta import DeltaPositioning
 from bench.rigs.lasergrid import LaserGridInstrument
 from bench.rigs.movers import DeltaMover
 from bench.robots.delta4 import Delta4Controller
+from bench.robots.testing import ScriptedPort
 from bench.simulators import delta4 as sim_delta4
 from bench.store import Store
 
@@ -27,23 +28,18 @@ SEED = 4  # P1 and P3 lit on the horizontal screen, P3 on the vertical one, P2 b
 HEALTHY = 4  # settled moves before the drill: the 4th is the second cycle's P1, a pose with sensors lit
 
 
-class DevicePort:
-    """A pyserial stand-in wired to a firmware emulator in this process (its clock: time.monotonic)."""
+class DevicePort(ScriptedPort):
+    """A pyserial stand-in wired to a firmware emulator in this process (its clock: time.monotonic): what the
+    emulator sends is what the port reads; ``closed_device`` makes it fail as a vanished USB serial device does."""
 
     def __init__(self, device) -> None:
-        self.device, self.port, self.baudrate, self.timeout, self.is_open = (
-            device,
-            "emulator://delta4",
-            9600,
-            None,
-            True,
-        )
-        self._readable = bytearray()
+        super().__init__([], name="emulator://delta4")
+        self.device, self.baudrate = device, 9600
         self.closed_device = False
 
     def _pull(self) -> None:
         if self.closed_device:
-            raise OSError(5, "Input/output error")  # what a vanished USB serial device gives
+            raise OSError(5, "Input/output error")
         self._readable += self.device.tick(time.monotonic())
 
     def write(self, data: bytes) -> int:
@@ -52,9 +48,6 @@ class DevicePort:
         self._readable += self.device.feed(bytes(data), time.monotonic())
         return len(data)
 
-    def flush(self) -> None:
-        pass
-
     @property
     def in_waiting(self) -> int:
         self._pull()
@@ -62,18 +55,7 @@ class DevicePort:
 
     def read(self, size: int = 1) -> bytes:
         self._pull()
-        if not self._readable:
-            time.sleep(min(self.timeout or 0.0, 0.005))
-            self._pull()
-        chunk = bytes(self._readable[:size])
-        del self._readable[:size]
-        return chunk
-
-    def reset_input_buffer(self) -> None:
-        self._readable.clear()
-
-    def close(self) -> None:
-        self.is_open = False
+        return super().read(size)
 
 
 class NoPrompts:
@@ -111,7 +93,7 @@ def _device(drill: str):
 def _run(tmp_path, drill: str):
     controller = Delta4Controller(_device(drill), settle_timeout_s=2.0)
     controller.start()
-    instrument = LaserGridInstrument(controller, report_timeout_s=0.5)
+    instrument = LaserGridInstrument(controller)  # the default 2 s wait for a report begun after the capture
     rig = Rig(DeltaMover(controller), instrument, NoPrompts(), speed_factor=1e6, sleep=lambda s: None, closers=[])
     with Store(tmp_path / "bench.db") as store:
         result = Runner(rig, store).run(DeltaPositioning(cycles=3))
