@@ -143,14 +143,6 @@ def _rt_population(covariance: np.ndarray, rng: np.random.Generator) -> np.ndarr
     return distances.mean(axis=1) + 3.0 * distances.std(axis=1)
 
 
-def _symmetric_power(matrices: np.ndarray, power: float) -> np.ndarray:
-    """M^power of symmetric positive semi-definite matrices (..., d, d); directions of (near) zero variance map to 0."""
-    values, vectors = np.linalg.eigh(matrices)
-    floor = 1e-12 * np.max(values, axis=-1, keepdims=True)
-    scaled = np.where(values > floor, np.clip(values, floor, None) ** power, 0.0)
-    return np.einsum("...ij,...j,...kj->...ik", vectors, scaled, vectors)
-
-
 def _covariances(deviations: np.ndarray) -> np.ndarray:
     """Sample covariance (ddof 1) per station of crossing deviations (..., m, n, d) about their means: (..., m, d, d)."""
     centred = deviations - deviations.mean(axis=-2, keepdims=True)
@@ -158,23 +150,26 @@ def _covariances(deviations: np.ndarray) -> np.ndarray:
 
 
 def _pooled_toward(deviations: np.ndarray) -> np.ndarray:
-    """The model's crossing deviations (m, n, d): each station's sample covariance S_i shrunk toward the mean over
-    the stations S̄, Σ_i = (1 - λ) S_i + λ S̄, by the transform T_i = S_i^{-1/2} Σ_i^{1/2} of its cycles (which keeps
-    the correlation between stations). λ = min(1, mean_i v_i / mean_i ‖S_i - S̄‖²), v_i the jackknife variance over
-    cycles of S_i - S̄ (so correlated stations are judged fairly): the share of the stations' heterogeneity that
-    sampling alone explains. A path whose stations scatter alike keeps its near ties, which raw n = 10 covariances
-    would break up; stations that truly differ keep their differences."""
+    """The model's crossing deviations (m, n, d): each station's axis variances (the eigenvalues λ_i of its sample
+    covariance, largest first) shrunk toward their mean over the stations, λ_i' = (1 - w) λ_i + w λ̄, along the
+    station's own axes (so stations whose planes face different ways, the sides of a rectangle, are pooled by
+    shape, not by direction). The cycles are scaled along those axes by √(λ_i'/λ_i), which keeps the correlation
+    between stations. w = min(1, mean_i v_i / mean_i ‖λ_i - λ̄‖²), v_i the jackknife variance over cycles of
+    λ_i - λ̄ (so correlated stations are judged fairly): the share of the stations' differences that sampling
+    alone explains. A path whose stations scatter alike keeps its near ties, which raw n = 10 covariances would
+    break up; stations that truly differ keep their differences."""
     n = deviations.shape[1]
-    covariance = _covariances(deviations)
-    pooled = covariance.mean(axis=0)
+    values, vectors = np.linalg.eigh(_covariances(deviations))  # ascending, per station
     keep = ~np.eye(n, dtype=bool)
-    leave_one_out = _covariances(np.stack([deviations[:, keep[j]] for j in range(n)]))  # (n, m, d, d)
-    differences = leave_one_out - leave_one_out.mean(axis=1, keepdims=True)
-    jackknife = (n - 1) / n * np.sum((differences - differences.mean(axis=0)) ** 2, axis=(0, 2, 3))
-    heterogeneity = float(np.mean(np.sum((covariance - pooled) ** 2, axis=(1, 2))))
+    leave_one_out = np.linalg.eigvalsh(_covariances(np.stack([deviations[:, keep[j]] for j in range(n)])))
+    differences = leave_one_out - leave_one_out.mean(axis=1, keepdims=True)  # (n, m, d)
+    jackknife = (n - 1) / n * np.sum((differences - differences.mean(axis=0)) ** 2, axis=(0, 2))
+    heterogeneity = float(np.mean(np.sum((values - values.mean(axis=0)) ** 2, axis=1)))
     share = 1.0 if heterogeneity == 0.0 else min(1.0, float(jackknife.mean()) / heterogeneity)
-    target = (1.0 - share) * covariance + share * pooled
-    transform = np.einsum("mij,mjk->mik", _symmetric_power(covariance, -0.5), _symmetric_power(target, 0.5))
+    target = (1.0 - share) * values + share * values.mean(axis=0)
+    floor = 1e-12 * np.max(values, axis=-1, keepdims=True)
+    scale = np.where(values > floor, np.sqrt(target / np.where(values > floor, values, 1.0)), 0.0)
+    transform = np.einsum("mij,mj,mkj->mik", vectors, scale, vectors)
     return np.einsum("mnd,mde->mne", deviations, transform)
 
 
