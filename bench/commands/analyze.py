@@ -210,7 +210,7 @@ def _iso9283(args: argparse.Namespace) -> int:
 
 
 def _distance(args: argparse.Namespace) -> int:
-    from bench.metrology.formatting import format_length
+    from bench.metrology.formatting import format_length, format_pair
     from bench.metrology.tables import (
         POSE_NUMERIC_COLUMNS,
         analyze_distance,
@@ -219,11 +219,14 @@ def _distance(args: argparse.Namespace) -> int:
         read_table_csv,
     )
     from bench.metrology.uncertainty import distance_accuracy_uncertainty, instrument_budget
+    from bench.metrology.uncertainty_figures import spread_uncertainty
 
     table = pose_table(read_table_csv(args.file, numeric=POSE_NUMERIC_COLUMNS))
     r = analyze_distance(table, args.first, args.second)
     budget = instrument_budget(args.instrument_u_mm, "--instrument-u-mm")
     u_ad = distance_accuracy_uncertainty(r.ad_mm, r.u_ad_mm, r.n, instrument_u_mm=args.instrument_u_mm or 0.0)
+    u_rd = spread_uncertainty(r.rd_mm, r.n, unit="mm")
+    rd_text, u_rd_text = format_pair(r.rd_mm, u_rd.expanded_uncertainty)
     result = {
         "from": args.first,
         "to": args.second,
@@ -232,6 +235,7 @@ def _distance(args: argparse.Namespace) -> int:
         "U_AD_mm": u_ad.expanded_uncertainty,
         "k": u_ad.coverage_factor,
         "RD_mm": r.rd_mm,
+        "U_RD_mm": u_rd.expanded_uncertainty,
         "AD_axes_mm": list(r.ad_axes_mm),
         "RD_axes_mm": list(r.rd_axes_mm),
         "mean_distance_mm": r.mean_distance_mm,
@@ -243,7 +247,7 @@ def _distance(args: argparse.Namespace) -> int:
             f"{args.first} -> {args.second}, n = {r.n}: D_c = {r.commanded_distance_mm:.3f} mm, "
             f"D̄ = {r.mean_distance_mm:.3f} mm"
         ),
-        f"AD_p = {u_ad}, RD = ±{format_length(r.rd_mm)} mm; {budget}",
+        f"AD_p = {u_ad}, RD = ±{rd_text} mm (U {u_rd_text} mm, k = 2); {budget}",
         "AD x/y/z = "
         + " / ".join(format_length(v, signed=True) for v in r.ad_axes_mm)
         + " mm, RD x/y/z = ±"
@@ -317,7 +321,8 @@ def _drift(args: argparse.Namespace) -> int:
 
 def _stabilisation(args: argparse.Namespace) -> int:
     from bench.metrology.formatting import format_length
-    from bench.metrology.tables import read_table_csv, stabilisation_results, stabilisation_table
+    from bench.metrology.stabilisation_tables import stabilisation_results, stabilisation_table
+    from bench.metrology.table_csv import read_table_csv
 
     table = stabilisation_table(read_table_csv(args.file))
     for band in args.band_mm:

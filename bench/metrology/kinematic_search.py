@@ -27,8 +27,10 @@ from __future__ import annotations
 
 import dataclasses
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from bench.errors import InsufficientData
 from bench.metrology.kinematic_calibration import Identification, UnidentifiableParameters, identify
@@ -65,7 +67,13 @@ class AmbiguousFit(UnidentifiableParameters):
     see the difference resolve it (docs/calibration.md). ``search`` is the search (its best kept) and ``rival`` the
     other solution, so a caller can see where the two differ (:func:`covering_rival`)."""
 
-    def __init__(self, message: str, separation: float = float("nan"), search=None, rival=None) -> None:
+    def __init__(
+        self,
+        message: str,
+        separation: float = float("nan"),
+        search: SearchResult | None = None,
+        rival: Identification | None = None,
+    ) -> None:
         super().__init__(message)
         self.separation = separation
         self.search, self.rival = search, rival
@@ -81,7 +89,7 @@ class SearchResult:
     spread_z: np.ndarray
     kept_start: int
 
-    def as_dict(self) -> dict:
+    def as_dict(self) -> dict[str, Any]:
         return {
             "starts": len(self.objectives),
             "kept_start": self.kept_start,
@@ -90,7 +98,7 @@ class SearchResult:
         }
 
 
-def map_objective(result: Identification, uncertainty) -> float:
+def map_objective(result: Identification, uncertainty: ArrayLike) -> float:
     """``Phi`` of the module docstring at ``result``'s solution: weighted data residuals squared plus the prior's
     rows squared (the prior's only where ``result.prior_sigma`` is finite)."""
     data = float(np.sum((np.asarray(result.residuals) / np.broadcast_to(uncertainty, result.residuals.shape)) ** 2))
@@ -101,7 +109,14 @@ def map_objective(result: Identification, uncertainty) -> float:
 
 
 def identify_global(
-    model, measured, uncertainty, *, prior_sigma, starts: int = DEFAULT_STARTS, seed: int = 0, **options
+    model: Any,
+    measured: ArrayLike,
+    uncertainty: ArrayLike,
+    *,
+    prior_sigma: ArrayLike,
+    starts: int = DEFAULT_STARTS,
+    seed: int = 0,
+    **options: Any,
 ) -> SearchResult:
     """Maximum a posteriori identification (:func:`identify`) from ``starts`` starting points (module docstring);
     ``seed`` seeds the prior draws, so a search is reproducible. Raises what :func:`identify` raises at the
@@ -129,6 +144,7 @@ def identify_global(
     objectives = np.array([np.nan if f is None else map_objective(f, uncertainty) for f in fits])
     kept = int(np.nanargmin(objectives))
     best = fits[kept]
+    assert best is not None  # the least objective is a finite one: a fit
     spread = np.array(
         [np.nan if f is None else float(np.max(np.abs(f.values - best.values) / best.uncertainty)) for f in fits]
     )
@@ -142,6 +158,7 @@ def identify_global(
     ]
     if rivals:
         rival = fits[rivals[0]]
+        assert rival is not None
         z = np.abs(rival.values - best.values) / best.uncertainty
         named = ", ".join(f"{best.names[j]} ({z[j]:.1f} u)" for j in np.argsort(-z)[:3] if z[j] > AMBIGUITY_Z)
         separation = float(
@@ -159,7 +176,7 @@ def identify_global(
     return SearchResult(best, objectives, spread, kept)
 
 
-def rival_apart(best: Identification, rival: Identification, model) -> tuple[np.ndarray, np.ndarray]:
+def rival_apart(best: Identification, rival: Identification, model: Any) -> tuple[np.ndarray, np.ndarray]:
     """Where two solutions differ, at the poses of ``model`` (a forward model of the same free parameters, e.g. a
     sample of the workspace): per pose the distance of their predictions ``d_i = |f_i(rival) - f_i(best)|`` (inf
     where one cannot be evaluated) and its ratio to the best's own stated uncertainty of prediction there at

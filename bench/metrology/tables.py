@@ -9,14 +9,9 @@ between poses. Results are grouped by pose and, when they vary, by the condition
 
 from __future__ import annotations
 
-import codecs
-import csv
-import io
-import re
-import warnings
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
-from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pandas as pd
@@ -36,7 +31,7 @@ from bench.metrology.iso9283 import (
     pose_accuracy,
     pose_repeatability,
 )
-from bench.metrology.iso9283_dynamics import PoseStabilisation, pose_stabilisation
+from bench.metrology.table_csv import numeric_columns, read_table_csv
 from bench.metrology.uncertainty import (
     Measured,
     accuracy_uncertainty,
@@ -60,9 +55,6 @@ __all__ = [
     "pose_table",
     "read_table_csv",
     "STABILISATION_COLUMNS",
-    "StabilisationResults",
-    "stabilisation_results",
-    "stabilisation_table",
     "with_pose_labels",
 ]
 
@@ -95,145 +87,6 @@ class PoseResult:
     #: the position axes the instrument measured, in x, y, z order; ``accuracy.ap_axes_mm`` and the RP are over
     #: these only (:func:`analyze_poses`; a camera on the x-y plane: ("x", "y"))
     axis_names: tuple[str, ...] = ("x", "y", "z")
-
-
-def read_table_csv(path: str | Path, *, numeric: Sequence[str] = ()) -> pd.DataFrame:
-    """Read a CSV as strings (no type guessing); lines starting with ``#`` and blank lines are skipped.
-
-    Data rows are numbered from 1 after the header, the numbering every error message uses. A missing file, an
-    empty table, a repeated column name or a row with the wrong number of fields is a one-line ``ConfigError``.
-
-    ``numeric``: columns to read as float64 at once (those present; the others stay strings), which is what
-    :func:`numeric_columns` makes of them anyway: a table of 10^6 rows then never holds millions of strings. A file
-    without quotes whose every line has the header's number of fields is parsed by pandas' C reader; anything else
-    (quotes, blank lines, a bad row, a cell that is not a number) by the row-by-row reader below, which names the
-    row and column at fault.
-    """
-    path = Path(path)
-    try:
-        frame = _read_regular_csv(path, numeric) if numeric else None
-        if frame is None:
-            return _read_csv_rows(path, path.read_bytes())
-    except FileNotFoundError:
-        raise ConfigError(f"{path}: no such file") from None
-    except OSError as exc:
-        raise ConfigError(f"{path}: not a readable CSV table ({exc})") from None
-    frame.attrs["source"] = str(path)
-    return frame
-
-
-#: Bytes read at a time by the scan that decides between the readers (a bound on its memory).
-_SCAN_BYTES = 1 << 24
-#: A comment line of a CSV table: optional blanks, then ``#`` (a ``#`` inside a cell is data).
-_COMMENT_LINE = re.compile(rb"(?m)^[ \t]*#[^\n]*(?:\n|$)")
-
-
-def _scan(path: Path) -> tuple[bool, bool]:
-    """Whether the file holds a ``"`` (quoting) and a ``#`` (maybe comment lines), scanned a block at a time."""
-    quotes = hashes = False
-    with path.open("rb") as handle:
-        while block := handle.read(_SCAN_BYTES):
-            quotes, hashes = quotes or b'"' in block, hashes or b"#" in block
-            if quotes:
-                break
-    return quotes, hashes
-
-
-def _read_regular_csv(path: Path, numeric: Sequence[str]) -> pd.DataFrame | None:
-    """The fast path of `read_table_csv`: pandas' C reader, straight from the file (no copy of it in memory;
-    a file with comment lines is read, stripped of them, and parsed from memory), or ``None`` when the file needs
-    the row-by-row reader (quotes, a blank or odd header, a row with too many or too few fields, a cell that is not
-    a number, bad bytes), which names the row and column at fault."""
-    quotes, hashes = _scan(path)
-    if quotes:
-        return None
-    source: Path | io.BytesIO = path
-    if hashes:
-        source = io.BytesIO(_COMMENT_LINE.sub(b"", path.read_bytes().removeprefix(codecs.BOM_UTF8)))
-    with open(source, "rb") if isinstance(source, Path) else source as handle:
-        first = handle.readline().removeprefix(codecs.BOM_UTF8)
-        handle.seek(0)
-        try:
-            header = [name.strip() for name in next(csv.reader([first.decode("utf-8")], skipinitialspace=True))]
-        except (UnicodeDecodeError, StopIteration):
-            return None
-        if len(set(header)) != len(header) or "" in header:
-            return None
-        types = {column: np.float64 for column in numeric if column in header}
-        types.update({column: str for column in header if column not in types})
-        try:
-            with warnings.catch_warnings():  # pandas drops a first row's extra fields with a warning: refused
-                warnings.simplefilter("error", pd.errors.ParserWarning)
-                frame = pd.read_csv(
-                    handle,
-                    header=0,
-                    names=header,
-                    dtype=types,
-                    keep_default_na=False,
-                    na_values=[],
-                    skipinitialspace=True,
-                    index_col=False,
-                    engine="c",
-                    encoding="utf-8",
-                )
-        except (ValueError, UnicodeDecodeError, pd.errors.ParserError, pd.errors.ParserWarning):
-            return None  # a cell that is not a number, bad bytes, a row with too many fields
-    if frame.empty or any(frame[column].isna().any() for column in header):
-        return None  # a short row (pandas fills it) or a "nan" cell: the row-by-row reader names it
-    return frame
-
-
-def _read_csv_rows(path: Path, data: bytes) -> pd.DataFrame:
-    """`read_table_csv` row by row with the csv module: every cell a string, every fault named."""
-    try:
-        text = data.decode("utf-8-sig")
-    except UnicodeDecodeError as exc:
-        raise ConfigError(f"{path}: not a readable CSV table ({exc})") from None
-    lines = [line for line in text.splitlines() if line.strip() and not line.lstrip().startswith("#")]
-    rows = list(csv.reader(lines, skipinitialspace=True))
-    if not rows:
-        raise ConfigError(f"{path}: not a readable CSV table (no header line)")
-    header = [name.strip() for name in rows[0]]
-    if len(set(header)) != len(header) or "" in header:
-        raise ConfigError(f"{path}: header {', '.join(header)}: expected unique, non-empty column names")
-    for number, row in enumerate(rows[1:], start=1):
-        if len(row) != len(header):
-            raise ConfigError(f"{path}: row {number}: {len(row)} fields, expected {len(header)} as in the header")
-    frame = pd.DataFrame(rows[1:], columns=header, dtype=str)
-    frame.attrs["source"] = str(path)
-    return frame
-
-
-def numeric_columns(frame: pd.DataFrame, columns: Sequence[str], *, required: bool = True) -> pd.DataFrame:
-    """Convert ``columns`` to float, naming the line, column and value of the first cell that is not a number.
-
-    Missing columns raise ``ConfigError`` when ``required``; otherwise they are skipped.
-    """
-    source = frame.attrs.get("source", "table")
-    missing = [c for c in columns if c not in frame.columns]
-    if missing and required:
-        raise ConfigError(f"{source}: missing column(s) {', '.join(missing)}; found {', '.join(frame.columns)}")
-    out = frame.copy()
-    for column in (c for c in columns if c in frame.columns):
-        if pd.api.types.is_float_dtype(frame[column]):  # read as numbers already (read_table_csv's numeric=)
-            finite = np.isfinite(frame[column].to_numpy())
-            if not finite.all():
-                index = frame.index[int(np.argmin(finite))]
-                raise ConfigError(
-                    f"{source}: row {int(index) + 1}, column {column}: "
-                    f"{str(frame.at[index, column])!r} is not a finite number"
-                )
-            continue
-        text = frame[column].astype(str).str.strip()
-        values = pd.to_numeric(text, errors="coerce")
-        bad = values.isna() | ~np.isfinite(values.fillna(0.0))
-        if bad.any():
-            index = bad.idxmax()
-            raise ConfigError(
-                f"{source}: row {int(index) + 1}, column {column}: {frame.at[index, column]!r} is not a finite number"
-            )
-        out[column] = values.astype(float)
-    return out
 
 
 def measured_axes(table: pd.DataFrame) -> tuple[str, ...]:
@@ -282,7 +135,9 @@ def with_pose_labels(table: pd.DataFrame, frame: pd.DataFrame, source: str) -> p
     return table
 
 
-def condition_groups(table: pd.DataFrame):
+def condition_groups(
+    table: pd.DataFrame,
+) -> Iterator[tuple[str, str, tuple[tuple[str, float], ...], pd.DataFrame]]:
     """Yield ``(label, pose, conditions, rows)`` per pose and set of test conditions, in order of appearance.
 
     The table is split by the condition columns (velocity, load) only where they vary within it; ``label`` is the
@@ -391,7 +246,7 @@ def analyze_poses(
                 label=label,
                 pose=pose,
                 conditions=conditions,
-                commanded_mm=tuple(float(v) for v in full_command),
+                commanded_mm=(float(full_command[0]), float(full_command[1]), float(full_command[2])),
                 accuracy=pose_accuracy(attained, command),
                 repeatability=repeatability,
                 ap_u=ap_u,
@@ -405,10 +260,10 @@ def analyze_poses(
     return results
 
 
-def pose_result_json(result: PoseResult) -> dict:
+def pose_result_json(result: PoseResult) -> dict[str, Any]:
     """The JSON object of one pose for ``bench analyze iso9283 --json``."""
     ax, ay, az = (dict(zip(result.axis_names, result.accuracy.ap_axes_mm)).get(a) for a in "xyz")  # None: not measured
-    out = {
+    out: dict[str, Any] = {
         "n": result.accuracy.n,
         "AP_mm": result.accuracy.ap_mm,
         "APx_mm": ax,
@@ -423,7 +278,7 @@ def pose_result_json(result: PoseResult) -> dict:
     }
     if result.axis_names != ("x", "y", "z"):
         out["measured_axes"] = list(result.axis_names)
-    if result.orientation_accuracy is not None:
+    if result.orientation_accuracy is not None and result.orientation_repeatability is not None:
         for name, ap, rp in zip(
             result.angle_names, result.orientation_accuracy.ap_deg, result.orientation_repeatability.rp_deg
         ):
@@ -435,7 +290,9 @@ def pose_result_json(result: PoseResult) -> dict:
     return out
 
 
-def _paired_by_cycle(table: pd.DataFrame, first_pose: str, second_pose: str):
+def _paired_by_cycle(
+    table: pd.DataFrame, first_pose: str, second_pose: str
+) -> tuple[pd.DataFrame, pd.DataFrame, list[Any]]:
     """The rows of two poses indexed by cycle, and the cycles they share (all of them, or a ConfigError)."""
     source = table.attrs.get("source", "table")
     groups = {}
@@ -490,62 +347,3 @@ def analyze_orientation_distance(
         first[commanded].to_numpy()[0],
         second[commanded].to_numpy()[0],
     )
-
-
-# -- streamed arrivals: position stabilisation time and overshoot (ISO 9283 7.4, 7.5) ---------------------------------
-
-
-@dataclass(frozen=True, eq=False)
-class StabilisationResults:
-    """The arrivals of a streamed-arrival table and their stabilisation figures.
-
-    ``series`` holds per group label (the pose, with the conditions when they vary, as :func:`condition_groups`
-    names it) the ``(cycle, t_s, position_mm)`` of every arrival in cycle order; ``bands`` per limit band and group
-    label the :class:`~bench.metrology.iso9283_dynamics.PoseStabilisation`, or the message of the
-    ``InsufficientData`` that left it without one (an arrival never entered, or never settled in, the band).
-    """
-
-    series: dict[str, tuple[tuple[int, np.ndarray, np.ndarray], ...]]
-    bands: dict[float, dict[str, PoseStabilisation | str]]
-
-
-def stabilisation_table(frame: pd.DataFrame) -> pd.DataFrame:
-    """Check a streamed-arrival table; return it sorted by cycle and time, with ``cycle``, ``t_s``,
-    ``x_mm``..``z_mm`` (and the condition columns) as float and ``pose`` as a stripped string. A missing column says how to export one; a cell that is
-    not a number is a ``ConfigError`` naming its row, column and value."""
-    source = frame.attrs.get("source", "table")
-    missing = [c for c in STABILISATION_COLUMNS if c not in frame.columns]
-    if missing:
-        raise ConfigError(f"{source}: missing column(s) {', '.join(missing)}; export the run with --series")
-    table = numeric_columns(frame, STABILISATION_COLUMNS[1:])
-    table = numeric_columns(table, CONDITION_COLUMNS, required=False)
-    table["pose"] = frame["pose"].astype(str).str.strip()
-    table.attrs["source"] = source
-    # row order carries no meaning: each arrival is read in time order (a repeated time is refused downstream)
-    return table.sort_values(["cycle", "t_s"], kind="stable")
-
-
-def stabilisation_results(table: pd.DataFrame, bands_mm: Sequence[float], hysteresis_mm: float) -> StabilisationResults:
-    """Stabilisation time and overshoot per limit band and per pose (and condition) of a checked streamed-arrival
-    table (:func:`stabilisation_table`): the arrivals of each group, one per cycle, through
-    :func:`~bench.metrology.iso9283_dynamics.pose_stabilisation`. The one grouping that ``bench analyze
-    stabilisation`` and the stabilisation report share.
-    """
-    series = {
-        label: tuple(
-            (int(cycle), arrival["t_s"].to_numpy(float), arrival[list(_ATTAINED)].to_numpy(float))
-            for cycle, arrival in rows.groupby("cycle", sort=True)
-        )
-        for label, _, _, rows in condition_groups(table)
-    }
-    bands: dict[float, dict[str, PoseStabilisation | str]] = {}
-    for band in bands_mm:
-        per_group = bands[float(band)] = {}
-        for label, arrivals in series.items():
-            try:
-                per_group[label] = pose_stabilisation(
-                    [(t, p) for _, t, p in arrivals], band_mm=band, hysteresis_mm=hysteresis_mm
-                )
-            except InsufficientData as exc:
-                per_group[label] = str(exc)
-    return StabilisationResults(series, bands)

@@ -1,7 +1,7 @@
 """The report of an ``iso9283_stabilisation`` run: position stabilisation time and overshoot (ISO 9283 7.4, 7.5)
 from the streamed arrivals (docs/campaigns.md, "Streamed arrivals").
 
-Every figure comes from :func:`bench.metrology.tables.stabilisation_results` on the run's streamed series
+Every figure comes from :func:`bench.metrology.stabilisation_tables.stabilisation_results` on the run's streamed series
 (:func:`bench.store.series_table`, the raw-data CSV, = ``bench export RUN --series``), the call ``bench analyze
 stabilisation FILE.csv --band-mm ... --hysteresis-mm ...`` makes: per pose and cycle through
 :func:`bench.metrology.pose_stabilisation`, for every limit band (ISO comparison bands 0.1, 0.5 and 1.0 mm by
@@ -22,7 +22,7 @@ import numpy as np
 
 from bench.errors import ConfigError
 from bench.metrology import PoseStabilisation
-from bench.metrology.tables import stabilisation_results, stabilisation_table
+from bench.metrology.stabilisation_tables import stabilisation_results, stabilisation_table
 from bench.reports.content import ReportBase, calibrations_in_force, provenance, run_table
 from bench.reports.criteria import Characteristic, decision_section
 from bench.reports.deviations_arrivals import ISO_BANDS_MM, stabilisation_deviations

@@ -24,6 +24,14 @@ subtracting the commanded dither would put that error into the reading. Readings
 protocol commanded, or nothing; ``bench analyze grid-positioning`` reports the hit rate beside the statistics.
 
 ``grid_hit`` captures (hit repeatability) store what was hit on the horizontal screen.
+
+**A grid that stops, closes or freezes fails the run at the first capture after it did** (issue 32): no report
+begun within ``report_timeout_s`` of the capture is a ``LinkTimeout`` (the controller sends one every 80 ms), a
+vanished device a ``LinkError`` (the link's), and a report byte-for-byte that of the previous pose capture, with
+sensors lit, after the command moved by more than ``FROZEN_MOVE_MM`` on some axis is a ``SensorStalled``: a spot
+that moved that far lights other sensors (a 10 mm pitch, a 1 mm detection window), so the same lit sensors are a
+controller handing back its last frame. (A move of exactly a laser-offset difference on both screens could light
+the same sensors by other lasers: such a capture is refused too, never stored wrong.)
 """
 
 from __future__ import annotations
@@ -37,6 +45,7 @@ import numpy as np
 
 from bench.errors import LinkTimeout
 from bench.rigs.interfaces import Measurement
+from bench.sensors.reading import SensorStalled
 from bench.steps import Capture
 
 if TYPE_CHECKING:
@@ -46,6 +55,7 @@ if TYPE_CHECKING:
 __all__ = [
     "AXES",
     "DEFAULT_DECODER",
+    "FROZEN_MOVE_MM",
     "LaserGridInstrument",
     "LaserGridSpec",
     "grid_pose_values",
@@ -57,6 +67,8 @@ __all__ = [
 AXES = ("x_mm", "y_mm", "z_mm")
 #: Decoder options stored with every run unless the rig sets others (delta4-lasergrid.md §4.6, §4.10 defaults).
 DEFAULT_DECODER = {"spot_half_width_mm": 1.0, "gate_mm": 3.75, "prior_uncertainty_mm": 0.0}
+#: A commanded move (mm, largest axis) after which the same lit sensors mean a frozen grid: the decoding gate (§4.7).
+FROZEN_MOVE_MM = 3.75
 
 
 @dataclass(frozen=True)
@@ -166,6 +178,22 @@ class LaserGridInstrument:
         self.report_timeout_s = report_timeout_s
         self.decoder = {**DEFAULT_DECODER, **(decoder or {})}
         self.truth = truth
+        self._last_pose_report: tuple[tuple[tuple[int, ...], tuple[int, ...]], np.ndarray] | None = None
+
+    def _check_not_frozen(self, frame: Any, commanded_mm: np.ndarray) -> None:
+        """Refuse a report identical to the previous pose capture's, with sensors lit, after a move the spot cannot
+        have made without lighting other sensors (module docstring)."""
+        lit = (tuple(frame.horizontal), tuple(frame.vertical))
+        previous, self._last_pose_report = self._last_pose_report, (lit, commanded_mm)
+        if previous is None or not (frame.horizontal or frame.vertical) or lit != previous[0]:
+            return
+        moved = float(np.max(np.abs(commanded_mm - previous[1])))
+        if moved > FROZEN_MOVE_MM:
+            raise SensorStalled(
+                f"laser grid: the report {bytes(frame.raw).decode('ascii', 'replace')!r} lights the sensors of the previous pose's, "
+                f"after a {moved:.1f} mm move (a frozen grid or controller); the reading is refused; "
+                "check the controller's sensor reports, then resume the run"
+            )
 
     def record_geometry(self, store: Any) -> int:
         """Record the screens' geometry as the calibration in force (get-or-create) in ``store``; returns its id."""
@@ -213,6 +241,7 @@ class LaserGridInstrument:
                 raw=raw,
             )
         prior = [capture.commanded[k] for k in ("cmd_x_mm", "cmd_y_mm", "cmd_z_mm")]
+        self._check_not_frozen(frame, np.asarray(prior, dtype=float))
         values, decoding = grid_pose_values(self.geometry, frame.horizontal, frame.vertical, prior, **self.decoder)
         return Measurement(values, raw={**raw, **decoding, "decoder": self.decoder})
 
