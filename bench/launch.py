@@ -9,20 +9,29 @@ import :mod:`bench.simulators` (it starts them); the production packages below i
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass
 from typing import Any
 
 from bench.calibration.compensate import NEWEST, choose_calibration, put_in_force
 from bench.errors import ConfigError
-from bench.rigs.builder import build_rig, check_capabilities, station_identity
+from bench.rigs.builder import build_rig, check_capabilities
 from bench.rigs.builder import open_mover as builder_open_mover
-from bench.rigs.interfaces import Operator, Rig
+from bench.rigs.interfaces import Operator, Rig, SimulatorRecord
 from bench.rigs.resume_identity import refuse_another_rig
-from bench.rigs.station import Station, load_station, parse_station
+from bench.rigs.station import Station, load_station, parse_station, station_identity
 from bench.simulators import CAMPAIGN_KERNEL_WAIT_S, DEFAULT_SPEED_FACTOR
 
-__all__ = ["CAMPAIGN_KERNEL_WAIT_S", "DEFAULT_SPEED_FACTOR", "RigRequest", "open_mover", "open_rig", "simulated_rig_in"]
+__all__ = [
+    "CAMPAIGN_KERNEL_WAIT_S",
+    "DEFAULT_SPEED_FACTOR",
+    "RigRequest",
+    "open_mover",
+    "open_rig",
+    "resuming",
+    "simulated_rig_in",
+]
 
 
 @dataclass(frozen=True)
@@ -117,13 +126,32 @@ def open_rig(
         ),
     )
     rig.closers.insert(0, rehearsal.close)  # closed last: after the drivers let go of the simulators' devices
-    rig.extra["simulator"] = {
-        "seed": seed,
-        "station": station.source,
-        "truth_log": rehearsal.truth_path,
-        **rehearsal.settings,
-    }
+    rig.simulator = SimulatorRecord(
+        seed,
+        ideal=bool(rehearsal.settings.get("ideal")),
+        true_geometry_seed=rehearsal.settings.get("true_geometry_seed"),
+        station=station.source,
+        truth_log=rehearsal.truth_path,
+    )
     return _synced_after(put_in_force(rig, *kinematic), station, store)
+
+
+@contextmanager
+def resuming(store: Any, run_id: int) -> Iterator[Any]:
+    """Hold run ``run_id`` while a face opens its rig and resumes it (``bench resume`` and the window's Resume
+    alike, so a resume is refused or accepted the same way from both): the run is claimed first (one that another
+    live process drives is refused before a port opens) and the store is told it is resuming (opening the rig writes
+    no new calibration: a refused resume writes nothing). Yields the run's record. On leaving, the store resumes
+    nothing and the run is released (the runner released it already if it took the run; a refusal before it did
+    must not keep the run from ``bench resume`` while the window stays open)."""
+    record = store.run(run_id)
+    store.claim(run_id)
+    store.resuming = run_id
+    try:
+        yield record
+    finally:
+        store.resuming = None
+        store.release(run_id)
 
 
 def _refuse_simulator_options(request: RigRequest) -> None:
@@ -312,9 +340,7 @@ def simulated_rig_in(
     if kernel_wait_s > 0 and robot == "pkm5" and fixture == "assembled":
         options += ("--kernel-wait-s", f"{kernel_wait_s:g}")
     rig = simulated_rig(robot, seed=seed, speed_factor=speed_factor, fixture=fixture, options=options, ideal=ideal)
-    rig.extra["simulator"] = {"seed": seed, **({"ideal": True} if ideal else {})}
-    if true_geometry_seed is not None:
-        rig.extra["simulator"]["true_geometry_seed"] = true_geometry_seed
+    rig.simulator = SimulatorRecord(seed, ideal=ideal, true_geometry_seed=true_geometry_seed)
     if fixture == "actuator-bench":
         return rig  # no calibration in force: the readings are typed-in gauge values
     if robot == "pkm5":

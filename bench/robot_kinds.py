@@ -19,7 +19,7 @@ from typing import Any
 
 from bench.errors import ConfigError
 
-__all__ = ["ROBOT_KINDS", "RobotKind", "register", "resolve", "robot_kind", "robot_names"]
+__all__ = ["ROBOT_KINDS", "RobotKind", "register", "resolve", "resolve_field", "robot_kind", "robot_names"]
 
 
 @dataclass(frozen=True)
@@ -79,10 +79,7 @@ class RobotKind:
 
     def resolved(self, field: str) -> Any:
         """The object a ``"module:attribute"`` field names (``kind.resolved("home")()``)."""
-        reference = getattr(self, field)
-        if reference is None:
-            raise ConfigError(f"robot {self.name!r}: no {field} registered")
-        return resolve(reference)
+        return resolve_field(self, field, f"robot {self.name!r}")
 
 
 #: Name -> record, in registration order (the order robots are listed in).
@@ -108,6 +105,15 @@ def robot_kind(name: str, field: str = "--robot") -> RobotKind:
         return ROBOT_KINDS[name]
     except (KeyError, TypeError):
         raise ConfigError(f"{field} {name}: expected one of {', '.join(ROBOT_KINDS)}") from None
+
+
+def resolve_field(record: object, field: str, owner: str) -> Any:
+    """The object the ``"module:attribute"`` field ``field`` of a registry ``record`` names; :class:`ConfigError`
+    naming ``owner`` when the record registers none."""
+    reference = getattr(record, field)
+    if reference is None:
+        raise ConfigError(f"{owner}: no {field} registered")
+    return resolve(reference)
 
 
 def resolve(reference: str) -> Any:

@@ -32,9 +32,9 @@ from pathlib import Path
 import numpy as np
 
 from bench.reports import collect, write_report
-from bench.reports.document import run_document
 from bench.reports.html import render_html
 from bench.reports.pdf import render_pdf
+from bench.reports.pose_document import run_document
 from bench.store import Store
 
 #: write_report of the demo run (issue 17) and ``bench report`` of it as a whole process (issue 18), seconds.

@@ -6,10 +6,11 @@
   imports excluded). With the throwaway cluster, also the CPU seconds per sample of this process (SQLite read,
   formatting) and of the server (every postgres process of the cluster, the exited backends included), which depend
   far less on the machine's load than the wall clock does.
-* Floor: a bare COPY of the same rows (the same COPY text, typed columns included, formatted beforehand) into an
-  unindexed, unlogged table of the same server (no key, no trigger, no SQLite read, no formatting, one connection),
-  five times: the ratio sync/floor says what reading, formatting, the keyed, logged table and the pose trigger cost
-  once the sync's overlap (two connections, formatting ahead) has paid for what it can.
+* Floor: a bare COPY of the same rows (the same COPY text, typed columns and checksums included, formatted
+  beforehand) into an unindexed, unlogged table of the same server (no key, no trigger, no SQLite read, no
+  formatting, one connection), right after each of the sequential syncs, so that each ratio sync/floor is taken at
+  one load (min/median/max over the benches): it says what reading, formatting, the keyed, logged table and the pose
+  trigger cost once the sync's overlap (two connections, formatting ahead) has paid for what it can.
 * Query: ``bench lab summary`` (``bench.store.lab_summary.pose_summary``: AP and RP, ISO 9283 7.2.1 and 7.2.2, per
   bench, robot, ISO week, pose, velocity and commanded position) over every synced sample, five times, after
   ANALYZE of bench.samples (what autovacuum does soon after a large sync); the pose tables the summary reads are
@@ -136,17 +137,27 @@ def main(argv=None) -> None:
         )
 
         print(f"load average before the syncs: {os.getloadavg()[0]:.1f} on {os.cpu_count()} CPUs")
-        rates, client_cpu, server_cpu = [], [], []
-        for path in stores[: args.sequential]:
+        rates, floors, client_cpu, server_cpu = [], [], [], []
+        for path in stores[: args.sequential]:  # each sync beside a floor of the same file: the load moves
             with Store(path) as store:
                 cpu, server = time.process_time(), server_cpu_s(cluster)
                 result = sync_store(store, url)
                 client_cpu.append((time.process_time() - cpu) / result.samples_sent * 1e6)
                 server_cpu.append((server_cpu_s(cluster) - server) / result.samples_sent * 1e6)
             rates.append(result.samples_per_s)
+            floors.append(sum(per_run) / copy_floor(url, path))
+        ratios = [rate / floor for rate, floor in zip(rates, floors)]
         print(
             f"sync, one bench    {sum(per_run):>9,} samples  min {min(rates):9,.0f}  median "
             f"{statistics.median(rates):9,.0f}  max {max(rates):9,.0f} samples/s ({len(rates)} benches)"
+        )
+        print(
+            f"floor: bare COPY   {sum(per_run):>9,} samples  min {min(floors):9,.0f}  median "
+            f"{statistics.median(floors):9,.0f}  max {max(floors):9,.0f} samples/s (right after each sync)"
+        )
+        print(
+            f"sync / floor       min {min(ratios):.2f}  median {statistics.median(ratios):.2f}  "
+            f"max {max(ratios):.2f} (each sync against the floor measured right after it)"
         )
         print(
             f"CPU per sample     this process (read, format) median {statistics.median(client_cpu):.1f} us; "
@@ -171,13 +182,6 @@ def main(argv=None) -> None:
             print(
                 f"sync, {len(rest)} at once    {n:>9,} samples  {window:7.2f} s  {n / window:9,.0f} samples/s aggregate"
             )
-
-        floors = [sum(per_run) / copy_floor(url, stores[0]) for _ in range(5)]
-        print(
-            f"floor: bare COPY   {sum(per_run):>9,} samples  min {min(floors):9,.0f}  median "
-            f"{statistics.median(floors):9,.0f}  max {max(floors):9,.0f} samples/s; sync median / floor median "
-            f"= {statistics.median(rates) / statistics.median(floors):.2f}"
-        )
 
         import psycopg
 

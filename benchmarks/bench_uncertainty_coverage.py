@@ -21,9 +21,15 @@ row per case and n: coverage before and after, and the binomial standard error o
 from __future__ import annotations
 
 import argparse
+import itertools
+from collections.abc import Iterator
+from functools import lru_cache
 
 import numpy as np
 
+from bench.metrology.iso9283 import distance_characteristics
+from bench.metrology.iso9283_dynamics import path_characteristics
+from bench.metrology.iso9283_path import path_velocity_characteristics
 from bench.metrology.uncertainty import (
     accuracy_uncertainty,
     bootstrap_uncertainty,
@@ -31,6 +37,7 @@ from bench.metrology.uncertainty import (
     mean_sd_uncertainty,
     repeatability_uncertainty,
 )
+from bench.metrology.uncertainty_figures import mean_speed_uncertainty, path_uncertainty, spread_uncertainty
 
 ROBOT_OFFSET_MM = np.array([0.6, -0.4, 0.3])  #: true mean offset from the command (the AP truth)
 INSTRUMENT_U_MM = 0.1  #: standard deviation of the per-campaign instrument bias, per axis
@@ -112,8 +119,173 @@ def ad_coverage(n: int, campaigns: int, seed: int, *, method: str) -> float:
     return hits / campaigns
 
 
+#: The instrument bias cases of the RD, path and velocity rows: none, drawn and declared, drawn and not declared.
+BIAS_CASES = ("no bias", "bias declared", "bias undeclared")
+#: A straight 100 mm path along x sampled at 11 stations; the robot's systematic deviation peaks mid-path (y) over
+#: a constant 0.1 mm (z), so neighbouring stations nearly tie for AT; its scatter grows along the path, so the last
+#: stations nearly tie for RT.
+PATH_STATIONS_X_MM = np.linspace(0.0, 100.0, 11)
+PATH_SYSTEMATIC_MM = np.stack(
+    [np.zeros(11), 0.4 * np.sin(np.pi * PATH_STATIONS_X_MM / 100.0), np.full(11, 0.1)], axis=1
+)
+PATH_CYCLE_OFFSET_MM = np.array([0.0, 0.04, 0.02])  #: SD of a cycle's offset common to all stations, per axis
+PATH_LOCAL_MM = np.array([0.0, 0.04, 0.03])  #: SD of each crossing's own scatter at the first station, per axis
+SPEED_COMMANDED_MM_S, SPEED_BIAS_PCT = 50.0, 1.5  #: v_c and the robot's true AV
+SPEED_CYCLE_SD_MM_S, SPEED_SAMPLE_SD_MM_S, SPEED_SAMPLES = 0.4, 1.0, 40  #: scatter of v̄_j and of each v_ij
+INSTRUMENT_SPEED_U_PCT = 0.5  #: SD of the per-campaign scale error of the speed instrument, %
+
+
+def _local_scale() -> np.ndarray:
+    """The growth of the crossings' own scatter along the path: 1 at the first station, 1.5 at the last."""
+    return 1.0 + PATH_STATIONS_X_MM / 200.0
+
+
+def rd_coverage(n: int, campaigns: int, seed: int, *, bias: str, method: str) -> float:
+    """Share of campaigns whose RD ± U holds 3 SD[D] (the AD set-up; an instrument offset per pose when biased)."""
+    rng = np.random.default_rng(seed)
+    offset = np.array([100.0, 0.0, 0.0]) + ROBOT_OFFSET_MM
+    population = np.linalg.norm(
+        offset + np.random.default_rng(98).normal(0.0, 0.3 * np.sqrt(2.0), (2_000_000, 3)), axis=1
+    )
+    truth = 3.0 * float(population.std())
+    hits = 0
+    for _ in range(campaigns):
+        first = offset + rng.normal(0.0, 0.3, (n, 3))
+        second = rng.normal(0.0, 0.3, (n, 3))
+        if bias != "no bias":
+            first, second = first + rng.normal(0.0, INSTRUMENT_U_MM, 3), second + rng.normal(0.0, INSTRUMENT_U_MM, 3)
+        rd = distance_characteristics(first, second, [100.0, 0, 0], [0, 0, 0]).rd_mm
+        if method == "before":
+            statistic = lambda p: 3.0 * float(np.linalg.norm(p[:, :3] - p[:, 3:], axis=1).std(ddof=1))  # noqa: E731
+            half = 2.0 * bootstrap_uncertainty(
+                statistic, np.hstack([first, second]), resamples=200, seed=int(rng.integers(1 << 30))
+            )
+        else:
+            half = spread_uncertainty(rd, n, unit="mm").expanded_uncertainty
+        hits += abs(rd - truth) <= half
+    return hits / campaigns
+
+
+@lru_cache(maxsize=1)
+def path_truth() -> tuple[float, float]:
+    """The population AT_p and RT_p of the synthetic path (the RT of each station from 10^6 draws)."""
+    at = float(np.linalg.norm(PATH_SYSTEMATIC_MM, axis=1).max())
+    sigmas = np.sqrt(PATH_CYCLE_OFFSET_MM**2 + (PATH_LOCAL_MM * _local_scale()[:, None]) ** 2)  # (m, d)
+    squared = np.random.default_rng(97).standard_normal((1_000_000, 3)) ** 2
+    rt = 0.0
+    for s in sigmas:
+        distances = np.sqrt(squared @ s**2)
+        rt = max(rt, float(distances.mean() + 3.0 * distances.std()))
+    return at, rt
+
+
+def path_campaign(rng: np.random.Generator, n: int, bias: str) -> list[np.ndarray]:
+    """n sampled paths (polylines through the stations' planes, x strictly increasing) of one campaign."""
+    x = PATH_STATIONS_X_MM
+    offsets = rng.standard_normal((n, 1, 3)) * PATH_CYCLE_OFFSET_MM
+    local = rng.standard_normal((n, len(x), 3)) * PATH_LOCAL_MM * _local_scale()[:, None]
+    paths = PATH_SYSTEMATIC_MM + offsets + local
+    paths[:, :, 0] = x
+    if bias != "no bias":
+        paths[:, :, 1:] += rng.normal(0.0, INSTRUMENT_U_MM / 2.0, 2)
+    return list(paths)
+
+
+def _rt_of_crossings(crossings: np.ndarray) -> float:
+    """RT_p = max_i (l̄_i + 3 S_li) of crossings (m, n, d), as ``path_characteristics`` computes it."""
+    distances = np.linalg.norm(crossings - crossings.mean(axis=1, keepdims=True), axis=2)
+    return float((distances.mean(axis=1) + 3.0 * distances.std(axis=1, ddof=1)).max())
+
+
+def path_coverage(n: int, campaigns: int, seed: int, *, bias: str, method: str, draws: int = 1000):
+    """Share of campaigns whose AT_p ± U and RT_p ± U hold the population AT_p and RT_p (:func:`path_truth`)."""
+    rng = np.random.default_rng(seed)
+    truth_at, truth_rt = path_truth()
+    stations = np.stack([PATH_STATIONS_X_MM, np.zeros(11), np.zeros(11)], axis=1)
+    at_hits = rt_hits = 0
+    for _ in range(campaigns):
+        paths = path_campaign(rng, n, bias)
+        r = path_characteristics(paths, stations)
+        crossings = np.stack(paths, axis=1)  # the paths are sampled at the stations: the crossings themselves
+        if method == "before":
+            flat = crossings.transpose(1, 0, 2).reshape(n, -1)
+            reshape = lambda p: p.reshape(len(p), len(stations), 3).transpose(1, 0, 2)  # noqa: E731
+            seed_b = int(rng.integers(1 << 30))
+            at_half = 2.0 * bootstrap_uncertainty(
+                lambda p: float(np.linalg.norm(reshape(p).mean(axis=1) - stations, axis=1).max()),
+                flat,
+                resamples=200,
+                seed=seed_b,
+            )
+            rt_half = 2.0 * bootstrap_uncertainty(
+                lambda p: _rt_of_crossings(reshape(p)),
+                flat,
+                resamples=200,
+                seed=seed_b,
+            )
+        else:
+            declared = INSTRUMENT_U_MM / 2.0 if bias == "bias declared" else 0.0
+            u = path_uncertainty(
+                crossings, stations, instrument_u_mm=declared, draws=draws, seed=int(rng.integers(1 << 30))
+            )
+            assert abs(u.at.value - r.at_mm) < 1e-9 and abs(u.rt.value - r.rt_mm) < 1e-9
+            at_half, rt_half = u.at.expanded_uncertainty, u.rt.expanded_uncertainty
+        at_hits += abs(r.at_mm - truth_at) <= at_half
+        rt_hits += abs(r.rt_mm - truth_rt) <= rt_half
+    return at_hits / campaigns, rt_hits / campaigns
+
+
+def velocity_coverage(n: int, campaigns: int, seed: int, *, bias: str, method: str) -> tuple[float, float]:
+    """Share of campaigns whose AV ± U and RV ± U hold the robot's AV and 3 SD[v̄_j] / v_c (in %)."""
+    rng = np.random.default_rng(seed)
+    v_c = SPEED_COMMANDED_MM_S
+    cycle_sd = np.hypot(SPEED_CYCLE_SD_MM_S, SPEED_SAMPLE_SD_MM_S / np.sqrt(SPEED_SAMPLES))
+    truth_av, truth_rv = SPEED_BIAS_PCT, 300.0 * float(cycle_sd) / v_c
+    av_hits = rv_hits = 0
+    for _ in range(campaigns):
+        scale = 1.0 + (rng.normal(0.0, INSTRUMENT_SPEED_U_PCT) / 100.0 if bias != "no bias" else 0.0)
+        means = v_c * (1.0 + SPEED_BIAS_PCT / 100.0) + rng.normal(0.0, SPEED_CYCLE_SD_MM_S, (n, 1))
+        speeds = scale * (means + rng.normal(0.0, SPEED_SAMPLE_SD_MM_S, (n, SPEED_SAMPLES)))
+        v = path_velocity_characteristics(list(speeds), v_c)
+        av_half = 2.0 * 100.0 * float(np.std(v.mean_speed_per_cycle_mm_s, ddof=1)) / v_c / np.sqrt(n)
+        if method == "before":
+            rv_half = 2.0 * bootstrap_uncertainty(
+                lambda p: 300.0 * float(p.std(ddof=1)) / v_c,
+                np.array(v.mean_speed_per_cycle_mm_s)[:, None],
+                resamples=200,
+                seed=int(rng.integers(1 << 30)),
+            )
+        else:
+            declared = INSTRUMENT_SPEED_U_PCT if bias == "bias declared" else 0.0
+            av_half = mean_speed_uncertainty(
+                v.av_pct, v.mean_speed_per_cycle_mm_s, v_c, instrument_u_pct=declared
+            ).expanded_uncertainty
+            rv_half = spread_uncertainty(v.rv_pct, n, unit="%").expanded_uncertainty
+        av_hits += abs(v.av_pct - truth_av) <= av_half
+        rv_hits += abs(v.rv_pct - truth_rv) <= rv_half
+    return av_hits / campaigns, rv_hits / campaigns
+
+
+def figure_rows(
+    campaigns: int, path_campaigns: int, seed: int, sizes=(10, 30), draws: int = 500
+) -> Iterator[tuple[str, int, float, float]]:
+    """(case, n, coverage before, coverage after) of RD, AT_p, RT_p, AV and RV for every bias case and n; the
+    path rows (a model Monte Carlo per campaign) over ``path_campaigns`` campaigns of ``draws`` simulations."""
+    for n in sizes:
+        for bias in BIAS_CASES:
+            yield (
+                (f"RD, {bias}", n, *(rd_coverage(n, campaigns, seed, bias=bias, method=m) for m in ("before", "after")))
+            )
+            before = velocity_coverage(n, campaigns, seed, bias=bias, method="before")
+            after = velocity_coverage(n, campaigns, seed, bias=bias, method="after")
+            yield from [(f"AV, {bias}", n, before[0], after[0]), (f"RV, {bias}", n, before[1], after[1])]
+            before = path_coverage(n, path_campaigns, seed, bias=bias, method="before")
+            after = path_coverage(n, path_campaigns, seed, bias=bias, method="after", draws=draws)
+            yield from [(f"AT_p, {bias}", n, before[0], after[0]), (f"RT_p, {bias}", n, before[1], after[1])]
+
+
 def coverage_table(campaigns: int, seed: int, sizes=(10, 30)) -> list[tuple[str, int, float, float]]:
-    """(case, n, coverage before, coverage after) for every case and number of cycles."""
+    """(case, n, coverage before, coverage after) of the pose figures for every case and number of cycles."""
     rows = []
     for n in sizes:
         for name, sigmas in SHAPES.items():
@@ -149,12 +321,18 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--campaigns", type=int, default=2000)
     parser.add_argument("--seed", type=int, default=1)
+    parser.add_argument("--path-campaigns", type=int, default=400, help="campaigns of the AT_p / RT_p rows")
+    parser.add_argument("--draws", type=int, default=500, help="model simulations per AT_p / RT_p campaign")
+    parser.add_argument("--only", choices=("all", "figures", "pose"), default="all")
     args = parser.parse_args()
     se = np.sqrt(0.95 * 0.05 / args.campaigns)
     print(f"coverage of value ± U (k = 2, honest 95 %), {args.campaigns} campaigns per row, SE {100 * se:.1f} %")
     print(f"{'case':32s} {'n':>3s} {'before':>8s} {'after':>8s}")
-    for case, n, before, after in coverage_table(args.campaigns, args.seed):
-        print(f"{case:32s} {n:3d} {100 * before:7.1f}% {100 * after:7.1f}%")
+    rows = iter([]) if args.only == "figures" else iter(coverage_table(args.campaigns, args.seed))
+    if args.only != "pose":
+        rows = itertools.chain(rows, figure_rows(args.campaigns, args.path_campaigns, args.seed, draws=args.draws))
+    for case, n, before, after in rows:
+        print(f"{case:32s} {n:3d} {100 * before:7.1f}% {100 * after:7.1f}%", flush=True)
 
 
 if __name__ == "__main__":

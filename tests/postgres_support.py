@@ -22,6 +22,7 @@ from urllib.parse import urlsplit, urlunsplit
 import pytest
 
 from bench.store import Store
+from bench.store.sample_checksum import sample_checksum
 
 PASSWORD = "bench-test-pw"
 _ENV = "BENCH_TEST_POSTGRES"
@@ -55,35 +56,40 @@ def make_store(path: Path, bench: str, samples_per_run: list[int], robot: str = 
     with db:
         for run_id, n in zip(run_ids, samples_per_run):
             db.executemany(
-                "INSERT INTO samples (run_id, step_index, kind, pose, cycle, t_s, wall_utc, values_json, raw_json)"
-                " VALUES (?, ?, 'pose', ?, ?, ?, ?, ?, ?)",
-                [
-                    (
-                        run_id,
-                        2 * i + 1,
-                        f"P{i % 5 + 1}",
-                        i // 5 + 1,
-                        i * 0.1 + 1e-9 * run_id,
-                        f"2026-11-02T10:00:{i % 60:02d}.000000+00:00",
-                        json.dumps(
-                            {
-                                "cmd_x_mm": 110.0,
-                                "cmd_y_mm": 0.0,
-                                "cmd_z_mm": 320.0,
-                                "x_mm": 110.0 + (i % 7) * 1e-3,
-                                "y_mm": -1.3 + run_id / 7,
-                                "z_mm": 318.3,
-                            },
-                            sort_keys=True,
-                        ),
-                        json.dumps({"counts": [i, -i]}) if i % 3 else None,
-                    )
-                    for i in range(n)
-                ],
+                "INSERT INTO samples (run_id, step_index, kind, pose, cycle, t_s, wall_utc, values_json, raw_json,"
+                " checksum) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?)",
+                [(run_id, *row, sample_checksum(*row)) for row in _pose_rows(run_id, n)],
             )
             db.execute("UPDATE runs SET status = 'completed', ended_utc = started_utc WHERE id = ?", (run_id,))
     db.close()  # the last connection checkpoints the WAL: the file's bytes are final
     return path
+
+
+def _pose_rows(run_id: int, n: int) -> list[tuple]:
+    """``n`` pose samples of run ``run_id`` as stored (step_index ... raw_json), without the run id."""
+    return [
+        (
+            2 * i + 1,
+            "pose",
+            f"P{i % 5 + 1}",
+            i // 5 + 1,
+            i * 0.1 + 1e-9 * run_id,
+            f"2026-11-02T10:00:{i % 60:02d}.000000+00:00",
+            json.dumps(
+                {
+                    "cmd_x_mm": 110.0,
+                    "cmd_y_mm": 0.0,
+                    "cmd_z_mm": 320.0,
+                    "x_mm": 110.0 + (i % 7) * 1e-3,
+                    "y_mm": -1.3 + run_id / 7,
+                    "z_mm": 318.3,
+                },
+                sort_keys=True,
+            ),
+            json.dumps({"counts": [i, -i]}) if i % 3 else None,
+        )
+        for i in range(n)
+    ]
 
 
 class Cluster:

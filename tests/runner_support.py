@@ -6,8 +6,24 @@ import threading
 import time
 from collections.abc import Callable
 
+from bench.errors import ConfigError
 from bench.protocols import Runner
 from bench.store import Store
+
+
+class StandInMover:
+    """What the stand-in robots of the runner tests share to be a :class:`bench.rigs.interfaces.Mover`: a pkm5
+    commanding by the documented geometry, without an actuator bench, whose emergency stop is its plain stop."""
+
+    kind = "pkm5"
+    geometry = None
+
+    def move_actuator(self, axis, stroke_mm, *, velocity_pct):
+        raise ConfigError(f"actuator {axis}: this stand-in has no actuator-bench mode")
+
+    def emergency_stop(self):
+        self.stop()
+
 
 #: Longest wait for a run to end once told to; an interrupted 600 s settle or an endless move exceed it.
 END_TIMEOUT_S = 30.0

@@ -89,6 +89,16 @@ def test_path_at_rt_and_orientation(capsys, tmp_path, shuffle):
     assert r["AT_a_deg"] == pytest.approx(0.1)
     assert r["RT_a_deg"] == pytest.approx(3 * 0.1)
     assert (r["n_cycles"], r["n_stations"]) == (3, 3)
+    # U from the path model Monte Carlo (the crossings are the attained y at each station, x and z exact)
+    from bench.metrology.uncertainty_figures import path_uncertainty
+
+    crossings = np.zeros((3, 3, 3))
+    crossings[:, :, 0] = np.array([10.0, 50.0, 90.0])[:, None]
+    crossings[:, :, 1] = [0.1, 0.3, 0.2]
+    u = path_uncertainty(crossings, crossings[:, 0] * [1, 0, 0])
+    assert (r["U_AT_mm"], r["U_RT_mm"]) == pytest.approx((u.at.expanded_uncertainty, u.rt.expanded_uncertainty))
+    assert r["U_AT_mm"] > 0 and r["U_RT_mm"] > 0
+    assert r["U_budget"] == "U excludes the instrument: none declared (--instrument-u-mm)"
 
 
 def test_path_refuses_different_angle_columns(capsys, tmp_path):
@@ -129,6 +139,14 @@ def test_path_velocity_json(capsys, tmp_path):
     assert r["AV_pct"] == pytest.approx((means.mean() - 50) / 50 * 100)
     assert r["RV_pct"] == pytest.approx(3 * means.std(ddof=1) / 50 * 100)
     assert r["FV_mm_s"] == pytest.approx(2.0)
+    from scipy import stats
+
+    from bench.metrology.uncertainty_figures import spread_half_width
+
+    # U(AV): Student's t for 95.45 % at 2 dof on S/sqrt(3); U(RV): the chi pivot's half-width for n = 3
+    assert r["U_AV_pct"] == pytest.approx(stats.t.ppf(0.97725, 2) * means.std(ddof=1) / np.sqrt(3) / 50 * 100, rel=1e-4)
+    assert r["U_RV_pct"] == pytest.approx(r["RV_pct"] * spread_half_width(3, 0.9545), rel=1e-3)
+    assert r["U_budget"] == "U(AV) excludes the instrument: none declared (--instrument-u-pct)"
 
 
 def test_positioning_time_per_band_and_step(capsys, tmp_path):

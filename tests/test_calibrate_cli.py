@@ -116,7 +116,10 @@ def test_calibrate_prints_which_parameters_only_the_prior_fixes(tmp_path, capsys
     stored = json.loads(capsys.readouterr().out)
     assert main(["calibrate", str(run_id), "--store", str(path)]) == 0
     lines = capsys.readouterr().out.splitlines()
-    assert len(lines) == 2 + 36 + 3 + 3  # ... the search, the scatter and the plan
+    assert len(lines) == 2 + 36 + 3 + 4  # ... the approach, the search, the scatter and the plan
+    assert (
+        "poses approached directly (the legs' backlash, whose sign follows the pose before, is not modelled)" in lines
+    )
     for line in lines[2 : 2 + 36]:  # GUM 7.2.6, as the report: the uncertainty to 2 significant digits, the value to
         name, value, u, unit = line.split()  # the same decimal place (not 0.13474 +- 0.14998 mm)
         decimals = len(u.split(".")[1]) if "." in u else 0

@@ -145,17 +145,50 @@ def test_the_plan_of_a_linear_model_is_the_closed_form():
     assert plan.ceiling_gain(100) == pytest.approx(1.0 / (0.5 / 10))
 
 
-def test_two_plausible_distinct_geometries_are_refused_and_nothing_is_stored(tmp_path, capsys, protocol):
+def test_two_plausible_geometries_that_command_alike_are_stored_with_uncertainties_that_cover_both(
+    tmp_path, capsys, protocol
+):
     # seed 14: one start stops with pd_5_x 10 u from its truth at an objective 5.6 above the truth's basin (ideal
-    # data); with 0.05 mm of noise the two basins lie within 4 of each other: neither is stored
+    # data); with 0.05 mm of noise the two basins lie within 4 of each other. Their predictions agree within the
+    # kept one's k = 2 uncertainty at every one of the workspace's 300 poses, so it is stored (before: refused),
+    # with pd_5_x and pd_6_x widened to cover the other: every parameter within 3 of its stated u of the truth
     path = tmp_path / "bench.db"
     run_id = _store_campaign(path, protocol[0], _readings(protocol, 14, 1, 0.0))
+    assert main(["calibrate", str(run_id), "--store", str(path), "--json"]) == 0
+    stored = json.loads(capsys.readouterr().out)
+    ambiguity = stored["ambiguity"]
+    assert {"pd_5_x_mm", "pd_6_x_mm"} <= set(ambiguity["widened"]) and ambiguity["workspace_poses"] > 250
+    assert ambiguity["workspace_difference_of_k2_uncertainty"] <= 1.0
+    rival = ambiguity["rival"]
+    for name in ("pd_5_x_mm", "pd_6_x_mm"):  # the stored u covers the rival's value: u'^2 = u^2 + (rival - kept)^2
+        assert stored["parameters"][name]["uncertainty"] >= abs(rival[name] - stored["parameters"][name]["value"])
+    assert max(_z(stored, 14).values()) < 3
+    assert main(["calibrate", str(run_id), "--store", str(path)]) == 0
+    assert "ambiguous: a second solution as plausible differs in" in capsys.readouterr().out
+
+
+def test_two_geometries_that_command_apart_are_refused_naming_the_poses_that_then_resolve_them(
+    tmp_path, capsys, protocol
+):
+    # seed 33: the two solutions lie 0.70 mm apart at a workspace pose where the kept one states 0.2 mm (k = 2): not
+    # stored, and the line names the poses; a campaign with those three poses added is stored, honest
+    path = tmp_path / "bench.db"
+    run_id = _store_campaign(path, protocol[0], _readings(protocol, 33, 1, 0.0))
     assert main(["calibrate", str(run_id), "--store", str(path)]) == 2
     err = capsys.readouterr().err
     assert "two geometries explain the 30 readings about equally well" in err and "nothing stored" in err
     assert re.search(r"pd_[56]_x_mm \(\d+\.\d u\)", err) and "these poses cannot tell them apart" in err
     with Store(path) as store:
         assert store.calibrations() == []
+    named = [json.loads(p) for p in re.findall(r"\[[-0-9., ]+\]", err.split("add poses where they differ most: ")[1])]
+    assert len(named) == 3
+    poses = np.vstack([protocol[0], named])
+    more = (poses, np.array([steps_for_pose(p) for p in poses]), modes_of_poses(poses))
+    path = tmp_path / "more.db"
+    run_id = _store_campaign(path, poses, _readings(more, 33, 1, 0.0))
+    assert main(["calibrate", str(run_id), "--store", str(path), "--json"]) == 0
+    stored = json.loads(capsys.readouterr().out)
+    assert "ambiguity" not in stored and max(_z(stored, 33).values()) < 4
 
 
 @pytest.mark.parametrize("gain", ["0.5", "1", "inf", "nan"])

@@ -20,8 +20,7 @@ from bench.commands.demo import analyze_run
 from bench.launch import simulated_rig_in
 from bench.protocols import PROTOCOLS, Runner
 from bench.protocols.iso9283 import PoseAccuracy
-from bench.protocols.plan import iterate
-from bench.protocols.runner import step_stores_sample
+from bench.protocols.plan import iterate, step_stores_sample
 from bench.simulators.error_model import ErrorModel
 from bench.simulators.pkm5_plant import PKM5_ERRORS
 from bench.simulators.rig import simulated_rig

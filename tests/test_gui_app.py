@@ -185,3 +185,13 @@ def test_stabilisation_run_shows_each_arrival_curve_as_stored_with_the_iso_bands
     assert axes.get_xlabel() == "time from the move's reported end (s)"
     bands = sorted(line.get_ydata()[0] for line in axes.get_lines() if line.get_linestyle() == "--")
     assert bands == [0.1, 0.5, 1.0]
+
+
+def test_closing_the_window_ends_the_live_view_render_thread(window):
+    """A render thread left running at exit handed a last picture to a process pool the interpreter was shutting
+    down ('cannot schedule new futures after interpreter shutdown' in the log): closing the window ends it."""
+    renderer_thread = window.live_view._renderer.thread
+    assert renderer_thread.is_alive()
+    window.close()
+    renderer_thread.join(timeout=10)
+    assert not renderer_thread.is_alive()

@@ -155,13 +155,13 @@ def test_a_resume_keeps_the_calibration_of_its_run(tmp_path):
         first = store.add_calibration("pkm5_kinematics", params)
         store.add_calibration("pkm5_kinematics", params)
         resumed = rig({"kinematic_calibration": {"id": first.id}})
-        assert resumed.calibration_ids == (first.id,) and resumed.extra["kinematic_calibration"]["version"] == 1
+        assert resumed.calibration_ids == (first.id,) and resumed.kinematic_calibration.version == 1
         assert resumed.robot.geometry.leg_length_offset_mm[0] == pytest.approx(184.25)
         assert resumed.robot.geometry.oa_12_mm == pytest.approx((-75.0, -129.9, 1.0))
         older = rig({"simulator": {"seed": 0}})
         assert older.calibration_ids == () and older.robot.geometry == pkm5.DEFAULT_GEOMETRY
-        assert older.extra["kinematic_calibration"] == {"id": None, "reason": "the run was made without one"}
-        assert rig({}).extra["kinematic_calibration"]["version"] == 2
+        assert older.kinematic_calibration.settings() == {"id": None, "reason": "the run was made without one"}
+        assert rig({}).kinematic_calibration.version == 2
         with pytest.raises(ConfigError, match="^--kinematic-calibration 1: the actuator-bench commands no poses"):
             _kinematic_calibration(
                 RigRequest(kinematic_calibration=1), store, "pkm5", {}, None, "actuator-bench", False

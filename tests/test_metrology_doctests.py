@@ -16,6 +16,7 @@ MODULES = [
     "mouse_calibration",
     "payload",
     "uncertainty",
+    "uncertainty_figures",
     "tables",
     "partial_pose",
     "hit_rate",

@@ -10,13 +10,12 @@ from hypothesis import strategies as st
 
 from bench.errors import ConfigError, InsufficientData
 from bench.metrology import pose_stabilisation
+from bench.metrology.stabilisation_tables import stabilisation_results, stabilisation_table
 from bench.metrology.tables import (
     analyze_distance,
     analyze_poses,
     pose_table,
     read_table_csv,
-    stabilisation_results,
-    stabilisation_table,
 )
 
 EXAMPLE = Path(__file__).resolve().parents[1] / "examples" / "data" / "iso9283_example.csv"

@@ -35,7 +35,7 @@ def test_combined_and_expanded():
     assert combine(0.003, 0.004) == pytest.approx(0.005)
     measured = expanded(1.5, 0.005, unit="mm")
     assert measured.expanded_uncertainty == pytest.approx(0.01)
-    assert str(measured) == "1.5 ± 0.01 mm (k = 2)"
+    assert str(measured) == "1.500 ± 0.010 mm (k = 2)"  # U to two significant digits, GUM 7.2.6
     with pytest.raises(ConfigError, match="standard_uncertainty = nan"):
         expanded(1.0, float("nan"), unit="mm")
 
@@ -115,3 +115,19 @@ def test_vectorised_rp_bootstrap_equals_the_generic_one():
     assert repeatability_uncertainty(cloud, resamples=200, seed=4, method="bootstrap") == pytest.approx(
         generic, rel=1e-12
     )
+
+
+def test_the_path_model_keeps_each_station_s_scatter_in_its_own_plane():
+    """The sides of a rectangle cross planes facing different ways: pooling the stations' scatter toward each other
+    (uncertainty_figures._pooled_toward) must pool their shapes, never move one side's scatter out of its plane."""
+    from bench.metrology.uncertainty_figures import _covariances, _pooled_toward
+
+    rng = np.random.default_rng(11)
+    deviations = rng.normal(0.0, 0.05, (6, 10, 3)) * [0.0, 1.0, 0.5]  # 3 stations on a side along x: y, z scatter
+    deviations[3:] = rng.normal(0.0, 0.05, (3, 10, 3)) * [1.0, 0.0, 0.5]  # 3 on a side along y: x, z scatter
+    model = _pooled_toward(deviations - deviations.mean(axis=1, keepdims=True))
+    assert np.abs(model[:3, :, 0]).max() < 1e-12 and np.abs(model[3:, :, 1]).max() < 1e-12
+    # the shapes are pooled: every station's two axis variances move toward the mean of the stations' (never apart)
+    before = np.linalg.eigvalsh(_covariances(deviations))[:, 1:]
+    after = np.linalg.eigvalsh(_covariances(model))[:, 1:]
+    assert np.all(np.abs(after - before.mean(axis=0)) <= np.abs(before - before.mean(axis=0)) + 1e-12)

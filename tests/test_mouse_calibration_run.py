@@ -9,6 +9,7 @@ from types import SimpleNamespace
 
 import numpy as np
 import pytest
+from reports_runs import rounded_by_u
 
 from bench.cli import main
 from bench.errors import ConfigError
@@ -43,7 +44,13 @@ def test_a_run_is_stored_printed_exported_analysed_and_reported(tmp_path, caplog
     params = stored.params
     assert f"stored mouse calibration mouse-v{stored.version}" in caplog.text
     assert f"not in force until a station names it ([mice] calibration = {stored.version})" in caplog.text
-    assert f"± {params['k'] * params['u_x_mm_per_count']:.1e} mm/count" in caplog.text
+    # the scale and its cpi rounded by their U (GUM 7.2.6), not 0.031759 ± 1.3e-03 (799.8 cpi): rounded_by_u is
+    # independent of bench's formatter
+    big_u = params["k"] * params["u_x_mm_per_count"]
+    scale = params["x_mm_per_count"]
+    assert f"x {rounded_by_u(scale, big_u)} mm/count ({rounded_by_u(25.4 / scale, 25.4 * big_u / scale**2)} cpi)" in (
+        caplog.text
+    )
     assert params["reference"] == "calibrated-axis" and params["k"] > 2.0  # Student's t at the fit's dof
     # 3 lengths x 2 repeats per axis: 6 steps there and 5 back per axis
     assert params["dof"] == 22 - 6
@@ -70,7 +77,8 @@ def test_a_run_is_stored_printed_exported_analysed_and_reported(tmp_path, caplog
     )
     page = (tmp_path / "r" / f"report_run{result.run_id}.html").read_text()
     a = np.array(params["matrix_mm_per_count"])
-    assert f"{a[0, 0]:+.6f} ±" in page and f"[mice] calibration = {stored.version}" in page
+    u = params["k"] * np.array(params["u_matrix_mm_per_count"])
+    assert f"+{rounded_by_u(a[0, 0], u[0, 0])}" in page and f"[mice] calibration = {stored.version}" in page
 
 
 def _sample(pose, cycle, **values):

@@ -15,6 +15,7 @@ import time
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from runner_support import StandInMover
 
 from bench.errors import BenchError, ConfigError, PromptWithdrawn
 from bench.protocols import Runner
@@ -261,7 +262,7 @@ class _FuzzedPrompts(Protocol):
             )
 
 
-class _StillRobot:
+class _StillRobot(StandInMover):
     """A robot that is never asked to move (the protocol only prompts)."""
 
     def move_to(self, target, *, velocity_pct):

@@ -17,6 +17,7 @@ from bench.cli import main
 from bench.errors import ConfigError
 from bench.protocols import summarize
 from bench.protocols.positioning_time import MinimumPositioningTime
+from bench.reports import collect
 from bench.reports.plots import MIN_FONT_PT
 from bench.reports.positioning_time import analyze_positioning_run, collect_positioning_time, positioning_time_plot
 from bench.robots.pkm5_kinematics import steps_for_pose
@@ -183,6 +184,11 @@ def test_bench_analyze_and_the_report_give_the_same_times(quick_run, tmp_path, c
     html = (tmp_path / "r" / f"report_run{run_id}.html").read_text()
     assert "Minimum positioning time (ISO 9283 9)" in html
     assert f"{steps[1]['mean_time_s']:.3f}" in html
+    # --criterion t_pos_s: each step's mean time against the limit, simple acceptance (no U stated)
+    limit = (steps[0]["mean_time_s"] + steps[1]["mean_time_s"]) / 2
+    with Store(path, read_only=True) as store:
+        judged = collect(store, run_id, bands_mm=[0.5], criteria={"t_pos_s": limit})
+    assert [v[-1] for v in judged.decision.verdicts] == ["pass" if s["mean_time_s"] <= limit else "fail" for s in steps]
 
 
 @settings(max_examples=60, deadline=None)

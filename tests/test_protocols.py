@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
-from runner_support import RunInThread, wait_until
+from runner_support import RunInThread, StandInMover, wait_until
 
 from bench.errors import ConfigError, PromptWithdrawn, UnreachableTarget
 from bench.protocols import (
@@ -44,7 +44,7 @@ from bench.store import Store, tidy_table
 BIAS = np.array([0.5, -0.25, 0.125])
 
 
-class RecordingRobot:
+class RecordingRobot(StandInMover):
     def __init__(self, fail_after: int | None = None):
         self.log: list[tuple] = []
         self.fail_after = fail_after

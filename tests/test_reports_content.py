@@ -168,7 +168,7 @@ def test_a_run_without_pose_samples_is_refused(tmp_path):
 
 def test_multidirectional_vap_equals_the_metrology_function(tmp_path):
     from bench.metrology import multidirectional_variation, orientation_multidirectional_variation
-    from bench.reports.document import _results
+    from bench.reports.pose_document import _results
 
     store = Store(tmp_path / "bench.db")
     config = pose_config(protocol="iso9283_multidirectional", cycles=4, approach_mm=10.0)
@@ -257,7 +257,7 @@ def test_other_pose_protocols_take_conditions_from_the_samples_and_refuse_unknow
 
 def test_mouse_calibration_in_force_is_refitted_from_its_source_run_and_plotted(tmp_path):
     from bench.metrology import fit_axis_scale
-    from bench.reports.plots import mouse_calibration_plots
+    from bench.reports.pose_plots import mouse_calibration_plots
 
     store = Store(tmp_path / "bench.db")
     source = store.start_run(protocol_name="mouse_calibration", protocol_version="1", robot="pkm5", config={})
@@ -296,7 +296,7 @@ def test_mouse_calibration_in_force_is_refitted_from_its_source_run_and_plotted(
 
 def test_distance_run_with_angles_reports_ad_rd_of_each_angle(tmp_path):
     from bench.metrology import orientation_distance_characteristics
-    from bench.reports.document import _results
+    from bench.reports.pose_document import _results
 
     store = Store(tmp_path / "bench.db")
     config = pose_config(protocol="iso9283_distance", cycles=4)

@@ -31,8 +31,8 @@ from reports_runs import (
 from bench.cli import main
 from bench.errors import ConfigError, InsufficientData
 from bench.metrology import STANDARD_GRAVITY_M_S2, payload_compliance, payload_shift
+from bench.metrology.formatting import reading_step_mm
 from bench.reports import ActuatorReport, GridHitReport, LadderReport, collect, write_comparison, write_report
-from bench.reports.content import reading_step_mm
 from bench.store import Store
 
 
@@ -143,6 +143,30 @@ def test_actuator_html_and_pdf_print_the_tables(runs):
         and "6. Results" in pdf
         and "10. Statement of scope" in pdf
     )
+
+
+def test_actuator_criteria_are_judged_under_the_chosen_rule_on_page_1_and_in_the_decision(runs):
+    """--criterion for an own layout: each actuator's repeatability ± U against the limit, by hand under the guarded
+    rule (ISO 14253-1: pass when value + U <= limit, fail when value - U > limit, else not proven)."""
+    store, ids, reports, _, folder = runs
+    figures = [
+        (r.groover.repeatability_mm, r.repeatability_u.expanded_uncertainty) for r in reports["actuator"].actuators
+    ]
+    limit = sorted(v for v, _ in figures)[len(figures) // 2]  # the median: some actuators each side of it
+    expected = ["pass" if v + u <= limit else "fail" if v - u > limit else "not proven" for v, u in figures]
+    judged = collect(store, ids["actuator"], criteria={"repeatability_mm": limit}, decision_rule="guarded")
+    assert [v[-1] for v in judged.decision.verdicts] == expected
+    assert [v[2:4] for v in judged.decision.verdicts] == [pytest.approx(f) for f in figures]
+    paths = write_report(
+        store, ids["actuator"], folder / "judged", criteria={"repeatability_mm": limit}, decision_rule="guarded"
+    )
+    tables = html_tables(paths.html)
+    assert [row[-1] for row in tables["decision"][1:]] == expected
+    assert tables["verdict"][1][0] == "repeatability (mm)" and tables["verdict"][-1][0] == "Overall"
+    with pytest.raises(
+        ConfigError, match="--criterion AP_mm: not a characteristic of this report, expected NAME=LIMIT"
+    ):
+        collect(store, ids["actuator"], criteria={"AP_mm": 0.5})
 
 
 def test_actuator_deviations_follow_the_stored_configuration(tmp_path):
@@ -376,7 +400,8 @@ def test_cli_reports_the_three_kinds_and_refuses_criteria_and_comparisons(runs, 
     ]
     assert main(["report", str(ids["grid"]), "--store", store, "--out", str(tmp_path), "--criterion", "AP_mm=0.5"]) == 2
     assert (
-        "project criteria (AP_mm, RP_mm) apply to pose runs; run 3 is a lasergrid_hits run" in capsys.readouterr().err
+        "--criterion AP_mm: this report states no verdict (the hit rate is judged against the thesis's own "
+        "specification (>= 97 % at every height))" in capsys.readouterr().err
     )
     with Store(folder / "bench.db") as opened:
         pose = write_pose_run(opened, config=None)
@@ -399,7 +424,7 @@ def test_reading_step_is_the_coarsest_decimal_every_reading_is_a_multiple_of(cou
 
 
 def test_ladder_settings_never_pass_the_mice_for_the_calliper():
-    from bench.reports.content import reading_instrument
+    from bench.reports.instrument import reading_instrument
 
     class Run:  # the one attribute of a RunRecord that reading_instrument reads
         settings = {**LADDER_SETTINGS, "instrument": {**LADDER_SETTINGS["instrument"], "u_mm": 0.5}}

@@ -11,9 +11,8 @@ from hypothesis import strategies as st
 from reports_runs import SETTINGS, pose_config, write_pose_run
 
 from bench.reports import collect
-from bench.reports.plots import (
-    MIN_FONT_PT,
-    PRINT_WIDTH_IN,
+from bench.reports.plots import MIN_FONT_PT, PRINT_WIDTH_IN
+from bench.reports.pose_plots import (
     deviation_histograms,
     drift_series,
     error_map_3d,

@@ -177,7 +177,7 @@ def test_cli_errors_are_one_line_with_exit_2(reports, capsys, argv, message):
 
 def test_cli_refuses_a_missing_store(tmp_path, capsys):
     assert main(["report", "1", "--store", str(tmp_path / "none.db"), "--out", str(tmp_path)]) == 2
-    assert "no run store there" in capsys.readouterr().err
+    assert "none.db: no run store there" in capsys.readouterr().err
 
 
 def test_pdf_figures_are_the_html_figures_pixel_for_pixel(reports):

@@ -8,6 +8,7 @@ from __future__ import annotations
 import threading
 
 import pytest
+from runner_support import StandInMover
 
 from bench.protocols import Measurement, Rig, Runner
 from bench.protocols.iso9283 import PoseAccuracy
@@ -18,7 +19,7 @@ from bench.store.sample_writer import SampleWriter
 SAMPLES = 30  # 5 poses x 3 cycles x 2 velocities
 
 
-class LoggingRobot:
+class LoggingRobot(StandInMover):
     def __init__(self, log, moved):
         self.log, self.moved = log, moved
 

@@ -51,9 +51,22 @@ class _Watched:
             raise
         self.moves.append("done")
 
+    kind = "pkm5"
+
+    @property
+    def geometry(self):
+        return self.mover.geometry
+
+    def move_actuator(self, axis, stroke_mm, *, velocity_pct):
+        self.mover.move_actuator(axis, stroke_mm, velocity_pct=velocity_pct)
+
     def stop(self):
         self.stops.append(threading.current_thread().name)
         self.mover.stop()
+
+    def emergency_stop(self):
+        self.stops.append(threading.current_thread().name)
+        self.mover.emergency_stop()
 
     def shutdown(self):
         self.mover.shutdown()

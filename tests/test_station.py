@@ -47,9 +47,11 @@ def test_every_example_station_parses_with_the_capabilities_of_its_devices():
         "delta4_camera": {"assembled", "pose"},
     }
     mice = load_station(STATIONS / "pkm5_mice.toml")
-    assert mice.controller.baud == 115200 and mice.mice.cpi == 800 and mice.identity.robot_serial == "PKM5-0001"
+    assert (
+        mice.controller.baud == 115200 and mice.sensor("mice").cpi == 800 and mice.identity.robot_serial == "PKM5-0001"
+    )
     assert load_station(STATIONS / "delta4_lasergrid.toml").controller.baud == 9600
-    camera = load_station(STATIONS / "pkm5_camera.toml").camera
+    camera = load_station(STATIONS / "pkm5_camera.toml").sensor("camera")
     assert Path(camera.calibration) == STATIONS / "camera-plane.json"  # relative to the station file
 
 
@@ -91,6 +93,11 @@ def test_every_example_station_parses_with_the_capabilities_of_its_devices():
         (_station(calliper={"kind": "serial"}), "calliper.port missing, expected the calliper's serial port"),
         (_station(laser_grid={}), "[laser_grid] with robot.kind = 'pkm5', expected robot.kind = 'delta4'"),
         (_station(mouse={}), "unknown table [mouse], expected one of [station], [robot], [controller], [mice]"),
+        (
+            {"robot": {"kind": "delta4"}, "controller": {"port": "/dev/a"}, "mice": {"xy": "/dev/b", "xz": "/dev/c"}},
+            "[mice] with robot.kind = 'delta4', expected robot.kind = 'pkm5' (the mice are mounted on the pkm5's",
+        ),
+        (_station(camera={"device": "/dev/video0", "calibration": "p.json", "frames": 0}), "camera.frames = 0"),
         (
             _station(calliper={"kind": "serial", "port": "/dev/ttyACM0"}),
             "calliper.port = '/dev/ttyACM0', expected a device of its own (controller.port names it too)",
@@ -213,9 +220,9 @@ def _rehearsed_run(store: Store, station: Path, protocol_file: Path, *, operator
     )
     try:
         if operator is not None and hasattr(operator, "truth_path"):
-            operator.truth_path = rig.extra["simulator"]["truth_log"]
+            operator.truth_path = rig.simulator.truth_log
         result = Runner(rig, store, progress=False).run(protocol)
-        truth = _truth(rig.extra["simulator"]["truth_log"])
+        truth = _truth(rig.simulator.truth_log)
     finally:
         rig.close()
     return result, truth
@@ -309,6 +316,36 @@ def test_delta4_with_the_laser_grid_on_the_hardware_path(tmp_path):
         assert np.abs(position - nearest).max() < 2.5  # within one grid phase of the true position
 
 
+def test_a_station_with_two_instruments_opens_the_one_the_protocol_captures_with(tmp_path):
+    """A delta4 bench with a camera and the laser grid: a hit-rate run captures grid hits, which only the grid gives
+    (the camera measures a plane and refuses them), and a pose run takes the first registered pose instrument."""
+    from bench.rigs.builder import build_rig
+    from bench.simulators.station import rehearse
+
+    station = parse_station(
+        {
+            "robot": {"kind": "delta4"},
+            "controller": {"port": "/dev/ttyUSB0"},
+            "camera": {"device": "/dev/video0", "calibration": "plane.json"},
+            "laser_grid": {},
+        },
+        source="two.toml",
+    )
+    assert station.capabilities() == {"assembled", "pose", "grid_hit"}
+    rehearsal = rehearse(station, speed_factor=REHEARSAL_SPEED)
+    try:
+        with Store(tmp_path / "b.db") as store:
+            hits = required_capabilities(load_protocol(EXAMPLES / "lasergrid_hits.toml"))
+            for requires, instrument in ((hits, "laser grid (controller reports)"), ({"assembled", "pose"}, "camera")):
+                rig = build_rig(rehearsal.station, store, requires=requires, speed_factor=REHEARSAL_SPEED)
+                try:
+                    assert rig.instrument.settings()["instrument"].startswith(instrument)
+                finally:
+                    rig.close()
+    finally:
+        rehearsal.close()
+
+
 class _GaugeReader:
     """The person at the actuator bench: zeroes the depth gauge on an actuator and reads it (the simulator's truth
     log is what the gauge shows)."""
@@ -348,8 +385,6 @@ def test_the_actuator_bench_with_typed_readings_on_the_hardware_path(tmp_path):
 
 
 def test_the_builder_closes_what_it_opened_when_a_later_device_fails(tmp_path):
-    import dataclasses
-
     from bench.errors import LinkError
     from bench.rigs.builder import build_rig
     from bench.robots.link import open_port
@@ -357,9 +392,7 @@ def test_the_builder_closes_what_it_opened_when_a_later_device_fails(tmp_path):
 
     rehearsal = rehearse(load_station(STATIONS / "pkm5_mice.toml"), speed_factor=REHEARSAL_SPEED)
     try:
-        broken = dataclasses.replace(
-            rehearsal.station, mice=dataclasses.replace(rehearsal.station.mice, xz=str(tmp_path / "gone"))
-        )
+        broken = rehearsal.station.with_sensor("mice", xz=str(tmp_path / "gone"))
         with Store(tmp_path / "b.db") as store, pytest.raises(LinkError, match="gone"):
             build_rig(broken, store, requires={"pose"}, speed_factor=REHEARSAL_SPEED)
         # the controller's port was released: it opens again, exclusively, and the controller still answers
@@ -491,9 +524,9 @@ def test_the_actuator_bench_with_a_serial_depth_gauge_on_the_hardware_path(tmp_p
     rehearsal = rehearse(station, speed_factor=REHEARSAL_SPEED)  # the controller; the gauge is this test's own pty
     gauge = _SerialDepthGauge(rehearsal.truth_path)
     try:
+        gauge_spec = dataclasses.replace(station.sensor("calliper"), port=gauge.path, request="?", timeout_s=5.0)
         bench_station = dataclasses.replace(
-            rehearsal.station,
-            calliper=dataclasses.replace(station.calliper, port=gauge.path, request="?", timeout_s=5.0),
+            rehearsal.station, sensors={**rehearsal.station.sensors, "calliper": gauge_spec}
         )
         with Store(tmp_path / "b.db") as store:
             rig = build_rig(
@@ -548,7 +581,7 @@ def test_station_check_with_one_device_removed_names_that_device_only():
 
     rehearsal = rehearse(load_station(STATIONS / "pkm5_mice.toml"))
     try:
-        os.unlink(rehearsal.station.mice.xz)  # the x-z mouse unplugged
+        os.unlink(rehearsal.station.sensor("mice").xz)  # the x-z mouse unplugged
         checks = {check.key: check for check in check_station(rehearsal.station)}
     finally:
         rehearsal.close()

@@ -66,9 +66,22 @@ def test_another_applications_sqlite_file_is_refused_and_untouched(tmp_path, cap
 
 def test_readers_never_create_a_store(tmp_path, capsys):
     missing = tmp_path / "typo.db"
-    for command in (["runs"], ["export", "1"], ["report", "1"], ["backup", str(tmp_path / "copy.db")]):
+    refused = f"bench: error: --store {missing}: no run store there, expected the bench.db a run wrote (--store)"
+    for command in (
+        ["runs"],
+        ["export", "1"],
+        ["report", "1"],
+        ["report", "1", "--compare", "2"],
+        ["backup", str(tmp_path / "copy.db")],
+        ["analyze", "path-run", "1"],
+        ["analyze", "positioning-run", "1"],
+        ["analyze", "iso230-2-run", "1"],
+        ["sync", "--to", "postgresql://bench@/lab?host=/nowhere"],  # (refused before connecting)
+    ):
         assert main([*command, "--store", str(missing)]) == 2
-        assert str(missing) in _one_error_line(capsys)
+        assert _one_error_line(capsys) == refused, command
+    assert main(["store", "check", str(missing)]) == 2
+    assert _one_error_line(capsys) == refused.replace("--store", "STORE", 1)
     with pytest.raises(Exception, match=f"--store {missing}: no run store there"):
         Store(missing, read_only=True)
     assert list(tmp_path.iterdir()) == []

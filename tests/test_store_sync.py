@@ -100,6 +100,7 @@ def test_awkward_text_arrives_byte_for_byte(tmp_path, lab_url):
             ("P\t1\\n\nend\r", '{"path": "C:\\\\bench\\\\new", "text": "tab\\there"}'),
             (None, None),
         ]
+        assert lab.check_samples() == ([], [])  # each checksum arrived as stored, and checks on the server
 
 
 def test_sync_killed_midway_then_resumed_has_every_sample_once(tmp_path, lab_url):

@@ -27,7 +27,7 @@ def _rig(robot: RecordingRobot, registered_utc: str, u_mm: float) -> Rig:
         Answers(),
         speed_factor=1e6,
         sleep=lambda s: None,
-        extra={"registration": {"utc": registered_utc, "u_mm": u_mm, "check_discrepancy_mm": 0.01}},
+        registration={"utc": registered_utc, "u_mm": u_mm, "check_discrepancy_mm": 0.01},
     )
 
 

@@ -33,7 +33,6 @@ __all__ = [
     "calibration_name",
     "choose_calibration",
     "describe_in_force",
-    "preflight_by_rig",
     "put_in_force",
     "select_calibration",
 ]
@@ -156,11 +155,13 @@ def choose_calibration(
 
 
 def put_in_force(rig: Any, record: Any, reason: str) -> Any:
-    """Calibration ``record`` (None: none, for ``reason``) in force on ``rig``: its mover commands by the calibrated
-    geometry, its id joins ``rig.calibration_ids`` and ``rig.extra["kinematic_calibration"]`` records it (or none,
-    and why). Returns ``rig``."""
+    """Calibration ``record`` (None: none, for ``reason``) in force on ``rig``: its mover commands (and the runner
+    pre-flights) by the calibrated geometry, its id joins ``rig.calibration_ids`` and ``rig.kinematic_calibration``
+    records it (or none, and why). Returns ``rig``."""
+    from bench.rigs.interfaces import KinematicCalibration
+
     if record is None:
-        rig.extra["kinematic_calibration"] = {"id": None, "reason": reason}
+        rig.kinematic_calibration = KinematicCalibration(reason)
         return rig
     try:
         rig.robot.use_geometry(calibrated_geometry(record))
@@ -168,39 +169,18 @@ def put_in_force(rig: Any, record: Any, reason: str) -> Any:
         rig.close()
         raise
     rig.calibration_ids = tuple(rig.calibration_ids) + (record.id,)
-    rig.extra["kinematic_calibration"] = {
-        "id": record.id,
-        "name": record.name,
-        "version": record.version,
-        "source_run_id": record.source_run_id,
-        "reason": reason,
-    }
+    rig.kinematic_calibration = KinematicCalibration(
+        reason, id=record.id, name=record.name, version=record.version, source_run_id=record.source_run_id
+    )
     return rig
 
 
 def describe_in_force(rig: Any) -> str:
     """One line naming the kinematic calibration in force on ``rig`` (for stderr and the window's log)."""
-    entry = rig.extra.get("kinematic_calibration")
+    entry = rig.kinematic_calibration
     if entry is None:
         return "kinematic calibration: none (not selected)"
-    if entry["id"] is None:
-        return f"kinematic calibration: none ({entry['reason']}); commanding by the documented geometry"
-    source = f" from run {entry['source_run_id']}" if entry.get("source_run_id") is not None else ""
-    return (
-        f"kinematic calibration in force: {entry['name']} v{entry['version']} (id {entry['id']}{source}; "
-        f"{entry['reason']})"
-    )
-
-
-def preflight_by_rig(rig: Any, protocol: Any) -> None:
-    """The plan's pre-flight again by the geometry ``rig`` commands by, when a kinematic calibration is in force
-    (the runner's own pre-flight uses the documented geometry); ``rig`` is closed when a target is refused."""
-    from bench.protocols.plan import preflight
-
-    if (rig.extra.get("kinematic_calibration") or {}).get("id") is None:
-        return
-    try:
-        preflight(protocol, geometry=rig.robot.geometry)
-    except BaseException:
-        rig.close()
-        raise
+    if entry.id is None:
+        return f"kinematic calibration: none ({entry.reason}); commanding by the documented geometry"
+    source = f" from run {entry.source_run_id}" if entry.source_run_id is not None else ""
+    return f"kinematic calibration in force: {entry.name} v{entry.version} (id {entry.id}{source}; {entry.reason})"

@@ -162,6 +162,7 @@ def _iso9283(args: argparse.Namespace) -> int:
 
 
 def _distance(args: argparse.Namespace) -> int:
+    from bench.metrology.formatting import format_length, format_pair
     from bench.metrology.tables import (
         POSE_NUMERIC_COLUMNS,
         analyze_distance,
@@ -170,11 +171,14 @@ def _distance(args: argparse.Namespace) -> int:
         read_table_csv,
     )
     from bench.metrology.uncertainty import distance_accuracy_uncertainty, instrument_budget
+    from bench.metrology.uncertainty_figures import spread_uncertainty
 
     table = pose_table(read_table_csv(args.file, numeric=POSE_NUMERIC_COLUMNS))
     r = analyze_distance(table, args.first, args.second)
     budget = instrument_budget(args.instrument_u_mm, "--instrument-u-mm")
     u_ad = distance_accuracy_uncertainty(r.ad_mm, r.u_ad_mm, r.n, instrument_u_mm=args.instrument_u_mm or 0.0)
+    u_rd = spread_uncertainty(r.rd_mm, r.n, unit="mm")
+    rd_text, u_rd_text = format_pair(r.rd_mm, u_rd.expanded_uncertainty)
     result = {
         "from": args.first,
         "to": args.second,
@@ -183,6 +187,7 @@ def _distance(args: argparse.Namespace) -> int:
         "U_AD_mm": u_ad.expanded_uncertainty,
         "k": u_ad.coverage_factor,
         "RD_mm": r.rd_mm,
+        "U_RD_mm": u_rd.expanded_uncertainty,
         "AD_axes_mm": list(r.ad_axes_mm),
         "RD_axes_mm": list(r.rd_axes_mm),
         "mean_distance_mm": r.mean_distance_mm,
@@ -194,11 +199,11 @@ def _distance(args: argparse.Namespace) -> int:
             f"{args.first} -> {args.second}, n = {r.n}: D_c = {r.commanded_distance_mm:.3f} mm, "
             f"D̄ = {r.mean_distance_mm:.3f} mm"
         ),
-        f"AD_p = {u_ad}, RD = ±{r.rd_mm:.4f} mm; {budget}",
+        f"AD_p = {u_ad}, RD = ±{rd_text} mm (U {u_rd_text} mm, k = 2); {budget}",
         "AD x/y/z = "
-        + " / ".join(f"{v:+.4f}" for v in r.ad_axes_mm)
+        + " / ".join(format_length(v, signed=True) for v in r.ad_axes_mm)
         + " mm, RD x/y/z = ±"
-        + " / ±".join(f"{v:.4f}" for v in r.rd_axes_mm)
+        + " / ±".join(map(format_length, r.rd_axes_mm))
         + " mm",
     ]
     angles = analyze_orientation_distance(table, args.first, args.second)
@@ -208,7 +213,10 @@ def _distance(args: argparse.Namespace) -> int:
             result[f"AD_{name}_deg"], result[f"RD_{name}_deg"] = ad, rd
         lines.append(
             "orientation: "
-            + ", ".join(f"AD_{n} {ad:+.4f} deg, RD_{n} ±{rd:.4f} deg" for n, ad, rd in zip(names, o.ad_deg, o.rd_deg))
+            + ", ".join(
+                f"AD_{n} {format_length(ad, signed=True)} deg, RD_{n} ±{format_length(rd)} deg"
+                for n, ad, rd in zip(names, o.ad_deg, o.rd_deg)
+            )
         )
     emit(result, args.json, lines)
     return 0
@@ -216,6 +224,7 @@ def _distance(args: argparse.Namespace) -> int:
 
 def _drift(args: argparse.Namespace) -> int:
     from bench.metrology import orientation_drift, pose_drift
+    from bench.metrology.formatting import format_length
     from bench.metrology.tables import ANGLE_PAIRS, POSE_NUMERIC_COLUMNS, pose_table, read_table_csv
 
     table = pose_table(read_table_csv(args.file, numeric=POSE_NUMERIC_COLUMNS))
@@ -239,9 +248,10 @@ def _drift(args: argparse.Namespace) -> int:
             for t, n, a, p in zip(r.window_start_s, r.n_per_window, r.ap_mm, r.rp_mm)
         ],
     }
-    lines = [f"pose {args.pose}: dAP = {r.dap_mm:.4f} mm, dRP = {r.drp_mm:.4f} mm over {len(r.ap_mm)} windows"]
+    mm = format_length
+    lines = [f"pose {args.pose}: dAP = {mm(r.dap_mm)} mm, dRP = {mm(r.drp_mm)} mm over {len(r.ap_mm)} windows"]
     lines += [
-        f"  t >= {t:10.1f} s  n = {n:4d}  AP = {a:.4f} mm  RP = {p:.4f} mm"
+        f"  t >= {t:10.1f} s  n = {n:4d}  AP = {mm(a)} mm  RP = {mm(p)} mm"
         for t, n, a, p in zip(r.window_start_s, r.n_per_window, r.ap_mm, r.rp_mm)
     ]
     pairs = [(c, a) for c, a in ANGLE_PAIRS if a in rows.columns]
@@ -255,14 +265,16 @@ def _drift(args: argparse.Namespace) -> int:
             for window, ap, rp in zip(result["windows"], o.ap_deg[:, i], o.rp_deg[:, i]):
                 window[f"AP_{name}_deg"], window[f"RP_{name}_deg"] = float(ap), float(rp)
             lines.append(
-                f"  orientation {name}: dAP_{name} = {o.dap_deg[i]:.4f} deg, dRP_{name} = {o.drp_deg[i]:.4f} deg"
+                f"  orientation {name}: dAP_{name} = {mm(o.dap_deg[i])} deg, dRP_{name} = {mm(o.drp_deg[i])} deg"
             )
     emit(result, args.json, lines)
     return 0
 
 
 def _stabilisation(args: argparse.Namespace) -> int:
-    from bench.metrology.tables import read_table_csv, stabilisation_results, stabilisation_table
+    from bench.metrology.formatting import format_length
+    from bench.metrology.stabilisation_tables import stabilisation_results, stabilisation_table
+    from bench.metrology.table_csv import read_table_csv
 
     table = stabilisation_table(read_table_csv(args.file))
     for band in args.band_mm:
@@ -291,7 +303,7 @@ def _stabilisation(args: argparse.Namespace) -> int:
             }
             lines.append(
                 f"{band:>7g}  {pose:<{width}} {n:>2} {r.mean_time_s:>8.3f} {r.max_time_s:>8.3f} "
-                f"{r.mean_overshoot_mm:>7.4f} {r.max_overshoot_mm:>9.4f}"
+                f"{format_length(r.mean_overshoot_mm):>7} {format_length(r.max_overshoot_mm):>9}"
             )
     emit(result, args.json, lines)
     return 0

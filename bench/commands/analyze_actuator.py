@@ -75,6 +75,7 @@ def actuator_result_json(r) -> dict:
 
 def _actuator(args: argparse.Namespace) -> int:
     from bench.metrology.actuator_tables import actuator_table, analyze_actuators, robot_control_resolution
+    from bench.metrology.formatting import format_value, reading_step_mm
     from bench.metrology.tables import read_table_csv
     from bench.metrology.uncertainty import instrument_budget
 
@@ -100,18 +101,27 @@ def _actuator(args: argparse.Namespace) -> int:
             f"{'E230_mm':>8} {'A230_mm':>8}  mean deviation per target (mm)"
         )
     ]
+    step = reading_step_mm(frame["travel_mm"]) if "travel_mm" in frame else None
+
+    def mm(value: float, u: float | None = None, signed: bool = False) -> str:
+        """By its U when it has one, else never finer than the readings (as the report: figure_decimals)."""
+        return format_value(value, u, signed=signed, resolution=None if u is not None else step)
+
     for r in results:
         g, iso = r.groover, r.iso230_2
+        repeat_u, accuracy_u = (
+            None if m is None else m.expanded_uncertainty for m in (r.repeatability_u, r.accuracy_u)
+        )
         lines.append(
-            f"{r.actuator:<9} {g.n:>3} {g.repeatability_mm:9.3f} {g.accuracy_mm:11.3f} "
-            f"{g.max_abs_bias_mm:12.3f} {iso.repeatability_forward_mm:8.3f} {iso.systematic_forward_mm:8.3f} "
-            f"{iso.accuracy_forward_mm:8.3f}  "
-            + " ".join(f"{v:+.3f}" for v in g.mean_deviation_mm)
+            f"{r.actuator:<9} {g.n:>3} {mm(g.repeatability_mm, repeat_u):>9} "
+            f"{mm(g.accuracy_mm, accuracy_u):>11} {mm(g.max_abs_bias_mm):>12} "
+            f"{mm(iso.repeatability_forward_mm):>8} {mm(iso.systematic_forward_mm):>8} {mm(iso.accuracy_forward_mm):>8}  "
+            + " ".join(mm(v, u.expanded_uncertainty, True) for v, u in zip(g.mean_deviation_mm, r.bias_u))
             + (f"  ({r.dropped} readings of incomplete repeats left out)" if r.dropped else "")
         )
     lines.append(
         "Repeatability = 3 σ̄, accuracy = CR/2 + 3 σ̄ (dissertation Eqs. 8.2-8.3); bias = x̄ - target; "
-        "R/E/A: ISO 230-2 unidirectional (approach from below)."
+        "R/E/A: ISO 230-2 unidirectional (approach from below); figures with a U rounded by it (--json: U, full precision)."
     )
     lines.append(budget + ".")
     emit({"actuators": {r.actuator: actuator_result_json(r) for r in results}, "U_budget": budget}, args.json, lines)
@@ -122,6 +132,7 @@ def _payload(args: argparse.Namespace) -> int:
     import numpy as np
 
     from bench.metrology import leg_error_summary
+    from bench.metrology.formatting import format_length
     from bench.metrology.tables import numeric_columns, read_table_csv
 
     table = numeric_columns(read_table_csv(args.file), ["load_kg", "error_mm"])
@@ -162,9 +173,12 @@ def _payload(args: argparse.Namespace) -> int:
     }
     lines = [f"{'leg':<5} {'worst_mm':>8} {'at_kg':>7} {'mean_mm':>8} {'r(load)':>8}  (worst: largest |e|, signed)"]
     lines += [
-        f"{n:<5} {w:+8.3f} {wl:7.2f} {a:+8.3f} {('n/a' if c is None else f'{c:+.3f}'):>8}"
+        f"{n:<5} {format_length(w, signed=True):>8} {wl:7.2f} {format_length(a, signed=True):>8} "
+        f"{('n/a' if c is None else f'{c:+.3f}'):>8}"
         for n, w, wl, a, c in zip(names, worst, worst_load, s.mean_error_mm, s.correlation_with_load)
     ]
-    lines.append(f"all legs: mean {s.overall_mean_mm:.3f} mm, SD {s.overall_sd_mm:.3f} mm over {s.n_loads} loads")
+    lines.append(
+        f"all legs: mean {format_length(s.overall_mean_mm)} mm, SD {format_length(s.overall_sd_mm)} mm over {s.n_loads} loads"
+    )
     emit(result, args.json, lines)
     return 0

@@ -1,5 +1,6 @@
-"""``bench analyze mouse``: a mouse's resolution per distance (increments), its 2x2 count-to-mm matrix from
-referenced moves, or the fit of a mouse_calibration run's export."""
+"""``bench analyze mouse``: an optical mouse's resolution, by the dissertation's per-distance method (App. A.7) or
+as the 2x2 matrix fitted with an intercept per move direction (sensors.md §5.2), from a table or a
+mouse_calibration run's export; every figure with a U rounded by it (GUM 7.2.6)."""
 
 from __future__ import annotations
 
@@ -119,6 +120,8 @@ def _run_export_moves(args: argparse.Namespace, frame):
 
 def _mouse_matrix(args: argparse.Namespace, reference, counts) -> int:
     from bench.metrology import fit_matrix
+    from bench.metrology.formatting import format_measured, format_uncertainty
+    from bench.metrology.mouse_calibration import counts_per_inch
 
     # an intercept per move direction models a start/stop offset (sensors.md: without it the offset goes into A)
     fit = fit_matrix(reference, counts, per_direction=True)
@@ -145,20 +148,26 @@ def _mouse_matrix(args: argparse.Namespace, reference, counts) -> int:
         "intercepts_by_direction": intercepts,
     }
     a, big_u = fit.a_mm_per_count, fit.expanded_a_mm_per_count
+    scales = [(s, k * u) for s, u in zip(fit.scale_mm_per_count, fit.u_scale_mm_per_count())]
     lines = [
         f"A (mm/count), n = {fit.n} moves, ± U (95 %, k = {k:.2f}, {fit.dof} dof):",
-        *(f"  [{a[i, 0]:+.6f} ± {big_u[i, 0]:.1e}  {a[i, 1]:+.6f} ± {big_u[i, 1]:.1e}]" for i in range(2)),
+        *(
+            "  [" + "  ".join(format_measured(a[i, j], big_u[i, j], signed=True) for j in range(2)) + "]"
+            for i in range(2)
+        ),
         (
-            f"rotation {fit.rotation_deg:+.3f} deg, scale x/y {fit.scale_mm_per_count[0]:.6f} / "
-            f"{fit.scale_mm_per_count[1]:.6f} mm/count, residual SD {fit.sigma_counts[0]:.3f} / "
-            f"{fit.sigma_counts[1]:.3f} counts"
+            f"rotation {fit.rotation_deg:+.3f} deg, scale x/y (± U, the fit's only) "
+            + " / ".join(
+                f"{format_measured(s, u)} mm/count ({format_measured(*counts_per_inch(s, u))} cpi)" for s, u in scales
+            )
+            + f", residual SD {format_uncertainty(fit.sigma_counts[0])} / {format_uncertainty(fit.sigma_counts[1])} counts"
         ),
         "intercept per move direction (counts, ± U; * = significant at 95 %: a start/stop offset or lost counts):",
     ]
     for i, label in enumerate(fit.offset_labels):
         cells = [
-            f"{fit.offsets_counts[i, j]:+.3f} ± {k * fit.u_offsets_counts[i, j]:.3f}"
-            f"{'*' if fit.offsets_significant[i, j] else ' '}"
+            format_measured(fit.offsets_counts[i, j], k * fit.u_offsets_counts[i, j], signed=True)
+            + f"{'*' if fit.offsets_significant[i, j] else ' '}"
             for j in range(2)
         ]
         lines.append(f"  {label}: sensor x {cells[0]}  sensor y {cells[1]}")

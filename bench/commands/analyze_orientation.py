@@ -53,7 +53,7 @@ def register(actions: argparse._SubParsersAction, new_parser) -> None:
 
 
 def _orientation(args: argparse.Namespace) -> int:
-    from bench.metrology.formatting import format_pair, format_value, pose_label, report_order
+    from bench.metrology.formatting import format_pair, format_uncertainty, format_value, pose_label, report_order
     from bench.metrology.orientation import TiltGauge
     from bench.metrology.orientation_tables import (
         TILT_NUMERIC_COLUMNS,
@@ -99,7 +99,7 @@ def _orientation(args: argparse.Namespace) -> int:
             )
     lines.append(
         f"AP = mean - command (signed), RP = 3 S; tilt = atan2(h2 - h1, s), s = {gauge.spacing_mm:g} mm, "
-        f"u(h) = {gauge.u_depth_mm:.4f} mm; U with k = {args.k:g} (--json: full precision and budget)."
+        f"u(h) = {format_uncertainty(gauge.u_depth_mm)} mm; U with k = {args.k:g} (--json: full precision and budget)."
     )
     emit(
         {

@@ -44,6 +44,13 @@ def register(actions: argparse._SubParsersAction, new_parser) -> None:
         required=True,
         help="the commanded path: station, x_mm, y_mm[, z_mm][, a_deg..], one row per station",
     )
+    path.add_argument(
+        "--instrument-u-mm",
+        type=float,
+        default=None,
+        help="instrument standard uncertainty per axis (mm), an offset common to the run, in U(AT); without it "
+        "U excludes the instrument and says so",
+    )
     path.set_defaults(handler=_path)
 
     corner = new_parser(actions, "cornering", "cornering round-off CR and overshoot CO at one corner (ISO 9283 8.5)")
@@ -73,6 +80,13 @@ def register(actions: argparse._SubParsersAction, new_parser) -> None:
         "(ISO 9283 8.6) over the constant-velocity part in FILE.csv",
     )
     velocity.add_argument("--commanded-mm-s", type=float, required=True, help="commanded path velocity (mm/s)")
+    velocity.add_argument(
+        "--instrument-u-pct",
+        type=float,
+        default=None,
+        help="the speed instrument's relative standard uncertainty (its scale, %%) in U(AV); without it U excludes "
+        "the instrument and says so",
+    )
     velocity.set_defaults(handler=_path_velocity)
 
     positioning = new_parser(
@@ -271,44 +285,64 @@ def _exchangeability(args: argparse.Namespace) -> int:
 
 def _path(args: argparse.Namespace) -> int:
     from bench.metrology import path_characteristics, path_orientation_characteristics
+    from bench.metrology.formatting import format_length
+    from bench.metrology.iso9283_dynamics import station_crossings
     from bench.metrology.path_tables import path_cycles, path_table, station_table
     from bench.metrology.tables import read_table_csv
+    from bench.metrology.uncertainty import instrument_budget
+    from bench.metrology.uncertainty_figures import path_uncertainty
 
     table = path_table(read_table_csv(args.file))
     cycles = path_cycles(table)
     stations, commanded_deg, angle_columns = station_table(read_table_csv(args.commanded))
     paths = [c.position_mm for c in cycles]
-    r = path_characteristics(paths, stations)
-    result = {
-        "n_cycles": r.n_cycles,
-        "n_stations": len(stations),
-        "AT_mm": r.at_mm,
-        "RT_mm": r.rt_mm,
-        "AT_per_station_mm": r.at_per_station_mm.tolist(),
-        "RT_per_station_mm": r.rt_per_station_mm.tolist(),
-    }
-    lines = [
-        f"{r.n_cycles} cycles, {len(stations)} stations: AT_p = {r.at_mm:.4f} mm, RT_p = {r.rt_mm:.4f} mm "
-        f"(worst station {int(r.at_per_station_mm.argmax()) + 1} / {int(r.rt_per_station_mm.argmax()) + 1})"
-    ]
     attained_columns = tuple(c for c in ("a_deg", "b_deg", "c_deg") if c in table.columns)
     if attained_columns != angle_columns:
         raise ConfigError(
             f"{args.file} has angle columns ({', '.join(attained_columns) or 'none'}) and "
             f"{args.commanded} ({', '.join(angle_columns) or 'none'}), expected the same"
         )
+    r = path_characteristics(paths, stations)
+    budget = instrument_budget(args.instrument_u_mm, "--instrument-u-mm")
+    result = {
+        "n_cycles": r.n_cycles,
+        "n_stations": len(stations),
+        "AT_mm": r.at_mm,
+        "RT_mm": r.rt_mm,
+        "U_AT_mm": None,
+        "U_RT_mm": None,
+        "k": 2.0,
+        "U_budget": budget,
+        "AT_per_station_mm": r.at_per_station_mm.tolist(),
+        "RT_per_station_mm": r.rt_per_station_mm.tolist(),
+    }
+    lines = [
+        f"{r.n_cycles} cycles, {len(stations)} stations: AT_p = {format_length(r.at_mm)} mm, RT_p = {format_length(r.rt_mm)} mm "
+        f"(worst station {int(r.at_per_station_mm.argmax()) + 1} / {int(r.rt_per_station_mm.argmax()) + 1})"
+    ]
+    if r.n_cycles >= 3:  # the path model needs a scatter over at least 3 cycles
+        crossings = station_crossings(paths, stations)[0]
+        u = path_uncertainty(crossings, stations, instrument_u_mm=args.instrument_u_mm or 0.0)
+        result["U_AT_mm"], result["U_RT_mm"] = u.at.expanded_uncertainty, u.rt.expanded_uncertainty
+        lines.append(
+            f"U(AT_p) = {u.at.expanded_uncertainty:.2g} mm, U(RT_p) = {u.rt.expanded_uncertainty:.2g} mm "
+            f"(k = 2, path-model Monte Carlo); {budget}"
+        )
+    else:
+        lines.append(f"no U: {r.n_cycles} cycles, at least 3 needed")
     if angle_columns:
         o = path_orientation_characteristics(paths, [c.angles_deg for c in cycles], stations, commanded_deg)
         for column, at, rt in zip(angle_columns, o.at_deg, o.rt_deg):
             name = column[0]
             result[f"AT_{name}_deg"], result[f"RT_{name}_deg"] = at, rt
-            lines.append(f"AT_{name} = {at:.4f} deg, RT_{name} = ±{rt:.4f} deg")
+            lines.append(f"AT_{name} = {format_length(at)} deg, RT_{name} = ±{format_length(rt)} deg")
     emit(result, args.json, lines)
     return 0
 
 
 def _cornering(args: argparse.Namespace) -> int:
     from bench.metrology import cornering_deviations
+    from bench.metrology.formatting import format_length
     from bench.metrology.path_tables import path_cycles, path_table
     from bench.metrology.tables import read_table_csv
 
@@ -332,11 +366,11 @@ def _cornering(args: argparse.Namespace) -> int:
         ],
     }
     lines = [
-        f"{r.n} cycles: CR = {r.cr_mm:.4f} mm (mean {r.mean_cr_mm:.4f}), CO = {r.co_mm:.4f} mm "
-        f"(mean {r.mean_co_mm:.4f}); worst cycle shown"
+        f"{r.n} cycles: CR = {format_length(r.cr_mm)} mm (mean {format_length(r.mean_cr_mm)}), "
+        f"CO = {format_length(r.co_mm)} mm (mean {format_length(r.mean_co_mm)}); worst cycle shown"
     ]
     lines += [
-        f"  cycle {c.cycle:>3}: CR = {cr:.4f} mm, CO = {co:.4f} mm"
+        f"  cycle {c.cycle:>3}: CR = {format_length(cr)} mm, CO = {format_length(co)} mm"
         for c, cr, co in zip(cycles, r.cr_per_cycle_mm, r.co_per_cycle_mm)
     ]
     emit(result, args.json, lines)
@@ -347,9 +381,22 @@ def _path_velocity(args: argparse.Namespace) -> int:
     from bench.metrology import path_speed, path_velocity_characteristics
     from bench.metrology.path_tables import path_cycles, path_table
     from bench.metrology.tables import read_table_csv
+    from bench.metrology.uncertainty_figures import mean_speed_uncertainty, spread_uncertainty
 
     cycles = path_cycles(path_table(read_table_csv(args.file)))
     r = path_velocity_characteristics([path_speed(c.t_s, c.position_mm) for c in cycles], args.commanded_mm_s)
+    declared = args.instrument_u_pct
+    if declared is not None and not declared >= 0:
+        raise ConfigError(f"--instrument-u-pct = {declared}, expected a number >= 0")
+    u_av = mean_speed_uncertainty(
+        r.av_pct, r.mean_speed_per_cycle_mm_s, r.commanded_mm_s, instrument_u_pct=declared or 0.0
+    )
+    u_rv = spread_uncertainty(r.rv_pct, r.n, unit="%")
+    budget = (
+        "U(AV) excludes the instrument: none declared (--instrument-u-pct)"
+        if declared is None
+        else f"U(AV) includes the instrument: u = {declared:g} % (--instrument-u-pct)"
+    )
     result = {
         "n": r.n,
         "commanded_mm_s": r.commanded_mm_s,
@@ -357,11 +404,17 @@ def _path_velocity(args: argparse.Namespace) -> int:
         "AV_pct": r.av_pct,
         "RV_pct": r.rv_pct,
         "FV_mm_s": r.fv_mm_s,
+        "U_AV_pct": u_av.expanded_uncertainty,
+        "k_AV": u_av.coverage_factor,
+        "U_RV_pct": u_rv.expanded_uncertainty,
+        "U_budget": budget,
         "mean_speed_per_cycle_mm_s": list(r.mean_speed_per_cycle_mm_s),
     }
     lines = [
         f"{r.n} cycles at v_c = {r.commanded_mm_s:g} mm/s: mean {r.mean_speed_mm_s:.3f} mm/s",
         f"AV = {r.av_pct:+.2f} %, RV = ±{r.rv_pct:.2f} %, FV = {r.fv_mm_s:.3f} mm/s",
+        f"U(AV) = {u_av.expanded_uncertainty:.2g} % (k = {u_av.coverage_factor:.2f}), "
+        f"U(RV) = {u_rv.expanded_uncertainty:.2g} % (k = 2); {budget}",
     ]
     emit(result, args.json, lines)
     return 0

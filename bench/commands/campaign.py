@@ -277,10 +277,8 @@ def execute(runner: Runner, start) -> RunResult:
 
 
 def _run(args: argparse.Namespace) -> int:
-    from bench.calibration.compensate import preflight_by_rig
     from bench.launch import check_speed_factor
     from bench.protocols import Runner, load_protocol, preflight, summarize
-    from bench.protocols.plan import required_capabilities
     from bench.store import Store
 
     protocol = load_protocol(args.protocol, robot=args.robot)
@@ -297,7 +295,9 @@ def _run(args: argparse.Namespace) -> int:
             f"bench run {args.protocol}: no rig named, expected --station STATION.toml (the bench's "
             "devices) or --sim (the simulator)"
         )
-    preflight(protocol)  # before a simulator or a port is opened; the runner checks again
+    # the one walk of the plan, before a simulator or a port is opened: the capabilities it needs and the documented
+    # geometry's pre-flight; the runner checks its targets again by the geometry the rig's robot commands by
+    early = preflight(protocol)
     if args.speed_factor is not None:  # before the store opens: a refused run leaves no new file behind
         check_speed_factor(args.speed_factor)
     with Store(args.store) as store:
@@ -306,38 +306,35 @@ def _run(args: argparse.Namespace) -> int:
             protocol.robot,
             store,
             fixture=getattr(protocol, "fixture", "assembled"),
-            requires=required_capabilities(protocol),
+            requires=early.capabilities,
             protocol=f"protocol {protocol.name!r}",
         )
-        preflight_by_rig(rig, protocol)
         runner = Runner(rig, store, progress=not args.no_progress, on_pause=_ask_after_pause)
-        result = execute(runner, lambda: runner.run(protocol, campaign=args.campaign))
+        result = execute(runner, lambda: runner.run(protocol, campaign=args.campaign, plan=early))
     return 0 if result.exit_status == "completed" else 1
 
 
 def _resume(args: argparse.Namespace) -> int:
-    from bench.calibration.compensate import preflight_by_rig
-    from bench.protocols import Runner, protocol_from_config
-    from bench.protocols.plan import required_capabilities
+    from bench.launch import resuming
+    from bench.protocols import Runner, preflight, protocol_from_config
+    from bench.protocols.resume import stored_replies
     from bench.store import Store
 
-    with Store(args.store) as store:
-        record = store.run(args.run_id)
-        store.claim(args.run_id)  # before the rig opens: a run another live process drives is never touched
-        store.resuming = args.run_id  # opening the rig writes no new calibration: a refused resume writes nothing
+    with Store(args.store) as store, resuming(store, args.run_id) as record:
         protocol = protocol_from_config(record.config, source=f"run {args.run_id}", stored=True)
+        # the one walk of the plan (as it ran), before the rig opens: capabilities, pre-flight, where it resumes
+        early = preflight(protocol, stored=stored_replies(store, args.run_id))
         rig = build_rig(
             args,
             record.robot,
             store,
             stored=record.settings,
             fixture=record.config.get("fixture", "assembled"),
-            requires=required_capabilities(protocol),
+            requires=early.capabilities,
             protocol=f"protocol {protocol.name!r}",
         )
-        preflight_by_rig(rig, protocol)
         runner = Runner(rig, store, progress=not args.no_progress, on_pause=_ask_after_pause)
-        result = execute(runner, lambda: runner.resume_run(args.run_id))
+        result = execute(runner, lambda: runner.resume_run(args.run_id, plan=early))
     return 0 if result.exit_status == "completed" else 1
 
 

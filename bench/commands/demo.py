@@ -53,7 +53,8 @@ def analyze_run(store: Store, run_id: int) -> pd.DataFrame:
 
     from bench.metrology.formatting import report_order
     from bench.metrology.tables import analyze_poses, pose_result_json, pose_table
-    from bench.reports.content import analysis_table, calibrations_in_force, counts_instrument
+    from bench.reports.content import analysis_table, calibrations_in_force
+    from bench.reports.instrument import counts_instrument
 
     table = analysis_table(store, run_id)
     run = store.run(run_id)

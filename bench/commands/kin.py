@@ -109,17 +109,9 @@ class _DelayedBar:
 
     def update(self, done: int) -> None:
         if self._bar is None and time.monotonic() - self._started >= self.show_after_s:
-            from rich.console import Console
-            from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeRemainingColumn
+            from bench.protocols.progress import rich_progress
 
-            self._bar = Progress(
-                TextColumn("{task.description}"),
-                BarColumn(),
-                MofNCompleteColumn(),
-                TextColumn("ETA"),
-                TimeRemainingColumn(),
-                console=Console(stderr=True),
-            )
+            self._bar = rich_progress()
             self._task = self._bar.add_task(self.label, total=self.total)
             self._bar.start()
         if self._bar is not None:

@@ -32,7 +32,7 @@ def register(groups: argparse._SubParsersAction) -> None:
 
 def _add_arguments(parser: argparse.ArgumentParser) -> None:
     """Added when ``bench report`` is parsed: the choices come from bench.reports (matplotlib, reportlab)."""
-    from bench.reports import CRITERIA, FORMATS
+    from bench.reports import ALL_CRITERIA, FORMATS
     from bench.reports.decision import DECISION_RULES
 
     parser.add_argument(
@@ -59,8 +59,9 @@ def _add_arguments(parser: argparse.ArgumentParser) -> None:
         "--criterion",
         action="append",
         default=[],
-        metavar="NAME=MM",
-        help=f"project acceptance criterion, repeatable; NAME in {', '.join(CRITERIA)}",
+        metavar="NAME=LIMIT",
+        help=f"project acceptance criterion (an upper limit), repeatable; NAME in {', '.join(ALL_CRITERIA)} "
+        "(each layout takes its own: docs/reports.md)",
     )
     identity = parser.add_argument_group(
         "device under test and people (page 1; default: the run's stored "
@@ -114,20 +115,29 @@ def _add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def parse_criteria(items: list[str]) -> dict[str, float]:
     """``["AP_mm=0.5", "RP_mm=0.2"]`` -> ``{"AP_mm": 0.5, "RP_mm": 0.2}``, refusing unknown names and non-numbers."""
-    from bench.reports import CRITERIA
+    from bench.reports import ALL_CRITERIA
+    from bench.reports.decision import unit_of
 
     criteria = {}
     for item in items:
         name, _, value = item.partition("=")
-        if name not in CRITERIA:
+        if name not in ALL_CRITERIA:
             raise ConfigError(
-                f"--criterion {item}: unknown name {name!r}, expected NAME=MM with NAME in {', '.join(CRITERIA)}"
+                f"--criterion {item}: unknown name {name!r}, expected NAME=LIMIT with NAME in {', '.join(ALL_CRITERIA)}"
             )
         try:
             criteria[name] = float(value)
         except ValueError:
-            raise ConfigError(f"--criterion {item}: {value!r} is not a number of mm") from None
+            raise ConfigError(f"--criterion {item}: {value!r} is not a number of {unit_of(name)}") from None
     return criteria
+
+
+def _identity(args: argparse.Namespace) -> dict[str, str | None]:
+    """Page 1's identity options as given (None where not)."""
+    return {
+        name: getattr(args, name)
+        for name in ("dut_serial", "customer", "order", "operator", "laboratory", "measuring_point")
+    }
 
 
 def _progress(started: float):
@@ -170,12 +180,11 @@ def _write(args: argparse.Namespace, store, ids: list[int], formats, criteria, p
             raise ConfigError(
                 "--band-mm/--hysteresis-mm: not used with --compare; report each run on its own for other bands"
             )
-        paths = write_comparison(store, run_id, others[0], args.out, formats, k=args.k, progress=progress)
+        paths = write_comparison(
+            store, run_id, others[0], args.out, formats, k=args.k, identity=_identity(args), progress=progress
+        )
     else:
-        identity = {
-            name: getattr(args, name)
-            for name in ("dut_serial", "customer", "order", "operator", "laboratory", "measuring_point")
-        }
+        identity = _identity(args)
         paths = write_report(
             store,
             run_id,

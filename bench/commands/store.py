@@ -14,14 +14,26 @@ def register(groups: argparse._SubParsersAction) -> None:
         help="integrity and foreign-key checks; one line per problem (exit 1)",
         description="PRAGMA integrity_check and foreign_key_check, read-only",
     )
-    check.add_argument("path", metavar="STORE", help="the run store (SQLite file)")
+    check.add_argument(
+        "path", metavar="STORE", help="the run store (SQLite file), or a lab store (postgresql://...): its checksums"
+    )
     check.set_defaults(handler=_check)
 
 
 def _check(args: argparse.Namespace) -> int:
     from bench.store.connection import check_store
+    from bench.store.lab import LabStore, check_lab_url, is_lab_url, redacted
 
-    problems = check_store(args.path)
+    notes: list[str] = []
+    if is_lab_url(args.path):
+        check_lab_url(args.path, "STORE")
+        with LabStore(args.path) as lab:
+            problems, notes = lab.check_samples()
+        args.path = redacted(args.path)
+    else:
+        problems = check_store(args.path, option="STORE")
+    for line in notes:
+        print(line, file=sys.stderr)
     for line in problems:
         print(line)
     if problems:

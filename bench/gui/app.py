@@ -298,6 +298,7 @@ class MainWindow(QMainWindow):
                 self._ask_to_close()
             return
         self.results.stop_watching()
+        self.live_view.close_renderer()
         shutdown_worker_process()  # a report being written there still ends; the process then exits
         self.calibration_panel.wait_idle()  # an identification being stored ends before the window goes
         self.robot_panel.wait_idle()

@@ -213,8 +213,11 @@ def draw_stream(axes: Axes, data: Samples) -> None:
 def summary_text(statistics: dict[str, dict[str, float]]) -> str:
     if not statistics:
         return "no pose samples yet"
+    from bench.metrology.formatting import format_length  # the one rounding rule: no U live, so to 1 µm
+
     parts = [
-        f"{label}: n={s['n']} AP={s['AP_mm']:.3f} mm" + (f" RP={s['RP_mm']:.3f} mm" if "RP_mm" in s else "")
+        f"{label}: n={s['n']} AP={format_length(s['AP_mm'])} mm"
+        + (f" RP={format_length(s['RP_mm'])} mm" if "RP_mm" in s else "")
         for label, s in statistics.items()
     ]
     return "ISO 9283 (x, y, z; as the report)  |  + barycentre, circle RP in the x-y plot  |  " + "; ".join(parts)

@@ -129,14 +129,25 @@ class _Renderer:
         self._rendered = rendered
         self._jobs = threading.Condition()
         self._job: _Job | None = None
+        self._closed = False
         self.finished_number = 0  #: the last job whose picture was sent
         self._finished = threading.Condition()
-        threading.Thread(target=self._serve, name="bench-live-view-render", daemon=True).start()
+        self.thread = threading.Thread(target=self._serve, name="bench-live-view-render", daemon=True)
+        self.thread.start()
 
     def submit(self, job: _Job) -> None:
         with self._jobs:
             self._job = job
             self._jobs.notify()
+
+    def close(self) -> None:
+        """End the render thread and its process (the window closes): a job not yet started is dropped. Without it
+        the thread could hand a last job to the process pool while the interpreter shuts it down, which logged
+        'cannot schedule new futures after interpreter shutdown' at exit."""
+        with self._jobs:
+            self._closed, self._job = True, None
+            self._jobs.notify()
+        _render_process.shutdown()
 
     def wait_for(self, number: int, timeout_s: float = 60.0) -> bool:
         with self._finished:
@@ -145,7 +156,9 @@ class _Renderer:
     def _serve(self) -> None:
         while True:
             with self._jobs:
-                self._jobs.wait_for(lambda: self._job is not None)
+                self._jobs.wait_for(lambda: self._job is not None or self._closed)
+                if self._closed:
+                    return
                 job, self._job = self._job, None
             try:
                 picture = _render_picture(job)
@@ -304,6 +317,11 @@ class LiveView(QWidget):
             )
         )
         return self._asked
+
+    def close_renderer(self) -> None:
+        """Stop drawing for good (the window closes): see :meth:`_Renderer.close`."""
+        self._timer.stop()
+        self._renderer.close()
 
     def redraw(self, timeout_s: float = 60.0) -> None:
         """Draw both plots from the samples recorded so far and wait until the render thread has (for a caller

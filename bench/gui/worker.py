@@ -19,6 +19,7 @@ waits for the operator's entry, or raises :class:`bench.errors.PromptWithdrawn` 
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import logging
 import queue
@@ -29,11 +30,12 @@ from typing import Any
 
 from PySide6.QtCore import QThread, Signal
 
-from bench.calibration.compensate import NEWEST, describe_in_force, preflight_by_rig
+from bench.calibration.compensate import NEWEST, describe_in_force
 from bench.errors import BenchError, PromptWithdrawn
-from bench.launch import RigRequest, open_rig
+from bench.launch import RigRequest, open_rig, resuming
 from bench.protocols import Prompt, Protocol, Runner, RunState, TransitionError, protocol_from_config
-from bench.protocols.plan import iterate, required_capabilities
+from bench.protocols.plan import PlanSummary, preflight
+from bench.protocols.resume import stored_replies
 from bench.rigs.interfaces import Entry
 from bench.store import Store
 
@@ -193,45 +195,53 @@ class CampaignWorker(QThread):
             return
         with opened as store:
             while self.jobs and not self._cancelled:
-                job, robot = self.jobs.pop(0), "robot"
-                try:
-                    protocol = (
-                        protocol_from_config(store.run(job).config, source=f"run {job}", stored=True)
-                        if isinstance(job, int)
-                        else job
-                    )
-                    robot = protocol.robot
-                    stored = store.run(job).settings if isinstance(job, int) else None
-                    request = self.rig_spec.request()
-                    if isinstance(job, int):  # a resume keeps the run's own seed and speed factor (its time base)
-                        request = dataclasses.replace(request, seed=None, speed_factor=None)
-                    self.message.emit(f"starting the {robot} rig ({request.describe()})")
-                    rig = open_rig(
-                        request,
-                        store,
-                        robot=robot,
-                        stored=stored,
-                        fixture=getattr(protocol, "fixture", "assembled"),
-                        requires=required_capabilities(protocol),
-                        protocol=f"protocol {protocol.name!r}",
-                        operator=None if request.simulator_default else WindowOperator(self),
-                    )
-                    self.message.emit(describe_in_force(rig))
-                    preflight_by_rig(rig, protocol)
-                except BenchError as exc:
-                    self.failed.emit(str(exc))
-                    continue
-                except Exception as exc:  # noqa: BLE001 - reported in the window, never a silent thread death
-                    _log.exception("rig for %s could not start", robot)
-                    self.failed.emit(f"rig for {robot}: {type(exc).__name__}: {exc}")
-                    continue
-                try:
-                    self._run_job(job, rig, store)
-                finally:
-                    rig.close()
-                    self.runner = None
+                with contextlib.ExitStack() as held:
+                    self._start_job(self.jobs.pop(0), store, held)
 
-    def _run_job(self, job: Protocol | int, rig: Any, store: Store) -> None:
+    def _start_job(self, job: Protocol | int, store: Store, held: contextlib.ExitStack) -> None:
+        """Open the rig of ``job`` and run it; a resume is held as ``bench resume`` holds it (:func:`resuming`) until
+        ``held`` closes, so the window refuses and accepts a resume exactly as the command line does."""
+        robot = "robot"
+        try:
+            stored = None
+            if isinstance(job, int):
+                stored = held.enter_context(resuming(store, job)).settings
+                protocol = protocol_from_config(store.run(job).config, source=f"run {job}", stored=True)
+            else:
+                protocol = job
+            robot = protocol.robot
+            # the one walk of the plan (a resumed one as it ran) before the rig opens: its capabilities, and a
+            # plain refusal before anything starts; the runner re-checks it by the rig's geometry
+            early = preflight(protocol, stored=stored_replies(store, job) if isinstance(job, int) else None)
+            request = self.rig_spec.request()
+            if isinstance(job, int):  # a resume keeps the run's own seed and speed factor (its time base)
+                request = dataclasses.replace(request, seed=None, speed_factor=None)
+            self.message.emit(f"starting the {robot} rig ({request.describe()})")
+            rig = open_rig(
+                request,
+                store,
+                robot=robot,
+                stored=stored,
+                fixture=getattr(protocol, "fixture", "assembled"),
+                requires=early.capabilities,
+                protocol=f"protocol {protocol.name!r}",
+                operator=None if request.simulator_default else WindowOperator(self),
+            )
+            self.message.emit(describe_in_force(rig))
+        except BenchError as exc:
+            self.failed.emit(str(exc))
+            return
+        except Exception as exc:  # noqa: BLE001 - reported in the window, never a silent thread death
+            _log.exception("rig for %s could not start", robot)
+            self.failed.emit(f"rig for {robot}: {type(exc).__name__}: {exc}")
+            return
+        try:
+            self._run_job(job, rig, store, early)
+        finally:
+            rig.close()
+            self.runner = None
+
+    def _run_job(self, job: Protocol | int, rig: Any, store: Store, early: PlanSummary) -> None:
         assembled = rig.robot.settings().get("fixture", "assembled") == "assembled"
         if self.rig_spec.request().simulator_default and assembled and not self.rig_spec.simulated_calliper:
             # the simulated operator still tells the simulator the payload; the person types the readings
@@ -249,7 +259,10 @@ class CampaignWorker(QThread):
             runner.emergency_stop()
         self.state_changed.emit("starting")  # "running" once the runner is (its on_start)
         try:
-            result = runner.resume_run(job) if isinstance(job, int) else runner.run(job, campaign=self.campaign)
+            if isinstance(job, int):
+                result = runner.resume_run(job, plan=early)
+            else:
+                result = runner.run(job, campaign=self.campaign, plan=early)
         except BenchError as exc:  # refused before the run started (pre-flight, resume checks)
             self.failed.emit(str(exc))
             return
@@ -280,12 +293,7 @@ class CampaignWorker(QThread):
                 for s in stored
             ],
         )
-        protocol = (
-            job
-            if isinstance(job, Protocol)
-            else protocol_from_config(record.config, source=f"run {run_id}", stored=True)
-        )
-        total = sum(1 for step in iterate(protocol, final=False) if isinstance(step, Prompt) and step.field)
+        total = runner.plan.readings if runner.plan is not None else 0  # the run's pre-flight counted them
         taken = sum(1 for s in stored if isinstance(s.raw, dict) and "field" in s.raw and "entered" in s.raw)
         self._readings = (taken, total)
 

@@ -4,7 +4,8 @@ ISO 9283 pose characteristics (`iso9283`), time-series and path characteristics 
 cornering, path velocity and minimum positioning time (`iso9283_path`), actuator
 accuracy after Groover and ISO 230-2 (`actuator`) with its per-actuator table path (`actuator_tables`),
 optical-mouse calibration (`mouse_calibration`), the project's payload error (`payload`), GUM uncertainty
-(`uncertainty`, with its measurement-model Monte Carlo in `uncertainty_model`), pose statistics of partial readings and detection rates with their Wilson interval
+(`uncertainty`, with its measurement-model Monte Carlo in `uncertainty_model`; RD, RV, AV and the path figures' U
+in `uncertainty_figures`), pose statistics of partial readings and detection rates with their Wilson interval
 (`partial_pose`), the laser grid's hit rates (`hit_rate`) and the tidy-table interface (`tables`).
 Units: mm, degrees, s, kg, N. Results are frozen dataclasses; too few samples raise
 ``bench.errors.InsufficientData``, malformed input ``bench.errors.ConfigError``; a result is never a silent NaN.
@@ -18,6 +19,7 @@ for a constant, no longer imports pandas and scipy with every other one (the des
 from __future__ import annotations
 
 import importlib
+from typing import Any
 
 #: The submodules whose public names the package re-exports; the pandas-based table paths come last, so that
 #: resolving a plain function never imports pandas.
@@ -29,13 +31,14 @@ _SUBMODULES = (
     "mouse_calibration",
     "payload",
     "uncertainty",
+    "uncertainty_figures",
     "partial_pose",
     "actuator_tables",
     "hit_rate",
 )
 
 
-def __getattr__(name: str):
+def __getattr__(name: str) -> Any:
     if name == "__all__":
         names = [n for sub in _SUBMODULES for n in importlib.import_module(f"{__name__}.{sub}").__all__]
         globals()["__all__"] = names

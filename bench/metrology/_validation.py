@@ -8,11 +8,12 @@ Every public metrology function validates its arguments here first, so that a ma
 from __future__ import annotations
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from bench.errors import ConfigError, InsufficientData
 
 
-def as_points(name: str, values, *, dims: tuple[int, ...] | None = (1, 2, 3)) -> np.ndarray:
+def as_points(name: str, values: ArrayLike, *, dims: tuple[int, ...] | None = (1, 2, 3)) -> np.ndarray:
     """Return ``values`` as a finite float array of shape (n, d) with d in ``dims`` (any d when None).
 
     A 1-D array is read as n one-dimensional samples, shape (n, 1).
@@ -27,7 +28,7 @@ def as_points(name: str, values, *, dims: tuple[int, ...] | None = (1, 2, 3)) ->
     return array
 
 
-def as_vector(name: str, values, *, length: int) -> np.ndarray:
+def as_vector(name: str, values: ArrayLike, *, length: int) -> np.ndarray:
     """Return ``values`` as a finite float vector of shape (length,)."""
     array = np.atleast_1d(np.asarray(values, dtype=float))
     if array.shape != (length,):
@@ -36,7 +37,7 @@ def as_vector(name: str, values, *, length: int) -> np.ndarray:
     return array
 
 
-def as_series(name: str, values, *, min_count: int = 1) -> np.ndarray:
+def as_series(name: str, values: ArrayLike, *, min_count: int = 1) -> np.ndarray:
     """Return ``values`` as a finite 1-D float array with at least ``min_count`` entries."""
     array = np.asarray(values, dtype=float)
     if array.ndim != 1:
@@ -59,7 +60,9 @@ def require_same_length(name_a: str, a: np.ndarray, name_b: str, b: np.ndarray) 
 
 
 def _require_finite(name: str, array: np.ndarray) -> None:
-    bad = np.flatnonzero(~np.isfinite(array).reshape(len(array), -1).all(axis=1)) if array.size else []
+    bad: np.ndarray | list[int] = (
+        np.flatnonzero(~np.isfinite(array).reshape(len(array), -1).all(axis=1)) if array.size else []
+    )
     if len(bad):
         row = int(bad[0])
         raise ConfigError(f"{name}: row {row} = {array[row].tolist()}, expected finite numbers")

@@ -8,8 +8,10 @@ corroborated: verify against a licensed copy) and §7.4 (dissertation Eqs. 8.1-8
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from bench.errors import ConfigError
 from bench.metrology._validation import as_points, as_vector, require_count
@@ -72,14 +74,14 @@ def control_resolution(pitch_mm: float, steps_per_rev: int) -> float:
     return pitch_mm / steps_per_rev
 
 
-def _targets_and_readings(targets_mm, readings_mm, name: str) -> tuple[np.ndarray, np.ndarray]:
+def _targets_and_readings(targets_mm: ArrayLike, readings_mm: ArrayLike, name: str) -> tuple[np.ndarray, np.ndarray]:
     readings = as_points(name, readings_mm, dims=None)
     targets = as_vector("targets_mm", targets_mm, length=readings.shape[1])
     require_count(f"{name} repeats per target", len(readings), 2)
     return targets, readings
 
 
-def groover_actuator(targets_mm, readings_mm, *, control_resolution_mm: float) -> GrooverActuator:
+def groover_actuator(targets_mm: ArrayLike, readings_mm: ArrayLike, *, control_resolution_mm: float) -> GrooverActuator:
     """Actuator repeatability and accuracy by the dissertation's formulas, and the mean bias they hide.
 
     Dissertation Eqs. 8.2-8.3 (after Groover), with σ̄ the mean over targets of the sample standard deviation
@@ -129,7 +131,9 @@ def _span(high: np.ndarray, low: np.ndarray) -> float:
     return float(high.max() - low.min())
 
 
-def positioning_iso230_2(targets_mm, forward_mm, backward_mm=None) -> PositioningIso2302:
+def positioning_iso230_2(
+    targets_mm: ArrayLike, forward_mm: ArrayLike, backward_mm: ArrayLike | None = None
+) -> PositioningIso2302:
     """Accuracy, repeatability, systematic error and reversal of one axis in the style of ISO 230-2.
 
     ISO 230-2:2014 (from memory; structure corroborated by a public implementation; verify), with
@@ -158,7 +162,7 @@ def positioning_iso230_2(targets_mm, forward_mm, backward_mm=None) -> Positionin
     targets, forward = _targets_and_readings(targets_mm, forward_mm, "forward_mm")
     up = forward - targets
     mean_up, s_up = up.mean(axis=0), up.std(axis=0, ddof=1)
-    common = {
+    common: dict[str, Any] = {
         "mean_deviation_forward_mm": tuple(float(v) for v in mean_up),
         "repeatability_forward_mm": float((4.0 * s_up).max()),
         "systematic_forward_mm": _span(mean_up, mean_up),
@@ -166,7 +170,7 @@ def positioning_iso230_2(targets_mm, forward_mm, backward_mm=None) -> Positionin
         "n": len(forward),
     }
     if backward_mm is None:
-        empty = dict.fromkeys(
+        empty: dict[str, Any] = dict.fromkeys(
             (
                 "mean_deviation_backward_mm",
                 "reversal_mm",

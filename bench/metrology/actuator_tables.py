@@ -25,6 +25,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 import pandas as pd
@@ -106,6 +107,7 @@ def actuator_table(frame: pd.DataFrame) -> pd.DataFrame:
     ]
     if missing:
         raise ConfigError(f"{source}: missing column(s) {', '.join(missing)}; found {', '.join(frame.columns)}")
+    assert command is not None  # a missing command column was refused above
     optional = [c for c in ("cr_mm", *REPEAT_COLUMNS) if c in frame.columns]
     table = numeric_columns(frame, [command, "travel_mm", *optional])
     if command != "cmd_mm":
@@ -126,7 +128,7 @@ def actuator_table(frame: pd.DataFrame) -> pd.DataFrame:
     return table
 
 
-def _resolution(rows: pd.DataFrame, name: str, given, source: str) -> float:
+def _resolution(rows: pd.DataFrame, name: str, given: Any, source: str) -> float:
     if "cr_mm" in rows.columns:
         return float(rows["cr_mm"].iloc[0])
     if given is None:

@@ -62,7 +62,7 @@ _ACTUATOR_ALIASES = (
 
 def _aliased(frame: pd.DataFrame) -> pd.DataFrame:
     """``frame`` with the actuator travel columns renamed to target_mm, reading_mm and axis where those are absent."""
-    renames = {}
+    renames: dict[str, str] = {}
     for column, name in _ACTUATOR_ALIASES:
         if column in frame.columns and name not in frame.columns and name not in renames.values():
             renames[column] = name

@@ -20,6 +20,8 @@ from __future__ import annotations
 
 import math
 import re
+from collections.abc import Iterable, Sequence
+from typing import Any
 
 __all__ = [
     "condition_text",
@@ -32,6 +34,7 @@ __all__ = [
     "natural_key",
     "pose_label",
     "reading_decimals",
+    "reading_step_mm",
     "report_order",
     "uncertainty_decimals",
 ]
@@ -84,8 +87,21 @@ def figure_decimals(uncertainty: float | None = None, resolution: float | None =
     (3, 2, 0)
     """
     usable = uncertainty is not None and math.isfinite(float(uncertainty)) and float(uncertainty) != 0.0
-    decimals = uncertainty_decimals(uncertainty) if usable else FALLBACK_DECIMALS
+    decimals = uncertainty_decimals(float(uncertainty)) if usable and uncertainty is not None else FALLBACK_DECIMALS
     return decimals if resolution is None else min(decimals, reading_decimals(resolution))
+
+
+def reading_step_mm(values: Iterable[float] | Any) -> float | None:
+    """The last decimal recorded in manual readings (0.01 for a calliper read to 0.01 mm): the largest of 1, 0.1,
+    ..., 0.0001 mm that every reading is a whole multiple of; None when the readings carry more decimals."""
+    import numpy as np  # imported when called: this module stays light for the window and the CLI
+
+    array = np.asarray(values, dtype=float)
+    for decimals in range(5):
+        scaled = array * 10**decimals
+        if np.all(np.abs(scaled - np.round(scaled)) < 1e-6):
+            return 10.0**-decimals
+    return None
 
 
 def _fixed(value: float, decimals: int) -> str:
@@ -138,7 +154,7 @@ def format_measured(value: float, uncertainty: float, *, signed: bool = False) -
     return f"{shown} ± {u}"
 
 
-def natural_key(label: str) -> tuple:
+def natural_key(label: str) -> tuple[Any, ...]:
     """Sort key that orders ``P2`` before ``P10`` and ``P1`` before ``P1/x+`` (digits compared as numbers)."""
     return tuple(int(part) if part.isdigit() else part for part in re.split(r"(\d+)", str(label)))
 
@@ -147,7 +163,7 @@ def natural_key(label: str) -> tuple:
 _CONDITION_WORDS = {"velocity_pct": "{:g} % velocity", "load_kg": "{:g} kg load"}
 
 
-def condition_text(conditions) -> str:
+def condition_text(conditions: Sequence[tuple[str, float]]) -> str:
     """Conditions ``(("velocity_pct", 100.0), ("load_kg", 0.5))`` as words: ``"100 % velocity, 0.5 kg load"``."""
     words = []
     for name, value in conditions:
@@ -156,13 +172,13 @@ def condition_text(conditions) -> str:
     return ", ".join(words)
 
 
-def pose_label(pose: str, conditions=()) -> str:
+def pose_label(pose: str, conditions: Sequence[tuple[str, float]] = ()) -> str:
     """A pose and its conditions as a reader reads them: ``"P1, 100 % velocity"`` (not ``P1 (velocity_pct=100)``)."""
     text = condition_text(conditions)
     return f"{pose}, {text}" if text else str(pose)
 
 
-def report_order(poses) -> tuple:
+def report_order(poses: Iterable[Any]) -> tuple[Any, ...]:
     """Pose results (anything with ``.pose`` and ``.conditions``) as every output lists them: by set of conditions
     in the order the run tested them (100, 50, 10 % velocity), then by pose name in natural order (P1, P2, ...,
     P5; not the cycle order P1, P5, P4, ...)."""

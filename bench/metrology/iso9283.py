@@ -15,6 +15,7 @@ from dataclasses import dataclass
 from itertools import combinations
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from bench.errors import ConfigError
 from bench.metrology._validation import (
@@ -125,12 +126,12 @@ class OrientationDistanceCharacteristics:
     n: int
 
 
-def wrap_deg(angle_deg):
+def wrap_deg(angle_deg: ArrayLike) -> np.ndarray:
     """Wrap angles to [-180, 180) degrees."""
     return (np.asarray(angle_deg, dtype=float) + 180.0) % 360.0 - 180.0
 
 
-def circular_mean_deg(angles_deg, axis: int = 0):
+def circular_mean_deg(angles_deg: ArrayLike, axis: int = 0) -> np.ndarray:
     """Circular mean of angles in degrees, in [-180, 180).
 
     .. math:: \\bar a = \\operatorname{atan2}\\Big(\\sum_j \\sin a_j, \\sum_j \\cos a_j\\Big)
@@ -143,7 +144,7 @@ def circular_mean_deg(angles_deg, axis: int = 0):
     return wrap_deg(np.rad2deg(mean))
 
 
-def pose_accuracy(attained_mm, commanded_mm) -> PoseAccuracy:
+def pose_accuracy(attained_mm: ArrayLike, commanded_mm: ArrayLike) -> PoseAccuracy:
     """Position accuracy AP of one command pose, against the COMMANDED position.
 
     ISO 9283:1998 clause 7.2.1, Eqs. for AP_P and AP_x/y/z [N]; dissertation Eqs. 8.4-8.7:
@@ -187,7 +188,7 @@ def pose_accuracy(attained_mm, commanded_mm) -> PoseAccuracy:
     )
 
 
-def pose_repeatability(attained_mm) -> PoseRepeatability:
+def pose_repeatability(attained_mm: ArrayLike) -> PoseRepeatability:
     """Position repeatability RP_l of one command pose.
 
     ISO 9283:1998 clause 7.2.2 [C: same form in three public codebases and the dissertation, Eqs. 8.11-8.14;
@@ -235,7 +236,7 @@ def pose_repeatability(attained_mm) -> PoseRepeatability:
     )
 
 
-def orientation_accuracy(attained_deg, commanded_deg) -> OrientationAccuracy:
+def orientation_accuracy(attained_deg: ArrayLike, commanded_deg: ArrayLike) -> OrientationAccuracy:
     """Orientation accuracy AP_a, AP_b, AP_c (ISO 9283 7.2.1 [N]).
 
     .. math:: AP_a = \\bar a - a_c \\quad (\\text{likewise } b, c)
@@ -261,7 +262,7 @@ def orientation_accuracy(attained_deg, commanded_deg) -> OrientationAccuracy:
     )
 
 
-def orientation_repeatability(attained_deg) -> OrientationRepeatability:
+def orientation_repeatability(attained_deg: ArrayLike) -> OrientationRepeatability:
     """Orientation repeatability RP_a, RP_b, RP_c (ISO 9283 7.2.2 [U]).
 
     .. math:: RP_a = \\pm 3 S_a = \\pm 3 \\sqrt{\\frac{\\sum_j (a_j - \\bar a)^2}{n-1}}
@@ -280,7 +281,7 @@ def orientation_repeatability(attained_deg) -> OrientationRepeatability:
     return OrientationRepeatability(rp_deg=tuple(float(v) for v in 3.0 * s), n=len(attained))
 
 
-def _approach_clouds(name: str, clouds: Sequence) -> list[np.ndarray]:
+def _approach_clouds(name: str, clouds: Sequence[ArrayLike]) -> list[np.ndarray]:
     """Two or more point clouds of one dimension, each of at least one cycle (ConfigError naming ``name``)."""
     if len(clouds) < 2:
         raise ConfigError(f"{name}: {len(clouds)} cloud(s) given, expected at least 2 to compare")
@@ -292,7 +293,7 @@ def _approach_clouds(name: str, clouds: Sequence) -> list[np.ndarray]:
     return points
 
 
-def _barycentre_spread(name: str, clouds: Sequence) -> MultidirectionalVariation:
+def _barycentre_spread(name: str, clouds: Sequence[ArrayLike]) -> MultidirectionalVariation:
     points = _approach_clouds(name, clouds)
     barycentres = np.array([p.mean(axis=0) for p in points])
     pairs = list(combinations(range(len(points)), 2))
@@ -305,7 +306,7 @@ def _barycentre_spread(name: str, clouds: Sequence) -> MultidirectionalVariation
     )
 
 
-def multidirectional_variation(approaches_mm: Sequence) -> MultidirectionalVariation:
+def multidirectional_variation(approaches_mm: Sequence[ArrayLike]) -> MultidirectionalVariation:
     """Multi-directional pose accuracy variation vAP_p (ISO 9283 7.2.3 [U]; definition ISO 8373 [N]).
 
     .. math:: vAP_p = \\max_{h,k} \\lVert \\bar p_h - \\bar p_k \\rVert, \\quad h, k = 1..3
@@ -319,7 +320,7 @@ def multidirectional_variation(approaches_mm: Sequence) -> MultidirectionalVaria
     return _barycentre_spread("approaches_mm", approaches_mm)
 
 
-def orientation_multidirectional_variation(approaches_deg: Sequence) -> OrientationVariation:
+def orientation_multidirectional_variation(approaches_deg: Sequence[ArrayLike]) -> OrientationVariation:
     """Multi-directional orientation accuracy variation vAP_a, vAP_b, vAP_c (ISO 9283 7.2.3 [U]).
 
     .. math:: vAP_a = \\max_{h,k} |\\bar a_h - \\bar a_k| \\quad (\\text{likewise } b, c), \\quad h, k = 1..3
@@ -346,7 +347,7 @@ def orientation_multidirectional_variation(approaches_deg: Sequence) -> Orientat
     )
 
 
-def exchangeability(clouds_mm: Sequence) -> MultidirectionalVariation:
+def exchangeability(clouds_mm: Sequence[ArrayLike]) -> MultidirectionalVariation:
     """Exchangeability E: largest distance between the barycentres of exchanged robots (ISO 9283 7.7 [U]).
 
     .. math:: E = \\max_{h,k} \\lVert \\bar p_h - \\bar p_k \\rVert
@@ -357,7 +358,9 @@ def exchangeability(clouds_mm: Sequence) -> MultidirectionalVariation:
     return _barycentre_spread("clouds_mm", clouds_mm)
 
 
-def distance_characteristics(first_mm, second_mm, commanded_first_mm, commanded_second_mm) -> DistanceCharacteristics:
+def distance_characteristics(
+    first_mm: ArrayLike, second_mm: ArrayLike, commanded_first_mm: ArrayLike, commanded_second_mm: ArrayLike
+) -> DistanceCharacteristics:
     """Distance accuracy AD and repeatability RD between two command poses, paired by cycle.
 
     ISO 9283:1998 clause 7.3 [N]; P_c1 = P2 and P_c2 = P4 in the standard test:
@@ -405,7 +408,7 @@ def distance_characteristics(first_mm, second_mm, commanded_first_mm, commanded_
 
 
 def orientation_distance_characteristics(
-    first_deg, second_deg, commanded_first_deg, commanded_second_deg
+    first_deg: ArrayLike, second_deg: ArrayLike, commanded_first_deg: ArrayLike, commanded_second_deg: ArrayLike
 ) -> OrientationDistanceCharacteristics:
     """Per-angle distance accuracy and repeatability between two command poses, paired by cycle.
 

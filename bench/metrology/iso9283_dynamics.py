@@ -11,6 +11,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from bench.errors import ConfigError, InsufficientData
 from bench.metrology._validation import (
@@ -108,7 +109,7 @@ def _drift_windows(times: np.ndarray, window_s: float) -> tuple[np.ndarray, np.n
     return occupied, window, counts
 
 
-def pose_drift(t_s, attained_mm, commanded_mm, *, window_s: float) -> PoseDrift:
+def pose_drift(t_s: ArrayLike, attained_mm: ArrayLike, commanded_mm: ArrayLike, *, window_s: float) -> PoseDrift:
     """Drift of pose accuracy and repeatability over time windows (ISO 9283 7.6 [U]).
 
     The samples, all at one command pose, are cut into consecutive windows of ``window_s`` seconds from the first
@@ -156,7 +157,9 @@ def pose_drift(t_s, attained_mm, commanded_mm, *, window_s: float) -> PoseDrift:
     )
 
 
-def orientation_drift(t_s, attained_deg, commanded_deg, *, window_s: float) -> OrientationDrift:
+def orientation_drift(
+    t_s: ArrayLike, attained_deg: ArrayLike, commanded_deg: ArrayLike, *, window_s: float
+) -> OrientationDrift:
     """Drift of orientation accuracy and repeatability over time windows (ISO 9283 7.6 [U]).
 
     Windows as in :func:`pose_drift`; per window AP_a = ā - a_c (circular mean, wrapped) and RP_a = 3 S_a
@@ -193,7 +196,12 @@ def orientation_drift(t_s, attained_deg, commanded_deg, *, window_s: float) -> O
 
 
 def position_stabilisation(
-    t_s, position_mm, *, band_mm: float, final_mm=None, hysteresis_mm: float = 0.0
+    t_s: ArrayLike,
+    position_mm: ArrayLike,
+    *,
+    band_mm: float,
+    final_mm: ArrayLike | None = None,
+    hysteresis_mm: float = 0.0,
 ) -> Stabilisation:
     """Stabilisation time and overshoot of one move towards a pose, from a sampled time series.
 
@@ -260,7 +268,9 @@ def position_stabilisation(
     )
 
 
-def pose_stabilisation(series: Sequence, *, band_mm: float, hysteresis_mm: float = 0.0) -> PoseStabilisation:
+def pose_stabilisation(
+    series: Sequence[tuple[ArrayLike, ArrayLike]], *, band_mm: float, hysteresis_mm: float = 0.0
+) -> PoseStabilisation:
     """Stabilisation time and overshoot of the n arrivals at one pose (ISO 9283 7.4, 7.5 [U]; n = 3 [N]).
 
     Each arrival is analysed with :func:`position_stabilisation` against its own settled position (its last
@@ -306,7 +316,9 @@ def _plane_crossing(path: np.ndarray, station: np.ndarray, normal: np.ndarray) -
     return candidates[int(np.argmin(np.sum((points - station) ** 2, axis=1)))]
 
 
-def station_crossings(paths_mm: Sequence, commanded_mm) -> tuple[np.ndarray, list[list[tuple[int, float]]]]:
+def station_crossings(
+    paths_mm: Sequence[ArrayLike], commanded_mm: ArrayLike
+) -> tuple[np.ndarray, list[list[tuple[int, float]]]]:
     """Cut every attained path with the plane normal to the commanded path at each station (ISO 9283 8.2).
 
     Returns the intersection points, shape (m stations, n cycles, d), and per station and cycle the crossing as
@@ -335,7 +347,7 @@ def station_crossings(paths_mm: Sequence, commanded_mm) -> tuple[np.ndarray, lis
     return points, where
 
 
-def path_characteristics(paths_mm: Sequence, commanded_mm) -> PathCharacteristics:
+def path_characteristics(paths_mm: Sequence[ArrayLike], commanded_mm: ArrayLike) -> PathCharacteristics:
     """Path accuracy AT_p and path repeatability RT_p from sampled paths (ISO 9283 8.2, 8.3 [U]).
 
     The commanded path is given as m stations; the plane at station i is normal to the commanded path there

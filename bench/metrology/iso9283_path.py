@@ -15,6 +15,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from bench.errors import ConfigError, InsufficientData
 from bench.metrology._validation import as_points, as_series, as_vector, require_count, require_same_length
@@ -110,7 +111,9 @@ def _nearest_on_polyline(point: np.ndarray, path: np.ndarray) -> tuple[float, in
     return float(distance.min()), best, nearest[best]
 
 
-def cornering_deviations(paths_mm: Sequence, corner_mm, incoming_from_mm, outgoing_to_mm) -> CorneringDeviations:
+def cornering_deviations(
+    paths_mm: Sequence[ArrayLike], corner_mm: ArrayLike, incoming_from_mm: ArrayLike, outgoing_to_mm: ArrayLike
+) -> CorneringDeviations:
     """Cornering round-off error CR and cornering overshoot CO at one sharp corner (ISO 9283 8.5 [U]; n = 3 [N]).
 
     With P_E the commanded corner, u_in and u_out the unit directions of the commanded segments into and out of
@@ -174,7 +177,7 @@ def cornering_deviations(paths_mm: Sequence, corner_mm, incoming_from_mm, outgoi
 
 
 def path_orientation_characteristics(
-    paths_mm: Sequence, angles_deg: Sequence, commanded_mm, commanded_deg
+    paths_mm: Sequence[ArrayLike], angles_deg: Sequence[ArrayLike], commanded_mm: ArrayLike, commanded_deg: ArrayLike
 ) -> PathOrientation:
     """Orientation path accuracy AT_a and repeatability RT_a (ISO 9283 8.2, 8.3; 8.4 on reorientation [U]).
 
@@ -218,8 +221,9 @@ def path_orientation_characteristics(
     if len({a.shape[1] for a in angles}) != 1:
         raise ConfigError(f"angles_deg: cycles with different angle counts {[a.shape[1] for a in angles]}")
     for j, (a, p) in enumerate(zip(angles, paths_mm)):
-        if len(a) != len(p):
-            raise ConfigError(f"angles_deg[{j}] has {len(a)} rows and paths_mm[{j}] {len(p)}, expected the same")
+        rows = np.shape(p)[0]
+        if len(a) != rows:
+            raise ConfigError(f"angles_deg[{j}] has {len(a)} rows and paths_mm[{j}] {rows}, expected the same")
     q = angles[0].shape[1]
     commanded = as_points("commanded_deg", commanded_deg, dims=(q,))
     if len(commanded) != points.shape[0]:
@@ -245,7 +249,7 @@ def path_orientation_characteristics(
     )
 
 
-def path_speed(t_s, position_mm) -> np.ndarray:
+def path_speed(t_s: ArrayLike, position_mm: ArrayLike) -> np.ndarray:
     """Path speed samples from a sampled path: v_i = |p_{i+1} - p_i| / (t_{i+1} - t_i), shape (m - 1,), mm/s.
 
     The speed between consecutive samples, the velocity samples v_ij of ISO 9283 8.6 for an instrument that reads
@@ -266,7 +270,7 @@ def path_speed(t_s, position_mm) -> np.ndarray:
     return np.linalg.norm(np.diff(position, axis=0), axis=1) / step_s
 
 
-def path_velocity_characteristics(speeds_mm_s: Sequence, commanded_mm_s: float) -> PathVelocity:
+def path_velocity_characteristics(speeds_mm_s: Sequence[ArrayLike], commanded_mm_s: float) -> PathVelocity:
     """Path velocity accuracy AV, repeatability RV and fluctuation FV (ISO 9283 8.6 [U]; n = 10 [N]).
 
     Over the constant-velocity part of a straight path, with v_ij the i-th speed sample of cycle j (m_j samples)
@@ -309,7 +313,7 @@ def path_velocity_characteristics(speeds_mm_s: Sequence, commanded_mm_s: float) 
     )
 
 
-def minimum_positioning_targets(p1_mm, steps_mm: Sequence[float] = MIN_POSITIONING_STEPS_MM) -> np.ndarray:
+def minimum_positioning_targets(p1_mm: ArrayLike, steps_mm: Sequence[float] = MIN_POSITIONING_STEPS_MM) -> np.ndarray:
     """The poses P1+1 .. P1+k of the clause 9 step sequence, shape (k, d), reading each step as a per-axis increment.
 
     ISO 9283 clause 9, Table 19 [N] gives the step distances with the condition Dx = Dy = Dz; reading them as
@@ -326,7 +330,9 @@ def minimum_positioning_targets(p1_mm, steps_mm: Sequence[float] = MIN_POSITIONI
     return start + offsets[:, None] * np.ones_like(start)
 
 
-def minimum_positioning_time(steps: Sequence, *, band_mm: float, hysteresis_mm: float = 0.0) -> MinimumPositioningTime:
+def minimum_positioning_time(
+    steps: Sequence[Sequence[tuple[ArrayLike, ArrayLike]]], *, band_mm: float, hysteresis_mm: float = 0.0
+) -> MinimumPositioningTime:
     """Positioning time of each step of the clause 9 sequence (ISO 9283 9: conditions [N], definition [U]).
 
     The time from leaving one pose until the robot is stabilised at the next, inside the limit band B (0.1, 0.5 or

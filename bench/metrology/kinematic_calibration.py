@@ -38,9 +38,12 @@ share of the parameters the data fit).
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
+from numpy.typing import ArrayLike
 from scipy.linalg import qr
 from scipy.optimize import least_squares
 
@@ -97,7 +100,7 @@ class Observability:
     n_poses: int
     unidentifiable: tuple[str, ...]  # "name" or "0.71 a + 0.71 b" per weak direction, weakest first
 
-    def as_dict(self) -> dict:
+    def as_dict(self) -> dict[str, Any]:
         return {
             "names": list(self.names),
             "singular_values": [float(s) for s in self.singular_values],
@@ -108,7 +111,7 @@ class Observability:
         }
 
 
-def _weighted(jac, uncertainty) -> np.ndarray:
+def _weighted(jac: ArrayLike, uncertainty: ArrayLike) -> np.ndarray:
     """``jac`` (N, a, K) over the standard uncertainty of each coordinate ((a,) per axis or (N, a) per pose and
     axis), rows stacked (N a, K)."""
     jac = np.asarray(jac, dtype=float)
@@ -116,7 +119,7 @@ def _weighted(jac, uncertainty) -> np.ndarray:
     return (jac / u[:, :, None]).reshape(-1, jac.shape[-1])
 
 
-def _finite_weighted(jac, uncertainty) -> np.ndarray:
+def _finite_weighted(jac: ArrayLike, uncertainty: ArrayLike) -> np.ndarray:
     """:func:`_weighted`, refused (``InsufficientData``, one line) where the model could not give a Jacobian."""
     weighted = _weighted(jac, uncertainty)
     if not np.all(np.isfinite(weighted)):
@@ -124,7 +127,9 @@ def _finite_weighted(jac, uncertainty) -> np.ndarray:
     return weighted
 
 
-def observability(jac, uncertainty, names, limit: float = CONDITION_LIMIT) -> Observability:
+def observability(
+    jac: ArrayLike, uncertainty: ArrayLike, names: Sequence[str], limit: float = CONDITION_LIMIT
+) -> Observability:
     """Observability of parameters ``names`` from the Jacobian ``jac`` (N, a, K) and instrument uncertainty (a,)."""
     names = tuple(names)
     weighted = _finite_weighted(jac, uncertainty)
@@ -175,7 +180,7 @@ def _refuse_if_poor(obs: Observability, limit: float) -> None:
         )
 
 
-def parameter_covariance(jac, uncertainty, precision=None) -> np.ndarray:
+def parameter_covariance(jac: ArrayLike, uncertainty: ArrayLike, precision: ArrayLike | None = None) -> np.ndarray:
     """``(J_w^T J_w + diag(precision))^{-1}`` (pseudo-inverse), the parameters' covariance for known instrument
     uncertainty; with a Gaussian prior's ``precision`` ``sigma_j^-2`` per parameter (0: none) the posterior one
     (module docstring). A Jacobian that is not finite is refused (``InsufficientData``, one line)."""
@@ -207,7 +212,7 @@ class Identification:
         """'map' (maximum a posteriori, with a prior) or 'free-set' (least squares of the free parameters)."""
         return "free-set" if self.prior_sigma is None else "map"
 
-    def as_dict(self) -> dict:
+    def as_dict(self) -> dict[str, Any]:
         """Plain data (stored as the calibration's parameters)."""
         prior = (
             None
@@ -233,15 +238,25 @@ class Identification:
         }
 
 
-def _prior_only(names, std, sigma) -> tuple[str, ...]:
+def _prior_only(names: Sequence[str], std: np.ndarray, sigma: np.ndarray) -> tuple[str, ...]:
     return tuple(n for n, s, p in zip(names, std, sigma) if np.isfinite(p) and s > PRIOR_ONLY_RATIO * p)
 
 
-def _refuse_if_uninformed(jac, uncertainty, names, sigma, std, n_poses: int, limit: float) -> tuple[str, ...]:
+def _refuse_if_uninformed(
+    jac: ArrayLike,
+    uncertainty: ArrayLike,
+    names: Sequence[str],
+    sigma: np.ndarray,
+    std: np.ndarray,
+    n_poses: int,
+    limit: float,
+) -> tuple[str, ...]:
     """The refusal rule of a maximum a posteriori fit (module docstring); returns the prior-only parameters."""
     free = np.flatnonzero(~np.isfinite(sigma))
     if free.size:
-        _refuse_if_poor(observability(np.asarray(jac)[:, :, free], uncertainty, [names[j] for j in free], limit), limit)
+        _refuse_if_poor(
+            observability(np.asarray(jac)[:, :, free], uncertainty, [names[int(j)] for j in free], limit), limit
+        )
     prior_only = _prior_only(names, std, sigma)
     with_prior = int(np.sum(np.isfinite(sigma)))
     informed = with_prior - len(prior_only)
@@ -257,13 +272,13 @@ def _refuse_if_uninformed(jac, uncertainty, names, sigma, std, n_poses: int, lim
 
 
 def identify(
-    model,
-    measured,
-    uncertainty,
+    model: Any,
+    measured: ArrayLike,
+    uncertainty: ArrayLike,
     *,
-    theta0=None,
+    theta0: ArrayLike | None = None,
     limit: float = CONDITION_LIMIT,
-    prior_sigma=None,
+    prior_sigma: ArrayLike | None = None,
     check_start: bool = True,
 ) -> Identification:
     """Identification of ``model.free`` from ``measured`` (N, a) (module docstring): weighted least squares, or
@@ -306,7 +321,7 @@ def identify(
     precision = np.zeros(k) if sigma is None else np.where(np.isfinite(sigma), 1.0 / np.square(sigma), 0.0)
     weight = np.sqrt(precision)
 
-    def check(jac) -> tuple[Observability | None, np.ndarray, tuple[str, ...]]:
+    def check(jac: ArrayLike) -> tuple[Observability | None, np.ndarray, tuple[str, ...]]:
         """The refusal rule at ``jac``: the observability (a prior's: None, reported at the solution only), the
         covariance and the prior-only parameters."""
         if sigma is None:
@@ -317,10 +332,10 @@ def identify(
         std = np.sqrt(np.clip(np.diag(cov), 0.0, None))
         return None, cov, _refuse_if_uninformed(jac, u, model.free, sigma, std, len(measured), limit)
 
-    latest: list = [None, None]  # (theta, model Jacobian) of the latest Jacobian: the solver asks at theta0 and
+    latest: list[Any] = [None, None]  # (theta, model Jacobian) of the latest Jacobian: the solver asks at theta0 and
     # at its solution, where the checks need it too
 
-    def model_jacobian(theta) -> np.ndarray:
+    def model_jacobian(theta: ArrayLike) -> np.ndarray:
         if latest[0] is None or not np.array_equal(latest[0], theta):
             latest[:] = [np.array(theta), model.jacobian(theta)]  # poses solved at theta (the last fun call may
             # be a rejected trial)
@@ -329,11 +344,11 @@ def identify(
     if check_start:  # a search's other starts (kinematic_search) are judged at their solution only
         check(model_jacobian(theta0))
 
-    def residual(theta):
+    def residual(theta: np.ndarray) -> np.ndarray:
         r = np.nan_to_num((measured - model.predict(theta)) / u, nan=1e6).ravel()
         return r if sigma is None else np.concatenate([r, weight * theta])
 
-    def jac(theta):
+    def jac(theta: np.ndarray) -> np.ndarray:
         data = -_weighted(model_jacobian(theta), u)
         return data if sigma is None else np.vstack([data, np.diag(weight)])
 
@@ -392,7 +407,13 @@ def identify(
 FREE_SET_LIMIT = CONDITION_LIMIT / 2
 
 
-def identifiable_subset(jac, uncertainty, names, limit: float = FREE_SET_LIMIT, required=()) -> tuple[str, ...]:
+def identifiable_subset(
+    jac: ArrayLike,
+    uncertainty: ArrayLike,
+    names: Sequence[str],
+    limit: float = FREE_SET_LIMIT,
+    required: Sequence[str] = (),
+) -> tuple[str, ...]:
     """The default free set: the largest subset of ``names`` the pose set and instrument can identify.
 
     Subset selection by QR with column pivoting of the scaled Jacobian (Golub & Van Loan §5.5.7; Khalil & Dombre's
@@ -427,7 +448,7 @@ def identifiable_subset(jac, uncertainty, names, limit: float = FREE_SET_LIMIT, 
     return tuple(names[i] for i in sorted(forced))
 
 
-def away_from_folds(fold_ratio, margin: float = FOLD_MARGIN) -> np.ndarray:
+def away_from_folds(fold_ratio: ArrayLike, margin: float = FOLD_MARGIN) -> np.ndarray:
     """Which candidates (bool (N,)) lie away from a fold of the forward kinematics: fold ratio (e.g.
     :meth:`motion.pkm5.calibration.ForwardModel.fold_ratio`) at least ``margin`` times the candidates' median.
 
@@ -438,7 +459,9 @@ def away_from_folds(fold_ratio, margin: float = FOLD_MARGIN) -> np.ndarray:
     return np.isfinite(ratio) & (ratio >= margin * np.median(ratio[np.isfinite(ratio)]))
 
 
-def select_poses(jac, uncertainty, n: int, *, first=(), fold_ratio=None) -> np.ndarray:
+def select_poses(
+    jac: ArrayLike, uncertainty: ArrayLike, n: int, *, first: Sequence[int] = (), fold_ratio: ArrayLike | None = None
+) -> np.ndarray:
     """Greedy D-optimal choice of ``n`` poses from candidates with Jacobian blocks ``jac`` (N, a, K).
 
     Each step adds the candidate that most increases ``log det(M)``, ``M = sum J_s,i^T J_s,i`` over the chosen poses

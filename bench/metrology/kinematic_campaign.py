@@ -34,9 +34,12 @@ means' own scatter taken out in quadrature.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from bench.errors import InsufficientData
 
@@ -72,7 +75,7 @@ class PoseMeans:
     instrument_mm: float  # the instrument's stated standard uncertainty per reading
     left_out: tuple[int, ...] = ()  # erratic poses left out (their indices in the protocol's order)
 
-    def as_dict(self) -> dict:
+    def as_dict(self) -> dict[str, Any]:
         return {
             "scatter_mm": [None if not np.isfinite(s) else float(s) for s in self.scatter_mm],
             "scatter_dof": self.scatter_dof,
@@ -83,7 +86,7 @@ class PoseMeans:
         }
 
 
-def pose_means(readings, pose_index, instrument_mm: float) -> PoseMeans:
+def pose_means(readings: ArrayLike, pose_index: ArrayLike, instrument_mm: float) -> PoseMeans:
     """The per-pose means of ``readings`` (M, a) labelled by ``pose_index`` (M,) (0..N-1, each pose at least once)
     and their standard uncertainties (module docstring)."""
     readings = np.asarray(readings, dtype=float)
@@ -112,7 +115,7 @@ def pose_means(readings, pose_index, instrument_mm: float) -> PoseMeans:
 
 
 def erratic_poses(
-    readings, pose_index, instrument_mm: float = 0.0, false_alarm: float = ERRATIC_FALSE_ALARM
+    readings: ArrayLike, pose_index: ArrayLike, instrument_mm: float = 0.0, false_alarm: float = ERRATIC_FALSE_ALARM
 ) -> np.ndarray:
     """Which poses (bool (N,)) scatter more than the others beyond chance: per axis, the variance ratio
     ``F = max(hat s_i, u_inst)^2 / max(s_rest, u_inst)^2`` of the pose's own readings against the pooled
@@ -162,7 +165,7 @@ class CampaignPlan:
         """The most gain a validation of ``validation_cycles`` cycles can show (module docstring)."""
         return self.geometric_error_mm / (self.scatter_mm / np.sqrt(validation_cycles))
 
-    def as_dict(self) -> dict:
+    def as_dict(self) -> dict[str, Any]:
         return {
             "target_gain": self.target_gain,
             "geometric_error_mm": self.geometric_error_mm,
@@ -174,7 +177,7 @@ class CampaignPlan:
         }
 
 
-def _least_cycles(good) -> int | None:
+def _least_cycles(good: Callable[[int], bool]) -> int | None:
     """The least n in 1..MAX_CYCLES with ``good(n)`` (monotone in n), by bisection; None if none."""
     if not good(MAX_CYCLES):
         return None
@@ -186,9 +189,9 @@ def _least_cycles(good) -> int | None:
 
 
 def plan_campaign(
-    jac,
+    jac: ArrayLike,
     campaign: PoseMeans,
-    prior_sigma,
+    prior_sigma: ArrayLike,
     before_mm: float,
     target_gain: float,
     informed_share: float = 0.5,

@@ -25,9 +25,12 @@ computation, arrays in and out.
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from bench.errors import InsufficientData
 from bench.metrology.kinematic_calibration import Identification, UnidentifiableParameters, identify
@@ -35,11 +38,14 @@ from bench.metrology.kinematic_calibration import Identification, Unidentifiable
 __all__ = [
     "AMBIGUITY_DELTA",
     "AMBIGUITY_Z",
+    "COVERAGE_K",
     "DEFAULT_STARTS",
     "AmbiguousFit",
     "SearchResult",
+    "covering_rival",
     "identify_global",
     "map_objective",
+    "rival_apart",
 ]
 
 #: Starts of the search: the documented geometry and seven prior draws (measured: on the ideal simulator's seeds
@@ -50,17 +56,27 @@ DEFAULT_STARTS = 8
 AMBIGUITY_DELTA = 4.0
 #: ... and are distinct when a parameter differs by more than this many of the best solution's standard uncertainties.
 AMBIGUITY_Z = 5.0
+#: Coverage factor of the prediction uncertainty within which two ambiguous solutions command alike (k = 2, 95 %).
+COVERAGE_K = 2.0
 
 
 class AmbiguousFit(UnidentifiableParameters):
     """Distinct geometries explain the data about equally well (module docstring): the fit is not stored.
     ``separation`` is how far apart their predictions lie, ``sum |(f_rival - f_best) / u|^2`` over the readings:
     measured, it stays ~1 as the cycles per pose grow (each solution refits the better data), so only poses that
-    see the difference resolve it (docs/calibration.md)."""
+    see the difference resolve it (docs/calibration.md). ``search`` is the search (its best kept) and ``rival`` the
+    other solution, so a caller can see where the two differ (:func:`covering_rival`)."""
 
-    def __init__(self, message: str, separation: float = float("nan")) -> None:
+    def __init__(
+        self,
+        message: str,
+        separation: float = float("nan"),
+        search: SearchResult | None = None,
+        rival: Identification | None = None,
+    ) -> None:
         super().__init__(message)
         self.separation = separation
+        self.search, self.rival = search, rival
 
 
 @dataclass(frozen=True)
@@ -73,7 +89,7 @@ class SearchResult:
     spread_z: np.ndarray
     kept_start: int
 
-    def as_dict(self) -> dict:
+    def as_dict(self) -> dict[str, Any]:
         return {
             "starts": len(self.objectives),
             "kept_start": self.kept_start,
@@ -82,7 +98,7 @@ class SearchResult:
         }
 
 
-def map_objective(result: Identification, uncertainty) -> float:
+def map_objective(result: Identification, uncertainty: ArrayLike) -> float:
     """``Phi`` of the module docstring at ``result``'s solution: weighted data residuals squared plus the prior's
     rows squared (the prior's only where ``result.prior_sigma`` is finite)."""
     data = float(np.sum((np.asarray(result.residuals) / np.broadcast_to(uncertainty, result.residuals.shape)) ** 2))
@@ -93,7 +109,14 @@ def map_objective(result: Identification, uncertainty) -> float:
 
 
 def identify_global(
-    model, measured, uncertainty, *, prior_sigma, starts: int = DEFAULT_STARTS, seed: int = 0, **options
+    model: Any,
+    measured: ArrayLike,
+    uncertainty: ArrayLike,
+    *,
+    prior_sigma: ArrayLike,
+    starts: int = DEFAULT_STARTS,
+    seed: int = 0,
+    **options: Any,
 ) -> SearchResult:
     """Maximum a posteriori identification (:func:`identify`) from ``starts`` starting points (module docstring);
     ``seed`` seeds the prior draws, so a search is reproducible. Raises what :func:`identify` raises at the
@@ -121,6 +144,7 @@ def identify_global(
     objectives = np.array([np.nan if f is None else map_objective(f, uncertainty) for f in fits])
     kept = int(np.nanargmin(objectives))
     best = fits[kept]
+    assert best is not None  # the least objective is a finite one: a fit
     spread = np.array(
         [np.nan if f is None else float(np.max(np.abs(f.values - best.values) / best.uncertainty)) for f in fits]
     )
@@ -134,6 +158,7 @@ def identify_global(
     ]
     if rivals:
         rival = fits[rivals[0]]
+        assert rival is not None
         z = np.abs(rival.values - best.values) / best.uncertainty
         named = ", ".join(f"{best.names[j]} ({z[j]:.1f} u)" for j in np.argsort(-z)[:3] if z[j] > AMBIGUITY_Z)
         separation = float(
@@ -145,5 +170,37 @@ def identify_global(
             f"{AMBIGUITY_DELTA:g}) yet differ by more than {AMBIGUITY_Z:g} standard uncertainties in {named}; "
             f"nothing stored. Their predictions differ by chi^2 {separation:.3g} over the readings",
             separation,
+            SearchResult(best, objectives, spread, kept),
+            rival,
         )
     return SearchResult(best, objectives, spread, kept)
+
+
+def rival_apart(best: Identification, rival: Identification, model: Any) -> tuple[np.ndarray, np.ndarray]:
+    """Where two solutions differ, at the poses of ``model`` (a forward model of the same free parameters, e.g. a
+    sample of the workspace): per pose the distance of their predictions ``d_i = |f_i(rival) - f_i(best)|`` (inf
+    where one cannot be evaluated) and its ratio to the best's own stated uncertainty of prediction there at
+    coverage :data:`COVERAGE_K`,
+
+    .. math:: r_i = d_i / (k \\sqrt{\\operatorname{tr}(J_i C J_i^T)}),
+
+    ``C`` the best's (posterior) covariance, ``J_i`` its Jacobian at the pose. Every ``r_i <= 1``: commanding by the
+    best is as good as it states whichever solution is true."""
+    apart = np.linalg.norm(model.predict(best.values) - model.predict(rival.values), axis=1)
+    apart = np.where(np.isfinite(apart), apart, np.inf)
+    jac = model.jacobian(best.values)
+    covariance = best.correlation * np.outer(best.uncertainty, best.uncertainty)
+    stated = np.sqrt(np.einsum("nak,kl,nal->n", jac, covariance, jac))
+    return apart, apart / (COVERAGE_K * stated)
+
+
+def covering_rival(best: Identification, rival: Identification) -> Identification:
+    """``best`` with each standard uncertainty widened to cover the rival solution's value,
+
+    .. math:: u'_j = \\sqrt{u_j^2 + (\\theta^{rival}_j - \\theta^{best}_j)^2},
+
+    so that the truth, near either of two equally plausible solutions, lies within about one u' of the stored value
+    (a conservative bound on the spread of the two-mode posterior; the correlations stay the best mode's). For
+    ambiguities the data cannot resolve but that change no predicted position (the caller checks that)."""
+    widened = np.sqrt(best.uncertainty**2 + (rival.values - best.values) ** 2)
+    return dataclasses.replace(best, uncertainty=widened)

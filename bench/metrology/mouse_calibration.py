@@ -12,6 +12,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from bench.errors import ConfigError, InsufficientData
 from bench.metrology._validation import (
@@ -27,6 +28,7 @@ __all__ = [
     "AxisCalibration",
     "IncrementResolution",
     "MatrixCalibration",
+    "counts_per_inch",
     "student_k95",
     "direction_labels",
     "fit_axis_scale",
@@ -107,6 +109,21 @@ class MatrixCalibration:
         """(len(offset_labels), 2) bool: |intercept| > k · u(intercept), non-zero at 95 %."""
         return np.abs(self.offsets_counts) > self.coverage_factor * self.u_offsets_counts
 
+    def u_scale_mm_per_count(self, reference_u_rel: float = 0.0) -> np.ndarray:
+        """(2,) standard uncertainty of :attr:`scale_mm_per_count`: the fit's, to first order,
+        u(|a|)² = Σ_i (a_i / |a|)² u(a_i)² over the column a = A e_axis, combined with the reference's relative
+        scale u (``reference_u_rel`` · scale; GUM 5.1.2, uncorrelated)."""
+        a, u = self.a_mm_per_count, self.u_a_mm_per_count
+        u_fit = np.sqrt(np.sum((a / self.scale_mm_per_count * u) ** 2, axis=0))
+        return np.hypot(u_fit, reference_u_rel * self.scale_mm_per_count)
+
+
+def counts_per_inch(scale_mm_per_count: float, u_scale_mm_per_count: float) -> tuple[float, float]:
+    """A scale in mm/count as counts per inch with its uncertainty: cpi = 25.4 / s, u(cpi) = cpi · u(s) / s
+    (first order, GUM 5.1.3), so a printed cpi carries no more digits than the scale's U supports."""
+    cpi = MM_PER_INCH / scale_mm_per_count
+    return cpi, cpi * u_scale_mm_per_count / scale_mm_per_count
+
 
 def student_k95(dof: int) -> float:
     """Coverage factor k = t_{0.975, ν} for 95 % of a quantity whose standard uncertainty has ν degrees of freedom
@@ -117,7 +134,7 @@ def student_k95(dof: int) -> float:
     return coverage_factor(_K95, dof)
 
 
-def direction_labels(reference_mm) -> tuple[str, ...]:
+def direction_labels(reference_mm: ArrayLike) -> tuple[str, ...]:
     """The direction of each move: its dominant stage axis and sign (``"+x"``, ``"-x"``, ``"+y"``, ``"-y"``).
 
     >>> direction_labels([[5.0, 0.1], [-10.0, 0.0], [0.0, 20.0]])
@@ -129,7 +146,7 @@ def direction_labels(reference_mm) -> tuple[str, ...]:
     return tuple(f"{'+' if s >= 0 else '-'}{'xy'[a]}" for a, s in zip(axis, sign))
 
 
-def increments_from_positions(positions) -> np.ndarray:
+def increments_from_positions(positions: ArrayLike) -> np.ndarray:
     """Absolute count increments |Δ| between successive positions; NaN marks a restart (segment break).
 
     The dissertation's raw tables print "N/A" where the cursor was re-positioned near the screen edge: no
@@ -149,7 +166,7 @@ def increments_from_positions(positions) -> np.ndarray:
     return delta[np.isfinite(delta)]
 
 
-def increment_resolution(distance_mm: float, increments_counts) -> IncrementResolution:
+def increment_resolution(distance_mm: float, increments_counts: ArrayLike) -> IncrementResolution:
     """Resolution and "tolerance" of one axis from repeated equal increments (dissertation App. A.7).
 
     .. math::
@@ -194,7 +211,7 @@ def increment_resolution(distance_mm: float, increments_counts) -> IncrementReso
     )
 
 
-def fit_axis_scale(reference_mm, counts) -> AxisCalibration:
+def fit_axis_scale(reference_mm: ArrayLike, counts: ArrayLike) -> AxisCalibration:
     """Least-squares scale and offset of one sensor axis against reference displacements.
 
     The sensor is the noisy side, so the forward model is fitted and inverted (sensors.md §5.2):
@@ -244,7 +261,9 @@ def _rotation_deg(matrix: np.ndarray) -> float:
     return float(np.degrees(np.arctan2(rotation[1, 0], rotation[0, 0])))
 
 
-def fit_matrix(reference_mm, counts, *, intercept: bool = False, per_direction: bool = False) -> MatrixCalibration:
+def fit_matrix(
+    reference_mm: ArrayLike, counts: ArrayLike, *, intercept: bool = False, per_direction: bool = False
+) -> MatrixCalibration:
     """Least-squares 2x2 calibration c = B r (+ c_0 or + c_0,d per move direction d) and A = B⁻¹ with uncertainties.
 
     sensors.md §5.2 [P], rows k stacked into R (K x 2), the intercept columns D (K x q) and C (K x 2), X = [R D]:

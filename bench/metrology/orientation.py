@@ -28,11 +28,15 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any
 
 from bench.errors import ConfigError
 from bench.metrology._validation import as_series
 from bench.metrology.iso9283 import orientation_accuracy, orientation_repeatability
 from bench.metrology.uncertainty import combine, rectangular, resolution_uncertainty
+
+if TYPE_CHECKING:
+    from numpy.typing import ArrayLike
 
 __all__ = [
     "OrientationFigures",
@@ -124,7 +128,7 @@ class OrientationFigures:
     k: float
     budget: tuple[tuple[str, float], ...]  #: (component, standard uncertainty in deg) of AP_a
 
-    def as_json(self) -> dict:
+    def as_json(self) -> dict[str, Any]:
         name = self.angle
         return {
             "n": self.n,
@@ -140,7 +144,7 @@ class OrientationFigures:
 
 
 def orientation_figures(
-    attained_deg, commanded_deg: float, gauge: TiltGauge, *, angle: str = "a", k: float = 2.0
+    attained_deg: ArrayLike, commanded_deg: float, gauge: TiltGauge, *, angle: str = "a", k: float = 2.0
 ) -> OrientationFigures:
     """AP_a, RP_a and their expanded uncertainties from n >= 2 tilt readings of one angle (module docstring).
 

@@ -13,6 +13,7 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import Any
 
 import pandas as pd
 
@@ -189,9 +190,9 @@ def analyze_tilts(table: pd.DataFrame, gauge: TiltGauge | None = None, *, k: flo
     return results
 
 
-def tilt_result_json(result: TiltPoseResult) -> dict:
+def tilt_result_json(result: TiltPoseResult) -> dict[str, Any]:
     """One pose's figures as ``bench analyze orientation --json`` prints them (keys carry their units)."""
-    out: dict = {"pose": result.pose, **dict(result.conditions)}
+    out: dict[str, Any] = {"pose": result.pose, **dict(result.conditions)}
     for figures in result.figures:
         entry = figures.as_json()
         out["n"] = entry.pop("n")
@@ -201,7 +202,7 @@ def tilt_result_json(result: TiltPoseResult) -> dict:
     return out
 
 
-def orientation_summary(results: Sequence[TiltPoseResult]) -> dict:
+def orientation_summary(results: Sequence[TiltPoseResult]) -> dict[str, Any]:
     """Worst |AP| and RP per angle over all poses (with the U of that pose): the headline of an orientation run."""
     summary = {}
     for angle in dict.fromkeys(f.angle for r in results for f in r.figures):

@@ -22,11 +22,16 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from bench.errors import ConfigError
 from bench.metrology.iso9283 import pose_accuracy, pose_repeatability
+
+if TYPE_CHECKING:
+    import pandas as pd
 
 __all__ = [
     "AXIS_NAMES",
@@ -85,7 +90,7 @@ class DetectionRate:
     high: float | None
 
 
-def axis_errors(measured_mm, commanded_mm: float) -> AxisErrors:
+def axis_errors(measured_mm: ArrayLike, commanded_mm: float) -> AxisErrors:
     """Statistics of one axis; NaN entries of ``measured_mm`` are readings that did not measure it.
 
     Examples
@@ -117,7 +122,7 @@ def axis_errors(measured_mm, commanded_mm: float) -> AxisErrors:
     )
 
 
-def partial_pose_statistics(measured_mm, commanded_mm) -> PartialPoseStatistics:
+def partial_pose_statistics(measured_mm: ArrayLike, commanded_mm: ArrayLike) -> PartialPoseStatistics:
     """Per-axis statistics (each over its own readings) and spatial AP/RP over the complete readings.
 
     Parameters
@@ -147,7 +152,7 @@ def partial_pose_statistics(measured_mm, commanded_mm) -> PartialPoseStatistics:
     return PartialPoseStatistics(len(readings), axes, len(complete), ap, rp)
 
 
-def detection_rate(detected, *, k: float = 2.0) -> DetectionRate:
+def detection_rate(detected: ArrayLike, *, k: float = 2.0) -> DetectionRate:
     """Rate of detections (entries 0/1 or bool) with its Wilson score interval at z = ``k`` (the coverage factor,
     2 throughout bench: about 95 %). Unlike p ± k·√(p(1-p)/n) it stays in [0, 1] and is not empty at 0 or n of n.
     The one Wilson interval of bench: the laser grid's screen detections and hit rates
@@ -190,7 +195,7 @@ def rate_text(rate: DetectionRate, *, counts: bool = True) -> str:
     >>> rate_text(detection_rate([1] * 397 + [0] * 3), counts=False), rate_text(detection_rate([]))
     ('99.25 % [97.8, 99.7]', 'no reading')
     """
-    if rate.n == 0:
+    if rate.n == 0 or rate.rate is None or rate.low is None or rate.high is None:
         return NO_READING
     text = f"{100 * rate.rate:.2f} % [{100 * rate.low:.1f}, {100 * rate.high:.1f}]"
     return f"{rate.k} / {rate.n}, {text}" if counts else text
@@ -227,7 +232,7 @@ class GridPoseResult:
     lit: dict[str, DetectionRate]  #: per screen: readings with at least one sensor lit
 
 
-def grid_positioning_table(frame):
+def grid_positioning_table(frame: pd.DataFrame) -> pd.DataFrame:
     """Check a grid positioning table, strings (:func:`bench.metrology.tables.read_table_csv`) or numbers (the
     store's tidy table), and return it with numbers as float; an empty axis cell (or NaN) is NaN, "not measured".
     Every stored axis must come from a screen marked valid, and a valid screen must have stored both its axes."""
@@ -269,7 +274,7 @@ def grid_positioning_table(frame):
     return table
 
 
-def _refuse_first(source: str, bad, column: str, frame, expected: str) -> None:
+def _refuse_first(source: str, bad: pd.Series, column: str, frame: pd.DataFrame, expected: str) -> None:
     """ConfigError naming the first bad row (1-based), the column and the cell as written."""
     if bad.any():
         index = bad.idxmax()
@@ -277,7 +282,7 @@ def _refuse_first(source: str, bad, column: str, frame, expected: str) -> None:
         raise ConfigError(f"{source}: row {int(index) + 1}, column {column}: {str(cell).strip()!r}, {expected}")
 
 
-def analyze_grid_positioning(table, *, k: float = 2.0) -> list[GridPoseResult]:
+def analyze_grid_positioning(table: pd.DataFrame, *, k: float = 2.0) -> list[GridPoseResult]:
     """Per pose (in order of appearance): detection per screen, with its Wilson interval at z = ``k``
     (:func:`detection_rate`), and per-axis statistics of the stored readings."""
     results = []
@@ -288,7 +293,8 @@ def analyze_grid_positioning(table, *, k: float = 2.0) -> list[GridPoseResult]:
                 f"{table.attrs.get('source', 'table')}: pose {pose!r} has {len(commands)} commanded "
                 "positions, expected one"
             )
-        command = tuple(float(v) for v in commands.iloc[0])
+        cx, cy, cz = (float(v) for v in commands.iloc[0])
+        command = (cx, cy, cz)
         statistics = partial_pose_statistics(rows[["x_mm", "y_mm", "z_mm"]].to_numpy(float), command)
         screens = ("horizontal", "vertical")
         results.append(
@@ -303,7 +309,7 @@ def analyze_grid_positioning(table, *, k: float = 2.0) -> list[GridPoseResult]:
     return results
 
 
-def pooled_axis_errors(table) -> tuple[AxisErrors, ...]:
+def pooled_axis_errors(table: pd.DataFrame) -> tuple[AxisErrors, ...]:
     """The thesis's summary over every pose (§8.4.2): per axis, the errors x_j - x_c of all stored readings."""
     commanded = table[["cmd_x_mm", "cmd_y_mm", "cmd_z_mm"]].to_numpy(float)
     errors = table[["x_mm", "y_mm", "z_mm"]].to_numpy(float) - commanded

@@ -18,8 +18,10 @@ path, stays below a stated bound; for the pkm5 test cube it grows as about 0.000
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from bench.errors import ConfigError
 
@@ -54,7 +56,7 @@ class CommandedPath:
             return float(2 * np.pi * self.radius_mm)
         return float(np.linalg.norm(np.diff(self.vertices_mm, axis=0), axis=1).sum())
 
-    def point(self, s_mm) -> np.ndarray:
+    def point(self, s_mm: ArrayLike) -> np.ndarray:
         """Points (N, 3) at arc length ``s_mm`` (N,) from the start, 0 <= s <= length."""
         s = np.atleast_1d(np.asarray(s_mm, dtype=float))
         if self.shape == "circle":
@@ -72,7 +74,7 @@ class CommandedPath:
         s = np.linspace(0.0, self.length_mm, count + 1)
         return self.point(s[:-1] if self.closed else s)
 
-    def distance_mm(self, points) -> np.ndarray:
+    def distance_mm(self, points: ArrayLike) -> np.ndarray:
         """Least distance (N,) of ``points`` (N, 3) from the path."""
         p = np.asarray(points, dtype=float)
         if self.shape == "circle":
@@ -131,7 +133,7 @@ def _pieces(path: CommandedPath, count: int) -> np.ndarray:
 
 
 def segment_path(
-    path: CommandedPath, kinematics, *, max_segment_mm: float, chord_error_mm: float, max_segments: int = 4096
+    path: CommandedPath, kinematics: Any, *, max_segment_mm: float, chord_error_mm: float, max_segments: int = 4096
 ) -> Segmentation:
     """Cut ``path`` into segments no longer than ``max_segment_mm`` and halve them until the joint-space chord error
     (module docstring) is at most ``chord_error_mm``. ``kinematics`` is a :class:`motion.model.RobotModel`.

@@ -12,6 +12,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from bench.errors import ConfigError, InsufficientData
 from bench.metrology._validation import (
@@ -70,7 +71,7 @@ class PayloadCompliance:
     n: int
 
 
-def leg_error_summary(load_kg, leg_error_mm) -> LegErrorSummary:
+def leg_error_summary(load_kg: ArrayLike, leg_error_mm: ArrayLike) -> LegErrorSummary:
     """Largest error per leg, the load at which it occurred, and its correlation with load.
 
     Leg actuation error e_i(m) = |L_i,meas(m) - L_i,cmd| (dissertation §8.7, Table A.14); Pearson
@@ -112,7 +113,7 @@ def leg_error_summary(load_kg, leg_error_mm) -> LegErrorSummary:
     )
 
 
-def payload_shift(attained_by_load_mm: Mapping[float, object], *, reference_load_kg: float) -> PayloadShift:
+def payload_shift(attained_by_load_mm: Mapping[float, ArrayLike], *, reference_load_kg: float) -> PayloadShift:
     """Pose-level payload error PE(m) = x̄(m) - x̄(m₀) at one command pose.
 
     iso9283.md §12.1 [P]: x̄(m) is the barycentre of the attained poses with load m, m₀ the declared reference
@@ -147,7 +148,7 @@ def payload_shift(attained_by_load_mm: Mapping[float, object], *, reference_load
 
 
 def payload_compliance(
-    load_kg, displacement_mm, *, reference_load_kg: float, g_m_s2: float = STANDARD_GRAVITY_M_S2
+    load_kg: ArrayLike, displacement_mm: ArrayLike, *, reference_load_kg: float, g_m_s2: float = STANDARD_GRAVITY_M_S2
 ) -> PayloadCompliance:
     """Payload compliance estimate k: least-squares slope of displacement against added weight, with intercept.
 

@@ -12,8 +12,10 @@ disk: 8 bytes per stored cell of the spill.
 from __future__ import annotations
 
 import tempfile
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pandas as pd
@@ -49,7 +51,7 @@ STREAM_MIN_BYTES = 1 << 27
 class _Group:
     """What the first pass keeps of one pose group: its key, first row, and spill file."""
 
-    key: tuple
+    key: tuple[Any, ...]
     first_row: pd.DataFrame  #: the group's first row (its commands, frame tag and pose label)
     spill: Path
     rows: int = 0
@@ -134,10 +136,10 @@ def refuse_unanalysable(frame: pd.DataFrame, source: str) -> None:
         raise ConfigError(f"{source}: no rows, expected at least one measured pose")
 
 
-def _spill(chunks, folder: Path, source: str):
+def _spill(chunks: Iterable[pd.DataFrame], folder: Path, source: str) -> tuple[dict[tuple[Any, ...], _Group], Any]:
     """First pass: check every chunk, append each group's samples to its spill file; the groups in order of
     appearance and the table's (axes, angles)."""
-    groups: dict[tuple, _Group] = {}
+    groups: dict[tuple[Any, ...], _Group] = {}
     layout = None
     for frame in chunks:
         refuse_unanalysable(frame, source)
@@ -172,7 +174,9 @@ def _spill(chunks, folder: Path, source: str):
     return groups, layout
 
 
-def _check_against_first(table: pd.DataFrame, rows: np.ndarray, group: _Group, commands, source: str) -> None:
+def _check_against_first(
+    table: pd.DataFrame, rows: np.ndarray, group: _Group, commands: Sequence[str], source: str
+) -> None:
     """A row of this chunk whose command or frame tag differs from the group's first row: the message of
     :func:`~bench.metrology.tables.analyze_poses` (the checks run on the first row and the first row at fault)."""
     first = group.first_row

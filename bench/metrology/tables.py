@@ -11,6 +11,7 @@ from __future__ import annotations
 
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 import pandas as pd
@@ -30,7 +31,6 @@ from bench.metrology.iso9283 import (
     pose_accuracy,
     pose_repeatability,
 )
-from bench.metrology.iso9283_dynamics import PoseStabilisation, pose_stabilisation
 from bench.metrology.table_reading import numeric_columns, read_table_csv
 from bench.metrology.uncertainty import (
     Measured,
@@ -55,9 +55,6 @@ __all__ = [
     "pose_table",
     "read_table_csv",
     "STABILISATION_COLUMNS",
-    "StabilisationResults",
-    "stabilisation_results",
-    "stabilisation_table",
     "with_pose_labels",
 ]
 
@@ -138,7 +135,9 @@ def with_pose_labels(table: pd.DataFrame, frame: pd.DataFrame, source: str) -> p
     return table
 
 
-def condition_groups(table: pd.DataFrame):
+def condition_groups(
+    table: pd.DataFrame,
+) -> Iterator[tuple[str, str, tuple[tuple[str, float], ...], pd.DataFrame]]:
     """Yield ``(label, pose, conditions, rows)`` per pose and set of test conditions, in order of appearance.
 
     The table is split by the condition columns (velocity, load) only where they vary within it; ``label`` is the
@@ -308,7 +307,7 @@ def pose_result(group: PoseGroup, *, source: str, instrument_u_mm: float, k: flo
         label=group.label,
         pose=group.pose,
         conditions=group.conditions,
-        commanded_mm=tuple(float(v) for v in full_command),
+        commanded_mm=(float(full_command[0]), float(full_command[1]), float(full_command[2])),
         accuracy=pose_accuracy(attained, command),
         repeatability=repeatability,
         ap_u=ap_u,
@@ -320,10 +319,10 @@ def pose_result(group: PoseGroup, *, source: str, instrument_u_mm: float, k: flo
     )
 
 
-def pose_result_json(result: PoseResult) -> dict:
+def pose_result_json(result: PoseResult) -> dict[str, Any]:
     """The JSON object of one pose for ``bench analyze iso9283 --json``."""
     ax, ay, az = (dict(zip(result.axis_names, result.accuracy.ap_axes_mm)).get(a) for a in "xyz")  # None: not measured
-    out = {
+    out: dict[str, Any] = {
         "n": result.accuracy.n,
         "AP_mm": result.accuracy.ap_mm,
         "APx_mm": ax,
@@ -338,7 +337,7 @@ def pose_result_json(result: PoseResult) -> dict:
     }
     if result.axis_names != ("x", "y", "z"):
         out["measured_axes"] = list(result.axis_names)
-    if result.orientation_accuracy is not None:
+    if result.orientation_accuracy is not None and result.orientation_repeatability is not None:
         for name, ap, rp in zip(
             result.angle_names, result.orientation_accuracy.ap_deg, result.orientation_repeatability.rp_deg
         ):
@@ -350,7 +349,9 @@ def pose_result_json(result: PoseResult) -> dict:
     return out
 
 
-def _paired_by_cycle(table: pd.DataFrame, first_pose: str, second_pose: str):
+def _paired_by_cycle(
+    table: pd.DataFrame, first_pose: str, second_pose: str
+) -> tuple[pd.DataFrame, pd.DataFrame, list[Any]]:
     """The rows of two poses indexed by cycle, and the cycles they share (all of them, or a ConfigError)."""
     source = table.attrs.get("source", "table")
     groups = {}
@@ -405,62 +406,3 @@ def analyze_orientation_distance(
         first[commanded].to_numpy()[0],
         second[commanded].to_numpy()[0],
     )
-
-
-# -- streamed arrivals: position stabilisation time and overshoot (ISO 9283 7.4, 7.5) ---------------------------------
-
-
-@dataclass(frozen=True, eq=False)
-class StabilisationResults:
-    """The arrivals of a streamed-arrival table and their stabilisation figures.
-
-    ``series`` holds per group label (the pose, with the conditions when they vary, as :func:`condition_groups`
-    names it) the ``(cycle, t_s, position_mm)`` of every arrival in cycle order; ``bands`` per limit band and group
-    label the :class:`~bench.metrology.iso9283_dynamics.PoseStabilisation`, or the message of the
-    ``InsufficientData`` that left it without one (an arrival never entered, or never settled in, the band).
-    """
-
-    series: dict[str, tuple[tuple[int, np.ndarray, np.ndarray], ...]]
-    bands: dict[float, dict[str, PoseStabilisation | str]]
-
-
-def stabilisation_table(frame: pd.DataFrame) -> pd.DataFrame:
-    """Check a streamed-arrival table; return it sorted by cycle and time, with ``cycle``, ``t_s``,
-    ``x_mm``..``z_mm`` (and the condition columns) as float and ``pose`` as a stripped string. A missing column says how to export one; a cell that is
-    not a number is a ``ConfigError`` naming its row, column and value."""
-    source = frame.attrs.get("source", "table")
-    missing = [c for c in STABILISATION_COLUMNS if c not in frame.columns]
-    if missing:
-        raise ConfigError(f"{source}: missing column(s) {', '.join(missing)}; export the run with --series")
-    table = numeric_columns(frame, STABILISATION_COLUMNS[1:])
-    table = numeric_columns(table, CONDITION_COLUMNS, required=False)
-    table["pose"] = frame["pose"].astype(str).str.strip()
-    table.attrs["source"] = source
-    # row order carries no meaning: each arrival is read in time order (a repeated time is refused downstream)
-    return table.sort_values(["cycle", "t_s"], kind="stable")
-
-
-def stabilisation_results(table: pd.DataFrame, bands_mm: Sequence[float], hysteresis_mm: float) -> StabilisationResults:
-    """Stabilisation time and overshoot per limit band and per pose (and condition) of a checked streamed-arrival
-    table (:func:`stabilisation_table`): the arrivals of each group, one per cycle, through
-    :func:`~bench.metrology.iso9283_dynamics.pose_stabilisation`. The one grouping that ``bench analyze
-    stabilisation`` and the stabilisation report share.
-    """
-    series = {
-        label: tuple(
-            (int(cycle), arrival["t_s"].to_numpy(float), arrival[list(_ATTAINED)].to_numpy(float))
-            for cycle, arrival in rows.groupby("cycle", sort=True)
-        )
-        for label, _, _, rows in condition_groups(table)
-    }
-    bands: dict[float, dict[str, PoseStabilisation | str]] = {}
-    for band in bands_mm:
-        per_group = bands[float(band)] = {}
-        for label, arrivals in series.items():
-            try:
-                per_group[label] = pose_stabilisation(
-                    [(t, p) for _, t, p in arrivals], band_mm=band, hysteresis_mm=hysteresis_mm
-                )
-            except InsufficientData as exc:
-                per_group[label] = str(exc)
-    return StabilisationResults(series, bands)

@@ -8,9 +8,11 @@ scatter (S, used by RP) and the uncertainty of a barycentre (S/√n) are differe
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from bench.errors import ConfigError
 from bench.metrology._validation import as_points, as_series, require_count
@@ -53,7 +55,10 @@ class Measured:
     unit: str
 
     def __str__(self) -> str:
-        return f"{self.value:.4g} ± {self.expanded_uncertainty:.2g} {self.unit} (k = {self.coverage_factor:g})"
+        """``value ± U unit (k = ...)`` rounded by U (GUM 7.2.6, :func:`bench.metrology.formatting.format_measured`)."""
+        from bench.metrology.formatting import format_measured  # formatting imports nothing of bench: no cycle
+
+        return f"{format_measured(self.value, self.expanded_uncertainty)} {self.unit} (k = {self.coverage_factor:g})"
 
 
 @dataclass(frozen=True)
@@ -67,7 +72,7 @@ class ConfidenceInterval:
     n: int
 
 
-def type_a_of_mean(samples) -> float:
+def type_a_of_mean(samples: ArrayLike) -> float:
     """Type A standard uncertainty of a mean, u(x̄) = s / √n (GUM 4.2.3); n >= 2."""
     values = as_series("samples", samples, min_count=2)
     return float(values.std(ddof=1) / np.sqrt(len(values)))
@@ -107,7 +112,7 @@ def expanded(value: float, standard_uncertainty: float, *, unit: str, k: float =
     return Measured(float(value), float(k * standard_uncertainty), float(k), unit)
 
 
-def welch_satterthwaite(contributions, degrees_of_freedom) -> float:
+def welch_satterthwaite(contributions: ArrayLike, degrees_of_freedom: ArrayLike) -> float:
     """Effective degrees of freedom ν_eff = u_c⁴ / Σ (c_i u_i)⁴ / ν_i (GUM G.2b); ν_i = inf for Type B."""
     u = np.asarray(contributions, dtype=float)
     nu = np.asarray(degrees_of_freedom, dtype=float)
@@ -117,7 +122,7 @@ def welch_satterthwaite(contributions, degrees_of_freedom) -> float:
     return float("inf") if denominator == 0 else float(np.sum(u**2) ** 2 / denominator)
 
 
-def mean_confidence_interval(values, *, level: float = 0.95) -> ConfidenceInterval:
+def mean_confidence_interval(values: ArrayLike, *, level: float = 0.95) -> ConfidenceInterval:
     """Confidence interval of a mean over k runs with Student's t_{(1+level)/2, k-1}, never 1.96.
 
     Examples
@@ -138,7 +143,9 @@ def mean_confidence_interval(values, *, level: float = 0.95) -> ConfidenceInterv
     return ConfidenceInterval(mean, mean - half, mean + half, t, len(data))
 
 
-def accuracy_uncertainty(attained_mm, commanded_mm, *, instrument_u_mm: float = 0.0, k: float = 2.0):
+def accuracy_uncertainty(
+    attained_mm: ArrayLike, commanded_mm: ArrayLike, *, instrument_u_mm: float = 0.0, k: float = 2.0
+) -> tuple[Measured, tuple[Measured, ...]]:
     """Expanded uncertainty of AP_P and of each signed AP axis (iso9283.md §8.3).
 
     .. math::
@@ -213,7 +220,9 @@ def coverage_factor(k: float, degrees_of_freedom: float) -> float:
     return float(stdtrit(degrees_of_freedom, (1.0 + level) / 2.0))
 
 
-def bootstrap_uncertainty(statistic, attained, *, resamples: int = 1000, seed: int = 0) -> float:
+def bootstrap_uncertainty(
+    statistic: Callable[[np.ndarray], float], attained: ArrayLike, *, resamples: int = 1000, seed: int = 0
+) -> float:
     """Standard uncertainty of a non-linear statistic (e.g. RP) from a bootstrap over cycles (JCGM 101 spirit).
 
     Parameters
@@ -239,7 +248,9 @@ def bootstrap_uncertainty(statistic, attained, *, resamples: int = 1000, seed: i
 _BOOTSTRAP_CHUNK_CYCLES = 1_000_000
 
 
-def repeatability_uncertainty(attained_mm, *, resamples: int = 1000, seed: int = 0, method: str = "auto") -> float:
+def repeatability_uncertainty(
+    attained_mm: ArrayLike, *, resamples: int = 1000, seed: int = 0, method: str = "auto"
+) -> float:
     """Standard uncertainty of RP_l: the measurement-model Monte Carlo at small n, the delta method above.
 
     ``method = "bootstrap"``: the same estimate as ``bootstrap_uncertainty(lambda p: pose_repeatability(p).rp_mm,
@@ -277,7 +288,7 @@ def repeatability_uncertainty(attained_mm, *, resamples: int = 1000, seed: int =
     return float(rp.std(ddof=1))
 
 
-def repeatability_uncertainty_delta(attained_mm) -> float:
+def repeatability_uncertainty_delta(attained_mm: ArrayLike) -> float:
     """Standard uncertainty of RP_l = l̄ + 3 S_l by the nonparametric delta method (infinitesimal jackknife).
 
     With the barycentre p̄, l_j = ‖p_j - p̄‖ and unit vectors u_j = (p_j - p̄)/l_j, the empirical influence of

@@ -13,6 +13,7 @@ import math
 from functools import lru_cache
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from bench.metrology._validation import as_points, require_count
 
@@ -80,7 +81,7 @@ def _standard_sds(seed: int, size: tuple[int, ...]) -> np.ndarray:
     return sds
 
 
-def repeatability_uncertainty_model(attained_mm, *, k: float = 2.0) -> float:
+def repeatability_uncertainty_model(attained_mm: ArrayLike, *, k: float = 2.0) -> float:
     """Uncertainty of RP_l from a Monte Carlo of its measurement model (JCGM 101:2008, GUM Supplement 1).
 
     The measurand is the population value RP = E[l] + 3 SD[l], l the distance of an attained position from the
@@ -124,7 +125,7 @@ def _mean_sd_relative_half_width(n: int, shape: tuple[float, ...], level: float)
     return float(np.quantile(np.abs(estimates - sigmas.mean()) / estimates, level))
 
 
-def mean_sd_uncertainty(readings, *, k: float = 2.0) -> float:
+def mean_sd_uncertainty(readings: ArrayLike, *, k: float = 2.0) -> float:
     """Uncertainty of σ̄, the mean over targets of the per-target sample SDs (Groover's repeatability 3 σ̄), from
     a Monte Carlo of its measurement model (JCGM 101), as :func:`repeatability_uncertainty_model` does for RP.
 

@@ -21,7 +21,8 @@ import numpy as np
 
 from bench.errors import ConfigError
 from bench.metrology.documents import LADDER_KG, LADDER_LIFT_MM, PAYLOAD_FAILURE_KG
-from bench.metrology.mouse_calibration import mouse_calibration_moves
+from bench.metrology.formatting import format_measured
+from bench.metrology.mouse_calibration import counts_per_inch, mouse_calibration_moves
 from bench.protocols.base import Protocol, register
 from bench.protocols.kinematics import robot_model
 from bench.protocols.parameters import (
@@ -30,7 +31,6 @@ from bench.protocols.parameters import (
     FloatParameter,
     IntegerParameter,
 )
-from bench.sensors.calibration import MM_PER_INCH
 from bench.steps import (
     Capture,
     Checkpoint,
@@ -378,8 +378,8 @@ def mouse_calibration_text(params: dict[str, Any]) -> str:
     """One line of what a stored mouse calibration says: each scale with its U, and significant intercepts."""
     k = params.get("k", 2.0)
     scales = ", ".join(
-        f"{a} {params[f'{a}_mm_per_count']:.6f} ± {k * params[f'u_{a}_mm_per_count']:.1e} mm/count "
-        f"({MM_PER_INCH / params[f'{a}_mm_per_count']:.1f} cpi)"
+        f"{a} {format_measured(params[f'{a}_mm_per_count'], k * params[f'u_{a}_mm_per_count'])} mm/count "
+        f"({format_measured(*counts_per_inch(params[f'{a}_mm_per_count'], k * params[f'u_{a}_mm_per_count']))} cpi)"
         for a in "xy"
     )
     flagged = [f"{label} {value:+.2f} counts" for label, value in params.get("significant_intercepts", {}).items()]
@@ -413,12 +413,10 @@ def store_mouse_calibration(store: Any, run_id: int, name: str = "mouse") -> Any
         "matrix_mm_per_count": fit.a_mm_per_count.tolist(),
         "u_matrix_mm_per_count": fit.u_a_mm_per_count.tolist(),
     }
-    a, u = fit.a_mm_per_count, fit.u_a_mm_per_count
+    u_scales = fit.u_scale_mm_per_count(reference_u)
     for column, axis in enumerate("xy"):
-        scale = float(fit.scale_mm_per_count[column])
-        u_fit = float(np.sqrt(np.sum((a[:, column] / scale * u[:, column]) ** 2)))  # u(|A e_axis|), first order
-        params[f"{axis}_mm_per_count"] = scale
-        params[f"u_{axis}_mm_per_count"] = float(np.hypot(u_fit, reference_u * scale))
+        params[f"{axis}_mm_per_count"] = float(fit.scale_mm_per_count[column])
+        params[f"u_{axis}_mm_per_count"] = float(u_scales[column])
         params[f"{axis}_residual_sd_counts"] = float(fit.sigma_counts[column])
     params["mm_per_count"] = (params["x_mm_per_count"] + params["y_mm_per_count"]) / 2
     params["intercepts_counts"] = {label: fit.offsets_counts[i].tolist() for i, label in enumerate(fit.offset_labels)}

@@ -209,16 +209,80 @@ class _CubeProtocol(Protocol):
             )
 
 
+#: Fractions of ``approach_from_below_mm`` tried, in turn, for a pose whose pre-pose the pre-flight refuses: a
+#: D-optimal calibration pose may hold a leg within 0.14 mm of its window (C11 of examples/kinematic_calibration.toml,
+#: which 0.1 mm below passes).
+_APPROACH_FRACTIONS = (1.0, 0.5, 0.25, 0.1)
+
+
 @register
 class PoseAccuracy(_CubeProtocol):
-    """ISO 9283 7.2: pose accuracy AP and repeatability RP at P1-P5."""
+    """ISO 9283 7.2: pose accuracy AP and repeatability RP at P1-P5.
+
+    With ``approach_from_below_mm`` > 0 every visit first moves to the pose that far below (z), then up into it. On
+    the pkm5 every leg then extends into every pose (a leg lengthens by 0.57-1.0 mm per mm of z over the workspace:
+    2,000 reachable poses, the documented geometry), so each leg's backlash is taken up on the same side at every
+    arrival and acts as a constant offset, which a kinematic calibration identifies, instead of an error whose sign
+    follows the previous pose (docs/calibration.md, "Backlash"). A pose whose pre-pose the pre-flight refuses is
+    approached from a half, a quarter, else a tenth of that (``resolved()['approach_mm']`` gives each pose's);
+    without any the protocol is refused naming it.
+    """
 
     name = "iso9283_pose"
     version = "1"
     title = "ISO 9283 pose accuracy and repeatability (7.2.1, 7.2.2)"
+    approach_from_below_mm = FloatParameter(
+        0.0,
+        unit="mm",
+        minimum=0.0,
+        maximum=10.0,
+        description="arrive at each pose from this far below it (every pkm5 leg extending into it); 0: directly",
+    )
+
+    def validate(self) -> None:
+        super().validate()
+        self._below_mm = self._approach_drops() if self.approach_from_below_mm else {}
+
+    def _approach_drops(self) -> dict[str, float]:
+        """Per pose the largest of ``approach_from_below_mm`` x :data:`_APPROACH_FRACTIONS` whose pre-pose passes
+        the pre-flight; ConfigError naming a pose that has none."""
+        model = robot_model(self.robot)
+        width = len(model.target_fields)
+        labels = list(self._poses)
+        poses = np.array([list(self._poses[k]) + [0.0] * (width - len(self._poses[k])) for k in labels], dtype=float)
+        drops: dict[str, float] = {}
+        for fraction in _APPROACH_FRACTIONS:
+            drop = self.approach_from_below_mm * fraction
+            below = poses - np.eye(width)[2] * drop
+            for label, ok in zip(labels, model.check(below).reachable):
+                if ok and label not in drops:
+                    drops[label] = drop
+        missing = [k for k in labels if k not in drops]
+        if missing:
+            raise ConfigError(
+                f"{self.source}: approach_from_below_mm = {self.approach_from_below_mm:g}: poses "
+                f"{', '.join(missing)} cannot be approached from below (the pre-pose "
+                f"{self.approach_from_below_mm * _APPROACH_FRACTIONS[-1]:g} mm below fails the pre-flight); "
+                "expected poses with room below them, or 0 (arrive directly)"
+            )
+        return drops
+
+    def resolved(self) -> dict[str, Any]:
+        out = super().resolved()
+        if getattr(self, "_below_mm", None):
+            out["approach_mm"] = dict(self._below_mm)
+        return out
 
     def steps(self) -> Plan:
         yield from self._cycles(self._iso_order())
+
+    def _visit(self, label: str, target: tuple[float, ...], cycle: int, velocity: float, load: float) -> Plan:
+        """From below (the pre-pose) when asked, then move, settle, capture."""
+        if label in self._below_mm:
+            below = list(target)
+            below[2] -= self._below_mm[label]
+            yield Move(tuple(below), velocity, f"{label}/below")
+        yield from super()._visit(label, target, cycle, velocity, load)
 
 
 @register

@@ -5,8 +5,9 @@ measured error, ``c_{k+1} = c_k - (m_k - T)`` on every position axis the instrum
 within ``tolerance_mm`` on each measured axis or ``iterations`` moves were made. Every iteration is a ``pose``
 sample of its own: pose = the target's label, cycle = the iteration, ``cmd_*`` = the command of that iteration (in
 iteration 1 the target itself), so the stored run holds each iteration's error, measured - the cycle-1 command.
-The plan adapts to the readings: the pre-flight checks the first command of every target, and the driver
-pre-flights every corrected one before it moves.
+The plan adapts to the readings: the run's pre-flight proves the first command of every target, and the runner
+checks every corrected one alone, by the same model and geometry, before it is commanded
+(:meth:`bench.protocols.plan.PlanSummary.require`).
 """
 
 from __future__ import annotations

@@ -10,16 +10,15 @@ times, the captures (a streamed arrival records for its ``hold_s``) and the prom
 from __future__ import annotations
 
 from collections import Counter
-from collections.abc import Iterator
-from dataclasses import dataclass, replace
+from collections.abc import Iterator, Mapping
 from typing import Any
 
 import numpy as np
 
-from bench.errors import UnreachableTarget
 from bench.protocols.base import Protocol
-from bench.protocols.kinematics import DEFAULT_SINGULARITY_THRESHOLD, robot_model
-from bench.steps import ActuatorMove, Capture, Move, Prompt, Settle, Step
+from bench.protocols.kinematics import DEFAULT_SINGULARITY_THRESHOLD
+from bench.protocols.summary import AxisStrokes, PlanSummary, StrokeTally, model_of, target_key
+from bench.steps import ActuatorMove, Capture, Checkpoint, Move, Prompt, Settle, Step
 
 __all__ = [
     "AxisStrokes",
@@ -29,7 +28,9 @@ __all__ = [
     "iterate",
     "preflight",
     "required_capabilities",
+    "step_stores_sample",
     "summarize",
+    "walk",
 ]
 
 #: Time a capture and a prompt are assumed to take in the estimate, s (a prompt waits for a person).
@@ -57,15 +58,33 @@ def dry_run_result(step: Step) -> Any:
 
 def iterate(protocol: Protocol, *, final: bool = True) -> Iterator[Step]:
     """Every step of ``protocol`` (then of its clean-up plan), driven with :func:`dry_run_result`."""
-    for plan in (protocol.steps(), protocol.final_steps()) if final else (protocol.steps(),):
-        reply = None
+    for _, step in walk(protocol, final=final):
+        yield step
+
+
+def walk(
+    protocol: Protocol, *, final: bool = True, stored: Mapping[int, Any] | None = None
+) -> Iterator[tuple[int | None, Step]]:
+    """``(index, step)`` for every step of ``protocol``'s plan (then ``(None, step)`` for its clean-up plan), driven
+    with ``stored[index]`` where a sample is stored (a resumed run: its plan as it ran) and :func:`dry_run_result`
+    elsewhere."""
+    replies = stored or {}
+    for main in (True, False) if final else (True,):
+        plan = protocol.steps() if main else protocol.final_steps()
+        reply, index = None, 0
         while True:
             try:
                 step = plan.send(reply)
             except StopIteration:
                 break
-            yield step
-            reply = dry_run_result(step)
+            yield (index if main else None), step
+            reply = replies[index] if main and index in replies and step_stores_sample(step) else dry_run_result(step)
+            index += 1
+
+
+def step_stores_sample(step: Step) -> bool:
+    """A step whose result is a stored sample: a capture, or a prompt for a reading."""
+    return isinstance(step, Capture) or (isinstance(step, Prompt) and step.field is not None)
 
 
 #: The capability a capture of each kind needs from the station (the kinds the protocol library captures).
@@ -82,115 +101,24 @@ _CAPTURE_NEEDS = {
 def required_capabilities(protocol: Protocol) -> frozenset[str]:
     """What a station must provide to run ``protocol``, read from its own plan (so it cannot drift from the steps):
     a capability per capture kind, ``reading`` when an operator reading is prompted, and the fixture the protocol
-    moves (``actuator_bench`` or ``assembled``). Names are the keys of :data:`bench.rigs.station.CAPABILITY_KEYS`."""
-    needs = {str(getattr(protocol, "fixture", "assembled")).replace("-", "_")}
+    moves (``actuator_bench`` or ``assembled``). A station provides them by its fixture and its sensors
+    (:meth:`bench.rigs.station.Station.capabilities`).
+    :attr:`PlanSummary.capabilities` is the same, from the pre-flight's walk."""
+    needs = _fixture_need(protocol)
     for step in iterate(protocol):
-        if isinstance(step, Capture):
-            needs.add(_CAPTURE_NEEDS.get(step.kind, step.kind))
-        elif isinstance(step, Prompt) and step.field is not None:
-            needs.add("reading")
+        _add_need(needs, step)
     return frozenset(needs)
 
 
-@dataclass(frozen=True)
-class AxisStrokes:
-    """The strokes one actuator of the actuator bench will be commanded to, pre-flighted against its window."""
-
-    axis: int
-    window_mm: tuple[float, float]  #: the stroke window the driver enforces, mm from full retraction
-    strokes_mm: tuple[float, ...]  #: distinct commanded strokes, ascending
-    moves: int
-    move_s: float  #: estimated time of its moves at the commanded velocity
-    refused: tuple[str, ...] = ()  #: one line per refused move
+def _fixture_need(protocol: Protocol) -> set[str]:
+    return {str(getattr(protocol, "fixture", "assembled")).replace("-", "_")}
 
 
-@dataclass(frozen=True)
-class PlanSummary:
-    """What a protocol will do: counts, distinct targets and their pre-flight, and the estimated duration."""
-
-    protocol: str
-    robot: str
-    counts: dict[str, int]
-    labels: tuple[str, ...]
-    targets: np.ndarray
-    reachable: np.ndarray
-    reasons: tuple[str, ...]
-    proximity: np.ndarray
-    move_s: float
-    settle_s: float
-    prompt_s: float
-    capture_s: float
-    #: per actuator of the actuator bench, its commanded strokes and their pre-flight
-    strokes: tuple[AxisStrokes, ...] = ()
-    #: settings beyond a documented failure or limit (:meth:`bench.protocols.base.Protocol.limit_warnings`)
-    warnings: tuple[str, ...] = ()
-
-    @property
-    def actuator_problems(self) -> tuple[str, ...]:
-        """Refused actuator-bench moves (stroke outside the actuator's window), one line each."""
-        return tuple(line for axis in self.strokes for line in axis.refused)
-
-    @property
-    def estimated_s(self) -> float:
-        return self.move_s + self.settle_s + self.prompt_s + self.capture_s
-
-    @property
-    def ok(self) -> bool:
-        return bool(np.all(self.reachable)) and not self.actuator_problems
-
-    def problems(self) -> list[str]:
-        """One line per refused target, naming its label and coordinates."""
-        return [
-            f"target {self.labels[i]} {_describe(self.targets[i], self.robot)} is not reachable: {self.reasons[i]}"
-            for i in np.flatnonzero(~self.reachable)
-        ] + list(self.actuator_problems)
-
-    def lines(self) -> list[str]:
-        """The human-readable summary printed by ``bench run --dry-run``."""
-        out = [
-            f"protocol {self.protocol} on {self.robot}: " + ", ".join(f"{n} {kind}" for kind, n in self.counts.items())
-        ]
-        out.append(
-            f"estimated duration {_hms(self.estimated_s)} (moves {_hms(self.move_s)}, settling "
-            f"{_hms(self.settle_s)}, captures {_hms(self.capture_s)}, prompts {_hms(self.prompt_s)}) at "
-            "real speed"
-        )
-        out.extend(f"WARNING: {line}" for line in self.warnings)
-        if self.labels or not self.strokes:
-            out.append(f"{len(self.labels)} distinct targets:")
-        for i, label in enumerate(self.labels):
-            status = "ok" if self.reachable[i] else f"REFUSED: {self.reasons[i]}"
-            out.append(
-                f"  {label:>8}  {_describe(self.targets[i], self.robot)}  "
-                f"singularity proximity {self.proximity[i]:.3f}  {status}"
-            )
-        if self.strokes:
-            moves = sum(a.moves for a in self.strokes)
-            out.append(
-                f"actuator bench: {len(self.strokes)} actuator(s), {moves} single-axis moves "
-                f"({_hms(sum(a.move_s for a in self.strokes))}); strokes in mm from full retraction:"
-            )
-        for a in self.strokes:
-            status = (
-                "ok"
-                if not a.refused
-                else f"REFUSED: {a.refused[0]}" + (f" (and {len(a.refused) - 1} more)" if len(a.refused) > 1 else "")
-            )
-            out.append(
-                f"  actuator {a.axis}  strokes {', '.join(f'{v:g}' for v in a.strokes_mm)} mm  window "
-                f"{a.window_mm[0]:g}-{a.window_mm[1]:g} mm  {a.moves} moves  {_hms(a.move_s)}  {status}"
-            )
-        return out
-
-
-def _describe(target: np.ndarray, robot: str) -> str:
-    fields = robot_model(robot).target_fields
-    return "(" + ", ".join(f"{f.rsplit('_', 1)[0]} {v:.2f} {f.rsplit('_', 1)[1]}" for f, v in zip(fields, target)) + ")"
-
-
-def _hms(seconds: float) -> str:
-    seconds = round(seconds)
-    return f"{seconds // 3600}:{seconds // 60 % 60:02d}:{seconds % 60:02d}"
+def _add_need(needs: set[str], step: Step) -> None:
+    if isinstance(step, Capture):
+        needs.add(_CAPTURE_NEEDS.get(step.kind, step.kind))
+    elif isinstance(step, Prompt) and step.field is not None:
+        needs.add("reading")
 
 
 #: Moves timed together in :func:`summarize`: the dry run holds one such chunk, never the whole plan, so a plan of
@@ -224,40 +152,57 @@ class _MoveTimer:
         return self.seconds
 
 
-def summarize(protocol: Protocol, *, singularity_threshold: float | None = None, geometry: Any = None) -> PlanSummary:
-    """Dry-run ``protocol``: count its steps, pre-flight every distinct target, estimate its duration.
+def summarize(
+    protocol: Protocol,
+    *,
+    singularity_threshold: float | None = None,
+    geometry: Any = None,
+    stored: Mapping[int, Any] | None = None,
+) -> PlanSummary:
+    """Dry-run ``protocol`` in one walk of its plan: count its steps and samples, pre-flight every distinct target
+    and actuator stroke, estimate its duration, and (``stored``: the samples of a run being resumed, by step index)
+    find the step a resume acts from.
 
     ``singularity_threshold`` defaults to the protocol's ``min_inverse_condition``; ``geometry`` (default: the
-    documented one) is the robot's geometry under a kinematic calibration in force. The plan is streamed: memory
-    holds its distinct targets and strokes and one chunk of moves (:data:`_MOVES_PER_CHUNK`), whatever its length.
+    documented one) is the geometry the robot commands by (a kinematic calibration in force). The plan is streamed:
+    memory holds its distinct targets and strokes and one chunk of moves (:data:`_MOVES_PER_CHUNK`), whatever its
+    length.
     """
     if singularity_threshold is None:
         singularity_threshold = getattr(protocol, "min_inverse_condition", DEFAULT_SINGULARITY_THRESHOLD)
-    model = robot_model(protocol.robot)
-    if geometry is not None:
-        model = replace(model, geometry=geometry)
+    model = model_of(protocol.robot, geometry)
     counts: Counter[str] = Counter()
     timer = _MoveTimer(model)
-    strokes = _StrokeTally()
+    strokes = StrokeTally(geometry)
     distinct: dict[tuple[float, ...], str] = {}
     settle_s = captures_s = 0.0
-    width = len(model.target_fields)
+    samples = readings = checkpoint = 0
+    missing = None
+    needs = _fixture_need(protocol)
     names: dict[type, str] = {}  # per step type, its count's name ("moves")
-    for step in iterate(protocol):
+    for index, step in walk(protocol, stored=stored):
         kind = type(step)
         counts[names.get(kind) or names.setdefault(kind, kind.__name__.lower() + "s")] += 1
+        if index is not None and missing is None:  # where a resume acts from: the last checkpoint before a gap
+            if isinstance(step, Checkpoint):
+                checkpoint = index
+            elif step_stores_sample(step) and index not in (stored or {}):
+                missing = index
         if isinstance(step, Move):
-            target = tuple(step.target)
-            key = target if len(target) == width else tuple(model.as_targets([target])[0])  # (1 == 1.0 as keys)
+            key = target_key(model, step.target)
             if key not in distinct:
                 distinct[key] = step.label or str(counts["moves"] - 1)
-            timer.add(target, step.velocity_pct)
+            timer.add(key, step.velocity_pct)
         elif isinstance(step, ActuatorMove):
             strokes.add(step)
         elif isinstance(step, Settle):
             settle_s += step.duration_s
         elif isinstance(step, Capture):
             captures_s += capture_s(step)
+        if index is not None and step_stores_sample(step):
+            samples += 1
+            readings += isinstance(step, Prompt)
+        _add_need(needs, step)
     targets = np.array(list(distinct), dtype=float).reshape(-1, len(model.target_fields))
     check = model.check(targets, singularity_threshold)
     move_s = timer.flush() if check.reachable.all() else 0.0
@@ -277,61 +222,16 @@ def summarize(protocol: Protocol, *, singularity_threshold: float | None = None,
         captures_s,
         axes,
         protocol.limit_warnings(),
+        samples=samples,
+        readings=readings,
+        resume_at=None if missing is None else checkpoint,
+        stored_samples=len(stored or {}),
+        capabilities=frozenset(needs),
+        model=model,
+        threshold=singularity_threshold,
     )
-
-
-class _StrokeTally:
-    """Per actuator, in order of first use: the distinct strokes of a pkm5's actuator-bench moves, each checked
-    exactly as the driver's ``move_actuator`` checks it (``steps_for_stroke``: the 0-66 mm window), and the time of
-    its moves from the home stroke at the rated speed scaled by the commanded velocity; fed one move at a time."""
-
-    def __init__(self) -> None:
-        self.per_axis: dict[Any, dict[str, Any]] = {}
-        self.where: dict[int, int] | None = None
-
-    def add(self, move: ActuatorMove) -> None:
-        from bench.robots.pkm5 import RATED_SPEED_STEPS_S
-        from bench.robots.pkm5_kinematics import steps_for_stroke
-        from motion import pkm5
-
-        geometry = pkm5.DEFAULT_GEOMETRY
-        if self.where is None:
-            self.where = dict(enumerate(np.round(geometry.home_stroke_mm / geometry.mm_per_step).astype(int), start=1))
-        axis = self.per_axis.setdefault(move.axis, {"strokes": set(), "moves": 0, "s": 0.0, "refused": []})
-        axis["moves"] += 1
-        axis["strokes"].add(float(move.stroke_mm))
-        try:
-            target = abs(steps_for_stroke(move.axis, move.stroke_mm, geometry))
-        except UnreachableTarget as exc:
-            axis["refused"].append(f"target {move.label or 'actuator move'}: {exc}")
-            return
-        speed = max(1.0, RATED_SPEED_STEPS_S * move.velocity_pct / 100.0)
-        axis["s"] += abs(target - self.where[move.axis]) / speed
-        self.where[move.axis] = target
-
-    def axes(self) -> tuple[AxisStrokes, ...]:
-        from bench.robots.pkm5_kinematics import stroke_range_mm
-        from motion import pkm5
-
-        where = self.where or {}
-        return tuple(
-            AxisStrokes(
-                number,
-                stroke_range_mm(number, pkm5.DEFAULT_GEOMETRY) if number in where else (float("nan"),) * 2,
-                tuple(sorted(a["strokes"])),
-                a["moves"],
-                a["s"],
-                tuple(a["refused"]),
-            )
-            for number, a in self.per_axis.items()
-        )
 
 
 def preflight(protocol: Protocol, **kwargs: Any) -> PlanSummary:
     """:func:`summarize`, raising ``UnreachableTarget`` naming every refused target before anything moves."""
-    summary = summarize(protocol, **kwargs)
-    if not summary.ok:
-        problems = summary.problems()
-        more = f" (and {len(problems) - 1} more)" if len(problems) > 1 else ""
-        raise UnreachableTarget(f"{protocol.source}: {problems[0]}{more}")
-    return summary
+    return summarize(protocol, **kwargs).refuse_unless_ok(protocol.source)

@@ -20,6 +20,13 @@ thread or a signal handler, are honoured at safe points:
   operator: <prompt>", resumable);
 - an exception (or Ctrl-C) stops the robot (status ``failed``, or ``aborted`` for Ctrl-C).
 
+Before anything is stored or moved, the runner pre-flights the plan (:meth:`Runner.preflight`) by the model of the
+rig's own robot and the geometry it commands by (a kinematic calibration in force included), in one walk of the plan
+that also counts its samples and, for a resume, finds the step to act from. Every ``Move`` and ``ActuatorMove`` is
+then commanded only to a target that walk proved; a target the plan chooses during the run (an adaptive protocol's
+corrected command) is checked alone by the same model before it is commanded, and refused (the run fails) when it
+is out of reach. No other module pre-flights for the runner.
+
 Each sample's commit starts the moment it is taken and runs on the store's writer thread
 (:class:`bench.store.sample_writer.SampleWriter`) while the next ``Move`` and ``Settle`` steps go on (a
 ``Checkpoint`` queues the store's checkpoint behind it); the runner waits for both before anything else (the next
@@ -33,7 +40,7 @@ is stored or resumed until its status is settled; resuming a run another live pr
 configuration, replays it without acting up to the last ``Checkpoint`` before the first missing sample, then acts
 from there, skipping every step whose sample is already stored (its stored values are sent back instead).
 
-A rig whose instruments are relative (the mice) brings a registration record (``rig.extra["registration"]``, made by
+A rig whose instruments are relative (the mice) brings a registration record (``rig.registration``, made by
 :mod:`bench.rigs.registration`); the runner files it in the run's settings, ``registrations``, one per segment (the
 start and every resume), with the step it acts from. A sample belongs to the last registration stored before it
 (by ``utc`` against the sample's ``wall_utc``).
@@ -47,16 +54,17 @@ continues after the last stored ``t_s``, so ``t_s`` never decreases within a run
 
 from __future__ import annotations
 
-import enum
 import logging
-import threading
-from collections.abc import Callable
-from dataclasses import dataclass
-from typing import Any, Self
+from collections.abc import Callable, Mapping
+from typing import Any
 
-from bench.errors import BenchError, ConfigError, PromptWithdrawn
-from bench.protocols.base import Protocol, protocol_from_config
-from bench.protocols.plan import iterate, preflight
+from bench.errors import ConfigError, PromptWithdrawn
+from bench.protocols.base import Protocol
+from bench.protocols.plan import PlanSummary, preflight
+from bench.protocols.progress import ProgressBar
+from bench.protocols.recording import SampleRecorder
+from bench.protocols.resume import resumable_protocol, stored_replies
+from bench.protocols.run_state import TRANSITIONS, RunControl, RunResult, RunState, TransitionError
 from bench.rigs.interfaces import Entry, Rig
 from bench.steps import (
     ActuatorMove,
@@ -70,83 +78,13 @@ from bench.steps import (
     Step,
 )
 from bench.store import Store
-from bench.store.descriptors import validate_sample
-from bench.store.sample_writer import SampleWriter
 
-__all__ = ["TRANSITIONS", "RunResult", "RunState", "Runner", "TransitionError", "resume_point"]
+__all__ = ["TRANSITIONS", "RunResult", "RunState", "Runner", "TransitionError"]
 
 _log = logging.getLogger(__name__)
 
 
-class RunState(enum.Enum):
-    IDLE = "idle"
-    RUNNING = "running"
-    PAUSED = "paused"
-    STOPPING = "stopping"
-    ABORTING = "aborting"
-    HALTING = "halting"
-    FINISHED = "finished"
-
-
-S = RunState
-#: Legal state transitions of the runner.
-TRANSITIONS: dict[RunState, frozenset[RunState]] = {
-    S.IDLE: frozenset({S.RUNNING}),
-    S.RUNNING: frozenset({S.PAUSED, S.STOPPING, S.ABORTING, S.HALTING, S.FINISHED}),
-    S.PAUSED: frozenset({S.RUNNING, S.STOPPING, S.ABORTING, S.HALTING}),
-    S.STOPPING: frozenset({S.ABORTING, S.HALTING, S.FINISHED}),
-    S.ABORTING: frozenset({S.HALTING, S.FINISHED}),
-    S.HALTING: frozenset({S.FINISHED}),
-    S.FINISHED: frozenset(),
-}
-
-
-class TransitionError(BenchError):
-    """A request the runner's current state does not allow (e.g. resume while running)."""
-
-
-@dataclass(frozen=True)
-class RunResult:
-    """How a run ended: ``exit_status`` is the stored status (completed, aborted, failed)."""
-
-    run_id: int
-    exit_status: str
-    reason: str | None
-    samples: int
-    exception: BaseException | None = None
-
-
-def _sample_steps(protocol: Protocol, stored: dict[int, Any]) -> tuple[int | None, int]:
-    """(index of the first sample step not stored or None, index of the last Checkpoint before it or 0)."""
-    plan, reply, index, checkpoint = protocol.steps(), None, 0, 0
-    while True:
-        try:
-            step = plan.send(reply)
-        except StopIteration:
-            return None, checkpoint
-        if isinstance(step, Checkpoint):
-            checkpoint = index
-        if isinstance(step, (Capture, Prompt)) and step_stores_sample(step):
-            if index not in stored:
-                return index, checkpoint
-            reply = stored[index]
-        else:
-            reply = None
-        index += 1
-
-
-def step_stores_sample(step: Step) -> bool:
-    return isinstance(step, Capture) or (isinstance(step, Prompt) and step.field is not None)
-
-
-def resume_point(protocol: Protocol, stored: dict[int, Any]) -> int | None:
-    """Index of the step a resumed run acts from (the last Checkpoint before the first missing sample), or None
-    when every sample is stored."""
-    missing, checkpoint = _sample_steps(protocol, stored)
-    return None if missing is None else checkpoint
-
-
-class Runner:
+class Runner(RunControl):
     """Runs protocols on a rig into a store.
 
     Parameters
@@ -171,6 +109,8 @@ class Runner:
     ----------
     current_step : Step or None
         The step being performed (None between steps), e.g. for a window to show what the rig is doing.
+    plan : PlanSummary or None
+        The run's pre-flight (its counts, targets and duration; set before ``on_start``).
     """
 
     def __init__(
@@ -189,68 +129,17 @@ class Runner:
         self.on_pause = on_pause or (lambda runner: runner.resume())
         self.on_start = on_start
         self.on_sample = on_sample
-        self.state = RunState.IDLE
-        self._lock = threading.Lock()
-        self._wake = threading.Event()  # set to cut a Settle short (abort, halt, emergency stop)
-        self._pause_requested = False
-        self._emergency = False
-        self._reason: str | None = None
+        super().__init__()
         self.run_id: int | None = None
         self.current_step: Step | None = None
         self.samples_total = 0
         self.samples_stored = 0
-        self._bar: _Progress | None = None
-        self._writer: SampleWriter | None = None
+        self._bar: ProgressBar | None = None
+        self._recorder: SampleRecorder | None = None
         self._payload = MountedPayload()  # what this run segment knows is on the end effector
+        self.plan: PlanSummary | None = None  # the run's pre-flight: what it proved reachable
 
-    # ---- requests --------------------------------------------------------------------------------------------
-
-    def _transition(self, new: RunState) -> None:
-        with self._lock:
-            self._transition_locked(new)
-
-    def _transition_locked(self, new: RunState) -> None:
-        if new not in TRANSITIONS[self.state]:
-            raise TransitionError(f"runner: cannot go from {self.state.value} to {new.value}")
-        _log.info("runner: %s -> %s", self.state.value, new.value)
-        self.state = new
-
-    def _end(self, new: RunState, reason: str) -> None:
-        """Go to an ending state with ``reason``; a refused request leaves the reason of the current end alone."""
-        with self._lock:
-            self._transition_locked(new)
-            self._reason = reason
-
-    @property
-    def pause_requested(self) -> bool:
-        """A pause is asked for and the run has not reached its checkpoint yet."""
-        return self._pause_requested
-
-    def request_pause(self) -> None:
-        """Pause at the next Checkpoint."""
-        if self.state is not RunState.RUNNING:
-            raise TransitionError(f"runner: cannot pause while {self.state.value}")
-        self._pause_requested = True
-
-    def resume(self) -> None:
-        """Leave PAUSED and continue."""
-        if self.state is not RunState.PAUSED:
-            raise TransitionError(f"runner: cannot resume while {self.state.value}")
-        self._transition(RunState.RUNNING)
-
-    def stop(self, reason: str = "stopped by the operator") -> None:
-        """End cleanly at the next Checkpoint."""
-        self._end(RunState.STOPPING, reason)
-
-    def abort(self, reason: str = "aborted by the operator") -> None:
-        """Stop the robot after the current step (a Settle is cut short) and end; clean-up steps still run."""
-        self._end(RunState.ABORTING, reason)
-        self._wake.set()
-
-    def halt(self, reason: str = "halted by the operator") -> None:
-        """Stop the robot after the current step (a Settle is cut short) and end without clean-up steps."""
-        self._end(RunState.HALTING, reason)
-        self._wake.set()
+    # ---- requests (pause, resume, stop, abort, halt: bench.protocols.run_state.RunControl) ------------------
 
     def emergency_stop(self, reason: str = "emergency stop") -> None:
         """Stop the robot now and end the run as soon as the current step returns, with nothing more run.
@@ -275,11 +164,15 @@ class Runner:
 
     # ---- running ---------------------------------------------------------------------------------------------
 
-    def run(self, protocol: Protocol, *, campaign: str | None = None) -> RunResult:
-        """Pre-flight ``protocol``, store a new run, perform it; returns how it ended."""
-        preflight(protocol)
+    def run(self, protocol: Protocol, *, campaign: str | None = None, plan: PlanSummary | None = None) -> RunResult:
+        """Pre-flight ``protocol`` by this rig's robot, store a new run, perform it; returns how it ended.
+
+        ``plan``: the pre-flight of this very protocol made before the rig opened (``bench run`` needs its
+        capabilities first); its targets are then checked again by this rig's geometry without a second walk.
+        """
+        plan = self.preflight(protocol, earlier=plan)
         settings = self.rig.settings()
-        registration = settings.pop("registration", None)
+        registration = self.rig.registration
         if registration is not None:  # segment 1 (bench.rigs.registration); a resume appends its own
             settings["registrations"] = [{**registration, "segment": 1, "from_step": 0}]
         run_id = self.store.start_run(
@@ -291,36 +184,47 @@ class Runner:
             calibration_ids=self.rig.calibration_ids,
             campaign=campaign,
         )
-        return self._perform(protocol, run_id, stored={}, start_at=0)
+        return self._perform(protocol, plan, run_id, stored={}, start_at=0)
 
-    def resume_run(self, run_id: int) -> RunResult:
-        """Continue stored run ``run_id`` at its last checkpoint, without storing any sample twice."""
+    def preflight(
+        self, protocol: Protocol, stored: Mapping[int, Any] | None = None, *, earlier: PlanSummary | None = None
+    ) -> PlanSummary:
+        """The run's pre-flight, in one walk of the plan (:func:`bench.protocols.plan.preflight`), by the model of
+        this rig's robot and the geometry it commands by (a kinematic calibration in force included): every target
+        and stroke proved before anything moves, ``UnreachableTarget`` naming the refused ones otherwise; with
+        ``stored`` (a resume) the plan is walked as it ran. ``earlier``: a pre-flight of ``protocol`` already made
+        (with the same ``stored`` replies), whose distinct targets are checked again by this rig's geometry instead
+        of a walk."""
+        robot = self.rig.robot
+        if robot.kind != protocol.robot:
+            raise ConfigError(
+                f"{protocol.source}: robot = {protocol.robot!r}, but this rig's robot is {robot.kind!r}; expected "
+                "a rig of the protocol's robot"
+            )
+        made_alike = (protocol.name, robot.kind, len(stored or {}))
+        if earlier is not None and (earlier.protocol, earlier.robot, earlier.stored_samples) == made_alike:
+            again = earlier.checked_by(robot.geometry)
+            if again is not None:
+                return again.refuse_unless_ok(protocol.source)
+        return preflight(protocol, geometry=robot.geometry, stored=stored)
+
+    def resume_run(self, run_id: int, *, plan: PlanSummary | None = None) -> RunResult:
+        """Continue stored run ``run_id`` at its last checkpoint, without storing any sample twice. ``plan``: its
+        pre-flight made before the rig opened, with the stored replies (:func:`bench.protocols.resume.stored_replies`)
+        while this process owned the run."""
         self.store.claim(run_id)  # first: a run another live process drives is refused before anything is read
         try:
-            return self._resume_owned(run_id)
+            return self._resume_owned(run_id, plan)
         except BaseException:
             if self.state is RunState.IDLE:  # refused before it started: the ownership goes back at once
                 self.store.release(run_id)
             raise
 
-    def _resume_owned(self, run_id: int) -> RunResult:
+    def _resume_owned(self, run_id: int, earlier: PlanSummary | None) -> RunResult:
         record = self.store.run(run_id)
-        if record.status == "completed":
-            raise ConfigError(f"run {run_id}: already completed, nothing to resume")
-        protocol = protocol_from_config(record.config, source=f"run {run_id}", stored=True)
-        if protocol.version != record.protocol_version:
-            raise ConfigError(
-                f"run {run_id}: protocol {protocol.name} is now version {protocol.version}, the run "
-                f"used version {record.protocol_version}; cannot resume across versions"
-            )
-        if tuple(sorted(self.rig.calibration_ids)) != tuple(record.calibration_ids):
-            raise ConfigError(
-                f"run {run_id}: calibrations in force {sorted(self.rig.calibration_ids)} differ from "
-                f"the run's {list(record.calibration_ids)}; a run resumes only with the calibrations "
-                "it started with (a calibration stored since would change its numbers): start a new "
-                "run (bench run)"
-            )
-        preflight(protocol)
+        protocol = resumable_protocol(record, self.rig)
+        stored = stored_replies(self.store, run_id)
+        plan = self.preflight(protocol, stored, earlier=earlier)
         stored_base = record.settings.get("time_base", "wall s (runs stored before time bases were recorded)")
         if stored_base != self.rig.time_base():
             _log.warning(
@@ -329,9 +233,8 @@ class Runner:
                 stored_base,
                 self.rig.time_base(),
             )
-        stored = {s.step_index: self._reply_of(s) for s in self.store.samples(run_id)}
-        start_at = resume_point(protocol, stored)
-        registration = self.rig.extra.get("registration")
+        start_at = plan.resume_at
+        registration = self.rig.registration
         if registration is not None:  # a new segment: the instruments were registered again (bench.rigs.registration)
             self.store.add_registration(run_id, {**registration, "from_step": start_at})
         elif record.settings.get("registrations"):
@@ -340,29 +243,27 @@ class Runner:
                 "resume it on the rig that made it"
             )
         self.store.set_status(run_id, "running")
-        return self._perform(protocol, run_id, stored=stored, start_at=start_at if start_at is not None else 10**12)
+        return self._perform(
+            protocol, plan, run_id, stored=stored, start_at=start_at if start_at is not None else 10**12
+        )
 
-    @staticmethod
-    def _reply_of(sample: Any) -> Any:
-        if isinstance(sample.raw, dict) and "field" in sample.raw and "entered" in sample.raw:  # a prompt's reading
-            return sample.values[sample.raw["field"]]
-        return dict(sample.values)
-
-    def _perform(self, protocol: Protocol, run_id: int, *, stored: dict[int, Any], start_at: int) -> RunResult:
+    def _perform(
+        self, protocol: Protocol, plan: PlanSummary, run_id: int, *, stored: dict[int, Any], start_at: int
+    ) -> RunResult:
         self.run_id = run_id
+        self.plan = plan
         with self._lock:
             self._transition_locked(RunState.RUNNING)
             if self._emergency:  # stopped before the run started: it ends before its first step
                 self._transition_locked(RunState.HALTING)
-        status, exception = "completed", None
-        self._t_offset_s = max((s.t_s for s in self.store.samples(run_id)), default=0.0)
-        self._t_start = self.rig.clock()
-        self.samples_total, self.samples_stored = _count_samples(protocol), len(stored)
-        self._bar = _Progress(self.progress, total=self.samples_total, done=self.samples_stored, label=protocol.name)
-        self._writer = None
+        status = "completed"
+        exception: BaseException | None = None
+        self.samples_total, self.samples_stored = plan.samples, len(stored)
+        self._bar = ProgressBar(self.progress, total=self.samples_total, done=self.samples_stored, label=protocol.name)
+        self._recorder = None
         self._payload = MountedPayload()
         try:
-            self._writer = SampleWriter(self.store)
+            self._recorder = SampleRecorder(self.store, self.rig, run_id, self._durable)
             with self._bar:
                 self._call_hook(self.on_start, self)
                 self._loop(protocol.steps(), run_id, stored, start_at)
@@ -400,7 +301,7 @@ class Runner:
         finally:
             self.current_step = None
             self._shutdown()
-            failure = self._close_writer()
+            failure = None if self._recorder is None else self._recorder.close()  # None: it never opened
             if failure is not None and status != "failed":  # the last sample's commit failed: it is not stored
                 status, exception, self._reason = "failed", failure, f"{type(failure).__name__}: {failure}"
             elif failure is not None:  # both failed: the stored reason names the lost sample too
@@ -443,7 +344,8 @@ class Runner:
             if isinstance(step, Checkpoint) and not final and index >= start_at:
                 # the .db file alone holds every sample so far once this checkpoint has run on the writer thread,
                 # during the next move (the next sample is stored after it); a pause or an end waits for it here
-                self._writer.checkpoint()
+                assert self._recorder is not None, "a checkpoint outside a run"
+                self._recorder.checkpoint()
                 if self._pause_requested or self.state is not RunState.RUNNING:
                     self._await_commit()
                 if self._at_checkpoint(step):
@@ -492,11 +394,13 @@ class Runner:
         if isinstance(step, (Move, ActuatorMove)) and self.state is RunState.HALTING:
             return None  # an emergency stop came after the loop's check: never start a move after it
         if isinstance(step, Move):
+            assert self.plan is not None, "a move before the run's pre-flight"
+            self.plan.require(step)  # proved by the pre-flight, or (an adaptive plan's) checked alone now
             rig.robot.move_to(tuple(step.target), velocity_pct=step.velocity_pct)
             return None
         if isinstance(step, ActuatorMove):
-            if not hasattr(rig.robot, "move_actuator"):
-                raise ConfigError(f"{step!r}: this rig's robot has no actuator-bench mode")
+            assert self.plan is not None, "a move before the run's pre-flight"
+            self.plan.require(step)
             rig.robot.move_actuator(step.axis, step.stroke_mm, velocity_pct=step.velocity_pct)
             return None
         if isinstance(step, Settle):
@@ -507,9 +411,7 @@ class Runner:
         if isinstance(step, Capture):
             measured = rig.instrument.measure(step)
             values = {**step.commanded, **measured.values, **step.conditions}
-            self._store_sample(
-                run_id, index, values, kind=step.kind, pose=step.pose, cycle=step.cycle, raw=measured.raw
-            )
+            self._record(index, values, kind=step.kind, pose=step.pose, cycle=step.cycle, raw=measured.raw)
             return values
         if isinstance(step, Prompt):
             try:
@@ -527,9 +429,7 @@ class Runner:
                 raw = {"field": step.field, "entered": float(answer)}
                 if isinstance(answer, Entry):  # the text as typed (or the gauge's line), beside the value
                     raw["typed"] = answer.typed
-                self._store_sample(
-                    run_id, index, values, kind=step.kind, pose=step.pose or None, cycle=step.cycle or None, raw=raw
-                )
+                self._record(index, values, kind=step.kind, pose=step.pose or None, cycle=step.cycle or None, raw=raw)
             return answer
         if isinstance(step, Checkpoint):
             return None
@@ -543,64 +443,21 @@ class Runner:
         else:
             self._wake.wait(wait_s)
 
-    def _now_s(self) -> float:
-        """Seconds since the run started, in the rig's time base, after the last stored time of a resumed run."""
-        return self._t_offset_s + (self.rig.clock() - self._t_start) * self.rig.speed_factor
-
-    def _store_sample(
-        self,
-        run_id: int,
-        index: int,
-        values: dict[str, float],
-        *,
-        kind: str,
-        pose: str | None,
-        cycle: int | None,
-        raw: Any,
-    ) -> None:
-        t_s = self._now_s()
-        validate_sample(kind, values)  # a sample off its descriptor is a bug: refused, never stored
-        self._await_commit()  # (done already before the step) one sample in flight at a time, each reported once
-        sample = {
-            "step_index": index,
-            "kind": kind,
-            "pose": pose,
-            "cycle": cycle,
-            "t_s": t_s,
-            "values": values,
-            "raw": raw,
-        }
-        self._writer.add(
-            run_id, index, values=values, kind=kind, pose=pose, cycle=cycle, t_s=t_s, raw=raw, report=sample
-        )
+    def _record(self, index: int, values: dict[str, float], **sample: Any) -> None:
+        assert self._recorder is not None, "a sample outside a run"
+        self._recorder.add(index, values, **sample)
 
     def _await_commit(self) -> None:
-        """Wait until the last sample taken is durable (raising the failure of its commit), then report it."""
-        sample = self._writer.wait()
-        if sample is None:
-            return
+        """Wait until the last sample taken is durable (raising the failure of its commit); it is reported then."""
+        if self._recorder is not None:
+            self._recorder.await_commit()
+
+    def _durable(self, sample: dict[str, Any]) -> None:
+        """A sample's commit is durable: count it, advance the bar, tell ``on_sample``."""
         self.samples_stored += 1
         if self._bar is not None:
             self._bar.advance()
         self._call_hook(self.on_sample, self, sample)
-
-    def _close_writer(self) -> Exception | None:
-        """Settle the last commit (reported if it succeeded) and close the writer; returns its failure, if any."""
-        if self._writer is None:  # it never opened: the run's failure says why
-            return None
-        failure = None
-        while True:
-            try:
-                self._await_commit()
-                break
-            except KeyboardInterrupt:  # the run is ending already: the commit in flight (ms) settles first
-                continue
-            except Exception as exc:  # noqa: BLE001 - stored in the run's status and reason
-                failure = exc
-                _log.error("run %d: the last sample's commit failed: %s: %s", self.run_id, type(exc).__name__, exc)
-                break
-        self._writer.close()  # nothing in flight any more
-        return failure
 
     @staticmethod
     def _call_hook(hook: Callable[..., None] | None, *args: Any) -> None:
@@ -625,7 +482,7 @@ class Runner:
         """Stop the robot (best effort); an emergency stop latches where the robot offers it (no move after it)."""
         robot = self.rig.robot
         try:
-            (getattr(robot, "emergency_stop", robot.stop) if emergency else robot.stop)()
+            (robot.emergency_stop if emergency else robot.stop)()
         except Exception as exc:  # noqa: BLE001 - stopping is best effort; shutdown follows
             _log.error("robot stop failed: %s", exc)
 
@@ -634,47 +491,3 @@ class Runner:
             self.rig.robot.shutdown()
         except Exception as exc:  # noqa: BLE001
             _log.error("robot shutdown failed: %s", exc)
-
-
-def _count_samples(protocol: Protocol) -> int:
-    return sum(1 for step in iterate(protocol, final=False) if step_stores_sample(step))
-
-
-class _Progress:
-    """A Rich progress bar (samples stored, ETA) on stderr, or nothing."""
-
-    def __init__(self, enabled: bool, *, total: int, done: int, label: str) -> None:
-        self.enabled = enabled
-        if enabled:
-            from rich.console import Console
-            from rich.progress import (
-                BarColumn,
-                MofNCompleteColumn,
-                Progress,
-                TextColumn,
-                TimeRemainingColumn,
-            )
-
-            self._bar = Progress(
-                TextColumn("{task.description}"),
-                BarColumn(),
-                MofNCompleteColumn(),
-                TextColumn("ETA"),
-                TimeRemainingColumn(),
-                console=Console(stderr=True),
-                transient=False,
-            )
-            self._task = self._bar.add_task(label, total=total, completed=done)
-
-    def __enter__(self) -> Self:
-        if self.enabled:
-            self._bar.start()
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        if self.enabled:
-            self._bar.stop()
-
-    def advance(self) -> None:
-        if self.enabled:
-            self._bar.advance(self._task)

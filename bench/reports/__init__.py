@@ -18,22 +18,25 @@ Examples
 from __future__ import annotations
 
 from collections.abc import Callable, Iterable, Mapping, Sequence
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 from bench.errors import ConfigError
-from bench.reports import content
+from bench.reports import actuator, content, ladder, path, positioning, positioning_time, stabilisation
 from bench.reports.actuator import ActuatorReport, actuator_document, collect_actuator
 from bench.reports.calibration import calibration_comparison, with_calibration_page
 from bench.reports.compare import layout_comparison, with_histories
 from bench.reports.content import CRITERIA, ReportBase, RunReport
+from bench.reports.criteria import NO_VERDICT, Characteristic, judge
 from bench.reports.deviations import Deviation, iso_deviations
-from bench.reports.document import Document, Figure, RawData, Section, comparison_document, run_document
+from bench.reports.document import Document, Figure, RawData, Section
 from bench.reports.ladder import LadderReport, collect_ladder, ladder_document
 from bench.reports.language import customer_document
+from bench.reports.lasergrid import SPECIFICATION as GRID_HIT_SPECIFICATION
 from bench.reports.lasergrid import GridHitReport, collect_grid_hits, grid_hit_document
 from bench.reports.mouse_calibration import collect_mouse_calibration, mouse_calibration_document
 from bench.reports.path import collect_path, path_document
+from bench.reports.pose_document import comparison_document, run_document
 from bench.reports.positioning import (
     GridPositioningReport,
     collect_grid_positioning,
@@ -43,10 +46,18 @@ from bench.reports.positioning import (
 from bench.reports.positioning_time import collect_positioning_time, positioning_time_document
 from bench.reports.rawdata import write_table_csv
 from bench.reports.stabilisation import StabilisationReport, collect_stabilisation, stabilisation_document
-from bench.reports.summary import HistoryEvent, Identity, is_simulated, run_history, summary_section
+from bench.reports.summary import (
+    HistoryEvent,
+    Identity,
+    comparison_summary,
+    is_simulated,
+    run_history,
+    summary_section,
+)
 from bench.store import Store
 
 __all__ = [
+    "ALL_CRITERIA",
     "CRITERIA",
     "FORMATS",
     "LAYOUTS",
@@ -84,24 +95,42 @@ class Layout:
     document: Callable[..., Document]
     options: tuple[str, ...] = ()
     applies: Callable[[Store, int], bool] | None = None
+    #: what ``--criterion NAME=LIMIT`` judges (:mod:`bench.reports.criteria`); empty: the layout states no verdict
+    characteristics: Mapping[str, Characteristic] = field(default_factory=dict)
 
 
 #: Protocols with a layout of their own; every other protocol gets the pose layout. A delta_positioning run read by
 #: another instrument than the laser grid (complete x, y, z, no screen flags) gets the pose layout too.
 LAYOUTS = {
-    "actuator_accuracy": Layout(collect_actuator, actuator_document),
-    "payload_ladder": Layout(collect_ladder, ladder_document),
+    "actuator_accuracy": Layout(collect_actuator, actuator_document, characteristics=actuator.CHARACTERISTICS),
+    "payload_ladder": Layout(collect_ladder, ladder_document, characteristics=ladder.CHARACTERISTICS),
     "mouse_calibration": Layout(collect_mouse_calibration, mouse_calibration_document),
     "lasergrid_hits": Layout(collect_grid_hits, grid_hit_document),
-    "delta_positioning": Layout(collect_grid_positioning, grid_positioning_document, applies=grid_readings),
-    "iso9283_stabilisation": Layout(collect_stabilisation, stabilisation_document, ("bands_mm", "hysteresis_mm")),
-    "iso9283_path": Layout(collect_path, path_document),
-    "iso9283_cornering": Layout(collect_path, path_document),
+    "delta_positioning": Layout(
+        collect_grid_positioning,
+        grid_positioning_document,
+        applies=grid_readings,
+        characteristics=positioning.CHARACTERISTICS,
+    ),
+    "iso9283_stabilisation": Layout(
+        collect_stabilisation,
+        stabilisation_document,
+        ("bands_mm", "hysteresis_mm"),
+        characteristics=stabilisation.CHARACTERISTICS,
+    ),
+    "iso9283_path": Layout(collect_path, path_document, characteristics=path.CHARACTERISTICS),
+    "iso9283_cornering": Layout(collect_path, path_document, characteristics=path.CHARACTERISTICS),
     "iso9283_positioning_time": Layout(
-        collect_positioning_time, positioning_time_document, ("bands_mm", "hysteresis_mm")
+        collect_positioning_time,
+        positioning_time_document,
+        ("bands_mm", "hysteresis_mm"),
+        characteristics=positioning_time.CHARACTERISTICS,
     ),
 }
 
+
+#: Every name ``--criterion`` takes, in any layout (each layout checks its own: :func:`bench.reports.criteria.judge`).
+ALL_CRITERIA = tuple(dict.fromkeys([*CRITERIA, *(n for layout in LAYOUTS.values() for n in layout.characteristics)]))
 
 #: The layout of a pose protocol's run whose samples are laser-grid readings (partial, NaN where a screen did not
 #: decode): the partial-pose statistics of the delta_positioning layout, never a filled axis (bench.reports.content).
@@ -163,12 +192,11 @@ def collect(
             allow_unknown=allow_unknown,
             decision_rule=decision_rule,
         )
-    if criteria:
-        raise ConfigError(
-            f"--criterion {', '.join(criteria)}: project criteria ({', '.join(CRITERIA)}) apply to pose "
-            f"runs; run {run_id} is a {protocol} run"
-        )
-    return layout.collect(store, run_id, k=k, resamples=resamples, allow_unknown=allow_unknown, **options)
+    report = layout.collect(store, run_id, k=k, resamples=resamples, allow_unknown=allow_unknown, **options)
+    if not criteria:
+        return report
+    why = NO_VERDICT.get(protocol, f"a {protocol} run")
+    return replace(report, decision=judge(layout.characteristics, report, criteria, decision_rule, why))
 
 
 def _document(
@@ -186,9 +214,30 @@ def _document(
     return customer_document(
         with_summary(
             body,
-            summary_section(report, identity, history, is_simulated(report.run)),
+            summary_section(report, identity, history, is_simulated(report.run), _decision_line(report)),
             simulated=is_simulated(report.run),
         )
+    )
+
+
+def _decision_line(report: ReportBase) -> str | None:
+    """Page 1's one line on the verdict of a report that states none: why, and how a criterion is stated."""
+    if report.decision is not None or isinstance(report, RunReport):
+        return None
+    if isinstance(report, GridHitReport):
+        lowest = min(report.hits.heights, key=lambda h: h.expected.rate)
+        result = "PASS" if lowest.expected.rate >= GRID_HIT_SPECIFICATION else "FAIL"
+        return (
+            f"{result} against the thesis's specification (hit rate >= {100 * GRID_HIT_SPECIFICATION:g} % at every "
+            f"height, simple acceptance): lowest {100 * lowest.expected.rate:.2f} % at {lowest.height_mm:g} mm"
+        )
+    protocol = report.run.protocol_name
+    layout = PARTIAL_READINGS if isinstance(report, GridPositioningReport) else LAYOUTS[protocol]
+    if not layout.characteristics:
+        return f"no verdict: {NO_VERDICT.get(protocol, 'this report states none')}"
+    return (
+        "no acceptance criterion stated: no pass/fail statement (a criterion is stated with --criterion "
+        f"NAME=LIMIT, NAME in {', '.join(layout.characteristics)})"
     )
 
 
@@ -269,9 +318,7 @@ def _quiet(message: str) -> None:
 def _open(store: str | Path | Store) -> tuple[Store, bool]:
     if not isinstance(store, (str, Path)):  # a Store, or a reader with its interface (bench.store.lab_reader)
         return store, False
-    if not Path(store).is_file():
-        raise ConfigError(f"--store {store}: no such store file")
-    return Store(store, read_only=True), True
+    return Store(store, read_only=True), True  # (a path that names no store is refused, never created)
 
 
 def write_report(
@@ -362,12 +409,15 @@ def write_comparison(
     formats: Iterable[str] = FORMATS,
     *,
     k: float = 2.0,
+    identity: Mapping[str, str | None] | None = None,
     progress: Callable[[str], None] = _quiet,
 ) -> ReportPaths:
     """Write two runs side by side (before/after calibration, two loads, two robots): ``compare_run<A>_run<B>``.
 
     Pose runs are paired pose by pose; runs of a protocol with a layout of its own must both be of that protocol
-    and get their results sections side by side (:mod:`bench.reports.compare`). Both get the run histories."""
+    and get their results sections side by side (:mod:`bench.reports.compare`). Both get the run histories. Page 1
+    names customer, order, device, measuring point, operator and laboratory (``identity`` over run A's stored
+    ``settings.dut``, as :func:`write_report`) and carries the signature block."""
     formats = _check_formats(formats)
     store, opened = _open(store)
     try:
@@ -398,8 +448,12 @@ def write_comparison(
         own = [layouts[0].document(report, [raw]) for report, (_, raw) in zip((first, second), raws)]
         document = with_calibration_page(layout_comparison(first, second, *own, [raw for _, raw in raws]), calibrated)
     document = with_histories(document, first, second, histories)
-    if is_simulated(first.run) or is_simulated(second.run):
-        document = replace(document, meta={**document.meta, "banner": SIMULATED_BANNER})
+    provisional = str(document.meta["report_id"])  # replaced by the document's number where printed (numbering)
+    document = with_summary(
+        replace(document, subtitle=f"Report {provisional}; {document.subtitle}"),
+        comparison_summary(first, second, Identity.of_run(first.run, identity), provisional),
+        simulated=is_simulated(first.run) or is_simulated(second.run),
+    )
     document = customer_document(document)
     written, number = _write(document, out, f"compare_run{first_run}_run{second_run}", formats, progress)
     return ReportPaths(written.get("html"), written.get("pdf"), tuple(p for p, _ in raws), number)

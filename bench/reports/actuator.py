@@ -26,15 +26,9 @@ from bench.metrology.actuator_tables import (
 )
 from bench.metrology.bidirectional_tables import BidirectionalResult, analyze_bidirectional
 from bench.reports.bidirectional import bidirectional_plot
-from bench.reports.content import (
-    ReportBase,
-    calibrations_in_force,
-    provenance,
-    reading_instrument,
-    run_table,
-    uncertainty_stated,
-)
-from bench.reports.deviations import actuator_deviations
+from bench.reports.content import ReportBase, calibrations_in_force, provenance, run_table
+from bench.reports.criteria import Characteristic, decision_section
+from bench.reports.deviations_bench import actuator_deviations
 from bench.reports.document import (
     Block,
     Document,
@@ -43,11 +37,11 @@ from bench.reports.document import (
     Table,
     assemble,
     conditions_section,
-    decision_blocks,
     fmt_mm,
     fmt_pm,
     reading_formatter,
 )
+from bench.reports.instrument import reading_instrument, uncertainty_stated
 from bench.reports.plots import Plot, panels
 from bench.store import Store
 
@@ -304,7 +298,7 @@ def recompute_actuator(report: ActuatorReport) -> str:
 
 
 def actuator_document(
-    report: ActuatorReport, raw: list[RawData], *, operator: str = "not recorded", laboratory: str = "not recorded"
+    report: ActuatorReport, raw: list[RawData], *, operator: str = "—", laboratory: str = "—"
 ) -> Document:
     config = report.run.config
     if report.bidirectional:
@@ -342,7 +336,7 @@ def actuator_document(
         ),
         results=_results(report),
         plots=[actuator_plot(report)],
-        decision=decision_blocks(NO_CRITERION),
+        decision=decision_section(report, NO_CRITERION),
         recompute=recompute_actuator(report),
     )
 
@@ -389,6 +383,25 @@ def _bidirectional_document(report: ActuatorReport, raw: list[RawData], *, opera
         ),
         results=_results(report),
         plots=[actuator_plot(report), bidirectional_plot(report.bidirectional)],
-        decision=decision_blocks(NO_CRITERION),
+        decision=decision_section(report, NO_CRITERION),
         recompute=recompute_actuator(report),
     )
+
+
+def _u(measured) -> float | None:
+    return None if measured is None else measured.expanded_uncertainty
+
+
+#: What ``--criterion`` judges in an actuator report (upper limits, per actuator, with the U the report states).
+CHARACTERISTICS = {
+    "repeatability_mm": Characteristic(
+        "repeatability ±3σ̄ of every actuator",
+        lambda report: [
+            (f"actuator {r.actuator}", r.groover.repeatability_mm, _u(r.repeatability_u)) for r in report.actuators
+        ],
+    ),
+    "accuracy_mm": Characteristic(
+        "accuracy CR/2 + 3σ̄ of every actuator",
+        lambda report: [(f"actuator {r.actuator}", r.groover.accuracy_mm, _u(r.accuracy_u)) for r in report.actuators],
+    ),
+}

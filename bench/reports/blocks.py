@@ -26,6 +26,10 @@ class Table:
     header: tuple[str, ...]
     rows: tuple[tuple[str, ...], ...]
     caption: str = ""
+    #: the least height of a body row, mm (0: as its text needs); a signature row is written on by hand
+    row_height_mm: float = 0.0
+    #: relative column widths (empty: from the longest text of each column)
+    column_weights: tuple[float, ...] = ()
 
 
 @dataclass(frozen=True)

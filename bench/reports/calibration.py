@@ -29,7 +29,8 @@ from matplotlib.figure import Figure as MplFigure
 from bench.metrology.formatting import format_pair, format_value, pose_label
 from bench.reports.content import RunReport, axes_statement
 from bench.reports.document import Document, Figure, Paragraph, Section, Table, fmt_mm, fmt_pm
-from bench.reports.plots import MIN_FONT_PT, Plot, workspace_cloud_mm
+from bench.reports.plots import MIN_FONT_PT, Plot
+from bench.reports.pose_plots import workspace_cloud_mm
 
 __all__ = [
     "CalibrationComparison",
@@ -300,7 +301,7 @@ def _fit_rows(record: Any) -> tuple[tuple[str, str], ...]:
     rows = [
         ("Source run", str(record.source_run_id)),
         ("Stored (UTC)", record.created_utc),
-        ("Robot serial", str(params.get("dut_serial", "not recorded"))),
+        ("Robot serial", str(params.get("dut_serial") or "none stated (the calibration run recorded no robot serial)")),
         *_campaign_rows(params, obs),
         ("Free parameters", str(len(params.get("parameters", {})))),
     ]
@@ -318,8 +319,9 @@ def _fit_rows(record: Any) -> tuple[tuple[str, str], ...]:
     chi2 = "Chi^2 per coordinate of the fit" if is_map and dof is None else "Reduced chi^2 of the fit"
     over = "" if dof is None or not is_map else f" over {float(dof):.1f} degrees of freedom"
     rows += [
-        ("O1 index (Borm & Menq)", f"{float(obs.get('o1', float('nan'))):.4g}"),
-        ("Singular values, largest / smallest", f"{max(singular):.4g} / {min(singular):.4g}"),
+        # dimensionless diagnostics of the fit, not measured figures: three significant digits say all they can
+        ("O1 index (Borm & Menq)", f"{float(obs.get('o1', float('nan'))):.3g}"),
+        ("Singular values, largest / smallest", f"{max(singular):.3g} / {min(singular):.3g}"),
         (weak, "; ".join(obs.get("unidentifiable", ())) or "none"),
         (chi2, f"{float(params.get('reduced_chi2', float('nan'))):.2f}{over}"),
         (

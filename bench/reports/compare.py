@@ -1,6 +1,6 @@
 """Comparisons of two runs for every layout, and the run histories side by side.
 
-Pose runs get :func:`bench.reports.document.comparison_document` (paired AP/RP per pose with the difference B − A);
+Pose runs get :func:`bench.reports.pose_document.comparison_document` (paired AP/RP per pose with the difference B − A);
 runs of a layout of their own (actuator, payload ladder, laser grid, positioning, stabilisation; both runs of the
 same protocol) get :func:`layout_comparison`: identification, the configuration keys that differ, the histories,
 the deviation tables side by side, then each run's own results section (the tables its single report prints), A
@@ -18,7 +18,7 @@ from bench.reports.differences import NO_DIFFERENCE, configuration_differences
 from bench.reports.document import Document, Paragraph, RawData, Section, Table, _raw
 from bench.reports.summary import HistoryEvent
 
-__all__ = ["history_section", "layout_comparison", "with_histories"]
+__all__ = ["comparison_head", "history_section", "layout_comparison", "paired_deviations", "with_histories"]
 
 
 def _history_text(history: tuple[HistoryEvent, ...]) -> list[str]:
@@ -81,10 +81,9 @@ def _results(document: Document, prefix: str) -> tuple:
     return (Paragraph("no results section"),)
 
 
-def layout_comparison(
-    first: ReportBase, second: ReportBase, first_document: Document, second_document: Document, raw: list[RawData]
-) -> Document:
-    """Two runs of the same own-layout protocol side by side (see module doc)."""
+def comparison_head(first: ReportBase, second: ReportBase) -> tuple[Section, Section]:
+    """The first two sections of every comparison: both runs identified, and every configuration, setting and
+    calibration in force that differs (:func:`bench.reports.differences.configuration_differences`)."""
     a, b = first.run, second.run
     ident = (
         ("Configuration ID", first.report_id, second.report_id),
@@ -92,34 +91,45 @@ def layout_comparison(
         ("Robot", a.robot, b.robot),
         ("Status", a.status, b.status),
         ("Started (UTC)", a.started_utc, b.started_utc),
+        ("Git SHA", a.git_sha, b.git_sha),
         ("Configuration SHA-256", first.config_sha256[:16], second.config_sha256[:16]),
+        ("Calibration ids", str(list(a.calibration_ids)), str(list(b.calibration_ids))),
     )
-    differ = configuration_differences(first, second)
-    deviations = tuple(
+    differ = configuration_differences(first, second) or (("—", NO_DIFFERENCE, ""),)
+    return (
+        Section("1. Identification", (Table("identification", ("Item", f"A: run {a.id}", f"B: run {b.id}"), ident),)),
+        Section(
+            "2. Conditions that differ",
+            (
+                Table(
+                    "conditions", ("Parameter", "A", "B"), differ, "Configuration, settings and calibrations in force"
+                ),
+            ),
+        ),
+    )
+
+
+def paired_deviations(first: ReportBase, second: ReportBase) -> tuple[tuple[str, str, str, str], ...]:
+    """The two runs' deviations rows side by side: clause, topic, A's status and what was done, B's."""
+    return tuple(
         (d.clause, d.topic, f"{d.status}: {d.done}", f"{e.status}: {e.done}")
         for d, e in zip(first.deviations, second.deviations)
     )
+
+
+def layout_comparison(
+    first: ReportBase, second: ReportBase, first_document: Document, second_document: Document, raw: list[RawData]
+) -> Document:
+    """Two runs of the same own-layout protocol side by side (see module doc)."""
+    a, b = first.run, second.run
     return Document(
         title=f"Comparison of run {a.id} (A) and run {b.id} (B): {first.title}",
         subtitle=f"Runs {a.id} (A) and {b.id} (B)",
         sections=(
-            Section(
-                "1. Identification", (Table("identification", ("Item", f"A: run {a.id}", f"B: run {b.id}"), ident),)
-            ),
-            Section(
-                "2. Conditions that differ",
-                (
-                    Table(
-                        "conditions",
-                        ("Parameter", "A", "B"),
-                        differ or (("—", NO_DIFFERENCE, ""),),
-                        "Configuration, settings and calibrations in force",
-                    ),
-                ),
-            ),
+            *comparison_head(first, second),
             Section(
                 f"3. Deviations from {first.reference}",
-                (Table("deviations", ("Clause", "Topic", "A", "B"), deviations),),
+                (Table("deviations", ("Clause", "Topic", "A", "B"), paired_deviations(first, second)),),
             ),
             Section(f"4. Results of A (run {a.id})", _results(first_document, "a")),
             Section(f"5. Results of B (run {b.id})", _results(second_document, "b")),

@@ -30,31 +30,24 @@ from __future__ import annotations
 
 import hashlib
 import json
-import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from datetime import UTC, datetime
 from typing import Any
 
-import numpy as np
 import pandas as pd
 
 from bench import __version__
 from bench.errors import ConfigError
 from bench.metrology import (
-    AxisCalibration,
     DistanceCharacteristics,
     Measured,
     MultidirectionalVariation,
     OrientationDistanceCharacteristics,
     OrientationVariation,
     PayloadShift,
-    combine,
     distance_accuracy_uncertainty,
-    fit_axis_scale,
-    instrument_rp_floor,
     payload_shift,
-    resolution_uncertainty,
 )
 from bench.metrology.formatting import pose_label, report_order
 from bench.metrology.orientation import TiltGauge
@@ -71,65 +64,35 @@ from bench.metrology.tables import (
 )
 from bench.reports.decision import PASS, decide, rule_text
 from bench.reports.deviations import CLAUSES_APPLIED, Deviation, iso_deviations, orientation_deviation
+from bench.reports.instrument import (
+    _POSITION,
+    InstrumentInfo,
+    _span_from_registration,
+    ap_instrument_u_mm,
+    calibration_fits,
+    counts_instrument,
+)
 from bench.store import CalibrationRecord, RunRecord, Store, series_table, tidy_table
-from bench.store.registrations import registration_u_mm, registrations
 
 __all__ = [
     "CRITERIA",
-    "MM_PER_INCH",
-    "CalibrationFit",
     "Decision",
     "DistanceRow",
-    "InstrumentInfo",
     "PayloadRow",
     "ReportBase",
     "RunReport",
     "VapRow",
     "analysis_table",
-    "ap_instrument_u_mm",
     "axes_statement",
-    "calibration_fits",
     "check_same_axes",
     "calibrations_in_force",
     "collect",
-    "counts_instrument",
     "provenance",
-    "reading_instrument",
-    "reading_step_mm",
     "run_table",
-    "uncertainty_stated",
 ]
 
-MM_PER_INCH = 25.4
 #: Acceptance criteria a caller may state, with the result each applies to (all "smaller is better").
 CRITERIA = {"AP_mm": "AP_P of every pose", "RP_mm": "RP_l of every pose"}
-_POSITION = ("x_mm", "y_mm", "z_mm")
-
-
-@dataclass(frozen=True)
-class CalibrationFit:
-    """A calibration in force refitted from the raw samples of the run that produced it (for its plot)."""
-
-    record: CalibrationRecord
-    axis: str
-    reference_mm: tuple[float, ...]  #: commanded step lengths
-    counts: tuple[float, ...]  #: counts between the two ends of each step
-    fit: AxisCalibration
-
-
-@dataclass(frozen=True)
-class InstrumentInfo:
-    """The instrument as stored with the run, its uncertainty budget and calibrations."""
-
-    settings: dict[str, Any]
-    sigma_mm: float | None  #: standard uncertainty per axis, mm
-    budget: tuple[tuple[str, float, str], ...]  #: (component, standard uncertainty mm, source)
-    dims: int  #: measured position axes
-    rp_floor_mm: float | None  #: expected RP of a perfect robot seen through this instrument
-    calibrations: tuple[CalibrationRecord, ...]
-    fits: tuple[CalibrationFit, ...] = ()
-    #: the readings' last recorded decimal (manual readings), mm: no printed figure is finer (formatting)
-    resolution_mm: float | None = None
 
 
 @dataclass(frozen=True)
@@ -191,6 +154,8 @@ class ReportBase:
     table: pd.DataFrame  #: the analysed tidy table (the raw-data CSV holds the same rows)
     coverage_factor: float
     notes: tuple[str, ...] = field(default=())
+    #: verdicts against the stated criteria (``--criterion``) under the chosen rule; None when none were stated
+    decision: Decision | None = None
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -249,71 +214,6 @@ def provenance(run: RunRecord, calibrations: tuple[CalibrationRecord, ...]) -> d
     }
 
 
-def reading_step_mm(values) -> float | None:
-    """The last decimal recorded in manual readings (0.01 for a calliper read to 0.01 mm): the largest of 1, 0.1,
-    ..., 0.0001 mm that every reading is a whole multiple of; None when the readings carry more decimals."""
-    array = np.asarray(values, dtype=float)
-    for decimals in range(5):
-        scaled = array * 10**decimals
-        if np.all(np.abs(scaled - np.round(scaled)) < 1e-6):
-            return 10.0**-decimals
-    return None
-
-
-def reading_instrument(
-    run: RunRecord,
-    calibrations: tuple[CalibrationRecord, ...],
-    readings,
-    *,
-    difference: bool,
-    reader: str | None = None,
-) -> InstrumentInfo:
-    """The instrument of manual length readings (calliper, depth gauge) and its uncertainty per reading.
-
-    When the stored instrument settings describe the reading instrument (``reader`` None): ``settings.instrument
-    .u_mm`` when stated; otherwise the reading resolution (the readings' last decimal, :func:`reading_step_mm`),
-    δ/√6 for a ``difference`` of two readings (a gauge zeroed, then read) or δ/√12 for one, combined with
-    ``settings.instrument.mpe_mm``/√3 (rectangular) when the maximum permissible error is stated. When they
-    describe the rig's own sensors instead (a payload ladder's mice; the calliper is the operator's), ``reader``
-    names the reading instrument, the stored settings are shown under ``rig`` and only the resolution is used.
-    """
-    stored = dict(run.settings.get("instrument") or {})
-    own = stored if reader is None else {}
-    budget: list[tuple[str, float, str]] = []
-    step = reading_step_mm(readings)
-    if "u_mm" in own:
-        budget.append(("instrument, per reading", float(own["u_mm"]), f"{STATED} standard uncertainty"))
-    else:
-        if step is not None:
-            budget.append(
-                (
-                    f"resolution ({'difference of the zero and the reading' if difference else 'one reading'})",
-                    resolution_uncertainty(step, difference=difference),
-                    f"last recorded decimal of the readings, {step:g} mm; δ/{'√6' if difference else '√12'}",
-                )
-            )
-        if "mpe_mm" in own:
-            budget.append(
-                (
-                    "maximum permissible error",
-                    float(own["mpe_mm"]) / math.sqrt(3.0),
-                    f"{STATED} maximum permissible error, {own['mpe_mm']} mm, rectangular",
-                )
-            )
-    sigma = combine(*(u for _, u, _ in budget)) if budget else None
-    settings = stored if reader is None else {"readings": reader, **({"rig": stored} if stored else {})}
-    return InstrumentInfo(settings, sigma, tuple(budget), 1, None, calibrations, resolution_mm=step)
-
-
-#: How a budget line whose figure the stored instrument settings state (u or MPE) names its source.
-STATED = "the instrument's stated"
-
-
-def uncertainty_stated(info: InstrumentInfo) -> bool:
-    """Whether the instrument's uncertainty comes from stored settings (u or MPE), not from the resolution alone."""
-    return any(source.startswith(STATED) for _, _, source in info.budget)
-
-
 def analysis_table(store: Store, run_id: int) -> pd.DataFrame:
     """The run's tidy pose table as the metrology reads it (commanded angles without measured ones dropped)."""
     table = tidy_table(store, run_id, kind="pose")
@@ -352,105 +252,6 @@ def axes_statement(report: RunReport) -> str | None:
     )
 
 
-def calibration_fits(store: Store, record: CalibrationRecord) -> tuple[CalibrationFit, ...]:
-    """Per-axis step data of a mouse calibration's source run (``mouse`` samples labelled ``<axis><mm>/start|end``),
-    refitted with :func:`bench.metrology.fit_axis_scale`; empty when the calibration has no such source run."""
-    if record.source_run_id is None:
-        return ()
-    samples = store.samples(record.source_run_id, kind="mouse")
-    ends = {(s.pose, s.cycle): s.values for s in samples if s.pose and "/" in s.pose}
-    fits = []
-    for axis in ("x", "y"):
-        steps = [
-            (values, ends[(pose[:-3] + "start", cycle)])
-            for (pose, cycle), values in ends.items()
-            if pose.startswith(axis) and pose.endswith("/end") and (pose[:-3] + "start", cycle) in ends
-        ]
-        column = f"mouse_xy_{axis}_counts"
-        steps = [(end, start) for end, start in steps if column in end and column in start]
-        if len(steps) < 3:
-            continue
-        reference = tuple(end[f"cmd_{axis}_mm"] - start[f"cmd_{axis}_mm"] for end, start in steps)
-        counts = tuple(end[column] - start[column] for end, start in steps)
-        fits.append(CalibrationFit(record, axis, reference, counts, fit_axis_scale(reference, counts)))
-    return tuple(fits)
-
-
-#: Half-width of the scale error of a mouse read at its nominal cpi, as a fraction: sensors.md §1.3 (1-4 % before
-#: calibration), taken as a rectangular distribution.
-NOMINAL_CPI_SCALE_ERROR = 0.04
-
-
-def calibration_scale_u(calibration: Mapping[str, Any], span_mm: float) -> tuple[float, str]:
-    """Standard uncertainty (mm) a mouse calibration's scale adds to a reading ``span_mm`` from the registration.
-
-    .. math:: u = d \\cdot \\max_i u(s_i)/s_i
-
-    with u(s_i) the stored uncertainty of each axis's scale; a nominal calibration has none measured, so its
-    scale error is taken as rectangular of half-width :data:`NOMINAL_CPI_SCALE_ERROR` (u = 0.04/√3 of the span).
-    """
-    if calibration.get("nominal"):
-        relative = NOMINAL_CPI_SCALE_ERROR / np.sqrt(3.0)
-        why = f"nominal cpi (mouse-v{calibration.get('version')}): ±{100 * NOMINAL_CPI_SCALE_ERROR:g} % rectangular"
-    else:
-        relative = max(
-            float(calibration.get(f"u_{a}_mm_per_count", 0.0)) / float(calibration[f"{a}_mm_per_count"])
-            for a in ("x", "y")
-        )
-        why = f"mouse-v{calibration.get('version')}: u(scale) {100 * relative:.3g} %"
-    return span_mm * relative, f"{why} x {span_mm:.1f} mm from the registration"
-
-
-def counts_instrument(
-    run: RunRecord,
-    calibrations: tuple[CalibrationRecord, ...],
-    dims: int,
-    fits: tuple[CalibrationFit, ...] = (),
-    *,
-    span_mm: float | None = None,
-) -> InstrumentInfo:
-    """A counts instrument (the mice) as stored with the run: u per axis from ``settings.instrument.u_mm``, else
-    from its resolution 25.4/cpi (δ/√6) and ``noise_counts``, plus the scale of the calibration in force at the
-    largest displacement from the registration ``span_mm`` (:func:`calibration_scale_u`) where the run recorded
-    it; the RP floor in ``dims`` dimensions (none for 0)."""
-    settings = dict(run.settings.get("instrument") or {})
-    budget: list[tuple[str, float, str]] = []
-    if "u_mm" in settings:
-        budget.append(("instrument, per axis", float(settings["u_mm"]), f"{STATED} standard uncertainty"))
-    elif "cpi" in settings:
-        step_mm = MM_PER_INCH / float(settings["cpi"])
-        budget.append(
-            (
-                "resolution (difference of two readings)",
-                resolution_uncertainty(step_mm, difference=True),
-                f"one count at {float(settings['cpi']):g} counts per inch, {step_mm:.4g} mm, δ/√6",
-            )
-        )
-        if "noise_counts" in settings:
-            budget.append(
-                (
-                    "count noise",
-                    float(settings["noise_counts"]) * step_mm,
-                    f"{settings['noise_counts']} counts x {step_mm:.4g} mm",
-                )
-            )
-    if isinstance(settings.get("scale_calibration"), Mapping) and span_mm is not None:
-        budget.append(("calibration scale", *calibration_scale_u(settings["scale_calibration"], span_mm)))
-    sigma = combine(*(u for _, u, _ in budget)) if budget else None
-    floor = instrument_rp_floor(sigma, dims=dims) if sigma is not None and dims else None
-    return InstrumentInfo(settings, sigma, tuple(budget), dims, floor, calibrations, fits)
-
-
-def _span_from_registration(run: RunRecord, table: pd.DataFrame) -> float | None:
-    """The largest per-axis distance (mm) of the run's measured positions from the instrument's registration."""
-    registration = (run.settings.get("instrument") or {}).get("registration_mm")
-    columns = [c for c in _POSITION if c in table.columns]
-    if registration is None or not columns:
-        return None
-    offsets = [np.nanmax(np.abs(table[c].to_numpy(float) - registration[_POSITION.index(c)])) for c in columns]
-    return float(np.nanmax(offsets))
-
-
 def _condition_groups(table: pd.DataFrame):
     varying = [c for c in ("velocity_pct", "load_kg") if c in table.columns and table[c].nunique() > 1]
     if not varying:
@@ -461,15 +262,6 @@ def _condition_groups(table: pd.DataFrame):
         group = group.copy()
         group.attrs["source"] = table.attrs.get("source", "table")
         yield ", ".join(f"{n}={v:g}" for n, v in zip(varying, key)), group
-
-
-def ap_instrument_u_mm(sigma_mm: float | None, run: RunRecord) -> float | None:
-    """The instrument's term of the AP budget per axis, mm: the reading's u and, for a relative instrument, its
-    registrations' u measured in the run (bench.rigs.registration); None when neither is declared."""
-    registered = registration_u_mm(registrations(run.settings))
-    if sigma_mm is None and not registrations(run.settings):
-        return None
-    return combine(sigma_mm or 0.0, registered)
 
 
 def _distances(table: pd.DataFrame, sigma_mm: float, k: float) -> tuple[DistanceRow, ...]:

@@ -20,7 +20,7 @@ Examples
 
 from __future__ import annotations
 
-__all__ = ["DECISION_RULES", "FAIL", "NOT_PROVEN", "PASS", "decide", "overall", "rule_text"]
+__all__ = ["DECISION_RULES", "FAIL", "NOT_PROVEN", "PASS", "decide", "overall", "rule_text", "unit_of"]
 
 PASS, NOT_PROVEN, FAIL = "pass", "not proven", "fail"
 #: The rules ``bench report --decision-rule`` offers; the first is the default.
@@ -65,3 +65,8 @@ def rule_text(rule: str) -> str:
     """The sentence that names ``rule`` in a report."""
     _check(rule)
     return _RULE_TEXT[rule]
+
+
+def unit_of(name: str) -> str:
+    """The unit a criterion's name ends with: ``AP_mm`` -> mm, ``t_s`` -> s, ``rate_pct`` -> %."""
+    return {"mm": "mm", "s": "s", "pct": "%"}.get(name.rsplit("_", 1)[-1], "")

@@ -35,6 +35,8 @@ def _block(block) -> dict:
             "header": block.header,
             "rows": block.rows,
             "caption": block.caption,
+            "row_height_mm": block.row_height_mm,
+            "widths_pct": [round(100 * w / sum(block.column_weights), 1) for w in block.column_weights],
         }
     if isinstance(block, Figure):
         width_in, _ = block.plot.figure.get_size_inches()

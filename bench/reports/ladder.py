@@ -34,9 +34,11 @@ from bench.metrology import (
     payload_compliance,
     payload_shift,
 )
+from bench.metrology.formatting import format_measured
 from bench.metrology.tables import numeric_columns
-from bench.reports.content import ReportBase, calibrations_in_force, provenance, reading_instrument, run_table
-from bench.reports.deviations import ladder_deviations
+from bench.reports.content import ReportBase, calibrations_in_force, provenance, run_table
+from bench.reports.criteria import Characteristic, decision_section
+from bench.reports.deviations_bench import ladder_deviations
 from bench.reports.document import (
     Block,
     Document,
@@ -45,9 +47,9 @@ from bench.reports.document import (
     Table,
     assemble,
     conditions_section,
-    decision_blocks,
     reading_formatter,
 )
+from bench.reports.instrument import reading_instrument
 from bench.reports.plots import Plot, payload_caption, payload_shift_figure
 from bench.store import Store
 
@@ -250,7 +252,7 @@ def _r(value: float | None) -> str:
 def _slope(slope: PayloadCompliance | None, k: float) -> str:
     if slope is None:
         return "— (needs 3 readings at 2 loads)"
-    return f"{slope.compliance_mm_per_n:+.2e} ± {k * slope.u_compliance_mm_per_n:.2e}"
+    return format_measured(slope.compliance_mm_per_n, k * slope.u_compliance_mm_per_n, signed=True)
 
 
 def _results(report: LadderReport) -> tuple[Block, ...]:
@@ -385,7 +387,7 @@ def ladder_plots(report: LadderReport) -> list[Plot]:
 
 
 def ladder_document(
-    report: LadderReport, raw: list[RawData], *, operator: str = "not recorded", laboratory: str = "not recorded"
+    report: LadderReport, raw: list[RawData], *, operator: str = "—", laboratory: str = "—"
 ) -> Document:
     config = report.run.config
     method = (
@@ -414,6 +416,18 @@ def ladder_document(
         ),
         results=_results(report),
         plots=ladder_plots(report),
-        decision=decision_blocks(NO_CRITERION),
+        decision=decision_section(report, NO_CRITERION),
         recompute=recompute,
     )
+
+
+#: What ``--criterion`` judges in a payload-ladder report: the largest |e| of every leg over the loads (no U stated).
+CHARACTERISTICS = {
+    "leg_error_mm": Characteristic(
+        "largest leg actuation error |e| of every leg over the loads",
+        lambda report: [
+            (f"leg {leg}", float(report.summary_abs.max_error_mm[i]), None)
+            for i, leg in enumerate(report.leg_errors.columns)
+        ],
+    ),
+}

@@ -14,8 +14,8 @@ import numpy as np
 
 from bench.metrology.hit_rate import GridHits, grid_hit_rates
 from bench.metrology.partial_pose import rate_text
-from bench.reports.content import InstrumentInfo, ReportBase, calibrations_in_force, provenance, run_table
-from bench.reports.deviations import grid_hit_deviations
+from bench.reports.content import ReportBase, calibrations_in_force, provenance, run_table
+from bench.reports.deviations_bench import grid_hit_deviations
 from bench.reports.document import (
     Block,
     Document,
@@ -25,6 +25,7 @@ from bench.reports.document import (
     conditions_section,
     decision_blocks,
 )
+from bench.reports.instrument import InstrumentInfo
 from bench.reports.plots import Plot, panels
 from bench.store import Store
 
@@ -193,7 +194,7 @@ def grid_hit_plot(report: GridHitReport) -> Plot:
 
 
 def grid_hit_document(
-    report: GridHitReport, raw: list[RawData], *, operator: str = "not recorded", laboratory: str = "not recorded"
+    report: GridHitReport, raw: list[RawData], *, operator: str = "—", laboratory: str = "—"
 ) -> Document:
     config = report.run.config
     method = (

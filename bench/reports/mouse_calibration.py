@@ -12,14 +12,9 @@ from dataclasses import dataclass
 from typing import Any
 
 from bench.metrology import fit_matrix
-from bench.metrology.mouse_calibration import MM_PER_INCH, MatrixCalibration, mouse_calibration_moves
-from bench.reports.content import (
-    InstrumentInfo,
-    ReportBase,
-    calibrations_in_force,
-    provenance,
-    run_table,
-)
+from bench.metrology.formatting import format_measured, format_uncertainty
+from bench.metrology.mouse_calibration import MatrixCalibration, counts_per_inch, mouse_calibration_moves
+from bench.reports.content import ReportBase, calibrations_in_force, provenance, run_table
 from bench.reports.document import (
     Block,
     Document,
@@ -29,6 +24,7 @@ from bench.reports.document import (
     conditions_section,
     decision_blocks,
 )
+from bench.reports.instrument import InstrumentInfo
 from bench.store import Store
 
 __all__ = ["MouseCalibrationReport", "collect_mouse_calibration", "mouse_calibration_document"]
@@ -80,13 +76,16 @@ def collect_mouse_calibration(
 def _results(report: MouseCalibrationReport) -> tuple[Block, ...]:
     fit, k = report.fit, report.fit.coverage_factor
     a, big_u = fit.a_mm_per_count, fit.expanded_a_mm_per_count
-    matrix = tuple((f"sensor {'xy'[i]}", *(f"{a[i, j]:+.6f} ± {big_u[i, j]:.1e}" for j in range(2))) for i in range(2))
+    matrix = tuple(
+        (f"sensor {'xy'[i]}", *(format_measured(a[i, j], big_u[i, j], signed=True) for j in range(2))) for i in range(2)
+    )
+    big_u_scale = k * fit.u_scale_mm_per_count(report.reference_u_pct / 100.0)
     scales = tuple(
         (
             axis,
-            f"{fit.scale_mm_per_count[j]:.6f}",
-            f"{MM_PER_INCH / fit.scale_mm_per_count[j]:.1f}",
-            f"{fit.sigma_counts[j]:.3f}",
+            format_measured(fit.scale_mm_per_count[j], big_u_scale[j]),
+            format_measured(*counts_per_inch(fit.scale_mm_per_count[j], big_u_scale[j])),
+            format_uncertainty(fit.sigma_counts[j]),
         )
         for j, axis in enumerate("xy")
     )
@@ -94,7 +93,7 @@ def _results(report: MouseCalibrationReport) -> tuple[Block, ...]:
         (
             label,
             *(
-                f"{fit.offsets_counts[i, j]:+.3f} ± {k * fit.u_offsets_counts[i, j]:.3f}"
+                format_measured(fit.offsets_counts[i, j], k * fit.u_offsets_counts[i, j], signed=True)
                 + (" significant" if fit.offsets_significant[i, j] else "")
                 for j in range(2)
             ),
@@ -111,9 +110,10 @@ def _results(report: MouseCalibrationReport) -> tuple[Block, ...]:
         ),
         Table(
             "mouse-scales",
-            ("Axis", "Scale (mm/count)", "cpi", "Residual SD (counts)"),
+            ("Axis", "Scale ± U (mm/count)", "cpi ± U", "Residual SD (counts)"),
             scales,
-            f"Scale along each sensor axis, rotation {fit.rotation_deg:+.3f} deg",
+            f"Scale along each sensor axis ± U (k = {k:.2f}: the fit's u and the reference's scale u, as stored), "
+            f"cpi = 25.4 / scale with its U; rotation {fit.rotation_deg:+.3f} deg",
         ),
         Table(
             "mouse-intercepts",
@@ -141,8 +141,8 @@ def mouse_calibration_document(
     report: MouseCalibrationReport,
     raw: list[RawData],
     *,
-    operator: str = "not recorded",
-    laboratory: str = "not recorded",
+    operator: str = "—",
+    laboratory: str = "—",
 ) -> Document:
     config = report.run.config
     source = {

@@ -7,7 +7,7 @@ its uncertainty (:mod:`bench.metrology.formatting`).
 
 from __future__ import annotations
 
-from bench.metrology.formatting import format_measured, pose_label
+from bench.metrology.formatting import format_measured, format_uncertainty, pose_label
 from bench.metrology.orientation import tilt_standard_uncertainty_deg
 from bench.reports.blocks import Paragraph, Table
 
@@ -45,10 +45,10 @@ def orientation_blocks(report) -> tuple:
     budget = (
         (
             "one depth reading u(h)",
-            f"{gauge.u_depth_mm:.4f} mm",
+            f"{format_uncertainty(gauge.u_depth_mm)} mm",
             f"resolution {gauge.resolution_mm:g} mm (δ/√12) and MPE ± {gauge.mpe_mm:g} mm (rectangular)",
         ),
-        ("hole spacing u(s)", f"{gauge.u_spacing_mm:.3f} mm", f"s = {gauge.spacing_mm:g} mm"),
+        ("hole spacing u(s)", f"{format_uncertainty(gauge.u_spacing_mm)} mm", f"s = {gauge.spacing_mm:g} mm"),
         (
             "tilt from two depths u(θ) at 0°",
             f"{tilt_standard_uncertainty_deg(0.0, gauge):.3f}°",

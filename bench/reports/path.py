@@ -12,9 +12,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from bench.reports.content import ReportBase, calibrations_in_force, counts_instrument, provenance, run_table
+from bench.metrology.formatting import format_length
+from bench.reports.content import ReportBase, calibrations_in_force, provenance, run_table
+from bench.reports.criteria import Characteristic, decision_section
 from bench.reports.deviations import Deviation, _fmt, _planned_count, _row
-from bench.reports.document import Paragraph, RawData, Table, assemble, conditions_section, decision_blocks
+from bench.reports.document import Paragraph, RawData, Table, assemble, conditions_section
+from bench.reports.instrument import counts_instrument
 from bench.reports.path_run import PathRun, analyze_path_run
 from bench.reports.plots import MIN_FONT_PT, Plot, print_grid
 from bench.store import Store
@@ -102,7 +105,7 @@ def path_deviations(run, analysis: PathRun) -> list[Deviation]:
             "interpolation",
             "continuous path control by the robot",
             f"host-side segments, joint-linear moves, chord error <= {protocol.chord_error_mm:g} mm "
-            f"(largest {chord:.4f} mm); the robot stops briefly at every segment end",
+            f"(largest {format_length(chord)} mm); the robot stops briefly at every segment end",
             False,
             "stops at the segment ends lower the mean path speed and raise FV; corners are approached "
             "from rest, so CO shows the structure's ringing rather than a controller's smoothing",
@@ -275,9 +278,7 @@ def path_plot(report: PathReport) -> Plot:
     )
 
 
-def path_document(
-    report: PathReport, raw: list[RawData], *, operator: str = "not recorded", laboratory: str = "not recorded"
-):
+def path_document(report: PathReport, raw: list[RawData], *, operator: str = "—", laboratory: str = "—"):
     protocol = report.analysis.design
     method = (
         "ISO 9283:1998 clause 8. The path is cut into straight segments whose joint-space chord error is at "
@@ -317,6 +318,19 @@ def path_document(
         ),
         results=_results(report),
         plots=[path_plot(report)],
-        decision=decision_blocks(NO_CRITERION),
+        decision=decision_section(report, NO_CRITERION),
         recompute=recompute,
     )
+
+
+#: What ``--criterion`` judges in a path report: AT_p and RT_p of every path and velocity (no U stated).
+CHARACTERISTICS = {
+    "AT_mm": Characteristic(
+        "path accuracy AT_p of every path and velocity",
+        lambda report: [(f"{f.shape}, {f.velocity_pct:g} %", f.at_mm, None) for f in report.analysis.figures],
+    ),
+    "RT_mm": Characteristic(
+        "path repeatability RT_p of every path and velocity",
+        lambda report: [(f"{f.shape}, {f.velocity_pct:g} %", f.rt_mm, None) for f in report.analysis.figures],
+    ),
+}

@@ -126,8 +126,12 @@ def _column_widths(block: Table, width: float) -> list[float]:
 def _table(block: Table, styles, width: float) -> list:
     header = [PdfParagraph(escape(c), styles["head"]) for c in block.header]
     rows = [[PdfParagraph(escape(c), styles["cell"]) for c in row] for row in block.rows]
-    widths = _column_widths(block, width)
-    table = PdfTable([header, *rows], colWidths=widths, repeatRows=1)
+    if block.column_weights:
+        widths = [width * w / sum(block.column_weights) for w in block.column_weights]
+    else:
+        widths = _column_widths(block, width)
+    heights = [None] + [block.row_height_mm * mm or None] * len(rows)
+    table = PdfTable([header, *rows], colWidths=widths, rowHeights=heights, repeatRows=1)
     table.setStyle(
         TableStyle(
             [

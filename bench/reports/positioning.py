@@ -31,8 +31,9 @@ from bench.metrology.partial_pose import (
     pooled_axis_errors,
     rate_text,
 )
-from bench.reports.content import InstrumentInfo, ReportBase, calibrations_in_force, provenance, run_table
-from bench.reports.deviations import grid_positioning_deviations
+from bench.reports.content import ReportBase, calibrations_in_force, provenance, run_table
+from bench.reports.criteria import Characteristic, decision_section
+from bench.reports.deviations_arrivals import grid_positioning_deviations
 from bench.reports.document import (
     Block,
     Document,
@@ -41,8 +42,8 @@ from bench.reports.document import (
     Table,
     assemble,
     conditions_section,
-    decision_blocks,
 )
+from bench.reports.instrument import InstrumentInfo
 from bench.reports.plots import Plot, panels
 from bench.store import Store
 
@@ -324,8 +325,8 @@ def grid_positioning_document(
     report: GridPositioningReport,
     raw: list[RawData],
     *,
-    operator: str = "not recorded",
-    laboratory: str = "not recorded",
+    operator: str = "—",
+    laboratory: str = "—",
 ) -> Document:
     config = report.run.config
     test = (
@@ -356,7 +357,21 @@ def grid_positioning_document(
         ),
         results=_results(report),
         plots=[grid_positioning_plot(report)],
-        decision=decision_blocks(NO_CRITERION),
+        decision=decision_section(report, NO_CRITERION),
         scope=SCOPE if _thesis(report.run) else ISO_SCOPE,
         recompute=recompute_grid_positioning(report),
     )
+
+
+#: What ``--criterion`` judges in a laser-grid positioning report: spatial AP and RP of every pose over its
+#: complete readings (no U stated; a pose without the readings a figure needs is left out).
+CHARACTERISTICS = {
+    "AP_mm": Characteristic(
+        "spatial AP_P of every pose (complete readings)",
+        lambda report: [(p.pose, p.statistics.ap_mm, None) for p in report.poses if p.statistics.ap_mm is not None],
+    ),
+    "RP_mm": Characteristic(
+        "RP_l of every pose (complete readings)",
+        lambda report: [(p.pose, p.statistics.rp_mm, None) for p in report.poses if p.statistics.rp_mm is not None],
+    ),
+}

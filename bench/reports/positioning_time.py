@@ -24,9 +24,12 @@ import pandas as pd
 from bench.errors import ConfigError, InsufficientData
 from bench.metrology import MinimumPositioningTime, minimum_positioning_time
 from bench.metrology.path_tables import positioning_steps
-from bench.reports.content import ReportBase, calibrations_in_force, counts_instrument, provenance, run_table
-from bench.reports.deviations import ISO_BANDS_MM, Deviation, _fmt, _load, _planned_count, _row
-from bench.reports.document import Paragraph, RawData, Table, assemble, conditions_section, decision_blocks
+from bench.reports.content import ReportBase, calibrations_in_force, provenance, run_table
+from bench.reports.criteria import Characteristic, decision_section
+from bench.reports.deviations import Deviation, _fmt, _load, _planned_count, _row
+from bench.reports.deviations_arrivals import ISO_BANDS_MM
+from bench.reports.document import Paragraph, RawData, Table, assemble, conditions_section
+from bench.reports.instrument import counts_instrument
 from bench.reports.plots import MIN_FONT_PT, Plot, print_grid
 from bench.reports.stabilisation import _bands, _hysteresis, count_size_mm
 from bench.store import Store
@@ -375,8 +378,8 @@ def positioning_time_document(
     report: PositioningTimeReport,
     raw: list[RawData],
     *,
-    operator: str = "not recorded",
-    laboratory: str = "not recorded",
+    operator: str = "—",
+    laboratory: str = "—",
 ):
     config = report.run.config
     method = (
@@ -421,6 +424,21 @@ def positioning_time_document(
             ),
         ),
         plots=[positioning_time_plot(report)],
-        decision=decision_blocks(NO_CRITERION),
+        decision=decision_section(report, NO_CRITERION),
         recompute=recompute_positioning_time(report),
     )
+
+
+#: What ``--criterion`` judges in a positioning-time report: the ISO figure (the mean over the cycles) of every
+#: Table 19 step, condition and band (no U stated).
+CHARACTERISTICS = {
+    "t_pos_s": Characteristic(
+        "minimum positioning time (mean over the cycles) of every step, condition and band",
+        lambda report: [
+            (f"step {step}, {f.band_mm:g} mm band, {f.velocity_pct:g} % velocity, {f.load_kg:g} kg", mean, None)
+            for f in report.analysis.figures
+            if f.result is not None
+            for step, mean in zip(f.steps, f.result.mean_time_s)
+        ],
+    ),
+}

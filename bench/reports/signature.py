@@ -17,7 +17,7 @@ from typing import Any
 
 from bench.reports.blocks import Table
 
-__all__ = ["BLANK", "PLACEHOLDER_SHOWN", "is_placeholder", "measuring_point", "signature_table"]
+__all__ = ["BLANK", "PLACEHOLDER_SHOWN", "SIGNATURE_ROW_MM", "is_placeholder", "measuring_point", "signature_table"]
 
 #: A field nobody filled in: an empty line on the printed page, to be written on by hand.
 BLANK = ""
@@ -41,6 +41,8 @@ _PLACEHOLDERS = {
     "-",
     "—",
 }
+#: Height of a signature row, mm: room for a handwritten name, signature and date (a body row of text is ~5 mm).
+SIGNATURE_ROW_MM = 14.0
 _TEMPLATE_MARK = re.compile(r"^\s*(<[^>]*>|\{[^}]*\}|\[[^\]]*\]|_+)\s*$")
 
 
@@ -69,4 +71,6 @@ def signature_table(operator: str):
             ("Approved by", BLANK, BLANK, BLANK),
         ),
         "Signatures",
+        row_height_mm=SIGNATURE_ROW_MM,
+        column_weights=(1.0, 2.0, 2.5, 1.2),
     )

@@ -1,7 +1,7 @@
 """The report of an ``iso9283_stabilisation`` run: position stabilisation time and overshoot (ISO 9283 7.4, 7.5)
 from the streamed arrivals (docs/campaigns.md, "Streamed arrivals").
 
-Every figure comes from :func:`bench.metrology.tables.stabilisation_results` on the run's streamed series
+Every figure comes from :func:`bench.metrology.stabilisation_tables.stabilisation_results` on the run's streamed series
 (:func:`bench.store.series_table`, the raw-data CSV, = ``bench export RUN --series``), the call ``bench analyze
 stabilisation FILE.csv --band-mm ... --hysteresis-mm ...`` makes: per pose and cycle through
 :func:`bench.metrology.pose_stabilisation`, for every limit band (ISO comparison bands 0.1, 0.5 and 1.0 mm by
@@ -22,16 +22,10 @@ import numpy as np
 
 from bench.errors import ConfigError
 from bench.metrology import PoseStabilisation
-from bench.metrology.tables import stabilisation_results, stabilisation_table
-from bench.reports.content import (
-    MM_PER_INCH,
-    ReportBase,
-    calibrations_in_force,
-    counts_instrument,
-    provenance,
-    run_table,
-)
-from bench.reports.deviations import ISO_BANDS_MM, stabilisation_deviations
+from bench.metrology.stabilisation_tables import stabilisation_results, stabilisation_table
+from bench.reports.content import ReportBase, calibrations_in_force, provenance, run_table
+from bench.reports.criteria import Characteristic, decision_section
+from bench.reports.deviations_arrivals import ISO_BANDS_MM, stabilisation_deviations
 from bench.reports.document import (
     Block,
     Document,
@@ -40,8 +34,9 @@ from bench.reports.document import (
     Table,
     assemble,
     conditions_section,
-    decision_blocks,
+    reading_formatter,
 )
+from bench.reports.instrument import MM_PER_INCH, counts_instrument
 from bench.reports.plots import MIN_FONT_PT, Plot, print_grid
 from bench.store import CalibrationRecord, RunRecord, Store
 
@@ -224,6 +219,7 @@ def _seconds(value: float) -> str:
 
 def _results(report: StabilisationReport) -> tuple[Block, ...]:
     h = f"h = {report.hysteresis_mm:g} mm"
+    mm = reading_formatter(report)
     summary, cycles = [], []
     for r in report.results:
         if r.result is None:
@@ -239,8 +235,8 @@ def _results(report: StabilisationReport) -> tuple[Block, ...]:
                 str(len(r.cycles)),
                 _seconds(s.mean_time_s),
                 _seconds(s.max_time_s),
-                f"{s.mean_overshoot_mm:.4f}",
-                f"{s.max_overshoot_mm:.4f}",
+                mm(s.mean_overshoot_mm),
+                mm(s.max_overshoot_mm),
                 "",
             )
         )
@@ -252,7 +248,7 @@ def _results(report: StabilisationReport) -> tuple[Block, ...]:
                 _seconds(c.first_entry_s),
                 _seconds(c.settled_s),
                 _seconds(c.stabilisation_time_s),
-                f"{c.overshoot_mm:.4f}",
+                mm(c.overshoot_mm),
             )
             for cycle, c in zip(r.cycles, s.cycles)
         ]
@@ -369,7 +365,7 @@ def recompute_stabilisation(report: StabilisationReport) -> str:
 
 
 def stabilisation_document(
-    report: StabilisationReport, raw: list[RawData], *, operator: str = "not recorded", laboratory: str = "not recorded"
+    report: StabilisationReport, raw: list[RawData], *, operator: str = "—", laboratory: str = "—"
 ) -> Document:
     config = report.run.config
     method = (
@@ -412,6 +408,22 @@ def stabilisation_document(
         ),
         results=_results(report),
         plots=[stabilisation_plot(report)],
-        decision=decision_blocks(NO_CRITERION),
+        decision=decision_section(report, NO_CRITERION),
         recompute=recompute_stabilisation(report),
     )
+
+
+def _figures(report, figure: str):
+    return [
+        (f"{r.group}, {r.band_mm:g} mm band", getattr(r.result, figure), None)
+        for r in report.results
+        if r.result is not None
+    ]
+
+
+#: What ``--criterion`` judges in a stabilisation report: per pose and band, the largest stabilisation time and
+#: overshoot over the cycles (no U stated).
+CHARACTERISTICS = {
+    "t_s": Characteristic("largest stabilisation time of every pose and band", lambda r: _figures(r, "max_time_s")),
+    "OV_mm": Characteristic("largest overshoot of every pose and band", lambda r: _figures(r, "max_overshoot_mm")),
+}

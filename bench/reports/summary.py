@@ -28,7 +28,16 @@ from bench.metrology.tables import PoseResult
 from bench.reports.signature import is_placeholder, measuring_point, signature_table
 from bench.store import RunRecord, Store
 
-__all__ = ["HistoryEvent", "Identity", "headline_rows", "is_simulated", "run_history", "summary_section", "verdicts"]
+__all__ = [
+    "HistoryEvent",
+    "Identity",
+    "comparison_summary",
+    "headline_rows",
+    "is_simulated",
+    "run_history",
+    "summary_section",
+    "verdicts",
+]
 
 #: A field nobody stated: printed as an empty line to fill in (:data:`bench.reports.signature.BLANK`).
 NOT_RECORDED = ""
@@ -143,7 +152,7 @@ def verdicts(decision_verdicts) -> tuple[tuple[str, ...], ...]:
     the one whose upper end value + U is highest (the one closest to failing under either rule); the result of a
     criterion and the overall one follow :func:`bench.reports.decision.overall` (fail > not proven > pass).
     """
-    from bench.reports.decision import PASS, overall
+    from bench.reports.decision import PASS, overall, unit_of
 
     by_name: dict[str, list] = {}
     for row in decision_verdicts:
@@ -154,7 +163,7 @@ def verdicts(decision_verdicts) -> tuple[tuple[str, ...], ...]:
         passed = sum(r[5] == PASS for r in rows)
         out.append(
             (
-                name.removesuffix("_mm") + " (mm)",
+                f"{name.rsplit('_', 1)[0]} ({unit_of(name)})",
                 f"≤ {worst[4]:g}",
                 f"{format_measured(worst[2], worst[3])} ({worst[1]})",
                 f"{passed} of {len(rows)}",
@@ -228,9 +237,12 @@ def _seconds(text: str) -> str:
     return _parse(text).isoformat(timespec="seconds")
 
 
-def summary_section(report, identity: Identity, history: Sequence[HistoryEvent], simulated: bool):
-    """Page 1: identity, test and date, the headline table and the verdict (pose runs), the data's nature, the
-    run history. ``report`` is any layout's report; the headline and verdict need a pose run's results."""
+def summary_section(
+    report, identity: Identity, history: Sequence[HistoryEvent], simulated: bool, decision_line: str | None = None
+):
+    """Page 1: identity, test and date, the headline table (pose runs) and the verdict under its rule (any layout
+    with stated criteria), else ``decision_line`` (why there is none), the data's nature, the run history and the
+    signature block. ``report`` is any layout's report."""
     from bench.reports.content import RunReport
     from bench.reports.document import Paragraph, Section, Table, key_values
     from bench.reports.orientation import orientation_headline
@@ -275,17 +287,26 @@ def summary_section(report, identity: Identity, history: Sequence[HistoryEvent],
             )
         )
         blocks.extend(orientation_headline(report))
+    if report.decision is not None and (report.decision.verdicts or (isinstance(report, RunReport) and report.poses)):
         verdict = verdicts(report.decision.verdicts)
         blocks.append(Paragraph(f"Decision rule: {report.decision.rule}."))
         if verdict:
             blocks.append(
                 Table(
                     "verdict",
-                    ("Characteristic", "Criterion", "Worst value ± U (where)", "Poses passed", "Result"),
+                    (
+                        "Characteristic",
+                        "Criterion",
+                        "Worst value ± U (where)",
+                        "Poses passed" if isinstance(report, RunReport) else "Passed",
+                        "Result",
+                    ),
                     verdict,
                     "Verdict against the stated criteria under the decision rule above",
                 )
             )
+    elif decision_line:
+        blocks.append(Paragraph(f"Decision: {decision_line}."))
     blocks.append(
         Table("history", ("Time (UTC)", "Event"), tuple((e.time_utc, e.event) for e in history), "Run history")
     )
@@ -333,3 +354,28 @@ def registration_blocks(run: RunRecord) -> list:
         )
     )
     return blocks
+
+
+def comparison_summary(first, second, identity: Identity, report_id: str):
+    """Page 1 of a comparison: who and what (the identity of run A, as for a report of it), the two runs and their
+    dates, why a comparison states no verdict, and the signature block."""
+    from bench.reports.document import Paragraph, Section, key_values
+
+    a, b = first.run, second.run
+    rows = [
+        *identity.rows(),
+        ("Test", f"comparison of run {a.id} (A) and run {b.id} (B): {first.title} ({a.robot} / {b.robot})"),
+        ("Test dates (UTC)", f"A {(a.started_utc or '—')[:10]}, B {(b.started_utc or '—')[:10]}"),
+        ("Report", report_id),
+    ]
+    return Section(
+        "Summary",
+        (
+            key_values("summary-identity", rows),
+            Paragraph(
+                "Decision: no verdict: a comparison states the differences between two runs (B − A, rounded by "
+                "their U); each run's own report states a verdict against criteria."
+            ),
+            signature_table(identity.operator),
+        ),
+    )

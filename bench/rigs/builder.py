@@ -9,8 +9,11 @@ The command line (``bench run --station``) and the desktop app build rigs here a
 3. records the calibrations in force get-or-create in the store (a nominal one, flagged as such, when none was
    measured yet), so every sample names them;
 4. registers relative instruments (the mice) at home and verifies them at a check pose before anything is measured
-   (:mod:`bench.rigs.registration`; the record goes into ``rig.extra["registration"]``);
+   (:mod:`bench.rigs.registration`; the record is the rig's ``registration``);
 5. closes everything it opened, newest first, when a later device fails.
+
+Each sensor is opened by the opener its record in :mod:`bench.sensor_kinds` names (given a :class:`SensorOpening`);
+the builder itself names no sensor.
 
 Production code never imports :mod:`bench.simulators`; a simulated station is a station whose devices are
 simulator processes (:func:`bench.simulators.station.rehearse`), built here by the same code as hardware.
@@ -19,26 +22,22 @@ simulator processes (:func:`bench.simulators.station.rehearse`), built here by t
 from __future__ import annotations
 
 import logging
+from collections.abc import Callable
 from contextlib import ExitStack
 from typing import Any
 
-import numpy as np
-
-from bench.errors import ConfigError, LinkError
-from bench.rigs.gauges import CalliperOnly, GaugeOperator
-from bench.rigs.interfaces import Operator, Rig
-from bench.rigs.movers import DeltaMover, Pkm5Mover
+from bench.errors import ConfigError
+from bench.rigs.gauges import CalliperOnly
+from bench.rigs.interfaces import Instrument, Operator, Rig
+from bench.rigs.movers import DeltaMover, LatchingMover, Pkm5Mover
+from bench.rigs.opening import SensorOpening, open_station_port
 from bench.rigs.registration import home_before_registering, register_at_home
-from bench.rigs.station import CAPTURE_CAPABILITIES, Station
-from bench.robot_kinds import robot_kind
-from bench.robots.link import open_port
+from bench.rigs.station import Station, capture_capabilities
+from bench.sensor_kinds import SensorKind, sensor_kind
 
-__all__ = ["build_rig", "calibration_summary", "check_capabilities", "mouse_calibration", "open_mover"]
+__all__ = ["SensorOpening", "build_rig", "check_capabilities", "open_mover"]
 
 _log = logging.getLogger(__name__)
-
-#: Read slice of the controller ports (the drivers poll in slices; deadlines are theirs).
-_POLL_S = 0.05
 
 
 def check_capabilities(station: Station, requires: frozenset[str] | set[str], protocol: str = "the protocol") -> None:
@@ -48,66 +47,6 @@ def check_capabilities(station: Station, requires: frozenset[str] | set[str], pr
         raise ConfigError(f"{station.source}: {protocol} needs {', '.join(missing)}")
     if station.robot not in ("pkm5", "delta4"):  # pragma: no cover - the station parser refuses other robots
         raise ConfigError(f"{station.source}: robot.kind = {station.robot!r}, expected pkm5 or delta4")
-
-
-def mouse_calibration(
-    store: Any, cpi: float, version: int | None = None, *, source: str = "station"
-) -> tuple[Any, Any]:
-    """The mouse calibration a station puts in force; returns (store record, :class:`CountsCalibration`).
-
-    With ``version`` (``[mice] calibration``), that stored ``mouse`` calibration, per-axis scales where it has
-    them; without, the nominal resolution at ``cpi``, recorded and flagged nominal. A measured calibration is never
-    put in force because it is the newest: a warning names the newest measured one and the key that would use it.
-    """
-    from bench.sensors.calibration import MM_PER_INCH, CountsCalibration
-
-    if version is not None:
-        try:
-            record = store.calibration("mouse", version)
-        except ConfigError:
-            stored = [str(c.version) for c in store.calibrations() if c.name == "mouse"]
-            raise ConfigError(
-                f"{source}: mice.calibration = {version}, expected a stored mouse calibration version "
-                f"({', '.join(stored) or 'none stored yet'})"
-            ) from None
-    else:
-        measured = [c for c in store.calibrations() if c.name == "mouse" and not c.params.get("nominal")]
-        record = store.ensure_calibration(
-            "mouse",
-            {"mm_per_count": MM_PER_INCH / cpi, "nominal": True},
-            notes=f"nominal {cpi:g} cpi (no [mice] calibration named)",
-        )
-        if measured:
-            _log.warning(
-                "%s: the nominal %g cpi is in force; stored calibration mouse-v%d is not used unless the "
-                "station names it ([mice] calibration = %d)",
-                source,
-                cpi,
-                measured[-1].version,
-                measured[-1].version,
-            )
-    params = record.params
-    matrix = params.get("matrix_mm_per_count") or np.diag(
-        [params.get(f"{axis}_mm_per_count", params["mm_per_count"]) for axis in "xy"]
-    )
-    calibration = CountsCalibration(
-        np.asarray(matrix, dtype=float),
-        f"mouse-v{record.version}",
-        record.created_utc[:10],
-        nominal=bool(params.get("nominal", False)),
-    )
-    return record, calibration
-
-
-def calibration_summary(record: Any) -> dict[str, Any]:
-    """What a run records of the mouse calibration it used: version, nominal or not, and each scale with its u."""
-    params = record.params
-    summary: dict[str, Any] = {"version": record.version, "nominal": bool(params.get("nominal", False))}
-    for axis in ("x", "y"):
-        summary[f"{axis}_mm_per_count"] = params.get(f"{axis}_mm_per_count", params["mm_per_count"])
-        if f"u_{axis}_mm_per_count" in params:
-            summary[f"u_{axis}_mm_per_count"] = params[f"u_{axis}_mm_per_count"]
-    return summary
 
 
 def build_rig(
@@ -132,46 +71,35 @@ def build_rig(
     calibration_ids: list[int] = []
     with ExitStack() as opened:
         mover, controller = _open_robot(station, opened)
-        if station.robot == "pkm5" and station.controller.fixture == "assembled" and (station.mice or station.camera):
+        serving = _serving(station)
+        if (
+            station.robot == "pkm5"
+            and station.controller.fixture == "assembled"
+            and any(kind.zeroed_at_home for kind, _ in serving)
+        ):
             home_before_registering(controller)
-        instrument = _open_instrument(station, controller, store, requires, opened, calibration_ids)
-        from bench.rigs.mice import MiceInstrument
-
+        kind, instrument = _open_instrument(station, controller, store, requires, opened, calibration_ids)
         registration = None
-        if isinstance(instrument, MiceInstrument):  # relative: verified at the check pose before anything is stored
+        if kind is not None and kind.relative:  # verified at the check pose before anything is stored
             registration = register_at_home(controller, instrument, speed_factor=speed_factor)
-        if station.calliper is not None and station.calliper.kind == "serial":
-            operator = GaugeOperator(_open_calliper(station, opened), operator, timeout_s=station.calliper.timeout_s)
+        for kind, spec in serving:
+            if kind.operator is not None:  # a gauge that answers the reading prompts itself
+                opening = SensorOpening(station, spec, controller, store, opened, calibration_ids)
+                operator = kind.resolved("operator")(opening, operator)
         closers = opened.pop_all()
-    rig = Rig(
+    return Rig(
         mover,
         instrument,
         operator,
         speed_factor=speed_factor,
         calibration_ids=tuple(calibration_ids),
         closers=[closers.close],
+        station=station,
+        registration=registration,  # the runner files it as the run's (or the segment's)
     )
-    rig.extra["station"] = station.settings()
-    rig.extra["dut"] = station_identity(station)
-    if registration is not None:
-        rig.extra["registration"] = registration  # the runner files it as the run's (or the segment's)
-    return rig
 
 
-def station_identity(station: Station) -> dict[str, str]:
-    """The device under test and the people, as the report's page 1 reads them (``settings.dut``)."""
-    identity = station.identity
-    fields = {
-        "dut_serial": identity.robot_serial or identity.robot_asset,
-        "customer": identity.customer,
-        "order": identity.order,
-        "operator": identity.operator,
-        "laboratory": identity.lab,
-    }
-    return {key: value for key, value in fields.items() if value}
-
-
-def open_mover(station: Station) -> tuple[Any, Any]:
+def open_mover(station: Station) -> tuple[LatchingMover, Callable[[], None]]:
     """Only the robot of ``station`` (jogging): its mover and the function that releases it."""
     with ExitStack() as opened:
         mover, _ = _open_robot(station, opened)
@@ -179,24 +107,9 @@ def open_mover(station: Station) -> tuple[Any, Any]:
     return mover, closers.close
 
 
-def _open_port(station: Station, key: str, url: str, baud: int, opened: ExitStack) -> Any:
-    """Open a port exclusively; a failure names the station key, the device and what to check."""
-    try:
-        port = open_port(url, baudrate=baud, timeout=_POLL_S, exclusive=True)
-    except LinkError as exc:
-        cause = exc.__cause__
-        why = getattr(cause, "strerror", None) or str(cause or exc)
-        raise LinkError(
-            f"{station.source}: {key} = {url!r}: cannot open it ({why}); is the device plugged in, the "
-            "name right and the port free? (bench station check)"
-        ) from None
-    opened.callback(port.close)
-    return port
-
-
-def _open_robot(station: Station, opened: ExitStack) -> tuple[Any, Any]:
+def _open_robot(station: Station, opened: ExitStack) -> tuple[LatchingMover, Any]:
     spec = station.controller
-    port = _open_port(station, "controller.port", spec.port, spec.baud, opened)
+    port = open_station_port(station, "controller.port", spec.port, spec.baud, opened)
     if station.robot == "pkm5":
         from bench.robots.pkm5 import Pkm5Controller
 
@@ -212,11 +125,17 @@ def _open_robot(station: Station, opened: ExitStack) -> tuple[Any, Any]:
         return Pkm5Mover(controller), controller
     from bench.robots.delta4 import Delta4Controller
 
-    controller = Delta4Controller(port)
-    opened.callback(controller.shutdown)
-    controller.start()
-    controller.probe_fine_references()  # fine references only if the firmware answers (the run settings say)
-    return DeltaMover(controller), controller
+    delta = Delta4Controller(port)
+    opened.callback(delta.shutdown)
+    delta.start()
+    delta.probe_fine_references()  # fine references only if the firmware answers (the run settings say)
+    return DeltaMover(delta), delta
+
+
+def _serving(station: Station) -> list[tuple[SensorKind, Any]]:
+    """The station's sensors that measure on its robot in its fixture, with their specs, in registration order."""
+    serving = [(sensor_kind(name), spec) for name, spec in station.sensors.items()]
+    return [(kind, spec) for kind, spec in serving if kind.serves(station.robot, station.controller.fixture)]
 
 
 def _open_instrument(
@@ -226,82 +145,15 @@ def _open_instrument(
     requires: frozenset[str] | set[str],
     opened: ExitStack,
     calibration_ids: list[int],
-) -> Any:
-    needs_capture = bool(set(requires) & CAPTURE_CAPABILITIES) or not requires
-    calliper = {} if station.calliper is None else {"calliper": vars(station.calliper)}
-    if (
-        station.robot == "pkm5"
-        and station.mice is not None
-        and station.controller.fixture == "assembled"
-        and needs_capture
-    ):
-        return _open_mice(station, store, opened, calibration_ids)
-    if station.camera is not None and needs_capture:
-        return _open_camera(station, opened)
-    if station.robot == "delta4" and station.laser_grid is not None and needs_capture:
-        from bench.rigs.lasergrid import DEFAULT_DECODER, LaserGridInstrument
-
-        decoder = {
-            **DEFAULT_DECODER,
-            "spot_half_width_mm": station.laser_grid.spot_half_width_mm,
-            "gate_mm": station.laser_grid.gate_mm,
-        }
-        instrument = LaserGridInstrument(controller, decoder=decoder)
-        calibration_ids.append(instrument.record_geometry(store))
-        return instrument
-    return CalliperOnly(calliper)
-
-
-def _open_mice(station: Station, store: Any, opened: ExitStack, calibration_ids: list[int]) -> Any:
-    from bench.rigs.mice import MiceInstrument
-    from bench.sensors.mouse import EvdevMouse
-
-    spec = station.mice
-    assert spec is not None
-    record, calibration = mouse_calibration(store, spec.cpi, spec.calibration, source=station.source)
-    calibration_ids.append(record.id)
-    mice = {}
-    for plane, path in (("xy", spec.xy), ("xz", spec.xz)):
-        mice[plane] = EvdevMouse(path, calibration, label=f"mouse_{plane}", grab=spec.grab)
-        opened.callback(mice[plane].close)
-    # zeroed at the home pose (the robot was homed), then verified at the check pose (bench.rigs.registration)
-    instrument = MiceInstrument(
-        mice,
-        _home("pkm5"),
-        calibration,
-        follow=True,
-        noise_counts=spec.noise_counts,
-        calibration_record=calibration_summary(record),
-    )
-    opened.callback(instrument.close)
-    return instrument
-
-
-def _open_camera(station: Station, opened: ExitStack) -> Any:
-    from bench.rigs.camera import CameraSpotInstrument, load_plane_calibration, video_grab
-    from bench.sensors.camera_spot import LaserSpotCamera
-
-    spec = station.camera
-    assert spec is not None
-    calibration = load_plane_calibration(spec.calibration)
-    grab, grab_next, release = video_grab(spec.device)
-    opened.callback(release)
-    return CameraSpotInstrument(
-        LaserSpotCamera(grab, calibration, grab_next=grab_next),
-        _home(station.robot),
-        plane=spec.plane,
-        frames=spec.frames,
-    )
-
-
-def _home(robot: str) -> tuple[float, ...]:
-    return tuple(robot_kind(robot).resolved("home")())
-
-
-def _open_calliper(station: Station, opened: ExitStack) -> Any:
-    from bench.sensors.calliper import SerialCalliper
-
-    spec = station.calliper
-    assert spec is not None
-    port = _open_port(station, "calliper.port", spec.port, spec.baud, opened)
-    return SerialCalliper(port, request=spec.request.encode(), terminator=spec.terminator.encode())
+) -> tuple[SensorKind | None, Instrument]:
+    """The rig's instrument: the first registered sensor of the station that opens as one and provides what the
+    protocol captures (any, when it says nothing of what it needs); else the calliper-only instrument, which refuses
+    captures."""
+    captures = set(requires) & capture_capabilities()
+    if captures or not requires:
+        for kind, spec in _serving(station):
+            if kind.instrument is not None and (captures & set(kind.provides) or not requires):
+                opening = SensorOpening(station, spec, controller, store, opened, calibration_ids)
+                return kind, kind.resolved("instrument")(opening)
+    readers = {kind.name: vars(spec) for kind, spec in _serving(station) if kind.operator is not None}
+    return None, CalliperOnly(readers)

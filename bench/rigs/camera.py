@@ -8,10 +8,13 @@ spot is when the robot stands at its registration pose, so a reading is ``regist
 
 from __future__ import annotations
 
+import errno
 import json
+import os
 from collections.abc import Callable
+from dataclasses import dataclass, replace
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -19,10 +22,91 @@ from bench.errors import ConfigError
 from bench.rigs.interfaces import Measurement
 from bench.steps import Capture
 
-__all__ = ["CameraSpotInstrument", "load_plane_calibration", "video_grab"]
+if TYPE_CHECKING:
+    from bench.rigs.check import DeviceCheck
+    from bench.rigs.opening import SensorOpening
+    from bench.rigs.station import Station, StationTable
+
+__all__ = [
+    "CameraSpec",
+    "CameraSpotInstrument",
+    "check_camera",
+    "load_plane_calibration",
+    "open_camera",
+    "parse_camera",
+    "video_grab",
+]
 
 _AXES = {"xy": ("x_mm", "y_mm"), "xz": ("x_mm", "z_mm"), "yz": ("y_mm", "z_mm")}
 _INDEX = {"x_mm": 0, "y_mm": 1, "z_mm": 2}
+_FRAMES_EXPECTED = "an integer 1-100 (frames averaged per reading)"
+
+
+@dataclass(frozen=True)
+class CameraSpec:
+    """A camera looking at the laser spot on a plane: ``device`` is a video device, an index or a stream URL;
+    ``calibration`` a JSON file with the plane calibration (:class:`bench.sensors.camera_spot.PlaneCalibration`)."""
+
+    device: str
+    calibration: str
+    plane: str = "xy"  #: the two pose coordinates the camera's plane measures
+    #: frames averaged into one reading: the spot centroid's noise falls as 1/sqrt(frames) (a reading that corrects
+    #: a command copies its noise into it, so iterative correction to the camera's uncertainty needs a few)
+    frames: int = 1
+
+
+def parse_camera(table: StationTable) -> CameraSpec:
+    """``[camera]`` of a station file; a relative calibration path is relative to the station file."""
+    camera = CameraSpec(
+        device=str(
+            table.get("device", (str, int), required=True, expected="a video device, camera index or stream URL")
+        ),
+        calibration=table.get("calibration", str, required=True, expected="the plane calibration JSON file"),
+        plane=table.choice("plane", tuple(_AXES), "xy"),
+        frames=table.get("frames", int, 1, expected=_FRAMES_EXPECTED),
+    )
+    if not 1 <= camera.frames <= 100:
+        raise table.fail("frames", camera.frames, _FRAMES_EXPECTED)
+    if not Path(camera.calibration).is_absolute() and table.source != "station":
+        camera = replace(camera, calibration=str(Path(table.source).parent / camera.calibration))
+    return camera
+
+
+def open_camera(opening: SensorOpening) -> CameraSpotInstrument:
+    """The camera as the rig's instrument, its plane's origin at the robot's home pose."""
+    from bench.sensors.camera_spot import LaserSpotCamera
+
+    spec: CameraSpec = opening.spec
+    calibration = load_plane_calibration(spec.calibration)
+    grab, grab_next, release = video_grab(spec.device)
+    opening.opened.callback(release)
+    return CameraSpotInstrument(
+        LaserSpotCamera(grab, calibration, grab_next=grab_next), opening.home(), plane=spec.plane, frames=spec.frames
+    )
+
+
+def check_camera(station: Station, spec: CameraSpec) -> list[DeviceCheck]:
+    """One frame read from the camera, and its calibration file found."""
+    from bench.rigs.check import guarded
+
+    return [guarded("camera.device", spec.device, "video", lambda: _first_frame(spec.device, spec.calibration))]
+
+
+def _first_frame(device: str, calibration: str) -> str:
+    from bench.extras import require
+
+    cv2 = require("cv2")
+
+    if not os.path.exists(calibration):
+        raise OSError(errno.ENOENT, f"calibration file {calibration} not found")
+    capture = cv2.VideoCapture(int(device) if device.isdigit() else device)
+    try:
+        ok, image = capture.read()
+    finally:
+        capture.release()
+    if not ok:
+        raise OSError(errno.EIO, "no frame read")
+    return f"frame {image.shape[1]} x {image.shape[0]} px"
 
 
 def load_plane_calibration(path: str) -> Any:
@@ -95,7 +179,7 @@ class CameraSpotInstrument:
         if plane not in _AXES:
             raise ConfigError(f"camera.plane = {plane!r}, expected one of {', '.join(_AXES)}")
         if not (isinstance(frames, int) and 1 <= frames <= 100):
-            raise ConfigError(f"camera.frames = {frames!r}, expected an integer 1-100 (frames averaged per reading)")
+            raise ConfigError(f"camera.frames = {frames!r}, expected {_FRAMES_EXPECTED}")
         self.camera, self.plane, self.frames = camera, plane, frames
         self.origin = np.asarray(origin_mm, dtype=float)[:3].copy()
 

@@ -12,8 +12,9 @@ from typing import Any
 from bench.errors import BenchError, LinkTimeout
 from bench.rigs.station import Station
 from bench.robots.link import open_port
+from bench.sensor_kinds import sensor_kind
 
-__all__ = ["DeviceCheck", "check_station"]
+__all__ = ["DeviceCheck", "check_station", "guarded"]
 
 _SERIAL_FIX = (
     "add yourself to the 'dialout' group (sudo usermod -aG dialout $USER, then log in again) or install "
@@ -61,7 +62,9 @@ def _os_problem(key: str, path: str, exc: BaseException, kind: str) -> DeviceChe
     return DeviceCheck(key, path, False, str(exc).splitlines()[0], "")
 
 
-def _guarded(key: str, path: str, kind: str, probe: Callable[[], str]) -> DeviceCheck:
+def guarded(key: str, path: str, kind: str, probe: Callable[[], str]) -> DeviceCheck:
+    """``probe()``'s answer as a usable device, or the problem it raised with its fix (``kind``: ``serial``,
+    ``input`` or ``video``, for the fix's wording)."""
     try:
         return DeviceCheck(key, path, True, probe())
     except (BenchError, OSError) as exc:
@@ -69,21 +72,13 @@ def _guarded(key: str, path: str, kind: str, probe: Callable[[], str]) -> Device
 
 
 def check_station(station: Station) -> list[DeviceCheck]:
-    """One :class:`DeviceCheck` per device of ``station``, each opened, identified or read once and closed."""
-    checks = [_guarded("controller.port", station.controller.port, "serial", lambda: _controller(station))]
-    if station.mice is not None:
-        for plane in ("xy", "xz"):
-            path = getattr(station.mice, plane)
-            checks.append(_guarded(f"mice.{plane}", path, "input", lambda path=path: _mouse(path, station.mice.grab)))
-    if station.calliper is not None:
-        spec = station.calliper
-        if spec.kind == "serial":
-            checks.append(_guarded("calliper.port", spec.port, "serial", lambda: _serial_opens(spec.port, spec.baud)))
-        else:
-            checks.append(DeviceCheck("calliper", "typed", True, "readings typed at the prompt"))
-    if station.camera is not None:
-        spec = station.camera
-        checks.append(_guarded("camera.device", spec.device, "video", lambda: _camera(spec.device, spec.calibration)))
+    """One :class:`DeviceCheck` per device of ``station``, each opened, identified or read once and closed: the
+    controller here, each sensor by the check its record names (:attr:`bench.sensor_kinds.SensorKind.check`)."""
+    checks = [guarded("controller.port", station.controller.port, "serial", lambda: _controller(station))]
+    for name, spec in station.sensors.items():
+        kind = sensor_kind(name)
+        if kind.check is not None:
+            checks += kind.resolved("check")(station, spec)
     return checks
 
 
@@ -100,7 +95,7 @@ def _controller(station: Station) -> str:
         controller = Delta4Controller(port)
         frame = controller.start()
         detail = f"delta4 controller answering at {station.controller.baud} baud"
-        if station.laser_grid is not None:
+        if station.sensor("laser_grid") is not None:
             detail += f"; laser grid reporting ({len(frame.horizontal)} + {len(frame.vertical)} sensors lit)"
         try:  # this project's firmware reads the pots back; the documented original sends them nowhere (§7.3.4)
             pots = controller.read_pots()
@@ -117,35 +112,3 @@ def _controller(station: Station) -> str:
         return detail
     finally:
         port.close()
-
-
-def _mouse(path: str, grab: bool) -> str:
-    from bench.sensors.calibration import CountsCalibration
-    from bench.sensors.mouse import EvdevMouse
-
-    with EvdevMouse(path, CountsCalibration.from_cpi(800), label=path, grab=grab) as mouse:
-        frames = mouse.read_frames()
-        kind = "event device" if mouse.binding.is_device else "FIFO or file (not an event device)"
-        return f"{kind} {mouse.binding.name or ''}".rstrip() + f", {len(frames)} reports waiting"
-
-
-def _serial_opens(port_name: str, baud: int) -> str:
-    open_port(port_name, baudrate=baud, timeout=0.05, exclusive=True).close()
-    return f"opened at {baud} baud (press the data button during a run)"
-
-
-def _camera(device: str, calibration: str) -> str:
-    from bench.extras import require
-
-    cv2 = require("cv2")
-
-    if not os.path.exists(calibration):
-        raise OSError(errno.ENOENT, f"calibration file {calibration} not found")
-    capture = cv2.VideoCapture(int(device) if device.isdigit() else device)
-    try:
-        ok, image = capture.read()
-    finally:
-        capture.release()
-    if not ok:
-        raise OSError(errno.EIO, "no frame read")
-    return f"frame {image.shape[1]} x {image.shape[0]} px"

@@ -10,13 +10,79 @@ instructions (mount, zero, load) still go to the person. The actuator bench has 
 from __future__ import annotations
 
 import sys
-from typing import Any
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any
 
 from bench.errors import LinkError
 from bench.rigs.interfaces import Entry, Measurement, Operator
 from bench.steps import Capture, Prompt
 
-__all__ = ["CalliperOnly", "GaugeOperator"]
+if TYPE_CHECKING:
+    from bench.rigs.check import DeviceCheck
+    from bench.rigs.opening import SensorOpening
+    from bench.rigs.station import Station, StationTable
+
+__all__ = ["CalliperOnly", "CalliperSpec", "GaugeOperator", "calliper_operator", "check_calliper", "parse_calliper"]
+
+#: How a calliper's readings reach bench: typed at the prompt, or sent on a serial line.
+CALLIPER_KINDS = ("typed", "serial")
+
+
+@dataclass(frozen=True)
+class CalliperSpec:
+    """Readings the operator takes: typed at the prompt, or sent by a serial calliper (data button or request)."""
+
+    kind: str = "typed"
+    port: str = ""
+    baud: int = 9600
+    request: str = ""  #: sent before each reading by interfaces that answer requests; empty for push-button cables
+    terminator: str = "\n"
+    resolution_mm: float = 0.01
+    timeout_s: float = 60.0
+
+
+def parse_calliper(table: StationTable) -> CalliperSpec:
+    """``[calliper]`` of a station file; a serial calliper names its port."""
+    kind = table.choice("kind", CALLIPER_KINDS, "typed")
+    defaults = CalliperSpec()
+    return CalliperSpec(
+        kind=kind,
+        port=table.get(
+            "port", str, "", required=kind == "serial", expected='the calliper\'s serial port (kind = "serial")'
+        ),
+        baud=int(table.get("baud", int, defaults.baud)),
+        request=table.get("request", str, "", blank_ok=True),
+        terminator=table.get("terminator", str, defaults.terminator, blank_ok=True),
+        resolution_mm=table.number("resolution_mm", defaults.resolution_mm),
+        timeout_s=table.number("timeout_s", defaults.timeout_s),
+    )
+
+
+def calliper_operator(opening: SensorOpening, person: Operator) -> Operator:
+    """A serial calliper answers the reading prompts itself (the rest go to ``person``); a typed one is the person."""
+    spec: CalliperSpec = opening.spec
+    if spec.kind != "serial":
+        return person
+    from bench.sensors.calliper import SerialCalliper
+
+    port = opening.port("calliper.port", spec.port, spec.baud)
+    gauge = SerialCalliper(port, request=spec.request.encode(), terminator=spec.terminator.encode())
+    return GaugeOperator(gauge, person, timeout_s=spec.timeout_s)
+
+
+def check_calliper(station: Station, spec: CalliperSpec) -> list[DeviceCheck]:
+    """A serial calliper's port opened once; a typed calliper has no device."""
+    from bench.rigs.check import DeviceCheck, guarded
+    from bench.robots.link import open_port
+
+    if spec.kind != "serial":
+        return [DeviceCheck("calliper", "typed", True, "readings typed at the prompt")]
+
+    def opens() -> str:
+        open_port(spec.port, baudrate=spec.baud, timeout=0.05, exclusive=True).close()
+        return f"opened at {spec.baud} baud (press the data button during a run)"
+
+    return [guarded("calliper.port", spec.port, "serial", opens)]
 
 
 class CalliperOnly:

@@ -24,26 +24,78 @@ subtracting the commanded dither would put that error into the reading. Readings
 protocol commanded, or nothing; ``bench analyze grid-positioning`` reports the hit rate beside the statistics.
 
 ``grid_hit`` captures (hit repeatability) store what was hit on the horizontal screen.
+
+**A grid that stops, closes or freezes fails the run at the first capture after it did** (issue 32): no report
+begun within ``report_timeout_s`` of the capture is a ``LinkTimeout`` (the controller sends one every 80 ms), a
+vanished device a ``LinkError`` (the link's), and a report byte-for-byte that of the previous pose capture, with
+sensors lit, after the command moved by more than ``FROZEN_MOVE_MM`` on some axis is a ``SensorStalled``: a spot
+that moved that far lights other sensors (a 10 mm pitch, a 1 mm detection window), so the same lit sensors are a
+controller handing back its last frame. (A move of exactly a laser-offset difference on both screens could light
+the same sensors by other lasers: such a capture is refused too, never stored wrong.)
 """
 
 from __future__ import annotations
 
 import time
 from collections.abc import Callable, Sequence
-from typing import Any
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from bench.errors import LinkTimeout
 from bench.rigs.interfaces import Measurement
+from bench.sensors.reading import SensorStalled
 from bench.steps import Capture
 
-__all__ = ["AXES", "DEFAULT_DECODER", "LaserGridInstrument", "grid_pose_values"]
+if TYPE_CHECKING:
+    from bench.rigs.opening import SensorOpening
+    from bench.rigs.station import StationTable
+
+__all__ = [
+    "AXES",
+    "DEFAULT_DECODER",
+    "FROZEN_MOVE_MM",
+    "LaserGridInstrument",
+    "LaserGridSpec",
+    "grid_pose_values",
+    "open_laser_grid",
+    "parse_laser_grid",
+]
 
 #: Robot-frame axis names, in the order of :attr:`bench.sensors.lasergrid.Screen.axes`.
 AXES = ("x_mm", "y_mm", "z_mm")
 #: Decoder options stored with every run unless the rig sets others (delta4-lasergrid.md §4.6, §4.10 defaults).
 DEFAULT_DECODER = {"spot_half_width_mm": 1.0, "gate_mm": 3.75, "prior_uncertainty_mm": 0.0}
+#: A commanded move (mm, largest axis) after which the same lit sensors mean a frozen grid: the decoding gate (§4.7).
+FROZEN_MOVE_MM = 3.75
+
+
+@dataclass(frozen=True)
+class LaserGridSpec:
+    """The delta4's laser grid (its screens are read by the delta4 controller) and the decoder's options."""
+
+    spot_half_width_mm: float = DEFAULT_DECODER["spot_half_width_mm"]
+    gate_mm: float = DEFAULT_DECODER["gate_mm"]
+
+
+def parse_laser_grid(table: StationTable) -> LaserGridSpec:
+    """``[laser_grid]`` of a station file (``spot_half_width_mm``, ``gate_mm``)."""
+    defaults = LaserGridSpec()
+    return LaserGridSpec(
+        spot_half_width_mm=table.number("spot_half_width_mm", defaults.spot_half_width_mm),
+        gate_mm=table.number("gate_mm", defaults.gate_mm),
+    )
+
+
+def open_laser_grid(opening: SensorOpening) -> LaserGridInstrument:
+    """The grid as the rig's instrument, read from the delta4 controller's reports; its geometry recorded as the
+    calibration in force."""
+    spec: LaserGridSpec = opening.spec
+    decoder = {**DEFAULT_DECODER, "spot_half_width_mm": spec.spot_half_width_mm, "gate_mm": spec.gate_mm}
+    instrument = LaserGridInstrument(opening.controller, decoder=decoder)
+    opening.calibration_ids.append(instrument.record_geometry(opening.store))
+    return instrument
 
 
 def grid_pose_values(
@@ -126,6 +178,22 @@ class LaserGridInstrument:
         self.report_timeout_s = report_timeout_s
         self.decoder = {**DEFAULT_DECODER, **(decoder or {})}
         self.truth = truth
+        self._last_pose_report: tuple[tuple[tuple[int, ...], tuple[int, ...]], np.ndarray] | None = None
+
+    def _check_not_frozen(self, frame: Any, commanded_mm: np.ndarray) -> None:
+        """Refuse a report identical to the previous pose capture's, with sensors lit, after a move the spot cannot
+        have made without lighting other sensors (module docstring)."""
+        lit = (tuple(frame.horizontal), tuple(frame.vertical))
+        previous, self._last_pose_report = self._last_pose_report, (lit, commanded_mm)
+        if previous is None or not (frame.horizontal or frame.vertical) or lit != previous[0]:
+            return
+        moved = float(np.max(np.abs(commanded_mm - previous[1])))
+        if moved > FROZEN_MOVE_MM:
+            raise SensorStalled(
+                f"laser grid: the report {bytes(frame.raw).decode('ascii', 'replace')!r} lights the sensors of the previous pose's, "
+                f"after a {moved:.1f} mm move (a frozen grid or controller); the reading is refused; "
+                "check the controller's sensor reports, then resume the run"
+            )
 
     def record_geometry(self, store: Any) -> int:
         """Record the screens' geometry as the calibration in force (get-or-create) in ``store``; returns its id."""
@@ -161,7 +229,8 @@ class LaserGridInstrument:
             raw["true_pose"] = [round(float(v), 6) for v in self.truth()]
         if capture.kind == "grid_hit":
             screen = self.geometry.horizontal
-            expected = int(screen.index_of_cell(capture.conditions["expected_i"], capture.conditions["expected_j"]))
+            cell = (np.asarray(int(capture.conditions[key])) for key in ("expected_i", "expected_j"))
+            expected = int(screen.index_of_cell(*cell))
             return Measurement(
                 {
                     "expected_index": float(expected),
@@ -172,6 +241,7 @@ class LaserGridInstrument:
                 raw=raw,
             )
         prior = [capture.commanded[k] for k in ("cmd_x_mm", "cmd_y_mm", "cmd_z_mm")]
+        self._check_not_frozen(frame, np.asarray(prior, dtype=float))
         values, decoding = grid_pose_values(self.geometry, frame.horizontal, frame.vertical, prior, **self.decoder)
         return Measurement(values, raw={**raw, **decoding, "decoder": self.decoder})
 

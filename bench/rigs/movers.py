@@ -12,7 +12,7 @@ from __future__ import annotations
 import threading
 from typing import Any
 
-from bench.errors import LinkError
+from bench.errors import ConfigError, LinkError
 from bench.robots.pkm5 import RATED_SPEED_STEPS_S
 
 __all__ = ["DeltaMover", "LatchingMover", "Pkm5Mover"]
@@ -21,7 +21,8 @@ __all__ = ["DeltaMover", "LatchingMover", "Pkm5Mover"]
 class LatchingMover:
     """The emergency-stop latch shared by every robot's mover; subclasses implement ``_move`` and ``_stop_now``."""
 
-    robot = "robot"
+    #: the robot's record in :mod:`bench.robot_kinds`
+    kind = "robot"
 
     def __init__(self, controller: Any) -> None:
         self.controller = controller
@@ -34,12 +35,16 @@ class LatchingMover:
     def _refuse_if_latched(self, what: str) -> None:
         if self._latched.is_set():
             raise LinkError(
-                f"{self.robot}: {what} refused: an emergency stop is latched (release it after checking the robot)"
+                f"{self.kind}: {what} refused: an emergency stop is latched (release it after checking the robot)"
             )
 
     def move_to(self, target: tuple[float, ...], *, velocity_pct: float) -> None:
         self._refuse_if_latched(f"move to {tuple(target)}")
         self._move(tuple(target), velocity_pct)
+
+    def move_actuator(self, axis: int, stroke_mm: float, *, velocity_pct: float) -> None:
+        """One actuator of an actuator bench to ``stroke_mm``; this robot has none."""
+        raise ConfigError(f"actuator {axis} to {stroke_mm:g} mm: the {self.kind} has no actuator-bench mode")
 
     def stop(self) -> None:
         self.controller.stop()
@@ -72,6 +77,9 @@ class LatchingMover:
     def _move(self, target: tuple[float, ...], velocity_pct: float) -> None:  # pragma: no cover - abstract
         raise NotImplementedError
 
+    def settings(self) -> dict[str, Any]:  # pragma: no cover - abstract
+        raise NotImplementedError
+
     def _stop_now(self) -> None:
         self.controller.stop()
 
@@ -79,7 +87,7 @@ class LatchingMover:
 class Pkm5Mover(LatchingMover):
     """The pkm5 controller: velocity in % of the rated speed (:data:`bench.robots.pkm5.RATED_SPEED_STEPS_S`)."""
 
-    robot = "pkm5"
+    kind = "pkm5"
 
     def __init__(self, controller: Any, rated_speed_steps_s: int = RATED_SPEED_STEPS_S) -> None:
         super().__init__(controller)
@@ -112,7 +120,7 @@ class DeltaMover(LatchingMover):
     on its way is only stored by the stopped controller, which runs it on the next ``E``, and a latched rig never
     sends ``E`` again."""
 
-    robot = "delta4"
+    kind = "delta4"
 
     def _move(self, target: tuple[float, ...], velocity_pct: float) -> None:
         self.controller.move_to(target[:3], require_settled=True)

@@ -7,6 +7,10 @@ typo never silently drops a device). A station says what it *can* do as capabili
 a protocol asks for capabilities (:func:`bench.protocols.plan.required_capabilities`) and the rig builder refuses a
 station that lacks one before anything moves, naming the station key that would provide it.
 
+The tables of sensors (``[mice]``, ``[camera]``, ``[laser_grid]``, ``[calliper]``, and any other) are those of the
+sensor registry (:mod:`bench.sensor_kinds`): each is read by the spec parser its record names, into
+:attr:`Station.sensors`, and gives the capabilities its record lists.
+
 Example (``examples/stations/`` holds one per seed setup)::
 
     [station]
@@ -45,60 +49,67 @@ import tomllib
 from collections.abc import Mapping
 from dataclasses import dataclass, field, fields, replace
 from pathlib import Path
-from typing import Any
+from typing import Any, overload
 
 from bench.errors import ConfigError
 from bench.robot_kinds import robot_kind, robot_names
+from bench.sensor_kinds import SENSOR_KINDS, capability_sources, sensor_kind, sensor_names
 
 __all__ = [
-    "CAPABILITY_KEYS",
-    "CAPTURE_CAPABILITIES",
-    "CalliperSpec",
-    "CameraSpec",
     "ControllerSpec",
     "Identity",
     "LabStoreSpec",
-    "LaserGridSpec",
-    "MiceSpec",
     "Station",
+    "StationTable",
+    "capability_source",
+    "capture_capabilities",
     "load_station",
     "parse_station",
+    "station_identity",
 ]
 
 #: Every fixture a controller can be in; which a robot supports is its registry record's ``fixtures``.
 FIXTURES = ("assembled", "actuator-bench")
-CALLIPER_KINDS = ("typed", "serial")
 
-#: What a station can provide, and the station key that provides it (named when a protocol needs it).
-CAPABILITY_KEYS = {
-    "pose": "[mice] (pkm5), [camera], or [laser_grid] (delta4)",
-    "mouse_counts": "[mice]",
-    "arrival": "[mice]",
-    "grid_hit": "[laser_grid]",
-    "reading": "[calliper]",
+#: The capabilities a fixture provides, and the key that provides it; the sensors' are in their registry records.
+_FIXTURE_CAPABILITIES = {
     "actuator_bench": '[controller] fixture = "actuator-bench"',
     "assembled": '[controller] fixture = "assembled"',
 }
 
 
-#: The capabilities a capture needs (the others are readings and fixtures): a rig without one has no instrument.
-CAPTURE_CAPABILITIES = frozenset({"pose", "mouse_counts", "arrival", "grid_hit"})
+def capability_source(capability: str) -> str:
+    """The station key that provides ``capability`` (named when a protocol needs it): a fixture, or the tables of the
+    registered sensors that provide it (:func:`bench.sensor_kinds.capability_sources`); ``""`` when none does."""
+    return _FIXTURE_CAPABILITIES.get(capability) or capability_sources(capability)
+
+
+def capture_capabilities() -> frozenset[str]:
+    """The capabilities a capture needs (the others are readings and fixtures): those of the registered sensors
+    that open as the rig's instrument. A rig without one has no instrument."""
+    return frozenset(need for kind in SENSOR_KINDS.values() if kind.instrument is not None for need in kind.provides)
 
 
 def _fail(source: str, key: str, value: Any, expected: str) -> ConfigError:
     return ConfigError(f"{source}: {key} = {value!r}, expected {expected}")
 
 
-class _Table:
-    """Reads one table of the station file, refusing unknown keys and wrong types with the full key path."""
+class StationTable:
+    """Reads one table of the station file, refusing unknown keys and wrong types with the full key path (a
+    sensor's spec parser reads its table with it: :attr:`bench.sensor_kinds.SensorKind.spec`)."""
 
     def __init__(self, source: str, name: str, data: Any) -> None:
         if not isinstance(data, Mapping):
             raise _fail(source, f"[{name}]", data, "a table")
-        self.source, self.name, self.data, self.used = source, name, dict(data), set()
+        self.source, self.name, self.data = source, name, dict(data)
+        self.used: set[str] = set()
 
     def _key(self, key: str) -> str:
         return f"{self.name}.{key}"
+
+    def fail(self, key: str, value: Any, expected: str) -> ConfigError:
+        """The one-line error for ``key = value`` of this table, saying what was ``expected``."""
+        return _fail(self.source, self._key(key), value, expected)
 
     def get(
         self,
@@ -122,6 +133,12 @@ class _Table:
         if isinstance(value, str) and not value.strip() and not blank_ok:
             raise _fail(self.source, self._key(key), value, expected or "a non-empty string")
         return value
+
+    @overload
+    def number(self, key: str, default: float, *, zero_allowed: bool = False) -> float: ...
+
+    @overload
+    def number(self, key: str, default: None, *, zero_allowed: bool = False) -> float | None: ...
 
     def number(self, key: str, default: float | None, *, zero_allowed: bool = False) -> float | None:
         expected = "a finite number >= 0" if zero_allowed else "a finite number > 0"
@@ -170,63 +187,6 @@ class ControllerSpec:
     fixture: str = "assembled"
 
 
-def _calibration_version(table: _Table) -> int | None:
-    """``[mice] calibration``: a stored calibration version, an integer >= 1 (or absent)."""
-    expected = "a stored mouse calibration version, an integer >= 1"
-    value = table.get("calibration", int, None, expected=expected)
-    if value is not None and value < 1:
-        raise _fail(table.source, table._key("calibration"), value, expected)
-    return value
-
-
-@dataclass(frozen=True)
-class MiceSpec:
-    """Two optical mice by event device: ``xy`` measures x and y, ``xz`` measures x and z."""
-
-    xy: str
-    xz: str
-    cpi: float = 800.0
-    noise_counts: float | None = None  #: reading noise per count, when measured; stated in the report's budget
-    grab: bool = True  #: take the mice exclusively (EVIOCGRAB) so the desktop pointer does not move
-    #: the stored ``mouse`` calibration version in force; None: the nominal ``cpi`` (a stored one is never put in
-    #: force because it is the newest)
-    calibration: int | None = None
-
-
-@dataclass(frozen=True)
-class CalliperSpec:
-    """Readings the operator takes: typed at the prompt, or sent by a serial calliper (data button or request)."""
-
-    kind: str = "typed"
-    port: str = ""
-    baud: int = 9600
-    request: str = ""  #: sent before each reading by interfaces that answer requests; empty for push-button cables
-    terminator: str = "\n"
-    resolution_mm: float = 0.01
-    timeout_s: float = 60.0
-
-
-@dataclass(frozen=True)
-class LaserGridSpec:
-    """The delta4's laser grid (its screens are read by the delta4 controller) and the decoder's options."""
-
-    spot_half_width_mm: float = 1.0
-    gate_mm: float = 3.75
-
-
-@dataclass(frozen=True)
-class CameraSpec:
-    """A camera looking at the laser spot on a plane: ``device`` is a video device, an index or a stream URL;
-    ``calibration`` a JSON file with the plane calibration (:class:`bench.sensors.camera_spot.PlaneCalibration`)."""
-
-    device: str
-    calibration: str
-    plane: str = "xy"  #: the two pose coordinates the camera's plane measures
-    #: frames averaged into one reading: the spot centroid's noise falls as 1/sqrt(frames) (a reading that corrects
-    #: a command copies its noise into it, so iterative correction to the camera's uncertainty needs a few)
-    frames: int = 1
-
-
 @dataclass(frozen=True)
 class LabStoreSpec:
     """The lab store this bench syncs into: a PostgreSQL URL, and whether every run is synced when it ends."""
@@ -242,31 +202,38 @@ class Station:
     robot: str
     controller: ControllerSpec
     identity: Identity
-    mice: MiceSpec | None = None
-    calliper: CalliperSpec | None = None
-    laser_grid: LaserGridSpec | None = None
-    camera: CameraSpec | None = None
+    #: station table -> its sensor's spec (:attr:`bench.sensor_kinds.SensorKind.spec`), in registration order
+    sensors: dict[str, Any] = field(default_factory=dict, hash=False)
     lab_store: LabStoreSpec | None = None  #: never stored with the runs (its URL may hold a password)
     source: str = "station"
     simulated: bool = False  #: every device is a simulator standing in for the one named (``bench run --sim``)
     devices: dict[str, str] = field(default_factory=dict, compare=False)  #: station key -> device as written
 
+    def sensor(self, name: str) -> Any:
+        """The spec of the station's ``[name]`` sensor, or None when it names none."""
+        return self.sensors.get(name)
+
+    def with_sensor(self, name: str, **changes: Any) -> Station:
+        """This station with fields of its ``[name]`` spec changed (``with_sensor("mice", xz="/dev/input/event7")``)."""
+        return replace(self, sensors={**self.sensors, name: replace(self.sensors[name], **changes)})
+
     def capabilities(self) -> frozenset[str]:
-        """What runs on this station: the keys of :data:`CAPABILITY_KEYS` it provides."""
+        """What runs on this station: its fixture's, and those of its sensors that measure on its robot in its
+        fixture (:attr:`bench.sensor_kinds.SensorKind.provides`)."""
         found = {self.controller.fixture.replace("-", "_")}
-        if self.mice is not None:
-            found |= {"mouse_counts", "arrival"} | ({"pose"} if self.robot == "pkm5" else set())
-        if self.camera is not None:
-            found.add("pose")
-        if self.laser_grid is not None:
-            found |= {"grid_hit", "pose"}
-        if self.calliper is not None:
-            found.add("reading")
+        for name in self.sensors:
+            kind = sensor_kind(name)
+            if kind.serves(self.robot, self.controller.fixture):
+                found |= set(kind.provides)
         return frozenset(found)
 
     def missing(self, required: frozenset[str] | set[str]) -> list[str]:
         """The capabilities of ``required`` this station lacks, each with the key that would provide it."""
-        return [f"{need} (add {CAPABILITY_KEYS[need]})" for need in sorted(set(required) - self.capabilities())]
+        lacking = sorted(set(required) - self.capabilities())
+        return [
+            f"{need} (add {capability_source(need)})" if capability_source(need) else f"{need} (no sensor provides it)"
+            for need in lacking
+        ]
 
     def settings(self) -> dict[str, Any]:
         """What a run stores about its station (devices as named in the file, identity)."""
@@ -277,11 +244,22 @@ class Station:
             "identity": {f.name: getattr(self.identity, f.name) for f in fields(Identity)},
             "controller": vars(self.controller),
         }
-        for key in ("mice", "calliper", "laser_grid", "camera"):
-            spec = getattr(self, key)
-            if spec is not None:
-                out[key] = vars(spec)
+        for name, spec in self.sensors.items():
+            out[name] = vars(spec)
         return out
+
+
+def station_identity(station: Station) -> dict[str, str]:
+    """The device under test and the people, as the report's page 1 reads them (``settings.dut``)."""
+    identity = station.identity
+    fields = {
+        "dut_serial": identity.robot_serial or identity.robot_asset,
+        "customer": identity.customer,
+        "order": identity.order,
+        "operator": identity.operator,
+        "laboratory": identity.lab,
+    }
+    return {key: value for key, value in fields.items() if value}
 
 
 def load_station(path: str | Path) -> Station:
@@ -300,7 +278,7 @@ def load_station(path: str | Path) -> Station:
 
 def parse_station(data: Mapping[str, Any], *, source: str = "station") -> Station:
     """Validate a parsed station file; see the module docstring for the keys."""
-    known = ("station", "robot", "controller", "mice", "calliper", "laser_grid", "camera", "lab_store")
+    known = ("station", "robot", "controller", *sensor_names(), "lab_store")
     unknown = sorted(set(data) - set(known))
     if unknown:
         raise ConfigError(
@@ -309,8 +287,8 @@ def parse_station(data: Mapping[str, Any], *, source: str = "station") -> Statio
     for required, example in (("robot", 'kind = "pkm5" or "delta4"'), ("controller", 'port = "/dev/ttyUSB0"')):
         if required not in data:
             raise ConfigError(f"{source}: [{required}] missing, expected a table ({example})")
-    head = _Table(source, "station", data.get("station", {}))
-    robot_table = _Table(source, "robot", data["robot"])
+    head = StationTable(source, "station", data.get("station", {}))
+    robot_table = StationTable(source, "robot", data["robot"])
     robot = robot_table.choice("kind", robot_names(), None)
     identity = Identity(
         bench=head.get("name", str, Path(source).stem),
@@ -324,7 +302,7 @@ def parse_station(data: Mapping[str, Any], *, source: str = "station") -> Statio
     head.done()
     robot_table.done()
 
-    table = _Table(source, "controller", data["controller"])
+    table = StationTable(source, "controller", data["controller"])
     controller = ControllerSpec(
         port=table.get("port", str, required=True, expected="a serial port, e.g. /dev/ttyUSB0"),
         baud=int(table.get("baud", int, robot_kind(robot).baud, expected="a baud rate (integer)")),
@@ -340,66 +318,23 @@ def parse_station(data: Mapping[str, Any], *, source: str = "station") -> Statio
         )
     devices = {"controller.port": controller.port}
 
-    mice = calliper = grid = camera = None
-    if "mice" in data:
-        table = _Table(source, "mice", data["mice"])
-        mice = MiceSpec(
-            xy=table.get("xy", str, required=True, expected="the x-y mouse's event device"),
-            xz=table.get("xz", str, required=True, expected="the x-z mouse's event device"),
-            cpi=table.number("cpi", 800.0),
-            noise_counts=table.number("noise_counts", None, zero_allowed=True),
-            grab=table.get("grab", bool, True),
-            calibration=_calibration_version(table),
-        )
-        table.done()
-        devices.update({"mice.xy": mice.xy, "mice.xz": mice.xz})
-    if "calliper" in data:
-        table = _Table(source, "calliper", data["calliper"])
-        kind = table.choice("kind", CALLIPER_KINDS, "typed")
-        calliper = CalliperSpec(
-            kind=kind,
-            port=table.get(
-                "port", str, "", required=kind == "serial", expected='the calliper\'s serial port (kind = "serial")'
-            ),
-            baud=int(table.get("baud", int, 9600)),
-            request=table.get("request", str, "", blank_ok=True),
-            terminator=table.get("terminator", str, "\n", blank_ok=True),
-            resolution_mm=table.number("resolution_mm", 0.01),
-            timeout_s=table.number("timeout_s", 60.0),
-        )
-        table.done()
-        if kind == "serial":
-            devices["calliper.port"] = calliper.port
-    if "laser_grid" in data:
-        if robot != "delta4":
+    sensors: dict[str, Any] = {}
+    for kind in SENSOR_KINDS.values():
+        if kind.name not in data:
+            continue
+        if kind.robots is not None and robot not in kind.robots:
             raise ConfigError(
-                f"{source}: [laser_grid] with robot.kind = {robot!r}, expected robot.kind = 'delta4' "
-                "(the grid is read by the delta4 controller)"
+                f"{source}: [{kind.name}] with robot.kind = {robot!r}, expected robot.kind = "
+                + " or ".join(repr(r) for r in kind.robots)
+                + (f" ({kind.robots_why})" if kind.robots_why else "")
             )
-        table = _Table(source, "laser_grid", data["laser_grid"])
-        grid = LaserGridSpec(
-            spot_half_width_mm=table.number("spot_half_width_mm", 1.0), gate_mm=table.number("gate_mm", 3.75)
-        )
+        table = StationTable(source, kind.name, data[kind.name])
+        sensors[kind.name] = kind.resolved("spec")(table)
         table.done()
-    if "camera" in data:
-        table = _Table(source, "camera", data["camera"])
-        camera = CameraSpec(
-            device=str(
-                table.get("device", (str, int), required=True, expected="a video device, camera index or stream URL")
-            ),
-            calibration=table.get("calibration", str, required=True, expected="the plane calibration JSON file"),
-            plane=table.choice("plane", ("xy", "xz", "yz"), "xy"),
-            frames=table.get("frames", int, 1, expected="an integer 1-100 (frames averaged per reading)"),
-        )
-        if not 1 <= camera.frames <= 100:
-            raise _fail(source, "camera.frames", camera.frames, "an integer 1-100 (frames averaged per reading)")
-        table.done()
-        if not Path(camera.calibration).is_absolute() and source != "station":  # relative to the station file
-            camera = replace(camera, calibration=str(Path(source).parent / camera.calibration))
-        devices["camera.device"] = camera.device
+        devices.update(kind.named_devices(sensors[kind.name]))
     lab_store = None
     if "lab_store" in data:
-        table = _Table(source, "lab_store", data["lab_store"])
+        table = StationTable(source, "lab_store", data["lab_store"])
         expected = "a postgresql://USER@HOST/DBNAME URL"
         url = table.get("url", str, required=True, expected=expected)
         from bench.store.lab import check_lab_url  # (psycopg only for a station with a lab store)
@@ -418,10 +353,7 @@ def parse_station(data: Mapping[str, Any], *, source: str = "station") -> Statio
         robot=robot,
         controller=controller,
         identity=identity,
-        mice=mice,
-        calliper=calliper,
-        laser_grid=grid,
-        camera=camera,
+        sensors=sensors,
         lab_store=lab_store,
         source=source,
         devices=devices,

@@ -5,10 +5,19 @@ real calliper would produce, with its resolution, a zero bias and reading noise 
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
-__all__ = ["CalliperSimulator", "depths_for_tilt"]
+__all__ = ["CalliperSimulator", "depths_for_tilt", "stand_in"]
+
+
+def stand_in(station: Any, spec: Any, *, folder: str, truth_path: str) -> tuple[Any, list[str]]:
+    """The ``[calliper]`` of a rehearsal: typed, as on hardware; a serial calliper is rehearsed as typed (its
+    simulator needs the gauge's position, which only the person at the bench knows)."""
+    if spec.kind != "serial":
+        return spec, []
+    return type(spec)(kind="typed", resolution_mm=spec.resolution_mm), []
 
 
 @dataclass(frozen=True)

@@ -17,6 +17,7 @@ end of the earlier stream: the simulator's turn is 2 ms, a rehearsal opens the c
 from __future__ import annotations
 
 import array
+import dataclasses
 import errno
 import fcntl
 import functools
@@ -26,12 +27,14 @@ import os
 import select
 import termios
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
+from bench.errors import ConfigError
 from bench.simulators.camera import SpotCameraSimulator
 
-__all__ = ["CAMERA_SHAPE", "HOME_XY_MM", "CameraFeed", "delta4_camera", "write_plane_calibration"]
+__all__ = ["CAMERA_SHAPE", "HOME_XY_MM", "CameraFeed", "delta4_camera", "stand_in", "write_plane_calibration"]
 
 _log = logging.getLogger(__name__)
 
@@ -51,6 +54,28 @@ def delta4_camera(seed: int = 0) -> SpotCameraSimulator:
     tilt = np.array([[np.cos(roll), -np.sin(roll), 0.0], [np.sin(roll), np.cos(roll), 0.0], [1e-5, -1e-5, 1.0]])
     centre = np.array([[_PX_PER_MM, 0.0, CAMERA_SHAPE[1] / 2], [0.0, _PX_PER_MM, CAMERA_SHAPE[0] / 2], [0.0, 0.0, 1.0]])
     return SpotCameraSimulator(centre @ tilt, shape=CAMERA_SHAPE, sigma_px=2.5, noise_sigma=3.0, seed=seed)
+
+
+def stand_in(station: Any, spec: Any, *, folder: str, truth_path: str) -> tuple[Any, list[str]]:
+    """The ``[camera]`` of a rehearsal: the delta4 simulator's ``--camera`` video stream of the true laser spot (a
+    FIFO in ``folder``), with a plane calibration made from the simulated camera's own chessboard image (the
+    station's calibration file belongs to the real camera)."""
+    if station.robot != "delta4":
+        raise ConfigError(
+            f"{station.source}: [camera] on the {station.robot} cannot be rehearsed yet (only the "
+            "delta4 simulator streams a camera); check it with bench station check, or rehearse the "
+            "protocol with [mice]"
+        )
+    if spec.plane != "xy":
+        raise ConfigError(
+            f"{station.source}: camera.plane = {spec.plane!r}: the simulated camera watches "
+            "the x-y plane, expected 'xy' for a rehearsal"
+        )
+    device = os.path.join(folder, "camera.y4m")
+    calibration = os.path.join(folder, "camera-plane.json")
+    os.mkfifo(device)
+    write_plane_calibration(calibration)
+    return dataclasses.replace(spec, device=device, calibration=calibration), ["--camera", device]
 
 
 def write_plane_calibration(path: str | os.PathLike[str], camera: SpotCameraSimulator | None = None) -> dict:

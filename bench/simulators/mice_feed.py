@@ -11,15 +11,17 @@ and further reports are lost, as a kernel buffer overflows (``SYN_DROPPED``).
 
 from __future__ import annotations
 
+import dataclasses
 import logging
 import os
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
 from bench.simulators.mouse import MouseSimulator, MouseStream
 
-__all__ = ["MOTION_S", "PLANES", "MiceFeed", "fifo_paths", "plane_seed"]
+__all__ = ["MOTION_S", "PLANES", "MiceFeed", "fifo_paths", "plane_seed", "stand_in"]
 
 _log = logging.getLogger(__name__)
 
@@ -37,6 +39,16 @@ def plane_seed(seed: int, plane_index: int) -> int:
 def fifo_paths(folder: str | Path) -> dict[str, str]:
     """Where ``--mice DIR`` puts each plane's FIFO."""
     return {plane: str(Path(folder) / f"mouse_{plane}.fifo") for plane in PLANES}
+
+
+def stand_in(station: Any, spec: Any, *, folder: str, truth_path: str) -> tuple[Any, list[str]]:
+    """The ``[mice]`` of a rehearsal: the pkm5 simulator's ``--mice`` FIFOs in ``folder``, read as event devices
+    (not grabbed; the count noise 0.05 unless the station states its own)."""
+    paths = fifo_paths(folder)
+    for path in paths.values():
+        os.mkfifo(path)
+    noise = spec.noise_counts if spec.noise_counts is not None else 0.05
+    return dataclasses.replace(spec, xy=paths["xy"], xz=paths["xz"], grab=False, noise_counts=noise), ["--mice", folder]
 
 
 class MiceFeed:

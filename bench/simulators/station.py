@@ -4,6 +4,9 @@ device, and the rig is then built from the resulting station by the hardware bui
 - ``[controller]``: ``bench sim pkm5`` / ``bench sim delta4`` on a pseudo-terminal, started ``--hardware-only``
   (the pkm5 simulator answers its SIM verbs as unknown, as the firmware does), so a rehearsal proves the hardware
   path never asks a simulator for its truth. Each simulator writes its truth log, for the tests to compare with.
+
+Each sensor is stood in for by the function its record names (:attr:`bench.sensor_kinds.SensorKind.stand_in`):
+
 - ``[mice]``: the pkm5 simulator's ``--mice DIR`` FIFOs, read as event devices.
 - ``[laser_grid]``: the delta4 simulator's own sensor reports (the grid is read by the controller).
 - ``[camera]`` (delta4): the delta4 simulator's ``--camera FIFO`` video stream of the true laser spot
@@ -19,10 +22,11 @@ import dataclasses
 import os
 import tempfile
 from collections.abc import Callable
+from typing import Any
 
 from bench.errors import ConfigError
-from bench.rigs.station import CalliperSpec, Station
-from bench.simulators.mice_feed import fifo_paths
+from bench.rigs.station import Station
+from bench.sensor_kinds import sensor_kind
 from bench.simulators.rig import end_process, start_simulator
 
 __all__ = ["Rehearsal", "rehearse"]
@@ -53,17 +57,6 @@ def rehearse(
 ) -> Rehearsal:
     """Start a simulator for every device of ``station``; the returned station names the simulators' devices.
     ``true_geometry_seed``: the simulated robot moves by that seed's true geometry (``--true-geometry-seed``)."""
-    if station.camera is not None and station.robot != "delta4":
-        raise ConfigError(
-            f"{station.source}: [camera] on the {station.robot} cannot be rehearsed yet (only the "
-            "delta4 simulator streams a camera); check it with bench station check, or rehearse the "
-            "protocol with [mice]"
-        )
-    if station.camera is not None and station.camera.plane != "xy":
-        raise ConfigError(
-            f"{station.source}: camera.plane = {station.camera.plane!r}: the simulated camera watches "
-            "the x-y plane, expected 'xy' for a rehearsal"
-        )
     if true_geometry_seed is not None and station.controller.fixture != "assembled":
         raise ConfigError(
             f"--true-geometry-seed {true_geometry_seed}: the {station.controller.fixture} has no "
@@ -77,33 +70,18 @@ def rehearse(
     options = ["--truth", truth_path]
     if true_geometry_seed is not None:
         options += ["--true-geometry-seed", str(int(true_geometry_seed))]
-    if station.robot == "delta4" and station.laser_grid is None:
+    if station.robot == "delta4" and station.sensor("laser_grid") is None:
         options.append("--no-grid")  # a controller whose screens are not plugged in reports no hit
-    mice, camera = station.mice, station.camera
-    if camera is not None:
-        from bench.simulators.camera_feed import write_plane_calibration
-
-        device = os.path.join(folder.name, "camera.y4m")
-        calibration = os.path.join(folder.name, "camera-plane.json")
-        os.mkfifo(device)
-        write_plane_calibration(calibration)
-        options += ["--camera", device]
-        camera = dataclasses.replace(camera, device=device, calibration=calibration)
     if station.robot == "pkm5":
         options += ["--hardware-only", "--fixture", station.controller.fixture]
-        if mice is not None and station.controller.fixture == "assembled":
-            options += ["--mice", folder.name]
-            paths = fifo_paths(folder.name)
-            for path in paths.values():
-                os.mkfifo(path)
-            mice = dataclasses.replace(
-                mice,
-                xy=paths["xy"],
-                xz=paths["xz"],
-                grab=False,
-                noise_counts=mice.noise_counts if mice.noise_counts is not None else 0.05,
-            )
+    sensors: dict[str, Any] = {}
     try:
+        for name, spec in station.sensors.items():
+            kind = sensor_kind(name)
+            if kind.stand_in is not None and kind.serves(station.robot, station.controller.fixture):
+                spec, needs = kind.resolved("stand_in")(station, spec, folder=folder.name, truth_path=truth_path)
+                options += needs
+            sensors[name] = spec
         process, pty_path = start_simulator(
             station.robot, seed=seed, speed_factor=speed_factor, ideal=ideal, options=tuple(options)
         )
@@ -111,20 +89,18 @@ def rehearse(
         folder.cleanup()
         raise
     closers.append(lambda: end_process(process))
-    calliper = station.calliper
-    if calliper is not None and calliper.kind == "serial":
-        calliper = CalliperSpec(kind="typed", resolution_mm=calliper.resolution_mm)
     simulated = dataclasses.replace(
         station,
         controller=dataclasses.replace(station.controller, port=pty_path),
-        mice=mice,
-        camera=camera,
-        calliper=calliper,
+        sensors=sensors,
         simulated=True,
         devices={
-            **station.devices,
             "controller.port": pty_path,
-            **({"camera.device": camera.device} if camera else {}),
+            **{
+                key: device
+                for name, spec in sensors.items()
+                for key, device in sensor_kind(name).named_devices(spec).items()
+            },
         },
     )
     settings = {

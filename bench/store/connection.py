@@ -21,7 +21,15 @@ from typing import Any
 from bench.errors import BenchError, ConfigError
 from bench.store.sample_checksum import damaged_sample_lines
 
-__all__ = ["BUSY_TIMEOUT_S", "GuardedConnection", "StoreError", "check_store", "open_connection", "store_error"]
+__all__ = [
+    "BUSY_TIMEOUT_S",
+    "GuardedConnection",
+    "GuardedCursor",
+    "StoreError",
+    "check_store",
+    "open_connection",
+    "store_error",
+]
 
 #: How long a connection waits for another process that holds the store (SQLite's busy timeout).
 BUSY_TIMEOUT_S = 10.0
@@ -50,12 +58,20 @@ def store_error(path: str, exc: sqlite3.Error) -> StoreError:
     return StoreError(f"store {path}: {exc}; {_advice(path, str(exc))}")
 
 
-class _GuardedCursor:
+class GuardedCursor:
+    """A ``sqlite3.Cursor`` whose errors are :class:`StoreError` lines, as :class:`GuardedConnection`'s."""
+
     def __init__(self, cursor: sqlite3.Cursor, path: str) -> None:
         self._cursor, self._path = cursor, path
 
     @property
     def lastrowid(self) -> int | None:
+        return self._cursor.lastrowid
+
+    def inserted_id(self) -> int:
+        """The rowid of the row this cursor's ``INSERT`` stored."""
+        if self._cursor.lastrowid is None:
+            raise StoreError(f"store {self._path}: an insert stored no row")
         return self._cursor.lastrowid
 
     def _guard(self, method: str, *args: Any) -> Any:
@@ -69,13 +85,13 @@ class _GuardedCursor:
     def fetchone(self) -> Any:
         return self._guard("fetchone")
 
-    def fetchall(self) -> list:
+    def fetchall(self) -> list[Any]:
         return self._guard("fetchall")
 
-    def fetchmany(self, size: int) -> list:
+    def fetchmany(self, size: int) -> list[Any]:
         return self._guard("fetchmany", size)
 
-    def __iter__(self) -> _GuardedCursor:
+    def __iter__(self) -> GuardedCursor:
         return self
 
     def __next__(self) -> Any:
@@ -88,9 +104,9 @@ class GuardedConnection:
     def __init__(self, db: sqlite3.Connection, path: str) -> None:
         self.raw, self.path = db, path
 
-    def execute(self, sql: str, args: Any = ()) -> _GuardedCursor:
+    def execute(self, sql: str, args: Any = ()) -> GuardedCursor:
         try:
-            return _GuardedCursor(self.raw.execute(sql, args), self.path)
+            return GuardedCursor(self.raw.execute(sql, args), self.path)
         except sqlite3.IntegrityError:
             raise
         except sqlite3.Error as exc:
@@ -129,15 +145,15 @@ def _refuse_foreign(db: sqlite3.Connection, path: str) -> None:
         )
 
 
-def open_connection(path: str, *, read_only: bool = False) -> sqlite3.Connection:
+def open_connection(path: str, *, read_only: bool = False, option: str = "--store") -> sqlite3.Connection:
     """A connection to the store at ``path``: read-only (the file must exist; nothing is created) or for writing
     (WAL, ``synchronous=FULL``, foreign keys on; a missing file is created). Another application's SQLite file is
-    refused in either mode before anything is written."""
+    refused in either mode before anything is written. ``option`` names where the path came from in a refusal."""
     if path != ":memory:" and not Path(path).parent.is_dir():
-        raise ConfigError(f"--store {path}: folder {Path(path).parent} does not exist")
+        raise ConfigError(f"{option} {path}: folder {Path(path).parent} does not exist")
     if read_only:
         if not Path(path).is_file():
-            raise ConfigError(f"--store {path}: no run store there, expected the bench.db a run wrote (--store)")
+            raise ConfigError(f"{option} {path}: no run store there, expected the bench.db a run wrote (--store)")
         uri = Path(path).resolve().as_uri()
         db = sqlite3.connect(f"{uri}?mode=ro", uri=True, isolation_level=None, timeout=BUSY_TIMEOUT_S)
         try:
@@ -159,11 +175,11 @@ def open_connection(path: str, *, read_only: bool = False) -> sqlite3.Connection
     return db
 
 
-def check_store(path: str) -> list[str]:
+def check_store(path: str, option: str = "--store") -> list[str]:
     """The problems of the store at ``path``, one line each (empty when sound): SQLite's ``integrity_check``,
     every row whose foreign key names a missing parent (``foreign_key_check``) and every sample that fails its
-    checksum or holds JSON that does not parse. Opens read-only."""
-    db = open_connection(path, read_only=True)
+    checksum or holds JSON that does not parse. Opens read-only (``option``: as :func:`open_connection`)."""
+    db = open_connection(path, read_only=True, option=option)
     # a flipped bit can leave bytes that are not UTF-8: read them as they are, for the checksum to name the row
     db.text_factory = lambda data: data.decode("utf-8", "surrogateescape")
     problems: list[str] = []

@@ -18,14 +18,10 @@ from __future__ import annotations
 
 import json
 import logging
-import math
 import sqlite3
 import subprocess
-import time
 import uuid
-from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
-from dataclasses import dataclass
-from datetime import UTC, datetime
+from collections.abc import Callable, Iterable, Mapping
 from pathlib import Path
 from typing import Any, Self
 
@@ -33,9 +29,21 @@ from bench import __version__
 from bench.errors import BenchError, ConfigError
 from bench.store.connection import GuardedConnection, open_connection, store_error
 from bench.store.ownership import RunLease, owner_of
+from bench.store.records import (
+    INTERRUPTED,
+    RUN_STATUSES,
+    CalibrationRecord,
+    DuplicateSample,
+    RunRecord,
+    SampleRecord,
+    to_json,
+    utc_now,
+)
 from bench.store.recovery import refuse_if_damaged
-from bench.store.sample_checksum import CHECKED_COLUMNS, parse_sample, sample_checksum
+from bench.store.sample_rows import CHECKPOINT_RETRY_S, checkpoint_wal, encode_sample, insert_sample_row
 from bench.store.schema import SCHEMA_VERSION, StoreSchemaError, default_bench_name, open_schema
+from bench.store.store_calibrations import StoreCalibrations
+from bench.store.store_samples import StoreSamples
 
 __all__ = [
     "INTERRUPTED",
@@ -45,6 +53,7 @@ __all__ = [
     "RunRecord",
     "SampleRecord",
     "Store",
+    "CHECKPOINT_RETRY_S",
     "checkpoint_wal",
     "encode_sample",
     "insert_sample_row",
@@ -52,93 +61,6 @@ __all__ = [
 ]
 
 _log = logging.getLogger(__name__)
-
-#: The closed set of stored run statuses.
-RUN_STATUSES = ("running", "completed", "failed", "aborted")
-#: The status a stored ``running`` run reads as when no live process owns it (derived when read, never stored).
-INTERRUPTED = "interrupted"
-#: How long a checkpoint retries while a reader's older snapshot keeps part of the log out of the file, s.
-CHECKPOINT_RETRY_S = 0.5
-
-
-class DuplicateSample(BenchError):
-    """A sample for a step that already has one: resuming must skip stored steps, never store them twice."""
-
-
-@dataclass(frozen=True)
-class RunRecord:
-    """One stored run, as read back from the ``runs`` table."""
-
-    id: int
-    uuid: str
-    bench: str
-    campaign: str | None
-    protocol_name: str
-    protocol_version: str
-    robot: str
-    config: dict[str, Any]
-    settings: dict[str, Any]
-    calibration_ids: tuple[int, ...]
-    software_version: str
-    git_sha: str
-    status: str
-    reason: str | None
-    started_utc: str
-    ended_utc: str | None
-    n_samples: int
-
-    @property
-    def simulated(self) -> bool:
-        """True for a run on simulators (the simulated rig or a station's rehearsal): its settings name the
-        simulator it ran on."""
-        return "simulator" in self.settings
-
-    def as_dict(self) -> dict[str, Any]:
-        """Plain, JSON-ready form (used by ``bench runs --json``), with ``simulated``."""
-        out = dict(self.__dict__)
-        out["calibration_ids"] = list(self.calibration_ids)
-        out["simulated"] = self.simulated
-        return out
-
-
-@dataclass(frozen=True)
-class SampleRecord:
-    """One raw sample: the step that produced it, where and when, its values (unit in every key) and raw data."""
-
-    run_id: int
-    step_index: int
-    kind: str
-    pose: str | None
-    cycle: int | None
-    t_s: float
-    wall_utc: str
-    values: dict[str, float]
-    raw: Any
-
-
-@dataclass(frozen=True)
-class CalibrationRecord:
-    """One version of a named calibration (e.g. ``mouse_xy``), with its parameters and the run it came from."""
-
-    id: int
-    uuid: str
-    name: str
-    version: int
-    created_utc: str
-    params: dict[str, Any]
-    source_run_id: int | None
-    notes: str
-
-
-def _utc_now() -> str:
-    return datetime.now(UTC).isoformat(timespec="microseconds")
-
-
-def _to_json(value: Any, field: str) -> str:
-    try:
-        return json.dumps(value, sort_keys=True, allow_nan=False)
-    except (TypeError, ValueError) as exc:
-        raise ConfigError(f"store: {field} = {value!r:.80}, expected JSON-serialisable finite values ({exc})") from exc
 
 
 def software_git_sha() -> str:
@@ -163,75 +85,7 @@ def software_git_sha() -> str:
         return "unknown"
 
 
-def encode_sample(
-    run_id: int,
-    step_index: int,
-    *,
-    values: Mapping[str, float],
-    kind: str,
-    pose: str | None,
-    cycle: int | None,
-    t_s: float,
-    raw: Any,
-    wall_clock: Callable[[], str] = _utc_now,
-) -> tuple:
-    """The ``samples`` row of one sample, its ``wall_utc`` now by ``wall_clock`` (when it was taken); a value that
-    is not a finite number, or raw data that is not JSON, raises ``ConfigError`` here, before anything is
-    written."""
-    for key, value in values.items():
-        if not isinstance(value, (int, float)) or not math.isfinite(value):
-            raise ConfigError(f"run {run_id} step {step_index}: {key} = {value!r}, expected a finite number")
-    columns = (
-        int(step_index),
-        kind,
-        pose,
-        cycle,
-        float(t_s),
-        wall_clock(),
-        _to_json({k: float(v) for k, v in values.items()}, "values"),
-        None if raw is None else _to_json(raw, "raw"),
-    )
-    return (int(run_id), *columns, sample_checksum(*columns))
-
-
-def checkpoint_wal(db: GuardedConnection) -> None:
-    """:meth:`Store.checkpoint` on the connection ``db`` (any connection to the store copies the shared log)."""
-    deadline = time.monotonic() + CHECKPOINT_RETRY_S
-    try:
-        while True:
-            _busy, log_frames, copied = db.execute("PRAGMA wal_checkpoint(PASSIVE)").fetchone()
-            if copied >= log_frames:  # all of it (-1, -1: not in WAL mode, a store in memory)
-                return
-            if time.monotonic() > deadline:
-                _log.warning(
-                    "store %s: checkpoint copied %d of %d log frames (a reader held an older snapshot for %g s)",
-                    db.path,
-                    copied,
-                    log_frames,
-                    CHECKPOINT_RETRY_S,
-                )
-                return
-            time.sleep(0.005)
-    except sqlite3.Error as exc:
-        raise BenchError(f"{db.path}: cannot checkpoint the store ({exc})") from None
-
-
-def insert_sample_row(db: GuardedConnection, row: tuple) -> None:
-    """Insert and commit one row of :func:`encode_sample` on ``db`` (in its own transaction: ``synchronous=FULL``
-    makes it durable before this returns)."""
-    try:
-        db.execute(
-            "INSERT INTO samples (run_id, step_index, kind, pose, cycle, t_s, wall_utc, values_json, raw_json,"
-            " checksum) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?)",
-            row,
-        )
-    except sqlite3.IntegrityError as exc:
-        if "UNIQUE" in str(exc):
-            raise DuplicateSample(f"run {row[0]}: step {row[1]} already has a stored sample") from exc
-        raise ConfigError(f"run {row[0]}: no such run in {db.path}") from exc
-
-
-class Store:
+class Store(StoreSamples, StoreCalibrations):
     """A SQLite run store (WAL journal, every write committed at once).
 
     Parameters
@@ -266,7 +120,7 @@ class Store:
         #: the run being resumed (``bench resume``): no new calibration version is written while it is set
         self.resuming: int | None = None
         #: the wall clock a sample's ``wall_utc`` is read from (ISO UTC text); replaceable, e.g. by a clock that jumps
-        self.wall_clock: Callable[[], str] = _utc_now
+        self.wall_clock: Callable[[], str] = utc_now
         self.bench = bench or default_bench_name()
         self.backup = None
         try:
@@ -384,7 +238,7 @@ class Store:
     def campaign_id(self, name: str, notes: str = "") -> int:
         """The id of campaign ``name``, created on first use."""
         self._db.execute(
-            "INSERT OR IGNORE INTO campaigns (name, created_utc, notes) VALUES (?, ?, ?)", (name, _utc_now(), notes)
+            "INSERT OR IGNORE INTO campaigns (name, created_utc, notes) VALUES (?, ?, ?)", (name, utc_now(), notes)
         )
         return int(self._db.execute("SELECT id FROM campaigns WHERE name = ?", (name,)).fetchone()[0])
 
@@ -411,12 +265,12 @@ class Store:
             protocol_name,
             str(protocol_version),
             robot,
-            _to_json(dict(config), "config"),
-            _to_json(dict(settings or {}), "settings"),
-            _to_json(sorted(int(i) for i in calibration_ids), "calibration_ids"),
+            to_json(dict(config), "config"),
+            to_json(dict(settings or {}), "settings"),
+            to_json(sorted(int(i) for i in calibration_ids), "calibration_ids"),
             __version__,
             software_git_sha(),
-            _utc_now(),
+            utc_now(),
         )
         # owned before anyone can read it: the run and its lock appear together (the commit comes after the lock)
         run_id = None
@@ -428,7 +282,7 @@ class Store:
                 " VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, 'running', ?)",
                 row,
             )
-            run_id = int(cursor.lastrowid)
+            run_id = cursor.inserted_id()
             self.claim(run_id)
             self._db.execute("COMMIT")
         except BaseException:
@@ -444,7 +298,7 @@ class Store:
         if status not in RUN_STATUSES:
             raise ConfigError(f"store: status = {status!r}, expected one of {', '.join(RUN_STATUSES)}")
         record = self.run(run_id)
-        now = _utc_now()
+        now = utc_now()
         ended = None if status == "running" else now
         # every settle and every reopening is kept in the run's history (the report lists each abort and resume)
         event = {
@@ -455,7 +309,7 @@ class Store:
         settings = {**record.settings, "history": [*record.settings.get("history", ()), event]}
         self._db.execute(
             "UPDATE runs SET status = ?, reason = ?, ended_utc = ?, settings_json = ? WHERE id = ?",
-            (status, reason, ended, _to_json(settings, "settings"), run_id),
+            (status, reason, ended, to_json(settings, "settings"), run_id),
         )
 
     def add_registration(self, run_id: int, registration: Mapping[str, Any]) -> int:
@@ -475,7 +329,7 @@ class Store:
                 {**registration, "segment": len(entries) + 1, **({} if after_t_s is None else {"after_t_s": after_t_s})}
             )
             self._db.execute(
-                "UPDATE runs SET settings_json = ? WHERE id = ?", (_to_json(settings, "settings"), int(run_id))
+                "UPDATE runs SET settings_json = ? WHERE id = ?", (to_json(settings, "settings"), int(run_id))
             )
             self._db.execute("COMMIT")
         except BaseException:
@@ -500,7 +354,7 @@ class Store:
                 args.append(value)
         return self._select_runs("WHERE " + " AND ".join(clauses) if clauses else "", tuple(args))
 
-    def _select_runs(self, where: str, args: tuple) -> list[RunRecord]:
+    def _select_runs(self, where: str, args: tuple[Any, ...]) -> list[RunRecord]:
         query = (
             "SELECT r.id, r.uuid, r.bench, c.name, r.protocol_name, r.protocol_version, r.robot, r.config_json,"
             " r.settings_json,"
@@ -531,251 +385,3 @@ class Store:
             for row in self._db.execute(query, args).fetchall()
             for status, reason in (self._reads_as(row[0], row[12], row[13]),)
         ]
-
-    # ---- samples ---------------------------------------------------------------------------------------------
-
-    def add_sample(
-        self,
-        run_id: int,
-        step_index: int,
-        *,
-        values: Mapping[str, float],
-        kind: str = "pose",
-        pose: str | None = None,
-        cycle: int | None = None,
-        t_s: float,
-        raw: Any = None,
-    ) -> None:
-        """Store one sample and commit it before returning.
-
-        Parameters
-        ----------
-        run_id, step_index : int
-            The run and the index of the protocol step that took the sample (unique per run).
-        values : mapping of str to float
-            Measured and commanded values, the unit in every key (``x_mm``, ``cmd_x_mm``, ``load_kg``).
-        kind : str
-            What the sample is: ``pose`` (an attained pose), ``calliper``, ``mouse``...
-        pose, cycle : str, int, optional
-            Pose label and cycle number (1-based) for pose-type tests.
-        t_s : float
-            Seconds since the run started, in the run's time base (its settings' ``time_base``: wall seconds on
-            hardware, simulated seconds on a sped-up simulator).
-        raw : JSON-serialisable, optional
-            The raw counts, bytes (as hex) or readings the values were computed from.
-        """
-        self.insert_sample(
-            encode_sample(
-                run_id,
-                step_index,
-                values=values,
-                kind=kind,
-                pose=pose,
-                cycle=cycle,
-                t_s=t_s,
-                raw=raw,
-                wall_clock=self.wall_clock,
-            )
-        )
-
-    def insert_sample(self, row: tuple) -> None:
-        """Insert and commit one row of :func:`encode_sample` before returning (:meth:`add_sample` in two parts:
-        :class:`bench.store.sample_writer.SampleWriter` encodes a sample when it is taken and commits it on its
-        writer thread)."""
-        insert_sample_row(self._db, row)
-
-    def stored_steps(self, run_id: int) -> set[int]:
-        """Indices of the steps of ``run_id`` whose sample is stored."""
-        return {row[0] for row in self._db.execute("SELECT step_index FROM samples WHERE run_id = ?", (run_id,))}
-
-    def samples(self, run_id: int, kind: str | None = None) -> list[SampleRecord]:
-        """The samples of a run in step order, optionally of one ``kind`` only. Each is checked against its checksum
-        as it is read: a damaged one raises :class:`bench.store.sample_checksum.DamagedSample` naming the run and
-        the step, so nothing is computed from a changed number."""
-        return list(self.iter_samples(run_id, kind))
-
-    def iter_samples(self, run_id: int, kind: str | None = None) -> Iterator[SampleRecord]:
-        """:meth:`samples` one at a time: a caller that keeps only what it computes from each sample holds one
-        parsed sample, not the run (a long path run's JSON series as Python lists: about 130 bytes a point)."""
-        query = (
-            f"SELECT {', '.join(CHECKED_COLUMNS)}, checksum FROM samples"
-            " WHERE run_id = ?" + (" AND kind = ?" if kind else "") + " ORDER BY step_index"
-        )
-        args = (run_id, kind) if kind else (run_id,)
-        for row in self._db.execute(query, args):
-            # the row's step_index, kind, pose, cycle, t_s, wall_utc, then the parsed JSON (CHECKED_COLUMNS' order)
-            yield SampleRecord(run_id, *row[:6], *parse_sample(run_id, row, self.path))
-
-    def stored_rows(self, run_id: int, after_step: int = -1, *, extract: Sequence[str] = ()) -> Iterator[tuple]:
-        """The samples of a run after step ``after_step`` exactly as stored, in step order: ``(step_index, kind,
-        pose, cycle, t_s, wall_utc, values_json, raw_json)`` with the JSON unparsed (what sync sends and what
-        :func:`bench.store.lab.rows_checksum` hashes); with ``extract`` (two or more value names) a ninth item, the
-        JSON array of those values as stored (``null`` where absent; SQLite's ``json_extract``, number text kept)."""
-        paths = "".join(", ?" for _ in extract)
-        return self._db.execute(
-            "SELECT step_index, kind, pose, cycle, t_s, wall_utc, values_json, raw_json"
-            + (f", json_extract(values_json{paths})" if extract else "")
-            + " FROM samples WHERE run_id = ? AND step_index > ? ORDER BY step_index",
-            (*(f"$.{name}" for name in extract), int(run_id), int(after_step)),
-        )
-
-    # ---- streamed rows ---------------------------------------------------------------------------------------
-
-    def add_stream_rows(self, run_id: int, stream: str, t_s, dx_counts, dy_counts, valid) -> int:
-        """Store one batch of a streaming sensor's frames (narrow rows) in one transaction, committed before
-        returning: one fsync for the batch, so a stream of thousands of frames a second keeps the guarantee of
-        :meth:`add_sample` for every batch this returned from (:class:`bench.store.streams.StreamWriter` batches).
-
-        Parameters
-        ----------
-        run_id : int
-            The run the stream belongs to.
-        stream : str
-            Which sensor (``mouse_xy``).
-        t_s : array_like of float, shape (n,)
-            Each frame's time (s, the sensor's clock); finite.
-        dx_counts, dy_counts : array_like of int, shape (n,)
-            Each frame's counts.
-        valid : array_like of bool, shape (n,)
-            False for a frame that closes a gap of lost counts.
-
-        Returns the number of rows stored.
-        """
-        import itertools
-
-        import numpy as np
-
-        t = np.asarray(t_s, dtype=float)
-        columns = (np.asarray(dx_counts, np.int64), np.asarray(dy_counts, np.int64), np.asarray(valid, bool))
-        if any(c.shape != t.shape for c in columns) or t.ndim != 1:
-            raise ConfigError(
-                f"run {run_id} stream {stream}: t_s, dx_counts, dy_counts and valid have shapes "
-                f"{[t.shape, *(c.shape for c in columns)]}, expected one length"
-            )
-        if not np.isfinite(t).all():
-            bad = int(np.flatnonzero(~np.isfinite(t))[0])
-            raise ConfigError(f"run {run_id} stream {stream}: t_s[{bad}] = {float(t[bad])!r}, expected a finite number")
-        rows = zip(
-            itertools.repeat(int(run_id)),
-            itertools.repeat(stream),
-            t.tolist(),
-            columns[0].tolist(),
-            columns[1].tolist(),
-            columns[2].astype(int).tolist(),
-        )
-        raw = self._db.raw
-        try:
-            raw.execute("BEGIN IMMEDIATE")  # the write lock now, under the busy timeout, as every writer here
-            raw.executemany(
-                "INSERT INTO stream_rows (run_id, stream, t_s, dx_counts, dy_counts, valid) VALUES (?, ?, ?, ?, ?, ?)",
-                rows,
-            )
-            raw.execute("COMMIT")
-        except sqlite3.Error as exc:
-            if raw.in_transaction:
-                raw.execute("ROLLBACK")
-            if isinstance(exc, sqlite3.IntegrityError):
-                raise ConfigError(f"run {run_id}: no such run in {self.path}") from exc
-            raise store_error(self.path, exc) from None
-        return len(t)
-
-    def stream_rows(self, run_id: int, stream: str) -> tuple:
-        """The stored frames of one stream of a run in the order stored: arrays ``(t_s, dx_counts, dy_counts,
-        valid)``."""
-        import numpy as np
-
-        rows = self._db.execute(
-            "SELECT t_s, dx_counts, dy_counts, valid FROM stream_rows WHERE run_id = ? AND stream = ? ORDER BY rowid",
-            (int(run_id), stream),
-        ).fetchall()
-        table = np.array(rows, dtype=float).reshape(-1, 4)
-        return table[:, 0], table[:, 1].astype(np.int64), table[:, 2].astype(np.int64), table[:, 3] != 0
-
-    def sample_kinds(self, run_id: int) -> dict[str, int]:
-        """How many samples of each kind run ``run_id`` holds, most frequent first."""
-        rows = self._db.execute(
-            "SELECT kind, COUNT(*) FROM samples WHERE run_id = ? GROUP BY kind ORDER BY COUNT(*) DESC, kind", (run_id,)
-        )
-        return {kind: count for kind, count in rows}
-
-    # ---- calibrations ----------------------------------------------------------------------------------------
-
-    def add_calibration(
-        self, name: str, params: Mapping[str, Any], *, source_run_id: int | None = None, notes: str = ""
-    ) -> CalibrationRecord:
-        """Store a new version of calibration ``name`` (versions count from 1) and return it."""
-        self._db.execute("BEGIN IMMEDIATE")
-        try:
-            (latest,) = self._db.execute(
-                "SELECT COALESCE(MAX(version), 0) FROM calibrations WHERE name = ?", (name,)
-            ).fetchone()
-            cursor = self._db.execute(
-                "INSERT INTO calibrations (uuid, name, version, created_utc, params_json, source_run_id, notes)"
-                " VALUES (?, ?, ?, ?, ?, ?, ?)",
-                (
-                    str(uuid.uuid4()),
-                    name,
-                    latest + 1,
-                    _utc_now(),
-                    _to_json(dict(params), "params"),
-                    source_run_id,
-                    notes,
-                ),
-            )
-            self._db.execute("COMMIT")
-        except BaseException:
-            self._db.execute("ROLLBACK")
-            raise
-        return self.calibration_by_id(int(cursor.lastrowid))
-
-    def ensure_calibration(self, name: str, params: Mapping[str, Any], *, notes: str = "") -> CalibrationRecord:
-        """The latest version of ``name`` if its parameters equal ``params``, else a new version with them; while
-        :attr:`resuming` a run, a new version is refused instead (a refused resume writes nothing)."""
-        try:
-            latest = self.calibration(name)
-        except ConfigError:
-            latest = None
-        if latest is not None and latest.params == json.loads(_to_json(dict(params), "params")):
-            return latest
-        if self.resuming is not None:
-            now = f"version {latest.version} is the latest" if latest else "none is stored"
-            raise ConfigError(
-                f"run {self.resuming}: calibration {name!r} in force would be a new version ({now}, "
-                f"with other parameters); a run resumes only with the calibrations it started with: "
-                "start a new run (bench run)"
-            )
-        return self.add_calibration(name, params, notes=notes)
-
-    def calibration(self, name: str, version: int | None = None) -> CalibrationRecord:
-        """Calibration ``name`` at ``version`` (the latest when None); ``ConfigError`` when missing."""
-        query = "SELECT id FROM calibrations WHERE name = ?" + (" AND version = ?" if version else "")
-        query += " ORDER BY version DESC LIMIT 1"
-        row = self._db.execute(query, (name, version) if version else (name,)).fetchone()
-        if row is None:
-            wanted = f"version {version}" if version else "any version"
-            raise ConfigError(f"calibration {name!r}: {wanted} not found in {self.path}")
-        return self.calibration_by_id(row[0])
-
-    def calibration_by_id(self, calibration_id: int) -> CalibrationRecord:
-        row = self._db.execute(
-            "SELECT id, uuid, name, version, created_utc, params_json, source_run_id, notes"
-            " FROM calibrations WHERE id = ?",
-            (calibration_id,),
-        ).fetchone()
-        if row is None:
-            raise ConfigError(f"calibration id {calibration_id}: not found in {self.path}")
-        return CalibrationRecord(
-            id=row[0],
-            uuid=row[1],
-            name=row[2],
-            version=row[3],
-            created_utc=row[4],
-            params=json.loads(row[5]),
-            source_run_id=row[6],
-            notes=row[7],
-        )
-
-    def calibrations(self) -> list[CalibrationRecord]:
-        """Every calibration version, by name then version."""
-        ids = [r[0] for r in self._db.execute("SELECT id FROM calibrations ORDER BY name, version")]
-        return [self.calibration_by_id(i) for i in ids]

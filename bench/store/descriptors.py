@@ -17,7 +17,9 @@ import math
 from collections.abc import Mapping
 from dataclasses import dataclass
 
+from bench.columns import UNITS, Column
 from bench.errors import BenchError
+from bench.sensor_kinds import sensor_columns
 
 __all__ = [
     "SAMPLE_KINDS",
@@ -30,8 +32,6 @@ __all__ = [
     "validate_sample",
 ]
 
-_KNOWN_UNITS = ("mm", "deg", "pct", "kg", "s", "counts")
-
 
 class SampleMismatch(BenchError):
     """A sample that does not match its kind's descriptor: a bug report (exit 1), never stored."""
@@ -40,38 +40,23 @@ class SampleMismatch(BenchError):
 
 
 @dataclass(frozen=True)
-class Column:
-    """One column of a sample kind: its name (unit in the name), unit, dtype (``float`` or ``int``) and meaning."""
-
-    name: str
-    unit: str
-    dtype: str
-    meaning: str
-    required: bool = True
-
-    def as_dict(self) -> dict[str, object]:
-        return {
-            "name": self.name,
-            "unit": self.unit,
-            "dtype": self.dtype,
-            "meaning": self.meaning,
-            "required": self.required,
-        }
-
-
-@dataclass(frozen=True)
 class SampleKind:
-    """A declared kind of sample: its name, what it is, and its value columns."""
+    """A declared kind of sample: its name, what it is, and its own value columns; :meth:`declared` adds those the
+    registered sensors' captures add to it (:func:`bench.sensor_kinds.sensor_columns`: the laser grid's screens, the
+    mice's counts)."""
 
     name: str
     meaning: str
     columns: tuple[Column, ...]
 
+    def declared(self) -> tuple[Column, ...]:
+        return self.columns + sensor_columns(self.name)
+
     def column(self, name: str) -> Column | None:
-        return next((c for c in self.columns if c.name == name), None)
+        return next((c for c in self.declared() if c.name == name), None)
 
     def as_dict(self) -> dict[str, object]:
-        return {"kind": self.name, "meaning": self.meaning, "columns": [c.as_dict() for c in self.columns]}
+        return {"kind": self.name, "meaning": self.meaning, "columns": [c.as_dict() for c in self.declared()]}
 
 
 def _xyz(prefix: str, meaning: str, required: bool = True) -> tuple[Column, ...]:
@@ -88,13 +73,6 @@ _CONDITIONS = (
     Column("lead_s", "s", "float", "series recorded from this long before the move-done signal", False),
     Column("hold_s", "s", "float", "series recorded for this long after the move-done signal", False),
 )
-_LASER_GRID = (
-    Column("horizontal_valid", "1", "int", "laser grid: 1 when the horizontal screen decoded", False),
-    Column("vertical_valid", "1", "int", "laser grid: 1 when the vertical screen decoded", False),
-    Column("horizontal_hits", "1", "int", "laser grid: lasers lit on the horizontal screen", False),
-    Column("vertical_hits", "1", "int", "laser grid: lasers lit on the vertical screen", False),
-    Column("y_disagreement_mm", "mm", "float", "laser grid: difference of the two screens' y readings", False),
-)
 _COMMANDED = _xyz("cmd_", "commanded position") + _abc("cmd_", "commanded orientation")
 
 #: The declared sample kinds, by name.
@@ -105,11 +83,7 @@ SAMPLE_KINDS: dict[str, SampleKind] = {
             "pose",
             "an attained pose measured after settling (ISO 9283 pose tests); an axis the instrument could "
             "not read is absent (e.g. a laser-grid screen that did not decode)",
-            _COMMANDED
-            + _xyz("", "measured position", required=False)
-            + _abc("", "measured orientation")
-            + _CONDITIONS
-            + _LASER_GRID,
+            _COMMANDED + _xyz("", "measured position", required=False) + _abc("", "measured orientation") + _CONDITIONS,
         ),
         SampleKind(
             "arrival",
@@ -144,18 +118,10 @@ SAMPLE_KINDS: dict[str, SampleKind] = {
         ),
         SampleKind(
             "mouse",
-            "raw counts of the two optical mice at one end of a calibration stroke",
+            "raw counts of the two optical mice at one end of a calibration stroke (the counts' columns are the "
+            "mice's, bench.sensor_kinds)",
             _xyz("cmd_", "commanded position")
             + (Column("step_mm", "mm", "float", "length of the calibration stroke"),)
-            + tuple(
-                Column(
-                    f"mouse_{plane}_{axis}_counts",
-                    "counts",
-                    "float",
-                    f"accumulated counts of the {plane} mouse along {axis}",
-                )
-                for plane, axis in (("xy", "x"), ("xy", "y"), ("xz", "x"), ("xz", "z"))
-            )
             + _CONDITIONS,
         ),
     )
@@ -165,7 +131,7 @@ SAMPLE_KINDS: dict[str, SampleKind] = {
 def _value_columns() -> tuple[Column, ...]:
     seen: dict[str, Column] = {}
     for kind in SAMPLE_KINDS.values():
-        for column in kind.columns:
+        for column in kind.declared():
             seen.setdefault(column.name, column)
     return tuple(seen.values())
 
@@ -189,13 +155,13 @@ def validate_sample(kind: str, values: Mapping[str, float]) -> None:
     for name, value in values.items():
         column = descriptor.column(name)
         if column is None:
-            declared = ", ".join(c.name for c in descriptor.columns)
+            declared = ", ".join(c.name for c in descriptor.declared())
             raise SampleMismatch(f"sample kind {kind!r}: column {name!r} is not declared (declared: {declared})")
         if column.dtype == "int" and not (
             isinstance(value, (int, float)) and math.isfinite(value) and float(value).is_integer()
         ):
             raise SampleMismatch(f"sample kind {kind!r}: {name} = {value!r}, expected an integer")
-    missing = [c.name for c in descriptor.columns if c.required and c.name not in values]
+    missing = [c.name for c in descriptor.declared() if c.required and c.name not in values]
     if missing:
         raise SampleMismatch(f"sample kind {kind!r}: missing column(s) {', '.join(missing)}")
 
@@ -208,7 +174,7 @@ def unit_of(kind: str, name: str) -> str | None:
     if column is not None:
         return column.unit
     suffix = name.rsplit("_", 1)[-1] if "_" in name else ""
-    return suffix if suffix in _KNOWN_UNITS else None
+    return suffix if suffix in UNITS else None
 
 
 def dtype_of(kind: str, name: str) -> str | None:

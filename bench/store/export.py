@@ -20,12 +20,13 @@ from __future__ import annotations
 
 import importlib.util
 import json
+from collections.abc import Iterable
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 from bench.errors import ConfigError, InsufficientData
 from bench.extras import install_hint
-from bench.store.database import Store
+from bench.store.database import SampleRecord, Store
 from bench.store.descriptors import SAMPLE_KINDS, dtype_of, unit_of
 from bench.store.registrations import registration_of, registrations
 
@@ -96,7 +97,9 @@ def tidy_table(store: Store, run_id: int, kind: str = "pose") -> pd.DataFrame:
 _SERIES_CONTEXT = ("velocity_pct", "load_kg", "step", "step_distance_mm")
 
 
-def series_table(store: Store, run_id: int, kind: str = "arrival", samples=None) -> pd.DataFrame:
+def series_table(
+    store: Store, run_id: int, kind: str = "arrival", samples: Iterable[SampleRecord] | None = None
+) -> pd.DataFrame:
     """The streamed series of the samples of one kind, one row per series point (see the module docstring);
     ``samples``: those samples when the caller has read them already (they are read once per report).
 
@@ -108,7 +111,7 @@ def series_table(store: Store, run_id: int, kind: str = "arrival", samples=None)
     import pandas as pd
 
     store.run(run_id)
-    streamed = []
+    streamed: list[tuple[dict[str, Any], dict[str, Any]]] = []
     for sample in store.samples(run_id, kind=kind) if samples is None else samples:
         series = sample.raw.get("series") if isinstance(sample.raw, dict) else None
         if series:
@@ -127,7 +130,7 @@ def series_table(store: Store, run_id: int, kind: str = "arrival", samples=None)
     return table[leading + sorted(c for c in table.columns if c not in leading)]
 
 
-def _uniform_series(streamed) -> pd.DataFrame | None:
+def _uniform_series(streamed: list[tuple[dict[str, Any], dict[str, Any]]]) -> pd.DataFrame | None:
     """The rows of ``streamed`` (context, series) in one pass, column by column (a DataFrame per sample took 10 s
     for a long path run's 7,000 samples), when every sample has the same context and series columns, no missing
     context and floating-point series; None otherwise (the caller concatenates per sample, which gives the same
@@ -140,7 +143,7 @@ def _uniform_series(streamed) -> pd.DataFrame | None:
         if list(context) != context_keys or list(series) != series_keys or any(v is None for v in context.values()):
             return None
     lengths = np.array([len(series[series_keys[0]]) for _, series in streamed])
-    columns: dict = {}
+    columns: dict[str, Any] = {}
     for key in context_keys:
         values = [context[key] for context, _ in streamed]
         if not all(type(v) is type(values[0]) for v in values) or not isinstance(values[0], (str, int, float)):

@@ -24,6 +24,8 @@ from typing import Any, Self
 
 from bench.errors import ConfigError
 from bench.store.database import CalibrationRecord, RunRecord, SampleRecord, Store
+from bench.store.sample_checksum import CHECKED_COLUMNS, sample_checksum
+from bench.store.store_samples import checked_sample
 
 __all__ = ["COLLIDING_ID_STEP", "LabRunView", "open_named_runs", "pick_run"]
 
@@ -173,26 +175,19 @@ class LabRunView:
 
     def samples(self, run_id: int, kind: str | None = None) -> list[SampleRecord]:
         """The synced samples of a run in step order, optionally of one ``kind`` only (as
-        :meth:`bench.store.Store.samples`: the JSON the file holds, parsed)."""
+        :meth:`bench.store.Store.samples`: the JSON the file holds, parsed, each sample checked against the checksum
+        its bench stored, so a sample changed on the server refuses its run: :class:`DamagedSample`). A sample synced
+        before lab schema 4 has no checksum to check; its JSON is parsed as the file's is."""
         uuid = self._runs.uuid(run_id, "run", f"lab store {self.path}")
         rows = self._lab.query(
-            "SELECT step_index, kind, pose, cycle, t_s, wall_utc, values_json, raw_json"
+            f"SELECT {', '.join(CHECKED_COLUMNS)}, checksum"
             " FROM bench.samples WHERE run_uuid = %s" + (" AND kind = %s" if kind else "") + " ORDER BY step_index",
             (uuid, kind) if kind else (uuid,),
         )
         return [
-            SampleRecord(
-                run_id=run_id,
-                step_index=r[0],
-                kind=r[1],
-                pose=r[2],
-                cycle=r[3],
-                t_s=r[4],
-                wall_utc=r[5],
-                values=json.loads(r[6]),
-                raw=None if r[7] is None else json.loads(r[7]),
-            )
-            for r in rows
+            # a row synced before lab schema 4 has no checksum to check: its JSON is still parsed as the file's is
+            checked_sample(run_id, row if row[8] is not None else (*row[:8], sample_checksum(*row[:8])), self.path)
+            for row in rows
         ]
 
     def sample_kinds(self, run_id: int) -> dict[str, int]:

@@ -34,6 +34,7 @@ import time
 from dataclasses import dataclass
 from datetime import UTC, datetime
 from pathlib import Path
+from typing import Any
 
 from bench.errors import BenchError
 
@@ -73,7 +74,7 @@ def _host() -> str:
     return socket.gethostname()
 
 
-def _read_owner(fd: int) -> dict:
+def _read_owner(fd: int) -> dict[str, Any]:
     os.lseek(fd, 0, os.SEEK_SET)
     text = os.read(fd, 4096).decode("utf-8", "replace")
     try:
@@ -83,7 +84,7 @@ def _read_owner(fd: int) -> dict:
     return data if isinstance(data, dict) else {}
 
 
-def _owner(data: dict, alive: bool) -> Owner:
+def _owner(data: dict[str, Any], alive: bool) -> Owner:
     return Owner(
         pid=int(data.get("pid", 0) or 0),
         host=str(data.get("host", "?")),

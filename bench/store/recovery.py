@@ -28,6 +28,7 @@ from __future__ import annotations
 import logging
 import sqlite3
 import time
+from collections.abc import Set as AbstractSet
 
 from bench.store.connection import StoreError, check_store
 from bench.store.ownership import owner_of
@@ -41,7 +42,7 @@ class StoreDamaged(StoreError):
     """A store that was not closed cleanly failed its integrity check: nothing was written to it."""
 
 
-def interrupted_runs(db: sqlite3.Connection, path: str, owned: set[int] = frozenset()) -> list[int]:
+def interrupted_runs(db: sqlite3.Connection, path: str, owned: AbstractSet[int] = frozenset()) -> list[int]:
     """The runs of the store behind ``db`` stored as ``running`` that no live process owns (``owned``: the ones
     this process holds). A file without a ``runs`` table (a new store) has none."""
     if db.execute("SELECT COUNT(*) FROM sqlite_master WHERE type = 'table' AND name = 'runs'").fetchone()[0] == 0:
@@ -55,7 +56,7 @@ def interrupted_runs(db: sqlite3.Connection, path: str, owned: set[int] = frozen
     return gone
 
 
-def refuse_if_damaged(db: sqlite3.Connection, path: str, owned: set[int] = frozenset()) -> list[int]:
+def refuse_if_damaged(db: sqlite3.Connection, path: str, owned: AbstractSet[int] = frozenset()) -> list[int]:
     """Check the store at ``path`` when it was not closed cleanly; returns the interrupted runs (empty: the store
     was closed cleanly and nothing was checked).
 

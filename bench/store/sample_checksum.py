@@ -3,7 +3,7 @@
 SQLite's own checks (``PRAGMA integrity_check``) see a damaged page, not a changed digit: one flipped bit in a
 stored ``values_json`` ("2.1" becoming "2.3") leaves a sound file that exports a different number. Each sample row
 therefore carries ``checksum``: the SHA-256 (hex) of its stored columns as stored (the JSON text unparsed), computed
-when the sample is encoded, before its commit (:func:`bench.store.database.encode_sample`). Reading a sample
+when the sample is encoded, before its commit (:func:`bench.store.sample_rows.encode_sample`). Reading a sample
 (:meth:`bench.store.database.Store.samples`) recomputes it and refuses the run in one line naming the run and the
 sample's step (:class:`DamagedSample`); ``bench store check`` lists every such row.
 
@@ -22,7 +22,14 @@ from typing import Any
 
 from bench.errors import BenchError
 
-__all__ = ["CHECKED_COLUMNS", "DamagedSample", "damaged_sample_lines", "parse_sample", "sample_checksum"]
+__all__ = [
+    "CHECKED_COLUMNS",
+    "DamagedSample",
+    "checksum_problem",
+    "damaged_sample_lines",
+    "parse_sample",
+    "sample_checksum",
+]
 
 #: The ``samples`` columns the checksum covers, in the order hashed.
 CHECKED_COLUMNS = ("step_index", "kind", "pose", "cycle", "t_s", "wall_utc", "values_json", "raw_json")
@@ -66,7 +73,7 @@ def sample_checksum(
     return hashlib.sha256(text.encode("utf-8", "surrogateescape")).hexdigest()
 
 
-def _mismatch(
+def checksum_problem(
     step_index: int,
     kind: str,
     pose: str | None,
@@ -97,10 +104,10 @@ def _refusal(run_id: int, step_index: int, path: str, problem: str) -> DamagedSa
     )
 
 
-def parse_sample(run_id: int, row: tuple, path: str) -> tuple[Any, Any]:
+def parse_sample(run_id: int, row: tuple[Any, ...], path: str) -> tuple[Any, Any]:
     """The parsed ``(values, raw)`` of a stored row (:data:`CHECKED_COLUMNS` then ``checksum``) of run ``run_id``;
     :class:`DamagedSample` in one line when the row fails its checksum or its JSON does not parse."""
-    problem = _mismatch(*row)
+    problem = checksum_problem(*row)
     if problem is not None:
         raise _refusal(run_id, row[0], path, problem)
     parsed = []
@@ -124,7 +131,7 @@ def damaged_sample_lines(db: sqlite3.Connection, path: str) -> Iterable[str]:
         " raw_json IS NULL OR json_valid(raw_json) FROM samples ORDER BY run_id, step_index"
     )
     for rowid, run_id, *row, values_ok, raw_ok in db.execute(query):
-        problem = _mismatch(*row)
+        problem = checksum_problem(*row)
         if problem is None and not (values_ok and raw_ok):
             problem = f"its {'values_json' if not values_ok else 'raw_json'} does not parse"
         if problem is not None:

@@ -50,7 +50,7 @@ class SampleWriter:
     def __init__(self, store: Store) -> None:
         self.store = store
         #: the work in flight on the writer thread (a commit, then perhaps a checkpoint) and what wait() returns
-        self._pending: tuple[list[Future], Any] | None = None
+        self._pending: tuple[list[Future[None]], Any] | None = None
         self._executor: ThreadPoolExecutor | None = None
         self._db: GuardedConnection | None = None
         if store.path != ":memory:":
@@ -96,6 +96,7 @@ class SampleWriter:
             self.store.insert_sample(row)
             self._pending = ([], report)
             return
+        assert self._db is not None  # (opened with the executor)
         self._pending = ([self._executor.submit(insert_sample_row, self._db, row)], report)
 
     def checkpoint(self) -> None:
@@ -106,6 +107,7 @@ class SampleWriter:
             self.store.checkpoint()
             return
         futures, report = self._pending if self._pending is not None else ([], None)
+        assert self._db is not None  # (opened with the executor)
         self._pending = (futures + [self._executor.submit(checkpoint_wal, self._db)], report)
 
     def wait(self) -> Any:

@@ -11,6 +11,7 @@ which the mice still hold as integrated counts (``benchmarks/bench_mouse_ingest.
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
 from typing import Any, Self
 
 import numpy as np
@@ -41,7 +42,7 @@ class StreamWriter:
         *,
         batch_s: float = 0.1,
         batch_rows: int = 4000,
-        clock=time.monotonic,
+        clock: Callable[[], float] = time.monotonic,
     ) -> None:
         self.store, self.run_id, self.stream = store, run_id, stream
         self.batch_s, self.batch_rows, self._clock = batch_s, batch_rows, clock

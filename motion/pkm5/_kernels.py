@@ -15,58 +15,21 @@ import math
 import numpy as np
 from numba import njit
 
-from motion.pkm5.geometry import Geometry
-
 _jit = njit(cache=True, nogil=True, error_model="numpy")
 # dual-number helpers stay plain functions (LLVM inlines them): numba-level inline="always" on them made the FK
 # kernel compile for ~50 s instead of ~10 s
 _dual_op = _jit
 
-# The packed geometry vector (pack_geometry): offsets of each field, in the order pack_geometry writes them. Like the
-# IK block's layout below, they live here, beside the machine code that bakes them in: numba's cache is keyed on this
-# file, so a layout defined elsewhere could change under a stale cached kernel.
+# The packed geometry vector (motion.pkm5.compiled.pack_geometry): offsets of each field, in the order pack_geometry
+# writes them. Like the IK block's layout below, they live here, beside the machine code that bakes them in: numba's
+# cache is keyed on this file (a kernel's cached code does not notice a change of another file), so a layout defined
+# elsewhere could change under a stale cached kernel. For the same reason no kernel here calls one of another file.
 _OA12, _OA34, _OA56, _PD12, _PD34, _PD5, _PD6 = 0, 3, 6, 9, 12, 15, 18
 _H = 21
 _AB_ODD, _AB_EVEN, _AB5, _AB6, _CD_ODD, _CD_EVEN, _CD5, _CD6 = 22, 24, 26, 28, 30, 32, 34, 36
 _LEG_MIN, _LEG_MAX, _TILT_MIN, _TILT_MAX = 38, 44, 50, 56
 _A_LO, _A_HI, _B_LO, _B_HI, _PLANE_X, _PLANE_TOL = 62, 63, 64, 65, 66, 67
-_PACKED_SIZE = 68
-
-
-def pack_geometry(geometry: Geometry) -> np.ndarray:
-    """The geometry fields the kinematics read, as one read-only float64 vector (limits in radians, as the numpy
-    IK compares); callers use the cached :func:`motion.pkm5.compiled.pack_geometry`."""
-    g = geometry
-    parts = [
-        g.oa_12_mm,
-        g.oa_34_mm,
-        g.oa_56_mm,
-        g.pd_12_mm,
-        g.pd_34_mm,
-        g.pd_5_mm,
-        g.pd_6_mm,
-        [g.bracket_half_height_mm],
-        g.ab_odd_mm,
-        g.ab_even_mm,
-        g.ab_5_mm,
-        g.ab_6_mm,
-        g.cd_odd_mm,
-        g.cd_even_mm,
-        g.cd_5_mm,
-        g.cd_6_mm,
-        g.leg_min_mm,
-        g.leg_max_mm,
-        np.radians(g.tilt_min_deg),
-        np.radians(g.tilt_max_deg),
-        np.radians(g.alpha_range_deg),
-        np.radians(g.beta_range_deg),
-        [g.alpha_plane_x_mm, g.alpha_plane_tolerance_mm],
-    ]
-    packed = np.concatenate([np.asarray(part, dtype=float) for part in parts])
-    if packed.size != _PACKED_SIZE:
-        raise AssertionError(f"packed geometry holds {packed.size} values, the kernels read {_PACKED_SIZE}")
-    packed.setflags(write=False)
-    return packed
+PACKED_SIZE = 68
 
 
 # An IK block's scratch: one quantity a row, one pose a column (the layout that vectorises across poses), flat, with

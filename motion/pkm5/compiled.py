@@ -62,9 +62,39 @@ def use_compiled(engine: str, n: int, kind: str) -> bool:
 
 @lru_cache(maxsize=32)
 def pack_geometry(geometry: Geometry) -> np.ndarray:
-    """The geometry fields the kinematics read, as one read-only float64 vector (``_kernels.pack_geometry``: the
-    layout lives beside the machine code that reads it)."""
-    return _kernels().pack_geometry(geometry)
+    """The geometry fields the kinematics read, as one read-only float64 vector (limits in radians, as the numpy
+    IK compares), in the layout of the offsets in ``_kernels`` (beside the machine code that reads them); cached."""
+    g = geometry
+    parts = [
+        g.oa_12_mm,
+        g.oa_34_mm,
+        g.oa_56_mm,
+        g.pd_12_mm,
+        g.pd_34_mm,
+        g.pd_5_mm,
+        g.pd_6_mm,
+        [g.bracket_half_height_mm],
+        g.ab_odd_mm,
+        g.ab_even_mm,
+        g.ab_5_mm,
+        g.ab_6_mm,
+        g.cd_odd_mm,
+        g.cd_even_mm,
+        g.cd_5_mm,
+        g.cd_6_mm,
+        g.leg_min_mm,
+        g.leg_max_mm,
+        np.radians(g.tilt_min_deg),
+        np.radians(g.tilt_max_deg),
+        np.radians(g.alpha_range_deg),
+        np.radians(g.beta_range_deg),
+        [g.alpha_plane_x_mm, g.alpha_plane_tolerance_mm],
+    ]
+    packed = np.concatenate([np.asarray(part, dtype=float) for part in parts])
+    if packed.size != _kernels().PACKED_SIZE:
+        raise AssertionError(f"packed geometry holds {packed.size} values, the kernels read {_kernels().PACKED_SIZE}")
+    packed.setflags(write=False)
+    return packed
 
 
 @lru_cache(maxsize=1)

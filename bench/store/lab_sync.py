@@ -1,0 +1,356 @@
+"""``bench sync``: push a bench's SQLite store into the lab store (see :mod:`bench.store.lab` for the design)."""
+
+from __future__ import annotations
+
+import itertools
+import json
+import logging
+import random
+import sys
+import time
+from collections.abc import Callable, Iterator
+from concurrent.futures import Future, ThreadPoolExecutor
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any
+
+from bench.errors import BenchError
+from bench.store.database import RunRecord, Store
+from bench.store.lab_connection import LabServerBusy, LabStoreError, connect, one_line, psycopg_module, redacted
+from bench.store.lab_copy import COPY_COLUMNS, TYPED_COLUMNS, copy_text
+from bench.store.lab_schema import ensure_schema
+
+if TYPE_CHECKING:  # psycopg is the lab-store extra, imported when a sync starts
+    from psycopg import Connection, Cursor
+
+__all__ = ["SyncResult", "sync_after_run", "sync_store"]
+
+_log = logging.getLogger(__name__)
+
+_COPY_COLUMNS = ", ".join(f'"{c}"' for c in COPY_COLUMNS)
+_CHUNK_ROWS = 2_000  # rows per COPY write: small enough to overlap formatting with the server's work
+#: Connections sending batches at once (each its own runs): the server stores and folds two batches in parallel.
+_LANES = 2
+#: Memory for the pose trigger's transition table of one batch (about 400 bytes a row): with the server's default
+#: (4 MB) a 20 000-sample batch spills to a temporary file (10-15 % more of the server's time per sample).
+_WORK_MEM = "64MB"
+_RUN_COLUMNS = (
+    "uuid",
+    "bench",
+    "local_id",
+    "campaign",
+    "protocol_name",
+    "protocol_version",
+    "robot",
+    "config_json",
+    "settings_json",
+    "calibration_ids_json",
+    "calibration_uuids_json",
+    "software_version",
+    "git_sha",
+    "status",
+    "reason",
+    "started_utc",
+    "ended_utc",
+)
+
+
+@dataclass(frozen=True)
+class SyncResult:
+    """What one sync did: runs and calibrations upserted, samples sent (new on the server) and their seconds."""
+
+    runs: int
+    calibrations: int
+    samples_sent: int
+    seconds: float
+
+    @property
+    def samples_per_s(self) -> float:
+        return self.samples_sent / self.seconds if self.seconds > 0 else float("inf")
+
+
+def _run_row(store: Store, run: RunRecord, calibration_uuids: dict[int, str]) -> tuple[Any, ...]:
+    return (
+        run.uuid,
+        run.bench,
+        run.id,
+        run.campaign,
+        run.protocol_name,
+        run.protocol_version,
+        run.robot,
+        json.dumps(run.config, sort_keys=True),
+        json.dumps(run.settings, sort_keys=True),
+        json.dumps(list(run.calibration_ids)),
+        json.dumps([calibration_uuids.get(i) for i in run.calibration_ids]),
+        run.software_version,
+        run.git_sha,
+        run.status,
+        run.reason,
+        run.started_utc,
+        run.ended_utc,
+    )
+
+
+def _copy(cur: Cursor[Any], table: str, chunks: list[bytes]) -> None:
+    """COPY the formatted ``chunks`` into ``table``, one write each (the server parses one while the next goes)."""
+    with cur.copy(f"COPY {table} ({_COPY_COLUMNS}) FROM STDIN") as copy:
+        for chunk in chunks:
+            copy.write(chunk)
+
+
+def _read_batches(
+    store: Store, run: RunRecord, held: set[int], batch_size: int
+) -> Iterator[tuple[list[bytes], int, RunRecord]]:
+    """The samples of ``run`` that the server lacks (steps not in ``held``), batch by batch: each batch as its COPY
+    text in chunks of :data:`_CHUNK_ROWS` rows at most, its number of samples (``batch_size`` at most), the run."""
+    rows = store.stored_rows(run.id, extract=TYPED_COLUMNS)
+    exhausted = False
+    while not exhausted:
+        chunks, n = [], 0
+        while n < batch_size:
+            chunk = rows.fetchmany(min(_CHUNK_ROWS, batch_size - n))
+            if not chunk:
+                exhausted = True
+                break
+            if held:
+                chunk = [row for row in chunk if row[0] not in held]
+            if chunk:
+                chunks.append(copy_text(run.uuid, chunk))
+                n += len(chunk)
+        if n:
+            yield chunks, n, run
+
+
+def _send_batch(conn: Connection[Any], chunks: list[bytes], n: int) -> int:
+    """Store one batch in its own transaction; returns how many of its ``n`` samples were new on the server."""
+    psycopg = psycopg_module()
+    try:  # fast path: straight into bench.samples, the server lacked these steps when asked
+        with conn.transaction(), conn.cursor() as cur:
+            _copy(cur, "bench.samples", chunks)
+        return n
+    except psycopg.errors.UniqueViolation:  # another sync of this file got there first: skip its rows
+        with conn.transaction(), conn.cursor() as cur:
+            _copy(cur, "sample_stage", chunks)
+            cur.execute(
+                f"INSERT INTO bench.samples ({_COPY_COLUMNS}) SELECT {_COPY_COLUMNS}"
+                " FROM sample_stage ON CONFLICT DO NOTHING"
+            )
+            return cur.rowcount
+
+
+def _held_steps(conn: Connection[Any], runs: list[RunRecord]) -> dict[str, set[int] | None]:
+    """Per run UUID, the steps the server holds: None when it holds all of the run's samples (nothing to send),
+    an empty set when it holds none."""
+    counts = dict(
+        conn.execute(
+            "SELECT run_uuid::text, count(*) FROM bench.samples WHERE run_uuid = ANY(%s::uuid[]) GROUP BY run_uuid",
+            ([r.uuid for r in runs],),
+        ).fetchall()
+    )
+    held: dict[str, set[int] | None] = {}
+    for run in runs:
+        count = counts.get(run.uuid, 0)
+        if count == run.n_samples:
+            held[run.uuid] = None
+        elif count == 0:
+            held[run.uuid] = set()
+        else:  # partly synced (a sync cut off, or a run resumed since): the steps it holds
+            held[run.uuid] = {
+                row[0] for row in conn.execute("SELECT step_index FROM bench.samples WHERE run_uuid = %s", (run.uuid,))
+            }
+    conn.commit()
+    return held
+
+
+def _prepare_sender(conn: Connection[Any]) -> None:
+    """A connection ready to send batches: its staging table, and memory for the pose trigger's transition table."""
+    conn.execute("CREATE TEMP TABLE IF NOT EXISTS sample_stage (LIKE bench.samples) ON COMMIT DELETE ROWS")
+    conn.execute(f"SET work_mem = '{_WORK_MEM}'")
+    conn.commit()
+
+
+def _deal(runs: list[RunRecord], held: dict[str, set[int] | None], lanes: int) -> list[list[RunRecord]]:
+    """The runs to send dealt to ``lanes`` lanes (fewer when there are fewer runs; one, empty, for none), each run
+    to the lane with the fewest samples to send so far, in the file's order."""
+    dealt: list[list[RunRecord]] = [[] for _ in range(min(lanes, len(runs)))] or [[]]
+    load = [0] * len(dealt)
+    for run in runs:
+        lane = load.index(min(load))
+        dealt[lane].append(run)
+        load[lane] += run.n_samples - len(held[run.uuid] or ())
+    return dealt
+
+
+def _send_lanes(
+    store: Store,
+    lanes: list[list[RunRecord]],
+    connections: list[Connection[Any]],
+    held: dict[str, set[int] | None],
+    *,
+    batch_size: int,
+    progress: Callable[[str], None],
+    sent: list[int],
+) -> None:
+    """Send the lanes' batches, each lane through its own connection and sender thread, one batch in flight per
+    lane; this thread reads and formats the next batches meanwhile, taking the lanes in turn."""
+    batches = [
+        itertools.chain.from_iterable(_read_batches(store, run, held[run.uuid] or set(), batch_size) for run in lane)
+        for lane in lanes
+    ]
+    in_flight: list[tuple[Future[int], RunRecord, int] | None] = [None] * len(lanes)
+    with ThreadPoolExecutor(max_workers=len(lanes), thread_name_prefix="lab-sync") as senders:
+        live = list(range(len(lanes)))
+        try:
+            while live:
+                for lane in list(live):
+                    batch = next(batches[lane], None)
+                    settling = in_flight[lane]
+                    if settling is not None:
+                        _settle(*settling, progress=progress, sent=sent)
+                        in_flight[lane] = None
+                    if batch is None:
+                        live.remove(lane)
+                        continue
+                    chunks, n, run = batch
+                    in_flight[lane] = (senders.submit(_send_batch, connections[lane], chunks, n), run, n)
+        finally:  # one lane failed (or this thread): the batches the other lanes committed still count
+            for pending in in_flight:
+                if pending is not None and pending[0].exception() is None:
+                    _settle(*pending, progress=progress, sent=sent)
+
+
+def _settle(batch: Future[int], run: RunRecord, n: int, *, progress: Callable[[str], None], sent: list[int]) -> None:
+    """Wait for a batch sent (its exception raised here), count its new samples once committed, report it."""
+    sent[0] += batch.result()
+    progress(f"sync: run {run.id} ({run.uuid}) +{n} samples")
+
+
+def _push(
+    store: Store, conn: Connection[Any], url: str, *, batch_size: int, progress: Callable[[str], None], sent: list[int]
+) -> tuple[int, int]:
+    """Upsert runs and calibrations, then send the samples the server lacks; ``sent[0]`` counts the samples
+    committed (kept when a later batch fails)."""
+    calibrations = store.calibrations()
+    runs = store.runs()
+    run_uuids = {r.id: r.uuid for r in runs}
+    calibration_uuids = {c.id: c.uuid for c in calibrations}
+    placeholders = ", ".join(["%s"] * len(_RUN_COLUMNS))
+    updates = ", ".join(f"{c} = EXCLUDED.{c}" for c in _RUN_COLUMNS[1:])
+    with conn.transaction(), conn.cursor() as cur:
+        cur.executemany(
+            f"INSERT INTO bench.runs ({', '.join(_RUN_COLUMNS)}) VALUES ({placeholders})"
+            f" ON CONFLICT (uuid) DO UPDATE SET {updates}, synced_utc = now()",
+            [_run_row(store, r, calibration_uuids) for r in runs],
+        )
+        cur.executemany(
+            "INSERT INTO bench.calibrations (uuid, bench, local_id, name, version, created_utc, params_json,"
+            " source_run_uuid, notes) VALUES (%s, %s, %s, %s, %s, %s, %s, %s, %s) ON CONFLICT (uuid) DO NOTHING",
+            [
+                (
+                    c.uuid,
+                    store.bench,
+                    c.id,
+                    c.name,
+                    c.version,
+                    c.created_utc,
+                    json.dumps(c.params, sort_keys=True),
+                    None if c.source_run_id is None else run_uuids.get(c.source_run_id),
+                    c.notes,
+                )
+                for c in calibrations
+            ],
+        )
+    conn.commit()
+    held = _held_steps(conn, runs)
+    to_send = [run for run in runs if held[run.uuid] is not None]
+    lanes = _deal(to_send, held, _LANES)
+    connections = [conn]
+    try:
+        for _ in lanes[1:]:
+            try:
+                connections.append(connect(url))
+            except LabServerBusy:  # a crowded server: this bench sends through the connection it holds
+                lanes = _deal(to_send, held, len(connections))
+                break
+        for lane_conn in connections:
+            _prepare_sender(lane_conn)
+        _send_lanes(store, lanes, connections, held, batch_size=batch_size, progress=progress, sent=sent)
+    finally:
+        for lane_conn in connections[1:]:
+            lane_conn.close()
+    return len(runs), len(calibrations)
+
+
+def sync_store(
+    store: Store,
+    url: str,
+    *,
+    batch_size: int = 20_000,
+    retries: int = 3,
+    retry_wait_s: float = 1.0,
+    busy_wait_s: float = 600.0,
+    progress: Callable[[str], None] | None = None,
+) -> SyncResult:
+    """Push every run, calibration and sample of ``store`` that the server at ``url`` lacks (see the module
+    docstring); after a lost connection, reconnect and resume up to ``retries`` times (waits ``retry_wait_s``,
+    then twice that, ...). A server with no connection slot free (:class:`LabServerBusy`) is asked again after a
+    random wait (0.5-1.5 times ``retry_wait_s``, doubling up to 30 s), for ``busy_wait_s`` in all: a crowd of benches
+    syncing at once shares the server's connections instead of failing.
+
+    Raises
+    ------
+    LabStoreError
+        Bad URL or credentials, a newer server schema (at once); an unreachable server after the retries.
+    """
+    psycopg = psycopg_module()
+    report = progress or (lambda line: _log.info("%s", line))
+    started = time.perf_counter()
+    sent, attempt, busy = [0], 0, 0
+    while True:
+        try:
+            conn = connect(url)
+            try:
+                ensure_schema(conn, url)
+                runs, calibrations = _push(store, conn, url, batch_size=batch_size, progress=report, sent=sent)
+            finally:
+                conn.close()
+            return SyncResult(runs, calibrations, sent[0], time.perf_counter() - started)
+        except LabServerBusy as exc:
+            wait = min(30.0, retry_wait_s * 2 ** min(busy, 10)) * random.uniform(0.5, 1.5)
+            if time.perf_counter() - started + wait > busy_wait_s:
+                raise
+            busy += 1
+            if busy == 1:
+                report(f"sync: {one_line(exc)}; waiting for a free connection")
+            time.sleep(wait)
+        except (psycopg.OperationalError, LabStoreError) as exc:  # (a LabURLError is no LabStoreError: at once)
+            retryable = isinstance(exc, psycopg.OperationalError) or "server unreachable" in str(exc)
+            if not retryable or attempt >= retries:
+                if isinstance(exc, LabStoreError):
+                    raise
+                raise LabStoreError(
+                    f"lab store {redacted(url)}: connection lost ({one_line(exc)}); run bench sync again to resume"
+                ) from exc
+            attempt += 1
+            report(f"sync: {one_line(exc)}; retry {attempt} of {retries}")
+            time.sleep(retry_wait_s * 2 ** (attempt - 1))
+
+
+def sync_after_run(store: Store, url: str, *, say: Callable[[str], None] | None = None) -> SyncResult | None:
+    """Sync ``store`` to ``url`` once a run has ended (``[lab_store] auto_sync``), never failing the run: any
+    failure (server down, credentials, a bug) is one line on stderr (``say``) and the next sync catches up, since
+    the local file stays the source of truth. Returns the result, or None when the sync failed."""
+    tell = say or (lambda line: print(line, file=sys.stderr, flush=True))
+    try:
+        result = sync_store(store, url, retries=1, retry_wait_s=0.5, busy_wait_s=30.0, progress=lambda line: None)
+    except BenchError as exc:
+        tell(f"bench: lab store sync failed, the run is kept locally (bench sync catches up): {one_line(exc)}")
+        return None
+    except Exception as exc:  # noqa: BLE001 - the local run must survive whatever the sync meets
+        _log.exception("lab store sync after the run failed")
+        tell(
+            f"bench: lab store sync failed, the run is kept locally (bench sync catches up): "
+            f"{type(exc).__name__}: {one_line(exc)}"
+        )
+        return None
+    tell(f"bench: synced to the lab store {redacted(url)}: {result.samples_sent} new samples")
+    return result

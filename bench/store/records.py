@@ -1,0 +1,109 @@
+"""The records the run store reads back (runs, samples, calibrations), the run statuses, and the JSON and time
+text every stored row uses."""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass
+from datetime import UTC, datetime
+from typing import Any
+
+from bench.errors import BenchError, ConfigError
+
+__all__ = [
+    "INTERRUPTED",
+    "RUN_STATUSES",
+    "CalibrationRecord",
+    "DuplicateSample",
+    "RunRecord",
+    "SampleRecord",
+    "to_json",
+    "utc_now",
+]
+
+#: The closed set of stored run statuses.
+RUN_STATUSES = ("running", "completed", "failed", "aborted")
+#: The status a stored ``running`` run reads as when no live process owns it (derived when read, never stored).
+INTERRUPTED = "interrupted"
+
+
+class DuplicateSample(BenchError):
+    """A sample for a step that already has one: resuming must skip stored steps, never store them twice."""
+
+
+@dataclass(frozen=True)
+class RunRecord:
+    """One stored run, as read back from the ``runs`` table."""
+
+    id: int
+    uuid: str
+    bench: str
+    campaign: str | None
+    protocol_name: str
+    protocol_version: str
+    robot: str
+    config: dict[str, Any]
+    settings: dict[str, Any]
+    calibration_ids: tuple[int, ...]
+    software_version: str
+    git_sha: str
+    status: str
+    reason: str | None
+    started_utc: str
+    ended_utc: str | None
+    n_samples: int
+
+    @property
+    def simulated(self) -> bool:
+        """True for a run on simulators (the simulated rig or a station's rehearsal): its settings name the
+        simulator it ran on."""
+        return "simulator" in self.settings
+
+    def as_dict(self) -> dict[str, Any]:
+        """Plain, JSON-ready form (used by ``bench runs --json``), with ``simulated``."""
+        out = dict(self.__dict__)
+        out["calibration_ids"] = list(self.calibration_ids)
+        out["simulated"] = self.simulated
+        return out
+
+
+@dataclass(frozen=True)
+class SampleRecord:
+    """One raw sample: the step that produced it, where and when, its values (unit in every key) and raw data."""
+
+    run_id: int
+    step_index: int
+    kind: str
+    pose: str | None
+    cycle: int | None
+    t_s: float
+    wall_utc: str
+    values: dict[str, float]
+    raw: Any
+
+
+@dataclass(frozen=True)
+class CalibrationRecord:
+    """One version of a named calibration (e.g. ``mouse_xy``), with its parameters and the run it came from."""
+
+    id: int
+    uuid: str
+    name: str
+    version: int
+    created_utc: str
+    params: dict[str, Any]
+    source_run_id: int | None
+    notes: str
+
+
+def utc_now() -> str:
+    """Now, as the ISO UTC text every stored time uses (microseconds)."""
+    return datetime.now(UTC).isoformat(timespec="microseconds")
+
+
+def to_json(value: Any, field: str) -> str:
+    """``value`` as stored JSON (sorted keys, finite numbers only); ``ConfigError`` names ``field`` otherwise."""
+    try:
+        return json.dumps(value, sort_keys=True, allow_nan=False)
+    except (TypeError, ValueError) as exc:
+        raise ConfigError(f"store: {field} = {value!r:.80}, expected JSON-serialisable finite values ({exc})") from exc

@@ -1,0 +1,122 @@
+"""Where the lab server's time per synced sample goes: the same COPY (the sync's text, typed columns and checksums
+included) into tables that add one cost at a time, measured as the CPU of the server process that ran it (its
+``/proc`` times, so the machine's other load counts far less than in a wall clock), alternated ``--repeat`` times
+(min/median per variant, in microseconds per sample), and each against the bare floor of the same round:
+
+1. floor: an unlogged table without key, trigger or check (``benchmarks/bench_sync.py``'s floor);
+2. logged, no key: the same table written through the write-ahead log;
+3. logged with the primary key ``(run_uuid, step_index)``;
+4. ``bench.samples`` with its triggers off: 3 plus its typed-column layout as synced;
+5. ``bench.samples`` with the run check only (lab schema 4's per-statement check against ``bench.runs``);
+6. ``bench.samples`` as a sync writes it: the run check and the pose fold;
+7. ``bench.samples`` with schema 3's per-row foreign key to ``bench.runs`` instead of the run check.
+
+Each COPY is one run's rows in one transaction, as a sync's batches are. Needs Debian's postgresql (a throwaway
+cluster on this machine). Usage: ``python benchmarks/bench_sync_costs.py [--samples 100000] [--repeat 3]``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import statistics
+import sys
+import tempfile
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT / "tests"))
+sys.path.insert(0, str(ROOT / "benchmarks"))
+
+from bench_sync import _database  # noqa: E402
+from postgres_support import Cluster, _bindir, make_store  # noqa: E402
+
+from bench.store import Store  # noqa: E402
+from bench.store.lab import sync_store  # noqa: E402
+from bench.store.lab_copy import COPY_COLUMNS, TYPED_COLUMNS, copy_text  # noqa: E402
+
+_FK = "ALTER TABLE bench.samples ADD CONSTRAINT samples_run_uuid_fkey FOREIGN KEY (run_uuid) REFERENCES bench.runs"
+#: name -> (statements that set the variant up, the table copied into)
+VARIANTS = {
+    "floor: unlogged, no key": ("CREATE UNLOGGED TABLE t (LIKE bench.samples)", "t"),
+    "logged, no key": ("CREATE TABLE t (LIKE bench.samples)", "t"),
+    "logged, primary key": ("CREATE TABLE t (LIKE bench.samples INCLUDING INDEXES)", "t"),
+    "bench.samples, triggers off": ("ALTER TABLE bench.samples DISABLE TRIGGER USER", "bench.samples"),
+    "+ run check (schema 4)": ("ALTER TABLE bench.samples DISABLE TRIGGER samples_fold_pose", "bench.samples"),
+    "+ pose fold: the sync": ("", "bench.samples"),
+    "fold + row foreign key (3)": (
+        f"ALTER TABLE bench.samples DISABLE TRIGGER samples_check_runs_after_insert; {_FK}",
+        "bench.samples",
+    ),
+}
+
+
+def process_cpu_s(pid: int) -> float:
+    """CPU seconds (user + system) of process ``pid`` so far (proc(5): utime, stime)."""
+    fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
+    return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
+
+
+def copy_cpu_us(url: str, setup: str, table: str, texts: list[bytes], n: int) -> float:
+    """Server CPU per sample (us) of COPYing ``texts`` (one transaction each) into ``table`` after ``setup``."""
+    import psycopg
+
+    with psycopg.connect(url) as conn:
+        conn.execute("SET work_mem = '64MB'")  # as the sync's connections
+        conn.execute("DROP TABLE IF EXISTS t")
+        conn.execute("TRUNCATE bench.samples")  # (empties the pose tables too)
+        conn.execute("ALTER TABLE bench.samples ENABLE TRIGGER USER")
+        conn.execute("ALTER TABLE bench.samples DROP CONSTRAINT IF EXISTS samples_run_uuid_fkey")
+        if setup:
+            conn.execute(setup)
+        conn.commit()
+        pid = conn.execute("SELECT pg_backend_pid()").fetchone()[0]
+        conn.commit()
+        columns = ", ".join(f'"{c}"' for c in COPY_COLUMNS)
+        start = process_cpu_s(pid)
+        for text in texts:
+            with conn.cursor() as cur, cur.copy(f"COPY {table} ({columns}) FROM STDIN") as copy:
+                copy.write(text)
+            conn.commit()
+        return (process_cpu_s(pid) - start) / n * 1e6
+
+
+def main(argv: list[str] | None = None) -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--samples", type=int, default=100_000, help="samples (in 4 runs)")
+    parser.add_argument("--repeat", type=int, default=3, help="rounds of all variants")
+    args = parser.parse_args(argv)
+    if _bindir() is None:
+        sys.exit("bench_sync_costs: no PostgreSQL (install postgresql)")
+    cluster = Cluster(_bindir())
+    work = Path(tempfile.mkdtemp(prefix="bench-sync-costs-"))
+    try:
+        url = _database(cluster.url, "bench_sync_costs")
+        path = make_store(work / "bench.db", "bench-a", [args.samples // 4] * 4)
+        n = args.samples // 4 * 4
+        with Store(path) as store:
+            sync_store(store, url)  # the schema and the runs
+            texts = [copy_text(r.uuid, store.stored_rows(r.id, extract=TYPED_COLUMNS)) for r in store.runs()]
+        print(f"load average before: {os.getloadavg()[0]:.1f} on {os.cpu_count()} CPUs; {n:,} samples a COPY")
+        cpu: dict[str, list[float]] = {name: [] for name in VARIANTS}
+        for _ in range(args.repeat):
+            for name, (setup, table) in VARIANTS.items():
+                cpu[name].append(copy_cpu_us(url, setup, table, texts, n))
+        floor = cpu["floor: unlogged, no key"]
+        print(f"{'variant':<30} {'server CPU us/sample':>22} {'/ floor (same round)':>22}")
+        for name, values in cpu.items():
+            ratios = [v / f for v, f in zip(values, floor)]
+            print(
+                f"{name:<30} min {min(values):5.2f} median {statistics.median(values):5.2f}"
+                f"   min {min(ratios):4.2f} median {statistics.median(ratios):4.2f}"
+            )
+        print(f"load average after: {os.getloadavg()[0]:.1f}")
+    finally:
+        cluster.close()
+        for file in work.glob("*"):
+            file.unlink()
+        work.rmdir()
+
+
+if __name__ == "__main__":
+    main()
