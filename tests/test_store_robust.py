@@ -117,7 +117,7 @@ def test_every_command_that_reads_runs_refuses_a_missing_store(tmp_path, capsys,
     # the walk found the readers (a command added with a --store is walked too; these must be among them)
     assert {"calibrate", "resume", "report", "runs", "export", "backup", "sync", "analyze path-run"} <= set(walked)
     assert main(["store", "check", str(missing)]) == 2
-    assert f"--store {missing}: no run store there" in _one_error_line(capsys)
+    assert f"STORE {missing}: no run store there" in _one_error_line(capsys)  # the positional, named as --help names it
     assert not missing.exists()
 
 

@@ -274,7 +274,7 @@ def _drift(args: argparse.Namespace) -> int:
 def _stabilisation(args: argparse.Namespace) -> int:
     from bench.metrology.formatting import format_length
     from bench.metrology.stabilisation_tables import stabilisation_results, stabilisation_table
-    from bench.metrology.table_csv import read_table_csv
+    from bench.metrology.table_reading import read_table_csv
 
     table = stabilisation_table(read_table_csv(args.file))
     for band in args.band_mm:
