@@ -87,7 +87,8 @@ def existing_store(path: str) -> str:
 def _refuse_missing_store(args: argparse.Namespace) -> None:
     """Every command with a ``--store`` file reads an existing store unless it is marked ``creates_store``."""
     spec = getattr(args, "store", None)
-    if isinstance(spec, str) and "://" not in spec and not getattr(args, "creates_store", False):
+    exempt = getattr(args, "creates_store", False) or getattr(args, "lab_store_only", False)
+    if isinstance(spec, str) and "://" not in spec and not exempt:
         existing_store(spec)
 
 

@@ -193,6 +193,7 @@ def test_two_geometries_that_command_apart_are_refused_naming_the_poses_that_the
 
 @pytest.mark.parametrize("gain", ["0.5", "1", "inf", "nan"])
 def test_a_target_gain_that_is_no_gain_is_one_line(tmp_path, capsys, gain):
+    Store(tmp_path / "bench.db").close()  # a store that exists: the refusal is the gain's, not the path's
     assert main(["calibrate", "1", "--target-gain", gain, "--store", str(tmp_path / "bench.db")]) == 2
     assert capsys.readouterr().err == (
         f"bench: error: --target-gain = {float(gain)!r}, expected a number above 1 (the held-out AP before / after)\n"

@@ -105,6 +105,10 @@ def test_every_command_that_reads_runs_refuses_a_missing_store(tmp_path, capsys,
     for words, parser in _commands_with_a_store(build_parser()):
         if parser.get_default("creates_store"):  # bench run and bench gui start runs: a new store is theirs to make
             continue
+        if parser.get_default("lab_store_only"):  # bench lab summary reads a lab store: a file is the wrong kind
+            assert main([*words, "--store", str(missing)]) == 2
+            assert _one_error_line(capsys).endswith("expected a postgresql://USER:PASSWORD@HOST/DBNAME URL")
+            continue
         positionals = [a for a in parser._actions if not a.option_strings and a.required]
         argv = [*words, *(str(tmp_path / "out.db") if a.dest == "destination" else "1" for a in positionals)]
         argv += ["--to", "postgresql://u@localhost:1/lab"] if words == ("sync",) else []

@@ -47,7 +47,9 @@ def register(groups: argparse._SubParsersAction) -> None:
     summary.add_argument("--bench", default=None, help="only this bench's runs")
     summary.add_argument("--robot", default=None, help="only this robot's runs")
     summary.add_argument("--json", action="store_true", help="one JSON object per group")
-    summary.set_defaults(handler=_lab_summary)
+    summary.set_defaults(
+        handler=_lab_summary, lab_store_only=True
+    )  # its --store is a URL: a file gets the URL's refusal
 
 
 def _sync(args: argparse.Namespace) -> int:
