@@ -32,6 +32,7 @@ __all__ = [
     "distance_accuracy_uncertainty",
     "expanded",
     "instrument_budget",
+    "speed_instrument_budget",
     "instrument_rp_floor",
     "mean_confidence_interval",
     "mean_sd_uncertainty",
@@ -374,3 +375,21 @@ def instrument_budget(instrument_u_mm: float | None, source: str) -> str:
     if instrument_u_mm < 0 or not math.isfinite(instrument_u_mm):
         raise ConfigError(f"instrument_u_mm = {instrument_u_mm}, expected a finite number >= 0")
     return f"U includes the instrument: u = {instrument_u_mm:g} mm per axis ({source})"
+
+
+def speed_instrument_budget(instrument_u_pct: float | None, source: str) -> str:
+    """The speed instrument's place in U(AV) (its relative standard uncertainty, its scale), in words, as
+    :func:`instrument_budget` says it for a position instrument: never a silent 0.
+
+    Examples
+    --------
+    >>> speed_instrument_budget(None, "--instrument-u-pct")
+    'U(AV) excludes the instrument: none declared (--instrument-u-pct)'
+    >>> speed_instrument_budget(0.5, "--instrument-u-pct")
+    'U(AV) includes the instrument: u = 0.5 % (--instrument-u-pct)'
+    """
+    if instrument_u_pct is None:
+        return f"U(AV) excludes the instrument: none declared ({source})"
+    if instrument_u_pct < 0 or not math.isfinite(instrument_u_pct):
+        raise ConfigError(f"instrument_u_pct = {instrument_u_pct}, expected a finite number >= 0")
+    return f"U(AV) includes the instrument: u = {instrument_u_pct:g} % ({source})"

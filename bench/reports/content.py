@@ -62,6 +62,8 @@ from bench.metrology.tables import (
     measured_axes,
     pose_table,
 )
+from bench.metrology.uncertainty import instrument_budget
+from bench.metrology.uncertainty_figures import spread_uncertainty
 from bench.reports.decision import PASS, decide, rule_text
 from bench.reports.deviations import CLAUSES_APPLIED, Deviation, iso_deviations, orientation_deviation
 from bench.reports.instrument import (
@@ -91,6 +93,8 @@ __all__ = [
     "run_table",
 ]
 
+#: Where a report's instrument term comes from, as its U budget names it (``bench analyze``: --instrument-u-mm).
+INSTRUMENT_SOURCE = "the run's instrument settings"
 #: Acceptance criteria a caller may state, with the result each applies to (all "smaller is better").
 CRITERIA = {"AP_mm": "AP_P of every pose", "RP_mm": "RP_l of every pose"}
 
@@ -102,6 +106,8 @@ class DistanceRow:
     second: str
     result: DistanceCharacteristics
     u_ad: Measured  #: AD_p with U: scatter of D_j and the instrument term twice (a difference of two readings)
+    u_rd: Measured  #: RD with U (chi pivot, k = 2: :func:`bench.metrology.uncertainty_figures.spread_uncertainty`)
+    budget: str  #: the instrument's place in U(AD), as ``bench analyze distance`` words it
     orientation: OrientationDistanceCharacteristics | None = None  #: AD_a/RD_a when the run measured angles
     angle_names: tuple[str, ...] = ()
 
@@ -264,16 +270,22 @@ def _condition_groups(table: pd.DataFrame):
         yield ", ".join(f"{n}={v:g}" for n, v in zip(varying, key)), group
 
 
-def _distances(table: pd.DataFrame, sigma_mm: float, k: float) -> tuple[DistanceRow, ...]:
-    """AD/RD per set of conditions, with U(AD) combined as ``bench analyze distance`` does."""
+def _distances(table: pd.DataFrame, sigma_mm: float | None, k: float) -> tuple[DistanceRow, ...]:
+    """AD/RD per set of conditions, with U(AD), U(RD) and the budget as ``bench analyze distance`` gives them."""
     first, second = list(dict.fromkeys(table["pose"]))[:2]
+    budget = instrument_budget(sigma_mm, INSTRUMENT_SOURCE)
     rows = []
     for label, group in _condition_groups(table):
         result = analyze_distance(group, first, second)
-        u_ad = distance_accuracy_uncertainty(result.ad_mm, result.u_ad_mm, result.n, instrument_u_mm=sigma_mm, k=k)
+        u_ad = distance_accuracy_uncertainty(
+            result.ad_mm, result.u_ad_mm, result.n, instrument_u_mm=sigma_mm or 0.0, k=k
+        )
+        u_rd = spread_uncertainty(result.rd_mm, result.n, unit="mm", k=k)
         angles = analyze_orientation_distance(group, first, second)
         names, orientation = angles if angles is not None else ((), None)
-        rows.append(DistanceRow(label or f"{first}-{second}", first, second, result, u_ad, orientation, names))
+        rows.append(
+            DistanceRow(label or f"{first}-{second}", first, second, result, u_ad, u_rd, budget, orientation, names)
+        )
     return tuple(rows)
 
 
@@ -399,7 +411,7 @@ def collect(
         measured_columns=measured,
         table=table,
         poses=poses,
-        distances=_distances(table, instrument.sigma_mm or 0.0, k) if protocol == "iso9283_distance" else (),
+        distances=_distances(table, instrument.sigma_mm, k) if protocol == "iso9283_distance" else (),
         multidirectional=_multidirectional(table) if protocol == "iso9283_multidirectional" else (),
         payload=_payload(table),
         decision=_decision(poses, criteria or {}, decision_rule),
