@@ -89,6 +89,10 @@ def test_the_report_states_the_numbers_the_cli_prints_for_the_same_run(line_run,
     assert statement.split(" (")[0] in path_text
     assert report.analysis.speed_budget.split(" (")[0] in velocity_text  # "U(AV) excludes the instrument: ..."
     assert any(statement in html.unescape(p.read_text(encoding="utf-8")) for p in (folder / "out").glob("*.html"))
+    # the report's recompute command, bench analyze path-run, prints the same cells and budgets
+    run_text = _cli(capsys, "analyze", "path-run", str(run_id), "--store", str(folder / "p.db"))
+    assert all(row[h] in run_text for h in ("AT ± U (mm)", "RT ± U (mm)", "AV ± U (%)", "RV ± U (%)"))
+    assert statement in run_text and report.analysis.speed_budget in run_text
 
 
 def test_the_guarded_rule_judges_with_the_u(line_run):

@@ -156,7 +156,7 @@ def register_run(actions: argparse._SubParsersAction) -> None:
 def _path_run(args: argparse.Namespace) -> int:
 
     from bench.reports.path import REORIENTATION_NOT_MEASURED
-    from bench.reports.path_run import analyze_path_run
+    from bench.reports.path_run import analyze_path_run, figure_text
     from bench.store import Store
 
     store = Store(args.store, read_only=True)
@@ -165,8 +165,8 @@ def _path_run(args: argparse.Namespace) -> int:
     finally:
         store.close()
     lines = [
-        f"{'path':<10} {'v_pct':>5} {'v_c_mm_s':>8} {'n':>3} {'AT_mm':>7} {'RT_mm':>7} {'CR_mm':>7} {'CO_mm':>7} "
-        f"{'AV_pct':>7} {'RV_pct':>7} {'FV_mm_s':>8}"
+        f"{'path':<10} {'v_pct':>5} {'v_c_mm_s':>8} {'n':>3} {'AT_mm':>15} {'RT_mm':>15} {'CR_mm':>7} "
+        f"{'CO_mm':>7} {'AV_pct':>13} {'RV_pct':>13} {'FV_mm_s':>8}"
     ]
     for f in result.figures:
         j = f.as_json()
@@ -175,10 +175,12 @@ def _path_run(args: argparse.Namespace) -> int:
             return format(j[key], fmt) if key in j else "-"
 
         lines.append(
-            f"{f.shape:<10} {f.velocity_pct:>5g} {f.commanded_mm_s:>8.3f} {f.n_cycles:>3} {f.at_mm:>7.3f} "
-            f"{f.rt_mm:>7.3f} {cell('CR_mm', '7.3f'):>7} {cell('CO_mm', '7.3f'):>7} "
-            f"{cell('AV_pct', '+7.2f'):>7} {cell('RV_pct', '7.2f'):>7} {cell('FV_mm_s', '8.3f'):>8}"
+            f"{f.shape:<10} {f.velocity_pct:>5g} {f.commanded_mm_s:>8.3f} {f.n_cycles:>3} "
+            f"{figure_text(f.at_mm, f.at_u):>15} {figure_text(f.rt_mm, f.rt_u):>15} {cell('CR_mm', '7.3f'):>7} "
+            f"{cell('CO_mm', '7.3f'):>7} {figure_text(f.av_pct, f.av_u, signed=True, none='-'):>13} "
+            f"{figure_text(f.rv_pct, f.rv_u, none='-'):>13} {cell('FV_mm_s', '8.3f'):>8}"
         )
+    lines.append(f"U with k = 2, values rounded by their U; {result.budget}; {result.speed_budget}.")
     lines.append(f"8.4: {REORIENTATION_NOT_MEASURED}.")
     emit(
         {

@@ -13,14 +13,14 @@ from dataclasses import dataclass
 import numpy as np
 
 from bench.metrology import Measured
-from bench.metrology.formatting import format_length, format_measured
+from bench.metrology.formatting import format_length
 from bench.metrology.uncertainty_figures import PATH_U_MIN_CYCLES
 from bench.reports.content import ReportBase, calibrations_in_force, provenance, run_table
 from bench.reports.criteria import Characteristic, decision_section
 from bench.reports.deviations import Deviation, _fmt, _planned_count, _row
 from bench.reports.document import Paragraph, RawData, Table, assemble, conditions_section
 from bench.reports.instrument import counts_instrument
-from bench.reports.path_run import PathRun, analyze_path_run
+from bench.reports.path_run import PathRun, analyze_path_run, figure_text
 from bench.reports.plots import MIN_FONT_PT, Plot, print_grid
 from bench.store import Store
 
@@ -176,16 +176,6 @@ def _cell(value, fmt: str) -> str:
     return "—" if value is None else format(value, fmt)
 
 
-def _with_u(value: float | None, measured: Measured | None, *, signed: bool = False) -> str:
-    """A figure as ``bench analyze path|path-velocity`` print it: ``value ± U`` rounded by U (one rule), to 1 µm
-    without a U (fewer cycles than the path model needs), "—" where the path has no such figure."""
-    if value is None:
-        return "—"
-    if measured is None:
-        return format_length(value, signed=signed)
-    return format_measured(measured.value, measured.expanded_uncertainty, signed=signed)
-
-
 def _results(report: PathReport) -> tuple:
     rows, corners = [], []
     for f in report.analysis.figures:
@@ -196,12 +186,12 @@ def _results(report: PathReport) -> tuple:
                 f"{f.velocity_pct:g}",
                 f"{f.commanded_mm_s:.3f}",
                 str(f.n_cycles),
-                _with_u(f.at_mm, f.at_u),
-                _with_u(f.rt_mm, f.rt_u),
+                figure_text(f.at_mm, f.at_u),
+                figure_text(f.rt_mm, f.rt_u),
                 _cell(j.get("CR_mm"), ".3f"),
                 _cell(j.get("CO_mm"), ".3f"),
-                _with_u(f.av_pct, f.av_u, signed=True),
-                _with_u(f.rv_pct, f.rv_u),
+                figure_text(f.av_pct, f.av_u, signed=True),
+                figure_text(f.rv_pct, f.rv_u),
                 _cell(f.fv_mm_s, ".3f"),
             )
         )

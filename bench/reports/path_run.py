@@ -32,6 +32,7 @@ from bench.metrology import (
     path_speed,
     path_velocity_characteristics,
 )
+from bench.metrology.formatting import format_length, format_measured
 from bench.metrology.iso9283_dynamics import station_crossings
 from bench.metrology.path_geometry import CommandedPath
 from bench.metrology.uncertainty import instrument_budget, speed_instrument_budget
@@ -52,6 +53,7 @@ __all__ = [
     "PathRun",
     "analyze_path_run",
     "attained_cycles",
+    "figure_text",
     "path_stations",
     "speed_readings",
 ]
@@ -133,6 +135,17 @@ class PathRun:
     #: the instrument's place in U(AT_p), U(RT_p) and in U(AV), worded as ``bench analyze path|path-velocity`` do
     budget: str = ""
     speed_budget: str = ""
+
+
+def figure_text(value: float | None, measured: Measured | None, *, signed: bool = False, none: str = "—") -> str:
+    """A path figure as ``bench analyze path|path-velocity`` print it: ``value ± U`` rounded by U (one rule,
+    :func:`bench.metrology.formatting.format_measured`), to 1 µm without a U (fewer cycles than the path model
+    needs), ``none`` where the path has no such figure."""
+    if value is None:
+        return none
+    if measured is None:
+        return format_length(value, signed=signed)
+    return format_measured(measured.value, measured.expanded_uncertainty, signed=signed)
 
 
 def attained_cycles(samples) -> dict[tuple[str, float], list[tuple[int, np.ndarray, np.ndarray, list[int]]]]:
