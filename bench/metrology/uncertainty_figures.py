@@ -92,7 +92,7 @@ def spread_uncertainty(value: float, n: int, *, unit: str, k: float = 2.0) -> Me
     Examples
     --------
     >>> print(spread_uncertainty(0.3, 10, unit="mm"))
-    0.3 ± 0.2 mm (k = 2)
+    0.30 ± 0.20 mm (k = 2)
     """
     if value < 0 or not math.isfinite(value):
         raise ConfigError(f"spread = {value}, expected a finite number >= 0")
