@@ -31,7 +31,7 @@ from __future__ import annotations
 import hashlib
 import json
 from collections.abc import Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from datetime import UTC, datetime
 from typing import Any
 
@@ -96,7 +96,12 @@ __all__ = [
 #: Where a report's instrument term comes from, as its U budget names it (``bench analyze``: --instrument-u-mm).
 INSTRUMENT_SOURCE = "the run's instrument settings"
 #: Acceptance criteria a caller may state, with the result each applies to (all "smaller is better").
-CRITERIA = {"AP_mm": "AP_P of every pose", "RP_mm": "RP_l of every pose"}
+CRITERIA = {
+    "AP_mm": "AP_P of every pose",
+    "RP_mm": "RP_l of every pose",
+    "AD_mm": "|AD_p| of every pair and conditions (iso9283_distance runs; short or long alike)",
+    "RD_mm": "RD of every pair and conditions (iso9283_distance runs)",
+}
 
 
 @dataclass(frozen=True)
@@ -310,24 +315,28 @@ def _payload(table: pd.DataFrame) -> tuple[PayloadRow, ...]:
     return tuple(rows)
 
 
-def _decision(poses: tuple[PoseResult, ...], criteria: Mapping[str, float], rule: str) -> Decision:
+def _judged(name: str, poses: tuple[PoseResult, ...], distances: tuple[DistanceRow, ...]) -> list[tuple[str, Measured]]:
+    """The figures ``--criterion name`` judges, each with its U: (where, figure)."""
+    if name in ("AD_mm", "RD_mm"):
+        if not distances:
+            raise ConfigError(f"criteria: {name} judges distance figures, expected an iso9283_distance run")
+        # AD_p is signed (short of or past the commanded distance): a limit bounds its size, |AD_p| ± U
+        return [(d.label, replace(d.u_ad, value=abs(d.u_ad.value)) if name == "AD_mm" else d.u_rd) for d in distances]
+    return [(pose_label(p.pose, p.conditions), p.ap_u if name == "AP_mm" else p.rp_u) for p in poses]
+
+
+def _decision(
+    poses: tuple[PoseResult, ...], criteria: Mapping[str, float], rule: str, distances: tuple[DistanceRow, ...] = ()
+) -> Decision:
     unknown = sorted(set(criteria) - set(CRITERIA))
     if unknown:
         raise ConfigError(f"criteria: {', '.join(unknown)} not known, expected some of {', '.join(CRITERIA)}")
     verdicts = []
     for name, limit in criteria.items():
-        for pose in poses:
-            measured = pose.ap_u if name == "AP_mm" else pose.rp_u
+        for where, measured in _judged(name, poses, distances):
             u = measured.expanded_uncertainty
             verdicts.append(
-                (
-                    name,
-                    pose_label(pose.pose, pose.conditions),
-                    measured.value,
-                    u,
-                    float(limit),
-                    decide(measured.value, u, float(limit), rule),
-                )
+                (name, where, measured.value, u, float(limit), decide(measured.value, u, float(limit), rule))
             )
     text = (
         rule_text(rule)
@@ -386,6 +395,7 @@ def collect(
             f"run {run_id}: the instrument measured {', '.join(measured_axes(table))} only; the "
             f"{protocol} figures need x_mm, y_mm and z_mm"
         )
+    distances = _distances(table, instrument.sigma_mm, k) if protocol == "iso9283_distance" else ()
     tilts, orientation, gauge = _orientation(store, run_id, k)
     tilt_angles = tuple(f"{f.angle}_deg" for f in orientation[0].figures) if orientation else ()
     cycles = int(table.groupby(["pose", *[c for c in ("velocity_pct", "load_kg") if c in table.columns]]).size().min())
@@ -411,10 +421,10 @@ def collect(
         measured_columns=measured,
         table=table,
         poses=poses,
-        distances=_distances(table, instrument.sigma_mm, k) if protocol == "iso9283_distance" else (),
+        distances=distances,
         multidirectional=_multidirectional(table) if protocol == "iso9283_multidirectional" else (),
         payload=_payload(table),
-        decision=_decision(poses, criteria or {}, decision_rule),
+        decision=_decision(poses, criteria or {}, decision_rule, distances),
         coverage_factor=k,
         orientation=orientation,
         tilt_table=tilts,
