@@ -5,10 +5,9 @@ from __future__ import annotations
 
 import pytest
 from figure_support import printed_font_sizes, same_scale, small_multiples
-from reports_runs import html_tables, pdf_text, simulated_run
+from reports_runs import html_tables, pdf_text, simulated_path_run
 
 from bench.metrology.formatting import format_measured
-from bench.protocols.path import PathAccuracy
 from bench.reports import collect, write_report
 from bench.reports.path import path_plot
 from bench.reports.path_run import analyze_path_run
@@ -19,9 +18,8 @@ from bench.store import Store
 @pytest.fixture(scope="module")
 def path_run(tmp_path_factory):
     folder = tmp_path_factory.mktemp("path")
-    protocol = PathAccuracy(shape="both", cycles=2, velocities_pct=[100.0], final_hold_s=0.2)
-    with Store(folder / "p.db") as store:
-        run_id = simulated_run(store, protocol, "pkm5", seed=6, speed_factor=10000)
+    run_id = simulated_path_run(folder, shape="both", cycles=2, seed=6)
+    with Store(folder / "p.db", read_only=True) as store:
         figures = analyze_path_run(store, run_id).figures
     return folder, run_id, figures
 

@@ -8,10 +8,9 @@ import html
 import re
 
 import pytest
-from reports_runs import html_tables, simulated_run
+from reports_runs import html_tables, simulated_path_run
 
 from bench.cli import main
-from bench.protocols.path import PathAccuracy
 from bench.reports import collect, write_report
 from bench.reports.decision import FAIL, PASS
 from bench.reports.path_run import PathDesign, attained_cycles, path_stations, speed_readings
@@ -22,9 +21,8 @@ from bench.store import Store
 def line_run(tmp_path_factory):
     """A simulated straight-line run of 3 cycles (the fewest the path model takes) and its report."""
     folder = tmp_path_factory.mktemp("path_u")
-    protocol = PathAccuracy(shape="line", cycles=3, velocities_pct=[100.0], final_hold_s=0.2)
-    with Store(folder / "p.db") as store:
-        run_id = simulated_run(store, protocol, "pkm5", seed=4, speed_factor=10000)
+    run_id = simulated_path_run(folder, shape="line", cycles=3, seed=4)
+    with Store(folder / "p.db", read_only=True) as store:
         report = collect(store, run_id)
         samples = store.samples(run_id, kind="path")
         design = PathDesign.from_config(store.run(run_id).config, "test")
