@@ -11,9 +11,10 @@ from __future__ import annotations
 import argparse
 import importlib
 import sys
+from pathlib import Path
 
 from bench.commands.lazy import DeferredParser
-from bench.errors import BenchError
+from bench.errors import BenchError, ConfigError
 from motion.errors import MotionInputError
 
 #: Command groups, in the order the help lists them.
@@ -74,6 +75,22 @@ def _check_store_urls(args: argparse.Namespace) -> None:
             check_lab_url(spec, f"--{option}")
 
 
+def existing_store(path: str) -> str:
+    """``path`` when a store file is there; else one line: a command that reads runs never creates an empty store
+    where a typo pointed (only the commands that start runs, marked ``creates_store``, may make a new one)."""
+    if not Path(path).exists():
+        hint = " (the demo's runs are in demo-out/bench.db)" if Path("demo-out/bench.db").exists() else ""
+        raise ConfigError(f"--store {path}: no run store there{hint}, expected the bench.db a run wrote (--store)")
+    return path
+
+
+def _refuse_missing_store(args: argparse.Namespace) -> None:
+    """Every command with a ``--store`` file reads an existing store unless it is marked ``creates_store``."""
+    spec = getattr(args, "store", None)
+    if isinstance(spec, str) and "://" not in spec and not getattr(args, "creates_store", False):
+        existing_store(spec)
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
@@ -86,6 +103,7 @@ def main(argv: list[str] | None = None) -> int:
     )
     try:
         _check_store_urls(args)
+        _refuse_missing_store(args)
         return int(args.handler(args) or 0)
     except (BenchError, MotionInputError) as exc:
         if args.debug:

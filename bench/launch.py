@@ -16,6 +16,7 @@ from typing import Any
 
 from bench.calibration.compensate import NEWEST, choose_calibration, put_in_force
 from bench.errors import ConfigError
+from bench.metrology.mouse_calibration import MM_PER_INCH
 from bench.rigs.builder import build_rig, check_capabilities
 from bench.rigs.builder import open_mover as builder_open_mover
 from bench.rigs.interfaces import Operator, Rig, SimulatorRecord
@@ -344,7 +345,7 @@ def simulated_rig_in(
     if fixture == "actuator-bench":
         return rig  # no calibration in force: the readings are typed-in gauge values
     if robot == "pkm5":
-        params = {"cpi": rig.instrument.cpi, "mm_per_count": 25.4 / rig.instrument.cpi}
+        params = {"cpi": rig.instrument.cpi, "mm_per_count": MM_PER_INCH / rig.instrument.cpi}
         rig.calibration_ids = (
             store.ensure_calibration(
                 rig.instrument.calibration.calibration_id, params, notes="nominal calibration of the simulated mice"

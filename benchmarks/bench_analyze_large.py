@@ -1,19 +1,26 @@
-"""``bench analyze iso9283`` on a large table against a plain pandas ``read_csv`` + groupby, measured in one run.
+"""``bench analyze iso9283`` against a plain pandas ``read_csv`` + groupby at several table sizes, measured in one run.
 
-A seeded table of ``--poses`` x ``--cycles`` rows (default 100 x 10,000 = 10^6) is written to a temporary folder;
-then, each in a fresh process ``--repeat`` times (default 5): the full analysis with uncertainties
-(``python -m bench.cli analyze iso9283 FILE --json``) and the peer, pandas ``read_csv`` + ``groupby`` computing
-AP_P and RP_l only. Printed: min / median / max wall time and peak memory (``ru_maxrss`` of that process, read by
-a wrapper process that runs only it), the ratios of the medians, and the largest AP/RP difference between the two.
-Targets (issue 17): within 3x of the peer's time and under 500 MB peak.
+For each size in ``--rows`` (default 10^4, 10^5, 10^6, 10^7) a seeded table of ``--poses`` poses (default 100) is
+written to a temporary folder; then, each in a fresh process and interleaved, ``--repeat`` times (default 5; sizes of
+10^7 rows and more ``--repeat-large`` times, default 1): the full analysis with uncertainties (``python -m bench.cli
+analyze iso9283 FILE --json``) and the peer, pandas ``read_csv`` + ``groupby`` computing AP_P and RP_l only. Printed
+per size: min / median / max wall time and peak memory (``ru_maxrss`` of that process, read by a wrapper process that
+runs only it), the ratios of the medians (and the smallest and largest ratio of a bench run to the peer run next to
+it), and the largest AP/RP difference between the two. Then the linearity: seconds and bytes per row of each size,
+and the marginal cost per row between consecutive sizes (what a row adds once the fixed start-up is paid).
+Targets (issue 34): within 2x of the peer's time at every size, peak memory within 1.5x, time and memory per row
+within 1.5x between 10^5 and 10^7 rows.
 
-    python benchmarks/bench_analyze_large.py [--poses 100] [--cycles 10000] [--repeat 5]
+    python benchmarks/bench_analyze_large.py [--rows 1e4 1e5 1e6 1e7] [--poses 100] [--repeat 5] [--repeat-large 1]
+
+The tables are written with pyarrow (installed with pandas 3 here; `pip install pyarrow` otherwise).
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import os
 import statistics
 import subprocess
 import sys
@@ -23,6 +30,7 @@ import time
 from pathlib import Path
 
 import numpy as np
+from _timing import load_line
 
 #: The peer: what a user would write with pandas for AP and RP alone (ISO 9283 7.2.1, 7.2.2).
 PEER = textwrap.dedent("""
@@ -52,20 +60,23 @@ WRAPPER = textwrap.dedent("""
 
 
 def write_table(path: Path, poses: int, cycles: int, seed: int = 0) -> None:
-    """A tidy pose table: per pose a commanded position and ``cycles`` attained ones (anisotropic scatter)."""
+    """A tidy pose table: per pose a commanded position and ``cycles`` attained ones (anisotropic scatter), written
+    by Arrow's CSV writer a pose at a time (10^7 rows in about a minute; cells rounded to 3 and 4 decimals)."""
+    import pyarrow as pa
+    import pyarrow.csv as pa_csv
+
     rng = np.random.default_rng(seed)
     command = rng.uniform([90, -20, 300], [130, 20, 340], size=(poses, 3)).round(3)
     bias = rng.normal(0, 0.5, size=(poses, 3))
-    with path.open("w", encoding="utf-8") as handle:
-        handle.write("pose,cycle,cmd_x_mm,cmd_y_mm,cmd_z_mm,x_mm,y_mm,z_mm\n")
+    options = pa_csv.WriteOptions(include_header=False, quoting_style="none")
+    with path.open("wb") as handle:
+        handle.write(b"pose,cycle,cmd_x_mm,cmd_y_mm,cmd_z_mm,x_mm,y_mm,z_mm\n")
         for p in range(poses):
-            attained = command[p] + bias[p] + rng.normal(0, [0.3, 0.2, 0.1], size=(cycles, 3))
-            cells = np.column_stack([np.arange(1, cycles + 1), np.tile(command[p], (cycles, 1)), attained])
-            lines = "\n".join(
-                f"P{p + 1}," + ",".join(row)
-                for row in np.char.mod(["%d", "%.3f", "%.3f", "%.3f", "%.4f", "%.4f", "%.4f"], cells).tolist()
-            )
-            handle.write(lines + "\n")
+            attained = (command[p] + bias[p] + rng.normal(0, [0.3, 0.2, 0.1], size=(cycles, 3))).round(4)
+            columns = {"pose": pa.array([f"P{p + 1}"] * cycles), "cycle": np.arange(1, cycles + 1)}
+            columns.update({name: np.full(cycles, command[p, i]) for i, name in enumerate(("cx", "cy", "cz"))})
+            columns.update({name: attained[:, i] for i, name in enumerate(("x", "y", "z"))})
+            pa_csv.write_csv(pa.table(columns), handle, write_options=options)
 
 
 def measured(argv: list[str]) -> tuple[dict, bytes]:
@@ -79,44 +90,86 @@ def measured(argv: list[str]) -> tuple[dict, bytes]:
 def summary(name: str, runs: list[dict]) -> str:
     walls, peaks = [r["wall_s"] for r in runs], [r["peak_mb"] for r in runs]
     return (
-        f"{name:<34} {min(walls):7.2f} {statistics.median(walls):8.2f} {max(walls):7.2f}   "
+        f"  {name:<32} {min(walls):7.2f} {statistics.median(walls):8.2f} {max(walls):7.2f}   "
         f"{min(peaks):7.0f} {statistics.median(peaks):8.0f} {max(peaks):7.0f}"
     )
 
 
-def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--poses", type=int, default=100)
-    parser.add_argument("--cycles", type=int, default=10_000)
-    parser.add_argument("--repeat", type=int, default=5)
-    args = parser.parse_args()
-    with tempfile.TemporaryDirectory() as folder:
-        table = Path(folder) / "poses.csv"
-        start = time.perf_counter()
-        write_table(table, args.poses, args.cycles)
-        print(
-            f"table: {args.poses} poses x {args.cycles} cycles = {args.poses * args.cycles:,} rows, "
-            f"{table.stat().st_size / 1e6:.0f} MB (written in {time.perf_counter() - start:.1f} s)"
-        )
-        bench_runs, peer_runs = [], []
-        for _ in range(args.repeat):
-            figures, out = measured([sys.executable, "-m", "bench.cli", "analyze", "iso9283", str(table), "--json"])
-            bench_runs.append(figures)
-            ours = json.loads(out)["poses"]
-            figures, out = measured([sys.executable, "-c", PEER, str(table)])
-            peer_runs.append(figures)
-            peer = json.loads(out)
-    print(f"{'':<34} {'time_s':^24}   {'peak_MB':^24}")
-    print(f"{'':<34} {'min':>7} {'median':>8} {'max':>7}   {'min':>7} {'median':>8} {'max':>7}")
+def measure_size(rows: int, poses: int, repeat: int, folder: Path) -> dict:
+    """Write a table of ``rows`` rows, run bench and the peer ``repeat`` times each (interleaved); print the lines of
+    this size and return its medians."""
+    table = folder / f"poses-{rows}.csv"
+    start = time.perf_counter()
+    write_table(table, poses, rows // poses)
+    print(
+        f"{rows:,} rows ({poses} poses x {rows // poses:,} cycles), {table.stat().st_size / 1e6:.0f} MB "
+        f"(written in {time.perf_counter() - start:.1f} s), {repeat} run(s) each:"
+    )
+    bench_runs, peer_runs = [], []
+    for _ in range(repeat):
+        figures, out = measured([sys.executable, "-m", "bench.cli", "analyze", "iso9283", str(table), "--json"])
+        bench_runs.append(figures)
+        ours = json.loads(out)["poses"]
+        figures, out = measured([sys.executable, "-c", PEER, str(table)])
+        peer_runs.append(figures)
+        peer = json.loads(out)
+    table.unlink()
     print(summary("bench analyze iso9283 (with U)", bench_runs))
     print(summary("pandas read_csv + groupby (peer)", peer_runs))
-    ratio = statistics.median(r["wall_s"] for r in bench_runs) / statistics.median(r["wall_s"] for r in peer_runs)
-    memory = statistics.median(r["peak_mb"] for r in bench_runs) / statistics.median(r["peak_mb"] for r in peer_runs)
+    bench_s, peer_s = (statistics.median(r["wall_s"] for r in runs) for runs in (bench_runs, peer_runs))
+    bench_mb, peer_mb = (statistics.median(r["peak_mb"] for r in runs) for runs in (bench_runs, peer_runs))
+    pairs = [b["wall_s"] / p["wall_s"] for b, p in zip(bench_runs, peer_runs)]
     difference = max(abs(ours[p][key] - peer[p][key]) for p in peer for key in ("AP_mm", "RP_mm"))
     print(
-        f"ratio of medians: time {ratio:.2f}x, peak memory {memory:.2f}x; largest |AP/RP difference| "
-        f"{difference:.1e} mm"
+        f"  time {bench_s / peer_s:.2f}x the peer's (median over median; run by run min {min(pairs):.2f}x, max "
+        f"{max(pairs):.2f}x), peak memory {bench_mb / peer_mb:.2f}x; largest |AP/RP difference| {difference:.1e} mm"
     )
+    return {"rows": rows, "bench_s": bench_s, "peer_s": peer_s, "bench_mb": bench_mb, "peer_mb": peer_mb}
+
+
+def linearity(sizes: list[dict]) -> None:
+    """Per-row and marginal per-row cost of bench (and the peer), and the spread of the marginal costs."""
+    print("linearity (bench; the peer in brackets):")
+    for s in sizes:
+        print(
+            f"  {s['rows']:>11,} rows: {s['bench_s'] / s['rows'] * 1e6:8.2f} us/row [{s['peer_s'] / s['rows'] * 1e6:8.2f}]"
+            f", {s['bench_mb'] * 2**20 / s['rows']:9.0f} B/row [{s['peer_mb'] * 2**20 / s['rows']:9.0f}]"
+        )
+    marginal = []
+    for a, b in zip(sizes, sizes[1:]):
+        added = b["rows"] - a["rows"]
+        time_us = (b["bench_s"] - a["bench_s"]) / added * 1e6
+        memory_b = (b["bench_mb"] - a["bench_mb"]) * 2**20 / added
+        peer_us = (b["peer_s"] - a["peer_s"]) / added * 1e6
+        peer_b = (b["peer_mb"] - a["peer_mb"]) * 2**20 / added
+        marginal.append((a["rows"], b["rows"], time_us, memory_b))
+        print(
+            f"  marginal {a['rows']:,} -> {b['rows']:,}: {time_us:.2f} us/row [{peer_us:.2f}], "
+            f"{memory_b:.0f} B/row [{peer_b:.0f}]"
+        )
+    wide = [m for m in marginal if m[0] >= 10**5 and m[1] <= 10**7]
+    if len(wide) >= 2:  # super-linear growth would make a later marginal cost the larger
+        print(
+            f"  marginal cost per row, largest over smallest size step between 10^5 and 10^7 (above 1: super-linear): "
+            f"time {wide[-1][2] / wide[0][2]:.2f}x, memory {wide[-1][3] / wide[0][3]:.2f}x"
+        )
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--rows", type=float, nargs="+", default=[1e4, 1e5, 1e6, 1e7])
+    parser.add_argument("--poses", type=int, default=100)
+    parser.add_argument("--repeat", type=int, default=5)
+    parser.add_argument("--repeat-large", type=int, default=1, help="runs of each tool at 10^7 rows and more")
+    args = parser.parse_args()
+    started = os.getloadavg()
+    sizes = []
+    with tempfile.TemporaryDirectory() as folder:
+        for rows in sorted(int(r) for r in args.rows):
+            repeat = args.repeat_large if rows >= 10**7 else args.repeat
+            sizes.append(measure_size(rows, args.poses, repeat, Path(folder)))
+    linearity(sizes)
+    print(load_line(started))
 
 
 if __name__ == "__main__":

@@ -231,6 +231,7 @@ def long_path_run(folder: Path, points: int) -> tuple[Path, int]:
     from bench.protocols import Runner
     from bench.protocols.path import PathAccuracy
     from bench.simulators.rig import simulated_rig
+    from bench.store.sample_checksum import CHECKED_COLUMNS, sample_checksum
 
     path = folder / "path.db"
     with Store(path) as store:
@@ -255,6 +256,11 @@ def long_path_run(folder: Path, points: int) -> tuple[Path, int]:
                 "raw_json FROM samples WHERE run_id = ? AND kind = 'path' AND step_index < ?",
                 (copy * steps, copy * cycles, run_id, steps),
             )
+        columns = ", ".join(CHECKED_COLUMNS)  # each copy's checksum: its step and cycle are new
+        rows = db.execute(f"SELECT rowid, {columns} FROM samples WHERE run_id = ? AND step_index >= ?", (run_id, steps))
+        db.executemany(
+            "UPDATE samples SET checksum = ? WHERE rowid = ?", [(sample_checksum(*row[1:]), row[0]) for row in rows]
+        )
     return path, run_id
 
 

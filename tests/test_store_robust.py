@@ -3,12 +3,13 @@ file refused untouched; readers never create a store; ``bench store check`` one 
 
 from __future__ import annotations
 
+import argparse
 import sqlite3
 from pathlib import Path
 
 import pytest
 
-from bench.cli import main
+from bench.cli import build_parser, main
 from bench.store import Store
 from bench.store.connection import StoreError, check_store
 
@@ -84,6 +85,40 @@ def test_readers_never_create_a_store(tmp_path, capsys):
     with pytest.raises(Exception, match=f"--store {missing}: no run store there"):
         Store(missing, read_only=True)
     assert list(tmp_path.iterdir()) == []
+
+
+def _commands_with_a_store(parser: argparse.ArgumentParser, words: tuple[str, ...] = ()):
+    """``(words, parser)`` of every sub-command whose parser has a ``--store`` option, found by walking the CLI."""
+    parser.fill()  # the deferred arguments too (bench/commands/lazy.py)
+    for action in parser._actions:
+        if isinstance(action, argparse._SubParsersAction):
+            for name, sub in action.choices.items():
+                yield from _commands_with_a_store(sub, (*words, name))
+        elif "--store" in action.option_strings:
+            yield words, parser
+
+
+def test_every_command_that_reads_runs_refuses_a_missing_store(tmp_path, capsys, monkeypatch):
+    monkeypatch.chdir(tmp_path)  # no demo-out/ here: the message has no hint
+    missing = tmp_path / "typo.db"
+    walked = []
+    for words, parser in _commands_with_a_store(build_parser()):
+        if parser.get_default("creates_store"):  # bench run and bench gui start runs: a new store is theirs to make
+            continue
+        positionals = [a for a in parser._actions if not a.option_strings and a.required]
+        argv = [*words, *(str(tmp_path / "out.db") if a.dest == "destination" else "1" for a in positionals)]
+        argv += ["--to", "postgresql://u@localhost:1/lab"] if words == ("sync",) else []
+        assert main([*argv, "--store", str(missing)]) == 2, argv
+        assert _one_error_line(capsys) == (
+            f"bench: error: --store {missing}: no run store there, expected the bench.db a run wrote (--store)"
+        ), argv
+        walked.append(" ".join(words))
+    assert sorted(p.name for p in tmp_path.iterdir()) == []
+    # the walk found the readers (a command added with a --store is walked too; these must be among them)
+    assert {"calibrate", "resume", "report", "runs", "export", "backup", "sync", "analyze path-run"} <= set(walked)
+    assert main(["store", "check", str(missing)]) == 2
+    assert f"STORE {missing}: no run store there" in _one_error_line(capsys)  # the positional, named as --help names it
+    assert not missing.exists()
 
 
 def test_a_damaged_store_is_one_line_naming_the_file_and_what_to_do(sound_store, capsys):

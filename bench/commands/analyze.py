@@ -1,7 +1,8 @@
-"""``bench analyze``: metrology figures from tidy CSV tables (ISO 9283 poses, distance, drift, actuators, payload;
-vAP, paths, cornering, path velocity and positioning time in `bench.commands.analyze_path`, ISO 230-2 in
-`bench.commands.analyze_bidirectional`, orientation from calliper tilts in `bench.commands.analyze_orientation`, the
-mouse's resolution in `bench.commands.analyze_mouse`).
+"""``bench analyze``: metrology figures from tidy CSV tables: ISO 9283 poses, distance, drift and stabilisation here;
+actuators and payload in `bench.commands.analyze_actuator`, the mouse's resolution in `bench.commands.analyze_mouse`,
+the laser grid in `bench.commands.analyze_grid`, vAP, paths, cornering, path velocity and positioning time in
+`bench.commands.analyze_path`, ISO 230-2 in `bench.commands.analyze_bidirectional`, orientation from calliper tilts
+in `bench.commands.analyze_orientation`.
 
 Every handler reads a CSV through `bench.metrology.tables`, computes with `bench.metrology`, and prints a readable
 table or, with ``--json``, one JSON object on stdout. Bad cells give a one-line ``ConfigError`` naming the row,
@@ -13,7 +14,6 @@ from __future__ import annotations
 import argparse
 
 from bench.commands.kin import emit
-from bench.commands.lazy import defer
 from bench.errors import ConfigError
 
 # numpy, pandas and bench.metrology are imported inside the handlers: building the parser stays cheap.
@@ -32,6 +32,14 @@ def register(groups: argparse._SubParsersAction) -> None:
         "in force), added to the AP budget; without it U excludes the instrument and says so",
     )
     iso.add_argument("--k", type=float, default=2.0, help="coverage factor of the expanded uncertainties")
+    iso.add_argument(
+        "--chunk-rows",
+        type=int,
+        default=None,
+        metavar="ROWS",
+        help="read the table this many rows at a time (memory: one chunk and the largest pose; the same figures); "
+        "default: whole below 128 MiB, 2^20 rows at a time above",
+    )
     iso.set_defaults(handler=_iso9283)
 
     distance = _new_parser(actions, "distance", "distance accuracy AD and repeatability RD (ISO 9283 7.3)")
@@ -72,64 +80,21 @@ def register(groups: argparse._SubParsersAction) -> None:
     )
     settling.set_defaults(handler=_stabilisation)
 
-    actuator = _new_parser(
-        actions,
-        "actuator",
-        "actuator repeatability/accuracy (Groover), mean bias and ISO 230-2 "
-        "unidirectional figures; reads bench export --kind actuator_travel",
-    )
-    actuator.add_argument(
-        "--cr-mm", type=float, default=None, help="control resolution (mm/step) when the table has no cr_mm column"
-    )
-    defer(actuator, _add_actuator_robot)
-    actuator.add_argument(
-        "--instrument-u-mm",
-        type=float,
-        default=None,
-        help="instrument standard uncertainty of one travel reading (mm); without it U "
-        "excludes the instrument and says so",
-    )
-    actuator.add_argument("--k", type=float, default=2.0, help="coverage factor of the expanded uncertainties")
-    actuator.set_defaults(handler=_actuator)
-
-    payload = _new_parser(actions, "payload", "leg actuation error against load (project payload error)")
-    payload.set_defaults(handler=_payload)
-
-    from bench.commands.analyze_mouse import register as register_mouse
-
-    register_mouse(actions, _new_parser)
-
-    grid = _new_parser(
-        actions,
-        "grid-positioning",
-        "delta robot read by the laser grid: hit rate per screen and "
-        "per-axis AP, 3 S, max/mean |error| over the readings that "
-        "measured each axis (delta_positioning runs)",
-    )
-    grid.add_argument("--k", type=float, default=2.0, help="coverage factor: z of the rates' Wilson intervals")
-    grid.set_defaults(handler=_grid_positioning)
-
+    from bench.commands.analyze_actuator import register as register_actuator
     from bench.commands.analyze_bidirectional import register as register_bidirectional
+    from bench.commands.analyze_grid import register as register_grid
+    from bench.commands.analyze_mouse import register as register_mouse
     from bench.commands.analyze_orientation import register as register_orientation
     from bench.commands.analyze_path import register as register_paths
     from bench.commands.analyze_path import register_run as register_path_run
 
+    register_actuator(actions, _new_parser)
+    register_mouse(actions, _new_parser)
+    register_grid(actions, _new_parser)
     register_paths(actions, _new_parser)
     register_path_run(actions)
     register_bidirectional(actions, _new_parser)
     register_orientation(actions, _new_parser)
-
-
-def _add_actuator_robot(parser: argparse.ArgumentParser) -> None:
-    from bench.metrology.actuator_tables import ACTUATOR_ROBOTS
-
-    parser.add_argument(
-        "--robot",
-        choices=ACTUATOR_ROBOTS,
-        default=None,
-        help="control resolution per actuator number from this robot's model (an "
-        "actuator_accuracy export: --robot pkm5)",
-    )
 
 
 def _new_parser(actions: argparse._SubParsersAction, name: str, text: str) -> argparse.ArgumentParser:
@@ -143,29 +108,16 @@ def _new_parser(actions: argparse._SubParsersAction, name: str, text: str) -> ar
 
 def _iso9283(args: argparse.Namespace) -> int:
     from bench.metrology.formatting import format_pair, format_value, pose_label, report_order
-    from bench.metrology.tables import (
-        POSE_NUMERIC_COLUMNS,
-        analyze_poses,
-        pose_result_json,
-        pose_table,
-        read_table_csv,
-    )
-
-    frame = read_table_csv(args.file, numeric=POSE_NUMERIC_COLUMNS)
-    if "horizontal_valid" in frame.columns:  # the laser grid: partial readings, as bench report lays them out
-        raise ConfigError(
-            f"{args.file}: laser-grid readings (column horizontal_valid; axes empty where a screen did "
-            f"not decode), expected complete readings; analyse them with bench analyze "
-            f"grid-positioning {args.file}"
-        )
-    # an instrument that measures a subset of the axes (the camera: x, y): AP/RP over those, as bench report does
-    table = pose_table(frame, partial_axes=True)
-    if table.empty:  # a header and no rows: nothing measured, never an empty result printed as if it were one
-        raise ConfigError(f"{args.file}: no rows, expected at least one measured pose")
+    from bench.metrology.pose_stream import pose_file_results
+    from bench.metrology.tables import pose_result_json
     from bench.metrology.uncertainty import instrument_budget
 
+    if args.chunk_rows is not None and args.chunk_rows < 1:
+        raise ConfigError(f"--chunk-rows {args.chunk_rows}: expected a number of rows >= 1")
     budget = instrument_budget(args.instrument_u_mm, "--instrument-u-mm")
-    results = report_order(analyze_poses(table, instrument_u_mm=args.instrument_u_mm or 0.0, k=args.k))
+    results = report_order(
+        pose_file_results(args.file, instrument_u_mm=args.instrument_u_mm or 0.0, k=args.k, chunk_rows=args.chunk_rows)
+    )
     labels = [pose_label(r.pose, r.conditions) for r in results]
     width = max([12, *map(len, labels)])
     lines = [
@@ -321,7 +273,7 @@ def _drift(args: argparse.Namespace) -> int:
 def _stabilisation(args: argparse.Namespace) -> int:
     from bench.metrology.formatting import format_length
     from bench.metrology.stabilisation_tables import stabilisation_results, stabilisation_table
-    from bench.metrology.table_csv import read_table_csv
+    from bench.metrology.table_reading import read_table_csv
 
     table = stabilisation_table(read_table_csv(args.file))
     for band in args.band_mm:
@@ -354,194 +306,3 @@ def _stabilisation(args: argparse.Namespace) -> int:
             )
     emit(result, args.json, lines)
     return 0
-
-
-def actuator_result_json(r) -> dict:
-    """One actuator's figures as ``bench analyze actuator --json`` prints them (mm; U with the coverage factor k)."""
-    g, iso = r.groover, r.iso230_2
-    return {
-        "n": g.n,
-        "targets_mm": list(r.targets_mm),
-        "repeatability_mm": g.repeatability_mm,
-        "accuracy_mm": g.accuracy_mm,
-        "control_resolution_mm": r.control_resolution_mm,
-        "sigma_mm": list(g.sigma_mm),
-        "mean_deviation_mm": list(g.mean_deviation_mm),
-        "U_mean_deviation_mm": [m.expanded_uncertainty for m in r.bias_u],
-        "k": r.bias_u[0].coverage_factor,
-        "U_repeatability_mm": None if r.repeatability_u is None else r.repeatability_u.expanded_uncertainty,
-        "U_accuracy_mm": None if r.accuracy_u is None else r.accuracy_u.expanded_uncertainty,
-        "max_abs_bias_mm": g.max_abs_bias_mm,
-        "dropped_readings": r.dropped,
-        "iso230_2_forward": {
-            "R_mm": iso.repeatability_forward_mm,
-            "E_mm": iso.systematic_forward_mm,
-            "A_mm": iso.accuracy_forward_mm,
-        },
-    }
-
-
-def _actuator(args: argparse.Namespace) -> int:
-    from bench.metrology.actuator_tables import actuator_table, analyze_actuators, robot_control_resolution
-    from bench.metrology.formatting import format_value, reading_step_mm
-    from bench.metrology.tables import read_table_csv
-    from bench.metrology.uncertainty import instrument_budget
-
-    budget = instrument_budget(args.instrument_u_mm, "--instrument-u-mm")
-
-    frame = read_table_csv(args.file)
-    resolution = (
-        args.cr_mm
-        if args.cr_mm is not None
-        else (robot_control_resolution(args.robot) if args.robot is not None else None)
-    )
-    if "cr_mm" not in frame.columns and resolution is None:
-        raise ConfigError(
-            f"{args.file}: no cr_mm column and no --cr-mm given, expected one of them (an "
-            "actuator_accuracy export: --robot pkm5)"
-        )
-    results = analyze_actuators(
-        actuator_table(frame), control_resolution_mm=resolution, instrument_u_mm=args.instrument_u_mm or 0.0, k=args.k
-    )
-    lines = [
-        (
-            f"{'actuator':<9} {'n':>3} {'repeat_mm':>9} {'accuracy_mm':>11} {'max|bias|_mm':>12} {'R230_mm':>8} "
-            f"{'E230_mm':>8} {'A230_mm':>8}  mean deviation per target (mm)"
-        )
-    ]
-    step = reading_step_mm(frame["travel_mm"]) if "travel_mm" in frame else None
-
-    def mm(value: float, u: float | None = None, signed: bool = False) -> str:
-        """By its U when it has one, else never finer than the readings (as the report: figure_decimals)."""
-        return format_value(value, u, signed=signed, resolution=None if u is not None else step)
-
-    for r in results:
-        g, iso = r.groover, r.iso230_2
-        repeat_u, accuracy_u = (
-            None if m is None else m.expanded_uncertainty for m in (r.repeatability_u, r.accuracy_u)
-        )
-        lines.append(
-            f"{r.actuator:<9} {g.n:>3} {mm(g.repeatability_mm, repeat_u):>9} "
-            f"{mm(g.accuracy_mm, accuracy_u):>11} {mm(g.max_abs_bias_mm):>12} "
-            f"{mm(iso.repeatability_forward_mm):>8} {mm(iso.systematic_forward_mm):>8} {mm(iso.accuracy_forward_mm):>8}  "
-            + " ".join(mm(v, u.expanded_uncertainty, True) for v, u in zip(g.mean_deviation_mm, r.bias_u))
-            + (f"  ({r.dropped} readings of incomplete repeats left out)" if r.dropped else "")
-        )
-    lines.append(
-        "Repeatability = 3 σ̄, accuracy = CR/2 + 3 σ̄ (dissertation Eqs. 8.2-8.3); bias = x̄ - target; "
-        "R/E/A: ISO 230-2 unidirectional (approach from below); figures with a U rounded by it (--json: U, full precision)."
-    )
-    lines.append(budget + ".")
-    emit({"actuators": {r.actuator: actuator_result_json(r) for r in results}, "U_budget": budget}, args.json, lines)
-    return 0
-
-
-def _payload(args: argparse.Namespace) -> int:
-    import numpy as np
-
-    from bench.metrology import leg_error_summary
-    from bench.metrology.formatting import format_length
-    from bench.metrology.tables import numeric_columns, read_table_csv
-
-    table = numeric_columns(read_table_csv(args.file), ["load_kg", "error_mm"])
-    if "leg" not in table.columns:
-        raise ConfigError(f"{args.file}: missing column leg")
-    legs = table["leg"].astype(str).str.strip()
-    # sorted by load and leg: the table's row order carries no meaning (a tie in the maximum names the lowest load)
-    wide = table.assign(leg=legs).pivot_table(
-        index="load_kg", columns="leg", values="error_mm", aggfunc="mean", sort=True
-    )
-    if wide.isna().any().any():
-        raise ConfigError(f"{args.file}: some load has no error for some leg, expected every leg at every load")
-    s = leg_error_summary(wide.index.to_numpy(), wide.to_numpy())
-    names = [str(c) for c in wide.columns]
-    # the worst error of a leg is its largest |e|, shown with its sign (a signed table's max can be a tiny positive
-    # error while the leg's real worst is a large negative one); the first load wins a tie
-    errors = wide.to_numpy()
-    at_worst = np.argmax(np.abs(errors), axis=0)
-    worst = [float(errors[i, j]) for j, i in enumerate(at_worst)]
-    worst_load = [float(wide.index[i]) for i in at_worst]
-    result = {
-        "legs": {
-            n: {
-                "worst_error_mm": w,
-                "load_at_worst_kg": wl,
-                "max_error_mm": m,
-                "load_at_max_kg": l,
-                "mean_error_mm": a,
-                "correlation_with_load": c,
-            }
-            for n, w, wl, m, l, a, c in zip(
-                names, worst, worst_load, s.max_error_mm, s.load_at_max_kg, s.mean_error_mm, s.correlation_with_load
-            )
-        },
-        "overall_mean_mm": s.overall_mean_mm,
-        "overall_sd_mm": s.overall_sd_mm,
-        "n_loads": s.n_loads,
-    }
-    lines = [f"{'leg':<5} {'worst_mm':>8} {'at_kg':>7} {'mean_mm':>8} {'r(load)':>8}  (worst: largest |e|, signed)"]
-    lines += [
-        f"{n:<5} {format_length(w, signed=True):>8} {wl:7.2f} {format_length(a, signed=True):>8} "
-        f"{('n/a' if c is None else f'{c:+.3f}'):>8}"
-        for n, w, wl, a, c in zip(names, worst, worst_load, s.mean_error_mm, s.correlation_with_load)
-    ]
-    lines.append(
-        f"all legs: mean {format_length(s.overall_mean_mm)} mm, SD {format_length(s.overall_sd_mm)} mm over {s.n_loads} loads"
-    )
-    emit(result, args.json, lines)
-    return 0
-
-
-def _grid_positioning(args: argparse.Namespace) -> int:
-    from bench.metrology.partial_pose import (
-        AXIS_NAMES,
-        analyze_grid_positioning,
-        axis_json,
-        grid_pose_json,
-        grid_positioning_table,
-        pooled_axis_errors,
-        rate_text,
-    )
-    from bench.metrology.tables import read_table_csv
-
-    table = grid_positioning_table(read_table_csv(args.file))
-    results = analyze_grid_positioning(table, k=args.k)
-    pooled = pooled_axis_errors(table)
-    result = {
-        "k": args.k,
-        "poses": {r.pose: grid_pose_json(r) for r in results},
-        "all_poses": {"axes": {name: axis_json(a) for name, a in zip(AXIS_NAMES, pooled)}},
-    }
-    lines = [
-        f"{'pose':<8} {'n':>3}  {'horizontal valid (lit)':<36} {'vertical valid (lit)':<36} "
-        f"{'complete':>8} {'AP_mm':>7} {'RP_mm':>7}"
-    ]
-    for r in results:
-        s = r.statistics
-        screens = [f"{rate_text(r.valid[name])} ({r.lit[name].k})" for name in ("horizontal", "vertical")]
-        lines.append(
-            f"{r.pose:<8} {s.n_readings:>3}  {screens[0]:<36} {screens[1]:<36} {s.n_complete:>8} "
-            f"{_number(s.ap_mm):>7} {_number(s.rp_mm):>7}"
-        )
-        lines += [f"{'':<8} {name}: {_axis_text(a)}" for name, a in zip(AXIS_NAMES, s.axes)]
-    lines.append("all poses: " + "; ".join(f"{name}: {_axis_text(a)}" for name, a in zip(AXIS_NAMES, pooled)))
-    lines.append(
-        f"valid = the screen decoded ok (its axes stored); lit = any sensor reported; [Wilson, z = "
-        f"{args.k:g}]. Each axis counts only the readings that measured it (n); AP = mean error, 3S per axis "
-        "(not ISO RP); spatial AP/RP over complete readings only. Figures are conditional on detection."
-    )
-    emit(result, args.json, lines)
-    return 0
-
-
-def _number(value: float | None, fmt: str = ".3f") -> str:
-    return "-" if value is None else format(value, fmt)
-
-
-def _axis_text(axis) -> str:
-    if axis.n == 0:
-        return "no valid reading (n 0)"
-    return (
-        f"n {axis.n:>2}  AP {axis.ap_mm:+.3f}  3S {_number(axis.spread_3s_mm)}  max|e| {axis.max_abs_error_mm:.3f}"
-        f"  mean|e| {axis.mean_abs_error_mm:.3f} mm"
-    )

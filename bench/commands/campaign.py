@@ -17,7 +17,6 @@ import sys
 from collections.abc import Iterator
 from contextlib import contextmanager
 from datetime import datetime
-from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from bench.commands.lazy import defer
@@ -40,7 +39,7 @@ def register(groups: argparse._SubParsersAction) -> None:
     run.add_argument("--dry-run", action="store_true", help="print the plan and pre-flight; move nothing")
     run.add_argument("--campaign", default=None, help="campaign name the run belongs to")
     _rig_arguments(run)
-    run.set_defaults(handler=_run)
+    run.set_defaults(handler=_run, creates_store=True)
 
     runs = _parser(groups, "runs", "list the stored runs and their status")
     runs.add_argument("--json", action="store_true", help="one JSON object per run, one per line")
@@ -339,21 +338,13 @@ def _resume(args: argparse.Namespace) -> int:
     return 0 if result.exit_status == "completed" else 1
 
 
-def _existing_store(path: str) -> str:
-    """A read-only command names a store that exists: it never creates an empty one where a typo pointed."""
-    if not Path(path).exists():
-        hint = " (the demo's runs are in demo-out/bench.db)" if Path("demo-out/bench.db").exists() else ""
-        raise ConfigError(f"--store {path}: no run store there{hint}, expected the bench.db a run wrote (--store)")
-    return path
-
-
 def _runs(args: argparse.Namespace) -> int:
     from bench.store.lab import is_lab_url, open_runs_store  # a file or, read-only, a postgresql:// lab store
 
     if is_lab_url(args.store):
         opened = open_runs_store(args.store)
     else:
-        opened = open_runs_store(_existing_store(args.store), read_only=True)
+        opened = open_runs_store(args.store, read_only=True)
     with opened as store:
         records = store.runs(bench=args.bench, robot=args.robot, since=_since(args.since))
     if args.json:
@@ -403,7 +394,7 @@ def _default_kind(store: Store, run_id: int) -> str:
 def _backup(args: argparse.Namespace) -> int:
     from bench.store import Store
 
-    with Store(_existing_store(args.store), read_only=True) as store:
+    with Store(args.store, read_only=True) as store:
         print(store.backup_to(args.destination))
     return 0
 
@@ -413,9 +404,7 @@ def _export(args: argparse.Namespace) -> int:
     from bench.store.lab import is_lab_url
     from bench.store.lab_reader import open_named_runs
 
-    opened, (run_id,) = open_named_runs(
-        args.store if is_lab_url(args.store) else _existing_store(args.store), [args.run_id]
-    )
+    opened, (run_id,) = open_named_runs(args.store if is_lab_url(args.store) else args.store, [args.run_id])
     with opened as store:
         out = args.out or f"run-{run_id}.{args.format}"
         kind = args.kind or ("arrival" if args.series else _default_kind(store, run_id))

@@ -16,7 +16,7 @@ def register(groups: argparse._SubParsersAction) -> None:
     )
     gui.add_argument("--store", default="bench.db", help="run store (SQLite file)")
     gui.add_argument("--reports", default="reports", help="folder for the reports opened from the window")
-    gui.set_defaults(handler=_gui)
+    gui.set_defaults(handler=_gui, creates_store=True)  # the window starts runs: a new store is its to make
 
 
 def _gui(args: argparse.Namespace) -> int:

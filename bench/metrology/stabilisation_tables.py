@@ -13,7 +13,7 @@ import pandas as pd
 
 from bench.errors import ConfigError, InsufficientData
 from bench.metrology.iso9283_dynamics import PoseStabilisation, pose_stabilisation
-from bench.metrology.table_csv import numeric_columns
+from bench.metrology.table_reading import numeric_columns
 from bench.metrology.tables import CONDITION_COLUMNS, STABILISATION_COLUMNS, condition_groups
 
 __all__ = ["StabilisationResults", "stabilisation_results", "stabilisation_table"]

@@ -31,7 +31,7 @@ from bench.metrology.iso9283 import (
     pose_accuracy,
     pose_repeatability,
 )
-from bench.metrology.table_csv import numeric_columns, read_table_csv
+from bench.metrology.table_reading import numeric_columns, read_table_csv
 from bench.metrology.uncertainty import (
     Measured,
     accuracy_uncertainty,
@@ -187,6 +187,47 @@ def _check_unique_cycles(group: pd.DataFrame, source: str) -> None:
         )
 
 
+def _checked_pose_groups(
+    table: pd.DataFrame, commands: Sequence[str], source: str
+) -> Iterator[tuple[str, str, tuple[tuple[str, float], ...], np.ndarray]]:
+    """Yield ``(label, pose, conditions, rows)`` as :func:`condition_groups` does, ``rows`` the group's positions in
+    ``table`` in cycle order, after the checks of every group (one command, one frame, one row per cycle).
+
+    The checks run on whole columns at once (a table of 10^7 rows in 100 poses: no per-group frames); when one
+    fails, the group-by-group checks run to raise the message they always gave (the first group and row at fault).
+    """
+    keys = [c for c in CONDITION_COLUMNS if c in table.columns and table[c].nunique() > 1]
+    if keys:
+        codes = table.groupby([table["pose"].astype(str), *(table[c] for c in keys)], sort=False).ngroup().to_numpy()
+    else:
+        codes = pd.factorize(table["pose"].astype(str))[0]
+    # a stable sort by group keeps each group's rows in table order; int16 codes sort by radix, in linear time
+    codes = codes.astype(np.int16 if codes.max(initial=0) < 2**15 else np.int64)
+    order = np.argsort(codes, kind="stable")
+    grouped, cycles = codes[order], table["cycle"].to_numpy(float)[order]
+    same_group = grouped[1:] == grouped[:-1]
+    if not np.all(cycles[1:][same_group] > cycles[:-1][same_group]):  # not in cycle order yet (or a cycle repeated)
+        order = np.lexsort((table["cycle"].to_numpy(float), codes))
+        cycles = table["cycle"].to_numpy(float)[order]
+    starts = np.flatnonzero(np.r_[True, grouped[1:] != grouped[:-1]])
+    first_rows = order[starts]  # per group code (0, 1, .. in order of appearance): its first row in the table
+    checked = [table[c].to_numpy(float) for c in commands]
+    if "frame" in table.columns:
+        checked.append(pd.factorize(table["frame"].astype(str).str.strip())[0])
+    if np.any(cycles[1:][same_group] == cycles[:-1][same_group]) or any(
+        np.any(values != values[first_rows][codes]) for values in checked
+    ):
+        for _, _, _, group in condition_groups(table):  # the message of the first group and row at fault
+            _check_constant_command(group, commands, source)
+            _check_single_frame(group, source)
+            _check_unique_cycles(group, source)
+    poses, key_values = table["pose"], [table[c].to_numpy() for c in keys]  # the labels: a string per group only
+    for rows in np.split(order, starts[1:]):
+        pose, conditions = str(poses.iat[rows[0]]), tuple((c, float(v[rows[0]])) for c, v in zip(keys, key_values))
+        label = pose if not conditions else f"{pose} ({', '.join(f'{n}={v:g}' for n, v in conditions)})"
+        yield label, pose, conditions, rows
+
+
 def analyze_poses(
     table: pd.DataFrame, *, instrument_u_mm: float = 0.0, k: float = 2.0, resamples: int = 1000
 ) -> list[PoseResult]:
@@ -218,46 +259,64 @@ def analyze_poses(
     """
     source = table.attrs.get("source", "table")
     angles = [(cmd, att) for cmd, att in ANGLE_PAIRS if cmd in table.columns]
+    axes = measured_axes(table)
+    columns = {c: table[c].to_numpy(float) for c in (*axes, *_COMMAND, *(c for pair in angles for c in pair))}
     results = []
-    for label, pose, conditions, group in condition_groups(table):
-        _check_constant_command(group, [*_COMMAND, *(cmd for cmd, _ in angles)], source)
-        _check_single_frame(group, source)
-        _check_unique_cycles(group, source)
-        group = group.sort_values("cycle", kind="stable")
-        axes = measured_axes(group)
-        attained = group[list(axes)].to_numpy()
-        full_command = group[list(_COMMAND)].to_numpy()[0]
-        command = full_command[[_ATTAINED.index(c) for c in axes]]
-        try:
-            repeatability = pose_repeatability(attained)
-        except InsufficientData as exc:
-            raise type(exc)(f"{source}: pose {label!r}: {exc}") from None
-        ap_u, _ = accuracy_uncertainty(attained, command, instrument_u_mm=instrument_u_mm, k=k)
-        u_rp = repeatability_uncertainty(attained, resamples=resamples) if len(attained) >= 3 else 0.0
-        orientation = None
-        if angles:
-            attained_deg = group[[att for _, att in angles]].to_numpy()
-            orientation = (
-                orientation_accuracy(attained_deg, group[[cmd for cmd, _ in angles]].to_numpy()[0]),
-                orientation_repeatability(attained_deg),
-            )
-        results.append(
-            PoseResult(
-                label=label,
-                pose=pose,
-                conditions=conditions,
-                commanded_mm=(float(full_command[0]), float(full_command[1]), float(full_command[2])),
-                accuracy=pose_accuracy(attained, command),
-                repeatability=repeatability,
-                ap_u=ap_u,
-                rp_u=expanded(repeatability.rp_mm, u_rp, unit="mm", k=k),
-                orientation_accuracy=orientation[0] if orientation else None,
-                orientation_repeatability=orientation[1] if orientation else None,
-                angle_names=tuple(att[0] for _, att in angles),
-                axis_names=tuple(c[0] for c in axes),
-            )
-        )
+    for label, pose, conditions, rows in _checked_pose_groups(table, [*_COMMAND, *(c for c, _ in angles)], source):
+        # column-major, as a frame's block: each axis contiguous (and the sums in the order they always had)
+        attained = np.array([columns[c][rows] for c in axes]).T
+        attained_deg = np.array([columns[att][rows] for _, att in angles]).T if angles else None
+        commands = {c: float(columns[c][rows[0]]) for c in (*_COMMAND, *(cmd for cmd, _ in angles))}
+        group = PoseGroup(label, pose, conditions, axes, attained, angles, attained_deg, commands)
+        results.append(pose_result(group, source=source, instrument_u_mm=instrument_u_mm, k=k, resamples=resamples))
     return results
+
+
+@dataclass(frozen=True, eq=False)
+class PoseGroup:
+    """The checked samples of one pose (and set of conditions), in cycle order, as :func:`pose_result` takes them."""
+
+    label: str
+    pose: str
+    conditions: tuple[tuple[str, float], ...]
+    axes: tuple[str, ...]  #: the measured position columns (``x_mm``.. in x, y, z order)
+    attained: np.ndarray  #: (n, len(axes)) mm, column-major
+    angles: list[tuple[str, str]]  #: the (commanded, attained) angle column pairs
+    attained_deg: np.ndarray | None  #: (n, len(angles)) degrees
+    commands: dict[str, float]  #: the pose's command per column (cmd_x_mm.., cmd_a_deg..)
+
+
+def pose_result(group: PoseGroup, *, source: str, instrument_u_mm: float, k: float, resamples: int) -> PoseResult:
+    """AP, RP, their uncertainties and the orientation figures of one checked pose group (:func:`analyze_poses`)."""
+    full_command = np.array([group.commands[c] for c in _COMMAND])
+    command = full_command[[_ATTAINED.index(c) for c in group.axes]]
+    attained = group.attained
+    try:
+        repeatability = pose_repeatability(attained)
+    except InsufficientData as exc:
+        raise type(exc)(f"{source}: pose {group.label!r}: {exc}") from None
+    ap_u, _ = accuracy_uncertainty(attained, command, instrument_u_mm=instrument_u_mm, k=k)
+    u_rp = repeatability_uncertainty(attained, resamples=resamples) if len(attained) >= 3 else 0.0
+    orientation = None
+    if group.attained_deg is not None:
+        orientation = (
+            orientation_accuracy(group.attained_deg, np.array([group.commands[cmd] for cmd, _ in group.angles])),
+            orientation_repeatability(group.attained_deg),
+        )
+    return PoseResult(
+        label=group.label,
+        pose=group.pose,
+        conditions=group.conditions,
+        commanded_mm=(float(full_command[0]), float(full_command[1]), float(full_command[2])),
+        accuracy=pose_accuracy(attained, command),
+        repeatability=repeatability,
+        ap_u=ap_u,
+        rp_u=expanded(repeatability.rp_mm, u_rp, unit="mm", k=k),
+        orientation_accuracy=orientation[0] if orientation else None,
+        orientation_repeatability=orientation[1] if orientation else None,
+        angle_names=tuple(att[0] for _, att in group.angles),
+        axis_names=tuple(c[0] for c in group.axes),
+    )
 
 
 def pose_result_json(result: PoseResult) -> dict[str, Any]:

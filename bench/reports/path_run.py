@@ -154,20 +154,20 @@ def attained_cycles(samples) -> dict[tuple[str, float], list[tuple[int, np.ndarr
     Samples of a cycle are joined in step order; a point not later than the one before (a window reaching back
     into the previous segment) is dropped, so times strictly increase."""
     grouped: dict[tuple[str, float, int], list] = {}
-    for s in samples:
+    for s in samples:  # each sample's series kept as arrays only: the parsed JSON is dropped as it is read
         series = s.raw.get("series") if isinstance(s.raw, dict) else None
         if not series or "t_request_s" not in s.raw:
             raise InsufficientData(
                 f"sample at step {s.step_index}: no streamed series with its start time, "
                 "expected a path segment captured by a streaming instrument"
             )
-        grouped.setdefault((s.pose, float(s.values["velocity_pct"]), int(s.cycle)), []).append(s)
+        t = float(s.raw["t_request_s"]) + np.asarray(series["t_s"], float)
+        p = np.column_stack([np.asarray(series[a], float) for a in ("x_mm", "y_mm", "z_mm")])
+        grouped.setdefault((s.pose, float(s.values["velocity_pct"]), int(s.cycle)), []).append((s.step_index, t, p))
     out: dict = {}
     for (shape, velocity, cycle), parts in sorted(grouped.items()):
         times, points, starts, last = [], [], [], -np.inf
-        for s in sorted(parts, key=lambda x: x.step_index):
-            t = float(s.raw["t_request_s"]) + np.asarray(s.raw["series"]["t_s"], float)
-            p = np.column_stack([np.asarray(s.raw["series"][a], float) for a in ("x_mm", "y_mm", "z_mm")])
+        for _, t, p in sorted(parts, key=lambda part: part[0]):
             keep = t > last
             starts.append(sum(len(x) for x in times))
             times.append(t[keep])
@@ -310,7 +310,8 @@ def analyze_path_run(
         raise ConfigError(f"run {run_id}: a {run.protocol_name} run, expected one of {', '.join(PATH_PROTOCOLS)}")
     protocol = PathDesign.from_config(run.config, source=f"run {run_id}")
     u_mm = counts_instrument(run, calibrations_in_force(store, run), 0).sigma_mm  # the report's instrument term
-    grouped = attained_cycles(store.samples(run_id, kind="path") if samples is None else samples)
+    read = getattr(store, "iter_samples", store.samples)  # a sample at a time where the store can (lab views: a list)
+    grouped = attained_cycles(read(run_id, kind="path") if samples is None else samples)
     figures = []
     for (shape, velocity), cycles in sorted(grouped.items(), key=lambda item: (item[0][0], -item[0][1])):
         n_segments = protocol.n_segments(shape)

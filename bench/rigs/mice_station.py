@@ -14,6 +14,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from bench.errors import ConfigError
+from bench.sensors.calibration import DEFAULT_CPI
 
 if TYPE_CHECKING:
     from bench.rigs.check import DeviceCheck
@@ -25,9 +26,6 @@ if TYPE_CHECKING:
 __all__ = ["MiceSpec", "calibration_summary", "check_mice", "mouse_calibration", "open_mice", "parse_mice"]
 
 _log = logging.getLogger(__name__)
-
-#: The mice's nominal resolution when the station states none (counts per inch).
-DEFAULT_CPI = 800.0
 
 
 @dataclass(frozen=True)

@@ -16,7 +16,11 @@ import numpy as np
 from bench.errors import ConfigError
 from bench.metrology.mouse_calibration import MM_PER_INCH
 
-__all__ = ["MM_PER_INCH", "CountsCalibration"]
+__all__ = ["DEFAULT_CPI", "MM_PER_INCH", "CountsCalibration"]
+
+#: An optical mouse's nominal resolution when nothing states another (counts per inch): the documents' sensors'
+#: default, the station's `[mice] cpi` when it names none, and the simulated mice's.
+DEFAULT_CPI = 800.0
 
 
 @dataclass(frozen=True, eq=False)

@@ -19,6 +19,7 @@ from typing import Any
 
 import numpy as np
 
+from bench.sensors.calibration import DEFAULT_CPI
 from bench.simulators.mouse import MouseSimulator, MouseStream
 
 __all__ = ["MOTION_S", "PLANES", "MiceFeed", "fifo_paths", "plane_seed", "stand_in"]
@@ -60,7 +61,7 @@ class MiceFeed:
         start_pose: np.ndarray,
         *,
         seed: int,
-        cpi: float = 800.0,
+        cpi: float = DEFAULT_CPI,
         noise_counts: float = 0.05,
         report_rate_hz: float = 500.0,
     ) -> None:

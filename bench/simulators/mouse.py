@@ -18,7 +18,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from bench.errors import ConfigError
-from bench.sensors.calibration import MM_PER_INCH
+from bench.sensors.calibration import DEFAULT_CPI, MM_PER_INCH
 from bench.sensors.input_event import EVENT, encode_frames
 
 __all__ = [
@@ -69,7 +69,7 @@ class MouseSimulator:
         Seed of the noise generator; the same inputs give the same bytes.
     """
 
-    cpi: float = 800.0
+    cpi: float = DEFAULT_CPI
     scale_error: tuple[float, float] = (0.0, 0.0)
     rotation_deg: float = 0.0
     noise_counts: float = 0.0
@@ -228,7 +228,7 @@ def write_circle_stream(
     *,
     duration_s: float = 10.0,
     rate_hz: float = 1000.0,
-    cpi: float = 800.0,
+    cpi: float = DEFAULT_CPI,
     radius_mm: float = 20.0,
     period_s: float = 4.0,
     realtime: bool = False,
@@ -251,7 +251,7 @@ def add_stream_arguments(parser: argparse.ArgumentParser) -> None:
     """The simulated stream's options, shared by this program and ``bench sensors mouse-sim``."""
     parser.add_argument("--duration-s", type=float, default=10.0)
     parser.add_argument("--rate-hz", type=float, default=1000.0, help="report rate, at most 8000")
-    parser.add_argument("--cpi", type=float, default=800.0)
+    parser.add_argument("--cpi", type=float, default=DEFAULT_CPI)
     parser.add_argument("--radius-mm", type=float, default=20.0)
     parser.add_argument("--period-s", type=float, default=4.0)
     parser.add_argument("--realtime", action="store_true", help="pace the stream to real time")

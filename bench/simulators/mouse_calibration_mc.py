@@ -15,11 +15,11 @@ from collections.abc import Callable
 
 import numpy as np
 
-from bench.sensors.calibration import MM_PER_INCH
+from bench.sensors.calibration import DEFAULT_CPI, MM_PER_INCH
 
 __all__ = ["DESIGNS", "TRUE_B", "calibration_moves", "matrix_coverage"]
 
-_COUNTS_PER_MM = 800.0 / MM_PER_INCH
+_COUNTS_PER_MM = DEFAULT_CPI / MM_PER_INCH
 #: The simulated mouse's true forward matrix c = B r (counts/mm).
 TRUE_B = _COUNTS_PER_MM * np.array([[1.02, 0.014], [-0.012, 0.985]])
 #: Move lengths of the calibration protocol (mm).

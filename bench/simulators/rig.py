@@ -27,6 +27,7 @@ from bench.rigs.gauges import CalliperOnly
 from bench.rigs.interfaces import Measurement, Rig
 from bench.rigs.mice import PATH, STREAMED_KINDS, MiceInstrument
 from bench.rigs.movers import DeltaMover, Pkm5Mover
+from bench.sensors.calibration import DEFAULT_CPI
 from bench.simulators.calliper import depths_for_tilt
 from bench.simulators.client import SimulatorClient
 from bench.simulators.mice_feed import MOTION_S, PLANES, plane_seed
@@ -110,7 +111,7 @@ class SimulatedMice(MiceInstrument):
         folder: str,
         *,
         seed: int,
-        cpi: float = 800.0,
+        cpi: float = DEFAULT_CPI,
         noise_counts: float = 0.05,
         report_rate_hz: float = 500.0,
         trace_rate_hz: int = 250,

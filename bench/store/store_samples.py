@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import sqlite3
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from typing import TYPE_CHECKING, Any
 
 from bench.errors import ConfigError
@@ -101,12 +101,18 @@ class StoreSamples:
         """The samples of a run in step order, optionally of one ``kind`` only. Each is checked against its checksum
         as it is read: a damaged one raises :class:`bench.store.sample_checksum.DamagedSample` naming the run and
         the step, so nothing is computed from a changed number."""
+        return list(self.iter_samples(run_id, kind))
+
+    def iter_samples(self, run_id: int, kind: str | None = None) -> Iterator[SampleRecord]:
+        """:meth:`samples` one at a time: a caller that keeps only what it computes from each sample holds one
+        parsed sample, not the run (a long path run's JSON series as Python lists: about 130 bytes a point)."""
         query = (
             f"SELECT {', '.join(CHECKED_COLUMNS)}, checksum FROM samples"
             " WHERE run_id = ?" + (" AND kind = ?" if kind else "") + " ORDER BY step_index"
         )
         args = (run_id, kind) if kind else (run_id,)
-        return [checked_sample(run_id, row, self.path) for row in self._db.execute(query, args)]
+        for row in self._db.execute(query, args):
+            yield checked_sample(run_id, row, self.path)
 
     def stored_rows(self, run_id: int, after_step: int = -1, *, extract: Sequence[str] = ()) -> GuardedCursor:
         """The samples of a run after step ``after_step`` exactly as stored, in step order: ``(step_index, kind,
