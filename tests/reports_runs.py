@@ -298,6 +298,15 @@ def simulated_run(
     return result.run_id
 
 
+def simulated_path_run(folder, *, shape: str, cycles: int, seed: int) -> int:
+    """A simulated ``iso9283_path`` run of ``shape`` at 100 % into ``folder/p.db``; returns its id."""
+    from bench.protocols.path import PathAccuracy
+
+    protocol = PathAccuracy(shape=shape, cycles=cycles, velocities_pct=[100.0], final_hold_s=0.2)
+    with Store(folder / "p.db") as store:
+        return simulated_run(store, protocol, "pkm5", seed=seed, speed_factor=10000)
+
+
 GRID_POSITIONING_SETTINGS = {
     "robot": {"driver": "Delta4Controller", "velocity": "servo maximum (not settable)"},
     "instrument": {

@@ -100,9 +100,9 @@ def test_a_streamed_line_run_gives_at_rt_av_near_the_truth_and_an_ideal_robot_ne
     assert line.n_cycles == 3 and line.n_segments == len(protocol.segmentation("line").targets_mm) - 1
     # the demo robot's error model: AT of mm, as its true segment ends give (the stream adds the mice's counts and
     # the structure's lag between the ends)
-    from bench.reports.path_run import _stations
+    from bench.reports.path_run import path_stations
 
-    truth = _truth_at(samples, _stations(protocol.path("line"), 1.0, 2.0))
+    truth = _truth_at(samples, path_stations(protocol.path("line"), 1.0, 2.0))
     assert 0.3 < line.at_mm < 5.0
     assert line.at_mm == pytest.approx(truth.at_mm, abs=0.2)
     # an ideal robot: AT and RT within about a count of the instrument, the commanded speed within 1 %

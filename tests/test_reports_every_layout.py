@@ -1,4 +1,4 @@
-"""Every layout, one truth: each report layout (pose, path, stabilisation, actuator, payload ladder, laser grid
+"""Every layout, one truth: each report layout (pose, distance, path, stabilisation, actuator, payload ladder, laser grid
 (hits and positioning), mouse calibration, kinematic calibration, comparison) is written as HTML and PDF, and
 
 - every number of every table is walked: a ``value ± U`` has U to at most two significant digits and the value to
@@ -50,6 +50,7 @@ DIAGNOSTIC_TABLES = {"calibration-observability"}
 EXACT = {f"{STANDARD_GRAVITY_M_S2:g}", f"{25.4 / 800:g}", f"{1.25 / 200:g}", f"{1.25 / 400:g}"}
 LAYOUTS = (
     "pose",
+    "distance",
     "path",
     "stabilisation",
     "actuator",
@@ -78,6 +79,7 @@ def reports(tmp_path_factory):
             "stabilisation": simulated_run(store, stabilisation, "pkm5", seed=0, speed_factor=1000),
             "actuator": write_actuator_run(store),
             "payload": write_ladder_run(store),
+            "distance": write_pose_run(store, seed=7, config=pose_config(protocol="iso9283_distance", cycles=6)),
             "grid_hits": write_grid_hit_run(store),
             "grid": write_grid_positioning_run(store),
         }
@@ -101,7 +103,19 @@ def reports(tmp_path_factory):
 
 def _two_significant_digits(u_text: str) -> bool:
     digits = u_text.replace(".", "").lstrip("0")
+    if "." not in u_text:  # a U of whole tens, hundreds (210): its trailing zeros only place the digits
+        digits = digits.rstrip("0") or "0"
     return 1 <= len(digits) <= 2
+
+
+def _rounded_to_the_place_of(value: str, u_text: str) -> bool:
+    """A value beside a U of whole tens, hundreds (``10 ± 210``: U's two significant digits end at the tens) is
+    rounded to that place (never ``12 ± 210``; ``-9 ± 40`` is right: 40 to two significant digits ends at units)."""
+    if "." in u_text or "." in value:
+        return True
+    zeros = max(0, len(u_text.lstrip("0")) - 2)
+    digits = value.lstrip("+-")
+    return digits == "0" or len(digits) - len(digits.rstrip("0")) >= zeros
 
 
 def _stated(tables) -> set[str]:
@@ -131,8 +145,13 @@ def _misrounded(tables) -> list[str]:
             continue
         for row in rows[1:]:
             for cell in _cells(rows[0], row):
-                for _value, decimals, u, u_decimals, exponent in MEASURED.findall(cell):
-                    if exponent or len(decimals) != len(u_decimals) or not _two_significant_digits(u):
+                for value, decimals, u, u_decimals, exponent in MEASURED.findall(cell):
+                    if (
+                        exponent
+                        or len(decimals) != len(u_decimals)
+                        or not _two_significant_digits(u)
+                        or not _rounded_to_the_place_of(value, u)
+                    ):
                         wrong.append(f"{ident}: {cell}")
                 for match in DECIMAL.finditer(MEASURED.sub("", cell)):
                     number, decimals, exponent = match.group(0).lstrip("+-"), match.group(1), match.group(2)
@@ -162,6 +181,10 @@ def test_the_walk_finds_false_precision():
         "stabilisation": [["OV"], ["0.3507"]],
         "legs": [["slope"], ["-1.93e-03 ± 8.22e-05"]],
         "results": [["AP"], ["0.4405 ± 0.2343"]],
+        "path": [["AT", "RV"], ["0.12 ± 0.05", "10 ± 210"]],  # rounded to tens by a U of 210: right
+        "path-tens": [["RV"], ["12 ± 210"]],
+        "path-three-digits": [["RV"], ["10 ± 205"]],
+        "mouse-intercepts": [["b"], ["-9 ± 40"]],  # right: U of 40 at two significant digits, the value to units
         "calibration-parameters": [["Parameter", "Value", "Standard uncertainty"], ["a", "+0.00471", "0.00044"]],
         "calibration-observability": [["Item", "Value"], ["O1 index", "0.03893"], ["condition", "7.07e+10"]],
         "settings": [["Setting", "Value"], ["instrument.resolution_mm", "0.03175"]],
@@ -172,6 +195,8 @@ def test_the_walk_finds_false_precision():
         "stabilisation",
         "legs",
         "results",
+        "path-tens",
+        "path-three-digits",
         "calibration-observability",
     ]
 

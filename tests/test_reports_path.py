@@ -5,9 +5,9 @@ from __future__ import annotations
 
 import pytest
 from figure_support import printed_font_sizes, same_scale, small_multiples
-from reports_runs import html_tables, pdf_text, simulated_run
+from reports_runs import html_tables, pdf_text, simulated_path_run
 
-from bench.protocols.path import PathAccuracy
+from bench.metrology.formatting import format_measured
 from bench.reports import collect, write_report
 from bench.reports.path import path_plot
 from bench.reports.path_run import analyze_path_run
@@ -18,9 +18,8 @@ from bench.store import Store
 @pytest.fixture(scope="module")
 def path_run(tmp_path_factory):
     folder = tmp_path_factory.mktemp("path")
-    protocol = PathAccuracy(shape="both", cycles=2, velocities_pct=[100.0], final_hold_s=0.2)
-    with Store(folder / "p.db") as store:
-        run_id = simulated_run(store, protocol, "pkm5", seed=6, speed_factor=10000)
+    run_id = simulated_path_run(folder, shape="both", cycles=2, seed=6)
+    with Store(folder / "p.db", read_only=True) as store:
         figures = analyze_path_run(store, run_id).figures
     return folder, run_id, figures
 
@@ -30,14 +29,17 @@ def test_the_report_prints_the_figures_the_analysis_computes(path_run):
     paths = write_report(folder / "p.db", run_id, folder / "out")
     tables = html_tables(paths.html)
     header, *rows = tables["path"]
-    assert header[:6] == ["Path", "v (%)", "v_c (mm/s)", "Cycles", "AT (mm)", "RT (mm)"]
+    assert header[:6] == ["Path", "v (%)", "v_c (mm/s)", "Cycles", "AT ± U (mm)", "RT ± U (mm)"]
     by_shape = {f.shape: f for f in figures}
     assert [r[0] for r in rows] == ["circle", "line"]
-    for row in rows:
+    for row in rows:  # 2 cycles: too few for the path model, so AT and RT are printed without a U, to 1 µm
         f = by_shape[row[0]]
         assert row[4] == f"{f.at_mm:.3f}" and row[5] == f"{f.rt_mm:.3f}" and row[3] == "2"
-    line = next(r for r in rows if r[0] == "line")
-    assert line[8] == f"{by_shape['line'].av_pct:+.1f}" and line[10] == f"{by_shape['line'].fv_mm_s:.3f}"
+        assert f.at_u is None and f.rt_u is None
+    line, f = next(r for r in rows if r[0] == "line"), by_shape["line"]
+    # AV and RV carry their U from 2 cycles already (Student's k, the chi pivot), the value rounded by it
+    assert line[8] == format_measured(f.av_pct, f.av_u.expanded_uncertainty, signed=True) and " ± " in line[8]
+    assert line[9] == format_measured(f.rv_pct, f.rv_u.expanded_uncertainty) and line[10] == f"{f.fv_mm_s:.3f}"
     assert next(r for r in rows if r[0] == "circle")[8] == "—"  # no path velocity on the circle
     deviations = {r[1]: r for r in tables["deviations"][1:]}
     assert tables["deviations"][0][:5] == ["Clause", "Topic", "ISO 9283 requirement", "What was done", "Status"]

@@ -162,7 +162,7 @@ def _iso9283(args: argparse.Namespace) -> int:
 
 
 def _distance(args: argparse.Namespace) -> int:
-    from bench.metrology.formatting import format_length, format_pair
+    from bench.metrology.formatting import format_length
     from bench.metrology.tables import (
         POSE_NUMERIC_COLUMNS,
         analyze_distance,
@@ -178,7 +178,6 @@ def _distance(args: argparse.Namespace) -> int:
     budget = instrument_budget(args.instrument_u_mm, "--instrument-u-mm")
     u_ad = distance_accuracy_uncertainty(r.ad_mm, r.u_ad_mm, r.n, instrument_u_mm=args.instrument_u_mm or 0.0)
     u_rd = spread_uncertainty(r.rd_mm, r.n, unit="mm")
-    rd_text, u_rd_text = format_pair(r.rd_mm, u_rd.expanded_uncertainty)
     result = {
         "from": args.first,
         "to": args.second,
@@ -199,7 +198,7 @@ def _distance(args: argparse.Namespace) -> int:
             f"{args.first} -> {args.second}, n = {r.n}: D_c = {r.commanded_distance_mm:.3f} mm, "
             f"D̄ = {r.mean_distance_mm:.3f} mm"
         ),
-        f"AD_p = {u_ad}, RD = ±{rd_text} mm (U {u_rd_text} mm, k = 2); {budget}",
+        f"AD_p = {u_ad}, RD = {u_rd} (values rounded by their U); {budget}",
         "AD x/y/z = "
         + " / ".join(format_length(v, signed=True) for v in r.ad_axes_mm)
         + " mm, RD x/y/z = ±"

@@ -156,7 +156,7 @@ def register_run(actions: argparse._SubParsersAction) -> None:
 def _path_run(args: argparse.Namespace) -> int:
 
     from bench.reports.path import REORIENTATION_NOT_MEASURED
-    from bench.reports.path_run import analyze_path_run
+    from bench.reports.path_run import analyze_path_run, figure_text
     from bench.store import Store
 
     store = Store(args.store, read_only=True)
@@ -165,8 +165,8 @@ def _path_run(args: argparse.Namespace) -> int:
     finally:
         store.close()
     lines = [
-        f"{'path':<10} {'v_pct':>5} {'v_c_mm_s':>8} {'n':>3} {'AT_mm':>7} {'RT_mm':>7} {'CR_mm':>7} {'CO_mm':>7} "
-        f"{'AV_pct':>7} {'RV_pct':>7} {'FV_mm_s':>8}"
+        f"{'path':<10} {'v_pct':>5} {'v_c_mm_s':>8} {'n':>3} {'AT_mm':>15} {'RT_mm':>15} {'CR_mm':>7} "
+        f"{'CO_mm':>7} {'AV_pct':>13} {'RV_pct':>13} {'FV_mm_s':>8}"
     ]
     for f in result.figures:
         j = f.as_json()
@@ -175,10 +175,12 @@ def _path_run(args: argparse.Namespace) -> int:
             return format(j[key], fmt) if key in j else "-"
 
         lines.append(
-            f"{f.shape:<10} {f.velocity_pct:>5g} {f.commanded_mm_s:>8.3f} {f.n_cycles:>3} {f.at_mm:>7.3f} "
-            f"{f.rt_mm:>7.3f} {cell('CR_mm', '7.3f'):>7} {cell('CO_mm', '7.3f'):>7} "
-            f"{cell('AV_pct', '+7.2f'):>7} {cell('RV_pct', '7.2f'):>7} {cell('FV_mm_s', '8.3f'):>8}"
+            f"{f.shape:<10} {f.velocity_pct:>5g} {f.commanded_mm_s:>8.3f} {f.n_cycles:>3} "
+            f"{figure_text(f.at_mm, f.at_u):>15} {figure_text(f.rt_mm, f.rt_u):>15} {cell('CR_mm', '7.3f'):>7} "
+            f"{cell('CO_mm', '7.3f'):>7} {figure_text(f.av_pct, f.av_u, signed=True, none='-'):>13} "
+            f"{figure_text(f.rv_pct, f.rv_u, none='-'):>13} {cell('FV_mm_s', '8.3f'):>8}"
         )
+    lines.append(f"U with k = 2, values rounded by their U; {result.budget}; {result.speed_budget}.")
     lines.append(f"8.4: {REORIENTATION_NOT_MEASURED}.")
     emit(
         {
@@ -290,7 +292,7 @@ def _path(args: argparse.Namespace) -> int:
     from bench.metrology.path_tables import path_cycles, path_table, station_table
     from bench.metrology.tables import read_table_csv
     from bench.metrology.uncertainty import instrument_budget
-    from bench.metrology.uncertainty_figures import path_uncertainty
+    from bench.metrology.uncertainty_figures import PATH_U_MIN_CYCLES, path_uncertainty
 
     table = path_table(read_table_csv(args.file))
     cycles = path_cycles(table)
@@ -317,19 +319,19 @@ def _path(args: argparse.Namespace) -> int:
         "RT_per_station_mm": r.rt_per_station_mm.tolist(),
     }
     lines = [
-        f"{r.n_cycles} cycles, {len(stations)} stations: AT_p = {format_length(r.at_mm)} mm, RT_p = {format_length(r.rt_mm)} mm "
+        f"{r.n_cycles} cycles, {len(stations)} stations "
         f"(worst station {int(r.at_per_station_mm.argmax()) + 1} / {int(r.rt_per_station_mm.argmax()) + 1})"
     ]
-    if r.n_cycles >= 3:  # the path model needs a scatter over at least 3 cycles
+    if r.n_cycles >= PATH_U_MIN_CYCLES:  # the path model needs a scatter over at least 3 cycles
         crossings = station_crossings(paths, stations)[0]
         u = path_uncertainty(crossings, stations, instrument_u_mm=args.instrument_u_mm or 0.0)
         result["U_AT_mm"], result["U_RT_mm"] = u.at.expanded_uncertainty, u.rt.expanded_uncertainty
-        lines.append(
-            f"U(AT_p) = {u.at.expanded_uncertainty:.2g} mm, U(RT_p) = {u.rt.expanded_uncertainty:.2g} mm "
-            f"(k = 2, path-model Monte Carlo); {budget}"
-        )
+        lines.append(f"AT_p = {u.at}, RT_p = {u.rt} (path-model Monte Carlo, values rounded by their U); {budget}")
     else:
-        lines.append(f"no U: {r.n_cycles} cycles, at least 3 needed")
+        lines.append(
+            f"AT_p = {format_length(r.at_mm)} mm, RT_p = {format_length(r.rt_mm)} mm; no U: {r.n_cycles} cycles, "
+            f"at least {PATH_U_MIN_CYCLES} needed"
+        )
     if angle_columns:
         o = path_orientation_characteristics(paths, [c.angles_deg for c in cycles], stations, commanded_deg)
         for column, at, rt in zip(angle_columns, o.at_deg, o.rt_deg):
@@ -379,8 +381,10 @@ def _cornering(args: argparse.Namespace) -> int:
 
 def _path_velocity(args: argparse.Namespace) -> int:
     from bench.metrology import path_speed, path_velocity_characteristics
+    from bench.metrology.formatting import format_measured
     from bench.metrology.path_tables import path_cycles, path_table
     from bench.metrology.tables import read_table_csv
+    from bench.metrology.uncertainty import speed_instrument_budget
     from bench.metrology.uncertainty_figures import mean_speed_uncertainty, spread_uncertainty
 
     cycles = path_cycles(path_table(read_table_csv(args.file)))
@@ -392,11 +396,7 @@ def _path_velocity(args: argparse.Namespace) -> int:
         r.av_pct, r.mean_speed_per_cycle_mm_s, r.commanded_mm_s, instrument_u_pct=declared or 0.0
     )
     u_rv = spread_uncertainty(r.rv_pct, r.n, unit="%")
-    budget = (
-        "U(AV) excludes the instrument: none declared (--instrument-u-pct)"
-        if declared is None
-        else f"U(AV) includes the instrument: u = {declared:g} % (--instrument-u-pct)"
-    )
+    budget = speed_instrument_budget(declared, "--instrument-u-pct")
     result = {
         "n": r.n,
         "commanded_mm_s": r.commanded_mm_s,
@@ -411,10 +411,11 @@ def _path_velocity(args: argparse.Namespace) -> int:
         "mean_speed_per_cycle_mm_s": list(r.mean_speed_per_cycle_mm_s),
     }
     lines = [
-        f"{r.n} cycles at v_c = {r.commanded_mm_s:g} mm/s: mean {r.mean_speed_mm_s:.3f} mm/s",
-        f"AV = {r.av_pct:+.2f} %, RV = ±{r.rv_pct:.2f} %, FV = {r.fv_mm_s:.3f} mm/s",
-        f"U(AV) = {u_av.expanded_uncertainty:.2g} % (k = {u_av.coverage_factor:.2f}), "
-        f"U(RV) = {u_rv.expanded_uncertainty:.2g} % (k = 2); {budget}",
+        f"{r.n} cycles at v_c = {r.commanded_mm_s:g} mm/s: mean {r.mean_speed_mm_s:.3f} mm/s, "
+        f"FV = {r.fv_mm_s:.3f} mm/s",
+        f"AV = {format_measured(r.av_pct, u_av.expanded_uncertainty, signed=True)} % "
+        f"(k = {u_av.coverage_factor:.2f}), RV = {format_measured(r.rv_pct, u_rv.expanded_uncertainty)} % (k = 2), "
+        f"values rounded by their U; {budget}",
     ]
     emit(result, args.json, lines)
     return 0

@@ -32,6 +32,7 @@ __all__ = [
     "distance_accuracy_uncertainty",
     "expanded",
     "instrument_budget",
+    "speed_instrument_budget",
     "instrument_rp_floor",
     "mean_confidence_interval",
     "mean_sd_uncertainty",
@@ -356,6 +357,15 @@ def instrument_rp_floor(sigma_mm: float, *, dims: int) -> float:
     return float(sigma_mm * (mean + 3.0 * np.sqrt(dims - mean**2)))
 
 
+def _budget(u: float | None, source: str, *, figure: str, unit: str, name: str) -> str:
+    """``figure`` excludes the instrument (none declared) or includes it with ``u`` in ``unit``, from ``source``."""
+    if u is None:
+        return f"{figure} excludes the instrument: none declared ({source})"
+    if u < 0 or not math.isfinite(u):
+        raise ConfigError(f"{name} = {u}, expected a finite number >= 0")
+    return f"{figure} includes the instrument: u = {u:g} {unit} ({source})"
+
+
 def instrument_budget(instrument_u_mm: float | None, source: str) -> str:
     """The instrument's place in a U budget, in words: its standard uncertainty and where it came from, or a plain
     statement that U excludes it. Never a silent 0: a bias the instrument adds to every reading cannot be seen in
@@ -369,8 +379,18 @@ def instrument_budget(instrument_u_mm: float | None, source: str) -> str:
     >>> instrument_budget(0.05, "station file")
     'U includes the instrument: u = 0.05 mm per axis (station file)'
     """
-    if instrument_u_mm is None:
-        return f"U excludes the instrument: none declared ({source})"
-    if instrument_u_mm < 0 or not math.isfinite(instrument_u_mm):
-        raise ConfigError(f"instrument_u_mm = {instrument_u_mm}, expected a finite number >= 0")
-    return f"U includes the instrument: u = {instrument_u_mm:g} mm per axis ({source})"
+    return _budget(instrument_u_mm, source, figure="U", unit="mm per axis", name="instrument_u_mm")
+
+
+def speed_instrument_budget(instrument_u_pct: float | None, source: str) -> str:
+    """The speed instrument's place in U(AV) (its relative standard uncertainty, its scale), in words, as
+    :func:`instrument_budget` says it for a position instrument: never a silent 0.
+
+    Examples
+    --------
+    >>> speed_instrument_budget(None, "--instrument-u-pct")
+    'U(AV) excludes the instrument: none declared (--instrument-u-pct)'
+    >>> speed_instrument_budget(0.5, "--instrument-u-pct")
+    'U(AV) includes the instrument: u = 0.5 % (--instrument-u-pct)'
+    """
+    return _budget(instrument_u_pct, source, figure="U(AV)", unit="%", name="instrument_u_pct")

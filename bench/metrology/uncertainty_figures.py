@@ -32,6 +32,7 @@ from bench.metrology.uncertainty import Measured, coverage_factor, expanded, wel
 
 __all__ = [
     "PATH_MODEL_DRAWS",
+    "PATH_U_MIN_CYCLES",
     "PathUncertainty",
     "mean_speed_uncertainty",
     "path_uncertainty",
@@ -41,6 +42,8 @@ __all__ = [
 
 #: Simulated campaigns of the path model per call (the 95.45 % quantile rests on about 45 of them in its tail).
 PATH_MODEL_DRAWS = 1000
+#: Cycles the path model needs: a scatter about the barycentres, and a spread of that scatter.
+PATH_U_MIN_CYCLES = 3
 #: Standard normal draws that fix each station's population RT (its Monte Carlo error is about 0.3 %).
 _POPULATION_DRAWS = 20_000
 #: Simulated crossing coordinates held in memory at once (campaigns are simulated in chunks of about this size).
@@ -168,7 +171,7 @@ def _pooled_toward(deviations: np.ndarray) -> np.ndarray:
     share = 1.0 if heterogeneity == 0.0 else min(1.0, float(jackknife.mean()) / heterogeneity)
     target = (1.0 - share) * values + share * values.mean(axis=0)
     floor = 1e-12 * np.max(values, axis=-1, keepdims=True)
-    scale = np.where(values > floor, np.sqrt(target / np.where(values > floor, values, 1.0)), 0.0)
+    scale = np.where(values > floor, np.sqrt(np.clip(target / np.where(values > floor, values, 1.0), 0.0, None)), 0.0)
     transform = np.einsum("mij,mj,mkj->mik", vectors, scale, vectors)
     return np.einsum("mnd,mde->mne", deviations, transform)
 
@@ -238,7 +241,7 @@ def path_uncertainty(
     if instrument_u_mm < 0 or not math.isfinite(instrument_u_mm):
         raise ConfigError(f"instrument_u_mm = {instrument_u_mm}, expected a finite number >= 0")
     m, n, d = points.shape
-    require_count("path cycles", n, 3)
+    require_count("path cycles", n, PATH_U_MIN_CYCLES)
     level = math.erf(k / math.sqrt(2.0))
     barycentres = points.mean(axis=1)
     deviations = points - barycentres[:, None, :]

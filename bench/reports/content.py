@@ -31,7 +31,7 @@ from __future__ import annotations
 import hashlib
 import json
 from collections.abc import Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from datetime import UTC, datetime
 from typing import Any
 
@@ -62,6 +62,8 @@ from bench.metrology.tables import (
     measured_axes,
     pose_table,
 )
+from bench.metrology.uncertainty import instrument_budget
+from bench.metrology.uncertainty_figures import spread_uncertainty
 from bench.reports.decision import PASS, decide, rule_text
 from bench.reports.deviations import CLAUSES_APPLIED, Deviation, iso_deviations, orientation_deviation
 from bench.reports.instrument import (
@@ -91,8 +93,15 @@ __all__ = [
     "run_table",
 ]
 
+#: Where a report's instrument term comes from, as its U budget names it (``bench analyze``: --instrument-u-mm).
+INSTRUMENT_SOURCE = "the run's instrument settings"
 #: Acceptance criteria a caller may state, with the result each applies to (all "smaller is better").
-CRITERIA = {"AP_mm": "AP_P of every pose", "RP_mm": "RP_l of every pose"}
+CRITERIA = {
+    "AP_mm": "AP_P of every pose",
+    "RP_mm": "RP_l of every pose",
+    "AD_mm": "|AD_p| of every pair and conditions (iso9283_distance runs; short or long alike)",
+    "RD_mm": "RD of every pair and conditions (iso9283_distance runs)",
+}
 
 
 @dataclass(frozen=True)
@@ -102,6 +111,8 @@ class DistanceRow:
     second: str
     result: DistanceCharacteristics
     u_ad: Measured  #: AD_p with U: scatter of D_j and the instrument term twice (a difference of two readings)
+    u_rd: Measured  #: RD with U (chi pivot, k = 2: :func:`bench.metrology.uncertainty_figures.spread_uncertainty`)
+    budget: str  #: the instrument's place in U(AD), as ``bench analyze distance`` words it
     orientation: OrientationDistanceCharacteristics | None = None  #: AD_a/RD_a when the run measured angles
     angle_names: tuple[str, ...] = ()
 
@@ -264,16 +275,22 @@ def _condition_groups(table: pd.DataFrame):
         yield ", ".join(f"{n}={v:g}" for n, v in zip(varying, key)), group
 
 
-def _distances(table: pd.DataFrame, sigma_mm: float, k: float) -> tuple[DistanceRow, ...]:
-    """AD/RD per set of conditions, with U(AD) combined as ``bench analyze distance`` does."""
+def _distances(table: pd.DataFrame, sigma_mm: float | None, k: float) -> tuple[DistanceRow, ...]:
+    """AD/RD per set of conditions, with U(AD), U(RD) and the budget as ``bench analyze distance`` gives them."""
     first, second = list(dict.fromkeys(table["pose"]))[:2]
+    budget = instrument_budget(sigma_mm, INSTRUMENT_SOURCE)
     rows = []
     for label, group in _condition_groups(table):
         result = analyze_distance(group, first, second)
-        u_ad = distance_accuracy_uncertainty(result.ad_mm, result.u_ad_mm, result.n, instrument_u_mm=sigma_mm, k=k)
+        u_ad = distance_accuracy_uncertainty(
+            result.ad_mm, result.u_ad_mm, result.n, instrument_u_mm=sigma_mm or 0.0, k=k
+        )
+        u_rd = spread_uncertainty(result.rd_mm, result.n, unit="mm", k=k)
         angles = analyze_orientation_distance(group, first, second)
         names, orientation = angles if angles is not None else ((), None)
-        rows.append(DistanceRow(label or f"{first}-{second}", first, second, result, u_ad, orientation, names))
+        rows.append(
+            DistanceRow(label or f"{first}-{second}", first, second, result, u_ad, u_rd, budget, orientation, names)
+        )
     return tuple(rows)
 
 
@@ -298,24 +315,28 @@ def _payload(table: pd.DataFrame) -> tuple[PayloadRow, ...]:
     return tuple(rows)
 
 
-def _decision(poses: tuple[PoseResult, ...], criteria: Mapping[str, float], rule: str) -> Decision:
+def _judged(name: str, poses: tuple[PoseResult, ...], distances: tuple[DistanceRow, ...]) -> list[tuple[str, Measured]]:
+    """The figures ``--criterion name`` judges, each with its U: (where, figure)."""
+    if name in ("AD_mm", "RD_mm"):
+        if not distances:
+            raise ConfigError(f"criteria: {name} judges distance figures, expected an iso9283_distance run")
+        # AD_p is signed (short of or past the commanded distance): a limit bounds its size, |AD_p| ± U
+        return [(d.label, replace(d.u_ad, value=abs(d.u_ad.value)) if name == "AD_mm" else d.u_rd) for d in distances]
+    return [(pose_label(p.pose, p.conditions), p.ap_u if name == "AP_mm" else p.rp_u) for p in poses]
+
+
+def _decision(
+    poses: tuple[PoseResult, ...], criteria: Mapping[str, float], rule: str, distances: tuple[DistanceRow, ...] = ()
+) -> Decision:
     unknown = sorted(set(criteria) - set(CRITERIA))
     if unknown:
         raise ConfigError(f"criteria: {', '.join(unknown)} not known, expected some of {', '.join(CRITERIA)}")
     verdicts = []
     for name, limit in criteria.items():
-        for pose in poses:
-            measured = pose.ap_u if name == "AP_mm" else pose.rp_u
+        for where, measured in _judged(name, poses, distances):
             u = measured.expanded_uncertainty
             verdicts.append(
-                (
-                    name,
-                    pose_label(pose.pose, pose.conditions),
-                    measured.value,
-                    u,
-                    float(limit),
-                    decide(measured.value, u, float(limit), rule),
-                )
+                (name, where, measured.value, u, float(limit), decide(measured.value, u, float(limit), rule))
             )
     text = (
         rule_text(rule)
@@ -374,6 +395,7 @@ def collect(
             f"run {run_id}: the instrument measured {', '.join(measured_axes(table))} only; the "
             f"{protocol} figures need x_mm, y_mm and z_mm"
         )
+    distances = _distances(table, instrument.sigma_mm, k) if protocol == "iso9283_distance" else ()
     tilts, orientation, gauge = _orientation(store, run_id, k)
     tilt_angles = tuple(f"{f.angle}_deg" for f in orientation[0].figures) if orientation else ()
     cycles = int(table.groupby(["pose", *[c for c in ("velocity_pct", "load_kg") if c in table.columns]]).size().min())
@@ -399,10 +421,10 @@ def collect(
         measured_columns=measured,
         table=table,
         poses=poses,
-        distances=_distances(table, instrument.sigma_mm or 0.0, k) if protocol == "iso9283_distance" else (),
+        distances=distances,
         multidirectional=_multidirectional(table) if protocol == "iso9283_multidirectional" else (),
         payload=_payload(table),
-        decision=_decision(poses, criteria or {}, decision_rule),
+        decision=_decision(poses, criteria or {}, decision_rule, distances),
         coverage_factor=k,
         orientation=orientation,
         tilt_table=tilts,

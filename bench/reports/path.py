@@ -12,13 +12,15 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from bench.metrology import Measured
 from bench.metrology.formatting import format_length
+from bench.metrology.uncertainty_figures import PATH_U_MIN_CYCLES
 from bench.reports.content import ReportBase, calibrations_in_force, provenance, run_table
 from bench.reports.criteria import Characteristic, decision_section
 from bench.reports.deviations import Deviation, _fmt, _planned_count, _row
 from bench.reports.document import Paragraph, RawData, Table, assemble, conditions_section
 from bench.reports.instrument import counts_instrument
-from bench.reports.path_run import PathRun, analyze_path_run
+from bench.reports.path_run import PathRun, analyze_path_run, figure_text
 from bench.reports.plots import MIN_FONT_PT, Plot, print_grid
 from bench.store import Store
 
@@ -149,7 +151,8 @@ def collect_path(
     store: Store, run_id: int, *, k: float = 2.0, resamples: int = 1000, allow_unknown: bool = False
 ) -> PathReport:
     """Gather the facts and figures of the report of path run ``run_id`` (``k``, ``resamples`` unused: the path
-    figures carry no expanded uncertainty; ``allow_unknown`` unused: no row here can be unknown)."""
+    figures' U are for k = 2, as ``bench analyze path|path-velocity`` state them; ``allow_unknown`` unused: no row
+    here can be unknown)."""
     run = store.run(run_id)
     samples = store.samples(run_id, kind="path")  # read once: the analysis and the raw-data table
     analysis = analyze_path_run(store, run_id, samples=samples)
@@ -183,12 +186,12 @@ def _results(report: PathReport) -> tuple:
                 f"{f.velocity_pct:g}",
                 f"{f.commanded_mm_s:.3f}",
                 str(f.n_cycles),
-                f"{f.at_mm:.3f}",
-                f"{f.rt_mm:.3f}",
+                figure_text(f.at_mm, f.at_u),
+                figure_text(f.rt_mm, f.rt_u),
                 _cell(j.get("CR_mm"), ".3f"),
                 _cell(j.get("CO_mm"), ".3f"),
-                _cell(f.av_pct, "+.1f"),
-                _cell(f.rv_pct, ".1f"),
+                figure_text(f.av_pct, f.av_u, signed=True),
+                figure_text(f.rv_pct, f.rv_u),
                 _cell(f.fv_mm_s, ".3f"),
             )
         )
@@ -201,12 +204,12 @@ def _results(report: PathReport) -> tuple:
                 "v (%)",
                 "v_c (mm/s)",
                 "Cycles",
-                "AT (mm)",
-                "RT (mm)",
+                "AT ± U (mm)",
+                "RT ± U (mm)",
                 "CR (mm)",
                 "CO (mm)",
-                "AV (%)",
-                "RV (± %)",
+                "AV ± U (%)",
+                "RV ± U (%)",
                 "FV (mm/s)",
             ),
             tuple(rows),
@@ -225,13 +228,29 @@ def _results(report: PathReport) -> tuple:
                 "rest, is not a corner passed through)",
             )
         )
-    blocks.append(
-        Paragraph(
-            "The path figures carry no expanded uncertainty here; the instrument's resolution "
-            "(one count) sets the smallest AT, RT, CR and CO it can show."
-        )
-    )
+    blocks.append(Paragraph(uncertainty_statement(report.analysis)))
     return tuple(blocks)
+
+
+def uncertainty_statement(analysis: PathRun) -> str:
+    """What the U of the path table are and what their budgets hold, in the words ``bench analyze path`` and
+    ``bench analyze path-velocity`` use; values rounded by their U."""
+    few = sorted({f.n_cycles for f in analysis.figures if f.at_u is None})
+    text = (
+        f"U with k = 2, values rounded by their U: U(AT_p), U(RT_p) from a Monte Carlo of the path model "
+        f"(docs/metrology.md); {analysis.budget}."
+    )
+    if few:
+        text += (
+            f" No U(AT_p), U(RT_p) where {' or '.join(map(str, few))} cycles were measured: the path model needs at "
+            f"least {PATH_U_MIN_CYCLES}."
+        )
+    if any(f.av_u is not None for f in analysis.figures):
+        text += (
+            " U(AV): Student's k for the cycles' mean speeds (k at ν_eff, as bench analyze path-velocity prints "
+            f"it); U(RV): the chi pivot of the spread; {analysis.speed_budget}."
+        )
+    return text + " CR, CO and FV carry no U; one instrument count sets the smallest figure the paths can show."
 
 
 def path_plot(report: PathReport) -> Plot:
@@ -323,14 +342,31 @@ def path_document(report: PathReport, raw: list[RawData], *, operator: str = "�
     )
 
 
-#: What ``--criterion`` judges in a path report: AT_p and RT_p of every path and velocity (no U stated).
+def _expanded(measured: Measured | None) -> float | None:
+    return None if measured is None else measured.expanded_uncertainty
+
+
+#: What ``--criterion`` judges in a path report: AT_p and RT_p of every path and velocity, RV on the line, each with
+#: its U where the run has one (the guarded rule proves nothing without it).
 CHARACTERISTICS = {
     "AT_mm": Characteristic(
         "path accuracy AT_p of every path and velocity",
-        lambda report: [(f"{f.shape}, {f.velocity_pct:g} %", f.at_mm, None) for f in report.analysis.figures],
+        lambda report: [
+            (f"{f.shape}, {f.velocity_pct:g} %", f.at_mm, _expanded(f.at_u)) for f in report.analysis.figures
+        ],
     ),
     "RT_mm": Characteristic(
         "path repeatability RT_p of every path and velocity",
-        lambda report: [(f"{f.shape}, {f.velocity_pct:g} %", f.rt_mm, None) for f in report.analysis.figures],
+        lambda report: [
+            (f"{f.shape}, {f.velocity_pct:g} %", f.rt_mm, _expanded(f.rt_u)) for f in report.analysis.figures
+        ],
+    ),
+    "RV_pct": Characteristic(
+        "path velocity repeatability RV of the line at every velocity",
+        lambda report: [
+            (f"{f.shape}, {f.velocity_pct:g} %", f.rv_pct, _expanded(f.rv_u))
+            for f in report.analysis.figures
+            if f.rv_pct is not None
+        ],
     ),
 }

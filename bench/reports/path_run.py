@@ -25,13 +25,41 @@ from dataclasses import dataclass
 import numpy as np
 
 from bench.errors import ConfigError, InsufficientData
-from bench.metrology import cornering_deviations, path_characteristics, path_velocity_characteristics
+from bench.metrology import (
+    Measured,
+    cornering_deviations,
+    path_characteristics,
+    path_speed,
+    path_velocity_characteristics,
+)
+from bench.metrology.formatting import format_length, format_measured
+from bench.metrology.iso9283_dynamics import station_crossings
 from bench.metrology.path_geometry import CommandedPath
+from bench.metrology.uncertainty import instrument_budget, speed_instrument_budget
+from bench.metrology.uncertainty_figures import (
+    PATH_U_MIN_CYCLES,
+    mean_speed_uncertainty,
+    path_uncertainty,
+    spread_uncertainty,
+)
+from bench.reports.content import INSTRUMENT_SOURCE, calibrations_in_force
+from bench.reports.instrument import counts_instrument
 from bench.store import Store
 
-__all__ = ["PATH_PROTOCOLS", "PathDesign", "PathFigures", "PathRun", "analyze_path_run", "attained_cycles"]
+__all__ = [
+    "PATH_PROTOCOLS",
+    "PathDesign",
+    "PathFigures",
+    "PathRun",
+    "analyze_path_run",
+    "attained_cycles",
+    "figure_text",
+    "path_stations",
+    "speed_readings",
+]
 
 PATH_PROTOCOLS = ("iso9283_path", "iso9283_cornering")
+
 #: No AT station this close to a path's start or end (mm) [P].
 END_MARGIN_MM = 5.0
 
@@ -55,6 +83,11 @@ class PathFigures:
     fv_mm_s: float | None = None
     mean_speed_mm_s: float | None = None
     duration_s: float = 0.0  #: mean attained time of one cycle, s
+    #: AT_p, RT_p with U (k = 2, path-model Monte Carlo); None with fewer than :data:`PATH_U_MIN_CYCLES` cycles
+    at_u: Measured | None = None
+    rt_u: Measured | None = None
+    av_u: Measured | None = None  #: AV with U (Student's k at ν_eff), on the line
+    rv_u: Measured | None = None  #: RV with U (chi pivot, k = 2), on the line
 
     def as_json(self) -> dict:
         out = {
@@ -67,6 +100,8 @@ class PathFigures:
             "AT_mm": self.at_mm,
             "RT_mm": self.rt_mm,
             "cycle_duration_s": self.duration_s,
+            "U_AT_mm": None if self.at_u is None else self.at_u.expanded_uncertainty,
+            "U_RT_mm": None if self.rt_u is None else self.rt_u.expanded_uncertainty,
         }
         if self.corners:
             out["corners"] = [{"corner": c, "CR_mm": cr, "CO_mm": co} for c, cr, co in self.corners]
@@ -79,6 +114,9 @@ class PathFigures:
                     "RV_pct": self.rv_pct,
                     "FV_mm_s": self.fv_mm_s,
                     "mean_speed_mm_s": self.mean_speed_mm_s,
+                    "U_AV_pct": None if self.av_u is None else self.av_u.expanded_uncertainty,
+                    "k_AV": None if self.av_u is None else self.av_u.coverage_factor,
+                    "U_RV_pct": None if self.rv_u is None else self.rv_u.expanded_uncertainty,
                 }
             )
         return out
@@ -94,6 +132,20 @@ class PathRun:
     figures: tuple[PathFigures, ...]
     #: (shape, velocity_pct) -> list of (t_s (k,), position_mm (k, 3)) per cycle in cycle order
     cycles: dict
+    #: the instrument's place in U(AT_p), U(RT_p) and in U(AV), worded as ``bench analyze path|path-velocity`` do
+    budget: str = ""
+    speed_budget: str = ""
+
+
+def figure_text(value: float | None, measured: Measured | None, *, signed: bool = False, none: str = "—") -> str:
+    """A path figure as ``bench analyze path|path-velocity`` print it: ``value ± U`` rounded by U (one rule,
+    :func:`bench.metrology.formatting.format_measured`), to 1 µm without a U (fewer cycles than the path model
+    needs), ``none`` where the path has no such figure."""
+    if value is None:
+        return none
+    if measured is None:
+        return format_length(value, signed=signed)
+    return format_measured(measured.value, measured.expanded_uncertainty, signed=signed)
 
 
 def attained_cycles(samples) -> dict[tuple[str, float], list[tuple[int, np.ndarray, np.ndarray, list[int]]]]:
@@ -126,7 +178,7 @@ def attained_cycles(samples) -> dict[tuple[str, float], list[tuple[int, np.ndarr
     return out
 
 
-def _stations(path, spacing_mm: float, margin_mm: float, end_margin_mm: float = END_MARGIN_MM) -> np.ndarray:
+def path_stations(path, spacing_mm: float, margin_mm: float, end_margin_mm: float = END_MARGIN_MM) -> np.ndarray:
     """Stations every ``spacing_mm``, at least ``end_margin_mm`` from the path's start and end (where every cycle
     starts and stops at rest, and an attained start past the first plane never crosses it) and ``margin_mm`` from
     the rectangle's corners."""
@@ -138,11 +190,14 @@ def _stations(path, spacing_mm: float, margin_mm: float, end_margin_mm: float = 
     return path.point(s)
 
 
-def _speeds(cycles, spacing_mm: float, commanded_mm_s: float, hold_s: float) -> list[np.ndarray]:
-    """Speed samples per cycle over the middle 80 % of the motion's time (module docstring): the attained path read
-    at times ``spacing_mm / v_c`` apart (linear between samples), v_i = |p(t_i + dt) - p(t_i)| / dt."""
+def speed_readings(
+    cycles, spacing_mm: float, commanded_mm_s: float, hold_s: float
+) -> list[tuple[np.ndarray, np.ndarray]]:
+    """The constant-velocity part of every cycle as ``bench analyze path-velocity`` reads it (module docstring): per
+    cycle (t_s (k,), position_mm (k, 3)), the attained path read at times ``spacing_mm / v_c`` apart (linear between
+    samples) over the middle 80 % of the motion's time; its speeds are :func:`bench.metrology.path_speed`."""
     step_s = spacing_mm / commanded_mm_s
-    speeds = []
+    readings = []
     for _, t, p, _ in cycles:
         start, end = t[0], t[-1] - hold_s
         grid = np.arange(start + 0.1 * (end - start), start + 0.9 * (end - start) + 1e-9, step_s)
@@ -151,9 +206,8 @@ def _speeds(cycles, spacing_mm: float, commanded_mm_s: float, hold_s: float) -> 
                 f"path velocity: {len(grid)} speed samples per cycle, expected a longer line "
                 f"than {spacing_mm:g} mm steps allow"
             )
-        read = np.column_stack([np.interp(grid, t, p[:, axis]) for axis in range(p.shape[1])])
-        speeds.append(np.linalg.norm(np.diff(read, axis=0), axis=1) / step_s)
-    return speeds
+        readings.append((grid, np.column_stack([np.interp(grid, t, p[:, axis]) for axis in range(p.shape[1])])))
+    return readings
 
 
 def _corners(cycles, path) -> tuple[tuple[str, float, float], ...]:
@@ -255,6 +309,7 @@ def analyze_path_run(
     if run.protocol_name not in PATH_PROTOCOLS:
         raise ConfigError(f"run {run_id}: a {run.protocol_name} run, expected one of {', '.join(PATH_PROTOCOLS)}")
     protocol = PathDesign.from_config(run.config, source=f"run {run_id}")
+    u_mm = counts_instrument(run, calibrations_in_force(store, run), 0).sigma_mm  # the report's instrument term
     read = getattr(store, "iter_samples", store.samples)  # a sample at a time where the store can (lab views: a list)
     grouped = attained_cycles(read(run_id, kind="path") if samples is None else samples)
     figures = []
@@ -266,15 +321,23 @@ def analyze_path_run(
                 f"run {run_id}: {shape} at {velocity:g} %: {len(complete)} complete cycle(s), expected at least 2"
             )
         path = protocol.path(shape)
-        stations = _stations(path, station_mm, margin_mm)
-        r = path_characteristics([p for _, _, p, _ in complete], stations)
+        stations = path_stations(path, station_mm, margin_mm)
+        attained = [p for _, _, p, _ in complete]
+        r = path_characteristics(attained, stations)
         v_c = protocol.rated_mm_s * velocity / 100.0
         extra: dict = {}
+        if len(complete) >= PATH_U_MIN_CYCLES:  # as bench analyze path: the path model over the crossings
+            u = path_uncertainty(station_crossings(attained, stations)[0], stations, instrument_u_mm=u_mm or 0.0)
+            extra.update(at_u=u.at, rt_u=u.rt)
         if shape == "rectangle":
             extra["corners"] = _corners(complete, path)
         if shape == "line":
-            v = path_velocity_characteristics(_speeds(complete, speed_station_mm, v_c, protocol.final_hold_s), v_c)
+            readings = speed_readings(complete, speed_station_mm, v_c, protocol.final_hold_s)
+            v = path_velocity_characteristics([path_speed(t, p) for t, p in readings], v_c)
             extra.update(av_pct=v.av_pct, rv_pct=v.rv_pct, fv_mm_s=v.fv_mm_s, mean_speed_mm_s=v.mean_speed_mm_s)
+            # as bench analyze path-velocity: no speed instrument's scale is stored with a run, so U(AV) says so
+            extra["av_u"] = mean_speed_uncertainty(v.av_pct, v.mean_speed_per_cycle_mm_s, v_c)
+            extra["rv_u"] = spread_uncertainty(v.rv_pct, v.n, unit="%")
         duration = float(np.mean([t[-1] - t[0] for _, t, _, _ in complete]))
         figures.append(
             PathFigures(
@@ -298,4 +361,6 @@ def analyze_path_run(
         protocol,
         tuple(figures),
         {key: [(t, p) for _, t, p, _ in cycles] for key, cycles in grouped.items()},
+        instrument_budget(u_mm, INSTRUMENT_SOURCE),
+        speed_instrument_budget(None, INSTRUMENT_SOURCE),
     )

@@ -103,9 +103,8 @@ def _results(report: RunReport) -> tuple[Block, ...]:
                     "Pair / conditions",
                     "D_c (mm)",
                     "D̄ (mm)",
-                    "AD_p (mm)",
-                    "RD (mm)",
-                    f"U(AD) (mm, k = {k})",
+                    "AD_p ± U (mm)",
+                    "RD ± U (mm)",
                     *(f"AD_{a} / RD_{a} (°)" for a in angles),
                 ),
                 tuple(
@@ -113,9 +112,8 @@ def _results(report: RunReport) -> tuple[Block, ...]:
                         d.label,
                         fmt_mm(d.result.commanded_distance_mm),
                         fmt_mm(d.result.mean_distance_mm),
-                        format_value(d.result.ad_mm, d.u_ad.expanded_uncertainty),
-                        f"± {fmt_mm(d.result.rd_mm)}",
-                        format_uncertainty(d.u_ad.expanded_uncertainty),
+                        fmt_pm(d.u_ad),
+                        fmt_pm(d.u_rd),
                         *(
                             f"{ad:+.3f} / ±{rd:.3f}"
                             for ad, rd in (zip(d.orientation.ad_deg, d.orientation.rd_deg) if d.orientation else ())
@@ -123,7 +121,9 @@ def _results(report: RunReport) -> tuple[Block, ...]:
                     )
                     for d in report.distances
                 ),
-                f"Distance accuracy and repeatability ({report.distances[0].first} ↔ {report.distances[0].second})",
+                f"Distance accuracy and repeatability ({report.distances[0].first} ↔ {report.distances[0].second}); "
+                f"U for the coverage of k = {k} (U(AD): Student's k at ν_eff; U(RD): the chi pivot of the spread), "
+                f"values rounded by their U as bench analyze distance prints them; {report.distances[0].budget}",
             )
         )
     if report.multidirectional:
