@@ -134,7 +134,9 @@ def test_calibrate_prints_which_parameters_only_the_prior_fixes(tmp_path, capsys
         "fit: maximum a posteriori, prior: manufacturing tolerances (motion.pkm5.calibration."
         "TOLERANCES); fixed by the prior (the data did not inform them): " + (", ".join(stored["prior_only"]) or "none")
     )
-    assert lines[fit_at + 1].startswith(f"data part: condition number {stored['observability']['condition_number']:.3g} ")
+    assert lines[fit_at + 1].startswith(
+        f"data part: condition number {stored['observability']['condition_number']:.3g} "
+    )
     assert lines[fit_at + 1].endswith(
         f"reduced chi2 {stored['reduced_chi2']:.2f} over {stored['degrees_of_freedom']:.1f} degrees of freedom"
     )
