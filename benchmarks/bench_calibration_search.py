@@ -58,7 +58,9 @@ def _search(model, measured, u, sigma, starts: int, seed: int):
         AMBIGUOUS_KEPT.append(seed)
         search, rival = exc.search, exc.rival
     profiled = search.best
-    linear = dataclasses.replace(profiled, uncertainty=profiled.uncertainty / search.profile_ratio)
+    linear = dataclasses.replace(
+        profiled, uncertainty=profiled.uncertainty / np.nan_to_num(search.profile_ratio, nan=1.0)
+    )
     if rival is None:
         return profiled, linear
     return covering_rival(profiled, rival), covering_rival(linear, rival)

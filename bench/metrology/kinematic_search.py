@@ -89,7 +89,8 @@ class SearchResult:
     objectives: np.ndarray
     spread_z: np.ndarray
     kept_start: int
-    profile_ratio: np.ndarray | None = None  # per parameter u' / u (kinematic_uncertainty); None: not profiled
+    profile_ratio: np.ndarray | None = None  # per parameter u' / u (kinematic_uncertainty; NaN: undetermined, the
+    # linear u kept); None: not profiled
 
     def as_dict(self) -> dict[str, Any]:
         widened = (
@@ -103,6 +104,9 @@ class SearchResult:
             "objectives": [None if not np.isfinite(o) else round(float(o), 4) for o in self.objectives],
             "spread_z": [None if not np.isfinite(z) else round(float(z), 3) for z in self.spread_z],
             "profile_widened": widened,
+            "profile_undetermined": []
+            if self.profile_ratio is None
+            else [name for name, r in zip(self.best.names, self.profile_ratio) if np.isnan(r)],
         }
 
 
@@ -171,7 +175,7 @@ def identify_global(
     ratio, linear_u = None, best.uncertainty
     if profile:  # after the ambiguity test, which keeps the linearised u it was measured with
         ratio = profile_ratios(model, measured, uncertainty, best)
-        best = dataclasses.replace(best, uncertainty=best.uncertainty * ratio)
+        best = dataclasses.replace(best, uncertainty=best.uncertainty * np.nan_to_num(ratio, nan=1.0))
     if rivals:
         rival = fits[rivals[0]]
         assert rival is not None

@@ -38,7 +38,7 @@ from scipy.optimize import least_squares
 
 from bench.metrology.kinematic_calibration import Identification
 
-__all__ = ["LINEAR_TOLERANCE", "MAX_STEPS", "PROFILE_K", "profile_ratios", "profile_widths"]
+__all__ = ["LINEAR_TOLERANCE", "MAX_STEPS", "PROFILE_K", "ProfileUndetermined", "profile_ratios", "profile_widths"]
 
 #: Coverage factor of the profile interval the stated uncertainty is read from (k = 2, 95.45 % under Wilks).
 PROFILE_K = 2.0
@@ -67,17 +67,39 @@ def _objective_terms(
     return residual, jacobian
 
 
+class ProfileUndetermined(ValueError):
+    """A profile endpoint that cannot be found: the model cannot place a measured pose at a trial (the interval
+    reaches the edge of the forward kinematics' domain), or the profile stops rising outward."""
+
+
 def _sqrt_profile_rise(
+    model: Any,
     residual: Callable[[np.ndarray], np.ndarray],
     jacobian: Callable[[np.ndarray], np.ndarray],
     start: np.ndarray,
     j: int,
     best: float,
 ) -> float:
-    """``sqrt(P_j(start_j))``: the others refitted from ``start`` with parameter ``j`` held at ``start[j]``."""
+    """``sqrt(P_j(start_j))``: the others refitted from ``start`` with parameter ``j`` held at ``start[j]``. Raises
+    :class:`ProfileUndetermined` where the refitted geometry cannot place every measured pose."""
     others = np.delete(np.arange(len(start)), j)
     if not others.size:
-        return float(np.sqrt(max(float(np.sum(residual(start) ** 2)) - best, 0.0)))
+        theta = start
+    else:
+        theta = np.insert(_refit_others(residual, jacobian, start, j, others), j, start[j])
+    if not np.all(np.isfinite(model.predict(theta))):
+        raise ProfileUndetermined(f"the forward kinematics fails at parameter {j} = {start[j]:.6g}")
+    return float(np.sqrt(max(float(np.sum(residual(theta) ** 2)) - best, 0.0)))
+
+
+def _refit_others(
+    residual: Callable[[np.ndarray], np.ndarray],
+    jacobian: Callable[[np.ndarray], np.ndarray],
+    start: np.ndarray,
+    j: int,
+    others: np.ndarray,
+) -> np.ndarray:
+    """The parameters other than ``j`` minimising the objective with ``j`` held at ``start[j]``."""
     sol = least_squares(
         lambda x: residual(np.insert(x, j, start[j])),
         start[others],
@@ -87,7 +109,7 @@ def _sqrt_profile_rise(
         xtol=1e-6,  # P to ~1e-5 of its value: far below LINEAR_TOLERANCE
         ftol=1e-6,
     )
-    return float(np.sqrt(max(2.0 * sol.cost - best, 0.0)))
+    return np.asarray(sol.x)
 
 
 def profile_widths(
@@ -95,7 +117,8 @@ def profile_widths(
 ) -> np.ndarray:
     """Per parameter the wider side of its profile interval at coverage ``k``, in units of its linear standard
     uncertainty times ``k`` (module docstring): 1 where the linearisation holds, above 1 where the objective rises
-    slower than its quadratic model, below 1 where faster. NaN where a refit fails."""
+    slower than its quadratic model, below 1 where faster. NaN where it is undetermined (:class:`ProfileUndetermined`,
+    or a refit fails)."""
     measured = np.asarray(measured, dtype=float)
     u = np.broadcast_to(np.asarray(uncertainty, dtype=float), measured.shape)
     n = len(fit.values)
@@ -111,14 +134,18 @@ def profile_widths(
         try:
             for side in (1.0, -1.0):  # secant on s(t) = sqrt(P_j), from (0, 0) and the linear endpoint
                 t0, s0, t1 = 0.0, 0.0, side * k
-                s1 = _sqrt_profile_rise(residual, jacobian, fit.values + t1 * direction, j, best)
-                for _ in range(MAX_STEPS):
-                    if abs(s1 - k) <= LINEAR_TOLERANCE * k or s1 == s0:
+                s1 = _sqrt_profile_rise(model, residual, jacobian, fit.values + t1 * direction, j, best)
+                for _ in range(MAX_STEPS + 1):
+                    if abs(s1 - k) <= LINEAR_TOLERANCE * k:
                         break
+                    if (s1 - s0) * (t1 - t0) * side <= 0:  # not rising outward between the last two trials
+                        raise ProfileUndetermined(f"the profile of parameter {j} stops rising at t = {t1:.3g}")
                     t0, s0, t1 = t1, s1, t1 + (k - s1) * (t1 - t0) / (s1 - s0)
-                    s1 = _sqrt_profile_rise(residual, jacobian, fit.values + t1 * direction, j, best)
+                    s1 = _sqrt_profile_rise(model, residual, jacobian, fit.values + t1 * direction, j, best)
+                else:
+                    raise ProfileUndetermined(f"no endpoint of parameter {j}'s profile within {MAX_STEPS} steps")
                 ends.append(abs(t1) / k)
-        except (ValueError, np.linalg.LinAlgError):  # the model failed on the way: the linear value stands
+        except (ValueError, np.linalg.LinAlgError):  # outside the model's domain, or no endpoint: undetermined
             continue
         widths[j] = max(ends)
     return widths
@@ -127,6 +154,7 @@ def profile_widths(
 def profile_ratios(
     model: Any, measured: ArrayLike, uncertainty: ArrayLike, fit: Identification, k: float = PROFILE_K
 ) -> np.ndarray:
-    """Per parameter the factor ``u'_j / u_j = max(1, profile_widths)`` (module docstring; 1 where a refit failed,
-    the linear value standing there)."""
-    return np.maximum(np.nan_to_num(profile_widths(model, measured, uncertainty, fit, k), nan=1.0), 1.0)
+    """Per parameter the factor ``u'_j / u_j = max(1, profile_widths)`` (module docstring); NaN where the profile is
+    undetermined (the linear value stands there, and the caller says so)."""
+    widths = profile_widths(model, measured, uncertainty, fit, k)
+    return np.where(np.isnan(widths), np.nan, np.maximum(widths, 1.0))
