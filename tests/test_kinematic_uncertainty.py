@@ -55,3 +55,18 @@ def test_a_linear_model_keeps_its_linear_uncertainties():
     widths = profile_widths(_Linear(), measured, 0.1, fit)
     assert widths == pytest.approx(np.ones(3), rel=LINEAR_TOLERANCE)
     assert profile_ratios(_Linear(), measured, 0.1, fit).tolist() == np.maximum(widths, 1.0).tolist()
+
+
+class _ExponentialWithAnEdge(_Exponential):
+    """The exponential model, whose 'forward kinematics' cannot place the poses below theta = -0.3."""
+
+    def predict(self, theta):
+        return super().predict(theta) if theta[0] >= -0.3 else np.full((2, 1), np.nan)
+
+
+def test_a_profile_that_leaves_the_models_domain_is_undetermined_not_extrapolated():
+    # the left endpoint (-0.5522, test above) lies beyond the edge at -0.3: the profile cannot say how wide the
+    # interval is there, so the width is NaN (the caller keeps the linear u and names the parameter)
+    fit = identify(_ExponentialWithAnEdge(), np.ones((2, 1)), 0.3)
+    assert np.isnan(profile_widths(_ExponentialWithAnEdge(), np.ones((2, 1)), 0.3, fit)[0])
+    assert np.isnan(profile_ratios(_ExponentialWithAnEdge(), np.ones((2, 1)), 0.3, fit)[0])
