@@ -1,6 +1,7 @@
 """Stuck fits and the honesty of the stated uncertainties of the pkm5 MAP calibration, over many true geometries:
 one start (the documented geometry) against the multi-start search (:func:`bench.metrology.kinematic_search.
-identify_global`).
+identify_global`), the search's fit with its profile-likelihood uncertainties (the default,
+:mod:`bench.metrology.kinematic_uncertainty`) and with the linearised ones it widened.
 
 Run as ``python benchmarks/bench_calibration_search.py [--seeds N] [--first S] [--starts K] [--cycles C]
 [--play-mm P]``. The calibration protocol's 30 poses (``examples/kinematic_calibration.toml``) commanded by the
