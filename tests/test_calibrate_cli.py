@@ -116,7 +116,8 @@ def test_calibrate_prints_which_parameters_only_the_prior_fixes(tmp_path, capsys
     stored = json.loads(capsys.readouterr().out)
     assert main(["calibrate", str(run_id), "--store", str(path)]) == 0
     lines = capsys.readouterr().out.splitlines()
-    assert len(lines) == 2 + 36 + 3 + 4  # ... the approach, the search, the scatter and the plan
+    # ... the approach, the search, the parameters widened by their profile likelihood, the scatter and the plan
+    assert len(lines) == 2 + 36 + 3 + 4 + bool(stored["search"]["profile_widened"])
     assert (
         "poses approached directly (the legs' backlash, whose sign follows the pose before, is not modelled)" in lines
     )
@@ -128,12 +129,15 @@ def test_calibrate_prints_which_parameters_only_the_prior_fixes(tmp_path, capsys
         assert float(u) == pytest.approx(entry["uncertainty"], abs=0.5 * 10.0**-decimals), line
         assert float(value) == pytest.approx(entry["value"], abs=0.5 * 10.0**-decimals), line
         assert unit == entry["unit"] and (value[0] in "+-" or float(value) == 0), line
-    assert lines[-6] == (
+    fit_at = len(lines) - 6 - bool(stored["search"]["profile_widened"])
+    assert lines[fit_at] == (
         "fit: maximum a posteriori, prior: manufacturing tolerances (motion.pkm5.calibration."
         "TOLERANCES); fixed by the prior (the data did not inform them): " + (", ".join(stored["prior_only"]) or "none")
     )
-    assert lines[-5].startswith(f"data part: condition number {stored['observability']['condition_number']:.3g} ")
-    assert lines[-5].endswith(
+    assert lines[fit_at + 1].startswith(
+        f"data part: condition number {stored['observability']['condition_number']:.3g} "
+    )
+    assert lines[fit_at + 1].endswith(
         f"reduced chi2 {stored['reduced_chi2']:.2f} over {stored['degrees_of_freedom']:.1f} degrees of freedom"
     )
     assert 90 - 36 < stored["degrees_of_freedom"] < 90 - 3  # the prior holds part of the 33, none of the registration

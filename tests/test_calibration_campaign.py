@@ -109,6 +109,23 @@ def test_a_fit_stuck_in_a_wrong_basin_is_never_stored(tmp_path, capsys, protocol
     assert stored["search"]["starts"] == 8 and stored["search"]["kept_start"] > 0  # the documented start was stuck
 
 
+def test_a_weak_parameter_whose_objective_is_flatter_than_its_linearisation_is_stored_within_5_u(
+    tmp_path, capsys, protocol
+):
+    # seed 55 (ideal readings of 0.05 mm, one cycle): every start of the search lands in one basin, whose linearised
+    # u of pd_6_x_mm is too small: stored 5.06 u from its truth. Its profile interval is ~1.3x wider, so is its u
+    run_id = _store_campaign(tmp_path / "bench.db", protocol[0], _readings(protocol, 55, 1, 0.0))
+    assert main(["calibrate", str(run_id), "--store", str(tmp_path / "bench.db"), "--json"]) == 0
+    stored = json.loads(capsys.readouterr().out)
+    z = _z(stored, 55)
+    assert max(z.values()) < 5, max(z.items(), key=lambda item: item[1])
+    widened = stored["search"]["profile_widened"]
+    assert {"pd_5_x_mm", "pd_6_x_mm"} <= set(widened) and min(widened.values()) > 1.0
+    assert widened["pd_6_x_mm"] == pytest.approx(1.29, abs=0.05)
+    assert main(["calibrate", str(run_id), "--store", str(tmp_path / "bench.db")]) == 0
+    assert "profile likelihood: the objective rises slower than its linearisation along" in capsys.readouterr().out
+
+
 def test_a_robot_with_play_is_refused_with_the_cycles_that_then_succeed(tmp_path, capsys, protocol):
     # the documented robot's play, 0.6 mm per axis per move: 2 cycles inform too little, and the line says how
     # many cycles would; a campaign of that many is stored, weighted by its measured scatter (reduced chi^2 ~ 1)

@@ -121,13 +121,15 @@ def test_identify_in_the_window_then_run_with_the_chosen_calibration_and_with_no
         f"pkm5_kinematics v1 (id {record.id}) from run {run_id}: 30 poses, "
         f"{len(expected['parameters'])} free parameters"
     )
-    assert shown[-6].startswith("fit: maximum a posteriori, prior: manufacturing tolerances")  # the default fit
-    assert shown[-5].startswith(f"data part: condition number {condition:.3g} (the prior holds")
-    assert shown[-4] == (
+    profiled = int(bool(expected["search"]["profile_widened"]))  # a line naming the parameters it widened
+    assert shown[-6 - profiled].startswith("fit: maximum a posteriori, prior: manufacturing tolerances")  # the default
+    assert shown[-5 - profiled].startswith(f"data part: condition number {condition:.3g} (the prior holds")
+    assert shown[-4 - profiled] == (
         f"mean position error on the calibration poses (in-sample): before "
         f"{expected['ap_before_mm']:.3f} mm, after {expected['ap_after_mm']:.3f} mm"
     )
-    assert shown[-3].startswith("search: 8 starts from the prior")
+    assert shown[-3 - profiled].startswith("search: 8 starts from the prior")
+    assert not profiled or shown[-3].startswith("profile likelihood: the objective rises slower than")
     assert shown[-2].startswith("robot scatter of one reading: ") and "instrument: 0.05 mm" in shown[-2]
     assert shown[-1].startswith("plan for 10x over the ")
     assert f"{shown[0]}" in window.log.toPlainText()

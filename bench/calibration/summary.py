@@ -76,6 +76,12 @@ def _campaign_lines(params: dict) -> list[str]:
             f"search: {search['starts']} starts from the prior, kept start {search['kept_start']} "
             "(lowest MAP objective; no other plausible solution differs beyond 5 standard uncertainties)"
         )
+    if search and search.get("profile_widened"):
+        lines.append(
+            "profile likelihood: the objective rises slower than its linearisation along "
+            + ", ".join(f"{name} (u x {ratio:.2f})" for name, ratio in search["profile_widened"].items())
+            + ": those uncertainties are the k = 2 profile interval's wider side over 2"
+        )
     ambiguity = params.get("ambiguity")
     if ambiguity:
         lines.append(

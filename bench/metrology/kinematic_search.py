@@ -34,6 +34,7 @@ from numpy.typing import ArrayLike
 
 from bench.errors import InsufficientData
 from bench.metrology.kinematic_calibration import Identification, UnidentifiableParameters, identify
+from bench.metrology.kinematic_uncertainty import profile_ratios
 
 __all__ = [
     "AMBIGUITY_DELTA",
@@ -88,13 +89,24 @@ class SearchResult:
     objectives: np.ndarray
     spread_z: np.ndarray
     kept_start: int
+    profile_ratio: np.ndarray | None = None  # per parameter u' / u (kinematic_uncertainty; NaN: undetermined, the
+    # linear u kept); None: not profiled
 
     def as_dict(self) -> dict[str, Any]:
+        widened = (
+            {}
+            if self.profile_ratio is None
+            else {name: round(float(r), 4) for name, r in zip(self.best.names, self.profile_ratio) if r > 1.0}
+        )
         return {
             "starts": len(self.objectives),
             "kept_start": self.kept_start,
             "objectives": [None if not np.isfinite(o) else round(float(o), 4) for o in self.objectives],
             "spread_z": [None if not np.isfinite(z) else round(float(z), 3) for z in self.spread_z],
+            "profile_widened": widened,
+            "profile_undetermined": []
+            if self.profile_ratio is None
+            else [name for name, r in zip(self.best.names, self.profile_ratio) if np.isnan(r)],
         }
 
 
@@ -116,11 +128,15 @@ def identify_global(
     prior_sigma: ArrayLike,
     starts: int = DEFAULT_STARTS,
     seed: int = 0,
+    profile: bool = True,
     **options: Any,
 ) -> SearchResult:
     """Maximum a posteriori identification (:func:`identify`) from ``starts`` starting points (module docstring);
     ``seed`` seeds the prior draws, so a search is reproducible. Raises what :func:`identify` raises at the
-    documented start, and :class:`AmbiguousFit` when two solutions are both plausible and distinct."""
+    documented start, and :class:`AmbiguousFit` when two solutions are both plausible and distinct. With ``profile``
+    the kept fit's standard uncertainties are widened where its profile-likelihood interval is wider than the
+    linearised one (:func:`bench.metrology.kinematic_uncertainty.profile_uncertainty`; the ambiguity is judged by the
+    linearised ones, as before)."""
     sigma = np.broadcast_to(np.asarray(prior_sigma, dtype=float), (len(model.free),))
     failure = None
     try:  # the documented start; its pose-set refusal (UnidentifiableParameters) is the fit's at once
@@ -156,10 +172,14 @@ def identify_global(
         and objectives[i] - objectives[kept] < AMBIGUITY_DELTA
         and spread[i] > AMBIGUITY_Z
     ]
+    ratio, linear_u = None, best.uncertainty
+    if profile:  # after the ambiguity test, which keeps the linearised u it was measured with
+        ratio = profile_ratios(model, measured, uncertainty, best)
+        best = dataclasses.replace(best, uncertainty=best.uncertainty * np.nan_to_num(ratio, nan=1.0))
     if rivals:
         rival = fits[rivals[0]]
         assert rival is not None
-        z = np.abs(rival.values - best.values) / best.uncertainty
+        z = np.abs(rival.values - best.values) / linear_u
         named = ", ".join(f"{best.names[j]} ({z[j]:.1f} u)" for j in np.argsort(-z)[:3] if z[j] > AMBIGUITY_Z)
         separation = float(
             np.sum(((rival.residuals - best.residuals) / np.broadcast_to(uncertainty, best.residuals.shape)) ** 2)
@@ -170,10 +190,10 @@ def identify_global(
             f"{AMBIGUITY_DELTA:g}) yet differ by more than {AMBIGUITY_Z:g} standard uncertainties in {named}; "
             f"nothing stored. Their predictions differ by chi^2 {separation:.3g} over the readings",
             separation,
-            SearchResult(best, objectives, spread, kept),
+            SearchResult(best, objectives, spread, kept, ratio),
             rival,
         )
-    return SearchResult(best, objectives, spread, kept)
+    return SearchResult(best, objectives, spread, kept, ratio)
 
 
 def rival_apart(best: Identification, rival: Identification, model: Any) -> tuple[np.ndarray, np.ndarray]:
