@@ -64,7 +64,8 @@ def test_another_applications_sqlite_file_is_refused_and_untouched(tmp_path, cap
     assert sorted(p.name for p in tmp_path.iterdir()) == ["notes.db"]  # no journal, no lock, no table added
 
 
-def test_readers_never_create_a_store(tmp_path, capsys):
+def test_readers_never_create_a_store(tmp_path, capsys, monkeypatch):
+    monkeypatch.chdir(tmp_path)  # no demo-out/ here (a checkout that ran ./dev demo has one): the message has no hint
     missing = tmp_path / "typo.db"
     refused = f"bench: error: --store {missing}: no run store there, expected the bench.db a run wrote (--store)"
     for command in (
