@@ -142,7 +142,7 @@ class _KillAtTheFirstBeatReply(logging.Handler):
 @contextlib.contextmanager
 def _on_the_link_log(handler: logging.Handler):
     """While inside: ``handler`` listens to the link's debug log; on exit it is removed."""
-    link_log = logging.getLogger("bench.robots.link")
+    link_log = logging.getLogger("bench.serial_link")
     level = link_log.level
     link_log.setLevel(logging.DEBUG)
     link_log.addHandler(handler)

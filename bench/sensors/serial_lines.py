@@ -1,16 +1,18 @@
 """Line framing on a serial port for sensors that send one ASCII line per sample (MCU mice, serial callipers).
 
-The port is any pySerial-like object (``serial.serial_for_url`` gives ptys, ``loop://`` and real ports alike);
-framing lives here, parsing in each sensor module. Every read has a monotonic deadline.
+The port is any pySerial port (``serial.serial_for_url`` gives ptys, ``loop://`` and real ports alike); the transport
+is the robots' own (:class:`bench.serial_link.FramedLink`: pySerial's read timeout sliced under a monotonic deadline),
+a frame here being one line; parsing lives in each sensor module.
 """
 
 from __future__ import annotations
 
 import time
-from typing import Protocol
+from typing import Any, Protocol
 
 from bench.errors import LinkError, LinkTimeout
 from bench.sensors.reading import MalformedSample
+from bench.serial_link import FramedLink
 
 __all__ = ["LineReader", "Port"]
 
@@ -20,16 +22,19 @@ class Port(Protocol):
 
     timeout: float | None
 
+    @property
+    def in_waiting(self) -> int: ...
+
     def read(self, size: int = 1) -> bytes: ...
 
 
-class LineReader:
+class LineReader(FramedLink):
     """Split a port's byte stream into lines.
 
     Parameters
     ----------
     port : Port
-        An open port; its ``timeout`` is set to a short poll interval.
+        An open port; its ``timeout`` is set to short poll slices while a line is awaited.
     name : str
         The device's name in messages (e.g. ``"calliper /dev/ttyUSB0"``).
     terminator : bytes
@@ -38,33 +43,44 @@ class LineReader:
         Longer lines are refused as malformed (a wrong baud rate produces endless garbage).
     """
 
-    def __init__(self, port: Port, name: str, *, terminator: bytes = b"\n", max_line_bytes: int = 256) -> None:
-        self.port = port
+    def __init__(self, port: Any, name: str, *, terminator: bytes = b"\n", max_line_bytes: int = 256) -> None:
+        super().__init__(port, max_pending=max(4096, 2 * max_line_bytes))
         self.name = name
         self.terminator = terminator
         self.max_line_bytes = max_line_bytes
-        self._buffer = b""
-        port.timeout = 0.02
 
-    def read_line(self, timeout_s: float) -> bytes:
-        """Return the next complete line without its terminator; ``LinkTimeout`` after ``timeout_s``."""
-        start = time.monotonic()
-        while self.terminator not in self._buffer:
-            if len(self._buffer) > self.max_line_bytes:
-                garbage, self._buffer = self._buffer, b""
+    @property
+    def port_name(self) -> str:
+        return self.name
+
+    def _take_frame(self) -> bytes | None:
+        end = self._pending.find(self.terminator)
+        if end < 0:
+            if len(self._pending) > self.max_line_bytes:
+                garbage = bytes(self._pending)
+                self._pending.clear()
                 raise MalformedSample(
                     f"{self.name}: {len(garbage)} bytes without a line end "
                     f"({garbage[:32]!r}...); check the baud rate and framing"
                 )
-            waited = time.monotonic() - start
-            if waited >= timeout_s:
-                raise LinkTimeout(
-                    f"{self.name}: no complete line after {waited:.2f} s "
-                    f"(received so far: {self._buffer!r}); is the device connected and sending?"
-                )
-            try:
-                self._buffer += self.port.read(256)
-            except OSError as exc:
-                raise LinkError(f"{self.name}: read failed ({exc}); the device was probably unplugged") from None
-        line, self._buffer = self._buffer.split(self.terminator, 1)
+            return None
+        line = bytes(self._pending[:end])
+        del self._pending[: end + len(self.terminator)]
         return line.rstrip(b"\r")
+
+    def read_line(self, timeout_s: float) -> bytes:
+        """Return the next complete line without its terminator; ``LinkTimeout`` after ``timeout_s``;
+        :class:`MalformedSample` for a line longer than ``max_line_bytes``; ``LinkError`` when the port fails."""
+        start = time.monotonic()
+        try:
+            return self.read_frame(timeout_s, command="a line", expected="a complete line")
+        except MalformedSample:
+            raise
+        except LinkTimeout:
+            raise LinkTimeout(
+                f"{self.name}: no complete line after {time.monotonic() - start:.2f} s (received so far: "
+                f"{bytes(self._pending)!r}); is the device connected and sending?"
+            ) from None
+        except LinkError as exc:
+            cause = exc.__cause__ or exc
+            raise LinkError(f"{self.name}: read failed ({cause}); the device was probably unplugged") from None
