@@ -250,7 +250,7 @@ def summary_section(
     run = report.run
     rows = [
         *identity.rows(),
-        ("Test", f"{report.title} ({run.robot})"),
+        ("Test", f"{report.title}; robot {run.robot}"),  # a title may end in a reference in brackets already
         ("Test date (UTC)", (run.started_utc or "—")[:10]),
         ("Report", report.report_id),
     ]
