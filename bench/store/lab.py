@@ -117,28 +117,7 @@ class LabStore:
             args,
         ).fetchall()
         self._conn.rollback()
-        return [
-            RunRecord(
-                id=r[0],
-                uuid=r[1],
-                bench=r[2],
-                campaign=r[3],
-                protocol_name=r[4],
-                protocol_version=r[5],
-                robot=r[6],
-                config=json.loads(r[7]),
-                settings=json.loads(r[8]),
-                calibration_ids=tuple(json.loads(r[9])),
-                software_version=r[10],
-                git_sha=r[11],
-                status=r[12],
-                reason=r[13],
-                started_utc=r[14],
-                ended_utc=r[15],
-                n_samples=int(r[16]),
-            )
-            for r in rows
-        ]
+        return [RunRecord.from_lab_row(r, run_id=r[0], calibration_ids=tuple(json.loads(r[9]))) for r in rows]
 
     def checksum(self, run_uuid: str) -> str:
         """:func:`rows_checksum` of the samples the server holds for ``run_uuid``."""

@@ -142,24 +142,8 @@ class LabRunView:
                 raise ConfigError(f"run {uuid}: no such run in lab store {self.path}")
             r = rows[0]
             calibrations = tuple(self._calibration_number(u) for u in json.loads(r[9]))
-            self._records[uuid] = RunRecord(
-                id=self._runs.number(r[1], r[0]),
-                uuid=r[1],
-                bench=r[2],
-                campaign=r[3],
-                protocol_name=r[4],
-                protocol_version=r[5],
-                robot=r[6],
-                config=json.loads(r[7]),
-                settings=json.loads(r[8]),
-                calibration_ids=calibrations,
-                software_version=r[10],
-                git_sha=r[11],
-                status=r[12],
-                reason=r[13],
-                started_utc=r[14],
-                ended_utc=r[15],
-                n_samples=int(r[16]),
+            self._records[uuid] = RunRecord.from_lab_row(
+                r, run_id=self._runs.number(r[1], r[0]), calibration_ids=calibrations
             )
         return self._records[uuid]
 

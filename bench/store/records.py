@@ -4,6 +4,7 @@ text every stored row uses."""
 from __future__ import annotations
 
 import json
+from collections.abc import Sequence
 from dataclasses import dataclass
 from datetime import UTC, datetime
 from typing import Any
@@ -65,6 +66,31 @@ class RunRecord:
         out["calibration_ids"] = list(self.calibration_ids)
         out["simulated"] = self.simulated
         return out
+
+    @classmethod
+    def from_lab_row(cls, row: Sequence[Any], *, run_id: int, calibration_ids: tuple[int, ...]) -> RunRecord:
+        """A run read from the lab store: ``row`` in the order the lab's run queries select (local id, uuid, bench,
+        campaign, protocol name and version, robot, config and settings JSON, calibrations JSON, software version,
+        git sha, status, reason, started, ended, sample count); the caller numbers the run and its calibrations."""
+        return cls(
+            id=run_id,
+            uuid=row[1],
+            bench=row[2],
+            campaign=row[3],
+            protocol_name=row[4],
+            protocol_version=row[5],
+            robot=row[6],
+            config=json.loads(row[7]),
+            settings=json.loads(row[8]),
+            calibration_ids=calibration_ids,
+            software_version=row[10],
+            git_sha=row[11],
+            status=row[12],
+            reason=row[13],
+            started_utc=row[14],
+            ended_utc=row[15],
+            n_samples=int(row[16]),
+        )
 
 
 @dataclass(frozen=True)
