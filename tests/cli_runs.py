@@ -13,6 +13,23 @@ from bench.store import Store
 
 #: The ``bench`` entry point of this environment.
 BENCH = str(Path(sys.executable).with_name("bench"))
+ROOT = Path(__file__).resolve().parents[1]
+#: The quick ISO pose protocol and the mice station these child runs rehearse.
+QUICK = ROOT / "examples" / "iso9283_pose_quick.toml"
+STATION = ROOT / "examples" / "stations" / "pkm5_mice.toml"
+
+
+def start_station_run(store: Path, speed_factor: str, *, stdin: int = subprocess.DEVNULL) -> subprocess.Popen:
+    """``bench run`` of :data:`QUICK` on :data:`STATION` rehearsed (``--sim``) in a child process writing ``store``;
+    ``stdin`` a pipe for a test that answers its prompts."""
+    return subprocess.Popen(
+        [BENCH, "run", str(QUICK), "--station", str(STATION), "--sim", "--store", str(store), "--no-progress"]
+        + ["--speed-factor", speed_factor],
+        stdin=stdin,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
 
 
 def wait_for_samples(store: Path, process: subprocess.Popen, at_least: int, timeout_s: float = 60.0) -> None:

@@ -12,37 +12,11 @@ import time
 from pathlib import Path
 
 import pytest
-from cli_runs import BENCH, wait_for_samples
+from cli_runs import QUICK, STATION, start_station_run, wait_for_samples
 
 from bench.cli import main
 from bench.store import INTERRUPTED, RunOwned, Store
 from bench.store.ownership import STALE_AFTER_S, lock_path, owner_of
-
-ROOT = Path(__file__).resolve().parents[1]
-QUICK = ROOT / "examples" / "iso9283_pose_quick.toml"
-STATION = ROOT / "examples" / "stations" / "pkm5_mice.toml"
-
-
-def _start(store, speed_factor: str) -> subprocess.Popen:
-    return subprocess.Popen(
-        [
-            BENCH,
-            "run",
-            str(QUICK),
-            "--station",
-            str(STATION),
-            "--sim",
-            "--store",
-            str(store),
-            "--no-progress",
-            "--speed-factor",
-            speed_factor,
-        ],
-        stdin=subprocess.PIPE,
-        stdout=subprocess.PIPE,
-        stderr=subprocess.PIPE,
-        text=True,
-    )
 
 
 def _runs_json(store, capsys) -> list[dict]:
@@ -53,7 +27,7 @@ def _runs_json(store, capsys) -> list[dict]:
 
 def test_a_second_resume_of_a_live_run_is_refused_naming_the_owner_and_the_run_completes(tmp_path, capsys):
     store = tmp_path / "b.db"
-    process = _start(store, "60")
+    process = start_station_run(store, "60", stdin=subprocess.PIPE)
     try:
         wait_for_samples(store, process, 1)
         process.send_signal(signal.SIGINT)  # it pauses at the next checkpoint and waits for our answer on stdin
@@ -88,7 +62,7 @@ def test_a_second_resume_of_a_live_run_is_refused_naming_the_owner_and_the_run_c
 
 def test_a_killed_run_reads_as_interrupted_and_resumes(tmp_path, capsys):
     store = tmp_path / "b.db"
-    process = _start(store, "300")
+    process = start_station_run(store, "300", stdin=subprocess.PIPE)
     wait_for_samples(store, process, 2)
     os.kill(process.pid, signal.SIGKILL)
     process.communicate(timeout=30)

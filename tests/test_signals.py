@@ -8,42 +8,16 @@ import subprocess
 from pathlib import Path
 
 import pytest
-from cli_runs import BENCH, wait_for_samples
+from cli_runs import QUICK, STATION, start_station_run, wait_for_samples
 
 from bench.cli import main
 from bench.store import Store
-
-ROOT = Path(__file__).resolve().parents[1]
-QUICK = ROOT / "examples" / "iso9283_pose_quick.toml"
-STATION = ROOT / "examples" / "stations" / "pkm5_mice.toml"
-
-
-def _start(store: Path, speed_factor: str) -> subprocess.Popen:
-    return subprocess.Popen(
-        [
-            BENCH,
-            "run",
-            str(QUICK),
-            "--station",
-            str(STATION),
-            "--sim",
-            "--store",
-            str(store),
-            "--no-progress",
-            "--speed-factor",
-            speed_factor,
-        ],
-        stdin=subprocess.DEVNULL,
-        stdout=subprocess.PIPE,
-        stderr=subprocess.PIPE,
-        text=True,
-    )
 
 
 @pytest.mark.parametrize("stop", [signal.SIGTERM, signal.SIGHUP])
 def test_a_stop_signal_aborts_the_run_resumably_and_resume_completes_it(tmp_path, stop, capsys):
     store = tmp_path / "b.db"
-    process = _start(store, "300")
+    process = start_station_run(store, "300")
     wait_for_samples(store, process, 2)
     process.send_signal(stop)
     out, err = process.communicate(timeout=60)
@@ -66,7 +40,7 @@ def test_a_stop_signal_aborts_the_run_resumably_and_resume_completes_it(tmp_path
 
 def test_ctrl_c_with_stdin_at_its_end_aborts_once(tmp_path):
     store = tmp_path / "b.db"
-    process = _start(store, "60")
+    process = start_station_run(store, "60")
     wait_for_samples(store, process, 1)
     process.send_signal(signal.SIGINT)  # pause at the next checkpoint, then the pause menu reads end of input
     out, err = process.communicate(timeout=120)
