@@ -90,6 +90,12 @@ def test_every_example_station_parses_with_the_capabilities_of_its_devices():
         ({"robot": {"kind": "pkm5"}}, '[controller] missing, expected a table (port = "/dev/ttyUSB0")'),
         (_station(controller={"port": 5}), "controller.port = 5, expected a serial port, e.g. /dev/ttyUSB0"),
         (_station(controller={"port": "/dev/a", "baud": True}), "controller.baud = True, expected a baud rate"),
+        (
+            _station(controller={"port": "/dev/a", "baud": 2**63 - 1}),  # overflowed pySerial's ioctl: a traceback
+            "controller.baud = 9223372036854775807, expected a baud rate, an integer from 50 to 4,000,000",
+        ),
+        (_station(controller={"port": "/dev/a", "baud": -1}), "controller.baud = -1, expected a baud rate"),
+        (_station(calliper={"kind": "serial", "port": "/dev/c", "baud": 0}), "calliper.baud = 0, expected a baud"),
         (_station(calliper={"kind": "serial"}), "calliper.port missing, expected the calliper's serial port"),
         (_station(laser_grid={}), "[laser_grid] with robot.kind = 'pkm5', expected robot.kind = 'delta4'"),
         (_station(mouse={}), "unknown table [mouse], expected one of [station], [robot], [controller], [mice]"),
