@@ -99,6 +99,7 @@ def test_every_example_station_parses_with_the_capabilities_of_its_devices():
         (_station(calliper={"kind": "serial"}), "calliper.port missing, expected the calliper's serial port"),
         (_station(laser_grid={}), "[laser_grid] with robot.kind = 'pkm5', expected robot.kind = 'delta4'"),
         (_station(mouse={}), "unknown table [mouse], expected one of [station], [robot], [controller], [mice]"),
+        (_station(**{"mice\n": {}}), "unknown table [mice\\n], expected one of [station]"),  # was two lines
         (
             {"robot": {"kind": "delta4"}, "controller": {"port": "/dev/a"}, "mice": {"xy": "/dev/b", "xz": "/dev/c"}},
             "[mice] with robot.kind = 'delta4', expected robot.kind = 'pkm5' (the mice are mounted on the pkm5's",

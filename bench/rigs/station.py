@@ -293,8 +293,9 @@ def parse_station(data: Mapping[str, Any], *, source: str = "station") -> Statio
     known = ("station", "robot", "controller", *sensor_names(), "lab_store")
     unknown = sorted(set(data) - set(known))
     if unknown:
+        shown = repr(unknown[0])[1:-1]  # a quoted TOML name may hold a line break: escaped, the message stays one line
         raise ConfigError(
-            f"{source}: unknown table [{unknown[0]}], expected one of {', '.join('[' + k + ']' for k in known)}"
+            f"{source}: unknown table [{shown}], expected one of {', '.join('[' + k + ']' for k in known)}"
         )
     for required, example in (("robot", 'kind = "pkm5" or "delta4"'), ("controller", 'port = "/dev/ttyUSB0"')):
         if required not in data:
