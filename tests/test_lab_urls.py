@@ -24,6 +24,9 @@ BAD_URLS = {  # the URL -> words its one line must hold
     f"postgresql://bench:{SECRET}@localhost:99999/lab": "port '99999', expected a number from 1 to 65535",
     f"postgresql://bench:{SECRET}@localhost/lab?colour=blue": '"colour"',
     f"postgresql://bench@localhost/lab?password={SECRET}&sslmode=sometimes": 'invalid sslmode value: "sometimes"',
+    # libpq names these after the host it tried, psycopg reads connect_timeout itself: both were "server unreachable"
+    f"postgresql://bench:{SECRET}@localhost:1/lab?keepalives=x": 'invalid integer value "x" for connection option',
+    f"postgresql://bench:{SECRET}@localhost:1/lab?connect_timeout=abc": "bad value for connect_timeout: 'abc'",
 }
 
 
