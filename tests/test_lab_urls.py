@@ -61,31 +61,13 @@ def test_every_bad_url_is_one_line_exit_2_and_no_password(tmp_path, capsys, url,
 
 
 @pytest.mark.parametrize(
-    "command",
-    [
-        ["sync", "--to", "postgresql://bench@localhost/lab"],
-        ["runs"],
-        ["export", "1"],
-        ["report", "1"],
-        ["resume", "1"],
-        ["calibrate", "1"],
-        ["analyze", "path-run", "1"],
-        ["analyze", "positioning-run", "1"],
-        ["analyze", "iso230-2-run", "1"],
-    ],
+    "command", [["sync", "--to", "postgresql://bench@localhost/lab"], ["runs"], ["export", "1"], ["report", "1"]]
 )
 def test_a_store_path_that_names_nothing_is_refused_never_created(tmp_path, capsys, command):
     typo = tmp_path / "typo.db"
     assert main([*command, "--store", str(typo)]) == 2
     assert f"--store {typo}: no " in _one_line(capsys)
     assert not typo.exists() and not list(tmp_path.iterdir())
-
-
-def test_store_check_of_a_path_that_names_nothing_is_refused_never_created(tmp_path, capsys):
-    typo = tmp_path / "typo.db"
-    assert main(["store", "check", str(typo)]) == 2
-    assert f"STORE {typo}: no run store there" in _one_line(capsys)
-    assert not list(tmp_path.iterdir())
 
 
 _PASSWORD_CHARS = string.ascii_letters + string.digits + "!$%&()*+,-.:;=@[]^_{|}~/"

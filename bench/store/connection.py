@@ -179,7 +179,10 @@ def check_store(path: str, option: str = "--store") -> list[str]:
     """The problems of the store at ``path``, one line each (empty when sound): SQLite's ``integrity_check``,
     every row whose foreign key names a missing parent (``foreign_key_check``) and every sample that fails its
     checksum or holds JSON that does not parse. Opens read-only (``option``: as :func:`open_connection`)."""
-    db = open_connection(path, read_only=True, option=option)
+    try:
+        db = open_connection(path, read_only=True, option=option)
+    except sqlite3.DatabaseError as exc:  # not SQLite, or its header damaged: the one problem there is to report
+        return [f"{path}: not a usable bench store ({exc})"]
     # a flipped bit can leave bytes that are not UTF-8: read them as they are, for the checksum to name the row
     db.text_factory = lambda data: data.decode("utf-8", "surrogateescape")
     problems: list[str] = []
