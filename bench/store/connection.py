@@ -149,6 +149,10 @@ def open_connection(path: str, *, read_only: bool = False, option: str = "--stor
     """A connection to the store at ``path``: read-only (the file must exist; nothing is created) or for writing
     (WAL, ``synchronous=FULL``, foreign keys on; a missing file is created). Another application's SQLite file is
     refused in either mode before anything is written. ``option`` names where the path came from in a refusal."""
+    if "://" in str(path):  # a lab store address where only a file will do (sync's --store, backup, resume, ...)
+        from bench.store.lab_connection import redacted
+
+        raise ConfigError(f"{option} {redacted(path)}: a URL, expected a run store file (bench.db) here")
     if path != ":memory:" and not Path(path).parent.is_dir():
         raise ConfigError(f"{option} {path}: folder {Path(path).parent} does not exist")
     if read_only:
