@@ -19,7 +19,10 @@ since the previous one (:meth:`MiceInstrument._check_alive`): a mouse whose stre
 than half of a commanded move of at least :data:`LIVENESS_MIN_MOVE_MM` in its plane, short by more than a robot's
 own error can explain (:data:`LIVENESS_ROBOT_ERROR_MM`), fails that capture with
 :class:`bench.sensors.reading.SensorStalled` naming the mouse and what it did (no report, reports without motion,
-or how far it moved); the run then ends ``failed`` with that reason and nothing of the capture is stored.
+or how far it moved); the run then ends ``failed`` with that reason and nothing of the capture is stored. A mouse
+that slips (reads a share of its motion) is caught by the other mouse: both see x, so their x motions since the
+previous capture must agree to within what their counts and scales allow (:func:`x_disagreement_tolerance_mm`),
+whatever the robot did; the one that saw less is named.
 """
 
 from __future__ import annotations
@@ -49,6 +52,7 @@ __all__ = [
     "STREAMED_KINDS",
     "MiceInstrument",
     "arrival_series",
+    "x_disagreement_tolerance_mm",
 ]
 
 #: Capture kind of a streamed arrival at a pose; ``conditions`` give ``lead_s`` and ``hold_s``.
@@ -74,6 +78,18 @@ _LIVENESS_MIN_SHARE = 0.5
 #: play) fall short of a commanded move by up to 19.2 mm in a mouse's plane (seed 65: 3.7 mm of a 6.7 mm move, which
 #: the share rule alone refused); 25 mm leaves the play (0.6 mm per axis per move) a margin [choice].
 LIVENESS_ROBOT_ERROR_MM = 25.0
+#: The two mice's x motions between two captures may differ by this many counts of the x axis whatever the robot
+#: did: each is a difference of two quantised readings (+-1 count), so two mice differ by up to 2 counts; doubled for
+#: the count noise and a report straddling the capture [choice; measured on the simulated pkm5, seeds 60-69, the
+#: calibration protocol's 1,200 captures each: at most 2 counts].
+_CROSS_CHECK_FLOOR_COUNTS = 4
+#: ... plus this share of each mouse's motion in its plane, under the nominal resolution: a mouse's scale is off by
+#: up to 4 % before calibration (sensors reference §1.3) and its axes may be turned in the bracket by up to 3 deg
+#: (sin 3 deg = 5 % of the other axis leaks into x); 0.04 |dx| + 0.05 |dy| <= 0.064 |d|, rounded up [choice].
+_CROSS_CHECK_SHARE_NOMINAL = 0.07
+#: ... under a measured calibration (its matrix takes the bracket's turn out, its scales are known to 0.1-0.2 %):
+#: what a surface or height change leaves (sub-percent, sensors reference §1.3), doubled [choice].
+_CROSS_CHECK_SHARE_MEASURED = 0.02
 #: The commanded axes each mouse sees (x-y mouse: x, y; x-z mouse: x, z).
 _PLANE_AXES = {"xy": ("cmd_x_mm", "cmd_y_mm"), "xz": ("cmd_x_mm", "cmd_z_mm")}
 
@@ -154,15 +170,17 @@ class MiceInstrument:
         return {plane: MotionFrames.concatenate(parts) for plane, parts in taken.items()}
 
     def _check_alive(self, capture: Capture) -> None:
-        """Refuse the capture when a mouse did not see a commanded move in its plane since the last capture.
+        """Refuse the capture when a mouse did not see a commanded move in its plane since the last capture, or the
+        two mice disagree on the x motion they both see.
 
         The net commanded displacement between two captures (whatever path the robot took between them) against
         the net counts, as mm: below :data:`_LIVENESS_MIN_SHARE` of a move of at least
         :data:`LIVENESS_MIN_MOVE_MM` and short by more than :data:`LIVENESS_ROBOT_ERROR_MM`, the mouse stopped
         reporting (no report), froze (reports without motion) or lost most of the move; :class:`SensorStalled` names
-        which. A streamed capture (its window may close before
-        the commanded end) is refused only without any motion. Captures without commanded positions are not judged
-        and do not move the reference.
+        which. A streamed capture (its window may close before the commanded end) is refused only without any
+        motion. Then the two mice's x motions are compared (:meth:`_check_common_axis`): a slip the robot's error
+        allowance hides shows there. Captures without commanded positions are not judged and do not move the
+        reference.
         """
         commanded = {
             axis: float(capture.commanded[axis])
@@ -175,13 +193,15 @@ class MiceInstrument:
         counts_then = self._counts_at_last
         self._counts_at_last = {plane: mouse.counts.copy() for plane, mouse in self.mice.items()}
         reports, self._reports_since = self._reports_since, {plane: 0 for plane in self.mice}
+        moved_counts = {plane: self._counts_at_last[plane] - counts_then[plane] for plane in self.mice}
+        moved_mm = {plane: self.calibration.counts_to_mm(counts) for plane, counts in moved_counts.items()}
         for plane, axes in _PLANE_AXES.items():
             first, second = (commanded[a] - previous[a] for a in axes)
             expected_mm = math.hypot(first, second)
             if plane not in self.mice or expected_mm < LIVENESS_MIN_MOVE_MM:
                 continue
-            counts = self._counts_at_last[plane] - counts_then[plane]
-            reported_mm = float(np.linalg.norm(self.calibration.counts_to_mm(counts)))
+            counts = moved_counts[plane]
+            reported_mm = float(np.linalg.norm(moved_mm[plane]))
             # a streamed capture (a path segment) may end its window before the commanded end: only no motion at
             # all is judged there
             share = 0.0 if capture.kind in STREAMED_KINDS else _LIVENESS_MIN_SHARE
@@ -203,6 +223,34 @@ class MiceInstrument:
                 f"cycle {capture.cycle}); the mouse stopped, froze or lost the surface (or the "
                 "robot did not move), so this sample is refused"
             )
+        if set(moved_mm) == {"xy", "xz"}:
+            self._check_common_axis(moved_mm, capture)
+
+    def _check_common_axis(self, moved_mm: Mapping[str, np.ndarray], capture: Capture) -> None:
+        """Refuse the capture when the two mice's x motions since the last capture differ by more than
+        :func:`x_disagreement_tolerance_mm` allows, naming the mouse that saw less (a slipping or lifted mouse loses
+        motion; none invents it).
+
+        [choice] Both mice ride the one platform and see its x: whatever pose the robot attained, off its command
+        by its geometry (an uncalibrated pkm5 by up to 19 mm) or its play, it moved both alike, so this check needs
+        no allowance for the robot's error, which the commanded-move rule above must grant (and which hides a mouse
+        reading 30 % of every move). It sees a slip in a move with x motion; a move along y or z alone is judged by
+        the rule above only, and the slip is caught at the next move with x.
+        """
+        xy_mm, xz_mm = (np.asarray(moved_mm[plane], dtype=float) for plane in ("xy", "xz"))
+        disagreement_mm = abs(float(xy_mm[0] - xz_mm[0]))
+        tolerance_mm = x_disagreement_tolerance_mm(xy_mm, xz_mm, self.calibration)
+        if disagreement_mm <= tolerance_mm:
+            return
+        less, more = ("xy", "xz") if abs(xy_mm[0]) < abs(xz_mm[0]) else ("xz", "xy")
+        mouse, other = self.mice[less], self.mice[more]
+        raise SensorStalled(
+            f"{mouse.name} ({mouse.binding}): saw {float(moved_mm[less][0]):.3f} mm in x since the last capture "
+            f"where {other.name} saw {float(moved_mm[more][0]):.3f} mm (pose {capture.pose!r}, cycle "
+            f"{capture.cycle}); both ride the platform, and they differ by {disagreement_mm:.3f} mm, more than the "
+            f"{tolerance_mm:.3f} mm their counts and scales allow: the mouse slipped or lost the surface, so this "
+            "sample is refused"
+        )
 
     def _read(self) -> tuple[Any, Any]:
         """The integrated readings of both mice now."""
@@ -332,6 +380,33 @@ class MiceInstrument:
             self._reader.join(1.0)
         for mouse in self.mice.values():
             mouse.close()
+
+
+def x_disagreement_tolerance_mm(xy_mm: ArrayLike, xz_mm: ArrayLike, calibration: Any) -> float:
+    """Largest difference of the x motions of the x-y and the x-z mouse between two captures that healthy mice give.
+
+    Parameters
+    ----------
+    xy_mm, xz_mm : array_like, shape (2,)
+        Each mouse's motion in its plane since the previous capture (x, y and x, z), mm.
+    calibration : bench.sensors.calibration.CountsCalibration
+        The calibration in force: its x resolution, and whether it is nominal.
+
+    Returns
+    -------
+    float
+        .. math:: T = n_q r_x + s (|d_{xy}| + |d_{xz}|)
+
+        with :math:`r_x` one count of the x axis (mm), :math:`n_q` =
+        :data:`_CROSS_CHECK_FLOOR_COUNTS`, and :math:`s` = :data:`_CROSS_CHECK_SHARE_NOMINAL` under a nominal
+        resolution, :data:`_CROSS_CHECK_SHARE_MEASURED` under a measured calibration: each mouse's x is off by its
+        scale error on x plus the share of its other axis its turn in the bracket leaks into x, at most
+        :math:`s |d|` (Cauchy-Schwarz), and the two mice's errors add.
+    """
+    count_x_mm = float(np.linalg.norm(calibration.counts_to_mm(np.array([1.0, 0.0]))))
+    share = _CROSS_CHECK_SHARE_NOMINAL if calibration.nominal else _CROSS_CHECK_SHARE_MEASURED
+    motion_mm = float(np.linalg.norm(np.asarray(xy_mm, dtype=float)) + np.linalg.norm(np.asarray(xz_mm, dtype=float)))
+    return _CROSS_CHECK_FLOOR_COUNTS * count_x_mm + share * motion_mm
 
 
 def arrival_series(
