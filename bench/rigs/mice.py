@@ -15,9 +15,10 @@ window.
 
 A mouse reports only when it moves, so a mouse that stops reporting, closes or freezes would leave its last counts
 in place and every later reading stale. Each capture is therefore checked against the robot's commanded motion
-since the previous one (:meth:`MiceInstrument._check_alive`): a mouse whose stream ended, or which reported less
-than half of a commanded move of at least :data:`LIVENESS_MIN_MOVE_MM` in its plane, short by more than a robot's
-own error can explain (:data:`LIVENESS_ROBOT_ERROR_MM`), fails that capture with
+since the previous one (:meth:`MiceInstrument._check_alive`): a mouse whose stream ended, which reported no motion
+in a commanded move of at least :data:`LIVENESS_MIN_MOVE_MM` in its plane, or fell short of it by more than a
+robot's own error and its scale can explain (:data:`LIVENESS_ROBOT_ERROR_MM`, :func:`scale_share`), fails that
+capture with
 :class:`bench.sensors.reading.SensorStalled` naming the mouse and what it did (no report, reports without motion,
 or how far it moved); the run then ends ``failed`` with that reason and nothing of the capture is stored. A mouse
 that slips (reads a share of its motion) is caught by the other mouse: both see x, so their x motions since the
@@ -52,6 +53,7 @@ __all__ = [
     "STREAMED_KINDS",
     "MiceInstrument",
     "arrival_series",
+    "scale_share",
     "x_disagreement_tolerance_mm",
 ]
 
@@ -69,27 +71,27 @@ _MM_DECIMALS, _S_DECIMALS = 4, 6
 #: mouse that stopped reporting is then caught at the first capture after the move [choice: far above the count
 #: noise and a robot's positioning error, far below a protocol's moves].
 LIVENESS_MIN_MOVE_MM = 1.0
-#: Reporting less than this share of such a move is a stalled mouse (or a robot that did not move: either way the
-#: sample cannot be trusted) [choice], when the shortfall is more than the robot's own error can explain.
-_LIVENESS_MIN_SHARE = 0.5
 #: The largest shortfall of a reported move against the commanded one that a robot erring by its geometry can give
 #: (mm): an uncalibrated robot attains each pose off by its own error, near an FK fold by many mm. Measured: the
 #: seeded true geometries of the simulated pkm5 (seeds 0-199, the calibration protocol's 30 poses in order, no
 #: play) fall short of a commanded move by up to 19.2 mm in a mouse's plane (seed 65: 3.7 mm of a 6.7 mm move, which
-#: the share rule alone refused); 25 mm leaves the play (0.6 mm per axis per move) a margin [choice].
+#: a rule refusing less than half of a move refused); 25 mm leaves the play (0.6 mm per axis per move) a margin
+#: [choice]. A mouse reading short by more than this plus its scale's share (:func:`scale_share`) of the move lost
+#: it; a smaller loss (a mouse reading 30 % of a 20 mm move) is the x cross-check's to catch.
 LIVENESS_ROBOT_ERROR_MM = 25.0
 #: The two mice's x motions between two captures may differ by this many counts of the x axis whatever the robot
 #: did: each is a difference of two quantised readings (+-1 count), so two mice differ by up to 2 counts; doubled for
 #: the count noise and a report straddling the capture [choice; measured on the simulated pkm5, seeds 60-69, the
 #: calibration protocol's 1,200 captures each: at most 2 counts].
 _CROSS_CHECK_FLOOR_COUNTS = 4
-#: ... plus this share of each mouse's motion in its plane, under the nominal resolution: a mouse's scale is off by
-#: up to 4 % before calibration (sensors reference §1.3) and its axes may be turned in the bracket by up to 3 deg
-#: (sin 3 deg = 5 % of the other axis leaks into x); 0.04 |dx| + 0.05 |dy| <= 0.064 |d|, rounded up [choice].
-_CROSS_CHECK_SHARE_NOMINAL = 0.07
+#: How far a healthy mouse's reading of a motion in its plane may be off, as a share of it, under the nominal
+#: resolution: its scale is off by up to 4 % before calibration (sensors reference §1.3) and its axes may be turned
+#: in the bracket by up to 3 deg (sin 3 deg = 5 % of one axis leaks into the other); 0.04 |dx| + 0.05 |dy| <=
+#: 0.064 |d|, rounded up [choice].
+_SCALE_SHARE_NOMINAL = 0.07
 #: ... under a measured calibration (its matrix takes the bracket's turn out, its scales are known to 0.1-0.2 %):
 #: what a surface or height change leaves (sub-percent, sensors reference §1.3), doubled [choice].
-_CROSS_CHECK_SHARE_MEASURED = 0.02
+_SCALE_SHARE_MEASURED = 0.02
 #: The commanded axes each mouse sees (x-y mouse: x, y; x-z mouse: x, z).
 _PLANE_AXES = {"xy": ("cmd_x_mm", "cmd_y_mm"), "xz": ("cmd_x_mm", "cmd_z_mm")}
 
@@ -174,9 +176,9 @@ class MiceInstrument:
         two mice disagree on the x motion they both see.
 
         The net commanded displacement between two captures (whatever path the robot took between them) against
-        the net counts, as mm: below :data:`_LIVENESS_MIN_SHARE` of a move of at least
-        :data:`LIVENESS_MIN_MOVE_MM` and short by more than :data:`LIVENESS_ROBOT_ERROR_MM`, the mouse stopped
-        reporting (no report), froze (reports without motion) or lost most of the move; :class:`SensorStalled` names
+        the net counts, as mm: no motion in a move of at least :data:`LIVENESS_MIN_MOVE_MM`, or short of it by
+        more than :data:`LIVENESS_ROBOT_ERROR_MM` plus the mouse's :func:`scale_share` of it, the mouse stopped
+        reporting (no report), froze (reports without motion) or lost the move; :class:`SensorStalled` names
         which. A streamed capture (its window may close before the commanded end) is refused only without any
         motion. Then the two mice's x motions are compared (:meth:`_check_common_axis`): a slip the robot's error
         allowance hides shows there. Captures without commanded positions are not judged and do not move the
@@ -204,9 +206,8 @@ class MiceInstrument:
             reported_mm = float(np.linalg.norm(moved_mm[plane]))
             # a streamed capture (a path segment) may end its window before the commanded end: only no motion at
             # all is judged there
-            share = 0.0 if capture.kind in STREAMED_KINDS else _LIVENESS_MIN_SHARE
-            shortfall_mm = expected_mm - reported_mm
-            if counts.any() and (reported_mm >= share * expected_mm or shortfall_mm <= LIVENESS_ROBOT_ERROR_MM):
+            allowed_mm = LIVENESS_ROBOT_ERROR_MM + scale_share(self.calibration) * expected_mm
+            if counts.any() and (capture.kind in STREAMED_KINDS or expected_mm - reported_mm <= allowed_mm):
                 continue
             if not counts.any():
                 what = (
@@ -382,6 +383,12 @@ class MiceInstrument:
             mouse.close()
 
 
+def scale_share(calibration: Any) -> float:
+    """How far a healthy mouse read through ``calibration`` may misread a motion in its plane, as a share of it:
+    :data:`_SCALE_SHARE_NOMINAL` under a nominal resolution, :data:`_SCALE_SHARE_MEASURED` under a measured one."""
+    return _SCALE_SHARE_NOMINAL if calibration.nominal else _SCALE_SHARE_MEASURED
+
+
 def x_disagreement_tolerance_mm(xy_mm: ArrayLike, xz_mm: ArrayLike, calibration: Any) -> float:
     """Largest difference of the x motions of the x-y and the x-z mouse between two captures that healthy mice give.
 
@@ -398,13 +405,12 @@ def x_disagreement_tolerance_mm(xy_mm: ArrayLike, xz_mm: ArrayLike, calibration:
         .. math:: T = n_q r_x + s (|d_{xy}| + |d_{xz}|)
 
         with :math:`r_x` one count of the x axis (mm), :math:`n_q` =
-        :data:`_CROSS_CHECK_FLOOR_COUNTS`, and :math:`s` = :data:`_CROSS_CHECK_SHARE_NOMINAL` under a nominal
-        resolution, :data:`_CROSS_CHECK_SHARE_MEASURED` under a measured calibration: each mouse's x is off by its
-        scale error on x plus the share of its other axis its turn in the bracket leaks into x, at most
-        :math:`s |d|` (Cauchy-Schwarz), and the two mice's errors add.
+        :data:`_CROSS_CHECK_FLOOR_COUNTS`, and :math:`s` = :func:`scale_share`: each mouse's x is off by its scale error on x plus
+        the share of its other axis its turn in the bracket leaks into x, at most :math:`s |d|` (Cauchy-Schwarz), and
+        the two mice's errors add.
     """
     count_x_mm = float(np.linalg.norm(calibration.counts_to_mm(np.array([1.0, 0.0]))))
-    share = _CROSS_CHECK_SHARE_NOMINAL if calibration.nominal else _CROSS_CHECK_SHARE_MEASURED
+    share = scale_share(calibration)
     motion_mm = float(np.linalg.norm(np.asarray(xy_mm, dtype=float)) + np.linalg.norm(np.asarray(xz_mm, dtype=float)))
     return _CROSS_CHECK_FLOOR_COUNTS * count_x_mm + share * motion_mm
 
