@@ -21,7 +21,8 @@ from runner_support import StandInMover
 from bench.protocols import Rig, Runner
 from bench.protocols.base import load_protocol
 from bench.protocols.iso9283 import PoseAccuracy
-from bench.rigs.mice import LIVENESS_ROBOT_ERROR_MM, MiceInstrument, x_disagreement_tolerance_mm
+from bench.rigs.mice import LIVENESS_ROBOT_ERROR_MM, MiceInstrument
+from bench.rigs.mice_liveness import calibrated_robot_error_mm, x_disagreement_tolerance_mm
 from bench.robots.pkm5_kinematics import home_pose
 from bench.sensors.calibration import MM_PER_INCH, CountsCalibration
 from bench.sensors.input_event import encode_frames
@@ -121,14 +122,17 @@ def _protocol():
     return PoseAccuracy(cycles=3, velocities_pct=[100], settle_s=0.0)
 
 
-def _run(tmp_path, fifo_mice, drill: str, healthy: int, *, protocol=None, home=None, **robot):
-    """Run ``protocol`` (the ISO pose cube from P2 by default) on the FIFO mice with the drill; (result, samples)."""
+def _run(tmp_path, fifo_mice, drill: str, healthy: int, *, protocol=None, home=None, ap_after_mm=None, **robot):
+    """Run ``protocol`` (the ISO pose cube from P2 by default) on the FIFO mice with the drill, with a kinematic
+    calibration of mean error ``ap_after_mm`` in force when given; (result, samples)."""
     mice, writers, calibration = fifo_mice
     protocol = protocol or _protocol()
     if home is None:  # the cycle's last pose: the first move (to P1) is one too
         home = np.array(protocol._poses["P2"][:3])
     robot = FifoMiceRobot(writers, home, drill=drill, healthy=healthy, **robot)
     instrument = MiceInstrument(mice, home, calibration, follow=True)
+    if ap_after_mm is not None:
+        instrument.expect_calibrated_robot(ap_after_mm)
     rig = Rig(robot, instrument, NoPrompts(), speed_factor=1e6, sleep=lambda s: None, closers=[instrument.close])
     with Store(tmp_path / "bench.db") as store:
         result = Runner(rig, store).run(protocol)
@@ -267,6 +271,29 @@ def test_a_slipping_mouse_on_an_uncalibrated_robot_is_caught_at_the_first_captur
     saw_xy, saw_xz = (float(v) for v in _SAW.search(result.reason).groups())
     assert saw_xy == pytest.approx(share * saw_xz, abs=0.07) and abs(saw_xz) > 20.0
     assert len([s for s in samples if "x_mm" in s.values]) == 25
+
+
+@pytest.mark.parametrize("share", [0.3, 0.7])
+def test_under_a_kinematic_calibration_a_slip_along_y_is_caught_at_the_first_capture(tmp_path, fifo_mice, share):
+    # the x-y mouse slips from the 3rd move on, P5 -> P4: 32.3 mm along y, no x, so only the commanded move can tell.
+    # Uncalibrated, 25 mm + 7 % of the move are the robot's to lose: read at 70 % (9.7 mm short) or 30 % (22.6 mm)
+    # it passes, and the slip is caught at the next move, which has x. Under a calibration of mean error 0.126 mm
+    # (seed 65's) the robot may lose 2 (5 x 0.126 + 2.7) = 6.66 mm + 7 %: 8.92 mm, and both are caught at P4
+    p4, p5 = np.array(_protocol()._poses["P4"]), np.array(_protocol()._poses["P5"])
+    assert (p4 - p5)[0] == 0 and (p4 - p5)[1] == pytest.approx(32.32)
+    assert (1 - share) * 32.32 < LIVENESS_ROBOT_ERROR_MM + 0.07 * 32.32  # uncalibrated: within the robot's error
+    result, samples = _run(tmp_path, fifo_mice, "slipping", 2, slip_share=share, ap_after_mm=0.126)
+    assert result.exit_status == "failed"
+    assert result.reason.startswith("SensorStalled: mouse_xy ") and "(pose 'P4', cycle 1)" in result.reason
+    assert "commanded 32.320 mm in its plane" in result.reason
+    reported = float(re.search(r"reported ([0-9.]+) mm", result.reason).group(1))
+    assert reported == pytest.approx(share * 32.32, abs=0.1)
+    assert len([s for s in samples if "x_mm" in s.values]) == 2
+
+
+def test_the_robot_error_a_calibration_in_force_leaves():
+    assert calibrated_robot_error_mm(0.126) == pytest.approx(2 * (5 * 0.126 + 2.7))
+    assert calibrated_robot_error_mm(3.0) == LIVENESS_ROBOT_ERROR_MM  # never wider than an uncalibrated robot's
 
 
 def test_the_x_tolerance_is_the_counts_and_the_scales_the_calibration_leaves():

@@ -40,6 +40,13 @@ from numpy.typing import ArrayLike
 
 from bench.errors import LinkError
 from bench.rigs.interfaces import Measurement
+from bench.rigs.mice_liveness import (
+    LIVENESS_MIN_MOVE_MM,
+    LIVENESS_ROBOT_ERROR_MM,
+    calibrated_robot_error_mm,
+    scale_share,
+    x_disagreement_tolerance_mm,
+)
 from bench.sensors.calibration import MM_PER_INCH
 from bench.sensors.reading import Reading, SensorStalled
 from bench.steps import Capture
@@ -53,8 +60,6 @@ __all__ = [
     "STREAMED_KINDS",
     "MiceInstrument",
     "arrival_series",
-    "scale_share",
-    "x_disagreement_tolerance_mm",
 ]
 
 #: Capture kind of a streamed arrival at a pose; ``conditions`` give ``lead_s`` and ``hold_s``.
@@ -67,31 +72,6 @@ POSITIONING = "positioning"
 STREAMED_KINDS = frozenset({ARRIVAL, PATH, POSITIONING})
 #: Decimals kept in the stored series (0.1 um, 1 us): far below a count (32 um at 800 cpi).
 _MM_DECIMALS, _S_DECIMALS = 4, 6
-#: A commanded move at least this long in a mouse's plane must show in its counts (mm; 31 counts at 800 cpi): a
-#: mouse that stopped reporting is then caught at the first capture after the move [choice: far above the count
-#: noise and a robot's positioning error, far below a protocol's moves].
-LIVENESS_MIN_MOVE_MM = 1.0
-#: The largest shortfall of a reported move against the commanded one that a robot erring by its geometry can give
-#: (mm): an uncalibrated robot attains each pose off by its own error, near an FK fold by many mm. Measured: the
-#: seeded true geometries of the simulated pkm5 (seeds 0-199, the calibration protocol's 30 poses in order, no
-#: play) fall short of a commanded move by up to 19.2 mm in a mouse's plane (seed 65: 3.7 mm of a 6.7 mm move, which
-#: a rule refusing less than half of a move refused); 25 mm leaves the play (0.6 mm per axis per move) a margin
-#: [choice]. A mouse reading short by more than this plus its scale's share (:func:`scale_share`) of the move lost
-#: it; a smaller loss (a mouse reading 30 % of a 20 mm move) is the x cross-check's to catch.
-LIVENESS_ROBOT_ERROR_MM = 25.0
-#: The two mice's x motions between two captures may differ by this many counts of the x axis whatever the robot
-#: did: each is a difference of two quantised readings (+-1 count), so two mice differ by up to 2 counts; doubled for
-#: the count noise and a report straddling the capture [choice; measured on the simulated pkm5, seeds 60-69, the
-#: calibration protocol's 1,200 captures each: at most 2 counts].
-_CROSS_CHECK_FLOOR_COUNTS = 4
-#: How far a healthy mouse's reading of a motion in its plane may be off, as a share of it, under the nominal
-#: resolution: its scale is off by up to 4 % before calibration (sensors reference §1.3) and its axes may be turned
-#: in the bracket by up to 3 deg (sin 3 deg = 5 % of one axis leaks into the other); 0.04 |dx| + 0.05 |dy| <=
-#: 0.064 |d|, rounded up [choice].
-_SCALE_SHARE_NOMINAL = 0.07
-#: ... under a measured calibration (its matrix takes the bracket's turn out, its scales are known to 0.1-0.2 %):
-#: what a surface or height change leaves (sub-percent, sensors reference §1.3), doubled [choice].
-_SCALE_SHARE_MEASURED = 0.02
 #: The commanded axes each mouse sees (x-y mouse: x, y; x-z mouse: x, z).
 _PLANE_AXES = {"xy": ("cmd_x_mm", "cmd_y_mm"), "xz": ("cmd_x_mm", "cmd_z_mm")}
 
@@ -123,6 +103,9 @@ class MiceInstrument:
         self.noise_counts = noise_counts
         #: the stored calibration in force (version, nominal, scales and their u): the report's budget reads it
         self.calibration_record = dict(calibration_record) if calibration_record is not None else None
+        #: the shortfall a robot's own error may give a commanded move (mm): narrower under a kinematic calibration
+        #: in force (:meth:`expect_calibrated_robot`)
+        self.robot_error_mm = LIVENESS_ROBOT_ERROR_MM
         for mouse in mice.values():  # registration is now: reports from before it are motion to somewhere else
             mouse.read_frames()
             mouse.rezero()
@@ -177,7 +160,8 @@ class MiceInstrument:
 
         The net commanded displacement between two captures (whatever path the robot took between them) against
         the net counts, as mm: no motion in a move of at least :data:`LIVENESS_MIN_MOVE_MM`, or short of it by
-        more than :data:`LIVENESS_ROBOT_ERROR_MM` plus the mouse's :func:`scale_share` of it, the mouse stopped
+        more than the robot's error allows (:attr:`robot_error_mm`) plus the mouse's :func:`scale_share` of it, the
+        mouse stopped
         reporting (no report), froze (reports without motion) or lost the move; :class:`SensorStalled` names
         which. A streamed capture (its window may close before the commanded end) is refused only without any
         motion. Then the two mice's x motions are compared (:meth:`_check_common_axis`): a slip the robot's error
@@ -206,7 +190,7 @@ class MiceInstrument:
             reported_mm = float(np.linalg.norm(moved_mm[plane]))
             # a streamed capture (a path segment) may end its window before the commanded end: only no motion at
             # all is judged there
-            allowed_mm = LIVENESS_ROBOT_ERROR_MM + scale_share(self.calibration) * expected_mm
+            allowed_mm = self.robot_error_mm + scale_share(self.calibration) * expected_mm
             if counts.any() and (capture.kind in STREAMED_KINDS or expected_mm - reported_mm <= allowed_mm):
                 continue
             if not counts.any():
@@ -226,6 +210,12 @@ class MiceInstrument:
             )
         if set(moved_mm) == {"xy", "xz"}:
             self._check_common_axis(moved_mm, capture)
+
+    def expect_calibrated_robot(self, ap_after_mm: float) -> None:
+        """A kinematic calibration whose own mean error at its poses is ``ap_after_mm`` is in force: a commanded
+        move may fall short by :func:`calibrated_robot_error_mm` only (called by
+        :func:`bench.calibration.compensate.put_in_force`)."""
+        self.robot_error_mm = calibrated_robot_error_mm(ap_after_mm)
 
     def _check_common_axis(self, moved_mm: Mapping[str, np.ndarray], capture: Capture) -> None:
         """Refuse the capture when the two mice's x motions since the last capture differ by more than
@@ -367,6 +357,9 @@ class MiceInstrument:
             "registration_mm": [float(v) for v in self.origin],
             "cpi": round(float(cpi.mean()), 3),
             "resolution_mm": round(float(MM_PER_INCH / cpi.min()), 6),
+            # the shortfall of a commanded move the liveness check grants the robot (narrower under a kinematic
+            # calibration in force)
+            "liveness_robot_error_mm": round(self.robot_error_mm, 3),
         }
         if self.noise_counts is not None:
             out["noise_counts"] = self.noise_counts
@@ -381,38 +374,6 @@ class MiceInstrument:
             self._reader.join(1.0)
         for mouse in self.mice.values():
             mouse.close()
-
-
-def scale_share(calibration: Any) -> float:
-    """How far a healthy mouse read through ``calibration`` may misread a motion in its plane, as a share of it:
-    :data:`_SCALE_SHARE_NOMINAL` under a nominal resolution, :data:`_SCALE_SHARE_MEASURED` under a measured one."""
-    return _SCALE_SHARE_NOMINAL if calibration.nominal else _SCALE_SHARE_MEASURED
-
-
-def x_disagreement_tolerance_mm(xy_mm: ArrayLike, xz_mm: ArrayLike, calibration: Any) -> float:
-    """Largest difference of the x motions of the x-y and the x-z mouse between two captures that healthy mice give.
-
-    Parameters
-    ----------
-    xy_mm, xz_mm : array_like, shape (2,)
-        Each mouse's motion in its plane since the previous capture (x, y and x, z), mm.
-    calibration : bench.sensors.calibration.CountsCalibration
-        The calibration in force: its x resolution, and whether it is nominal.
-
-    Returns
-    -------
-    float
-        .. math:: T = n_q r_x + s (|d_{xy}| + |d_{xz}|)
-
-        with :math:`r_x` one count of the x axis (mm), :math:`n_q` =
-        :data:`_CROSS_CHECK_FLOOR_COUNTS`, and :math:`s` = :func:`scale_share`: each mouse's x is off by its scale error on x plus
-        the share of its other axis its turn in the bracket leaks into x, at most :math:`s |d|` (Cauchy-Schwarz), and
-        the two mice's errors add.
-    """
-    count_x_mm = float(np.linalg.norm(calibration.counts_to_mm(np.array([1.0, 0.0]))))
-    share = scale_share(calibration)
-    motion_mm = float(np.linalg.norm(np.asarray(xy_mm, dtype=float)) + np.linalg.norm(np.asarray(xz_mm, dtype=float)))
-    return _CROSS_CHECK_FLOOR_COUNTS * count_x_mm + share * motion_mm
 
 
 def arrival_series(
