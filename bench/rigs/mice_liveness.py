@@ -43,7 +43,7 @@ LIVENESS_ROBOT_ERROR_MM = 25.0
 #: twice that (:func:`calibrated_robot_error_mm`: 6.7 mm there) [choice: 5x the mean, where the calibration's own
 #: error at the held-out poses was 0.2-0.8x of it (docs/calibration.md); the play's RP as rated, 2.7 mm, where the
 #: simulator's is ~0.6 mm per axis. Measured: the validation runs of seeds 60-69 under their calibration fall short
-#: of a commanded move by at most 3.1 mm].
+#: of a commanded move by at most 3.2 mm].
 _CALIBRATED_ERROR_PER_MEAN = 5.0
 #: The two mice's x motions between two captures may differ by this many counts of the x axis whatever the robot
 #: did: each is a difference of two quantised readings (+-1 count), so two mice differ by up to 2 counts; doubled for
