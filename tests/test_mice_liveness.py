@@ -45,8 +45,10 @@ EXAMPLES = Path(__file__).resolve().parent.parent / "examples"
 class FifoMiceRobot(StandInMover):
     """A robot that reaches every commanded target (or misses it by ``miss(target)``, mm: a robot erring by its
     geometry) and whose moves reach the mice as ``input_event`` reports (counts with carry, so they never drift);
-    ``drill`` says what the x-y mouse does after ``healthy`` moves: ``silent`` (sends nothing), ``eof`` (its device
-    closes), ``frozen`` (reports without motion) or ``slipping`` (reports ``slip_share`` of every move)."""
+    ``drill`` says what the ``drilled`` mouse (the x-y one by default) does after ``healthy`` moves: ``silent`` (sends
+    nothing), ``eof`` (its device closes), ``frozen`` (reports without motion) or ``slipping`` (reports
+    ``slip_share`` of every move). A ``guided`` x-z mouse runs on vertical guides (the dissertation's Z mouse): it
+    sees z only."""
 
     def __init__(
         self,
@@ -57,32 +59,40 @@ class FifoMiceRobot(StandInMover):
         healthy: int = 10**9,
         miss: Callable[[np.ndarray], np.ndarray] | None = None,
         slip_share: float = 0.1,
+        guided: bool = False,
+        drilled: str = "xy",
     ) -> None:
         self.writers, self.drill, self.healthy, self.slip_share = writers, drill, healthy, slip_share
         self.miss = miss or (lambda target: np.zeros(3))
         self.at_mm = np.asarray(start_mm, float)[:3].copy()
-        self.sent = {
-            plane: np.round(self.at_mm[list(axes)] * COUNTS_PER_MM).astype(np.int64) for plane, axes in PLANES.items()
-        }
+        self.start_x_mm, self.guided, self.drilled = float(self.at_mm[0]), guided, drilled
+        self.sent = {plane: np.round(self._seen(plane) * COUNTS_PER_MM).astype(np.int64) for plane in PLANES}
         self.moves = 0
         self.t_s = 1.0
+
+    def _seen(self, plane: str) -> np.ndarray:
+        """Where mouse ``plane`` is (mm): the robot's position in its plane; a guided x-z mouse keeps its x."""
+        seen = self.at_mm[list(PLANES[plane])].copy()
+        if plane == "xz" and self.guided:
+            seen[0] = self.start_x_mm
+        return seen
 
     def move_to(self, target, *, velocity_pct):
         self.at_mm = np.asarray(target, float)[:3] + self.miss(np.asarray(target, float))
         self.moves += 1
         t = self.t_s + 1e-3 * np.arange(1, _REPORTS + 1)
         self.t_s = float(t[-1])
-        for plane, axes in PLANES.items():
-            total = np.round(self.at_mm[list(axes)] * COUNTS_PER_MM).astype(np.int64)
+        for plane in PLANES:
+            total = np.round(self._seen(plane) * COUNTS_PER_MM).astype(np.int64)
             step = total - self.sent[plane]
             self.sent[plane] = total
             split = np.diff(np.round(np.linspace(0, 1, _REPORTS + 1)[:, None] * step).astype(np.int64), axis=0)
-            if plane == "xy" and self.moves > self.healthy:
+            if plane == self.drilled and self.moves > self.healthy:
                 if self.drill == "silent":
                     continue
                 if self.drill == "eof":
-                    if self.writers.get("xy") is not None:
-                        os.close(self.writers.pop("xy"))
+                    if self.writers.get(plane) is not None:
+                        os.close(self.writers.pop(plane))
                     continue
                 if self.drill == "frozen":
                     split = np.zeros_like(split)
@@ -132,15 +142,19 @@ def _protocol():
     return PoseAccuracy(cycles=3, velocities_pct=[100], settle_s=0.0)
 
 
-def _run(tmp_path, fifo_mice, drill: str, healthy: int, *, protocol=None, home=None, ap_after_mm=None, **robot):
+def _run(
+    tmp_path, fifo_mice, drill: str, healthy: int, *, protocol=None, home=None, ap_after_mm=None, xz_mount=None, **robot
+):
     """Run ``protocol`` (the ISO pose cube from P2 by default) on the FIFO mice with the drill, with a kinematic
-    calibration of mean error ``ap_after_mm`` in force when given; (result, samples)."""
+    calibration of mean error ``ap_after_mm`` in force when given, the instrument taking the x-z mouse as mounted by
+    ``xz_mount`` (default: on the platform); (result, samples)."""
     mice, writers, calibration = fifo_mice
     protocol = protocol or _protocol()
     if home is None:  # the cycle's last pose: the first move (to P1) is one too
         home = np.array(protocol._poses["P2"][:3])
     robot = FifoMiceRobot(writers, home, drill=drill, healthy=healthy, **robot)
-    instrument = MiceInstrument(mice, home, calibration, follow=True)
+    mount = {} if xz_mount is None else {"xz_mount": xz_mount}
+    instrument = MiceInstrument(mice, home, calibration, follow=True, **mount)
     if ap_after_mm is not None:
         instrument.expect_calibrated_robot(ap_after_mm)
     rig = Rig(robot, instrument, NoPrompts(), speed_factor=1e6, sleep=lambda s: None, closers=[instrument.close])
@@ -354,6 +368,63 @@ def test_a_capture_without_commanded_positions_is_not_judged(fifo_mice):
     finally:
         instrument.close()
     assert measured.values == {"x_mm": 0.0, "y_mm": 0.0, "z_mm": 0.0}
+
+
+# ---- an x-z mouse on vertical guides (the dissertation's Z mouse, sensors reference §1.4) sees z only -----------
+
+
+def _xz_counts_x_stay_zero(samples) -> bool:
+    return all(s.raw["counts_xz"][0] == 0 for s in samples if "counts_xz" in s.raw)
+
+
+def test_a_guided_x_z_mouse_completes_the_run_judged_on_z_alone(tmp_path, fifo_mice):
+    result, samples = _run(tmp_path, fifo_mice, "", 10**9, guided=True, xz_mount="guided")
+    assert result.exit_status == "completed", result.reason
+    poses = [s for s in samples if "x_mm" in s.values]
+    assert len(poses) == 15 and _xz_counts_x_stay_zero(poses)
+    for sample in poses:  # x from the x-y mouse, z from the guided one: the commanded pose to within a count
+        for axis in "xyz":
+            assert sample.values[f"{axis}_mm"] == pytest.approx(sample.values[f"cmd_{axis}_mm"], abs=0.04)
+
+
+def test_a_guided_x_z_mouse_taken_to_ride_the_platform_is_refused_naming_the_key(tmp_path, fifo_mice):
+    """The station's default (the x-z mouse rides the platform and sees x) on a mouse that sees z only: the first
+    move with x is refused, and the line says which key would describe this mouse."""
+    result, samples = _run(tmp_path, fifo_mice, "", 10**9, guided=True)
+    assert result.exit_status == "failed"
+    assert result.reason.startswith("SensorStalled: mouse_xz"), result.reason
+    assert 'set [mice] xz_mount = "guided"' in result.reason, result.reason
+    assert not [s for s in samples if "x_mm" in s.values]  # P2 -> P1 has x: its capture is the first refused
+
+
+def test_a_slipping_platform_mouse_gets_no_guided_hint(tmp_path, fifo_mice):
+    # a platform x-z mouse reading 30 % of every move saw x: it slipped, and the line says so without the hint
+    result, _ = _run(tmp_path, fifo_mice, "slipping", 2, slip_share=0.3, drilled="xz")
+    assert result.exit_status == "failed" and result.reason.startswith("SensorStalled: mouse_xz"), result.reason
+    assert "lost the surface" in result.reason and "xz_mount" not in result.reason
+
+
+@pytest.mark.parametrize("drill, what", [("silent", "sent no report"), ("frozen", "reports without motion")])
+def test_a_guided_x_z_mouse_that_stops_fails_the_run_at_the_first_move_in_z(tmp_path, fifo_mice, drill, what):
+    healthy = 4
+    result, samples = _run(tmp_path, fifo_mice, drill, healthy, guided=True, drilled="xz", xz_mount="guided")
+    assert result.exit_status == "failed"
+    assert result.reason.startswith("SensorStalled: mouse_xz") and what in result.reason, result.reason
+    # the cube from P2: P4 -> P5 (the fifth move) keeps z, so the guided mouse had nothing to see and P5 is stored;
+    # P5 -> P1 lifts z by 16 mm and is refused
+    assert len([s for s in samples if "x_mm" in s.values]) == healthy + 1
+
+
+def test_the_runs_settings_say_how_the_x_z_mouse_is_mounted_and_what_the_check_then_sees(fifo_mice):
+    mice, _writers, calibration = fifo_mice
+    guided = MiceInstrument(mice, (0.0, 0.0, 0.0), calibration, xz_mount="guided").settings()
+    assert guided["xz_mount"] == "guided" and guided["liveness_x_cross_check"] is False
+    assert "a slip along x is caught by the commanded-move rule only" in guided["liveness_note"]
+    platform = MiceInstrument(mice, (0.0, 0.0, 0.0), calibration).settings()
+    assert platform["xz_mount"] == "platform" and platform["liveness_x_cross_check"] is True
+    assert "liveness_note" not in platform
+    with pytest.raises(ValueError, match="xz_mount = 'rails', expected one of platform, guided"):
+        MiceInstrument(mice, (0.0, 0.0, 0.0), calibration, xz_mount="rails")
 
 
 # ---- a stored mouse calibration is put in force only when the station names it --------------------------------

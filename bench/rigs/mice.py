@@ -23,7 +23,8 @@ capture with
 or how far it moved); the run then ends ``failed`` with that reason and nothing of the capture is stored. A mouse
 that slips (reads a share of its motion) is caught by the other mouse: both see x, so their x motions since the
 previous capture must agree to within what their counts and scales allow (:func:`x_disagreement_tolerance_mm`),
-whatever the robot did; the one that saw less is named.
+whatever the robot did; the one that saw less is named. An x-z mouse on vertical guides (``xz_mount = "guided"``,
+the dissertation's Z mouse) sees z only: it is judged on the commanded z alone, and the x cross-check is off.
 """
 
 from __future__ import annotations
@@ -43,7 +44,11 @@ from bench.rigs.interfaces import Measurement
 from bench.rigs.mice_liveness import (
     LIVENESS_MIN_MOVE_MM,
     LIVENESS_ROBOT_ERROR_MM,
+    XZ_GUIDED,
+    XZ_PLATFORM,
     calibrated_robot_error_mm,
+    guided_hint,
+    plane_axes,
     scale_share,
     x_disagreement_tolerance_mm,
 )
@@ -72,8 +77,11 @@ POSITIONING = "positioning"
 STREAMED_KINDS = frozenset({ARRIVAL, PATH, POSITIONING})
 #: Decimals kept in the stored series (0.1 um, 1 us): far below a count (32 um at 800 cpi).
 _MM_DECIMALS, _S_DECIMALS = 4, 6
-#: The commanded axes each mouse sees (x-y mouse: x, y; x-z mouse: x, z).
-_PLANE_AXES = {"xy": ("cmd_x_mm", "cmd_y_mm"), "xz": ("cmd_x_mm", "cmd_z_mm")}
+#: What a run's settings say of slips along x when the x-z mouse is on vertical guides (no x cross-check).
+_GUIDED_NOTE = (
+    "the x-z mouse is on vertical guides and sees z only: no x cross-check, so a slip along x is caught by the "
+    "commanded-move rule only (a shortfall beyond liveness_robot_error_mm plus the scale's share of the move)"
+)
 
 
 class MiceInstrument:
@@ -87,6 +95,9 @@ class MiceInstrument:
         Position of the measuring point when the counts were zero (the registration), mm.
     calibration : bench.sensors.calibration.CountsCalibration
         Counts -> mm, applied by the mice.
+    xz_mount : str
+        How the x-z mouse is mounted (:data:`bench.rigs.mice_liveness.XZ_MOUNTS`): on the platform, seeing x and
+        z, or on vertical guides, seeing z only.
     """
 
     def __init__(
@@ -98,8 +109,11 @@ class MiceInstrument:
         follow: bool = False,
         noise_counts: float | None = None,
         calibration_record: Mapping[str, Any] | None = None,
+        xz_mount: str = XZ_PLATFORM,
     ) -> None:
         self.mice = mice
+        #: the commanded axes each mouse sees, by how the x-z mouse is mounted (:func:`plane_axes`)
+        self.xz_mount, self._plane_axes = xz_mount, plane_axes(xz_mount)
         self.noise_counts = noise_counts
         #: the stored calibration in force (version, nominal, scales and their u): the report's budget reads it
         self.calibration_record = dict(calibration_record) if calibration_record is not None else None
@@ -181,9 +195,9 @@ class MiceInstrument:
         reports, self._reports_since = self._reports_since, {plane: 0 for plane in self.mice}
         moved_counts = {plane: self._counts_at_last[plane] - counts_then[plane] for plane in self.mice}
         moved_mm = {plane: self.calibration.counts_to_mm(counts) for plane, counts in moved_counts.items()}
-        for plane, axes in _PLANE_AXES.items():
-            first, second = (commanded[a] - previous[a] for a in axes)
-            expected_mm = math.hypot(first, second)
+        hint = self._mount_hint(moved_counts, moved_mm, commanded["cmd_x_mm"] - previous["cmd_x_mm"])
+        for plane, axes in self._plane_axes.items():
+            expected_mm = math.hypot(*(commanded[a] - previous[a] for a in axes))
             if plane not in self.mice or expected_mm < LIVENESS_MIN_MOVE_MM:
                 continue
             counts = moved_counts[plane]
@@ -206,10 +220,20 @@ class MiceInstrument:
                 f"{mouse.name} ({mouse.binding}): {what} while the robot was commanded "
                 f"{expected_mm:.3f} mm in its plane since the last capture (pose {capture.pose!r}, "
                 f"cycle {capture.cycle}); the mouse stopped, froze or lost the surface (or the "
-                "robot did not move), so this sample is refused"
+                f"robot did not move), so this sample is refused{hint if plane == 'xz' else ''}"
             )
-        if set(moved_mm) == {"xy", "xz"}:
-            self._check_common_axis(moved_mm, capture)
+        if set(moved_mm) == {"xy", "xz"} and self.xz_mount != XZ_GUIDED:
+            self._check_common_axis(moved_mm, capture, hint)
+
+    def _mount_hint(
+        self, moved_counts: Mapping[str, np.ndarray], moved_mm: Mapping[str, np.ndarray], commanded_x_mm: float
+    ) -> str:
+        """:func:`guided_hint` for an x-z mouse taken to ride the platform, over the larger of the commanded x
+        motion and the x-y mouse's (an erring robot moves in x where none was commanded); empty otherwise."""
+        if self.xz_mount != XZ_PLATFORM or "xz" not in moved_counts:
+            return ""
+        seen_x_mm = float(moved_mm["xy"][0]) if "xy" in moved_mm else 0.0
+        return guided_hint(moved_counts["xz"], max(abs(commanded_x_mm), abs(seen_x_mm)))
 
     def expect_calibrated_robot(self, ap_after_mm: float) -> None:
         """A kinematic calibration whose own mean error at its poses is ``ap_after_mm`` is in force: a commanded
@@ -217,10 +241,10 @@ class MiceInstrument:
         :func:`bench.calibration.compensate.put_in_force`)."""
         self.robot_error_mm = calibrated_robot_error_mm(ap_after_mm)
 
-    def _check_common_axis(self, moved_mm: Mapping[str, np.ndarray], capture: Capture) -> None:
+    def _check_common_axis(self, moved_mm: Mapping[str, np.ndarray], capture: Capture, hint: str = "") -> None:
         """Refuse the capture when the two mice's x motions since the last capture differ by more than
         :func:`x_disagreement_tolerance_mm` allows, naming the mouse that saw less (a slipping or lifted mouse loses
-        motion; none invents it).
+        motion; none invents it); ``hint`` (:meth:`_mount_hint`) is added when that is the x-z mouse.
 
         [choice] Both mice ride the one platform and see its x: whatever pose the robot attained, off its command
         by its geometry (an uncalibrated pkm5 by up to 19 mm) or its play, it moved both alike, so this check needs
@@ -240,7 +264,7 @@ class MiceInstrument:
             f"where {other.name} saw {float(moved_mm[more][0]):.3f} mm (pose {capture.pose!r}, cycle "
             f"{capture.cycle}); both ride the platform, and they differ by {disagreement_mm:.3f} mm, more than the "
             f"{tolerance_mm:.3f} mm their counts and scales allow: the mouse slipped or lost the surface, so this "
-            "sample is refused"
+            f"sample is refused{hint if less == 'xz' else ''}"
         )
 
     def _read(self) -> tuple[Any, Any]:
@@ -360,7 +384,12 @@ class MiceInstrument:
             # the shortfall of a commanded move the liveness check grants the robot (narrower under a kinematic
             # calibration in force)
             "liveness_robot_error_mm": round(self.robot_error_mm, 3),
+            # how the x-z mouse is mounted, and so whether the two mice's x motions are cross-checked
+            "xz_mount": self.xz_mount,
+            "liveness_x_cross_check": self.xz_mount != XZ_GUIDED,
         }
+        if self.xz_mount == XZ_GUIDED:
+            out["liveness_note"] = _GUIDED_NOTE
         if self.noise_counts is not None:
             out["noise_counts"] = self.noise_counts
         if self.calibration_record is not None:

@@ -5,7 +5,9 @@ Two rules, each with its tolerance here. The commanded move: a mouse must show m
 least :data:`LIVENESS_MIN_MOVE_MM` in its plane, and may fall short of it by no more than the robot's own error
 (:data:`LIVENESS_ROBOT_ERROR_MM`, or :func:`calibrated_robot_error_mm` under a kinematic calibration in force) plus
 its scale's share (:func:`scale_share`). The common axis: both mice see x, so their x motions may differ by
-:func:`x_disagreement_tolerance_mm` only, whatever the robot did. Pure computation.
+:func:`x_disagreement_tolerance_mm` only, whatever the robot did. Which axes each mouse sees depends on how the x-z
+mouse is mounted (:data:`XZ_MOUNTS`, :func:`plane_axes`): a mouse on vertical guides sees z only, and the common
+axis is then gone. Pure computation.
 """
 
 from __future__ import annotations
@@ -20,11 +22,21 @@ from bench.rigs.registration import PKM5_RATED_RP_MM
 __all__ = [
     "LIVENESS_MIN_MOVE_MM",
     "LIVENESS_ROBOT_ERROR_MM",
+    "XZ_GUIDED",
+    "XZ_MOUNTS",
+    "XZ_PLATFORM",
     "calibrated_robot_error_mm",
+    "guided_hint",
+    "plane_axes",
     "scale_share",
     "x_disagreement_tolerance_mm",
 ]
 
+#: How the x-z mouse is mounted (``[mice] xz_mount``): on the end effector's platform, where it sees the platform's x
+#: and z (the default), or on a platform of its own running on vertical guides that the end effector pushes up and
+#: lets down, where it sees z only (the dissertation's Z mouse, sensors reference §1.4).
+XZ_PLATFORM, XZ_GUIDED = "platform", "guided"
+XZ_MOUNTS = (XZ_PLATFORM, XZ_GUIDED)
 #: A commanded move at least this long in a mouse's plane must show in its counts (mm; 31 counts at 800 cpi): a
 #: mouse that stopped reporting is then caught at the first capture after the move [choice: far above the count
 #: noise and a robot's positioning error, far below a protocol's moves].
@@ -102,3 +114,26 @@ def x_disagreement_tolerance_mm(xy_mm: ArrayLike, xz_mm: ArrayLike, calibration:
     share = scale_share(calibration)
     motion_mm = float(np.linalg.norm(np.asarray(xy_mm, dtype=float)) + np.linalg.norm(np.asarray(xz_mm, dtype=float)))
     return _CROSS_CHECK_FLOOR_COUNTS * count_x_mm + share * motion_mm
+
+
+def plane_axes(xz_mount: str) -> dict[str, tuple[str, ...]]:
+    """The commanded axes each mouse sees: the x-y mouse x and y; the x-z mouse x and z when it rides the platform
+    (:data:`XZ_PLATFORM`), z alone on vertical guides (:data:`XZ_GUIDED`)."""
+    if xz_mount not in XZ_MOUNTS:
+        raise ValueError(f"xz_mount = {xz_mount!r}, expected one of {', '.join(XZ_MOUNTS)}")
+    xz = ("cmd_z_mm",) if xz_mount == XZ_GUIDED else ("cmd_x_mm", "cmd_z_mm")
+    return {"xy": ("cmd_x_mm", "cmd_y_mm"), "xz": xz}
+
+
+def guided_hint(xz_counts: ArrayLike, x_motion_mm: float) -> str:
+    """What to add to the refusal of an x-z mouse taken to ride the platform whose x counts stayed within
+    :data:`_CROSS_CHECK_FLOOR_COUNTS` of 0 in an x motion of at least :data:`LIVENESS_MIN_MOVE_MM` (the commanded
+    one or the x-y mouse's) while its z counts moved: that is a mouse on vertical guides, not a slipping one.
+    Empty otherwise."""
+    x_counts, z_counts = (float(v) for v in np.asarray(xz_counts, dtype=float)[:2])
+    if abs(x_motion_mm) < LIVENESS_MIN_MOVE_MM or abs(x_counts) > _CROSS_CHECK_FLOOR_COUNTS or z_counts == 0:
+        return ""
+    return (
+        f"; its x stayed within {_CROSS_CHECK_FLOOR_COUNTS} counts of 0 over {abs(x_motion_mm):.3f} mm of x while its "
+        'z moved: a mouse on vertical guides sees z only; if yours is, set [mice] xz_mount = "guided"'
+    )
