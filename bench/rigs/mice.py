@@ -246,6 +246,8 @@ class MiceInstrument:
         :func:`x_disagreement_tolerance_mm` allows, naming the mouse that saw less (a slipping or lifted mouse loses
         motion; none invents it); ``hint`` (:meth:`_mount_hint`) is added when that is the x-z mouse.
 
+        Not called for an x-z mouse on vertical guides (``xz_mount = "guided"``), which sees no x.
+
         [choice] Both mice ride the one platform and see its x: whatever pose the robot attained, off its command
         by its geometry (an uncalibrated pkm5 by up to 19 mm) or its play, it moved both alike, so this check needs
         no allowance for the robot's error, which the commanded-move rule above must grant (and which hides a mouse
