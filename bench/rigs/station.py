@@ -33,6 +33,8 @@ Example (``examples/stations/`` holds one per seed setup)::
     xz = "/dev/input/by-id/usb-Dell_MS116-event-mouse"      # measures x and z
     cpi = 800                      # nominal resolution, in force unless a stored calibration is named:
     calibration = 3                # the stored mouse calibration version in force (bench store calibrations)
+    xz_mount = "guided"            # the x-z mouse on vertical guides, pushed by the end effector: sees z only
+                                   # (default "platform": it rides the end effector and sees x and z)
 
     [calliper]                     # readings the operator takes
     kind = "typed"                 # typed | serial
