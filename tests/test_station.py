@@ -68,6 +68,10 @@ def test_every_example_station_parses_with_the_capabilities_of_its_devices():
             "vertical guides: sees z only)",
         ),
         (
+            _station(mice={"xy": "/dev/input/a", "xz": "/dev/input/b", "cpi": 1e20}),
+            "mice.cpi = 1e+20, expected a mouse's resolution in counts per inch, 100 to 50000",
+        ),
+        (
             _station(mice={"xy": "/dev/input/a", "xz": "/dev/input/b", "xz_mount": True}),
             'mice.xz_mount = True, expected "platform"',
         ),

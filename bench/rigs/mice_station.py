@@ -29,6 +29,11 @@ __all__ = ["MiceSpec", "calibration_summary", "check_mice", "mouse_calibration",
 _log = logging.getLogger(__name__)
 
 
+#: The resolutions a station may state (counts per inch) [choice: optical mouse sensors span about 200-26,000 cpi;
+#: a figure outside 100-50,000 is a typo (1e20 was accepted and every reading became 0 mm)].
+MIN_CPI, MAX_CPI = 100.0, 50_000.0
+
+
 @dataclass(frozen=True)
 class MiceSpec:
     """Two optical mice by event device: ``xy`` measures x and y, ``xz`` measures x and z (z only on guides)."""
@@ -57,10 +62,13 @@ def parse_mice(table: StationTable) -> MiceSpec:
     xz_mount = table.get("xz_mount", str, XZ_PLATFORM, expected=mount_expected)
     if xz_mount not in XZ_MOUNTS:
         raise table.fail("xz_mount", xz_mount, mount_expected)
+    cpi = table.number("cpi", DEFAULT_CPI)
+    if not MIN_CPI <= cpi <= MAX_CPI:
+        raise table.fail("cpi", cpi, f"a mouse's resolution in counts per inch, {MIN_CPI:g} to {MAX_CPI:g}")
     return MiceSpec(
         xy=table.get("xy", str, required=True, expected="the x-y mouse's event device"),
         xz=table.get("xz", str, required=True, expected="the x-z mouse's event device"),
-        cpi=table.number("cpi", DEFAULT_CPI),
+        cpi=cpi,
         noise_counts=table.number("noise_counts", None, zero_allowed=True),
         grab=table.get("grab", bool, True),
         calibration=version,
