@@ -1,16 +1,19 @@
 """Lab-store sync throughput and a cross-bench query, measured in one run (prints figures and ratios, asserts nothing).
 
 * Sync: ``--benches`` local stores of ``--samples`` pose samples each (in ``--runs`` runs) are pushed with
-  ``sync_store`` into one PostgreSQL server: the first ``--sequential`` (5) one after the other (samples/s of each:
-  min/median/max), the rest at once, one process each (aggregate samples/s from the first start to the last end,
-  imports excluded). With the throwaway cluster, also the CPU seconds per sample of this process (SQLite read,
-  formatting) and of the server (every postgres process of the cluster, the exited backends included), which depend
-  far less on the machine's load than the wall clock does.
+  ``sync_store`` into one PostgreSQL server: the first ``--sequential`` (5) one after the other, each twice, into
+  two databases: reading and formatting in the sync's own thread (``producers=0``, the default below 4 cores) and
+  in two producer processes (``producers=2``, the default for a large sync on 4 cores or more; samples/s of each:
+  min/median/max); the rest at once, one process each (aggregate samples/s from the first start to the last end,
+  imports excluded). With the throwaway cluster, also the CPU microseconds per sample of this process with its
+  producer processes (SQLite read, formatting) and of the server (every postgres process of the cluster, the
+  exited backends included), which depend far less on the machine's load than the wall clock does.
 * Floor: a bare COPY of the same rows (the same COPY text, typed columns and checksums included, formatted
-  beforehand) into an unindexed, unlogged table of the same server (no key, no trigger, no SQLite read, no
-  formatting, one connection), right after each of the sequential syncs, so that each ratio sync/floor is taken at
-  one load (min/median/max over the benches): it says what reading, formatting, the keyed, logged table and the pose
-  trigger cost once the sync's overlap (two connections, formatting ahead) has paid for what it can.
+  beforehand) into a table of the same server without key or trigger (no SQLite read, no formatting, one
+  connection), logged (written through the write-ahead log, as any durable table is: the floor the target uses)
+  and unlogged (no WAL: a lower floor no durable store reaches), right after each bench's syncs, so that each ratio
+  sync/floor is taken at one load (min/median/max over the benches). The floor's CPU (server and this process)
+  over the sync's is the ratio on a machine whose cores are all busy, where wall time is CPU time shared.
 * Query: ``bench lab summary`` (``bench.store.lab_summary.pose_summary``: AP and RP, ISO 9283 7.2.1 and 7.2.2, per
   bench, robot, ISO week, pose, velocity and commanded position) over every synced sample, five times, after
   ANALYZE of bench.samples (what autovacuum does soon after a large sync); the pose tables the summary reads are
@@ -40,6 +43,7 @@ from bench.store import Store  # noqa: E402
 from bench.store.lab import LabStore, sync_store  # noqa: E402
 from bench.store.lab_copy import COPY_COLUMNS, TYPED_COLUMNS, copy_text  # noqa: E402
 from bench.store.lab_summary import pose_summary  # noqa: E402
+from bench.store.lab_sync import LANES  # noqa: E402
 
 #: A bench syncing in its own process: prints the wall-clock start and end of its sync (imports excluded).
 _CHILD = """
@@ -62,24 +66,47 @@ def _database(url: str, name: str) -> str:
     return with_database(url, name)
 
 
-def copy_floor(url: str, path: Path) -> float:
-    """Seconds of a bare COPY of the samples of ``path`` (as sync formats them) into an unlogged table without keys."""
+def copy_floor(url: str, path: Path, cluster: Cluster | None, *, logged: bool) -> tuple[float, float]:
+    """A bare COPY of the samples of ``path`` (as sync formats them, formatted beforehand) into a table without key
+    or trigger, ``logged`` (written through the write-ahead log, as any durable table) or not: its seconds, and the
+    CPU seconds it cost this process and the server together (NaN for a server that is not ours)."""
     import psycopg
 
     with Store(path) as store, psycopg.connect(url) as conn:
         data = [copy_text(r.uuid, store.stored_rows(r.id, extract=TYPED_COLUMNS)) for r in store.runs()]
-        conn.execute("CREATE UNLOGGED TABLE floor (LIKE bench.samples)")
+        conn.execute(f"CREATE {'' if logged else 'UNLOGGED '}TABLE floor (LIKE bench.samples)")
         conn.commit()
         columns = ", ".join(f'"{c}"' for c in COPY_COLUMNS)
-        start = time.perf_counter()
+        cpu, server, start = time.process_time(), server_cpu_s(cluster), time.perf_counter()
         with conn.cursor() as cur, cur.copy(f"COPY floor ({columns}) FROM STDIN") as copy:
             for chunk in data:
                 copy.write(chunk)
         conn.commit()
         elapsed = time.perf_counter() - start
+        cpu_s = time.process_time() - cpu + server_cpu_s(cluster) - server
         conn.execute("DROP TABLE floor")
         conn.commit()
-    return elapsed
+    return elapsed, cpu_s
+
+
+def timed_sync(path: Path, url: str, cluster: Cluster | None, producers: int) -> tuple[float, float, float]:
+    """Sync ``path`` to ``url`` with ``producers`` producer processes: samples/s, and the CPU microseconds per
+    sample of this process with its producers (``os.times``: children once waited for) and of the server."""
+    with Store(path) as store:
+        before, server = os.times(), server_cpu_s(cluster)
+        result = sync_store(store, url, producers=producers)
+        after = os.times()
+    client = after.user + after.system + after.children_user + after.children_system
+    client -= before.user + before.system + before.children_user + before.children_system
+    return (
+        result.samples_per_s,
+        client / result.samples_sent * 1e6,
+        (server_cpu_s(cluster) - server) / result.samples_sent * 1e6,
+    )
+
+
+def _spread(values: list[float], form: str) -> str:
+    return f"min {min(values):{form}}  median {statistics.median(values):{form}}  max {max(values):{form}}"
 
 
 def server_cpu_s(cluster: Cluster | None) -> float:
@@ -123,7 +150,6 @@ def main(argv=None) -> None:
         server = cluster.url
     work = Path(tempfile.mkdtemp(prefix="bench-sync-"))
     try:
-        url = _database(server, "bench_sync_benchmark")
         start = time.perf_counter()
         per_run = [args.samples // args.runs] * args.runs
         stores = [
@@ -137,32 +163,39 @@ def main(argv=None) -> None:
         )
 
         print(f"load average before the syncs: {os.getloadavg()[0]:.1f} on {os.cpu_count()} CPUs")
-        rates, floors, client_cpu, server_cpu = [], [], [], []
-        for path in stores[: args.sequential]:  # each sync beside a floor of the same file: the load moves
-            with Store(path) as store:
-                cpu, server = time.process_time(), server_cpu_s(cluster)
-                result = sync_store(store, url)
-                client_cpu.append((time.process_time() - cpu) / result.samples_sent * 1e6)
-                server_cpu.append((server_cpu_s(cluster) - server) / result.samples_sent * 1e6)
-            rates.append(result.samples_per_s)
-            floors.append(sum(per_run) / copy_floor(url, path))
-        ratios = [rate / floor for rate, floor in zip(rates, floors)]
-        print(
-            f"sync, one bench    {sum(per_run):>9,} samples  min {min(rates):9,.0f}  median "
-            f"{statistics.median(rates):9,.0f}  max {max(rates):9,.0f} samples/s ({len(rates)} benches)"
-        )
-        print(
-            f"floor: bare COPY   {sum(per_run):>9,} samples  min {min(floors):9,.0f}  median "
-            f"{statistics.median(floors):9,.0f}  max {max(floors):9,.0f} samples/s (right after each sync)"
-        )
-        print(
-            f"sync / floor       min {min(ratios):.2f}  median {statistics.median(ratios):.2f}  "
-            f"max {max(ratios):.2f} (each sync against the floor measured right after it)"
-        )
-        print(
-            f"CPU per sample     this process (read, format) median {statistics.median(client_cpu):.1f} us; "
-            f"server median {statistics.median(server_cpu):.1f} us"
-        )
+        variants = {"in this thread": 0, f"{LANES} producers": LANES}
+        urls = {name: _database(server, f"bench_sync_benchmark_{i}") for i, name in enumerate(variants)}
+        url = urls["in this thread"]  # the one the concurrent syncs and the summary use
+        rates: dict[str, list[float]] = {name: [] for name in variants}
+        cpu: dict[str, list[tuple[float, float]]] = {name: [] for name in variants}
+        floors: dict[str, list[tuple[float, float]]] = {"logged": [], "unlogged": []}
+        n = sum(per_run)
+        for path in stores[: args.sequential]:  # the syncs and floors of one file in a row: the load moves
+            for name, producers in variants.items():
+                rate, client_us, server_us = timed_sync(path, urls[name], cluster, producers)
+                rates[name].append(rate)
+                cpu[name].append((client_us, server_us))
+            for kind in floors:
+                seconds, cpu_s = copy_floor(url, path, cluster, logged=kind == "logged")
+                floors[kind].append((n / seconds, cpu_s / n * 1e6))
+        for kind, values in floors.items():
+            print(
+                f"floor: bare COPY, {kind + ' table':<15} {n:,} samples: {_spread([v[0] for v in values], '9,.0f')}"
+                f" samples/s; CPU (server and this process) median {statistics.median(v[1] for v in values):.1f} us"
+                " a sample"
+            )
+        for name in variants:
+            print(f"sync, {name:<21} {n:,} samples: {_spread(rates[name], '9,.0f')} samples/s")
+            for kind, values in floors.items():
+                ratios = [rate / floor[0] for rate, floor in zip(rates[name], values)]
+                print(f"    sync / floor ({kind + ')':<9} {_spread(ratios, '.2f')}")
+            client, server_us = (statistics.median(c[i] for c in cpu[name]) for i in (0, 1))
+            logged_cpu = statistics.median(v[1] for v in floors["logged"])
+            print(
+                f"    CPU per sample: this process and its producers {client:.1f} us, server {server_us:.1f} us;"
+                f" floor (logged) CPU / sync CPU {logged_cpu / (client + server_us):.2f} (the ratio on a saturated"
+                " machine)"
+            )
 
         rest = stores[args.sequential :]
         if rest:  # one process per bench; the window runs from the first sync's start to the last one's end

@@ -28,7 +28,7 @@ _log = logging.getLogger(__name__)
 
 _COPY_COLUMNS = ", ".join(f'"{c}"' for c in COPY_COLUMNS)
 #: Connections sending batches at once (each its own runs): the server stores and folds two batches in parallel.
-_LANES = 2
+LANES = 2
 #: Memory for the pose trigger's transition table of one batch (about 400 bytes a row): with the server's default
 #: (4 MB) a 20 000-sample batch spills to a temporary file (10-15 % more of the server's time per sample).
 _WORK_MEM = "64MB"
@@ -239,7 +239,7 @@ def _push(
     conn.commit()
     held = _held_steps(conn, runs)
     to_send = [run for run in runs if held[run.uuid] is not None]
-    lanes = _deal(to_send, held, _LANES)
+    lanes = _deal(to_send, held, LANES)
     connections = [conn]
     try:
         for _ in lanes[1:]:
