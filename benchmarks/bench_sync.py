@@ -66,14 +66,15 @@ def _database(url: str, name: str) -> str:
     return with_database(url, name)
 
 
-def copy_floor(url: str, path: Path, cluster: Cluster | None, *, logged: bool) -> tuple[float, float]:
+def copy_floor(url: str, path: Path, cluster: Cluster | None, *, logged: bool) -> tuple[float, float, float]:
     """A bare COPY of the samples of ``path`` (as sync formats them, formatted beforehand) into a table without key
-    or trigger, ``logged`` (written through the write-ahead log, as any durable table) or not: its seconds, and the
-    CPU seconds it cost this process and the server together (NaN for a server that is not ours)."""
+    or trigger, ``logged`` (written through the write-ahead log, as any durable table) or not: samples/s, and the
+    CPU microseconds per sample of this process and of the server (NaN for a server that is not ours)."""
     import psycopg
 
     with Store(path) as store, psycopg.connect(url) as conn:
         data = [copy_text(r.uuid, store.stored_rows(r.id, extract=TYPED_COLUMNS)) for r in store.runs()]
+        n = sum(r.n_samples for r in store.runs())
         conn.execute(f"CREATE {'' if logged else 'UNLOGGED '}TABLE floor (LIKE bench.samples)")
         conn.commit()
         columns = ", ".join(f'"{c}"' for c in COPY_COLUMNS)
@@ -83,24 +84,25 @@ def copy_floor(url: str, path: Path, cluster: Cluster | None, *, logged: bool) -
                 copy.write(chunk)
         conn.commit()
         elapsed = time.perf_counter() - start
-        cpu_s = time.process_time() - cpu + server_cpu_s(cluster) - server
+        client_s, server_s = time.process_time() - cpu, server_cpu_s(cluster) - server
         conn.execute("DROP TABLE floor")
         conn.commit()
-    return elapsed, cpu_s
+    return n / elapsed, client_s / n * 1e6, server_s / n * 1e6
 
 
-def timed_sync(path: Path, url: str, cluster: Cluster | None, producers: int) -> tuple[float, float, float]:
+def timed_sync(path: Path, url: str, cluster: Cluster | None, producers: int) -> tuple[float, float, float, float]:
     """Sync ``path`` to ``url`` with ``producers`` producer processes: samples/s, and the CPU microseconds per
-    sample of this process with its producers (``os.times``: children once waited for) and of the server."""
+    sample of this process, of its producers (``os.times``: children once waited for) and of the server."""
     with Store(path) as store:
         before, server = os.times(), server_cpu_s(cluster)
         result = sync_store(store, url, producers=producers)
         after = os.times()
-    client = after.user + after.system + after.children_user + after.children_system
-    client -= before.user + before.system + before.children_user + before.children_system
+    own = after.user + after.system - before.user - before.system
+    children = after.children_user + after.children_system - before.children_user - before.children_system
     return (
         result.samples_per_s,
-        client / result.samples_sent * 1e6,
+        own / result.samples_sent * 1e6,
+        children / result.samples_sent * 1e6,
         (server_cpu_s(cluster) - server) / result.samples_sent * 1e6,
     )
 
@@ -163,38 +165,45 @@ def main(argv=None) -> None:
         )
 
         print(f"load average before the syncs: {os.getloadavg()[0]:.1f} on {os.cpu_count()} CPUs")
-        variants = {"in this thread": 0, f"{LANES} producers": LANES}
+        variants = {"in this thread": 0, "1 producer": 1, f"{LANES} producers": LANES}
         urls = {name: _database(server, f"bench_sync_benchmark_{i}") for i, name in enumerate(variants)}
         url = urls["in this thread"]  # the one the concurrent syncs and the summary use
         rates: dict[str, list[float]] = {name: [] for name in variants}
-        cpu: dict[str, list[tuple[float, float]]] = {name: [] for name in variants}
-        floors: dict[str, list[tuple[float, float]]] = {"logged": [], "unlogged": []}
+        cpu: dict[str, list[tuple[float, float, float]]] = {name: [] for name in variants}
+        floors: dict[str, list[tuple[float, float, float]]] = {"logged": [], "unlogged": []}
         n = sum(per_run)
         for path in stores[: args.sequential]:  # the syncs and floors of one file in a row: the load moves
             for name, producers in variants.items():
-                rate, client_us, server_us = timed_sync(path, urls[name], cluster, producers)
+                rate, *cpu_us = timed_sync(path, urls[name], cluster, producers)
                 rates[name].append(rate)
-                cpu[name].append((client_us, server_us))
+                cpu[name].append((cpu_us[0], cpu_us[1], cpu_us[2]))
             for kind in floors:
-                seconds, cpu_s = copy_floor(url, path, cluster, logged=kind == "logged")
-                floors[kind].append((n / seconds, cpu_s / n * 1e6))
+                floors[kind].append(copy_floor(url, path, cluster, logged=kind == "logged"))
+        floor_cpu = {kind: [statistics.median(v[i] for v in values) for i in (1, 2)] for kind, values in floors.items()}
         for kind, values in floors.items():
             print(
                 f"floor: bare COPY, {kind + ' table':<15} {n:,} samples: {_spread([v[0] for v in values], '9,.0f')}"
-                f" samples/s; CPU (server and this process) median {statistics.median(v[1] for v in values):.1f} us"
-                " a sample"
+                f" samples/s; CPU per sample (medians): this process {floor_cpu[kind][0]:.1f} us, server"
+                f" {floor_cpu[kind][1]:.1f} us"
             )
-        for name in variants:
+        for name, producers in variants.items():
             print(f"sync, {name:<21} {n:,} samples: {_spread(rates[name], '9,.0f')} samples/s")
             for kind, values in floors.items():
                 ratios = [rate / floor[0] for rate, floor in zip(rates[name], values)]
                 print(f"    sync / floor ({kind + ')':<9} {_spread(ratios, '.2f')}")
-            client, server_us = (statistics.median(c[i] for c in cpu[name]) for i in (0, 1))
-            logged_cpu = statistics.median(v[1] for v in floors["logged"])
+            own, children, server_us = (statistics.median(c[i] for c in cpu[name]) for i in (0, 1, 2))
             print(
-                f"    CPU per sample: this process and its producers {client:.1f} us, server {server_us:.1f} us;"
-                f" floor (logged) CPU / sync CPU {logged_cpu / (client + server_us):.2f} (the ratio on a saturated"
-                " machine)"
+                f"    CPU per sample (medians): this process {own:.1f} us, its producers {children:.1f} us, server"
+                f" {server_us:.1f} us"
+            )
+            floor_own, floor_server = floor_cpu["logged"]
+            # all cores busy: wall time is CPU time shared out; a core free for each process: its busiest one sets
+            # the pace (the producers and the server's lanes share their CPU evenly: the runs are dealt by samples)
+            busiest = max(own, children / max(producers, 1), server_us / LANES)
+            print(
+                f"    floor (logged) CPU / sync CPU: all of it {(floor_own + floor_server) / (own + children + server_us):.2f}"
+                f" (the ratio on a machine with every core busy); the busiest process's"
+                f" {max(floor_own, floor_server) / busiest:.2f} (the ratio with a core free for each process)"
             )
 
         rest = stores[args.sequential :]

@@ -16,6 +16,7 @@ psycopg = pytest.importorskip("psycopg", reason='the lab store needs psycopg 3 (
 from postgres_support import lab_server, lab_url, make_store  # noqa: E402, F401  (fixtures)
 from test_store_sync import local_checksums, server_state  # noqa: E402
 
+from bench.cli import main  # noqa: E402
 from bench.store import Store  # noqa: E402
 from bench.store.lab import LabStoreError, sync_store  # noqa: E402
 
@@ -101,3 +102,14 @@ def test_a_producer_killed_mid_run_is_one_line_and_the_next_sync_resumes(tmp_pat
     with Store(path) as store:
         assert sync_store(store, lab_url, batch_size=100, producers=2).samples_sent == 6000 - held
     assert server_state(lab_url) == (6000, 6000, local_checksums(path))
+
+
+def test_bench_sync_producers_option(tmp_path, lab_url, capsys):
+    path = make_store(tmp_path / "c.db", "bench-c", [500, 300])
+    assert main(["sync", "--store", str(path), "--to", lab_url, "--batch", "100", "--producers", "1"]) == 0
+    assert "800 new samples" in capsys.readouterr().out
+    assert server_state(lab_url) == (800, 800, local_checksums(path))
+    assert main(["sync", "--store", str(path), "--to", lab_url, "--producers", "3"]) == 2
+    assert (
+        capsys.readouterr().err.strip().splitlines()[-1] == "bench: error: --producers 3: expected a number from 0 to 2"
+    )

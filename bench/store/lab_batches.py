@@ -1,17 +1,19 @@
 """The batches a lab sync sends: the samples the server lacks, read from the local file and formatted as COPY text.
 
 Reading a sample from SQLite (its ``json_extract`` of the typed values included) and formatting its COPY line cost
-about 8 us of this process a sample, under Python's lock: as much as the server's work on it. A large sync from a
-store file therefore reads and formats in producer processes (:func:`lane_batches`), each with its own read-only
-connection to the file, while the sync's threads send the batches already formatted: the reading, the sending and
-the server's storing run on as many cores as the machine has. A small sync (under two batches, the automatic sync
-after a run) formats in its own thread: starting a process costs more than it saves.
+about 8 us of the sync's process a sample, under Python's lock: on a machine with cores to spare, that one thread
+sets the sync's pace while the server's two connections wait (``benchmarks/bench_sync.py``: its busiest process).
+So a large sync from a store file can read and format a lane's batches in a producer process (this module run with
+``python -m``, its own read-only connection to the file) while the sync's threads send them, and this thread
+formats the other lane's (:func:`lane_batches`). A producer's start costs about 0.15 s of CPU, and its batches
+cross a pipe: worth it for a sync of :data:`PRODUCED_BATCHES` batches or more on a machine of 4 cores or more
+(:func:`producer_count`), a loss on a machine whose cores are all busy.
 
-Every sample the server lacked when the sync asked is in exactly one batch: a run is cut at the step index of every
-``batch_size``-th sample (:meth:`bench.store.Store.step_marks`) into consecutive step ranges, the last one open, and
-each range's rows, less the steps the server holds, are one batch (one transaction on the server). A producer that
-fails (an exception, or its process killed) fails the sync after the batches committed before it; the next sync
-sends the rest.
+Every sample the server lacked when the sync asked is in exactly one batch: a produced run is cut at the step index
+of every ``batch_size``-th sample (:meth:`bench.store.Store.step_marks`) into consecutive step ranges, the last one
+open, and each range's rows, less the steps the server holds, are one batch (one transaction on the server). A
+producer that fails (an exception, or its process killed) fails the sync after the batches committed before it,
+in one line; the next sync sends the rest.
 """
 
 from __future__ import annotations
@@ -43,14 +45,15 @@ PRODUCED_BATCHES = 4
 
 
 def producer_count(store: Store, samples: int, batch_size: int, lanes: int, requested: int | None) -> int:
-    """Producer processes for a sync of ``samples`` samples: ``requested`` when given (at most one per lane), else
-    one per lane for a sync of :data:`PRODUCED_BATCHES` batches or more on a machine of 4 cores or more (fewer
-    leave no core to overlap with), none for an in-memory store (which another process cannot open)."""
+    """Producer processes for a sync of ``samples`` samples in ``lanes`` lanes: ``requested`` when given (one per
+    lane at most), else one (the busiest process's CPU per sample falls from about 10 to 6 us, for about 1.5 us
+    more in all, measured in ``benchmarks/bench_sync.py``) for a sync of :data:`PRODUCED_BATCHES` batches or more
+    on a machine of 4 cores or more; none for an in-memory store (which another process cannot open)."""
     if store.path == ":memory:":
         return 0
     if requested is not None:
         return min(requested, lanes)
-    return lanes if samples >= PRODUCED_BATCHES * batch_size and (os.cpu_count() or 1) >= 4 else 0
+    return min(1, lanes) if samples >= PRODUCED_BATCHES * batch_size and (os.cpu_count() or 1) >= 4 else 0
 
 
 def _formatted(rows: Any, run_uuid: str, held: Collection[int], limit: int | None) -> tuple[list[bytes], int, bool]:

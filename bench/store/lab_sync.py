@@ -276,8 +276,8 @@ def sync_store(
     then twice that, ...). A server with no connection slot free (:class:`LabServerBusy`) is asked again after a
     random wait (0.5-1.5 times ``retry_wait_s``, doubling up to 30 s), for ``busy_wait_s`` in all: a crowd of benches
     syncing at once shares the server's connections instead of failing. ``producers``: processes reading and
-    formatting the batches (:func:`bench.store.lab_batches.lane_batches`; None: one per lane for a sync of two
-    batches or more, 0: in this thread).
+    formatting the batches of as many lanes (:mod:`bench.store.lab_batches`; 0: all in this thread; None: one for a
+    sync of 4 batches or more on a machine of 4 cores or more).
 
     Raises
     ------
