@@ -7,7 +7,8 @@
   min/median/max); the rest at once, one process each (aggregate samples/s from the first start to the last end,
   imports excluded). With the throwaway cluster, also the CPU microseconds per sample of this process with its
   producer processes (SQLite read, formatting) and of the server (every postgres process of the cluster, the
-  exited backends included), which depend far less on the machine's load than the wall clock does.
+  exited backends included; autovacuum off while timing, so that one sync's later vacuum never lands in
+  another's figure), which depend far less on the machine's load than the wall clock does.
 * Floor: a bare COPY of the same rows (the same COPY text, typed columns and checksums included, formatted
   beforehand) into a table of the same server without key or trigger (no SQLite read, no formatting, one
   connection), logged (written through the write-ahead log, as any durable table is: the floor the target uses)
@@ -107,6 +108,16 @@ def timed_sync(path: Path, url: str, cluster: Cluster | None, producers: int) ->
     )
 
 
+def _autovacuum(url: str, setting: str) -> None:
+    """Autovacuum on or off for the throwaway cluster: off while syncs and floors are timed, so that the vacuum and
+    analysis of one sync's rows (due once per table, later) never land in another's CPU; on for the summary."""
+    import psycopg
+
+    with psycopg.connect(url, autocommit=True) as admin:
+        admin.execute(f"ALTER SYSTEM SET autovacuum = {setting}")
+        admin.execute("SELECT pg_reload_conf()")
+
+
 def _spread(values: list[float], form: str) -> str:
     return f"min {min(values):{form}}  median {statistics.median(values):{form}}  max {max(values):{form}}"
 
@@ -150,6 +161,7 @@ def main(argv=None) -> None:
             sys.exit("bench_sync: no PostgreSQL (set BENCH_TEST_POSTGRES or install postgresql)")
         cluster = Cluster(_bindir())
         server = cluster.url
+        _autovacuum(server, "off")
     work = Path(tempfile.mkdtemp(prefix="bench-sync-"))
     try:
         start = time.perf_counter()
@@ -227,6 +239,8 @@ def main(argv=None) -> None:
 
         import psycopg
 
+        if cluster is not None:
+            _autovacuum(server, "on")
         with psycopg.connect(url, autocommit=True) as conn:  # the statistics autovacuum would have gathered by now
             conn.execute("ANALYZE bench.runs")
             conn.execute("ANALYZE bench.samples")
