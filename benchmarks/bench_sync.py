@@ -122,9 +122,11 @@ def _spread(values: list[float], form: str) -> str:
     return f"min {min(values):{form}}  median {statistics.median(values):{form}}  max {max(values):{form}}"
 
 
-def server_cpu_s(cluster: Cluster | None) -> float:
-    """CPU seconds used so far by the throwaway cluster: its postmaster, the children it has reaped (exited
-    backends) and the live ones (proc(5): utime, stime, cutime, cstime); NaN for a server that is not ours."""
+def server_cpu_s(cluster: Cluster | None, *, background: bool = False) -> float:
+    """CPU seconds used so far by the throwaway cluster's connections: the backends it has reaped (the postmaster's
+    cutime, cstime: autovacuum is off while timing) and the live ones (proc(5): utime, stime); with
+    ``background``, those of its background processes instead (checkpointer, WAL writer, background writer: the
+    durable writes' later work, which lands in whichever window runs then). NaN for a server that is not ours."""
     if cluster is None:
         return float("nan")
     tick = os.sysconf("SC_CLK_TCK")
@@ -134,15 +136,18 @@ def server_cpu_s(cluster: Cluster | None) -> float:
         return Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
 
     main_fields = fields(postmaster)
-    total = sum(int(main_fields[i]) for i in (11, 12, 13, 14))
+    total = 0 if background else sum(int(main_fields[i]) for i in (13, 14))
     for entry in Path("/proc").iterdir():
         if entry.name.isdigit():
             try:
                 child = fields(int(entry.name))
+                backend = (entry / "cmdline").read_bytes().startswith(b"postgres: bench ")
             except OSError:  # exited meanwhile: its time is in the postmaster's cutime, cstime
                 continue
-            if int(child[1]) == postmaster:
+            if int(child[1]) == postmaster and backend != background:
                 total += int(child[11]) + int(child[12])
+    if background:
+        total += int(main_fields[11]) + int(main_fields[12])
     return total / tick
 
 
@@ -184,6 +189,7 @@ def main(argv=None) -> None:
         cpu: dict[str, list[tuple[float, float, float]]] = {name: [] for name in variants}
         floors: dict[str, list[tuple[float, float, float]]] = {"logged": [], "unlogged": []}
         n = sum(per_run)
+        background = server_cpu_s(cluster, background=True)
         for path in stores[: args.sequential]:  # the syncs and floors of one file in a row: the load moves
             for name, producers in variants.items():
                 rate, *cpu_us = timed_sync(path, urls[name], cluster, producers)
@@ -191,6 +197,7 @@ def main(argv=None) -> None:
                 cpu[name].append((cpu_us[0], cpu_us[1], cpu_us[2]))
             for kind in floors:
                 floors[kind].append(copy_floor(url, path, cluster, logged=kind == "logged"))
+        background = server_cpu_s(cluster, background=True) - background
         floor_cpu = {kind: [statistics.median(v[i] for v in values) for i in (1, 2)] for kind, values in floors.items()}
         for kind, values in floors.items():
             print(
@@ -198,6 +205,10 @@ def main(argv=None) -> None:
                 f" samples/s; CPU per sample (medians): this process {floor_cpu[kind][0]:.1f} us, server"
                 f" {floor_cpu[kind][1]:.1f} us"
             )
+        print(
+            f"server's background processes (checkpoints, WAL writer): {background / n / args.sequential * 1e6:.1f} us"
+            " a sample synced, over every sync and floor above (in none of their figures)"
+        )
         for name, producers in variants.items():
             print(f"sync, {name:<21} {n:,} samples: {_spread(rates[name], '9,.0f')} samples/s")
             for kind, values in floors.items():
