@@ -93,7 +93,8 @@ def _ranges(store: Store, run: RunRecord, batch_size: int) -> list[tuple[int, in
 class _ProducedBatches:
     """The batches of one lane's runs, read and formatted in step order by a producer process (this module run
     with ``python -m``): it is given every range at once on its stdin, and writes each batch to its stdout as a
-    header line ``<samples> <bytes>`` and the COPY text, then ``end``; the pipe holds it about one batch ahead."""
+    header line ``<samples> <bytes of each chunk>...`` and the chunks of COPY text (as this thread cuts them, so that the
+    server parses one while the next goes), then ``end``; the pipe holds it about one batch ahead."""
 
     def __init__(
         self, store: Store, runs: Sequence[RunRecord], held: dict[str, set[int] | None], batch_size: int
@@ -131,15 +132,15 @@ class _ProducedBatches:
             if header == b"end\n" and not self._runs:
                 raise StopIteration
             fields = header.split()
-            if len(fields) != 2 or not self._runs:
+            if not fields or not self._runs:
                 raise self._failure()
-            n, size = int(fields[0]), int(fields[1])
-            text = self._out.read(size)
-            if len(text) != size:
+            n, sizes = int(fields[0]), [int(size) for size in fields[1:]]
+            chunks = [self._out.read(size) for size in sizes]
+            if [len(chunk) for chunk in chunks] != sizes:
                 raise self._failure()
             run = self._runs.popleft()
             if n:
-                return [text], n, run
+                return chunks, n, run
 
     def _failure(self) -> LabStoreError:
         code = self._process.wait()
@@ -198,9 +199,8 @@ def _produce(path: str) -> None:
         for run_id, run_uuid, after, before, held in json.load(sys.stdin):
             rows = store.stored_rows(run_id, after, before_step=before, extract=TYPED_COLUMNS)
             chunks, n, _ = _formatted(rows, run_uuid, frozenset(held), None)
-            text = b"".join(chunks)
-            out.write(b"%d %d\n" % (n, len(text)))
-            out.write(text)
+            out.write(b" ".join([b"%d" % n, *(b"%d" % len(chunk) for chunk in chunks)]) + b"\n")
+            out.writelines(chunks)
             out.flush()
     out.write(b"end\n")
     out.flush()
