@@ -7,9 +7,12 @@ from __future__ import annotations
 import os
 import signal
 import sqlite3
+import uuid
 from pathlib import Path
 
 import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
 
 psycopg = pytest.importorskip("psycopg", reason='the lab store needs psycopg 3 (pip install "psycopg[binary]")')
 
@@ -113,3 +116,21 @@ def test_bench_sync_producers_option(tmp_path, lab_url, capsys):
     assert (
         capsys.readouterr().err.strip().splitlines()[-1] == "bench: error: --producers 3: expected a number from 0 to 2"
     )
+
+
+@settings(max_examples=25, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(st.integers(0, 120), st.integers(1, 40))
+def test_step_marks_cut_a_run_into_batches_of_every_sample_once(tmp_path, n, every):
+    path = make_store(
+        tmp_path / f"m{uuid.uuid4().hex}.db", "bench-m", [n, 7]
+    )  # steps 1, 3, 5, ...; a second run beside
+    with Store(path) as store:
+        marks = store.step_marks(1, every)
+        assert marks == [2 * i + 1 for i in range(0, n, every)]
+        bounds = [*marks[1:], None]
+        batches = [
+            [row[0] for row in store.stored_rows(1, after - 1 if i else -1, before_step=before)]
+            for i, (after, before) in enumerate(zip(marks, bounds))
+        ]
+    assert [step for batch in batches for step in batch] == [2 * i + 1 for i in range(n)]
+    assert all(len(batch) == every for batch in batches[:-1]) and 0 < len(batches[-1]) <= every if n else not batches
