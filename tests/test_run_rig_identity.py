@@ -89,20 +89,27 @@ def test_resume_with_another_device_under_test_is_refused_and_writes_nothing(reh
     assert main(["resume", "1", "--station", str(other), "--sim", "--store", str(store), "--no-progress"]) == 2
     assert _one_error_line(capsys) == (
         f"bench: error: the resumed run: device under test is PKM5-0001, the station "
-        f"{other} names PKM5-0002; resume it with the station it ran on"
+        f"{other} names PKM5-0002; resume it with the station it ran on: --station {STATION} --sim"
     )
     assert store_dump(store) == before
 
 
-def test_resume_of_a_station_run_on_the_simulator_is_refused_and_writes_nothing(rehearsed, tmp_path, capsys):
+@pytest.mark.parametrize(
+    "options, asked",
+    [([], "resume named no rig"), (["--sim"], "resume asked for the simulator (--sim)")],
+)
+def test_resume_of_a_station_run_on_the_simulator_is_refused_naming_its_rig_and_writes_nothing(
+    rehearsed, tmp_path, capsys, options, asked
+):
+    """A bare ``bench resume RUN`` of a station run is told it named no rig (not that it asked for --sim) and
+    which options resume the run on its own rig (issue 32, item 10: refused "with no hint")."""
     store = tmp_path / "bench.db"
     store.write_bytes(rehearsed.read_bytes())
     before = store_dump(store)
     capsys.readouterr()
-    assert main(["resume", "1", "--store", str(store), "--no-progress"]) == 2
+    assert main(["resume", "1", "--store", str(store), "--no-progress", *options]) == 2
     assert _one_error_line(capsys) == (
         f"bench: error: the resumed run: ran on station {STATION} rehearsed on "
-        "simulators (--sim), resume asked for the simulator (--sim); resume it on the "
-        "rig it ran on"
+        f"simulators (--sim), {asked}; resume it on the rig it ran on: --station {STATION} --sim"
     )
     assert store_dump(store) == before
