@@ -40,6 +40,7 @@ __all__ = [
     "calibration_scale_u",
     "counts_instrument",
     "reading_instrument",
+    "registration_span_mm",
     "uncertainty_stated",
 ]
 
@@ -215,12 +216,21 @@ def counts_instrument(
 
 def _span_from_registration(run: RunRecord, table: pd.DataFrame) -> float | None:
     """The largest per-axis distance (mm) of the run's measured positions from the instrument's registration."""
-    registration = (run.settings.get("instrument") or {}).get("registration_mm")
     columns = [c for c in _POSITION if c in table.columns]
-    if registration is None or not columns:
+    if not columns:
         return None
-    offsets = [np.nanmax(np.abs(table[c].to_numpy(float) - registration[_POSITION.index(c)])) for c in columns]
-    return float(np.nanmax(offsets))
+    return registration_span_mm(run, np.column_stack([table[c].to_numpy(float) for c in columns]))
+
+
+def registration_span_mm(run: RunRecord, positions_mm: np.ndarray) -> float | None:
+    """The largest per-axis distance (mm) of ``positions_mm`` (k, d; x, y[, z]) from the instrument's registration
+    (None: the run recorded none, or no position): the lever arm of a calibration-scale error."""
+    registration = (run.settings.get("instrument") or {}).get("registration_mm")
+    positions = np.asarray(positions_mm, float)
+    if registration is None or positions.size == 0:
+        return None
+    d = positions.shape[1]
+    return float(np.nanmax(np.abs(positions - np.asarray(registration, float)[:d])))
 
 
 def ap_instrument_u_mm(sigma_mm: float | None, run: RunRecord) -> float | None:

@@ -43,8 +43,8 @@ from bench.metrology.uncertainty_figures import (
     spread_uncertainty,
 )
 from bench.reports.content import INSTRUMENT_SOURCE, calibrations_in_force
-from bench.reports.instrument import counts_instrument
-from bench.store import Store
+from bench.reports.instrument import InstrumentInfo, ap_instrument_u_mm, counts_instrument, registration_span_mm
+from bench.store import CalibrationRecord, RunRecord, Store
 
 __all__ = [
     "PATH_PROTOCOLS",
@@ -135,6 +135,8 @@ class PathRun:
     #: the instrument's place in U(AT_p), U(RT_p) and in U(AV), worded as ``bench analyze path|path-velocity`` do
     budget: str = ""
     speed_budget: str = ""
+    #: the instrument as its U(AT_p) term was made (the report's budget table)
+    instrument: InstrumentInfo | None = None
 
 
 def figure_text(value: float | None, measured: Measured | None, *, signed: bool = False, none: str = "—") -> str:
@@ -309,9 +311,10 @@ def analyze_path_run(
     if run.protocol_name not in PATH_PROTOCOLS:
         raise ConfigError(f"run {run_id}: a {run.protocol_name} run, expected one of {', '.join(PATH_PROTOCOLS)}")
     protocol = PathDesign.from_config(run.config, source=f"run {run_id}")
-    u_mm = counts_instrument(run, calibrations_in_force(store, run), 0).sigma_mm  # the report's instrument term
     read = getattr(store, "iter_samples", store.samples)  # a sample at a time where the store can (lab views: a list)
     grouped = attained_cycles(read(run_id, kind="path") if samples is None else samples)
+    instrument = path_instrument(run, calibrations_in_force(store, run), grouped)
+    u_mm = ap_instrument_u_mm(instrument.sigma_mm, run)  # AT's instrument term: reading, scale, registration
     figures = []
     for (shape, velocity), cycles in sorted(grouped.items(), key=lambda item: (item[0][0], -item[0][1])):
         n_segments = protocol.n_segments(shape)
@@ -363,4 +366,14 @@ def analyze_path_run(
         {key: [(t, p) for _, t, p, _ in cycles] for key, cycles in grouped.items()},
         instrument_budget(u_mm, INSTRUMENT_SOURCE),
         speed_instrument_budget(None, INSTRUMENT_SOURCE),
+        instrument,
     )
+
+
+def path_instrument(run: RunRecord, calibrations: tuple[CalibrationRecord, ...], grouped: dict) -> InstrumentInfo:
+    """The run's counts instrument (:func:`bench.reports.instrument.counts_instrument`) with the scale of the
+    calibration in force at the largest distance the attained paths reach from the registration, as a pose report
+    has it: a scale error moves every attained point by its distance from the registration, which AT_p carries."""
+    points = [p for cycles in grouped.values() for _, _, p, _ in cycles]
+    span = registration_span_mm(run, np.concatenate(points)) if points else None
+    return counts_instrument(run, calibrations, 0, span_mm=span)
