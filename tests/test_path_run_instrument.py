@@ -19,6 +19,7 @@ import pytest
 
 from bench.cli import main
 from bench.metrology.mouse_calibration import MM_PER_INCH
+from bench.reports.document import _instruments
 from bench.reports.path import collect_path
 from bench.reports.path_run import analyze_path_run, attained_cycles
 from bench.store import Store
@@ -70,6 +71,9 @@ def test_at_u_carries_the_calibration_scale_and_the_registration(mice_path_run):
         report = collect_path(opened, 1)
     stated = float(analysis.budget.split("u = ")[1].split(" mm")[0])
     assert stated == pytest.approx(expected, rel=1e-5)
-    # the report's budget table names the scale term that U(AT_p) carries
-    names = [name for name, _, _ in report.instrument.budget]
-    assert "calibration scale" in names
+    # the report's budget table names every term U(AT_p) carries, and their sum is the stated u
+    (budget,) = [b for b in _instruments(report).blocks if getattr(b, "ident", "") == "budget"]
+    rows = {row[0]: row[1] for row in budget.rows}
+    assert "calibration scale" in rows
+    assert float(rows["registration at home (the run's largest)"]) == pytest.approx(REGISTRATION_U_MM, abs=0.005)
+    assert float(rows["accuracy term (AP, AT_p), per axis"]) == pytest.approx(expected, abs=0.005)
