@@ -77,3 +77,15 @@ def test_at_u_carries_the_calibration_scale_and_the_registration(mice_path_run):
     assert "calibration scale" in rows
     assert float(rows["registration at home (the run's largest)"]) == pytest.approx(REGISTRATION_U_MM, abs=0.005)
     assert float(rows["accuracy term (AP, AT_p), per axis"]) == pytest.approx(expected, abs=0.005)
+
+
+def test_av_u_carries_the_calibration_scale_in_force(mice_path_run):
+    """A speed read by the mice is off by their scale error: U(AV) carries the calibration's relative u (the nominal
+    cpi's ±4 % rectangular: 4/√3 = 2.31 %) and says so, where it said "excludes the instrument: none declared"."""
+    scale_u_pct = 4.0 / math.sqrt(3.0)
+    with Store(mice_path_run, read_only=True) as opened:
+        analysis = analyze_path_run(opened, 1)
+    assert analysis.speed_budget.startswith("U(AV) includes the instrument: u = ")
+    assert float(analysis.speed_budget.split("u = ")[1].split(" %")[0]) == pytest.approx(scale_u_pct, rel=1e-4)
+    (line,) = [f for f in analysis.figures if f.shape == "line"]
+    assert line.av_u.expanded_uncertainty / line.av_u.coverage_factor >= scale_u_pct

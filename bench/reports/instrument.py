@@ -37,6 +37,7 @@ __all__ = [
     "STATED",
     "ap_instrument_u_mm",
     "calibration_fits",
+    "calibration_scale_relative_u",
     "calibration_scale_u",
     "counts_instrument",
     "reading_instrument",
@@ -162,6 +163,14 @@ def calibration_scale_u(calibration: Mapping[str, Any], span_mm: float) -> tuple
     with u(s_i) the stored uncertainty of each axis's scale; a nominal calibration has none measured, so its
     scale error is taken as rectangular of half-width :data:`NOMINAL_CPI_SCALE_ERROR` (u = 0.04/√3 of the span).
     """
+    relative, why = calibration_scale_relative_u(calibration)
+    return span_mm * relative, f"{why} x {span_mm:.1f} mm from the registration"
+
+
+def calibration_scale_relative_u(calibration: Mapping[str, Any]) -> tuple[float, str]:
+    """Relative standard uncertainty of a mouse calibration's scale, max_i u(s_i)/s_i (the nominal cpi's:
+    rectangular of half-width :data:`NOMINAL_CPI_SCALE_ERROR`), and where it comes from: a length's and a speed's
+    (AV) relative u alike."""
     if calibration.get("nominal"):
         relative = NOMINAL_CPI_SCALE_ERROR / np.sqrt(3.0)
         why = f"nominal cpi (mouse-v{calibration.get('version')}): ±{100 * NOMINAL_CPI_SCALE_ERROR:g} % rectangular"
@@ -171,7 +180,7 @@ def calibration_scale_u(calibration: Mapping[str, Any], span_mm: float) -> tuple
             for a in ("x", "y")
         )
         why = f"mouse-v{calibration.get('version')}: u(scale) {100 * relative:.3g} %"
-    return span_mm * relative, f"{why} x {span_mm:.1f} mm from the registration"
+    return float(relative), why
 
 
 def counts_instrument(
