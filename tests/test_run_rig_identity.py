@@ -61,6 +61,22 @@ def test_run_without_a_rig_is_refused_in_one_line_naming_both_flags(tmp_path, ca
     assert not store.exists()
 
 
+@pytest.mark.parametrize(
+    "rig, refusal",
+    [
+        (["--station", "no-such-station.toml"], "no-such-station.toml: cannot read the station file"),
+        (["--port", "/dev/null"], "--port: protocol 'iso9283_pose' needs pose"),
+    ],
+)
+def test_a_run_refused_at_its_rig_leaves_no_new_store_behind(tmp_path, capsys, rig, refusal):
+    """A mistyped station file or a rig without the protocol's instrument is refused in one line and creates no
+    empty store file (issue 32: a refused command writes nothing)."""
+    store = tmp_path / "bench.db"
+    assert main(["run", str(QUICK), "--store", str(store), "--no-progress", *rig]) == 2
+    assert _one_error_line(capsys).startswith(f"bench: error: {refusal}")
+    assert sorted(p.name for p in tmp_path.iterdir()) == []
+
+
 def test_runs_shows_simulated_runs_as_such(rehearsed, tmp_path, capsys):
     store = tmp_path / "bench.db"
     store.write_bytes(rehearsed.read_bytes())
