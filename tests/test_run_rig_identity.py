@@ -93,19 +93,29 @@ def test_runs_shows_simulated_runs_as_such(rehearsed, tmp_path, capsys):
     assert [json.loads(line)["simulated"] for line in capsys.readouterr().out.splitlines()] == [True, False]
 
 
-def test_resume_with_another_device_under_test_is_refused_and_writes_nothing(rehearsed, tmp_path, capsys):
+@pytest.mark.parametrize(
+    "line, changed, what",
+    [
+        ('serial = "PKM5-0001"', 'serial = "PKM5-0002"', "device under test is PKM5-0001"),
+        ('asset = "INV-0001"', 'asset = "INV-0009"', "robot asset is INV-0001"),
+    ],
+)
+def test_resume_with_another_device_under_test_is_refused_and_writes_nothing(
+    rehearsed, tmp_path, capsys, line, changed, what
+):
     store = tmp_path / "bench.db"
     store.write_bytes(rehearsed.read_bytes())
-    other = tmp_path / "pkm5_mice_0002.toml"
+    other = tmp_path / "pkm5_mice_other.toml"
     text = STATION.read_text()
-    assert text.count('serial = "PKM5-0001"') == 1
-    other.write_text(text.replace('serial = "PKM5-0001"', 'serial = "PKM5-0002"'))
+    assert text.count(line) == 1
+    other.write_text(text.replace(line, changed))
     before = store_dump(store)
     capsys.readouterr()
+    named = changed.split('"')[1]
     assert main(["resume", "1", "--station", str(other), "--sim", "--store", str(store), "--no-progress"]) == 2
     assert _one_error_line(capsys) == (
-        f"bench: error: the resumed run: device under test is PKM5-0001, the station "
-        f"{other} names PKM5-0002; resume it with the station it ran on: --station {STATION} --sim"
+        f"bench: error: the resumed run: {what}, the station {other} names {named}; "
+        f"resume it with the station it ran on: --station {STATION} --sim"
     )
     assert store_dump(store) == before
 

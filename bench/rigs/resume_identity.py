@@ -51,8 +51,8 @@ def refuse_another_rig(
     default rig) is not the one run ``run`` ran on (its stored ``settings``). ``named``: the request named a rig
     (--station, --port or --sim); a bare ``bench resume RUN`` is told so, not that it asked for the simulator.
 
-    Compared: simulated or hardware, station or none, the device under test (serial or asset) and the bench (the
-    station's name). A station file moved or renamed is fine when these agree. Every refusal names the options
+    Compared: simulated or hardware, station or none, the device under test (serial or asset), the robot's asset
+    number and the bench (the station's name). A station file moved or renamed is fine when these agree. Every refusal names the options
     that resume the run on its own rig.
     """
     was_station = stored.get("station")
@@ -70,6 +70,8 @@ def refuse_another_rig(
     before, after = was_station.get("identity", {}), now_station["identity"]
     for what, was, now in (
         ("device under test", _dut(before), _dut(after)),
+        # the asset number names the robot too: another one beside the same serial is another robot or a typo
+        ("robot asset", before.get("robot_asset", ""), after.get("robot_asset", "")),
         ("bench", before.get("bench", ""), after.get("bench", "")),
         ("robot", was_station.get("robot", ""), now_station["robot"]),
     ):
