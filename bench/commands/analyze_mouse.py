@@ -39,10 +39,13 @@ def _mouse(args: argparse.Namespace) -> int:
     if {"ref_x_mm", "ref_y_mm", "counts_x", "counts_y"} <= set(frame.columns):
         table = numeric_columns(frame, ["ref_x_mm", "ref_y_mm", "counts_x", "counts_y"])
         return _mouse_matrix(
-            args, table[["ref_x_mm", "ref_y_mm"]].to_numpy(), table[["counts_x", "counts_y"]].to_numpy()
+            args,
+            table[["ref_x_mm", "ref_y_mm"]].to_numpy(),
+            table[["counts_x", "counts_y"]].to_numpy(),
+            f"the table's ref_x_mm, ref_y_mm ({args.file})",
         )
     if _RUN_EXPORT <= set(frame.columns):
-        return _mouse_matrix(args, *_run_export_moves(args, frame))
+        return _mouse_matrix(args, *_run_export_moves(args, frame), _run_export_reference(args))
     if not {"distance_mm", "position"} <= set(frame.columns):
         raise ConfigError(
             f"{args.file}: expected columns distance_mm, position (per-distance method) or "
@@ -118,7 +121,19 @@ def _run_export_moves(args: argparse.Namespace, frame):
     return mouse_calibration_moves(rows, references)
 
 
-def _mouse_matrix(args: argparse.Namespace, reference, counts) -> int:
+def _run_export_reference(args: argparse.Namespace) -> str:
+    """What a run export's fit is made against, in words: the calliper readings of ``--reference``, else the
+    commanded travel, with the hint a calliper-referenced run needs (a fit against the robot under test is never
+    silent, issue 32)."""
+    if args.reference is not None:
+        return f"the calliper readings of {args.reference}"
+    return (
+        "the commanded travel (cmd_x_mm, cmd_y_mm), right for a calibrated-axis run; a calliper-referenced run: "
+        "add --reference REF.csv (bench export RUN --kind mouse_reference)"
+    )
+
+
+def _mouse_matrix(args: argparse.Namespace, reference, counts, reference_source: str) -> int:
     from bench.metrology import fit_matrix
     from bench.metrology.formatting import format_measured, format_uncertainty
     from bench.metrology.mouse_calibration import counts_per_inch
@@ -146,10 +161,12 @@ def _mouse_matrix(args: argparse.Namespace, reference, counts) -> int:
         "scale_mm_per_count": fit.scale_mm_per_count.tolist(),
         "sigma_counts": fit.sigma_counts.tolist(),
         "intercepts_by_direction": intercepts,
+        "reference": reference_source,
     }
     a, big_u = fit.a_mm_per_count, fit.expanded_a_mm_per_count
     scales = [(s, k * u) for s, u in zip(fit.scale_mm_per_count, fit.u_scale_mm_per_count())]
     lines = [
+        f"reference: {reference_source}",
         f"A (mm/count), n = {fit.n} moves, ± U (95 %, k = {k:.2f}, {fit.dof} dof):",
         *(
             "  [" + "  ".join(format_measured(a[i, j], big_u[i, j], signed=True) for j in range(2)) + "]"

@@ -43,8 +43,14 @@ from bench.metrology.uncertainty_figures import (
     spread_uncertainty,
 )
 from bench.reports.content import INSTRUMENT_SOURCE, calibrations_in_force
-from bench.reports.instrument import counts_instrument
-from bench.store import Store
+from bench.reports.instrument import (
+    InstrumentInfo,
+    ap_instrument_u_mm,
+    calibration_scale_relative_u,
+    counts_instrument,
+    registration_span_mm,
+)
+from bench.store import CalibrationRecord, RunRecord, Store
 
 __all__ = [
     "PATH_PROTOCOLS",
@@ -135,6 +141,8 @@ class PathRun:
     #: the instrument's place in U(AT_p), U(RT_p) and in U(AV), worded as ``bench analyze path|path-velocity`` do
     budget: str = ""
     speed_budget: str = ""
+    #: the instrument as its U(AT_p) term was made (the report's budget table)
+    instrument: InstrumentInfo | None = None
 
 
 def figure_text(value: float | None, measured: Measured | None, *, signed: bool = False, none: str = "—") -> str:
@@ -309,9 +317,11 @@ def analyze_path_run(
     if run.protocol_name not in PATH_PROTOCOLS:
         raise ConfigError(f"run {run_id}: a {run.protocol_name} run, expected one of {', '.join(PATH_PROTOCOLS)}")
     protocol = PathDesign.from_config(run.config, source=f"run {run_id}")
-    u_mm = counts_instrument(run, calibrations_in_force(store, run), 0).sigma_mm  # the report's instrument term
     read = getattr(store, "iter_samples", store.samples)  # a sample at a time where the store can (lab views: a list)
     grouped = attained_cycles(read(run_id, kind="path") if samples is None else samples)
+    instrument = path_instrument(run, calibrations_in_force(store, run), grouped)
+    u_mm = ap_instrument_u_mm(instrument.sigma_mm, run)  # AT's instrument term: reading, scale, registration
+    speed_u_pct, speed_source = speed_scale_u_pct(run)
     figures = []
     for (shape, velocity), cycles in sorted(grouped.items(), key=lambda item: (item[0][0], -item[0][1])):
         n_segments = protocol.n_segments(shape)
@@ -335,8 +345,11 @@ def analyze_path_run(
             readings = speed_readings(complete, speed_station_mm, v_c, protocol.final_hold_s)
             v = path_velocity_characteristics([path_speed(t, p) for t, p in readings], v_c)
             extra.update(av_pct=v.av_pct, rv_pct=v.rv_pct, fv_mm_s=v.fv_mm_s, mean_speed_mm_s=v.mean_speed_mm_s)
-            # as bench analyze path-velocity: no speed instrument's scale is stored with a run, so U(AV) says so
-            extra["av_u"] = mean_speed_uncertainty(v.av_pct, v.mean_speed_per_cycle_mm_s, v_c)
+            # a speed read by the mice carries their scale's relative u (the calibration in force), else U(AV) says
+            # it has none, as bench analyze path-velocity does
+            extra["av_u"] = mean_speed_uncertainty(
+                v.av_pct, v.mean_speed_per_cycle_mm_s, v_c, instrument_u_pct=speed_u_pct or 0.0
+            )
             extra["rv_u"] = spread_uncertainty(v.rv_pct, v.n, unit="%")
         duration = float(np.mean([t[-1] - t[0] for _, t, _, _ in complete]))
         figures.append(
@@ -362,5 +375,25 @@ def analyze_path_run(
         tuple(figures),
         {key: [(t, p) for _, t, p, _ in cycles] for key, cycles in grouped.items()},
         instrument_budget(u_mm, INSTRUMENT_SOURCE),
-        speed_instrument_budget(None, INSTRUMENT_SOURCE),
+        speed_instrument_budget(speed_u_pct, speed_source),
+        instrument,
     )
+
+
+def speed_scale_u_pct(run: RunRecord) -> tuple[float | None, str]:
+    """The relative standard uncertainty (%) of a speed the run's counts instrument reads (its calibration scale in
+    force: a speed is a length per time), and its source; None when the run stored no scale calibration."""
+    calibration = (run.settings.get("instrument") or {}).get("scale_calibration")
+    if not isinstance(calibration, dict):
+        return None, INSTRUMENT_SOURCE
+    relative, why = calibration_scale_relative_u(calibration)
+    return 100.0 * relative, f"the calibration in force, {why}"
+
+
+def path_instrument(run: RunRecord, calibrations: tuple[CalibrationRecord, ...], grouped: dict) -> InstrumentInfo:
+    """The run's counts instrument (:func:`bench.reports.instrument.counts_instrument`) with the scale of the
+    calibration in force at the largest distance the attained paths reach from the registration, as a pose report
+    has it: a scale error moves every attained point by its distance from the registration, which AT_p carries."""
+    points = [p for cycles in grouped.values() for _, _, p, _ in cycles]
+    span = registration_span_mm(run, np.concatenate(points)) if points else None
+    return counts_instrument(run, calibrations, 0, span_mm=span)
