@@ -104,9 +104,10 @@ def test_a_calliper_reference_replaces_the_robots_commanded_travel():
                     )
                 )
                 references.append(_sample(f"x{distance:g}/{where}", cycle, reference_mm=true_x))
-    calliper, counts = mouse_calibration_moves(samples, references)
-    commanded, _ = mouse_calibration_moves(samples)
+    calliper, counts, chained = mouse_calibration_moves(samples, references)
+    commanded, *_ = mouse_calibration_moves(samples)
     assert len(calliper) == 11 and (calliper[:, 1] == 0).all()
+    assert not chained[0] and chained[1:].all()  # one out-and-back chain: each move starts where the last ended
     slope = np.linalg.lstsq(calliper[:, :1], counts[:, 0], rcond=None)[0][0]
     assert slope == pytest.approx(counts_per_mm, rel=2e-3)
     assert np.linalg.lstsq(commanded[:, :1], counts[:, 0], rcond=None)[0][0] == pytest.approx(

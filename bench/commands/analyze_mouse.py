@@ -17,7 +17,8 @@ def register(actions: argparse._SubParsersAction, new_parser) -> None:
         "mouse",
         "mouse resolution: per-distance (reading, distance_mm, position; reading "
         "numbers the readings in the order taken; N/A = restart), "
-        "2x2 fit (ref_x_mm, ref_y_mm, counts_x, counts_y), or a mouse_calibration "
+        "2x2 fit (ref_x_mm, ref_y_mm, counts_x, counts_y, optional starts_at_previous_end: 1 where a move "
+        "starts at the previous row's end reading), or a mouse_calibration "
         "run's export (bench export RUN --kind mouse)",
     )
     mouse.add_argument(
@@ -37,9 +38,19 @@ def _mouse(args: argparse.Namespace) -> int:
 
     frame = read_table_csv(args.file)
     if {"ref_x_mm", "ref_y_mm", "counts_x", "counts_y"} <= set(frame.columns):
-        table = numeric_columns(frame, ["ref_x_mm", "ref_y_mm", "counts_x", "counts_y"])
+        chain = ["starts_at_previous_end"] if "starts_at_previous_end" in frame.columns else []
+        table = numeric_columns(frame, ["ref_x_mm", "ref_y_mm", "counts_x", "counts_y", *chain])
+        chained = table[chain[0]].to_numpy() if chain else np.zeros(len(table))
+        if not np.isin(chained, (0.0, 1.0)).all():
+            raise ConfigError(
+                f"{args.file}: column starts_at_previous_end: {chained[~np.isin(chained, (0.0, 1.0))][0]:g}, "
+                "expected 1 (the move starts at the previous row's end reading) or 0"
+            )
         return _mouse_matrix(
-            args, table[["ref_x_mm", "ref_y_mm"]].to_numpy(), table[["counts_x", "counts_y"]].to_numpy()
+            args,
+            table[["ref_x_mm", "ref_y_mm"]].to_numpy(),
+            table[["counts_x", "counts_y"]].to_numpy(),
+            chained.astype(bool),
         )
     if _RUN_EXPORT <= set(frame.columns):
         return _mouse_matrix(args, *_run_export_moves(args, frame))
@@ -118,13 +129,14 @@ def _run_export_moves(args: argparse.Namespace, frame):
     return mouse_calibration_moves(rows, references)
 
 
-def _mouse_matrix(args: argparse.Namespace, reference, counts) -> int:
+def _mouse_matrix(args: argparse.Namespace, reference, counts, starts_at_previous_end) -> int:
     from bench.metrology import fit_matrix
     from bench.metrology.formatting import format_measured, format_uncertainty
     from bench.metrology.mouse_calibration import counts_per_inch
 
-    # an intercept per move direction models a start/stop offset (sensors.md: without it the offset goes into A)
-    fit = fit_matrix(reference, counts, per_direction=True)
+    # an intercept per move direction models a start/stop offset (sensors.md: without it the offset goes into A);
+    # the moves' shared readings carry their quantisation and reference error into both (the weighted fit)
+    fit = fit_matrix(reference, counts, per_direction=True, starts_at_previous_end=starts_at_previous_end)
     k = fit.coverage_factor
     intercepts = {
         label: {
