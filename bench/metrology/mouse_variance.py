@@ -20,13 +20,14 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike
 
-from bench.errors import ConfigError
+from bench.errors import ConfigError, InsufficientData
 from bench.metrology.uncertainty import resolution_uncertainty
 
 __all__ = ["GlsFit", "feasible_gls", "move_error_structures", "shared_reading_matrix"]
 
-#: Fisher scoring steps of the REML estimate; it converges in well under this on calibration runs.
-_REML_STEPS = 200
+#: Largest |∂(-log L_R)/∂φ| (φ = θ / residual variance) of a free component, or descent into a bound one, that a
+#: REML solution may leave: the optimiser stops there to the objective's rounding.
+_KKT_TOLERANCE = 1e-3
 
 
 @dataclass(frozen=True)
@@ -86,17 +87,39 @@ def _projection(design: np.ndarray, covariance: np.ndarray) -> tuple[np.ndarray,
     return inverse, information, inverse - weighted @ information @ weighted.T
 
 
+def _covariance(theta: np.ndarray, unknown: tuple[np.ndarray, ...], known: np.ndarray) -> np.ndarray:
+    """V(θ) = Σ_j θ_j G_j + Q."""
+    return known + np.einsum("j,jkl->kl", theta, np.array(unknown).reshape(len(theta), *known.shape))
+
+
+def _reml_objective(
+    theta: np.ndarray, y: np.ndarray, design: np.ndarray, unknown: tuple[np.ndarray, ...], known: np.ndarray
+) -> tuple[float, np.ndarray]:
+    """-log L_REML(θ) up to a constant and its gradient (Harville 1977, eqs. 4.4 and 4.7)."""
+    covariance = _covariance(theta, unknown, known)
+    _, information, projection = _projection(design, covariance)
+    projected = projection @ y
+    value = 0.5 * (np.linalg.slogdet(covariance)[1] - np.linalg.slogdet(information)[1] + projected @ y)
+    gradient = np.array([0.5 * (np.sum(projection * g) - projected @ g @ projected) for g in unknown])
+    return float(value), gradient
+
+
+def _scaled(objective: tuple[float, np.ndarray], scale: float) -> tuple[float, np.ndarray]:
+    """The objective in φ = θ / scale (the residual variance), so the optimiser's tolerances are scale-free."""
+    return objective[0], objective[1] * scale
+
+
 def feasible_gls(y: ArrayLike, design: ArrayLike, unknown: tuple[np.ndarray, ...], known: np.ndarray) -> GlsFit:
     """GLS of y = X β + e with Cov(e) = V(θ) = Σ_j θ_j G_j + Q, θ >= 0 estimated by REML.
 
-    REML by Fisher scoring (Patterson & Thompson 1971; Harville 1977, eqs. 4.7-4.9), each step clipped to θ >= 0:
+    REML (Patterson & Thompson 1971): θ̂ minimises, over θ >= 0 (truncated Newton, TNC, with the analytic
+    gradient; Harville 1977, eqs. 4.4 and 4.7),
 
     .. math::
 
+        -\\log L_R(\\theta) = \\tfrac12 \\left(\\log|V| + \\log|X^T V^{-1} X| + y^T P y\\right), \\quad
         P = V^{-1} - V^{-1} X (X^T V^{-1} X)^{-1} X^T V^{-1}, \\quad
-        s_j = \\tfrac12 \\left(y^T P G_j P y - \\operatorname{tr}(P G_j)\\right), \\quad
-        \\mathcal I_{jl} = \\tfrac12 \\operatorname{tr}(P G_j P G_l), \\quad
-        \\theta \\leftarrow \\max(0, \\theta + \\mathcal I^{-1} s)
+        \\frac{\\partial}{\\partial \\theta_j} = \\tfrac12 \\left(\\operatorname{tr}(P G_j) - y^T P G_j P y\\right)
 
     then β̂ = (Xᵀ V̂⁻¹ X)⁻¹ Xᵀ V̂⁻¹ y with Cov(β̂) = (Xᵀ V̂⁻¹ X)⁻¹. The known Q (positive definite) keeps V
     invertible when every θ_j is 0.
@@ -111,6 +134,11 @@ def feasible_gls(y: ArrayLike, design: ArrayLike, unknown: tuple[np.ndarray, ...
         The structures G_j of the unknown variance components.
     known : ndarray, shape (K, K)
         The known covariance Q.
+
+    Raises
+    ------
+    InsufficientData
+        The REML optimisation did not converge (its message is given).
 
     References
     ----------
@@ -127,24 +155,29 @@ def feasible_gls(y: ArrayLike, design: ArrayLike, unknown: tuple[np.ndarray, ...
     >>> np.round(fit.coefficients, 6).tolist()
     [2.0, 1.0]
     """
+    from scipy.optimize import minimize  # here, not at import: bench.metrology resolves its names lazily
+
     observations = np.asarray(y, dtype=float).reshape(-1)
     x = np.asarray(design, dtype=float)
-    ordinary = np.linalg.lstsq(x, observations, rcond=None)[0]
-    residual_variance = float(np.sum((observations - x @ ordinary) ** 2)) / max(len(observations) - x.shape[1], 1)
-    theta = np.full(len(unknown), max(residual_variance, 1e-6) / max(len(unknown), 1))
-    for _ in range(_REML_STEPS if unknown else 0):
-        _, _, projection = _projection(x, known + sum((t * g for t, g in zip(theta, unknown)), np.zeros_like(known)))
-        projected = projection @ observations
-        weighted = [projection @ g for g in unknown]
-        score = np.array([0.5 * (projected @ g @ projected - np.trace(w)) for g, w in zip(unknown, weighted)])
-        information = np.array([[0.5 * np.sum(a * b.T) for b in weighted] for a in weighted])
-        step = np.linalg.lstsq(information, score, rcond=None)[0]
-        updated = np.maximum(theta + step, 0.0)
-        converged = np.allclose(updated, theta, rtol=1e-6, atol=1e-8 * max(residual_variance, 1e-12))
-        theta = updated
-        if converged:
-            break
-    covariance_e = known + sum((t * g for t, g in zip(theta, unknown)), np.zeros_like(known))
-    inverse, covariance, _ = _projection(x, covariance_e)
+    theta = np.zeros(len(unknown))
+    if unknown:
+        ordinary = np.linalg.lstsq(x, observations, rcond=None)[0]
+        residuals = observations - x @ ordinary
+        scale = max(float(residuals @ residuals) / max(len(observations) - x.shape[1], 1), 1e-12)
+        result = minimize(
+            lambda phi: _scaled(_reml_objective(phi * scale, observations, x, unknown, known), scale),
+            np.full(len(unknown), 1.0 / len(unknown)),
+            jac=True,
+            method="TNC",
+            bounds=[(0.0, None)] * len(unknown),
+        )
+        # a line search that stops at the optimum to rounding is still a solution: the KKT conditions decide
+        interior = np.where(result.x > 0.0, np.abs(result.jac), np.maximum(-result.jac, 0.0))
+        if not result.success and interior.max() > _KKT_TOLERANCE:
+            raise InsufficientData(
+                f"feasible GLS: the REML estimate of the variance components failed ({result.message})"
+            )
+        theta = result.x * scale
+    inverse, covariance, _ = _projection(x, _covariance(theta, unknown, known))
     coefficients = covariance @ x.T @ inverse @ observations
     return GlsFit(coefficients, covariance, theta, observations - x @ coefficients)
