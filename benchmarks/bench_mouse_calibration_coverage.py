@@ -20,18 +20,18 @@ from bench.metrology import fit_matrix
 from bench.simulators.mouse_calibration_mc import DESIGNS, matrix_coverage
 
 
-def _first(reference, counts, chained):
+def _first(reference, counts, readings):
     fit = fit_matrix(reference, counts)
     return fit.a_mm_per_count, 2.0 * fit.u_a_mm_per_count
 
 
-def _pooled(reference, counts, chained):
+def _pooled(reference, counts, readings):
     fit = fit_matrix(reference, counts, per_direction=True)
     return fit.a_mm_per_count, fit.expanded_a_mm_per_count
 
 
-def _production(reference, counts, chained):
-    fit = fit_matrix(reference, counts, per_direction=True, starts_at_previous_end=chained)
+def _production(reference, counts, readings):
+    fit = fit_matrix(reference, counts, per_direction=True, readings=readings)
     return fit.a_mm_per_count, fit.expanded_a_mm_per_count
 
 

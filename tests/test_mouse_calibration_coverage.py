@@ -23,8 +23,8 @@ from bench.simulators.mouse_calibration_mc import DESIGNS, calibration_moves, ma
 TRIALS = 600  # binomial SD of a 95 % coverage: 0.9 %
 
 
-def _production(reference, counts, chained):
-    fit = fit_matrix(reference, counts, per_direction=True, starts_at_previous_end=chained)
+def _production(reference, counts, readings):
+    fit = fit_matrix(reference, counts, per_direction=True, readings=readings)
     return fit.a_mm_per_count, fit.expanded_a_mm_per_count
 
 
@@ -42,17 +42,18 @@ def test_stated_u_of_the_mouse_matrix_covers_the_truth_at_10_moves(design):
 
 
 def test_the_simulated_mouse_reports_whole_counts_and_chains_its_readings():
-    reference, counts, chained = calibration_moves(np.random.default_rng(2), 10, "both directions")
+    reference, counts, readings = calibration_moves(np.random.default_rng(2), 10, "both directions")
     assert (counts == np.round(counts)).all()  # a mouse reports integers
     # x chain +5 -5 +10 -10 +15, then y: each move starts at the previous move's end reading, but the first of each
-    assert chained.tolist() == [False, True, True, True, True, False, True, True, True, True]
+    # (the unread move from the x chain's end to the y chain's start lies between readings 5 and 6)
+    assert readings.tolist() == [[0, 1], [1, 2], [2, 3], [3, 4], [4, 5], [6, 7], [7, 8], [8, 9], [9, 10], [10, 11]]
     # out and back over the same length: the two increments sum to the two offsets' difference, never drift apart
     assert reference[:2, 0].tolist() == [5.0, -5.0] and abs(counts[0, 0] + counts[1, 0]) <= 3
 
 
 def test_a_start_stop_offset_is_fitted_with_its_u_and_flagged():
-    reference, counts, chained = calibration_moves(np.random.default_rng(3), 30, "one direction", offset_counts=3.0)
-    fit = fit_matrix(reference, counts, per_direction=True, starts_at_previous_end=chained)
+    reference, counts, readings = calibration_moves(np.random.default_rng(3), 30, "one direction", offset_counts=3.0)
+    fit = fit_matrix(reference, counts, per_direction=True, readings=readings)
     assert fit.offset_labels == ("+x", "+y")
     # along each move's own sensor axis the offset is 3 counts; across it none
     assert fit.offsets_counts[0, 0] == pytest.approx(3.0, abs=3 * fit.u_offsets_counts[0, 0] + 0.1)
@@ -68,13 +69,15 @@ def test_feasible_gls_recovers_known_variance_components():
     size = 800
     x_moves = np.arange(size) % 20 < 10
     chained = np.arange(size) % 10 != 0
+    starts_own = size + 1 + np.arange(size)  # a chain's first move starts at a reading of its own
+    numbers = np.column_stack([np.where(chained, np.arange(size), starts_own), np.arange(1, size + 1)])
     on_x = np.concatenate([x_moves[:1], x_moves])  # reading j ends move j - 1 (and starts move j)
     readings = rng.uniform(-0.5, 0.5, size + 1) + 0.2 * on_x * rng.normal(size=size + 1)
     # one error a reading; a chain's first move starts at a reading of its own
     starts = np.where(chained, readings[:-1], rng.uniform(-0.5, 0.5, size) + 0.2 * x_moves * rng.normal(size=size))
     design = np.column_stack([np.linspace(1.0, 40.0, size), np.ones(size)])
     y = design @ [31.5, 0.6] + readings[1:] - starts + rng.normal(0.0, 0.3, size)
-    fit = feasible_gls(y, design, *move_error_structures(chained, x_moves))
+    fit = feasible_gls(y, design, *move_error_structures(numbers, x_moves))
     # SDs of the estimates about 0.007 and 0.01 (8 seeds); without the known quantisation the first would be 0.17
     assert fit.components[0] == pytest.approx(0.09, abs=0.02)
     assert fit.components[1] == pytest.approx(0.04, abs=0.03)
@@ -83,7 +86,8 @@ def test_feasible_gls_recovers_known_variance_components():
 
 def test_feasible_gls_with_known_covariance_is_the_whitened_least_squares():
     rng = np.random.default_rng(5)
-    known = 0.1 * shared_reading_matrix(rng.uniform(size=12) < 0.6) + 0.05 * np.eye(12)
+    starts = np.where(rng.uniform(size=12) < 0.6, np.arange(12), 20 + np.arange(12))  # some chained, some not
+    known = 0.1 * shared_reading_matrix(np.column_stack([starts, np.arange(1, 13)])) + 0.05 * np.eye(12)
     design = np.column_stack([rng.normal(size=12), np.ones(12)])
     y = rng.normal(size=12)
     whiten = np.linalg.inv(np.linalg.cholesky(known))  # L⁻¹ y = L⁻¹ X β + white noise

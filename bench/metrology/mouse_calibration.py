@@ -257,16 +257,16 @@ def fit_axis_scale(reference_mm: ArrayLike, counts: ArrayLike) -> AxisCalibratio
 
 
 def _weighted_rows(
-    reference: np.ndarray, measured: np.ndarray, design: np.ndarray, starts_at_previous_end: ArrayLike
+    reference: np.ndarray, measured: np.ndarray, design: np.ndarray, readings: ArrayLike
 ) -> tuple[np.ndarray, np.ndarray, list[np.ndarray]]:
     """Coefficients (p, 2), residuals (K, 2) and each sensor axis's coefficient covariance (p, p) of the feasible
     GLS (:func:`bench.metrology.mouse_variance.feasible_gls`): the reference's error shows on the sensor axis
     along each move's step axis."""
-    chained = np.asarray(starts_at_previous_end, dtype=bool).reshape(-1)
-    if chained.size != len(reference):
-        raise ConfigError(f"starts_at_previous_end: {chained.size} flags, expected one per move ({len(reference)})")
+    numbers = np.asarray(readings)
+    if numbers.shape != (len(reference), 2):
+        raise ConfigError(f"readings: shape {numbers.shape}, expected ({len(reference)}, 2): a start and an end a move")
     step_axis = np.array(["xy".index(label[1]) for label in direction_labels(reference)])
-    fits = [feasible_gls(measured[:, i], design, *move_error_structures(chained, step_axis == i)) for i in range(2)]
+    fits = [feasible_gls(measured[:, i], design, *move_error_structures(numbers, step_axis == i)) for i in range(2)]
     coefficients = np.column_stack([fit.coefficients for fit in fits])
     return coefficients, np.column_stack([fit.residuals for fit in fits]), [fit.covariance for fit in fits]
 
@@ -284,7 +284,7 @@ def fit_matrix(
     *,
     intercept: bool = False,
     per_direction: bool = False,
-    starts_at_previous_end: ArrayLike | None = None,
+    readings: ArrayLike | None = None,
 ) -> MatrixCalibration:
     """Least-squares 2x2 calibration c = B r (+ c_0 or + c_0,d per move direction d) and A = B⁻¹ with uncertainties.
 
@@ -302,7 +302,7 @@ def fit_matrix(
     intercept; ``per_direction`` fits one intercept per move direction (:func:`direction_labels`), which models it
     whether the moves go one way or both, and is the production fit (``intercept`` fits one common intercept).
 
-    With ``starts_at_previous_end`` the fit weighs what scatters each move (:mod:`bench.metrology.mouse_variance`):
+    With ``readings`` the fit weighs what scatters each move (:mod:`bench.metrology.mouse_variance`):
     per sensor axis i, Cov(E_i) = θ_1 I + θ_2 (D Dᵀ)_along i + D Dᵀ / 12, the sensor's tracking noise a move, the
     reference's error a reading along the step axis, and the readings' quantisation, a known Type B component of
     1/12 count² a reading (GUM F.2.2.1), shared by the two moves that share a reading. θ is estimated by REML and
@@ -316,10 +316,9 @@ def fit_matrix(
         Reference displacements in the stage frame (mm); at least two non-parallel directions.
     counts : array_like, shape (K, 2)
         Count increments of the two sensor axes for each move.
-    starts_at_previous_end : array_like of bool, shape (K,), optional
-        For each move, whether its start reading is the previous move's end reading (the protocol's out-and-back
-        chain, :func:`mouse_calibration_moves`); all False when no two moves share a reading. Given, the fit is
-        the feasible GLS above.
+    readings : array_like of int, shape (K, 2), optional
+        The number of each move's start and end reading: moves that name one number share that reading (the
+        protocol's out-and-back chain, :func:`mouse_calibration_moves`). Given, the fit is the feasible GLS above.
 
     Raises
     ------
@@ -350,13 +349,13 @@ def fit_matrix(
             "so its intercept and the scale cannot be told apart; use at least two lengths each"
         )
     dof = len(reference) - parameters
-    if starts_at_previous_end is None:
+    if readings is None:
         inverse = np.linalg.inv(normal)
         coefficients = inverse @ design.T @ measured
         residuals = measured - design @ coefficients
         row_covariances = [s2 * inverse for s2 in np.sum(residuals**2, axis=0) / dof]
     else:
-        coefficients, residuals, row_covariances = _weighted_rows(reference, measured, design, starts_at_previous_end)
+        coefficients, residuals, row_covariances = _weighted_rows(reference, measured, design, readings)
     sigma2 = np.sum(residuals**2, axis=0) / dof
     b = coefficients[:2].T
     a = np.linalg.inv(b)
@@ -390,12 +389,12 @@ class CalibrationMoves(NamedTuple):
 
     reference_mm: np.ndarray  #: (K, 2) reference displacements
     counts: np.ndarray  #: (K, 2) the x-y mouse's count increments
-    starts_at_previous_end: np.ndarray  #: (K,) bool: the move's start reading is the previous move's end reading
+    readings: np.ndarray  #: (K, 2) the number of each move's start and end reading (its sample's place in step order)
 
 
 def mouse_calibration_moves(samples: Any, references: Any = None) -> CalibrationMoves:
     """The moves between consecutive readings of one step axis: reference displacements (K, 2) mm, the x-y
-    mouse's count increments (K, 2) and which moves start at the previous move's end reading (K,).
+    mouse's count increments (K, 2) and the numbers of each move's start and end reading (K, 2).
 
     ``samples`` are the ``mouse`` samples in step order (pose ``<axis><mm>/<start|end>``); the reference position of
     each is its calliper reading along the axis (``references``, ``mouse_reference`` samples matched by pose and
@@ -404,8 +403,7 @@ def mouse_calibration_moves(samples: Any, references: Any = None) -> Calibration
     and its quantisation and reference error (:func:`fit_matrix`).
     """
     readings = {(r.pose, r.cycle): r.values["reference_mm"] for r in references or ()}
-    reference, counts, chained = [], [], []
-    previous_end = -1
+    reference, counts, numbers = [], [], []
     for index, (before, after) in enumerate(itertools.pairwise(samples)):
         axis = (after.pose or "?")[0]
         if axis not in "xy" or (before.pose or "?")[0] != axis:
@@ -422,10 +420,9 @@ def mouse_calibration_moves(samples: Any, references: Any = None) -> Calibration
             continue
         reference.append(travel)
         counts.append([after.values[f"mouse_xy_{a}_counts"] - before.values[f"mouse_xy_{a}_counts"] for a in "xy"])
-        chained.append(previous_end == index)  # sample `index` (before) ended the previous kept move
-        previous_end = index + 1
+        numbers.append((index, index + 1))
     return CalibrationMoves(
         np.array(reference, dtype=float).reshape(-1, 2),
         np.array(counts, dtype=float).reshape(-1, 2),
-        np.array(chained, dtype=bool),
+        np.array(numbers, dtype=int).reshape(-1, 2),
     )

@@ -25,9 +25,11 @@ from bench.metrology.uncertainty import resolution_uncertainty
 
 __all__ = ["GlsFit", "feasible_gls", "move_error_structures", "shared_reading_matrix"]
 
-#: Largest |∂(-log L_R)/∂φ| (φ = θ / residual variance) of a free component, or descent into a bound one, that a
-#: REML solution may leave: the optimiser stops there to the objective's rounding.
+#: Largest |∂(-log L_R)/∂φ| a move (φ = θ / residual variance) of a free component, or descent into a bound one,
+#: that a REML solution may leave (the objective grows with the moves; the optimiser stops at its rounding).
 _KKT_TOLERANCE = 1e-3
+#: Most Fisher scoring steps that polish the optimiser's solution (each gains digits; a few reach the rounding).
+_POLISH_STEPS = 10
 
 
 @dataclass(frozen=True)
@@ -40,42 +42,45 @@ class GlsFit:
     residuals: np.ndarray  #: (K,) y - X β̂
 
 
-def shared_reading_matrix(starts_at_previous_end: ArrayLike, mask: ArrayLike | None = None) -> np.ndarray:
+def shared_reading_matrix(readings: ArrayLike, mask: ArrayLike | None = None) -> np.ndarray:
     """D Dᵀ of the moves' readings: the covariance, in units of one reading's variance, of the difference of a
     move's two readings when each reading carries an independent error.
 
-    Move k reads its start and its end; with D the (K x readings) incidence matrix (+1 at the end, -1 at the
-    start), D Dᵀ has 2 on the diagonal and -1 between move k - 1 and move k when move k starts at move k - 1's end
-    reading. ``mask`` (K,) keeps only the moves whose readings carry the error (others are zeroed).
+    ``readings`` (K, 2) numbers each move's start and end reading; two moves that name one number share that
+    reading. D is the (K x readings) incidence matrix (+1 at a move's end, -1 at its start), so D Dᵀ has 2 on the
+    diagonal and -1 between a move and the next that starts at its end reading (+1 where two moves share a start
+    or an end). ``mask`` (K,) keeps only the moves whose readings carry the error (others are zeroed).
 
     Examples
     --------
-    >>> shared_reading_matrix([False, True, False]).astype(int).tolist()
+    Out, back, then a move read on its own:
+
+    >>> shared_reading_matrix([[0, 1], [1, 2], [5, 6]]).astype(int).tolist()
     [[2, -1, 0], [-1, 2, 0], [0, 0, 2]]
     """
-    chained = np.asarray(starts_at_previous_end, dtype=bool).reshape(-1)
-    matrix = 2.0 * np.eye(len(chained))
-    linked = np.flatnonzero(chained[1:]) + 1
-    matrix[linked, linked - 1] = matrix[linked - 1, linked] = -1.0
+    numbers = np.asarray(readings)
+    if numbers.ndim != 2 or numbers.shape[1] != 2:
+        raise ConfigError(f"readings: shape {numbers.shape}, expected (moves, 2): each move's start and end reading")
+    _, index = np.unique(numbers, return_inverse=True)
+    index = index.reshape(-1, 2)
+    moves = np.arange(len(index))
+    incidence = np.zeros((len(index), int(index.max(initial=-1)) + 1))
+    np.add.at(incidence, (moves, index[:, 1]), 1.0)
+    np.add.at(incidence, (moves, index[:, 0]), -1.0)
     if mask is not None:
-        keep = np.asarray(mask, dtype=float).reshape(-1)
-        matrix *= np.outer(keep, keep)
-    return matrix
+        incidence *= np.asarray(mask, dtype=float).reshape(-1, 1)
+    return incidence @ incidence.T
 
 
-def move_error_structures(
-    starts_at_previous_end: ArrayLike, along: ArrayLike
-) -> tuple[tuple[np.ndarray, np.ndarray], np.ndarray]:
+def move_error_structures(readings: ArrayLike, along: ArrayLike) -> tuple[tuple[np.ndarray, np.ndarray], np.ndarray]:
     """The covariance structures of one sensor axis's move errors: the unknown ones (tracking noise, every move
     independent: I; the reference's error a reading, on the moves ``along`` this sensor axis: D Dᵀ there) and the
     known one, the quantisation of the readings: Q = D Dᵀ / 12 count² (GUM F.2.2.1, one count's resolution)."""
     along_mask = np.asarray(along, dtype=bool).reshape(-1)
-    chain = shared_reading_matrix(starts_at_previous_end)
+    chain = shared_reading_matrix(readings)
     if chain.shape[0] != along_mask.size:
-        raise ConfigError(
-            f"starts_at_previous_end: {chain.shape[0]} moves, along: {along_mask.size}, expected one flag per move"
-        )
-    unknown = (np.eye(len(along_mask)), shared_reading_matrix(starts_at_previous_end, along_mask))
+        raise ConfigError(f"readings: {chain.shape[0]} moves, along: {along_mask.size}, expected one row per move")
+    unknown = (np.eye(len(along_mask)), shared_reading_matrix(readings, along_mask))
     return unknown, resolution_uncertainty(1.0) ** 2 * chain
 
 
@@ -102,6 +107,29 @@ def _reml_objective(
     value = 0.5 * (np.linalg.slogdet(covariance)[1] - np.linalg.slogdet(information)[1] + projected @ y)
     gradient = np.array([0.5 * (np.sum(projection * g) - projected @ g @ projected) for g in unknown])
     return float(value), gradient
+
+
+def _polished(
+    theta: np.ndarray, y: np.ndarray, design: np.ndarray, unknown: tuple[np.ndarray, ...], known: np.ndarray
+) -> np.ndarray:
+    """Fisher scoring on the components the optimum leaves free (θ_j > 0), θ_f += I_ff⁻¹ s_f (Harville 1977,
+    eq. 4.9), to the objective's rounding: the optimiser stops within its tolerance, which would leave the fit
+    depending on the order of the moves in the 7th digit."""
+    free = np.flatnonzero(theta > 0.0)
+    for _ in range(_POLISH_STEPS if free.size else 0):
+        _, _, projection = _projection(design, _covariance(theta, unknown, known))
+        projected = projection @ y
+        weighted = [projection @ unknown[j] for j in free]
+        score = np.array([0.5 * (projected @ unknown[j] @ projected - np.trace(w)) for j, w in zip(free, weighted)])
+        information = np.array([[0.5 * np.sum(a * b.T) for b in weighted] for a in weighted])
+        step = np.linalg.lstsq(information, score, rcond=None)[0]
+        if (theta[free] + step < 0.0).any():
+            break
+        theta = theta.copy()
+        theta[free] += step
+        if (np.abs(step) <= 1e-14 * theta[free]).all():
+            break
+    return theta
 
 
 def _scaled(objective: tuple[float, np.ndarray], scale: float) -> tuple[float, np.ndarray]:
@@ -171,13 +199,16 @@ def feasible_gls(y: ArrayLike, design: ArrayLike, unknown: tuple[np.ndarray, ...
             method="TNC",
             bounds=[(0.0, None)] * len(unknown),
         )
-        # a line search that stops at the optimum to rounding is still a solution: the KKT conditions decide
-        interior = np.where(result.x > 0.0, np.abs(result.jac), np.maximum(-result.jac, 0.0))
-        if not result.success and interior.max() > _KKT_TOLERANCE:
+        theta = _polished(result.x * scale, observations, x, unknown, known)
+        # an optimiser that stops near the optimum (its line search at the rounding) is polished there; the KKT
+        # conditions of the polished θ decide whether it is the REML estimate
+        gradient = _reml_objective(theta, observations, x, unknown, known)[1] * scale
+        violation = np.where(theta > 0.0, np.abs(gradient), np.maximum(-gradient, 0.0))
+        if violation.max() > _KKT_TOLERANCE * len(observations):
             raise InsufficientData(
-                f"feasible GLS: the REML estimate of the variance components failed ({result.message})"
+                f"feasible GLS: the REML estimate of the variance components failed ({result.message}; "
+                f"gradient {violation.max():.2g})"
             )
-        theta = result.x * scale
     inverse, covariance, _ = _projection(x, _covariance(theta, unknown, known))
     coefficients = covariance @ x.T @ inverse @ observations
     return GlsFit(coefficients, covariance, theta, observations - x @ coefficients)

@@ -74,8 +74,8 @@ def calibration_moves(
     reading_sd_mm: float = 0.01 / np.sqrt(2.0),
     b: np.ndarray = TRUE_B,
 ) -> CalibrationRun:
-    """Reference displacements (n, 2) mm, simulated count increments (n, 2) and whether each move starts at the
-    previous move's end reading (n,) of one calibration run.
+    """Reference displacements (n, 2) mm, simulated count increments (n, 2) and the numbers of each move's start
+    and end reading (n, 2) of one calibration run.
 
     The reference's reading scatters by ``reading_sd_mm`` about the stated position along the step axis (7 um a
     reading, 10 um a move's travel: 0.3 counts), the sensor's tracking by ``noise_counts`` a move."""
@@ -90,8 +90,7 @@ def calibration_moves(
     moves = np.flatnonzero(ends_move)
     reference = stated[moves] - stated[moves - 1]
     increments = whole[moves] - whole[moves - 1]
-    chained = np.concatenate([[False], moves[1:] - 1 == moves[:-1]])
-    return reference, increments, chained
+    return reference, increments, np.column_stack([moves - 1, moves])
 
 
 def matrix_coverage(
@@ -105,7 +104,7 @@ def matrix_coverage(
 ) -> np.ndarray:
     """Share of ``trials`` runs in which |Â - A| <= U(Â), per element of A (2, 2).
 
-    ``fit(reference_mm, counts, chained)`` returns (Â, U(Â)) in mm/count; the truth is A = B⁻¹ of :data:`TRUE_B`.
+    ``fit(reference_mm, counts, readings)`` returns (Â, U(Â)) in mm/count; the truth is A = B⁻¹ of :data:`TRUE_B`.
     """
     rng = np.random.default_rng(seed)
     truth = np.linalg.inv(TRUE_B)
