@@ -11,6 +11,9 @@ and counts how often [value - U, value + U] holds the truth. The truths:
 - Groover repeatability 3 σ̄: 3 x the mean of the targets' true standard deviations.
 - RP: the population l_mean + 3 sigma_l of the simulated scatter (distances to the true mean), computed by a 4·10^6
   draw Monte Carlo of the same model; U must cover it including the estimator's small-sample bias.
+- RD, AV, RV, AT_p, RT_p (``--only figures``): the population figure of each set-up (:func:`figure_rows`); RT_p also
+  on two further path shapes, a 16-station circle whose stations tie exactly and a line with one dominant station
+  (:data:`RT_SHAPES`), so that U(RT_p) is not judged on one path's tie structure alone.
 
 "before" is the method of commit 63b0072 (RP: bootstrap SD x 2; AP: k = 2 on s/√n), "after" this code's. Prints one
 row per case and n: coverage before and after, and the binomial standard error of a coverage.
@@ -235,6 +238,65 @@ def path_coverage(n: int, campaigns: int, seed: int, *, bias: str, method: str, 
     return at_hits / campaigns, rt_hits / campaigns
 
 
+#: Further RT_p path shapes, so that U(RT_p) is not judged on the one path above alone: each station's crossing
+#: plane is spanned by its two rows of ``basis``; a cycle offset common to all stations (SD per axis, x y z),
+#: projected into each plane, plus each crossing's own scatter (SD along the two plane axes, per station).
+#: "circle": 16 stations on a 50 mm circle, planes facing along the tangent, all stations alike (an exact 16-fold
+#: tie for RT); "dominant station": the line above with a uniform scatter except one station at 1.6 x.
+RT_SHAPES = ("circle", "dominant station")
+
+
+def rt_shape(name: str) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """(stations (m, 3), plane bases (m, 2, 3), cycle offset SD (3,), own scatter SD (m, 2)) of an RT shape."""
+    if name == "circle":
+        angle = np.linspace(0.0, 2.0 * np.pi, 16, endpoint=False)
+        stations = 50.0 * np.stack([np.cos(angle), np.sin(angle), np.zeros(16)], axis=1)
+        radial = np.stack([np.cos(angle), np.sin(angle), np.zeros(16)], axis=1)
+        basis = np.stack([radial, np.tile([0.0, 0.0, 1.0], (16, 1))], axis=1)
+        return stations, basis, np.array([0.04, 0.04, 0.02]), np.tile([0.04, 0.03], (16, 1))
+    stations = np.stack([PATH_STATIONS_X_MM, np.zeros(11), np.zeros(11)], axis=1)
+    basis = np.tile([[0.0, 1.0, 0.0], [0.0, 0.0, 1.0]], (11, 1, 1))
+    scale = np.ones(11)
+    scale[6] = 1.6
+    return stations, basis, PATH_CYCLE_OFFSET_MM, PATH_LOCAL_MM[1:] * scale[:, None]
+
+
+def rt_shape_coverage(name: str, n: int, campaigns: int, seed: int, *, method: str, draws: int = 500) -> float:
+    """Share of campaigns whose RT_p ± U holds the population RT_p of shape ``name`` (:func:`rt_shape`)."""
+    stations, basis, offset_sd, own_sd = rt_shape(name)
+    projectors = np.einsum("mai,maj->mij", basis, basis)
+    covariances = np.einsum("mij,j,mkj->mik", projectors, offset_sd**2, projectors) + np.einsum(
+        "mai,ma,maj->mij", basis, own_sd**2, basis
+    )
+    squared = np.random.default_rng(97).standard_normal((1_000_000, 3)) ** 2
+    distances = np.sqrt(squared @ np.clip(np.linalg.eigvalsh(covariances), 0.0, None).T)  # (draws, m)
+    truth = float((distances.mean(axis=0) + 3.0 * distances.std(axis=0)).max())
+    rng = np.random.default_rng(seed)
+    m = len(stations)
+    hits = 0
+    for _ in range(campaigns):
+        offsets = rng.standard_normal((n, 3)) * offset_sd
+        own = rng.standard_normal((m, n, 2)) * own_sd[:, None, :]
+        crossings = (
+            stations[:, None, :] + np.einsum("mij,nj->mni", projectors, offsets) + np.einsum("mna,mai->mni", own, basis)
+        )
+        rt = _rt_of_crossings(crossings)
+        if method == "before":
+            flat = crossings.transpose(1, 0, 2).reshape(n, -1)
+            half = 2.0 * bootstrap_uncertainty(
+                lambda p: _rt_of_crossings(p.reshape(len(p), m, 3).transpose(1, 0, 2)),
+                flat,
+                resamples=200,
+                seed=int(rng.integers(1 << 30)),
+            )
+        else:
+            u = path_uncertainty(crossings, stations, draws=draws, seed=int(rng.integers(1 << 30)))
+            assert abs(u.rt.value - rt) < 1e-9
+            half = u.rt.expanded_uncertainty
+        hits += abs(rt - truth) <= half
+    return hits / campaigns
+
+
 def velocity_coverage(n: int, campaigns: int, seed: int, *, bias: str, method: str) -> tuple[float, float]:
     """Share of campaigns whose AV ± U and RV ± U hold the robot's AV and 3 SD[v̄_j] / v_c (in %)."""
     rng = np.random.default_rng(seed)
@@ -269,8 +331,9 @@ def velocity_coverage(n: int, campaigns: int, seed: int, *, bias: str, method: s
 def figure_rows(
     campaigns: int, path_campaigns: int, seed: int, sizes=(10, 30), draws: int = 500
 ) -> Iterator[tuple[str, int, float, float]]:
-    """(case, n, coverage before, coverage after) of RD, AT_p, RT_p, AV and RV for every bias case and n; the
-    path rows (a model Monte Carlo per campaign) over ``path_campaigns`` campaigns of ``draws`` simulations."""
+    """(case, n, coverage before, coverage after) of RD, AT_p, RT_p, AV and RV for every bias case and n, and of
+    RT_p on the further shapes (:data:`RT_SHAPES`); the path rows (a model Monte Carlo per campaign) over
+    ``path_campaigns`` campaigns of ``draws`` simulations."""
     for n in sizes:
         for bias in BIAS_CASES:
             yield (
@@ -282,6 +345,11 @@ def figure_rows(
             before = path_coverage(n, path_campaigns, seed, bias=bias, method="before")
             after = path_coverage(n, path_campaigns, seed, bias=bias, method="after", draws=draws)
             yield from [(f"AT_p, {bias}", n, before[0], after[0]), (f"RT_p, {bias}", n, before[1], after[1])]
+        for shape in RT_SHAPES:
+            before_rt, after_rt = (
+                rt_shape_coverage(shape, n, path_campaigns, seed, method=m, draws=draws) for m in ("before", "after")
+            )
+            yield (f"RT_p, {shape}", n, before_rt, after_rt)
 
 
 def coverage_table(campaigns: int, seed: int, sizes=(10, 30)) -> list[tuple[str, int, float, float]]:
