@@ -12,13 +12,17 @@ compares them), in a few seconds. The decision to keep writing the file (and not
 from __future__ import annotations
 
 import hashlib
-import io
+from collections.abc import Iterable
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
 
-__all__ = ["write_table_csv"]
+from bench.store import Store
+from bench.store.export import MixedSeries, series_chunks, series_table
+
+__all__ = ["StreamedSeries", "write_table_csv", "write_tables_csv"]
 
 #: Rows joined and written per chunk (bounds the memory of the row strings: about 100 bytes a row).
 _CHUNK_ROWS = 200_000
@@ -64,22 +68,47 @@ def _plain(table: pd.DataFrame) -> bool:
 
 def write_table_csv(table: pd.DataFrame, path: str | Path) -> str:
     """Write ``table`` to ``path`` as ``table.to_csv(path, index=False)`` would; returns the file's SHA-256."""
-    path = Path(path)
+    return write_tables_csv([table], path)[0]
+
+
+def write_tables_csv(tables: Iterable[pd.DataFrame], path: str | Path) -> tuple[str, int]:
+    """Write the rows of ``tables`` (pieces of one table: the same columns), in order, as that table's
+    ``to_csv(path, index=False)`` would, a piece at a time; returns the file's SHA-256 and its rows."""
     digest = hashlib.sha256()
-    if not _plain(table):
-        buffer = io.StringIO()
-        table.to_csv(buffer, index=False)
-        data = buffer.getvalue().encode("utf-8")
-        path.write_bytes(data)
-        return hashlib.sha256(data).hexdigest()
-    header = table.head(0).to_csv(index=False, lineterminator="\n")
-    columns = [_column_text(table[name]) for name in table.columns]
-    with path.open("wb") as file:
-        file.write(header.encode("utf-8"))
-        digest.update(header.encode("utf-8"))
-        for start in range(0, len(table), _CHUNK_ROWS):
-            rows = zip(*(column[start : start + _CHUNK_ROWS] for column in columns))
-            chunk = ("\n".join(map(",".join, rows)) + "\n").encode("utf-8")
-            file.write(chunk)
-            digest.update(chunk)
-    return digest.hexdigest()
+    rows = 0
+    with Path(path).open("wb") as file:
+
+        def put(text: str) -> None:
+            data = text.encode("utf-8")
+            file.write(data)
+            digest.update(data)
+
+        for index, table in enumerate(tables):
+            rows += len(table)
+            if not _plain(table):  # to_csv quotes and formats value by value: a piece at a time is the same text
+                put(table.to_csv(index=False, header=index == 0))
+                continue
+            if index == 0:
+                put(table.head(0).to_csv(index=False, lineterminator="\n"))
+            columns = [_column_text(table[name]) for name in table.columns]
+            for start in range(0, len(table), _CHUNK_ROWS):
+                put("\n".join(map(",".join, zip(*(column[start : start + _CHUNK_ROWS] for column in columns)))) + "\n")
+    return digest.hexdigest(), rows
+
+
+@dataclass(frozen=True, eq=False)
+class StreamedSeries:
+    """A report's raw data too long to hold (a path run's millions of streamed points): the run's streamed series
+    of ``kind`` (``bench export RUN --kind KIND --series``), written from the open store a piece at a time
+    (:func:`bench.store.export.series_chunks`) when the report is written."""
+
+    store: Store
+    run_id: int
+    kind: str
+
+    def write_csv(self, path: str | Path) -> tuple[str, int]:
+        """Write the table as :func:`write_table_csv` writes it whole; returns the SHA-256 and the rows."""
+        try:
+            return write_tables_csv(series_chunks(self.store, self.run_id, self.kind), path)
+        except MixedSeries:  # samples that differ in their columns: aligned over the whole run, as export does
+            return write_tables_csv([series_table(self.store, self.run_id, self.kind)], path)

@@ -20,7 +20,7 @@ from __future__ import annotations
 
 import importlib.util
 import json
-from collections.abc import Iterable
+from collections.abc import Iterable, Iterator
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -33,7 +33,16 @@ from bench.store.registrations import registration_of, registrations
 if TYPE_CHECKING:
     import pandas as pd
 
-__all__ = ["EXPORT_FORMATS", "TIDY_COLUMNS", "default_kind", "export_run", "series_table", "tidy_table"]
+__all__ = [
+    "EXPORT_FORMATS",
+    "TIDY_COLUMNS",
+    "MixedSeries",
+    "default_kind",
+    "export_run",
+    "series_chunks",
+    "series_table",
+    "tidy_table",
+]
 
 #: The leading columns of the tidy table, in order.
 TIDY_COLUMNS = (
@@ -111,21 +120,83 @@ def series_table(
     import pandas as pd
 
     store.run(run_id)
-    streamed: list[tuple[dict[str, Any], dict[str, Any]]] = []
-    for sample in store.samples(run_id, kind=kind) if samples is None else samples:
-        series = sample.raw.get("series") if isinstance(sample.raw, dict) else None
-        if series:
-            context = {
-                "pose": sample.pose,
-                "cycle": sample.cycle,
-                **{k: v for k, v in sample.values.items() if k.startswith("cmd_") or k in _SERIES_CONTEXT},
-            }
-            streamed.append((context, series))
+    streamed = [
+        item
+        for sample in (store.samples(run_id, kind=kind) if samples is None else samples)
+        if (item := _streamed(sample)) is not None
+    ]
     if not streamed:
         raise InsufficientData(f"run {run_id}: no {kind!r} samples with a streamed series to export")
     table = _uniform_series(streamed)
     if table is None:  # samples that differ in their columns: pandas aligns them (missing values as NaN)
         table = pd.concat([pd.DataFrame({**context, **series}) for context, series in streamed], ignore_index=True)
+    return _ordered(table)
+
+
+class MixedSeries(Exception):
+    """The samples' series differ in their columns or types: :func:`series_table` aligns them over the whole run."""
+
+
+def series_chunks(store: Store, run_id: int, kind: str = "arrival", rows: int = 200_000) -> Iterator[pd.DataFrame]:
+    """:func:`series_table` in pieces of about ``rows`` rows, the samples read one at a time (a long path run's
+    millions of points are never held): the pieces' rows, in order, are that table's, with its columns and dtypes.
+
+    Raises
+    ------
+    MixedSeries
+        Before a piece that differs from the first in its columns or dtypes, or whose samples differ (the whole
+        table aligns such samples, which needs them all): :func:`series_table` then.
+    InsufficientData
+        When the run has no sample of that kind with a stored series.
+    """
+    store.run(run_id)
+    read = getattr(store, "iter_samples", store.samples)  # a sample at a time where the store can
+    streamed: list[tuple[dict[str, Any], dict[str, Any]]] = []
+    points, first = 0, None
+    for sample in read(run_id, kind=kind):
+        item = _streamed(sample)
+        if item is None:
+            continue
+        streamed.append(item)
+        points += len(next(iter(item[1].values())))
+        if points >= rows:
+            piece = _same_piece(streamed, first)
+            first = piece.dtypes if first is None else first
+            yield piece
+            streamed, points = [], 0
+    if streamed:
+        yield _same_piece(streamed, first)
+    elif first is None:
+        raise InsufficientData(f"run {run_id}: no {kind!r} samples with a streamed series to export")
+
+
+def _same_piece(streamed: list[tuple[dict[str, Any], dict[str, Any]]], first: Any) -> pd.DataFrame:
+    """The piece of :func:`series_chunks` from ``streamed``; raises MixedSeries where it is not uniform or its
+    columns or dtypes differ from those of ``first`` (the first piece's dtypes, None for the first)."""
+    table = _uniform_series(streamed)
+    if table is None:
+        raise MixedSeries("samples with different series columns or types")
+    table = _ordered(table)
+    if first is not None and not table.dtypes.equals(first):
+        raise MixedSeries("pieces with different columns or dtypes")
+    return table
+
+
+def _streamed(sample: SampleRecord) -> tuple[dict[str, Any], dict[str, Any]] | None:
+    """A sample's (context: pose, cycle, commanded values and conditions; its series), None without a series."""
+    series = sample.raw.get("series") if isinstance(sample.raw, dict) else None
+    if not series:
+        return None
+    context = {
+        "pose": sample.pose,
+        "cycle": sample.cycle,
+        **{k: v for k, v in sample.values.items() if k.startswith("cmd_") or k in _SERIES_CONTEXT},
+    }
+    return context, series
+
+
+def _ordered(table: pd.DataFrame) -> pd.DataFrame:
+    """The streamed-series table's columns in the order of the module docstring."""
     leading = [c for c in TIDY_COLUMNS if c in table.columns and c != "t_s"] + ["t_s"]
     return table[leading + sorted(c for c in table.columns if c not in leading)]
 
