@@ -155,7 +155,9 @@ def collect_path(
     figures' U are for k = 2, as ``bench analyze path|path-velocity`` state them; ``allow_unknown`` unused: no row
     here can be unknown)."""
     run = store.run(run_id)
-    analysis = analyze_path_run(store, run_id)  # reads the run a sample at a time, reduced cycle by cycle
+    raw = StreamedSeries(store, run_id, "path")  # the raw-data CSV, spooled as the analysis reads the run: once
+    read = getattr(store, "iter_samples", store.samples)  # a sample at a time where the store can
+    analysis = analyze_path_run(store, run_id, samples=raw.passing(read(run_id, kind="path")))
     calibrations = calibrations_in_force(store, run)
     clauses = ("8.5 cornering deviations",) if run.protocol_name == "iso9283_cornering" else ()
     return PathReport(
@@ -165,7 +167,7 @@ def collect_path(
         + (("8.6 path velocity",) if "line" in analysis.design.shapes else ()),
         deviations=tuple(path_deviations(run, analysis)),
         instrument=counts_instrument(run, calibrations, 0),
-        table=StreamedSeries(store, run_id, "path"),  # written from the store when the report is: never held
+        table=raw,  # never held: written where the report goes from the spool (or the open store)
         coverage_factor=k,
         analysis=analysis,
         store_path=store.path,

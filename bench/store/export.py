@@ -37,6 +37,7 @@ __all__ = [
     "EXPORT_FORMATS",
     "TIDY_COLUMNS",
     "MixedSeries",
+    "SeriesPieces",
     "default_kind",
     "export_run",
     "series_chunks",
@@ -150,36 +151,53 @@ def series_chunks(store: Store, run_id: int, kind: str = "arrival", rows: int = 
         When the run has no sample of that kind with a stored series.
     """
     store.run(run_id)
-    read = getattr(store, "iter_samples", store.samples)  # a sample at a time where the store can
-    streamed: list[tuple[dict[str, Any], dict[str, Any]]] = []
-    points, first = 0, None
-    for sample in read(run_id, kind=kind):
-        item = _streamed(sample)
-        if item is None:
-            continue
-        streamed.append(item)
-        points += len(next(iter(item[1].values())))
-        if points >= rows:
-            piece = _same_piece(streamed, first)
-            first = piece.dtypes if first is None else first
+    pieces = SeriesPieces(rows)
+    for sample in getattr(store, "iter_samples", store.samples)(run_id, kind=kind):  # one at a time where it can
+        piece = pieces.add(sample)
+        if piece is not None:
             yield piece
-            streamed, points = [], 0
-    if streamed:
-        yield _same_piece(streamed, first)
-    elif first is None:
+    last = pieces.rest()
+    if last is not None:
+        yield last
+    elif not pieces.points:
         raise InsufficientData(f"run {run_id}: no {kind!r} samples with a streamed series to export")
 
 
-def _same_piece(streamed: list[tuple[dict[str, Any], dict[str, Any]]], first: Any) -> pd.DataFrame:
-    """The piece of :func:`series_chunks` from ``streamed``; raises MixedSeries where it is not uniform or its
-    columns or dtypes differ from those of ``first`` (the first piece's dtypes, None for the first)."""
-    table = _uniform_series(streamed)
-    if table is None:
-        raise MixedSeries("samples with different series columns or types")
-    table = _ordered(table)
-    if first is not None and not table.dtypes.equals(first):
-        raise MixedSeries("pieces with different columns or dtypes")
-    return table
+class SeriesPieces:
+    """The pieces of :func:`series_chunks` from samples given one at a time (:meth:`add`, then :meth:`rest`)."""
+
+    def __init__(self, rows: int = 200_000) -> None:
+        self.rows = rows
+        self.points = 0  #: the series points given so far
+        self._streamed: list[tuple[dict[str, Any], dict[str, Any]]] = []
+        self._waiting = 0
+        self._first: Any = None  # the first piece's dtypes
+
+    def add(self, sample: SampleRecord) -> pd.DataFrame | None:
+        """Take ``sample``; the next piece once it holds ``rows`` points, else None. Raises MixedSeries."""
+        item = _streamed(sample)
+        if item is None:
+            return None
+        self._streamed.append(item)
+        count = len(next(iter(item[1].values())))
+        self.points += count
+        self._waiting += count
+        return self.rest() if self._waiting >= self.rows else None
+
+    def rest(self) -> pd.DataFrame | None:
+        """The piece of the samples taken since the last one, None without any. Raises MixedSeries."""
+        if not self._streamed:
+            return None
+        table = _uniform_series(self._streamed)
+        if table is None:
+            raise MixedSeries("samples with different series columns or types")
+        table = _ordered(table)
+        if self._first is None:
+            self._first = table.dtypes
+        elif not table.dtypes.equals(self._first):
+            raise MixedSeries("pieces with different columns or dtypes")
+        self._streamed, self._waiting = [], 0
+        return table
 
 
 def _streamed(sample: SampleRecord) -> tuple[dict[str, Any], dict[str, Any]] | None:
