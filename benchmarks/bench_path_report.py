@@ -12,7 +12,7 @@ against the smallest. Targets (issue 34): within 3x of the floor's time; memory 
 same peak at every size). The path model's Monte Carlo (U(AT_p), U(RT_p), ``path_uncertainty``) grows with the
 square of the cycles: its own time is printed per size, measured in this process on the run's crossings.
 
-    python benchmarks/bench_path_report.py [--points 1150000 2300000] [--repeat 2]
+    python benchmarks/bench_path_report.py [--points 1150000 2300000] [--repeat 2] [--baseline CHECKOUT]
 """
 
 from __future__ import annotations
@@ -84,17 +84,29 @@ def _monte_carlo_s(store: Path, run_id: int) -> str:
     return "; ".join(parts)
 
 
-def measure_size(points: int, repeat: int, folder: Path) -> dict[str, float]:
-    """Build a run of about ``points`` points, run the three processes ``repeat`` times each (interleaved); print
-    this size's lines and return each tool's median peak memory (MB)."""
+def measure_size(points: int, repeat: int, folder: Path, baseline: Path | None) -> dict[str, float]:
+    """Build a run of about ``points`` points, run the processes ``repeat`` times each (interleaved; with
+    ``baseline``, its analysis and report too); print this size's lines and return each one's median peak (MB)."""
     store, run_id = long_path_run(folder, points)
-    argvs = {
-        "floor: read the raw data (SQLite + JSON)": [sys.executable, "-c", FLOOR, str(store), str(run_id)],
-        "bench analyze path-run": [sys.executable, "-m", "bench.cli", "analyze", "path-run", str(run_id)]
-        + ["--store", str(store), "--json"],
-        "bench report --format html": [sys.executable, "-m", "bench.cli", "report", str(run_id)]
-        + ["--store", str(store), "--format", "html", "--quiet", "--out", str(folder / "out")],
-    }
+    argvs = {"floor: read the raw data (SQLite + JSON)": [sys.executable, "-c", FLOOR, str(store), str(run_id)]}
+    for label, prefix in [("", [])] + ([(" (baseline)", ["env", f"PYTHONPATH={baseline}"])] if baseline else []):
+        argvs[f"bench analyze path-run{label}"] = [*prefix, sys.executable, "-m", "bench.cli", "analyze"] + [
+            "path-run",
+            str(run_id),
+            "--store",
+            str(store),
+            "--json",
+        ]
+        argvs[f"bench report --format html{label}"] = [*prefix, sys.executable, "-m", "bench.cli", "report"] + [
+            str(run_id),
+            "--store",
+            str(store),
+            "--format",
+            "html",
+            "--quiet",
+            "--out",
+            str(folder / f"out{label.strip()}"),
+        ]
     runs: dict[str, list[dict]] = {name: [] for name in argvs}
     counted = ""
     for _ in range(repeat):
@@ -115,12 +127,19 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--points", type=int, nargs="+", default=[1_150_000, 2_300_000])
     parser.add_argument("--repeat", type=int, default=2)
+    parser.add_argument(
+        "--baseline",
+        type=Path,
+        default=None,
+        metavar="CHECKOUT",
+        help="another checkout of bench (its folder holding bench/): its analysis and report measured too, in turn",
+    )
     args = parser.parse_args()
     started = os.getloadavg()
     peaks = {}
     for points in sorted(args.points):
         with tempfile.TemporaryDirectory() as folder:
-            peaks[points] = measure_size(points, args.repeat, Path(folder))
+            peaks[points] = measure_size(points, args.repeat, Path(folder), args.baseline)
     if len(peaks) > 1:
         small, large = peaks[min(peaks)], peaks[max(peaks)]
         print(f"peak memory at {max(peaks):,} points against {min(peaks):,} (median of each; 1.00 = bounded):")

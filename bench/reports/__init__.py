@@ -276,8 +276,7 @@ def _out_dir(out_dir: str | Path) -> Path:
 
 
 def _write_table(table, path: Path) -> tuple[Path, RawData]:
-    """``table`` (or a :class:`~bench.reports.rawdata.StreamedSeries`, from the open store) as a raw-data CSV at full
-    precision, with its hash for the report."""
+    """``table`` (or a :class:`~bench.reports.rawdata.StreamedSeries`) as a raw-data CSV at full precision, hashed."""
     digest, rows = table.write_csv(path) if isinstance(table, StreamedSeries) else write_tables_csv([table], path)
     return path, RawData(path.name, digest, rows)
 
