@@ -89,7 +89,9 @@ def measure_size(points: int, repeat: int, folder: Path, baseline: Path | None) 
     ``baseline``, its analysis and report too); print this size's lines and return each one's median peak (MB)."""
     store, run_id = long_path_run(folder, points)
     argvs = {"floor: read the raw data (SQLite + JSON)": [sys.executable, "-c", FLOOR, str(store), str(run_id)]}
-    for label, prefix in [("", [])] + ([(" (baseline)", ["env", f"PYTHONPATH={baseline}"])] if baseline else []):
+    for label, prefix in [("", [])] + (
+        [(" (baseline)", ["env", "-C", str(baseline), f"PYTHONPATH={baseline}"])] if baseline else []
+    ):
         argvs[f"bench analyze path-run{label}"] = [*prefix, sys.executable, "-m", "bench.cli", "analyze"] + [
             "path-run",
             str(run_id),
