@@ -153,6 +153,7 @@ def _held(store: Store, run_id: int) -> None:
     attained_cycles(store.iter_samples(run_id, kind="path"))
 
 
+@pytest.mark.slow
 def test_peak_memory_does_not_grow_with_the_run_and_the_figure_draws_the_first_cycles(runs, tmp_path):
     folder, path, _ = runs
     peaks: dict = {}
