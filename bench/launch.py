@@ -85,7 +85,8 @@ def open_rig(
     """
     station = _station(request, robot, fixture)
     if stored:  # a resume: on the rig the run ran on, or refused before anything is opened or written
-        refuse_another_rig("the resumed run", stored, station, request.simulate)
+        named = bool(request.station) or request.port is not None or request.simulate
+        refuse_another_rig("the resumed run", stored, station, request.simulate, named=named)
     stored = stored or {}
     serial = None if station is None else station_identity(station).get("dut_serial")
     kinematic = _kinematic_calibration(

@@ -1,16 +1,20 @@
 """Lab-store sync throughput and a cross-bench query, measured in one run (prints figures and ratios, asserts nothing).
 
 * Sync: ``--benches`` local stores of ``--samples`` pose samples each (in ``--runs`` runs) are pushed with
-  ``sync_store`` into one PostgreSQL server: the first ``--sequential`` (5) one after the other (samples/s of each:
-  min/median/max), the rest at once, one process each (aggregate samples/s from the first start to the last end,
-  imports excluded). With the throwaway cluster, also the CPU seconds per sample of this process (SQLite read,
-  formatting) and of the server (every postgres process of the cluster, the exited backends included), which depend
-  far less on the machine's load than the wall clock does.
+  ``sync_store`` into one PostgreSQL server: the first ``--sequential`` (5) one after the other, each twice, into
+  two databases: reading and formatting in the sync's own thread (``producers=0``, the default below 4 cores) and
+  in two producer processes (``producers=2``, the default for a large sync on 4 cores or more; samples/s of each:
+  min/median/max); the rest at once, one process each (aggregate samples/s from the first start to the last end,
+  imports excluded). With the throwaway cluster, also the CPU microseconds per sample of this process with its
+  producer processes (SQLite read, formatting) and of the server (every postgres process of the cluster, the
+  exited backends included; autovacuum off while timing, so that one sync's later vacuum never lands in
+  another's figure), which depend far less on the machine's load than the wall clock does.
 * Floor: a bare COPY of the same rows (the same COPY text, typed columns and checksums included, formatted
-  beforehand) into an unindexed, unlogged table of the same server (no key, no trigger, no SQLite read, no
-  formatting, one connection), right after each of the sequential syncs, so that each ratio sync/floor is taken at
-  one load (min/median/max over the benches): it says what reading, formatting, the keyed, logged table and the pose
-  trigger cost once the sync's overlap (two connections, formatting ahead) has paid for what it can.
+  beforehand) into a table of the same server without key or trigger (no SQLite read, no formatting, one
+  connection), logged (written through the write-ahead log, as any durable table is: the floor the target uses)
+  and unlogged (no WAL: a lower floor no durable store reaches), right after each bench's syncs, so that each ratio
+  sync/floor is taken at one load (min/median/max over the benches). The floor's CPU (server and this process)
+  over the sync's is the ratio on a machine whose cores are all busy, where wall time is CPU time shared.
 * Query: ``bench lab summary`` (``bench.store.lab_summary.pose_summary``: AP and RP, ISO 9283 7.2.1 and 7.2.2, per
   bench, robot, ISO week, pose, velocity and commanded position) over every synced sample, five times, after
   ANALYZE of bench.samples (what autovacuum does soon after a large sync); the pose tables the summary reads are
@@ -40,6 +44,7 @@ from bench.store import Store  # noqa: E402
 from bench.store.lab import LabStore, sync_store  # noqa: E402
 from bench.store.lab_copy import COPY_COLUMNS, TYPED_COLUMNS, copy_text  # noqa: E402
 from bench.store.lab_summary import pose_summary  # noqa: E402
+from bench.store.lab_sync import LANES  # noqa: E402
 
 #: A bench syncing in its own process: prints the wall-clock start and end of its sync (imports excluded).
 _CHILD = """
@@ -62,29 +67,66 @@ def _database(url: str, name: str) -> str:
     return with_database(url, name)
 
 
-def copy_floor(url: str, path: Path) -> float:
-    """Seconds of a bare COPY of the samples of ``path`` (as sync formats them) into an unlogged table without keys."""
+def copy_floor(url: str, path: Path, cluster: Cluster | None, *, logged: bool) -> tuple[float, float, float]:
+    """A bare COPY of the samples of ``path`` (as sync formats them, formatted beforehand) into a table without key
+    or trigger, ``logged`` (written through the write-ahead log, as any durable table) or not: samples/s, and the
+    CPU microseconds per sample of this process and of the server (NaN for a server that is not ours)."""
     import psycopg
 
     with Store(path) as store, psycopg.connect(url) as conn:
         data = [copy_text(r.uuid, store.stored_rows(r.id, extract=TYPED_COLUMNS)) for r in store.runs()]
-        conn.execute("CREATE UNLOGGED TABLE floor (LIKE bench.samples)")
+        n = sum(r.n_samples for r in store.runs())
+        conn.execute(f"CREATE {'' if logged else 'UNLOGGED '}TABLE floor (LIKE bench.samples)")
         conn.commit()
         columns = ", ".join(f'"{c}"' for c in COPY_COLUMNS)
-        start = time.perf_counter()
+        cpu, server, start = time.process_time(), server_cpu_s(cluster), time.perf_counter()
         with conn.cursor() as cur, cur.copy(f"COPY floor ({columns}) FROM STDIN") as copy:
             for chunk in data:
                 copy.write(chunk)
         conn.commit()
         elapsed = time.perf_counter() - start
+        client_s, server_s = time.process_time() - cpu, server_cpu_s(cluster) - server
         conn.execute("DROP TABLE floor")
         conn.commit()
-    return elapsed
+    return n / elapsed, client_s / n * 1e6, server_s / n * 1e6
 
 
-def server_cpu_s(cluster: Cluster | None) -> float:
-    """CPU seconds used so far by the throwaway cluster: its postmaster, the children it has reaped (exited
-    backends) and the live ones (proc(5): utime, stime, cutime, cstime); NaN for a server that is not ours."""
+def timed_sync(path: Path, url: str, cluster: Cluster | None, producers: int) -> tuple[float, float, float, float]:
+    """Sync ``path`` to ``url`` with ``producers`` producer processes: samples/s, and the CPU microseconds per
+    sample of this process, of its producers (``os.times``: children once waited for) and of the server."""
+    with Store(path) as store:
+        before, server = os.times(), server_cpu_s(cluster)
+        result = sync_store(store, url, producers=producers)
+        after = os.times()
+    own = after.user + after.system - before.user - before.system
+    children = after.children_user + after.children_system - before.children_user - before.children_system
+    return (
+        result.samples_per_s,
+        own / result.samples_sent * 1e6,
+        children / result.samples_sent * 1e6,
+        (server_cpu_s(cluster) - server) / result.samples_sent * 1e6,
+    )
+
+
+def _autovacuum(url: str, setting: str) -> None:
+    """Autovacuum on or off for the throwaway cluster: off while syncs and floors are timed, so that the vacuum and
+    analysis of one sync's rows (due once per table, later) never land in another's CPU; on for the summary."""
+    import psycopg
+
+    with psycopg.connect(url, autocommit=True) as admin:
+        admin.execute(f"ALTER SYSTEM SET autovacuum = {setting}")
+        admin.execute("SELECT pg_reload_conf()")
+
+
+def _spread(values: list[float], form: str) -> str:
+    return f"min {min(values):{form}}  median {statistics.median(values):{form}}  max {max(values):{form}}"
+
+
+def server_cpu_s(cluster: Cluster | None, *, background: bool = False) -> float:
+    """CPU seconds used so far by the throwaway cluster's connections: the backends it has reaped (the postmaster's
+    cutime, cstime: autovacuum is off while timing) and the live ones (proc(5): utime, stime); with
+    ``background``, those of its background processes instead (checkpointer, WAL writer, background writer: the
+    durable writes' later work, which lands in whichever window runs then). NaN for a server that is not ours."""
     if cluster is None:
         return float("nan")
     tick = os.sysconf("SC_CLK_TCK")
@@ -94,15 +136,18 @@ def server_cpu_s(cluster: Cluster | None) -> float:
         return Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
 
     main_fields = fields(postmaster)
-    total = sum(int(main_fields[i]) for i in (11, 12, 13, 14))
+    total = 0 if background else sum(int(main_fields[i]) for i in (13, 14))
     for entry in Path("/proc").iterdir():
         if entry.name.isdigit():
             try:
                 child = fields(int(entry.name))
+                backend = (entry / "cmdline").read_bytes().startswith(b"postgres: bench ")
             except OSError:  # exited meanwhile: its time is in the postmaster's cutime, cstime
                 continue
-            if int(child[1]) == postmaster:
+            if int(child[1]) == postmaster and backend != background:
                 total += int(child[11]) + int(child[12])
+    if background:
+        total += int(main_fields[11]) + int(main_fields[12])
     return total / tick
 
 
@@ -121,9 +166,9 @@ def main(argv=None) -> None:
             sys.exit("bench_sync: no PostgreSQL (set BENCH_TEST_POSTGRES or install postgresql)")
         cluster = Cluster(_bindir())
         server = cluster.url
+        _autovacuum(server, "off")
     work = Path(tempfile.mkdtemp(prefix="bench-sync-"))
     try:
-        url = _database(server, "bench_sync_benchmark")
         start = time.perf_counter()
         per_run = [args.samples // args.runs] * args.runs
         stores = [
@@ -137,32 +182,52 @@ def main(argv=None) -> None:
         )
 
         print(f"load average before the syncs: {os.getloadavg()[0]:.1f} on {os.cpu_count()} CPUs")
-        rates, floors, client_cpu, server_cpu = [], [], [], []
-        for path in stores[: args.sequential]:  # each sync beside a floor of the same file: the load moves
-            with Store(path) as store:
-                cpu, server = time.process_time(), server_cpu_s(cluster)
-                result = sync_store(store, url)
-                client_cpu.append((time.process_time() - cpu) / result.samples_sent * 1e6)
-                server_cpu.append((server_cpu_s(cluster) - server) / result.samples_sent * 1e6)
-            rates.append(result.samples_per_s)
-            floors.append(sum(per_run) / copy_floor(url, path))
-        ratios = [rate / floor for rate, floor in zip(rates, floors)]
+        variants = {"in this thread": 0, "1 producer": 1, f"{LANES} producers": LANES}
+        urls = {name: _database(server, f"bench_sync_benchmark_{i}") for i, name in enumerate(variants)}
+        url = urls["in this thread"]  # the one the concurrent syncs and the summary use
+        rates: dict[str, list[float]] = {name: [] for name in variants}
+        cpu: dict[str, list[tuple[float, float, float]]] = {name: [] for name in variants}
+        floors: dict[str, list[tuple[float, float, float]]] = {"logged": [], "unlogged": []}
+        n = sum(per_run)
+        background = server_cpu_s(cluster, background=True)
+        for path in stores[: args.sequential]:  # the syncs and floors of one file in a row: the load moves
+            for name, producers in variants.items():
+                rate, *cpu_us = timed_sync(path, urls[name], cluster, producers)
+                rates[name].append(rate)
+                cpu[name].append((cpu_us[0], cpu_us[1], cpu_us[2]))
+            for kind in floors:
+                floors[kind].append(copy_floor(url, path, cluster, logged=kind == "logged"))
+        background = server_cpu_s(cluster, background=True) - background
+        floor_cpu = {kind: [statistics.median(v[i] for v in values) for i in (1, 2)] for kind, values in floors.items()}
+        for kind, values in floors.items():
+            print(
+                f"floor: bare COPY, {kind + ' table':<15} {n:,} samples: {_spread([v[0] for v in values], '9,.0f')}"
+                f" samples/s; CPU per sample (medians): this process {floor_cpu[kind][0]:.1f} us, server"
+                f" {floor_cpu[kind][1]:.1f} us"
+            )
         print(
-            f"sync, one bench    {sum(per_run):>9,} samples  min {min(rates):9,.0f}  median "
-            f"{statistics.median(rates):9,.0f}  max {max(rates):9,.0f} samples/s ({len(rates)} benches)"
+            f"server's background processes (checkpoints, WAL writer): {background / n / args.sequential * 1e6:.1f} us"
+            " a sample synced, over every sync and floor above (in none of their figures)"
         )
-        print(
-            f"floor: bare COPY   {sum(per_run):>9,} samples  min {min(floors):9,.0f}  median "
-            f"{statistics.median(floors):9,.0f}  max {max(floors):9,.0f} samples/s (right after each sync)"
-        )
-        print(
-            f"sync / floor       min {min(ratios):.2f}  median {statistics.median(ratios):.2f}  "
-            f"max {max(ratios):.2f} (each sync against the floor measured right after it)"
-        )
-        print(
-            f"CPU per sample     this process (read, format) median {statistics.median(client_cpu):.1f} us; "
-            f"server median {statistics.median(server_cpu):.1f} us"
-        )
+        for name, producers in variants.items():
+            print(f"sync, {name:<21} {n:,} samples: {_spread(rates[name], '9,.0f')} samples/s")
+            for kind, values in floors.items():
+                ratios = [rate / floor[0] for rate, floor in zip(rates[name], values)]
+                print(f"    sync / floor ({kind + ')':<9} {_spread(ratios, '.2f')}")
+            own, children, server_us = (statistics.median(c[i] for c in cpu[name]) for i in (0, 1, 2))
+            print(
+                f"    CPU per sample (medians): this process {own:.1f} us, its producers {children:.1f} us, server"
+                f" {server_us:.1f} us"
+            )
+            floor_own, floor_server = floor_cpu["logged"]
+            # all cores busy: wall time is CPU time shared out; a core free for each process: its busiest one sets
+            # the pace (the producers and the server's lanes share their CPU evenly: the runs are dealt by samples)
+            busiest = max(own, children / max(producers, 1), server_us / LANES)
+            print(
+                f"    floor (logged) CPU / sync CPU: all of it {(floor_own + floor_server) / (own + children + server_us):.2f}"
+                f" (the ratio on a machine with every core busy); the busiest process's"
+                f" {max(floor_own, floor_server) / busiest:.2f} (the ratio with a core free for each process)"
+            )
 
         rest = stores[args.sequential :]
         if rest:  # one process per bench; the window runs from the first sync's start to the last one's end
@@ -185,6 +250,8 @@ def main(argv=None) -> None:
 
         import psycopg
 
+        if cluster is not None:
+            _autovacuum(server, "on")
         with psycopg.connect(url, autocommit=True) as conn:  # the statistics autovacuum would have gathered by now
             conn.execute("ANALYZE bench.runs")
             conn.execute("ANALYZE bench.samples")

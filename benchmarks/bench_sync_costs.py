@@ -9,7 +9,12 @@ included) into tables that add one cost at a time, measured as the CPU of the se
 4. ``bench.samples`` with its triggers off: 3 plus its typed-column layout as synced;
 5. ``bench.samples`` with the run check only (lab schema 4's per-statement check against ``bench.runs``);
 6. ``bench.samples`` as a sync writes it: the run check and the pose fold;
-7. ``bench.samples`` with schema 3's per-row foreign key to ``bench.runs`` instead of the run check.
+7. ``bench.samples`` with schema 3's per-row foreign key to ``bench.runs`` instead of the run check;
+8. the floor without the typed columns (the COPY text cut after the checksum): what parsing and storing the 28
+   typed values costs the server.
+
+And the sync's own process, reading and formatting the same runs (its CPU, min/median over the rounds): the rows
+from SQLite alone, with the ``json_extract`` of the typed values, and formatted as COPY text.
 
 Each COPY is one run's rows in one transaction, as a sync's batches are. Needs Debian's postgresql (a throwaway
 cluster on this machine). Usage: ``python benchmarks/bench_sync_costs.py [--samples 100000] [--repeat 3]``.
@@ -22,6 +27,7 @@ import os
 import statistics
 import sys
 import tempfile
+import time
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -48,7 +54,35 @@ VARIANTS = {
         f"ALTER TABLE bench.samples DISABLE TRIGGER samples_check_runs_after_insert; {_FK}",
         "bench.samples",
     ),
+    "floor without typed columns": ("CREATE UNLOGGED TABLE t (LIKE bench.samples)", "t"),
 }
+_UNTYPED = "floor without typed columns"
+
+
+def untyped(text: bytes) -> bytes:
+    """COPY text of :data:`COPY_COLUMNS` cut after the checksum (the typed values left out)."""
+    kept = len(COPY_COLUMNS) - len(TYPED_COLUMNS)
+    return b"".join(b"\t".join(line.split(b"\t")[:kept]) + b"\n" for line in text.splitlines())
+
+
+def client_cpu_us(store: Store, n: int) -> dict[str, float]:
+    """This process's CPU per sample (us) reading every run: the rows alone, with the typed values extracted, and
+    formatted as the sync's COPY text."""
+    runs, spent = store.runs(), {}
+    for name, read in {
+        "read the rows from SQLite": lambda r: all(True for _ in store.stored_rows(r.id)),
+        "+ json_extract of the typed values": lambda r: all(
+            True for _ in store.stored_rows(r.id, extract=TYPED_COLUMNS)
+        ),
+        "+ COPY text: what a sync reads and formats": lambda r: copy_text(
+            r.uuid, store.stored_rows(r.id, extract=TYPED_COLUMNS)
+        ),
+    }.items():
+        start = time.process_time()
+        for run in runs:
+            read(run)
+        spent[name] = (time.process_time() - start) / n * 1e6
+    return spent
 
 
 def process_cpu_s(pid: int) -> float:
@@ -57,7 +91,7 @@ def process_cpu_s(pid: int) -> float:
     return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
 
 
-def copy_cpu_us(url: str, setup: str, table: str, texts: list[bytes], n: int) -> float:
+def copy_cpu_us(url: str, setup: str, table: str, texts: list[bytes], n: int, *, untyped_texts: bool = False) -> float:
     """Server CPU per sample (us) of COPYing ``texts`` (one transaction each) into ``table`` after ``setup``."""
     import psycopg
 
@@ -72,7 +106,7 @@ def copy_cpu_us(url: str, setup: str, table: str, texts: list[bytes], n: int) ->
         conn.commit()
         pid = conn.execute("SELECT pg_backend_pid()").fetchone()[0]
         conn.commit()
-        columns = ", ".join(f'"{c}"' for c in COPY_COLUMNS)
+        columns = ", ".join(f'"{c}"' for c in (COPY_COLUMNS[: -len(TYPED_COLUMNS)] if untyped_texts else COPY_COLUMNS))
         start = process_cpu_s(pid)
         for text in texts:
             with conn.cursor() as cur, cur.copy(f"COPY {table} ({columns}) FROM STDIN") as copy:
@@ -99,9 +133,17 @@ def main(argv: list[str] | None = None) -> None:
             texts = [copy_text(r.uuid, store.stored_rows(r.id, extract=TYPED_COLUMNS)) for r in store.runs()]
         print(f"load average before: {os.getloadavg()[0]:.1f} on {os.cpu_count()} CPUs; {n:,} samples a COPY")
         cpu: dict[str, list[float]] = {name: [] for name in VARIANTS}
+        client: dict[str, list[float]] = {}
+        untyped_texts = [untyped(text) for text in texts]
         for _ in range(args.repeat):
             for name, (setup, table) in VARIANTS.items():
-                cpu[name].append(copy_cpu_us(url, setup, table, texts, n))
+                if name == _UNTYPED:
+                    cpu[name].append(copy_cpu_us(url, setup, table, untyped_texts, n, untyped_texts=True))
+                else:
+                    cpu[name].append(copy_cpu_us(url, setup, table, texts, n))
+            with Store(path) as store:
+                for name, us in client_cpu_us(store, n).items():
+                    client.setdefault(name, []).append(us)
         floor = cpu["floor: unlogged, no key"]
         print(f"{'variant':<30} {'server CPU us/sample':>22} {'/ floor (same round)':>22}")
         for name, values in cpu.items():
@@ -110,6 +152,9 @@ def main(argv: list[str] | None = None) -> None:
                 f"{name:<30} min {min(values):5.2f} median {statistics.median(values):5.2f}"
                 f"   min {min(ratios):4.2f} median {statistics.median(ratios):4.2f}"
             )
+        print(f"{'the sync process':<44} {'CPU us/sample':>14}")
+        for name, values in client.items():
+            print(f"{name:<44} min {min(values):5.2f} median {statistics.median(values):5.2f}")
         print(f"load average after: {os.getloadavg()[0]:.1f}")
     finally:
         cluster.close()

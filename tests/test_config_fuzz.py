@@ -2,7 +2,8 @@
 one line with exit 2, never a traceback, a hang or a plan too large to build.
 
 Every example file is the seed: a mutation replaces a value (a leaf, a list, a whole table) by a value of any TOML
-type, nasty numbers included (0, -1, 1e20, 1e308, inf, nan, 2**63 - 1), or adds an unknown key."""
+type, nasty numbers included (0, -1, 1e20, 1e308, inf, nan, 2**63 - 1), or adds a key: an unknown one (any unicode
+text too), or a station's ``[lab_store]`` with a malformed address holding a password no message may show."""
 
 from __future__ import annotations
 
@@ -68,6 +69,14 @@ LEAVES = st.one_of(
     st.dates(),
     st.datetimes(),
 )
+#: A password no message may show: lab store addresses carry one (docs/lab-store.md).
+SECRET = "s3cr3t-Pw"
+LAB_URLS = st.builds(
+    "{}://bench:{}@{}".format,
+    st.sampled_from(["postgresql", "postgres", "mysql", "http"]),
+    st.just(SECRET),
+    st.sampled_from(["[::1/lab", "localhost/lab?sslmode=bogus", "h:99999/lab", "h/lab?colour=blue", "h/lab", ""]),
+)
 VALUES = st.recursive(
     LEAVES,
     lambda inner: st.lists(inner, max_size=4) | st.dictionaries(st.text(min_size=1, max_size=6), inner, max_size=3),
@@ -88,7 +97,11 @@ def mutated(draw, seeds: list[Path]) -> dict[str, Any]:
         if keys and draw(st.integers(0, 4)):
             table[draw(st.sampled_from(keys))] = draw(VALUES)
         else:
-            table[draw(st.sampled_from(["cycels", "extra", "robot", "protocol", "poses", "station"]))] = draw(VALUES)
+            key = draw(
+                st.sampled_from(["cycels", "extra", "robot", "protocol", "poses", "station", "lab_store"])
+                | st.text(min_size=1, max_size=6)
+            )
+            table[key] = draw(st.fixed_dictionaries({"url": LAB_URLS}) if key == "lab_store" else VALUES)
     return document
 
 
@@ -114,6 +127,20 @@ def test_fuzzed_station_file_loads_or_is_one_line_exit_2(tmp_path, document):
         load_station(path)
     except ConfigError as exc:
         assert exc.exit_code == 2 and "\n" not in str(exc), str(exc)
+        assert not ("lab_store" in str(exc) and SECRET in str(exc)), str(exc)
+
+
+@settings(max_examples=100, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(seed=st.sampled_from(STATION_FILES), url=LAB_URLS, auto_sync=st.booleans() | LEAVES)
+def test_a_station_lab_store_address_loads_or_is_one_line_without_its_password(tmp_path, seed, url, auto_sync):
+    document = tomllib.loads(seed.read_text(encoding="utf-8"))
+    document["lab_store"] = {"url": url, "auto_sync": auto_sync}
+    path = tmp_path / "station.toml"
+    path.write_text(toml_document(document), encoding="utf-8")
+    try:
+        load_station(path)
+    except ConfigError as exc:
+        assert exc.exit_code == 2 and "\n" not in str(exc) and SECRET not in str(exc), str(exc)
 
 
 @pytest.mark.parametrize("seed", PROTOCOL_FILES + STATION_FILES, ids=lambda p: p.name)

@@ -13,6 +13,8 @@ from calibrated_pkm5 import EXAMPLES, SEED, calibrated_runs
 from bench.calibration.compensate import NEWEST, OFF, select_calibration
 from bench.cli import main
 from bench.errors import ConfigError
+from bench.rigs.mice import LIVENESS_ROBOT_ERROR_MM
+from bench.rigs.registration import PKM5_RATED_RP_MM
 from bench.store import Store
 from motion import pkm5
 from motion.pkm5.calibration import compensation_geometry, geometry_from_calibration
@@ -55,6 +57,11 @@ def test_compensation_cuts_the_pose_error_on_held_out_poses(tmp_path_factory):
     assert calibration["id"] in on.calibration_ids and calibration["id"] not in off.calibration_ids
     assert on.settings["kinematic_calibration"]["id"] == calibration["id"]
     assert off.settings["kinematic_calibration"] == {"id": None, "reason": "--no-kinematic-calibration"}
+    # the mice's liveness check grants the calibrated robot its own small error, the uncalibrated one 25 mm
+    assert on.settings["instrument"]["liveness_robot_error_mm"] == pytest.approx(
+        2 * (5 * calibration["ap_after_mm"] + PKM5_RATED_RP_MM), abs=1e-3
+    )
+    assert off.settings["instrument"]["liveness_robot_error_mm"] == LIVENESS_ROBOT_ERROR_MM
     ap_on, ap_off = _ap_mm(runs.store, runs.compensated), _ap_mm(runs.store, runs.nominal)
     assert ap_off > 0.5  # the true geometry's error, uncompensated (0.98 mm measured)
     assert ap_off / ap_on > 5  # 15.6x measured with this seed

@@ -4,6 +4,7 @@ store file is created; a store path that names nothing is refused, never created
 from __future__ import annotations
 
 import string
+from pathlib import Path
 
 import pytest
 from hypothesis import assume, given, settings
@@ -24,6 +25,9 @@ BAD_URLS = {  # the URL -> words its one line must hold
     f"postgresql://bench:{SECRET}@localhost:99999/lab": "port '99999', expected a number from 1 to 65535",
     f"postgresql://bench:{SECRET}@localhost/lab?colour=blue": '"colour"',
     f"postgresql://bench@localhost/lab?password={SECRET}&sslmode=sometimes": 'invalid sslmode value: "sometimes"',
+    # libpq names these after the host it tried, psycopg reads connect_timeout itself: both were "server unreachable"
+    f"postgresql://bench:{SECRET}@localhost:1/lab?keepalives=x": 'invalid integer value "x" for connection option',
+    f"postgresql://bench:{SECRET}@localhost:1/lab?connect_timeout=abc": "bad value for connect_timeout: 'abc'",
 }
 
 
@@ -42,6 +46,7 @@ def _one_line(capsys) -> str:
         ["export", "1", "--store", "URL"],
         ["lab", "summary", "--store", "URL"],
         ["report", "1", "--store", "URL"],
+        ["store", "check", "URL"],
     ],
 )
 def test_every_bad_url_is_one_line_exit_2_and_no_password(tmp_path, capsys, url, command):
@@ -64,6 +69,32 @@ def test_a_store_path_that_names_nothing_is_refused_never_created(tmp_path, caps
     assert main([*command, "--store", str(typo)]) == 2
     assert f"--store {typo}: no " in _one_line(capsys)
     assert not typo.exists() and not list(tmp_path.iterdir())
+
+
+@pytest.mark.parametrize(
+    "command",
+    [
+        ["sync", "--to", "postgresql://bench@localhost:1/other"],
+        ["backup", "copy.db"],
+        ["resume", "1"],
+        ["calibrate", "1"],
+        ["analyze", "path-run", "1"],
+        ["run", "examples/iso9283_pose_quick.toml", "--sim"],
+    ],
+)
+def test_a_lab_address_where_only_a_store_file_will_do_is_one_line_without_its_password(
+    tmp_path, capsys, monkeypatch, command
+):
+    monkeypatch.chdir(tmp_path)
+    url = f"postgresql://bench:{SECRET}@localhost:1/lab"
+    examples = Path(__file__).resolve().parents[1] / "examples"
+    argv = [
+        str(examples / word.removeprefix("examples/")) if word.startswith("examples/") else word for word in command
+    ]
+    assert main([*argv, "--store", url]) == 2
+    line = _one_line(capsys)  # was "folder postgresql:/bench:PASSWORD@localhost:1 does not exist"
+    assert line.endswith("a URL, expected a run store file (bench.db) here") and SECRET not in line
+    assert not list(tmp_path.iterdir())
 
 
 _PASSWORD_CHARS = string.ascii_letters + string.digits + "!$%&()*+,-.:;=@[]^_{|}~/"

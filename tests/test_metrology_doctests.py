@@ -14,6 +14,7 @@ MODULES = [
     "actuator",
     "actuator_tables",
     "mouse_calibration",
+    "mouse_variance",
     "payload",
     "uncertainty",
     "uncertainty_figures",

@@ -104,11 +104,38 @@ def test_a_calliper_reference_replaces_the_robots_commanded_travel():
                     )
                 )
                 references.append(_sample(f"x{distance:g}/{where}", cycle, reference_mm=true_x))
-    calliper, counts = mouse_calibration_moves(samples, references)
-    commanded, _ = mouse_calibration_moves(samples)
+    calliper, counts, readings = mouse_calibration_moves(samples, references)
+    commanded, *_ = mouse_calibration_moves(samples)
     assert len(calliper) == 11 and (calliper[:, 1] == 0).all()
+    assert readings.tolist() == [
+        [k, k + 1] for k in range(11)
+    ]  # one out-and-back chain: each starts where the last ended
     slope = np.linalg.lstsq(calliper[:, :1], counts[:, 0], rcond=None)[0][0]
     assert slope == pytest.approx(counts_per_mm, rel=2e-3)
     assert np.linalg.lstsq(commanded[:, :1], counts[:, 0], rcond=None)[0][0] == pytest.approx(
         0.97 * counts_per_mm, rel=2e-3
     )
+
+
+def test_a_move_table_says_which_moves_share_a_reading(tmp_path, capsys):
+    """``bench analyze mouse`` on a move table: the optional start_reading and end_reading columns give the
+    weighted fit the chain (its U is the one fit_matrix states with them, whatever the row order); a reading
+    number that is not whole is one line naming it."""
+    from bench.metrology import fit_matrix
+    from bench.simulators.mouse_calibration_mc import calibration_moves
+
+    reference, counts, readings = calibration_moves(np.random.default_rng(6), 30, "both directions")
+    rows = [f"{r[0]},{r[1]},{c[0]:g},{c[1]:g},{s},{e}" for r, c, (s, e) in zip(reference, counts, readings)]
+    path = tmp_path / "moves.csv"
+    header = "ref_x_mm,ref_y_mm,counts_x,counts_y,start_reading,end_reading"
+    path.write_text("\n".join([header, *rows[::-1]]) + "\n")
+    assert main(["analyze", "mouse", str(path), "--json"]) == 0
+    analysed = json.loads(capsys.readouterr().out)
+    weighted = fit_matrix(reference, counts, per_direction=True, readings=readings)
+    unshared = fit_matrix(reference, counts, per_direction=True, readings=np.arange(60).reshape(30, 2))
+    assert np.array(analysed["U_A_mm_per_count"]) == pytest.approx(weighted.expanded_a_mm_per_count, rel=1e-9)
+    assert not np.allclose(weighted.u_a_mm_per_count, unshared.u_a_mm_per_count, rtol=1e-3)
+    path.write_text(path.read_text().replace(f",{readings[-1, 1]}\n", ",1.5\n", 1))
+    assert main(["analyze", "mouse", str(path)]) == 2
+    err = capsys.readouterr().err
+    assert "row 1, column end_reading: 1.5, expected a whole reading number" in err and err.count("\n") == 1

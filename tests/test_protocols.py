@@ -8,7 +8,7 @@ import threading
 
 import numpy as np
 import pytest
-from hypothesis import given, settings
+from hypothesis import example, given, settings
 from hypothesis import strategies as st
 from runner_support import RunInThread, StandInMover, wait_until
 
@@ -36,7 +36,7 @@ from bench.protocols.iso9283 import (
     fit_cube_side,
 )
 from bench.protocols.kinematics import robot_model
-from bench.protocols.parameters import MAX_COUNT
+from bench.protocols.parameters import MAX_COUNT, MAX_PLAN_REPEATS
 from bench.protocols.plan import iterate
 from bench.protocols.runner import TRANSITIONS, RunState
 from bench.store import Store, tidy_table
@@ -178,6 +178,35 @@ def test_a_pose_plan_captures_every_pose_once_per_cycle_and_velocity(cycles, vel
 def test_any_absurd_cycle_count_is_refused_before_a_plan_exists(cycles):
     with pytest.raises(ConfigError, match=r"cycles = .*, expected an integer in \[2, 100000\]$"):
         PoseAccuracy(cycles=cycles, cube_side_mm=20)
+
+
+@settings(max_examples=30, deadline=None)
+@given(
+    cycles=st.integers(min_value=2, max_value=MAX_COUNT),
+    velocities=st.lists(st.sampled_from([100.0, 50.0, 10.0]), min_size=1, max_size=2000),
+    loads=st.lists(st.just(0.0), min_size=1, max_size=2000),
+)
+@example(cycles=MAX_COUNT, velocities=[50.0] * 1000, loads=[0.0])
+@example(cycles=MAX_COUNT, velocities=[100.0, 50.0, 10.0], loads=[0.0, 0.0, 0.0])  # 9 x 10^5: built
+def test_a_plan_whose_sizes_multiply_beyond_the_bound_is_refused_before_it_exists(cycles, velocities, loads):
+    """Each size within its bound, their product beyond MAX_PLAN_REPEATS (100 000 cycles x 1 000 velocities: hours
+    of dry run before) is one line naming each factor; within it the protocol is built (its plan not walked)."""
+    repeats = cycles * len(velocities) * len(loads)
+    values = dict(cycles=cycles, velocities_pct=velocities, loads_kg=loads, cube_side_mm=20)
+    if repeats <= MAX_PLAN_REPEATS:
+        assert PoseAccuracy(**values).cycles == cycles
+        return
+    with pytest.raises(ConfigError) as refused:
+        PoseAccuracy(**values)
+    assert str(refused.value) == (
+        "parameters: a plan of "
+        + " x ".join(
+            f"{key} {size:,}"
+            for key, size in (("cycles", cycles), ("velocities_pct", len(velocities)), ("loads_kg", len(loads)))
+            if size > 1
+        )
+        + f" = {repeats:,} repetitions, expected at most {MAX_PLAN_REPEATS:,} (lower one of them)"
+    )
 
 
 # ---- cube and steps ----------------------------------------------------------------------------------------------

@@ -61,6 +61,22 @@ def test_run_without_a_rig_is_refused_in_one_line_naming_both_flags(tmp_path, ca
     assert not store.exists()
 
 
+@pytest.mark.parametrize(
+    "rig, refusal",
+    [
+        (["--station", "no-such-station.toml"], "no-such-station.toml: cannot read the station file"),
+        (["--port", "/dev/null"], "--port: protocol 'iso9283_pose' needs pose"),
+    ],
+)
+def test_a_run_refused_at_its_rig_leaves_no_new_store_behind(tmp_path, capsys, rig, refusal):
+    """A mistyped station file or a rig without the protocol's instrument is refused in one line and creates no
+    empty store file (issue 32: a refused command writes nothing)."""
+    store = tmp_path / "bench.db"
+    assert main(["run", str(QUICK), "--store", str(store), "--no-progress", *rig]) == 2
+    assert _one_error_line(capsys).startswith(f"bench: error: {refusal}")
+    assert sorted(p.name for p in tmp_path.iterdir()) == []
+
+
 def test_runs_shows_simulated_runs_as_such(rehearsed, tmp_path, capsys):
     store = tmp_path / "bench.db"
     store.write_bytes(rehearsed.read_bytes())
@@ -77,32 +93,49 @@ def test_runs_shows_simulated_runs_as_such(rehearsed, tmp_path, capsys):
     assert [json.loads(line)["simulated"] for line in capsys.readouterr().out.splitlines()] == [True, False]
 
 
-def test_resume_with_another_device_under_test_is_refused_and_writes_nothing(rehearsed, tmp_path, capsys):
+@pytest.mark.parametrize(
+    "line, changed, what",
+    [
+        ('serial = "PKM5-0001"', 'serial = "PKM5-0002"', "device under test is PKM5-0001"),
+        ('asset = "INV-0001"', 'asset = "INV-0009"', "robot asset is INV-0001"),
+    ],
+)
+def test_resume_with_another_device_under_test_is_refused_and_writes_nothing(
+    rehearsed, tmp_path, capsys, line, changed, what
+):
     store = tmp_path / "bench.db"
     store.write_bytes(rehearsed.read_bytes())
-    other = tmp_path / "pkm5_mice_0002.toml"
+    other = tmp_path / "pkm5_mice_other.toml"
     text = STATION.read_text()
-    assert text.count('serial = "PKM5-0001"') == 1
-    other.write_text(text.replace('serial = "PKM5-0001"', 'serial = "PKM5-0002"'))
+    assert text.count(line) == 1
+    other.write_text(text.replace(line, changed))
     before = store_dump(store)
     capsys.readouterr()
+    named = changed.split('"')[1]
     assert main(["resume", "1", "--station", str(other), "--sim", "--store", str(store), "--no-progress"]) == 2
     assert _one_error_line(capsys) == (
-        f"bench: error: the resumed run: device under test is PKM5-0001, the station "
-        f"{other} names PKM5-0002; resume it with the station it ran on"
+        f"bench: error: the resumed run: {what}, the station {other} names {named}; "
+        f"resume it with the station it ran on: --station {STATION} --sim"
     )
     assert store_dump(store) == before
 
 
-def test_resume_of_a_station_run_on_the_simulator_is_refused_and_writes_nothing(rehearsed, tmp_path, capsys):
+@pytest.mark.parametrize(
+    "options, asked",
+    [([], "resume named no rig"), (["--sim"], "resume asked for the simulator (--sim)")],
+)
+def test_resume_of_a_station_run_on_the_simulator_is_refused_naming_its_rig_and_writes_nothing(
+    rehearsed, tmp_path, capsys, options, asked
+):
+    """A bare ``bench resume RUN`` of a station run is told it named no rig (not that it asked for --sim) and
+    which options resume the run on its own rig (issue 32, item 10: refused "with no hint")."""
     store = tmp_path / "bench.db"
     store.write_bytes(rehearsed.read_bytes())
     before = store_dump(store)
     capsys.readouterr()
-    assert main(["resume", "1", "--store", str(store), "--no-progress"]) == 2
+    assert main(["resume", "1", "--store", str(store), "--no-progress", *options]) == 2
     assert _one_error_line(capsys) == (
         f"bench: error: the resumed run: ran on station {STATION} rehearsed on "
-        "simulators (--sim), resume asked for the simulator (--sim); resume it on the "
-        "rig it ran on"
+        f"simulators (--sim), {asked}; resume it on the rig it ran on: --station {STATION} --sim"
     )
     assert store_dump(store) == before

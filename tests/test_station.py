@@ -60,7 +60,20 @@ def test_every_example_station_parses_with_the_capabilities_of_its_devices():
     [
         (
             _station(mice={"xy": "/dev/input/a", "xz": "/dev/input/b", "dpi": 800}),
-            "unknown key 'mice.dpi', expected one of calibration, cpi, grab, noise_counts, xy, xz",
+            "unknown key 'mice.dpi', expected one of calibration, cpi, grab, noise_counts, xy, xz, xz_mount",
+        ),
+        (
+            _station(mice={"xy": "/dev/input/a", "xz": "/dev/input/b", "xz_mount": "rails"}),
+            'mice.xz_mount = \'rails\', expected "platform" (on the end effector: sees x and z) or "guided" (on '
+            "vertical guides: sees z only)",
+        ),
+        (
+            _station(mice={"xy": "/dev/input/a", "xz": "/dev/input/b", "cpi": 1e20}),
+            "mice.cpi = 1e+20, expected a mouse's resolution in counts per inch, 100 to 50000",
+        ),
+        (
+            _station(mice={"xy": "/dev/input/a", "xz": "/dev/input/b", "xz_mount": True}),
+            'mice.xz_mount = True, expected "platform"',
         ),
         (
             _station(mice={"xy": "/dev/input/a", "xz": "/dev/input/b", "calibration": 0}),
@@ -90,9 +103,16 @@ def test_every_example_station_parses_with_the_capabilities_of_its_devices():
         ({"robot": {"kind": "pkm5"}}, '[controller] missing, expected a table (port = "/dev/ttyUSB0")'),
         (_station(controller={"port": 5}), "controller.port = 5, expected a serial port, e.g. /dev/ttyUSB0"),
         (_station(controller={"port": "/dev/a", "baud": True}), "controller.baud = True, expected a baud rate"),
+        (
+            _station(controller={"port": "/dev/a", "baud": 2**63 - 1}),  # overflowed pySerial's ioctl: a traceback
+            "controller.baud = 9223372036854775807, expected a baud rate, an integer from 50 to 4,000,000",
+        ),
+        (_station(controller={"port": "/dev/a", "baud": -1}), "controller.baud = -1, expected a baud rate"),
+        (_station(calliper={"kind": "serial", "port": "/dev/c", "baud": 0}), "calliper.baud = 0, expected a baud"),
         (_station(calliper={"kind": "serial"}), "calliper.port missing, expected the calliper's serial port"),
         (_station(laser_grid={}), "[laser_grid] with robot.kind = 'pkm5', expected robot.kind = 'delta4'"),
         (_station(mouse={}), "unknown table [mouse], expected one of [station], [robot], [controller], [mice]"),
+        (_station(**{"mice\n": {}}), "unknown table [mice\\n], expected one of [station]"),  # was two lines
         (
             {"robot": {"kind": "delta4"}, "controller": {"port": "/dev/a"}, "mice": {"xy": "/dev/b", "xz": "/dev/c"}},
             "[mice] with robot.kind = 'delta4', expected robot.kind = 'pkm5' (the mice are mounted on the pkm5's",
@@ -228,6 +248,20 @@ def _rehearsed_run(store: Store, station: Path, protocol_file: Path, *, operator
     return result, truth
 
 
+def _offset_from_truth(samples, truth: np.ndarray, protocol_file: Path) -> np.ndarray:
+    """Each pose sample of a rehearsed run of ``protocol_file`` less the true pose it was taken at (mm, (n, 3)): the
+    truth log has one rest per move, in plan order, after the registration's check moves."""
+    measured = np.array([[s.values[k] for k in ("x_mm", "y_mm", "z_mm")] for s in samples])
+    moves, at_capture = 0, []
+    for step in iterate(load_protocol(protocol_file)):
+        moves += isinstance(step, Move)
+        if isinstance(step, Capture):
+            at_capture.append(moves - 1)
+    checks = 2 * CHECK_RETURNS  # the registration's check moves come first (bench.rigs.registration)
+    assert len(truth) == checks + moves
+    return measured - truth[checks:][at_capture, :3]
+
+
 def test_pkm5_with_mice_on_the_hardware_path_measures_the_true_displacements(tmp_path):
     with Store(tmp_path / "b.db") as store:
         result, truth = _rehearsed_run(store, STATIONS / "pkm5_mice.toml", EXAMPLES / "iso9283_pose_quick.toml")
@@ -238,20 +272,60 @@ def test_pkm5_with_mice_on_the_hardware_path_measures_the_true_displacements(tmp
     assert settings["station"]["simulated"] is True and settings["station"]["identity"]["robot_serial"] == "PKM5-0001"
     assert run.bench == "pkm5-bench-1"  # the station's name, the run's key in the lab store
     assert settings["instrument"]["cpi"] == 800 and settings["instrument"]["resolution_mm"] == pytest.approx(0.03175)
-    measured = np.array([[s.values[k] for k in ("x_mm", "y_mm", "z_mm")] for s in samples])
-    # each sample against the true pose it was taken at: the truth log has one rest per move, in plan order
-    moves, at_capture = 0, []
-    for step in iterate(load_protocol(EXAMPLES / "iso9283_pose_quick.toml")):
-        moves += isinstance(step, Move)
-        if isinstance(step, Capture):
-            at_capture.append(moves - 1)
-    checks = 2 * CHECK_RETURNS  # the registration's check moves come first (bench.rigs.registration)
-    assert len(truth) == checks + moves
-    offset = measured - truth[checks:][at_capture, :3]
+    offset = _offset_from_truth(samples, truth, EXAMPLES / "iso9283_pose_quick.toml")
     # registered at the mean return home, so every reading is off by the robot's own home error, and only by it:
     # the spread of that offset is the mice's (a count is 0.032 mm, 0.05 counts of noise)
     assert np.ptp(offset, axis=0).max() < 0.1, offset
     assert np.linalg.norm(offset.mean(axis=0)) < 3.0
+
+
+def _guided_station(tmp_path: Path) -> Path:
+    """examples/stations/pkm5_mice.toml with its x-z mouse on vertical guides (the dissertation's Z mouse)."""
+    text = (STATIONS / "pkm5_mice.toml").read_text().replace("[mice]\n", '[mice]\nxz_mount = "guided"\n', 1)
+    path = tmp_path / "pkm5_guided.toml"
+    path.write_text(text)
+    return path
+
+
+def test_a_guided_x_z_mouse_measures_the_true_positions_of_an_iso_pose_run(tmp_path):
+    """The simulator's x-z mouse on vertical guides (its x counts stay 0 apart from noise), the station saying so:
+    the run completes and measures the true displacements as a platform mouse does."""
+    quick = EXAMPLES / "iso9283_pose_quick.toml"
+    with Store(tmp_path / "b.db") as store:
+        result, truth = _rehearsed_run(store, _guided_station(tmp_path), quick)
+        assert result.exit_status == "completed" and result.samples == 15, result.reason
+        settings = store.run(result.run_id).settings
+        samples = [s for s in store.samples(result.run_id) if s.kind == "pose"]
+    assert settings["station"]["mice"]["xz_mount"] == "guided" and settings["instrument"]["xz_mount"] == "guided"
+    assert settings["instrument"]["liveness_x_cross_check"] is False
+    assert max(abs(s.raw["counts_xz"][0]) for s in samples) <= 1  # the guided mouse saw no x, over 33 mm of it
+    offset = _offset_from_truth(samples, truth, quick)
+    assert np.ptp(offset, axis=0).max() < 0.1, offset  # as the platform mouse's run above
+    assert np.linalg.norm(offset.mean(axis=0)) < 3.0
+
+
+def test_a_station_taking_a_guided_x_z_mouse_to_ride_the_platform_is_refused_naming_the_key(tmp_path):
+    """The simulated x-z mouse on guides, the station left at its default (on the platform, seeing x): the first move
+    with x is refused in a line that names the key, and nothing of that capture is stored."""
+    from bench.rigs.builder import build_rig
+    from bench.simulators.station import rehearse
+
+    protocol = load_protocol(EXAMPLES / "iso9283_pose_quick.toml")
+    rehearsal = rehearse(load_station(_guided_station(tmp_path)), speed_factor=REHEARSAL_SPEED)
+    try:
+        station = rehearsal.station.with_sensor("mice", xz_mount="platform")  # the simulated mouse stays guided
+        with Store(tmp_path / "b.db") as store:
+            rig = build_rig(station, store, requires=required_capabilities(protocol), speed_factor=REHEARSAL_SPEED)
+            try:
+                result = Runner(rig, store, progress=False).run(protocol)
+            finally:
+                rig.close()
+            stored = [s for s in store.samples(result.run_id) if s.kind == "pose"]
+    finally:
+        rehearsal.close()
+    assert result.exit_status == "failed", result.reason
+    assert "mouse_xz" in result.reason and 'set [mice] xz_mount = "guided"' in result.reason, result.reason
+    assert "\n" not in result.reason and len(stored) < 15
 
 
 def test_a_hardware_path_run_is_exported_analysed_and_reported_with_equal_numbers(tmp_path, capsys):

@@ -126,6 +126,15 @@ def test_every_command_that_reads_runs_refuses_a_missing_store(tmp_path, capsys,
     assert not missing.exists()
 
 
+def test_store_check_of_a_file_that_is_no_database_reports_it_as_its_one_problem(tmp_path, capsys):
+    text = tmp_path / "notes.txt"
+    text.write_text("not a store\n")
+    assert main(["store", "check", str(text)]) == 1  # was "database: ...; check the store with `bench store check`"
+    captured = capsys.readouterr()
+    assert captured.out == f"{text}: not a usable bench store (file is not a database)\n"
+    assert captured.err == f"bench: 1 problem(s) in {text}; work on a backup copy\n"
+
+
 def test_a_damaged_store_is_one_line_naming_the_file_and_what_to_do(sound_store, capsys):
     damaged = _damaged(sound_store)
     advice = f"the file is damaged: check it with `bench store check {damaged}` and work on a backup copy"

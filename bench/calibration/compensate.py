@@ -156,8 +156,9 @@ def choose_calibration(
 
 def put_in_force(rig: Any, record: Any, reason: str) -> Any:
     """Calibration ``record`` (None: none, for ``reason``) in force on ``rig``: its mover commands (and the runner
-    pre-flights) by the calibrated geometry, its id joins ``rig.calibration_ids`` and ``rig.kinematic_calibration``
-    records it (or none, and why). Returns ``rig``."""
+    pre-flights) by the calibrated geometry, its id joins ``rig.calibration_ids``, an instrument that judges its
+    readings against the commanded motion learns the calibration's own error (``expect_calibrated_robot``, the mice's
+    liveness check) and ``rig.kinematic_calibration`` records it (or none, and why). Returns ``rig``."""
     from bench.rigs.interfaces import KinematicCalibration
 
     if record is None:
@@ -169,6 +170,11 @@ def put_in_force(rig: Any, record: Any, reason: str) -> Any:
         rig.close()
         raise
     rig.calibration_ids = tuple(rig.calibration_ids) + (record.id,)
+    expect_calibrated_robot = getattr(rig.instrument, "expect_calibrated_robot", None)
+    if expect_calibrated_robot is not None and record.params.get("ap_after_mm") is not None:
+        # an instrument that judges its readings against the commanded motion (the mice) may now expect the small
+        # error of a calibrated robot instead of an uncalibrated one's
+        expect_calibrated_robot(float(record.params["ap_after_mm"]))
     rig.kinematic_calibration = KinematicCalibration(
         reason, id=record.id, name=record.name, version=record.version, source_run_id=record.source_run_id
     )

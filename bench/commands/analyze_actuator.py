@@ -75,7 +75,7 @@ def actuator_result_json(r) -> dict:
 
 def _actuator(args: argparse.Namespace) -> int:
     from bench.metrology.actuator_tables import actuator_table, analyze_actuators, robot_control_resolution
-    from bench.metrology.formatting import format_value, reading_step_mm
+    from bench.metrology.formatting import format_uncertainty, format_value, reading_step_mm
     from bench.metrology.tables import read_table_csv
     from bench.metrology.uncertainty import instrument_budget
 
@@ -97,7 +97,8 @@ def _actuator(args: argparse.Namespace) -> int:
     )
     lines = [
         (
-            f"{'actuator':<9} {'n':>3} {'repeat_mm':>9} {'accuracy_mm':>11} {'max|bias|_mm':>12} {'R230_mm':>8} "
+            f"{'actuator':<9} {'n':>3} {'repeat_mm':>9} {'accuracy_mm':>11} {'U_repeat':>8} {'U_accuracy':>10} "
+            f"{'max|bias|_mm':>12} {'R230_mm':>8} "
             f"{'E230_mm':>8} {'A230_mm':>8}  mean deviation per target (mm)"
         )
     ]
@@ -107,6 +108,10 @@ def _actuator(args: argparse.Namespace) -> int:
         """By its U when it has one, else never finer than the readings (as the report: figure_decimals)."""
         return format_value(value, u, signed=signed, resolution=None if u is not None else step)
 
+    def expanded(u: float | None) -> str:
+        """A U as the pose table prints its U columns (two significant digits); "—" where there is none."""
+        return "—" if u is None else format_uncertainty(u)
+
     for r in results:
         g, iso = r.groover, r.iso230_2
         repeat_u, accuracy_u = (
@@ -114,14 +119,16 @@ def _actuator(args: argparse.Namespace) -> int:
         )
         lines.append(
             f"{r.actuator:<9} {g.n:>3} {mm(g.repeatability_mm, repeat_u):>9} "
-            f"{mm(g.accuracy_mm, accuracy_u):>11} {mm(g.max_abs_bias_mm):>12} "
+            f"{mm(g.accuracy_mm, accuracy_u):>11} {expanded(repeat_u):>8} {expanded(accuracy_u):>10} "
+            f"{mm(g.max_abs_bias_mm):>12} "
             f"{mm(iso.repeatability_forward_mm):>8} {mm(iso.systematic_forward_mm):>8} {mm(iso.accuracy_forward_mm):>8}  "
             + " ".join(mm(v, u.expanded_uncertainty, True) for v, u in zip(g.mean_deviation_mm, r.bias_u))
             + (f"  ({r.dropped} readings of incomplete repeats left out)" if r.dropped else "")
         )
     lines.append(
         "Repeatability = 3 σ̄, accuracy = CR/2 + 3 σ̄ (dissertation Eqs. 8.2-8.3); bias = x̄ - target; "
-        "R/E/A: ISO 230-2 unidirectional (approach from below); figures with a U rounded by it (--json: U, full precision)."
+        "R/E/A: ISO 230-2 unidirectional (approach from below); U_repeat, U_accuracy: their U (k as --k); figures "
+        "with a U rounded by it (--json: U, full precision)."
     )
     lines.append(budget + ".")
     emit({"actuators": {r.actuator: actuator_result_json(r) for r in results}, "U_budget": budget}, args.json, lines)

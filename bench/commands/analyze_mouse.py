@@ -17,7 +17,8 @@ def register(actions: argparse._SubParsersAction, new_parser) -> None:
         "mouse",
         "mouse resolution: per-distance (reading, distance_mm, position; reading "
         "numbers the readings in the order taken; N/A = restart), "
-        "2x2 fit (ref_x_mm, ref_y_mm, counts_x, counts_y), or a mouse_calibration "
+        "2x2 fit (ref_x_mm, ref_y_mm, counts_x, counts_y; optional start_reading, end_reading: the "
+        "number of each move's readings, moves sharing a reading name it alike), or a mouse_calibration "
         "run's export (bench export RUN --kind mouse)",
     )
     mouse.add_argument(
@@ -37,12 +38,18 @@ def _mouse(args: argparse.Namespace) -> int:
 
     frame = read_table_csv(args.file)
     if {"ref_x_mm", "ref_y_mm", "counts_x", "counts_y"} <= set(frame.columns):
-        table = numeric_columns(frame, ["ref_x_mm", "ref_y_mm", "counts_x", "counts_y"])
+        numbered = {"start_reading", "end_reading"} <= set(frame.columns)
+        chain = ["start_reading", "end_reading"] if numbered else []
+        table = numeric_columns(frame, ["ref_x_mm", "ref_y_mm", "counts_x", "counts_y", *chain])
         return _mouse_matrix(
-            args, table[["ref_x_mm", "ref_y_mm"]].to_numpy(), table[["counts_x", "counts_y"]].to_numpy()
+            args,
+            table[["ref_x_mm", "ref_y_mm"]].to_numpy(),
+            table[["counts_x", "counts_y"]].to_numpy(),
+            _reading_numbers(args.file, table, chain),
+            f"the table's ref_x_mm, ref_y_mm ({args.file})",
         )
     if _RUN_EXPORT <= set(frame.columns):
-        return _mouse_matrix(args, *_run_export_moves(args, frame))
+        return _mouse_matrix(args, *_run_export_moves(args, frame), _run_export_reference(args))
     if not {"distance_mm", "position"} <= set(frame.columns):
         raise ConfigError(
             f"{args.file}: expected columns distance_mm, position (per-distance method) or "
@@ -118,13 +125,43 @@ def _run_export_moves(args: argparse.Namespace, frame):
     return mouse_calibration_moves(rows, references)
 
 
-def _mouse_matrix(args: argparse.Namespace, reference, counts) -> int:
+def _reading_numbers(path, table, columns: list[str]):
+    """Each move's start and end reading number (K, 2) from ``columns`` of a move table; without them every move
+    has readings of its own (no two moves share one)."""
+    import numpy as np
+
+    if not columns:
+        return np.arange(2 * len(table)).reshape(-1, 2)
+    numbers = table[columns].to_numpy()
+    whole = numbers == np.round(numbers)
+    if not whole.all():
+        row, column = np.argwhere(~whole)[0]
+        raise ConfigError(
+            f"{path}: row {row + 1}, column {columns[column]}: {numbers[row, column]:g}, expected a whole reading number"
+        )
+    return numbers.astype(int)
+
+
+def _run_export_reference(args: argparse.Namespace) -> str:
+    """What a run export's fit is made against, in words: the calliper readings of ``--reference``, else the
+    commanded travel, with the hint a calliper-referenced run needs (a fit against the robot under test is never
+    silent, issue 32)."""
+    if args.reference is not None:
+        return f"the calliper readings of {args.reference}"
+    return (
+        "the commanded travel (cmd_x_mm, cmd_y_mm), right for a calibrated-axis run; a calliper-referenced run: "
+        "add --reference REF.csv (bench export RUN --kind mouse_reference)"
+    )
+
+
+def _mouse_matrix(args: argparse.Namespace, reference, counts, readings, reference_source: str) -> int:
     from bench.metrology import fit_matrix
     from bench.metrology.formatting import format_measured, format_uncertainty
     from bench.metrology.mouse_calibration import counts_per_inch
 
-    # an intercept per move direction models a start/stop offset (sensors.md: without it the offset goes into A)
-    fit = fit_matrix(reference, counts, per_direction=True)
+    # an intercept per move direction models a start/stop offset (sensors.md: without it the offset goes into A);
+    # the moves' shared readings carry their quantisation and reference error into both (the weighted fit)
+    fit = fit_matrix(reference, counts, per_direction=True, readings=readings)
     k = fit.coverage_factor
     intercepts = {
         label: {
@@ -146,10 +183,12 @@ def _mouse_matrix(args: argparse.Namespace, reference, counts) -> int:
         "scale_mm_per_count": fit.scale_mm_per_count.tolist(),
         "sigma_counts": fit.sigma_counts.tolist(),
         "intercepts_by_direction": intercepts,
+        "reference": reference_source,
     }
     a, big_u = fit.a_mm_per_count, fit.expanded_a_mm_per_count
     scales = [(s, k * u) for s, u in zip(fit.scale_mm_per_count, fit.u_scale_mm_per_count())]
     lines = [
+        f"reference: {reference_source}",
         f"A (mm/count), n = {fit.n} moves, ± U (95 %, k = {k:.2f}, {fit.dof} dof):",
         *(
             "  [" + "  ".join(format_measured(a[i, j], big_u[i, j], signed=True) for j in range(2)) + "]"

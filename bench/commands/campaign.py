@@ -276,6 +276,28 @@ def execute(runner: Runner, start) -> RunResult:
     return result
 
 
+@contextmanager
+def _new_store_removed_if_refused(path: str) -> Iterator[None]:
+    """A store file this command creates is removed again when the command ends in an error before a run was
+    stored in it (a station file that does not load, a device that does not open, a capability missing): a refused
+    run leaves no new file behind. A store that existed is never touched here."""
+    from pathlib import Path
+
+    from bench.store import Store
+
+    existed = Path(path).exists()
+    try:
+        yield
+    except BaseException:
+        if not existed and Path(path).exists():
+            with Store(path, read_only=True) as opened:
+                empty = not opened.runs()
+            if empty:
+                for leftover in (path, f"{path}-wal", f"{path}-shm"):
+                    Path(leftover).unlink(missing_ok=True)
+        raise
+
+
 def _run(args: argparse.Namespace) -> int:
     from bench.launch import check_speed_factor
     from bench.protocols import Runner, load_protocol, preflight, summarize
@@ -300,7 +322,7 @@ def _run(args: argparse.Namespace) -> int:
     early = preflight(protocol)
     if args.speed_factor is not None:  # before the store opens: a refused run leaves no new file behind
         check_speed_factor(args.speed_factor)
-    with Store(args.store) as store:
+    with _new_store_removed_if_refused(args.store), Store(args.store) as store:
         rig = build_rig(
             args,
             protocol.robot,

@@ -22,10 +22,10 @@ def register(groups: argparse._SubParsersAction) -> None:
 
 def _check(args: argparse.Namespace) -> int:
     from bench.store.connection import check_store
-    from bench.store.lab import LabStore, check_lab_url, is_lab_url, redacted
+    from bench.store.lab import LabStore, check_lab_url, redacted
 
     notes: list[str] = []
-    if is_lab_url(args.path):
+    if "://" in args.path:  # any URL (mysql:// too) is a lab address to check, its password hidden, not a file
         check_lab_url(args.path, "STORE")
         with LabStore(args.path) as lab:
             problems, notes = lab.check_samples()

@@ -31,6 +31,13 @@ def register(groups: argparse._SubParsersAction) -> None:
     )
     sync.add_argument("--batch", type=int, default=20_000, help="samples per transaction")
     sync.add_argument("--retries", type=int, default=3, help="reconnections after a lost connection")
+    sync.add_argument(
+        "--producers",
+        type=int,
+        default=None,
+        help="processes reading and formatting the samples while they are sent, one per connection at most (default: 1 for a sync of "
+        "4 batches or more on 4 cores or more, else 0)",
+    )
     sync.set_defaults(handler=_sync)
 
     text = "lab-wide figures from the lab's PostgreSQL store"
@@ -55,12 +62,15 @@ def register(groups: argparse._SubParsersAction) -> None:
 def _sync(args: argparse.Namespace) -> int:
     from bench.store import Store
     from bench.store.lab import check_lab_url, redacted, sync_store
+    from bench.store.lab_sync import LANES
 
     check_lab_url(args.to, "--to")
     if args.batch < 1:
         raise ConfigError(f"--batch {args.batch}: expected a positive number of samples")
     if args.retries < 0:
         raise ConfigError(f"--retries {args.retries}: expected 0 or more")
+    if args.producers is not None and not 0 <= args.producers <= LANES:
+        raise ConfigError(f"--producers {args.producers}: expected a number from 0 to {LANES}")
     # read-only: sync never writes the local file, and a path that names no store is refused, never created
     with Store(args.store, bench=args.bench, read_only=True) as store:
         result = sync_store(
@@ -68,6 +78,7 @@ def _sync(args: argparse.Namespace) -> int:
             args.to,
             batch_size=args.batch,
             retries=args.retries,
+            producers=args.producers,
             progress=lambda line: print(line, file=sys.stderr, flush=True),
         )
     print(

@@ -3,7 +3,8 @@
 ISO 9283 pose characteristics (`iso9283`), time-series and path characteristics (`iso9283_dynamics`),
 cornering, path velocity and minimum positioning time (`iso9283_path`), actuator
 accuracy after Groover and ISO 230-2 (`actuator`) with its per-actuator table path (`actuator_tables`),
-optical-mouse calibration (`mouse_calibration`), the project's payload error (`payload`), GUM uncertainty
+optical-mouse calibration (`mouse_calibration`; what scatters a move and the weighted fit: `mouse_variance`), the
+project's payload error (`payload`), GUM uncertainty
 (`uncertainty`, with its measurement-model Monte Carlo in `uncertainty_model`; RD, RV, AV and the path figures' U
 in `uncertainty_figures`), pose statistics of partial readings and detection rates with their Wilson interval
 (`partial_pose`), the laser grid's hit rates (`hit_rate`) and the tidy-table interface (`tables`).
@@ -29,6 +30,7 @@ _SUBMODULES = (
     "iso9283_path",
     "actuator",
     "mouse_calibration",
+    "mouse_variance",
     "payload",
     "uncertainty",
     "uncertainty_figures",

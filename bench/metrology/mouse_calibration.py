@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import itertools
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -21,11 +21,13 @@ from bench.metrology._validation import (
     require_count,
     require_same_length,
 )
+from bench.metrology.mouse_variance import feasible_gls, move_error_structures
 from bench.metrology.uncertainty import coverage_factor
 
 __all__ = [
     "MM_PER_INCH",
     "AxisCalibration",
+    "CalibrationMoves",
     "IncrementResolution",
     "MatrixCalibration",
     "counts_per_inch",
@@ -254,6 +256,21 @@ def fit_axis_scale(reference_mm: ArrayLike, counts: ArrayLike) -> AxisCalibratio
     )
 
 
+def _weighted_rows(
+    reference: np.ndarray, measured: np.ndarray, design: np.ndarray, readings: ArrayLike
+) -> tuple[np.ndarray, np.ndarray, list[np.ndarray]]:
+    """Coefficients (p, 2), residuals (K, 2) and each sensor axis's coefficient covariance (p, p) of the feasible
+    GLS (:func:`bench.metrology.mouse_variance.feasible_gls`): the reference's error shows on the sensor axis
+    along each move's step axis."""
+    numbers = np.asarray(readings)
+    if numbers.shape != (len(reference), 2):
+        raise ConfigError(f"readings: shape {numbers.shape}, expected ({len(reference)}, 2): a start and an end a move")
+    step_axis = np.array(["xy".index(label[1]) for label in direction_labels(reference)])
+    fits = [feasible_gls(measured[:, i], design, *move_error_structures(numbers, step_axis == i)) for i in range(2)]
+    coefficients = np.column_stack([fit.coefficients for fit in fits])
+    return coefficients, np.column_stack([fit.residuals for fit in fits]), [fit.covariance for fit in fits]
+
+
 def _rotation_deg(matrix: np.ndarray) -> float:
     """θ of the polar decomposition matrix = Rot(θ) · S (S symmetric positive-definite)."""
     u, _, vt = np.linalg.svd(matrix)
@@ -262,7 +279,12 @@ def _rotation_deg(matrix: np.ndarray) -> float:
 
 
 def fit_matrix(
-    reference_mm: ArrayLike, counts: ArrayLike, *, intercept: bool = False, per_direction: bool = False
+    reference_mm: ArrayLike,
+    counts: ArrayLike,
+    *,
+    intercept: bool = False,
+    per_direction: bool = False,
+    readings: ArrayLike | None = None,
 ) -> MatrixCalibration:
     """Least-squares 2x2 calibration c = B r (+ c_0 or + c_0,d per move direction d) and A = B⁻¹ with uncertainties.
 
@@ -280,12 +302,23 @@ def fit_matrix(
     intercept; ``per_direction`` fits one intercept per move direction (:func:`direction_labels`), which models it
     whether the moves go one way or both, and is the production fit (``intercept`` fits one common intercept).
 
+    With ``readings`` the fit weighs what scatters each move (:mod:`bench.metrology.mouse_variance`):
+    per sensor axis i, Cov(E_i) = θ_1 I + θ_2 (D Dᵀ)_along i + D Dᵀ / 12, the sensor's tracking noise a move, the
+    reference's error a reading along the step axis, and the readings' quantisation, a known Type B component of
+    1/12 count² a reading (GUM F.2.2.1), shared by the two moves that share a reading. θ is estimated by REML and
+    the fit is the GLS with it, Cov(B_i·) = [(Xᵀ V̂_i⁻¹ X)⁻¹]_RR; U keeps Student's t at K - p. Without it each
+    sensor axis's residual variance is pooled over all moves (ordinary least squares, as above), which a chain of
+    moves sharing readings, or a reference error on the moves along one axis only, leaves under-covered.
+
     Parameters
     ----------
     reference_mm : array_like, shape (K, 2)
         Reference displacements in the stage frame (mm); at least two non-parallel directions.
     counts : array_like, shape (K, 2)
         Count increments of the two sensor axes for each move.
+    readings : array_like of int, shape (K, 2), optional
+        The number of each move's start and end reading: moves that name one number share that reading (the
+        protocol's out-and-back chain, :func:`mouse_calibration_moves`). Given, the fit is the feasible GLS above.
 
     Raises
     ------
@@ -315,22 +348,25 @@ def fit_matrix(
             f"fit_matrix: the moves of some direction ({', '.join(labels)}) all have one length, "
             "so its intercept and the scale cannot be told apart; use at least two lengths each"
         )
-    inverse = np.linalg.inv(normal)
-    coefficients = inverse @ design.T @ measured
-    residuals = measured - design @ coefficients
     dof = len(reference) - parameters
+    if readings is None:
+        inverse = np.linalg.inv(normal)
+        coefficients = inverse @ design.T @ measured
+        residuals = measured - design @ coefficients
+        row_covariances = [s2 * inverse for s2 in np.sum(residuals**2, axis=0) / dof]
+    else:
+        coefficients, residuals, row_covariances = _weighted_rows(reference, measured, design, readings)
     sigma2 = np.sum(residuals**2, axis=0) / dof
     b = coefficients[:2].T
     a = np.linalg.inv(b)
-    m = inverse[:2, :2]
-    # Jacobian of vec(A) w.r.t. vec(B): ∂A_kl/∂B_ij = -A_ki A_jl; rows of B are independent with Cov σ_i² M.
+    # Jacobian of vec(A) w.r.t. vec(B): ∂A_kl/∂B_ij = -A_ki A_jl; rows of B (sensor axes) are independent.
     jacobian = -np.einsum("ki,jl->klij", a, a).reshape(4, 4)
     cov_b = np.zeros((4, 4))
     for i in range(2):
-        cov_b[2 * i : 2 * i + 2, 2 * i : 2 * i + 2] = sigma2[i] * m
+        cov_b[2 * i : 2 * i + 2, 2 * i : 2 * i + 2] = row_covariances[i][:2, :2]
     cov_a = jacobian @ cov_b @ jacobian.T
     offsets = coefficients[2:]
-    u_offsets = np.sqrt(np.outer(np.diag(inverse)[2:], sigma2))
+    u_offsets = np.sqrt(np.column_stack([np.diag(c)[2:] for c in row_covariances]))
     return MatrixCalibration(
         a_mm_per_count=a,
         u_a_mm_per_count=np.sqrt(np.diag(cov_a)).reshape(2, 2),
@@ -348,31 +384,45 @@ def fit_matrix(
     )
 
 
-def mouse_calibration_moves(samples: Any, references: Any = None) -> tuple[np.ndarray, np.ndarray]:
-    """The moves between consecutive readings of one step axis: reference displacements (K, 2) mm and the x-y
-    mouse's count increments (K, 2).
+class CalibrationMoves(NamedTuple):
+    """A calibration run's moves, as :func:`fit_matrix` takes them."""
+
+    reference_mm: np.ndarray  #: (K, 2) reference displacements
+    counts: np.ndarray  #: (K, 2) the x-y mouse's count increments
+    readings: np.ndarray  #: (K, 2) the number of each move's start and end reading (its sample's place in step order)
+
+
+def mouse_calibration_moves(samples: Any, references: Any = None) -> CalibrationMoves:
+    """The moves between consecutive readings of one step axis: reference displacements (K, 2) mm, the x-y
+    mouse's count increments (K, 2) and the numbers of each move's start and end reading (K, 2).
 
     ``samples`` are the ``mouse`` samples in step order (pose ``<axis><mm>/<start|end>``); the reference position of
     each is its calliper reading along the axis (``references``, ``mouse_reference`` samples matched by pose and
     cycle) when given, else its commanded position. The moves back to a step's start count too (moves in both
-    directions: a start/stop offset is told from the scale).
+    directions: a start/stop offset is told from the scale); a move and the next share the reading between them,
+    and its quantisation and reference error (:func:`fit_matrix`).
     """
     readings = {(r.pose, r.cycle): r.values["reference_mm"] for r in references or ()}
-    reference, counts = [], []
-    for before, after in itertools.pairwise(samples):
+    reference, counts, numbers = [], [], []
+    for index, (before, after) in enumerate(itertools.pairwise(samples)):
         axis = (after.pose or "?")[0]
         if axis not in "xy" or (before.pose or "?")[0] != axis:
             continue
-        index = "xy".index(axis)
+        column = "xy".index(axis)
         if references is not None:
             if (before.pose, before.cycle) not in readings or (after.pose, after.cycle) not in readings:
                 continue
             travel = [0.0, 0.0]
-            travel[index] = readings[(after.pose, after.cycle)] - readings[(before.pose, before.cycle)]
+            travel[column] = readings[(after.pose, after.cycle)] - readings[(before.pose, before.cycle)]
         else:
             travel = [after.values[f"cmd_{a}_mm"] - before.values[f"cmd_{a}_mm"] for a in "xy"]
-        if abs(travel[index]) < 1e-9:
+        if abs(travel[column]) < 1e-9:
             continue
         reference.append(travel)
         counts.append([after.values[f"mouse_xy_{a}_counts"] - before.values[f"mouse_xy_{a}_counts"] for a in "xy"])
-    return np.array(reference, dtype=float).reshape(-1, 2), np.array(counts, dtype=float).reshape(-1, 2)
+        numbers.append((index, index + 1))
+    return CalibrationMoves(
+        np.array(reference, dtype=float).reshape(-1, 2),
+        np.array(counts, dtype=float).reshape(-1, 2),
+        np.array(numbers, dtype=int).reshape(-1, 2),
+    )

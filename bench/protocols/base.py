@@ -7,6 +7,7 @@ parameters, so a run can be regenerated from its stored configuration to resume 
 
 from __future__ import annotations
 
+import math
 import tomllib
 from collections.abc import Mapping
 from pathlib import Path
@@ -14,7 +15,7 @@ from typing import Any, ClassVar
 
 from bench.errors import ConfigError
 from bench.protocols.kinematics import DEFAULT_SINGULARITY_THRESHOLD, robot_model
-from bench.protocols.parameters import ChoiceParameter, FloatParameter, Parameter
+from bench.protocols.parameters import MAX_PLAN_REPEATS, ChoiceParameter, FloatParameter, Parameter
 from bench.robot_kinds import robot_names
 from bench.steps import Move, Plan
 
@@ -67,7 +68,21 @@ class Protocol:
             raise ConfigError(
                 f"{source}: robot = {self.robot!r}, expected one of {', '.join(self.robots)} for protocol {self.name!r}"
             )
+        self.refuse_absurd_plan()
         self.validate()
+
+    def refuse_absurd_plan(self) -> None:
+        """One line, before any plan is built, when the product of the protocol's sizes (counts, lists, pose
+        tables) exceeds :data:`MAX_PLAN_REPEATS`: each size is bounded alone, their product would not be."""
+        factors = {key: p.plan_factor(getattr(self, key)) for key, p in self.parameters().items()}
+        sizes = {key: factor for key, factor in factors.items() if factor > 1}
+        repeats = math.prod(sizes.values())
+        if repeats > MAX_PLAN_REPEATS:
+            product = " x ".join(f"{key} {factor:,}" for key, factor in sizes.items())
+            raise ConfigError(
+                f"{self.source}: a plan of {product} = {repeats:,} repetitions, expected at most "
+                f"{MAX_PLAN_REPEATS:,} (lower one of them)"
+            )
 
     def __repr__(self) -> str:
         args = ", ".join(f"{k}={v!r}" for k, v in self.resolved().items())

@@ -100,7 +100,11 @@ class LaserGridHits(_DeltaProtocol):
         description="range of the random re-approach offset",
     )
     seed = IntegerParameter(
-        0, minimum=0, maximum=2**63 - 1, description="seed of the re-approach offsets (the plan is reproducible)"
+        0,
+        minimum=0,
+        maximum=2**63 - 1,
+        counts=False,
+        description="seed of the re-approach offsets (the plan is reproducible)",
     )
 
     def steps(self) -> Plan:

@@ -399,10 +399,10 @@ def store_mouse_calibration(store: Any, run_id: int, name: str = "mouse") -> Any
     config = run.config
     samples = sorted(store.samples(run_id, kind="mouse"), key=lambda s: s.step_index)
     references = store.samples(run_id, kind="mouse_reference") if config.get("reference") == "calliper" else None
-    reference, counts = mouse_calibration_moves(samples, references)
+    reference, counts, readings = mouse_calibration_moves(samples, references)
     if len(reference) < 6:
         raise ConfigError(f"run {run_id}: {len(reference)} moves with both readings stored, expected >= 6")
-    fit = fit_matrix(reference, counts, per_direction=True)
+    fit = fit_matrix(reference, counts, per_direction=True, readings=readings)
     reference_u = float(config.get("reference_u_pct") or 0.0) / 100.0
     params: dict[str, Any] = {
         "source": f"run {run_id}",

@@ -22,6 +22,7 @@ __all__ = [
     "FloatParameter",
     "IntegerParameter",
     "MAX_COUNT",
+    "MAX_PLAN_REPEATS",
     "Parameter",
     "PoseTableParameter",
     "TextParameter",
@@ -33,6 +34,13 @@ _NUMBER_WITH_UNIT = re.compile(r"^\s*([-+0-9.eE]+)\s*([A-Za-z%/]+)?\s*$")
 #: 100 000 cycles of one pose at a second each is more than a day of one bench; an absurd size (``1e20``) is
 #: refused in one line before any plan is built, never iterated.
 MAX_COUNT = 100_000
+
+#: The largest product of a protocol's sizes (its counts, the lengths of its lists and pose tables) a file may ask
+#: for: each size alone is bounded, their product is what a plan repeats. Beyond it (``cycles = 100000`` with 1 000
+#: velocities: 5 x 10^9 steps, hours of dry run) the protocol is refused in one line before a plan exists
+#: (:meth:`bench.protocols.base.Protocol.refuse_absurd_plan`); 10 times :data:`MAX_COUNT` leaves every documented
+#: design room (ISO 9283: 30 cycles x 3 velocities x 2 loads).
+MAX_PLAN_REPEATS = 1_000_000
 
 
 class Parameter:
@@ -70,6 +78,10 @@ class Parameter:
 
     def _convert(self, value: Any) -> Any:
         raise NotImplementedError
+
+    def plan_factor(self, value: Any) -> int:
+        """How many times a plan repeats for this parameter's ``value`` (1: it sizes nothing)."""
+        return 1
 
     def help(self) -> str:
         """One line for ``--dry-run`` and docs: name, default, unit, description."""
@@ -126,8 +138,12 @@ class IntegerParameter(_Bounded):
     """An integer, e.g. ``cycles = IntegerParameter(30, minimum=2)``; at most :data:`MAX_COUNT` unless ``maximum``
     says otherwise (a count bounds a plan's size)."""
 
-    def __init__(self, default: Any, *, maximum: float | None = MAX_COUNT, **kwargs: Any) -> None:
+    def __init__(self, default: Any, *, maximum: float | None = MAX_COUNT, counts: bool = True, **kwargs: Any) -> None:
+        self.counts = counts  # False for a number that sizes nothing (a seed)
         super().__init__(default, maximum=maximum, **kwargs)
+
+    def plan_factor(self, value: Any) -> int:
+        return int(value) if self.counts and value is not None else 1
 
     @property
     def expected(self) -> str:
@@ -169,6 +185,9 @@ class FloatListParameter(_Bounded):
         if self.length is not None and len(value) != self.length:
             raise ValueError("wrong length")
         return tuple(self._number(item) for item in value)
+
+    def plan_factor(self, value: Any) -> int:
+        return len(value) if self.length is None and value else 1  # a fixed-length list is one point, not a series
 
 
 class BoolParameter(Parameter):
@@ -250,3 +269,6 @@ class PoseTableParameter(Parameter):
                 raise ValueError("not finite")
             table[str(label)] = numbers
         return table
+
+    def plan_factor(self, value: Any) -> int:
+        return len(value) if value else 1

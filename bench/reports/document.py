@@ -15,8 +15,10 @@ from typing import Any
 from bench.metrology.formatting import format_length, format_measured, format_uncertainty
 from bench.reports.blocks import Block, Document, Figure, Paragraph, RawData, Section, Table
 from bench.reports.content import ReportBase
+from bench.reports.instrument import ap_instrument_u_mm
 from bench.reports.signature import PLACEHOLDER_SHOWN, is_placeholder
 from bench.robot_kinds import ROBOT_KINDS
+from bench.store.registrations import registration_u_mm, registrations
 
 __all__ = [
     "Document",
@@ -232,6 +234,7 @@ def _instruments(report: ReportBase) -> Section:
                 "root sum of squares",
             )
         )
+    budget.extend(_registration_rows(report))
     if info.rp_floor_mm is not None:
         budget.append(
             (
@@ -249,6 +252,27 @@ def _instruments(report: ReportBase) -> Section:
         )
     )
     return Section("5. Instruments", tuple(blocks))
+
+
+def _registration_rows(report: ReportBase) -> list[tuple[str, str, str]]:
+    """A relative instrument's registration at home (measured in the run) and the term it makes with the reading
+    in U of an accuracy (AP, AT_p): the number the raw-data line's --instrument-u-mm states."""
+    entries = registrations(report.run.settings)
+    if not entries:
+        return []
+    total = ap_instrument_u_mm(report.instrument.sigma_mm, report.run)
+    return [
+        (
+            "registration at home (the run's largest)",
+            format_uncertainty(registration_u_mm(entries)),
+            "measured in the run from the returns home (bench.rigs.registration); common to a segment's readings",
+        ),
+        (
+            "accuracy term (AP, AT_p), per axis",
+            format_uncertainty(total if total is not None else 0.0),
+            "root sum of squares of the combined and the registration; the spread (RP, RT_p) excludes it",
+        ),
+    ]
 
 
 def decision_blocks(rule: str, header: tuple[str, ...] = (), verdicts=()) -> tuple[Block, ...]:

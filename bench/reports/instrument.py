@@ -37,9 +37,11 @@ __all__ = [
     "STATED",
     "ap_instrument_u_mm",
     "calibration_fits",
+    "calibration_scale_relative_u",
     "calibration_scale_u",
     "counts_instrument",
     "reading_instrument",
+    "registration_span_mm",
     "uncertainty_stated",
 ]
 
@@ -161,6 +163,14 @@ def calibration_scale_u(calibration: Mapping[str, Any], span_mm: float) -> tuple
     with u(s_i) the stored uncertainty of each axis's scale; a nominal calibration has none measured, so its
     scale error is taken as rectangular of half-width :data:`NOMINAL_CPI_SCALE_ERROR` (u = 0.04/√3 of the span).
     """
+    relative, why = calibration_scale_relative_u(calibration)
+    return span_mm * relative, f"{why} x {span_mm:.1f} mm from the registration"
+
+
+def calibration_scale_relative_u(calibration: Mapping[str, Any]) -> tuple[float, str]:
+    """Relative standard uncertainty of a mouse calibration's scale, max_i u(s_i)/s_i (the nominal cpi's:
+    rectangular of half-width :data:`NOMINAL_CPI_SCALE_ERROR`), and where it comes from: a length's and a speed's
+    (AV) relative u alike."""
     if calibration.get("nominal"):
         relative = NOMINAL_CPI_SCALE_ERROR / np.sqrt(3.0)
         why = f"nominal cpi (mouse-v{calibration.get('version')}): ±{100 * NOMINAL_CPI_SCALE_ERROR:g} % rectangular"
@@ -170,7 +180,7 @@ def calibration_scale_u(calibration: Mapping[str, Any], span_mm: float) -> tuple
             for a in ("x", "y")
         )
         why = f"mouse-v{calibration.get('version')}: u(scale) {100 * relative:.3g} %"
-    return span_mm * relative, f"{why} x {span_mm:.1f} mm from the registration"
+    return float(relative), why
 
 
 def counts_instrument(
@@ -215,12 +225,21 @@ def counts_instrument(
 
 def _span_from_registration(run: RunRecord, table: pd.DataFrame) -> float | None:
     """The largest per-axis distance (mm) of the run's measured positions from the instrument's registration."""
-    registration = (run.settings.get("instrument") or {}).get("registration_mm")
     columns = [c for c in _POSITION if c in table.columns]
-    if registration is None or not columns:
+    if not columns:
         return None
-    offsets = [np.nanmax(np.abs(table[c].to_numpy(float) - registration[_POSITION.index(c)])) for c in columns]
-    return float(np.nanmax(offsets))
+    return registration_span_mm(run, np.column_stack([table[c].to_numpy(float) for c in columns]))
+
+
+def registration_span_mm(run: RunRecord, positions_mm: np.ndarray) -> float | None:
+    """The largest per-axis distance (mm) of ``positions_mm`` (k, d; x, y[, z]) from the instrument's registration
+    (None: the run recorded none, or no position): the lever arm of a calibration-scale error."""
+    registration = (run.settings.get("instrument") or {}).get("registration_mm")
+    positions = np.asarray(positions_mm, float)
+    if registration is None or positions.size == 0:
+        return None
+    d = positions.shape[1]
+    return float(np.nanmax(np.abs(positions - np.asarray(registration, float)[:d])))
 
 
 def ap_instrument_u_mm(sigma_mm: float | None, run: RunRecord) -> float | None:

@@ -54,7 +54,8 @@ def collect_mouse_calibration(
     table = run_table(store, run_id, "mouse")
     samples = sorted(store.samples(run_id, kind="mouse"), key=lambda s: s.step_index)
     references = store.samples(run_id, kind="mouse_reference") if run.config.get("reference") == "calliper" else None
-    fit = fit_matrix(*mouse_calibration_moves(samples, references), per_direction=True)
+    reference, counts, readings = mouse_calibration_moves(samples, references)
+    fit = fit_matrix(reference, counts, per_direction=True, readings=readings)
     stored = next((c for c in store.calibrations() if c.name == "mouse" and c.source_run_id == run_id), None)
     calibrations = calibrations_in_force(store, run)
     instrument = InstrumentInfo(dict(run.settings.get("instrument") or {}), None, (), 0, None, calibrations)

@@ -166,7 +166,7 @@ def collect_path(
         clauses=("8.2 path accuracy", "8.3 path repeatability", *clauses)
         + (("8.6 path velocity",) if "line" in analysis.design.shapes else ()),
         deviations=tuple(path_deviations(run, analysis)),
-        instrument=counts_instrument(run, calibrations, 0),
+        instrument=analysis.instrument or counts_instrument(run, calibrations, 0),
         table=raw,  # never held: written where the report goes from the spool (or the open store)
         coverage_factor=k,
         analysis=analysis,

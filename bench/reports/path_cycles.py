@@ -16,6 +16,7 @@ of the whole run held at once (``tests/test_reports_path_stream.py``).
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -171,14 +172,26 @@ class PathCycles:
     its last segment is read, whatever the order of the segments, and undone should a further segment of it come.
     """
 
-    def __init__(self, design, *, station_mm: float, margin_mm: float, speed_station_mm: float) -> None:
+    def __init__(
+        self,
+        design,
+        *,
+        station_mm: float,
+        margin_mm: float,
+        speed_station_mm: float,
+        on_points: Callable[[np.ndarray], None] | None = None,
+    ) -> None:
         self.design = design
+        #: called with every sample's attained points (k, 3) as they are read (e.g. their reach from a registration)
+        self.on_points = on_points
         self.station_mm, self.margin_mm, self.speed_station_mm = station_mm, margin_mm, speed_station_mm
         self.keys: dict[tuple[str, float], _Key] = {}
 
     def add(self, sample) -> None:
         shape, velocity, cycle = sample.pose, float(sample.values["velocity_pct"]), int(sample.cycle)
         t, p = sample_series(sample)
+        if self.on_points is not None:
+            self.on_points(p)
         key = self.keys.get((shape, velocity))
         if key is None:
             if shape not in self.design.paths:

@@ -41,7 +41,13 @@ from bench.metrology.uncertainty_figures import (
     spread_uncertainty,
 )
 from bench.reports.content import INSTRUMENT_SOURCE, calibrations_in_force
-from bench.reports.instrument import counts_instrument
+from bench.reports.instrument import (
+    InstrumentInfo,
+    ap_instrument_u_mm,
+    calibration_scale_relative_u,
+    counts_instrument,
+    registration_span_mm,
+)
 from bench.reports.path_cycles import (
     PLOTTED_CYCLES,
     CycleReduction,
@@ -50,7 +56,7 @@ from bench.reports.path_cycles import (
     path_stations,
     speed_readings,
 )
-from bench.store import Store
+from bench.store import CalibrationRecord, RunRecord, Store
 
 __all__ = [
     "PATH_PROTOCOLS",
@@ -142,6 +148,8 @@ class PathRun:
     speed_budget: str = ""
     #: (shape, velocity_pct) -> the cycles the run holds (complete or not; ``cycles`` holds the first ones)
     cycle_counts: dict = field(default_factory=dict)
+    #: the instrument as its U(AT_p) term was made (the report's budget table)
+    instrument: InstrumentInfo | None = None
 
 
 def figure_text(value: float | None, measured: Measured | None, *, signed: bool = False, none: str = "—") -> str:
@@ -232,11 +240,26 @@ def analyze_path_run(
     if run.protocol_name not in PATH_PROTOCOLS:
         raise ConfigError(f"run {run_id}: a {run.protocol_name} run, expected one of {', '.join(PATH_PROTOCOLS)}")
     protocol = PathDesign.from_config(run.config, source=f"run {run_id}")
-    u_mm = counts_instrument(run, calibrations_in_force(store, run), 0).sigma_mm  # the report's instrument term
     read = getattr(store, "iter_samples", store.samples)  # a sample at a time where the store can (lab views: a list)
-    cycles = PathCycles(protocol, station_mm=station_mm, margin_mm=margin_mm, speed_station_mm=speed_station_mm)
+    spans: list[float] = []  # each sample's largest distance from the registration: a scale error's lever arm
+
+    def lever_arm(points: np.ndarray) -> None:
+        span = registration_span_mm(run, points)
+        if span is not None:
+            spans.append(span)
+
+    cycles = PathCycles(
+        protocol,
+        station_mm=station_mm,
+        margin_mm=margin_mm,
+        speed_station_mm=speed_station_mm,
+        on_points=lever_arm,
+    )
     for sample in read(run_id, kind="path") if samples is None else samples:
         cycles.add(sample)
+    instrument = path_instrument(run, calibrations_in_force(store, run), max(spans) if spans else None)
+    u_mm = ap_instrument_u_mm(instrument.sigma_mm, run)  # AT's instrument term: reading, scale, registration
+    speed_u_pct, speed_source = speed_scale_u_pct(run)
     figures = []
     for shape, velocity in sorted(cycles.keys, key=lambda key: (key[0], -key[1])):
         complete = cycles.complete((shape, velocity))
@@ -244,7 +267,9 @@ def analyze_path_run(
             raise InsufficientData(
                 f"run {run_id}: {shape} at {velocity:g} %: {len(complete)} complete cycle(s), expected at least 2"
             )
-        figures.append(_figures(protocol, shape, velocity, complete, cycles.keys[(shape, velocity)].stations, u_mm))
+        figures.append(
+            _figures(protocol, shape, velocity, complete, cycles.keys[(shape, velocity)].stations, u_mm, speed_u_pct)
+        )
     if not figures:
         raise InsufficientData(f"run {run_id}: no path samples")
     return PathRun(
@@ -254,8 +279,9 @@ def analyze_path_run(
         tuple(figures),
         cycles.plotted(),
         instrument_budget(u_mm, INSTRUMENT_SOURCE),
-        speed_instrument_budget(None, INSTRUMENT_SOURCE),
-        cycles.cycle_counts(),
+        speed_instrument_budget(speed_u_pct, speed_source),
+        cycle_counts=cycles.cycle_counts(),
+        instrument=instrument,
     )
 
 
@@ -266,6 +292,7 @@ def _figures(
     complete: list[CycleReduction],
     stations: np.ndarray,
     u_mm: float | None,
+    speed_u_pct: float | None,
 ) -> PathFigures:
     """One path and velocity's figures from its complete cycles' reductions (at least 2)."""
     missed = [(c.missed_station, j) for j, c in enumerate(complete) if c.missed_station is not None]
@@ -287,8 +314,11 @@ def _figures(
             raise InsufficientData(errors[0])
         v = path_velocity_characteristics([c.speeds_mm_s for c in complete], v_c)
         extra.update(av_pct=v.av_pct, rv_pct=v.rv_pct, fv_mm_s=v.fv_mm_s, mean_speed_mm_s=v.mean_speed_mm_s)
-        # as bench analyze path-velocity: no speed instrument's scale is stored with a run, so U(AV) says so
-        extra["av_u"] = mean_speed_uncertainty(v.av_pct, v.mean_speed_per_cycle_mm_s, v_c)
+        # a speed read by the mice carries their scale's relative u (the calibration in force), else U(AV) says
+        # it has none, as bench analyze path-velocity does
+        extra["av_u"] = mean_speed_uncertainty(
+            v.av_pct, v.mean_speed_per_cycle_mm_s, v_c, instrument_u_pct=speed_u_pct or 0.0
+        )
         extra["rv_u"] = spread_uncertainty(v.rv_pct, v.n, unit="%")
     return PathFigures(
         shape,
@@ -313,3 +343,22 @@ def _corners(complete: list[CycleReduction], path) -> tuple[tuple[str, float, fl
         r = cornering_deviations([c.near_corners[index] for c in complete], corner, before, after)
         out.append((label, r.cr_mm, r.co_mm))
     return tuple(out)
+
+
+def speed_scale_u_pct(run: RunRecord) -> tuple[float | None, str]:
+    """The relative standard uncertainty (%) of a speed the run's counts instrument reads (its calibration scale in
+    force: a speed is a length per time), and its source; None when the run stored no scale calibration."""
+    calibration = (run.settings.get("instrument") or {}).get("scale_calibration")
+    if not isinstance(calibration, dict):
+        return None, INSTRUMENT_SOURCE
+    relative, why = calibration_scale_relative_u(calibration)
+    return 100.0 * relative, f"the calibration in force, {why}"
+
+
+def path_instrument(
+    run: RunRecord, calibrations: tuple[CalibrationRecord, ...], span_mm: float | None
+) -> InstrumentInfo:
+    """The run's counts instrument (:func:`bench.reports.instrument.counts_instrument`) with the scale of the
+    calibration in force at ``span_mm``, the largest distance the attained paths reach from the registration, as a pose report
+    has it: a scale error moves every attained point by its distance from the registration, which AT_p carries."""
+    return counts_instrument(run, calibrations, 0, span_mm=span_mm)

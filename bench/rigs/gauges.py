@@ -50,7 +50,7 @@ def parse_calliper(table: StationTable) -> CalliperSpec:
         port=table.get(
             "port", str, "", required=kind == "serial", expected='the calliper\'s serial port (kind = "serial")'
         ),
-        baud=int(table.get("baud", int, defaults.baud)),
+        baud=table.baud("baud", defaults.baud),
         request=table.get("request", str, "", blank_ok=True),
         terminator=table.get("terminator", str, defaults.terminator, blank_ok=True),
         resolution_mm=table.number("resolution_mm", defaults.resolution_mm),

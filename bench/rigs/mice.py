@@ -15,11 +15,16 @@ window.
 
 A mouse reports only when it moves, so a mouse that stops reporting, closes or freezes would leave its last counts
 in place and every later reading stale. Each capture is therefore checked against the robot's commanded motion
-since the previous one (:meth:`MiceInstrument._check_alive`): a mouse whose stream ended, or which reported less
-than half of a commanded move of at least :data:`LIVENESS_MIN_MOVE_MM` in its plane, short by more than a robot's
-own error can explain (:data:`LIVENESS_ROBOT_ERROR_MM`), fails that capture with
+since the previous one (:meth:`MiceInstrument._check_alive`): a mouse whose stream ended, which reported no motion
+in a commanded move of at least :data:`LIVENESS_MIN_MOVE_MM` in its plane, or fell short of it by more than a
+robot's own error and its scale can explain (:data:`LIVENESS_ROBOT_ERROR_MM`, :func:`scale_share`), fails that
+capture with
 :class:`bench.sensors.reading.SensorStalled` naming the mouse and what it did (no report, reports without motion,
-or how far it moved); the run then ends ``failed`` with that reason and nothing of the capture is stored.
+or how far it moved); the run then ends ``failed`` with that reason and nothing of the capture is stored. A mouse
+that slips (reads a share of its motion) is caught by the other mouse: both see x, so their x motions since the
+previous capture must agree to within what their counts and scales allow (:func:`x_disagreement_tolerance_mm`),
+whatever the robot did; the one that saw less is named. An x-z mouse on vertical guides (``xz_mount = "guided"``,
+the dissertation's Z mouse) sees z only: it is judged on the commanded z alone, and the x cross-check is off.
 """
 
 from __future__ import annotations
@@ -36,6 +41,17 @@ from numpy.typing import ArrayLike
 
 from bench.errors import LinkError
 from bench.rigs.interfaces import Measurement
+from bench.rigs.mice_liveness import (
+    LIVENESS_MIN_MOVE_MM,
+    LIVENESS_ROBOT_ERROR_MM,
+    XZ_GUIDED,
+    XZ_PLATFORM,
+    calibrated_robot_error_mm,
+    guided_hint,
+    plane_axes,
+    scale_share,
+    x_disagreement_tolerance_mm,
+)
 from bench.sensors.calibration import MM_PER_INCH
 from bench.sensors.reading import Reading, SensorStalled
 from bench.steps import Capture
@@ -61,21 +77,11 @@ POSITIONING = "positioning"
 STREAMED_KINDS = frozenset({ARRIVAL, PATH, POSITIONING})
 #: Decimals kept in the stored series (0.1 um, 1 us): far below a count (32 um at 800 cpi).
 _MM_DECIMALS, _S_DECIMALS = 4, 6
-#: A commanded move at least this long in a mouse's plane must show in its counts (mm; 31 counts at 800 cpi): a
-#: mouse that stopped reporting is then caught at the first capture after the move [choice: far above the count
-#: noise and a robot's positioning error, far below a protocol's moves].
-LIVENESS_MIN_MOVE_MM = 1.0
-#: Reporting less than this share of such a move is a stalled mouse (or a robot that did not move: either way the
-#: sample cannot be trusted) [choice], when the shortfall is more than the robot's own error can explain.
-_LIVENESS_MIN_SHARE = 0.5
-#: The largest shortfall of a reported move against the commanded one that a robot erring by its geometry can give
-#: (mm): an uncalibrated robot attains each pose off by its own error, near an FK fold by many mm. Measured: the
-#: seeded true geometries of the simulated pkm5 (seeds 0-199, the calibration protocol's 30 poses in order, no
-#: play) fall short of a commanded move by up to 19.2 mm in a mouse's plane (seed 65: 3.7 mm of a 6.7 mm move, which
-#: the share rule alone refused); 25 mm leaves the play (0.6 mm per axis per move) a margin [choice].
-LIVENESS_ROBOT_ERROR_MM = 25.0
-#: The commanded axes each mouse sees (x-y mouse: x, y; x-z mouse: x, z).
-_PLANE_AXES = {"xy": ("cmd_x_mm", "cmd_y_mm"), "xz": ("cmd_x_mm", "cmd_z_mm")}
+#: What a run's settings say of slips along x when the x-z mouse is on vertical guides (no x cross-check).
+_GUIDED_NOTE = (
+    "the x-z mouse is on vertical guides and sees z only: no x cross-check, so a slip along x is caught by the "
+    "commanded-move rule only (a shortfall beyond liveness_robot_error_mm plus the scale's share of the move)"
+)
 
 
 class MiceInstrument:
@@ -89,6 +95,9 @@ class MiceInstrument:
         Position of the measuring point when the counts were zero (the registration), mm.
     calibration : bench.sensors.calibration.CountsCalibration
         Counts -> mm, applied by the mice.
+    xz_mount : str
+        How the x-z mouse is mounted (:data:`bench.rigs.mice_liveness.XZ_MOUNTS`): on the platform, seeing x and
+        z, or on vertical guides, seeing z only.
     """
 
     def __init__(
@@ -100,11 +109,17 @@ class MiceInstrument:
         follow: bool = False,
         noise_counts: float | None = None,
         calibration_record: Mapping[str, Any] | None = None,
+        xz_mount: str = XZ_PLATFORM,
     ) -> None:
         self.mice = mice
+        #: the commanded axes each mouse sees, by how the x-z mouse is mounted (:func:`plane_axes`)
+        self.xz_mount, self._plane_axes = xz_mount, plane_axes(xz_mount)
         self.noise_counts = noise_counts
         #: the stored calibration in force (version, nominal, scales and their u): the report's budget reads it
         self.calibration_record = dict(calibration_record) if calibration_record is not None else None
+        #: the shortfall a robot's own error may give a commanded move (mm): narrower under a kinematic calibration
+        #: in force (:meth:`expect_calibrated_robot`)
+        self.robot_error_mm = LIVENESS_ROBOT_ERROR_MM
         for mouse in mice.values():  # registration is now: reports from before it are motion to somewhere else
             mouse.read_frames()
             mouse.rezero()
@@ -154,15 +169,18 @@ class MiceInstrument:
         return {plane: MotionFrames.concatenate(parts) for plane, parts in taken.items()}
 
     def _check_alive(self, capture: Capture) -> None:
-        """Refuse the capture when a mouse did not see a commanded move in its plane since the last capture.
+        """Refuse the capture when a mouse did not see a commanded move in its plane since the last capture, or the
+        two mice disagree on the x motion they both see.
 
         The net commanded displacement between two captures (whatever path the robot took between them) against
-        the net counts, as mm: below :data:`_LIVENESS_MIN_SHARE` of a move of at least
-        :data:`LIVENESS_MIN_MOVE_MM` and short by more than :data:`LIVENESS_ROBOT_ERROR_MM`, the mouse stopped
-        reporting (no report), froze (reports without motion) or lost most of the move; :class:`SensorStalled` names
-        which. A streamed capture (its window may close before
-        the commanded end) is refused only without any motion. Captures without commanded positions are not judged
-        and do not move the reference.
+        the net counts, as mm: no motion in a move of at least :data:`LIVENESS_MIN_MOVE_MM`, or short of it by
+        more than the robot's error allows (:attr:`robot_error_mm`) plus the mouse's :func:`scale_share` of it, the
+        mouse stopped
+        reporting (no report), froze (reports without motion) or lost the move; :class:`SensorStalled` names
+        which. A streamed capture (its window may close before the commanded end) is refused only without any
+        motion. Then the two mice's x motions are compared (:meth:`_check_common_axis`): a slip the robot's error
+        allowance hides shows there. Captures without commanded positions are not judged and do not move the
+        reference.
         """
         commanded = {
             axis: float(capture.commanded[axis])
@@ -175,18 +193,19 @@ class MiceInstrument:
         counts_then = self._counts_at_last
         self._counts_at_last = {plane: mouse.counts.copy() for plane, mouse in self.mice.items()}
         reports, self._reports_since = self._reports_since, {plane: 0 for plane in self.mice}
-        for plane, axes in _PLANE_AXES.items():
-            first, second = (commanded[a] - previous[a] for a in axes)
-            expected_mm = math.hypot(first, second)
+        moved_counts = {plane: self._counts_at_last[plane] - counts_then[plane] for plane in self.mice}
+        moved_mm = {plane: self.calibration.counts_to_mm(counts) for plane, counts in moved_counts.items()}
+        hint = self._mount_hint(moved_counts, moved_mm, commanded["cmd_x_mm"] - previous["cmd_x_mm"])
+        for plane, axes in self._plane_axes.items():
+            expected_mm = math.hypot(*(commanded[a] - previous[a] for a in axes))
             if plane not in self.mice or expected_mm < LIVENESS_MIN_MOVE_MM:
                 continue
-            counts = self._counts_at_last[plane] - counts_then[plane]
-            reported_mm = float(np.linalg.norm(self.calibration.counts_to_mm(counts)))
+            counts = moved_counts[plane]
+            reported_mm = float(np.linalg.norm(moved_mm[plane]))
             # a streamed capture (a path segment) may end its window before the commanded end: only no motion at
             # all is judged there
-            share = 0.0 if capture.kind in STREAMED_KINDS else _LIVENESS_MIN_SHARE
-            shortfall_mm = expected_mm - reported_mm
-            if counts.any() and (reported_mm >= share * expected_mm or shortfall_mm <= LIVENESS_ROBOT_ERROR_MM):
+            allowed_mm = self.robot_error_mm + scale_share(self.calibration) * expected_mm
+            if counts.any() and (capture.kind in STREAMED_KINDS or expected_mm - reported_mm <= allowed_mm):
                 continue
             if not counts.any():
                 what = (
@@ -201,8 +220,54 @@ class MiceInstrument:
                 f"{mouse.name} ({mouse.binding}): {what} while the robot was commanded "
                 f"{expected_mm:.3f} mm in its plane since the last capture (pose {capture.pose!r}, "
                 f"cycle {capture.cycle}); the mouse stopped, froze or lost the surface (or the "
-                "robot did not move), so this sample is refused"
+                f"robot did not move), so this sample is refused{hint if plane == 'xz' else ''}"
             )
+        if set(moved_mm) == {"xy", "xz"} and self.xz_mount != XZ_GUIDED:
+            self._check_common_axis(moved_mm, capture, hint)
+
+    def _mount_hint(
+        self, moved_counts: Mapping[str, np.ndarray], moved_mm: Mapping[str, np.ndarray], commanded_x_mm: float
+    ) -> str:
+        """:func:`guided_hint` for an x-z mouse taken to ride the platform, over the larger of the commanded x
+        motion and the x-y mouse's (an erring robot moves in x where none was commanded); empty otherwise."""
+        if self.xz_mount != XZ_PLATFORM or "xz" not in moved_counts:
+            return ""
+        seen_x_mm = float(moved_mm["xy"][0]) if "xy" in moved_mm else 0.0
+        return guided_hint(moved_counts["xz"], max(abs(commanded_x_mm), abs(seen_x_mm)))
+
+    def expect_calibrated_robot(self, ap_after_mm: float) -> None:
+        """A kinematic calibration whose own mean error at its poses is ``ap_after_mm`` is in force: a commanded
+        move may fall short by :func:`calibrated_robot_error_mm` only (called by
+        :func:`bench.calibration.compensate.put_in_force`)."""
+        self.robot_error_mm = calibrated_robot_error_mm(ap_after_mm)
+
+    def _check_common_axis(self, moved_mm: Mapping[str, np.ndarray], capture: Capture, hint: str = "") -> None:
+        """Refuse the capture when the two mice's x motions since the last capture differ by more than
+        :func:`x_disagreement_tolerance_mm` allows, naming the mouse that saw less (a slipping or lifted mouse loses
+        motion; none invents it); ``hint`` (:meth:`_mount_hint`) is added when that is the x-z mouse.
+
+        Not called for an x-z mouse on vertical guides (``xz_mount = "guided"``), which sees no x.
+
+        [choice] Both mice ride the one platform and see its x: whatever pose the robot attained, off its command
+        by its geometry (an uncalibrated pkm5 by up to 19 mm) or its play, it moved both alike, so this check needs
+        no allowance for the robot's error, which the commanded-move rule above must grant (and which hides a mouse
+        reading 30 % of every move). It sees a slip in a move with x motion; a move along y or z alone is judged by
+        the rule above only, and the slip is caught at the next move with x.
+        """
+        xy_mm, xz_mm = (np.asarray(moved_mm[plane], dtype=float) for plane in ("xy", "xz"))
+        disagreement_mm = abs(float(xy_mm[0] - xz_mm[0]))
+        tolerance_mm = x_disagreement_tolerance_mm(xy_mm, xz_mm, self.calibration)
+        if disagreement_mm <= tolerance_mm:
+            return
+        less, more = ("xy", "xz") if abs(xy_mm[0]) < abs(xz_mm[0]) else ("xz", "xy")
+        mouse, other = self.mice[less], self.mice[more]
+        raise SensorStalled(
+            f"{mouse.name} ({mouse.binding}): saw {float(moved_mm[less][0]):.3f} mm in x since the last capture "
+            f"where {other.name} saw {float(moved_mm[more][0]):.3f} mm (pose {capture.pose!r}, cycle "
+            f"{capture.cycle}); both ride the platform, and they differ by {disagreement_mm:.3f} mm, more than the "
+            f"{tolerance_mm:.3f} mm their counts and scales allow: the mouse slipped or lost the surface, so this "
+            f"sample is refused{hint if less == 'xz' else ''}"
+        )
 
     def _read(self) -> tuple[Any, Any]:
         """The integrated readings of both mice now."""
@@ -318,7 +383,15 @@ class MiceInstrument:
             "registration_mm": [float(v) for v in self.origin],
             "cpi": round(float(cpi.mean()), 3),
             "resolution_mm": round(float(MM_PER_INCH / cpi.min()), 6),
+            # the shortfall of a commanded move the liveness check grants the robot (narrower under a kinematic
+            # calibration in force)
+            "liveness_robot_error_mm": round(self.robot_error_mm, 3),
+            # how the x-z mouse is mounted, and so whether the two mice's x motions are cross-checked
+            "xz_mount": self.xz_mount,
+            "liveness_x_cross_check": self.xz_mount != XZ_GUIDED,
         }
+        if self.xz_mount == XZ_GUIDED:
+            out["liveness_note"] = _GUIDED_NOTE
         if self.noise_counts is not None:
             out["noise_counts"] = self.noise_counts
         if self.calibration_record is not None:

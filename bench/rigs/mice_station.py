@@ -14,6 +14,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from bench.errors import ConfigError
+from bench.rigs.mice_liveness import XZ_GUIDED, XZ_MOUNTS, XZ_PLATFORM
 from bench.sensors.calibration import DEFAULT_CPI
 
 if TYPE_CHECKING:
@@ -28,9 +29,14 @@ __all__ = ["MiceSpec", "calibration_summary", "check_mice", "mouse_calibration",
 _log = logging.getLogger(__name__)
 
 
+#: The resolutions a station may state (counts per inch) [choice: optical mouse sensors span about 200-26,000 cpi;
+#: a figure outside 100-50,000 is a typo (1e20 was accepted and every reading became 0 mm)].
+MIN_CPI, MAX_CPI = 100.0, 50_000.0
+
+
 @dataclass(frozen=True)
 class MiceSpec:
-    """Two optical mice by event device: ``xy`` measures x and y, ``xz`` measures x and z."""
+    """Two optical mice by event device: ``xy`` measures x and y, ``xz`` measures x and z (z only on guides)."""
 
     xy: str
     xz: str
@@ -40,21 +46,33 @@ class MiceSpec:
     #: the stored ``mouse`` calibration version in force; None: the nominal ``cpi`` (a stored one is never put in
     #: force because it is the newest)
     calibration: int | None = None
+    #: how the x-z mouse is mounted: ``"platform"`` (on the end effector: sees x and z) or ``"guided"`` (on a
+    #: platform of its own on vertical guides, pushed by the end effector: sees z only, the dissertation's Z mouse)
+    xz_mount: str = XZ_PLATFORM
 
 
 def parse_mice(table: StationTable) -> MiceSpec:
-    """``[mice]`` of a station file (``xy``, ``xz``, ``cpi``, ``noise_counts``, ``grab``, ``calibration``)."""
+    """``[mice]`` of a station file (``xy``, ``xz``, ``cpi``, ``noise_counts``, ``grab``, ``calibration``,
+    ``xz_mount``)."""
     expected = "a stored mouse calibration version, an integer >= 1"
     version = table.get("calibration", int, None, expected=expected)
     if version is not None and version < 1:
         raise table.fail("calibration", version, expected)
+    mount_expected = '"platform" (on the end effector: sees x and z) or "guided" (on vertical guides: sees z only)'
+    xz_mount = table.get("xz_mount", str, XZ_PLATFORM, expected=mount_expected)
+    if xz_mount not in XZ_MOUNTS:
+        raise table.fail("xz_mount", xz_mount, mount_expected)
+    cpi = table.number("cpi", DEFAULT_CPI)
+    if not MIN_CPI <= cpi <= MAX_CPI:
+        raise table.fail("cpi", cpi, f"a mouse's resolution in counts per inch, {MIN_CPI:g} to {MAX_CPI:g}")
     return MiceSpec(
         xy=table.get("xy", str, required=True, expected="the x-y mouse's event device"),
         xz=table.get("xz", str, required=True, expected="the x-z mouse's event device"),
-        cpi=table.number("cpi", DEFAULT_CPI),
+        cpi=cpi,
         noise_counts=table.number("noise_counts", None, zero_allowed=True),
         grab=table.get("grab", bool, True),
         calibration=version,
+        xz_mount=xz_mount,
     )
 
 
@@ -138,7 +156,15 @@ def open_mice(opening: SensorOpening) -> MiceInstrument:
         follow=True,
         noise_counts=spec.noise_counts,
         calibration_record=calibration_summary(record),
+        xz_mount=spec.xz_mount,
     )
+    if spec.xz_mount == XZ_GUIDED:
+        _log.info(
+            "%s: the x-z mouse is on vertical guides (xz_mount = %r): it is judged on the commanded z alone, and a "
+            "slip along x is caught by the commanded-move rule only (no x cross-check)",
+            opening.station.source,
+            spec.xz_mount,
+        )
     opening.opened.callback(instrument.close)
     return instrument
 

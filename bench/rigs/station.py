@@ -33,6 +33,8 @@ Example (``examples/stations/`` holds one per seed setup)::
     xz = "/dev/input/by-id/usb-Dell_MS116-event-mouse"      # measures x and z
     cpi = 800                      # nominal resolution, in force unless a stored calibration is named:
     calibration = 3                # the stored mouse calibration version in force (bench store calibrations)
+    xz_mount = "guided"            # the x-z mouse on vertical guides, pushed by the end effector: sees z only
+                                   # (default "platform": it rides the end effector and sees x and z)
 
     [calliper]                     # readings the operator takes
     kind = "typed"                 # typed | serial
@@ -70,6 +72,10 @@ __all__ = [
 
 #: Every fixture a controller can be in; which a robot supports is its registry record's ``fixtures``.
 FIXTURES = ("assembled", "actuator-bench")
+
+#: The baud rates a serial port takes: pySerial's span on Linux (custom rates between them too); beyond it an
+#: opening fails deep in termios (2**63 baud overflowed its ioctl with a traceback), 0 hangs the line up.
+BAUD_RANGE = (50, 4_000_000)
 
 #: The capabilities a fixture provides, and the key that provides it; the sensors' are in their registry records.
 _FIXTURE_CAPABILITIES = {
@@ -146,6 +152,14 @@ class StationTable:
         if value is not None and not ((value >= 0 if zero_allowed else value > 0) and value < float("inf")):
             raise _fail(self.source, self._key(key), value, expected)
         return None if value is None else float(value)
+
+    def baud(self, key: str, default: int) -> int:
+        """A serial port's baud rate, an integer in :data:`BAUD_RANGE`."""
+        expected = f"a baud rate, an integer from {BAUD_RANGE[0]} to {BAUD_RANGE[1]:,}"
+        value = self.get(key, int, default, expected=expected)
+        if not BAUD_RANGE[0] <= value <= BAUD_RANGE[1]:
+            raise _fail(self.source, self._key(key), value, expected)
+        return int(value)
 
     def choice(self, key: str, choices: tuple[str, ...], default: str | None) -> str:
         value = self.get(key, str, default, required=default is None, expected=f"one of {', '.join(choices)}")
@@ -281,8 +295,9 @@ def parse_station(data: Mapping[str, Any], *, source: str = "station") -> Statio
     known = ("station", "robot", "controller", *sensor_names(), "lab_store")
     unknown = sorted(set(data) - set(known))
     if unknown:
+        shown = repr(unknown[0])[1:-1]  # a quoted TOML name may hold a line break: escaped, the message stays one line
         raise ConfigError(
-            f"{source}: unknown table [{unknown[0]}], expected one of {', '.join('[' + k + ']' for k in known)}"
+            f"{source}: unknown table [{shown}], expected one of {', '.join('[' + k + ']' for k in known)}"
         )
     for required, example in (("robot", 'kind = "pkm5" or "delta4"'), ("controller", 'port = "/dev/ttyUSB0"')):
         if required not in data:
@@ -305,7 +320,7 @@ def parse_station(data: Mapping[str, Any], *, source: str = "station") -> Statio
     table = StationTable(source, "controller", data["controller"])
     controller = ControllerSpec(
         port=table.get("port", str, required=True, expected="a serial port, e.g. /dev/ttyUSB0"),
-        baud=int(table.get("baud", int, robot_kind(robot).baud, expected="a baud rate (integer)")),
+        baud=table.baud("baud", robot_kind(robot).baud),
         fixture=table.choice("fixture", FIXTURES, "assembled"),
     )
     table.done()

@@ -6,7 +6,9 @@ This is the device-for-device stand-in of a station's ``[mice]``: the host opens
 Each time the simulated robot comes to rest, the true motion since the last rest is fed to both mice (a straight
 line over :data:`MOTION_S` of mouse time, quantised with carry, 500 Hz reports) and written *before* the controller
 sends its ``DONE``, so the reports are in the FIFO when the host learns the move ended. A FIFO nobody drains fills up
-and further reports are lost, as a kernel buffer overflows (``SYN_DROPPED``).
+and further reports are lost, as a kernel buffer overflows (``SYN_DROPPED``). The x-z mouse rides the platform (it
+sees x and z) or, ``--mice-xz-mount guided``, runs on vertical guides pushed by the end effector (the dissertation's
+Z mouse): it sees z only, its x counts stay 0 apart from noise (:func:`seen_by`).
 """
 
 from __future__ import annotations
@@ -19,10 +21,11 @@ from typing import Any
 
 import numpy as np
 
+from bench.rigs.mice_liveness import XZ_GUIDED, XZ_PLATFORM
 from bench.sensors.calibration import DEFAULT_CPI
 from bench.simulators.mouse import MouseSimulator, MouseStream
 
-__all__ = ["MOTION_S", "PLANES", "MiceFeed", "fifo_paths", "plane_seed", "stand_in"]
+__all__ = ["MOTION_S", "PLANES", "MiceFeed", "fifo_paths", "plane_seed", "seen_by", "stand_in"]
 
 _log = logging.getLogger(__name__)
 
@@ -37,6 +40,15 @@ def plane_seed(seed: int, plane_index: int) -> int:
     return int(np.random.SeedSequence([seed, plane_index]).generate_state(1)[0])
 
 
+def seen_by(plane: str, xyz: np.ndarray, start_xyz: np.ndarray, xz_mount: str = XZ_PLATFORM) -> np.ndarray:
+    """The plane coordinates mouse ``plane`` sees of true positions ``xyz`` ((n, 3) mm): its :data:`PLANES` columns,
+    except that an x-z mouse on vertical guides (``xz_mount`` :data:`XZ_GUIDED`) stays at the start's x."""
+    seen = np.array(np.asarray(xyz, dtype=float)[:, list(PLANES[plane])])
+    if plane == "xz" and xz_mount == XZ_GUIDED:
+        seen[:, 0] = float(np.asarray(start_xyz, dtype=float)[0])
+    return seen
+
+
 def fifo_paths(folder: str | Path) -> dict[str, str]:
     """Where ``--mice DIR`` puts each plane's FIFO."""
     return {plane: str(Path(folder) / f"mouse_{plane}.fifo") for plane in PLANES}
@@ -44,16 +56,18 @@ def fifo_paths(folder: str | Path) -> dict[str, str]:
 
 def stand_in(station: Any, spec: Any, *, folder: str, truth_path: str) -> tuple[Any, list[str]]:
     """The ``[mice]`` of a rehearsal: the pkm5 simulator's ``--mice`` FIFOs in ``folder``, read as event devices
-    (not grabbed; the count noise 0.05 unless the station states its own)."""
+    (not grabbed; the count noise 0.05 unless the station states its own), the x-z mouse mounted as the station's."""
     paths = fifo_paths(folder)
     for path in paths.values():
         os.mkfifo(path)
     noise = spec.noise_counts if spec.noise_counts is not None else 0.05
-    return dataclasses.replace(spec, xy=paths["xy"], xz=paths["xz"], grab=False, noise_counts=noise), ["--mice", folder]
+    options = ["--mice", folder, "--mice-xz-mount", spec.xz_mount]
+    return dataclasses.replace(spec, xy=paths["xy"], xz=paths["xz"], grab=False, noise_counts=noise), options
 
 
 class MiceFeed:
-    """Two simulated mice fed from the simulator's true pose, writing ``input_event`` records into FIFOs."""
+    """Two simulated mice fed from the simulator's true pose, writing ``input_event`` records into FIFOs; the x-z
+    mouse mounted by ``xz_mount`` (:func:`seen_by`)."""
 
     def __init__(
         self,
@@ -64,11 +78,13 @@ class MiceFeed:
         cpi: float = DEFAULT_CPI,
         noise_counts: float = 0.05,
         report_rate_hz: float = 500.0,
+        xz_mount: str = XZ_PLATFORM,
     ) -> None:
         self._clock_s = 0.0
         self._writers: dict[str, int] = {}
         self._streams: dict[str, MouseStream] = {}
         start = np.asarray(start_pose, dtype=float)[:3]
+        self._start, self._xz_mount = start, xz_mount
         for index, (plane, path) in enumerate(fifo_paths(folder).items()):
             if not os.path.exists(path):
                 os.mkfifo(path)
@@ -78,16 +94,16 @@ class MiceFeed:
             simulator = MouseSimulator(
                 cpi=cpi, noise_counts=noise_counts, report_rate_hz=report_rate_hz, seed=plane_seed(seed, index)
             )
-            self._streams[plane] = MouseStream(simulator, origin_mm=start[list(PLANES[plane])])
+            self._streams[plane] = MouseStream(simulator, origin_mm=seen_by(plane, start[None], start, xz_mount)[0])
 
     def rest(self, true_pose: np.ndarray) -> None:
         """The robot came to rest at ``true_pose``: report the motion there."""
         self._clock_s += MOTION_S
         xyz = np.asarray(true_pose, dtype=float)[:3]
         offset = _monotonic_now() - self._clock_s  # kernel-like timestamps on the host's CLOCK_MONOTONIC
-        for plane, columns in PLANES.items():
+        for plane in PLANES:
             data = self._streams[plane].input_events(
-                np.array([self._clock_s]), xyz[None, list(columns)], clock_offset_s=offset
+                np.array([self._clock_s]), seen_by(plane, xyz[None], self._start, self._xz_mount), clock_offset_s=offset
             )
             try:
                 written = os.write(self._writers[plane], data)

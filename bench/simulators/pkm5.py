@@ -23,6 +23,7 @@ from typing import Any
 import numpy as np
 
 from bench.errors import ConfigError
+from bench.rigs.mice_liveness import XZ_MOUNTS, XZ_PLATFORM
 from bench.robots import pkm5_wire as wire
 from bench.simulators.dynamics import StructuralMode, trace_times
 from bench.simulators.pty import TruthLog, add_common_arguments, main_for
@@ -326,6 +327,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "DIR/mouse_xy.fifo and DIR/mouse_xz.fifo (assembled robot)",
     )
     parser.add_argument(
+        "--mice-xz-mount",
+        choices=XZ_MOUNTS,
+        default=XZ_PLATFORM,
+        help="the simulated x-z mouse rides the platform (sees x and z) or runs on vertical guides pushed by the "
+        "end effector (sees z only, the dissertation's Z mouse); a station's [mice] xz_mount",
+    )
+    parser.add_argument(
         "--hardware-only",
         action="store_true",
         help="answer the SIM verbs as the real firmware does (unknown verb): proves a rig built "
@@ -396,11 +404,13 @@ def build_device(args: argparse.Namespace) -> Pkm5SimDevice:
 
         plant = build_plant(args.seed, ideal=args.ideal, true_geometry=true_geometry(true_seed))
     truth = TruthLog(args.truth, ("x_mm", "y_mm", "z_mm", "alpha_deg", "beta_deg"))
-    observers = ()
+    observers: tuple[Any, ...] = ()
     if getattr(args, "mice", None):
         from bench.simulators.mice_feed import MiceFeed
 
-        observers = (MiceFeed(args.mice, plant(np.array(HOME_STEPS), args.load_kg), seed=args.seed),)
+        start = plant(np.array(HOME_STEPS), args.load_kg)
+        mount = getattr(args, "mice_xz_mount", XZ_PLATFORM)
+        observers = (MiceFeed(args.mice, start, seed=args.seed, xz_mount=mount),)
     return Pkm5SimDevice(
         plant,
         speed_factor=args.speed_factor,

@@ -149,6 +149,10 @@ def open_connection(path: str, *, read_only: bool = False, option: str = "--stor
     """A connection to the store at ``path``: read-only (the file must exist; nothing is created) or for writing
     (WAL, ``synchronous=FULL``, foreign keys on; a missing file is created). Another application's SQLite file is
     refused in either mode before anything is written. ``option`` names where the path came from in a refusal."""
+    if "://" in str(path):  # a lab store address where only a file will do (sync's --store, backup, resume, ...)
+        from bench.store.lab_connection import redacted
+
+        raise ConfigError(f"{option} {redacted(path)}: a URL, expected a run store file (bench.db) here")
     if path != ":memory:" and not Path(path).parent.is_dir():
         raise ConfigError(f"{option} {path}: folder {Path(path).parent} does not exist")
     if read_only:
@@ -179,7 +183,10 @@ def check_store(path: str, option: str = "--store") -> list[str]:
     """The problems of the store at ``path``, one line each (empty when sound): SQLite's ``integrity_check``,
     every row whose foreign key names a missing parent (``foreign_key_check``) and every sample that fails its
     checksum or holds JSON that does not parse. Opens read-only (``option``: as :func:`open_connection`)."""
-    db = open_connection(path, read_only=True, option=option)
+    try:
+        db = open_connection(path, read_only=True, option=option)
+    except sqlite3.DatabaseError as exc:  # not SQLite, or its header damaged: the one problem there is to report
+        return [f"{path}: not a usable bench store ({exc})"]
     # a flipped bit can leave bytes that are not UTF-8: read them as they are, for the checksum to name the row
     db.text_factory = lambda data: data.decode("utf-8", "surrogateescape")
     problems: list[str] = []

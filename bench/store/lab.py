@@ -20,8 +20,9 @@ registration added by a resume travel on the next sync), and the samples the ser
 one COPY straight into ``bench.samples`` in its own transaction (when another sync of the same file stored some of
 its steps first: COPY into a temporary table, then ``INSERT ... ON CONFLICT DO NOTHING``). The runs to send are dealt
 to two connections ("lanes", each its own runs, so their pose folds never touch the same keys); each lane has a
-sender thread with one batch in flight while this thread reads and formats the next batches, so reading the local
-file, the server's storing and its pose trigger overlap. A sync killed or cut off loses its open batches'
+sender thread with one batch in flight while this thread reads and formats the next batches (for a large sync on
+a machine of 4 cores or more, a producer process reads and formats one lane's: :mod:`bench.store.lab_batches`), so reading the
+local file, the server's storing and its pose trigger overlap. A sync killed or cut off loses its open batches'
 transactions only; the next sync asks the server which steps it holds and sends the rest, so every sample lands
 exactly once. Sync never writes to the local file.
 """

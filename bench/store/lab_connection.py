@@ -49,9 +49,10 @@ _PASSWORD_PARTS = (
     re.compile(r"([A-Za-z][A-Za-z0-9+.-]*://[^:/@?#\s\"']*):[^\s\"']*@"),
     re.compile(r"(?i)\b(password=)[^&\s]*"),
 )
-#: libpq's own checks of an option's value start so ("invalid sslmode value", "invalid port number",
-#: "invalid integer value ... for connection option"): a bad URL, not an unreachable server.
-_BAD_OPTION = re.compile(r"^(connection is bad: )?invalid ")
+#: libpq's own checks of an option's value ("invalid sslmode value", "invalid port number"; "invalid integer value
+#: ... for connection option" comes after the host it was trying: ``keepalives=x``): a bad URL, not an unreachable
+#: server.
+_BAD_OPTION = re.compile(r'^(connection is bad: )?invalid |: invalid [\w ]+ value ".*" for connection option ')
 
 
 #: What the server (or its socket's full listen queue: EAGAIN) says when it has no connection slot free now.
@@ -105,11 +106,15 @@ def connect(url: str, *, connect_timeout_s: int = 5) -> Any:
     check_lab_url(url)
     psycopg = psycopg_module()
     shown = redacted(url)
+    # the URL's own connect_timeout wins (a keyword argument would silently replace it, a bad one too)
+    own_timeout = "connect_timeout" in psycopg.conninfo.conninfo_to_dict(url)
     try:
-        return psycopg.connect(url, connect_timeout=connect_timeout_s)
+        return psycopg.connect(url, **({} if own_timeout else {"connect_timeout": connect_timeout_s}))
+    except psycopg.ProgrammingError as exc:  # psycopg's own reading of a value: "bad value for connect_timeout"
+        raise LabURLError(f"lab store {shown}: not a usable PostgreSQL URL ({redacted(one_line(exc))})") from None
     except psycopg.OperationalError as exc:
         detail = redacted(one_line(exc))
-        if _BAD_OPTION.match(detail):
+        if _BAD_OPTION.search(detail):
             raise LabURLError(f"lab store {shown}: not a usable PostgreSQL URL ({detail})") from None
         if "password authentication failed" in detail or "no password supplied" in detail:
             raise LabStoreError(f"lab store {shown}: bad credentials ({detail})") from exc

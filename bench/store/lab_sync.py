@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import itertools
 import json
 import logging
 import random
@@ -15,8 +14,9 @@ from typing import TYPE_CHECKING, Any
 
 from bench.errors import BenchError
 from bench.store.database import RunRecord, Store
+from bench.store.lab_batches import Batch, lane_batches, producer_count
 from bench.store.lab_connection import LabServerBusy, LabStoreError, connect, one_line, psycopg_module, redacted
-from bench.store.lab_copy import COPY_COLUMNS, TYPED_COLUMNS, copy_text
+from bench.store.lab_copy import COPY_COLUMNS
 from bench.store.lab_schema import ensure_schema
 
 if TYPE_CHECKING:  # psycopg is the lab-store extra, imported when a sync starts
@@ -27,9 +27,8 @@ __all__ = ["SyncResult", "sync_after_run", "sync_store"]
 _log = logging.getLogger(__name__)
 
 _COPY_COLUMNS = ", ".join(f'"{c}"' for c in COPY_COLUMNS)
-_CHUNK_ROWS = 2_000  # rows per COPY write: small enough to overlap formatting with the server's work
 #: Connections sending batches at once (each its own runs): the server stores and folds two batches in parallel.
-_LANES = 2
+LANES = 2
 #: Memory for the pose trigger's transition table of one batch (about 400 bytes a row): with the server's default
 #: (4 MB) a 20 000-sample batch spills to a temporary file (10-15 % more of the server's time per sample).
 _WORK_MEM = "64MB"
@@ -97,29 +96,6 @@ def _copy(cur: Cursor[Any], table: str, chunks: list[bytes]) -> None:
             copy.write(chunk)
 
 
-def _read_batches(
-    store: Store, run: RunRecord, held: set[int], batch_size: int
-) -> Iterator[tuple[list[bytes], int, RunRecord]]:
-    """The samples of ``run`` that the server lacks (steps not in ``held``), batch by batch: each batch as its COPY
-    text in chunks of :data:`_CHUNK_ROWS` rows at most, its number of samples (``batch_size`` at most), the run."""
-    rows = store.stored_rows(run.id, extract=TYPED_COLUMNS)
-    exhausted = False
-    while not exhausted:
-        chunks, n = [], 0
-        while n < batch_size:
-            chunk = rows.fetchmany(min(_CHUNK_ROWS, batch_size - n))
-            if not chunk:
-                exhausted = True
-                break
-            if held:
-                chunk = [row for row in chunk if row[0] not in held]
-            if chunk:
-                chunks.append(copy_text(run.uuid, chunk))
-                n += len(chunk)
-        if n:
-            yield chunks, n, run
-
-
 def _send_batch(conn: Connection[Any], chunks: list[bytes], n: int) -> int:
     """Store one batch in its own transaction; returns how many of its ``n`` samples were new on the server."""
     psycopg = psycopg_module()
@@ -181,24 +157,18 @@ def _deal(runs: list[RunRecord], held: dict[str, set[int] | None], lanes: int) -
 
 
 def _send_lanes(
-    store: Store,
-    lanes: list[list[RunRecord]],
+    batches: list[Iterator[Batch]],
     connections: list[Connection[Any]],
-    held: dict[str, set[int] | None],
     *,
-    batch_size: int,
     progress: Callable[[str], None],
     sent: list[int],
 ) -> None:
-    """Send the lanes' batches, each lane through its own connection and sender thread, one batch in flight per
-    lane; this thread reads and formats the next batches meanwhile, taking the lanes in turn."""
-    batches = [
-        itertools.chain.from_iterable(_read_batches(store, run, held[run.uuid] or set(), batch_size) for run in lane)
-        for lane in lanes
-    ]
-    in_flight: list[tuple[Future[int], RunRecord, int] | None] = [None] * len(lanes)
-    with ThreadPoolExecutor(max_workers=len(lanes), thread_name_prefix="lab-sync") as senders:
-        live = list(range(len(lanes)))
+    """Send the lanes' ``batches``, each lane through its own connection and sender thread, one batch in flight per
+    lane; this thread takes the next batches meanwhile (reads and formats them, or takes them from the producer
+    processes), the lanes in turn."""
+    in_flight: list[tuple[Future[int], RunRecord, int] | None] = [None] * len(batches)
+    with ThreadPoolExecutor(max_workers=len(batches), thread_name_prefix="lab-sync") as senders:
+        live = list(range(len(batches)))
         try:
             while live:
                 for lane in list(live):
@@ -225,7 +195,14 @@ def _settle(batch: Future[int], run: RunRecord, n: int, *, progress: Callable[[s
 
 
 def _push(
-    store: Store, conn: Connection[Any], url: str, *, batch_size: int, progress: Callable[[str], None], sent: list[int]
+    store: Store,
+    conn: Connection[Any],
+    url: str,
+    *,
+    batch_size: int,
+    producers: int | None,
+    progress: Callable[[str], None],
+    sent: list[int],
 ) -> tuple[int, int]:
     """Upsert runs and calibrations, then send the samples the server lacks; ``sent[0]`` counts the samples
     committed (kept when a later batch fails)."""
@@ -262,7 +239,7 @@ def _push(
     conn.commit()
     held = _held_steps(conn, runs)
     to_send = [run for run in runs if held[run.uuid] is not None]
-    lanes = _deal(to_send, held, _LANES)
+    lanes = _deal(to_send, held, LANES)
     connections = [conn]
     try:
         for _ in lanes[1:]:
@@ -273,7 +250,10 @@ def _push(
                 break
         for lane_conn in connections:
             _prepare_sender(lane_conn)
-        _send_lanes(store, lanes, connections, held, batch_size=batch_size, progress=progress, sent=sent)
+        samples = sum(run.n_samples - len(held[run.uuid] or ()) for run in to_send)
+        workers = producer_count(store, samples, batch_size, len(lanes), producers)
+        with lane_batches(store, lanes, held, batch_size=batch_size, producers=workers) as batches:
+            _send_lanes(batches, connections, progress=progress, sent=sent)
     finally:
         for lane_conn in connections[1:]:
             lane_conn.close()
@@ -288,13 +268,16 @@ def sync_store(
     retries: int = 3,
     retry_wait_s: float = 1.0,
     busy_wait_s: float = 600.0,
+    producers: int | None = None,
     progress: Callable[[str], None] | None = None,
 ) -> SyncResult:
     """Push every run, calibration and sample of ``store`` that the server at ``url`` lacks (see the module
     docstring); after a lost connection, reconnect and resume up to ``retries`` times (waits ``retry_wait_s``,
     then twice that, ...). A server with no connection slot free (:class:`LabServerBusy`) is asked again after a
     random wait (0.5-1.5 times ``retry_wait_s``, doubling up to 30 s), for ``busy_wait_s`` in all: a crowd of benches
-    syncing at once shares the server's connections instead of failing.
+    syncing at once shares the server's connections instead of failing. ``producers``: processes reading and
+    formatting the batches of as many lanes (:mod:`bench.store.lab_batches`; 0: all in this thread; None: one for a
+    sync of 4 batches or more on a machine of 4 cores or more).
 
     Raises
     ------
@@ -310,7 +293,9 @@ def sync_store(
             conn = connect(url)
             try:
                 ensure_schema(conn, url)
-                runs, calibrations = _push(store, conn, url, batch_size=batch_size, progress=report, sent=sent)
+                runs, calibrations = _push(
+                    store, conn, url, batch_size=batch_size, producers=producers, progress=report, sent=sent
+                )
             finally:
                 conn.close()
             return SyncResult(runs, calibrations, sent[0], time.perf_counter() - started)

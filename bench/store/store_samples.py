@@ -114,19 +114,40 @@ class StoreSamples:
         for row in self._db.execute(query, args):
             yield checked_sample(run_id, row, self.path)
 
-    def stored_rows(self, run_id: int, after_step: int = -1, *, extract: Sequence[str] = ()) -> GuardedCursor:
-        """The samples of a run after step ``after_step`` exactly as stored, in step order: ``(step_index, kind,
-        pose, cycle, t_s, wall_utc, values_json, raw_json)`` with the JSON unparsed (what sync sends and what
-        :func:`bench.store.lab.rows_checksum` hashes); with ``extract`` (two or more value names) two more items,
-        the row's stored checksum and the JSON array of those values as stored (``null`` where absent; SQLite's
-        ``json_extract``, number text kept): what the lab sync sends."""
+    def stored_rows(
+        self, run_id: int, after_step: int = -1, *, before_step: int | None = None, extract: Sequence[str] = ()
+    ) -> GuardedCursor:
+        """The samples of a run after step ``after_step`` (and before ``before_step``, when given) exactly as
+        stored, in step order: ``(step_index, kind, pose, cycle, t_s, wall_utc, values_json, raw_json)`` with the
+        JSON unparsed (what sync sends and what :func:`bench.store.lab.rows_checksum` hashes); with ``extract`` (two
+        or more value names) two more items, the row's stored checksum and the JSON array of those values as stored
+        (``null`` where absent; SQLite's ``json_extract``, number text kept): what the lab sync sends."""
         paths = "".join(", ?" for _ in extract)
         return self._db.execute(
             "SELECT step_index, kind, pose, cycle, t_s, wall_utc, values_json, raw_json"
             + (f", checksum, json_extract(values_json{paths})" if extract else "")
-            + " FROM samples WHERE run_id = ? AND step_index > ? ORDER BY step_index",
-            (*(f"$.{name}" for name in extract), int(run_id), int(after_step)),
+            + " FROM samples WHERE run_id = ? AND step_index > ?"
+            + ("" if before_step is None else " AND step_index < ?")
+            + " ORDER BY step_index",
+            (
+                *(f"$.{name}" for name in extract),
+                int(run_id),
+                int(after_step),
+                *(() if before_step is None else (int(before_step),)),
+            ),
         )
+
+    def step_marks(self, run_id: int, every: int) -> list[int]:
+        """The step index of every ``every``-th sample of a run in step order (the first, the ``every + 1``-th, ...):
+        the bounds that cut the run into batches of ``every`` samples."""
+        return [
+            row[0]
+            for row in self._db.execute(
+                "SELECT step_index FROM (SELECT step_index, row_number() OVER (ORDER BY step_index) - 1 AS i"
+                " FROM samples WHERE run_id = ?) WHERE i % ? = 0 ORDER BY step_index",
+                (int(run_id), int(every)),
+            )
+        ]
 
     # ---- streamed rows ---------------------------------------------------------------------------------------
 
