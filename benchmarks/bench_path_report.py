@@ -1,15 +1,18 @@
-"""A long path run's analysis and report against reading its raw data, time and peak memory, measured in one run.
+"""Long path runs' analysis and report against reading their raw data, time and peak memory, measured in one run.
 
-Builds a completed ``iso9283_path`` run of about ``--points`` streamed points (default 2.3 million; simulated once and
-its cycles copied in the store, as ``bench_report.py --path`` does), then, each in a fresh process ``--repeat``
-times (default 3), interleaved: ``bench analyze path-run RUN --json`` (the figures), ``bench report RUN --format
-html`` (figures, plots and the raw-data CSV), and the floor, a process that reads the run's raw data: every
-``path`` sample's row from SQLite with its JSON series decoded (``json.loads`` of ``raw_json``: what any analysis of
-the stored raw data must at least do). Printed: min / median / max wall time and peak memory (``ru_maxrss``) of
-each, and the ratios of the medians to the floor's. Targets (issue 34): within 3x of the floor's time; memory
-bounded by a chunk, not the run (run it at two ``--points`` to see whether the peak grows with the run).
+For each ``--points`` (default 1.15 and 2.3 million streamed points, half and the issue's size): builds a completed
+``iso9283_path`` run of about that many points (simulated once and its cycles copied in the store, as
+``bench_report.py --path`` does), then, each in a fresh process ``--repeat`` times (default 2), interleaved:
+``bench analyze path-run RUN --json`` (the figures), ``bench report RUN --format html`` (figures, plots and the
+raw-data CSV), and the floor, a process that reads the run's raw data: every ``path`` sample's row from SQLite with
+its JSON series decoded (``json.loads`` of ``raw_json``: what any analysis of the stored raw data must at least do).
+Printed per size: min / median / max wall time and peak memory (``ru_maxrss``) of each, and min / median / max of
+each repeat's ratio to the floor's run beside it (time; memory); then, per tool, the peak memory of the largest run
+against the smallest. Targets (issue 34): within 3x of the floor's time; memory bounded by a chunk, not the run (the
+same peak at every size). The path model's Monte Carlo (U(AT_p), U(RT_p), ``path_uncertainty``) grows with the
+square of the cycles: its own time is printed per size, measured in this process on the run's crossings.
 
-    python benchmarks/bench_path_report.py [--points 2300000] [--repeat 3]
+    python benchmarks/bench_path_report.py [--points 1150000 2300000] [--repeat 2] [--baseline CHECKOUT]
 """
 
 from __future__ import annotations
@@ -20,8 +23,10 @@ import statistics
 import sys
 import tempfile
 import textwrap
+import time
 from pathlib import Path
 
+import numpy as np
 from _timing import load_line
 from bench_analyze_large import measured
 from bench_report import long_path_run
@@ -41,43 +46,107 @@ FLOOR = textwrap.dedent("""
 """)
 
 
-def _summary(name: str, runs: list[dict]) -> str:
+def _ratios(runs: list[dict], floor: list[dict], key: str) -> str:
+    """min / median / max of each repeat's ``key`` against the floor's repeat beside it."""
+    ratios = [r[key] / f[key] for r, f in zip(runs, floor)]
+    return f"{min(ratios):5.2f} {statistics.median(ratios):5.2f} {max(ratios):5.2f}"
+
+
+def _summary(name: str, runs: list[dict], floor: list[dict]) -> str:
     walls, peaks = [r["wall_s"] for r in runs], [r["peak_mb"] for r in runs]
     return (
-        f"  {name:<44} {min(walls):7.2f} {statistics.median(walls):8.2f} {max(walls):7.2f} s   "
-        f"{min(peaks):6.0f} {statistics.median(peaks):6.0f} {max(peaks):6.0f} MB"
+        f"  {name:<42} {min(walls):6.2f} {statistics.median(walls):6.2f} {max(walls):6.2f} s "
+        f"{min(peaks):5.0f} {statistics.median(peaks):5.0f} {max(peaks):5.0f} MB   "
+        f"{_ratios(runs, floor, 'wall_s')} x   {_ratios(runs, floor, 'peak_mb')} x"
     )
+
+
+def _monte_carlo_s(store: Path, run_id: int) -> str:
+    """The path model's Monte Carlo alone on the run's crossings (each path at its first velocity): seconds."""
+    from bench.metrology.uncertainty_figures import path_uncertainty
+    from bench.reports.path_cycles import PathCycles
+    from bench.reports.path_run import PathDesign
+    from bench.store import Store
+
+    with Store(store, read_only=True) as db:
+        design = PathDesign.from_config(db.run(run_id).config, "benchmark")
+        cycles = PathCycles(design, station_mm=1.0, margin_mm=2.0, speed_station_mm=2.0)
+        for sample in db.iter_samples(run_id, kind="path"):
+            cycles.add(sample)
+    parts = []
+    for key, held in cycles.keys.items():
+        crossings = np.stack([c.crossings_mm for c in cycles.complete(key)], axis=1)
+        start = time.perf_counter()
+        path_uncertainty(crossings, held.stations)
+        parts.append(
+            f"{key[0]} {crossings.shape[0]} stations x {crossings.shape[1]} cycles {time.perf_counter() - start:.2f} s"
+        )
+    return "; ".join(parts)
+
+
+def measure_size(points: int, repeat: int, folder: Path, baseline: Path | None) -> dict[str, float]:
+    """Build a run of about ``points`` points, run the processes ``repeat`` times each (interleaved; with
+    ``baseline``, its analysis and report too); print this size's lines and return each one's median peak (MB)."""
+    store, run_id = long_path_run(folder, points)
+    argvs = {"floor: read the raw data (SQLite + JSON)": [sys.executable, "-c", FLOOR, str(store), str(run_id)]}
+    for label, prefix in [("", [])] + (
+        [(" (baseline)", ["env", "-C", str(baseline), f"PYTHONPATH={baseline}"])] if baseline else []
+    ):
+        argvs[f"bench analyze path-run{label}"] = [*prefix, sys.executable, "-m", "bench.cli", "analyze"] + [
+            "path-run",
+            str(run_id),
+            "--store",
+            str(store),
+            "--json",
+        ]
+        argvs[f"bench report --format html{label}"] = [*prefix, sys.executable, "-m", "bench.cli", "report"] + [
+            str(run_id),
+            "--store",
+            str(store),
+            "--format",
+            "html",
+            "--quiet",
+            "--out",
+            str(folder / f"out{label.strip()}"),
+        ]
+    runs: dict[str, list[dict]] = {name: [] for name in argvs}
+    counted = ""
+    for _ in range(repeat):
+        for name, argv in argvs.items():
+            figures, out = measured(argv)
+            runs[name].append(figures)
+            counted = out.decode().strip() if name.startswith("floor") else counted
+    print(f"long path run: {int(counted):,} streamed points, {store.stat().st_size / 2**20:.0f} MiB store")
+    print(f"  {'':<42} {'wall min / median / max':>22}   {'peak MB':>15}   time / floor (x)  memory / floor (x)")
+    floor = runs[next(iter(argvs))]
+    for name, measured_runs in runs.items():
+        print(_summary(name, measured_runs, floor))
+    print(f"  path model Monte Carlo alone: {_monte_carlo_s(store, run_id)}")
+    return {name: statistics.median(r["peak_mb"] for r in measured_runs) for name, measured_runs in runs.items()}
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--points", type=int, default=2_300_000)
-    parser.add_argument("--repeat", type=int, default=3)
+    parser.add_argument("--points", type=int, nargs="+", default=[1_150_000, 2_300_000])
+    parser.add_argument("--repeat", type=int, default=2)
+    parser.add_argument(
+        "--baseline",
+        type=Path,
+        default=None,
+        metavar="CHECKOUT",
+        help="another checkout of bench (its folder holding bench/): its analysis and report measured too, in turn",
+    )
     args = parser.parse_args()
     started = os.getloadavg()
-    with tempfile.TemporaryDirectory() as folder:
-        store, run_id = long_path_run(Path(folder), args.points)
-        argvs = {
-            "floor: read the raw data (SQLite + JSON)": [sys.executable, "-c", FLOOR, str(store), str(run_id)],
-            "bench analyze path-run": [sys.executable, "-m", "bench.cli", "analyze", "path-run", str(run_id)]
-            + ["--store", str(store), "--json"],
-            "bench report --format html": [sys.executable, "-m", "bench.cli", "report", str(run_id)]
-            + ["--store", str(store), "--format", "html", "--quiet", "--out", str(Path(folder) / "out")],
-        }
-        runs: dict[str, list[dict]] = {name: [] for name in argvs}
-        points = ""
-        for _ in range(args.repeat):
-            for name, argv in argvs.items():
-                figures, out = measured(argv)
-                runs[name].append(figures)
-                points = out.decode().strip() if name.startswith("floor") else points
-        print(f"long path run {run_id}: {int(points):,} streamed points, {store.stat().st_size / 2**20:.0f} MiB store")
-        print(f"  {'':<44} {'min':>7} {'median':>8} {'max':>7}     {'min':>6} {'median':>6} {'max':>6}")
-        floor = runs[next(iter(argvs))]
-        floor_s, floor_mb = (statistics.median(r[k] for r in floor) for k in ("wall_s", "peak_mb"))
-        for name, measured_runs in runs.items():
-            wall, peak = (statistics.median(r[k] for r in measured_runs) for k in ("wall_s", "peak_mb"))
-            print(_summary(name, measured_runs) + f"   {wall / floor_s:5.2f}x / {peak / floor_mb:5.2f}x the floor")
+    peaks = {}
+    for points in sorted(args.points):
+        with tempfile.TemporaryDirectory() as folder:
+            peaks[points] = measure_size(points, args.repeat, Path(folder), args.baseline)
+    if len(peaks) > 1:
+        small, large = peaks[min(peaks)], peaks[max(peaks)]
+        print(f"peak memory at {max(peaks):,} points against {min(peaks):,} (median of each; 1.00 = bounded):")
+        for name in small:
+            print(f"  {name:<42} {small[name]:6.0f} -> {large[name]:6.0f} MB   {large[name] / small[name]:5.2f}x")
     print(load_line(started))
 
 

@@ -21,7 +21,6 @@ import json
 import os
 import resource
 import shutil
-import sqlite3
 import statistics
 import subprocess
 import sys
@@ -231,7 +230,9 @@ def long_path_run(folder: Path, points: int) -> tuple[Path, int]:
     from bench.protocols import Runner
     from bench.protocols.path import PathAccuracy
     from bench.simulators.rig import simulated_rig
-    from bench.store.sample_checksum import CHECKED_COLUMNS, sample_checksum
+
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
+    from reports_runs import copy_path_cycles
 
     path = folder / "path.db"
     with Store(path) as store:
@@ -245,22 +246,7 @@ def long_path_run(folder: Path, points: int) -> tuple[Path, int]:
         finally:
             rig.close()
         per_copy = sum(len(s.raw["series"]["t_s"]) for s in store.samples(run_id, kind="path"))
-    with sqlite3.connect(path) as db:
-        ((steps, cycles),) = db.execute(
-            "SELECT MAX(step_index) + 1, MAX(cycle) FROM samples WHERE run_id = ?", (run_id,)
-        )
-        for copy in range(1, max(1, round(points / per_copy))):
-            db.execute(
-                "INSERT INTO samples (run_id, step_index, kind, pose, cycle, t_s, wall_utc, values_json, "
-                "raw_json) SELECT run_id, step_index + ?, kind, pose, cycle + ?, t_s, wall_utc, values_json, "
-                "raw_json FROM samples WHERE run_id = ? AND kind = 'path' AND step_index < ?",
-                (copy * steps, copy * cycles, run_id, steps),
-            )
-        columns = ", ".join(CHECKED_COLUMNS)  # each copy's checksum: its step and cycle are new
-        rows = db.execute(f"SELECT rowid, {columns} FROM samples WHERE run_id = ? AND step_index >= ?", (run_id, steps))
-        db.executemany(
-            "UPDATE samples SET checksum = ? WHERE rowid = ?", [(sample_checksum(*row[1:]), row[0]) for row in rows]
-        )
+    copy_path_cycles(path, run_id, max(1, round(points / per_copy)) - 1)
     return path, run_id
 
 

@@ -410,3 +410,29 @@ def rounded_by_u(value: float, u: float) -> str:
     mantissa, exponent = leading.split("e")
     places = max(0, 1 - int(exponent))
     return f"{value:.{places}f} ± {float(leading):.{places}f}"
+
+
+def copy_path_cycles(db_path, run_id: int, copies: int) -> None:
+    """Append ``copies`` copies of path run ``run_id``'s ``path`` samples to its store at ``db_path``, each with new
+    step indices and cycle numbers and its own checksums: a long run from a short simulated one (one SQL statement
+    per copy; the store commits sample by sample, minutes for thousands of samples)."""
+    import sqlite3
+
+    from bench.store.sample_checksum import CHECKED_COLUMNS, sample_checksum
+
+    with sqlite3.connect(db_path) as db:
+        ((steps, cycles),) = db.execute(
+            "SELECT MAX(step_index) + 1, MAX(cycle) FROM samples WHERE run_id = ?", (run_id,)
+        )
+        for copy in range(1, copies + 1):
+            db.execute(
+                "INSERT INTO samples (run_id, step_index, kind, pose, cycle, t_s, wall_utc, values_json, "
+                "raw_json) SELECT run_id, step_index + ?, kind, pose, cycle + ?, t_s, wall_utc, values_json, "
+                "raw_json FROM samples WHERE run_id = ? AND kind = 'path' AND step_index < ?",
+                (copy * steps, copy * cycles, run_id, steps),
+            )
+        columns = ", ".join(CHECKED_COLUMNS)  # each copy's checksum: its step and cycle are new
+        rows = db.execute(f"SELECT rowid, {columns} FROM samples WHERE run_id = ? AND step_index >= ?", (run_id, steps))
+        db.executemany(
+            "UPDATE samples SET checksum = ? WHERE rowid = ?", [(sample_checksum(*row[1:]), row[0]) for row in rows]
+        )

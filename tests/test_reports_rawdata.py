@@ -12,7 +12,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from bench.reports.rawdata import write_table_csv
+from bench.reports.rawdata import StreamedSeries, write_table_csv
 from bench.store import export
 
 
@@ -127,3 +127,44 @@ def test_samples_with_different_series_columns_are_aligned_with_missing_values()
     table = export.series_table(_Store(samples), 1, kind="path")
     assert table["y_mm"].isna().tolist() == [True, True, False]
     assert table["x_mm"].tolist() == pytest.approx([1.0, 2.0, 3.0])
+
+
+def _path_samples(rng, lengths, extra_every: int = 0):
+    """Streamed samples of varying lengths; every ``extra_every``-th one (0: none) has a y_mm series column more."""
+    return [
+        _sample(
+            i,
+            f"P{1 + i % 2}",
+            1 + i // 2,
+            {"cmd_x_mm": float(i), "velocity_pct": 100.0},
+            {
+                "t_s": list(np.arange(n) * 0.01),
+                "x_mm": list(rng.normal(size=n)),
+                **({"y_mm": [0.5] * n} if extra_every and i % extra_every == extra_every - 1 else {}),
+            },
+        )
+        for i, n in enumerate(lengths)
+    ]
+
+
+@settings(max_examples=25, deadline=None)
+@given(
+    st.lists(st.integers(1, 9), min_size=1, max_size=12),
+    st.integers(1, 30),
+    st.sampled_from([0, 1, 2, 5]),
+    st.booleans(),
+)
+def test_the_raw_data_written_a_piece_at_a_time_is_the_whole_tables_bytes(
+    tmp_path_factory, lengths, rows, extra_every, spooled
+):
+    folder = tmp_path_factory.mktemp("pieces")
+    store = _Store(_path_samples(np.random.default_rng(len(lengths)), lengths, extra_every))
+    expected = write_table_csv(export.series_table(store, 1, kind="path"), folder / "whole.csv")
+    raw = StreamedSeries(store, 1, "path", rows=rows)
+    if spooled:  # as a report: the CSV spooled while the analysis reads the samples
+        assert len(list(raw.passing(store.samples(1)))) == len(lengths)
+    assert raw.write_csv(folder / "pieces.csv") == (expected, sum(lengths))
+    assert (folder / "pieces.csv").read_bytes() == (folder / "whole.csv").read_bytes()
+    if extra_every not in (0, 1) and len(lengths) >= extra_every:  # mixed columns: aligned over the whole run
+        with pytest.raises(export.MixedSeries):
+            list(export.series_chunks(store, 1, "path", rows=rows))

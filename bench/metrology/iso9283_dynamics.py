@@ -29,6 +29,8 @@ __all__ = [
     "OrientationDrift",
     "PoseStabilisation",
     "Stabilisation",
+    "crossing_characteristics",
+    "cycle_crossings",
     "orientation_drift",
     "path_characteristics",
     "pose_drift",
@@ -316,6 +318,15 @@ def _plane_crossing(path: np.ndarray, station: np.ndarray, normal: np.ndarray) -
     return candidates[int(np.argmin(np.sum((points - station) ** 2, axis=1)))]
 
 
+def _station_normals(stations: np.ndarray) -> np.ndarray:
+    """Unit normals of the station planes: the commanded path's direction by central differences."""
+    tangents = np.gradient(stations, axis=0)
+    norms = np.linalg.norm(tangents, axis=1)
+    if np.any(norms == 0):
+        raise ConfigError("commanded_mm: repeated stations, the path direction is undefined there")
+    return tangents / norms[:, None]
+
+
 def station_crossings(
     paths_mm: Sequence[ArrayLike], commanded_mm: ArrayLike
 ) -> tuple[np.ndarray, list[list[tuple[int, float]]]]:
@@ -328,11 +339,7 @@ def station_crossings(
     require_count("commanded path stations", len(stations), 2)
     require_count("path cycles", len(paths_mm), 2)
     paths = [as_points(f"paths_mm[{j}]", p, dims=(stations.shape[1],)) for j, p in enumerate(paths_mm)]
-    tangents = np.gradient(stations, axis=0)
-    norms = np.linalg.norm(tangents, axis=1)
-    if np.any(norms == 0):
-        raise ConfigError("commanded_mm: repeated stations, the path direction is undefined there")
-    tangents /= norms[:, None]
+    tangents = _station_normals(stations)
     points = np.empty((len(stations), len(paths), stations.shape[1]))
     where: list[list[tuple[int, float]]] = []
     for i, (station, normal) in enumerate(zip(stations, tangents)):
@@ -345,6 +352,44 @@ def station_crossings(
             points[i, j] = path[k] + fraction * (path[min(k + 1, len(path) - 1)] - path[k])
             where[i].append(hit)
     return points, where
+
+
+def cycle_crossings(path_mm: ArrayLike, commanded_mm: ArrayLike) -> tuple[np.ndarray, int | None]:
+    """One cycle's column of :func:`station_crossings`, the same numbers: ``(points (m, d), missed)`` with
+    ``missed`` the first station whose plane the path never crosses (its row NaN), None when it crosses them all.
+
+    A long run is reduced to this, cycle by cycle, as its samples are read (:func:`crossing_characteristics`
+    takes the columns): memory by the cycle, not the run.
+    """
+    stations = as_points("commanded_mm", commanded_mm, dims=(2, 3))
+    require_count("commanded path stations", len(stations), 2)
+    path = as_points("path_mm", path_mm, dims=(stations.shape[1],))
+    points = np.full(stations.shape, np.nan)
+    missed = None
+    for i, (station, normal) in enumerate(zip(stations, _station_normals(stations))):
+        hit = _plane_crossing(path, station, normal)
+        if hit is None:
+            missed = i if missed is None else missed
+            continue
+        k, fraction = hit
+        points[i] = path[k] + fraction * (path[min(k + 1, len(path) - 1)] - path[k])
+    return points, missed
+
+
+def crossing_characteristics(points_mm: np.ndarray, commanded_mm: ArrayLike) -> PathCharacteristics:
+    """AT_p, RT_p (:func:`path_characteristics`) from the crossing points, shape (m stations, n cycles, d)."""
+    stations = as_points("commanded_mm", commanded_mm, dims=(2, 3))
+    barycentres = points_mm.mean(axis=1)
+    at = np.linalg.norm(barycentres - stations, axis=1)
+    distances = np.linalg.norm(points_mm - barycentres[:, None, :], axis=2)
+    rt = distances.mean(axis=1) + 3.0 * distances.std(axis=1, ddof=1)
+    return PathCharacteristics(
+        at_mm=float(at.max()),
+        rt_mm=float(rt.max()),
+        at_per_station_mm=at,
+        rt_per_station_mm=rt,
+        n_cycles=points_mm.shape[1],
+    )
 
 
 def path_characteristics(paths_mm: Sequence[ArrayLike], commanded_mm: ArrayLike) -> PathCharacteristics:
@@ -374,14 +419,4 @@ def path_characteristics(paths_mm: Sequence[ArrayLike], commanded_mm: ArrayLike)
     """
     stations = as_points("commanded_mm", commanded_mm, dims=(2, 3))
     points, _ = station_crossings(paths_mm, stations)
-    barycentres = points.mean(axis=1)
-    at = np.linalg.norm(barycentres - stations, axis=1)
-    distances = np.linalg.norm(points - barycentres[:, None, :], axis=2)
-    rt = distances.mean(axis=1) + 3.0 * distances.std(axis=1, ddof=1)
-    return PathCharacteristics(
-        at_mm=float(at.max()),
-        rt_mm=float(rt.max()),
-        at_per_station_mm=at,
-        rt_per_station_mm=rt,
-        n_cycles=points.shape[1],
-    )
+    return crossing_characteristics(points, stations)

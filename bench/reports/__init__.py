@@ -44,7 +44,7 @@ from bench.reports.positioning import (
     grid_readings,
 )
 from bench.reports.positioning_time import collect_positioning_time, positioning_time_document
-from bench.reports.rawdata import write_table_csv
+from bench.reports.rawdata import StreamedSeries, write_tables_csv
 from bench.reports.stabilisation import StabilisationReport, collect_stabilisation, stabilisation_document
 from bench.reports.summary import (
     HistoryEvent,
@@ -276,8 +276,9 @@ def _out_dir(out_dir: str | Path) -> Path:
 
 
 def _write_table(table, path: Path) -> tuple[Path, RawData]:
-    """``table`` as a raw-data CSV at full precision, with its hash for the report."""
-    return path, RawData(path.name, write_table_csv(table, path), len(table))
+    """``table`` (or a :class:`~bench.reports.rawdata.StreamedSeries`) as a raw-data CSV at full precision, hashed."""
+    digest, rows = table.write_csv(path) if isinstance(table, StreamedSeries) else write_tables_csv([table], path)
+    return path, RawData(path.name, digest, rows)
 
 
 def _write_raw(report: ReportBase, out: Path) -> tuple[Path, RawData]:
@@ -384,6 +385,9 @@ def write_report(
             decision_rule=decision_rule,
         )
         history = run_history(store, report.run)
+        out = _out_dir(out_dir)
+        csv_path, raw = _write_raw(report, out)  # with the store open: a long run's raw data streams from it
+        tilts = _write_tilts(report, out)
     finally:
         if opened:
             store.close()
@@ -392,9 +396,6 @@ def write_report(
         **({"operator": operator} if operator else {}),
         **({"laboratory": laboratory} if laboratory else {}),
     }
-    out = _out_dir(out_dir)
-    csv_path, raw = _write_raw(report, out)
-    tilts = _write_tilts(report, out)
     progress(f"run {run_id} analysed; drawing the figures")
     document = _document(report, [raw, *(r for _, r in tilts)], Identity.of_run(report.run, given), history)
     written, number = _write(document, out, f"report_run{run_id}", formats, progress)
@@ -436,11 +437,11 @@ def write_comparison(
             if layouts[0] is None or layouts[0] is PARTIAL_READINGS
             else None
         )
+        out = _out_dir(out_dir)
+        raws = [_write_raw(report, out) for report in (first, second)]
     finally:
         if opened:
             store.close()
-    out = _out_dir(out_dir)
-    raws = [_write_raw(report, out) for report in (first, second)]
     progress(f"runs {first_run} and {second_run} analysed; drawing the figures")
     if layouts[0] is None:
         document = with_calibration_page(comparison_document(first, second, [raw for _, raw in raws]), calibrated)

@@ -15,13 +15,14 @@ import numpy as np
 from bench.metrology import Measured
 from bench.metrology.formatting import format_length
 from bench.metrology.uncertainty_figures import PATH_U_MIN_CYCLES
-from bench.reports.content import ReportBase, calibrations_in_force, provenance, run_table
+from bench.reports.content import ReportBase, calibrations_in_force, provenance
 from bench.reports.criteria import Characteristic, decision_section
 from bench.reports.deviations import Deviation, _fmt, _planned_count, _row
 from bench.reports.document import Paragraph, RawData, Table, assemble, conditions_section
 from bench.reports.instrument import counts_instrument
-from bench.reports.path_run import PathRun, analyze_path_run, figure_text
+from bench.reports.path_run import PLOTTED_CYCLES, PathRun, analyze_path_run, figure_text
 from bench.reports.plots import MIN_FONT_PT, Plot, print_grid
+from bench.reports.rawdata import StreamedSeries
 from bench.store import Store
 
 __all__ = ["PathReport", "collect_path", "path_deviations", "path_document", "path_plot"]
@@ -154,8 +155,9 @@ def collect_path(
     figures' U are for k = 2, as ``bench analyze path|path-velocity`` state them; ``allow_unknown`` unused: no row
     here can be unknown)."""
     run = store.run(run_id)
-    samples = store.samples(run_id, kind="path")  # read once: the analysis and the raw-data table
-    analysis = analyze_path_run(store, run_id, samples=samples)
+    raw = StreamedSeries(store, run_id, "path")  # the raw-data CSV, spooled as the analysis reads the run: once
+    read = getattr(store, "iter_samples", store.samples)  # a sample at a time where the store can
+    analysis = analyze_path_run(store, run_id, samples=raw.passing(read(run_id, kind="path")))
     calibrations = calibrations_in_force(store, run)
     clauses = ("8.5 cornering deviations",) if run.protocol_name == "iso9283_cornering" else ()
     return PathReport(
@@ -165,7 +167,7 @@ def collect_path(
         + (("8.6 path velocity",) if "line" in analysis.design.shapes else ()),
         deviations=tuple(path_deviations(run, analysis)),
         instrument=analysis.instrument or counts_instrument(run, calibrations, 0),
-        table=run_table(store, run_id, "path", series=True, samples=samples),
+        table=raw,  # never held: written where the report goes from the spool (or the open store)
         coverage_factor=k,
         analysis=analysis,
         store_path=store.path,
@@ -290,8 +292,13 @@ def path_plot(report: PathReport) -> Plot:
     figure = grid.finish(
         "u: along P2 → P5, from P1 (mm)", "v: along P2 → P3, from P1 (mm)", legend_pt=MIN_FONT_PT, legend_columns=4
     )
+    drawn = [
+        max(keys, key=lambda k: k[1]) for s in shapes if (keys := [k for k in report.analysis.cycles if k[0] == s])
+    ]
+    held = max((report.analysis.cycle_counts.get(k, 0) for k in drawn), default=0)
+    cycles = "every cycle" if held <= PLOTTED_CYCLES else f"the first {PLOTTED_CYCLES} of {held} cycles"
     return Plot(
-        "Commanded (dashed) and attained paths in the test plane at the highest velocity, every cycle, all "
+        f"Commanded (dashed) and attained paths in the test plane at the highest velocity, {cycles}, all "
         "panels on one scale (the deviations are those of the robot: they are not magnified).",
         figure,
     )

@@ -7,7 +7,7 @@ to ``raw["t_request_s"]``) joined in step order on the instrument's clock. Every
 `bench.metrology`:
 
 - AT_p, RT_p (8.2, 8.3): `path_characteristics` at stations every ``station_mm`` along the path, leaving out
-  :data:`END_MARGIN_MM` at the path's start and end (the robot starts and stops there at rest) and ``margin_mm``
+  :data:`~bench.reports.path_cycles.END_MARGIN_MM` at the path's start and end (the robot starts and stops there at rest) and ``margin_mm``
   about the rectangle's corners (there the plane normal to the path is not defined, and cornering is its own
   test) [P];
 - CR, CO (8.5): `cornering_deviations` at the rectangle's corners P3, P4, P5 (P2, where every cycle starts and ends
@@ -20,7 +20,7 @@ to ``raw["t_request_s"]``) joined in step order on the instrument's clock. Every
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -28,12 +28,10 @@ from bench.errors import ConfigError, InsufficientData
 from bench.metrology import (
     Measured,
     cornering_deviations,
-    path_characteristics,
-    path_speed,
     path_velocity_characteristics,
 )
 from bench.metrology.formatting import format_length, format_measured
-from bench.metrology.iso9283_dynamics import station_crossings
+from bench.metrology.iso9283_dynamics import crossing_characteristics
 from bench.metrology.path_geometry import CommandedPath
 from bench.metrology.uncertainty import instrument_budget, speed_instrument_budget
 from bench.metrology.uncertainty_figures import (
@@ -50,10 +48,19 @@ from bench.reports.instrument import (
     counts_instrument,
     registration_span_mm,
 )
+from bench.reports.path_cycles import (
+    PLOTTED_CYCLES,
+    CycleReduction,
+    PathCycles,
+    attained_cycles,
+    path_stations,
+    speed_readings,
+)
 from bench.store import CalibrationRecord, RunRecord, Store
 
 __all__ = [
     "PATH_PROTOCOLS",
+    "PLOTTED_CYCLES",
     "PathDesign",
     "PathFigures",
     "PathRun",
@@ -65,9 +72,6 @@ __all__ = [
 ]
 
 PATH_PROTOCOLS = ("iso9283_path", "iso9283_cornering")
-
-#: No AT station this close to a path's start or end (mm) [P].
-END_MARGIN_MM = 5.0
 
 
 @dataclass(frozen=True)
@@ -136,11 +140,14 @@ class PathRun:
     protocol_name: str
     design: PathDesign  #: the commanded paths, as stored with the run
     figures: tuple[PathFigures, ...]
-    #: (shape, velocity_pct) -> list of (t_s (k,), position_mm (k, 3)) per cycle in cycle order
+    #: (shape, velocity_pct) -> list of (t_s (k,), position_mm (k, 3)) per cycle in cycle order, the first
+    #: :data:`~bench.reports.path_cycles.PLOTTED_CYCLES` cycles (the figure's)
     cycles: dict
     #: the instrument's place in U(AT_p), U(RT_p) and in U(AV), worded as ``bench analyze path|path-velocity`` do
     budget: str = ""
     speed_budget: str = ""
+    #: (shape, velocity_pct) -> the cycles the run holds (complete or not; ``cycles`` holds the first ones)
+    cycle_counts: dict = field(default_factory=dict)
     #: the instrument as its U(AT_p) term was made (the report's budget table)
     instrument: InstrumentInfo | None = None
 
@@ -154,91 +161,6 @@ def figure_text(value: float | None, measured: Measured | None, *, signed: bool 
     if measured is None:
         return format_length(value, signed=signed)
     return format_measured(measured.value, measured.expanded_uncertainty, signed=signed)
-
-
-def attained_cycles(samples) -> dict[tuple[str, float], list[tuple[int, np.ndarray, np.ndarray, list[int]]]]:
-    """Per (shape, velocity_pct): per cycle (cycle, t_s, position_mm, segment start indices), from ``path`` samples.
-
-    Samples of a cycle are joined in step order; a point not later than the one before (a window reaching back
-    into the previous segment) is dropped, so times strictly increase."""
-    grouped: dict[tuple[str, float, int], list] = {}
-    for s in samples:  # each sample's series kept as arrays only: the parsed JSON is dropped as it is read
-        series = s.raw.get("series") if isinstance(s.raw, dict) else None
-        if not series or "t_request_s" not in s.raw:
-            raise InsufficientData(
-                f"sample at step {s.step_index}: no streamed series with its start time, "
-                "expected a path segment captured by a streaming instrument"
-            )
-        t = float(s.raw["t_request_s"]) + np.asarray(series["t_s"], float)
-        p = np.column_stack([np.asarray(series[a], float) for a in ("x_mm", "y_mm", "z_mm")])
-        grouped.setdefault((s.pose, float(s.values["velocity_pct"]), int(s.cycle)), []).append((s.step_index, t, p))
-    out: dict = {}
-    for (shape, velocity, cycle), parts in sorted(grouped.items()):
-        times, points, starts, last = [], [], [], -np.inf
-        for _, t, p in sorted(parts, key=lambda part: part[0]):
-            keep = t > last
-            starts.append(sum(len(x) for x in times))
-            times.append(t[keep])
-            points.append(p[keep])
-            if keep.any():
-                last = float(t[keep][-1])
-        out.setdefault((shape, velocity), []).append((cycle, np.concatenate(times), np.concatenate(points), starts))
-    return out
-
-
-def path_stations(path, spacing_mm: float, margin_mm: float, end_margin_mm: float = END_MARGIN_MM) -> np.ndarray:
-    """Stations every ``spacing_mm``, at least ``end_margin_mm`` from the path's start and end (where every cycle
-    starts and stops at rest, and an attained start past the first plane never crosses it) and ``margin_mm`` from
-    the rectangle's corners."""
-    s = np.arange(spacing_mm / 2, path.length_mm, spacing_mm)
-    s = s[(s >= end_margin_mm) & (s <= path.length_mm - end_margin_mm)]
-    if path.shape == "rectangle":
-        edges = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(path.vertices_mm, axis=0), axis=1))])
-        s = s[np.min(np.abs(s[:, None] - edges[None, :]), axis=1) >= margin_mm]
-    return path.point(s)
-
-
-def speed_readings(
-    cycles, spacing_mm: float, commanded_mm_s: float, hold_s: float
-) -> list[tuple[np.ndarray, np.ndarray]]:
-    """The constant-velocity part of every cycle as ``bench analyze path-velocity`` reads it (module docstring): per
-    cycle (t_s (k,), position_mm (k, 3)), the attained path read at times ``spacing_mm / v_c`` apart (linear between
-    samples) over the middle 80 % of the motion's time; its speeds are :func:`bench.metrology.path_speed`."""
-    step_s = spacing_mm / commanded_mm_s
-    readings = []
-    for _, t, p, _ in cycles:
-        start, end = t[0], t[-1] - hold_s
-        grid = np.arange(start + 0.1 * (end - start), start + 0.9 * (end - start) + 1e-9, step_s)
-        if len(grid) < 3:
-            raise InsufficientData(
-                f"path velocity: {len(grid)} speed samples per cycle, expected a longer line "
-                f"than {spacing_mm:g} mm steps allow"
-            )
-        readings.append((grid, np.column_stack([np.interp(grid, t, p[:, axis]) for axis in range(p.shape[1])])))
-    return readings
-
-
-def _corners(cycles, path) -> tuple[tuple[str, float, float], ...]:
-    """CR, CO at P3, P4, P5 over the segments next to each corner (module docstring)."""
-    out = []
-    vertices = path.vertices_mm
-    for number, label in ((1, "P3"), (2, "P4"), (3, "P5")):
-        corner, before, after = vertices[number], vertices[number - 1], vertices[number + 1]
-        near = []
-        for _, _, p, _ in cycles:
-            distance = np.linalg.norm(p - corner, axis=1)
-            # the attained samples within 5 mm of the corner, in the pass that comes closest (one pass per cycle)
-            closest = int(np.argmin(distance))
-            inside = distance < 5.0
-            lo, hi = closest, closest
-            while lo > 0 and inside[lo - 1]:
-                lo -= 1
-            while hi < len(p) - 1 and inside[hi + 1]:
-                hi += 1
-            near.append(p[lo : hi + 1])
-        r = cornering_deviations(near, corner, before, after)
-        out.append((label, r.cr_mm, r.co_mm))
-    return tuple(out)
 
 
 @dataclass(frozen=True, eq=False)
@@ -303,8 +225,9 @@ def analyze_path_run(
     speed_station_mm: float = 2.0,
     samples=None,
 ) -> PathRun:
-    """The figures of every path and velocity of path run ``run_id`` (module docstring); ``samples``: its ``path``
-    samples when the caller has read them already (a report reads them once).
+    """The figures of every path and velocity of path run ``run_id`` (module docstring), its ``path`` samples
+    (``samples`` when the caller has them) read one at a time and reduced cycle by cycle
+    (:class:`bench.reports.path_cycles.PathCycles`): the memory of a cycle, not of the run.
 
     Raises
     ------
@@ -318,53 +241,34 @@ def analyze_path_run(
         raise ConfigError(f"run {run_id}: a {run.protocol_name} run, expected one of {', '.join(PATH_PROTOCOLS)}")
     protocol = PathDesign.from_config(run.config, source=f"run {run_id}")
     read = getattr(store, "iter_samples", store.samples)  # a sample at a time where the store can (lab views: a list)
-    grouped = attained_cycles(read(run_id, kind="path") if samples is None else samples)
-    instrument = path_instrument(run, calibrations_in_force(store, run), grouped)
+    spans: list[float] = []  # each sample's largest distance from the registration: a scale error's lever arm
+
+    def lever_arm(points: np.ndarray) -> None:
+        span = registration_span_mm(run, points)
+        if span is not None:
+            spans.append(span)
+
+    cycles = PathCycles(
+        protocol,
+        station_mm=station_mm,
+        margin_mm=margin_mm,
+        speed_station_mm=speed_station_mm,
+        on_points=lever_arm,
+    )
+    for sample in read(run_id, kind="path") if samples is None else samples:
+        cycles.add(sample)
+    instrument = path_instrument(run, calibrations_in_force(store, run), max(spans) if spans else None)
     u_mm = ap_instrument_u_mm(instrument.sigma_mm, run)  # AT's instrument term: reading, scale, registration
     speed_u_pct, speed_source = speed_scale_u_pct(run)
     figures = []
-    for (shape, velocity), cycles in sorted(grouped.items(), key=lambda item: (item[0][0], -item[0][1])):
-        n_segments = protocol.n_segments(shape)
-        complete = [c for c in cycles if len(c[3]) == n_segments]
+    for shape, velocity in sorted(cycles.keys, key=lambda key: (key[0], -key[1])):
+        complete = cycles.complete((shape, velocity))
         if len(complete) < 2:
             raise InsufficientData(
                 f"run {run_id}: {shape} at {velocity:g} %: {len(complete)} complete cycle(s), expected at least 2"
             )
-        path = protocol.path(shape)
-        stations = path_stations(path, station_mm, margin_mm)
-        attained = [p for _, _, p, _ in complete]
-        r = path_characteristics(attained, stations)
-        v_c = protocol.rated_mm_s * velocity / 100.0
-        extra: dict = {}
-        if len(complete) >= PATH_U_MIN_CYCLES:  # as bench analyze path: the path model over the crossings
-            u = path_uncertainty(station_crossings(attained, stations)[0], stations, instrument_u_mm=u_mm or 0.0)
-            extra.update(at_u=u.at, rt_u=u.rt)
-        if shape == "rectangle":
-            extra["corners"] = _corners(complete, path)
-        if shape == "line":
-            readings = speed_readings(complete, speed_station_mm, v_c, protocol.final_hold_s)
-            v = path_velocity_characteristics([path_speed(t, p) for t, p in readings], v_c)
-            extra.update(av_pct=v.av_pct, rv_pct=v.rv_pct, fv_mm_s=v.fv_mm_s, mean_speed_mm_s=v.mean_speed_mm_s)
-            # a speed read by the mice carries their scale's relative u (the calibration in force), else U(AV) says
-            # it has none, as bench analyze path-velocity does
-            extra["av_u"] = mean_speed_uncertainty(
-                v.av_pct, v.mean_speed_per_cycle_mm_s, v_c, instrument_u_pct=speed_u_pct or 0.0
-            )
-            extra["rv_u"] = spread_uncertainty(v.rv_pct, v.n, unit="%")
-        duration = float(np.mean([t[-1] - t[0] for _, t, _, _ in complete]))
         figures.append(
-            PathFigures(
-                shape,
-                velocity,
-                v_c,
-                len(complete),
-                n_segments,
-                r.at_mm,
-                r.rt_mm,
-                len(stations),
-                duration_s=duration,
-                **extra,
-            )
+            _figures(protocol, shape, velocity, complete, cycles.keys[(shape, velocity)].stations, u_mm, speed_u_pct)
         )
     if not figures:
         raise InsufficientData(f"run {run_id}: no path samples")
@@ -373,11 +277,72 @@ def analyze_path_run(
         run.protocol_name,
         protocol,
         tuple(figures),
-        {key: [(t, p) for _, t, p, _ in cycles] for key, cycles in grouped.items()},
+        cycles.plotted(),
         instrument_budget(u_mm, INSTRUMENT_SOURCE),
         speed_instrument_budget(speed_u_pct, speed_source),
-        instrument,
+        cycle_counts=cycles.cycle_counts(),
+        instrument=instrument,
     )
+
+
+def _figures(
+    protocol: PathDesign,
+    shape: str,
+    velocity: float,
+    complete: list[CycleReduction],
+    stations: np.ndarray,
+    u_mm: float | None,
+    speed_u_pct: float | None,
+) -> PathFigures:
+    """One path and velocity's figures from its complete cycles' reductions (at least 2)."""
+    missed = [(c.missed_station, j) for j, c in enumerate(complete) if c.missed_station is not None]
+    if missed:  # as station_crossings: the first station, then the first cycle
+        station, j = min(missed)
+        raise InsufficientData(f"path cycle {j} never crosses the plane of station {station}")
+    crossings = np.stack([c.crossings_mm for c in complete], axis=1)  # (m stations, n cycles, 3)
+    r = crossing_characteristics(crossings, stations)
+    v_c = protocol.rated_mm_s * velocity / 100.0
+    extra: dict = {}
+    if len(complete) >= PATH_U_MIN_CYCLES:  # as bench analyze path: the path model over the crossings
+        u = path_uncertainty(crossings, stations, instrument_u_mm=u_mm or 0.0)
+        extra.update(at_u=u.at, rt_u=u.rt)
+    if shape == "rectangle":
+        extra["corners"] = _corners(complete, protocol.path(shape))
+    if shape == "line":
+        errors = [c.speed_error for c in complete if c.speed_error is not None]
+        if errors:
+            raise InsufficientData(errors[0])
+        v = path_velocity_characteristics([c.speeds_mm_s for c in complete], v_c)
+        extra.update(av_pct=v.av_pct, rv_pct=v.rv_pct, fv_mm_s=v.fv_mm_s, mean_speed_mm_s=v.mean_speed_mm_s)
+        # a speed read by the mice carries their scale's relative u (the calibration in force), else U(AV) says
+        # it has none, as bench analyze path-velocity does
+        extra["av_u"] = mean_speed_uncertainty(
+            v.av_pct, v.mean_speed_per_cycle_mm_s, v_c, instrument_u_pct=speed_u_pct or 0.0
+        )
+        extra["rv_u"] = spread_uncertainty(v.rv_pct, v.n, unit="%")
+    return PathFigures(
+        shape,
+        velocity,
+        v_c,
+        len(complete),
+        protocol.n_segments(shape),
+        r.at_mm,
+        r.rt_mm,
+        len(stations),
+        duration_s=float(np.mean([c.duration_s for c in complete])),
+        **extra,
+    )
+
+
+def _corners(complete: list[CycleReduction], path) -> tuple[tuple[str, float, float], ...]:
+    """CR, CO at P3, P4, P5 over each cycle's samples near the corner (module docstring)."""
+    out = []
+    vertices = path.vertices_mm
+    for index, (number, label) in enumerate(((1, "P3"), (2, "P4"), (3, "P5"))):
+        corner, before, after = vertices[number], vertices[number - 1], vertices[number + 1]
+        r = cornering_deviations([c.near_corners[index] for c in complete], corner, before, after)
+        out.append((label, r.cr_mm, r.co_mm))
+    return tuple(out)
 
 
 def speed_scale_u_pct(run: RunRecord) -> tuple[float | None, str]:
@@ -390,10 +355,10 @@ def speed_scale_u_pct(run: RunRecord) -> tuple[float | None, str]:
     return 100.0 * relative, f"the calibration in force, {why}"
 
 
-def path_instrument(run: RunRecord, calibrations: tuple[CalibrationRecord, ...], grouped: dict) -> InstrumentInfo:
+def path_instrument(
+    run: RunRecord, calibrations: tuple[CalibrationRecord, ...], span_mm: float | None
+) -> InstrumentInfo:
     """The run's counts instrument (:func:`bench.reports.instrument.counts_instrument`) with the scale of the
-    calibration in force at the largest distance the attained paths reach from the registration, as a pose report
+    calibration in force at ``span_mm``, the largest distance the attained paths reach from the registration, as a pose report
     has it: a scale error moves every attained point by its distance from the registration, which AT_p carries."""
-    points = [p for cycles in grouped.values() for _, _, p, _ in cycles]
-    span = registration_span_mm(run, np.concatenate(points)) if points else None
-    return counts_instrument(run, calibrations, 0, span_mm=span)
+    return counts_instrument(run, calibrations, 0, span_mm=span_mm)

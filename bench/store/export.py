@@ -20,7 +20,7 @@ from __future__ import annotations
 
 import importlib.util
 import json
-from collections.abc import Iterable
+from collections.abc import Iterable, Iterator
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -33,7 +33,17 @@ from bench.store.registrations import registration_of, registrations
 if TYPE_CHECKING:
     import pandas as pd
 
-__all__ = ["EXPORT_FORMATS", "TIDY_COLUMNS", "default_kind", "export_run", "series_table", "tidy_table"]
+__all__ = [
+    "EXPORT_FORMATS",
+    "TIDY_COLUMNS",
+    "MixedSeries",
+    "SeriesPieces",
+    "default_kind",
+    "export_run",
+    "series_chunks",
+    "series_table",
+    "tidy_table",
+]
 
 #: The leading columns of the tidy table, in order.
 TIDY_COLUMNS = (
@@ -111,21 +121,100 @@ def series_table(
     import pandas as pd
 
     store.run(run_id)
-    streamed: list[tuple[dict[str, Any], dict[str, Any]]] = []
-    for sample in store.samples(run_id, kind=kind) if samples is None else samples:
-        series = sample.raw.get("series") if isinstance(sample.raw, dict) else None
-        if series:
-            context = {
-                "pose": sample.pose,
-                "cycle": sample.cycle,
-                **{k: v for k, v in sample.values.items() if k.startswith("cmd_") or k in _SERIES_CONTEXT},
-            }
-            streamed.append((context, series))
+    streamed = [
+        item
+        for sample in (store.samples(run_id, kind=kind) if samples is None else samples)
+        if (item := _streamed(sample)) is not None
+    ]
     if not streamed:
         raise InsufficientData(f"run {run_id}: no {kind!r} samples with a streamed series to export")
     table = _uniform_series(streamed)
     if table is None:  # samples that differ in their columns: pandas aligns them (missing values as NaN)
         table = pd.concat([pd.DataFrame({**context, **series}) for context, series in streamed], ignore_index=True)
+    return _ordered(table)
+
+
+class MixedSeries(Exception):
+    """The samples' series differ in their columns or types: :func:`series_table` aligns them over the whole run."""
+
+
+def series_chunks(store: Store, run_id: int, kind: str = "arrival", rows: int = 200_000) -> Iterator[pd.DataFrame]:
+    """:func:`series_table` in pieces of about ``rows`` rows, the samples read one at a time (a long path run's
+    millions of points are never held): the pieces' rows, in order, are that table's, with its columns and dtypes.
+
+    Raises
+    ------
+    MixedSeries
+        Before a piece that differs from the first in its columns or dtypes, or whose samples differ (the whole
+        table aligns such samples, which needs them all): :func:`series_table` then.
+    InsufficientData
+        When the run has no sample of that kind with a stored series.
+    """
+    store.run(run_id)
+    pieces = SeriesPieces(rows)
+    for sample in getattr(store, "iter_samples", store.samples)(run_id, kind=kind):  # one at a time where it can
+        piece = pieces.add(sample)
+        if piece is not None:
+            yield piece
+    last = pieces.rest()
+    if last is not None:
+        yield last
+    elif not pieces.points:
+        raise InsufficientData(f"run {run_id}: no {kind!r} samples with a streamed series to export")
+
+
+class SeriesPieces:
+    """The pieces of :func:`series_chunks` from samples given one at a time (:meth:`add`, then :meth:`rest`)."""
+
+    def __init__(self, rows: int = 200_000) -> None:
+        self.rows = rows
+        self.points = 0  #: the series points given so far
+        self._streamed: list[tuple[dict[str, Any], dict[str, Any]]] = []
+        self._waiting = 0
+        self._first: Any = None  # the first piece's dtypes
+
+    def add(self, sample: SampleRecord) -> pd.DataFrame | None:
+        """Take ``sample``; the next piece once it holds ``rows`` points, else None. Raises MixedSeries."""
+        item = _streamed(sample)
+        if item is None:
+            return None
+        self._streamed.append(item)
+        count = len(next(iter(item[1].values())))
+        self.points += count
+        self._waiting += count
+        return self.rest() if self._waiting >= self.rows else None
+
+    def rest(self) -> pd.DataFrame | None:
+        """The piece of the samples taken since the last one, None without any. Raises MixedSeries."""
+        if not self._streamed:
+            return None
+        table = _uniform_series(self._streamed)
+        if table is None:
+            raise MixedSeries("samples with different series columns or types")
+        table = _ordered(table)
+        if self._first is None:
+            self._first = table.dtypes
+        elif not table.dtypes.equals(self._first):
+            raise MixedSeries("pieces with different columns or dtypes")
+        self._streamed, self._waiting = [], 0
+        return table
+
+
+def _streamed(sample: SampleRecord) -> tuple[dict[str, Any], dict[str, Any]] | None:
+    """A sample's (context: pose, cycle, commanded values and conditions; its series), None without a series."""
+    series = sample.raw.get("series") if isinstance(sample.raw, dict) else None
+    if not series:
+        return None
+    context = {
+        "pose": sample.pose,
+        "cycle": sample.cycle,
+        **{k: v for k, v in sample.values.items() if k.startswith("cmd_") or k in _SERIES_CONTEXT},
+    }
+    return context, series
+
+
+def _ordered(table: pd.DataFrame) -> pd.DataFrame:
+    """The streamed-series table's columns in the order of the module docstring."""
     leading = [c for c in TIDY_COLUMNS if c in table.columns and c != "t_s"] + ["t_s"]
     return table[leading + sorted(c for c in table.columns if c not in leading)]
 
