@@ -320,6 +320,7 @@ class MiceInstrument:
 
         lead_s, hold_s = float(capture.conditions["lead_s"]), float(capture.conditions["hold_s"])
         streamed, t_request = self._stream(lead_s, hold_s)
+        self._check_trace(streamed, capture)
         self._check_alive(capture)
         frames = {}  # the window only: older reports (the rest of the move) are in the counts already
         for plane, f in streamed.items():
@@ -343,6 +344,26 @@ class MiceInstrument:
                 "calibration": self.calibration.calibration_id,
             },
         )
+
+    def _check_trace(self, streamed: Mapping[str, Any], capture: Capture) -> None:
+        """Refuse a streamed capture whose reports cannot be a mouse's trace: a mouse stamps each report with the
+        kernel's ``CLOCK_MONOTONIC`` as it sends it, so its report times never decrease; reports out of time order
+        (a reader or device stamping wrongly, or a feed replaying motion into the past) would make the series
+        position the robot wherever the later-stamped counts fall, so :class:`SensorStalled` names the mouse and
+        the first report that runs backwards, and nothing of the capture is stored."""
+        for plane, frames in streamed.items():
+            backwards = np.flatnonzero(np.diff(frames.t_s) < 0)
+            if not len(backwards):
+                continue
+            first = int(backwards[0])
+            mouse = self.mice[plane]
+            raise SensorStalled(
+                f"{mouse.name} ({mouse.binding}): its report times run backwards ({len(backwards)} of "
+                f"{len(frames)} reports earlier than the one before; the first at {frames.t_s[first + 1]:.6f} s "
+                f"after one at {frames.t_s[first]:.6f} s) in the streamed capture at pose {capture.pose!r}, cycle "
+                f"{capture.cycle}; a mouse's kernel timestamps never decrease, so this is no trace of the robot's "
+                "motion and the sample is refused; check the mouse's reader and device, then resume the run"
+            )
 
     def _stream(self, lead_s: float, hold_s: float) -> tuple[dict[str, Any], float]:
         """The reports of both mice since the last capture up to ``hold_s`` after now, and now, on the mice's clock
