@@ -87,3 +87,15 @@ def test_report_times_that_run_backwards_are_refused_at_capture_naming_the_mouse
     assert f"after one at {first[-1]:.6f} s" in message
     assert "pose 'line', cycle 1" in message
     assert "\n" not in message
+
+
+def test_a_segment_whose_move_came_before_its_window_is_refused_naming_the_mouse(fifo_mice):
+    """The move's reports all older than the window (the segment's duration back from the request): the series
+    would hold the robot still through its move, so the capture is refused."""
+    t_s = time.monotonic() - 3.0 + 0.002 * np.arange(50)  # 3 s before the request; the window reaches 1 s back
+    with pytest.raises(SensorStalled) as refused:
+        _measure(fifo_mice, t_s, 4.0)
+    message = str(refused.value)
+    assert message.startswith("mouse_xy (")
+    assert "reported motion since the last capture but none in the move's window" in message
+    assert "speed factor" not in message  # the instrument's clock is the kernel's: no rehearsal to blame

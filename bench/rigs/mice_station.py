@@ -157,6 +157,7 @@ def open_mice(opening: SensorOpening) -> MiceInstrument:
         noise_counts=spec.noise_counts,
         calibration_record=calibration_summary(record),
         xz_mount=spec.xz_mount,
+        time_scale=opening.speed_factor,
     )
     if spec.xz_mount == XZ_GUIDED:
         _log.info(
