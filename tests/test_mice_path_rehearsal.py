@@ -3,9 +3,10 @@ path run that analyses (issue 32 follow-up): the simulated mice report during ea
 rig's clock, so every stored series runs forward in time and follows the robot through its segment; before, they
 reported each move only at rest, backdated over 50 ms, and the series ran backwards and stood still.
 
-The rehearsal runs at a speed factor of 20: the host's turnaround between segments lasts the factor times longer in
-the rig's seconds (:meth:`bench.rigs.mice.MiceInstrument._check_trace` refuses a segment whose window missed its
-move, naming the speed factor).
+A rehearsal of a streaming protocol on the mice runs at most 20 times real time unless told otherwise
+(:attr:`bench.sensor_kinds.SensorKind.stream_speed_factor`): the host's turnaround between segments lasts the factor
+times longer in the rig's seconds (:meth:`bench.rigs.mice.MiceInstrument._check_trace` refuses a segment whose window
+missed its move, naming the speed factor).
 """
 
 from __future__ import annotations
@@ -18,21 +19,22 @@ from bench.reports.path_run import analyze_path_run
 from bench.store import Store
 
 PATH_QUICK = EXAMPLES / "iso9283_path_quick.toml"
-#: Fast enough for a test, slow enough that the host's turnaround (some ms of wall time) is a fraction of a segment.
-STREAMING_SPEED = 20
 
 
 @pytest.fixture(scope="module")
 def rehearsed(tmp_path_factory):
     with Store(tmp_path_factory.mktemp("path") / "b.db") as store:
-        result, truth = _rehearsed_run(store, STATIONS / "pkm5_mice.toml", PATH_QUICK, speed=STREAMING_SPEED)
+        # no speed factor asked, as `bench run ... --station examples/stations/pkm5_mice.toml --sim`
+        result, truth = _rehearsed_run(store, STATIONS / "pkm5_mice.toml", PATH_QUICK, speed=None)
         samples = [s for s in store.samples(result.run_id) if s.kind == "path"]
         figures = analyze_path_run(store, result.run_id).figures
-    return result, truth, samples, figures
+        speed_factor = store.run(result.run_id).settings["speed_factor"]
+    return result, truth, samples, figures, speed_factor
 
 
 def test_the_path_rehearsal_completes_with_series_that_run_forward_and_follow_the_move(rehearsed):
-    result, _truth, samples, _figures = rehearsed
+    result, _truth, samples, _figures, speed_factor = rehearsed
+    assert speed_factor == 20  # the mice's stream_speed_factor, not the default 10000
     assert result.exit_status == "completed", result.reason
     assert len(samples) == 84
     for sample in samples:
@@ -48,7 +50,7 @@ def test_the_path_rehearsal_completes_with_series_that_run_forward_and_follow_th
 
 def test_each_segment_ends_where_the_simulated_robot_came_to_rest(rehearsed):
     """The segment's last position less the simulator's true rest: the registration's constant offset only."""
-    _result, truth, samples, _figures = rehearsed
+    _result, truth, samples, *_ = rehearsed
     offset = _offset_from_truth(samples, truth, PATH_QUICK)
     assert np.ptp(offset, axis=0).max() < 0.1, offset
 
@@ -56,7 +58,7 @@ def test_each_segment_ends_where_the_simulated_robot_came_to_rest(rehearsed):
 def test_the_path_run_analyses_with_the_commanded_speed(rehearsed):
     """AV: the attained speed in the rig's seconds is the commanded one to within the robot's play and the stops
     between segments (before: the analysis refused the run, 1 speed sample per cycle)."""
-    *_, figures = rehearsed
+    *_, figures, _speed_factor = rehearsed
     (line,) = figures
     assert line.n_cycles == 3
     assert line.av_pct is not None and abs(line.av_pct) < 20

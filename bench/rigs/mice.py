@@ -357,9 +357,10 @@ class MiceInstrument:
 
         A mouse stamps each report with the kernel's ``CLOCK_MONOTONIC`` as it sends it, so its report times never
         decrease: reports out of time order (a reader or device stamping wrongly, a feed replaying motion into the
-        past) would place the robot wherever the later-stamped counts fall. A path segment or positioning step
-        (its window reaches back the move's duration from the request) whose mouse moved since the last capture
-        but reported none of it in the window would store the robot still through its move.
+        past) would place the robot wherever the later-stamped counts fall. A streamed capture (its window reaches
+        back over the move's end: a path segment's or positioning step's duration, an arrival's approach) whose
+        mouse moved since the last capture but reported none of it in the window would store the robot still
+        through its move.
         """
         for plane, frames in streamed.items():
             mouse = self.mice[plane]
@@ -371,7 +372,7 @@ class MiceInstrument:
                     f"one before; the first at {frames.t_s[first + 1]:.6f} s after one at {frames.t_s[first]:.6f} "
                     "s); a mouse's kernel timestamps never decrease"
                 )
-            elif capture.kind in (PATH, POSITIONING) and moved(frames) and not moved(frames, window_start_s):
+            elif moved(frames) and not moved(frames, window_start_s):
                 what = (
                     f"it reported motion since the last capture but none in the move's window (from "
                     f"{window_start_s:.6f} s on); the move came before it{self._turnaround_hint()}"
