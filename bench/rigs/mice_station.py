@@ -98,12 +98,12 @@ def mouse_calibration(
                 f"({', '.join(stored) or 'none stored yet'})"
             ) from None
     else:
-        stored = [c for c in store.calibrations() if c.name == "mouse"]
-        measured = [c for c in stored if not c.params.get("nominal")]
+        mouse_versions = [c for c in store.calibrations() if c.name == "mouse"]
+        measured = [c for c in mouse_versions if not c.params.get("nominal")]
         nominal = {"mm_per_count": MM_PER_INCH / cpi, "nominal": True}
         # the nominal record of this cpi once, whatever was stored after it: a measured calibration stored since
         # would otherwise make each nominal run write a new version, newer than the measured one
-        same = [c for c in stored if c.params == nominal]
+        same = [c for c in mouse_versions if c.params == nominal]
         record = (
             same[-1]
             if same
