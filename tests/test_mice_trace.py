@@ -14,31 +14,20 @@ import time
 
 import numpy as np
 import pytest
+from test_mice_liveness import CPI, PLANES, _fifo_mice
 
 from bench.rigs.mice import PATH, MiceInstrument
-from bench.sensors.calibration import MM_PER_INCH, CountsCalibration
+from bench.sensors.calibration import MM_PER_INCH
 from bench.sensors.input_event import encode_frames
-from bench.sensors.mouse import EvdevMouse
 from bench.sensors.reading import SensorStalled
 from bench.steps import Capture
-
-CPI = 800.0
-PLANES = ("xy", "xz")
 
 
 @pytest.fixture()
 def fifo_mice(tmp_path):
     """Two 800 cpi mice on FIFOs and the FIFOs' write ends: (mice, writers, calibration)."""
-    calibration = CountsCalibration.from_cpi(CPI, calibration_id="trace-800", date="2026-01-01")
-    writers, mice = {}, {}
-    for plane in PLANES:
-        path = tmp_path / f"mouse_{plane}.fifo"
-        os.mkfifo(path)
-        writers[plane] = os.open(path, os.O_RDWR)
-        mice[plane] = EvdevMouse(str(path), calibration, label=f"mouse_{plane}")
-    yield mice, writers, calibration
-    for fd in writers.values():
-        os.close(fd)
+    with _fifo_mice(tmp_path) as opened:
+        yield opened
 
 
 def _segment_capture(dx_mm: float) -> Capture:
