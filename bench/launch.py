@@ -126,6 +126,7 @@ def open_rig(
         lambda devices, speed: build_rig(
             devices, store, requires=requires, protocol=protocol, speed_factor=speed, operator=operator
         ),
+        default_speed=_rehearsal_speed_factor(station, requires),
     )
     rig.closers.insert(0, rehearsal.close)  # closed last: after the drivers let go of the simulators' devices
     rig.simulator = SimulatorRecord(
@@ -236,14 +237,19 @@ def open_mover(request: RigRequest, robot: str) -> tuple[Any, Any]:
 
 
 def _on_rehearsal(
-    station: Station, request: RigRequest, stored: dict[str, Any], build: Callable[[Station, float], Any]
+    station: Station,
+    request: RigRequest,
+    stored: dict[str, Any],
+    build: Callable[[Station, float], Any],
+    *,
+    default_speed: float = DEFAULT_SPEED_FACTOR,
 ) -> tuple[Any, Any, int]:
     """Start a simulator for every device of ``station`` and ``build(simulated station, speed factor)`` on them;
     returns what was built, the rehearsal (the caller closes it with what it built) and the seed. The simulators
     are stopped again when the build fails."""
     from bench.simulators.station import rehearse
 
-    seed, speed = _simulation_settings(request, stored)
+    seed, speed = _simulation_settings(request, stored, default_speed)
     rehearsal = rehearse(
         station,
         seed=seed,
@@ -258,8 +264,25 @@ def _on_rehearsal(
         raise
 
 
-def _simulation_settings(request: RigRequest, stored: dict[str, Any]) -> tuple[int, float]:
-    """Seed and speed factor of the simulators. A resumed run keeps its own (``stored``): a different value would
+def _rehearsal_speed_factor(station: Station, requires: frozenset[str]) -> float:
+    """A rehearsal's speed factor unless one is asked: :data:`DEFAULT_SPEED_FACTOR`, or no more than a station
+    sensor's :attr:`bench.sensor_kinds.SensorKind.stream_speed_factor` when the protocol streams from it
+    (``arrival``), so its windows hold the moves."""
+    from bench.sensor_kinds import sensor_kind
+
+    streamed = set(requires) & {"arrival"}
+    limits = [
+        kind.stream_speed_factor
+        for kind in map(sensor_kind, station.sensors)
+        if kind.stream_speed_factor is not None and streamed & set(kind.provides)
+    ]
+    return min([DEFAULT_SPEED_FACTOR, *limits])
+
+
+def _simulation_settings(
+    request: RigRequest, stored: dict[str, Any], default_speed: float = DEFAULT_SPEED_FACTOR
+) -> tuple[int, float]:
+    """Seed and speed factor of the simulators (``default_speed`` unless asked or stored). A resumed run keeps its own (``stored``): a different value would
     mix two simulated robots, or two time bases, in one run, so it is refused."""
     stored_seed = stored.get("simulator", {}).get("seed")
     stored_speed = stored.get("speed_factor")
@@ -279,7 +302,7 @@ def _simulation_settings(request: RigRequest, stored: dict[str, Any]) -> tuple[i
             f"{stored_speed:g}, expected the same (leave the speed factor out)"
         )
     seed = request.seed if request.seed is not None else (stored_seed if stored_seed is not None else 0)
-    speed = request.speed_factor if request.speed_factor is not None else (stored_speed or DEFAULT_SPEED_FACTOR)
+    speed = request.speed_factor if request.speed_factor is not None else (stored_speed or default_speed)
     check_speed_factor(speed)
     return seed, speed
 

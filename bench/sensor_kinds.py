@@ -79,6 +79,10 @@ class SensorKind:
         The value columns (unit in the name) its captures add to the samples of ``sample_kinds``.
     sample_kinds : tuple of str
         The sample kinds whose samples may carry ``columns``.
+    stream_speed_factor : float or None
+        The highest speed factor at which its stand-in's streamed captures (``arrival``) hold the move: they count
+        the rig's seconds, in which the host's turnaround after a move lasts the factor times its wall time. A
+        rehearsal of a protocol that streams runs at most this fast unless ``--speed-factor`` says otherwise.
     """
 
     name: str
@@ -97,6 +101,7 @@ class SensorKind:
     stand_in: str | None = None
     columns: tuple[Column, ...] = ()
     sample_kinds: tuple[str, ...] = ("pose",)
+    stream_speed_factor: float | None = None
 
     def resolved(self, field: str) -> Any:
         """The object a ``"module:attribute"`` field names (``kind.resolved("spec")(table)``)."""
@@ -181,6 +186,8 @@ register(
             for plane, axis in (("xy", "x"), ("xy", "y"), ("xz", "x"), ("xz", "z"))
         ),
         sample_kinds=("mouse",),
+        # a few ms of host turnaround x 20 is a tenth of a 2 s path segment
+        stream_speed_factor=20.0,
     )
 )
 

@@ -33,7 +33,7 @@ import json
 from collections.abc import Mapping
 from dataclasses import dataclass, field, replace
 from datetime import UTC, datetime
-from typing import Any
+from typing import Any, ClassVar
 
 import pandas as pd
 
@@ -167,11 +167,16 @@ class ReportBase:
     notes: tuple[str, ...] = field(default=())
     #: verdicts against the stated criteria (``--criterion``) under the chosen rule; None when none were stated
     decision: Decision | None = None
+    #: whether the report states a U of an accuracy (AP, AT_p), whose instrument term adds a relative instrument's
+    #: registration (its budget table then names both)
+    states_accuracy_u: ClassVar[bool] = False
 
 
 @dataclass(frozen=True, kw_only=True)
 class RunReport(ReportBase):
     """Everything one pose run's report prints; renderers format it and add nothing."""
+
+    states_accuracy_u: ClassVar[bool] = True  # U(AP)
 
     measured_columns: tuple[str, ...]
     poses: tuple[PoseResult, ...]

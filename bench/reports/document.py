@@ -256,9 +256,10 @@ def _instruments(report: ReportBase) -> Section:
 
 def _registration_rows(report: ReportBase) -> list[tuple[str, str, str]]:
     """A relative instrument's registration at home (measured in the run) and the term it makes with the reading
-    in U of an accuracy (AP, AT_p): the number the raw-data line's --instrument-u-mm states."""
+    in U of an accuracy (AP, AT_p): the number the raw-data line's --instrument-u-mm states; on a report that
+    states such a U only (a stabilisation or positioning-time report states none)."""
     entries = registrations(report.run.settings)
-    if not entries:
+    if not entries or not report.states_accuracy_u:
         return []
     total = ap_instrument_u_mm(report.instrument.sigma_mm, report.run)
     return [

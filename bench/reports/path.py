@@ -9,6 +9,7 @@ prints; the raw-data CSV is the streamed series (``bench export RUN --kind path 
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import ClassVar
 
 import numpy as np
 
@@ -40,6 +41,7 @@ PATH_CYCLES, CORNERING_CYCLES = 10, 3
 class PathReport(ReportBase):
     """Everything the report of a path run prints."""
 
+    states_accuracy_u: ClassVar[bool] = True  # U(AT_p)
     analysis: PathRun
     store_path: str
 

@@ -78,7 +78,7 @@ def build_rig(
             and any(kind.zeroed_at_home for kind, _ in serving)
         ):
             home_before_registering(controller)
-        kind, instrument = _open_instrument(station, controller, store, requires, opened, calibration_ids)
+        kind, instrument = _open_instrument(station, controller, store, requires, opened, calibration_ids, speed_factor)
         registration = None
         if kind is not None and kind.relative:  # verified at the check pose before anything is stored
             registration = register_at_home(controller, instrument, speed_factor=speed_factor)
@@ -145,6 +145,7 @@ def _open_instrument(
     requires: frozenset[str] | set[str],
     opened: ExitStack,
     calibration_ids: list[int],
+    speed_factor: float = 1.0,
 ) -> tuple[SensorKind | None, Instrument]:
     """The rig's instrument: the first registered sensor of the station that opens as one and provides what the
     protocol captures (any, when it says nothing of what it needs); else the calliper-only instrument, which refuses
@@ -153,7 +154,7 @@ def _open_instrument(
     if captures or not requires:
         for kind, spec in _serving(station):
             if kind.instrument is not None and (captures & set(kind.provides) or not requires):
-                opening = SensorOpening(station, spec, controller, store, opened, calibration_ids)
+                opening = SensorOpening(station, spec, controller, store, opened, calibration_ids, speed_factor)
                 return kind, kind.resolved("instrument")(opening)
     readers = {kind.name: vars(spec) for kind, spec in _serving(station) if kind.operator is not None}
     return None, CalliperOnly(readers)

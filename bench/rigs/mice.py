@@ -52,6 +52,7 @@ from bench.rigs.mice_liveness import (
     scale_share,
     x_disagreement_tolerance_mm,
 )
+from bench.rigs.mice_series import S_DECIMALS, arrival_series, moved
 from bench.sensors.calibration import MM_PER_INCH
 from bench.sensors.reading import Reading, SensorStalled
 from bench.steps import Capture
@@ -75,8 +76,6 @@ PATH = "path"
 POSITIONING = "positioning"
 #: The capture kinds whose sample keeps the streamed series (in ``raw["series"]``, with ``raw["t_request_s"]``).
 STREAMED_KINDS = frozenset({ARRIVAL, PATH, POSITIONING})
-#: Decimals kept in the stored series (0.1 um, 1 us): far below a count (32 um at 800 cpi).
-_MM_DECIMALS, _S_DECIMALS = 4, 6
 #: What a run's settings say of slips along x when the x-z mouse is on vertical guides (no x cross-check).
 _GUIDED_NOTE = (
     "the x-z mouse is on vertical guides and sees z only: no x cross-check, so a slip along x is caught by the "
@@ -98,6 +97,9 @@ class MiceInstrument:
     xz_mount : str
         How the x-z mouse is mounted (:data:`bench.rigs.mice_liveness.XZ_MOUNTS`): on the platform, seeing x and
         z, or on vertical guides, seeing z only.
+    time_scale : float
+        The mice's clock in wall seconds: ``CLOCK_MONOTONIC`` x ``time_scale`` (1 on hardware; a rehearsal's speed
+        factor), so a window's ``lead_s`` and ``hold_s`` count the rig's seconds.
     """
 
     def __init__(
@@ -110,8 +112,12 @@ class MiceInstrument:
         noise_counts: float | None = None,
         calibration_record: Mapping[str, Any] | None = None,
         xz_mount: str = XZ_PLATFORM,
+        time_scale: float = 1.0,
     ) -> None:
         self.mice = mice
+        #: seconds of the mice's report times per wall second: 1 on hardware (the kernel's CLOCK_MONOTONIC); a
+        #: rehearsal's speed factor, whose simulated mice stamp reports in the rig's own seconds
+        self.time_scale = float(time_scale)
         #: the commanded axes each mouse sees, by how the x-z mouse is mounted (:func:`plane_axes`)
         self.xz_mount, self._plane_axes = xz_mount, plane_axes(xz_mount)
         self.noise_counts = noise_counts
@@ -320,6 +326,7 @@ class MiceInstrument:
 
         lead_s, hold_s = float(capture.conditions["lead_s"]), float(capture.conditions["hold_s"])
         streamed, t_request = self._stream(lead_s, hold_s)
+        self._check_trace(streamed, capture, window_start_s=t_request - lead_s)
         self._check_alive(capture)
         frames = {}  # the window only: older reports (the rest of the move) are in the counts already
         for plane, f in streamed.items():
@@ -339,19 +346,62 @@ class MiceInstrument:
                 **raw,
                 "series": series,
                 "valid": valid,
-                "t_request_s": round(t_request, _S_DECIMALS),
+                "t_request_s": round(t_request, S_DECIMALS),
                 "calibration": self.calibration.calibration_id,
             },
         )
 
+    def _check_trace(self, streamed: Mapping[str, Any], capture: Capture, *, window_start_s: float) -> None:
+        """Refuse a streamed capture whose reports cannot be a trace of the move, naming the mouse
+        (:class:`SensorStalled`; nothing of the capture is stored).
+
+        A mouse stamps each report with the kernel's ``CLOCK_MONOTONIC`` as it sends it, so its report times never
+        decrease: reports out of time order (a reader or device stamping wrongly, a feed replaying motion into the
+        past) would place the robot wherever the later-stamped counts fall. A streamed capture (its window reaches
+        back over the move's end: a path segment's or positioning step's duration, an arrival's approach) whose
+        mouse moved since the last capture but reported none of it in the window would store the robot still
+        through its move.
+        """
+        for plane, frames in streamed.items():
+            mouse = self.mice[plane]
+            backwards = np.flatnonzero(np.diff(frames.t_s) < 0)
+            if len(backwards):
+                first = int(backwards[0])
+                what = (
+                    f"its report times run backwards ({len(backwards)} of {len(frames)} reports earlier than the "
+                    f"one before; the first at {frames.t_s[first + 1]:.6f} s after one at {frames.t_s[first]:.6f} "
+                    "s); a mouse's kernel timestamps never decrease"
+                )
+            elif moved(frames) and not moved(frames, window_start_s):
+                what = (
+                    f"it reported motion since the last capture but none in the move's window (from "
+                    f"{window_start_s:.6f} s on); the move came before it{self._turnaround_hint()}"
+                )
+            else:
+                continue
+            raise SensorStalled(
+                f"{mouse.name} ({mouse.binding}): {what}, in the streamed capture at pose {capture.pose!r}, cycle "
+                f"{capture.cycle}: no trace of the robot's motion, so this sample is refused; check the mouse's "
+                "reader and device, then resume the run"
+            )
+
+    def _turnaround_hint(self) -> str:
+        """Why a rehearsal's window misses the move: the host's turnaround lasts ``time_scale`` times longer."""
+        if self.time_scale == 1:
+            return ""
+        return (
+            f" (a rehearsal at speed factor {self.time_scale:g}: the host's turnaround after each move lasts that many "
+            "times longer in the rig's seconds; rehearse streamed captures at --speed-factor 20 or lower)"
+        )
+
     def _stream(self, lead_s: float, hold_s: float) -> tuple[dict[str, Any], float]:
         """The reports of both mice since the last capture up to ``hold_s`` after now, and now, on the mice's clock
-        (``CLOCK_MONOTONIC``). ``lead_s`` is how far back the caller looks (simulated mice generate only that)."""
-        t_request = time.monotonic()
+        (``CLOCK_MONOTONIC`` x :attr:`time_scale`). ``lead_s`` is how far back the caller looks (simulated mice generate only that)."""
+        t_request = time.monotonic() * self.time_scale
         if self._reader is not None:
-            self._closing.wait(hold_s)  # the reader thread collects meanwhile
+            self._closing.wait(hold_s / self.time_scale)  # the reader thread collects meanwhile
         else:
-            self._listen(t_request + hold_s)
+            self._listen(time.monotonic() + hold_s / self.time_scale)
         return self._take_pending(), t_request
 
     def _listen(self, until_s: float = float("inf")) -> None:
@@ -405,61 +455,3 @@ class MiceInstrument:
             self._reader.join(1.0)
         for mouse in self.mice.values():
             mouse.close()
-
-
-def arrival_series(
-    frames: Mapping[str, Any],
-    counts_before: Mapping[str, np.ndarray],
-    calibration: Any,
-    origin_mm: np.ndarray,
-    *,
-    t_request: float,
-    lead_s: float,
-    hold_s: float,
-) -> tuple[dict[str, list[float]], dict[str, Any]]:
-    """Position series of an x-y and an x-z mouse in the window [t_request - lead_s, t_request + hold_s].
-
-    ``frames`` are the mice's reports from the window's start on and ``counts_before`` their counts there. A mouse
-    reports only when it moves, so its position holds between reports (zero-order hold). The series is sampled at
-    every report time in the window plus the window's two ends; x comes from the x-y mouse, z from the x-z mouse.
-    Returns the series (``t_s`` relative to ``t_request``, ``x_mm``, ``y_mm``, ``z_mm``) and the raw data it was
-    computed from (the counts at the window start and every report in the window).
-    """
-    start, end = t_request - lead_s, t_request + hold_s
-    times = [np.array([start, end])]
-    counts_at_start, reports, count_paths = {}, {}, {}
-    for plane, f in frames.items():
-        counts_at_start[plane] = np.asarray(counts_before[plane], np.int64)
-        cumulative = counts_at_start[plane] + np.cumsum(np.column_stack([f.dx, f.dy]), axis=0)
-        inside = f.t_s <= end
-        reports[plane] = {
-            "t_s": np.round(f.t_s[inside] - t_request, _S_DECIMALS).tolist(),
-            "dx_counts": f.dx[inside].tolist(),
-            "dy_counts": f.dy[inside].tolist(),
-        }
-        count_paths[plane] = (f.t_s[inside], cumulative[inside], counts_at_start[plane])
-        times.append(f.t_s[inside])
-    grid = np.unique(np.concatenate(times))
-    position = {}
-    for plane, (t_reports, cumulative, at_start) in count_paths.items():
-        latest = np.searchsorted(t_reports, grid, side="right") - 1
-        counts = np.where(
-            latest[:, None] >= 0, cumulative[np.maximum(latest, 0)] if len(cumulative) else at_start, at_start
-        )
-        position[plane] = calibration.counts_to_mm(counts)
-    origin = np.asarray(origin_mm, dtype=float)
-    relative = np.round(grid - t_request, _S_DECIMALS)
-    distinct = np.r_[relative[1:] != relative[:-1], True]  # times equal once rounded: the later position holds
-    series = {
-        "t_s": relative[distinct].tolist(),
-        "x_mm": np.round(origin[0] + position["xy"][distinct, 0], _MM_DECIMALS).tolist(),
-        "y_mm": np.round(origin[1] + position["xy"][distinct, 1], _MM_DECIMALS).tolist(),
-        "z_mm": np.round(origin[2] + position["xz"][distinct, 1], _MM_DECIMALS).tolist(),
-    }
-    raw = {
-        "lead_s": lead_s,
-        "hold_s": hold_s,
-        "reports": reports,
-        "counts_at_start": {plane: [int(c) for c in counts] for plane, counts in counts_at_start.items()},
-    }
-    return series, raw

@@ -82,7 +82,8 @@ def mouse_calibration(
     """The mouse calibration a station puts in force; returns (store record, :class:`CountsCalibration`).
 
     With ``version`` (``[mice] calibration``), that stored ``mouse`` calibration, per-axis scales where it has
-    them; without, the nominal resolution at ``cpi``, recorded and flagged nominal. A measured calibration is never
+    them; without, the nominal resolution at ``cpi``, recorded once and flagged nominal (a later nominal run reuses
+    that record, even after a measured calibration was stored). A measured calibration is never
     put in force because it is the newest: a warning names the newest measured one and the key that would use it.
     """
     from bench.sensors.calibration import MM_PER_INCH, CountsCalibration
@@ -97,11 +98,16 @@ def mouse_calibration(
                 f"({', '.join(stored) or 'none stored yet'})"
             ) from None
     else:
-        measured = [c for c in store.calibrations() if c.name == "mouse" and not c.params.get("nominal")]
-        record = store.ensure_calibration(
-            "mouse",
-            {"mm_per_count": MM_PER_INCH / cpi, "nominal": True},
-            notes=f"nominal {cpi:g} cpi (no [mice] calibration named)",
+        mouse_versions = [c for c in store.calibrations() if c.name == "mouse"]
+        measured = [c for c in mouse_versions if not c.params.get("nominal")]
+        nominal = {"mm_per_count": MM_PER_INCH / cpi, "nominal": True}
+        # the nominal record of this cpi once, whatever was stored after it: a measured calibration stored since
+        # would otherwise make each nominal run write a new version, newer than the measured one
+        same = [c for c in mouse_versions if c.params == nominal]
+        record = (
+            same[-1]
+            if same
+            else store.ensure_calibration("mouse", nominal, notes=f"nominal {cpi:g} cpi (no [mice] calibration named)")
         )
         if measured:
             _log.warning(
@@ -157,6 +163,7 @@ def open_mice(opening: SensorOpening) -> MiceInstrument:
         noise_counts=spec.noise_counts,
         calibration_record=calibration_summary(record),
         xz_mount=spec.xz_mount,
+        time_scale=opening.speed_factor,
     )
     if spec.xz_mount == XZ_GUIDED:
         _log.info(

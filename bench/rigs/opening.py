@@ -31,6 +31,8 @@ class SensorOpening:
     store: Any
     opened: ExitStack
     calibration_ids: list[int]
+    #: how much faster than real time the rig runs (1 on hardware; a rehearsal's speed factor)
+    speed_factor: float = 1.0
 
     def port(self, key: str, url: str, baud: int) -> Any:
         """A serial port opened exclusively; a failure names the station ``key``, the device and what to check."""

@@ -3,9 +3,15 @@ event device would be read (``bench sim pkm5 --mice DIR``).
 
 This is the device-for-device stand-in of a station's ``[mice]``: the host opens ``DIR/mouse_xy.fifo`` and
 ``DIR/mouse_xz.fifo`` exactly as it opens ``/dev/input/by-id/...``, with no simulator verb on the controller link.
-Each time the simulated robot comes to rest, the true motion since the last rest is fed to both mice (a straight
-line over :data:`MOTION_S` of mouse time, quantised with carry, 500 Hz reports) and written *before* the controller
-sends its ``DONE``, so the reports are in the FIFO when the host learns the move ended. A FIFO nobody drains fills up
+Each time the simulated robot comes to rest, its motion since the last rest is fed to both mice as a real mouse
+reports it during the move: a straight line from the last rest to the new one over the move's simulated duration,
+quantised with carry, at the mice's report rate (500 Hz), stamped on the mice's clock, and written *before* the
+controller sends its ``DONE``, so the reports are in the FIFO when the host learns the move ended. The mice's clock
+counts the rig's seconds (``CLOCK_MONOTONIC`` x the simulator's ``--speed-factor``, as the host's
+:class:`bench.rigs.mice.MiceInstrument` reads it with ``time_scale``): a move of D simulated seconds took D / factor
+of wall time, so its reports end now and start after the previous move's last report, and the report times of a
+mouse never run backwards (a move the clock cannot fit is compressed into the time since the last report).
+A FIFO nobody drains fills up
 and further reports are lost, as a kernel buffer overflows (``SYN_DROPPED``). The x-z mouse rides the platform (it
 sees x and z) or, ``--mice-xz-mount guided``, runs on vertical guides pushed by the end effector (the dissertation's
 Z mouse): it sees z only, its x counts stay 0 apart from noise (:func:`seen_by`).
@@ -16,6 +22,8 @@ from __future__ import annotations
 import dataclasses
 import logging
 import os
+import select
+import time
 from pathlib import Path
 from typing import Any
 
@@ -29,8 +37,12 @@ __all__ = ["MOTION_S", "PLANES", "MiceFeed", "fifo_paths", "plane_seed", "seen_b
 
 _log = logging.getLogger(__name__)
 
-#: Mouse time the unobserved motion between two rests takes, s (only the end points are simulated).
+#: Mouse time the unobserved motion between two rests takes, s (the simulated rig's mice, :mod:`bench.simulators.rig`).
 MOTION_S = 0.05
+#: How long a rest waits in all for the host to drain full FIFOs before the rest of its reports are lost, wall s:
+#: the host's reader empties a pipe's buffer in well under a millisecond; nobody reads before the host opens its
+#: mice (the homing move), and the controller must answer within its link's timeout meanwhile.
+_DRAIN_WAIT_S = 0.05
 #: The pose coordinates each mouse sees: x-y mouse (x, y), x-z mouse (x, z).
 PLANES = {"xy": (0, 1), "xz": (0, 2)}
 
@@ -79,8 +91,10 @@ class MiceFeed:
         noise_counts: float = 0.05,
         report_rate_hz: float = 500.0,
         xz_mount: str = XZ_PLATFORM,
+        speed_factor: float = 1.0,
     ) -> None:
-        self._clock_s = 0.0
+        self._speed_factor = float(speed_factor)
+        self._clock_s = self._now()
         self._writers: dict[str, int] = {}
         self._streams: dict[str, MouseStream] = {}
         start = np.asarray(start_pose, dtype=float)[:3]
@@ -89,30 +103,37 @@ class MiceFeed:
             if not os.path.exists(path):
                 os.mkfifo(path)
             # read-write and non-blocking: the open returns before the host opens its end, and a full FIFO never
-            # blocks the simulator (the reports are lost instead, as a kernel buffer overflows)
+            # blocks the simulator for long (the reports are lost instead, as a kernel buffer overflows)
             self._writers[plane] = os.open(path, os.O_RDWR | os.O_NONBLOCK)
             simulator = MouseSimulator(
                 cpi=cpi, noise_counts=noise_counts, report_rate_hz=report_rate_hz, seed=plane_seed(seed, index)
             )
-            self._streams[plane] = MouseStream(simulator, origin_mm=seen_by(plane, start[None], start, xz_mount)[0])
+            origin = seen_by(plane, start[None], start, xz_mount)[0]
+            self._streams[plane] = MouseStream(simulator, origin_mm=origin, t0_s=self._clock_s)
 
-    def rest(self, true_pose: np.ndarray) -> None:
-        """The robot came to rest at ``true_pose``: report the motion there."""
-        self._clock_s += MOTION_S
+    def _now(self) -> float:
+        """The mice's clock: the rig's seconds, ``CLOCK_MONOTONIC`` x the speed factor."""
+        return time.monotonic() * self._speed_factor
+
+    def rest(self, true_pose: np.ndarray, motion_s: float = 0.0) -> None:
+        """The robot came to rest at ``true_pose`` after moving for ``motion_s`` simulated seconds: report that
+        motion, a straight line from the last rest ending now, at the mice's report rate."""
         xyz = np.asarray(true_pose, dtype=float)[:3]
-        offset = _monotonic_now() - self._clock_s  # kernel-like timestamps on the host's CLOCK_MONOTONIC
+        end_s = max(self._now(), self._clock_s + 1e-6)
+        # at rest until the move started; a move the clock has no time for is compressed into the time since the
+        # last report
+        start_s = min(max(end_s - float(motion_s), self._clock_s), end_s - 1e-6)
+        deadline = time.monotonic() + _DRAIN_WAIT_S
         for plane in PLANES:
-            data = self._streams[plane].input_events(
-                np.array([self._clock_s]), seen_by(plane, xyz[None], self._start, self._xz_mount), clock_offset_s=offset
-            )
-            try:
-                written = os.write(self._writers[plane], data)
-            except BlockingIOError:
-                written = 0
+            self._streams[plane].idle_until(start_s)
+            seen = seen_by(plane, xyz[None], self._start, self._xz_mount)
+            data = self._streams[plane].input_events(np.array([end_s]), seen)
+            written = _write_draining(self._writers[plane], data, deadline)
             if written < len(data):
                 _log.warning(
                     "mouse_%s: FIFO full, %d of %d bytes of reports lost", plane, len(data) - written, len(data)
                 )
+        self._clock_s = end_s
 
     def close(self) -> None:
         for writer in self._writers.values():
@@ -120,7 +141,15 @@ class MiceFeed:
         self._writers.clear()
 
 
-def _monotonic_now() -> float:
-    import time
-
-    return time.monotonic()
+def _write_draining(fd: int, data: bytes, deadline: float) -> int:
+    """Write ``data`` to a non-blocking FIFO, waiting until ``deadline`` (monotonic) while it is full for the host's
+    reader to drain it (a long move's reports exceed a pipe's buffer); the bytes written."""
+    written = 0
+    while written < len(data):
+        try:
+            written += os.write(fd, data[written:])
+        except BlockingIOError:
+            remaining = deadline - time.monotonic()
+            if remaining <= 0 or not select.select([], [fd], [], remaining)[1]:
+                break
+    return written

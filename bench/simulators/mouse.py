@@ -195,6 +195,12 @@ class MouseStream:
         keep = (deltas[:, 0] != 0) | (deltas[:, 1] != 0)
         return MouseReports(report_t[keep], deltas[keep, 0], deltas[keep, 1])
 
+    def idle_until(self, t_s: float) -> None:
+        """The sensor sat still at its last position until ``t_s``: it sent nothing meanwhile, and its report clock
+        resumes there (a long rest costs no report slots to compute)."""
+        if t_s > self._anchor_t_s:
+            self._anchor_t_s = self._last_report_t_s = float(t_s)
+
     def input_events(self, t_s: np.ndarray, xy_mm: np.ndarray, *, clock_offset_s: float = 0.0) -> bytes:
         """:meth:`advance` encoded as kernel ``input_event`` records, timestamps shifted by ``clock_offset_s``."""
         reports = self.advance(t_s, xy_mm)

@@ -89,7 +89,8 @@ class Pkm5SimDevice:
         self.kernel_wait_s = kernel_wait_s
         #: False (``--hardware-only``): the SIM verbs are unknown, as to the real firmware (ERR SYNTAX)
         self.sim_verbs = sim_verbs
-        #: told ``rest(true_pose)`` each time the robot comes to rest, before DONE is sent (``--mice``)
+        #: told ``rest(true_pose, motion_s)`` each time the robot comes to rest after moving ``motion_s`` simulated
+        #: seconds, before DONE is sent (``--mice``)
         self.observers = observers
         self.mode = mode or StructuralMode()
         self.speed_factor = speed_factor
@@ -291,7 +292,7 @@ class Pkm5SimDevice:
         self.arrival, self._trace = (before, self.true_pose, duration_s), None
         self.truth.record(list(self.steps), list(self.true_pose), self.load_kg)
         for observer in self.observers:
-            observer.rest(self.true_pose)
+            observer.rest(self.true_pose, duration_s)
 
 
 def _within_limits(steps: tuple[int, ...]) -> bool:
@@ -410,7 +411,7 @@ def build_device(args: argparse.Namespace) -> Pkm5SimDevice:
 
         start = plant(np.array(HOME_STEPS), args.load_kg)
         mount = getattr(args, "mice_xz_mount", XZ_PLATFORM)
-        observers = (MiceFeed(args.mice, start, seed=args.seed, xz_mount=mount),)
+        observers = (MiceFeed(args.mice, start, seed=args.seed, xz_mount=mount, speed_factor=args.speed_factor),)
     return Pkm5SimDevice(
         plant,
         speed_factor=args.speed_factor,
