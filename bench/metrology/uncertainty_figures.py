@@ -178,6 +178,15 @@ def _pooled_toward(deviations: np.ndarray, share: float | None = None) -> np.nda
     return np.einsum("mnd,mde->mne", deviations, transform)
 
 
+def _mixed(mixing: np.ndarray, deviations: np.ndarray) -> np.ndarray:
+    """Simulated cycles (c, m, n, d): each campaign's n cycles are the ``mixing`` (c, n, n) combinations of the
+    model's n cycles ``deviations`` (m, n, d), as one matrix product (BLAS: ~15x an einsum of the same sum)."""
+    count, n, _ = mixing.shape
+    m, _, d = deviations.shape
+    flat = deviations.transpose(1, 0, 2).reshape(n, m * d)
+    return (mixing.reshape(count * n, n) @ flat).reshape(count, n, m, d).transpose(0, 2, 1, 3)
+
+
 def _at_and_scale(
     barycentres: np.ndarray, deviations: np.ndarray, stations: np.ndarray, instrument_u_mm: float
 ) -> tuple[np.ndarray, np.ndarray]:
@@ -270,14 +279,14 @@ def path_uncertainty(
     for first in range(0, draws, chunk):
         count = min(chunk, draws - first)
         mixing = rng.standard_normal((count, n, n)) / math.sqrt(n - 1)
-        simulated = np.einsum("cjk,mkd->cmjd", mixing, model)  # (count, m, n, d) cycles about the mean
+        simulated = _mixed(mixing, model)  # (count, m, n, d) cycles about the mean
         bias = rng.standard_normal((count, 1, d)) * instrument_u_mm
         sim_mean = simulated.mean(axis=2)
         sim_at, sim_scale = _at_and_scale(
             barycentres + sim_mean + bias, simulated - sim_mean[:, :, None, :], stations, instrument_u_mm
         )
         sim_rt = _rt_per_station(simulated).max(axis=-1)
-        sim_tied = _rt_per_station(np.einsum("cjk,mkd->cmjd", mixing, tied)).max(axis=-1)
+        sim_tied = _rt_per_station(_mixed(mixing, tied)).max(axis=-1)
         with np.errstate(divide="ignore", invalid="ignore"):
             t[first : first + count] = np.where(sim_scale > 0, np.abs(sim_at - at) / sim_scale, 0.0)
             w[first : first + count] = np.where(sim_rt > 0, np.abs(sim_rt - rt_model) / sim_rt, 0.0)
