@@ -46,7 +46,7 @@ def _mouse(args: argparse.Namespace) -> int:
             table[["ref_x_mm", "ref_y_mm"]].to_numpy(),
             table[["counts_x", "counts_y"]].to_numpy(),
             _reading_numbers(args.file, table, chain),
-            f"the table's ref_x_mm, ref_y_mm ({args.file})",
+            "the table's ref_x_mm, ref_y_mm columns",
         )
     if _RUN_EXPORT <= set(frame.columns):
         return _mouse_matrix(args, *_run_export_moves(args, frame), _run_export_reference(args))
