@@ -391,7 +391,7 @@ class MiceInstrument:
             return ""
         return (
             f" (a rehearsal at speed factor {self.time_scale:g}: the host's turnaround after each move lasts that many "
-            "times longer in the rig's seconds; rehearse streamed captures at --speed-factor 20 or lower)"
+            "times longer in the rig's seconds; rehearse streamed captures slower, e.g. --speed-factor 5)"
         )
 
     def _stream(self, lead_s: float, hold_s: float) -> tuple[dict[str, Any], float]:
