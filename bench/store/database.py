@@ -22,6 +22,7 @@ import sqlite3
 import subprocess
 import uuid
 from collections.abc import Callable, Iterable, Mapping
+from dataclasses import replace
 from pathlib import Path
 from typing import Any, Self
 
@@ -363,24 +364,10 @@ class Store(StoreSamples, StoreCalibrations):
             f" FROM runs r LEFT JOIN campaigns c ON c.id = r.campaign_id {where} ORDER BY r.id"
         )
         return [
-            RunRecord(
-                id=row[0],
-                uuid=row[1],
-                bench=row[2],
-                campaign=row[3],
-                protocol_name=row[4],
-                protocol_version=row[5],
-                robot=row[6],
-                config=json.loads(row[7]),
-                settings=json.loads(row[8]),
-                calibration_ids=tuple(json.loads(row[9])),
-                software_version=row[10],
-                git_sha=row[11],
+            replace(
+                RunRecord.from_row(row, run_id=row[0], calibration_ids=tuple(json.loads(row[9]))),
                 status=status,
                 reason=reason,
-                started_utc=row[14],
-                ended_utc=row[15],
-                n_samples=row[16],
             )
             for row in self._db.execute(query, args).fetchall()
             for status, reason in (self._reads_as(row[0], row[12], row[13]),)

@@ -118,7 +118,7 @@ class LabStore:
             args,
         ).fetchall()
         self._conn.rollback()
-        return [RunRecord.from_lab_row(r, run_id=r[0], calibration_ids=tuple(json.loads(r[9]))) for r in rows]
+        return [RunRecord.from_row(r, run_id=r[0], calibration_ids=tuple(json.loads(r[9]))) for r in rows]
 
     def checksum(self, run_uuid: str) -> str:
         """:func:`rows_checksum` of the samples the server holds for ``run_uuid``."""

@@ -142,7 +142,7 @@ class LabRunView:
                 raise ConfigError(f"run {uuid}: no such run in lab store {self.path}")
             r = rows[0]
             calibrations = tuple(self._calibration_number(u) for u in json.loads(r[9]))
-            self._records[uuid] = RunRecord.from_lab_row(
+            self._records[uuid] = RunRecord.from_row(
                 r, run_id=self._runs.number(r[1], r[0]), calibration_ids=calibrations
             )
         return self._records[uuid]

@@ -68,10 +68,11 @@ class RunRecord:
         return out
 
     @classmethod
-    def from_lab_row(cls, row: Sequence[Any], *, run_id: int, calibration_ids: tuple[int, ...]) -> RunRecord:
-        """A run read from the lab store: ``row`` in the order the lab's run queries select (local id, uuid, bench,
-        campaign, protocol name and version, robot, config and settings JSON, calibrations JSON, software version,
-        git sha, status, reason, started, ended, sample count); the caller numbers the run and its calibrations."""
+    def from_row(cls, row: Sequence[Any], *, run_id: int, calibration_ids: tuple[int, ...]) -> RunRecord:
+        """A run read from a store: ``row`` in the order the local and the lab's run queries select (local id, uuid,
+        bench, campaign, protocol name and version, robot, config and settings JSON, calibrations JSON, software
+        version, git sha, status, reason, started, ended, sample count); the caller numbers the run and its
+        calibrations."""
         return cls(
             id=run_id,
             uuid=row[1],
