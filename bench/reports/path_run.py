@@ -241,12 +241,13 @@ def analyze_path_run(
         raise ConfigError(f"run {run_id}: a {run.protocol_name} run, expected one of {', '.join(PATH_PROTOCOLS)}")
     protocol = PathDesign.from_config(run.config, source=f"run {run_id}")
     read = getattr(store, "iter_samples", store.samples)  # a sample at a time where the store can (lab views: a list)
-    spans: list[float] = []  # each sample's largest distance from the registration: a scale error's lever arm
+    reach_mm: float | None = None  # the largest distance from the registration: a scale error's lever arm
 
     def lever_arm(points: np.ndarray) -> None:
+        nonlocal reach_mm
         span = registration_span_mm(run, points)
         if span is not None:
-            spans.append(span)
+            reach_mm = span if reach_mm is None else max(reach_mm, span)
 
     cycles = PathCycles(
         protocol,
@@ -257,7 +258,7 @@ def analyze_path_run(
     )
     for sample in read(run_id, kind="path") if samples is None else samples:
         cycles.add(sample)
-    instrument = path_instrument(run, calibrations_in_force(store, run), max(spans) if spans else None)
+    instrument = path_instrument(run, calibrations_in_force(store, run), reach_mm)
     u_mm = ap_instrument_u_mm(instrument.sigma_mm, run)  # AT's instrument term: reading, scale, registration
     speed_u_pct, speed_source = speed_scale_u_pct(run)
     figures = []

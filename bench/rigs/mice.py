@@ -181,9 +181,8 @@ class MiceInstrument:
         The net commanded displacement between two captures (whatever path the robot took between them) against
         the net counts, as mm: no motion in a move of at least :data:`LIVENESS_MIN_MOVE_MM`, or short of it by
         more than the robot's error allows (:attr:`robot_error_mm`) plus the mouse's :func:`scale_share` of it, the
-        mouse stopped
-        reporting (no report), froze (reports without motion) or lost the move; :class:`SensorStalled` names
-        which. A streamed capture (its window may close before the commanded end) is refused only without any
+        mouse stopped reporting (no report), froze (reports without motion) or lost the move; :class:`SensorStalled`
+        names which. A streamed capture (its window may close before the commanded end) is refused only without any
         motion. Then the two mice's x motions are compared (:meth:`_check_common_axis`): a slip the robot's error
         allowance hides shows there. Captures without commanded positions are not judged and do not move the
         reference.
