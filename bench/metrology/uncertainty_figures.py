@@ -164,12 +164,12 @@ def _pooled_toward(deviations: np.ndarray, share: float | None = None) -> np.nda
     stations' mean shape: the tie hypothesis)."""
     n = deviations.shape[1]
     values, vectors = np.linalg.eigh(_covariances(deviations))  # ascending, per station
-    keep = ~np.eye(n, dtype=bool)
-    leave_one_out = np.linalg.eigvalsh(_covariances(np.stack([deviations[:, keep[j]] for j in range(n)])))
-    differences = leave_one_out - leave_one_out.mean(axis=1, keepdims=True)  # (n, m, d)
-    jackknife = (n - 1) / n * np.sum((differences - differences.mean(axis=0)) ** 2, axis=(0, 2))
-    heterogeneity = float(np.mean(np.sum((values - values.mean(axis=0)) ** 2, axis=1)))
-    if share is None:
+    if share is None:  # the jackknife (n leave-one-out covariances) only where the share is to be estimated
+        keep = ~np.eye(n, dtype=bool)
+        leave_one_out = np.linalg.eigvalsh(_covariances(np.stack([deviations[:, keep[j]] for j in range(n)])))
+        differences = leave_one_out - leave_one_out.mean(axis=1, keepdims=True)  # (n, m, d)
+        jackknife = (n - 1) / n * np.sum((differences - differences.mean(axis=0)) ** 2, axis=(0, 2))
+        heterogeneity = float(np.mean(np.sum((values - values.mean(axis=0)) ** 2, axis=1)))
         share = 1.0 if heterogeneity == 0.0 else min(1.0, float(jackknife.mean()) / heterogeneity)
     target = (1.0 - share) * values + share * values.mean(axis=0)
     floor = 1e-12 * np.max(values, axis=-1, keepdims=True)
