@@ -89,3 +89,17 @@ def test_av_u_carries_the_calibration_scale_in_force(mice_path_run):
     assert float(analysis.speed_budget.split("u = ")[1].split(" %")[0]) == pytest.approx(scale_u_pct, rel=1e-4)
     (line,) = [f for f in analysis.figures if f.shape == "line"]
     assert line.av_u.expanded_uncertainty / line.av_u.coverage_factor >= scale_u_pct
+
+
+def test_the_span_from_the_registration_compares_each_axis_with_its_own_coordinate():
+    """A table without x (y and z only) is compared with the registration's y and z, not its x and y: the reach
+    is 4 mm here (the shared span helper, as first written, compared y with x: 104 mm)."""
+    from types import SimpleNamespace
+
+    import pandas as pd
+
+    from bench.reports.instrument import _span_from_registration
+
+    run = SimpleNamespace(settings={"instrument": {"registration_mm": [100.0, 0.0, 50.0]}})
+    assert _span_from_registration(run, pd.DataFrame({"y_mm": [3.0, -4.0], "z_mm": [52.0, 49.0]})) == 4.0
+    assert _span_from_registration(run, pd.DataFrame({"x_mm": [90.0], "y_mm": [3.0], "z_mm": [52.0]})) == 10.0

@@ -228,7 +228,11 @@ def _span_from_registration(run: RunRecord, table: pd.DataFrame) -> float | None
     columns = [c for c in _POSITION if c in table.columns]
     if not columns:
         return None
-    return registration_span_mm(run, np.column_stack([table[c].to_numpy(float) for c in columns]))
+    # each column in its axis's place (an absent axis NaN), so it is compared with its own registration coordinate
+    positions = np.full((len(table), _POSITION.index(columns[-1]) + 1), np.nan)
+    for column in columns:
+        positions[:, _POSITION.index(column)] = table[column].to_numpy(float)
+    return registration_span_mm(run, positions)
 
 
 def registration_span_mm(run: RunRecord, positions_mm: np.ndarray) -> float | None:
