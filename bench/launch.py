@@ -44,6 +44,8 @@ class RigRequest:
     port: str | None = None
     mouse_xy: str | None = None
     mouse_xz: str | None = None
+    #: how the x-z mouse is mounted (``[mice] xz_mount``: "platform" or "guided"); None: the station default
+    mouse_xz_mount: str | None = None
     simulate: bool = False
     seed: int | None = None
     speed_factor: float | None = None
@@ -323,6 +325,11 @@ def check_speed_factor(speed: float) -> None:
 
 def _station(request: RigRequest, robot: str, fixture: str) -> Station | None:
     """The station named by ``request.station``, or the one the port and the mice describe, or None."""
+    mice_named = request.mouse_xy or request.mouse_xz or request.mouse_xz_mount
+    if mice_named and request.port is None:
+        # the mice of a station are its [mice] table; the simulator has its own: never ignore what was named
+        where = "a station (its [mice] table names them)" if request.station else "the simulator"
+        raise ConfigError(f"mice: named with {where}, expected them with a {request.port_label} only")
     if request.station:
         return load_station(request.station)
     if request.port is None:
@@ -336,6 +343,12 @@ def _station(request: RigRequest, robot: str, fixture: str) -> Station | None:
         if not (request.mouse_xy and request.mouse_xz):
             raise ConfigError("mice: only one mouse named, expected two event devices (the x-y and the x-z mouse)")
         table["mice"] = {"xy": request.mouse_xy, "xz": request.mouse_xz}
+        if request.mouse_xz_mount is not None:
+            table["mice"]["xz_mount"] = request.mouse_xz_mount
+    elif request.mouse_xz_mount is not None:
+        raise ConfigError(
+            "mice: an x-z mount given without mice, expected two event devices (the x-y and the x-z mouse)"
+        )
     return parse_station(table, source=request.port_label)
 
 

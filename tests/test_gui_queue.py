@@ -139,3 +139,24 @@ def test_a_rig_that_cannot_start_is_reported_and_nothing_is_stored(window, tmp_p
     assert f"serial port: controller.port = '{tmp_path / 'no-such-port'}': cannot open it" in window.log.toPlainText()
     assert "--" not in window.log.toPlainText()  # no command-line flag names in the window
     assert _runs(tmp_path)[0] == []
+
+
+def test_the_mice_and_their_mount_go_with_a_serial_port_only(window):
+    panel = window.robot_panel
+    panel.connection.setCurrentText("serial port")
+    panel.port.setText("/dev/ttyUSB0")
+    panel.mouse_xy.setText("/dev/input/xy")
+    panel.mouse_xz.setText("/dev/input/xz")
+    assert panel.mouse_xz_mount.isEnabled() and panel.rig_spec().request().mouse_xz_mount is None
+    panel.mouse_xz_mount.setCurrentText("guided")
+    request = panel.rig_spec().request()
+    assert (request.port, request.mouse_xy, request.mouse_xz, request.mouse_xz_mount) == (
+        "/dev/ttyUSB0",
+        "/dev/input/xy",
+        "/dev/input/xz",
+        "guided",
+    )
+    panel.connection.setCurrentText("simulator")  # what the disabled fields hold is not sent to the simulator
+    request = panel.rig_spec().request()
+    assert not panel.mouse_xz_mount.isEnabled()
+    assert (request.port, request.mouse_xy, request.mouse_xz, request.mouse_xz_mount) == (None, None, None, None)

@@ -116,6 +116,7 @@ def _rig_arguments(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument("--mouse-xy", default=None, help="hardware: event device of the x-y mouse")
     parser.add_argument("--mouse-xz", default=None, help="hardware: event device of the x-z mouse")
+    defer(parser, _add_mouse_xz_mount)
     parser.add_argument("--no-progress", action="store_true", help="no progress bar on stderr")
     kinematic = parser.add_mutually_exclusive_group()
     kinematic.add_argument(
@@ -145,6 +146,18 @@ def _rig_arguments(parser: argparse.ArgumentParser) -> None:
     )
 
 
+def _add_mouse_xz_mount(parser: argparse.ArgumentParser) -> None:
+    from bench.rigs.mice_liveness import XZ_MOUNTS, XZ_PLATFORM
+
+    parser.add_argument(
+        "--mouse-xz-mount",
+        choices=XZ_MOUNTS,
+        default=None,
+        help=f"hardware: how the x-z mouse is mounted (default {XZ_PLATFORM}: on the platform, it sees x and z; "
+        "guided: on vertical guides pushed by the end effector, it sees z only)",
+    )
+
+
 def rig_request(args: argparse.Namespace) -> RigRequest:
     """What the rig options ask for, as the :class:`bench.launch.RigRequest` the GUI fills in too."""
     from bench.calibration.compensate import NEWEST, OFF
@@ -160,6 +173,7 @@ def rig_request(args: argparse.Namespace) -> RigRequest:
         port=args.port,
         mouse_xy=args.mouse_xy,
         mouse_xz=args.mouse_xz,
+        mouse_xz_mount=args.mouse_xz_mount,
         simulate=args.sim,
         seed=args.seed,
         speed_factor=args.speed_factor,

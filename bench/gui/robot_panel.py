@@ -36,6 +36,7 @@ from bench.errors import BenchError
 from bench.gui.estop import EmergencyStop
 from bench.gui.worker import RigSpec
 from bench.protocols.kinematics import DEFAULT_SINGULARITY_THRESHOLD, robot_model
+from bench.rigs.mice_liveness import XZ_MOUNTS, XZ_PLATFORM
 from bench.robot_kinds import robot_names
 
 __all__ = ["RobotPanel", "check_target", "open_mover"]
@@ -112,6 +113,8 @@ class RobotPanel(QGroupBox):
         self.mouse_xy, self.mouse_xz = QLineEdit(), QLineEdit()
         self.mouse_xy.setPlaceholderText("/dev/input/by-id/...-event-mouse (hardware campaigns)")
         self.mouse_xz.setPlaceholderText("/dev/input/by-id/...-event-mouse (hardware campaigns)")
+        self.mouse_xz_mount = QComboBox()  # [mice] xz_mount: the x-z mouse on the platform, or on vertical guides
+        self.mouse_xz_mount.addItems(list(XZ_MOUNTS))
         for label, widget in (
             ("Robot", self.robot),
             ("Connection", self.connection),
@@ -120,6 +123,7 @@ class RobotPanel(QGroupBox):
             ("Speed factor", self.speed_factor),
             ("Mouse x-y", self.mouse_xy),
             ("Mouse x-z", self.mouse_xz),
+            ("Mouse x-z mount", self.mouse_xz_mount),
         ):
             form.addRow(label, widget)
         self.connect_button = QPushButton("Connect")
@@ -145,20 +149,29 @@ class RobotPanel(QGroupBox):
 
     def rig_spec(self, *, simulated_calliper: bool = False) -> RigSpec:
         """The robot and connection chosen, as a campaign's :class:`RigSpec`."""
-        port = self.port.text().strip() if self.connection.currentText() == "serial port" else None
+        serial_port = self.connection.currentText() == "serial port"
+        port = self.port.text().strip() if serial_port else None
+        mice = (
+            (self.mouse_xy.text().strip() or None, self.mouse_xz.text().strip() or None)
+            if serial_port
+            else (None, None)
+        )
+        mount = self.mouse_xz_mount.currentText()
         return RigSpec(
             robot=self.robot.currentText(),
             port=port or None,
             seed=self.seed.value(),
             speed_factor=self.speed_factor.value(),
-            mouse_xy=self.mouse_xy.text().strip() or None,
-            mouse_xz=self.mouse_xz.text().strip() or None,
+            mouse_xy=mice[0],
+            mouse_xz=mice[1],
+            # the station default is the platform; only a guided mount is asked for, and only with mice
+            mouse_xz_mount=mount if any(mice) and mount != XZ_PLATFORM else None,
             simulated_calliper=simulated_calliper,
         )
 
     def _connection_kind_changed(self, kind: str) -> None:
         serial_port = kind == "serial port"
-        for widget in (self.port, self.mouse_xy, self.mouse_xz):
+        for widget in (self.port, self.mouse_xy, self.mouse_xz, self.mouse_xz_mount):
             widget.setEnabled(serial_port)
         for widget in (self.seed, self.speed_factor):
             widget.setEnabled(not serial_port)

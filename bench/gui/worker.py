@@ -59,6 +59,8 @@ class RigSpec:
     speed_factor: float = 10000.0
     mouse_xy: str | None = None
     mouse_xz: str | None = None
+    #: "guided" for an x-z mouse on vertical guides; None: on the platform (the station default)
+    mouse_xz_mount: str | None = None
     simulated_calliper: bool = False
     station: str | None = None
     simulate: bool = False
@@ -74,6 +76,7 @@ class RigSpec:
             port=self.port,
             mouse_xy=self.mouse_xy,
             mouse_xz=self.mouse_xz,
+            mouse_xz_mount=self.mouse_xz_mount,
             simulate=self.simulate,
             seed=None if hardware else self.seed,
             speed_factor=None if hardware else self.speed_factor,
