@@ -22,6 +22,7 @@ from urllib.parse import urlsplit, urlunsplit
 import pytest
 
 from bench.store import Store
+from bench.store.record_checksum import seal_run
 from bench.store.sample_checksum import sample_checksum
 
 PASSWORD = "bench-test-pw"
@@ -61,6 +62,7 @@ def make_store(path: Path, bench: str, samples_per_run: list[int], robot: str = 
                 [(run_id, *row, sample_checksum(*row)) for row in _pose_rows(run_id, n)],
             )
             db.execute("UPDATE runs SET status = 'completed', ended_utc = started_utc WHERE id = ?", (run_id,))
+            seal_run(db, run_id)  # an edit by hand, sealed as bench seals its own
     db.close()  # the last connection checkpoints the WAL: the file's bytes are final
     return path
 

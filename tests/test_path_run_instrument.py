@@ -23,6 +23,7 @@ from bench.reports.document import _instruments
 from bench.reports.path import collect_path
 from bench.reports.path_run import analyze_path_run, attained_cycles
 from bench.store import Store
+from bench.store.record_checksum import seal_run
 
 ROOT = Path(__file__).resolve().parents[1]
 QUICK = ROOT / "examples" / "iso9283_path_quick.toml"
@@ -43,6 +44,7 @@ def mice_path_run(tmp_path_factory) -> Path:
         settings["instrument"]["scale_calibration"] = NOMINAL
         settings["registrations"] = [{"segment": 1, "u_mm": REGISTRATION_U_MM, "utc": "2026-01-01T00:00:00+00:00"}]
         db.execute("UPDATE runs SET settings_json = ? WHERE id = 1", (json.dumps(settings),))
+        seal_run(db, 1)  # an edit by hand, sealed as bench seals its own
         db.commit()
     finally:
         db.close()

@@ -17,6 +17,7 @@ from bench.reports.path import collect_path
 from bench.reports.positioning_time import collect_positioning_time
 from bench.reports.stabilisation import collect_stabilisation
 from bench.store import Store
+from bench.store.record_checksum import seal_run
 
 EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
 REGISTRATION = "registration at home (the run's largest)"
@@ -32,6 +33,7 @@ def _run_with_registration(folder: Path, protocol: str) -> Path:
         settings = json.loads(db.execute("SELECT settings_json FROM runs WHERE id = 1").fetchone()[0])
         settings["registrations"] = [{"segment": 1, "u_mm": 0.3817, "utc": "2026-01-01T00:00:00+00:00"}]
         db.execute("UPDATE runs SET settings_json = ? WHERE id = 1", (json.dumps(settings),))
+        seal_run(db, 1)  # an edit by hand, sealed as bench seals its own
         db.commit()
     finally:
         db.close()

@@ -22,6 +22,7 @@ from bench.store import Store  # noqa: E402
 from bench.store.lab import LAB_SCHEMA_VERSION, LabStore, sync_store  # noqa: E402
 from bench.store.lab_copy import TYPED_COLUMNS  # noqa: E402
 from bench.store.lab_summary import pose_summary  # noqa: E402
+from bench.store.record_checksum import seal_run
 from bench.store.sample_checksum import CHECKED_COLUMNS, sample_checksum
 
 COMMANDS = {"P1": (110.0, 0.0, 320.0), "P2": (60.5, -40.25, 300.0)}
@@ -86,6 +87,7 @@ def make_campaigns(tmp_path, seed=9283):
         db = sqlite3.connect(path)
         with db:
             db.execute("UPDATE runs SET started_utc = ? WHERE id = ?", (started, run_id))
+            seal_run(db, run_id)  # an edit by hand, sealed as bench seals its own
         db.close()
     return paths, samples
 

@@ -19,6 +19,7 @@ from pathlib import Path
 from typing import Any
 
 from bench.errors import BenchError, ConfigError
+from bench.store.record_checksum import damaged_record_lines
 from bench.store.sample_checksum import damaged_sample_lines
 
 __all__ = [
@@ -181,8 +182,8 @@ def open_connection(path: str, *, read_only: bool = False, option: str = "--stor
 
 def check_store(path: str, option: str = "--store") -> list[str]:
     """The problems of the store at ``path``, one line each (empty when sound): SQLite's ``integrity_check``,
-    every row whose foreign key names a missing parent (``foreign_key_check``) and every sample that fails its
-    checksum or holds JSON that does not parse. Opens read-only (``option``: as :func:`open_connection`)."""
+    every row whose foreign key names a missing parent (``foreign_key_check``), every run and calibration record that
+    fails its checksum, and every sample that fails its checksum or holds JSON that does not parse. Opens read-only (``option``: as :func:`open_connection`)."""
     try:
         db = open_connection(path, read_only=True, option=option)
     except sqlite3.DatabaseError as exc:  # not SQLite, or its header damaged: the one problem there is to report
@@ -202,6 +203,7 @@ def check_store(path: str, option: str = "--store") -> list[str]:
             f"{path}: table {table} row {rowid}: {parent} id missing (foreign key {fk})"
             for table, rowid, parent, fk in db.execute("PRAGMA foreign_key_check")
         ]
+        problems += damaged_record_lines(db, path)
         problems += damaged_sample_lines(db, path)
     except sqlite3.Error as exc:  # a page too damaged to walk: what was found so far, then SQLite's words
         problems.append(f"{path}: {exc}")

@@ -30,6 +30,7 @@ from bench import __version__
 from bench.errors import BenchError, ConfigError
 from bench.store.connection import GuardedConnection, open_connection, store_error
 from bench.store.ownership import RunLease, owner_of
+from bench.store.record_checksum import RUN_CHECKED_COLUMNS, refuse_damaged, seal_run
 from bench.store.records import (
     INTERRUPTED,
     RUN_STATUSES,
@@ -284,6 +285,7 @@ class Store(StoreSamples, StoreCalibrations):
                 row,
             )
             run_id = cursor.inserted_id()
+            seal_run(self._db, run_id)
             self.claim(run_id)
             self._db.execute("COMMIT")
         except BaseException:
@@ -308,10 +310,17 @@ class Store(StoreSamples, StoreCalibrations):
             **({"reason": reason} if reason else {}),
         }
         settings = {**record.settings, "history": [*record.settings.get("history", ()), event]}
-        self._db.execute(
-            "UPDATE runs SET status = ?, reason = ?, ended_utc = ?, settings_json = ? WHERE id = ?",
-            (status, reason, ended, to_json(settings, "settings"), run_id),
-        )
+        self._db.execute("BEGIN IMMEDIATE")
+        try:
+            self._db.execute(
+                "UPDATE runs SET status = ?, reason = ?, ended_utc = ?, settings_json = ? WHERE id = ?",
+                (status, reason, ended, to_json(settings, "settings"), run_id),
+            )
+            seal_run(self._db, run_id)
+            self._db.execute("COMMIT")
+        except BaseException:
+            self._db.execute("ROLLBACK")
+            raise
 
     def add_registration(self, run_id: int, registration: Mapping[str, Any]) -> int:
         """Append one registration of the run's instruments (a run segment, :mod:`bench.rigs.registration`) to its
@@ -332,6 +341,7 @@ class Store(StoreSamples, StoreCalibrations):
             self._db.execute(
                 "UPDATE runs SET settings_json = ? WHERE id = ?", (to_json(settings, "settings"), int(run_id))
             )
+            seal_run(self._db, run_id)
             self._db.execute("COMMIT")
         except BaseException:
             self._db.execute("ROLLBACK")
@@ -360,15 +370,15 @@ class Store(StoreSamples, StoreCalibrations):
             "SELECT r.id, r.uuid, r.bench, c.name, r.protocol_name, r.protocol_version, r.robot, r.config_json,"
             " r.settings_json,"
             " r.calibration_ids_json, r.software_version, r.git_sha, r.status, r.reason, r.started_utc,"
-            " r.ended_utc, (SELECT COUNT(*) FROM samples s WHERE s.run_id = r.id)"
+            " r.ended_utc, (SELECT COUNT(*) FROM samples s WHERE s.run_id = r.id),"
+            f" {', '.join('r.' + c for c in RUN_CHECKED_COLUMNS)}, r.checksum"
             f" FROM runs r LEFT JOIN campaigns c ON c.id = r.campaign_id {where} ORDER BY r.id"
         )
-        return [
-            replace(
-                RunRecord.from_row(row, run_id=row[0], calibration_ids=tuple(json.loads(row[9]))),
-                status=status,
-                reason=reason,
-            )
-            for row in self._db.execute(query, args).fetchall()
-            for status, reason in (self._reads_as(row[0], row[12], row[13]),)
-        ]
+        records = []
+        for row in self._db.execute(query, args).fetchall():
+            # the record is checked before its JSON is read: a changed byte is refused, never parsed as something else
+            refuse_damaged("runs", row[0], row[17:-1], row[-1], self.path)
+            status, reason = self._reads_as(row[0], row[12], row[13])
+            record = RunRecord.from_row(row, run_id=row[0], calibration_ids=tuple(json.loads(row[9])))
+            records.append(replace(record, status=status, reason=reason))
+        return records

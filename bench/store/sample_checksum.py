@@ -27,6 +27,7 @@ __all__ = [
     "DamagedSample",
     "checksum_problem",
     "damaged_sample_lines",
+    "hash_fields",
     "parse_sample",
     "sample_checksum",
 ]
@@ -58,18 +59,24 @@ def sample_checksum(
     (Python's ``repr``, which SQLite's REAL keeps exactly), all encoded as UTF-8 (bytes that are not UTF-8, read
     with ``surrogateescape``, hash as themselves).
     """
-    text = _SEPARATOR.join(
+    return hash_fields(
         (
             str(int(step_index)),
             kind,
-            _NULL if pose is None else pose,
-            _NULL if cycle is None else str(int(cycle)),
+            pose,
+            None if cycle is None else str(int(cycle)),
             repr(float(t_s)),
             wall_utc,
             values_json,
-            _NULL if raw_json is None else raw_json,
+            raw_json,
         )
     )
+
+
+def hash_fields(fields: Iterable[str | None]) -> str:
+    """SHA-256 (hex) of text fields joined by U+001F, None as U+0000, encoded as UTF-8 (bytes that are not UTF-8,
+    read with ``surrogateescape``, hash as themselves): the hash of every stored record's checksum."""
+    text = _SEPARATOR.join(_NULL if field is None else field for field in fields)
     return hashlib.sha256(text.encode("utf-8", "surrogateescape")).hexdigest()
 
 

@@ -25,7 +25,7 @@ from bench.errors import ConfigError
 __all__ = ["SCHEMA_VERSION", "StoreSchemaError", "backup_path", "default_bench_name", "open_schema"]
 
 #: The schema version this bench writes.
-SCHEMA_VERSION = 3
+SCHEMA_VERSION = 4
 
 #: Version 0: the tables of the first release, exactly as it created them.
 _SCHEMA_V0 = """
@@ -123,8 +123,18 @@ def _v2_to_v3(db: sqlite3.Connection, bench: str) -> None:
     db.execute(f"UPDATE samples SET checksum = bench_sample_checksum({', '.join(CHECKED_COLUMNS)})")
 
 
+def _v3_to_v4(db: sqlite3.Connection, bench: str) -> None:
+    """A checksum on every run and calibration record (:mod:`bench.store.record_checksum`), given now to those
+    stored before."""
+    from bench.store.record_checksum import seal_all
+
+    db.execute("ALTER TABLE runs ADD COLUMN checksum TEXT")
+    db.execute("ALTER TABLE calibrations ADD COLUMN checksum TEXT")
+    seal_all(db)
+
+
 #: ``MIGRATIONS[v]`` takes a store from version ``v`` to ``v + 1``.
-MIGRATIONS: tuple[Callable[[sqlite3.Connection, str], None], ...] = (_v0_to_v1, _v1_to_v2, _v2_to_v3)
+MIGRATIONS: tuple[Callable[[sqlite3.Connection, str], None], ...] = (_v0_to_v1, _v1_to_v2, _v2_to_v3, _v3_to_v4)
 assert len(MIGRATIONS) == SCHEMA_VERSION
 
 

@@ -9,6 +9,7 @@ from typing import Any
 
 from bench.errors import ConfigError
 from bench.store.connection import GuardedConnection
+from bench.store.record_checksum import CALIBRATION_CHECKED_COLUMNS, record_checksum, refuse_damaged
 from bench.store.records import CalibrationRecord, to_json, utc_now
 
 __all__ = ["StoreCalibrations"]
@@ -30,18 +31,19 @@ class StoreCalibrations:
             (latest,) = self._db.execute(
                 "SELECT COALESCE(MAX(version), 0) FROM calibrations WHERE name = ?", (name,)
             ).fetchone()
+            fields = (
+                str(uuid.uuid4()),
+                name,
+                latest + 1,
+                utc_now(),
+                to_json(dict(params), "params"),
+                source_run_id,
+                notes,
+            )
             cursor = self._db.execute(
-                "INSERT INTO calibrations (uuid, name, version, created_utc, params_json, source_run_id, notes)"
-                " VALUES (?, ?, ?, ?, ?, ?, ?)",
-                (
-                    str(uuid.uuid4()),
-                    name,
-                    latest + 1,
-                    utc_now(),
-                    to_json(dict(params), "params"),
-                    source_run_id,
-                    notes,
-                ),
+                f"INSERT INTO calibrations ({', '.join(CALIBRATION_CHECKED_COLUMNS)}, checksum)"
+                " VALUES (?, ?, ?, ?, ?, ?, ?, ?)",
+                (*fields, record_checksum(*fields)),
             )
             self._db.execute("COMMIT")
         except BaseException:
@@ -79,12 +81,12 @@ class StoreCalibrations:
 
     def calibration_by_id(self, calibration_id: int) -> CalibrationRecord:
         row = self._db.execute(
-            "SELECT id, uuid, name, version, created_utc, params_json, source_run_id, notes"
-            " FROM calibrations WHERE id = ?",
+            f"SELECT id, {', '.join(CALIBRATION_CHECKED_COLUMNS)}, checksum FROM calibrations WHERE id = ?",
             (calibration_id,),
         ).fetchone()
         if row is None:
             raise ConfigError(f"calibration id {calibration_id}: not found in {self.path}")
+        refuse_damaged("calibrations", row[0], row[1:-1], row[-1], self.path)  # before its parameters are read
         return CalibrationRecord(
             id=row[0],
             uuid=row[1],
