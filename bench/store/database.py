@@ -30,7 +30,7 @@ from bench import __version__
 from bench.errors import BenchError, ConfigError
 from bench.store.connection import GuardedConnection, open_connection, store_error
 from bench.store.ownership import RunLease, owner_of
-from bench.store.record_checksum import RUN_CHECKED_COLUMNS, refuse_damaged, seal_run
+from bench.store.record_checksum import checked_columns_sql, refuse_damaged, seal_run
 from bench.store.records import (
     INTERRUPTED,
     RUN_STATUSES,
@@ -371,7 +371,7 @@ class Store(StoreSamples, StoreCalibrations):
             " r.settings_json,"
             " r.calibration_ids_json, r.software_version, r.git_sha, r.status, r.reason, r.started_utc,"
             " r.ended_utc, (SELECT COUNT(*) FROM samples s WHERE s.run_id = r.id),"
-            f" {', '.join('r.' + c for c in RUN_CHECKED_COLUMNS)}, r.checksum"
+            f" {checked_columns_sql('runs', 'r')}, r.checksum"
             f" FROM runs r LEFT JOIN campaigns c ON c.id = r.campaign_id {where} ORDER BY r.id"
         )
         records = []

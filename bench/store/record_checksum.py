@@ -26,6 +26,7 @@ __all__ = [
     "CALIBRATION_CHECKED_COLUMNS",
     "RUN_CHECKED_COLUMNS",
     "DamagedRecord",
+    "checked_columns_sql",
     "damaged_record_lines",
     "record_checksum",
     "refuse_damaged",
@@ -37,7 +38,7 @@ __all__ = [
 RUN_CHECKED_COLUMNS = (
     "uuid",
     "bench",
-    "campaign_id",
+    "campaign",  # the campaign's name (the runs row holds its local id): a copy elsewhere can be checked alike
     "protocol_name",
     "protocol_version",
     "robot",
@@ -86,13 +87,23 @@ def refuse_damaged(table: str, record_id: int, fields: Sequence[Any], checksum: 
         )
 
 
+def checked_columns_sql(table: str, alias: str) -> str:
+    """The select list of ``table``'s checked columns, the row aliased ``alias`` (a run's campaign by its name)."""
+    return ", ".join(
+        f"(SELECT c.name FROM campaigns c WHERE c.id = {alias}.campaign_id)"
+        if column == "campaign"
+        else f"{alias}.{column}"
+        for column in _TABLE_COLUMNS[table]
+    )
+
+
 def _select(table: str, where: str = "") -> str:
-    return f"SELECT id, {', '.join(_TABLE_COLUMNS[table])}, checksum FROM {table} {where}"
+    return f"SELECT t.id, {checked_columns_sql(table, 't')}, t.checksum FROM {table} t {where}"
 
 
 def seal_run(db: Any, run_id: int) -> None:
     """Store the checksum of run ``run_id`` as it now stands (inside the transaction that changed it)."""
-    row = db.execute(_select("runs", "WHERE id = ?"), (int(run_id),)).fetchone()
+    row = db.execute(_select("runs", "WHERE t.id = ?"), (int(run_id),)).fetchone()
     db.execute("UPDATE runs SET checksum = ? WHERE id = ?", (record_checksum(*row[1:-1]), int(run_id)))
 
 
@@ -111,7 +122,7 @@ def damaged_record_lines(db: sqlite3.Connection, path: str) -> Iterable[str]:
     for table in _TABLE_COLUMNS:
         if "checksum" not in {row[1] for row in db.execute(f"PRAGMA table_info({table})")}:
             continue
-        for record_id, *fields, checksum in db.execute(_select(table, "ORDER BY id")):
+        for record_id, *fields, checksum in db.execute(_select(table, "ORDER BY t.id")):
             problem = _problem(fields, checksum)
             if problem is not None:
                 yield f"{path}: {_SINGULAR[table]} {record_id} ({table} row {record_id}): {problem}"

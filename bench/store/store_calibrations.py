@@ -9,7 +9,12 @@ from typing import Any
 
 from bench.errors import ConfigError
 from bench.store.connection import GuardedConnection
-from bench.store.record_checksum import CALIBRATION_CHECKED_COLUMNS, record_checksum, refuse_damaged
+from bench.store.record_checksum import (
+    CALIBRATION_CHECKED_COLUMNS,
+    checked_columns_sql,
+    record_checksum,
+    refuse_damaged,
+)
 from bench.store.records import CalibrationRecord, to_json, utc_now
 
 __all__ = ["StoreCalibrations"]
@@ -81,7 +86,7 @@ class StoreCalibrations:
 
     def calibration_by_id(self, calibration_id: int) -> CalibrationRecord:
         row = self._db.execute(
-            f"SELECT id, {', '.join(CALIBRATION_CHECKED_COLUMNS)}, checksum FROM calibrations WHERE id = ?",
+            f"SELECT t.id, {checked_columns_sql('calibrations', 't')}, t.checksum FROM calibrations t WHERE t.id = ?",
             (calibration_id,),
         ).fetchone()
         if row is None:
