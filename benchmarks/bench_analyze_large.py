@@ -13,7 +13,10 @@ criterion as it reads, the per-row totals' spread between 10^5 and 10^7 rows, be
 fresh process that has imported it and analysed a small table once (``--in-process-repeat`` times per size), the
 wall and CPU time of the call ``bench analyze iso9283`` makes (``pose_file_results``) and its peak memory increment
 (the peak resident set, reset by ``/proc/self/clear_refs`` just before the call, less the resident set then), per
-row at each size, and their spread between 10^5 and 10^7 rows against issue 34's 1.5x.
+row at each size, and their spread between 10^5 and 10^7 rows against issue 34's 1.5x; and the CPU time a row adds
+to the same call on a reference table of ``REFERENCE_CYCLES`` cycles a pose (its fixed cost per call and per pose
+taken out: with 100 poses about 0.4 ms a pose, numpy calls on small arrays), whose spread says whether a row's
+cost grows with the table (``--poses 10`` shows the per-pose share: a tenth).
 Targets (issue 34): within 2x of the peer's time at every size, peak memory within 1.5x, time and memory per row
 within 1.5x between 10^5 and 10^7 rows.
 
@@ -66,6 +69,9 @@ WRAPPER = textwrap.dedent("""
 """)
 
 
+#: Cycles a pose of the warm-up table, whose second analysis in process is the reference for the cost a row adds:
+#: above ``MODEL_MAX_CYCLES`` (100), so that U(RP) takes the delta method there as in the large tables.
+REFERENCE_CYCLES = 200
 #: The analysis in process: argv = table, warm-up table. Imports and a first analysis (lazy imports, caches) before;
 #: prints the call's wall and CPU seconds and its peak resident memory over the resident memory before it.
 IN_PROCESS = textwrap.dedent("""
@@ -76,6 +82,9 @@ IN_PROCESS = textwrap.dedent("""
         return int(re.search(field + r":\\s+(\\d+) kB", open("/proc/self/status").read()).group(1))
 
     pose_file_results(sys.argv[2])
+    fixed_wall, fixed_cpu = time.perf_counter(), time.process_time()
+    pose_file_results(sys.argv[2])  # again, timed: the fixed cost (per call and per pose) and a few rows
+    fixed_wall, fixed_cpu = time.perf_counter() - fixed_wall, time.process_time() - fixed_cpu
     with open("/proc/self/clear_refs", "w") as handle:
         handle.write("5")  # resets the peak resident set (VmHWM) to the resident set now
     before_kib = status_kib("VmRSS")
@@ -83,7 +92,8 @@ IN_PROCESS = textwrap.dedent("""
     results = pose_file_results(sys.argv[1])
     wall, cpu = time.perf_counter() - wall, time.process_time() - cpu
     peak_kib = status_kib("VmHWM")
-    print(json.dumps({"wall_s": wall, "cpu_s": cpu, "added_mb": (peak_kib - before_kib) / 1024, "poses": len(results)}))
+    added_mb = (peak_kib - before_kib) / 1024
+    print(json.dumps({"wall_s": wall, "cpu_s": cpu, "added_mb": added_mb, "fixed_s": fixed_wall, "fixed_cpu_s": fixed_cpu}))
 """)
 
 
@@ -132,14 +142,19 @@ def in_process(table: Path, warm: Path, repeat: int) -> dict:
             [sys.executable, "-c", IN_PROCESS, str(table), str(warm)], capture_output=True, check=True
         )
         runs.append(json.loads(done.stdout.decode().strip().splitlines()[-1]))
-    walls, cpus, added = ([r[key] for r in runs] for key in ("wall_s", "cpu_s", "added_mb"))
+    walls, cpus, added, fixed = ([r[key] for r in runs] for key in ("wall_s", "cpu_s", "added_mb", "fixed_cpu_s"))
     print(
         f"  {'the analysis in process':<32} {min(walls):7.2f} {statistics.median(walls):8.2f} {max(walls):7.2f}   "
         f"{min(added):7.0f} {statistics.median(added):8.0f} {max(added):7.0f}  (memory: the call's increment; "
-        f"CPU {statistics.median(cpus):.2f} s)"
+        f"CPU {statistics.median(cpus):.2f} s; on the reference table {min(fixed) * 1e3:.0f} ms CPU)"
     )
     # the fastest run of each: the least disturbed by other work on the machine (the medians drift with its load)
-    return {"inproc_s": min(walls), "inproc_cpu_s": min(cpus), "inproc_mb": statistics.median(added)}
+    return {
+        "inproc_s": min(walls),
+        "inproc_cpu_s": min(cpus),
+        "inproc_mb": statistics.median(added),
+        "inproc_fixed_cpu_s": min(fixed),
+    }
 
 
 def measure_size(
@@ -192,7 +207,7 @@ def measure_size(
     }
 
 
-def in_process_criterion(sizes: list[dict]) -> None:
+def in_process_criterion(sizes: list[dict], poses: int) -> None:
     """Issue 34's linearity of the analysis itself: time (wall and CPU) and peak memory increment per row at each
     size, and largest over smallest per-row figure between 10^5 and 10^7 rows (within 1.5x: linear). Memory read in
     chunks (files of ``STREAM_MIN_BYTES`` and more) is bounded by a chunk, so its per-row figure falls with size."""
@@ -222,6 +237,14 @@ def in_process_criterion(sizes: list[dict]) -> None:
         f"{'met' if max(spread['time'], spread['memory']) <= 1.5 else 'not met'}; {span[-1]['rows']:,} rows' per-row "
         f"figure over {span[0]['rows']:,} rows': time {growth['time']:.2f}x, memory {growth['memory']:.2f}x "
         f"(above 1.5: super-linear; below 1: a fixed cost spread over more rows)"
+    )
+    reference_rows = poses * REFERENCE_CYCLES
+    net = [(s["inproc_cpu_s"] - s["inproc_fixed_cpu_s"]) / (s["rows"] - reference_rows) for s in span]
+    print(
+        f"  CPU a row adds to the same call on {reference_rows:,} rows ({REFERENCE_CYCLES} cycles a pose, "
+        f"{statistics.median(s['inproc_fixed_cpu_s'] for s in span) * 1e3:.0f} ms: the fixed cost per call and pose): "
+        + ", ".join(f"{s['rows']:,} rows {v * 1e6:.2f} us" for s, v in zip(span, net))
+        + f"; largest over smallest {max(net) / min(net):.2f}x: {'met' if max(net) / min(net) <= 1.5 else 'not met'}"
     )
 
 
@@ -290,7 +313,7 @@ def main() -> None:
     sizes = []
     with tempfile.TemporaryDirectory() as folder:
         warm = Path(folder) / "warm-up.csv"
-        write_table(warm, args.poses, 10, seed=1)
+        write_table(warm, args.poses, REFERENCE_CYCLES, seed=1)
         if not args.in_process_only:
             print("the fixed start-up, on a table of a few cycles:")
             startup = measure_size(args.poses * 10, args.poses, args.repeat, Path(folder))
@@ -302,7 +325,7 @@ def main() -> None:
     if not args.in_process_only:
         linearity(sizes)
         per_row_criterion(sizes, startup)
-    in_process_criterion(sizes)
+    in_process_criterion(sizes, args.poses)
     print(load_line(started))
 
 
