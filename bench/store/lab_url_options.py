@@ -5,7 +5,7 @@ match 2 port numbers to 1 hosts"), so that a station file or a command's ``--to`
 libpq's parser (:func:`bench.store.lab_connection.check_lab_url`); a keyword that libpq does not know is never here.
 
 Source: libpq's ``connectOptions2``, ``parse_int_param`` and ``sslVerifyProtocolVersion`` (PostgreSQL 18,
-src/interfaces/libpq/fe-connect.c), each rule checked against the bundled libpq by tests/test_lab_urls.py.
+src/interfaces/libpq/fe-connect.c), each rule checked against the bundled libpq by tests/test_lab_url_options.py.
 """
 
 from __future__ import annotations
@@ -32,7 +32,8 @@ _PROTOCOL_MINOR = {"3.0": 0, "3.2": 2, "latest": 2}
 #: case-insensitive, empty = no bound).
 TLS_VERSIONS = ("tlsv1", "tlsv1.1", "tlsv1.2", "tlsv1.3")
 #: Options libpq reads as a C ``int`` (``parse_int_param``: blanks around an optional sign and decimal digits) ->
-#: the least value it (or the socket option it sets: TCP_KEEPIDLE, TCP_KEEPINTVL, TCP_KEEPCNT) accepts.
+#: the least value it (or the socket option it sets: TCP_KEEPIDLE, TCP_KEEPINTVL, TCP_KEEPCNT) accepts; refused here
+#: even with keepalives=0, where libpq leaves them unused.
 INTEGER_OPTIONS: dict[str, int | None] = {
     "connect_timeout": None,
     "keepalives": None,
