@@ -11,7 +11,7 @@ from pathlib import Path
 from urllib.parse import quote
 
 import pytest
-from hypothesis import assume, example, given, settings
+from hypothesis import HealthCheck, assume, example, given, settings
 from hypothesis import strategies as st
 
 psycopg = pytest.importorskip("psycopg", reason='the lab store needs psycopg 3 (pip install "psycopg[binary]")')
@@ -136,6 +136,7 @@ _URL_TEXT = st.text(string.ascii_letters + string.digits + "%&=?/:@[],.+-_!~ ", 
     tail=_URL_TEXT,
     in_query=st.booleans(),
 )
+@example(password="S3cr3t", host="lab", tail="%A0", in_query=False)  # a traceback before (UnicodeDecodeError)
 def test_any_lab_url_in_a_station_is_loaded_or_refused_in_one_line_without_its_password(
     tmp_path_factory, password, host, tail, in_query
 ):
@@ -152,3 +153,33 @@ def test_any_lab_url_in_a_station_is_loaded_or_refused_in_one_line_without_its_p
         line = str(exc)
         assert "\n" not in line and password not in line
         assert line.startswith(f"{station}: lab_store.url = ")
+
+
+# capsys is shared by the inputs: each reads (and so empties) it after each command
+@settings(max_examples=100, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(
+    password=st.text(string.ascii_letters + string.digits + "-_.~!", max_size=10).map(lambda tail: f"S3cr3t{tail}"),
+    host=st.sampled_from(["lab", "[::1", "a:5432,b", "a:x", "a:0"]),
+    query=st.lists(
+        st.sampled_from(
+            ["sslmode=bogus", "sslmode=require", "target_session_attrs=any", "port=1,2", "keepalives=x", "%A0", "x=1"]
+        ),
+        max_size=3,
+    ),
+)
+@example(password="S3cr3t", host="lab/%A0", query=[])  # the database name %A0: a traceback before
+def test_station_check_and_sync_print_one_line_and_never_the_password(tmp_path_factory, capsys, password, host, query):
+    """Through the commands: a station file that ``bench station check`` loads (its devices then checked: exit 1
+    here, none plugged in) or refuses (exit 2, one line naming ``lab_store.url``), and ``bench sync --to`` (exit 2:
+    the URL refused, or the store file missing; nothing connects); no traceback, the password nowhere."""
+    url = f"postgresql://bench:{password}@{host}/lab?{'&'.join(query)}"
+    folder = tmp_path_factory.mktemp("station")
+    station = station_with(folder, url)
+    assert main(["station", "check", str(station)]) in (1, 2)
+    out = capsys.readouterr()
+    assert password not in out.out + out.err and "Traceback" not in out.err
+    if out.err:
+        assert out.err.count("\n") == 1 and out.err.startswith(f"bench: error: {station}: lab_store.url = ")
+    assert main(["sync", "--store", str(folder / "none.db"), "--to", url]) == 2
+    out = capsys.readouterr()
+    assert password not in out.out + out.err and out.err.count("\n") == 1 and not out.out
