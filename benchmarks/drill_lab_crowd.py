@@ -5,9 +5,13 @@
 (``tests/postgres_support.py``) whose ``max_connections`` is ``--max-connections`` (default 100, PostgreSQL's
 default). A bench the server turns away ("too many clients") waits a jittered, growing while and asks again
 (``LabServerBusy``); a bench that gets one slot sends through it alone. A monitor samples the server's open
-connections. Then it checks: every sample of every run on the server exactly once, every run's checksum equal to
-its local store's, every sync returned. Prints the peak connections, the benches that had to wait, the times, and
-one line per check; exit status 1 when a check fails.
+connections. The server logs every session's start and end (``log_connections``, ``log_disconnections``; each
+bench's sessions named by ``application_name``), from which ``postgres_support.connection_peaks`` counts exactly
+the most sessions each bench held at once and the most the server held at once. Then it checks: every sample of
+every run on the server exactly once, every run's checksum equal to its local store's, every sync returned, every
+bench within its bound (``LANES`` connections: the first one is also the first sender, see
+``bench.store.lab_sync``), the server within ``max_connections``. Prints the peak connections, the benches that
+had to wait, the times, and one line per check; exit status 1 when a check fails.
 
 Usage: ``python benchmarks/drill_lab_crowd.py [--benches 500] [--samples 200] [--max-connections 100]``.
 """
@@ -25,10 +29,11 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "tests"))
 
 from drill_lab_sync import drill_server
-from postgres_support import make_store
+from postgres_support import connection_peaks, make_store
 
 from bench.store import Store
 from bench.store.lab import LabStore, rows_checksum, sync_store
+from bench.store.lab_sync import LANES
 
 
 def main(argv=None) -> int:
@@ -37,7 +42,8 @@ def main(argv=None) -> int:
     parser.add_argument("--samples", type=int, default=200, help="samples per bench (two runs)")
     parser.add_argument("--max-connections", type=int, default=100, help="the server's max_connections")
     args = parser.parse_args(argv)
-    with drill_server("crowd", f"max_connections = {int(args.max_connections)}") as (_, url, work):
+    settings = (f"max_connections = {int(args.max_connections)}", "log_connections = on", "log_disconnections = on")
+    with drill_server("crowd", *settings) as (cluster, url, work):
         import psycopg
 
         half = args.samples // 2
@@ -70,7 +76,7 @@ def main(argv=None) -> int:
                 try:
                     sync_store(
                         store,
-                        url,
+                        f"{url}&application_name=bench-{i:03d}",
                         batch_size=1000,
                         retries=5,
                         retry_wait_s=0.2,
@@ -93,6 +99,8 @@ def main(argv=None) -> int:
         done.set()
         watcher.join()
         monitor.close()
+        peaks, server_peak = connection_peaks(cluster, "crowd")
+        bench_peaks = [peaks.get(f"bench-{i:03d}", 0) for i in range(args.benches)]
         failures = [r for r in results.values() if isinstance(r, Exception)]
         times = [r for r in results.values() if isinstance(r, float)]
         print(
@@ -100,6 +108,11 @@ def main(argv=None) -> int:
             f"{statistics.median(times) if times else 0:.2f}, max {max(times, default=0):.2f} s); {len(waited)} "
             f"waited for a free connection; server connections peak {max(open_connections, default=0)} "
             f"(max_connections {args.max_connections}, the monitor's included)"
+        )
+        print(
+            f"sessions at once, from the server's log: per bench min {min(bench_peaks)}, median "
+            f"{statistics.median(bench_peaks):g}, max {max(bench_peaks)} (bound {LANES}); "
+            f"{sum(p == LANES for p in bench_peaks)} benches held {LANES}; the server {server_peak}"
         )
         expected = {}
         for path in paths:
@@ -119,6 +132,15 @@ def main(argv=None) -> int:
                 f"checksums equal to the local stores' for {sum(checksums.get(u) == d for u, d in expected.items())}"
                 f" of {len(expected)} runs",
                 checksums == expected,
+            ),
+            (
+                f"every bench held 1 to {LANES} connections at once (max {max(bench_peaks)}, "
+                f"{sum(not 1 <= p <= LANES for p in bench_peaks)} outside)",
+                all(1 <= p <= LANES for p in bench_peaks),
+            ),
+            (
+                f"the server held at most max_connections = {args.max_connections} at once ({server_peak})",
+                server_peak <= args.max_connections,
             ),
             (
                 f"every sync returned ({len(failures)} failed" + (f", first: {failures[0]}" if failures else "") + ")",

@@ -11,10 +11,12 @@ from __future__ import annotations
 import glob
 import json
 import os
+import re
 import shutil
 import sqlite3
 import subprocess
 import tempfile
+import time
 import uuid
 from pathlib import Path
 from urllib.parse import urlsplit, urlunsplit
@@ -201,3 +203,49 @@ def lab_url(lab_server):
     yield with_database(lab_server.url, name)
     with psycopg.connect(lab_server.url, autocommit=True) as admin:
         admin.execute(f'DROP DATABASE IF EXISTS "{name}" WITH (FORCE)')
+
+
+_AUTHORIZED = re.compile(r"\[(\d+)\] LOG:  connection authorized: user=\S+ database=(\S+)(?: application_name=(\S+))?")
+_DISCONNECTED = re.compile(r"\[(\d+)\] LOG:  disconnection: ")
+
+
+def log_sessions(cluster: Cluster) -> None:
+    """Have the server log every session's start and end from now on, for :func:`connection_peaks`
+    (``log_connections`` only takes effect from the server's configuration: set, reloaded, and waited for)."""
+    import psycopg
+
+    with psycopg.connect(cluster.url, autocommit=True) as admin:
+        for setting in ("log_connections", "log_disconnections"):
+            admin.execute(f"ALTER SYSTEM SET {setting} = on")
+        admin.execute("SELECT pg_reload_conf()")
+    for _ in range(1000):  # the postmaster reloads when signalled: a new session shows it has
+        with psycopg.connect(cluster.url) as probe:
+            if probe.execute("SHOW log_connections").fetchone() == ("on",):
+                return
+        time.sleep(0.01)
+    raise RuntimeError("the server did not take log_connections = on")
+
+
+def connection_peaks(cluster: Cluster, dbname: str, *, wait_s: float = 60.0) -> tuple[dict[str, int], int]:
+    """The most sessions each application name held at once on database ``dbname``, and the most of all of them
+    at once, from the server's own log: a session counts from its "connection authorized"
+    line to its "disconnection" line (paired by backend pid), in the log's order; ``application_name`` in the URL
+    names a bench's sessions. A connection the server turned away ("too many clients") logs neither. Waits (up to ``wait_s``) for the sessions still ending."""
+    deadline = time.monotonic() + wait_s
+    while True:
+        open_now: dict[str, str] = {}  # pid -> application name
+        peaks: dict[str, int] = {}
+        per_name: dict[str, int] = {}
+        overall = 0
+        for line in (cluster.root / "log").read_text(errors="replace").splitlines():
+            if (authorized := _AUTHORIZED.search(line)) and authorized[2] == dbname:
+                pid, name = authorized[1], authorized[3] or ""
+                open_now[pid] = name
+                per_name[name] = per_name.get(name, 0) + 1
+                peaks[name] = max(peaks.get(name, 0), per_name[name])
+                overall = max(overall, len(open_now))
+            elif (ended := _DISCONNECTED.search(line)) and ended[1] in open_now:
+                per_name[open_now.pop(ended[1])] -= 1
+        if not open_now or time.monotonic() > deadline:
+            return peaks, overall
+        time.sleep(0.05)

@@ -21,13 +21,13 @@ SECRET = "s3cr3t-Pw"
 BAD_URLS = {  # the URL -> words its one line must hold
     f"postgresql://bench:{SECRET}@[::1/lab": "not a valid PostgreSQL URL",
     f"mysql://bench:{SECRET}@localhost/lab": "expected a postgresql://USER:PASSWORD@HOST/DBNAME URL",
-    f"postgresql://bench:{SECRET}@localhost:1/lab?sslmode=bogus": 'invalid sslmode value: "bogus"',
+    f"postgresql://bench:{SECRET}@localhost:1/lab?sslmode=bogus": "sslmode 'bogus', expected one of disable, allow,",
     f"postgresql://bench:{SECRET}@localhost:99999/lab": "port '99999', expected a number from 1 to 65535",
     f"postgresql://bench:{SECRET}@localhost/lab?colour=blue": '"colour"',
-    f"postgresql://bench@localhost/lab?password={SECRET}&sslmode=sometimes": 'invalid sslmode value: "sometimes"',
-    # libpq names these after the host it tried, psycopg reads connect_timeout itself: both were "server unreachable"
-    f"postgresql://bench:{SECRET}@localhost:1/lab?keepalives=x": 'invalid integer value "x" for connection option',
-    f"postgresql://bench:{SECRET}@localhost:1/lab?connect_timeout=abc": "bad value for connect_timeout: 'abc'",
+    f"postgresql://bench@localhost/lab?password={SECRET}&sslmode=sometimes": "sslmode 'sometimes', expected one of",
+    # checked before connecting (libpq names these after the host it tried, psycopg reads connect_timeout itself)
+    f"postgresql://bench:{SECRET}@localhost:1/lab?keepalives=x": "keepalives 'x', expected an integer",
+    f"postgresql://bench:{SECRET}@localhost:1/lab?connect_timeout=abc": "connect_timeout 'abc', expected an integer",
 }
 
 

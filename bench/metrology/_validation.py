@@ -60,9 +60,9 @@ def require_same_length(name_a: str, a: np.ndarray, name_b: str, b: np.ndarray) 
 
 
 def _require_finite(name: str, array: np.ndarray) -> None:
-    bad: np.ndarray | list[int] = (
-        np.flatnonzero(~np.isfinite(array).reshape(len(array), -1).all(axis=1)) if array.size else []
-    )
+    if not array.size or np.isfinite(array).all():  # the usual case in one pass: no row search (per pose, per call)
+        return
+    bad = np.flatnonzero(~np.isfinite(array).reshape(len(array), -1).all(axis=1))
     if len(bad):
         row = int(bad[0])
         raise ConfigError(f"{name}: row {row} = {array[row].tolist()}, expected finite numbers")

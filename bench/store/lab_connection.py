@@ -8,6 +8,7 @@ import re
 from typing import Any
 
 from bench.errors import BenchError, ConfigError
+from bench.store.lab_url_options import option_problem
 
 __all__ = [
     "LabServerBusy",
@@ -73,8 +74,8 @@ def redacted(url: str) -> str:
 
 def check_lab_url(url: str, option: str = "lab store") -> None:
     """Refuse, in one :class:`LabURLError` line with the password hidden, a lab store address that is not a
-    well-formed PostgreSQL URL: another scheme, a malformed host, an unknown parameter, a port out of range. Nothing
-    is connected to; a bad value that only libpq knows (``sslmode=bogus``) is refused by :func:`connect` as fast."""
+    well-formed PostgreSQL URL: another scheme, a malformed host, an unknown parameter, a value libpq would refuse
+    on connecting (``sslmode=bogus``, a port out of range: :func:`option_problem`). Nothing is connected to."""
     shown = redacted(url)
     if not is_lab_url(url):
         raise LabURLError(f"{option} {shown}: expected a postgresql://USER:PASSWORD@HOST/DBNAME URL")
@@ -83,9 +84,11 @@ def check_lab_url(url: str, option: str = "lab store") -> None:
         options = psycopg.conninfo.conninfo_to_dict(url)
     except psycopg.ProgrammingError as exc:
         raise LabURLError(f"{option} {shown}: not a valid PostgreSQL URL ({redacted(one_line(exc))})") from None
-    for port in str(options.get("port", "5432")).split(","):
-        if not (port.isdigit() and 1 <= int(port) <= 65535):
-            raise LabURLError(f"{option} {shown}: port {port!r}, expected a number from 1 to 65535")
+    except UnicodeDecodeError:  # psycopg decodes libpq's reading of a %-escape such as %A0 as UTF-8
+        raise LabURLError(f"{option} {shown}: not a valid PostgreSQL URL (a %-escape that is not UTF-8 text)") from None
+    problem = option_problem(options)
+    if problem is not None:
+        raise LabURLError(f"{option} {shown}: {redacted(problem)}")
 
 
 def psycopg_module() -> Any:
