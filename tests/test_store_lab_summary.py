@@ -247,14 +247,39 @@ def test_version_2_lab_store_gets_its_pose_tables_from_the_samples_it_holds(tmp_
         sync_store(store, lab_url)
     with psycopg.connect(lab_url, autocommit=True) as conn:  # back to version 2: no pose tables, no trigger
         conn.execute("DROP TRIGGER samples_fold_pose ON bench.samples")
-        conn.execute("DROP TABLE bench.pose_points, bench.pose_keys")
+        conn.execute("DROP TABLE bench.pose_point_sets, bench.pose_keys")
         conn.execute("UPDATE bench.schema_version SET version = 2")
     with Store(paths["bench-a"]) as store:
         sync_store(store, lab_url)
         sync_store(store, lab_url)  # nothing new: nothing folded twice
     with LabStore(lab_url) as lab:
         assert lab.query("SELECT version FROM bench.schema_version") == [(LAB_SCHEMA_VERSION,)]
-        assert lab.query("SELECT count(*) FROM bench.pose_points") == [(len(samples),)]
+        assert lab.query("SELECT sum(cardinality(x_mm)) FROM bench.pose_point_sets") == [(len(samples),)]
+        _assert_figures(pose_summary(lab), samples)
+
+
+def test_version_4_lab_store_gets_its_points_as_point_sets_folded_in_batches(tmp_path, lab_url):
+    paths, samples = make_campaigns(tmp_path)
+    with Store(paths["bench-b"]) as store:
+        sync_store(store, lab_url)
+    with psycopg.connect(lab_url, autocommit=True) as conn:  # back to version 4: one pose_points row per point
+        conn.execute(
+            "CREATE TABLE bench.pose_points AS SELECT p.key, u.x_mm, u.y_mm, u.z_mm"
+            " FROM bench.pose_point_sets p, unnest(p.x_mm, p.y_mm, p.z_mm) AS u (x_mm, y_mm, z_mm)"
+        )
+        conn.execute("DROP TABLE bench.pose_point_sets")
+        conn.execute("UPDATE bench.schema_version SET version = 4")
+    with Store(paths["bench-a"]) as store:
+        sync_store(store, lab_url, batch_size=5)  # many statements: many point sets per key
+    with LabStore(lab_url) as lab:
+        assert lab.query("SELECT version FROM bench.schema_version") == [(LAB_SCHEMA_VERSION,)]
+        assert lab.query("SELECT to_regclass('bench.pose_points')") == [(None,)]
+        assert lab.query("SELECT sum(cardinality(x_mm)), sum(cardinality(z_mm)) FROM bench.pose_point_sets") == [
+            (len(samples), len(samples))
+        ]
+        assert lab.query("SELECT count(*) FROM bench.pose_point_sets")[0][0] > lab.query(
+            "SELECT count(*) FROM bench.pose_keys"
+        )[0][0]
         _assert_figures(pose_summary(lab), samples)
 
 
@@ -273,4 +298,4 @@ def test_samples_changed_or_deleted_by_hand_are_refolded(tmp_path, lab_url):
         conn.execute("TRUNCATE bench.samples")
         with LabStore(lab_url) as lab:
             assert pose_summary(lab) == []
-            assert lab.query("SELECT count(*) FROM bench.pose_points") == [(0,)]
+            assert lab.query("SELECT count(*) FROM bench.pose_point_sets") == [(0,)]

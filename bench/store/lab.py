@@ -9,7 +9,7 @@ The local file stays the source of truth; the server holds copies, in the schema
   holds it (JSON as text, byte for byte), so :func:`rows_checksum` is equal on both sides, and one typed column per
   declared value column (``x_mm``, ``velocity_pct``, ...: :mod:`bench.store.lab_copy`) for lab-wide queries.
 
-- ``bench.pose_keys``, ``bench.pose_points``: the pose samples folded for the lab-wide summary, kept by a trigger
+- ``bench.pose_keys``, ``bench.pose_point_sets``: the pose samples folded for the lab-wide summary, kept by a trigger
   as samples arrive (:mod:`bench.store.lab_summary`).
 
 Schema versions: 1 had no typed columns, 2 no pose tables; a bench of version 3 adds and fills what is missing when
