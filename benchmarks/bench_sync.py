@@ -95,10 +95,9 @@ def timed_sync(path: Path, url: str, cluster: Cluster | None, producers: int) ->
     """Sync ``path`` to ``url`` with ``producers`` producer processes: samples/s, and the CPU microseconds per
     sample of this process, of its producers (``os.times``: children once waited for) and of the server."""
     with Store(path) as store:
-        before, server, backends = os.times(), server_cpu_s(cluster), _backends(cluster)
+        before, server = os.times(), server_cpu_s(cluster)
         result = sync_store(store, url, producers=producers)
         after = os.times()
-    _await_exits(cluster, backends)
     own = after.user + after.system - before.user - before.system
     children = after.children_user + after.children_system - before.children_user - before.children_system
     return (
@@ -117,35 +116,6 @@ def _autovacuum(url: str, setting: str) -> None:
     with psycopg.connect(url, autocommit=True) as admin:
         admin.execute(f"ALTER SYSTEM SET autovacuum = {setting}")
         admin.execute("SELECT pg_reload_conf()")
-
-
-def _backends(cluster: Cluster | None) -> set[int]:
-    """The cluster's connection processes now, those exited but not yet reaped included (none for a server that is
-    not ours)."""
-    if cluster is None:
-        return set()
-    postmaster = int((cluster.root / "data" / "postmaster.pid").read_text().split()[0])
-    found = set()
-    for entry in Path("/proc").iterdir():
-        if entry.name.isdigit():
-            try:
-                state, parent = Path(entry / "stat").read_text().rsplit(")", 1)[1].split()[:2]
-                backend = state == "Z" or (entry / "cmdline").read_bytes().startswith(b"postgres: bench ")
-            except OSError:
-                continue
-            if int(parent) == postmaster and backend:
-                found.add(int(entry.name))
-    return found
-
-
-def _await_exits(cluster: Cluster | None, before: set[int], timeout_s: float = 10.0) -> None:
-    """Wait until the connections a sync opened have exited and been reaped: a backend's CPU moves from its own
-    /proc entry to the postmaster's cutime only when reaped, and one read in between (a zombie) counts in neither,
-    so without this wait a sync's last batches land in the next figure (seen: 4 us a sample for one variant, 13
-    for the next)."""
-    deadline = time.monotonic() + timeout_s
-    while _backends(cluster) - before and time.monotonic() < deadline:
-        time.sleep(0.01)
 
 
 def _spread(values: list[float], form: str) -> str:
