@@ -277,9 +277,10 @@ def test_version_4_lab_store_gets_its_points_as_point_sets_folded_in_batches(tmp
         assert lab.query("SELECT sum(cardinality(x_mm)), sum(cardinality(z_mm)) FROM bench.pose_point_sets") == [
             (len(samples), len(samples))
         ]
-        assert lab.query("SELECT count(*) FROM bench.pose_point_sets")[0][0] > lab.query(
-            "SELECT count(*) FROM bench.pose_keys"
-        )[0][0]
+        assert (
+            lab.query("SELECT count(*) FROM bench.pose_point_sets")[0][0]
+            > lab.query("SELECT count(*) FROM bench.pose_keys")[0][0]
+        )
         _assert_figures(pose_summary(lab), samples)
 
 
