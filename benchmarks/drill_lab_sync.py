@@ -141,7 +141,7 @@ def main(argv=None) -> int:
             total, distinct = lab.query("SELECT count(*), count(DISTINCT (run_uuid, step_index)) FROM bench.samples")[0]
             checksums = {r.uuid: lab.checksum(r.uuid) for r in lab.runs()}
             points, folded = lab.query(
-                "SELECT (SELECT count(*) FROM bench.pose_points), (SELECT sum(n) FROM bench.pose_keys)"
+                "SELECT (SELECT sum(cardinality(x_mm)) FROM bench.pose_point_sets), (SELECT sum(n) FROM bench.pose_keys)"
             )[0]
         want = args.benches * args.samples
         checks = [

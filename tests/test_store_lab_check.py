@@ -125,7 +125,7 @@ def test_a_sample_of_an_unknown_run_is_refused_and_a_run_with_samples_is_kept(tm
                 " ('00000000-0000-0000-0000-000000000001', 1, 'pose', 0, 'w', '{}')"
             )
         with pytest.raises(psycopg.errors.ForeignKeyViolation, match="has samples in bench.samples"):
-            conn.execute("DELETE FROM bench.pose_points")  # (the pose keys also hold the run: free it of them)
+            conn.execute("DELETE FROM bench.pose_point_sets")  # (the pose keys also hold the run: free it of them)
             conn.execute("DELETE FROM bench.pose_keys")
             conn.execute("DELETE FROM bench.runs WHERE uuid = %s", (runs[0].uuid,))
         held = conn.execute("SELECT count(*) FROM bench.samples").fetchone()[0]

@@ -11,6 +11,8 @@ from datetime import date
 
 import numpy as np
 import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
 
 psycopg = pytest.importorskip("psycopg", reason='the lab store needs psycopg 3 (pip install "psycopg[binary]")')
 
@@ -249,15 +251,95 @@ def test_version_2_lab_store_gets_its_pose_tables_from_the_samples_it_holds(tmp_
         sync_store(store, lab_url)
     with psycopg.connect(lab_url, autocommit=True) as conn:  # back to version 2: no pose tables, no trigger
         conn.execute("DROP TRIGGER samples_fold_pose ON bench.samples")
-        conn.execute("DROP TABLE bench.pose_points, bench.pose_keys")
+        conn.execute("DROP TABLE bench.pose_point_sets, bench.pose_keys")
         conn.execute("UPDATE bench.schema_version SET version = 2")
     with Store(paths["bench-a"]) as store:
         sync_store(store, lab_url)
         sync_store(store, lab_url)  # nothing new: nothing folded twice
     with LabStore(lab_url) as lab:
         assert lab.query("SELECT version FROM bench.schema_version") == [(LAB_SCHEMA_VERSION,)]
-        assert lab.query("SELECT count(*) FROM bench.pose_points") == [(len(samples),)]
+        assert lab.query("SELECT sum(cardinality(x_mm)) FROM bench.pose_point_sets") == [(len(samples),)]
         _assert_figures(pose_summary(lab), samples)
+
+
+def test_version_4_lab_store_gets_its_points_as_point_sets_folded_in_batches(tmp_path, lab_url):
+    paths, samples = make_campaigns(tmp_path)
+    with Store(paths["bench-b"]) as store:
+        sync_store(store, lab_url)
+    with psycopg.connect(lab_url, autocommit=True) as conn:  # back to version 4: one pose_points row per point
+        conn.execute(
+            "CREATE TABLE bench.pose_points AS SELECT p.key, u.x_mm, u.y_mm, u.z_mm"
+            " FROM bench.pose_point_sets p, unnest(p.x_mm, p.y_mm, p.z_mm) AS u (x_mm, y_mm, z_mm)"
+        )
+        conn.execute("DROP TABLE bench.pose_point_sets")
+        conn.execute("UPDATE bench.schema_version SET version = 4")
+    with Store(paths["bench-a"]) as store:
+        sync_store(store, lab_url, batch_size=5)  # many statements: many point sets per key
+    with LabStore(lab_url) as lab:
+        assert lab.query("SELECT version FROM bench.schema_version") == [(LAB_SCHEMA_VERSION,)]
+        assert lab.query("SELECT to_regclass('bench.pose_points')") == [(None,)]
+        assert lab.query("SELECT sum(cardinality(x_mm)), sum(cardinality(z_mm)) FROM bench.pose_point_sets") == [
+            (len(samples), len(samples))
+        ]
+        assert (
+            lab.query("SELECT count(*) FROM bench.pose_point_sets")[0][0]
+            > lab.query("SELECT count(*) FROM bench.pose_keys")[0][0]
+        )
+        _assert_figures(pose_summary(lab), samples)
+
+
+_FINITE = st.floats(min_value=-1e4, max_value=1e4, allow_nan=False, allow_infinity=False)
+#: One sample: pose name or none, velocity or none, commanded point (one of two), attained point, or an axis missing.
+_POSE_SAMPLE = st.tuples(
+    st.sampled_from(["P1", "P2", None]),
+    st.sampled_from([50.0, None]),
+    st.sampled_from(list(COMMANDS.values())),
+    st.tuples(_FINITE, _FINITE, _FINITE),
+    st.booleans(),
+)
+
+
+@settings(max_examples=12, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(samples=st.lists(_POSE_SAMPLE, min_size=1, max_size=40), batch_size=st.integers(1, 12))
+def test_the_fold_holds_each_pose_sample_once_whatever_the_batches(tmp_path_factory, lab_url, samples, batch_size):
+    """Each pose key's count and sums, and its points as a multiset, equal those of the samples, however the sync
+    cuts the run into statements (each one point set per key)."""
+    path = tmp_path_factory.mktemp("fold") / "bench.db"
+    expected: dict[tuple, list[tuple[float, float, float]]] = defaultdict(list)
+    with Store(path, bench="bench-f") as store:
+        run_id = store.start_run(protocol_name="iso9283_pose", protocol_version="1", robot="pkm5", config={})
+        run_uuid = store.run(run_id).uuid
+        for step, (pose, velocity, command, xyz, partial) in enumerate(samples):
+            values = {**dict(zip(("cmd_x_mm", "cmd_y_mm", "cmd_z_mm"), command)), "x_mm": xyz[0], "y_mm": xyz[1]}
+            if not partial:  # a laser-grid screen that did not decode: no z, not a pose point
+                values["z_mm"] = xyz[2]
+                expected[(pose or "", math.nan if velocity is None else velocity, *command)].append(xyz)
+            if velocity is not None:
+                values["velocity_pct"] = velocity
+            store.add_sample(run_id, step, values=values, pose=pose, cycle=1, t_s=step * 0.5)
+        sync_store(store, lab_url, batch_size=batch_size)
+    with LabStore(lab_url) as lab:
+        keys = lab.query(
+            "SELECT id, pose, velocity_pct, cmd_x_mm, cmd_y_mm, cmd_z_mm, n, sum_x_mm, sum_y_mm, sum_z_mm"
+            " FROM bench.pose_keys WHERE run_uuid = %s",
+            (run_uuid,),
+        )
+        sets = lab.query(
+            "SELECT key, x_mm, y_mm, z_mm FROM bench.pose_point_sets WHERE key = ANY(%s)", ([k[0] for k in keys],)
+        )
+    points: dict[int, list[tuple[float, float, float]]] = defaultdict(list)
+    for key, xs, ys, zs in sets:
+        points[key].extend(zip(xs, ys, zs))
+    got = {}
+    for key_id, pose, velocity, cx, cy, cz, n, sx, sy, sz in keys:
+        assert n == len(points[key_id])
+        assert (sx, sy, sz) == pytest.approx(tuple(map(math.fsum, zip(*points[key_id]))), rel=1e-12, abs=1e-9)
+        got[(pose, velocity, cx, cy, cz)] = sorted(points[key_id])
+
+    def comparable(key: tuple) -> tuple:  # NaN (no velocity) never equals itself as a dict key
+        return (key[0], -1.0 if math.isnan(key[1]) else key[1], *key[2:])
+
+    assert {comparable(k): v for k, v in got.items()} == {comparable(k): sorted(v) for k, v in expected.items()}
 
 
 def test_samples_changed_or_deleted_by_hand_are_refolded(tmp_path, lab_url):
@@ -275,4 +357,4 @@ def test_samples_changed_or_deleted_by_hand_are_refolded(tmp_path, lab_url):
         conn.execute("TRUNCATE bench.samples")
         with LabStore(lab_url) as lab:
             assert pose_summary(lab) == []
-            assert lab.query("SELECT count(*) FROM bench.pose_points") == [(0,)]
+            assert lab.query("SELECT count(*) FROM bench.pose_point_sets") == [(0,)]

@@ -37,7 +37,8 @@ def _server_view(url: str, run_uuid: str) -> tuple:
         (run,) = [r for r in lab.runs() if r.uuid == run_uuid]
         folded = lab.query("SELECT sum(n) FROM bench.pose_keys WHERE run_uuid = %s", (run_uuid,))[0][0]
         points = lab.query(
-            "SELECT count(*) FROM bench.pose_points p JOIN bench.pose_keys k ON k.id = p.key WHERE k.run_uuid = %s",
+            "SELECT sum(cardinality(p.x_mm)) FROM bench.pose_point_sets p JOIN bench.pose_keys k ON k.id = p.key"
+            " WHERE k.run_uuid = %s",
             (run_uuid,),
         )[0][0]
         (settings,) = lab.query("SELECT settings_json FROM bench.runs WHERE uuid = %s", (run_uuid,))[0]

@@ -9,11 +9,11 @@ The local file stays the source of truth; the server holds copies, in the schema
   holds it (JSON as text, byte for byte), so :func:`rows_checksum` is equal on both sides, and one typed column per
   declared value column (``x_mm``, ``velocity_pct``, ...: :mod:`bench.store.lab_copy`) for lab-wide queries.
 
-- ``bench.pose_keys``, ``bench.pose_points``: the pose samples folded for the lab-wide summary, kept by a trigger
+- ``bench.pose_keys``, ``bench.pose_point_sets``: the pose samples folded for the lab-wide summary, kept by a trigger
   as samples arrive (:mod:`bench.store.lab_summary`).
 
-Schema versions: 1 had no typed columns, 2 no pose tables; a bench of version 3 adds and fills what is missing when
-it first connects.
+Schema versions: 1 had no typed columns, 2 no pose tables, 3 no checksums, 3 and 4 a pose-points row per sample; a
+bench of version 5 adds, fills or refolds what is missing when it first connects.
 
 Sync is idempotent and resumable: runs and calibrations are upserted (the local file wins: a status, a reason, a
 registration added by a resume travel on the next sync), and the samples the server lacks are sent in batches, each

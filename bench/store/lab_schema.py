@@ -14,7 +14,7 @@ __all__ = ["LAB_SCHEMA_VERSION", "ensure_schema"]
 _log = logging.getLogger(__name__)
 
 #: The lab schema version this bench writes (kept in ``bench.schema_version``).
-LAB_SCHEMA_VERSION = 4
+LAB_SCHEMA_VERSION = 5
 
 _DDL = """
 CREATE SCHEMA IF NOT EXISTS bench;
@@ -138,7 +138,7 @@ def ensure_schema(conn: Any, url: str) -> None:
             conn.execute(_BACKFILL_TYPED)  # (before the pose triggers, which would refold every run it updates)
         conn.execute(POSE_TABLES_DDL)
         conn.execute(_RUN_REFERENCES_DDL)
-        if found in (1, 2):  # versions 1 and 2 had no pose tables: fold the samples the server holds
+        if found in (1, 2, 3, 4):  # 1, 2: no pose tables; 3, 4: a row per point: fold the samples the server holds
             conn.execute(POSE_TABLES_BACKFILL)
         if found is not None:
             _log.warning("lab store %s: schema version %s migrated to %s", redacted(url), found, LAB_SCHEMA_VERSION)

@@ -19,9 +19,11 @@ synced sample, but a hand-made ``UPDATE`` or ``DELETE`` refolds the runs it touc
 
 - ``bench.pose_keys``: one row per run and pose key (pose, velocity, commanded position) with the sums of the
   attained x, y, z and their count; pooled here into each group's barycentre (a few hundred rows read, no scan);
-- ``bench.pose_points``: the attained point of every pose sample and its key, a narrow table (about 60 bytes a row
-  where ``bench.samples`` holds about 290), scanned once with the barycentres sent as arrays indexed by key to
-  summarise the distances l_j per group (``avg``, ``stddev_samp``: PostgreSQL's Youngs-Cramer accumulation).
+- ``bench.pose_point_sets`` (lab schema 5): the attained points of the pose samples, one row per key and statement
+  that stored some (x, y, z as three arrays: about 24 bytes a point where ``bench.samples`` holds about 290 a
+  sample; a row per point, schema 3 and 4's ``bench.pose_points``, cost the sync 2.4 us a sample of the server's
+  CPU, the arrays 0.6-1.0), unnested in one scan with the barycentres sent as arrays indexed by key to summarise the
+  distances l_j per group (``avg``, ``stddev_samp``: PostgreSQL's Youngs-Cramer accumulation).
 
 l_j needs the group's barycentre, which runs synced later can move, so it cannot be kept at sync time; and sums of
 squares would cancel (positions near 300 mm, spreads near 1e-3 mm), so the distance pass stays exact per sample.
@@ -51,34 +53,37 @@ _SAME_KEY = """k.run_uuid = {s}.run_uuid AND k.pose = coalesce({s}.pose, '')
     AND k.velocity_pct = coalesce({s}.velocity_pct, 'NaN') AND k.cmd_x_mm = {s}.cmd_x_mm AND k.cmd_y_mm = {s}.cmd_y_mm
     AND k.cmd_z_mm = {s}.cmd_z_mm"""
 
-#: Fold the pose samples of ``{source}`` (new rows, or all of bench.samples for a migration) into the pose tables:
-#: the sums of each key, aggregated once (schema 3 aggregated twice: 25 % of the fold's time), are added to the keys
-#: that exist and inserted as new keys for the others (only those missing, so that key ids stay dense: a
-#: conflicting insert uses up an id; the ``ON CONFLICT`` adds the sums when another sync of the same run inserted
-#: the key meanwhile); then the points.
+#: Fold the pose samples of ``{source}`` (new rows, or all of bench.samples for a migration) into the pose tables
+#: in one statement that reads ``{source}`` once: per key, the sums and the attained points as arrays (one
+#: aggregation); the sums added to the keys that exist, new keys inserted for the others (only those missing, so
+#: that key ids stay dense: a conflicting insert uses up an id; the ``ON CONFLICT`` adds the sums when another sync
+#: of the same run inserted the key meanwhile); then one ``bench.pose_point_sets`` row per key with its arrays.
+#: (Schema 4 inserted one ``bench.pose_points`` row per sample and read ``{source}`` twice: 2.4 us a sample of the
+#: server's 8.0, measured by ``benchmarks/bench_sync_costs.py``.)
 _FOLD_SQL = f"""
 WITH batch AS MATERIALIZED (
-    SELECT {_KEY}, sum(x_mm) AS sum_x_mm, sum(y_mm) AS sum_y_mm, sum(z_mm) AS sum_z_mm, count(*) AS n
+    SELECT {_KEY}, sum(x_mm) AS sum_x_mm, sum(y_mm) AS sum_y_mm, sum(z_mm) AS sum_z_mm, count(*) AS n,
+           array_agg(x_mm) AS x_mm, array_agg(y_mm) AS y_mm, array_agg(z_mm) AS z_mm
     FROM {{source}} AS s WHERE {_POSE_SAMPLES} GROUP BY 1, 2, 3, 4, 5, 6
 ), added_to AS (
     UPDATE bench.pose_keys k SET sum_x_mm = k.sum_x_mm + a.sum_x_mm, sum_y_mm = k.sum_y_mm + a.sum_y_mm,
                                  sum_z_mm = k.sum_z_mm + a.sum_z_mm, n = k.n + a.n
     FROM batch AS a
-    WHERE k.run_uuid = a.run_uuid AND k.pose = a.pose AND k.velocity_pct = a.velocity_pct
-        AND k.cmd_x_mm = a.cmd_x_mm AND k.cmd_y_mm = a.cmd_y_mm AND k.cmd_z_mm = a.cmd_z_mm
+    WHERE {_SAME_KEY.format(s="a")}
+    RETURNING k.id, k.run_uuid, k.pose, k.velocity_pct, k.cmd_x_mm, k.cmd_y_mm, k.cmd_z_mm
+), inserted AS (
+    INSERT INTO bench.pose_keys AS k (run_uuid, pose, velocity_pct, cmd_x_mm, cmd_y_mm, cmd_z_mm, sum_x_mm,
+                                      sum_y_mm, sum_z_mm, n)
+    SELECT run_uuid, pose, velocity_pct, cmd_x_mm, cmd_y_mm, cmd_z_mm, sum_x_mm, sum_y_mm, sum_z_mm, n
+    FROM batch AS a WHERE NOT EXISTS (SELECT FROM bench.pose_keys k WHERE {_SAME_KEY.format(s="a")})
+    ON CONFLICT (run_uuid, pose, velocity_pct, cmd_x_mm, cmd_y_mm, cmd_z_mm) DO UPDATE
+        SET sum_x_mm = k.sum_x_mm + EXCLUDED.sum_x_mm, sum_y_mm = k.sum_y_mm + EXCLUDED.sum_y_mm,
+            sum_z_mm = k.sum_z_mm + EXCLUDED.sum_z_mm, n = k.n + EXCLUDED.n
+    RETURNING k.id, k.run_uuid, k.pose, k.velocity_pct, k.cmd_x_mm, k.cmd_y_mm, k.cmd_z_mm
 )
-INSERT INTO bench.pose_keys AS k (run_uuid, pose, velocity_pct, cmd_x_mm, cmd_y_mm, cmd_z_mm, sum_x_mm, sum_y_mm,
-                                  sum_z_mm, n)
-SELECT * FROM batch AS a WHERE NOT EXISTS (
-    SELECT FROM bench.pose_keys k WHERE k.run_uuid = a.run_uuid AND k.pose = a.pose
-        AND k.velocity_pct = a.velocity_pct AND k.cmd_x_mm = a.cmd_x_mm AND k.cmd_y_mm = a.cmd_y_mm
-        AND k.cmd_z_mm = a.cmd_z_mm)
-ON CONFLICT (run_uuid, pose, velocity_pct, cmd_x_mm, cmd_y_mm, cmd_z_mm) DO UPDATE
-    SET sum_x_mm = k.sum_x_mm + EXCLUDED.sum_x_mm, sum_y_mm = k.sum_y_mm + EXCLUDED.sum_y_mm,
-        sum_z_mm = k.sum_z_mm + EXCLUDED.sum_z_mm, n = k.n + EXCLUDED.n;
-INSERT INTO bench.pose_points (key, x_mm, y_mm, z_mm)
-SELECT k.id, s.x_mm, s.y_mm, s.z_mm FROM {{source}} AS s JOIN bench.pose_keys k ON {_SAME_KEY.format(s="s")}
-WHERE s.kind = 'pose' AND s.x_mm IS NOT NULL AND s.y_mm IS NOT NULL AND s.z_mm IS NOT NULL;
+INSERT INTO bench.pose_point_sets (key, x_mm, y_mm, z_mm)
+SELECT k.id, a.x_mm, a.y_mm, a.z_mm
+FROM (SELECT * FROM added_to UNION ALL SELECT * FROM inserted) AS k JOIN batch AS a ON {_SAME_KEY.format(s="a")};
 """
 
 #: Lab schema 3: the pose tables and the trigger that keeps them (see the module docstring).
@@ -98,12 +103,16 @@ CREATE TABLE IF NOT EXISTS bench.pose_keys (
     n bigint NOT NULL,
     UNIQUE (run_uuid, pose, velocity_pct, cmd_x_mm, cmd_y_mm, cmd_z_mm)
 );
-CREATE TABLE IF NOT EXISTS bench.pose_points (
+DROP TABLE IF EXISTS bench.pose_points;  -- schemas 3 and 4: one row per point (refilled as point sets below)
+CREATE TABLE IF NOT EXISTS bench.pose_point_sets (
     key integer NOT NULL,  -- a bench.pose_keys id; no foreign key: its check per row would slow every sync
-    x_mm double precision NOT NULL,
-    y_mm double precision NOT NULL,
-    z_mm double precision NOT NULL
+    x_mm double precision[] NOT NULL,  -- the attained points of one statement's samples of that key
+    y_mm double precision[] NOT NULL,
+    z_mm double precision[] NOT NULL
 );
+-- Out of line uncompressed: pglz finds little to compress in measured coordinates and costs the sync its time.
+ALTER TABLE bench.pose_point_sets ALTER COLUMN x_mm SET STORAGE EXTERNAL, ALTER COLUMN y_mm SET STORAGE EXTERNAL,
+    ALTER COLUMN z_mm SET STORAGE EXTERNAL;
 CREATE OR REPLACE FUNCTION bench.fold_new_pose_samples() RETURNS trigger LANGUAGE plpgsql AS $fold$
 BEGIN
 """
@@ -114,7 +123,7 @@ END
 $fold$;
 CREATE OR REPLACE FUNCTION bench.refold_changed_pose_samples() RETURNS trigger LANGUAGE plpgsql AS $refold$
 BEGIN
-    DELETE FROM bench.pose_points p USING bench.pose_keys k
+    DELETE FROM bench.pose_point_sets p USING bench.pose_keys k
         WHERE p.key = k.id AND k.run_uuid IN (SELECT run_uuid FROM old_samples);
     DELETE FROM bench.pose_keys WHERE run_uuid IN (SELECT run_uuid FROM old_samples);
 """
@@ -125,7 +134,7 @@ END
 $refold$;
 CREATE OR REPLACE FUNCTION bench.empty_pose_tables() RETURNS trigger LANGUAGE plpgsql AS $empty$
 BEGIN
-    TRUNCATE bench.pose_points, bench.pose_keys;
+    TRUNCATE bench.pose_point_sets, bench.pose_keys;
     RETURN NULL;
 END
 $empty$;
@@ -144,8 +153,8 @@ CREATE TRIGGER samples_empty_pose_tables AFTER TRUNCATE ON bench.samples
 """
 )
 
-#: Lab schema 2 -> 3: the pose tables filled from the samples the server holds.
-POSE_TABLES_BACKFILL = "TRUNCATE bench.pose_points, bench.pose_keys RESTART IDENTITY;" + _FOLD_SQL.format(
+#: Lab schemas 2, 3, 4 -> 5: the pose tables (re)filled from the samples the server holds.
+POSE_TABLES_BACKFILL = "TRUNCATE bench.pose_point_sets, bench.pose_keys RESTART IDENTITY;" + _FOLD_SQL.format(
     source="bench.samples"
 )
 
@@ -155,14 +164,16 @@ FROM bench.pose_keys WHERE run_uuid = ANY(%s::uuid[])"""
 
 #: l_j against its group's barycentre, summarised per group; arrays indexed by key id - first + 1 over the keys'
 #: range (group -1: a key of a run not asked for). No NULL in the arrays: a subscript into an array with NULLs
-#: walks its null bitmap, one subscript into one without is one offset.
+#: walks its null bitmap, one subscript into one without is one offset. The point sets unnested in the select list
+#: (zipped, streamed: about 25 % faster than ``ROWS FROM`` in the FROM clause, which copies each set first).
 _DISTANCES_SQL = """
 SELECT g, avg(l), stddev_samp(l)
 FROM (SELECT (%(group)s::int[])[key - %(first)s + 1] AS g,
-             sqrt((x_mm - (%(bx)s::float8[])[key - %(first)s + 1]) ^ 2
-                  + (y_mm - (%(by)s::float8[])[key - %(first)s + 1]) ^ 2
-                  + (z_mm - (%(bz)s::float8[])[key - %(first)s + 1]) ^ 2) AS l
-      FROM bench.pose_points WHERE key BETWEEN %(first)s AND %(last)s) AS distance
+             sqrt((x - (%(bx)s::float8[])[key - %(first)s + 1]) ^ 2
+                  + (y - (%(by)s::float8[])[key - %(first)s + 1]) ^ 2
+                  + (z - (%(bz)s::float8[])[key - %(first)s + 1]) ^ 2) AS l
+      FROM (SELECT key, unnest(x_mm) AS x, unnest(y_mm) AS y, unnest(z_mm) AS z FROM bench.pose_point_sets
+            WHERE key BETWEEN %(first)s AND %(last)s) AS point) AS distance
 WHERE g >= 0
 GROUP BY g"""
 
