@@ -4,6 +4,9 @@ import math
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from hypothesis.extra.numpy import arrays
 from scipy import stats
 
 from bench.errors import ConfigError, InsufficientData
@@ -131,3 +134,19 @@ def test_the_path_model_keeps_each_station_s_scatter_in_its_own_plane():
     before = np.linalg.eigvalsh(_covariances(deviations))[:, 1:]
     after = np.linalg.eigvalsh(_covariances(model))[:, 1:]
     assert np.all(np.abs(after - before.mean(axis=0)) <= np.abs(before - before.mean(axis=0)) + 1e-12)
+
+
+@settings(max_examples=60, deadline=None)
+@given(
+    arrays(
+        float,
+        st.tuples(st.integers(1, 4), st.integers(1, 6), st.integers(1, 4)),
+        elements=st.floats(-1e150, 1e150, allow_nan=False, allow_infinity=False),
+    )
+)
+def test_the_path_models_lengths_are_numpys_norm_bit_for_bit(vectors):
+    """The path model's lengths summed axis by axis (issue 34: np.linalg.norm's reduce was most of its time) give
+    its U bit for bit."""
+    from bench.metrology.uncertainty_figures import _lengths
+
+    assert np.array_equal(_lengths(vectors.copy()), np.linalg.norm(vectors, axis=-1))
