@@ -150,3 +150,19 @@ def test_the_path_models_lengths_are_numpys_norm_bit_for_bit(vectors):
     from bench.metrology.uncertainty_figures import _lengths
 
     assert np.array_equal(_lengths(vectors.copy()), np.linalg.norm(vectors, axis=-1))
+
+
+@pytest.mark.parametrize("n", [2, 3, 10, 54, 106, 208])
+def test_the_spread_half_width_is_the_root_of_scipy_stats_chi2s_coverage(n):
+    """spread_half_width reads chi² through scipy.special (not importing scipy.stats): the same root bit for bit."""
+    from scipy import optimize
+
+    from bench.metrology.uncertainty_figures import spread_half_width
+
+    level = math.erf(2.0 / math.sqrt(2.0))
+
+    def shortfall(w):
+        upper = 1.0 if w >= 1.0 else float(stats.chi2.cdf((n - 1) / (1.0 - w) ** 2, n - 1))
+        return upper - float(stats.chi2.cdf((n - 1) / (1.0 + w) ** 2, n - 1)) - level
+
+    assert spread_half_width(n, level) == optimize.brentq(shortfall, 0.0, 1e3, xtol=1e-10)

@@ -15,6 +15,7 @@ once per sample. The bytes equal :func:`bench.reports.rawdata.write_table_csv` o
 from __future__ import annotations
 
 import json
+import re
 from itertools import chain, repeat
 from typing import Any
 
@@ -27,8 +28,9 @@ from bench.store.export import MixedSeries, ordered_columns, series_context, ser
 __all__ = ["SeriesText", "TextNotTaken", "series_tokens"]
 
 _SERIES_OBJECT = '"series": {'
-#: JSON literals that are not numbers (true, false, null, NaN, Infinity): a series holding one is not taken.
-_NOT_NUMBERS = ("t", "f", "n", "N", "I")
+#: The letters of JSON literals that are not numbers (true, false, null, NaN, Infinity): a series holding one is not
+#: taken.
+_NOT_NUMBERS = re.compile("[tfnNI]")
 
 
 def series_tokens(series: dict[str, Any], raw_json: str) -> dict[str, list[str]] | None:
@@ -45,7 +47,7 @@ def series_tokens(series: dict[str, Any], raw_json: str) -> dict[str, list[str]]
         start = position + len(head)
         end = raw_json.find("]", start)
         text = raw_json[start:end]
-        if end < 0 or any(letter in text for letter in _NOT_NUMBERS):
+        if end < 0 or _NOT_NUMBERS.search(text):
             return None
         items = text.split(", ") if text else []
         if len(items) != len(values) or (values and set(map(type, values)) != {float}):
