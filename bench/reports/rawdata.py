@@ -23,7 +23,7 @@ import pandas as pd
 from bench.reports.rawdata_format import column_text, plain_table
 from bench.reports.rawdata_text import SeriesText, TextNotTaken
 from bench.store import SampleRecord, Store
-from bench.store.export import MixedSeries, SeriesPieces, series_chunks, series_context, series_table
+from bench.store.export import MixedSeries, SeriesPieces, series_chunks, series_table
 
 __all__ = ["CsvPieces", "StreamedSeries", "write_table_csv", "write_tables_csv"]
 
@@ -115,7 +115,7 @@ class StreamedSeries:
         for sample, raw_json in stored:
             if good:
                 try:
-                    if by_text is None and series_context(sample) is not None:
+                    if by_text is None and isinstance(sample.raw, dict) and sample.raw.get("series"):
                         by_text = raw_json is not None
                     if by_text is not None:
                         put(texts.add(sample, raw_json) if by_text else frames.add(sample))

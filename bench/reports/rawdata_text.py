@@ -15,7 +15,7 @@ once per sample. The bytes equal :func:`bench.reports.rawdata.write_table_csv` o
 from __future__ import annotations
 
 import json
-import re
+from functools import lru_cache
 from itertools import chain, repeat
 from typing import Any
 
@@ -28,9 +28,12 @@ from bench.store.export import MixedSeries, ordered_columns, series_context, ser
 __all__ = ["SeriesText", "TextNotTaken", "series_tokens"]
 
 _SERIES_OBJECT = '"series": {'
-#: The letters of JSON literals that are not numbers (true, false, null, NaN, Infinity): a series holding one is not
-#: taken.
-_NOT_NUMBERS = re.compile("[tfnNI]")
+
+
+@lru_cache(maxsize=256)
+def _head(key: str, first: bool) -> str:
+    """The text ``json.dumps`` writes before a series column's values."""
+    return ("" if first else ", ") + json.dumps(key) + ": ["
 
 
 def series_tokens(series: dict[str, Any], raw_json: str) -> dict[str, list[str]] | None:
@@ -41,22 +44,35 @@ def series_tokens(series: dict[str, Any], raw_json: str) -> dict[str, list[str]]
     position = raw_json.index(_SERIES_OBJECT) + len(_SERIES_OBJECT)
     tokens: dict[str, list[str]] = {}
     for number, (key, values) in enumerate(series.items()):
-        head = ("" if number == 0 else ", ") + json.dumps(key) + ": ["
+        head = _head(key, number == 0)
         if not isinstance(values, list) or not raw_json.startswith(head, position):
             return None
         start = position + len(head)
         end = raw_json.find("]", start)
         text = raw_json[start:end]
-        if end < 0 or _NOT_NUMBERS.search(text):
+        if end < 0 or (values and set(map(type, values)) != {float}):
+            return None  # true, false and null are not floats; NaN and Infinity are, and are refused just below
+        if "N" in text or "I" in text:
             return None
         items = text.split(", ") if text else []
-        if len(items) != len(values) or (values and set(map(type, values)) != {float}):
+        if len(items) != len(values):
             return None
         if values and (items[0] != repr(values[0]) or items[-1] != repr(values[-1])):
             return None
         tokens[key] = items
         position = end + 1
     return tokens if raw_json.startswith("}", position) else None
+
+
+def _context_texts(contexts: pd.DataFrame) -> list[dict[str, str]]:
+    """Per sample, each context column's text as ``to_csv`` writes it (one ``to_csv`` of the piece's contexts, cut at
+    its commas where no field is quoted; else column by column, :func:`column_text`)."""
+    text = contexts.to_csv(index=False, header=False, lineterminator="\n")
+    names = list(contexts.columns)
+    if '"' not in text:
+        return [dict(zip(names, line.split(","))) for line in text.split("\n")[:-1]]
+    columns = [column_text(contexts[name]) for name in names]
+    return [dict(zip(names, cells)) for cells in zip(*columns)]
 
 
 class TextNotTaken(Exception):
@@ -115,7 +131,7 @@ class SeriesText:
             raise MixedSeries("pieces with different columns or dtypes")
         if not plain_table(contexts):
             raise TextNotTaken("a text with a line break, or a column of another type: pandas writes it")
-        texts = {key: column_text(contexts[key]) for key in contexts.columns}
+        texts = _context_texts(contexts)
         out = []
         for number, (_, tokens) in enumerate(self._waiting):
             count = len(next(iter(tokens.values())))
@@ -127,7 +143,7 @@ class SeriesText:
                     streams += [repeat(pending + separator, count), tokens[name]]
                     pending = ""
                 else:
-                    pending += separator + texts[name][number]
+                    pending += separator + texts[number][name]
             streams.append(repeat(pending + "\n", count))
             out.append("".join(chain.from_iterable(zip(*streams))))
         piece = "".join(out), self._count
