@@ -152,7 +152,11 @@ def _rt_population(covariance: np.ndarray, rng: np.random.Generator) -> np.ndarr
     """E[l] + 3 SD[l] per station for Gaussian crossings of covariances ``covariance`` (m, d, d)."""
     sigmas = np.sqrt(np.clip(np.linalg.eigvalsh(covariance), 0.0, None))  # (m, d)
     normals = rng.standard_normal((_POPULATION_DRAWS, covariance.shape[-1]))
-    distances = np.sqrt((normals[None, :, :] ** 2 * sigmas[:, None, :] ** 2).sum(axis=-1))
+    squares = normals**2  # summed axis after axis, as .sum(axis=-1) does, without its reduce over a 3-long axis
+    total = squares[None, :, 0] * sigmas[:, None, 0] ** 2
+    for axis in range(1, squares.shape[1]):
+        total += squares[None, :, axis] * sigmas[:, None, axis] ** 2
+    distances = np.sqrt(total, out=total)
     return distances.mean(axis=1) + 3.0 * distances.std(axis=1)
 
 
