@@ -166,3 +166,18 @@ def test_the_spread_half_width_is_the_root_of_scipy_stats_chi2s_coverage(n):
         return upper - float(stats.chi2.cdf((n - 1) / (1.0 + w) ** 2, n - 1)) - level
 
     assert spread_half_width(n, level) == optimize.brentq(shortfall, 0.0, 1e3, xtol=1e-10)
+
+
+@pytest.mark.parametrize("d", [2, 3])
+def test_the_population_rt_is_numpys_axis_sum_bit_for_bit(d):
+    """The population RT's squared axes summed one after another: .sum(axis=-1)'s values bit for bit."""
+    from bench.metrology.uncertainty_figures import _POPULATION_DRAWS, _rt_population
+
+    rng = np.random.default_rng(d)
+    factors = rng.normal(size=(7, d, d))
+    covariance = factors @ factors.transpose(0, 2, 1)
+    sigmas = np.sqrt(np.clip(np.linalg.eigvalsh(covariance), 0.0, None))
+    normals = np.random.default_rng(5).standard_normal((_POPULATION_DRAWS, d))
+    distances = np.sqrt((normals[None, :, :] ** 2 * sigmas[:, None, :] ** 2).sum(axis=-1))
+    expected = distances.mean(axis=1) + 3.0 * distances.std(axis=1)
+    assert np.array_equal(_rt_population(covariance, np.random.default_rng(5)), expected)
