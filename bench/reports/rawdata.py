@@ -4,9 +4,11 @@
 streamed points of a long path run (12 columns), where 8 of the columns repeat one value per stored sample. Here each
 column is factorised, only its distinct values are formatted (by pandas itself, so quoting and the text of every value
 are pandas'), and the rows are joined from those strings: the same bytes as ``table.to_csv(path, index=False)`` (a test
-compares them), in a few seconds. The decision to keep writing the file (and not only cite the store): the report's
-"recompute" line reads it, and a customer gets the data the numbers came from without access to the bench's store;
-``bench export`` writes the same table on demand.
+compares them), in a few seconds. A long run's streamed series, read from the store with their JSON text, are
+written from that text instead (:mod:`bench.reports.rawdata_text`: no float formatted again; the same bytes). The
+decision to keep writing the file (and not only cite the store): the report's "recompute" line reads it, and a
+customer gets the data the numbers came from without access to the bench's store; ``bench export`` writes the same
+table on demand.
 """
 
 from __future__ import annotations

@@ -1,7 +1,7 @@
 """A long run's streamed series as CSV rows from the number text already stored: no number formatted again.
 
-Formatting a float as text (its shortest repr, what ``to_csv`` writes) costs about 0.4 µs in CPython: 1.9 s for
-the 4 series columns of a million streamed points, more than reading them. The store holds each sample's raw data
+Formatting a float as text (its shortest repr, what ``to_csv`` writes) costs about 0.4 µs in CPython: 1.6 s for
+the 4 series columns of a million streamed points, about as long as reading them. The store holds each sample's raw data
 as ``json.dumps`` wrote it (``sort_keys``, ``", "`` between items, no NaN), and ``json.dumps`` writes a float as
 that same repr, so each series column's CSV text is its JSON array's text split at ``", "``. A sample's series is
 taken that way only when its text is plainly ``json.dumps``' (:func:`series_tokens`: one ``"series"`` object, keys
