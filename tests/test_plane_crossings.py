@@ -5,7 +5,7 @@ on a plane (ties between a zero and a sign change), and blocks down to one sampl
 
 import numpy as np
 import pytest
-from hypothesis import given, settings
+from hypothesis import example, given, settings
 from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 
@@ -42,6 +42,7 @@ def _check(path, stations, normals, block):
 
 
 @settings(max_examples=80, deadline=None)
+@example(n=2, m=1, block=1, dims=2, seed=1)  # a box the plane cuts, its segment not
 @given(
     st.integers(1, 400),
     st.integers(1, 30),

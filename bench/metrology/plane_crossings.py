@@ -96,6 +96,8 @@ def _nearest_crossings(
     # a zero and a sign change at the same sample are two candidates, as the per-station reading lists them
     pick = np.concatenate([np.flatnonzero(zero), np.flatnonzero(crossing)])
     is_crossing = np.concatenate([np.zeros(zero.sum(), bool), np.ones(crossing.sum(), bool)])
+    if len(pick) == 0:  # boxes cut, samples not (the box holds the plane, the polyline passes it by)
+        return index, fraction
     k, station, after = k[pick], station[pick], after[pick]
     with np.errstate(divide="ignore", invalid="ignore"):
         f = np.where(is_crossing, here[pick] / (here[pick] - there[pick]), 0.0)
