@@ -4,6 +4,9 @@ import math
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from hypothesis.extra.numpy import arrays
 from scipy import stats
 
 from bench.errors import ConfigError, InsufficientData
@@ -131,3 +134,50 @@ def test_the_path_model_keeps_each_station_s_scatter_in_its_own_plane():
     before = np.linalg.eigvalsh(_covariances(deviations))[:, 1:]
     after = np.linalg.eigvalsh(_covariances(model))[:, 1:]
     assert np.all(np.abs(after - before.mean(axis=0)) <= np.abs(before - before.mean(axis=0)) + 1e-12)
+
+
+@settings(max_examples=60, deadline=None)
+@given(
+    arrays(
+        float,
+        st.tuples(st.integers(1, 4), st.integers(1, 6), st.integers(1, 4)),
+        elements=st.floats(-1e150, 1e150, allow_nan=False, allow_infinity=False),
+    )
+)
+def test_the_path_models_lengths_are_numpys_norm_bit_for_bit(vectors):
+    """The path model's lengths summed axis by axis (issue 34: np.linalg.norm's reduce was most of its time) give
+    its U bit for bit."""
+    from bench.metrology.uncertainty_figures import _lengths
+
+    assert np.array_equal(_lengths(vectors.copy()), np.linalg.norm(vectors, axis=-1))
+
+
+@pytest.mark.parametrize("n", [2, 3, 10, 54, 106, 208])
+def test_the_spread_half_width_is_the_root_of_scipy_stats_chi2s_coverage(n):
+    """spread_half_width reads chi² through scipy.special (not importing scipy.stats): the same root bit for bit."""
+    from scipy import optimize
+
+    from bench.metrology.uncertainty_figures import spread_half_width
+
+    level = math.erf(2.0 / math.sqrt(2.0))
+
+    def shortfall(w):
+        upper = 1.0 if w >= 1.0 else float(stats.chi2.cdf((n - 1) / (1.0 - w) ** 2, n - 1))
+        return upper - float(stats.chi2.cdf((n - 1) / (1.0 + w) ** 2, n - 1)) - level
+
+    assert spread_half_width(n, level) == optimize.brentq(shortfall, 0.0, 1e3, xtol=1e-10)
+
+
+@pytest.mark.parametrize("d", [2, 3])
+def test_the_population_rt_is_numpys_axis_sum_bit_for_bit(d):
+    """The population RT's squared axes summed one after another: .sum(axis=-1)'s values bit for bit."""
+    from bench.metrology.uncertainty_figures import _POPULATION_DRAWS, _rt_population
+
+    rng = np.random.default_rng(d)
+    factors = rng.normal(size=(7, d, d))
+    covariance = factors @ factors.transpose(0, 2, 1)
+    sigmas = np.sqrt(np.clip(np.linalg.eigvalsh(covariance), 0.0, None))
+    normals = np.random.default_rng(5).standard_normal((_POPULATION_DRAWS, d))
+    distances = np.sqrt((normals[None, :, :] ** 2 * sigmas[:, None, :] ** 2).sum(axis=-1))
+    expected = distances.mean(axis=1) + 3.0 * distances.std(axis=1)
+    assert np.array_equal(_rt_population(covariance, np.random.default_rng(5)), expected)

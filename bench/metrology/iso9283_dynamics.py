@@ -22,6 +22,7 @@ from bench.metrology._validation import (
     require_same_length,
 )
 from bench.metrology.iso9283 import orientation_accuracy, orientation_repeatability
+from bench.metrology.plane_crossings import plane_crossings
 
 __all__ = [
     "PathCharacteristics",
@@ -303,21 +304,6 @@ def pose_stabilisation(
     )
 
 
-def _plane_crossing(path: np.ndarray, station: np.ndarray, normal: np.ndarray) -> tuple[int, float] | None:
-    """Where a polyline crosses the plane through ``station`` normal to ``normal``, nearest the station.
-
-    Returns (i, f): the crossing is path[i] + f (path[i + 1] - path[i]), 0 <= f <= 1; None when it never crosses.
-    """
-    signed = (path - station) @ normal
-    crossing = np.flatnonzero(np.signbit(signed[:-1]) != np.signbit(signed[1:]))
-    candidates = [(int(i), 0.0) for i in np.flatnonzero(signed == 0.0)]
-    candidates += [(int(i), float(signed[i] / (signed[i] - signed[i + 1]))) for i in crossing]
-    if not candidates:
-        return None
-    points = np.array([path[i] + f * (path[min(i + 1, len(path) - 1)] - path[i]) for i, f in candidates])
-    return candidates[int(np.argmin(np.sum((points - station) ** 2, axis=1)))]
-
-
 def _station_normals(stations: np.ndarray) -> np.ndarray:
     """Unit normals of the station planes: the commanded path's direction by central differences."""
     tangents = np.gradient(stations, axis=0)
@@ -342,15 +328,15 @@ def station_crossings(
     tangents = _station_normals(stations)
     points = np.empty((len(stations), len(paths), stations.shape[1]))
     where: list[list[tuple[int, float]]] = []
-    for i, (station, normal) in enumerate(zip(stations, tangents)):
+    hits = [plane_crossings(path, stations, tangents) for path in paths]
+    for i in range(len(stations)):
         where.append([])
-        for j, path in enumerate(paths):
-            hit = _plane_crossing(path, station, normal)
-            if hit is None:
+        for j, (path, (index, fractions)) in enumerate(zip(paths, hits)):
+            if index[i] < 0:
                 raise InsufficientData(f"path cycle {j} never crosses the plane of station {i}")
-            k, fraction = hit
+            k, fraction = int(index[i]), float(fractions[i])
             points[i, j] = path[k] + fraction * (path[min(k + 1, len(path) - 1)] - path[k])
-            where[i].append(hit)
+            where[i].append((k, fraction))
     return points, where
 
 
@@ -364,16 +350,12 @@ def cycle_crossings(path_mm: ArrayLike, commanded_mm: ArrayLike) -> tuple[np.nda
     stations = as_points("commanded_mm", commanded_mm, dims=(2, 3))
     require_count("commanded path stations", len(stations), 2)
     path = as_points("path_mm", path_mm, dims=(stations.shape[1],))
+    index, fraction = plane_crossings(path, stations, _station_normals(stations))
+    crossed = index >= 0
     points = np.full(stations.shape, np.nan)
-    missed = None
-    for i, (station, normal) in enumerate(zip(stations, _station_normals(stations))):
-        hit = _plane_crossing(path, station, normal)
-        if hit is None:
-            missed = i if missed is None else missed
-            continue
-        k, fraction = hit
-        points[i] = path[k] + fraction * (path[min(k + 1, len(path) - 1)] - path[k])
-    return points, missed
+    k = index[crossed]
+    points[crossed] = path[k] + fraction[crossed, None] * (path[np.minimum(k + 1, len(path) - 1)] - path[k])
+    return points, (None if crossed.all() else int(np.argmin(crossed)))
 
 
 def crossing_characteristics(points_mm: np.ndarray, commanded_mm: ArrayLike) -> PathCharacteristics:

@@ -158,8 +158,11 @@ def collect_path(
     here can be unknown)."""
     run = store.run(run_id)
     raw = StreamedSeries(store, run_id, "path")  # the raw-data CSV, spooled as the analysis reads the run: once
-    read = getattr(store, "iter_samples", store.samples)  # a sample at a time where the store can
-    analysis = analyze_path_run(store, run_id, samples=raw.passing(read(run_id, kind="path")))
+    if hasattr(store, "iter_samples_text"):  # a sample at a time, its number text reused for the CSV
+        samples = raw.passing_stored(store.iter_samples_text(run_id, kind="path"))
+    else:  # a lab view: a list
+        samples = raw.passing(store.samples(run_id, kind="path"))
+    analysis = analyze_path_run(store, run_id, samples=samples)
     calibrations = calibrations_in_force(store, run)
     clauses = ("8.5 cornering deviations",) if run.protocol_name == "iso9283_cornering" else ()
     return PathReport(

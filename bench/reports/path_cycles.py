@@ -61,11 +61,12 @@ def join_segments(parts: list) -> tuple[np.ndarray, np.ndarray, list[int]]:
     """One cycle from its segments ``(step_index, t_s, position_mm)``: joined in step order, a point not later than
     the one before (a window reaching back into the previous segment) dropped, so times strictly increase; returns
     (t_s, position_mm, segment start indices)."""
-    times, points, starts, last = [], [], [], -np.inf
+    times, points, starts, last, joined = [], [], [], -np.inf, 0
     for _, t, p in sorted(parts, key=lambda part: part[0]):
         keep = t > last
-        starts.append(sum(len(x) for x in times))
+        starts.append(joined)
         times.append(t[keep])
+        joined += len(times[-1])
         points.append(p[keep])
         if keep.any():
             last = float(t[keep][-1])

@@ -4,9 +4,11 @@
 streamed points of a long path run (12 columns), where 8 of the columns repeat one value per stored sample. Here each
 column is factorised, only its distinct values are formatted (by pandas itself, so quoting and the text of every value
 are pandas'), and the rows are joined from those strings: the same bytes as ``table.to_csv(path, index=False)`` (a test
-compares them), in a few seconds. The decision to keep writing the file (and not only cite the store): the report's
-"recompute" line reads it, and a customer gets the data the numbers came from without access to the bench's store;
-``bench export`` writes the same table on demand.
+compares them), in a few seconds. A long run's streamed series, read from the store with their JSON text, are
+written from that text instead (:mod:`bench.reports.rawdata_text`: no float formatted again; the same bytes). The
+decision to keep writing the file (and not only cite the store): the report's "recompute" line reads it, and a
+customer gets the data the numbers came from without access to the bench's store; ``bench export`` writes the same
+table on demand.
 """
 
 from __future__ import annotations
@@ -14,13 +16,14 @@ from __future__ import annotations
 import hashlib
 import shutil
 import tempfile
-from collections.abc import Iterable, Iterator
+from collections.abc import Callable, Iterable, Iterator
 from pathlib import Path
 from typing import BinaryIO
 
-import numpy as np
 import pandas as pd
 
+from bench.reports.rawdata_format import column_text, plain_table
+from bench.reports.rawdata_text import SeriesText, TextNotTaken
 from bench.store import SampleRecord, Store
 from bench.store.export import MixedSeries, SeriesPieces, series_chunks, series_table
 
@@ -31,44 +34,6 @@ _CHUNK_ROWS = 200_000
 #: Rows of a long run's raw data formatted at a time (:class:`StreamedSeries`): each distinct float's text is held
 #: for its piece (about 70 bytes a value, 4 such columns of a path run), so 50,000 rows hold about 15 MB.
 PIECE_ROWS = 50_000
-
-
-def _column_text(column: pd.Series) -> list[str]:
-    """Each cell of ``column`` as ``to_csv`` writes it (its distinct values formatted once by pandas)."""
-    if isinstance(column.dtype, np.dtype) and column.dtype.kind == "f":  # by bit pattern: 0.0 and -0.0 differ
-        values = column.to_numpy()
-        codes, bits = pd.factorize(values.view(f"i{values.dtype.itemsize}"))
-        uniques = bits.view(values.dtype)
-    else:
-        codes, uniques = pd.factorize(column, use_na_sentinel=True)
-    frame = pd.DataFrame({"value": pd.Series(uniques, dtype=column.dtype), "end": 0})
-    lines = frame.to_csv(index=False, header=False, lineterminator="\n").split("\n")[:-1]
-    texts = [line[:-2] for line in lines]  # drop ",0": a second column keeps an empty value from being quoted
-    texts.append("")  # code -1, a missing value: to_csv's na_rep
-    return [texts[code] for code in codes.tolist()]
-
-
-def _plain(table: pd.DataFrame) -> bool:
-    """Whether the fast path writes exactly what ``to_csv`` does: no text with a line break (a quoted line break
-    would split a formatted value), a plain column index, more than one column (a row of one empty field is
-    written quoted)."""
-    if len(table.columns) < 2:
-        return False
-    if not isinstance(table.columns, pd.Index) or isinstance(table.columns, pd.MultiIndex):
-        return False
-    for name in table.columns:
-        column = table[name]
-        if not (
-            pd.api.types.is_numeric_dtype(column.dtype)
-            or pd.api.types.is_object_dtype(column.dtype)
-            or pd.api.types.is_string_dtype(column.dtype)
-        ):
-            return False  # dates, categories, ...: left to pandas
-        if column.dtype == object or pd.api.types.is_string_dtype(column.dtype):
-            values = column.dropna().astype(str)
-            if values.str.contains("[\r\n]", regex=True).any():
-                return False
-    return True
 
 
 def write_table_csv(table: pd.DataFrame, path: str | Path) -> str:
@@ -100,14 +65,21 @@ class CsvPieces:
         self.file.write(data)
         self.digest.update(data)
 
+    def put_text(self, text: str, rows: int, *, header: Callable[[], str]) -> None:
+        """Write ``rows`` rows' CSV ``text`` (after the ``header()`` line when they are the first)."""
+        if self.rows == 0:
+            self._put(header())
+        self.rows += rows
+        self._put(text)
+
     def put(self, table: pd.DataFrame) -> None:
         first, self.rows = self.rows == 0, self.rows + len(table)
-        if not _plain(table):  # to_csv quotes and formats value by value: a piece at a time is the same text
+        if not plain_table(table):  # to_csv quotes and formats value by value: a piece at a time is the same text
             self._put(table.to_csv(index=False, header=first))
             return
         if first:
             self._put(table.head(0).to_csv(index=False, lineterminator="\n"))
-        columns = [_column_text(table[name]) for name in table.columns]
+        columns = [column_text(table[name]) for name in table.columns]
         for start in range(0, len(table), _CHUNK_ROWS):
             self._put(
                 "\n".join(map(",".join, zip(*(column[start : start + _CHUNK_ROWS] for column in columns)))) + "\n"
@@ -126,23 +98,37 @@ class StreamedSeries:
 
     def passing(self, samples: Iterable[SampleRecord]) -> Iterator[SampleRecord]:
         """``samples``, each as it comes, their CSV spooled on the way (kept when every one has passed)."""
+        return self.passing_stored((sample, None) for sample in samples)
+
+    def passing_stored(self, stored: Iterable[tuple[SampleRecord, str | None]]) -> Iterator[SampleRecord]:
+        """:meth:`passing` of samples given with their raw JSON as stored (``Store.iter_samples_text``; None where
+        the store has no text to give): the series' CSV text taken from it (:mod:`bench.reports.rawdata_text`),
+        not formatted again."""
         spool = tempfile.TemporaryFile()
-        writer, pieces, good = CsvPieces(spool), SeriesPieces(self.rows), True
-        for sample in samples:
+        writer, frames, texts, good = CsvPieces(spool), SeriesPieces(self.rows), SeriesText(self.rows), True
+        by_text: bool | None = None  # chosen by the first sample with a series: whether its text came with it
+
+        def put(piece: pd.DataFrame | tuple[str, int] | None) -> None:
+            if isinstance(piece, tuple):
+                writer.put_text(*piece, header=texts.header)
+            elif piece is not None:
+                writer.put(piece)
+
+        for sample, raw_json in stored:
             if good:
                 try:
-                    piece = pieces.add(sample)
-                    if piece is not None:
-                        writer.put(piece)
-                except MixedSeries:  # aligned over the whole run when written (write_csv)
+                    if by_text is None and isinstance(sample.raw, dict) and sample.raw.get("series"):
+                        by_text = raw_json is not None
+                    if by_text is not None:
+                        put(texts.add(sample, raw_json) if by_text else frames.add(sample))
+                except (MixedSeries, TextNotTaken):  # written from the store when asked (write_csv)
                     good = False
             yield sample
         try:
-            last = pieces.rest() if good else None
-        except MixedSeries:
+            if good and by_text is not None:
+                put(texts.rest() if by_text else frames.rest())
+        except (MixedSeries, TextNotTaken):
             good = False
-        if good and last is not None:
-            writer.put(last)
         if good and writer.rows:
             self._spooled = (spool, writer)
         else:

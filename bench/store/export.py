@@ -40,7 +40,10 @@ __all__ = [
     "SeriesPieces",
     "default_kind",
     "export_run",
+    "ordered_columns",
     "series_chunks",
+    "series_context",
+    "series_contexts",
     "series_table",
     "tidy_table",
 ]
@@ -214,9 +217,59 @@ def _streamed(sample: SampleRecord) -> tuple[dict[str, Any], dict[str, Any]] | N
 
 
 def _ordered(table: pd.DataFrame) -> pd.DataFrame:
-    """The streamed-series table's columns in the order of the module docstring."""
-    leading = [c for c in TIDY_COLUMNS if c in table.columns and c != "t_s"] + ["t_s"]
-    return table[leading + sorted(c for c in table.columns if c not in leading)]
+    """The streamed-series table's columns in the order of the module docstring (:func:`ordered_columns`)."""
+    return table[ordered_columns(table.columns)]
+
+
+def _context_columns(contexts: list[dict[str, Any]], lengths: Any) -> dict[str, Any] | None:
+    """The context columns of samples with these contexts and series ``lengths``: each value repeated over its
+    sample's rows, when every sample has the same keys, no missing value and one type (text, integer or float) per
+    key; None otherwise."""
+    import numpy as np
+
+    keys = list(contexts[0])
+    if any(list(context) != keys or any(v is None for v in context.values()) for context in contexts):
+        return None
+    columns: dict[str, Any] = {}
+    for key in keys:
+        values = [context[key] for context in contexts]
+        if not all(type(v) is type(values[0]) for v in values) or not isinstance(values[0], (str, int, float)):
+            return None
+        columns[key] = np.repeat(np.array(values, dtype=object if isinstance(values[0], str) else None), lengths)
+    return columns
+
+
+def _typed_texts(table: pd.DataFrame, context: dict[str, Any]) -> pd.DataFrame:
+    """``table`` with its text context columns typed as pandas infers them from per-sample frames."""
+    import pandas as pd
+
+    for key, value in context.items():
+        if isinstance(value, str):
+            table[key] = table[key].astype(pd.Series([value]).dtype)
+    return table
+
+
+def series_contexts(contexts: list[dict[str, Any]]) -> pd.DataFrame | None:
+    """One row per sample of the context columns (pose, cycle, commanded values, conditions) of samples with these
+    contexts, with the dtypes :func:`series_table` gives those columns; None where it would align the samples."""
+    import pandas as pd
+
+    columns = _context_columns(contexts, 1)
+    return None if columns is None else _typed_texts(pd.DataFrame(columns), contexts[0])
+
+
+def series_context(sample: SampleRecord) -> dict[str, Any] | None:
+    """A sample's context (pose, cycle, commanded values, conditions: repeated on each row of its series), None
+    for a sample without a streamed series."""
+    item = _streamed(sample)
+    return None if item is None else item[0]
+
+
+def ordered_columns(names: Iterable[str]) -> list[str]:
+    """The streamed-series table's column names in the order of the module docstring."""
+    names = list(names)
+    leading = [c for c in TIDY_COLUMNS if c in names and c != "t_s"] + ["t_s"]
+    return leading + sorted(c for c in names if c not in leading)
 
 
 def _uniform_series(streamed: list[tuple[dict[str, Any], dict[str, Any]]]) -> pd.DataFrame | None:
@@ -228,16 +281,12 @@ def _uniform_series(streamed: list[tuple[dict[str, Any], dict[str, Any]]]) -> pd
     import pandas as pd
 
     context_keys, series_keys = list(streamed[0][0]), list(streamed[0][1])
-    for context, series in streamed:
-        if list(context) != context_keys or list(series) != series_keys or any(v is None for v in context.values()):
-            return None
+    if any(list(series) != series_keys for _, series in streamed):
+        return None
     lengths = np.array([len(series[series_keys[0]]) for _, series in streamed])
-    columns: dict[str, Any] = {}
-    for key in context_keys:
-        values = [context[key] for context, _ in streamed]
-        if not all(type(v) is type(values[0]) for v in values) or not isinstance(values[0], (str, int, float)):
-            return None
-        columns[key] = np.repeat(np.array(values, dtype=object if isinstance(values[0], str) else None), lengths)
+    columns = _context_columns([context for context, _ in streamed], lengths)
+    if columns is None:
+        return None
     for key in series_keys:
         parts = [series[key] for _, series in streamed]
         if any(len(part) != n for part, n in zip(parts, lengths)):
@@ -247,10 +296,7 @@ def _uniform_series(streamed: list[tuple[dict[str, Any], dict[str, Any]]]) -> pd
             return None
         columns[key] = np.concatenate(arrays)
     table = pd.DataFrame({key: columns[key] for key in (*context_keys, *series_keys)})
-    for key in context_keys:  # text columns as pandas infers them from per-sample frames
-        if isinstance(streamed[0][0][key], str):
-            table[key] = table[key].astype(pd.Series([streamed[0][0][key]]).dtype)
-    return table
+    return _typed_texts(table, streamed[0][0])
 
 
 def _parquet_available() -> bool:

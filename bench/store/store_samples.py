@@ -106,13 +106,19 @@ class StoreSamples:
     def iter_samples(self, run_id: int, kind: str | None = None) -> Iterator[SampleRecord]:
         """:meth:`samples` one at a time: a caller that keeps only what it computes from each sample holds one
         parsed sample, not the run (a long path run's JSON series as Python lists: about 130 bytes a point)."""
+        for record, _ in self.iter_samples_text(run_id, kind):
+            yield record
+
+    def iter_samples_text(self, run_id: int, kind: str | None = None) -> Iterator[tuple[SampleRecord, str | None]]:
+        """:meth:`iter_samples`, each record with its ``raw_json`` text as stored (checked with it): the numbers'
+        text as written, which a copy of the raw data can reuse instead of formatting every number again."""
         query = (
             f"SELECT {', '.join(CHECKED_COLUMNS)}, checksum FROM samples"
             " WHERE run_id = ?" + (" AND kind = ?" if kind else "") + " ORDER BY step_index"
         )
         args = (run_id, kind) if kind else (run_id,)
         for row in self._db.execute(query, args):
-            yield checked_sample(run_id, row, self.path)
+            yield checked_sample(run_id, row, self.path), row[7]
 
     def stored_rows(
         self, run_id: int, after_step: int = -1, *, before_step: int | None = None, extract: Sequence[str] = ()
