@@ -68,10 +68,12 @@ from bench.reports.decision import PASS, decide, rule_text
 from bench.reports.deviations import CLAUSES_APPLIED, Deviation, iso_deviations, orientation_deviation
 from bench.reports.instrument import (
     _POSITION,
+    INSTRUMENT_SOURCE,
     InstrumentInfo,
     _span_from_registration,
     ap_instrument_u_mm,
     calibration_fits,
+    calibrations_in_force,
     counts_instrument,
 )
 from bench.store import CalibrationRecord, RunRecord, Store, series_table, tidy_table
@@ -93,8 +95,6 @@ __all__ = [
     "run_table",
 ]
 
-#: Where a report's instrument term comes from, as its U budget names it (``bench analyze``: --instrument-u-mm).
-INSTRUMENT_SOURCE = "the run's instrument settings"
 #: Acceptance criteria a caller may state, with the result each applies to (all "smaller is better").
 CRITERIA = {
     "AP_mm": "AP_P of every pose",
@@ -201,11 +201,6 @@ def run_table(store: Store, run_id: int, kind: str, *, series: bool = False, sam
     table = series_table(store, run_id, kind=kind, samples=samples) if series else tidy_table(store, run_id, kind=kind)
     table.attrs["source"] = f"run {run_id}"
     return table
-
-
-def calibrations_in_force(store: Store, run: RunRecord) -> tuple[CalibrationRecord, ...]:
-    """The stored calibration records the run was taken with, in the order the run lists them."""
-    return tuple(store.calibration_by_id(i) for i in run.calibration_ids)
 
 
 def provenance(run: RunRecord, calibrations: tuple[CalibrationRecord, ...]) -> dict[str, Any]:

@@ -11,10 +11,9 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
-import pandas as pd
 
 from bench.metrology import (
     AxisCalibration,
@@ -27,6 +26,18 @@ from bench.metrology.formatting import reading_step_mm
 from bench.metrology.mouse_calibration import MM_PER_INCH
 from bench.store import CalibrationRecord, RunRecord, Store
 from bench.store.registrations import registration_u_mm, registrations
+
+if TYPE_CHECKING:  # pandas only in annotations: bench analyze path-run reads this module without loading pandas
+    import pandas as pd
+
+#: Where a report's instrument term comes from, as its U budget names it (``bench analyze``: --instrument-u-mm).
+INSTRUMENT_SOURCE = "the run's instrument settings"
+
+
+def calibrations_in_force(store: Store, run: RunRecord) -> tuple[CalibrationRecord, ...]:
+    """The stored calibration records the run was taken with, in the order the run lists them."""
+    return tuple(store.calibration_by_id(i) for i in run.calibration_ids)
+
 
 _POSITION = ("x_mm", "y_mm", "z_mm")
 

@@ -40,11 +40,12 @@ from bench.metrology.uncertainty_figures import (
     path_uncertainty,
     spread_uncertainty,
 )
-from bench.reports.content import INSTRUMENT_SOURCE, calibrations_in_force
 from bench.reports.instrument import (
+    INSTRUMENT_SOURCE,
     InstrumentInfo,
     ap_instrument_u_mm,
     calibration_scale_relative_u,
+    calibrations_in_force,
     counts_instrument,
     registration_span_mm,
 )
