@@ -132,3 +132,19 @@ def test_python_dash_m_bench_is_the_same_entry_point():
         [sys.executable, "-m", "bench", "kin", "ik", "pkm5", "x"], capture_output=True, text=True, timeout=120
     )
     assert bad.returncode == 2 and "Traceback" not in bad.stderr
+
+
+def test_the_path_run_analysis_loads_no_plotting_table_or_pdf_library():
+    """``bench analyze path-run`` reads :mod:`bench.reports.path_run`: importing it (through the package, whose
+    public names load on first use) loads numpy only: no matplotlib, pandas, reportlab or scipy."""
+    result = imported_after(
+        "import bench.reports.path_run\nimport bench.reports\nassert callable(bench.reports.path_run.analyze_path_run)"
+    )
+    assert result["heavy"] == ["numpy"]
+
+
+def test_the_reports_public_names_still_load_on_first_use():
+    result = imported_after(
+        "from bench.reports import LAYOUTS, write_report\nprint(len(LAYOUTS), write_report.__module__)"
+    )
+    assert "9 bench.reports.writing" in result["stdout"] and "matplotlib" in result["heavy"]
