@@ -11,36 +11,34 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from functools import cached_property
 
 import numpy as np
 
 
 @dataclass(frozen=True, eq=False)
 class CycleMoments:
-    """The barycentre and squared offsets of n attained points (n, d), as the pose figures use them."""
+    """The barycentre, squared offsets and variances of n attained points (n, d), as the pose figures use them."""
 
     points: np.ndarray  #: (n, d), finite
     barycentre: np.ndarray  #: (d,) p̄ = Σ p_j / n, as ``points.mean(axis=0)``
     offsets: np.ndarray  #: (n, d) p_j - p̄
     squares: np.ndarray  #: (n, d) (p_j - p̄)²
+    #: (d,) s² = Σ (p_j - p̄)² / (n - 1), as ``points.var(axis=0, ddof=1)``; n = 1: the sums (0), never used
+    variance: np.ndarray
 
     @property
     def n(self) -> int:
         """The number of cycles."""
         return len(self.points)
 
-    @cached_property
-    def variance(self) -> np.ndarray:
-        """Per-axis sample variance s² = Σ (p_j - p̄)² / (n - 1), as ``points.var(axis=0, ddof=1)`` (n >= 2)."""
-        return np.add.reduce(self.squares, axis=0) / (self.n - 1)
-
 
 def cycle_moments(points: np.ndarray) -> CycleMoments:
     """The :class:`CycleMoments` of a checked (n, d) array, n >= 1."""
-    barycentre = np.add.reduce(points, axis=0) / len(points)
+    n = len(points)
+    barycentre = np.add.reduce(points, axis=0) / n
     offsets = points - barycentre
-    return CycleMoments(points, barycentre, offsets, offsets**2)
+    squares = offsets**2
+    return CycleMoments(points, barycentre, offsets, squares, np.add.reduce(squares, axis=0) / max(n - 1, 1))
 
 
 def series_mean(values: np.ndarray) -> float:
@@ -51,5 +49,9 @@ def series_mean(values: np.ndarray) -> float:
 def series_sd(values: np.ndarray, mean: float) -> float:
     """s = √(Σ (x_j - x̄)² / (n - 1)) of a 1-D array with its mean ``mean`` (:func:`series_mean`), as
     ``float(values.std(ddof=1))`` (n >= 2)."""
-    deviation = values - mean
-    return math.sqrt(np.add.reduce(np.square(deviation, out=deviation)) / (len(values) - 1))
+    return sd_of_squares((values - mean) ** 2)
+
+
+def sd_of_squares(squared_deviations: np.ndarray) -> float:
+    """s = √(Σ (x_j - x̄)² / (n - 1)) from the squared deviations (x_j - x̄)² of a 1-D array (:func:`series_sd`)."""
+    return math.sqrt(np.add.reduce(squared_deviations) / (len(squared_deviations) - 1))

@@ -16,7 +16,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from bench.errors import ConfigError
-from bench.metrology._moments import CycleMoments, cycle_moments, series_mean, series_sd
+from bench.metrology._moments import CycleMoments, cycle_moments, sd_of_squares, series_mean
 from bench.metrology._validation import as_points, as_series, require_count
 from bench.metrology.uncertainty_model import (
     MODEL_MAX_CYCLES,
@@ -187,7 +187,7 @@ def moments_accuracy_uncertainty(
     deviation = moments.barycentre - command
     type_a = moments.variance / n
     u_axes = np.sqrt(type_a + instrument_u_mm**2)
-    norm = float(np.linalg.norm(deviation))
+    norm = math.sqrt(deviation.dot(deviation))  # np.linalg.norm(deviation)'s arithmetic, without its wrapper
     weights = np.zeros_like(deviation) if norm == 0 else (deviation / norm) ** 2
     if norm == 0:
         weights[np.argmax(u_axes)] = 1.0
@@ -357,16 +357,17 @@ def moments_repeatability_uncertainty_delta(moments: CycleMoments) -> float:
     distances = np.sqrt(np.einsum("ij,ij->i", offsets, offsets))
     # numpy scalars, as distances.mean() and .std() gave them: spread**2 below is numpy's power, bit for bit
     mean_l = np.float64(series_mean(distances))
-    spread = np.float64(series_sd(distances, float(mean_l)))
+    deviation = distances - mean_l
+    squared_deviation = deviation**2
+    spread = np.float64(sd_of_squares(squared_deviation))
     if spread == 0.0:
         return 0.0
     with np.errstate(invalid="ignore", divide="ignore"):
         units = np.where(distances[:, None] > 0, offsets / distances[:, None], 0.0)
-    deviation = distances - mean_l
     mean_u = np.add.reduce(units, axis=0) / n  # units.mean(axis=0), without its wrapper
     mean_w = np.add.reduce(deviation[:, None] * units, axis=0) / n
     influence = (
-        deviation - offsets @ mean_u + 3.0 / (2.0 * spread) * (deviation**2 - spread**2 - 2.0 * (offsets @ mean_w))
+        deviation - offsets @ mean_u + 3.0 / (2.0 * spread) * (squared_deviation - spread**2 - 2.0 * (offsets @ mean_w))
     )
     return float(np.sqrt(np.add.reduce(influence**2)) / n)
 
