@@ -37,7 +37,7 @@ from bench.metrology.table_reading import numeric_columns, read_table_csv
 from bench.metrology.uncertainty import (
     Measured,
     expanded,
-    moments_accuracy_uncertainty,
+    moments_ap_uncertainty,
     moments_repeatability_uncertainty,
 )
 
@@ -303,7 +303,7 @@ def pose_result(group: PoseGroup, *, source: str, instrument_u_mm: float, k: flo
     command = as_vector("commanded_mm", command, length=attained.shape[1])
     moments = cycle_moments(attained)
     repeatability = moments_repeatability(moments)
-    ap_u, _ = moments_accuracy_uncertainty(moments, command, instrument_u_mm=instrument_u_mm, k=k)
+    ap_u = moments_ap_uncertainty(moments, command, instrument_u_mm=instrument_u_mm, k=k)
     u_rp = moments_repeatability_uncertainty(moments, repeatability.rp_mm) if len(attained) >= 3 else 0.0
     orientation = None
     if group.attained_deg is not None:

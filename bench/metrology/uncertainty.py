@@ -175,37 +175,43 @@ def accuracy_uncertainty(
     """
     attained = as_points("attained_mm", attained_mm)
     require_count("accuracy uncertainty cycles", len(attained), 2)
-    command = np.asarray(commanded_mm, dtype=float)
-    return moments_accuracy_uncertainty(cycle_moments(attained), command, instrument_u_mm=instrument_u_mm, k=k)
-
-
-def moments_accuracy_uncertainty(
-    moments: CycleMoments, command: np.ndarray, *, instrument_u_mm: float, k: float
-) -> tuple[Measured, tuple[Measured, ...]]:
-    """:func:`accuracy_uncertainty` of checked cycles (their moments, n >= 2) and a float command array."""
+    moments, command = cycle_moments(attained), np.asarray(commanded_mm, dtype=float)
     n = moments.n
-    deviation = moments.barycentre - command
-    type_a = moments.variance / n
-    u_axes = np.sqrt(type_a + instrument_u_mm**2)
-    norm = math.sqrt(deviation.dot(deviation))  # np.linalg.norm(deviation)'s arithmetic, without its wrapper
-    weights = np.zeros_like(deviation) if norm == 0 else (deviation / norm) ** 2
-    if norm == 0:
-        weights[np.argmax(u_axes)] = 1.0
-    u_norm = math.sqrt(np.add.reduce(weights * u_axes**2))
-    cycles_dof = np.array([n - 1, math.inf])
+    deviation, type_a, u_axes = _axis_terms(moments, command, instrument_u_mm)
     axes = tuple(
         expanded(
             d,
             u,
             unit="mm",
-            k=coverage_factor(k, _welch_satterthwaite(np.array([math.sqrt(a), instrument_u_mm]), cycles_dof)),
+            k=coverage_factor(k, welch_satterthwaite([math.sqrt(a), instrument_u_mm], [n - 1, math.inf])),
         )
-        for d, u, a in zip(deviation.tolist(), u_axes.tolist(), type_a.tolist())
+        for d, u, a in zip(deviation, u_axes, type_a)
     )
+    return moments_ap_uncertainty(moments, command, instrument_u_mm=instrument_u_mm, k=k), axes
+
+
+def _axis_terms(
+    moments: CycleMoments, command: np.ndarray, instrument_u_mm: float
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Per axis: AP_x = x̄ - x_c, the Type A variance s_x²/n of x̄, and u(AP_x) = √(s_x²/n + u_inst²)."""
+    type_a = moments.variance / moments.n
+    return moments.barycentre - command, type_a, np.sqrt(type_a + instrument_u_mm**2)
+
+
+def moments_ap_uncertainty(moments: CycleMoments, command: np.ndarray, *, instrument_u_mm: float, k: float) -> Measured:
+    """AP_P with its expanded uncertainty, as :func:`accuracy_uncertainty` gives it, of checked cycles (their
+    moments, n >= 2) and a float command array (the per-axis figures left out: a pose table reports AP_P's)."""
+    n = moments.n
+    deviation, type_a, u_axes = _axis_terms(moments, command, instrument_u_mm)
+    norm = math.sqrt(deviation.dot(deviation))  # np.linalg.norm(deviation)'s arithmetic, without its wrapper
+    weights = np.zeros_like(deviation) if norm == 0 else (deviation / norm) ** 2
+    if norm == 0:
+        weights[np.argmax(u_axes)] = 1.0
+    u_norm = math.sqrt(np.add.reduce(weights * u_axes**2))
     nu_norm = _welch_satterthwaite(
         np.array([*np.sqrt(weights * type_a), instrument_u_mm]), np.array([*[n - 1] * len(type_a), math.inf])
     )
-    return expanded(norm, u_norm, unit="mm", k=coverage_factor(k, nu_norm)), axes
+    return expanded(norm, u_norm, unit="mm", k=coverage_factor(k, nu_norm))
 
 
 def distance_accuracy_uncertainty(
