@@ -10,6 +10,7 @@ tagged [C] or [U] still has to be checked against a licensed copy of the standar
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 from itertools import combinations
@@ -18,6 +19,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from bench.errors import ConfigError
+from bench.metrology._moments import CycleMoments, cycle_moments, series_mean, series_sd
 from bench.metrology._validation import (
     as_points,
     as_vector,
@@ -178,13 +180,18 @@ def pose_accuracy(attained_mm: ArrayLike, commanded_mm: ArrayLike) -> PoseAccura
     attained = as_points("attained_mm", attained_mm)
     command = as_vector("commanded_mm", commanded_mm, length=attained.shape[1])
     require_count("pose accuracy cycles", len(attained), 1)
-    barycentre = attained.mean(axis=0)
+    return moments_accuracy(cycle_moments(attained), command)
+
+
+def moments_accuracy(moments: CycleMoments, command: np.ndarray) -> PoseAccuracy:
+    """:func:`pose_accuracy` of checked cycles (their moments) and a checked command of the same length."""
+    barycentre = moments.barycentre
     deviation = barycentre - command
     return PoseAccuracy(
-        ap_mm=float(np.sqrt(np.sum(deviation**2))),
-        ap_axes_mm=tuple(float(v) for v in deviation),
-        barycentre_mm=tuple(float(v) for v in barycentre),
-        n=len(attained),
+        ap_mm=math.sqrt(np.add.reduce(deviation**2)),
+        ap_axes_mm=tuple(deviation.tolist()),
+        barycentre_mm=tuple(barycentre.tolist()),
+        n=moments.n,
     )
 
 
@@ -224,15 +231,20 @@ def pose_repeatability(attained_mm: ArrayLike) -> PoseRepeatability:
     """
     attained = as_points("attained_mm", attained_mm)
     require_count("pose repeatability cycles", len(attained), 2)
-    distances = np.sqrt(np.sum((attained - attained.mean(axis=0)) ** 2, axis=1))
-    l_mean = float(distances.mean())
-    s_l = float(distances.std(ddof=1))
+    return moments_repeatability(cycle_moments(attained))
+
+
+def moments_repeatability(moments: CycleMoments) -> PoseRepeatability:
+    """:func:`pose_repeatability` of checked cycles (their moments), n >= 2."""
+    distances = np.sqrt(np.add.reduce(moments.squares, axis=1))
+    l_mean = series_mean(distances)
+    s_l = series_sd(distances, l_mean)
     return PoseRepeatability(
         rp_mm=l_mean + 3.0 * s_l,
         l_mean_mm=l_mean,
         s_l_mm=s_l,
-        spread_3s_axes_mm=tuple(float(v) for v in 3.0 * attained.std(axis=0, ddof=1)),
-        n=len(attained),
+        spread_3s_axes_mm=tuple((3.0 * np.sqrt(moments.variance)).tolist()),
+        n=moments.n,
     )
 
 

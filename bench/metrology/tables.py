@@ -17,6 +17,8 @@ import numpy as np
 import pandas as pd
 
 from bench.errors import ConfigError, InsufficientData
+from bench.metrology._moments import cycle_moments
+from bench.metrology._validation import as_points, as_vector, require_count
 from bench.metrology.iso9283 import (
     DistanceCharacteristics,
     OrientationAccuracy,
@@ -25,18 +27,18 @@ from bench.metrology.iso9283 import (
     PoseAccuracy,
     PoseRepeatability,
     distance_characteristics,
+    moments_accuracy,
+    moments_repeatability,
     orientation_accuracy,
     orientation_distance_characteristics,
     orientation_repeatability,
-    pose_accuracy,
-    pose_repeatability,
 )
 from bench.metrology.table_reading import numeric_columns, read_table_csv
 from bench.metrology.uncertainty import (
     Measured,
-    accuracy_uncertainty,
     expanded,
-    repeatability_uncertainty,
+    moments_ap_uncertainty,
+    moments_repeatability_uncertainty,
 )
 
 __all__ = [
@@ -221,9 +223,11 @@ def _checked_pose_groups(
             _check_constant_command(group, commands, source)
             _check_single_frame(group, source)
             _check_unique_cycles(group, source)
-    poses, key_values = table["pose"], [table[c].to_numpy() for c in keys]  # the labels: a string per group only
-    for rows in np.split(order, starts[1:]):
-        pose, conditions = str(poses.iat[rows[0]]), tuple((c, float(v[rows[0]])) for c, v in zip(keys, key_values))
+    # the labels: a string per group only, fetched at once (a cell fetch from pandas costs ~10 us)
+    poses = [str(pose) for pose in table["pose"].iloc[order[starts]]]
+    key_values = [table[c].to_numpy() for c in keys]
+    for pose, rows in zip(poses, np.split(order, starts[1:])):
+        conditions = tuple((c, float(v[rows[0]])) for c, v in zip(keys, key_values))
         label = pose if not conditions else f"{pose} ({', '.join(f'{n}={v:g}' for n, v in conditions)})"
         yield label, pose, conditions, rows
 
@@ -290,13 +294,17 @@ def pose_result(group: PoseGroup, *, source: str, instrument_u_mm: float, k: flo
     """AP, RP, their uncertainties and the orientation figures of one checked pose group (:func:`analyze_poses`)."""
     full_command = np.array([group.commands[c] for c in _COMMAND])
     command = full_command[[_ATTAINED.index(c) for c in group.axes]]
-    attained = group.attained
+    # checked once, then the figures share the cycles' moments (the public functions check their own inputs)
+    attained = as_points("attained_mm", group.attained)
     try:
-        repeatability = pose_repeatability(attained)
+        require_count("pose repeatability cycles", len(attained), 2)
     except InsufficientData as exc:
         raise type(exc)(f"{source}: pose {group.label!r}: {exc}") from None
-    ap_u, _ = accuracy_uncertainty(attained, command, instrument_u_mm=instrument_u_mm, k=k)
-    u_rp = repeatability_uncertainty(attained, resamples=resamples) if len(attained) >= 3 else 0.0
+    command = as_vector("commanded_mm", command, length=attained.shape[1])
+    moments = cycle_moments(attained)
+    repeatability = moments_repeatability(moments)
+    ap_u = moments_ap_uncertainty(moments, command, instrument_u_mm=instrument_u_mm, k=k)
+    u_rp = moments_repeatability_uncertainty(moments, repeatability.rp_mm) if len(attained) >= 3 else 0.0
     orientation = None
     if group.attained_deg is not None:
         orientation = (
@@ -308,7 +316,7 @@ def pose_result(group: PoseGroup, *, source: str, instrument_u_mm: float, k: flo
         pose=group.pose,
         conditions=group.conditions,
         commanded_mm=(float(full_command[0]), float(full_command[1]), float(full_command[2])),
-        accuracy=pose_accuracy(attained, command),
+        accuracy=moments_accuracy(moments, command),
         repeatability=repeatability,
         ap_u=ap_u,
         rp_u=expanded(repeatability.rp_mm, u_rp, unit="mm", k=k),

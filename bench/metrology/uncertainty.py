@@ -10,14 +10,18 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
+from functools import lru_cache
 
 import numpy as np
 from numpy.typing import ArrayLike
 
 from bench.errors import ConfigError
+from bench.metrology._moments import CycleMoments, cycle_moments, sd_of_squares, series_mean
 from bench.metrology._validation import as_points, as_series, require_count
 from bench.metrology.uncertainty_model import (
     MODEL_MAX_CYCLES,
+    _rp_of_samples,
+    checked_repeatability_uncertainty_model,
     mean_sd_uncertainty,
     repeatability_uncertainty_model,
 )
@@ -108,7 +112,7 @@ def combine(*components: float) -> float:
 
 def expanded(value: float, standard_uncertainty: float, *, unit: str, k: float = 2.0) -> Measured:
     """Expanded uncertainty U = k · u_c (GUM 6.2.1); k = 2 gives about 95 % for large ν_eff."""
-    if standard_uncertainty < 0 or not np.isfinite(standard_uncertainty):
+    if standard_uncertainty < 0 or not math.isfinite(standard_uncertainty):
         raise ConfigError(f"standard_uncertainty = {standard_uncertainty}, expected a finite number >= 0")
     return Measured(float(value), float(k * standard_uncertainty), float(k), unit)
 
@@ -119,8 +123,13 @@ def welch_satterthwaite(contributions: ArrayLike, degrees_of_freedom: ArrayLike)
     nu = np.asarray(degrees_of_freedom, dtype=float)
     if u.shape != nu.shape:
         raise ConfigError(f"contributions {u.shape} and degrees_of_freedom {nu.shape}, expected the same shape")
-    denominator = np.sum(u**4 / nu)
-    return float("inf") if denominator == 0 else float(np.sum(u**2) ** 2 / denominator)
+    return _welch_satterthwaite(u, nu)
+
+
+def _welch_satterthwaite(u: np.ndarray, nu: np.ndarray) -> float:
+    """:func:`welch_satterthwaite` of float arrays of the same shape."""
+    denominator = np.add.reduce(u**4 / nu, axis=None)
+    return float("inf") if denominator == 0 else float(np.add.reduce(u**2, axis=None) ** 2 / denominator)
 
 
 def mean_confidence_interval(values: ArrayLike, *, level: float = 0.95) -> ConfidenceInterval:
@@ -165,16 +174,10 @@ def accuracy_uncertainty(
         AP_P and the per-axis AP values with U = k · u.
     """
     attained = as_points("attained_mm", attained_mm)
-    n = len(attained)
-    require_count("accuracy uncertainty cycles", n, 2)
-    deviation = attained.mean(axis=0) - np.asarray(commanded_mm, dtype=float)
-    type_a = attained.var(axis=0, ddof=1) / n
-    u_axes = np.sqrt(type_a + instrument_u_mm**2)
-    norm = float(np.linalg.norm(deviation))
-    weights = np.zeros_like(deviation) if norm == 0 else (deviation / norm) ** 2
-    if norm == 0:
-        weights[np.argmax(u_axes)] = 1.0
-    u_norm = float(np.sqrt(np.sum(weights * u_axes**2)))
+    require_count("accuracy uncertainty cycles", len(attained), 2)
+    moments, command = cycle_moments(attained), np.asarray(commanded_mm, dtype=float)
+    n = moments.n
+    deviation, type_a, u_axes = _axis_terms(moments, command, instrument_u_mm)
     axes = tuple(
         expanded(
             d,
@@ -184,8 +187,31 @@ def accuracy_uncertainty(
         )
         for d, u, a in zip(deviation, u_axes, type_a)
     )
-    nu_norm = welch_satterthwaite([*np.sqrt(weights * type_a), instrument_u_mm], [*[n - 1] * len(type_a), math.inf])
-    return expanded(norm, u_norm, unit="mm", k=coverage_factor(k, nu_norm)), axes
+    return moments_ap_uncertainty(moments, command, instrument_u_mm=instrument_u_mm, k=k), axes
+
+
+def _axis_terms(
+    moments: CycleMoments, command: np.ndarray, instrument_u_mm: float
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Per axis: AP_x = x̄ - x_c, the Type A variance s_x²/n of x̄, and u(AP_x) = √(s_x²/n + u_inst²)."""
+    type_a = moments.variance / moments.n
+    return moments.barycentre - command, type_a, np.sqrt(type_a + instrument_u_mm**2)
+
+
+def moments_ap_uncertainty(moments: CycleMoments, command: np.ndarray, *, instrument_u_mm: float, k: float) -> Measured:
+    """AP_P with its expanded uncertainty, as :func:`accuracy_uncertainty` gives it, of checked cycles (their
+    moments, n >= 2) and a float command array (the per-axis figures left out: a pose table reports AP_P's)."""
+    n = moments.n
+    deviation, type_a, u_axes = _axis_terms(moments, command, instrument_u_mm)
+    norm = math.sqrt(deviation.dot(deviation))  # np.linalg.norm(deviation)'s arithmetic, without its wrapper
+    weights = np.zeros_like(deviation) if norm == 0 else (deviation / norm) ** 2
+    if norm == 0:
+        weights[np.argmax(u_axes)] = 1.0
+    u_norm = math.sqrt(np.add.reduce(weights * u_axes**2))
+    nu_norm = _welch_satterthwaite(
+        np.array([*np.sqrt(weights * type_a), instrument_u_mm]), np.array([*[n - 1] * len(type_a), math.inf])
+    )
+    return expanded(norm, u_norm, unit="mm", k=coverage_factor(k, nu_norm))
 
 
 def distance_accuracy_uncertainty(
@@ -215,6 +241,12 @@ def coverage_factor(k: float, degrees_of_freedom: float) -> float:
     """
     if not math.isfinite(degrees_of_freedom):
         return float(k)
+    return _student_factor(float(k), float(degrees_of_freedom))
+
+
+@lru_cache(maxsize=4096)
+def _student_factor(k: float, degrees_of_freedom: float) -> float:
+    """:func:`coverage_factor` at finite ν, cached: the poses of one table mostly share ν = n - 1."""
     from scipy.special import stdtrit  # here, not at import; scipy.special loads in a third of scipy.stats' time
 
     level = math.erf(k / math.sqrt(2.0))
@@ -273,10 +305,12 @@ def repeatability_uncertainty(
     require_count("bootstrap cycles", len(points), 3)
     if method not in ("auto", "bootstrap", "delta", "model"):
         raise ConfigError(f"method = {method!r}, expected 'auto', 'bootstrap', 'delta' or 'model'")
-    if method == "model" or (method == "auto" and len(points) <= MODEL_MAX_CYCLES):
+    if method == "model":
         return repeatability_uncertainty_model(points)
-    if method == "delta" or method == "auto":
+    if method == "delta":
         return repeatability_uncertainty_delta(points)
+    if method == "auto":
+        return moments_repeatability_uncertainty(cycle_moments(points))
     n = len(points)
     rng = np.random.default_rng(seed)
     chunk = max(1, _BOOTSTRAP_CHUNK_CYCLES // n)
@@ -287,6 +321,15 @@ def repeatability_uncertainty(
         distances = np.sqrt(np.sum((samples - samples.mean(axis=1, keepdims=True)) ** 2, axis=2))
         rp[first : first + count] = distances.mean(axis=1) + 3.0 * distances.std(axis=1, ddof=1)
     return float(rp.std(ddof=1))
+
+
+def moments_repeatability_uncertainty(moments: CycleMoments, rp_mm: float | None = None) -> float:
+    """:func:`repeatability_uncertainty` (``method="auto"``) of checked cycles (their moments), n >= 3; ``rp_mm``:
+    their RP_l when known (:func:`bench.metrology.iso9283.pose_repeatability`), else computed here."""
+    if moments.n > MODEL_MAX_CYCLES:
+        return moments_repeatability_uncertainty_delta(moments)
+    rp = float(_rp_of_samples(moments.points)) if rp_mm is None else rp_mm
+    return checked_repeatability_uncertainty_model(moments.points, rp)
 
 
 def repeatability_uncertainty_delta(attained_mm: ArrayLike) -> float:
@@ -310,23 +353,29 @@ def repeatability_uncertainty_delta(attained_mm: ArrayLike) -> float:
         Attained positions of one pose, n >= 3.
     """
     points = as_points("attained_mm", attained_mm)
-    n = len(points)
-    require_count("cycles", n, 3)
-    offsets = points - points.mean(axis=0)
+    require_count("cycles", len(points), 3)
+    return moments_repeatability_uncertainty_delta(cycle_moments(points))
+
+
+def moments_repeatability_uncertainty_delta(moments: CycleMoments) -> float:
+    """:func:`repeatability_uncertainty_delta` of checked cycles (their moments), n >= 3."""
+    n, offsets = moments.n, moments.offsets
     distances = np.sqrt(np.einsum("ij,ij->i", offsets, offsets))
-    mean_l = distances.mean()
-    spread = distances.std(ddof=1)
+    # numpy scalars, as distances.mean() and .std() gave them: spread**2 below is numpy's power, bit for bit
+    mean_l = np.float64(series_mean(distances))
+    deviation = distances - mean_l
+    squared_deviation = deviation**2
+    spread = np.float64(sd_of_squares(squared_deviation))
     if spread == 0.0:
         return 0.0
     with np.errstate(invalid="ignore", divide="ignore"):
         units = np.where(distances[:, None] > 0, offsets / distances[:, None], 0.0)
-    deviation = distances - mean_l
-    mean_u = units.mean(axis=0)
-    mean_w = (deviation[:, None] * units).mean(axis=0)
+    mean_u = np.add.reduce(units, axis=0) / n  # units.mean(axis=0), without its wrapper
+    mean_w = np.add.reduce(deviation[:, None] * units, axis=0) / n
     influence = (
-        deviation - offsets @ mean_u + 3.0 / (2.0 * spread) * (deviation**2 - spread**2 - 2.0 * (offsets @ mean_w))
+        deviation - offsets @ mean_u + 3.0 / (2.0 * spread) * (squared_deviation - spread**2 - 2.0 * (offsets @ mean_w))
     )
-    return float(np.sqrt(np.sum(influence**2)) / n)
+    return float(np.sqrt(np.add.reduce(influence**2)) / n)
 
 
 def instrument_rp_floor(sigma_mm: float, *, dims: int) -> float:

@@ -149,13 +149,16 @@ def repeatability_uncertainty_model(attained_mm: ArrayLike, *, k: float = 2.0) -
         The standard-uncertainty equivalent U / k, so that ``expanded(rp, u, k=k)`` states this U.
     """
     points = as_points("attained_mm", attained_mm, dims=None)
-    n = len(points)
-    require_count("cycles", n, 3)
-    rp = float(_rp_of_samples(points))
+    require_count("cycles", len(points), 3)
+    return checked_repeatability_uncertainty_model(points, float(_rp_of_samples(points)), k=k)
+
+
+def checked_repeatability_uncertainty_model(points: np.ndarray, rp: float, *, k: float = 2.0) -> float:
+    """:func:`repeatability_uncertainty_model` of checked cycles (n >= 3) whose RP_l = l̄ + 3 S_l is ``rp``."""
     if rp == 0.0:
         return 0.0
     level = math.erf(k / math.sqrt(2.0))
-    return rp * _rp_relative_half_width(n, _scatter_shape(points), level) / k
+    return rp * _rp_relative_half_width(len(points), _scatter_shape(points), level) / k
 
 
 @lru_cache(maxsize=4096)
