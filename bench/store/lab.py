@@ -45,6 +45,13 @@ from bench.store.lab_connection import (
     redacted,
 )
 from bench.store.lab_copy import SAMPLE_COLUMNS
+from bench.store.lab_records import (
+    READ_REASON_SQL,
+    READ_STATUS_SQL,
+    RUN_CHECK_SQL,
+    check_lab_records,
+    refuse_damaged_run,
+)
 from bench.store.lab_schema import LAB_SCHEMA_VERSION
 from bench.store.lab_sync import SyncResult, sync_after_run, sync_store
 
@@ -111,13 +118,15 @@ class LabStore:
         where = "WHERE " + " AND ".join(clauses) if clauses else ""
         rows = self._conn.execute(
             "SELECT r.local_id, r.uuid::text, r.bench, r.campaign, r.protocol_name, r.protocol_version, r.robot,"
-            " r.config_json, r.settings_json, r.calibration_ids_json, r.software_version, r.git_sha, r.status,"
-            " r.reason, r.started_utc, r.ended_utc,"
-            " (SELECT count(*) FROM bench.samples s WHERE s.run_uuid = r.uuid)"
+            " r.config_json, r.settings_json, r.calibration_ids_json, r.software_version, r.git_sha,"
+            f" {READ_STATUS_SQL}, {READ_REASON_SQL}, r.started_utc, r.ended_utc,"
+            f" (SELECT count(*) FROM bench.samples s WHERE s.run_uuid = r.uuid), {RUN_CHECK_SQL}"
             f" FROM bench.runs r {where} ORDER BY r.started_utc, r.bench, r.local_id",
             args,
         ).fetchall()
         self._conn.rollback()
+        for r in rows:  # each record checked before its JSON is read (as the local store's runs are)
+            refuse_damaged_run(f"{r[2]}/{r[0]}", r[17:], self.path)
         return [RunRecord.from_row(r, run_id=r[0], calibration_ids=tuple(json.loads(r[9]))) for r in rows]
 
     def checksum(self, run_uuid: str) -> str:
@@ -135,6 +144,11 @@ class LabStore:
         from bench.store.lab_check import check_lab_samples
 
         return check_lab_samples(self._conn, self.path)
+
+    def check_records(self) -> tuple[list[str], list[str]]:
+        """Every synced run and calibration against its bench's checksum
+        (:func:`bench.store.lab_records.check_lab_records`): the damaged records' lines, and notes on unchecked ones."""
+        return check_lab_records(self._conn, self.path)
 
     def query(self, sql: str, args: Any = (), *, settings: Mapping[str, str] | None = None) -> list[tuple[Any, ...]]:
         """Rows of a read-only SQL query over the lab schema (for lab-wide analyses and benchmarks); ``settings``

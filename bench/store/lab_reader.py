@@ -24,6 +24,14 @@ from typing import Any, Self
 
 from bench.errors import ConfigError
 from bench.store.database import CalibrationRecord, RunRecord, SampleRecord, Store
+from bench.store.lab_records import (
+    CALIBRATION_CHECK_SQL,
+    READ_REASON_SQL,
+    READ_STATUS_SQL,
+    RUN_CHECK_SQL,
+    refuse_damaged_calibration,
+    refuse_damaged_run,
+)
 from bench.store.sample_checksum import CHECKED_COLUMNS, sample_checksum
 from bench.store.store_samples import checked_sample
 
@@ -87,13 +95,14 @@ class _Numbering:
 
 _RUN_SQL = (
     "SELECT r.local_id, r.uuid::text, r.bench, r.campaign, r.protocol_name, r.protocol_version, r.robot,"
-    " r.config_json, r.settings_json, r.calibration_uuids_json, r.software_version, r.git_sha, r.status,"
-    " r.reason, r.started_utc, r.ended_utc,"
-    " (SELECT count(*) FROM bench.samples s WHERE s.run_uuid = r.uuid) FROM bench.runs r WHERE r.uuid = %s"
+    " r.config_json, r.settings_json, r.calibration_uuids_json, r.software_version, r.git_sha,"
+    f" {READ_STATUS_SQL}, {READ_REASON_SQL}, r.started_utc, r.ended_utc,"
+    f" (SELECT count(*) FROM bench.samples s WHERE s.run_uuid = r.uuid), {RUN_CHECK_SQL}"
+    " FROM bench.runs r WHERE r.uuid = %s"
 )
 _CALIBRATION_SQL = (
     "SELECT c.local_id, c.uuid::text, c.name, c.version, c.created_utc, c.params_json,"
-    " c.source_run_uuid::text, r.local_id, c.notes, c.bench"
+    f" c.source_run_uuid::text, r.local_id, c.notes, c.bench, {CALIBRATION_CHECK_SQL}"
     " FROM bench.calibrations c LEFT JOIN bench.runs r ON r.uuid = c.source_run_uuid"
 )
 
@@ -141,6 +150,7 @@ class LabRunView:
             if not rows:
                 raise ConfigError(f"run {uuid}: no such run in lab store {self.path}")
             r = rows[0]
+            refuse_damaged_run(f"{r[2]}/{r[0]}", r[17:], self.path)  # before its JSON is read
             calibrations = tuple(self._calibration_number(u) for u in json.loads(r[9]))
             self._records[uuid] = RunRecord.from_row(
                 r, run_id=self._runs.number(r[1], r[0]), calibration_ids=calibrations
@@ -201,6 +211,7 @@ class LabRunView:
     def calibration_by_id(self, calibration_id: int) -> CalibrationRecord:
         uuid = self._calibrations.uuid(calibration_id, "calibration id", f"lab store {self.path}")
         r = self._lab.query(_CALIBRATION_SQL + " WHERE c.uuid = %s", (uuid,))[0]
+        refuse_damaged_calibration(f"{r[9]}/{r[0]}", r[10:], self.path)  # before its parameters are read
         source = None if r[6] is None or r[7] is None else self._runs.number(r[6], r[7])
         return CalibrationRecord(
             id=calibration_id,
