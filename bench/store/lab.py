@@ -3,8 +3,9 @@
 The local file stays the source of truth; the server holds copies, in the schema ``bench``:
 
 - ``bench.runs``: one row per run, keyed by the run's UUID, with its bench, local id, campaign, protocol,
-  configuration (``config_json``), robot settings (``settings_json``), calibrations, software version, status;
-- ``bench.calibrations``: one row per calibration version, keyed by its UUID;
+  configuration (``config_json``), robot settings (``settings_json``), calibrations, software version, status (as
+  stored, and as its bench read it: ``read_status``), and its local record checksum (:mod:`bench.store.lab_records`);
+- ``bench.calibrations``: one row per calibration version, keyed by its UUID, with its local record checksum;
 - ``bench.samples``: one row per sample, keyed by ``(run_uuid, step_index)``, every stored column as the local file
   holds it (JSON as text, byte for byte), so :func:`rows_checksum` is equal on both sides, and one typed column per
   declared value column (``x_mm``, ``velocity_pct``, ...: :mod:`bench.store.lab_copy`) for lab-wide queries.
@@ -12,7 +13,8 @@ The local file stays the source of truth; the server holds copies, in the schema
 - ``bench.pose_keys``, ``bench.pose_point_sets``: the pose samples folded for the lab-wide summary, kept by a trigger
   as samples arrive (:mod:`bench.store.lab_summary`).
 
-Schema versions: 1 had no typed columns, 2 no pose tables, 3 no checksums, 3 and 4 a pose-points row per sample; a
+Schema versions: 1 had no typed columns, 2 no pose tables, 3 no checksums, 3 and 4 a pose-points row per sample, 1-4
+no record checksums (runs and calibrations synced then carry none until their bench syncs again); a
 bench of version 5 adds, fills or refolds what is missing when it first connects.
 
 Sync is idempotent and resumable: runs and calibrations are upserted (the local file wins: a status, a reason, a
