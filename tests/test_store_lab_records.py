@@ -104,6 +104,9 @@ def test_a_changed_digit_in_settings_or_calibration_params_is_named_and_refused(
             f"it: list the damage with `bench store check {shown}` and read a backup copy\n"
         )
     assert not (tmp_path / "again.csv").exists()
+    # the other run is read as before: a run damaged on the server does not stop reading the rest of the lab
+    assert main(["export", runs[1].uuid, "--store", lab_url, "--out", str(tmp_path / "other.csv")]) == 0
+    assert (tmp_path / "other.csv").read_text() != ""
     with psycopg.connect(lab_url, autocommit=True) as conn:  # the run mended: its report reads the calibration, refused
         conn.execute(
             "UPDATE bench.runs SET settings_json = replace(settings_json, '0.781', '0.731') WHERE local_id = 1"

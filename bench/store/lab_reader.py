@@ -20,7 +20,7 @@ from __future__ import annotations
 import json
 import re
 from collections.abc import Sequence
-from typing import Any, Self
+from typing import Any, NamedTuple, Protocol, Self, TypeVar
 
 from bench.errors import ConfigError
 from bench.store.database import CalibrationRecord, RunRecord, SampleRecord, Store
@@ -44,7 +44,27 @@ _BENCH_ID = re.compile(r"(?P<bench>.+)/(?P<id>\d+)")
 _UUID_PREFIX = re.compile(r"[0-9a-fA-F-]{8,36}")
 
 
-def pick_run(records: Sequence[RunRecord], name: str, where: str) -> RunRecord:
+class _RunName(NamedTuple):
+    """What names a run (:func:`pick_run`): its id in its bench's file, its UUID, its bench."""
+
+    id: int
+    uuid: str
+    bench: str
+
+
+class _Named(Protocol):
+    @property
+    def id(self) -> int: ...
+    @property
+    def uuid(self) -> str: ...
+    @property
+    def bench(self) -> str: ...
+
+
+_R = TypeVar("_R", bound=_Named)
+
+
+def pick_run(records: Sequence[_R], name: str, where: str) -> _R:
     """The run of ``records`` that ``name`` names (see the module docstring); :class:`ConfigError` in one line when
     it names none or several (``where`` names the store)."""
     text = str(name).strip()
@@ -141,7 +161,9 @@ class LabRunView:
 
     def name(self, name: str) -> int:
         """The id this view shows for the run ``name`` names (see the module docstring)."""
-        record = pick_run(self._lab.runs(), name, f"lab store {self.path}")
+        # by name only (read, checked, by run()): a run damaged on the server does not stop reading the others
+        names = [_RunName(*row) for row in self._lab.query("SELECT local_id, uuid::text, bench FROM bench.runs")]
+        record = pick_run(names, name, f"lab store {self.path}")
         return self._runs.number(record.uuid, record.id)
 
     def _record(self, uuid: str) -> RunRecord:
