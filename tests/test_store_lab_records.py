@@ -136,6 +136,22 @@ def test_a_shown_status_that_does_not_follow_from_the_stored_one_is_named(tmp_pa
     assert capsys.readouterr().err.startswith(f"bench: error: store {shown}: run bench-a/2 is damaged: its shown")
 
 
+def test_a_run_linked_to_another_calibration_on_the_server_is_named_and_refused(tmp_path, lab_url, capsys):
+    runs, _ = _synced(tmp_path, lab_url)
+    with Store(tmp_path / "a.db", bench="bench-a") as store:  # a second calibration version, synced: not the runs'
+        other = store.add_calibration("mouse", {"mm_per_count": 0.0318})
+        sync_store(store, lab_url)
+    with psycopg.connect(lab_url, autocommit=True) as conn:  # run 1's link (not in its checksum) to the other one
+        conn.execute("UPDATE bench.runs SET calibration_uuids_json = %s WHERE local_id = 1", (f'["{other.uuid}"]',))
+    shown = lab_url.replace("bench-test-pw", "***")
+    problem = "its calibration_uuids_json names calibrations [2] where its checked calibration_ids_json holds [1]"
+    code, lines, _ = _check(lab_url, capsys)
+    assert (code, lines) == (1, [f"{shown}: run bench-a/1 ({runs[0].uuid[:8]}): {problem}"])
+    capsys.readouterr()
+    assert main(["report", "bench-a/1", "--store", lab_url]) == 1
+    assert capsys.readouterr().err.startswith(f"bench: error: store {shown}: run bench-a/1 is damaged: {problem};")
+
+
 def test_records_synced_before_schema_5_are_named_not_checked_until_their_bench_syncs_again(tmp_path, lab_url, capsys):
     path = _store(tmp_path, samples=(5,))
     with Store(path, bench="bench-a") as store:

@@ -138,6 +138,7 @@ class LabRunView:
         self._runs = _Numbering()
         self._calibrations = _Numbering()
         self._records: dict[str, RunRecord] = {}
+        self._calibration_local_ids: dict[str, int] | None = None
 
     @classmethod
     def open(cls, url: str) -> Self:
@@ -172,7 +173,12 @@ class LabRunView:
             if not rows:
                 raise ConfigError(f"run {uuid}: no such run in lab store {self.path}")
             r = rows[0]
-            refuse_damaged_run(f"{r[2]}/{r[0]}", r[17:], self.path)  # before its JSON is read
+            if self._calibration_local_ids is None:  # (calibrations are few: their ids in their files, once)
+                self._calibration_local_ids = dict(
+                    self._lab.query("SELECT uuid::text, local_id FROM bench.calibrations")
+                )
+            links = (r[9], self._calibration_local_ids)
+            refuse_damaged_run(f"{r[2]}/{r[0]}", r[17:], self.path, links)  # before its JSON is read
             calibrations = tuple(self._calibration_number(u) for u in json.loads(r[9]))
             self._records[uuid] = RunRecord.from_row(
                 r, run_id=self._runs.number(r[1], r[0]), calibration_ids=calibrations
