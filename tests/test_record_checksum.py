@@ -137,8 +137,9 @@ def test_a_version_3_store_is_migrated_with_its_records_sealed(sound_store, tmp_
     assert check_store(str(old)) == []
 
 
-#: bench's text never holds U+0000 (NULL's mark) or U+001F (the separator): JSON escapes both
-_TEXT = st.text(alphabet=st.characters(blacklist_characters="\x00\x1f"), max_size=8)
+#: bench's text never holds U+0000 (NULL's mark) or U+001F (the separator): JSON escapes both; nor a lone surrogate
+#: (the stored JSON escapes them, and text read from non-UTF-8 bytes holds only the ones that stand for those bytes)
+_TEXT = st.text(alphabet=st.characters(blacklist_characters="\x00\x1f", blacklist_categories=("Cs",)), max_size=8)
 _FIELD = st.one_of(st.none(), st.integers(-(10**6), 10**6), _TEXT)
 
 

@@ -45,6 +45,13 @@ def _server_view(url: str, run_uuid: str) -> tuple:
         return run, lab.checksum(run_uuid), (int(folded), int(points)), json.loads(settings)
 
 
+def _records_check(url: str) -> tuple[list[str], list[str]]:
+    """The lab's damaged runs and calibrations, and those it could not check (both empty when all is sound)."""
+    with LabStore(url) as lab:
+        assert lab.query("SELECT count(*) FROM bench.runs WHERE checksum IS NULL") == [(0,)]
+        return lab.check_records()
+
+
 def test_a_run_resumed_after_its_sync_sends_what_the_resume_added(tmp_path, lab_url):
     protocol = PoseAccuracy(cycles=3, velocities_pct=[100, 10], settle_s=0.5)  # 30 pose samples
     with Store(tmp_path / "bench.db", bench="bench-r") as store:
@@ -60,6 +67,7 @@ def test_a_run_resumed_after_its_sync_sends_what_the_resume_added(tmp_path, lab_
             (8, 8),
         )
         assert [e["segment"] for e in settings["registrations"]] == [1]
+        assert _records_check(lab_url) == ([], [])  # the record and its calibration, against their checksums
 
         resumed = Runner(_rig(RecordingRobot(), "2026-12-02T10:00:00+00:00", 0.74), store).resume_run(failed.run_id)
         assert (resumed.exit_status, resumed.samples) == ("completed", 30)
@@ -80,5 +88,6 @@ def test_a_run_resumed_after_its_sync_sends_what_the_resume_added(tmp_path, lab_
             assert lab.query("SELECT uuid::text, source_run_uuid::text, params_json FROM bench.calibrations") == [
                 (made.uuid, local.uuid, '{"mm_per_count": 0.0318}')
             ]
+        assert _records_check(lab_url) == ([], [])  # the record re-sealed by the resume, as the file sealed it
         assert sync_store(store, lab_url).samples_sent == 0  # and a third sync has nothing left to send
     assert _server_view(lab_url, local.uuid)[:3] == (run, checksum, (30, 30))

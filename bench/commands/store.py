@@ -28,7 +28,10 @@ def _check(args: argparse.Namespace) -> int:
     if "://" in args.path:  # any URL (mysql:// too) is a lab address to check, its password hidden, not a file
         check_lab_url(args.path, "STORE")
         with LabStore(args.path) as lab:
-            problems, notes = lab.check_samples()
+            problems, notes = lab.check_records()
+            damaged_samples, sample_notes = lab.check_samples()
+        problems += damaged_samples
+        notes += sample_notes
         args.path = redacted(args.path)
     else:
         problems = check_store(args.path, option="STORE")

@@ -30,7 +30,7 @@ from bench import __version__
 from bench.errors import BenchError, ConfigError
 from bench.store.connection import GuardedConnection, open_connection, store_error
 from bench.store.ownership import RunLease, owner_of
-from bench.store.record_checksum import checked_columns_sql, refuse_damaged, seal_run
+from bench.store.record_checksum import checked_columns_sql, refuse_damaged, seal_run, stored_records
 from bench.store.records import (
     INTERRUPTED,
     RUN_STATUSES,
@@ -196,8 +196,9 @@ class Store(StoreSamples, StoreCalibrations):
         if lease is not None:
             lease.release()
 
-    def _reads_as(self, run_id: int, status: str, reason: str | None) -> tuple[str, str | None]:
-        """A stored ``running`` run without a live owner reads as interrupted, naming the owner and the next step."""
+    def reads_as(self, run_id: int, status: str, reason: str | None) -> tuple[str, str | None]:
+        """The status and reason run ``run_id`` reads as, given those stored: a stored ``running`` run without a live
+        owner reads as interrupted, naming the owner and the next step."""
         if status != "running" or self.path == ":memory:" or run_id in self._leases:
             return status, reason
         owner = owner_of(self.path, run_id)
@@ -365,6 +366,12 @@ class Store(StoreSamples, StoreCalibrations):
                 args.append(value)
         return self._select_runs("WHERE " + " AND ".join(clauses) if clauses else "", tuple(args))
 
+    def stored_records(self, table: str) -> list[tuple[int, tuple[Any, ...], str]]:
+        """The ``runs`` or ``calibrations`` records exactly as stored, each checked against its checksum first:
+        ``(id, checked fields, checksum)`` (:func:`bench.store.record_checksum.stored_records`; what the lab sync
+        sends)."""
+        return stored_records(self._db, table, self.path)
+
     def _select_runs(self, where: str, args: tuple[Any, ...]) -> list[RunRecord]:
         query = (
             "SELECT r.id, r.uuid, r.bench, c.name, r.protocol_name, r.protocol_version, r.robot, r.config_json,"
@@ -378,7 +385,7 @@ class Store(StoreSamples, StoreCalibrations):
         for row in self._db.execute(query, args).fetchall():
             # the record is checked before its JSON is read: a changed byte is refused, never parsed as something else
             refuse_damaged("runs", row[0], row[17:-1], row[-1], self.path)
-            status, reason = self._reads_as(row[0], row[12], row[13])
+            status, reason = self.reads_as(row[0], row[12], row[13])
             record = RunRecord.from_row(row, run_id=row[0], calibration_ids=tuple(json.loads(row[9])))
             records.append(replace(record, status=status, reason=reason))
         return records

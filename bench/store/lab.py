@@ -3,8 +3,9 @@
 The local file stays the source of truth; the server holds copies, in the schema ``bench``:
 
 - ``bench.runs``: one row per run, keyed by the run's UUID, with its bench, local id, campaign, protocol,
-  configuration (``config_json``), robot settings (``settings_json``), calibrations, software version, status;
-- ``bench.calibrations``: one row per calibration version, keyed by its UUID;
+  configuration (``config_json``), robot settings (``settings_json``), calibrations, software version, status (as
+  stored, and as its bench read it: ``read_status``), and its local record checksum (:mod:`bench.store.lab_records`);
+- ``bench.calibrations``: one row per calibration version, keyed by its UUID, with its local record checksum;
 - ``bench.samples``: one row per sample, keyed by ``(run_uuid, step_index)``, every stored column as the local file
   holds it (JSON as text, byte for byte), so :func:`rows_checksum` is equal on both sides, and one typed column per
   declared value column (``x_mm``, ``velocity_pct``, ...: :mod:`bench.store.lab_copy`) for lab-wide queries.
@@ -12,7 +13,8 @@ The local file stays the source of truth; the server holds copies, in the schema
 - ``bench.pose_keys``, ``bench.pose_point_sets``: the pose samples folded for the lab-wide summary, kept by a trigger
   as samples arrive (:mod:`bench.store.lab_summary`).
 
-Schema versions: 1 had no typed columns, 2 no pose tables, 3 no checksums, 3 and 4 a pose-points row per sample; a
+Schema versions: 1 had no typed columns, 2 no pose tables, 3 no checksums, 3 and 4 a pose-points row per sample, 1-4
+no record checksums (runs and calibrations synced then carry none until their bench syncs again); a
 bench of version 5 adds, fills or refolds what is missing when it first connects.
 
 Sync is idempotent and resumable: runs and calibrations are upserted (the local file wins: a status, a reason, a
@@ -45,6 +47,13 @@ from bench.store.lab_connection import (
     redacted,
 )
 from bench.store.lab_copy import SAMPLE_COLUMNS
+from bench.store.lab_records import (
+    READ_REASON_SQL,
+    READ_STATUS_SQL,
+    RUN_CHECK_SQL,
+    check_lab_records,
+    refuse_damaged_run,
+)
 from bench.store.lab_schema import LAB_SCHEMA_VERSION
 from bench.store.lab_sync import SyncResult, sync_after_run, sync_store
 
@@ -111,13 +120,15 @@ class LabStore:
         where = "WHERE " + " AND ".join(clauses) if clauses else ""
         rows = self._conn.execute(
             "SELECT r.local_id, r.uuid::text, r.bench, r.campaign, r.protocol_name, r.protocol_version, r.robot,"
-            " r.config_json, r.settings_json, r.calibration_ids_json, r.software_version, r.git_sha, r.status,"
-            " r.reason, r.started_utc, r.ended_utc,"
-            " (SELECT count(*) FROM bench.samples s WHERE s.run_uuid = r.uuid)"
+            " r.config_json, r.settings_json, r.calibration_ids_json, r.software_version, r.git_sha,"
+            f" {READ_STATUS_SQL}, {READ_REASON_SQL}, r.started_utc, r.ended_utc,"
+            f" (SELECT count(*) FROM bench.samples s WHERE s.run_uuid = r.uuid), {RUN_CHECK_SQL}"
             f" FROM bench.runs r {where} ORDER BY r.started_utc, r.bench, r.local_id",
             args,
         ).fetchall()
         self._conn.rollback()
+        for r in rows:  # each record checked before its JSON is read (as the local store's runs are)
+            refuse_damaged_run(f"{r[2]}/{r[0]}", r[17:], self.path)
         return [RunRecord.from_row(r, run_id=r[0], calibration_ids=tuple(json.loads(r[9]))) for r in rows]
 
     def checksum(self, run_uuid: str) -> str:
@@ -135,6 +146,11 @@ class LabStore:
         from bench.store.lab_check import check_lab_samples
 
         return check_lab_samples(self._conn, self.path)
+
+    def check_records(self) -> tuple[list[str], list[str]]:
+        """Every synced run and calibration against its bench's checksum
+        (:func:`bench.store.lab_records.check_lab_records`): the damaged records' lines, and notes on unchecked ones."""
+        return check_lab_records(self._conn, self.path)
 
     def query(self, sql: str, args: Any = (), *, settings: Mapping[str, str] | None = None) -> list[tuple[Any, ...]]:
         """Rows of a read-only SQL query over the lab schema (for lab-wide analyses and benchmarks); ``settings``

@@ -4,7 +4,8 @@ and every typed column (``x_mm``, ...) against the number its ``values_json`` ho
 changed number on the server is found, one line per damaged sample.
 
 A sample synced before lab schema 4 carries no checksum: it cannot be checked, and each run holding such samples
-is named once (they are not damage). The pose tables (``bench.pose_keys``, ``bench.pose_point_sets``) are folded from
+is named once (they are not damage). The runs and calibrations are checked against their own checksums by
+:mod:`bench.store.lab_records` (``bench store check`` runs both). The pose tables (``bench.pose_keys``, ``bench.pose_point_sets``) are folded from
 the typed columns and not checked here.
 """
 

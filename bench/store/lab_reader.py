@@ -20,10 +20,18 @@ from __future__ import annotations
 import json
 import re
 from collections.abc import Sequence
-from typing import Any, Self
+from typing import Any, NamedTuple, Protocol, Self, TypeVar
 
 from bench.errors import ConfigError
 from bench.store.database import CalibrationRecord, RunRecord, SampleRecord, Store
+from bench.store.lab_records import (
+    CALIBRATION_CHECK_SQL,
+    READ_REASON_SQL,
+    READ_STATUS_SQL,
+    RUN_CHECK_SQL,
+    refuse_damaged_calibration,
+    refuse_damaged_run,
+)
 from bench.store.sample_checksum import CHECKED_COLUMNS, sample_checksum
 from bench.store.store_samples import checked_sample
 
@@ -36,7 +44,27 @@ _BENCH_ID = re.compile(r"(?P<bench>.+)/(?P<id>\d+)")
 _UUID_PREFIX = re.compile(r"[0-9a-fA-F-]{8,36}")
 
 
-def pick_run(records: Sequence[RunRecord], name: str, where: str) -> RunRecord:
+class _RunName(NamedTuple):
+    """What names a run (:func:`pick_run`): its id in its bench's file, its UUID, its bench."""
+
+    id: int
+    uuid: str
+    bench: str
+
+
+class _Named(Protocol):
+    @property
+    def id(self) -> int: ...
+    @property
+    def uuid(self) -> str: ...
+    @property
+    def bench(self) -> str: ...
+
+
+_R = TypeVar("_R", bound=_Named)
+
+
+def pick_run(records: Sequence[_R], name: str, where: str) -> _R:
     """The run of ``records`` that ``name`` names (see the module docstring); :class:`ConfigError` in one line when
     it names none or several (``where`` names the store)."""
     text = str(name).strip()
@@ -87,13 +115,14 @@ class _Numbering:
 
 _RUN_SQL = (
     "SELECT r.local_id, r.uuid::text, r.bench, r.campaign, r.protocol_name, r.protocol_version, r.robot,"
-    " r.config_json, r.settings_json, r.calibration_uuids_json, r.software_version, r.git_sha, r.status,"
-    " r.reason, r.started_utc, r.ended_utc,"
-    " (SELECT count(*) FROM bench.samples s WHERE s.run_uuid = r.uuid) FROM bench.runs r WHERE r.uuid = %s"
+    " r.config_json, r.settings_json, r.calibration_uuids_json, r.software_version, r.git_sha,"
+    f" {READ_STATUS_SQL}, {READ_REASON_SQL}, r.started_utc, r.ended_utc,"
+    f" (SELECT count(*) FROM bench.samples s WHERE s.run_uuid = r.uuid), {RUN_CHECK_SQL}"
+    " FROM bench.runs r WHERE r.uuid = %s"
 )
 _CALIBRATION_SQL = (
     "SELECT c.local_id, c.uuid::text, c.name, c.version, c.created_utc, c.params_json,"
-    " c.source_run_uuid::text, r.local_id, c.notes, c.bench"
+    f" c.source_run_uuid::text, r.local_id, c.notes, c.bench, {CALIBRATION_CHECK_SQL}"
     " FROM bench.calibrations c LEFT JOIN bench.runs r ON r.uuid = c.source_run_uuid"
 )
 
@@ -109,6 +138,7 @@ class LabRunView:
         self._runs = _Numbering()
         self._calibrations = _Numbering()
         self._records: dict[str, RunRecord] = {}
+        self._calibration_local_ids: dict[str, int] | None = None
 
     @classmethod
     def open(cls, url: str) -> Self:
@@ -132,7 +162,9 @@ class LabRunView:
 
     def name(self, name: str) -> int:
         """The id this view shows for the run ``name`` names (see the module docstring)."""
-        record = pick_run(self._lab.runs(), name, f"lab store {self.path}")
+        # by name only (read, checked, by run()): a run damaged on the server does not stop reading the others
+        names = [_RunName(*row) for row in self._lab.query("SELECT local_id, uuid::text, bench FROM bench.runs")]
+        record = pick_run(names, name, f"lab store {self.path}")
         return self._runs.number(record.uuid, record.id)
 
     def _record(self, uuid: str) -> RunRecord:
@@ -141,6 +173,12 @@ class LabRunView:
             if not rows:
                 raise ConfigError(f"run {uuid}: no such run in lab store {self.path}")
             r = rows[0]
+            if self._calibration_local_ids is None:  # (calibrations are few: their ids in their files, once)
+                self._calibration_local_ids = dict(
+                    self._lab.query("SELECT uuid::text, local_id FROM bench.calibrations")
+                )
+            links = (r[9], self._calibration_local_ids)
+            refuse_damaged_run(f"{r[2]}/{r[0]}", r[17:], self.path, links)  # before its JSON is read
             calibrations = tuple(self._calibration_number(u) for u in json.loads(r[9]))
             self._records[uuid] = RunRecord.from_row(
                 r, run_id=self._runs.number(r[1], r[0]), calibration_ids=calibrations
@@ -201,6 +239,7 @@ class LabRunView:
     def calibration_by_id(self, calibration_id: int) -> CalibrationRecord:
         uuid = self._calibrations.uuid(calibration_id, "calibration id", f"lab store {self.path}")
         r = self._lab.query(_CALIBRATION_SQL + " WHERE c.uuid = %s", (uuid,))[0]
+        refuse_damaged_calibration(f"{r[9]}/{r[0]}", r[10:], self.path)  # before its parameters are read
         source = None if r[6] is None or r[7] is None else self._runs.number(r[6], r[7])
         return CalibrationRecord(
             id=calibration_id,

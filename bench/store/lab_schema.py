@@ -39,6 +39,11 @@ CREATE TABLE IF NOT EXISTS bench.runs (
     ended_utc text,
     synced_utc timestamptz NOT NULL DEFAULT now()
 );
+-- v5: the local store's checksum of the run as stored (status and reason as stored, checked by
+-- bench.store.lab_records), and the status and reason the bench read it as when synced (what the lab shows)
+ALTER TABLE bench.runs ADD COLUMN IF NOT EXISTS checksum text;  -- NULL: synced before v5
+ALTER TABLE bench.runs ADD COLUMN IF NOT EXISTS read_status text;
+ALTER TABLE bench.runs ADD COLUMN IF NOT EXISTS read_reason text;
 CREATE INDEX IF NOT EXISTS runs_bench_robot_started ON bench.runs (bench, robot, started_utc);
 CREATE TABLE IF NOT EXISTS bench.calibrations (
     uuid uuid PRIMARY KEY,
@@ -51,6 +56,9 @@ CREATE TABLE IF NOT EXISTS bench.calibrations (
     source_run_uuid uuid,
     notes text NOT NULL
 );
+-- v5: the source run's id in its bench's file (the local checksum covers it) and the local store's checksum
+ALTER TABLE bench.calibrations ADD COLUMN IF NOT EXISTS source_run_local_id integer;
+ALTER TABLE bench.calibrations ADD COLUMN IF NOT EXISTS checksum text;  -- NULL: synced before v5
 CREATE TABLE IF NOT EXISTS bench.samples (
     run_uuid uuid NOT NULL,  -- a bench.runs uuid: checked per statement (_RUN_REFERENCES_DDL), not per row
     step_index integer NOT NULL,

@@ -18,6 +18,7 @@ from bench.store.lab_batches import Batch, lane_batches, producer_count
 from bench.store.lab_connection import LabServerBusy, LabStoreError, connect, one_line, psycopg_module, redacted
 from bench.store.lab_copy import COPY_COLUMNS
 from bench.store.lab_schema import ensure_schema
+from bench.store.record_checksum import CALIBRATION_CHECKED_COLUMNS, RUN_CHECKED_COLUMNS
 
 if TYPE_CHECKING:  # psycopg is the lab-store extra, imported when a sync starts
     from psycopg import Connection, Cursor
@@ -32,24 +33,24 @@ LANES = 2
 #: Memory for the pose trigger's transition table of one batch (about 400 bytes a row): with the server's default
 #: (4 MB) a 20 000-sample batch spills to a temporary file (10-15 % more of the server's time per sample).
 _WORK_MEM = "64MB"
+#: The bench.runs columns a sync fills: the run's checked columns exactly as its file stores them (status and
+#: reason as stored) with the file's checksum of them, and beside them the status and reason the file reads the
+#: run as when synced (a ``running`` run without a live owner reads as interrupted), which the lab shows.
 _RUN_COLUMNS = (
-    "uuid",
+    *RUN_CHECKED_COLUMNS,
+    "local_id",
+    "calibration_uuids_json",
+    "checksum",
+    "read_status",
+    "read_reason",
+)
+_CALIBRATION_COLUMNS = (
+    *(c for c in CALIBRATION_CHECKED_COLUMNS if c != "source_run_id"),
     "bench",
     "local_id",
-    "campaign",
-    "protocol_name",
-    "protocol_version",
-    "robot",
-    "config_json",
-    "settings_json",
-    "calibration_ids_json",
-    "calibration_uuids_json",
-    "software_version",
-    "git_sha",
-    "status",
-    "reason",
-    "started_utc",
-    "ended_utc",
+    "source_run_uuid",
+    "source_run_local_id",
+    "checksum",
 )
 
 
@@ -67,26 +68,39 @@ class SyncResult:
         return self.samples_sent / self.seconds if self.seconds > 0 else float("inf")
 
 
-def _run_row(store: Store, run: RunRecord, calibration_uuids: dict[int, str]) -> tuple[Any, ...]:
-    return (
-        run.uuid,
-        run.bench,
-        run.id,
-        run.campaign,
-        run.protocol_name,
-        run.protocol_version,
-        run.robot,
-        json.dumps(run.config, sort_keys=True),
-        json.dumps(run.settings, sort_keys=True),
-        json.dumps(list(run.calibration_ids)),
-        json.dumps([calibration_uuids.get(i) for i in run.calibration_ids]),
-        run.software_version,
-        run.git_sha,
-        run.status,
-        run.reason,
-        run.started_utc,
-        run.ended_utc,
-    )
+def _run_row(
+    store: Store, stored: tuple[int, tuple[Any, ...], str], calibration_uuids: dict[int, str]
+) -> tuple[Any, ...]:
+    """One bench.runs row (:data:`_RUN_COLUMNS`) from a run ``stored`` as :meth:`Store.stored_records` reads it."""
+    run_id, fields, checksum = stored
+    row = dict(zip(RUN_CHECKED_COLUMNS, fields))
+    read_status, read_reason = store.reads_as(run_id, row["status"], row["reason"])
+    calibration_ids = json.loads(row["calibration_ids_json"])
+    row |= {
+        "local_id": run_id,
+        "calibration_uuids_json": json.dumps([calibration_uuids.get(i) for i in calibration_ids]),
+        "checksum": checksum,
+        "read_status": read_status,
+        "read_reason": read_reason,
+    }
+    return tuple(row[c] for c in _RUN_COLUMNS)
+
+
+def _calibration_row(
+    store: Store, stored: tuple[int, tuple[Any, ...], str], run_uuids: dict[int, str]
+) -> tuple[Any, ...]:
+    """One bench.calibrations row (:data:`_CALIBRATION_COLUMNS`) from a calibration as stored."""
+    calibration_id, fields, checksum = stored
+    row = dict(zip(CALIBRATION_CHECKED_COLUMNS, fields))
+    source = row["source_run_id"]
+    row |= {
+        "bench": store.bench,
+        "local_id": calibration_id,
+        "source_run_uuid": None if source is None else run_uuids.get(source),
+        "source_run_local_id": source,
+        "checksum": checksum,
+    }
+    return tuple(row[c] for c in _CALIBRATION_COLUMNS)
 
 
 def _copy(cur: Cursor[Any], table: str, chunks: list[bytes]) -> None:
@@ -206,35 +220,24 @@ def _push(
 ) -> tuple[int, int]:
     """Upsert runs and calibrations, then send the samples the server lacks; ``sent[0]`` counts the samples
     committed (kept when a later batch fails)."""
-    calibrations = store.calibrations()
-    runs = store.runs()
-    run_uuids = {r.id: r.uuid for r in runs}
-    calibration_uuids = {c.id: c.uuid for c in calibrations}
-    placeholders = ", ".join(["%s"] * len(_RUN_COLUMNS))
+    calibrations = store.stored_records("calibrations")  # before the runs: every run's calibrations are among them
+    runs = store.runs()  # (then every run whose samples are sent has its row: a run started meanwhile waits)
+    stored_runs = store.stored_records("runs")
+    run_uuids = {r[0]: r[1][0] for r in stored_runs}
+    calibration_uuids = {c[0]: c[1][0] for c in calibrations}
     updates = ", ".join(f"{c} = EXCLUDED.{c}" for c in _RUN_COLUMNS[1:])
     with conn.transaction(), conn.cursor() as cur:
         cur.executemany(
-            f"INSERT INTO bench.runs ({', '.join(_RUN_COLUMNS)}) VALUES ({placeholders})"
+            f"INSERT INTO bench.runs ({', '.join(_RUN_COLUMNS)}) VALUES ({', '.join(['%s'] * len(_RUN_COLUMNS))})"
             f" ON CONFLICT (uuid) DO UPDATE SET {updates}, synced_utc = now()",
-            [_run_row(store, r, calibration_uuids) for r in runs],
+            [_run_row(store, r, calibration_uuids) for r in stored_runs],
         )
-        cur.executemany(
-            "INSERT INTO bench.calibrations (uuid, bench, local_id, name, version, created_utc, params_json,"
-            " source_run_uuid, notes) VALUES (%s, %s, %s, %s, %s, %s, %s, %s, %s) ON CONFLICT (uuid) DO NOTHING",
-            [
-                (
-                    c.uuid,
-                    store.bench,
-                    c.id,
-                    c.name,
-                    c.version,
-                    c.created_utc,
-                    json.dumps(c.params, sort_keys=True),
-                    None if c.source_run_id is None else run_uuids.get(c.source_run_id),
-                    c.notes,
-                )
-                for c in calibrations
-            ],
+        cur.executemany(  # a calibration never changes: one synced before v5 only gets what its check needs
+            f"INSERT INTO bench.calibrations ({', '.join(_CALIBRATION_COLUMNS)})"
+            f" VALUES ({', '.join(['%s'] * len(_CALIBRATION_COLUMNS))}) ON CONFLICT (uuid) DO UPDATE SET"
+            " source_run_local_id = EXCLUDED.source_run_local_id, checksum = EXCLUDED.checksum"
+            " WHERE bench.calibrations.checksum IS NULL",
+            [_calibration_row(store, c, run_uuids) for c in calibrations],
         )
     conn.commit()
     held = _held_steps(conn, runs)

@@ -29,9 +29,12 @@ __all__ = [
     "checked_columns_sql",
     "damaged_record_lines",
     "record_checksum",
+    "record_problem",
+    "refuse",
     "refuse_damaged",
     "seal_run",
     "seal_all",
+    "stored_records",
 ]
 
 #: The ``runs`` columns the checksum covers, in the order hashed: every column bench writes.
@@ -68,7 +71,8 @@ def record_checksum(*fields: object) -> str:
     return hash_fields(None if f is None else str(f) for f in fields)
 
 
-def _problem(fields: Sequence[Any], checksum: str | None) -> str | None:
+def record_problem(fields: Sequence[Any], checksum: str | None) -> str | None:
+    """Why a record's checked ``fields`` fail their ``checksum``, or None when they match."""
     if checksum is None:
         return "it has no checksum (written outside bench)"
     if record_checksum(*fields) != checksum:
@@ -76,15 +80,20 @@ def _problem(fields: Sequence[Any], checksum: str | None) -> str | None:
     return None
 
 
-def refuse_damaged(table: str, record_id: int, fields: Sequence[Any], checksum: str | None, path: str) -> None:
-    """Raise :class:`DamagedRecord` in one line when the ``table`` row ``record_id`` (its checked ``fields``, in
-    the order of its columns above) fails its ``checksum``."""
-    problem = _problem(fields, checksum)
+def refuse(table: str, record_id: int | str, problem: str | None, path: str) -> None:
+    """Raise :class:`DamagedRecord` in one line naming the ``table`` record ``record_id`` (an id, or ``BENCH/ID``
+    in the lab store) and its ``problem``, when there is one."""
     if problem is not None:
         raise DamagedRecord(
             f"store {path}: {_SINGULAR[table]} {record_id} is damaged: {problem}; it is refused, nothing computed "
             f"from it: list the damage with `bench store check {path}` and read a backup copy"
         )
+
+
+def refuse_damaged(table: str, record_id: int | str, fields: Sequence[Any], checksum: str | None, path: str) -> None:
+    """Raise :class:`DamagedRecord` in one line when the ``table`` row ``record_id`` (its checked ``fields``, in
+    the order of its columns above) fails its ``checksum``."""
+    refuse(table, record_id, record_problem(fields, checksum), path)
 
 
 def checked_columns_sql(table: str, alias: str) -> str:
@@ -116,6 +125,17 @@ def seal_all(db: sqlite3.Connection) -> None:
         )
 
 
+def stored_records(db: Any, table: str, path: str) -> list[tuple[int, tuple[Any, ...], str]]:
+    """Every ``table`` record exactly as stored, by id: ``(id, checked fields, checksum)``, each checked first
+    (:class:`DamagedRecord` for a damaged one): what the lab sync sends with its checksum, so that the lab's copy is
+    checked against the bytes this store sealed."""
+    records = []
+    for record_id, *fields, checksum in db.execute(_select(table, "ORDER BY t.id")).fetchall():
+        refuse_damaged(table, record_id, fields, checksum, path)
+        records.append((record_id, tuple(fields), checksum))
+    return records
+
+
 def damaged_record_lines(db: sqlite3.Connection, path: str) -> Iterable[str]:
     """One line per damaged run or calibration of the store behind ``db`` (for ``bench store check``); nothing for
     a store older than schema version 4 (opening it with bench migrates it)."""
@@ -123,6 +143,6 @@ def damaged_record_lines(db: sqlite3.Connection, path: str) -> Iterable[str]:
         if "checksum" not in {row[1] for row in db.execute(f"PRAGMA table_info({table})")}:
             continue
         for record_id, *fields, checksum in db.execute(_select(table, "ORDER BY t.id")):
-            problem = _problem(fields, checksum)
+            problem = record_problem(fields, checksum)
             if problem is not None:
                 yield f"{path}: {_SINGULAR[table]} {record_id} ({table} row {record_id}): {problem}"
