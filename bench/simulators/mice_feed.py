@@ -12,7 +12,10 @@ counts the rig's seconds (``CLOCK_MONOTONIC`` x the simulator's ``--speed-factor
 of wall time, so its reports end now and start after the previous move's last report, and the report times of a
 mouse never run backwards (a move the clock cannot fit is compressed into the time since the last report).
 A FIFO nobody drains fills up
-and further reports are lost, as a kernel buffer overflows (``SYN_DROPPED``). The x-z mouse rides the platform (it
+and further reports are lost, as a kernel buffer overflows (whole events only: the FIFO is written in atomic,
+event-aligned pieces, so the host never reads a torn event). A rest waits up to :data:`_DRAIN_WAIT_S` for a host
+that has not read yet (before it opens its mice) and up to :data:`_DRAIN_WAIT_READING_S` for one seen reading
+(a host starved of CPU catches up rather than losing counts the cross-check would then refuse). The x-z mouse rides the platform (it
 sees x and z) or, ``--mice-xz-mount guided``, runs on vertical guides pushed by the end effector (the dissertation's
 Z mouse): it sees z only, its x counts stay 0 apart from noise (:func:`seen_by`).
 """
@@ -20,9 +23,12 @@ Z mouse): it sees z only, its x counts stay 0 apart from noise (:func:`seen_by`)
 from __future__ import annotations
 
 import dataclasses
+import fcntl
 import logging
 import os
 import select
+import struct
+import termios
 import time
 from pathlib import Path
 from typing import Any
@@ -43,6 +49,12 @@ MOTION_S = 0.05
 #: the host's reader empties a pipe's buffer in well under a millisecond; nobody reads before the host opens its
 #: mice (the homing move), and the controller must answer within its link's timeout meanwhile.
 _DRAIN_WAIT_S = 0.05
+#: The same once the host has been seen draining the FIFO: a reader starved of CPU for this long (a loaded test
+#: machine) still gets every report; the controller's DONE waits meanwhile, well within its move's margin.
+_DRAIN_WAIT_READING_S = 1.0
+#: The largest piece written at once: whole ``input_event`` records (24 bytes) within ``PIPE_BUF`` (4096 bytes), which
+#: a pipe writes atomically, all or nothing: a full FIFO never leaves half an event for the host to read.
+_PIECE_BYTES = 24 * (select.PIPE_BUF // 24)
 #: The pose coordinates each mouse sees: x-y mouse (x, y), x-z mouse (x, z).
 PLANES = {"xy": (0, 1), "xz": (0, 2)}
 
@@ -96,6 +108,8 @@ class MiceFeed:
         self._speed_factor = float(speed_factor)
         self._clock_s = self._now()
         self._writers: dict[str, int] = {}
+        self._unread: dict[str, int] = {}  # per FIFO, the bytes it held after the last write
+        self._host_reads: dict[str, bool] = {}  # per FIFO, whether the host has been seen draining it
         self._streams: dict[str, MouseStream] = {}
         start = np.asarray(start_pose, dtype=float)[:3]
         self._start, self._xz_mount = start, xz_mount
@@ -105,6 +119,7 @@ class MiceFeed:
             # read-write and non-blocking: the open returns before the host opens its end, and a full FIFO never
             # blocks the simulator for long (the reports are lost instead, as a kernel buffer overflows)
             self._writers[plane] = os.open(path, os.O_RDWR | os.O_NONBLOCK)
+            self._unread[plane], self._host_reads[plane] = _unread_bytes(self._writers[plane]), False
             simulator = MouseSimulator(
                 cpi=cpi, noise_counts=noise_counts, report_rate_hz=report_rate_hz, seed=plane_seed(seed, index)
             )
@@ -123,12 +138,19 @@ class MiceFeed:
         # at rest until the move started; a move the clock has no time for is compressed into the time since the
         # last report
         start_s = min(max(end_s - float(motion_s), self._clock_s), end_s - 1e-6)
-        deadline = time.monotonic() + _DRAIN_WAIT_S
+        now = time.monotonic()
         for plane in PLANES:
             self._streams[plane].idle_until(start_s)
             seen = seen_by(plane, xyz[None], self._start, self._xz_mount)
             data = self._streams[plane].input_events(np.array([end_s]), seen)
-            written = _write_draining(self._writers[plane], data, deadline)
+            fd = self._writers[plane]
+            before = _unread_bytes(fd)
+            # bytes gone from the FIFO since the last write, or during this one: the host reads it
+            self._host_reads[plane] = self._host_reads[plane] or before < self._unread[plane]
+            wait_s = _DRAIN_WAIT_READING_S if self._host_reads[plane] else _DRAIN_WAIT_S
+            written = _write_draining(fd, data, now + wait_s)
+            self._unread[plane] = _unread_bytes(fd)
+            self._host_reads[plane] = self._host_reads[plane] or self._unread[plane] < before + written
             if written < len(data):
                 _log.warning(
                     "mouse_%s: FIFO full, %d of %d bytes of reports lost", plane, len(data) - written, len(data)
@@ -141,13 +163,19 @@ class MiceFeed:
         self._writers.clear()
 
 
+def _unread_bytes(fd: int) -> int:
+    """The bytes a FIFO holds that nobody has read yet (``FIONREAD``)."""
+    return int(struct.unpack("i", fcntl.ioctl(fd, termios.FIONREAD, b"\0\0\0\0"))[0])
+
+
 def _write_draining(fd: int, data: bytes, deadline: float) -> int:
-    """Write ``data`` to a non-blocking FIFO, waiting until ``deadline`` (monotonic) while it is full for the host's
-    reader to drain it (a long move's reports exceed a pipe's buffer); the bytes written."""
+    """Write ``data`` (whole ``input_event`` records) to a non-blocking FIFO in atomic pieces of whole records,
+    waiting until ``deadline`` (monotonic) while it is full for the host's reader to drain it (a long move's reports
+    exceed a pipe's buffer); the bytes written, always whole records."""
     written = 0
     while written < len(data):
         try:
-            written += os.write(fd, data[written:])
+            written += os.write(fd, data[written : written + _PIECE_BYTES])
         except BlockingIOError:
             remaining = deadline - time.monotonic()
             if remaining <= 0 or not select.select([], [fd], [], remaining)[1]:
