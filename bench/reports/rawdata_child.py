@@ -1,0 +1,120 @@
+"""A long run's raw-data CSV written by a second process while the report's analysis reads the same run.
+
+Writing a long path run's CSV (:mod:`bench.reports.rawdata_text`) costs about as much again as reading its samples:
+1.4 s of the report's CPU at 1.16 million points, on one core while a second waits. Here a child process
+(``python -m bench.reports.rawdata_child``) opens the store read-only (SQLite in WAL mode lets readers run beside
+each other and beside a writer), reads the run's samples of the kind itself and writes their CSV with the same code
+as the serial path (:meth:`bench.reports.rawdata.StreamedSeries.write_from_store`: the same bytes) to a temporary
+file; the report joins it before the document cites the file's SHA-256 (:meth:`CsvInChild.join`), and moves the
+file into place only then. A child that fails is one line (its error), nothing is left at the CSV's path, and a
+child whose run differs from the analysed one (a resumed run that gained samples between the two reads) is refused,
+never cited. A process start and its imports cost 0.3-0.5 s of wall time (measured on this machine), so runs under
+:data:`PROCESS_MIN_SAMPLES` samples keep the serial path.
+"""
+
+from __future__ import annotations
+
+import os
+import shutil
+import subprocess
+import sys
+import tempfile
+import weakref
+from pathlib import Path
+from typing import Any
+
+from bench.errors import BenchError
+
+__all__ = ["PROCESS_MIN_SAMPLES", "CsvInChild", "worth_a_process"]
+
+#: The fewest samples of a kind for which the CSV gets its own process: 1,000 path samples are about 160,000
+#: streamed points, whose CSV the report writes serially in about 0.2 s, less than a process start and its imports.
+PROCESS_MIN_SAMPLES = 1000
+
+
+def worth_a_process(store: Any, run_id: int, kind: str) -> bool:
+    """Whether the CSV of run ``run_id``'s ``kind`` samples is written by a process of its own: a store file (not a
+    lab view, not in memory) holding at least :data:`PROCESS_MIN_SAMPLES` such samples (an index count)."""
+    if not hasattr(store, "iter_samples_text") or not hasattr(store, "sample_kinds"):
+        return False
+    if store.path == ":memory:" or not Path(store.path).is_file():
+        return False
+    return bool(store.sample_kinds(run_id).get(kind, 0) >= PROCESS_MIN_SAMPLES)
+
+
+def _abandon(process: subprocess.Popen[bytes], temporary: str) -> None:
+    """Stop a child that is no longer wanted and remove its partial file."""
+    if process.poll() is None:
+        process.kill()
+    process.communicate()
+    Path(temporary).unlink(missing_ok=True)
+
+
+class CsvInChild:
+    """The CSV of run ``run_id``'s ``kind`` samples in store file ``store_path``, being written by a child process
+    (started here) to a temporary file; :meth:`join` waits for it and moves the file to where the report wants it."""
+
+    def __init__(self, store_path: str, run_id: int, kind: str, rows: int) -> None:
+        self.run_id = run_id
+        handle, self.temporary = tempfile.mkstemp(prefix=f"run{run_id}_", suffix=".csv.part")
+        os.close(handle)
+        package_root = str(Path(__file__).resolve().parents[2])  # the folder holding bench/, wherever it came from
+        env = {**os.environ, "PYTHONPATH": os.pathsep.join(filter(None, [package_root, os.environ.get("PYTHONPATH")]))}
+        self.process = subprocess.Popen(
+            [sys.executable, "-m", __name__, store_path, str(run_id), kind, str(rows), self.temporary],
+            stdin=subprocess.DEVNULL,
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+            env=env,
+        )
+        # a report that fails before joining (or is dropped) stops the child and leaves no partial file behind
+        self._abandon = weakref.finalize(self, _abandon, self.process, self.temporary)
+
+    def join(self, path: str | Path, samples: int | None) -> tuple[str, int]:
+        """Wait for the child, then move its CSV to ``path``; its SHA-256 and rows. ``samples``: how many samples
+        the analysis read (None: not counted), which the child's must equal.
+
+        Raises
+        ------
+        BenchError
+            One line: the child's error, or the run changed between the two reads; nothing is written at ``path``.
+        """
+        out, err = self.process.communicate()
+        failed = None
+        if self.process.returncode != 0:
+            said = err.decode(errors="replace").strip().splitlines()
+            failed = said[-1] if said else f"it ended with code {self.process.returncode}"
+        else:
+            digest, rows, written = out.decode().split()
+            if samples is not None and int(written) != samples:
+                failed = (
+                    f"it read {written} samples and the analysis {samples}: the run changed while the report was "
+                    "written; write the report again"
+                )
+        if failed is not None:
+            self._abandon()
+            raise BenchError(f"run {self.run_id}: the raw-data CSV was not written ({failed})")
+        shutil.move(self.temporary, path)
+        self._abandon.detach()
+        return digest, int(rows)
+
+
+def main(argv: list[str]) -> int:
+    """The child: ``STORE RUN_ID KIND ROWS TARGET``; prints ``SHA256 ROWS SAMPLES``, or one error line (exit 1)."""
+    store_path, run_id, kind, rows, target = argv
+    try:
+        from bench.reports.rawdata import StreamedSeries
+        from bench.store import Store
+
+        with Store(store_path, read_only=True) as store:
+            series = StreamedSeries(store, int(run_id), kind, int(rows), in_child=False)
+            digest, written, samples = series.write_from_store(target)
+    except Exception as error:  # any failure: one line for the report's process to show
+        print(f"{type(error).__name__}: {' '.join(str(error).split())}", file=sys.stderr)
+        return 1
+    print(digest, written, samples)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main(sys.argv[1:]))
