@@ -15,7 +15,7 @@ from test_reports_rawdata_text import _path_store, _samples
 from bench.errors import BenchError
 from bench.reports import rawdata_child, write_report
 from bench.reports.rawdata import StreamedSeries, write_table_csv
-from bench.reports.rawdata_child import CsvInChild, worth_a_process
+from bench.reports.rawdata_child import CsvInChild, long_enough, worth_a_process
 from bench.store import Store
 from bench.store.export import series_table
 
@@ -70,7 +70,13 @@ def test_the_report_cites_the_same_csv_whichever_process_writes_it(path_run, mon
     folder, run_id = path_run
     serial = write_report(folder / "p.db", run_id, folder / "serial", ["html"])
     monkeypatch.setattr(rawdata_child, "PROCESS_MIN_SAMPLES", 1)
+    monkeypatch.setattr(rawdata_child, "spare_core", lambda: True)  # whatever the load of the machine now
+    joined = []
+    monkeypatch.setattr(
+        CsvInChild, "join", lambda self, *args, join=CsvInChild.join: joined.append(self) or join(self, *args)
+    )
     child = write_report(folder / "p.db", run_id, folder / "child", ["html"])
+    assert len(joined) == 1
     assert child.csv[0].read_bytes() == serial.csv[0].read_bytes()
     digest = hashlib.sha256(child.csv[0].read_bytes()).hexdigest()
     assert digest in child.html.read_text() and digest in serial.html.read_text()
@@ -98,14 +104,18 @@ def test_a_child_that_read_another_number_of_samples_is_refused(path_run):
     assert not (folder / "refused.csv").exists() and not _leftovers(run_id)
 
 
-def test_a_process_only_from_the_stated_number_of_samples_of_a_store_file(path_run, monkeypatch):
+def test_a_process_only_from_the_stated_number_of_samples_of_a_store_file_with_a_core_spare(path_run, monkeypatch):
     folder, run_id = path_run
+    monkeypatch.setattr(rawdata_child, "spare_core", lambda: True)
     with Store(folder / "p.db", read_only=True) as store:
         samples = store.sample_kinds(run_id)["path"]
-        assert not worth_a_process(store, run_id, "path")  # a short run: below the stated 1,000
+        assert not long_enough(store, run_id, "path") and samples < 1000  # a short run: below the stated 1,000
         monkeypatch.setattr(rawdata_child, "PROCESS_MIN_SAMPLES", samples)
-        assert worth_a_process(store, run_id, "path")
-        monkeypatch.setattr(rawdata_child, "PROCESS_MIN_SAMPLES", samples + 1)
+        assert long_enough(store, run_id, "path") and worth_a_process(store, run_id, "path")
+        monkeypatch.setattr(rawdata_child, "spare_core", lambda: False)  # a busy machine: the serial path
         assert not worth_a_process(store, run_id, "path")
+        assert StreamedSeries(store, run_id, "path").child is None
+        monkeypatch.setattr(rawdata_child, "PROCESS_MIN_SAMPLES", samples + 1)
+        assert not long_enough(store, run_id, "path")
     with Store(":memory:") as memory:
-        assert not worth_a_process(memory, 1, "path")
+        assert not long_enough(memory, 1, "path")
