@@ -2,7 +2,7 @@
 
 Writing a long path run's CSV (:mod:`bench.reports.rawdata_text`) costs about as much again as reading its samples:
 1.4 s of the report's CPU at 1.16 million points, on one core while a second waits. Here a child process
-(``python -m bench.reports.rawdata_child``) opens the store read-only (SQLite in WAL mode lets readers run beside
+(``python -m bench.reports.rawdata_writer``) opens the store read-only (SQLite in WAL mode lets readers run beside
 each other and beside a writer), reads the run's samples of the kind itself and writes their CSV with the same code
 as the serial path (:meth:`bench.reports.rawdata.StreamedSeries.write_from_store`: the same bytes) to a temporary
 file; the report joins it before the document cites the file's SHA-256 (:meth:`CsvInChild.join`), and moves the
@@ -69,7 +69,16 @@ class CsvInChild:
         package_root = str(Path(__file__).resolve().parents[2])  # the folder holding bench/, wherever it came from
         env = {**os.environ, "PYTHONPATH": os.pathsep.join(filter(None, [package_root, os.environ.get("PYTHONPATH")]))}
         self.process = subprocess.Popen(
-            [sys.executable, "-m", __name__, store_path, str(run_id), kind, str(rows), self.temporary],
+            [
+                sys.executable,
+                "-m",
+                "bench.reports.rawdata_writer",
+                store_path,
+                str(run_id),
+                kind,
+                str(rows),
+                self.temporary,
+            ],
             stdin=subprocess.DEVNULL,
             stdout=subprocess.PIPE,
             stderr=subprocess.PIPE,
@@ -105,24 +114,3 @@ class CsvInChild:
         shutil.move(self.temporary, path)
         self._abandon.detach()
         return digest, int(rows)
-
-
-def main(argv: list[str]) -> int:
-    """The child: ``STORE RUN_ID KIND ROWS TARGET``; prints ``SHA256 ROWS SAMPLES``, or one error line (exit 1)."""
-    store_path, run_id, kind, rows, target = argv
-    try:
-        from bench.reports.rawdata import StreamedSeries
-        from bench.store import Store
-
-        with Store(store_path, read_only=True) as store:
-            series = StreamedSeries(store, int(run_id), kind, int(rows), in_child=False)
-            digest, written, samples = series.write_from_store(target)
-    except Exception as error:  # any failure: one line for the report's process to show
-        print(f"{type(error).__name__}: {' '.join(str(error).split())}", file=sys.stderr)
-        return 1
-    print(digest, written, samples)
-    return 0
-
-
-if __name__ == "__main__":
-    sys.exit(main(sys.argv[1:]))
