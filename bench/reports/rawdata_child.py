@@ -8,8 +8,8 @@ as the serial path (:meth:`bench.reports.rawdata.StreamedSeries.write_from_store
 file; the report joins it before the document cites the file's SHA-256 (:meth:`CsvInChild.join`), and moves the
 file into place only then. A child that fails is one line (its error), nothing is left at the CSV's path, and a
 child whose run differs from the analysed one (a resumed run that gained samples between the two reads) is refused,
-never cited. A process start and its imports cost 0.3-0.5 s of wall time (measured on this machine), so runs under
-:data:`PROCESS_MIN_SAMPLES` samples keep the serial path.
+never cited. A process start and its imports cost 0.5 s (0.6 s of CPU, measured on the 2-core machine), so runs
+under :data:`PROCESS_MIN_SAMPLES` samples, and any run while no core is spare, keep the serial path.
 """
 
 from __future__ import annotations
