@@ -33,7 +33,7 @@ def _written(store: Store, run_id: int, path, *, in_child: bool) -> tuple[str, i
     for _ in raw.passing_stored(store.iter_samples_text(run_id, kind="path")):
         pass
     digest, rows = raw.write_csv(path)
-    assert raw.child is None or not Path(raw.child.temporary).exists()  # moved into place, nothing left behind
+    assert raw.child is None or not Path(raw.child.folder).exists()  # moved into place, nothing left behind
     return digest, rows, path.read_bytes(), raw.passed
 
 
@@ -45,6 +45,7 @@ def test_the_childs_csv_is_the_serial_writers_byte_for_byte(path_run):
         whole = write_table_csv(series_table(store, run_id, kind="path"), folder / "whole.csv")
         samples = store.sample_kinds(run_id)["path"]
     assert child[:3] == serial[:3] and child[3] == samples
+    assert (folder / "child.csv").stat().st_mode == (folder / "serial.csv").stat().st_mode  # readable alike
     assert child[0] == whole == hashlib.sha256(child[2]).hexdigest()
     assert child[2] == (folder / "whole.csv").read_bytes() and child[1] > 1000
 
@@ -85,7 +86,7 @@ def test_a_failing_child_is_one_line_and_leaves_no_csv(tmp_path):
     message = str(raised.value)
     assert message.startswith("run 7: the raw-data CSV was not written (") and "\n" not in message
     assert "notes.db" in message and "Traceback" not in message
-    assert not (tmp_path / "run7_samples.csv").exists() and not Path(child.temporary).exists()
+    assert not (tmp_path / "run7_samples.csv").exists() and not Path(child.folder).exists()
 
 
 def test_a_child_that_read_another_number_of_samples_is_refused(path_run):
@@ -95,7 +96,7 @@ def test_a_child_that_read_another_number_of_samples_is_refused(path_run):
         child = CsvInChild(store.path, run_id, "path", 700)
     with pytest.raises(BenchError, match=f"it read {samples} samples and the analysis {samples - 1}: the run changed"):
         child.join(folder / "refused.csv", samples - 1)
-    assert not (folder / "refused.csv").exists() and not Path(child.temporary).exists()
+    assert not (folder / "refused.csv").exists() and not Path(child.folder).exists()
 
 
 def test_a_process_only_from_the_stated_number_of_samples_of_a_store_file_with_a_core_spare(path_run, monkeypatch):

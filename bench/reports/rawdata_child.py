@@ -50,12 +50,12 @@ def worth_a_process(store: Any, run_id: int, kind: str) -> bool:
     return long_enough(store, run_id, kind) and spare_core()
 
 
-def _abandon(process: subprocess.Popen[bytes], temporary: str) -> None:
-    """Stop a child that is no longer wanted and remove its partial file."""
+def _abandon(process: subprocess.Popen[bytes], folder: str) -> None:
+    """Stop a child that is no longer wanted and remove its folder with its partial file."""
     if process.poll() is None:
         process.kill()
     process.communicate()
-    Path(temporary).unlink(missing_ok=True)
+    shutil.rmtree(folder, ignore_errors=True)
 
 
 class CsvInChild:
@@ -64,8 +64,9 @@ class CsvInChild:
 
     def __init__(self, store_path: str, run_id: int, kind: str, rows: int) -> None:
         self.run_id = run_id
-        handle, self.temporary = tempfile.mkstemp(prefix=f"run{run_id}_", suffix=".csv.part")
-        os.close(handle)
+        # a private folder; the file in it is created by the child as any CSV of a report is (the same mode)
+        self.folder = tempfile.mkdtemp(prefix=f"run{run_id}_csv_")
+        self.temporary = str(Path(self.folder) / "samples.csv")
         package_root = str(Path(__file__).resolve().parents[2])  # the folder holding bench/, wherever it came from
         env = {**os.environ, "PYTHONPATH": os.pathsep.join(filter(None, [package_root, os.environ.get("PYTHONPATH")]))}
         self.process = subprocess.Popen(
@@ -85,7 +86,7 @@ class CsvInChild:
             env=env,
         )
         # a report that fails before joining (or is dropped) stops the child and leaves no partial file behind
-        self._abandon = weakref.finalize(self, _abandon, self.process, self.temporary)
+        self._abandon = weakref.finalize(self, _abandon, self.process, self.folder)
 
     def join(self, path: str | Path, samples: int | None) -> tuple[str, int]:
         """Wait for the child, then move its CSV to ``path``; its SHA-256 and rows. ``samples``: how many samples
@@ -101,6 +102,8 @@ class CsvInChild:
         if self.process.returncode != 0:
             said = err.decode(errors="replace").strip().splitlines()
             failed = said[-1] if said else f"it ended with code {self.process.returncode}"
+        elif len(out.split()) != 3 or not out.split()[1].isdigit() or not out.split()[2].isdigit():
+            failed = f"it answered {out.decode(errors='replace').strip()[:80]!r}, expected: SHA256 ROWS SAMPLES"
         else:
             digest, rows, written = out.decode().split()
             if samples is not None and int(written) != samples:
@@ -112,5 +115,5 @@ class CsvInChild:
             self._abandon()
             raise BenchError(f"run {self.run_id}: the raw-data CSV was not written ({failed})")
         shutil.move(self.temporary, path)
-        self._abandon.detach()
+        self._abandon()  # the folder, now empty
         return digest, int(rows)
