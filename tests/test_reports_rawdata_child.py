@@ -65,7 +65,7 @@ def test_the_report_cites_the_same_csv_whichever_process_writes_it(path_run, mon
     folder, run_id = path_run
     serial = write_report(folder / "p.db", run_id, folder / "serial", ["html"])
     monkeypatch.setattr(rawdata_child, "PROCESS_MIN_SAMPLES", 1)
-    monkeypatch.setattr(rawdata_child, "spare_core", lambda: True)  # whatever the load of the machine now
+    monkeypatch.setattr(rawdata_child, "core_time_free", lambda: True)  # whatever the load of the machine now
     joined = []
     monkeypatch.setattr(
         CsvInChild, "join", lambda self, *args, join=CsvInChild.join: joined.append(self) or join(self, *args)
@@ -99,15 +99,15 @@ def test_a_child_that_read_another_number_of_samples_is_refused(path_run):
     assert not (folder / "refused.csv").exists() and not Path(child.folder).exists()
 
 
-def test_a_process_only_from_the_stated_number_of_samples_of_a_store_file_with_a_core_spare(path_run, monkeypatch):
+def test_a_process_only_from_the_stated_number_of_samples_of_a_store_file_with_core_time_free(path_run, monkeypatch):
     folder, run_id = path_run
-    monkeypatch.setattr(rawdata_child, "spare_core", lambda: True)
+    monkeypatch.setattr(rawdata_child, "core_time_free", lambda: True)
     with Store(folder / "p.db", read_only=True) as store:
         samples = store.sample_kinds(run_id)["path"]
         assert not long_enough(store, run_id, "path") and samples < 1000  # a short run: below the stated 1,000
         monkeypatch.setattr(rawdata_child, "PROCESS_MIN_SAMPLES", samples)
         assert long_enough(store, run_id, "path") and worth_a_process(store, run_id, "path")
-        monkeypatch.setattr(rawdata_child, "spare_core", lambda: False)  # a busy machine: the serial path
+        monkeypatch.setattr(rawdata_child, "core_time_free", lambda: False)  # a busy machine: the serial path
         assert not worth_a_process(store, run_id, "path")
         assert StreamedSeries(store, run_id, "path").child is None
         monkeypatch.setattr(rawdata_child, "PROCESS_MIN_SAMPLES", samples + 1)

@@ -124,8 +124,8 @@ class StreamedSeries:
     """A report's raw data too long to hold (a path run's millions of streamed points): the run's streamed series
     of ``kind`` (``bench export RUN --kind KIND --series``), never held whole. Written as the samples pass by for the
     analysis (:meth:`passing`: the run read once) to an anonymous temporary file, or else from the open store
-    (:func:`bench.store.export.series_chunks`), a piece of ``rows`` rows at a time; a long run's, while a core is
-    spare, by a second process reading the store beside the analysis (:mod:`bench.reports.rawdata_child`)."""
+    (:func:`bench.store.export.series_chunks`), a piece of ``rows`` rows at a time; a long run's, while the machine
+    is not busy, by a second process reading the store beside the analysis (:mod:`bench.reports.rawdata_child`)."""
 
     def __init__(
         self, store: Store, run_id: int, kind: str, rows: int = PIECE_ROWS, *, in_child: bool | None = None

@@ -9,7 +9,7 @@ file; the report joins it before the document cites the file's SHA-256 (:meth:`C
 file into place only then. A child that fails is one line (its error), nothing is left at the CSV's path, and a
 child whose run differs from the analysed one (a resumed run that gained samples between the two reads) is refused,
 never cited. A process start and its imports cost 0.5 s (0.6 s of CPU, measured on the 2-core machine), so runs
-under :data:`PROCESS_MIN_SAMPLES` samples, and any run while no core is spare, keep the serial path.
+under :data:`PROCESS_MIN_SAMPLES` samples, and any run while the machine is busy, keep the serial path.
 """
 
 from __future__ import annotations
@@ -24,7 +24,7 @@ from pathlib import Path
 from typing import Any
 
 from bench.errors import BenchError
-from bench.reports.cores import spare_core
+from bench.reports.cores import core_time_free
 
 __all__ = ["PROCESS_MIN_SAMPLES", "CsvInChild", "long_enough", "worth_a_process"]
 
@@ -44,10 +44,10 @@ def long_enough(store: Any, run_id: int, kind: str) -> bool:
 
 
 def worth_a_process(store: Any, run_id: int, kind: str) -> bool:
-    """Whether the CSV is written by a process of its own: the run is :func:`long_enough` and a core is spare now
-    (:func:`bench.reports.cores.spare_core`; the child reads and decodes the samples again, 2.3 s of CPU at 1.16
-    million points against the 1.4 s of CSV it takes off the report: on a busy machine a loss)."""
-    return long_enough(store, run_id, kind) and spare_core()
+    """Whether the CSV is written by a process of its own: the run is :func:`long_enough` and the machine has core
+    time free now (:func:`bench.reports.cores.core_time_free`; the child reads and decodes the samples again, 3.8 s
+    of CPU at 1.16 million points against the 1.4 s of CSV it takes off the report: on a busy machine a loss)."""
+    return long_enough(store, run_id, kind) and core_time_free()
 
 
 def _abandon(process: subprocess.Popen[bytes], folder: str) -> None:
