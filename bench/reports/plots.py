@@ -22,6 +22,7 @@ import numpy as np
 from matplotlib.figure import Figure
 from matplotlib.text import Text
 
+from bench.reports.cores import spare_core
 from bench.reports.png import rgb_png
 from bench.reports.small_multiples import SmallMultiples, legend_entries
 
@@ -137,21 +138,15 @@ def _panel_count(figure: Figure) -> int:
     return len(grid.panels) if grid is not None else max(1, len(figure.axes))
 
 
-def _spare_core() -> bool:
-    """Whether another process would get a core of its own now (the 1-minute load, this process included, leaves
-    one free): on the shared 2-core bench PC under load a second drawing process only competes with the first."""
-    return os.getloadavg()[0] <= (os.cpu_count() or 1) - 1
-
-
 def draw_all(plots, dpi: int = REPORT_DPI, *, parallel: bool | None = None) -> None:
     """Draw the PNG of every plot (:func:`png_bytes`), about half of them in one forked process while this one
     draws the rest: drawing is most of a report's time, and figures share nothing. ``parallel`` None: when a core
-    is spare (:func:`_spare_core`). Only from a process with a single thread (a fork copies one thread; another's
+    is spare (:func:`bench.reports.cores.spare_core`). Only from a process with a single thread (a fork copies one thread; another's
     lock could never be released in the child) on a system with ``fork``; a figure the child did not return (it
     failed or was killed) is drawn here, so the result is the same PNG either way, only later."""
     pending = [plot for plot in plots if dpi not in plot.figure.__dict__.get("_bench_png", {})]
     if parallel is None:
-        parallel = hasattr(os, "getloadavg") and _spare_core()
+        parallel = spare_core()
     if not parallel or len(pending) < 2 or not hasattr(os, "fork") or threading.active_count() > 1:
         for plot in pending:
             png_bytes(plot, dpi)

@@ -16,12 +16,13 @@ from __future__ import annotations
 import hashlib
 import shutil
 import tempfile
-from collections.abc import Callable, Iterable, Iterator
+from collections.abc import Callable, Generator, Iterable, Iterator
 from pathlib import Path
 from typing import BinaryIO
 
 import pandas as pd
 
+from bench.reports.rawdata_child import CsvInChild, worth_a_process
 from bench.reports.rawdata_format import column_text, plain_table
 from bench.reports.rawdata_text import SeriesText, TextNotTaken
 from bench.store import SampleRecord, Store
@@ -86,15 +87,58 @@ class CsvPieces:
             )
 
 
+def _spooling(
+    stored: Iterable[tuple[SampleRecord, str | None]], file: BinaryIO, rows: int
+) -> Generator[SampleRecord, None, CsvPieces | None]:
+    """Yield each of ``stored`` (samples with their raw JSON as stored, or None) as it comes while writing their
+    series' CSV to ``file`` a piece of ``rows`` rows at a time; returns the writer (digest, rows), None when the
+    series cannot be written so (:class:`MixedSeries`, :class:`TextNotTaken`: the caller writes it from the store)."""
+    writer, frames, texts, good = CsvPieces(file), SeriesPieces(rows), SeriesText(rows), True
+    by_text: bool | None = None  # chosen by the first sample with a series: whether its text came with it
+
+    def put(piece: pd.DataFrame | tuple[str, int] | None) -> None:
+        if isinstance(piece, tuple):
+            writer.put_text(*piece, header=texts.header)
+        elif piece is not None:
+            writer.put(piece)
+
+    for sample, raw_json in stored:
+        if good:
+            try:
+                if by_text is None and isinstance(sample.raw, dict) and sample.raw.get("series"):
+                    by_text = raw_json is not None
+                if by_text is not None:
+                    put(texts.add(sample, raw_json) if by_text else frames.add(sample))
+            except (MixedSeries, TextNotTaken):  # written from the store when asked (write_csv)
+                good = False
+        yield sample
+    try:
+        if good and by_text is not None:
+            put(texts.rest() if by_text else frames.rest())
+    except (MixedSeries, TextNotTaken):
+        good = False
+    return writer if good else None
+
+
 class StreamedSeries:
     """A report's raw data too long to hold (a path run's millions of streamed points): the run's streamed series
     of ``kind`` (``bench export RUN --kind KIND --series``), never held whole. Written as the samples pass by for the
     analysis (:meth:`passing`: the run read once) to an anonymous temporary file, or else from the open store
-    (:func:`bench.store.export.series_chunks`), a piece of ``rows`` rows at a time."""
+    (:func:`bench.store.export.series_chunks`), a piece of ``rows`` rows at a time; a long run's, while the machine
+    is not busy, by a second process reading the store beside the analysis (:mod:`bench.reports.rawdata_child`)."""
 
-    def __init__(self, store: Store, run_id: int, kind: str, rows: int = PIECE_ROWS) -> None:
+    def __init__(
+        self, store: Store, run_id: int, kind: str, rows: int = PIECE_ROWS, *, in_child: bool | None = None
+    ) -> None:
         self.store, self.run_id, self.kind, self.rows = store, run_id, kind, rows
         self._spooled: tuple[BinaryIO, CsvPieces] | None = None
+        #: the samples that passed by for the analysis (None: none passed): the writer process must read as many
+        self.passed: int | None = None
+        #: the writer process of a long run's CSV, running beside the analysis (None: written here, spooled);
+        #: ``in_child`` None chooses by the run's length (:func:`bench.reports.rawdata_child.worth_a_process`)
+        self.child: CsvInChild | None = None
+        if in_child or (in_child is None and worth_a_process(store, run_id, kind)):
+            self.child = CsvInChild(store.path, run_id, kind, rows)
 
     def passing(self, samples: Iterable[SampleRecord]) -> Iterator[SampleRecord]:
         """``samples``, each as it comes, their CSV spooled on the way (kept when every one has passed)."""
@@ -103,36 +147,34 @@ class StreamedSeries:
     def passing_stored(self, stored: Iterable[tuple[SampleRecord, str | None]]) -> Iterator[SampleRecord]:
         """:meth:`passing` of samples given with their raw JSON as stored (``Store.iter_samples_text``; None where
         the store has no text to give): the series' CSV text taken from it (:mod:`bench.reports.rawdata_text`),
-        not formatted again."""
+        not formatted again. With a writer process (:attr:`child`) the samples only pass: it writes the CSV."""
+        if self.child is not None:
+            self.passed = 0
+            for self.passed, (sample, _) in enumerate(stored, start=1):
+                yield sample
+            return
         spool = tempfile.TemporaryFile()
-        writer, frames, texts, good = CsvPieces(spool), SeriesPieces(self.rows), SeriesText(self.rows), True
-        by_text: bool | None = None  # chosen by the first sample with a series: whether its text came with it
-
-        def put(piece: pd.DataFrame | tuple[str, int] | None) -> None:
-            if isinstance(piece, tuple):
-                writer.put_text(*piece, header=texts.header)
-            elif piece is not None:
-                writer.put(piece)
-
-        for sample, raw_json in stored:
-            if good:
-                try:
-                    if by_text is None and isinstance(sample.raw, dict) and sample.raw.get("series"):
-                        by_text = raw_json is not None
-                    if by_text is not None:
-                        put(texts.add(sample, raw_json) if by_text else frames.add(sample))
-                except (MixedSeries, TextNotTaken):  # written from the store when asked (write_csv)
-                    good = False
-            yield sample
-        try:
-            if good and by_text is not None:
-                put(texts.rest() if by_text else frames.rest())
-        except (MixedSeries, TextNotTaken):
-            good = False
-        if good and writer.rows:
+        writer = yield from _spooling(stored, spool, self.rows)
+        if writer is not None and writer.rows:
             self._spooled = (spool, writer)
         else:
             spool.close()
+
+    def write_from_store(self, path: str | Path) -> tuple[str, int, int]:
+        """Read the run from the store once and write its CSV at ``path`` (what the writer process does,
+        :mod:`bench.reports.rawdata_child`); returns the SHA-256, the rows and the samples read."""
+        with Path(path).open("wb") as file:
+            spooling = _spooling(self.store.iter_samples_text(self.run_id, kind=self.kind), file, self.rows)
+            samples = 0
+            try:
+                while True:
+                    next(spooling)
+                    samples += 1
+            except StopIteration as done:
+                writer = done.value
+        if writer is not None and writer.rows:
+            return writer.digest.hexdigest(), writer.rows, samples
+        return (*self._write_chunks(path), samples)
 
     def write_csv(self, path: str | Path) -> tuple[str, int]:
         """Write the table as :func:`write_table_csv` writes it whole; returns the SHA-256 and the rows."""
@@ -142,6 +184,12 @@ class StreamedSeries:
             with Path(path).open("wb") as file:
                 shutil.copyfileobj(spool, file)
             return writer.digest.hexdigest(), writer.rows
+        if self.child is not None:
+            return self.child.join(path, self.passed)
+        return self._write_chunks(path)
+
+    def _write_chunks(self, path: str | Path) -> tuple[str, int]:
+        """The table from the open store, a piece at a time (samples whose text was not taken)."""
         try:
             return write_tables_csv(series_chunks(self.store, self.run_id, self.kind, self.rows), path)
         except MixedSeries:  # samples that differ in their columns: aligned over the whole run, as export does

@@ -285,18 +285,17 @@ def _write(
 ) -> tuple[dict[str, Path], str]:
     """Write ``document`` in ``formats`` under its unique number (:mod:`bench.reports.numbering`); the files written
     and that number."""
-    from bench.reports.html import write_html
+    from importlib import import_module
+
     from bench.reports.numbering import numbered
-    from bench.reports.pdf import write_pdf
     from bench.reports.plots import draw_all
 
     draw_all([block.plot for section in document.sections for block in section.blocks if isinstance(block, Figure)])
     document = numbered(document, out, stem)
-    writers = {"html": write_html, "pdf": write_pdf}
     written = {}
-    for fmt in formats:
+    for fmt in formats:  # each format's writer imported when asked for (reportlab only for a PDF)
         progress(f"writing {stem}.{fmt}")
-        written[fmt] = writers[fmt](document, out / f"{stem}.{fmt}")
+        written[fmt] = getattr(import_module(f"bench.reports.{fmt}"), f"write_{fmt}")(document, out / f"{stem}.{fmt}")
     return written, document.meta["report_id"]
 
 
