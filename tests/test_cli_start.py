@@ -148,3 +148,11 @@ def test_the_reports_public_names_still_load_on_first_use():
         "from bench.reports import LAYOUTS, write_report\nprint(len(LAYOUTS), write_report.__module__)"
     )
     assert "9 bench.reports.writing" in result["stdout"] and "matplotlib" in result["heavy"]
+
+
+def test_the_reports_package_lists_exactly_the_names_its_writing_module_exports():
+    import bench.reports
+    import bench.reports.writing
+
+    assert bench.reports.__all__ == bench.reports.writing.__all__
+    assert all(getattr(bench.reports, name) is getattr(bench.reports.writing, name) for name in bench.reports.__all__)
