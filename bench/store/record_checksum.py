@@ -20,7 +20,7 @@ from collections.abc import Iterable, Sequence
 from typing import Any
 
 from bench.errors import BenchError
-from bench.store.sample_checksum import hash_fields
+from bench.store.sample_checksum import CHANGED, NO_CHECKSUM, hash_fields
 
 __all__ = [
     "CALIBRATION_CHECKED_COLUMNS",
@@ -74,9 +74,9 @@ def record_checksum(*fields: object) -> str:
 def record_problem(fields: Sequence[Any], checksum: str | None) -> str | None:
     """Why a record's checked ``fields`` fail their ``checksum``, or None when they match."""
     if checksum is None:
-        return "it has no checksum (written outside bench)"
+        return NO_CHECKSUM
     if record_checksum(*fields) != checksum:
-        return "its stored bytes no longer match their checksum (changed since it was stored)"
+        return CHANGED
     return None
 
 

@@ -23,7 +23,9 @@ from typing import Any
 from bench.errors import BenchError
 
 __all__ = [
+    "CHANGED",
     "CHECKED_COLUMNS",
+    "NO_CHECKSUM",
     "DamagedSample",
     "checksum_problem",
     "damaged_sample_lines",
@@ -40,6 +42,9 @@ class DamagedSample(BenchError):
     """A stored sample whose bytes no longer match its checksum, or whose JSON does not parse: its run is refused."""
 
 
+#: What is wrong with a stored record (a sample, a run, a calibration) whose checksum is missing or does not match.
+NO_CHECKSUM = "it has no checksum (written outside bench)"
+CHANGED = "its stored bytes no longer match their checksum (changed since it was stored)"
 #: Separates the columns in the hashed text; ``NULL`` is hashed as :data:`_NULL` (neither occurs in bench's text).
 _SEPARATOR, _NULL = "\x1f", "\x00"
 
@@ -93,13 +98,13 @@ def checksum_problem(
 ) -> str | None:
     """What is wrong with one stored row's checksum (None when it matches)."""
     if checksum is None:
-        return "it has no checksum (written outside bench)"
+        return NO_CHECKSUM
     try:
         expected = sample_checksum(step_index, kind, pose, cycle, t_s, wall_utc, values_json, raw_json)
     except (TypeError, ValueError) as exc:
         return f"a column has the wrong type ({exc})"
     if expected != checksum:
-        return "its stored bytes no longer match their checksum (changed since it was stored)"
+        return CHANGED
     return None
 
 
