@@ -16,7 +16,6 @@ as ``interrupted``, with ``bench resume ID`` as the next step, until it is resum
 
 from __future__ import annotations
 
-import json
 import logging
 import sqlite3
 import subprocess
@@ -38,6 +37,7 @@ from bench.store.records import (
     DuplicateSample,
     RunRecord,
     SampleRecord,
+    from_json,
     to_json,
     utc_now,
 )
@@ -333,7 +333,7 @@ class Store(StoreSamples, StoreCalibrations):
             row = self._db.execute("SELECT settings_json FROM runs WHERE id = ?", (int(run_id),)).fetchone()
             if row is None:
                 raise ConfigError(f"run {run_id}: no such run in {self.path}")
-            settings = json.loads(row[0])
+            settings = from_json(row[0])
             entries = settings.setdefault("registrations", [])
             (after_t_s,) = self._db.execute("SELECT MAX(t_s) FROM samples WHERE run_id = ?", (int(run_id),)).fetchone()
             entries.append(
@@ -386,6 +386,6 @@ class Store(StoreSamples, StoreCalibrations):
             # the record is checked before its JSON is read: a changed byte is refused, never parsed as something else
             refuse_damaged("runs", row[0], row[17:-1], row[-1], self.path)
             status, reason = self.reads_as(row[0], row[12], row[13])
-            record = RunRecord.from_row(row, run_id=row[0], calibration_ids=tuple(json.loads(row[9])))
+            record = RunRecord.from_row(row, run_id=row[0], calibration_ids=tuple(from_json(row[9])))
             records.append(replace(record, status=status, reason=reason))
         return records

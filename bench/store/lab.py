@@ -56,6 +56,7 @@ from bench.store.lab_records import (
 )
 from bench.store.lab_schema import LAB_SCHEMA_VERSION
 from bench.store.lab_sync import SyncResult, sync_after_run, sync_store
+from bench.store.records import from_json
 
 __all__ = [
     "LAB_SCHEMA_VERSION",
@@ -129,7 +130,7 @@ class LabStore:
         self._conn.rollback()
         for r in rows:  # each record checked before its JSON is read (as the local store's runs are)
             refuse_damaged_run(f"{r[2]}/{r[0]}", r[17:], self.path)
-        return [RunRecord.from_row(r, run_id=r[0], calibration_ids=tuple(json.loads(r[9]))) for r in rows]
+        return [RunRecord.from_row(r, run_id=r[0], calibration_ids=tuple(from_json(r[9]))) for r in rows]
 
     def checksum(self, run_uuid: str) -> str:
         """:func:`rows_checksum` of the samples the server holds for ``run_uuid``."""

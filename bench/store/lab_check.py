@@ -11,10 +11,10 @@ the typed columns and not checked here.
 
 from __future__ import annotations
 
-import json
 from typing import Any
 
 from bench.store.lab_copy import SAMPLE_COLUMNS, TYPED_COLUMNS
+from bench.store.records import from_json
 from bench.store.sample_checksum import checksum_problem
 
 __all__ = ["check_lab_samples"]
@@ -30,7 +30,7 @@ _ROWS_PER_FETCH = 10_000
 def _typed_problem(values_json: str, typed: tuple[float | None, ...]) -> str | None:
     """Where a typed column differs from the number its row's ``values_json`` holds (NULL where it holds none)."""
     try:
-        values = json.loads(values_json)
+        values = from_json(values_json)
     except ValueError as exc:
         return f"its values_json does not parse ({exc})"
     if not isinstance(values, dict):

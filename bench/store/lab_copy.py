@@ -18,11 +18,11 @@ tab, newline and carriage return.
 
 from __future__ import annotations
 
-import json
 from collections.abc import Iterable
 from typing import Any
 
 from bench.store.descriptors import VALUE_COLUMNS
+from bench.store.records import from_json
 
 __all__ = ["COPY_COLUMNS", "SAMPLE_COLUMNS", "TYPED_COLUMNS", "copy_text", "typed_columns_ddl"]
 
@@ -63,7 +63,7 @@ def _number(value: object) -> str:
 
 def _typed_fields_slow(values_json: str) -> str:
     """The typed fields of a sample whose values are not all numbers: numbers kept, anything else NULL."""
-    values = json.loads(values_json)
+    values = from_json(values_json)
     if not isinstance(values, dict):
         return _EMPTY_TYPED
     return "\t".join(_number(values.get(name)) for name in TYPED_COLUMNS)

@@ -17,7 +17,6 @@ UUID.
 
 from __future__ import annotations
 
-import json
 import re
 from collections.abc import Sequence
 from typing import Any, NamedTuple, Protocol, Self, TypeVar
@@ -32,6 +31,7 @@ from bench.store.lab_records import (
     refuse_damaged_calibration,
     refuse_damaged_run,
 )
+from bench.store.records import from_json
 from bench.store.sample_checksum import CHECKED_COLUMNS, sample_checksum
 from bench.store.store_samples import checked_sample
 
@@ -179,7 +179,7 @@ class LabRunView:
                 )
             links = (r[9], self._calibration_local_ids)
             refuse_damaged_run(f"{r[2]}/{r[0]}", r[17:], self.path, links)  # before its JSON is read
-            calibrations = tuple(self._calibration_number(u) for u in json.loads(r[9]))
+            calibrations = tuple(self._calibration_number(u) for u in from_json(r[9]))
             self._records[uuid] = RunRecord.from_row(
                 r, run_id=self._runs.number(r[1], r[0]), calibration_ids=calibrations
             )
@@ -247,7 +247,7 @@ class LabRunView:
             name=r[2],
             version=r[3],
             created_utc=r[4],
-            params=json.loads(r[5]),
+            params=from_json(r[5]),
             source_run_id=source,
             notes=r[8],
         )

@@ -14,7 +14,6 @@ checked (not damage) and read as before; the next sync of its bench gives it its
 
 from __future__ import annotations
 
-import json
 from collections.abc import Mapping, Sequence
 from typing import Any
 
@@ -24,6 +23,7 @@ from bench.store.record_checksum import (
     record_problem,
     refuse,
 )
+from bench.store.records import from_json
 
 __all__ = [
     "CALIBRATION_CHECK_SQL",
@@ -86,9 +86,9 @@ def calibration_link_problem(checked: Sequence[Any], uuids_json: str, local_ids:
     lab schema 5)."""
     if checked[_N_RUN] is None:
         return None
-    ids = json.loads(checked[_CALIBRATION_IDS])  # checked first: the bytes its bench stored
+    ids = from_json(checked[_CALIBRATION_IDS])  # checked first: the bytes its bench stored
     try:
-        uuids = json.loads(uuids_json)
+        uuids = from_json(uuids_json)
         linked = [None if u is None else local_ids.get(u, -1) for u in uuids]
     except (ValueError, TypeError, AttributeError) as exc:
         return f"its calibration_uuids_json does not parse as a list of UUIDs ({exc})"

@@ -19,6 +19,7 @@ from bench.store.lab_connection import LabServerBusy, LabStoreError, connect, on
 from bench.store.lab_copy import COPY_COLUMNS
 from bench.store.lab_schema import ensure_schema
 from bench.store.record_checksum import CALIBRATION_CHECKED_COLUMNS, RUN_CHECKED_COLUMNS
+from bench.store.records import from_json
 
 if TYPE_CHECKING:  # psycopg is the lab-store extra, imported when a sync starts
     from psycopg import Connection, Cursor
@@ -75,7 +76,7 @@ def _run_row(
     run_id, fields, checksum = stored
     row = dict(zip(RUN_CHECKED_COLUMNS, fields))
     read_status, read_reason = store.reads_as(run_id, row["status"], row["reason"])
-    calibration_ids = json.loads(row["calibration_ids_json"])
+    calibration_ids = from_json(row["calibration_ids_json"])
     row |= {
         "local_id": run_id,
         "calibration_uuids_json": json.dumps([calibration_uuids.get(i) for i in calibration_ids]),

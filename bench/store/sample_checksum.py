@@ -15,12 +15,12 @@ rows from then on, not for what happened to them before.
 from __future__ import annotations
 
 import hashlib
-import json
 import sqlite3
 from collections.abc import Iterable
 from typing import Any
 
 from bench.errors import BenchError
+from bench.store.records import from_json
 
 __all__ = [
     "CHANGED",
@@ -125,7 +125,7 @@ def parse_sample(run_id: int, row: tuple[Any, ...], path: str) -> tuple[Any, Any
     parsed = []
     for name, text in (("values_json", row[6]), ("raw_json", row[7])):
         try:
-            parsed.append(None if text is None and name == "raw_json" else json.loads(text))
+            parsed.append(None if text is None and name == "raw_json" else from_json(text))
         except (TypeError, ValueError) as exc:
             raise _refusal(run_id, row[0], path, f"its {name} does not parse ({exc})") from None
     return parsed[0], parsed[1]

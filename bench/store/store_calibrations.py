@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import json
 import uuid
 from collections.abc import Mapping
 from typing import Any
@@ -15,7 +14,7 @@ from bench.store.record_checksum import (
     record_checksum,
     refuse_damaged,
 )
-from bench.store.records import CalibrationRecord, to_json, utc_now
+from bench.store.records import CalibrationRecord, from_json, to_json, utc_now
 
 __all__ = ["StoreCalibrations"]
 
@@ -63,7 +62,7 @@ class StoreCalibrations:
             latest = self.calibration(name)
         except ConfigError:
             latest = None
-        if latest is not None and latest.params == json.loads(to_json(dict(params), "params")):
+        if latest is not None and latest.params == from_json(to_json(dict(params), "params")):
             return latest
         if self.resuming is not None:
             now = f"version {latest.version} is the latest" if latest else "none is stored"
@@ -98,7 +97,7 @@ class StoreCalibrations:
             name=row[2],
             version=row[3],
             created_utc=row[4],
-            params=json.loads(row[5]),
+            params=from_json(row[5]),
             source_run_id=row[6],
             notes=row[7],
         )
