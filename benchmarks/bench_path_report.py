@@ -4,10 +4,11 @@ For each ``--points`` (default 1.15 and 2.3 million streamed points, half and th
 ``iso9283_path`` run of about that many points (simulated once and its cycles copied in the store, as
 ``bench_report.py --path`` does), then, each in a fresh process ``--repeat`` times (default 2), interleaved:
 ``bench analyze path-run RUN --json`` (the figures), ``bench report RUN --format html`` (figures, plots and the
-raw-data CSV), and the floor, a process that reads the run's raw data: every ``path`` sample's row from SQLite with
-its JSON series decoded (``json.loads`` of ``raw_json``: what any analysis of the stored raw data must at least do).
+raw-data CSV), and two floors, processes that read the run's raw data: every ``path`` sample's row from SQLite with
+its JSON decoded, by the standard library's ``json.loads`` (the floor of the issue's measurements) and by msgspec's
+decoder (as bench itself reads stored JSON since 0.5.1: the least any analysis of the stored raw data must do).
 Printed per size: min / median / max wall time and peak memory (``ru_maxrss``) of each, and min / median / max of
-each repeat's ratio to the floor's run beside it (time; memory); then, per tool, the peak memory of the largest run
+each repeat's ratio to each floor's run beside it (time; memory against the json floor); then, per tool, the peak memory of the largest run
 against the smallest. Targets (issue 34): within 3x of the floor's time; memory bounded by a chunk, not the run (the
 same peak at every size). The path model's Monte Carlo (U(AT_p), U(RT_p), ``path_uncertainty``) grows with the
 square of the cycles: its own time is printed per size, measured in this process on the run's crossings. The report
@@ -35,19 +36,27 @@ from bench_report import long_path_run
 
 from bench.reports.cores import core_time_free
 
-#: The floor: the run's path samples read from SQLite, each sample's JSON (values and series) decoded.
+#: The floor: the run's path samples read from SQLite, each sample's JSON (values and series) decoded by
+#: {decode} (the standard library's ``json.loads``, or msgspec's decoder as bench reads them, 5-6x faster).
 FLOOR = textwrap.dedent("""
     import json, sqlite3, sys
-    db = sqlite3.connect(f"file:{sys.argv[1]}?mode=ro", uri=True)
+    {imports}
+    db = sqlite3.connect(f"file:{{sys.argv[1]}}?mode=ro", uri=True)
     points = 0
     for values, raw in db.execute(
         "SELECT values_json, raw_json FROM samples WHERE run_id = ? AND kind = 'path' ORDER BY step_index",
         (int(sys.argv[2]),),
     ):
-        json.loads(values)
-        points += len(json.loads(raw)["series"]["t_s"])
+        {decode}(values)
+        points += len({decode}(raw)["series"]["t_s"])
     print(points)
 """)
+FLOORS = {
+    "floor: read the raw data (SQLite + json)": FLOOR.format(imports="", decode="json.loads"),
+    "floor: read the raw data (SQLite + msgspec)": FLOOR.format(
+        imports="import msgspec; decode = msgspec.json.Decoder().decode", decode="decode"
+    ),
+}
 
 
 def _ratios(runs: list[dict], floor: list[dict], key: str) -> str:
@@ -56,12 +65,13 @@ def _ratios(runs: list[dict], floor: list[dict], key: str) -> str:
     return f"{min(ratios):5.2f} {statistics.median(ratios):5.2f} {max(ratios):5.2f}"
 
 
-def _summary(name: str, runs: list[dict], floor: list[dict]) -> str:
+def _summary(name: str, runs: list[dict], floors: list[list[dict]]) -> str:
     walls, peaks = [r["wall_s"] for r in runs], [r["peak_mb"] for r in runs]
     return (
-        f"  {name:<42} {min(walls):6.2f} {statistics.median(walls):6.2f} {max(walls):6.2f} s "
+        f"  {name:<44} {min(walls):6.2f} {statistics.median(walls):6.2f} {max(walls):6.2f} s "
         f"{min(peaks):5.0f} {statistics.median(peaks):5.0f} {max(peaks):5.0f} MB   "
-        f"{_ratios(runs, floor, 'wall_s')} x   {_ratios(runs, floor, 'peak_mb')} x"
+        + "   ".join(f"{_ratios(runs, floor, 'wall_s')} x" for floor in floors)
+        + f"   {_ratios(runs, floors[0], 'peak_mb')} x"
     )
 
 
@@ -92,7 +102,7 @@ def measure_size(points: int, repeat: int, folder: Path, baseline: Path | None) 
     """Build a run of about ``points`` points, run the processes ``repeat`` times each (interleaved; with
     ``baseline``, its analysis and report too); print this size's lines and return each one's median peak (MB)."""
     store, run_id = long_path_run(folder, points)
-    argvs = {"floor: read the raw data (SQLite + JSON)": [sys.executable, "-c", FLOOR, str(store), str(run_id)]}
+    argvs = {name: [sys.executable, "-c", floor, str(store), str(run_id)] for name, floor in FLOORS.items()}
     for label, prefix in [("", [])] + (
         [(" (baseline)", ["env", "-C", str(baseline), f"PYTHONPATH={baseline}"])] if baseline else []
     ):
@@ -121,12 +131,15 @@ def measure_size(points: int, repeat: int, folder: Path, baseline: Path | None) 
                 spare.append(core_time_free())
             figures, out = measured(argv)
             runs[name].append(figures)
-            counted = out.decode().strip() if name.startswith("floor") else counted
+            counted = out.decode().strip() if name in FLOORS else counted
     print(f"long path run: {int(counted):,} streamed points, {store.stat().st_size / 2**20:.0f} MiB store")
-    print(f"  {'':<42} {'wall min / median / max':>22}   {'peak MB':>15}   time / floor (x)  memory / floor (x)")
-    floor = runs[next(iter(argvs))]
+    print(
+        f"  {'':<44} {'wall min / median / max':>22}   {'peak MB':>15}   time / json floor (x)   "
+        "time / msgspec floor (x)   memory / json floor (x)"
+    )
+    floors = [runs[name] for name in FLOORS]
     for name, measured_runs in runs.items():
-        print(_summary(name, measured_runs, floor))
+        print(_summary(name, measured_runs, floors))
     print(f"  path model Monte Carlo alone: {_monte_carlo_s(store, run_id)}")
     print(
         f"  raw-data CSV by a second process (core time free as the report started): {sum(spare)} of {len(spare)} "
