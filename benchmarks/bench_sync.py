@@ -15,6 +15,9 @@
   and unlogged (no WAL: a lower floor no durable store reaches), right after each bench's syncs, so that each ratio
   sync/floor is taken at one load (min/median/max over the benches). The floor's CPU (server and this process)
   over the sync's is the ratio on a machine whose cores are all busy, where wall time is CPU time shared.
+* Sending alone: each file synced again into a fresh database with its batches read and formatted before the
+  clock starts: the server's side of a sync (two lanes, the key, the triggers) against the floor, without the
+  client's SQLite read and formatting sharing the cores.
 * Query: ``bench lab summary`` (``bench.store.lab_summary.pose_summary``: AP and RP, ISO 9283 7.2.1 and 7.2.2, per
   bench, robot, ISO week, pose, velocity and commanded position) over every synced sample, five times, after
   ANALYZE of bench.samples (what autovacuum does soon after a large sync); the pose tables the summary reads are
@@ -33,6 +36,7 @@ import subprocess
 import sys
 import tempfile
 import time
+from contextlib import contextmanager
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -106,6 +110,32 @@ def timed_sync(path: Path, url: str, cluster: Cluster | None, producers: int) ->
         children / result.samples_sent * 1e6,
         (server_cpu_s(cluster) - server) / result.samples_sent * 1e6,
     )
+
+
+def send_only(path: Path, url: str) -> float:
+    """Sync ``path`` to ``url`` with every batch read and formatted before the clock starts (no producers): the
+    samples/s of sending alone, the server's side of a sync (two lanes, the key, the triggers) without the client's
+    reading and formatting beside it on the same cores."""
+    import bench.store.lab_sync as lab_sync
+
+    formatted = lab_sync.lane_batches
+    ready = [0.0]
+
+    @contextmanager
+    def beforehand(*args, **kwargs):
+        with formatted(*args, **kwargs) as batches:
+            lanes = [list(lane) for lane in batches]
+            ready[0] = time.perf_counter()
+            yield [iter(lane) for lane in lanes]
+
+    lab_sync.lane_batches = beforehand
+    try:
+        with Store(path) as store:
+            result = sync_store(store, url, producers=0)
+            elapsed = time.perf_counter() - ready[0]
+    finally:
+        lab_sync.lane_batches = formatted
+    return result.samples_sent / elapsed
 
 
 def _autovacuum(url: str, setting: str) -> None:
@@ -184,6 +214,7 @@ def main(argv=None) -> None:
         print(f"load average before the syncs: {os.getloadavg()[0]:.1f} on {os.cpu_count()} CPUs")
         variants = {"in this thread": 0, "1 producer": 1, f"{LANES} producers": LANES}
         urls = {name: _database(server, f"bench_sync_benchmark_{i}") for i, name in enumerate(variants)}
+        sending: list[float] = []
         url = urls["in this thread"]  # the one the concurrent syncs and the summary use
         rates: dict[str, list[float]] = {name: [] for name in variants}
         cpu: dict[str, list[tuple[float, float, float]]] = {name: [] for name in variants}
@@ -197,6 +228,7 @@ def main(argv=None) -> None:
                 cpu[name].append((cpu_us[0], cpu_us[1], cpu_us[2]))
             for kind in floors:
                 floors[kind].append(copy_floor(url, path, cluster, logged=kind == "logged"))
+            sending.append(send_only(path, _database(server, "bench_sync_benchmark_send")))
         background = server_cpu_s(cluster, background=True) - background
         floor_cpu = {kind: [statistics.median(v[i] for v in values) for i in (1, 2)] for kind, values in floors.items()}
         for kind, values in floors.items():
@@ -228,6 +260,12 @@ def main(argv=None) -> None:
                 f" (the ratio on a machine with every core busy); the busiest process's"
                 f" {max(floor_own, floor_server) / busiest:.2f} (the ratio with a core free for each process)"
             )
+
+        ratios = [rate / floor[0] for rate, floor in zip(sending, floors["logged"])]
+        print(
+            f"sending alone (batches read and formatted beforehand) {n:,} samples: {_spread(sending, '9,.0f')}"
+            f" samples/s; / floor (logged) {_spread(ratios, '.2f')}"
+        )
 
         rest = stores[args.sequential :]
         if rest:  # one process per bench; the window runs from the first sync's start to the last one's end

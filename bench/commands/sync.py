@@ -29,14 +29,16 @@ def register(groups: argparse._SubParsersAction) -> None:
     sync.add_argument(
         "--bench", default=None, help="this bench's name for runs of a file migrated now (default: the host name)"
     )
-    sync.add_argument("--batch", type=int, default=20_000, help="samples per transaction")
+    from bench.store.lab_batches import BATCH_SAMPLES
+
+    sync.add_argument("--batch", type=int, default=BATCH_SAMPLES, help="samples per transaction")
     sync.add_argument("--retries", type=int, default=3, help="reconnections after a lost connection")
     sync.add_argument(
         "--producers",
         type=int,
         default=None,
         help="processes reading and formatting the samples while they are sent, one per connection at most (default: 1 for a sync of "
-        "4 batches or more on 4 cores or more, else 0)",
+        "80,000 samples or more on 4 cores or more, else 0)",
     )
     sync.set_defaults(handler=_sync)
 

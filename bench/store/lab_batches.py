@@ -6,7 +6,7 @@ sets the sync's pace while the server's two connections wait (``benchmarks/bench
 So a large sync from a store file can read and format a lane's batches in a producer process (this module run with
 ``python -m``, its own read-only connection to the file) while the sync's threads send them, and this thread
 formats the other lane's (:func:`lane_batches`). A producer's start costs about 0.15 s of CPU, and its batches
-cross a pipe: worth it for a sync of :data:`PRODUCED_BATCHES` batches or more on a machine of 4 cores or more
+cross a pipe: worth it for a sync of :data:`PRODUCED_SAMPLES` samples or more on a machine of 4 cores or more
 (:func:`producer_count`), a loss on a machine whose cores are all busy.
 
 Every sample the server lacked when the sync asked is in exactly one batch: a produced run is cut at the step index
@@ -34,26 +34,31 @@ from bench.store.database import RunRecord, Store
 from bench.store.lab_connection import LabStoreError
 from bench.store.lab_copy import TYPED_COLUMNS, copy_text
 
-__all__ = ["PRODUCED_BATCHES", "Batch", "lane_batches", "producer_count"]
+__all__ = ["BATCH_SAMPLES", "PRODUCED_SAMPLES", "Batch", "lane_batches", "producer_count"]
 
 #: A batch: its COPY text in chunks of :data:`_CHUNK_ROWS` rows at most, its number of samples, its run.
 Batch = tuple[list[bytes], int, RunRecord]
 
 _CHUNK_ROWS = 2_000  # rows per COPY write: the server parses one while the next goes
-#: Batches a sync sends, at least, for producer processes to pay for their start (about 0.15 s of CPU each).
-PRODUCED_BATCHES = 4
+#: Samples a batch (one transaction) holds by default. 5,000 rather than 20,000: the first batch is read and
+#: formatted while nothing is sent, the last sent while nothing is formatted, and on two cores those ends were a
+#: fifth of a 100,000-sample sync (``benchmarks/bench_sync.py``: 0.40 -> 0.46-0.48 of a bare COPY's rate, quiet
+#: machine); a batch's commit (one WAL flush, about 3 ms) is overlapped by the other lane's batch.
+BATCH_SAMPLES = 5_000
+#: Samples a sync sends, at least, for producer processes to pay for their start (about 0.15 s of CPU each).
+PRODUCED_SAMPLES = 80_000
 
 
 def producer_count(store: Store, samples: int, batch_size: int, lanes: int, requested: int | None) -> int:
     """Producer processes for a sync of ``samples`` samples in ``lanes`` lanes: ``requested`` when given (one per
     lane at most), else one (the busiest process's CPU per sample falls from about 10 to 6 us, for about 1.5 us
-    more in all, measured in ``benchmarks/bench_sync.py``) for a sync of :data:`PRODUCED_BATCHES` batches or more
+    more in all, measured in ``benchmarks/bench_sync.py``) for a sync of :data:`PRODUCED_SAMPLES` samples or more
     on a machine of 4 cores or more; none for an in-memory store (which another process cannot open)."""
     if store.path == ":memory:":
         return 0
     if requested is not None:
         return min(requested, lanes)
-    return min(1, lanes) if samples >= PRODUCED_BATCHES * batch_size and (os.cpu_count() or 1) >= 4 else 0
+    return min(1, lanes) if samples >= PRODUCED_SAMPLES and (os.cpu_count() or 1) >= 4 else 0
 
 
 def _formatted(rows: Any, run_uuid: str, held: Collection[int], limit: int | None) -> tuple[list[bytes], int, bool]:

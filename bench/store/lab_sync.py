@@ -14,7 +14,7 @@ from typing import TYPE_CHECKING, Any
 
 from bench.errors import BenchError
 from bench.store.database import RunRecord, Store
-from bench.store.lab_batches import Batch, lane_batches, producer_count
+from bench.store.lab_batches import BATCH_SAMPLES, Batch, lane_batches, producer_count
 from bench.store.lab_connection import LabServerBusy, LabStoreError, connect, one_line, psycopg_module, redacted
 from bench.store.lab_copy import COPY_COLUMNS
 from bench.store.lab_schema import ensure_schema
@@ -32,7 +32,8 @@ _COPY_COLUMNS = ", ".join(f'"{c}"' for c in COPY_COLUMNS)
 #: Connections sending batches at once (each its own runs): the server stores and folds two batches in parallel.
 LANES = 2
 #: Memory for the pose trigger's transition table of one batch (about 400 bytes a row): with the server's default
-#: (4 MB) a 20 000-sample batch spills to a temporary file (10-15 % more of the server's time per sample).
+#: (4 MB) a 20 000-sample batch (``bench sync --batch 20000``) spills to a temporary file (10-15 % more of the
+#: server's time per sample); the default batch (5,000, about 2 MB) fits either way.
 _WORK_MEM = "64MB"
 #: The bench.runs columns a sync fills: the run's checked columns exactly as its file stores them (status and
 #: reason as stored) with the file's checksum of them, and beside them the status and reason the file reads the
@@ -268,7 +269,7 @@ def sync_store(
     store: Store,
     url: str,
     *,
-    batch_size: int = 20_000,
+    batch_size: int = BATCH_SAMPLES,
     retries: int = 3,
     retry_wait_s: float = 1.0,
     busy_wait_s: float = 600.0,
@@ -281,7 +282,7 @@ def sync_store(
     random wait (0.5-1.5 times ``retry_wait_s``, doubling up to 30 s), for ``busy_wait_s`` in all: a crowd of benches
     syncing at once shares the server's connections instead of failing. ``producers``: processes reading and
     formatting the batches of as many lanes (:mod:`bench.store.lab_batches`; 0: all in this thread; None: one for a
-    sync of 4 batches or more on a machine of 4 cores or more).
+    sync of 80,000 samples or more on a machine of 4 cores or more).
 
     Raises
     ------
