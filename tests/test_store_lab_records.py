@@ -190,3 +190,33 @@ def test_records_synced_before_schema_5_are_named_not_checked_until_their_bench_
     with Store(path, bench="bench-a") as store:
         sync_store(store, lab_url)
     assert _check(lab_url, capsys) == (0, [f"{shown}: ok"], [])
+
+
+def test_calibrations_carry_their_runs_bench_not_the_name_of_whoever_syncs(tmp_path, lab_url):
+    """A file of bench-07's runs synced from another machine (opened as ``lab-desk``): a calibration fitted from a
+    run carries that run's bench, one without a source run the file's bench (its runs agree on one)."""
+    path = make_store(tmp_path / "b07.db", "bench-07", [4, 4])
+    with Store(path, bench="bench-07") as store:
+        fitted = store.add_calibration("mouse", {"mm_per_count": 0.0318}, source_run_id=2)
+    db = sqlite3.connect(path)
+    with db:  # run 2 measured on another bench that wrote into this file (a file carried between benches)
+        db.execute("UPDATE runs SET bench = 'bench-09' WHERE id = 2")
+        seal_run(db, 2)
+    db.close()
+    with Store(path, bench="lab-desk") as store:
+        sync_store(store, lab_url)
+        nominal = store.calibration("mouse", 1)
+    with psycopg.connect(lab_url, autocommit=True) as conn:
+        labels = dict(conn.execute("SELECT uuid::text, bench FROM bench.calibrations").fetchall())
+    # the runs disagree (bench-07, bench-09): the file's bench is the name it was opened with, for want of another
+    assert labels == {fitted.uuid: "bench-09", nominal.uuid: "lab-desk"}
+
+
+def test_a_file_of_one_bench_labels_its_calibrations_with_that_bench(tmp_path, lab_url):
+    path = make_store(tmp_path / "b07.db", "bench-07", [4])
+    with Store(path, bench="lab-desk") as store:
+        sync_store(store, lab_url)
+        (calibration,) = store.calibrations()
+    with psycopg.connect(lab_url, autocommit=True) as conn:
+        held = conn.execute("SELECT bench FROM bench.calibrations WHERE uuid = %s", (calibration.uuid,)).fetchall()
+    assert held == [("bench-07",)]

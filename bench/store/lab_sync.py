@@ -88,15 +88,29 @@ def _run_row(
     return tuple(row[c] for c in _RUN_COLUMNS)
 
 
+def _calibration_benches(
+    store: Store, stored_runs: list[tuple[int, tuple[Any, ...], str]]
+) -> tuple[dict[int, str], str]:
+    """The bench each run of the file was measured on (its stored ``bench``), and the file's bench: its runs' one
+    bench when they agree, else the name the file was opened with (``--bench``, or the host name)."""
+    at = RUN_CHECKED_COLUMNS.index("bench")
+    benches = {run_id: fields[at] for run_id, fields, _ in stored_runs}
+    named = set(benches.values())
+    return benches, named.pop() if len(named) == 1 else store.bench
+
+
 def _calibration_row(
-    store: Store, stored: tuple[int, tuple[Any, ...], str], run_uuids: dict[int, str]
+    stored: tuple[int, tuple[Any, ...], str], run_uuids: dict[int, str], benches: tuple[dict[int, str], str]
 ) -> tuple[Any, ...]:
-    """One bench.calibrations row (:data:`_CALIBRATION_COLUMNS`) from a calibration as stored."""
+    """One bench.calibrations row (:data:`_CALIBRATION_COLUMNS`) from a calibration as stored, labelled with the
+    bench of its source run, else the file's bench (:func:`_calibration_benches`): never the name of whoever syncs
+    (a lab manager syncing a bench's file from another machine labelled every calibration with that machine)."""
     calibration_id, fields, checksum = stored
     row = dict(zip(CALIBRATION_CHECKED_COLUMNS, fields))
     source = row["source_run_id"]
+    run_benches, file_bench = benches
     row |= {
-        "bench": store.bench,
+        "bench": run_benches.get(source, file_bench) if source is not None else file_bench,
         "local_id": calibration_id,
         "source_run_uuid": None if source is None else run_uuids.get(source),
         "source_run_local_id": source,
@@ -226,6 +240,7 @@ def _push(
     runs = store.runs()  # (then every run whose samples are sent has its row: a run started meanwhile waits)
     stored_runs = store.stored_records("runs")
     run_uuids = {r[0]: r[1][0] for r in stored_runs}
+    benches = _calibration_benches(store, stored_runs)
     calibration_uuids = {c[0]: c[1][0] for c in calibrations}
     updates = ", ".join(f"{c} = EXCLUDED.{c}" for c in _RUN_COLUMNS[1:])
     with conn.transaction(), conn.cursor() as cur:
@@ -239,7 +254,7 @@ def _push(
             f" VALUES ({', '.join(['%s'] * len(_CALIBRATION_COLUMNS))}) ON CONFLICT (uuid) DO UPDATE SET"
             " source_run_local_id = EXCLUDED.source_run_local_id, checksum = EXCLUDED.checksum"
             " WHERE bench.calibrations.checksum IS NULL",
-            [_calibration_row(store, c, run_uuids) for c in calibrations],
+            [_calibration_row(c, run_uuids, benches) for c in calibrations],
         )
     conn.commit()
     held = _held_steps(conn, runs)
