@@ -46,7 +46,7 @@ from postgres_support import Cluster, _bindir, make_store, with_database  # noqa
 
 from bench.store import Store  # noqa: E402
 from bench.store.lab import LabStore, sync_store  # noqa: E402
-from bench.store.lab_copy import COPY_COLUMNS, TYPED_COLUMNS, copy_text  # noqa: E402
+from bench.store.lab_copy import COPY_COLUMNS, copy_text  # noqa: E402
 from bench.store.lab_summary import pose_summary  # noqa: E402
 from bench.store.lab_sync import LANES  # noqa: E402
 
@@ -78,7 +78,7 @@ def copy_floor(url: str, path: Path, cluster: Cluster | None, *, logged: bool) -
     import psycopg
 
     with Store(path) as store, psycopg.connect(url) as conn:
-        data = [copy_text(r.uuid, store.stored_rows(r.id, extract=TYPED_COLUMNS)) for r in store.runs()]
+        data = [copy_text(r.uuid, store.stored_rows(r.id, checksum=True)) for r in store.runs()]
         n = sum(r.n_samples for r in store.runs())
         conn.execute(f"CREATE {'' if logged else 'UNLOGGED '}TABLE floor (LIKE bench.samples)")
         conn.commit()

@@ -14,7 +14,8 @@ included) into tables that add one cost at a time, measured as the CPU of the se
    typed values costs the server.
 
 And the sync's own process, reading and formatting the same runs (its CPU, min/median over the rounds): the rows
-from SQLite alone, with the ``json_extract`` of the typed values, and formatted as COPY text.
+from SQLite alone (with their checksums), their typed values alone (msgspec: decoded from ``values_json`` and
+encoded as the COPY's tab-separated fields), and the rows read and formatted as COPY text (what a sync does).
 
 Each COPY is one run's rows in one transaction, as a sync's batches are. Needs Debian's postgresql (a throwaway
 cluster on this machine). Usage: ``python benchmarks/bench_sync_costs.py [--samples 100000] [--repeat 3]``.
@@ -39,7 +40,7 @@ from postgres_support import Cluster, _bindir, make_store  # noqa: E402
 
 from bench.store import Store  # noqa: E402
 from bench.store.lab import sync_store  # noqa: E402
-from bench.store.lab_copy import COPY_COLUMNS, TYPED_COLUMNS, copy_text  # noqa: E402
+from bench.store.lab_copy import COPY_COLUMNS, TYPED_COLUMNS, _typed_fields, copy_text  # noqa: E402
 
 _FK = "ALTER TABLE bench.samples ADD CONSTRAINT samples_run_uuid_fkey FOREIGN KEY (run_uuid) REFERENCES bench.runs"
 #: name -> (statements that set the variant up, the table copied into)
@@ -66,16 +67,15 @@ def untyped(text: bytes) -> bytes:
 
 
 def client_cpu_us(store: Store, n: int) -> dict[str, float]:
-    """This process's CPU per sample (us) reading every run: the rows alone, with the typed values extracted, and
-    formatted as the sync's COPY text."""
+    """This process's CPU per sample (us) reading every run: the rows alone, the typed values of rows read
+    beforehand, and the rows read and formatted as the sync's COPY text."""
     runs, spent = store.runs(), {}
+    values = {r.id: [row[6] for row in store.stored_rows(r.id)] for r in runs}
     for name, read in {
-        "read the rows from SQLite": lambda r: all(True for _ in store.stored_rows(r.id)),
-        "+ json_extract of the typed values": lambda r: all(
-            True for _ in store.stored_rows(r.id, extract=TYPED_COLUMNS)
-        ),
+        "read the rows from SQLite": lambda r: all(True for _ in store.stored_rows(r.id, checksum=True)),
+        "the typed values (of rows read beforehand)": lambda r: [_typed_fields(v) for v in values[r.id]],
         "+ COPY text: what a sync reads and formats": lambda r: copy_text(
-            r.uuid, store.stored_rows(r.id, extract=TYPED_COLUMNS)
+            r.uuid, store.stored_rows(r.id, checksum=True)
         ),
     }.items():
         start = time.process_time()
@@ -130,7 +130,7 @@ def main(argv: list[str] | None = None) -> None:
         n = args.samples // 4 * 4
         with Store(path) as store:
             sync_store(store, url)  # the schema and the runs
-            texts = [copy_text(r.uuid, store.stored_rows(r.id, extract=TYPED_COLUMNS)) for r in store.runs()]
+            texts = [copy_text(r.uuid, store.stored_rows(r.id, checksum=True)) for r in store.runs()]
         print(f"load average before: {os.getloadavg()[0]:.1f} on {os.cpu_count()} CPUs; {n:,} samples a COPY")
         cpu: dict[str, list[float]] = {name: [] for name in VARIANTS}
         client: dict[str, list[float]] = {}

@@ -1,7 +1,7 @@
 """The batches a lab sync sends: the samples the server lacks, read from the local file and formatted as COPY text.
 
-Reading a sample from SQLite (its ``json_extract`` of the typed values included) and formatting its COPY line cost
-about 8 us of the sync's process a sample, under Python's lock: on a machine with cores to spare, that one thread
+Reading a sample from SQLite and formatting its COPY line (its typed values included, :mod:`bench.store.lab_copy`) cost
+about 7 us of the sync's process a sample, under Python's lock: on a machine with cores to spare, that one thread
 sets the sync's pace while the server's two connections wait (``benchmarks/bench_sync.py``: its busiest process).
 So a large sync from a store file can read and format a lane's batches in a producer process (this module run with
 ``python -m``, its own read-only connection to the file) while the sync's threads send them, and this thread
@@ -32,7 +32,7 @@ from typing import Any
 
 from bench.store.database import RunRecord, Store
 from bench.store.lab_connection import LabStoreError
-from bench.store.lab_copy import TYPED_COLUMNS, copy_text
+from bench.store.lab_copy import copy_text
 
 __all__ = ["BATCH_SAMPLES", "PRODUCED_SAMPLES", "Batch", "lane_batches", "producer_count"]
 
@@ -81,7 +81,7 @@ def _formatted(rows: Any, run_uuid: str, held: Collection[int], limit: int | Non
 def _read_batches(store: Store, run: RunRecord, held: Collection[int], batch_size: int) -> Iterator[Batch]:
     """The samples of ``run`` that the server lacks (steps not in ``held``), ``batch_size`` at most a batch, read
     and formatted in this thread."""
-    rows = store.stored_rows(run.id, extract=TYPED_COLUMNS)
+    rows = store.stored_rows(run.id, checksum=True)
     exhausted = False
     while not exhausted:
         chunks, n, exhausted = _formatted(rows, run.uuid, held, batch_size)
@@ -202,7 +202,7 @@ def _produce(path: str) -> None:
     out = sys.stdout.buffer
     with Store(path, read_only=True) as store:
         for run_id, run_uuid, after, before, held in json.load(sys.stdin):
-            rows = store.stored_rows(run_id, after, before_step=before, extract=TYPED_COLUMNS)
+            rows = store.stored_rows(run_id, after, before_step=before, checksum=True)
             chunks, n, _ = _formatted(rows, run_uuid, frozenset(held), None)
             out.write(b" ".join([b"%d" % n, *(b"%d" % len(chunk) for chunk in chunks)]) + b"\n")
             out.writelines(chunks)

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import sqlite3
-from collections.abc import Callable, Iterator, Mapping, Sequence
+from collections.abc import Callable, Iterator, Mapping
 from typing import TYPE_CHECKING, Any
 
 from bench.errors import ConfigError
@@ -121,26 +121,19 @@ class StoreSamples:
             yield checked_sample(run_id, row, self.path), row[7]
 
     def stored_rows(
-        self, run_id: int, after_step: int = -1, *, before_step: int | None = None, extract: Sequence[str] = ()
+        self, run_id: int, after_step: int = -1, *, before_step: int | None = None, checksum: bool = False
     ) -> GuardedCursor:
         """The samples of a run after step ``after_step`` (and before ``before_step``, when given) exactly as
         stored, in step order: ``(step_index, kind, pose, cycle, t_s, wall_utc, values_json, raw_json)`` with the
-        JSON unparsed (what sync sends and what :func:`bench.store.lab.rows_checksum` hashes); with ``extract`` (two
-        or more value names) two more items, the row's stored checksum and the JSON array of those values as stored
-        (``null`` where absent; SQLite's ``json_extract``, number text kept): what the lab sync sends."""
-        paths = "".join(", ?" for _ in extract)
+        JSON unparsed (what sync sends and what :func:`bench.store.lab.rows_checksum` hashes); with ``checksum``
+        the row's stored checksum after them (what the lab sync sends)."""
         return self._db.execute(
             "SELECT step_index, kind, pose, cycle, t_s, wall_utc, values_json, raw_json"
-            + (f", checksum, json_extract(values_json{paths})" if extract else "")
+            + (", checksum" if checksum else "")
             + " FROM samples WHERE run_id = ? AND step_index > ?"
             + ("" if before_step is None else " AND step_index < ?")
             + " ORDER BY step_index",
-            (
-                *(f"$.{name}" for name in extract),
-                int(run_id),
-                int(after_step),
-                *(() if before_step is None else (int(before_step),)),
-            ),
+            (int(run_id), int(after_step), *(() if before_step is None else (int(before_step),))),
         )
 
     def step_marks(self, run_id: int, every: int) -> list[int]:
