@@ -134,3 +134,20 @@ def test_step_marks_cut_a_run_into_batches_of_every_sample_once(tmp_path, n, eve
         ]
     assert [step for batch in batches for step in batch] == [2 * i + 1 for i in range(n)]
     assert all(len(batch) == every for batch in batches[:-1]) and 0 < len(batches[-1]) <= every if n else not batches
+
+
+def test_a_malformed_values_json_stops_a_sync_in_this_thread_in_one_line(tmp_path, lab_url, capsys):
+    """The sync's own thread formatting (no producer): the damaged sample is named by its step, exit 1, no
+    traceback, whole batches before it kept."""
+    path = make_store(tmp_path / "m.db", "bench-m", [1000])
+    db = sqlite3.connect(path)
+    with db:
+        db.execute("UPDATE samples SET values_json = '{broken' WHERE step_index = 701")
+    db.close()
+    capsys.readouterr()
+    assert main(["sync", "--store", str(path), "--to", lab_url, "--batch", "200", "--producers", "0"]) == 1
+    err = capsys.readouterr().err.strip().splitlines()
+    assert "Traceback" not in "\n".join(err)
+    assert "sample at step 701: its values_json is malformed JSON" in err[-1], err
+    held, distinct, _ = server_state(lab_url)
+    assert held == distinct and held % 200 == 0 and held <= 800
