@@ -30,6 +30,24 @@ def test_building_the_whole_parser_imports_no_heavy_package():
     assert result["heavy"] == []
 
 
+def test_building_the_whole_parser_opens_no_store_module():
+    """The parser's defaults that live in the store (``bench sync --batch``) are deferred to their sub-command."""
+    result = imported_after(
+        "import bench.cli\nbench.cli.build_parser()\n"
+        "print(sorted(m for m in ('bench.store', 'msgspec', 'sqlite3') if m in sys.modules))"
+    )
+    assert "[]" in result["stdout"].splitlines()[-2], result["stdout"]
+
+
+def test_sync_help_shows_the_stores_batch_default(capsys):
+    import bench.cli
+    from bench.store.lab_batches import BATCH_SAMPLES
+
+    with pytest.raises(SystemExit):
+        bench.cli.main(["sync", "--help"])
+    assert f"samples per transaction (default: {BATCH_SAMPLES})" in " ".join(capsys.readouterr().out.split())
+
+
 def test_top_level_help_and_version_import_no_heavy_package():
     help_text = imported_after(
         "import contextlib, io\nimport bench.cli\nout = io.StringIO()\n"

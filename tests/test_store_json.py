@@ -55,7 +55,7 @@ def _outcome(parse, text: str) -> tuple[str, object]:
 def test_values_read_as_the_standard_library_reads_them(value: object, sorted_keys: bool) -> None:
     text = json.dumps(value, sort_keys=sorted_keys)
     assert _same(from_json(text), json.loads(text))
-    assert _same(from_json(text.encode("utf-8", "surrogatepass")), json.loads(text)) or "\\ud" in text.lower()
+    assert _same(from_json(text.encode()), json.loads(text))  # bytes as the store may hand them
 
 
 @settings(max_examples=400, deadline=None)

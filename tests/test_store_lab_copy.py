@@ -6,7 +6,6 @@ numbers (NULL where it holds none)."""
 from __future__ import annotations
 
 import json
-import sqlite3
 
 from hypothesis import given, settings
 from hypothesis import strategies as st
@@ -90,3 +89,16 @@ def test_copy_text_gives_every_column_back(rows):
             assert (field is None) == (not number), (name, value, field)
             if number:
                 assert float(field) == float(value)
+
+
+def test_json_only_the_standard_library_reads_keeps_its_numbers():
+    """A key with an escaped lone surrogate (``to_json`` writes one; msgspec refuses it, ``json.loads`` reads it):
+    the row is not refused as damaged, its typed numbers are sent."""
+    from bench.store.records import to_json
+
+    values_json = to_json({"x\ud800": 1.0, "cmd_x_mm": 2.5, "x_mm": -0.0}, "values")
+    stored = (3, "pose", "P1", 1, 0.5, "w", values_json, None)
+    (fields,) = decode(copy_text("4e9af590-0000-4000-8000-000000000001", [(*stored, sample_checksum(*stored))]))
+    typed = dict(zip(TYPED_COLUMNS, fields[10:]))
+    assert typed["cmd_x_mm"] == "2.5" and typed["x_mm"] == "-0.0"
+    assert all(v is None for k, v in typed.items() if k not in ("cmd_x_mm", "x_mm"))

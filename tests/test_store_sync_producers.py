@@ -71,7 +71,7 @@ def test_a_producer_failing_mid_run_leaves_whole_batches_and_the_next_sync_resum
     path = make_store(tmp_path / "f.db", "bench-f", [2000])
     db = sqlite3.connect(path)
     good = db.execute("SELECT values_json FROM samples WHERE step_index = 2501").fetchone()[0]
-    with db:  # a sample the producer cannot read (SQLite's json_extract refuses it): it stops mid-run
+    with db:  # a sample the producer cannot read (its values_json is not JSON): it stops mid-run
         db.execute("UPDATE samples SET values_json = '{broken' WHERE step_index = 2501")
     with Store(path) as store, pytest.raises(LabStoreError, match="the process reading .* stopped .*malformed JSON"):
         sync_store(store, lab_url, batch_size=200, producers=1)

@@ -9,9 +9,18 @@ from __future__ import annotations
 import argparse
 import sys
 
+from bench.commands.lazy import defer
 from bench.errors import ConfigError
 
 DEFAULT_STORE = "bench.db"
+
+
+def _add_batch(parser: argparse.ArgumentParser) -> None:
+    """``--batch``, whose default is the store's (:data:`bench.store.lab_batches.BATCH_SAMPLES`): added when
+    ``sync`` is parsed, so that building the parser imports no store module."""
+    from bench.store.lab_batches import BATCH_SAMPLES
+
+    parser.add_argument("--batch", type=int, default=BATCH_SAMPLES, help="samples per transaction")
 
 
 def register(groups: argparse._SubParsersAction) -> None:
@@ -29,9 +38,7 @@ def register(groups: argparse._SubParsersAction) -> None:
     sync.add_argument(
         "--bench", default=None, help="this bench's name for runs of a file migrated now (default: the host name)"
     )
-    from bench.store.lab_batches import BATCH_SAMPLES
-
-    sync.add_argument("--batch", type=int, default=BATCH_SAMPLES, help="samples per transaction")
+    defer(sync, _add_batch)
     sync.add_argument("--retries", type=int, default=3, help="reconnections after a lost connection")
     sync.add_argument(
         "--producers",

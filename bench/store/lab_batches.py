@@ -42,14 +42,14 @@ Batch = tuple[list[bytes], int, RunRecord]
 _CHUNK_ROWS = 2_000  # rows per COPY write: the server parses one while the next goes
 #: Samples a batch (one transaction) holds by default. 5,000 rather than 20,000: the first batch is read and
 #: formatted while nothing is sent, the last sent while nothing is formatted, and on two cores those ends were a
-#: fifth of a 100,000-sample sync (``benchmarks/bench_sync.py``: 0.40 -> 0.46-0.48 of a bare COPY's rate, quiet
-#: machine); a batch's commit (one WAL flush, about 3 ms) is overlapped by the other lane's batch.
+#: fifth of a 100,000-sample sync (``benchmarks/bench_sync.py``, quiet machine, medians of runs: 0.40 -> 0.46-0.54
+#: of a bare COPY's rate); a batch's commit (one WAL flush, about 3 ms) is overlapped by the other lane's batch.
 BATCH_SAMPLES = 5_000
 #: Samples a sync sends, at least, for producer processes to pay for their start (about 0.15 s of CPU each).
 PRODUCED_SAMPLES = 80_000
 
 
-def producer_count(store: Store, samples: int, batch_size: int, lanes: int, requested: int | None) -> int:
+def producer_count(store: Store, samples: int, lanes: int, requested: int | None) -> int:
     """Producer processes for a sync of ``samples`` samples in ``lanes`` lanes: ``requested`` when given (one per
     lane at most), else one (the busiest process's CPU per sample falls from about 10 to 6 us, for about 1.5 us
     more in all, measured in ``benchmarks/bench_sync.py``) for a sync of :data:`PRODUCED_SAMPLES` samples or more

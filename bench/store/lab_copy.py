@@ -9,10 +9,11 @@ double up to 2**53.
 The typed fields come from msgspec: the sample's ``values_json`` decoded into a struct of the typed columns (each
 a float or null; every other key skipped unparsed) and encoded again as one JSON array, both in C; its commas become
 tabs and its ``null`` becomes COPY's ``\\N``. A float is written as its shortest round-trip text, so the server stores
-the same double as the stored text's (an integer becomes that integer's double, as the server's own conversion of
-its text would: exact up to 2**53). A value that is not a number (a string, a boolean, a nested object, in an
-undeclared kind) or JSON that is not an object sends the row through :func:`_typed_fields_slow`, which keeps the
-numbers and sends NULL for the rest. (SQLite's ``json_extract`` of the 28 paths did the same in 2.0 us a sample
+the same double as the stored text's (an integer becomes that integer's double, correctly rounded as the server's
+own conversion of its text would be: exact up to 2**53; ``-0`` becomes 0.0). A value that is not a number (a string, a boolean, a nested object, in an
+undeclared kind), JSON that is not an object, or JSON that only the standard library reads (an escaped lone
+surrogate in a key, which :func:`bench.store.records.to_json` can write) sends the row through
+:func:`_typed_fields_slow`, which keeps the numbers and sends NULL for the rest. (SQLite's ``json_extract`` of the 28 paths did the same in 2.0 us a sample
 and its number text needed 0.84 us more of Python; this takes 1.3 + 0.9: ``benchmarks/bench_sync_costs.py``.)
 
 Format: PostgreSQL manual, COPY, "Text Format": tab-separated, ``\\N`` for NULL, backslash escapes for backslash,
@@ -84,7 +85,8 @@ def _typed_fields(values_json: str) -> str:
     """The typed fields (tab-separated) of a sample's ``values_json``: its numbers, NULL where it holds none."""
     try:
         array = _ENCODE(_AS_TUPLE(_DECODE_TYPED(values_json)))
-    except msgspec.ValidationError:  # a value that is not a number, or JSON that is not an object
+    except msgspec.MsgspecError:  # a value that is not a number, JSON that is not an object, or JSON that msgspec
+        # refuses and the standard library reads (an escaped lone surrogate, NaN): the slow path's from_json decides
         return _typed_fields_slow(values_json)
     return array[1:-1].replace(b",", b"\t").replace(b"null", b"\\N").decode()
 
@@ -110,7 +112,7 @@ def copy_text(run_uuid: str, rows: Iterable[tuple[Any, ...]]) -> bytes:
         step, kind, pose, cycle, t_s, wall, values, raw, checksum = row
         try:
             typed = _typed_fields(values)
-        except ValueError as exc:  # msgspec.DecodeError: damaged bytes (bench writes only JSON)
+        except ValueError as exc:  # from_json's: not JSON at all (damaged bytes: bench writes only JSON)
             raise DamagedSample(
                 f"sample at step {step}: its values_json is malformed JSON ({exc}); nothing after it is sent: list "
                 "the damage with `bench store check FILE`"

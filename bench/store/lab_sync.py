@@ -103,8 +103,10 @@ def _calibration_row(
     stored: tuple[int, tuple[Any, ...], str], run_uuids: dict[int, str], benches: tuple[dict[int, str], str]
 ) -> tuple[Any, ...]:
     """One bench.calibrations row (:data:`_CALIBRATION_COLUMNS`) from a calibration as stored, labelled with the
-    bench of its source run, else the file's bench (:func:`_calibration_benches`): never the name of whoever syncs
-    (a lab manager syncing a bench's file from another machine labelled every calibration with that machine)."""
+    bench of its source run, else the file's bench (:func:`_calibration_benches`: the name the file was opened with
+    only when its runs name no single bench). Before 0.5.1 always that name: a lab manager syncing a bench's file
+    from another machine labelled every calibration with that machine; such rows keep their label (the upsert
+    leaves a synced calibration as it is)."""
     calibration_id, fields, checksum = stored
     row = dict(zip(CALIBRATION_CHECKED_COLUMNS, fields))
     source = row["source_run_id"]
@@ -271,7 +273,7 @@ def _push(
         for lane_conn in connections:
             _prepare_sender(lane_conn)
         samples = sum(run.n_samples - len(held[run.uuid] or ()) for run in to_send)
-        workers = producer_count(store, samples, batch_size, len(lanes), producers)
+        workers = producer_count(store, samples, len(lanes), producers)
         with lane_batches(store, lanes, held, batch_size=batch_size, producers=workers) as batches:
             _send_lanes(batches, connections, progress=progress, sent=sent)
     finally:

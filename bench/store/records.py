@@ -140,8 +140,8 @@ def from_json(text: str | bytes) -> Any:
 
     msgspec parses what it accepts exactly as ``json.loads`` does (floats correctly rounded, integers of any size,
     the last of repeated keys; ``tests/test_store_json.py`` holds it to that); what it refuses but the standard
-    library reads (``NaN``, ``Infinity``, ``1e400``, a lone surrogate, escaped or not: never written by :func:`to_json`) goes to
-    ``json.loads``, so a value or an error is never different, only faster.
+    library reads (``NaN``, ``Infinity``, ``1e400``: never written by :func:`to_json`; a lone surrogate, which it
+    writes escaped) goes to ``json.loads``, so a value or an error is never different, only faster.
     """
     try:
         return _DECODER.decode(text)
