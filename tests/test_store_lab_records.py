@@ -220,3 +220,23 @@ def test_a_file_of_one_bench_labels_its_calibrations_with_that_bench(tmp_path, l
     with psycopg.connect(lab_url, autocommit=True) as conn:
         held = conn.execute("SELECT bench FROM bench.calibrations WHERE uuid = %s", (calibration.uuid,)).fetchall()
     assert held == [("bench-07",)]
+
+
+def test_the_lab_summary_refuses_a_run_changed_on_the_server_and_names_it(tmp_path, lab_url, capsys):
+    """A run's robot changed on the server (the summary groups by it): the summary is refused in one line naming
+    the run, not printed under the other robot; leaving that bench out gives the rest."""
+    _synced(tmp_path, lab_url, bench="bench-a", samples=(6,), name="a.db")
+    with Store(_store(tmp_path, bench="bench-b", samples=(6,), name="b.db"), bench="bench-b") as store:
+        sync_store(store, lab_url)
+    summary = ["lab", "summary", "--store", lab_url]
+    capsys.readouterr()
+    assert main(summary) == 0
+    assert "bench-a" in capsys.readouterr().out
+    with psycopg.connect(lab_url, autocommit=True) as conn:
+        conn.execute("UPDATE bench.runs SET robot = 'delta4' WHERE bench = 'bench-a'")
+    assert main(summary) == 1
+    out, err = capsys.readouterr()
+    assert out == "" and len(err.strip().splitlines()) == 1, err
+    assert "bench-a/1" in err and _CHANGED in err
+    assert main([*summary, "--bench", "bench-b"]) == 0
+    assert "bench-b" in capsys.readouterr().out

@@ -37,13 +37,18 @@ from collections.abc import Mapping
 from dataclasses import asdict, dataclass
 from typing import Any, Protocol
 
+from bench.store.lab_records import RUN_CHECK_SQL, refuse_damaged_run
+
 __all__ = ["POSE_TABLES_BACKFILL", "POSE_TABLES_DDL", "PoseGroup", "pose_summary"]
 
 _POSE_SAMPLES = """kind = 'pose' AND x_mm IS NOT NULL AND y_mm IS NOT NULL AND z_mm IS NOT NULL
     AND cmd_x_mm IS NOT NULL AND cmd_y_mm IS NOT NULL AND cmd_z_mm IS NOT NULL"""
 
-_RUNS_SQL = """SELECT uuid, bench, robot, date_trunc('week', started_utc::timestamptz AT TIME ZONE 'UTC')::date
-FROM bench.runs r WHERE true {where}"""
+#: The runs a summary groups, with each run's checked columns (:data:`bench.store.lab_records.RUN_CHECK_SQL`): its
+#: bench, robot and start, which the groups are keyed by, are checked against the checksum its bench stored.
+_RUNS_SQL = f"""SELECT r.uuid, r.bench, r.robot,
+    date_trunc('week', r.started_utc::timestamptz AT TIME ZONE 'UTC')::date, r.local_id, {RUN_CHECK_SQL}
+FROM bench.runs r WHERE true {{where}}"""
 
 #: The pose key of a sample: a missing pose or velocity becomes '' or NaN (NaN equals NaN in PostgreSQL).
 _KEY = (
@@ -211,7 +216,10 @@ class PoseGroup:
 
 
 class LabQueries(Protocol):
-    """What the summary needs of a lab store: :meth:`bench.store.lab.LabStore.query`."""
+    """What the summary needs of a lab store: :meth:`bench.store.lab.LabStore.query`, and its ``path`` (the URL with
+    its password hidden) to name it."""
+
+    path: str
 
     def query(
         self, sql: str, args: Any = (), *, settings: Mapping[str, str] | None = None
@@ -233,7 +241,14 @@ def pose_summary(
     robot: str | None = None,
 ) -> list[PoseGroup]:
     """The :class:`PoseGroup` rows of the lab store ``lab`` (a :class:`bench.store.lab.LabStore`), for runs started
-    at or after ``since`` and before ``until`` (ISO dates or times, UTC), of ``bench`` and ``robot`` when given."""
+    at or after ``since`` and before ``until`` (ISO dates or times, UTC), of ``bench`` and ``robot`` when given.
+
+    Every run the summary groups is checked first (its record against the checksum its bench stored, lab schema
+    5): one changed on the server (its robot, bench or start, which the groups are keyed by, or anything else its
+    checksum covers) refuses the summary in one line naming the run
+    (:class:`bench.store.record_checksum.DamagedRecord`), as export and report refuse it; ``--bench``, ``--robot``
+    and the dates leave it out. The samples' own checksums are not read here (the summary reads the pose point sets
+    folded from them at sync): ``bench store check URL`` checks them."""
     clauses, args = [], []
     for clause, value in (
         ("r.started_utc >= %s", since),
@@ -244,10 +259,12 @@ def pose_summary(
         if value is not None:
             clauses.append(f"AND {clause}")
             args.append(value)
-    runs = {
-        uuid: (run_bench, run_robot, week)
-        for uuid, run_bench, run_robot, week in lab.query(_RUNS_SQL.format(where=" ".join(clauses)), args)
-    }
+    runs = {}
+    for uuid, run_bench, run_robot, week, local_id, *checked in lab.query(
+        _RUNS_SQL.format(where=" ".join(clauses)), args
+    ):
+        refuse_damaged_run(f"{run_bench}/{local_id}", checked, lab.path)
+        runs[uuid] = (run_bench, run_robot, week)
     if not runs:
         return []
     sums = lab.query(_KEYS_SQL, (list(runs),))
