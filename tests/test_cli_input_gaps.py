@@ -7,18 +7,12 @@ from __future__ import annotations
 from pathlib import Path
 
 import pytest
+from cli_lines import one_error_line as _one_line
 
 from bench.cli import main
 
 ROOT = Path(__file__).resolve().parents[1]
 QUICK = ROOT / "examples" / "iso9283_pose_quick.toml"
-
-
-def _one_line(capsys) -> str:
-    captured = capsys.readouterr()
-    lines = captured.err.strip().splitlines()
-    assert len(lines) == 1 and "Traceback" not in captured.err, captured.err
-    return lines[0]
 
 
 @pytest.mark.parametrize("factor", ["inf", "nan", "-1", "0"])

@@ -12,6 +12,8 @@ from hypothesis import strategies as st
 
 pytest.importorskip("psycopg", reason='the lab store needs psycopg 3 (pip install "psycopg[binary]")')
 
+from cli_lines import one_error_line as _one_line  # noqa: E402
+
 from bench.cli import main
 from bench.store import Store
 from bench.store.lab import redacted
@@ -29,12 +31,6 @@ BAD_URLS = {  # the URL -> words its one line must hold
     f"postgresql://bench:{SECRET}@localhost:1/lab?keepalives=x": "keepalives 'x', expected an integer",
     f"postgresql://bench:{SECRET}@localhost:1/lab?connect_timeout=abc": "connect_timeout 'abc', expected an integer",
 }
-
-
-def _one_line(capsys) -> str:
-    lines = capsys.readouterr().err.strip().splitlines()
-    assert len(lines) == 1, lines
-    return lines[0]
 
 
 @pytest.mark.parametrize("url", sorted(BAD_URLS))

@@ -10,6 +10,7 @@ import sqlite3
 from pathlib import Path
 
 import pytest
+from cli_lines import one_error_line as _one_error_line
 from hypothesis import given
 from hypothesis import strategies as st
 
@@ -50,13 +51,6 @@ def _changed(sound_store: Path, tmp_path: Path, sql: str) -> Path:
         assert db.execute(sql).rowcount == 1
     db.close()
     return damaged
-
-
-def _one_error_line(capsys) -> str:
-    captured = capsys.readouterr()
-    lines = captured.err.strip().splitlines()
-    assert len(lines) == 1 and "Traceback" not in captured.err, captured.err
-    return lines[0]
 
 
 def test_a_sound_store_checks_ok_after_bench_changed_its_run(sound_store):

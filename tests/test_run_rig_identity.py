@@ -7,6 +7,7 @@ import json
 from pathlib import Path
 
 import pytest
+from cli_lines import one_error_line as _one_error_line
 from cli_runs import store_dump
 
 from bench.cli import main
@@ -15,13 +16,6 @@ from bench.store import Store
 ROOT = Path(__file__).resolve().parents[1]
 QUICK = ROOT / "examples" / "iso9283_pose_quick.toml"
 STATION = ROOT / "examples" / "stations" / "pkm5_mice.toml"
-
-
-def _one_error_line(capsys) -> str:
-    captured = capsys.readouterr()
-    lines = captured.err.strip().splitlines()
-    assert len(lines) == 1 and "Traceback" not in captured.err, captured.err
-    return lines[0]
 
 
 @pytest.fixture(scope="module")

@@ -10,6 +10,7 @@ import sqlite3
 from pathlib import Path
 
 import pytest
+from cli_lines import one_error_line as _one_error_line
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
@@ -36,13 +37,6 @@ def sound_store(tmp_path_factory) -> Path:
         store.set_status(run_id, "completed")
     assert not Path(f"{path}-wal").exists()  # the last close copied the log into the file
     return path
-
-
-def _one_error_line(capsys) -> str:
-    captured = capsys.readouterr()
-    lines = captured.err.strip().splitlines()
-    assert len(lines) == 1 and "Traceback" not in captured.err, captured.err
-    return lines[0]
 
 
 @settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])

@@ -14,6 +14,7 @@ import pytest
 pytest.importorskip("psycopg", reason='the lab store needs psycopg 3 (pip install "psycopg[binary]")')
 matplotlib = pytest.importorskip("matplotlib")
 
+from cli_lines import one_error_line as _one_error_line  # noqa: E402
 from postgres_support import PASSWORD, lab_server, lab_url  # noqa: E402, F401  (fixtures)
 
 from bench.cli import main  # noqa: E402
@@ -38,12 +39,6 @@ def benches(tmp_path, lab_url, capsys):
 
 def _stdout_lines(capsys) -> list[str]:
     return capsys.readouterr().out.splitlines()
-
-
-def _one_error_line(capsys) -> str:
-    lines = capsys.readouterr().err.strip().splitlines()
-    assert len(lines) == 1, lines
-    return lines[0]
 
 
 def _without_generation_time(html: str) -> str:

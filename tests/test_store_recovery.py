@@ -10,6 +10,7 @@ import subprocess
 from pathlib import Path
 
 import pytest
+from cli_lines import one_error_line as _one_error_line
 from cli_runs import BENCH, wait_for_samples
 
 from bench.cli import main
@@ -49,13 +50,6 @@ def _damage_a_sample_page(path: Path) -> int:
         file.seek((page - 1) * PAGE + 8)  # inside the page: its header's first bytes kept, its cells overwritten
         file.write(b"\x5a" * (PAGE - 8))
     return page
-
-
-def _one_error_line(capsys) -> str:
-    captured = capsys.readouterr()
-    lines = captured.err.strip().splitlines()
-    assert len(lines) == 1 and "Traceback" not in captured.err, captured.err
-    return lines[0]
 
 
 def test_a_damaged_store_left_by_an_interrupted_run_is_refused_before_anything_is_written(tmp_path, capsys):

@@ -8,6 +8,7 @@ import sqlite3
 from pathlib import Path
 
 import pytest
+from cli_lines import one_error_line as _one_error_line
 
 from bench.cli import build_parser, main
 from bench.store import Store
@@ -15,13 +16,6 @@ from bench.store.connection import StoreError, check_store
 
 ROOT = Path(__file__).resolve().parents[1]
 QUICK = ROOT / "examples" / "iso9283_pose_quick.toml"
-
-
-def _one_error_line(capsys) -> str:
-    captured = capsys.readouterr()
-    lines = captured.err.strip().splitlines()
-    assert len(lines) == 1 and "Traceback" not in captured.err, captured.err
-    return lines[0]
 
 
 @pytest.fixture()

@@ -16,6 +16,7 @@ import pytest
 
 psycopg = pytest.importorskip("psycopg", reason='the lab store needs psycopg 3 (pip install "psycopg[binary]")')
 
+from cli_lines import one_error_line as _one_error_line  # noqa: E402
 from postgres_support import PASSWORD, Cluster, lab_server, lab_url, make_store  # noqa: E402, F401  (fixtures)
 
 from bench.cli import main  # noqa: E402
@@ -141,12 +142,6 @@ def test_server_restart_mid_sync_is_retried(tmp_path, lab_server, lab_url):
     restarted[0].join()
     assert result.samples_sent == 4000
     assert server_state(lab_url) == (4000, 4000, local_checksums(path))
-
-
-def _one_error_line(capsys) -> str:
-    lines = capsys.readouterr().err.strip().splitlines()
-    assert len(lines) == 1, lines
-    return lines[0]
 
 
 def test_bad_url_credentials_and_server_are_one_line_each(tmp_path, lab_url, capsys):
