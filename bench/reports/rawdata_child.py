@@ -14,7 +14,6 @@ under :data:`PROCESS_MIN_SAMPLES` samples, and any run while the machine is busy
 
 from __future__ import annotations
 
-import os
 import shutil
 import subprocess
 import sys
@@ -23,6 +22,7 @@ import weakref
 from pathlib import Path
 from typing import Any
 
+from bench.child_env import bench_child_env
 from bench.errors import BenchError
 from bench.reports.cores import core_time_free
 
@@ -67,8 +67,6 @@ class CsvInChild:
         # a private folder; the file in it is created by the child as any CSV of a report is (the same mode)
         self.folder = tempfile.mkdtemp(prefix=f"run{run_id}_csv_")
         self.temporary = str(Path(self.folder) / "samples.csv")
-        package_root = str(Path(__file__).resolve().parents[2])  # the folder holding bench/, wherever it came from
-        env = {**os.environ, "PYTHONPATH": os.pathsep.join(filter(None, [package_root, os.environ.get("PYTHONPATH")]))}
         self.process = subprocess.Popen(
             [
                 sys.executable,
@@ -83,7 +81,7 @@ class CsvInChild:
             stdin=subprocess.DEVNULL,
             stdout=subprocess.PIPE,
             stderr=subprocess.PIPE,
-            env=env,
+            env=bench_child_env(),
         )
         # a report that fails before joining (or is dropped) stops the child and leaves no partial file behind
         self._abandon = weakref.finalize(self, _abandon, self.process, self.folder)

@@ -27,9 +27,9 @@ import tempfile
 from collections import deque
 from collections.abc import Collection, Iterator, Sequence
 from contextlib import ExitStack, contextmanager
-from pathlib import Path
 from typing import Any
 
+from bench.child_env import bench_child_env
 from bench.store.database import RunRecord, Store
 from bench.store.lab_connection import LabStoreError
 from bench.store.lab_copy import copy_text
@@ -112,16 +112,12 @@ class _ProducedBatches:
             for run, after, before in ranges
         ]
         self._errors = tempfile.TemporaryFile()
-        package_root = str(Path(__file__).resolve().parents[2])
         self._process = subprocess.Popen(
             [sys.executable, "-m", __name__, self._path],
             stdin=subprocess.PIPE,
             stdout=subprocess.PIPE,
             stderr=self._errors,
-            env={
-                **os.environ,
-                "PYTHONPATH": os.pathsep.join(filter(None, [package_root, os.environ.get("PYTHONPATH")])),
-            },
+            env=bench_child_env(),
         )
         assert self._process.stdin is not None and self._process.stdout is not None
         self._out = self._process.stdout
