@@ -112,7 +112,7 @@ def _calibration_row(
     source = row["source_run_id"]
     run_benches, file_bench = benches
     row |= {
-        "bench": run_benches.get(source, file_bench) if source is not None else file_bench,
+        "bench": run_benches.get(source, file_bench),  # no source run, or not in this file: the file's bench
         "local_id": calibration_id,
         "source_run_uuid": None if source is None else run_uuids.get(source),
         "source_run_local_id": source,
