@@ -10,11 +10,12 @@ The typed fields come from msgspec: the sample's ``values_json`` decoded into a 
 a float or null; every other key skipped unparsed) and encoded again as one JSON array, both in C; its commas become
 tabs and its ``null`` becomes COPY's ``\\N``. A float is written as its shortest round-trip text, so the server stores
 the same double as the stored text's (an integer becomes that integer's double, correctly rounded as the server's
-own conversion of its text would be: exact up to 2**53; ``-0`` becomes 0.0). A value that is not a number (a string, a boolean, a nested object, in an
-undeclared kind), JSON that is not an object, or JSON that only the standard library reads (an escaped lone
-surrogate in a key, which :func:`bench.store.records.to_json` can write) sends the row through
-:func:`_typed_fields_slow`, which keeps the numbers and sends NULL for the rest. (SQLite's ``json_extract`` of the 28 paths did the same in 2.0 us a sample
-and its number text needed 0.84 us more of Python; this takes 1.3 + 0.9: ``benchmarks/bench_sync_costs.py``.)
+own conversion of its text would be: exact up to 2**53; ``-0`` becomes 0.0). A value that is not a number (a
+string, a boolean, a nested object, in an undeclared kind), JSON that is not an object, or JSON that only the
+standard library reads (an escaped lone surrogate in a key, which :func:`bench.store.records.to_json` can write)
+sends the row through :func:`_typed_fields_slow`, which keeps the numbers and sends NULL for the rest. (SQLite's
+``json_extract`` of the 28 paths did the same in 2.0 us a sample and its number text needed 0.84 us more of Python;
+this takes 1.3 + 0.9: ``benchmarks/bench_sync_costs.py``.)
 
 Format: PostgreSQL manual, COPY, "Text Format": tab-separated, ``\\N`` for NULL, backslash escapes for backslash,
 tab, newline and carriage return.
