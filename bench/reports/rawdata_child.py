@@ -22,9 +22,9 @@ import weakref
 from pathlib import Path
 from typing import Any
 
-from bench.child_env import bench_child_env
 from bench.errors import BenchError
 from bench.reports.cores import core_time_free
+from bench.store.child_env import bench_child_env
 
 __all__ = ["PROCESS_MIN_SAMPLES", "CsvInChild", "long_enough", "worth_a_process"]
 

@@ -29,7 +29,7 @@ from collections.abc import Collection, Iterator, Sequence
 from contextlib import ExitStack, contextmanager
 from typing import Any
 
-from bench.child_env import bench_child_env
+from bench.store.child_env import bench_child_env
 from bench.store.database import RunRecord, Store
 from bench.store.lab_connection import LabStoreError
 from bench.store.lab_copy import copy_text

@@ -1,5 +1,6 @@
-"""The environment of a ``python -m bench...`` child process that bench starts itself (the lab sync's producers,
-a long report's raw-data CSV writer)."""
+"""The environment of a ``python -m bench...`` child process that reads a store file beside its parent (the lab
+sync's producers, :mod:`bench.store.lab_batches`; a long report's raw-data CSV writer,
+:mod:`bench.reports.rawdata_child`)."""
 
 from __future__ import annotations
 
@@ -9,7 +10,7 @@ from pathlib import Path
 __all__ = ["bench_child_env"]
 
 #: The folder holding bench/, wherever this copy of bench came from (a checkout, a wheel, a test's tree).
-_PACKAGE_ROOT = str(Path(__file__).resolve().parents[1])
+_PACKAGE_ROOT = str(Path(__file__).resolve().parents[2])
 
 
 def bench_child_env() -> dict[str, str]:
